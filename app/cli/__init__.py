@@ -1,0 +1,23 @@
+"""Command line entry point ``v3d`` (thin: parses arguments, calls services, prints).
+
+Each command group lives in its own module and registers on the objects of ``app.cli._root``.
+"""
+from __future__ import annotations
+
+import importlib
+
+from app.cli._root import cli
+
+# Modules that register commands; a missing module is a programming error, not a user one.
+_COMMAND_MODULES = ("app.cli.evaluation",)
+
+
+def _load_commands() -> None:
+    for name in _COMMAND_MODULES:
+        importlib.import_module(name)
+
+
+def main() -> None:
+    """Run the ``v3d`` command line."""
+    _load_commands()
+    cli()

@@ -1,0 +1,47 @@
+"""Settings of the service, read from the environment (prefix ``V3D_``) and ``.env``.
+
+One pydantic-settings class; the API, the CLI, Alembic and the services all read it through
+:func:`get_settings` or receive an instance explicitly (tests build their own).
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Literal
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from app.core.paths import PROJECT_ROOT
+
+
+class Settings(BaseSettings):
+    """Service configuration.
+
+    Environment variables: ``V3D_DATABASE_URL``, ``V3D_TRIANGULATION_TAU_PX`` and so on.
+    """
+
+    model_config = SettingsConfigDict(env_prefix="V3D_", env_file=".env", extra="ignore")
+
+    database_url: str = Field(
+        default=f"sqlite:///{PROJECT_ROOT / 'var' / 'v3d.sqlite3'}",
+        description="SQLAlchemy URL; SQLite by default, postgresql+psycopg://... for teams.",
+    )
+    # --- multi-view system admission and triangulation (method.md sections 4 and 5) ---
+    admit_jac_gamma: float = Field(0.005, description="gamma of the admission JaC (fraction of the diagonal).")
+    admit_jac_min: float = Field(0.75, description="A frame joins triangulation when JaC@gamma > this.")
+    triangulation_tau_px: float = Field(
+        20.0, description="tau: a pair is kept when its error (see pair_error_rule) is below this, in px."
+    )
+    pair_error_rule: Literal["max_scaled_1920", "mean_scaled_1920", "max_px"] = Field(
+        "max_scaled_1920",
+        description="How a pair's two reprojection errors combine into e_ij (see app.geometry.triangulation).",
+    )
+    min_baseline_m: float = Field(1.0, description="Pairs whose camera centres are closer are dropped (metres).")
+    ball_diameter_m: float = Field(0.22, description="phi, the ball diameter in metres.")
+    calibration_workers: int = Field(0, description="Processes for bulk calibration; 0 = all cores.")
+
+
+@lru_cache
+def get_settings() -> Settings:
+    """The process-wide settings read from the environment."""
+    return Settings()
