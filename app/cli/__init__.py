@@ -9,7 +9,12 @@ import importlib
 from app.cli._root import cli
 
 # Modules that register commands; a missing module is a programming error, not a user one.
-_COMMAND_MODULES = ("app.cli.evaluation",)
+_COMMAND_MODULES = (
+    "app.cli.evaluation",  # v3d jac
+    "app.cli.calibration",  # v3d calibrate
+    "app.cli.datasets",  # v3d import ..., v3d export ...
+    "app.cli.serve",  # v3d serve
+)
 
 
 def _load_commands() -> None:
