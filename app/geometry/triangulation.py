@@ -1,0 +1,370 @@
+"""Pairwise triangulation of the ball centre and its fusion (paper Eq. triangulation, method.md section 5).
+
+For every pair (i, j) of calibrated views with a ball label:
+
+1. the ball centres are undistorted (pixels -> undistorted pixels of the same camera), then
+   triangulated with the linear homogeneous DLT (Hartley and Zisserman, *Multiple View Geometry*,
+   2nd ed., section 12.2) using ``P = K R [I | -C]``;
+2. the point ``p_ij`` is reprojected (with distortion) into both views; the two pixel errors combine
+   into ``e_ij`` by a named rule (:data:`PAIR_ERROR_RULES`);
+3. the parallax angle ``beta_ij`` between the two viewing rays (degrees) and the baseline
+   ``|C_i - C_j|`` (metres) are recorded;
+4. the pair is kept when ``e_ij < tau`` and the baseline is at least ``min_baseline_m``.
+
+The ball is the mean of the kept ``p_ij``; each labelled view then gets the reprojection error of
+that fused ball in its own pixels (SoccerNet-v3D's ``rep_error``).
+
+Points behind a camera: a pair whose ``p_ij`` has a camera depth below
+:data:`app.geometry.camera.MIN_DEPTH_M` in either view is dropped with reason ``behind_camera``
+(cheirality; its ``e_ij`` is undefined and reported as ``None``). This happens when the two rays
+diverge, e.g. a wrongly placed ball label or a mirrored calibration: the algebraic DLT solution then
+lies behind one of the cameras. For the fused ball, a view in which it lies behind the camera has
+reprojection error ``None``.
+
+World frame: SoccerNet (metres, origin at the centre spot, z down). Image: continuous pixels,
+origin at the top-left corner.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+from typing import Callable, Hashable, Sequence
+
+import numpy as np
+
+from app.geometry.camera import MIN_DEPTH_M, Camera
+
+#: Reference width of the scaled pair-error rules: errors are expressed as if every image were
+#: this many pixels wide, so that 960- and 1920-px views of one system compare.
+REFERENCE_WIDTH_PX = 1920.0
+
+
+def _max_scaled(e_a: float, e_b: float, w_a: float, w_b: float) -> float:
+    return max(e_a * REFERENCE_WIDTH_PX / w_a, e_b * REFERENCE_WIDTH_PX / w_b)
+
+
+def _mean_scaled(e_a: float, e_b: float, w_a: float, w_b: float) -> float:
+    return 0.5 * (e_a * REFERENCE_WIDTH_PX / w_a + e_b * REFERENCE_WIDTH_PX / w_b)
+
+
+def _max_px(e_a: float, e_b: float, w_a: float, w_b: float) -> float:
+    return max(e_a, e_b)
+
+
+#: How a pair's two reprojection errors (px, each in its own image) combine into ``e_ij``:
+#:
+#: * ``max_scaled_1920`` (default): the larger of the two, each scaled to a 1920-px-wide image;
+#: * ``mean_scaled_1920``: their mean, each scaled to a 1920-px-wide image;
+#: * ``max_px``: the larger of the two raw pixel errors (no scaling).
+PAIR_ERROR_RULES: dict[str, Callable[[float, float, float, float], float]] = {
+    "max_scaled_1920": _max_scaled,
+    "mean_scaled_1920": _mean_scaled,
+    "max_px": _max_px,
+}
+
+#: Reasons a pair is dropped, in the order they are tested (a pair reports the first that applies).
+DROP_REASONS = ("degenerate", "point_at_infinity", "behind_camera", "baseline_below_min", "error_above_tau")
+
+#: Result statuses of :func:`triangulate_ball`.
+STATUS_TRIANGULATED = "triangulated"
+STATUS_INSUFFICIENT_VIEWS = "insufficient_views"
+STATUS_NO_PAIR_KEPT = "no_pair_kept"
+
+# Relative singular-value level below which the DLT system is rank deficient (identical rays).
+_RANK_EPS = 1e-10
+# |w| / ||X|| below which the homogeneous DLT solution is a point at infinity (parallel rays).
+_INFINITY_EPS = 1e-12
+
+
+@dataclass(frozen=True)
+class BallObservation:
+    """One view's ball label for triangulation.
+
+    Attributes:
+        view_id: any hashable identifier of the view (frame id, image name); kept as given.
+        camera: the view's calibrated camera (its own resolution and principal point).
+        point_px: (2,) ball centre in pixels of this image (distorted, as annotated).
+        image_width: width of this image in pixels (for the scaled error rules).
+    """
+
+    view_id: Hashable
+    camera: Camera
+    point_px: np.ndarray
+    image_width: float
+
+    def __post_init__(self) -> None:
+        p = np.array(self.point_px, dtype=float).reshape(-1)
+        if p.shape != (2,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"BallObservation.point_px must be 2 finite numbers, got {self.point_px!r}")
+        if not isinstance(self.camera, Camera):
+            raise ValueError(f"BallObservation.camera must be a Camera, got {type(self.camera).__name__}")
+        if not (np.isfinite(self.image_width) and self.image_width > 0):
+            raise ValueError(f"BallObservation.image_width must be positive, got {self.image_width!r}")
+        p.setflags(write=False)
+        object.__setattr__(self, "point_px", p)
+        object.__setattr__(self, "image_width", float(self.image_width))
+
+
+@dataclass(frozen=True)
+class PairResult:
+    """Triangulation of one pair of views.
+
+    Attributes:
+        view_a, view_b: the two view ids (in input order).
+        point: (3,) ``p_ij`` in world metres, or ``None`` when undefined (``degenerate``,
+            ``point_at_infinity``).
+        errors_px: reprojection errors of ``p_ij`` in view a and view b, each in its own pixels,
+            or ``None`` when the point is undefined or behind a camera.
+        error: ``e_ij`` by the chosen rule (px, see :data:`PAIR_ERROR_RULES`), or ``None``.
+        parallax_deg: angle between the two viewing rays, degrees in [0, 180].
+        baseline_m: distance between the two camera centres, metres.
+        kept: whether ``p_ij`` enters the fused ball.
+        reason: ``None`` when kept, else one of :data:`DROP_REASONS`.
+    """
+
+    view_a: Hashable
+    view_b: Hashable
+    point: np.ndarray | None
+    errors_px: tuple[float, float] | None
+    error: float | None
+    parallax_deg: float
+    baseline_m: float
+    kept: bool
+    reason: str | None
+
+
+@dataclass(frozen=True)
+class TriangulationResult:
+    """The fused 3D ball of a multi-view system.
+
+    Attributes:
+        status: :data:`STATUS_TRIANGULATED`, :data:`STATUS_INSUFFICIENT_VIEWS` (fewer than two
+            labelled views) or :data:`STATUS_NO_PAIR_KEPT` (every pair dropped; see ``pairs``).
+        point: (3,) fused ball centre, world metres (z down), or ``None`` unless triangulated.
+        pairs: one :class:`PairResult` per pair of observations, in input order.
+        view_errors_px: view id -> reprojection error (px, the view's own pixels) of the fused ball,
+            ``None`` when it lies behind that camera; empty unless triangulated.
+        tau_px, rule, min_baseline_m: the parameters used.
+    """
+
+    status: str
+    point: np.ndarray | None
+    pairs: tuple[PairResult, ...]
+    view_errors_px: dict[Hashable, float | None]
+    tau_px: float
+    rule: str
+    min_baseline_m: float
+
+    @property
+    def kept_pairs(self) -> tuple[PairResult, ...]:
+        """The pairs whose points were averaged."""
+        return tuple(p for p in self.pairs if p.kept)
+
+    @property
+    def contributing_views(self) -> frozenset[Hashable]:
+        """Ids of the views that belong to at least one kept pair."""
+        return frozenset(v for p in self.kept_pairs for v in (p.view_a, p.view_b))
+
+
+def triangulate_dlt(projections: np.ndarray, points_px: np.ndarray) -> np.ndarray:
+    """Linear homogeneous triangulation of one point seen in V views (Hartley and Zisserman 12.2).
+
+    Each view contributes the rows ``x P3 - P1`` and ``y P3 - P2``; the point is the right singular
+    vector of the smallest singular value. Rows are not reweighted, so with V = 2 the result equals
+    ``cv2.triangulatePoints``. Pixels must be undistorted (see :func:`undistort_pixels`).
+
+    Args:
+        projections: (V, 3, 4) projection matrices ``P = K R [I | -C]``, V >= 2.
+        points_px: (V, 2) undistorted pixel coordinates.
+
+    Returns:
+        (4,) homogeneous world point with unit norm (last coordinate may be ~0 for parallel rays).
+
+    Raises:
+        ValueError: bad shapes or fewer than two views.
+
+    >>> from app.geometry.camera import Camera
+    >>> a = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0,
+    ...                            tilt_deg=90.0, roll_deg=0.0, position_m=[0.0, 50.0, -10.0])
+    >>> b = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=90.0,
+    ...                            tilt_deg=90.0, roll_deg=0.0, position_m=[-50.0, 0.0, -10.0])
+    >>> X = np.array([[1.0, 2.0, -3.0]])
+    >>> uv = np.vstack([a.project(X)[0], b.project(X)[0]])
+    >>> h = triangulate_dlt(np.stack([a.projection_matrix, b.projection_matrix]), uv)
+    >>> np.round(h[:3] / h[3], 9).tolist()
+    [1.0, 2.0, -3.0]
+    """
+    P = np.asarray(projections, dtype=float)
+    x = np.asarray(points_px, dtype=float)
+    if P.ndim != 3 or P.shape[1:] != (3, 4):
+        raise ValueError(f"projections must have shape (V, 3, 4), got {P.shape}")
+    if x.shape != (P.shape[0], 2):
+        raise ValueError(f"points_px must have shape ({P.shape[0]}, 2), got {x.shape}")
+    if P.shape[0] < 2:
+        raise ValueError(f"triangulation needs at least two views, got {P.shape[0]}")
+    if not (np.all(np.isfinite(P)) and np.all(np.isfinite(x))):
+        raise ValueError("projections and points_px must be finite")
+    return _dlt(P, x)[0]
+
+
+def _dlt(P: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(V, 3, 4), (V, 2) -> (unit homogeneous point (4,), singular values (4,)) of the DLT system."""
+    A = np.concatenate([x[:, :1] * P[:, 2] - P[:, 0], x[:, 1:] * P[:, 2] - P[:, 1]], axis=0)
+    _, s, vt = np.linalg.svd(A)
+    return vt[-1], s
+
+
+def undistort_pixels(camera: Camera, points_px: np.ndarray) -> np.ndarray:
+    """Distorted pixels (N, 2) -> undistorted pixels (N, 2) of the same camera.
+
+    The undistorted pixel is ``K [x_u, y_u, 1]`` with ``(x_u, y_u)`` the undistorted normalised
+    coordinates (:meth:`Camera.normalise_pixels`); identity for a camera without distortion.
+    """
+    pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    if not camera.has_distortion:
+        return pts.copy()
+    xy = camera.normalise_pixels(pts, undistort=True)
+    return xy @ camera.K[:2, :2].T + camera.K[:2, 2]
+
+
+def parallax_angle_deg(camera_a: Camera, point_a_px: np.ndarray, camera_b: Camera,
+                       point_b_px: np.ndarray) -> float:
+    """Angle (degrees, [0, 180]) between the viewing rays of two pixels in two cameras.
+
+    Small angles mean large depth uncertainty even when the reprojection error is small (paper,
+    section 3D ball localisation). Rays are undistorted, in the world frame.
+    """
+    ra = camera_a.rays(np.asarray(point_a_px, float).reshape(1, 2))[0]
+    rb = camera_b.rays(np.asarray(point_b_px, float).reshape(1, 2))[0]
+    # atan2 of |cross| and dot is accurate at small angles, where arccos(dot) is not.
+    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(ra, rb)), float(ra @ rb))))
+
+
+def reprojection_error_px(camera: Camera, point_world: np.ndarray, point_px: np.ndarray) -> float | None:
+    """Distance (px) between a world point's projection (with distortion) and a pixel.
+
+    Args:
+        camera: the view's camera.
+        point_world: (3,) world point, metres.
+        point_px: (2,) observed pixel.
+
+    Returns:
+        The error in this image's pixels, or ``None`` when the point is behind the camera (camera
+        depth below :data:`MIN_DEPTH_M`).
+    """
+    uv, in_front = camera.project(np.asarray(point_world, float).reshape(1, 3))
+    if not in_front[0]:
+        return None
+    return float(np.linalg.norm(uv[0] - np.asarray(point_px, float).reshape(2)))
+
+
+def pair_error(errors_px: tuple[float, float], widths_px: tuple[float, float], rule: str) -> float:
+    """Combine a pair's two reprojection errors into ``e_ij`` (px) by the named rule.
+
+    Args:
+        errors_px: errors in view a and view b, each in its own pixels.
+        widths_px: the two image widths, pixels.
+        rule: a key of :data:`PAIR_ERROR_RULES`.
+
+    Raises:
+        ValueError: unknown rule (the message lists the known ones).
+
+    >>> pair_error((2.0, 3.0), (960.0, 1920.0), "max_scaled_1920")
+    4.0
+    """
+    try:
+        fn = PAIR_ERROR_RULES[rule]
+    except KeyError:
+        raise ValueError(f"pair_error_rule {rule!r} is unknown; choose one of {sorted(PAIR_ERROR_RULES)}") from None
+    return float(fn(errors_px[0], errors_px[1], widths_px[0], widths_px[1]))
+
+
+def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, rule: str,
+                     min_baseline_m: float) -> PairResult:
+    """Triangulate one pair of views and decide whether it is kept (see the module docstring).
+
+    Args:
+        a, b: the two observations.
+        tau_px: keep when ``e_ij < tau_px`` (px, in the rule's units).
+        rule: a key of :data:`PAIR_ERROR_RULES`.
+        min_baseline_m: keep only when ``|C_a - C_b| >= min_baseline_m`` (metres).
+
+    Raises:
+        ValueError: unknown rule.
+    """
+    if rule not in PAIR_ERROR_RULES:
+        pair_error((0.0, 0.0), (1.0, 1.0), rule)  # raises the standard message
+    baseline = float(np.linalg.norm(a.camera.C - b.camera.C))
+    beta = parallax_angle_deg(a.camera, a.point_px, b.camera, b.point_px)
+    P = np.stack([a.camera.projection_matrix, b.camera.projection_matrix])
+    uv = np.vstack([undistort_pixels(a.camera, a.point_px), undistort_pixels(b.camera, b.point_px)])
+    h, s = _dlt(P, uv)
+
+    def dropped(reason: str, point=None, errors=None, error=None) -> PairResult:
+        return PairResult(a.view_id, b.view_id, point, errors, error, beta, baseline, False, reason)
+
+    if s[2] <= _RANK_EPS * s[0]:
+        return dropped("degenerate")  # two-dimensional null space: the rays coincide
+    if abs(h[3]) <= _INFINITY_EPS * np.linalg.norm(h[:3]):
+        return dropped("point_at_infinity")
+    point = h[:3] / h[3]
+    e_a = reprojection_error_px(a.camera, point, a.point_px)
+    e_b = reprojection_error_px(b.camera, point, b.point_px)
+    if e_a is None or e_b is None:
+        return dropped("behind_camera", point)
+    e = pair_error((e_a, e_b), (a.image_width, b.image_width), rule)
+    if baseline < min_baseline_m:
+        return dropped("baseline_below_min", point, (e_a, e_b), e)
+    if not e < tau_px:
+        return dropped("error_above_tau", point, (e_a, e_b), e)
+    return PairResult(a.view_id, b.view_id, point, (e_a, e_b), e, beta, baseline, True, None)
+
+
+def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, rule: str = "max_scaled_1920",
+                     min_baseline_m: float = 1.0) -> TriangulationResult:
+    """The 3D ball of a multi-view system (paper Eq. triangulation, method.md section 5).
+
+    Every pair of observations is triangulated (:func:`triangulate_pair`); the ball is the mean of
+    the kept ``p_ij``; each view gets the reprojection error of the fused ball.
+
+    Args:
+        observations: the labelled, calibrated views (order is kept in ``pairs``); view ids must be
+            unique.
+        tau_px: pair error threshold ``tau`` in pixels (units of ``rule``); positive.
+        rule: a key of :data:`PAIR_ERROR_RULES`.
+        min_baseline_m: minimum camera-centre distance of a kept pair, metres (paper: 1 m).
+
+    Returns:
+        A :class:`TriangulationResult`. Fewer than two observations give status
+        ``insufficient_views`` (no exception); all pairs dropped give ``no_pair_kept``.
+
+    Raises:
+        ValueError: unknown rule, non-positive ``tau_px``, negative ``min_baseline_m`` or duplicate
+            view ids.
+    """
+    if rule not in PAIR_ERROR_RULES:
+        pair_error((0.0, 0.0), (1.0, 1.0), rule)
+    if not tau_px > 0:
+        raise ValueError(f"tau_px must be positive, got {tau_px!r}")
+    if not min_baseline_m >= 0:
+        raise ValueError(f"min_baseline_m must be >= 0, got {min_baseline_m!r}")
+    obs = list(observations)
+    ids = [o.view_id for o in obs]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"observations: view ids must be unique, got {ids!r}")
+
+    def result(status: str, point=None, pairs=(), errors=None) -> TriangulationResult:
+        return TriangulationResult(status, point, tuple(pairs), errors or {}, float(tau_px), rule,
+                                   float(min_baseline_m))
+
+    if len(obs) < 2:
+        return result(STATUS_INSUFFICIENT_VIEWS)
+    pairs = [triangulate_pair(a, b, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m)
+             for a, b in combinations(obs, 2)]
+    kept = [p.point for p in pairs if p.kept]
+    if not kept:
+        return result(STATUS_NO_PAIR_KEPT, pairs=pairs)
+    ball = np.mean(kept, axis=0)
+    ball.setflags(write=False)
+    errors = {o.view_id: reprojection_error_px(o.camera, ball, o.point_px) for o in obs}
+    return result(STATUS_TRIANGULATED, ball, pairs, errors)
