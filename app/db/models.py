@@ -1,0 +1,382 @@
+"""SQLAlchemy 2 typed models of v3d.
+
+Entity graph (``->`` is "has many", ``-`` is "has one")::
+
+    Game -> System -> Frame - FieldLineAnnotation      (current + imported original, pixels)
+                 |          - Calibration              (SoccerNet camera JSON, JaC@gamma, admitted)
+                 |          - BallLabel                (box or point, current + imported original)
+                 |          - BallReprojection         (fused 3D ball projected into the view)
+                 |          - OptimisedBox             (paper Eq. min_diametre)
+                 |          - ReviewDecision           (frame level)
+                 - Triangulation -> TriangulationPair  (per pair e_ij, parallax, baseline, kept)
+                 - ReviewDecision                      (system level)
+
+Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
+world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
+``[x1, y1, x2, y2]`` and points ``[x, y]`` JSON lists. Enums are stored by value.
+The schema is created by the Alembic migrations (``migrations/``), never by ``create_all``.
+"""
+from __future__ import annotations
+
+import enum
+from datetime import datetime
+from typing import Any, Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+
+from app.db.types import JSONDoc, UTCDateTime, enum_by_value, utcnow
+
+#: Constraint names Alembic can rely on (same on SQLite and PostgreSQL).
+NAMING_CONVENTION = {
+    "ix": "ix_%(column_0_label)s",
+    "uq": "uq_%(table_name)s_%(column_0_N_name)s",
+    "ck": "ck_%(table_name)s_%(constraint_name)s",
+    "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
+    "pk": "pk_%(table_name)s",
+}
+
+
+class Base(DeclarativeBase):
+    """Declarative base: float columns are DOUBLE PRECISION, datetimes UTC, dicts and lists JSON."""
+
+    metadata = sa.MetaData(naming_convention=NAMING_CONVENTION)
+    type_annotation_map = {
+        float: sa.Double(),
+        datetime: UTCDateTime(),
+        dict[str, Any]: JSONDoc,
+        list[Any]: JSONDoc,
+        list[float]: JSONDoc,
+        list[str]: JSONDoc,
+    }
+
+
+# ----- enums ---------------------------------------------------------------------------------------
+class SystemKind(str, enum.Enum):
+    """How a multi-view system was formed."""
+
+    SOCCERNET_V3 = "soccernet-v3"  # an action frame and its linked replays
+    SINGLE_VIEW = "single-view"  # one frame of a calibration dataset, reviewed for its calibration
+
+
+class FrameRole(str, enum.Enum):
+    """The frame's part in its system."""
+
+    ACTION = "action"
+    REPLAY = "replay"
+    CAMERA = "camera"  # the only view of a single-view system
+
+
+class CalibrationSource(str, enum.Enum):
+    """Where a frame's camera comes from."""
+
+    IMPORTED = "imported"  # read from a SoccerNet-v3D export, never recomputed on import
+    COMPUTED = "computed"  # app.geometry.calibration.calibrate_frame on the current field lines
+    EDITED = "edited"  # set by a reviewer
+
+
+class CalibrationStatus(str, enum.Enum):
+    """Outcome of calibration: a camera, or a refusal with its reason."""
+
+    CALIBRATED = "calibrated"
+    REFUSED = "refused"
+
+
+class BallKind(str, enum.Enum):
+    """A ball label is a box (SoccerNet-v3) or a point (ISSIA)."""
+
+    BOX = "box"
+    POINT = "point"
+
+
+class TriangulationStatus(str, enum.Enum):
+    """Outcome of a system's triangulation (method.md section 5)."""
+
+    TRIANGULATED = "triangulated"  # at least one pair kept; ``ball3d`` is the mean of the kept points
+    INSUFFICIENT_VIEWS = "insufficient_views"  # fewer than two admitted views with a ball label
+    NO_CONSISTENT_PAIR = "no_consistent_pair"  # every pair dropped (tau, baseline or degenerate)
+
+
+class ReviewStatus(str, enum.Enum):
+    """A reviewer's decision on a system or a frame."""
+
+    PENDING = "pending"
+    ACCEPTED = "accepted"
+    REJECTED = "rejected"
+    NEEDS_FIX = "needs_fix"
+
+
+# ----- entities ------------------------------------------------------------------------------------
+class Game(Base):
+    """One game (SoccerNet-v3) or one calibration dataset (its frames are single-view systems)."""
+
+    __tablename__ = "games"
+    __table_args__ = (sa.UniqueConstraint("league", "season", "match"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    league: Mapped[str] = mapped_column(sa.String(200))
+    season: Mapped[str] = mapped_column(sa.String(200))
+    match: Mapped[str] = mapped_column(sa.String(400))
+    #: Folder or archive the game was imported from (absolute path at import time).
+    source_path: Mapped[str] = mapped_column(sa.Text)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    systems: Mapped[list[System]] = relationship(
+        back_populates="game", cascade="all, delete-orphan", passive_deletes=True, order_by="System.id"
+    )
+
+    @property
+    def path(self) -> str:
+        """``league/season/match``: the game's folder in SoccerNet trees and its key in exports."""
+        return f"{self.league}/{self.season}/{self.match}"
+
+
+class System(Base):
+    """A multi-view system: an action frame and its linked replays, or one single-view frame."""
+
+    __tablename__ = "systems"
+    __table_args__ = (sa.UniqueConstraint("game_id", "name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    game_id: Mapped[int] = mapped_column(sa.ForeignKey("games.id", ondelete="CASCADE"), index=True)
+    #: The action frame's name ("12.png") or the calibration frame's file stem ("00002").
+    name: Mapped[str] = mapped_column(sa.String(200))
+    kind: Mapped[SystemKind] = mapped_column(enum_by_value(SystemKind, "system_kind"))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    game: Mapped[Game] = relationship(back_populates="systems")
+    frames: Mapped[list[Frame]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True, order_by="Frame.position"
+    )
+    triangulation: Mapped[Optional[Triangulation]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True
+    )
+    review: Mapped[Optional[ReviewDecision]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True
+    )
+
+
+class Frame(Base):
+    """One image of a system and where its pixels are read from.
+
+    The image is either a member of a zip archive (``image_zip`` + ``image_member``, read without
+    extracting) or a file (``image_path``); both empty when the dataset ships no images.
+    """
+
+    __tablename__ = "frames"
+    __table_args__ = (
+        sa.UniqueConstraint("system_id", "name"),
+        sa.CheckConstraint("width > 0 AND height > 0", name="positive_size"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(sa.String(200))
+    role: Mapped[FrameRole] = mapped_column(enum_by_value(FrameRole, "frame_role"))
+    #: Order of the views in the system (the action first, then replays in file order).
+    position: Mapped[int] = mapped_column(default=0)
+    width: Mapped[int]
+    height: Mapped[int]
+    image_zip: Mapped[Optional[str]] = mapped_column(sa.Text)
+    image_member: Mapped[Optional[str]] = mapped_column(sa.Text)
+    image_path: Mapped[Optional[str]] = mapped_column(sa.Text)
+
+    system: Mapped[System] = relationship(back_populates="frames")
+    field_lines: Mapped[Optional[FieldLineAnnotation]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    calibration: Mapped[Optional[Calibration]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    ball_label: Mapped[Optional[BallLabel]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    reprojection: Mapped[Optional[BallReprojection]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    optimised_box: Mapped[Optional[OptimisedBox]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    review: Mapped[Optional[ReviewDecision]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+
+
+class FieldLineAnnotation(Base):
+    """A frame's field lines: ``{class: [[[x, y], ...], ...]}`` in pixels (repeated classes kept).
+
+    ``original_lines`` is what the dataset said; ``lines`` is the current value (equal until edited).
+    """
+
+    __tablename__ = "field_lines"
+
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
+    lines: Mapped[dict[str, Any]]
+    original_lines: Mapped[dict[str, Any]]
+    edited_at: Mapped[Optional[datetime]]
+
+    frame: Mapped[Frame] = relationship(back_populates="field_lines")
+
+    @property
+    def edited(self) -> bool:
+        """True when the current lines differ from the imported ones."""
+        return self.lines != self.original_lines
+
+
+class Calibration(Base):
+    """A frame's camera (SoccerNet-calibration JSON, method.md section 2) and its quality.
+
+    ``jac_0005``, ``jac_001``, ``jac_002`` are JaC at gamma = 0.5 %, 1 %, 2 % of the image diagonal
+    (method.md section 4), computed at the frame's own resolution. ``admitted`` says whether the frame
+    joined its system's triangulation under the settings of the last recomputation.
+    """
+
+    __tablename__ = "calibrations"
+
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
+    source: Mapped[CalibrationSource] = mapped_column(enum_by_value(CalibrationSource, "calibration_source"))
+    status: Mapped[CalibrationStatus] = mapped_column(enum_by_value(CalibrationStatus, "calibration_status"))
+    camera: Mapped[Optional[dict[str, Any]]]
+    reason: Mapped[Optional[str]] = mapped_column(sa.Text)
+    flags: Mapped[list[str]] = mapped_column(default=list)
+    residuals_px: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    jac_0005: Mapped[Optional[float]]
+    jac_001: Mapped[Optional[float]]
+    jac_002: Mapped[Optional[float]]
+    admitted: Mapped[bool] = mapped_column(default=False)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
+
+    frame: Mapped[Frame] = relationship(back_populates="calibration")
+
+    def jac(self) -> dict[str, Optional[float]]:
+        """``{"0.005": .., "0.01": .., "0.02": ..}`` (the keys of the API and of exports)."""
+        return {"0.005": self.jac_0005, "0.01": self.jac_001, "0.02": self.jac_002}
+
+
+class BallLabel(Base):
+    """A frame's ball label: a box ``[x1, y1, x2, y2]`` or a point ``[x, y]`` in pixels.
+
+    The imported original is kept beside the current value; both are empty of ball when the frame
+    has no label (no row at all).
+    """
+
+    __tablename__ = "ball_labels"
+
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
+    kind: Mapped[BallKind] = mapped_column(enum_by_value(BallKind, "ball_kind"))
+    box: Mapped[Optional[list[float]]]
+    point: Mapped[Optional[list[float]]]
+    original_kind: Mapped[Optional[BallKind]] = mapped_column(enum_by_value(BallKind, "ball_original_kind"))
+    original_box: Mapped[Optional[list[float]]]
+    original_point: Mapped[Optional[list[float]]]
+    edited_at: Mapped[Optional[datetime]]
+
+    frame: Mapped[Frame] = relationship(back_populates="ball_label")
+
+    @property
+    def edited(self) -> bool:
+        """True when the current label differs from the imported one."""
+        return (self.kind, self.box, self.point) != (self.original_kind, self.original_box, self.original_point)
+
+    @property
+    def centre(self) -> list[float]:
+        """The labelled ball centre ``[x, y]`` in pixels: the box centre or the point."""
+        if self.box is not None:
+            x1, y1, x2, y2 = self.box
+            return [(x1 + x2) / 2.0, (y1 + y2) / 2.0]
+        assert self.point is not None
+        return list(self.point)
+
+
+class Triangulation(Base):
+    """The fused 3D ball of a system (method.md section 5) and the settings it was made with."""
+
+    __tablename__ = "triangulations"
+
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), primary_key=True)
+    status: Mapped[TriangulationStatus] = mapped_column(enum_by_value(TriangulationStatus, "triangulation_status"))
+    #: World metres ``[x, y, z]`` (z down), or None when not triangulated.
+    ball3d: Mapped[Optional[list[float]]]
+    tau_px: Mapped[float]
+    rule: Mapped[str] = mapped_column(sa.String(40))
+    min_baseline_m: Mapped[float]
+    computed_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
+
+    system: Mapped[System] = relationship(back_populates="triangulation")
+    pairs: Mapped[list[TriangulationPair]] = relationship(
+        back_populates="triangulation", cascade="all, delete-orphan", passive_deletes=True,
+        order_by="TriangulationPair.id",
+    )
+
+
+class TriangulationPair(Base):
+    """One pair (i, j) of admitted views: its DLT point, e_ij, parallax beta_ij, baseline, verdict."""
+
+    __tablename__ = "triangulation_pairs"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    system_id: Mapped[int] = mapped_column(
+        sa.ForeignKey("triangulations.system_id", ondelete="CASCADE"), index=True
+    )
+    frame_a_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"))
+    frame_b_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"))
+    #: World metres ``[x, y, z]``; None when the pair is degenerate.
+    point: Mapped[Optional[list[float]]]
+    error_px: Mapped[Optional[float]]
+    parallax_deg: Mapped[Optional[float]]
+    baseline_m: Mapped[float]
+    kept: Mapped[bool]
+    reason: Mapped[Optional[str]] = mapped_column(sa.Text)
+
+    triangulation: Mapped[Triangulation] = relationship(back_populates="pairs")
+    frame_a: Mapped[Frame] = relationship(foreign_keys=[frame_a_id])
+    frame_b: Mapped[Frame] = relationship(foreign_keys=[frame_b_id])
+
+
+class BallReprojection(Base):
+    """The system's 3D ball projected into one calibrated view; ``error_px`` is the distance to the
+    labelled centre (SoccerNet-v3D's ``rep_error``), None when the view has no ball label."""
+
+    __tablename__ = "ball_reprojections"
+
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
+    point: Mapped[list[float]]
+    error_px: Mapped[Optional[float]]
+
+    frame: Mapped[Frame] = relationship(back_populates="reprojection")
+
+
+class OptimisedBox(Base):
+    """Paper Eq. min_diametre: a square box on the labelled centre with side ``d_opt_px``, and the
+    remaining distance ``error_m`` (metres) between the 3D ball and the monocular estimate."""
+
+    __tablename__ = "optimised_boxes"
+
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
+    box: Mapped[list[float]]
+    d_opt_px: Mapped[float]
+    error_m: Mapped[float]
+
+    frame: Mapped[Frame] = relationship(back_populates="optimised_box")
+
+
+class ReviewDecision(Base):
+    """The current review decision on a system or on a frame (exactly one of the two)."""
+
+    __tablename__ = "review_decisions"
+    __table_args__ = (
+        sa.CheckConstraint("(system_id IS NULL) <> (frame_id IS NULL)", name="one_subject"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    system_id: Mapped[Optional[int]] = mapped_column(
+        sa.ForeignKey("systems.id", ondelete="CASCADE"), unique=True
+    )
+    frame_id: Mapped[Optional[int]] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), unique=True)
+    status: Mapped[ReviewStatus] = mapped_column(enum_by_value(ReviewStatus, "review_status"),
+                                                 default=ReviewStatus.PENDING)
+    comment: Mapped[str] = mapped_column(sa.Text, default="")
+    decided_at: Mapped[Optional[datetime]]
+
+    system: Mapped[Optional[System]] = relationship(back_populates="review", foreign_keys=[system_id])
+    frame: Mapped[Optional[Frame]] = relationship(back_populates="review", foreign_keys=[frame_id])

@@ -1,0 +1,91 @@
+"""Column types shared by the models: UTC timestamps, JSON, enums stored by value.
+
+Kept apart from the models so that migrations and models agree on one definition of each type.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from datetime import datetime, timezone
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.dialects.postgresql import JSONB
+from sqlalchemy.engine import Dialect
+from sqlalchemy.types import TypeDecorator
+
+
+class UTCDateTime(TypeDecorator[datetime]):
+    """A timezone-aware UTC timestamp on every backend.
+
+    PostgreSQL stores ``timestamp with time zone``; SQLite stores the ISO text without an offset.
+    Values bound must be timezone-aware (a naive datetime raises ``ValueError``: its zone is
+    unknown); values read are always returned as aware UTC datetimes.
+    """
+
+    impl = sa.DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None or value.utcoffset() is None:
+            raise ValueError(f"naive datetime {value!r}: store timezone-aware UTC times")
+        value = value.astimezone(timezone.utc)
+        return value.replace(tzinfo=None) if dialect.name == "sqlite" else value
+
+    def process_result_value(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            return value.replace(tzinfo=timezone.utc)
+        return value.astimezone(timezone.utc)
+
+
+#: JSON document column: ``JSONB`` on PostgreSQL, JSON text elsewhere.
+JSONDoc = sa.JSON().with_variant(JSONB(), "postgresql")
+
+
+def utcnow() -> datetime:
+    """The current time, timezone-aware UTC (the default of every timestamp column)."""
+    return datetime.now(timezone.utc)
+
+
+def enum_by_value(enum_cls: type[enum.Enum], name: str) -> sa.Enum:
+    """A non-native ``Enum`` column storing each member's **value** (not its name), with a CHECK
+    constraint named ``name`` so that both SQLite and PostgreSQL reject unknown strings."""
+    values = [m.value for m in enum_cls]  # type: ignore[var-annotated]
+    return sa.Enum(
+        enum_cls,
+        name=name,
+        native_enum=False,
+        create_constraint=True,
+        length=max(len(v) for v in values),
+        values_callable=lambda e: [m.value for m in e],
+        validate_strings=True,
+    )
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with numpy scalars and arrays turned into plain Python numbers and lists, so that it
+    can be stored in a JSON column; NaN and infinities become ``None`` (JSON has no such numbers and
+    PostgreSQL's JSONB rejects them). Raises ``TypeError`` for anything JSON cannot hold."""
+    import numpy as np
+
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return json_safe(value.tolist())
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return json_safe(float(value))
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, (str, bool, int)):
+        return value
+    raise TypeError(f"cannot store {type(value).__name__} in a JSON column")
