@@ -1,0 +1,305 @@
+"""Box and 3D-ball metrics (method.md section 8; paper sections Experiments and Metrics).
+
+* :func:`box_iou` and :func:`box_size_error_pct` compare boxes ``[x1, y1, x2, y2]`` in continuous
+  pixels (no "+1" pixel-inclusive convention: a box's width is ``x2 - x1``).
+* :func:`average_precision`: Pascal VOC AP at an IoU threshold (all-point interpolation, VOC 2010
+  onwards, Everingham et al. 2010), with loaders for YOLO txt and COCO results JSON detections.
+* :func:`monocular_metrics`: MAE_m, MAE_%, P@tau3D and :func:`precision_curve`, counting only
+  detections whose IoU with the reference box is > 0 (paper, section Metrics).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Hashable, Mapping, Sequence
+
+import numpy as np
+
+
+def box_iou(boxes_a: np.ndarray, boxes_b: np.ndarray) -> np.ndarray:
+    """Intersection over union of boxes, broadcasting over leading dimensions.
+
+    Args:
+        boxes_a: (..., 4) ``[x1, y1, x2, y2]`` pixels.
+        boxes_b: (..., 4), broadcastable against ``boxes_a`` (e.g. ``a[:, None]`` and ``b[None]``
+            give the (N, M) IoU matrix).
+
+    Returns:
+        (...) IoU in [0, 1]; 0 where the union is empty.
+
+    Raises:
+        ValueError: last dimension is not 4.
+
+    >>> box_iou(np.array([0.0, 0.0, 2.0, 2.0]), np.array([1.0, 0.0, 3.0, 2.0])).round(6).item()
+    0.333333
+    """
+    a, b = _boxes(boxes_a, "boxes_a"), _boxes(boxes_b, "boxes_b")
+    iw = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]), 0.0, None)
+    ih = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]), 0.0, None)
+    inter = iw * ih
+    area_a = np.clip(a[..., 2] - a[..., 0], 0.0, None) * np.clip(a[..., 3] - a[..., 1], 0.0, None)
+    area_b = np.clip(b[..., 2] - b[..., 0], 0.0, None) * np.clip(b[..., 3] - b[..., 1], 0.0, None)
+    union = area_a + area_b - inter
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+
+
+def box_size_error_pct(boxes: np.ndarray, references: np.ndarray) -> np.ndarray:
+    """Box size error ``|diag(box) - diag(ref)| / diag(ref)`` in percent (paper Table bboxopt).
+
+    Args:
+        boxes: (..., 4) ``[x1, y1, x2, y2]`` pixels.
+        references: (..., 4), broadcastable, with a positive diagonal.
+
+    Returns:
+        (...) percent.
+
+    Raises:
+        ValueError: bad shapes or a reference with a zero diagonal.
+
+    >>> box_size_error_pct(np.array([0.0, 0.0, 3.0, 4.0]), np.array([0.0, 0.0, 6.0, 8.0])).item()
+    50.0
+    """
+    a, b = _boxes(boxes, "boxes"), _boxes(references, "references")
+    da = np.hypot(a[..., 2] - a[..., 0], a[..., 3] - a[..., 1])
+    db = np.hypot(b[..., 2] - b[..., 0], b[..., 3] - b[..., 1])
+    if np.any(db <= 0):
+        raise ValueError("references must have a positive diagonal")
+    return 100.0 * np.abs(da - db) / db
+
+
+@dataclass(frozen=True)
+class Detections:
+    """Scored detections of one class over a set of images.
+
+    Attributes:
+        image_ids: (N,) image identifiers (any hashable, compared with the ground truth's keys).
+        boxes: (N, 4) ``[x1, y1, x2, y2]`` pixels.
+        scores: (N,) confidences (higher = more confident).
+    """
+
+    image_ids: tuple[Hashable, ...]
+    boxes: np.ndarray
+    scores: np.ndarray
+
+    def __post_init__(self) -> None:
+        boxes = _boxes(np.asarray(self.boxes, float).reshape(-1, 4), "Detections.boxes")
+        scores = np.asarray(self.scores, float).reshape(-1)
+        if not (len(self.image_ids) == len(boxes) == len(scores)):
+            raise ValueError(f"Detections: image_ids, boxes and scores differ in length "
+                             f"({len(self.image_ids)}, {len(boxes)}, {len(scores)})")
+        if not np.all(np.isfinite(scores)):
+            raise ValueError("Detections.scores must be finite")
+        object.__setattr__(self, "image_ids", tuple(self.image_ids))
+        object.__setattr__(self, "boxes", boxes)
+        object.__setattr__(self, "scores", scores)
+
+    @classmethod
+    def concat(cls, parts: Sequence["Detections"]) -> "Detections":
+        """All detections of several parts, in order."""
+        return cls(tuple(i for p in parts for i in p.image_ids),
+                   np.concatenate([p.boxes for p in parts]) if parts else np.zeros((0, 4)),
+                   np.concatenate([p.scores for p in parts]) if parts else np.zeros(0))
+
+
+def average_precision(detections: Detections, ground_truth: Mapping[Hashable, np.ndarray],
+                      iou_threshold: float = 0.5) -> float:
+    """Pascal VOC average precision (all-point interpolation, VOC 2010 onwards).
+
+    Detections are taken by decreasing score (ties keep input order); each is a true positive when
+    its best-overlapping ground-truth box in the same image has IoU >= ``iou_threshold`` (the
+    official MATLAB devkit's ``>=``) and has not been matched yet, otherwise a false positive. AP is
+    the area under the precision-recall curve made monotone (precision at recall r = max precision
+    at recall >= r), summed where recall changes.
+
+    Args:
+        detections: the scored detections (:class:`Detections`).
+        ground_truth: image id -> (M, 4) reference boxes (M may be 0); images absent here have none.
+        iou_threshold: IoU for a match (0.5 for AP@0.5).
+
+    Returns:
+        AP in [0, 1].
+
+    Raises:
+        ValueError: no ground-truth box at all (AP is undefined), or a bad box shape.
+
+    >>> gt = {"a": np.array([[0.0, 0.0, 10.0, 10.0]]), "b": np.array([[0.0, 0.0, 10.0, 10.0]])}
+    >>> det = Detections(("a", "b", "a"), np.array([[0, 0, 10, 10], [50, 50, 60, 60], [1, 1, 10, 10]]),
+    ...                  np.array([0.9, 0.8, 0.7]))
+    >>> average_precision(det, gt)   # TP, FP, duplicate FP: recall 1/2 at precision 1
+    0.5
+    """
+    gts = {k: _boxes(np.asarray(v, float).reshape(-1, 4), f"ground_truth[{k!r}]") for k, v in ground_truth.items()}
+    n_gt = sum(len(v) for v in gts.values())
+    if n_gt == 0:
+        raise ValueError("ground_truth holds no box: average precision is undefined")
+    order = np.argsort(-detections.scores, kind="stable")
+    used = {k: np.zeros(len(v), bool) for k, v in gts.items()}
+    tp = np.zeros(len(order))
+    for rank, i in enumerate(order):
+        ref = gts.get(detections.image_ids[i])
+        if ref is None or len(ref) == 0:
+            continue
+        ious = box_iou(detections.boxes[i][None, :], ref)
+        j = int(np.argmax(ious))
+        if ious[j] >= iou_threshold and not used[detections.image_ids[i]][j]:
+            used[detections.image_ids[i]][j] = True
+            tp[rank] = 1.0
+    ctp = np.cumsum(tp)
+    recall = ctp / n_gt
+    precision = ctp / np.arange(1, len(order) + 1)
+    return voc_ap(recall, precision)
+
+
+def voc_ap(recall: np.ndarray, precision: np.ndarray) -> float:
+    """All-point interpolated AP from a precision-recall curve (VOC 2010+ ``VOCap``).
+
+    Args:
+        recall: (N,) non-decreasing recall of the top-k detections.
+        precision: (N,) precision of the top-k detections.
+
+    >>> voc_ap(np.array([0.5, 0.5, 1.0]), np.array([1.0, 0.5, 2 / 3]))  # doctest: +ELLIPSIS
+    0.833...
+    """
+    mrec = np.concatenate([[0.0], np.asarray(recall, float), [1.0]])
+    mpre = np.concatenate([[0.0], np.asarray(precision, float), [0.0]])
+    mpre = np.maximum.accumulate(mpre[::-1])[::-1]
+    i = np.nonzero(mrec[1:] != mrec[:-1])[0]
+    return float(np.sum((mrec[i + 1] - mrec[i]) * mpre[i + 1]))
+
+
+def load_yolo_detections(path: str | Path, width: float, height: float, class_id: int | None = None,
+                         image_id: Hashable | None = None) -> Detections:
+    """Detections of one image from a YOLO txt file (``class cx cy w h conf`` per line, normalised).
+
+    Box in pixels: ``x1 = (cx - w/2) width``, ``y1 = (cy - h/2) height``, and so on (continuous
+    pixels; the image spans [0, width] x [0, height]).
+
+    Args:
+        path: the txt file (empty file: no detection).
+        width, height: image size in pixels.
+        class_id: keep only this class (``None``: all).
+        image_id: id given to the detections (default: the file's stem).
+
+    Raises:
+        ValueError: a line without 6 numbers (the message names the file and line).
+    """
+    path = Path(path)
+    ident = path.stem if image_id is None else image_id
+    boxes, scores = [], []
+    for n, line in enumerate(path.read_text().splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            cls, cx, cy, w, h, conf = (float(v) for v in line.split())
+        except ValueError:
+            raise ValueError(f"{path}:{n}: expected 'class cx cy w h conf', got {line!r}") from None
+        if class_id is not None and int(cls) != class_id:
+            continue
+        boxes.append([(cx - w / 2) * width, (cy - h / 2) * height, (cx + w / 2) * width, (cy + h / 2) * height])
+        scores.append(conf)
+    return Detections((ident,) * len(boxes), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
+
+
+def load_coco_results(path: str | Path, category_id: int | None = None) -> Detections:
+    """Detections from a COCO results JSON: a list of ``{"image_id", "category_id", "bbox": [x, y, w, h], "score"}``.
+
+    Args:
+        path: the JSON file.
+        category_id: keep only this category (``None``: all).
+
+    Raises:
+        ValueError: not a list, or an entry missing a field (the message names it and the index).
+    """
+    data = json.loads(Path(path).read_text())
+    if not isinstance(data, list):
+        raise ValueError(f"{path}: a COCO results file is a JSON list")
+    ids, boxes, scores = [], [], []
+    for n, r in enumerate(data):
+        for key in ("image_id", "bbox", "score"):
+            if key not in r:
+                raise ValueError(f"{path}: entry {n} lacks {key!r}")
+        if category_id is not None and r.get("category_id") != category_id:
+            continue
+        x, y, w, h = (float(v) for v in r["bbox"])
+        ids.append(r["image_id"])
+        boxes.append([x, y, x + w, y + h])
+        scores.append(float(r["score"]))
+    return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
+
+
+@dataclass(frozen=True)
+class MonocularMetrics:
+    """3D localisation metrics of monocular ball estimates (paper, section Metrics).
+
+    Attributes:
+        n: detections counted (IoU > 0 with the reference box).
+        mae_m: mean 3D distance to the reference ball, metres (MAE_m).
+        mae_pct: mean of that distance divided by the camera-to-reference-ball distance, % (MAE_%).
+        precision_at_tau: fraction (0..1) of counted detections within ``tau_m`` (P@tau3D).
+        tau_m: the threshold, metres.
+    """
+
+    n: int
+    mae_m: float
+    mae_pct: float
+    precision_at_tau: float
+    tau_m: float
+
+
+def monocular_metrics(predicted: np.ndarray, reference: np.ndarray, camera_centres: np.ndarray,
+                      ious: np.ndarray, tau_m: float = 2.0) -> MonocularMetrics:
+    """MAE_m, MAE_% and P@tau3D over detections with IoU > 0 against their reference box.
+
+    Args:
+        predicted: (N, 3) monocular ball centres, world metres.
+        reference: (N, 3) reference (triangulated) ball centres, world metres.
+        camera_centres: (N, 3) centre of each detection's camera, world metres.
+        ious: (N,) IoU of each detection with its reference box.
+        tau_m: P@tau threshold, metres (paper: 2 m).
+
+    Returns:
+        :class:`MonocularMetrics`; NaN figures when no detection counts.
+
+    Raises:
+        ValueError: shapes differ.
+    """
+    pred, ref, cams = (np.asarray(a, float).reshape(-1, 3) for a in (predicted, reference, camera_centres))
+    iou = np.asarray(ious, float).reshape(-1)
+    if not (len(pred) == len(ref) == len(cams) == len(iou)):
+        raise ValueError("predicted, reference, camera_centres and ious must have the same length")
+    keep = iou > 0
+    err = np.linalg.norm(pred[keep] - ref[keep], axis=1)
+    rel = err / np.linalg.norm(ref[keep] - cams[keep], axis=1)
+    n = int(keep.sum())
+    nan = float("nan")
+    return MonocularMetrics(n, float(err.mean()) if n else nan, 100.0 * float(rel.mean()) if n else nan,
+                            float(precision_curve(err, np.array([tau_m]))[0]), float(tau_m))
+
+
+def precision_curve(errors_m: np.ndarray, thresholds_m: np.ndarray) -> np.ndarray:
+    """Precision-threshold curve: fraction of errors strictly below each threshold.
+
+    Args:
+        errors_m: (N,) 3D errors of the counted detections, metres.
+        thresholds_m: (T,) thresholds, metres.
+
+    Returns:
+        (T,) fractions in [0, 1] (NaN when N = 0).
+
+    >>> precision_curve(np.array([0.5, 1.5, 3.0]), np.array([1.0, 2.0, 4.0])).round(3).tolist()
+    [0.333, 0.667, 1.0]
+    """
+    e = np.sort(np.asarray(errors_m, float).reshape(-1))
+    t = np.asarray(thresholds_m, float).reshape(-1)
+    if len(e) == 0:
+        return np.full(len(t), np.nan)
+    return np.searchsorted(e, t, side="left") / len(e)
+
+
+def _boxes(a: np.ndarray, name: str) -> np.ndarray:
+    arr = np.asarray(a, dtype=float)
+    if arr.shape[-1:] != (4,):
+        raise ValueError(f"{name} must have a last dimension of 4 ([x1, y1, x2, y2]), got shape {arr.shape}")
+    return arr
