@@ -59,9 +59,11 @@ MIRROR_CLASSES: Mapping[str, str] = MappingProxyType({
     "Small rect. right main": "Small rect. left main",
     "Circle left": "Circle right", "Circle central": "Circle central", "Circle right": "Circle left",
     "Goal left crossbar": "Goal right crossbar",
-    "Goal left post left ": "Goal right post right", "Goal left post right": "Goal right post left",
+    # Posts: left post left (y = +3.66) turns into right post left (y = -3.66), as in the official
+    # evaluator's ``symetric_classes`` (PyPI SoccerNet, ``utils_calibration.py``) and method.md s3.
+    "Goal left post left ": "Goal right post left", "Goal left post right": "Goal right post right",
     "Goal right crossbar": "Goal left crossbar",
-    "Goal right post left": "Goal left post right", "Goal right post right": "Goal left post left ",
+    "Goal right post left": "Goal left post left ", "Goal right post right": "Goal left post right",
     "Goal unknown": "Goal unknown", "Line unknown": "Line unknown",
 })
 
@@ -199,8 +201,9 @@ def sample_pitch_polylines(dist: float = 0.1, dist_circles: float = 0.2) -> Mapp
 
     Straight elements get a point every ``dist`` metres from their start (accumulated as SoccerNet
     does) plus their end point; the penalty arcs a point every ``dist_circles`` metres of arc plus
-    both ends; the central circle ``int(2 pi r / dist_circles) - 1`` points from angle 0, not closed.
-    The official evaluator calls it with both distances multiplied by ``sampling_factor = 0.9``.
+    both ends; the central circle ``int(2 pi r / dist_circles)`` points from angle 0, not closed.
+    The official evaluator calls it as ``sample_field_points(0.9)``: 0.9 m on straight elements,
+    the default 0.2 m on circles.
 
     Args:
         dist: spacing on straight elements, metres.
@@ -251,7 +254,7 @@ def mirror_class(line_class: str) -> str:
         KeyError: unknown class.
 
     >>> mirror_class("Goal left post left ")
-    'Goal right post right'
+    'Goal right post left'
     """
     return MIRROR_CLASSES[line_class]
 
