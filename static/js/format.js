@@ -1,0 +1,97 @@
+// Number formatting and the colour rules shared by the queue and the system page.
+
+export const STATUSES = ["pending", "accepted", "rejected", "needs_fix"];
+export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected: "rejected", needs_fix: "needs fix" };
+export const ADMIT_JAC = 0.75; // default admission threshold (JaC@0.5% > 0.75, method.md section 4)
+
+export const isNum = (v) => typeof v === "number" && Number.isFinite(v);
+
+export function fmt(v, digits = 1, unit = "") {
+  return isNum(v) ? `${v.toFixed(digits)}${unit}` : "—";
+}
+
+/** JaC in [0, 1] shown as a percentage. */
+export function fmtJac(v) {
+  return isNum(v) ? `${(100 * v).toFixed(1)}%` : "—";
+}
+
+export function fmtXYZ(p, digits = 2) {
+  return Array.isArray(p) && p.every(isNum) ? p.map((c) => c.toFixed(digits)).join(", ") : "—";
+}
+
+/** An error in a view's pixels, scaled the way the pair rule scales it before comparing with tau. */
+export function scaledError(errorPx, width, rule) {
+  if (!isNum(errorPx)) return null;
+  if (rule && rule.includes("scaled_1920") && isNum(width) && width > 0) return (errorPx * 1920) / width;
+  return errorPx;
+}
+
+/** "ok" below tau / 2, "warn" up to tau, "bad" above: the reviewer's traffic light. */
+export function errorClass(errorPx, width, tau, rule) {
+  const e = scaledError(errorPx, width, rule);
+  if (e === null || !isNum(tau)) return "muted";
+  if (e <= tau / 2) return "ok";
+  if (e <= tau) return "warn";
+  return "bad";
+}
+
+export function jacClass(v, threshold = ADMIT_JAC) {
+  if (!isNum(v)) return "muted";
+  return v > threshold ? "ok" : "bad";
+}
+
+export function el(tag, attrs = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (v === undefined || v === null || v === false) continue;
+    if (k === "class") node.className = v;
+    else if (k === "text") node.textContent = v;
+    else if (k === "dataset") Object.assign(node.dataset, v);
+    else if (k.startsWith("on") && typeof v === "function") node.addEventListener(k.slice(2), v);
+    else node.setAttribute(k, v === true ? "" : String(v));
+  }
+  for (const c of children.flat()) {
+    if (c === null || c === undefined || c === false) continue;
+    node.append(c instanceof Node ? c : document.createTextNode(String(c)));
+  }
+  return node;
+}
+
+const SVG_NS = "http://www.w3.org/2000/svg";
+export function svg(tag, attrs = {}, ...children) {
+  const node = document.createElementNS(SVG_NS, tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (v === undefined || v === null || v === false) continue;
+    if (k === "class") node.setAttribute("class", v);
+    else if (k === "text") node.textContent = v;
+    else if (k === "dataset") Object.assign(node.dataset, v);
+    else node.setAttribute(k, String(v));
+  }
+  for (const c of children.flat()) if (c) node.append(c);
+  return node;
+}
+
+/** True when a key event comes from a place where the reviewer types text. */
+export function isTyping(event) {
+  const t = event.target;
+  if (!(t instanceof HTMLElement)) return false;
+  return t.isContentEditable || ["INPUT", "TEXTAREA", "SELECT"].includes(t.tagName);
+}
+
+/** Colour tag of view i (same colour on the view card and on the pitch map). */
+const VIEW_COLOURS = ["#4da3ff", "#ffb347", "#7ee787", "#ff7ab6", "#c297ff", "#5ce0d8", "#f2cc60", "#ff8f70"];
+export function viewColour(i) {
+  return VIEW_COLOURS[i % VIEW_COLOURS.length];
+}
+
+/** Error bar of a page: shows API errors until dismissed. */
+export function showError(message) {
+  const bar = document.querySelector("[data-testid=error]");
+  if (!bar) return;
+  bar.querySelector(".msg").textContent = message;
+  bar.classList.add("visible");
+}
+export function clearError() {
+  const bar = document.querySelector("[data-testid=error]");
+  if (bar) bar.classList.remove("visible");
+}

@@ -1,0 +1,479 @@
+// <v3d-view>: one view of a multi-view system. The frame (or a blank canvas of the frame's size when the
+// image is unavailable) with an SVG overlay in image pixels: projected pitch lines, annotated field-line
+// points, the annotated ball box (red, draggable, resizable from its corner), the optimised box (blue) and
+// the reprojected 3D ball (cross). A zoomed inset around the ball makes a 10-pixel box editable.
+//
+// The SVG viewBox is the image's pixel frame, so drawings and pointer positions map exactly at any display
+// size (pointer positions go through getScreenCTM()). On release the element dispatches "ball-change"
+// {frameId, box} or {frameId, point}; the page saves it and sets the recomputed view back.
+
+import { el, svg, fmt, fmtJac, isNum, errorClass, scaledError, jacClass, viewColour, STATUS_LABEL } from "./format.js";
+
+const ZOOM_PX = 176; // displayed size of the zoom inset
+const MIN_BOX = 2; // smallest box side, image pixels
+
+function boxCentre(b) {
+  return [(b[0] + b[2]) / 2, (b[1] + b[3]) / 2];
+}
+
+function validBox(b) {
+  return Array.isArray(b) && b.length === 4 && b.every(isNum);
+}
+
+function validPoint(p) {
+  return Array.isArray(p) && p.length === 2 && p.every(isNum);
+}
+
+function sameBox(a, b) {
+  return validBox(a) && validBox(b) && a.every((v, i) => Math.abs(v - b[i]) < 0.05);
+}
+
+/** Why a view needs a reviewer's eye (empty when nothing is doubtful). */
+export function doubts(view, tau, rule) {
+  const out = [];
+  const cal = view.calibration || {};
+  if (!cal.camera) out.push(cal.status ? `not calibrated (${cal.status})` : "not calibrated");
+  else if (cal.admitted === false) out.push("calibration not admitted");
+  if (cal.reason) out.push(cal.reason);
+  for (const f of cal.flags || []) if (!out.includes(f)) out.push(f);
+  const ball = view.ball || {};
+  if (!ball.kind) out.push("no ball label");
+  if (errorClass(view.reprojection_error_px, view.width, tau, rule) === "bad") out.push("reprojection error above tau");
+  return out;
+}
+
+export class ViewPanel extends HTMLElement {
+  #view = null;
+  #ctx = { index: 0, tau: null, rule: null };
+  #imageState = "loading"; // loading | loaded | missing
+  #imageUrl = null;
+  #live = null; // box or point being dragged (image pixels)
+  #drag = null;
+  #zoomBox = null; // [x, y, size] of the inset, frozen while dragging
+  #saving = false;
+  #selected = false;
+  #resizeObserver = null;
+  #built = false;
+
+  connectedCallback() {
+    if (!this.#resizeObserver) {
+      this.#resizeObserver = new ResizeObserver(() => this.#drawOverlays());
+    }
+    if (this.#built) this.#resizeObserver.observe(this.querySelector(".frame"));
+  }
+
+  disconnectedCallback() {
+    this.#resizeObserver?.disconnect();
+  }
+
+  /** Set the view (system-view JSON) and its context {index, tau, rule}. */
+  update(view, ctx) {
+    const frameChanged = !this.#view || this.#view.frame_id !== view.frame_id;
+    this.#view = view;
+    this.#ctx = { ...this.#ctx, ...ctx };
+    this.#live = null;
+    this.#drag = null;
+    this.#saving = false;
+    this.#zoomBox = null;
+    if (frameChanged || view.image_url !== this.#imageUrl) this.#loadImage(view.image_url);
+    this.#build();
+  }
+
+  get view() {
+    return this.#view;
+  }
+
+  set saving(value) {
+    this.#saving = value;
+    const tag = this.querySelector("[data-testid=view-saving]");
+    if (tag) tag.hidden = !value;
+  }
+
+  set selected(value) {
+    this.#selected = value;
+    this.querySelector(".view")?.classList.toggle("selected", value);
+  }
+
+  /** Put back the last saved label (after a failed save). */
+  revert() {
+    this.#live = null;
+    this.#drag = null;
+    this.saving = false;
+    this.#drawOverlays();
+  }
+
+  #loadImage(url) {
+    this.#imageUrl = url;
+    if (!url) {
+      this.#imageState = "missing";
+      return;
+    }
+    this.#imageState = "loading";
+    const probe = new Image();
+    probe.onload = () => {
+      if (this.#imageUrl !== url) return;
+      this.#imageState = "loaded";
+      this.#build();
+    };
+    probe.onerror = () => {
+      if (this.#imageUrl !== url) return;
+      this.#imageState = "missing";
+      this.#build();
+    };
+    probe.src = url;
+  }
+
+  // ----- DOM ------------------------------------------------------------------------------------
+  #build() {
+    const v = this.#view;
+    const { index, tau, rule } = this.#ctx;
+    const label = `V${index + 1}`;
+    const cal = v.calibration || {};
+    const jac = cal.jac || {};
+    const ball = v.ball || {};
+    const opt = v.optimised_box;
+    const doubtful = doubts(v, tau, rule);
+
+    const frameSvg = svg("svg", {
+      viewBox: `0 0 ${v.width} ${v.height}`,
+      preserveAspectRatio: "xMidYMid meet",
+      "data-testid": "view-svg",
+      "aria-label": `${label} ${v.name} with overlay`,
+    });
+    const zoomSvg = svg("svg", { "data-testid": "view-zoom", "aria-label": `${label} ball close-up` });
+
+    const err = v.reprojection_error_px;
+    const scaled = scaledError(err, v.width, rule);
+    const errText = isNum(err)
+      ? `${err.toFixed(2)} px` + (scaled !== null && Math.abs(scaled - err) > 1e-6 ? ` (${scaled.toFixed(2)} @1920)` : "")
+      : "—";
+
+    let boxText = "—";
+    if (ball.kind === "box" && validBox(ball.box)) {
+      const [x1, y1, x2, y2] = ball.box;
+      const [cx, cy] = boxCentre(ball.box);
+      boxText = `${(x2 - x1).toFixed(1)} × ${(y2 - y1).toFixed(1)} px at (${cx.toFixed(1)}, ${cy.toFixed(1)})`;
+    } else if (ball.kind === "point" && validPoint(ball.point)) {
+      boxText = `point (${ball.point[0].toFixed(1)}, ${ball.point[1].toFixed(1)})`;
+    } else {
+      boxText = "no ball label";
+    }
+    const optText = opt && validBox(opt.box)
+      ? `d ${fmt(opt.d_px, 1)} px, ${fmt(opt.error_m, 2)} m off`
+      : "—";
+
+    const flags = (cal.flags || []).map((f) => el("span", { class: "chip", "data-testid": "view-flag" }, f));
+    const review = v.review && v.review.status && v.review.status !== "pending"
+      ? el("span", { class: `badge ${v.review.status}` }, STATUS_LABEL[v.review.status] || v.review.status)
+      : null;
+
+    const article = el(
+      "article",
+      {
+        class: `view${doubtful.length ? " doubtful" : ""}${this.#selected ? " selected" : ""}`,
+        "data-testid": "view",
+        "data-frame-id": v.frame_id,
+        "data-view-name": v.name,
+        "data-image": this.#imageState,
+        "data-doubtful": doubtful.length ? "true" : "false",
+      },
+      el(
+        "header",
+        {},
+        el("span", { class: "tag", style: `background:${viewColour(index)}` }, label),
+        el("span", { class: "name", title: v.name }, v.name),
+        el("span", { class: "role" }, v.role || ""),
+        ball.edited ? el("span", { class: "chip info", "data-testid": "view-edited" }, "box edited") : null,
+        review,
+        el("span", { class: "size" }, `${v.width}×${v.height}`),
+      ),
+      el(
+        "div",
+        { class: "frame" },
+        frameSvg,
+        el("span", { class: "saving", "data-testid": "view-saving", hidden: !this.#saving }, "saving…"),
+      ),
+      el(
+        "div",
+        { class: "below" },
+        el("div", { class: "zoom" }, zoomSvg, el("span", { class: "label", "data-testid": "zoom-label" }, "")),
+        el(
+          "dl",
+          { class: "facts" },
+          el("dt", {}, "Calibration"),
+          el(
+            "dd",
+            { "data-testid": "view-calibration" },
+            el("span", { class: cal.camera ? (cal.admitted === false ? "bad" : "ok") : "bad" },
+              `${cal.status || "none"}${cal.source ? ` · ${cal.source}` : ""}${cal.camera ? (cal.admitted === false ? " · not admitted" : " · admitted") : ""}`),
+            flags.length ? " " : null,
+            flags,
+            cal.reason ? el("div", { class: "reason", "data-testid": "view-reason" }, cal.reason) : null,
+          ),
+          el("dt", { title: "JaC at 0.5 %, 1 % and 2 % of the image diagonal" }, "JaC 0.5/1/2%"),
+          el(
+            "dd",
+            { class: "mono", "data-testid": "view-jac" },
+            el("span", { class: jacClass(jac["0.005"]) }, fmtJac(jac["0.005"])),
+            " / ",
+            fmtJac(jac["0.01"]),
+            " / ",
+            fmtJac(jac["0.02"]),
+          ),
+          el("dt", { title: `Reprojection error of the 3D ball in this view; tau = ${fmt(tau, 1)} px (${rule || "rule unknown"})` }, "Reproj. error"),
+          el("dd", { class: `mono ${errorClass(err, v.width, tau, rule)}`, "data-testid": "view-reproj-error" }, errText),
+          el("dt", {}, "Ball (red)"),
+          el("dd", { class: "mono", "data-testid": "view-box" }, boxText),
+          el("dt", {}, "Optimised (blue)"),
+          el("dd", { class: "mono", "data-testid": "view-opt-box" }, optText),
+          doubtful.length ? el("dt", { class: "bad" }, "Doubts") : null,
+          doubtful.length ? el("dd", { class: "bad", "data-testid": "view-doubts" }, doubtful.join("; ")) : null,
+        ),
+      ),
+    );
+    this.replaceChildren(article);
+    this.#built = true;
+    this.#resizeObserver?.disconnect();
+    if (this.isConnected) this.#resizeObserver?.observe(article.querySelector(".frame"));
+    this.#drawOverlays();
+  }
+
+  // ----- overlay ------------------------------------------------------------------------------
+  #currentLabel() {
+    const ball = this.#view.ball || {};
+    if (this.#live) return this.#live;
+    if (ball.kind === "box" && validBox(ball.box)) return { box: ball.box };
+    if (ball.kind === "point" && validPoint(ball.point)) return { point: ball.point };
+    return null;
+  }
+
+  #zoomWindow() {
+    if (this.#zoomBox) return this.#zoomBox;
+    const v = this.#view;
+    const ball = v.ball || {};
+    let centre = null;
+    let size = 0;
+    if (ball.kind === "box" && validBox(ball.box)) {
+      centre = boxCentre(ball.box);
+      size = Math.max(ball.box[2] - ball.box[0], ball.box[3] - ball.box[1]);
+    } else if (ball.kind === "point" && validPoint(ball.point)) centre = ball.point;
+    else if (validPoint(v.reprojected_ball)) centre = v.reprojected_ball;
+    if (v.optimised_box && validBox(v.optimised_box.box)) {
+      size = Math.max(size, v.optimised_box.box[2] - v.optimised_box.box[0]);
+      centre = centre || boxCentre(v.optimised_box.box);
+    }
+    if (!centre) return null;
+    const side = Math.min(Math.max(6 * size, 72), Math.min(v.width, v.height));
+    this.#zoomBox = [centre[0] - side / 2, centre[1] - side / 2, side];
+    return this.#zoomBox;
+  }
+
+  #drawOverlays() {
+    if (!this.#built || !this.#view) return;
+    const v = this.#view;
+    const frameSvg = this.querySelector("[data-testid=view-svg]");
+    const zoomSvg = this.querySelector("[data-testid=view-zoom]");
+    const width = frameSvg.getBoundingClientRect().width || 560;
+    this.#drawInto(frameSvg, width / v.width, true);
+    const zw = this.#zoomWindow();
+    const zoomLabel = this.querySelector("[data-testid=zoom-label]");
+    if (zw) {
+      zoomSvg.setAttribute("viewBox", `${zw[0]} ${zw[1]} ${zw[2]} ${zw[2]}`);
+      this.#drawInto(zoomSvg, ZOOM_PX / zw[2], false);
+      zoomLabel.textContent = `ball ×${(ZOOM_PX / zw[2] / (width / v.width)).toFixed(1)}`;
+    } else {
+      zoomSvg.setAttribute("viewBox", `0 0 ${v.width} ${v.height}`);
+      zoomSvg.replaceChildren(svg("text", { x: v.width / 2, y: v.height / 2, "text-anchor": "middle", class: "nodata",
+        "font-size": v.width / 14, text: "no ball" }));
+      zoomLabel.textContent = "";
+    }
+  }
+
+  /** Draw the frame and overlay into `root`; `scale` = screen pixels per image pixel. */
+  #drawInto(root, scale, isMain) {
+    const v = this.#view;
+    const s = 1 / scale; // one screen pixel, in image pixels
+    const nodes = [];
+    if (this.#imageState === "loaded") {
+      nodes.push(svg("image", { href: v.image_url, x: 0, y: 0, width: v.width, height: v.height, preserveAspectRatio: "none" }));
+    } else {
+      nodes.push(svg("rect", { x: 0, y: 0, width: v.width, height: v.height, fill: "#101317" }));
+      if (isMain) {
+        nodes.push(svg("text", {
+          x: v.width / 2, y: v.height / 2, "text-anchor": "middle", class: "nodata", "font-size": v.width / 40,
+          text: this.#imageState === "loading" ? "loading image…" : `no image: blank ${v.width}×${v.height} canvas`,
+        }));
+      }
+    }
+    const g = svg("g", { "data-testid": isMain ? "overlay" : "zoom-overlay" });
+    for (const line of v.pitch_lines || []) {
+      if (!line.points || line.points.length < 2) continue;
+      g.append(svg("polyline", { class: "pitch", points: line.points.map((p) => p.join(",")).join(" ") },
+        svg("title", { text: `projected: ${line.class}` })));
+    }
+    for (const [cls, polylines] of Object.entries(v.field_lines || {})) {
+      for (const pts of polylines) {
+        if (pts.length > 1) g.append(svg("polyline", { class: "annot-line", points: pts.map((p) => p.join(",")).join(" ") }));
+        for (const p of pts) {
+          g.append(svg("circle", { class: "annot", cx: p[0], cy: p[1], r: 2.2 * s }, svg("title", { text: `annotated: ${cls}` })));
+        }
+      }
+    }
+    const ball = v.ball || {};
+    if (ball.edited && validBox(ball.original_box) && !(ball.kind === "box" && sameBox(ball.original_box, ball.box))) {
+      g.append(this.#rect(ball.original_box, "box-prev", "imported box (before edits)"));
+    }
+    const opt = v.optimised_box;
+    if (opt && validBox(opt.box)) {
+      g.append(this.#rect(opt.box, "halo"));
+      g.append(this.#rect(opt.box, "box-opt", `optimised box, d = ${fmt(opt.d_px, 1)} px`, "box-opt"));
+    }
+    const label = this.#currentLabel();
+    if (label && label.box) {
+      const b = label.box;
+      g.append(this.#rect(b, "halo"));
+      g.append(this.#rect(b, "box-orig", "annotated ball box (drag to move, corner to resize)", "box-orig"));
+      // hit area at least 18 screen pixels wide, so a 3-pixel box can be grabbed
+      const [cx, cy] = boxCentre(b);
+      const hw = Math.max((b[2] - b[0]) / 2, 9 * s), hh = Math.max((b[3] - b[1]) / 2, 9 * s);
+      const hit = svg("rect", { class: "hit", x: cx - hw, y: cy - hh, width: 2 * hw, height: 2 * hh, "data-testid": isMain ? "ball-hit" : "zoom-ball-hit" });
+      hit.addEventListener("pointerdown", (e) => this.#startDrag(e, root, "move"));
+      g.append(hit);
+      const hs = 8 * s;
+      const handle = svg("rect", { class: "handle", x: b[2] - hs / 2 + (isMain ? hw - (b[2] - b[0]) / 2 : 0), y: b[3] - hs / 2 + (isMain ? hh - (b[3] - b[1]) / 2 : 0),
+        width: hs, height: hs, "data-testid": isMain ? "ball-handle" : "zoom-ball-handle" });
+      handle.addEventListener("pointerdown", (e) => this.#startDrag(e, root, "resize"));
+      g.append(handle);
+    } else if (label && label.point) {
+      const p = label.point;
+      const dot = svg("circle", { class: "point-orig", cx: p[0], cy: p[1], r: 4 * s, "data-testid": isMain ? "ball-point" : "zoom-ball-point" },
+        svg("title", { text: "annotated ball point (drag to move)" }));
+      dot.style.cursor = "move";
+      dot.addEventListener("pointerdown", (e) => this.#startDrag(e, root, "point"));
+      g.append(dot);
+    }
+    if (validPoint(v.reprojected_ball)) {
+      const [x, y] = v.reprojected_ball;
+      const a = 7 * s;
+      const d = `M${x - a} ${y - a} L${x + a} ${y + a} M${x - a} ${y + a} L${x + a} ${y - a}`;
+      g.append(svg("path", { class: "halo", d }));
+      g.append(svg("path", { class: "reproj", d, "data-testid": isMain ? "reprojected-ball" : null },
+        svg("title", { text: `3D ball reprojected: (${x.toFixed(1)}, ${y.toFixed(1)})` })));
+    }
+    nodes.push(g);
+    root.replaceChildren(...nodes);
+  }
+
+  #rect(b, cls, title, testid) {
+    const r = svg("rect", { class: cls, x: b[0], y: b[1], width: b[2] - b[0], height: b[3] - b[1], "data-testid": testid });
+    if (title) r.append(svg("title", { text: title }));
+    return r;
+  }
+
+  // ----- editing ------------------------------------------------------------------------------
+  #toImage(root, event) {
+    const m = root.getScreenCTM();
+    if (!m) return null;
+    const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(m.inverse());
+    return [p.x, p.y];
+  }
+
+  #startDrag(event, root, mode) {
+    if (event.button !== 0 || this.#saving) return;
+    event.preventDefault();
+    event.stopPropagation();
+    const start = this.#toImage(root, event);
+    const label = this.#currentLabel();
+    if (!start || !label) return;
+    this.#zoomWindow(); // freeze the inset while dragging
+    this.#drag = { mode, start, label: structuredClone(label), moved: false, root, pointerId: event.pointerId };
+    const move = (e) => this.#onDrag(e);
+    const up = (e) => {
+      root.removeEventListener("pointermove", move);
+      root.removeEventListener("pointerup", up);
+      root.removeEventListener("pointercancel", up);
+      this.#endDrag(e.type === "pointercancel");
+    };
+    root.setPointerCapture(event.pointerId);
+    root.addEventListener("pointermove", move);
+    root.addEventListener("pointerup", up);
+    root.addEventListener("pointercancel", up);
+  }
+
+  #onDrag(event) {
+    const d = this.#drag;
+    if (!d) return;
+    const p = this.#toImage(d.root, event);
+    if (!p) return;
+    const v = this.#view;
+    let dx = p[0] - d.start[0], dy = p[1] - d.start[1];
+    if (d.mode === "point") {
+      const q = d.label.point;
+      this.#live = { point: [clamp(q[0] + dx, 0, v.width), clamp(q[1] + dy, 0, v.height)] };
+    } else if (d.mode === "move") {
+      const b = d.label.box;
+      const [cx, cy] = boxCentre(b);
+      dx = clamp(cx + dx, 0, v.width) - cx;
+      dy = clamp(cy + dy, 0, v.height) - cy;
+      this.#live = { box: [b[0] + dx, b[1] + dy, b[2] + dx, b[3] + dy] };
+    } else {
+      const b = d.label.box;
+      let x2 = Math.max(b[0] + MIN_BOX, b[2] + dx);
+      let y2 = Math.max(b[1] + MIN_BOX, b[3] + dy);
+      if (event.shiftKey) { // keep the box square
+        const side = Math.max(x2 - b[0], y2 - b[1]);
+        x2 = b[0] + side;
+        y2 = b[1] + side;
+      }
+      this.#live = { box: [b[0], b[1], x2, y2] };
+    }
+    d.moved = d.moved || Math.hypot(dx, dy) > 0.05;
+    this.#drawOverlays();
+  }
+
+  #endDrag(cancelled) {
+    const d = this.#drag;
+    this.#drag = null;
+    if (!d) return;
+    if (cancelled || !d.moved || !this.#live) {
+      this.revert();
+      return;
+    }
+    this.#commit();
+  }
+
+  #commit() {
+    const round = (x) => Math.round(x * 10) / 10;
+    const detail = { frameId: this.#view.frame_id };
+    if (this.#live.box) detail.box = this.#live.box.map(round);
+    else detail.point = this.#live.point.map(round);
+    this.saving = true;
+    this.dispatchEvent(new CustomEvent("ball-change", { detail, bubbles: true }));
+  }
+
+  /** Keyboard editing: move by (dx, dy) and grow every side by `grow` image pixels; saved after a pause. */
+  nudge(dx, dy, grow = 0) {
+    if (this.#saving || this.#drag) return false;
+    const label = this.#currentLabel();
+    if (!label) return false;
+    const v = this.#view;
+    if (label.box) {
+      const b = label.box;
+      if (b[2] - b[0] + 2 * grow < MIN_BOX || b[3] - b[1] + 2 * grow < MIN_BOX) return false;
+      this.#live = { box: [b[0] + dx - grow, b[1] + dy - grow, b[2] + dx + grow, b[3] + dy + grow] };
+    } else {
+      this.#live = { point: [clamp(label.point[0] + dx, 0, v.width), clamp(label.point[1] + dy, 0, v.height)] };
+    }
+    this.#zoomWindow();
+    this.#drawOverlays();
+    clearTimeout(this.nudgeTimer);
+    this.nudgeTimer = setTimeout(() => this.#commit(), 450);
+    return true;
+  }
+}
+
+function clamp(x, lo, hi) {
+  return Math.min(hi, Math.max(lo, x));
+}
+
+customElements.define("v3d-view", ViewPanel);

@@ -1,0 +1,255 @@
+// Queue page: the table of systems, filtered and sorted by the API, with review progress.
+// The filters live in the page's query string (a reload or a shared link keeps them) and are handed
+// on to the system page, whose "queue" link and prev / next follow the same queue.
+
+import { listSystems, listGames } from "./api.js";
+import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, jacClass, showError, clearError, STATUSES, STATUS_LABEL } from "./format.js";
+
+const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
+const PAGE_SIZE = 50;
+const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "sort"];
+const DEFAULT_SORT = "-worst_error";
+
+/** Page state <-> the address bar's query string. */
+function readState() {
+  const q = new URLSearchParams(location.search);
+  const state = {};
+  for (const key of FILTERS) state[key] = q.get(key) || "";
+  if (!state.sort) state.sort = DEFAULT_SORT;
+  state.page = Math.max(0, parseInt(q.get("page") || "0", 10) || 0);
+  return state;
+}
+
+function stateQuery(state, { withPage = true } = {}) {
+  const q = new URLSearchParams();
+  for (const key of FILTERS) {
+    if (state[key] && !(key === "sort" && state[key] === DEFAULT_SORT)) q.set(key, state[key]);
+  }
+  if (withPage && state.page) q.set("page", String(state.page));
+  const s = q.toString();
+  return s ? `?${s}` : "";
+}
+
+/** Query parameters of GET /api/systems (JaC filters are typed in percent, the API takes fractions). */
+export function apiParams(state) {
+  const frac = (v) => (v === "" ? "" : String(Number(v) / 100));
+  return {
+    status: state.status,
+    game_id: state.game,
+    jac_min: frac(state.jac_min),
+    jac_max: frac(state.jac_max),
+    error_min: state.error_min,
+    error_max: state.error_max,
+    sort: state.sort,
+    limit: PAGE_SIZE,
+    offset: state.page * PAGE_SIZE,
+  };
+}
+
+class QueuePage {
+  state = readState();
+  rows = [];
+  selected = 0;
+  total = 0;
+
+  constructor() {
+    const form = $("filters");
+    form.addEventListener("submit", (e) => {
+      e.preventDefault();
+      this.applyForm();
+    });
+    form.addEventListener("change", (e) => {
+      if (e.target.tagName === "SELECT") this.applyForm();
+    });
+    $("reset").addEventListener("click", () => {
+      this.state = { ...Object.fromEntries(FILTERS.map((k) => [k, ""])), sort: DEFAULT_SORT, page: 0 };
+      this.fillForm();
+      this.navigate();
+    });
+    for (const th of document.querySelectorAll("th.sortable")) {
+      th.addEventListener("click", () => this.toggleSort(th.dataset.sort));
+    }
+    $("page-prev").addEventListener("click", () => this.turnPage(-1));
+    $("page-next").addEventListener("click", () => this.turnPage(1));
+    $("error-dismiss").addEventListener("click", clearError);
+    $("queue").querySelector("tbody").addEventListener("click", (e) => {
+      if (e.target.closest("a")) return; // the link does it (and honours ctrl-click)
+      const tr = e.target.closest("tr[data-id]");
+      if (tr) this.open(tr.dataset.id);
+    });
+    document.addEventListener("keydown", (e) => this.onKey(e));
+    window.addEventListener("popstate", () => {
+      this.state = readState();
+      this.fillForm();
+      this.load();
+    });
+    this.fillForm();
+    this.loadGames();
+    this.load();
+  }
+
+  fillForm() {
+    const form = $("filters");
+    for (const key of FILTERS) {
+      const input = form.elements[key];
+      if (input) input.value = this.state[key];
+    }
+    this.markSort();
+  }
+
+  applyForm() {
+    const form = $("filters");
+    for (const key of FILTERS) this.state[key] = form.elements[key].value.trim();
+    for (const [lo, hi] of [["jac_min", "jac_max"], ["error_min", "error_max"]]) {
+      if (this.state[lo] !== "" && this.state[hi] !== "" && Number(this.state[lo]) > Number(this.state[hi])) {
+        showError(`${lo.replace("_", " ")} is larger than ${hi.replace("_", " ")}: nothing can match.`);
+        return;
+      }
+    }
+    this.state.page = 0;
+    this.navigate();
+  }
+
+  toggleSort(key) {
+    const current = this.state.sort;
+    // first click: the most doubtful first (largest error, lowest JaC) or A-Z for names
+    const first = key === "worst_error" ? `-${key}` : key;
+    const flipped = first.startsWith("-") ? key : `-${key}`;
+    this.state.sort = current === first ? flipped : first;
+    this.state.page = 0;
+    this.fillForm();
+    this.navigate();
+  }
+
+  markSort() {
+    const s = this.state.sort;
+    const key = s.replace(/^-/, "");
+    for (const th of document.querySelectorAll("th.sortable")) {
+      const arrow = th.querySelector(".arrow");
+      const active = th.dataset.sort === key;
+      arrow.textContent = active ? (s.startsWith("-") ? "▼" : "▲") : "";
+      th.setAttribute("aria-sort", active ? (s.startsWith("-") ? "descending" : "ascending") : "none");
+    }
+  }
+
+  turnPage(delta) {
+    const page = this.state.page + delta;
+    if (page < 0 || page * PAGE_SIZE >= this.total) return;
+    this.state.page = page;
+    this.navigate();
+  }
+
+  navigate() {
+    history.pushState(null, "", `/${stateQuery(this.state)}`);
+    this.load();
+  }
+
+  async loadGames() {
+    try {
+      const games = await listGames();
+      const select = $("filter-game");
+      const items = Array.isArray(games) ? games : games.items || [];
+      for (const g of items) {
+        select.append(el("option", { value: g.id }, [g.league, g.season, g.match].filter(Boolean).join(" · ") || `game ${g.id}`));
+      }
+      select.value = this.state.game;
+    } catch (err) {
+      showError(`games: ${err.message}`);
+    }
+  }
+
+  async load() {
+    this.markSort();
+    try {
+      const answer = await listSystems(apiParams(this.state));
+      clearError();
+      this.rows = answer.items || [];
+      this.total = isNum(answer.total) ? answer.total : this.rows.length;
+      this.selected = Math.min(this.selected, Math.max(0, this.rows.length - 1));
+      this.renderRows();
+      this.renderProgress(answer.counts || {});
+    } catch (err) {
+      showError(err.message);
+    }
+  }
+
+  renderRows() {
+    const handOn = stateQuery(this.state, { withPage: false });
+    const tbody = $("queue").querySelector("tbody");
+    tbody.replaceChildren(
+      ...this.rows.map((s, i) => {
+        const game = s.game || {};
+        const status = s.review?.status || s.status || "pending";
+        const jac = s.lowest_jac;
+        return el(
+          "tr",
+          { "data-testid": "queue-row", "data-id": s.id, tabindex: "-1", class: i === this.selected ? "selected" : "" },
+          el("td", { title: [game.league, game.season, game.match].filter(Boolean).join(" / ") }, game.match || game.id || "—"),
+          el("td", {}, el("a", { href: `/systems/${encodeURIComponent(s.id)}${handOn}`, "data-testid": "system-link" }, s.name)),
+          el("td", {}, el("span", { class: `badge ${status}` }, STATUS_LABEL[status] || status)),
+          el("td", { class: `num ${s.views_calibrated < 2 ? "bad" : ""}` }, `${s.views_calibrated ?? "—"}/${s.views_total ?? "—"}`),
+          el("td", { class: "num" }, fmt(s.worst_error_px, 2, " px")),
+          el("td", { class: `num ${jacClass(jac)}` }, fmtJac(jac)),
+          el("td", { class: "num" }, Array.isArray(s.ball3d) ? fmtXYZ(s.ball3d, 1) : el("span", { class: "muted" }, "none")),
+        );
+      }),
+    );
+    $("empty").hidden = this.rows.length > 0;
+    const from = this.total ? this.state.page * PAGE_SIZE + 1 : 0;
+    const to = this.state.page * PAGE_SIZE + this.rows.length;
+    $("page-info").textContent = `${from}–${to} of ${this.total}`;
+    $("page-prev").disabled = this.state.page === 0;
+    $("page-next").disabled = to >= this.total;
+  }
+
+  renderProgress(counts) {
+    const n = Object.fromEntries(STATUSES.map((s) => [s, isNum(counts[s]) ? counts[s] : 0]));
+    const all = STATUSES.reduce((a, s) => a + n[s], 0);
+    for (const s of STATUSES) $(`count-${s}`).textContent = String(n[s]);
+    const bar = $("progress-bar");
+    for (const s of ["accepted", "rejected", "needs_fix"]) {
+      bar.querySelector(`.${s}`).style.width = all ? `${(100 * n[s]) / all}%` : "0";
+    }
+    const done = all - n.pending;
+    const pct = all ? (100 * done) / all : 0;
+    bar.setAttribute("aria-valuenow", pct.toFixed(0));
+    $("progress-text").textContent = `${done}/${all} reviewed (${pct.toFixed(0)}%)`;
+  }
+
+  select(i) {
+    if (!this.rows.length) return;
+    this.selected = Math.max(0, Math.min(this.rows.length - 1, i));
+    const trs = $("queue").querySelectorAll("tbody tr");
+    trs.forEach((tr, j) => tr.classList.toggle("selected", j === this.selected));
+    trs[this.selected].scrollIntoView({ block: "nearest" });
+    trs[this.selected].focus({ preventScroll: true });
+  }
+
+  open(id) {
+    location.assign(`/systems/${encodeURIComponent(id)}${stateQuery(this.state, { withPage: false })}`);
+  }
+
+  onKey(e) {
+    if (e.ctrlKey || e.metaKey || e.altKey) return;
+    if (isTyping(e)) {
+      if (e.key === "Escape") e.target.blur();
+      return;
+    }
+    if (e.key === "j" || e.key === "ArrowDown") {
+      e.preventDefault();
+      this.select(this.selected + 1);
+    } else if (e.key === "k" || e.key === "ArrowUp") {
+      e.preventDefault();
+      this.select(this.selected - 1);
+    } else if (e.key === "Enter" && this.rows[this.selected] && !e.target.closest?.("a, button")) {
+      e.preventDefault();
+      this.open(this.rows[this.selected].id);
+    } else if (e.key === "/") {
+      e.preventDefault();
+      $("filter-status").focus();
+    } else if (e.key === "n") this.turnPage(1);
+    else if (e.key === "p") this.turnPage(-1);
+  }
+}
+
+new QueuePage();

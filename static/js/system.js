@@ -1,0 +1,243 @@
+// System page: every view of one multi-view system with its overlay, the 3D ball, the triangulation
+// pairs, the pitch map, and the review decision (buttons and keys a / r / f, j / k to move).
+// The page's query string holds the queue's filters; it is kept when moving between systems and
+// going back to the queue, and forwarded to the API so prev_id / next_id follow that queue.
+
+import { getSystem, postReview, patchBall } from "./api.js";
+import { el, fmt, fmtXYZ, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL } from "./format.js";
+import "./overlay.js";
+import "./pitchmap.js";
+
+const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
+
+class SystemPage {
+  system = null;
+  busy = false;
+  selected = -1;
+
+  constructor() {
+    this.search = location.search;
+    this.params = Object.fromEntries(new URLSearchParams(location.search));
+    $("queue-link").href = `/${this.search}`;
+    $("prev").addEventListener("click", () => this.go(this.system?.prev_id));
+    $("next").addEventListener("click", () => this.go(this.system?.next_id));
+    for (const id of ["accept", "reject", "needs-fix"]) {
+      $(id).addEventListener("click", (e) => this.review(e.currentTarget.dataset.status));
+    }
+    $("error-dismiss").addEventListener("click", clearError);
+    $("comment").addEventListener("keydown", (e) => {
+      if (e.key === "Escape") e.currentTarget.blur();
+    });
+    $("views").addEventListener("ball-change", (e) => this.saveBall(e.target, e.detail));
+    $("views").addEventListener("pointerdown", (e) => {
+      const panel = e.target.closest("v3d-view");
+      if (panel) this.select([...$("views").children].indexOf(panel));
+    });
+    document.addEventListener("keydown", (e) => this.onKey(e));
+    window.addEventListener("popstate", () => this.load(idFromPath(), false));
+  }
+
+  async load(id, push = false) {
+    if (id === null) {
+      showError("No system id in the address (expected /systems/<id>).");
+      return;
+    }
+    this.busy = true;
+    try {
+      const system = await getSystem(id, this.params);
+      if (push) history.pushState(null, "", `/systems/${encodeURIComponent(system.id)}${this.search}`);
+      clearError();
+      this.selected = -1;
+      this.render(system);
+      window.scrollTo(0, 0);
+    } catch (err) {
+      showError(err.message);
+    } finally {
+      this.busy = false;
+    }
+  }
+
+  go(id) {
+    if (id === null || id === undefined || this.busy) return;
+    this.load(id, true);
+  }
+
+  render(sys) {
+    this.system = sys;
+    const game = sys.game || {};
+    document.title = `${sys.name} · v3d review`;
+    $("system-name").textContent = sys.name;
+    $("system-game").textContent = [game.league, game.season, game.match].filter(Boolean).join(" · ");
+    this.renderStatus(sys.review);
+    $("prev").disabled = sys.prev_id === null || sys.prev_id === undefined;
+    $("next").disabled = sys.next_id === null || sys.next_id === undefined;
+    $("comment").value = sys.review?.comment || "";
+
+    const tri = sys.triangulation || {};
+    const ctx = { tau: tri.tau_px, rule: tri.rule };
+    const container = $("views");
+    const panels = [...container.children];
+    sys.views.forEach((view, index) => {
+      let panel = panels[index];
+      if (!panel) {
+        panel = document.createElement("v3d-view");
+        container.append(panel);
+      }
+      panel.update(view, { ...ctx, index });
+      panel.selected = index === this.selected;
+    });
+    for (const extra of panels.slice(sys.views.length)) extra.remove();
+
+    this.renderBall(sys);
+    this.renderPairs(sys);
+    $("pitch-map").data = {
+      ball3d: sys.ball3d,
+      cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
+    };
+  }
+
+  renderStatus(review) {
+    const status = review?.status || "pending";
+    const badge = $("system-status");
+    badge.className = `badge ${status}`;
+    badge.textContent = STATUS_LABEL[status] || status;
+    for (const id of ["accept", "reject", "needs-fix"]) {
+      $(id).classList.toggle("current", $(id).dataset.status === status);
+    }
+    const when = review?.decided_at ? new Date(review.decided_at) : null;
+    $("review-meta").textContent = when && !Number.isNaN(when.getTime())
+      ? `Decided ${when.toLocaleString()}: ${STATUS_LABEL[status] || status}.`
+      : "Not decided yet.";
+  }
+
+  renderBall(sys) {
+    const b = sys.ball3d;
+    const ok = Array.isArray(b) && b.every(isNum);
+    $("ball3d-x").textContent = ok ? `${b[0].toFixed(2)} m` : "—";
+    $("ball3d-y").textContent = ok ? `${b[1].toFixed(2)} m` : "—";
+    $("ball3d-z").textContent = ok ? `${b[2].toFixed(2)} m` : "—";
+    $("ball3d-h").textContent = ok ? `${(-b[2]).toFixed(2)} m` : "—";
+    $("ball3d").title = ok ? `world metres, z down: (${fmtXYZ(b, 3)})` : "no 3D ball";
+    const tri = sys.triangulation || {};
+    $("triangulation-status").textContent = tri.status ? `· ${tri.status}` : "";
+    const kept = (tri.pairs || []).filter((p) => p.kept).length;
+    $("triangulation-rule").textContent =
+      `τ = ${fmt(tri.tau_px, 1)} px (${tri.rule || "?"}), baseline ≥ ${fmt(tri.min_baseline_m, 1)} m; ` +
+      `${kept} of ${(tri.pairs || []).length} pairs kept.`;
+  }
+
+  renderPairs(sys) {
+    const views = sys.views;
+    const labelOf = (ref) => {
+      const i = views.findIndex((v) => v.frame_id === ref || v.name === ref || String(v.frame_id) === String(ref));
+      return i < 0 ? String(ref) : `V${i + 1}`;
+    };
+    const tri = sys.triangulation || {};
+    const tbody = $("pairs").querySelector("tbody");
+    const rows = (tri.pairs || []).map((p) =>
+      el(
+        "tr",
+        { class: p.kept ? "kept" : "dropped", "data-testid": "pair", title: Array.isArray(p.point) ? `p_ij = (${fmtXYZ(p.point, 2)}) m` : null },
+        el("td", { class: "mono" }, `${labelOf(p.view_a)}–${labelOf(p.view_b)}`),
+        el("td", { class: `num ${isNum(p.error_px) && isNum(tri.tau_px) ? (p.error_px < tri.tau_px ? "ok" : "bad") : ""}` }, fmt(p.error_px, 2)),
+        el("td", { class: `num ${isNum(p.parallax_deg) && p.parallax_deg < 5 ? "warn" : ""}` }, fmt(p.parallax_deg, 1, "°")),
+        el("td", { class: `num ${isNum(p.baseline_m) && isNum(tri.min_baseline_m) && p.baseline_m < tri.min_baseline_m ? "bad" : ""}` }, fmt(p.baseline_m, 1, " m")),
+        el("td", {}, p.kept ? el("span", { class: "ok" }, "kept") : el("span", { class: "bad" }, "dropped"),
+          !p.kept && p.reason ? el("div", { class: "reason muted" }, p.reason) : null),
+      ),
+    );
+    if (!rows.length) {
+      rows.push(el("tr", {}, el("td", { colspan: 5, class: "muted" }, "No pair: fewer than two calibrated views with a ball label.")));
+    }
+    tbody.replaceChildren(...rows);
+  }
+
+  async review(status) {
+    if (!this.system || this.busy) return;
+    this.busy = true;
+    const sys = this.system;
+    try {
+      const answer = await postReview(sys.id, status, $("comment").value.trim());
+      clearError();
+      const review = answer && answer.review ? answer.review : answer && answer.status ? answer : { status };
+      this.renderStatus(review);
+      const next = answer && "next_id" in answer ? answer.next_id : sys.next_id;
+      this.busy = false;
+      if (next !== null && next !== undefined) {
+        toast(`${sys.name}: ${STATUS_LABEL[status]}`);
+        await this.load(next, true);
+      } else {
+        toast(`${sys.name}: ${STATUS_LABEL[status]}. That was the last system of this queue.`);
+      }
+    } catch (err) {
+      showError(err.message);
+    } finally {
+      this.busy = false;
+    }
+  }
+
+  async saveBall(panel, detail) {
+    const change = detail.box ? { box: detail.box } : { point: detail.point };
+    try {
+      const sys = await patchBall(detail.frameId, change);
+      clearError();
+      if (sys && Array.isArray(sys.views)) this.render(sys);
+      else await this.load(this.system.id);
+    } catch (err) {
+      panel.revert();
+      showError(err.message);
+    }
+  }
+
+  select(index) {
+    const panels = [...$("views").children];
+    if (index < 0 || index >= panels.length) return;
+    this.selected = index;
+    panels.forEach((p, i) => (p.selected = i === index));
+  }
+
+  onKey(e) {
+    if (e.ctrlKey || e.metaKey || e.altKey || isTyping(e)) return;
+    const keys = { a: "accepted", r: "rejected", f: "needs_fix" };
+    if (keys[e.key]) {
+      e.preventDefault();
+      this.review(keys[e.key]);
+    } else if (e.key === "j") this.go(this.system?.next_id);
+    else if (e.key === "k") this.go(this.system?.prev_id);
+    else if (e.key === "u" || e.key === "Escape") location.assign(`/${this.search}`);
+    else if (e.key === "c") {
+      e.preventDefault();
+      $("comment").focus();
+    } else if (/^[1-9]$/.test(e.key)) this.select(Number(e.key) - 1);
+    else if (this.selected >= 0 && this.editKey(e)) e.preventDefault();
+  }
+
+  editKey(e) {
+    const panel = $("views").children[this.selected];
+    if (!panel) return false;
+    const step = e.shiftKey ? 5 : 1;
+    const moves = { ArrowLeft: [-step, 0, 0], ArrowRight: [step, 0, 0], ArrowUp: [0, -step, 0], ArrowDown: [0, step, 0],
+      "+": [0, 0, 0.5], "=": [0, 0, 0.5], "-": [0, 0, -0.5] };
+    const m = moves[e.key];
+    if (!m) return false;
+    panel.nudge(...m);
+    return true;
+  }
+}
+
+function idFromPath() {
+  const m = location.pathname.match(/\/systems\/([^/]+)\/?$/);
+  return m ? decodeURIComponent(m[1]) : null;
+}
+
+let toastTimer = null;
+function toast(message) {
+  const t = $("toast");
+  t.textContent = message;
+  t.classList.add("visible");
+  clearTimeout(toastTimer);
+  toastTimer = setTimeout(() => t.classList.remove("visible"), 2500);
+}
+
+const page = new SystemPage();
+page.load(idFromPath());
