@@ -214,12 +214,17 @@ def project_pitch_polylines(
         ValueError: unknown ``mode``; ``width`` or ``height`` not an integer >= 2; ``dist`` or
             ``dist_circles`` not positive.
 
+    A camera 15 m up behind the bottom side line, looking across the centre spot: the middle line
+    runs from the centre of the image up to the top border, where it is cut.
+
     >>> cam = Camera.from_parameters(focal_px=1000.0, principal_point=(480.0, 270.0), pan_deg=0.0,
-    ...                              tilt_deg=70.0, roll_deg=0.0, position_m=[0.0, 60.0, -15.0])
+    ...                              tilt_deg=60.0, roll_deg=0.0, position_m=[0.0, 60.0, -15.0])
     >>> lines = project_pitch_polylines(cam, 960, 540)
-    >>> run = lines["Middle line"][0]
-    >>> bool(np.allclose(run[:, 0], 480.0)), float(run[:, 1].max()) == 540.0  # clipped at the bottom
-    (True, True)
+    >>> sorted(lines)
+    ['Circle central', 'Middle line', 'Side line bottom']
+    >>> run, = lines["Middle line"]
+    >>> np.round(run[[0, -1]], 2).tolist()  # enters at the top border, ends at the bottom touch line
+    [[480.0, 0.0], [480.0, 269.68]]
     """
     if mode not in _MODES:
         raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
