@@ -94,7 +94,7 @@ class TriangulationStatus(str, enum.Enum):
 
     TRIANGULATED = "triangulated"  # at least one pair kept; ``ball3d`` is the mean of the kept points
     INSUFFICIENT_VIEWS = "insufficient_views"  # fewer than two admitted views with a ball label
-    NO_CONSISTENT_PAIR = "no_consistent_pair"  # every pair dropped (tau, baseline or degenerate)
+    NO_PAIR_KEPT = "no_pair_kept"  # every pair dropped (tau, baseline, cheirality or degenerate)
 
 
 class ReviewStatus(str, enum.Enum):

@@ -70,6 +70,7 @@ def alembic_config(url: str | sa.URL | None = None, connection: sa.Connection | 
     from alembic.config import Config
 
     cfg = Config(str(ALEMBIC_INI))
+    cfg.attributes["configure_logger"] = False  # leave the caller's logging alone
     cfg.set_main_option("script_location", str(PROJECT_ROOT / "migrations"))
     if url is not None:
         cfg.attributes["url"] = make_url(url)

@@ -65,7 +65,7 @@ def upgrade() -> None:
 
     op.create_table('triangulations',
     sa.Column('system_id', sa.Integer(), nullable=False),
-    sa.Column('status', sa.Enum('triangulated', 'insufficient_views', 'no_consistent_pair', name='triangulation_status', native_enum=False, create_constraint=True), nullable=False),
+    sa.Column('status', sa.Enum('triangulated', 'insufficient_views', 'no_pair_kept', name='triangulation_status', native_enum=False, create_constraint=True), nullable=False),
     sa.Column('ball3d', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True),
     sa.Column('tau_px', sa.Double(), nullable=False),
     sa.Column('rule', sa.String(length=40), nullable=False),
