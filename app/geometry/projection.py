@@ -159,8 +159,10 @@ def _clip_runs(uv: np.ndarray, valid: np.ndarray, width: int, height: int) -> li
     idx = np.flatnonzero(seg_ok)
     if len(idx) == 0:
         return []
-    start = a[idx] + t0[idx, None] * d[idx]
-    end = a[idx] + t1[idx, None] * d[idx]
+    # Clipped ends lie on the border by construction; the clamp removes rounding (-1e-16 px).
+    bounds = np.array([width, height], dtype=float)
+    start = np.clip(a[idx] + t0[idx, None] * d[idx], 0.0, bounds)
+    end = np.clip(a[idx] + t1[idx, None] * d[idx], 0.0, bounds)
     # A run continues from segment i to i + 1 when i ends uncut and i + 1 starts uncut.
     joined = (np.diff(idx) == 1) & (t1[idx[:-1]] == 1.0) & (t0[idx[1:]] == 0.0)
     breaks = np.flatnonzero(~joined) + 1
