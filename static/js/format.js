@@ -15,6 +15,11 @@ export function fmtJac(v) {
   return isNum(v) ? `${(100 * v).toFixed(1)}%` : "—";
 }
 
+/** "error_above_tau" -> "error above tau" (machine codes shown to people). */
+export function human(code) {
+  return typeof code === "string" ? code.replaceAll("_", " ") : code;
+}
+
 export function fmtXYZ(p, digits = 2) {
   return Array.isArray(p) && p.every(isNum) ? p.map((c) => c.toFixed(digits)).join(", ") : "—";
 }

@@ -9,7 +9,7 @@
 
 import { el, svg, fmt, fmtJac, isNum, errorClass, scaledError, jacClass, viewColour, STATUS_LABEL } from "./format.js";
 
-const ZOOM_PX = 176; // displayed size of the zoom inset
+const ZOOM_PX = 150; // displayed size of the zoom inset
 const MIN_BOX = 2; // smallest box side, image pixels
 
 function boxCentre(b) {
@@ -35,7 +35,6 @@ export function doubts(view, tau, rule) {
   if (!cal.camera) out.push(cal.status ? `not calibrated (${cal.status})` : "not calibrated");
   else if (cal.admitted === false) out.push("calibration not admitted");
   if (cal.reason) out.push(cal.reason);
-  for (const f of cal.flags || []) if (!out.includes(f)) out.push(f);
   const ball = view.ball || {};
   if (!ball.kind) out.push("no ball label");
   if (errorClass(view.reprojection_error_px, view.width, tau, rule) === "bad") out.push("reprojection error above tau");
@@ -141,6 +140,13 @@ export class ViewPanel extends HTMLElement {
       "aria-label": `${label} ${v.name} with overlay`,
     });
     const zoomSvg = svg("svg", { "data-testid": "view-zoom", "aria-label": `${label} ball close-up` });
+    if (!ball.kind) {
+      // no ball label: drawing a box on the frame adds one
+      frameSvg.classList.add("draw");
+      frameSvg.addEventListener("pointerdown", (e) => {
+        if (!this.#currentLabel() || this.#drag) this.#startDrag(e, frameSvg, "draw");
+      });
+    }
 
     const err = v.reprojection_error_px;
     const scaled = scaledError(err, v.width, rule);
@@ -156,7 +162,7 @@ export class ViewPanel extends HTMLElement {
     } else if (ball.kind === "point" && validPoint(ball.point)) {
       boxText = `point (${ball.point[0].toFixed(1)}, ${ball.point[1].toFixed(1)})`;
     } else {
-      boxText = "no ball label";
+      boxText = "no ball label: drag on the frame to draw a box";
     }
     const optText = opt && validBox(opt.box)
       ? `d ${fmt(opt.d_px, 1)} px, ${fmt(opt.error_m, 2)} m off`
@@ -203,7 +209,7 @@ export class ViewPanel extends HTMLElement {
           el("dt", {}, "Calibration"),
           el(
             "dd",
-            { "data-testid": "view-calibration" },
+            { "data-testid": "view-calibration", title: residualsTitle(cal.residuals_px) },
             el("span", { class: cal.camera ? (cal.admitted === false ? "bad" : "ok") : "bad" },
               `${cal.status || "none"}${cal.source ? ` · ${cal.source}` : ""}${cal.camera ? (cal.admitted === false ? " · not admitted" : " · admitted") : ""}`),
             flags.length ? " " : null,
@@ -300,7 +306,7 @@ export class ViewPanel extends HTMLElement {
       nodes.push(svg("rect", { x: 0, y: 0, width: v.width, height: v.height, fill: "#101317" }));
       if (isMain) {
         nodes.push(svg("text", {
-          x: v.width / 2, y: v.height / 2, "text-anchor": "middle", class: "nodata", "font-size": v.width / 40,
+          x: 8 * s, y: 18 * s, class: "nodata", "font-size": 11 * s,
           text: this.#imageState === "loading" ? "loading image…" : `no image: blank ${v.width}×${v.height} canvas`,
         }));
       }
@@ -383,7 +389,7 @@ export class ViewPanel extends HTMLElement {
     event.preventDefault();
     event.stopPropagation();
     const start = this.#toImage(root, event);
-    const label = this.#currentLabel();
+    const label = mode === "draw" ? { box: [start[0], start[1], start[0], start[1]] } : this.#currentLabel();
     if (!start || !label) return;
     this.#zoomWindow(); // freeze the inset while dragging
     this.#drag = { mode, start, label: structuredClone(label), moved: false, root, pointerId: event.pointerId };
@@ -410,6 +416,10 @@ export class ViewPanel extends HTMLElement {
     if (d.mode === "point") {
       const q = d.label.point;
       this.#live = { point: [clamp(q[0] + dx, 0, v.width), clamp(q[1] + dy, 0, v.height)] };
+    } else if (d.mode === "draw") { // a new box where the view had no ball label
+      const [sx, sy] = d.start;
+      const x = clamp(p[0], 0, v.width), y = clamp(p[1], 0, v.height);
+      this.#live = { box: [Math.min(sx, x), Math.min(sy, y), Math.max(sx, x, Math.min(sx, x) + MIN_BOX), Math.max(sy, y, Math.min(sy, y) + MIN_BOX)] };
     } else if (d.mode === "move") {
       const b = d.label.box;
       const [cx, cy] = boxCentre(b);
@@ -470,6 +480,11 @@ export class ViewPanel extends HTMLElement {
     this.nudgeTimer = setTimeout(() => this.#commit(), 450);
     return true;
   }
+}
+
+function residualsTitle(residuals) {
+  const entries = Object.entries(residuals || {}).filter(([, px]) => isNum(px)).sort((a, b) => b[1] - a[1]);
+  return entries.length ? `line residuals (px):\n${entries.map(([c, px]) => `${c}: ${px.toFixed(2)}`).join("\n")}` : null;
 }
 
 function clamp(x, lo, hi) {

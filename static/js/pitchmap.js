@@ -65,6 +65,7 @@ export class PitchMap extends HTMLElement {
     root.append(svg("rect", { class: "grass", x: -HL - 3, y: -HW - 3, width: L + 6, height: W + 6, rx: 1 }));
     for (const d of pitchPaths()) root.append(svg("path", { class: "line", d }));
     const hasBall = Array.isArray(ball3d) && ball3d.every(isNum);
+    const labelled = []; // label anchors already used: near-duplicate viewpoints get stacked labels
     for (const c of placed) {
       const [x, y, z] = c.position;
       if (hasBall) {
@@ -74,7 +75,10 @@ export class PitchMap extends HTMLElement {
       g.append(svg("title", { text: `${c.label} ${c.name}: camera at x ${x.toFixed(1)} m, y ${y.toFixed(1)} m, ${(-z).toFixed(1)} m high` }));
       g.append(svg("circle", { class: "cam", cx: x, cy: y, r: 1.6, fill: c.colour }));
       const right = x < maxX - 12;
-      g.append(svg("text", { class: "cam-label", x: right ? x + 2.4 : x - 2.4, y: y + 1.1, "text-anchor": right ? "start" : "end", text: c.label }));
+      let ly = y + 1.1;
+      while (labelled.some(([ax, ay]) => Math.abs(ax - x) < 8 && Math.abs(ay - ly) < 3.4)) ly += 3.6;
+      labelled.push([x, ly]);
+      g.append(svg("text", { class: "cam-label", x: right ? x + 2.4 : x - 2.4, y: ly, "text-anchor": right ? "start" : "end", text: c.label }));
       root.append(g);
     }
     if (hasBall) {

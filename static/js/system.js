@@ -4,7 +4,7 @@
 // going back to the queue, and forwarded to the API so prev_id / next_id follow that queue.
 
 import { getSystem, postReview, patchBall } from "./api.js";
-import { el, fmt, fmtXYZ, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL } from "./format.js";
+import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL } from "./format.js";
 import "./overlay.js";
 import "./pitchmap.js";
 
@@ -119,7 +119,7 @@ class SystemPage {
     $("ball3d-h").textContent = ok ? `${(-b[2]).toFixed(2)} m` : "—";
     $("ball3d").title = ok ? `world metres, z down: (${fmtXYZ(b, 3)})` : "no 3D ball";
     const tri = sys.triangulation || {};
-    $("triangulation-status").textContent = tri.status ? `· ${tri.status}` : "";
+    $("triangulation-status").textContent = tri.status ? `· ${human(tri.status)}` : "";
     const kept = (tri.pairs || []).filter((p) => p.kept).length;
     $("triangulation-rule").textContent =
       `τ = ${fmt(tri.tau_px, 1)} px (${tri.rule || "?"}), baseline ≥ ${fmt(tri.min_baseline_m, 1)} m; ` +
@@ -143,7 +143,7 @@ class SystemPage {
         el("td", { class: `num ${isNum(p.parallax_deg) && p.parallax_deg < 5 ? "warn" : ""}` }, fmt(p.parallax_deg, 1, "°")),
         el("td", { class: `num ${isNum(p.baseline_m) && isNum(tri.min_baseline_m) && p.baseline_m < tri.min_baseline_m ? "bad" : ""}` }, fmt(p.baseline_m, 1, " m")),
         el("td", {}, p.kept ? el("span", { class: "ok" }, "kept") : el("span", { class: "bad" }, "dropped"),
-          !p.kept && p.reason ? el("div", { class: "reason muted" }, p.reason) : null),
+          !p.kept && p.reason ? el("div", { class: "reason muted" }, human(p.reason)) : null),
       ),
     );
     if (!rows.length) {
