@@ -256,14 +256,15 @@ class Calibration(Base):
 class BallLabel(Base):
     """A frame's ball label: a box ``[x1, y1, x2, y2]`` or a point ``[x, y]`` in pixels.
 
-    The imported original is kept beside the current value; both are empty of ball when the frame
-    has no label (no row at all).
+    The imported original is kept beside the current value. ``kind`` None means a reviewer removed
+    the label (the ball is not visible) while the original is kept; a frame that never had a label
+    has no row.
     """
 
     __tablename__ = "ball_labels"
 
     frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
-    kind: Mapped[BallKind] = mapped_column(enum_by_value(BallKind, "ball_kind"))
+    kind: Mapped[Optional[BallKind]] = mapped_column(enum_by_value(BallKind, "ball_kind"))
     box: Mapped[Optional[list[float]]]
     point: Mapped[Optional[list[float]]]
     original_kind: Mapped[Optional[BallKind]] = mapped_column(enum_by_value(BallKind, "ball_original_kind"))
@@ -279,13 +280,13 @@ class BallLabel(Base):
         return (self.kind, self.box, self.point) != (self.original_kind, self.original_box, self.original_point)
 
     @property
-    def centre(self) -> list[float]:
-        """The labelled ball centre ``[x, y]`` in pixels: the box centre or the point."""
+    def centre(self) -> list[float] | None:
+        """The labelled ball centre ``[x, y]`` in pixels (the box centre or the point), or None when
+        the current label was removed."""
         if self.box is not None:
             x1, y1, x2, y2 = self.box
             return [(x1 + x2) / 2.0, (y1 + y2) / 2.0]
-        assert self.point is not None
-        return list(self.point)
+        return None if self.point is None else list(self.point)
 
 
 class Triangulation(Base):

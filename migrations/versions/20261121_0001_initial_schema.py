@@ -76,7 +76,7 @@ def upgrade() -> None:
     )
     op.create_table('ball_labels',
     sa.Column('frame_id', sa.Integer(), nullable=False),
-    sa.Column('kind', sa.Enum('box', 'point', name='ball_kind', native_enum=False, create_constraint=True), nullable=False),
+    sa.Column('kind', sa.Enum('box', 'point', name='ball_kind', native_enum=False, create_constraint=True), nullable=True),
     sa.Column('box', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True),
     sa.Column('point', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True),
     sa.Column('original_kind', sa.Enum('box', 'point', name='ball_original_kind', native_enum=False, create_constraint=True), nullable=True),

@@ -1,0 +1,45 @@
+"""Errors the services raise; the API maps them to HTTP statuses and the CLI to messages.
+
+* :class:`NotFoundError` (a ``LookupError``): an id that names no row (HTTP 404).
+* :class:`InvalidInputError` (a ``ValueError``): input that cannot be stored: a label, a line set,
+  a review status (HTTP 422). Nothing is written when it is raised.
+* :class:`DatasetError` (an ``InvalidInputError``): a dataset file that cannot be imported; it names
+  the file and the field at fault. Nothing is written when it is raised.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class ServiceError(Exception):
+    """Base class of the errors services raise on purpose."""
+
+
+class NotFoundError(ServiceError, LookupError):
+    """No row has the given id; ``kind`` is "system", "frame", ..."""
+
+    def __init__(self, kind: str, ident: object) -> None:
+        super().__init__(f"{kind} {ident!r} not found")
+        self.kind = kind
+        self.ident = ident
+
+
+class InvalidInputError(ServiceError, ValueError):
+    """Input that cannot be stored. ``field`` names the offending field when known."""
+
+    def __init__(self, message: str, *, field: str | None = None) -> None:
+        super().__init__(f"{field}: {message}" if field else message)
+        self.field = field
+
+
+class DatasetError(InvalidInputError):
+    """A dataset file that cannot be imported.
+
+    The message reads ``<file>: <field>: <problem>``; ``file`` may be a path or
+    ``archive.zip!member``.
+    """
+
+    def __init__(self, file: str | Path, field: str | None, message: str) -> None:
+        self.file = str(file)
+        ServiceError.__init__(self, f"{self.file}: {field}: {message}" if field else f"{self.file}: {message}")
+        self.field = field

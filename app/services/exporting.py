@@ -1,0 +1,222 @@
+"""Export of reviewed labels as a SoccerNet-v3D tree (method.md section 9).
+
+Written under ``out_dir``:
+
+* per game ``<league>/<season>/<game>/Labels-v3D.json``: the SoccerNet-v3 layout (``GameMetadata``,
+  ``actions``, ``replays``) with, per game, ``GameMetadata.reconstructions`` (actions whose system has
+  more than one admitted frame) and, per frame, ``imageMetadata.calibrated_replays`` (actions: the
+  admitted replays), ``calibration`` (SoccerNet camera JSON, section 2, or null) and
+  ``JaC {"JaC@0.005", "JaC@0.01", "JaC@0.02"}``. v3d adds what a faithful re-import needs: the field
+  lines (full precision, pixels), ``GameMetadata.v3d_reviews`` (system -> review status) and per frame
+  ``v3d {source, status, reason, flags, residuals_px, admitted, original_lines}``. Single-view
+  systems are written as actions with ``imageType`` "camera".
+* one ``SNv3D.csv`` at the root, one row per exported frame, with every column of section 9 (lists
+  and dicts as JSON, boxes ``[x1, y1, x2, y2]`` in pixels, empty cells for missing values such as
+  ``replay`` on actions) followed by v3d's columns ``ball_point``, ``original_ball_bbox``,
+  ``original_ball_point`` and ``optimized_bbox``. ``set`` is train or test per game, from a stable
+  hash of the game path (about 80 / 20).
+
+Only accepted systems are exported unless ``include_all``. Floats are written with ``repr`` so that
+:func:`app.services.importing.import_soccernet_v3d` reads back the same numbers.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session, selectinload
+
+from app.db.models import Frame, FrameRole, Game, ReviewDecision, ReviewStatus, System
+from app.services.errors import InvalidInputError
+
+#: Columns of ``SNv3D.csv``: method.md section 9, then v3d's own.
+CSV_COLUMNS = (
+    "league", "season", "match", "main_action", "action", "replay", "img_w", "img_h", "is_ball", "ball_bbox",
+    "calibration", "JaC@0.005", "JaC@0.01", "JaC@0.02", "ball_3D", "rep_error", "optimized_error", "optimized_d",
+    "set", "ball_point", "original_ball_bbox", "original_ball_point", "optimized_bbox",
+)
+#: Share of games in the train split (the paper's split is about 80 / 20).
+TRAIN_FRACTION = 0.8
+
+
+@dataclass(frozen=True)
+class ExportReport:
+    """What an export wrote: counts and the files."""
+
+    out_dir: Path
+    games: int
+    systems: int
+    rows: int
+    csv_path: Path
+    label_files: tuple[Path, ...]
+
+
+def split_of(game_path: str) -> str:
+    """"train" or "test" for a game, from a stable hash of ``league/season/match`` (about 80 / 20).
+
+    >>> split_of("england_epl/2014-2015/2015-02-21 - 18-00 Chelsea 1 - 1 Burnley") in ("train", "test")
+    True
+    """
+    h = int.from_bytes(hashlib.sha256(game_path.encode("utf-8")).digest()[:8], "big")
+    return "train" if (h % 10_000) < TRAIN_FRACTION * 10_000 else "test"
+
+
+def _safe_component(value: str, what: str) -> str:
+    if not value or value in (".", "..") or "/" in value or "\\" in value or "\0" in value:
+        raise InvalidInputError(f"cannot be used as a folder name: {value!r}", field=what)
+    return value
+
+
+def _flat_lines(lines: dict[str, Any] | None) -> list[dict[str, Any]]:
+    """``{class: [[[x, y], ...], ...]}`` -> SoccerNet-v3 ``[{class, points [x1, y1, ...]}]``, unrounded."""
+    return [{"class": cls, "points": [float(v) for pt in poly for v in pt]}
+            for cls, polys in (lines or {}).items() for poly in polys]
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "True" if value else "False"
+    if isinstance(value, (dict, list, tuple)):
+        return json.dumps(value, separators=(", ", ": "))
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def _frame_json(frame: Frame, admitted_replays: list[str] | None) -> dict[str, Any]:
+    cal = frame.calibration
+    meta: dict[str, Any] = {"width": frame.width, "height": frame.height, "imageType": frame.role.value}
+    if admitted_replays is not None:
+        meta["calibrated_replays"] = admitted_replays
+    fl = frame.field_lines
+    return {
+        "imageMetadata": meta,
+        "lines": _flat_lines(fl.lines if fl else None),
+        "calibration": cal.camera if cal is not None else None,
+        "JaC": {"JaC@0.005": cal.jac_0005 if cal else None, "JaC@0.01": cal.jac_001 if cal else None,
+                "JaC@0.02": cal.jac_002 if cal else None},
+        "v3d": {
+            "source": cal.source.value if cal else None, "status": cal.status.value if cal else None,
+            "reason": cal.reason if cal else None, "flags": list(cal.flags) if cal else [],
+            "residuals_px": dict(cal.residuals_px) if cal else {}, "admitted": bool(cal.admitted) if cal else False,
+            "original_lines": _flat_lines(fl.original_lines) if fl else [],
+        },
+    }
+
+
+def _csv_row(game: Game, system: System, frame: Frame, split: str) -> dict[str, str]:
+    cal, label, opt, rep = frame.calibration, frame.ball_label, frame.optimised_box, frame.reprojection
+    tri = system.triangulation
+    is_action = frame.role is not FrameRole.REPLAY
+    values: dict[str, Any] = {
+        "league": game.league, "season": game.season, "match": game.match,
+        "main_action": system.name if frame.role is FrameRole.REPLAY else frame.name,
+        "action": is_action, "replay": None if is_action else frame.name,
+        "img_w": frame.width, "img_h": frame.height, "is_ball": label is not None and label.kind is not None,
+        "ball_bbox": label.box if label else None,
+        "calibration": cal.camera if cal else None,
+        "JaC@0.005": cal.jac_0005 if cal else None, "JaC@0.01": cal.jac_001 if cal else None,
+        "JaC@0.02": cal.jac_002 if cal else None,
+        "ball_3D": tri.ball3d if tri else None,
+        "rep_error": rep.error_px if rep else None,
+        "optimized_error": opt.error_m if opt else None, "optimized_d": opt.d_opt_px if opt else None,
+        "set": split,
+        "ball_point": label.point if label else None,
+        "original_ball_bbox": label.original_box if label else None,
+        "original_ball_point": label.original_point if label else None,
+        "optimized_bbox": opt.box if opt else None,
+    }
+    return {k: _cell(values[k]) for k in CSV_COLUMNS}
+
+
+def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: bool = False) -> ExportReport:
+    """Write the SoccerNet-v3D tree of the database under ``out_dir`` (see the module docstring).
+
+    Args:
+        session: database session (read only).
+        out_dir: destination folder, created if missing; existing files of the same names are
+            overwritten.
+        include_all: export every system, not only the accepted ones.
+
+    Returns:
+        An :class:`ExportReport`.
+
+    Raises:
+        InvalidInputError: a league, season or match that cannot be a folder name (nothing written).
+    """
+    out = Path(out_dir)
+    query = (
+        select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+        .options(
+            selectinload(System.game), selectinload(System.triangulation), selectinload(System.review),
+            selectinload(System.frames).selectinload(Frame.calibration),
+            selectinload(System.frames).selectinload(Frame.field_lines),
+            selectinload(System.frames).selectinload(Frame.ball_label),
+            selectinload(System.frames).selectinload(Frame.optimised_box),
+            selectinload(System.frames).selectinload(Frame.reprojection),
+        )
+        .order_by(Game.league, Game.season, Game.match, System.id)
+    )
+    if not include_all:
+        query = query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
+    by_game: dict[int, list[System]] = defaultdict(list)
+    games: dict[int, Game] = {}
+    for system in session.scalars(query):
+        by_game[system.game_id].append(system)
+        games[system.game_id] = system.game
+    for game in games.values():  # validate every folder name before writing anything
+        for value, what in ((game.league, "league"), (game.season, "season"), (game.match, "match")):
+            _safe_component(value, f"game {game.id} {what}")
+
+    rows: list[dict[str, str]] = []
+    files: list[Path] = []
+    for game_id, systems in by_game.items():
+        game = games[game_id]
+        split = split_of(game.path)
+        actions: dict[str, Any] = {}
+        replays: dict[str, Any] = {}
+        reconstructions: list[str] = []
+        for system in systems:
+            frames = list(system.frames)
+            admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
+            if len(admitted) > 1:
+                reconstructions.append(system.name)
+            main = frames[0]
+            others = frames[1:]
+            main_json = _frame_json(main, [f.name for f in others if f in admitted])
+            main_json["linked_replays"] = [f.name for f in others]
+            actions[main.name] = main_json
+            for f in others:
+                rj = _frame_json(f, None)
+                rj["linked_action"] = main.name
+                replays[f.name] = rj
+            rows.extend(_csv_row(game, system, f, split) for f in frames)
+        doc = {
+            "GameMetadata": {
+                "UrlLocal": f"{game.path}/", "list_actions": list(actions), "list_replays": list(replays),
+                "num_actions": len(actions), "num_replays": len(replays), "reconstructions": reconstructions,
+                "v3d_reviews": {s.name: (s.review.status.value if s.review else ReviewStatus.PENDING.value)
+                                for s in systems},
+            },
+            "actions": actions,
+            "replays": replays,
+        }
+        game_dir = out.joinpath(game.league, game.season, game.match)
+        game_dir.mkdir(parents=True, exist_ok=True)
+        path = game_dir / "Labels-v3D.json"
+        path.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        files.append(path)
+
+    out.mkdir(parents=True, exist_ok=True)
+    csv_path = out / "SNv3D.csv"
+    with csv_path.open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    return ExportReport(out, len(by_game), sum(len(v) for v in by_game.values()), len(rows), csv_path, tuple(files))

@@ -1,0 +1,307 @@
+"""Recomputation of everything derived from annotations: calibration, admission, triangulation,
+reprojections and optimised boxes.
+
+Chain (docs/architecture.md): a frame's field lines -> its calibration (:func:`recompute_frame`) ->
+its system's admission and triangulation -> reprojections and optimised boxes of the system's frames
+(:func:`recompute_system`). These functions only change the session; the caller commits, so an edit
+and its recomputation land in one transaction (``app.services.editing``).
+
+Admission (method.md section 4): a frame joins triangulation when it is calibrated and its JaC at
+``settings.admit_jac_gamma`` is strictly above ``settings.admit_jac_min``.
+
+Derived rows:
+
+* ``Triangulation`` (+ ``TriangulationPair`` per pair of admitted labelled views), always present
+  after recomputation, with the status of ``app.geometry.triangulation.triangulate_ball``;
+* ``BallReprojection`` for every frame with a camera when the system has a 3D ball (the error is
+  against the frame's label, None without one);
+* ``OptimisedBox`` (paper Eq. min_diametre, ``method="paper"``) for every admitted frame with a label
+  when the system has a 3D ball and the ball lies in front of the camera along the labelled ray.
+
+Bulk calibration (:func:`calibrate_many`) runs the pure ``calibrate_frame`` in a process pool and
+returns plain :class:`CalibrationFields`; the main process writes them (:func:`apply_calibration`).
+"""
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import (
+    BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, OptimisedBox, System,
+    Triangulation, TriangulationPair, TriangulationStatus,
+)
+from app.db.types import json_safe, utcnow
+from app.geometry.annotations import lines_from_json_lists
+from app.geometry.ball import optimise_box
+from app.geometry.camera import Camera
+from app.geometry.triangulation import BallObservation, triangulate_ball
+
+#: The three JaC gammas stored per calibration (fractions of the image diagonal, method.md s4).
+JAC_GAMMAS: tuple[float, float, float] = (0.005, 0.01, 0.02)
+_JAC_COLUMNS = {0.005: "jac_0005", 0.01: "jac_001", 0.02: "jac_002"}
+
+#: Jobs below this count are calibrated in-process (a pool costs more than it saves).
+_MIN_JOBS_FOR_POOL = 8
+
+#: ``progress(stage, done, total)``: called as work advances (the CLI draws a tqdm bar from it).
+Progress = Callable[[str, int, int], None]
+
+
+@dataclass(frozen=True)
+class CalibrationFields:
+    """What is stored of a calibration: plain values, picklable across processes.
+
+    Attributes:
+        status: calibrated or refused.
+        camera: SoccerNet camera JSON (method.md section 2) at the frame's resolution, or None.
+        jac: JaC at the gammas of :data:`JAC_GAMMAS` (None where not computed).
+        residuals_px: class -> residual in pixels.
+        flags: warnings raised by calibration (e.g. probable mirrored labels).
+        reason: why calibration was refused (None when calibrated).
+    """
+
+    status: CalibrationStatus
+    camera: dict[str, Any] | None
+    jac: tuple[float | None, float | None, float | None]
+    residuals_px: dict[str, Any] = field(default_factory=dict)
+    flags: list[str] = field(default_factory=list)
+    reason: str | None = None
+
+
+def expected_side(role: FrameRole) -> int | None:
+    """Side of the pitch the camera of a frame is expected on: +1 (y > 0) for broadcast main cameras
+    (actions and calibration-dataset frames, method.md section 3), None for replays (anywhere).
+    Only used by calibration to flag probably mirrored labels."""
+    return None if role is FrameRole.REPLAY else 1
+
+
+def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: int | None = None) -> CalibrationFields:
+    """Calibrate one frame from its stored field lines (``{class: [[[x, y], ...], ...]}``, pixels).
+
+    Pure: calls ``app.geometry.calibration.calibrate_frame`` (JaC at :data:`JAC_GAMMAS` included)
+    with the prior ``expected_side=side`` and converts its result. Safe to run in a worker process.
+    """
+    from app.geometry.calibration import CalibrationPrior, calibrate_frame
+
+    prior = CalibrationPrior(expected_side=side) if side is not None else None
+    result = calibrate_frame(lines_from_json_lists(lines_json), width, height, prior=prior)
+    return _fields_from_result(result)
+
+
+def _fields_from_result(result: Any) -> CalibrationFields:
+    """Plain fields of an ``app.geometry.calibration.CalibrationResult``."""
+    camera = result.camera
+    status = CalibrationStatus(str(getattr(result.status, "value", result.status)))
+    jac = tuple(_opt_float(result.jac.get(f"{g:g}")) for g in JAC_GAMMAS) if result.jac else (None, None, None)
+    return CalibrationFields(
+        status=status,
+        camera=json_safe(camera.to_soccernet()) if camera is not None and status is CalibrationStatus.CALIBRATED else None,
+        jac=jac,  # type: ignore[arg-type]
+        residuals_px=json_safe(dict(result.residuals_px or {})),
+        flags=[str(f) for f in (result.flags or ())],
+        reason=result.reason,
+    )
+
+
+def _opt_float(v: Any) -> float | None:
+    return None if v is None else float(v)
+
+
+CalibrationJob = tuple[dict[str, Any], int, int, "int | None"]
+
+
+def _calibrate_job(job: CalibrationJob) -> CalibrationFields:
+    return calibrate_lines(*job)
+
+
+def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0,
+                   progress: Progress | None = None) -> list[CalibrationFields]:
+    """Calibrate many frames, in parallel on ``workers`` processes (0 = all cores).
+
+    Args:
+        jobs: ``(lines_json, width, height, side)`` per frame (see :func:`calibrate_lines`).
+        workers: process count; 0 means ``os.cpu_count()``; 1, or fewer than a handful of jobs,
+            runs in this process.
+        progress: called with ``("calibrate", done, total)``.
+
+    Returns:
+        One :class:`CalibrationFields` per job, in order.
+    """
+    total = len(jobs)
+    n = workers or os.cpu_count() or 1
+    out: list[CalibrationFields] = []
+    if n <= 1 or total < _MIN_JOBS_FOR_POOL:
+        for job in jobs:
+            out.append(_calibrate_job(job))
+            if progress:
+                progress("calibrate", len(out), total)
+        return out
+    chunk = max(1, min(16, total // (n * 8)))
+    with ProcessPoolExecutor(max_workers=n) as pool:
+        for fields in pool.map(_calibrate_job, jobs, chunksize=chunk):
+            out.append(fields)
+            if progress:
+                progress("calibrate", len(out), total)
+    return out
+
+
+def apply_calibration(frame: Frame, fields: CalibrationFields, source: CalibrationSource) -> Calibration:
+    """Write ``fields`` into the frame's calibration row (created if missing).
+
+    ``admitted`` is reset to False: it is decided by :func:`recompute_system`.
+    """
+    cal = frame.calibration
+    if cal is None:
+        cal = Calibration(source=source, status=fields.status)
+        frame.calibration = cal
+    cal.source = source
+    cal.status = fields.status
+    cal.camera = fields.camera
+    cal.jac_0005, cal.jac_001, cal.jac_002 = fields.jac
+    cal.residuals_px = fields.residuals_px
+    cal.flags = list(fields.flags)
+    cal.reason = fields.reason
+    cal.admitted = False
+    cal.updated_at = utcnow()
+    return cal
+
+
+def admission_jac(calibration: Calibration, settings: Settings) -> float | None:
+    """The calibration's JaC at ``settings.admit_jac_gamma``.
+
+    Raises:
+        ValueError: the gamma is not one of the stored :data:`JAC_GAMMAS`.
+    """
+    column = _JAC_COLUMNS.get(settings.admit_jac_gamma)
+    if column is None:
+        raise ValueError(f"settings.admit_jac_gamma={settings.admit_jac_gamma!r} is not a stored JaC gamma; "
+                         f"choose one of {list(JAC_GAMMAS)}")
+    return getattr(calibration, column)
+
+
+def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
+    """True when the frame joins triangulation: calibrated with JaC@gamma > ``admit_jac_min``."""
+    if calibration is None or calibration.status is not CalibrationStatus.CALIBRATED or calibration.camera is None:
+        return False
+    jac = admission_jac(calibration, settings)
+    return jac is not None and jac > settings.admit_jac_min
+
+
+def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Triangulation:
+    """Recalibrate ``frame`` from its current field lines, then recompute its system.
+
+    The calibration's source becomes "computed". The session is flushed, not committed.
+
+    Raises:
+        ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
+    """
+    if frame.field_lines is None:
+        raise ValueError(f"frame {frame.id} ({frame.name!r}) has no field lines to calibrate from")
+    fields = calibrate_lines(frame.field_lines.lines, frame.width, frame.height, expected_side(frame.role))
+    apply_calibration(frame, fields, CalibrationSource.COMPUTED)
+    return recompute_system(session, frame.system, settings)
+
+
+def recompute_system(session: Session, system: System, settings: Settings) -> Triangulation:
+    """Admission, triangulation, reprojections and optimised boxes of one system, from its current
+    calibrations and ball labels (see the module docstring). Replaces the previous derived rows.
+    The session is flushed, not committed.
+
+    Returns:
+        The system's :class:`Triangulation` row.
+    """
+    frames = list(system.frames)
+    cameras: dict[int, Camera] = {}
+    observations: list[BallObservation] = []
+    for f in frames:
+        cal = f.calibration
+        if cal is not None:
+            cal.admitted = is_admitted(cal, settings)
+            if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
+                cameras[f.id] = Camera.from_soccernet(cal.camera)
+        centre = _label_centre(f)
+        if cal is not None and cal.admitted and centre is not None:
+            observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
+                                                image_width=f.width))
+    result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                              min_baseline_m=settings.min_baseline_m)
+
+    tri = system.triangulation
+    if tri is None:
+        tri = Triangulation(system=system, status=TriangulationStatus(result.status), tau_px=result.tau_px,
+                            rule=result.rule, min_baseline_m=result.min_baseline_m)
+        session.add(tri)
+    tri.status = TriangulationStatus(result.status)
+    tri.ball3d = None if result.point is None else [float(v) for v in result.point]
+    tri.tau_px, tri.rule, tri.min_baseline_m = result.tau_px, result.rule, result.min_baseline_m
+    tri.computed_at = utcnow()
+    tri.pairs.clear()
+    for p in result.pairs:
+        tri.pairs.append(TriangulationPair(
+            frame_a_id=p.view_a, frame_b_id=p.view_b,
+            point=None if p.point is None else [float(v) for v in p.point],
+            error_px=json_safe(p.error), parallax_deg=json_safe(p.parallax_deg), baseline_m=float(p.baseline_m),
+            kept=bool(p.kept), reason=p.reason,
+        ))
+
+    ball = None if result.point is None else np.asarray(result.point, dtype=float)
+    for f in frames:
+        _update_reprojection(f, cameras.get(f.id), ball)
+        admitted = f.calibration is not None and f.calibration.admitted
+        _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
+    session.flush()
+    return tri
+
+
+def _label_centre(frame: Frame) -> np.ndarray | None:
+    """(2,) labelled ball centre in pixels, or None without a current label."""
+    centre = frame.ball_label.centre if frame.ball_label is not None else None
+    return None if centre is None else np.asarray(centre, dtype=float)
+
+
+def _update_reprojection(frame: Frame, camera: Camera | None, ball: np.ndarray | None) -> None:
+    uv = None
+    if camera is not None and ball is not None:
+        proj, in_front = camera.project(ball.reshape(1, 3))
+        uv = proj[0] if in_front[0] else None
+    if uv is None:
+        frame.reprojection = None
+        return
+    centre = _label_centre(frame)
+    error = None if centre is None else float(np.linalg.norm(uv - centre))
+    rep = frame.reprojection or BallReprojection(point=[0.0, 0.0])
+    rep.point, rep.error_px = [float(uv[0]), float(uv[1])], error
+    frame.reprojection = rep
+
+
+def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray | None, settings: Settings) -> None:
+    opt = None
+    centre = _label_centre(frame)
+    if camera is not None and ball is not None and centre is not None:
+        r = optimise_box(camera, centre, ball, settings.ball_diameter_m, method="paper")
+        opt = r if r.status == "ok" else None
+    if opt is None:
+        frame.optimised_box = None
+        return
+    row = frame.optimised_box or OptimisedBox(box=[], d_opt_px=0.0, error_m=0.0)
+    row.box, row.d_opt_px, row.error_m = [float(v) for v in opt.box], float(opt.d_px), float(opt.error_m)
+    frame.optimised_box = row
+
+
+def recompute_systems(session: Session, systems: Iterable[System], settings: Settings,
+                      progress: Progress | None = None) -> int:
+    """:func:`recompute_system` for each system; returns how many were triangulated."""
+    systems = list(systems)
+    n = 0
+    for i, s in enumerate(systems, 1):
+        if recompute_system(session, s, settings).status is TriangulationStatus.TRIANGULATED:
+            n += 1
+        if progress:
+            progress("triangulate", i, len(systems))
+    return n
