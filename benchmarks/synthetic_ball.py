@@ -7,7 +7,8 @@ the ball boxes of each game's ``Labels-v3.json`` (class "Ball"), and prints:
 * IoU and size error against the precise boxes of the annotated boxes and of the optimised boxes
   (paper variant and exact variants), as in the paper's Table bboxopt (real data: IoU 0.57 -> 0.66,
   size error 19.0 % -> 7.3 %);
-* MAE_m / MAE_% / P@2m of the monocular ball from annotated and from optimised boxes;
+* MAE_m / MAE_% / P@2m of the monocular ball from annotated, optimised and precise boxes, with
+  the paper's formula (Eq. ball3Destimation) and with the exact inverse of the sphere silhouette;
 * a sweep of tau: pairs and views with a deliberate error that are dropped, good ones kept, and the
   3D error, with true cameras and with a simulated calibration error.
 
@@ -30,7 +31,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.geometry.ball import OPTIMISED_BOX_METHODS, ball_from_box, box_centre_and_diameter, optimise_box  # noqa: E402
+from app.geometry.ball import (  # noqa: E402
+    OPTIMISED_BOX_METHODS,
+    ball_from_box,
+    ball_from_box_exact,
+    box_centre_and_diameter,
+    optimise_box,
+)
 from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.metrics import box_iou, box_size_error_pct, monocular_metrics  # noqa: E402
 from app.geometry.triangulation import BallObservation, TriangulationResult, triangulate_ball  # noqa: E402
@@ -141,14 +148,20 @@ def fused_errors_m(systems: list[DevSystem], results: list[TriangulationResult])
                      if s.corruption is None and r.point is not None])
 
 
+#: Monocular estimators compared on every kind of box: the paper's formula and the exact inverse.
+MONOCULAR = {"paper_formula": ball_from_box, "exact_inverse": ball_from_box_exact}
+
+
 def box_study(systems: list[DevSystem], results: list[TriangulationResult],
               noise: dict | None = None) -> dict[str, dict[str, float]]:
-    """IoU / size error vs the precise boxes, and monocular metrics, on views of uncorrupted triangulated systems.
+    """Boxes (annotated, precise, optimised by each method) on views of uncorrupted triangulated systems.
 
+    Per kind of box: mean IoU and size error against the precise boxes, and for each monocular
+    estimator of :data:`MONOCULAR` the MAE_m, MAE_% and P@2m of its ball against the true ball.
     ``noise``: cameras from :func:`perturbed_cameras` to use instead of the true ones (the same
     cameras must have produced ``results``)."""
-    rows: dict[str, list] = {"annotated": [], **{m: [] for m in OPTIMISED_BOX_METHODS}}
-    mono: dict[str, list] = {"annotated": [], "paper": []}
+    kinds = ("annotated", *OPTIMISED_BOX_METHODS, "precise")
+    rows: dict[str, list] = {k: [] for k in kinds}
     for s, r in zip(systems, results):
         if s.corruption is not None or r.point is None:
             continue
@@ -157,24 +170,23 @@ def box_study(systems: list[DevSystem], results: list[TriangulationResult],
                 continue
             cam = v.camera if noise is None else noise[(s.game, s.action)][v.image]
             centre = box_centre_and_diameter(v.box)[0][0]
-            rows["annotated"].append((v.box, v.precise_box))
-            mono["annotated"].append((ball_from_box(cam, v.box, BALL_DIAMETER_M)[0], s.ball_3d, cam.C,
-                                      box_iou(v.box, v.precise_box)))
-            for m in OPTIMISED_BOX_METHODS:
-                o = optimise_box(cam, centre, r.point, BALL_DIAMETER_M, method=m)
-                rows[m].append((o.box, v.precise_box))
-                if m == "paper":
-                    mono["paper"].append((ball_from_box(cam, o.box, BALL_DIAMETER_M)[0], s.ball_3d, cam.C,
-                                          box_iou(o.box, v.precise_box)))
+            boxes = {"annotated": v.box, "precise": v.precise_box,
+                     **{m: optimise_box(cam, centre, r.point, BALL_DIAMETER_M, method=m).box
+                        for m in OPTIMISED_BOX_METHODS}}
+            for k in kinds:
+                rows[k].append((boxes[k], v.precise_box, cam, s.ball_3d))
     out: dict[str, dict[str, float]] = {}
-    for name, pairs in rows.items():
-        b = np.array([p[0] for p in pairs])
-        ref = np.array([p[1] for p in pairs])
-        out[name] = {"n": len(b), "iou": float(box_iou(b, ref).mean()),
-                     "size_error_pct": float(box_size_error_pct(b, ref).mean())}
-    for name, quads in mono.items():
-        mm = monocular_metrics(*(np.array([q[i] for q in quads]) for i in range(4)), tau_m=2.0)
-        out[name].update(mae_m=mm.mae_m, mae_pct=mm.mae_pct, p_at_2m=mm.precision_at_tau)
+    for kind, items in rows.items():
+        b = np.array([it[0] for it in items])
+        ref = np.array([it[1] for it in items])
+        iou = box_iou(b, ref)
+        out[kind] = {"n": len(b), "iou": float(iou.mean()), "size_error_pct": float(box_size_error_pct(b, ref).mean())}
+        truth = np.array([it[3] for it in items])
+        centres = np.array([it[2].C for it in items])
+        for name, fn in MONOCULAR.items():
+            pred = np.array([fn(it[2], it[0], BALL_DIAMETER_M)[0] for it in items])
+            mm = monocular_metrics(pred, truth, centres, iou, tau_m=2.0)
+            out[kind][name] = {"mae_m": mm.mae_m, "mae_pct": mm.mae_pct, "p_at_2m": mm.precision_at_tau}
     return out
 
 
@@ -256,10 +268,11 @@ def main() -> None:
               "monocular ball vs true ball:")
         r = res if noise is None else triangulate_all(systems, tau, rule, noise=noise)
         study = box_study(systems, r, noise)
-        print(f"  {'box':12s} {'n':>4s} {'IoU':>6s} {'size err %':>10s} {'MAE_m':>7s} {'MAE_%':>6s} {'P@2m':>5s}")
+        head = "".join(f" | {name + ': MAE_m  MAE_%  P@2m':>32s}" for name in MONOCULAR)
+        print(f"  {'box':12s} {'n':>4s} {'IoU':>6s} {'size err %':>10s}{head}")
         for name, m in study.items():
-            extra = f" {m['mae_m']:7.3f} {m['mae_pct']:6.2f} {m['p_at_2m']:5.2f}" if "mae_m" in m else ""
-            print(f"  {name:12s} {m['n']:4d} {m['iou']:6.3f} {m['size_error_pct']:10.2f}{extra}")
+            mono = "".join(f" | {m[k]['mae_m']:19.3f} {m[k]['mae_pct']:6.2f} {m[k]['p_at_2m']:5.2f}" for k in MONOCULAR)
+            print(f"  {name:12s} {m['n']:4d} {m['iou']:6.3f} {m['size_error_pct']:10.2f}{mono}")
 
     print("\ne_ij by rule, mirrored views calibrated as mirrored (good: no deliberate error; bad: involving one):")
     for title, noise in (("true cameras", None), ("0.1 deg error", noisy)):

@@ -29,7 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
+from scipy.optimize import brentq, least_squares
 
 from app.geometry.camera import MIN_DEPTH_M, Camera
 
@@ -128,6 +128,69 @@ def ball_from_box(camera: Camera, boxes: np.ndarray, ball_diameter_m: float) -> 
     """
     centres, diameters = box_centre_and_diameter(boxes)
     return ball_from_centre_diameter(camera, centres, diameters, ball_diameter_m)
+
+
+def ball_from_box_exact(camera: Camera, boxes: np.ndarray, ball_diameter_m: float) -> np.ndarray:
+    """Monocular 3D ball from box(es) with the exact sphere silhouette (the inverse of :func:`sphere_image_box`).
+
+    Each box edge back-projects to a plane through the camera centre that the ball touches: with
+    ``l = (1, 0, -x1), (-1, 0, x2), (0, 1, -y1), (0, -1, y2)`` the plane ``pi = P^T l`` has the ball
+    centre on its inner side at distance ``r = phi / 2``. The four conditions
+    ``(n_k . X + pi_k[3]) / ||n_k|| = r`` are linear in X and solved by least squares (exact for a
+    box that is the image of a sphere; for a loose box, the centre whose distances to the four
+    tangent planes are closest to r). With distortion the edges are not images of planes: the
+    solution is refined by least squares on :func:`sphere_image_box`, starting from the paper estimate.
+
+    Unlike Eq. ball3Destimation this has no off-axis bias (on the synthetic dev set's precise boxes
+    the paper formula errs by 0.24 m median and up to 3.3 m, 15 % of the distance).
+
+    Args:
+        camera: the view's camera.
+        boxes: (4,) or (N, 4) ``[x1, y1, x2, y2]`` pixels.
+        ball_diameter_m: phi, metres.
+
+    Returns:
+        (N, 3) world points, metres.
+
+    Raises:
+        ValueError: bad boxes or non-positive ball_diameter_m.
+
+    >>> cam = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0,
+    ...                              tilt_deg=90.0, roll_deg=0.0, position_m=[0.0, 50.0, -10.0])
+    >>> box = sphere_image_box(cam, [12.0, 3.0, -1.0], 0.11)
+    >>> np.round(ball_from_box_exact(cam, box, 0.22), 9).tolist()
+    [[12.0, 3.0, -1.0]]
+    """
+    b = _as_boxes(boxes, "boxes")
+    box_centre_and_diameter(b)  # validates the boxes
+    if not ball_diameter_m > 0:
+        raise ValueError(f"ball_diameter_m must be positive, got {ball_diameter_m!r}")
+    r = ball_diameter_m / 2
+    if camera.has_distortion:
+        start = ball_from_box(camera, b, ball_diameter_m)
+        return np.array([_refine_on_silhouette(camera, box, x0, r) for box, x0 in zip(b, start)])
+    P = camera.projection_matrix
+    lines = np.zeros((len(b), 4, 3))
+    lines[:, 0] = np.stack([np.ones(len(b)), np.zeros(len(b)), -b[:, 0]], axis=1)
+    lines[:, 1] = np.stack([-np.ones(len(b)), np.zeros(len(b)), b[:, 2]], axis=1)
+    lines[:, 2] = np.stack([np.zeros(len(b)), np.ones(len(b)), -b[:, 1]], axis=1)
+    lines[:, 3] = np.stack([np.zeros(len(b)), -np.ones(len(b)), b[:, 3]], axis=1)
+    planes = lines @ P  # (N, 4, 4): pi_k = P^T l_k, as rows
+    norms = np.linalg.norm(planes[..., :3], axis=2, keepdims=True)
+    A = planes[..., :3] / norms
+    rhs = r - planes[..., 3] / norms[..., 0]
+    return np.stack([np.linalg.lstsq(a, y, rcond=None)[0] for a, y in zip(A, rhs)])
+
+
+def _refine_on_silhouette(camera: Camera, box: np.ndarray, start: np.ndarray, r: float) -> np.ndarray:
+    """Ball centre whose (distorted) silhouette box best matches ``box`` (least squares, px)."""
+    scale = max(float(box[2] - box[0] + box[3] - box[1]), 1.0)
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        pred = sphere_image_box(camera, x, r)
+        return np.full(4, 1e3 * scale) if pred is None else pred - box
+
+    return least_squares(residual, start, x_scale=np.full(3, 0.1), method="lm").x
 
 
 def sphere_image_box(camera: Camera, centre_world: np.ndarray, radius_m: float) -> np.ndarray | None:
