@@ -26,7 +26,7 @@ origin at the top-left corner.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from itertools import combinations
 from typing import Callable, Hashable, Sequence
 
@@ -131,6 +131,13 @@ class PairResult:
     baseline_m: float
     kept: bool
     reason: str | None
+
+    def as_dict(self) -> dict:
+        """JSON-ready form with the keys of the system view contract (docs/architecture.md)."""
+        return {"view_a": self.view_a, "view_b": self.view_b,
+                "point": None if self.point is None else [float(v) for v in self.point],
+                "error_px": self.error, "parallax_deg": self.parallax_deg, "baseline_m": self.baseline_m,
+                "kept": self.kept, "reason": self.reason}
 
 
 @dataclass(frozen=True)
@@ -272,11 +279,15 @@ def pair_error(errors_px: tuple[float, float], widths_px: tuple[float, float], r
     >>> pair_error((2.0, 3.0), (960.0, 1920.0), "max_scaled_1920")
     4.0
     """
+    fn = _rule(rule)
+    return float(fn(errors_px[0], errors_px[1], widths_px[0], widths_px[1]))
+
+
+def _rule(rule: str) -> Callable[[float, float, float, float], float]:
     try:
-        fn = PAIR_ERROR_RULES[rule]
+        return PAIR_ERROR_RULES[rule]
     except KeyError:
         raise ValueError(f"pair_error_rule {rule!r} is unknown; choose one of {sorted(PAIR_ERROR_RULES)}") from None
-    return float(fn(errors_px[0], errors_px[1], widths_px[0], widths_px[1]))
 
 
 def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, rule: str,
@@ -292,8 +303,7 @@ def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, r
     Raises:
         ValueError: unknown rule.
     """
-    if rule not in PAIR_ERROR_RULES:
-        pair_error((0.0, 0.0), (1.0, 1.0), rule)  # raises the standard message
+    _rule(rule)
     baseline = float(np.linalg.norm(a.camera.C - b.camera.C))
     beta = parallax_angle_deg(a.camera, a.point_px, b.camera, b.point_px)
     P = np.stack([a.camera.projection_matrix, b.camera.projection_matrix])
@@ -342,8 +352,7 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
         ValueError: unknown rule, non-positive ``tau_px``, negative ``min_baseline_m`` or duplicate
             view ids.
     """
-    if rule not in PAIR_ERROR_RULES:
-        pair_error((0.0, 0.0), (1.0, 1.0), rule)
+    _rule(rule)
     if not tau_px > 0:
         raise ValueError(f"tau_px must be positive, got {tau_px!r}")
     if not min_baseline_m >= 0:

@@ -122,6 +122,15 @@ def test_wrong_label_is_dropped_by_tau_and_does_not_move_the_ball():
     assert result.view_errors_px["v2"] == pytest.approx(np.hypot(300.0, 150.0), rel=1e-6)
 
 
+def test_pair_as_dict_has_the_system_view_keys():
+    result = triangulate_ball(observe(rig()), tau_px=20.0)
+    d = result.pairs[0].as_dict()
+    assert list(d) == ["view_a", "view_b", "point", "error_px", "parallax_deg", "baseline_m", "kept", "reason"]
+    assert d["view_a"] == "v0" and d["kept"] is True and d["reason"] is None
+    np.testing.assert_allclose(d["point"], BALL, atol=1e-7)
+    assert isinstance(d["point"][0], float)
+
+
 def test_pair_error_rules_scale_to_1920_wide_images():
     assert pair_error((2.0, 3.0), (960.0, 1920.0), "max_scaled_1920") == 4.0
     assert pair_error((2.0, 3.0), (960.0, 1920.0), "mean_scaled_1920") == 3.5
