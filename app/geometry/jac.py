@@ -196,16 +196,18 @@ def _class_distances(projected: Mapping[str, np.ndarray], annotated: Mapping[str
     return {cls: point_to_polyline_distances(pts, projected[cls]) for cls, pts in annotated.items() if cls in projected}
 
 
-def _score(projected: frozenset[str], annotated: Iterable[str], distances: Mapping[str, np.ndarray],
+def _score(projected: frozenset[str], annotated: Iterable[str], worst: Mapping[str, float],
            threshold: float) -> tuple[np.float32, dict[str, Outcome]]:
+    """Official confusion counts at one threshold; ``worst`` is each common class's largest
+    point distance (all points ``< threshold`` <=> the largest one is)."""
     annotated = set(annotated)
     classes: dict[str, Outcome] = {}
     for cls in projected - annotated:
         classes[cls] = "FP"
     for cls in annotated - projected:
         classes[cls] = "FN"
-    for cls, d in distances.items():
-        classes[cls] = "TP" if bool(np.all(d < threshold)) else "FP"
+    for cls, d in worst.items():
+        classes[cls] = "TP" if d < threshold else "FP"
     tp = sum(v == "TP" for v in classes.values())
     total = np.float32(len(classes))
     jac = np.float32(tp) / total if total > 0 else np.float32(0.0)
@@ -252,10 +254,12 @@ def evaluate_jac(camera: Camera, lines: FieldLines, width: int, height: int,
     mirrored = {MIRROR_CLASSES[cls]: pts for cls, pts in annotated.items()}
     d_direct = _class_distances(projected, annotated)
     d_mirror = _class_distances(projected, mirrored)
+    worst_direct = {cls: float(d.max()) for cls, d in d_direct.items()}
+    worst_mirror = {cls: float(d.max()) for cls, d in d_mirror.items()}
     results = []
     for t in thresholds:
-        jac1, classes1 = _score(projected_classes, annotated, d_direct, t)
-        jac2, classes2 = _score(projected_classes, mirrored, d_mirror, t)
+        jac1, classes1 = _score(projected_classes, annotated, worst_direct, t)
+        jac2, classes2 = _score(projected_classes, mirrored, worst_mirror, t)
         use_mirror = bool(jac2 > jac1)
         jac, classes = (jac2, classes2) if use_mirror else (jac1, classes1)
         counts = {o: sum(v == o for v in classes.values()) for o in ("TP", "FP", "FN")}

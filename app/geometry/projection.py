@@ -112,24 +112,29 @@ def _border_crossings(ext: np.ndarray, prev: np.ndarray, width: int, height: int
     return np.stack([ix[rows, best], iy[rows, best]], axis=1), ok.any(axis=1)
 
 
-def _evaluator_polyline(uv: np.ndarray, valid: np.ndarray, width: int, height: int) -> np.ndarray:
-    """One class's polyline as ``get_polylines`` builds it (in-image points and border crossings,
-    all runs concatenated into one polyline, points behind the camera dropped). Returns (K, 2)."""
-    pts = uv[valid]
-    if len(pts) == 0:
-        return pts
+def _evaluator_polylines(uv: np.ndarray, valid: np.ndarray, class_ids: np.ndarray, width: int,
+                         height: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every class's polyline as ``get_polylines`` builds it, for all classes at once.
+
+    Per class: in-image points and border crossings, all runs concatenated into one polyline,
+    points behind the camera dropped. Input rows are grouped by class (``class_ids`` non-decreasing).
+
+    Returns:
+        ``(points (K, 2), ids (K,))``: the polylines one after the other, each row tagged with its class id.
+    """
+    pts, ids = uv[valid], class_ids[valid]
     inside = (pts[:, 0] >= 0) & (pts[:, 0] < width) & (pts[:, 1] >= 0) & (pts[:, 1] < height)
-    # A crossing is sought where the in/out state changes between consecutive *valid* points; the
-    # first valid point never gets one (the evaluator's previous projection is then all zeros).
-    change = np.flatnonzero(inside[1:] != inside[:-1]) + 1
-    keys = [3 * np.flatnonzero(inside) + 1]
-    chunks = [pts[inside]]
-    if len(change):
-        crossing, found = _border_crossings(pts[change], pts[change - 1], width, height)
-        keys.append(3 * change[found])
-        chunks.append(crossing[found])
-    order = np.argsort(np.concatenate(keys), kind="stable")
-    return np.concatenate(chunks, axis=0)[order]
+    # A crossing is sought where the in/out state changes between consecutive *valid* points of a
+    # class; a class's first valid point never gets one (the evaluator's previous projection is then
+    # all zeros, whose line with anything is degenerate).
+    change = np.flatnonzero((inside[1:] != inside[:-1]) & (ids[1:] == ids[:-1])) + 1
+    keep = np.flatnonzero(inside)
+    crossing, found = _border_crossings(pts[change], pts[change - 1], width, height)
+    change = change[found]
+    keys = np.concatenate([3 * keep + 1, 3 * change])
+    order = np.argsort(keys, kind="stable")
+    out = np.concatenate([pts[keep], crossing[found]], axis=0)[order]
+    return out, np.concatenate([ids[keep], ids[change]])[order]
 
 
 def _clip_runs(uv: np.ndarray, valid: np.ndarray, width: int, height: int) -> list[np.ndarray]:
@@ -239,14 +244,16 @@ def project_pitch_polylines(
     else:
         uv, valid = camera.project(points)
     out: dict[str, list[np.ndarray]] = {}
+    if mode == "evaluator":
+        class_ids = np.repeat(np.arange(len(slices)), [e - s for _, s, e in slices])
+        poly, ids = _evaluator_polylines(uv, valid, class_ids, width, height)
+        bounds = np.searchsorted(ids, np.arange(len(slices) + 1))
+        for k, (cls, _, _) in enumerate(slices):
+            if bounds[k + 1] > bounds[k]:
+                out[cls] = [poly[bounds[k]:bounds[k + 1]]]
+        return out
     for cls, s, e in slices:
-        if not valid[s:e].any():
-            continue
-        if mode == "evaluator":
-            poly = _evaluator_polyline(uv[s:e], valid[s:e], width, height)
-            if len(poly):
-                out[cls] = [poly]
-        else:
+        if valid[s:e].any():
             runs = _clip_runs(uv[s:e], valid[s:e], width, height)
             if runs:
                 out[cls] = runs
