@@ -1,0 +1,47 @@
+"""Typed dependencies of the routes: the settings, a database session per request, and the lookups
+that answer 404 in one place (``SystemDep``, ``FrameDep``), so that no route repeats "fetch or 404".
+
+The app factory puts ``settings`` and ``session_factory`` on ``app.state``; tests may replace the
+factory (for example by one bound to a connection whose transaction is rolled back after the test).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Annotated
+
+from fastapi import Depends, Path, Request
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import Frame, System
+from app.services.editing import get_frame as _get_frame
+from app.services.editing import get_system as _get_system
+
+
+def get_app_settings(request: Request) -> Settings:
+    """The settings the app was created with."""
+    return request.app.state.settings
+
+
+def get_session(request: Request) -> Iterator[Session]:
+    """One session per request, closed (uncommitted work rolled back) when the request ends."""
+    with request.app.state.session_factory() as session:
+        yield session
+
+
+SettingsDep = Annotated[Settings, Depends(get_app_settings)]
+SessionDep = Annotated[Session, Depends(get_session)]
+
+
+def system_by_id(session: SessionDep, system_id: Annotated[int, Path(description="System id.")]) -> System:
+    """The system named by the ``system_id`` path parameter; 404 naming the id when there is none."""
+    return _get_system(session, system_id)
+
+
+def frame_by_id(session: SessionDep, frame_id: Annotated[int, Path(description="Frame id.")]) -> Frame:
+    """The frame named by the ``frame_id`` path parameter; 404 naming the id when there is none."""
+    return _get_frame(session, frame_id)
+
+
+SystemDep = Annotated[System, Depends(system_by_id)]
+FrameDep = Annotated[Frame, Depends(frame_by_id)]

@@ -1,0 +1,10 @@
+"""All API routers, one per resource, gathered under one router (mounted at ``/api``)."""
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from app.api.routes import exports, frames, games, imports, systems
+
+api_router = APIRouter()
+for _module in (games, systems, frames, imports, exports):
+    api_router.include_router(_module.router)

@@ -1,0 +1,92 @@
+"""``/api/frames``: the frame list, frame images, and the reviewer's edits of one frame.
+
+Edits answer the recomputed system view: the frame's calibration (after new field lines), the
+system's triangulation, reprojections and optimised boxes. The edit and its recomputation are
+committed together or not at all (``app.services.editing``).
+"""
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Header, Query, Response
+from fastapi.responses import StreamingResponse
+
+from app.api.deps import FrameDep, SessionDep, SettingsDep
+from app.api.schemas import (
+    BallEdit, FieldLinesEdit, FrameListQuery, FramePageOut, QueueQuery, ReviewIn, ReviewOut, SystemView,
+)
+from app.services import editing, views
+
+router = APIRouter(prefix="/frames", tags=["frames"])
+
+#: Frame images never change under their id; the ETag covers a re-import from other files.
+IMAGE_CACHE_CONTROL = "private, max-age=86400"
+
+
+def etag_matches(if_none_match: str | None, etag: str) -> bool:
+    """True when an ``If-None-Match`` header names ``etag`` (weak comparison, ``*`` matches all).
+
+    >>> etag_matches('W/"ab-1", "cd-2"', '"cd-2"'), etag_matches('"ab-1"', '"cd-2"'), etag_matches("*", '"x"')
+    (True, False, True)
+    """
+    if not if_none_match:
+        return False
+    tags = {t.strip().removeprefix("W/") for t in if_none_match.split(",")}
+    return "*" in tags or etag.removeprefix("W/") in tags
+
+
+@router.get("", response_model=FramePageOut)
+def list_frames(session: SessionDep, query: Annotated[FrameListQuery, Query()]) -> dict[str, Any]:
+    """One page of frames, filtered by calibration status, admission, JaC@0.5% and error ranges."""
+    page = views.list_frames(session, query.filters(), query.sort, query.limit, query.offset)
+    return {"items": page.items, "total": page.total, "limit": query.limit, "offset": query.offset}
+
+
+@router.get(
+    "/{frame_id}/image",
+    response_class=StreamingResponse,
+    responses={
+        200: {"content": {"image/png": {}, "image/jpeg": {}}, "description": "The image bytes."},
+        304: {"description": "Not modified (If-None-Match names the current ETag)."},
+        404: {"description": "No such frame, or the frame has no image: draw a blank canvas of its size."},
+    },
+)
+def frame_image(frame: FrameDep, if_none_match: Annotated[str | None, Header()] = None) -> Response:
+    """The frame's image, streamed from its zip member (never extracted) or file, with an ``ETag``."""
+    image = views.frame_image(frame)
+    headers = {"ETag": image.etag, "Cache-Control": IMAGE_CACHE_CONTROL}
+    if etag_matches(if_none_match, image.etag):
+        return Response(status_code=304, headers=headers)
+    headers["Content-Length"] = str(image.size)
+    return StreamingResponse(image.chunks(), media_type=image.media_type, headers=headers)
+
+
+@router.patch("/{frame_id}/ball", response_model=SystemView)
+def edit_ball(session: SessionDep, settings: SettingsDep, frame: FrameDep, body: BallEdit,
+              query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+    """Set the frame's ball box or point (or remove it with null) and answer the recomputed system view.
+
+    422 naming ``box`` or ``point``: non-finite numbers, x2 <= x1 or y2 <= y1, a box entirely outside
+    the image, a point outside it; nothing is stored then.
+    """
+    editing.update_ball_label(session, frame.id, box=body.box, point=body.point, settings=settings)
+    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+
+
+@router.put("/{frame_id}/field-lines", response_model=SystemView)
+def replace_field_lines(session: SessionDep, settings: SettingsDep, frame: FrameDep, body: FieldLinesEdit,
+                        query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+    """Replace the frame's field lines, recalibrate it, and answer the recomputed system view.
+
+    422 naming ``lines`` (and the class and polyline): an unknown class, an empty polyline, NaN or
+    infinity; nothing is stored then.
+    """
+    editing.replace_field_lines(session, frame.id, body.lines, settings=settings)
+    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+
+
+@router.post("/{frame_id}/review", response_model=ReviewOut)
+def review_frame(session: SessionDep, frame: FrameDep, body: ReviewIn) -> ReviewOut:
+    """Record the reviewer's decision on one view (for example a wrong calibration)."""
+    decision = editing.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment)
+    return ReviewOut.model_validate(views.review_json(decision))

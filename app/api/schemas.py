@@ -1,0 +1,317 @@
+"""Pydantic schemas of the REST API: request bodies, query parameters and responses.
+
+Separate from the ORM models (``app.db.models``); only the enums are shared. Units: pixels of the
+frame's own image (continuous coordinates, origin at the top-left corner), world metres (z down), JaC
+as fractions in [0, 1]. The system view (:class:`SystemView`) is the UI contract of
+``docs/architecture.md``.
+"""
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal, Optional
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from app.db.models import ReviewStatus
+from app.services.views import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
+
+Point2 = tuple[float, float]
+Box = tuple[float, float, float, float]
+Point3 = tuple[float, float, float]
+
+
+class _In(BaseModel):
+    """Request bodies reject unknown fields, so a misspelt field is an error, not a no-op."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+# ----- query parameters ----------------------------------------------------------------------------
+class QueueQuery(_In):
+    """Filters and order of the review queue (``GET /api/systems``; ``GET /api/systems/{id}`` takes
+    them too, so that ``prev_id`` / ``next_id`` follow the queue the reviewer came from)."""
+
+    game_id: Optional[int] = Field(None, description="Only this game's systems.")
+    status: Optional[ReviewStatus] = Field(None, description="Only systems with this review status.")
+    jac_min: Optional[float] = Field(None, ge=0.0, le=1.0, description="Lowest JaC@0.5% of the admitted views >= this.")
+    jac_max: Optional[float] = Field(None, ge=0.0, le=1.0, description="Lowest JaC@0.5% of the admitted views <= this.")
+    error_min: Optional[float] = Field(None, ge=0.0, description="Worst reprojection error (px) >= this.")
+    error_max: Optional[float] = Field(None, ge=0.0, description="Worst reprojection error (px) <= this.")
+    sort: SystemSort = Field(DEFAULT_SORT, description="Order; a leading '-' means descending. Missing values last.")
+
+    def filters(self) -> SystemFilters:
+        """The service-level filters."""
+        return SystemFilters(game_id=self.game_id, status=self.status, jac_min=self.jac_min,
+                             jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max)
+
+    @model_validator(mode="after")
+    def _ranges(self) -> "QueueQuery":
+        for lo, hi in (("jac_min", "jac_max"), ("error_min", "error_max")):
+            a, b = getattr(self, lo), getattr(self, hi)
+            if a is not None and b is not None and a > b:
+                raise ValueError(f"{lo} ({a}) is larger than {hi} ({b})")
+        return self
+
+
+class SystemListQuery(QueueQuery):
+    """:class:`QueueQuery` and the page."""
+
+    limit: int = Field(50, ge=1, le=500)
+    offset: int = Field(0, ge=0)
+
+
+class FrameListQuery(_In):
+    """Filters, order and page of ``GET /api/frames``."""
+
+    game_id: Optional[int] = None
+    system_id: Optional[int] = None
+    calibration: Optional[Literal["calibrated", "refused", "none"]] = Field(
+        None, description="Calibration status; 'none' for frames never calibrated.")
+    admitted: Optional[bool] = Field(None, description="Admitted into their system's triangulation.")
+    jac_min: Optional[float] = Field(None, ge=0.0, le=1.0, description="JaC@0.5% >= this.")
+    jac_max: Optional[float] = Field(None, ge=0.0, le=1.0, description="JaC@0.5% <= this.")
+    error_min: Optional[float] = Field(None, ge=0.0, description="Reprojection error (px) >= this.")
+    error_max: Optional[float] = Field(None, ge=0.0, description="Reprojection error (px) <= this.")
+    sort: FrameSort = Field("name", description="Order; a leading '-' means descending. Missing values last.")
+    limit: int = Field(50, ge=1, le=500)
+    offset: int = Field(0, ge=0)
+
+    def filters(self) -> FrameFilters:
+        """The service-level filters."""
+        return FrameFilters(game_id=self.game_id, system_id=self.system_id, calibration=self.calibration,
+                            admitted=self.admitted, jac_min=self.jac_min, jac_max=self.jac_max,
+                            error_min=self.error_min, error_max=self.error_max)
+
+
+# ----- request bodies ------------------------------------------------------------------------------
+class BallEdit(_In):
+    """A new ball label: exactly one of ``box`` and ``point``. ``{"box": null}`` (or
+    ``{"point": null}``) removes the label: the ball is not visible in this view."""
+
+    box: Optional[Box] = Field(None, description="[x1, y1, x2, y2] px; x1 < x2, y1 < y2, not entirely outside.")
+    point: Optional[Point2] = Field(None, description="[x, y] px inside the image (point-only datasets).")
+
+    @model_validator(mode="after")
+    def _one_of(self) -> "BallEdit":
+        given = self.model_fields_set & {"box", "point"}
+        if len(given) != 1:
+            raise ValueError("give exactly one of 'box' and 'point' (null removes the label)")
+        return self
+
+
+class FieldLinesEdit(_In):
+    """The frame's complete new field lines, SoccerNet class -> polylines of [x, y] px."""
+
+    lines: dict[str, list[list[Point2]]]
+
+
+class ReviewIn(_In):
+    """A review decision."""
+
+    status: ReviewStatus
+    comment: str = Field("", max_length=4000)
+
+
+class ImportIn(_In):
+    """A dataset on the server's disk to import (for scripts)."""
+
+    kind: Literal["soccernet-v3", "soccernet-v3d", "sn-calibration"]
+    path: str = Field(min_length=1, description="Folder or archive on the server.")
+    width: Optional[int] = Field(None, gt=0, description="sn-calibration only: image width when there are no images.")
+    height: Optional[int] = Field(None, gt=0, description="sn-calibration only: image height when there are no images.")
+
+    @model_validator(mode="after")
+    def _size_for_calibration_only(self) -> "ImportIn":
+        if self.kind != "sn-calibration" and (self.width is not None or self.height is not None):
+            raise ValueError("width and height apply to kind 'sn-calibration' only")
+        return self
+
+
+# ----- responses -----------------------------------------------------------------------------------
+class GameRef(BaseModel):
+    """A game's identity."""
+
+    id: int
+    league: str
+    season: str
+    match: str
+
+
+class GameOut(GameRef):
+    """A game and its number of systems."""
+
+    systems: int
+
+
+class ReviewOut(BaseModel):
+    """A review decision; pending with no time when never decided."""
+
+    status: ReviewStatus
+    comment: str = ""
+    decided_at: Optional[datetime] = None
+
+
+class SystemSummaryOut(BaseModel):
+    """A row of the review queue (aggregates over the admitted views, see ``app.services.views``)."""
+
+    id: int
+    name: str
+    kind: str
+    game: GameRef
+    review: ReviewOut
+    ball3d: Optional[Point3]
+    views_total: int
+    views_calibrated: int
+    views_admitted: int
+    views_labelled: int
+    lowest_jac: Optional[float] = Field(description="Lowest JaC@0.5% among admitted views.")
+    worst_error_px: Optional[float] = Field(description="Largest reprojection error among admitted views, px.")
+
+
+class SystemPageOut(BaseModel):
+    """A page of the queue; ``counts`` per review status over the filters other than ``status``."""
+
+    items: list[SystemSummaryOut]
+    total: int
+    limit: int
+    offset: int
+    counts: dict[ReviewStatus, int]
+
+
+class CalibrationOut(BaseModel):
+    """A view's camera (SoccerNet JSON) and its quality."""
+
+    status: str
+    source: str
+    camera: Optional[dict[str, Any]]
+    jac: dict[str, Optional[float]] = Field(description='JaC at gamma = "0.005", "0.01", "0.02" of the diagonal.')
+    admitted: bool
+    reason: Optional[str]
+    flags: list[str]
+    residuals_px: dict[str, Any]
+
+
+class BallOut(BaseModel):
+    """A view's ball label and the imported original."""
+
+    kind: Optional[Literal["box", "point"]]
+    box: Optional[Box]
+    point: Optional[Point2]
+    original_box: Optional[Box]
+    original_point: Optional[Point2]
+    edited: bool
+
+
+class FrameOut(BaseModel):
+    """A row of ``GET /api/frames``."""
+
+    id: int
+    system_id: int
+    name: str
+    role: str
+    width: int
+    height: int
+    image_url: Optional[str]
+    calibration: Optional[CalibrationOut]
+    ball: BallOut
+    reprojection_error_px: Optional[float]
+    review: ReviewOut
+
+
+class FramePageOut(BaseModel):
+    """A page of frames."""
+
+    items: list[FrameOut]
+    total: int
+    limit: int
+    offset: int
+
+
+class PitchLineOut(BaseModel):
+    """One in-image run of a projected pitch element."""
+
+    model_config = ConfigDict(populate_by_name=True, serialize_by_alias=True)
+
+    class_: str = Field(alias="class")
+    points: list[Point2]
+
+
+class OptimisedBoxOut(BaseModel):
+    """Paper Eq. min_diametre: square box of side ``d_px`` on the labelled centre."""
+
+    box: Box
+    d_px: float
+    error_m: float
+
+
+class ViewOut(BaseModel):
+    """One view of a system, everything the overlay draws."""
+
+    frame_id: int
+    name: str
+    role: Literal["action", "replay", "camera"]
+    width: int
+    height: int
+    image_url: Optional[str] = Field(description="None when the dataset ships no image: draw a blank canvas.")
+    calibration: Optional[CalibrationOut]
+    pitch_lines: list[PitchLineOut]
+    field_lines: dict[str, list[list[Point2]]]
+    ball: BallOut
+    optimised_box: Optional[OptimisedBoxOut]
+    reprojected_ball: Optional[Point2]
+    reprojection_error_px: Optional[float]
+    camera_position: Optional[Point3]
+    review: ReviewOut
+
+
+class PairOut(BaseModel):
+    """One triangulation pair; views named by frame id."""
+
+    view_a: int
+    view_b: int
+    point: Optional[Point3]
+    error_px: Optional[float]
+    parallax_deg: Optional[float]
+    baseline_m: float
+    kept: bool
+    reason: Optional[str]
+
+
+class TriangulationOut(BaseModel):
+    """A system's triangulation and the settings it was made with."""
+
+    status: str
+    tau_px: float
+    rule: str
+    min_baseline_m: float
+    pairs: list[PairOut]
+
+
+class SystemView(BaseModel):
+    """The system view of ``docs/architecture.md`` (the UI contract)."""
+
+    id: int
+    name: str
+    game: GameRef
+    review: ReviewOut
+    prev_id: Optional[int]
+    next_id: Optional[int]
+    ball3d: Optional[Point3]
+    triangulation: Optional[TriangulationOut]
+    views: list[ViewOut]
+
+
+class ImportOut(BaseModel):
+    """What an import did (``app.services.importing.ImportReport``)."""
+
+    source: str
+    games: int
+    systems: int
+    frames: int
+    systems_new: int
+    systems_changed: int
+    calibrated: int
+    refused: int
+    refusal_reasons: dict[str, int]
+    triangulated: int
+    seconds: float

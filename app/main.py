@@ -1,0 +1,102 @@
+"""The FastAPI application: ``create_app(settings)`` builds one, with its own engine and sessions.
+
+Nothing is connected at import time. ``uvicorn --factory app.main:create_app`` serves the settings of
+the environment; tests pass their own :class:`~app.core.config.Settings` pointing at a migrated
+temporary database. Migrating is the caller's job (``v3d serve`` runs ``upgrade_database``), never
+this factory's, so that a test database is built once by the migrations and then only used.
+
+Besides the REST API under ``/api`` the app serves the UI pages (``/`` and ``/systems/{id}``), the
+static files under ``/static`` (revalidated through their ``ETag`` on every load, so a changed module
+is never served stale), and the OpenAPI docs at ``/docs`` and ``/redoc`` with their JavaScript and CSS
+from the ``fastapi-offline`` package: no CDN.
+"""
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI, HTTPException
+from fastapi.responses import FileResponse
+from fastapi_offline import FastAPIOffline
+from starlette.staticfiles import StaticFiles
+from starlette.types import Scope
+
+from app.api.deps import SystemDep
+from app.api.errors import install_error_handlers
+from app.api.main import api_router
+from app.core.config import Settings, get_settings
+from app.core.paths import STATIC_DIR
+from app.db.session import make_engine, make_session_factory
+
+#: Where the local swagger-ui / ReDoc assets are mounted.
+DOCS_ASSETS_URL = "/docs-assets"
+
+
+class RevalidatedStaticFiles(StaticFiles):
+    """Static files that the browser must revalidate (``Cache-Control: no-cache``) on each use.
+
+    Starlette already answers with an ``ETag`` and turns a matching ``If-None-Match`` into 304, so a
+    revalidation costs one small round trip and an edited file (ES modules imported by other modules
+    included, which a hash query in the HTML could not reach) is picked up at once.
+    """
+
+    async def get_response(self, path: str, scope: Scope):  # type: ignore[override]
+        """Serve ``path`` like :class:`StaticFiles` and add the revalidation header."""
+        response = await super().get_response(path, scope)
+        response.headers.setdefault("Cache-Control", "no-cache")
+        return response
+
+
+def _page(name: str) -> FileResponse:
+    path: Path = STATIC_DIR / name
+    if not path.is_file():
+        raise HTTPException(status_code=404, detail=f"UI page static/{name} is missing")
+    return FileResponse(path, media_type="text/html", headers={"Cache-Control": "no-cache"})
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the v3d web application.
+
+    Args:
+        settings: configuration; ``None`` reads the environment (:func:`get_settings`). The database
+            at ``settings.database_url`` must already be migrated.
+
+    Returns:
+        The FastAPI app. Its engine is disposed of when the app's lifespan ends.
+    """
+    settings = settings or get_settings()
+    engine = make_engine(settings.database_url)
+
+    @asynccontextmanager
+    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        yield
+        engine.dispose()
+
+    app = FastAPIOffline(
+        title="v3d",
+        summary="Multi-view soccer broadcast annotations to reviewed 3D ball labels (SoccerNet-v3D).",
+        version="0.1.0",
+        lifespan=lifespan,
+        static_url=DOCS_ASSETS_URL,
+        # Swagger UI would otherwise ask validator.swagger.io to validate the schema.
+        swagger_ui_parameters={"validatorUrl": None},
+    )
+    app.state.settings = settings
+    app.state.session_factory = make_session_factory(engine)
+
+    install_error_handlers(app)
+    app.include_router(api_router, prefix="/api")
+    app.mount("/static", RevalidatedStaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
+
+    @app.get("/", include_in_schema=False)
+    def queue_page() -> FileResponse:
+        """The review queue (``static/index.html``)."""
+        return _page("index.html")
+
+    @app.get("/systems/{system_id}", include_in_schema=False)
+    def system_page(system: SystemDep) -> FileResponse:
+        """One multi-view system (``static/system.html``); 404 when the system does not exist."""
+        return _page("system.html")
+
+    return app

@@ -1,0 +1,586 @@
+"""Read-only queries behind the API: the games, the review queue of systems, the frames, the system
+view JSON the system page draws (``docs/architecture.md``), and where a frame's image is read from.
+
+Nothing here writes. Aggregates of a system are taken over its **admitted** views, the ones its 3D ball
+is made of (method.md sections 4 and 5):
+
+* ``lowest_jac``: the lowest JaC@0.5 % among admitted views (the calibration the ball leans on most
+  weakly), None without an admitted view;
+* ``worst_error_px``: the largest reprojection error (px, at the view's own resolution, SoccerNet-v3D's
+  ``rep_error``) of the fused ball among admitted labelled views, None without a 3D ball.
+
+Queue order (``sort``): ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
+systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id. The
+default, :data:`DEFAULT_SORT`, puts the largest errors first: the most doubtful labels are reviewed
+first. ``name`` orders by game, then system name with numeric names in numeric order (2.png before
+10.png).
+"""
+from __future__ import annotations
+
+import mimetypes
+import zipfile
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+from typing import Any, Literal, Optional
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, selectinload
+
+from app.db.models import (
+    BallLabel, BallReprojection, Calibration, CalibrationStatus, Frame, Game, OptimisedBox, ReviewDecision,
+    ReviewStatus, System, Triangulation,
+)
+from app.geometry.camera import Camera
+from app.geometry.projection import project_pitch_polylines
+from app.services.errors import NotFoundError, ServiceError
+
+SystemSort = Literal["worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
+FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
+#: The review queue's default order: the largest reprojection error first.
+DEFAULT_SORT: SystemSort = "-worst_error"
+#: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
+#: per view, smooth at 1920 px, a tenth of the JaC sampling.
+_DRAW_DIST_M = 0.5
+_DRAW_DIST_CIRCLES_M = 0.25
+#: Pixel coordinates sent to the UI are rounded to this many decimals.
+_PX_DECIMALS = 2
+_CHUNK = 64 * 1024
+
+
+# ----- filters and pages ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SystemFilters:
+    """Filters of the review queue; None means "any". Ranges are inclusive."""
+
+    game_id: Optional[int] = None
+    status: Optional[ReviewStatus] = None
+    jac_min: Optional[float] = None
+    jac_max: Optional[float] = None
+    error_min: Optional[float] = None
+    error_max: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class FrameFilters:
+    """Filters of the frame list; None means "any". ``calibration`` is a status or ``"none"`` (no
+    calibration row yet). JaC is JaC@0.5 %; error is the view's reprojection error in px."""
+
+    game_id: Optional[int] = None
+    system_id: Optional[int] = None
+    calibration: Optional[Literal["calibrated", "refused", "none"]] = None
+    admitted: Optional[bool] = None
+    jac_min: Optional[float] = None
+    jac_max: Optional[float] = None
+    error_min: Optional[float] = None
+    error_max: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class SystemSummary:
+    """One row of the review queue."""
+
+    system: System
+    game: Game
+    review_status: ReviewStatus
+    review_comment: str
+    ball3d: Optional[list[float]]
+    views_total: int
+    views_calibrated: int
+    views_admitted: int
+    views_labelled: int
+    lowest_jac: Optional[float]
+    worst_error_px: Optional[float]
+
+    def as_json(self) -> dict[str, Any]:
+        """The queue row as the API sends it."""
+        g = self.game
+        return {
+            "id": self.system.id, "name": self.system.name, "kind": self.system.kind.value,
+            "game": {"id": g.id, "league": g.league, "season": g.season, "match": g.match},
+            "review": {"status": self.review_status.value, "comment": self.review_comment},
+            "ball3d": self.ball3d, "views_total": self.views_total, "views_calibrated": self.views_calibrated,
+            "views_admitted": self.views_admitted, "views_labelled": self.views_labelled,
+            "lowest_jac": self.lowest_jac, "worst_error_px": self.worst_error_px,
+        }
+
+
+@dataclass(frozen=True)
+class SystemPage:
+    """One page of the queue: ``total`` rows match the filters; ``counts`` are per review status over
+    the same filters except the status one (the progress of the whole filtered queue)."""
+
+    items: list[SystemSummary]
+    total: int
+    counts: dict[str, int]
+
+
+@dataclass(frozen=True)
+class FramePage:
+    """One page of frames and how many match the filters."""
+
+    items: list[dict[str, Any]]
+    total: int
+
+
+def _stats() -> sa.Subquery:
+    """Per-system counts and admitted-view aggregates (see the module docstring)."""
+    admitted = Calibration.admitted.is_(True)
+    return (
+        sa.select(
+            Frame.system_id.label("system_id"),
+            sa.func.count(Frame.id).label("views_total"),
+            sa.func.count(sa.case((Calibration.status == CalibrationStatus.CALIBRATED, 1))).label("views_calibrated"),
+            sa.func.count(sa.case((admitted, 1))).label("views_admitted"),
+            sa.func.count(BallLabel.frame_id).label("views_labelled"),
+            sa.func.min(sa.case((admitted, Calibration.jac_0005))).label("lowest_jac"),
+            sa.func.max(sa.case((admitted, BallReprojection.error_px))).label("worst_error_px"),
+        )
+        .select_from(Frame)
+        .outerjoin(Calibration, Calibration.frame_id == Frame.id)
+        .outerjoin(BallLabel, BallLabel.frame_id == Frame.id)
+        .outerjoin(BallReprojection, BallReprojection.frame_id == Frame.id)
+        .group_by(Frame.system_id)
+        .subquery("system_stats")
+    )
+
+
+def _review_status() -> sa.ColumnElement[ReviewStatus]:
+    """A system's review status; a system never decided on is pending."""
+    return sa.func.coalesce(ReviewDecision.status, ReviewStatus.PENDING, type_=ReviewDecision.status.type)
+
+
+def _queue_from(stats: sa.Subquery) -> sa.Select[Any]:
+    return (
+        sa.select(
+            System, Game, _review_status().label("review_status"),
+            sa.func.coalesce(ReviewDecision.comment, "").label("review_comment"),
+            Triangulation.ball3d, stats.c.views_total, stats.c.views_calibrated, stats.c.views_admitted,
+            stats.c.views_labelled, stats.c.lowest_jac, stats.c.worst_error_px,
+        )
+        .join(Game, Game.id == System.game_id)
+        .outerjoin(stats, stats.c.system_id == System.id)
+        .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+        .outerjoin(Triangulation, Triangulation.system_id == System.id)
+    )
+
+
+def _range(column: Any, lo: Optional[float], hi: Optional[float]) -> list[sa.ColumnElement[bool]]:
+    out = []
+    if lo is not None:
+        out.append(column >= lo)
+    if hi is not None:
+        out.append(column <= hi)
+    return out
+
+
+def _system_conditions(stats: sa.Subquery, filters: SystemFilters, with_status: bool = True) -> list[Any]:
+    conds: list[Any] = []
+    if filters.game_id is not None:
+        conds.append(System.game_id == filters.game_id)
+    if with_status and filters.status is not None:
+        conds.append(_review_status() == filters.status)
+    conds += _range(stats.c.lowest_jac, filters.jac_min, filters.jac_max)
+    conds += _range(stats.c.worst_error_px, filters.error_min, filters.error_max)
+    return conds
+
+
+def _natural_name(column: Any) -> list[Any]:
+    # numeric names ("2.png", "10.png") in numeric order: shorter first, then text
+    return [sa.func.length(column), column]
+
+
+def _system_order(stats: sa.Subquery, sort: SystemSort) -> list[Any]:
+    desc = sort.startswith("-")
+    key = sort.lstrip("-")
+    if key == "name":
+        cols = [Game.league, Game.season, Game.match, *_natural_name(System.name)]
+        return [c.desc() if desc else c.asc() for c in cols] + [System.id.asc()]
+    column = {"worst_error": stats.c.worst_error_px, "lowest_jac": stats.c.lowest_jac}.get(key)
+    if column is None:
+        raise ValueError(f"unknown sort {sort!r}")
+    return [(column.desc() if desc else column.asc()).nulls_last(), System.id.asc()]
+
+
+def list_games(session: Session) -> list[tuple[Game, int]]:
+    """Every game with its number of systems, in (league, season, match) order."""
+    n = sa.func.count(System.id)
+    stmt = (
+        sa.select(Game, n).outerjoin(System, System.game_id == Game.id)
+        .group_by(Game.id).order_by(Game.league, Game.season, Game.match, Game.id)
+    )
+    return [(g, int(c)) for g, c in session.execute(stmt).all()]
+
+
+def has_games(session: Session) -> bool:
+    """True when the database holds at least one game."""
+    return session.execute(sa.select(Game.id).limit(1)).first() is not None
+
+
+def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sort: SystemSort = DEFAULT_SORT,
+                 limit: int = 50, offset: int = 0) -> SystemPage:
+    """One page of the review queue.
+
+    Args:
+        filters: see :class:`SystemFilters` (JaC as a fraction, errors in px).
+        sort: one of :data:`SystemSort` (module docstring).
+        limit, offset: the page (``limit >= 1``, ``offset >= 0``).
+
+    Returns:
+        :class:`SystemPage`.
+
+    Raises:
+        ValueError: an unknown ``sort``.
+    """
+    stats = _stats()
+    order = _system_order(stats, sort)
+    conds = _system_conditions(stats, filters)
+    rows = session.execute(_queue_from(stats).where(*conds).order_by(*order).limit(limit).offset(offset)).all()
+    items = [
+        SystemSummary(
+            system=r.System, game=r.Game, review_status=r.review_status, review_comment=r.review_comment,
+            ball3d=r.ball3d, views_total=r.views_total or 0, views_calibrated=r.views_calibrated or 0,
+            views_admitted=r.views_admitted or 0, views_labelled=r.views_labelled or 0,
+            lowest_jac=r.lowest_jac, worst_error_px=r.worst_error_px,
+        )
+        for r in rows
+    ]
+    base = (
+        sa.select(System.id).outerjoin(stats, stats.c.system_id == System.id)
+        .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+    )
+    total = session.scalar(sa.select(sa.func.count()).select_from(base.where(*conds).subquery())) or 0
+    status = _review_status()
+    by_status = session.execute(
+        base.with_only_columns(status, sa.func.count(System.id))
+        .where(*_system_conditions(stats, filters, with_status=False)).group_by(status)
+    ).all()
+    counts = {s.value: 0 for s in ReviewStatus}
+    for s, n in by_status:
+        counts[ReviewStatus(s).value] += int(n)
+    return SystemPage(items=items, total=int(total), counts=counts)
+
+
+def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
+                     sort: SystemSort = DEFAULT_SORT) -> tuple[Optional[int], Optional[int]]:
+    """``(prev_id, next_id)`` of a system in the queue ``filters`` + ``sort``.
+
+    The system itself need not match the filters (it may just have been reviewed out of a
+    "pending" queue): its neighbours are then those it would have if it did.
+    """
+    stats = _stats()
+    order = _system_order(stats, sort)
+    conds = _system_conditions(stats, filters)
+    where = sa.or_(sa.and_(*conds), System.id == system_id) if conds else sa.true()
+    ranked = (
+        sa.select(
+            System.id.label("id"),
+            sa.func.lag(System.id).over(order_by=order).label("prev_id"),
+            sa.func.lead(System.id).over(order_by=order).label("next_id"),
+        )
+        .join(Game, Game.id == System.game_id)
+        .outerjoin(stats, stats.c.system_id == System.id)
+        .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+        .where(where)
+        .subquery()
+    )
+    row = session.execute(sa.select(ranked.c.prev_id, ranked.c.next_id).where(ranked.c.id == system_id)).first()
+    return (row.prev_id, row.next_id) if row is not None else (None, None)
+
+
+def list_frames(session: Session, filters: FrameFilters = FrameFilters(), sort: FrameSort = "name",
+                limit: int = 50, offset: int = 0) -> FramePage:
+    """One page of frames (calibration, label and reprojection loaded).
+
+    ``sort``: ``error`` (the view's reprojection error), ``jac`` (JaC@0.5 %) or ``name`` (game,
+    system, position), descending with a leading ``-``; missing values last, ties by id.
+
+    Raises:
+        ValueError: an unknown ``sort``.
+    """
+    conds: list[Any] = []
+    if filters.game_id is not None:
+        conds.append(System.game_id == filters.game_id)
+    if filters.system_id is not None:
+        conds.append(Frame.system_id == filters.system_id)
+    if filters.calibration == "none":
+        conds.append(Calibration.frame_id.is_(None))
+    elif filters.calibration is not None:
+        conds.append(Calibration.status == CalibrationStatus(filters.calibration))
+    if filters.admitted is not None:
+        conds.append(sa.func.coalesce(Calibration.admitted, False).is_(filters.admitted))
+    conds += _range(Calibration.jac_0005, filters.jac_min, filters.jac_max)
+    conds += _range(BallReprojection.error_px, filters.error_min, filters.error_max)
+    base = (
+        sa.select(Frame).join(System, System.id == Frame.system_id).join(Game, Game.id == System.game_id)
+        .outerjoin(Calibration, Calibration.frame_id == Frame.id)
+        .outerjoin(BallReprojection, BallReprojection.frame_id == Frame.id)
+        .where(*conds)
+    )
+    desc = sort.startswith("-")
+    key = sort.lstrip("-")
+    if key == "name":
+        cols = [Game.league, Game.season, Game.match, *_natural_name(System.name), Frame.position]
+        order = [c.desc() if desc else c.asc() for c in cols]
+    elif key in ("error", "jac"):
+        col = BallReprojection.error_px if key == "error" else Calibration.jac_0005
+        order = [(col.desc() if desc else col.asc()).nulls_last()]
+    else:
+        raise ValueError(f"unknown sort {sort!r}")
+    total = session.scalar(sa.select(sa.func.count()).select_from(base.with_only_columns(Frame.id).subquery()))
+    stmt = base.order_by(*order, Frame.id).limit(limit).offset(offset).options(
+        selectinload(Frame.calibration), selectinload(Frame.ball_label), selectinload(Frame.reprojection),
+        selectinload(Frame.review),
+    )
+    return FramePage(items=[frame_summary(f) for f in session.scalars(stmt)], total=int(total or 0))
+
+
+# ----- the system view -----------------------------------------------------------------------------
+def _px(values: Any) -> Any:
+    """Round pixel coordinates (nested lists or arrays) for JSON."""
+    return np.round(np.asarray(values, dtype=float), _PX_DECIMALS).tolist()
+
+
+def review_json(decision: Optional[ReviewDecision]) -> dict[str, Any]:
+    """``{"status", "comment", "decided_at"}`` of a decision; pending when there is none."""
+    if decision is None:
+        return {"status": ReviewStatus.PENDING.value, "comment": "", "decided_at": None}
+    return {
+        "status": decision.status.value,
+        "comment": decision.comment,
+        "decided_at": decision.decided_at.isoformat() if decision.decided_at else None,
+    }
+
+
+def frame_has_image(frame: Frame) -> bool:
+    """True when the frame says where its pixels are (a zip member or a file)."""
+    return bool(frame.image_path) or bool(frame.image_zip and frame.image_member)
+
+
+def image_url(frame: Frame) -> Optional[str]:
+    """The API address of the frame's image, None when it has none (the UI draws a blank canvas)."""
+    return f"/api/frames/{frame.id}/image" if frame_has_image(frame) else None
+
+
+def _pitch_lines(camera: Optional[Camera], width: int, height: int) -> list[dict[str, Any]]:
+    if camera is None:
+        return []
+    runs = project_pitch_polylines(camera, width, height, _DRAW_DIST_M, _DRAW_DIST_CIRCLES_M, mode="clip")
+    return [{"class": cls, "points": _px(run)} for cls, polys in runs.items() for run in polys if len(run) >= 2]
+
+
+def _calibration_json(cal: Optional[Calibration]) -> Optional[dict[str, Any]]:
+    if cal is None:
+        return None
+    return {
+        "status": cal.status.value, "source": cal.source.value, "camera": cal.camera, "jac": cal.jac(),
+        "admitted": cal.admitted, "reason": cal.reason, "flags": list(cal.flags or []),
+        "residuals_px": dict(cal.residuals_px or {}),
+    }
+
+
+def _ball_json(label: Optional[BallLabel]) -> dict[str, Any]:
+    if label is None:
+        return {"kind": None, "box": None, "point": None, "original_box": None, "original_point": None,
+                "edited": False}
+    return {
+        "kind": label.kind.value, "box": label.box, "point": label.point, "original_box": label.original_box,
+        "original_point": label.original_point, "edited": label.edited,
+    }
+
+
+def _optimised_json(opt: Optional[OptimisedBox]) -> Optional[dict[str, Any]]:
+    if opt is None:
+        return None
+    return {"box": _px(opt.box), "d_px": opt.d_opt_px, "error_m": opt.error_m}
+
+
+def _view_json(frame: Frame) -> dict[str, Any]:
+    cal = frame.calibration
+    camera = None
+    if cal is not None and cal.status == CalibrationStatus.CALIBRATED and cal.camera:
+        camera = Camera.from_soccernet(cal.camera)
+    rep = frame.reprojection
+    lines = frame.field_lines.lines if frame.field_lines is not None else {}
+    return {
+        "frame_id": frame.id,
+        "name": frame.name,
+        "role": frame.role.value,
+        "width": frame.width,
+        "height": frame.height,
+        "image_url": image_url(frame),
+        "calibration": _calibration_json(cal),
+        "pitch_lines": _pitch_lines(camera, frame.width, frame.height),
+        "field_lines": lines,
+        "ball": _ball_json(frame.ball_label),
+        "optimised_box": _optimised_json(frame.optimised_box),
+        "reprojected_ball": _px(rep.point) if rep is not None else None,
+        "reprojection_error_px": rep.error_px if rep is not None else None,
+        "camera_position": camera.C.tolist() if camera is not None else None,
+        "review": review_json(frame.review),
+    }
+
+
+def frame_summary(frame: Frame) -> dict[str, Any]:
+    """A frame's row in the frame list: identity, calibration, label, reprojection error, review."""
+    rep = frame.reprojection
+    return {
+        "id": frame.id, "system_id": frame.system_id, "name": frame.name, "role": frame.role.value,
+        "width": frame.width, "height": frame.height,
+        "image_url": image_url(frame),
+        "calibration": _calibration_json(frame.calibration), "ball": _ball_json(frame.ball_label),
+        "reprojection_error_px": rep.error_px if rep is not None else None, "review": review_json(frame.review),
+    }
+
+
+def _triangulation_json(tri: Optional[Triangulation]) -> Optional[dict[str, Any]]:
+    if tri is None:
+        return None
+    return {
+        "status": tri.status.value, "tau_px": tri.tau_px, "rule": tri.rule, "min_baseline_m": tri.min_baseline_m,
+        "pairs": [
+            {"view_a": p.frame_a_id, "view_b": p.frame_b_id, "point": p.point, "error_px": p.error_px,
+             "parallax_deg": p.parallax_deg, "baseline_m": p.baseline_m, "kept": p.kept, "reason": p.reason}
+            for p in tri.pairs
+        ],
+    }
+
+
+def _load_system(session: Session, system_id: int) -> System:
+    """The system with every relation the view draws loaded in a few queries.
+
+    Raises:
+        NotFoundError: no system has this id.
+    """
+    stmt = sa.select(System).where(System.id == system_id).options(
+        selectinload(System.game), selectinload(System.review),
+        selectinload(System.triangulation).selectinload(Triangulation.pairs),
+        selectinload(System.frames).options(
+            selectinload(Frame.field_lines), selectinload(Frame.calibration), selectinload(Frame.ball_label),
+            selectinload(Frame.reprojection), selectinload(Frame.optimised_box), selectinload(Frame.review),
+        ),
+    )
+    system = session.scalars(stmt).first()
+    if system is None:
+        raise NotFoundError("system", system_id)
+    return system
+
+
+def system_view(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
+                sort: SystemSort = DEFAULT_SORT) -> dict[str, Any]:
+    """The system view JSON of ``docs/architecture.md`` (the UI contract).
+
+    Per view: the pitch model projected at the image's resolution and clipped to it, the annotated
+    field lines, the ball label and its optimised box, the reprojected 3D ball and its error, the
+    camera centre. ``prev_id`` / ``next_id`` follow the queue ``filters`` + ``sort`` (by default the
+    whole queue in its default order). Triangulation pairs name their views by frame id.
+
+    Raises:
+        NotFoundError: no system has this id.
+    """
+    system = _load_system(session, system_id)
+    prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
+    tri = system.triangulation
+    game = system.game
+    return {
+        "id": system.id,
+        "name": system.name,
+        "game": {"id": game.id, "league": game.league, "season": game.season, "match": game.match},
+        "review": review_json(system.review),
+        "prev_id": prev_id,
+        "next_id": next_id,
+        "ball3d": tri.ball3d if tri is not None else None,
+        "triangulation": _triangulation_json(tri),
+        "views": [_view_json(f) for f in system.frames],
+    }
+
+
+# ----- frame images --------------------------------------------------------------------------------
+class ImageUnavailable(ServiceError, LookupError):
+    """A frame's image cannot be served: the dataset has none, or its file or member is gone."""
+
+
+@dataclass(frozen=True)
+class FrameImage:
+    """Where a frame's image bytes are and how to describe them over HTTP.
+
+    ``etag`` is strong and cheap: the member's CRC-32 and size for a zip member (read from the
+    archive's directory, no decompression), the file's modification time and size for a file.
+    """
+
+    media_type: str
+    etag: str
+    size: int
+    zip_path: Optional[Path] = None
+    member: Optional[str] = None
+    path: Optional[Path] = None
+
+    def chunks(self) -> Iterator[bytes]:
+        """The image bytes in 64 KiB chunks, read from the file or straight out of the archive."""
+        if self.path is not None:
+            with self.path.open("rb") as fh:
+                yield from iter(lambda: fh.read(_CHUNK), b"")
+            return
+        assert self.zip_path is not None and self.member is not None
+        with zipfile.ZipFile(self.zip_path) as zf, zf.open(self.member) as fh:
+            yield from iter(lambda: fh.read(_CHUNK), b"")
+
+
+def is_safe_member(name: str) -> bool:
+    """True for a relative archive member name without ``..``, drive or backslash tricks.
+
+    >>> is_safe_member("12_1.png"), is_safe_member("frames/12.png")
+    (True, True)
+    >>> is_safe_member("../secret.png"), is_safe_member("/etc/passwd"), is_safe_member("a\\\\..\\\\b")
+    (False, False, False)
+    """
+    posix = name.replace("\\", "/")
+    parts = PurePosixPath(posix).parts
+    return bool(parts) and not posix.startswith("/") and ".." not in parts and ":" not in parts[0]
+
+
+def _media_type(name: str) -> str:
+    return mimetypes.guess_type(name)[0] or "application/octet-stream"
+
+
+def frame_image(frame: Frame) -> FrameImage:
+    """Locate a frame's image without reading it (zip members are never extracted).
+
+    Raises:
+        ImageUnavailable: the frame has no image (SoccerNet-calibration imports ship none), its
+            member name is unsafe, or the archive, member or file is missing.
+    """
+    where = f"frame {frame.id}"
+    if frame.image_zip and frame.image_member:
+        member = frame.image_member
+        if not is_safe_member(member):
+            raise ImageUnavailable(f"{where}: refusing unsafe archive member name {member!r}")
+        zip_path = Path(frame.image_zip)
+        try:
+            with zipfile.ZipFile(zip_path) as zf:
+                info = zf.getinfo(member)
+        except FileNotFoundError:
+            raise ImageUnavailable(f"{where}: image archive {zip_path} is missing") from None
+        except KeyError:
+            raise ImageUnavailable(f"{where}: {member!r} is not in {zip_path}") from None
+        except (zipfile.BadZipFile, OSError) as exc:
+            raise ImageUnavailable(f"{where}: cannot read image archive {zip_path} ({exc})") from None
+        return FrameImage(
+            media_type=_media_type(member), etag=f'"{info.CRC:08x}-{info.file_size:x}"', size=info.file_size,
+            zip_path=zip_path, member=member,
+        )
+    if frame.image_path:
+        path = Path(frame.image_path)
+        try:
+            st = path.stat()
+        except OSError:
+            raise ImageUnavailable(f"{where}: image file {path} is missing") from None
+        return FrameImage(
+            media_type=_media_type(path.name), etag=f'"{st.st_mtime_ns:x}-{st.st_size:x}"', size=st.st_size,
+            path=path,
+        )
+    raise ImageUnavailable(
+        f"{where} has no image (its dataset ships none, e.g. SoccerNet-calibration): "
+        f"draw on a blank {frame.width}x{frame.height} canvas"
+    )
