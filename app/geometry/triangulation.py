@@ -318,6 +318,7 @@ def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, r
     if abs(h[3]) <= _INFINITY_EPS * np.linalg.norm(h[:3]):
         return dropped("point_at_infinity")
     point = h[:3] / h[3]
+    point.setflags(write=False)
     e_a = reprojection_error_px(a.camera, point, a.point_px)
     e_b = reprojection_error_px(b.camera, point, b.point_px)
     if e_a is None or e_b is None:
