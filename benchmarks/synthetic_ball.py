@@ -280,6 +280,31 @@ def issia_study(shared: Path, tau_px: float, rule: str) -> dict[str, float]:
     return out
 
 
+def timings(systems: list[DevSystem], tau_px: float, rule: str, repeats: int = 5) -> dict[str, float]:
+    """Median wall time per call (microseconds) of triangulation per system and of the box functions per view."""
+    import time
+
+    def median_us(fn, n_calls: int) -> float:
+        runs = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn()
+            runs.append((time.perf_counter() - t0) / n_calls * 1e6)
+        return float(np.median(runs))
+
+    obs = [observations(s) for s in systems]
+    views = [(v.camera, v.box, s.ball_3d) for s in systems for v in s.views if v.box is not None]
+    out = {"triangulate_ball per system": median_us(
+        lambda: [triangulate_ball(o, tau_px=tau_px, rule=rule) for o in obs], len(obs))}
+    for m in OPTIMISED_BOX_METHODS:
+        out[f"optimise_box {m} per view"] = median_us(
+            lambda m=m: [optimise_box(c, box_centre_and_diameter(b)[0][0], p, BALL_DIAMETER_M, method=m)
+                         for c, b, p in views], len(views))
+    for name, fn in MONOCULAR.items():
+        out[f"{name} per view"] = median_us(lambda fn=fn: [fn(c, b, BALL_DIAMETER_M) for c, b, _ in views], len(views))
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--shared", type=Path, default=Path(__file__).resolve().parents[2] / "shared")
@@ -303,6 +328,9 @@ def main() -> None:
     print(f"3D error vs truth, uncorrupted triangulated systems (n={len(err)}): median {np.median(err):.3f} m, "
           f"p90 {np.percentile(err, 90):.3f} m, max {err.max():.3f} m")
 
+    t = timings(systems, tau, rule)
+    print("median time per call: " + "; ".join(f"{k} {v:.0f} us" for k, v in t.items())
+          + f" (exact/paper monocular ratio {t['exact_inverse per view'] / t['paper_formula per view']:.2f})")
     iss = issia_study(args.shared, tau, rule)
     print(f"ISSIA-like sequence (point labels, true cameras): {iss['triangulated']} outlier-free frames "
           f"triangulated, 3D error median {iss['median_m']:.3f} m, p90 {iss['p90_m']:.3f} m; outlier labels "
