@@ -89,12 +89,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(api_router, prefix="/api")
     app.mount("/static", RevalidatedStaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
 
-    @app.get("/", include_in_schema=False)
+    @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     def queue_page() -> FileResponse:
         """The review queue (``static/index.html``)."""
         return _page("index.html")
 
-    @app.get("/systems/{system_id}", include_in_schema=False)
+    @app.api_route("/systems/{system_id}", methods=["GET", "HEAD"], include_in_schema=False)
     def system_page(system: SystemDep) -> FileResponse:
         """One multi-view system (``static/system.html``); 404 when the system does not exist."""
         return _page("system.html")

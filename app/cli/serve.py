@@ -1,2 +1,70 @@
-"""CLI module serve (registered on app.cli._root)."""
+"""``v3d serve``: migrate the database, optionally load the built-in demo, and run the web app.
+
+Registered on :data:`app.cli._root.cli`. The database is ``V3D_DATABASE_URL`` (default: the SQLite
+file ``var/v3d.sqlite3`` of the checkout, whose folder is created). With ``--demo`` and a database
+that holds no game, the demo dataset (:func:`app.demo.generate_demo_dataset`) is written beside the
+SQLite file (``var/demo/``) and imported as a SoccerNet-v3 tree before the server starts.
+"""
 from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from sqlalchemy.engine import make_url
+
+from app.cli._root import cli
+from app.core.config import Settings, get_settings
+from app.core.paths import PROJECT_ROOT
+
+
+def demo_dir(settings: Settings) -> Path:
+    """Where the demo dataset is written: ``demo/`` beside a SQLite database file, else ``var/demo``."""
+    url = make_url(settings.database_url)
+    if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
+        return Path(url.database).expanduser().resolve().parent / "demo"
+    return PROJECT_ROOT / "var" / "demo"
+
+
+def load_demo_if_empty(settings: Settings) -> str:
+    """Generate and import the demo dataset when the (migrated) database holds no game.
+
+    Returns:
+        A one-line account of what happened, for the console.
+    """
+    from app.db.session import make_engine, make_session_factory
+    from app.demo import generate_demo_dataset
+    from app.services.importing import import_soccernet_v3
+    from app.services.views import has_games
+
+    engine = make_engine(settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            if has_games(session):
+                return "demo: the database already holds games; nothing loaded"
+            dataset = generate_demo_dataset(demo_dir(settings))
+            report = import_soccernet_v3(session, dataset, settings)
+    finally:
+        engine.dispose()
+    return (f"demo: imported {report.systems} systems ({report.frames} frames) from {dataset}; "
+            f"{report.triangulated} triangulated")
+
+
+@cli.command("serve")
+def serve(
+    host: Annotated[str, typer.Option(help="Interface to listen on.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(min=1, max=65535, help="TCP port.")] = 8000,
+    demo: Annotated[bool, typer.Option("--demo", help="Load the built-in demo when the database has no game.")] = False,
+) -> None:
+    """Migrate the database, load the demo if asked, and serve the review UI and the REST API."""
+    import uvicorn
+
+    from app.db.session import upgrade_database
+    from app.main import create_app
+
+    settings = get_settings()
+    upgrade_database(settings.database_url)
+    if demo:
+        typer.echo(load_demo_if_empty(settings))
+    typer.echo(f"v3d: review UI at http://{host}:{port}/  (API docs at http://{host}:{port}/docs)")
+    uvicorn.run(create_app(settings), host=host, port=port)
