@@ -1,2 +1,142 @@
-"""CLI module datasets (registered on app.cli._root)."""
+"""``v3d import ...`` and ``v3d export ...``: thin wrappers over ``app.services.importing`` and
+``app.services.exporting`` (registered on :data:`app.cli._root.import_cli` / ``export_cli``).
+
+The database is ``V3D_DATABASE_URL`` (or ``--database-url``); it is migrated to the latest schema
+before use. A dataset error prints ``error: <file>: <field>: <problem>`` and exits with status 2,
+leaving the database unchanged.
+"""
 from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any, Callable, Iterator, Optional
+
+import typer
+from tqdm import tqdm
+
+from app.cli._root import export_cli, import_cli
+from app.core.config import Settings, get_settings
+from app.services.errors import InvalidInputError
+
+DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
+WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
+_STAGES = {"read": "reading", "calibrate": "calibrating", "triangulate": "triangulating"}
+
+
+class _Bars:
+    """One tqdm bar per stage of an import, fed by the services' ``progress(stage, done, total)``."""
+
+    def __init__(self) -> None:
+        self.bars: dict[str, tqdm] = {}
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        bar = self.bars.get(stage)
+        if bar is None:
+            for other in self.bars.values():  # stages run one after the other
+                other.close()
+            bar = self.bars[stage] = tqdm(total=total, desc=_STAGES.get(stage, stage), unit="item", leave=True)
+        bar.update(done - bar.n)
+
+    def close(self) -> None:
+        for bar in self.bars.values():
+            bar.close()
+
+
+def _settings(database_url: str | None, workers: int | None) -> Settings:
+    updates: dict[str, Any] = {}
+    if database_url:
+        updates["database_url"] = database_url
+    if workers is not None:
+        updates["calibration_workers"] = workers
+    return get_settings().model_copy(update=updates)
+
+
+@contextmanager
+def _session(settings: Settings) -> Iterator[Any]:
+    from app.db.session import make_engine, make_session_factory, upgrade_database
+
+    upgrade_database(settings.database_url)
+    engine = make_engine(settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            yield session
+    finally:
+        engine.dispose()
+
+
+def _run_import(settings: Settings, call: Callable[..., Any]) -> None:
+    bars = _Bars()
+    try:
+        with _session(settings) as session:
+            report = call(session, bars)
+    except InvalidInputError as exc:
+        bars.close()
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    bars.close()
+    typer.echo(f"imported {report.source}: {report.games} game(s), {report.systems} system(s), {report.frames} frame(s) "
+               f"({report.systems_new} new, {report.systems_changed} changed) in {report.seconds:.1f} s")
+    typer.echo(f"calibrated {report.calibrated}, refused {report.refused}; triangulated {report.triangulated} system(s)")
+    for reason, n in report.refusal_kinds().most_common():
+        typer.echo(f"  refused x{n}: {reason}")
+
+
+@import_cli.command("soccernet-v3")
+def import_soccernet_v3_cmd(
+    path: Annotated[Path, typer.Argument(help="A SoccerNet-v3 tree (<league>/<season>/<game>/Labels-v3.json).")],
+    database_url: DatabaseOpt = None,
+    workers: WorkersOpt = None,
+) -> None:
+    """Import a SoccerNet-v3 tree: calibrate every frame, triangulate every system."""
+    from app.services.importing import import_soccernet_v3
+
+    settings = _settings(database_url, workers)
+    _run_import(settings, lambda s, bars: import_soccernet_v3(s, path, settings, progress=bars))
+
+
+@import_cli.command("soccernet-v3d")
+def import_soccernet_v3d_cmd(
+    path: Annotated[Path, typer.Argument(help="A SoccerNet-v3D tree (SNv3D.csv at its root).")],
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Import a SoccerNet-v3D export: cameras as given, balls from SNv3D.csv, systems re-triangulated."""
+    from app.services.importing import import_soccernet_v3d
+
+    settings = _settings(database_url, None)
+    _run_import(settings, lambda s, bars: import_soccernet_v3d(s, path, settings, progress=bars))
+
+
+@import_cli.command("sn-calibration")
+def import_sn_calibration_cmd(
+    path: Annotated[Path, typer.Argument(help="A folder or zip of SoccerNet-calibration per-frame JSON.")],
+    width: Annotated[Optional[int], typer.Option(help="Image width in pixels (else read from the images).")] = None,
+    height: Annotated[Optional[int], typer.Option(help="Image height in pixels (else read from the images).")] = None,
+    database_url: DatabaseOpt = None,
+    workers: WorkersOpt = None,
+) -> None:
+    """Import a SoccerNet-calibration set: each frame becomes a single-view system to review."""
+    from app.services.importing import import_sn_calibration
+
+    settings = _settings(database_url, workers)
+    _run_import(settings, lambda s, bars: import_sn_calibration(s, path, settings, width=width, height=height,
+                                                                progress=bars))
+
+
+@export_cli.command("soccernet-v3d")
+def export_soccernet_v3d_cmd(
+    out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
+    include_all: Annotated[bool, typer.Option("--all", help="Export every system, not only accepted ones.")] = False,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Export reviewed labels as a SoccerNet-v3D tree (Labels-v3D.json per game, SNv3D.csv)."""
+    from app.services.exporting import export_soccernet_v3d
+
+    settings = _settings(database_url, None)
+    try:
+        with _session(settings) as session:
+            report = export_soccernet_v3d(session, out_dir, include_all=include_all)
+    except InvalidInputError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"exported {report.systems} system(s) of {report.games} game(s), {report.rows} row(s) "
+               f"to {report.out_dir} ({report.csv_path.name})")

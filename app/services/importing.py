@@ -21,6 +21,7 @@ import ast
 import csv
 import json
 import math
+import re
 import time
 import zipfile
 from collections import Counter
@@ -132,6 +133,14 @@ class ImportReport:
     triangulated: int = 0
     calibration_seconds: float = 0.0
     seconds: float = 0.0
+
+    def refusal_kinds(self) -> Counter:
+        """``refusal_reasons`` with every number replaced by ``N``, so that reasons of one kind
+        ("residual too high: 'Circle central' is N px ...") are counted together."""
+        out: Counter = Counter()
+        for reason, n in self.refusal_reasons.items():
+            out[re.sub(r"\d+(?:\.\d+)?", "N", reason)] += n
+        return out
 
 
 # ----- small readers ------------------------------------------------------------------------------
