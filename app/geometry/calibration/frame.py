@@ -1,0 +1,395 @@
+"""Calibrate one frame from its annotated field lines.
+
+Method (every step pure numpy/scipy):
+
+1. Pair every annotated point with its model element (:mod:`.observations`).
+2. Starting cameras: a homography from the straight ground lines (point-on-line DLT) turned into a
+   camera with the principal point fixed and square pixels (:mod:`.initialisation`); and, when the
+   lines do not fix a homography or its camera does not fit, cameras at plausible broadcast positions
+   looking at the labelled part of the pitch, first refined with their centre held fixed (a pan-tilt-
+   zoom camera, 4 parameters) and then freed.
+3. Non-linear least squares (scipy ``least_squares``, trust region, soft-L1 loss) of focal length,
+   rotation and centre on the pixel distance of every annotated point to its model line / circle /
+   goal element (:mod:`.residuals`); goal posts and crossbars constrain the camera off the ground
+   plane. One radial coefficient ``k1`` is added only when the pinhole fit leaves curved residuals.
+4. The candidate with the smallest robust cost wins (the labels' JaC is never used to choose: it is
+   the evaluation). The winner is refused, with a reason, when the labels cannot fix a camera or it
+   does not fit them.
+
+Pixel convention: the principal point is fixed at ``((W - 1) / 2, (H - 1) / 2)``. Normalised
+SoccerNet points become pixels as ``x (W - 1)`` (the official evaluator's conversion, see
+:mod:`app.geometry.annotations`), which maps the normalised image centre 0.5 to ``(W - 1) / 2``; the
+same convention is PnLCalib's. World frame: SoccerNet (metres, centre spot origin, z down).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Literal, Mapping
+
+import numpy as np
+
+from app.geometry.annotations import AnnotationError, FieldLines, image_diagonal, mirror_lines
+from app.geometry.calibration.initialisation import (
+    camera_from_homography,
+    ground_homography_from_lines,
+    labelled_target,
+    look_at_rotation,
+)
+from app.geometry.calibration.observations import Observations, build_observations
+from app.geometry.calibration.residuals import (
+    CameraParametrisation,
+    ground_points_in_front,
+    point_distances,
+    projection_matrix,
+    residuals,
+    undistort_radial_k1,
+)
+from app.geometry.calibration.solver import robust_lm
+from app.geometry.camera import Camera
+from app.geometry.pitch import PITCH_WIDTH_M
+
+#: JaC thresholds as fractions of the image diagonal (method.md section 4).
+JAC_GAMMAS: tuple[float, float, float] = (0.005, 0.01, 0.02)
+
+#: Plausible camera centres (world, metres, z down) tried, in this order, when the lines do not fix
+#: a homography: main broadcast camera on either side, 18-yard cameras, high and low behind-goal
+#: cameras. Only starting points; the refinement moves the centre freely.
+START_CENTRES_M: tuple[tuple[float, float, float], ...] = (
+    (0.0, 60.0, -20.0), (0.0, -60.0, -20.0),
+    (-35.0, 45.0, -10.0), (35.0, 45.0, -10.0), (-35.0, -45.0, -10.0), (35.0, -45.0, -10.0),
+    (-70.0, 0.0, -15.0), (70.0, 0.0, -15.0),
+    (-58.0, 0.0, -2.0), (58.0, 0.0, -2.0),
+)
+
+Status = Literal["calibrated", "refused"]
+
+
+@dataclass(frozen=True)
+class CalibrationPrior:
+    """Prior knowledge about the camera that filmed a frame (all optional).
+
+    Attributes:
+        expected_side: +1 when the camera is expected on the y > 0 side of the pitch (broadcast main
+            cameras: 1,594 of 1,603 real cameras), -1 for y < 0, ``None`` for no expectation (replay
+            cameras can stand anywhere). Used only to flag probably mirrored labels; never to fit.
+        centre_m: (3,) known camera centre (world, metres), e.g. from the game's rig; the centre is
+            then held fixed and only focal length and rotation are fitted.
+    """
+
+    expected_side: int | None = None
+    centre_m: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.expected_side not in (None, 1, -1):
+            raise ValueError(f"CalibrationPrior.expected_side must be +1, -1 or None, got {self.expected_side!r}")
+        if self.centre_m is not None:
+            c = np.asarray(self.centre_m, dtype=float)
+            if c.shape != (3,) or not np.all(np.isfinite(c)):
+                raise ValueError("CalibrationPrior.centre_m must be 3 finite numbers (world metres)")
+            if c[2] >= 0:
+                raise ValueError("CalibrationPrior.centre_m must be above the ground (z < 0, z points down)")
+
+
+@dataclass(frozen=True)
+class CalibrationSettings:
+    """Tunable constants of :func:`calibrate_frame` (defaults are the service's).
+
+    Attributes:
+        min_constraints: fewest independent scalar constraints the labels must give (7 unknowns:
+            focal length, 3 rotation, 3 centre; 4 with a known centre).
+        loss_scale_gamma: soft-L1 loss scale as a fraction of the image diagonal.
+        accept_gamma: a candidate whose 90th-percentile point distance is below this fraction of the
+            diagonal ends the search early.
+        refuse_gamma: refuse when a labelled class has a point farther than this fraction of the
+            diagonal from its model element.
+        k1_min_gain: relative drop of the robust cost that justifies the radial coefficient.
+        max_k1: largest accepted |k1|.
+    """
+
+    min_constraints: int = 7
+    loss_scale_gamma: float = 0.002
+    accept_gamma: float = 0.0025
+    refuse_gamma: float = 0.03
+    k1_min_gain: float = 0.3
+    max_k1: float = 0.5
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Outcome of :func:`calibrate_frame`.
+
+    Attributes:
+        status: ``"calibrated"`` or ``"refused"``.
+        camera: the camera (pixels of the frame, SoccerNet world) or ``None`` when refused.
+        reason: why the frame was refused (``None`` when calibrated).
+        jac: JaC at each gamma of :data:`JAC_GAMMAS` (keys ``"0.005"``, ``"0.01"``, ``"0.02"``), from
+            :mod:`app.geometry.jac`; empty when refused or not computed.
+        residuals_px: per labelled class, the largest distance (px) of its points to the model
+            element under the returned camera (or the best rejected one), so a UI can point at
+            the line that disagrees.
+        flags: e.g. ``"probably_mirrored"``, ``"few_lines"``, ``"radial_distortion"``, ``"rig_assisted"``.
+        rms_px: root mean square point distance, px.
+        elapsed_ms: wall time of the call, milliseconds.
+        mirrored_lines: when ``"probably_mirrored"`` is flagged, the mirrored labelling offered as
+            the fix (:func:`app.geometry.annotations.mirror_lines`).
+    """
+
+    status: Status
+    camera: Camera | None
+    reason: str | None
+    jac: Mapping[str, float]
+    residuals_px: Mapping[str, float]
+    flags: tuple[str, ...]
+    rms_px: float | None
+    elapsed_ms: float
+    mirrored_lines: FieldLines | None = field(default=None, repr=False)
+
+    @property
+    def calibrated(self) -> bool:
+        """True when a camera was returned."""
+        return self.status == "calibrated"
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready summary (the camera in SoccerNet form)."""
+        return {
+            "status": self.status,
+            "camera": self.camera.to_soccernet() if self.camera is not None else None,
+            "reason": self.reason,
+            "jac": dict(self.jac),
+            "residuals_px": dict(self.residuals_px),
+            "flags": list(self.flags),
+            "rms_px": self.rms_px,
+            "elapsed_ms": self.elapsed_ms,
+        }
+
+
+@dataclass
+class _Candidate:
+    x: np.ndarray
+    param: CameraParametrisation
+    cost: float
+    p90: float
+    jacobian: np.ndarray
+    origin: str
+
+
+def principal_point(width: int, height: int) -> np.ndarray:
+    """Principal point v3d's calibration fixes: ``((W - 1) / 2, (H - 1) / 2)`` px (module docstring)."""
+    return np.array([(width - 1) / 2.0, (height - 1) / 2.0])
+
+
+def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, origin: str,
+         max_iter: int = 40) -> _Candidate | None:
+    """Refine from ``x0`` and keep the result if it is a physical camera seeing its labels in front."""
+    lower = np.full(len(x0), -np.inf)
+    upper = np.full(len(x0), np.inf)
+    lower[0], upper[0] = 10.0, 1e6
+    if param.fixed_centre is None:
+        upper[6] = -0.1  # above the ground (z points down)
+    try:
+        sol = robust_lm(lambda X: residuals(X, obs, param), x0, scale, lower=lower, upper=upper, max_iter=max_iter)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    f, R, C, _ = param.split(sol.x)
+    P = projection_matrix(f, param.principal_point, R, C)
+    if not np.isfinite(sol.cost) or ground_points_in_front(P, obs) < 0.999:
+        return None
+    return _Candidate(x=sol.x, param=param, cost=sol.cost, p90=float(np.percentile(np.abs(sol.residuals), 90)),
+                      jacobian=sol.jacobian, origin=origin)
+
+
+def _class_residuals(camera: Camera, obs: Observations) -> tuple[dict[str, float], float]:
+    """Largest distance (px) of each class's points to its element, and the RMS over all points."""
+    f = float(camera.K[0, 0])
+    pp = camera.K[:2, 2]
+    k1 = float(camera.radial[0])
+    P = projection_matrix(f, pp, camera.R, camera.C)
+    d_seg, d_cir = point_distances(P, obs, undistort_radial_k1(obs.seg_points, f, pp, k1),
+                                   undistort_radial_k1(obs.circle_points, f, pp, k1))
+    out: dict[str, float] = {}
+    for classes, d, idx in ((obs.seg_classes, d_seg, obs.seg_index), (obs.circle_classes, d_cir, obs.circle_index)):
+        for i, c in enumerate(classes):
+            out[c] = float(np.max(np.abs(d[idx == i])))
+    allr = np.concatenate([d_seg, d_cir])
+    return out, float(np.sqrt(np.mean(allr**2))) if len(allr) else 0.0
+
+
+def _refused(reason: str, t0: float, flags: tuple[str, ...] = (), residuals_px: Mapping[str, float] | None = None,
+             rms: float | None = None) -> CalibrationResult:
+    return CalibrationResult(status="refused", camera=None, reason=reason, jac={}, residuals_px=dict(residuals_px or {}),
+                             flags=flags, rms_px=rms, elapsed_ms=(time.perf_counter() - t0) * 1e3)
+
+
+def _validate(lines: Any, width: Any, height: Any) -> None:
+    if not isinstance(width, (int, np.integer)) or not isinstance(height, (int, np.integer)) or width < 2 or height < 2:
+        raise ValueError(f"width and height must be integers >= 2 (pixels), got {width!r} x {height!r}")
+    if not isinstance(lines, Mapping):
+        raise AnnotationError("lines must be a mapping of class -> list of (N, 2) pixel arrays")
+    for cls, polys in lines.items():
+        if not isinstance(polys, (list, tuple)):
+            raise AnnotationError(f"lines[{cls!r}] must be a list of (N, 2) pixel arrays")
+        for i, p in enumerate(polys):
+            a = np.asarray(p, dtype=float)
+            if a.ndim != 2 or a.shape[1] != 2 or not np.all(np.isfinite(a)):
+                raise AnnotationError(f"lines[{cls!r}][{i}] must be a finite (N, 2) pixel array, got shape {a.shape}")
+
+
+def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior | None,
+            settings: CalibrationSettings) -> _Candidate | None:
+    pp = principal_point(width, height)
+    diag = image_diagonal(width, height)
+    scale = settings.loss_scale_gamma * diag
+    accept = settings.accept_gamma * diag
+    best: _Candidate | None = None
+
+    def consider(c: _Candidate | None) -> bool:
+        nonlocal best
+        if c is not None and (best is None or c.cost < best.cost):
+            best = c
+        return best is not None and best.p90 < accept
+
+    target = labelled_target(obs)
+    if prior is not None and prior.centre_m is not None:
+        centre = np.asarray(prior.centre_m, dtype=float)
+        try:
+            R0 = look_at_rotation(centre, target)
+        except ValueError:
+            return None
+        param = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=centre)
+        for f0 in (1.0, 2.5, 0.5):
+            if consider(_fit(param.vector(f0 * width, centre), obs, param, scale, "rig")):
+                break
+        return best
+
+    for poles in (False, True):
+        H = ground_homography_from_lines(obs, pp, float(width), use_circle_poles=poles)
+        init = camera_from_homography(H, pp) if H is not None else None
+        if init is not None:
+            f0, R0, C0 = init
+            param = CameraParametrisation(principal_point=pp, R0=R0)
+            if consider(_fit(param.vector(f0, C0), obs, param, scale, "homography" + (" + poles" if poles else ""))):
+                return best
+
+    for centre in START_CENTRES_M:
+        c0 = np.asarray(centre, dtype=float)
+        try:
+            R0 = look_at_rotation(c0, target)
+        except ValueError:
+            continue
+        fixed = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=c0)
+        ptz = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, "ptz", max_iter=25)
+        if ptz is None:
+            continue
+        f1, R1, _, _ = fixed.split(ptz.x)
+        free = CameraParametrisation(principal_point=pp, R0=R1)
+        if consider(_fit(free.vector(float(f1), c0), obs, free, scale, f"start {centre}")):
+            break
+    return best
+
+
+def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: CalibrationSettings) -> _Candidate:
+    """Add the radial coefficient when it lowers the robust cost by ``k1_min_gain`` or more."""
+    f, R, C, _ = best.param.split(best.x)
+    param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
+                                  fixed_centre=best.param.fixed_centre)
+    cand = _fit(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1")
+    if cand is None or abs(cand.x[-1]) > settings.max_k1:
+        return best
+    if cand.cost < (1.0 - settings.k1_min_gain) * best.cost:
+        return cand
+    return best
+
+
+def calibrate_frame(
+    lines: FieldLines,
+    width: int,
+    height: int,
+    *,
+    prior: CalibrationPrior | None = None,
+    settings: CalibrationSettings | None = None,
+    compute_jac: bool = True,
+    jac_function: Callable[..., Mapping[float, float]] | None = None,
+) -> CalibrationResult:
+    """Calibrate a frame from its annotated field lines.
+
+    Args:
+        lines: :data:`~app.geometry.annotations.FieldLines`, pixels of this frame (continuous
+            coordinates; SoccerNet-calibration points converted as ``x (W - 1)``).
+        width, height: image size, pixels.
+        prior: optional :class:`CalibrationPrior` (side of the pitch for the mirror flag, known centre).
+        settings: :class:`CalibrationSettings`; defaults when ``None``.
+        compute_jac: compute JaC at :data:`JAC_GAMMAS` for the returned camera.
+        jac_function: replacement for :func:`app.geometry.jac.jac_at_gammas` (same signature).
+
+    Returns:
+        :class:`CalibrationResult`: a camera with principal point ``((W - 1) / 2, (H - 1) / 2)``,
+        square pixels and at most the ``k1`` radial term, or a refusal with its reason. No exception
+        escapes for well-formed input.
+
+    Raises:
+        ValueError: ``width``/``height`` are not integers >= 2.
+        AnnotationError: ``lines`` is not a mapping of class -> list of finite (N, 2) arrays.
+    """
+    t0 = time.perf_counter()
+    _validate(lines, width, height)
+    settings = settings or CalibrationSettings()
+    diag = image_diagonal(width, height)
+    obs = build_observations(lines)
+    fixed = prior is not None and prior.centre_m is not None
+    need = 4 if fixed else settings.min_constraints
+    n_constraints = obs.constraint_count()
+    flags: list[str] = []
+    if len(obs.classes) <= 3:
+        flags.append("few_lines")
+    if n_constraints < need:
+        return _refused(f"fewer than {need} independent line constraints ({n_constraints}: "
+                        f"{len(obs.classes)} usable line(s))", t0, tuple(flags))
+    nx, ny = obs.ground_line_directions()
+    if not obs.circle_classes and (nx == 0 or ny == 0) and len(obs.classes) - nx - ny == 0:
+        return _refused("degenerate configuration: all labelled lines are parallel on the pitch and no "
+                        "circle or goal fixes the view", t0, tuple(flags))
+    try:
+        best = _search(obs, width, height, prior, settings)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
+        return _refused(f"solver failed: {exc}", t0, tuple(flags))
+    if best is None:
+        return _refused("no camera fits the labels (every start failed or put the pitch behind the camera)",
+                        t0, tuple(flags))
+    scale = settings.loss_scale_gamma * diag
+    if best.p90 > 0.5 * scale and obs.n_points >= 12:
+        best = _with_k1(best, obs, scale, settings)
+    camera = best.param.camera(best.x)
+    per_class, rms = _class_residuals(camera, obs)
+    if fixed:
+        flags.append("rig_assisted")
+    if camera.radial[0] != 0.0:
+        flags.append("radial_distortion")
+    worst = max(per_class.values()) if per_class else 0.0
+    if worst > settings.refuse_gamma * diag:
+        bad = max(per_class, key=per_class.get)  # type: ignore[arg-type]
+        return _refused(f"residual too high: {bad!r} is {worst:.1f} px from its model element "
+                        f"(limit {settings.refuse_gamma * diag:.1f} px)", t0, tuple(flags), per_class, rms)
+    mirrored = None
+    if prior is not None and prior.expected_side is not None and camera.C[1] * prior.expected_side < -PITCH_WIDTH_M / 2:
+        flags.append("probably_mirrored")
+        mirrored = mirror_lines(lines)
+    jac: dict[str, float] = {}
+    if compute_jac:
+        jac = frame_jac(camera, lines, width, height, jac_function)
+    return CalibrationResult(status="calibrated", camera=camera, reason=None, jac=jac, residuals_px=per_class,
+                             flags=tuple(flags), rms_px=rms, elapsed_ms=(time.perf_counter() - t0) * 1e3,
+                             mirrored_lines=mirrored)
+
+
+def frame_jac(camera: Camera, lines: FieldLines, width: int, height: int,
+              jac_function: Callable[..., Mapping[float, float]] | None = None) -> dict[str, float]:
+    """JaC of ``camera`` against ``lines`` at :data:`JAC_GAMMAS`, keyed ``"0.005"``, ``"0.01"``, ``"0.02"``.
+
+    Uses :func:`app.geometry.jac.jac_at_gammas` (the official evaluator's JaC) unless ``jac_function``
+    with the same signature ``(camera, lines, width, height, gammas) -> {gamma: jac}`` is given.
+    """
+    if jac_function is None:
+        from app.geometry.jac import jac_at_gammas as jac_function  # noqa: PLC0415 - optional peer module
+    values = jac_function(camera, lines, width, height, JAC_GAMMAS)
+    return {f"{g:g}": float(values[g]) for g in JAC_GAMMAS}

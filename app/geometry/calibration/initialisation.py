@@ -1,0 +1,264 @@
+"""Starting cameras for the non-linear refinement.
+
+Two families:
+
+* **Homography from lines** (:func:`ground_homography_from_lines`): every annotated point ``p`` of a
+  straight ground element with world line ``l`` (homogeneous, ground plane) gives one linear
+  equation ``l^T G p = 0`` on the image-to-ground homography ``G`` (the point-on-line form of the
+  line DLT, Hartley and Zisserman section 4.1 with line correspondences, with their data
+  normalisation, section 4.4.4). Four or more lines with at least two along each pitch direction
+  fix ``G``. :func:`camera_from_homography` then recovers focal length, rotation and centre with the
+  principal point fixed and square pixels (Zhang 2000, closed form from the two orthonormality
+  constraints on ``K^-1 H``).
+* **Look-at priors** (:func:`look_at_rotation`): a camera at a plausible broadcast position looking
+  at the labelled part of the pitch, for frames whose lines do not fix a homography.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from app.geometry.calibration.observations import Observations
+from app.geometry.pitch import GOAL_CLASSES
+
+_WORLD_SCALE_M = 50.0
+
+
+def fit_conic(points: np.ndarray) -> np.ndarray | None:
+    """Algebraic least-squares conic through image points (Hartley and Zisserman, section 2.2.3).
+
+    Args:
+        points: (N, 2) points, N >= 5, in any consistent unit.
+
+    Returns:
+        (3, 3) symmetric conic ``C`` with ``p^T C p = 0`` on the curve, or ``None`` when the points
+        do not determine an ellipse (fewer than 5, degenerate, or a hyperbola/parabola fits best).
+
+    >>> t = np.linspace(0.0, 2.0, 9); C = fit_conic(np.stack([3 + 2 * np.cos(t), 1 + np.sin(t)], 1))
+    >>> p = np.array([3.0, 2.0, 1.0]); bool(abs(p @ C @ p) < 1e-9)
+    True
+    """
+    pts = np.asarray(points, dtype=float)
+    if len(pts) < 5:
+        return None
+    mu = pts.mean(axis=0)
+    sc = float(np.sqrt(np.mean(np.sum((pts - mu) ** 2, axis=1)))) or 1.0
+    q = (pts - mu) / sc
+    x, y = q[:, 0], q[:, 1]
+    D = np.stack([x * x, x * y, y * y, x, y, np.ones_like(x)], axis=1)
+    _, s, vt = np.linalg.svd(D, full_matrices=False)
+    if s[-2] < 1e-6 * s[0]:
+        return None
+    a, b, c, d, e, f = vt[-1]
+    Cn = np.array([[a, b / 2, d / 2], [b / 2, c, e / 2], [d / 2, e / 2, f]])
+    if b * b - 4 * a * c >= 0:
+        return None
+    T = np.array([[1 / sc, 0, -mu[0] / sc], [0, 1 / sc, -mu[1] / sc], [0, 0, 1]])
+    C = T.T @ Cn @ T
+    return C / np.linalg.norm(C)
+
+
+def _fit_image_line(pts: np.ndarray) -> np.ndarray | None:
+    """Total-least-squares homogeneous line (3,) through (N, 2) points; ``None`` if they coincide."""
+    mu = pts.mean(axis=0)
+    _, s, vt = np.linalg.svd(pts - mu)
+    if len(pts) < 2 or s[0] < 1e-6:
+        return None
+    n = vt[-1]
+    return np.array([n[0], n[1], -n @ mu])
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def ground_homography_from_lines(obs: Observations, principal_point: np.ndarray, scale_px: float,
+                                 use_circle_poles: bool = False) -> np.ndarray | None:
+    """Ground-to-image homography from annotated points on straight ground elements (and circles).
+
+    Each annotated point ``p`` on a ground element of world line ``l`` gives ``l^T G p = 0``. With
+    ``use_circle_poles``, every labelled circle with 5 points or more is fitted by an image conic
+    ``C`` (:func:`fit_conic`), and the pole of each labelled ground line with respect to it,
+    ``C^-1 l_image``, is the image of the world pole ``Q^-1 l_world`` (pole-polar duality is
+    projective, Hartley and Zisserman, section 2.8.1): a point correspondence, 2 more equations.
+
+    Args:
+        obs: the frame's observations (goal elements are ignored: they are off the ground).
+        principal_point: (2,) px, used to centre the image points. scale_px: px, to scale them.
+        use_circle_poles: add the circle pole correspondences.
+
+    Returns:
+        (3, 3) ``H`` mapping homogeneous ground points (x, y, 1) in metres to pixels, or ``None``
+        when the equations do not fix it (fewer than 8 or rank deficient; without poles, fewer than
+        two ground lines along either pitch direction).
+    """
+    nx, ny = obs.ground_line_directions()
+    if not use_circle_poles and (nx < 2 or ny < 2):
+        return None
+    T = np.array([[1 / scale_px, 0, -principal_point[0] / scale_px],
+                  [0, 1 / scale_px, -principal_point[1] / scale_px], [0, 0, 1]])
+    S = np.diag([1 / _WORLD_SCALE_M, 1 / _WORLD_SCALE_M, 1.0])
+    is_ground = np.array([c not in GOAL_CLASSES for c in obs.seg_classes], dtype=bool)
+    rows: list[np.ndarray] = []
+    n_eq = 0
+    image_lines: list[tuple[np.ndarray, np.ndarray]] = []
+    for i in np.flatnonzero(is_ground):
+        pts = obs.seg_points[obs.seg_index == i]
+        a = S @ np.array([obs.seg_a[i][0], obs.seg_a[i][1], 1.0])
+        b = S @ np.array([obs.seg_b[i][0], obs.seg_b[i][1], 1.0])
+        lw = np.cross(a, b)
+        lw /= np.linalg.norm(lw)
+        pn = np.hstack([pts, np.ones((len(pts), 1))]) @ T.T
+        r = (lw[None, :, None] * pn[:, None, :]).reshape(len(pts), 9)
+        rows.append(r / np.sqrt(len(pts)))
+        n_distinct = 1 if np.ptp(pts, axis=0).max() < 1.0 else 2
+        n_eq += n_distinct
+        if n_distinct == 2:
+            li = _fit_image_line(pn[:, :2])
+            if li is not None:
+                image_lines.append((lw, li))
+    if use_circle_poles:
+        for j in range(len(obs.circle_classes)):
+            pts = obs.circle_points[obs.circle_index == j]
+            Cimg = fit_conic(np.hstack([pts, np.ones((len(pts), 1))]) @ T.T[:, :2]) if len(pts) >= 5 else None
+            if Cimg is None:
+                continue
+            cx, cy = obs.circle_centre[j] / _WORLD_SCALE_M
+            rr = obs.circle_radius[j] / _WORLD_SCALE_M
+            Qn = np.array([[1, 0, -cx], [0, 1, -cy], [-cx, -cy, cx * cx + cy * cy - rr * rr]])
+            for lw, li in image_lines:
+                try:
+                    pw = np.linalg.solve(Qn, lw)
+                    pi = np.linalg.solve(Cimg, li)
+                except np.linalg.LinAlgError:
+                    continue
+                pw /= np.linalg.norm(pw)
+                pi /= np.linalg.norm(pi)
+                r = np.kron(_skew(pw), pi[None, :]).reshape(3, 9)
+                rows.append(r)
+                n_eq += 2
+    if n_eq < 8 or not rows:
+        return None
+    A = np.concatenate(rows)
+    if len(A) < 8:
+        return None
+    _, s, vt = np.linalg.svd(A, full_matrices=True)
+    if len(s) >= 8 and s[7] < 1e-9 * s[0]:
+        return None
+    G = vt[-1].reshape(3, 3)
+    # Normalised: X_n = G p_n with p_n = T p and X_n = S X, so X = S^-1 G T p.
+    G_full = np.linalg.inv(S) @ G @ T
+    try:
+        H = np.linalg.inv(G_full)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(H)):
+        return None
+    return H / np.linalg.norm(H)
+
+
+def camera_from_homography(H: np.ndarray, principal_point: np.ndarray) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """Focal length, rotation and centre from a ground-to-image homography (square pixels, known
+    principal point).
+
+    With ``A = T^-1 H`` (``T`` the principal-point translation), ``A ~ diag(f, f, 1) [r1 r2 t]``; the
+    constraints ``r1 . r2 = 0`` and ``|r1| = |r2|`` are linear in ``1 / f^2`` and solved together in
+    the least-squares sense (Zhang 2000, section 3.1). The overall sign is chosen so that the camera
+    stands above the ground; ``R`` is the nearest rotation to ``[r1 r2 r1 x r2]``.
+
+    Args:
+        H: (3, 3) ground (x, y, 1) metres -> pixels. principal_point: (2,) px.
+
+    Returns:
+        ``(f px, R (3, 3) world to camera, C (3,) metres)`` or ``None`` when no positive focal
+        length fits or the camera would stand below the ground.
+    """
+    T_inv = np.array([[1, 0, -principal_point[0]], [0, 1, -principal_point[1]], [0, 0, 1]], dtype=float)
+    A = T_inv @ H
+    h1, h2 = A[:, 0], A[:, 1]
+    # r1.r2 = 0: (h11 h12 + h21 h22) / f^2 + h31 h32 = 0
+    # |r1| = |r2|: (h11^2 + h21^2 - h12^2 - h22^2) / f^2 + h31^2 - h32^2 = 0
+    m = np.array([h1[0] * h2[0] + h1[1] * h2[1], h1[0] ** 2 + h1[1] ** 2 - h2[0] ** 2 - h2[1] ** 2])
+    c = np.array([h1[2] * h2[2], h1[2] ** 2 - h2[2] ** 2])
+    denom = float(m @ m)
+    if denom <= 0:
+        return None
+    inv_f2 = -float(m @ c) / denom
+    if not inv_f2 > 0:
+        return None
+    f = 1.0 / np.sqrt(inv_f2)
+    B = np.diag([1 / f, 1 / f, 1.0]) @ A
+    lam = 2.0 / (np.linalg.norm(B[:, 0]) + np.linalg.norm(B[:, 1]))
+    B = B * lam
+    # The two signs of lambda give mirror images of the camera through the ground plane (C_z and
+    # -C_z); keep the one above the ground (z points down, so C_z < 0).
+    for sign in (1.0, -1.0):
+        r1, r2, t = sign * B[:, 0], sign * B[:, 1], sign * B[:, 2]
+        M = np.stack([r1, r2, np.cross(r1, r2)], axis=1)
+        u, _, vt = np.linalg.svd(M)
+        R = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+        C = -R.T @ t
+        if np.all(np.isfinite(C)) and C[2] < 0:
+            break
+    else:
+        return None
+    return float(f), R, C
+
+
+def look_at_rotation(centre: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """World-to-camera rotation of a camera at ``centre`` looking at ``target`` with no roll.
+
+    The image y axis follows the world's downward direction (+z) as seen from the camera.
+
+    Args:
+        centre, target: (3,) world points, metres.
+
+    Raises:
+        ValueError: the two points coincide or the view is vertical.
+    """
+    z = np.asarray(target, float) - np.asarray(centre, float)
+    n = np.linalg.norm(z)
+    if n < 1e-9:
+        raise ValueError("look_at_rotation: target equals centre")
+    z = z / n
+    down = np.array([0.0, 0.0, 1.0])
+    y = down - (down @ z) * z
+    ny = np.linalg.norm(y)
+    if ny < 1e-9:
+        raise ValueError("look_at_rotation: vertical view has no defined roll")
+    y = y / ny
+    x = np.cross(y, z)
+    return np.stack([x, y, z])
+
+
+def labelled_target(obs: Observations) -> np.ndarray:
+    """A world point (3,) the camera probably looks at: the mean of the labelled elements' anchors.
+
+    Anchors are the world intersections of labelled perpendicular ground elements (corners that the
+    view likely contains), circle centres, and goal centres; the mean of segment midpoints when
+    none of those exists.
+    """
+    anchors: list[np.ndarray] = []
+    ground = [(a, b) for c, a, b in zip(obs.seg_classes, obs.seg_a, obs.seg_b) if c not in GOAL_CLASSES]
+    for i in range(len(ground)):
+        for j in range(i + 1, len(ground)):
+            (a1, b1), (a2, b2) = ground[i], ground[j]
+            d1, d2 = b1 - a1, b2 - a2
+            if abs(d1[:2] @ d2[:2]) > 1e-6 * np.linalg.norm(d1) * np.linalg.norm(d2):
+                continue  # parallel
+            # Intersection of the two axis-aligned lines.
+            if abs(d1[0]) > abs(d1[1]):
+                anchors.append(np.array([a2[0], a1[1], 0.0]))
+            else:
+                anchors.append(np.array([a1[0], a2[1], 0.0]))
+    for c in obs.circle_centre:
+        anchors.append(np.array([c[0], c[1], 0.0]))
+    for c, a, b in zip(obs.seg_classes, obs.seg_a, obs.seg_b):
+        if c in GOAL_CLASSES:
+            anchors.append(np.array([a[0], 0.0, 0.0]))
+    if not anchors:
+        anchors = [0.5 * (a + b) for a, b in zip(obs.seg_a, obs.seg_b)]
+    if not anchors:
+        return np.zeros(3)
+    t = np.mean(anchors, axis=0)
+    t[2] = 0.0
+    return t

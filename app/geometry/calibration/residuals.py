@@ -1,0 +1,265 @@
+"""Pixel residuals of annotated field lines against a camera, vectorised for least squares.
+
+Camera parameters (one vector ``x``, see :class:`CameraParametrisation`): focal length ``f`` (px,
+square pixels), a rotation vector ``w`` applied on the left of a reference rotation ``R0``
+(``R = exp([w]x) R0``, world to camera), the camera centre ``C`` (world, metres, z down) and,
+optionally, SoccerNet's first radial coefficient ``k1``. The principal point is fixed.
+
+Residuals, all in pixels of the frame:
+
+* a point on a straight element (ground line, goal post, crossbar): signed distance to the image
+  line through the projections of the element's two 3D end points, ``l = (P A) x (P B)``
+  (Hartley and Zisserman, eq. 2.3 and 8.2; valid for elements off the ground plane too);
+* a point on a circle: Sampson's first-order distance to the image conic ``H^-T Q H^-1`` of the
+  ground circle ``Q`` through the ground homography ``H = P[:, (0, 1, 3)]`` (Hartley and Zisserman,
+  section 4.2.6 and result 2.13);
+* with ``k1``, the annotated (distorted) points are first undistorted with SoccerNet's radial model
+  (method.md section 2), so the pinhole distances above apply; the distances stay in pixels.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.geometry.calibration.observations import Observations
+from app.geometry.camera import Camera
+from app.geometry.pitch import GOAL_CLASSES
+
+
+def rotation_from_vector(w: np.ndarray) -> np.ndarray:
+    """Rodrigues' formula: rotation vector(s) (..., 3) radians -> rotation matrices (..., 3, 3).
+
+    >>> np.allclose(rotation_from_vector(np.array([0.0, 0.0, np.pi / 2])) @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    True
+    """
+    w = np.asarray(w, dtype=float)
+    lead = w.shape[:-1]
+    w = w.reshape(-1, 3)
+    theta2 = np.einsum("ij,ij->i", w, w)
+    theta = np.sqrt(theta2)
+    small = theta < 1e-6
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    x, y, z = w[:, 0], w[:, 1], w[:, 2]
+    ax, ay, az = a * x, a * y, a * z
+    bxy, bxz, byz = b * x * y, b * x * z, b * y * z
+    out = np.empty((len(w), 3, 3))
+    out[:, 0, 0] = 1.0 - b * (y * y + z * z)
+    out[:, 1, 1] = 1.0 - b * (x * x + z * z)
+    out[:, 2, 2] = 1.0 - b * (x * x + y * y)
+    out[:, 0, 1], out[:, 1, 0] = bxy - az, bxy + az
+    out[:, 0, 2], out[:, 2, 0] = bxz + ay, bxz - ay
+    out[:, 1, 2], out[:, 2, 1] = byz - ax, byz + ax
+    return out.reshape(lead + (3, 3))
+
+
+def undistort_radial_k1(uv: np.ndarray, f: np.ndarray | float, pp: np.ndarray, k1: np.ndarray | float,
+                        iterations: int = 8) -> np.ndarray:
+    """Remove SoccerNet's one-coefficient radial distortion from pixels (method.md section 2).
+
+    Inverts ``x_d = x (1 + k1 r^2)`` on normalised coordinates by fixed-point iteration.
+
+    Args:
+        uv: (N, 2) distorted pixels. f: focal length(s) px, shape (...). pp: (2,) principal point px.
+        k1: coefficient(s), shape (...) like ``f``.
+
+    Returns:
+        (..., N, 2) undistorted pixels (same focal length and principal point).
+
+    >>> uv = np.array([[900.0, 500.0]])
+    >>> xd = (uv - 480.0) / 1000.0; xd = xd * (1 + 0.1 * np.sum(xd**2))  # distort by hand
+    >>> np.round(undistort_radial_k1(xd * 1000.0 + 480.0, 1000.0, np.array([480.0, 480.0]), 0.1), 6).tolist()
+    [[900.0, 500.0]]
+    """
+    f = np.asarray(f, dtype=float)[..., None, None]
+    k1 = np.asarray(k1, dtype=float)[..., None, None]
+    if len(uv) == 0 or not np.any(k1):
+        return np.broadcast_to(uv, f.shape[:-2] + uv.shape)
+    d = (uv - pp) / f
+    x = d
+    for _ in range(iterations):
+        r2 = np.sum(x * x, axis=-1, keepdims=True)
+        x = d / (1.0 + k1 * r2)
+    return x * f + pp
+
+
+@dataclass(frozen=True)
+class CameraParametrisation:
+    """Maps parameter vectors to cameras for one frame.
+
+    Vector layout: ``[f, w0, w1, w2, Cx, Cy, Cz (, k1)]``; with ``fixed_centre`` the centre entries
+    are absent: ``[f, w0, w1, w2 (, k1)]``.
+
+    Attributes:
+        principal_point: (2,) fixed principal point, px.
+        R0: (3, 3) reference rotation (world to camera) the rotation vector is applied to.
+        fit_k1: the vector carries ``k1`` as its last entry.
+        fixed_centre: if given, (3,) camera centre held fixed (rig prior), metres.
+    """
+
+    principal_point: np.ndarray
+    R0: np.ndarray
+    fit_k1: bool = False
+    fixed_centre: np.ndarray | None = None
+
+    @property
+    def size(self) -> int:
+        """Length of a parameter vector."""
+        return 4 + (3 if self.fixed_centre is None else 0) + (1 if self.fit_k1 else 0)
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Vectors (..., size) -> focal px (...), R (..., 3, 3), C (..., 3) metres, k1 (...)."""
+        x = np.asarray(x, dtype=float)
+        f = x[..., 0]
+        R = rotation_from_vector(x[..., 1:4]) @ self.R0
+        if self.fixed_centre is None:
+            C = x[..., 4:7]
+        else:
+            C = np.broadcast_to(self.fixed_centre, x.shape[:-1] + (3,))
+        k1 = x[..., -1] if self.fit_k1 else np.zeros(x.shape[:-1])
+        return f, R, C, k1
+
+    def vector(self, f: float, C: np.ndarray, k1: float = 0.0) -> np.ndarray:
+        """Parameter vector at the reference rotation."""
+        parts = [[f, 0.0, 0.0, 0.0]]
+        if self.fixed_centre is None:
+            parts.append(list(C))
+        if self.fit_k1:
+            parts.append([k1])
+        return np.concatenate(parts).astype(float)
+
+    def camera(self, x: np.ndarray) -> Camera:
+        """The :class:`~app.geometry.camera.Camera` of one vector ``x``."""
+        f, R, C, k1 = self.split(x)
+        f = float(f)
+        K = np.array([[f, 0.0, self.principal_point[0]], [0.0, f, self.principal_point[1]], [0.0, 0.0, 1.0]])
+        radial = np.zeros(6)
+        radial[0] = float(k1)
+        return Camera(K=K, R=R, C=np.array(C, dtype=float), radial=radial)
+
+
+def projection_matrix(f: np.ndarray | float, pp: np.ndarray, R: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """``P = K R [I | -C]`` with square pixels (paper Eq. projection), batched.
+
+    Args:
+        f: focal length(s) px, shape (...). pp: (2,) px. R: (..., 3, 3). C: (..., 3) metres.
+
+    Returns:
+        (..., 3, 4) projection matrices.
+    """
+    f = np.asarray(f, dtype=float)
+    R = np.asarray(R, dtype=float)
+    KR = R.copy()
+    KR[..., 0, :] = f[..., None] * R[..., 0, :] + pp[0] * R[..., 2, :]
+    KR[..., 1, :] = f[..., None] * R[..., 1, :] + pp[1] * R[..., 2, :]
+    t = -np.einsum("...ij,...j->...i", KR, C)
+    return np.concatenate([KR, t[..., None]], axis=-1)
+
+
+def _adjugate3(m: np.ndarray) -> np.ndarray:
+    """Adjugate of (B, 3, 3) matrices: the inverse times the determinant, defined for singular ones
+    too. Image conics ``adj(H)^T Q adj(H)`` differ from ``H^-T Q H^-1`` by a positive factor, which
+    the Sampson distance ignores."""
+    r0, r1, r2 = m[:, 0, :], m[:, 1, :], m[:, 2, :]
+    out = np.empty_like(m)
+    out[:, :, 0] = _cross_rows(r1, r2)
+    out[:, :, 1] = _cross_rows(r2, r0)
+    out[:, :, 2] = _cross_rows(r0, r1)
+    return out
+
+
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
+def point_distances(P: np.ndarray, obs: Observations, seg_points: np.ndarray | None = None,
+                    circle_points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Signed pixel distance of every annotated point to its projected model element.
+
+    Args:
+        P: (3, 4) or (B, 3, 4) projection matrices (pinhole, pixels).
+        obs: the frame's :class:`Observations`.
+        seg_points, circle_points: replacement points, (N, 2) / (M, 2) or per camera (B, N, 2) /
+            (B, M, 2) (e.g. undistorted); default the annotated ones.
+
+    Returns:
+        ``(d_seg, d_circle)``: (..., N) distances to the straight elements' image lines and (..., M)
+        Sampson distances to the circles' image conics, pixels, with the leading shape of ``P``.
+        Non-finite values (degenerate camera) are replaced by +-1e6 px.
+    """
+    P = np.asarray(P, dtype=float)
+    single = P.ndim == 2
+    if single:
+        P = P[None]
+    sp = obs.seg_points if seg_points is None else seg_points
+    cp = obs.circle_points if circle_points is None else circle_points
+    B = len(P)
+    d_seg = np.zeros((B, len(obs.seg_points)))
+    d_cir = np.zeros((B, len(obs.circle_points)))
+    with np.errstate(all="ignore"):
+        if len(obs.seg_points):
+            # Image lines of the elements, (B, 3, S): l = (P A) x (P B) (Hartley and Zisserman, 2.2).
+            a = P @ obs.seg_ah_t
+            b = P @ obs.seg_bh_t
+            l0 = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+            l1 = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+            l2 = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+            n = np.hypot(l0, l1)
+            i = obs.seg_index
+            d_seg = (l0[:, i] * sp[..., 0] + l1[:, i] * sp[..., 1] + l2[:, i]) / n[:, i]
+        if len(obs.circle_points):
+            Hinv = _adjugate3(P[:, :, (0, 1, 3)])[:, None]
+            conics = np.swapaxes(Hinv, -1, -2) @ obs.circle_conics @ Hinv  # (B, Q, 3, 3)
+            ci = conics[:, obs.circle_index]  # (B, M, 3, 3)
+            ph = np.concatenate([cp, np.ones(cp.shape[:-1] + (1,))], axis=-1)
+            v = (ci @ ph[..., None])[..., 0]  # (B, M, 3)
+            fval = np.sum(v * ph, axis=-1)
+            d_cir = fval / (2.0 * np.hypot(v[..., 0], v[..., 1]))
+    if not (np.isfinite(d_seg).all() and np.isfinite(d_cir).all()):
+        d_seg = np.nan_to_num(d_seg, nan=1e6, posinf=1e6, neginf=-1e6)
+        d_cir = np.nan_to_num(d_cir, nan=1e6, posinf=1e6, neginf=-1e6)
+    if single:
+        return d_seg[0], d_cir[0]
+    return d_seg, d_cir
+
+
+def residuals(x: np.ndarray, obs: Observations, param: CameraParametrisation) -> np.ndarray:
+    """Weighted residuals (pixels) of parameter vector(s) ``x`` (..., size) -> (..., N + M):
+    straight-element points then circle points, each times its class weight."""
+    f, R, C, k1 = param.split(x)
+    pp = param.principal_point
+    P = projection_matrix(f, pp, R, C)
+    sp, cp = obs.seg_points, obs.circle_points
+    if param.fit_k1:
+        sp = undistort_radial_k1(sp, f, pp, k1)
+        cp = undistort_radial_k1(cp, f, pp, k1)
+    d_seg, d_cir = point_distances(P, obs, sp, cp)
+    return np.concatenate([d_seg * obs.seg_weight, d_cir * obs.circle_weight], axis=-1)
+
+
+def ground_points_in_front(P: np.ndarray, obs: Observations) -> float:
+    """Fraction of annotated ground points (not goal elements) whose ground back-projection lies in
+    front of the camera.
+
+    A valid camera sees its ground labels in front (1.0); a solution that explains the labels
+    with the pitch behind the camera scores near 0. ``P`` is (3, 4).
+    """
+    goal_seg = np.array([c in GOAL_CLASSES for c in obs.seg_classes], dtype=bool)
+    keep = ~goal_seg[obs.seg_index] if len(obs.seg_points) else np.zeros(0, bool)
+    pts = np.concatenate([obs.seg_points[keep], obs.circle_points])
+    if len(pts) == 0:
+        return 1.0
+    H = P[:, (0, 1, 3)]
+    with np.errstate(all="ignore"):
+        Hi = _adjugate3(H[None])[0]
+        w = pts @ Hi[:, :2].T + Hi[:, 2]
+        X = w[:, :2] / w[:, 2:3]
+        # The third row of P = K R [I | -C] is r3 (X - C): the depth in metres.
+        depth = X @ P[2, :2] + P[2, 3]
+    return float(np.mean(np.isfinite(depth) & (depth > 0)))
