@@ -50,7 +50,7 @@ LABELS_FILE = "Labels-v3.json"
 FRAMES_FILE = "Frames-v3.zip"
 #: Timestamp of every zip entry (fixed, so that the archive is byte-identical run to run).
 ZIP_DATE_TIME = (2025, 3, 15, 15, 0, 0)
-PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 9]
+PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 6]
 
 #: A view is framed wider (zoom out by 15 % steps) until it shows at least this many model
 #: classes, straight lines in both pitch directions (or a circle), each visible over

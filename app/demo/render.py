@@ -142,7 +142,7 @@ def _background(camera: Camera, width: int, height: int) -> np.ndarray:
     rows = np.linspace(0.0, 1.0, height)[:, None]
     top, bottom = np.array([52, 46, 44], float), np.array(STAND, float)
     col = top + (bottom - top) * rows
-    img = np.repeat(col[:, None, :], width, axis=1).astype(np.uint8)
+    img = np.ascontiguousarray(np.broadcast_to(col.astype(np.uint8)[:, None, :], (height, width, 3)))
     sides = [  # (inner edge, outer edge) of each stand as world polygons rising away from the pitch
         (_HALF_W + BOARD_OFFSET_SIDE_M + 2.0, 1.0), (-(_HALF_W + BOARD_OFFSET_SIDE_M + 2.0), -1.0),
     ]
@@ -207,19 +207,23 @@ def ground_line_ribbons(step_m: float = 0.25) -> np.ndarray:
 
 
 def _draw_lines(img: np.ndarray, camera: Camera, ribbons: np.ndarray) -> None:
+    """Paint the ground markings: (M, 4, 3) world quads rasterised supersampled, then blended by
+    their covered fraction of each pixel."""
     h, w = img.shape[:2]
     ss = 4 if w <= 1280 else 2
     mask = np.zeros((h * ss, w * ss), np.uint8)
     cam_pts = camera.points_in_camera(ribbons.reshape(-1, 3)).reshape(ribbons.shape)
     depth = cam_pts[:, :, 2]
     front = np.all(depth >= NEAR_M, axis=1)
-    uv_all = np.full(ribbons.shape[:2] + (2,), np.nan)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        uv_all[front] = (cam_pts[front, :, :2] / cam_pts[front, :, 2:3]) @ camera.K[:2, :2].T + camera.K[:2, 2]
-    for i in np.flatnonzero(np.any(depth >= NEAR_M, axis=1)):
-        uv = uv_all[i] if front[i] else (_to_pixels(camera, c) if len(c := clip_polygon_near(cam_pts[i])) >= 3
-                                         else np.zeros((0, 2)))
-        if _visible(uv, w, h):
+    uv_front = (cam_pts[front, :, :2] / cam_pts[front, :, 2:3]) @ camera.K[:2, :2].T + camera.K[:2, 2]
+    lo, hi = uv_front.min(axis=1), uv_front.max(axis=1)
+    on_screen = (hi[:, 0] >= -2) & (hi[:, 1] >= -2) & (lo[:, 0] <= w + 2) & (lo[:, 1] <= h + 2)
+    fixed = _cv_points(uv_front[on_screen], ss)
+    for quad in fixed:
+        cv2.fillConvexPoly(mask, quad, 255, cv2.LINE_8, _SHIFT)
+    for i in np.flatnonzero(~front & np.any(depth >= NEAR_M, axis=1)):  # straddling the near plane
+        clipped = clip_polygon_near(cam_pts[i])
+        if len(clipped) >= 3 and _visible(uv := _to_pixels(camera, clipped), w, h):
             cv2.fillConvexPoly(mask, _cv_points(uv, ss), 255, cv2.LINE_8, _SHIFT)
     alpha = cv2.resize(mask, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32)[:, :, None] / 255.0
     img[:] = np.round(img * (1.0 - alpha) + LINE_COLOUR * alpha).astype(np.uint8)
