@@ -7,8 +7,10 @@ Written under ``out_dir``:
   more than one admitted frame) and, per frame, ``imageMetadata.calibrated_replays`` (actions: the
   admitted replays), ``calibration`` (SoccerNet camera JSON, section 2, or null) and
   ``JaC {"JaC@0.005", "JaC@0.01", "JaC@0.02"}``. v3d adds what a faithful re-import needs: the field
-  lines (full precision, pixels), ``GameMetadata.v3d_reviews`` (system -> review status) and per frame
-  ``v3d {source, status, reason, flags, residuals_px, admitted, original_lines}``. Single-view
+  lines (full precision, pixels), ``GameMetadata.v3d_reviews`` (system -> review status),
+  ``GameMetadata.v3d_systems`` (action frame -> system name, where they differ) and per frame
+  ``v3d {source, status, reason, flags, residuals_px, admitted, original_lines, image}`` (``image``:
+  where the frame's pixels were, used by a re-import when the tree has no images of its own). Single-view
   systems are written as actions with ``imageType`` "camera".
 * one ``SNv3D.csv`` at the root, one row per exported frame, with every column of section 9 (lists
   and dicts as JSON, boxes ``[x1, y1, x2, y2]`` in pixels, empty cells for missing values such as
@@ -106,6 +108,7 @@ def _frame_json(frame: Frame, admitted_replays: list[str] | None) -> dict[str, A
             "reason": cal.reason if cal else None, "flags": list(cal.flags) if cal else [],
             "residuals_px": dict(cal.residuals_px) if cal else {}, "admitted": bool(cal.admitted) if cal else False,
             "original_lines": _flat_lines(fl.original_lines) if fl else [],
+            "image": {"zip": frame.image_zip, "member": frame.image_member, "path": frame.image_path},
         },
     }
 
@@ -203,6 +206,7 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
                 "num_actions": len(actions), "num_replays": len(replays), "reconstructions": reconstructions,
                 "v3d_reviews": {s.name: (s.review.status.value if s.review else ReviewStatus.PENDING.value)
                                 for s in systems},
+                "v3d_systems": {s.frames[0].name: s.name for s in systems if s.frames[0].name != s.name},
             },
             "actions": actions,
             "replays": replays,

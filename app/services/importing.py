@@ -487,6 +487,22 @@ def _v3d_calibration(item: Mapping[str, Any], file: Path, where: str) -> Importe
     ))
 
 
+def _exported_image(image: Any, file: Path, where: str) -> dict[str, str]:
+    """The image source an export recorded for a frame, when that file still exists."""
+    if not image:
+        return {}
+    image = _mapping(image, file, where)
+    zip_path, member, path = image.get("zip"), image.get("member"), image.get("path")
+    if isinstance(zip_path, str) and isinstance(member, str):
+        parts = PurePosixPath(member.replace("\\", "/")).parts
+        if member.startswith(("/", "\\")) or ".." in parts:
+            raise DatasetError(file, f"{where}.member", f"unsafe zip member name {member!r}")
+        return {"image_zip": zip_path, "image_member": member} if Path(zip_path).is_file() else {}
+    if isinstance(path, str) and Path(path).is_file():
+        return {"image_path": path}
+    return {}
+
+
 def read_soccernet_v3d(path: str | Path) -> list[GameRecord]:
     """Read and validate a SoccerNet-v3D tree: ``Labels-v3D.json`` per game and ``SNv3D.csv`` at the
     root (``path``), as :func:`app.services.exporting.export_soccernet_v3d` writes them.
@@ -549,22 +565,27 @@ def read_soccernet_v3d(path: str | Path) -> list[GameRecord]:
             return FrameRecord(
                 name=name, role=role, width=width, height=height, lines=_v3_lines(item, width, height, file, where),
                 ball_box=box, ball_point=point, calibration=_v3d_calibration(item, file, where),
-                original_lines=original_lines, original_ball=original, **images.locate(name),
+                original_lines=original_lines, original_ball=original,
+                **(images.locate(name) or _exported_image(extra.get("image"), file, f"{where}.v3d.image")),
             )
 
         data = _load_json_file(labels)
         systems = _v3_systems(labels, data, _Images(labels.parent), frame_reader)
-        reviews = _mapping(_mapping(data, labels, "top level").get("GameMetadata", {}), labels, "GameMetadata").get(
-            "v3d_reviews", {}) or {}
+        meta = _mapping(_mapping(data, labels, "top level").get("GameMetadata", {}), labels, "GameMetadata")
+        reviews = _mapping(meta.get("v3d_reviews") or {}, labels, "GameMetadata.v3d_reviews")
+        names = _mapping(meta.get("v3d_systems") or {}, labels, "GameMetadata.v3d_systems")
         out = []
         for s in systems:
             kind = SystemKind.SINGLE_VIEW if s.frames[0].role is FrameRole.CAMERA else SystemKind.SOCCERNET_V3
-            status = reviews.get(s.name)
+            name = names.get(s.name, s.name)
+            if not isinstance(name, str) or not name:
+                raise DatasetError(labels, f"GameMetadata.v3d_systems[{s.name!r}]", f"expected a name, got {name!r}")
+            status = reviews.get(name)
             try:
                 review = ReviewStatus(status) if status is not None else None
             except ValueError:
-                raise DatasetError(labels, f"GameMetadata.v3d_reviews[{s.name!r}]", f"unknown status {status!r}") from None
-            out.append(SystemRecord(s.name, kind, s.frames, review))
+                raise DatasetError(labels, f"GameMetadata.v3d_reviews[{name!r}]", f"unknown status {status!r}") from None
+            out.append(SystemRecord(name, kind, s.frames, review))
         games.append(GameRecord(league, season, match, str(labels.parent.resolve()), out))
     return games
 
