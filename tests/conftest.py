@@ -71,3 +71,29 @@ def db_session(db_connection: sa.Connection) -> Iterator[Session]:
 def db_settings(db_url: str) -> Settings:
     """Settings pointing at the test database; calibration runs in-process (one worker)."""
     return Settings(database_url=db_url, calibration_workers=1)
+
+
+#: The local PostgreSQL server of the ``postgres``-marked tests (trust authentication).
+PG_ADMIN_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
+
+
+@pytest.fixture
+def pg_url() -> Iterator[str]:
+    """URL of a fresh, empty PostgreSQL database made for this test and dropped after it, so that
+    concurrent runs never collide. Skips with the reason when the server is down."""
+    import uuid
+
+    admin = sa.create_engine(PG_ADMIN_URL, isolation_level="AUTOCOMMIT")
+    name = f"v3d_test_{uuid.uuid4().hex[:12]}"
+    try:
+        with admin.connect() as conn:
+            conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
+    except sa.exc.OperationalError as exc:
+        admin.dispose()
+        pytest.skip(f"PostgreSQL not reachable at {PG_ADMIN_URL}: {exc.orig}")
+    try:
+        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
+    finally:
+        with admin.connect() as conn:
+            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+        admin.dispose()

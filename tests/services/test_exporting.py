@@ -14,7 +14,7 @@ from app.services.editing import decide_review, replace_field_lines, update_ball
 from app.services.exporting import CSV_COLUMNS, export_soccernet_v3d, split_of
 from app.services.importing import import_sn_calibration, import_soccernet_v3, import_soccernet_v3d
 
-from .conftest import DEV_GAME, write_calibration_zip
+from .datasets import DEV_GAME, write_calibration_zip
 
 SECTION_9_COLUMNS = ["league", "season", "match", "main_action", "action", "replay", "img_w", "img_h", "is_ball",
                      "ball_bbox", "calibration", "JaC@0.005", "JaC@0.01", "JaC@0.02", "ball_3D", "rep_error",

@@ -16,7 +16,7 @@ from app.db.models import (
 from app.services.errors import DatasetError
 from app.services.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
 
-from .conftest import DEV_GAME, dev_game_dir, write_calibration_zip, write_v3_game
+from .datasets import DEV_GAME, dev_game_dir, write_calibration_zip, write_v3_game
 
 
 def _counts(session) -> dict[str, int]:
