@@ -133,7 +133,7 @@ def _stats() -> sa.Subquery:
             sa.func.count(Frame.id).label("views_total"),
             sa.func.count(sa.case((Calibration.status == CalibrationStatus.CALIBRATED, 1))).label("views_calibrated"),
             sa.func.count(sa.case((admitted, 1))).label("views_admitted"),
-            sa.func.count(BallLabel.frame_id).label("views_labelled"),
+            sa.func.count(sa.case((BallLabel.kind.is_not(None), 1))).label("views_labelled"),
             sa.func.min(sa.case((admitted, Calibration.jac_0005))).label("lowest_jac"),
             sa.func.max(sa.case((admitted, BallReprojection.error_px))).label("worst_error_px"),
         )
@@ -385,7 +385,7 @@ def _ball_json(label: Optional[BallLabel]) -> dict[str, Any]:
         return {"kind": None, "box": None, "point": None, "original_box": None, "original_point": None,
                 "edited": False}
     return {
-        "kind": label.kind.value, "box": label.box, "point": label.point, "original_box": label.original_box,
+        "kind": label.kind.value if label.kind is not None else None, "box": label.box, "point": label.point, "original_box": label.original_box,
         "original_point": label.original_point, "edited": label.edited,
     }
 

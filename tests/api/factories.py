@@ -81,13 +81,15 @@ def make_game(session: Session, match: str = "2015-02-21 - 18-00 Chelsea 1 - 1 B
 
 def make_system(session: Session, settings: Settings, game: Game, name: str = "1.png", *,
                 centres: tuple = CENTRES, jac: float = 0.9, ball: np.ndarray = BALL,
-                labelled: tuple[bool, ...] | None = None, image_dir: Path | None = None) -> Scene:
+                labelled: tuple[bool, ...] | None = None, shift_px: tuple[float, ...] | None = None,
+                image_dir: Path | None = None) -> Scene:
     """A multi-view system (action then replays) with exact calibrations, field lines and ball boxes,
     recomputed and committed.
 
     Args:
         jac: JaC@0.5% stored for every view (above ``admit_jac_min`` to admit them).
         labelled: per view, whether it gets a ball box (default: all).
+        shift_px: per view, a horizontal shift of the box (label error; default none).
         image_dir: when given, the first view's image is a member of ``image_dir/Frames-v3.zip`` and
             the second view's image a PNG file there; the others have no image.
     """
@@ -95,6 +97,7 @@ def make_system(session: Session, settings: Settings, game: Game, name: str = "1
     session.add(system)
     cameras = [look_at(np.array(c), ball) for c in centres]
     labelled = labelled or (True,) * len(cameras)
+    shift_px = shift_px or (0.0,) * len(cameras)
     stem = name.split(".")[0]
     for i, cam in enumerate(cameras):
         frame_name = name if i == 0 else f"{stem}_{i}.png"
@@ -109,6 +112,7 @@ def make_system(session: Session, settings: Settings, game: Game, name: str = "1
         )
         if labelled[i]:
             box = ball_box(cam, ball)
+            box = [box[0] + shift_px[i], box[1], box[2] + shift_px[i], box[3]]
             frame.ball_label = BallLabel(kind=BallKind.BOX, box=box, original_kind=BallKind.BOX, original_box=box)
         if image_dir is not None and i == 0:
             zip_path = image_dir / "Frames-v3.zip"

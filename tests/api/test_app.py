@@ -1,0 +1,55 @@
+"""The app around the API: offline OpenAPI docs, the UI pages, static files revalidated by ETag."""
+from __future__ import annotations
+
+import re
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app.core.paths import STATIC_DIR
+
+from .factories import Scene
+
+_REF = re.compile(r"""(?:src|href)\s*=\s*["']([^"']+)["']|url:\s*'([^']+)'""")
+
+
+def _references(html: str) -> list[str]:
+    return [a or b for a, b in _REF.findall(html)]
+
+
+@pytest.mark.parametrize("page", ["/docs", "/redoc"])
+def test_docs_load_every_asset_from_this_server(client: TestClient, page: str) -> None:
+    answer = client.get(page)
+    assert answer.status_code == 200
+    refs = _references(answer.text)
+    assert any(r.endswith(".js") for r in refs), refs
+    for ref in refs:
+        assert ref.startswith("/") and not ref.startswith("//"), f"{page} references an external host: {ref}"
+        asset = client.get(ref)
+        assert asset.status_code == 200, ref
+        assert len(asset.content) > 0
+    assert "fonts.googleapis" not in answer.text
+    if page == "/docs":
+        assert '"validatorUrl": null' in answer.text  # no schema validation by validator.swagger.io
+
+
+def test_openapi_lists_the_resources(client: TestClient) -> None:
+    spec = client.get("/openapi.json").json()
+    tags = {t for ops in spec["paths"].values() for op in ops.values() for t in op.get("tags", [])}
+    assert {"games", "systems", "frames", "imports", "exports"} <= tags
+    assert "/api/frames/{frame_id}/ball" in spec["paths"]
+
+
+@pytest.mark.skipif(not (STATIC_DIR / "index.html").is_file(), reason="static UI not present")
+def test_ui_pages_and_static_files(client: TestClient, scene: Scene) -> None:
+    queue = client.get("/")
+    assert queue.status_code == 200 and "text/html" in queue.headers["content-type"]
+    assert queue.text == (STATIC_DIR / "index.html").read_text(encoding="utf-8")
+    system = client.get(f"/systems/{scene.system_id}")
+    assert system.text == (STATIC_DIR / "system.html").read_text(encoding="utf-8")
+    module = client.get("/static/js/api.js")
+    assert module.status_code == 200 and module.headers["cache-control"] == "no-cache"
+    assert "javascript" in module.headers["content-type"]
+    again = client.get("/static/js/api.js", headers={"If-None-Match": module.headers["etag"]})
+    assert again.status_code == 304
+    assert client.get("/static/js/nothing-here.js").status_code == 404

@@ -1,0 +1,201 @@
+"""``/api/frames``: the list, images (zip member, file, none), edits with their recomputation, bad
+input that stores nothing, and an edit whose recomputation fails."""
+from __future__ import annotations
+
+import math
+
+import pytest
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session
+
+from app.db.models import Frame
+from app.services import editing
+
+from .factories import HEIGHT, WIDTH, Scene, png_bytes
+
+
+def _view(client: TestClient, scene: Scene) -> dict:
+    answer = client.get(f"/api/systems/{scene.system_id}")
+    assert answer.status_code == 200
+    return answer.json()
+
+
+# ----- images --------------------------------------------------------------------------------------
+@pytest.mark.parametrize("view_index", [0, 1], ids=["zip-member", "file"])
+def test_image_is_streamed_with_etag_and_304(client: TestClient, scene: Scene, view_index: int) -> None:
+    url = _view(client, scene)["views"][view_index]["image_url"]
+    assert url == f"/api/frames/{scene.frame_ids[view_index]}/image"
+    answer = client.get(url)
+    assert answer.status_code == 200
+    assert answer.headers["content-type"] == "image/png"
+    assert answer.content == png_bytes()
+    etag = answer.headers["etag"]
+    assert etag.startswith('"') and "max-age" in answer.headers["cache-control"]
+    again = client.get(url, headers={"If-None-Match": etag})
+    assert again.status_code == 304 and again.content == b"" and again.headers["etag"] == etag
+    assert client.get(url, headers={"If-None-Match": '"something-else"'}).status_code == 200
+
+
+def test_frame_without_image_is_404_with_a_clear_message(client: TestClient, scene: Scene) -> None:
+    view = _view(client, scene)["views"][2]
+    assert view["image_url"] is None
+    answer = client.get(f"/api/frames/{scene.frame_ids[2]}/image")
+    assert answer.status_code == 404
+    assert "has no image" in answer.json()["detail"] and f"{WIDTH}x{HEIGHT}" in answer.json()["detail"]
+
+
+@pytest.mark.parametrize("member", ["../1.png", "/etc/passwd", "a/../../1.png"])
+def test_unsafe_member_names_are_refused(client: TestClient, scene: Scene, db_session: Session,
+                                         member: str) -> None:
+    frame = db_session.get(Frame, scene.frame_ids[0])
+    frame.image_member = member
+    db_session.commit()
+    answer = client.get(f"/api/frames/{frame.id}/image")
+    assert answer.status_code == 404 and "unsafe" in answer.json()["detail"]
+
+
+def test_missing_member_and_unknown_frame_are_404(client: TestClient, scene: Scene, db_session: Session) -> None:
+    frame = db_session.get(Frame, scene.frame_ids[0])
+    frame.image_member = "999.png"
+    db_session.commit()
+    assert "999.png" in client.get(f"/api/frames/{frame.id}/image").json()["detail"]
+    answer = client.get("/api/frames/777777/image")
+    assert answer.status_code == 404 and "777777" in answer.json()["detail"]
+
+
+# ----- ball edits ----------------------------------------------------------------------------------
+def test_patch_ball_recomputes_the_system(client: TestClient, scene: Scene) -> None:
+    before = _view(client, scene)
+    third = before["views"][2]
+    box = third["ball"]["box"]
+    moved = [box[0] + 8.0, box[1], box[2] + 8.0, box[3]]
+    answer = client.patch(f"/api/frames/{scene.frame_ids[2]}/ball", json={"box": moved})
+    assert answer.status_code == 200, answer.text
+    after = answer.json()
+    view = after["views"][2]
+    assert view["ball"]["box"] == moved and view["ball"]["edited"] is True
+    assert view["ball"]["original_box"] == box
+    assert view["reprojection_error_px"] > 1.0 > third["reprojection_error_px"] + 0.5
+    assert after["ball3d"] != before["ball3d"]
+    assert after["views"][0]["optimised_box"] != before["views"][0]["optimised_box"]
+    assert _view(client, scene) == after  # stored, not only answered
+
+
+def test_patch_point_and_removal(client: TestClient, scene: Scene) -> None:
+    frame_id = scene.frame_ids[1]
+    view = client.patch(f"/api/frames/{frame_id}/ball", json={"point": [400.0, 300.0]}).json()["views"][1]
+    assert view["ball"]["kind"] == "point" and view["ball"]["point"] == [400.0, 300.0]
+    view = client.patch(f"/api/frames/{frame_id}/ball", json={"box": None}).json()["views"][1]
+    assert view["ball"]["kind"] is None and view["ball"]["box"] is None
+    assert view["optimised_box"] is None
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        ('{"box": [NaN, 10, 20, 30]}', "box"),
+        ('{"box": [10, 10, Infinity, 30]}', "box"),
+        ('{"box": [2000, 10, 2010, 30]}', "box"),  # entirely outside the 960x540 image
+        ('{"box": [-30, 10, -10, 30]}', "box"),
+        ('{"box": [30, 10, 20, 30]}', "box"),  # x2 < x1
+        ('{"box": [10, 10, 20]}', "box"),
+        ('{"box": [10, 10, 20, "a"]}', "box"),
+        ('{"point": [480, 9999]}', "point"),
+        ('{"box": [10, 10, 20, 30], "point": [1, 2]}', "box"),
+        ('{"ball": [10, 10, 20, 30]}', "ball"),
+        ("{}", "box"),
+        ('{"box": [10, 10, 20, 3', "json"),  # truncated body
+    ],
+)
+def test_bad_ball_edits_are_422_naming_the_field_and_store_nothing(
+        client: TestClient, scene: Scene, body: str, field: str) -> None:
+    before = _view(client, scene)
+    answer = client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", content=body,
+                          headers={"Content-Type": "application/json"})
+    assert answer.status_code == 422, answer.text
+    assert field in answer.text
+    assert _view(client, scene) == before
+
+
+def test_a_failing_recompute_leaves_stored_data_unchanged(app: FastAPI, scene: Scene,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken(*args, **kwargs):
+        raise RuntimeError("triangulation exploded")
+
+    with TestClient(app, raise_server_exceptions=False) as client:
+        before = _view(client, scene)
+        box = before["views"][0]["ball"]["box"]
+        monkeypatch.setattr(editing, "recompute_system", broken)
+        answer = client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", json={"box": [b + 5 for b in box]})
+        assert answer.status_code == 500
+        monkeypatch.setattr(editing, "recompute_frame", broken)
+        lines = {"Middle line": [[[480.0, 0.0], [480.0, 540.0]]]}
+        answer = client.put(f"/api/frames/{scene.frame_ids[0]}/field-lines", json={"lines": lines})
+        assert answer.status_code == 500
+        assert _view(client, scene) == before
+
+
+# ----- field lines ---------------------------------------------------------------------------------
+def test_put_field_lines_recalibrates_the_frame(client: TestClient, scene: Scene) -> None:
+    before = _view(client, scene)["views"][0]
+    lines = {cls: polys for cls, polys in before["field_lines"].items()}
+    answer = client.put(f"/api/frames/{scene.frame_ids[0]}/field-lines", json={"lines": lines})
+    assert answer.status_code == 200, answer.text
+    after = answer.json()["views"][0]
+    assert after["calibration"]["source"] == "computed"
+    assert after["calibration"]["status"] in ("calibrated", "refused")
+    assert set(after["field_lines"]) == set(lines)
+
+
+@pytest.mark.parametrize(
+    ("lines", "expected"),
+    [
+        ({"Penalty spot": [[[1.0, 2.0], [3.0, 4.0]]]}, "Penalty spot"),
+        ({"Middle line": [[[1.0, 2.0], [3.0, "x"]]]}, "lines"),
+        ({"Middle line": [[]]}, "Middle line"),
+        ({"Middle line": [[[1.0, 2.0, 3.0]]]}, "lines"),
+    ],
+)
+def test_bad_field_lines_are_422_and_store_nothing(client: TestClient, scene: Scene, lines: dict,
+                                                    expected: str) -> None:
+    before = _view(client, scene)
+    answer = client.put(f"/api/frames/{scene.frame_ids[0]}/field-lines", json={"lines": lines})
+    assert answer.status_code == 422, answer.text
+    assert expected in answer.text
+    assert _view(client, scene) == before
+
+
+def test_nan_in_field_lines_is_422_naming_the_class(client: TestClient, scene: Scene) -> None:
+    body = '{"lines": {"Middle line": [[[480, 0], [NaN, 540]]]}}'
+    answer = client.put(f"/api/frames/{scene.frame_ids[0]}/field-lines", content=body,
+                        headers={"Content-Type": "application/json"})
+    assert answer.status_code == 422 and "Middle line" in answer.json()["detail"]
+    assert answer.json()["field"] == "lines"
+
+
+# ----- review and list -----------------------------------------------------------------------------
+def test_frame_review_shows_in_the_view(client: TestClient, scene: Scene) -> None:
+    answer = client.post(f"/api/frames/{scene.frame_ids[1]}/review",
+                         json={"status": "needs_fix", "comment": "mirrored lines"})
+    assert answer.status_code == 200 and answer.json()["status"] == "needs_fix"
+    view = _view(client, scene)["views"][1]
+    assert view["review"]["status"] == "needs_fix" and view["review"]["comment"] == "mirrored lines"
+    bad = client.post(f"/api/frames/{scene.frame_ids[1]}/review", json={"status": "maybe"})
+    assert bad.status_code == 422 and "status" in bad.text
+
+
+def test_frame_list_filters(client: TestClient, scene: Scene, db_session: Session) -> None:
+    client.patch(f"/api/frames/{scene.frame_ids[2]}/ball", json={"box": [0.0, 0.0, 12.0, 12.0]})
+    everything = client.get("/api/frames").json()
+    assert everything["total"] == 3
+    worst = client.get("/api/frames", params={"sort": "-error", "limit": 1}).json()["items"][0]
+    assert worst["id"] == scene.frame_ids[2] and worst["reprojection_error_px"] > 100
+    assert [f["id"] for f in client.get("/api/frames", params={"error_min": 100}).json()["items"]] == [
+        scene.frame_ids[2]]
+    assert client.get("/api/frames", params={"calibration": "none"}).json()["total"] == 0
+    assert client.get("/api/frames", params={"calibration": "calibrated", "jac_min": 0.95}).json()["total"] == 0
+    assert client.get("/api/frames", params={"jac_min": 0.85, "jac_max": 0.95}).json()["total"] == 3
+    assert client.get("/api/frames", params={"calibration": "bogus"}).status_code == 422
+    first = everything["items"][0]
+    assert first["image_url"] and math.isclose(first["calibration"]["jac"]["0.005"], 0.9)

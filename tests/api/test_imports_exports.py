@@ -1,0 +1,79 @@
+"""``POST /api/imports`` (server-side datasets) and ``GET /api/exports/soccernet-v3d`` (a zip)."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from fastapi.testclient import TestClient
+
+from app.geometry.annotations import to_soccernet_calibration
+from app.geometry.projection import project_pitch_polylines
+
+from .factories import BALL, CENTRES, HEIGHT, WIDTH, Scene, look_at
+
+
+def _calibration_folder(root: Path, frames: int = 2) -> Path:
+    """A SoccerNet-calibration folder (normalised field lines, no images) seen by the scene's cameras."""
+    root.mkdir()
+    for i in range(frames):
+        cam = look_at(np.array(CENTRES[i]), BALL)
+        lines = project_pitch_polylines(cam, WIDTH, HEIGHT, 2.0, 1.0)
+        (root / f"{i:05d}.json").write_text(json.dumps(to_soccernet_calibration(lines, WIDTH, HEIGHT)))
+    return root
+
+
+def test_import_sn_calibration_then_list_it(client: TestClient, tmp_path: Path) -> None:
+    folder = _calibration_folder(tmp_path / "valid")
+    body = {"kind": "sn-calibration", "path": str(folder), "width": WIDTH, "height": HEIGHT}
+    answer = client.post("/api/imports", json=body)
+    assert answer.status_code == 201, answer.text
+    report = answer.json()
+    assert (report["games"], report["systems"], report["frames"], report["systems_new"]) == (1, 2, 2, 2)
+    assert report["calibrated"] + report["refused"] == 2
+    games = client.get("/api/games").json()
+    assert [(g["league"], g["match"], g["systems"]) for g in games] == [("sn-calibration", "valid", 2)]
+    frames = client.get("/api/frames").json()["items"]
+    assert [f["image_url"] for f in frames] == [None, None]
+    again = client.post("/api/imports", json=body).json()  # idempotent
+    assert (again["systems_new"], again["systems_changed"]) == (0, 0)
+
+
+def test_bad_imports_are_rejected_and_store_nothing(client: TestClient, tmp_path: Path) -> None:
+    missing = client.post("/api/imports", json={"kind": "soccernet-v3", "path": str(tmp_path / "nope")})
+    assert missing.status_code == 400 and "nope" in missing.json()["detail"]
+    folder = _calibration_folder(tmp_path / "broken", frames=1)
+    (folder / "00001.json").write_text('{"Middle line": [{"x": 0.5, "y": "high"}]}')
+    broken = client.post("/api/imports", json={"kind": "sn-calibration", "path": str(folder),
+                                               "width": WIDTH, "height": HEIGHT})
+    assert broken.status_code == 400 and "00001.json" in broken.json()["detail"]
+    assert client.get("/api/games").json() == []
+    kind = client.post("/api/imports", json={"kind": "coco", "path": "/x"})
+    assert kind.status_code == 422 and "kind" in kind.text
+    size = client.post("/api/imports", json={"kind": "soccernet-v3", "path": "/x", "width": 960})
+    assert size.status_code == 422 and "width" in size.text
+
+
+def _export(client: TestClient, **params) -> tuple[dict[str, bytes], list[dict[str, str]]]:
+    answer = client.get("/api/exports/soccernet-v3d", params=params)
+    assert answer.status_code == 200, answer.text
+    assert answer.headers["content-type"] == "application/zip"
+    assert "soccernet-v3d.zip" in answer.headers["content-disposition"]
+    with zipfile.ZipFile(io.BytesIO(answer.content)) as zf:
+        files = {n: zf.read(n) for n in zf.namelist()}
+    rows = list(csv.DictReader(io.StringIO(files["SNv3D.csv"].decode("utf-8"))))
+    return files, rows
+
+
+def test_export_zip_holds_accepted_systems_unless_all(client: TestClient, scene: Scene) -> None:
+    _, rows = _export(client)
+    assert rows == []
+    files, rows = _export(client, all="true")
+    assert len(rows) == 3 and {r["main_action"] for r in rows} == {"1.png"}
+    assert any(n.endswith("Labels-v3D.json") for n in files)
+    client.post(f"/api/systems/{scene.system_id}/review", json={"status": "accepted"})
+    _, rows = _export(client)
+    assert len(rows) == 3

@@ -1,0 +1,164 @@
+"""``/api/games`` and ``/api/systems``: the queue (filters, sort, pages, progress) and the system view."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+
+from .factories import BALL, HEIGHT, WIDTH, Scene, make_game, make_system
+
+
+@pytest.fixture
+def queue(db_session: Session, db_settings: Settings) -> dict[str, Scene]:
+    """Four systems in two games:
+
+    * ``exact``   (game 1, "2.png"):  exact labels, JaC 0.90 -> error ~0;
+    * ``shifted`` (game 1, "10.png"): one box 6 px off, JaC 0.80 -> the largest error;
+    * ``lonely``  (game 1, "1.png"):  one labelled view -> no 3D ball, JaC 0.95;
+    * ``other``   (game 2, "3.png"):  exact, JaC 0.85.
+    """
+    g1 = make_game(db_session)
+    g2 = make_game(db_session, match="2016-01-01 - 15-00 Arsenal 2 - 0 Everton")
+    return {
+        "exact": make_system(db_session, db_settings, g1, "2.png", jac=0.90),
+        "shifted": make_system(db_session, db_settings, g1, "10.png", jac=0.80, shift_px=(0.0, 0.0, 6.0)),
+        "lonely": make_system(db_session, db_settings, g1, "1.png", jac=0.95, labelled=(True, False, False)),
+        "other": make_system(db_session, db_settings, g2, "3.png", jac=0.85),
+    }
+
+
+def _ids(answer: dict) -> list[int]:
+    return [item["id"] for item in answer["items"]]
+
+
+def test_games_list_their_systems(client: TestClient, queue: dict[str, Scene]) -> None:
+    games = client.get("/api/games").json()
+    assert [(g["match"], g["systems"]) for g in games] == [
+        ("2015-02-21 - 18-00 Chelsea 1 - 1 Burnley", 3), ("2016-01-01 - 15-00 Arsenal 2 - 0 Everton", 1)]
+
+
+def test_default_order_puts_the_largest_error_first_and_systems_without_ball_last(
+        client: TestClient, queue: dict[str, Scene]) -> None:
+    answer = client.get("/api/systems").json()
+    ids = _ids(answer)
+    assert ids[0] == queue["shifted"].system_id
+    assert ids[-1] == queue["lonely"].system_id
+    assert answer["total"] == 4
+    rows = {r["id"]: r for r in answer["items"]}
+    lonely = rows[queue["lonely"].system_id]
+    assert lonely["ball3d"] is None and lonely["worst_error_px"] is None
+    assert (lonely["views_total"], lonely["views_admitted"], lonely["views_labelled"]) == (3, 3, 1)
+    shifted = rows[queue["shifted"].system_id]
+    assert shifted["worst_error_px"] > 1.0 > rows[queue["exact"].system_id]["worst_error_px"]
+    assert shifted["lowest_jac"] == pytest.approx(0.80)
+
+
+@pytest.mark.parametrize(
+    ("sort", "expected"),
+    [
+        ("lowest_jac", ["shifted", "other", "exact", "lonely"]),
+        ("-lowest_jac", ["lonely", "exact", "other", "shifted"]),
+        ("name", ["lonely", "exact", "shifted", "other"]),  # game first, then 1 < 2 < 10 (numeric)
+        ("worst_error", None),  # smallest first, still without-ball last
+    ],
+)
+def test_sorts(client: TestClient, queue: dict[str, Scene], sort: str, expected: list[str] | None) -> None:
+    ids = _ids(client.get("/api/systems", params={"sort": sort}).json())
+    if expected is None:
+        assert ids[0] != queue["shifted"].system_id and ids[-1] == queue["lonely"].system_id
+    else:
+        assert ids == [queue[k].system_id for k in expected]
+
+
+def test_filters_by_game_jac_and_error(client: TestClient, queue: dict[str, Scene]) -> None:
+    get = lambda **p: set(_ids(client.get("/api/systems", params=p).json()))  # noqa: E731
+    assert get(game_id=queue["other"].game_id) == {queue["other"].system_id}
+    assert get(jac_min=0.85, jac_max=0.9) == {queue["exact"].system_id, queue["other"].system_id}
+    assert get(error_min=1.0) == {queue["shifted"].system_id}
+    assert get(error_max=1.0) == {queue["exact"].system_id, queue["other"].system_id}
+
+
+def test_review_status_filter_and_progress_counts(client: TestClient, queue: dict[str, Scene]) -> None:
+    sid = queue["exact"].system_id
+    answer = client.post(f"/api/systems/{sid}/review", json={"status": "accepted", "comment": "fine"})
+    assert answer.status_code == 200
+    assert answer.json()["status"] == "accepted" and answer.json()["decided_at"]
+    pending = client.get("/api/systems", params={"status": "pending"}).json()
+    assert sid not in _ids(pending) and pending["total"] == 3
+    # progress is over the queue's other filters, not the status one
+    assert pending["counts"] == {"pending": 3, "accepted": 1, "rejected": 0, "needs_fix": 0}
+    accepted = client.get("/api/systems", params={"status": "accepted"}).json()
+    assert _ids(accepted) == [sid] and accepted["items"][0]["review"]["comment"] == "fine"
+
+
+def test_pagination(client: TestClient, queue: dict[str, Scene]) -> None:
+    full = _ids(client.get("/api/systems").json())
+    pages = [_ids(client.get("/api/systems", params={"limit": 3, "offset": o}).json()) for o in (0, 3)]
+    assert pages[0] + pages[1] == full and len(pages[1]) == 1
+
+
+@pytest.mark.parametrize(
+    ("params", "field"),
+    [({"sort": "worst"}, "sort"), ({"jac_min": 1.5}, "jac_min"), ({"limit": 0}, "limit"),
+     ({"status": "done"}, "status"), ({"error_min": 5, "error_max": 1}, "error_min")],
+)
+def test_bad_queue_parameters_are_422_naming_the_field(client: TestClient, params: dict, field: str) -> None:
+    answer = client.get("/api/systems", params=params)
+    assert answer.status_code == 422
+    assert field in str(answer.json()["detail"])
+
+
+def test_system_view_carries_the_ui_contract(client: TestClient, queue: dict[str, Scene]) -> None:
+    scene = queue["exact"]
+    view = client.get(f"/api/systems/{scene.system_id}").json()
+    assert view["name"] == "2.png" and view["game"]["id"] == scene.game_id
+    assert view["review"] == {"status": "pending", "comment": "", "decided_at": None}
+    np.testing.assert_allclose(view["ball3d"], BALL, atol=1e-6)
+    tri = view["triangulation"]
+    assert tri["status"] == "triangulated" and tri["tau_px"] == 20.0 and len(tri["pairs"]) == 3
+    assert {p["view_a"] for p in tri["pairs"]} <= set(scene.frame_ids)
+    assert [v["frame_id"] for v in view["views"]] == scene.frame_ids
+    first = view["views"][0]
+    assert (first["role"], first["width"], first["height"]) == ("action", WIDTH, HEIGHT)
+    assert first["image_url"] is None  # this scene stores no image
+    assert first["calibration"]["admitted"] is True
+    assert first["calibration"]["jac"]["0.005"] == pytest.approx(0.90)
+    np.testing.assert_allclose(first["camera_position"], scene.cameras[0].C)
+    # pitch lines at the image's resolution, clipped to it; the centre circle is in view
+    classes = {line["class"] for line in first["pitch_lines"]}
+    assert "Circle central" in classes or "Middle line" in classes
+    pts = np.concatenate([np.array(line["points"]) for line in first["pitch_lines"]])
+    assert pts.min() >= -0.01 and pts[:, 0].max() <= WIDTH + 0.01 and pts[:, 1].max() <= HEIGHT + 0.01
+    assert first["field_lines"] and all(len(pt) == 2 for polys in first["field_lines"].values()
+                                        for poly in polys for pt in poly)
+    ball = first["ball"]
+    assert ball["kind"] == "box" and ball["edited"] is False and ball["box"] == ball["original_box"]
+    centre = [(ball["box"][0] + ball["box"][2]) / 2, (ball["box"][1] + ball["box"][3]) / 2]
+    np.testing.assert_allclose(first["reprojected_ball"], centre, atol=0.01)
+    assert first["reprojection_error_px"] == pytest.approx(0.0, abs=1e-6)
+    assert first["optimised_box"]["d_px"] > 0 and len(first["optimised_box"]["box"]) == 4
+
+
+def test_prev_and_next_follow_the_queue_given(client: TestClient, queue: dict[str, Scene]) -> None:
+    order = _ids(client.get("/api/systems").json())
+    middle = client.get(f"/api/systems/{order[1]}").json()
+    assert (middle["prev_id"], middle["next_id"]) == (order[0], order[2])
+    first = client.get(f"/api/systems/{order[0]}").json()
+    assert first["prev_id"] is None
+    # within one game sorted by name; a system outside the filter still gets its would-be neighbours
+    game = {"game_id": queue["exact"].game_id, "sort": "name"}
+    exact = client.get(f"/api/systems/{queue['exact'].system_id}", params=game).json()
+    assert (exact["prev_id"], exact["next_id"]) == (queue["lonely"].system_id, queue["shifted"].system_id)
+    other = client.get(f"/api/systems/{queue['other'].system_id}", params=game).json()
+    assert other["prev_id"] == queue["shifted"].system_id and other["next_id"] is None
+
+
+def test_unknown_system_is_404_naming_the_id(client: TestClient) -> None:
+    for url in ("/api/systems/424242", "/systems/424242"):
+        answer = client.get(url)
+        assert answer.status_code == 404 and "424242" in answer.json()["detail"]
+    answer = client.post("/api/systems/424242/review", json={"status": "accepted"})
+    assert answer.status_code == 404 and "424242" in answer.json()["detail"]
