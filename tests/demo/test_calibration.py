@@ -9,7 +9,7 @@ from app.geometry.annotations import from_soccernet_v3
 from app.geometry.camera import Camera
 from app.geometry.pitch import mirror_world_points
 
-from tests.demo.conftest import Demo
+from tests.demo.support import Demo
 
 
 def _frames(demo: Demo):

@@ -1,0 +1,48 @@
+"""The demo through the whole service chain: imported, calibrated, triangulated, and its planted
+problems at the head of the review queue where a newcomer sees them first."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+
+from tests.demo.support import Demo
+
+importing = pytest.importorskip("app.services.importing", reason="the import service has not landed")
+views = pytest.importorskip("app.services.views", reason="the view service has not landed")
+
+
+def test_demo_imports_into_the_review_queue(demo: Demo, db_session: Session, db_settings: Settings) -> None:
+    report = importing.import_soccernet_v3(db_session, demo.root, db_settings)
+    n_views = len(demo.views())
+    assert (report.games, report.systems, report.frames) == (1, len(demo.truth["systems"]), n_views)
+    assert report.calibrated == n_views and report.refused == 0
+
+    page = views.list_systems(db_session, limit=100)
+    assert page.total == len(demo.truth["systems"]) and page.counts["pending"] == page.total
+
+    by_action = {}
+    for item in page.items:
+        view = views.system_view(db_session, item.system.id)
+        action = next(v["name"] for v in view["views"] if v["role"] == "action")
+        by_action[action] = (item, view)
+    truth = {s["action"]: s for s in demo.truth["systems"]}
+    assert set(by_action) == set(truth)
+
+    # Clean systems: every view is admitted and the fused ball lands near the truth.
+    for action, (item, view) in by_action.items():
+        if truth[action]["problems"]:
+            continue
+        assert item.views_admitted == item.views_total, action
+        assert view["ball3d"] is not None, action
+        err = np.linalg.norm(np.array(view["ball3d"]) - truth[action]["ball_3d"])
+        assert err < 1.0, (action, err)
+
+    # The queue's default order (worst reprojection error first) opens on the planted problems.
+    problem_actions = {a for a, s in truth.items() if s["problems"]}
+    head = []
+    for item in page.items[: len(problem_actions)]:
+        head.append(next(a for a, (it, _) in by_action.items() if it.system.id == item.system.id))
+    assert set(head) == problem_actions, head
