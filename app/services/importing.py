@@ -119,6 +119,7 @@ class ImportReport:
         refusal_reasons: reason -> count among ``refused``.
         triangulated: recomputed systems that got a 3D ball.
         calibration_seconds: wall time of the calibration step; seconds: of the whole import.
+        calibration_ms: time of each frame's ``calibrate_frame`` call (ms, in its worker).
     """
 
     source: str
@@ -133,6 +134,7 @@ class ImportReport:
     triangulated: int = 0
     calibration_seconds: float = 0.0
     seconds: float = 0.0
+    calibration_ms: list[float] = field(default_factory=list)
 
     def refusal_kinds(self) -> Counter:
         """``refusal_reasons`` with every number replaced by ``N``, so that reasons of one kind
@@ -714,6 +716,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                               for f in to_calibrate],
                              settings.calibration_workers, progress)
     report.calibration_seconds = time.perf_counter() - t0
+    report.calibration_ms = [r.elapsed_ms for r in results if r.elapsed_ms is not None]
     for frame, fields in zip(to_calibrate, results):
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:

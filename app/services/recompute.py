@@ -64,6 +64,7 @@ class CalibrationFields:
         residuals_px: class -> residual in pixels.
         flags: warnings raised by calibration (e.g. probable mirrored labels).
         reason: why calibration was refused (None when calibrated).
+        elapsed_ms: wall time of ``calibrate_frame`` (not stored; import reports use it).
     """
 
     status: CalibrationStatus
@@ -72,6 +73,7 @@ class CalibrationFields:
     residuals_px: dict[str, Any] = field(default_factory=dict)
     flags: list[str] = field(default_factory=list)
     reason: str | None = None
+    elapsed_ms: float | None = None
 
 
 def expected_side(role: FrameRole) -> int | None:
@@ -106,6 +108,7 @@ def _fields_from_result(result: Any) -> CalibrationFields:
         residuals_px=json_safe(dict(result.residuals_px or {})),
         flags=[str(f) for f in (result.flags or ())],
         reason=result.reason,
+        elapsed_ms=float(result.elapsed_ms),
     )
 
 
