@@ -27,6 +27,7 @@ never rescales, requires.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Iterable, Literal, Mapping, Sequence
@@ -168,7 +169,7 @@ def gamma_thresholds(width: float, height: float, gammas: Iterable[float] = DEFA
     """
     out = []
     for g in gammas:
-        if not (isinstance(g, (int, float)) and math.isfinite(g) and g > 0):
+        if isinstance(g, bool) or not isinstance(g, numbers.Real) or not (math.isfinite(g) and g > 0):
             raise ValueError(f"gamma must be a positive fraction of the image diagonal, got {g!r}")
         out.append(float(g) * image_diagonal(width, height))
     return tuple(out)
@@ -217,8 +218,7 @@ def _score(projected: frozenset[str], annotated: Iterable[str], worst: Mapping[s
 def _check_thresholds(thresholds_px: Sequence[float]) -> tuple[float, ...]:
     out = []
     for t in thresholds_px:
-        if isinstance(t, bool) or not isinstance(t, (int, float, np.floating, np.integer)) or not (
-                math.isfinite(t) and t > 0):
+        if isinstance(t, bool) or not isinstance(t, numbers.Real) or not (math.isfinite(t) and t > 0):
             raise ValueError(f"thresholds_px must hold positive finite pixel distances, got {t!r}")
         out.append(float(t))
     if not out:
