@@ -27,9 +27,12 @@ class _In(BaseModel):
 
 
 # ----- query parameters ----------------------------------------------------------------------------
-class QueueQuery(_In):
+class QueueQuery(BaseModel):
     """Filters and order of the review queue (``GET /api/systems``; ``GET /api/systems/{id}`` takes
-    them too, so that ``prev_id`` / ``next_id`` follow the queue the reviewer came from)."""
+    them too, so that ``prev_id`` / ``next_id`` follow the queue the reviewer came from).
+
+    Unknown query parameters are ignored (a page may forward its own state), unlike unknown fields
+    of request bodies."""
 
     game_id: Optional[int] = Field(None, description="Only this game's systems.")
     status: Optional[ReviewStatus] = Field(None, description="Only systems with this review status.")
@@ -60,7 +63,7 @@ class SystemListQuery(QueueQuery):
     offset: int = Field(0, ge=0)
 
 
-class FrameListQuery(_In):
+class FrameListQuery(BaseModel):
     """Filters, order and page of ``GET /api/frames``."""
 
     game_id: Optional[int] = None

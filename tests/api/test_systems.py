@@ -162,3 +162,9 @@ def test_unknown_system_is_404_naming_the_id(client: TestClient) -> None:
         assert answer.status_code == 404 and "424242" in answer.json()["detail"]
     answer = client.post("/api/systems/424242/review", json={"status": "accepted"})
     assert answer.status_code == 404 and "424242" in answer.json()["detail"]
+
+
+def test_unknown_query_parameters_are_ignored(client: TestClient, queue: dict[str, Scene]) -> None:
+    sid = queue["exact"].system_id
+    assert client.get(f"/api/systems/{sid}", params={"page": 3, "game": 1}).status_code == 200
+    assert client.get("/api/systems", params={"page": 3}).json()["total"] == 4
