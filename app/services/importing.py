@@ -655,61 +655,64 @@ def _set_ball(frame: Frame, rec: FrameRecord, now) -> bool:
 
 def _store(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
            progress: Progress | None) -> None:
+    """Upsert ``records`` into the session (no autoflush), calibrate the frames whose lines are new or
+    changed in a process pool while nothing is written yet (a long import does not hold SQLite's write
+    lock), then flush, store the calibrations and recompute the touched systems."""
     now = _now()
     to_calibrate: list[Frame] = []
     imported: list[tuple[Frame, CalibrationFields]] = []
     touched: list[System] = []
     n_systems = sum(len(g.systems) for g in records)
     done = 0
-    for grec in records:
-        game = _upsert_game(session, grec)
-        systems = {s.name: s for s in game.systems}
-        for srec in grec.systems:
-            system = systems.get(srec.name)
-            new = system is None
-            if system is None:
-                system = System(name=srec.name, kind=srec.kind)
-                game.systems.append(system)
-                system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
-            system.kind = srec.kind
-            if srec.review is not None and system.review is not None and system.review.status is ReviewStatus.PENDING:
-                system.review.status = srec.review
-                system.review.decided_at = now
-            changed = False
-            frames = {f.name: f for f in system.frames}
-            for pos, frec in enumerate(srec.frames):
-                frame = frames.get(frec.name)
-                if frame is None:
-                    frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height)
-                    system.frames.append(frame)
-                    frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
-                    changed = True
-                elif (frame.width, frame.height) != (frec.width, frec.height):
-                    changed = True
-                frame.role, frame.position, frame.width, frame.height = frec.role, pos, frec.width, frec.height
-                frame.image_zip, frame.image_member, frame.image_path = frec.image_zip, frec.image_member, frec.image_path
-                lines_changed = _set_lines(frame, frec, now)
-                ball_changed = _set_ball(frame, frec, now)
-                if frec.calibration is not None:
-                    cal = frame.calibration
-                    fields = frec.calibration.fields
-                    if cal is None or cal.camera != fields.camera or (cal.jac_0005, cal.jac_001, cal.jac_002) != fields.jac:
-                        imported.append((frame, fields))
+    with session.no_autoflush:  # nothing is written before calibration: the write lock is taken late
+        for grec in records:
+            game = _upsert_game(session, grec)
+            systems = {s.name: s for s in game.systems}
+            for srec in grec.systems:
+                system = systems.get(srec.name)
+                new = system is None
+                if system is None:
+                    system = System(name=srec.name, kind=srec.kind)
+                    game.systems.append(system)
+                    system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
+                system.kind = srec.kind
+                if srec.review is not None and system.review is not None and system.review.status is ReviewStatus.PENDING:
+                    system.review.status = srec.review
+                    system.review.decided_at = now
+                changed = False
+                frames = {f.name: f for f in system.frames}
+                for pos, frec in enumerate(srec.frames):
+                    frame = frames.get(frec.name)
+                    if frame is None:
+                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height)
+                        system.frames.append(frame)
+                        frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                         changed = True
-                elif lines_changed or frame.calibration is None:
-                    to_calibrate.append(frame)
-                    changed = True
-                changed = changed or ball_changed
-            if new:
-                report.systems_new += 1
-            elif changed:
-                report.systems_changed += 1
-            if changed or system.triangulation is None:
-                touched.append(system)
-            done += 1
-            if progress:
-                progress("read", done, n_systems)
-    session.flush()
+                    elif (frame.width, frame.height) != (frec.width, frec.height):
+                        changed = True
+                    frame.role, frame.position, frame.width, frame.height = frec.role, pos, frec.width, frec.height
+                    frame.image_zip, frame.image_member, frame.image_path = frec.image_zip, frec.image_member, frec.image_path
+                    lines_changed = _set_lines(frame, frec, now)
+                    ball_changed = _set_ball(frame, frec, now)
+                    if frec.calibration is not None:
+                        cal = frame.calibration
+                        fields = frec.calibration.fields
+                        if cal is None or cal.camera != fields.camera or (cal.jac_0005, cal.jac_001, cal.jac_002) != fields.jac:
+                            imported.append((frame, fields))
+                            changed = True
+                    elif lines_changed or frame.calibration is None:
+                        to_calibrate.append(frame)
+                        changed = True
+                    changed = changed or ball_changed
+                if new:
+                    report.systems_new += 1
+                elif changed:
+                    report.systems_changed += 1
+                if changed or system.triangulation is None:
+                    touched.append(system)
+                done += 1
+                if progress:
+                    progress("read", done, n_systems)
 
     t0 = time.perf_counter()
     results = calibrate_many([(f.field_lines.lines, f.width, f.height, expected_side(f.role))  # type: ignore[union-attr]
@@ -717,6 +720,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                              settings.calibration_workers, progress)
     report.calibration_seconds = time.perf_counter() - t0
     report.calibration_ms = [r.elapsed_ms for r in results if r.elapsed_ms is not None]
+    session.flush()
     for frame, fields in zip(to_calibrate, results):
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
