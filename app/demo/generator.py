@@ -20,7 +20,6 @@ the top-left corner, principal point at ``(W / 2, H / 2)``, no distortion.
 """
 from __future__ import annotations
 
-import io
 import json
 import zipfile
 from dataclasses import dataclass, field

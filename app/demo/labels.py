@@ -29,7 +29,7 @@ MIN_VISIBLE_PX_AT_1920 = 10.0
 #: Loose ball boxes: log size factor ~ N(bias, sigma), log aspect ~ N(0, aspect), centre offset
 #: ~ N(0, centre * diameter) per axis. Chosen so that against the precise box the mean IoU is about
 #: 0.6 and the mean size error about 20 % (measured by ``tests/demo``).
-BALL_BOX_NOISE: Mapping[str, float] = {"size_bias": 0.10, "size_sigma": 0.17, "aspect_sigma": 0.08,
+BALL_BOX_NOISE: Mapping[str, float] = {"size_bias": 0.10, "size_sigma": 0.19, "aspect_sigma": 0.08,
                                        "centre_sigma": 0.14, "min_size_px": 3.0}
 
 

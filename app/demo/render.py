@@ -28,7 +28,7 @@ from app.geometry.pitch import (
     CIRCLES, GOAL_HEIGHT_M, GOAL_LENGTH_M, KEY_POINTS, LINE_EXTREMITY_KEYS,
     PITCH_LENGTH_M, PITCH_WIDTH_M, circle_arc_angles,
 )
-from app.demo.scene import BALL_RADIUS_M, PLAYER_HEIGHT_M, Person
+from app.demo.scene import BALL_RADIUS_M, PLAYER_HEIGHT_M, Person, precise_ball_box
 
 #: Near plane (metres of camera depth) against which 3D polygons are clipped before projection.
 NEAR_M = 0.5
@@ -394,8 +394,6 @@ def render_ball(img: np.ndarray, camera: Camera, centre: np.ndarray, radius: flo
         radius: metres.
         supersample: sub-pixels per pixel along each axis.
     """
-    from app.demo.scene import precise_ball_box
-
     h, w = img.shape[:2]
     box = precise_ball_box(camera, centre, radius)
     x0, y0 = max(int(np.floor(box[0])) - 1, 0), max(int(np.floor(box[1])) - 1, 0)

@@ -3,15 +3,16 @@ cameras, realistic ball-box looseness, and the planted problems."""
 from __future__ import annotations
 
 import hashlib
+import zipfile
 from pathlib import Path
 
 import cv2
 import numpy as np
-import pytest
 
 from app.demo import generate_demo_dataset
 from app.demo.generator import FRAMES_FILE, LABELS_FILE, TRUTH_FILE
 from app.demo.labels import box_iou, box_size_error
+from app.demo.render import render_ball
 from app.demo.rig import RIG
 from app.geometry.annotations import from_soccernet_v3, mirror_lines
 from app.geometry.camera import Camera
@@ -82,7 +83,6 @@ def test_zip_members_are_the_frames(demo: Demo) -> None:
     names = demo.zip_names()
     frames = demo.frames()
     assert sorted(names) == sorted(frames)
-    import zipfile
     with zipfile.ZipFile(demo.game_dir / FRAMES_FILE) as zf:
         for name in names:
             img = cv2.imdecode(np.frombuffer(zf.read(name), np.uint8), cv2.IMREAD_COLOR)
@@ -134,12 +134,13 @@ def test_line_points_on_the_true_model(demo: Demo) -> None:
 
 
 def test_truth_cameras_round_trip_and_frame_the_ball(demo: Demo) -> None:
-    for name, view in demo.views().items():
-        cam = Camera.from_soccernet(view["camera"])
-        assert np.allclose(cam.R, np.array(view["camera"]["rotation_matrix"]), atol=1e-9)
-        uv, ok = cam.project(np.array([demo.truth["systems"][int(name.split("_")[0].split(".")[0])]["ball_3d"]]))
-        assert ok[0] and np.allclose(uv[0], view["ball_center_px"], atol=1e-3)
-        assert 0 < uv[0, 0] < view["width"] and 0 < uv[0, 1] < view["height"]
+    for system in demo.truth["systems"]:
+        for view in system["views"]:
+            cam = Camera.from_soccernet(view["camera"])
+            assert np.allclose(cam.R, np.array(view["camera"]["rotation_matrix"]), atol=1e-9)
+            uv, ok = cam.project(np.array([system["ball_3d"]]))
+            assert ok[0] and np.allclose(uv[0], view["ball_center_px"], atol=1e-3)
+            assert 0 < uv[0, 0] < view["width"] and 0 < uv[0, 1] < view["height"]
 
 
 def test_camera_poses_are_broadcast_like(demo: Demo) -> None:
@@ -173,9 +174,6 @@ def test_ball_boxes_are_loose_like_real_labels(demo: Demo) -> None:
 def test_precise_box_matches_the_rendered_ball(demo: Demo) -> None:
     """The drawn ball is the true sphere: no pixel outside its precise box (1 px margin) changes
     when the ball is removed, and pixels inside do."""
-    import zipfile
-    from app.demo.render import render_ball
-
     with zipfile.ZipFile(demo.game_dir / FRAMES_FILE) as zf:
         view = demo.views()["0.png"]
         img = cv2.imdecode(np.frombuffer(zf.read("0.png"), np.uint8), cv2.IMREAD_COLOR)
