@@ -27,7 +27,7 @@ import zipfile
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
-from typing import Any, Iterator, Mapping
+from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 from sqlalchemy import select
@@ -38,6 +38,7 @@ from app.db.models import (
     BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game,
     ReviewDecision, ReviewStatus, System, SystemKind,
 )
+from app.db.types import utcnow
 from app.geometry.annotations import (
     AnnotationError, from_soccernet_calibration, from_soccernet_v3, lines_to_json_lists,
 )
@@ -285,8 +286,12 @@ def _v3_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, i
     )
 
 
-def _v3_systems(file: Path, data: Any, images: _Images,
-                frame_reader=_v3_frame) -> list[SystemRecord]:
+FrameReader = Callable[[Path, str, str, Any, FrameRole, "_Images"], FrameRecord]
+
+
+def _v3_systems(file: Path, data: Any, images: _Images, frame_reader: FrameReader = _v3_frame) -> list[SystemRecord]:
+    """Systems of a SoccerNet-v3(D) labels document: each action and its ``linked_replays``, each
+    frame read by ``frame_reader(file, section, name, item, role, images)``."""
     data = _mapping(data, file, "top level")
     actions = _mapping(data.get("actions"), file, "actions")
     replays = _mapping(data.get("replays", {}), file, "replays")
@@ -658,7 +663,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     """Upsert ``records`` into the session (no autoflush), calibrate the frames whose lines are new or
     changed in a process pool while nothing is written yet (a long import does not hold SQLite's write
     lock), then flush, store the calibrations and recompute the touched systems."""
-    now = _now()
+    now = utcnow()
     to_calibrate: list[Frame] = []
     imported: list[tuple[Frame, CalibrationFields]] = []
     touched: list[System] = []
@@ -732,12 +737,6 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
             report.refused += 1
             report.refusal_reasons[fields.reason or "unspecified"] += 1
     report.triangulated = recompute_systems(session, touched, settings, progress)
-
-
-def _now():
-    from app.db.types import utcnow
-
-    return utcnow()
 
 
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
