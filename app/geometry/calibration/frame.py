@@ -32,7 +32,7 @@ import numpy as np
 from app.geometry.annotations import AnnotationError, FieldLines, image_diagonal, mirror_lines
 from app.geometry.calibration.initialisation import (
     camera_from_homography,
-    ground_homography_from_lines,
+    ground_homographies,
     labelled_target,
     look_at_rotation,
 )
@@ -45,7 +45,7 @@ from app.geometry.calibration.residuals import (
     residuals,
     undistort_radial_k1,
 )
-from app.geometry.calibration.solver import robust_lm
+from app.geometry.calibration.solver import robust_lm, soft_l1_cost
 from app.geometry.camera import Camera
 from app.geometry.pitch import PITCH_WIDTH_M
 
@@ -186,7 +186,7 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
     upper = np.full(len(x0), np.inf)
     lower[0], upper[0] = 10.0, 1e6
     if param.fixed_centre is None:
-        upper[6] = -0.1  # above the ground (z points down)
+        upper[6] = -0.5  # above the ground (z points down); lower is a degenerate edge-on view
     try:
         sol = robust_lm(lambda X: residuals(X, obs, param), x0, scale, lower=lower, upper=upper, max_iter=max_iter)
     except (ValueError, np.linalg.LinAlgError):
@@ -262,15 +262,14 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
                 break
         return best
 
-    for poles in (False, True):
-        H = ground_homography_from_lines(obs, pp, float(width), use_circle_poles=poles)
-        init = camera_from_homography(H, pp) if H is not None else None
-        if init is not None:
-            f0, R0, C0 = init
-            param = CameraParametrisation(principal_point=pp, R0=R0)
-            if consider(_fit(param.vector(f0, C0), obs, param, scale, "homography" + (" + poles" if poles else ""))):
-                return best
+    starts = _homography_starts(obs, pp, scale)
+    for _, name, param, x0 in starts[:2]:
+        if consider(_fit(x0, obs, param, scale, name)):
+            return best
 
+    # Look-at starts: a pan-tilt-zoom fit at each plausible centre (cheap, 4 parameters), then the
+    # free refinement of the best two.
+    ptz: list[_Candidate] = []
     for centre in START_CENTRES_M:
         c0 = np.asarray(centre, dtype=float)
         try:
@@ -278,14 +277,73 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         except ValueError:
             continue
         fixed = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=c0)
-        ptz = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, "ptz", max_iter=25)
-        if ptz is None:
-            continue
-        f1, R1, _, _ = fixed.split(ptz.x)
+        cand = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", max_iter=15)
+        if cand is not None:
+            ptz.append(cand)
+    ptz.sort(key=lambda c: c.cost)
+    for cand in ptz[:2]:
+        f1, R1, C1, _ = cand.param.split(cand.x)
         free = CameraParametrisation(principal_point=pp, R0=R1)
-        if consider(_fit(free.vector(float(f1), c0), obs, free, scale, f"start {centre}")):
+        if consider(_fit(free.vector(float(f1), C1), obs, free, scale, cand.origin)):
             break
     return best
+
+
+def _homography_starts(obs: Observations, pp: np.ndarray, scale: float
+                       ) -> list[tuple[float, str, CameraParametrisation, np.ndarray]]:
+    """Closed-form cameras of the candidate ground homographies, ranked by robust cost."""
+    starts: list[tuple[float, str, CameraParametrisation, np.ndarray]] = []
+    for name, H in ground_homographies(obs, pp, float(2.0 * pp[0] + 1.0)):
+        init = camera_from_homography(H, pp)
+        if init is None:
+            continue
+        f0, R0, C0 = init
+        param = CameraParametrisation(principal_point=pp, R0=R0)
+        x0 = param.vector(f0, C0)
+        starts.append((float(soft_l1_cost(residuals(x0, obs, param), scale)), name, param, x0))
+    starts.sort(key=lambda t: t[0])
+    return starts
+
+
+def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | None, width: int, height: int,
+                       settings: CalibrationSettings) -> tuple[str, _Candidate, Observations] | None:
+    """Best camera that fits every labelled class but one (a mislabelled line), or ``None``.
+
+    Every class is left out in turn; the closed-form homography cameras of the remaining labels and
+    the current best camera are ranked by robust cost, and the three best are refined. The winner
+    is the refined camera whose worst remaining class is closest to its model.
+    """
+    pp = principal_point(width, height)
+    scale = settings.loss_scale_gamma * image_diagonal(width, height)
+    ranked: list[tuple[float, str, Observations, CameraParametrisation, np.ndarray]] = []
+    for cls in obs.classes:
+        reduced = build_observations({c: v for c, v in lines.items() if c != cls})
+        if reduced.constraint_count() < settings.min_constraints or len(reduced.classes) < 3:
+            continue
+        starts = _homography_starts(reduced, pp, scale)
+        if best is not None:
+            starts.append((float(soft_l1_cost(residuals(best.x, reduced, best.param), scale)), "current",
+                           best.param, best.x))
+        for cost, _, param, x0 in starts:
+            ranked.append((cost / max(reduced.n_points, 1), cls, reduced, param, x0))
+    ranked.sort(key=lambda t: t[0])
+    winner: tuple[float, str, _Candidate, Observations] | None = None
+    for _, cls, reduced, param, x0 in ranked[:3]:
+        cand = _fit(x0, reduced, param, scale, f"without {cls!r}")
+        if cand is None:
+            continue
+        worst = max(_class_residuals(cand.param.camera(cand.x), reduced)[0].values())
+        if winner is None or worst < winner[0]:
+            winner = (worst, cls, cand, reduced)
+    return None if winner is None else (winner[1], winner[2], winner[3])
+
+
+def _worst(cand: _Candidate | None, obs: Observations) -> float:
+    """Largest class residual (px) of a candidate, infinity for none."""
+    if cand is None:
+        return float("inf")
+    per_class = _class_residuals(cand.param.camera(cand.x), obs)[0]
+    return max(per_class.values()) if per_class else 0.0
 
 
 def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: CalibrationSettings) -> _Candidate:
@@ -349,27 +407,41 @@ def calibrate_frame(
     if not obs.circle_classes and (nx == 0 or ny == 0) and len(obs.classes) - nx - ny == 0:
         return _refused("degenerate configuration: all labelled lines are parallel on the pitch and no "
                         "circle or goal fixes the view", t0, tuple(flags))
+    pts = np.concatenate([obs.seg_points, obs.circle_points])
+    centred = pts - pts.mean(axis=0)
+    normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
+    if np.max(np.abs(centred @ normal)) < settings.loss_scale_gamma * diag:
+        return _refused("degenerate configuration: all labelled points are collinear in the image", t0, tuple(flags))
     try:
         best = _search(obs, width, height, prior, settings)
+        fit_obs = obs
+        scale = settings.loss_scale_gamma * diag
+        if best is not None and best.p90 > 0.5 * scale and obs.n_points >= 12:
+            best = _with_k1(best, obs, scale, settings)
+        limit = settings.refuse_gamma * diag
+        worst = _worst(best, obs)
+        if worst > limit and not fixed and len(obs.classes) >= 4:
+            alt = _without_one_class(lines, obs, best, width, height, settings)
+            if alt is not None and _worst(alt[1], alt[2]) <= limit:
+                dropped, best, fit_obs = alt
+                flags.append(f"ignored_class:{dropped}")
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
         return _refused(f"solver failed: {exc}", t0, tuple(flags))
     if best is None:
         return _refused("no camera fits the labels (every start failed or put the pitch behind the camera)",
                         t0, tuple(flags))
-    scale = settings.loss_scale_gamma * diag
-    if best.p90 > 0.5 * scale and obs.n_points >= 12:
-        best = _with_k1(best, obs, scale, settings)
     camera = best.param.camera(best.x)
     per_class, rms = _class_residuals(camera, obs)
     if fixed:
         flags.append("rig_assisted")
     if camera.radial[0] != 0.0:
         flags.append("radial_distortion")
-    worst = max(per_class.values()) if per_class else 0.0
-    if worst > settings.refuse_gamma * diag:
-        bad = max(per_class, key=per_class.get)  # type: ignore[arg-type]
+    fitted = {c: per_class[c] for c in fit_obs.classes}
+    worst = max(fitted.values()) if fitted else 0.0
+    if worst > limit:
+        bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]
         return _refused(f"residual too high: {bad!r} is {worst:.1f} px from its model element "
-                        f"(limit {settings.refuse_gamma * diag:.1f} px)", t0, tuple(flags), per_class, rms)
+                        f"(limit {limit:.1f} px)", t0, tuple(flags), per_class, rms)
     mirrored = None
     if prior is not None and prior.expected_side is not None and camera.C[1] * prior.expected_side < -PITCH_WIDTH_M / 2:
         flags.append("probably_mirrored")

@@ -15,6 +15,8 @@ Two families:
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from app.geometry.calibration.observations import Observations
@@ -71,32 +73,43 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def ground_homography_from_lines(obs: Observations, principal_point: np.ndarray, scale_px: float,
-                                 use_circle_poles: bool = False) -> np.ndarray | None:
-    """Ground-to-image homography from annotated points on straight ground elements (and circles).
-
-    Each annotated point ``p`` on a ground element of world line ``l`` gives ``l^T G p = 0``. With
-    ``use_circle_poles``, every labelled circle with 5 points or more is fitted by an image conic
-    ``C`` (:func:`fit_conic`), and the pole of each labelled ground line with respect to it,
-    ``C^-1 l_image``, is the image of the world pole ``Q^-1 l_world`` (pole-polar duality is
-    projective, Hartley and Zisserman, section 2.8.1): a point correspondence, 2 more equations.
-
-    Args:
-        obs: the frame's observations (goal elements are ignored: they are off the ground).
-        principal_point: (2,) px, used to centre the image points. scale_px: px, to scale them.
-        use_circle_poles: add the circle pole correspondences.
-
-    Returns:
-        (3, 3) ``H`` mapping homogeneous ground points (x, y, 1) in metres to pixels, or ``None``
-        when the equations do not fix it (fewer than 8 or rank deficient; without poles, fewer than
-        two ground lines along either pitch direction).
-    """
-    nx, ny = obs.ground_line_directions()
-    if not use_circle_poles and (nx < 2 or ny < 2):
+def _line_conic_points(line: np.ndarray, conic: np.ndarray) -> np.ndarray | None:
+    """The two intersections (2, 3) of a homogeneous line with a conic, or ``None`` if they are not real."""
+    n = line[:2]
+    nn = float(n @ n)
+    if nn < 1e-300:
         return None
-    T = np.array([[1 / scale_px, 0, -principal_point[0] / scale_px],
-                  [0, 1 / scale_px, -principal_point[1] / scale_px], [0, 0, 1]])
-    S = np.diag([1 / _WORLD_SCALE_M, 1 / _WORLD_SCALE_M, 1.0])
+    p0 = -line[2] * n / nn  # point of the line nearest the origin
+    d = np.array([-n[1], n[0]]) / np.sqrt(nn)
+    P0 = np.array([p0[0], p0[1], 1.0])
+    D = np.array([d[0], d[1], 0.0])
+    a = D @ conic @ D
+    b = 2.0 * (P0 @ conic @ D)
+    c = P0 @ conic @ P0
+    disc = b * b - 4 * a * c
+    if abs(a) < 1e-300 or disc < 0:
+        return None
+    r = np.sqrt(disc)
+    ts = np.array([(-b - r) / (2 * a), (-b + r) / (2 * a)])
+    return P0[None, :] + ts[:, None] * D[None, :]
+
+
+def _point_rows(world: np.ndarray, image: np.ndarray) -> np.ndarray:
+    """DLT rows of ``world x (G image) = 0`` for one point pair (homogeneous (3,) each); rank 2."""
+    w = world / np.linalg.norm(world)
+    q = image / np.linalg.norm(image)
+    return np.kron(_skew(w), q[None, :]).reshape(3, 9)
+
+
+@dataclass(frozen=True)
+class _Equations:
+    lines: np.ndarray  # (n, 9) rows from points on lines
+    n_line_eq: int
+    points: list[np.ndarray]  # unambiguous point pairs, each (2, 9)
+    pairs: list[tuple[np.ndarray, np.ndarray]]  # ambiguous pairs: rows for both assignments, each (4, 9)
+
+
+def _ground_equations(obs: Observations, T: np.ndarray, S: np.ndarray) -> _Equations:
     is_ground = np.array([c not in GOAL_CLASSES for c in obs.seg_classes], dtype=bool)
     rows: list[np.ndarray] = []
     n_eq = 0
@@ -108,52 +121,122 @@ def ground_homography_from_lines(obs: Observations, principal_point: np.ndarray,
         lw = np.cross(a, b)
         lw /= np.linalg.norm(lw)
         pn = np.hstack([pts, np.ones((len(pts), 1))]) @ T.T
-        r = (lw[None, :, None] * pn[:, None, :]).reshape(len(pts), 9)
-        rows.append(r / np.sqrt(len(pts)))
+        rows.append((lw[None, :, None] * pn[:, None, :]).reshape(len(pts), 9) / np.sqrt(len(pts)))
         n_distinct = 1 if np.ptp(pts, axis=0).max() < 1.0 else 2
         n_eq += n_distinct
         if n_distinct == 2:
             li = _fit_image_line(pn[:, :2])
             if li is not None:
-                image_lines.append((lw, li))
-    if use_circle_poles:
-        for j in range(len(obs.circle_classes)):
-            pts = obs.circle_points[obs.circle_index == j]
-            Cimg = fit_conic(np.hstack([pts, np.ones((len(pts), 1))]) @ T.T[:, :2]) if len(pts) >= 5 else None
-            if Cimg is None:
-                continue
-            cx, cy = obs.circle_centre[j] / _WORLD_SCALE_M
-            rr = obs.circle_radius[j] / _WORLD_SCALE_M
-            Qn = np.array([[1, 0, -cx], [0, 1, -cy], [-cx, -cy, cx * cx + cy * cy - rr * rr]])
-            for lw, li in image_lines:
-                try:
-                    pw = np.linalg.solve(Qn, lw)
-                    pi = np.linalg.solve(Cimg, li)
-                except np.linalg.LinAlgError:
-                    continue
-                pw /= np.linalg.norm(pw)
-                pi /= np.linalg.norm(pi)
-                r = np.kron(_skew(pw), pi[None, :]).reshape(3, 9)
-                rows.append(r)
-                n_eq += 2
-    if n_eq < 8 or not rows:
-        return None
-    A = np.concatenate(rows)
+                image_lines.append((lw, li / np.linalg.norm(li)))
+    points: list[np.ndarray] = []
+    pairs: list[tuple[np.ndarray, np.ndarray]] = []
+    # Known image points: intersections of perpendicular labelled lines.
+    known: list[tuple[np.ndarray, np.ndarray]] = []
+    for u in range(len(image_lines)):
+        for v in range(u + 1, len(image_lines)):
+            pw = np.cross(image_lines[u][0], image_lines[v][0])
+            pi = np.cross(image_lines[u][1], image_lines[v][1])
+            if abs(pw[2]) > 1e-9 * np.linalg.norm(pw):
+                known.append((pw / pw[2], pi))
+    for j in range(len(obs.circle_classes)):
+        pts = obs.circle_points[obs.circle_index == j]
+        conic = fit_conic((np.hstack([pts, np.ones((len(pts), 1))]) @ T.T)[:, :2]) if len(pts) >= 5 else None
+        if conic is None:
+            continue
+        cx, cy = obs.circle_centre[j] / _WORLD_SCALE_M
+        rr = obs.circle_radius[j] / _WORLD_SCALE_M
+        Q = np.array([[1, 0, -cx], [0, 1, -cy], [-cx, -cy, cx * cx + cy * cy - rr * rr]])
+        for lw, li in image_lines:
+            # Pole of the line: unambiguous (pole-polar duality is projective).
+            try:
+                points.append(_point_rows(np.linalg.solve(Q, lw), np.linalg.solve(conic, li)))
+            except np.linalg.LinAlgError:
+                pass
+            # The line meets the circle: its two crossings, assignment unknown.
+            ww = _line_conic_points(lw, Q)
+            ii = _line_conic_points(li, conic)
+            if ww is not None and ii is not None:
+                pairs.append(_pair_rows(ww, ii))
+        for pw, pi in known:
+            # Tangency points seen from a known point: on its polar, assignment unknown.
+            ww = _line_conic_points(Q @ pw, Q)
+            ii = _line_conic_points(conic @ pi, conic)
+            if ww is not None and ii is not None:
+                pairs.append(_pair_rows(ww, ii))
+    lines = np.concatenate(rows) if rows else np.zeros((0, 9))
+    return _Equations(lines=lines, n_line_eq=n_eq, points=points, pairs=pairs)
+
+
+def _pair_rows(ww: np.ndarray, ii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    same = np.vstack([_point_rows(ww[0], ii[0]), _point_rows(ww[1], ii[1])])
+    swapped = np.vstack([_point_rows(ww[0], ii[1]), _point_rows(ww[1], ii[0])])
+    return same, swapped
+
+
+def _solve_dlt(A: np.ndarray, T: np.ndarray, S: np.ndarray) -> np.ndarray | None:
     if len(A) < 8:
         return None
     _, s, vt = np.linalg.svd(A, full_matrices=True)
-    if len(s) >= 8 and s[7] < 1e-9 * s[0]:
+    if s[7] < 1e-9 * s[0] if len(s) > 7 else True:
         return None
     G = vt[-1].reshape(3, 3)
     # Normalised: X_n = G p_n with p_n = T p and X_n = S X, so X = S^-1 G T p.
-    G_full = np.linalg.inv(S) @ G @ T
     try:
-        H = np.linalg.inv(G_full)
+        H = np.linalg.inv(np.linalg.inv(S) @ G @ T)
     except np.linalg.LinAlgError:
         return None
     if not np.all(np.isfinite(H)):
         return None
     return H / np.linalg.norm(H)
+
+
+def ground_homographies(obs: Observations, principal_point: np.ndarray, scale_px: float,
+                        max_ambiguous: int = 3) -> list[tuple[str, np.ndarray]]:
+    """Candidate ground-to-image homographies from the labelled ground lines and circles.
+
+    Equations (all linear in the image-to-ground homography ``G``, with Hartley's normalisation,
+    Hartley and Zisserman, section 4.4.4):
+
+    * each annotated point ``p`` on a ground element of world line ``l``: ``l^T G p = 0``;
+    * for every labelled circle with 5 points or more, fitted by an image conic ``C``
+      (:func:`fit_conic`): the pole of each labelled line, ``C^-1 l_image`` <-> ``Q^-1 l_world``
+      (pole-polar duality is projective, Hartley and Zisserman, section 2.8.1);
+    * two-fold ambiguous point pairs: where a labelled line crosses the circle (middle line and
+      central circle, 18-yard line and penalty arc), and the tangency points seen from a known
+      corner (the intersection of two labelled lines) on its polar. Each assignment is tried, for
+      at most ``max_ambiguous`` such pairs.
+
+    Args:
+        obs: the frame's observations (goal elements are ignored: they are off the ground).
+        principal_point: (2,) px, used to centre the image points. scale_px: px, to scale them.
+        max_ambiguous: most ambiguous pairs combined (2^n systems are solved).
+
+    Returns:
+        ``[(name, H)]``: (3, 3) homographies mapping ground (x, y, 1) metres to pixels, possibly
+        empty when the labels do not fix one.
+    """
+    T = np.array([[1 / scale_px, 0, -principal_point[0] / scale_px],
+                  [0, 1 / scale_px, -principal_point[1] / scale_px], [0, 0, 1]])
+    S = np.diag([1 / _WORLD_SCALE_M, 1 / _WORLD_SCALE_M, 1.0])
+    eq = _ground_equations(obs, T, S)
+    out: list[tuple[str, np.ndarray]] = []
+    nx, ny = obs.ground_line_directions()
+    if nx >= 2 and ny >= 2:
+        H = _solve_dlt(eq.lines, T, S)
+        if H is not None:
+            out.append(("lines", H))
+    base = np.vstack([eq.lines] + eq.points) if eq.points else eq.lines
+    if eq.points:
+        H = _solve_dlt(base, T, S)
+        if H is not None:
+            out.append(("lines + poles", H))
+    pairs = eq.pairs[:max_ambiguous]
+    for mask in range(2 ** len(pairs)):
+        extra = [pr[(mask >> b) & 1] for b, pr in enumerate(pairs)]
+        H = _solve_dlt(np.vstack([base] + extra), T, S) if extra else None
+        if H is not None:
+            out.append((f"lines + conic {mask}", H))
+    return out
 
 
 def camera_from_homography(H: np.ndarray, principal_point: np.ndarray) -> tuple[float, np.ndarray, np.ndarray] | None:

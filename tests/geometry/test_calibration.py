@@ -1,0 +1,213 @@
+"""Calibration from field lines: synthetic frames with a known camera, refusals, the mirror flag,
+and the residual model against an independent projection."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.geometry.annotations import AnnotationError, FieldLines, mirror_lines
+from app.geometry.calibration import CalibrationPrior, calibrate_frame, principal_point
+from app.geometry.calibration.initialisation import camera_from_homography, look_at_rotation
+from app.geometry.calibration.observations import build_observations
+from app.geometry.calibration.residuals import point_distances, projection_matrix
+from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
+from app.geometry.pitch import CIRCLES, sample_pitch_polylines
+
+
+def _camera(centre: tuple[float, float, float], target: tuple[float, float, float], focal: float,
+            width: int, height: int, roll_deg: float = 0.0) -> Camera:
+    R = look_at_rotation(np.array(centre, float), np.array(target, float))
+    c, s = np.cos(np.radians(roll_deg)), np.sin(np.radians(roll_deg))
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ R
+    pp = principal_point(width, height)
+    K = np.array([[focal, 0.0, pp[0]], [0.0, focal, pp[1]], [0.0, 0.0, 1.0]])
+    return Camera(K=K, R=R, C=np.array(centre, float))
+
+
+def synthetic_lines(camera: Camera, width: int, height: int, sigma_px: float, seed: int,
+                    min_extent_px: float = 40.0) -> FieldLines:
+    """Label a frame as an annotator would: every model element whose visible part spans at least
+    ``min_extent_px``, a handful of points along it (more on circles), Gaussian noise ``sigma_px``."""
+    rng = np.random.default_rng(seed)
+    out: FieldLines = {}
+    for cls, X in sample_pitch_polylines().items():
+        uv, ok = camera.project(X)
+        inside = ok & (uv[:, 0] >= 0) & (uv[:, 0] <= width - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= height - 1)
+        pts = uv[inside]
+        if len(pts) < 2 or np.linalg.norm(pts[-1] - pts[0]) < min_extent_px and np.ptp(pts, axis=0).max() < min_extent_px:
+            continue
+        n = 12 if cls in CIRCLES else 4
+        pick = pts[np.linspace(0, len(pts) - 1, n).round().astype(int)]
+        out[cls] = [pick + rng.normal(0.0, sigma_px, pick.shape)]
+    return out
+
+
+def _angle_between_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    cos = (np.trace(Ra @ Rb.T) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+SCENES = {
+    # name: (centre, target, focal px, width, height)
+    "main centre wide": ((0.0, 62.0, -18.0), (0.0, -4.0, 0.0), 900.0, 960, 540),
+    "main left box": ((-8.0, 58.0, -16.0), (-38.0, -2.0, 0.0), 1300.0, 960, 540),
+    "main right box 1080p": ((5.0, 70.0, -22.0), (40.0, 2.0, 0.0), 2600.0, 1920, 1080),
+    "behind goal high": ((72.0, 3.0, -15.0), (38.0, 0.0, 0.0), 800.0, 960, 540),
+    "opposite side": ((0.0, -60.0, -20.0), (-20.0, 5.0, 0.0), 1000.0, 960, 540),
+}
+
+
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_synthetic_camera_is_recovered(scene: str) -> None:
+    centre, target, focal, width, height = SCENES[scene]
+    truth = _camera(centre, target, focal, width, height, roll_deg=0.4)
+    sigma = 1.0 * width / 960.0
+    lines = synthetic_lines(truth, width, height, sigma_px=sigma, seed=7)
+    assert len(lines) >= 4, f"scene {scene} must show enough lines, got {sorted(lines)}"
+    result = calibrate_frame(lines, width, height, compute_jac=False)
+    assert result.calibrated, result.reason
+    cam = result.camera
+    assert cam is not None
+    assert abs(cam.K[0, 0] / focal - 1.0) < 0.03
+    assert np.linalg.norm(cam.C - truth.C) < 0.03 * np.linalg.norm(truth.C - np.array(target))
+    assert _angle_between_deg(cam.R, truth.R) < 0.3
+    # Residuals are near the noise level, per class.
+    assert max(result.residuals_px.values()) < 5.0 * sigma
+    assert result.rms_px is not None and result.rms_px < 2.0 * sigma
+    assert result.elapsed_ms > 0
+
+
+def test_exact_labels_give_exact_camera() -> None:
+    truth = _camera((-3.0, 55.0, -14.0), (-30.0, 0.0, 0.0), 1100.0, 960, 540)
+    lines = synthetic_lines(truth, 960, 540, sigma_px=0.0, seed=0)
+    cam = calibrate_frame(lines, 960, 540, compute_jac=False).camera
+    assert cam is not None
+    np.testing.assert_allclose(cam.C, truth.C, atol=1e-4)
+    np.testing.assert_allclose(cam.K, truth.K, atol=1e-3)
+    np.testing.assert_allclose(pan_tilt_roll_from_rotation(cam.R), pan_tilt_roll_from_rotation(truth.R), atol=1e-5)
+
+
+def test_jac_of_synthetic_frame_is_high() -> None:
+    pytest.importorskip("app.geometry.jac", reason="JaC module not merged yet")
+    truth = _camera((0.0, 62.0, -18.0), (0.0, -4.0, 0.0), 900.0, 960, 540)
+    lines = synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=3)
+    result = calibrate_frame(lines, 960, 540)
+    assert result.calibrated
+    assert result.jac["0.005"] >= 0.9
+    assert result.jac["0.02"] == 1.0
+
+
+def test_point_distances_match_dense_projection() -> None:
+    """The line/conic residual model against an independent one: the distance of each labelled
+    point to the densely projected model element (Camera.project)."""
+    cam = _camera((-8.0, 58.0, -16.0), (-38.0, -2.0, 0.0), 1300.0, 960, 540)
+    rng = np.random.default_rng(1)
+    lines = synthetic_lines(cam, 960, 540, sigma_px=0.0, seed=1)
+    # Move every point by a known offset off its element, 0 to 3 px.
+    moved: FieldLines = {}
+    dense = sample_pitch_polylines(0.01, 0.01)
+    expected = []
+    for cls, polys in sorted(lines.items()):
+        uv, _ = cam.project(dense[cls])
+        pts = polys[0]
+        out = []
+        for p in pts:
+            j = int(np.argmin(np.linalg.norm(uv - p, axis=1)))
+            tangent = uv[min(j + 1, len(uv) - 1)] - uv[max(j - 1, 0)]
+            normal = np.array([-tangent[1], tangent[0]]) / np.linalg.norm(tangent)
+            off = rng.uniform(0.0, 3.0)
+            q = p + off * normal
+            out.append(q)
+            expected.append((cls, float(np.min(np.linalg.norm(uv - q, axis=1)))))
+        moved[cls] = [np.array(out)]
+    obs = build_observations(moved)
+    P = projection_matrix(cam.K[0, 0], cam.K[:2, 2], cam.R, cam.C)
+    d_seg, d_cir = point_distances(P, obs)
+    got = {c: np.abs(d_seg[obs.seg_index == i]) for i, c in enumerate(obs.seg_classes)}
+    got.update({c: np.abs(d_cir[obs.circle_index == i]) for i, c in enumerate(obs.circle_classes)})
+    for cls in got:
+        want = np.array([d for c, d in expected if c == cls])
+        order = np.argsort(want)
+        if cls in CIRCLES:
+            # Sampson's distance is first order: within a few per cent a few pixels off the curve.
+            np.testing.assert_allclose(np.sort(got[cls]), want[order], rtol=0.08, atol=0.02)
+        else:
+            np.testing.assert_allclose(np.sort(got[cls]), want[order], atol=0.02)
+
+
+def test_camera_from_homography_inverts_projection() -> None:
+    truth = _camera((10.0, 65.0, -20.0), (25.0, 0.0, 0.0), 1500.0, 960, 540)
+    P = truth.projection_matrix
+    f, R, C = camera_from_homography(P[:, (0, 1, 3)] * -3.0, principal_point(960, 540))
+    assert f == pytest.approx(1500.0, rel=1e-9)
+    np.testing.assert_allclose(R, truth.R, atol=1e-9)
+    np.testing.assert_allclose(C, truth.C, atol=1e-6)
+
+
+def test_one_line_is_refused_with_reason() -> None:
+    lines = {"Side line top": [np.array([[10.0, 100.0], [900.0, 120.0]])]}
+    result = calibrate_frame(lines, 960, 540, compute_jac=False)
+    assert result.status == "refused" and result.camera is None
+    assert "fewer than 7 independent line constraints" in (result.reason or "")
+    assert "few_lines" in result.flags
+
+
+def test_parallel_lines_only_are_refused_as_degenerate() -> None:
+    lines = {
+        "Side line top": [np.array([[0.0, 100.0], [959.0, 110.0]])],
+        "Big rect. left top": [np.array([[0.0, 180.0], [700.0, 190.0]])],
+        "Small rect. left top": [np.array([[50.0, 260.0], [500.0, 270.0]])],
+        "Small rect. left bottom": [np.array([[0.0, 400.0], [400.0, 420.0]])],
+    }
+    result = calibrate_frame(lines, 960, 540, compute_jac=False)
+    assert result.status == "refused"
+    assert "degenerate configuration" in (result.reason or "")
+
+
+def test_collinear_labels_are_refused_as_degenerate() -> None:
+    # Four classes along both pitch directions, but every point lies on one image line.
+    line = lambda x0, x1: np.array([[x0, 200.0 + 0.1 * x0], [x1, 200.0 + 0.1 * x1]])  # noqa: E731
+    lines = {"Side line top": [line(0, 300)], "Middle line": [line(320, 500)],
+             "Big rect. left main": [line(520, 700)], "Side line bottom": [line(720, 950)]}
+    result = calibrate_frame(lines, 960, 540, compute_jac=False)
+    assert result.status == "refused"
+    assert "collinear" in (result.reason or "")
+
+
+def test_bad_input_raises_naming_the_field() -> None:
+    with pytest.raises(ValueError, match="width and height"):
+        calibrate_frame({}, 0, 540)
+    with pytest.raises(AnnotationError, match="Side line top"):
+        calibrate_frame({"Side line top": [np.array([[1.0, np.nan]])]}, 960, 540)
+    with pytest.raises(ValueError, match="expected_side"):
+        CalibrationPrior(expected_side=2)
+
+
+def test_mirrored_labels_are_flagged_with_the_side_prior() -> None:
+    truth = _camera((-8.0, 58.0, -16.0), (-38.0, -2.0, 0.0), 1300.0, 960, 540)
+    lines = synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=5)
+    prior = CalibrationPrior(expected_side=1)
+    right = calibrate_frame(lines, 960, 540, prior=prior, compute_jac=False)
+    assert right.calibrated and "probably_mirrored" not in right.flags and right.mirrored_lines is None
+    wrong = calibrate_frame(mirror_lines(lines), 960, 540, prior=prior, compute_jac=False)
+    assert wrong.calibrated and "probably_mirrored" in wrong.flags
+    assert wrong.camera is not None and wrong.camera.C[1] < -34.0
+    # The mirrored camera fits the mirrored labels as well as the true one fits the true labels.
+    assert wrong.rms_px == pytest.approx(right.rms_px, rel=1e-3, abs=1e-3)
+    # The offered fix is the original labelling, and it calibrates without the flag.
+    assert wrong.mirrored_lines is not None and sorted(wrong.mirrored_lines) == sorted(lines)
+    # Without the prior nothing is flagged: one frame alone cannot tell.
+    assert "probably_mirrored" not in calibrate_frame(mirror_lines(lines), 960, 540, compute_jac=False).flags
+
+
+def test_known_centre_fits_focal_and_rotation_only() -> None:
+    truth = _camera((0.0, 62.0, -18.0), (-30.0, 0.0, 0.0), 1400.0, 960, 540)
+    lines = synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=11)
+    few = {c: lines[c] for c in sorted(c for c in lines if c not in CIRCLES)[:3]}  # 6 constraints < 7
+    assert calibrate_frame(few, 960, 540, compute_jac=False).status == "refused"
+    result = calibrate_frame(few, 960, 540, prior=CalibrationPrior(centre_m=tuple(truth.C)), compute_jac=False)
+    assert result.calibrated and "rig_assisted" in result.flags
+    assert result.camera is not None
+    np.testing.assert_allclose(result.camera.C, truth.C)
+    assert abs(result.camera.K[0, 0] / 1400.0 - 1.0) < 0.03
+    assert _angle_between_deg(result.camera.R, truth.R) < 0.3
