@@ -137,25 +137,32 @@ def _rect(x0: float, x1: float, y0: float, y1: float, z: float = 0.0) -> np.ndar
 
 
 # ----- background, grass, lines ------------------------------------------------------------------
+def _stand(img: np.ndarray, camera: Camera, a: np.ndarray, b: np.ndarray, outward: np.ndarray,
+           colours: tuple[tuple[int, int, int], tuple[int, int, int]], depth: float = 22.0, rise: float = 11.0,
+           tiers: int = 12) -> None:
+    """A stand rising away from the pitch from the ground edge ``a``-``b`` (world, z = -0.5), drawn
+    as ``tiers`` rows of seats in two alternating colours."""
+    for k in range(tiers):
+        f0, f1 = k / tiers, (k + 1) / tiers
+        lo = np.array([0.0, 0.0, -0.5]) + outward * depth * f0 + np.array([0.0, 0.0, -(rise - 0.5) * f0])
+        hi = np.array([0.0, 0.0, -0.5]) + outward * depth * f1 + np.array([0.0, 0.0, -(rise - 0.5) * f1])
+        fill_world_polygon(img, camera, np.array([a + lo, b + lo, b + hi, a + hi]), colours[k % 2])
+
+
 def _background(camera: Camera, width: int, height: int) -> np.ndarray:
-    """Roof and crowd colours, darker towards the top, with the stands drawn as sloped planes."""
+    """Roof shadow darkening towards the top of the picture, and four tiered stands around the pitch."""
     rows = np.linspace(0.0, 1.0, height)[:, None]
     top, bottom = np.array([52, 46, 44], float), np.array(STAND, float)
     col = top + (bottom - top) * rows
     img = np.ascontiguousarray(np.broadcast_to(col.astype(np.uint8)[:, None, :], (height, width, 3)))
-    sides = [  # (inner edge, outer edge) of each stand as world polygons rising away from the pitch
-        (_HALF_W + BOARD_OFFSET_SIDE_M + 2.0, 1.0), (-(_HALF_W + BOARD_OFFSET_SIDE_M + 2.0), -1.0),
-    ]
-    depth, rise = 22.0, 11.0
-    for y_in, sgn in sides:
-        y_out = y_in + sgn * depth
-        poly = np.array([[-80.0, y_in, -0.5], [80.0, y_in, -0.5], [80.0, y_out, -rise], [-80.0, y_out, -rise]])
-        fill_world_polygon(img, camera, poly, (88, 74, 70))
+    ys, xs = _HALF_W + BOARD_OFFSET_SIDE_M + 2.0, _HALF_L + BOARD_OFFSET_END_M + 3.0
+    side_colours = ((90, 76, 72), (80, 68, 64))
+    end_colours = ((86, 72, 76), (76, 64, 68))
     for sgn in (1.0, -1.0):
-        x_in = sgn * (_HALF_L + BOARD_OFFSET_END_M + 3.0)
-        x_out = x_in + sgn * depth
-        poly = np.array([[x_in, -62.0, -0.5], [x_in, 62.0, -0.5], [x_out, 62.0, -rise], [x_out, -62.0, -rise]])
-        fill_world_polygon(img, camera, poly, (84, 70, 72))
+        _stand(img, camera, np.array([-xs, sgn * ys, 0.0]), np.array([xs, sgn * ys, 0.0]),
+               np.array([0.0, sgn, 0.0]), side_colours)
+        _stand(img, camera, np.array([sgn * xs, -ys, 0.0]), np.array([sgn * xs, ys, 0.0]),
+               np.array([sgn, 0.0, 0.0]), end_colours)
     return img
 
 
