@@ -1,0 +1,41 @@
+"""The queue queries (window functions, NULLS LAST, coalesced enum status) on PostgreSQL, which the
+rest of the API suite runs on SQLite."""
+from __future__ import annotations
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app.core.config import Settings
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.main import create_app
+
+from .factories import make_game, make_system
+
+pytestmark = pytest.mark.postgres
+
+
+def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
+    settings = Settings(database_url=pg_url, calibration_workers=1)
+    upgrade_database(pg_url)
+    engine = make_engine(pg_url)
+    try:
+        with make_session_factory(engine)() as session:
+            game = make_game(session)
+            exact = make_system(session, settings, game, "2.png", jac=0.90).system_id
+            shifted = make_system(session, settings, game, "10.png", jac=0.80, shift_px=(0.0, 0.0, 6.0)).system_id
+            lonely = make_system(session, settings, game, "1.png", jac=0.95, labelled=(True, False, False)).system_id
+    finally:
+        engine.dispose()
+    with TestClient(create_app(settings)) as client:
+        ids = lambda **p: [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]  # noqa: E731
+        assert ids() == [shifted, exact, lonely]
+        assert ids(sort="lowest_jac") == [shifted, exact, lonely]
+        assert ids(sort="name") == [lonely, exact, shifted]
+        assert ids(error_min=1.0) == [shifted]
+        assert client.post(f"/api/systems/{exact}/review", json={"status": "accepted"}).status_code == 200
+        pending = client.get("/api/systems", params={"status": "pending"}).json()
+        assert [s["id"] for s in pending["items"]] == [shifted, lonely]
+        assert pending["counts"] == {"pending": 2, "accepted": 1, "rejected": 0, "needs_fix": 0}
+        view = client.get(f"/api/systems/{exact}", params={"status": "pending"}).json()
+        assert (view["prev_id"], view["next_id"]) == (shifted, lonely)
+        assert len(view["views"]) == 3 and view["views"][0]["pitch_lines"]
