@@ -8,7 +8,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 
-from .factories import BALL, HEIGHT, WIDTH, Scene, make_game, make_system
+from ..factories import BALL, HEIGHT, WIDTH, Scene, make_game, make_system
 
 
 @pytest.fixture

@@ -13,7 +13,7 @@ from fastapi.testclient import TestClient
 from app.geometry.annotations import to_soccernet_calibration
 from app.geometry.projection import project_pitch_polylines
 
-from .factories import BALL, CENTRES, HEIGHT, WIDTH, Scene, look_at
+from ..factories import BALL, CENTRES, HEIGHT, WIDTH, Scene, look_at
 
 
 def _calibration_folder(root: Path, frames: int = 2) -> Path:

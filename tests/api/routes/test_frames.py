@@ -12,7 +12,7 @@ from sqlalchemy.orm import Session
 from app.db.models import Frame
 from app.services import editing
 
-from .factories import HEIGHT, WIDTH, Scene, png_bytes
+from ..factories import HEIGHT, WIDTH, Scene, png_bytes
 
 
 def _view(client: TestClient, scene: Scene) -> dict:
