@@ -85,7 +85,8 @@ export function postReview(id, status, comment) {
   return request("POST", `/api/systems/${encodeURIComponent(id)}/review`, { status, comment });
 }
 
-/** PATCH /api/frames/{id}/ball with {box} or {point}; answers the recomputed system view. */
-export function patchBall(frameId, change) {
-  return request("PATCH", `/api/frames/${encodeURIComponent(frameId)}/ball`, change);
+/** PATCH /api/frames/{id}/ball with {box} or {point}; answers the recomputed system view, whose
+ * prev_id / next_id follow the queue given by `params` (as for getSystem). */
+export function patchBall(frameId, change, params = {}) {
+  return request("PATCH", `/api/frames/${encodeURIComponent(frameId)}/ball${toQuery(params)}`, change);
 }

@@ -150,8 +150,11 @@ export class ViewPanel extends HTMLElement {
 
     const err = v.reprojection_error_px;
     const scaled = scaledError(err, v.width, rule);
+    const rb = v.reprojected_ball;
+    const outside = validPoint(rb) && (rb[0] < 0 || rb[1] < 0 || rb[0] > v.width || rb[1] > v.height);
     const errText = isNum(err)
       ? `${err.toFixed(2)} px` + (scaled !== null && Math.abs(scaled - err) > 1e-6 ? ` (${scaled.toFixed(2)} @1920)` : "")
+        + (outside ? ", reprojects outside the frame" : "")
       : "—";
 
     let boxText = "—";
@@ -360,8 +363,13 @@ export class ViewPanel extends HTMLElement {
     }
     if (validPoint(v.reprojected_ball)) {
       const [x, y] = v.reprojected_ball;
-      const a = 7 * s;
-      const d = `M${x - a} ${y - a} L${x + a} ${y + a} M${x - a} ${y + a} L${x + a} ${y - a}`;
+      const c = label ? (label.box ? boxCentre(label.box) : label.point) : null;
+      if (c) { // the error vector, from the label's centre to the reprojection (clipped at the frame's edge)
+        g.append(svg("line", { class: "err-vec", x1: c[0], y1: c[1], x2: x, y2: y }));
+      }
+      // a cross with an open centre, so that the ball under it stays visible
+      const a = 8 * s, gap = 3 * s;
+      const d = [[-1, -1], [1, 1], [-1, 1], [1, -1]].map(([sx, sy]) => `M${x + sx * gap} ${y + sy * gap} L${x + sx * a} ${y + sy * a}`).join(" ");
       g.append(svg("path", { class: "halo", d }));
       g.append(svg("path", { class: "reproj", d, "data-testid": isMain ? "reprojected-ball" : null },
         svg("title", { text: `3D ball reprojected: (${x.toFixed(1)}, ${y.toFixed(1)})` })));

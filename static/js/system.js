@@ -179,7 +179,7 @@ class SystemPage {
   async saveBall(panel, detail) {
     const change = detail.box ? { box: detail.box } : { point: detail.point };
     try {
-      const sys = await patchBall(detail.frameId, change);
+      const sys = await patchBall(detail.frameId, change, this.params);
       clearError();
       if (sys && Array.isArray(sys.views)) this.render(sys);
       else await this.load(this.system.id);

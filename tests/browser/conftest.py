@@ -1,0 +1,111 @@
+"""Fixtures of the browser tests: the real v3d server on a free port, over a migrated temporary SQLite
+database seeded with the demo dataset, and a headless Debian Chromium driven by Playwright."""
+from __future__ import annotations
+
+import shutil
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--no-first-run",
+]
+#: Screenshots of the walk (gitignored), for people to look at.
+ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture(scope="module")
+def seeded_settings(tmp_path_factory: pytest.TempPathFactory):
+    """Settings of a fresh database built by the migrations and filled with the demo dataset through
+    the SoccerNet-v3 importer, as a user would (``v3d demo`` then ``v3d import``)."""
+    from app.core.config import Settings
+    from app.db.session import make_engine, make_session_factory, upgrade_database
+    from app.demo import generate_demo_dataset
+    from app.services.importing import import_soccernet_v3
+
+    root = tmp_path_factory.mktemp("ui")
+    settings = Settings(database_url=f"sqlite:///{root / 'ui.sqlite3'}", calibration_workers=1)
+    upgrade_database(settings.database_url)
+    dataset = generate_demo_dataset(root / "demo")
+    engine = make_engine(settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            import_soccernet_v3(session, dataset, settings)
+            session.commit()
+    finally:
+        engine.dispose()
+    return settings
+
+
+@pytest.fixture(scope="module")
+def server_url(seeded_settings) -> Iterator[str]:
+    """Base URL of the real application (``create_app``) served by uvicorn in a thread."""
+    import uvicorn
+
+    from app.main import create_app
+
+    port = _free_port()
+    config = uvicorn.Config(create_app(seeded_settings), host="127.0.0.1", port=port, log_level="warning",
+                            lifespan="on")
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, name="v3d-test-server", daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 30
+    while not server.started:
+        if not thread.is_alive() or time.monotonic() > deadline:
+            raise RuntimeError(f"the v3d server did not start on port {port}")
+        time.sleep(0.05)
+    try:
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[object]:
+    """Headless Debian Chromium; the test skips (with the reason) where it is not installed."""
+    if not CHROMIUM.exists() or shutil.which(str(CHROMIUM)) is None:
+        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium (apt-get install -y chromium) to run browser tests")
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright (Python) is not installed")
+    with sync_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, headless=True)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+@pytest.fixture
+def page(browser, server_url):
+    """A 1440x900 page; JavaScript errors on the page fail the test."""
+    context = browser.new_context(viewport={"width": 1440, "height": 900}, base_url=server_url)
+    p = context.new_page()
+    errors: list[str] = []
+    p.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        yield p
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+@pytest.fixture(scope="session")
+def artifacts() -> Path:
+    ARTIFACTS.mkdir(exist_ok=True)
+    return ARTIFACTS
