@@ -135,7 +135,8 @@ def _occludes_ball(camera: Camera, person: Person, ball: np.ndarray, ball_box: n
 
 
 def _people_for(rng: np.random.Generator, ball: np.ndarray, views: list[_View]) -> list[Person]:
-    """Players and referee placed so that none hides the ball in any view."""
+    """Players and referee placed so that none hides the ball in any view (a person still in the
+    way after 60 moves is left out)."""
     people = sample_people(rng, ball, _OUTFIELD_PLAYERS)
     boxes = [(v.camera, precise_ball_box(v.camera, ball)) for v in views]
     out: list[Person] = []
@@ -206,7 +207,9 @@ def _label_view(rng: np.random.Generator, view: _View, ball: np.ndarray, people:
     }
     dist = float(np.linalg.norm(view.camera.C - ball))
     view.truth = {
-        "image": view.image, "role": view.role, "rig_camera": view.rig, "width": w, "height": h,
+        "image": view.image, "role": view.role, "rig_camera": view.rig,
+        "offset_from_rig_m": _floats(view.camera.C - np.array(RIG[view.rig].position_m), 6),
+        "width": w, "height": h,
         "camera": _camera_json(view.camera), "framing_m": round(view.framing_m, 3),
         "distance_to_ball_m": round(dist, 3),
         "ball_center_px": _floats(centre_px), "precise_box": _floats(precise),

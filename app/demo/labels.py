@@ -21,7 +21,7 @@ from app.geometry.pitch import GOAL_CLASSES, LINE_CLASSES
 
 #: Spacing (metres) of the model polylines projected for labels and for the visibility test.
 LABEL_SAMPLING_M = 0.1
-#: Sigma (px at 1920 px wide) of the annotators' click noise across the line, truncated at 2 sigma.
+#: Sigma (px at 1920 px wide) of the annotators' click noise across the line, truncated at 1.5 sigma.
 LINE_SIGMA_PX_AT_1920 = 1.0
 #: A visible piece shorter than this (px at 1920 px wide) is not annotated.
 MIN_VISIBLE_PX_AT_1920 = 10.0
@@ -157,7 +157,7 @@ def annotate_field_lines(camera: Camera, model: Mapping[str, np.ndarray], width:
                 extra = int(rng.integers(0, 3)) if cls not in GOAL_CLASSES else 0
                 fr = np.concatenate([[0.0], np.sort(rng.uniform(0.15, 0.85, extra)), [1.0]])
             pts = _resample(run, fr)
-            noise = np.clip(rng.normal(0.0, sigma, len(fr)), -2 * sigma, 2 * sigma)
+            noise = np.clip(rng.normal(0.0, sigma, len(fr)), -1.5 * sigma, 1.5 * sigma)
             pts = pts + _normals(run, fr) * noise[:, None]
             pts = np.clip(pts, [0.0, 0.0], [width - 1.0, height - 1.0])
             out.append((cls, pts))

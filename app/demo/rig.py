@@ -29,7 +29,7 @@ class RigCamera:
         position_m: (3,) camera centre, world frame, metres (z < 0 above the ground).
         framing_m: (min, max) horizontal extent of the scene (metres, measured at the ball's
             distance) that the operator frames; the zoom of a view is drawn in this range.
-        roll_deg: small constant roll of the head (degrees).
+        roll_deg: small constant roll of the head (SoccerNet ``roll_degrees``).
     """
 
     name: str
@@ -69,13 +69,14 @@ NEAR_DUPLICATE_OFFSET_M: tuple[float, float, float] = (0.45, -0.3, 0.25)
 def look_at_rotation(position: np.ndarray, target: np.ndarray, roll_deg: float = 0.0) -> np.ndarray:
     """World-to-camera rotation of a camera at ``position`` whose optical axis passes through ``target``.
 
-    The image x axis stays horizontal (then rolled by ``roll_deg`` about the optical axis) and the
-    image y axis points down the world (+z), as a broadcast head on a level tripod.
+    The image x axis stays horizontal (then rolled about the optical axis so that the camera's
+    SoccerNet ``roll_degrees`` is ``roll_deg``) and the image y axis points down the world (+z), as
+    a broadcast head on a level tripod.
 
     Args:
         position: (3,) camera centre, world metres.
         target: (3,) world point on the optical axis, metres.
-        roll_deg: rotation of the image about the optical axis, degrees.
+        roll_deg: SoccerNet roll (rotation about the optical axis), degrees.
 
     Returns:
         (3, 3) rotation ``R`` with ``x_cam = R (X - C)``.
@@ -99,7 +100,8 @@ def look_at_rotation(position: np.ndarray, target: np.ndarray, roll_deg: float =
     y = y / np.linalg.norm(y)
     x = np.cross(y, z)
     R = np.stack([x, y, z])
-    a = np.radians(roll_deg)
+    # SoccerNet's R = (Rz(pan) Rx(tilt) Rz(roll))^T ends with Rz(roll)^T = Rz(-roll) on the left.
+    a = -np.radians(roll_deg)
     roll = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
     return roll @ R
 

@@ -5,7 +5,7 @@ centre at z = -0.11 (diameter 0.22 m).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -86,14 +86,6 @@ class Person:
     role: str
     jersey: str
     xy: tuple[float, float]
-
-
-@dataclass
-class Scene:
-    """Everything in the world at the instant of a system."""
-
-    ball: np.ndarray
-    people: list[Person] = field(default_factory=list)
 
 
 def sample_people(rng: np.random.Generator, ball: np.ndarray, count: int) -> list[Person]:

@@ -10,6 +10,7 @@ from app.demo.labels import (
 from app.demo.render import clip_polygon_near, render_ball
 from app.demo.rig import RIG, framing_camera, look_at_rotation
 from app.demo.scene import precise_ball_box, sphere_silhouette
+from app.geometry.camera import pan_tilt_roll_from_rotation
 
 
 @pytest.mark.parametrize("name", sorted(RIG))
@@ -21,6 +22,12 @@ def test_look_at_is_a_level_rotation_through_the_target(name: str) -> None:
     assert np.allclose(R[2], (target - c) / np.linalg.norm(target - c))
     assert abs(R[0, 2]) < 1e-12  # image x axis horizontal (no roll)
     assert R[1, 2] > 0  # image y axis points down the world (+z)
+
+
+def test_look_at_roll_is_the_soccernet_roll() -> None:
+    R = look_at_rotation(np.array([0.0, 79.0, -20.0]), np.array([30.0, 0.0, 0.0]), roll_deg=1.5)
+    pan, tilt, roll = pan_tilt_roll_from_rotation(R)
+    assert roll == pytest.approx(1.5) and 60 < tilt < 90
 
 
 def test_framing_camera_spans_the_requested_width() -> None:
