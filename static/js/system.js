@@ -208,6 +208,8 @@ class SystemPage {
     else if (e.key === "c") {
       e.preventDefault();
       $("comment").focus();
+    } else if (e.key === "o") {
+      document.body.classList.toggle("overlays-hidden"); // look at the bare frames
     } else if (/^[1-9]$/.test(e.key)) this.select(Number(e.key) - 1);
     else if (this.selected >= 0 && this.editKey(e)) e.preventDefault();
   }
