@@ -59,6 +59,7 @@ def from_soccernet_calibration(data: Mapping[str, Any], width: int, height: int)
 
     Raises:
         AnnotationError: unknown class, a point without numeric ``x``/``y``, NaN or infinity.
+        An empty point list is dropped, as SoccerNet's evaluator drops it.
 
     >>> fl = from_soccernet_calibration({"Middle line": [{"x": 0.5, "y": 0.0}, {"x": 0.5, "y": 1.0}]}, 961, 541)
     >>> fl["Middle line"][0].tolist()
@@ -77,6 +78,8 @@ def from_soccernet_calibration(data: Mapping[str, Any], width: int, height: int)
             where = f"field lines, class {cls!r}, polyline {gi}"
             if not isinstance(group, list):
                 raise AnnotationError(f"{where}: expected a list of {{'x', 'y'}} points")
+            if not group:
+                continue  # an empty class carries no constraint; SoccerNet's evaluator drops it too
             try:
                 pts = np.array([[float(p["x"]), float(p["y"])] for p in group], dtype=float).reshape(-1, 2)
             except (TypeError, KeyError, ValueError) as exc:
