@@ -104,14 +104,16 @@ class CalibrationSettings:
         refuse_gamma: refuse when a labelled class has a point farther than this fraction of the
             diagonal from its model element.
         k1_min_gain: relative drop of the robust cost that justifies the radial coefficient.
+        k1_min_points: fewest labelled points for which the radial coefficient is tried.
         max_k1: largest accepted |k1|.
     """
 
     min_constraints: int = 7
     loss_scale_gamma: float = 0.002
-    accept_gamma: float = 0.0025
+    accept_gamma: float = 0.005
     refuse_gamma: float = 0.03
     k1_min_gain: float = 0.3
+    k1_min_points: int = 12
     max_k1: float = 0.5
 
 
@@ -172,6 +174,7 @@ class _Candidate:
     p90: float
     jacobian: np.ndarray
     origin: str
+    k1_tried: bool = False
 
 
 def principal_point(width: int, height: int) -> np.ndarray:
@@ -264,10 +267,21 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
 
     starts = _homography_starts(obs, pp, scale)
     for _, name, param, x0 in starts[:2]:
-        if consider(_fit(x0, obs, param, scale, name)):
+        cand = _fit(x0, obs, param, scale, name)
+        if consider(cand):
             return best
+        if cand is not None and cand is best and obs.n_points >= settings.k1_min_points:
+            # The lines may be curved by the lens: try the radial term before another start.
+            best = _with_k1(cand, obs, scale, settings)
+            if best.p90 < accept:
+                return best
 
-    # Look-at starts: a pan-tilt-zoom fit at each plausible centre (cheap, 4 parameters), then the
+    if best is not None:
+        # A homography start converged to a physical camera that still leaves some labels far off:
+        # more starts rarely help there (a mislabelled line does); the caller handles it.
+        return best
+
+    # Look-at starts (when the lines fix no homography): a pan-tilt-zoom fit at each plausible centre (cheap, 4 parameters), then the
     # free refinement of the best two.
     ptz: list[_Candidate] = []
     for centre in START_CENTRES_M:
@@ -351,10 +365,12 @@ def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: Calibr
     f, R, C, _ = best.param.split(best.x)
     param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
                                   fixed_centre=best.param.fixed_centre)
+    best.k1_tried = True
     cand = _fit(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1")
     if cand is None or abs(cand.x[-1]) > settings.max_k1:
         return best
     if cand.cost < (1.0 - settings.k1_min_gain) * best.cost:
+        cand.k1_tried = True
         return cand
     return best
 
@@ -416,7 +432,8 @@ def calibrate_frame(
         best = _search(obs, width, height, prior, settings)
         fit_obs = obs
         scale = settings.loss_scale_gamma * diag
-        if best is not None and best.p90 > 0.5 * scale and obs.n_points >= 12:
+        if best is not None and not best.k1_tried and best.p90 > 0.5 * scale \
+                and obs.n_points >= settings.k1_min_points:
             best = _with_k1(best, obs, scale, settings)
         limit = settings.refuse_gamma * diag
         worst = _worst(best, obs)

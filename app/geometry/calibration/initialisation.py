@@ -109,7 +109,7 @@ class _Equations:
     pairs: list[tuple[np.ndarray, np.ndarray]]  # ambiguous pairs: rows for both assignments, each (4, 9)
 
 
-def _ground_equations(obs: Observations, T: np.ndarray, S: np.ndarray) -> _Equations:
+def _ground_equations(obs: Observations, T: np.ndarray, S: np.ndarray, with_pairs: bool) -> _Equations:
     is_ground = np.array([c not in GOAL_CLASSES for c in obs.seg_classes], dtype=bool)
     rows: list[np.ndarray] = []
     n_eq = 0
@@ -132,7 +132,7 @@ def _ground_equations(obs: Observations, T: np.ndarray, S: np.ndarray) -> _Equat
     pairs: list[tuple[np.ndarray, np.ndarray]] = []
     # Known image points: intersections of perpendicular labelled lines.
     known: list[tuple[np.ndarray, np.ndarray]] = []
-    for u in range(len(image_lines)):
+    for u in range(len(image_lines) if with_pairs else 0):
         for v in range(u + 1, len(image_lines)):
             pw = np.cross(image_lines[u][0], image_lines[v][0])
             pi = np.cross(image_lines[u][1], image_lines[v][1])
@@ -153,11 +153,13 @@ def _ground_equations(obs: Observations, T: np.ndarray, S: np.ndarray) -> _Equat
             except np.linalg.LinAlgError:
                 pass
             # The line meets the circle: its two crossings, assignment unknown.
+            if not with_pairs:
+                continue
             ww = _line_conic_points(lw, Q)
             ii = _line_conic_points(li, conic)
             if ww is not None and ii is not None:
                 pairs.append(_pair_rows(ww, ii))
-        for pw, pi in known:
+        for pw, pi in known[:2] if with_pairs else ():
             # Tangency points seen from a known point: on its polar, assignment unknown.
             ww = _line_conic_points(Q @ pw, Q)
             ii = _line_conic_points(conic @ pi, conic)
@@ -218,10 +220,12 @@ def ground_homographies(obs: Observations, principal_point: np.ndarray, scale_px
     T = np.array([[1 / scale_px, 0, -principal_point[0] / scale_px],
                   [0, 1 / scale_px, -principal_point[1] / scale_px], [0, 0, 1]])
     S = np.diag([1 / _WORLD_SCALE_M, 1 / _WORLD_SCALE_M, 1.0])
-    eq = _ground_equations(obs, T, S)
-    out: list[tuple[str, np.ndarray]] = []
     nx, ny = obs.ground_line_directions()
-    if nx >= 2 and ny >= 2:
+    lines_suffice = nx >= 2 and ny >= 2
+    # The ambiguous conic pairs are only needed when the lines alone do not fix the homography.
+    eq = _ground_equations(obs, T, S, with_pairs=not lines_suffice)
+    out: list[tuple[str, np.ndarray]] = []
+    if lines_suffice:
         H = _solve_dlt(eq.lines, T, S)
         if H is not None:
             out.append(("lines", H))
