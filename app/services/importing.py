@@ -138,11 +138,16 @@ class ImportReport:
     calibration_ms: list[float] = field(default_factory=list)
 
     def refusal_kinds(self) -> Counter:
-        """``refusal_reasons`` with every number replaced by ``N``, so that reasons of one kind
-        ("residual too high: 'Circle central' is N px ...") are counted together."""
+        """``refusal_reasons`` with every number replaced by ``N`` and every quoted line class by
+        ``<class>``, so that reasons of one kind are counted together.
+
+        >>> ImportReport("x", refusal_reasons=Counter({"residual too high: 'Side line top' is 70.1 px": 2,
+        ...                                            "residual too high: 'Circle left' is 99 px": 1})).refusal_kinds()
+        Counter({'residual too high: <class> is N px': 3})
+        """
         out: Counter = Counter()
         for reason, n in self.refusal_reasons.items():
-            out[re.sub(r"\d+(?:\.\d+)?", "N", reason)] += n
+            out[re.sub(r"'[^']*'", "<class>", re.sub(r"\d+(?:\.\d+)?", "N", reason))] += n
         return out
 
 
