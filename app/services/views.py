@@ -124,10 +124,12 @@ class FramePage:
     total: int
 
 
-def _stats() -> sa.Subquery:
-    """Per-system counts and admitted-view aggregates (see the module docstring)."""
+def _stats(game_id: Optional[int] = None, also_system_id: Optional[int] = None) -> sa.Subquery:
+    """Per-system counts and admitted-view aggregates (see the module docstring), over one game's
+    systems (and ``also_system_id``) when ``game_id`` is given: the aggregation is most of a queue
+    query's cost."""
     admitted = Calibration.admitted.is_(True)
-    return (
+    stmt = (
         sa.select(
             Frame.system_id.label("system_id"),
             sa.func.count(Frame.id).label("views_total"),
@@ -142,13 +144,17 @@ def _stats() -> sa.Subquery:
         .outerjoin(BallLabel, BallLabel.frame_id == Frame.id)
         .outerjoin(BallReprojection, BallReprojection.frame_id == Frame.id)
         .group_by(Frame.system_id)
-        .subquery("system_stats")
     )
+    if game_id is not None:
+        wanted = sa.select(System.id).where(sa.or_(System.game_id == game_id, System.id == also_system_id))
+        stmt = stmt.where(Frame.system_id.in_(wanted))
+    return stmt.subquery("system_stats")
 
 
 def _review_status() -> sa.ColumnElement[ReviewStatus]:
     """A system's review status; a system never decided on is pending."""
-    return sa.func.coalesce(ReviewDecision.status, ReviewStatus.PENDING, type_=ReviewDecision.status.type)
+    status_type = ReviewDecision.status.type
+    return sa.func.coalesce(ReviewDecision.status, sa.literal(ReviewStatus.PENDING, status_type), type_=status_type)
 
 
 def _queue_from(stats: sa.Subquery) -> sa.Select[Any]:
@@ -233,10 +239,11 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
     Raises:
         ValueError: an unknown ``sort``.
     """
-    stats = _stats()
+    stats = _stats(filters.game_id)
     order = _system_order(stats, sort)
     conds = _system_conditions(stats, filters)
-    rows = session.execute(_queue_from(stats).where(*conds).order_by(*order).limit(limit).offset(offset)).all()
+    page = _queue_from(stats).add_columns(sa.func.count().over().label("total"))
+    rows = session.execute(page.where(*conds).order_by(*order).limit(limit).offset(offset)).all()
     items = [
         SystemSummary(
             system=r.System, game=r.Game, review_status=r.review_status, review_comment=r.review_comment,
@@ -246,11 +253,14 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
         )
         for r in rows
     ]
-    base = (
-        sa.select(System.id).outerjoin(stats, stats.c.system_id == System.id)
-        .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-    )
-    total = session.scalar(sa.select(sa.func.count()).select_from(base.where(*conds).subquery())) or 0
+    # the per-system aggregates are joined only when a range filter needs them
+    base = sa.select(System.id).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+    if any(v is not None for v in (filters.jac_min, filters.jac_max, filters.error_min, filters.error_max)):
+        base = base.outerjoin(stats, stats.c.system_id == System.id)
+    if rows:
+        total = rows[0].total
+    else:  # past the last page: the window count has no row to ride on
+        total = session.scalar(sa.select(sa.func.count()).select_from(base.where(*conds).subquery())) or 0
     status = _review_status()
     by_status = session.execute(
         base.with_only_columns(status, sa.func.count(System.id))
@@ -269,7 +279,7 @@ def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = 
     The system itself need not match the filters (it may just have been reviewed out of a
     "pending" queue): its neighbours are then those it would have if it did.
     """
-    stats = _stats()
+    stats = _stats(filters.game_id, system_id)
     order = _system_order(stats, sort)
     conds = _system_conditions(stats, filters)
     where = sa.or_(sa.and_(*conds), System.id == system_id) if conds else sa.true()

@@ -154,6 +154,12 @@ def test_prev_and_next_follow_the_queue_given(client: TestClient, queue: dict[st
     assert (exact["prev_id"], exact["next_id"]) == (queue["lonely"].system_id, queue["shifted"].system_id)
     other = client.get(f"/api/systems/{queue['other'].system_id}", params=game).json()
     assert other["prev_id"] == queue["shifted"].system_id and other["next_id"] is None
+    # by error, "other" (error ~0, another game) keeps its own error as its key: it sorts before
+    # the ball-less "lonely", not last as a system without aggregates would
+    by_error = {"game_id": queue["exact"].game_id, "sort": "-worst_error"}
+    other = client.get(f"/api/systems/{queue['other'].system_id}", params=by_error).json()
+    assert other["prev_id"] in (queue["shifted"].system_id, queue["exact"].system_id)
+    assert other["next_id"] in (queue["exact"].system_id, queue["lonely"].system_id)
 
 
 def test_unknown_system_is_404_naming_the_id(client: TestClient) -> None:
