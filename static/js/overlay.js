@@ -29,21 +29,21 @@ function sameBox(a, b) {
 }
 
 /** Why a view needs a reviewer's eye (empty when nothing is doubtful). */
-export function doubts(view, tau, rule) {
+export function doubts(view, tau, rule, multiView = true) {
   const out = [];
   const cal = view.calibration || {};
   if (!cal.camera) out.push(cal.status ? `not calibrated (${cal.status})` : "not calibrated");
   else if (cal.admitted === false) out.push("calibration not admitted");
   if (cal.reason) out.push(cal.reason);
   const ball = view.ball || {};
-  if (!ball.kind) out.push("no ball label");
+  if (!ball.kind && multiView) out.push("no ball label"); // a single view has no 3D ball to make
   if (errorClass(view.reprojection_error_px, view.width, tau, rule) === "bad") out.push("reprojection error above tau");
   return out;
 }
 
 export class ViewPanel extends HTMLElement {
   #view = null;
-  #ctx = { index: 0, tau: null, rule: null };
+  #ctx = { index: 0, tau: null, rule: null, viewCount: 0 };
   #imageState = "loading"; // loading | loaded | missing
   #imageUrl = null;
   #live = null; // box or point being dragged (image pixels)
@@ -65,7 +65,7 @@ export class ViewPanel extends HTMLElement {
     this.#resizeObserver?.disconnect();
   }
 
-  /** Set the view (system-view JSON) and its context {index, tau, rule}. */
+  /** Set the view (system-view JSON) and its context {index, tau, rule, viewCount}. */
   update(view, ctx) {
     const frameChanged = !this.#view || this.#view.frame_id !== view.frame_id;
     this.#view = view;
@@ -131,7 +131,7 @@ export class ViewPanel extends HTMLElement {
     const jac = cal.jac || {};
     const ball = v.ball || {};
     const opt = v.optimised_box;
-    const doubtful = doubts(v, tau, rule);
+    const doubtful = doubts(v, tau, rule, this.#ctx.viewCount !== 1);
 
     const frameSvg = svg("svg", {
       viewBox: `0 0 ${v.width} ${v.height}`,

@@ -3,47 +3,15 @@
 // on to the system page, whose "queue" link and prev / next follow the same queue.
 
 import { listSystems, listGames } from "./api.js";
+import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
 import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, jacClass, showError, clearError, STATUSES, STATUS_LABEL } from "./format.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const PAGE_SIZE = 50;
-const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "sort"];
-const DEFAULT_SORT = "-worst_error";
 
-/** Page state <-> the address bar's query string. */
-function readState() {
-  const q = new URLSearchParams(location.search);
-  const state = {};
-  for (const key of FILTERS) state[key] = q.get(key) || "";
-  if (!state.sort) state.sort = DEFAULT_SORT;
-  state.page = Math.max(0, parseInt(q.get("page") || "0", 10) || 0);
-  return state;
-}
-
-function stateQuery(state, { withPage = true } = {}) {
-  const q = new URLSearchParams();
-  for (const key of FILTERS) {
-    if (state[key] && !(key === "sort" && state[key] === DEFAULT_SORT)) q.set(key, state[key]);
-  }
-  if (withPage && state.page) q.set("page", String(state.page));
-  const s = q.toString();
-  return s ? `?${s}` : "";
-}
-
-/** Query parameters of GET /api/systems (JaC filters are typed in percent, the API takes fractions). */
+/** Query parameters of GET /api/systems for one page of the queue. */
 export function apiParams(state) {
-  const frac = (v) => (v === "" ? "" : String(Number(v) / 100));
-  return {
-    status: state.status,
-    game_id: state.game,
-    jac_min: frac(state.jac_min),
-    jac_max: frac(state.jac_max),
-    error_min: state.error_min,
-    error_max: state.error_max,
-    sort: state.sort,
-    limit: PAGE_SIZE,
-    offset: state.page * PAGE_SIZE,
-  };
+  return { ...apiFilters(state), limit: PAGE_SIZE, offset: state.page * PAGE_SIZE };
 }
 
 /** Chips for what makes a system doubtful before opening it. */

@@ -5,6 +5,7 @@
 
 import { getSystem, postReview, patchBall } from "./api.js";
 import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL } from "./format.js";
+import { readState, apiFilters } from "./queuestate.js";
 import "./overlay.js";
 import "./pitchmap.js";
 
@@ -17,7 +18,7 @@ class SystemPage {
 
   constructor() {
     this.search = location.search;
-    this.params = Object.fromEntries(new URLSearchParams(location.search));
+    this.params = apiFilters(readState(location.search));
     $("queue-link").href = `/${this.search}`;
     $("prev").addEventListener("click", () => this.go(this.system?.prev_id));
     $("next").addEventListener("click", () => this.go(this.system?.next_id));
@@ -83,7 +84,7 @@ class SystemPage {
         panel = document.createElement("v3d-view");
         container.append(panel);
       }
-      panel.update(view, { ...ctx, index });
+      panel.update(view, { ...ctx, index, viewCount: sys.views.length });
       panel.selected = index === this.selected;
     });
     for (const extra of panels.slice(sys.views.length)) extra.remove();

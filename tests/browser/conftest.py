@@ -2,6 +2,7 @@
 database seeded with the demo dataset, and a headless Debian Chromium driven by Playwright."""
 from __future__ import annotations
 
+import json
 import shutil
 import socket
 import threading
@@ -36,20 +37,46 @@ def seeded_settings(tmp_path_factory: pytest.TempPathFactory):
     from app.core.config import Settings
     from app.db.session import make_engine, make_session_factory, upgrade_database
     from app.demo import generate_demo_dataset
-    from app.services.importing import import_soccernet_v3
+    from app.services.importing import import_sn_calibration, import_soccernet_v3
 
     root = tmp_path_factory.mktemp("ui")
     settings = Settings(database_url=f"sqlite:///{root / 'ui.sqlite3'}", calibration_workers=1)
     upgrade_database(settings.database_url)
     dataset = generate_demo_dataset(root / "demo")
+    calibration_only = _calibration_only_folder(dataset, root / "calibration-only")
     engine = make_engine(settings.database_url)
     try:
         with make_session_factory(engine)() as session:
             import_soccernet_v3(session, dataset, settings)
             session.commit()
+            import_sn_calibration(session, calibration_only, settings, width=CALIB_ONLY_SIZE[0],
+                                  height=CALIB_ONLY_SIZE[1])
+            session.commit()
     finally:
         engine.dispose()
     return settings
+
+
+#: Size of the calibration-only frames (no image: the UI draws on a blank canvas of this size).
+CALIB_ONLY_SIZE = (1920, 1080)
+
+
+def _calibration_only_folder(dataset: Path, out: Path) -> Path:
+    """A SoccerNet-calibration folder (normalised points, no images) made of the demo's first
+    1920x1080 action's field lines: frames that exist only as annotations, like the calibration
+    challenge's test set."""
+    labels = json.loads(next(dataset.rglob("Labels-v3.json")).read_text())
+    w, h = CALIB_ONLY_SIZE
+    name, action = next((n, a) for n, a in labels["actions"].items()
+                        if (a["imageMetadata"]["width"], a["imageMetadata"]["height"]) == (w, h))
+    frame = {}
+    for line in action["lines"]:
+        xy = line["points"]
+        frame.setdefault(line["class"], []).extend(
+            {"x": x / (w - 1), "y": y / (h - 1)} for x, y in zip(xy[0::2], xy[1::2]))
+    out.mkdir(parents=True)
+    (out / f"{Path(name).stem}.json").write_text(json.dumps(frame))
+    return out
 
 
 @pytest.fixture(scope="module")

@@ -185,3 +185,43 @@ def test_api_errors_are_shown(page, server_url):
     error = page.locator(tid("error"))
     error.wait_for(state="visible")
     assert re.match(r"^4\d\d: ", error.inner_text())
+
+
+def test_frame_without_image_is_drawn_on_a_blank_canvas(page, artifacts):
+    """A calibration-only frame (its image answers 404) still shows the projected pitch and the
+    annotated points, on a blank canvas of the frame's size, at the right place."""
+    games = _api(page, "/api/games")
+    game = next(g for g in games if g["league"] == "sn-calibration")
+    listing = _api(page, f"/api/systems?game_id={game['id']}")
+    system = _api(page, f"/api/systems/{listing['items'][0]['id']}")
+    v = system["views"][0]
+    assert v["image_url"] is None or page.request.get(v["image_url"]).status == 404
+    assert v["pitch_lines"], "the calibration-only frame should be calibrated"
+
+    # the game filter of the queue, picked in the page, finds it
+    page.goto("/")
+    page.locator(tid("queue-row")).first.wait_for()
+    page.select_option(tid("filter-game"), str(game["id"]))
+    page.wait_for_url(re.compile(rf"game={game['id']}"))
+    page.locator(f"{tid('queue-row')}[data-id='{system['id']}']").click()
+
+    page.wait_for_url(re.compile(rf"/systems/{system['id']}\?game={game['id']}$"))
+    view = page.locator(tid("view")).first
+    page.wait_for_function("() => document.querySelector('[data-testid=view]')?.dataset.image === 'missing'")
+    # prev / next stay inside the filtered queue: this game has a single system
+    assert listing["total"] == 1
+    assert page.locator(tid("prev")).is_disabled() and page.locator(tid("next")).is_disabled()
+    assert view.get_attribute("data-doubtful") == "false"  # no ball is expected in a single view
+    frame_svg = view.locator(tid("view-svg"))
+    assert frame_svg.get_attribute("viewBox") == f"0 0 {v['width']} {v['height']}"
+    assert frame_svg.locator("image").count() == 0
+    assert view.locator("[data-testid=overlay] polyline.pitch").count() == len(v["pitch_lines"])
+    # an annotated point is drawn where its pixel coordinates say, at the displayed scale
+    cls, polylines = next(iter(v["field_lines"].items()))
+    x, y = polylines[0][0]
+    box = frame_svg.bounding_box()
+    dot = view.locator("[data-testid=overlay] circle.annot").first.bounding_box()
+    scale = box["width"] / v["width"]
+    assert dot["x"] + dot["width"] / 2 == pytest.approx(box["x"] + x * scale, abs=1.0)
+    assert dot["y"] + dot["height"] / 2 == pytest.approx(box["y"] + y * scale, abs=1.0)
+    page.screenshot(path=str(artifacts / "6-calibration-only.png"), full_page=True)

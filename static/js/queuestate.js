@@ -1,0 +1,42 @@
+// The review queue's filters and order, as kept in the address bar (`?status=pending&jac_max=80...`)
+// and as sent to the API. Shared by the queue page and the system page, so that a system opened from
+// a filtered queue moves (prev / next, after a decision) within that same queue.
+
+export const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "sort"];
+export const DEFAULT_SORT = "-worst_error";
+
+/** Queue state from a query string; JaC bounds are in percent, as the reviewer types them. */
+export function readState(search = location.search) {
+  const q = new URLSearchParams(search);
+  const state = {};
+  for (const key of FILTERS) state[key] = q.get(key) || "";
+  if (!state.sort) state.sort = DEFAULT_SORT;
+  state.page = Math.max(0, parseInt(q.get("page") || "0", 10) || 0);
+  return state;
+}
+
+/** The query string of a state ("" when everything is default). */
+export function stateQuery(state, { withPage = true } = {}) {
+  const q = new URLSearchParams();
+  for (const key of FILTERS) {
+    if (state[key] && !(key === "sort" && state[key] === DEFAULT_SORT)) q.set(key, state[key]);
+  }
+  if (withPage && state.page) q.set("page", String(state.page));
+  const s = q.toString();
+  return s ? `?${s}` : "";
+}
+
+/** Query parameters of the API's queue (GET /api/systems, and prev / next of GET /api/systems/{id}):
+ * the API takes JaC as a fraction and the game as `game_id`. */
+export function apiFilters(state) {
+  const frac = (v) => (v === "" || v === undefined ? "" : String(Number(v) / 100));
+  return {
+    status: state.status,
+    game_id: state.game,
+    jac_min: frac(state.jac_min),
+    jac_max: frac(state.jac_max),
+    error_min: state.error_min,
+    error_max: state.error_max,
+    sort: state.sort,
+  };
+}
