@@ -44,6 +44,7 @@ class SystemPage {
       return;
     }
     this.busy = true;
+    document.body.classList.add("loading");
     try {
       const system = await getSystem(id, this.params);
       if (push) history.pushState(null, "", `/systems/${encodeURIComponent(system.id)}${this.search}`);
@@ -55,6 +56,21 @@ class SystemPage {
       showError(err.message);
     } finally {
       this.busy = false;
+      document.body.classList.remove("loading");
+    }
+  }
+
+  /** Warm the browser's cache with the next system's frames, so that moving on is instant. */
+  async prefetch(id) {
+    if (id === null || id === undefined || this.prefetched === id) return;
+    this.prefetched = id;
+    try {
+      const next = await getSystem(id, this.params);
+      for (const v of next.views) {
+        if (v.image_url) new Image().src = v.image_url;
+      }
+    } catch {
+      // only a cache warm-up: the real load reports its own errors
     }
   }
 
@@ -91,6 +107,7 @@ class SystemPage {
 
     this.renderBall(sys);
     this.renderPairs(sys);
+    this.prefetch(sys.next_id);
     $("pitch-map").data = {
       ball3d: sys.ball3d,
       cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
@@ -205,7 +222,7 @@ class SystemPage {
       this.review(keys[e.key]);
     } else if (e.key === "j") this.go(this.system?.next_id);
     else if (e.key === "k") this.go(this.system?.prev_id);
-    else if (e.key === "u" || e.key === "Escape") location.assign(`/${this.search}`);
+    else if (e.key === "u") location.assign(`/${this.search}`);
     else if (e.key === "c") {
       e.preventDefault();
       $("comment").focus();

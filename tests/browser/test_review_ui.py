@@ -225,3 +225,35 @@ def test_frame_without_image_is_drawn_on_a_blank_canvas(page, artifacts):
     assert dot["x"] + dot["width"] / 2 == pytest.approx(box["x"] + x * scale, abs=1.0)
     assert dot["y"] + dot["height"] / 2 == pytest.approx(box["y"] + y * scale, abs=1.0)
     page.screenshot(path=str(artifacts / "6-calibration-only.png"), full_page=True)
+
+
+def test_queue_range_filters_typed_in_the_page(page):
+    """Ranges typed in the filter bar reach the API in its units (JaC in percent on screen, as a
+    fraction in the API), survive a reload, and Reset clears them."""
+    everything = _api(page, "/api/systems?limit=500")["items"]
+    errors = sorted(s["worst_error_px"] for s in everything if s["worst_error_px"] is not None)
+    jacs = sorted(s["lowest_jac"] for s in everything if s["lowest_jac"] is not None)
+    error_min = round((errors[0] + errors[-1]) / 2, 2)  # between the smallest and the largest error
+    jac_max_pct = round(100 * jacs[-1] - 0.05, 2)  # just under the highest: the perfect ones drop out
+    expected = _api(page, f"/api/systems?error_min={error_min}&jac_max={jac_max_pct / 100}&limit=500")["items"]
+    assert 0 < len(expected) < len(everything), "the demo data should split on these bounds"
+
+    page.goto("/")
+    page.locator(tid("queue-row")).first.wait_for()
+    page.fill(tid("filter-error-min"), str(error_min))
+    page.fill(tid("filter-jac-max"), str(jac_max_pct))
+    page.keyboard.press("Enter")
+    page.wait_for_url(re.compile(r"error_min=.*jac_max=|jac_max=.*error_min="))
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n", arg=len(expected))
+    ids = lambda: [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]  # noqa: E731
+    assert ids() == [str(s["id"]) for s in expected]
+    assert not page.locator(tid("error")).is_visible()
+
+    page.reload()
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n", arg=len(expected))
+    assert page.locator(tid("filter-error-min")).input_value() == str(error_min)
+    assert page.locator(tid("filter-jac-max")).input_value() == str(jac_max_pct)
+
+    page.click(tid("reset"))
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n", arg=min(len(everything), 50))
+    assert page.locator(tid("filter-error-min")).input_value() == ""
