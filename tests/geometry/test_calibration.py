@@ -211,3 +211,38 @@ def test_known_centre_fits_focal_and_rotation_only() -> None:
     np.testing.assert_allclose(result.camera.C, truth.C)
     assert abs(result.camera.K[0, 0] / 1400.0 - 1.0) < 0.03
     assert _angle_between_deg(result.camera.R, truth.R) < 0.3
+
+
+def test_game_rig_calibrates_a_frame_with_too_few_lines() -> None:
+    from app.geometry.calibration import calibrate_with_rig, estimate_rig
+
+    main = (2.0, 64.0, -19.0)
+    targets = [(-40.0, 0.0, 0.0), (-20.0, -5.0, 0.0), (0.0, -3.0, 0.0), (25.0, 0.0, 0.0), (42.0, 3.0, 0.0)]
+    cameras = []
+    for i, t in enumerate(targets):
+        truth = _camera(main, t, 900.0 + 150.0 * i, 960, 540)
+        r = calibrate_frame(synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=20 + i), 960, 540, compute_jac=False)
+        assert r.calibrated, r.reason
+        cameras.append(r.camera)
+    # A replay position seen once is not a rig position.
+    cameras.append(_camera((40.0, 45.0, -10.0), (40.0, 0.0, 0.0), 1000.0, 960, 540))
+    rig = estimate_rig(cameras)
+    assert len(rig.positions) == 1 and rig.positions[0].frames == 5
+    assert np.linalg.norm(np.array(rig.positions[0].centre_m) - main) < 1.0
+
+    truth = _camera(main, (-35.0, -10.0, 0.0), 1500.0, 960, 540)
+    lines = synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=40)
+    few = {c: lines[c] for c in sorted(c for c in lines if c not in CIRCLES)[:3]}
+    assert calibrate_frame(few, 960, 540, compute_jac=False).status == "refused"
+    result = calibrate_with_rig(few, 960, 540, rig, compute_jac=False)
+    assert result.calibrated and "rig_assisted" in result.flags
+    assert result.camera is not None
+    assert _angle_between_deg(result.camera.R, truth.R) < 1.0
+    assert abs(result.camera.K[0, 0] / 1500.0 - 1.0) < 0.05
+
+
+def test_rig_without_positions_refuses() -> None:
+    from app.geometry.calibration import CameraRig, calibrate_with_rig
+
+    result = calibrate_with_rig({"Side line top": [np.array([[0.0, 10.0], [900.0, 20.0]])]}, 960, 540, CameraRig(()))
+    assert result.status == "refused" and "no rig position" in (result.reason or "")

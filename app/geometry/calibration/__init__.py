@@ -1,7 +1,8 @@
 """Camera calibration of a frame from its annotated field lines (and the game-level rig).
 
 Public entry points: :func:`calibrate_frame` -> :class:`CalibrationResult`, with the optional
-:class:`CalibrationPrior` and :class:`CalibrationSettings`.
+:class:`CalibrationPrior` and :class:`CalibrationSettings`; the game-level rig:
+:func:`estimate_rig` -> :class:`CameraRig`, and :func:`calibrate_with_rig`.
 """
 from app.geometry.calibration.frame import (
     JAC_GAMMAS,
@@ -12,8 +13,9 @@ from app.geometry.calibration.frame import (
     frame_jac,
     principal_point,
 )
+from app.geometry.calibration.rig import CameraRig, RigPosition, calibrate_with_rig, estimate_rig
 
 __all__ = [
     "JAC_GAMMAS", "CalibrationPrior", "CalibrationResult", "CalibrationSettings", "calibrate_frame",
-    "frame_jac", "principal_point",
+    "frame_jac", "principal_point", "CameraRig", "RigPosition", "estimate_rig", "calibrate_with_rig",
 ]

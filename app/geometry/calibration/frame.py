@@ -183,7 +183,7 @@ def principal_point(width: int, height: int) -> np.ndarray:
 
 
 def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, origin: str,
-         max_iter: int = 40) -> _Candidate | None:
+         max_iter: int = 25) -> _Candidate | None:
     """Refine from ``x0`` and keep the result if it is a physical camera seeing its labels in front."""
     lower = np.full(len(x0), -np.inf)
     upper = np.full(len(x0), np.inf)
@@ -191,7 +191,8 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
     if param.fixed_centre is None:
         upper[6] = -0.5  # above the ground (z points down); lower is a degenerate edge-on view
     try:
-        sol = robust_lm(lambda X: residuals(X, obs, param), x0, scale, lower=lower, upper=upper, max_iter=max_iter)
+        sol = robust_lm(lambda X: residuals(X, obs, param), x0, scale, lower=lower, upper=upper, max_iter=max_iter,
+                        tol=1e-5)
     except (ValueError, np.linalg.LinAlgError):
         return None
     f, R, C, _ = param.split(sol.x)
@@ -291,7 +292,7 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         except ValueError:
             continue
         fixed = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=c0)
-        cand = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", max_iter=15)
+        cand = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", max_iter=8)
         if cand is not None:
             ptz.append(cand)
     ptz.sort(key=lambda c: c.cost)

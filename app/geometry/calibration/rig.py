@@ -1,0 +1,132 @@
+"""Game-level camera rig: fixed camera positions estimated from a game's well-calibrated frames, used
+as a prior to calibrate frames whose lines alone do not fix a camera.
+
+Broadcast cameras stay where they are during a game (a tripod or a platform); they pan, tilt and
+zoom. So once some frames of a game are well calibrated, their centres cluster around the game's
+camera positions, and a frame with too few lines can be calibrated with its centre fixed at one of
+those positions: 4 unknowns (focal length and rotation) instead of 7. Results are flagged
+``"rig_assisted"``. Pure functions: the service layer chooses which frames feed the rig.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from app.geometry.annotations import FieldLines
+from app.geometry.calibration.frame import (
+    CalibrationPrior,
+    CalibrationResult,
+    CalibrationSettings,
+    calibrate_frame,
+)
+from app.geometry.camera import Camera
+
+
+@dataclass(frozen=True)
+class RigPosition:
+    """One fixed camera position of a game.
+
+    Attributes:
+        centre_m: (3,) median camera centre of its frames (world, metres, z down).
+        frames: number of calibrated frames supporting it.
+        spread_m: median distance of those frames' centres to ``centre_m``, metres.
+    """
+
+    centre_m: tuple[float, float, float]
+    frames: int
+    spread_m: float
+
+
+@dataclass(frozen=True)
+class CameraRig:
+    """The camera positions of one game, most supported first."""
+
+    positions: tuple[RigPosition, ...]
+
+
+def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames: int = 2) -> CameraRig:
+    """Group the centres of well-calibrated cameras of one game into fixed positions.
+
+    Greedy clustering: the centre with the most neighbours within ``radius_m`` seeds a position, its
+    neighbours join it, and the position's centre is their coordinate-wise median (robust to a
+    poorly calibrated frame); repeated on the rest. Positions supported by fewer than
+    ``min_frames`` frames are dropped (a single frame is no evidence of a fixed camera).
+
+    Args:
+        cameras: calibrated cameras of one game (callers pass only well-calibrated frames, e.g.
+            JaC@0.5 % > 0.75 and not rig-assisted themselves).
+        radius_m: neighbourhood radius, metres (calibrated centres of one camera scatter by about a
+            metre along the viewing direction).
+        min_frames: fewest frames per position.
+
+    Returns:
+        :class:`CameraRig` (possibly without positions).
+
+    Raises:
+        ValueError: ``radius_m`` not positive or ``min_frames`` < 1.
+
+    >>> cams = [Camera(K=np.eye(3), R=np.eye(3), C=np.array([0.1 * i, 60.0, -20.0])) for i in range(3)]
+    >>> rig = estimate_rig(cams)
+    >>> rig.positions[0].frames, [round(v, 2) for v in rig.positions[0].centre_m]
+    (3, [0.1, 60.0, -20.0])
+    """
+    if not radius_m > 0:
+        raise ValueError(f"radius_m must be positive, got {radius_m!r}")
+    if min_frames < 1:
+        raise ValueError(f"min_frames must be at least 1, got {min_frames!r}")
+    C = np.array([np.asarray(c.C, dtype=float) for c in cameras]).reshape(-1, 3)
+    left = np.arange(len(C))
+    positions: list[RigPosition] = []
+    while len(left):
+        d = np.linalg.norm(C[left][:, None, :] - C[left][None, :, :], axis=2)
+        counts = (d <= radius_m).sum(axis=1)
+        seed = int(np.argmax(counts))
+        members = left[d[seed] <= radius_m]
+        centre = np.median(C[members], axis=0)
+        if len(members) >= min_frames:
+            spread = float(np.median(np.linalg.norm(C[members] - centre, axis=1)))
+            positions.append(RigPosition(centre_m=tuple(float(v) for v in centre),  # type: ignore[arg-type]
+                                         frames=int(len(members)), spread_m=spread))
+        left = np.setdiff1d(left, members)
+    positions.sort(key=lambda p: -p.frames)
+    return CameraRig(positions=tuple(positions))
+
+
+def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRig, *,
+                       expected_side: int | None = None, settings: CalibrationSettings | None = None,
+                       compute_jac: bool = True, tie_px: float = 1.0) -> CalibrationResult:
+    """Calibrate a frame with its centre fixed at one of the game's rig positions.
+
+    Every position is tried (:func:`~app.geometry.calibration.calibrate_frame` with
+    ``CalibrationPrior(centre_m=...)``: focal length and rotation free, centre fixed). The result
+    with the smallest RMS residual wins; results within ``tie_px`` of it (a frame with few lines
+    can fit several positions equally) are decided by the position's support, the main camera
+    first. The result carries the ``"rig_assisted"`` flag.
+
+    Args:
+        lines: field lines of the frame, pixels.
+        width, height: image size, pixels.
+        rig: the game's :class:`CameraRig`.
+        expected_side: as :class:`CalibrationPrior` (mirror flag only).
+        settings, compute_jac: as :func:`calibrate_frame`.
+        tie_px: RMS difference (px) under which two positions fit equally well.
+
+    Returns:
+        The chosen :class:`CalibrationResult`; a refusal (the first position's, or a rig without
+        positions) when no position fits.
+    """
+    if not rig.positions:
+        return CalibrationResult(status="refused", camera=None, jac={}, residuals_px={}, flags=("rig_assisted",),
+                                 reason="no rig position for this game (no well-calibrated frames to estimate it)",
+                                 rms_px=None, elapsed_ms=0.0)
+    results = [calibrate_frame(lines, width, height, settings=settings, compute_jac=compute_jac,
+                               prior=CalibrationPrior(expected_side=expected_side, centre_m=p.centre_m))
+               for p in rig.positions]
+    fitted = [(i, r) for i, r in enumerate(results) if r.calibrated and r.rms_px is not None]
+    if not fitted:
+        return results[0]
+    best_rms = min(r.rms_px for _, r in fitted)  # type: ignore[type-var]
+    ties = [(i, r) for i, r in fitted if r.rms_px <= best_rms + tie_px]  # type: ignore[operator]
+    return min(ties, key=lambda t: t[0])[1]  # positions are sorted by support
