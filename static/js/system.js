@@ -6,7 +6,7 @@
 import { getSystem, postReview, patchBall } from "./api.js";
 import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
-import "./overlay.js";
+import { doubts } from "./overlay.js";
 import "./pitchmap.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -105,6 +105,7 @@ class SystemPage {
     });
     for (const extra of panels.slice(sys.views.length)) extra.remove();
 
+    this.renderDoubts(sys, ctx);
     this.renderBall(sys);
     this.renderPairs(sys);
     this.prefetch(sys.next_id);
@@ -112,6 +113,23 @@ class SystemPage {
       ball3d: sys.ball3d,
       cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
     };
+  }
+
+  /** One chip per doubtful view in the top bar (a click scrolls to the view): nothing doubtful is
+   * left below the fold unnoticed. */
+  renderDoubts(sys, ctx) {
+    const chips = [];
+    sys.views.forEach((v, i) => {
+      const why = doubts(v, ctx.tau, ctx.rule, sys.views.length !== 1);
+      if (!why.length) return;
+      chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", title: why.join("; "),
+        onclick: () => $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }) },
+      `V${i + 1}: ${why[0]}${why.length > 1 ? ` +${why.length - 1}` : ""}`));
+    });
+    if (!Array.isArray(sys.ball3d) && sys.views.length > 1) {
+      chips.push(el("span", { class: "chip", "data-testid": "doubt" }, `no 3D ball (${human(sys.triangulation?.status || "not triangulated")})`));
+    }
+    $("system-doubts").replaceChildren(...chips);
   }
 
   renderStatus(review) {
