@@ -105,7 +105,8 @@ def main() -> None:
         ms = sorted(report.calibration_ms)
         official, official_completeness, official_n = _official(folder)
         print(f"\n== {key}: {folder / 'annotations.zip'} ({report.frames} frames, {WIDTH}x{HEIGHT}) ==")
-        print(f"import wall time      {wall:8.1f} s  (calibration step {report.calibration_seconds:.1f} s, "
+        print(f"import wall time      {wall:8.1f} s  (read {report.read_seconds:.1f} s, calibrate "
+              f"{report.calibration_seconds:.1f} s, store + recompute + commit {report.store_seconds:.1f} s; "
               f"{report.frames / wall:.1f} frames/s, workers={args.workers or 'all cores'})")
         print(f"calibrated / refused  {report.calibrated} / {report.refused}  "
               f"completeness {fig['calibrated'] / fig['frames']:.4f}")

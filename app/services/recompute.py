@@ -29,7 +29,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
-from sqlalchemy.orm import Session
+from sqlalchemy import select
+from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
 from app.db.models import (
@@ -199,7 +200,7 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
 def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Triangulation:
     """Recalibrate ``frame`` from its current field lines, then recompute its system.
 
-    The calibration's source becomes "computed". The session is flushed, not committed.
+    The calibration's source becomes "computed". The caller flushes or commits.
 
     Raises:
         ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
@@ -213,8 +214,8 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
 
 def recompute_system(session: Session, system: System, settings: Settings) -> Triangulation:
     """Admission, triangulation, reprojections and optimised boxes of one system, from its current
-    calibrations and ball labels (see the module docstring). Replaces the previous derived rows.
-    The session is flushed, not committed.
+    calibrations and ball labels (see the module docstring). Replaces the previous derived rows in
+    the session; the caller flushes or commits. The system's frames must have ids (be flushed).
 
     Returns:
         The system's :class:`Triangulation` row.
@@ -258,7 +259,6 @@ def recompute_system(session: Session, system: System, settings: Settings) -> Tr
         _update_reprojection(f, cameras.get(f.id), ball)
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
-    session.flush()
     return tri
 
 
@@ -297,14 +297,41 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
     frame.optimised_box = row
 
 
+#: Everything :func:`recompute_system` reads or replaces, loaded up front for many systems.
+_RECOMPUTE_LOADS = (
+    selectinload(System.triangulation).selectinload(Triangulation.pairs),
+    selectinload(System.frames).options(
+        selectinload(Frame.calibration), selectinload(Frame.ball_label), selectinload(Frame.reprojection),
+        selectinload(Frame.optimised_box),
+    ),
+)
+_LOAD_CHUNK = 500
+
+
+def preload_systems(session: Session, systems: Sequence[System]) -> None:
+    """Flush, then load the frames, calibrations, labels and derived rows of ``systems`` in a few
+    ``selectin`` queries (instead of one lazy load per attribute and frame)."""
+    session.flush()
+    ids = [s.id for s in systems]
+    for start in range(0, len(ids), _LOAD_CHUNK):
+        session.scalars(select(System).where(System.id.in_(ids[start:start + _LOAD_CHUNK]))
+                        .options(*_RECOMPUTE_LOADS)).all()
+
+
 def recompute_systems(session: Session, systems: Iterable[System], settings: Settings,
                       progress: Progress | None = None) -> int:
-    """:func:`recompute_system` for each system; returns how many were triangulated."""
+    """:func:`recompute_system` for each system, then one flush; returns how many were triangulated.
+
+    The systems' frames and derived rows are loaded in a few ``selectin`` queries first, so that
+    recomputing thousands of systems does not issue one lazy load per attribute.
+    """
     systems = list(systems)
+    preload_systems(session, systems)
     n = 0
     for i, s in enumerate(systems, 1):
         if recompute_system(session, s, settings).status is TriangulationStatus.TRIANGULATED:
             n += 1
         if progress:
             progress("triangulate", i, len(systems))
+    session.flush()
     return n
