@@ -71,6 +71,29 @@ class Observations:
         q[:, 2, 2] = cx * cx + cy * cy - r * r
         return q
 
+    @cached_property
+    def all_points(self) -> np.ndarray:
+        """(N + M, 2) straight-element points then circle points, pixels."""
+        return np.concatenate([self.seg_points, self.circle_points])
+
+    @cached_property
+    def circle_point_cx(self) -> np.ndarray:
+        """(M,) world x of the centre of each circle point's circle, metres."""
+        return self.circle_centre[self.circle_index, 0] if len(self.circle_index) else np.zeros(0)
+
+    @cached_property
+    def circle_point_cy(self) -> np.ndarray:
+        """(M,) world y of the centre of each circle point's circle, metres."""
+        return self.circle_centre[self.circle_index, 1] if len(self.circle_index) else np.zeros(0)
+
+    @cached_property
+    def circle_point_k(self) -> np.ndarray:
+        """(M,) ``cx^2 + cy^2 - r^2`` of each circle point's circle (last entry of its conic), m^2."""
+        if not len(self.circle_index):
+            return np.zeros(0)
+        c, r = self.circle_centre[self.circle_index], self.circle_radius[self.circle_index]
+        return c[:, 0] ** 2 + c[:, 1] ** 2 - r**2
+
     @property
     def n_points(self) -> int:
         """Number of annotated points used (straight and circular)."""
