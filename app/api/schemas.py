@@ -131,6 +131,20 @@ class ImportIn(_In):
 
 
 # ----- responses -----------------------------------------------------------------------------------
+class ErrorOut(BaseModel):
+    """A domain error: 404 (the message names the missing id or file), 400 (a dataset that cannot be
+    imported) or 422 (invalid input; ``field`` names it when known)."""
+
+    detail: str
+    field: Optional[str] = None
+
+
+#: OpenAPI ``responses`` of routes that look a row up by id.
+NOT_FOUND = {404: {"model": ErrorOut, "description": "No row has this id (the message names it)."}}
+#: OpenAPI ``responses`` of routes that store input the services validate.
+INVALID = {422: {"description": "Invalid input: `{detail, field}` from the services, or FastAPI's "
+                                "`{detail: [{loc, msg, type}]}` for a malformed body."}}
+
 class GameRef(BaseModel):
     """A game's identity."""
 

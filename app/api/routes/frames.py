@@ -13,7 +13,7 @@ from fastapi.responses import StreamingResponse
 
 from app.api.deps import FrameDep, SessionDep, SettingsDep
 from app.api.schemas import (
-    BallEdit, FieldLinesEdit, FrameListQuery, FramePageOut, QueueQuery, ReviewIn, ReviewOut, SystemView,
+    INVALID, NOT_FOUND, BallEdit, ErrorOut, FieldLinesEdit, FrameListQuery, FramePageOut, QueueQuery, ReviewIn, ReviewOut, SystemView,
 )
 from app.services import editing, views
 
@@ -48,7 +48,7 @@ def list_frames(session: SessionDep, query: Annotated[FrameListQuery, Query()]) 
     responses={
         200: {"content": {"image/png": {}, "image/jpeg": {}}, "description": "The image bytes."},
         304: {"description": "Not modified (If-None-Match names the current ETag)."},
-        404: {"description": "No such frame, or the frame has no image: draw a blank canvas of its size."},
+        404: {"model": ErrorOut, "description": "No such frame, or it has no image: draw a blank canvas of its size."},
     },
 )
 def frame_image(frame: FrameDep, if_none_match: Annotated[str | None, Header()] = None) -> Response:
@@ -61,7 +61,7 @@ def frame_image(frame: FrameDep, if_none_match: Annotated[str | None, Header()] 
     return StreamingResponse(image.chunks(), media_type=image.media_type, headers=headers)
 
 
-@router.patch("/{frame_id}/ball", response_model=SystemView)
+@router.patch("/{frame_id}/ball", response_model=SystemView, responses={**NOT_FOUND, **INVALID})
 def edit_ball(session: SessionDep, settings: SettingsDep, frame: FrameDep, body: BallEdit,
               query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
     """Set the frame's ball box or point (or remove it with null) and answer the recomputed system view.
@@ -73,7 +73,7 @@ def edit_ball(session: SessionDep, settings: SettingsDep, frame: FrameDep, body:
     return views.system_view(session, frame.system_id, query.filters(), query.sort)
 
 
-@router.put("/{frame_id}/field-lines", response_model=SystemView)
+@router.put("/{frame_id}/field-lines", response_model=SystemView, responses={**NOT_FOUND, **INVALID})
 def replace_field_lines(session: SessionDep, settings: SettingsDep, frame: FrameDep, body: FieldLinesEdit,
                         query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
     """Replace the frame's field lines, recalibrate it, and answer the recomputed system view.
@@ -85,7 +85,7 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, frame: Frame
     return views.system_view(session, frame.system_id, query.filters(), query.sort)
 
 
-@router.post("/{frame_id}/review", response_model=ReviewOut)
+@router.post("/{frame_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID})
 def review_frame(session: SessionDep, frame: FrameDep, body: ReviewIn) -> ReviewOut:
     """Record the reviewer's decision on one view (for example a wrong calibration)."""
     decision = editing.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment)

@@ -4,13 +4,16 @@ from __future__ import annotations
 from fastapi import APIRouter, status
 
 from app.api.deps import SessionDep, SettingsDep
-from app.api.schemas import ImportIn, ImportOut
+from app.api.schemas import ErrorOut, ImportIn, ImportOut
 from app.services import importing
 
 router = APIRouter(prefix="/imports", tags=["imports"])
 
 
-@router.post("", response_model=ImportOut, status_code=status.HTTP_201_CREATED)
+@router.post(
+    "", response_model=ImportOut, status_code=status.HTTP_201_CREATED,
+    responses={400: {"model": ErrorOut, "description": "The dataset cannot be imported (file and field named)."}},
+)
 def create_import(session: SessionDep, settings: SettingsDep, body: ImportIn) -> ImportOut:
     """Import, calibrate and triangulate a SoccerNet-v3, SoccerNet-v3D or SoccerNet-calibration tree
     in one transaction (idempotent: importing the same tree again changes nothing).

@@ -6,7 +6,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query
 
 from app.api.deps import SessionDep, SystemDep
-from app.api.schemas import QueueQuery, ReviewIn, ReviewOut, SystemListQuery, SystemPageOut, SystemView
+from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, ReviewOut, SystemListQuery, SystemPageOut, SystemView
 from app.services import editing, views
 
 router = APIRouter(prefix="/systems", tags=["systems"])
@@ -20,14 +20,14 @@ def list_systems(session: SessionDep, query: Annotated[SystemListQuery, Query()]
             "offset": query.offset, "counts": page.counts}
 
 
-@router.get("/{system_id}", response_model=SystemView)
+@router.get("/{system_id}", response_model=SystemView, responses=NOT_FOUND)
 def read_system(session: SessionDep, system: SystemDep, query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
     """The system view (``docs/architecture.md``); ``prev_id`` / ``next_id`` follow the queue given by
     the query parameters (by default the whole queue, largest error first)."""
     return views.system_view(session, system.id, query.filters(), query.sort)
 
 
-@router.post("/{system_id}/review", response_model=ReviewOut)
+@router.post("/{system_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID})
 def review_system(session: SessionDep, system: SystemDep, body: ReviewIn) -> ReviewOut:
     """Record the reviewer's decision on the whole system."""
     decision = editing.decide_review(session, system_id=system.id, status=body.status, comment=body.comment)
