@@ -395,8 +395,8 @@ def _ball_json(label: Optional[BallLabel]) -> dict[str, Any]:
         return {"kind": None, "box": None, "point": None, "original_box": None, "original_point": None,
                 "edited": False}
     return {
-        "kind": label.kind.value if label.kind is not None else None, "box": label.box, "point": label.point, "original_box": label.original_box,
-        "original_point": label.original_point, "edited": label.edited,
+        "kind": label.kind.value if label.kind is not None else None, "box": label.box, "point": label.point,
+        "original_box": label.original_box, "original_point": label.original_point, "edited": label.edited,
     }
 
 

@@ -13,7 +13,8 @@ from fastapi.responses import StreamingResponse
 
 from app.api.deps import FrameDep, SessionDep, SettingsDep
 from app.api.schemas import (
-    INVALID, NOT_FOUND, BallEdit, ErrorOut, FieldLinesEdit, FrameListQuery, FramePageOut, QueueQuery, ReviewIn, ReviewOut, SystemView,
+    INVALID, NOT_FOUND, BallEdit, ErrorOut, FieldLinesEdit, FrameListQuery, FramePageOut, QueueQuery, ReviewIn,
+    ReviewOut, SystemView,
 )
 from app.services import editing, views
 

@@ -6,7 +6,9 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query
 
 from app.api.deps import SessionDep, SystemDep
-from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, ReviewOut, SystemListQuery, SystemPageOut, SystemView
+from app.api.schemas import (
+    INVALID, NOT_FOUND, QueueQuery, ReviewIn, ReviewOut, SystemListQuery, SystemPageOut, SystemView,
+)
 from app.services import editing, views
 
 router = APIRouter(prefix="/systems", tags=["systems"])
