@@ -106,6 +106,9 @@ class CalibrationSettings:
         k1_min_gain: relative drop of the robust cost that justifies the radial coefficient.
         k1_min_points: fewest labelled points for which the radial coefficient is tried.
         max_k1: largest accepted |k1|.
+        max_evaluations: batched residual evaluations allowed per frame over all starts (one per
+            Levenberg-Marquardt trial step); bounds the time spent on a frame whose labels fit no
+            camera (a typical frame needs 20 to 40).
     """
 
     min_constraints: int = 7
@@ -115,6 +118,7 @@ class CalibrationSettings:
     k1_min_gain: float = 0.3
     k1_min_points: int = 12
     max_k1: float = 0.5
+    max_evaluations: int = 200
 
 
 @dataclass(frozen=True)
@@ -182,9 +186,19 @@ def principal_point(width: int, height: int) -> np.ndarray:
     return np.array([(width - 1) / 2.0, (height - 1) / 2.0])
 
 
+@dataclass
+class _Budget:
+    """Residual evaluations left for one frame: bounds the worst-case time of a frame whose labels
+    fit no camera, deterministically (the count does not depend on the machine's load)."""
+
+    evaluations: int
+
+
 def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, origin: str,
-         max_iter: int = 25) -> _Candidate | None:
+         budget: _Budget, max_iter: int = 25) -> _Candidate | None:
     """Refine from ``x0`` and keep the result if it is a physical camera seeing its labels in front."""
+    if budget.evaluations <= 0:
+        return None
     lower = np.full(len(x0), -np.inf)
     upper = np.full(len(x0), np.inf)
     lower[0], upper[0] = 10.0, 1e6
@@ -192,9 +206,11 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
         upper[6] = -0.5  # above the ground (z points down); lower is a degenerate edge-on view
     try:
         sol = robust_lm(lambda X: residuals(X, obs, param), x0, scale, lower=lower, upper=upper, max_iter=max_iter,
-                        tol=1e-5)
+                        tol=1e-5, max_evaluations=budget.evaluations)
     except (ValueError, np.linalg.LinAlgError):
+        budget.evaluations -= max_iter
         return None
+    budget.evaluations -= sol.evaluations
     f, R, C, _ = param.split(sol.x)
     P = projection_matrix(f, param.principal_point, R, C)
     if not np.isfinite(sol.cost) or ground_points_in_front(P, obs) < 0.999:
@@ -240,7 +256,7 @@ def _validate(lines: Any, width: Any, height: Any) -> None:
 
 
 def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior | None,
-            settings: CalibrationSettings) -> _Candidate | None:
+            settings: CalibrationSettings, budget: _Budget) -> _Candidate | None:
     pp = principal_point(width, height)
     diag = image_diagonal(width, height)
     scale = settings.loss_scale_gamma * diag
@@ -262,18 +278,18 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
             return None
         param = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=centre)
         for f0 in (1.0, 2.5, 0.5):
-            if consider(_fit(param.vector(f0 * width, centre), obs, param, scale, "rig")):
+            if consider(_fit(param.vector(f0 * width, centre), obs, param, scale, "rig", budget)):
                 break
         return best
 
     starts = _homography_starts(obs, pp, scale)
     for _, name, param, x0 in starts[:2]:
-        cand = _fit(x0, obs, param, scale, name)
+        cand = _fit(x0, obs, param, scale, name, budget)
         if consider(cand):
             return best
         if cand is not None and cand is best and obs.n_points >= settings.k1_min_points:
             # The lines may be curved by the lens: try the radial term before another start.
-            best = _with_k1(cand, obs, scale, settings)
+            best = _with_k1(cand, obs, scale, settings, budget)
             if best.p90 < accept:
                 return best
 
@@ -292,14 +308,14 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         except ValueError:
             continue
         fixed = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=c0)
-        cand = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", max_iter=8)
+        cand = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", budget, max_iter=8)
         if cand is not None:
             ptz.append(cand)
     ptz.sort(key=lambda c: c.cost)
     for cand in ptz[:2]:
         f1, R1, C1, _ = cand.param.split(cand.x)
         free = CameraParametrisation(principal_point=pp, R0=R1)
-        if consider(_fit(free.vector(float(f1), C1), obs, free, scale, cand.origin)):
+        if consider(_fit(free.vector(float(f1), C1), obs, free, scale, cand.origin, budget)):
             break
     return best
 
@@ -321,7 +337,7 @@ def _homography_starts(obs: Observations, pp: np.ndarray, scale: float
 
 
 def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | None, width: int, height: int,
-                       settings: CalibrationSettings) -> tuple[str, _Candidate, Observations] | None:
+                       settings: CalibrationSettings, budget: _Budget) -> tuple[str, _Candidate, Observations] | None:
     """Best camera that fits every labelled class but one (a mislabelled line), or ``None``.
 
     Every class is left out in turn; the closed-form homography cameras of the remaining labels and
@@ -344,7 +360,7 @@ def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | 
     ranked.sort(key=lambda t: t[0])
     winner: tuple[float, str, _Candidate, Observations] | None = None
     for _, cls, reduced, param, x0 in ranked[:3]:
-        cand = _fit(x0, reduced, param, scale, f"without {cls!r}")
+        cand = _fit(x0, reduced, param, scale, f"without {cls!r}", budget)
         if cand is None:
             continue
         worst = max(_class_residuals(cand.param.camera(cand.x), reduced)[0].values())
@@ -361,13 +377,14 @@ def _worst(cand: _Candidate | None, obs: Observations) -> float:
     return max(per_class.values()) if per_class else 0.0
 
 
-def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: CalibrationSettings) -> _Candidate:
+def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: CalibrationSettings,
+             budget: _Budget) -> _Candidate:
     """Add the radial coefficient when it lowers the robust cost by ``k1_min_gain`` or more."""
     f, R, C, _ = best.param.split(best.x)
     param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
                                   fixed_centre=best.param.fixed_centre)
     best.k1_tried = True
-    cand = _fit(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1")
+    cand = _fit(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1", budget)
     if cand is None or abs(cand.x[-1]) > settings.max_k1:
         return best
     if cand.cost < (1.0 - settings.k1_min_gain) * best.cost:
@@ -430,16 +447,17 @@ def calibrate_frame(
     if np.max(np.abs(centred @ normal)) < settings.loss_scale_gamma * diag:
         return _refused("degenerate configuration: all labelled points are collinear in the image", t0, tuple(flags))
     try:
-        best = _search(obs, width, height, prior, settings)
+        budget = _Budget(settings.max_evaluations)
+        best = _search(obs, width, height, prior, settings, budget)
         fit_obs = obs
         scale = settings.loss_scale_gamma * diag
         if best is not None and not best.k1_tried and best.p90 > 0.5 * scale \
                 and obs.n_points >= settings.k1_min_points:
-            best = _with_k1(best, obs, scale, settings)
+            best = _with_k1(best, obs, scale, settings, budget)
         limit = settings.refuse_gamma * diag
         worst = _worst(best, obs)
         if worst > limit and not fixed and len(obs.classes) >= 4:
-            alt = _without_one_class(lines, obs, best, width, height, settings)
+            alt = _without_one_class(lines, obs, best, width, height, settings, budget)
             if alt is not None and _worst(alt[1], alt[2]) <= limit:
                 dropped, best, fit_obs = alt
                 flags.append(f"ignored_class:{dropped}")

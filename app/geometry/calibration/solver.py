@@ -23,6 +23,7 @@ class SolverResult:
     Attributes:
         x: (k,) solution. cost: robust cost at ``x`` (px^2). residuals: (n,) residuals at ``x``, px.
         jacobian: (n, k) forward-difference Jacobian at the last linearisation. iterations: count.
+        evaluations: calls of ``fun`` (each on a batch of up to k + 1 vectors).
     """
 
     x: np.ndarray
@@ -30,6 +31,7 @@ class SolverResult:
     residuals: np.ndarray
     jacobian: np.ndarray
     iterations: int
+    evaluations: int
 
 
 def soft_l1_cost(r: np.ndarray, scale: float) -> np.ndarray:
@@ -40,14 +42,14 @@ def soft_l1_cost(r: np.ndarray, scale: float) -> np.ndarray:
 
 def robust_lm(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, scale: float, *,
               lower: np.ndarray | None = None, upper: np.ndarray | None = None, max_iter: int = 40,
-              rel_step: float = 1e-6, tol: float = 1e-6) -> SolverResult:
+              rel_step: float = 1e-6, tol: float = 1e-6, max_evaluations: int = 1000) -> SolverResult:
     """Minimise the soft-L1 cost of ``fun`` from ``x0``.
 
     Args:
         fun: maps (B, k) parameter vectors to (B, n) residuals (pixels); must accept a batch.
         x0: (k,) start. scale: loss scale, px (residuals much larger count linearly).
         lower, upper: optional (k,) bounds; steps are clipped into them.
-        max_iter: most linearisations. rel_step: forward-difference step relative to ``max(1, |x|)``.
+        max_iter: most linearisations. max_evaluations: most calls of ``fun``. rel_step: forward-difference step relative to ``max(1, |x|)``.
         tol: stop when a step lowers the cost by less than ``tol`` relative.
 
     Returns:
@@ -69,8 +71,12 @@ def robust_lm(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, scale: fl
     x = np.clip(x, lo, hi)
     eye = np.eye(k)
 
+    nfev = 0
+
     def jacobian_batch(at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         # One call evaluates the residuals at ``at`` and at its k forward-difference neighbours.
+        nonlocal nfev
+        nfev += 1
         h = rel_step * np.maximum(1.0, np.abs(at))
         R = fun(np.vstack([at[None], at[None, :] + eye * h[:, None]]))
         return R[0], ((R[1:] - R[0][None, :]) / h[:, None]).T
@@ -88,7 +94,7 @@ def robust_lm(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, scale: fl
         d[d <= 0] = 1e-12
         improved = False
         gain = 0.0
-        while lam < 1e12:
+        while lam < 1e12 and nfev < max_evaluations:
             try:
                 step = -np.linalg.solve(A + lam * np.diag(d), g)
             except np.linalg.LinAlgError:
@@ -108,4 +114,4 @@ def robust_lm(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, scale: fl
             lam *= 5.0
         if not improved or gain < tol:
             break
-    return SolverResult(x=x, cost=cost, residuals=r, jacobian=J, iterations=it)
+    return SolverResult(x=x, cost=cost, residuals=r, jacobian=J, iterations=it, evaluations=nfev)
