@@ -192,6 +192,7 @@ class _Budget:
     fit no camera, deterministically (the count does not depend on the machine's load)."""
 
     evaluations: int
+    lookat_done: bool = False
 
 
 def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, origin: str,
@@ -256,7 +257,13 @@ def _validate(lines: Any, width: Any, height: Any) -> None:
 
 
 def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior | None,
-            settings: CalibrationSettings, budget: _Budget) -> _Candidate | None:
+            settings: CalibrationSettings, budget: _Budget, stage: str = "homography") -> _Candidate | None:
+    """Best camera from one family of starts.
+
+    ``stage="homography"``: the closed-form cameras of the candidate ground homographies (the
+    look-at starts too when there is none); ``stage="look-at"``: the look-at starts only. With a
+    known centre (rig prior) only fixed-centre fits are made.
+    """
     pp = principal_point(width, height)
     diag = image_diagonal(width, height)
     scale = settings.loss_scale_gamma * diag
@@ -282,7 +289,7 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
                 break
         return best
 
-    starts = _homography_starts(obs, pp, scale)
+    starts = _homography_starts(obs, pp, scale) if stage == "homography" else []
     for _, name, param, x0 in starts[:2]:
         cand = _fit(x0, obs, param, scale, name, budget)
         if consider(cand):
@@ -293,13 +300,14 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
             if best.p90 < accept:
                 return best
 
-    if best is not None:
-        # A homography start converged to a physical camera that still leaves some labels far off:
-        # more starts rarely help there (a mislabelled line does); the caller handles it.
+    if starts:
+        # The lines fix a homography but its camera leaves some labels far off: a mislabelled line
+        # is the likelier cause; the caller tries without each class before the look-at starts.
         return best
 
-    # Look-at starts (when the lines fix no homography): a pan-tilt-zoom fit at each plausible centre (cheap, 4 parameters), then the
+    # Look-at starts: a pan-tilt-zoom fit at each plausible centre (cheap, 4 parameters), then the
     # free refinement of the best two.
+    budget.lookat_done = True
     ptz: list[_Candidate] = []
     for centre in START_CENTRES_M:
         c0 = np.asarray(centre, dtype=float)
@@ -451,16 +459,26 @@ def calibrate_frame(
         best = _search(obs, width, height, prior, settings, budget)
         fit_obs = obs
         scale = settings.loss_scale_gamma * diag
-        if best is not None and not best.k1_tried and best.p90 > 0.5 * scale \
-                and obs.n_points >= settings.k1_min_points:
-            best = _with_k1(best, obs, scale, settings, budget)
         limit = settings.refuse_gamma * diag
-        worst = _worst(best, obs)
-        if worst > limit and not fixed and len(obs.classes) >= 4:
-            alt = _without_one_class(lines, obs, best, width, height, settings, budget)
-            if alt is not None and _worst(alt[1], alt[2]) <= limit:
-                dropped, best, fit_obs = alt
-                flags.append(f"ignored_class:{dropped}")
+
+        def polish(c: _Candidate | None, b: _Budget) -> _Candidate | None:
+            if c is not None and not c.k1_tried and c.p90 > 0.5 * scale and obs.n_points >= settings.k1_min_points:
+                return _with_k1(c, obs, scale, settings, b)
+            return c
+
+        best = polish(best, budget)
+        if _worst(best, obs) > limit and not fixed:
+            if len(obs.classes) >= 4:
+                # One mislabelled line (left/right confusion, a wrong goal post) spoils a frame.
+                alt = _without_one_class(lines, obs, best, width, height, settings,
+                                         _Budget(settings.max_evaluations // 2))
+                if alt is not None and _worst(alt[1], alt[2]) <= limit:
+                    dropped, best, fit_obs = alt
+                    flags.append(f"ignored_class:{dropped}")
+            if fit_obs is obs and budget.evaluations > 0 and not budget.lookat_done:
+                other = polish(_search(obs, width, height, prior, settings, budget, stage="look-at"), budget)
+                if other is not None and (best is None or other.cost < best.cost):
+                    best = other
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
         return _refused(f"solver failed: {exc}", t0, tuple(flags))
     if best is None:
