@@ -7,8 +7,9 @@ this factory's, so that a test database is built once by the migrations and then
 
 Besides the REST API under ``/api`` the app serves the UI pages (``/`` and ``/systems/{id}``), the
 static files under ``/static`` (revalidated through their ``ETag`` on every load, so a changed module
-is never served stale), and the OpenAPI docs at ``/docs`` and ``/redoc`` with their JavaScript and CSS
-from the ``fastapi-offline`` package: no CDN.
+is never served stale), and the OpenAPI docs at ``/docs`` (Swagger UI) with their JavaScript and CSS
+from the ``fastapi-offline`` package: no CDN. ReDoc is not served: its bundle fetches a logo from
+``cdn.redoc.ly``.
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ from app.core.config import Settings, get_settings
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
 
-#: Where the local swagger-ui / ReDoc assets are mounted.
+#: Where the local Swagger UI assets (from fastapi-offline) are mounted.
 DOCS_ASSETS_URL = "/docs-assets"
 
 
@@ -79,6 +80,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version="0.1.0",
         lifespan=lifespan,
         static_url=DOCS_ASSETS_URL,
+        # ReDoc's bundle loads its footer logo from cdn.redoc.ly: Swagger UI alone is served.
+        redoc_url=None,
         # Swagger UI would otherwise ask validator.swagger.io to validate the schema.
         swagger_ui_parameters={"validatorUrl": None},
     )

@@ -1,0 +1,69 @@
+"""The API docs render in Chromium with every request answered by this server: no CDN, no font
+service, no schema validator. The real app is served by uvicorn on a free port."""
+from __future__ import annotations
+
+import shutil
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from urllib.parse import urlsplit
+
+import pytest
+
+from app.core.config import Settings
+from app.main import create_app
+
+pytestmark = pytest.mark.browser
+CHROMIUM = Path("/usr/bin/chromium")
+
+
+@pytest.fixture(scope="module")
+def base_url(db_url: str) -> Iterator[str]:
+    """URL of ``create_app`` served by uvicorn in a thread (the docs need no data)."""
+    import uvicorn
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = uvicorn.Server(uvicorn.Config(create_app(Settings(database_url=db_url)), host="127.0.0.1", port=port,
+                                           log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 30
+    while not server.started:
+        assert thread.is_alive() and time.monotonic() < deadline, "server did not start"
+        time.sleep(0.05)
+    try:
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
+
+
+def test_docs_render_offline(base_url: str) -> None:
+    if shutil.which(str(CHROMIUM)) is None:
+        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium to run browser tests")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    own_host = urlsplit(base_url).netloc
+    foreign: list[str] = []
+
+    def guard(route) -> None:
+        if urlsplit(route.request.url).netloc == own_host or route.request.url.startswith(("data:", "blob:")):
+            route.continue_()
+        else:
+            foreign.append(route.request.url)
+            route.abort()
+
+    with sync_api.sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox", "--disable-gpu"])
+        try:
+            tab = browser.new_page()
+            tab.route("**/*", guard)
+            tab.goto(base_url + "/docs")
+            tab.locator(".opblock").first.wait_for(timeout=20_000)  # the operations are drawn
+            tab.wait_for_load_state("networkidle")
+        finally:
+            browser.close()
+    assert foreign == [], f"/docs asked other hosts: {foreign}"
