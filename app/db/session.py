@@ -5,6 +5,7 @@ URL (``Settings.database_url``), so a test can point the whole service at a thro
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -69,7 +70,9 @@ def alembic_config(url: str | sa.URL | None = None, connection: sa.Connection | 
     database (``migrations/env.py`` reads them from ``config.attributes``)."""
     from alembic.config import Config
 
-    cfg = Config(str(ALEMBIC_INI))
+    # Alembic's default ``stdout`` is bound when alembic.config is first imported; pass the current
+    # one, or a first import under a redirected stdout (a CLI test runner) leaves a closed stream.
+    cfg = Config(str(ALEMBIC_INI), stdout=sys.stdout)
     cfg.attributes["configure_logger"] = False  # leave the caller's logging alone
     cfg.set_main_option("script_location", str(PROJECT_ROOT / "migrations"))
     if url is not None:

@@ -53,3 +53,21 @@ def test_upgrade_then_check_on_postgres(pg_url):
         engine.dispose()
     assert type(cols["camera"]["type"]).__name__ == "JSONB"
     assert type(cols["jac_0005"]["type"]).__name__ == "DOUBLE_PRECISION"
+
+
+def test_alembic_command_line_takes_the_url_from_the_settings(tmp_path):
+    """``alembic upgrade head`` then ``alembic check``, as CI runs them, with ``V3D_DATABASE_URL``."""
+    import os
+    import subprocess
+    import sys
+
+    from app.core.paths import PROJECT_ROOT
+
+    db = tmp_path / "cli.sqlite3"
+    env = {**os.environ, "V3D_DATABASE_URL": f"sqlite:///{db}"}
+    alembic = [sys.executable, "-m", "alembic", "-c", str(PROJECT_ROOT / "alembic.ini")]
+    for args in (["upgrade", "head"], ["check"]):
+        done = subprocess.run(alembic + args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
+    assert "No new upgrade operations detected" in done.stdout + done.stderr
+    assert db.is_file()
