@@ -1,20 +1,27 @@
 """Calibrate one frame from its annotated field lines.
 
-Method (every step pure numpy/scipy):
+Method (every step pure numpy):
 
 1. Pair every annotated point with its model element (:mod:`.observations`).
-2. Starting cameras: a homography from the straight ground lines (point-on-line DLT) turned into a
-   camera with the principal point fixed and square pixels (:mod:`.initialisation`); and, when the
-   lines do not fix a homography or its camera does not fit, cameras at plausible broadcast positions
-   looking at the labelled part of the pitch, first refined with their centre held fixed (a pan-tilt-
-   zoom camera, 4 parameters) and then freed.
-3. Non-linear least squares (scipy ``least_squares``, trust region, soft-L1 loss) of focal length,
-   rotation and centre on the pixel distance of every annotated point to its model line / circle /
-   goal element (:mod:`.residuals`); goal posts and crossbars constrain the camera off the ground
-   plane. One radial coefficient ``k1`` is added only when the pinhole fit leaves curved residuals.
-4. The candidate with the smallest robust cost wins (the labels' JaC is never used to choose: it is
-   the evaluation). The winner is refused, with a reason, when the labels cannot fix a camera or it
-   does not fit them.
+2. Starting cameras (:mod:`.initialisation`): ground homographies from the straight ground lines
+   (point-on-line DLT), completed where needed by correspondences derived from the labelled circles
+   (poles of the lines, line-circle crossings and tangency points, each ambiguous pair tried both
+   ways); each becomes a camera with the principal point fixed and square pixels, and the two with
+   the smallest robust cost are refined. When no homography exists, cameras at plausible broadcast
+   positions looking at the labelled part of the pitch, first refined with their centre held fixed
+   (pan-tilt-zoom, 4 parameters), the two best then freed.
+3. Robust Levenberg-Marquardt (:mod:`.solver`, soft-L1 loss) of focal length, rotation and centre
+   on the pixel distance of every annotated point to its model line / circle / goal element
+   (:mod:`.residuals`); goal posts and crossbars constrain the camera off the ground plane. One
+   radial coefficient ``k1`` is added only when the pinhole fit leaves residuals above the loss
+   scale and lowers the robust cost by 30 % or more.
+4. When the winner leaves a class far from its element, every class is left out in turn (one
+   mislabelled line, e.g. a left/right confusion, spoils a whole frame) and the look-at starts
+   are tried; the class left out is flagged ``ignored_class:<class>``.
+5. The candidate with the smallest robust cost wins (the labels' JaC is never used to choose: it is
+   the evaluation). The result is refused, with a reason, when the labels cannot fix a camera
+   (too few constraints, parallel or collinear labels) or no camera fits them within
+   ``refuse_gamma`` of the diagonal. A budget of residual evaluations bounds the time per frame.
 
 Pixel convention: the principal point is fixed at ``((W - 1) / 2, (H - 1) / 2)``. Normalised
 SoccerNet points become pixels as ``x (W - 1)`` (the official evaluator's conversion, see

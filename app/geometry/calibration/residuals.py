@@ -174,29 +174,13 @@ def _adjugate3(m: np.ndarray) -> np.ndarray:
     return np.swapaxes(cof, 1, 2)
 
 
-def point_distances(P: np.ndarray, obs: Observations, seg_points: np.ndarray | None = None,
-                    circle_points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Signed pixel distance of every annotated point to its projected model element.
-
-    Args:
-        P: (3, 4) or (B, 3, 4) projection matrices (pinhole, pixels).
-        obs: the frame's :class:`Observations`.
-        seg_points, circle_points: replacement points, (N, 2) / (M, 2) or per camera (B, N, 2) /
-            (B, M, 2) (e.g. undistorted); default the annotated ones.
-
-    Returns:
-        ``(d_seg, d_circle)``: (..., N) distances to the straight elements' image lines and (..., M)
-        Sampson distances to the circles' image conics, pixels, with the leading shape of ``P``.
-        Non-finite values (degenerate camera) are replaced by +-1e6 px.
-    """
-    P = np.asarray(P, dtype=float)
-    single = P.ndim == 2
-    if single:
-        P = P[None]
-    sp = obs.seg_points if seg_points is None else seg_points
-    cp = obs.circle_points if circle_points is None else circle_points
+def _distances(P: np.ndarray, obs: Observations, sp: np.ndarray, cp: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(B, N) signed distances to the elements' image lines, (B, N) distances beyond the segments'
+    projected ends (0 inside), (B, M) Sampson distances to the circles' image conics; pixels."""
     B = len(P)
-    d_seg = np.zeros((B, len(obs.seg_points)))
+    d_line = np.zeros((B, len(obs.seg_points)))
+    d_ext = np.zeros((B, len(obs.seg_points)))
     d_cir = np.zeros((B, len(obs.circle_points)))
     with np.errstate(all="ignore"):
         if len(obs.seg_points):
@@ -204,9 +188,21 @@ def point_distances(P: np.ndarray, obs: Observations, seg_points: np.ndarray | N
             a = P @ obs.seg_ah_t
             b = P @ obs.seg_bh_t
             ln = a[:, _ROLL1] * b[:, _ROLL2] - a[:, _ROLL2] * b[:, _ROLL1]
-            li = ln[:, :, obs.seg_index]  # (B, 3, N)
+            idx = obs.seg_index
+            li = ln[:, :, idx]  # (B, 3, N)
             num = li[:, 0] * sp[..., 0] + li[:, 1] * sp[..., 1] + li[:, 2]
-            d_seg = num / np.hypot(li[:, 0], li[:, 1])
+            d_line = num / np.hypot(li[:, 0], li[:, 1])
+            # Beyond an end: the distance along the line past the projected end point (as the
+            # official JaC measures to the end of the projected polyline). Only for elements whose
+            # two ends are in front of the camera (the third row of P gives the depth).
+            front = (a[:, 2] > 1e-3) & (b[:, 2] > 1e-3)
+            ax, ay = a[:, 0] / a[:, 2], a[:, 1] / a[:, 2]
+            dx, dy = b[:, 0] / b[:, 2] - ax, b[:, 1] / b[:, 2] - ay
+            length = np.hypot(dx, dy)
+            ux, uy = dx / length, dy / length
+            s_along = (sp[..., 0] - ax[:, idx]) * ux[:, idx] + (sp[..., 1] - ay[:, idx]) * uy[:, idx]
+            over = np.maximum(np.maximum(-s_along, s_along - length[:, idx]), 0.0)
+            d_ext = np.where(front[:, idx] & np.isfinite(over), over, 0.0)
         if len(obs.circle_points):
             # Sampson distance to the image conic C = G^T Q G of the ground circle Q, with G the
             # adjugate of the ground homography: f = p^T C p = X^T Q X with X = G p the (scaled)
@@ -225,26 +221,60 @@ def point_distances(P: np.ndarray, obs: Observations, seg_points: np.ndarray | N
             g0 = G[:, 0, 0, None] * u + G[:, 1, 0, None] * v + G[:, 2, 0, None] * t
             g1 = G[:, 0, 1, None] * u + G[:, 1, 1, None] * v + G[:, 2, 1, None] * t
             d_cir = fval / (2.0 * np.hypot(g0, g1))
-    if not (np.isfinite(d_seg).all() and np.isfinite(d_cir).all()):
-        d_seg = np.nan_to_num(d_seg, nan=1e6, posinf=1e6, neginf=-1e6)
+    if not (np.isfinite(d_line).all() and np.isfinite(d_cir).all()):
+        d_line = np.nan_to_num(d_line, nan=1e6, posinf=1e6, neginf=-1e6)
         d_cir = np.nan_to_num(d_cir, nan=1e6, posinf=1e6, neginf=-1e6)
+    return d_line, d_ext, d_cir
+
+
+def point_distances(P: np.ndarray, obs: Observations, seg_points: np.ndarray | None = None,
+                    circle_points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel distance of every annotated point to its projected model element.
+
+    Args:
+        P: (3, 4) or (B, 3, 4) projection matrices (pinhole, pixels).
+        obs: the frame's :class:`Observations`.
+        seg_points, circle_points: replacement points, (N, 2) / (M, 2) or per camera (B, N, 2) /
+            (B, M, 2) (e.g. undistorted); default the annotated ones.
+
+    Returns:
+        ``(d_seg, d_circle)`` with the leading shape of ``P``: (..., N) distances to the straight
+        elements' projected segments (signed by the side of the line), and (..., M) Sampson
+        distances to the circles' image conics (first order in the distance), pixels. Non-finite
+        values (degenerate camera) are replaced by +-1e6 px.
+    """
+    P = np.asarray(P, dtype=float)
+    single = P.ndim == 2
+    if single:
+        P = P[None]
+    sp = obs.seg_points if seg_points is None else seg_points
+    cp = obs.circle_points if circle_points is None else circle_points
+    d_line, d_ext, d_cir = _distances(P, obs, sp, cp)
+    d_seg = np.copysign(np.hypot(d_line, d_ext), d_line)
     if single:
         return d_seg[0], d_cir[0]
     return d_seg, d_cir
 
 
 def residuals(x: np.ndarray, obs: Observations, param: CameraParametrisation) -> np.ndarray:
-    """Weighted residuals (pixels) of parameter vector(s) ``x`` (..., size) -> (..., N + M):
-    straight-element points then circle points, each times its class weight."""
+    """Weighted residuals (pixels) of parameter vector(s) ``x`` (..., size) -> (..., 2 N + M):
+    distances of the straight-element points to their lines, their distances beyond the segments'
+    ends, then the circle points' distances, each times its class weight."""
     f, R, C, k1 = param.split(x)
     pp = param.principal_point
     P = projection_matrix(f, pp, R, C)
+    single = P.ndim == 2
+    if single:
+        P = P[None]
     sp, cp = obs.seg_points, obs.circle_points
     if param.fit_k1:
         both = undistort_radial_k1(obs.all_points, f, pp, k1)
+        if single:
+            both = both[None]
         sp, cp = both[..., : len(sp), :], both[..., len(sp):, :]
-    d_seg, d_cir = point_distances(P, obs, sp, cp)
-    return np.concatenate([d_seg * obs.seg_weight, d_cir * obs.circle_weight], axis=-1)
+    d_line, d_ext, d_cir = _distances(P, obs, sp, cp)
+    r = np.concatenate([d_line * obs.seg_weight, d_ext * obs.seg_weight, d_cir * obs.circle_weight], axis=-1)
+    return r[0] if single else r
 
 
 def ground_points_in_front(P: np.ndarray, obs: Observations) -> float:
