@@ -17,8 +17,9 @@ function describeError(status, body, fallback) {
   else if (Array.isArray(detail)) {
     text = detail
       .map((d) => {
-        const where = Array.isArray(d.loc) ? d.loc.filter((p) => p !== "body").join(".") : "";
-        return where ? `${where}: ${d.msg}` : d.msg;
+        const where = Array.isArray(d.loc) ? d.loc.filter((p) => p !== "body" && p !== "query").join(".") : "";
+        const msg = String(d.msg ?? "").replace(/^Value error, /, "");
+        return where ? `${where}: ${msg}` : msg;
       })
       .join("; ");
   } else if (detail) text = JSON.stringify(detail);

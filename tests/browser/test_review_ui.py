@@ -167,26 +167,20 @@ def test_queue_to_accept_walk(page, artifacts):
     page.screenshot(path=str(artifacts / "5-queue-filtered.png"))
 
 
-def test_api_errors_are_shown(page, server_url):
-    """A 4xx answer's message reaches the reviewer (here: a box with x2 < x1 sent by a stale page)."""
-    listing = _api(page, "/api/systems?limit=1")
-    sid = listing["items"][0]["id"]
-    page.goto(f"/systems/{sid}")
-    page.locator(tid("view")).first.wait_for()
-    frame_id = page.locator(tid("view")).first.get_attribute("data-frame-id")
-    # the UI never sends an inverted box; call its API client the way the page does to show the path
-    page.evaluate(
-        """async (frameId) => {
-            const api = await import('/static/js/api.js');
-            const fmt = await import('/static/js/format.js');
-            try { await api.patchBall(frameId, {box: [50, 50, 10, 10]}); }
-            catch (err) { fmt.showError(err.message); }
-        }""",
-        frame_id,
-    )
+def test_api_errors_are_shown(page):
+    """A 4xx answer's message reaches the reviewer: here a shared link whose range the API refuses,
+    on the queue and on the system page (whose prev / next use the same filters)."""
+    page.goto("/?error_min=5&error_max=1")
     error = page.locator(tid("error"))
     error.wait_for(state="visible")
-    assert re.match(r"^4\d\d: ", error.inner_text())
+    assert error.inner_text().startswith("422: error_min (5.0) is larger than error_max (1.0)")
+    page.click(tid("error-dismiss"))
+    assert not error.is_visible()
+
+    sid = _api(page, "/api/systems?limit=1")["items"][0]["id"]
+    page.goto(f"/systems/{sid}?jac_min=150")  # percent on screen: 1.5 as a fraction
+    error.wait_for(state="visible")
+    assert error.inner_text().startswith("422: jac_min: ")
 
 
 def test_frame_without_image_is_drawn_on_a_blank_canvas(page, artifacts):
