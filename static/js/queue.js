@@ -22,8 +22,10 @@ function rowDoubts(s) {
   const unlabelled = (s.views_total ?? 0) - (s.views_labelled ?? 0);
   if (uncalibrated > 0) chips.push(el("span", { class: "chip bad" }, `${uncalibrated} uncalibrated`));
   if (notAdmitted > 0) chips.push(el("span", { class: "chip bad" }, `${notAdmitted} not admitted`));
-  if (unlabelled > 0) chips.push(el("span", { class: "chip" }, `${unlabelled} without ball`));
-  if (!Array.isArray(s.ball3d)) chips.push(el("span", { class: "chip" }, "no 3D ball"));
+  if (s.views_total > 1) { // a single view (calibration data) has no 3D ball to make
+    if (unlabelled > 0) chips.push(el("span", { class: "chip" }, `${unlabelled} without ball`));
+    if (!Array.isArray(s.ball3d)) chips.push(el("span", { class: "chip" }, "no 3D ball"));
+  }
   return chips;
 }
 
@@ -168,12 +170,12 @@ class QueuePage {
           el("td", { class: "game", title: [game.league, game.season, game.match].filter(Boolean).join(" / ") }, game.match || game.id || "—"),
           el("td", {}, el("a", { href: `/systems/${encodeURIComponent(s.id)}${handOn}`, "data-testid": "system-link" }, s.name)),
           el("td", {}, el("span", { class: `badge ${status}` }, STATUS_LABEL[status] || status)),
-          el("td", { class: `num ${s.views_calibrated < 2 ? "bad" : ""}`,
+          el("td", { class: `num ${s.views_calibrated < Math.min(2, s.views_total) ? "bad" : ""}`,
             title: `${s.views_calibrated} calibrated, ${s.views_admitted} admitted (JaC@0.5% above the threshold), ${s.views_labelled} with a ball label, of ${s.views_total} views` },
             `${s.views_calibrated ?? "—"}/${s.views_total ?? "—"}`),
           el("td", { class: "num" }, fmt(s.worst_error_px, 2, " px")),
           el("td", { class: `num ${jacClass(jac)}` }, fmtJac(jac)),
-          el("td", { class: "num" }, Array.isArray(s.ball3d) ? fmtXYZ(s.ball3d, 1) : el("span", { class: "muted" }, "none")),
+          el("td", { class: "num" }, Array.isArray(s.ball3d) ? fmtXYZ(s.ball3d, 1) : el("span", { class: "muted" }, s.views_total > 1 ? "none" : "single view")),
           el("td", { "data-testid": "row-doubts" }, rowDoubts(s)),
         );
       }),
