@@ -59,7 +59,7 @@ def test_import_soccernet_v3_and_v3d(shared_dir, tmp_path, url):
     write_v3_game(shared_dir, tmp_path / "v3", actions=("2.png",))
     result = runner.invoke(cli, ["import", "soccernet-v3", str(tmp_path / "v3"), "--database-url", url])
     assert result.exit_code == 0, result.output
-    assert "1 system(s), 4 frame(s)" in result.output and "triangulated 1 system(s)" in result.output
+    assert "1 game(s), 1 system(s), 4 frame(s) (1 new, 0 changed)" in result.output
     outcome = re.search(r"calibrated \d+, refused \d+; triangulated \d+ system\(s\)", result.output).group(0)
     assert runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / "out"), "--all", "--database-url", url]).exit_code == 0
     other = f"sqlite:///{tmp_path / 'other.sqlite3'}"

@@ -41,3 +41,39 @@ def fresh_session_factory(tmp_path: Path) -> Iterator[Callable[[str], Session]]:
 @pytest.fixture
 def settings(db_settings: Settings) -> Settings:
     return db_settings
+
+
+@pytest.fixture
+def imported(db_session: Session, settings: Settings, v3_tree: Path, shared_dir: Path) -> dict:
+    """:func:`v3_tree` imported, then every frame's camera replaced by its true camera (source
+    "edited", JaC computed against the frame's lines) and every system recomputed, so that what the
+    tests read does not depend on the calibration solver of the day. Returns system name -> System.
+
+    With the true cameras: 0.png has one kept pair; 2.png four admitted views (2_3.png at
+    JaC@0.5 % = 0.867, the others 1.0) and six kept pairs; 3.png a near-duplicate replay whose
+    only pair is dropped for its baseline (0.47 m).
+    """
+    import sqlalchemy as sa
+
+    from app.db.models import CalibrationSource, CalibrationStatus, System
+    from app.geometry.annotations import lines_from_json_lists
+    from app.geometry.camera import Camera
+    from app.geometry.jac import jac_at_gammas
+    from app.services.importing import import_soccernet_v3
+    from app.services.recompute import JAC_GAMMAS, CalibrationFields, apply_calibration, recompute_systems
+
+    from .datasets import true_cameras
+
+    import_soccernet_v3(db_session, v3_tree, settings)
+    cameras = true_cameras(shared_dir)
+    systems = db_session.scalars(sa.select(System).order_by(System.id)).all()
+    for system in systems:
+        for frame in system.frames:
+            cam = cameras[(system.name, frame.name)]
+            jac = jac_at_gammas(Camera.from_soccernet(cam), lines_from_json_lists(frame.field_lines.lines),
+                                frame.width, frame.height, JAC_GAMMAS)
+            apply_calibration(frame, CalibrationFields(CalibrationStatus.CALIBRATED, cam,
+                                                       tuple(jac[g] for g in JAC_GAMMAS)), CalibrationSource.EDITED)
+    recompute_systems(db_session, systems, settings)
+    db_session.commit()
+    return {s.name: s for s in systems}

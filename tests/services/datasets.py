@@ -53,3 +53,17 @@ def write_calibration_zip(shared_dir: Path, dest: Path, names=("1.json", "2.json
         for name, raw in (extra or {}).items():
             zout.writestr(name, raw)
     return dest
+
+
+def true_cameras(shared_dir: Path, game: tuple[str, str, str] = DEV_GAME) -> dict[tuple[str, str], dict]:
+    """(system name, frame name) -> the true SoccerNet camera JSON of the dev game's views."""
+    truth = json.loads((shared_dir / "data" / "synthetic" / "soccernet-v3-dev.truth.json").read_text())
+    (g,) = [g for g in truth["games"] if (g["league"], g["season"], g["match"]) == game]
+    return {(s["action"], v["image"]): v["camera"] for s in g["systems"] for v in s["views"]}
+
+
+def true_balls(shared_dir: Path, game: tuple[str, str, str] = DEV_GAME) -> dict[str, list[float]]:
+    """System name -> the true 3D ball (world metres) of the dev game."""
+    truth = json.loads((shared_dir / "data" / "synthetic" / "soccernet-v3-dev.truth.json").read_text())
+    (g,) = [g for g in truth["games"] if (g["league"], g["season"], g["match"]) == game]
+    return {s["action"]: s["ball_3d"] for s in g["systems"]}

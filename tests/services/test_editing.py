@@ -9,13 +9,7 @@ import sqlalchemy as sa
 from app.db.models import BallKind, CalibrationSource, CalibrationStatus, Frame, ReviewStatus, System, TriangulationStatus
 from app.services.editing import decide_review, replace_field_lines, update_ball_label
 from app.services.errors import InvalidInputError, NotFoundError
-from app.services.importing import import_soccernet_v3
-
-
-@pytest.fixture
-def imported(db_session, settings, v3_tree):
-    import_soccernet_v3(db_session, v3_tree, settings)
-    return {s.name: s for s in db_session.scalars(sa.select(System))}
+from app.services.recompute import calibrate_lines, expected_side
 
 
 def _frame(systems, system, name) -> Frame:
@@ -37,7 +31,7 @@ def test_moving_a_ball_box_retriangulates_the_system(db_session, settings, impor
     system = db_session.get(System, system.id)
     assert np.linalg.norm(np.subtract(system.triangulation.ball3d, before_ball)) > 0.05
     moved_pairs = [p for p in system.triangulation.pairs if frame.id in (p.frame_a_id, p.frame_b_id)]
-    assert len(moved_pairs) == 2 and all(p.error_px > 5 for p in moved_pairs)
+    assert len(moved_pairs) == 3 and all(p.error_px > 5 for p in moved_pairs)  # 30 px off in a 960-px view
     assert db_session.get(Frame, frame.id).optimised_box.box[0] == pytest.approx(
         (moved[0] + moved[2]) / 2 - db_session.get(Frame, frame.id).optimised_box.d_opt_px / 2)
 
@@ -85,7 +79,7 @@ def test_a_failing_recomputation_rolls_the_edit_back(db_session, settings, impor
 def test_replacing_field_lines_recalibrates_then_retriangulates(db_session, settings, imported):
     system = imported["2.png"]
     frame = _frame(imported, "2.png", "2_3.png")
-    assert frame.calibration.admitted and len(system.triangulation.pairs) == 3
+    assert frame.calibration.admitted and len(system.triangulation.pairs) == 6
     original = frame.field_lines.lines
     one_line = {cls: polys for cls, polys in list(original.items())[:1]}  # too few lines for a camera
 
@@ -93,12 +87,16 @@ def test_replacing_field_lines_recalibrates_then_retriangulates(db_session, sett
 
     assert frame.field_lines.lines == one_line and frame.field_lines.original_lines == original
     assert frame.calibration.status is CalibrationStatus.REFUSED and frame.calibration.source is CalibrationSource.COMPUTED
+    assert "fewer than" in frame.calibration.reason
     assert not frame.calibration.admitted and frame.calibration.camera is None
-    assert len(system.triangulation.pairs) == 1  # 2.png with 2_2.png only
-    assert frame.optimised_box is None
+    assert len(system.triangulation.pairs) == 3  # the three other views
+    assert frame.optimised_box is None and frame.reprojection is None
 
-    replace_field_lines(db_session, frame.id, original, settings=settings)  # and back
-    assert frame.calibration.admitted and len(system.triangulation.pairs) == 3
+    replace_field_lines(db_session, frame.id, original, settings=settings)  # and back: the solver decides
+    expected = calibrate_lines(original, frame.width, frame.height, expected_side(frame.role))
+    assert (frame.calibration.status, frame.calibration.camera) == (expected.status, expected.camera)
+    n = 3 + frame.calibration.admitted
+    assert len(system.triangulation.pairs) == n * (n - 1) // 2
 
 
 def test_invalid_lines_are_refused_before_anything_changes(db_session, settings, imported):

@@ -25,9 +25,10 @@ def _systems(session) -> dict[str, System]:
     return {s.name: s for s in session.scalars(sa.select(System))}
 
 
-def test_only_accepted_systems_are_exported_by_default(db_session, settings, v3_tree, tmp_path):
-    import_soccernet_v3(db_session, v3_tree, settings)
-    systems = _systems(db_session)
+def test_only_accepted_systems_are_exported_by_default(db_session, settings, imported, tmp_path):
+    systems = imported
+    refused = next(f for f in systems["2.png"].frames if f.name == "2_1.png")
+    replace_field_lines(db_session, refused.id, refused.field_lines.lines, settings=settings)  # one line: refused
     empty = export_soccernet_v3d(db_session, tmp_path / "none")
     assert (empty.systems, empty.rows, empty.label_files) == (0, 0, ())
     assert (tmp_path / "none" / "SNv3D.csv").read_text().splitlines() == [",".join(CSV_COLUMNS)]
@@ -43,6 +44,7 @@ def test_only_accepted_systems_are_exported_by_default(db_session, settings, v3_
     assert list(doc["actions"]) == ["2.png"] and list(doc["replays"]) == ["2_1.png", "2_2.png", "2_3.png"]
     assert doc["GameMetadata"]["reconstructions"] == ["2.png"]
     action = doc["actions"]["2.png"]
+    assert refused.calibration.camera is None
     assert action["imageMetadata"]["calibrated_replays"] == ["2_2.png", "2_3.png"]  # 2_1.png is refused
     frame = systems["2.png"].frames[0]
     assert action["calibration"] == frame.calibration.camera

