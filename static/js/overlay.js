@@ -53,6 +53,7 @@ export class ViewPanel extends HTMLElement {
   #selected = false;
   #resizeObserver = null;
   #built = false;
+  #nudgeTimer = null;
 
   connectedCallback() {
     if (!this.#resizeObserver) {
@@ -231,9 +232,9 @@ export class ViewPanel extends HTMLElement {
           ),
           el("dt", { title: `Reprojection error of the 3D ball in this view; tau = ${fmt(tau, 1)} px (${rule || "rule unknown"})` }, "Reproj. error"),
           el("dd", { class: `mono ${errorClass(err, v.width, tau, rule)}`, "data-testid": "view-reproj-error" }, errText),
-          el("dt", {}, "Ball (red)"),
+          el("dt", { title: "The annotated ball box: size and centre, image pixels" }, "Ball (red)"),
           el("dd", { class: "mono", "data-testid": "view-box" }, boxText),
-          el("dt", {}, "Optimised (blue)"),
+          el("dt", { title: "Box consistent with the 3D ball (paper Eq. min_diametre): d_opt, and the distance from the 3D ball to the annotated ray (optimized_error)" }, "Optimised (blue)"),
           el("dd", { class: "mono", "data-testid": "view-opt-box" }, optText),
           doubtful.length ? el("dt", { class: "bad" }, "Doubts") : null,
           doubtful.length ? el("dd", { class: "bad", "data-testid": "view-doubts" }, doubtful.join("; ")) : null,
@@ -484,8 +485,8 @@ export class ViewPanel extends HTMLElement {
     }
     this.#zoomWindow();
     this.#drawOverlays();
-    clearTimeout(this.nudgeTimer);
-    this.nudgeTimer = setTimeout(() => this.#commit(), 450);
+    clearTimeout(this.#nudgeTimer);
+    this.#nudgeTimer = setTimeout(() => this.#commit(), 450);
     return true;
   }
 }
