@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import sqlalchemy as sa
 
 from app.db.models import BallKind, CalibrationSource, CalibrationStatus, Frame, ReviewStatus, System, TriangulationStatus
 from app.services.editing import decide_review, replace_field_lines, update_ball_label
