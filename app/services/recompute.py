@@ -23,6 +23,7 @@ returns plain :class:`CalibrationFields`; the main process writes them (:func:`a
 """
 from __future__ import annotations
 
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -147,7 +148,9 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0,
                 progress("calibrate", len(out), total)
         return out
     chunk = max(1, min(16, total // (n * 8)))
-    with ProcessPoolExecutor(max_workers=n) as pool:
+    # forkserver, not fork: the API runs imports from worker threads, and forking a threaded process
+    # can deadlock the child; workers import the geometry once and then take chunks of jobs.
+    with ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("forkserver")) as pool:
         for fields in pool.map(_calibrate_job, jobs, chunksize=chunk):
             out.append(fields)
             if progress:
