@@ -121,10 +121,31 @@ def test_queue_to_accept_walk(page, artifacts):
     assert (after["view-opt-box"] != before["view-opt-box"] or after["view-reproj-error"] != before["view-reproj-error"]
             or page.locator(tid("ball3d")).inner_text() != ball_before), (before, after)
     assert view.locator(tid("view-edited")).is_visible()
-    edited = _api(page, f"/api/systems/{expected_id}?sort=name")
-    stored = edited["views"][k]["ball"]
+    stored = _api(page, f"/api/systems/{expected_id}?sort=name")["views"][k]["ball"]
     assert stored["box"] == pytest.approx(sent, abs=0.05) and stored["edited"] is True
     page.screenshot(path=str(artifacts / "3-system-after-drag.png"), full_page=True)
+
+    # ----- resize it from the corner handle of the close-up (its own, magnified, viewBox) --------
+    zoom = view.locator(tid("view-zoom"))
+    zx, zy, zside, _ = (float(t) for t in zoom.get_attribute("viewBox").split())
+    zscale = zoom.bounding_box()["width"] / zside
+    handle = view.locator(tid("zoom-ball-handle")).bounding_box()
+    hx, hy = handle["x"] + handle["width"] / 2, handle["y"] + handle["height"] / 2
+    with page.expect_response(lambda r: r.request.method == "PATCH" and f"/api/frames/{v['frame_id']}/ball" in r.url) as patch:
+        page.mouse.move(hx, hy)
+        page.mouse.down()
+        page.mouse.move(hx + 9, hy + 9, steps=4)
+        page.mouse.up()
+    assert patch.value.ok, patch.value.text()
+    resized = patch.value.request.post_data_json["box"]
+    assert resized[:2] == pytest.approx(sent[:2], abs=0.11)  # the opposite corner stays put
+    assert resized[2] - sent[2] == pytest.approx(9 / zscale, abs=1.0 / zscale + 0.1)
+    assert resized[3] - sent[3] == pytest.approx(9 / zscale, abs=1.0 / zscale + 0.1)
+    page.wait_for_function(
+        "([sel, text]) => document.querySelectorAll(sel)[%d].querySelector('[data-testid=view-box]').innerText !== text" % k,
+        arg=[tid("view"), after["view-box"]])
+    edited = _api(page, f"/api/systems/{expected_id}?sort=name")
+    assert edited["views"][k]["ball"]["box"] == pytest.approx(resized, abs=0.05)
 
     # ----- comment: typing must not trigger the review keys ------------------------------------
     comment = page.locator(tid("comment"))
