@@ -236,6 +236,14 @@ export class ViewPanel extends HTMLElement {
           el("dd", { class: "mono", "data-testid": "view-box" }, boxText),
           el("dt", { title: "Box consistent with the 3D ball (paper Eq. min_diametre): d_opt, and the distance from the 3D ball to the annotated ray (optimized_error)" }, "Optimised (blue)"),
           el("dd", { class: "mono", "data-testid": "view-opt-box" }, optText),
+          el("dt", {}, ""),
+          el("dd", { class: "actions" },
+            ball.kind ? el("button", { type: "button", "data-testid": "remove-ball", title: "The ball is not visible in this view: remove its label (Delete on the selected view)",
+              onclick: () => this.removeLabel() }, "no ball here") : null,
+            ball.edited && (validBox(ball.original_box) || validPoint(ball.original_point))
+              ? el("button", { type: "button", "data-testid": "restore-ball", title: "Put back the imported label (z on the selected view)",
+                onclick: () => this.restoreLabel() }, "restore imported")
+              : null),
           doubtful.length ? el("dt", { class: "bad" }, "Doubts") : null,
           doubtful.length ? el("dd", { class: "bad", "data-testid": "view-doubts" }, doubtful.join("; ")) : null,
         ),
@@ -468,6 +476,27 @@ export class ViewPanel extends HTMLElement {
     else detail.point = this.#live.point.map(round);
     this.saving = true;
     this.dispatchEvent(new CustomEvent("ball-change", { detail, bubbles: true }));
+  }
+
+  /** Remove the ball label (the ball is not visible in this view). */
+  removeLabel() {
+    if (this.#saving || this.#drag || !(this.#view.ball || {}).kind) return false;
+    this.saving = true;
+    this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: null }, bubbles: true }));
+    return true;
+  }
+
+  /** Put back the label as imported, before any edit. */
+  restoreLabel() {
+    const ball = this.#view.ball || {};
+    if (this.#saving || this.#drag || !ball.edited) return false;
+    const detail = { frameId: this.#view.frame_id };
+    if (validBox(ball.original_box)) detail.box = ball.original_box;
+    else if (validPoint(ball.original_point)) detail.point = ball.original_point;
+    else return false;
+    this.saving = true;
+    this.dispatchEvent(new CustomEvent("ball-change", { detail, bubbles: true }));
+    return true;
   }
 
   /** Keyboard editing: move by (dx, dy) and grow every side by `grow` image pixels; saved after a pause. */

@@ -213,7 +213,7 @@ class SystemPage {
   }
 
   async saveBall(panel, detail) {
-    const change = detail.box ? { box: detail.box } : { point: detail.point };
+    const change = "box" in detail ? { box: detail.box } : { point: detail.point };
     try {
       const sys = await patchBall(detail.frameId, change, this.params);
       clearError();
@@ -256,6 +256,8 @@ class SystemPage {
     const step = e.shiftKey ? 5 : 1;
     const moves = { ArrowLeft: [-step, 0, 0], ArrowRight: [step, 0, 0], ArrowUp: [0, -step, 0], ArrowDown: [0, step, 0],
       "+": [0, 0, 0.5], "=": [0, 0, 0.5], "-": [0, 0, -0.5] };
+    if (e.key === "Delete" || e.key === "Backspace") return panel.removeLabel();
+    if (e.key === "z") return panel.restoreLabel();
     const m = moves[e.key];
     if (!m) return false;
     panel.nudge(...m);

@@ -304,3 +304,31 @@ def test_system_keys_move_and_decide(page):
     page.wait_for_url(re.compile(rf"/systems/{third}\?sort=name$"), wait_until="commit")
     decided = _api(page, f"/api/systems/{second}")["review"]
     assert (decided["status"], decided["comment"]) == ("needs_fix", "jk")
+
+
+def test_remove_and_restore_a_ball_label(page):
+    """'no ball here' removes a view's label (the system is recomputed without it and the view is
+    flagged); 'restore imported' puts the imported box back."""
+    listing = _api(page, "/api/systems?sort=-name&limit=500")["items"]
+    sid = next(s["id"] for s in listing if s["views_labelled"] >= 3)  # still triangulable without one
+    system = _api(page, f"/api/systems/{sid}")
+    k = _editable_view(system)
+    original = system["views"][k]["ball"]["box"]
+    page.goto(f"/systems/{sid}")
+    view = page.locator(tid("view")).nth(k)
+    view.locator(tid("remove-ball")).wait_for()
+    with page.expect_response(lambda r: r.request.method == "PATCH") as patch:
+        view.locator(tid("remove-ball")).click()
+    assert patch.value.ok and patch.value.request.post_data_json == {"box": None}
+    page.wait_for_function("(k) => document.querySelectorAll('[data-testid=view]')[k].dataset.doubtful === 'true'", arg=k)
+    assert view.locator(tid("view-box")).inner_text().startswith("no ball label")
+    assert view.locator(tid("ball-hit")).count() == 0
+    assert page.locator(tid("doubt")).filter(has_text=f"V{k + 1}: no ball label").count() == 1
+    assert _api(page, f"/api/systems/{sid}")["views"][k]["ball"]["kind"] is None
+
+    with page.expect_response(lambda r: r.request.method == "PATCH") as patch:
+        view.locator(tid("restore-ball")).click()
+    assert patch.value.ok and patch.value.request.post_data_json == {"box": original}
+    view.locator(tid("ball-hit")).wait_for()
+    restored = _api(page, f"/api/systems/{sid}")["views"][k]["ball"]
+    assert restored["kind"] == "box" and restored["box"] == pytest.approx(original)
