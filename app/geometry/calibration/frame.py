@@ -125,7 +125,7 @@ class CalibrationSettings:
     k1_min_gain: float = 0.3
     k1_min_points: int = 12
     max_k1: float = 0.5
-    max_evaluations: int = 200
+    max_evaluations: int = 140
 
 
 @dataclass(frozen=True)
