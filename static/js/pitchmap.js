@@ -48,14 +48,27 @@ export class PitchMap extends HTMLElement {
 
   render() {
     const { ball3d = null, cameras = [] } = this.#data || {};
-    let minX = -HL - 4, maxX = HL + 4, minY = -HW - 4, maxY = HW + 4;
+    const hasBall = Array.isArray(ball3d) && ball3d.every(isNum);
     const placed = cameras.filter((c) => Array.isArray(c.position) && c.position.every(isNum));
+    let minX = -HL - 4, maxX = HL + 4, minY = -HW - 4, maxY = HW + 4;
+    const include = (x, y, m) => {
+      minX = Math.min(minX, x - m);
+      maxX = Math.max(maxX, x + m);
+      minY = Math.min(minY, y - m);
+      maxY = Math.max(maxY, y + m);
+    };
+    for (const c of placed) include(c.position[0], c.position[1], 5);
+    if (hasBall) include(ball3d[0], ball3d[1], 3);
+    // label anchors: near-duplicate viewpoints get their labels stacked instead of overprinted
+    const labels = [];
     for (const c of placed) {
-      minX = Math.min(minX, c.position[0] - 5);
-      maxX = Math.max(maxX, c.position[0] + 5);
-      minY = Math.min(minY, c.position[1] - 5);
-      maxY = Math.max(maxY, c.position[1] + 5);
+      const [x, y] = c.position;
+      let ly = y + 1.1;
+      while (labels.some(([ax, ay]) => Math.abs(ax - x) < 8 && Math.abs(ay - ly) < 3.4)) ly += 3.6;
+      labels.push([x, ly]);
+      include(x, ly, 2.5);
     }
+
     const root = svg("svg", {
       viewBox: `${minX} ${minY} ${maxX - minX} ${maxY - minY}`,
       role: "img",
@@ -64,9 +77,7 @@ export class PitchMap extends HTMLElement {
     });
     root.append(svg("rect", { class: "grass", x: -HL - 3, y: -HW - 3, width: L + 6, height: W + 6, rx: 1 }));
     for (const d of pitchPaths()) root.append(svg("path", { class: "line", d }));
-    const hasBall = Array.isArray(ball3d) && ball3d.every(isNum);
-    const labelled = []; // label anchors already used: near-duplicate viewpoints get stacked labels
-    for (const c of placed) {
+    placed.forEach((c, i) => {
       const [x, y, z] = c.position;
       if (hasBall) {
         root.append(svg("line", { class: "ray", x1: x, y1: y, x2: ball3d[0], y2: ball3d[1], stroke: c.colour }));
@@ -75,12 +86,9 @@ export class PitchMap extends HTMLElement {
       g.append(svg("title", { text: `${c.label} ${c.name}: camera at x ${x.toFixed(1)} m, y ${y.toFixed(1)} m, ${(-z).toFixed(1)} m high` }));
       g.append(svg("circle", { class: "cam", cx: x, cy: y, r: 1.6, fill: c.colour }));
       const right = x < maxX - 12;
-      let ly = y + 1.1;
-      while (labelled.some(([ax, ay]) => Math.abs(ax - x) < 8 && Math.abs(ay - ly) < 3.4)) ly += 3.6;
-      labelled.push([x, ly]);
-      g.append(svg("text", { class: "cam-label", x: right ? x + 2.4 : x - 2.4, y: ly, "text-anchor": right ? "start" : "end", text: c.label }));
+      g.append(svg("text", { class: "cam-label", x: right ? x + 2.4 : x - 2.4, y: labels[i][1], "text-anchor": right ? "start" : "end", text: c.label }));
       root.append(g);
-    }
+    });
     if (hasBall) {
       const g = svg("g", { "data-testid": "pitch-ball" });
       g.append(svg("title", { text: `3D ball: x ${ball3d[0].toFixed(2)} m, y ${ball3d[1].toFixed(2)} m, ${(-ball3d[2]).toFixed(2)} m above the ground` }));
