@@ -214,7 +214,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     touched.append(system)
                 done += 1
                 if progress:
-                    progress("read", done, n_systems)
+                    progress("merge", done, n_systems)
 
     t0 = time.perf_counter()
     results = calibrate_many([(f.field_lines.lines, f.width, f.height, expected_side(f.role))  # type: ignore[union-attr]
@@ -262,7 +262,7 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
     over ``calibrate_frame``), triangulate its systems, and commit in one transaction.
 
     Idempotent: a second import of the same tree changes nothing. ``progress(stage, done, total)``
-    is called for the stages "read", "calibrate" and "triangulate".
+    is called for the stages "merge" (records matched to rows), "calibrate" and "triangulate".
 
     Raises:
         DatasetError: invalid input (nothing is stored).
