@@ -110,17 +110,18 @@ export class ViewPanel extends HTMLElement {
     }
     this.#imageState = "loading";
     const probe = new Image();
-    probe.onload = () => {
-      if (this.#imageUrl !== url) return;
-      this.#imageState = "loaded";
-      this.#build();
-    };
-    probe.onerror = () => {
-      if (this.#imageUrl !== url) return;
-      this.#imageState = "missing";
-      this.#build();
-    };
+    probe.onload = () => this.#imageSettled(url, "loaded");
+    probe.onerror = () => this.#imageSettled(url, "missing");
     probe.src = url;
+  }
+
+  /** The frame's image arrived (or 404'd): redraw the backgrounds only, so a drag in progress goes on. */
+  #imageSettled(url, state) {
+    if (this.#imageUrl !== url) return;
+    this.#imageState = state;
+    const article = this.querySelector(".view");
+    if (article) article.dataset.image = state;
+    this.#drawOverlays();
   }
 
   // ----- DOM ------------------------------------------------------------------------------------
@@ -499,6 +500,14 @@ export class ViewPanel extends HTMLElement {
     return true;
   }
 
+  /** Save now a keyboard edit still waiting for its pause (before a decision or moving on). */
+  flush() {
+    if (this.#nudgeTimer === null) return;
+    clearTimeout(this.#nudgeTimer);
+    this.#nudgeTimer = null;
+    if (this.#live && !this.#saving) this.#commit();
+  }
+
   /** Keyboard editing: move by (dx, dy) and grow every side by `grow` image pixels; saved after a pause. */
   nudge(dx, dy, grow = 0) {
     if (this.#saving || this.#drag) return false;
@@ -515,7 +524,10 @@ export class ViewPanel extends HTMLElement {
     this.#zoomWindow();
     this.#drawOverlays();
     clearTimeout(this.#nudgeTimer);
-    this.#nudgeTimer = setTimeout(() => this.#commit(), 450);
+    this.#nudgeTimer = setTimeout(() => {
+      this.#nudgeTimer = null;
+      this.#commit();
+    }, 450);
     return true;
   }
 }

@@ -15,6 +15,13 @@ class SystemPage {
   system = null;
   busy = false;
   selected = -1;
+  saves = new Set(); // ball edits on their way to the server
+
+  /** Let every edit of this system reach the server before deciding on it or leaving it. */
+  async settle() {
+    for (const panel of $("views").children) panel.flush();
+    await Promise.allSettled([...this.saves]);
+  }
 
   constructor() {
     this.search = location.search;
@@ -74,8 +81,11 @@ class SystemPage {
     }
   }
 
-  go(id) {
+  async go(id) {
     if (id === null || id === undefined || this.busy) return;
+    this.busy = true;
+    await this.settle();
+    this.busy = false;
     this.load(id, true);
   }
 
@@ -193,11 +203,12 @@ class SystemPage {
     this.busy = true;
     const sys = this.system;
     try {
+      await this.settle();
       const answer = await postReview(sys.id, status, $("comment").value.trim());
+      const current = this.system; // re-rendered by the edits just settled: its next_id is current
       clearError();
-      const review = answer && answer.review ? answer.review : answer && answer.status ? answer : { status };
-      this.renderStatus(review);
-      const next = answer && "next_id" in answer ? answer.next_id : sys.next_id;
+      this.renderStatus(answer || { status });
+      const next = current.next_id;
       this.busy = false;
       if (next !== null && next !== undefined) {
         toast(`${sys.name}: ${STATUS_LABEL[status]}`);
@@ -212,17 +223,22 @@ class SystemPage {
     }
   }
 
-  async saveBall(panel, detail) {
+  saveBall(panel, detail) {
     const change = "box" in detail ? { box: detail.box } : { point: detail.point };
-    try {
-      const sys = await patchBall(detail.frameId, change, this.params);
-      clearError();
-      if (sys && Array.isArray(sys.views)) this.render(sys);
-      else await this.load(this.system.id);
-    } catch (err) {
-      panel.revert();
-      showError(err.message);
-    }
+    const shown = this.system.id;
+    const save = (async () => {
+      try {
+        const sys = await patchBall(detail.frameId, change, this.params);
+        clearError();
+        // the reviewer may have moved on meanwhile: never draw an old system over the current one
+        if (this.system.id === shown && sys && Array.isArray(sys.views)) this.render(sys);
+      } catch (err) {
+        panel.revert();
+        showError(err.message);
+      }
+    })();
+    this.saves.add(save);
+    save.finally(() => this.saves.delete(save));
   }
 
   select(index) {
@@ -240,7 +256,7 @@ class SystemPage {
       this.review(keys[e.key]);
     } else if (e.key === "j") this.go(this.system?.next_id);
     else if (e.key === "k") this.go(this.system?.prev_id);
-    else if (e.key === "u") location.assign(`/${this.search}`);
+    else if (e.key === "u") this.settle().then(() => location.assign(`/${this.search}`));
     else if (e.key === "c") {
       e.preventDefault();
       $("comment").focus();

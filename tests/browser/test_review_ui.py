@@ -332,3 +332,28 @@ def test_remove_and_restore_a_ball_label(page):
     view.locator(tid("ball-hit")).wait_for()
     restored = _api(page, f"/api/systems/{sid}")["views"][k]["ball"]
     assert restored["kind"] == "box" and restored["box"] == pytest.approx(original)
+
+
+def test_keyboard_nudge_is_saved_before_the_decision(page):
+    """Arrow keys move the selected view's box; a decision typed right after waits for that edit, so
+    nothing is lost and the stored decision follows the stored box."""
+    listing = _api(page, "/api/systems?sort=name&limit=500")["items"]
+    sid = listing[-2]["id"]  # a system the other tests leave alone
+    system = _api(page, f"/api/systems/{sid}?sort=name")
+    k = _editable_view(system)
+    old = system["views"][k]["ball"]["box"]
+    page.goto(f"/systems/{sid}?sort=name")
+    page.locator(tid("view")).nth(k).locator(tid("ball-hit")).wait_for()
+    page.keyboard.press(str(k + 1))
+    assert "selected" in page.locator(tid("view")).nth(k).get_attribute("class")
+    methods: list[str] = []
+    page.on("request", lambda r: methods.append(r.method) if "/api/" in r.url and r.method != "GET" else None)
+    page.keyboard.press("ArrowRight")
+    page.keyboard.press("ArrowRight")
+    page.keyboard.press("Shift+ArrowDown")
+    page.keyboard.press("r")  # at once: before the pause that would save the nudges
+    page.wait_for_url(re.compile(rf"/systems/{system['next_id']}\?sort=name$"), wait_until="commit")
+    assert methods == ["PATCH", "POST"], methods
+    after = _api(page, f"/api/systems/{sid}?sort=name")
+    assert after["views"][k]["ball"]["box"] == pytest.approx([old[0] + 2, old[1] + 5, old[2] + 2, old[3] + 5], abs=0.05)
+    assert after["review"]["status"] == "rejected"
