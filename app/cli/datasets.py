@@ -20,7 +20,8 @@ from app.services.errors import InvalidInputError
 
 DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
-_STAGES = {"merge": "merging", "calibrate": "calibrating", "triangulate": "triangulating"}
+_STAGES = {"merge": "merging", "calibrate": "calibrating", "rig": "calibrating with game rigs",
+           "triangulate": "triangulating"}
 
 
 class _Bars:
@@ -76,7 +77,8 @@ def _run_import(settings: Settings, call: Callable[..., Any]) -> None:
     bars.close()
     typer.echo(f"imported {report.source}: {report.games} game(s), {report.systems} system(s), {report.frames} frame(s) "
                f"({report.systems_new} new, {report.systems_changed} changed) in {report.seconds:.1f} s")
-    typer.echo(f"calibrated {report.calibrated}, refused {report.refused}; triangulated {report.triangulated} system(s)")
+    typer.echo(f"calibrated {report.calibrated} ({report.rig_assisted} with the game's camera rig), refused "
+               f"{report.refused}; triangulated {report.triangulated} system(s)")
     for reason, n in report.refusal_kinds().most_common():
         typer.echo(f"  refused x{n}: {reason}")
 

@@ -37,8 +37,8 @@ from app.services._readers import (
     FrameRecord, GameRecord, read_sn_calibration, read_soccernet_v3, read_soccernet_v3d,
 )
 from app.services.recompute import (
-    CalibrationFields, Progress, apply_calibration, calibrate_many, expected_side, preload_systems,
-    recompute_systems,
+    RIG_FLAG, CalibrationFields, Progress, apply_calibration, calibrate_many, calibration_job, game_rig,
+    preload_systems, recompute_systems, uses_rig,
 )
 
 __all__ = [
@@ -56,6 +56,8 @@ class ImportReport:
         games, systems, frames: how many the input holds.
         systems_new, systems_changed: systems created, and existing systems whose input changed.
         calibrated, refused: outcome of the calibrations run (or imported) by this import.
+        rig_assisted: frames of SoccerNet-v3 games refused from their lines alone and calibrated
+            with their game's camera rig (counted in ``calibrated``).
         refusal_reasons: reason -> count among ``refused``.
         triangulated: recomputed systems that got a 3D ball.
         read_seconds, calibration_seconds, store_seconds: wall time of reading and validating the
@@ -72,6 +74,7 @@ class ImportReport:
     systems_changed: int = 0
     calibrated: int = 0
     refused: int = 0
+    rig_assisted: int = 0
     refusal_reasons: Counter = field(default_factory=Counter)
     triangulated: int = 0
     read_seconds: float = 0.0
@@ -217,8 +220,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     progress("merge", done, n_systems)
 
     t0 = time.perf_counter()
-    results = calibrate_many([(f.field_lines.lines, f.width, f.height, expected_side(f.role))  # type: ignore[union-attr]
-                              for f in to_calibrate],
+    results = calibrate_many([calibration_job(f) for f in to_calibrate],
                              settings.calibration_workers, progress)
     report.calibration_seconds = time.perf_counter() - t0
     report.calibration_ms = [r.elapsed_ms for r in results if r.elapsed_ms is not None]
@@ -227,6 +229,10 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
+    t0 = time.perf_counter()
+    results = _retry_with_game_rigs(session, to_calibrate, results, settings, progress)
+    report.calibration_seconds += time.perf_counter() - t0
+    report.rig_assisted = sum(RIG_FLAG in r.flags for r in results)
     for fields in [*results, *(f for _, f in imported)]:
         if fields.status is CalibrationStatus.CALIBRATED:
             report.calibrated += 1
@@ -234,6 +240,26 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
             report.refused += 1
             report.refusal_reasons[fields.reason or "unspecified"] += 1
     report.triangulated = recompute_systems(session, touched, settings, progress)
+
+
+def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],
+                          settings: Settings, progress: Progress | None) -> list[CalibrationFields]:
+    """Recalibrate the refused frames of SoccerNet-v3 games with their game's rig (camera positions
+    of the game's well-calibrated frames, ``recompute.game_rig``); a frame the rig calibrates takes
+    that result. Returns the final result per frame."""
+    retry = [i for i, (f, r) in enumerate(zip(frames, results))
+             if r.status is CalibrationStatus.REFUSED and uses_rig(f.system)]
+    if not retry:
+        return results
+    rigs = {gid: game_rig(session, gid, settings) for gid in {frames[i].system.game_id for i in retry}}
+    retry = [i for i in retry if rigs[frames[i].system.game_id].positions]
+    jobs = [calibration_job(frames[i], rigs[frames[i].system.game_id]) for i in retry]
+    out = list(results)
+    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig")):
+        if fields.status is CalibrationStatus.CALIBRATED:
+            apply_calibration(frames[i], fields, CalibrationSource.COMPUTED)
+            out[i] = fields
+    return out
 
 
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,

@@ -36,17 +36,22 @@ from sqlalchemy.orm import Session, selectinload
 from app.core.config import Settings
 from app.db.models import (
     BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, OptimisedBox, System,
-    Triangulation, TriangulationPair, TriangulationStatus,
+    SystemKind, Triangulation, TriangulationPair, TriangulationStatus,
 )
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.ball import optimise_box
+from app.geometry.calibration import CalibrationPrior, calibrate_frame
+from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.triangulation import BallObservation, triangulate_ball
 
 #: The three JaC gammas stored per calibration (fractions of the image diagonal, method.md s4).
 JAC_GAMMAS: tuple[float, float, float] = (0.005, 0.01, 0.02)
 _JAC_COLUMNS = {0.005: "jac_0005", 0.01: "jac_001", 0.02: "jac_002"}
+
+#: Flag of calibrations made with the game's rig (``app.geometry.calibration.rig``).
+RIG_FLAG = "rig_assisted"
 
 #: Jobs below this count are calibrated in-process (a pool costs more than it saves).
 _MIN_JOBS_FOR_POOL = 8
@@ -85,17 +90,20 @@ def expected_side(role: FrameRole) -> int | None:
     return None if role is FrameRole.REPLAY else 1
 
 
-def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: int | None = None) -> CalibrationFields:
+def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: int | None = None,
+                    rig: CameraRig | None = None) -> CalibrationFields:
     """Calibrate one frame from its stored field lines (``{class: [[[x, y], ...], ...]}``, pixels).
 
     Pure: calls ``app.geometry.calibration.calibrate_frame`` (JaC at :data:`JAC_GAMMAS` included)
-    with the prior ``expected_side=side`` and converts its result. Safe to run in a worker process.
+    with the prior ``expected_side=side``, or, given a game ``rig``, ``calibrate_with_rig`` (the
+    centre fixed at one of the game's camera positions), and converts the result. Safe to run in a
+    worker process.
     """
-    from app.geometry.calibration import CalibrationPrior, calibrate_frame
-
+    lines = lines_from_json_lists(lines_json)
+    if rig is not None:
+        return _fields_from_result(calibrate_with_rig(lines, width, height, rig, expected_side=side))
     prior = CalibrationPrior(expected_side=side) if side is not None else None
-    result = calibrate_frame(lines_from_json_lists(lines_json), width, height, prior=prior)
-    return _fields_from_result(result)
+    return _fields_from_result(calibrate_frame(lines, width, height, prior=prior))
 
 
 def _fields_from_result(result: Any) -> CalibrationFields:
@@ -118,22 +126,30 @@ def _opt_float(v: Any) -> float | None:
     return None if v is None else float(v)
 
 
-CalibrationJob = tuple[dict[str, Any], int, int, "int | None"]
+#: ``(lines_json, width, height, side, rig)``: the arguments of :func:`calibrate_lines`.
+CalibrationJob = tuple[dict[str, Any], int, int, "int | None", "CameraRig | None"]
 
 
 def _calibrate_job(job: CalibrationJob) -> CalibrationFields:
     return calibrate_lines(*job)
 
 
-def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0,
-                   progress: Progress | None = None) -> list[CalibrationFields]:
+def calibration_job(frame: Frame, rig: CameraRig | None = None) -> CalibrationJob:
+    """The job that calibrates ``frame`` from its current field lines (with the game ``rig``, if any)."""
+    if frame.field_lines is None:
+        raise ValueError(f"frame {frame.id} ({frame.name!r}) has no field lines to calibrate from")
+    return (frame.field_lines.lines, frame.width, frame.height, expected_side(frame.role), rig)
+
+
+def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: Progress | None = None,
+                   stage: str = "calibrate") -> list[CalibrationFields]:
     """Calibrate many frames, in parallel on ``workers`` processes (0 = all cores).
 
     Args:
-        jobs: ``(lines_json, width, height, side)`` per frame (see :func:`calibrate_lines`).
+        jobs: one :data:`CalibrationJob` per frame (see :func:`calibration_job`).
         workers: process count; 0 means ``os.cpu_count()``; 1, or fewer than a handful of jobs,
             runs in this process.
-        progress: called with ``("calibrate", done, total)``.
+        progress: called with ``(stage, done, total)``.
 
     Returns:
         One :class:`CalibrationFields` per job, in order.
@@ -145,7 +161,7 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0,
         for job in jobs:
             out.append(_calibrate_job(job))
             if progress:
-                progress("calibrate", len(out), total)
+                progress(stage, len(out), total)
         return out
     chunk = max(1, min(16, total // (n * 8)))
     # forkserver, not fork: the API runs imports from worker threads, and forking a threaded process
@@ -154,7 +170,7 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0,
         for fields in pool.map(_calibrate_job, jobs, chunksize=chunk):
             out.append(fields)
             if progress:
-                progress("calibrate", len(out), total)
+                progress(stage, len(out), total)
     return out
 
 
@@ -200,17 +216,43 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
     return jac is not None and jac > settings.admit_jac_min
 
 
+def game_rig(session: Session, game_id: int, settings: Settings, exclude_frame_id: int | None = None) -> CameraRig:
+    """The camera rig of a game (``app.geometry.calibration.rig.estimate_rig``), from the centres of
+    its frames that are calibrated with JaC@gamma > ``admit_jac_min`` and not rig-assisted
+    themselves (``exclude_frame_id``: leave one frame out, the one being recalibrated)."""
+    query = (select(Calibration).join(Frame, Frame.id == Calibration.frame_id).join(System, System.id == Frame.system_id)
+             .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
+    if exclude_frame_id is not None:
+        query = query.where(Calibration.frame_id != exclude_frame_id)
+    cameras = [Camera.from_soccernet(c.camera) for c in session.scalars(query)
+               if c.camera is not None and RIG_FLAG not in (c.flags or []) and (admission_jac(c, settings) or 0.0)
+               > settings.admit_jac_min]
+    return estimate_rig(cameras)
+
+
+def uses_rig(system: System) -> bool:
+    """Game rigs apply to SoccerNet-v3 games (cameras fixed during a game), never to calibration
+    datasets, whose frames come from many stadiums."""
+    return system.kind is SystemKind.SOCCERNET_V3
+
+
 def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Triangulation:
     """Recalibrate ``frame`` from its current field lines, then recompute its system.
 
-    The calibration's source becomes "computed". The caller flushes or commits.
+    A frame of a SoccerNet-v3 game that its lines alone cannot calibrate is retried with the game's
+    rig (:func:`game_rig`, the other frames' camera positions). The calibration's source becomes
+    "computed". The caller flushes or commits.
 
     Raises:
         ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
     """
-    if frame.field_lines is None:
-        raise ValueError(f"frame {frame.id} ({frame.name!r}) has no field lines to calibrate from")
-    fields = calibrate_lines(frame.field_lines.lines, frame.width, frame.height, expected_side(frame.role))
+    fields = calibrate_lines(*calibration_job(frame))
+    if fields.status is CalibrationStatus.REFUSED and uses_rig(frame.system):
+        rig = game_rig(session, frame.system.game_id, settings, exclude_frame_id=frame.id)
+        if rig.positions:
+            with_rig = calibrate_lines(*calibration_job(frame, rig))
+            if with_rig.status is CalibrationStatus.CALIBRATED:
+                fields = with_rig
     apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     return recompute_system(session, frame.system, settings)
 

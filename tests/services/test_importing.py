@@ -14,6 +14,7 @@ from app.db.models import (
 )
 from app.services.errors import DatasetError
 from app.services.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
+from app.services.recompute import RIG_FLAG
 
 from .datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
 
@@ -57,6 +58,9 @@ def test_import_soccernet_v3_stores_systems_frames_labels_and_derived_rows(db_se
     assert f.field_lines.original_lines == f.field_lines.lines
 
     # every frame was calibrated or refused with a reason; admission and pairs follow from them
+    frames = [f for system in game.systems for f in system.frames]
+    assert report.rig_assisted == sum(RIG_FLAG in f.calibration.flags for f in frames)
+    assert report.calibrated == sum(f.calibration.status is CalibrationStatus.CALIBRATED for f in frames)
     balls = true_balls(shared_dir)
     for system in game.systems:
         for frame in system.frames:
