@@ -14,6 +14,7 @@ import json
 import math
 import zipfile
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path, PurePosixPath
 from typing import Any, Callable, Iterator, Mapping
 
@@ -451,6 +452,56 @@ def _exported_image(image: Any, file: Path, where: str) -> dict[str, str]:
     return {}
 
 
+def _v3d_ball(row: Mapping[str, str], csv_path: Path, where: str, width: int, height: int) -> tuple[
+        list[float] | None, list[float] | None, tuple[BallKind | None, list[float] | None, list[float] | None] | None]:
+    """(box, point, original) of one ``SNv3D.csv`` row; original is None when the columns are absent."""
+    box = point = original = None
+    if _cell_bool(row.get("is_ball"), csv_path, f"{where}.is_ball"):
+        raw_box = _cell_json(row.get("ball_bbox"), csv_path, f"{where}.ball_bbox")
+        raw_point = _cell_json(row.get("ball_point"), csv_path, f"{where}.ball_point")
+        if raw_box is not None:
+            box = check_box(raw_box, width, height)
+        elif raw_point is not None:
+            point = check_point(raw_point, width, height)
+        else:
+            raise DatasetError(csv_path, f"{where}.ball_bbox", "is_ball is true but no box or point")
+    if "original_ball_bbox" in row or "original_ball_point" in row:
+        ob = _cell_json(row.get("original_ball_bbox"), csv_path, f"{where}.original_ball_bbox")
+        op = _cell_json(row.get("original_ball_point"), csv_path, f"{where}.original_ball_point")
+        ob = check_box(ob, width, height) if ob is not None else None
+        op = check_point(op, width, height) if op is not None else None
+        original = (BallKind.BOX if ob is not None else BallKind.POINT if op is not None else None, ob, op)
+    return box, point, original
+
+
+def _v3d_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, images: _Images, *,
+               rows: Mapping[tuple[str, str, str, str], dict[str, Any]], csv_path: Path,
+               game: tuple[str, str, str]) -> FrameRecord:
+    """One frame of a ``Labels-v3D.json`` with its ``SNv3D.csv`` row (a :data:`FrameReader`)."""
+    where = f"{section}[{name!r}]"
+    item = _mapping(item, file, where)
+    width, height = _size(item.get("imageMetadata"), file, f"{where}.imageMetadata")
+    if item["imageMetadata"].get("imageType") == FrameRole.CAMERA.value:
+        role = FrameRole.CAMERA
+    entry = rows.get((*game, name))
+    if entry is None:
+        raise DatasetError(csv_path, None, f"no row for {'/'.join(game)} frame {name!r} of {file}")
+    try:
+        box, point, original = _v3d_ball(entry["row"], csv_path, entry["where"], width, height)
+    except LabelError as exc:
+        raise DatasetError(csv_path, f"{entry['where']} ({name})", str(exc)) from None
+    extra = _mapping(item.get("v3d", {}), file, f"{where}.v3d")
+    original_lines = None
+    if extra.get("original_lines") is not None:
+        original_lines = _v3_lines({"lines": extra["original_lines"]}, width, height, file, f"{where}.v3d.original")
+    return FrameRecord(
+        name=name, role=role, width=width, height=height, lines=_v3_lines(item, width, height, file, where),
+        ball_box=box, ball_point=point, calibration=_v3d_calibration(item, file, where),
+        original_lines=original_lines, original_ball=original,
+        **(images.locate(name) or _exported_image(extra.get("image"), file, f"{where}.v3d.image")),
+    )
+
+
 def read_soccernet_v3d(path: str | Path) -> list[GameRecord]:
     """Read and validate a SoccerNet-v3D tree: ``Labels-v3D.json`` per game and ``SNv3D.csv`` at the
     root (``path``), as :func:`app.services.exporting.export_soccernet_v3d` writes them.
@@ -473,52 +524,9 @@ def read_soccernet_v3d(path: str | Path) -> list[GameRecord]:
     for labels in _find(root, V3D_LABELS):
         league, season, match = _game_key(labels.parent)
 
-        def frame_reader(file: Path, section: str, name: str, item: Any, role: FrameRole, images: _Images,
-                         _key=(league, season, match)) -> FrameRecord:
-            where = f"{section}[{name!r}]"
-            item = _mapping(item, file, where)
-            width, height = _size(item.get("imageMetadata"), file, f"{where}.imageMetadata")
-            image_type = item["imageMetadata"].get("imageType")
-            if image_type == FrameRole.CAMERA.value:
-                role = FrameRole.CAMERA
-            entry = rows.get((*_key, name))
-            if entry is None:
-                raise DatasetError(csv_path, None, f"no row for {'/'.join(_key)} frame {name!r} of {file}")
-            row, rwhere = entry["row"], entry["where"]
-            box = point = None
-            try:
-                if _cell_bool(row["is_ball"], csv_path, f"{rwhere}.is_ball"):
-                    raw_box = _cell_json(row.get("ball_bbox"), csv_path, f"{rwhere}.ball_bbox")
-                    raw_point = _cell_json(row.get("ball_point"), csv_path, f"{rwhere}.ball_point")
-                    if raw_box is not None:
-                        box = check_box(raw_box, width, height)
-                    elif raw_point is not None:
-                        point = check_point(raw_point, width, height)
-                    else:
-                        raise DatasetError(csv_path, f"{rwhere}.ball_bbox", "is_ball is true but no box or point")
-                original = None
-                if "original_ball_bbox" in row or "original_ball_point" in row:
-                    ob = _cell_json(row.get("original_ball_bbox"), csv_path, f"{rwhere}.original_ball_bbox")
-                    op = _cell_json(row.get("original_ball_point"), csv_path, f"{rwhere}.original_ball_point")
-                    ob = check_box(ob, width, height) if ob is not None else None
-                    op = check_point(op, width, height) if op is not None else None
-                    kind = BallKind.BOX if ob is not None else BallKind.POINT if op is not None else None
-                    original = (kind, ob, op)
-            except LabelError as exc:
-                raise DatasetError(csv_path, f"{rwhere} ({name})", str(exc)) from None
-            extra = _mapping(item.get("v3d", {}), file, f"{where}.v3d")
-            original_lines = None
-            if extra.get("original_lines") is not None:
-                original_lines = _v3_lines({"lines": extra["original_lines"]}, width, height, file, f"{where}.v3d.original")
-            return FrameRecord(
-                name=name, role=role, width=width, height=height, lines=_v3_lines(item, width, height, file, where),
-                ball_box=box, ball_point=point, calibration=_v3d_calibration(item, file, where),
-                original_lines=original_lines, original_ball=original,
-                **(images.locate(name) or _exported_image(extra.get("image"), file, f"{where}.v3d.image")),
-            )
-
         data = _load_json_file(labels)
-        systems = _v3_systems(labels, data, _Images(labels.parent), frame_reader)
+        reader = partial(_v3d_frame, rows=rows, csv_path=csv_path, game=(league, season, match))
+        systems = _v3_systems(labels, data, _Images(labels.parent), reader)
         meta = _mapping(_mapping(data, labels, "top level").get("GameMetadata", {}), labels, "GameMetadata")
         reviews = _mapping(meta.get("v3d_reviews") or {}, labels, "GameMetadata.v3d_reviews")
         names = _mapping(meta.get("v3d_systems") or {}, labels, "GameMetadata.v3d_systems")
