@@ -134,7 +134,7 @@ class SystemPage {
       if (!why.length) return;
       chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", title: why.join("; "),
         onclick: () => $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }) },
-      `V${i + 1}: ${why[0]}${why.length > 1 ? ` +${why.length - 1}` : ""}`));
+      `V${i + 1} ${shortDoubt(why[0])}${why.length > 1 ? ` +${why.length - 1}` : ""}`));
     });
     if (!Array.isArray(sys.ball3d) && sys.views.length > 1) {
       chips.push(el("span", { class: "chip", "data-testid": "doubt" }, `no 3D ball (${human(sys.triangulation?.status || "not triangulated")})`));
@@ -279,6 +279,18 @@ class SystemPage {
     panel.nudge(...m);
     return true;
   }
+}
+
+const SHORT_DOUBTS = {
+  "reprojection error above tau": "error > τ",
+  "no ball label": "no ball",
+  "calibration not admitted": "not admitted",
+};
+/** Short form of a doubt for the top bar (the full list is in the chip's title and the view card). */
+function shortDoubt(text) {
+  if (SHORT_DOUBTS[text]) return SHORT_DOUBTS[text];
+  if (text.startsWith("not calibrated")) return "uncalibrated";
+  return text;
 }
 
 function idFromPath() {
