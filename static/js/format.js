@@ -2,7 +2,6 @@
 
 export const STATUSES = ["pending", "accepted", "rejected", "needs_fix"];
 export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected: "rejected", needs_fix: "needs fix" };
-export const ADMIT_JAC = 0.75; // default admission threshold (JaC@0.5% > 0.75, method.md section 4)
 
 export const isNum = (v) => typeof v === "number" && Number.isFinite(v);
 
@@ -38,11 +37,6 @@ export function errorClass(errorPx, width, tau, rule) {
   if (e <= tau / 2) return "ok";
   if (e <= tau) return "warn";
   return "bad";
-}
-
-export function jacClass(v, threshold = ADMIT_JAC) {
-  if (!isNum(v)) return "muted";
-  return v > threshold ? "ok" : "bad";
 }
 
 export function el(tag, attrs = {}, ...children) {

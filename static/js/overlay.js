@@ -7,7 +7,7 @@
 // size (pointer positions go through getScreenCTM()). On release the element dispatches "ball-change"
 // {frameId, box} or {frameId, point}; the page saves it and sets the recomputed view back.
 
-import { el, svg, fmt, fmtJac, isNum, errorClass, scaledError, jacClass, viewColour, STATUS_LABEL } from "./format.js";
+import { el, svg, fmt, fmtJac, isNum, errorClass, scaledError, viewColour, STATUS_LABEL } from "./format.js";
 
 const ZOOM_PX = 150; // displayed size of the zoom inset
 const MIN_BOX = 2; // smallest box side, image pixels
@@ -225,7 +225,8 @@ export class ViewPanel extends HTMLElement {
           el(
             "dd",
             { class: "mono", "data-testid": "view-jac" },
-            el("span", { class: jacClass(jac["0.005"]) }, fmtJac(jac["0.005"])),
+            // coloured by the server's admission decision (its threshold is a setting)
+            el("span", { class: cal.admitted === true ? "ok" : cal.admitted === false ? "bad" : "" }, fmtJac(jac["0.005"])),
             " / ",
             fmtJac(jac["0.01"]),
             " / ",

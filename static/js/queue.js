@@ -4,7 +4,7 @@
 
 import { listSystems, listGames } from "./api.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
-import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, jacClass, showError, clearError, STATUSES, STATUS_LABEL } from "./format.js";
+import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL } from "./format.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const PAGE_SIZE = 50;
@@ -174,7 +174,7 @@ class QueuePage {
             title: `${s.views_calibrated} calibrated, ${s.views_admitted} admitted (JaC@0.5% above the threshold), ${s.views_labelled} with a ball label, of ${s.views_total} views` },
             `${s.views_calibrated ?? "—"}/${s.views_total ?? "—"}`),
           el("td", { class: "num" }, fmt(s.worst_error_px, 2, " px")),
-          el("td", { class: `num ${jacClass(jac)}` }, fmtJac(jac)),
+          el("td", { class: "num" }, fmtJac(jac)),
           el("td", { class: "num" }, Array.isArray(s.ball3d) ? fmtXYZ(s.ball3d, 1) : el("span", { class: "muted" }, s.views_total > 1 ? "none" : "single view")),
           el("td", { "data-testid": "row-doubts" }, rowDoubts(s)),
         );
