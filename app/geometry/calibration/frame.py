@@ -115,7 +115,9 @@ class CalibrationSettings:
         max_k1: largest accepted |k1|.
         max_evaluations: batched residual evaluations allowed per frame over all starts (one per
             Levenberg-Marquardt trial step); bounds the time spent on a frame whose labels fit no
-            camera (a typical frame needs 20 to 40).
+            camera (a typical frame needs 20 to 40); the leave-one-class-out step gets half as many.
+        leave_out_max_classes: classes left out in turn, the worst fitted first (all of them when no
+            camera was found).
     """
 
     min_constraints: int = 7
@@ -126,6 +128,7 @@ class CalibrationSettings:
     k1_min_points: int = 12
     max_k1: float = 0.5
     max_evaluations: int = 140
+    leave_out_max_classes: int = 7
 
 
 @dataclass(frozen=True)
@@ -362,7 +365,12 @@ def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | 
     pp = principal_point(width, height)
     scale = settings.loss_scale_gamma * image_diagonal(width, height)
     ranked: list[tuple[float, str, Observations, CameraParametrisation, np.ndarray]] = []
-    for cls in obs.classes:
+    candidates = list(obs.classes)
+    if best is not None:
+        # The mislabelled class is almost always among those the current camera fits worst.
+        per_class = _class_residuals(best.param.camera(best.x), obs)[0]
+        candidates = sorted(candidates, key=lambda c: -per_class[c])[:settings.leave_out_max_classes]
+    for cls in candidates:
         reduced = build_observations({c: v for c, v in lines.items() if c != cls})
         if reduced.constraint_count() < settings.min_constraints or len(reduced.classes) < 3:
             continue
