@@ -239,12 +239,30 @@ def test_frame_without_image_is_drawn_on_a_blank_canvas(page, artifacts):
     # an annotated point is drawn where its pixel coordinates say, at the displayed scale
     cls, polylines = next(iter(v["field_lines"].items()))
     x, y = polylines[0][0]
-    box = frame_svg.bounding_box()
-    dot = view.locator("[data-testid=overlay] circle.annot").first.bounding_box()
-    scale = box["width"] / v["width"]
-    assert dot["x"] + dot["width"] / 2 == pytest.approx(box["x"] + x * scale, abs=1.0)
-    assert dot["y"] + dot["height"] / 2 == pytest.approx(box["y"] + y * scale, abs=1.0)
+
+    def check_mapping() -> None:
+        box = frame_svg.bounding_box()
+        dot = view.locator("[data-testid=overlay] circle.annot").first.bounding_box()
+        scale = box["width"] / v["width"]
+        assert box["height"] == pytest.approx(v["height"] * scale, abs=1.0)  # aspect kept
+        assert dot["x"] + dot["width"] / 2 == pytest.approx(box["x"] + x * scale, abs=1.0)
+        assert dot["y"] + dot["height"] / 2 == pytest.approx(box["y"] + y * scale, abs=1.0)
+        # the dot keeps its size on screen (it is redrawn for the new scale)
+        assert dot["width"] == pytest.approx(4.4, abs=1.0)
+
+    check_mapping()
     page.screenshot(path=str(artifacts / "6-calibration-only.png"), full_page=True)
+    width_before = frame_svg.bounding_box()["width"]
+    page.set_viewport_size({"width": 1000, "height": 800})
+    page.wait_for_function("(w) => document.querySelector('[data-testid=view-svg]').getBoundingClientRect().width !== w",
+                           arg=width_before)
+    page.wait_for_function(  # the ResizeObserver's redraw: dot radius = 2.2 screen px in image units
+        """(w) => {
+            const svg = document.querySelector('[data-testid=view-svg]');
+            const r = Number(svg.querySelector('circle.annot').getAttribute('r'));
+            return Math.abs(r - 2.2 * w / svg.getBoundingClientRect().width) < 1e-6;
+        }""", arg=v["width"])
+    check_mapping()
 
 
 def test_queue_range_filters_typed_in_the_page(page):
