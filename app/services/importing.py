@@ -161,8 +161,9 @@ def _set_ball(frame: Frame, rec: FrameRecord, now: datetime) -> bool:
 def _store(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
            progress: Progress | None) -> None:
     """Upsert ``records`` into the session (no autoflush), calibrate the frames whose lines are new or
-    changed in a process pool while nothing is written yet (a long import does not hold SQLite's write
-    lock), then flush, store the calibrations and recompute the touched systems."""
+    changed in a process pool (then the refused ones of SoccerNet-v3 games with their game's rig)
+    while nothing is written yet, so that a long import does not hold SQLite's write lock; then
+    flush, store the calibrations and recompute the touched systems."""
     now = utcnow()
     to_calibrate: list[Frame] = []
     imported: list[tuple[Frame, CalibrationFields]] = []
@@ -222,17 +223,16 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     t0 = time.perf_counter()
     results = calibrate_many([calibration_job(f) for f in to_calibrate],
                              settings.calibration_workers, progress)
-    report.calibration_seconds = time.perf_counter() - t0
     report.calibration_ms = [r.elapsed_ms for r in results if r.elapsed_ms is not None]
-    preload_systems(session, touched)
+    with session.no_autoflush:
+        results = _retry_with_game_rigs(session, to_calibrate, results, settings, progress)
+    report.calibration_seconds = time.perf_counter() - t0
+    report.rig_assisted = sum(RIG_FLAG in r.flags for r in results)
+    preload_systems(session, touched)  # the first write of the import
     for frame, fields in zip(to_calibrate, results):
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
-    t0 = time.perf_counter()
-    results = _retry_with_game_rigs(session, to_calibrate, results, settings, progress)
-    report.calibration_seconds += time.perf_counter() - t0
-    report.rig_assisted = sum(RIG_FLAG in r.flags for r in results)
     for fields in [*results, *(f for _, f in imported)]:
         if fields.status is CalibrationStatus.CALIBRATED:
             report.calibrated += 1
@@ -244,20 +244,25 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
 
 def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],
                           settings: Settings, progress: Progress | None) -> list[CalibrationFields]:
-    """Recalibrate the refused frames of SoccerNet-v3 games with their game's rig (camera positions
-    of the game's well-calibrated frames, ``recompute.game_rig``); a frame the rig calibrates takes
-    that result. Returns the final result per frame."""
+    """Recalibrate the refused frames of SoccerNet-v3 games with their game's camera rig, estimated
+    from the game's stored calibrations (except the frames being recalibrated) and this import's
+    fresh ones (``recompute.game_rig``). Writes nothing (the caller disables autoflush). Returns the
+    final result per frame: the rig's where it calibrated the frame, else the first one."""
     retry = [i for i, (f, r) in enumerate(zip(frames, results))
              if r.status is CalibrationStatus.REFUSED and uses_rig(f.system)]
     if not retry:
         return results
-    rigs = {gid: game_rig(session, gid, settings) for gid in {frames[i].system.game_id for i in retry}}
-    retry = [i for i in retry if rigs[frames[i].system.game_id].positions]
-    jobs = [calibration_job(frames[i], rigs[frames[i].system.game_id]) for i in retry]
+    rigs = {}
+    for game in {id(frames[i].system.game): frames[i].system.game for i in retry}.values():
+        mine = [i for i, f in enumerate(frames) if f.system.game is game]
+        rigs[id(game)] = game_rig(session, game.id, settings,
+                                  exclude_frame_ids=[frames[i].id for i in mine if frames[i].id is not None],
+                                  extra=[results[i] for i in mine])
+    retry = [i for i in retry if rigs[id(frames[i].system.game)].positions]
+    jobs = [calibration_job(frames[i], rigs[id(frames[i].system.game)]) for i in retry]
     out = list(results)
     for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig")):
         if fields.status is CalibrationStatus.CALIBRATED:
-            apply_calibration(frames[i], fields, CalibrationSource.COMPUTED)
             out[i] = fields
     return out
 

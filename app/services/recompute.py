@@ -27,7 +27,7 @@ import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Collection, Iterable, Sequence
 
 import numpy as np
 from sqlalchemy import select
@@ -201,11 +201,7 @@ def admission_jac(calibration: Calibration, settings: Settings) -> float | None:
     Raises:
         ValueError: the gamma is not one of the stored :data:`JAC_GAMMAS`.
     """
-    column = _JAC_COLUMNS.get(settings.admit_jac_gamma)
-    if column is None:
-        raise ValueError(f"settings.admit_jac_gamma={settings.admit_jac_gamma!r} is not a stored JaC gamma; "
-                         f"choose one of {list(JAC_GAMMAS)}")
-    return getattr(calibration, column)
+    return getattr(calibration, _JAC_COLUMNS[_gamma(settings)])
 
 
 def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
@@ -216,18 +212,40 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
     return jac is not None and jac > settings.admit_jac_min
 
 
-def game_rig(session: Session, game_id: int, settings: Settings, exclude_frame_id: int | None = None) -> CameraRig:
+def game_rig(session: Session, game_id: int | None, settings: Settings, exclude_frame_ids: Collection[int] = (),
+             extra: Iterable[CalibrationFields] = ()) -> CameraRig:
     """The camera rig of a game (``app.geometry.calibration.rig.estimate_rig``), from the centres of
-    its frames that are calibrated with JaC@gamma > ``admit_jac_min`` and not rig-assisted
-    themselves (``exclude_frame_id``: leave one frame out, the one being recalibrated)."""
-    query = (select(Calibration).join(Frame, Frame.id == Calibration.frame_id).join(System, System.id == Frame.system_id)
-             .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
-    if exclude_frame_id is not None:
-        query = query.where(Calibration.frame_id != exclude_frame_id)
-    cameras = [Camera.from_soccernet(c.camera) for c in session.scalars(query)
-               if c.camera is not None and RIG_FLAG not in (c.flags or []) and (admission_jac(c, settings) or 0.0)
-               > settings.admit_jac_min]
+    its cameras that are calibrated with JaC@gamma > ``admit_jac_min`` and not rig-assisted themselves.
+
+    Args:
+        game_id: the game whose stored calibrations count (None: a game not stored yet).
+        exclude_frame_ids: stored frames left out (the ones being recalibrated).
+        extra: calibrations not stored yet that count too (an import's fresh results).
+    """
+    cameras = [Camera.from_soccernet(f.camera) for f in extra if _feeds_rig(f.status, f.camera, f.flags,
+                                                                             f.jac[JAC_GAMMAS.index(_gamma(settings))], settings)]
+    if game_id is not None:
+        query = (select(Calibration).join(Frame, Frame.id == Calibration.frame_id)
+                 .join(System, System.id == Frame.system_id)
+                 .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
+        if exclude_frame_ids:
+            query = query.where(Calibration.frame_id.not_in(list(exclude_frame_ids)))
+        cameras += [Camera.from_soccernet(c.camera) for c in session.scalars(query)
+                    if _feeds_rig(c.status, c.camera, c.flags, admission_jac(c, settings), settings)]
     return estimate_rig(cameras)
+
+
+def _gamma(settings: Settings) -> float:
+    if settings.admit_jac_gamma not in _JAC_COLUMNS:
+        raise ValueError(f"settings.admit_jac_gamma={settings.admit_jac_gamma!r} is not a stored JaC gamma; "
+                         f"choose one of {list(JAC_GAMMAS)}")
+    return settings.admit_jac_gamma
+
+
+def _feeds_rig(status: CalibrationStatus, camera: dict[str, Any] | None, flags: Sequence[str] | None,
+               jac: float | None, settings: Settings) -> bool:
+    return (status is CalibrationStatus.CALIBRATED and camera is not None and RIG_FLAG not in (flags or ())
+            and jac is not None and jac > settings.admit_jac_min)
 
 
 def uses_rig(system: System) -> bool:
@@ -248,7 +266,7 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
     """
     fields = calibrate_lines(*calibration_job(frame))
     if fields.status is CalibrationStatus.REFUSED and uses_rig(frame.system):
-        rig = game_rig(session, frame.system.game_id, settings, exclude_frame_id=frame.id)
+        rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id])
         if rig.positions:
             with_rig = calibrate_lines(*calibration_job(frame, rig))
             if with_rig.status is CalibrationStatus.CALIBRATED:

@@ -19,7 +19,7 @@ def test_a_frame_with_too_few_lines_is_calibrated_with_the_game_rig(db_session, 
     alone = calibrate_lines(few, frame.width, frame.height, 1)
     assert alone.status is CalibrationStatus.REFUSED and "fewer than" in alone.reason
 
-    rig = game_rig(db_session, imported["0.png"].game_id, settings, exclude_frame_id=frame.id)
+    rig = game_rig(db_session, imported["0.png"].game_id, settings, exclude_frame_ids=[frame.id])
     assert rig.positions and rig.positions[0].frames >= 2  # the other main-camera frames agree
     replace_field_lines(db_session, frame.id, few, settings=settings)
 
@@ -45,3 +45,15 @@ def test_calibration_datasets_never_use_a_rig(db_session, settings, imported, sh
     single = db_session.scalars(sa.select(System).where(System.kind == SystemKind.SINGLE_VIEW)).first()
     assert not uses_rig(single) and uses_rig(imported["0.png"])
     assert calibration_job(imported["0.png"].frames[0])[4] is None
+
+
+def test_a_rig_from_fresh_results_of_a_game_not_stored_yet(settings, shared_dir):
+    from app.services.recompute import CalibrationFields
+
+    mains = [cam for (system, frame), cam in true_cameras(shared_dir).items() if system == frame]  # actions
+    good = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (1.0, 1.0, 1.0)) for cam in mains]
+    rig = game_rig(None, None, settings, extra=good)  # no session needed without a stored game
+    assert rig.positions and rig.positions[0].frames >= len(mains) // 2
+    poor = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (0.5, 1.0, 1.0)) for cam in mains]
+    assisted = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (1.0, 1.0, 1.0), flags=[RIG_FLAG]) for cam in mains]
+    assert not game_rig(None, None, settings, extra=poor + assisted).positions
