@@ -20,6 +20,11 @@ Derived rows:
 
 Bulk calibration (:func:`calibrate_many`) runs the pure ``calibrate_frame`` in a process pool and
 returns plain :class:`CalibrationFields`; the main process writes them (:func:`apply_calibration`).
+
+Game rigs: broadcast cameras stay put during a game, so a frame of a SoccerNet-v3 game that its
+lines alone cannot calibrate is retried with its centre at one of the game's camera positions
+(:func:`game_rig`, ``app.geometry.calibration.rig``), estimated from the game's frames calibrated
+above the admission threshold. Calibration datasets (frames from many stadiums) never use one.
 """
 from __future__ import annotations
 
@@ -212,19 +217,20 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
     return jac is not None and jac > settings.admit_jac_min
 
 
-def game_rig(session: Session, game_id: int | None, settings: Settings, exclude_frame_ids: Collection[int] = (),
+def game_rig(session: Session | None, game_id: int | None, settings: Settings, exclude_frame_ids: Collection[int] = (),
              extra: Iterable[CalibrationFields] = ()) -> CameraRig:
     """The camera rig of a game (``app.geometry.calibration.rig.estimate_rig``), from the centres of
     its cameras that are calibrated with JaC@gamma > ``admit_jac_min`` and not rig-assisted themselves.
 
     Args:
+        session: reads the stored calibrations; may be None when ``game_id`` is None.
         game_id: the game whose stored calibrations count (None: a game not stored yet).
         exclude_frame_ids: stored frames left out (the ones being recalibrated).
         extra: calibrations not stored yet that count too (an import's fresh results).
     """
     cameras = [Camera.from_soccernet(f.camera) for f in extra if _feeds_rig(f.status, f.camera, f.flags,
                                                                              f.jac[JAC_GAMMAS.index(_gamma(settings))], settings)]
-    if game_id is not None:
+    if game_id is not None and session is not None:
         query = (select(Calibration).join(Frame, Frame.id == Calibration.frame_id)
                  .join(System, System.id == Frame.system_id)
                  .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
