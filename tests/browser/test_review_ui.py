@@ -343,7 +343,7 @@ def test_remove_and_restore_a_ball_label(page):
     assert sid is not None, "the demo data should have a system with three labelled views"
     system = _api(page, f"/api/systems/{sid}")
     k = _editable_view(system)
-    original = system["views"][k]["ball"]["box"]
+    original = system["views"][k]["ball"]["original_box"]  # as imported (another test may have moved it)
     page.goto(f"/systems/{sid}")
     view = page.locator(tid("view")).nth(k)
     view.locator(tid("remove-ball")).wait_for()
