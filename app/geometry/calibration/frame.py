@@ -144,7 +144,11 @@ class CalibrationResult:
         residuals_px: per labelled class, the largest distance (px) of its points to the model
             element under the returned camera (or the best rejected one), so a UI can point at
             the line that disagrees.
-        flags: e.g. ``"probably_mirrored"``, ``"few_lines"``, ``"radial_distortion"``, ``"rig_assisted"``.
+        flags: ``"probably_mirrored"`` (camera on the other side than ``prior.expected_side``, beyond
+            the far side line: the labels are probably mirrored, :attr:`mirrored_lines` is the fix),
+            ``"few_lines"`` (3 labelled classes or fewer), ``"radial_distortion"`` (``k1`` fitted),
+            ``"ignored_class:<class>"`` (that class disagrees with every camera fitting the others;
+            its residual stays in :attr:`residuals_px`), ``"rig_assisted"`` (centre fixed by a prior).
         rms_px: root mean square point distance, px.
         elapsed_ms: wall time of the call, milliseconds.
         mirrored_lines: when ``"probably_mirrored"`` is flagged, the mirrored labelling offered as
