@@ -154,3 +154,27 @@ def test_v3d_import_needs_the_csv_row_of_every_frame(db_session, settings, v3_tr
     csv_path.write_text("\n".join(lines).replace('"[', '"[NaN, ', 1) + "\n")  # a NaN in the first box
     with pytest.raises(DatasetError, match=r"SNv3D.csv: line 2 \(.*\): .*"):
         import_soccernet_v3d(db_session, tmp_path / "export", settings)
+
+
+def test_v3d_csv_cells_are_read_flexibly(db_session, settings, imported, tmp_path, fresh_session_factory):
+    """Boxes as Python tuples, booleans as 1/0, "NaN" for missing replays: what pandas writes."""
+    export_soccernet_v3d(db_session, tmp_path / "export", include_all=True)
+    csv_path = tmp_path / "export" / "SNv3D.csv"
+    with csv_path.open() as fh:
+        reader = csv.DictReader(fh)
+        fields, rows = reader.fieldnames, list(reader)
+    for row in rows:
+        if row["ball_bbox"]:
+            row["ball_bbox"] = repr(tuple(json.loads(row["ball_bbox"])))
+        row["action"], row["is_ball"] = ("1" if row["action"] == "True" else "0"), row["is_ball"].lower()
+        row["replay"] = row["replay"] or "NaN"
+    with csv_path.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(rows)
+    fresh = fresh_session_factory("flexible")
+    try:
+        import_soccernet_v3d(fresh, tmp_path / "export", settings)
+        assert _snapshot(fresh) == _snapshot(db_session)
+    finally:
+        fresh.close()
