@@ -45,6 +45,12 @@ class Settings(BaseSettings):
         description="How a pair's two reprojection errors combine into e_ij (see app.geometry.triangulation).",
     )
     min_baseline_m: float = Field(1.0, description="Pairs whose camera centres are closer are dropped (metres).")
+    min_parallax_deg: float = Field(
+        2.0,
+        description="Pairs whose rays meet at a smaller angle are dropped (degrees). Beyond the paper: "
+        "catches near-duplicate viewpoints whose calibrated centres drift more than 1 m apart. Replays "
+        "of real broadcasts meet the main camera at 15 deg or more (5th percentile of the synthetic plan).",
+    )
     ball_diameter_m: float = Field(0.22, description="phi, the ball diameter in metres.")
     calibration_workers: int = Field(0, description="Processes for bulk calibration; 0 = all cores.")
 

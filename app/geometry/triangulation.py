@@ -9,7 +9,12 @@ For every pair (i, j) of calibrated views with a ball label:
    into ``e_ij`` by a named rule (:data:`PAIR_ERROR_RULES`);
 3. the parallax angle ``beta_ij`` between the two viewing rays (degrees) and the baseline
    ``|C_i - C_j|`` (metres) are recorded;
-4. the pair is kept when ``e_ij < tau`` and the baseline is at least ``min_baseline_m``.
+4. the pair is kept when ``e_ij < tau``, the baseline is at least ``min_baseline_m`` (paper: 1 m)
+   and, beyond the paper, the parallax is at least ``min_parallax_deg``. The baseline rule alone
+   misses near-duplicate viewpoints once cameras come from calibration: each calibrated centre errs
+   by decimetres along the viewing direction, so two cameras 0.6 m apart can appear 1.5 m apart, while
+   their rays still meet at well under a degree and the point's depth is unconstrained. The parallax
+   angle is measured on the rays, so calibration error along the axis does not hide it.
 
 The ball is the mean of the kept ``p_ij``; each labelled view then gets the reprojection error of
 that fused ball in its own pixels (SoccerNet-v3D's ``rep_error``).
@@ -291,7 +296,7 @@ def _rule(rule: str) -> Callable[[float, float, float, float], float]:
 
 
 def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, rule: str,
-                     min_baseline_m: float) -> PairResult:
+                     min_baseline_m: float, min_parallax_deg: float = 0.0) -> PairResult:
     """Triangulate one pair of views and decide whether it is kept (see the module docstring).
 
     Args:
@@ -299,6 +304,8 @@ def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, r
         tau_px: keep when ``e_ij < tau_px`` (px, in the rule's units).
         rule: a key of :data:`PAIR_ERROR_RULES`.
         min_baseline_m: keep only when ``|C_a - C_b| >= min_baseline_m`` (metres).
+        min_parallax_deg: keep only when the angle between the two rays is at least this (degrees;
+            0 reproduces the paper).
 
     Raises:
         ValueError: unknown rule.
@@ -326,13 +333,15 @@ def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, r
     e = pair_error((e_a, e_b), (a.image_width, b.image_width), rule)
     if baseline < min_baseline_m:
         return dropped("baseline_below_min", point, (e_a, e_b), e)
+    if beta < min_parallax_deg:
+        return dropped("parallax_below_min", point, (e_a, e_b), e)
     if not e < tau_px:
         return dropped("error_above_tau", point, (e_a, e_b), e)
     return PairResult(a.view_id, b.view_id, point, (e_a, e_b), e, beta, baseline, True, None)
 
 
 def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, rule: str = "max_scaled_1920",
-                     min_baseline_m: float = 1.0) -> TriangulationResult:
+                     min_baseline_m: float = 1.0, min_parallax_deg: float = 0.0) -> TriangulationResult:
     """The 3D ball of a multi-view system (paper Eq. triangulation, method.md section 5).
 
     Every pair of observations is triangulated (:func:`triangulate_pair`); the ball is the mean of
@@ -344,6 +353,7 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
         tau_px: pair error threshold ``tau`` in pixels (units of ``rule``); positive.
         rule: a key of :data:`PAIR_ERROR_RULES`.
         min_baseline_m: minimum camera-centre distance of a kept pair, metres (paper: 1 m).
+        min_parallax_deg: minimum angle between the rays of a kept pair, degrees (0: the paper's rule).
 
     Returns:
         A :class:`TriangulationResult`. Fewer than two observations give status
@@ -358,6 +368,8 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
         raise ValueError(f"tau_px must be positive, got {tau_px!r}")
     if not min_baseline_m >= 0:
         raise ValueError(f"min_baseline_m must be >= 0, got {min_baseline_m!r}")
+    if not 0 <= min_parallax_deg < 90:
+        raise ValueError(f"min_parallax_deg must be in [0, 90), got {min_parallax_deg!r}")
     obs = list(observations)
     ids = [o.view_id for o in obs]
     if len(set(ids)) != len(ids):
@@ -369,7 +381,8 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
 
     if len(obs) < 2:
         return result(STATUS_INSUFFICIENT_VIEWS)
-    pairs = [triangulate_pair(a, b, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m)
+    pairs = [triangulate_pair(a, b, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m,
+                              min_parallax_deg=min_parallax_deg)
              for a, b in combinations(obs, 2)]
     kept = [p.point for p in pairs if p.kept]
     if not kept:

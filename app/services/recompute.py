@@ -303,7 +303,7 @@ def recompute_system(session: Session, system: System, settings: Settings) -> Tr
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                              min_baseline_m=settings.min_baseline_m)
+                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg)
 
     tri = system.triangulation
     if tri is None:

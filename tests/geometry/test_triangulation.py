@@ -268,3 +268,23 @@ def test_dev_set_triangulation_with_true_cameras(shared_dir):
     near_duplicate = [r for s, r in zip(systems, results)
                       if any(p.reason == "baseline_below_min" for p in r.pairs)]
     assert len(near_duplicate) == 2
+
+
+def test_near_duplicate_viewpoint_is_dropped_by_parallax_even_past_the_baseline_rule():
+    """Regression: two calibrated cameras 1.5 m apart (a near-duplicate replay whose centres drifted
+    along the viewing axis) pass the paper's 1 m baseline rule; their rays meet at under a degree, so
+    the pair must be dropped by the parallax rule, and kept when the rule is off (paper behaviour)."""
+    main = look_at([0.0, 75.0, -22.0], BALL, focal=3000.0)
+    near = look_at([0.0, 76.5, -22.0], BALL, focal=3000.0)
+    obs = observe([main, near], noise_px=0.3)
+    beta = parallax_angle_deg(main, obs[0].point_px, near, obs[1].point_px)
+    assert 0.1 < beta < 2.0
+    paper = triangulate_ball(obs, tau_px=20.0, min_baseline_m=1.0)
+    assert paper.pairs[0].kept
+    guarded = triangulate_ball(obs, tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=2.0)
+    assert not guarded.pairs[0].kept and guarded.pairs[0].reason == "parallax_below_min"
+    assert guarded.status == STATUS_NO_PAIR_KEPT
+    wide = triangulate_ball(observe(rig()), tau_px=20.0, min_parallax_deg=2.0)
+    assert all(p.kept for p in wide.pairs)  # wide-angle replays are untouched
+    with pytest.raises(ValueError, match="min_parallax_deg"):
+        triangulate_ball(obs, tau_px=20.0, min_parallax_deg=-1.0)
