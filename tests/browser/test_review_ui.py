@@ -160,10 +160,12 @@ def test_queue_to_accept_walk(page, artifacts):
 
     # ----- comment: typing must not trigger the review keys ------------------------------------
     comment = page.locator(tid("comment"))
+    status_before = page.locator(tid("system-status")).inner_text()
     comment.click()
+    page.keyboard.press("Control+a")
     page.keyboard.type("box fixed by a drag; keys a r f j k are text here")
     assert re.search(rf"/systems/{expected_id}(\?|$)", page.url)
-    assert page.locator(tid("system-status")).inner_text() == "pending"
+    assert page.locator(tid("system-status")).inner_text() == status_before
     page.keyboard.press("Escape")
 
     # ----- accept with the key: the decision is stored and the next system opens ---------------
