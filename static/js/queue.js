@@ -123,7 +123,7 @@ class QueuePage {
   }
 
   navigate() {
-    history.pushState(null, "", `/${stateQuery(this.state)}`);
+    history.pushState(null, "", `/${stateQuery(this.state)}`); // (drops any #system-… selection)
     this.load();
   }
 
@@ -148,8 +148,12 @@ class QueuePage {
       clearError();
       this.rows = answer.items || [];
       this.total = isNum(answer.total) ? answer.total : this.rows.length;
-      this.selected = Math.min(this.selected, Math.max(0, this.rows.length - 1));
+      // back from a system page (…#system-12): keep that system selected
+      const back = location.hash.match(/^#system-(.+)$/);
+      const at = back ? this.rows.findIndex((r) => String(r.id) === decodeURIComponent(back[1])) : -1;
+      this.selected = at >= 0 ? at : Math.min(this.selected, Math.max(0, this.rows.length - 1));
       this.renderRows();
+      if (at >= 0) $("queue").querySelectorAll("tbody tr")[at].scrollIntoView({ block: "nearest" });
       this.renderProgress(answer.counts || {});
     } catch (err) {
       showError(err.message);

@@ -26,7 +26,6 @@ class SystemPage {
   constructor() {
     this.search = location.search;
     this.params = apiFilters(readState(location.search));
-    $("queue-link").href = `/${this.search}`;
     $("prev").addEventListener("click", () => this.go(this.system?.prev_id));
     $("next").addEventListener("click", () => this.go(this.system?.next_id));
     for (const id of ["accept", "reject", "needs-fix"]) {
@@ -89,8 +88,14 @@ class SystemPage {
     this.load(id, true);
   }
 
+  /** The queue this system was opened from, with this system's row selected. */
+  queueUrl() {
+    return `/${this.search}${this.system ? `#system-${this.system.id}` : ""}`;
+  }
+
   render(sys) {
     this.system = sys;
+    $("queue-link").href = this.queueUrl();
     const game = sys.game || {};
     document.title = `${sys.name} · v3d review`;
     $("system-name").textContent = sys.name;
@@ -256,7 +261,7 @@ class SystemPage {
       this.review(keys[e.key]);
     } else if (e.key === "j") this.go(this.system?.next_id);
     else if (e.key === "k") this.go(this.system?.prev_id);
-    else if (e.key === "u") this.settle().then(() => location.assign(`/${this.search}`));
+    else if (e.key === "u") this.settle().then(() => location.assign(this.queueUrl()));
     else if (e.key === "c") {
       e.preventDefault();
       $("comment").focus();

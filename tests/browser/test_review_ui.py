@@ -186,8 +186,10 @@ def test_queue_to_accept_walk(page, artifacts):
 
     # ----- back on the queue: the progress counts the decision; filters live in the URL ---------
     page.keyboard.press("u")
-    page.wait_for_url(re.compile(r"/(\?.*)?$"))
+    page.wait_for_url(re.compile(rf"/\?sort=name#system-{next_id}$"))
     page.locator(tid("queue-row")).first.wait_for()
+    # the queue comes back in the same order, the system just left selected
+    assert page.locator(f"{tid('queue-row')}.selected").get_attribute("data-id") == str(next_id)
     page.wait_for_function("(n) => document.querySelector('[data-testid=count-accepted]').innerText === String(n)",
                            arg=counts["accepted"] + 1)
     page.select_option(tid("filter-status"), "accepted")
