@@ -15,7 +15,7 @@ Derived rows:
   after recomputation, with the status of ``app.geometry.triangulation.triangulate_ball``;
 * ``BallReprojection`` for every frame with a camera when the system has a 3D ball (the error is
   against the frame's label, None without one);
-* ``OptimisedBox`` (paper Eq. min_diametre, ``method="paper"``) for every admitted frame with a label
+* ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a label
   when the system has a 3D ball and the ball lies in front of the camera along the labelled ray.
 
 Bulk calibration (:func:`calibrate_many`) runs the pure ``calibrate_frame`` in a process pool and
@@ -356,7 +356,7 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
     opt = None
     centre = _label_centre(frame)
     if camera is not None and ball is not None and centre is not None:
-        r = optimise_box(camera, centre, ball, settings.ball_diameter_m, method="paper")
+        r = optimise_box(camera, centre, ball, settings.ball_diameter_m, method=settings.optimised_box_method)
         opt = r if r.status == "ok" else None
     if opt is None:
         frame.optimised_box = None

@@ -40,9 +40,19 @@ def test_demo_imports_into_the_review_queue(demo: Demo, db_session: Session, db_
         err = np.linalg.norm(np.array(view["ball3d"]) - truth[action]["ball_3d"])
         assert err < 1.0, (action, err)
 
-    # The queue's default order (worst reprojection error first) opens on the planted problems.
-    problem_actions = {a for a, s in truth.items() if s["problems"]}
+    # The queue's default order (worst reprojection error first) opens on the label problems: the
+    # misplaced ball box and the mirrored labels. A near-duplicate viewpoint is no label error (its ball
+    # agrees with the others); what the reviewer must see there is its pair with the main camera dropped
+    # for lack of parallax, so it cannot bias the 3D ball.
+    by_kind = {p["kind"]: (a, p["image"]) for a, s in truth.items() for p in s["problems"]}
+    label_problems = {by_kind[k][0] for k in ("wrong_ball_box", "mirrored_lines")}
     head = []
-    for item in page.items[: len(problem_actions)]:
+    for item in page.items[: len(label_problems)]:
         head.append(next(a for a, (it, _) in by_action.items() if it.system.id == item.system.id))
-    assert set(head) == problem_actions, head
+    assert set(head) == label_problems, head
+
+    action, image = by_kind["near_duplicate_viewpoint"]
+    view = by_action[action][1]
+    ids = {v["name"]: v["frame_id"] for v in view["views"]}
+    pair = next(p for p in view["triangulation"]["pairs"] if {p["view_a"], p["view_b"]} == {ids[action], ids[image]})
+    assert not pair["kept"] and pair["reason"] in ("parallax_below_min", "baseline_below_min"), pair

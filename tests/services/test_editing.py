@@ -31,8 +31,11 @@ def test_moving_a_ball_box_retriangulates_the_system(db_session, settings, impor
     assert np.linalg.norm(np.subtract(system.triangulation.ball3d, before_ball)) > 0.05
     moved_pairs = [p for p in system.triangulation.pairs if frame.id in (p.frame_a_id, p.frame_b_id)]
     assert len(moved_pairs) == 3 and all(p.error_px > 5 for p in moved_pairs)  # 30 px off in a 960-px view
-    assert db_session.get(Frame, frame.id).optimised_box.box[0] == pytest.approx(
-        (moved[0] + moved[2]) / 2 - db_session.get(Frame, frame.id).optimised_box.d_opt_px / 2)
+    # The optimised box follows the moved label: it stays on the annotated centre (to a fraction of a
+    # pixel: the exact sphere image is offset outwards off-axis).
+    opt = db_session.get(Frame, frame.id).optimised_box
+    assert (opt.box[0] + opt.box[2]) / 2 == pytest.approx((moved[0] + moved[2]) / 2, abs=0.5)
+    assert opt.box[0] == pytest.approx((moved[0] + moved[2]) / 2 - opt.d_opt_px / 2, abs=0.5)
 
 
 def test_a_point_label_and_removal(db_session, settings, imported):

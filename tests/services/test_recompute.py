@@ -47,8 +47,10 @@ def test_triangulation_with_true_cameras_finds_the_true_ball(imported, shared_di
         for frame in imported[name].frames:
             assert frame.reprojection.error_px < 5.0  # px, label noise only
             box = frame.optimised_box.box
-            assert box[2] - box[0] == pytest.approx(frame.optimised_box.d_opt_px)
-            assert [(box[0] + box[2]) / 2, (box[1] + box[3]) / 2] == pytest.approx(frame.ball_label.centre)
+            # d_opt is the mean of the optimised box's width and height (square for the paper's box).
+            assert (box[2] - box[0] + box[3] - box[1]) / 2 == pytest.approx(frame.optimised_box.d_opt_px)
+            # on the annotated centre, to the sub-pixel outward shift of an off-axis sphere's image
+            assert [(box[0] + box[2]) / 2, (box[1] + box[3]) / 2] == pytest.approx(frame.ball_label.centre, abs=0.1)
     # 3.png: the replay is a near-duplicate viewpoint; its pair is dropped for the baseline
     (pair,) = imported["3.png"].triangulation.pairs
     assert (pair.kept, pair.reason) == (False, "baseline_below_min") and pair.baseline_m < settings.min_baseline_m
