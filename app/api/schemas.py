@@ -206,6 +206,10 @@ class CalibrationOut(BaseModel):
     reason: Optional[str]
     flags: list[str]
     residuals_px: dict[str, Any]
+    mirror_evidence: Optional[dict[str, Any]] = Field(
+        None, description="Evidence on mirrored labels (app.geometry.mirror.MirrorVerdict.as_dict): verdict, "
+        "margin, camera y, side and rig votes and distances, pair errors as labelled and mirrored, and a sentence; "
+        "the flag 'probably_mirrored' follows the verdict. Null when never judged.")
 
 
 class BallOut(BaseModel):

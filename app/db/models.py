@@ -229,6 +229,9 @@ class Calibration(Base):
     ``jac_0005``, ``jac_001``, ``jac_002`` are JaC at gamma = 0.5 %, 1 %, 2 % of the image diagonal
     (method.md section 4), computed at the frame's own resolution. ``admitted`` says whether the frame
     joined its system's triangulation under the settings of the last recomputation.
+    ``mirror_evidence`` is the evidence on mirrored labels (``app.geometry.mirror``,
+    ``MirrorVerdict.as_dict``): written by the system recomputation for a calibrated frame, by the
+    rig retry for a refused one; the flag ``"probably_mirrored"`` in ``flags`` follows its verdict.
     """
 
     __tablename__ = "calibrations"
@@ -244,6 +247,7 @@ class Calibration(Base):
     jac_001: Mapped[Optional[float]]
     jac_002: Mapped[Optional[float]]
     admitted: Mapped[bool] = mapped_column(default=False)
+    mirror_evidence: Mapped[Optional[dict[str, Any]]]
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
     frame: Mapped[Frame] = relationship(back_populates="calibration")

@@ -7,7 +7,8 @@ recomputation leaves the edit unstored too. Invalid input raises
 :class:`~app.services.errors.NotFoundError`.
 
 * ball label -> the system's triangulation, reprojections and optimised boxes;
-* field lines -> the frame's calibration -> the same system-level recomputation.
+* field lines -> the frame's calibration -> the same system-level recomputation (also the
+  one-click fix of mirrored labels, :func:`apply_mirrored_labels`).
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.models import BallKind, BallLabel, FieldLineAnnotation, Frame, ReviewDecision, ReviewStatus, System
 from app.db.types import utcnow
-from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists
+from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.services._labels import LabelError, check_box, check_point
 from app.services.errors import InvalidInputError, NotFoundError
 from app.services.recompute import recompute_frame, recompute_system
@@ -134,6 +135,26 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         return frame
 
     return _in_transaction(session, work)
+
+
+def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings) -> Frame:
+    """Replace a frame's field lines by their mirrored labelling and recompute, in one transaction.
+
+    The fix offered for a frame flagged ``probably_mirrored`` (``app.geometry.mirror``): every class
+    is renamed by the pitch's 180-degree rotation (``app.geometry.annotations.mirror_lines``; the
+    points stay where they are), then :func:`replace_field_lines` recalibrates the frame and
+    recomputes its system. The imported original is kept, so the edit can be undone by applying
+    it again. The reviewer decides; nothing mirrors labels without this call.
+
+    Raises:
+        NotFoundError: no such frame.
+        InvalidInputError: the frame has no field lines (field "lines").
+    """
+    frame = get_frame(session, frame_id)
+    if frame.field_lines is None or not frame.field_lines.lines:
+        raise InvalidInputError(f"frame {frame_id} has no field lines to mirror", field="lines")
+    mirrored = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
+    return replace_field_lines(session, frame_id, mirrored, settings=settings)
 
 
 def decide_review(session: Session, *, system_id: int | None = None, frame_id: int | None = None,

@@ -38,7 +38,7 @@ from app.services._readers import (
 )
 from app.services.recompute import (
     RIG_FLAG, CalibrationFields, Progress, apply_calibration, calibrate_many, calibration_job, game_rig,
-    preload_systems, recompute_systems, uses_rig,
+    preload_systems, recompute_systems, uses_rig, with_rig_retry,
 )
 
 __all__ = [
@@ -247,7 +247,8 @@ def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[C
     """Recalibrate the refused frames of SoccerNet-v3 games with their game's camera rig, estimated
     from the game's stored calibrations (except the frames being recalibrated) and this import's
     fresh ones (``recompute.game_rig``). Writes nothing (the caller disables autoflush). Returns the
-    final result per frame: the rig's where it calibrated the frame, else the first one."""
+    final result per frame: the rig's where it calibrated the frame, else the first one (with the
+    rig's mirror flag, ``recompute.with_rig_retry``)."""
     retry = [i for i, (f, r) in enumerate(zip(frames, results))
              if r.status is CalibrationStatus.REFUSED and uses_rig(f.system)]
     if not retry:
@@ -262,8 +263,7 @@ def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[C
     jobs = [calibration_job(frames[i], rigs[id(frames[i].system.game)]) for i in retry]
     out = list(results)
     for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig")):
-        if fields.status is CalibrationStatus.CALIBRATED:
-            out[i] = fields
+        out[i] = with_rig_retry(out[i], fields)
     return out
 
 

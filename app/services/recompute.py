@@ -28,6 +28,7 @@ above the admission threshold. Calibration datasets (frames from many stadiums) 
 """
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
@@ -49,6 +50,7 @@ from app.geometry.ball import optimise_box
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
 from app.geometry.camera import Camera
+from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence, mirrored_fit_at_rig
 from app.geometry.triangulation import BallObservation, triangulate_ball
 
 #: The three JaC gammas stored per calibration (fractions of the image diagonal, method.md s4).
@@ -57,6 +59,9 @@ _JAC_COLUMNS = {0.005: "jac_0005", 0.01: "jac_001", 0.02: "jac_002"}
 
 #: Flag of calibrations made with the game's rig (``app.geometry.calibration.rig``).
 RIG_FLAG = "rig_assisted"
+
+#: Flag of a frame whose field-line labels are probably mirrored (``app.geometry.mirror``).
+MIRROR_FLAG = "probably_mirrored"
 
 #: Jobs below this count are calibrated in-process (a pool costs more than it saves).
 _MIN_JOBS_FOR_POOL = 8
@@ -77,6 +82,10 @@ class CalibrationFields:
         flags: warnings raised by calibration (e.g. probable mirrored labels).
         reason: why calibration was refused (None when calibrated).
         elapsed_ms: wall time of ``calibrate_frame`` (not stored; import reports use it).
+        mirror_evidence: for a frame refused even with the game's rig whose mirrored labels fit a
+            rig position (``app.geometry.mirror.mirrored_fit_at_rig``), that evidence (JSON); the
+            flag :data:`MIRROR_FLAG` is then in ``flags``. Calibrated frames get theirs from
+            :func:`recompute_system`.
     """
 
     status: CalibrationStatus
@@ -86,6 +95,7 @@ class CalibrationFields:
     flags: list[str] = field(default_factory=list)
     reason: str | None = None
     elapsed_ms: float | None = None
+    mirror_evidence: dict[str, Any] | None = None
 
 
 def expected_side(role: FrameRole) -> int | None:
@@ -101,12 +111,20 @@ def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: i
 
     Pure: calls ``app.geometry.calibration.calibrate_frame`` (JaC at :data:`JAC_GAMMAS` included)
     with the prior ``expected_side=side``, or, given a game ``rig``, ``calibrate_with_rig`` (the
-    centre fixed at one of the game's camera positions), and converts the result. Safe to run in a
-    worker process.
+    centre fixed at one of the game's camera positions), and converts the result. A frame the rig
+    cannot calibrate either is flagged :data:`MIRROR_FLAG` when its mirrored labels fit a rig
+    position (``app.geometry.mirror.mirrored_fit_at_rig``; the result stays a refusal: labels are
+    never changed silently). Safe to run in a worker process.
     """
     lines = lines_from_json_lists(lines_json)
     if rig is not None:
-        return _fields_from_result(calibrate_with_rig(lines, width, height, rig, expected_side=side))
+        fields = _fields_from_result(calibrate_with_rig(lines, width, height, rig, expected_side=side))
+        if fields.status is CalibrationStatus.REFUSED:
+            verdict = mirrored_fit_at_rig(lines, width, height, rig, expected_side=side)
+            if verdict is not None:
+                fields = dataclasses.replace(fields, flags=[*fields.flags, MIRROR_FLAG],
+                                             mirror_evidence=json_safe(verdict.as_dict()))
+        return fields
     prior = CalibrationPrior(expected_side=side) if side is not None else None
     return _fields_from_result(calibrate_frame(lines, width, height, prior=prior))
 
@@ -195,6 +213,7 @@ def apply_calibration(frame: Frame, fields: CalibrationFields, source: Calibrati
     cal.residuals_px = fields.residuals_px
     cal.flags = list(fields.flags)
     cal.reason = fields.reason
+    cal.mirror_evidence = fields.mirror_evidence
     cal.admitted = False
     cal.updated_at = utcnow()
     return cal
@@ -231,14 +250,30 @@ def game_rig(session: Session | None, game_id: int | None, settings: Settings, e
     cameras = [Camera.from_soccernet(f.camera) for f in extra if _feeds_rig(f.status, f.camera, f.flags,
                                                                              f.jac[JAC_GAMMAS.index(_gamma(settings))], settings)]
     if game_id is not None and session is not None:
-        query = (select(Calibration).join(Frame, Frame.id == Calibration.frame_id)
-                 .join(System, System.id == Frame.system_id)
-                 .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
-        if exclude_frame_ids:
-            query = query.where(Calibration.frame_id.not_in(list(exclude_frame_ids)))
-        cameras += [Camera.from_soccernet(c.camera) for c in session.scalars(query)
-                    if _feeds_rig(c.status, c.camera, c.flags, admission_jac(c, settings), settings)]
+        excluded = set(exclude_frame_ids)
+        cameras += [c for fid, c in rig_cameras(session, game_id, settings) if fid not in excluded]
     return estimate_rig(cameras)
+
+
+def rig_cameras(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera]]:
+    """``(frame id, camera)`` of the stored calibrations of a game that feed its rig (:func:`game_rig`)."""
+    query = (select(Calibration).join(Frame, Frame.id == Calibration.frame_id)
+             .join(System, System.id == Frame.system_id)
+             .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
+    return [(c.frame_id, Camera.from_soccernet(c.camera)) for c in session.scalars(query)
+            if _feeds_rig(c.status, c.camera, c.flags, admission_jac(c, settings), settings)]
+
+
+def with_rig_retry(first: CalibrationFields, retried: CalibrationFields) -> CalibrationFields:
+    """What is stored for a frame refused from its lines alone and retried with the game's rig: the
+    rig's calibration when it succeeded; else the first refusal, carrying the rig's mirror flag and
+    evidence when the mirrored labels fit a rig position (:func:`calibrate_lines`)."""
+    if retried.status is CalibrationStatus.CALIBRATED:
+        return retried
+    if MIRROR_FLAG in retried.flags:
+        flags = first.flags if MIRROR_FLAG in first.flags else [*first.flags, MIRROR_FLAG]
+        return dataclasses.replace(first, flags=flags, mirror_evidence=retried.mirror_evidence)
+    return first
 
 
 def _gamma(settings: Settings) -> float:
@@ -274,17 +309,21 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
     if fields.status is CalibrationStatus.REFUSED and uses_rig(frame.system):
         rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id])
         if rig.positions:
-            with_rig = calibrate_lines(*calibration_job(frame, rig))
-            if with_rig.status is CalibrationStatus.CALIBRATED:
-                fields = with_rig
+            fields = with_rig_retry(fields, calibrate_lines(*calibration_job(frame, rig)))
     apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     return recompute_system(session, frame.system, settings)
 
 
-def recompute_system(session: Session, system: System, settings: Settings) -> Triangulation:
-    """Admission, triangulation, reprojections and optimised boxes of one system, from its current
-    calibrations and ball labels (see the module docstring). Replaces the previous derived rows in
-    the session; the caller flushes or commits. The system's frames must have ids (be flushed).
+def recompute_system(session: Session, system: System, settings: Settings,
+                     rig_sources: Sequence[tuple[int, Camera]] | None = None) -> Triangulation:
+    """Admission, mirror evidence, triangulation, reprojections and optimised boxes of one system,
+    from its current calibrations and ball labels (see the module docstring). Replaces the previous
+    derived rows in the session; the caller flushes or commits. The system's frames must have ids
+    (be flushed).
+
+    Args:
+        rig_sources: ``(frame id, camera)`` feeding the game's rig (:func:`rig_cameras`), to spare
+            a query per system in bulk; read from the session when None.
 
     Returns:
         The system's :class:`Triangulation` row.
@@ -302,6 +341,7 @@ def recompute_system(session: Session, system: System, settings: Settings) -> Tr
         if cal is not None and cal.admitted and centre is not None:
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
+    _update_mirror_flags(session, system, cameras, settings, rig_sources)
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
                               min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg)
 
@@ -329,6 +369,37 @@ def recompute_system(session: Session, system: System, settings: Settings) -> Tr
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
     return tri
+
+
+def mirror_settings(settings: Settings) -> MirrorSettings:
+    """The mirror evidence's settings: the triangulation's tau and pair-error rule, the rest default."""
+    return MirrorSettings(tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule)
+
+
+def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Camera], settings: Settings,
+                         rig_sources: Sequence[tuple[int, Camera]] | None) -> None:
+    """Judge every calibrated frame of the system (``app.geometry.mirror.mirror_evidence``: ball rays
+    of the admitted frames, side prior, the game's rig estimated without this system's frames) and
+    set :data:`MIRROR_FLAG` and ``mirror_evidence`` on its calibration. Refused frames keep what
+    their rig retry found (:func:`with_rig_retry`)."""
+    frames = [f for f in system.frames if f.id in cameras]
+    if not frames:
+        return
+    positions = None
+    if uses_rig(system) and system.game_id is not None:
+        sources = rig_sources if rig_sources is not None else rig_cameras(session, system.game_id, settings)
+        mine = {f.id for f in system.frames}
+        rig = estimate_rig([c for fid, c in sources if fid not in mine])
+        positions = np.array([p.centre_m for p in rig.positions]).reshape(-1, 3)
+    views = [MirrorView(view_id=f.id, camera=cameras[f.id], ball_px=_label_centre(f), image_width=f.width,
+                        expected_side=expected_side(f.role), rays=bool(f.calibration.admitted), name=f.name)
+             for f in frames]
+    verdicts = mirror_evidence(views, positions, mirror_settings(settings))
+    for f in frames:
+        cal, verdict = f.calibration, verdicts[f.id]
+        flags = [x for x in (cal.flags or []) if x != MIRROR_FLAG]
+        cal.flags = [*flags, MIRROR_FLAG] if verdict.flagged else flags
+        cal.mirror_evidence = json_safe(verdict.as_dict())
 
 
 def _label_centre(frame: Frame) -> np.ndarray | None:
@@ -396,9 +467,11 @@ def recompute_systems(session: Session, systems: Iterable[System], settings: Set
     """
     systems = list(systems)
     preload_systems(session, systems)
+    sources = {gid: rig_cameras(session, gid, settings)
+               for gid in {s.game_id for s in systems if uses_rig(s) and s.game_id is not None}}
     n = 0
     for i, s in enumerate(systems, 1):
-        if recompute_system(session, s, settings).status is TriangulationStatus.TRIANGULATED:
+        if recompute_system(session, s, settings, sources.get(s.game_id)).status is TriangulationStatus.TRIANGULATED:
             n += 1
         if progress:
             progress("triangulate", i, len(systems))

@@ -386,7 +386,7 @@ def _calibration_json(cal: Optional[Calibration]) -> Optional[dict[str, Any]]:
     return {
         "status": cal.status.value, "source": cal.source.value, "camera": cal.camera, "jac": cal.jac(),
         "admitted": cal.admitted, "reason": cal.reason, "flags": list(cal.flags or []),
-        "residuals_px": dict(cal.residuals_px or {}),
+        "residuals_px": dict(cal.residuals_px or {}), "mirror_evidence": cal.mirror_evidence,
     }
 
 

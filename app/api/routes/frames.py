@@ -86,6 +86,17 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, frame: Frame
     return views.system_view(session, frame.system_id, query.filters(), query.sort)
 
 
+@router.post("/{frame_id}/field-lines/mirror", response_model=SystemView, responses={**NOT_FOUND, **INVALID})
+def mirror_field_lines(session: SessionDep, settings: SettingsDep, frame: FrameDep,
+                       query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+    """Replace the frame's field lines by their mirrored labelling (left <-> right, top <-> bottom),
+    recalibrate it, and answer the recomputed system view: the fix offered for a view flagged
+    ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines.
+    """
+    editing.apply_mirrored_labels(session, frame.id, settings=settings)
+    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+
+
 @router.post("/{frame_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID})
 def review_frame(session: SessionDep, frame: FrameDep, body: ReviewIn) -> ReviewOut:
     """Record the reviewer's decision on one view (for example a wrong calibration)."""
