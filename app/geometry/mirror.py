@@ -13,7 +13,9 @@ and JaC therefore cannot tell mirrored labels; priors can (method.md section 3):
 * **rig** (``rig_positions``): a game's cameras stay where they are. A camera within
   ``rig_near_m`` of a known camera position of the game while its mirror image is more than
   ``rig_far_m`` from every position votes "as labelled"; the reverse votes "mirrored"; no vote
-  otherwise (symmetric positions, such as cameras behind both goals, say nothing).
+  otherwise (symmetric positions, such as cameras behind both goals, say nothing). The "mirrored"
+  vote weighs less: a replay camera seen once, whose mirror image happens to be a known position,
+  is common, so that vote alone never flags a view; it decides only where the rays leave a tie.
 * **rays** (the other views of the system): a view's ball ray must meet the other views' rays.
   For a pair of views, the pair error ``e_ij`` (:func:`app.geometry.triangulation.triangulate_pair`,
   the triangulation's rule and tau) is computed with both cameras as calibrated ("same": both or
@@ -120,8 +122,12 @@ class MirrorSettings:
         max_depth_m: lowest plausible ball centre (metres below the ground: triangulation noise).
         prior: log-odds against a view being mirrored (mirrored labels hit about 5 % of views; ln 19).
         side_weight: log-likelihood ratio of the side vote, ln(1594 / 9) from the real cameras.
-        rig_weight: log-likelihood ratio of the rig vote (a camera position of the game is about as
-            telling as the side of the main camera; kept below it).
+        rig_weight_as_labelled: log-likelihood ratio of the rig's "as labelled" vote (the camera
+            stands at a known position of the game: about as telling as the side of a main camera,
+            kept below it).
+        rig_weight_mirrored: log-likelihood ratio of the rig's "mirrored" vote (only the mirror image
+            stands at a known position; a camera seen once is common, so this stays below
+            ``prior + decision_margin`` and never flags alone).
         pair_weight: log-likelihood ratio of one pair's same/different (a chance meeting of two
             unrelated rays within tau at a plausible place is rare: about 1 in 100).
         decision_margin: flag when the max-marginal margin reaches this (log-odds; 1 is about 3:1).
@@ -139,7 +145,8 @@ class MirrorSettings:
     max_depth_m: float = 1.0
     prior: float = float(np.log(19.0))
     side_weight: float = float(np.log(1594.0 / 9.0))
-    rig_weight: float = 4.0
+    rig_weight_as_labelled: float = 4.0
+    rig_weight_mirrored: float = 2.0
     pair_weight: float = float(np.log(100.0))
     decision_margin: float = 1.0
     max_views: int = 12
@@ -155,8 +162,8 @@ class MirrorView:
         ball_px: (2,) labelled ball centre, pixels of this image, or ``None`` (no ray evidence).
         image_width: image width, pixels (for the scaled pair-error rules).
         expected_side: +1 (main camera, y > 0), -1, or ``None`` (replays: anywhere).
-        rays: whether the view's ray joins the pair evidence (the service passes its admission:
-            poorly calibrated views would give false disagreements).
+        rays: whether the view's ray joins the pair evidence (a caller may leave out views whose
+            camera it distrusts; a rough camera gives no agreement within tau, hence no evidence).
         name: how sentences name the view (image name); the id when None.
     """
 
@@ -283,8 +290,18 @@ def _plausible(point: np.ndarray, s: MirrorSettings) -> bool:
 
 
 def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings) -> tuple[float | None, np.ndarray | None]:
-    """Pair error (rule px) and point when the two rays meet within tau at a plausible place."""
-    pr = triangulate_pair(a, b, tau_px=s.tau_px, rule=s.rule, min_baseline_m=0.0)
+    """Pair error (rule px) and point when the two rays meet within tau at a plausible place.
+
+    A pixel that a camera's distortion cannot undistort (a strongly distorted, poorly calibrated
+    camera far outside its valid field) gives no evidence: ``(None, None)``.
+    """
+    try:
+        with np.errstate(all="ignore"):
+            pr = triangulate_pair(a, b, tau_px=s.tau_px, rule=s.rule, min_baseline_m=0.0)
+    except (np.linalg.LinAlgError, ValueError):
+        return None, None
+    if pr.error is not None and not np.isfinite(pr.error):
+        return None, None
     if pr.error is None or pr.point is None:
         return pr.error, None
     return pr.error, (pr.point if pr.error < s.tau_px and _plausible(pr.point, s) else None)
@@ -338,8 +355,8 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     sides = [side_vote(v.camera, v.expected_side, settings.side_line_margin_m) for v in vs]
     dists = [rig_distances(v.camera, rig) for v in vs]
     rigs = [_rig_vote(d, dm, settings) for d, dm in dists]
-    unary = np.array([settings.side_weight * sv + settings.rig_weight * rv - settings.prior
-                      for sv, rv in zip(sides, rigs)])
+    rig_w = {1: settings.rig_weight_mirrored, -1: settings.rig_weight_as_labelled, 0: 0.0}
+    unary = np.array([settings.side_weight * sv + rig_w[rv] * rv - settings.prior for sv, rv in zip(sides, rigs)])
 
     pair_ev: dict[int, list[PairEvidence]] = {i: [] for i in range(n)}
     constraints: list[tuple[int, int, int]] = []  # (i, j, +1 same / -1 different)
@@ -394,6 +411,13 @@ def _fmt(v: float | None) -> str:
     return "-" if v is None else f"{v:.0f}"
 
 
+def _miss(error: float | None, other: str) -> str:
+    """How a ray misses another (``other`` names it): by how many px, or behind a camera."""
+    if error is None:
+        return f"meets {other} only behind a camera"
+    return f"misses {other} by {error:.0f} px"
+
+
 def _sentence(verdict: str, view: MirrorView, side: int, dist: tuple[float | None, float | None], rig: int,
               pairs: tuple[PairEvidence, ...], s: MirrorSettings, views: Sequence[MirrorView]) -> str:
     """A human sentence with the numbers behind the verdict."""
@@ -414,11 +438,11 @@ def _sentence(verdict: str, view: MirrorView, side: int, dist: tuple[float | Non
     for p in pairs:
         other = names.get(p.other, p.other)
         if p.relation == DIFFERENT:
-            parts.append(f"its ball ray misses view {other} by {_fmt(p.error_as_labelled_px)} px as labelled "
-                         f"and meets it within {_fmt(p.error_mirrored_px)} px mirrored")
+            parts.append(f"as labelled its ball ray {_miss(p.error_as_labelled_px, f'the ray of view {other}')}, mirrored it meets "
+                         f"it within {_fmt(p.error_mirrored_px)} px")
         elif p.relation == SAME:
-            parts.append(f"its ball ray meets view {other} within {_fmt(p.error_as_labelled_px)} px as labelled "
-                         f"({_fmt(p.error_mirrored_px)} px mirrored)")
+            parts.append(f"as labelled its ball ray meets the ray of view {other} within "
+                         f"{_fmt(p.error_as_labelled_px)} px, mirrored it {_miss(p.error_mirrored_px, 'it')}")
         elif p.relation == AMBIGUOUS:
             parts.append(f"with view {other} the ball is too near the centre spot to tell")
     head = {VERDICT_MIRRORED: "Labels probably mirrored",
@@ -440,8 +464,9 @@ def mirrored_fit_at_rig(lines: FieldLines, width: int, height: int, rig: CameraR
     the rig. When they fit a position ``P`` tightly (RMS within the calibration's ``accept_gamma`` of
     the diagonal), two explanations remain: the labels are mirrored and the camera stands at the
     known position ``P``, or the labels are right and the camera stands at ``M P``, where no camera
-    of the game was seen. The first gets the rig weight, the side prior judges ``M P`` (a main
-    camera beyond the far side line: mirrored), and the rule of the module docstring decides.
+    of the game was seen. The first gets the rig's "mirrored" weight, the side prior judges ``M P``
+    (a main camera beyond the far side line: mirrored), and the rule of the module docstring
+    decides: a main camera is flagged, a replay (no side prior) is not on this alone.
 
     Args:
         lines: the frame's labels, pixels; width, height: image size, pixels.
@@ -462,7 +487,7 @@ def mirrored_fit_at_rig(lines: FieldLines, width: int, height: int, rig: CameraR
         return None
     as_labelled = mirror_camera(result.camera)  # the camera the labels as given describe, at M P
     side = side_vote(as_labelled, expected_side, settings.side_line_margin_m)
-    margin = settings.rig_weight + settings.side_weight * side - settings.prior
+    margin = settings.rig_weight_mirrored + settings.side_weight * side - settings.prior
     if margin < settings.decision_margin:
         return None
     d, d_mirror = rig_distances(as_labelled, np.array([p.centre_m for p in rig.positions]))
