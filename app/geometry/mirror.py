@@ -35,7 +35,9 @@ hypothesis ``h`` in {as labelled, mirrored}^n over the n views scores
 where ``side_v``/``rig_v`` are +weight for a "mirrored" vote, -weight for an "as labelled" vote and
 ``prior`` is the log-odds against a view being mirrored (mirrors are rare). A view is flagged when its
 max-marginal margin, the best score with it mirrored minus the best with it as labelled, is at
-least ``decision_margin``. Consequences, each a guard against false flags:
+least ``decision_margin``; it is "as labelled" when the evidence alone (the margin without the
+prior) favours the labels by that much, and "undecided" otherwise. Consequences, each a guard
+against false flags:
 
 * a single view reduces to the side prior (exactly ``calibrate_frame``'s camera-side flag) and the
   rig prior;
@@ -218,7 +220,8 @@ class MirrorVerdict:
     Attributes:
         view_id: the view.
         verdict: :data:`VERDICT_MIRRORED` (flag it), :data:`VERDICT_AS_LABELLED` (the evidence says
-            the labels are right) or :data:`VERDICT_UNDECIDED` (no evidence either way).
+            the labels are right) or :data:`VERDICT_UNDECIDED` (too little evidence either way; not
+            flagged, mirrors being rare).
         margin: best score with the view mirrored minus best with it as labelled (log-odds).
         camera_y_m: y of the calibrated centre, metres; ``mirrored_camera_y_m`` is ``-camera_y_m``.
         side_vote: +1 "mirrored", -1 "as labelled", 0 none (see the module docstring).
@@ -376,7 +379,8 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     for i, v in enumerate(vs):
         m = float(margins[i])
         verdict = (VERDICT_MIRRORED if m >= settings.decision_margin
-                   else VERDICT_AS_LABELLED if m <= -settings.decision_margin else VERDICT_UNDECIDED)
+                   else VERDICT_AS_LABELLED if m + settings.prior <= -settings.decision_margin
+                   else VERDICT_UNDECIDED)
         pe = tuple(pair_ev[i])
         out[v.view_id] = MirrorVerdict(
             view_id=v.view_id, verdict=verdict, margin=m, camera_y_m=float(v.camera.C[1]), side_vote=sides[i],
