@@ -91,3 +91,9 @@ export function postReview(id, status, comment) {
 export function patchBall(frameId, change, params = {}) {
   return request("PATCH", `/api/frames/${encodeURIComponent(frameId)}/ball${toQuery(params)}`, change);
 }
+
+/** POST /api/frames/{id}/field-lines/mirror: replace the frame's field lines by their mirrored
+ * labelling (the fix of a view flagged probably_mirrored); answers the recomputed system view. */
+export function mirrorFieldLines(frameId, params = {}) {
+  return request("POST", `/api/frames/${encodeURIComponent(frameId)}/field-lines/mirror${toQuery(params)}`);
+}

@@ -28,10 +28,19 @@ function sameBox(a, b) {
   return validBox(a) && validBox(b) && a.every((v, i) => Math.abs(v - b[i]) < 0.05);
 }
 
+/** The flag the server puts on a view whose field-line labels are probably mirrored. */
+export const MIRROR_FLAG = "probably_mirrored";
+
+/** True when the server flags the view's labels as probably mirrored. */
+export function isMirrorFlagged(view) {
+  return ((view.calibration || {}).flags || []).includes(MIRROR_FLAG);
+}
+
 /** Why a view needs a reviewer's eye (empty when nothing is doubtful). */
 export function doubts(view, tau, rule, multiView = true) {
   const out = [];
   const cal = view.calibration || {};
+  if (isMirrorFlagged(view)) out.push("labels probably mirrored");
   if (!cal.camera) out.push(cal.status ? `not calibrated (${cal.status})` : "not calibrated");
   else if (cal.admitted === false) out.push("calibration not admitted");
   if (cal.reason) out.push(cal.reason);
@@ -246,6 +255,13 @@ export class ViewPanel extends HTMLElement {
               ? el("button", { type: "button", "data-testid": "restore-ball", title: "Put back the imported label (z on the selected view)",
                 onclick: () => this.restoreLabel() }, "restore imported")
               : null),
+          isMirrorFlagged(v) ? el("dt", { class: "bad" }, "Mirrored?") : null,
+          isMirrorFlagged(v) ? el("dd", { class: "mirror" },
+            el("div", { class: "reason", "data-testid": "view-mirror-evidence" },
+              (cal.mirror_evidence || {}).sentence || "Labels probably mirrored."),
+            el("button", { type: "button", "data-testid": "apply-mirror",
+              title: "Rename every field line by the pitch's half turn (left <-> right, top <-> bottom) and recompute (m on the selected view)",
+              onclick: () => this.requestMirror() }, "Apply mirrored labels")) : null,
           doubtful.length ? el("dt", { class: "bad" }, "Doubts") : null,
           doubtful.length ? el("dd", { class: "bad", "data-testid": "view-doubts" }, doubtful.join("; ")) : null,
         ),
@@ -485,6 +501,14 @@ export class ViewPanel extends HTMLElement {
     if (this.#saving || this.#drag || !(this.#view.ball || {}).kind) return false;
     this.saving = true;
     this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: null }, bubbles: true }));
+    return true;
+  }
+
+  /** Ask the page to replace this view's field lines by their mirrored labelling (flagged views only). */
+  requestMirror() {
+    if (this.#saving || this.#drag || !isMirrorFlagged(this.#view)) return false;
+    this.saving = true;
+    this.dispatchEvent(new CustomEvent("mirror-request", { detail: { frameId: this.#view.frame_id }, bubbles: true }));
     return true;
   }
 

@@ -3,10 +3,10 @@
 // The page's query string holds the queue's filters; it is kept when moving between systems and
 // going back to the queue, and forwarded to the API so prev_id / next_id follow that queue.
 
-import { getSystem, postReview, patchBall } from "./api.js";
+import { getSystem, postReview, patchBall, mirrorFieldLines } from "./api.js";
 import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
-import { doubts } from "./overlay.js";
+import { doubts, isMirrorFlagged } from "./overlay.js";
 import "./pitchmap.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -36,6 +36,7 @@ class SystemPage {
       if (e.key === "Escape") e.currentTarget.blur();
     });
     $("views").addEventListener("ball-change", (e) => this.saveBall(e.target, e.detail));
+    $("views").addEventListener("mirror-request", (e) => this.applyMirror(e.target, e.detail));
     $("views").addEventListener("pointerdown", (e) => {
       const panel = e.target.closest("v3d-view");
       if (panel) this.select([...$("views").children].indexOf(panel));
@@ -246,6 +247,36 @@ class SystemPage {
     save.finally(() => this.saves.delete(save));
   }
 
+  /** Replace a flagged view's field lines by their mirrored labelling, then draw the recomputed system. */
+  applyMirror(panel, detail) {
+    const shown = this.system.id;
+    const name = panel.view?.name || "view";
+    const save = (async () => {
+      try {
+        const sys = await mirrorFieldLines(detail.frameId, this.params);
+        clearError();
+        if (this.system.id === shown && sys && Array.isArray(sys.views)) {
+          this.render(sys);
+          const after = sys.views.find((v) => v.frame_id === detail.frameId);
+          toast(`${name}: mirrored labels applied${after && isMirrorFlagged(after) ? " (still flagged)" : ""}`);
+        }
+      } catch (err) {
+        panel.revert();
+        showError(err.message);
+      }
+    })();
+    this.saves.add(save);
+    save.finally(() => this.saves.delete(save));
+  }
+
+  /** The view `m` acts on: the selected one, else the only flagged one. */
+  mirrorTarget() {
+    const panels = [...$("views").children];
+    if (this.selected >= 0) return panels[this.selected] || null;
+    const flagged = panels.filter((p) => p.view && isMirrorFlagged(p.view));
+    return flagged.length === 1 ? flagged[0] : null;
+  }
+
   select(index) {
     const panels = [...$("views").children];
     if (index < 0 || index >= panels.length) return;
@@ -267,6 +298,8 @@ class SystemPage {
       $("comment").focus();
     } else if (e.key === "o") {
       document.body.classList.toggle("overlays-hidden"); // look at the bare frames
+    } else if (e.key === "m") {
+      if (this.mirrorTarget()?.requestMirror()) e.preventDefault();
     } else if (/^[1-9]$/.test(e.key)) this.select(Number(e.key) - 1);
     else if (this.selected >= 0 && this.editKey(e)) e.preventDefault();
   }
@@ -287,6 +320,7 @@ class SystemPage {
 }
 
 const SHORT_DOUBTS = {
+  "labels probably mirrored": "mirrored?",
   "reprojection error above tau": "error > τ",
   "no ball label": "no ball",
   "calibration not admitted": "not admitted",

@@ -394,3 +394,49 @@ def test_keyboard_nudge_is_saved_before_the_decision(page):
     after = _api(page, f"/api/systems/{sid}?sort=name")
     assert after["views"][k]["ball"]["box"] == pytest.approx([old[0] + 2, old[1] + 5, old[2] + 2, old[3] + 5], abs=0.05)
     assert after["review"]["status"] == "rejected"
+
+
+def _mirror_flagged(view: dict) -> bool:
+    return "probably_mirrored" in ((view.get("calibration") or {}).get("flags") or [])
+
+
+def test_mirrored_labels_are_shown_with_their_evidence_and_fixed_by_one_key(page, artifacts):
+    """The demo's replay with mirrored line labels is flagged with the evidence sentence; ``m``
+    applies the mirrored labelling, the view's reprojection error drops and the flag disappears.
+    The labels are mirrored back through the API at the end (the database is shared by the module)."""
+    found = None
+    for item in _api(page, "/api/systems?limit=500")["items"]:
+        system = _api(page, f"/api/systems/{item['id']}")
+        k = next((i for i, v in enumerate(system["views"]) if _mirror_flagged(v)), None)
+        if k is not None:
+            found = (system, k)
+            break
+    assert found is not None, "the demo data should have a view flagged probably_mirrored (its mirrored replay)"
+    system, k = found
+    flagged = system["views"][k]
+    assert flagged["reprojection_error_px"] > 100.0, "the demo's mirrored replay reprojects far from its label"
+    page.goto(f"/systems/{system['id']}")
+    view = page.locator(tid("view")).nth(k)
+    evidence = view.locator(tid("view-mirror-evidence"))
+    evidence.wait_for()
+    assert evidence.inner_text() == flagged["calibration"]["mirror_evidence"]["sentence"]
+    assert evidence.inner_text().startswith("Labels probably mirrored")
+    assert page.locator(tid("doubt")).filter(has_text=f"V{k + 1} mirrored?").count() == 1
+    assert view.locator(tid("apply-mirror")).is_visible()
+    assert page.locator(".keys").inner_text().count("apply mirrored labels") == 1
+    page.screenshot(path=str(artifacts / "mirrored-before.png"), full_page=True)
+
+    with page.expect_response(lambda r: r.request.method == "POST" and "/field-lines/mirror" in r.url) as post:
+        page.keyboard.press("m")  # no view selected: the only flagged view
+    assert post.value.ok
+    view.locator(tid("apply-mirror")).wait_for(state="detached")
+    assert view.locator(tid("view-mirror-evidence")).count() == 0
+    assert page.locator(tid("doubt")).filter(has_text="mirrored?").count() == 0
+    shown = float(re.match(r"([0-9.]+) px", view.locator(tid("view-reproj-error")).inner_text()).group(1))
+    after = _api(page, f"/api/systems/{system['id']}")["views"][k]
+    assert not _mirror_flagged(after)
+    assert after["reprojection_error_px"] < 5.0 and shown == pytest.approx(after["reprojection_error_px"], abs=0.01)
+    page.screenshot(path=str(artifacts / "mirrored-after.png"), full_page=True)
+
+    restored = page.request.post(f"/api/frames/{flagged['frame_id']}/field-lines/mirror")
+    assert restored.ok and _mirror_flagged(restored.json()["views"][k])
