@@ -375,17 +375,18 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
             constraints.append((i, j, 1 if ev_i.relation == SAME else -1))
 
     margins = _max_marginals(n, unary, constraints, settings)
+    verdicts = [VERDICT_MIRRORED if m >= settings.decision_margin
+                else VERDICT_AS_LABELLED if m + settings.prior <= -settings.decision_margin
+                else VERDICT_UNDECIDED for m in margins]
+    names = {v.view_id: v.name or v.view_id for v in vs}
+    flagged = {v.view_id for v, verdict in zip(vs, verdicts) if verdict == VERDICT_MIRRORED}
     out: dict[Hashable, MirrorVerdict] = {}
     for i, v in enumerate(vs):
-        m = float(margins[i])
-        verdict = (VERDICT_MIRRORED if m >= settings.decision_margin
-                   else VERDICT_AS_LABELLED if m + settings.prior <= -settings.decision_margin
-                   else VERDICT_UNDECIDED)
         pe = tuple(pair_ev[i])
         out[v.view_id] = MirrorVerdict(
-            view_id=v.view_id, verdict=verdict, margin=m, camera_y_m=float(v.camera.C[1]), side_vote=sides[i],
-            rig_distance_m=dists[i][0], rig_distance_mirrored_m=dists[i][1], rig_vote=rigs[i], pairs=pe,
-            sentence=_sentence(verdict, v, sides[i], dists[i], rigs[i], pe, settings, vs))
+            view_id=v.view_id, verdict=verdicts[i], margin=float(margins[i]), camera_y_m=float(v.camera.C[1]),
+            side_vote=sides[i], rig_distance_m=dists[i][0], rig_distance_mirrored_m=dists[i][1], rig_vote=rigs[i],
+            pairs=pe, sentence=_sentence(verdicts[i], v, sides[i], dists[i], rigs[i], pe, names, flagged))
     return out
 
 
@@ -423,36 +424,44 @@ def _miss(error: float | None, other: str) -> str:
 
 
 def _sentence(verdict: str, view: MirrorView, side: int, dist: tuple[float | None, float | None], rig: int,
-              pairs: tuple[PairEvidence, ...], s: MirrorSettings, views: Sequence[MirrorView]) -> str:
-    """A human sentence with the numbers behind the verdict."""
-    parts = []
+              pairs: tuple[PairEvidence, ...], names: dict, flagged: set) -> str:
+    """A human sentence with the numbers behind the verdict: the evidence for mirroring first, then
+    the evidence against it ("against: ..."); a pair with a view that is itself flagged says so."""
+    pro: list[str] = []  # evidence that this view's labels are mirrored
+    con: list[str] = []  # evidence that they are right
     y = float(view.camera.C[1])
     if side == 1:
-        parts.append(f"the camera stands at y = {y:+.0f} m, beyond the far side line for a main camera "
-                     f"(mirrored: y = {-y:+.0f} m)")
+        pro.append(f"the camera stands at y = {y:+.0f} m, beyond the far side line for a main camera "
+                   f"(mirrored: y = {-y:+.0f} m)")
     elif side == -1:
-        parts.append(f"the camera stands at y = {y:+.0f} m, on the main camera's side")
+        con.append(f"the camera stands at y = {y:+.0f} m, on the main camera's side")
     if rig == 1:
-        parts.append(f"its mirror image is {dist[1]:.1f} m from a camera position of the game, the camera "
-                     f"itself {dist[0]:.0f} m from any")
+        pro.append(f"its mirror image is {dist[1]:.1f} m from a camera position of the game, the camera "
+                   f"itself {dist[0]:.0f} m from any")
     elif rig == -1:
-        parts.append(f"the camera is {dist[0]:.1f} m from a camera position of the game, its mirror image "
-                     f"{dist[1]:.0f} m from any")
-    names = {v.view_id: v.name or v.view_id for v in views}
+        con.append(f"the camera is {dist[0]:.1f} m from a camera position of the game, its mirror image "
+                   f"{dist[1]:.0f} m from any")
     for p in pairs:
         other = names.get(p.other, p.other)
+        note = f" (view {other} is itself flagged)" if p.other in flagged else ""
         if p.relation == DIFFERENT:
-            parts.append(f"as labelled its ball ray {_miss(p.error_as_labelled_px, f'the ray of view {other}')}, mirrored it meets "
-                         f"it within {_fmt(p.error_mirrored_px)} px")
+            (con if note else pro).append(
+                f"as labelled its ball ray {_miss(p.error_as_labelled_px, f'the ray of view {other}')}, mirrored it "
+                f"meets it within {_fmt(p.error_mirrored_px)} px{note}")
         elif p.relation == SAME:
-            parts.append(f"as labelled its ball ray meets the ray of view {other} within "
-                         f"{_fmt(p.error_as_labelled_px)} px, mirrored it {_miss(p.error_mirrored_px, 'it')}")
+            (pro if note else con).append(
+                f"as labelled its ball ray meets the ray of view {other} within "
+                f"{_fmt(p.error_as_labelled_px)} px, mirrored it {_miss(p.error_mirrored_px, 'it')}{note}")
         elif p.relation == AMBIGUOUS:
-            parts.append(f"with view {other} the ball is too near the centre spot to tell")
+            con.append(f"with view {other} the ball is too near the centre spot to tell")
     head = {VERDICT_MIRRORED: "Labels probably mirrored",
             VERDICT_AS_LABELLED: "Labels as given agree with the evidence",
             VERDICT_UNDECIDED: "Mirroring undecided"}[verdict]
-    return head + (": " + "; ".join(parts) + "." if parts else ": no evidence either way.")
+    first, second = (con, pro) if verdict == VERDICT_AS_LABELLED else (pro, con)
+    if not first and not second:
+        return head + ": no evidence either way."
+    text = head + ": " + ("; ".join(first) if first else "nothing for it")
+    return text + ("; against: " + "; ".join(second) if second else "") + "."
 
 
 def mirrored_fit_at_rig(lines: FieldLines, width: int, height: int, rig: CameraRig, *,
