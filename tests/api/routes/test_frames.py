@@ -148,6 +148,47 @@ def test_put_field_lines_recalibrates_the_frame(client: TestClient, scene: Scene
     assert set(after["field_lines"]) == set(lines)
 
 
+def test_post_mirror_fixes_a_view_flagged_mirrored(client: TestClient, scene: Scene, db_session: Session,
+                                                  db_settings) -> None:
+    """A replay whose labels were mirrored after the import (with the camera they calibrate to) is
+    flagged with its evidence; POST .../field-lines/mirror answers the recomputed system view, with
+    the view calibrated where it stands, its error back to pixels and the flag gone."""
+    from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists, mirror_lines
+    from app.geometry.camera import Camera
+    from app.geometry.mirror import mirror_camera
+    from app.services.recompute import recompute_system
+
+    frame = db_session.get(Frame, scene.frame_ids[2])
+    frame.field_lines.lines = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
+    frame.calibration.camera = mirror_camera(Camera.from_soccernet(frame.calibration.camera)).to_soccernet()
+    recompute_system(db_session, frame.system, db_settings)
+    db_session.commit()
+    before = _view(client, scene)["views"][2]
+    assert "probably_mirrored" in before["calibration"]["flags"]
+    evidence = before["calibration"]["mirror_evidence"]
+    assert evidence["verdict"] == "probably_mirrored" and evidence["sentence"].startswith("Labels probably mirrored")
+    assert [p["relation"] for p in evidence["pairs"]] == ["different", "different"]
+
+    answer = client.post(f"/api/frames/{scene.frame_ids[2]}/field-lines/mirror")
+    assert answer.status_code == 200, answer.text
+    after = answer.json()["views"][2]
+    assert "probably_mirrored" not in after["calibration"]["flags"]
+    assert after["calibration"]["mirror_evidence"]["verdict"] == "as_labelled"
+    assert after["calibration"]["source"] == "computed" and after["reprojection_error_px"] < 3.0
+    assert after["field_lines"] == _view(client, scene)["views"][2]["field_lines"]  # stored
+    assert math.dist(after["camera_position"][:2], scene.cameras[2].C[:2]) < 1.0
+
+
+def test_post_mirror_is_404_for_an_unknown_frame_and_422_without_lines(client: TestClient, scene: Scene,
+                                                                       db_session: Session) -> None:
+    assert client.post("/api/frames/999999/field-lines/mirror").status_code == 404
+    frame = db_session.get(Frame, scene.frame_ids[1])
+    frame.field_lines.lines = {}
+    db_session.commit()
+    answer = client.post(f"/api/frames/{scene.frame_ids[1]}/field-lines/mirror")
+    assert answer.status_code == 422 and answer.json()["field"] == "lines"
+
+
 @pytest.mark.parametrize(
     ("lines", "expected"),
     [
