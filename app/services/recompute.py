@@ -21,6 +21,12 @@ Derived rows:
 Bulk calibration (:func:`calibrate_many`) runs the pure ``calibrate_frame`` in a process pool and
 returns plain :class:`CalibrationFields`; the main process writes them (:func:`apply_calibration`).
 
+Mirrored labels (``app.geometry.mirror``): after admission, every calibrated frame of the system is
+judged from its camera's side, the game's rig and its ball ray against the other views; the verdict
+sets the flag :data:`MIRROR_FLAG` and ``Calibration.mirror_evidence``. The flag replaces
+``calibrate_frame``'s camera-side flag for calibrated frames, which it reproduces for a frame with no
+other evidence (a single frame, a view without a ball). Labels are never changed here.
+
 Game rigs: broadcast cameras stay put during a game, so a frame of a SoccerNet-v3 game that its
 lines alone cannot calibrate is retried with its centre at one of the game's camera positions
 (:func:`game_rig`, ``app.geometry.calibration.rig``), estimated from the game's frames calibrated
@@ -101,7 +107,8 @@ class CalibrationFields:
 def expected_side(role: FrameRole) -> int | None:
     """Side of the pitch the camera of a frame is expected on: +1 (y > 0) for broadcast main cameras
     (actions and calibration-dataset frames, method.md section 3), None for replays (anywhere).
-    Only used by calibration to flag probably mirrored labels."""
+    Only used to flag probably mirrored labels (calibration's camera-side flag, and the side prior
+    of ``app.geometry.mirror.mirror_evidence``)."""
     return None if role is FrameRole.REPLAY else 1
 
 
