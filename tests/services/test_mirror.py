@@ -79,7 +79,7 @@ def test_apply_mirrored_labels_refuses_unknown_frames_and_frames_without_lines(d
 def test_dev_set_every_mirrored_view_is_flagged_and_no_other(shared_dir: Path, fresh_session_factory,
                                                              tmp_path: Path) -> None:
     """Measured: 2 mirrored views (a replay caught by its rays, a refused action by the rig and side
-    priors), both flagged; none of the 103 others. Mirroring any other view in turn flags 71 of 94
+    priors), both flagged; none of the 103 others. Mirroring any other view in turn flags 71 of 92
     and no bystander (``benchmarks/mirror_flags.py``)."""
     truth = json.loads((shared_dir / "data/synthetic/soccernet-v3-dev.truth.json").read_text())
     mirrored = {(g["match"], v["image"]) for g in truth["games"] for s in g["systems"] for v in s["views"]
