@@ -49,6 +49,9 @@ against false flags:
 * other views that are themselves doubtful are not trusted blindly: all hypotheses are scored
   jointly, so a view is judged against the most probable state of the others.
 
+A frame that calibration refuses has no camera, hence no ray: :func:`mirrored_fit_at_rig` gives it
+the rig and side priors by calibrating its mirrored labels at the game's camera positions.
+
 World frame: SoccerNet (metres, origin at the centre spot, z down). Pixels: continuous, origin at the
 top-left corner of each view's own image.
 """
@@ -133,7 +136,8 @@ class MirrorSettings:
         pair_weight: log-likelihood ratio of one pair's same/different (a chance meeting of two
             unrelated rays within tau at a plausible place is rare: about 1 in 100).
         decision_margin: flag when the max-marginal margin reaches this (log-odds; 1 is about 3:1).
-        max_views: views judged jointly at most (2**n hypotheses); more are judged by the priors only.
+        max_views: views linked by rays judged jointly at most (2**n hypotheses); beyond, every
+            view is judged by its priors only (systems have 2 to 4 views).
     """
 
     tau_px: float = 20.0
@@ -395,11 +399,10 @@ def _max_marginals(n: int, unary: np.ndarray, constraints: list[tuple[int, int, 
     """Per view: best score with it mirrored minus best score with it as labelled."""
     if n == 0:
         return np.zeros(0)
-    linked = {i for c in constraints for i in c[:2]}
-    if not constraints or n > s.max_views:
-        return unary.copy()  # independent views: only their priors
+    idx = sorted({i for c in constraints for i in c[:2]})  # views the rays link; the others keep their priors
+    if not idx or len(idx) > s.max_views:
+        return unary.copy()
     margins = unary.copy()
-    idx = sorted(linked)
     pos = {v: k for k, v in enumerate(idx)}
     H = np.array(list(product((0, 1), repeat=len(idx))), dtype=float)  # (2**k, k)
     score = H @ unary[idx]
