@@ -77,13 +77,9 @@ def test_no_view_with_correct_labels_is_flagged_mirrored(result):
     assert result.mirror["flagged_not_mirrored"] == 0, result.mirror["views"]
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "Only the single-view side prior flags mirrors (calibrate_frame's probably_mirrored: an action's "
-    "camera beyond the far side line). Replays have no side prior, and a mirrored action refused by "
-    "calibration gets no flag: the dev set's mirrored replay 10_2.png (calibrated at y = +42.8 m, "
-    "truth -43 m) and mirrored action 8.png (refused) are missed until multi-view mirror detection "
-    "(agreement with the system's other views and the game rig) lands."))
 def test_every_view_with_mirrored_labels_is_flagged(result):
+    """The dev set's two mirrored views are a replay (no camera-side prior: only the other views of
+    its system or the game rig can tell) and an action its lines alone cannot calibrate."""
     assert result.mirror["mirrored"] >= 2
     assert result.mirror["missed"] == 0, result.mirror["views"]
 
