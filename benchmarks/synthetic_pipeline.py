@@ -62,10 +62,8 @@ from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.jac import jac_at_gammas  # noqa: E402
 from app.geometry.metrics import box_iou, box_size_error_pct  # noqa: E402
 from app.services.importing import ImportReport, import_soccernet_v3  # noqa: E402
-from app.services.recompute import RIG_FLAG, admission_jac, expected_side  # noqa: E402
+from app.services.recompute import MIRROR_FLAG, RIG_FLAG, admission_jac, expected_side  # noqa: E402
 
-#: The flag v3d puts on a calibration whose labels are probably mirrored (``CalibrationResult.flags``).
-MIRROR_FLAG = "probably_mirrored"
 #: Corruption kinds of the synthetic truth (``systems[].corruption``), None excepted.
 CORRUPTIONS = ("desync", "wrong_ball", "mirrored", "no_ball")
 #: Fewest independent line constraints that fix a camera whose centre is known (focal length and
