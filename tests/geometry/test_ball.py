@@ -1,9 +1,7 @@
 """Monocular 3D ball, optimised box and exact sphere silhouette (app.geometry.ball)."""
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -217,12 +215,9 @@ def test_sphere_box_reproduces_the_dev_set_precise_boxes_and_inverts_them(shared
 
 
 def _benchmark():
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "synthetic_ball.py"
-    spec = importlib.util.spec_from_file_location("synthetic_ball", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses resolve annotations through sys.modules
-    spec.loader.exec_module(module)
-    return module
+    from benchmarks import synthetic_ball
+
+    return synthetic_ball
 
 
 def test_dev_set_optimised_boxes_beat_the_annotated_boxes(shared_dir):

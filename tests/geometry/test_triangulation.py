@@ -1,8 +1,6 @@
 """Pairwise DLT triangulation, pair filtering and fusion (app.geometry.triangulation)."""
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import cv2
@@ -246,12 +244,9 @@ def test_bad_input_names_the_field():
 
 # ----- synthetic dev set (../shared) ---------------------------------------------------------------
 def _benchmark():
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "synthetic_ball.py"
-    spec = importlib.util.spec_from_file_location("synthetic_ball", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses resolve annotations through sys.modules
-    spec.loader.exec_module(module)
-    return module
+    from benchmarks import synthetic_ball
+
+    return synthetic_ball
 
 
 def test_dev_set_triangulation_with_true_cameras(shared_dir):

@@ -8,9 +8,7 @@ games.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
@@ -19,12 +17,9 @@ pytestmark = pytest.mark.shared
 
 
 def _benchmark():
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "synthetic_pipeline.py"
-    spec = importlib.util.spec_from_file_location("synthetic_pipeline", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses resolve annotations through sys.modules
-    spec.loader.exec_module(module)
-    return module
+    from benchmarks import synthetic_pipeline
+
+    return synthetic_pipeline
 
 
 @pytest.fixture(scope="module")
