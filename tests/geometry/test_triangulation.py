@@ -1,7 +1,6 @@
 """Pairwise DLT triangulation, pair filtering and fusion (app.geometry.triangulation)."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import cv2
 import numpy as np
