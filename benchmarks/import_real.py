@@ -26,7 +26,6 @@ import statistics
 import sys
 import tempfile
 import time
-from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +62,7 @@ def _figures(session, game: Game) -> dict:
         select(Frame).join(System).where(System.game_id == game.id)
         .options(selectinload(Frame.calibration), selectinload(Frame.field_lines))
     ).all()
-    jac_px, jac_gamma, reasons = [], [], Counter()
+    jac_px, jac_gamma = [], []
     for f in frames:
         cal = f.calibration
         if cal.status is CalibrationStatus.CALIBRATED:

@@ -37,7 +37,7 @@ from typing import Callable, Hashable, Sequence
 
 import numpy as np
 
-from app.geometry.camera import MIN_DEPTH_M, Camera
+from app.geometry.camera import Camera
 
 #: Reference width of the scaled pair-error rules: errors are expressed as if every image were
 #: this many pixels wide, so that 960- and 1920-px views of one system compare.
@@ -262,7 +262,7 @@ def reprojection_error_px(camera: Camera, point_world: np.ndarray, point_px: np.
 
     Returns:
         The error in this image's pixels, or ``None`` when the point is behind the camera (camera
-        depth below :data:`MIN_DEPTH_M`).
+        depth below :data:`app.geometry.camera.MIN_DEPTH_M`).
     """
     uv, in_front = camera.project(np.asarray(point_world, float).reshape(1, 3))
     if not in_front[0]:
