@@ -39,6 +39,7 @@ import numpy as np
 from app.geometry.annotations import AnnotationError, FieldLines, image_diagonal, mirror_lines
 from app.geometry.calibration.initialisation import (
     camera_from_homography,
+    fixed_centre_rotations,
     ground_homographies,
     labelled_target,
     look_at_rotation,
@@ -109,7 +110,8 @@ class CalibrationSettings:
         accept_gamma: a candidate whose 90th-percentile point distance is below this fraction of the
             diagonal ends the search early.
         refuse_gamma: refuse when a labelled class has a point farther than this fraction of the
-            diagonal from its model element.
+            diagonal from its model element. With a known centre (rig prior) the RMS point distance
+            must also stay within ``accept_gamma`` of the diagonal.
         k1_min_gain: relative drop of the robust cost that justifies the radial coefficient.
         k1_min_points: fewest labelled points for which the radial coefficient is tried.
         max_k1: largest accepted |k1|.
@@ -293,13 +295,8 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
     target = labelled_target(obs)
     if prior is not None and prior.centre_m is not None:
         centre = np.asarray(prior.centre_m, dtype=float)
-        try:
-            R0 = look_at_rotation(centre, target)
-        except ValueError:
-            return None
-        param = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=centre)
-        for f0 in (1.0, 2.5, 0.5):
-            if consider(_fit(param.vector(f0 * width, centre), obs, param, scale, "rig", budget)):
+        for _, param, x0 in _fixed_centre_starts(obs, centre, pp, width, scale)[:FIXED_CENTRE_REFINED]:
+            if consider(_fit(x0, obs, param, scale, "rig", budget)):
                 break
         return best
 
@@ -340,6 +337,37 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         if consider(_fit(free.vector(float(f1), C1), obs, free, scale, cand.origin, budget)):
             break
     return best
+
+
+#: Focal length hypotheses (multiples of the image width) of a camera with a known centre: from a
+#: wide view (0.5 W, about 90 degrees across) to a tight zoom (8 W, about 7 degrees), geometric steps.
+FIXED_CENTRE_FOCALS_W: tuple[float, ...] = (0.5, 0.8, 1.25, 2.0, 3.2, 5.0, 8.0)
+#: Fixed-centre starts refined (the best by robust cost at the start).
+FIXED_CENTRE_REFINED = 3
+
+
+def _fixed_centre_starts(obs: Observations, centre: np.ndarray, pp: np.ndarray, width: int, scale: float
+                         ) -> list[tuple[float, CameraParametrisation, np.ndarray]]:
+    """Starts of a fit with the centre held fixed, ranked by robust cost: for each focal hypothesis of
+    :data:`FIXED_CENTRE_FOCALS_W`, the rotation that puts the labels' anchors where the labels show
+    them (:func:`~.initialisation.fixed_centre_rotations`, a Wahba fit of image rays to world
+    directions), and the rotation looking at the labelled part of the pitch."""
+    focals = np.asarray(FIXED_CENTRE_FOCALS_W) * width
+    rotations = list(fixed_centre_rotations(obs, centre, pp, focals))
+    f_all = list(focals)
+    try:
+        look = look_at_rotation(centre, labelled_target(obs))
+        rotations += [look] * len(focals)
+        f_all += list(focals)
+    except ValueError:
+        pass
+    starts: list[tuple[float, CameraParametrisation, np.ndarray]] = []
+    for R0, f0 in zip(rotations, f_all):
+        param = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=centre)
+        x0 = param.vector(float(f0), centre)
+        starts.append((float(soft_l1_cost(residuals(x0, obs, param), scale)), param, x0))
+    starts.sort(key=lambda t: t[0])
+    return starts
 
 
 def _homography_starts(obs: Observations, pp: np.ndarray, scale: float
@@ -515,6 +543,12 @@ def calibrate_frame(
         bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]
         return _refused(f"residual too high: {bad!r} is {worst:.1f} px from its model element "
                         f"(limit {limit:.1f} px)", t0, tuple(flags), per_class, rms)
+    if fixed and rms > settings.accept_gamma * diag:
+        # With the centre known only focal length and rotation are free and few lines are labelled:
+        # the fit absorbs little, so labels it cannot bring within the tolerance of a good
+        # single-frame fit (accept_gamma, the admission threshold's scale) disagree with the centre.
+        return _refused(f"labels do not fit a camera at the known centre: {rms:.1f} px RMS "
+                        f"(limit {settings.accept_gamma * diag:.1f} px)", t0, tuple(flags), per_class, rms)
     mirrored = None
     if prior is not None and prior.expected_side is not None and camera.C[1] * prior.expected_side < -PITCH_WIDTH_M / 2:
         flags.append("probably_mirrored")

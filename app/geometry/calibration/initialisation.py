@@ -349,3 +349,145 @@ def labelled_target(obs: Observations) -> np.ndarray:
     t = np.mean(anchors, axis=0)
     t[2] = 0.0
     return t
+
+
+def anchor_correspondences(obs: Observations, scale_px: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Image points whose world point is known, derived from the labels alone (no camera needed).
+
+    * Where two labelled ground lines that are perpendicular on the pitch meet: the crossing of
+      their fitted image lines is the image of the world corner (exact, projective).
+    * A labelled circle with 5 points or more: the centre of its fitted image conic
+      (:func:`fit_conic`) <-> the circle's centre (approximate: perspective moves the image of a
+      circle's centre off the ellipse's centre, by little at broadcast distances).
+    * A labelled goal element: the centroid of its points <-> the middle of the goal mouth on the
+      ground (approximate).
+
+    Args:
+        obs: the frame's observations. scale_px: image scale (px) used to condition the fits.
+
+    Returns:
+        ``[(uv (2,) px, X (3,) world metres)]``, possibly empty.
+    """
+    out: list[tuple[np.ndarray, np.ndarray]] = []
+    ground: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (a, b, image line in pixels)
+    for i, (c, a, b) in enumerate(zip(obs.seg_classes, obs.seg_a, obs.seg_b)):
+        pts = obs.seg_points[obs.seg_index == i]
+        if c in GOAL_CLASSES:
+            out.append((pts.mean(axis=0), np.array([a[0], 0.0, 0.0])))
+            continue
+        if len(pts) >= 2 and np.ptp(pts, axis=0).max() >= 1.0:
+            li = _fit_image_line(pts)
+            if li is not None:
+                ground.append((a, b, li))
+    for i in range(len(ground)):
+        for j in range(i + 1, len(ground)):
+            (a1, b1, l1), (a2, b2, l2) = ground[i], ground[j]
+            d1, d2 = (b1 - a1)[:2], (b2 - a2)[:2]
+            if abs(d1 @ d2) > 1e-6 * np.linalg.norm(d1) * np.linalg.norm(d2):
+                continue  # not perpendicular on the pitch (parallel: no crossing)
+            p = np.cross(l1, l2)
+            if abs(p[2]) < 1e-12 * np.linalg.norm(p[:2]):
+                continue
+            uv = p[:2] / p[2]
+            if np.max(np.abs(uv)) > 1e3 * scale_px:
+                continue  # the image lines are nearly parallel: the crossing is meaningless
+            corner = np.array([a2[0], a1[1], 0.0]) if abs(d1[0]) > abs(d1[1]) else np.array([a1[0], a2[1], 0.0])
+            out.append((uv, corner))
+    for j in range(len(obs.circle_classes)):
+        pts = obs.circle_points[obs.circle_index == j]
+        conic = fit_conic(pts / scale_px) if len(pts) >= 5 else None
+        if conic is None:
+            centre = pts.mean(axis=0)
+        else:
+            try:
+                c = np.linalg.solve(conic[:2, :2], -conic[:2, 2]) * scale_px
+            except np.linalg.LinAlgError:
+                c = pts.mean(axis=0)
+            # A partial arc can fit a wild ellipse: keep its centre only near the labelled points.
+            spread = float(np.ptp(pts, axis=0).max())
+            centre = c if np.linalg.norm(c - pts.mean(axis=0)) <= 2.0 * spread + 1.0 else pts.mean(axis=0)
+        cx, cy = obs.circle_centre[j]
+        out.append((centre, np.array([cx, cy, 0.0])))
+    return out
+
+
+def wahba_rotation(camera_dirs: np.ndarray, world_dirs: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """The rotation ``R`` (world to camera) minimising ``sum w_i |c_i - R w_i|^2`` (Wahba's problem,
+    solved by SVD as in Kabsch's algorithm; Markley 1988).
+
+    Args:
+        camera_dirs, world_dirs: (N, 3) unit vectors, N >= 2 not all parallel. weights: (N,) >= 0.
+
+    Returns:
+        (3, 3) proper rotation.
+
+    >>> R = wahba_rotation(np.eye(3)[[1, 0, 2]], np.eye(3)[:3])
+    >>> np.round(R @ [1.0, 0.0, 0.0], 6).tolist(), round(float(np.linalg.det(R)), 6)
+    ([0.0, 1.0, 0.0], 1.0)
+    """
+    w = np.ones(len(camera_dirs)) if weights is None else np.asarray(weights, dtype=float)
+    B = (np.asarray(camera_dirs, float) * w[:, None]).T @ np.asarray(world_dirs, float)
+    u, _, vt = np.linalg.svd(B)
+    return u @ np.diag([1.0, 1.0, float(np.linalg.det(u @ vt))]) @ vt
+
+
+def fixed_centre_rotations(obs: Observations, centre: np.ndarray, principal_point: np.ndarray,
+                           focals: np.ndarray, anchor_sigma_px: float = 2.0, roll_sigma_deg: float = 1.0
+                           ) -> np.ndarray:
+    """Starting rotations of a camera whose centre is known (the game's rig), one per focal length.
+
+    With the centre ``C`` known, each labelled image point ``uv`` whose world point ``X`` is known
+    (:func:`anchor_correspondences`) gives a pair of directions: its ray in the camera,
+    ``K^-1 (uv, 1)`` (depends on the focal length ``f``), and ``X - C`` in the world; the labels'
+    image centroid is paired with the mean of those world points. The rotation is the Wahba/Kabsch
+    fit of these pairs (:func:`wahba_rotation`), together with the broadcast prior of an upright
+    camera (no roll: the camera's x axis is horizontal). Each pair is weighted by its inverse
+    variance (squared angles): an anchor by ``(f / anchor_sigma_px)^2``, the prior by
+    ``1 / roll_sigma^2``, so anchors spread over the image fix the roll themselves and the prior
+    decides only what they leave free (the roll about a single anchor's ray, as in TRIAD). Unlike
+    pointing the optical axis at the labelled part of the pitch, this puts each anchor where the
+    labels show it in the image, which matters for a zoomed view whose labels sit off-centre.
+
+    Args:
+        obs: the frame's observations.
+        centre: (3,) camera centre, world metres (z down, above the ground).
+        principal_point: (2,) px. focals: (F,) focal length hypotheses, px.
+        anchor_sigma_px: uncertainty of an anchor's image position, px (label noise, and the
+            offset of a circle's image centre from its ellipse's centre).
+        roll_sigma_deg: spread of broadcast cameras' roll, degrees.
+
+    Returns:
+        (F, 3, 3) world-to-camera rotations; empty (0, 3, 3) when the labels give no anchor or an
+        anchor coincides with the centre.
+    """
+    centre = np.asarray(centre, dtype=float)
+    focals = np.asarray(focals, dtype=float).reshape(-1)
+    pairs = anchor_correspondences(obs, float(2.0 * principal_point[0] + 1.0))
+    if not pairs:
+        return np.zeros((0, 3, 3))
+    uv = np.array([p for p, _ in pairs])
+    world = np.array([x for _, x in pairs]) - centre
+    norms = np.linalg.norm(world, axis=1)
+    if np.any(norms < 1e-6):
+        return np.zeros((0, 3, 3))
+    world /= norms[:, None]
+    # No-roll prior: the camera's x axis is horizontal, i.e. the world's down direction seen from
+    # the camera, R (0, 0, 1), has no x component. As a Wahba pair: down <-> R down with its x
+    # component removed, from the current estimate (a fixed point reached in a few rounds).
+    down = np.array([0.0, 0.0, 1.0])
+    w_dirs = np.vstack([world, down])
+    out = []
+    for f in focals:
+        w_all = np.append(np.full(len(uv), (f / anchor_sigma_px) ** 2), 1.0 / np.radians(roll_sigma_deg) ** 2)
+        rays = np.hstack([(uv - principal_point) / f, np.ones((len(uv), 1))])
+        rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+        seen = np.array([0.0, 1.0, 0.0])  # first guess: down is the image's y axis
+        for _ in range(4):
+            R = wahba_rotation(np.vstack([rays, seen]), w_dirs, w_all)
+            v = R @ down
+            v[0] = 0.0
+            if np.linalg.norm(v) < 1e-9:  # looking straight down: the roll is free
+                break
+            seen = v / np.linalg.norm(v)
+        out.append(R)
+    return np.array(out)
