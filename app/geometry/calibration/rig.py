@@ -9,7 +9,7 @@ those positions: 4 unknowns (focal length and rotation) instead of 7. Results ar
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -32,11 +32,14 @@ class RigPosition:
         centre_m: (3,) median camera centre of its frames (world, metres, z down).
         frames: number of calibrated frames supporting it.
         spread_m: median distance of those frames' centres to ``centre_m``, metres.
+        main_frames: how many of those frames were filmed by the main camera (actions), when the
+            caller told (:func:`estimate_rig`'s ``main_camera``).
     """
 
     centre_m: tuple[float, float, float]
     frames: int
     spread_m: float
+    main_frames: int = 0
 
 
 @dataclass(frozen=True)
@@ -45,8 +48,16 @@ class CameraRig:
 
     positions: tuple[RigPosition, ...]
 
+    @property
+    def main_index(self) -> int | None:
+        """Index of the main camera's position: the one most action frames support (None when no
+        position is supported by an action frame)."""
+        best = max(range(len(self.positions)), key=lambda i: self.positions[i].main_frames, default=None)
+        return best if best is not None and self.positions[best].main_frames > 0 else None
 
-def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames: int = 2) -> CameraRig:
+
+def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames: int = 2,
+                 main_camera: Sequence[bool] | None = None) -> CameraRig:
     """Group the centres of well-calibrated cameras of one game into fixed positions.
 
     Greedy clustering: the centre with the most neighbours within ``radius_m`` seeds a position, its
@@ -60,6 +71,8 @@ def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames
         radius_m: neighbourhood radius, metres (calibrated centres of one camera scatter by about a
             metre along the viewing direction).
         min_frames: fewest frames per position.
+        main_camera: per camera, True when its frame was filmed by the main camera (an action
+            frame); counted per position in :attr:`RigPosition.main_frames`.
 
     Returns:
         :class:`CameraRig` (possibly without positions).
@@ -77,6 +90,9 @@ def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames
     if min_frames < 1:
         raise ValueError(f"min_frames must be at least 1, got {min_frames!r}")
     C = np.array([np.asarray(c.C, dtype=float) for c in cameras]).reshape(-1, 3)
+    main = np.zeros(len(C), dtype=bool) if main_camera is None else np.asarray(main_camera, dtype=bool)
+    if main.shape != (len(C),):
+        raise ValueError(f"main_camera must give one flag per camera ({len(C)}), got {main.shape}")
     left = np.arange(len(C))
     positions: list[RigPosition] = []
     while len(left):
@@ -88,7 +104,8 @@ def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames
         if len(members) >= min_frames:
             spread = float(np.median(np.linalg.norm(C[members] - centre, axis=1)))
             positions.append(RigPosition(centre_m=tuple(float(v) for v in centre),  # type: ignore[arg-type]
-                                         frames=int(len(members)), spread_m=spread))
+                                         frames=int(len(members)), spread_m=spread,
+                                         main_frames=int(main[members].sum())))
         left = np.setdiff1d(left, members)
     positions.sort(key=lambda p: -p.frames)
     return CameraRig(positions=tuple(positions))
@@ -96,14 +113,17 @@ def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames
 
 def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRig, *,
                        expected_side: int | None = None, settings: CalibrationSettings | None = None,
-                       compute_jac: bool = True, tie_px: float = 1.0) -> CalibrationResult:
+                       compute_jac: bool = True, tie_px: float = 1.0, main_camera: bool = False) -> CalibrationResult:
     """Calibrate a frame with its centre fixed at one of the game's rig positions.
 
     Every position is tried (:func:`~app.geometry.calibration.calibrate_frame` with
-    ``CalibrationPrior(centre_m=...)``: focal length and rotation free, centre fixed). The result
-    with the smallest RMS residual wins; results within ``tie_px`` of it (a frame with few lines
-    can fit several positions equally) are decided by the position's support, the main camera
-    first. The result carries the ``"rig_assisted"`` flag.
+    ``CalibrationPrior(centre_m=...)``: focal length and rotation free, centre fixed), and a position
+    counts only when the labels fit it as tightly as a good single-frame calibration (RMS within
+    ``settings.accept_gamma`` of the diagonal; ``calibrate_frame`` refuses looser fixed-centre fits).
+    Among those the smallest RMS residual wins; positions within ``tie_px`` of it (a frame with few
+    lines can fit several positions equally) are decided by the frame's role first (``main_camera``:
+    the main camera's position, :attr:`CameraRig.main_index`), then by support. The labels' JaC is
+    never used to choose. The result carries the ``"rig_assisted"`` flag.
 
     Args:
         lines: field lines of the frame, pixels.
@@ -112,10 +132,12 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
         expected_side: as :class:`CalibrationPrior` (mirror flag only).
         settings, compute_jac: as :func:`calibrate_frame`.
         tie_px: RMS difference (px) under which two positions fit equally well.
+        main_camera: the frame was filmed by the main camera (an action frame).
 
     Returns:
-        The chosen :class:`CalibrationResult`; a refusal (the first position's, or a rig without
-        positions) when no position fits.
+        The chosen :class:`CalibrationResult`, whose ``elapsed_ms`` is the time spent on every
+        position; a refusal (the best-fitting position's, or a rig without positions) when no
+        position fits.
     """
     if not rig.positions:
         return CalibrationResult(status="refused", camera=None, jac={}, residuals_px={}, flags=("rig_assisted",),
@@ -124,9 +146,15 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
     results = [calibrate_frame(lines, width, height, settings=settings, compute_jac=compute_jac,
                                prior=CalibrationPrior(expected_side=expected_side, centre_m=p.centre_m))
                for p in rig.positions]
+    elapsed = float(sum(r.elapsed_ms for r in results))
     fitted = [(i, r) for i, r in enumerate(results) if r.calibrated and r.rms_px is not None]
     if not fitted:
-        return results[0]
+        # The refusal whose labels came closest (its residuals point at the disagreeing line).
+        scored = [r for r in results if r.rms_px is not None]
+        refusal = min(scored, key=lambda r: r.rms_px) if scored else results[0]  # type: ignore[arg-type,return-value]
+        return replace(refusal, elapsed_ms=elapsed)
     best_rms = min(r.rms_px for _, r in fitted)  # type: ignore[type-var]
     ties = [(i, r) for i, r in fitted if r.rms_px <= best_rms + tie_px]  # type: ignore[operator]
-    return min(ties, key=lambda t: t[0])[1]  # positions are sorted by support
+    main = rig.main_index if main_camera else None
+    chosen = min(ties, key=lambda t: (t[0] != main, t[0]))[1]  # role first, then support (sorted)
+    return replace(chosen, elapsed_ms=elapsed)
