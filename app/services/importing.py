@@ -38,7 +38,7 @@ from app.services._readers import (
 )
 from app.services.recompute import (
     RIG_FLAG, CalibrationFields, Progress, apply_calibration, calibrate_many, calibration_job, game_rig,
-    preload_systems, recompute_systems, uses_rig, with_rig_retry,
+    preload_systems, recompute_systems, uses_rig, wants_rig_retry, with_rig_retry,
 )
 
 __all__ = [
@@ -63,7 +63,8 @@ class ImportReport:
         read_seconds, calibration_seconds, store_seconds: wall time of reading and validating the
             input, of the calibration step, and of writing, recomputing and committing;
             seconds: of the whole import.
-        calibration_ms: time of each frame's ``calibrate_frame`` call (ms, in its worker).
+        calibration_ms: calibration time of each calibrated frame (ms, in its worker): its
+            ``calibrate_frame`` call plus, for a frame retried with its game's rig, the rig pass.
     """
 
     source: str
@@ -223,9 +224,10 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     t0 = time.perf_counter()
     results = calibrate_many([calibration_job(f) for f in to_calibrate],
                              settings.calibration_workers, progress)
-    report.calibration_ms = [r.elapsed_ms for r in results if r.elapsed_ms is not None]
+    first_ms = [r.elapsed_ms for r in results]
     with session.no_autoflush:
-        results = _retry_with_game_rigs(session, to_calibrate, results, settings, progress)
+        results, rig_ms = _retry_with_game_rigs(session, to_calibrate, results, settings, progress)
+    report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
     report.calibration_seconds = time.perf_counter() - t0
     report.rig_assisted = sum(RIG_FLAG in r.flags for r in results)
     preload_systems(session, touched)  # the first write of the import
@@ -243,28 +245,31 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
 
 
 def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],
-                          settings: Settings, progress: Progress | None) -> list[CalibrationFields]:
-    """Recalibrate the refused frames of SoccerNet-v3 games with their game's camera rig, estimated
-    from the game's stored calibrations (except the frames being recalibrated) and this import's
-    fresh ones (``recompute.game_rig``). Writes nothing (the caller disables autoflush). Returns the
-    final result per frame: the rig's where it calibrated the frame, else the first one (with the
-    rig's mirror flag, ``recompute.with_rig_retry``)."""
-    retry = [i for i, (f, r) in enumerate(zip(frames, results))
-             if r.status is CalibrationStatus.REFUSED and uses_rig(f.system)]
+                          settings: Settings, progress: Progress | None
+                          ) -> tuple[list[CalibrationFields], dict[int, float]]:
+    """Recalibrate the frames of SoccerNet-v3 games refused or calibrated below admission
+    (``recompute.wants_rig_retry``) with their game's camera rig, estimated from the game's stored
+    calibrations (except the frames being recalibrated) and this import's fresh ones
+    (``recompute.game_rig``). Writes nothing (the caller disables autoflush). Returns the final
+    result per frame (``recompute.with_rig_retry``: the better fit by residual, a refusal carrying
+    the rig's mirror flag) and the rig pass's time per retried frame index (ms)."""
+    retry = [i for i, (f, r) in enumerate(zip(frames, results)) if wants_rig_retry(r, settings) and uses_rig(f.system)]
     if not retry:
-        return results
+        return results, {}
     rigs = {}
     for game in {id(frames[i].system.game): frames[i].system.game for i in retry}.values():
         mine = [i for i, f in enumerate(frames) if f.system.game is game]
         rigs[id(game)] = game_rig(session, game.id, settings,
                                   exclude_frame_ids=[frames[i].id for i in mine if frames[i].id is not None],
-                                  extra=[results[i] for i in mine])
+                                  extra=[results[i] for i in mine], extra_roles=[frames[i].role for i in mine])
     retry = [i for i in retry if rigs[id(frames[i].system.game)].positions]
     jobs = [calibration_job(frames[i], rigs[id(frames[i].system.game)]) for i in retry]
     out = list(results)
+    rig_ms: dict[int, float] = {}
     for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig")):
         out[i] = with_rig_retry(out[i], fields)
-    return out
+        rig_ms[i] = fields.elapsed_ms or 0.0
+    return out, rig_ms
 
 
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,

@@ -28,15 +28,18 @@ sets the flag :data:`MIRROR_FLAG` and ``Calibration.mirror_evidence``. The flag 
 other evidence (a single frame, a view without a ball). Labels are never changed here.
 
 Game rigs: broadcast cameras stay put during a game, so a frame of a SoccerNet-v3 game that its
-lines alone cannot calibrate is retried with its centre at one of the game's camera positions
-(:func:`game_rig`, ``app.geometry.calibration.rig``), estimated from the game's frames calibrated
-above the admission threshold. Calibration datasets (frames from many stadiums) never use one.
+lines alone cannot calibrate, or calibrate only below admission, is retried with its centre at one of
+the game's camera positions (:func:`game_rig`, ``app.geometry.calibration.rig``), estimated from the
+game's frames calibrated above the admission threshold; the rig's result is kept only when it fits
+the labels better (:func:`with_rig_retry`, by residual). Calibration datasets (frames from many
+stadiums) never use one.
 """
 from __future__ import annotations
 
 import dataclasses
 import multiprocessing
 import os
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Callable, Collection, Iterable, Sequence
@@ -87,7 +90,11 @@ class CalibrationFields:
         residuals_px: class -> residual in pixels.
         flags: warnings raised by calibration (e.g. probable mirrored labels).
         reason: why calibration was refused (None when calibrated).
-        elapsed_ms: wall time of ``calibrate_frame`` (not stored; import reports use it).
+        elapsed_ms: wall time of the calibration, rig positions and mirrored-labels check included
+            (not stored; import reports use it).
+        rms_px: RMS distance (px) of every labelled point to its model element under the camera, or
+            under the best rejected one (not stored): how a rig retry is compared with the first
+            result (:func:`with_rig_retry`).
         mirror_evidence: for a frame refused even with the game's rig whose mirrored labels fit a
             rig position (``app.geometry.mirror.mirrored_fit_at_rig``), that evidence (JSON); the
             flag :data:`MIRROR_FLAG` is then in ``flags``. Calibrated frames get theirs from
@@ -102,6 +109,7 @@ class CalibrationFields:
     reason: str | None = None
     elapsed_ms: float | None = None
     mirror_evidence: dict[str, Any] | None = None
+    rms_px: float | None = None
 
 
 def expected_side(role: FrameRole) -> int | None:
@@ -113,25 +121,28 @@ def expected_side(role: FrameRole) -> int | None:
 
 
 def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: int | None = None,
-                    rig: CameraRig | None = None) -> CalibrationFields:
+                    rig: CameraRig | None = None, main_camera: bool = False) -> CalibrationFields:
     """Calibrate one frame from its stored field lines (``{class: [[[x, y], ...], ...]}``, pixels).
 
     Pure: calls ``app.geometry.calibration.calibrate_frame`` (JaC at :data:`JAC_GAMMAS` included)
     with the prior ``expected_side=side``, or, given a game ``rig``, ``calibrate_with_rig`` (the
-    centre fixed at one of the game's camera positions), and converts the result. A frame the rig
-    cannot calibrate either is flagged :data:`MIRROR_FLAG` when its mirrored labels fit a rig
-    position (``app.geometry.mirror.mirrored_fit_at_rig``; the result stays a refusal: labels are
-    never changed silently). Safe to run in a worker process.
+    centre fixed at one of the game's camera positions; ``main_camera``: the frame is an action,
+    filmed by the main camera, whose position is preferred among equally fitting ones), and converts
+    the result. A frame the rig cannot calibrate either is flagged :data:`MIRROR_FLAG` when its
+    mirrored labels fit a rig position (``app.geometry.mirror.mirrored_fit_at_rig``; the result stays
+    a refusal: labels are never changed silently). Safe to run in a worker process.
     """
+    t0 = time.perf_counter()
     lines = lines_from_json_lists(lines_json)
     if rig is not None:
-        fields = _fields_from_result(calibrate_with_rig(lines, width, height, rig, expected_side=side))
+        fields = _fields_from_result(calibrate_with_rig(lines, width, height, rig, expected_side=side,
+                                                        main_camera=main_camera))
         if fields.status is CalibrationStatus.REFUSED:
             verdict = mirrored_fit_at_rig(lines, width, height, rig, expected_side=side)
             if verdict is not None:
                 fields = dataclasses.replace(fields, flags=[*fields.flags, MIRROR_FLAG],
                                              mirror_evidence=json_safe(verdict.as_dict()))
-        return fields
+        return dataclasses.replace(fields, elapsed_ms=(time.perf_counter() - t0) * 1e3)
     prior = CalibrationPrior(expected_side=side) if side is not None else None
     return _fields_from_result(calibrate_frame(lines, width, height, prior=prior))
 
@@ -149,6 +160,7 @@ def _fields_from_result(result: Any) -> CalibrationFields:
         flags=[str(f) for f in (result.flags or ())],
         reason=result.reason,
         elapsed_ms=float(result.elapsed_ms),
+        rms_px=_opt_float(result.rms_px),
     )
 
 
@@ -156,8 +168,8 @@ def _opt_float(v: Any) -> float | None:
     return None if v is None else float(v)
 
 
-#: ``(lines_json, width, height, side, rig)``: the arguments of :func:`calibrate_lines`.
-CalibrationJob = tuple[dict[str, Any], int, int, "int | None", "CameraRig | None"]
+#: ``(lines_json, width, height, side, rig, main_camera)``: the arguments of :func:`calibrate_lines`.
+CalibrationJob = tuple[dict[str, Any], int, int, "int | None", "CameraRig | None", bool]
 
 
 def _calibrate_job(job: CalibrationJob) -> CalibrationFields:
@@ -168,7 +180,8 @@ def calibration_job(frame: Frame, rig: CameraRig | None = None) -> CalibrationJo
     """The job that calibrates ``frame`` from its current field lines (with the game ``rig``, if any)."""
     if frame.field_lines is None:
         raise ValueError(f"frame {frame.id} ({frame.name!r}) has no field lines to calibrate from")
-    return (frame.field_lines.lines, frame.width, frame.height, expected_side(frame.role), rig)
+    return (frame.field_lines.lines, frame.width, frame.height, expected_side(frame.role), rig,
+            frame.role is FrameRole.ACTION)
 
 
 def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: Progress | None = None,
@@ -244,40 +257,74 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
 
 
 def game_rig(session: Session | None, game_id: int | None, settings: Settings, exclude_frame_ids: Collection[int] = (),
-             extra: Iterable[CalibrationFields] = ()) -> CameraRig:
+             extra: Iterable[CalibrationFields] = (), extra_roles: Sequence[FrameRole] | None = None) -> CameraRig:
     """The camera rig of a game (``app.geometry.calibration.rig.estimate_rig``), from the centres of
     its cameras that are calibrated with JaC@gamma > ``admit_jac_min`` and not rig-assisted themselves.
+    Action frames mark the main camera's position (:attr:`RigPosition.main_frames`).
 
     Args:
         session: reads the stored calibrations; may be None when ``game_id`` is None.
         game_id: the game whose stored calibrations count (None: a game not stored yet).
         exclude_frame_ids: stored frames left out (the ones being recalibrated).
         extra: calibrations not stored yet that count too (an import's fresh results).
+        extra_roles: the role of each of ``extra``'s frames (None: unknown, no main camera marked).
     """
-    cameras = [Camera.from_soccernet(f.camera) for f in extra if _feeds_rig(f.status, f.camera, f.flags,
-                                                                             f.jac[JAC_GAMMAS.index(_gamma(settings))], settings)]
+    extra = list(extra)
+    roles: Sequence[FrameRole | None] = list(extra_roles) if extra_roles is not None else [None] * len(extra)
+    if len(roles) != len(extra):
+        raise ValueError(f"extra_roles must give one role per extra calibration ({len(extra)}), got {len(roles)}")
+    gamma_index = JAC_GAMMAS.index(_gamma(settings))
+    rows = [(Camera.from_soccernet(f.camera), role is FrameRole.ACTION) for f, role in zip(extra, roles)
+            if _feeds_rig(f.status, f.camera, f.flags, f.jac[gamma_index], settings)]
     if game_id is not None and session is not None:
         excluded = set(exclude_frame_ids)
-        cameras += [c for fid, c in rig_cameras(session, game_id, settings) if fid not in excluded]
-    return estimate_rig(cameras)
+        rows += [(c, main) for fid, c, main in _rig_rows(session, game_id, settings) if fid not in excluded]
+    return estimate_rig([c for c, _ in rows], main_camera=[m for _, m in rows])
 
 
 def rig_cameras(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera]]:
     """``(frame id, camera)`` of the stored calibrations of a game that feed its rig (:func:`game_rig`)."""
-    query = (select(Calibration).join(Frame, Frame.id == Calibration.frame_id)
+    return [(fid, c) for fid, c, _ in _rig_rows(session, game_id, settings)]
+
+
+def _rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera, bool]]:
+    """``(frame id, camera, filmed by the main camera)`` of the calibrations feeding the game's rig."""
+    query = (select(Calibration, Frame.role).join(Frame, Frame.id == Calibration.frame_id)
              .join(System, System.id == Frame.system_id)
              .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
-    return [(c.frame_id, Camera.from_soccernet(c.camera)) for c in session.scalars(query)
+    return [(c.frame_id, Camera.from_soccernet(c.camera), role is FrameRole.ACTION) for c, role in session.execute(query)
             if _feeds_rig(c.status, c.camera, c.flags, admission_jac(c, settings), settings)]
 
 
+def wants_rig_retry(fields: CalibrationFields, settings: Settings) -> bool:
+    """True when a frame's calibration from its lines alone is worth retrying with the game's rig:
+    refused, or calibrated without clearing admission (JaC@gamma <= ``admit_jac_min``: a free fit of
+    few lines can settle metres from the camera's true position, where the rig's known centre fits
+    the same labels better; :func:`with_rig_retry` keeps the better fit by residual)."""
+    if fields.status is CalibrationStatus.REFUSED:
+        return True
+    jac = fields.jac[JAC_GAMMAS.index(_gamma(settings))]
+    return jac is None or not jac > settings.admit_jac_min
+
+
 def with_rig_retry(first: CalibrationFields, retried: CalibrationFields) -> CalibrationFields:
-    """What is stored for a frame refused from its lines alone and retried with the game's rig: the
-    rig's calibration when it succeeded; else the first refusal, carrying the rig's mirror flag and
-    evidence when the mirrored labels fit a rig position (:func:`calibrate_lines`)."""
+    """What is stored for a frame retried with the game's rig (:func:`wants_rig_retry`).
+
+    * The rig calibrated it and the first pass refused it: the rig's calibration.
+    * Both calibrated it: the one whose camera fits the labels better, by the RMS distance of every
+      labelled point to its model element (the same definition for both, ``rms_px``; the first pass
+      wins ties and when a residual is missing). The labels' JaC is never used to choose: it is
+      what admission evaluates.
+    * The rig refused it: the first result; a first refusal carries the rig's mirror flag and
+      evidence when the mirrored labels fit a rig position (:func:`calibrate_lines`).
+    """
     if retried.status is CalibrationStatus.CALIBRATED:
-        return retried
-    if MIRROR_FLAG in retried.flags:
+        if first.status is not CalibrationStatus.CALIBRATED:
+            return retried
+        if first.rms_px is not None and retried.rms_px is not None and retried.rms_px < first.rms_px:
+            return retried
+        return first
+    if first.status is CalibrationStatus.REFUSED and MIRROR_FLAG in retried.flags:
         flags = first.flags if MIRROR_FLAG in first.flags else [*first.flags, MIRROR_FLAG]
         return dataclasses.replace(first, flags=flags, mirror_evidence=retried.mirror_evidence)
     return first
@@ -305,15 +352,16 @@ def uses_rig(system: System) -> bool:
 def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Triangulation:
     """Recalibrate ``frame`` from its current field lines, then recompute its system.
 
-    A frame of a SoccerNet-v3 game that its lines alone cannot calibrate is retried with the game's
-    rig (:func:`game_rig`, the other frames' camera positions). The calibration's source becomes
-    "computed". The caller flushes or commits.
+    A frame of a SoccerNet-v3 game that its lines alone cannot calibrate, or calibrate only below
+    admission (:func:`wants_rig_retry`), is retried with the game's rig (:func:`game_rig`, the other
+    frames' camera positions; :func:`with_rig_retry` keeps the better fit). The calibration's source
+    becomes "computed". The caller flushes or commits.
 
     Raises:
         ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
     """
     fields = calibrate_lines(*calibration_job(frame))
-    if fields.status is CalibrationStatus.REFUSED and uses_rig(frame.system):
+    if wants_rig_retry(fields, settings) and uses_rig(frame.system):
         rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id])
         if rig.positions:
             fields = with_rig_retry(fields, calibrate_lines(*calibration_job(frame, rig)))

@@ -57,3 +57,68 @@ def test_a_rig_from_fresh_results_of_a_game_not_stored_yet(settings, shared_dir)
     poor = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (0.5, 1.0, 1.0)) for cam in mains]
     assisted = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (1.0, 1.0, 1.0), flags=[RIG_FLAG]) for cam in mains]
     assert not game_rig(None, None, settings, extra=poor + assisted).positions
+
+
+def test_a_frame_calibrated_below_admission_is_retried_and_the_better_fit_kept(db_session, settings, imported,
+                                                                               shared_dir):
+    """0.png's lines alone settle on a camera 10 m from the truth (JaC@0.5 % = 0.75, not admitted,
+    4.2 px RMS); at the game's main-camera position the same labels fit within about 1 px."""
+    from app.services.recompute import wants_rig_retry
+
+    frame = next(f for f in imported["0.png"].frames if f.name == "0.png")
+    alone = calibrate_lines(*calibration_job(frame))
+    assert alone.status is CalibrationStatus.CALIBRATED and wants_rig_retry(alone, settings)
+    replace_field_lines(db_session, frame.id, frame.field_lines.lines, settings=settings)
+
+    cal = frame.calibration
+    assert cal.status is CalibrationStatus.CALIBRATED and RIG_FLAG in cal.flags and cal.admitted
+    true_centre = true_cameras(shared_dir)[("0.png", "0.png")]["position_meters"]
+    assert np.linalg.norm(np.subtract(cal.camera["position_meters"], true_centre)) < 1.0  # metres
+
+
+def test_a_rig_position_the_labels_do_not_fit_is_refused_not_stored(shared_dir):
+    """2031-09-08 3.png: a zoomed main-camera view with two labelled classes (6 constraints, too few
+    alone). At a low corner position of the game the fixed-centre fit leaves about 16 px RMS (JaC
+    0): a refusal now (before, such a fit was stored as calibrated), and the first pass's refusal is
+    kept. At the main camera's position the labels fit within a pixel, and that position is chosen
+    when the rig offers both."""
+    import json
+
+    from app.geometry.annotations import from_soccernet_v3, lines_to_json_lists
+    from app.geometry.calibration import CameraRig, RigPosition
+    from app.services.recompute import with_rig_retry
+
+    from .datasets import dev_game_dir
+
+    game = ("synth_league_b", "2031-2032", "2031-09-08 - 16-00 Arden 1 - 0 Quarry")
+    item = json.loads((dev_game_dir(shared_dir).parents[2].joinpath(*game) / "Labels-v3.json").read_text())["actions"]["3.png"]
+    width, height = item["imageMetadata"]["width"], item["imageMetadata"]["height"]
+    lines = lines_to_json_lists(from_soccernet_v3(item["lines"], width, height))
+    first = calibrate_lines(lines, width, height, 1)
+    assert first.status is CalibrationStatus.REFUSED and "fewer than" in first.reason
+
+    corner = RigPosition((-51.75, -41.37, -1.2), frames=5, spread_m=0.5)  # the game's low corner camera
+    wrong = calibrate_lines(lines, width, height, 1, CameraRig((corner,)), True)
+    assert wrong.status is CalibrationStatus.REFUSED and wrong.rms_px > 0.005 * np.hypot(width, height)
+    assert with_rig_retry(first, wrong) == first
+
+    true_centre = tuple(true_cameras(shared_dir, game)[("3.png", "3.png")]["position_meters"])
+    main = RigPosition(true_centre, frames=3, spread_m=0.5, main_frames=3)
+    right = calibrate_lines(lines, width, height, 1, CameraRig((corner, main)), True)
+    assert right.status is CalibrationStatus.CALIBRATED and RIG_FLAG in right.flags
+    assert np.allclose(right.camera["position_meters"], true_centre)
+    assert right.rms_px < 1.0 and right.jac[0] == 1.0
+    assert with_rig_retry(first, right) is right
+
+
+def test_with_rig_retry_keeps_the_fit_with_the_smaller_residual():
+    from app.services.recompute import CalibrationFields, with_rig_retry
+
+    refused = CalibrationFields(CalibrationStatus.REFUSED, None, (None, None, None), reason="few lines")
+    poor = CalibrationFields(CalibrationStatus.CALIBRATED, {"c": 1}, (0.5, 1.0, 1.0), rms_px=4.2)
+    tight = CalibrationFields(CalibrationStatus.CALIBRATED, {"c": 2}, (0.5, 1.0, 1.0), flags=[RIG_FLAG], rms_px=1.1)
+    loose = CalibrationFields(CalibrationStatus.CALIBRATED, {"c": 3}, (1.0, 1.0, 1.0), flags=[RIG_FLAG], rms_px=5.0)
+    assert with_rig_retry(refused, tight) is tight
+    assert with_rig_retry(poor, tight) is tight
+    assert with_rig_retry(poor, loose) is poor  # chosen by residual, never by the labels' JaC
+    assert with_rig_retry(poor, refused) is poor
