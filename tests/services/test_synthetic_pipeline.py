@@ -41,8 +41,8 @@ def test_the_import_stores_every_view_and_its_labels_unchanged(result):
 
 
 def test_calibrated_cameras_are_close_to_the_true_cameras(result):
-    """Measured (admitted views, labels not mirrored): centre 0.17 / 1.16 m, rotation 0.06 / 0.16 deg
-    (median / p90); 82 of 105 views admitted."""
+    """Measured (admitted views, labels not mirrored): centre 0.17 / 1.16 m, rotation 0.06 / 0.18 deg
+    (median / p90); 84 of 105 views admitted."""
     row = result.calibration["rows"]["with_rig"]
     assert row["admitted"] >= 70
     assert row["mean_jac_admitted"] > 0.9
@@ -52,20 +52,22 @@ def test_calibrated_cameras_are_close_to_the_true_cameras(result):
 
 
 def test_the_game_rig_admits_more_views_without_lowering_their_jac(result):
-    """Measured: 74 views admitted without the rig, 82 with it (ratio 1.11; mean JaC 0.944 -> 0.947).
-    The issue asked for 1.5 times as many; on this dev set at most 84 views can be admitted at all
-    (true camera above the admission rule and enough lines for a known centre), a ratio of 1.135,
-    so the test asks for most of what is reachable instead."""
+    """Measured: 74 views admitted without the rig, 84 with it (ratio 1.135; mean JaC 0.944 -> 0.948),
+    every reachable view: the issue asked for 1.5 times as many, but on this dev set at most 84 views
+    can be admitted at all (true camera above the admission rule and enough lines for a known
+    centre), so the test asks for nearly all of what is reachable instead. Every rig-assisted view is
+    near its true camera (measured at most 0.67 m, 0.41 deg): a rig fit that does not fit the labels
+    is refused, not stored (before: one view placed 89 m off with JaC 0, one 22 deg off)."""
     cal = result.calibration
     without, with_rig = cal["rows"]["no_rig"], cal["rows"]["with_rig"]
     assert with_rig["admitted"] > without["admitted"]
     assert with_rig["mean_jac_admitted"] >= without["mean_jac_admitted"] - 0.01
     assert cal["lost_by_rig"] == []
-    assert with_rig["admitted"] >= 0.9 * cal["reachable"]
+    assert with_rig["admitted"] >= 0.95 * cal["reachable"]
+    assert cal["rig_assisted_views"]
     for view in cal["rig_assisted_views"]:
-        if view["jac"] is not None and view["jac"] > result.settings["admit_jac_min"]:
-            position_m, angle_deg = view["pose"]
-            assert position_m < 2.0 and angle_deg < 1.0, view  # measured at most 0.67 m, 0.41 deg
+        position_m, angle_deg = view["pose"]
+        assert position_m < 2.0 and angle_deg < 1.0, view
 
 
 def test_no_view_with_correct_labels_is_flagged_mirrored(result):
@@ -80,8 +82,8 @@ def test_every_view_with_mirrored_labels_is_flagged(result):
 
 
 def test_3d_ball_of_uncorrupted_systems_is_within_decimetres(result):
-    """Measured: 21 of 32 uncorrupted systems triangulated, error median 0.070 m, p90 0.100 m, max
-    0.140 m; fused ball reprojects within 1.6 px (median) of the labelled centres."""
+    """Measured: 22 of 32 uncorrupted systems triangulated, error median 0.068 m, p90 0.101 m, max
+    0.140 m; fused ball reprojects within 1.8 px (median) of the labelled centres."""
     clean = result.ball["uncorrupted"]
     assert clean["systems"] == 32 and clean["triangulated"] >= 18
     err = clean["error_m"]
@@ -104,8 +106,8 @@ def test_corrupted_views_never_enter_a_kept_pair(result):
 
 def test_optimised_boxes_beat_the_annotated_boxes(result):
     """Paper, real data: IoU 0.57 -> 0.66, size error 19.0 % -> 7.3 %. Measured here (v3d's own
-    cameras and 3D balls, 54 views): annotated 0.574 / 19.5 %; optimised, paper 0.631 / 1.30 %,
-    exact_ray (the default) 0.635 / 0.22 %, exact_fused 0.665 / 0.22 %. The synthetic precise box is
+    cameras and 3D balls, 57 views): annotated 0.573 / 19.9 %; optimised, paper 0.634 / 1.46 %,
+    exact_ray (the default) 0.638 / 0.26 %, exact_fused 0.649 / 0.26 %. The synthetic precise box is
     the exact silhouette, so only the 3D error limits the size; the annotated centre, which paper
     and exact_ray keep, limits the IoU."""
     boxes = result.boxes
