@@ -9,7 +9,12 @@ Method (every step pure numpy):
    ways); each becomes a camera with the principal point fixed and square pixels, and the two with
    the smallest robust cost are refined. When no homography exists, cameras at plausible broadcast
    positions looking at the labelled part of the pitch, first refined with their centre held fixed
-   (pan-tilt-zoom, 4 parameters), the two best then freed.
+   (pan-tilt-zoom, 4 parameters), the two best then freed. With a known centre (the game's rig,
+   :class:`CalibrationPrior`), rotations from a Wahba fit of the image rays of the anchors the
+   labels fix to their world directions, for a series of focal lengths
+   (:func:`~.initialisation.fixed_centre_rotations`), and the look-at rotation; the best three by
+   robust cost are refined with the centre held fixed, and the fit is refused beyond
+   ``accept_gamma`` RMS.
 3. Robust Levenberg-Marquardt (:mod:`.solver`, soft-L1 loss) of focal length, rotation and centre
    on the pixel distance of every annotated point to its model line / circle / goal element
    (:mod:`.residuals`); goal posts and crossbars constrain the camera off the ground plane. One

@@ -12,6 +12,9 @@ Two families:
   constraints on ``K^-1 H``).
 * **Look-at priors** (:func:`look_at_rotation`): a camera at a plausible broadcast position looking
   at the labelled part of the pitch, for frames whose lines do not fix a homography.
+* **Known centre** (:func:`fixed_centre_rotations`): with the camera centre known (a game's rig),
+  the rotation that brings the image rays of the labels' anchors (:func:`anchor_correspondences`)
+  onto their world directions (Wahba's problem, :func:`wahba_rotation`), per focal hypothesis.
 """
 from __future__ import annotations
 

@@ -4,8 +4,10 @@ as a prior to calibrate frames whose lines alone do not fix a camera.
 Broadcast cameras stay where they are during a game (a tripod or a platform); they pan, tilt and
 zoom. So once some frames of a game are well calibrated, their centres cluster around the game's
 camera positions, and a frame with too few lines can be calibrated with its centre fixed at one of
-those positions: 4 unknowns (focal length and rotation) instead of 7. Results are flagged
-``"rig_assisted"``. Pure functions: the service layer chooses which frames feed the rig.
+those positions: 4 unknowns (focal length and rotation) instead of 7. A position counts only when
+the labels fit it as tightly as a good calibration; positions are chosen by residual, the main
+camera's first for an action frame among equal fits. Results are flagged ``"rig_assisted"``. Pure
+functions: the service layer chooses which frames feed the rig and which are retried with it.
 """
 from __future__ import annotations
 
