@@ -31,13 +31,15 @@ origin at the top-left corner.
 """
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 from itertools import combinations
 from typing import Callable, Hashable, Sequence
 
 import numpy as np
 
-from app.geometry.camera import Camera
+from app.geometry.camera import Camera, as_points
 
 #: Reference width of the scaled pair-error rules: errors are expressed as if every image were
 #: this many pixels wide, so that 960- and 1920-px views of one system compare.
@@ -68,7 +70,8 @@ PAIR_ERROR_RULES: dict[str, Callable[[float, float, float, float], float]] = {
 }
 
 #: Reasons a pair is dropped, in the order they are tested (a pair reports the first that applies).
-DROP_REASONS = ("degenerate", "point_at_infinity", "behind_camera", "baseline_below_min", "error_above_tau")
+DROP_REASONS = ("degenerate", "point_at_infinity", "behind_camera", "baseline_below_min", "parallax_below_min",
+                "error_above_tau")
 
 #: Result statuses of :func:`triangulate_ball`.
 STATUS_TRIANGULATED = "triangulated"
@@ -103,7 +106,8 @@ class BallObservation:
             raise ValueError(f"BallObservation.point_px must be 2 finite numbers, got {self.point_px!r}")
         if not isinstance(self.camera, Camera):
             raise ValueError(f"BallObservation.camera must be a Camera, got {type(self.camera).__name__}")
-        if not (np.isfinite(self.image_width) and self.image_width > 0):
+        w = self.image_width
+        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (math.isfinite(w) and w > 0):
             raise ValueError(f"BallObservation.image_width must be positive, got {self.image_width!r}")
         p.setflags(write=False)
         object.__setattr__(self, "point_px", p)
@@ -231,8 +235,18 @@ def undistort_pixels(camera: Camera, points_px: np.ndarray) -> np.ndarray:
 
     The undistorted pixel is ``K [x_u, y_u, 1]`` with ``(x_u, y_u)`` the undistorted normalised
     coordinates (:meth:`Camera.normalise_pixels`); identity for a camera without distortion.
+
+    Args:
+        camera: the camera whose distortion is removed.
+        points_px: (2,) or (N, 2) distorted pixels of that camera's image.
+
+    Returns:
+        (N, 2) undistorted pixels (N = 1 for a single point).
+
+    Raises:
+        ValueError: not (2,) or (N, 2).
     """
-    pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    pts = as_points(points_px, 2, "points_px")
     if not camera.has_distortion:
         return pts.copy()
     xy = camera.normalise_pixels(pts, undistort=True)
@@ -360,8 +374,8 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
         ``insufficient_views`` (no exception); all pairs dropped give ``no_pair_kept``.
 
     Raises:
-        ValueError: unknown rule, non-positive ``tau_px``, negative ``min_baseline_m`` or duplicate
-            view ids.
+        ValueError: unknown rule, non-positive ``tau_px``, negative ``min_baseline_m``,
+            ``min_parallax_deg`` outside [0, 90) or duplicate view ids.
     """
     _rule(rule)
     if not tau_px > 0:

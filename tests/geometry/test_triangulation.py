@@ -8,6 +8,7 @@ import pytest
 
 from app.geometry.camera import Camera
 from app.geometry.triangulation import (
+    DROP_REASONS,
     PAIR_ERROR_RULES,
     STATUS_INSUFFICIENT_VIEWS,
     STATUS_NO_PAIR_KEPT,
@@ -17,6 +18,7 @@ from app.geometry.triangulation import (
     parallax_angle_deg,
     triangulate_ball,
     triangulate_dlt,
+    undistort_pixels,
 )
 
 BALL = np.array([20.0, -10.0, -1.5])
@@ -282,3 +284,28 @@ def test_near_duplicate_viewpoint_is_dropped_by_parallax_even_past_the_baseline_
     assert all(p.kept for p in wide.pairs)  # wide-angle replays are untouched
     with pytest.raises(ValueError, match="min_parallax_deg"):
         triangulate_ball(obs, tau_px=20.0, min_parallax_deg=-1.0)
+
+
+def test_parallax_drop_reason_is_one_of_the_documented_reasons():
+    """Regression: ``triangulate_pair`` reports ``parallax_below_min`` (tested after the baseline,
+    before tau), but :data:`DROP_REASONS`, which ``PairResult.reason`` is documented to take its
+    values from, did not list it."""
+    main = look_at([0.0, 75.0, -22.0], BALL, focal=3000.0)
+    near = look_at([0.0, 76.5, -22.0], BALL, focal=3000.0)
+    pair = triangulate_ball(observe([main, near], noise_px=0.3), tau_px=20.0, min_parallax_deg=2.0).pairs[0]
+    assert pair.reason in DROP_REASONS
+    assert DROP_REASONS.index("baseline_below_min") < DROP_REASONS.index(pair.reason) < DROP_REASONS.index(
+        "error_above_tau")
+
+
+def test_bad_widths_and_pixel_shapes_raise_value_errors_naming_the_field():
+    """Regression: ``BallObservation`` took ``True`` as a width of 1 px and failed on a string with
+    NumPy's ufunc TypeError; ``undistort_pixels`` read any input with ``reshape(-1, 2)`` and failed
+    on a (3,) array with "cannot reshape"."""
+    cam = rig()[0]
+    for width in (True, "1920", float("nan")):
+        with pytest.raises(ValueError, match="image_width"):
+            BallObservation("a", cam, [1.0, 2.0], width)
+    with pytest.raises(ValueError, match="points_px"):
+        undistort_pixels(cam, [1.0, 2.0, 3.0])
+    assert undistort_pixels(cam, [1.0, 2.0]).shape == (1, 2)
