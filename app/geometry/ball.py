@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq, least_squares
 
-from app.geometry.camera import MIN_DEPTH_M, Camera
+from app.geometry.camera import MIN_DEPTH_M, Camera, as_points
 
 #: Optimised-box variants (see :func:`optimise_box`).
 OPTIMISED_BOX_METHODS = ("paper", "exact_ray", "exact_fused")
@@ -106,15 +106,19 @@ def ball_from_centre_diameter(camera: Camera, centres_px: np.ndarray, diameters_
         (N, 3) world points, metres (SoccerNet frame, z down).
 
     Raises:
-        ValueError: bad shapes, non-positive diameters or ball_diameter_m.
+        ValueError: centres not (2,) or (N, 2), diameters neither a scalar nor (N,), non-finite
+            centres, non-positive diameters or ball_diameter_m.
 
     >>> cam = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0,
     ...                              tilt_deg=90.0, roll_deg=0.0, position_m=[0.0, 50.0, -10.0])
     >>> np.round(ball_from_centre_diameter(cam, [960.0, 540.0], 4.4, 0.22), 9).tolist()
     [[0.0, 0.0, -10.0]]
     """
-    c = np.asarray(centres_px, dtype=float).reshape(-1, 2)
-    d = np.broadcast_to(np.asarray(diameters_px, dtype=float), (len(c),)).astype(float)
+    c = as_points(centres_px, 2, "centres_px")
+    d = np.asarray(diameters_px, dtype=float)
+    if d.ndim > 1 or d.ndim == 1 and d.shape != (len(c),):
+        raise ValueError(f"diameters_px must be a scalar or ({len(c)},), got {d.shape}")
+    d = np.broadcast_to(d, (len(c),)).astype(float)
     if not np.all(np.isfinite(c)):
         raise ValueError("centres_px must be finite")
     if not (np.all(np.isfinite(d)) and np.all(d > 0)):

@@ -207,7 +207,7 @@ class Camera:
     # ----- projection ---------------------------------------------------------------------------
     def points_in_camera(self, points_world: np.ndarray) -> np.ndarray:
         """World points (N, 3) metres -> camera-frame points (N, 3) metres (z is depth)."""
-        X = _as_points(points_world, 3, "points_world")
+        X = as_points(points_world, 3, "points_world")
         return (X - self.C) @ self.R.T
 
     def distort(self, xy: np.ndarray) -> np.ndarray:
@@ -220,7 +220,7 @@ class Camera:
             (N, 2) distorted normalised coordinates, float64 (SoccerNet casts to float32; the JaC
             module does that itself).
         """
-        p = _as_points(xy, 2, "xy")
+        p = as_points(xy, 2, "xy")
         if not self.has_distortion:
             return p.copy()
         x, y = p[:, 0], p[:, 1]
@@ -240,7 +240,7 @@ class Camera:
         Returns:
             (N, 2) undistorted normalised coordinates.
         """
-        d = _as_points(xy_distorted, 2, "xy_distorted")
+        d = as_points(xy_distorted, 2, "xy_distorted")
         if not self.has_distortion:
             return d.copy()
         u = d.copy()
@@ -277,7 +277,7 @@ class Camera:
 
     def normalise_pixels(self, uv: np.ndarray, undistort: bool = True) -> np.ndarray:
         """Pixels (N, 2) -> undistorted normalised coordinates (N, 2) (``K^-1`` then undistortion)."""
-        p = _as_points(uv, 2, "uv")
+        p = as_points(uv, 2, "uv")
         Kinv = np.linalg.inv(self.K)
         xy = p @ Kinv[:2, :2].T + Kinv[:2, 2]
         return self.undistort(xy) if undistort else xy
@@ -297,7 +297,18 @@ class Camera:
         return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def _as_points(a: np.ndarray, dim: int, name: str) -> np.ndarray:
+def as_points(a: np.ndarray, dim: int, name: str) -> np.ndarray:
+    """``a`` as a float (N, dim) array; a single point (dim,) becomes (1, dim).
+
+    Values are not checked (NaN passes: projection marks such points, callers that need finite
+    input check it themselves).
+
+    Raises:
+        ValueError: any other shape; the message names the argument ``name``.
+
+    >>> as_points([1.0, 2.0], 2, "uv").shape
+    (1, 2)
+    """
     arr = np.asarray(a, dtype=float)
     if arr.ndim == 1 and arr.shape[0] == dim:
         arr = arr[None, :]

@@ -83,6 +83,20 @@ def test_monocular_ball_rejects_bad_input():
         ball_from_centre_diameter(cam, [960.0, 540.0], 5.0, -1.0)
 
 
+def test_monocular_ball_rejects_a_flat_list_of_centres():
+    """Regression: centres were read with ``reshape(-1, 2)``, so a (4,) box passed by mistake for a
+    centre became two centres and returned two balls without a word, and a (3,) array failed with
+    NumPy's "cannot reshape" message; a (3,) list of diameters for two centres failed inside
+    ``broadcast_to``. All now raise a ValueError naming the argument."""
+    cam = camera()
+    with pytest.raises(ValueError, match="centres_px"):
+        ball_from_centre_diameter(cam, [950.0, 530.0, 970.0, 550.0], 20.0, PHI)
+    with pytest.raises(ValueError, match="centres_px"):
+        ball_from_centre_diameter(cam, [960.0, 540.0, 1.0], 20.0, PHI)
+    with pytest.raises(ValueError, match="diameters_px"):
+        ball_from_centre_diameter(cam, [[960.0, 540.0], [100.0, 100.0]], [4.0, 4.0, 4.0], PHI)
+
+
 @pytest.mark.parametrize("distorted", [False, True])
 def test_optimised_box_inverts_the_monocular_estimate(distorted):
     cam = camera(distorted)
