@@ -91,7 +91,7 @@ class Camera:
     """A calibrated camera (SoccerNet model).
 
     Attributes:
-        K: (3, 3) intrinsics ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``, pixels.
+        K: (3, 3) intrinsics ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``, pixels, fx and fy positive.
         R: (3, 3) rotation, world to camera.
         C: (3,) camera centre in the world frame, metres (z negative above the ground).
         radial: (6,) k1..k6 of the rational radial model.
@@ -116,6 +116,8 @@ class Camera:
                 raise ValueError(f"Camera.{name} has non-finite values")
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
+        if not (self.K[0, 0] > 0 and self.K[1, 1] > 0):
+            raise ValueError(f"Camera.K must have positive focal lengths, got fx={self.K[0, 0]!r}, fy={self.K[1, 1]!r}")
 
     # ----- construction -------------------------------------------------------------------------
     @classmethod
@@ -124,7 +126,11 @@ class Camera:
         pan_deg: float, tilt_deg: float, roll_deg: float, position_m: np.ndarray,
     ) -> "Camera":
         """Build an undistorted camera from focal length(s), principal point (px), angles (degrees)
-        and centre (world, metres)."""
+        and centre (world, metres).
+
+        Raises:
+            ValueError: a non-positive focal length, or non-finite values.
+        """
         fx, fy = (focal_px, focal_px) if np.isscalar(focal_px) else focal_px  # type: ignore[misc]
         K = np.array([[fx, 0.0, principal_point[0]], [0.0, fy, principal_point[1]], [0.0, 0.0, 1.0]])
         return cls(K=K, R=rotation_from_pan_tilt_roll(pan_deg, tilt_deg, roll_deg), C=np.asarray(position_m, float))
@@ -198,8 +204,18 @@ class Camera:
 
         Focal lengths, skew and principal point scale (continuous pixel coordinates). Used to
         express a camera at the evaluation resolution (method.md section 2).
+
+        Raises:
+            ValueError: a factor that is not a positive finite number.
+
+        >>> cam = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0,
+        ...                              tilt_deg=90.0, roll_deg=0.0, position_m=[0.0, 50.0, -10.0])
+        >>> cam.scaled(0.5).K.tolist()
+        [[500.0, 0.0, 480.0], [0.0, 500.0, 270.0], [0.0, 0.0, 1.0]]
         """
         sy = sx if sy is None else sy
+        if not (np.isfinite(sx) and np.isfinite(sy) and sx > 0 and sy > 0):
+            raise ValueError(f"scale factors must be positive finite numbers, got {sx!r}, {sy!r}")
         S = np.diag([sx, sy, 1.0])
         return Camera(K=S @ self.K, R=self.R, C=self.C, radial=self.radial, tangential=self.tangential,
                       thin_prism=self.thin_prism)
