@@ -183,6 +183,19 @@ def test_bad_input_raises_naming_the_field() -> None:
         CalibrationPrior(expected_side=2)
 
 
+def test_unknown_class_or_ragged_polyline_raises_annotation_error() -> None:
+    """Regression: an unknown class escaped ``calibrate_frame`` as a bare KeyError from
+    ``build_observations`` and a ragged polyline as NumPy's "inhomogeneous shape" ValueError,
+    although the docstring promises an AnnotationError naming the class (the services turn
+    AnnotationError into a 422 that names the field)."""
+    with pytest.raises(AnnotationError, match="unknown line class 'Side line middle'"):
+        calibrate_frame({"Side line middle": [np.zeros((3, 2))]}, 960, 540)
+    with pytest.raises(AnnotationError, match="Middle line"):
+        calibrate_frame({"Middle line": [[[1.0, 2.0], [3.0]]]}, 960, 540)
+    # Labels without a model element are valid and simply unused.
+    assert calibrate_frame({"Line unknown": [np.zeros((3, 2))]}, 960, 540).status == "refused"
+
+
 def test_mirrored_labels_are_flagged_with_the_side_prior() -> None:
     truth = _camera((-8.0, 58.0, -16.0), (-38.0, -2.0, 0.0), 1300.0, 960, 540)
     lines = synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=5)

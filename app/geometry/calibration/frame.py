@@ -60,10 +60,11 @@ from app.geometry.calibration.residuals import (
 )
 from app.geometry.calibration.solver import robust_lm, soft_l1_cost
 from app.geometry.camera import Camera
-from app.geometry.pitch import PITCH_WIDTH_M
+from app.geometry.jac import DEFAULT_GAMMAS, jac_at_gammas
+from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
 
-#: JaC thresholds as fractions of the image diagonal (method.md section 4).
-JAC_GAMMAS: tuple[float, float, float] = (0.005, 0.01, 0.02)
+#: JaC thresholds as fractions of the image diagonal (method.md section 4): the JaC module's defaults.
+JAC_GAMMAS: tuple[float, ...] = DEFAULT_GAMMAS
 
 #: Plausible camera centres (world, metres, z down) tried, in this order, when the lines do not fix
 #: a homography: main broadcast camera on either side, 18-yard cameras, high and low behind-goal
@@ -269,10 +270,15 @@ def _validate(lines: Any, width: Any, height: Any) -> None:
     if not isinstance(lines, Mapping):
         raise AnnotationError("lines must be a mapping of class -> list of (N, 2) pixel arrays")
     for cls, polys in lines.items():
+        if cls not in MIRROR_CLASSES:
+            raise AnnotationError(f"lines: unknown line class {cls!r}")
         if not isinstance(polys, (list, tuple)):
             raise AnnotationError(f"lines[{cls!r}] must be a list of (N, 2) pixel arrays")
         for i, p in enumerate(polys):
-            a = np.asarray(p, dtype=float)
+            try:
+                a = np.asarray(p, dtype=float)
+            except (TypeError, ValueError):
+                raise AnnotationError(f"lines[{cls!r}][{i}] must be a finite (N, 2) pixel array of numbers") from None
             if a.ndim != 2 or a.shape[1] != 2 or not np.all(np.isfinite(a)):
                 raise AnnotationError(f"lines[{cls!r}][{i}] must be a finite (N, 2) pixel array, got shape {a.shape}")
 
@@ -481,7 +487,8 @@ def calibrate_frame(
 
     Raises:
         ValueError: ``width``/``height`` are not integers >= 2.
-        AnnotationError: ``lines`` is not a mapping of class -> list of finite (N, 2) arrays.
+        AnnotationError: ``lines`` is not a mapping of known line classes (SoccerNet spelling) ->
+            list of finite (N, 2) arrays.
     """
     t0 = time.perf_counter()
     _validate(lines, width, height)
@@ -573,7 +580,5 @@ def frame_jac(camera: Camera, lines: FieldLines, width: int, height: int,
     Uses :func:`app.geometry.jac.jac_at_gammas` (the official evaluator's JaC) unless ``jac_function``
     with the same signature ``(camera, lines, width, height, gammas) -> {gamma: jac}`` is given.
     """
-    if jac_function is None:
-        from app.geometry.jac import jac_at_gammas as jac_function  # noqa: PLC0415 - optional peer module
-    values = jac_function(camera, lines, width, height, JAC_GAMMAS)
+    values = (jac_function or jac_at_gammas)(camera, lines, width, height, JAC_GAMMAS)
     return {f"{g:g}": float(values[g]) for g in JAC_GAMMAS}
