@@ -16,6 +16,8 @@ from typing import Hashable, Mapping, Sequence
 
 import numpy as np
 
+from app.geometry.camera import as_points
+
 
 def box_iou(boxes_a: np.ndarray, boxes_b: np.ndarray) -> np.ndarray:
     """Intersection over union of boxes, broadcasting over leading dimensions.
@@ -263,12 +265,20 @@ def monocular_metrics(predicted: np.ndarray, reference: np.ndarray, camera_centr
         :class:`MonocularMetrics`; NaN figures when no detection counts.
 
     Raises:
-        ValueError: shapes differ.
+        ValueError: an array that is not (N, 3) (a single (3,) point is N = 1), ``ious`` not (N,),
+            lengths that differ, or non-finite values.
     """
-    pred, ref, cams = (np.asarray(a, float).reshape(-1, 3) for a in (predicted, reference, camera_centres))
-    iou = np.asarray(ious, float).reshape(-1)
+    pred, ref, cams = (np.zeros((0, 3)) if np.size(a) == 0 else as_points(a, 3, name)
+                       for a, name in ((predicted, "predicted"), (reference, "reference"),
+                                       (camera_centres, "camera_centres")))
+    iou = np.asarray(ious, float)
+    if iou.ndim > 1:
+        raise ValueError(f"ious must have shape (N,), got {iou.shape}")
+    iou = iou.reshape(-1)
     if not (len(pred) == len(ref) == len(cams) == len(iou)):
         raise ValueError("predicted, reference, camera_centres and ious must have the same length")
+    if not all(np.all(np.isfinite(a)) for a in (pred, ref, cams, iou)):
+        raise ValueError("predicted, reference, camera_centres and ious must be finite")
     keep = iou > 0
     err = np.linalg.norm(pred[keep] - ref[keep], axis=1)
     rel = err / np.linalg.norm(ref[keep] - cams[keep], axis=1)

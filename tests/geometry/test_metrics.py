@@ -122,3 +122,18 @@ def test_precision_curve_is_a_strict_fraction_below_each_threshold():
     np.testing.assert_allclose(precision_curve(np.array([2.0, 0.5, 1.0, 4.0]), np.array([0.5, 1.0, 2.0, 10.0])),
                                [0.0, 0.25, 0.5, 1.0])
     assert np.isnan(precision_curve(np.zeros(0), np.array([1.0]))).all()
+
+
+def test_monocular_metrics_refuse_wrong_shapes_and_nan():
+    """Regression: inputs were read with ``reshape(-1, 3)``, so (3, 2) pixel arrays passed for world
+    points became two 3D points and, with two IoUs, returned figures without a word; a NaN IoU
+    silently dropped its detection and a NaN prediction made MAE NaN."""
+    ref = np.array([[0.0, 0.0, 0.0], [5.0, 5.0, 0.0]])
+    cams = np.array([[0.0, 10.0, 0.0], [5.0, 25.0, 0.0]])
+    with pytest.raises(ValueError, match="predicted"):
+        monocular_metrics(np.zeros((3, 2)), ref, cams, ious=np.ones(2))
+    with pytest.raises(ValueError, match="finite"):
+        monocular_metrics(ref, ref, cams, ious=np.array([0.5, np.nan]))
+    with pytest.raises(ValueError, match="ious"):
+        monocular_metrics(ref, ref, cams, ious=np.ones((2, 1)))
+    assert monocular_metrics(np.zeros(0), np.zeros(0), np.zeros(0), ious=np.zeros(0)).n == 0
