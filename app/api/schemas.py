@@ -183,6 +183,7 @@ class SystemSummaryOut(BaseModel):
     views_labelled: int
     lowest_jac: Optional[float] = Field(description="Lowest JaC@0.5% among admitted views.")
     worst_error_px: Optional[float] = Field(description="Largest reprojection error among admitted views, px.")
+    views_flagged: int = Field(description="Views whose field-line labels are flagged probably mirrored.")
 
 
 class SystemPageOut(BaseModel):

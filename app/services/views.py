@@ -9,6 +9,9 @@ is made of (method.md sections 4 and 5):
 * ``worst_error_px``: the largest reprojection error (px, at the view's own resolution, SoccerNet-v3D's
   ``rep_error``) of the fused ball among admitted labelled views, None without a 3D ball.
 
+``views_flagged`` counts every view (admitted or not) whose labels are flagged probably mirrored
+(``app.services.recompute.MIRROR_FLAG``), so that the queue can show it before the system is opened.
+
 Queue order (``sort``): ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
 systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id. The
 default, :data:`DEFAULT_SORT`, puts the largest errors first: the most doubtful labels are reviewed
@@ -35,6 +38,7 @@ from app.db.models import (
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.services.errors import NotFoundError, ServiceError
+from app.services.recompute import MIRROR_FLAG
 
 SystemSort = Literal["worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
@@ -92,6 +96,7 @@ class SystemSummary:
     views_labelled: int
     lowest_jac: Optional[float]
     worst_error_px: Optional[float]
+    views_flagged: int = 0
 
     def as_json(self) -> dict[str, Any]:
         """The queue row as the API sends it."""
@@ -103,6 +108,7 @@ class SystemSummary:
             "ball3d": self.ball3d, "views_total": self.views_total, "views_calibrated": self.views_calibrated,
             "views_admitted": self.views_admitted, "views_labelled": self.views_labelled,
             "lowest_jac": self.lowest_jac, "worst_error_px": self.worst_error_px,
+            "views_flagged": self.views_flagged,
         }
 
 
@@ -138,6 +144,9 @@ def _stats(game_id: Optional[int] = None, also_system_id: Optional[int] = None) 
             sa.func.count(sa.case((BallLabel.kind.is_not(None), 1))).label("views_labelled"),
             sa.func.min(sa.case((admitted, Calibration.jac_0005))).label("lowest_jac"),
             sa.func.max(sa.case((admitted, BallReprojection.error_px))).label("worst_error_px"),
+            # flags is a JSON list of strings: its text holds the flag quoted, on SQLite and PostgreSQL
+            sa.func.count(sa.case((sa.cast(Calibration.flags, sa.Text).like(f'%"{MIRROR_FLAG}"%'), 1)))
+            .label("views_flagged"),
         )
         .select_from(Frame)
         .outerjoin(Calibration, Calibration.frame_id == Frame.id)
@@ -163,7 +172,7 @@ def _queue_from(stats: sa.Subquery) -> sa.Select[Any]:
             System, Game, _review_status().label("review_status"),
             sa.func.coalesce(ReviewDecision.comment, "").label("review_comment"),
             Triangulation.ball3d, stats.c.views_total, stats.c.views_calibrated, stats.c.views_admitted,
-            stats.c.views_labelled, stats.c.lowest_jac, stats.c.worst_error_px,
+            stats.c.views_labelled, stats.c.lowest_jac, stats.c.worst_error_px, stats.c.views_flagged,
         )
         .join(Game, Game.id == System.game_id)
         .outerjoin(stats, stats.c.system_id == System.id)
@@ -249,7 +258,7 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
             system=r.System, game=r.Game, review_status=r.review_status, review_comment=r.review_comment,
             ball3d=r.ball3d, views_total=r.views_total or 0, views_calibrated=r.views_calibrated or 0,
             views_admitted=r.views_admitted or 0, views_labelled=r.views_labelled or 0,
-            lowest_jac=r.lowest_jac, worst_error_px=r.worst_error_px,
+            lowest_jac=r.lowest_jac, worst_error_px=r.worst_error_px, views_flagged=r.views_flagged or 0,
         )
         for r in rows
     ]

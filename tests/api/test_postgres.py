@@ -6,8 +6,10 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.core.config import Settings
+from app.db.models import System
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.main import create_app
+from app.services.recompute import MIRROR_FLAG
 
 from .factories import make_game, make_system
 
@@ -24,6 +26,9 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
             exact = make_system(session, settings, game, "2.png", jac=0.90).system_id
             shifted = make_system(session, settings, game, "10.png", jac=0.80, shift_px=(0.0, 0.0, 6.0)).system_id
             lonely = make_system(session, settings, game, "1.png", jac=0.95, labelled=(True, False, False)).system_id
+            flagged = session.get(System, lonely).frames[1].calibration  # the JSONB flags, read as text
+            flagged.flags = [MIRROR_FLAG]
+            session.commit()
     finally:
         engine.dispose()
     with TestClient(create_app(settings)) as client:
@@ -32,6 +37,8 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         assert ids(sort="lowest_jac") == [shifted, exact, lonely]
         assert ids(sort="name") == [lonely, exact, shifted]
         assert ids(error_min=1.0) == [shifted]
+        flagged_rows = {s["id"]: s["views_flagged"] for s in client.get("/api/systems").json()["items"]}
+        assert flagged_rows == {shifted: 0, exact: 0, lonely: 1}
         assert client.post(f"/api/systems/{exact}/review", json={"status": "accepted"}).status_code == 200
         pending = client.get("/api/systems", params={"status": "pending"}).json()
         assert [s["id"] for s in pending["items"]] == [shifted, lonely]

@@ -174,3 +174,18 @@ def test_unknown_query_parameters_are_ignored(client: TestClient, queue: dict[st
     sid = queue["exact"].system_id
     assert client.get(f"/api/systems/{sid}", params={"page": 3, "game": 1}).status_code == 200
     assert client.get("/api/systems", params={"page": 3}).json()["total"] == 4
+
+
+def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session: Session,
+                                                 queue: dict[str, Scene]) -> None:
+    """The queue said nothing of mirrored labels: a system whose replay was flagged
+    ``probably_mirrored`` looked clean in the queue (empty doubts) until it was opened."""
+    from app.db.models import Frame
+    from app.services.recompute import MIRROR_FLAG
+
+    frame = db_session.get(Frame, queue["other"].frame_ids[1])
+    frame.calibration.flags = ["rig_assisted", MIRROR_FLAG]
+    db_session.commit()
+    rows = {r["id"]: r for r in client.get("/api/systems").json()["items"]}
+    assert rows[queue["other"].system_id]["views_flagged"] == 1
+    assert rows[queue["exact"].system_id]["views_flagged"] == 0
