@@ -144,7 +144,15 @@ def mirror_lines(lines: FieldLines) -> FieldLines:
 
 def lines_from_json_lists(data: Mapping[str, Any]) -> FieldLines:
     """Pixel polylines from ``{"<class>": [[[x, y], ...], ...]}`` (the form v3d stores and the API
-    takes). Raises :class:`AnnotationError` with the class and polyline at fault."""
+    takes; a polyline may also be a flat ``[x1, y1, x2, y2, ...]`` list).
+
+    Raises:
+        AnnotationError: unknown class, a polyline that is not a list of [x, y] number pairs, or
+            non-finite coordinates; the message names the class and polyline at fault.
+
+    >>> lines_from_json_lists({"Middle line": [[[480.0, 0.0], [470.0, 539.0]]]})["Middle line"][0].shape
+    (2, 2)
+    """
     if not isinstance(data, Mapping):
         raise AnnotationError("field lines must be an object of class -> list of polylines")
     out: FieldLines = {}
@@ -158,7 +166,11 @@ def lines_from_json_lists(data: Mapping[str, Any]) -> FieldLines:
                 pts = np.array(poly, dtype=float)
             except (TypeError, ValueError) as exc:
                 raise AnnotationError(f"{where}: expected [[x, y], ...] numbers") from exc
-            out.setdefault(cls, []).append(_check_points(pts.reshape(-1, 2) if pts.size else pts, where))
+            if pts.ndim == 1 and pts.size % 2 == 0:
+                pts = pts.reshape(-1, 2)  # a flat [x1, y1, x2, y2, ...] list, as SoccerNet-v3 writes points
+            if pts.ndim != 2 or pts.shape[1] != 2:
+                raise AnnotationError(f"{where}: expected [[x, y], ...] pixel pairs, got shape {pts.shape}")
+            out.setdefault(cls, []).append(_check_points(pts, where))
     return out
 
 
