@@ -63,10 +63,10 @@ from typing import Hashable, Sequence
 
 import numpy as np
 
-from app.geometry.annotations import FieldLines, mirror_lines
+from app.geometry.annotations import FieldLines, image_diagonal, mirror_lines
 from app.geometry.calibration.frame import CalibrationSettings
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig
-from app.geometry.camera import Camera
+from app.geometry.camera import Camera, as_points
 from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M
 from app.geometry.triangulation import BallObservation, triangulate_pair
 
@@ -270,14 +270,25 @@ def side_vote(camera: Camera, expected_side: int | None, margin_m: float = PITCH
 
 
 def rig_distances(camera: Camera, rig_positions: np.ndarray | None) -> tuple[float | None, float | None]:
-    """Distances (metres) of C and of ``M C`` to the nearest of ``rig_positions`` (K, 3); Nones
-    without positions."""
-    if rig_positions is None or len(rig_positions) == 0:
+    """Distances (metres) of C and of ``M C`` to the nearest of ``rig_positions`` (K, 3) (world
+    metres); Nones without positions.
+
+    Raises:
+        ValueError: ``rig_positions`` not (K, 3) (a single (3,) position is K = 1).
+    """
+    P = _rig_array(rig_positions)
+    if P is None:
         return None, None
-    P = np.asarray(rig_positions, dtype=float).reshape(-1, 3)
     c = np.asarray(camera.C, dtype=float)
     return (float(np.min(np.linalg.norm(P - c, axis=1))),
             float(np.min(np.linalg.norm(P - MIRROR_ROTATION @ c, axis=1))))
+
+
+def _rig_array(rig_positions: np.ndarray | None) -> np.ndarray | None:
+    """``rig_positions`` as a (K, 3) array, None when there is none; ValueError for another shape."""
+    if rig_positions is None or np.size(rig_positions) == 0:
+        return None
+    return as_points(rig_positions, 3, "rig_positions")
 
 
 def _rig_vote(d: float | None, d_mirror: float | None, s: MirrorSettings) -> int:
@@ -351,14 +362,14 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
         view id -> :class:`MirrorVerdict`, by the rule of the module docstring.
 
     Raises:
-        ValueError: duplicate view ids.
+        ValueError: duplicate view ids; ``rig_positions`` not (K, 3).
     """
     vs = list(views)
     ids = [v.view_id for v in vs]
     if len(set(ids)) != len(ids):
         raise ValueError(f"views: ids must be unique, got {ids!r}")
     n = len(vs)
-    rig = None if rig_positions is None else np.asarray(rig_positions, dtype=float).reshape(-1, 3)
+    rig = _rig_array(rig_positions)
     sides = [side_vote(v.camera, v.expected_side, settings.side_line_margin_m) for v in vs]
     dists = [rig_distances(v.camera, rig) for v in vs]
     rigs = [_rig_vote(d, dm, settings) for d, dm in dists]
@@ -499,7 +510,7 @@ def mirrored_fit_at_rig(lines: FieldLines, width: int, height: int, rig: CameraR
     result = calibrate_with_rig(mirror_lines(lines), width, height, rig, settings=cal_settings, compute_jac=False)
     if not result.calibrated or result.camera is None or result.rms_px is None:
         return None
-    if result.rms_px > cal_settings.accept_gamma * float(np.hypot(width, height)):
+    if result.rms_px > cal_settings.accept_gamma * image_diagonal(width, height):
         return None
     as_labelled = mirror_camera(result.camera)  # the camera the labels as given describe, at M P
     side = side_vote(as_labelled, expected_side, settings.side_line_margin_m)

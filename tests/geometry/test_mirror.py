@@ -173,6 +173,17 @@ def test_settings_and_inputs_are_checked() -> None:
     assert mirror_evidence([view("main", mirrored=True)], settings=strict)["main"].verdict == VERDICT_UNDECIDED
 
 
+def test_rig_positions_of_the_wrong_shape_are_refused() -> None:
+    """Regression: rig positions were read with ``reshape(-1, 3)``, so (K, 2) ground positions (x, y
+    without height) were regrouped into made-up 3D positions and voted without a word."""
+    flat = np.array([CENTRES["main"][:2], CENTRES["behind_goal"][:2], CENTRES["opposite"][:2]])
+    with pytest.raises(ValueError, match="rig_positions"):
+        mirror_evidence([view("opposite")], flat)
+    assert mirror_evidence([view("opposite")], np.zeros((0, 3)))["opposite"].rig_vote == 0
+    one = mirror_evidence([view("opposite")], np.array(CENTRES["opposite"]))["opposite"]
+    assert one.rig_distance_m is not None and one.rig_distance_m < 1e-9
+
+
 def test_a_refused_frame_whose_mirrored_labels_fit_the_rig_is_flagged() -> None:
     truth = _camera((-2.0, 66.0, -14.0), (30.0, 20.0, 0.0), 2400.0, 960, 540)
     lines = synthetic_lines(truth, 960, 540, sigma_px=0.5, seed=8)
