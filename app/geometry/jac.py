@@ -184,7 +184,11 @@ def _points_by_class(lines: FieldLines) -> dict[str, np.ndarray]:
     for cls, polys in lines.items():
         if cls not in MIRROR_CLASSES:
             raise AnnotationError(f"lines: unknown line class {cls!r}")
-        arrays = [np.asarray(p, dtype=float).reshape(-1, 2) for p in polys]
+        arrays = [np.asarray(p, dtype=float) for p in polys]
+        for i, a in enumerate(arrays):
+            if a.size and a.shape != (2,) and (a.ndim != 2 or a.shape[1] != 2):
+                raise AnnotationError(f"lines, class {cls!r}, polyline {i}: expected (N, 2) pixels, got shape {a.shape}")
+        arrays = [a.reshape(-1, 2) for a in arrays]
         pts = np.concatenate(arrays, axis=0) if arrays else np.zeros((0, 2))
         if not np.all(np.isfinite(pts)):
             raise AnnotationError(f"lines, class {cls!r}: coordinates must be finite")
@@ -243,7 +247,8 @@ def evaluate_jac(camera: Camera, lines: FieldLines, width: int, height: int,
         :class:`JaCResult`.
 
     Raises:
-        AnnotationError: an unknown class or non-finite coordinates in ``lines``.
+        AnnotationError: an unknown class, a polyline that is not (N, 2) or non-finite coordinates
+            in ``lines``.
         ValueError: a threshold that is not a positive finite number, bad image size.
     """
     thresholds = _check_thresholds(thresholds_px)

@@ -245,3 +245,11 @@ def test_reproduces_the_official_evaluator_on_every_frame(shared_dir, dataset):
     assert pairs > 500
     assert not unexplained, unexplained
     assert (pairs - len(mismatches)) / pairs >= 0.998, mismatches
+
+
+def test_polylines_that_are_not_pixel_pairs_raise():
+    """Regression: annotated polylines were read with ``reshape(-1, 2)``, so an (N, 3) array (world
+    points passed by mistake for pixels) was regrouped into pixel pairs and scored without a word."""
+    with pytest.raises(AnnotationError, match="'Middle line', polyline 0: expected"):
+        evaluate_jac(overhead(), {"Middle line": [np.zeros((2, 3))]}, W, H)
+    assert evaluate_jac(overhead(), {"Middle line": [np.array([480.0, 100.0])]}, W, H).per_threshold
