@@ -56,8 +56,9 @@ class ImportReport:
         games, systems, frames: how many the input holds.
         systems_new, systems_changed: systems created, and existing systems whose input changed.
         calibrated, refused: outcome of the calibrations run (or imported) by this import.
-        rig_assisted: frames of SoccerNet-v3 games refused from their lines alone and calibrated
-            with their game's camera rig (counted in ``calibrated``).
+        rig_assisted: frames of SoccerNet-v3 games refused from their lines alone, or calibrated
+            below admission, whose stored calibration is their game's camera rig's (counted in
+            ``calibrated``).
         refusal_reasons: reason -> count among ``refused``.
         triangulated: recomputed systems that got a 3D ball.
         read_seconds, calibration_seconds, store_seconds: wall time of reading and validating the
@@ -241,7 +242,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         else:
             report.refused += 1
             report.refusal_reasons[fields.reason or "unspecified"] += 1
-    report.triangulated = recompute_systems(session, touched, settings, progress)
+    report.triangulated = recompute_systems(session, touched, settings, progress, preloaded=True)
 
 
 def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],
@@ -298,7 +299,8 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
     over ``calibrate_frame``), triangulate its systems, and commit in one transaction.
 
     Idempotent: a second import of the same tree changes nothing. ``progress(stage, done, total)``
-    is called for the stages "merge" (records matched to rows), "calibrate" and "triangulate".
+    is called for the stages "merge" (records matched to rows), "calibrate", "rig" (frames retried
+    with their game's camera rig, when there are any) and "triangulate".
 
     Raises:
         DatasetError: invalid input (nothing is stored).

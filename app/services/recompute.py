@@ -521,14 +521,18 @@ def preload_systems(session: Session, systems: Sequence[System]) -> None:
 
 
 def recompute_systems(session: Session, systems: Iterable[System], settings: Settings,
-                      progress: Progress | None = None) -> int:
+                      progress: Progress | None = None, *, preloaded: bool = False) -> int:
     """:func:`recompute_system` for each system, then one flush; returns how many were triangulated.
 
-    The systems' frames and derived rows are loaded in a few ``selectin`` queries first, so that
-    recomputing thousands of systems does not issue one lazy load per attribute.
+    The systems' frames and derived rows are loaded in a few ``selectin`` queries first
+    (:func:`preload_systems`; skipped when ``preloaded``: the caller did it), so that recomputing
+    thousands of systems does not issue one lazy load per attribute.
     """
     systems = list(systems)
-    preload_systems(session, systems)
+    if preloaded:
+        session.flush()
+    else:
+        preload_systems(session, systems)
     sources = {gid: rig_cameras(session, gid, settings)
                for gid in {s.game_id for s in systems if uses_rig(s) and s.game_id is not None}}
     n = 0
