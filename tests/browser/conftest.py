@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import json
 import shutil
-import socket
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
+from tests.live_server import serve_app
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
@@ -22,12 +21,6 @@ CHROMIUM_ARGS = [
 ]
 #: Screenshots of the walk (gitignored), for people to look at.
 ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @pytest.fixture(scope="module")
@@ -82,26 +75,10 @@ def _calibration_only_folder(dataset: Path, out: Path) -> Path:
 @pytest.fixture(scope="module")
 def server_url(seeded_settings) -> Iterator[str]:
     """Base URL of the real application (``create_app``) served by uvicorn in a thread."""
-    import uvicorn
-
     from app.main import create_app
 
-    port = _free_port()
-    config = uvicorn.Config(create_app(seeded_settings), host="127.0.0.1", port=port, log_level="warning",
-                            lifespan="on")
-    server = uvicorn.Server(config)
-    thread = threading.Thread(target=server.run, name="v3d-test-server", daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        if not thread.is_alive() or time.monotonic() > deadline:
-            raise RuntimeError(f"the v3d server did not start on port {port}")
-        time.sleep(0.05)
-    try:
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        server.should_exit = True
-        thread.join(timeout=10)
+    with serve_app(create_app(seeded_settings)) as url:
+        yield url
 
 
 @pytest.fixture(scope="module")
