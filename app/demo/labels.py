@@ -16,6 +16,7 @@ from typing import Mapping
 
 import numpy as np
 
+from app.geometry import metrics
 from app.geometry.camera import Camera
 from app.geometry.pitch import GOAL_CLASSES, LINE_CLASSES
 
@@ -165,19 +166,14 @@ def annotate_field_lines(camera: Camera, model: Mapping[str, np.ndarray], width:
 
 
 def box_iou(a: np.ndarray, b: np.ndarray) -> float:
-    """IoU of two boxes ``[x1, y1, x2, y2]`` (pixels)."""
-    iw = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
-    ih = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    inter = iw * ih
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
-    return float(inter / union) if union > 0 else 0.0
+    """IoU of two boxes ``[x1, y1, x2, y2]`` (pixels): ``app.geometry.metrics.box_iou`` as a float."""
+    return float(metrics.box_iou(np.asarray(a, dtype=float), np.asarray(b, dtype=float)))
 
 
 def box_size_error(box: np.ndarray, reference: np.ndarray) -> float:
-    """``|diag(box) - diag(reference)| / diag(reference)`` (a fraction; method.md section 8)."""
-    d = float(np.hypot(box[2] - box[0], box[3] - box[1]))
-    r = float(np.hypot(reference[2] - reference[0], reference[3] - reference[1]))
-    return abs(d - r) / r
+    """``|diag(box) - diag(reference)| / diag(reference)`` as a fraction (method.md section 8):
+    ``app.geometry.metrics.box_size_error_pct`` / 100."""
+    return float(metrics.box_size_error_pct(np.asarray(box, dtype=float), np.asarray(reference, dtype=float))) / 100.0
 
 
 def loose_ball_box(precise: np.ndarray, width: int, height: int, rng: np.random.Generator) -> np.ndarray:
