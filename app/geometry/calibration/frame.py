@@ -508,7 +508,7 @@ def calibrate_frame(
     if not obs.circle_classes and (nx == 0 or ny == 0) and len(obs.classes) - nx - ny == 0:
         return _refused("degenerate configuration: all labelled lines are parallel on the pitch and no "
                         "circle or goal fixes the view", t0, tuple(flags))
-    pts = np.concatenate([obs.seg_points, obs.circle_points])
+    pts = obs.all_points
     centred = pts - pts.mean(axis=0)
     normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
     if np.max(np.abs(centred @ normal)) < settings.loss_scale_gamma * diag:

@@ -1,8 +1,8 @@
 """Starting cameras for the non-linear refinement.
 
-Two families:
+Three families:
 
-* **Homography from lines** (:func:`ground_homography_from_lines`): every annotated point ``p`` of a
+* **Homography from lines** (:func:`ground_homographies`): every annotated point ``p`` of a
   straight ground element with world line ``l`` (homogeneous, ground plane) gives one linear
   equation ``l^T G p = 0`` on the image-to-ground homography ``G`` (the point-on-line form of the
   line DLT, Hartley and Zisserman section 4.1 with line correspondences, with their data
