@@ -14,7 +14,6 @@ import json
 import multiprocessing
 import os
 import time
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any, Iterator, Optional
@@ -22,6 +21,7 @@ from typing import Any, Iterator, Optional
 import typer
 from tqdm import tqdm
 
+from app.cli._files import InputFileError, json_files
 from app.cli._root import cli
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
@@ -53,19 +53,15 @@ def read_frames(path: Path) -> Iterator[tuple[str, bytes]]:
     """
     def keep(name: str) -> bool:
         p = PurePosixPath(name)
-        return p.suffix == ".json" and not p.name.startswith("camera_") and p.name != SUMMARY_FILE \
-            and not name.startswith("__MACOSX/")
+        return not p.name.startswith("camera_") and p.name != SUMMARY_FILE and not name.startswith("__MACOSX/")
 
-    if path.is_dir():
-        for p in sorted(path.rglob("*.json")):
-            if p.is_file() and keep(p.relative_to(path).as_posix()):
-                yield p.stem, p.read_bytes()
-    elif path.is_file() and zipfile.is_zipfile(path):
-        with zipfile.ZipFile(path) as archive:
-            for name in sorted(n for n in archive.namelist() if keep(n)):
-                yield PurePosixPath(name).stem, archive.read(name)
-    else:
-        raise typer.BadParameter(f"{path} is neither a folder nor a zip archive", param_hint="ANNOTATIONS")
+    try:
+        files = json_files(path, "ANNOTATIONS")
+    except InputFileError:
+        raise typer.BadParameter(f"{path} is neither a folder nor a zip archive", param_hint="ANNOTATIONS") from None
+    for f in files:
+        if keep(f.name):
+            yield PurePosixPath(f.name).stem, f.read()
 
 
 def calibrate_one(job: tuple[str, bytes, int, int, Optional[int]]) -> FrameOutcome:

@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import json
 import math
-import zipfile
-from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any, Callable, Optional
+from typing import Any, Optional
 
 import typer
 
+from app.cli._files import InputFileError, JsonFile, json_files
 from app.cli._root import cli
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.camera import Camera
@@ -27,41 +26,13 @@ from app.geometry.jac import OFFICIAL_THRESHOLDS_PX, evaluate_jac, gamma_thresho
 _CAMERA_PREFIX = "camera_"
 
 
-class JaCInputError(Exception):
-    """An input of ``v3d jac`` cannot be used; the message names the path or file at fault."""
+#: An input of ``v3d jac`` cannot be used; the message names the path or file at fault.
+JaCInputError = InputFileError
 
 
-@dataclass(frozen=True)
-class _JsonFile:
-    label: str  # how to name the file in messages, e.g. "cams.zip:test/camera_1.json"
-    name: str  # its path inside the folder or zip (POSIX)
-    read: Callable[[], bytes]
-
-    def load(self) -> Any:
-        try:
-            return json.loads(self.read().decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise JaCInputError(f"{self.label}: not readable JSON ({exc})") from exc
-
-
-def _json_files(path: Path, what: str) -> list[_JsonFile]:
-    """Every ``*.json`` file of a folder (recursively) or a zip, sorted by path."""
-    if not path.exists():
-        raise JaCInputError(f"{what}: no such file or folder: {path}")
-    if path.is_dir():
-        return [_JsonFile(str(p), p.relative_to(path).as_posix(), p.read_bytes)
-                for p in sorted(path.rglob("*.json")) if p.is_file()]
-    if zipfile.is_zipfile(path):
-        archive = zipfile.ZipFile(path)
-        names = sorted(n for n in archive.namelist()
-                       if n.endswith(".json") and not n.endswith("/") and not n.startswith("__MACOSX/"))
-        return [_JsonFile(f"{path}:{n}", n, (lambda n=n: archive.read(n))) for n in names]
-    raise JaCInputError(f"{what}: {path} is neither a folder nor a zip archive")
-
-
-def _by_frame(files: list[_JsonFile], what: str, prefix: str = "") -> dict[str, _JsonFile]:
+def _by_frame(files: list[JsonFile], what: str, prefix: str = "") -> dict[str, JsonFile]:
     """Frame id -> file, the id being the file name's stem without ``prefix``."""
-    out: dict[str, _JsonFile] = {}
+    out: dict[str, JsonFile] = {}
     for f in files:
         stem = PurePosixPath(f.name).stem
         if not stem.startswith(prefix):
@@ -103,10 +74,10 @@ def score_folder(annotations: Path, cameras: Path, width: int, height: int,
         JaCInputError: a missing path, no annotation file, unreadable JSON, a malformed annotation or
             camera (the message names the file).
     """
-    frames = _by_frame(_json_files(annotations, "ANNOTATIONS"), "ANNOTATIONS")
+    frames = _by_frame(json_files(annotations, "ANNOTATIONS"), "ANNOTATIONS")
     if not frames:
         raise JaCInputError(f"ANNOTATIONS: no *.json annotation file in {annotations}")
-    cams = _by_frame(_json_files(cameras, "CAMERAS"), "CAMERAS", _CAMERA_PREFIX)
+    cams = _by_frame(json_files(cameras, "CAMERAS"), "CAMERAS", _CAMERA_PREFIX)
     out: dict[str, Optional[list[float]]] = {}
     for frame in sorted(frames, key=_frame_order):
         if frame not in cams:
