@@ -222,7 +222,11 @@ class Camera:
 
     # ----- projection ---------------------------------------------------------------------------
     def points_in_camera(self, points_world: np.ndarray) -> np.ndarray:
-        """World points (N, 3) metres -> camera-frame points (N, 3) metres (z is depth)."""
+        """World points (N, 3) or (3,) metres -> camera-frame points (N, 3) metres (z is depth).
+
+        Raises:
+            ValueError: not (N, 3) or (3,).
+        """
         X = as_points(points_world, 3, "points_world")
         return (X - self.C) @ self.R.T
 
@@ -268,7 +272,7 @@ class Camera:
         """Project world points into the image.
 
         Args:
-            points_world: (N, 3) world points, metres.
+            points_world: (N, 3) or (3,) world points, metres.
             distort: apply the distortion model.
 
         Returns:
@@ -292,7 +296,18 @@ class Camera:
         return uv, in_front
 
     def normalise_pixels(self, uv: np.ndarray, undistort: bool = True) -> np.ndarray:
-        """Pixels (N, 2) -> undistorted normalised coordinates (N, 2) (``K^-1`` then undistortion)."""
+        """Pixels (N, 2) -> undistorted normalised coordinates (N, 2) (``K^-1`` then undistortion).
+
+        Args:
+            uv: (N, 2) or (2,) pixel coordinates of this camera's image.
+            undistort: invert the distortion model (:meth:`undistort`) after ``K^-1``.
+
+        Returns:
+            (N, 2) normalised camera coordinates (camera x/z, y/z).
+
+        Raises:
+            ValueError: ``uv`` not (N, 2) or (2,).
+        """
         p = as_points(uv, 2, "uv")
         Kinv = np.linalg.inv(self.K)
         xy = p @ Kinv[:2, :2].T + Kinv[:2, 2]
@@ -302,10 +317,14 @@ class Camera:
         """Back-project pixels to unit ray directions in the world frame.
 
         Args:
-            uv: (N, 2) pixel coordinates.
+            uv: (N, 2) or (2,) pixel coordinates.
+            undistort: undistort the pixels first (:meth:`normalise_pixels`).
 
         Returns:
             (N, 3) unit vectors (world frame); each ray starts at :attr:`C`.
+
+        Raises:
+            ValueError: ``uv`` not (N, 2) or (2,).
         """
         xy = self.normalise_pixels(uv, undistort=undistort)
         d_cam = np.hstack([xy, np.ones((len(xy), 1))])

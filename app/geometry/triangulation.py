@@ -259,6 +259,13 @@ def parallax_angle_deg(camera_a: Camera, point_a_px: np.ndarray, camera_b: Camer
 
     Small angles mean large depth uncertainty even when the reprojection error is small (paper,
     section 3D ball localisation). Rays are undistorted, in the world frame.
+
+    Args:
+        camera_a, camera_b: the two cameras.
+        point_a_px, point_b_px: (2,) pixel of each view, in its own image (distorted, as annotated).
+
+    Returns:
+        The angle between the two rays, degrees.
     """
     ra = camera_a.rays(np.asarray(point_a_px, float).reshape(1, 2))[0]
     rb = camera_b.rays(np.asarray(point_b_px, float).reshape(1, 2))[0]
