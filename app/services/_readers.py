@@ -107,13 +107,25 @@ def _load_json_file(path: Path) -> Any:
     return _load_json_bytes(raw, str(path))
 
 
+def is_safe_member(name: str) -> bool:
+    """True for a relative archive member name without ``..``, drive or backslash tricks.
+
+    >>> is_safe_member("12_1.png"), is_safe_member("frames/12.png")
+    (True, True)
+    >>> is_safe_member("../secret.png"), is_safe_member("/etc/passwd"), is_safe_member("a\\\\..\\\\b")
+    (False, False, False)
+    """
+    posix = name.replace("\\", "/")
+    parts = PurePosixPath(posix).parts
+    return bool(parts) and not posix.startswith("/") and ".." not in parts and ":" not in parts[0]
+
+
 def _safe_names(zf: zipfile.ZipFile, zip_path: Path) -> list[str]:
-    """The archive's entry names; raises when one is absolute or has a ``..`` component."""
+    """The archive's entry names; raises when one is absolute or has a ``..`` component
+    (:func:`is_safe_member`, the rule the image route applies too)."""
     names = zf.namelist()
     for name in names:
-        posix = name.replace("\\", "/")
-        parts = PurePosixPath(posix).parts
-        if posix.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
+        if name and not is_safe_member(name):
             raise DatasetError(zip_path, f"entry {name!r}", "unsafe entry name (absolute, drive or '..' "
                                                             "component); refusing the archive")
     return names

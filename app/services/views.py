@@ -24,7 +24,7 @@ import mimetypes
 import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 from typing import Any, Literal, Optional
 
 import numpy as np
@@ -37,6 +37,7 @@ from app.db.models import (
 )
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
+from app.services._readers import is_safe_member
 from app.services.errors import NotFoundError, ServiceError
 from app.services.recompute import MIRROR_FLAG
 
@@ -544,19 +545,6 @@ class FrameImage:
         assert self.zip_path is not None and self.member is not None
         with zipfile.ZipFile(self.zip_path) as zf, zf.open(self.member) as fh:
             yield from iter(lambda: fh.read(_CHUNK), b"")
-
-
-def is_safe_member(name: str) -> bool:
-    """True for a relative archive member name without ``..``, drive or backslash tricks.
-
-    >>> is_safe_member("12_1.png"), is_safe_member("frames/12.png")
-    (True, True)
-    >>> is_safe_member("../secret.png"), is_safe_member("/etc/passwd"), is_safe_member("a\\\\..\\\\b")
-    (False, False, False)
-    """
-    posix = name.replace("\\", "/")
-    parts = PurePosixPath(posix).parts
-    return bool(parts) and not posix.startswith("/") and ".." not in parts and ":" not in parts[0]
 
 
 def _media_type(name: str) -> str:
