@@ -435,15 +435,14 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
                          rig_sources: Sequence[tuple[int, Camera]] | None) -> None:
     """Judge every calibrated frame of the system (``app.geometry.mirror.mirror_evidence``: ball rays
     of every calibrated, labelled frame, side prior, the game's rig estimated without this system's
-    frames) and
-    set :data:`MIRROR_FLAG` and ``mirror_evidence`` on its calibration. Refused frames keep what
-    their rig retry found (:func:`with_rig_retry`).
+    frames) and set :data:`MIRROR_FLAG` and ``mirror_evidence`` on its calibration. Refused frames
+    keep what their rig retry found (:func:`with_rig_retry`).
 
     Rays of frames below the admission threshold count too: JaC is the same for labels and their
     mirror, so admission says nothing about mirroring, and a rough camera cannot bring two rays
-    within tau by chance (it gives no agreement, hence no evidence). On the dev set's injection
-    benchmark (``benchmarks/mirror_flags.py``) this flags 71 instead of 68 of 94 mirrored views,
-    with no false flag either way."""
+    within tau by chance (it gives no agreement, hence no evidence). Counting them flagged more of
+    the dev set's injected mirrored views with no false flag either way; today's figures are in the
+    docstring of ``benchmarks/mirror_flags.py`` (73 of 92 flagged)."""
     frames = [f for f in system.frames if f.id in cameras]
     if not frames:
         return
