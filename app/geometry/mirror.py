@@ -64,7 +64,7 @@ from typing import Hashable, Sequence
 import numpy as np
 
 from app.geometry.annotations import FieldLines, image_diagonal, mirror_lines
-from app.geometry.calibration.frame import CalibrationSettings
+from app.geometry.calibration.frame import CalibrationSettings, side_vote
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig
 from app.geometry.camera import Camera, as_points
 from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M
@@ -258,15 +258,6 @@ class MirrorVerdict:
                 "mirrored_camera_y_m": -self.camera_y_m, "side_vote": self.side_vote,
                 "rig_distance_m": self.rig_distance_m, "rig_distance_mirrored_m": self.rig_distance_mirrored_m,
                 "rig_vote": self.rig_vote, "pairs": [p.as_dict() for p in self.pairs], "sentence": self.sentence}
-
-
-def side_vote(camera: Camera, expected_side: int | None, margin_m: float = PITCH_WIDTH_M / 2.0) -> int:
-    """+1 when the camera stands beyond the far side line from ``expected_side`` (labels probably
-    mirrored), -1 beyond the near side line (as labelled), 0 otherwise or without a side."""
-    if expected_side is None:
-        return 0
-    y = float(camera.C[1]) * expected_side
-    return 1 if y < -margin_m else -1 if y > margin_m else 0
 
 
 def rig_distances(camera: Camera, rig_positions: np.ndarray | None) -> tuple[float | None, float | None]:

@@ -203,6 +203,31 @@ class _Candidate:
     k1_tried: bool = False
 
 
+def side_vote(camera: Camera, expected_side: int | None, margin_m: float = PITCH_WIDTH_M / 2.0) -> int:
+    """The side prior on mirrored labels: +1 when the camera stands beyond the far side line from
+    ``expected_side`` (labels probably mirrored), -1 beyond the near side line (as labelled), 0
+    otherwise or without a side.
+
+    One rule for :func:`calibrate_frame`'s ``probably_mirrored`` flag (a vote of +1) and for
+    :func:`app.geometry.mirror.mirror_evidence`, which re-exports it.
+
+    Args:
+        camera: the calibrated camera (SoccerNet world, metres).
+        expected_side: +1 (camera expected at y > 0), -1, or ``None``.
+        margin_m: how far beyond the centre line along y (metres) the camera must stand to vote;
+            default the half width, i.e. beyond a side line.
+
+    >>> cam = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0,
+    ...                              tilt_deg=80.0, roll_deg=0.0, position_m=[0.0, -50.0, -12.0])
+    >>> side_vote(cam, 1), side_vote(cam, -1), side_vote(cam, None)
+    (1, -1, 0)
+    """
+    if expected_side is None:
+        return 0
+    y = float(camera.C[1]) * expected_side
+    return 1 if y < -margin_m else -1 if y > margin_m else 0
+
+
 def principal_point(width: int, height: int) -> np.ndarray:
     """Principal point v3d's calibration fixes: ``((W - 1) / 2, (H - 1) / 2)`` px (module docstring)."""
     return np.array([(width - 1) / 2.0, (height - 1) / 2.0])
@@ -562,7 +587,7 @@ def calibrate_frame(
         return _refused(f"labels do not fit a camera at the known centre: {rms:.1f} px RMS "
                         f"(limit {settings.accept_gamma * diag:.1f} px)", t0, tuple(flags), per_class, rms)
     mirrored = None
-    if prior is not None and prior.expected_side is not None and camera.C[1] * prior.expected_side < -PITCH_WIDTH_M / 2:
+    if prior is not None and side_vote(camera, prior.expected_side) == 1:
         flags.append("probably_mirrored")
         mirrored = mirror_lines(lines)
     jac: dict[str, float] = {}
