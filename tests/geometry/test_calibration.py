@@ -254,6 +254,28 @@ def test_game_rig_calibrates_a_frame_with_too_few_lines() -> None:
     assert abs(result.camera.K[0, 0] / 1500.0 - 1.0) < 0.05
 
 
+def test_rig_computes_jac_once_for_the_chosen_position(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Work done twice: ``calibrate_with_rig`` computed JaC for the fit at every rig position and
+    kept one; JaC never chooses, so it is now computed once, for the chosen fit, with the same
+    values as before (those of ``calibrate_frame`` at that centre)."""
+    from app.geometry.calibration import CameraRig, CalibrationPrior, calibrate_with_rig, rig as rig_module
+    from app.geometry.calibration.rig import RigPosition
+
+    main = (2.0, 64.0, -19.0)
+    truth = _camera(main, (-35.0, -10.0, 0.0), 1500.0, 960, 540)
+    lines = synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=40)
+    few = {c: lines[c] for c in sorted(c for c in lines if c not in CIRCLES)[:3]}
+    rig = CameraRig((RigPosition(main, 5, 0.3), RigPosition((40.0, 45.0, -10.0), 3, 0.3),
+                     RigPosition((-60.0, 0.0, -12.0), 2, 0.3)))
+    calls = []
+    real = rig_module.frame_jac
+    monkeypatch.setattr(rig_module, "frame_jac", lambda *a, **k: calls.append(a) or real(*a, **k))
+    result = calibrate_with_rig(few, 960, 540, rig)
+    assert result.calibrated and len(calls) == 1
+    alone = calibrate_frame(few, 960, 540, prior=CalibrationPrior(centre_m=main))
+    assert result.jac == alone.jac and set(result.jac) == {"0.005", "0.01", "0.02"}
+
+
 def test_rig_without_positions_refuses() -> None:
     from app.geometry.calibration import CameraRig, calibrate_with_rig
 

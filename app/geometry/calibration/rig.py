@@ -11,6 +11,7 @@ functions: the service layer chooses which frames feed the rig and which are ret
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 from typing import Sequence
 
@@ -22,6 +23,7 @@ from app.geometry.calibration.frame import (
     CalibrationResult,
     CalibrationSettings,
     calibrate_frame,
+    frame_jac,
 )
 from app.geometry.camera import Camera
 
@@ -137,15 +139,16 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
         main_camera: the frame was filmed by the main camera (an action frame).
 
     Returns:
-        The chosen :class:`CalibrationResult`, whose ``elapsed_ms`` is the time spent on every
-        position; a refusal (the best-fitting position's, or a rig without positions) when no
+        The chosen :class:`CalibrationResult` (JaC computed for it alone), whose ``elapsed_ms`` is
+        the time spent on every position and on that JaC; a refusal (the best-fitting position's, or a rig without positions) when no
         position fits.
     """
     if not rig.positions:
         return CalibrationResult(status="refused", camera=None, jac={}, residuals_px={}, flags=("rig_assisted",),
                                  reason="no rig position for this game (no well-calibrated frames to estimate it)",
                                  rms_px=None, elapsed_ms=0.0)
-    results = [calibrate_frame(lines, width, height, settings=settings, compute_jac=compute_jac,
+    # JaC is the evaluation, never the choice: it is computed once, for the chosen position.
+    results = [calibrate_frame(lines, width, height, settings=settings, compute_jac=False,
                                prior=CalibrationPrior(expected_side=expected_side, centre_m=p.centre_m))
                for p in rig.positions]
     elapsed = float(sum(r.elapsed_ms for r in results))
@@ -159,4 +162,8 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
     ties = [(i, r) for i, r in fitted if r.rms_px <= best_rms + tie_px]  # type: ignore[operator]
     main = rig.main_index if main_camera else None
     chosen = min(ties, key=lambda t: (t[0] != main, t[0]))[1]  # role first, then support (sorted)
+    if compute_jac and chosen.camera is not None:
+        t0 = time.perf_counter()
+        chosen = replace(chosen, jac=frame_jac(chosen.camera, lines, width, height))
+        elapsed += (time.perf_counter() - t0) * 1e3
     return replace(chosen, elapsed_ms=elapsed)
