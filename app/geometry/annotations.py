@@ -58,8 +58,9 @@ def from_soccernet_calibration(data: Mapping[str, Any], width: int, height: int)
         :data:`FieldLines` in pixels.
 
     Raises:
-        AnnotationError: unknown class, a point without numeric ``x``/``y``, NaN or infinity.
-        An empty point list is dropped, as SoccerNet's evaluator drops it.
+        AnnotationError: unknown class, a point without numeric ``x``/``y``, NaN or infinity, an
+        image smaller than 2 x 2 (or NaN). An empty point list is dropped, as SoccerNet's evaluator
+        drops it.
 
     >>> fl = from_soccernet_calibration({"Middle line": [{"x": 0.5, "y": 0.0}, {"x": 0.5, "y": 1.0}]}, 961, 541)
     >>> fl["Middle line"][0].tolist()
@@ -67,7 +68,7 @@ def from_soccernet_calibration(data: Mapping[str, Any], width: int, height: int)
     """
     if not isinstance(data, Mapping):
         raise AnnotationError("field-line annotation must be a JSON object of class -> points")
-    if width < 2 or height < 2:
+    if not (width >= 2 and height >= 2):  # NaN fails too
         raise AnnotationError(f"image size must be at least 2x2 pixels, got {width}x{height}")
     out: FieldLines = {}
     scale = np.array([width - 1.0, height - 1.0])

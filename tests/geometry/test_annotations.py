@@ -4,7 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists
+from app.geometry.annotations import (
+    AnnotationError,
+    from_soccernet_calibration,
+    lines_from_json_lists,
+    lines_to_json_lists,
+)
 
 
 def test_json_lists_round_trip():
@@ -30,3 +35,12 @@ def test_polylines_that_are_not_xy_pairs_raise_annotation_errors():
         lines_from_json_lists({"Penalty spot": [[[1.0, 2.0]]]})
     flat = lines_from_json_lists({"Middle line": [[1.0, 2.0, 3.0, 4.0]]})  # SoccerNet-v3's flat form
     assert flat["Middle line"][0].tolist() == [[1.0, 2.0], [3.0, 4.0]]
+
+
+def test_a_nan_image_size_is_refused():
+    """Regression: ``from_soccernet_calibration`` tested ``width < 2``, which NaN passes, and then
+    returned NaN pixels for every point."""
+    data = {"Middle line": [{"x": 0.5, "y": 0.0}, {"x": 0.5, "y": 1.0}]}
+    with pytest.raises(AnnotationError, match="image size"):
+        from_soccernet_calibration(data, float("nan"), 540)
+    assert from_soccernet_calibration(data, 961, 541)["Middle line"][0].tolist() == [[480.0, 0.0], [480.0, 540.0]]
