@@ -122,6 +122,10 @@ class SystemPage {
     for (const extra of panels.slice(sys.views.length)) extra.remove();
 
     this.renderDoubts(sys, ctx);
+    // a single view (a calibration dataset's frame) is reviewed for its calibration: no 3D ball to show
+    const singleView = sys.views.length === 1;
+    $("ball3d-card").hidden = singleView;
+    $("pairs-card").hidden = singleView;
     this.renderBall(sys);
     this.renderPairs(sys);
     this.prefetch(sys.next_id);

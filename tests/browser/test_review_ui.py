@@ -244,6 +244,8 @@ def test_frame_without_image_is_drawn_on_a_blank_canvas(page, artifacts):
     assert listing["total"] == 1
     assert page.locator(tid("prev")).is_disabled() and page.locator(tid("next")).is_disabled()
     assert view.get_attribute("data-doubtful") == "false"  # no ball is expected in a single view
+    # the 3D ball and pair cards said "insufficient views" and "no pair" about a calibration review
+    assert page.locator(tid("ball3d-card")).is_hidden() and page.locator(tid("pairs-card")).is_hidden()
     frame_svg = view.locator(tid("view-svg"))
     assert frame_svg.get_attribute("viewBox") == f"0 0 {v['width']} {v['height']}"
     assert frame_svg.locator("image").count() == 0
