@@ -257,7 +257,8 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
 
 
 def game_rig(session: Session | None, game_id: int | None, settings: Settings, exclude_frame_ids: Collection[int] = (),
-             extra: Iterable[CalibrationFields] = (), extra_roles: Sequence[FrameRole] | None = None) -> CameraRig:
+             extra: Iterable[CalibrationFields] = (), extra_roles: Sequence[FrameRole] | None = None,
+             stored: Sequence[tuple[int, Camera, bool]] | None = None) -> CameraRig:
     """The camera rig of a game (``app.geometry.calibration.rig.estimate_rig``), from the centres of
     its cameras that are calibrated with JaC@gamma > ``admit_jac_min`` and not rig-assisted themselves.
     Action frames mark the main camera's position (:attr:`RigPosition.main_frames`).
@@ -268,6 +269,8 @@ def game_rig(session: Session | None, game_id: int | None, settings: Settings, e
         exclude_frame_ids: stored frames left out (the ones being recalibrated).
         extra: calibrations not stored yet that count too (an import's fresh results).
         extra_roles: the role of each of ``extra``'s frames (None: unknown, no main camera marked).
+        stored: the game's stored rows as :func:`rig_rows` gives them, when the caller has read
+            them already (then ``session`` is not queried).
     """
     extra = list(extra)
     roles: Sequence[FrameRole | None] = list(extra_roles) if extra_roles is not None else [None] * len(extra)
@@ -276,18 +279,20 @@ def game_rig(session: Session | None, game_id: int | None, settings: Settings, e
     gamma_index = JAC_GAMMAS.index(_gamma(settings))
     rows = [(Camera.from_soccernet(f.camera), role is FrameRole.ACTION) for f, role in zip(extra, roles)
             if _feeds_rig(f.status, f.camera, f.flags, f.jac[gamma_index], settings)]
-    if game_id is not None and session is not None:
+    if stored is None and game_id is not None and session is not None:
+        stored = rig_rows(session, game_id, settings)
+    if stored is not None:
         excluded = set(exclude_frame_ids)
-        rows += [(c, main) for fid, c, main in _rig_rows(session, game_id, settings) if fid not in excluded]
+        rows += [(c, main) for fid, c, main in stored if fid not in excluded]
     return estimate_rig([c for c, _ in rows], main_camera=[m for _, m in rows])
 
 
 def rig_cameras(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera]]:
     """``(frame id, camera)`` of the stored calibrations of a game that feed its rig (:func:`game_rig`)."""
-    return [(fid, c) for fid, c, _ in _rig_rows(session, game_id, settings)]
+    return [(fid, c) for fid, c, _ in rig_rows(session, game_id, settings)]
 
 
-def _rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera, bool]]:
+def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera, bool]]:
     """``(frame id, camera, filmed by the main camera)`` of the calibrations feeding the game's rig."""
     query = (select(Calibration, Frame.role).join(Frame, Frame.id == Calibration.frame_id)
              .join(System, System.id == Frame.system_id)
@@ -361,12 +366,17 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
         ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
     """
     fields = calibrate_lines(*calibration_job(frame))
-    if wants_rig_retry(fields, settings) and uses_rig(frame.system):
-        rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id])
+    rig_sources = None
+    if wants_rig_retry(fields, settings) and uses_rig(frame.system) and frame.system.game_id is not None:
+        # read once: the retry's rig and the system's mirror evidence both use the game's stored
+        # cameras, and the evidence leaves this system's frames out, so this frame's new row is moot
+        stored = rig_rows(session, frame.system.game_id, settings)
+        rig_sources = [(fid, c) for fid, c, _ in stored]
+        rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id], stored=stored)
         if rig.positions:
             fields = with_rig_retry(fields, calibrate_lines(*calibration_job(frame, rig)))
     apply_calibration(frame, fields, CalibrationSource.COMPUTED)
-    return recompute_system(session, frame.system, settings)
+    return recompute_system(session, frame.system, settings, rig_sources)
 
 
 def recompute_system(session: Session, system: System, settings: Settings,
