@@ -24,6 +24,7 @@ import mimetypes
 import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Literal, Optional
 
@@ -90,6 +91,7 @@ class SystemSummary:
     game: Game
     review_status: ReviewStatus
     review_comment: str
+    review_decided_at: Optional[datetime]
     ball3d: Optional[list[float]]
     views_total: int
     views_calibrated: int
@@ -105,7 +107,8 @@ class SystemSummary:
         return {
             "id": self.system.id, "name": self.system.name, "kind": self.system.kind.value,
             "game": {"id": g.id, "league": g.league, "season": g.season, "match": g.match},
-            "review": {"status": self.review_status.value, "comment": self.review_comment},
+            "review": {"status": self.review_status.value, "comment": self.review_comment,
+                       "decided_at": self.review_decided_at.isoformat() if self.review_decided_at else None},
             "ball3d": self.ball3d, "views_total": self.views_total, "views_calibrated": self.views_calibrated,
             "views_admitted": self.views_admitted, "views_labelled": self.views_labelled,
             "lowest_jac": self.lowest_jac, "worst_error_px": self.worst_error_px,
@@ -172,6 +175,7 @@ def _queue_from(stats: sa.Subquery) -> sa.Select[Any]:
         sa.select(
             System, Game, _review_status().label("review_status"),
             sa.func.coalesce(ReviewDecision.comment, "").label("review_comment"),
+            ReviewDecision.decided_at.label("review_decided_at"),
             Triangulation.ball3d, stats.c.views_total, stats.c.views_calibrated, stats.c.views_admitted,
             stats.c.views_labelled, stats.c.lowest_jac, stats.c.worst_error_px, stats.c.views_flagged,
         )
@@ -257,6 +261,7 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
     items = [
         SystemSummary(
             system=r.System, game=r.Game, review_status=r.review_status, review_comment=r.review_comment,
+            review_decided_at=r.review_decided_at,
             ball3d=r.ball3d, views_total=r.views_total or 0, views_calibrated=r.views_calibrated or 0,
             views_admitted=r.views_admitted or 0, views_labelled=r.views_labelled or 0,
             lowest_jac=r.lowest_jac, worst_error_px=r.worst_error_px, views_flagged=r.views_flagged or 0,

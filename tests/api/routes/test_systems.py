@@ -189,3 +189,14 @@ def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session:
     rows = {r["id"]: r for r in client.get("/api/systems").json()["items"]}
     assert rows[queue["other"].system_id]["views_flagged"] == 1
     assert rows[queue["exact"].system_id]["views_flagged"] == 0
+
+
+def test_queue_rows_carry_the_review_time(client: TestClient, queue: dict[str, Scene]) -> None:
+    """The queue's rows answered ``review.decided_at: null`` for every system, decided or not: the
+    queue query never read the decision's time (the schema filled in its default)."""
+    sid = queue["exact"].system_id
+    decided = client.post(f"/api/systems/{sid}/review", json={"status": "accepted"}).json()["decided_at"]
+    rows = {r["id"]: r for r in client.get("/api/systems").json()["items"]}
+    assert decided is not None
+    assert rows[sid]["review"]["decided_at"] == decided
+    assert rows[queue["other"].system_id]["review"]["decided_at"] is None
