@@ -13,22 +13,25 @@ from the ``fastapi-offline`` package: no CDN. ReDoc is not served: its bundle fe
 """
 from __future__ import annotations
 
+import html
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
 
-from fastapi import FastAPI, HTTPException
-from fastapi.responses import FileResponse
+from fastapi import FastAPI, HTTPException, Request
+from fastapi.responses import FileResponse, HTMLResponse, Response
 from fastapi_offline import FastAPIOffline
 from starlette.staticfiles import StaticFiles
 from starlette.types import Scope
 
-from app.api.deps import SystemDep
+from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
 from app.api.main import api_router
 from app.core.config import Settings, get_settings
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
+from app.services.editing import get_system
+from app.services.errors import NotFoundError
 
 #: Where the local Swagger UI assets (from fastapi-offline) are mounted.
 DOCS_ASSETS_URL = "/docs-assets"
@@ -54,6 +57,33 @@ def _page(name: str) -> FileResponse:
     if not path.is_file():
         raise HTTPException(status_code=404, detail=f"UI page static/{name} is missing")
     return FileResponse(path, media_type="text/html", headers={"Cache-Control": "no-cache"})
+
+
+def _missing_system_page(system_id: str, query: str) -> HTMLResponse:
+    """404 for a person following a stale link to ``/systems/{id}``: a small page saying the system
+    does not exist, with a link back to the queue (keeping the queue's filters of the link)."""
+    name = html.escape(system_id)
+    queue = html.escape(f"/?{query}" if query else "/")
+    body = f"""<!doctype html>
+<html lang="en">
+<head>
+  <meta charset="utf-8">
+  <meta name="viewport" content="width=device-width, initial-scale=1">
+  <title>System not found · v3d review</title>
+  <link rel="icon" href="data:,">
+  <link rel="stylesheet" href="/static/css/app.css">
+</head>
+<body>
+  <main style="max-width: 40rem; margin: 48px auto; padding: 0 16px"><div class="card" data-testid="system-missing">
+    <h1>System not found</h1>
+    <p>System <span class="mono">{name}</span> does not exist: it may have been removed or re-imported
+    under a new id, or the link is wrong.</p>
+    <p><a href="{queue}" data-testid="queue-link">Back to the review queue</a></p>
+  </div></main>
+</body>
+</html>
+"""
+    return HTMLResponse(body, status_code=404, headers={"Cache-Control": "no-cache"})
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -98,8 +128,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return _page("index.html")
 
     @app.api_route("/systems/{system_id}", methods=["GET", "HEAD"], include_in_schema=False)
-    def system_page(system: SystemDep) -> FileResponse:
-        """One multi-view system (``static/system.html``); 404 when the system does not exist."""
+    def system_page(request: Request, session: SessionDep, system_id: str) -> Response:
+        """One multi-view system (``static/system.html``); for an id that names no system, a small
+        HTML page saying so with a link back to the queue (404; ``/api`` routes keep answering JSON)."""
+        try:
+            if not (system_id.isascii() and system_id.isdigit() and int(system_id) < 2**63):
+                raise NotFoundError("system", system_id)
+            get_system(session, int(system_id))
+        except NotFoundError:
+            return _missing_system_page(system_id, request.url.query)
         return _page("system.html")
 
     return app

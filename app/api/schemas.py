@@ -184,6 +184,9 @@ class SystemSummaryOut(BaseModel):
     lowest_jac: Optional[float] = Field(description="Lowest JaC@0.5% among admitted views.")
     worst_error_px: Optional[float] = Field(description="Largest reprojection error among admitted views, px.")
     views_flagged: int = Field(description="Views whose field-line labels are flagged probably mirrored.")
+    views_above_tau: int = Field(
+        description="Admitted labelled views whose reprojection error is above tau (the system view's "
+        "error_above_tau rule: error scaled to the rule's reference width, compared with the stored tau).")
 
 
 class SystemPageOut(BaseModel):
@@ -282,6 +285,9 @@ class ViewOut(BaseModel):
     optimised_box: Optional[OptimisedBoxOut]
     reprojected_ball: Optional[Point2]
     reprojection_error_px: Optional[float]
+    error_above_tau: bool = Field(
+        description="The reprojection error, scaled to the rule's reference width, is above the stored tau "
+        "(app.services.views.error_above_tau; the queue's views_above_tau counts by the same rule).")
     camera_position: Optional[Point3]
     review: ReviewOut
 
@@ -305,6 +311,8 @@ class TriangulationOut(BaseModel):
     status: str
     tau_px: float
     rule: str
+    reference_width_px: Optional[float] = Field(
+        description="Width (px) the rule scales a view's error to before comparing it with tau; null: raw px.")
     min_baseline_m: float
     pairs: list[PairOut]
 

@@ -11,6 +11,9 @@ is made of (method.md sections 4 and 5):
 
 ``views_flagged`` counts every view (admitted or not) whose labels are flagged probably mirrored
 (``app.services.recompute.MIRROR_FLAG``), so that the queue can show it before the system is opened.
+``views_above_tau`` counts the admitted labelled views whose reprojection error is above tau by
+:func:`error_above_tau`, the criterion the system view's ``error_above_tau`` (and so the system page's
+"error > tau" doubt) is computed with: queue and system page cannot disagree.
 
 Queue order (``sort``): ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
 systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id. The
@@ -38,6 +41,7 @@ from app.db.models import (
 )
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
+from app.geometry.triangulation import REFERENCE_WIDTH_PX
 from app.services._readers import is_safe_member
 from app.services.errors import NotFoundError, ServiceError
 from app.services.recompute import MIRROR_FLAG
@@ -100,6 +104,7 @@ class SystemSummary:
     lowest_jac: Optional[float]
     worst_error_px: Optional[float]
     views_flagged: int = 0
+    views_above_tau: int = 0
 
     def as_json(self) -> dict[str, Any]:
         """The queue row as the API sends it."""
@@ -112,7 +117,7 @@ class SystemSummary:
             "ball3d": self.ball3d, "views_total": self.views_total, "views_calibrated": self.views_calibrated,
             "views_admitted": self.views_admitted, "views_labelled": self.views_labelled,
             "lowest_jac": self.lowest_jac, "worst_error_px": self.worst_error_px,
-            "views_flagged": self.views_flagged,
+            "views_flagged": self.views_flagged, "views_above_tau": self.views_above_tau,
         }
 
 
@@ -134,6 +139,47 @@ class FramePage:
     total: int
 
 
+#: The width (px) each scaled pair-error rule (``app.geometry.triangulation.PAIR_ERROR_RULES``)
+#: brings a view's reprojection error to before comparing it with tau; a rule not named here
+#: (``max_px``) compares raw pixels.
+ERROR_REFERENCE_WIDTH_PX: dict[str, float] = {
+    "max_scaled_1920": REFERENCE_WIDTH_PX,
+    "mean_scaled_1920": REFERENCE_WIDTH_PX,
+}
+
+
+def error_reference_width_px(rule: Optional[str]) -> Optional[float]:
+    """The reference width of a pair-error rule, None when the rule compares raw pixels.
+
+    >>> error_reference_width_px("max_scaled_1920"), error_reference_width_px("max_px")
+    (1920.0, None)
+    """
+    return ERROR_REFERENCE_WIDTH_PX.get(rule) if rule is not None else None
+
+
+def error_above_tau(error_px: Any, width: Any, tau_px: Any, rule: Any) -> sa.ColumnElement[bool]:
+    """The one rule "this view's reprojection error is above tau", as SQL over stored values: the view's
+    ``error_px`` scaled to its system's pair-error rule's reference width
+    (``error_px * reference / width``, raw when the rule has none or the width is not positive), then
+    strictly above the ``tau_px`` stored on the triangulation. NULL (not above) when the error or tau
+    is missing. Both the queue's ``views_above_tau`` and the system view's per-view
+    ``error_above_tau`` are computed with it.
+
+    Args:
+        error_px, width, tau_px, rule: SQL expressions (columns) of the view's error, its image
+            width, and its system's triangulation tau and rule.
+    """
+    reference = sa.case(
+        *((rule == name, sa.literal(ref, sa.Float)) for name, ref in ERROR_REFERENCE_WIDTH_PX.items()),
+        else_=sa.null(),
+    )
+    scaled = sa.case(
+        (sa.and_(reference.is_not(None), width > 0), error_px * reference / width),
+        else_=error_px,
+    )
+    return scaled > tau_px
+
+
 def _stats(game_id: Optional[int] = None, also_system_id: Optional[int] = None) -> sa.Subquery:
     """Per-system counts and admitted-view aggregates (see the module docstring), over one game's
     systems (and ``also_system_id``) when ``game_id`` is given: the aggregation is most of a queue
@@ -151,11 +197,15 @@ def _stats(game_id: Optional[int] = None, also_system_id: Optional[int] = None) 
             # flags is a JSON list of strings: its text holds the flag quoted, on SQLite and PostgreSQL
             sa.func.count(sa.case((sa.cast(Calibration.flags, sa.Text).like(f'%"{MIRROR_FLAG}"%'), 1)))
             .label("views_flagged"),
+            sa.func.count(sa.case((sa.and_(admitted, BallLabel.kind.is_not(None), error_above_tau(
+                BallReprojection.error_px, Frame.width, Triangulation.tau_px, Triangulation.rule)), 1)))
+            .label("views_above_tau"),
         )
         .select_from(Frame)
         .outerjoin(Calibration, Calibration.frame_id == Frame.id)
         .outerjoin(BallLabel, BallLabel.frame_id == Frame.id)
         .outerjoin(BallReprojection, BallReprojection.frame_id == Frame.id)
+        .outerjoin(Triangulation, Triangulation.system_id == Frame.system_id)
         .group_by(Frame.system_id)
     )
     if game_id is not None:
@@ -178,6 +228,7 @@ def _queue_from(stats: sa.Subquery) -> sa.Select[Any]:
             ReviewDecision.decided_at.label("review_decided_at"),
             Triangulation.ball3d, stats.c.views_total, stats.c.views_calibrated, stats.c.views_admitted,
             stats.c.views_labelled, stats.c.lowest_jac, stats.c.worst_error_px, stats.c.views_flagged,
+            stats.c.views_above_tau,
         )
         .join(Game, Game.id == System.game_id)
         .outerjoin(stats, stats.c.system_id == System.id)
@@ -265,6 +316,7 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
             ball3d=r.ball3d, views_total=r.views_total or 0, views_calibrated=r.views_calibrated or 0,
             views_admitted=r.views_admitted or 0, views_labelled=r.views_labelled or 0,
             lowest_jac=r.lowest_jac, worst_error_px=r.worst_error_px, views_flagged=r.views_flagged or 0,
+            views_above_tau=r.views_above_tau or 0,
         )
         for r in rows
     ]
@@ -421,7 +473,7 @@ def _optimised_json(opt: Optional[OptimisedBox]) -> Optional[dict[str, Any]]:
     return {"box": _px(opt.box), "d_px": opt.d_opt_px, "error_m": opt.error_m}
 
 
-def _view_json(frame: Frame) -> dict[str, Any]:
+def _view_json(frame: Frame, above_tau: bool = False) -> dict[str, Any]:
     cal = frame.calibration
     camera = None
     if cal is not None and cal.status == CalibrationStatus.CALIBRATED and cal.camera:
@@ -442,6 +494,7 @@ def _view_json(frame: Frame) -> dict[str, Any]:
         "optimised_box": _optimised_json(frame.optimised_box),
         "reprojected_ball": _px(rep.point) if rep is not None else None,
         "reprojection_error_px": rep.error_px if rep is not None else None,
+        "error_above_tau": above_tau,
         "camera_position": camera.C.tolist() if camera is not None else None,
         "review": review_json(frame.review),
     }
@@ -463,7 +516,8 @@ def _triangulation_json(tri: Optional[Triangulation]) -> Optional[dict[str, Any]
     if tri is None:
         return None
     return {
-        "status": tri.status.value, "tau_px": tri.tau_px, "rule": tri.rule, "min_baseline_m": tri.min_baseline_m,
+        "status": tri.status.value, "tau_px": tri.tau_px, "rule": tri.rule,
+        "reference_width_px": error_reference_width_px(tri.rule), "min_baseline_m": tri.min_baseline_m,
         "pairs": [
             {"view_a": p.frame_a_id, "view_b": p.frame_b_id, "point": p.point, "error_px": p.error_px,
              "parallax_deg": p.parallax_deg, "baseline_m": p.baseline_m, "kept": p.kept, "reason": p.reason}
@@ -492,19 +546,33 @@ def _load_system(session: Session, system_id: int) -> System:
     return system
 
 
+def _frames_above_tau(session: Session, system_id: int) -> set[int]:
+    """Ids of the system's frames whose reprojection error is above tau by :func:`error_above_tau`."""
+    above = error_above_tau(BallReprojection.error_px, Frame.width, Triangulation.tau_px, Triangulation.rule)
+    stmt = (
+        sa.select(Frame.id)
+        .join(BallReprojection, BallReprojection.frame_id == Frame.id)
+        .join(Triangulation, Triangulation.system_id == Frame.system_id)
+        .where(Frame.system_id == system_id, above)
+    )
+    return set(session.scalars(stmt))
+
+
 def system_view(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
                 sort: SystemSort = DEFAULT_SORT) -> dict[str, Any]:
     """The system view JSON of ``docs/architecture.md`` (the UI contract).
 
     Per view: the pitch model projected at the image's resolution and clipped to it, the annotated
     field lines, the ball label and its optimised box, the reprojected 3D ball and its error, the
-    camera centre. ``prev_id`` / ``next_id`` follow the queue ``filters`` + ``sort`` (by default the
+    camera centre, and ``error_above_tau`` (:func:`error_above_tau`, the rule the queue's
+    ``views_above_tau`` counts by). ``prev_id`` / ``next_id`` follow the queue ``filters`` + ``sort`` (by default the
     whole queue in its default order). Triangulation pairs name their views by frame id.
 
     Raises:
         NotFoundError: no system has this id.
     """
     system = _load_system(session, system_id)
+    above_tau = _frames_above_tau(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
     tri = system.triangulation
     game = system.game
@@ -517,7 +585,7 @@ def system_view(session: Session, system_id: int, filters: SystemFilters = Syste
         "next_id": next_id,
         "ball3d": tri.ball3d if tri is not None else None,
         "triangulation": _triangulation_json(tri),
-        "views": [_view_json(f) for f in system.frames],
+        "views": [_view_json(f, f.id in above_tau) for f in system.frames],
     }
 
 

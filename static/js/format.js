@@ -23,16 +23,17 @@ export function fmtXYZ(p, digits = 2) {
   return Array.isArray(p) && p.every(isNum) ? p.map((c) => c.toFixed(digits)).join(", ") : "—";
 }
 
-/** An error in a view's pixels, scaled the way the pair rule scales it before comparing with tau. */
-export function scaledError(errorPx, width, rule) {
+/** An error in a view's pixels, scaled the way the pair rule scales it before comparing with tau:
+ * to `referenceWidth` (the system view's `triangulation.reference_width_px`; null: raw pixels). */
+export function scaledError(errorPx, width, referenceWidth) {
   if (!isNum(errorPx)) return null;
-  if (rule && rule.includes("scaled_1920") && isNum(width) && width > 0) return (errorPx * 1920) / width;
+  if (isNum(referenceWidth) && isNum(width) && width > 0) return (errorPx * referenceWidth) / width;
   return errorPx;
 }
 
 /** "ok" below tau / 2, "warn" up to tau, "bad" above: the reviewer's traffic light. */
-export function errorClass(errorPx, width, tau, rule) {
-  const e = scaledError(errorPx, width, rule);
+export function errorClass(errorPx, width, tau, referenceWidth) {
+  const e = scaledError(errorPx, width, referenceWidth);
   if (e === null || !isNum(tau)) return "muted";
   if (e <= tau / 2) return "ok";
   if (e <= tau) return "warn";

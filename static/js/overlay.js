@@ -36,8 +36,9 @@ export function isMirrorFlagged(view) {
   return ((view.calibration || {}).flags || []).includes(MIRROR_FLAG);
 }
 
-/** Why a view needs a reviewer's eye (empty when nothing is doubtful). */
-export function doubts(view, tau, rule, multiView = true) {
+/** Why a view needs a reviewer's eye (empty when nothing is doubtful). "Above tau" is the server's
+ * verdict (`error_above_tau`), the rule the queue's "error > τ" count uses too. */
+export function doubts(view, multiView = true) {
   const out = [];
   const cal = view.calibration || {};
   if (isMirrorFlagged(view)) out.push("labels probably mirrored");
@@ -46,13 +47,13 @@ export function doubts(view, tau, rule, multiView = true) {
   if (cal.reason) out.push(cal.reason);
   const ball = view.ball || {};
   if (!ball.kind && multiView) out.push("no ball label"); // a single view has no 3D ball to make
-  if (errorClass(view.reprojection_error_px, view.width, tau, rule) === "bad") out.push("reprojection error above tau");
+  if (view.error_above_tau === true) out.push("reprojection error above tau");
   return out;
 }
 
 export class ViewPanel extends HTMLElement {
   #view = null;
-  #ctx = { index: 0, tau: null, rule: null, viewCount: 0 };
+  #ctx = { index: 0, tau: null, rule: null, referenceWidth: null, viewCount: 0 };
   #imageState = "loading"; // loading | loaded | missing
   #imageUrl = null;
   #live = null; // box or point being dragged (image pixels)
@@ -75,7 +76,7 @@ export class ViewPanel extends HTMLElement {
     this.#resizeObserver?.disconnect();
   }
 
-  /** Set the view (system-view JSON) and its context {index, tau, rule, viewCount}. */
+  /** Set the view (system-view JSON) and its context {index, tau, rule, referenceWidth, viewCount}. */
   update(view, ctx) {
     const frameChanged = !this.#view || this.#view.frame_id !== view.frame_id;
     this.#view = view;
@@ -136,13 +137,13 @@ export class ViewPanel extends HTMLElement {
   // ----- DOM ------------------------------------------------------------------------------------
   #build() {
     const v = this.#view;
-    const { index, tau, rule } = this.#ctx;
+    const { index, tau, rule, referenceWidth } = this.#ctx;
     const label = `V${index + 1}`;
     const cal = v.calibration || {};
     const jac = cal.jac || {};
     const ball = v.ball || {};
     const opt = v.optimised_box;
-    const doubtful = doubts(v, tau, rule, this.#ctx.viewCount !== 1);
+    const doubtful = doubts(v, this.#ctx.viewCount !== 1);
 
     const frameSvg = svg("svg", {
       viewBox: `0 0 ${v.width} ${v.height}`,
@@ -160,11 +161,11 @@ export class ViewPanel extends HTMLElement {
     }
 
     const err = v.reprojection_error_px;
-    const scaled = scaledError(err, v.width, rule);
+    const scaled = scaledError(err, v.width, referenceWidth);
     const rb = v.reprojected_ball;
     const outside = validPoint(rb) && (rb[0] < 0 || rb[1] < 0 || rb[0] > v.width || rb[1] > v.height);
     const errText = isNum(err)
-      ? `${err.toFixed(2)} px` + (scaled !== null && Math.abs(scaled - err) > 1e-6 ? ` (${scaled.toFixed(2)} @1920)` : "")
+      ? `${err.toFixed(2)} px` + (scaled !== null && Math.abs(scaled - err) > 1e-6 ? ` (${scaled.toFixed(2)} @${referenceWidth})` : "")
         + (outside ? ", reprojects outside the frame" : "")
       : "—";
 
@@ -242,7 +243,7 @@ export class ViewPanel extends HTMLElement {
             fmtJac(jac["0.02"]),
           ),
           el("dt", { title: `Reprojection error of the 3D ball in this view; tau = ${fmt(tau, 1)} px (${rule || "rule unknown"})` }, "Reproj. error"),
-          el("dd", { class: `mono ${errorClass(err, v.width, tau, rule)}`, "data-testid": "view-reproj-error" }, errText),
+          el("dd", { class: `mono ${errorClass(err, v.width, tau, referenceWidth)}`, "data-testid": "view-reproj-error" }, errText),
           el("dt", { title: "The annotated ball box: size and centre, image pixels" }, "Ball (red)"),
           el("dd", { class: "mono", "data-testid": "view-box" }, boxText),
           el("dt", { title: "Box consistent with the 3D ball (paper Eq. min_diametre): d_opt, and the distance from the 3D ball to the annotated ray (optimized_error)" }, "Optimised (blue)"),

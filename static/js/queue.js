@@ -21,6 +21,7 @@ function rowDoubts(s) {
   const uncalibrated = (s.views_total ?? 0) - (s.views_calibrated ?? 0);
   const unlabelled = (s.views_total ?? 0) - (s.views_labelled ?? 0);
   if (s.views_flagged > 0) chips.push(el("span", { class: "chip bad", title: "field-line labels probably mirrored: open the system to see the evidence and apply the fix" }, `${s.views_flagged} mirrored?`));
+  if (s.views_above_tau > 0) chips.push(el("span", { class: "chip bad", "data-testid": "row-above-tau", title: "admitted labelled views whose reprojection error is above tau (the system page's \"error > τ\")" }, `${s.views_above_tau} error > τ`));
   if (uncalibrated > 0) chips.push(el("span", { class: "chip bad" }, `${uncalibrated} uncalibrated`));
   if (notAdmitted > 0) chips.push(el("span", { class: "chip bad" }, `${notAdmitted} not admitted`));
   if (s.views_total > 1) { // a single view (calibration data) has no 3D ball to make

@@ -107,7 +107,7 @@ class SystemPage {
     $("comment").value = sys.review?.comment || "";
 
     const tri = sys.triangulation || {};
-    const ctx = { tau: tri.tau_px, rule: tri.rule };
+    const ctx = { tau: tri.tau_px, rule: tri.rule, referenceWidth: tri.reference_width_px };
     const container = $("views");
     const panels = [...container.children];
     sys.views.forEach((view, index) => {
@@ -121,7 +121,7 @@ class SystemPage {
     });
     for (const extra of panels.slice(sys.views.length)) extra.remove();
 
-    this.renderDoubts(sys, ctx);
+    this.renderDoubts(sys);
     // a single view (a calibration dataset's frame) is reviewed for its calibration: no 3D ball to show
     const singleView = sys.views.length === 1;
     $("ball3d-card").hidden = singleView;
@@ -137,10 +137,10 @@ class SystemPage {
 
   /** One chip per doubtful view in the top bar (a click scrolls to the view): nothing doubtful is
    * left below the fold unnoticed. */
-  renderDoubts(sys, ctx) {
+  renderDoubts(sys) {
     const chips = [];
     sys.views.forEach((v, i) => {
-      const why = doubts(v, ctx.tau, ctx.rule, sys.views.length !== 1);
+      const why = doubts(v, sys.views.length !== 1);
       if (!why.length) return;
       chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", title: why.join("; "),
         onclick: () => $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }) },

@@ -46,3 +46,24 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         view = client.get(f"/api/systems/{exact}", params={"status": "pending"}).json()
         assert (view["prev_id"], view["next_id"]) == (shifted, lonely)
         assert len(view["views"]) == 3 and view["views"][0]["pitch_lines"]
+
+
+def test_views_above_tau_on_postgresql(pg_url: str) -> None:
+    """The queue's ``views_above_tau`` (float reference width, integer width, stored tau) on PostgreSQL,
+    and the system view's ``error_above_tau`` by the same rule."""
+    settings = Settings(database_url=pg_url, calibration_workers=1)
+    upgrade_database(pg_url)
+    engine = make_engine(pg_url)
+    try:
+        with make_session_factory(engine)() as session:
+            game = make_game(session)
+            exact = make_system(session, settings, game, "2.png").system_id
+            # a box 40 px off: two of the 960-px views above tau once scaled to 1920 px (none raw)
+            wrong = make_system(session, settings, game, "4.png", shift_px=(0.0, 0.0, 40.0)).system_id
+    finally:
+        engine.dispose()
+    with TestClient(create_app(settings)) as client:
+        rows = {s["id"]: s["views_above_tau"] for s in client.get("/api/systems").json()["items"]}
+        assert rows == {exact: 0, wrong: 2}
+        view = client.get(f"/api/systems/{wrong}").json()
+        assert [v["error_above_tau"] for v in view["views"]] == [False, True, True]

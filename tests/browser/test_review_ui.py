@@ -442,3 +442,41 @@ def test_mirrored_labels_are_shown_with_their_evidence_and_fixed_by_one_key(page
 
     restored = page.request.post(f"/api/frames/{flagged['frame_id']}/field-lines/mirror")
     assert restored.ok and _mirror_flagged(restored.json()["views"][k])
+
+
+def test_queue_shows_views_above_tau_before_the_system_is_opened(page):
+    """The demo's 5.png (a replay's ball box on the wrong spot, about 209 px from the reprojected
+    ball) showed nothing in the queue's Doubts: the reviewer saw "error > τ" only on the system page.
+    Its row now carries "1 error > τ", and the system page flags as many views."""
+    listing = _api(page, "/api/systems?limit=500")["items"]
+    row = next(s for s in listing if s["name"] == "5.png" and s["game"]["league"] != "sn-calibration")
+    assert row["views_above_tau"] == 1 and row["worst_error_px"] > 100.0
+    page.goto("/")
+    page.locator(tid("queue-row")).first.wait_for()
+    for s in listing:  # every row's chip says what the API counts
+        chip = page.locator(f"{tid('queue-row')}[data-id='{s['id']}'] {tid('row-above-tau')}")
+        if s["views_above_tau"]:
+            assert chip.inner_text() == f"{s['views_above_tau']} error > τ", s["name"]
+        else:
+            assert chip.count() == 0, s["name"]
+    tr = page.locator(f"{tid('queue-row')}[data-id='{row['id']}']")
+    assert tr.locator(tid("row-doubts")).inner_text().strip() == "1 error > τ"
+
+    tr.locator(tid("system-link")).click()
+    page.wait_for_url(re.compile(rf"/systems/{row['id']}"))
+    page.locator(tid("view")).first.wait_for()
+    system = _api(page, f"/api/systems/{row['id']}")
+    k = next(i for i, v in enumerate(system["views"]) if v["error_above_tau"])
+    doubts = page.locator(tid("doubt")).filter(has_text="error > τ")
+    assert doubts.count() == 1 and doubts.first.inner_text().startswith(f"V{k + 1} ")
+
+
+def test_stale_system_link_says_so_and_leads_back_to_the_queue(page):
+    """An unknown system id is a small 404 page, not raw JSON; its link goes back to the queue with the
+    filters the link carried."""
+    answer = page.goto("/systems/424242?sort=name")
+    assert answer.status == 404
+    assert "System 424242 does not exist" in " ".join(page.locator(tid("system-missing")).inner_text().split())
+    page.click(tid("queue-link"))
+    page.wait_for_url(re.compile(r"/\?sort=name$"))
+    page.locator(tid("queue-row")).first.wait_for()

@@ -163,11 +163,32 @@ def test_prev_and_next_follow_the_queue_given(client: TestClient, queue: dict[st
 
 
 def test_unknown_system_is_404_naming_the_id(client: TestClient) -> None:
-    for url in ("/api/systems/424242", "/systems/424242"):
-        answer = client.get(url)
-        assert answer.status_code == 404 and "424242" in answer.json()["detail"]
+    answer = client.get("/api/systems/424242")
+    assert answer.status_code == 404 and "424242" in answer.json()["detail"]
     answer = client.post("/api/systems/424242/review", json={"status": "accepted"})
     assert answer.status_code == 404 and "424242" in answer.json()["detail"]
+
+
+@pytest.mark.parametrize("path", ["/systems/424242", "/systems/not-an-id", "/systems/99999999999999999999999"])
+def test_stale_system_link_is_a_404_page_back_to_the_queue(client: TestClient, path: str) -> None:
+    """A person following a stale link to a system page got raw JSON (``{"detail": ...}``): now a small
+    HTML page says the system does not exist and links back to the queue, with the link's filters."""
+    answer = client.get(path, params={"sort": "name", "status": "pending"})
+    assert answer.status_code == 404
+    assert answer.headers["content-type"].startswith("text/html")
+    page = answer.text
+    assert "<title>System not found" in page and "does not exist" in page
+    assert path.rsplit("/", 1)[1] in page
+    assert 'href="/?sort=name&amp;status=pending" data-testid="queue-link"' in page
+    assert client.head(path).status_code == 404
+    bare = client.get(path).text
+    assert 'href="/" data-testid="queue-link"' in bare
+
+
+def test_stale_system_link_escapes_the_id(client: TestClient) -> None:
+    answer = client.get("/systems/%3Cscript%3Ealert(1)%3Cb%3E")
+    assert answer.status_code == 404
+    assert "<script>" not in answer.text and "&lt;script&gt;alert(1)&lt;b&gt;" in answer.text
 
 
 def test_unknown_query_parameters_are_ignored(client: TestClient, queue: dict[str, Scene]) -> None:
@@ -200,3 +221,60 @@ def test_queue_rows_carry_the_review_time(client: TestClient, queue: dict[str, S
     assert decided is not None
     assert rows[sid]["review"]["decided_at"] == decided
     assert rows[queue["other"].system_id]["review"]["decided_at"] is None
+
+
+def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
+        client: TestClient, db_session: Session, db_settings: Settings, queue: dict[str, Scene]) -> None:
+    """The queue said nothing of a view whose reprojection error is above tau (the system page's
+    "error > tau" doubt): it showed only once the system was opened. ``views_above_tau`` counts the
+    admitted labelled views above tau by the rule the system view's ``error_above_tau`` uses: the
+    error scaled to the rule's reference width (960-px views: x 2), against the stored tau."""
+    from app.db.models import Frame, Triangulation
+
+    g = make_game(db_session, match="2017-03-04 - 12-30 Liverpool 3 - 1 Arsenal")
+    # the replay's box 40 px off drags the ball: errors 7.9, 11.6 and 13.5 px, below tau = 20 raw,
+    # 15.9, 23.1 and 27.0 px scaled to 1920: two views above tau
+    wrong = make_system(db_session, db_settings, g, "4.png", shift_px=(0.0, 0.0, 40.0))
+
+    def rows() -> dict[int, dict]:
+        return {r["id"]: r for r in client.get("/api/systems").json()["items"]}
+
+    def page_verdicts() -> list[bool]:
+        return [v["error_above_tau"] for v in client.get(f"/api/systems/{wrong.system_id}").json()["views"]]
+
+    view = client.get(f"/api/systems/{wrong.system_id}").json()
+    tri = view["triangulation"]
+    assert (tri["tau_px"], tri["rule"], tri["reference_width_px"]) == (20.0, "max_scaled_1920", 1920.0)
+    errors = [v["reprojection_error_px"] for v in view["views"]]
+    assert max(errors) < tri["tau_px"]  # raw pixels would count none
+    expected = [e * 1920.0 / WIDTH > tri["tau_px"] for e in errors]
+    assert expected == [False, True, True]
+    assert page_verdicts() == expected
+    assert rows()[wrong.system_id]["views_above_tau"] == 2
+    assert {r["views_above_tau"] for sid, r in rows().items() if sid != wrong.system_id} == {0}
+
+    # a view that is not admitted is not counted (its stored error stays; the page still flags it)
+    frame = db_session.get(Frame, wrong.frame_ids[1])
+    frame.calibration.admitted = False
+    db_session.commit()
+    assert rows()[wrong.system_id]["views_above_tau"] == 1
+    assert page_verdicts() == expected
+
+    # the stored rule decides the scaling: max_px compares raw pixels, and nothing is above tau
+    db_session.get(Triangulation, wrong.system_id).rule = "max_px"
+    db_session.commit()
+    assert client.get(f"/api/systems/{wrong.system_id}").json()["triangulation"]["reference_width_px"] is None
+    assert page_verdicts() == [False, False, False]
+    assert rows()[wrong.system_id]["views_above_tau"] == 0
+
+
+def test_error_reference_widths_follow_the_pair_error_rules() -> None:
+    """The reference width of each rule is the one ``app.geometry.triangulation.pair_error`` scales by."""
+    from app.geometry.triangulation import PAIR_ERROR_RULES, pair_error
+    from app.services.views import ERROR_REFERENCE_WIDTH_PX, error_reference_width_px
+
+    assert set(ERROR_REFERENCE_WIDTH_PX) <= set(PAIR_ERROR_RULES)
+    for rule in PAIR_ERROR_RULES:
+        reference = error_reference_width_px(rule)
+        scaled = 3.0 * reference / 960.0 if reference is not None else 3.0
+        assert pair_error((3.0, 3.0), (960.0, 960.0), rule) == pytest.approx(scaled), rule
