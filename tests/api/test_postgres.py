@@ -13,24 +13,34 @@ from app.services.recompute import MIRROR_FLAG
 
 from .factories import make_game, make_system
 
+
+def _seed(pg_url: str, settings: Settings, build):
+    """Migrate the PostgreSQL database, run ``build(session, game)`` in one committed session, return its result."""
+    upgrade_database(pg_url)
+    engine = make_engine(pg_url)
+    try:
+        with make_session_factory(engine)() as session:
+            out = build(session, make_game(session))
+            session.commit()
+            return out
+    finally:
+        engine.dispose()
+
 pytestmark = pytest.mark.postgres
 
 
 def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
     settings = Settings(database_url=pg_url, calibration_workers=1)
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url)
-    try:
-        with make_session_factory(engine)() as session:
-            game = make_game(session)
-            exact = make_system(session, settings, game, "2.png", jac=0.90).system_id
-            shifted = make_system(session, settings, game, "10.png", jac=0.80, shift_px=(0.0, 0.0, 6.0)).system_id
-            lonely = make_system(session, settings, game, "1.png", jac=0.95, labelled=(True, False, False)).system_id
-            flagged = session.get(System, lonely).frames[1].calibration  # the JSONB flags, read as text
-            flagged.flags = [MIRROR_FLAG]
-            session.commit()
-    finally:
-        engine.dispose()
+
+    def build(session, game):
+        exact = make_system(session, settings, game, "2.png", jac=0.90).system_id
+        shifted = make_system(session, settings, game, "10.png", jac=0.80, shift_px=(0.0, 0.0, 6.0)).system_id
+        lonely = make_system(session, settings, game, "1.png", jac=0.95, labelled=(True, False, False)).system_id
+        flagged = session.get(System, lonely).frames[1].calibration  # the JSONB flags, read as text
+        flagged.flags = [MIRROR_FLAG]
+        return exact, shifted, lonely
+
+    exact, shifted, lonely = _seed(pg_url, settings, build)
     with TestClient(create_app(settings)) as client:
         ids = lambda **p: [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]  # noqa: E731
         assert ids() == [shifted, exact, lonely]
@@ -52,16 +62,14 @@ def test_views_above_tau_on_postgresql(pg_url: str) -> None:
     """The queue's ``views_above_tau`` (float reference width, integer width, stored tau) on PostgreSQL,
     and the system view's ``error_above_tau`` by the same rule."""
     settings = Settings(database_url=pg_url, calibration_workers=1)
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url)
-    try:
-        with make_session_factory(engine)() as session:
-            game = make_game(session)
-            exact = make_system(session, settings, game, "2.png").system_id
-            # a box 40 px off: two of the 960-px views above tau once scaled to 1920 px (none raw)
-            wrong = make_system(session, settings, game, "4.png", shift_px=(0.0, 0.0, 40.0)).system_id
-    finally:
-        engine.dispose()
+
+    def build(session, game):
+        exact = make_system(session, settings, game, "2.png").system_id
+        # a box 40 px off: two of the 960-px views above tau once scaled to 1920 px (none raw)
+        wrong = make_system(session, settings, game, "4.png", shift_px=(0.0, 0.0, 40.0)).system_id
+        return exact, wrong
+
+    exact, wrong = _seed(pg_url, settings, build)
     with TestClient(create_app(settings)) as client:
         rows = {s["id"]: s["views_above_tau"] for s in client.get("/api/systems").json()["items"]}
         assert rows == {exact: 0, wrong: 2}
