@@ -13,9 +13,12 @@ from typing import Any, Literal, Optional
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.db.models import ReviewStatus
+from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.services.views import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
 
 Point2 = tuple[float, float]
+#: The ``doubt`` filter of the queue: a doubt kind, ``any`` label-accusing doubt, or ``none``.
+DoubtFilter = Literal[LABEL_KINDS + INFO_KINDS + ("any", "none")]  # type: ignore[valid-type]
 Box = tuple[float, float, float, float]
 Point3 = tuple[float, float, float]
 
@@ -40,12 +43,16 @@ class QueueQuery(BaseModel):
     jac_max: Optional[float] = Field(None, ge=0.0, le=1.0, description="Lowest JaC@0.5% of the admitted views <= this.")
     error_min: Optional[float] = Field(None, ge=0.0, description="Worst reprojection error (px) >= this.")
     error_max: Optional[float] = Field(None, ge=0.0, description="Worst reprojection error (px) <= this.")
+    doubt: Optional[DoubtFilter] = Field(
+        None, description="Only systems with a doubt of this kind; 'any': with a label-accusing doubt; "
+        "'none': without one.")
     sort: SystemSort = Field(DEFAULT_SORT, description="Order; a leading '-' means descending. Missing values last.")
 
     def filters(self) -> SystemFilters:
         """The service-level filters."""
         return SystemFilters(game_id=self.game_id, status=self.status, jac_min=self.jac_min,
-                             jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max)
+                             jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max,
+                             doubt=self.doubt)
 
     @model_validator(mode="after")
     def _ranges(self) -> "QueueQuery":
@@ -115,6 +122,12 @@ class ReviewIn(_In):
     comment: str = Field("", max_length=4000)
 
 
+class ExclusionIn(_In):
+    """Exclude a view from its system's triangulation (true) or restore it (false)."""
+
+    excluded: bool = Field(strict=True, description="true: exclude the view; false: restore it.")
+
+
 class ImportIn(_In):
     """A dataset on the server's disk to import (for scripts)."""
 
@@ -166,6 +179,21 @@ class ReviewOut(BaseModel):
     status: ReviewStatus
     comment: str = ""
     decided_at: Optional[datetime] = None
+    excluded: bool = Field(False, description="Views only: excluded from the system's triangulation by a reviewer.")
+
+
+class DoubtOut(BaseModel):
+    """A doubt of a system (``app.geometry.doubts``): a label problem the geometry sees, or information."""
+
+    kind: str = Field(description=f"Label-accusing: {', '.join(LABEL_KINDS)}; information: {', '.join(INFO_KINDS)}.")
+    frame_id: Optional[int] = Field(description="The view it names; null for the system as a whole.")
+    frame: Optional[str] = Field(description="That view's image name.")
+    accuses_label: bool
+    message: str = Field(description="One sentence with its numbers.")
+    evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, degrees).")
+    suggestion: Optional[dict[str, Any]] = Field(
+        description=f"The fix: {{'action': one of {', '.join(SUGGESTION_ACTIONS)}, 'box': [x1, y1, x2, y2] px for "
+        "snap_box}; null when nothing can be suggested.")
 
 
 class SystemSummaryOut(BaseModel):
@@ -187,6 +215,8 @@ class SystemSummaryOut(BaseModel):
     views_above_tau: int = Field(
         description="Admitted labelled views whose reprojection error is above tau (the system view's "
         "error_above_tau rule: error scaled to the rule's reference width, compared with the stored tau).")
+    doubt_counts: dict[str, int] = Field(description="Stored doubts of the system per kind.")
+    label_doubts: int = Field(description="How many of its doubts accuse a label.")
 
 
 class SystemPageOut(BaseModel):
@@ -329,6 +359,7 @@ class SystemView(BaseModel):
     ball3d: Optional[Point3]
     triangulation: Optional[TriangulationOut]
     views: list[ViewOut]
+    doubts: list[DoubtOut] = Field(description="The system's doubts, stored with its last recomputation.")
 
 
 class ImportOut(BaseModel):

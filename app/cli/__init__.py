@@ -14,6 +14,7 @@ _COMMAND_MODULES = (
     "app.cli.calibration",  # v3d calibrate
     "app.cli.datasets",  # v3d import ..., v3d export ...
     "app.cli.serve",  # v3d serve
+    "app.cli.doubts",  # v3d doubts
 )
 
 

@@ -43,7 +43,8 @@ class _Bars:
             bar.close()
 
 
-def _settings(database_url: str | None, workers: int | None) -> Settings:
+def cli_settings(database_url: str | None, workers: int | None) -> Settings:
+    """The environment's settings with the command's ``--database-url`` and ``--workers`` applied."""
     updates: dict[str, Any] = {}
     if database_url:
         updates["database_url"] = database_url
@@ -53,7 +54,9 @@ def _settings(database_url: str | None, workers: int | None) -> Settings:
 
 
 @contextmanager
-def _session(settings: Settings) -> Iterator[Any]:
+def database_session(settings: Settings) -> Iterator[Any]:
+    """A session on ``settings.database_url``, migrated to the latest schema first; the engine is
+    disposed on exit."""
     from app.db.session import make_engine, make_session_factory, upgrade_database
 
     upgrade_database(settings.database_url)
@@ -68,7 +71,7 @@ def _session(settings: Settings) -> Iterator[Any]:
 def _run_import(settings: Settings, call: Callable[..., Any]) -> None:
     bars = _Bars()
     try:
-        with _session(settings) as session:
+        with database_session(settings) as session:
             report = call(session, bars)
     except InvalidInputError as exc:
         bars.close()
@@ -92,7 +95,7 @@ def import_soccernet_v3_cmd(
     """Import a SoccerNet-v3 tree: calibrate every frame, triangulate every system."""
     from app.services.importing import import_soccernet_v3
 
-    settings = _settings(database_url, workers)
+    settings = cli_settings(database_url, workers)
     _run_import(settings, lambda s, bars: import_soccernet_v3(s, path, settings, progress=bars))
 
 
@@ -104,7 +107,7 @@ def import_soccernet_v3d_cmd(
     """Import a SoccerNet-v3D export: cameras as given, balls from SNv3D.csv, systems re-triangulated."""
     from app.services.importing import import_soccernet_v3d
 
-    settings = _settings(database_url, None)
+    settings = cli_settings(database_url, None)
     _run_import(settings, lambda s, bars: import_soccernet_v3d(s, path, settings, progress=bars))
 
 
@@ -119,7 +122,7 @@ def import_sn_calibration_cmd(
     """Import a SoccerNet-calibration set: each frame becomes a single-view system to review."""
     from app.services.importing import import_sn_calibration
 
-    settings = _settings(database_url, workers)
+    settings = cli_settings(database_url, workers)
     _run_import(settings, lambda s, bars: import_sn_calibration(s, path, settings, width=width, height=height,
                                                                 progress=bars))
 
@@ -133,9 +136,9 @@ def export_soccernet_v3d_cmd(
     """Export reviewed labels as a SoccerNet-v3D tree (Labels-v3D.json per game, SNv3D.csv)."""
     from app.services.exporting import export_soccernet_v3d
 
-    settings = _settings(database_url, None)
+    settings = cli_settings(database_url, None)
     try:
-        with _session(settings) as session:
+        with database_session(settings) as session:
             report = export_soccernet_v3d(session, out_dir, include_all=include_all)
     except InvalidInputError as exc:
         typer.echo(f"error: {exc}", err=True)

@@ -10,6 +10,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
                  |          - ReviewDecision           (frame level)
                  - Triangulation -> TriangulationPair  (per pair e_ij, parallax, baseline, kept)
                  - ReviewDecision                      (system level)
+                 -> Doubt                              (label problems the geometry sees, with fixes)
 
 Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
 world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
@@ -154,6 +155,13 @@ class System(Base):
     review: Mapped[Optional[ReviewDecision]] = relationship(
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True
     )
+    doubts: Mapped[list[Doubt]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True, order_by="Doubt.id"
+    )
+    #: Doubts per kind (``{kind: n}``, every kind present), written with the doubts.
+    doubt_counts: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    #: How many doubts accuse a label (``app.geometry.doubts.LABEL_KINDS``): the queue sorts by it.
+    label_doubts: Mapped[int] = mapped_column(default=0, index=True)
 
 
 class Frame(Base):
@@ -382,6 +390,30 @@ class ReviewDecision(Base):
                                                  default=ReviewStatus.PENDING)
     comment: Mapped[str] = mapped_column(sa.Text, default="")
     decided_at: Mapped[Optional[datetime]]
+    #: Frame decisions only: the reviewer excluded this view from its system's triangulation
+    #: (reversible; the view keeps its labels and calibration).
+    excluded: Mapped[bool] = mapped_column(default=False)
 
     system: Mapped[Optional[System]] = relationship(back_populates="review", foreign_keys=[system_id])
     frame: Mapped[Optional[Frame]] = relationship(back_populates="review", foreign_keys=[frame_id])
+
+
+class Doubt(Base):
+    """One doubt of a system (``app.geometry.doubts.Doubt``): a label problem the geometry sees, or
+    information on a view, with its evidence and fix. Replaced as a whole by every recomputation of
+    the system, in the edit's transaction; ``frame_id`` None names the system as a whole."""
+
+    __tablename__ = "doubts"
+    __table_args__ = (sa.Index("ix_doubts_kind_system_id", "kind", "system_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), index=True)
+    frame_id: Mapped[Optional[int]] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"))
+    kind: Mapped[str] = mapped_column(sa.String(40))
+    accuses_label: Mapped[bool]
+    message: Mapped[str] = mapped_column(sa.Text)
+    evidence: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    suggestion: Mapped[Optional[dict[str, Any]]]
+
+    system: Mapped[System] = relationship(back_populates="doubts")
+    frame: Mapped[Optional[Frame]] = relationship()

@@ -8,9 +8,10 @@
       v3d-demo/2024-2025/<game>/Frames-v3.zip           N.png (actions) and N_M.png (replays)
 
 Nine multi-view systems, each an action frame of the main camera with one to three replays
-(960x540 PNGs; the first action is 1920x1080). Three replays carry deliberate problems a reviewer
+(960x540 PNGs; the first action is 1920x1080). Four replays carry deliberate problems a reviewer
 should catch (see :data:`app.demo.scene.PROBLEM_KINDS`): a ball box on the wrong spot, mirrored
-field-line labels, and a viewpoint less than a metre from the main camera.
+field-line labels, a viewpoint less than a metre from the main camera, and a view that sees the ball
+without a ball label.
 
 The output is a pure function of ``seed``: the same bytes every time (PNG compression level fixed,
 zip entries stored with a fixed timestamp and order, JSON written in a fixed order).
@@ -192,7 +193,8 @@ def _label_view(rng: np.random.Generator, view: _View, ball: np.ndarray, people:
     centre_px = view.camera.project(ball[None, :])[0][0]
     loose = loose_ball_box(precise, w, h, rng)
     annotated = misplaced_ball_box(loose, w, h, rng, centre_px) if view.problem == "wrong_ball_box" else loose
-    bboxes = [_box_json(annotated, "Ball", None)]
+    # a missing label: the ball is in the image, the annotator did not box it
+    bboxes = [] if view.problem == "missing_ball" else [_box_json(annotated, "Ball", None)]
     for p in people:
         box = person_box(view.camera, p)
         if box is None:
@@ -213,7 +215,8 @@ def _label_view(rng: np.random.Generator, view: _View, ball: np.ndarray, people:
         "camera": _camera_json(view.camera), "framing_m": round(view.framing_m, 3),
         "distance_to_ball_m": round(dist, 3),
         "ball_center_px": _floats(centre_px), "precise_box": _floats(precise),
-        "annotated_box": _floats(annotated), "loose_box_before_problem": _floats(loose),
+        "annotated_box": None if view.problem == "missing_ball" else _floats(annotated),
+        "loose_box_before_problem": _floats(loose),
         "box_iou": round(box_iou(loose, precise), 4), "box_size_error": round(box_size_error(loose, precise), 4),
         "line_classes": sorted({c for c, _ in lines}), "problem": view.problem,
     }
@@ -288,7 +291,7 @@ def generate_demo_dataset(out_dir: Path, seed: int = 0) -> Path:
     (game_dir / LABELS_FILE).write_text(json.dumps(labels), encoding="utf-8")
     _write_zip(game_dir / FRAMES_FILE, images)
 
-    views_truth = [v for s in systems_truth for v in s["views"] if v["problem"] != "wrong_ball_box"]
+    views_truth = [v for s in systems_truth for v in s["views"] if v["problem"] not in ("wrong_ball_box", "missing_ball")]
     truth = {
         "generator": "app.demo.generate_demo_dataset", "seed": seed,
         "conventions": {

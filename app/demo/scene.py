@@ -16,7 +16,7 @@ BALL_RADIUS_M = 0.11
 PLAYER_HEIGHT_M = 1.8
 
 #: The deliberate problems a reviewer should catch, by the name used in ``demo-truth.json``.
-PROBLEM_KINDS: tuple[str, ...] = ("wrong_ball_box", "mirrored_lines", "near_duplicate_viewpoint")
+PROBLEM_KINDS: tuple[str, ...] = ("wrong_ball_box", "mirrored_lines", "near_duplicate_viewpoint", "missing_ball")
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,7 @@ class SystemSpec:
 
 
 #: The nine systems of the demo game. Balls near the boxes (where replays are cut), on the
-#: ground (z = -0.11) or in the air, each seen by the main camera and 1-3 replays; three replays
+#: ground (z = -0.11) or in the air, each seen by the main camera and 1-3 replays; four replays
 #: carry the deliberate problems.
 SYSTEMS: tuple[SystemSpec, ...] = (
     SystemSpec((38.0, 8.0, -0.11), (ReplaySpec("behind_goal_right_high"), ReplaySpec("same_18_right"),
@@ -56,8 +56,9 @@ SYSTEMS: tuple[SystemSpec, ...] = (
     SystemSpec((-40.0, -5.0, -4.6), (ReplaySpec("behind_goal_left_high"), ReplaySpec("opposite_18_left"),
                                      ReplaySpec("behind_goal_left_low")), story="header duel in the left box"),
     SystemSpec((-4.0, 12.0, -0.11), (ReplaySpec("opposite_centre"),), story="midfield tackle"),
-    SystemSpec((45.0, 2.0, -6.5), (ReplaySpec("behind_goal_right_low"), ReplaySpec("same_18_right"),
-                                   ReplaySpec("opposite_18_right")), story="cross into the right six-yard box"),
+    SystemSpec((45.0, 2.0, -6.5), (ReplaySpec("behind_goal_right_low"), ReplaySpec("same_18_right", "missing_ball"),
+                                   ReplaySpec("opposite_18_right")),
+               story="cross into the right six-yard box (one replay sees the ball but has no ball label)"),
     SystemSpec((-30.0, 22.0, -0.11), (ReplaySpec("same_18_left"), ReplaySpec("pitchside_left"),
                                       ReplaySpec("main", "near_duplicate_viewpoint")),
                story="left-wing dribble (replay from the main platform: near-duplicate viewpoint)"),

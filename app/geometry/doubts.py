@@ -104,3 +104,23 @@ class Doubt:
     def accuses_label(self) -> bool:
         """True for the kinds of :data:`LABEL_KINDS`."""
         return self.kind in LABEL_KINDS
+
+
+@dataclass(frozen=True)
+class DoubtSettings:
+    """TEMPORARY (integration scaffold, replaced by the judge's branch)."""
+
+    triangulation_tau_px: float = 20.0
+
+
+def judge_system(views, settings):  # TEMPORARY scaffold
+    out = []
+    for v in views:
+        if v.mirror_flagged and not v.excluded:
+            out.append(Doubt("mirrored_labels", v.view_id, "mirrored", dict(v.mirror_evidence or {}),
+                             {"action": "mirror_labels"}))
+        if v.camera is not None and v.box is None and v.point is None:
+            w, h = v.width, v.height
+            out.append(Doubt("ball_missing", v.view_id, "missing", {"epipolar_px": [[10, 10], [w / 2, h / 2]]},
+                             {"action": "snap_box", "box": [w / 2 - 5, h / 2 - 5, w / 2 + 5, h / 2 + 5]}))
+    return out

@@ -8,7 +8,11 @@ recomputation leaves the edit unstored too. Invalid input raises
 
 * ball label -> the system's triangulation, reprojections and optimised boxes;
 * field lines -> the frame's calibration -> the same system-level recomputation (also the
-  one-click fix of mirrored labels, :func:`apply_mirrored_labels`).
+  one-click fix of mirrored labels, :func:`apply_mirrored_labels`);
+* a view's exclusion from the triangulation (:func:`set_view_excluded`, the fix of a doubt that
+  names a view that adds nothing or disagrees) -> the system-level recomputation.
+
+Every system-level recomputation also replaces the system's doubts (``app.services.doubts``).
 """
 from __future__ import annotations
 
@@ -193,5 +197,33 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         review.decided_at = utcnow()
         session.flush()
         return review
+
+    return _in_transaction(session, work)
+
+
+def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settings: Settings) -> Frame:
+    """Exclude a view from its system's triangulation, or restore it, then recompute the system, in
+    one transaction.
+
+    The decision is stored on the view's review (``ReviewDecision.excluded``, created pending when the
+    view has none) and is reversible: the view keeps its labels and calibration, is drawn and judged,
+    but takes no part in the 3D ball. Its review status and comment are left as they are.
+
+    Raises:
+        NotFoundError: no such frame.
+        InvalidInputError: ``excluded`` is not a boolean (field "excluded").
+    """
+    if not isinstance(excluded, bool):
+        raise InvalidInputError("excluded must be true or false", field="excluded")
+    frame = get_frame(session, frame_id)
+
+    def work() -> Frame:
+        review = frame.review
+        if review is None:
+            review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
+            frame.review = review
+        review.excluded = excluded
+        recompute_system(session, frame.system, settings)
+        return frame
 
     return _in_transaction(session, work)

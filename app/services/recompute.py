@@ -16,7 +16,11 @@ Derived rows:
 * ``BallReprojection`` for every frame with a camera when the system has a 3D ball (the error is
   against the frame's label, None without one);
 * ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a label
-  when the system has a 3D ball and the ball lies in front of the camera along the labelled ray.
+  when the system has a 3D ball and the ball lies in front of the camera along the labelled ray;
+* ``Doubt`` rows and the system's doubt counts (``app.services.doubts.update_doubts``, last).
+
+A view a reviewer excluded (``ReviewDecision.excluded``) keeps its calibration and labels but takes no
+part in the triangulation.
 
 Bulk calibration (:func:`calibrate_many`) runs the pure ``calibrate_frame`` in a process pool and
 returns plain :class:`CalibrationFields`; the main process writes them (:func:`apply_calibration`).
@@ -57,20 +61,17 @@ from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.ball import optimise_box
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
+from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence, mirrored_fit_at_rig
 from app.geometry.triangulation import BallObservation, triangulate_ball
+from app.services.doubts import is_excluded, update_doubts
 
 #: The three JaC gammas stored per calibration (fractions of the image diagonal, method.md s4).
 JAC_GAMMAS: tuple[float, float, float] = (0.005, 0.01, 0.02)
 _JAC_COLUMNS = {0.005: "jac_0005", 0.01: "jac_001", 0.02: "jac_002"}
 
-#: Flag of calibrations made with the game's rig (``app.geometry.calibration.rig``).
-RIG_FLAG = "rig_assisted"
-
-#: Flag of a frame whose field-line labels are probably mirrored (``app.geometry.mirror``).
-MIRROR_FLAG = "probably_mirrored"
 
 #: Jobs below this count are calibrated in-process (a pool costs more than it saves).
 _MIN_JOBS_FOR_POOL = 8
@@ -403,7 +404,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
             if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
                 cameras[f.id] = Camera.from_soccernet(cal.camera)
         centre = _label_centre(f)
-        if cal is not None and cal.admitted and centre is not None:
+        if cal is not None and cal.admitted and centre is not None and not is_excluded(f):
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
     _update_mirror_flags(session, system, cameras, settings, rig_sources)
@@ -433,6 +434,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_reprojection(f, cameras.get(f.id), ball)
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
+    update_doubts(system, settings, cameras)
     return tri
 
 
@@ -511,9 +513,10 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
 #: Everything :func:`recompute_system` reads or replaces, loaded up front for many systems.
 _RECOMPUTE_LOADS = (
     selectinload(System.triangulation).selectinload(Triangulation.pairs),
+    selectinload(System.doubts),
     selectinload(System.frames).options(
         selectinload(Frame.calibration), selectinload(Frame.ball_label), selectinload(Frame.reprojection),
-        selectinload(Frame.optimised_box),
+        selectinload(Frame.optimised_box), selectinload(Frame.review), selectinload(Frame.field_lines),
     ),
 )
 _LOAD_CHUNK = 500

@@ -15,11 +15,14 @@ is made of (method.md sections 4 and 5):
 :func:`error_above_tau`, the criterion the system view's ``error_above_tau`` (and so the system page's
 "error > tau" doubt) is computed with: queue and system page cannot disagree.
 
-Queue order (``sort``): ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
+Queue order (``sort``): ``doubts`` (the stored count of label-accusing doubts, ties by the largest
+reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
 systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id. The
-default, :data:`DEFAULT_SORT`, puts the largest errors first: the most doubtful labels are reviewed
-first. ``name`` orders by game, then system name with numeric names in numeric order (2.png before
-10.png).
+default, :data:`DEFAULT_SORT`, puts the systems with the most doubts first: the labels the geometry
+accuses are reviewed first. ``name`` orders by game, then system name with numeric names in numeric
+order (2.png before 10.png). The ``doubt`` filter keeps systems with a doubt of one kind (or any
+label-accusing one); doubts and their counts are stored by the recomputation
+(``app.services.doubts``), never computed here.
 """
 from __future__ import annotations
 
@@ -36,7 +39,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.db.models import (
-    BallLabel, BallReprojection, Calibration, CalibrationStatus, Frame, Game, OptimisedBox, ReviewDecision,
+    BallLabel, BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, OptimisedBox, ReviewDecision,
     ReviewStatus, System, Triangulation,
 )
 from app.geometry.camera import Camera
@@ -44,12 +47,13 @@ from app.geometry.projection import project_pitch_polylines
 from app.geometry.triangulation import REFERENCE_WIDTH_PX
 from app.services._readers import is_safe_member
 from app.services.errors import NotFoundError, ServiceError
-from app.services.recompute import MIRROR_FLAG
+from app.geometry.calibration.frame import MIRROR_FLAG
+from app.services.doubts import doubt_json
 
-SystemSort = Literal["worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
+SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
-#: The review queue's default order: the largest reprojection error first.
-DEFAULT_SORT: SystemSort = "-worst_error"
+#: The review queue's default order: the most label doubts first (then the largest reprojection error).
+DEFAULT_SORT: SystemSort = "-doubts"
 #: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
 #: per view, smooth at 1920 px, a tenth of the JaC sampling.
 _DRAW_DIST_M = 0.5
@@ -70,6 +74,9 @@ class SystemFilters:
     jac_max: Optional[float] = None
     error_min: Optional[float] = None
     error_max: Optional[float] = None
+    #: Only systems with a doubt of this kind (``app.geometry.doubts``), or ``"any"``: with at least
+    #: one label-accusing doubt; ``"none"``: with none.
+    doubt: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -105,6 +112,8 @@ class SystemSummary:
     worst_error_px: Optional[float]
     views_flagged: int = 0
     views_above_tau: int = 0
+    doubt_counts: Optional[dict[str, int]] = None
+    label_doubts: int = 0
 
     def as_json(self) -> dict[str, Any]:
         """The queue row as the API sends it."""
@@ -118,6 +127,7 @@ class SystemSummary:
             "views_admitted": self.views_admitted, "views_labelled": self.views_labelled,
             "lowest_jac": self.lowest_jac, "worst_error_px": self.worst_error_px,
             "views_flagged": self.views_flagged, "views_above_tau": self.views_above_tau,
+            "doubt_counts": dict(self.doubt_counts or {}), "label_doubts": self.label_doubts,
         }
 
 
@@ -254,6 +264,12 @@ def _system_conditions(stats: sa.Subquery, filters: SystemFilters, with_status: 
         conds.append(_review_status() == filters.status)
     conds += _range(stats.c.lowest_jac, filters.jac_min, filters.jac_max)
     conds += _range(stats.c.worst_error_px, filters.error_min, filters.error_max)
+    if filters.doubt == "any":
+        conds.append(System.label_doubts > 0)
+    elif filters.doubt == "none":
+        conds.append(System.label_doubts == 0)
+    elif filters.doubt is not None:
+        conds.append(sa.exists().where(Doubt.system_id == System.id, Doubt.kind == filters.doubt))
     return conds
 
 
@@ -268,6 +284,9 @@ def _system_order(stats: sa.Subquery, sort: SystemSort) -> list[Any]:
     if key == "name":
         cols = [Game.league, Game.season, Game.match, *_natural_name(System.name)]
         return [c.desc() if desc else c.asc() for c in cols] + [System.id.asc()]
+    if key == "doubts":  # ties by the largest reprojection error
+        return [System.label_doubts.desc() if desc else System.label_doubts.asc(),
+                stats.c.worst_error_px.desc().nulls_last(), System.id.asc()]
     column = {"worst_error": stats.c.worst_error_px, "lowest_jac": stats.c.lowest_jac}.get(key)
     if column is None:
         raise ValueError(f"unknown sort {sort!r}")
@@ -316,7 +335,8 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
             ball3d=r.ball3d, views_total=r.views_total or 0, views_calibrated=r.views_calibrated or 0,
             views_admitted=r.views_admitted or 0, views_labelled=r.views_labelled or 0,
             lowest_jac=r.lowest_jac, worst_error_px=r.worst_error_px, views_flagged=r.views_flagged or 0,
-            views_above_tau=r.views_above_tau or 0,
+            views_above_tau=r.views_above_tau or 0, doubt_counts=dict(r.System.doubt_counts or {}),
+            label_doubts=r.System.label_doubts or 0,
         )
         for r in rows
     ]
@@ -420,13 +440,15 @@ def _px(values: Any) -> Any:
 
 
 def review_json(decision: Optional[ReviewDecision]) -> dict[str, Any]:
-    """``{"status", "comment", "decided_at"}`` of a decision; pending when there is none."""
+    """``{"status", "comment", "decided_at", "excluded"}`` of a decision; pending when there is none.
+    ``excluded`` (views only) says the view is excluded from its system's triangulation."""
     if decision is None:
-        return {"status": ReviewStatus.PENDING.value, "comment": "", "decided_at": None}
+        return {"status": ReviewStatus.PENDING.value, "comment": "", "decided_at": None, "excluded": False}
     return {
         "status": decision.status.value,
         "comment": decision.comment,
         "decided_at": decision.decided_at.isoformat() if decision.decided_at else None,
+        "excluded": bool(decision.excluded),
     }
 
 
@@ -539,6 +561,7 @@ def _load_system(session: Session, system_id: int) -> System:
             selectinload(Frame.field_lines), selectinload(Frame.calibration), selectinload(Frame.ball_label),
             selectinload(Frame.reprojection), selectinload(Frame.optimised_box), selectinload(Frame.review),
         ),
+        selectinload(System.doubts),
     )
     system = session.scalars(stmt).first()
     if system is None:
@@ -576,6 +599,7 @@ def system_view(session: Session, system_id: int, filters: SystemFilters = Syste
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
     tri = system.triangulation
     game = system.game
+    names = {f.id: f.name for f in system.frames}
     return {
         "id": system.id,
         "name": system.name,
@@ -586,6 +610,7 @@ def system_view(session: Session, system_id: int, filters: SystemFilters = Syste
         "ball3d": tri.ball3d if tri is not None else None,
         "triangulation": _triangulation_json(tri),
         "views": [_view_json(f, f.id in above_tau) for f in system.frames],
+        "doubts": [doubt_json(d, names) for d in system.doubts],
     }
 
 

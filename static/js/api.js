@@ -97,3 +97,9 @@ export function patchBall(frameId, change, params = {}) {
 export function mirrorFieldLines(frameId, params = {}) {
   return request("POST", `/api/frames/${encodeURIComponent(frameId)}/field-lines/mirror${toQuery(params)}`);
 }
+
+/** POST /api/frames/{id}/exclusion {excluded}: exclude the view from its system's triangulation (true)
+ * or restore it (false); answers the recomputed system view. */
+export function postExclusion(frameId, excluded, params = {}) {
+  return request("POST", `/api/frames/${encodeURIComponent(frameId)}/exclusion${toQuery(params)}`, { excluded });
+}

@@ -3,6 +3,15 @@
 export const STATUSES = ["pending", "accepted", "rejected", "needs_fix"];
 export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected: "rejected", needs_fix: "needs fix" };
 
+/** Short names of the doubt kinds that accuse a label (app/geometry/doubts.py LABEL_KINDS). */
+export const DOUBT_LABEL = {
+  mirrored_labels: "mirrored labels",
+  ball_off_consensus: "ball off consensus",
+  ball_missing: "ball missing",
+  views_disagree: "views disagree",
+  near_duplicate_view: "near-duplicate view",
+};
+
 export const isNum = (v) => typeof v === "number" && Number.isFinite(v);
 
 export function fmt(v, digits = 1, unit = "") {

@@ -7,7 +7,7 @@
 // size (pointer positions go through getScreenCTM()). On release the element dispatches "ball-change"
 // {frameId, box} or {frameId, point}; the page saves it and sets the recomputed view back.
 
-import { el, svg, fmt, fmtJac, isNum, errorClass, scaledError, viewColour, STATUS_LABEL } from "./format.js";
+import { el, svg, fmt, fmtJac, isNum, errorClass, scaledError, viewColour, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 
 const ZOOM_PX = 150; // displayed size of the zoom inset
 const MIN_BOX = 2; // smallest box side, image pixels
@@ -36,24 +36,32 @@ export function isMirrorFlagged(view) {
   return ((view.calibration || {}).flags || []).includes(MIRROR_FLAG);
 }
 
-/** Why a view needs a reviewer's eye (empty when nothing is doubtful). "Above tau" is the server's
- * verdict (`error_above_tau`), the rule the queue's "error > τ" count uses too. */
-export function doubts(view, multiView = true) {
+/** What the view's state says a reviewer should look at, besides the server's doubts (empty when
+ * nothing): calibration problems and the server's "above tau" verdict (`error_above_tau`, the rule the
+ * queue's "error > τ" count uses too). Label problems come from the server (`doubts`). */
+export function notes(view, multiView = true) {
   const out = [];
   const cal = view.calibration || {};
-  if (isMirrorFlagged(view)) out.push("labels probably mirrored");
   if (!cal.camera) out.push(cal.status ? `not calibrated (${cal.status})` : "not calibrated");
   else if (cal.admitted === false) out.push("calibration not admitted");
   if (cal.reason) out.push(cal.reason);
-  const ball = view.ball || {};
-  if (!ball.kind && multiView) out.push("no ball label"); // a single view has no 3D ball to make
-  if (view.error_above_tau === true) out.push("reprojection error above tau");
+  if (view.review?.excluded) out.push("excluded from the 3D ball");
+  else if (view.error_above_tau === true && multiView) out.push("reprojection error above tau");
   return out;
 }
 
+/** What a doubt's fix does, for its button. */
+const FIX_LABEL = {
+  snap_box: "Snap to suggested box",
+  exclude_view: "Exclude view",
+  mirror_labels: "Apply mirrored labels",
+};
+/** The key of each fix on the system page. */
+export const FIX_KEY = { snap_box: "s", exclude_view: "x", mirror_labels: "m" };
+
 export class ViewPanel extends HTMLElement {
   #view = null;
-  #ctx = { index: 0, tau: null, rule: null, referenceWidth: null, viewCount: 0 };
+  #ctx = { index: 0, tau: null, rule: null, referenceWidth: null, viewCount: 0, doubts: [] };
   #imageState = "loading"; // loading | loaded | missing
   #imageUrl = null;
   #live = null; // box or point being dragged (image pixels)
@@ -76,7 +84,8 @@ export class ViewPanel extends HTMLElement {
     this.#resizeObserver?.disconnect();
   }
 
-  /** Set the view (system-view JSON) and its context {index, tau, rule, referenceWidth, viewCount}. */
+  /** Set the view (system-view JSON) and its context {index, tau, rule, referenceWidth, viewCount, doubts}
+   * (`doubts`: the system's doubts that name this view). */
   update(view, ctx) {
     const frameChanged = !this.#view || this.#view.frame_id !== view.frame_id;
     this.#view = view;
@@ -143,7 +152,11 @@ export class ViewPanel extends HTMLElement {
     const jac = cal.jac || {};
     const ball = v.ball || {};
     const opt = v.optimised_box;
-    const doubtful = doubts(v, this.#ctx.viewCount !== 1);
+    const multiView = this.#ctx.viewCount !== 1;
+    const viewDoubts = this.#ctx.doubts || [];
+    const labelDoubts = viewDoubts.filter((d) => d.accuses_label);
+    const doubtful = [...labelDoubts.map((d) => d.message), ...notes(v, multiView)];
+    const excluded = Boolean(v.review?.excluded);
 
     const frameSvg = svg("svg", {
       viewBox: `0 0 ${v.width} ${v.height}`,
@@ -187,11 +200,21 @@ export class ViewPanel extends HTMLElement {
     const review = v.review && v.review.status && v.review.status !== "pending"
       ? el("span", { class: `badge ${v.review.status}` }, STATUS_LABEL[v.review.status] || v.review.status)
       : null;
+    const doubtItems = viewDoubts.map((d) => el("div", { class: `doubt${d.accuses_label ? " bad" : ""}`, "data-testid": "view-doubt", "data-kind": d.kind },
+      el("span", { class: `chip${d.accuses_label ? " bad" : " info"}` }, DOUBT_LABEL[d.kind] || d.kind.replaceAll("_", " ")),
+      " ",
+      el("span", { class: "msg", "data-testid": d.kind === "mirrored_labels" ? "view-mirror-evidence" : "view-doubt-message",
+        title: evidenceTitle(d.evidence) }, d.kind === "mirrored_labels" ? ((v.calibration || {}).mirror_evidence || {}).sentence || d.message : d.message),
+      d.suggestion && FIX_LABEL[d.suggestion.action] && !(d.suggestion.action === "exclude_view" && excluded)
+        ? el("button", { type: "button", "data-testid": d.kind === "mirrored_labels" ? "apply-mirror" : "apply-fix", "data-action": d.suggestion.action,
+          title: `${FIX_LABEL[d.suggestion.action]} and recompute (${FIX_KEY[d.suggestion.action]} on the selected view)`,
+          onclick: () => this.applyFix(d) }, `${FIX_LABEL[d.suggestion.action]} `, el("kbd", {}, FIX_KEY[d.suggestion.action]))
+        : null));
 
     const article = el(
       "article",
       {
-        class: `view${doubtful.length ? " doubtful" : ""}${this.#selected ? " selected" : ""}`,
+        class: `view${doubtful.length ? " doubtful" : ""}${excluded ? " excluded" : ""}${this.#selected ? " selected" : ""}`,
         "data-testid": "view",
         "data-frame-id": v.frame_id,
         "data-view-name": v.name,
@@ -205,6 +228,7 @@ export class ViewPanel extends HTMLElement {
         el("span", { class: "name", title: v.name }, v.name),
         el("span", { class: "role" }, v.role || ""),
         ball.edited ? el("span", { class: "chip info", "data-testid": "view-edited" }, "box edited") : null,
+        excluded ? el("span", { class: "chip bad", "data-testid": "view-excluded", title: "excluded from the triangulation by a reviewer (x to restore)" }, "excluded") : null,
         review,
         el("span", { class: "size" }, `${v.width}×${v.height}`),
       ),
@@ -255,16 +279,15 @@ export class ViewPanel extends HTMLElement {
             ball.edited && (validBox(ball.original_box) || validPoint(ball.original_point))
               ? el("button", { type: "button", "data-testid": "restore-ball", title: "Put back the imported label (z on the selected view)",
                 onclick: () => this.restoreLabel() }, "restore imported")
-              : null),
-          isMirrorFlagged(v) ? el("dt", { class: "bad" }, "Mirrored?") : null,
-          isMirrorFlagged(v) ? el("dd", { class: "mirror" },
-            el("div", { class: "reason", "data-testid": "view-mirror-evidence" },
-              (cal.mirror_evidence || {}).sentence || "Labels probably mirrored."),
-            el("button", { type: "button", "data-testid": "apply-mirror",
-              title: "Rename every field line by the pitch's half turn (left <-> right, top <-> bottom) and recompute (m on the selected view)",
-              onclick: () => this.requestMirror() }, "Apply mirrored labels")) : null,
-          doubtful.length ? el("dt", { class: "bad" }, "Doubts") : null,
-          doubtful.length ? el("dd", { class: "bad", "data-testid": "view-doubts" }, doubtful.join("; ")) : null,
+              : null,
+            multiView ? el("button", { type: "button", "data-testid": excluded ? "restore-view" : "exclude-view",
+              title: excluded ? "Let this view take part in the 3D ball again (x on the selected view)"
+                : "Leave this view out of the triangulation; its labels are kept (x on the selected view)",
+              onclick: () => this.toggleExclusion() }, excluded ? "restore to 3D ball" : "exclude from 3D ball") : null),
+          doubtItems.length ? el("dt", { class: labelDoubts.length ? "bad" : "" }, "Doubts") : null,
+          doubtItems.length ? el("dd", { class: "doubts", "data-testid": "view-doubts" }, doubtItems) : null,
+          notes(v, multiView).length ? el("dt", {}, "Notes") : null,
+          notes(v, multiView).length ? el("dd", { class: "bad", "data-testid": "view-notes" }, notes(v, multiView).join("; ")) : null,
         ),
       ),
     );
@@ -364,6 +387,17 @@ export class ViewPanel extends HTMLElement {
     if (opt && validBox(opt.box)) {
       g.append(this.#rect(opt.box, "halo"));
       g.append(this.#rect(opt.box, "box-opt", `optimised box, d = ${fmt(opt.d_px, 1)} px`, "box-opt"));
+    }
+    for (const d of this.#ctx.doubts || []) {
+      const epi = (d.evidence || {}).epipolar_px;
+      if (Array.isArray(epi) && epi.length > 1 && epi.every(validPoint)) {
+        g.append(svg("polyline", { class: "epipolar", points: epi.map((p) => p.join(",")).join(" "), "data-testid": isMain ? "epipolar" : null },
+          svg("title", { text: "epipolar segment: where the other view's ray to its ball crosses this image" })));
+      }
+      const sb = d.suggestion && d.suggestion.box;
+      if (validBox(sb)) {
+        g.append(this.#rect(sb, "box-sugg", `suggested box (${FIX_KEY.snap_box} snaps the ball label to it)`, isMain ? "suggested-box" : null));
+      }
     }
     const label = this.#currentLabel();
     if (label && label.box) {
@@ -513,6 +547,39 @@ export class ViewPanel extends HTMLElement {
     return true;
   }
 
+  /** The first doubt of this view whose fix can be applied (a label-accusing one first). */
+  fixableDoubt(action = null) {
+    const ds = (this.#ctx.doubts || []).filter((d) => d.suggestion && FIX_LABEL[d.suggestion.action]
+      && (!action || d.suggestion.action === action));
+    return ds.find((d) => d.accuses_label) || ds[0] || null;
+  }
+
+  /** Apply a doubt's fix: snap the ball label to the suggested box, exclude the view, or mirror its labels. */
+  applyFix(doubt) {
+    if (this.#saving || this.#drag || !doubt || !doubt.suggestion) return false;
+    const action = doubt.suggestion.action;
+    if (action === "mirror_labels") return this.requestMirror();
+    if (action === "exclude_view") return this.toggleExclusion(true);
+    if (action === "snap_box" && validBox(doubt.suggestion.box)) {
+      const round = (x) => Math.round(x * 10) / 10;
+      this.saving = true;
+      this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: doubt.suggestion.box.map(round) }, bubbles: true }));
+      return true;
+    }
+    return false;
+  }
+
+  /** Exclude the view from the triangulation, or restore it (`excluded` forces one of the two). */
+  toggleExclusion(excluded = null) {
+    if (this.#saving || this.#drag) return false;
+    const now = Boolean(this.#view.review?.excluded);
+    const want = excluded === null ? !now : excluded;
+    if (want === now) return false;
+    this.saving = true;
+    this.dispatchEvent(new CustomEvent("exclusion-request", { detail: { frameId: this.#view.frame_id, excluded: want }, bubbles: true }));
+    return true;
+  }
+
   /** Put back the label as imported, before any edit. */
   restoreLabel() {
     const ball = this.#view.ball || {};
@@ -556,6 +623,11 @@ export class ViewPanel extends HTMLElement {
     }, 450);
     return true;
   }
+}
+
+function evidenceTitle(evidence) {
+  const entries = Object.entries(evidence || {}).filter(([, v]) => isNum(v) || typeof v === "string");
+  return entries.length ? entries.map(([k, v]) => `${k}: ${isNum(v) ? Number(v.toFixed(3)) : v}`).join("\n") : null;
 }
 
 function residualsTitle(residuals) {

@@ -4,7 +4,7 @@
 
 import { listSystems, listGames } from "./api.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
-import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL } from "./format.js";
+import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const PAGE_SIZE = 50;
@@ -14,13 +14,16 @@ export function apiParams(state) {
   return { ...apiFilters(state), limit: PAGE_SIZE, offset: state.page * PAGE_SIZE };
 }
 
-/** Chips for what makes a system doubtful before opening it. */
+/** Chips for what makes a system doubtful before opening it: the stored doubts per kind first. */
 function rowDoubts(s) {
   const chips = [];
+  for (const [kind, label] of Object.entries(DOUBT_LABEL)) {
+    const n = (s.doubt_counts || {})[kind] || 0;
+    if (n > 0) chips.push(el("span", { class: "chip bad", "data-testid": "row-doubt", "data-kind": kind, title: `${n} doubt(s): ${label}; open the system to see the evidence and apply the fix` }, `${n} ${label}`));
+  }
   const notAdmitted = (s.views_calibrated ?? 0) - (s.views_admitted ?? 0);
   const uncalibrated = (s.views_total ?? 0) - (s.views_calibrated ?? 0);
   const unlabelled = (s.views_total ?? 0) - (s.views_labelled ?? 0);
-  if (s.views_flagged > 0) chips.push(el("span", { class: "chip bad", title: "field-line labels probably mirrored: open the system to see the evidence and apply the fix" }, `${s.views_flagged} mirrored?`));
   if (s.views_above_tau > 0) chips.push(el("span", { class: "chip bad", "data-testid": "row-above-tau", title: "admitted labelled views whose reprojection error is above tau (the system page's \"error > τ\")" }, `${s.views_above_tau} error > τ`));
   if (uncalibrated > 0) chips.push(el("span", { class: "chip bad" }, `${uncalibrated} uncalibrated`));
   if (notAdmitted > 0) chips.push(el("span", { class: "chip bad" }, `${notAdmitted} not admitted`));
@@ -97,8 +100,8 @@ class QueuePage {
 
   toggleSort(key) {
     const current = this.state.sort;
-    // first click: the most doubtful first (largest error, lowest JaC) or A-Z for names
-    const first = key === "worst_error" ? `-${key}` : key;
+    // first click: the most doubtful first (most doubts, largest error, lowest JaC) or A-Z for names
+    const first = key === "worst_error" || key === "doubts" ? `-${key}` : key;
     const flipped = first.startsWith("-") ? key : `-${key}`;
     this.state.sort = current === first ? flipped : first;
     this.state.page = 0;

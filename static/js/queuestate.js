@@ -2,8 +2,9 @@
 // and as sent to the API. Shared by the queue page and the system page, so that a system opened from
 // a filtered queue moves (prev / next, after a decision) within that same queue.
 
-export const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "sort"];
-export const DEFAULT_SORT = "-worst_error";
+export const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "doubt", "sort"];
+/** The API's default order: the most label doubts first. */
+export const DEFAULT_SORT = "-doubts";
 
 /** Queue state from a query string; JaC bounds are in percent, as the reviewer types them. */
 export function readState(search = location.search) {
@@ -37,6 +38,7 @@ export function apiFilters(state) {
     jac_max: frac(state.jac_max),
     error_min: state.error_min,
     error_max: state.error_max,
+    doubt: state.doubt,
     sort: state.sort,
   };
 }

@@ -3,10 +3,10 @@
 // The page's query string holds the queue's filters; it is kept when moving between systems and
 // going back to the queue, and forwarded to the API so prev_id / next_id follow that queue.
 
-import { getSystem, postReview, patchBall, mirrorFieldLines } from "./api.js";
-import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL } from "./format.js";
+import { getSystem, postReview, patchBall, mirrorFieldLines, postExclusion } from "./api.js";
+import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
-import { doubts, isMirrorFlagged } from "./overlay.js";
+import { notes, isMirrorFlagged } from "./overlay.js";
 import "./pitchmap.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -37,6 +37,7 @@ class SystemPage {
     });
     $("views").addEventListener("ball-change", (e) => this.saveBall(e.target, e.detail));
     $("views").addEventListener("mirror-request", (e) => this.applyMirror(e.target, e.detail));
+    $("views").addEventListener("exclusion-request", (e) => this.setExclusion(e.target, e.detail));
     $("views").addEventListener("pointerdown", (e) => {
       const panel = e.target.closest("v3d-view");
       if (panel) this.select([...$("views").children].indexOf(panel));
@@ -116,7 +117,8 @@ class SystemPage {
         panel = document.createElement("v3d-view");
         container.append(panel);
       }
-      panel.update(view, { ...ctx, index, viewCount: sys.views.length });
+      const viewDoubts = (sys.doubts || []).filter((d) => d.frame_id === view.frame_id);
+      panel.update(view, { ...ctx, index, viewCount: sys.views.length, doubts: viewDoubts });
       panel.selected = index === this.selected;
     });
     for (const extra of panels.slice(sys.views.length)) extra.remove();
@@ -135,12 +137,21 @@ class SystemPage {
     };
   }
 
-  /** One chip per doubtful view in the top bar (a click scrolls to the view): nothing doubtful is
-   * left below the fold unnoticed. */
+  /** One chip per label doubt of the server (a click selects and scrolls to its view), then one per
+   * view whose state needs an eye (calibration, error above tau): nothing doubtful is left below the
+   * fold unnoticed. */
   renderDoubts(sys) {
     const chips = [];
+    const indexOf = (fid) => sys.views.findIndex((v) => v.frame_id === fid);
+    for (const d of sys.doubts || []) {
+      if (!d.accuses_label) continue;
+      const i = indexOf(d.frame_id);
+      chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", "data-kind": d.kind, title: d.message,
+        onclick: () => { if (i >= 0) { this.select(i); $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }); } } },
+      `${i >= 0 ? `V${i + 1} ` : ""}${DOUBT_LABEL[d.kind] || human(d.kind)}`));
+    }
     sys.views.forEach((v, i) => {
-      const why = doubts(v, sys.views.length !== 1);
+      const why = notes(v, sys.views.length !== 1);
       if (!why.length) return;
       chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", title: why.join("; "),
         onclick: () => $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }) },
@@ -273,6 +284,39 @@ class SystemPage {
     save.finally(() => this.saves.delete(save));
   }
 
+  /** Exclude a view from the triangulation or restore it, then draw the recomputed system. */
+  setExclusion(panel, detail) {
+    const shown = this.system.id;
+    const name = panel.view?.name || "view";
+    const save = (async () => {
+      try {
+        const sys = await postExclusion(detail.frameId, detail.excluded, this.params);
+        clearError();
+        if (this.system.id === shown && sys && Array.isArray(sys.views)) {
+          this.render(sys);
+          toast(`${name}: ${detail.excluded ? "excluded from" : "restored to"} the 3D ball`);
+        }
+      } catch (err) {
+        panel.revert();
+        showError(err.message);
+      }
+    })();
+    this.saves.add(save);
+    save.finally(() => this.saves.delete(save));
+  }
+
+  /** The view `s` acts on and its doubt: the selected view's fixable doubt, else the only view with one. */
+  fixTarget() {
+    const panels = [...$("views").children];
+    if (this.selected >= 0) {
+      const panel = panels[this.selected];
+      const doubt = panel?.fixableDoubt();
+      return doubt ? [panel, doubt] : null;
+    }
+    const fixable = panels.map((p) => [p, p.fixableDoubt()]).filter(([, d]) => d);
+    return fixable.length === 1 ? fixable[0] : null;
+  }
+
   /** The view `m` acts on: the selected one, else the only flagged one. */
   mirrorTarget() {
     const panels = [...$("views").children];
@@ -304,6 +348,12 @@ class SystemPage {
       document.body.classList.toggle("overlays-hidden"); // look at the bare frames
     } else if (e.key === "m") {
       if (this.mirrorTarget()?.requestMirror()) e.preventDefault();
+    } else if (e.key === "s") {
+      const target = this.fixTarget();
+      if (target && target[0].applyFix(target[1])) e.preventDefault();
+    } else if (e.key === "x") {
+      const panel = $("views").children[this.selected];
+      if (panel && this.system.views.length > 1 && panel.toggleExclusion()) e.preventDefault();
     } else if (/^[1-9]$/.test(e.key)) this.select(Number(e.key) - 1);
     else if (this.selected >= 0 && this.editKey(e)) e.preventDefault();
   }
@@ -324,10 +374,9 @@ class SystemPage {
 }
 
 const SHORT_DOUBTS = {
-  "labels probably mirrored": "mirrored?",
   "reprojection error above tau": "error > τ",
-  "no ball label": "no ball",
   "calibration not admitted": "not admitted",
+  "excluded from the 3D ball": "excluded",
 };
 /** Short form of a doubt for the top bar (the full list is in the chip's title and the view card). */
 function shortDoubt(text) {

@@ -43,7 +43,10 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
     exact, shifted, lonely = _seed(pg_url, settings, build)
     with TestClient(create_app(settings)) as client:
         ids = lambda **p: [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]  # noqa: E731
-        assert ids() == [shifted, exact, lonely]
+        assert ids(sort="-worst_error") == [shifted, exact, lonely]
+        rows = client.get("/api/systems").json()["items"]
+        assert set(ids(doubt="any")) == {r["id"] for r in rows if r["label_doubts"]}
+        assert set(ids(doubt="none")) == {r["id"] for r in rows if not r["label_doubts"]}
         assert ids(sort="lowest_jac") == [shifted, exact, lonely]
         assert ids(sort="name") == [lonely, exact, shifted]
         assert ids(error_min=1.0) == [shifted]

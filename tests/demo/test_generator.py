@@ -105,10 +105,11 @@ def test_every_line_class_valid_and_points_inside(demo: Demo) -> None:
 
 
 def test_boxes_inside_images(demo: Demo) -> None:
+    (missing,) = demo.truth["problems"]["missing_ball"]
     for name, frame in demo.frames().items():
         w, h = frame["imageMetadata"]["width"], frame["imageMetadata"]["height"]
         balls = [b for b in frame["bboxes"] if b["class"] == "Ball"]
-        assert len(balls) == 1 and balls[0]["ID"] is None, name
+        assert len(balls) == (0 if name == missing else 1) and all(b["ID"] is None for b in balls), name
         assert len(frame["bboxes"]) >= 4, name  # a few players too
         for b in frame["bboxes"]:
             p = b["points"]
@@ -160,7 +161,7 @@ def test_ball_boxes_are_loose_like_real_labels(demo: Demo) -> None:
     ious, errs = [], []
     for name, frame in demo.frames().items():
         view = demo.views()[name]
-        if view["problem"] == "wrong_ball_box":
+        if view["problem"] in ("wrong_ball_box", "missing_ball"):
             continue
         p = next(b for b in frame["bboxes"] if b["class"] == "Ball")["points"]
         box = np.array([p["x1"], p["y1"], p["x2"], p["y2"]], float)
@@ -190,10 +191,19 @@ def test_precise_box_matches_the_rendered_ball(demo: Demo) -> None:
 def test_each_problem_planted_once(demo: Demo) -> None:
     problems = demo.truth["problems"]
     assert {k: len(v) for k, v in problems.items()} == {
-        "wrong_ball_box": 1, "mirrored_lines": 1, "near_duplicate_viewpoint": 1}
+        "wrong_ball_box": 1, "mirrored_lines": 1, "near_duplicate_viewpoint": 1, "missing_ball": 1}
     for kind, images in problems.items():
         for image in images:
             assert demo.views()[image]["problem"] == kind and image in demo.labels["replays"]
+
+
+def test_missing_ball_view_sees_the_ball_but_has_no_ball_label(demo: Demo) -> None:
+    (image,) = demo.truth["problems"]["missing_ball"]
+    labels = demo.labels["replays"][image]
+    assert not [b for b in labels["bboxes"] if b["class"] == "Ball"]
+    view = demo.views()[image]
+    x, y = view["ball_center_px"]
+    assert 0 <= x <= view["width"] and 0 <= y <= view["height"] and view["annotated_box"] is None
 
 
 def test_wrong_ball_box_is_elsewhere(demo: Demo) -> None:

@@ -1,5 +1,5 @@
 """The demo through the whole service chain: imported, calibrated, triangulated, and its planted
-problems at the head of the review queue where a newcomer sees them first."""
+problems at the head of the review queue where a newcomer sees them first, each named by its doubt."""
 from __future__ import annotations
 
 import numpy as np
@@ -40,16 +40,32 @@ def test_demo_imports_into_the_review_queue(demo: Demo, db_session: Session, db_
         err = np.linalg.norm(np.array(view["ball3d"]) - truth[action]["ball_3d"])
         assert err < 1.0, (action, err)
 
-    # The queue's default order (worst reprojection error first) opens on the label problems: the
-    # misplaced ball box and the mirrored labels. A near-duplicate viewpoint is no label error (its ball
-    # agrees with the others); what the reviewer must see there is its pair with the main camera dropped
-    # for lack of parallax, so it cannot bias the 3D ball.
+    # The queue's default order (most label doubts first) opens on the planted problems, each named at
+    # its view by a doubt of its kind: the misplaced ball box, the mirrored labels, the missing ball
+    # label (with a box suggested where the other views put the ball) and the near-duplicate viewpoint.
     by_kind = {p["kind"]: (a, p["image"]) for a, s in truth.items() for p in s["problems"]}
-    label_problems = {by_kind[k][0] for k in ("wrong_ball_box", "mirrored_lines")}
+    planted = {by_kind[k][0] for k in by_kind}
     head = []
-    for item in page.items[: len(label_problems)]:
+    for item in page.items[: len(planted)]:
         head.append(next(a for a, (it, _) in by_action.items() if it.system.id == item.system.id))
-    assert set(head) == label_problems, head
+    assert set(head) == planted, head
+    expected = {"wrong_ball_box": "ball_off_consensus", "mirrored_lines": "mirrored_labels",
+                "missing_ball": "ball_missing", "near_duplicate_viewpoint": "near_duplicate_view"}
+    for problem, kind in expected.items():
+        action, image = by_kind[problem]
+        doubts = by_action[action][1]["doubts"]
+        if problem == "near_duplicate_viewpoint":  # either of the two views may be named
+            assert any(d["kind"] == kind and d["frame"] in (action, image) for d in doubts), doubts
+        else:
+            assert any(d["kind"] == kind and d["frame"] == image for d in doubts), (problem, doubts)
+    clean = [a for a in truth if not truth[a]["problems"]]
+    assert not [d for a in clean for d in by_action[a][1]["doubts"] if d["accuses_label"]]
+    action, image = by_kind["missing_ball"]
+    view = next(v for v in by_action[action][1]["views"] if v["name"] == image)
+    doubt = next(d for d in by_action[action][1]["doubts"] if d["kind"] == "ball_missing")
+    x1, y1, x2, y2 = doubt["suggestion"]["box"]
+    tx1, ty1, tx2, ty2 = demo.views()[image]["precise_box"]
+    assert np.hypot((x1 + x2 - tx1 - tx2) / 2, (y1 + y2 - ty1 - ty2) / 2) < 0.01 * view["width"]
 
     action, image = by_kind["near_duplicate_viewpoint"]
     view = by_action[action][1]

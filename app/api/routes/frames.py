@@ -13,7 +13,7 @@ from fastapi.responses import StreamingResponse
 
 from app.api.deps import FrameDep, SessionDep, SettingsDep
 from app.api.schemas import (
-    INVALID, NOT_FOUND, BallEdit, ErrorOut, FieldLinesEdit, FrameListQuery, FramePageOut, QueueQuery, ReviewIn,
+    INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, FramePageOut, QueueQuery, ReviewIn,
     ReviewOut, SystemView,
 )
 from app.services import editing, views
@@ -94,6 +94,16 @@ def mirror_field_lines(session: SessionDep, settings: SettingsDep, frame: FrameD
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines.
     """
     editing.apply_mirrored_labels(session, frame.id, settings=settings)
+    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+
+
+@router.post("/{frame_id}/exclusion", response_model=SystemView, responses={**NOT_FOUND, **INVALID})
+def set_exclusion(session: SessionDep, settings: SettingsDep, frame: FrameDep, body: ExclusionIn,
+                  query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+    """Exclude the view from its system's triangulation (``{"excluded": true}``) or restore it
+    (``false``), recompute the system, and answer the recomputed system view. The decision is stored
+    on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
+    editing.set_view_excluded(session, frame.id, body.excluded, settings=settings)
     return views.system_view(session, frame.system_id, query.filters(), query.sort)
 
 

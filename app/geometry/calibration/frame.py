@@ -63,6 +63,12 @@ from app.geometry.camera import Camera
 from app.geometry.jac import DEFAULT_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
 
+#: Flag of a calibration made with its centre fixed by a prior (a position of the game's camera rig).
+RIG_FLAG = "rig_assisted"
+#: Flag of a frame whose field-line labels are probably mirrored (camera-side prior here; the
+#: multi-view verdict of ``app.geometry.mirror`` sets the same flag in the service).
+MIRROR_FLAG = "probably_mirrored"
+
 #: JaC thresholds as fractions of the image diagonal (method.md section 4): the JaC module's defaults.
 JAC_GAMMAS: tuple[float, ...] = DEFAULT_GAMMAS
 
@@ -571,7 +577,7 @@ def calibrate_frame(
     camera = best.param.camera(best.x)
     per_class, rms = _class_residuals(camera, obs)
     if fixed:
-        flags.append("rig_assisted")
+        flags.append(RIG_FLAG)
     if camera.radial[0] != 0.0:
         flags.append("radial_distortion")
     fitted = {c: per_class[c] for c in fit_obs.classes}
@@ -588,7 +594,7 @@ def calibrate_frame(
                         f"(limit {settings.accept_gamma * diag:.1f} px)", t0, tuple(flags), per_class, rms)
     mirrored = None
     if prior is not None and side_vote(camera, prior.expected_side) == 1:
-        flags.append("probably_mirrored")
+        flags.append(MIRROR_FLAG)
         mirrored = mirror_lines(lines)
     jac: dict[str, float] = {}
     if compute_jac:

@@ -19,6 +19,7 @@ import numpy as np
 
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration.frame import (
+    RIG_FLAG,
     CalibrationPrior,
     CalibrationResult,
     CalibrationSettings,
@@ -144,7 +145,7 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
         position fits.
     """
     if not rig.positions:
-        return CalibrationResult(status="refused", camera=None, jac={}, residuals_px={}, flags=("rig_assisted",),
+        return CalibrationResult(status="refused", camera=None, jac={}, residuals_px={}, flags=(RIG_FLAG,),
                                  reason="no rig position for this game (no well-calibrated frames to estimate it)",
                                  rms_px=None, elapsed_ms=0.0)
     # JaC is the evaluation, never the choice: it is computed once, for the chosen position.

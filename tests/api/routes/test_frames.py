@@ -215,6 +215,36 @@ def test_nan_in_field_lines_is_422_naming_the_class(client: TestClient, scene: S
     assert answer.json()["field"] == "lines"
 
 
+# ----- exclusion from the triangulation ------------------------------------------------------------
+def test_exclusion_leaves_the_view_out_of_every_pair_and_is_reversible(client: TestClient, scene: Scene) -> None:
+    before = _view(client, scene)
+    assert len([p for p in before["triangulation"]["pairs"] if p["kept"]]) == 3
+    fid = scene.frame_ids[2]
+    answer = client.post(f"/api/frames/{fid}/exclusion", json={"excluded": True})
+    assert answer.status_code == 200
+    view = answer.json()
+    pairs = view["triangulation"]["pairs"]
+    assert len(pairs) == 1 and fid not in (pairs[0]["view_a"], pairs[0]["view_b"])
+    excluded = next(v for v in view["views"] if v["frame_id"] == fid)
+    assert excluded["review"]["excluded"] is True and excluded["review"]["status"] == "pending"
+    assert excluded["ball"]["box"] == next(v for v in before["views"] if v["frame_id"] == fid)["ball"]["box"]
+    # the excluded view still gets the fused ball's reprojection (it is drawn), but no label doubt
+    assert excluded["reprojection_error_px"] is not None
+    assert not [d for d in view["doubts"] if d["frame_id"] == fid and d["accuses_label"]]
+    restored = client.post(f"/api/frames/{fid}/exclusion", json={"excluded": False}).json()
+    assert len(restored["triangulation"]["pairs"]) == 3
+    assert next(v for v in restored["views"] if v["frame_id"] == fid)["review"]["excluded"] is False
+    assert restored["ball3d"] == pytest.approx(before["ball3d"])
+
+
+@pytest.mark.parametrize("body", [{}, {"excluded": "yes"}, {"excluded": True, "extra": 1}])
+def test_bad_exclusion_is_422_and_changes_nothing(client: TestClient, scene: Scene, body: dict) -> None:
+    answer = client.post(f"/api/frames/{scene.frame_ids[1]}/exclusion", json=body)
+    assert answer.status_code == 422
+    assert all(not v["review"]["excluded"] for v in _view(client, scene)["views"])
+    assert client.post("/api/frames/999999/exclusion", json={"excluded": True}).status_code == 404
+
+
 # ----- review and list -----------------------------------------------------------------------------
 def test_frame_review_shows_in_the_view(client: TestClient, scene: Scene) -> None:
     answer = client.post(f"/api/frames/{scene.frame_ids[1]}/review",

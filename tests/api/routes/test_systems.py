@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from app.geometry.doubts import LABEL_KINDS
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session
 
@@ -40,9 +42,9 @@ def test_games_list_their_systems(client: TestClient, queue: dict[str, Scene]) -
         ("2015-02-21 - 18-00 Chelsea 1 - 1 Burnley", 3), ("2016-01-01 - 15-00 Arsenal 2 - 0 Everton", 1)]
 
 
-def test_default_order_puts_the_largest_error_first_and_systems_without_ball_last(
+def test_worst_error_order_puts_the_largest_error_first_and_systems_without_ball_last(
         client: TestClient, queue: dict[str, Scene]) -> None:
-    answer = client.get("/api/systems").json()
+    answer = client.get("/api/systems", params={"sort": "-worst_error"}).json()
     ids = _ids(answer)
     assert ids[0] == queue["shifted"].system_id
     assert ids[-1] == queue["lonely"].system_id
@@ -54,6 +56,14 @@ def test_default_order_puts_the_largest_error_first_and_systems_without_ball_las
     shifted = rows[queue["shifted"].system_id]
     assert shifted["worst_error_px"] > 1.0 > rows[queue["exact"].system_id]["worst_error_px"]
     assert shifted["lowest_jac"] == pytest.approx(0.80)
+
+
+def test_default_order_puts_the_most_label_doubts_first(client: TestClient, queue: dict[str, Scene]) -> None:
+    items = client.get("/api/systems").json()["items"]
+    doubts = [r["label_doubts"] for r in items]
+    assert doubts == sorted(doubts, reverse=True)
+    for r in items:
+        assert r["label_doubts"] == sum(n for k, n in r["doubt_counts"].items() if k in LABEL_KINDS)
 
 
 @pytest.mark.parametrize(
@@ -115,7 +125,7 @@ def test_system_view_carries_the_ui_contract(client: TestClient, queue: dict[str
     scene = queue["exact"]
     view = client.get(f"/api/systems/{scene.system_id}").json()
     assert view["name"] == "2.png" and view["game"]["id"] == scene.game_id
-    assert view["review"] == {"status": "pending", "comment": "", "decided_at": None}
+    assert view["review"] == {"status": "pending", "comment": "", "decided_at": None, "excluded": False}
     np.testing.assert_allclose(view["ball3d"], BALL, atol=1e-6)
     tri = view["triangulation"]
     assert tri["status"] == "triangulated" and tri["tau_px"] == 20.0 and len(tri["pairs"]) == 3

@@ -1,0 +1,65 @@
+"""Doubts of a system (label problems the geometry sees, with fixes), their per-system counts, and the
+per-view exclusion decision (app/db/models.py: Doubt, System.doubt_counts/label_doubts,
+ReviewDecision.excluded).
+
+Revision ID: 0003
+Revises: 0002
+Create Date: 2026-11-21 22:38:00.421550+00:00
+"""
+from __future__ import annotations
+
+from typing import Sequence, Union
+
+import sqlalchemy as sa
+from alembic import op
+from sqlalchemy.dialects import postgresql
+import app.db.types
+
+revision: str = '0003'
+down_revision: Union[str, None] = '0002'
+branch_labels: Union[str, Sequence[str], None] = None
+depends_on: Union[str, Sequence[str], None] = None
+
+
+def upgrade() -> None:
+    op.create_table('doubts',
+    sa.Column('id', sa.Integer(), nullable=False),
+    sa.Column('system_id', sa.Integer(), nullable=False),
+    sa.Column('frame_id', sa.Integer(), nullable=True),
+    sa.Column('kind', sa.String(length=40), nullable=False),
+    sa.Column('accuses_label', sa.Boolean(), nullable=False),
+    sa.Column('message', sa.Text(), nullable=False),
+    sa.Column('evidence', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=False),
+    sa.Column('suggestion', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True),
+    sa.ForeignKeyConstraint(['frame_id'], ['frames.id'], name=op.f('fk_doubts_frame_id_frames'), ondelete='CASCADE'),
+    sa.ForeignKeyConstraint(['system_id'], ['systems.id'], name=op.f('fk_doubts_system_id_systems'), ondelete='CASCADE'),
+    sa.PrimaryKeyConstraint('id', name=op.f('pk_doubts'))
+    )
+    with op.batch_alter_table('doubts', schema=None) as batch_op:
+        batch_op.create_index('ix_doubts_kind_system_id', ['kind', 'system_id'], unique=False)
+        batch_op.create_index(batch_op.f('ix_doubts_system_id'), ['system_id'], unique=False)
+
+    with op.batch_alter_table('review_decisions', schema=None) as batch_op:
+        batch_op.add_column(sa.Column('excluded', sa.Boolean(), nullable=False, server_default=sa.false()))
+
+    with op.batch_alter_table('systems', schema=None) as batch_op:
+        batch_op.add_column(sa.Column('doubt_counts', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=False, server_default='{}'))
+        batch_op.add_column(sa.Column('label_doubts', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.create_index(batch_op.f('ix_systems_label_doubts'), ['label_doubts'], unique=False)
+
+
+
+def downgrade() -> None:
+    with op.batch_alter_table('systems', schema=None) as batch_op:
+        batch_op.drop_index(batch_op.f('ix_systems_label_doubts'))
+        batch_op.drop_column('label_doubts')
+        batch_op.drop_column('doubt_counts')
+
+    with op.batch_alter_table('review_decisions', schema=None) as batch_op:
+        batch_op.drop_column('excluded')
+
+    with op.batch_alter_table('doubts', schema=None) as batch_op:
+        batch_op.drop_index(batch_op.f('ix_doubts_system_id'))
+        batch_op.drop_index('ix_doubts_kind_system_id')
+
+    op.drop_table('doubts')
