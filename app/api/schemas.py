@@ -197,7 +197,8 @@ class DoubtOut(BaseModel):
 
 
 class SystemSummaryOut(BaseModel):
-    """A row of the review queue (aggregates over the admitted views, see ``app.services.views``)."""
+    """A row of the review queue: figures stored by the system's last recomputation (aggregates over the
+    admitted views, ``app.services.recompute.update_summary``)."""
 
     id: int
     name: str
@@ -317,7 +318,7 @@ class ViewOut(BaseModel):
     reprojection_error_px: Optional[float]
     error_above_tau: bool = Field(
         description="The reprojection error, scaled to the rule's reference width, is above the stored tau "
-        "(app.services.views.error_above_tau; the queue's views_above_tau counts by the same rule).")
+        "(app.geometry.triangulation.error_above_tau; the queue's views_above_tau counts by the same rule).")
     camera_position: Optional[Point3]
     review: ReviewOut
 

@@ -3,7 +3,8 @@
 Without ``--json`` it prints a table: per doubt kind, how many doubts and how many systems carry one.
 With ``--json OUT`` it also writes ``{"systems": [{"game": {"league", "season", "match"}, "system":
 <action image name>, "doubts": [{"kind", "frame": <image name> | null, "message", "evidence",
-"suggestion", ...}]}]}``. Nothing is recomputed: doubts are stored by every import and edit.
+"suggestion", ...}]}]}``. Doubts are stored by every import and edit; only systems stored by an
+older version of v3d (before doubts existed) are recomputed first.
 """
 from __future__ import annotations
 
@@ -26,9 +27,11 @@ def doubts_cmd(
 ) -> None:
     """Report the doubts of every system: counts per kind, and optionally the whole list as JSON."""
     from app.services.doubts import doubts_report
+    from app.services.recompute import refresh_stale_systems
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
+        refresh_stale_systems(session, settings)  # a database stored before doubts existed
         report = doubts_report(session)
     doubts_n: Counter = Counter()
     systems_n: Counter = Counter()

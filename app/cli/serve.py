@@ -3,7 +3,8 @@
 Registered on :data:`app.cli._root.cli`. The database is ``V3D_DATABASE_URL`` (default: the SQLite
 file ``var/v3d.sqlite3`` of the checkout, whose folder is created). With ``--demo`` and a database
 that holds no game, the demo dataset (:func:`app.demo.generate_demo_dataset`) is written beside the
-SQLite file (``var/demo/``) and imported as a SoccerNet-v3 tree before the server starts.
+SQLite file (``var/demo/``) and imported as a SoccerNet-v3 tree before the server starts. Systems stored
+by an older version of the derived rows (doubts, queue figures) are recomputed first.
 """
 from __future__ import annotations
 
@@ -50,6 +51,22 @@ def load_demo_if_empty(settings: Settings) -> str:
             f"{report.triangulated} triangulated")
 
 
+def refresh_derived(settings: Settings) -> str | None:
+    """Recompute the systems stored by an older version of the derived rows (after a schema upgrade:
+    doubts and queue figures), so that everything served is current. Returns a line for the console,
+    None when nothing was stale."""
+    from app.db.session import make_engine, make_session_factory
+    from app.services.recompute import refresh_stale_systems
+
+    engine = make_engine(settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            n = refresh_stale_systems(session, settings)
+    finally:
+        engine.dispose()
+    return f"recomputed {n} system(s) stored by an older version (doubts and queue figures)" if n else None
+
+
 @cli.command("serve")
 def serve(
     host: Annotated[str, typer.Option(help="Interface to listen on.")] = "127.0.0.1",
@@ -64,6 +81,9 @@ def serve(
 
     settings = get_settings()
     upgrade_database(settings.database_url)
+    refreshed = refresh_derived(settings)
+    if refreshed:
+        typer.echo(refreshed)
     if demo:
         typer.echo(load_demo_if_empty(settings))
     typer.echo(f"v3d: review UI at http://{host}:{port}/  (API docs at http://{host}:{port}/docs)")

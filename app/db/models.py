@@ -136,7 +136,10 @@ class System(Base):
     """A multi-view system: an action frame and its linked replays, or one single-view frame."""
 
     __tablename__ = "systems"
-    __table_args__ = (sa.UniqueConstraint("game_id", "name"),)
+    __table_args__ = (
+        sa.UniqueConstraint("game_id", "name"),
+        sa.Index("ix_systems_label_doubts_worst_error_px", "label_doubts", "worst_error_px"),
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     game_id: Mapped[int] = mapped_column(sa.ForeignKey("games.id", ondelete="CASCADE"), index=True)
@@ -158,10 +161,30 @@ class System(Base):
     doubts: Mapped[list[Doubt]] = relationship(
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True, order_by="Doubt.id"
     )
+    # ----- the review queue's figures, written by every recomputation of the system
+    # (``app.services.recompute.update_summary``) so that the queue reads them instead of aggregating
+    # on every request. Aggregates are over the **admitted** views, the ones the 3D ball is made of.
     #: Doubts per kind (``{kind: n}``, every kind present), written with the doubts.
     doubt_counts: Mapped[dict[str, Any]] = mapped_column(default=dict)
     #: How many doubts accuse a label (``app.geometry.doubts.LABEL_KINDS``): the queue sorts by it.
-    label_doubts: Mapped[int] = mapped_column(default=0, index=True)
+    label_doubts: Mapped[int] = mapped_column(default=0)
+    views_total: Mapped[int] = mapped_column(default=0)
+    views_calibrated: Mapped[int] = mapped_column(default=0)
+    views_admitted: Mapped[int] = mapped_column(default=0)
+    #: Views with a current ball label.
+    views_labelled: Mapped[int] = mapped_column(default=0)
+    #: Lowest JaC@0.5 % among admitted views (None without one).
+    lowest_jac: Mapped[Optional[float]] = mapped_column(index=True)
+    #: Largest reprojection error (px, the view's own) of the fused ball among admitted labelled views.
+    worst_error_px: Mapped[Optional[float]] = mapped_column(index=True)
+    #: Views (admitted or not) whose field-line labels are flagged probably mirrored.
+    views_flagged: Mapped[int] = mapped_column(default=0)
+    #: Admitted labelled views whose reprojection error is above tau
+    #: (``app.geometry.triangulation.error_above_tau``).
+    views_above_tau: Mapped[int] = mapped_column(default=0)
+    #: Version of the derived rows and figures (``app.services.recompute.DERIVED_VERSION``); a system
+    #: stored by an older version is recomputed before it is served (``refresh_stale_systems``).
+    derived_version: Mapped[int] = mapped_column(default=0)
 
 
 class Frame(Base):

@@ -69,6 +69,39 @@ PAIR_ERROR_RULES: dict[str, Callable[[float, float, float, float], float]] = {
     "max_px": _max_px,
 }
 
+#: The width (px) each scaled rule brings a view's reprojection error to before it is compared with
+#: tau; a rule not named here (``max_px``) compares raw pixels.
+RULE_REFERENCE_WIDTH_PX: dict[str, float] = {
+    "max_scaled_1920": REFERENCE_WIDTH_PX,
+    "mean_scaled_1920": REFERENCE_WIDTH_PX,
+}
+
+
+def rule_reference_width_px(rule: str | None) -> float | None:
+    """The reference width of a pair-error rule (px), None when the rule compares raw pixels.
+
+    >>> rule_reference_width_px("max_scaled_1920"), rule_reference_width_px("max_px")
+    (1920.0, None)
+    """
+    return RULE_REFERENCE_WIDTH_PX.get(rule) if rule is not None else None
+
+
+def error_above_tau(error_px: float | None, width_px: float, tau_px: float | None, rule: str | None) -> bool:
+    """The one rule "this view's reprojection error is above tau": the error (px of the view's own
+    image) scaled to the rule's reference width (``error_px * reference / width_px``; raw pixels when
+    the rule has none or the width is not positive), then strictly above ``tau_px``. False when the
+    error or tau is missing. The review queue's count and the system page's flag both use it.
+
+    >>> error_above_tau(12.0, 960, 20.0, "max_scaled_1920"), error_above_tau(12.0, 960, 20.0, "max_px")
+    (True, False)
+    """
+    if error_px is None or tau_px is None:
+        return False
+    reference = rule_reference_width_px(rule)
+    scaled = error_px * reference / width_px if reference is not None and width_px > 0 else error_px
+    return bool(scaled > tau_px)
+
+
 #: Reasons a pair is dropped, in the order they are tested (a pair reports the first that applies).
 DROP_REASONS = ("degenerate", "point_at_infinity", "behind_camera", "baseline_below_min", "parallax_below_min",
                 "error_above_tau")

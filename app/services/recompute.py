@@ -65,13 +65,17 @@ from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence, mirrored_fit_at_rig
-from app.geometry.triangulation import BallObservation, triangulate_ball
+from app.geometry.triangulation import BallObservation, error_above_tau, triangulate_ball
 from app.services.doubts import is_excluded, update_doubts
 
 #: The three JaC gammas stored per calibration (fractions of the image diagonal, method.md s4).
 JAC_GAMMAS: tuple[float, float, float] = (0.005, 0.01, 0.02)
 _JAC_COLUMNS = {0.005: "jac_0005", 0.01: "jac_001", 0.02: "jac_002"}
 
+
+#: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
+#: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
+DERIVED_VERSION = 1
 
 #: Jobs below this count are calibrated in-process (a pool costs more than it saves).
 _MIN_JOBS_FOR_POOL = 8
@@ -435,7 +439,41 @@ def recompute_system(session: Session, system: System, settings: Settings,
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
     update_doubts(system, settings, cameras)
+    update_summary(system, tri)
+    system.derived_version = DERIVED_VERSION
     return tri
+
+
+def update_summary(system: System, tri: Triangulation) -> None:
+    """Store the review queue's figures of ``system`` (``System.views_total`` ... ``views_above_tau``,
+    model docstring) from its current frames and triangulation: aggregates over the **admitted** views,
+    ``views_flagged`` over every view, ``views_above_tau`` by ``app.geometry.triangulation.error_above_tau``."""
+    frames = list(system.frames)
+    cals = [f.calibration for f in frames]
+    admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
+    system.views_total = len(frames)
+    system.views_calibrated = sum(c is not None and c.status is CalibrationStatus.CALIBRATED for c in cals)
+    system.views_admitted = len(admitted)
+    system.views_labelled = sum(f.ball_label is not None and f.ball_label.kind is not None for f in frames)
+    jacs = [f.calibration.jac_0005 for f in admitted if f.calibration.jac_0005 is not None]
+    system.lowest_jac = min(jacs) if jacs else None
+    labelled = [f for f in admitted if f.ball_label is not None and f.ball_label.kind is not None
+                and f.reprojection is not None and f.reprojection.error_px is not None]
+    system.worst_error_px = max((f.reprojection.error_px for f in labelled), default=None)
+    system.views_flagged = sum(c is not None and MIRROR_FLAG in (c.flags or []) for c in cals)
+    system.views_above_tau = sum(error_above_tau(f.reprojection.error_px, f.width, tri.tau_px, tri.rule)
+                                 for f in labelled)
+
+
+def refresh_stale_systems(session: Session, settings: Settings, progress: Progress | None = None) -> int:
+    """Recompute (calibrations untouched) every system stored by an older version of the derived rows
+    (``System.derived_version < DERIVED_VERSION``, e.g. after a schema upgrade) and commit; returns how
+    many. Serving or reporting a database calls it first, so stored doubts and queue figures are current."""
+    stale = session.scalars(select(System).where(System.derived_version < DERIVED_VERSION)).all()
+    if stale:
+        recompute_systems(session, stale, settings, progress)
+        session.commit()
+    return len(stale)
 
 
 def mirror_settings(settings: Settings) -> MirrorSettings:

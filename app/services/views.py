@@ -1,19 +1,13 @@
 """Read-only queries behind the API: the games, the review queue of systems, the frames, the system
 view JSON the system page draws (``docs/architecture.md``), and where a frame's image is read from.
 
-Nothing here writes. Aggregates of a system are taken over its **admitted** views, the ones its 3D ball
-is made of (method.md sections 4 and 5):
-
-* ``lowest_jac``: the lowest JaC@0.5 % among admitted views (the calibration the ball leans on most
-  weakly), None without an admitted view;
-* ``worst_error_px``: the largest reprojection error (px, at the view's own resolution, SoccerNet-v3D's
-  ``rep_error``) of the fused ball among admitted labelled views, None without a 3D ball.
-
-``views_flagged`` counts every view (admitted or not) whose labels are flagged probably mirrored
-(``app.services.recompute.MIRROR_FLAG``), so that the queue can show it before the system is opened.
-``views_above_tau`` counts the admitted labelled views whose reprojection error is above tau by
-:func:`error_above_tau`, the criterion the system view's ``error_above_tau`` (and so the system page's
-"error > tau" doubt) is computed with: queue and system page cannot disagree.
+Nothing here writes, and nothing is aggregated per request: the queue reads the per-system figures that
+every recomputation stores on ``System`` (``app.services.recompute.update_summary``; aggregates over the
+**admitted** views, the ones the 3D ball is made of, method.md sections 4 and 5): ``lowest_jac``
+(JaC@0.5 %), ``worst_error_px`` (the largest reprojection error of the fused ball, px of the view's own
+image, SoccerNet-v3D's ``rep_error``), ``views_flagged`` (every view flagged probably mirrored),
+``views_above_tau`` (by ``app.geometry.triangulation.error_above_tau``, the rule the system view's
+per-view ``error_above_tau`` uses too: queue and system page cannot disagree), and the doubt counts.
 
 Queue order (``sort``): ``doubts`` (the stored count of label-accusing doubts, ties by the largest
 reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
@@ -44,10 +38,9 @@ from app.db.models import (
 )
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
-from app.geometry.triangulation import REFERENCE_WIDTH_PX
+from app.geometry.triangulation import error_above_tau, rule_reference_width_px
 from app.services._readers import is_safe_member
 from app.services.errors import NotFoundError, ServiceError
-from app.geometry.calibration.frame import MIRROR_FLAG
 from app.services.doubts import doubt_json
 
 SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
@@ -149,99 +142,22 @@ class FramePage:
     total: int
 
 
-#: The width (px) each scaled pair-error rule (``app.geometry.triangulation.PAIR_ERROR_RULES``)
-#: brings a view's reprojection error to before comparing it with tau; a rule not named here
-#: (``max_px``) compares raw pixels.
-ERROR_REFERENCE_WIDTH_PX: dict[str, float] = {
-    "max_scaled_1920": REFERENCE_WIDTH_PX,
-    "mean_scaled_1920": REFERENCE_WIDTH_PX,
-}
-
-
-def error_reference_width_px(rule: Optional[str]) -> Optional[float]:
-    """The reference width of a pair-error rule, None when the rule compares raw pixels.
-
-    >>> error_reference_width_px("max_scaled_1920"), error_reference_width_px("max_px")
-    (1920.0, None)
-    """
-    return ERROR_REFERENCE_WIDTH_PX.get(rule) if rule is not None else None
-
-
-def error_above_tau(error_px: Any, width: Any, tau_px: Any, rule: Any) -> sa.ColumnElement[bool]:
-    """The one rule "this view's reprojection error is above tau", as SQL over stored values: the view's
-    ``error_px`` scaled to its system's pair-error rule's reference width
-    (``error_px * reference / width``, raw when the rule has none or the width is not positive), then
-    strictly above the ``tau_px`` stored on the triangulation. NULL (not above) when the error or tau
-    is missing. Both the queue's ``views_above_tau`` and the system view's per-view
-    ``error_above_tau`` are computed with it.
-
-    Args:
-        error_px, width, tau_px, rule: SQL expressions (columns) of the view's error, its image
-            width, and its system's triangulation tau and rule.
-    """
-    reference = sa.case(
-        *((rule == name, sa.literal(ref, sa.Float)) for name, ref in ERROR_REFERENCE_WIDTH_PX.items()),
-        else_=sa.null(),
-    )
-    scaled = sa.case(
-        (sa.and_(reference.is_not(None), width > 0), error_px * reference / width),
-        else_=error_px,
-    )
-    return scaled > tau_px
-
-
-def _stats(game_id: Optional[int] = None, also_system_id: Optional[int] = None) -> sa.Subquery:
-    """Per-system counts and admitted-view aggregates (see the module docstring), over one game's
-    systems (and ``also_system_id``) when ``game_id`` is given: the aggregation is most of a queue
-    query's cost."""
-    admitted = Calibration.admitted.is_(True)
-    stmt = (
-        sa.select(
-            Frame.system_id.label("system_id"),
-            sa.func.count(Frame.id).label("views_total"),
-            sa.func.count(sa.case((Calibration.status == CalibrationStatus.CALIBRATED, 1))).label("views_calibrated"),
-            sa.func.count(sa.case((admitted, 1))).label("views_admitted"),
-            sa.func.count(sa.case((BallLabel.kind.is_not(None), 1))).label("views_labelled"),
-            sa.func.min(sa.case((admitted, Calibration.jac_0005))).label("lowest_jac"),
-            sa.func.max(sa.case((admitted, BallReprojection.error_px))).label("worst_error_px"),
-            # flags is a JSON list of strings: its text holds the flag quoted, on SQLite and PostgreSQL
-            sa.func.count(sa.case((sa.cast(Calibration.flags, sa.Text).like(f'%"{MIRROR_FLAG}"%'), 1)))
-            .label("views_flagged"),
-            sa.func.count(sa.case((sa.and_(admitted, BallLabel.kind.is_not(None), error_above_tau(
-                BallReprojection.error_px, Frame.width, Triangulation.tau_px, Triangulation.rule)), 1)))
-            .label("views_above_tau"),
-        )
-        .select_from(Frame)
-        .outerjoin(Calibration, Calibration.frame_id == Frame.id)
-        .outerjoin(BallLabel, BallLabel.frame_id == Frame.id)
-        .outerjoin(BallReprojection, BallReprojection.frame_id == Frame.id)
-        .outerjoin(Triangulation, Triangulation.system_id == Frame.system_id)
-        .group_by(Frame.system_id)
-    )
-    if game_id is not None:
-        wanted = sa.select(System.id).where(sa.or_(System.game_id == game_id, System.id == also_system_id))
-        stmt = stmt.where(Frame.system_id.in_(wanted))
-    return stmt.subquery("system_stats")
-
-
 def _review_status() -> sa.ColumnElement[ReviewStatus]:
     """A system's review status; a system never decided on is pending."""
     status_type = ReviewDecision.status.type
     return sa.func.coalesce(ReviewDecision.status, sa.literal(ReviewStatus.PENDING, status_type), type_=status_type)
 
 
-def _queue_from(stats: sa.Subquery) -> sa.Select[Any]:
+def _queue_from() -> sa.Select[Any]:
+    """The queue's rows: each system with its game, review and 3D ball; the per-system figures are
+    the stored ``System`` columns (no aggregation here)."""
     return (
         sa.select(
             System, Game, _review_status().label("review_status"),
             sa.func.coalesce(ReviewDecision.comment, "").label("review_comment"),
-            ReviewDecision.decided_at.label("review_decided_at"),
-            Triangulation.ball3d, stats.c.views_total, stats.c.views_calibrated, stats.c.views_admitted,
-            stats.c.views_labelled, stats.c.lowest_jac, stats.c.worst_error_px, stats.c.views_flagged,
-            stats.c.views_above_tau,
+            ReviewDecision.decided_at.label("review_decided_at"), Triangulation.ball3d,
         )
         .join(Game, Game.id == System.game_id)
-        .outerjoin(stats, stats.c.system_id == System.id)
         .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
         .outerjoin(Triangulation, Triangulation.system_id == System.id)
     )
@@ -256,14 +172,14 @@ def _range(column: Any, lo: Optional[float], hi: Optional[float]) -> list[sa.Col
     return out
 
 
-def _system_conditions(stats: sa.Subquery, filters: SystemFilters, with_status: bool = True) -> list[Any]:
+def _system_conditions(filters: SystemFilters, with_status: bool = True) -> list[Any]:
     conds: list[Any] = []
     if filters.game_id is not None:
         conds.append(System.game_id == filters.game_id)
     if with_status and filters.status is not None:
         conds.append(_review_status() == filters.status)
-    conds += _range(stats.c.lowest_jac, filters.jac_min, filters.jac_max)
-    conds += _range(stats.c.worst_error_px, filters.error_min, filters.error_max)
+    conds += _range(System.lowest_jac, filters.jac_min, filters.jac_max)
+    conds += _range(System.worst_error_px, filters.error_min, filters.error_max)
     if filters.doubt == "any":
         conds.append(System.label_doubts > 0)
     elif filters.doubt == "none":
@@ -278,7 +194,7 @@ def _natural_name(column: Any) -> list[Any]:
     return [sa.func.length(column), column]
 
 
-def _system_order(stats: sa.Subquery, sort: SystemSort) -> list[Any]:
+def _system_order(sort: SystemSort) -> list[Any]:
     desc = sort.startswith("-")
     key = sort.lstrip("-")
     if key == "name":
@@ -286,8 +202,8 @@ def _system_order(stats: sa.Subquery, sort: SystemSort) -> list[Any]:
         return [c.desc() if desc else c.asc() for c in cols] + [System.id.asc()]
     if key == "doubts":  # ties by the largest reprojection error
         return [System.label_doubts.desc() if desc else System.label_doubts.asc(),
-                stats.c.worst_error_px.desc().nulls_last(), System.id.asc()]
-    column = {"worst_error": stats.c.worst_error_px, "lowest_jac": stats.c.lowest_jac}.get(key)
+                System.worst_error_px.desc().nulls_last(), System.id.asc()]
+    column = {"worst_error": System.worst_error_px, "lowest_jac": System.lowest_jac}.get(key)
     if column is None:
         raise ValueError(f"unknown sort {sort!r}")
     return [(column.desc() if desc else column.asc()).nulls_last(), System.id.asc()]
@@ -323,27 +239,23 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
     Raises:
         ValueError: an unknown ``sort``.
     """
-    stats = _stats(filters.game_id)
-    order = _system_order(stats, sort)
-    conds = _system_conditions(stats, filters)
-    page = _queue_from(stats).add_columns(sa.func.count().over().label("total"))
+    order = _system_order(sort)
+    conds = _system_conditions(filters)
+    page = _queue_from().add_columns(sa.func.count().over().label("total"))
     rows = session.execute(page.where(*conds).order_by(*order).limit(limit).offset(offset)).all()
     items = [
         SystemSummary(
             system=r.System, game=r.Game, review_status=r.review_status, review_comment=r.review_comment,
-            review_decided_at=r.review_decided_at,
-            ball3d=r.ball3d, views_total=r.views_total or 0, views_calibrated=r.views_calibrated or 0,
-            views_admitted=r.views_admitted or 0, views_labelled=r.views_labelled or 0,
-            lowest_jac=r.lowest_jac, worst_error_px=r.worst_error_px, views_flagged=r.views_flagged or 0,
-            views_above_tau=r.views_above_tau or 0, doubt_counts=dict(r.System.doubt_counts or {}),
-            label_doubts=r.System.label_doubts or 0,
+            review_decided_at=r.review_decided_at, ball3d=r.ball3d, views_total=r.System.views_total,
+            views_calibrated=r.System.views_calibrated, views_admitted=r.System.views_admitted,
+            views_labelled=r.System.views_labelled, lowest_jac=r.System.lowest_jac,
+            worst_error_px=r.System.worst_error_px, views_flagged=r.System.views_flagged,
+            views_above_tau=r.System.views_above_tau, doubt_counts=dict(r.System.doubt_counts or {}),
+            label_doubts=r.System.label_doubts,
         )
         for r in rows
     ]
-    # the per-system aggregates are joined only when a range filter needs them
     base = sa.select(System.id).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-    if any(v is not None for v in (filters.jac_min, filters.jac_max, filters.error_min, filters.error_max)):
-        base = base.outerjoin(stats, stats.c.system_id == System.id)
     if rows:
         total = rows[0].total
     else:  # past the last page: the window count has no row to ride on
@@ -351,7 +263,7 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
     status = _review_status()
     by_status = session.execute(
         base.with_only_columns(status, sa.func.count(System.id))
-        .where(*_system_conditions(stats, filters, with_status=False)).group_by(status)
+        .where(*_system_conditions(filters, with_status=False)).group_by(status)
     ).all()
     counts = {s.value: 0 for s in ReviewStatus}
     for s, n in by_status:
@@ -366,9 +278,8 @@ def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = 
     The system itself need not match the filters (it may just have been reviewed out of a
     "pending" queue): its neighbours are then those it would have if it did.
     """
-    stats = _stats(filters.game_id, system_id)
-    order = _system_order(stats, sort)
-    conds = _system_conditions(stats, filters)
+    order = _system_order(sort)
+    conds = _system_conditions(filters)
     where = sa.or_(sa.and_(*conds), System.id == system_id) if conds else sa.true()
     ranked = (
         sa.select(
@@ -377,7 +288,6 @@ def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = 
             sa.func.lead(System.id).over(order_by=order).label("next_id"),
         )
         .join(Game, Game.id == System.game_id)
-        .outerjoin(stats, stats.c.system_id == System.id)
         .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
         .where(where)
         .subquery()
@@ -495,7 +405,7 @@ def _optimised_json(opt: Optional[OptimisedBox]) -> Optional[dict[str, Any]]:
     return {"box": _px(opt.box), "d_px": opt.d_opt_px, "error_m": opt.error_m}
 
 
-def _view_json(frame: Frame, above_tau: bool = False) -> dict[str, Any]:
+def _view_json(frame: Frame, tri: Optional[Triangulation]) -> dict[str, Any]:
     cal = frame.calibration
     camera = None
     if cal is not None and cal.status == CalibrationStatus.CALIBRATED and cal.camera:
@@ -516,7 +426,8 @@ def _view_json(frame: Frame, above_tau: bool = False) -> dict[str, Any]:
         "optimised_box": _optimised_json(frame.optimised_box),
         "reprojected_ball": _px(rep.point) if rep is not None else None,
         "reprojection_error_px": rep.error_px if rep is not None else None,
-        "error_above_tau": above_tau,
+        "error_above_tau": rep is not None and tri is not None and error_above_tau(
+            rep.error_px, frame.width, tri.tau_px, tri.rule),
         "camera_position": camera.C.tolist() if camera is not None else None,
         "review": review_json(frame.review),
     }
@@ -539,7 +450,7 @@ def _triangulation_json(tri: Optional[Triangulation]) -> Optional[dict[str, Any]
         return None
     return {
         "status": tri.status.value, "tau_px": tri.tau_px, "rule": tri.rule,
-        "reference_width_px": error_reference_width_px(tri.rule), "min_baseline_m": tri.min_baseline_m,
+        "reference_width_px": rule_reference_width_px(tri.rule), "min_baseline_m": tri.min_baseline_m,
         "pairs": [
             {"view_a": p.frame_a_id, "view_b": p.frame_b_id, "point": p.point, "error_px": p.error_px,
              "parallax_deg": p.parallax_deg, "baseline_m": p.baseline_m, "kept": p.kept, "reason": p.reason}
@@ -569,18 +480,6 @@ def _load_system(session: Session, system_id: int) -> System:
     return system
 
 
-def _frames_above_tau(session: Session, system_id: int) -> set[int]:
-    """Ids of the system's frames whose reprojection error is above tau by :func:`error_above_tau`."""
-    above = error_above_tau(BallReprojection.error_px, Frame.width, Triangulation.tau_px, Triangulation.rule)
-    stmt = (
-        sa.select(Frame.id)
-        .join(BallReprojection, BallReprojection.frame_id == Frame.id)
-        .join(Triangulation, Triangulation.system_id == Frame.system_id)
-        .where(Frame.system_id == system_id, above)
-    )
-    return set(session.scalars(stmt))
-
-
 def system_view(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
                 sort: SystemSort = DEFAULT_SORT) -> dict[str, Any]:
     """The system view JSON of ``docs/architecture.md`` (the UI contract).
@@ -595,7 +494,6 @@ def system_view(session: Session, system_id: int, filters: SystemFilters = Syste
         NotFoundError: no system has this id.
     """
     system = _load_system(session, system_id)
-    above_tau = _frames_above_tau(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
     tri = system.triangulation
     game = system.game
@@ -609,7 +507,7 @@ def system_view(session: Session, system_id: int, filters: SystemFilters = Syste
         "next_id": next_id,
         "ball3d": tri.ball3d if tri is not None else None,
         "triangulation": _triangulation_json(tri),
-        "views": [_view_json(f, f.id in above_tau) for f in system.frames],
+        "views": [_view_json(f, tri) for f in system.frames],
         "doubts": [doubt_json(d, names) for d in system.doubts],
     }
 

@@ -9,7 +9,7 @@ from app.core.config import Settings
 from app.db.models import System
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.main import create_app
-from app.services.recompute import MIRROR_FLAG
+from app.services.recompute import MIRROR_FLAG, update_summary
 
 from .factories import make_game, make_system
 
@@ -36,8 +36,9 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         exact = make_system(session, settings, game, "2.png", jac=0.90).system_id
         shifted = make_system(session, settings, game, "10.png", jac=0.80, shift_px=(0.0, 0.0, 6.0)).system_id
         lonely = make_system(session, settings, game, "1.png", jac=0.95, labelled=(True, False, False)).system_id
-        flagged = session.get(System, lonely).frames[1].calibration  # the JSONB flags, read as text
-        flagged.flags = [MIRROR_FLAG]
+        system = session.get(System, lonely)
+        system.frames[1].calibration.flags = [MIRROR_FLAG]  # the JSONB flags
+        update_summary(system, system.triangulation)  # stored with the flag, as the recomputation does
         return exact, shifted, lonely
 
     exact, shifted, lonely = _seed(pg_url, settings, build)
@@ -53,10 +54,10 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         flagged_rows = {s["id"]: s["views_flagged"] for s in client.get("/api/systems").json()["items"]}
         assert flagged_rows == {shifted: 0, exact: 0, lonely: 1}
         assert client.post(f"/api/systems/{exact}/review", json={"status": "accepted"}).status_code == 200
-        pending = client.get("/api/systems", params={"status": "pending"}).json()
+        pending = client.get("/api/systems", params={"status": "pending", "sort": "-worst_error"}).json()
         assert [s["id"] for s in pending["items"]] == [shifted, lonely]
         assert pending["counts"] == {"pending": 2, "accepted": 1, "rejected": 0, "needs_fix": 0}
-        view = client.get(f"/api/systems/{exact}", params={"status": "pending"}).json()
+        view = client.get(f"/api/systems/{exact}", params={"status": "pending", "sort": "-worst_error"}).json()
         assert (view["prev_id"], view["next_id"]) == (shifted, lonely)
         assert len(view["views"]) == 3 and view["views"][0]["pitch_lines"]
 

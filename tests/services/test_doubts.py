@@ -102,3 +102,21 @@ def test_exclusion_is_stored_reversible_and_leaves_the_view_out(db_session: Sess
     assert next(f for f in system.frames if f.id == fid).review.excluded is False
     with pytest.raises(editing.InvalidInputError):
         editing.set_view_excluded(db_session, fid, "yes", settings=db_settings)  # type: ignore[arg-type]
+
+
+def test_systems_stored_by_an_older_version_are_recomputed_once(db_session: Session, db_settings: Settings) -> None:
+    """After a schema upgrade the stored doubts and queue figures are empty (``derived_version`` 0):
+    ``refresh_stale_systems`` recomputes exactly those systems, and then nothing."""
+    from app.services.recompute import DERIVED_VERSION, refresh_stale_systems
+
+    scene = make_system(db_session, db_settings, make_game(db_session), shift_px=(0.0, 0.0, 80.0))
+    system = _stored(db_session, scene.system_id)
+    figures = (system.views_total, system.views_admitted, system.worst_error_px, system.label_doubts)
+    system.derived_version, system.views_total, system.worst_error_px, system.label_doubts = 0, 0, None, 0
+    system.doubts.clear()
+    db_session.commit()
+    assert refresh_stale_systems(db_session, db_settings) == 1
+    system = _stored(db_session, scene.system_id)
+    assert system.derived_version == DERIVED_VERSION
+    assert (system.views_total, system.views_admitted, system.worst_error_px, system.label_doubts) == figures
+    assert refresh_stale_systems(db_session, db_settings) == 0

@@ -210,12 +210,14 @@ def test_unknown_query_parameters_are_ignored(client: TestClient, queue: dict[st
 def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session: Session,
                                                  queue: dict[str, Scene]) -> None:
     """The queue said nothing of mirrored labels: a system whose replay was flagged
-    ``probably_mirrored`` looked clean in the queue (empty doubts) until it was opened."""
+    ``probably_mirrored`` looked clean in the queue (empty doubts) until it was opened. The count is
+    stored with the flag by the recomputation (``update_summary``), never aggregated per request."""
     from app.db.models import Frame
-    from app.services.recompute import MIRROR_FLAG
+    from app.services.recompute import MIRROR_FLAG, update_summary
 
     frame = db_session.get(Frame, queue["other"].frame_ids[1])
     frame.calibration.flags = ["rig_assisted", MIRROR_FLAG]
+    update_summary(frame.system, frame.system.triangulation)
     db_session.commit()
     rows = {r["id"]: r for r in client.get("/api/systems").json()["items"]}
     assert rows[queue["other"].system_id]["views_flagged"] == 1
@@ -240,6 +242,7 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     admitted labelled views above tau by the rule the system view's ``error_above_tau`` uses: the
     error scaled to the rule's reference width (960-px views: x 2), against the stored tau."""
     from app.db.models import Frame, Triangulation
+    from app.services.recompute import update_summary
 
     g = make_game(db_session, match="2017-03-04 - 12-30 Liverpool 3 - 1 Arsenal")
     # the replay's box 40 px off drags the ball: errors 7.9, 11.6 and 13.5 px, below tau = 20 raw,
@@ -266,12 +269,15 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     # a view that is not admitted is not counted (its stored error stays; the page still flags it)
     frame = db_session.get(Frame, wrong.frame_ids[1])
     frame.calibration.admitted = False
+    update_summary(frame.system, frame.system.triangulation)  # what the recomputation stores with it
     db_session.commit()
     assert rows()[wrong.system_id]["views_above_tau"] == 1
     assert page_verdicts() == expected
 
     # the stored rule decides the scaling: max_px compares raw pixels, and nothing is above tau
-    db_session.get(Triangulation, wrong.system_id).rule = "max_px"
+    tri = db_session.get(Triangulation, wrong.system_id)
+    tri.rule = "max_px"
+    update_summary(tri.system, tri)
     db_session.commit()
     assert client.get(f"/api/systems/{wrong.system_id}").json()["triangulation"]["reference_width_px"] is None
     assert page_verdicts() == [False, False, False]
@@ -281,10 +287,10 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
 def test_error_reference_widths_follow_the_pair_error_rules() -> None:
     """The reference width of each rule is the one ``app.geometry.triangulation.pair_error`` scales by."""
     from app.geometry.triangulation import PAIR_ERROR_RULES, pair_error
-    from app.services.views import ERROR_REFERENCE_WIDTH_PX, error_reference_width_px
+    from app.geometry.triangulation import RULE_REFERENCE_WIDTH_PX, rule_reference_width_px
 
-    assert set(ERROR_REFERENCE_WIDTH_PX) <= set(PAIR_ERROR_RULES)
+    assert set(RULE_REFERENCE_WIDTH_PX) <= set(PAIR_ERROR_RULES)
     for rule in PAIR_ERROR_RULES:
-        reference = error_reference_width_px(rule)
+        reference = rule_reference_width_px(rule)
         scaled = 3.0 * reference / 960.0 if reference is not None else 3.0
         assert pair_error((3.0, 3.0), (960.0, 960.0), rule) == pytest.approx(scaled), rule

@@ -1,10 +1,11 @@
-"""Doubts of a system (label problems the geometry sees, with fixes), their per-system counts, and the
-per-view exclusion decision (app/db/models.py: Doubt, System.doubt_counts/label_doubts,
-ReviewDecision.excluded).
+"""Doubts of a system (label problems the geometry sees, with fixes), the per-view exclusion decision,
+and the review queue's per-system figures stored on the write path (app/db/models.py: Doubt,
+ReviewDecision.excluded, System.doubt_counts ... derived_version). Existing systems get
+derived_version 0: the service recomputes them before serving (app.services.recompute.refresh_stale_systems).
 
 Revision ID: 0003
 Revises: 0002
-Create Date: 2026-11-21 22:38:00.421550+00:00
+Create Date: 2026-11-21 22:45:13.640548+00:00
 """
 from __future__ import annotations
 
@@ -13,7 +14,6 @@ from typing import Sequence, Union
 import sqlalchemy as sa
 from alembic import op
 from sqlalchemy.dialects import postgresql
-import app.db.types
 
 revision: str = '0003'
 down_revision: Union[str, None] = '0002'
@@ -45,13 +45,35 @@ def upgrade() -> None:
     with op.batch_alter_table('systems', schema=None) as batch_op:
         batch_op.add_column(sa.Column('doubt_counts', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=False, server_default='{}'))
         batch_op.add_column(sa.Column('label_doubts', sa.Integer(), nullable=False, server_default='0'))
-        batch_op.create_index(batch_op.f('ix_systems_label_doubts'), ['label_doubts'], unique=False)
+        batch_op.add_column(sa.Column('views_total', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.add_column(sa.Column('views_calibrated', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.add_column(sa.Column('views_admitted', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.add_column(sa.Column('views_labelled', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.add_column(sa.Column('lowest_jac', sa.Double(), nullable=True))
+        batch_op.add_column(sa.Column('worst_error_px', sa.Double(), nullable=True))
+        batch_op.add_column(sa.Column('views_flagged', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.add_column(sa.Column('views_above_tau', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.add_column(sa.Column('derived_version', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.create_index('ix_systems_label_doubts_worst_error_px', ['label_doubts', 'worst_error_px'], unique=False)
+        batch_op.create_index(batch_op.f('ix_systems_lowest_jac'), ['lowest_jac'], unique=False)
+        batch_op.create_index(batch_op.f('ix_systems_worst_error_px'), ['worst_error_px'], unique=False)
 
 
 
 def downgrade() -> None:
     with op.batch_alter_table('systems', schema=None) as batch_op:
-        batch_op.drop_index(batch_op.f('ix_systems_label_doubts'))
+        batch_op.drop_index(batch_op.f('ix_systems_worst_error_px'))
+        batch_op.drop_index(batch_op.f('ix_systems_lowest_jac'))
+        batch_op.drop_index('ix_systems_label_doubts_worst_error_px')
+        batch_op.drop_column('derived_version')
+        batch_op.drop_column('views_above_tau')
+        batch_op.drop_column('views_flagged')
+        batch_op.drop_column('worst_error_px')
+        batch_op.drop_column('lowest_jac')
+        batch_op.drop_column('views_labelled')
+        batch_op.drop_column('views_admitted')
+        batch_op.drop_column('views_calibrated')
+        batch_op.drop_column('views_total')
         batch_op.drop_column('label_doubts')
         batch_op.drop_column('doubt_counts')
 
