@@ -253,9 +253,11 @@ def judge_all(inputs: Sequence[tuple[Any, list[DoubtView]]], settings: DoubtSett
 
 
 SWEEPS: dict[str, list[float]] = {
-    "consensus_tau_px": [20, 25, 30, 40, 50, 60, 80, 120],
-    "near_duplicate_max_deg": [0.5, 1, 2, 3, 5, 8],
+    "consensus_tau_px": [8, 10, 12, 15, 20, 25, 30, 40, 60, 80, 120],
+    "near_duplicate_max_deg": [0.5, 1, 2, 3, 5, 8, 12, 20],
+    "min_line_classes": [2, 3, 4, 5, 6],
     "inside_margin_px": [-40, -20, 0, 20, 40],
+    "single_view_margin_px": [0, 20, 40, 60, 100, 150],
 }
 
 

@@ -136,9 +136,16 @@ class DoubtSettings:
             distinct broadcast viewpoints at least 10 deg apart.
         inside_margin_px: the ball of the other views must project at least this far inside the image
             for ``ball_missing`` (px at 1920 width; negative lets it lie that far outside).
+        single_view_margin_px: with a single other labelled view the ball's depth along its ray is
+            uncertain (a ball in the air put on the grass moves along the epipolar line): it must
+            project at least this far inside the image for ``ball_missing`` (px at 1920 width).
         ground_box_tolerance: with a single other labelled view, the ball is put on the grass when the
             monocular depth from the box is within this relative difference of the grass depth on its
             ray (fraction; SoccerNet-v3 boxes err by about 19 % in size).
+        mirror_rig_near_m, mirror_rig_gap_m: an unflagged view is suspected mirrored when its ray meets
+            another view's only mirrored and its mirrored camera stands within ``mirror_rig_near_m`` of a
+            known camera position of the game while as labelled it stands ``mirror_rig_gap_m`` farther
+            (metres; calibrated centres of one camera scatter by about a metre).
         max_ball_height_m: highest plausible ball (metres above the grass) for a placed ball.
         min_line_classes: a view with fewer distinct line classes gets the info doubt ``few_lines`` and
             takes no part in the checks: with the game's rig, two or three classes give a camera that
@@ -151,11 +158,14 @@ class DoubtSettings:
     min_baseline_m: float = 1.0
     min_parallax_deg: float = 2.0
     ball_diameter_m: float = 0.22
-    consensus_tau_px: float = 40.0
+    consensus_tau_px: float = 25.0
     near_duplicate_max_deg: float = 3.0
     inside_margin_px: float = 0.0
+    single_view_margin_px: float = 40.0
     ground_box_tolerance: float = 0.35
     max_ball_height_m: float = 30.0
+    mirror_rig_near_m: float = 1.0
+    mirror_rig_gap_m: float = 2.0
     min_line_classes: int = 4
 
 
@@ -221,13 +231,32 @@ def _fmt(x: float | None, nd: int = 3) -> str:
 
 def _mirror_doubt(v: DoubtView) -> Doubt:
     ev = dict(v.mirror_evidence or {})
-    margin = ev.get("margin")
-    sentence = f"; margin {margin:.1f}" if isinstance(margin, (int, float)) else ""
-    return Doubt("mirrored_labels", v.view_id, f"{v.name}'s field lines look labelled left for right "
-                 f"(its camera stands where the mirrored pitch puts it{sentence}).",
-                 {k: ev[k] for k in ("verdict", "margin", "camera_y_m", "mirrored_camera_y_m", "side_vote",
-                                     "rig_vote", "sentence") if k in ev},
-                 {"action": "mirror_labels"})
+    evidence = {k: ev[k] for k in ("verdict", "margin", "camera_y_m", "mirrored_camera_y_m", "side_vote",
+                                   "rig_distance_m", "rig_distance_mirrored_m", "rig_vote", "sentence") if k in ev}
+    evidence["flagged"] = bool(v.mirror_flagged)
+    if v.mirror_flagged:
+        margin = ev.get("margin")
+        why = "the mirror evidence flags it" + (f" (margin {margin:.1f})" if isinstance(margin, (int, float)) else "")
+    else:
+        why = (f"its ball ray meets another view's only mirrored, and mirrored its camera stands "
+               f"{ev['rig_distance_mirrored_m']:.2f} m from a known camera of the game against "
+               f"{ev['rig_distance_m']:.1f} m as labelled")
+    return Doubt("mirrored_labels", v.view_id, f"{v.name}'s field lines look labelled left for right: {why}.",
+                 evidence, {"action": "mirror_labels"})
+
+
+def _mirror_suspected(v: DoubtView, s: DoubtSettings) -> bool:
+    """Not flagged, but the mirror evidence points at this view: its ball ray meets another view's only
+    when one of the two is mirrored (relation "different"), and its mirrored camera stands at a known
+    camera position of the game (within ``mirror_rig_near_m``) while as labelled it stands at least
+    ``mirror_rig_gap_m`` farther from every one. The flag itself weighs that rig vote low so that it
+    never flags alone; a doubt asks a person to look, so the pair's disagreement plus the rig suffice."""
+    ev = v.mirror_evidence or {}
+    d, dm = ev.get("rig_distance_m"), ev.get("rig_distance_mirrored_m")
+    if v.mirror_flagged or not isinstance(d, (int, float)) or not isinstance(dm, (int, float)):
+        return False
+    different = any(p.get("relation") == "different" for p in ev.get("pairs") or [])
+    return bool(different and dm <= s.mirror_rig_near_m and d >= dm + s.mirror_rig_gap_m)
 
 
 def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtSettings) -> list[Doubt]:
@@ -322,10 +351,12 @@ def _epipolar_px(labelled: DoubtView, missing: DoubtView, s: DoubtSettings, samp
 
 
 def _missing_doubt(v: DoubtView, ball: np.ndarray, s: DoubtSettings, source: str,
-                   extra: dict[str, Any]) -> Doubt | None:
-    """``ball_missing`` for an unlabelled view when ``ball`` projects inside its image, else None."""
+                   extra: dict[str, Any], margin_px: float | None = None) -> Doubt | None:
+    """``ball_missing`` for an unlabelled view when ``ball`` projects inside its image by ``margin_px``
+    (px at 1920 width; default ``inside_margin_px``), else None."""
     uv = _project(v, ball)
-    if uv is None or not _inside(v, uv, s.inside_margin_px / _scale(v, s)):
+    margin = s.inside_margin_px if margin_px is None else margin_px
+    if uv is None or not _inside(v, uv, margin / _scale(v, s)):
         return None
     box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
     if box is None:
@@ -344,9 +375,9 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
 
     1. info doubts per view (refused calibration, below admission, rig-assisted, few line classes);
     2. views that take part: calibrated, admitted, not excluded by the reviewer, with at least
-       ``min_line_classes`` line classes. A view flagged mirrored
-       gets ``mirrored_labels`` and takes no further part (its camera is the mirrored one, so its ray
-       says nothing about its ball label);
+       ``min_line_classes`` line classes. A view flagged mirrored, or suspected mirrored
+       (:func:`_mirror_suspected`), gets ``mirrored_labels`` and takes no further part (its camera is
+       the mirrored one, so its ray says nothing about its ball label, and it is not accused twice);
     3. the labelled views' robust consensus (:func:`app.geometry.consensus.ball_consensus` with
        ``consensus_tau_px``): each labelled view off a non-ambiguous consensus gets
        ``ball_off_consensus`` (fix: exclude it, or snap to the consensus ball's box); labelled views
@@ -375,8 +406,9 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
     doubts = _info_doubts(views, s)
     usable = [v for v in views if v.camera is not None and v.admitted and not v.excluded
               and v.line_classes >= s.min_line_classes]
-    doubts += [_mirror_doubt(v) for v in usable if v.mirror_flagged]
-    judged = [v for v in usable if not v.mirror_flagged]
+    mirrored = [v for v in usable if v.mirror_flagged or _mirror_suspected(v, s)]
+    doubts += [_mirror_doubt(v) for v in mirrored]
+    judged = [v for v in usable if v not in mirrored]
     labelled = [v for v in judged if _centre(v) is not None]
     unlabelled = [v for v in judged if _centre(v) is None]
     tau = max(s.consensus_tau_px, s.triangulation_tau_px)
@@ -418,7 +450,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
             for v in unlabelled:
                 src = f"of {only.name} ({'on the grass along its ray' if how == 'grass' else 'from its box size'})"
                 d = _missing_doubt(v, ball, s, src, {"agreeing_views": [only.view_id], "placed": how,
-                                                     "epipolar_px": _epipolar_px(only, v, s)})
+                                                     "epipolar_px": _epipolar_px(only, v, s)},
+                                   margin_px=s.single_view_margin_px)
                 if d is not None:
                     doubts.append(d)
     doubts += _near_duplicates(judged, cons, s)
