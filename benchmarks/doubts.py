@@ -86,8 +86,10 @@ def doubt_views_from_system(system: System) -> list[DoubtView]:
 
 
 # ----- data -------------------------------------------------------------------------------------------
-def ensure_database(shared: Path, name: str, db_dir: Path) -> str:
-    """URL of a SQLite database holding the set ``name`` imported by the service (imported when absent)."""
+def ensure_database(shared: Path, name: str, db_dir: Path, source: Path | None = None) -> str:
+    """URL of a SQLite database holding the set ``name`` imported by the service (imported when absent).
+
+    ``source``: import this SoccerNet-v3 tree instead of the whole set (a subset of its games)."""
     db_dir.mkdir(parents=True, exist_ok=True)
     path = db_dir / f"{SETS[name]}.sqlite3"
     url = f"sqlite:///{path}"
@@ -101,7 +103,7 @@ def ensure_database(shared: Path, name: str, db_dir: Path) -> str:
     try:
         with make_session_factory(engine)() as session:
             t0 = time.perf_counter()
-            import_soccernet_v3(session, shared / "data" / "synthetic" / SETS[name],
+            import_soccernet_v3(session, source or shared / "data" / "synthetic" / SETS[name],
                                 Settings(_env_file=None, database_url=tmp_url))
             print(f"imported {name} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     finally:

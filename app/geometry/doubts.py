@@ -335,18 +335,29 @@ def _single_view_ball(v: DoubtView, s: DoubtSettings) -> tuple[np.ndarray | None
     return mono, "box"
 
 
-def _epipolar_px(labelled: DoubtView, missing: DoubtView, s: DoubtSettings, samples: int = 96) -> list[list[float]]:
-    """The labelled view's ball ray seen in the missing view: pixels of the missing view (inside its
-    image), sampled from 1 m to 300 m along the ray and above the grass."""
+def _epipolar_px(labelled: DoubtView, missing: DoubtView, s: DoubtSettings, samples: int = 64) -> list[list[float]]:
+    """The labelled view's ball ray seen in the missing view: pixels of the missing view inside its image,
+    from 1 m in front of the labelled camera to where the ray meets the ball-on-grass height (or 300 m),
+    at most ``samples`` points evenly spread in depth over the stretch of the ray the view sees."""
     c = _centre(labelled)
     ray = labelled.camera.rays(c.reshape(1, 2))[0]
-    t = np.geomspace(1.0, 300.0, samples)
-    pts = labelled.camera.C + t[:, None] * ray
-    pts = pts[pts[:, 2] <= 0.0]
-    if len(pts) == 0:
+    grass = _ray_at_height(labelled.camera.C, ray, -s.ball_diameter_m / 2)
+    far = 300.0 if grass is None else min(300.0, float(np.linalg.norm(grass - labelled.camera.C)))
+    if far <= 1.0:
         return []
-    uv, ok = missing.camera.project(pts)
-    keep = ok & (uv[:, 0] >= 0) & (uv[:, 0] <= missing.width) & (uv[:, 1] >= 0) & (uv[:, 1] <= missing.height)
+    def inside(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        uv, ok = missing.camera.project(labelled.camera.C + t[:, None] * ray)
+        with np.errstate(invalid="ignore"):
+            keep = ok & (uv[:, 0] >= 0) & (uv[:, 0] <= missing.width) & (uv[:, 1] >= 0) & (uv[:, 1] <= missing.height)
+        return uv, keep
+
+    coarse = np.geomspace(1.0, far, 4 * samples)  # find the stretch of the ray that the view sees ...
+    _, keep = inside(coarse)
+    if not keep.any():
+        return []
+    idx = np.flatnonzero(keep)
+    lo, hi = coarse[max(idx[0] - 1, 0)], coarse[min(idx[-1] + 1, len(coarse) - 1)]
+    uv, keep = inside(np.linspace(lo, hi, samples))  # ... then sample it evenly
     return [[_r(x, 1), _r(y, 1)] for x, y in uv[keep]]
 
 
