@@ -17,6 +17,10 @@ Information kinds (:data:`INFO_KINDS`) say why a view does not take part, withou
 
 World frame: SoccerNet (metres, origin at the centre spot, z down). Pixels: continuous, origin at the
 top-left corner of each view's own image.
+
+Thresholds: :class:`DoubtSettings` (chosen with ``benchmarks/doubts.py``). The module has about 480
+lines because the contract, the settings and the judge's rules belong together; the robust
+consensus lives in :mod:`app.geometry.consensus`.
 """
 from __future__ import annotations
 
@@ -405,7 +409,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
         settings: thresholds (:class:`DoubtSettings`).
 
     Returns:
-        The doubts, info kinds first, then label-accusing kinds in view order.
+        The doubts: info kinds first, then ``mirrored_labels``, ``ball_off_consensus``, ``ball_missing``,
+        ``views_disagree`` and ``near_duplicate_view``.
 
     Raises:
         ValueError: duplicate view ids.

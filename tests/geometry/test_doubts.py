@@ -3,6 +3,7 @@ benchmarks/doubts.py on the synthetic dev data (skipped without ../shared)."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 
@@ -77,6 +78,7 @@ def test_a_clean_system_has_no_label_doubt_and_every_doubt_follows_the_contract(
         assert d.kind in LABEL_KINDS + INFO_KINDS
         assert d.suggestion is None or d.suggestion["action"] in SUGGESTION_ACTIONS
         assert d.message.endswith(".")
+        json.dumps(d.evidence), json.dumps(d.suggestion)  # JSON-ready
 
 
 @pytest.mark.parametrize("corrupt", ["wrong_box", "desync"])
