@@ -1,0 +1,144 @@
+"""Robust multi-view consensus of the ball: which labelled views agree on one 3D ball, and which do not.
+
+The paper's fusion (:func:`app.geometry.triangulation.triangulate_ball`) averages every pair whose
+error is below tau; one bad view then drops every pair it belongs to and, with two or three views,
+leaves no ball at all. Here each pair of views with enough geometry (baseline, parallax, in front of
+both cameras) proposes a ball (its DLT point, Hartley and Zisserman 12.2); every view votes for a
+proposal when the proposal reprojects within ``tau_px`` of its label (errors scaled to a 1920-px-wide
+image, the triangulation's ``max_scaled_1920`` units); the proposal with the most votes wins, ties
+broken by the smallest sum of the voters' errors (MSAC, Torr and Zisserman 2000, with the
+truncated-quadratic cost replaced by the vote count first). The ball is then re-triangulated from
+all voters (DLT over them) and every view's error to it is reported. For V views this costs
+V (V - 1) / 2 proposals of V reprojections: nothing for the 2 to 6 views of a broadcast system or
+an ISSIA frame.
+
+The consensus is *ambiguous* when a proposal with as many votes as the winner has a voter set
+disjoint from the winner's (two camps, e.g. two pairs of views on two different balls): the culprit
+cannot be told.
+
+World frame: SoccerNet (metres, origin at the centre spot, z down). Pixels: continuous, origin at the
+top-left corner of each view's own image.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from itertools import combinations
+from typing import Hashable, Sequence
+
+import numpy as np
+
+from app.geometry.triangulation import (REFERENCE_WIDTH_PX, BallObservation, parallax_angle_deg,
+                                        reprojection_error_px, triangulate_dlt, undistort_pixels)
+
+
+@dataclass(frozen=True)
+class Consensus:
+    """Result of :func:`ball_consensus`.
+
+    Attributes:
+        point: (3,) consensus ball centre, world metres (z down), or None (no pair of views with enough
+            geometry and an error below tau).
+        inliers: ids of the views that agree with ``point`` (input order), empty without one.
+        outliers: ids of the labelled views that do not (input order).
+        errors_1920: view id -> reprojection error of ``point`` in that view, px scaled to a
+            1920-px-wide image (None: behind the camera, or no point).
+        ambiguous: another proposal had as many votes with a disjoint voter set.
+        best_pair_error_1920: the smallest pair error among the pairs with enough geometry (px at 1920
+            width, the larger of the pair's two errors; ``inf`` when every such pair's point lies behind
+            one of its cameras), None when no pair had enough geometry.
+        support_pairs: number of pairs of views that proposed a ball both of them agree with.
+    """
+
+    point: np.ndarray | None
+    inliers: tuple[Hashable, ...]
+    outliers: tuple[Hashable, ...]
+    errors_1920: dict[Hashable, float | None]
+    ambiguous: bool
+    best_pair_error_1920: float | None
+    support_pairs: int
+
+
+def _scaled_error(o: BallObservation, point: np.ndarray) -> float | None:
+    e = reprojection_error_px(o.camera, point, o.point_px)
+    return None if e is None else e * REFERENCE_WIDTH_PX / o.image_width
+
+
+def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, min_baseline_m: float = 1.0,
+                   min_parallax_deg: float = 0.0) -> Consensus:
+    """The ball most labelled views agree on (see the module docstring), for any number of views.
+
+    Args:
+        observations: calibrated views with a ball label (unique view ids).
+        tau_px: a view agrees with a ball when its reprojection error, scaled to a 1920-px-wide image,
+            is below this (px).
+        min_baseline_m: pairs whose camera centres are closer do not propose a ball (metres).
+        min_parallax_deg: pairs whose rays meet at a smaller angle do not propose a ball (degrees).
+
+    Returns:
+        A :class:`Consensus`; ``point`` is None when no pair proposes a ball both its views agree with.
+
+    Raises:
+        ValueError: duplicate view ids or non-positive ``tau_px``.
+
+    >>> from app.geometry.camera import Camera
+    >>> cams = [Camera.from_parameters(focal_px=1500.0, principal_point=(960.0, 540.0), pan_deg=p,
+    ...                                tilt_deg=80.0, roll_deg=0.0, position_m=c)
+    ...         for p, c in ((0.0, [0, 60, -15]), (90.0, [-70, 0, -15]), (-90.0, [70, 0, -15]))]
+    >>> ball = np.array([1.0, 2.0, -0.11])
+    >>> obs = [BallObservation(i, c, c.project(ball)[0][0], 1920) for i, c in enumerate(cams)]
+    >>> obs[2] = BallObservation(2, cams[2], obs[2].point_px + [200.0, 0.0], 1920)  # a wrong label
+    >>> r = ball_consensus(obs, tau_px=20.0)
+    >>> r.inliers, r.outliers, np.round(r.point, 6).tolist()
+    ((0, 1), (2,), [1.0, 2.0, -0.11])
+    """
+    if not tau_px > 0:
+        raise ValueError(f"tau_px must be positive, got {tau_px!r}")
+    obs = list(observations)
+    ids = [o.view_id for o in obs]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"observations: view ids must be unique, got {ids!r}")
+    undist = [undistort_pixels(o.camera, o.point_px)[0] for o in obs]
+    proposals: list[tuple[int, float, frozenset[int], np.ndarray]] = []
+    best_pair: float | None = None
+    for i, j in combinations(range(len(obs)), 2):
+        a, b = obs[i], obs[j]
+        if np.linalg.norm(a.camera.C - b.camera.C) < min_baseline_m:
+            continue
+        if parallax_angle_deg(a.camera, a.point_px, b.camera, b.point_px) < min_parallax_deg:
+            continue
+        h = triangulate_dlt(np.stack([a.camera.projection_matrix, b.camera.projection_matrix]),
+                            np.stack([undist[i], undist[j]]))
+        if abs(h[3]) < 1e-12:
+            continue
+        point = h[:3] / h[3]
+        errors = [_scaled_error(o, point) for o in obs]
+        if errors[i] is None or errors[j] is None:  # the rays diverge: the pair cannot agree
+            best_pair = math.inf if best_pair is None else best_pair
+            continue
+        pair_e = max(errors[i], errors[j])
+        best_pair = pair_e if best_pair is None else min(best_pair, pair_e)
+        if not pair_e < tau_px:
+            continue
+        voters = frozenset(k for k, e in enumerate(errors) if e is not None and e < tau_px)
+        proposals.append((len(voters), sum(errors[k] for k in voters), voters, point))
+    if not proposals:
+        return Consensus(None, (), tuple(ids), {v: None for v in ids}, False, best_pair, 0)
+    proposals.sort(key=lambda p: (-p[0], p[1]))
+    n_best, _, voters, point = proposals[0]
+    ambiguous = any(n == n_best and not (v & voters) for n, _, v, _ in proposals[1:])
+    if len(voters) > 2:
+        members = sorted(voters)
+        h = triangulate_dlt(np.stack([obs[k].camera.projection_matrix for k in members]),
+                            np.stack([undist[k] for k in members]))
+        if abs(h[3]) > 1e-12:
+            refit = h[:3] / h[3]
+            errs = [_scaled_error(obs[k], refit) for k in members]
+            if all(e is not None and e < tau_px for e in errs):
+                point = refit
+    errors = {o.view_id: _scaled_error(o, point) for o in obs}
+    inliers = tuple(o.view_id for o in obs if errors[o.view_id] is not None and errors[o.view_id] < tau_px)
+    outliers = tuple(v for v in ids if v not in inliers)
+    point = np.asarray(point, float)
+    point.setflags(write=False)
+    return Consensus(point, inliers, outliers, errors, ambiguous, best_pair, len(proposals))
