@@ -3,7 +3,7 @@
 Each set is imported exactly as the service does (``import_soccernet_v3`` into a fresh, Alembic-migrated
 SQLite database with ``Settings()``: v3d's own calibration, game rig, mirror flags), once: ``--db-dir``
 keeps the databases between runs so that a sweep does not re-import. Every stored system becomes
-:class:`DoubtView` s through :func:`doubt_views_from_system` (the adapter the service will use), is
+:class:`DoubtView` s through ``app.services.doubts.doubt_views`` (the adapter the service uses), is
 judged, and the doubts are scored against the truth file beside the set, exactly as issue 6 scores them:
 
 * a corrupted system is *observable* when its corrupted view has at least 4 line classes (visible minus
@@ -60,14 +60,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import Session, selectinload  # noqa: E402
+from sqlalchemy.orm import selectinload  # noqa: E402
 
 from app.core.config import Settings  # noqa: E402
 from app.core.paths import SHARED_DIR  # noqa: E402
 from app.db.models import Frame, System  # noqa: E402
 from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.doubts import LABEL_KINDS, Doubt, DoubtSettings, DoubtView, judge_system  # noqa: E402
+from app.services.doubts import doubt_settings, doubt_views  # noqa: E402
 from app.services.importing import import_soccernet_v3  # noqa: E402
 
 SETS = {"dev-large": "soccernet-v3-dev-large", "dev": "soccernet-v3-dev"}
@@ -75,32 +75,6 @@ MIN_CLASSES = 4
 
 
 # ----- the adapter: stored rows -> DoubtView (to move into app/services) --------------------------------
-def doubt_views_from_system(system: System) -> list[DoubtView]:
-    """The judge's view of a stored system: one :class:`DoubtView` per frame, in frame order.
-
-    Reads ``Frame.calibration`` (camera JSON at the frame's resolution, ``admitted``, ``jac_0005``, flags
-    ``probably_mirrored`` and ``rig_assisted``, ``mirror_evidence``, ``reason``), ``Frame.ball_label``
-    (current box or point) and ``Frame.field_lines.lines`` (distinct classes with at least one point)."""
-    out = []
-    for f in sorted(system.frames, key=lambda f: (f.position, f.id)):
-        cal, label, lines = f.calibration, f.ball_label, f.field_lines
-        flags = set(cal.flags or []) if cal is not None else set()
-        camera = Camera.from_soccernet(cal.camera) if cal is not None and cal.camera else None
-        classes = sum(1 for pts in (lines.lines if lines is not None else {}).values() if pts)
-        out.append(DoubtView(
-            view_id=f.id, name=f.name, role=f.role.value, width=f.width, height=f.height, camera=camera,
-            admitted=bool(cal is not None and cal.admitted and camera is not None),
-            jac=None if cal is None else cal.jac_0005, line_classes=classes,
-            box=None if label is None or label.box is None else np.asarray(label.box, float),
-            point=None if label is None or label.point is None else np.asarray(label.point, float),
-            excluded=bool(getattr(f, "excluded", False)),
-            mirror_flagged="probably_mirrored" in flags,
-            mirror_evidence=None if cal is None else cal.mirror_evidence,
-            calibration_reason=None if cal is None else cal.reason,
-            rig_assisted="rig_assisted" in flags))
-    return out
-
-
 # ----- data -------------------------------------------------------------------------------------------
 def ensure_database(shared: Path, name: str, db_dir: Path, source: Path | None = None) -> str:
     """URL of a SQLite database holding the set ``name`` imported by the service (imported when absent).
@@ -136,8 +110,8 @@ def load_judged_input(url: str) -> list[tuple[tuple[str, str, str, str], list[Do
             systems = session.scalars(select(System).options(
                 selectinload(System.game), selectinload(System.frames).options(
                     selectinload(Frame.calibration), selectinload(Frame.ball_label),
-                    selectinload(Frame.field_lines)))).all()
-            return [((s.game.league, s.game.season, s.game.match, s.name), doubt_views_from_system(s))
+                    selectinload(Frame.field_lines), selectinload(Frame.review)))).all()
+            return [((s.game.league, s.game.season, s.game.match, s.name), doubt_views(s))
                     for s in systems]
     finally:
         engine.dispose()
@@ -326,7 +300,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--sweep", action=argparse.BooleanOptionalAction, default=True)
     ap.add_argument("--verbose", action="store_true", help="list misses and false alarms")
     args = ap.parse_args(argv)
-    base = DoubtSettings(**{k: v for k, v in _settings_fields().items()})
+    base = doubt_settings(Settings(_env_file=None))
     inputs, truths, report = {}, {}, {"settings": asdict(base), "sets": {}}
     for name in SETS:
         url = ensure_database(args.shared, name, args.db_dir)
@@ -363,18 +337,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         args.json.write_text(json.dumps(report, indent=2))
     return 0
-
-
-def _settings_fields() -> dict[str, Any]:
-    """DoubtSettings from the service's Settings (``doubt_<f>`` else ``<f>``), as the service maps them."""
-    s = Settings(_env_file=None)
-    out = {}
-    for f in DoubtSettings.__dataclass_fields__:
-        if hasattr(s, f"doubt_{f}"):
-            out[f] = getattr(s, f"doubt_{f}")
-        elif hasattr(s, f):
-            out[f] = getattr(s, f)
-    return out
 
 
 if __name__ == "__main__":

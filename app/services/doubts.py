@@ -57,7 +57,7 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
     flags = list(cal.flags or []) if cal is not None else []
     return DoubtView(
         view_id=frame.id, name=frame.name, role=frame.role.value, width=frame.width, height=frame.height,
-        camera=camera if calibrated else None, admitted=bool(cal is not None and cal.admitted),
+        camera=camera if calibrated else None, admitted=bool(calibrated and cal.admitted),  # type: ignore[union-attr]
         jac=cal.jac_0005 if cal is not None else None,
         line_classes=sum(1 for polys in lines.values() if polys), box=box, point=point,
         excluded=is_excluded(frame), mirror_flagged=MIRROR_FLAG in flags,

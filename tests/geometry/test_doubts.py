@@ -201,9 +201,9 @@ def test_the_consensus_is_general_for_n_views_and_ambiguous_between_two_camps():
 
 
 def test_settings_defaults_are_the_doubt_settings_defaults():
-    s = Settings(_env_file=None)
-    mapped = {f: getattr(s, f"doubt_{f}", getattr(s, f, None)) for f in DoubtSettings.__dataclass_fields__}
-    assert DoubtSettings(**mapped) == DoubtSettings()
+    from app.services.doubts import doubt_settings
+
+    assert doubt_settings(Settings(_env_file=None)) == DoubtSettings()
 
 
 # ----- the benchmark on the synthetic dev data --------------------------------------------------------------
