@@ -31,7 +31,7 @@ import io
 import json
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -383,11 +383,15 @@ class CameraChoice:
     reason: str | None = None
 
 
-def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_min: float = 0.75) -> dict[str, CameraChoice]:
+def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_min: float = 0.75,
+                     ball_assist: bool = True) -> dict[str, CameraChoice]:
     """One camera per id: ``issia_calibration.json`` when present (as in the paper), unless
     ``from_lines`` or it is absent; then each static camera is calibrated once from its field lines
     (:func:`app.geometry.calibration.calibrate_frame`) and admitted when JaC@0.5 % > ``admit_jac_min``
     (the paper's admission rule); a refused or not admitted camera has ``camera=None`` and a reason.
+    With ``ball_assist`` and two or more admitted cameras, each refused camera is calibrated again
+    from the ball trajectory of the admitted ones and its own labels (source ``"lines+ball"``,
+    :mod:`app.geometry.static_cameras`; admitted by the same JaC rule against its lines).
 
     Raises:
         DatasetError: ``from_lines`` without ``issia_lines.json``.
@@ -413,4 +417,30 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
             out[cid] = CameraChoice(None, "lines", jac, f"JaC@0.5% {jac} not above {admit_jac_min}")
         else:
             out[cid] = CameraChoice(res.camera, "lines", jac)
+    refused = [c for c in seq.camera_ids if out[c].camera is None and c in seq.lines]
+    if ball_assist and refused and sum(out[c].camera is not None for c in seq.camera_ids) >= 2:
+        out.update(_ball_assisted(seq, out, refused, admit_jac_min))
+    return out
+
+
+def _ball_assisted(seq: IssiaSequence, choice: dict[str, CameraChoice], refused: list[str],
+                   admit_jac_min: float) -> dict[str, CameraChoice]:
+    """Calibrate refused static cameras from the trajectory of the admitted ones
+    (:func:`app.geometry.static_cameras.calibrate_with_ball`)."""
+    from app.geometry.static_cameras import calibrate_with_ball
+    from app.geometry.trajectory import fit_trajectory
+
+    pts = seq.dense_points()
+    cams = [choice[c].camera for c in seq.camera_ids]
+    fit = fit_trajectory(pts, cams, [seq.image_size[0]] * len(cams), FPS)
+    out = {}
+    for cid in refused:
+        k = seq.camera_ids.index(cid)
+        sel = np.all(np.isfinite(pts[:, k]), axis=1) & np.all(np.isfinite(fit.positions), axis=1)
+        cam, jac = calibrate_with_ball(seq.lines[cid], fit.positions[sel], pts[sel, k], *seq.image_size,
+                                       admit_jac_min=admit_jac_min)
+        if cam is not None:
+            out[cid] = CameraChoice(cam, "lines+ball", jac)
+        elif jac is not None:
+            out[cid] = replace(choice[cid], reason=f"{choice[cid].reason}; with the ball's trajectory JaC@0.5% {jac}")
     return out
