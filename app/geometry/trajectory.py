@@ -6,7 +6,8 @@ to every label of every camera at once (reprojection residuals in pixels, robust
 
 * ``flight``: ``p(t) = p0 + v0 t + (0, 0, g t^2 / 2)``, ``g = 9.81 m/s^2`` (z points down);
 * ``roll``: the ball on the grass, centre at ``z = -r`` (:data:`BALL_RADIUS_M`), horizontal
-  ``p(t) = p0 + v0 t + a t^2 / 2`` (``a`` the rolling deceleration, fitted).
+  ``p(t) = p0 + v0 t + a t^2 / 2`` (``a`` the rolling deceleration, fitted) until it stops
+  (``t_stop = -(v0 . a) / |a|^2`` when it decelerates), then at rest.
 
 A *piece* is a stretch of frames under one model with its own 6 parameters. Breaks between pieces
 are kicks and bounces (a bounce keeps the horizontal velocity and scales the vertical one by the
@@ -31,7 +32,8 @@ per-label residual and outlier flag (frame, camera) and the frame's own triangul
 labels the trajectory keeps. :func:`refit_window` re-fits only the pieces an edit touches.
 
 World: SoccerNet metres, origin at the centre spot, z down. Image: continuous pixels, origin at
-the top-left corner. Pure: numpy and scipy only.
+the top-left corner. Pure: numpy and scipy only. (A little over 400 lines: the model, its
+segmentation and the per-frame assembly share the private label table and belong together.)
 """
 from __future__ import annotations
 
@@ -57,6 +59,9 @@ DEFAULT_BREAK_PX = 10.0
 DEFAULT_TAU_PX = 20.0
 _CAUCHY_PX = 3.0
 _MIN_FRAMES = 4
+#: A roll is chosen over a flight unless the flight's robust cost is lower by more than this per label (px^2):
+#: label noise alone costs about 1 px^2 per label, so smaller gains are noise.
+_ROLL_PREFERENCE_PX2 = 1.0
 _CONFIRM = 3
 _SHIFT = 3
 
@@ -143,12 +148,19 @@ class Piece:
         t = (np.asarray(frames, float) - self.first_frame) / fps
         return _positions(self.kind, self.params, t)
 
+    @property
+    def stop_s(self) -> float:
+        """Roll: seconds after ``first_frame`` at which the ball stops (``inf`` if it does not)."""
+        return _stop_time(self.kind, self.params)
+
     def velocity(self, frame: float, fps: float) -> np.ndarray:
         """(3,) velocity at ``frame``, m/s."""
         t = (frame - self.first_frame) / fps
         q = self.params
         if self.kind == "flight":
             return np.array([q[3], q[4], q[5] + GRAVITY_M_S2 * t])
+        if t >= self.stop_s:
+            return np.zeros(3)
         return np.array([q[2] + q[4] * t, q[3] + q[5] * t, 0.0])
 
 
@@ -171,8 +183,14 @@ def _basis(kind: str, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return B, c
 
 
+def _stop_time(kind: str, q: np.ndarray) -> float:
+    """A decelerating roll stops when its speed along ``v0`` vanishes: ``-(v0 . a) / |a|^2``, then stays."""
+    va = float(q[2:4] @ q[4:6]) if kind == "roll" else 0.0
+    return -va / float(q[4:6] @ q[4:6]) if va < 0 else np.inf
+
+
 def _positions(kind: str, q: np.ndarray, t: np.ndarray) -> np.ndarray:
-    B, c = _basis(kind, np.atleast_1d(t))
+    B, c = _basis(kind, np.minimum(np.atleast_1d(t), _stop_time(kind, q)))
     return B @ q + c
 
 
@@ -205,25 +223,26 @@ class _Labels:
 def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine: bool) -> tuple[np.ndarray, float]:
     """Fit one model to labels ``idx``; returns (params (6,), robust cost)."""
     t = (L.frame[idx] - first) / fps
-    B, c = _basis(kind, t)
     rows = L.R[idx][:, :2, :] - L.xy[idx][:, :, None] * L.R[idx][:, 2:3, :]  # (n, 2, 3)
-    A = np.einsum("nrj,njk->nrk", rows, B)  # (n, 2, 6)
-    b = np.einsum("nrj,nj->nr", rows, L.C[idx] - c)
     depth = np.linalg.norm(L.C[idx], axis=1)
     w = np.ones(len(idx))
     q = np.zeros(6)
     for _ in range(6):
+        # a roll that stops inside the piece: times after the stop are held at the stop (linear given it)
+        B, c = _basis(kind, np.minimum(t, _stop_time(kind, q)))
+        A = np.einsum("nrj,njk->nrk", rows, B)  # (n, 2, 6)
+        b = np.einsum("nrj,nj->nr", rows, L.C[idx] - c)
         s = (np.sqrt(w) * L.scale[idx] / depth)[:, None]
         q = np.linalg.lstsq((A * s[:, :, None]).reshape(-1, 6), (b * s).reshape(-1), rcond=None)[0]
-        pos = B @ q + c
+        pos = _positions(kind, q, t)
         depth = np.maximum(np.einsum("nj,nj->n", L.R[idx][:, 2, :], pos - L.C[idx]), 0.5)
         e = np.linalg.norm(L.residuals(idx, pos), axis=1)
         w = 1.0 / (1.0 + (e / _CAUCHY_PX) ** 2)
     if refine:
         def fun(qq):
-            return L.residuals(idx, B @ qq + c).reshape(-1)
+            return L.residuals(idx, _positions(kind, qq, t)).reshape(-1)
         q = least_squares(fun, q, loss="cauchy", f_scale=_CAUCHY_PX, method="trf", x_scale="jac").x
-    e = np.linalg.norm(L.residuals(idx, B @ q + c), axis=1)
+    e = np.linalg.norm(L.residuals(idx, _positions(kind, q, t)), axis=1)
     return q, float(np.sum(_CAUCHY_PX ** 2 * np.log1p((e / _CAUCHY_PX) ** 2)))
 
 
@@ -232,12 +251,11 @@ def _best_piece(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[in
     idx = np.concatenate([by_frame[f] for f in frames])
     first, last = int(frames[0]), int(frames[-1])
     kinds = KINDS if len(frames) >= 3 else ("flight",)
-    best = None
-    for kind in kinds:
-        q, cost = _fit(L, idx, kind, first, fps, refine)
-        if best is None or cost < best.cost:
-            best = Piece(kind, first, last, q, cost)
-    return best
+    fits = {kind: _fit(L, idx, kind, first, fps, refine) for kind in kinds}
+    kind = min(fits, key=lambda k: fits[k][1])
+    if "roll" in fits and fits["roll"][1] <= fits["flight"][1] + _ROLL_PREFERENCE_PX2 * len(idx):
+        kind = "roll"  # within noise of each other (e.g. one camera): the ball on the grass, the common case
+    return Piece(kind, first, last, fits[kind][0], fits[kind][1])
 
 
 def _frame_bad(L: _Labels, by_frame, piece: Piece, frame: int, fps: float, break_px: float) -> bool:
@@ -287,7 +305,7 @@ def _shift_bounds(L, by_frame, frames, fps, bounds):
     """Move each boundary between consecutive pieces by up to ``_SHIFT`` frames to the lowest cost."""
     bounds = list(bounds)
     for b in range(1, len(bounds)):
-        (a0, a1), (b0, b1) = bounds[b - 1], bounds[b]
+        (a0, a1), (_, b1) = bounds[b - 1], bounds[b]
         best = None
         for cut in range(max(a0 + 1, a1 - _SHIFT), min(b1 - 1, a1 + _SHIFT) + 1):
             cost = (_best_piece(L, by_frame, frames[a0:cut], fps).cost
@@ -313,7 +331,8 @@ class TrajectoryFit:
         outliers: (F, K) True for a label whose residual is above ``flag_px`` (it breaks the
             trajectory; a ``ball_off_consensus`` doubt).
         ball_3d: (F, 3) the frame's own triangulation from its kept labels (NaN with fewer than two).
-        cam_lists: per frame the camera indices (0-based) of ``ball_3d``, ascending.
+        cam_lists: per frame the camera indices (0-based) of the labels the frame keeps, ascending:
+            those of ``ball_3d`` when it exists, else the labels the trajectory does not flag.
     """
 
     fps: float
@@ -420,7 +439,7 @@ def _assemble(pts, cameras, widths, fps, L, pieces, flag_px, tau_px) -> Trajecto
         keep = [k for k in range(K) if np.isfinite(residuals[f, k]) and not outliers[f, k]]
         tri = triangulate_frame([BallObservation(k, cameras[k], pts[f, k], widths[k]) for k in keep],
                                 tau_px=tau_px) if len(keep) >= 2 else FrameTriangulation(None, (), {})
-        kept = tuple(sorted(tri.kept))
+        kept = tuple(sorted(tri.kept)) if tri.point is not None else tuple(keep)
         if tri.point is not None:
             ball[f] = tri.point
         cam_lists.append(kept)
