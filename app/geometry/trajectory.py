@@ -258,10 +258,13 @@ def _best_piece(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[in
     return Piece(kind, first, last, fits[kind][0], fits[kind][1])
 
 
-def _frame_bad(L: _Labels, by_frame, piece: Piece, frame: int, fps: float, break_px: float) -> bool:
+def _frame_bad(L: _Labels, by_frame, piece: Piece, frame: int, fps: float, break_px: float,
+               worst: bool = False) -> bool:
+    """Every label of ``frame`` (or, with ``worst``, any label) is further than ``break_px`` from ``piece``."""
     idx = by_frame[frame]
     pos = np.repeat(piece.position([frame], fps), len(idx), axis=0)
-    return bool(np.min(np.linalg.norm(L.residuals(idx, pos), axis=1)) > break_px)
+    e = np.linalg.norm(L.residuals(idx, pos), axis=1)
+    return bool((np.max(e) if worst else np.min(e)) > break_px)
 
 
 def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int], fps: float,
@@ -286,19 +289,40 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
         bounds.append((i, j))
         i = j
     bounds = _shift_bounds(L, by_frame, frames, fps, bounds)
-    for _ in range(2):  # frames at a piece's ends that it does not explain form their own piece
+    for _ in range(3):  # frames at a piece's ends that it does not explain form their own piece
         split = []
         for a, b in bounds:
             piece = _best_piece(L, by_frame, frames[a:b], fps)
             bad = [_frame_bad(L, by_frame, piece, f, fps, break_px) for f in frames[a:b]]
             head = next((i for i, x in enumerate(bad) if not x), len(bad))
             tail = next((i for i, x in enumerate(bad[::-1]) if not x), len(bad))
-            cuts = sorted({a, b, *(c for c in (a + head, b - tail) if a < c < b)})
+            cuts = {a, b, *(c for c in (a + head, b - tail) if a < c < b)}
+            # inside: three frames in a row each with a label off the model (one wrong label is alone)
+            off = [_frame_bad(L, by_frame, piece, f, fps, break_px, worst=True) for f in frames[a:b]]
+            run = _bad_run(off[head:len(off) - tail])
+            if run is not None:  # a kick the growth missed (a small change of velocity): best cut near it
+                r0 = a + head + run
+                options = range(max(a + 2, r0 - 2 * _SHIFT), min(b - 2, r0 + _SHIFT) + 1)
+                costs = [(_best_piece(L, by_frame, frames[a:c], fps).cost
+                          + _best_piece(L, by_frame, frames[c:b], fps).cost, c) for c in options]
+                if costs:
+                    cuts.add(min(costs)[1])
+            cuts = sorted(cuts)
             split += list(zip(cuts[:-1], cuts[1:]))
         if len(split) == len(bounds):
             break
         bounds = _shift_bounds(L, by_frame, frames, fps, split)
     return [_best_piece(L, by_frame, frames[a:b], fps, refine=True) for a, b in bounds if b > a]
+
+
+def _bad_run(bad: list[bool]) -> int | None:
+    """Index of the first run of ``_CONFIRM`` consecutive bad frames, or ``None``."""
+    count = 0
+    for i, x in enumerate(bad):
+        count = count + 1 if x else 0
+        if count == _CONFIRM:
+            return i - _CONFIRM + 1
+    return None
 
 
 def _shift_bounds(L, by_frame, frames, fps, bounds):
