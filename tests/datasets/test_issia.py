@@ -160,3 +160,12 @@ def test_issue_figures_on_issia_dev(issia_dev, from_lines, tmp_path):
     errs = [r.per_camera[c][2] for r in with_ball for c in r.cam_list]
     assert np.median(errs) < 2.0  # px: the kept labels agree with their frame's ball
     assert all(r.per_camera[c][3] > 0 for r in with_ball for c in r.cam_list)  # optimised box diameter
+
+
+@pytest.mark.shared
+def test_dev_video_frames_come_at_annotation_scale(issia_dev):
+    seq, _ = issia_dev
+    assert sorted(seq.media) == list(seq.camera_ids) and seq.media["3"].suffix == ".mp4"
+    native = read_frame_image(seq, "3", 100, at_annotation_size=False)
+    assert native.image.shape == (540, 960, 3) and native.scale == (2.0, 2.0)  # 960x540 video, 1920x1080 labels
+    assert read_frame_image(seq, "3", 100).image.shape == (1080, 1920, 3)
