@@ -1,0 +1,1 @@
+"""Readers of dataset formats: files -> validated plain records; no database."""

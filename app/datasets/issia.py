@@ -1,0 +1,310 @@
+"""ISSIA-3D: a folder of six synchronised static cameras -> validated plain records; ISSIA-3D.csv rows.
+
+Folder (method.md section 9, issue 9):
+
+* ``issia_calibration.json``: camera id -> SoccerNet camera (method.md section 2), and/or
+  ``issia_lines.json``: camera id -> field lines in SoccerNet-calibration format (normalised);
+* ``ball_points.csv``: ``frame, x_cam1, y_cam1, ..., x_cam6, y_cam6``; an empty cell is no label;
+  pixels of the annotation resolution (1920x1080 unless told);
+* optionally ``videos/cam<k>.mp4`` or frame folders ``frames/cam<k>/`` (images named by frame
+  number), read on demand (:func:`read_frame_image`). Videos may have another resolution than the
+  annotation: the image is resized to the annotation resolution, or its scale is reported.
+* a per-camera horizontal flip (footage that is mirrored relative to the annotation) is given by
+  the caller (``flipped_cameras``) and applied to images, never to the labels.
+
+A sequence is one game; a multi-view system is one frame index across the cameras; frame ``i`` is
+at ``t = i / fps``. Errors name the file and the field (:class:`app.services.errors.DatasetError`).
+
+``ISSIA-3D.csv`` rows are read and written by :mod:`app.datasets.issia3d`. Cameras 3-6 are the
+training set and 1-2 the test set, as in the paper (:data:`CAMERA_SET`).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from app.geometry.annotations import AnnotationError, FieldLines, from_soccernet_calibration
+from app.geometry.camera import Camera
+from app.services.errors import DatasetError
+
+CAMERA_IDS = ("1", "2", "3", "4", "5", "6")
+CAMERA_SET = {"1": "test", "2": "test", "3": "train", "4": "train", "5": "train", "6": "train"}
+ANNOTATION_SIZE = (1920, 1080)
+FPS = 25.0
+CALIBRATION_FILE, LINES_FILE, POINTS_FILE = "issia_calibration.json", "issia_lines.json", "ball_points.csv"
+_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+
+
+@dataclass(frozen=True)
+class IssiaSequence:
+    """A validated ISSIA folder.
+
+    Attributes:
+        root: the folder.
+        camera_ids: camera ids in ``ball_points.csv`` column order ("1".."6").
+        image_size: (width, height) of the annotation, px.
+        cameras: id -> :class:`Camera` from ``issia_calibration.json`` (empty when absent).
+        lines: id -> :data:`FieldLines` (px of ``image_size``) from ``issia_lines.json`` (empty when absent).
+        frames: frame indices of ``ball_points.csv`` rows, ascending.
+        points: (len(frames), K, 2) labels, px of ``image_size``; NaN where the cell is empty.
+        media: id -> video file or frame folder (only those that exist).
+        flipped: ids whose footage is mirrored horizontally relative to the annotation.
+    """
+
+    root: Path
+    camera_ids: tuple[str, ...]
+    image_size: tuple[int, int]
+    cameras: dict[str, Camera]
+    lines: dict[str, FieldLines]
+    frames: tuple[int, ...]
+    points: np.ndarray
+    media: dict[str, Path] = field(default_factory=dict)
+    flipped: frozenset[str] = frozenset()
+
+    def point(self, frame: int, camera_id: str) -> tuple[float, float] | None:
+        """The label of ``camera_id`` at ``frame`` (px), or ``None`` when empty."""
+        p = self.points[self.frames.index(frame), self.camera_ids.index(camera_id)]
+        return None if not np.all(np.isfinite(p)) else (float(p[0]), float(p[1]))
+
+    def dense_points(self) -> np.ndarray:
+        """(max frame + 1, K, 2) labels indexed by frame number (NaN rows for absent frames)."""
+        out = np.full((self.frames[-1] + 1 if self.frames else 0, len(self.camera_ids), 2), np.nan)
+        out[list(self.frames)] = self.points
+        return out
+
+
+def read_issia(root: str | Path, *, image_size: tuple[int, int] = ANNOTATION_SIZE,
+               flipped_cameras: Iterable[str] = ()) -> IssiaSequence:
+    """Read and validate an ISSIA folder (module docstring); nothing is computed.
+
+    Raises:
+        DatasetError: missing folder or files, malformed JSON, a camera or line set that does not
+            parse, a CSV whose header or cells are wrong (the message names file, row and column).
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise DatasetError(root, None, "not a folder")
+    w, h = image_size
+    cal_path, lines_path, pts_path = root / CALIBRATION_FILE, root / LINES_FILE, root / POINTS_FILE
+    if not cal_path.is_file() and not lines_path.is_file():
+        raise DatasetError(root, None, f"needs {CALIBRATION_FILE} or {LINES_FILE}")
+    if not pts_path.is_file():
+        raise DatasetError(pts_path, None, "missing")
+    camera_ids, frames, points = _read_points(pts_path)
+    cameras: dict[str, Camera] = {}
+    for cid, data in _read_json_object(cal_path).items() if cal_path.is_file() else ():
+        try:
+            cameras[cid] = Camera.from_soccernet(data)
+        except (ValueError, TypeError, KeyError) as exc:
+            raise DatasetError(cal_path, cid, f"not a SoccerNet camera: {exc}") from exc
+    lines: dict[str, FieldLines] = {}
+    for cid, data in _read_json_object(lines_path).items() if lines_path.is_file() else ():
+        try:
+            lines[cid] = from_soccernet_calibration(data, w, h)
+        except AnnotationError as exc:
+            raise DatasetError(lines_path, cid, str(exc)) from exc
+    for name, table, path in (("calibration", cameras, cal_path), ("lines", lines, lines_path)):
+        unknown = sorted(set(table) - set(camera_ids))
+        if unknown:
+            raise DatasetError(path, unknown[0], f"camera id not among the {POINTS_FILE} columns {list(camera_ids)}")
+    flipped = frozenset(str(c) for c in flipped_cameras)
+    if flipped - set(camera_ids):
+        raise DatasetError(root, "flipped_cameras", f"unknown camera ids {sorted(flipped - set(camera_ids))}")
+    media = {}
+    for cid in camera_ids:
+        for cand in (root / "videos" / f"cam{cid}.mp4", root / "frames" / f"cam{cid}"):
+            if cand.exists():
+                media[cid] = cand
+                break
+    return IssiaSequence(root, camera_ids, (int(w), int(h)), cameras, lines, frames, points, media, flipped)
+
+
+def _read_json_object(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DatasetError(path, None, f"not readable JSON: {exc}") from exc
+    if not isinstance(data, dict):
+        raise DatasetError(path, None, "must be a JSON object of camera id -> value")
+    return {str(k): v for k, v in data.items()}
+
+
+def _read_points(path: Path) -> tuple[tuple[str, ...], tuple[int, ...], np.ndarray]:
+    try:
+        rows = list(csv.reader(io.StringIO(path.read_text(encoding="utf-8"))))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise DatasetError(path, None, f"not a readable CSV: {exc}") from exc
+    if not rows:
+        raise DatasetError(path, None, "empty file")
+    header = [c.strip() for c in rows[0]]
+    ids = []
+    if not header or header[0] != "frame" or len(header) < 3 or len(header) % 2 == 0:
+        raise DatasetError(path, "header", "expected frame, x_cam1, y_cam1, ...")
+    for i in range(1, len(header), 2):
+        mx, my = re.fullmatch(r"x_cam(\w+)", header[i]), re.fullmatch(r"y_cam(\w+)", header[i + 1])
+        if not mx or not my or mx.group(1) != my.group(1):
+            raise DatasetError(path, "header", f"columns {header[i]!r}, {header[i + 1]!r} are not x_camK, y_camK")
+        ids.append(mx.group(1))
+    if len(set(ids)) != len(ids):
+        raise DatasetError(path, "header", f"camera ids repeat: {ids}")
+    frames, pts = [], []
+    for n, row in enumerate(rows[1:], start=2):
+        if not any(c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise DatasetError(path, f"row {n}", f"{len(row)} cells, header has {len(header)}")
+        try:
+            frame = int(row[0])
+        except ValueError:
+            raise DatasetError(path, f"row {n} frame", f"not an integer: {row[0]!r}") from None
+        if frame < 0 or (frames and frame <= frames[-1]):
+            raise DatasetError(path, f"row {n} frame", f"{frame} is negative or not after {frames[-1] if frames else ''}")
+        p = np.full((len(ids), 2), np.nan)
+        for k, cid in enumerate(ids):
+            x, y = row[1 + 2 * k].strip(), row[2 + 2 * k].strip()
+            if bool(x) != bool(y):
+                raise DatasetError(path, f"row {n} x_cam{cid}/y_cam{cid}", "one coordinate without the other")
+            if x:
+                try:
+                    p[k] = float(x), float(y)
+                except ValueError:
+                    raise DatasetError(path, f"row {n} cam{cid}", f"not numbers: {x!r}, {y!r}") from None
+                if not np.all(np.isfinite(p[k])):
+                    raise DatasetError(path, f"row {n} cam{cid}", "not finite")
+        frames.append(frame)
+        pts.append(p)
+    return tuple(ids), tuple(frames), np.array(pts).reshape(len(frames), len(ids), 2)
+
+
+@dataclass(frozen=True)
+class FrameImage:
+    """An image of one camera at one frame.
+
+    Attributes:
+        image: (H, W, 3) uint8 BGR, flipped back when the camera's footage is mirrored.
+        scale: (sx, sy) that turn this image's pixels into annotation pixels (1.0 after resizing).
+    """
+
+    image: np.ndarray
+    scale: tuple[float, float]
+
+
+def read_frame_image(seq: IssiaSequence, camera_id: str, frame: int, *, at_annotation_size: bool = True) -> FrameImage:
+    """Read ``frame`` of ``camera_id`` from its video (seek) or frame folder, with OpenCV.
+
+    Args:
+        at_annotation_size: resize to ``seq.image_size`` (scale 1); otherwise the native image and
+            the scale from its pixels to annotation pixels (e.g. 2.0 for a 960x540 video).
+
+    Raises:
+        DatasetError: no media for the camera, or the frame cannot be read.
+    """
+    import cv2
+
+    src = seq.media.get(camera_id)
+    if src is None:
+        raise DatasetError(seq.root, f"cam{camera_id}", "no video or frame folder")
+    if src.is_dir():
+        named = {int(m.group(1)): p for p in src.iterdir()
+                 if p.suffix.lower() in _IMAGE_SUFFIXES and (m := re.search(r"(\d+)$", p.stem))}
+        img = cv2.imread(str(named[frame])) if frame in named else None
+    else:
+        cap = cv2.VideoCapture(str(src))
+        try:
+            cap.set(cv2.CAP_PROP_POS_FRAMES, int(frame))
+            ok, img = cap.read()
+        finally:
+            cap.release()
+        img = img if ok else None
+    if img is None:
+        raise DatasetError(src, f"frame {frame}", "cannot be read")
+    if camera_id in seq.flipped:
+        img = cv2.flip(img, 1)
+    w, h = seq.image_size
+    if at_annotation_size:
+        if img.shape[1] != w or img.shape[0] != h:
+            img = cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR)
+        return FrameImage(img, (1.0, 1.0))
+    return FrameImage(img, (w / img.shape[1], h / img.shape[0]))
+
+
+@dataclass(frozen=True)
+class CameraChoice:
+    """The camera a sequence uses for one id: ``camera`` (``None`` when not usable), where it came
+    from (``"calibration_json"`` or ``"lines"``), JaC@0.5 % against its lines when calibrated from
+    them, and why it is not used (``None`` when used)."""
+
+    camera: Camera | None
+    source: str
+    jac: float | None = None
+    reason: str | None = None
+
+
+def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_min: float = 0.75,
+                     ball_assist: bool = True) -> dict[str, CameraChoice]:
+    """One camera per id: ``issia_calibration.json`` when present (as in the paper), unless
+    ``from_lines`` or it is absent; then each static camera is calibrated once from its field lines
+    (:func:`app.geometry.calibration.calibrate_frame`) and admitted when JaC@0.5 % > ``admit_jac_min``
+    (the paper's admission rule); a refused or not admitted camera has ``camera=None`` and a reason.
+    With ``ball_assist`` and two or more admitted cameras, each refused camera is calibrated again
+    from the ball trajectory of the admitted ones and its own labels (source ``"lines+ball"``,
+    :mod:`app.geometry.static_cameras`; admitted by the same JaC rule against its lines).
+
+    Raises:
+        DatasetError: ``from_lines`` without ``issia_lines.json``.
+    """
+    from app.geometry.calibration import calibrate_frame
+
+    if seq.cameras and not from_lines:
+        return {cid: CameraChoice(seq.cameras.get(cid), "calibration_json",
+                                  reason=None if cid in seq.cameras else "not in issia_calibration.json")
+                for cid in seq.camera_ids}
+    if not seq.lines:
+        raise DatasetError(seq.root / LINES_FILE, None, "missing: cannot calibrate from lines")
+    out = {}
+    for cid in seq.camera_ids:
+        if cid not in seq.lines:
+            out[cid] = CameraChoice(None, "lines", reason="no field lines")
+            continue
+        res = calibrate_frame(seq.lines[cid], *seq.image_size)
+        jac = res.jac.get("0.005") if res.jac else None
+        if res.camera is None:
+            out[cid] = CameraChoice(None, "lines", None, f"refused: {res.reason}")
+        elif jac is None or not jac > admit_jac_min:
+            out[cid] = CameraChoice(None, "lines", jac, f"JaC@0.5% {jac} not above {admit_jac_min}")
+        else:
+            out[cid] = CameraChoice(res.camera, "lines", jac)
+    refused = [c for c in seq.camera_ids if out[c].camera is None and c in seq.lines]
+    if ball_assist and refused and sum(out[c].camera is not None for c in seq.camera_ids) >= 2:
+        out.update(_ball_assisted(seq, out, refused, admit_jac_min))
+    return out
+
+
+def _ball_assisted(seq: IssiaSequence, choice: dict[str, CameraChoice], refused: list[str],
+                   admit_jac_min: float) -> dict[str, CameraChoice]:
+    """Calibrate refused static cameras from the trajectory of the admitted ones
+    (:func:`app.geometry.static_cameras.calibrate_with_ball`)."""
+    from app.geometry.static_cameras import calibrate_with_ball
+    from app.geometry.trajectory import fit_trajectory
+
+    pts = seq.dense_points()
+    cams = [choice[c].camera for c in seq.camera_ids]
+    fit = fit_trajectory(pts, cams, [seq.image_size[0]] * len(cams), FPS)
+    out = {}
+    for cid in refused:
+        k = seq.camera_ids.index(cid)
+        sel = np.all(np.isfinite(pts[:, k]), axis=1) & np.all(np.isfinite(fit.positions), axis=1)
+        cam, jac = calibrate_with_ball(seq.lines[cid], fit.positions[sel], pts[sel, k], *seq.image_size,
+                                       admit_jac_min=admit_jac_min)
+        if cam is not None:
+            out[cid] = CameraChoice(cam, "lines+ball", jac)
+        elif jac is not None:
+            out[cid] = replace(choice[cid], reason=f"{choice[cid].reason}; with the ball's trajectory JaC@0.5% {jac}")
+    return out

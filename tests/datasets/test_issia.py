@@ -1,0 +1,171 @@
+"""ISSIA folder reader, frame images, ISSIA-3D.csv both ways, and the issue's figures on ../shared issia-dev."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from app.datasets.issia import read_frame_image, read_issia, sequence_cameras
+from app.datasets.issia3d import ISSIA3D_COLUMNS, Issia3DRow, issia3d_rows, read_issia3d_csv, write_issia3d_csv
+from app.geometry.camera import Camera
+from app.services.errors import DatasetError
+
+
+def _camera(x: float, y: float) -> Camera:
+    return Camera.from_parameters(focal_px=2000.0, principal_point=(960.0, 540.0), pan_deg=0.0, tilt_deg=80.0,
+                                  roll_deg=0.0, position_m=[x, y, -10.0])
+
+
+HEADER = "frame," + ",".join(f"x_cam{k},y_cam{k}" for k in range(1, 7))
+
+
+def make_folder(tmp: Path, csv_text: str | None = None, cameras=(1, 2, 3, 4, 5, 6)) -> Path:
+    tmp.mkdir(parents=True, exist_ok=True)
+    cal = {str(k): _camera(-20 + 8 * k, 60 + k).to_soccernet() for k in cameras}
+    (tmp / "issia_calibration.json").write_text(json.dumps(cal))
+    if csv_text is None:
+        csv_text = HEADER + "\n0,,,,,980.5,326.0,1056.9,338.6,,,,\n1,,,,,995.3,327.4,1038.9,336.7,,,12.0,13.0\n"
+    (tmp / "ball_points.csv").write_text(csv_text)
+    return tmp
+
+
+def test_reads_folder_into_records(tmp_path):
+    seq = read_issia(make_folder(tmp_path))
+    assert seq.camera_ids == ("1", "2", "3", "4", "5", "6") and seq.frames == (0, 1)
+    assert seq.point(0, "3") == (980.5, 326.0) and seq.point(0, "1") is None and seq.point(1, "6") == (12.0, 13.0)
+    assert seq.points.shape == (2, 6, 2)
+    assert set(seq.cameras) == set(seq.camera_ids) and seq.lines == {} and seq.media == {}
+    assert sequence_cameras(seq)["4"].source == "calibration_json"
+
+
+@pytest.mark.parametrize("text, field", [
+    ("frame,x_cam1,y_cam1,x_cam2\n0,1,2,3\n", "header"),
+    ("frame,x_cam1,y_cam2\n0,1,2\n", "header"),
+    (HEADER + "\n0,1.0,,,,,,,,,,,\n", "row 2 x_cam1/y_cam1"),
+    (HEADER + "\nzero,,,,,,,,,,,,\n", "row 2 frame"),
+    (HEADER + "\n0,a,b,,,,,,,,,,\n", "row 2 cam1"),
+    (HEADER + "\n0,,,,,,,,,,,\n", "row 2"),
+    (HEADER + "\n3,,,,,,,,,,,,\n2,,,,,,,,,,,,\n", "row 3 frame"),
+])
+def test_malformed_points_csv_names_file_and_field(tmp_path, text, field):
+    with pytest.raises(DatasetError) as exc:
+        read_issia(make_folder(tmp_path, text))
+    assert exc.value.field == field and "ball_points.csv" in str(exc.value)
+
+
+def test_missing_and_unknown_cameras(tmp_path):
+    seq = read_issia(make_folder(tmp_path / "a", cameras=(1, 2, 3, 4, 5)))
+    choice = sequence_cameras(seq)
+    assert choice["6"].camera is None and "not in issia_calibration.json" in choice["6"].reason
+    folder = make_folder(tmp_path / "b")
+    cal = json.loads((folder / "issia_calibration.json").read_text())
+    cal["7"] = cal["1"]
+    (folder / "issia_calibration.json").write_text(json.dumps(cal))
+    with pytest.raises(DatasetError) as exc:
+        read_issia(folder)
+    assert exc.value.field == "7"
+    del cal["7"]
+    del cal["2"]["rotation_matrix"], cal["2"]["pan_degrees"]
+    (folder / "issia_calibration.json").write_text(json.dumps(cal))
+    with pytest.raises(DatasetError) as exc:
+        read_issia(folder)
+    assert exc.value.field == "2"
+    with pytest.raises(DatasetError, match="needs issia_calibration.json or issia_lines.json"):
+        (folder / "issia_calibration.json").unlink()
+        read_issia(folder)
+    with pytest.raises(DatasetError) as exc:
+        read_issia(make_folder(tmp_path / "c"), flipped_cameras=["9"])
+    assert exc.value.field == "flipped_cameras"
+
+
+def test_frame_images_are_scaled_to_annotation_and_flipped(tmp_path):
+    folder = make_folder(tmp_path)
+    frames = folder / "frames" / "cam3"
+    frames.mkdir(parents=True)
+    img = np.zeros((540, 960, 3), np.uint8)
+    img[100:110, 10:20] = (0, 0, 255)  # a red mark near the left edge at 960x540
+    cv2.imwrite(str(frames / "000001.png"), img)
+    seq = read_issia(folder, flipped_cameras=["3"])
+    native = read_frame_image(seq, "3", 1, at_annotation_size=False)
+    assert native.image.shape == (540, 960, 3) and native.scale == (2.0, 2.0)
+    ys, xs = np.nonzero(native.image[:, :, 2] > 128)
+    assert xs.min() >= 940  # mirrored footage: the mark comes back on the right
+    full = read_frame_image(seq, "3", 1)
+    assert full.image.shape == (1080, 1920, 3) and full.scale == (1.0, 1.0)
+    ys, xs = np.nonzero(full.image[:, :, 2] > 128)
+    assert abs(ys.mean() - 2 * 104.5) < 2 and abs(xs.mean() - (1920 - 2 * 14.5)) < 2
+    with pytest.raises(DatasetError, match="cannot be read"):
+        read_frame_image(seq, "3", 7)
+    with pytest.raises(DatasetError, match="no video or frame folder"):
+        read_frame_image(seq, "4", 1)
+
+
+def test_issia3d_csv_round_trip_is_exact(tmp_path):
+    rows = [
+        Issia3DRow(0, {1: (None,) * 5, 3: (980.24, 326.09, 0.123456789012345, 10.381402452630107, 0.0123),
+                       4: (1056.96, 338.68, 1.5, 10.6, 1e-17)}, 2, (0.1, -0.2, -0.11), (3, 4),
+                   (0.1000000000000001, -0.2, -0.11), "triangulated"),
+        Issia3DRow(1, {6: (12.0, 13.0, None, None, None)}, 1, None, (), (1.0, 2.0, -3.0), "fitted"),
+        Issia3DRow(2, {}, 0, None, (), None, None),
+    ]
+    out = tmp_path / "ISSIA-3D.csv"
+    write_issia3d_csv(out, rows)
+    header = out.read_text().splitlines()[0].split(",")
+    assert tuple(header) == ISSIA3D_COLUMNS and header[-3:] == ["cam_list", "ball_3D_smoothed", "ball_3D_source"]
+    back = read_issia3d_csv(out)
+    full = [r.per_camera | {k: (None,) * 5 for k in range(1, 7) if k not in r.per_camera} for r in rows]
+    assert [b.per_camera for b in back] == full
+    assert [(b.frame, b.num_cameras, b.ball_3d, b.cam_list, b.ball_3d_smoothed, b.ball_3d_source) for b in back] == \
+        [(r.frame, r.num_cameras, r.ball_3d, r.cam_list, r.ball_3d_smoothed, r.ball_3d_source) for r in rows]
+    write_issia3d_csv(tmp_path / "again.csv", back)
+    assert (tmp_path / "again.csv").read_text() == out.read_text()
+    broken = out.read_text().replace("triangulated", "guessed")
+    (tmp_path / "broken.csv").write_text(broken)
+    with pytest.raises(DatasetError) as exc:
+        read_issia3d_csv(tmp_path / "broken.csv")
+    assert exc.value.field == "row 2 ball_3D_source"
+
+
+@pytest.fixture(scope="module")
+def issia_dev(shared_dir):
+    root = shared_dir / "data" / "synthetic" / "issia-dev"
+    if not root.is_dir():
+        pytest.skip(f"{root} not found")
+    return read_issia(root), json.loads((root.parent / "issia-dev.truth.json").read_text())
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("from_lines", [False, True], ids=["calibration_json", "lines"])
+def test_issue_figures_on_issia_dev(issia_dev, from_lines, tmp_path):
+    from benchmarks.issia import evaluate
+
+    seq, truth = issia_dev
+    fig, fit = evaluate(seq, truth, from_lines=from_lines)
+    assert fig["ball_3D_coverage"] >= 0.95 and fig["ball_3D_median_error_m"] <= 0.06
+    assert fig["smoothed_coverage"] >= 0.98 and fig["smoothed_median_error_m"] <= 0.045
+    assert fig["outlier_labels"] > 0 and fig["outliers_in_cam_list"] == 0
+    assert fig["correct_kept_share"] >= 0.97
+    # the CSV of the fitted sequence survives a round trip and agrees with the fit
+    cams = {c: ch.camera for c, ch in sequence_cameras(seq, from_lines=from_lines).items()}
+    rows = issia3d_rows(seq, cams, fit)
+    write_issia3d_csv(tmp_path / "ISSIA-3D.csv", rows)
+    back = read_issia3d_csv(tmp_path / "ISSIA-3D.csv")
+    assert back == rows
+    assert all(r.ball_3d is None or len(r.cam_list) >= 2 for r in rows)
+    assert all(len(r.cam_list) <= r.num_cameras for r in rows)
+    with_ball = [r for r in rows if r.ball_3d is not None]
+    errs = [r.per_camera[c][2] for r in with_ball for c in r.cam_list]
+    assert np.median(errs) < 2.0  # px: the kept labels agree with their frame's ball
+    assert all(r.per_camera[c][3] > 0 for r in with_ball for c in r.cam_list)  # optimised box diameter
+
+
+@pytest.mark.shared
+def test_dev_video_frames_come_at_annotation_scale(issia_dev):
+    seq, _ = issia_dev
+    assert sorted(seq.media) == list(seq.camera_ids) and seq.media["3"].suffix == ".mp4"
+    native = read_frame_image(seq, "3", 100, at_annotation_size=False)
+    assert native.image.shape == (540, 960, 3) and native.scale == (2.0, 2.0)  # 960x540 video, 1920x1080 labels
+    assert read_frame_image(seq, "3", 100).image.shape == (1080, 1920, 3)
