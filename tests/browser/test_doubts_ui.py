@@ -8,23 +8,15 @@ import re
 
 import pytest
 
+from tests.browser.support import api_json as _api
+from tests.browser.support import tid
+
 pytestmark = pytest.mark.browser
 
-TESTID = "[data-testid={}]"
 #: The queue's names of the label-accusing kinds (static/js/format.js DOUBT_LABEL).
 LABEL = {"mirrored_labels": "mirrored labels", "ball_off_consensus": "ball off consensus",
          "ball_missing": "ball missing", "views_disagree": "views disagree",
          "near_duplicate_view": "near-duplicate view"}
-
-
-def tid(name: str) -> str:
-    return TESTID.format(name)
-
-
-def _api(page, path: str):
-    response = page.request.get(path)
-    assert response.ok, f"GET {path}: {response.status} {response.text()}"
-    return response.json()
 
 
 def _system_with(page, kind: str) -> tuple[dict, dict]:

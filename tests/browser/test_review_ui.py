@@ -11,19 +11,11 @@ import re
 
 import pytest
 
+from tests.browser.support import api_json as _api
+from tests.browser.support import tid
+
 pytestmark = pytest.mark.browser
 
-TESTID = "[data-testid={}]"
-
-
-def tid(name: str) -> str:
-    return TESTID.format(name)
-
-
-def _api(page, path: str):
-    response = page.request.get(path)
-    assert response.ok, f"GET {path}: {response.status} {response.text()}"
-    return response.json()
 
 
 def _has_editable_view(system: dict) -> bool:
