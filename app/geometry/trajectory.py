@@ -44,7 +44,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from app.geometry.camera import Camera
-from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, triangulate_ball
+from app.geometry.consensus import ball_consensus
+from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px, triangulate_ball
 
 GRAVITY_M_S2 = 9.81
 BALL_RADIUS_M = 0.11
@@ -83,12 +84,14 @@ class FrameTriangulation:
 
 def triangulate_frame(observations: Sequence[BallObservation], *, tau_px: float = DEFAULT_TAU_PX,
                       rule: str = "max_scaled_1920", min_baseline_m: float = 1.0) -> FrameTriangulation:
-    """The paper's pairwise triangulation (method.md section 5), robust to wrong cameras.
+    """The paper's pairwise triangulation (method.md section 5) of the labels that agree, robust to
+    wrong cameras.
 
-    All labels are triangulated (:func:`app.geometry.triangulation.triangulate_ball`); while a
-    label's reprojection error (scaled to a 1920-px-wide image) is at or above ``tau_px`` and more
-    than two labels remain, the label whose removal leaves the smallest largest error is left out
-    (leave-one-out consensus). Two labels that disagree give no point.
+    The labels that agree on one ball are chosen by :func:`app.geometry.consensus.ball_consensus` (the
+    ball most views agree on, errors scaled to a 1920-px-wide image); those labels are then fused by
+    the paper's method (:func:`app.geometry.triangulation.triangulate_ball`: the mean of the kept
+    pairs), so ``point`` is the frame's own triangulation from the cameras it kept. Two labels that
+    disagree, or two camps that agree equally (the culprit cannot be told), give no point.
 
     Args:
         observations: the frame's labels (distinct view ids).
@@ -99,30 +102,18 @@ def triangulate_frame(observations: Sequence[BallObservation], *, tau_px: float 
         :class:`FrameTriangulation`.
     """
     obs = list(observations)
-
-    def attempt(subset):
-        res = triangulate_ball(subset, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m)
-        if res.point is None:
-            return None, np.inf
-        worst = max(np.inf if e is None else e * REFERENCE_WIDTH_PX / o.image_width
-                    for o, e in ((o, res.view_errors_px[o.view_id]) for o in subset))
-        return res.point, worst
-
-    current = obs
-    while len(current) >= 2:
-        point, worst = attempt(current)
-        if point is not None and worst < tau_px:
-            errors = {}
-            for o in obs:
-                uv, front = o.camera.project(point.reshape(1, 3))
-                errors[o.view_id] = float(np.linalg.norm(uv[0] - o.point_px)) if front[0] else None
-            return FrameTriangulation(point, tuple(o.view_id for o in current), errors)
-        if len(current) == 2:
-            break
-        trials = [attempt([o for o in current if o is not drop]) for drop in current]
-        best = int(np.argmin([w for _, w in trials]))
-        current = [o for i, o in enumerate(current) if i != best]
-    return FrameTriangulation(None, (), {})
+    none = FrameTriangulation(None, (), {})
+    if len(obs) < 2:
+        return none
+    consensus = ball_consensus(obs, tau_px=tau_px, min_baseline_m=min_baseline_m)
+    if consensus.point is None or consensus.ambiguous or len(consensus.inliers) < 2:
+        return none
+    kept = [o for o in obs if o.view_id in set(consensus.inliers)]
+    res = triangulate_ball(kept, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m)
+    if res.point is None:
+        return none
+    errors = {o.view_id: reprojection_error_px(o.camera, res.point, o.point_px) for o in obs}
+    return FrameTriangulation(res.point, tuple(o.view_id for o in kept), errors)
 
 
 @dataclass(frozen=True)
