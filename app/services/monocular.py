@@ -224,5 +224,7 @@ def evaluate_predictions(session: Session, predictions: str | Path, include_all:
                          estimator: str = "exact") -> dict[str, Any]:
     """:func:`evaluate` of the predictions at ``predictions`` against the database's curated labels."""
     views = reference_views(session, include_all)
+    if not views:
+        return evaluate(views, Detections((), np.zeros((0, 4)), np.zeros(0)))  # raises, naming the cause
     dets, ignored = load_predictions(predictions, views, ball_class)
     return evaluate(views, dets, ignored, ball_diameter_m, estimator)
