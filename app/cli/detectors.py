@@ -23,12 +23,13 @@ AllOpt = Annotated[bool, typer.Option("--all", help="Every system, not only the 
 def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None) -> None:
     from app.services.detector_export import export_detector
 
-    with _session(_settings(database_url, None)) as session:
-        report = export_detector(session, fmt, out_dir, include_all=include_all)  # type: ignore[arg-type]
+    settings = _settings(database_url, None)
+    with _session(settings) as session:
+        report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m)  # type: ignore[arg-type]
     per_split = ", ".join(f"{s}: {report.images[s]} image(s), {report.ball_boxes[s]} ball box(es), "
                           f"{report.other_boxes[s]} other box(es)" for s in report.images)
     typer.echo(f"exported {fmt} to {report.out_dir}: {per_split}")
-    typer.echo(f"ball boxes from the optimised box: {report.optimised_ball_boxes}; skipped {report.skipped_without_image} "
+    typer.echo(f"ball boxes refined: {report.refined_ball_boxes}, optimised: {report.optimised_ball_boxes}; skipped {report.skipped_without_image} "
                f"view(s) without an image, {report.skipped_point_only} with a point-only ball")
     for cls, n in report.unknown_classes.items():
         typer.echo(f"  skipped x{n} box(es) of unknown class {cls!r}")
@@ -40,7 +41,7 @@ def export_yolo_cmd(
     include_all: AllOpt = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export images and labels in the Ultralytics YOLO layout (ball = optimised box where it exists)."""
+    """Export images and labels in the Ultralytics YOLO layout (ball = refined, else optimised box)."""
     _export("yolo", out_dir, include_all, database_url)
 
 
@@ -50,7 +51,7 @@ def export_coco_cmd(
     include_all: AllOpt = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export images and a COCO instances JSON per split (ball = optimised box where it exists)."""
+    """Export images and a COCO instances JSON per split (ball = refined, else optimised box)."""
     _export("coco", out_dir, include_all, database_url)
 
 
@@ -78,7 +79,7 @@ def evaluate_monocular_cmd(
         with _session(settings) as session:
             report = evaluate_predictions(session, predictions, include_all, ball_class, settings.ball_diameter_m,
                                           estimator)
-            views = reference_views(session, include_all) if plots else []
+            views = reference_views(session, include_all, settings.ball_diameter_m) if plots else []
     except InvalidInputError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(code=2) from None
@@ -120,7 +121,7 @@ def evaluate_sensitivity_cmd(
     settings = _settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)
     with _session(settings) as session:
-        views = reference_views(session, include_all)
+        views = reference_views(session, include_all, settings.ball_diameter_m)
     if not views:
         typer.echo("error: no view with a 3D ball among the selected systems (accept systems, or use --all)", err=True)
         raise typer.Exit(code=2)

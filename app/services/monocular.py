@@ -1,8 +1,9 @@
 """Monocular 3D ball benchmark of detector predictions against the curated labels (paper, Experiments).
 
 Ground truth: every view of the selected systems (accepted unless ``include_all``) that has a 3D ball
-(system triangulated, view calibrated, optimised box stored): its optimised box, the system's 3D ball
-and the view's camera. Predictions in other images are ignored (counted).
+(system triangulated, view calibrated, optimised box stored): its box as exported
+(:func:`app.services.detector_export.ball_boxes`: the refined box where the 3D ball is well
+constrained, else the optimised box), the system's 3D ball and the view's camera. Predictions in other images are ignored (counted).
 
 Predictions: YOLO txt files (``class cx cy w h conf``, normalised; one file per image, matched to views
 by file stem as written by :mod:`app.services.detector_export`, searched recursively) or a COCO
@@ -37,7 +38,7 @@ from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
 from app.geometry.metrics import (Detections, average_precision, box_iou, load_coco_results,
                                   load_yolo_detections, monocular_metrics, precision_curve)
-from app.services.detector_export import BALL_CLASS, SPLITS, image_stem
+from app.services.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes, image_stem
 from app.services.errors import InvalidInputError
 from app.services.exporting import split_of
 
@@ -60,7 +61,7 @@ def default_estimator(optimised_box_method: str) -> str:
 
 @dataclass(frozen=True)
 class ReferenceView:
-    """A ground-truth view: reference (optimised) box (4,) px, 3D ball (3,) world m, its camera."""
+    """A ground-truth view: reference (exported) box (4,) px, 3D ball (3,) world m, its camera."""
 
     frame_id: int
     stem: str
@@ -72,13 +73,12 @@ class ReferenceView:
     camera: Camera
 
 
-def reference_views(session: Session, include_all: bool = False) -> list[ReferenceView]:
+def reference_views(session: Session, include_all: bool = False, ball_diameter_m: float = 0.22
+                    ) -> list[ReferenceView]:
     """The views with a 3D ball of the selected systems (accepted unless ``include_all``)."""
     query = (
         select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-        .options(selectinload(System.game), selectinload(System.triangulation),
-                 selectinload(System.frames).selectinload(Frame.calibration),
-                 selectinload(System.frames).selectinload(Frame.optimised_box))
+        .options(selectinload(System.game), *BALL_BOX_LOADS)
         .order_by(Game.league, Game.season, Game.match, System.id)
     )
     if not include_all:
@@ -88,12 +88,13 @@ def reference_views(session: Session, include_all: bool = False) -> list[Referen
         tri = system.triangulation
         if tri is None or tri.ball3d is None:
             continue
+        boxes = ball_boxes(system, ball_diameter_m)
         for frame in system.frames:
             cal = frame.calibration
             if frame.optimised_box is None or cal is None or cal.camera is None:
                 continue
             out.append(ReferenceView(frame.id, image_stem(system.game, frame), split_of(system.game.path),
-                                     frame.width, frame.height, np.asarray(frame.optimised_box.box, float),
+                                     frame.width, frame.height, np.asarray(boxes[frame.id][0], float),
                                      np.asarray(tri.ball3d, float), Camera.from_soccernet(cal.camera)))
     return out
 
@@ -223,7 +224,7 @@ def evaluate_predictions(session: Session, predictions: str | Path, include_all:
                          ball_class: int | None = None, ball_diameter_m: float = 0.22,
                          estimator: str = "exact") -> dict[str, Any]:
     """:func:`evaluate` of the predictions at ``predictions`` against the database's curated labels."""
-    views = reference_views(session, include_all)
+    views = reference_views(session, include_all, ball_diameter_m)
     if not views:
         return evaluate(views, Detections((), np.zeros((0, 4)), np.zeros(0)))  # raises, naming the cause
     dets, ignored = load_predictions(predictions, views, ball_class)

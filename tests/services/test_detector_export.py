@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from app.db.models import ReviewStatus
-from app.services.detector_export import CLASSES, export_coco, export_yolo, image_stem
+from app.services.detector_export import CLASSES, ball_boxes, export_coco, export_yolo, image_stem
 from app.services.editing import decide_review
 
 from .datasets import dev_game_dir
@@ -41,11 +41,15 @@ def test_yolo_export_reads_back_in_supervision_with_every_box(db_session, import
     assert len(ds) == 8 and list(ds.classes) == list(CLASSES)
     n_boxes = sum(len(det) for _, _, det in ds)
     assert n_boxes == balls + others
-    # The ball of a view with an optimised box is that box (pixels, to 1e-4 px after normalisation).
-    frame = next(f for f in frames if f.optimised_box is not None)
-    path = str(tmp_path / "yolo" / "images" / split / f"{image_stem(imported['0.png'].game, frame)}.png")
-    _, _, det = next(item for item in ds if item[0] == path)
-    assert np.allclose(det.xyxy[det.class_id == 0], [frame.optimised_box.box], atol=1e-3)
+    # Every ball is the box of ball_boxes (to 1e-3 px after normalisation): refined for the views of
+    # kept pairs (0.png and 2.png: 6 views), annotated where the system has no 3D ball (3.png).
+    assert report.refined_ball_boxes == 6 and report.optimised_ball_boxes == 0
+    for system in imported.values():
+        expected = ball_boxes(system)
+        for frame in system.frames:
+            path = str(tmp_path / "yolo" / "images" / split / f"{image_stem(system.game, frame)}.png")
+            _, _, det = next(item for item in ds if item[0] == path)
+            assert np.allclose(det.xyxy[det.class_id == 0], [expected[frame.id][0]], rtol=0, atol=1e-3)
 
 
 def test_coco_export_reads_back_in_pycocotools_and_supervision(db_session, imported, shared_dir, tmp_path):
@@ -62,7 +66,7 @@ def test_coco_export_reads_back_in_pycocotools_and_supervision(db_session, impor
     assert ball_cat == [1] and len(coco.getAnnIds(catIds=ball_cat)) == balls
     frame = next(f for f in frames if f.optimised_box is not None)
     (ann,) = coco.loadAnns(coco.getAnnIds(imgIds=[frame.id], catIds=ball_cat))
-    x1, y1, x2, y2 = frame.optimised_box.box
+    x1, y1, x2, y2 = ball_boxes(frame.system)[frame.id][0]
     assert np.allclose(ann["bbox"], [x1, y1, x2 - x1, y2 - y1])
     ds = sv.DetectionDataset.from_coco(str(tmp_path / "coco" / split), str(ann_file))
     assert len(ds) == 8 and sum(len(det) for _, _, det in ds) == balls + others

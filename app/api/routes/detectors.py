@@ -58,10 +58,11 @@ class MonocularReportOut(MonocularFiguresOut):
     estimator: str
 
 
-def _zip_export(fmt: Literal["yolo", "coco"], session: SessionDep, include_all: bool) -> FileResponse:
+def _zip_export(fmt: Literal["yolo", "coco"], session: SessionDep, include_all: bool,
+                ball_diameter_m: float) -> FileResponse:
     tmp = Path(tempfile.mkdtemp(prefix=f"v3d-{fmt}-"))
     try:
-        report = detector_export.export_detector(session, fmt, tmp / fmt, include_all=include_all)
+        report = detector_export.export_detector(session, fmt, tmp / fmt, include_all, ball_diameter_m)
         archive = shutil.make_archive(str(tmp / f"v3d-{fmt}"), "zip", root_dir=tmp / fmt)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -78,16 +79,16 @@ _ZIP = {200: {"content": {"application/zip": {}}, "description": "The export as 
 
 
 @router.get("/exports/yolo", response_class=FileResponse, responses=_ZIP)
-def export_yolo(session: SessionDep, include_all: AllQuery = False) -> FileResponse:
+def export_yolo(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> FileResponse:
     """Ultralytics YOLO layout (``app.services.detector_export``): images/<split>, labels/<split>, data.yaml.
     ``X-V3D-Images`` and ``X-V3D-Skipped-Without-Image`` give its size."""
-    return _zip_export("yolo", session, include_all)
+    return _zip_export("yolo", session, include_all, settings.ball_diameter_m)
 
 
 @router.get("/exports/coco", response_class=FileResponse, responses=_ZIP)
-def export_coco(session: SessionDep, include_all: AllQuery = False) -> FileResponse:
+def export_coco(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> FileResponse:
     """COCO layout: per split the images and ``instances.json`` (image ids = frame ids)."""
-    return _zip_export("coco", session, include_all)
+    return _zip_export("coco", session, include_all, settings.ball_diameter_m)
 
 
 def _unpack(upload: UploadFile, dest: Path) -> Path:
