@@ -30,8 +30,9 @@ Layouts:
 * COCO: ``<split>/<stem>.<ext>`` and ``<split>/instances.json`` beside them (boxes ``[x, y, w, h]``
   pixels, category ids = class id + 1).
 
-Images are copied one at a time from their archive or file (never all in memory); the COCO metadata
-of a split (numbers only) is kept until its JSON is written.
+Systems are read in batches of :data:`_CHUNK` and images copied one at a time from their archive or
+file (never all in memory); the COCO metadata of a split (numbers only) is kept until its JSON is
+written.
 """
 from __future__ import annotations
 
@@ -69,6 +70,8 @@ _SOURCE_LABELS = ("Labels-v3.json",)
 ANNOTATION_SIGMA_FRACTION = 0.1
 #: Smallest standard deviation used for either centre, pixels.
 MIN_SIGMA_PX = 0.5
+#: Systems read from the database per batch while exporting (the export never holds them all).
+_CHUNK = 200
 
 
 @dataclass
@@ -222,7 +225,7 @@ def iter_export_views(session: Session, include_all: bool, report: DetectorExpor
     if not include_all:
         query = query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
     source: dict[int, dict[str, list[dict[str, Any]]]] = {}
-    for system in session.scalars(query):
+    for system in session.scalars(query.execution_options(yield_per=_CHUNK)):
         game = system.game
         if game.id not in source:
             source.clear()  # one game at a time
