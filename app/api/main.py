@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.api.routes import exports, frames, games, imports, systems
+from app.api.routes import detectors, exports, frames, games, imports, systems
 
 api_router = APIRouter()
-for _module in (games, systems, frames, imports, exports):
+for _module in (games, systems, frames, imports, exports, detectors):
     api_router.include_router(_module.router)

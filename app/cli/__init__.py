@@ -13,6 +13,7 @@ _COMMAND_MODULES = (
     "app.cli.evaluation",  # v3d jac
     "app.cli.calibration",  # v3d calibrate
     "app.cli.datasets",  # v3d import ..., v3d export ...
+    "app.cli.detectors",  # v3d export yolo|coco, v3d evaluate monocular|sensitivity
     "app.cli.serve",  # v3d serve
     "app.cli.doubts",  # v3d doubts
 )

@@ -1,0 +1,137 @@
+"""``v3d export yolo|coco`` and ``v3d evaluate monocular|sensitivity``: detector data and the monocular
+3D ball benchmark (thin wrappers over ``app.services.detector_export``, ``app.services.monocular`` and
+``app.services.monocular_plots``). A bad input prints ``error: ...`` and exits with status 2.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from app.cli._root import cli, export_cli
+from app.cli.datasets import DatabaseOpt, _session, _settings
+from app.services.errors import InvalidInputError
+
+evaluate_cli = typer.Typer(help="Evaluate detectors against the curated labels.", no_args_is_help=True)
+cli.add_typer(evaluate_cli, name="evaluate")
+
+AllOpt = Annotated[bool, typer.Option("--all", help="Every system, not only the accepted ones.")]
+
+
+def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None) -> None:
+    from app.services.detector_export import export_detector
+
+    settings = _settings(database_url, None)
+    with _session(settings) as session:
+        report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m)  # type: ignore[arg-type]
+    per_split = ", ".join(f"{s}: {report.images[s]} image(s), {report.ball_boxes[s]} ball box(es), "
+                          f"{report.other_boxes[s]} other box(es)" for s in report.images)
+    typer.echo(f"exported {fmt} to {report.out_dir}: {per_split}")
+    typer.echo(f"ball boxes refined: {report.refined_ball_boxes}, optimised: {report.optimised_ball_boxes}; skipped {report.skipped_without_image} "
+               f"view(s) without an image, {report.skipped_point_only} with a point-only ball")
+    for cls, n in report.unknown_classes.items():
+        typer.echo(f"  skipped x{n} box(es) of unknown class {cls!r}")
+
+
+@export_cli.command("yolo")
+def export_yolo_cmd(
+    out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
+    include_all: AllOpt = False,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Export images and labels in the Ultralytics YOLO layout (ball = refined, else optimised box)."""
+    _export("yolo", out_dir, include_all, database_url)
+
+
+@export_cli.command("coco")
+def export_coco_cmd(
+    out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
+    include_all: AllOpt = False,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Export images and a COCO instances JSON per split (ball = refined, else optimised box)."""
+    _export("coco", out_dir, include_all, database_url)
+
+
+def _fmt(x: float | None, pattern: str) -> str:
+    return "n/a" if x is None else pattern.format(x)
+
+
+@evaluate_cli.command("monocular")
+def evaluate_monocular_cmd(
+    predictions: Annotated[Path, typer.Argument(help="A folder of YOLO txt files or a COCO results JSON.")],
+    json_out: Annotated[Optional[Path], typer.Option("--json", help="Write the report as JSON here.")] = None,
+    plots: Annotated[Optional[Path], typer.Option("--plots", help="Write the precision curve and sensitivity plots here.")] = None,
+    ball_class: Annotated[Optional[int], typer.Option("--ball-class", help="Ball class (YOLO) or category id (COCO).")] = None,
+    estimator: Annotated[Optional[str], typer.Option(help="'paper' (Eq. ball3Destimation) or 'exact' (sphere "
+                                                   "silhouette); default: the one matching V3D_OPTIMISED_BOX_METHOD.")] = None,
+    include_all: AllOpt = False,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """AP@0.5, MAE (m, %), P@2m and the precision-threshold curve of ball detections, per split."""
+    from app.services.monocular import default_estimator, evaluate_predictions, reference_views
+
+    settings = _settings(database_url, None)
+    estimator = estimator or default_estimator(settings.optimised_box_method)
+    try:
+        with _session(settings) as session:
+            report = evaluate_predictions(session, predictions, include_all, ball_class, settings.ball_diameter_m,
+                                          estimator)
+            views = reference_views(session, include_all, settings.ball_diameter_m) if plots else []
+    except InvalidInputError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    for name, rep in [("all", report), *report["splits"].items()]:
+        c = rep["counts"]
+        typer.echo(f"{name:5s}  AP50 {_fmt(rep['AP50'], '{:.4f}')}  MAE {_fmt(rep['MAE_m'], '{:.3f}')} m  "
+                   f"MAE {_fmt(rep['MAE_pct'], '{:.2f}')} %  P@2m {_fmt(rep['P_2m'], '{:.3f}')}  "
+                   f"({c['localised']} of {c['reference_views']} views localised, {c['detections']} detections)")
+    typer.echo(f"ignored {report['counts']['ignored_detections']} detection(s) in images without a 3D ball; "
+               f"monocular estimator: {estimator}")
+    if json_out:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(report, indent=1))
+        typer.echo(f"wrote {json_out}")
+    if plots:
+        from app.services.monocular_plots import plot_precision_curve, plot_sensitivity, sensitivity_curves
+
+        paths = plot_precision_curve(report, plots) + plot_sensitivity(
+            sensitivity_curves(views, settings.ball_diameter_m, estimator=estimator), plots)
+        typer.echo("wrote " + ", ".join(str(p) for p in paths))
+
+
+@evaluate_cli.command("sensitivity")
+def evaluate_sensitivity_cmd(
+    out_dir: Annotated[Path, typer.Argument(help="Folder for sensitivity.png/.svg and sensitivity.json.")],
+    samples: Annotated[int, typer.Option(min=1, help="Views drawn at random (paper: 100).")] = 100,
+    estimator: Annotated[Optional[str], typer.Option(help="'paper' or 'exact' (default: matching the boxes).")] = None,
+    include_all: AllOpt = False,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """The paper's sensitivity study on the curated labels: box size +-10 %, centre up to 2 % of the diagonal."""
+    import numpy as np
+
+    from app.services.monocular import reference_views
+    from app.services.monocular_plots import plot_sensitivity, sensitivity_curves
+
+    from app.services.monocular import default_estimator
+
+    settings = _settings(database_url, None)
+    estimator = estimator or default_estimator(settings.optimised_box_method)
+    with _session(settings) as session:
+        views = reference_views(session, include_all, settings.ball_diameter_m)
+    if not views:
+        typer.echo("error: no view with a 3D ball among the selected systems (accept systems, or use --all)", err=True)
+        raise typer.Exit(code=2)
+    study = sensitivity_curves(views, settings.ball_diameter_m, samples, estimator=estimator)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "sensitivity.json").write_text(json.dumps(study))
+    paths = plot_sensitivity(study, out_dir)
+    size10 = [max(r["size_error_m"][0], r["size_error_m"][-1]) for r in study["views"]]
+    shift2 = [r["centre_error_m"][-1] for r in study["views"]]
+    typer.echo(f"{len(study['views'])} views: error at +-10 % size {np.min(size10):.2f} to {np.max(size10):.2f} m "
+               f"(median {np.median(size10):.2f}); at 2 % centre shift {np.min(shift2):.2f} to {np.max(shift2):.2f} m "
+               f"(median {np.median(shift2):.2f})")
+    typer.echo("wrote " + ", ".join(str(p) for p in paths))
