@@ -11,7 +11,7 @@ from typing import Annotated, Optional
 import typer
 
 from app.cli._root import cli, export_cli
-from app.cli.datasets import DatabaseOpt, _session, _settings
+from app.cli.datasets import DatabaseOpt, cli_settings, database_session
 from app.services.errors import InvalidInputError
 
 evaluate_cli = typer.Typer(help="Evaluate detectors against the curated labels.", no_args_is_help=True)
@@ -23,8 +23,8 @@ AllOpt = Annotated[bool, typer.Option("--all", help="Every system, not only the 
 def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None) -> None:
     from app.services.detector_export import export_detector
 
-    settings = _settings(database_url, None)
-    with _session(settings) as session:
+    settings = cli_settings(database_url, None)
+    with database_session(settings) as session:
         report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m)  # type: ignore[arg-type]
     per_split = ", ".join(f"{s}: {report.images[s]} image(s), {report.ball_boxes[s]} ball box(es), "
                           f"{report.other_boxes[s]} other box(es)" for s in report.images)
@@ -73,10 +73,10 @@ def evaluate_monocular_cmd(
     """AP@0.5, MAE (m, %), P@2m and the precision-threshold curve of ball detections, per split."""
     from app.services.monocular import default_estimator, evaluate_predictions, reference_views
 
-    settings = _settings(database_url, None)
+    settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)
     try:
-        with _session(settings) as session:
+        with database_session(settings) as session:
             report = evaluate_predictions(session, predictions, include_all, ball_class, settings.ball_diameter_m,
                                           estimator)
             views = reference_views(session, include_all, settings.ball_diameter_m) if plots else []
@@ -118,9 +118,9 @@ def evaluate_sensitivity_cmd(
 
     from app.services.monocular import default_estimator
 
-    settings = _settings(database_url, None)
+    settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)
-    with _session(settings) as session:
+    with database_session(settings) as session:
         views = reference_views(session, include_all, settings.ball_diameter_m)
     if not views:
         typer.echo("error: no view with a 3D ball among the selected systems (accept systems, or use --all)", err=True)

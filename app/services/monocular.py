@@ -75,7 +75,10 @@ class ReferenceView:
 
 def reference_views(session: Session, include_all: bool = False, ball_diameter_m: float = 0.22
                     ) -> list[ReferenceView]:
-    """The views with a 3D ball of the selected systems (accepted unless ``include_all``)."""
+    """The views of the selected systems (accepted unless ``include_all``) whose label made their
+    system's 3D ball: views in at least one kept triangulation pair, with an optimised box. A view whose
+    label disagrees with the 3D ball (in no kept pair: a wrong box, a desynchronised replay, an excluded
+    view) has no trustworthy reference there and is left out."""
     query = (
         select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
         .options(selectinload(System.game), *BALL_BOX_LOADS)
@@ -89,9 +92,10 @@ def reference_views(session: Session, include_all: bool = False, ball_diameter_m
         if tri is None or tri.ball3d is None:
             continue
         boxes = ball_boxes(system, ball_diameter_m)
+        contributing = {f for p in tri.pairs if p.kept for f in (p.frame_a_id, p.frame_b_id)}
         for frame in system.frames:
             cal = frame.calibration
-            if frame.optimised_box is None or cal is None or cal.camera is None:
+            if frame.optimised_box is None or cal is None or cal.camera is None or frame.id not in contributing:
                 continue
             out.append(ReferenceView(frame.id, image_stem(system.game, frame), split_of(system.game.path),
                                      frame.width, frame.height, np.asarray(boxes[frame.id][0], float),
