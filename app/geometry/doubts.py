@@ -390,7 +390,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
 
     1. info doubts per view (refused calibration, below admission, rig-assisted, few line classes);
     2. views that take part: calibrated, admitted, not excluded by the reviewer, with at least
-       ``min_line_classes`` line classes. A view flagged mirrored, or suspected mirrored
+       ``min_line_classes`` line classes. A calibrated view flagged mirrored (admitted or not: JaC is
+       the same for labels and their mirror), or a view that takes part and is suspected mirrored
        (:func:`_mirror_suspected`), gets ``mirrored_labels`` and takes no further part (its camera is
        the mirrored one, so its ray says nothing about its ball label, and it is not accused twice);
     3. the labelled views' robust consensus (:func:`app.geometry.consensus.ball_consensus` with
@@ -422,7 +423,10 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
     doubts = _info_doubts(views, s)
     usable = [v for v in views if v.camera is not None and v.admitted and not v.excluded
               and v.line_classes >= s.min_line_classes]
-    mirrored = [v for v in usable if v.mirror_flagged or _mirror_suspected(v, s)]
+    # the mirror flag is today's verdict whatever the view's admission (JaC is the same for labels and
+    # their mirror); the ray-based suspicion needs a view that takes part
+    flagged = [v for v in views if v.mirror_flagged and v.camera is not None and not v.excluded]
+    mirrored = flagged + [v for v in usable if v not in flagged and _mirror_suspected(v, s)]
     doubts += [_mirror_doubt(v) for v in mirrored]
     judged = [v for v in usable if v not in mirrored]
     labelled = [v for v in judged if _centre(v) is not None]
