@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import Select, select
 from sqlalchemy.orm import Session, selectinload
 
 from app.db.models import Frame, FrameRole, Game, ReviewDecision, ReviewStatus, System
@@ -138,6 +138,18 @@ def _csv_row(game: Game, system: System, frame: Frame, split: str) -> dict[str, 
     return {k: _cell(values[k]) for k in CSV_COLUMNS}
 
 
+def exported_systems(include_all: bool, *loads: Any) -> Select[tuple[System]]:
+    """The query of the systems an export writes: accepted ones unless ``include_all``, in (league,
+    season, match, id) order, with their game and the relationship ``loads`` given loaded. Every
+    export (SoccerNet-v3D, YOLO, COCO) and the monocular benchmark's reference select by it."""
+    query = (
+        select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+        .options(selectinload(System.game), *loads)
+        .order_by(Game.league, Game.season, Game.match, System.id)
+    )
+    return query if include_all else query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
+
+
 def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: bool = False) -> ExportReport:
     """Write the SoccerNet-v3D tree of the database under ``out_dir`` (see the module docstring).
 
@@ -154,20 +166,15 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
         InvalidInputError: a league, season or match that cannot be a folder name (nothing written).
     """
     out = Path(out_dir)
-    query = (
-        select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-        .options(
-            selectinload(System.game), selectinload(System.triangulation), selectinload(System.review),
-            selectinload(System.frames).selectinload(Frame.calibration),
-            selectinload(System.frames).selectinload(Frame.field_lines),
-            selectinload(System.frames).selectinload(Frame.ball_label),
-            selectinload(System.frames).selectinload(Frame.optimised_box),
-            selectinload(System.frames).selectinload(Frame.reprojection),
-        )
-        .order_by(Game.league, Game.season, Game.match, System.id)
+    query = exported_systems(
+        include_all,
+        selectinload(System.triangulation), selectinload(System.review),
+        selectinload(System.frames).selectinload(Frame.calibration),
+        selectinload(System.frames).selectinload(Frame.field_lines),
+        selectinload(System.frames).selectinload(Frame.ball_label),
+        selectinload(System.frames).selectinload(Frame.optimised_box),
+        selectinload(System.frames).selectinload(Frame.reprojection),
     )
-    if not include_all:
-        query = query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
     by_game: dict[int, list[System]] = defaultdict(list)
     games: dict[int, Game] = {}
     for system in session.scalars(query):
