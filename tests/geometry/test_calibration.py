@@ -7,7 +7,8 @@ import pytest
 
 from app.geometry.annotations import AnnotationError, FieldLines, mirror_lines
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, principal_point
-from app.geometry.calibration.initialisation import camera_from_homography, look_at_rotation
+from app.geometry.calibration.initialisation import camera_from_homography
+from app.geometry.camera import look_at_rotation
 from app.geometry.calibration.observations import build_observations
 from app.geometry.calibration.residuals import point_distances, projection_matrix
 from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
