@@ -383,8 +383,11 @@ class BallReprojection(Base):
 
 
 class OptimisedBox(Base):
-    """Paper Eq. min_diametre: a square box on the labelled centre with side ``d_opt_px``, and the
-    remaining distance ``error_m`` (metres) between the 3D ball and the monocular estimate."""
+    """A view's optimised box (paper Eq. min_diametre; ``app.geometry.ball.optimise_box`` with
+    ``Settings.optimised_box_method``): by default (``exact_ray``) the box of the exact image of the ball
+    at the 3D ball's depth along the labelled ray, an ellipse's box off the optical axis; with ``paper``,
+    the square of side ``d_opt_px`` on the labelled centre. ``d_opt_px`` is the diameter d_opt (px) and
+    ``error_m`` (metres) the remaining distance between the 3D ball and the monocular estimate."""
 
     __tablename__ = "optimised_boxes"
 
