@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Collection, Iterable, Sequence
 
 import numpy as np
+import sqlalchemy as sa
 from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload
 
@@ -263,7 +264,7 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
 
 def game_rig(session: Session | None, game_id: int | None, settings: Settings, exclude_frame_ids: Collection[int] = (),
              extra: Iterable[CalibrationFields] = (), extra_roles: Sequence[FrameRole] | None = None,
-             stored: Sequence[tuple[int, Camera, bool]] | None = None) -> CameraRig:
+             stored: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> CameraRig:
     """The camera rig of a game (``app.geometry.calibration.rig.estimate_rig``), from the centres of
     its cameras that are calibrated with JaC@gamma > ``admit_jac_min`` and not rig-assisted themselves.
     Action frames mark the main camera's position (:attr:`RigPosition.main_frames`).
@@ -282,28 +283,36 @@ def game_rig(session: Session | None, game_id: int | None, settings: Settings, e
     if len(roles) != len(extra):
         raise ValueError(f"extra_roles must give one role per extra calibration ({len(extra)}), got {len(roles)}")
     gamma_index = JAC_GAMMAS.index(_gamma(settings))
-    rows = [(Camera.from_soccernet(f.camera), role is FrameRole.ACTION) for f, role in zip(extra, roles)
+    rows = [(np.asarray(f.camera["position_meters"], float), role is FrameRole.ACTION)  # type: ignore[index]
+            for f, role in zip(extra, roles)
             if _feeds_rig(f.status, f.camera, f.flags, f.jac[gamma_index], settings)]
     if stored is None and game_id is not None and session is not None:
         stored = rig_rows(session, game_id, settings)
     if stored is not None:
         excluded = set(exclude_frame_ids)
         rows += [(c, main) for fid, c, main in stored if fid not in excluded]
-    return estimate_rig([c for c, _ in rows], main_camera=[m for _, m in rows])
+    return estimate_rig(np.array([c for c, _ in rows]).reshape(-1, 3), main_camera=[m for _, m in rows])
 
 
-def rig_cameras(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera]]:
-    """``(frame id, camera)`` of the stored calibrations of a game that feed its rig (:func:`game_rig`)."""
+def rig_centres(session: Session, game_id: int, settings: Settings) -> list[tuple[int, np.ndarray]]:
+    """``(frame id, camera centre (3,), metres)`` of the stored calibrations of a game that feed its
+    rig (:func:`game_rig`)."""
     return [(fid, c) for fid, c, _ in rig_rows(session, game_id, settings)]
 
 
-def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera, bool]]:
-    """``(frame id, camera, filmed by the main camera)`` of the calibrations feeding the game's rig."""
-    query = (select(Calibration, Frame.role).join(Frame, Frame.id == Calibration.frame_id)
+def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[int, np.ndarray, bool]]:
+    """``(frame id, camera centre (3,) metres, filmed by the main camera)`` of the calibrations feeding
+    the game's rig: calibrated, JaC@gamma > ``admit_jac_min``, not rig-assisted. One query that reads
+    only the centre out of each stored camera (the rig needs nothing else), so an edit does not decode
+    every calibration of its game."""
+    jac = getattr(Calibration, _JAC_COLUMNS[_gamma(settings)])
+    query = (select(Calibration.frame_id, Frame.role, Calibration.camera["position_meters"])
+             .join(Frame, Frame.id == Calibration.frame_id)
              .join(System, System.id == Frame.system_id)
-             .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
-    return [(c.frame_id, Camera.from_soccernet(c.camera), role is FrameRole.ACTION) for c, role in session.execute(query)
-            if _feeds_rig(c.status, c.camera, c.flags, admission_jac(c, settings), settings)]
+             .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED,
+                    Calibration.camera.is_not(None), jac > settings.admit_jac_min,
+                    sa.cast(Calibration.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%')))
+    return [(fid, np.asarray(centre, float), role is FrameRole.ACTION) for fid, role, centre in session.execute(query)]
 
 
 def wants_rig_retry(fields: CalibrationFields, settings: Settings) -> bool:
@@ -385,14 +394,14 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
 
 
 def recompute_system(session: Session, system: System, settings: Settings,
-                     rig_sources: Sequence[tuple[int, Camera]] | None = None) -> Triangulation:
+                     rig_sources: Sequence[tuple[int, np.ndarray]] | None = None) -> Triangulation:
     """Admission, mirror evidence, triangulation, reprojections and optimised boxes of one system,
     from its current calibrations and ball labels (see the module docstring). Replaces the previous
     derived rows in the session; the caller flushes or commits. The system's frames must have ids
     (be flushed).
 
     Args:
-        rig_sources: ``(frame id, camera)`` feeding the game's rig (:func:`rig_cameras`), to spare
+        rig_sources: ``(frame id, camera centre)`` feeding the game's rig (:func:`rig_centres`), to spare
             a query per system in bulk; read from the session when None.
 
     Returns:
@@ -482,7 +491,7 @@ def mirror_settings(settings: Settings) -> MirrorSettings:
 
 
 def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Camera], settings: Settings,
-                         rig_sources: Sequence[tuple[int, Camera]] | None) -> None:
+                         rig_sources: Sequence[tuple[int, np.ndarray]] | None) -> None:
     """Judge every calibrated frame of the system (``app.geometry.mirror.mirror_evidence``: ball rays
     of every calibrated, labelled frame, side prior, the game's rig estimated without this system's
     frames) and set :data:`MIRROR_FLAG` and ``mirror_evidence`` on its calibration. Refused frames
@@ -498,9 +507,9 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
         return
     positions = None
     if uses_rig(system) and system.game_id is not None:
-        sources = rig_sources if rig_sources is not None else rig_cameras(session, system.game_id, settings)
+        sources = rig_sources if rig_sources is not None else rig_centres(session, system.game_id, settings)
         mine = {f.id for f in system.frames}
-        rig = estimate_rig([c for fid, c in sources if fid not in mine])
+        rig = estimate_rig(np.array([c for fid, c in sources if fid not in mine]).reshape(-1, 3))
         positions = np.array([p.centre_m for p in rig.positions]).reshape(-1, 3)
     views = [MirrorView(view_id=f.id, camera=cameras[f.id], ball_px=_label_centre(f), image_width=f.width,
                         expected_side=expected_side(f.role), rays=True, name=f.name)
@@ -583,7 +592,7 @@ def recompute_systems(session: Session, systems: Iterable[System], settings: Set
         session.flush()
     else:
         preload_systems(session, systems)
-    sources = {gid: rig_cameras(session, gid, settings)
+    sources = {gid: rig_centres(session, gid, settings)
                for gid in {s.game_id for s in systems if uses_rig(s) and s.game_id is not None}}
     n = 0
     for i, s in enumerate(systems, 1):

@@ -240,7 +240,7 @@ def test_game_rig_calibrates_a_frame_with_too_few_lines() -> None:
         cameras.append(r.camera)
     # A replay position seen once is not a rig position.
     cameras.append(_camera((40.0, 45.0, -10.0), (40.0, 0.0, 0.0), 1000.0, 960, 540))
-    rig = estimate_rig(cameras)
+    rig = estimate_rig([c.C for c in cameras])
     assert len(rig.positions) == 1 and rig.positions[0].frames == 5
     assert np.linalg.norm(np.array(rig.positions[0].centre_m) - main) < 1.0
 
