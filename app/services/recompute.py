@@ -477,12 +477,18 @@ def update_summary(system: System, tri: Triangulation) -> None:
 def refresh_stale_systems(session: Session, settings: Settings, progress: Progress | None = None) -> int:
     """Recompute (calibrations untouched) every system stored by an older version of the derived rows
     (``System.derived_version < DERIVED_VERSION``, e.g. after a schema upgrade) and commit; returns how
-    many. Serving or reporting a database calls it first, so stored doubts and queue figures are current."""
-    stale = session.scalars(select(System).where(System.derived_version < DERIVED_VERSION)).all()
-    if stale:
-        recompute_systems(session, stale, settings, progress)
+    many. Serving or reporting a database calls it first, so stored doubts and queue figures are current.
+    Systems are recomputed and committed :data:`_REFRESH_BATCH` at a time (a crash leaves the rest stale,
+    to be refreshed next time)."""
+    ids = list(session.scalars(select(System.id).where(System.derived_version < DERIVED_VERSION).order_by(System.id)))
+    for start in range(0, len(ids), _REFRESH_BATCH):  # commit and release batch by batch: bounded memory
+        batch = session.scalars(select(System).where(System.id.in_(ids[start:start + _REFRESH_BATCH]))).all()
+        recompute_systems(session, batch, settings)
         session.commit()
-    return len(stale)
+        session.expunge_all()
+        if progress:
+            progress("recompute", min(start + _REFRESH_BATCH, len(ids)), len(ids))
+    return len(ids)
 
 
 def mirror_settings(settings: Settings) -> MirrorSettings:
@@ -567,6 +573,8 @@ _RECOMPUTE_LOADS = (
     ),
 )
 _LOAD_CHUNK = 500
+#: Systems recomputed per transaction by :func:`refresh_stale_systems`.
+_REFRESH_BATCH = 500
 
 
 def preload_systems(session: Session, systems: Sequence[System]) -> None:
