@@ -40,13 +40,14 @@ stadiums) never use one.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import multiprocessing
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, Callable, Collection, Iterable, Sequence
+from typing import Any, Callable, Collection, Iterable, Iterator, Sequence
 
 import numpy as np
 import sqlalchemy as sa
@@ -190,8 +191,34 @@ def calibration_job(frame: Frame, rig: CameraRig | None = None) -> CalibrationJo
             frame.role is FrameRole.ACTION)
 
 
+@dataclass(frozen=True)
+class CalibrationPool:
+    """Processes for bulk calibration (:func:`calibration_pool`): ``executor`` None runs in this process."""
+
+    workers: int
+    executor: ProcessPoolExecutor | None
+
+
+@contextlib.contextmanager
+def calibration_pool(workers: int = 0) -> Iterator[CalibrationPool]:
+    """The process pool of bulk calibration, for the span of an import (its batches share it): in this
+    process when ``workers`` (0 = all cores) is 1, else that many processes, shut down on exit.
+
+    forkserver, not fork: the API runs imports from worker threads, and forking a threaded process can
+    deadlock the child; workers import the geometry once and then take chunks of jobs."""
+    n = workers or os.cpu_count() or 1
+    if n <= 1:
+        yield CalibrationPool(1, None)
+        return
+    executor = ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("forkserver"))
+    try:
+        yield CalibrationPool(n, executor)
+    finally:
+        executor.shutdown(wait=True, cancel_futures=True)
+
+
 def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: Progress | None = None,
-                   stage: str = "calibrate") -> list[CalibrationFields]:
+                   stage: str = "calibrate", pool: CalibrationPool | None = None) -> list[CalibrationFields]:
     """Calibrate many frames, in parallel on ``workers`` processes (0 = all cores).
 
     Args:
@@ -199,12 +226,14 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: P
         workers: process count; 0 means ``os.cpu_count()``; 1, or fewer than a handful of jobs,
             runs in this process.
         progress: called with ``(stage, done, total)``.
+        pool: a pool from :func:`calibration_pool` to run on (then ``workers`` is ignored); without
+            one, a pool is made for this call.
 
     Returns:
         One :class:`CalibrationFields` per job, in order.
     """
     total = len(jobs)
-    n = workers or os.cpu_count() or 1
+    n = pool.workers if pool is not None else (workers or os.cpu_count() or 1)
     out: list[CalibrationFields] = []
     if n <= 1 or total < _MIN_JOBS_FOR_POOL:
         for job in jobs:
@@ -213,10 +242,11 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: P
                 progress(stage, len(out), total)
         return out
     chunk = max(1, min(16, total // (n * 8)))
-    # forkserver, not fork: the API runs imports from worker threads, and forking a threaded process
-    # can deadlock the child; workers import the geometry once and then take chunks of jobs.
-    with ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("forkserver")) as pool:
-        for fields in pool.map(_calibrate_job, jobs, chunksize=chunk):
+    with contextlib.ExitStack() as stack:
+        if pool is None:
+            pool = stack.enter_context(calibration_pool(n))
+        assert pool.executor is not None
+        for fields in pool.executor.map(_calibrate_job, jobs, chunksize=chunk):
             out.append(fields)
             if progress:
                 progress(stage, len(out), total)
