@@ -182,6 +182,10 @@ class System(Base):
     #: Admitted labelled views whose reprojection error is above tau
     #: (``app.geometry.triangulation.error_above_tau``).
     views_above_tau: Mapped[int] = mapped_column(default=0)
+    #: The system's review status (a copy of ``review.status``, pending without a decision), kept in the
+    #: transaction of every decision and recomputation: the queue filters and counts by it.
+    review_status: Mapped[ReviewStatus] = mapped_column(
+        enum_by_value(ReviewStatus, "system_review_status"), default=ReviewStatus.PENDING, index=True)
     #: Version of the derived rows and figures (``app.services.recompute.DERIVED_VERSION``); a system
     #: stored by an older version is recomputed before it is served (``refresh_stale_systems``).
     derived_version: Mapped[int] = mapped_column(default=0)

@@ -56,8 +56,8 @@ from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
 from app.db.models import (
-    BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, OptimisedBox, System,
-    SystemKind, Triangulation, TriangulationPair, TriangulationStatus,
+    BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, OptimisedBox, ReviewStatus,
+    System, SystemKind, Triangulation, TriangulationPair, TriangulationStatus,
 )
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists
@@ -490,6 +490,7 @@ def update_summary(system: System, tri: Triangulation) -> None:
     frames = list(system.frames)
     cals = [f.calibration for f in frames]
     admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
+    system.review_status = system.review.status if system.review is not None else ReviewStatus.PENDING
     system.views_total = len(frames)
     system.views_calibrated = sum(c is not None and c.status is CalibrationStatus.CALIBRATED for c in cals)
     system.views_admitted = len(admitted)
@@ -596,7 +597,7 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
 #: Everything :func:`recompute_system` reads or replaces, loaded up front for many systems.
 _RECOMPUTE_LOADS = (
     selectinload(System.triangulation).selectinload(Triangulation.pairs),
-    selectinload(System.doubts),
+    selectinload(System.doubts), selectinload(System.review),
     selectinload(System.frames).options(
         selectinload(Frame.calibration), selectinload(Frame.ball_label), selectinload(Frame.reprojection),
         selectinload(Frame.optimised_box), selectinload(Frame.review), selectinload(Frame.field_lines),

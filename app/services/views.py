@@ -144,10 +144,9 @@ class FramePage:
     total: int
 
 
-def _review_status() -> sa.ColumnElement[ReviewStatus]:
-    """A system's review status; a system never decided on is pending."""
-    status_type = ReviewDecision.status.type
-    return sa.func.coalesce(ReviewDecision.status, sa.literal(ReviewStatus.PENDING, status_type), type_=status_type)
+def _review_status() -> Any:
+    """A system's review status: the copy stored on the system (pending without a decision)."""
+    return System.review_status
 
 
 def _queue_from() -> sa.Select[Any]:
@@ -155,7 +154,7 @@ def _queue_from() -> sa.Select[Any]:
     the stored ``System`` columns (no aggregation here)."""
     return (
         sa.select(
-            System, Game, _review_status().label("review_status"),
+            System, Game, System.review_status.label("review_status"),
             sa.func.coalesce(ReviewDecision.comment, "").label("review_comment"),
             ReviewDecision.decided_at.label("review_decided_at"), Triangulation.ball3d,
         )
@@ -280,8 +279,7 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
     """
     order = _system_order(sort)
     conds = _system_conditions(filters)
-    page = _queue_from().add_columns(sa.func.count().over().label("total"))
-    rows = session.execute(page.where(*conds).order_by(*order).limit(limit).offset(offset)).all()
+    rows = session.execute(_queue_from().where(*conds).order_by(*order).limit(limit).offset(offset)).all()
     items = [
         SystemSummary(
             system=r.System, game=r.Game, review_status=r.review_status, review_comment=r.review_comment,
@@ -294,19 +292,16 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
         )
         for r in rows
     ]
-    base = sa.select(System.id).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-    if rows:
-        total = rows[0].total
-    else:  # past the last page: the window count has no row to ride on
-        total = session.scalar(sa.select(sa.func.count()).select_from(base.where(*conds).subquery())) or 0
+    # one indexed GROUP BY on the stored status gives the progress and the total (no window over the queue)
     status = _review_status()
     by_status = session.execute(
-        base.with_only_columns(status, sa.func.count(System.id))
-        .where(*_system_conditions(filters, with_status=False)).group_by(status)
+        sa.select(status, sa.func.count(System.id)).where(*_system_conditions(filters, with_status=False))
+        .group_by(status)
     ).all()
     counts = {s.value: 0 for s in ReviewStatus}
     for s, n in by_status:
         counts[ReviewStatus(s).value] += int(n)
+    total = counts[ReviewStatus(filters.status).value] if filters.status is not None else sum(counts.values())
     return SystemPage(items=items, total=int(total), counts=counts)
 
 
