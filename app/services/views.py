@@ -11,7 +11,8 @@ per-view ``error_above_tau`` uses too: queue and system page cannot disagree), a
 
 Queue order (``sort``): ``doubts`` (the stored count of label-accusing doubts, ties by the largest
 reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
-systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id. The
+systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id (in the
+sort's direction). The
 default, :data:`DEFAULT_SORT`, puts the systems with the most doubts first: the labels the geometry
 accuses are reviewed first. ``name`` orders by game, then system name with numeric names in numeric
 order (2.png before 10.png). The ``doubt`` filter keeps systems with a doubt of one kind (or any
@@ -229,18 +230,20 @@ class _SortKey:
 
 
 def _sort_keys(sort: SystemSort) -> list[_SortKey]:
-    """The queue's order as keys; the system id comes last, so the order is strict."""
+    """The queue's order as keys; the system id comes last, in the sort's direction, so that the order
+    is strict and a descending sort is an index scanned backwards (no sort of the whole queue)."""
     desc = sort.startswith("-")
     key = sort.lstrip("-")
+    tie = _SortKey(System.id, desc)
     if key == "name":
         cols = [Game.league, Game.season, Game.match, *_natural_name(System.name)]
-        return [_SortKey(c, desc) for c in cols] + [_SortKey(System.id)]
+        return [_SortKey(c, desc) for c in cols] + [tie]
     if key == "doubts":  # ties by the largest reprojection error
-        return [_SortKey(System.label_doubts, desc), _SortKey(System.worst_error_px, True, True), _SortKey(System.id)]
+        return [_SortKey(System.label_doubts, desc), _SortKey(System.worst_error_px, True, True), tie]
     column = {"worst_error": System.worst_error_px, "lowest_jac": System.lowest_jac}.get(key)
     if column is None:
         raise ValueError(f"unknown sort {sort!r}")
-    return [_SortKey(column, desc, True), _SortKey(System.id)]
+    return [_SortKey(column, desc, True), tie]
 
 
 def _system_order(sort: SystemSort) -> list[Any]:
