@@ -56,11 +56,36 @@ def run_migrations_online() -> None:
     engine = make_engine(_url())
     try:
         with engine.connect() as conn:
+            sqlite = conn.dialect.name == "sqlite"
+            if sqlite:
+                _sqlite_foreign_keys(conn, on=False)
             _configure(connection=conn)
             with context.begin_transaction():
                 context.run_migrations()
+            if sqlite:
+                _sqlite_foreign_keys(conn, on=True)
     finally:
         engine.dispose()
+
+
+def _sqlite_foreign_keys(conn, on: bool) -> None:
+    """Foreign keys off while SQLite migrates, then checked and on again.
+
+    Batch mode rebuilds a table by copying it and dropping the original; with foreign keys on, dropping
+    a parent table (``systems``) cascades to its children (every frame, calibration and label), so
+    an upgrade of a filled database would empty it. The pragma is a no-op inside a transaction, so it
+    goes to the driver's connection before Alembic begins one. After the migrations,
+    ``PRAGMA foreign_key_check`` must find nothing.
+
+    Raises:
+        RuntimeError: the migrated database has rows whose foreign keys point nowhere.
+    """
+    raw = conn.connection.driver_connection
+    if on:
+        broken = raw.execute("PRAGMA foreign_key_check").fetchall()
+        if broken:
+            raise RuntimeError(f"migration left rows with dangling foreign keys: {broken[:5]}")
+    raw.execute(f"PRAGMA foreign_keys={'ON' if on else 'OFF'}")
 
 
 if context.is_offline_mode():

@@ -71,3 +71,45 @@ def test_alembic_command_line_takes_the_url_from_the_settings(tmp_path):
         assert done.returncode == 0, done.stderr
     assert "No new upgrade operations detected" in done.stdout + done.stderr
     assert db.is_file()
+
+
+def test_upgrading_a_filled_sqlite_database_keeps_every_row(tmp_path):
+    """Regression: migration 0003 rebuilds ``systems`` (SQLite batch mode: copy, drop, rename); with
+    foreign keys on, dropping the parent table cascaded to every frame and review, so upgrading a filled
+    database emptied it. Migrations now run with foreign keys off, then check them."""
+    url = f"sqlite:///{tmp_path / 'filled.sqlite3'}"
+    upgrade_database(url, "0002")
+    engine = make_engine(url)
+    try:
+        with engine.begin() as conn:
+            conn.execute(sa.text("INSERT INTO games (id, league, season, match, source_path, created_at) "
+                                 "VALUES (1, 'l', 's', 'm', '/x', '2026-01-01 00:00:00')"))
+            conn.execute(sa.text("INSERT INTO systems (id, game_id, name, kind, created_at) "
+                                 "VALUES (1, 1, '1.png', 'soccernet-v3', '2026-01-01 00:00:00')"))
+            for i, role in ((1, "action"), (2, "replay")):
+                conn.execute(sa.text("INSERT INTO frames (id, system_id, name, role, position, width, height) "
+                                     f"VALUES ({i}, 1, '1_{i}.png', '{role}', {i}, 960, 540)"))
+            conn.execute(sa.text("INSERT INTO review_decisions (id, system_id, status, comment) "
+                                 "VALUES (1, 1, 'accepted', 'ok')"))
+    finally:
+        engine.dispose()
+    upgrade_database(url)
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            assert conn.execute(sa.text("SELECT count(*) FROM frames")).scalar() == 2
+            assert conn.execute(sa.text("SELECT status FROM review_decisions")).scalar() == "accepted"
+            row = conn.execute(sa.text("SELECT derived_version, review_status FROM systems")).one()
+            assert tuple(row) == (0, "pending")  # stale: recomputed (status copied) before it is served
+            assert conn.execute(sa.text("PRAGMA foreign_keys")).scalar() == 1
+        from app.core.config import Settings
+        from app.db.models import System
+        from app.db.session import make_session_factory
+        from app.services.recompute import refresh_stale_systems
+
+        with make_session_factory(engine)() as session:
+            assert refresh_stale_systems(session, Settings(database_url=url)) == 1
+            system = session.get(System, 1)
+            assert (system.review_status.value, system.views_total, len(system.frames)) == ("accepted", 2, 2)
+    finally:
+        engine.dispose()
