@@ -182,8 +182,9 @@ class ExportedGame:
         return f"{self.league}/{self.season}/{self.match}/Labels-v3D.json"
 
     def labels_json(self) -> bytes:
-        """The ``Labels-v3D.json`` bytes (UTF-8, indented by one space)."""
-        return json.dumps(self.doc, indent=1).encode("utf-8")
+        """The ``Labels-v3D.json`` bytes (UTF-8, one line: without indentation ``json`` uses its C
+        encoder, about ten times faster on a SoccerNet-size export)."""
+        return json.dumps(self.doc).encode("utf-8")
 
 
 def iter_soccernet_v3d(session: Session, include_all: bool = False) -> Iterator[ExportedGame]:
