@@ -180,7 +180,8 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
                         fl.lines = lines[cid]
                     fl.original_lines = lines[cid]
             cal, f = frame.calibration, fields[cid]
-            if cal is None or (cal.status, cal.camera, cal.flags) != (f.status, f.camera, f.flags) or cal.source is not source:
+            ours = [x for x in (cal.flags or []) if x in (BALL_ASSISTED_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
+            if cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags) or cal.source is not source:
                 apply_calibration(frame, f, source)
                 changed = True
             changed |= _set_label(frame, seq.point(index, cid), now)
