@@ -311,7 +311,7 @@ class ViewOut(BaseModel):
 
     frame_id: int
     name: str
-    role: Literal["action", "replay", "camera"]
+    role: Literal["action", "replay", "camera", "static"]
     width: int
     height: int
     image_url: Optional[str] = Field(description="None when the dataset ships no image: draw a blank canvas.")
@@ -359,6 +359,8 @@ class SystemView(BaseModel):
 
     id: int
     name: str
+    kind: str = Field("soccernet-v3", description="soccernet-v3, single-view or issia (a frame of a sequence).")
+    frame_index: Optional[int] = Field(None, description="issia: the frame's index in its sequence.")
     game: GameRef
     review: ReviewOut
     prev_id: Optional[int]

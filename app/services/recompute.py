@@ -416,7 +416,8 @@ def recompute_system(session: Session, system: System, settings: Settings,
         if cal is not None and cal.admitted and centre is not None and not is_excluded(f):
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
-    _update_mirror_flags(session, system, cameras, settings, rig_sources)
+    if system.kind is not SystemKind.ISSIA:  # static cameras on every side: the broadcast priors do not hold
+        _update_mirror_flags(session, system, cameras, settings, rig_sources)
     if system.kind is SystemKind.ISSIA:  # the labels the sequence's trajectory keeps, that agree
         from app.services.issia_trajectory import consensus_observations
         observations = consensus_observations(system, observations, settings)

@@ -501,6 +501,8 @@ def system_view(session: Session, system_id: int, filters: SystemFilters = Syste
     return {
         "id": system.id,
         "name": system.name,
+        "kind": system.kind.value,
+        "frame_index": system.frame_index,
         "game": {"id": game.id, "league": game.league, "season": game.season, "match": game.match},
         "review": review_json(system.review),
         "prev_id": prev_id,
