@@ -35,6 +35,7 @@ from app.db.models import (
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_to_json_lists
 from app.geometry.jac import jac_at_gammas
+from app.services.doubts import update_doubts
 from app.services.errors import DatasetError
 from app.services.importing import ImportReport
 from app.services.issia_trajectory import fit_sequence, refit_sequence
@@ -192,17 +193,24 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
 
 def refit_after_edit(session: Session, system: System, settings: Settings) -> list[System]:
     """After an edit of a view of an ISSIA ``system`` (already recomputed by the caller): re-fit the
-    stretch of its sequence around its frame (:func:`app.services.issia_trajectory.refit_sequence`)
-    and recompute the other systems whose place on the trajectory changed, and ``system`` again when
-    its own did. Changes the session only (the edit's transaction commits). Returns the systems
-    recomputed. A system that is not ISSIA is left alone."""
+    stretch of its sequence around its frame (:func:`app.services.issia_trajectory.refit_sequence`),
+    then recompute every system whose kept labels changed (``system`` again when its own did), and
+    judge again the doubts of those whose only change is their place on the trajectory but that have
+    flagged labels (their evidence names the fitted position). Changes the session only (the edit's
+    transaction commits). Returns the systems touched. A system that is not ISSIA is left alone."""
     if system.kind is not SystemKind.ISSIA or system.frame_index is None:
         return []
     session.flush()
-    changed = refit_sequence(session, system.game_id, system.frame_index, system.frame_index, settings)
-    for s in changed:
-        recompute_system(session, s, settings)
-    return changed
+    touched = []
+    for c in refit_sequence(session, system.game_id, system.frame_index, system.frame_index, settings):
+        if c.labels:
+            recompute_system(session, c.system, settings)
+        elif c.system.trajectory_point.flagged or c.system.doubt_counts.get("ball_off_consensus"):
+            update_doubts(c.system, settings)
+        else:
+            continue
+        touched.append(c.system)
+    return touched
 
 
 def read_video_frame(frame: Frame) -> bytes:

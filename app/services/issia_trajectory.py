@@ -123,9 +123,22 @@ def _vec(v: np.ndarray) -> list[float] | None:
     return [float(x) for x in v] if np.all(np.isfinite(v)) else None
 
 
-def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[System]:
+#: The fields of a :class:`TrajectoryPoint` the system's triangulation depends on (the labels it keeps).
+TRIANGULATION_FIELDS = ("ball3d", "cam_list", "flagged")
+
+
+@dataclass
+class Changed:
+    """A system whose stored trajectory point changed; ``labels`` when the labels it keeps (and so its
+    triangulation) changed, not only its place on the trajectory."""
+
+    system: System
+    labels: bool
+
+
+def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
     """Write each system's :class:`TrajectoryPoint` from ``fit``; returns the systems whose stored
-    point changed (they need their triangulation and doubts recomputed)."""
+    point changed."""
     changed = []
     for i, s in arrays.systems.items():
         piece = next((p for p in fit.pieces if p.first_frame <= i <= p.last_frame), None)
@@ -142,12 +155,15 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[System]:
         if tp is None:
             tp = TrajectoryPoint()
             s.trajectory_point = tp
+            labels = True
         elif all(getattr(tp, k) == v for k, v in values.items()):
             continue
+        else:
+            labels = any(getattr(tp, k) != values[k] for k in TRIANGULATION_FIELDS)
         for k, v in values.items():
             setattr(tp, k, v)
         tp.computed_at = utcnow()
-        changed.append(s)
+        changed.append(Changed(s, labels))
     return changed
 
 
@@ -155,7 +171,7 @@ def _fit_args(settings: Settings) -> dict[str, float]:
     return {"tau_px": settings.triangulation_tau_px}
 
 
-def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[System]:
+def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[Changed]:
     """Fit the whole sequence of ``game_id`` and store it (:func:`store_fit`); returns the systems
     whose trajectory point changed."""
     systems = load_sequence(session, game_id)
@@ -166,7 +182,7 @@ def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[Sys
     return store_fit(arrays, fit)
 
 
-def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame: int, settings: Settings) -> list[System]:
+def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame: int, settings: Settings) -> list[Changed]:
     """Re-fit the stretch of the sequence that frames ``first_frame..last_frame`` touch
     (:func:`app.geometry.trajectory.refit_window` from the stored pieces; the whole sequence when
     none is stored) and store it; returns the systems whose trajectory point changed."""
