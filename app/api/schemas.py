@@ -299,7 +299,10 @@ class PitchLineOut(BaseModel):
 
 
 class OptimisedBoxOut(BaseModel):
-    """Paper Eq. min_diametre: square box of side ``d_px`` on the labelled centre."""
+    """The view's optimised box (paper Eq. min_diametre, drawn by ``Settings.optimised_box_method``): by
+    default (``exact_ray``) the box of the exact image of the 0.22 m sphere at the 3D ball's depth on the
+    labelled ray (an ellipse's box off-axis); ``paper``: the square of side ``d_px`` on the labelled centre.
+    ``d_px`` is the diameter d_opt (px) and ``error_m`` the paper's ``optimized_error`` (metres)."""
 
     box: Box
     d_px: float

@@ -20,7 +20,7 @@ from app.services.errors import InvalidInputError
 
 DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
-_STAGES = {"merge": "merging", "calibrate": "calibrating", "rig": "calibrating with game rigs",
+_STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating", "rig": "calibrating with game rigs",
            "triangulate": "triangulating"}
 
 

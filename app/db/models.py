@@ -185,6 +185,10 @@ class System(Base):
     #: Admitted labelled views whose reprojection error is above tau
     #: (``app.geometry.triangulation.error_above_tau``).
     views_above_tau: Mapped[int] = mapped_column(default=0)
+    #: The system's review status (a copy of ``review.status``, pending without a decision), kept in the
+    #: transaction of every decision and recomputation: the queue filters and counts by it.
+    review_status: Mapped[ReviewStatus] = mapped_column(
+        enum_by_value(ReviewStatus, "system_review_status"), default=ReviewStatus.PENDING, index=True)
     #: Version of the derived rows and figures (``app.services.recompute.DERIVED_VERSION``); a system
     #: stored by an older version is recomputed before it is served (``refresh_stale_systems``).
     derived_version: Mapped[int] = mapped_column(default=0)
@@ -397,8 +401,11 @@ class BallReprojection(Base):
 
 
 class OptimisedBox(Base):
-    """Paper Eq. min_diametre: a square box on the labelled centre with side ``d_opt_px``, and the
-    remaining distance ``error_m`` (metres) between the 3D ball and the monocular estimate."""
+    """A view's optimised box (paper Eq. min_diametre; ``app.geometry.ball.optimise_box`` with
+    ``Settings.optimised_box_method``): by default (``exact_ray``) the box of the exact image of the ball
+    at the 3D ball's depth along the labelled ray, an ellipse's box off the optical axis; with ``paper``,
+    the square of side ``d_opt_px`` on the labelled centre. ``d_opt_px`` is the diameter d_opt (px) and
+    ``error_m`` (metres) the remaining distance between the 3D ball and the monocular estimate."""
 
     __tablename__ = "optimised_boxes"
 

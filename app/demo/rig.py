@@ -16,7 +16,7 @@ from typing import Mapping
 
 import numpy as np
 
-from app.geometry.camera import Camera
+from app.geometry.camera import Camera, look_at_rotation
 
 
 @dataclass(frozen=True)
@@ -66,44 +66,6 @@ RIG: Mapping[str, RigCamera] = _rig(
 NEAR_DUPLICATE_OFFSET_M: tuple[float, float, float] = (0.45, -0.3, 0.25)
 
 
-def look_at_rotation(position: np.ndarray, target: np.ndarray, roll_deg: float = 0.0) -> np.ndarray:
-    """World-to-camera rotation of a camera at ``position`` whose optical axis passes through ``target``.
-
-    The image x axis stays horizontal (then rolled about the optical axis so that the camera's
-    SoccerNet ``roll_degrees`` is ``roll_deg``) and the image y axis points down the world (+z), as
-    a broadcast head on a level tripod.
-
-    Args:
-        position: (3,) camera centre, world metres.
-        target: (3,) world point on the optical axis, metres.
-        roll_deg: SoccerNet roll (rotation about the optical axis), degrees.
-
-    Returns:
-        (3, 3) rotation ``R`` with ``x_cam = R (X - C)``.
-
-    Raises:
-        ValueError: target equals position, or the camera would look straight up or down.
-
-    >>> R = look_at_rotation(np.array([0.0, 50.0, -10.0]), np.array([0.0, 0.0, -10.0]))
-    >>> (np.round(R @ np.array([0.0, -1.0, 0.0]), 6) + 0.0).tolist()  # the optical axis is camera z
-    [0.0, 0.0, 1.0]
-    """
-    c, t = np.asarray(position, float).reshape(3), np.asarray(target, float).reshape(3)
-    z = t - c
-    if np.linalg.norm(z) < 1e-9:
-        raise ValueError("target coincides with the camera position")
-    z = z / np.linalg.norm(z)
-    down = np.array([0.0, 0.0, 1.0])
-    y = down - z * (down @ z)
-    if np.linalg.norm(y) < 1e-6:
-        raise ValueError("a camera looking straight up or down has no horizontal image axis")
-    y = y / np.linalg.norm(y)
-    x = np.cross(y, z)
-    R = np.stack([x, y, z])
-    # SoccerNet's R = (Rz(pan) Rx(tilt) Rz(roll))^T ends with Rz(roll)^T = Rz(-roll) on the left.
-    a = -np.radians(roll_deg)
-    roll = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
-    return roll @ R
 
 
 def framing_camera(position: np.ndarray, target: np.ndarray, framing_m: float, width: int, height: int,

@@ -55,6 +55,44 @@ def rotation_from_pan_tilt_roll(pan_deg: float, tilt_deg: float, roll_deg: float
     return (_rz(pan) @ _rx(tilt) @ _rz(roll)).T
 
 
+def look_at_rotation(centre: np.ndarray, target: np.ndarray, roll_deg: float = 0.0) -> np.ndarray:
+    """World-to-camera rotation of a camera at ``centre`` whose optical axis passes through ``target``.
+
+    The image x axis stays horizontal (then rolled about the optical axis so that the camera's
+    SoccerNet ``roll_degrees`` is ``roll_deg``) and the image y axis follows the world's downward
+    direction (+z) as seen from the camera, as a broadcast head on a level tripod.
+
+    Args:
+        centre: (3,) camera centre, world metres (SoccerNet, z down).
+        target: (3,) world point on the optical axis, metres.
+        roll_deg: SoccerNet roll (rotation about the optical axis), degrees.
+
+    Returns:
+        (3, 3) rotation ``R`` with ``x_cam = R (X - C)``.
+
+    Raises:
+        ValueError: the two points coincide, or the camera would look straight up or down.
+
+    >>> R = look_at_rotation(np.array([0.0, 50.0, -10.0]), np.array([0.0, 0.0, -10.0]))
+    >>> (np.round(R @ np.array([0.0, -1.0, 0.0]), 6) + 0.0).tolist()  # the optical axis is camera z
+    [0.0, 0.0, 1.0]
+    """
+    z = np.asarray(target, float).reshape(3) - np.asarray(centre, float).reshape(3)
+    n = np.linalg.norm(z)
+    if n < 1e-9:
+        raise ValueError("look_at_rotation: target equals centre")
+    z = z / n
+    down = np.array([0.0, 0.0, 1.0])
+    y = down - (down @ z) * z
+    ny = np.linalg.norm(y)
+    if ny < 1e-9:
+        raise ValueError("look_at_rotation: a camera looking straight up or down has no horizontal image axis")
+    y = y / ny
+    R = np.stack([np.cross(y, z), y, z])
+    # SoccerNet's R = (Rz(pan) Rx(tilt) Rz(roll))^T ends with Rz(roll)^T = Rz(-roll) on the left.
+    return _rz(-np.radians(roll_deg)) @ R if roll_deg else R
+
+
 def pan_tilt_roll_from_rotation(rotation: np.ndarray) -> tuple[float, float, float]:
     """Pan, tilt and roll (degrees) of a world-to-camera rotation.
 

@@ -34,7 +34,7 @@ import numpy as np
 from app.geometry.ball import ball_from_box_exact, sphere_image_box
 from app.geometry.camera import Camera
 from app.geometry.consensus import Consensus, ball_consensus
-from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px
+from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation
 
 #: Kinds that accuse a label (the review queue counts, filters and sorts by them).
 LABEL_KINDS: tuple[str, ...] = (

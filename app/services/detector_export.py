@@ -44,16 +44,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Literal
 
-from sqlalchemy import select
+import numpy as np
 from sqlalchemy.orm import Session, selectinload
 
-import numpy as np
-
-from app.db.models import Frame, Game, ReviewDecision, ReviewStatus, System, Triangulation
+from app.db.models import Frame, Game, System, Triangulation
 from app.geometry.ball import box_centre_and_diameter
 from app.geometry.camera import Camera
 from app.geometry.refined_box import refine_box
-from app.services.exporting import split_of
+from app.services.exporting import exported_systems, split_of
 from app.services.views import ImageUnavailable, frame_image
 
 BALL_CLASS = "Ball"
@@ -217,13 +215,7 @@ def iter_export_views(session: Session, include_all: bool, report: DetectorExpor
 
     Counts skipped views in ``report``.
     """
-    query = (
-        select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-        .options(selectinload(System.game), *BALL_BOX_LOADS)
-        .order_by(Game.league, Game.season, Game.match, System.id)
-    )
-    if not include_all:
-        query = query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
+    query = exported_systems(include_all, *BALL_BOX_LOADS)
     source: dict[int, dict[str, list[dict[str, Any]]]] = {}
     for system in session.scalars(query.execution_options(yield_per=_CHUNK)):
         game = system.game

@@ -206,6 +206,8 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         review.status = status  # type: ignore[assignment]
         review.comment = comment
         review.decided_at = utcnow()
+        if isinstance(subject, System):
+            subject.review_status = status  # type: ignore[assignment]  # the queue's copy
         session.flush()
         return review
 

@@ -25,13 +25,16 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import io
 import json
-from collections import defaultdict
+import tempfile
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
-from sqlalchemy import select
+import sqlalchemy as sa
+from sqlalchemy import Select, select
 from sqlalchemy.orm import Session, selectinload
 
 from app.db.models import Frame, FrameRole, Game, ReviewDecision, ReviewStatus, System
@@ -138,8 +141,113 @@ def _csv_row(game: Game, system: System, frame: Frame, split: str) -> dict[str, 
     return {k: _cell(values[k]) for k in CSV_COLUMNS}
 
 
+def exported_systems(include_all: bool, *loads: Any) -> Select[tuple[System]]:
+    """The query of the systems an export writes: accepted ones unless ``include_all``, in (league,
+    season, match, id) order, with their game and the relationship ``loads`` given loaded. Every
+    export (SoccerNet-v3D, YOLO, COCO) and the monocular benchmark's reference select by it."""
+    query = (
+        select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+        .options(selectinload(System.game), *loads)
+        .order_by(Game.league, Game.season, Game.match, System.id)
+    )
+    return query if include_all else query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
+
+
+#: Relationships an exported system needs loaded.
+_EXPORT_LOADS = (
+    selectinload(System.triangulation), selectinload(System.review),
+    selectinload(System.frames).selectinload(Frame.calibration),
+    selectinload(System.frames).selectinload(Frame.field_lines),
+    selectinload(System.frames).selectinload(Frame.ball_label),
+    selectinload(System.frames).selectinload(Frame.optimised_box),
+    selectinload(System.frames).selectinload(Frame.reprojection),
+)
+
+
+@dataclass(frozen=True)
+class ExportedGame:
+    """One game of a SoccerNet-v3D export: its folder, its ``Labels-v3D.json`` document and its
+    ``SNv3D.csv`` rows."""
+
+    league: str
+    season: str
+    match: str
+    doc: dict[str, Any]
+    rows: list[dict[str, str]]
+    systems: int
+
+    @property
+    def labels_path(self) -> str:
+        """``league/season/match/Labels-v3D.json``, the file's place in the tree (POSIX separators)."""
+        return f"{self.league}/{self.season}/{self.match}/Labels-v3D.json"
+
+    def labels_json(self) -> bytes:
+        """The ``Labels-v3D.json`` bytes (UTF-8, indented by one space)."""
+        return json.dumps(self.doc, indent=1).encode("utf-8")
+
+
+def iter_soccernet_v3d(session: Session, include_all: bool = False) -> Iterator[ExportedGame]:
+    """The export game by game (see the module docstring), reading one game's systems at a time and
+    releasing them before the next, so that memory stays bounded whatever the database's size.
+
+    Raises:
+        InvalidInputError: a league, season or match that cannot be a folder name; raised before the
+            first game is yielded, so a writer writes nothing.
+    """
+    wanted = select(System.game_id).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+    if not include_all:
+        wanted = wanted.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
+    games = session.execute(
+        select(Game.id, Game.league, Game.season, Game.match).where(Game.id.in_(wanted))
+        .order_by(Game.league, Game.season, Game.match, Game.id)
+    ).all()
+    for gid, league, season, match in games:  # validate every folder name before writing anything
+        for value, what in ((league, "league"), (season, "season"), (match, "match")):
+            _safe_component(value, f"game {gid} {what}")
+    for gid, league, season, match in games:
+        systems = list(session.scalars(exported_systems(include_all, *_EXPORT_LOADS).where(System.game_id == gid)))
+        yield _exported_game(systems[0].game, systems)
+        session.expunge_all()
+
+
+def _exported_game(game: Game, systems: list[System]) -> ExportedGame:
+    split = split_of(game.path)
+    actions: dict[str, Any] = {}
+    replays: dict[str, Any] = {}
+    reconstructions: list[str] = []
+    rows: list[dict[str, str]] = []
+    for system in systems:
+        frames = list(system.frames)
+        admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
+        if len(admitted) > 1:
+            reconstructions.append(system.name)
+        main = frames[0]
+        others = frames[1:]
+        main_json = _frame_json(main, [f.name for f in others if f in admitted])
+        main_json["linked_replays"] = [f.name for f in others]
+        actions[main.name] = main_json
+        for f in others:
+            rj = _frame_json(f, None)
+            rj["linked_action"] = main.name
+            replays[f.name] = rj
+        rows.extend(_csv_row(game, system, f, split) for f in frames)
+    doc = {
+        "GameMetadata": {
+            "UrlLocal": f"{game.path}/", "list_actions": list(actions), "list_replays": list(replays),
+            "num_actions": len(actions), "num_replays": len(replays), "reconstructions": reconstructions,
+            "v3d_reviews": {s.name: (s.review.status.value if s.review else ReviewStatus.PENDING.value)
+                            for s in systems},
+            "v3d_systems": {s.frames[0].name: s.name for s in systems if s.frames[0].name != s.name},
+        },
+        "actions": actions,
+        "replays": replays,
+    }
+    return ExportedGame(game.league, game.season, game.match, doc, rows, len(systems))
+
+
 def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: bool = False) -> ExportReport:
-    """Write the SoccerNet-v3D tree of the database under ``out_dir`` (see the module docstring).
+    """Write the SoccerNet-v3D tree of the database under ``out_dir`` (see the module docstring), game
+    by game (:func:`iter_soccernet_v3d`), the CSV written as the games come.
 
     Args:
         session: database session (read only).
@@ -154,73 +262,93 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
         InvalidInputError: a league, season or match that cannot be a folder name (nothing written).
     """
     out = Path(out_dir)
-    query = (
-        select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-        .options(
-            selectinload(System.game), selectinload(System.triangulation), selectinload(System.review),
-            selectinload(System.frames).selectinload(Frame.calibration),
-            selectinload(System.frames).selectinload(Frame.field_lines),
-            selectinload(System.frames).selectinload(Frame.ball_label),
-            selectinload(System.frames).selectinload(Frame.optimised_box),
-            selectinload(System.frames).selectinload(Frame.reprojection),
-        )
-        .order_by(Game.league, Game.season, Game.match, System.id)
-    )
-    if not include_all:
-        query = query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
-    by_game: dict[int, list[System]] = defaultdict(list)
-    games: dict[int, Game] = {}
-    for system in session.scalars(query):
-        by_game[system.game_id].append(system)
-        games[system.game_id] = system.game
-    for game in games.values():  # validate every folder name before writing anything
-        for value, what in ((game.league, "league"), (game.season, "season"), (game.match, "match")):
-            _safe_component(value, f"game {game.id} {what}")
-
-    rows: list[dict[str, str]] = []
-    files: list[Path] = []
-    for game_id, systems in by_game.items():
-        game = games[game_id]
-        split = split_of(game.path)
-        actions: dict[str, Any] = {}
-        replays: dict[str, Any] = {}
-        reconstructions: list[str] = []
-        for system in systems:
-            frames = list(system.frames)
-            admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
-            if len(admitted) > 1:
-                reconstructions.append(system.name)
-            main = frames[0]
-            others = frames[1:]
-            main_json = _frame_json(main, [f.name for f in others if f in admitted])
-            main_json["linked_replays"] = [f.name for f in others]
-            actions[main.name] = main_json
-            for f in others:
-                rj = _frame_json(f, None)
-                rj["linked_action"] = main.name
-                replays[f.name] = rj
-            rows.extend(_csv_row(game, system, f, split) for f in frames)
-        doc = {
-            "GameMetadata": {
-                "UrlLocal": f"{game.path}/", "list_actions": list(actions), "list_replays": list(replays),
-                "num_actions": len(actions), "num_replays": len(replays), "reconstructions": reconstructions,
-                "v3d_reviews": {s.name: (s.review.status.value if s.review else ReviewStatus.PENDING.value)
-                                for s in systems},
-                "v3d_systems": {s.frames[0].name: s.name for s in systems if s.frames[0].name != s.name},
-            },
-            "actions": actions,
-            "replays": replays,
-        }
-        game_dir = out.joinpath(game.league, game.season, game.match)
-        game_dir.mkdir(parents=True, exist_ok=True)
-        path = game_dir / "Labels-v3D.json"
-        path.write_text(json.dumps(doc, indent=1), encoding="utf-8")
-        files.append(path)
-
+    games = iter_soccernet_v3d(session, include_all)
+    first = next(games, None)  # validates every folder name before anything is written
     out.mkdir(parents=True, exist_ok=True)
     csv_path = out / "SNv3D.csv"
+    files: list[Path] = []
+    n_games = n_systems = n_rows = 0
     with csv_path.open("w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
         writer.writeheader()
-        writer.writerows(rows)
-    return ExportReport(out, len(by_game), sum(len(v) for v in by_game.values()), len(rows), csv_path, tuple(files))
+        for exported in _chain(first, games):
+            path = out / exported.labels_path
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(exported.labels_json())
+            files.append(path)
+            writer.writerows(exported.rows)
+            n_games, n_systems, n_rows = n_games + 1, n_systems + exported.systems, n_rows + len(exported.rows)
+    return ExportReport(out, n_games, n_systems, n_rows, csv_path, tuple(files))
+
+
+def _chain(first: ExportedGame | None, rest: Iterator[ExportedGame]) -> Iterator[ExportedGame]:
+    if first is not None:
+        yield first
+        yield from rest
+
+
+class _ZipSink(io.RawIOBase):
+    """A write-only, unseekable stream whose written bytes are taken out in pieces (:meth:`drain`), so
+    that ``zipfile`` can write an archive while it is being sent."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._parts: list[bytes] = []
+        self._pos = 0
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, b: Any) -> int:
+        data = bytes(b)
+        self._parts.append(data)
+        self._pos += len(data)
+        return len(data)
+
+    def tell(self) -> int:
+        return self._pos
+
+    def drain(self) -> bytes:
+        data = b"".join(self._parts)
+        self._parts.clear()
+        return data
+
+
+def export_size(session: Session, include_all: bool = False) -> tuple[int, int]:
+    """``(systems, rows)`` an export would write (rows: one per frame of an exported system), counted
+    without loading them."""
+    chosen = select(System.id).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+    if not include_all:
+        chosen = chosen.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
+    ids = chosen.subquery()
+    systems = session.scalar(select(sa.func.count()).select_from(ids)) or 0
+    rows = session.scalar(select(sa.func.count(Frame.id)).where(Frame.system_id.in_(select(ids.c.id)))) or 0
+    return int(systems), int(rows)
+
+
+def stream_soccernet_v3d_zip(session: Session, include_all: bool = False) -> Iterator[bytes]:
+    """The export as a zip archive, produced while the database is read: each game's
+    ``Labels-v3D.json`` is compressed and handed on before the next game is read; ``SNv3D.csv`` is
+    spooled (in memory up to 8 MB, then a temporary file) and written last. Memory stays bounded by one
+    game and the spool. The archive is the same tree as :func:`export_soccernet_v3d` writes.
+
+    Raises:
+        InvalidInputError: as :func:`iter_soccernet_v3d`, before the first byte.
+    """
+    games = iter_soccernet_v3d(session, include_all)
+    first = next(games, None)
+    sink = _ZipSink()
+    with tempfile.SpooledTemporaryFile(max_size=8 << 20, mode="w+", newline="", encoding="utf-8") as spool:
+        writer = csv.DictWriter(spool, fieldnames=CSV_COLUMNS)
+        writer.writeheader()
+        with zipfile.ZipFile(sink, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+            for exported in _chain(first, games):
+                zf.writestr(exported.labels_path, exported.labels_json())
+                writer.writerows(exported.rows)
+                yield sink.drain()
+            spool.seek(0)
+            with zf.open("SNv3D.csv", "w", force_zip64=True) as member:
+                for chunk in iter(lambda: spool.read(1 << 20), ""):
+                    member.write(chunk.encode("utf-8"))
+                    yield sink.drain()
+        yield sink.drain()

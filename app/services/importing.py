@@ -5,12 +5,14 @@ Every importer works in two phases so that bad input stores nothing:
 1. **read and validate** the whole input into plain records (``app.services._readers``:
    :func:`read_soccernet_v3`, :func:`read_sn_calibration`, :func:`read_soccernet_v3d`); any problem
    raises :class:`~app.services.errors.DatasetError` naming the file and the field;
-2. **write** the records in one transaction: games, systems and frames are matched by their natural
-   keys (league/season/match, system name, frame name), so importing the same input twice gives the
-   same rows. A re-import refreshes the imported originals; a current value that a reviewer edited
-   is kept. The frames whose lines are new or changed are calibrated in a process pool before the
-   first write, then everything is written and the touched systems recomputed
-   (``app.services.recompute``); the transaction commits at the end, or rolls back entirely.
+2. **write** the records in transactions of whole games (:data:`IMPORT_BATCH_FRAMES` frames or so
+   each, so that memory stays bounded at SoccerNet size): games, systems and frames are matched by
+   their natural keys (league/season/match, system name, frame name), so importing the same input
+   twice gives the same rows, and an import cut short (a crash, a kill) leaves whole games stored and
+   is completed by running it again. A re-import refreshes the imported originals; a current value
+   that a reviewer edited is kept. In each batch the frames whose lines are new or changed are
+   calibrated in the import's process pool before the batch's first write, then the batch is written,
+   its touched systems recomputed (``app.services.recompute``) and committed, or rolled back.
 
 Images are never extracted: a frame stores the zip path and member name (or a file path).
 """
@@ -22,7 +24,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload
@@ -37,7 +39,8 @@ from app.services._readers import (
     FrameRecord, GameRecord, read_sn_calibration, read_soccernet_v3, read_soccernet_v3d,
 )
 from app.services.recompute import (
-    RIG_FLAG, CalibrationFields, Progress, apply_calibration, calibrate_many, calibration_job, game_rig,
+    RIG_FLAG, CalibrationFields, CalibrationPool, Progress, apply_calibration, calibrate_many, calibration_job,
+    calibration_pool, game_rig,
     preload_systems, recompute_systems, uses_rig, wants_rig_retry, with_rig_retry,
 )
 
@@ -161,7 +164,7 @@ def _set_ball(frame: Frame, rec: FrameRecord, now: datetime) -> bool:
 
 
 def _store(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
-           progress: Progress | None) -> None:
+           progress: Progress | None, pool: CalibrationPool | None = None) -> None:
     """Upsert ``records`` into the session (no autoflush), calibrate the frames whose lines are new or
     changed in a process pool (then the refused ones of SoccerNet-v3 games with their game's rig)
     while nothing is written yet, so that a long import does not hold SQLite's write lock; then
@@ -224,13 +227,13 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
 
     t0 = time.perf_counter()
     results = calibrate_many([calibration_job(f) for f in to_calibrate],
-                             settings.calibration_workers, progress)
+                             settings.calibration_workers, progress, pool=pool)
     first_ms = [r.elapsed_ms for r in results]
     with session.no_autoflush:
-        results, rig_ms = _retry_with_game_rigs(session, to_calibrate, results, settings, progress)
+        results, rig_ms = _retry_with_game_rigs(session, to_calibrate, results, settings, progress, pool)
     report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
     report.calibration_seconds = time.perf_counter() - t0
-    report.rig_assisted = sum(RIG_FLAG in r.flags for r in results)
+    report.rig_assisted += sum(RIG_FLAG in r.flags for r in results)
     preload_systems(session, touched)  # the first write of the import
     for frame, fields in zip(to_calibrate, results):
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
@@ -242,11 +245,11 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         else:
             report.refused += 1
             report.refusal_reasons[fields.reason or "unspecified"] += 1
-    report.triangulated = recompute_systems(session, touched, settings, progress, preloaded=True)
+    report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
 
 
 def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],
-                          settings: Settings, progress: Progress | None
+                          settings: Settings, progress: Progress | None, pool: CalibrationPool | None = None
                           ) -> tuple[list[CalibrationFields], dict[int, float]]:
     """Recalibrate the frames of SoccerNet-v3 games refused or calibrated below admission
     (``recompute.wants_rig_retry``) with their game's camera rig, estimated from the game's stored
@@ -267,14 +270,40 @@ def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[C
     jobs = [calibration_job(frames[i], rigs[id(frames[i].system.game)]) for i in retry]
     out = list(results)
     rig_ms: dict[int, float] = {}
-    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig")):
+    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig", pool=pool)):
         out[i] = with_rig_retry(out[i], fields)
         rig_ms[i] = fields.elapsed_ms or 0.0
     return out, rig_ms
 
 
+#: An import is stored in transactions of whole games holding about this many frames each: memory stays
+#: bounded by a batch (the ORM rows of one batch), and a crash leaves whole games stored or not at all.
+IMPORT_BATCH_FRAMES = 2000
+
+
+def _batches(records: list[GameRecord], max_frames: int) -> Iterator[list[GameRecord]]:
+    """Whole games, in order, grouped so that a group holds at most ``max_frames`` frames (a larger
+    game forms a group alone)."""
+    batch: list[GameRecord] = []
+    n = 0
+    for g in records:
+        frames = sum(len(s.frames) for s in g.systems)
+        if batch and n + frames > max_frames:
+            yield batch
+            batch, n = [], 0
+        batch.append(g)
+        n += frames
+    if batch:
+        yield batch
+
+
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
          read: Callable[[], list[GameRecord]]) -> ImportReport:
+    """Read and validate everything (nothing is stored when the input is bad), then store it in
+    batches of whole games (:data:`IMPORT_BATCH_FRAMES`), each calibrated, recomputed and committed
+    before the next is read into the session; the calibration processes serve every batch. With
+    more than one batch ``progress`` reports the stage "games" (games stored / total) instead of the
+    inner stages of each batch."""
     t0 = time.perf_counter()
     report = ImportReport(source=str(path))
     records = read()  # validation: raises before anything is written
@@ -282,12 +311,27 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     report.games = len(records)
     report.systems = sum(len(g.systems) for g in records)
     report.frames = sum(len(s.frames) for g in records for s in g.systems)
+    batches = list(_batches(records, IMPORT_BATCH_FRAMES))
+    del records
+    calibration_ms: list[float] = []
+    calibration_seconds = 0.0
+    done = 0
     try:
-        _store(session, records, settings, report, progress)
-        session.commit()
+        with calibration_pool(settings.calibration_workers) as pool:
+            while batches:
+                batch = batches.pop(0)
+                _store(session, batch, settings, report, progress if len(batches) == 0 and done == 0 else None, pool)
+                session.commit()
+                session.expunge_all()
+                calibration_ms += report.calibration_ms
+                calibration_seconds += report.calibration_seconds
+                done += len(batch)
+                if progress and (batches or done > len(batch)):
+                    progress("games", done, report.games)
     except BaseException:
         session.rollback()
         raise
+    report.calibration_ms, report.calibration_seconds = calibration_ms, calibration_seconds
     report.seconds = time.perf_counter() - t0
     report.store_seconds = report.seconds - report.read_seconds - report.calibration_seconds
     return report
@@ -296,7 +340,7 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
 def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
                         progress: Progress | None = None) -> ImportReport:
     """Import a SoccerNet-v3 tree (see :func:`read_soccernet_v3`), calibrate its frames (process pool
-    over ``calibrate_frame``), triangulate its systems, and commit in one transaction.
+    over ``calibrate_frame``), triangulate its systems, and commit game batch by game batch.
 
     Idempotent: a second import of the same tree changes nothing. ``progress(stage, done, total)``
     is called for the stages "merge" (records matched to rows), "calibrate", "rig" (frames retried

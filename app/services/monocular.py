@@ -30,17 +30,15 @@ from pathlib import Path
 from typing import Any, Hashable
 
 import numpy as np
-from sqlalchemy import select
-from sqlalchemy.orm import Session, selectinload
+from sqlalchemy.orm import Session
 
-from app.db.models import Frame, Game, ReviewDecision, ReviewStatus, System
 from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
 from app.geometry.metrics import (Detections, average_precision, box_iou, load_coco_results,
                                   load_yolo_detections, monocular_metrics, precision_curve)
 from app.services.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes, image_stem
 from app.services.errors import InvalidInputError
-from app.services.exporting import split_of
+from app.services.exporting import exported_systems, split_of
 
 #: Thresholds (metres) of the precision-threshold curve.
 CURVE_THRESHOLDS_M = tuple(float(t) for t in np.round(np.arange(0.0, 10.0001, 0.25), 2))
@@ -79,13 +77,7 @@ def reference_views(session: Session, include_all: bool = False, ball_diameter_m
     system's 3D ball: views in at least one kept triangulation pair, with an optimised box. A view whose
     label disagrees with the 3D ball (in no kept pair: a wrong box, a desynchronised replay, an excluded
     view) has no trustworthy reference there and is left out."""
-    query = (
-        select(System).join(System.game).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-        .options(selectinload(System.game), *BALL_BOX_LOADS)
-        .order_by(Game.league, Game.season, Game.match, System.id)
-    )
-    if not include_all:
-        query = query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
+    query = exported_systems(include_all, *BALL_BOX_LOADS)
     out = []
     for system in session.scalars(query):
         tri = system.triangulation

@@ -40,22 +40,24 @@ stadiums) never use one.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import multiprocessing
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, Callable, Collection, Iterable, Sequence
+from typing import Any, Callable, Collection, Iterable, Iterator, Sequence
 
 import numpy as np
+import sqlalchemy as sa
 from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
 from app.db.models import (
-    BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, OptimisedBox, System,
-    SystemKind, Triangulation, TriangulationPair, TriangulationStatus,
+    BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, OptimisedBox, ReviewStatus,
+    System, SystemKind, Triangulation, TriangulationPair, TriangulationStatus,
 )
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists
@@ -192,8 +194,34 @@ def calibration_job(frame: Frame, rig: CameraRig | None = None) -> CalibrationJo
             frame.role is FrameRole.ACTION)
 
 
+@dataclass(frozen=True)
+class CalibrationPool:
+    """Processes for bulk calibration (:func:`calibration_pool`): ``executor`` None runs in this process."""
+
+    workers: int
+    executor: ProcessPoolExecutor | None
+
+
+@contextlib.contextmanager
+def calibration_pool(workers: int = 0) -> Iterator[CalibrationPool]:
+    """The process pool of bulk calibration, for the span of an import (its batches share it): in this
+    process when ``workers`` (0 = all cores) is 1, else that many processes, shut down on exit.
+
+    forkserver, not fork: the API runs imports from worker threads, and forking a threaded process can
+    deadlock the child; workers import the geometry once and then take chunks of jobs."""
+    n = workers or os.cpu_count() or 1
+    if n <= 1:
+        yield CalibrationPool(1, None)
+        return
+    executor = ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("forkserver"))
+    try:
+        yield CalibrationPool(n, executor)
+    finally:
+        executor.shutdown(wait=True, cancel_futures=True)
+
+
 def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: Progress | None = None,
-                   stage: str = "calibrate") -> list[CalibrationFields]:
+                   stage: str = "calibrate", pool: CalibrationPool | None = None) -> list[CalibrationFields]:
     """Calibrate many frames, in parallel on ``workers`` processes (0 = all cores).
 
     Args:
@@ -201,12 +229,14 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: P
         workers: process count; 0 means ``os.cpu_count()``; 1, or fewer than a handful of jobs,
             runs in this process.
         progress: called with ``(stage, done, total)``.
+        pool: a pool from :func:`calibration_pool` to run on (then ``workers`` is ignored); without
+            one, a pool is made for this call.
 
     Returns:
         One :class:`CalibrationFields` per job, in order.
     """
     total = len(jobs)
-    n = workers or os.cpu_count() or 1
+    n = pool.workers if pool is not None else (workers or os.cpu_count() or 1)
     out: list[CalibrationFields] = []
     if n <= 1 or total < _MIN_JOBS_FOR_POOL:
         for job in jobs:
@@ -215,10 +245,11 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: P
                 progress(stage, len(out), total)
         return out
     chunk = max(1, min(16, total // (n * 8)))
-    # forkserver, not fork: the API runs imports from worker threads, and forking a threaded process
-    # can deadlock the child; workers import the geometry once and then take chunks of jobs.
-    with ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("forkserver")) as pool:
-        for fields in pool.map(_calibrate_job, jobs, chunksize=chunk):
+    with contextlib.ExitStack() as stack:
+        if pool is None:
+            pool = stack.enter_context(calibration_pool(n))
+        assert pool.executor is not None
+        for fields in pool.executor.map(_calibrate_job, jobs, chunksize=chunk):
             out.append(fields)
             if progress:
                 progress(stage, len(out), total)
@@ -268,7 +299,7 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
 
 def game_rig(session: Session | None, game_id: int | None, settings: Settings, exclude_frame_ids: Collection[int] = (),
              extra: Iterable[CalibrationFields] = (), extra_roles: Sequence[FrameRole] | None = None,
-             stored: Sequence[tuple[int, Camera, bool]] | None = None) -> CameraRig:
+             stored: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> CameraRig:
     """The camera rig of a game (``app.geometry.calibration.rig.estimate_rig``), from the centres of
     its cameras that are calibrated with JaC@gamma > ``admit_jac_min`` and not rig-assisted themselves.
     Action frames mark the main camera's position (:attr:`RigPosition.main_frames`).
@@ -287,28 +318,36 @@ def game_rig(session: Session | None, game_id: int | None, settings: Settings, e
     if len(roles) != len(extra):
         raise ValueError(f"extra_roles must give one role per extra calibration ({len(extra)}), got {len(roles)}")
     gamma_index = JAC_GAMMAS.index(_gamma(settings))
-    rows = [(Camera.from_soccernet(f.camera), role is FrameRole.ACTION) for f, role in zip(extra, roles)
+    rows = [(np.asarray(f.camera["position_meters"], float), role is FrameRole.ACTION)  # type: ignore[index]
+            for f, role in zip(extra, roles)
             if _feeds_rig(f.status, f.camera, f.flags, f.jac[gamma_index], settings)]
     if stored is None and game_id is not None and session is not None:
         stored = rig_rows(session, game_id, settings)
     if stored is not None:
         excluded = set(exclude_frame_ids)
         rows += [(c, main) for fid, c, main in stored if fid not in excluded]
-    return estimate_rig([c for c, _ in rows], main_camera=[m for _, m in rows])
+    return estimate_rig(np.array([c for c, _ in rows]).reshape(-1, 3), main_camera=[m for _, m in rows])
 
 
-def rig_cameras(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera]]:
-    """``(frame id, camera)`` of the stored calibrations of a game that feed its rig (:func:`game_rig`)."""
+def rig_centres(session: Session, game_id: int, settings: Settings) -> list[tuple[int, np.ndarray]]:
+    """``(frame id, camera centre (3,), metres)`` of the stored calibrations of a game that feed its
+    rig (:func:`game_rig`)."""
     return [(fid, c) for fid, c, _ in rig_rows(session, game_id, settings)]
 
 
-def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[int, Camera, bool]]:
-    """``(frame id, camera, filmed by the main camera)`` of the calibrations feeding the game's rig."""
-    query = (select(Calibration, Frame.role).join(Frame, Frame.id == Calibration.frame_id)
+def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[int, np.ndarray, bool]]:
+    """``(frame id, camera centre (3,) metres, filmed by the main camera)`` of the calibrations feeding
+    the game's rig: calibrated, JaC@gamma > ``admit_jac_min``, not rig-assisted. One query that reads
+    only the centre out of each stored camera (the rig needs nothing else), so an edit does not decode
+    every calibration of its game."""
+    jac = getattr(Calibration, _JAC_COLUMNS[_gamma(settings)])
+    query = (select(Calibration.frame_id, Frame.role, Calibration.camera["position_meters"])
+             .join(Frame, Frame.id == Calibration.frame_id)
              .join(System, System.id == Frame.system_id)
-             .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED))
-    return [(c.frame_id, Camera.from_soccernet(c.camera), role is FrameRole.ACTION) for c, role in session.execute(query)
-            if _feeds_rig(c.status, c.camera, c.flags, admission_jac(c, settings), settings)]
+             .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED,
+                    Calibration.camera.is_not(None), jac > settings.admit_jac_min,
+                    sa.cast(Calibration.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%')))
+    return [(fid, np.asarray(centre, float), role is FrameRole.ACTION) for fid, role, centre in session.execute(query)]
 
 
 def wants_rig_retry(fields: CalibrationFields, settings: Settings) -> bool:
@@ -390,14 +429,14 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
 
 
 def recompute_system(session: Session, system: System, settings: Settings,
-                     rig_sources: Sequence[tuple[int, Camera]] | None = None) -> Triangulation:
+                     rig_sources: Sequence[tuple[int, np.ndarray]] | None = None) -> Triangulation:
     """Admission, mirror evidence, triangulation, reprojections and optimised boxes of one system,
     from its current calibrations and ball labels (see the module docstring). Replaces the previous
     derived rows in the session; the caller flushes or commits. The system's frames must have ids
     (be flushed).
 
     Args:
-        rig_sources: ``(frame id, camera)`` feeding the game's rig (:func:`rig_cameras`), to spare
+        rig_sources: ``(frame id, camera centre)`` feeding the game's rig (:func:`rig_centres`), to spare
             a query per system in bulk; read from the session when None.
 
     Returns:
@@ -460,6 +499,7 @@ def update_summary(system: System, tri: Triangulation) -> None:
     frames = list(system.frames)
     cals = [f.calibration for f in frames]
     admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
+    system.review_status = system.review.status if system.review is not None else ReviewStatus.PENDING
     system.views_total = len(frames)
     system.views_calibrated = sum(c is not None and c.status is CalibrationStatus.CALIBRATED for c in cals)
     system.views_admitted = len(admitted)
@@ -477,12 +517,18 @@ def update_summary(system: System, tri: Triangulation) -> None:
 def refresh_stale_systems(session: Session, settings: Settings, progress: Progress | None = None) -> int:
     """Recompute (calibrations untouched) every system stored by an older version of the derived rows
     (``System.derived_version < DERIVED_VERSION``, e.g. after a schema upgrade) and commit; returns how
-    many. Serving or reporting a database calls it first, so stored doubts and queue figures are current."""
-    stale = session.scalars(select(System).where(System.derived_version < DERIVED_VERSION)).all()
-    if stale:
-        recompute_systems(session, stale, settings, progress)
+    many. Serving or reporting a database calls it first, so stored doubts and queue figures are current.
+    Systems are recomputed and committed :data:`_REFRESH_BATCH` at a time (a crash leaves the rest stale,
+    to be refreshed next time)."""
+    ids = list(session.scalars(select(System.id).where(System.derived_version < DERIVED_VERSION).order_by(System.id)))
+    for start in range(0, len(ids), _REFRESH_BATCH):  # commit and release batch by batch: bounded memory
+        batch = session.scalars(select(System).where(System.id.in_(ids[start:start + _REFRESH_BATCH]))).all()
+        recompute_systems(session, batch, settings)
         session.commit()
-    return len(stale)
+        session.expunge_all()
+        if progress:
+            progress("recompute", min(start + _REFRESH_BATCH, len(ids)), len(ids))
+    return len(ids)
 
 
 def mirror_settings(settings: Settings) -> MirrorSettings:
@@ -491,7 +537,7 @@ def mirror_settings(settings: Settings) -> MirrorSettings:
 
 
 def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Camera], settings: Settings,
-                         rig_sources: Sequence[tuple[int, Camera]] | None) -> None:
+                         rig_sources: Sequence[tuple[int, np.ndarray]] | None) -> None:
     """Judge every calibrated frame of the system (``app.geometry.mirror.mirror_evidence``: ball rays
     of every calibrated, labelled frame, side prior, the game's rig estimated without this system's
     frames) and set :data:`MIRROR_FLAG` and ``mirror_evidence`` on its calibration. Refused frames
@@ -507,9 +553,9 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
         return
     positions = None
     if uses_rig(system) and system.game_id is not None:
-        sources = rig_sources if rig_sources is not None else rig_cameras(session, system.game_id, settings)
+        sources = rig_sources if rig_sources is not None else rig_centres(session, system.game_id, settings)
         mine = {f.id for f in system.frames}
-        rig = estimate_rig([c for fid, c in sources if fid not in mine])
+        rig = estimate_rig(np.array([c for fid, c in sources if fid not in mine]).reshape(-1, 3))
         positions = np.array([p.centre_m for p in rig.positions]).reshape(-1, 3)
     views = [MirrorView(view_id=f.id, camera=cameras[f.id], ball_px=_label_centre(f), image_width=f.width,
                         expected_side=expected_side(f.role), rays=True, name=f.name)
@@ -560,13 +606,15 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
 #: Everything :func:`recompute_system` reads or replaces, loaded up front for many systems.
 _RECOMPUTE_LOADS = (
     selectinload(System.triangulation).selectinload(Triangulation.pairs),
-    selectinload(System.doubts),
+    selectinload(System.doubts), selectinload(System.review),
     selectinload(System.frames).options(
         selectinload(Frame.calibration), selectinload(Frame.ball_label), selectinload(Frame.reprojection),
         selectinload(Frame.optimised_box), selectinload(Frame.review), selectinload(Frame.field_lines),
     ),
 )
 _LOAD_CHUNK = 500
+#: Systems recomputed per transaction by :func:`refresh_stale_systems`.
+_REFRESH_BATCH = 500
 
 
 def preload_systems(session: Session, systems: Sequence[System]) -> None:
@@ -592,7 +640,7 @@ def recompute_systems(session: Session, systems: Iterable[System], settings: Set
         session.flush()
     else:
         preload_systems(session, systems)
-    sources = {gid: rig_cameras(session, gid, settings)
+    sources = {gid: rig_centres(session, gid, settings)
                for gid in {s.game_id for s in systems if uses_rig(s) and s.game_id is not None}}
     n = 0
     for i, s in enumerate(systems, 1):

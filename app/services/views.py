@@ -20,6 +20,8 @@ label-accusing one); doubts and their counts are stored by the recomputation
 """
 from __future__ import annotations
 
+import functools
+import json
 import mimetypes
 import zipfile
 from collections.abc import Iterator
@@ -142,10 +144,9 @@ class FramePage:
     total: int
 
 
-def _review_status() -> sa.ColumnElement[ReviewStatus]:
-    """A system's review status; a system never decided on is pending."""
-    status_type = ReviewDecision.status.type
-    return sa.func.coalesce(ReviewDecision.status, sa.literal(ReviewStatus.PENDING, status_type), type_=status_type)
+def _review_status() -> Any:
+    """A system's review status: the copy stored on the system (pending without a decision)."""
+    return System.review_status
 
 
 def _queue_from() -> sa.Select[Any]:
@@ -153,7 +154,7 @@ def _queue_from() -> sa.Select[Any]:
     the stored ``System`` columns (no aggregation here)."""
     return (
         sa.select(
-            System, Game, _review_status().label("review_status"),
+            System, Game, System.review_status.label("review_status"),
             sa.func.coalesce(ReviewDecision.comment, "").label("review_comment"),
             ReviewDecision.decided_at.label("review_decided_at"), Triangulation.ball3d,
         )
@@ -194,19 +195,56 @@ def _natural_name(column: Any) -> list[Any]:
     return [sa.func.length(column), column]
 
 
-def _system_order(sort: SystemSort) -> list[Any]:
+@dataclass(frozen=True)
+class _SortKey:
+    """One key of the queue's order: an SQL expression, its direction, and whether NULLs come last
+    (the stored aggregates are NULL without a 3D ball or an admitted view)."""
+
+    expr: Any
+    desc: bool = False
+    nulls_last: bool = False
+
+    def clause(self, reverse: bool = False) -> Any:
+        desc = self.desc != reverse
+        c = self.expr.desc() if desc else self.expr.asc()
+        if self.nulls_last:
+            c = c.nulls_first() if reverse else c.nulls_last()
+        return c
+
+    def equal(self, value: Any) -> Any:
+        return self.expr.is_(None) if value is None else self.expr == value
+
+    def before(self, value: Any) -> Any:
+        """SQL: a row's key sorts strictly before ``value`` (the current row's)."""
+        if self.nulls_last and value is None:
+            return self.expr.is_not(None)
+        return self.expr > value if self.desc else self.expr < value
+
+    def after(self, value: Any) -> Any:
+        """SQL: a row's key sorts strictly after ``value``."""
+        if self.nulls_last and value is None:
+            return sa.false()
+        beyond = self.expr < value if self.desc else self.expr > value
+        return sa.or_(self.expr.is_(None), beyond) if self.nulls_last else beyond
+
+
+def _sort_keys(sort: SystemSort) -> list[_SortKey]:
+    """The queue's order as keys; the system id comes last, so the order is strict."""
     desc = sort.startswith("-")
     key = sort.lstrip("-")
     if key == "name":
         cols = [Game.league, Game.season, Game.match, *_natural_name(System.name)]
-        return [c.desc() if desc else c.asc() for c in cols] + [System.id.asc()]
+        return [_SortKey(c, desc) for c in cols] + [_SortKey(System.id)]
     if key == "doubts":  # ties by the largest reprojection error
-        return [System.label_doubts.desc() if desc else System.label_doubts.asc(),
-                System.worst_error_px.desc().nulls_last(), System.id.asc()]
+        return [_SortKey(System.label_doubts, desc), _SortKey(System.worst_error_px, True, True), _SortKey(System.id)]
     column = {"worst_error": System.worst_error_px, "lowest_jac": System.lowest_jac}.get(key)
     if column is None:
         raise ValueError(f"unknown sort {sort!r}")
-    return [(column.desc() if desc else column.asc()).nulls_last(), System.id.asc()]
+    return [_SortKey(column, desc, True), _SortKey(System.id)]
+
+
+def _system_order(sort: SystemSort) -> list[Any]:
+    return [k.clause() for k in _sort_keys(sort)]
 
 
 def list_games(session: Session) -> list[tuple[Game, int]]:
@@ -241,8 +279,7 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
     """
     order = _system_order(sort)
     conds = _system_conditions(filters)
-    page = _queue_from().add_columns(sa.func.count().over().label("total"))
-    rows = session.execute(page.where(*conds).order_by(*order).limit(limit).offset(offset)).all()
+    rows = session.execute(_queue_from().where(*conds).order_by(*order).limit(limit).offset(offset)).all()
     items = [
         SystemSummary(
             system=r.System, game=r.Game, review_status=r.review_status, review_comment=r.review_comment,
@@ -255,45 +292,44 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
         )
         for r in rows
     ]
-    base = sa.select(System.id).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-    if rows:
-        total = rows[0].total
-    else:  # past the last page: the window count has no row to ride on
-        total = session.scalar(sa.select(sa.func.count()).select_from(base.where(*conds).subquery())) or 0
+    # one indexed GROUP BY on the stored status gives the progress and the total (no window over the queue)
     status = _review_status()
     by_status = session.execute(
-        base.with_only_columns(status, sa.func.count(System.id))
-        .where(*_system_conditions(filters, with_status=False)).group_by(status)
+        sa.select(status, sa.func.count(System.id)).where(*_system_conditions(filters, with_status=False))
+        .group_by(status)
     ).all()
     counts = {s.value: 0 for s in ReviewStatus}
     for s, n in by_status:
         counts[ReviewStatus(s).value] += int(n)
+    total = counts[ReviewStatus(filters.status).value] if filters.status is not None else sum(counts.values())
     return SystemPage(items=items, total=int(total), counts=counts)
 
 
 def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
                      sort: SystemSort = DEFAULT_SORT) -> tuple[Optional[int], Optional[int]]:
-    """``(prev_id, next_id)`` of a system in the queue ``filters`` + ``sort``.
+    """``(prev_id, next_id)`` of a system in the queue ``filters`` + ``sort`` (None at either end, or
+    for an unknown id).
 
     The system itself need not match the filters (it may just have been reviewed out of a
     "pending" queue): its neighbours are then those it would have if it did.
     """
-    order = _system_order(sort)
+    keys = _sort_keys(sort)
+    base = (sa.select(System.id).join(Game, Game.id == System.game_id)
+            .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id))
+    current = session.execute(base.with_only_columns(*(k.expr for k in keys)).where(System.id == system_id)).first()
+    if current is None:
+        return None, None
     conds = _system_conditions(filters)
-    where = sa.or_(sa.and_(*conds), System.id == system_id) if conds else sa.true()
-    ranked = (
-        sa.select(
-            System.id.label("id"),
-            sa.func.lag(System.id).over(order_by=order).label("prev_id"),
-            sa.func.lead(System.id).over(order_by=order).label("next_id"),
-        )
-        .join(Game, Game.id == System.game_id)
-        .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
-        .where(where)
-        .subquery()
-    )
-    row = session.execute(sa.select(ranked.c.prev_id, ranked.c.next_id).where(ranked.c.id == system_id)).first()
-    return (row.prev_id, row.next_id) if row is not None else (None, None)
+
+    def neighbour(side: str) -> Optional[int]:
+        # keyset: the nearest row strictly before (after) the current one in the order; two indexed
+        # LIMIT 1 queries instead of ranking the whole queue
+        alternatives = [sa.and_(*(k.equal(v) for k, v in zip(keys[:i], current)), getattr(keys[i], side)(current[i]))
+                        for i in range(len(keys))]
+        order = [k.clause(reverse=side == "before") for k in keys]
+        return session.scalar(base.where(*conds, sa.or_(*alternatives)).order_by(*order).limit(1))
+
+    return neighbour("before"), neighbour("after")
 
 
 def list_frames(session: Session, filters: FrameFilters = FrameFilters(), sort: FrameSort = "name",
@@ -372,9 +408,19 @@ def image_url(frame: Frame) -> Optional[str]:
     return f"/api/frames/{frame.id}/image" if frame_has_image(frame) else None
 
 
-def _pitch_lines(camera: Optional[Camera], width: int, height: int) -> list[dict[str, Any]]:
-    if camera is None:
+def pitch_lines(camera_json: Optional[dict[str, Any]], width: int, height: int) -> list[dict[str, Any]]:
+    """The pitch model projected by a stored camera and clipped to its image (``[{"class", "points"}]``,
+    pixels rounded for JSON), for drawing. It depends only on the calibration, so it is computed once
+    per calibration and image size and kept (:func:`_projected_pitch`, an LRU cache keyed by the camera
+    JSON), not on every request."""
+    if not camera_json:
         return []
+    return _projected_pitch(json.dumps(camera_json, sort_keys=True), int(width), int(height))
+
+
+@functools.lru_cache(maxsize=4096)
+def _projected_pitch(camera_key: str, width: int, height: int) -> list[dict[str, Any]]:
+    camera = Camera.from_soccernet(json.loads(camera_key))
     runs = project_pitch_polylines(camera, width, height, _DRAW_DIST_M, _DRAW_DIST_CIRCLES_M, mode="clip")
     return [{"class": cls, "points": _px(run)} for cls, polys in runs.items() for run in polys if len(run) >= 2]
 
@@ -407,9 +453,7 @@ def _optimised_json(opt: Optional[OptimisedBox]) -> Optional[dict[str, Any]]:
 
 def _view_json(frame: Frame, tri: Optional[Triangulation]) -> dict[str, Any]:
     cal = frame.calibration
-    camera = None
-    if cal is not None and cal.status == CalibrationStatus.CALIBRATED and cal.camera:
-        camera = Camera.from_soccernet(cal.camera)
+    calibrated = cal is not None and cal.status == CalibrationStatus.CALIBRATED and bool(cal.camera)
     rep = frame.reprojection
     lines = frame.field_lines.lines if frame.field_lines is not None else {}
     return {
@@ -420,7 +464,7 @@ def _view_json(frame: Frame, tri: Optional[Triangulation]) -> dict[str, Any]:
         "height": frame.height,
         "image_url": image_url(frame),
         "calibration": _calibration_json(cal),
-        "pitch_lines": _pitch_lines(camera, frame.width, frame.height),
+        "pitch_lines": pitch_lines(cal.camera if calibrated else None, frame.width, frame.height),
         "field_lines": lines,
         "ball": _ball_json(frame.ball_label),
         "optimised_box": _optimised_json(frame.optimised_box),
@@ -428,7 +472,7 @@ def _view_json(frame: Frame, tri: Optional[Triangulation]) -> dict[str, Any]:
         "reprojection_error_px": rep.error_px if rep is not None else None,
         "error_above_tau": rep is not None and tri is not None and error_above_tau(
             rep.error_px, frame.width, tri.tau_px, tri.rule),
-        "camera_position": camera.C.tolist() if camera is not None else None,
+        "camera_position": [float(v) for v in cal.camera["position_meters"]] if calibrated else None,
         "review": review_json(frame.review),
     }
 

@@ -1,5 +1,5 @@
 """Doubts of a system (label problems the geometry sees, with fixes), the per-view exclusion decision,
-and the review queue's per-system figures stored on the write path (app/db/models.py: Doubt,
+and the review queue's per-system figures and review status stored on the write path (app/db/models.py: Doubt,
 ReviewDecision.excluded, System.doubt_counts ... derived_version). Existing systems get
 derived_version 0: the service recomputes them before serving (app.services.recompute.refresh_stale_systems).
 
@@ -54,6 +54,8 @@ def upgrade() -> None:
         batch_op.add_column(sa.Column('views_flagged', sa.Integer(), nullable=False, server_default='0'))
         batch_op.add_column(sa.Column('views_above_tau', sa.Integer(), nullable=False, server_default='0'))
         batch_op.add_column(sa.Column('derived_version', sa.Integer(), nullable=False, server_default='0'))
+        batch_op.add_column(sa.Column('review_status', sa.Enum('pending', 'accepted', 'rejected', 'needs_fix', name='system_review_status', native_enum=False, create_constraint=True), nullable=False, server_default='pending'))
+        batch_op.create_index(batch_op.f('ix_systems_review_status'), ['review_status'], unique=False)
         batch_op.create_index('ix_systems_label_doubts_worst_error_px', ['label_doubts', 'worst_error_px'], unique=False)
         batch_op.create_index(batch_op.f('ix_systems_lowest_jac'), ['lowest_jac'], unique=False)
         batch_op.create_index(batch_op.f('ix_systems_worst_error_px'), ['worst_error_px'], unique=False)
@@ -65,6 +67,9 @@ def downgrade() -> None:
         batch_op.drop_index(batch_op.f('ix_systems_worst_error_px'))
         batch_op.drop_index(batch_op.f('ix_systems_lowest_jac'))
         batch_op.drop_index('ix_systems_label_doubts_worst_error_px')
+        batch_op.drop_index(batch_op.f('ix_systems_review_status'))
+        batch_op.drop_constraint('system_review_status', type_='check')
+        batch_op.drop_column('review_status')
         batch_op.drop_column('derived_version')
         batch_op.drop_column('views_above_tau')
         batch_op.drop_column('views_flagged')

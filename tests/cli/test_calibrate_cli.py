@@ -14,7 +14,7 @@ import app.cli.calibration  # noqa: F401  (registers ``v3d calibrate``)
 from app.cli._root import cli
 from app.geometry.annotations import to_soccernet_calibration
 from app.geometry.calibration import principal_point
-from app.geometry.calibration.initialisation import look_at_rotation
+from app.geometry.camera import look_at_rotation
 from app.geometry.camera import Camera
 from tests.geometry.test_calibration import synthetic_lines
 

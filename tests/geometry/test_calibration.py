@@ -7,7 +7,8 @@ import pytest
 
 from app.geometry.annotations import AnnotationError, FieldLines, mirror_lines
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, principal_point
-from app.geometry.calibration.initialisation import camera_from_homography, look_at_rotation
+from app.geometry.calibration.initialisation import camera_from_homography
+from app.geometry.camera import look_at_rotation
 from app.geometry.calibration.observations import build_observations
 from app.geometry.calibration.residuals import point_distances, projection_matrix
 from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
@@ -239,7 +240,7 @@ def test_game_rig_calibrates_a_frame_with_too_few_lines() -> None:
         cameras.append(r.camera)
     # A replay position seen once is not a rig position.
     cameras.append(_camera((40.0, 45.0, -10.0), (40.0, 0.0, 0.0), 1000.0, 960, 540))
-    rig = estimate_rig(cameras)
+    rig = estimate_rig([c.C for c in cameras])
     assert len(rig.positions) == 1 and rig.positions[0].frames == 5
     assert np.linalg.norm(np.array(rig.positions[0].centre_m) - main) < 1.0
 

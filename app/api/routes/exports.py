@@ -1,16 +1,12 @@
 """``/api/exports``: download reviewed labels."""
 from __future__ import annotations
 
-import shutil
-import tempfile
-from pathlib import Path
+from collections.abc import Iterator
 from typing import Annotated
 
-from fastapi import APIRouter, Query
-from fastapi.responses import FileResponse
-from starlette.background import BackgroundTask
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import StreamingResponse
 
-from app.api.deps import SessionDep
 from app.services import exporting
 
 router = APIRouter(prefix="/exports", tags=["exports"])
@@ -18,25 +14,35 @@ router = APIRouter(prefix="/exports", tags=["exports"])
 
 @router.get(
     "/soccernet-v3d",
-    response_class=FileResponse,
+    response_class=StreamingResponse,
     responses={200: {"content": {"application/zip": {}}, "description": "Labels-v3D.json per game and SNv3D.csv."}},
 )
 def export_soccernet_v3d(
-    session: SessionDep,
+    request: Request,
     include_all: Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")] = False,
-) -> FileResponse:
-    """A zip of the SoccerNet-v3D export (``app.services.exporting``), built in a temporary folder that
-    is removed once the download has been sent. ``X-V3D-Systems`` and ``X-V3D-Rows`` give its size."""
-    tmp = Path(tempfile.mkdtemp(prefix="v3d-export-"))
+) -> StreamingResponse:
+    """A zip of the SoccerNet-v3D export (``app.services.exporting``), streamed while the database is
+    read, game by game (nothing of the size of the export is built in memory or on disk).
+    ``X-V3D-Systems`` and ``X-V3D-Rows`` give its size. The stream reads through a session of its own,
+    closed when the download ends (the request's session closes before a streamed body is sent)."""
+    session = request.app.state.session_factory()
     try:
-        tree = tmp / "SoccerNet-v3D"
-        report = exporting.export_soccernet_v3d(session, tree, include_all=include_all)
-        archive = shutil.make_archive(str(tmp / "soccernet-v3d"), "zip", root_dir=tree)
+        systems, rows = exporting.export_size(session, include_all)
+        chunks = exporting.stream_soccernet_v3d_zip(session, include_all)
+        first = next(chunks)  # a game name that cannot be a folder fails here, before the answer starts
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        session.close()
         raise
-    return FileResponse(
-        archive, media_type="application/zip", filename="soccernet-v3d.zip",
-        headers={"X-V3D-Systems": str(report.systems), "X-V3D-Rows": str(report.rows)},
-        background=BackgroundTask(shutil.rmtree, tmp, ignore_errors=True),
+
+    def body() -> Iterator[bytes]:
+        try:
+            yield first
+            yield from chunks
+        finally:
+            session.close()
+
+    return StreamingResponse(
+        body(), media_type="application/zip",
+        headers={"Content-Disposition": 'attachment; filename="soccernet-v3d.zip"',
+                 "X-V3D-Systems": str(systems), "X-V3D-Rows": str(rows)},
     )

@@ -47,7 +47,6 @@ from app.geometry.calibration.initialisation import (
     fixed_centre_rotations,
     ground_homographies,
     labelled_target,
-    look_at_rotation,
 )
 from app.geometry.calibration.observations import Observations, build_observations
 from app.geometry.calibration.residuals import (
@@ -59,7 +58,7 @@ from app.geometry.calibration.residuals import (
     undistort_radial_k1,
 )
 from app.geometry.calibration.solver import robust_lm, soft_l1_cost
-from app.geometry.camera import Camera
+from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.jac import DEFAULT_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
 

@@ -10,7 +10,7 @@ Three families:
   fix ``G``. :func:`camera_from_homography` then recovers focal length, rotation and centre with the
   principal point fixed and square pixels (Zhang 2000, closed form from the two orthonormality
   constraints on ``K^-1 H``).
-* **Look-at priors** (:func:`look_at_rotation`): a camera at a plausible broadcast position looking
+* **Look-at priors** (:func:`app.geometry.camera.look_at_rotation`): a camera at a plausible broadcast position looking
   at the labelled part of the pitch, for frames whose lines do not fix a homography.
 * **Known centre** (:func:`fixed_centre_rotations`): with the camera centre known (a game's rig),
   the rotation that brings the image rays of the labels' anchors (:func:`anchor_correspondences`)
@@ -294,30 +294,6 @@ def camera_from_homography(H: np.ndarray, principal_point: np.ndarray) -> tuple[
     return float(f), R, C
 
 
-def look_at_rotation(centre: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """World-to-camera rotation of a camera at ``centre`` looking at ``target`` with no roll.
-
-    The image y axis follows the world's downward direction (+z) as seen from the camera.
-
-    Args:
-        centre, target: (3,) world points, metres.
-
-    Raises:
-        ValueError: the two points coincide or the view is vertical.
-    """
-    z = np.asarray(target, float) - np.asarray(centre, float)
-    n = np.linalg.norm(z)
-    if n < 1e-9:
-        raise ValueError("look_at_rotation: target equals centre")
-    z = z / n
-    down = np.array([0.0, 0.0, 1.0])
-    y = down - (down @ z) * z
-    ny = np.linalg.norm(y)
-    if ny < 1e-9:
-        raise ValueError("look_at_rotation: vertical view has no defined roll")
-    y = y / ny
-    x = np.cross(y, z)
-    return np.stack([x, y, z])
 
 
 def labelled_target(obs: Observations) -> np.ndarray:

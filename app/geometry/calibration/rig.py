@@ -26,7 +26,6 @@ from app.geometry.calibration.frame import (
     calibrate_frame,
     frame_jac,
 )
-from app.geometry.camera import Camera
 
 
 @dataclass(frozen=True)
@@ -61,7 +60,7 @@ class CameraRig:
         return best if best is not None and self.positions[best].main_frames > 0 else None
 
 
-def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames: int = 2,
+def estimate_rig(centres: np.ndarray | Sequence[Sequence[float]], *, radius_m: float = 3.0, min_frames: int = 2,
                  main_camera: Sequence[bool] | None = None) -> CameraRig:
     """Group the centres of well-calibrated cameras of one game into fixed positions.
 
@@ -71,8 +70,8 @@ def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames
     ``min_frames`` frames are dropped (a single frame is no evidence of a fixed camera).
 
     Args:
-        cameras: calibrated cameras of one game (callers pass only well-calibrated frames, e.g.
-            JaC@0.5 % > 0.75 and not rig-assisted themselves).
+        centres: (N, 3) camera centres of one game, world metres (callers pass only well-calibrated
+            frames, e.g. JaC@0.5 % > 0.75 and not rig-assisted themselves); N may be 0.
         radius_m: neighbourhood radius, metres (calibrated centres of one camera scatter by about a
             metre along the viewing direction).
         min_frames: fewest frames per position.
@@ -83,10 +82,9 @@ def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames
         :class:`CameraRig` (possibly without positions).
 
     Raises:
-        ValueError: ``radius_m`` not positive or ``min_frames`` < 1.
+        ValueError: ``radius_m`` not positive, ``min_frames`` < 1, or centres not (N, 3).
 
-    >>> cams = [Camera(K=np.eye(3), R=np.eye(3), C=np.array([0.1 * i, 60.0, -20.0])) for i in range(3)]
-    >>> rig = estimate_rig(cams)
+    >>> rig = estimate_rig([[0.1 * i, 60.0, -20.0] for i in range(3)])
     >>> rig.positions[0].frames, [round(v, 2) for v in rig.positions[0].centre_m]
     (3, [0.1, 60.0, -20.0])
     """
@@ -94,7 +92,9 @@ def estimate_rig(cameras: Sequence[Camera], *, radius_m: float = 3.0, min_frames
         raise ValueError(f"radius_m must be positive, got {radius_m!r}")
     if min_frames < 1:
         raise ValueError(f"min_frames must be at least 1, got {min_frames!r}")
-    C = np.array([np.asarray(c.C, dtype=float) for c in cameras]).reshape(-1, 3)
+    if np.size(centres) and np.shape(centres)[-1] != 3:
+        raise ValueError(f"centres must have shape (N, 3), got {np.shape(centres)}")
+    C = np.asarray(centres, dtype=float).reshape(-1, 3)
     main = np.zeros(len(C), dtype=bool) if main_camera is None else np.asarray(main_camera, dtype=bool)
     if main.shape != (len(C),):
         raise ValueError(f"main_camera must give one flag per camera ({len(C)}), got {main.shape}")

@@ -77,3 +77,21 @@ def test_export_zip_holds_accepted_systems_unless_all(client: TestClient, scene:
     client.post(f"/api/systems/{scene.system_id}/review", json={"status": "accepted"})
     _, rows = _export(client)
     assert len(rows) == 3
+
+
+def test_streamed_zip_holds_the_same_tree_as_the_folder_export(client: TestClient, scene: Scene,
+                                                                db_session, tmp_path) -> None:
+    """The API streams the archive while it reads the database (game by game, the CSV last); its
+    members are byte for byte the files ``export_soccernet_v3d`` writes into a folder."""
+    from app.services.exporting import export_soccernet_v3d
+
+    answer = client.get("/api/exports/soccernet-v3d", params={"all": "true"})
+    assert answer.status_code == 200
+    assert (answer.headers["x-v3d-systems"], answer.headers["x-v3d-rows"]) == ("1", "3")
+    with zipfile.ZipFile(io.BytesIO(answer.content)) as zf:
+        assert zf.testzip() is None
+        streamed = {n: zf.read(n) for n in zf.namelist()}
+    report = export_soccernet_v3d(db_session, tmp_path / "tree", include_all=True)
+    written = {p.relative_to(tmp_path / "tree").as_posix(): p.read_bytes()
+               for p in (tmp_path / "tree").rglob("*") if p.is_file()}
+    assert streamed == written and report.rows == 3

@@ -294,3 +294,28 @@ def test_error_reference_widths_follow_the_pair_error_rules() -> None:
         reference = rule_reference_width_px(rule)
         scaled = 3.0 * reference / 960.0 if reference is not None else 3.0
         assert pair_error((3.0, 3.0), (960.0, 960.0), rule) == pytest.approx(scaled), rule
+
+
+@pytest.mark.parametrize("sort", ["-doubts", "doubts", "-worst_error", "worst_error", "lowest_jac", "-lowest_jac",
+                                  "name", "-name"])
+def test_prev_and_next_follow_the_listed_order_for_every_sort(client: TestClient, queue: dict[str, Scene],
+                                                               sort: str) -> None:
+    """prev_id / next_id come from two keyset queries on the stored sort keys (NULLs last, ties by id);
+    they must name exactly the rows the queue lists before and after, also for a system outside the
+    filtered queue (it is placed where it would be)."""
+    client.post(f"/api/systems/{queue['exact'].system_id}/review", json={"status": "accepted"})
+    for params in ({}, {"status": "pending"}):
+        ids = _ids(client.get("/api/systems", params={**params, "sort": sort, "limit": 500}).json())
+        for i, sid in enumerate(ids):
+            view = client.get(f"/api/systems/{sid}", params={**params, "sort": sort}).json()
+            assert view["prev_id"] == (ids[i - 1] if i > 0 else None), (params, sid)
+            assert view["next_id"] == (ids[i + 1] if i + 1 < len(ids) else None), (params, sid)
+    # the accepted system, outside the pending queue, sits between the rows it sorts between
+    full = _ids(client.get("/api/systems", params={"sort": sort, "limit": 500}).json())
+    pending = _ids(client.get("/api/systems", params={"status": "pending", "sort": sort, "limit": 500}).json())
+    sid = queue["exact"].system_id
+    view = client.get(f"/api/systems/{sid}", params={"status": "pending", "sort": sort}).json()
+    before = [i for i in full[:full.index(sid)] if i in pending]
+    after = [i for i in full[full.index(sid) + 1:] if i in pending]
+    assert view["prev_id"] == (before[-1] if before else None)
+    assert view["next_id"] == (after[0] if after else None)
