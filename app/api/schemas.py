@@ -131,15 +131,21 @@ class ExclusionIn(_In):
 class ImportIn(_In):
     """A dataset on the server's disk to import (for scripts)."""
 
-    kind: Literal["soccernet-v3", "soccernet-v3d", "sn-calibration"]
+    kind: Literal["soccernet-v3", "soccernet-v3d", "sn-calibration", "issia"]
     path: str = Field(min_length=1, description="Folder or archive on the server.")
     width: Optional[int] = Field(None, gt=0, description="sn-calibration only: image width when there are no images.")
     height: Optional[int] = Field(None, gt=0, description="sn-calibration only: image height when there are no images.")
+    from_lines: bool = Field(False, description="issia only: calibrate each static camera from issia_lines.json "
+                                                "even when issia_calibration.json is present.")
+    flip: list[str] = Field(default_factory=list, description="issia only: camera ids ('1'..'6') whose footage is "
+                                                              "mirrored horizontally (images only).")
 
     @model_validator(mode="after")
     def _size_for_calibration_only(self) -> "ImportIn":
         if self.kind != "sn-calibration" and (self.width is not None or self.height is not None):
             raise ValueError("width and height apply to kind 'sn-calibration' only")
+        if self.kind != "issia" and (self.from_lines or self.flip):
+            raise ValueError("from_lines and flip apply to kind 'issia' only")
         return self
 
 
@@ -308,7 +314,7 @@ class ViewOut(BaseModel):
 
     frame_id: int
     name: str
-    role: Literal["action", "replay", "camera"]
+    role: Literal["action", "replay", "camera", "static"]
     width: int
     height: int
     image_url: Optional[str] = Field(description="None when the dataset ships no image: draw a blank canvas.")
@@ -356,6 +362,8 @@ class SystemView(BaseModel):
 
     id: int
     name: str
+    kind: str = Field("soccernet-v3", description="soccernet-v3, single-view or issia (a frame of a sequence).")
+    frame_index: Optional[int] = Field(None, description="issia: the frame's index in its sequence.")
     game: GameRef
     review: ReviewOut
     prev_id: Optional[int]

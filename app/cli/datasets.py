@@ -127,6 +127,41 @@ def import_sn_calibration_cmd(
                                                                 progress=bars))
 
 
+@import_cli.command("issia")
+def import_issia_cmd(
+    path: Annotated[Path, typer.Argument(help="An ISSIA folder (ball_points.csv, issia_calibration.json and/or "
+                                              "issia_lines.json, optional videos/ or frames/).")],
+    from_lines: Annotated[bool, typer.Option("--from-lines", help="Calibrate each camera from issia_lines.json "
+                                                                  "even when issia_calibration.json is present.")] = False,
+    flip: Annotated[str, typer.Option(help="Comma-separated camera ids whose footage is mirrored, e.g. 1,2.")] = "",
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Import an ISSIA sequence: one system per frame index, static cameras calibrated once, the
+    ball's trajectory fitted over the sequence."""
+    from app.services.issia import import_issia
+
+    settings = cli_settings(database_url, None)
+    flipped = [c.strip() for c in flip.split(",") if c.strip()]
+    _run_import(settings, lambda s, bars: import_issia(s, path, settings, from_lines=from_lines,
+                                                       flipped_cameras=flipped, progress=bars))
+
+
+@export_cli.command("issia-3d")
+def export_issia3d_cmd(
+    out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
+    include_all: Annotated[bool, typer.Option("--all", help="Export every frame, not only accepted ones.")] = False,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Export ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test)."""
+    from app.services.issia_export import export_issia3d
+
+    settings = cli_settings(database_url, None)
+    with database_session(settings) as session:
+        report = export_issia3d(session, out_dir, include_all=include_all)
+    typer.echo(f"exported {report.rows} frame row(s) of {report.sequences} sequence(s) to {report.out_dir} "
+               f"(cameras 3-6 train, 1-2 test: split.json)")
+
+
 @export_cli.command("soccernet-v3d")
 def export_soccernet_v3d_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],

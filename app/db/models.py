@@ -11,6 +11,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
                  - Triangulation -> TriangulationPair  (per pair e_ij, parallax, baseline, kept)
                  - ReviewDecision                      (system level)
                  -> Doubt                              (label problems the geometry sees, with fixes)
+                 - TrajectoryPoint                     (ISSIA: the frame on the sequence's trajectory)
 
 Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
 world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
@@ -58,6 +59,7 @@ class SystemKind(str, enum.Enum):
 
     SOCCERNET_V3 = "soccernet-v3"  # an action frame and its linked replays
     SINGLE_VIEW = "single-view"  # one frame of a calibration dataset, reviewed for its calibration
+    ISSIA = "issia"  # one frame index of a sequence of synchronised static cameras (ISSIA-3D)
 
 
 class FrameRole(str, enum.Enum):
@@ -66,6 +68,7 @@ class FrameRole(str, enum.Enum):
     ACTION = "action"
     REPLAY = "replay"
     CAMERA = "camera"  # the only view of a single-view system
+    STATIC = "static"  # one static camera of a synchronised sequence (ISSIA-3D)
 
 
 class CalibrationSource(str, enum.Enum):
@@ -189,6 +192,12 @@ class System(Base):
     #: Version of the derived rows and figures (``app.services.recompute.DERIVED_VERSION``); a system
     #: stored by an older version is recomputed before it is served (``refresh_stale_systems``).
     derived_version: Mapped[int] = mapped_column(default=0)
+    #: ISSIA systems: the frame index in the sequence (frame ``i`` at ``t = i / fps``); None otherwise.
+    frame_index: Mapped[Optional[int]] = mapped_column(index=True)
+    #: ISSIA systems: the frame's place on the sequence's trajectory (``app.services.issia``).
+    trajectory_point: Mapped[Optional[TrajectoryPoint]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True
+    )
 
 
 class Frame(Base):
@@ -215,6 +224,11 @@ class Frame(Base):
     image_zip: Mapped[Optional[str]] = mapped_column(sa.Text)
     image_member: Mapped[Optional[str]] = mapped_column(sa.Text)
     image_path: Mapped[Optional[str]] = mapped_column(sa.Text)
+    #: Frame number inside ``image_path`` when that is a video or a folder of numbered frames
+    #: (ISSIA); the image is decoded on demand and resized to ``width`` x ``height``.
+    media_frame: Mapped[Optional[int]]
+    #: The footage is mirrored horizontally relative to the labels: flipped back when read.
+    media_flipped: Mapped[bool] = mapped_column(default=False)
 
     system: Mapped[System] = relationship(back_populates="frames")
     field_lines: Mapped[Optional[FieldLineAnnotation]] = relationship(
@@ -447,3 +461,30 @@ class Doubt(Base):
 
     system: Mapped[System] = relationship(back_populates="doubts")
     frame: Mapped[Optional[Frame]] = relationship()
+
+
+class TrajectoryPoint(Base):
+    """An ISSIA system's frame on its sequence's fitted trajectory (``app.geometry.trajectory``).
+
+    ``ball3d`` is the frame's own triangulation (``triangulate_frame`` of the labels the trajectory
+    keeps; ISSIA-3D's ``ball_3D``), ``ball3d_smoothed`` the trajectory's position and ``source`` how
+    it was obtained (``triangulated``, ``fitted``, ``interpolated``), all world metres (z down) or
+    None. ``cam_list`` holds the frame ids of the kept labels, ``residuals_px`` frame id (str) -> the
+    label's distance to the trajectory's projection (px at 1920 width).
+    """
+
+    __tablename__ = "trajectory_points"
+
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), primary_key=True)
+    ball3d: Mapped[Optional[list[float]]]
+    ball3d_smoothed: Mapped[Optional[list[float]]]
+    source: Mapped[Optional[str]] = mapped_column(sa.String(20))
+    #: The motion piece the frame lies in (``Piece``: kind, first_frame, last_frame, params, cost).
+    piece: Mapped[Optional[dict[str, Any]]]
+    cam_list: Mapped[list[Any]] = mapped_column(default=list)
+    residuals_px: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    #: Frame ids of the labels that break the trajectory (residual above ``flag_px``).
+    flagged: Mapped[list[Any]] = mapped_column(default=list)
+    computed_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
+
+    system: Mapped[System] = relationship(back_populates="trajectory_point")

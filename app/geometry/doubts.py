@@ -47,7 +47,9 @@ INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_as
 #: ``snap_box``: set the view's ball label to ``suggestion["box"]``; ``exclude_view``: exclude the
 #: view from the triangulation (a stored, reversible per-view decision); ``mirror_labels``: replace
 #: the view's field lines by their mirrored labelling.
-SUGGESTION_ACTIONS: tuple[str, ...] = ("snap_box", "exclude_view", "mirror_labels")
+#: ``snap_point``: set the view's point label to ``suggestion["point"]`` (ISSIA, where the sequence's
+#: trajectory projects).
+SUGGESTION_ACTIONS: tuple[str, ...] = ("snap_box", "exclude_view", "mirror_labels", "snap_point")
 
 
 @dataclass(frozen=True)

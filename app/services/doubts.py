@@ -18,7 +18,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.db.models import CalibrationStatus, Doubt, Frame, Game, System
+from app.db.models import CalibrationStatus, Doubt, Frame, Game, System, SystemKind
 from app.db.types import json_safe
 from app.geometry.camera import Camera
 from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
@@ -78,6 +78,9 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     """Judge the system (``app.geometry.doubts.judge_system``) and replace its stored doubts and
     counts. Changes the session only; the caller commits (with the edit that caused it)."""
     found = judge_system(doubt_views(system, cameras), doubt_settings(settings))
+    if system.kind is SystemKind.ISSIA:  # the sequence's trajectory judges the labels (issue 9)
+        from app.services.issia_trajectory import merge_doubts
+        found = merge_doubts(system, found, cameras)
     system.doubts.clear()
     rows = [
         Doubt(frame_id=d.view_id, kind=d.kind, accuses_label=d.accuses_label, message=d.message,

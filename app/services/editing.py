@@ -6,7 +6,8 @@ recomputation leaves the edit unstored too. Invalid input raises
 :class:`~app.services.errors.InvalidInputError` before anything changes; an unknown id raises
 :class:`~app.services.errors.NotFoundError`.
 
-* ball label -> the system's triangulation, reprojections and optimised boxes;
+* ball label -> the system's triangulation, reprojections and optimised boxes; for an ISSIA system
+  also the re-fit of the sequence's trajectory around its frame and the systems it changes;
 * field lines -> the frame's calibration -> the same system-level recomputation (also the
   one-click fix of mirrored labels, :func:`apply_mirrored_labels`);
 * a view's exclusion from the triangulation (:func:`set_view_excluded`, the fix of a doubt that
@@ -26,6 +27,7 @@ from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.services._labels import LabelError, check_box, check_point
 from app.services.errors import InvalidInputError, NotFoundError
+from app.services.issia import refit_after_edit
 from app.services.recompute import recompute_frame, recompute_system
 
 T = TypeVar("T")
@@ -99,10 +101,18 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
                 frame.ball_label = label
             label.kind, label.box, label.point = kind, new_box, new_point
             label.edited_at = utcnow()
-        recompute_system(session, frame.system, settings)
+        _recompute(session, frame.system, settings)
         return frame
 
     return _in_transaction(session, work)
+
+
+def _recompute(session: Session, system: System, settings: Settings) -> None:
+    """The system-level recomputation of an edit; for an ISSIA system also the re-fit of the stretch
+    of its sequence's trajectory the edit touches, and the systems whose place on it changed
+    (``app.services.issia.refit_after_edit``), in the same transaction."""
+    recompute_system(session, system, settings)
+    refit_after_edit(session, system, settings)
 
 
 def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any], *, settings: Settings) -> Frame:
@@ -136,6 +146,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
             fl.lines = parsed
             fl.edited_at = utcnow()
         recompute_frame(session, frame, settings)
+        refit_after_edit(session, frame.system, settings)
         return frame
 
     return _in_transaction(session, work)
@@ -225,7 +236,7 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
             review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
             frame.review = review
         review.excluded = excluded
-        recompute_system(session, frame.system, settings)
+        _recompute(session, frame.system, settings)
         return frame
 
     return _in_transaction(session, work)

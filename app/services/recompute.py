@@ -78,6 +78,9 @@ _JAC_COLUMNS = {0.005: "jac_0005", 0.01: "jac_001", 0.02: "jac_002"}
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
 DERIVED_VERSION = 1
+#: Calibration flag of a camera given by its dataset with no field lines to compute JaC on (an ISSIA
+#: ``issia_calibration.json`` camera without ``issia_lines.json``): admitted as given.
+GIVEN_CAMERA_FLAG = "given_camera"
 
 #: Jobs below this count are calibrated in-process (a pool costs more than it saves).
 _MIN_JOBS_FOR_POOL = 8
@@ -288,6 +291,8 @@ def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
     """True when the frame joins triangulation: calibrated with JaC@gamma > ``admit_jac_min``."""
     if calibration is None or calibration.status is not CalibrationStatus.CALIBRATED or calibration.camera is None:
         return False
+    if GIVEN_CAMERA_FLAG in (calibration.flags or []):
+        return True  # a static camera given by its dataset (ISSIA) without field lines to judge it
     jac = admission_jac(calibration, settings)
     return jac is not None and jac > settings.admit_jac_min
 
@@ -450,7 +455,11 @@ def recompute_system(session: Session, system: System, settings: Settings,
         if cal is not None and cal.admitted and centre is not None and not is_excluded(f):
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
-    _update_mirror_flags(session, system, cameras, settings, rig_sources)
+    if system.kind is not SystemKind.ISSIA:  # static cameras on every side: the broadcast priors do not hold
+        _update_mirror_flags(session, system, cameras, settings, rig_sources)
+    if system.kind is SystemKind.ISSIA:  # the labels the sequence's trajectory keeps, that agree
+        from app.services.issia_trajectory import consensus_observations
+        observations = consensus_observations(system, observations, settings)
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
                               min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg)
 

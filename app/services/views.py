@@ -548,6 +548,8 @@ def system_view(session: Session, system_id: int, filters: SystemFilters = Syste
     return {
         "id": system.id,
         "name": system.name,
+        "kind": system.kind.value,
+        "frame_index": system.frame_index,
         "game": {"id": game.id, "league": game.league, "season": game.season, "match": game.match},
         "review": review_json(system.review),
         "prev_id": prev_id,
@@ -578,9 +580,14 @@ class FrameImage:
     zip_path: Optional[Path] = None
     member: Optional[str] = None
     path: Optional[Path] = None
+    #: Bytes decoded on demand (a frame of a video or frame folder, ``app.services.issia``).
+    data: Optional[bytes] = None
 
     def chunks(self) -> Iterator[bytes]:
         """The image bytes in 64 KiB chunks, read from the file or straight out of the archive."""
+        if self.data is not None:
+            yield from (self.data[i:i + _CHUNK] for i in range(0, len(self.data), _CHUNK))
+            return
         if self.path is not None:
             with self.path.open("rb") as fh:
                 yield from iter(lambda: fh.read(_CHUNK), b"")
@@ -602,6 +609,8 @@ def frame_image(frame: Frame) -> FrameImage:
             member name is unsafe, or the archive, member or file is missing.
     """
     where = f"frame {frame.id}"
+    if frame.media_frame is not None and frame.image_path:
+        return _media_frame_image(frame, where)
     if frame.image_zip and frame.image_member:
         member = frame.image_member
         if not is_safe_member(member):
@@ -634,3 +643,18 @@ def frame_image(frame: Frame) -> FrameImage:
         f"{where} has no image (its dataset ships none, e.g. SoccerNet-calibration): "
         f"draw on a blank {frame.width}x{frame.height} canvas"
     )
+
+
+def _media_frame_image(frame: Frame, where: str) -> FrameImage:
+    """A frame of a video or frame folder (ISSIA), decoded and resized to the frame's own size, PNG."""
+    from app.services.errors import DatasetError
+    from app.services.issia import read_video_frame
+
+    path = Path(frame.image_path or "")
+    try:
+        st = path.stat()
+        data = read_video_frame(frame)
+    except (OSError, DatasetError) as exc:
+        raise ImageUnavailable(f"{where}: cannot read frame {frame.media_frame} of {path} ({exc})") from None
+    etag = f'"{st.st_mtime_ns:x}-{st.st_size:x}-{frame.media_frame:x}-{int(frame.media_flipped)}-{frame.width}x{frame.height}"'
+    return FrameImage(media_type="image/png", etag=etag, size=len(data), data=data)

@@ -103,3 +103,8 @@ export function mirrorFieldLines(frameId, params = {}) {
 export function postExclusion(frameId, excluded, params = {}) {
   return request("POST", `/api/frames/${encodeURIComponent(frameId)}/exclusion${toQuery(params)}`, { excluded });
 }
+
+/** GET /api/games/{id}/trajectory: an ISSIA sequence's ball over time (observed and fitted, per frame). */
+export function getTrajectory(gameId) {
+  return request("GET", `/api/games/${encodeURIComponent(gameId)}/trajectory`);
+}

@@ -55,9 +55,10 @@ const FIX_LABEL = {
   snap_box: "Snap to suggested box",
   exclude_view: "Exclude view",
   mirror_labels: "Apply mirrored labels",
+  snap_point: "Snap to the trajectory",
 };
 /** The key of each fix on the system page. */
-export const FIX_KEY = { snap_box: "s", exclude_view: "x", mirror_labels: "m" };
+export const FIX_KEY = { snap_box: "s", exclude_view: "x", mirror_labels: "m", snap_point: "s" };
 
 export class ViewPanel extends HTMLElement {
   #view = null;
@@ -564,6 +565,12 @@ export class ViewPanel extends HTMLElement {
       const round = (x) => Math.round(x * 10) / 10;
       this.saving = true;
       this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: doubt.suggestion.box.map(round) }, bubbles: true }));
+      return true;
+    }
+    if (action === "snap_point" && Array.isArray(doubt.suggestion.point) && doubt.suggestion.point.length === 2) {
+      const round = (x) => Math.round(x * 10) / 10;
+      this.saving = true;
+      this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, point: doubt.suggestion.point.map(round) }, bubbles: true }));
       return true;
     }
     return false;

@@ -1,5 +1,6 @@
 // <v3d-pitch-map>: top-down SVG of the pitch (SoccerNet world frame, metres, x to the right, y down the
-// screen so "Side line top" (y = -34) is at the top), the camera centres of the views and the 3D ball.
+// screen so "Side line top" (y = -34) is at the top), the camera centres of the views and the 3D ball;
+// for an ISSIA sequence also the ball's fitted track (``track``: [[x, y, z], ...]).
 
 import { svg, isNum } from "./format.js";
 
@@ -47,7 +48,8 @@ export class PitchMap extends HTMLElement {
   }
 
   render() {
-    const { ball3d = null, cameras = [] } = this.#data || {};
+    const { ball3d = null, cameras = [], track = [] } = this.#data || {};
+    const path = track.filter((p) => Array.isArray(p) && p.length >= 2 && isNum(p[0]) && isNum(p[1]));
     const hasBall = Array.isArray(ball3d) && ball3d.every(isNum);
     const placed = cameras.filter((c) => Array.isArray(c.position) && c.position.every(isNum));
     let minX = -HL - 4, maxX = HL + 4, minY = -HW - 4, maxY = HW + 4;
@@ -77,6 +79,11 @@ export class PitchMap extends HTMLElement {
     });
     root.append(svg("rect", { class: "grass", x: -HL - 3, y: -HW - 3, width: L + 6, height: W + 6, rx: 1 }));
     for (const d of pitchPaths()) root.append(svg("path", { class: "line", d }));
+    if (path.length > 1) { // an ISSIA sequence's fitted track (ball_3D_smoothed), start to end
+      const d = path.map((p, i) => `${i ? "L" : "M"}${p[0].toFixed(2)} ${p[1].toFixed(2)}`).join(" ");
+      root.append(svg("path", { class: "track", d, "data-testid": "pitch-track" },
+        svg("title", { text: `the ball's fitted track over ${path.length} frames` })));
+    }
     placed.forEach((c, i) => {
       const [x, y, z] = c.position;
       if (hasBall) {

@@ -3,11 +3,12 @@
 // The page's query string holds the queue's filters; it is kept when moving between systems and
 // going back to the queue, and forwarded to the API so prev_id / next_id follow that queue.
 
-import { getSystem, postReview, patchBall, mirrorFieldLines, postExclusion } from "./api.js";
+import { getSystem, getTrajectory, postReview, patchBall, mirrorFieldLines, postExclusion } from "./api.js";
 import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
 import { notes, isMirrorFlagged } from "./overlay.js";
 import "./pitchmap.js";
+import "./trajectory.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 
@@ -42,6 +43,7 @@ class SystemPage {
       const panel = e.target.closest("v3d-view");
       if (panel) this.select([...$("views").children].indexOf(panel));
     });
+    $("trajectory").addEventListener("frame-select", (e) => this.go(e.detail.systemId));
     document.addEventListener("keydown", (e) => this.onKey(e));
     window.addEventListener("popstate", () => this.load(idFromPath(), false));
   }
@@ -135,6 +137,32 @@ class SystemPage {
       ball3d: sys.ball3d,
       cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
     };
+    this.renderTrajectory(sys);
+  }
+
+  /** An ISSIA frame: its sequence's trajectory over time (re-read after every render, so an edit's
+   * re-fit shows), the current frame marked, and the track on the pitch map. */
+  async renderTrajectory(sys) {
+    const issia = sys.kind === "issia";
+    $("trajectory-card").hidden = !issia;
+    if (!issia) return;
+    try {
+      const trajectory = await getTrajectory(sys.game.id);
+      if (this.system !== sys) return; // another system was rendered meanwhile
+      this.trajectory = trajectory;
+      $("trajectory").data = { trajectory, current: sys.frame_index };
+      const track = trajectory.frames.map((f) => f.ball3d_smoothed).filter((p) => Array.isArray(p));
+      $("pitch-map").data = { ...$("pitch-map").data, track };
+    } catch (err) {
+      showError(err.message);
+    }
+  }
+
+  /** The system of the frame ``step`` frames away in the ISSIA sequence (null outside it). */
+  frameNeighbour(step) {
+    const frames = this.trajectory?.frames || [];
+    const i = frames.findIndex((f) => f.system_id === this.system?.id);
+    return i >= 0 && frames[i + step] ? frames[i + step].system_id : null;
   }
 
   /** One chip per label doubt of the server (a click selects and scrolls to its view), then one per
@@ -340,6 +368,7 @@ class SystemPage {
       this.review(keys[e.key]);
     } else if (e.key === "j") this.go(this.system?.next_id);
     else if (e.key === "k") this.go(this.system?.prev_id);
+    else if ((e.key === "," || e.key === ".") && this.system?.kind === "issia") this.go(this.frameNeighbour(e.key === "." ? 1 : -1));
     else if (e.key === "u") this.settle().then(() => location.assign(this.queueUrl()));
     else if (e.key === "c") {
       e.preventDefault();

@@ -1,0 +1,261 @@
+"""The temporal 3D ball of an ISSIA sequence in the service (issue 9): stored rows <-> the pure fit.
+
+An ISSIA sequence is a game whose systems (kind ``issia``) are frame indices (``System.frame_index``)
+and whose views are static cameras (``Frame.name`` "cam<k>"). This module
+
+* gathers the sequence's current ball labels and admitted cameras into the arrays of
+  :func:`app.geometry.trajectory.fit_trajectory` (:func:`sequence_arrays`);
+* fits the whole sequence (:func:`fit_sequence`) or, after an edit, only the stretch it touches
+  (:func:`refit_sequence`, :func:`app.geometry.trajectory.refit_window` on the pieces stored per
+  system) and stores each frame's place on the trajectory (:class:`~app.db.models.TrajectoryPoint`:
+  ``ball_3D``, ``ball_3D_smoothed`` and its source, the kept labels, the residuals, the flagged labels);
+* gives the per-frame triangulation of an ISSIA system its semantics (:func:`consensus_observations`:
+  labels the trajectory flags are left out, then the labels that agree on one ball are chosen, as
+  :func:`app.geometry.trajectory.triangulate_frame`), used by ``app.services.recompute``;
+* turns flagged labels into ``ball_off_consensus`` doubts naming the camera, with the residual, the
+  fitted position and the fix (:func:`trajectory_doubts`, used by ``app.services.doubts``).
+
+World: SoccerNet metres, z down. Residuals: px at 1920 width. Writes go to the session only; the
+caller commits (the importer, or the edit's transaction).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, selectinload
+
+from app.core.config import Settings
+from app.db.models import Frame, System, SystemKind, TrajectoryPoint
+from app.db.types import json_safe, utcnow
+from app.geometry.camera import Camera
+from app.geometry.doubts import Doubt as JudgedDoubt
+from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, refit_window, triangulate_frame
+from app.geometry.triangulation import BallObservation
+
+#: Frame rate of ISSIA sequences (frame ``i`` at ``t = i / FPS`` s), as ``app.datasets.issia.FPS``.
+FPS = 25.0
+
+
+@dataclass
+class SequenceArrays:
+    """A stored sequence as the fit sees it.
+
+    Attributes:
+        systems: the ISSIA systems by frame index.
+        camera_names: view names in camera order ("cam1".."cam6").
+        points: (F, K, 2) current labels (px of each view), NaN without a label or for an excluded view;
+            F = last frame index + 1.
+        cameras: K cameras (the camera of the first admitted view of each camera), None if none.
+        widths: K image widths, px.
+        frame_ids: (F, K) frame ids, -1 where the frame has no such view.
+    """
+
+    systems: dict[int, System]
+    camera_names: list[str]
+    points: np.ndarray
+    cameras: list[Camera | None]
+    widths: list[float]
+    frame_ids: np.ndarray
+
+
+def load_sequence(session: Session, game_id: int) -> list[System]:
+    """The ISSIA systems of a game with their views, labels, calibrations and trajectory points."""
+    return list(session.scalars(
+        sa.select(System).where(System.game_id == game_id, System.kind == SystemKind.ISSIA)
+        .order_by(System.frame_index)
+        .options(selectinload(System.frames).selectinload(Frame.calibration),
+                 selectinload(System.frames).selectinload(Frame.ball_label),
+                 selectinload(System.frames).selectinload(Frame.review),
+                 selectinload(System.trajectory_point))
+    ))
+
+
+def sequence_arrays(systems: Sequence[System], settings: Settings) -> SequenceArrays:
+    """Current labels and admitted cameras of a stored sequence (see :class:`SequenceArrays`)."""
+    from app.services.doubts import is_excluded
+    from app.services.recompute import is_admitted
+
+    by_index = {s.frame_index: s for s in systems if s.frame_index is not None}
+    names: dict[str, int] = {}
+    for s in by_index.values():
+        for f in s.frames:
+            names.setdefault(f.name, f.position)
+    camera_names = sorted(names, key=lambda n: (names[n], n))
+    col = {n: k for k, n in enumerate(camera_names)}
+    F, K = (max(by_index) + 1 if by_index else 0), len(camera_names)
+    points = np.full((F, K, 2), np.nan)
+    frame_ids = np.full((F, K), -1, dtype=int)
+    cameras: list[Camera | None] = [None] * K
+    widths = [1920.0] * K
+    for i, s in by_index.items():
+        for f in s.frames:
+            k = col[f.name]
+            frame_ids[i, k] = f.id
+            widths[k] = float(f.width)
+            if cameras[k] is None and is_admitted(f.calibration, settings):
+                cameras[k] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]
+            c = f.ball_label.centre if f.ball_label is not None else None
+            if c is not None and not is_excluded(f):
+                points[i, k] = c
+    return SequenceArrays(by_index, camera_names, points, cameras, widths, frame_ids)
+
+
+def _piece_json(p: Piece) -> dict[str, Any]:
+    return {"kind": p.kind, "first_frame": int(p.first_frame), "last_frame": int(p.last_frame),
+            "params": [float(v) for v in p.params], "cost": float(p.cost)}
+
+
+def stored_pieces(systems: Sequence[System]) -> tuple[Piece, ...]:
+    """The motion pieces stored on the systems' trajectory points, in frame order."""
+    seen: dict[tuple[int, int], Piece] = {}
+    for s in systems:
+        d = s.trajectory_point.piece if s.trajectory_point is not None else None
+        if d and (d["first_frame"], d["last_frame"]) not in seen:
+            seen[(d["first_frame"], d["last_frame"])] = Piece(d["kind"], d["first_frame"], d["last_frame"],
+                                                              np.asarray(d["params"], float), d["cost"])
+    return tuple(sorted(seen.values(), key=lambda p: p.first_frame))
+
+
+def _vec(v: np.ndarray) -> list[float] | None:
+    return [float(x) for x in v] if np.all(np.isfinite(v)) else None
+
+
+#: The fields of a :class:`TrajectoryPoint` the system's triangulation depends on (the labels it keeps).
+TRIANGULATION_FIELDS = ("ball3d", "cam_list", "flagged")
+
+
+@dataclass
+class Changed:
+    """A system whose stored trajectory point changed; ``labels`` when the labels it keeps (and so its
+    triangulation) changed, not only its place on the trajectory."""
+
+    system: System
+    labels: bool
+
+
+def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
+    """Write each system's :class:`TrajectoryPoint` from ``fit``; returns the systems whose stored
+    point changed."""
+    changed = []
+    for i, s in arrays.systems.items():
+        piece = next((p for p in fit.pieces if p.first_frame <= i <= p.last_frame), None)
+        ids = arrays.frame_ids[i]
+        values = dict(
+            ball3d=_vec(fit.ball_3d[i]), ball3d_smoothed=_vec(fit.positions[i]), source=fit.sources[i],
+            piece=_piece_json(piece) if piece is not None else None,
+            cam_list=[int(ids[k]) for k in fit.cam_lists[i]],
+            residuals_px={str(int(ids[k])): round(float(fit.residuals_px[i, k]), 4)
+                          for k in range(len(ids)) if ids[k] >= 0 and np.isfinite(fit.residuals_px[i, k])},
+            flagged=[int(ids[k]) for k in range(len(ids)) if ids[k] >= 0 and fit.outliers[i, k]],
+        )
+        tp = s.trajectory_point
+        if tp is None:
+            tp = TrajectoryPoint()
+            s.trajectory_point = tp
+            labels = True
+        elif all(getattr(tp, k) == v for k, v in values.items()):
+            continue
+        else:
+            labels = any(getattr(tp, k) != values[k] for k in TRIANGULATION_FIELDS)
+        for k, v in values.items():
+            setattr(tp, k, v)
+        tp.computed_at = utcnow()
+        changed.append(Changed(s, labels))
+    return changed
+
+
+def _fit_args(settings: Settings) -> dict[str, float]:
+    return {"tau_px": settings.triangulation_tau_px}
+
+
+def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[Changed]:
+    """Fit the whole sequence of ``game_id`` and store it (:func:`store_fit`); returns the systems
+    whose trajectory point changed."""
+    systems = load_sequence(session, game_id)
+    arrays = sequence_arrays(systems, settings)
+    if not arrays.systems:
+        return []
+    fit = fit_trajectory(arrays.points, arrays.cameras, arrays.widths, FPS, **_fit_args(settings))
+    return store_fit(arrays, fit)
+
+
+def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame: int, settings: Settings) -> list[Changed]:
+    """Re-fit the stretch of the sequence that frames ``first_frame..last_frame`` touch
+    (:func:`app.geometry.trajectory.refit_window` from the stored pieces; the whole sequence when
+    none is stored) and store it; returns the systems whose trajectory point changed."""
+    systems = load_sequence(session, game_id)
+    arrays = sequence_arrays(systems, settings)
+    if not arrays.systems:
+        return []
+    pieces = stored_pieces(systems)
+    if not pieces:
+        fit = fit_trajectory(arrays.points, arrays.cameras, arrays.widths, FPS, **_fit_args(settings))
+    else:
+        F, K = arrays.points.shape[:2]
+        old = TrajectoryFit(FPS, pieces, np.empty((0, 3)), (), np.empty((0, K)), np.empty((0, K), bool),
+                            np.empty((0, 3)), ())
+        fit = refit_window(old, arrays.points, arrays.cameras, arrays.widths, first_frame, last_frame,
+                           **_fit_args(settings))
+    return store_fit(arrays, fit)
+
+
+def consensus_observations(system: System, observations: list[BallObservation], settings: Settings) -> list[BallObservation]:
+    """The labels of an ISSIA system that its 3D ball is made of: those the stored trajectory does not
+    flag, then the ones that agree on one ball (:func:`app.geometry.trajectory.triangulate_frame`:
+    robust to a wrong camera; none when two labels disagree or two camps agree equally)."""
+    tp = system.trajectory_point
+    flagged = set(tp.flagged or []) if tp is not None else set()
+    obs = [o for o in observations if o.view_id not in flagged]
+    tri = triangulate_frame(obs, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                            min_baseline_m=settings.min_baseline_m)
+    kept = set(tri.kept)
+    return [o for o in obs if o.view_id in kept]
+
+
+def trajectory_doubts(system: System, cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
+    """``ball_off_consensus`` doubts of the labels of ``system`` that break the sequence's trajectory
+    (stored ``TrajectoryPoint.flagged``): evidence the residual (px at 1920 width), the fitted position
+    (m) and the frame index; fix ``exclude_view``, or ``snap_point`` to where the trajectory projects
+    when that is inside the image."""
+    tp = system.trajectory_point
+    if tp is None or not tp.flagged:
+        return []
+    cameras = cameras or {}
+    out = []
+    by_id = {f.id: f for f in system.frames}
+    for fid in tp.flagged:
+        f = by_id.get(fid)
+        if f is None:
+            continue
+        res = (tp.residuals_px or {}).get(str(fid))
+        suggestion: dict[str, Any] = {"action": "exclude_view"}
+        projected = None
+        cam = cameras.get(fid)
+        if cam is None and f.calibration is not None and f.calibration.camera is not None:
+            cam = Camera.from_soccernet(f.calibration.camera)
+        if cam is not None and tp.ball3d_smoothed is not None:
+            uv, front = cam.project(np.asarray(tp.ball3d_smoothed, float).reshape(1, 3))
+            if front[0]:
+                projected = [round(float(uv[0, 0]), 2), round(float(uv[0, 1]), 2)]
+                if 0 <= projected[0] <= f.width and 0 <= projected[1] <= f.height:
+                    suggestion = {"action": "snap_point", "point": projected}
+        far = "an unknown distance" if res is None else f"{res:.0f} px (at 1920 width)"
+        out.append(JudgedDoubt(
+            "ball_off_consensus", fid,
+            f"{f.name}'s ball label at frame {system.frame_index} is {far} from where the sequence's "
+            f"ball trajectory projects ({tp.source or 'no'} position); it breaks the trajectory.",
+            json_safe({"residual_px_1920": res, "fitted_position_m": tp.ball3d_smoothed, "source": tp.source,
+                       "frame_index": system.frame_index, "projected_px": projected, "by": "trajectory"}),
+            suggestion))
+    return out
+
+
+def merge_doubts(system: System, judged: list[JudgedDoubt], cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
+    """For an ISSIA system with a stored trajectory, the trajectory decides which labels are off:
+    the single-frame ``ball_off_consensus`` doubts are replaced by :func:`trajectory_doubts`."""
+    if system.kind is not SystemKind.ISSIA or system.trajectory_point is None:
+        return judged
+    return [d for d in judged if d.kind != "ball_off_consensus"] + trajectory_doubts(system, cameras)

@@ -1,0 +1,216 @@
+"""ISSIA sequences through the service (``app.services.issia``): import in both modes, idempotent
+re-import, edits that re-fit the trajectory in their transaction, the ISSIA-3D export round trip, and
+the issue's figures on the whole dev sequence read back from the stored rows."""
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import sqlalchemy as sa
+
+from app.datasets.issia3d import read_issia3d_csv
+from app.db.models import (
+    BallKind, CalibrationSource, Doubt, Frame, FrameRole, Game, System, SystemKind, TrajectoryPoint,
+)
+from app.geometry.camera import Camera
+from app.services import issia as issia_service
+from app.services.editing import decide_review, set_view_excluded, update_ball_label
+from app.services.issia import import_issia
+from app.services.issia_export import export_issia3d
+from app.db.models import ReviewStatus
+from tests.services.issia_data import dev_dir, dev_truth, write_issia_stretch
+
+
+@pytest.fixture
+def stretch(shared_dir, tmp_path):
+    """Frames 0..39 of the dev sequence (the outlier label of cam4 at frame 13 included)."""
+    return write_issia_stretch(shared_dir, tmp_path / "issia-dev")
+
+
+def _systems(session) -> dict[int, System]:
+    return {s.frame_index: s for s in session.scalars(sa.select(System).where(System.kind == SystemKind.ISSIA))}
+
+
+def _view(system: System, name: str) -> Frame:
+    return next(f for f in system.frames if f.name == name)
+
+
+def test_import_from_calibration_json_stores_the_sequence(db_session, db_settings, stretch, shared_dir):
+    report = import_issia(db_session, stretch, db_settings)
+    assert (report.games, report.systems, report.frames, report.systems_new) == (1, 40, 240, 40)
+    assert report.calibrated == 6 and report.refused == 0
+    game = db_session.scalars(sa.select(Game)).one()
+    assert (game.league, game.season, game.match) == ("issia", "sequences", "issia-dev")
+    systems = _systems(db_session)
+    assert sorted(systems) == list(range(40))
+    given = json.loads((stretch / "issia_calibration.json").read_text())
+    truth = {fr["frame"]: fr for fr in dev_truth(shared_dir)["frames"]}
+    rows = {int(r["frame"]): r for r in csv.DictReader((stretch / "ball_points.csv").open())}
+    s13 = systems[13]
+    assert [f.name for f in s13.frames] == [f"cam{k}" for k in range(1, 7)]
+    assert {f.role for f in s13.frames} == {FrameRole.STATIC}
+    for f in s13.frames:
+        cal = f.calibration
+        assert cal.source is CalibrationSource.IMPORTED and cal.admitted
+        np.testing.assert_allclose(Camera.from_soccernet(cal.camera).projection_matrix,
+                                   Camera.from_soccernet(given[f.name[3:]]).projection_matrix,
+                                   rtol=1e-9, atol=1e-9)
+        x = rows[13][f"x_{f.name}"]
+        if x:
+            assert f.ball_label.kind is BallKind.POINT
+            assert f.ball_label.point == [float(x), float(rows[13][f"y_{f.name}"])]
+        else:
+            assert f.ball_label is None
+        assert f.media_frame == 13 and f.image_path.endswith(f"{f.name}.mp4")
+    # the wrong label of cam4 at frame 13 breaks the trajectory: flagged, left out, a doubt with its fix
+    tp = s13.trajectory_point
+    cam4 = _view(s13, "cam4")
+    assert tp.flagged == [cam4.id] and cam4.id not in tp.cam_list
+    assert tp.residuals_px[str(cam4.id)] > 15
+    doubt = next(d for d in s13.doubts if d.kind == "ball_off_consensus")
+    assert doubt.frame_id == cam4.id and doubt.accuses_label
+    assert doubt.evidence["residual_px_1920"] == pytest.approx(tp.residuals_px[str(cam4.id)])
+    assert doubt.evidence["fitted_position_m"] == tp.ball3d_smoothed
+    assert doubt.suggestion["action"] in ("snap_point", "exclude_view")
+    # one label left: no ball_3D of its own, the trajectory's position is "fitted"
+    assert tp.ball3d is None and s13.triangulation.ball3d is None and tp.source == "fitted"
+    assert np.linalg.norm(np.asarray(tp.ball3d_smoothed) - truth[13]["ball_3d"]) < 0.1
+    # elsewhere the stored triangulation is the frame's own (the kept labels), right, with optimised boxes
+    for i, s in systems.items():
+        tp = s.trajectory_point
+        if tp.ball3d is None:
+            continue
+        np.testing.assert_allclose(s.triangulation.ball3d, tp.ball3d, atol=1e-9)
+        assert np.linalg.norm(np.asarray(tp.ball3d) - truth[i]["ball_3d"]) < 0.3
+        for f in s.frames:
+            if f.id in tp.cam_list:
+                assert f.optimised_box is not None and f.optimised_box.d_opt_px > 0
+    errors = [np.linalg.norm(np.asarray(s.trajectory_point.ball3d_smoothed) - truth[i]["ball_3d"])
+              for i, s in systems.items() if s.trajectory_point.ball3d_smoothed is not None]
+    assert len(errors) >= 38 and np.median(errors) < 0.05
+
+
+def test_import_from_lines_calibrates_each_camera_once(db_session, db_settings, stretch, shared_dir):
+    report = import_issia(db_session, stretch, db_settings, from_lines=True)
+    assert report.calibrated + report.refused == 6 and report.calibrated >= 4
+    systems = _systems(db_session)
+    for view in systems[0].frames:
+        cams = {json.dumps(_view(s, view.name).calibration.camera, sort_keys=True) for s in systems.values()}
+        assert len(cams) == 1  # one camera per static camera, on every view
+        assert view.calibration.source is CalibrationSource.COMPUTED
+        assert view.calibration.admitted == (view.calibration.camera is not None)
+        if view.calibration.admitted:
+            assert view.calibration.jac_0005 > 0.75
+    truth = {fr["frame"]: fr for fr in dev_truth(shared_dir)["frames"]}
+    errors = [np.linalg.norm(np.asarray(s.trajectory_point.ball3d_smoothed) - truth[i]["ball_3d"])
+              for i, s in systems.items() if s.trajectory_point.ball3d_smoothed is not None]
+    assert len(errors) >= 38 and np.median(errors) < 0.1
+
+
+def test_reimport_is_idempotent_and_keeps_edits(db_session, db_settings, stretch):
+    import_issia(db_session, stretch, db_settings)
+    s20 = _systems(db_session)[20]
+    cam3 = _view(s20, "cam3")
+    moved = [cam3.ball_label.point[0] + 2.0, cam3.ball_label.point[1]]
+    update_ball_label(db_session, cam3.id, point=moved, settings=db_settings)
+    counts = {t: db_session.scalar(sa.select(sa.func.count()).select_from(t)) for t in
+              (System.__table__, Frame.__table__, TrajectoryPoint.__table__)}
+    ids = sorted(db_session.scalars(sa.select(Frame.id)))
+    report = import_issia(db_session, stretch, db_settings)
+    assert (report.systems_new, report.systems_changed) == (0, 0)
+    assert {t: db_session.scalar(sa.select(sa.func.count()).select_from(t)) for t in counts} == counts
+    assert sorted(db_session.scalars(sa.select(Frame.id))) == ids
+    db_session.expire_all()
+    assert db_session.get(Frame, cam3.id).ball_label.point == moved
+
+
+def test_an_edit_refits_the_trajectory_and_its_doubts_in_one_transaction(db_session, db_settings, stretch):
+    import_issia(db_session, stretch, db_settings)
+    s20 = _systems(db_session)[20]
+    cam3 = _view(s20, "cam3")
+    x, y = cam3.ball_label.point
+    update_ball_label(db_session, cam3.id, point=[x + 80.0, y], settings=db_settings)
+    db_session.expire_all()
+    s20 = db_session.get(System, s20.id)
+    assert s20.trajectory_point.flagged == [cam3.id]
+    doubt = db_session.scalars(sa.select(Doubt).where(Doubt.system_id == s20.id,
+                                                      Doubt.kind == "ball_off_consensus")).one()
+    assert doubt.frame_id == cam3.id and doubt.evidence["residual_px_1920"] > 60
+    assert s20.label_doubts >= 1 and s20.doubt_counts["ball_off_consensus"] == 1
+    # the fix: snap the point to where the trajectory projects -> the doubt goes, the label is kept
+    assert doubt.suggestion["action"] == "snap_point"
+    px, py = doubt.suggestion["point"]
+    assert abs(px - x) < 5 and abs(py - y) < 5
+    update_ball_label(db_session, cam3.id, point=doubt.suggestion["point"], settings=db_settings)
+    db_session.expire_all()
+    s20 = db_session.get(System, s20.id)
+    assert s20.trajectory_point.flagged == [] and cam3.id in s20.trajectory_point.cam_list
+    assert "ball_off_consensus" not in s20.doubt_counts
+    # excluding the flagged view of frame 13 takes it out of the frame's labels; no doubt accuses it
+    s13 = _systems(db_session)[13]
+    cam4 = _view(s13, "cam4")
+    set_view_excluded(db_session, cam4.id, True, settings=db_settings)
+    db_session.expire_all()
+    s13 = db_session.get(System, s13.id)
+    assert cam4.id not in s13.trajectory_point.cam_list and s13.trajectory_point.flagged == []
+
+
+def test_a_failing_refit_stores_nothing(db_session, db_settings, stretch, monkeypatch):
+    import_issia(db_session, stretch, db_settings)
+    s20 = _systems(db_session)[20]
+    cam3 = _view(s20, "cam3")
+    before = (list(cam3.ball_label.point), s20.trajectory_point.ball3d_smoothed, list(s20.trajectory_point.flagged))
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("re-fit failed")
+
+    monkeypatch.setattr(issia_service, "refit_sequence", broken)
+    with pytest.raises(RuntimeError):
+        update_ball_label(db_session, cam3.id, point=[before[0][0] + 80.0, before[0][1]], settings=db_settings)
+    db_session.expire_all()
+    s20 = db_session.get(System, s20.id)
+    cam3 = db_session.get(Frame, cam3.id)
+    assert (cam3.ball_label.point, s20.trajectory_point.ball3d_smoothed, s20.trajectory_point.flagged) == before
+    assert "ball_off_consensus" not in s20.doubt_counts
+
+
+def test_issia3d_export_round_trip(db_session, db_settings, stretch, tmp_path):
+    import_issia(db_session, stretch, db_settings)
+    systems = _systems(db_session)
+    for i in (3, 13, 14):
+        decide_review(db_session, system_id=systems[i].id, status=ReviewStatus.ACCEPTED)
+    report = export_issia3d(db_session, tmp_path / "out")
+    assert (report.sequences, report.rows) == (1, 3)
+    split = json.loads((tmp_path / "out" / "issia-dev" / "split.json").read_text())
+    assert (split["train"], split["test"]) == ([3, 4, 5, 6], [1, 2])
+    report = export_issia3d(db_session, tmp_path / "all", include_all=True)
+    rows = {r.frame: r for r in read_issia3d_csv(report.csv_paths[0])}
+    assert sorted(rows) == list(range(40))
+    db_session.expire_all()
+    for i, s in _systems(db_session).items():
+        r, tp = rows[i], s.trajectory_point
+        assert r.ball_3d == (tuple(tp.ball3d) if tp.ball3d is not None else None)
+        assert r.ball_3d_smoothed == (tuple(tp.ball3d_smoothed) if tp.ball3d_smoothed is not None else None)
+        assert r.ball_3d_source == tp.source
+        names = {f.id: f.name for f in s.frames}
+        assert r.cam_list == tuple(sorted(int(names[fid][3:]) for fid in tp.cam_list))
+        for f in s.frames:
+            x, y = r.per_camera[int(f.name[3:])][:2]
+            assert ([x, y] if x is not None else None) == (f.ball_label.point if f.ball_label else None)
+        assert r.num_cameras == sum(f.ball_label is not None for f in s.frames)
+
+
+@pytest.mark.parametrize("from_lines", [False, True], ids=["calibration_json", "lines"])
+def test_issue_figures_through_the_service(db_session, db_settings, shared_dir, from_lines):
+    """Issue 9's done-when figures on the whole dev sequence, from the stored rows."""
+    from benchmarks.issia_service import service_figures
+
+    import_issia(db_session, dev_dir(shared_dir), db_settings, from_lines=from_lines)
+    game = db_session.scalars(sa.select(Game)).one()
+    f = service_figures(db_session, game.id, dev_truth(shared_dir))
+    assert f["ball_3D_coverage"] >= 0.95 and f["ball_3D_median_error_m"] <= 0.06
+    assert f["smoothed_coverage"] >= 0.98 and f["smoothed_median_error_m"] <= 0.045
+    assert f["outlier_labels"] >= 1 and f["outliers_in_cam_list"] == 0
+    assert f["correct_kept_share"] >= 0.97
