@@ -255,7 +255,11 @@ def trajectory_doubts(system: System, cameras: dict[int, Camera] | None = None) 
 
 def merge_doubts(system: System, judged: list[JudgedDoubt], cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
     """For an ISSIA system with a stored trajectory, the trajectory decides which labels are off:
-    the single-frame ``ball_off_consensus`` doubts are replaced by :func:`trajectory_doubts`."""
+    the single-frame ``ball_off_consensus`` doubts are replaced by :func:`trajectory_doubts`, and a
+    single-frame ``views_disagree`` (two labels that miss, culprit unknown) is dropped when the
+    trajectory names the culprit: the time axis is what decides it."""
     if system.kind is not SystemKind.ISSIA or system.trajectory_point is None:
         return judged
-    return [d for d in judged if d.kind != "ball_off_consensus"] + trajectory_doubts(system, cameras)
+    from_trajectory = trajectory_doubts(system, cameras)
+    replaced = {"ball_off_consensus", "views_disagree"} if from_trajectory else {"ball_off_consensus"}
+    return [d for d in judged if d.kind not in replaced] + from_trajectory
