@@ -7,9 +7,10 @@ this factory's, so that a test database is built once by the migrations and then
 
 Besides the REST API under ``/api`` the app serves the UI pages (``/`` and ``/systems/{id}``), the
 static files under ``/static`` (revalidated through their ``ETag`` on every load, so a changed module
-is never served stale), and the OpenAPI docs at ``/docs`` (Swagger UI) with their JavaScript and CSS
-from the ``fastapi-offline`` package: no CDN. ReDoc is not served: its bundle fetches a logo from
-``cdn.redoc.ly``.
+is never served stale), and the OpenAPI docs at ``/docs`` (Swagger UI, ``static/docs.html`` started by
+``static/js/docs.js``) with their JavaScript and CSS from the ``fastapi-offline`` package: no CDN. ReDoc
+is not served: its bundle fetches a logo from ``cdn.redoc.ly``. Every answer carries the security
+headers of ``app.api.security`` (a CSP allowing this server's own scripts only).
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ from starlette.types import Scope
 from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
 from app.api.main import api_router
+from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
@@ -110,17 +112,23 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version="0.1.0",
         lifespan=lifespan,
         static_url=DOCS_ASSETS_URL,
-        # ReDoc's bundle loads its footer logo from cdn.redoc.ly: Swagger UI alone is served.
+        # ReDoc's bundle loads its footer logo from cdn.redoc.ly: Swagger UI alone is served. The docs
+        # page is ours (static/docs.html): its start-up script is a served file, as the CSP requires.
         redoc_url=None,
-        # Swagger UI would otherwise ask validator.swagger.io to validate the schema.
-        swagger_ui_parameters={"validatorUrl": None},
+        docs_url=None,
     )
+    app.add_middleware(SecurityHeadersMiddleware)
     app.state.settings = settings
     app.state.session_factory = make_session_factory(engine)
 
     install_error_handlers(app)
     app.include_router(api_router, prefix="/api")
     app.mount("/static", RevalidatedStaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
+
+    @app.api_route("/docs", methods=["GET", "HEAD"], include_in_schema=False)
+    def docs_page() -> FileResponse:
+        """The offline API docs (Swagger UI from fastapi-offline's assets, started by static/js/docs.js)."""
+        return _page("docs.html")
 
     @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     def queue_page() -> FileResponse:

@@ -28,7 +28,21 @@ def test_docs_load_every_asset_from_this_server(client: TestClient) -> None:
         asset = client.get(ref)
         assert asset.status_code == 200, ref
         assert len(asset.content) > 0
-    assert '"validatorUrl": null' in answer.text  # no schema validation by validator.swagger.io
+    assert "<script>" not in answer.text  # the start-up is a served file: the CSP allows no inline script
+    start_up = client.get("/static/js/docs.js").text
+    assert "validatorUrl: null" in start_up  # no schema validation by validator.swagger.io
+
+
+def test_every_answer_carries_the_security_headers(client: TestClient) -> None:
+    """A CSP that allows this server's scripts only (no inline script, no CDN), and the hardening
+    headers, on pages, static files, API answers and errors alike."""
+    for path in ("/", "/docs", "/static/js/docs.js", "/api/games", "/api/systems/999999", "/openapi.json"):
+        headers = client.get(path).headers
+        csp = headers["content-security-policy"]
+        assert "script-src 'self';" in csp and "unsafe-inline" not in csp.split("script-src")[1].split(";")[0]
+        assert "frame-ancestors 'none'" in csp and "default-src 'self'" in csp
+        assert headers["x-content-type-options"] == "nosniff" and headers["x-frame-options"] == "DENY"
+        assert headers["referrer-policy"] == "same-origin"
 
 
 def test_redoc_is_not_served(client: TestClient) -> None:
