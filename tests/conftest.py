@@ -68,9 +68,10 @@ def db_session(db_connection: sa.Connection) -> Iterator[Session]:
 
 
 @pytest.fixture
-def db_settings(db_url: str) -> Settings:
-    """Settings pointing at the test database; calibration runs in-process (one worker)."""
-    return Settings(database_url=db_url, calibration_workers=1)
+def db_settings(db_url: str, tmp_path_factory: pytest.TempPathFactory) -> Settings:
+    """Settings pointing at the test database; calibration runs in-process (one worker); HTTP imports may
+    read the test session's temporary folders (the data root)."""
+    return Settings(database_url=db_url, calibration_workers=1, data_root=tmp_path_factory.getbasetemp())
 
 
 #: The local PostgreSQL server of the ``postgres``-marked tests (trust authentication).

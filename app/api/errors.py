@@ -2,6 +2,7 @@
 
 * :class:`~app.services.errors.NotFoundError` and :class:`~app.services.views.ImageUnavailable`: 404
   with the message (it names the missing id or file);
+* :class:`~app.services.errors.ForbiddenError`: 403 (e.g. an import path outside the data root);
 * :class:`~app.services.errors.DatasetError`: 400, the server-side dataset cannot be imported (the
   message names the file and the field);
 * :class:`~app.services.errors.InvalidInputError` and
@@ -16,7 +17,7 @@ from fastapi import FastAPI, Request, status
 from fastapi.responses import JSONResponse
 
 from app.geometry.annotations import AnnotationError
-from app.services.errors import DatasetError, InvalidInputError, NotFoundError
+from app.services.errors import DatasetError, ForbiddenError, InvalidInputError, NotFoundError
 from app.services.views import ImageUnavailable
 
 
@@ -31,6 +32,10 @@ async def _not_found(_: Request, exc: Exception) -> JSONResponse:
     return _answer(status.HTTP_404_NOT_FOUND, exc)
 
 
+async def _forbidden(_: Request, exc: Exception) -> JSONResponse:
+    return _answer(status.HTTP_403_FORBIDDEN, exc)
+
+
 async def _bad_dataset(_: Request, exc: Exception) -> JSONResponse:
     return _answer(status.HTTP_400_BAD_REQUEST, exc, getattr(exc, "field", None))
 
@@ -42,6 +47,7 @@ async def _invalid(_: Request, exc: Exception) -> JSONResponse:
 def install_error_handlers(app: FastAPI) -> None:
     """Register the mapping of the module docstring on ``app``."""
     app.add_exception_handler(NotFoundError, _not_found)
+    app.add_exception_handler(ForbiddenError, _forbidden)
     app.add_exception_handler(ImageUnavailable, _not_found)
     app.add_exception_handler(DatasetError, _bad_dataset)
     app.add_exception_handler(InvalidInputError, _invalid)

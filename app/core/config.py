@@ -6,7 +6,8 @@ One pydantic-settings class; the API, the CLI, Alembic and the services all read
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Literal
+from pathlib import Path
+from typing import Literal, Optional
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -107,6 +108,12 @@ class Settings(BaseSettings):
         "on the dev sets, 3 and 4 one, 5 misses corrupted views.",
     )
     calibration_workers: int = Field(0, description="Processes for bulk calibration; 0 = all cores.")
+    data_root: Optional[Path] = Field(
+        None,
+        description="Folder that imports over HTTP may read from (V3D_DATA_ROOT); a path outside it is refused "
+        "(403) without saying whether it exists. None: HTTP imports of server paths are refused (the CLI, run by "
+        "the machine's owner, is not confined).",
+    )
 
 
 @lru_cache

@@ -5,6 +5,8 @@
   a review status (HTTP 422). Nothing is written when it is raised.
 * :class:`DatasetError` (an ``InvalidInputError``): a dataset file that cannot be imported; it names
   the file and the field at fault. Nothing is written when it is raised.
+* :class:`ForbiddenError` (a ``PermissionError``): a request the service refuses whatever its content,
+  e.g. a server path outside the data root (HTTP 403). Its message never says whether a path exists.
 """
 from __future__ import annotations
 
@@ -43,3 +45,7 @@ class DatasetError(InvalidInputError):
         self.file = str(file)
         ServiceError.__init__(self, f"{self.file}: {field}: {message}" if field else f"{self.file}: {message}")
         self.field = field
+
+
+class ForbiddenError(ServiceError, PermissionError):
+    """A request the service refuses on principle (not for its content): HTTP 403."""

@@ -33,7 +33,8 @@ def seeded_settings(tmp_path_factory: pytest.TempPathFactory):
     from app.services.importing import import_sn_calibration, import_soccernet_v3
 
     root = tmp_path_factory.mktemp("ui")
-    settings = Settings(database_url=f"sqlite:///{root / 'ui.sqlite3'}", calibration_workers=1)
+    settings = Settings(database_url=f"sqlite:///{root / 'ui.sqlite3'}", calibration_workers=1,
+                        data_root=tmp_path_factory.getbasetemp())
     upgrade_database(settings.database_url)
     dataset = generate_demo_dataset(root / "demo")
     calibration_only = _calibration_only_folder(dataset, root / "calibration-only")

@@ -95,3 +95,24 @@ def test_streamed_zip_holds_the_same_tree_as_the_folder_export(client: TestClien
     written = {p.relative_to(tmp_path / "tree").as_posix(): p.read_bytes()
                for p in (tmp_path / "tree").rglob("*") if p.is_file()}
     assert streamed == written and report.rows == 3
+
+
+def test_imports_read_only_under_the_data_root(app, client: TestClient, tmp_path: Path) -> None:
+    """``POST /api/imports`` opened any server path (the answer told whether /etc/passwd exists and is a
+    zip). Paths are now confined to ``V3D_DATA_ROOT``: outside it, or with no root set, 403 with the same
+    message whether the path exists or not; ``..`` and symbolic links are resolved first."""
+    root = tmp_path / "root"
+    root.mkdir()
+    folder = _calibration_folder(root / "calib")
+    app.state.settings = app.state.settings.model_copy(update={"data_root": root})
+    body = {"kind": "sn-calibration", "width": WIDTH, "height": HEIGHT}
+    assert client.post("/api/imports", json={**body, "path": "calib"}).status_code == 201  # relative to the root
+    assert client.post("/api/imports", json={**body, "path": str(folder)}).status_code == 201
+    (root / "escape").symlink_to("/etc", target_is_directory=True)
+    answers = [client.post("/api/imports", json={**body, "path": p})
+               for p in ("/etc/passwd", "/etc/no-such-file", "../../etc/passwd", "calib/../../x", "escape/passwd")]
+    assert {a.status_code for a in answers} == {403}
+    assert len({a.json()["detail"] for a in answers}) == 1 and "V3D_DATA_ROOT" in answers[0].json()["detail"]
+    app.state.settings = app.state.settings.model_copy(update={"data_root": None})
+    refused = client.post("/api/imports", json={**body, "path": str(folder)})
+    assert refused.status_code == 403 and "disabled" in refused.json()["detail"]
