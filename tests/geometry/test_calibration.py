@@ -277,6 +277,32 @@ def test_rig_computes_jac_once_for_the_chosen_position(monkeypatch: pytest.Monke
     assert result.jac == alone.jac and set(result.jac) == {"0.005", "0.01", "0.02"}
 
 
+def test_frames_calibrated_together_equal_one_call_each() -> None:
+    """``calibrate_frames_together`` (the rig's lock step: one stacked residual evaluation per round)
+    gives every job exactly ``calibrate_frame``'s result, bit for bit: fixed centres at three
+    positions, one free fit and a frame of other labels in the same call."""
+    from app.geometry.calibration.frame import calibrate_frames_together
+
+    main = (2.0, 64.0, -19.0)
+    truth = _camera(main, (-35.0, -10.0, 0.0), 1500.0, 960, 540)
+    lines = synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=40)
+    few = {c: lines[c] for c in sorted(c for c in lines if c not in CIRCLES)[:3]}
+    other = synthetic_lines(_camera((-10.0, 58.0, -16.0), (20.0, 5.0, 0.0), 1200.0, 960, 540), 960, 540,
+                            sigma_px=1.0, seed=41)
+    jobs = [(few, 960, 540, CalibrationPrior(expected_side=1, centre_m=c))
+            for c in (main, (40.0, 45.0, -10.0), (-60.0, 0.0, -12.0))]
+    jobs += [(lines, 960, 540, CalibrationPrior(expected_side=1)), (other, 960, 540, None)]
+    together = calibrate_frames_together(jobs)
+    assert [r.status for r in together][3:] == ["calibrated", "calibrated"] and together[0].calibrated
+    for (job_lines, w, h, prior), got in zip(jobs, together):
+        alone = calibrate_frame(job_lines, w, h, prior=prior)
+        assert (got.status, got.reason, got.flags, got.rms_px, dict(got.jac), dict(got.residuals_px)) == \
+               (alone.status, alone.reason, alone.flags, alone.rms_px, dict(alone.jac), dict(alone.residuals_px))
+        if alone.camera is not None:
+            assert np.array_equal(got.camera.K, alone.camera.K) and np.array_equal(got.camera.R, alone.camera.R)
+            assert np.array_equal(got.camera.C, alone.camera.C) and np.array_equal(got.camera.radial, alone.camera.radial)
+
+
 def test_rig_without_positions_refuses() -> None:
     from app.geometry.calibration import CameraRig, calibrate_with_rig
 

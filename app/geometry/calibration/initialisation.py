@@ -15,6 +15,9 @@ Three families:
 * **Known centre** (:func:`fixed_centre_rotations`): with the camera centre known (a game's rig),
   the rotation that brings the image rays of the labels' anchors (:func:`anchor_correspondences`)
   onto their world directions (Wahba's problem, :func:`wahba_rotation`), per focal hypothesis.
+
+Size (over 400 lines): the three families share the anchor correspondences and the homography-to-camera
+step, and are chosen between by one caller (:mod:`.frame`).
 """
 from __future__ import annotations
 
@@ -441,7 +444,13 @@ def fixed_centre_rotations(obs: Observations, centre: np.ndarray, principal_poin
     """
     centre = np.asarray(centre, dtype=float)
     focals = np.asarray(focals, dtype=float).reshape(-1)
-    pairs = anchor_correspondences(obs, float(2.0 * principal_point[0] + 1.0))
+    # The anchors depend on the labels only: computed once per observations and image scale (a frame
+    # fitted at every position of its game's rig asks for them at each position).
+    scale_px = float(2.0 * principal_point[0] + 1.0)
+    cache = obs.__dict__.setdefault("_anchor_correspondences", {})  # as functools.cached_property stores
+    if scale_px not in cache:
+        cache[scale_px] = anchor_correspondences(obs, scale_px)
+    pairs = cache[scale_px]
     if not pairs:
         return np.zeros((0, 3, 3))
     uv = np.array([p for p, _ in pairs])

@@ -19,6 +19,7 @@ Residuals, all in pixels of the frame:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -261,20 +262,22 @@ def residuals(x: np.ndarray, obs: Observations, param: CameraParametrisation) ->
     distances of the straight-element points to their lines, their distances beyond the segments'
     ends, then the circle points' distances, each times its class weight."""
     f, R, C, k1 = param.split(x)
-    pp = param.principal_point
-    P = projection_matrix(f, pp, R, C)
+    P = projection_matrix(f, param.principal_point, R, C)
     single = P.ndim == 2
-    if single:
-        P = P[None]
+    r = _weighted_distances(P[None] if single else P, np.reshape(f, (-1,)), np.reshape(k1, (-1,)), obs, param)
+    return r[0] if single else r
+
+
+def _weighted_distances(P: np.ndarray, f: np.ndarray, k1: np.ndarray, obs: Observations,
+                        param: CameraParametrisation) -> np.ndarray:
+    """:func:`residuals` from (B, 3, 4) projection matrices and their (B,) focal lengths and ``k1``."""
+    pp = param.principal_point
     sp, cp = obs.seg_points, obs.circle_points
     if param.fit_k1:
         both = undistort_radial_k1(obs.all_points, f, pp, k1)
-        if single:
-            both = both[None]
         sp, cp = both[..., : len(sp), :], both[..., len(sp):, :]
     d_line, d_ext, d_cir = _distances(P, obs, sp, cp)
-    r = np.concatenate([d_line * obs.seg_weight, d_ext * obs.seg_weight, d_cir * obs.circle_weight], axis=-1)
-    return r[0] if single else r
+    return np.concatenate([d_line * obs.seg_weight, d_ext * obs.seg_weight, d_cir * obs.circle_weight], axis=-1)
 
 
 def ground_points_in_front(P: np.ndarray, obs: Observations) -> float:
@@ -297,3 +300,53 @@ def ground_points_in_front(P: np.ndarray, obs: Observations) -> float:
         # The third row of P = K R [I | -C] is r3 (X - C): the depth in metres.
         depth = X @ P[2, :2] + P[2, 3]
     return float(np.mean(np.isfinite(depth) & (depth > 0)))
+
+
+def stacked_residuals(batches: Sequence[Sequence[tuple[np.ndarray, Observations, CameraParametrisation]]]
+                      ) -> list[list[np.ndarray]]:
+    """:func:`residuals` of many requests in few vectorised calls.
+
+    Each request ``(x, obs, param)`` asks for ``residuals(x, obs, param)``, ``x`` one (k,) vector or
+    a (B, k) batch. Requests on the same ``obs`` object whose parametrisations agree in shape
+    (radial term or not, centre fixed or free, principal point) are stacked into one call with a
+    per-row reference rotation and centre; every row is computed with exactly the arithmetic of its
+    own call (element-wise operations and one small matrix product per row), so the answers equal
+    the separate calls'. Used to fit one frame at every position of its game's rig at once
+    (``app.geometry.calibration.frame.calibrate_frames_together``).
+
+    Args:
+        batches: lists of requests (one list per caller).
+
+    Returns:
+        Per list, per request, the residuals ``residuals(x, obs, param)`` would return, pixels.
+    """
+    groups: dict[tuple, list[tuple[int, int, np.ndarray, CameraParametrisation]]] = {}
+    out: list[list[np.ndarray]] = [[None] * len(b) for b in batches]  # type: ignore[list-item]
+    for i, batch in enumerate(batches):
+        for j, (x, obs, param) in enumerate(batch):
+            key = (id(obs), param.fit_k1, param.fixed_centre is None, tuple(np.asarray(param.principal_point).tolist()))
+            groups.setdefault(key, []).append((i, j, np.asarray(x, dtype=float), param))
+    for members in groups.values():
+        obs = batches[members[0][0]][members[0][1]][1]
+        first = members[0][3]
+        X = np.concatenate([x.reshape(-1, x.shape[-1]) for _, _, x, _ in members])
+        rows = [len(x) if x.ndim == 2 else 1 for _, _, x, _ in members]
+        R0 = np.repeat(np.stack([p.R0 for _, _, _, p in members]), rows, axis=0)
+        R_all = rotation_from_vector(X[:, 1:4]) @ R0  # row by row as CameraParametrisation.split
+        # The projection matrices member by member, from the very arrays each separate call uses
+        # (numpy's einsum rounds a row differently depending on its place in a batch).
+        Ps, start = [], 0
+        for (_, _, x, p), n in zip(members, rows):
+            f = x[..., 0]
+            C = x[..., 4:7] if p.fixed_centre is None else np.broadcast_to(p.fixed_centre, x.shape[:-1] + (3,))
+            R = R_all[start:start + n] if x.ndim == 2 else R_all[start]
+            P = projection_matrix(f, p.principal_point, R, C)
+            Ps.append(P if x.ndim == 2 else P[None])
+            start += n
+        k1 = X[:, -1] if first.fit_k1 else np.zeros(len(X))
+        r = _weighted_distances(np.concatenate(Ps), X[:, 0], k1, obs, first)
+        start = 0
+        for (i, j, x, _), n in zip(members, rows):
+            out[i][j] = r[start] if x.ndim == 1 else r[start:start + n]
+            start += n
+    return out

@@ -23,7 +23,7 @@ from app.geometry.calibration.frame import (
     CalibrationPrior,
     CalibrationResult,
     CalibrationSettings,
-    calibrate_frame,
+    calibrate_frames_together,
     frame_jac,
 )
 
@@ -149,10 +149,13 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
                                  reason="no rig position for this game (no well-calibrated frames to estimate it)",
                                  rms_px=None, elapsed_ms=0.0)
     # JaC is the evaluation, never the choice: it is computed once, for the chosen position.
-    results = [calibrate_frame(lines, width, height, settings=settings, compute_jac=False,
-                               prior=CalibrationPrior(expected_side=expected_side, centre_m=p.centre_m))
-               for p in rig.positions]
-    elapsed = float(sum(r.elapsed_ms for r in results))
+    # Every position is fitted, all in lock step (one vectorised residual evaluation serves them all:
+    # the same results as one calibrate_frame call each, several times faster).
+    t0 = time.perf_counter()
+    results = calibrate_frames_together(
+        [(lines, width, height, CalibrationPrior(expected_side=expected_side, centre_m=p.centre_m))
+         for p in rig.positions], settings=settings, compute_jac=False)
+    elapsed = (time.perf_counter() - t0) * 1e3
     fitted = [(i, r) for i, r in enumerate(results) if r.calibrated and r.rms_px is not None]
     if not fitted:
         # The refusal whose labels came closest (its residuals point at the disagreeing line).
