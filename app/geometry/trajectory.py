@@ -29,11 +29,15 @@ Outputs per frame (:class:`TrajectoryFit`): the trajectory's position, its sourc
 kept label, position from the fit; ``interpolated``: no kept label, inside or between pieces), the
 per-label residual and outlier flag (frame, camera) and the frame's own triangulation
 (:func:`triangulate_frame`, the paper's pairwise method made robust to one wrong camera) from the
-labels the trajectory keeps. :func:`refit_window` re-fits only the pieces an edit touches.
+labels the trajectory keeps. :func:`refit_window` re-fits only the pieces an edit touches and answers
+only the frames whose place on the trajectory can have changed, re-triangulating only those whose
+kept labels changed (:func:`refit_local`, its fast path, reads only the pieces around the edit).
 
 World: SoccerNet metres, origin at the centre spot, z down. Image: continuous pixels, origin at
-the top-left corner. Pure: numpy and scipy only. (A little over 400 lines: the model, its
-segmentation and the per-frame assembly share the private label table and belong together.)
+the top-left corner. Pure: numpy and scipy only. (About 700 lines: the model, its segmentation,
+the per-frame assembly and the re-fit after an edit, which replays the segmentation's own tests on a
+few pieces, share the private label table and the segmentation's helpers; split apart they would
+import each other's private parts.)
 """
 from __future__ import annotations
 
@@ -189,36 +193,56 @@ class _Labels:
     """Flattened labels: per label its frame, camera, normalised undistorted point and geometry."""
 
     def __init__(self, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
-                 use: np.ndarray):
+                 use: np.ndarray, first_frame: int = 0):
         frames, cams = np.nonzero(use)
-        self.frame, self.cam = frames, cams
+        self.frame, self.cam = frames + first_frame, cams  # sequence frame indices (row + first_frame)
         xy = np.zeros((len(frames), 2))
         for k, cam in enumerate(cameras):
             sel = cams == k
             if sel.any():
-                xy[sel] = cam.normalise_pixels(points[frames[sel], k], undistort=True)
+                xy[sel] = cam.normalise_pixels(points[frames[sel], k], undistort=True)  # rows of ``points``
         self.xy = xy
         self.R = np.stack([cameras[k].R for k in cams]) if len(cams) else np.zeros((0, 3, 3))
         self.C = np.stack([cameras[k].C for k in cams]) if len(cams) else np.zeros((0, 3))
         scale = np.array([0.5 * (cam.K[0, 0] + cam.K[1, 1]) * REFERENCE_WIDTH_PX / w if cam is not None else 1.0
                           for cam, w in zip(cameras, widths)])
         self.scale = scale[cams]  # normalised units -> px at 1920 width
+        # (N, 2, 3) rows of the algebraic residual (r_1 - x r_3, r_2 - y r_3) of each label (module docstring)
+        self.rows = self.R[:, :2, :] - self.xy[:, :, None] * self.R[:, 2:3, :]
 
-    def residuals(self, idx: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    def take(self, idx: np.ndarray) -> "_Labels":
+        """The labels ``idx`` alone (row i of the result is label ``idx[i]``): a fit's many passes over
+        the same labels then index nothing."""
+        sub = object.__new__(_Labels)
+        for name in ("frame", "cam", "xy", "R", "C", "scale", "rows"):
+            setattr(sub, name, getattr(self, name)[idx])
+        return sub
+
+    def residuals(self, idx: np.ndarray | slice, pos: np.ndarray) -> np.ndarray:
         """(n, 2) pixel residuals (1920 width) of labels ``idx`` at world positions ``pos`` (n, 3)."""
         xc = np.einsum("nij,nj->ni", self.R[idx], pos - self.C[idx])
         z = np.where(xc[:, 2] > 1e-6, xc[:, 2], 1e-6)
         return (xc[:, :2] / z[:, None] - self.xy[idx]) * self.scale[idx, None]
 
 
-def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine: bool) -> tuple[np.ndarray, float]:
-    """Fit one model to labels ``idx``; returns (params (6,), robust cost)."""
+def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine: bool,
+         start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """Fit one model to labels ``idx``; returns (params (6,), robust cost). With ``refine`` and ``start``
+    (the params of a fit of nearly the same labels, e.g. before an edit) the refinement starts there
+    instead of at the reweighted linear solution: the same minimum, in fewer iterations."""
+    L, idx = L.take(idx), slice(None)  # the labels of the piece, indexed once
     t = (L.frame[idx] - first) / fps
-    rows = L.R[idx][:, :2, :] - L.xy[idx][:, :, None] * L.R[idx][:, 2:3, :]  # (n, 2, 3)
+    if refine and start is not None:
+        q = np.asarray(start, float)
+        refine_only = True
+    else:
+        refine_only = False
+    rows = L.rows[idx]  # (n, 2, 3)
     depth = np.linalg.norm(L.C[idx], axis=1)
-    w = np.ones(len(idx))
-    q = np.zeros(6)
-    for _ in range(6):
+    w = np.ones(len(t))
+    if not refine_only:
+        q = np.zeros(6)
+    for _ in range(0 if refine_only else 6):
         # a roll that stops inside the piece: times after the stop are held at the stop (linear given it)
         B, c = _basis(kind, np.minimum(t, _stop_time(kind, q)))
         A = np.einsum("nrj,njk->nrk", rows, B)  # (n, 2, 6)
@@ -232,21 +256,94 @@ def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine:
     if refine:
         def fun(qq):
             return L.residuals(idx, _positions(kind, qq, t)).reshape(-1)
-        q = least_squares(fun, q, loss="cauchy", f_scale=_CAUCHY_PX, method="trf", x_scale="jac").x
+        q = least_squares(fun, q, jac=lambda qq: _jacobian(L, idx, kind, qq, t), loss="cauchy", f_scale=_CAUCHY_PX,
+                          method="trf", x_scale="jac").x
     e = np.linalg.norm(L.residuals(idx, _positions(kind, q, t)), axis=1)
     return q, float(np.sum(_CAUCHY_PX ** 2 * np.log1p((e / _CAUCHY_PX) ** 2)))
 
 
+def _jacobian(L: _Labels, idx: np.ndarray, kind: str, q: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(2n, 6) derivative of ``L.residuals(idx, _positions(kind, q, t)).reshape(-1)`` with respect to ``q``.
+
+    A residual is ``s (x_c[:2] / z - xy)`` with ``x_c = R (p - C)``, ``z = x_c[2]``, so its derivative in
+    ``p`` is ``s / z (R_{0,1} - (x_c[:2] / z) R_2)``; ``p = B(t') q + c(t')`` with ``t' = min(t, t_stop(q))``:
+    ``B(t')``, plus, for a roll's frames after its stop, ``v(t_stop) (d t_stop / d q)`` with
+    ``t_stop = -(v0 . a) / |a|^2`` (:func:`_stop_time`).
+    """
+    ts = _stop_time(kind, q)
+    B, c = _basis(kind, np.minimum(t, ts))
+    pos = B @ q + c
+    R, C = L.R[idx], L.C[idx]
+    xc = np.einsum("nij,nj->ni", R, pos - C)
+    z = np.where(xc[:, 2] > 1e-6, xc[:, 2], 1e-6)
+    uv = xc[:, :2] / z[:, None]
+    D = (R[:, :2, :] - uv[:, :, None] * R[:, 2:3, :]) * (L.scale[idx] / z)[:, None, None]  # (n, 2, 3)
+    if kind == "roll" and np.isfinite(ts):
+        stopped = t >= ts
+        if stopped.any():
+            aa, va = float(q[4:6] @ q[4:6]), float(q[2:4] @ q[4:6])
+            v = np.array([q[2] + q[4] * ts, q[3] + q[5] * ts, 0.0])
+            g = np.array([0.0, 0.0, -q[4] / aa, -q[5] / aa, -q[2] / aa + 2 * va * q[4] / aa ** 2,
+                          -q[3] / aa + 2 * va * q[5] / aa ** 2])
+            B = B.copy()
+            B[stopped] += np.outer(v, g)
+    return np.einsum("nij,njk->nik", D, B).reshape(-1, 6)
+
+
 def _best_piece(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int], fps: float,
-                refine: bool = False) -> Piece:
+                refine: bool = False, start: Piece | None = None,
+                linear: dict[str, np.ndarray] | None = None) -> Piece:
+    """The piece of the better model for ``frames`` (a roll unless a flight is clearly better); ``start``:
+    a piece of the same first frame whose params start its model's refinement (:func:`_fit`); ``linear``:
+    the reweighted linear solution of each model for these ``frames`` (:meth:`_Best.linear`), where the
+    refinement of the models without ``start`` starts (it would compute the same solution first)."""
+    fits = _model_fits(L, by_frame, frames, fps, refine, start, linear)
+    return _choose(frames, fits, sum(len(by_frame[f]) for f in frames))
+
+
+def _model_fits(L: _Labels, by_frame, frames: Sequence[int], fps: float, refine: bool, start: Piece | None = None,
+                linear: dict[str, np.ndarray] | None = None) -> dict[str, tuple[np.ndarray, float]]:
+    """Each model's (params, robust cost) for ``frames`` (:func:`_best_piece`'s arguments)."""
     idx = np.concatenate([by_frame[f] for f in frames])
-    first, last = int(frames[0]), int(frames[-1])
+    first = int(frames[0])
     kinds = KINDS if len(frames) >= 3 else ("flight",)
-    fits = {kind: _fit(L, idx, kind, first, fps, refine) for kind in kinds}
+    warm = dict(linear or {}) if refine else {}
+    if start is not None and start.first_frame == first:
+        warm[start.kind] = start.params
+    return {kind: _fit(L, idx, kind, first, fps, refine, warm.get(kind)) for kind in kinds}
+
+
+def _choose(frames: Sequence[int], fits: dict[str, tuple[np.ndarray, float]], labels: int) -> Piece:
+    """The piece of the better of ``fits`` (:func:`_model_fits`, ``labels`` labels): a roll unless a flight
+    is clearly better."""
     kind = min(fits, key=lambda k: fits[k][1])
-    if "roll" in fits and fits["roll"][1] <= fits["flight"][1] + _ROLL_PREFERENCE_PX2 * len(idx):
+    if "roll" in fits and fits["roll"][1] <= fits["flight"][1] + _ROLL_PREFERENCE_PX2 * labels:
         kind = "roll"  # within noise of each other (e.g. one camera): the ball on the grass, the common case
-    return Piece(kind, first, last, fits[kind][0], fits[kind][1])
+    return Piece(kind, int(frames[0]), int(frames[-1]), fits[kind][0], fits[kind][1])
+
+
+class _Best:
+    """:func:`_best_piece` (unrefined) of frame lists, each computed once: the segmentation and the
+    re-fit ask for the same frames again (a boundary's best cut, then the piece on each side of it)."""
+
+    def __init__(self, L: _Labels, by_frame: dict[int, np.ndarray], fps: float):
+        self.L, self.by_frame, self.fps = L, by_frame, fps
+        self._done: dict[tuple[int, ...], tuple[Piece, dict[str, tuple[np.ndarray, float]]]] = {}
+
+    def _get(self, frames: Sequence[int]) -> tuple[Piece, dict[str, tuple[np.ndarray, float]]]:
+        key = tuple(frames)
+        done = self._done.get(key)
+        if done is None:
+            fits = _model_fits(self.L, self.by_frame, key, self.fps, False)
+            done = self._done[key] = (_choose(key, fits, sum(len(self.by_frame[f]) for f in key)), fits)
+        return done
+
+    def __call__(self, frames: Sequence[int]) -> Piece:
+        return self._get(frames)[0]
+
+    def linear(self, frames: Sequence[int]) -> dict[str, np.ndarray]:
+        """Each model's reweighted linear solution for ``frames`` (the ``linear`` of :func:`_best_piece`)."""
+        return {kind: q for kind, (q, _) in self._get(frames)[1].items()}
 
 
 def _frame_bad(L: _Labels, by_frame, piece: Piece, frame: int, fps: float, break_px: float,
@@ -263,27 +360,28 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
     """Split labelled ``frames`` (sorted) into pieces (module docstring); each piece refined."""
     frames = list(frames)
     n = len(frames)
+    best = _Best(L, by_frame, fps)
     bounds: list[tuple[int, int]] = []
     i = 0
     while i < n:
         j = min(i + _MIN_FRAMES, n)
-        piece = _best_piece(L, by_frame, frames[i:j], fps)
+        piece = best(frames[i:j])
         while j - i > 1 and any(_frame_bad(L, by_frame, piece, f, fps, break_px) for f in frames[i:j]):
             j -= 1  # the opening frames straddle a break: a shorter piece
-            piece = _best_piece(L, by_frame, frames[i:j], fps)
+            piece = best(frames[i:j])
         while j - i >= _MIN_FRAMES and j < n:
             ahead = frames[j:j + _CONFIRM]
             if len(ahead) == _CONFIRM and all(_frame_bad(L, by_frame, piece, f, fps, break_px) for f in ahead):
                 break
             j += 1
-            piece = _best_piece(L, by_frame, frames[i:j], fps)
+            piece = best(frames[i:j])
         bounds.append((i, j))
         i = j
-    bounds = _shift_bounds(L, by_frame, frames, fps, bounds)
+    bounds = _shift_bounds(L, by_frame, frames, fps, bounds, best)
     for _ in range(3):  # frames at a piece's ends that it does not explain form their own piece
         split = []
         for a, b in bounds:
-            piece = _best_piece(L, by_frame, frames[a:b], fps)
+            piece = best(frames[a:b])
             bad = [_frame_bad(L, by_frame, piece, f, fps, break_px) for f in frames[a:b]]
             head = next((i for i, x in enumerate(bad) if not x), len(bad))
             tail = next((i for i, x in enumerate(bad[::-1]) if not x), len(bad))
@@ -294,16 +392,16 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
             if run is not None:  # a kick the growth missed (a small change of velocity): best cut near it
                 r0 = a + head + run
                 options = range(max(a + 2, r0 - 2 * _SHIFT), min(b - 2, r0 + _SHIFT) + 1)
-                costs = [(_best_piece(L, by_frame, frames[a:c], fps).cost
-                          + _best_piece(L, by_frame, frames[c:b], fps).cost, c) for c in options]
+                costs = [(best(frames[a:c]).cost + best(frames[c:b]).cost, c) for c in options]
                 if costs:
                     cuts.add(min(costs)[1])
             cuts = sorted(cuts)
             split += list(zip(cuts[:-1], cuts[1:]))
         if len(split) == len(bounds):
             break
-        bounds = _shift_bounds(L, by_frame, frames, fps, split)
-    return [_best_piece(L, by_frame, frames[a:b], fps, refine=True) for a, b in bounds if b > a]
+        bounds = _shift_bounds(L, by_frame, frames, fps, split, best)
+    return [_best_piece(L, by_frame, frames[a:b], fps, refine=True, linear=best.linear(frames[a:b]))
+            for a, b in bounds if b > a]
 
 
 def _bad_run(bad: list[bool]) -> int | None:
@@ -316,19 +414,20 @@ def _bad_run(bad: list[bool]) -> int | None:
     return None
 
 
-def _shift_bounds(L, by_frame, frames, fps, bounds):
-    """Move each boundary between consecutive pieces by up to ``_SHIFT`` frames to the lowest cost."""
+def _shift_bounds(L, by_frame, frames, fps, bounds, best: _Best | None = None):
+    """Move each boundary between consecutive pieces by up to ``_SHIFT`` frames to the lowest cost
+    (``best``: the caller's :class:`_Best`, which keeps the pieces fitted here)."""
+    best = best if best is not None else _Best(L, by_frame, fps)
     bounds = list(bounds)
     for b in range(1, len(bounds)):
         (a0, a1), (_, b1) = bounds[b - 1], bounds[b]
-        best = None
+        lowest = None
         for cut in range(max(a0 + 1, a1 - _SHIFT), min(b1 - 1, a1 + _SHIFT) + 1):
-            cost = (_best_piece(L, by_frame, frames[a0:cut], fps).cost
-                    + _best_piece(L, by_frame, frames[cut:b1], fps).cost)
-            if best is None or cost < best[0] - 1e-9:
-                best = (cost, cut)
-        if best is not None:
-            bounds[b - 1], bounds[b] = (a0, best[1]), (best[1], b1)
+            cost = best(frames[a0:cut]).cost + best(frames[cut:b1]).cost
+            if lowest is None or cost < lowest[0] - 1e-9:
+                lowest = (cost, cut)
+        if lowest is not None:
+            bounds[b - 1], bounds[b] = (a0, lowest[1]), (lowest[1], b1)
     return bounds
 
 
@@ -348,6 +447,10 @@ class TrajectoryFit:
         ball_3d: (F, 3) the frame's own triangulation from its kept labels (NaN with fewer than two).
         cam_lists: per frame the camera indices (0-based) of the labels the frame keeps, ascending:
             those of ``ball_3d`` when it exists, else the labels the trajectory does not flag.
+        first_frame: the sequence frame index of row 0 of the per-frame arrays. A fit of the whole
+            sequence has ``first_frame = 0`` and F rows; :func:`refit_window` answers a *window*: rows
+            ``first_frame .. first_frame + len(positions) - 1`` (the frames the re-fit may have changed),
+            while ``pieces`` always describe the whole sequence (sequence frame indices).
     """
 
     fps: float
@@ -358,6 +461,25 @@ class TrajectoryFit:
     outliers: np.ndarray
     ball_3d: np.ndarray
     cam_lists: tuple[tuple[int, ...], ...]
+    first_frame: int = 0
+
+    @property
+    def frames(self) -> range:
+        """The sequence frame indices of the per-frame arrays' rows."""
+        return range(self.first_frame, self.first_frame + len(self.positions))
+
+    def window(self, first: int, last: int) -> "TrajectoryFit":
+        """The rows of frames ``first..last`` (inclusive, sequence indices, inside :attr:`frames`)."""
+        if not (self.first_frame <= first <= last < self.first_frame + len(self.positions)):
+            raise ValueError(f"frames {first}..{last} are not all in {self.frames}")
+        r = slice(first - self.first_frame, last - self.first_frame + 1)
+        return TrajectoryFit(self.fps, self.pieces, self.positions[r], self.sources[r], self.residuals_px[r],
+                             self.outliers[r], self.ball_3d[r], self.cam_lists[r], first_frame=first)
+
+    def kept_labels(self, row: int) -> tuple[int, ...]:
+        """Camera indices of row ``row``'s labels the trajectory keeps (a finite residual, not flagged):
+        the input of that frame's own triangulation."""
+        return tuple(int(k) for k in np.nonzero(np.isfinite(self.residuals_px[row]) & ~self.outliers[row])[0])
 
 
 def _check_inputs(points, cameras, widths, fps):
@@ -387,7 +509,7 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
         tau_px: per-frame triangulation threshold (:func:`triangulate_frame`).
 
     Returns:
-        :class:`TrajectoryFit`.
+        :class:`TrajectoryFit` of the whole sequence (``first_frame = 0``, F rows).
 
     Raises:
         ValueError: shapes that disagree, non-positive fps.
@@ -396,34 +518,205 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
     L = _Labels(pts, cameras, widths, use)
     by_frame = _group(L)
     pieces = _segment(L, by_frame, sorted(by_frame), fps, break_px)
-    return _assemble(pts, cameras, widths, fps, L, pieces, flag_px, tau_px)
+    return _assemble(pts, 0, cameras, widths, fps, L, pieces, flag_px, tau_px, 0, len(pts) - 1)
+
+
+#: The fast path of :func:`refit_window` re-fits the pieces around an edit alone when the edit lies at least
+#: this many labelled frames inside them: beyond the frames a break may move by (``_SHIFT``) and the frames
+#: that confirm a break (``_CONFIRM``).
+_MARGIN = _SHIFT + _CONFIRM
+
+
+def _stretch(pieces: Sequence[Piece], first_frame: int, last_frame: int) -> tuple[int, int]:
+    """Indices (lo, hi) of the pieces the segmentation of :func:`refit_window` replaces: those that
+    overlap ``first_frame..last_frame`` (or, between pieces, the two around it) and one neighbour
+    on each side."""
+    hit = [i for i, p in enumerate(pieces) if p.last_frame >= first_frame and p.first_frame <= last_frame]
+    if not hit:  # the window lies between pieces (or outside): its neighbours
+        hit = [i for i, p in enumerate(pieces) if p.last_frame < first_frame][-1:] + \
+              [i for i, p in enumerate(pieces) if p.first_frame > last_frame][:1]
+    return max(min(hit) - 1, 0), min(max(hit) + 1, len(pieces) - 1)
+
+
+def _span(pieces: Sequence[Piece], lo: int, hi: int, first_frame: int, last_frame: int) -> tuple[int, int]:
+    """Frames (inclusive) whose place on the trajectory changes when pieces ``lo..hi`` are replaced by
+    pieces inside their frames after an edit of ``first_frame..last_frame``: from the frame after the
+    kept piece before them (its Hermite gap changes) to the frame before the kept piece after them."""
+    if not pieces:
+        return first_frame, last_frame
+    a = pieces[lo - 1].last_frame + 1 if lo > 0 else pieces[0].first_frame
+    b = pieces[hi + 1].first_frame - 1 if hi + 1 < len(pieces) else pieces[-1].last_frame
+    return min(a, first_frame), max(b, last_frame)
+
+
+def refit_span(pieces: Sequence[Piece], first_frame: int, last_frame: int) -> tuple[int, int]:
+    """The frames (first, last; inclusive, sequence indices) :func:`refit_window` reads and may change
+    after an edit of ``first_frame..last_frame``: the caller needs the labels and the previous fit of
+    these frames only (with no pieces, the edited frames alone: they hold every label there is)."""
+    if not pieces:
+        return first_frame, last_frame
+    return _span(pieces, *_stretch(pieces, first_frame, last_frame), first_frame, last_frame)
+
+
+def _bad_frames(L: _Labels, by_frame, piece: Piece, frames: Sequence[int], fps: float,
+                break_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """For each of ``frames``: every label further than ``break_px`` from ``piece`` (all bad), and
+    some label further (one bad): :func:`_frame_bad` without and with ``worst``, for many frames."""
+    idx = np.concatenate([by_frame[f] for f in frames])
+    e = np.linalg.norm(L.residuals(idx, piece.position(L.frame[idx], fps)), axis=1)
+    counts = np.array([len(by_frame[f]) for f in frames])
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    return np.minimum.reduceat(e, starts) > break_px, np.maximum.reduceat(e, starts) > break_px
+
+
+def _local_stretch(pieces: Sequence[Piece], first_frame: int, last_frame: int) -> tuple[int, int] | None:
+    """Indices (lo, hi) of the pieces :func:`_refit_local` fits again: those holding the edited frames and,
+    where an edited frame lies within ``_MARGIN`` frames of a break, the piece across it; ``None`` when
+    an edited frame lies outside every piece."""
+    hit = [i for i, p in enumerate(pieces) if p.last_frame >= first_frame and p.first_frame <= last_frame]
+    if not hit or any(not any(p.first_frame <= f <= p.last_frame for p in pieces) for f in (first_frame, last_frame)):
+        return None
+    lo, hi = min(hit), max(hit)
+    if lo > 0 and first_frame - pieces[lo].first_frame < _MARGIN:
+        lo -= 1
+    if hi + 1 < len(pieces) and pieces[hi].last_frame - last_frame < _MARGIN:
+        hi += 1
+    return lo, hi
+
+
+def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int, last_frame: int, fps: float,
+                 break_px: float) -> tuple[int, int, list[Piece]] | None:
+    """The fast path of :func:`refit_window`: (lo, hi, the pieces replacing ``pieces[lo..hi]``) or ``None``.
+
+    Pieces ``lo..hi`` (:func:`_local_stretch`) keep their outer ends, the breaks between them are moved
+    to the lowest cost as :func:`_segment` does (:func:`_shift_bounds`), and each is fitted again.
+    This applies when the edit lies at least ``_MARGIN`` labelled frames inside the stretch (beyond
+    the frames a break may move by and those that confirm one) and every piece, fitted again, still
+    explains its frames as :func:`_segment` requires of a piece (the same model as before, its first
+    and last frame within ``break_px``, no ``_CONFIRM`` frames in a row with a label off it)."""
+    stretch = _local_stretch(pieces, first_frame, last_frame)
+    if stretch is None:
+        return None
+    lo, hi = stretch
+    old = pieces[lo:hi + 1]
+    frames = [f for f in sorted(by_frame) if old[0].first_frame <= f <= old[-1].last_frame]
+    if not frames or frames[0] != old[0].first_frame or frames[-1] != old[-1].last_frame:
+        return None
+    if sum(f < first_frame for f in frames) < _MARGIN or sum(f > last_frame for f in frames) < _MARGIN:
+        return None
+    cuts = [sum(f < p.first_frame for f in frames) for p in old] + [len(frames)]
+    bounds = list(zip(cuts[:-1], cuts[1:]))
+    if any(b - a < 1 for a, b in bounds):
+        return None
+    best = _Best(L, by_frame, fps)
+    bounds = _shift_bounds(L, by_frame, frames, fps, bounds, best)
+    for (a, b), p in zip(bounds, old):
+        check = best(frames[a:b])
+        if check.kind != p.kind:
+            return None
+        bad, off = _bad_frames(L, by_frame, check, frames[a:b], fps, break_px)
+        if bad[0] or bad[-1] or _bad_run(list(off)) is not None:
+            return None
+    # refined as :func:`_segment` does, each model's refinement started from the piece before the edit
+    return lo, hi, [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=p, linear=best.linear(frames[a:b]))
+                    for (a, b), p in zip(bounds, old)]
+
+
+def local_span(pieces: Sequence[Piece], first_frame: int, last_frame: int) -> tuple[int, int] | None:
+    """The frames (first, last; inclusive) :func:`refit_local` reads and may change after an edit of
+    ``first_frame..last_frame``: the pieces it fits again (the one holding the edit and, near a break,
+    the one across it) and the Hermite gaps to their neighbours; ``None`` when the edit lies outside
+    every piece."""
+    stretch = _local_stretch(pieces, first_frame, last_frame)
+    return _span(pieces, *stretch, first_frame, last_frame) if stretch is not None else None
+
+
+def _window_labels(fit: TrajectoryFit, points, cameras, widths, need: tuple[int, int]):
+    pts, use = _check_inputs(points, cameras, widths, fit.fps)
+    if len(pts) != len(fit.positions) or fit.residuals_px.shape[1:] != pts.shape[1:2]:
+        raise ValueError(f"points must hold the {len(fit.positions)} frames of fit, got shape {pts.shape}")
+    if not (fit.first_frame <= need[0] and need[1] < fit.first_frame + len(pts)):
+        raise ValueError(f"the re-fit needs frames {need[0]}..{need[1]}; fit and points hold "
+                         f"{fit.first_frame}..{fit.first_frame + len(pts) - 1}")
+    L = _Labels(pts, cameras, widths, use, fit.first_frame)
+    return pts, L, _group(L)
+
+
+def refit_local(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
+                first_frame: int, last_frame: int, *, flag_px: float = DEFAULT_FLAG_PX,
+                break_px: float = DEFAULT_BREAK_PX, tau_px: float = DEFAULT_TAU_PX) -> TrajectoryFit | None:
+    """The fast path of :func:`refit_window` alone, for a window holding only ``local_span(fit.pieces,
+    first_frame, last_frame)``: the same result when it applies, ``None`` when it does not (the edit
+    outside every piece or too near the stretch's ends, or a piece that no longer explains its frames):
+    then call :func:`refit_window` with the frames of :func:`refit_span`. Arguments as
+    :func:`refit_window`.
+
+    Raises:
+        ValueError: shapes that disagree, or ``fit`` does not hold the frames of :func:`local_span`.
+    """
+    need = local_span(fit.pieces, first_frame, last_frame)
+    if need is None:
+        return None
+    pts, L, by_frame = _window_labels(fit, points, cameras, widths, need)
+    fast = _refit_local(L, by_frame, fit.pieces, first_frame, last_frame, fit.fps, break_px)
+    if fast is None:
+        return None
+    lo, hi, new = fast
+    pieces = list(fit.pieces[:lo]) + new + list(fit.pieces[hi + 1:])
+    return _assemble(pts, fit.first_frame, cameras, widths, fit.fps, L, pieces, flag_px, tau_px, *need,
+                     previous=fit, edited=(first_frame, last_frame))
 
 
 def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
                  first_frame: int, last_frame: int, *, flag_px: float = DEFAULT_FLAG_PX,
                  break_px: float = DEFAULT_BREAK_PX, tau_px: float = DEFAULT_TAU_PX) -> TrajectoryFit:
-    """Re-fit after labels changed in frames ``first_frame..last_frame`` (inclusive).
+    """Re-fit after labels changed in frames ``first_frame..last_frame`` (inclusive; sequence indices).
 
-    The pieces that overlap the window, and one neighbour on each side, are segmented and fitted
-    again from the current ``points``; the others are kept as they are. Same arguments as
-    :func:`fit_trajectory`; ``points`` is the whole sequence with the edit applied.
+    Fast path (:func:`refit_local`): the piece holding the edit (and, when the edit lies within
+    ``_MARGIN`` frames of a break, the piece across it) keeps its outer ends, the break between the two
+    moves to the lowest cost as in :func:`_segment`, and each is fitted again, when the edit lies at least
+    ``_MARGIN`` labelled frames inside that stretch and every piece still explains its frames as the
+    segmentation requires (same model, first and last frame within ``break_px``, no ``_CONFIRM`` frames
+    in a row with a label off it). Otherwise the pieces that overlap the
+    window, and one neighbour on each side, are segmented and fitted again (:func:`_segment`). The
+    other pieces are kept. Then only the frames whose place on the trajectory can have changed are
+    assembled again (the pieces replaced and the Hermite gaps to the kept ones); of those, a frame
+    outside the window whose kept labels are the same as in ``fit`` keeps its own triangulation
+    (``ball_3d``, ``cam_lists``) from ``fit`` (same labels, same cameras), the others are
+    triangulated again.
+
+    Args:
+        fit: the fit before the edit, of the whole sequence or of a window of it (``fit.first_frame``)
+            that holds at least the frames of ``refit_span(fit.pieces, first_frame, last_frame)``;
+            made with the same ``cameras`` (a camera change needs :func:`fit_trajectory`).
+        points: (len(fit.positions), K, 2) labels of the frames ``fit.frames`` with the edit applied.
+        cameras, widths, flag_px, break_px, tau_px: as in :func:`fit_trajectory`.
+
+    Returns:
+        A windowed :class:`TrajectoryFit`: all pieces of the sequence, per-frame rows for the frames
+        whose place can have changed only (``first_frame`` the first of them).
+
+    Raises:
+        ValueError: shapes that disagree, or ``fit`` does not hold the frames the re-fit needs.
     """
-    pts, use = _check_inputs(points, cameras, widths, fit.fps)
-    L = _Labels(pts, cameras, widths, use)
-    by_frame = _group(L)
+    pts, L, by_frame = _window_labels(fit, points, cameras, widths, refit_span(fit.pieces, first_frame, last_frame))
     pieces = list(fit.pieces)
-    hit = [i for i, p in enumerate(pieces) if p.last_frame >= first_frame and p.first_frame <= last_frame]
-    if not hit:  # the window lies between pieces (or outside): its neighbours
-        hit = [i for i, p in enumerate(pieces) if p.last_frame < first_frame][-1:] + \
-              [i for i, p in enumerate(pieces) if p.first_frame > last_frame][:1]
-    lo = max(min(hit, default=0) - 1, 0)
-    hi = min(max(hit, default=len(pieces) - 1) + 1, len(pieces) - 1)
-    start = min(first_frame, pieces[lo].first_frame) if pieces else first_frame
-    end = max(last_frame, pieces[hi].last_frame) if pieces else last_frame
-    frames = [f for f in sorted(by_frame) if start <= f <= end]
-    new = _segment(L, by_frame, frames, fit.fps, break_px) if frames else []
-    pieces = pieces[:lo] + new + pieces[hi + 1:] if pieces else new
-    return _assemble(pts, cameras, widths, fit.fps, L, pieces, flag_px, tau_px)
+    fast = _refit_local(L, by_frame, pieces, first_frame, last_frame, fit.fps, break_px) if pieces else None
+    if fast is not None:
+        lo, hi, new = fast
+    elif pieces:
+        lo, hi = _stretch(pieces, first_frame, last_frame)
+        start = min(first_frame, pieces[lo].first_frame)
+        end = max(last_frame, pieces[hi].last_frame)
+        frames = [f for f in sorted(by_frame) if start <= f <= end]
+        new = _segment(L, by_frame, frames, fit.fps, break_px) if frames else []
+    else:
+        lo, hi = 0, -1
+        new = _segment(L, by_frame, sorted(by_frame), fit.fps, break_px) if by_frame else []
+    a, b = _span(pieces, lo, hi, first_frame, last_frame)
+    pieces = pieces[:lo] + new + pieces[hi + 1:]
+    return _assemble(pts, fit.first_frame, cameras, widths, fit.fps, L, pieces, flag_px, tau_px, a, b,
+                     previous=fit, edited=(first_frame, last_frame))
 
 
 def _group(L: _Labels) -> dict[int, np.ndarray]:
@@ -433,55 +726,75 @@ def _group(L: _Labels) -> dict[int, np.ndarray]:
     return {f: np.array(v) for f, v in by_frame.items()}
 
 
-def _assemble(pts, cameras, widths, fps, L, pieces, flag_px, tau_px) -> TrajectoryFit:
-    F, K = pts.shape[:2]
+def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, a, b, *,
+              previous: TrajectoryFit | None = None, edited: tuple[int, int] | None = None) -> TrajectoryFit:
+    """The per-frame rows of frames ``a..b`` (sequence indices; ``pts`` row 0 is frame ``pts_first``)
+    from ``pieces``. A frame outside ``edited`` whose kept labels are those of ``previous`` keeps its
+    triangulation from ``previous``; the others are triangulated (:func:`triangulate_frame`)."""
+    K = pts.shape[1]
+    n = b - a + 1
     pieces = sorted(pieces, key=lambda p: p.first_frame)
-    positions = np.full((F, 3), np.nan)
-    for a, p in enumerate(pieces):
-        fr = np.arange(p.first_frame, p.last_frame + 1)
-        positions[fr] = p.position(fr, fps)
-        if a + 1 < len(pieces) and pieces[a + 1].first_frame > p.last_frame + 1:
-            positions = _hermite_gap(positions, p, pieces[a + 1], fps)
-    residuals = np.full((F, K), np.nan)
-    if len(L.frame):
-        res = np.linalg.norm(L.residuals(np.arange(len(L.frame)), positions[L.frame]), axis=1)
-        residuals[L.frame, L.cam] = res
+    positions = np.full((n, 3), np.nan)
+    for i, p in enumerate(pieces):
+        lo, hi = max(p.first_frame, a), min(p.last_frame, b)
+        if lo <= hi:
+            fr = np.arange(lo, hi + 1)
+            positions[fr - a] = p.position(fr, fps)
+        if i + 1 < len(pieces) and pieces[i + 1].first_frame > p.last_frame + 1:
+            _hermite_gap(positions, a, p, pieces[i + 1], fps)
+    residuals = np.full((n, K), np.nan)
+    sel = np.nonzero((L.frame >= a) & (L.frame <= b))[0]
+    if len(sel):
+        res = np.linalg.norm(L.residuals(sel, positions[L.frame[sel] - a]), axis=1)
+        residuals[L.frame[sel] - a, L.cam[sel]] = res
     outliers = np.nan_to_num(residuals, nan=0.0) > flag_px
-    ball = np.full((F, 3), np.nan)
+    ball = np.full((n, 3), np.nan)
     cam_lists: list[tuple[int, ...]] = []
     sources: list[str | None] = []
-    for f in range(F):
-        keep = [k for k in range(K) if np.isfinite(residuals[f, k]) and not outliers[f, k]]
-        tri = triangulate_frame([BallObservation(k, cameras[k], pts[f, k], widths[k]) for k in keep],
-                                tau_px=tau_px) if len(keep) >= 2 else FrameTriangulation(None, (), {})
-        kept = tuple(sorted(tri.kept)) if tri.point is not None else tuple(keep)
-        if tri.point is not None:
-            ball[f] = tri.point
+    for r in range(n):
+        f = a + r
+        keep = tuple(int(k) for k in np.nonzero(np.isfinite(residuals[r]) & ~outliers[r])[0])
+        old = f - previous.first_frame if previous is not None else -1
+        if (previous is not None and 0 <= old < len(previous.positions) and edited is not None
+                and not edited[0] <= f <= edited[1] and previous.kept_labels(old) == keep):
+            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None
+            kept = tuple(previous.cam_lists[old])
+        else:
+            row = f - pts_first
+            tri = triangulate_frame([BallObservation(k, cameras[k], pts[row, k], widths[k]) for k in keep],
+                                    tau_px=tau_px) if len(keep) >= 2 else FrameTriangulation(None, (), {})
+            point = tri.point
+            kept = tuple(sorted(tri.kept)) if tri.point is not None else keep
+        if point is not None:
+            ball[r] = point
         cam_lists.append(kept)
-        if not np.all(np.isfinite(positions[f])):
+        if not np.all(np.isfinite(positions[r])):
             sources.append(None)
-        elif tri.point is not None:
+        elif point is not None:
             sources.append("triangulated")
         elif keep:
             sources.append("fitted")
         else:
             sources.append("interpolated")
-    return TrajectoryFit(fps, tuple(pieces), positions, tuple(sources), residuals, outliers, ball, tuple(cam_lists))
+    return TrajectoryFit(fps, tuple(pieces), positions, tuple(sources), residuals, outliers, ball, tuple(cam_lists),
+                         first_frame=a)
 
 
-def _hermite_gap(positions: np.ndarray, a: Piece, b: Piece, fps: float) -> np.ndarray:
-    """Fill frames strictly between pieces ``a`` and ``b`` with the cubic Hermite curve joining
-    ``a``'s end (position, velocity) to ``b``'s start."""
+def _hermite_gap(positions: np.ndarray, first: int, a: Piece, b: Piece, fps: float) -> None:
+    """Fill the frames strictly between pieces ``a`` and ``b`` that ``positions`` holds (row 0 is frame
+    ``first``), in place, with the cubic Hermite curve joining ``a``'s end (position, velocity) to ``b``'s
+    start."""
     f0, f1 = a.last_frame, b.first_frame
+    fr = np.arange(max(f0 + 1, first), min(f1, first + len(positions)))
+    if not len(fr):
+        return
     T = (f1 - f0) / fps
     p0, p1 = a.position([f0], fps)[0], b.position([f1], fps)[0]
     v0, v1 = a.velocity(f0, fps) * T, b.velocity(f1, fps) * T
-    s = (np.arange(f0 + 1, f1) - f0) / (f1 - f0)
+    s = (fr - f0) / (f1 - f0)
     h = np.stack([2 * s ** 3 - 3 * s ** 2 + 1, s ** 3 - 2 * s ** 2 + s, -2 * s ** 3 + 3 * s ** 2, s ** 3 - s ** 2], 1)
-    out = positions.copy()
-    out[f0 + 1:f1] = h @ np.stack([p0, v0, p1, v1])
-    return out
+    positions[fr - first] = h @ np.stack([p0, v0, p1, v1])
 
 
 __all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "FrameTriangulation", "triangulate_frame", "Piece",
-           "TrajectoryFit", "fit_trajectory", "refit_window"]
+           "TrajectoryFit", "fit_trajectory", "local_span", "refit_local", "refit_span", "refit_window"]

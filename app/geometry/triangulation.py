@@ -28,6 +28,10 @@ reprojection error ``None``.
 
 World frame: SoccerNet (metres, origin at the centre spot, z down). Image: continuous pixels,
 origin at the top-left corner.
+
+Size (over 400 lines): the pair rules, their drop reasons, the fusion and the per-view reprojection are one
+procedure under one set of settings (tau, rule, baseline, parallax); split apart they would pass those settings
+and the pair records between modules.
 """
 from __future__ import annotations
 
@@ -86,20 +90,31 @@ def rule_reference_width_px(rule: str | None) -> float | None:
     return RULE_REFERENCE_WIDTH_PX.get(rule) if rule is not None else None
 
 
+def scaled_error_px(error_px: float | None, width_px: float, rule: str | None) -> float | None:
+    """A view's reprojection error (px of its own image) in the scale its pair rule compares with tau:
+    ``error_px * reference / width_px`` for a rule with a reference width (``max_scaled_1920``: px of a
+    1920-px-wide image), raw pixels for a rule without one or a width that is not positive; None
+    when the error is. The one home of the scaling (the UI shows this number, never rescales).
+
+    >>> scaled_error_px(12.0, 960, "max_scaled_1920"), scaled_error_px(12.0, 960, "max_px"), scaled_error_px(None, 960, "max_px")
+    (24.0, 12.0, None)
+    """
+    if error_px is None:
+        return None
+    reference = rule_reference_width_px(rule)
+    return error_px * reference / width_px if reference is not None and width_px > 0 else error_px
+
+
 def error_above_tau(error_px: float | None, width_px: float, tau_px: float | None, rule: str | None) -> bool:
     """The one rule "this view's reprojection error is above tau": the error (px of the view's own
-    image) scaled to the rule's reference width (``error_px * reference / width_px``; raw pixels when
-    the rule has none or the width is not positive), then strictly above ``tau_px``. False when the
+    image) scaled by :func:`scaled_error_px`, then strictly above ``tau_px``. False when the
     error or tau is missing. The review queue's count and the system page's flag both use it.
 
     >>> error_above_tau(12.0, 960, 20.0, "max_scaled_1920"), error_above_tau(12.0, 960, 20.0, "max_px")
     (True, False)
     """
-    if error_px is None or tau_px is None:
-        return False
-    reference = rule_reference_width_px(rule)
-    scaled = error_px * reference / width_px if reference is not None and width_px > 0 else error_px
-    return bool(scaled > tau_px)
+    scaled = scaled_error_px(error_px, width_px, rule)
+    return scaled is not None and tau_px is not None and bool(scaled > tau_px)
 
 
 #: Reasons a pair is dropped, in the order they are tested (a pair reports the first that applies).

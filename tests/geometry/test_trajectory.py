@@ -10,7 +10,10 @@ import numpy as np
 import pytest
 
 from app.geometry.camera import Camera
-from app.geometry.trajectory import fit_trajectory, refit_window, triangulate_frame
+from app.geometry import trajectory as trajectory_module
+from app.geometry.trajectory import (
+    fit_trajectory, local_span, refit_local, refit_span, refit_window, triangulate_frame,
+)
 from app.geometry.triangulation import BallObservation
 
 FPS = 25.0
@@ -132,6 +135,16 @@ def test_gaps_single_camera_and_none_are_filled(scene):
     assert np.all(np.isnan(res.ball_3d[80:92]))
 
 
+def assert_same_rows(part, full):
+    """The rows of the windowed fit ``part`` equal those of the whole fit ``full`` (positions within 1 mm)."""
+    rows = slice(part.first_frame, part.first_frame + len(part.positions))
+    np.testing.assert_allclose(part.positions, full.positions[rows], atol=1e-3)
+    assert part.sources == full.sources[rows]
+    assert np.array_equal(part.outliers, full.outliers[rows])
+    assert part.cam_lists == full.cam_lists[rows]
+    np.testing.assert_allclose(part.ball_3d, full.ball_3d[rows], atol=1e-9)
+
+
 def test_refit_window_matches_full_fit_after_an_edit(scene):
     truth, pts = scene
     bad = pts.copy()
@@ -140,9 +153,73 @@ def test_refit_window_matches_full_fit_after_an_edit(scene):
     assert first.outliers[100, 0]
     fixed = refit_window(first, pts, CAMERAS, [1920] * 4, 100, 100)
     full = fit(pts)
+    assert fixed.first_frame <= 100 < fixed.first_frame + len(fixed.positions)
     assert not fixed.outliers.any()
-    assert np.allclose(fixed.positions, full.positions, atol=1e-6)
+    assert_same_rows(fixed, full)
     assert [(p.first_frame, p.last_frame) for p in fixed.pieces] == [(p.first_frame, p.last_frame) for p in full.pieces]
+
+
+@pytest.mark.parametrize("edit", ["moved", "removed", "wrong"])
+def test_refit_of_a_window_equals_a_fit_from_scratch(scene, edit, monkeypatch):
+    """The re-fit reads only the frames of ``refit_span`` (a window of the previous fit, as the service
+    stores it), re-triangulates only the frames whose kept labels changed, and gives the rows of a fit
+    of the whole edited sequence from scratch."""
+    truth, pts = scene
+    before = fit(pts)
+    piece = max(before.pieces, key=lambda p: p.last_frame - p.first_frame)
+    f = (piece.first_frame + piece.last_frame) // 2  # well inside a piece: the fast path
+    edited = pts.copy()
+    k = int(np.nonzero(np.isfinite(pts[f]).all(axis=1))[0][0])
+    if edit == "moved":
+        edited[f, k] += (3.0, -2.0)
+    elif edit == "removed":
+        edited[f, k] = np.nan
+    else:
+        edited[f, k] += (90.0, 40.0)
+    a, b = refit_span(before.pieces, f, f)
+    assert a <= f <= b and b - a + 1 < len(pts)
+    calls = []
+    real = trajectory_module.triangulate_frame
+    monkeypatch.setattr(trajectory_module, "triangulate_frame", lambda obs, **kw: calls.append(1) or real(obs, **kw))
+    part = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f)
+    monkeypatch.undo()
+    scratch = fit(edited)
+    assert [(p.kind, p.first_frame, p.last_frame) for p in part.pieces] == \
+        [(p.kind, p.first_frame, p.last_frame) for p in scratch.pieces]
+    assert_same_rows(part, scratch)
+    assert part.outliers[f - part.first_frame, k] == (edit == "wrong")
+    assert len(calls) < len(part.positions) // 4  # most frames keep their own triangulation
+    narrow = local_span(before.pieces, f, f)  # the fast path alone reads the piece's frames only
+    assert narrow[1] - narrow[0] < b - a
+    alone = refit_local(before.window(*narrow), edited[narrow[0]:narrow[1] + 1], CAMERAS, [1920] * 4, f, f)
+    assert alone is not None and [(p.kind, p.first_frame, p.last_frame) for p in alone.pieces] == \
+        [(p.kind, p.first_frame, p.last_frame) for p in part.pieces]
+    assert_same_rows(alone, scratch)
+    with pytest.raises(ValueError, match="needs frames"):
+        refit_window(before.window(f, f), edited[f:f + 1], CAMERAS, [1920] * 4, f, f)
+
+
+@pytest.mark.parametrize("where", ["at a break", "at the first frame"])
+def test_refit_near_a_break_or_the_sequence_start(scene, where):
+    """At a break the two pieces around it are fitted again and the break moved to the lowest cost
+    (``refit_local``); at the sequence's first frame (too near the end of the stretch to trust the
+    pieces) the stretch is segmented again (``refit_window``). Both give the fit from scratch."""
+    truth, pts = scene
+    before = fit(pts)
+    f = before.pieces[1].first_frame if where == "at a break" else 0
+    edited = pts.copy()
+    k = int(np.nonzero(np.isfinite(pts[f]).all(axis=1))[0][0])
+    edited[f, k] += (2.0, 2.0)
+    a, b = refit_span(before.pieces, f, f)
+    local = refit_local(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f)
+    assert (local is None) == (where == "at the first frame")
+    part = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f)
+    scratch = fit(edited)
+    assert [(p.first_frame, p.last_frame) for p in part.pieces] == [(p.first_frame, p.last_frame) for p in scratch.pieces]
+    assert_same_rows(part, scratch)
+    if local is not None:
+        assert (local.first_frame, len(local.positions)) == (part.first_frame, len(part.positions))
+        assert_same_rows(local, scratch)
 
 
 def test_triangulate_frame_leaves_out_one_wrong_camera(scene):
