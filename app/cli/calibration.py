@@ -15,18 +15,19 @@ import multiprocessing
 import os
 import time
 from dataclasses import dataclass
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 from typing import Any, Iterator, Optional
 
 import typer
 from tqdm import tqdm
 
-from app.cli._files import InputFileError, json_files
 from app.cli._root import cli
+from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
+from app.services.errors import DatasetError
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 
-SUMMARY_FILE = "calibration_summary.json"
+SUMMARY_FILE = CALIBRATION_SUMMARY
 
 
 @dataclass(frozen=True)
@@ -44,24 +45,19 @@ class FrameOutcome:
 
 
 def read_frames(path: Path) -> Iterator[tuple[str, bytes]]:
-    """``(frame id, JSON bytes)`` of every ``*.json`` in a folder (recursively) or a zip, sorted.
-
-    Files named ``camera_*.json`` (predictions) and :data:`SUMMARY_FILE` are skipped.
+    """``(frame id, JSON bytes)`` of every frame of a SoccerNet-calibration folder or zip, as the import
+    reads them (:func:`app.datasets.sn_calibration.frame_entries`: sub-folders included, named by stem,
+    ``camera_*.json`` and :data:`SUMMARY_FILE` skipped).
 
     Raises:
-        typer.BadParameter: ``path`` is neither a folder nor a zip archive.
+        typer.BadParameter: ``path`` is missing or neither a folder nor a zip archive, or holds two
+            frames of one name.
     """
-    def keep(name: str) -> bool:
-        p = PurePosixPath(name)
-        return not p.name.startswith("camera_") and p.name != SUMMARY_FILE and not name.startswith("__MACOSX/")
-
     try:
-        files = json_files(path, "ANNOTATIONS")
-    except InputFileError:
-        raise typer.BadParameter(f"{path} is neither a folder nor a zip archive", param_hint="ANNOTATIONS") from None
-    for f in files:
-        if keep(f.name):
-            yield PurePosixPath(f.name).stem, f.read()
+        for name, _where, raw, _image in frame_entries(path):
+            yield name, raw
+    except DatasetError as exc:
+        raise typer.BadParameter(str(exc), param_hint="ANNOTATIONS") from None
 
 
 def calibrate_one(job: tuple[str, bytes, int, int, Optional[int]]) -> FrameOutcome:

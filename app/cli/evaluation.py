@@ -17,7 +17,7 @@ from typing import Any, Optional
 
 import typer
 
-from app.cli._files import InputFileError, JsonFile, json_files
+from app.datasets.files import InputFileError, JsonFile, json_files
 from app.cli._root import cli
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.camera import Camera

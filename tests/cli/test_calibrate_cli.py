@@ -3,6 +3,7 @@ with a single line (refused) and one unreadable file; its output is then scored 
 from __future__ import annotations
 
 import json
+import re
 import zipfile
 from pathlib import Path
 
@@ -85,4 +86,9 @@ def test_output_is_scored_by_v3d_jac(annotations_zip: Path, tmp_path: Path) -> N
 def test_missing_input_is_a_clear_error(tmp_path: Path) -> None:
     result = runner.invoke(cli, ["calibrate", str(tmp_path / "nope.zip"), str(tmp_path / "out")])
     assert result.exit_code != 0
-    assert "neither a folder nor a zip" in result.output
+    flat = lambda text: re.sub(r"[\s\u2502]+", " ", text)  # noqa: E731 (rich wraps long paths in a box)
+    assert "no such file or folder" in flat(result.output)
+    (tmp_path / "notes.txt").write_text("not a set")
+    result = runner.invoke(cli, ["calibrate", str(tmp_path / "notes.txt"), str(tmp_path / "out")])
+    assert result.exit_code != 0
+    assert "neither a folder nor a zip" in flat(result.output)

@@ -1,0 +1,135 @@
+"""SoccerNet-calibration sets (a folder or zip of per-frame JSON with normalised field-line points,
+images beside them) -> validated records; no database. One lister of the set's files
+(:func:`app.datasets.files.json_files`) serves the import and the offline commands (``v3d calibrate``).
+"""
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path, PurePosixPath
+from typing import Any, Iterator
+
+from app.datasets.files import (
+    IMAGE_SUFFIXES, decoded_image_size, json_files, load_json_bytes, open_zip, safe_names,
+)
+from app.datasets.records import FrameRecord, GameRecord, SystemRecord
+from app.db.models import FrameRole, SystemKind
+from app.geometry.annotations import AnnotationError, from_soccernet_calibration, lines_to_json_lists
+from app.services.errors import DatasetError
+
+#: League given to games made from a SoccerNet-calibration folder or zip.
+SN_CALIBRATION_LEAGUE = "sn-calibration"
+#: The summary ``v3d calibrate`` writes beside its cameras.
+CALIBRATION_SUMMARY = "calibration_summary.json"
+#: Files of a set that are not frames: the set's own metadata and ``v3d calibrate``'s summary.
+NOT_FRAMES = frozenset({"match_info.json", "per_match_info.json", CALIBRATION_SUMMARY})
+
+
+def is_frame_file(name: str) -> bool:
+    """True for a frame's annotation JSON (POSIX path inside the set), False for metadata, summaries
+    and camera predictions (``camera_*.json``)."""
+    base = PurePosixPath(name).name
+    return base.endswith(".json") and base not in NOT_FRAMES and not base.startswith("camera_")
+
+
+def frame_entries(root: Path) -> Iterator[tuple[str, str, bytes, Any]]:
+    """``(frame name, where, JSON bytes, image)`` per frame file of a SoccerNet-calibration folder or
+    zip, sub-folders included, in natural order of their paths (``where`` names the file,
+    ``archive.zip!member`` in zips). A frame is named by its file's stem, as ``v3d jac`` pairs
+    annotations with cameras; ``image`` is ``(loader of the bytes, image source fields, where)`` of
+    the ``.jpg``/``.png`` of the same path, or None. The import and ``v3d calibrate`` both read sets
+    through this function.
+
+    Raises:
+        DatasetError: ``root`` is missing or neither a folder nor a zip; an unsafe zip entry name;
+            two frame files of one stem (in different sub-folders).
+    """
+    if not root.exists():
+        raise DatasetError(root, None, "no such file or folder")
+    if not root.is_dir() and not zipfile.is_zipfile(root):
+        raise DatasetError(root, None, "neither a folder nor a zip archive")
+    files = [f for f in json_files(root, str(root)) if is_frame_file(f.name)]
+    keys = [PurePosixPath(f.name).with_suffix("") for f in files]
+    if root.is_dir():
+        yield from _named(root, files, keys, _images(root, None))
+        return
+    with open_zip(root) as zf:
+        yield from _named(root, files, keys, _images(root, zf))
+
+
+def _named(root: Path, files: list[Any], keys: list[PurePosixPath], images: dict[str, Any]
+           ) -> Iterator[tuple[str, str, bytes, Any]]:
+    """The entries of :func:`frame_entries` from the set's frame files and their paths without suffix."""
+    seen: set[str] = set()
+    for f, key in sorted(zip(files, keys), key=lambda fk: _natural(fk[0].name)):
+        name = key.name
+        where = f.label if root.is_dir() else f"{root}!{f.name}"
+        if name in seen:
+            raise DatasetError(where, None, f"two frames named {name!r}")
+        seen.add(name)
+        yield name, where, f.read(), images.get(key.as_posix())
+
+
+def _images(root: Path, zf: zipfile.ZipFile | None) -> dict[str, Any]:
+    """Path without suffix -> (loader, image source fields, where) of the images of the set (the
+    folder ``root``, or the open archive ``zf`` of ``root``, whose entry names are checked first)."""
+    out: dict[str, Any] = {}
+    if zf is None:
+        for p in sorted(root.rglob("*")):
+            if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file():
+                rel = p.relative_to(root).with_suffix("").as_posix()
+                out.setdefault(rel, ((lambda q=p: q.read_bytes()), {"image_path": str(p.resolve())}, str(p)))
+        return out
+    for n in safe_names(zf, root):
+        if n.lower().endswith(IMAGE_SUFFIXES):
+            key = PurePosixPath(n).with_suffix("").as_posix()
+            out.setdefault(key, ((lambda m=n: zf.read(m)),
+                                 {"image_zip": str(root.resolve()), "image_member": n}, f"{root}!{n}"))
+    return out
+
+
+def _natural(name: str) -> tuple:
+    stem = PurePosixPath(name).stem
+    parent = PurePosixPath(name).parent.as_posix()
+    return (parent, 0, int(stem), name) if stem.isdigit() else (parent, 1, 0, name)
+
+
+def read_sn_calibration(path: str | Path, width: int | None = None, height: int | None = None) -> GameRecord:
+    """Read and validate a SoccerNet-calibration folder or zip of per-frame JSON (normalised points).
+
+    Every ``<stem>.json`` of the folder or zip, sub-folders included (:func:`frame_entries`;
+    metadata, summaries and ``camera_*.json`` excepted), is one frame and one single-view system
+    named ``<stem>``. Image size: ``width`` and ``height`` when given, else read from the image
+    ``<stem>.jpg``/``.png`` beside the JSON (in the folder or the zip), which also becomes the
+    frame's image source. Normalised points become pixels as ``x (W - 1), y (H - 1)``.
+
+    The game is ``sn-calibration / <parent folder name> / <folder or zip stem>``.
+
+    Raises:
+        DatasetError: naming the file (``archive.zip!member`` inside zips) and the field.
+    """
+    root = Path(path)
+    if (width is None) != (height is None):
+        raise DatasetError(root, "--width/--height", "give both or neither")
+    if width is not None and (width <= 1 or height <= 1):  # type: ignore[operator]
+        raise DatasetError(root, "--width/--height", f"must be > 1, got {width}x{height}")
+    systems = []
+    for stem, where, raw, image in frame_entries(root):
+        data = load_json_bytes(raw, where)
+        if width is not None:
+            w, h, img_src = int(width), int(height), image[1] if image else {}  # type: ignore[arg-type]
+        elif image is not None:
+            (w, h), img_src = decoded_image_size(image[0](), image[2]), image[1]
+        else:
+            raise DatasetError(where, None, "image size unknown: pass --width and --height or put the image "
+                                            f"{stem}.jpg beside it")
+        try:
+            lines = lines_to_json_lists(from_soccernet_calibration(data, w, h))
+        except AnnotationError as exc:
+            raise DatasetError(where, str(exc), "invalid field line") from None
+        frame = FrameRecord(name=f"{stem}.json", role=FrameRole.CAMERA, width=w, height=h, lines=lines, **img_src)
+        systems.append(SystemRecord(name=stem, kind=SystemKind.SINGLE_VIEW, frames=[frame]))
+    if not systems:
+        raise DatasetError(root, None, "no per-frame .json files found")
+    resolved = root.resolve()
+    match = resolved.stem if resolved.is_file() else resolved.name
+    return GameRecord(SN_CALIBRATION_LEAGUE, resolved.parent.name, match, str(resolved), systems)
