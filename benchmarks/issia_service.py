@@ -1,12 +1,23 @@
 """ISSIA-3D through the service: import the dev sequence, then score the **stored** values against the truth.
 
-Usage: ``python -m benchmarks.issia_service [--data DIR] [--truth FILE] [--json OUT]``
+Usage: ``python -m benchmarks.issia_service [--data DIR] [--truth FILE] [--json OUT] [--edits N] [--modes json,lines]``
 
 Both modes (``issia_calibration.json``; ``issia_lines.json`` alone), each into a fresh SQLite file:
 ``v3d import issia`` (``app.services.issia.import_issia``), then the figures of issue 9 from the
 stored ``TrajectoryPoint`` rows (``ball_3D``, ``ball_3D_smoothed``, ``cam_list``): the same
 definitions as :mod:`benchmarks.issia` (which scores the pure fit). Also times the import and one
 edit's round trip (a label moved and back, each re-fitted and committed).
+
+``--edits N`` (default 6) then measures the **HTTP** edit round trip on the imported sequence
+(``create_app`` + ``TestClient``: the request, the edit, the re-fit, the recomputation, the commit and
+the system view answered): at N frames spread over the sequence a point moved by 3 px and back, the
+point turned into a box, the box moved by 3 px and back to the point, the label removed and restored,
+the view excluded and restored; then field lines shifted by 2 px and back, of a view in the middle (its
+camera is not the one the sequence uses: nothing to re-fit) and of the first frame's view (it gives the
+sequence its camera: the whole sequence is fitted again). Prints p50/p95 (wall and process CPU time)
+per kind and over all ball/exclusion edits, and the time per stage (the functions listed in
+:data:`STAGES`, wall time summed per request, nested stages included in their parent), and whether
+the undone edits left the issue's figures as imported.
 """
 from __future__ import annotations
 
@@ -21,6 +32,160 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from benchmarks.issia import SHARED
+
+#: Stages of an edit's round trip timed by :func:`http_edits`: (label, module, function). A function
+#: that does not exist (another version of the code) is skipped.
+STAGES = (
+    ("recompute edited frame (lines)", "app.services.editing", "recompute_frame"),
+    ("refit_sequence", "app.services.issia", "refit_sequence"),
+    ("  stored pieces (DB)", "app.services.issia_refit", "_stored_pieces"),
+    ("  cameras (DB)", "app.services.issia_refit", "sequence_columns"),
+    ("  window (DB)", "app.services.issia_refit", "_load_window"),
+    ("  refit_window", "app.services.issia_refit", "refit_window"),
+    ("    local re-fit (fast path)", "app.geometry.trajectory", "_refit_local"),
+    ("    _segment", "app.geometry.trajectory", "_segment"),
+    ("    _assemble", "app.geometry.trajectory", "_assemble"),
+    ("    triangulate_frame", "app.geometry.trajectory", "triangulate_frame"),
+    ("  store changed rows", "app.services.issia_refit", "_store_rows"),
+    ("whole fit (camera changed)", "app.services.issia", "fit_sequence"),
+    ("recompute systems", "app.services.issia", "recompute_system"),
+    ("recompute non-ISSIA", "app.services.editing", "recompute_system"),
+    ("update_doubts (moved)", "app.services.issia", "update_doubts"),
+    ("commit", "sqlalchemy.orm", "Session.commit"),
+    ("system_view (answer)", "app.services.views", "system_view"),
+)
+
+
+class StageTimer:
+    """Wraps the functions of :data:`STAGES` to sum their wall time per request (restored by :meth:`close`)."""
+
+    def __init__(self, stages=STAGES):
+        import importlib
+
+        self.totals: dict[str, float] = {}
+        self._undo = []
+        for label, module, name in stages:
+            owner = importlib.import_module(module)
+            *path, attr = name.split(".")
+            for part in path:
+                owner = getattr(owner, part)
+            fn = getattr(owner, attr, None)
+            if fn is None:
+                continue
+            self._undo.append((owner, attr, fn))
+            setattr(owner, attr, self._wrap(label, fn))
+
+    def _wrap(self, label, fn):
+        import functools
+
+        @functools.wraps(fn)
+        def timed(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self.totals[label] = self.totals.get(label, 0.0) + time.perf_counter() - t0
+        return timed
+
+    def take(self) -> dict[str, float]:
+        out, self.totals = self.totals, {}
+        return out
+
+    def close(self) -> None:
+        for owner, attr, fn in reversed(self._undo):
+            setattr(owner, attr, fn)
+
+
+def _pct(values, q):
+    return float(np.percentile(np.asarray(values) * 1000.0, q)) if values else float("nan")
+
+
+def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_ball_edits=None) -> dict:
+    """The HTTP edit round trip on the imported sequence (module docstring): p50/p95 ms per kind, all
+    ball/exclusion edits together, and per stage the mean ms over the requests that ran it (and how
+    many did). ``after_ball_edits()`` is called between the ball/exclusion edits (each undone) and the field-line edits; its answer is
+    returned as ``"after_ball_edits"``."""
+    from fastapi.testclient import TestClient
+
+    from app.core.config import Settings
+    from app.db.models import System, SystemKind
+    from app.main import create_app
+    from app.services.issia_trajectory import load_sequence
+    from app.services.users import create_user
+
+    settings = Settings(database_url=url)
+    app = create_app(settings)
+    with app.state.session_factory() as session:  # the edits are an annotator's, sent with its API token
+        _, token = create_user(session, "benchmark-annotator", "annotator", "benchmark password")
+        systems = [s for s in load_sequence(session, game_id)]
+        n = len(systems)
+        picks = []
+        for s in systems[n // (2 * edits)::max(n // edits, 1)][:edits]:
+            f = next((f for f in s.frames if f.ball_label is not None and f.ball_label.point is not None), None)
+            if f is not None:
+                picks.append((f.id, list(f.ball_label.point), f.width, f.height))
+        lines = {}
+        for label, s in (("field lines (a later view)", systems[n // 2]), ("field lines (the camera's view)", systems[0])):
+            f = next((f for f in s.frames if f.field_lines is not None and f.field_lines.lines), None)
+            if f is not None:
+                lines[label] = (f.id, f.field_lines.lines)
+    times: dict[str, list[float]] = {}
+    cpu: dict[str, list[float]] = {}  # process CPU time of each request (a loaded machine inflates wall time)
+    stages: dict[str, list[float]] = {}
+    timer = StageTimer()
+
+    def call(kind, method, path, body):
+        timer.take()
+        t0, c0 = time.perf_counter(), time.process_time()
+        r = client.request(method, path, json=body)
+        dt = time.perf_counter() - t0
+        cpu.setdefault(kind, []).append(time.process_time() - c0)
+        if r.status_code != 200:
+            raise RuntimeError(f"{method} {path}: {r.status_code} {r.text[:300]}")
+        times.setdefault(kind, []).append(dt)
+        for k, v in timer.take().items():
+            stages.setdefault(k, []).append(v)
+        stages.setdefault("(requests)", []).append(dt)
+
+    try:
+        # If-Match "*": a token's write must name the version it was made against where writes are
+        # conditional (any version here: the benchmark is the only writer)
+        with TestClient(app, headers={"Authorization": f"Bearer {token}", "If-Match": "*"}) as client:
+            for fid, (x, y), w, h in picks:
+                x2 = x + 3.0 if x + 3.0 < w else x - 3.0
+                box = [x - 6.0, y - 6.0, x + 6.0, y + 6.0]
+                moved = [box[0] + 3.0, box[1], box[2] + 3.0, box[3]]
+                call("point moved", "PATCH", f"/api/frames/{fid}/ball", {"point": [x2, y]})
+                call("point moved", "PATCH", f"/api/frames/{fid}/ball", {"point": [x, y]})
+                call("box", "PATCH", f"/api/frames/{fid}/ball", {"box": box})
+                call("box", "PATCH", f"/api/frames/{fid}/ball", {"box": moved})
+                call("box", "PATCH", f"/api/frames/{fid}/ball", {"point": [x, y]})
+                call("label removed/restored", "PATCH", f"/api/frames/{fid}/ball", {"point": None})
+                call("label removed/restored", "PATCH", f"/api/frames/{fid}/ball", {"point": [x, y]})
+                call("exclusion", "POST", f"/api/frames/{fid}/exclusion", {"excluded": True})
+                call("exclusion", "POST", f"/api/frames/{fid}/exclusion", {"excluded": False})
+            ball = [t for v in times.values() for t in v]
+            ball_stages = {f"{k} ({len(v)} requests)": float(np.mean(v)) * 1000.0 for k, v in stages.items()}
+            stages.clear()
+            checked = after_ball_edits() if after_ball_edits is not None else None
+            for label, (fid, original) in lines.items():
+                shifted = {c: [[[p[0] + 2.0, p[1]] for p in poly] for poly in polys] for c, polys in original.items()}
+                for _ in range(lines_edits):
+                    call(label, "PUT", f"/api/frames/{fid}/field-lines", {"lines": shifted})
+                    call(label, "PUT", f"/api/frames/{fid}/field-lines", {"lines": original})
+    finally:
+        timer.close()
+    out = {kind: {"n": len(v), "p50_ms": _pct(v, 50), "p95_ms": _pct(v, 95), "cpu_p50_ms": _pct(cpu[kind], 50),
+                  "cpu_p95_ms": _pct(cpu[kind], 95)} for kind, v in times.items()}
+    ball_cpu = [t for k, v in cpu.items() if not k.startswith("field lines") for t in v]
+    out["all ball/exclusion edits"] = {"n": len(ball), "p50_ms": _pct(ball, 50), "p95_ms": _pct(ball, 95),
+                                       "cpu_p50_ms": _pct(ball_cpu, 50), "cpu_p95_ms": _pct(ball_cpu, 95)}
+    out["stages_mean_ms (ball/exclusion edits)"] = ball_stages
+    if stages:
+        out["stages_mean_ms (field lines)"] = {f"{k} ({len(v)} requests)": float(np.mean(v)) * 1000.0
+                                               for k, v in stages.items()}
+    out["after_ball_edits"] = checked
+    return out
 
 
 def service_figures(session: Session, game_id: int, truth: dict) -> dict:
@@ -64,7 +229,7 @@ def service_figures(session: Session, game_id: int, truth: dict) -> dict:
     }
 
 
-def run(data: Path, truth: dict, from_lines: bool, workdir: Path) -> dict:
+def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0) -> dict:
     """Import ``data`` into a fresh database in one mode; figures, import and edit timings."""
     from app.core.config import Settings
     from app.db.models import Game, System
@@ -90,10 +255,22 @@ def run(data: Path, truth: dict, from_lines: bool, workdir: Path) -> dict:
     update_ball_label(session, frame.id, point=[p[0] + 3.0, p[1]], settings=settings)
     t_edit = time.perf_counter() - t1
     update_ball_label(session, frame.id, point=p, settings=settings)
+    game_id = game.id
     session.close()
     engine.dispose()
-    return {"mode": "lines" if from_lines else "calibration_json", **figures, "import_s": t_import,
-            "edit_round_trip_s": t_edit, "cameras_calibrated": report.calibrated}
+    out = {"mode": "lines" if from_lines else "calibration_json", **figures, "import_s": t_import,
+           "edit_round_trip_s": t_edit, "cameras_calibrated": report.calibrated}
+    if edits:
+        def same_figures() -> bool:  # the ball/exclusion edits, each undone, leave the figures as imported
+            eng = make_engine(url)  # (within 1e-6: a re-fit's refinement starts from the edited piece)
+            with make_session_factory(eng)() as s:
+                now = service_figures(s, game_id, truth)
+            eng.dispose()
+            return all(now[k] == v or (isinstance(v, float) and abs(now[k] - v) < 1e-6) for k, v in figures.items())
+
+        out["http_edits"] = http_edits(url, game_id, edits, after_ball_edits=same_figures)
+        out["figures_equal_after_undone_edits"] = out["http_edits"].pop("after_ball_edits")
+    return out
 
 
 def main(argv=None) -> int:
@@ -101,16 +278,30 @@ def main(argv=None) -> int:
     ap.add_argument("--data", type=Path, default=SHARED / "issia-dev")
     ap.add_argument("--truth", type=Path, default=SHARED / "issia-dev.truth.json")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--edits", type=int, default=6, help="frames edited through HTTP (0: none)")
+    ap.add_argument("--modes", default="json,lines", help="json, lines or both (comma-separated)")
     args = ap.parse_args(argv)
     truth = json.loads(args.truth.read_text())
     results = []
     with tempfile.TemporaryDirectory() as tmp:
-        for from_lines in (False, True):
-            r = run(args.data, truth, from_lines, Path(tmp))
+        modes = [m.strip() for m in args.modes.split(",")]
+        for from_lines in [m == "lines" for m in ("json", "lines") if m in modes]:
+            r = run(args.data, truth, from_lines, Path(tmp), args.edits)
             results.append(r)
             print(f"== {r['mode']} ==")
             for k, v in r.items():
-                print(f"  {k}: {v}")
+                if k != "http_edits":
+                    print(f"  {k}: {v}")
+            for kind, v in r.get("http_edits", {}).items():
+                if v is None:
+                    continue
+                if "p50_ms" in v:
+                    print(f"  HTTP {kind}: n={v['n']} p50 {v['p50_ms']:.1f} ms, p95 {v['p95_ms']:.1f} ms "
+                          f"(CPU p50 {v['cpu_p50_ms']:.1f} ms, p95 {v['cpu_p95_ms']:.1f} ms)")
+                else:
+                    print(f"  {kind}:")
+                    for stage, ms in v.items():
+                        print(f"    {stage:48s} {ms:8.1f}")
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
     return 0

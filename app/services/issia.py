@@ -11,7 +11,9 @@
   triangulation of the labels the trajectory keeps, reprojections, optimised boxes, doubts), and the
   transaction commits. Idempotent by natural keys; a reviewer's edited label is kept on re-import.
 * :func:`refit_after_edit`: after an edit of an ISSIA view (in the edit's transaction), the stretch of
-  the trajectory it touches is re-fitted and the systems whose place on it changed are recomputed.
+  the trajectory it touches is re-fitted (``app.services.issia_refit``) and the systems whose place on
+  it changed are recomputed; a new calibration of the view that gives its camera to the sequence
+  re-fits the whole sequence.
 * :func:`read_video_frame`: a view's image decoded on demand from its video or frame folder, at the
   view's (annotation) resolution, as PNG bytes.
 * :func:`export_issia3d`: ``ISSIA-3D.csv`` of a stored sequence (:mod:`app.datasets.issia3d`).
@@ -37,8 +39,10 @@ from app.geometry.annotations import lines_to_json_lists
 from app.geometry.jac import jac_at_gammas
 from app.services.doubts import update_doubts
 from app.services.errors import DatasetError
-from app.services.importing import ImportReport
-from app.services.issia_trajectory import fit_sequence, refit_sequence
+from app.services.audit import record_summary
+from app.services.importing import ImportReport, audit_counts
+from app.services.issia_refit import refit_sequence, sequence_columns
+from app.services.issia_trajectory import fit_sequence
 from app.services.recompute import (
     GIVEN_CAMERA_FLAG, JAC_GAMMAS, CalibrationFields, Progress, apply_calibration, recompute_system, recompute_systems,
 )
@@ -91,13 +95,15 @@ def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:
 
 
 def import_issia(session: Session, path: str | Path, settings: Settings, *, from_lines: bool = False,
-                 flipped_cameras: Iterable[str] = (), progress: Progress | None = None) -> ImportReport:
+                 flipped_cameras: Iterable[str] = (), progress: Progress | None = None,
+                 actor: str | None = None) -> ImportReport:
     """Import an ISSIA folder (module docstring) in one transaction.
 
     Args:
         from_lines: calibrate each camera from ``issia_lines.json`` even when ``issia_calibration.json``
             is present.
         flipped_cameras: camera ids ("1".."6") whose footage is mirrored horizontally (images only).
+        actor: who imports, for the import's one audit entry (None: the local user).
 
     Raises:
         DatasetError: invalid folder, files or camera ids (nothing is stored).
@@ -124,6 +130,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
         fit_sequence(session, game.id, settings)
         systems = [s for s in game.systems if s.kind is SystemKind.ISSIA]
         report.triangulated = recompute_systems(session, systems, settings, progress)
+        record_summary(session, "import", audit_counts(report), actor=actor, game_id=game.id)
         session.commit()
     except BaseException:
         session.rollback()
@@ -172,11 +179,13 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
             frame.image_path = str(media.resolve()) if media is not None else None
             frame.media_frame = index if media is not None else None
             frame.media_flipped = cid in seq.flipped
+            lines_changed = False
             if cid in lines:
                 fl = frame.field_lines
                 if fl is None:
                     frame.field_lines = FieldLineAnnotation(lines=lines[cid], original_lines=lines[cid])
                 elif fl.original_lines != lines[cid]:
+                    lines_changed = not fl.edited
                     if not fl.edited:
                         fl.lines = lines[cid]
                     fl.original_lines = lines[cid]
@@ -185,31 +194,57 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
             if cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags) or cal.source is not source:
                 apply_calibration(frame, f, source)
                 changed = True
-            changed |= _set_label(frame, seq.point(index, cid), now)
+            label_changed = _set_label(frame, seq.point(index, cid), now)
+            if (label_changed or lines_changed) and frame.id is not None:
+                frame.edit_version += 1  # what people edit changed under them: their ETag goes stale
+            changed |= label_changed
         if changed and not new:
             report.systems_changed += 1
     return game
 
 
-def refit_after_edit(session: Session, system: System, settings: Settings) -> list[System]:
-    """After an edit of a view of an ISSIA ``system`` (already recomputed by the caller): re-fit the
-    stretch of its sequence around its frame (:func:`app.services.issia_trajectory.refit_sequence`),
-    then recompute every system whose kept labels changed (``system`` again when its own did), and
-    judge again the doubts of those whose only change is their place on the trajectory but that have
-    flagged labels (their evidence names the fitted position). Changes the session only (the edit's
-    transaction commits). Returns the systems touched. A system that is not ISSIA is left alone."""
+def refit_after_edit(session: Session, system: System, settings: Settings, *,
+                     recalibrated: Frame | None = None) -> list[System]:
+    """After an edit of a view of an ISSIA ``system``, in the edit's transaction (changes the session
+    only). Returns the systems touched; a system that is not ISSIA is left alone (``[]``).
+
+    * A ball label or exclusion edit (``recalibrated`` None): re-fit the stretch of the sequence around
+      the system's frame (:func:`app.services.issia_refit.refit_sequence`), then recompute ``system``
+      (once, after the re-fit: its triangulation reads the labels the trajectory keeps) and every other
+      system whose kept labels changed, and judge again the doubts of those whose only change is their
+      place on the trajectory but that have flagged labels (their evidence names the fitted position).
+    * A new calibration of view ``recalibrated`` (field lines; the caller recomputed ``system``): the
+      sequence uses the camera of each camera's first admitted view, so when ``recalibrated`` is (or,
+      before the edit, may have been) that view the camera changed for every frame and the whole
+      sequence is fitted again from scratch (about a second on the 200-frame dev sequence, plus the
+      recomputation of the systems whose kept labels changed); otherwise the trajectory's inputs did
+      not change and nothing is re-fitted.
+    """
     if system.kind is not SystemKind.ISSIA or system.frame_index is None:
         return []
     session.flush()
-    touched = []
-    for c in refit_sequence(session, system.game_id, system.frame_index, system.frame_index, settings):
+    if recalibrated is None:
+        changed = refit_sequence(session, system.game_id, system.frame_index, system.frame_index, settings)
+        recompute_system(session, system, settings)
+        touched = [system]
+    else:
+        columns = sequence_columns(session, system.game_id, settings)
+        first = dict(zip(columns.names, columns.first_admitted)).get(recalibrated.name)
+        if first is not None and system.frame_index > first:
+            return []  # an earlier view of this camera gives the camera: the trajectory is unchanged
+        changed = fit_sequence(session, system.game_id, settings)
+        touched = []
+    for c in changed:
+        s = c.system
+        if s is None or s in touched:
+            continue
         if c.labels:
-            recompute_system(session, c.system, settings)
-        elif c.system.trajectory_point.flagged or c.system.doubt_counts.get("ball_off_consensus"):
-            update_doubts(c.system, settings)
+            recompute_system(session, s, settings)
+        elif s.trajectory_point.flagged or s.doubt_counts.get("ball_off_consensus"):
+            update_doubts(s, settings)
         else:
             continue
-        touched.append(c.system)
+        touched.append(s)
     return touched
 
 

@@ -5,9 +5,8 @@ and whose views are static cameras (``Frame.name`` "cam<k>"). This module
 
 * gathers the sequence's current ball labels and admitted cameras into the arrays of
   :func:`app.geometry.trajectory.fit_trajectory` (:func:`sequence_arrays`);
-* fits the whole sequence (:func:`fit_sequence`) or, after an edit, only the stretch it touches
-  (:func:`refit_sequence`, :func:`app.geometry.trajectory.refit_window` on the pieces stored per
-  system) and stores each frame's place on the trajectory (:class:`~app.db.models.TrajectoryPoint`:
+* fits the whole sequence (:func:`fit_sequence`; after an edit only the stretch it touches is
+  re-fitted, ``app.services.issia_refit``) and stores each frame's place on the trajectory (:class:`~app.db.models.TrajectoryPoint`:
   ``ball_3D``, ``ball_3D_smoothed`` and its source, the kept labels, the residuals, the flagged labels);
 * gives the per-frame triangulation of an ISSIA system its semantics (:func:`consensus_observations`:
   labels the trajectory flags are left out, then the labels that agree on one ball are chosen, as
@@ -32,7 +31,7 @@ from app.db.models import Frame, System, SystemKind, TrajectoryPoint
 from app.db.types import json_safe, utcnow
 from app.geometry.camera import Camera
 from app.geometry.doubts import Doubt as JudgedDoubt
-from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, refit_window, triangulate_frame
+from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
 from app.geometry.triangulation import BallObservation
 
 #: Frame rate of ISSIA sequences (frame ``i`` at ``t = i / FPS`` s), as ``app.datasets.issia.FPS``.
@@ -108,17 +107,6 @@ def _piece_json(p: Piece) -> dict[str, Any]:
             "params": [float(v) for v in p.params], "cost": float(p.cost)}
 
 
-def stored_pieces(systems: Sequence[System]) -> tuple[Piece, ...]:
-    """The motion pieces stored on the systems' trajectory points, in frame order."""
-    seen: dict[tuple[int, int], Piece] = {}
-    for s in systems:
-        d = s.trajectory_point.piece if s.trajectory_point is not None else None
-        if d and (d["first_frame"], d["last_frame"]) not in seen:
-            seen[(d["first_frame"], d["last_frame"])] = Piece(d["kind"], d["first_frame"], d["last_frame"],
-                                                              np.asarray(d["params"], float), d["cost"])
-    return tuple(sorted(seen.values(), key=lambda p: p.first_frame))
-
-
 def _vec(v: np.ndarray) -> list[float] | None:
     return [float(x) for x in v] if np.all(np.isfinite(v)) else None
 
@@ -130,27 +118,34 @@ TRIANGULATION_FIELDS = ("ball3d", "cam_list", "flagged")
 @dataclass
 class Changed:
     """A system whose stored trajectory point changed; ``labels`` when the labels it keeps (and so its
-    triangulation) changed, not only its place on the trajectory."""
+    triangulation) changed, not only its place on the trajectory. ``system`` is None when the re-fit
+    of an edit did not load it (``app.services.issia_refit``: neither recomputed nor judged again)."""
 
-    system: System
+    system: System | None
     labels: bool
 
 
+def row_values(fit: TrajectoryFit, frame: int, ids: np.ndarray) -> dict[str, Any]:
+    """The :class:`TrajectoryPoint` column values of sequence frame ``frame`` of ``fit`` (a whole or
+    windowed fit holding it); ``ids`` (K,) the frame ids of its views, -1 where it has none."""
+    i = frame - fit.first_frame
+    piece = next((p for p in fit.pieces if p.first_frame <= frame <= p.last_frame), None)
+    return dict(
+        ball3d=_vec(fit.ball_3d[i]), ball3d_smoothed=_vec(fit.positions[i]), source=fit.sources[i],
+        piece=_piece_json(piece) if piece is not None else None,
+        cam_list=[int(ids[k]) for k in fit.cam_lists[i]],
+        residuals_px={str(int(ids[k])): round(float(fit.residuals_px[i, k]), 4)
+                      for k in range(len(ids)) if ids[k] >= 0 and np.isfinite(fit.residuals_px[i, k])},
+        flagged=[int(ids[k]) for k in range(len(ids)) if ids[k] >= 0 and fit.outliers[i, k]],
+    )
+
+
 def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
-    """Write each system's :class:`TrajectoryPoint` from ``fit``; returns the systems whose stored
-    point changed."""
+    """Write each system's :class:`TrajectoryPoint` from ``fit`` (a fit of the whole sequence); returns
+    the systems whose stored point changed."""
     changed = []
     for i, s in arrays.systems.items():
-        piece = next((p for p in fit.pieces if p.first_frame <= i <= p.last_frame), None)
-        ids = arrays.frame_ids[i]
-        values = dict(
-            ball3d=_vec(fit.ball_3d[i]), ball3d_smoothed=_vec(fit.positions[i]), source=fit.sources[i],
-            piece=_piece_json(piece) if piece is not None else None,
-            cam_list=[int(ids[k]) for k in fit.cam_lists[i]],
-            residuals_px={str(int(ids[k])): round(float(fit.residuals_px[i, k]), 4)
-                          for k in range(len(ids)) if ids[k] >= 0 and np.isfinite(fit.residuals_px[i, k])},
-            flagged=[int(ids[k]) for k in range(len(ids)) if ids[k] >= 0 and fit.outliers[i, k]],
-        )
+        values = row_values(fit, i, arrays.frame_ids[i])
         tp = s.trajectory_point
         if tp is None:
             tp = TrajectoryPoint()
@@ -167,38 +162,19 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
     return changed
 
 
-def _fit_args(settings: Settings) -> dict[str, float]:
+def fit_args(settings: Settings) -> dict[str, float]:
+    """The keyword arguments of the trajectory fit taken from the settings."""
     return {"tau_px": settings.triangulation_tau_px}
 
 
 def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[Changed]:
-    """Fit the whole sequence of ``game_id`` and store it (:func:`store_fit`); returns the systems
-    whose trajectory point changed."""
+    """Fit the whole sequence of ``game_id`` from scratch and store it (:func:`store_fit`); returns the
+    systems whose trajectory point changed."""
     systems = load_sequence(session, game_id)
     arrays = sequence_arrays(systems, settings)
     if not arrays.systems:
         return []
-    fit = fit_trajectory(arrays.points, arrays.cameras, arrays.widths, FPS, **_fit_args(settings))
-    return store_fit(arrays, fit)
-
-
-def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame: int, settings: Settings) -> list[Changed]:
-    """Re-fit the stretch of the sequence that frames ``first_frame..last_frame`` touch
-    (:func:`app.geometry.trajectory.refit_window` from the stored pieces; the whole sequence when
-    none is stored) and store it; returns the systems whose trajectory point changed."""
-    systems = load_sequence(session, game_id)
-    arrays = sequence_arrays(systems, settings)
-    if not arrays.systems:
-        return []
-    pieces = stored_pieces(systems)
-    if not pieces:
-        fit = fit_trajectory(arrays.points, arrays.cameras, arrays.widths, FPS, **_fit_args(settings))
-    else:
-        F, K = arrays.points.shape[:2]
-        old = TrajectoryFit(FPS, pieces, np.empty((0, 3)), (), np.empty((0, K)), np.empty((0, K), bool),
-                            np.empty((0, 3)), ())
-        fit = refit_window(old, arrays.points, arrays.cameras, arrays.widths, first_frame, last_frame,
-                           **_fit_args(settings))
+    fit = fit_trajectory(arrays.points, arrays.cameras, arrays.widths, FPS, **fit_args(settings))
     return store_fit(arrays, fit)
 
 

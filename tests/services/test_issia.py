@@ -214,3 +214,83 @@ def test_issue_figures_through_the_service(db_session, db_settings, shared_dir, 
     assert f["smoothed_coverage"] >= 0.98 and f["smoothed_median_error_m"] <= 0.045
     assert f["outlier_labels"] >= 1 and f["outliers_in_cam_list"] == 0
     assert f["correct_kept_share"] >= 0.97
+
+
+def _stored_trajectory(session) -> dict[int, tuple]:
+    session.expire_all()
+    return {i: (s.trajectory_point.ball3d_smoothed, s.trajectory_point.source, s.trajectory_point.flagged,
+                s.trajectory_point.cam_list, s.trajectory_point.ball3d)
+            for i, s in _systems(session).items()}
+
+
+@pytest.mark.parametrize("edit, frame", [("moved", 70), ("removed", 70), ("excluded", 70), ("moved", 115)])
+def test_an_edits_incremental_refit_equals_a_fit_from_scratch(db_session, db_settings, shared_dir, tmp_path,
+                                                               monkeypatch, edit, frame):
+    """The re-fit of an edit (only the stretch it touches read, re-fitted and written) stores the same
+    trajectory as fitting the edited sequence again from scratch: positions within 1 mm, the same
+    sources, flagged labels, kept labels and per-frame triangulations. On frames 0-119 of the dev
+    sequence (pieces 0-23, 24-114, 115-119): frame 70 lies well inside a piece (that piece alone is
+    re-fitted), frame 115 at a break (the pieces around it are segmented again)."""
+    from app.services import issia_refit
+    from app.services.issia_trajectory import fit_sequence
+
+    import_issia(db_session, write_issia_stretch(shared_dir, tmp_path / "issia-dev", 0, 119, videos=False), db_settings)
+    view = next(f for f in _systems(db_session)[frame].frames if f.ball_label is not None)
+    x, y = view.ball_label.point
+
+    def whole_fit(*args, **kwargs):
+        raise AssertionError("the edit re-fitted the whole sequence")
+
+    monkeypatch.setattr(issia_refit, "fit_sequence", whole_fit)
+    if edit == "moved":
+        update_ball_label(db_session, view.id, point=[x + 4.0, y - 3.0], settings=db_settings)
+    elif edit == "removed":
+        update_ball_label(db_session, view.id, settings=db_settings)
+    else:
+        set_view_excluded(db_session, view.id, True, settings=db_settings)
+    monkeypatch.undo()
+    incremental = _stored_trajectory(db_session)
+    game = db_session.scalars(sa.select(Game)).one()
+    fit_sequence(db_session, game.id, db_settings)
+    db_session.flush()
+    scratch = _stored_trajectory(db_session)
+    assert incremental.keys() == scratch.keys()
+    for i in scratch:
+        (p1, s1, f1, c1, b1), (p2, s2, f2, c2, b2) = incremental[i], scratch[i]
+        assert (s1, f1, c1) == (s2, f2, c2), f"frame {i}"
+        assert (p1 is None) == (p2 is None) and (b1 is None) == (b2 is None), f"frame {i}"
+        if p1 is not None:
+            assert np.linalg.norm(np.subtract(p1, p2)) < 1e-3, f"frame {i}"
+        if b1 is not None:
+            np.testing.assert_allclose(b1, b2, atol=1e-9)
+    s = _systems(db_session)[frame]
+    if edit != "moved":
+        assert view.id not in s.trajectory_point.cam_list and str(view.id) not in s.trajectory_point.residuals_px
+    # the system's own triangulation, recomputed once after the re-fit, is the stored ball_3D
+    if s.trajectory_point.ball3d is not None:
+        np.testing.assert_allclose(s.triangulation.ball3d, s.trajectory_point.ball3d, atol=1e-9)
+
+
+def test_a_field_line_edit_refits_the_whole_sequence_only_when_its_view_gives_the_camera(db_session, db_settings,
+                                                                                        stretch):
+    """The sequence uses each camera's first admitted view's camera for every frame: new field lines of a
+    later view leave the trajectory as it was; new field lines of that first view change the camera of
+    every frame, and the stored trajectory is then the fit from scratch with the new camera."""
+    from app.services.editing import replace_field_lines
+    from app.services.issia_trajectory import fit_sequence
+
+    import_issia(db_session, stretch, db_settings)
+    game = db_session.scalars(sa.select(Game)).one()
+    before = _stored_trajectory(db_session)
+    later = _view(_systems(db_session)[20], "cam3")
+    shifted = {c: [[[x + 2.0, y] for x, y in poly] for poly in polys] for c, polys in later.field_lines.lines.items()}
+    replace_field_lines(db_session, later.id, shifted, settings=db_settings)
+    assert _stored_trajectory(db_session) == before
+    assert db_session.get(Frame, later.id).calibration.source is CalibrationSource.COMPUTED
+    first = _view(_systems(db_session)[0], "cam3")
+    lines = first.field_lines.lines
+    replace_field_lines(db_session, first.id, {c: [[[x + 2.0, y] for x, y in poly] for poly in polys]
+                                               for c, polys in lines.items()}, settings=db_settings)
+    after = _stored_trajectory(db_session)
+    assert after != before  # cam3's camera is now the one its first view's lines give
+    assert fit_sequence(db_session, game.id, db_settings) == []  # stored = the fit from scratch
