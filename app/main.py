@@ -10,7 +10,14 @@ static files under ``/static`` (revalidated through their ``ETag`` on every load
 is never served stale), and the OpenAPI docs at ``/docs`` (Swagger UI, ``static/docs.html`` started by
 ``static/js/docs.js``) with their JavaScript and CSS from the ``fastapi-offline`` package: no CDN. ReDoc
 is not served: its bundle fetches a logo from ``cdn.redoc.ly``. Every answer carries the security
-headers of ``app.api.security`` (a CSP allowing this server's own scripts only).
+headers of ``app.api.security`` (a CSP allowing this server's own scripts only). With
+``Settings.job_runner`` the app's lifespan runs a :class:`~app.services.jobs.JobRunner` (queued
+imports, recomputes and exports; a job a killed process left running is resumed).
+
+Authentication (``app.api.authentication``): the session cookie middleware (its signing key read from
+``V3D_SESSION_SECRET`` or the database when the middleware is built, at the first request or lifespan
+start), then the middleware that resolves the principal and answers 401 / CSRF 403 under ``/api``. The
+pages (``/``, ``/login``, ``/systems/{id}``), static files and the docs are public.
 """
 from __future__ import annotations
 
@@ -25,6 +32,7 @@ from fastapi_offline import FastAPIOffline
 from starlette.staticfiles import StaticFiles
 from starlette.types import Scope
 
+from app.api.authentication import AuthenticationMiddleware, SessionCookieMiddleware
 from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
 from app.api.main import api_router
@@ -34,6 +42,8 @@ from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
 from app.services.editing import get_system
 from app.services.errors import NotFoundError
+from app.services.jobs import JobRunner
+from app.services.users import session_secret
 
 #: Where the local Swagger UI assets (from fastapi-offline) are mounted.
 DOCS_ASSETS_URL = "/docs-assets"
@@ -102,8 +112,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     engine = make_engine(settings.database_url)
 
     @asynccontextmanager
-    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+    async def lifespan(application: FastAPI) -> AsyncIterator[None]:
+        runner = None
+        if settings.job_runner:  # queued imports, recomputes and exports run in a thread of this process
+            runner = JobRunner(application.state.session_factory, settings)
+            runner.start()
+        application.state.job_runner = runner
         yield
+        if runner is not None:
+            runner.stop()
         engine.dispose()
 
     app = FastAPIOffline(
@@ -117,9 +134,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
         docs_url=None,
     )
-    app.add_middleware(SecurityHeadersMiddleware)
     app.state.settings = settings
     app.state.session_factory = make_session_factory(engine)
+
+    def secret() -> str:
+        override = settings.session_secret.get_secret_value() if settings.session_secret else None
+        with app.state.session_factory() as session:
+            return session_secret(session, override)
+
+    # Added innermost first: security headers around the session cookie around the authentication.
+    app.add_middleware(AuthenticationMiddleware)
+    app.add_middleware(SessionCookieMiddleware, secret=secret, max_age=settings.session_max_age_s,
+                       https_only=settings.secure_cookies)
+    app.add_middleware(SecurityHeadersMiddleware)
 
     install_error_handlers(app)
     app.include_router(api_router, prefix="/api")
@@ -135,10 +162,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         """The review queue (``static/index.html``)."""
         return _page("index.html")
 
+    @app.api_route("/login", methods=["GET", "HEAD"], include_in_schema=False)
+    def login_page() -> FileResponse:
+        """The login page (``static/login.html``; ``?next=`` is where it goes after the login)."""
+        return _page("login.html")
+
     @app.api_route("/systems/{system_id}", methods=["GET", "HEAD"], include_in_schema=False)
     def system_page(request: Request, session: SessionDep, system_id: str) -> Response:
         """One multi-view system (``static/system.html``); for an id that names no system, a small
-        HTML page saying so with a link back to the queue (404; ``/api`` routes keep answering JSON)."""
+        HTML page saying so with a link back to the queue (404; ``/api`` routes keep answering JSON).
+        Anonymous visitors get the page without the look-up (it sends them to log in; nothing is said
+        about which systems exist)."""
+        if getattr(request.state, "principal", None) is None:
+            return _page("system.html")
         try:
             if not (system_id.isascii() and system_id.isdigit() and int(system_id) < 2**63):
                 raise NotFoundError("system", system_id)

@@ -14,7 +14,7 @@ One run:
    * queue page: ``GET /api/systems`` with the default sort (p50 / p95), and a mix of
      filter / sort / offset variants (:data:`QUEUE_VARIANTS`, p95);
    * system page: ``GET /api/systems/{id}`` on random systems (p95);
-   * ball edit round trip: ``PATCH /api/frames/{id}/ball`` moving an existing box by one pixel and
+   * ball edit round trip: ``PATCH /api/frames/{id}/ball`` (with ``If-Match``, the view's ETag) moving an existing box by one pixel and
      back, the answer parsed (p95 over both PATCHes; the database ends as it started, up to the
      ``edited`` mark and the time stamps);
    * export: ``GET /api/exports/soccernet-v3d?all=true`` streamed to nowhere (time to the first
@@ -26,13 +26,14 @@ One run:
 Usage (from the checkout, with the ``bench`` extra installed: ``pip install -e '.[bench]'``)::
 
     .venv/bin/python benchmarks/scale.py --scale-dir /work/scale-data/soccernet-v3-scale \\
-        [--games N] [--requests 200] [--db var/scale.sqlite3] [--skip-import] [--json out.json]
+        [--games N] [--requests 200] [--db var/scale.sqlite3] [--skip-import | --import-only] [--json out.json]
 
 ``--scale-dir`` is the unpacked ``shared/data/synthetic/soccernet-v3-scale.tar.gz`` (unpack it
 outside the checkout; never commit it). ``--games N`` imports only the first N games (sorted by
 path, as the importer walks them) for a quick run. ``--db`` keeps the scale database at that path
 (default: a temporary folder); with ``--skip-import`` that database is reused as it is and the
-import is not measured. ``--work-dir`` holds the demo database and the subset (default: temporary).
+import is not measured; with ``--import-only`` only the import is measured (its wall time, frames
+per second, peak memory and the CPU time of its process tree). ``--work-dir`` holds the demo database and the subset (default: temporary).
 
 The full set (400 games, 12,800 systems, 35,550 views) takes about 10 minutes to import on 2 cores.
 Timings on a machine shared with other jobs are pessimistic: run it under ``nice`` only when you
@@ -45,6 +46,7 @@ import json
 import os
 import random
 import re
+import secrets
 import shutil
 import socket
 import subprocess
@@ -107,12 +109,15 @@ def _psutil():
 class TreeMemorySampler:
     """Peak resident memory (MB) of a process and all its descendants, summed, sampled every
     ``interval_s`` seconds in a thread. ``peak_mb`` and ``peak_processes`` hold the largest sum seen
-    and how many processes made it."""
+    and how many processes made it; ``cpu_s`` the CPU time (user + system, s) of every process of
+    the tree as last sampled, summed (a figure the machine's other load barely changes; up to one
+    interval of a process's last CPU time is missed)."""
 
     def __init__(self, pid: int, interval_s: float = _SAMPLE_S) -> None:
         self.psutil = _psutil()
         self.pid, self.interval_s = pid, interval_s
         self.peak_mb, self.peak_processes, self.samples = 0.0, 0, 0
+        self._cpu: dict[tuple[int, float], float] = {}  # (pid, create time) -> CPU seconds
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -129,6 +134,8 @@ class TreeMemorySampler:
             try:
                 total += p.memory_info().rss
                 n += 1
+                t = p.cpu_times()
+                self._cpu[(p.pid, p.create_time())] = t.user + t.system
             except (ps.NoSuchProcess, ps.AccessDenied):
                 pass
         mb = total / 2**20
@@ -136,6 +143,11 @@ class TreeMemorySampler:
         if mb > self.peak_mb:
             self.peak_mb, self.peak_processes = mb, n
         return mb
+
+    @property
+    def cpu_s(self) -> float:
+        """CPU seconds of the tree's processes (see the class docstring)."""
+        return float(sum(self._cpu.values()))
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -217,6 +229,9 @@ class ImportFigures:
     peak_mb: float
     peak_processes: int
     stage_seconds: dict[str, float] = field(default_factory=dict)
+    cpu_s: float = 0.0
+    cpu_ms_per_frame: float = 0.0
+    load_average: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 _IMPORTED = re.compile(r"imported .*?: (\d+) game\(s\), (\d+) system\(s\), (\d+) frame\(s\)")
@@ -249,7 +264,8 @@ def run_import(tree: Path, db: Path, workers: Optional[int] = None) -> ImportFig
     games, systems, frames = (int(x) for x in m.groups())
     return ImportFigures(seconds=seconds, games=games, systems=systems, frames=frames,
                          frames_per_s=frames / seconds, peak_mb=mem.peak_mb, peak_processes=mem.peak_processes,
-                         stage_seconds=_stage_seconds(text))
+                         stage_seconds=_stage_seconds(text), cpu_s=mem.cpu_s, cpu_ms_per_frame=1e3 * mem.cpu_s / frames,
+                         load_average=os.getloadavg())
 
 
 _BAR = re.compile(r"^(\w[\w ]*?): +\d+%.*?\[(\d+):(\d+)(?::(\d+))?<", re.M)
@@ -269,9 +285,30 @@ def _stage_seconds(log_text: str) -> dict[str, float]:
 
 # ----- the server --------------------------------------------------------------------------------
 
+def bench_token(db: Path, name: str = "bench-admin") -> str:
+    """An API token of the admin ``name`` in the SQLite database ``db`` (made on first use): the
+    benchmark's requests authenticate like a script's (``Authorization: Bearer``)."""
+    from app.db.session import make_engine, make_session_factory, upgrade_database
+    from app.services.errors import InvalidInputError
+    from app.services.users import create_user, issue_token
+
+    url = sqlite_url(db)
+    upgrade_database(url)
+    engine = make_engine(url)
+    try:
+        with make_session_factory(engine)() as session:
+            try:
+                return create_user(session, name, "admin", secrets.token_urlsafe(16))[1]
+            except InvalidInputError:
+                return issue_token(session, name)
+    finally:
+        engine.dispose()
+
+
 class Server:
     """``v3d serve`` on a free loopback port over a SQLite database, as a subprocess; a context
-    manager that waits until ``/api/games`` answers and stops the server (its own pid) on exit."""
+    manager that waits until ``/api/health`` answers and stops the server (its own pid) on exit.
+    ``headers`` carry an admin's API token (:func:`bench_token`) for the measured requests."""
 
     def __init__(self, db: Path, start_timeout_s: float = 90.0) -> None:
         self.db, self.port, self.start_timeout_s = Path(db), free_port(), start_timeout_s
@@ -284,6 +321,7 @@ class Server:
 
         if not self.db.is_file():
             raise BenchError(f"database {self.db} does not exist")
+        self.headers = {"Authorization": f"Bearer {bench_token(self.db)}"}
         env = {**os.environ, "V3D_DATABASE_URL": sqlite_url(self.db)}
         self._out = open(self.log, "w")
         self.proc = subprocess.Popen([*v3d_command(), "serve", "--host", "127.0.0.1", "--port", str(self.port)],
@@ -294,7 +332,7 @@ class Server:
                 self._close()
                 raise BenchError(f"v3d serve exited ({self.proc.returncode}); see {self.log}")
             try:
-                if httpx.get(f"{self.base_url}/api/games", timeout=2.0).status_code == 200:
+                if httpx.get(f"{self.base_url}/api/health", timeout=2.0).status_code == 200:
                     return self
             except httpx.HTTPError:
                 pass
@@ -357,17 +395,19 @@ def _system_ids(client: Any, total: int, n: int, rng: random.Random) -> list[int
     return ids
 
 
-def measure_server(base_url: str, requests: int = 100, seed: int = 0, export: bool = True) -> dict[str, Any]:
+def measure_server(base_url: str, requests: int = 100, seed: int = 0, export: bool = True,
+                   headers: Optional[dict[str, str]] = None) -> dict[str, Any]:
     """Measure one running server (loopback only): ``requests`` queue pages with the default sort,
     as many spread over :data:`QUEUE_VARIANTS`, ``requests`` system pages, up to ``requests`` ball
-    edits (half nudges, half restores) and one full export. Milliseconds, except ``export_s``."""
+    edits (half nudges, half restores) and one full export. Milliseconds, except ``export_s``.
+    ``headers`` authenticate the requests (``Server.headers``: an admin's API token)."""
     import httpx
 
     if not base_url.startswith(("http://127.", "http://localhost", "http://[::1]")):
         raise BenchError(f"{base_url}: this benchmark only talks to loopback servers")
     rng = random.Random(seed)
     out: dict[str, Any] = {"requests": requests}
-    with httpx.Client(base_url=base_url, timeout=_TIMEOUT_S) as client:
+    with httpx.Client(base_url=base_url, timeout=_TIMEOUT_S, headers=headers) as client:
         first = client.get("/api/systems").json()
         total = int(first["total"])
         if total == 0:
@@ -403,10 +443,13 @@ def measure_server(base_url: str, requests: int = 100, seed: int = 0, export: bo
             v = rng.choice(boxed)
             box = v["ball"]["box"]
             nudged = [box[0] + 1.0, box[1], box[2] + 1.0, box[3]]
+            etag = v["etag"]  # a script's write names the version it was made against (If-Match)
             for b in (nudged, box):
-                ms, answer = _timed(client, "PATCH", f"/api/frames/{v['frame_id']}/ball", json={"box": b})
+                ms, answer = _timed(client, "PATCH", f"/api/frames/{v['frame_id']}/ball", json={"box": b},
+                                    headers={"If-Match": etag})
                 if answer["id"] != sid:
                     raise BenchError(f"PATCH /api/frames/{v['frame_id']}/ball answered system {answer['id']}, not {sid}")
+                etag = next(x["etag"] for x in answer["views"] if x["frame_id"] == v["frame_id"])
                 edits.append(ms)
         out["ball_edits"] = len(edits)
         out["ball_edit_p50_ms"], out["ball_edit_p95_ms"] = percentile(edits, 50), percentile(edits, 95)
@@ -461,8 +504,13 @@ def format_report(result: dict[str, Any]) -> str:
                      f"{imp['seconds']:.1f} s = {imp['frames_per_s']:.1f} frames/s (target >= {IMPORT_MIN_FPS:g}: "
                      f"{'ok' if ok_fps else 'MISSED'}); peak RSS of the process tree {imp['peak_mb']:.0f} MB over "
                      f"{imp['peak_processes']} processes (target <= {IMPORT_MAX_PEAK_MB:g}: {'ok' if ok_mem else 'MISSED'})")
+        if imp.get("cpu_s"):
+            lines.append(f"  CPU time of the process tree {imp['cpu_s']:.0f} s = {imp['cpu_ms_per_frame']:.1f} ms per frame "
+                         f"(load average at the end {', '.join(f'{v:.1f}' for v in imp['load_average'])})")
         if imp.get("stage_seconds"):
             lines.append("  stages (tqdm bars): " + ", ".join(f"{k} {v:.0f} s" for k, v in imp["stage_seconds"].items()))
+    if "demo" not in result:
+        return "\n".join(lines)
     demo, scale = result["demo"], result["scale"]
     lines.append(f"served: demo {demo['systems']} systems, scale {scale['systems']} systems; "
                  f"{scale['requests']} requests per measure, {scale.get('ball_edits', 0)} ball edits")
@@ -480,7 +528,8 @@ def format_report(result: dict[str, Any]) -> str:
 
 
 def run(scale_dir: Optional[Path], db: Optional[Path], games: Optional[int], skip_import: bool,
-        requests: int, work_dir: Path, workers: Optional[int] = None, export: bool = True) -> dict[str, Any]:
+        requests: int, work_dir: Path, workers: Optional[int] = None, export: bool = True,
+        import_only: bool = False) -> dict[str, Any]:
     """The whole benchmark (module docstring); returns the result written by ``--json``."""
     work_dir.mkdir(parents=True, exist_ok=True)
     db = Path(db) if db else work_dir / "scale" / "v3d-scale.sqlite3"
@@ -498,12 +547,14 @@ def run(scale_dir: Optional[Path], db: Optional[Path], games: Optional[int], ski
             game_dirs(tree)  # a clear error for a wrong folder
         print(f"importing {tree} into {db} ...", flush=True)
         result["import"] = asdict(run_import(tree, db, workers))
+        if import_only:
+            return result
     print("building the demo database ...", flush=True)
     demo_db = build_demo_db(work_dir)
     for name, path in (("demo", demo_db), ("scale", db)):
         print(f"serving and measuring the {name} database ...", flush=True)
         with Server(path) as server:
-            result[name] = measure_server(server.base_url, requests=requests, export=export)
+            result[name] = measure_server(server.base_url, requests=requests, export=export, headers=server.headers)
     return result
 
 
@@ -519,9 +570,12 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument("--no-export", action="store_true", help="Skip the export measure.")
     p.add_argument("--work-dir", type=Path, help="Folder for the demo database and the subset (default: temporary).")
     p.add_argument("--json", type=Path, help="Write the figures as JSON here.")
+    p.add_argument("--import-only", action="store_true", help="Measure the import only (no demo, no requests).")
     args = p.parse_args(argv)
     if args.games is not None and args.games < 1:
         p.error("--games must be at least 1")
+    if args.import_only and args.skip_import:
+        p.error("--import-only and --skip-import exclude each other")
     if args.requests < 1:
         p.error("--requests must be at least 1")
     tmp = None
@@ -531,7 +585,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         work_dir = Path(tmp.name)
     try:
         result = run(args.scale_dir, args.db, args.games, args.skip_import, args.requests, work_dir,
-                     args.workers, export=not args.no_export)
+                     args.workers, export=not args.no_export, import_only=args.import_only)
     except BenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -18,7 +18,9 @@ def shared_dir() -> Path:
 
 # ----- database fixtures (app/db): a migrated SQLite database per test session, one rolled-back
 # transaction per test (SQLAlchemy's "join a session into an external transaction" recipe) ---------
+import os  # noqa: E402
 from collections.abc import Iterator  # noqa: E402
+from contextlib import contextmanager  # noqa: E402
 
 import sqlalchemy as sa  # noqa: E402
 from sqlalchemy.orm import Session  # noqa: E402
@@ -27,12 +29,54 @@ from app.core.config import Settings  # noqa: E402
 from app.db.session import make_engine, upgrade_database  # noqa: E402
 
 
+#: Environment variable naming a PostgreSQL server (any database of it, to connect): the database
+#: fixtures then use a fresh database made on that server for the test session (``.ci/run``).
+TEST_DATABASE_ENV = "V3D_TEST_DATABASE_URL"
+
+
+@contextmanager
+def fresh_postgresql_database(server_url: str) -> Iterator[str]:
+    """A new, empty database ``v3d_test_<hex>`` on the PostgreSQL server of ``server_url``, dropped
+    (connections closed) afterwards; yields its URL, so that concurrent runs never collide. Skips
+    with the reason when the server cannot be reached."""
+    import uuid
+
+    server = sa.make_url(server_url)
+    admin = sa.create_engine(server, isolation_level="AUTOCOMMIT")
+    name = f"v3d_test_{uuid.uuid4().hex[:12]}"
+    try:
+        with admin.connect() as conn:
+            conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
+    except sa.exc.OperationalError as exc:
+        admin.dispose()
+        pytest.skip(f"PostgreSQL not reachable at {server.render_as_string()}: {exc.orig}")
+    try:
+        yield server.set(database=name).render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as conn:
+            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+        admin.dispose()
+
+
 @pytest.fixture(scope="session")
-def db_url(tmp_path_factory: pytest.TempPathFactory) -> str:
-    """URL of a SQLite file database built by the Alembic migrations, once per test session."""
+def db_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """URL of a database built by the Alembic migrations, once per test session: a SQLite file, or,
+    when ``V3D_TEST_DATABASE_URL`` names a PostgreSQL server, a fresh database on it (dropped at the end)."""
+    server = os.environ.get(TEST_DATABASE_ENV)
+    if server:
+        with fresh_postgresql_database(server) as url:
+            upgrade_database(url)
+            yield url
+        return
     url = f"sqlite:///{tmp_path_factory.mktemp('db') / 'v3d-test.sqlite3'}"
     upgrade_database(url)
-    return url
+    yield url
+
+
+@pytest.fixture(scope="session")
+def db_backend(db_url: str) -> str:
+    """``sqlite`` or ``postgresql``: the backend of :func:`db_url`."""
+    return sa.make_url(db_url).get_backend_name()
 
 
 @pytest.fixture(scope="session")
@@ -70,31 +114,19 @@ def db_session(db_connection: sa.Connection) -> Iterator[Session]:
 @pytest.fixture
 def db_settings(db_url: str, tmp_path_factory: pytest.TempPathFactory) -> Settings:
     """Settings pointing at the test database; calibration runs in-process (one worker); HTTP imports may
-    read the test session's temporary folders (the data root)."""
-    return Settings(database_url=db_url, calibration_workers=1, data_root=tmp_path_factory.getbasetemp())
+    read the test session's temporary folders (the data root); no job runner thread (tests run queued
+    jobs themselves, on their own session factory; the fault tests start real servers)."""
+    return Settings(database_url=db_url, calibration_workers=1, data_root=tmp_path_factory.getbasetemp(),
+                    job_runner=False)
 
 
 #: The local PostgreSQL server of the ``postgres``-marked tests (trust authentication).
-PG_ADMIN_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
+PG_ADMIN_URL = os.environ.get(TEST_DATABASE_ENV) or "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 
 
 @pytest.fixture
 def pg_url() -> Iterator[str]:
     """URL of a fresh, empty PostgreSQL database made for this test and dropped after it, so that
     concurrent runs never collide. Skips with the reason when the server is down."""
-    import uuid
-
-    admin = sa.create_engine(PG_ADMIN_URL, isolation_level="AUTOCOMMIT")
-    name = f"v3d_test_{uuid.uuid4().hex[:12]}"
-    try:
-        with admin.connect() as conn:
-            conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
-    except sa.exc.OperationalError as exc:
-        admin.dispose()
-        pytest.skip(f"PostgreSQL not reachable at {PG_ADMIN_URL}: {exc.orig}")
-    try:
-        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
-    finally:
-        with admin.connect() as conn:
-            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-        admin.dispose()
+    with fresh_postgresql_database(PG_ADMIN_URL) as url:
+        yield url

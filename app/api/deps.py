@@ -1,5 +1,6 @@
 """Typed dependencies of the routes: the settings, a database session per request, and the lookups
-that answer 404 in one place (``SystemDep``, ``FrameDep``), so that no route repeats "fetch or 404".
+that answer 404 in one place (``SystemDep``, ``FrameDep``), so that no route repeats "fetch or 404". An id
+beyond the databases' 64-bit integers is a 422 naming the parameter (``app.api.schemas.DbInt``).
 
 The app factory puts ``settings`` and ``session_factory`` on ``app.state``; tests may replace the
 factory (for example by one bound to a connection whose transaction is rolled back after the test).
@@ -12,6 +13,7 @@ from typing import Annotated
 from fastapi import Depends, Path, Request
 from sqlalchemy.orm import Session
 
+from app.api.schemas import DB_INT_MAX, DB_INT_MIN
 from app.core.config import Settings
 from app.db.models import Frame, System
 from app.services.editing import get_frame as _get_frame
@@ -33,12 +35,12 @@ SettingsDep = Annotated[Settings, Depends(get_app_settings)]
 SessionDep = Annotated[Session, Depends(get_session)]
 
 
-def system_by_id(session: SessionDep, system_id: Annotated[int, Path(description="System id.")]) -> System:
+def system_by_id(session: SessionDep, system_id: Annotated[int, Path(description="System id.", ge=DB_INT_MIN, le=DB_INT_MAX)]) -> System:
     """The system named by the ``system_id`` path parameter; 404 naming the id when there is none."""
     return _get_system(session, system_id)
 
 
-def frame_by_id(session: SessionDep, frame_id: Annotated[int, Path(description="Frame id.")]) -> Frame:
+def frame_by_id(session: SessionDep, frame_id: Annotated[int, Path(description="Frame id.", ge=DB_INT_MIN, le=DB_INT_MAX)]) -> Frame:
     """The frame named by the ``frame_id`` path parameter; 404 naming the id when there is none."""
     return _get_frame(session, frame_id)
 

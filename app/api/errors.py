@@ -3,21 +3,35 @@
 * :class:`~app.services.errors.NotFoundError` and :class:`~app.services.views.ImageUnavailable`: 404
   with the message (it names the missing id or file);
 * :class:`~app.services.errors.ForbiddenError`: 403 (e.g. an import path outside the data root);
+* :class:`~app.services.archives.UploadTooLarge`: 413 (an upload above ``V3D_MAX_UPLOAD_MB``);
+* :class:`~app.services.jobs.JobNotReady`: 409 (a job's file asked for before it exists);
 * :class:`~app.services.errors.DatasetError`: 400, the server-side dataset cannot be imported (the
   message names the file and the field);
+* :class:`~app.services.errors.StaleVersionError`: 412 with the resource's current state, its ETag (also
+  in the ``ETag`` header) and its newest audit entry (``app.api.schemas.StaleOut``);
+* :class:`~app.services.errors.ConflictError`: 409 with the message and, when known, ``current``;
 * :class:`~app.services.errors.InvalidInputError` and
   :class:`~app.geometry.annotations.AnnotationError`: 422 with the message and, when known, ``field``.
 
 Request validation errors keep FastAPI's form (422, ``detail`` a list of ``{loc, msg, type}``), so a
-NaN box answers ``loc: ["body", "box", 0]``.
+NaN box answers ``loc: ["body", "box", 0]``. A body FastAPI cannot read at all (JSON that is not UTF-8, a
+broken multipart form), which FastAPI and Starlette answer with an undeclared 400, answers in that form
+too: 422, ``loc: ["body"]``, ``type: "body_unparsable"`` (found by ``benchmarks/fuzz.py``).
 """
 from __future__ import annotations
 
 from fastapi import FastAPI, Request, status
+from fastapi.encoders import jsonable_encoder
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.geometry.annotations import AnnotationError
-from app.services.errors import DatasetError, ForbiddenError, InvalidInputError, NotFoundError
+from app.services.errors import (
+    ConflictError, DatasetError, ForbiddenError, InvalidInputError, NotFoundError, StaleVersionError,
+)
+from app.services.archives import UploadTooLarge
+from app.services.jobs import JobNotReady
 from app.services.views import ImageUnavailable
 
 
@@ -36,6 +50,10 @@ async def _forbidden(_: Request, exc: Exception) -> JSONResponse:
     return _answer(status.HTTP_403_FORBIDDEN, exc)
 
 
+async def _too_large(_: Request, exc: Exception) -> JSONResponse:
+    return _answer(status.HTTP_413_CONTENT_TOO_LARGE, exc, getattr(exc, "field", None))
+
+
 async def _bad_dataset(_: Request, exc: Exception) -> JSONResponse:
     return _answer(status.HTTP_400_BAD_REQUEST, exc, getattr(exc, "field", None))
 
@@ -44,11 +62,41 @@ async def _invalid(_: Request, exc: Exception) -> JSONResponse:
     return _answer(status.HTTP_422_UNPROCESSABLE_CONTENT, exc, getattr(exc, "field", None))
 
 
+async def _stale(_: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, StaleVersionError)
+    body = {"detail": str(exc), "etag": exc.etag, "current": exc.current, "last_change": exc.last_change}
+    return JSONResponse(jsonable_encoder(body), status_code=status.HTTP_412_PRECONDITION_FAILED,
+                        headers={"ETag": exc.etag, "Cache-Control": "no-cache"})
+
+
+async def _conflict(_: Request, exc: Exception) -> JSONResponse:
+    body = {"detail": str(exc), "current": getattr(exc, "current", None)}
+    return JSONResponse(jsonable_encoder(body), status_code=status.HTTP_409_CONFLICT)
+
+
+async def _http_error(request: Request, exc: Exception) -> JSONResponse:
+    """FastAPI's answer to ``HTTPException``, except the 400 that FastAPI and Starlette raise when they
+    cannot read a request body ("There was an error parsing the body", "Invalid multipart data."; v3d's
+    own code raises no 400 ``HTTPException``): that one becomes the 422 of a malformed body, naming it."""
+    if isinstance(exc, StarletteHTTPException) and exc.status_code == status.HTTP_400_BAD_REQUEST:
+        cause = exc.__cause__ or exc.__context__
+        reason = f"{exc.detail} ({type(cause).__name__}: {cause})" if cause is not None else str(exc.detail)
+        return JSONResponse({"detail": [{"type": "body_unparsable", "loc": ["body"],
+                                         "msg": f"the body cannot be read: {reason}"}]},
+                            status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
+    return await http_exception_handler(request, exc)  # type: ignore[arg-type]
+
+
 def install_error_handlers(app: FastAPI) -> None:
     """Register the mapping of the module docstring on ``app``."""
     app.add_exception_handler(NotFoundError, _not_found)
     app.add_exception_handler(ForbiddenError, _forbidden)
     app.add_exception_handler(ImageUnavailable, _not_found)
+    app.add_exception_handler(UploadTooLarge, _too_large)
+    app.add_exception_handler(JobNotReady, _conflict)
     app.add_exception_handler(DatasetError, _bad_dataset)
     app.add_exception_handler(InvalidInputError, _invalid)
+    app.add_exception_handler(StaleVersionError, _stale)
+    app.add_exception_handler(ConflictError, _conflict)
     app.add_exception_handler(AnnotationError, _invalid)
+    app.add_exception_handler(StarletteHTTPException, _http_error)

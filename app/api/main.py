@@ -1,10 +1,27 @@
-"""All API routers, one per resource, gathered under one router (mounted at ``/api``)."""
+"""All API routers, one per resource, gathered under one router (mounted at ``/api``).
+
+Every router but the public part of ``/api/auth`` (login, demo) and ``/api/health`` is included under the dependencies of
+``app.api.authentication.PROTECTED`` (a principal, the OpenAPI security schemes), so a new router or
+route needs a logged-in user by default; the least role of a write is stated on its router or route
+with ``app.api.auth.require_role``.
+"""
 from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.api.routes import detectors, exports, frames, games, imports, issia, systems
+from app.api.authentication import PROTECTED
+from app.api.schemas import ErrorOut
+from app.api.routes import (
+    audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, systems, users,
+)
 
 api_router = APIRouter()
-for _module in (games, systems, frames, imports, exports, detectors, issia):
-    api_router.include_router(_module.router)
+api_router.include_router(auth.public_router)
+api_router.include_router(health.router)
+_protected = APIRouter(dependencies=PROTECTED, responses={
+    401: {"model": ErrorOut, "description": "No session or token (log in, or send Authorization: Bearer <token>)."},
+    403: {"model": ErrorOut, "description": "The role is below the route's, or a session write lacks X-CSRF-Token."},
+})
+for _module in (auth, users, games, systems, frames, imports, exports, jobs, detectors, issia, audit):
+    _protected.include_router(_module.router)
+api_router.include_router(_protected)

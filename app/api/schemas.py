@@ -8,25 +8,68 @@ as fractions in [0, 1]. The system view (:class:`SystemView`) is the UI contract
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal, Optional
+from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
 
 from app.db.models import ReviewStatus
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.services.views import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
 
 Point2 = tuple[float, float]
+#: A coordinate of a request body: a JSON number (``true`` or ``"1"`` are refused naming the field, not
+#: read as 1.0); NaN and infinity pass here so that the services refuse them with their message.
+InCoord = Annotated[float, Strict()]
+InPoint2 = tuple[InCoord, InCoord]
+InBox = tuple[InCoord, InCoord, InCoord, InCoord]
 #: The ``doubt`` filter of the queue: a doubt kind, ``any`` label-accusing doubt, or ``none``.
 DoubtFilter = Literal[LABEL_KINDS + INFO_KINDS + ("any", "none")]  # type: ignore[valid-type]
 Box = tuple[float, float, float, float]
 Point3 = tuple[float, float, float]
+#: Bounds of an integer compared with a stored one (ids, offsets): the id columns are ``INTEGER``, 32-bit signed
+#: on PostgreSQL (SQLite's are 64-bit). A larger number would fail in the database or its driver (a 500:
+#: "integer out of range", OverflowError; found by ``benchmarks/fuzz.py``); it is a 422 naming the parameter.
+DB_INT_MIN, DB_INT_MAX = -(2**31), 2**31 - 1
+#: An id (or any integer compared with a stored one) in a path or query parameter.
+DbInt = Annotated[int, Field(ge=DB_INT_MIN, le=DB_INT_MAX)]
+#: Text in a path or query parameter compared with stored text: no NUL character (PostgreSQL's text cannot hold
+#: one: a 500 there, found by ``benchmarks/fuzz.py`` in the audit log's ``user`` filter).
+QueryText = Annotated[str, Field(pattern=r"^[^\x00]*$")]
+
+
+def nul_character_at(value: Any, where: str = "") -> Optional[str]:
+    """The path (``"lines.Goal left crossbar"``) of the first string in ``value`` (nested dicts, lists)
+    holding a NUL character, ``""`` for ``value`` itself; None when there is none.
+
+    >>> nul_character_at({"comment": "ok", "lines": {"a\\x00": []}}), nul_character_at(["ok"])
+    ('lines', None)
+    """
+    if isinstance(value, str):
+        return where if "\x00" in value else None
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, item in items:
+        inner = f"{where}.{key}" if where else str(key)
+        if isinstance(key, str) and "\x00" in key:
+            return where
+        found = nul_character_at(item, inner)
+        if found is not None:
+            return found
+    return None
 
 
 class _In(BaseModel):
-    """Request bodies reject unknown fields, so a misspelt field is an error, not a no-op."""
+    """Request bodies reject unknown fields, so a misspelt field is an error, not a no-op, and NUL
+    characters anywhere (PostgreSQL's text cannot hold them: a 500 there, found by ``benchmarks/fuzz.py``)."""
 
     model_config = ConfigDict(extra="forbid")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_nul_characters(cls, data: Any) -> Any:
+        where = nul_character_at(data)
+        if where is not None:
+            raise ValueError(f"{where or 'body'}: text must not contain NUL (\\x00) characters")
+        return data
 
 
 # ----- query parameters ----------------------------------------------------------------------------
@@ -35,9 +78,11 @@ class QueueQuery(BaseModel):
     them too, so that ``prev_id`` / ``next_id`` follow the queue the reviewer came from).
 
     Unknown query parameters are ignored (a page may forward its own state), unlike unknown fields
-    of request bodies."""
+    of request bodies; numbers must be finite."""
 
-    game_id: Optional[int] = Field(None, description="Only this game's systems.")
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    game_id: Optional[DbInt] = Field(None, description="Only this game's systems.")
     status: Optional[ReviewStatus] = Field(None, description="Only systems with this review status.")
     jac_min: Optional[float] = Field(None, ge=0.0, le=1.0, description="Lowest JaC@0.5% of the admitted views >= this.")
     jac_max: Optional[float] = Field(None, ge=0.0, le=1.0, description="Lowest JaC@0.5% of the admitted views <= this.")
@@ -67,14 +112,16 @@ class SystemListQuery(QueueQuery):
     """:class:`QueueQuery` and the page."""
 
     limit: int = Field(50, ge=1, le=500)
-    offset: int = Field(0, ge=0)
+    offset: int = Field(0, ge=0, le=DB_INT_MAX)
 
 
 class FrameListQuery(BaseModel):
-    """Filters, order and page of ``GET /api/frames``."""
+    """Filters, order and page of ``GET /api/frames`` (numbers finite)."""
 
-    game_id: Optional[int] = None
-    system_id: Optional[int] = None
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    game_id: Optional[DbInt] = None
+    system_id: Optional[DbInt] = None
     calibration: Optional[Literal["calibrated", "refused", "none"]] = Field(
         None, description="Calibration status; 'none' for frames never calibrated.")
     admitted: Optional[bool] = Field(None, description="Admitted into their system's triangulation.")
@@ -84,7 +131,7 @@ class FrameListQuery(BaseModel):
     error_max: Optional[float] = Field(None, ge=0.0, description="Reprojection error (px) <= this.")
     sort: FrameSort = Field("name", description="Order; a leading '-' means descending. Missing values last.")
     limit: int = Field(50, ge=1, le=500)
-    offset: int = Field(0, ge=0)
+    offset: int = Field(0, ge=0, le=DB_INT_MAX)
 
     def filters(self) -> FrameFilters:
         """The service-level filters."""
@@ -98,8 +145,9 @@ class BallEdit(_In):
     """A new ball label: exactly one of ``box`` and ``point``. ``{"box": null}`` (or
     ``{"point": null}``) removes the label: the ball is not visible in this view."""
 
-    box: Optional[Box] = Field(None, description="[x1, y1, x2, y2] px; x1 < x2, y1 < y2, not entirely outside.")
-    point: Optional[Point2] = Field(None, description="[x, y] px inside the image (point-only datasets).")
+    box: Optional[InBox] = Field(None, description="[x1, y1, x2, y2] px; finite, x1 < x2, y1 < y2, not entirely "
+                                                   "outside the image.")
+    point: Optional[InPoint2] = Field(None, description="[x, y] px inside the image (point-only datasets).")
 
     @model_validator(mode="after")
     def _one_of(self) -> "BallEdit":
@@ -109,10 +157,25 @@ class BallEdit(_In):
         return self
 
 
-class FieldLinesEdit(_In):
-    """The frame's complete new field lines, SoccerNet class -> polylines of [x, y] px."""
+#: Bounds of an edited line set (SoccerNet annotations hold a few points per line): the calibration of
+#: an edit runs in the request.
+MAX_POLYLINES_PER_CLASS = 100
+MAX_POLYLINE_POINTS = 1000
 
-    lines: dict[str, list[list[Point2]]]
+
+class FieldLinesEdit(_In):
+    """The frame's complete new field lines, SoccerNet class -> polylines of [x, y] px (finite, at most
+    5 % of the image's size outside it: ``app.services._labels.check_line_points``)."""
+
+    lines: dict[str, list[Annotated[list[InPoint2], Field(max_length=MAX_POLYLINE_POINTS)]]] = Field(
+        max_length=64, description="At most 64 classes, 100 polylines per class and 1000 points per polyline.")
+
+    @model_validator(mode="after")
+    def _bounded(self) -> "FieldLinesEdit":
+        for name, polylines in self.lines.items():
+            if len(polylines) > MAX_POLYLINES_PER_CLASS:
+                raise ValueError(f"lines[{name!r}]: more than {MAX_POLYLINES_PER_CLASS} polylines")
+        return self
 
 
 class ReviewIn(_In):
@@ -128,27 +191,6 @@ class ExclusionIn(_In):
     excluded: bool = Field(strict=True, description="true: exclude the view; false: restore it.")
 
 
-class ImportIn(_In):
-    """A dataset on the server's disk to import (for scripts)."""
-
-    kind: Literal["soccernet-v3", "soccernet-v3d", "sn-calibration", "issia"]
-    path: str = Field(min_length=1, description="Folder or archive on the server.")
-    width: Optional[int] = Field(None, gt=0, description="sn-calibration only: image width when there are no images.")
-    height: Optional[int] = Field(None, gt=0, description="sn-calibration only: image height when there are no images.")
-    from_lines: bool = Field(False, description="issia only: calibrate each static camera from issia_lines.json "
-                                                "even when issia_calibration.json is present.")
-    flip: list[str] = Field(default_factory=list, description="issia only: camera ids ('1'..'6') whose footage is "
-                                                              "mirrored horizontally (images only).")
-
-    @model_validator(mode="after")
-    def _size_for_calibration_only(self) -> "ImportIn":
-        if self.kind != "sn-calibration" and (self.width is not None or self.height is not None):
-            raise ValueError("width and height apply to kind 'sn-calibration' only")
-        if self.kind != "issia" and (self.from_lines or self.flip):
-            raise ValueError("from_lines and flip apply to kind 'issia' only")
-        return self
-
-
 # ----- responses -----------------------------------------------------------------------------------
 class ErrorOut(BaseModel):
     """A domain error: 404 (the message names the missing id or file), 400 (a dataset that cannot be
@@ -158,11 +200,31 @@ class ErrorOut(BaseModel):
     field: Optional[str] = None
 
 
+class InvalidOut(BaseModel):
+    """A 422: invalid input named by the services (``detail`` a sentence, ``field`` the field), or
+    FastAPI's request validation (``detail`` a list of ``{loc, msg, type}``, ``loc`` naming the field;
+    a body that is not JSON answers ``loc: ["body"]``, ``app.api.errors``)."""
+
+    detail: Union[str, list[dict[str, Any]]]
+    field: Optional[str] = None
+
+
 #: OpenAPI ``responses`` of routes that look a row up by id.
 NOT_FOUND = {404: {"model": ErrorOut, "description": "No row has this id (the message names it)."}}
 #: OpenAPI ``responses`` of routes that store input the services validate.
-INVALID = {422: {"description": "Invalid input: `{detail, field}` from the services, or FastAPI's "
-                                "`{detail: [{loc, msg, type}]}` for a malformed body."}}
+INVALID = {422: {"model": InvalidOut, "description": "Invalid input: `{detail, field}` from the services, or "
+                                                     "FastAPI's `{detail: [{loc, msg, type}]}` for a malformed body."}}
+
+class StaleOut(BaseModel):
+    """412: the write's ``If-Match`` is stale. ``current`` is the resource now (a frame as
+    ``GET /api/frames/{id}`` answers it, or ``{id, etag, review}`` of a system), ``etag`` its ETag (also
+    in the ``ETag`` header) and ``last_change`` its newest audit entry (who changed it), when any."""
+
+    detail: str
+    etag: str
+    current: Optional[dict[str, Any]]
+    last_change: Optional[dict[str, Any]]
+
 
 class GameRef(BaseModel):
     """A game's identity."""
@@ -246,6 +308,8 @@ class CalibrationOut(BaseModel):
     admitted: bool
     reason: Optional[str]
     flags: list[str]
+    probably_mirrored: bool = Field(
+        description="The field-line labels are probably mirrored (the flag in flags): offer the mirrored labelling.")
     residuals_px: dict[str, Any]
     mirror_evidence: Optional[dict[str, Any]] = Field(
         None, description="Evidence on mirrored labels (app.geometry.mirror.MirrorVerdict.as_dict): verdict, "
@@ -325,11 +389,22 @@ class ViewOut(BaseModel):
     optimised_box: Optional[OptimisedBoxOut]
     reprojected_ball: Optional[Point2]
     reprojection_error_px: Optional[float]
+    reprojection_error_scaled_px: Optional[float] = Field(
+        description="The same error in the scale the pair rule compares with tau (px of a 1920-px-wide image "
+        "for max_scaled_1920; app.geometry.triangulation.scaled_error_px); null without a triangulation.")
     error_above_tau: bool = Field(
         description="The reprojection error, scaled to the rule's reference width, is above the stored tau "
         "(app.geometry.triangulation.error_above_tau; the queue's views_above_tau counts by the same rule).")
     camera_position: Optional[Point3]
     review: ReviewOut
+    etag: str = Field(description="The frame's strong ETag: the version of its ball label, field lines, review and "
+                                  "exclusion (send it as If-Match with a write to the frame).")
+
+
+class FrameView(ViewOut):
+    """``GET /api/frames/{id}``: the frame as the system view draws it, and its system."""
+
+    system_id: int
 
 
 class PairOut(BaseModel):
@@ -366,25 +441,10 @@ class SystemView(BaseModel):
     frame_index: Optional[int] = Field(None, description="issia: the frame's index in its sequence.")
     game: GameRef
     review: ReviewOut
+    etag: str = Field(description="The strong ETag of the system's review decision (If-Match of a system review).")
     prev_id: Optional[int]
     next_id: Optional[int]
     ball3d: Optional[Point3]
     triangulation: Optional[TriangulationOut]
     views: list[ViewOut]
     doubts: list[DoubtOut] = Field(description="The system's doubts, stored with its last recomputation.")
-
-
-class ImportOut(BaseModel):
-    """What an import did (``app.services.importing.ImportReport``)."""
-
-    source: str
-    games: int
-    systems: int
-    frames: int
-    systems_new: int
-    systems_changed: int
-    calibrated: int
-    refused: int
-    refusal_reasons: dict[str, int]
-    triangulated: int
-    seconds: float

@@ -13,9 +13,11 @@ _COMMAND_MODULES = (
     "app.cli.evaluation",  # v3d jac
     "app.cli.calibration",  # v3d calibrate
     "app.cli.datasets",  # v3d import ..., v3d export ...
+    "app.cli.jobs",  # v3d jobs list|run
     "app.cli.detectors",  # v3d export yolo|coco, v3d evaluate monocular|sensitivity
     "app.cli.serve",  # v3d serve
     "app.cli.doubts",  # v3d doubts
+    "app.cli.users",  # v3d users add|list|token|disable|enable
 )
 
 

@@ -2,14 +2,17 @@
 ``app.services.exporting`` (registered on :data:`app.cli._root.import_cli` / ``export_cli``).
 
 The database is ``V3D_DATABASE_URL`` (or ``--database-url``); it is migrated to the latest schema
-before use. A dataset error prints ``error: <file>: <field>: <problem>`` and exits with status 2,
-leaving the database unchanged.
+before use. An import is a background job (``app.services.jobs``) that the command creates already
+claimed and runs in its own process, drawing its progress (tqdm bars per stage); killed, the same
+command run again resumes that job (imports are idempotent). A dataset error prints
+``error: <file>: <field>: <problem>`` and exits with status 2, leaving the database unchanged; any other
+failure of the job exits with status 1 and its message.
 """
 from __future__ import annotations
 
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Any, Callable, Iterator, Optional
+from typing import Annotated, Any, Iterator, Optional
 
 import typer
 from tqdm import tqdm
@@ -17,6 +20,7 @@ from tqdm import tqdm
 from app.cli._root import export_cli, import_cli
 from app.core.config import Settings, get_settings
 from app.services.errors import InvalidInputError
+from app.services.job_kinds import import_params
 
 DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
@@ -54,35 +58,57 @@ def cli_settings(database_url: str | None, workers: int | None) -> Settings:
 
 
 @contextmanager
-def database_session(settings: Settings) -> Iterator[Any]:
-    """A session on ``settings.database_url``, migrated to the latest schema first; the engine is
-    disposed on exit."""
+def session_factory(settings: Settings) -> Iterator[Any]:
+    """A session factory on ``settings.database_url``, migrated to the latest schema first; the engine
+    is disposed on exit."""
     from app.db.session import make_engine, make_session_factory, upgrade_database
 
     upgrade_database(settings.database_url)
     engine = make_engine(settings.database_url)
     try:
-        with make_session_factory(engine)() as session:
-            yield session
+        yield make_session_factory(engine)
     finally:
         engine.dispose()
 
 
-def _run_import(settings: Settings, call: Callable[..., Any]) -> None:
+@contextmanager
+def database_session(settings: Settings) -> Iterator[Any]:
+    """A session on ``settings.database_url``, migrated to the latest schema first; the engine is
+    disposed on exit."""
+    with session_factory(settings) as factory, factory() as session:
+        yield session
+
+
+def _run_import(settings: Settings, params: dict[str, Any]) -> None:
+    """Run the import job of ``params`` in this process, drawing its progress; resume the same job when
+    an earlier run was killed (``jobs.find_resumable``). Exits 2 naming the file and field when the
+    dataset cannot be imported (nothing of it stored), 1 for any other failure."""
+    from app.db.models import JobState
+    from app.services import jobs
+
     bars = _Bars()
-    try:
-        with database_session(settings) as session:
-            report = call(session, bars)
-    except InvalidInputError as exc:
-        bars.close()
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
-    bars.close()
-    typer.echo(f"imported {report.source}: {report.games} game(s), {report.systems} system(s), {report.frames} frame(s) "
-               f"({report.systems_new} new, {report.systems_changed} changed) in {report.seconds:.1f} s")
-    typer.echo(f"calibrated {report.calibrated} ({report.rig_assisted} with the game's camera rig), refused "
-               f"{report.refused}; triangulated {report.triangulated} system(s)")
-    for reason, n in report.refusal_kinds().most_common():
+    owner = jobs.owner_name()
+    with session_factory(settings) as factory:
+        with factory() as session:
+            job = jobs.find_resumable(session, "import", params, settings)
+            if job is not None and jobs.claim(session, job, owner):
+                typer.echo(f"resuming import job {job.id}, left unfinished by {job.owner}", err=True)
+            else:
+                job = jobs.submit(session, "import", params, owner=owner)
+            job_id = job.id
+        try:
+            final = jobs.run_job(factory, job_id, settings, owner, progress=bars)
+        finally:
+            bars.close()
+    if final.state is not JobState.DONE:
+        typer.echo(f"error: {final.message}", err=True)
+        raise typer.Exit(code=2 if (final.result or {}).get("invalid_input") else 1)
+    r = final.result or {}
+    typer.echo(f"imported {r['source']}: {r['games']} game(s), {r['systems']} system(s), {r['frames']} frame(s) "
+               f"({r['systems_new']} new, {r['systems_changed']} changed) in {r['seconds']:.1f} s (job {job_id})")
+    typer.echo(f"calibrated {r['calibrated']} ({r['rig_assisted']} with the game's camera rig), refused "
+               f"{r['refused']}; triangulated {r['triangulated']} system(s)")
+    for reason, n in r["refusal_kinds"].items():
         typer.echo(f"  refused x{n}: {reason}")
 
 
@@ -93,10 +119,8 @@ def import_soccernet_v3_cmd(
     workers: WorkersOpt = None,
 ) -> None:
     """Import a SoccerNet-v3 tree: calibrate every frame, triangulate every system."""
-    from app.services.importing import import_soccernet_v3
-
     settings = cli_settings(database_url, workers)
-    _run_import(settings, lambda s, bars: import_soccernet_v3(s, path, settings, progress=bars))
+    _run_import(settings, import_params("soccernet-v3", path, calibration_workers=workers))
 
 
 @import_cli.command("soccernet-v3d")
@@ -105,10 +129,8 @@ def import_soccernet_v3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """Import a SoccerNet-v3D export: cameras as given, balls from SNv3D.csv, systems re-triangulated."""
-    from app.services.importing import import_soccernet_v3d
-
     settings = cli_settings(database_url, None)
-    _run_import(settings, lambda s, bars: import_soccernet_v3d(s, path, settings, progress=bars))
+    _run_import(settings, import_params("soccernet-v3d", path))
 
 
 @import_cli.command("sn-calibration")
@@ -120,11 +142,9 @@ def import_sn_calibration_cmd(
     workers: WorkersOpt = None,
 ) -> None:
     """Import a SoccerNet-calibration set: each frame becomes a single-view system to review."""
-    from app.services.importing import import_sn_calibration
-
     settings = cli_settings(database_url, workers)
-    _run_import(settings, lambda s, bars: import_sn_calibration(s, path, settings, width=width, height=height,
-                                                                progress=bars))
+    _run_import(settings, import_params("sn-calibration", path, width=width, height=height,
+                                        calibration_workers=workers))
 
 
 @import_cli.command("issia")
@@ -138,12 +158,9 @@ def import_issia_cmd(
 ) -> None:
     """Import an ISSIA sequence: one system per frame index, static cameras calibrated once, the
     ball's trajectory fitted over the sequence."""
-    from app.services.issia import import_issia
-
     settings = cli_settings(database_url, None)
     flipped = [c.strip() for c in flip.split(",") if c.strip()]
-    _run_import(settings, lambda s, bars: import_issia(s, path, settings, from_lines=from_lines,
-                                                       flipped_cameras=flipped, progress=bars))
+    _run_import(settings, import_params("issia", path, from_lines=from_lines, flip=flipped))
 
 
 @export_cli.command("issia-3d")

@@ -3,8 +3,15 @@
 Registered on :data:`app.cli._root.cli`. The database is ``V3D_DATABASE_URL`` (default: the SQLite
 file ``var/v3d.sqlite3`` of the checkout, whose folder is created). With ``--demo`` and a database
 that holds no game, the demo dataset (:func:`app.demo.generate_demo_dataset`) is written beside the
-SQLite file (``var/demo/``) and imported as a SoccerNet-v3 tree before the server starts. Systems stored
-by an older version of the derived rows (doubts, queue figures) are recomputed first.
+SQLite file (``var/demo/``) and imported as a SoccerNet-v3 tree before the server starts, and the demo
+account (``demo`` / ``demo``, role admin, flagged as a demo) is made unless it exists; the console says
+how to log in. Systems stored by an older version of the derived rows (doubts, queue figures) are
+recomputed first.
+
+``--workers N`` (N > 1) serves with N uvicorn worker processes: the start-up work above runs once, in
+this process, before any worker starts; each worker then builds the app with the factory
+:data:`APP_FACTORY` from the same environment (``V3D_*``). The workers share the database: write
+transactions wait their turn (``app.db.session.begin_write``), so N workers behave like one process.
 """
 from __future__ import annotations
 
@@ -12,19 +19,16 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from sqlalchemy.engine import make_url
-
 from app.cli._root import cli
-from app.core.config import Settings, get_settings
-from app.core.paths import PROJECT_ROOT
+from app.core.config import Settings, get_settings, var_dir
+
+#: What uvicorn's worker processes import and call to build the app (settings from the environment).
+APP_FACTORY = "app.main:create_app"
 
 
 def demo_dir(settings: Settings) -> Path:
     """Where the demo dataset is written: ``demo/`` beside a SQLite database file, else ``var/demo``."""
-    url = make_url(settings.database_url)
-    if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
-        return Path(url.database).expanduser().resolve().parent / "demo"
-    return PROJECT_ROOT / "var" / "demo"
+    return var_dir(settings, "demo")
 
 
 def load_demo_if_empty(settings: Settings) -> str:
@@ -67,13 +71,31 @@ def refresh_derived(settings: Settings) -> str | None:
     return f"recomputed {n} system(s) stored by an older version (doubts and queue figures)" if n else None
 
 
+def ensure_demo_account(settings: Settings) -> str:
+    """Make the demo account unless it exists (``app.services.users.ensure_demo_account``); returns
+    the console line saying how to log in."""
+    from app.db.session import make_engine, make_session_factory
+    from app.services.users import ensure_demo_account as ensure
+
+    engine = make_engine(settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            return ensure(session)
+    finally:
+        engine.dispose()
+
+
 @cli.command("serve")
 def serve(
     host: Annotated[str, typer.Option(help="Interface to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(min=1, max=65535, help="TCP port.")] = 8000,
-    demo: Annotated[bool, typer.Option("--demo", help="Load the built-in demo when the database has no game.")] = False,
+    demo: Annotated[bool, typer.Option("--demo", help="Load the built-in demo when the database has no game, and "
+                                                      "make the demo account (demo / demo, admin).")] = False,
+    workers: Annotated[int, typer.Option(min=1, max=64, help="Server processes (uvicorn workers) sharing the "
+                                         "database; start-up work runs once, before they start.")] = 1,
 ) -> None:
-    """Migrate the database, load the demo if asked, and serve the review UI and the REST API."""
+    """Migrate the database, load the demo if asked, and serve the review UI and the REST API (with
+    ``--workers N``, N processes built by :data:`APP_FACTORY` from the same ``V3D_*`` environment)."""
     import uvicorn
 
     from app.db.session import upgrade_database
@@ -86,5 +108,11 @@ def serve(
         typer.echo(refreshed)
     if demo:
         typer.echo(load_demo_if_empty(settings))
+        typer.echo(ensure_demo_account(settings))
     typer.echo(f"v3d: review UI at http://{host}:{port}/  (API docs at http://{host}:{port}/docs)")
-    uvicorn.run(create_app(settings), host=host, port=port)
+    typer.echo(f"v3d: log in at http://{host}:{port}/login; add users with `v3d users add NAME --role admin`")
+    if workers > 1:  # each worker process builds its own app (and engine) from the environment
+        typer.echo(f"v3d: {workers} worker processes")
+        uvicorn.run(APP_FACTORY, factory=True, host=host, port=port, workers=workers)
+    else:
+        uvicorn.run(create_app(settings), host=host, port=port)

@@ -9,7 +9,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Literal, Optional
 
-from pydantic import Field
+from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from app.core.paths import PROJECT_ROOT
@@ -114,6 +114,59 @@ class Settings(BaseSettings):
         "(403) without saying whether it exists. None: HTTP imports of server paths are refused (the CLI, run by "
         "the machine's owner, is not confined).",
     )
+    # --- users and sessions (app.api.authentication, app.services.users) ---
+    session_secret: Optional[SecretStr] = Field(
+        None,
+        description="Key that signs the browser's session cookies (V3D_SESSION_SECRET). None: the key generated "
+        "once in the database (table server_secrets), shared by every worker and kept across restarts.",
+    )
+    secure_cookies: bool = Field(
+        False, description="Send the session cookie with Secure (HTTPS only): set it behind TLS (V3D_SECURE_COOKIES).",
+    )
+    session_max_age_s: int = Field(
+        12 * 3600, gt=0, description="A browser session ends this long after its login (seconds).",
+    )
+
+    # --- background jobs and uploads (app.services.jobs, app.services.archives) ---
+    import_batch_frames: int = Field(
+        2000, gt=0, description="An import is stored in transactions of whole games of about this many frames: memory "
+        "stays bounded by a batch, and a killed import leaves whole games stored (completed by running it again).")
+    job_runner: bool = Field(
+        True, description="Each server process runs queued jobs (imports, recomputes, exports) in a thread of its "
+        "own; off, jobs wait for another process (v3d jobs run, or a server).")
+    job_poll_seconds: float = Field(1.0, gt=0, description="How often an idle runner looks for a queued job (s).")
+    job_heartbeat_seconds: float = Field(1.0, gt=0, description="How often a running job's process beats and "
+                                                                "stores its progress (s).")
+    job_stale_seconds: float = Field(
+        120.0, gt=0, description="A running job whose heartbeat is older than this is taken over and resumed by "
+        "another runner (s); on the same host a job whose process is gone is taken over at once. Above the "
+        "longest write transaction of an import batch, during which SQLite holds the heartbeat back.")
+    jobs_dir: Optional[Path] = Field(
+        None, description="Where uploads are unpacked (uploads/) and export jobs write their files (exports/); "
+        "default: jobs/ beside a SQLite database file, else var/jobs in the checkout.")
+    max_upload_mb: float = Field(2048.0, gt=0, description="Largest upload accepted (MB, 2^20 bytes), counted while "
+                                                            "it is written to disk: 413 beyond it.")
+    max_unpacked_mb: float = Field(
+        8192.0, gt=0, description="Largest total uncompressed size of an uploaded zip's members, nested image "
+        "zips included (MB): a zip bomb is refused (400) before anything is extracted.")
+    max_upload_members: int = Field(200_000, gt=0, description="Most members an uploaded zip may hold (nested "
+                                                                "image zips included).")
+
+
+def var_dir(settings: Settings, name: str) -> Path:
+    """The folder ``name`` where v3d keeps files of its own (the demo dataset, uploads, export files):
+    beside a SQLite database file, else under ``var/`` of the checkout. Not created here."""
+    from sqlalchemy.engine import make_url
+
+    url = make_url(settings.database_url)
+    if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
+        return Path(url.database).expanduser().resolve().parent / name
+    return PROJECT_ROOT / "var" / name
+
+
+def jobs_dir(settings: Settings) -> Path:
+    """``settings.jobs_dir``, else :func:`var_dir` ``jobs``."""
+    return settings.jobs_dir if settings.jobs_dir is not None else var_dir(settings, "jobs")
 
 
 @lru_cache

@@ -13,10 +13,18 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
                  -> Doubt                              (label problems the geometry sees, with fixes)
                  - TrajectoryPoint                     (ISSIA: the frame on the sequence's trajectory)
 
+    User -> ApiToken                                   (people and their API tokens, hashed)
+    ServerSecret                                       (the session-signing key, shared by every worker)
+    AuditEntry                                         (append-only log of accepted writes; ids, no FKs)
+    Job                                                (a background import, full recompute or export)
+
 Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
 world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
 ``[x1, y1, x2, y2]`` and points ``[x, y]`` JSON lists. Enums are stored by value.
 The schema is created by the Alembic migrations (``migrations/``), never by ``create_all``.
+
+Size (over 400 lines): one typed model per table, in one registry so that relationships and the entity graph
+above read in one place.
 """
 from __future__ import annotations
 
@@ -101,6 +109,15 @@ class TriangulationStatus(str, enum.Enum):
     NO_PAIR_KEPT = "no_pair_kept"  # every pair dropped (tau, baseline, cheirality or degenerate)
 
 
+class JobState(str, enum.Enum):
+    """Where a background job is (``app.services.jobs``)."""
+
+    QUEUED = "queued"  # waiting for a runner
+    RUNNING = "running"  # claimed by the runner named in ``Job.owner``, which beats ``heartbeat_at``
+    DONE = "done"
+    FAILED = "failed"  # ``Job.message`` says why
+
+
 class ReviewStatus(str, enum.Enum):
     """A reviewer's decision on a system or a frame."""
 
@@ -108,6 +125,14 @@ class ReviewStatus(str, enum.Enum):
     ACCEPTED = "accepted"
     REJECTED = "rejected"
     NEEDS_FIX = "needs_fix"
+
+
+class UserRole(str, enum.Enum):
+    """A user's role, least trusted first (``app.api.auth.ROLES``: a role may do what a lower one may)."""
+
+    ANNOTATOR = "annotator"  # edits labels and field lines, takes per-view decisions
+    REVIEWER = "reviewer"  # also takes system decisions and reverts audited writes
+    ADMIN = "admin"  # also imports, exports and manages users
 
 
 # ----- entities ------------------------------------------------------------------------------------
@@ -194,6 +219,9 @@ class System(Base):
     derived_version: Mapped[int] = mapped_column(default=0)
     #: ISSIA systems: the frame index in the sequence (frame ``i`` at ``t = i / fps``); None otherwise.
     frame_index: Mapped[Optional[int]] = mapped_column(index=True)
+    #: Version of the system's review decision, bumped by every decision on the system (its strong ETag,
+    #: ``app.services.versions``); recomputations never touch it.
+    review_version: Mapped[int] = mapped_column(default=1)
     #: ISSIA systems: the frame's place on the sequence's trajectory (``app.services.issia``).
     trajectory_point: Mapped[Optional[TrajectoryPoint]] = relationship(
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True
@@ -229,6 +257,10 @@ class Frame(Base):
     media_frame: Mapped[Optional[int]]
     #: The footage is mirrored horizontally relative to the labels: flipped back when read.
     media_flipped: Mapped[bool] = mapped_column(default=False)
+    #: Version of what people edit on the frame (ball label, field lines, its review and exclusion),
+    #: bumped by each such write and by an import that changes them (its strong ETag,
+    #: ``app.services.versions``); a recomputation caused by a sibling view's edit never touches it.
+    edit_version: Mapped[int] = mapped_column(default=1)
 
     system: Mapped[System] = relationship(back_populates="frames")
     field_lines: Mapped[Optional[FieldLineAnnotation]] = relationship(
@@ -336,10 +368,15 @@ class BallLabel(Base):
     def centre(self) -> list[float] | None:
         """The labelled ball centre ``[x, y]`` in pixels (the box centre or the point), or None when
         the current label was removed."""
-        if self.box is not None:
-            x1, y1, x2, y2 = self.box
+        return BallLabel.centre_of(self.box, self.point)
+
+    @staticmethod
+    def centre_of(box: list[float] | None, point: list[float] | None) -> list[float] | None:
+        """:attr:`centre` of stored ``box`` / ``point`` columns (read without the ORM object)."""
+        if box is not None:
+            x1, y1, x2, y2 = box
             return [(x1 + x2) / 2.0, (y1 + y2) / 2.0]
-        return None if self.point is None else list(self.point)
+        return None if point is None else list(point)
 
 
 class Triangulation(Base):
@@ -488,3 +525,110 @@ class TrajectoryPoint(Base):
     computed_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
     system: Mapped[System] = relationship(back_populates="trajectory_point")
+
+
+# ----- people -----------------------------------------------------------------------------------------
+class User(Base):
+    """A person (or a script's owner) who may log in: ``name`` is unique and is what the audit log records.
+
+    ``password_hash`` is an argon2 PHC string (``app.services.users``, via pwdlib), never the password;
+    ``disabled`` users can neither log in nor use their tokens; ``demo`` marks the account
+    ``v3d serve --demo`` made (its password is public: the login page shows it).
+    ``session_generation`` is stored in every session cookie; logging out raises it, which ends every
+    browser session of the user at once (the cookie itself cannot be recalled).
+    """
+
+    __tablename__ = "users"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(sa.String(100), unique=True)
+    role: Mapped[UserRole] = mapped_column(enum_by_value(UserRole, "user_role"))
+    password_hash: Mapped[str] = mapped_column(sa.Text)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    disabled: Mapped[bool] = mapped_column(default=False)
+    demo: Mapped[bool] = mapped_column(default=False)
+    session_generation: Mapped[int] = mapped_column(default=0)
+
+    tokens: Mapped[list[ApiToken]] = relationship(
+        back_populates="user", cascade="all, delete-orphan", passive_deletes=True, order_by="ApiToken.id"
+    )
+
+
+class ApiToken(Base):
+    """An API token of a user (``Authorization: Bearer <token>``). Only the SHA-256 of the token is
+    stored (hex, 64 characters): the token itself is shown once, when it is issued.
+    ``last_used_at`` is refreshed at most once a minute (``app.services.users.TOKEN_USE_RESOLUTION``)."""
+
+    __tablename__ = "api_tokens"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_id: Mapped[int] = mapped_column(sa.ForeignKey("users.id", ondelete="CASCADE"), index=True)
+    token_hash: Mapped[str] = mapped_column(sa.String(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    last_used_at: Mapped[Optional[datetime]]
+
+    user: Mapped[User] = relationship(back_populates="tokens")
+
+
+class ServerSecret(Base):
+    """A secret of the server by name, generated once and shared by every worker and restart:
+    ``session`` signs the browser's session cookies (``V3D_SESSION_SECRET`` overrides it)."""
+
+    __tablename__ = "server_secrets"
+
+    name: Mapped[str] = mapped_column(sa.String(40), primary_key=True)
+    value: Mapped[str] = mapped_column(sa.Text)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class AuditEntry(Base):
+    """One accepted write (``app.services.audit``): who (``actor``, the user's name as text, so the log
+    outlives users), when (``at``, UTC), what (``action``: ``ball.edit``, ``field_lines.replace``,
+    ``field_lines.mirror``, ``view.exclusion``, ``view.review``, ``system.review``, ``import``,
+    ``recompute``, ``revert``) and the state of the edited part before and after (JSON; an import or a
+    recompute stores its counts in ``after``). ``frame_id`` / ``system_id`` / ``game_id`` are plain indexed
+    ids without foreign keys: deleting or re-importing data never deletes its history. Append-only: the
+    migration adds triggers refusing UPDATE and DELETE.
+    """
+
+    __tablename__ = "audit_entries"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    at: Mapped[datetime] = mapped_column(default=utcnow)
+    actor: Mapped[str] = mapped_column(sa.String(200), index=True)
+    action: Mapped[str] = mapped_column(sa.String(40))
+    frame_id: Mapped[Optional[int]] = mapped_column(index=True)
+    system_id: Mapped[Optional[int]] = mapped_column(index=True)
+    game_id: Mapped[Optional[int]] = mapped_column(index=True)
+    before: Mapped[Optional[dict[str, Any]]]
+    after: Mapped[Optional[dict[str, Any]]]
+    #: A revert: the entry it undid.
+    reverts_id: Mapped[Optional[int]] = mapped_column(sa.ForeignKey("audit_entries.id"))
+class Job(Base):
+    """A background job (``app.services.jobs``): an import, a full recompute or an export.
+
+    ``params`` is what the job needs to run again from the start (a job interrupted by a killed process
+    is resumed by running it again: imports are idempotent); ``stage``, ``done`` and ``total`` are its
+    progress (``total`` 0: unknown); ``owner`` names the process running it (``host:pid:token``) and
+    ``heartbeat_at`` when that process last showed it was alive; ``attempts`` counts claims (a claim is
+    a compare-and-set on it). ``result`` is the job's report (an import's counts, an export's file).
+    """
+
+    __tablename__ = "jobs"
+    __table_args__ = (sa.Index("ix_jobs_state_id", "state", "id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    kind: Mapped[str] = mapped_column(sa.String(20))
+    params: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    state: Mapped[JobState] = mapped_column(enum_by_value(JobState, "job_state"), default=JobState.QUEUED)
+    stage: Mapped[Optional[str]] = mapped_column(sa.String(40))
+    done: Mapped[int] = mapped_column(default=0)
+    total: Mapped[int] = mapped_column(default=0)
+    message: Mapped[Optional[str]] = mapped_column(sa.Text)
+    result: Mapped[Optional[dict[str, Any]]]
+    owner: Mapped[Optional[str]] = mapped_column(sa.String(200))
+    attempts: Mapped[int] = mapped_column(default=0)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[Optional[datetime]]
+    finished_at: Mapped[Optional[datetime]]
+    heartbeat_at: Mapped[Optional[datetime]]

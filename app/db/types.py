@@ -5,10 +5,12 @@ Kept apart from the models so that migrations and models agree on one definition
 from __future__ import annotations
 
 import enum
+import json
 import math
 from datetime import datetime, timezone
 from typing import Any
 
+import orjson
 import sqlalchemy as sa
 from sqlalchemy.dialects.postgresql import JSONB
 from sqlalchemy.engine import Dialect
@@ -44,6 +46,17 @@ class UTCDateTime(TypeDecorator[datetime]):
 
 #: JSON document column: ``JSONB`` on PostgreSQL, JSON text elsewhere.
 JSONDoc = sa.JSON().with_variant(JSONB(), "postgresql")
+
+
+def json_loads(text: str | bytes) -> Any:
+    """Decode a stored JSON document with ``orjson`` (several times faster than ``json``: a SoccerNet-size
+    export decodes about 400,000 of them); text ``orjson`` refuses (``NaN`` written by an older
+    ``json.dumps``; :func:`json_safe` keeps new rows free of it) falls back to ``json.loads``. The
+    SQLite engine's JSON columns decode through it (``app.db.session.make_engine``)."""
+    try:
+        return orjson.loads(text)
+    except orjson.JSONDecodeError:
+        return json.loads(text)
 
 
 def utcnow() -> datetime:

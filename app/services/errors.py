@@ -5,6 +5,8 @@
   a review status (HTTP 422). Nothing is written when it is raised.
 * :class:`DatasetError` (an ``InvalidInputError``): a dataset file that cannot be imported; it names
   the file and the field at fault. Nothing is written when it is raised.
+* :class:`StaleVersionError`: a write whose expected version (``If-Match``) is stale (HTTP 412).
+* :class:`ConflictError`: a write the current state forbids, e.g. a revert of a changed resource (HTTP 409).
 * :class:`ForbiddenError` (a ``PermissionError``): a request the service refuses whatever its content,
   e.g. a server path outside the data root (HTTP 403). Its message never says whether a path exists.
 """
@@ -49,3 +51,26 @@ class DatasetError(InvalidInputError):
 
 class ForbiddenError(ServiceError, PermissionError):
     """A request the service refuses on principle (not for its content): HTTP 403."""
+
+
+class StaleVersionError(ServiceError):
+    """A write's expected version (HTTP ``If-Match``) is not the resource's current one: nothing was
+    changed (HTTP 412). ``kind`` is "frame" or "system", ``etag`` the current strong ETag; the services
+    fill ``current`` (the resource's JSON now) and ``last_change`` (its newest audit entry, or None)
+    after rolling back, so the client can show who changed it and to what."""
+
+    def __init__(self, kind: str, ident: int, etag: str) -> None:
+        super().__init__(f"{kind} {ident} was changed by someone else (it is now {etag}): nothing was stored; "
+                         "reload it, then apply your change again")
+        self.kind, self.ident, self.etag = kind, ident, etag
+        self.current: dict | None = None
+        self.last_change: dict | None = None
+
+
+class ConflictError(ServiceError):
+    """A write refused because of the resource's current state (HTTP 409), e.g. reverting an audit entry
+    whose resource changed since; ``current`` holds that state when known."""
+
+    def __init__(self, message: str, current: object = None) -> None:
+        super().__init__(message)
+        self.current = current

@@ -2,19 +2,23 @@
 
 Every importer works in two phases so that bad input stores nothing:
 
-1. **read and validate** the whole input into plain records (``app.services._readers``:
+1. **read and validate** the whole input into plain records (``app.datasets``:
    :func:`read_soccernet_v3`, :func:`read_sn_calibration`, :func:`read_soccernet_v3d`); any problem
    raises :class:`~app.services.errors.DatasetError` naming the file and the field;
-2. **write** the records in transactions of whole games (:data:`IMPORT_BATCH_FRAMES` frames or so
+2. **write** the records in transactions of whole games (``Settings.import_batch_frames`` frames or so
    each, so that memory stays bounded at SoccerNet size): games, systems and frames are matched by
    their natural keys (league/season/match, system name, frame name), so importing the same input
    twice gives the same rows, and an import cut short (a crash, a kill) leaves whole games stored and
    is completed by running it again. A re-import refreshes the imported originals; a current value
    that a reviewer edited is kept. In each batch the frames whose lines are new or changed are
    calibrated in the import's process pool before the batch's first write, then the batch is written,
-   its touched systems recomputed (``app.services.recompute``) and committed, or rolled back.
+   its touched systems recomputed (``app.services.recompute``) and committed, or rolled back. The
+   pool does not wait meanwhile: the first pass of the next batch's new games is calibrating
+   (``app.services.import_calibration``) while this process stores the current batch.
 
 Images are never extracted: a frame stores the zip path and member name (or a file path).
+An import is one audit entry (``app.services.audit.record_summary``, action "import", its counts), written
+with its last batch; a frame whose labels or lines it changes gets a new edit version (ETag).
 """
 from __future__ import annotations
 
@@ -35,17 +39,19 @@ from app.db.models import (
     ReviewStatus, System,
 )
 from app.db.types import utcnow
-from app.services._readers import (
-    FrameRecord, GameRecord, read_sn_calibration, read_soccernet_v3, read_soccernet_v3d,
-)
+from app.datasets.records import FrameRecord, GameRecord
+from app.datasets.sn_calibration import read_sn_calibration
+from app.datasets.soccernet_v3 import read_soccernet_v3
+from app.datasets.soccernet_v3d import read_soccernet_v3d
+from app.services.audit import record_summary
+from app.services.import_calibration import FirstPassAhead, first_pass, retry_with_game_rigs, start_first_pass
 from app.services.recompute import (
-    RIG_FLAG, CalibrationFields, CalibrationPool, Progress, apply_calibration, calibrate_many, calibration_job,
-    calibration_pool, game_rig,
-    preload_systems, recompute_systems, uses_rig, wants_rig_retry, with_rig_retry,
+    RIG_FLAG, CalibrationFields, CalibrationPool, Progress, apply_calibration, calibration_pool, preload_systems,
+    recompute_systems,
 )
 
 __all__ = [
-    "ImportReport", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",
+    "ImportReport", "audit_counts", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",
     "read_soccernet_v3", "read_sn_calibration", "read_soccernet_v3d",
 ]
 
@@ -164,13 +170,19 @@ def _set_ball(frame: Frame, rec: FrameRecord, now: datetime) -> bool:
 
 
 def _store(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
-           progress: Progress | None, pool: CalibrationPool | None = None) -> None:
+           progress: Progress | None, pool: CalibrationPool | None = None, ahead: FirstPassAhead | None = None,
+           after_calibration: Callable[[], None] | None = None) -> None:
     """Upsert ``records`` into the session (no autoflush), calibrate the frames whose lines are new or
     changed in a process pool (then the refused ones of SoccerNet-v3 games with their game's rig)
     while nothing is written yet, so that a long import does not hold SQLite's write lock; then
-    flush, store the calibrations and recompute the touched systems."""
+    flush, store the calibrations and recompute the touched systems.
+
+    ``ahead``: first-pass calibrations started before the merge (``import_calibration.start_first_pass``); a
+    frame whose job is the one started takes its result. ``after_calibration`` is called once every
+    calibration of the batch is done (the caller starts the next batch's first pass then)."""
     now = utcnow()
     to_calibrate: list[Frame] = []
+    to_calibrate_recs: list[FrameRecord] = []
     imported: list[tuple[Frame, CalibrationFields]] = []
     touched: list[System] = []
     n_systems = sum(len(g.systems) for g in records)
@@ -205,6 +217,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     frame.image_zip, frame.image_member, frame.image_path = frec.image_zip, frec.image_member, frec.image_path
                     lines_changed = _set_lines(frame, frec, now)
                     ball_changed = _set_ball(frame, frec, now)
+                    if (lines_changed or ball_changed) and frame.id is not None:
+                        frame.edit_version += 1  # what people edit changed under them: their ETag goes stale
                     if frec.calibration is not None:
                         cal = frame.calibration
                         fields = frec.calibration.fields
@@ -213,6 +227,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                             changed = True
                     elif lines_changed or frame.calibration is None:
                         to_calibrate.append(frame)
+                        to_calibrate_recs.append(frec)
                         changed = True
                     changed = changed or ball_changed
                 if new:
@@ -226,11 +241,12 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     progress("merge", done, n_systems)
 
     t0 = time.perf_counter()
-    results = calibrate_many([calibration_job(f) for f in to_calibrate],
-                             settings.calibration_workers, progress, pool=pool)
+    results = first_pass(to_calibrate, to_calibrate_recs, settings, progress, pool, ahead)
     first_ms = [r.elapsed_ms for r in results]
     with session.no_autoflush:
-        results, rig_ms = _retry_with_game_rigs(session, to_calibrate, results, settings, progress, pool)
+        results, rig_ms = retry_with_game_rigs(session, to_calibrate, results, settings, progress, pool)
+    if after_calibration is not None:
+        after_calibration()
     report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
     report.calibration_seconds = time.perf_counter() - t0
     report.rig_assisted += sum(RIG_FLAG in r.flags for r in results)
@@ -246,39 +262,6 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
             report.refused += 1
             report.refusal_reasons[fields.reason or "unspecified"] += 1
     report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
-
-
-def _retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],
-                          settings: Settings, progress: Progress | None, pool: CalibrationPool | None = None
-                          ) -> tuple[list[CalibrationFields], dict[int, float]]:
-    """Recalibrate the frames of SoccerNet-v3 games refused or calibrated below admission
-    (``recompute.wants_rig_retry``) with their game's camera rig, estimated from the game's stored
-    calibrations (except the frames being recalibrated) and this import's fresh ones
-    (``recompute.game_rig``). Writes nothing (the caller disables autoflush). Returns the final
-    result per frame (``recompute.with_rig_retry``: the better fit by residual, a refusal carrying
-    the rig's mirror flag) and the rig pass's time per retried frame index (ms)."""
-    retry = [i for i, (f, r) in enumerate(zip(frames, results)) if wants_rig_retry(r, settings) and uses_rig(f.system)]
-    if not retry:
-        return results, {}
-    rigs = {}
-    for game in {id(frames[i].system.game): frames[i].system.game for i in retry}.values():
-        mine = [i for i, f in enumerate(frames) if f.system.game is game]
-        rigs[id(game)] = game_rig(session, game.id, settings,
-                                  exclude_frame_ids=[frames[i].id for i in mine if frames[i].id is not None],
-                                  extra=[results[i] for i in mine], extra_roles=[frames[i].role for i in mine])
-    retry = [i for i in retry if rigs[id(frames[i].system.game)].positions]
-    jobs = [calibration_job(frames[i], rigs[id(frames[i].system.game)]) for i in retry]
-    out = list(results)
-    rig_ms: dict[int, float] = {}
-    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig", pool=pool)):
-        out[i] = with_rig_retry(out[i], fields)
-        rig_ms[i] = fields.elapsed_ms or 0.0
-    return out, rig_ms
-
-
-#: An import is stored in transactions of whole games holding about this many frames each: memory stays
-#: bounded by a batch (the ORM rows of one batch), and a crash leaves whole games stored or not at all.
-IMPORT_BATCH_FRAMES = 2000
 
 
 def _batches(records: list[GameRecord], max_frames: int) -> Iterator[list[GameRecord]]:
@@ -297,13 +280,22 @@ def _batches(records: list[GameRecord], max_frames: int) -> Iterator[list[GameRe
         yield batch
 
 
+def audit_counts(report: ImportReport) -> dict[str, object]:
+    """The counts an import's audit entry keeps (``after``)."""
+    return {"source": report.source, "games": report.games, "systems": report.systems, "frames": report.frames,
+            "systems_new": report.systems_new, "systems_changed": report.systems_changed,
+            "calibrated": report.calibrated, "refused": report.refused, "triangulated": report.triangulated}
+
+
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
-         read: Callable[[], list[GameRecord]]) -> ImportReport:
+         read: Callable[[], list[GameRecord]], actor: str | None = None) -> ImportReport:
     """Read and validate everything (nothing is stored when the input is bad), then store it in
-    batches of whole games (:data:`IMPORT_BATCH_FRAMES`), each calibrated, recomputed and committed
+    batches of whole games (``settings.import_batch_frames`` frames or so: memory stays bounded by a
+    batch, and a crash leaves whole games stored or not at all), each calibrated, recomputed and committed
     before the next is read into the session; the calibration processes serve every batch. With
     more than one batch ``progress`` reports the stage "games" (games stored / total) instead of the
-    inner stages of each batch."""
+    inner stages of each batch. The import's audit entry (by ``actor``, None: the local user) is
+    written with the last batch."""
     t0 = time.perf_counter()
     report = ImportReport(source=str(path))
     records = read()  # validation: raises before anything is written
@@ -311,16 +303,27 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     report.games = len(records)
     report.systems = sum(len(g.systems) for g in records)
     report.frames = sum(len(s.frames) for g in records for s in g.systems)
-    batches = list(_batches(records, IMPORT_BATCH_FRAMES))
+    batches = list(_batches(records, settings.import_batch_frames))
     del records
     calibration_ms: list[float] = []
     calibration_seconds = 0.0
     done = 0
     try:
         with calibration_pool(settings.calibration_workers) as pool:
+            ahead = start_first_pass(session, batches[0], pool) if batches else None
             while batches:
                 batch = batches.pop(0)
-                _store(session, batch, settings, report, progress if len(batches) == 0 and done == 0 else None, pool)
+                started: list[FirstPassAhead | None] = [None]
+
+                def start_next() -> None:  # the next batch calibrates while this one is stored
+                    if batches:
+                        started[0] = start_first_pass(session, batches[0], pool)
+
+                _store(session, batch, settings, report, progress if len(batches) == 0 and done == 0 else None, pool,
+                       ahead, start_next)
+                ahead = started[0]
+                if not batches:
+                    record_summary(session, "import", audit_counts(report), actor=actor)
                 session.commit()
                 session.expunge_all()
                 calibration_ms += report.calibration_ms
@@ -338,7 +341,7 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
 
 
 def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
-                        progress: Progress | None = None) -> ImportReport:
+                        progress: Progress | None = None, *, actor: str | None = None) -> ImportReport:
     """Import a SoccerNet-v3 tree (see :func:`read_soccernet_v3`), calibrate its frames (process pool
     over ``calibrate_frame``), triangulate its systems, and commit game batch by game batch.
 
@@ -346,30 +349,37 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
     is called for the stages "merge" (records matched to rows), "calibrate", "rig" (frames retried
     with their game's camera rig, when there are any) and "triangulate".
 
+    ``actor`` is the import's audit entry's (None: the local user).
+
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: read_soccernet_v3(path))
+    return _run(session, path, settings, progress, lambda: read_soccernet_v3(path), actor)
 
 
 def import_sn_calibration(session: Session, path: str | Path, settings: Settings, width: int | None = None,
-                          height: int | None = None, progress: Progress | None = None) -> ImportReport:
+                          height: int | None = None, progress: Progress | None = None, *,
+                          actor: str | None = None) -> ImportReport:
     """Import a SoccerNet-calibration folder or zip (see :func:`read_sn_calibration`): each frame
     becomes a single-view system, calibrated in a process pool, reviewed for its calibration.
+
+    ``actor`` is the import's audit entry's (None: the local user).
 
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: [read_sn_calibration(path, width, height)])
+    return _run(session, path, settings, progress, lambda: [read_sn_calibration(path, width, height)], actor)
 
 
 def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
-                         progress: Progress | None = None) -> ImportReport:
+                         progress: Progress | None = None, *, actor: str | None = None) -> ImportReport:
     """Import a SoccerNet-v3D tree (see :func:`read_soccernet_v3d`). Calibrations are stored with
     source "imported" and not recomputed; admission, triangulation and optimised boxes are
     recomputed from them and from the ball labels of ``SNv3D.csv``.
 
+    ``actor`` is the import's audit entry's (None: the local user).
+
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: read_soccernet_v3d(path))
+    return _run(session, path, settings, progress, lambda: read_soccernet_v3d(path), actor)

@@ -59,6 +59,7 @@ from app.db.models import (
     BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, OptimisedBox, ReviewStatus,
     System, SystemKind, Triangulation, TriangulationPair, TriangulationStatus,
 )
+from app.db.session import begin_write
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.ball import optimise_box
@@ -68,6 +69,7 @@ from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence, mirrored_fit_at_rig
 from app.geometry.triangulation import BallObservation, error_above_tau, triangulate_ball
+from app.services.audit import record_summary
 from app.services.doubts import is_excluded, update_doubts
 
 #: The three JaC gammas stored per calibration (fractions of the image diagonal, method.md s4).
@@ -244,7 +246,7 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: P
             if progress:
                 progress(stage, len(out), total)
         return out
-    chunk = max(1, min(16, total // (n * 8)))
+    chunk = _chunk_size(jobs, n)
     with contextlib.ExitStack() as stack:
         if pool is None:
             pool = stack.enter_context(calibration_pool(n))
@@ -254,6 +256,23 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: P
             if progress:
                 progress(stage, len(out), total)
     return out
+
+
+def start_calibrating(jobs: Sequence[CalibrationJob], pool: CalibrationPool) -> Iterator[CalibrationFields] | None:
+    """Hand ``jobs`` to the pool's processes now and return at once: the returned iterator yields one
+    :class:`CalibrationFields` per job, in order, waiting for each (so the caller can do other work
+    meanwhile, e.g. store the previous batch of an import). None when the pool runs in this process
+    or there are too few jobs (then calibrate them with :func:`calibrate_many` when needed)."""
+    if pool.executor is None or len(jobs) < _MIN_JOBS_FOR_POOL:
+        return None
+    return pool.executor.map(_calibrate_job, jobs, chunksize=_chunk_size(jobs, pool.workers))
+
+
+def _chunk_size(jobs: Sequence[CalibrationJob], workers: int) -> int:
+    """Jobs per round trip to a worker: fewer round trips, but a chunk is the tail one worker may run
+    alone at the end; rig retries (a full fit per rig position) get small chunks."""
+    heavy = any(len(job) > 4 and job[4] is not None for job in jobs)
+    return max(1, min(4 if heavy else 16, len(jobs) // (workers * 8)))
 
 
 def apply_calibration(frame: Frame, fields: CalibrationFields, source: CalibrationSource) -> Calibration:
@@ -519,16 +538,48 @@ def refresh_stale_systems(session: Session, settings: Settings, progress: Progre
     (``System.derived_version < DERIVED_VERSION``, e.g. after a schema upgrade) and commit; returns how
     many. Serving or reporting a database calls it first, so stored doubts and queue figures are current.
     Systems are recomputed and committed :data:`_REFRESH_BATCH` at a time (a crash leaves the rest stale,
-    to be refreshed next time)."""
+    to be refreshed next time), each in a write transaction (``app.db.session.begin_write``), so a
+    server running meanwhile never sees half a batch and its edits wait their turn. The recompute is one audit entry (action "recompute", by the local
+    user), written with the last batch."""
     ids = list(session.scalars(select(System.id).where(System.derived_version < DERIVED_VERSION).order_by(System.id)))
-    for start in range(0, len(ids), _REFRESH_BATCH):  # commit and release batch by batch: bounded memory
+    _recompute_in_batches(session, ids, settings, progress, {"reason": "stored by an older version",
+                                                             "derived_version": DERIVED_VERSION})
+    return len(ids)
+
+
+def recompute_all_systems(session: Session, settings: Settings, progress: Progress | None = None,
+                          actor: str | None = None) -> tuple[int, int]:
+    """The full recompute: every system recomputed with the current settings (calibrations untouched:
+    admission, triangulation, reprojections, optimised boxes, mirror flags, doubts and queue figures),
+    committed :data:`_REFRESH_BATCH` systems at a time with ``progress("recompute", done, total)``
+    after each commit. Idempotent: run again after a crash, it gives the same rows. One audit entry
+    (action "recompute", by ``actor``; None: the local user), written with the last batch.
+
+    Returns:
+        ``(systems recomputed, systems triangulated)``.
+    """
+    ids = list(session.scalars(select(System.id).order_by(System.id)))
+    return len(ids), _recompute_in_batches(session, ids, settings, progress, {"reason": "full recompute"}, actor)
+
+
+def _recompute_in_batches(session: Session, ids: list[int], settings: Settings, progress: Progress | None,
+                          audit_after: dict[str, Any], actor: str | None = None) -> int:
+    """Recompute the systems ``ids``, committing and releasing :data:`_REFRESH_BATCH` at a time (bounded
+    memory), each batch in a write transaction (``app.db.session.begin_write``, so a server running
+    meanwhile never sees half a batch and its edits wait their turn), the audit entry ("recompute",
+    ``audit_after`` with the counts) written with the last batch; returns how many were triangulated."""
+    triangulated = 0
+    for start in range(0, len(ids), _REFRESH_BATCH):
+        begin_write(session)  # each batch read and written under the write lock (SQLite: BEGIN IMMEDIATE)
         batch = session.scalars(select(System).where(System.id.in_(ids[start:start + _REFRESH_BATCH]))).all()
-        recompute_systems(session, batch, settings)
+        triangulated += recompute_systems(session, batch, settings)
+        if start + _REFRESH_BATCH >= len(ids):
+            record_summary(session, "recompute", {"systems": len(ids), **audit_after}, actor=actor)
         session.commit()
         session.expunge_all()
         if progress:
             progress("recompute", min(start + _REFRESH_BATCH, len(ids)), len(ids))
-    return len(ids)
+    return triangulated
 
 
 def mirror_settings(settings: Settings) -> MirrorSettings:

@@ -33,18 +33,20 @@ from typing import Any, Literal, Optional
 
 import numpy as np
 import sqlalchemy as sa
-from sqlalchemy.orm import Session, selectinload
+from sqlalchemy.orm import Session, joinedload, selectinload
 
 from app.db.models import (
     BallLabel, BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, OptimisedBox, ReviewDecision,
     ReviewStatus, System, Triangulation,
 )
+from app.geometry.calibration.frame import MIRROR_FLAG
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
-from app.geometry.triangulation import error_above_tau, rule_reference_width_px
-from app.services._readers import is_safe_member
+from app.geometry.triangulation import error_above_tau, rule_reference_width_px, scaled_error_px
+from app.datasets.files import is_safe_member
 from app.services.errors import NotFoundError, ServiceError
 from app.services.doubts import doubt_json
+from app.services.versions import frame_etag, system_etag
 
 SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
@@ -434,6 +436,7 @@ def _calibration_json(cal: Optional[Calibration]) -> Optional[dict[str, Any]]:
     return {
         "status": cal.status.value, "source": cal.source.value, "camera": cal.camera, "jac": cal.jac(),
         "admitted": cal.admitted, "reason": cal.reason, "flags": list(cal.flags or []),
+        "probably_mirrored": MIRROR_FLAG in (cal.flags or []),
         "residuals_px": dict(cal.residuals_px or {}), "mirror_evidence": cal.mirror_evidence,
     }
 
@@ -473,11 +476,33 @@ def _view_json(frame: Frame, tri: Optional[Triangulation]) -> dict[str, Any]:
         "optimised_box": _optimised_json(frame.optimised_box),
         "reprojected_ball": _px(rep.point) if rep is not None else None,
         "reprojection_error_px": rep.error_px if rep is not None else None,
+        "reprojection_error_scaled_px": scaled_error_px(rep.error_px, frame.width, tri.rule)
+        if rep is not None and tri is not None else None,
         "error_above_tau": rep is not None and tri is not None and error_above_tau(
             rep.error_px, frame.width, tri.tau_px, tri.rule),
         "camera_position": [float(v) for v in cal.camera["position_meters"]] if calibrated else None,
         "review": review_json(frame.review),
+        "etag": frame_etag(frame),
     }
+
+
+def frame_view(session: Session, frame_id: int) -> dict[str, Any]:
+    """One frame as the system view draws it (its ``views`` item: ball, lines, calibration, review,
+    reprojection, ``etag``) plus its ``system_id``: ``GET /api/frames/{id}`` and the current state a
+    stale write (412) answers.
+
+    Raises:
+        NotFoundError: no frame has this id.
+    """
+    stmt = sa.select(Frame).where(Frame.id == frame_id).options(
+        selectinload(Frame.system).selectinload(System.triangulation),
+        selectinload(Frame.field_lines), selectinload(Frame.calibration), selectinload(Frame.ball_label),
+        selectinload(Frame.reprojection), selectinload(Frame.optimised_box), selectinload(Frame.review),
+    )
+    frame = session.scalars(stmt).first()
+    if frame is None:
+        raise NotFoundError("frame", frame_id)
+    return {**_view_json(frame, frame.system.triangulation), "system_id": frame.system_id}
 
 
 def frame_summary(frame: Frame) -> dict[str, Any]:
@@ -512,16 +537,18 @@ def _load_system(session: Session, system_id: int) -> System:
     Raises:
         NotFoundError: no system has this id.
     """
+    # one-to-one rows joined to their parent (one query for the system, one for its views), the lists
+    # (pairs, doubts) one query each: four queries whatever the number of views
     stmt = sa.select(System).where(System.id == system_id).options(
-        selectinload(System.game), selectinload(System.review),
-        selectinload(System.triangulation).selectinload(Triangulation.pairs),
+        joinedload(System.game), joinedload(System.review),
+        joinedload(System.triangulation).selectinload(Triangulation.pairs),
         selectinload(System.frames).options(
-            selectinload(Frame.field_lines), selectinload(Frame.calibration), selectinload(Frame.ball_label),
-            selectinload(Frame.reprojection), selectinload(Frame.optimised_box), selectinload(Frame.review),
+            joinedload(Frame.field_lines), joinedload(Frame.calibration), joinedload(Frame.ball_label),
+            joinedload(Frame.reprojection), joinedload(Frame.optimised_box), joinedload(Frame.review),
         ),
         selectinload(System.doubts),
     )
-    system = session.scalars(stmt).first()
+    system = session.scalars(stmt).unique().first()
     if system is None:
         raise NotFoundError("system", system_id)
     return system
@@ -552,6 +579,7 @@ def system_view(session: Session, system_id: int, filters: SystemFilters = Syste
         "frame_index": system.frame_index,
         "game": {"id": game.id, "league": game.league, "season": game.season, "match": game.match},
         "review": review_json(system.review),
+        "etag": system_etag(system),
         "prev_id": prev_id,
         "next_id": next_id,
         "ball3d": tri.ball3d if tri is not None else None,

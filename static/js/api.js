@@ -1,4 +1,7 @@
 // REST client: every request the pages make goes through here, so the contract lives in one file.
+// Writes are conditional: they send If-Match with the ETag of the version they were made against
+// (a view's `etag`, the system view's `etag`) and answer {body, etag} with the resource's new ETag.
+// A stale one fails with ApiError status 412, whose body holds {current, etag, last_change}.
 
 export class ApiError extends Error {
   constructor(status, message, body) {
@@ -27,15 +30,51 @@ function describeError(status, body, fallback) {
   return `${status}: ${text}`;
 }
 
-async function request(method, url, body) {
-  const init = { method, headers: { Accept: "application/json" } };
-  if (body !== undefined) {
-    init.headers["Content-Type"] = "application/json";
-    init.body = JSON.stringify(body);
+/** Methods that change something: a browser session must send its CSRF token with them. */
+const UNSAFE = new Set(["POST", "PUT", "PATCH", "DELETE"]);
+/** The header, and the page a person logs in on (docs/architecture.md, "Users and roles"). */
+export const CSRF_HEADER = "X-CSRF-Token";
+export const LOGIN_PAGE = "/login";
+
+let mePromise = null;
+
+/** GET /api/auth/me, asked once per page: {name, role, via, csrf_token}. A 401 sends the person to
+ * the login page (and back here afterwards). */
+export function getMe() {
+  if (!mePromise) {
+    mePromise = request("GET", "/api/auth/me").catch((err) => {
+      mePromise = null;
+      throw err;
+    });
   }
+  return mePromise;
+}
+
+/** Where the login page sends the person back to: this page, with its query string. */
+export function loginUrl(next = location.pathname + location.search + location.hash) {
+  return `${LOGIN_PAGE}?next=${encodeURIComponent(next)}`;
+}
+
+/** Headers every write carries: the session's CSRF token. */
+export async function writeHeaders() {
+  const me = await getMe();
+  return me.csrf_token ? { [CSRF_HEADER]: me.csrf_token } : {};
+}
+
+/** A 401 means the session is gone (or never was): go and log in, then come back. */
+function toLogin() {
+  if (location.pathname !== LOGIN_PAGE) location.assign(loginUrl());
+}
+
+/** fetch with the CSRF header on writes (unless `init.csrf` is false: the login, before any session)
+ * and the 401 rule; `init.body` as given (JSON text or FormData). Answers {body (parsed), etag (the
+ * answer's ETag header: a write's edited resource's new version)}, or throws ApiError. */
+async function fetchJson(method, url, { csrf = true, ...init } = {}) {
+  const headers = { Accept: "application/json", ...(init.headers || {}) };
+  if (csrf && UNSAFE.has(method)) Object.assign(headers, await writeHeaders());
   let response;
   try {
-    response = await fetch(url, init);
+    response = await fetch(url, { ...init, method, headers, credentials: "same-origin" });
   } catch (err) {
     throw new ApiError(0, `network error: ${err.message} (${method} ${url})`, null);
   }
@@ -48,10 +87,47 @@ async function request(method, url, body) {
       data = text;
     }
   }
+  if (response.status === 401 && url !== "/api/auth/login") toLogin();
   if (!response.ok) {
     throw new ApiError(response.status, describeError(response.status, data, response.statusText || "request failed"), data);
   }
-  return data;
+  return { body: data, etag: response.headers.get("ETag") };
+}
+
+/** fetchJson answering the parsed body only (uploads and other pages' requests). */
+export async function send(method, url, options = {}) {
+  return (await fetchJson(method, url, options)).body;
+}
+
+/** A JSON request; {body, etag}. `ifMatch`: the ETag of the version the write was made against. */
+async function exchange(method, url, body, ifMatch, options = {}) {
+  const headers = {};
+  if (ifMatch) headers["If-Match"] = ifMatch;
+  if (body !== undefined) headers["Content-Type"] = "application/json";
+  return fetchJson(method, url, {
+    ...options, headers, ...(body !== undefined ? { body: JSON.stringify(body) } : {}),
+  });
+}
+
+function request(method, url, body, options = {}) {
+  return exchange(method, url, body, undefined, options).then((answer) => answer.body);
+}
+
+/** POST /api/auth/login {name, password}: starts the browser session; answers {name, role, csrf_token}. */
+export function login(name, password) {
+  mePromise = null;
+  return request("POST", "/api/auth/login", { name, password }, { csrf: false });
+}
+
+/** POST /api/auth/logout: ends the session (every browser session of this user). */
+export async function logout() {
+  await request("POST", "/api/auth/logout");
+  mePromise = null;
+}
+
+/** GET /api/auth/demo: {account: {name, password} | null}, for the login page's hint. */
+export function getDemoAccount() {
+  return request("GET", "/api/auth/demo");
 }
 
 /** Query string from an object, leaving out empty values. */
@@ -70,6 +146,11 @@ export function listSystems(params) {
   return request("GET", `/api/systems${toQuery(params)}`);
 }
 
+/** GET /api/jobs: background jobs (imports, recomputes, exports), newest first, with their progress. */
+export function listJobs(params = {}) {
+  return request("GET", `/api/jobs${toQuery(params)}`);
+}
+
 /** GET /api/games: the games, for the game filter. */
 export function listGames() {
   return request("GET", "/api/games");
@@ -81,27 +162,38 @@ export function getSystem(id, params = {}) {
   return request("GET", `/api/systems/${encodeURIComponent(id)}${toQuery(params)}`);
 }
 
-/** POST /api/systems/{id}/review {status, comment}. */
-export function postReview(id, status, comment) {
-  return request("POST", `/api/systems/${encodeURIComponent(id)}/review`, { status, comment });
+/** POST /api/systems/{id}/review {status, comment}, If-Match: the system view's etag; {body: the decision, etag}. */
+export function postReview(id, status, comment, ifMatch) {
+  return exchange("POST", `/api/systems/${encodeURIComponent(id)}/review`, { status, comment }, ifMatch);
 }
 
-/** PATCH /api/frames/{id}/ball with {box} or {point}; answers the recomputed system view, whose
- * prev_id / next_id follow the queue given by `params` (as for getSystem). */
-export function patchBall(frameId, change, params = {}) {
-  return request("PATCH", `/api/frames/${encodeURIComponent(frameId)}/ball${toQuery(params)}`, change);
+/** PATCH /api/frames/{id}/ball with {box} or {point}, If-Match: the view's etag; {body: the recomputed
+ * system view (prev_id / next_id follow the queue given by `params`, as for getSystem), etag}. */
+export function patchBall(frameId, change, params = {}, ifMatch) {
+  return exchange("PATCH", `/api/frames/${encodeURIComponent(frameId)}/ball${toQuery(params)}`, change, ifMatch);
 }
 
 /** POST /api/frames/{id}/field-lines/mirror: replace the frame's field lines by their mirrored
- * labelling (the fix of a view flagged probably_mirrored); answers the recomputed system view. */
-export function mirrorFieldLines(frameId, params = {}) {
-  return request("POST", `/api/frames/${encodeURIComponent(frameId)}/field-lines/mirror${toQuery(params)}`);
+ * labelling (the fix of a view flagged probably_mirrored); {body: the recomputed system view, etag}. */
+export function mirrorFieldLines(frameId, params = {}, ifMatch) {
+  return exchange("POST", `/api/frames/${encodeURIComponent(frameId)}/field-lines/mirror${toQuery(params)}`, undefined, ifMatch);
 }
 
 /** POST /api/frames/{id}/exclusion {excluded}: exclude the view from its system's triangulation (true)
- * or restore it (false); answers the recomputed system view. */
-export function postExclusion(frameId, excluded, params = {}) {
-  return request("POST", `/api/frames/${encodeURIComponent(frameId)}/exclusion${toQuery(params)}`, { excluded });
+ * or restore it (false); {body: the recomputed system view, etag}. */
+export function postExclusion(frameId, excluded, params = {}, ifMatch) {
+  return exchange("POST", `/api/frames/${encodeURIComponent(frameId)}/exclusion${toQuery(params)}`, { excluded }, ifMatch);
+}
+
+/** GET /api/audit: a page of the audit log, newest first ({items, total, limit, offset}). */
+export function listAudit(params) {
+  return request("GET", `/api/audit${toQuery(params)}`);
+}
+
+/** POST /api/audit/{id}/revert (reviewers): {body: the recomputed system view, etag}. 409 when the
+ * resource changed since the entry, unless `force`. */
+export function revertEntry(id, params = {}, force = false) {
+  return exchange("POST", `/api/audit/${encodeURIComponent(id)}/revert${toQuery({ ...params, force: force || undefined })}`);
 }
 
 /** GET /api/games/{id}/trajectory: an ISSIA sequence's ball over time (observed and fitted, per frame). */

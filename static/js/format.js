@@ -32,20 +32,12 @@ export function fmtXYZ(p, digits = 2) {
   return Array.isArray(p) && p.every(isNum) ? p.map((c) => c.toFixed(digits)).join(", ") : "—";
 }
 
-/** An error in a view's pixels, scaled the way the pair rule scales it before comparing with tau:
- * to `referenceWidth` (the system view's `triangulation.reference_width_px`; null: raw pixels). */
-export function scaledError(errorPx, width, referenceWidth) {
-  if (!isNum(errorPx)) return null;
-  if (isNum(referenceWidth) && isNum(width) && width > 0) return (errorPx * referenceWidth) / width;
-  return errorPx;
-}
-
-/** "ok" below tau / 2, "warn" up to tau, "bad" above: the reviewer's traffic light. */
-export function errorClass(errorPx, width, tau, referenceWidth) {
-  const e = scaledError(errorPx, width, referenceWidth);
-  if (e === null || !isNum(tau)) return "muted";
-  if (e <= tau / 2) return "ok";
-  if (e <= tau) return "warn";
+/** "ok" below tau / 2, "warn" up to tau, "bad" above: the reviewer's traffic light, on the error the
+ * server scaled by the pair rule (the view's `reprojection_error_scaled_px`; never rescaled here). */
+export function errorClass(scaledErrorPx, tau) {
+  if (!isNum(scaledErrorPx) || !isNum(tau)) return "muted";
+  if (scaledErrorPx <= tau / 2) return "ok";
+  if (scaledErrorPx <= tau) return "warn";
   return "bad";
 }
 

@@ -1,6 +1,7 @@
 // Monocular 3D ball benchmark page: uploads predictions to POST /api/evaluations/monocular and shows
 // the report (figures per split, precision-threshold curve as SVG).
-import { ApiError, toQuery } from "./api.js";
+import { ApiError, send, toQuery } from "./api.js";
+import "./session.js";
 import { el, svg, fmt, viewColour } from "./format.js";
 
 const form = document.querySelector("[data-testid=upload-form]");
@@ -20,13 +21,7 @@ async function evaluate(formData) {
   };
   const body = new FormData();
   body.append("predictions", formData.get("predictions"));
-  const response = await fetch(`/api/evaluations/monocular${toQuery(params)}`, { method: "POST", body });
-  const data = await response.json().catch(() => null);
-  if (!response.ok) {
-    const detail = data && (typeof data.detail === "string" ? data.detail : JSON.stringify(data.detail));
-    throw new ApiError(response.status, `${response.status}: ${detail || response.statusText}`, data);
-  }
-  return data;
+  return send("POST", `/api/evaluations/monocular${toQuery(params)}`, { body });
 }
 
 const pct = (v) => (v === null || v === undefined ? "–" : fmt(100 * v, 1, " %"));

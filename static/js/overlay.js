@@ -7,7 +7,7 @@
 // size (pointer positions go through getScreenCTM()). On release the element dispatches "ball-change"
 // {frameId, box} or {frameId, point}; the page saves it and sets the recomputed view back.
 
-import { el, svg, fmt, fmtJac, isNum, errorClass, scaledError, viewColour, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
+import { el, svg, fmt, fmtJac, isNum, errorClass, viewColour, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 
 const ZOOM_PX = 150; // displayed size of the zoom inset
 const MIN_BOX = 2; // smallest box side, image pixels
@@ -28,12 +28,9 @@ function sameBox(a, b) {
   return validBox(a) && validBox(b) && a.every((v, i) => Math.abs(v - b[i]) < 0.05);
 }
 
-/** The flag the server puts on a view whose field-line labels are probably mirrored. */
-export const MIRROR_FLAG = "probably_mirrored";
-
 /** True when the server flags the view's labels as probably mirrored. */
 export function isMirrorFlagged(view) {
-  return ((view.calibration || {}).flags || []).includes(MIRROR_FLAG);
+  return (view.calibration || {}).probably_mirrored === true;
 }
 
 /** What the view's state says a reviewer should look at, besides the server's doubts (empty when
@@ -175,7 +172,7 @@ export class ViewPanel extends HTMLElement {
     }
 
     const err = v.reprojection_error_px;
-    const scaled = scaledError(err, v.width, referenceWidth);
+    const scaled = isNum(v.reprojection_error_scaled_px) ? v.reprojection_error_scaled_px : null;
     const rb = v.reprojected_ball;
     const outside = validPoint(rb) && (rb[0] < 0 || rb[1] < 0 || rb[0] > v.width || rb[1] > v.height);
     const errText = isNum(err)
@@ -268,7 +265,7 @@ export class ViewPanel extends HTMLElement {
             fmtJac(jac["0.02"]),
           ),
           el("dt", { title: `Reprojection error of the 3D ball in this view; tau = ${fmt(tau, 1)} px (${rule || "rule unknown"})` }, "Reproj. error"),
-          el("dd", { class: `mono ${errorClass(err, v.width, tau, referenceWidth)}`, "data-testid": "view-reproj-error" }, errText),
+          el("dd", { class: `mono ${errorClass(v.reprojection_error_scaled_px, tau)}`, "data-testid": "view-reproj-error" }, errText),
           el("dt", { title: "The annotated ball box: size and centre, image pixels" }, "Ball (red)"),
           el("dd", { class: "mono", "data-testid": "view-box" }, boxText),
           el("dt", { title: "Box consistent with the 3D ball (paper Eq. min_diametre): d_opt, and the distance from the 3D ball to the annotated ray (optimized_error)" }, "Optimised (blue)"),

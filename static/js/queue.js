@@ -3,6 +3,8 @@
 // on to the system page, whose "queue" link and prev / next follow the same queue.
 
 import { listSystems, listGames } from "./api.js";
+import "./session.js";
+import { JobsPanel } from "./jobs.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
 import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 
@@ -74,6 +76,13 @@ class QueuePage {
     this.fillForm();
     this.loadGames();
     this.load();
+    // an import or a recompute that ends while the page is open changes the queue: reload it
+    this.jobs = new JobsPanel($("jobs"), (job) => {
+      if (job.state === "done" && job.kind !== "export") {
+        this.loadGames();
+        this.load();
+      }
+    });
   }
 
   fillForm() {

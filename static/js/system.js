@@ -2,13 +2,22 @@
 // pairs, the pitch map, and the review decision (buttons and keys a / r / f, j / k to move).
 // The page's query string holds the queue's filters; it is kept when moving between systems and
 // going back to the queue, and forwarded to the API so prev_id / next_id follow that queue.
+// Every write sends If-Match with the version the page drew (each view's `etag`, the system's `etag`);
+// writes to one view go one after the other, each with the ETag the previous one answered. A 412
+// (someone else changed it) draws their state and shows the conflict notice (conflict.js); the
+// history panel (history.js) lists the system's audit entries with a one-click revert.
+// (Over 400 lines: it is the one controller of the page's state; views, map, trajectory, conflict
+// notice and history are their own modules.)
 
-import { getSystem, getTrajectory, postReview, patchBall, mirrorFieldLines, postExclusion } from "./api.js";
+import { ApiError, getSystem, getTrajectory, postReview, patchBall, mirrorFieldLines, postExclusion } from "./api.js";
 import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
 import { notes, isMirrorFlagged } from "./overlay.js";
+import { showConflict } from "./conflict.js";
+import { HistoryPanel, describeState } from "./history.js";
 import "./pitchmap.js";
 import "./trajectory.js";
+import "./session.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 
@@ -17,6 +26,8 @@ class SystemPage {
   busy = false;
   selected = -1;
   saves = new Set(); // ball edits on their way to the server
+  etags = new Map(); // frame id -> the newest ETag the page knows of the view
+  chains = new Map(); // frame id -> the last write to that view (the next one waits for it)
 
   /** Let every edit of this system reach the server before deciding on it or leaving it. */
   async settle() {
@@ -44,6 +55,13 @@ class SystemPage {
       if (panel) this.select([...$("views").children].indexOf(panel));
     });
     $("trajectory").addEventListener("frame-select", (e) => this.go(e.detail.systemId));
+    this.history = new HistoryPanel($("history"), {
+      onReverted: (answer) => {
+        toast("reverted");
+        this.afterWrite(this.system.id, null, answer);
+      },
+      onError: showError,
+    });
     document.addEventListener("keydown", (e) => this.onKey(e));
     window.addEventListener("popstate", () => this.load(idFromPath(), false));
   }
@@ -99,6 +117,8 @@ class SystemPage {
 
   render(sys) {
     this.system = sys;
+    for (const v of sys.views) this.noteEtag(v.frame_id, v.etag);
+    this.history.load(sys, this.params);
     $("queue-link").href = this.queueUrl();
     const game = sys.game || {};
     document.title = `${sys.name} · v3d review`;
@@ -247,13 +267,14 @@ class SystemPage {
     tbody.replaceChildren(...rows);
   }
 
-  async review(status) {
+  async review(status, comment = null, ifMatch = null) {
     if (!this.system || this.busy) return;
     this.busy = true;
     const sys = this.system;
+    const text = comment ?? $("comment").value.trim();
     try {
       await this.settle();
-      const answer = await postReview(sys.id, status, $("comment").value.trim());
+      const { body: answer, etag } = await postReview(sys.id, status, text, ifMatch ?? this.system.etag);
       const current = this.system; // re-rendered by the edits just settled: its next_id is current
       clearError();
       this.renderStatus(answer || { status });
@@ -264,73 +285,107 @@ class SystemPage {
         await this.load(next, true);
       } else {
         toast(`${sys.name}: ${STATUS_LABEL[status]}. That was the last system of this queue.`);
+        if (this.system === current && etag) current.etag = etag; // the page stays: its next decision needs it
+        this.history.load(current, this.params);
       }
     } catch (err) {
-      showError(err.message);
+      if (err instanceof ApiError && err.status === 412) {
+        this.busy = false;
+        await this.reload();
+        showConflict($("conflict"), { error: err, what: "the system's decision", viewName: null,
+          mine: describeState({ review: { status, comment: text } }),
+          reapply: (etag) => this.review(status, text, etag) });
+      } else showError(err.message);
     } finally {
       this.busy = false;
     }
   }
 
-  saveBall(panel, detail) {
-    const change = "box" in detail ? { box: detail.box } : { point: detail.point };
+  /** Draw the current state of the shown system again (after a conflict, their state). */
+  async reload() {
+    if (!this.system) return;
+    try {
+      this.render(await getSystem(this.system.id, this.params));
+    } catch (err) {
+      showError(err.message);
+    }
+  }
+
+  /** Remember `etag` for a view unless the page already knows a newer version (answers may arrive out
+   * of order; the version is the ETag's last number). */
+  noteEtag(frameId, etag) {
+    if (!etag) return;
+    const version = (tag) => Number(/-(\d+)"$/.exec(tag || "")?.[1] ?? -1);
+    if (version(etag) >= version(this.etags.get(frameId))) this.etags.set(frameId, etag);
+  }
+
+  /** Draw a write's answer ({body: the recomputed system view, etag}) unless the reviewer moved on. */
+  afterWrite(shown, frameId, answer) {
+    clearError();
+    if (frameId !== null) this.noteEtag(frameId, answer.etag);
+    const sys = answer.body;
+    if (this.system.id === shown && sys && Array.isArray(sys.views)) this.render(sys);
+  }
+
+  /** A write to one view (`send(ifMatch)` -> {body, etag}), after the previous write to that view so it
+   * sends the ETag that one answered. `mine` says the change in words for the conflict notice;
+   * `done(system)` runs after the answer is drawn. */
+  frameWrite(panel, frameId, mine, send, done = null) {
     const shown = this.system.id;
-    const save = (async () => {
+    const previous = this.chains.get(frameId) || Promise.resolve();
+    const save = previous.then(async () => {
       try {
-        const sys = await patchBall(detail.frameId, change, this.params);
-        clearError();
-        // the reviewer may have moved on meanwhile: never draw an old system over the current one
-        if (this.system.id === shown && sys && Array.isArray(sys.views)) this.render(sys);
+        const answer = await send(this.etags.get(frameId));
+        this.afterWrite(shown, frameId, answer);
+        if (done && this.system.id === shown) done(answer.body);
       } catch (err) {
         panel.revert();
-        showError(err.message);
+        if (err instanceof ApiError && err.status === 412) await this.conflict(panel, frameId, mine, send, done, err);
+        else showError(err.message);
       }
-    })();
+    });
+    this.chains.set(frameId, save);
     this.saves.add(save);
-    save.finally(() => this.saves.delete(save));
+    save.finally(() => {
+      this.saves.delete(save);
+      if (this.chains.get(frameId) === save) this.chains.delete(frameId);
+    });
+  }
+
+  /** Someone changed the view first: draw their state, say who and what, offer to re-apply. */
+  async conflict(panel, frameId, mine, send, done, err) {
+    this.noteEtag(frameId, err.body?.etag);
+    await this.reload();
+    const index = this.system.views.findIndex((v) => v.frame_id === frameId);
+    const viewName = index >= 0 ? `V${index + 1}` : null;
+    const name = index >= 0 ? this.system.views[index].name : `frame ${frameId}`;
+    showConflict($("conflict"), { error: err, what: `${viewName || "the view"} (${name})`, mine, viewName,
+      reapply: () => this.frameWrite(panel, frameId, mine, send, done) });
+  }
+
+  saveBall(panel, detail) {
+    const change = "box" in detail ? { box: detail.box } : { point: detail.point };
+    this.frameWrite(panel, detail.frameId, describeState({ ball: change }),
+      (etag) => patchBall(detail.frameId, change, this.params, etag));
   }
 
   /** Replace a flagged view's field lines by their mirrored labelling, then draw the recomputed system. */
   applyMirror(panel, detail) {
-    const shown = this.system.id;
     const name = panel.view?.name || "view";
-    const save = (async () => {
-      try {
-        const sys = await mirrorFieldLines(detail.frameId, this.params);
-        clearError();
-        if (this.system.id === shown && sys && Array.isArray(sys.views)) {
-          this.render(sys);
-          const after = sys.views.find((v) => v.frame_id === detail.frameId);
-          toast(`${name}: mirrored labels applied${after && isMirrorFlagged(after) ? " (still flagged)" : ""}`);
-        }
-      } catch (err) {
-        panel.revert();
-        showError(err.message);
-      }
-    })();
-    this.saves.add(save);
-    save.finally(() => this.saves.delete(save));
+    this.frameWrite(panel, detail.frameId, "mirrored field lines",
+      (etag) => mirrorFieldLines(detail.frameId, this.params, etag),
+      (sys) => {
+        const after = sys.views.find((v) => v.frame_id === detail.frameId);
+        toast(`${name}: mirrored labels applied${after && isMirrorFlagged(after) ? " (still flagged)" : ""}`);
+      });
   }
 
   /** Exclude a view from the triangulation or restore it, then draw the recomputed system. */
   setExclusion(panel, detail) {
-    const shown = this.system.id;
     const name = panel.view?.name || "view";
-    const save = (async () => {
-      try {
-        const sys = await postExclusion(detail.frameId, detail.excluded, this.params);
-        clearError();
-        if (this.system.id === shown && sys && Array.isArray(sys.views)) {
-          this.render(sys);
-          toast(`${name}: ${detail.excluded ? "excluded from" : "restored to"} the 3D ball`);
-        }
-      } catch (err) {
-        panel.revert();
-        showError(err.message);
-      }
-    })();
-    this.saves.add(save);
-    save.finally(() => this.saves.delete(save));
+    this.frameWrite(panel, detail.frameId, describeState({ excluded: detail.excluded }),
+      (etag) => postExclusion(detail.frameId, detail.excluded, this.params, etag),
+      () => toast(`${name}: ${detail.excluded ? "excluded from" : "restored to"} the 3D ball`));
   }
 
   /** The view `s` acts on and its doubt: the selected view's fixable doubt, else the only view with one. */

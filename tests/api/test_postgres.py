@@ -11,6 +11,8 @@ from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.main import create_app
 from app.services.recompute import MIRROR_FLAG, update_summary
 
+from tests.accounts import as_token, make_accounts
+
 from .factories import make_game, make_system
 
 
@@ -42,7 +44,8 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         return exact, shifted, lonely
 
     exact, shifted, lonely = _seed(pg_url, settings, build)
-    with TestClient(create_app(settings)) as client:
+    admin = make_accounts(pg_url, login=False, roles=("admin",))["admin"]
+    with as_token(TestClient(create_app(settings)), admin) as client:
         ids = lambda **p: [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]  # noqa: E731
         assert ids(sort="-worst_error") == [shifted, exact, lonely]
         rows = client.get("/api/systems").json()["items"]
@@ -53,7 +56,9 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         assert ids(error_min=1.0) == [shifted]
         flagged_rows = {s["id"]: s["views_flagged"] for s in client.get("/api/systems").json()["items"]}
         assert flagged_rows == {shifted: 0, exact: 0, lonely: 1}
-        assert client.post(f"/api/systems/{exact}/review", json={"status": "accepted"}).status_code == 200
+        etag = client.get(f"/api/systems/{exact}").headers["ETag"]  # a token's write names the version it changes
+        assert client.post(f"/api/systems/{exact}/review", json={"status": "accepted"},
+                           headers={"If-Match": etag}).status_code == 200
         pending = client.get("/api/systems", params={"status": "pending", "sort": "-worst_error"}).json()
         assert [s["id"] for s in pending["items"]] == [shifted, lonely]
         assert pending["counts"] == {"pending": 2, "accepted": 1, "rejected": 0, "needs_fix": 0}
@@ -74,8 +79,67 @@ def test_views_above_tau_on_postgresql(pg_url: str) -> None:
         return exact, wrong
 
     exact, wrong = _seed(pg_url, settings, build)
-    with TestClient(create_app(settings)) as client:
+    admin = make_accounts(pg_url, login=False, roles=("admin",))["admin"]
+    with as_token(TestClient(create_app(settings)), admin) as client:
         rows = {s["id"]: s["views_above_tau"] for s in client.get("/api/systems").json()["items"]}
         assert rows == {exact: 0, wrong: 2}
         view = client.get(f"/api/systems/{wrong}").json()
         assert [v["error_above_tau"] for v in view["views"]] == [False, True, True]
+
+
+def test_soccernet_v3d_export_on_postgresql(pg_url: str, tmp_path) -> None:
+    """The export reads JSON columns as their text (``jsonb::text`` on PostgreSQL): every cell and
+    document value equals the stored one, SQL NULL and JSON null both empty."""
+    import csv
+    import json
+
+    from app.db.models import Frame
+    from app.services.exporting import export_soccernet_v3d
+
+    settings = Settings(database_url=pg_url, calibration_workers=1)
+    sid = _seed(pg_url, settings, lambda session, game: make_system(session, settings, game, "2.png").system_id)
+    engine = make_engine(pg_url)
+    try:
+        with make_session_factory(engine)() as session:
+            report = export_soccernet_v3d(session, tmp_path, include_all=True)
+            frames = {f.name: f for f in session.get(System, sid).frames}
+            rows = list(csv.DictReader(report.csv_path.open()))
+            assert len(rows) == len(frames) == 3
+            doc = json.loads(report.label_files[0].read_text())
+            for row in rows:
+                frame: Frame = frames[row["action"] == "True" and row["main_action"] or row["replay"]]
+                assert json.loads(row["calibration"]) == frame.calibration.camera
+                assert json.loads(row["ball_bbox"]) == frame.ball_label.box
+                assert json.loads(row["optimized_bbox"]) == frame.optimised_box.box
+                assert row["ball_point"] == ""  # a box label: its point is JSON null
+                entry = doc["actions"].get(frame.name) or doc["replays"][frame.name]
+                assert entry["calibration"] == frame.calibration.camera
+                assert entry["v3d"]["flags"] == list(frame.calibration.flags)
+    finally:
+        engine.dispose()
+
+
+def test_ids_beyond_32_bits_and_nul_characters_are_422_on_postgresql(pg_url: str) -> None:
+    """Found by benchmarks/fuzz.py --database-url (PostgreSQL): an id beyond the 32-bit INTEGER columns
+    ("integer out of range") and a NUL character in text (which PostgreSQL cannot store) were 500s."""
+    settings = Settings(database_url=pg_url, calibration_workers=1)
+    system_id = _seed(pg_url, settings, lambda session, game: make_system(session, settings, game, "2.png").system_id)
+    admin = make_accounts(pg_url, login=False, roles=("admin",))["admin"]
+    with as_token(TestClient(create_app(settings)), admin) as client:
+        for url, loc in [("/api/systems/2147483648", ["path", "system_id"]),
+                         ("/api/frames/99999999999/image", ["path", "frame_id"]),
+                         ("/api/systems?game_id=-2147483649", ["query", "game_id"]),
+                         ("/api/frames?offset=2147483648", ["query", "offset"])]:
+            answer = client.get(url)
+            assert answer.status_code == 422 and answer.json()["detail"][0]["loc"] == loc, (url, answer.text)
+        assert client.get("/api/systems/2147483647").status_code == 404
+        etag = client.get(f"/api/systems/{system_id}").headers["ETag"]
+        answer = client.post(f"/api/systems/{system_id}/review", json={"status": "accepted", "comment": "a\x00b"},
+                             headers={"If-Match": etag})
+        assert answer.status_code == 422 and "comment" in answer.json()["detail"][0]["msg"]
+        assert client.get(f"/api/systems/{system_id}").json()["review"]["status"] == "pending"  # nothing stored
+        answer = client.post("/api/users/a%00b/tokens")
+        assert answer.status_code == 422 and answer.json()["detail"][0]["loc"] == ["path", "name"]
+    with TestClient(create_app(settings)) as anonymous:
+        answer = anonymous.post("/api/auth/login", json={"name": "test-admin\x00", "password": "x"})
+        assert answer.status_code == 422 and "name" in answer.json()["detail"][0]["msg"]

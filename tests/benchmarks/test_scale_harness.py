@@ -64,18 +64,19 @@ def test_harness_on_one_game(two_games: Path, tmp_path: Path) -> None:
     assert "calibrating" in figures.stage_seconds
 
     with scale.Server(tmp_path / "scale.sqlite3") as server:
-        before = httpx.get(f"{server.base_url}/api/systems", params={"limit": 500}).json()
-        measured = scale.measure_server(server.base_url, requests=3, seed=1)
+        assert httpx.get(f"{server.base_url}/api/systems").status_code == 401  # the benchmark logs in
+        before = httpx.get(f"{server.base_url}/api/systems", params={"limit": 500}, headers=server.headers).json()
+        measured = scale.measure_server(server.base_url, requests=3, seed=1, headers=server.headers)
         ids = [s["id"] for s in before["items"]]
         boxes_before = {v["frame_id"]: v["ball"]["box"] for i in ids
-                        for v in httpx.get(f"{server.base_url}/api/systems/{i}").json()["views"]}
+                        for v in httpx.get(f"{server.base_url}/api/systems/{i}", headers=server.headers).json()["views"]}
     assert measured["systems"] == figures.systems
     assert 0 < measured["queue_p50_ms"] <= measured["queue_p95_ms"]
     assert measured["system_p95_ms"] > 0 and measured["export_s"] > 0 and measured["export_mb"] > 0
     assert measured["ball_edits"] >= 2 and measured["ball_edits"] % 2 == 0  # each nudge is undone
     with scale.Server(tmp_path / "scale.sqlite3") as server:
         boxes_after = {v["frame_id"]: v["ball"]["box"] for i in ids
-                       for v in httpx.get(f"{server.base_url}/api/systems/{i}").json()["views"]}
+                       for v in httpx.get(f"{server.base_url}/api/systems/{i}", headers=server.headers).json()["views"]}
     assert boxes_after == boxes_before
 
     demo = {**measured, "queue_p95_ms": measured["queue_p95_ms"] / 2}

@@ -1,5 +1,7 @@
 """Fixtures of the browser tests: the real v3d server on a free port, over a migrated temporary SQLite
-database seeded with the demo dataset, and a headless Debian Chromium driven by Playwright."""
+database seeded with the demo dataset and two users (``tests/accounts.py``: ``test-admin``,
+``test-annotator``), and a headless Debian Chromium driven by Playwright. ``page`` is the admin's
+browser, logged in once per module through the login page (where the queue sends a visitor)."""
 from __future__ import annotations
 
 import json
@@ -9,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.accounts import Account, make_accounts
+from tests.browser.support import log_in
 from tests.live_server import serve_app
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -78,8 +82,31 @@ def server_url(seeded_settings) -> Iterator[str]:
     """Base URL of the real application (``create_app``) served by uvicorn in a thread."""
     from app.main import create_app
 
-    with serve_app(create_app(seeded_settings)) as url:
+    app = create_app(seeded_settings)
+    with serve_app(app) as url:
         yield url
+
+
+@pytest.fixture(scope="module")
+def accounts(seeded_settings) -> dict[str, Account]:
+    """An admin and an annotator of the seeded database (their passwords, no session yet)."""
+    return make_accounts(seeded_settings.database_url, login=False, roles=("annotator", "admin"))
+
+
+@pytest.fixture(scope="module")
+def admin_state(browser, server_url, accounts) -> dict:
+    """The browser state (cookies) of the admin logged in through the page: the queue sends an
+    anonymous visitor to ``/login?next=/``, and the login sends them back."""
+    context = browser.new_context(base_url=server_url)
+    try:
+        p = context.new_page()
+        p.goto("/")
+        p.wait_for_url(f"{server_url}/login?next=%2F")
+        log_in(p, accounts["admin"])
+        p.wait_for_url(f"{server_url}/")
+        return context.storage_state()
+    finally:
+        context.close()
 
 
 @pytest.fixture(scope="module")
@@ -97,9 +124,10 @@ def browser() -> Iterator[object]:
 
 
 @pytest.fixture
-def page(browser, server_url):
-    """A 1440x900 page; JavaScript errors on the page fail the test."""
-    context = browser.new_context(viewport={"width": 1440, "height": 900}, base_url=server_url)
+def page(browser, server_url, admin_state):
+    """A 1440x900 page of the logged-in admin; JavaScript errors on the page fail the test."""
+    context = browser.new_context(viewport={"width": 1440, "height": 900}, base_url=server_url,
+                                  storage_state=admin_state)
     p = context.new_page()
     errors: list[str] = []
     p.on("pageerror", lambda exc: errors.append(str(exc)))

@@ -9,7 +9,7 @@ import re
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import tid
+from tests.browser.support import api_write, tid
 
 pytestmark = pytest.mark.browser
 
@@ -75,7 +75,7 @@ def test_missing_ball_is_fixed_with_its_key(page, artifacts):
     assert after["views"][k]["reprojection_error_px"] < 3.0  # the snapped box agrees with the 3D ball
     page.screenshot(path=str(artifacts / "doubts-missing-after.png"), full_page=True)
 
-    removed = page.request.patch(f"/api/frames/{doubt['frame_id']}/ball", data={"box": None})
+    removed = api_write(page, "PATCH", f"/api/frames/{doubt['frame_id']}/ball", {"box": None})
     assert removed.ok and any(d["kind"] == "ball_missing" for d in removed.json()["doubts"])
 
 

@@ -4,10 +4,12 @@ blank canvases), the trajectory over time with the flagged frame and the current
 the pitch map's track; the scrubber and the ``.`` key move from frame to frame."""
 from __future__ import annotations
 
+import time
+
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import tid
+from tests.browser.support import api_write, tid
 from tests.services.issia_data import write_issia_stretch
 
 pytestmark = pytest.mark.browser
@@ -23,8 +25,14 @@ def sequences(shared_dir, tmp_path_factory):
 
 
 def _import(page, path) -> dict:
-    r = page.request.post("/api/imports", data={"kind": "issia", "path": str(path)})
-    assert r.status == 201, r.text()
+    """Import through the API: a job the server's runner runs; wait for it to finish."""
+    r = api_write(page, "POST", "/api/imports", {"kind": "issia", "path": str(path)})
+    assert r.status == 202, r.text()
+    deadline = time.monotonic() + 300
+    while (job := _api(page, r.json()["url"]))["state"] not in ("done", "failed"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.2)
+    assert job["state"] == "done", job
     game = next(g for g in _api(page, "/api/games") if g["match"] == path.name)
     return _api(page, f"/api/games/{game['id']}/trajectory")
 

@@ -12,7 +12,7 @@ import re
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import tid
+from tests.browser.support import api_write, tid
 
 pytestmark = pytest.mark.browser
 
@@ -435,7 +435,7 @@ def test_mirrored_labels_are_shown_with_their_evidence_and_fixed_by_one_key(page
     assert after["reprojection_error_px"] < 5.0 and shown == pytest.approx(after["reprojection_error_px"], abs=0.01)
     page.screenshot(path=str(artifacts / "mirrored-after.png"), full_page=True)
 
-    restored = page.request.post(f"/api/frames/{flagged['frame_id']}/field-lines/mirror")
+    restored = api_write(page, "POST", f"/api/frames/{flagged['frame_id']}/field-lines/mirror")
     assert restored.ok and _mirror_flagged(restored.json()["views"][k])
 
 

@@ -10,12 +10,13 @@ import pytest
 import sqlalchemy as sa
 import uvicorn
 from fastapi import FastAPI
+from fastapi.testclient import TestClient
 from typer.testing import CliRunner
 
 import app.cli.serve  # noqa: F401  (registers the command)
 from app.cli._root import cli
 from app.core.config import get_settings
-from app.db.models import Game
+from app.db.models import Game, User
 from app.db.session import make_engine, make_session_factory, upgrade_database
 
 
@@ -76,3 +77,41 @@ def test_demo_is_generated_and_imported_into_an_empty_database(database: str, se
     assert "demo: imported" in result.output
     assert (tmp_path / "var" / "demo").is_dir() and _games(database) == 1
     assert len(served) == 1
+
+
+def test_demo_makes_a_labelled_demo_account_and_says_how_to_log_in(database: str, served: list) -> None:
+    """``--demo`` makes the demo account once (``demo`` / ``demo``, admin, flagged); the served app logs
+    it in and its login page's hint names it. Without ``--demo`` there is no such account."""
+    plain = CliRunner().invoke(cli, ["serve"])
+    assert plain.exit_code == 0 and "/login" in plain.output and "demo account" not in plain.output
+    with TestClient(served[0]["app"]) as client:
+        assert client.get("/api/auth/demo").json() == {"account": None}
+    for _ in range(2):  # a second start keeps the one account
+        result = CliRunner().invoke(cli, ["serve", "--demo"])
+        assert result.exit_code == 0, result.output
+        assert "demo account (role admin, for trying v3d only): log in as 'demo' with password 'demo'" in result.output
+        assert "http://127.0.0.1:8000/login" in result.output
+    with TestClient(served[-1]["app"]) as client:
+        assert client.get("/api/auth/demo").json() == {"account": {"name": "demo", "password": "demo"}}
+        login = client.post("/api/auth/login", json={"name": "demo", "password": "demo"})
+        assert login.status_code == 200 and login.json()["role"] == "admin"
+        assert client.get("/api/systems").json()["total"] > 0
+    engine = make_engine(database)
+    with make_session_factory(engine)() as session:
+        assert [(u.name, u.demo) for u in session.scalars(sa.select(User))] == [("demo", True)]
+    engine.dispose()
+
+
+def test_workers_start_up_once_then_uvicorn_builds_the_app_per_process(database: str, served: list,
+                                                                        tmp_path: Path) -> None:
+    result = CliRunner().invoke(cli, ["serve", "--demo", "--workers", "2", "--port", "8124"])
+    assert result.exit_code == 0, result.output
+    assert "demo: imported" in result.output and "2 worker processes" in result.output
+    assert _games(database) == 1  # migrated and loaded here, once, before any worker starts
+    assert len(served) == 1
+    call = served[0]
+    assert (call["app"], call["factory"], call["workers"], call["port"]) == ("app.main:create_app", True, 2, 8124)
+    from app.main import create_app
+
+    built = create_app()  # what each worker does: the settings of the environment
+    assert isinstance(built, FastAPI) and built.state.settings.database_url == database

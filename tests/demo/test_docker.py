@@ -78,11 +78,15 @@ def test_dockerfile_base_copies_and_command() -> None:
 
 
 def test_healthchecks_query_an_api_route_that_exists(compose: dict) -> None:
-    """The probe asks /api/games (it needs the database); the route must be registered."""
+    """The probe asks /api/health (it needs the database, not a login); the route must be registered
+    and public (an anonymous probe of any other API route gets 401)."""
     probe = " ".join(compose["services"]["app"]["healthcheck"]["test"])
     path = re.search(r"127\.0\.0\.1:8000(/[\w/]+)", probe).group(1)
     assert path in (DOCKER / "Dockerfile").read_text(encoding="utf-8")
     from app.core.config import Settings
     from app.main import create_app
 
+    from app.api.authentication import is_protected
+
     assert "get" in create_app(Settings(database_url="sqlite://")).openapi()["paths"][path]
+    assert not is_protected(path)

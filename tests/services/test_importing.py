@@ -253,19 +253,19 @@ def test_sn_calibration_errors_name_the_member(db_session, settings, shared_dir,
     assert _counts(db_session)["games"] == 0
 
 
-def test_batches_of_games_store_the_same_rows_as_one_batch(shared_dir, fresh_session_factory, monkeypatch):
+def test_batches_of_games_store_the_same_rows_as_one_batch(shared_dir, fresh_session_factory):
     """An import is stored in transactions of whole games (bounded memory at SoccerNet size); one game
-    per batch, sharing one calibration pool, gives exactly what a single batch gives."""
+    per batch, sharing one calibration pool (the second game's first pass calibrating while the first
+    is stored), gives exactly what a single batch gives, and what calibrating in this process gives."""
     import sqlalchemy as sa
 
     from app.core.config import Settings
     from app.db.models import Calibration, Doubt, Frame, System
-    from app.services import importing as importing_service
-
     dev = shared_dir / "data" / "synthetic" / "soccernet-v3-dev"
 
     def snapshot(session):
-        cals = session.execute(sa.select(Frame.name, Calibration.status, Calibration.jac_0005, Calibration.flags)
+        cals = session.execute(sa.select(Frame.name, Calibration.status, Calibration.jac_0005, Calibration.flags,
+                                         Calibration.camera)
                                .join(Calibration, Calibration.frame_id == Frame.id).order_by(Frame.name)).all()
         systems = session.execute(sa.select(System.name, System.worst_error_px, System.label_doubts)
                                   .order_by(System.name)).all()
@@ -273,10 +273,9 @@ def test_batches_of_games_store_the_same_rows_as_one_batch(shared_dir, fresh_ses
 
     one = fresh_session_factory("one")
     report_one = import_soccernet_v3(one, dev, Settings(calibration_workers=2))
-    monkeypatch.setattr(importing_service, "IMPORT_BATCH_FRAMES", 1)
     many = fresh_session_factory("many")
     seen: list[tuple[str, int, int]] = []
-    report_many = import_soccernet_v3(many, dev, Settings(calibration_workers=2),
+    report_many = import_soccernet_v3(many, dev, Settings(calibration_workers=2, import_batch_frames=1),
                                       progress=lambda stage, done, total: seen.append((stage, done, total)))
     assert seen == [("games", 1, 2), ("games", 2, 2)]
     assert (report_many.frames, report_many.calibrated, report_many.refused, report_many.triangulated,
@@ -284,3 +283,6 @@ def test_batches_of_games_store_the_same_rows_as_one_batch(shared_dir, fresh_ses
                                           report_one.triangulated, report_one.rig_assisted)
     assert len(report_many.calibration_ms) == len(report_one.calibration_ms)
     assert snapshot(many) == snapshot(one)
+    alone = fresh_session_factory("alone")
+    import_soccernet_v3(alone, dev, Settings(calibration_workers=1))
+    assert snapshot(alone) == snapshot(one)

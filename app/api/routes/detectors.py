@@ -8,21 +8,23 @@ import zipfile
 from pathlib import Path
 from typing import Annotated, Literal, Optional
 
-from fastapi import APIRouter, File, Query, UploadFile
+from fastapi import APIRouter, Depends, File, Query, UploadFile
 from fastapi.responses import FileResponse
 from pydantic import BaseModel
 from starlette.background import BackgroundTask
 
+from app.api.auth import require_role
 from app.api.deps import SessionDep, SettingsDep
-from app.api.schemas import ErrorOut
+from app.api.schemas import InvalidOut
 from app.services import detector_export, monocular
-from app.services._readers import is_safe_member
+from app.core.config import Settings
+from app.services.archives import ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
 from app.services.errors import InvalidInputError
 
 router = APIRouter(tags=["detectors"])
+#: Every export needs the admin role; evaluating detections against the labels (it stores nothing) any role.
+ADMIN = Depends(require_role("admin"))
 
-#: Largest upload accepted (bytes): a zip of YOLO txt files or a COCO results JSON is small.
-MAX_UPLOAD_BYTES = 200 * 1024 * 1024
 AllQuery = Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")]
 
 
@@ -78,50 +80,41 @@ def _zip_export(fmt: Literal["yolo", "coco"], session: SessionDep, include_all: 
 _ZIP = {200: {"content": {"application/zip": {}}, "description": "The export as a zip."}}
 
 
-@router.get("/exports/yolo", response_class=FileResponse, responses=_ZIP)
+@router.get("/exports/yolo", response_class=FileResponse, responses=_ZIP, dependencies=[ADMIN])
 def export_yolo(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> FileResponse:
     """Ultralytics YOLO layout (``app.services.detector_export``): images/<split>, labels/<split>, data.yaml.
     ``X-V3D-Images`` and ``X-V3D-Skipped-Without-Image`` give its size."""
     return _zip_export("yolo", session, include_all, settings.ball_diameter_m)
 
 
-@router.get("/exports/coco", response_class=FileResponse, responses=_ZIP)
+@router.get("/exports/coco", response_class=FileResponse, responses=_ZIP, dependencies=[ADMIN])
 def export_coco(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> FileResponse:
     """COCO layout: per split the images and ``instances.json`` (image ids = frame ids)."""
     return _zip_export("coco", session, include_all, settings.ball_diameter_m)
 
 
-def _unpack(upload: UploadFile, dest: Path) -> Path:
-    """The upload saved under ``dest``: a zip is extracted (safe member names only) and its folder
-    returned; anything else is taken as a COCO results JSON."""
-    raw = upload.file.read(MAX_UPLOAD_BYTES + 1)
-    if len(raw) > MAX_UPLOAD_BYTES:
-        raise InvalidInputError(f"the upload is larger than {MAX_UPLOAD_BYTES} bytes", field="predictions")
-    if not raw:
-        raise InvalidInputError("the upload is empty", field="predictions")
+def _unpack(upload: UploadFile, dest: Path, settings: Settings) -> Path:
+    """The upload saved under ``dest`` (counted against ``V3D_MAX_UPLOAD_MB`` while it is written: 413
+    beyond): a zip is unpacked by the one safe unpacker (``app.services.archives.unpack_zip``: unsafe,
+    linked or repeated member names and zip bombs refused naming the member; its YOLO ``.txt`` and
+    ``.yaml`` files kept) and its folder returned; anything else is taken as a COCO results JSON."""
     path = dest / "upload"
-    path.write_bytes(raw)
+    if not receive(file_chunks(upload.file), path, upload_limit_bytes(settings), field="predictions"):
+        raise InvalidInputError("the upload is empty", field="predictions")
     if not zipfile.is_zipfile(path):
         return path
     folder = dest / "predictions"
-    with zipfile.ZipFile(path) as zf:
-        for info in zf.infolist():
-            if info.is_dir():
-                continue
-            if not is_safe_member(info.filename):
-                raise InvalidInputError(f"unsafe name in the zip: {info.filename!r}", field="predictions")
-            if info.filename.endswith((".txt", ".yaml")):
-                target = folder / info.filename
-                target.parent.mkdir(parents=True, exist_ok=True)
-                target.write_bytes(zf.read(info))
-    if not folder.is_dir():
+    limits = ArchiveLimits.from_settings(settings)
+    unpack_zip(path, folder, limits, where=upload.filename or "predictions.zip",
+               keep=lambda name: name.endswith((".txt", ".yaml")))
+    if not any(folder.rglob("*.txt")):
         raise InvalidInputError("the zip holds no YOLO .txt file", field="predictions")
     return folder
 
 
 @router.post(
-    "/evaluations/monocular", response_model=MonocularReportOut,
-    responses={422: {"model": ErrorOut, "description": "Unreadable predictions (file and line named), or no "
+    "/evaluations/monocular", response_model=MonocularReportOut, dependencies=[Depends(require_role("annotator"))],
+    responses={422: {"model": InvalidOut, "description": "Unreadable predictions (file and line named), or no "
                                                        "view with a 3D ball among the selected systems."}},
 )
 def evaluate_monocular(
@@ -138,6 +131,6 @@ def evaluate_monocular(
     whole set and per split."""
     est = estimator or monocular.default_estimator(settings.optimised_box_method)
     with tempfile.TemporaryDirectory(prefix="v3d-predictions-") as tmp:
-        path = _unpack(predictions, Path(tmp))
+        path = _unpack(predictions, Path(tmp), settings)
         report = monocular.evaluate_predictions(session, path, include_all, ball_class, settings.ball_diameter_m, est)
     return MonocularReportOut.model_validate({**report, "estimator": est})

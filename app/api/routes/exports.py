@@ -1,15 +1,21 @@
-"""``/api/exports``: download reviewed labels."""
+"""``/api/exports``: download reviewed labels, streamed in the request (``GET``) or written to a file by
+a background job (``POST``, for large exports: the file is then read at ``/api/jobs/{id}/result``)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
 from typing import Annotated
 
-from fastapi import APIRouter, Query, Request
-from fastapi.responses import StreamingResponse
+from fastapi import APIRouter, Body, Depends, Query, Request, status
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import JSONResponse, StreamingResponse
 
-from app.services import exporting
+from app.api.auth import require_role
+from app.api.deps import SessionDep
+from app.api.job_schemas import ExportJobIn, JobOut
+from app.api.routes.jobs import accepted
+from app.services import exporting, jobs
 
-router = APIRouter(prefix="/exports", tags=["exports"])
+router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
 
 
 @router.get(
@@ -46,3 +52,13 @@ def export_soccernet_v3d(
         headers={"Content-Disposition": 'attachment; filename="soccernet-v3d.zip"',
                  "X-V3D-Systems": str(systems), "X-V3D-Rows": str(rows)},
     )
+
+
+@router.post("/soccernet-v3d", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+async def create_export_job(session: SessionDep,
+                            body: Annotated[ExportJobIn, Body(default_factory=ExportJobIn)]) -> JSONResponse:
+    """Queue the SoccerNet-v3D export as a background job: the zip (the same archive the ``GET`` streams)
+    is written to a file while the database is read, with progress per game; when the job is done its
+    ``result_url`` (``/api/jobs/{id}/result``) streams the file."""
+    return accepted(await run_in_threadpool(jobs.submit, session, "export", {"format": "soccernet-v3d",
+                                                                            "all": body.all}))

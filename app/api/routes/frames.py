@@ -1,24 +1,34 @@
 """``/api/frames``: the frame list, frame images, and the reviewer's edits of one frame.
 
 Edits answer the recomputed system view: the frame's calibration (after new field lines), the
-system's triangulation, reprojections and optimised boxes. The edit and its recomputation are
-committed together or not at all (``app.services.editing``).
+system's triangulation, reprojections and optimised boxes. The edit, its recomputation and its audit
+entry are committed together or not at all (``app.services.editing``). Every edit is a conditional
+write (``app.api.conditional``): it takes ``If-Match`` with the frame's ETag (412 when stale, 428 when
+a token sends none) and answers the frame's new ETag in its ``ETag`` header.
 """
 from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Header, Query, Response
+from fastapi import APIRouter, Depends, Header, Query, Response
 from fastapi.responses import StreamingResponse
+from sqlalchemy.orm import Session
 
+from app.api.auth import AnnotatorDep, PrincipalDep, require_role
+from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import FrameDep, SessionDep, SettingsDep
 from app.api.schemas import (
-    INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, FramePageOut, QueueQuery, ReviewIn,
-    ReviewOut, SystemView,
+    INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, FramePageOut, FrameView,
+    QueueQuery, ReviewIn, ReviewOut, SystemView,
 )
 from app.services import editing, views
+from app.services.versions import expected_versions, frame_etag
 
-router = APIRouter(prefix="/frames", tags=["frames"])
+#: OpenAPI ``responses`` of the frame's edits.
+EDIT_RESPONSES = {**NOT_FOUND, **INVALID, **PRECONDITIONS}
+
+#: Frame edits (ball, field lines, mirror, exclusion, per-view review) need the annotator role.
+router = APIRouter(prefix="/frames", tags=["frames"], dependencies=[Depends(require_role("annotator"))])
 
 #: Frame images never change under their id; the ETag covers a re-import from other files.
 IMAGE_CACHE_CONTROL = "private, max-age=86400"
@@ -43,6 +53,23 @@ def list_frames(session: SessionDep, query: Annotated[FrameListQuery, Query()]) 
     return {"items": page.items, "total": page.total, "limit": query.limit, "offset": query.offset}
 
 
+@router.get("/{frame_id}", response_model=FrameView, responses=NOT_FOUND)
+def read_frame(session: SessionDep, frame: FrameDep, response: Response, _: PrincipalDep) -> dict[str, Any]:
+    """The frame as the system view draws it (ball label, field lines, calibration, review, reprojection)
+    with its ``system_id``; the ``ETag`` header (and ``etag`` field) is the version of what people edit on
+    it, unchanged when a sibling view's edit recomputes it."""
+    out = views.frame_view(session, frame.id)
+    with_etag(response, out["etag"])
+    return out
+
+
+def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery) -> dict[str, Any]:
+    """The recomputed system view after an edit of ``frame_id``, its new ETag in the header."""
+    frame = editing.get_frame(session, frame_id)
+    with_etag(response, frame_etag(frame))
+    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+
+
 @router.get(
     "/{frame_id}/image",
     response_class=StreamingResponse,
@@ -62,53 +89,63 @@ def frame_image(frame: FrameDep, if_none_match: Annotated[str | None, Header()] 
     return StreamingResponse(image.chunks(), media_type=image.media_type, headers=headers)
 
 
-@router.patch("/{frame_id}/ball", response_model=SystemView, responses={**NOT_FOUND, **INVALID})
-def edit_ball(session: SessionDep, settings: SettingsDep, frame: FrameDep, body: BallEdit,
-              query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+@router.patch("/{frame_id}/ball", response_model=SystemView, responses=EDIT_RESPONSES)
+def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
+              frame: FrameDep, body: BallEdit, query: Annotated[QueueQuery, Query()], response: Response) -> dict[str, Any]:
     """Set the frame's ball box or point (or remove it with null) and answer the recomputed system view.
 
     422 naming ``box`` or ``point``: non-finite numbers, x2 <= x1 or y2 <= y1, a box entirely outside
     the image, a point outside it; nothing is stored then.
     """
-    editing.update_ball_label(session, frame.id, box=body.box, point=body.point, settings=settings)
-    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+    editing.update_ball_label(session, frame.id, box=body.box, point=body.point, settings=settings,
+                              actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
+    return _edited(session, frame.id, response, query)
 
 
-@router.put("/{frame_id}/field-lines", response_model=SystemView, responses={**NOT_FOUND, **INVALID})
-def replace_field_lines(session: SessionDep, settings: SettingsDep, frame: FrameDep, body: FieldLinesEdit,
-                        query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+@router.put("/{frame_id}/field-lines", response_model=SystemView, responses=EDIT_RESPONSES)
+def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
+                        frame: FrameDep, body: FieldLinesEdit, query: Annotated[QueueQuery, Query()],
+                        response: Response) -> dict[str, Any]:
     """Replace the frame's field lines, recalibrate it, and answer the recomputed system view.
 
     422 naming ``lines`` (and the class and polyline): an unknown class, an empty polyline, NaN or
     infinity; nothing is stored then.
     """
-    editing.replace_field_lines(session, frame.id, body.lines, settings=settings)
-    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+    editing.replace_field_lines(session, frame.id, body.lines, settings=settings, actor=principal.name,
+                                expected=expected_versions(if_match, "frame", frame.id))
+    return _edited(session, frame.id, response, query)
 
 
-@router.post("/{frame_id}/field-lines/mirror", response_model=SystemView, responses={**NOT_FOUND, **INVALID})
-def mirror_field_lines(session: SessionDep, settings: SettingsDep, frame: FrameDep,
-                       query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+@router.post("/{frame_id}/field-lines/mirror", response_model=SystemView, responses=EDIT_RESPONSES)
+def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
+                       frame: FrameDep, query: Annotated[QueueQuery, Query()], response: Response) -> dict[str, Any]:
     """Replace the frame's field lines by their mirrored labelling (left <-> right, top <-> bottom),
     recalibrate it, and answer the recomputed system view: the fix offered for a view flagged
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines.
     """
-    editing.apply_mirrored_labels(session, frame.id, settings=settings)
-    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+    editing.apply_mirrored_labels(session, frame.id, settings=settings, actor=principal.name,
+                                  expected=expected_versions(if_match, "frame", frame.id))
+    return _edited(session, frame.id, response, query)
 
 
-@router.post("/{frame_id}/exclusion", response_model=SystemView, responses={**NOT_FOUND, **INVALID})
-def set_exclusion(session: SessionDep, settings: SettingsDep, frame: FrameDep, body: ExclusionIn,
-                  query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+@router.post("/{frame_id}/exclusion", response_model=SystemView, responses=EDIT_RESPONSES)
+def set_exclusion(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
+                  frame: FrameDep, body: ExclusionIn, query: Annotated[QueueQuery, Query()],
+                  response: Response) -> dict[str, Any]:
     """Exclude the view from its system's triangulation (``{"excluded": true}``) or restore it
     (``false``), recompute the system, and answer the recomputed system view. The decision is stored
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
-    editing.set_view_excluded(session, frame.id, body.excluded, settings=settings)
-    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+    editing.set_view_excluded(session, frame.id, body.excluded, settings=settings, actor=principal.name,
+                              expected=expected_versions(if_match, "frame", frame.id))
+    return _edited(session, frame.id, response, query)
 
 
-@router.post("/{frame_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID})
-def review_frame(session: SessionDep, frame: FrameDep, body: ReviewIn) -> ReviewOut:
-    """Record the reviewer's decision on one view (for example a wrong calibration)."""
-    decision = editing.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment)
+@router.post("/{frame_id}/review", response_model=ReviewOut, responses=EDIT_RESPONSES)
+def review_frame(session: SessionDep, principal: AnnotatorDep, if_match: IfMatchDep, frame: FrameDep, body: ReviewIn,
+                 response: Response) -> ReviewOut:
+    """Record the reviewer's decision on one view (for example a wrong calibration); the frame's new
+    ETag in the header."""
+    decision = editing.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment,
+                                     actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
+    with_etag(response, frame_etag(editing.get_frame(session, frame.id)))
     return ReviewOut.model_validate(views.review_json(decision))

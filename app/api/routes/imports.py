@@ -1,39 +1,144 @@
-"""``/api/imports``: import a dataset that is on the server's disk under the data root (for scripts)."""
+"""``/api/imports``: import a dataset as a background job, from a path under the data root (JSON) or
+from an uploaded zip (multipart).
+
+Both answer 202 with the queued job (``Location: /api/jobs/{id}``); the job's progress and report are
+read at ``GET /api/jobs/{id}``. What can be checked at once is answered at once: a path outside the data
+root (403), a missing path (400), a too large upload (413, counted while it streams to disk), an unsafe
+or broken zip (400 naming the member: ``app.services.archives``). Errors inside the dataset's files fail
+the job with a message naming the file and the field.
+"""
 from __future__ import annotations
 
-from fastapi import APIRouter, status
+import secrets
+import time
+from collections.abc import AsyncIterator
+from typing import Any
 
+from fastapi import APIRouter, Depends, Request, status
+from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import ValidationError
+from starlette.datastructures import UploadFile
+from starlette.formparsers import MultiPartException, MultiPartParser
+
+from app.api.auth import AdminDep, require_role
 from app.api.deps import SessionDep, SettingsDep
-from app.api.schemas import ErrorOut, ImportIn, ImportOut
-from app.services import importing
+from app.api.routes.jobs import accepted
+from app.api.job_schemas import ImportIn, ImportOptions, ImportUploadIn, JobOut
+from app.api.schemas import ErrorOut
+from app.core.config import Settings, jobs_dir
+from app.services import jobs
+from app.services.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
 from app.services.data_root import confined_path
+from app.services.errors import DatasetError, InvalidInputError
+from app.services.job_kinds import import_params
 
-router = APIRouter(prefix="/imports", tags=["imports"])
+router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
+
+_BODY = {
+    "required": True,
+    "content": {
+        "application/json": {"schema": ImportIn.model_json_schema()},
+        "multipart/form-data": {"schema": ImportUploadIn.model_json_schema()},
+    },
+}
+
+
+def _body_errors(exc: ValidationError, prefix: tuple[str, ...] = ("body",)) -> RequestValidationError:
+    """A pydantic error as FastAPI's 422 (``loc`` starting with ``body``)."""
+    return RequestValidationError([{**e, "loc": (*prefix, *e["loc"])} for e in exc.errors(include_url=False)])
+
+
+async def _limited(stream: AsyncIterator[bytes], limit: int) -> AsyncIterator[bytes]:
+    size = 0
+    async for chunk in stream:
+        size += len(chunk)
+        if size > limit:
+            raise UploadTooLarge(limit, "file")
+        yield chunk
+
+
+def _upload_folder(settings: Settings) -> Any:
+    return jobs_dir(settings) / "uploads" / f"{time.strftime('%Y%m%d-%H%M%S')}-{secrets.token_hex(4)}"
+
+
+async def _upload_params(request: Request, settings: Settings) -> dict[str, Any]:
+    """Receive the multipart form (the body counted against ``V3D_MAX_UPLOAD_MB`` as it arrives; the file
+    part spooled to disk beyond 1 MB), check its fields, unpack the zip safely into a folder of its own
+    under the jobs folder, and return the import job's params."""
+    limit = upload_limit_bytes(settings)
+    declared = request.headers.get("content-length")
+    if declared is not None and declared.isdigit() and int(declared) > limit:
+        raise UploadTooLarge(limit, "file")
+    try:
+        form = await MultiPartParser(request.headers, _limited(request.stream(), limit), max_files=1,
+                                     max_fields=10).parse()
+    except MultiPartException as exc:
+        raise InvalidInputError(f"malformed multipart body: {exc.message}", field="file") from None
+    try:
+        upload = form.get("file")
+        if not isinstance(upload, UploadFile):
+            raise InvalidInputError("a zip file is required in the form field 'file'", field="file")
+        fields: dict[str, Any] = {k: v for k, v in form.multi_items() if k != "file"}
+        if "flip" in fields:
+            fields["flip"] = [c.strip() for c in str(fields["flip"]).split(",") if c.strip()]
+        try:
+            options = ImportOptions.model_validate(fields)
+        except ValidationError as exc:
+            raise _body_errors(exc) from None
+        folder = _upload_folder(settings)
+        limits = ArchiveLimits.from_settings(settings)
+        await run_in_threadpool(unpack_zip, upload.file, folder, limits, where=upload.filename or "upload.zip")
+    finally:
+        await form.close()
+    return import_params(options.kind, folder, width=options.width, height=options.height,
+                         from_lines=options.from_lines, flip=options.flip, upload=True)
+
+
+async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
+    """The JSON body: a path confined to the data root (403 outside it), which must exist (400)."""
+    raw = await request.body()
+    try:
+        body = ImportIn.model_validate_json((raw or b"null").decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise InvalidInputError(f"the body is not UTF-8 JSON ({exc.reason} at byte {exc.start})", field="body") from None
+    except ValidationError as exc:
+        raise _body_errors(exc) from None
+    path = confined_path(body.path, settings.data_root)
+    if not path.exists():
+        raise DatasetError(body.path, None, "no such file or folder under the data root")
+    return import_params(body.kind, path, width=body.width, height=body.height, from_lines=body.from_lines,
+                         flip=body.flip)
 
 
 @router.post(
-    "", response_model=ImportOut, status_code=status.HTTP_201_CREATED,
-    responses={400: {"model": ErrorOut, "description": "The dataset cannot be imported (file and field named)."},
-               403: {"model": ErrorOut, "description": "The path is outside the data root (V3D_DATA_ROOT)."}},
+    "", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, openapi_extra={"requestBody": _BODY},
+    responses={400: {"model": ErrorOut, "description": "A missing path, or an unsafe or broken zip (the member named)."},
+               403: {"model": ErrorOut, "description": "The path is outside the data root (V3D_DATA_ROOT)."},
+               413: {"model": ErrorOut, "description": "The upload is larger than V3D_MAX_UPLOAD_MB."},
+               422: {"description": "Invalid fields (named)."}},
 )
-def create_import(session: SessionDep, settings: SettingsDep, body: ImportIn) -> ImportOut:
-    """Import, calibrate and triangulate a SoccerNet-v3, SoccerNet-v3D or SoccerNet-calibration tree,
-    or an ISSIA folder (kind "issia": one system per frame index, its trajectory fitted)
-    in one transaction (idempotent: importing the same tree again changes nothing).
+async def create_import(request: Request, session: SessionDep, settings: SettingsDep,
+                        principal: AdminDep) -> JSONResponse:
+    """Queue the import of a SoccerNet-v3, SoccerNet-v3D or SoccerNet-calibration tree or an ISSIA folder
+    (idempotent: importing the same tree again changes nothing). Answers 202 with the job; its
+    ``Location`` is ``/api/jobs/{id}``, which shows the progress and, when done, the import's counts.
 
-    ``path`` is absolute or relative to the data root (``V3D_DATA_ROOT``); 403 when it lies outside it
-    (or no root is set), without saying whether it exists. 400 naming the file and field when the
-    dataset cannot be imported; nothing is stored then.
+    * ``application/json`` ``{"kind", "path", ...}``: ``path`` is absolute or relative to the data root
+      (``V3D_DATA_ROOT``); 403 when it lies outside it (or no root is set), without saying whether it
+      exists.
+    * ``multipart/form-data`` with ``file`` (a zip of the dataset) and ``kind`` (and the options): at
+      most ``V3D_MAX_UPLOAD_MB`` (413), unpacked after checking every member (400 naming a member with an
+      unsafe name, a link, an image that does not decode; too many members or bytes uncompressed).
+
+    The import is one audit entry, by the admin who queued it.
     """
-    path = confined_path(body.path, settings.data_root)
-    if body.kind == "soccernet-v3":
-        report = importing.import_soccernet_v3(session, path, settings)
-    elif body.kind == "issia":
-        from app.services.issia import import_issia
-
-        report = import_issia(session, path, settings, from_lines=body.from_lines, flipped_cameras=body.flip)
-    elif body.kind == "soccernet-v3d":
-        report = importing.import_soccernet_v3d(session, path, settings)
+    if request.headers.get("content-type", "").startswith("multipart/form-data"):
+        params = await _upload_params(request, settings)
     else:
-        report = importing.import_sn_calibration(session, path, settings, width=body.width, height=body.height)
-    return ImportOut.model_validate(report, from_attributes=True)
+        params = await _path_params(request, settings)
+    params["actor"] = principal.name
+    job = await run_in_threadpool(jobs.submit, session, "import", params)
+    return accepted(job)
+

@@ -6,13 +6,14 @@ import tempfile
 from pathlib import Path
 from typing import Annotated
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Depends, Path as PathParam, Query
 from fastapi.responses import FileResponse
 from starlette.background import BackgroundTask
 
+from app.api.auth import require_role
 from app.api.deps import SessionDep
 from app.api.issia_schemas import TrajectoryOut
-from app.api.schemas import ErrorOut
+from app.api.schemas import DB_INT_MAX, DB_INT_MIN, ErrorOut
 from app.services import issia_export
 
 router = APIRouter(tags=["issia"])
@@ -20,7 +21,9 @@ router = APIRouter(tags=["issia"])
 
 @router.get("/games/{game_id}/trajectory", response_model=TrajectoryOut,
             responses={404: {"model": ErrorOut, "description": "No such game, or it is not an ISSIA sequence."}})
-def game_trajectory(session: SessionDep, game_id: int) -> TrajectoryOut:
+def game_trajectory(
+    session: SessionDep, game_id: Annotated[int, PathParam(description="Game id.", ge=DB_INT_MIN, le=DB_INT_MAX)],
+) -> TrajectoryOut:
     """The ISSIA sequence's ball over time: per frame the observed ``ball3d``, the fitted
     ``ball3d_smoothed`` and its source, the kept and the flagged cameras; the motion pieces."""
     return TrajectoryOut.model_validate(issia_export.trajectory_view(session, game_id))
@@ -29,6 +32,7 @@ def game_trajectory(session: SessionDep, game_id: int) -> TrajectoryOut:
 @router.get(
     "/exports/issia-3d",
     response_class=FileResponse,
+    dependencies=[Depends(require_role("admin"))],
     responses={200: {"content": {"application/zip": {}},
                      "description": "<sequence>/ISSIA-3D.csv and <sequence>/split.json per ISSIA sequence."}},
 )

@@ -1,15 +1,22 @@
-"""``/api/systems``: the review queue, the system view, and system review decisions."""
+"""``/api/systems``: the review queue, the system view, and system review decisions.
+
+The system view answers the ETag of the system's review decision (its ``etag`` field too; each view
+carries its frame's ``etag``); a decision is a conditional write on it (``app.api.conditional``) and
+needs the reviewer role."""
 from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Query, Response
 
+from app.api.auth import ReviewerDep
+from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import SessionDep, SystemDep
 from app.api.schemas import (
     INVALID, NOT_FOUND, QueueQuery, ReviewIn, ReviewOut, SystemListQuery, SystemPageOut, SystemView,
 )
 from app.services import editing, views
+from app.services.versions import expected_versions, system_etag
 
 router = APIRouter(prefix="/systems", tags=["systems"])
 
@@ -23,14 +30,22 @@ def list_systems(session: SessionDep, query: Annotated[SystemListQuery, Query()]
 
 
 @router.get("/{system_id}", response_model=SystemView, responses=NOT_FOUND)
-def read_system(session: SessionDep, system: SystemDep, query: Annotated[QueueQuery, Query()]) -> dict[str, Any]:
+def read_system(session: SessionDep, system: SystemDep, query: Annotated[QueueQuery, Query()],
+                response: Response) -> dict[str, Any]:
     """The system view (``docs/architecture.md``); ``prev_id`` / ``next_id`` follow the queue given by
-    the query parameters (by default the whole queue, largest error first)."""
-    return views.system_view(session, system.id, query.filters(), query.sort)
+    the query parameters (by default the whole queue, largest error first). ``ETag``: the system's
+    review decision's."""
+    out = views.system_view(session, system.id, query.filters(), query.sort)
+    with_etag(response, out["etag"])
+    return out
 
 
-@router.post("/{system_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID})
-def review_system(session: SessionDep, system: SystemDep, body: ReviewIn) -> ReviewOut:
-    """Record the reviewer's decision on the whole system."""
-    decision = editing.decide_review(session, system_id=system.id, status=body.status, comment=body.comment)
+@router.post("/{system_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID, **PRECONDITIONS})
+def review_system(session: SessionDep, principal: ReviewerDep, if_match: IfMatchDep, system: SystemDep,
+                  body: ReviewIn, response: Response) -> ReviewOut:
+    """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``);
+    the decision's new ETag in the header."""
+    decision = editing.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
+                                     actor=principal.name, expected=expected_versions(if_match, "system", system.id))
+    with_etag(response, system_etag(editing.get_system(session, system.id)))
     return ReviewOut.model_validate(views.review_json(decision))

@@ -80,3 +80,17 @@ def test_unreadable_predictions_answer_422_naming_the_field(client, scene):
     assert r.status_code == 422 and "predictions" in r.text
     r = client.post("/api/evaluations/monocular", files={"predictions": ("r.json", b"[]", "application/json")})
     assert r.status_code == 422 and "no view with a 3D ball" in r.text  # nothing accepted
+
+
+def test_malformed_evaluation_requests_answer_the_declared_422(client, app, scene):
+    """Found by benchmarks/fuzz.py: FastAPI's 422 (a list of errors) did not match the declared ``ErrorOut``,
+    and a broken multipart body answered an undeclared 400."""
+    declared = app.openapi()["paths"]["/api/evaluations/monocular"]["post"]["responses"]["422"]
+    assert declared["content"]["application/json"]["schema"] == {"$ref": "#/components/schemas/InvalidOut"}
+    r = client.post("/api/evaluations/monocular", params={"ball_class": "x"},
+                    files={"predictions": ("r.json", b"[]", "application/json")})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["query", "ball_class"]
+    r = client.post("/api/evaluations/monocular", content=b"--b\r\ngarbage--b--\r\n",
+                    headers={"Content-Type": "multipart/form-data; boundary=b"})
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"][0]["loc"][0] == "body"

@@ -12,6 +12,8 @@ from sqlalchemy.orm import Session
 from app.db.models import Frame
 from app.services import editing
 
+from tests.accounts import Account, as_session
+
 from ..factories import HEIGHT, WIDTH, Scene, png_bytes
 
 
@@ -118,12 +120,12 @@ def test_bad_ball_edits_are_422_naming_the_field_and_store_nothing(
     assert _view(client, scene) == before
 
 
-def test_a_failing_recompute_leaves_stored_data_unchanged(app: FastAPI, scene: Scene,
+def test_a_failing_recompute_leaves_stored_data_unchanged(app: FastAPI, scene: Scene, accounts: dict[str, Account],
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     def broken(*args, **kwargs):
         raise RuntimeError("triangulation exploded")
 
-    with TestClient(app, raise_server_exceptions=False) as client:
+    with as_session(TestClient(app, raise_server_exceptions=False), accounts["admin"]) as client:
         before = _view(client, scene)
         box = before["views"][0]["ball"]["box"]
         monkeypatch.setattr(editing, "recompute_system", broken)
@@ -270,3 +272,40 @@ def test_frame_list_filters(client: TestClient, scene: Scene, db_session: Sessio
     assert client.get("/api/frames", params={"calibration": "bogus"}).status_code == 422
     first = everything["items"][0]
     assert first["image_url"] and math.isclose(first["calibration"]["jac"]["0.005"], 0.9)
+
+
+@pytest.mark.parametrize(("method", "path", "body"), [
+    ("get", "image", None), ("patch", "ball", {"box": None}), ("put", "field-lines", {"lines": {}}),
+    ("post", "field-lines/mirror", None), ("post", "exclusion", {"excluded": True}),
+    ("post", "review", {"status": "accepted"}),
+])
+def test_frame_ids_beyond_the_id_column_are_422_naming_frame_id(client: TestClient, method: str, path: str,
+                                                         body: dict | None) -> None:
+    """Found by benchmarks/fuzz.py: such an id overflowed SQLite's driver (OverflowError, a 500)."""
+    answer = client.request(method, f"/api/frames/972878476687272144215207837696/{path}", json=body)
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["detail"][0]["loc"] == ["path", "frame_id"]
+
+
+@pytest.mark.parametrize("path", ["ball", "field-lines", "exclusion", "review"])
+def test_a_body_that_is_not_utf8_json_is_422_naming_the_body(client: TestClient, scene: Scene, path: str) -> None:
+    """Found by benchmarks/fuzz.py: FastAPI answered an undeclared 400 "There was an error parsing the body"."""
+    method = {"ball": "PATCH", "field-lines": "PUT"}.get(path, "POST")
+    before = client.get(f"/api/systems/{scene.system_id}").json()
+    answer = client.request(method, f"/api/frames/{scene.frame_ids[0]}/{path}", content=b"\xc3\x28\xff{",
+                            headers={"Content-Type": "application/json"})
+    assert answer.status_code == 422, answer.text
+    (error,) = answer.json()["detail"]
+    assert error["loc"] == ["body"] and error["type"] == "body_unparsable" and "UnicodeDecodeError" in error["msg"]
+    assert client.get(f"/api/systems/{scene.system_id}").json() == before
+
+
+def test_nul_characters_in_a_body_are_422_naming_the_field(client: TestClient, scene: Scene) -> None:
+    """Found by benchmarks/fuzz.py on PostgreSQL, whose text cannot hold NUL (a 500 there): refused on every
+    database, nothing stored."""
+    url = f"/api/frames/{scene.frame_ids[0]}/review"
+    answer = client.post(url, json={"status": "accepted", "comment": "bad\x00comment"})
+    assert answer.status_code == 422 and "comment: text must not contain NUL" in answer.json()["detail"][0]["msg"]
+    answer = client.put(f"/api/frames/{scene.frame_ids[0]}/field-lines", json={"lines": {"Circle\x00": [[[1, 2]]]}})
+    assert answer.status_code == 422 and "lines: text must not contain NUL" in answer.json()["detail"][0]["msg"]
+    assert _view(client, scene)["views"][0]["review"]["status"] == "pending"

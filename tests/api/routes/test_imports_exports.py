@@ -1,4 +1,4 @@
-"""``POST /api/imports`` (server-side datasets) and ``GET /api/exports/soccernet-v3d`` (a zip)."""
+"""``POST /api/imports`` (server-side datasets, run as jobs) and ``GET /api/exports/soccernet-v3d`` (a zip)."""
 from __future__ import annotations
 
 import csv
@@ -13,6 +13,7 @@ from fastapi.testclient import TestClient
 from app.geometry.annotations import to_soccernet_calibration
 from app.geometry.projection import project_pitch_polylines
 
+from ..conftest import run_queued
 from ..factories import BALL, CENTRES, HEIGHT, WIDTH, Scene, look_at
 
 
@@ -26,30 +27,41 @@ def _calibration_folder(root: Path, frames: int = 2) -> Path:
     return root
 
 
-def test_import_sn_calibration_then_list_it(client: TestClient, tmp_path: Path) -> None:
+def _import(app, client: TestClient, body: dict) -> dict:
+    """POST the import, check the 202 and its Location, run the job, and answer the finished job."""
+    answer = client.post("/api/imports", json=body)
+    assert answer.status_code == 202, answer.text
+    job = answer.json()
+    assert answer.headers["location"] == f"/api/jobs/{job['id']}" == job["url"]
+    assert (job["kind"], job["state"], job["params"]["kind"]) == ("import", "queued", body["kind"])
+    assert run_queued(app) == [job["id"]]
+    return client.get(job["url"]).json()
+
+
+def test_import_sn_calibration_then_list_it(app, client: TestClient, tmp_path: Path) -> None:
     folder = _calibration_folder(tmp_path / "valid")
     body = {"kind": "sn-calibration", "path": str(folder), "width": WIDTH, "height": HEIGHT}
-    answer = client.post("/api/imports", json=body)
-    assert answer.status_code == 201, answer.text
-    report = answer.json()
+    job = _import(app, client, body)
+    assert job["state"] == "done" and job["attempts"] == 1 and job["finished_at"] is not None, job
+    report = job["result"]
     assert (report["games"], report["systems"], report["frames"], report["systems_new"]) == (1, 2, 2, 2)
     assert report["calibrated"] + report["refused"] == 2
     games = client.get("/api/games").json()
     assert [(g["league"], g["match"], g["systems"]) for g in games] == [("sn-calibration", "valid", 2)]
     frames = client.get("/api/frames").json()["items"]
     assert [f["image_url"] for f in frames] == [None, None]
-    again = client.post("/api/imports", json=body).json()  # idempotent
+    again = _import(app, client, body)["result"]  # idempotent
     assert (again["systems_new"], again["systems_changed"]) == (0, 0)
 
 
-def test_bad_imports_are_rejected_and_store_nothing(client: TestClient, tmp_path: Path) -> None:
+def test_bad_imports_are_rejected_and_store_nothing(app, client: TestClient, tmp_path: Path) -> None:
     missing = client.post("/api/imports", json={"kind": "soccernet-v3", "path": str(tmp_path / "nope")})
     assert missing.status_code == 400 and "nope" in missing.json()["detail"]
     folder = _calibration_folder(tmp_path / "broken", frames=1)
     (folder / "00001.json").write_text('{"Middle line": [{"x": 0.5, "y": "high"}]}')
-    broken = client.post("/api/imports", json={"kind": "sn-calibration", "path": str(folder),
-                                               "width": WIDTH, "height": HEIGHT})
-    assert broken.status_code == 400 and "00001.json" in broken.json()["detail"]
+    broken = _import(app, client, {"kind": "sn-calibration", "path": str(folder), "width": WIDTH, "height": HEIGHT})
+    assert broken["state"] == "failed" and "00001.json" in broken["message"], broken
+    assert broken["result"] == {"error": "DatasetError", "invalid_input": True}
     assert client.get("/api/games").json() == []
     kind = client.post("/api/imports", json={"kind": "coco", "path": "/x"})
     assert kind.status_code == 422 and "kind" in kind.text
@@ -106,8 +118,8 @@ def test_imports_read_only_under_the_data_root(app, client: TestClient, tmp_path
     folder = _calibration_folder(root / "calib")
     app.state.settings = app.state.settings.model_copy(update={"data_root": root})
     body = {"kind": "sn-calibration", "width": WIDTH, "height": HEIGHT}
-    assert client.post("/api/imports", json={**body, "path": "calib"}).status_code == 201  # relative to the root
-    assert client.post("/api/imports", json={**body, "path": str(folder)}).status_code == 201
+    assert client.post("/api/imports", json={**body, "path": "calib"}).status_code == 202  # relative to the root
+    assert client.post("/api/imports", json={**body, "path": str(folder)}).status_code == 202
     (root / "escape").symlink_to("/etc", target_is_directory=True)
     answers = [client.post("/api/imports", json={**body, "path": p})
                for p in ("/etc/passwd", "/etc/no-such-file", "../../etc/passwd", "calib/../../x", "escape/passwd")]
@@ -116,3 +128,9 @@ def test_imports_read_only_under_the_data_root(app, client: TestClient, tmp_path
     app.state.settings = app.state.settings.model_copy(update={"data_root": None})
     refused = client.post("/api/imports", json={**body, "path": str(folder)})
     assert refused.status_code == 403 and "disabled" in refused.json()["detail"]
+
+
+def test_an_import_body_that_is_not_utf8_is_422_naming_the_body(client) -> None:
+    """Found by the fuzzer: a JSON import body in another encoding was a 500 (UnicodeDecodeError)."""
+    answer = client.post("/api/imports", content=b'{"kind": "\xe9t\xe9"}', headers={"Content-Type": "application/json"})
+    assert answer.status_code == 422 and answer.json()["field"] == "body"

@@ -11,17 +11,27 @@ import pytest
 
 from tests.services.issia_data import write_issia_stretch
 
+from ..conftest import run_queued
+
+
+def _import_job(app, client, body: dict) -> dict:
+    """POST the import (202), run its job, and answer the finished job."""
+    r = client.post("/api/imports", json=body)
+    assert r.status_code == 202, r.text
+    run_queued(app)
+    return client.get(r.json()["url"]).json()
+
 
 @pytest.fixture
-def issia(client, shared_dir, tmp_path):
-    """Frames 0..24 of the dev sequence imported through the API; returns (import JSON, trajectory JSON)."""
+def issia(app, client, shared_dir, tmp_path):
+    """Frames 0..24 of the dev sequence imported through the API; returns (import report, trajectory JSON)."""
     root = write_issia_stretch(shared_dir, tmp_path / "issia-dev", 0, 24)
-    r = client.post("/api/imports", json={"kind": "issia", "path": str(root), "flip": []})
-    assert r.status_code == 201, r.text
+    job = _import_job(app, client, {"kind": "issia", "path": str(root), "flip": []})
+    assert job["state"] == "done", job
     game = next(g for g in client.get("/api/games").json() if g["league"] == "issia")
     t = client.get(f"/api/games/{game['id']}/trajectory")
     assert t.status_code == 200, t.text
-    return r.json(), t.json()
+    return job["result"], t.json()
 
 
 def test_import_and_trajectory(issia):
@@ -36,15 +46,21 @@ def test_import_and_trajectory(issia):
     assert traj["pieces"] and traj["pieces"][0]["kind"] in ("flight", "roll")
 
 
-def test_import_errors_name_the_field(client, tmp_path):
-    r = client.post("/api/imports", json={"kind": "issia", "path": str(tmp_path)})
-    assert r.status_code == 400 and "issia_calibration.json" in r.json()["detail"]
+def test_import_errors_name_the_field(app, client, tmp_path):
+    job = _import_job(app, client, {"kind": "issia", "path": str(tmp_path)})
+    assert job["state"] == "failed" and "issia_calibration.json" in job["message"]
     r = client.post("/api/imports", json={"kind": "soccernet-v3", "path": str(tmp_path), "from_lines": True})
     assert r.status_code == 422
 
 
 def test_unknown_or_non_issia_game_trajectory_is_404(client):
     assert client.get("/api/games/999999/trajectory").status_code == 404
+
+
+def test_game_id_beyond_the_id_column_is_422_naming_it(client):
+    """Found by benchmarks/fuzz.py: such an id overflowed SQLite's driver (OverflowError, a 500)."""
+    r = client.get("/api/games/18446744073709551616/trajectory")
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["path", "game_id"]
 
 
 def test_video_frame_image_at_annotation_size(client, issia):

@@ -121,6 +121,24 @@ def test_bad_queue_parameters_are_422_naming_the_field(client: TestClient, param
     assert field in str(answer.json()["detail"])
 
 
+@pytest.mark.parametrize(
+    ("url", "field"),
+    [("/api/systems/5608156813967030754306491984216326144", "system_id"),
+     ("/api/systems/-2147483649", "system_id"),
+     ("/api/systems?offset=9223372036854775808", "offset"),
+     ("/api/systems?game_id=99999999999999999999", "game_id"),
+     ("/api/frames?system_id=-99999999999999999999", "system_id"),
+     ("/api/frames?offset=99999999999999999999", "offset")],
+)
+def test_ids_beyond_the_id_columns_are_422_naming_the_parameter(client: TestClient, url: str, field: str) -> None:
+    """Found by benchmarks/fuzz.py: such an id overflowed SQLite's driver (OverflowError, a 500); ids are
+    bounded by PostgreSQL's 32-bit INTEGER (tests/api/test_postgres.py)."""
+    answer = client.get(url)
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["detail"][0]["loc"][-1] == field
+    assert client.get("/api/systems/2147483647").status_code == 404  # the largest id is looked up
+
+
 def test_system_view_carries_the_ui_contract(client: TestClient, queue: dict[str, Scene]) -> None:
     scene = queue["exact"]
     view = client.get(f"/api/systems/{scene.system_id}").json()
@@ -222,6 +240,8 @@ def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session:
     rows = {r["id"]: r for r in client.get("/api/systems").json()["items"]}
     assert rows[queue["other"].system_id]["views_flagged"] == 1
     assert rows[queue["exact"].system_id]["views_flagged"] == 0
+    views = client.get(f"/api/systems/{queue['other'].system_id}").json()["views"]
+    assert [v["calibration"]["probably_mirrored"] for v in views] == [False, True, False]
 
 
 def test_queue_rows_carry_the_review_time(client: TestClient, queue: dict[str, Scene]) -> None:
@@ -262,6 +282,8 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     assert max(errors) < tri["tau_px"]  # raw pixels would count none
     expected = [e * 1920.0 / WIDTH > tri["tau_px"] for e in errors]
     assert expected == [False, True, True]
+    # the page shows the error in the rule's scale, as the server computed it (the UI never rescales)
+    assert [v["reprojection_error_scaled_px"] for v in view["views"]] == pytest.approx([e * 1920.0 / WIDTH for e in errors])
     assert page_verdicts() == expected
     assert rows()[wrong.system_id]["views_above_tau"] == 2
     assert {r["views_above_tau"] for sid, r in rows().items() if sid != wrong.system_id} == {0}

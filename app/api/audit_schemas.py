@@ -1,0 +1,46 @@
+"""Pydantic schemas of the audit log's API (``/api/audit``), apart from ``schemas.py`` to keep it small."""
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Optional
+
+from pydantic import BaseModel, Field
+
+from app.api.schemas import DB_INT_MAX, DbInt, QueryText
+
+
+class AuditEntryOut(BaseModel):
+    """One audited write (``app.services.audit``): who, when, what, the edited part before and after
+    (``{"ball": {box, point}}``, ``{"lines": {...}}``, ``{"excluded": bool}``, ``{"review": {status,
+    comment}}``; an import's or recompute's counts in ``after``)."""
+
+    id: int
+    at: datetime
+    actor: str = Field(description="The user's name (cli:<os user> for work run on the machine).")
+    action: str
+    frame_id: Optional[int]
+    system_id: Optional[int]
+    game_id: Optional[int]
+    before: Optional[dict[str, Any]]
+    after: Optional[dict[str, Any]]
+    reverts_id: Optional[int] = Field(description="A revert: the entry it undid.")
+    revertible: bool = Field(description="False for imports and recomputes.")
+
+
+class AuditPageOut(BaseModel):
+    """A page of the audit log, newest first."""
+
+    items: list[AuditEntryOut]
+    total: int
+    limit: int
+    offset: int
+
+
+class AuditQuery(BaseModel):
+    """Filters and page of ``GET /api/audit``."""
+
+    frame_id: Optional[DbInt] = Field(None, description="Only this frame's entries.")
+    system_id: Optional[DbInt] = Field(None, description="Only this system's entries (its decisions and its views' edits).")
+    user: Optional[QueryText] = Field(None, max_length=200, description="Only this user's entries (exact name).")
+    limit: int = Field(50, ge=1, le=500)
+    offset: int = Field(0, ge=0, le=DB_INT_MAX)

@@ -1,0 +1,77 @@
+"""Who is asking: the authenticated principal of a request and the role each write needs.
+
+Roles are ranked: an ``annotator`` edits labels and field lines and takes per-view decisions; a
+``reviewer`` may also take system decisions and revert audited writes; an ``admin`` may also import,
+export and manage users. A route states the least role it needs with :func:`require_role`; every
+route under ``/api`` (reads included) needs at least an authenticated principal.
+
+The authentication layer (a browser session cookie with CSRF protection, or an
+``Authorization: Bearer <token>`` API token) resolves the principal once per request and puts it on
+``request.state.principal``; this module only reads it, so routes and services never care how the
+person logged in (``Principal.via`` says it, for the rules that differ: a token's write must carry
+``If-Match``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Literal
+
+from fastapi import Depends, HTTPException, Request
+
+Role = Literal["annotator", "reviewer", "admin"]
+
+#: The roles from least to most trusted; a role may do everything a lower one may.
+ROLES: tuple[Role, ...] = ("annotator", "reviewer", "admin")
+
+
+@dataclass(frozen=True)
+class Principal:
+    """The authenticated user of one request.
+
+    ``user_id`` and ``name`` identify the user (the audit log records ``name``); ``role`` is one of
+    :data:`ROLES`; ``via`` is ``"session"`` for the browser's session cookie and ``"token"`` for an
+    API token.
+    """
+
+    user_id: int
+    name: str
+    role: Role
+    via: Literal["session", "token"]
+
+    def may(self, role: Role) -> bool:
+        """True when this principal's role is ``role`` or a more trusted one.
+
+        >>> Principal(1, "ana", "reviewer", "token").may("annotator"), Principal(1, "ana", "reviewer", "token").may("admin")
+        (True, False)
+        """
+        return ROLES.index(self.role) >= ROLES.index(role)
+
+
+def current_principal(request: Request) -> Principal:
+    """The principal the authentication layer resolved for this request; 401 when there is none."""
+    principal = getattr(request.state, "principal", None)
+    if principal is None:
+        raise HTTPException(status_code=401, detail="log in, or send Authorization: Bearer <token>",
+                            headers={"WWW-Authenticate": "Bearer"})
+    return principal
+
+
+PrincipalDep = Annotated[Principal, Depends(current_principal)]
+
+
+def require_role(role: Role):
+    """A dependency answering 403 naming the needed role unless the principal has ``role`` or more;
+    it returns the principal (401 first when nobody is authenticated)."""
+
+    def _check(principal: PrincipalDep) -> Principal:
+        if not principal.may(role):
+            raise HTTPException(status_code=403, detail=f"this needs the {role} role; you are {principal.role}")
+        return principal
+
+    _check.__name__ = f"require_{role}"
+    return _check
+
+
+AnnotatorDep = Annotated[Principal, Depends(require_role("annotator"))]
+ReviewerDep = Annotated[Principal, Depends(require_role("reviewer"))]
+AdminDep = Annotated[Principal, Depends(require_role("admin"))]

@@ -1,0 +1,92 @@
+"""Pydantic schemas of the background-job routes: imports (a path or an upload), export jobs, and the
+jobs themselves (``app.services.jobs``). Apart from ``app.api.schemas`` to keep each under ~400 lines."""
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal, Optional
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from app.api.schemas import _In
+
+
+class ImportOptions(_In):
+    """How to read a dataset to import (the form fields of an upload; :class:`ImportIn` adds the path)."""
+
+    kind: Literal["soccernet-v3", "soccernet-v3d", "sn-calibration", "issia"] = Field(
+        description="Dataset layout: SoccerNet-v3 tree, SoccerNet-v3D export, SoccerNet-calibration set, ISSIA folder.")
+    width: Optional[int] = Field(None, gt=1, le=65535, description="sn-calibration only: image width (px) when there "
+                                                                  "are no images.")
+    height: Optional[int] = Field(None, gt=1, le=65535, description="sn-calibration only: image height (px) when "
+                                                                   "there are no images.")
+    from_lines: bool = Field(False, description="issia only: calibrate each static camera from issia_lines.json "
+                                                "even when issia_calibration.json is present.")
+    flip: list[str] = Field(default_factory=list, description="issia only: camera ids ('1'..'6') whose footage is "
+                                                              "mirrored horizontally (images only).")
+
+    @model_validator(mode="after")
+    def _size_for_calibration_only(self) -> "ImportOptions":
+        if self.kind != "sn-calibration" and (self.width is not None or self.height is not None):
+            raise ValueError("width and height apply to kind 'sn-calibration' only")
+        if self.kind != "issia" and (self.from_lines or self.flip):
+            raise ValueError("from_lines and flip apply to kind 'issia' only")
+        return self
+
+
+class ImportIn(ImportOptions):
+    """A dataset on the server's disk to import (for scripts)."""
+
+    path: str = Field(min_length=1, description="Folder or archive on the server, under V3D_DATA_ROOT.")
+
+
+class ImportUploadIn(BaseModel):
+    """The multipart form of an uploaded dataset (documentation of ``POST /api/imports``)."""
+
+    file: bytes = Field(json_schema_extra={"format": "binary"}, description="A zip of the dataset (e.g. "
+                        "<league>/<season>/<game>/Labels-v3.json and Frames-v3.zip for kind soccernet-v3).")
+    kind: Literal["soccernet-v3", "soccernet-v3d", "sn-calibration", "issia"]
+    width: Optional[int] = Field(None, gt=1, le=65535)
+    height: Optional[int] = Field(None, gt=1, le=65535)
+    from_lines: bool = False
+    flip: Optional[str] = Field(None, description="Comma-separated camera ids (issia only).")
+
+
+class ExportJobIn(_In):
+    """An export to run as a background job."""
+
+    all: bool = Field(False, strict=True, description="Every system, not only the accepted ones.")
+
+
+class JobOut(BaseModel):
+    """A background job (``app.services.jobs``): its progress while it runs, its result when done."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    kind: Literal["import", "recompute", "export"]
+    params: dict[str, Any] = Field(description="What it runs (an import's kind and path, an export's 'all').")
+    state: Literal["queued", "running", "done", "failed"]
+    stage: Optional[str] = Field(description="The step it is in: games, merge, calibrate, rig, triangulate, "
+                                             "recompute, export.")
+    done: int = Field(description="Items of the stage done.")
+    total: int = Field(description="Items of the stage in all (0: unknown).")
+    message: Optional[str] = Field(description="Why it failed (a dataset error names the file and field).")
+    result: Optional[dict[str, Any]] = Field(description="An import's counts, a recompute's, an export's file size "
+                                                         "and counts.")
+    owner: Optional[str] = Field(description="host:pid:token of the process running it.")
+    attempts: int = Field(description="How many times a runner claimed it (more than 1: resumed).")
+    created_at: datetime
+    started_at: Optional[datetime]
+    finished_at: Optional[datetime]
+    heartbeat_at: Optional[datetime]
+    url: str = Field(description="This job's URL.")
+    result_url: Optional[str] = Field(description="Where a finished export's file is downloaded.")
+
+
+class JobPageOut(BaseModel):
+    """A page of jobs, newest first."""
+
+    items: list[JobOut]
+    total: int
+    limit: int
+    offset: int

@@ -1,0 +1,49 @@
+"""``/api/audit``: the audit log (every role reads it) and the revert of an entry (reviewers)."""
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Response
+
+from app.api.audit_schemas import AuditPageOut, AuditQuery
+from app.api.auth import PrincipalDep, ReviewerDep
+from app.api.conditional import with_etag
+from app.api.schemas import DbInt
+from app.api.deps import SessionDep, SettingsDep
+from app.api.schemas import INVALID, NOT_FOUND, ErrorOut, QueueQuery, SystemView
+from app.services import audit, editing, views
+from app.services.reverting import revert_entry
+from app.services.versions import frame_etag, system_etag
+
+router = APIRouter(prefix="/audit", tags=["audit"])
+
+
+@router.get("", response_model=AuditPageOut)
+def list_audit(session: SessionDep, _: PrincipalDep, query: Annotated[AuditQuery, Query()]) -> dict[str, Any]:
+    """One page of the audit log, newest first: who changed what, when, and the state before and after.
+    ``system_id`` gives the system's decisions and every edit of its views; ``user`` an actor's exact name."""
+    page = audit.list_entries(session, frame_id=query.frame_id, system_id=query.system_id, user=query.user,
+                              limit=query.limit, offset=query.offset)
+    return {"items": page.items, "total": page.total, "limit": query.limit, "offset": query.offset}
+
+
+@router.post(
+    "/{entry_id}/revert", response_model=SystemView,
+    responses={**NOT_FOUND, **INVALID,
+               409: {"model": ErrorOut, "description": "The resource changed since the entry (send force=true to "
+                                                       "revert anyway)."}},
+)
+def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, entry_id: DbInt,
+           query: Annotated[QueueQuery, Query()], response: Response,
+           force: Annotated[bool, Query(description="Revert even when the resource changed since the entry.")] = False,
+           ) -> dict[str, Any]:
+    """Restore the entry's ``before`` state through the service of the original edit (the system is
+    recomputed), audited as action ``revert``; answers the recomputed system view and the resource's new
+    ``ETag``. 409 when the resource changed since the entry (unless ``force``); 422 for an import or a
+    recompute, which cannot be reverted. The entry itself is the precondition: no If-Match is needed."""
+    done = revert_entry(session, entry_id, settings=settings, actor=principal.name, force=force)
+    if done.kind == "frame":
+        with_etag(response, frame_etag(editing.get_frame(session, done.ident)))
+    else:
+        with_etag(response, system_etag(editing.get_system(session, done.ident)))
+    return views.system_view(session, done.system_id, query.filters(), query.sort)

@@ -1,0 +1,93 @@
+"""``/api/jobs``: background jobs (imports, full recomputes, exports; ``app.services.jobs``), and
+``POST /api/recompute`` that queues a full recompute.
+
+A job is created by ``POST /api/imports``, ``POST /api/recompute`` or ``POST /api/exports/soccernet-v3d``
+(202, ``Location: /api/jobs/{id}``) and run by a server process's job runner; ``GET /api/jobs/{id}``
+shows its state and progress (``stage``, ``done`` of ``total``), then its result;
+``GET /api/jobs/{id}/result`` streams a finished export's file. Every role may follow jobs; a full
+recompute and an export's file need the admin role (as imports and exports do).
+"""
+from __future__ import annotations
+
+from typing import Annotated, Literal, Optional
+
+from fastapi import APIRouter, Depends, Path, Query, status
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import FileResponse, JSONResponse
+
+from app.api.auth import AdminDep, require_role
+from app.api.deps import SessionDep, SettingsDep
+from app.api.job_schemas import JobOut, JobPageOut
+from app.api.schemas import DB_INT_MAX, NOT_FOUND, ErrorOut
+from app.db.models import Job, JobState
+from app.services import jobs
+from app.services.errors import NotFoundError
+from app.services.job_kinds import export_path
+
+router = APIRouter(tags=["jobs"])
+JobId = Annotated[int, Path(description="Job id.")]
+
+
+def job_out(job: Job) -> JobOut:
+    """The API's view of a job row."""
+    url = f"/api/jobs/{job.id}"
+    has_file = job.kind == "export" and job.state is JobState.DONE
+    return JobOut.model_validate({
+        **{k: getattr(job, k) for k in ("id", "kind", "params", "stage", "done", "total", "message", "result",
+                                        "owner", "attempts", "created_at", "started_at", "finished_at",
+                                        "heartbeat_at")},
+        "state": job.state.value, "url": url, "result_url": f"{url}/result" if has_file else None,
+    })
+
+
+def accepted(job: Job) -> JSONResponse:
+    """202 with the job and ``Location`` its URL."""
+    out = job_out(job)
+    return JSONResponse(out.model_dump(mode="json"), status_code=status.HTTP_202_ACCEPTED,
+                        headers={"Location": out.url})
+
+
+@router.get("/jobs", response_model=JobPageOut)
+def list_jobs(
+    session: SessionDep,
+    state: Annotated[Optional[Literal["queued", "running", "done", "failed"]], Query()] = None,
+    kind: Annotated[Optional[Literal["import", "recompute", "export"]], Query()] = None,
+    limit: Annotated[int, Query(ge=1, le=500)] = 50,
+    offset: Annotated[int, Query(ge=0, le=DB_INT_MAX)] = 0,
+) -> JobPageOut:
+    """Jobs, newest first, optionally of one state and kind."""
+    items, total = jobs.list_jobs(session, JobState(state) if state else None, kind, limit, offset)
+    return JobPageOut(items=[job_out(j) for j in items], total=total, limit=limit, offset=offset)
+
+
+@router.get("/jobs/{job_id}", response_model=JobOut, responses=NOT_FOUND)
+def get_job(session: SessionDep, job_id: JobId) -> JobOut:
+    """One job: its state, progress and, when done, its result (failed: ``message`` says why)."""
+    return job_out(jobs.get_job(session, job_id))
+
+
+@router.get(
+    "/jobs/{job_id}/result", response_class=FileResponse, dependencies=[Depends(require_role("admin"))],
+    responses={200: {"content": {"application/zip": {}}, "description": "The export's file."},
+               404: {"model": ErrorOut, "description": "No such job, or its file is gone."},
+               409: {"model": ErrorOut, "description": "Not an export, or not done yet."}},
+)
+def job_result(session: SessionDep, settings: SettingsDep, job_id: JobId) -> FileResponse:
+    """The file a finished export job wrote (streamed from disk)."""
+    job = jobs.get_job(session, job_id)
+    if job.kind != "export" or job.state is not JobState.DONE or not job.result:
+        raise jobs.JobNotReady(f"job {job_id} is a {job.kind} job in state {job.state.value}: no file to download")
+    path = export_path(settings, job.result["file"])
+    if not path.is_file():
+        raise NotFoundError("export file of job", job_id)
+    return FileResponse(path, media_type=job.result.get("media_type", "application/octet-stream"),
+                        filename=job.result.get("filename", path.name))
+
+
+@router.post("/recompute", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+async def create_recompute(session: SessionDep, principal: AdminDep) -> JSONResponse:
+    """Queue a full recompute: every system recomputed with the server's current settings (admission,
+    triangulation, reprojections, optimised boxes, doubts and queue figures; calibrations untouched);
+    one audit entry, by the admin who queued it."""
+    return accepted(await run_in_threadpool(jobs.submit, session, "recompute", {"actor": principal.name}))
+

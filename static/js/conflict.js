@@ -1,0 +1,30 @@
+// The conflict notice of the system page: a write answered 412 (someone changed the resource since
+// the page read it). It says who changed it and to what (the 412's last audit entry and current
+// state), what was not stored, and offers "re-apply my change" (the same write against the current
+// version) or "keep theirs" (the page already shows their state).
+
+import { el } from "./format.js";
+import { describeEntry } from "./history.js";
+
+/** Show the notice in `root` for a 412 `error` (ApiError; body {current, etag, last_change}).
+ * `what`: the resource in words ("V2 (2_1.png)"); `mine`: the change not stored, in words;
+ * `reapply(etag)`: send it again against version `etag`; both buttons close the notice. */
+export function showConflict(root, { error, what, mine, viewName, reapply }) {
+  const body = error.body || {};
+  const last = body.last_change;
+  const who = last ? describeEntry(last, viewName) : "someone (no audit entry found)";
+  const close = () => {
+    root.hidden = true;
+    root.replaceChildren();
+  };
+  root.replaceChildren(
+    el("strong", {}, `Conflict: ${what} was changed by someone else; your change was not stored.`),
+    el("div", { "data-testid": "conflict-who" }, `Last change: ${who}`),
+    el("div", { "data-testid": "conflict-mine" }, `Your change: ${mine}`),
+    el("div", { class: "actions" },
+      el("button", { type: "button", "data-testid": "conflict-reapply",
+        onclick: () => { close(); reapply(body.etag); } }, "Re-apply my change"),
+      el("button", { type: "button", "data-testid": "conflict-keep", onclick: close }, "Keep theirs")),
+  );
+  root.hidden = false;
+}

@@ -1,0 +1,55 @@
+// Login page: POST /api/auth/login, then back to the page the person came from (?next=, same origin
+// only). Shows the demo account's name and password when `v3d serve --demo` made one (GET /api/auth/demo).
+import { ApiError, login, getDemoAccount } from "./api.js";
+
+const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
+const form = $("login-form");
+
+/** The page to return to: a path of this site (never another origin, never the login page itself). */
+export function nextPage(search = location.search) {
+  const next = new URLSearchParams(search).get("next") || "/";
+  const sameSite = next.startsWith("/") && !next.startsWith("//") && !next.startsWith("/\\");
+  return sameSite && !next.startsWith("/login") ? next : "/";
+}
+
+function showError(message) {
+  const box = $("login-error");
+  box.textContent = message;
+  box.hidden = false;
+}
+
+form.addEventListener("submit", async (event) => {
+  event.preventDefault();
+  $("login-error").hidden = true;
+  const button = $("login-submit");
+  button.disabled = true;
+  const data = new FormData(form);
+  try {
+    await login(String(data.get("name")), String(data.get("password")));
+    location.assign(nextPage());
+  } catch (err) {
+    showError(err instanceof ApiError && err.status === 401 ? "Wrong name or password." : String(err.message || err));
+    button.disabled = false;
+  }
+});
+
+async function showDemoHint() {
+  let answer;
+  try {
+    answer = await getDemoAccount();
+  } catch {
+    return;
+  }
+  if (!answer || !answer.account) return;
+  const { name, password } = answer.account;
+  $("demo-name").textContent = name;
+  $("demo-password").textContent = password;
+  $("demo-fill").addEventListener("click", () => {
+    form.elements.name.value = name;
+    form.elements.password.value = password;
+    $("login-submit").focus();
+  });
+  $("demo-hint").hidden = false;
+}
+
+showDemoHint();

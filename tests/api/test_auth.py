@@ -1,0 +1,277 @@
+"""Users and roles over HTTP (issue 7): every route of the app, found by walking ``app.routes``, is
+public or refuses anonymous requests (401) and the roles below its least role (403), per role and per
+way in (API token, browser session); CSRF on session writes; login, logout, disabled users, the session
+cookie and its key shared by every app (worker) on one database."""
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+
+import pytest
+from fastapi import FastAPI
+from fastapi.routing import iter_route_contexts
+from fastapi.testclient import TestClient
+from pydantic import SecretStr
+
+from app.api.auth import ROLES
+from app.api.authentication import CSRF_HEADER, SESSION_COOKIE
+from app.core.config import Settings
+from app.main import create_app
+from app.services import users
+from tests.accounts import Account, as_session, as_token
+
+from .factories import Scene
+
+#: (method, path) answered without a principal: the pages, the docs, the login and its demo hint.
+PUBLIC = {("GET", "/"), ("GET", "/login"), ("GET", "/docs"), ("GET", "/openapi.json"), ("GET", "/systems/{system_id}"),
+          ("POST", "/api/auth/login"), ("GET", "/api/auth/demo"), ("GET", "/api/health")}
+WRITES = {"POST", "PUT", "PATCH", "DELETE"}
+
+
+def _least_role(route) -> str | None:
+    """The most trusted role named by a ``require_role`` dependency of the route (None: any principal)."""
+    found: set[str] = set()
+
+    def walk(dependant) -> None:
+        for sub in dependant.dependencies:
+            name = getattr(sub.call, "__name__", "")
+            if name.startswith("require_") and name.removeprefix("require_") in ROLES:
+                found.add(name.removeprefix("require_"))
+            walk(sub)
+
+    dependant = getattr(route, "dependant", None)  # plain Starlette routes (openapi.json) have none
+    if dependant is not None:
+        walk(dependant)
+    return max(found, key=ROLES.index) if found else None
+
+
+def _operations(app: FastAPI) -> list[tuple[str, str, str, object]]:
+    """Every (method, path template, concrete path, route) the app answers, HEAD left out; path
+    parameters become 999999 (no such row)."""
+    ops = []
+    for route in iter_route_contexts(app.routes):
+        for method in sorted((route.methods or set()) - {"HEAD"}):
+            ops.append((method, route.path, re.sub(r"\{[^}]+\}", "999999", route.path), route))
+    return ops
+
+
+@pytest.fixture
+def tokens(app: FastAPI) -> Iterator[TestClient]:
+    with TestClient(app) as c:
+        yield c
+
+
+def test_the_walk_sees_every_router(app: FastAPI) -> None:
+    paths = {p for _, p, _, _ in _operations(app)}
+    assert {"/api/frames/{frame_id}/ball", "/api/systems/{system_id}/review", "/api/imports", "/api/exports/yolo",
+            "/api/exports/issia-3d", "/api/users", "/api/auth/me", "/"} <= paths
+    assert len(paths) >= 25
+
+
+def test_anonymous_requests_get_401_on_every_route_but_the_public_ones(app: FastAPI, anonymous: TestClient) -> None:
+    for method, template, path, _ in _operations(app):
+        answer = anonymous.request(method, path)
+        if (method, template) in PUBLIC:
+            assert answer.status_code not in (401, 403), (method, path, answer.status_code)
+        else:
+            assert answer.status_code == 401, (method, path, answer.status_code, answer.text)
+            assert answer.json()["detail"] == "log in, or send Authorization: Bearer <token>"
+            assert answer.headers["www-authenticate"] == "Bearer"
+    assert anonymous.get("/static/js/api.js").status_code == 200  # static files are public
+    assert anonymous.get("/docs-assets/swagger-ui-bundle.js").status_code == 200
+
+
+def test_a_wrong_token_or_a_forged_cookie_is_anonymous(anonymous: TestClient, accounts: dict[str, Account]) -> None:
+    assert anonymous.get("/api/games", headers={"Authorization": "Bearer v3d_not-a-token"}).status_code == 401
+    assert anonymous.get("/api/games", headers={"Authorization": f"Basic {accounts['admin'].token}"}).status_code == 401
+    forged = accounts["admin"].cookie.rsplit(".", 1)[0] + ".AAAAAAAAAAAAAAAAAAAAAAAAAAA"
+    anonymous.cookies.set(SESSION_COOKIE, forged)
+    assert anonymous.get("/api/games").status_code == 401
+
+
+def test_every_write_route_states_its_least_role(app: FastAPI) -> None:
+    unstated = [(m, p) for m, p, _, route in _operations(app)
+                if m in WRITES and (m, p) not in PUBLIC and p not in ("/api/auth/logout",) and _least_role(route) is None]
+    assert unstated == [], "write routes without require_role (app.api.auth)"
+
+
+EXPECTED_LEAST_ROLE = {
+    ("PATCH", "/api/frames/{frame_id}/ball"): "annotator",
+    ("PUT", "/api/frames/{frame_id}/field-lines"): "annotator",
+    ("POST", "/api/frames/{frame_id}/field-lines/mirror"): "annotator",
+    ("POST", "/api/frames/{frame_id}/exclusion"): "annotator",
+    ("POST", "/api/frames/{frame_id}/review"): "annotator",
+    ("POST", "/api/systems/{system_id}/review"): "reviewer",
+    ("POST", "/api/imports"): "admin",
+    ("GET", "/api/exports/soccernet-v3d"): "admin",
+    ("GET", "/api/exports/issia-3d"): "admin",
+    ("GET", "/api/exports/yolo"): "admin",
+    ("GET", "/api/exports/coco"): "admin",
+    ("GET", "/api/users"): "admin",
+    ("POST", "/api/users"): "admin",
+    ("POST", "/api/recompute"): "admin",
+    ("POST", "/api/exports/soccernet-v3d"): "admin",
+    ("GET", "/api/jobs/{job_id}/result"): "admin",
+    ("GET", "/api/jobs"): None,
+    ("GET", "/api/jobs/{job_id}"): None,
+    ("GET", "/api/systems"): None,
+    ("GET", "/api/games"): None,
+}
+
+
+def test_the_roles_of_the_issue(app: FastAPI) -> None:
+    """annotator: frame edits; reviewer: system decisions; admin: imports, every export, users; reads: any."""
+    found = {(m, p): _least_role(r) for m, p, _, r in _operations(app)}
+    assert {k: found.get(k, "missing") for k in EXPECTED_LEAST_ROLE} == EXPECTED_LEAST_ROLE
+
+
+@pytest.mark.parametrize("via", ["token", "session"])
+@pytest.mark.parametrize("role", ROLES)
+def test_each_role_gets_403_below_the_least_role_of_every_route(app: FastAPI, tokens: TestClient,
+                                                                accounts: dict[str, Account], role: str, via: str) -> None:
+    """Per role: 403 naming the needed role on every route whose least role is above it, and past the
+    role check (no 401 / 403) everywhere else; sessions send their CSRF token."""
+    client = as_token(tokens, accounts[role]) if via == "token" else as_session(tokens, accounts[role])
+    checked = 0
+    for method, template, path, route in _operations(app):
+        if (method, template) in PUBLIC or template == "/api/auth/logout":
+            continue
+        least = _least_role(route)
+        answer = client.request(method, path)
+        if least is not None and ROLES.index(role) < ROLES.index(least):
+            assert answer.status_code == 403, (role, method, path, answer.status_code)
+            assert answer.json()["detail"] == f"this needs the {least} role; you are {role}"
+        else:
+            assert answer.status_code not in (401, 403), (role, method, path, answer.status_code, answer.text)
+        checked += 1
+    assert checked >= 20
+
+
+# ----- CSRF -----------------------------------------------------------------------------------------
+def test_session_writes_need_the_csrf_token_and_token_writes_do_not(tokens: TestClient, scene: Scene,
+                                                                    accounts: dict[str, Account]) -> None:
+    url, body = f"/api/systems/{scene.system_id}/review", {"status": "accepted", "comment": "ok"}
+    client = as_session(tokens, accounts["reviewer"])
+    del client.headers[CSRF_HEADER]
+    missing = client.post(url, json=body)
+    assert missing.status_code == 403 and CSRF_HEADER in missing.json()["detail"]
+    wrong = client.post(url, json=body, headers={CSRF_HEADER: accounts["admin"].csrf})  # another session's token
+    assert wrong.status_code == 403 and CSRF_HEADER in wrong.json()["detail"]
+    assert client.get(url.removesuffix("/review")).json()["review"]["status"] == "pending"  # nothing stored
+    right = client.post(url, json=body, headers={CSRF_HEADER: accounts["reviewer"].csrf})
+    assert right.status_code == 200 and right.json()["status"] == "accepted"
+    by_token = as_token(client, accounts["reviewer"])
+    assert by_token.post(url, json={"status": "rejected"}).status_code == 428  # a token's write names its version
+    etag = by_token.get(url.removesuffix("/review")).headers["ETag"]
+    answer = by_token.post(url, json={"status": "rejected"}, headers={"If-Match": etag})
+    assert answer.status_code == 200 and answer.json()["status"] == "rejected"
+
+
+def test_401_comes_before_any_csrf_check(anonymous: TestClient, scene: Scene) -> None:
+    answer = anonymous.post(f"/api/systems/{scene.system_id}/review", json={"status": "accepted"},
+                            headers={CSRF_HEADER: "whatever"})
+    assert answer.status_code == 401
+    assert anonymous.post(f"/api/systems/{scene.system_id}/review", content=b"{not json").status_code == 401
+
+
+# ----- login, logout, me ----------------------------------------------------------------------------
+def test_login_answers_one_message_for_a_wrong_name_or_password(anonymous: TestClient, accounts: dict[str, Account]) -> None:
+    wrong_password = anonymous.post("/api/auth/login", json={"name": "test-admin", "password": "nope"})
+    wrong_name = anonymous.post("/api/auth/login", json={"name": "nobody", "password": accounts["admin"].password})
+    assert wrong_password.status_code == wrong_name.status_code == 401
+    assert wrong_password.json() == wrong_name.json() == {"detail": "wrong name or password"}
+    assert SESSION_COOKIE not in anonymous.cookies
+
+
+def test_login_sets_a_strict_httponly_cookie_and_me_answers_the_csrf_token(anonymous: TestClient,
+                                                                          accounts: dict[str, Account]) -> None:
+    answer = anonymous.post("/api/auth/login", json={"name": "test-annotator", "password": accounts["annotator"].password})
+    assert answer.status_code == 200
+    body = answer.json()
+    assert (body["name"], body["role"], body["via"]) == ("test-annotator", "annotator", "session")
+    cookie = answer.headers["set-cookie"].lower()
+    assert cookie.startswith(f"{SESSION_COOKIE}=") and "httponly" in cookie and "samesite=strict" in cookie
+    assert "max-age=43200" in cookie and "secure" not in cookie
+    me = anonymous.get("/api/auth/me").json()
+    assert me == body and len(me["csrf_token"]) >= 40
+    assert as_token(anonymous, accounts["admin"]).get("/api/auth/me").json() == {
+        "name": "test-admin", "role": "admin", "via": "token", "csrf_token": None}
+
+
+def test_secure_cookies_setting_marks_the_cookie_secure(db_settings: Settings, app: FastAPI,
+                                                         accounts: dict[str, Account]) -> None:
+    secure = create_app(db_settings.model_copy(update={"secure_cookies": True}))
+    secure.state.session_factory = app.state.session_factory
+    with TestClient(secure, base_url="https://testserver") as c:
+        answer = c.post("/api/auth/login", json={"name": "test-admin", "password": accounts["admin"].password})
+    assert "; secure" in answer.headers["set-cookie"].lower()
+
+
+def test_logout_ends_the_session_and_copies_of_its_cookie(app: FastAPI, accounts: dict[str, Account]) -> None:
+    with TestClient(app) as browser, TestClient(app) as thief:
+        login = browser.post("/api/auth/login", json={"name": "test-reviewer", "password": accounts["reviewer"].password})
+        csrf = login.json()["csrf_token"]
+        thief.cookies.set(SESSION_COOKIE, browser.cookies[SESSION_COOKIE])
+        assert thief.get("/api/auth/me").status_code == 200
+        assert browser.post("/api/auth/logout").status_code == 403  # a write: it needs the CSRF token
+        assert browser.post("/api/auth/logout", headers={CSRF_HEADER: csrf}).status_code == 204
+        assert browser.get("/api/auth/me").status_code == 401
+        assert thief.get("/api/auth/me").status_code == 401
+        assert as_token(thief, accounts["reviewer"]).get("/api/auth/me").status_code == 200  # tokens live on
+
+
+def test_a_disabled_user_can_neither_log_in_nor_use_its_session_or_token(app: FastAPI, tokens: TestClient,
+                                                                         accounts: dict[str, Account]) -> None:
+    client = as_session(tokens, accounts["annotator"])
+    assert client.get("/api/games").status_code == 200
+    with app.state.session_factory() as session:
+        users.set_disabled(session, "test-annotator")
+    assert client.get("/api/games").status_code == 401
+    assert as_token(client, accounts["annotator"]).get("/api/games").status_code == 401
+    login = client.post("/api/auth/login", json={"name": "test-annotator", "password": accounts["annotator"].password})
+    assert login.status_code == 401
+
+
+def test_every_app_on_the_database_shares_the_session_key_unless_overridden(db_settings: Settings, app: FastAPI,
+                                                                            accounts: dict[str, Account]) -> None:
+    """The cookie logged in by another app (another uvicorn worker, or before a restart) is accepted;
+    with another ``V3D_SESSION_SECRET`` it is not."""
+    for secret, expected in ((None, 200), ("another key", 401)):
+        worker = create_app(db_settings.model_copy(update={"session_secret": SecretStr(secret) if secret else None}))
+        worker.state.session_factory = app.state.session_factory
+        with TestClient(worker) as c:
+            assert as_session(c, accounts["admin"]).get("/api/games").status_code == expected
+
+
+def test_demo_hint_names_the_demo_account_only_when_it_exists(app: FastAPI, anonymous: TestClient) -> None:
+    assert anonymous.get("/api/auth/demo").json() == {"account": None}
+    with app.state.session_factory() as session:
+        assert "log in as 'demo' with password 'demo'" in users.ensure_demo_account(session)
+    assert anonymous.get("/api/auth/demo").json() == {"account": {"name": "demo", "password": "demo"}}
+    answer = anonymous.post("/api/auth/login", json={"name": "demo", "password": "demo"})
+    assert answer.status_code == 200 and answer.json()["role"] == "admin"
+
+
+def test_users_routes_make_a_user_whose_token_works(client: TestClient, tokens: TestClient) -> None:
+    made = client.post("/api/users", json={"name": "ines", "role": "reviewer", "password": "pw"})
+    assert made.status_code == 201 and made.json()["token"].startswith("v3d_")
+    assert client.post("/api/users", json={"name": "ines", "role": "admin", "password": "x"}).json()["field"] == "name"
+    listed = {u["name"]: u for u in client.get("/api/users").json()}
+    assert listed["ines"]["role"] == "reviewer" and listed["ines"]["tokens"] == 1
+    tokens.headers["Authorization"] = f"Bearer {made.json()['token']}"
+    assert tokens.get("/api/auth/me").json()["name"] == "ines"
+
+
+def test_pages_stay_public_and_say_nothing_about_systems(anonymous: TestClient, client: TestClient) -> None:
+    assert anonymous.get("/systems/999999").status_code == 200  # the page; it asks the person to log in
+    assert client.get("/systems/999999").status_code == 404  # logged in: the missing-system page
+    assert anonymous.get("/login").status_code == 200 and 'src="/static/js/login.js"' in anonymous.get("/login").text
+
+
+def test_openapi_declares_the_bearer_and_session_schemes(anonymous: TestClient) -> None:
+    spec = anonymous.get("/openapi.json").json()
+    schemes = spec["components"]["securitySchemes"]
+    assert schemes["bearer"] == {"type": "http", "scheme": "bearer", "description": schemes["bearer"]["description"]}
+    assert (schemes["session"]["in"], schemes["session"]["name"]) == ("cookie", SESSION_COOKIE)
+    assert spec["paths"]["/api/frames/{frame_id}/ball"]["patch"]["security"] == [{"bearer": []}, {"session": []}]
+    assert "security" not in spec["paths"]["/api/auth/login"]["post"]

@@ -1,0 +1,74 @@
+"""Logging in through the page, in Chromium: a visitor opening a system's link is sent to the login
+page and, once logged in, back to the same link; a wrong password says so without saying which field
+was wrong; the header shows who is logged in; a decision above the person's role shows the API's 403;
+logging out leads back to the login page. The demo hint appears only once the demo account exists."""
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from app.db.session import make_engine, make_session_factory
+from app.services.users import ensure_demo_account
+from tests.accounts import Account
+from tests.browser.support import api_json, log_in, tid
+
+pytestmark = pytest.mark.browser
+
+
+def test_a_visitor_logs_in_and_returns_to_the_link_then_logs_out(browser, server_url, accounts, page) -> None:
+    sid = api_json(page, "/api/systems?sort=name&limit=1")["items"][0]["id"]  # read as the admin
+    context = browser.new_context(viewport={"width": 1440, "height": 900}, base_url=server_url)
+    errors: list[str] = []
+    visitor = context.new_page()
+    visitor.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        visitor.goto(f"/systems/{sid}?sort=name")
+        visitor.wait_for_url(re.compile(rf"/login\?next=%2Fsystems%2F{sid}%3Fsort%3Dname$"))
+        assert visitor.locator(tid("demo-hint")).is_hidden()  # no demo account in this database
+
+        annotator: Account = accounts["annotator"]
+        log_in(visitor, Account(annotator.name, annotator.role, "not the password", annotator.token))
+        error = visitor.locator(tid("login-error"))
+        error.wait_for(state="visible")
+        assert error.inner_text() == "Wrong name or password."
+
+        log_in(visitor, annotator)
+        visitor.wait_for_url(f"{server_url}/systems/{sid}?sort=name")
+        visitor.locator(tid("user-name")).wait_for()
+        assert visitor.locator(tid("user")).inner_text() == "test-annotator · annotator"
+        visitor.wait_for_function("() => document.querySelector('[data-testid=system-name]')?.textContent !== '…'")
+
+        visitor.keyboard.press("a")  # accepting a system is a reviewer's decision
+        bar = visitor.locator(tid("error"))
+        bar.wait_for(state="visible")
+        assert "403: this needs the reviewer role; you are annotator" in bar.inner_text()
+
+        visitor.click(tid("logout"))
+        visitor.wait_for_url(f"{server_url}/login")
+        visitor.goto("/")
+        visitor.wait_for_url(f"{server_url}/login?next=%2F")
+    finally:
+        context.close()
+    assert not errors, errors
+
+
+def test_the_demo_hint_appears_once_the_demo_account_exists(browser, server_url, seeded_settings) -> None:
+    engine = make_engine(seeded_settings.database_url)
+    with make_session_factory(engine)() as session:
+        ensure_demo_account(session)
+    engine.dispose()
+    context = browser.new_context(base_url=server_url)
+    try:
+        visitor = context.new_page()
+        visitor.goto("/login")
+        visitor.locator(tid("demo-hint")).wait_for(state="visible")
+        assert (visitor.locator(tid("demo-name")).inner_text(), visitor.locator(tid("demo-password")).inner_text()) \
+            == ("demo", "demo")
+        visitor.click(tid("demo-fill"))
+        visitor.click(tid("login-submit"))
+        visitor.wait_for_url(f"{server_url}/")
+        visitor.locator(tid("queue-row")).first.wait_for()
+        assert visitor.locator(tid("user")).inner_text() == "demo · admin"
+    finally:
+        context.close()

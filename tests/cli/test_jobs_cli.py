@@ -1,0 +1,56 @@
+"""``v3d import`` as a job, ``v3d jobs list`` and ``v3d jobs run`` on a temporary SQLite file."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+import app.cli.datasets  # noqa: F401  (registers the commands)
+import app.cli.jobs  # noqa: F401
+from app.cli._root import cli
+from app.db.session import make_engine, make_session_factory
+from app.services import jobs
+from tests.services.datasets import write_calibration_zip
+
+runner = CliRunner()
+
+
+@pytest.fixture
+def url(tmp_path: Path) -> str:
+    return f"sqlite:///{tmp_path / 'cli.sqlite3'}"
+
+
+def test_import_jobs_are_listed_with_their_outcome(shared_dir: Path, tmp_path: Path, url: str) -> None:
+    archive = write_calibration_zip(shared_dir, tmp_path / "wc" / "annotations.zip")
+    ok = runner.invoke(cli, ["import", "sn-calibration", str(archive), "--width", "960", "--height", "540",
+                             "--database-url", url, "--workers", "1"])
+    assert ok.exit_code == 0 and "(job 1)" in ok.output, ok.output
+    broken = write_calibration_zip(shared_dir, tmp_path / "bad" / "annotations.zip",
+                                   extra={"9.json": b'{"Middle line": [{"x": "a", "y": 0.2}]}'})
+    failed = runner.invoke(cli, ["import", "sn-calibration", str(broken), "--width", "960", "--height", "540",
+                                 "--database-url", url, "--workers", "1"])
+    assert failed.exit_code == 2 and "error: " in failed.output and "9.json" in failed.output, failed.output
+    listed = runner.invoke(cli, ["jobs", "list", "--database-url", url])
+    assert listed.exit_code == 0, listed.output
+    lines = listed.output.splitlines()
+    assert lines[0].split()[:3] == ["2", "import", "failed"] and "9.json" in lines[1]
+    assert lines[2].split()[:3] == ["1", "import", "done"] and str(archive.resolve()) in lines[2]
+    assert lines[-1] == "2 of 2 job(s)"
+    only = runner.invoke(cli, ["jobs", "list", "--state", "done", "--database-url", url])
+    assert only.output.splitlines()[-1] == "1 of 1 job(s)"
+    bad = runner.invoke(cli, ["jobs", "list", "--state", "finished", "--database-url", url])
+    assert bad.exit_code == 2 and "unknown state 'finished'" in bad.output
+
+
+def test_jobs_run_runs_the_queued_jobs(url: str) -> None:
+    assert runner.invoke(cli, ["jobs", "list", "--database-url", url]).output.strip() == "0 of 0 job(s)"
+    engine = make_engine(url)
+    try:
+        with make_session_factory(engine)() as session:
+            queued = jobs.submit(session, "recompute", {})
+    finally:
+        engine.dispose()
+    ran = runner.invoke(cli, ["jobs", "run", "--database-url", url])
+    assert ran.exit_code == 0 and ran.output.strip() == f"job {queued.id} (recompute): done", ran.output
+    assert runner.invoke(cli, ["jobs", "run", "--database-url", url]).output == ""
