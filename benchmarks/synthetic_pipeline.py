@@ -8,7 +8,7 @@ optimised boxes), reads back what was stored and compares it with ``soccernet-v3
 1. **Calibration per view**, without and with the game rig. The service has no switch for the rig
    (``app.services.recompute``: a frame refused from its lines alone, or calibrated below admission,
    is always retried with the game's rig), so the *no-rig* row calls the pure ``calibrate_frame`` on
-   each stored view's lines with the prior the service gives it (``recompute.expected_side``), which is the service's first pass;
+   each stored view's lines with the prior the service gives it (``calibrating.expected_side``), which is the service's first pass;
    the *with-rig* row is what the service stored. A third row retries the views the service retries
    (refused without the rig, or calibrated below admission) with the TRUE camera positions of the game
    (``truth.rig``), keeping the better fit by residual as the service does: the most any rig could give. Per row:
@@ -63,7 +63,8 @@ from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.jac import jac_at_gammas  # noqa: E402
 from app.geometry.metrics import box_iou, box_size_error_pct  # noqa: E402
 from app.services.importing import ImportReport, import_soccernet_v3  # noqa: E402
-from app.services.recompute import MIRROR_FLAG, RIG_FLAG, admission_jac, expected_side  # noqa: E402
+from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG# noqa: E402
+from app.services.calibrating import admission_jac, expected_side
 
 #: Corruption kinds of the synthetic truth (``systems[].corruption``), None excepted.
 CORRUPTIONS = ("desync", "wrong_ball", "mirrored", "no_ball")
@@ -233,7 +234,7 @@ def _from_result(result: Any, gamma: float) -> Calib:
 
 def calibrate_without_rig(view: StoredView, gamma: float) -> Calib:
     """The service's first pass on one view: the pure ``calibrate_frame`` on its stored lines, with
-    the prior the service gives its role (``recompute.expected_side``), no rig."""
+    the prior the service gives its role (``calibrating.expected_side``), no rig."""
     side = expected_side(FrameRole(view.role))
     prior = CalibrationPrior(expected_side=side) if side is not None else None
     return _from_result(calibrate_frame(lines_from_json_lists(view.lines), view.width, view.height, prior=prior), gamma)
@@ -360,7 +361,7 @@ def run(shared: Path = SHARED_DIR, workdir: Path | None = None, workers: int = 0
     with_rig = {k: stored_calib(v) for k, v in views.items()}
     true_rig = dict(no_rig)
     for k, c in no_rig.items():
-        # As the service (recompute.wants_rig_retry / with_rig_retry): views refused or calibrated
+        # As the service (calibrating.wants_rig_retry / with_rig_retry): views refused or calibrated
         # below admission are retried, and the rig's fit is kept when it fits the labels better.
         if not (c.calibrated and c.jac is not None and c.jac > admit_min):
             retried = calibrate_with_true_rig(views[k], truth.rigs[k[0]], gamma)

@@ -2,7 +2,8 @@
 
 Registered on :data:`app.cli._root.cli`. No database: reads a folder or a zip of frame JSON files
 (``<frame>.json``, normalised points), calibrates every frame with
-:func:`app.geometry.calibration.calibrate_frame` in a process pool, writes one
+:func:`app.geometry.calibration.calibrate_frame` in the service's process pool
+(``app.services.calibrating.calibration_pool``), writes one
 ``camera_<frame>.json`` (SoccerNet camera format, ``Camera.to_soccernet()``) per calibrated frame and
 ``calibration_summary.json`` (status, reason, flags, residuals per frame), and prints a summary. The
 output folder is what ``v3d jac ANNOTATIONS OUT_DIR`` scores.
@@ -11,8 +12,6 @@ from __future__ import annotations
 
 import collections
 import json
-import multiprocessing
-import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +25,7 @@ from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
 from app.services.errors import DatasetError
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
+from app.services.calibrating import calibration_pool
 
 SUMMARY_FILE = CALIBRATION_SUMMARY
 
@@ -104,23 +104,14 @@ def calibrate_command(
     if not frames:
         raise typer.BadParameter(f"no *.json frame found in {annotations}", param_hint="ANNOTATIONS")
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_workers = workers or os.cpu_count() or 1
     jobs = [(frame, data, width, height, side) for frame, data in frames]
     outcomes: list[FrameOutcome] = []
     t0 = time.perf_counter()
-    bar = tqdm(total=len(jobs), desc="calibrate", unit="frame")
-    try:
-        if n_workers == 1:
-            for job in jobs:
-                outcomes.append(calibrate_one(job))
-                bar.update()
-        else:
-            with multiprocessing.get_context("spawn").Pool(n_workers) as pool:
-                for outcome in pool.imap_unordered(calibrate_one, jobs, chunksize=8):
-                    outcomes.append(outcome)
-                    bar.update()
-    finally:
-        bar.close()
+    with calibration_pool(workers) as pool, tqdm(total=len(jobs), desc="calibrate", unit="frame") as bar:
+        n_workers = pool.workers
+        for outcome in pool.map(calibrate_one, jobs, chunksize=8):
+            outcomes.append(outcome)
+            bar.update()
     seconds = time.perf_counter() - t0
     outcomes.sort(key=lambda o: o.frame)
     for o in outcomes:

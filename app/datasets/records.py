@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.db.models import BallKind, FrameRole, ReviewStatus, SystemKind
-from app.services.recompute import CalibrationFields
+from app.services.calibrating import CalibrationFields
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from app.db.models import BallKind, CalibrationStatus, FrameRole, ReviewStatus, 
 from app.geometry.camera import Camera
 from app.services._labels import LabelError, check_box, check_point
 from app.services.errors import DatasetError
-from app.services.recompute import CalibrationFields
+from app.services.calibrating import CalibrationFields
 
 V3D_LABELS = "Labels-v3D.json"
 V3D_CSV = "SNv3D.csv"

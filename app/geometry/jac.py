@@ -46,7 +46,7 @@ from app.geometry.projection import (
 #: Official SoccerNet thresholds, pixels at 960x540.
 OFFICIAL_THRESHOLDS_PX: tuple[float, ...] = (5.0, 10.0, 20.0)
 #: SoccerNet-v3D thresholds as fractions of the image diagonal (0.5 %, 1 %, 2 %).
-DEFAULT_GAMMAS: tuple[float, ...] = (0.005, 0.01, 0.02)
+JAC_GAMMAS: tuple[float, ...] = (0.005, 0.01, 0.02)
 
 Outcome = Literal["TP", "FP", "FN"]
 
@@ -158,7 +158,7 @@ def point_to_polyline_distances(points: np.ndarray, polyline: np.ndarray) -> np.
     return np.where(inside, d_foot, d_ends).min(axis=1)
 
 
-def gamma_thresholds(width: float, height: float, gammas: Iterable[float] = DEFAULT_GAMMAS) -> tuple[float, ...]:
+def gamma_thresholds(width: float, height: float, gammas: Iterable[float] = JAC_GAMMAS) -> tuple[float, ...]:
     """Thresholds in pixels for JaC@gamma: ``gamma * sqrt(W^2 + H^2)`` (method.md section 4).
 
     Raises:
@@ -276,7 +276,7 @@ def evaluate_jac(camera: Camera, lines: FieldLines, width: int, height: int,
 
 
 def jac_at_gammas(camera: Camera, lines: FieldLines, width: int, height: int,
-                  gammas: Sequence[float] = DEFAULT_GAMMAS) -> dict[float, float]:
+                  gammas: Sequence[float] = JAC_GAMMAS) -> dict[float, float]:
     """JaC@gamma: JaC with threshold ``gamma * image diagonal`` (SoccerNet-v3D, method.md section 4).
 
     Args:

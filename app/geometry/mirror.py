@@ -67,7 +67,7 @@ from typing import Hashable, Sequence
 import numpy as np
 
 from app.geometry.annotations import FieldLines, image_diagonal, mirror_lines
-from app.geometry.calibration.frame import CalibrationSettings, side_vote
+from app.geometry.calibration.frame import MIRROR_FLAG, CalibrationSettings, side_vote
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig
 from app.geometry.camera import Camera, as_points
 from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M
@@ -77,8 +77,8 @@ from app.geometry.triangulation import BallObservation, triangulate_pair
 MIRROR_ROTATION = np.diag([-1.0, -1.0, 1.0])
 MIRROR_ROTATION.setflags(write=False)
 
-#: Verdicts of :class:`MirrorVerdict`.
-VERDICT_MIRRORED = "probably_mirrored"
+#: Verdicts of :class:`MirrorVerdict` (a mirrored verdict is the calibration's flag of the same name).
+VERDICT_MIRRORED = MIRROR_FLAG
 VERDICT_AS_LABELLED = "as_labelled"
 VERDICT_UNDECIDED = "undecided"
 

@@ -14,10 +14,10 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.models import Frame, FrameRole, Game
 from app.datasets.records import FrameRecord, GameRecord
-from app.services.recompute import (
-    CalibrationFields, CalibrationJob, CalibrationPool, Progress, calibrate_many, calibration_job, expected_side,
-    game_rig, start_calibrating, uses_rig, wants_rig_retry, with_rig_retry,
+from app.services.calibrating import (
+    CalibrationFields, CalibrationJob, CalibrationPool, calibrate_many, calibration_job, expected_side, game_rig, start_calibrating, uses_rig, wants_rig_retry, with_rig_retry,
 )
+from app.services.progress import Progress
 
 
 class FirstPassAhead(NamedTuple):
@@ -29,7 +29,7 @@ class FirstPassAhead(NamedTuple):
 
 
 def new_frame_job(rec: FrameRecord) -> CalibrationJob:
-    """The job ``recompute.calibration_job`` gives a frame created from ``rec`` (its lines as imported)."""
+    """The job ``calibrating.calibration_job`` gives a frame created from ``rec`` (its lines as imported)."""
     return (rec.lines, rec.width, rec.height, expected_side(rec.role), None, rec.role is FrameRole.ACTION)
 
 
@@ -81,10 +81,10 @@ def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[Ca
                           settings: Settings, progress: Progress | None, pool: CalibrationPool | None = None
                           ) -> tuple[list[CalibrationFields], dict[int, float]]:
     """Recalibrate the frames of SoccerNet-v3 games refused or calibrated below admission
-    (``recompute.wants_rig_retry``) with their game's camera rig, estimated from the game's stored
+    (``calibrating.wants_rig_retry``) with their game's camera rig, estimated from the game's stored
     calibrations (except the frames being recalibrated) and this import's fresh ones
-    (``recompute.game_rig``). Writes nothing (the caller disables autoflush). Returns the final
-    result per frame (``recompute.with_rig_retry``: the better fit by residual, a refusal carrying
+    (``calibrating.game_rig``). Writes nothing (the caller disables autoflush). Returns the final
+    result per frame (``calibrating.with_rig_retry``: the better fit by residual, a refusal carrying
     the rig's mirror flag) and the rig pass's time per retried frame index (ms)."""
     retry = [i for i, (f, r) in enumerate(zip(frames, results)) if wants_rig_retry(r, settings) and uses_rig(f.system)]
     if not retry:

@@ -45,10 +45,10 @@ from app.datasets.soccernet_v3 import read_soccernet_v3
 from app.datasets.soccernet_v3d import read_soccernet_v3d
 from app.services.audit import record_summary
 from app.services.import_calibration import FirstPassAhead, first_pass, retry_with_game_rigs, start_first_pass
-from app.services.recompute import (
-    RIG_FLAG, CalibrationFields, CalibrationPool, Progress, apply_calibration, calibration_pool, preload_systems,
-    recompute_systems,
-)
+from app.geometry.calibration.frame import RIG_FLAG
+from app.services.calibrating import CalibrationFields, CalibrationPool, apply_calibration, calibration_pool
+from app.services.progress import Progress
+from app.services.recompute import preload_systems, recompute_systems
 
 __all__ = [
     "ImportReport", "audit_counts", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",

@@ -67,7 +67,7 @@ def sequence_columns(session: Session, game_id: int, settings: Settings) -> Sequ
     chooses them (camera order by view position then name; the camera of each camera's first admitted view
     in frame order), read with a name query and a calibration query streamed in frame order that stops
     as soon as every camera has its admitted view."""
-    from app.services.recompute import is_admitted
+    from app.services.calibrating import is_admitted
 
     rows = session.execute(
         sa.select(Frame.name, sa.func.min(Frame.position), sa.func.max(Frame.width))

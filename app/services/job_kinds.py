@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
 from app.services.errors import InvalidInputError
-from app.services.recompute import Progress
+from app.services.progress import Progress
 
 #: Dataset kinds an import job takes (``params["kind"]``).
 IMPORT_KINDS = ("soccernet-v3", "soccernet-v3d", "sn-calibration", "issia")

@@ -45,7 +45,7 @@ from app.core.config import Settings
 from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
 from app.services.errors import InvalidInputError, NotFoundError, ServiceError
-from app.services.recompute import Progress
+from app.services.progress import Progress
 
 log = logging.getLogger(__name__)
 

@@ -9,7 +9,8 @@ from app.core.config import Settings
 from app.db.models import System
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.main import create_app
-from app.services.recompute import MIRROR_FLAG, update_summary
+from app.geometry.calibration.frame import MIRROR_FLAG
+from app.services.recompute import update_summary
 
 from tests.accounts import as_token, make_accounts
 

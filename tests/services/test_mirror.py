@@ -17,7 +17,8 @@ from app.geometry.mirror import mirror_camera
 from app.services.editing import apply_mirrored_labels
 from app.services.errors import InvalidInputError, NotFoundError
 from app.services.importing import import_soccernet_v3
-from app.services.recompute import MIRROR_FLAG, recompute_system
+from app.geometry.calibration.frame import MIRROR_FLAG
+from app.services.recompute import recompute_system
 from tests.api.factories import make_game, make_system
 
 

@@ -6,7 +6,8 @@ import pytest
 
 from app.db.models import Calibration, CalibrationSource, CalibrationStatus, TriangulationStatus
 from app.services.importing import read_soccernet_v3
-from app.services.recompute import admission_jac, calibrate_many, expected_side, is_admitted, recompute_system
+from app.services.calibrating import admission_jac, calibrate_many, expected_side, is_admitted
+from app.services.recompute import recompute_system
 
 from .datasets import true_balls
 

@@ -72,7 +72,7 @@ from app.geometry.calibration.residuals import (
 )
 from app.geometry.calibration.solver import robust_lm_steps, run_lockstep, run_steps, soft_l1_cost
 from app.geometry.camera import Camera, look_at_rotation
-from app.geometry.jac import DEFAULT_GAMMAS, jac_at_gammas
+from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
 
 #: Flag of a calibration made with its centre fixed by a prior (a position of the game's camera rig).
@@ -80,9 +80,6 @@ RIG_FLAG = "rig_assisted"
 #: Flag of a frame whose field-line labels are probably mirrored (camera-side prior here; the
 #: multi-view verdict of ``app.geometry.mirror`` sets the same flag in the service).
 MIRROR_FLAG = "probably_mirrored"
-
-#: JaC thresholds as fractions of the image diagonal (method.md section 4): the JaC module's defaults.
-JAC_GAMMAS: tuple[float, ...] = DEFAULT_GAMMAS
 
 #: Plausible camera centres (world, metres, z down) tried, in this order, when the lines do not fix
 #: a homography: main broadcast camera on either side, 18-yard cameras, high and low behind-goal
