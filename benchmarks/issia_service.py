@@ -52,7 +52,7 @@ STAGES = (
     ("recompute non-ISSIA", "app.services.editing", "recompute_system"),
     ("update_doubts (moved)", "app.services.issia", "update_doubts"),
     ("commit", "sqlalchemy.orm", "Session.commit"),
-    ("system_view (answer)", "app.services.views", "system_view"),
+    ("system view (answer)", "app.api.view_schemas", "SystemView.of"),
 )
 
 

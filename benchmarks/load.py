@@ -405,8 +405,12 @@ def check_recomputations(database_url: str, system_ids: list[int], report: LoadR
     from app.core.config import Settings
     from app.db.models import System
     from app.db.session import make_engine, make_session_factory
+    from app.api.view_schemas import SystemView
     from app.services.recompute import recompute_system
-    from app.services.views import system_view
+    from app.services.system_page import system_page
+
+    def system_view(session, system_id):  # the system view's JSON, as GET /api/systems/{id} answers it
+        return SystemView.of(system_page(session, system_id)).model_dump(mode="json", by_alias=True)
 
     settings = Settings(database_url=database_url, calibration_workers=1)
     engine = make_engine(database_url)

@@ -83,42 +83,42 @@ def main(argv: list[str] | None = None) -> int:
     if not args.db.is_file():
         print(f"error: --db {args.db}: no such file", file=sys.stderr)
         return 2
-    from app.api.schemas import SystemPageOut, SystemView
+    from app.api.view_schemas import SystemPageOut, SystemSummaryOut, SystemView
     from app.core.config import Settings
     from app.db.session import make_engine, make_session_factory
-    from app.services import editing, views
+    from app.services import editing, queue as queues
+    from app.services.system_page import system_page
 
     sql = SqlCounter()
     settings = Settings(database_url=f"sqlite:///{args.db.resolve()}")
     engine = make_engine(settings.database_url)
     sessions = make_session_factory(engine)
-    filters = views.SystemFilters()
+    filters = queues.SystemFilters()
 
     def queue() -> str:  # as the route GET /api/systems does, response model included
         with sessions() as s:
-            page = views.list_systems(s, filters, views.DEFAULT_SORT, 50, 0)
-            return SystemPageOut.model_validate(
-                {"items": [x.as_json() for x in page.items], "total": page.total, "limit": 50, "offset": 0,
-                 "counts": page.counts}).model_dump_json()
+            page = queues.list_systems(s, filters, queues.DEFAULT_SORT, 50, 0)
+            return SystemPageOut(items=[SystemSummaryOut.of(x) for x in page.items], total=page.total, limit=50,
+                                 offset=0, counts=page.counts).model_dump_json()
 
     def system(sid: int) -> str:  # GET /api/systems/{id}
         with sessions() as s:
-            return SystemView.model_validate(views.system_view(s, sid, filters, views.DEFAULT_SORT)).model_dump_json()
+            return SystemView.of(system_page(s, sid, filters, queues.DEFAULT_SORT)).model_dump_json()
 
     def edit(fid: int, sid: int, box: list[float]) -> str:  # PATCH /api/frames/{id}/ball
         with sessions() as s:
             editing.update_ball_label(s, fid, box=box, settings=settings)
-            return SystemView.model_validate(views.system_view(s, sid, filters, views.DEFAULT_SORT)).model_dump_json()
+            return SystemView.of(system_page(s, sid, filters, queues.DEFAULT_SORT)).model_dump_json()
 
     with sessions() as s:
-        page = views.list_systems(s, filters, views.DEFAULT_SORT, 50, 0)
-        sid = page.items[len(page.items) // 2].system.id
-        view = views.system_view(s, sid, filters, views.DEFAULT_SORT)
-    boxed = [v for v in view["views"] if v["ball"]["kind"] == "box" and v["ball"]["box"]]
+        page = queues.list_systems(s, filters, queues.DEFAULT_SORT, 50, 0)
+        sid = page.items[len(page.items) // 2].id
+        view = SystemView.of(system_page(s, sid, filters, queues.DEFAULT_SORT))
+    boxed = [v for v in view.views if v.ball.kind is not None and v.ball.kind.value == "box" and v.ball.box]
     if not boxed:
         print(f"error: system {sid} has no boxed ball to nudge", file=sys.stderr)
         return 2
-    fid, box = boxed[0]["frame_id"], list(boxed[0]["ball"]["box"])
+    fid, box = boxed[0].frame_id, list(boxed[0].ball.box)
     nudged = [box[0] + 1.0, box[1], box[2] + 1.0, box[3]]
     print(f"{args.db}: {page.total} systems; system {sid}, frame {fid}")
     print(profile_call("GET /api/systems (default sort)", queue, sql, args.top, args.repeat))

@@ -4,15 +4,18 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Optional
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field, computed_field
 
 from app.api.schemas import DB_INT_MAX, DbInt, QueryText
+from app.services.audit import SUMMARY_ACTIONS
 
 
 class AuditEntryOut(BaseModel):
     """One audited write (``app.services.audit``): who, when, what, the edited part before and after
     (``{"ball": {box, point}}``, ``{"lines": {...}}``, ``{"excluded": bool}``, ``{"review": {status,
-    comment}}``; an import's or recompute's counts in ``after``)."""
+    comment}}``; an import's or recompute's counts in ``after``). Read from the ``AuditEntry`` row."""
+
+    model_config = ConfigDict(from_attributes=True)
 
     id: int
     at: datetime
@@ -24,7 +27,11 @@ class AuditEntryOut(BaseModel):
     before: Optional[dict[str, Any]]
     after: Optional[dict[str, Any]]
     reverts_id: Optional[int] = Field(description="A revert: the entry it undid.")
-    revertible: bool = Field(description="False for imports and recomputes.")
+
+    @computed_field(description="False for imports and recomputes.")  # type: ignore[prop-decorator]
+    @property
+    def revertible(self) -> bool:
+        return self.action not in SUMMARY_ACTIONS
 
 
 class AuditPageOut(BaseModel):

@@ -14,7 +14,8 @@ from typing import Annotated, Any, Optional
 from fastapi import Depends, Header, HTTPException, Response
 
 from app.api.auth import PrincipalDep
-from app.api.schemas import ErrorOut, StaleOut
+from app.api.schemas import ErrorOut
+from app.api.view_schemas import StaleOut
 
 #: OpenAPI ``responses`` of the guarded writes.
 PRECONDITIONS: dict[int | str, dict[str, Any]] = {

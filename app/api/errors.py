@@ -1,6 +1,6 @@
 """Domain errors to HTTP answers, in one place.
 
-* :class:`~app.services.errors.NotFoundError` and :class:`~app.services.views.ImageUnavailable`: 404
+* :class:`~app.services.errors.NotFoundError` and :class:`~app.services.images.ImageUnavailable`: 404
   with the message (it names the missing id or file);
 * :class:`~app.services.errors.ForbiddenError`: 403 (e.g. an import path outside the data root);
 * :class:`~app.services.archives.UploadTooLarge`: 413 (an upload above ``V3D_MAX_UPLOAD_MB``);
@@ -8,7 +8,8 @@
 * :class:`~app.services.errors.DatasetError`: 400, the server-side dataset cannot be imported (the
   message names the file and the field);
 * :class:`~app.services.errors.StaleVersionError`: 412 with the resource's current state, its ETag (also
-  in the ``ETag`` header) and its newest audit entry (``app.api.schemas.StaleOut``);
+  in the ``ETag`` header) and its newest audit entry (``app.api.view_schemas.StaleOut``, shaped from the rows
+  the service read after rolling back);
 * :class:`~app.services.errors.ConflictError`: 409 with the message and, when known, ``current``;
 * :class:`~app.services.errors.InvalidInputError` and
   :class:`~app.geometry.annotations.AnnotationError`: 422 with the message and, when known, ``field``.
@@ -26,13 +27,16 @@ from fastapi.exception_handlers import http_exception_handler
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from app.api.audit_schemas import AuditEntryOut
+from app.api.view_schemas import FrameView, StaleOut, SystemStateOut
+from app.db.models import Frame
 from app.geometry.annotations import AnnotationError
 from app.services.errors import (
     ConflictError, DatasetError, ForbiddenError, InvalidInputError, NotFoundError, StaleVersionError,
 )
 from app.services.archives import UploadTooLarge
 from app.services.jobs import JobNotReady
-from app.services.views import ImageUnavailable
+from app.services.images import ImageUnavailable
 
 
 def _answer(code: int, exc: Exception, field: str | None = None) -> JSONResponse:
@@ -64,8 +68,14 @@ async def _invalid(_: Request, exc: Exception) -> JSONResponse:
 
 async def _stale(_: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StaleVersionError)
-    body = {"detail": str(exc), "etag": exc.etag, "current": exc.current, "last_change": exc.last_change}
-    return JSONResponse(jsonable_encoder(body), status_code=status.HTTP_412_PRECONDITION_FAILED,
+    current = exc.current
+    body = StaleOut(
+        detail=str(exc), etag=exc.etag,
+        current=(FrameView.of_frame(current) if isinstance(current, Frame)
+                 else SystemStateOut.of(current) if current is not None else None),  # type: ignore[arg-type]
+        last_change=AuditEntryOut.model_validate(exc.last_change) if exc.last_change is not None else None,
+    )
+    return JSONResponse(body.model_dump(mode="json", by_alias=True), status_code=status.HTTP_412_PRECONDITION_FAILED,
                         headers={"ETag": exc.etag, "Cache-Control": "no-cache"})
 
 

@@ -5,6 +5,10 @@ from typing import Literal, Optional
 
 from pydantic import BaseModel, Field
 
+from app.db.models import ReviewStatus, System
+from app.services.issia_export import SequenceData
+from app.services.issia_trajectory import FPS
+
 Point3 = tuple[float, float, float]
 
 
@@ -27,11 +31,24 @@ class TrajectoryFrameOut(BaseModel):
     cam_list: list[str] = Field(description="Views whose labels the frame keeps.")
     flagged: list[str] = Field(description="Views whose labels break the trajectory (ball_off_consensus doubts).")
     label_doubts: int
-    status: str = Field(description="The system's review status.")
+    status: ReviewStatus = Field(description="The system's review status.")
+
+    @classmethod
+    def of(cls, system: System) -> "TrajectoryFrameOut":
+        """One frame's system (frames, review and trajectory point loaded); views named by image name."""
+        tp = system.trajectory_point
+        by_id = {f.id: f.name for f in system.frames}
+        return cls(frame_index=system.frame_index, system_id=system.id,
+                   ball3d=tp.ball3d if tp else None, ball3d_smoothed=tp.ball3d_smoothed if tp else None,
+                   source=tp.source if tp else None,
+                   cam_list=[by_id[i] for i in (tp.cam_list if tp else []) if i in by_id],
+                   flagged=[by_id[i] for i in (tp.flagged if tp else []) if i in by_id],
+                   label_doubts=system.label_doubts,
+                   status=system.review.status if system.review is not None else ReviewStatus.PENDING)
 
 
 class TrajectoryOut(BaseModel):
-    """A sequence's trajectory over time (``app.services.issia_export.trajectory_view``)."""
+    """A sequence's trajectory over time (``app.services.issia_export.sequence_data``), world metres, z down."""
 
     game_id: int
     game: str
@@ -40,3 +57,15 @@ class TrajectoryOut(BaseModel):
     camera_set: dict[str, str] = Field(description="View name -> 'train' or 'test' (the paper's split by camera).")
     pieces: list[TrajectoryPieceOut]
     frames: list[TrajectoryFrameOut]
+
+    @classmethod
+    def of(cls, seq: SequenceData) -> "TrajectoryOut":
+        """The trajectory of a stored sequence: its frames in order and its motion pieces (each once)."""
+        pieces: dict[tuple[int, int], TrajectoryPieceOut] = {}
+        for s in seq.systems:
+            piece = s.trajectory_point.piece if s.trajectory_point is not None else None
+            if piece:
+                pieces.setdefault((piece["first_frame"], piece["last_frame"]), TrajectoryPieceOut.model_validate(piece))
+        return cls(game_id=seq.game.id, game=seq.game.path, fps=FPS, cameras=seq.cameras, camera_set=seq.camera_set,
+                   pieces=sorted(pieces.values(), key=lambda p: p.first_frame),
+                   frames=[TrajectoryFrameOut.of(s) for s in seq.systems])

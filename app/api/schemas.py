@@ -1,22 +1,21 @@
-"""Pydantic schemas of the REST API: request bodies, query parameters and responses.
+"""Pydantic schemas of the REST API's requests: query parameters, request bodies, and the error answers.
 
 Separate from the ORM models (``app.db.models``); only the enums are shared. Units: pixels of the
 frame's own image (continuous coordinates, origin at the top-left corner), world metres (z down), JaC
-as fractions in [0, 1]. The system view (:class:`SystemView`) is the UI contract of
-``docs/architecture.md``.
+as fractions in [0, 1]. The answers of the review views (the system view, the UI contract of
+``docs/architecture.md``) are in ``app.api.view_schemas``; those of other routers beside them
+(``audit_schemas``, ``job_schemas``, ``issia_schemas``).
 """
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
 
 from app.db.models import ReviewStatus
-from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
-from app.services.views import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
+from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
+from app.services.queue import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
 
-Point2 = tuple[float, float]
 #: A coordinate of a request body: a JSON number (``true`` or ``"1"`` are refused naming the field, not
 #: read as 1.0); NaN and infinity pass here so that the services refuse them with their message.
 InCoord = Annotated[float, Strict()]
@@ -24,8 +23,6 @@ InPoint2 = tuple[InCoord, InCoord]
 InBox = tuple[InCoord, InCoord, InCoord, InCoord]
 #: The ``doubt`` filter of the queue: a doubt kind, ``any`` label-accusing doubt, or ``none``.
 DoubtFilter = Literal[LABEL_KINDS + INFO_KINDS + ("any", "none")]  # type: ignore[valid-type]
-Box = tuple[float, float, float, float]
-Point3 = tuple[float, float, float]
 #: Bounds of an integer compared with a stored one (ids, offsets): the id columns are ``INTEGER``, 32-bit signed
 #: on PostgreSQL (SQLite's are 64-bit). A larger number would fail in the database or its driver (a 500:
 #: "integer out of range", OverflowError; found by ``benchmarks/fuzz.py``); it is a 422 naming the parameter.
@@ -214,237 +211,3 @@ NOT_FOUND = {404: {"model": ErrorOut, "description": "No row has this id (the me
 #: OpenAPI ``responses`` of routes that store input the services validate.
 INVALID = {422: {"model": InvalidOut, "description": "Invalid input: `{detail, field}` from the services, or "
                                                      "FastAPI's `{detail: [{loc, msg, type}]}` for a malformed body."}}
-
-class StaleOut(BaseModel):
-    """412: the write's ``If-Match`` is stale. ``current`` is the resource now (a frame as
-    ``GET /api/frames/{id}`` answers it, or ``{id, etag, review}`` of a system), ``etag`` its ETag (also
-    in the ``ETag`` header) and ``last_change`` its newest audit entry (who changed it), when any."""
-
-    detail: str
-    etag: str
-    current: Optional[dict[str, Any]]
-    last_change: Optional[dict[str, Any]]
-
-
-class GameRef(BaseModel):
-    """A game's identity."""
-
-    id: int
-    league: str
-    season: str
-    match: str
-
-
-class GameOut(GameRef):
-    """A game and its number of systems."""
-
-    systems: int
-
-
-class ReviewOut(BaseModel):
-    """A review decision; pending with no time when never decided."""
-
-    status: ReviewStatus
-    comment: str = ""
-    decided_at: Optional[datetime] = None
-    excluded: bool = Field(False, description="Views only: excluded from the system's triangulation by a reviewer.")
-
-
-class DoubtOut(BaseModel):
-    """A doubt of a system (``app.geometry.doubts``): a label problem the geometry sees, or information."""
-
-    kind: str = Field(description=f"Label-accusing: {', '.join(LABEL_KINDS)}; information: {', '.join(INFO_KINDS)}.")
-    frame_id: Optional[int] = Field(description="The view it names; null for the system as a whole.")
-    frame: Optional[str] = Field(description="That view's image name.")
-    accuses_label: bool
-    message: str = Field(description="One sentence with its numbers.")
-    evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, degrees).")
-    suggestion: Optional[dict[str, Any]] = Field(
-        description=f"The fix: {{'action': one of {', '.join(SUGGESTION_ACTIONS)}, 'box': [x1, y1, x2, y2] px for "
-        "snap_box}; null when nothing can be suggested.")
-
-
-class SystemSummaryOut(BaseModel):
-    """A row of the review queue: figures stored by the system's last recomputation (aggregates over the
-    admitted views, ``app.services.recompute.update_summary``)."""
-
-    id: int
-    name: str
-    kind: str
-    game: GameRef
-    review: ReviewOut
-    ball3d: Optional[Point3]
-    views_total: int
-    views_calibrated: int
-    views_admitted: int
-    views_labelled: int
-    lowest_jac: Optional[float] = Field(description="Lowest JaC@0.5% among admitted views.")
-    worst_error_px: Optional[float] = Field(description="Largest reprojection error among admitted views, px.")
-    views_flagged: int = Field(description="Views whose field-line labels are flagged probably mirrored.")
-    views_above_tau: int = Field(
-        description="Admitted labelled views whose reprojection error is above tau (the system view's "
-        "error_above_tau rule: error scaled to the rule's reference width, compared with the stored tau).")
-    doubt_counts: dict[str, int] = Field(description="Stored doubts of the system per kind.")
-    label_doubts: int = Field(description="How many of its doubts accuse a label.")
-
-
-class SystemPageOut(BaseModel):
-    """A page of the queue; ``counts`` per review status over the filters other than ``status``."""
-
-    items: list[SystemSummaryOut]
-    total: int
-    limit: int
-    offset: int
-    counts: dict[ReviewStatus, int]
-
-
-class CalibrationOut(BaseModel):
-    """A view's camera (SoccerNet JSON) and its quality."""
-
-    status: str
-    source: str
-    camera: Optional[dict[str, Any]]
-    jac: dict[str, Optional[float]] = Field(description='JaC at gamma = "0.005", "0.01", "0.02" of the diagonal.')
-    admitted: bool
-    reason: Optional[str]
-    flags: list[str]
-    probably_mirrored: bool = Field(
-        description="The field-line labels are probably mirrored (the flag in flags): offer the mirrored labelling.")
-    residuals_px: dict[str, Any]
-    mirror_evidence: Optional[dict[str, Any]] = Field(
-        None, description="Evidence on mirrored labels (app.geometry.mirror.MirrorVerdict.as_dict): verdict, "
-        "margin, camera y, side and rig votes and distances, pair errors as labelled and mirrored, and a sentence; "
-        "the flag 'probably_mirrored' follows the verdict. Null when never judged.")
-
-
-class BallOut(BaseModel):
-    """A view's ball label and the imported original."""
-
-    kind: Optional[Literal["box", "point"]]
-    box: Optional[Box]
-    point: Optional[Point2]
-    original_box: Optional[Box]
-    original_point: Optional[Point2]
-    edited: bool
-
-
-class FrameOut(BaseModel):
-    """A row of ``GET /api/frames``."""
-
-    id: int
-    system_id: int
-    name: str
-    role: str
-    width: int
-    height: int
-    image_url: Optional[str]
-    calibration: Optional[CalibrationOut]
-    ball: BallOut
-    reprojection_error_px: Optional[float]
-    review: ReviewOut
-
-
-class FramePageOut(BaseModel):
-    """A page of frames."""
-
-    items: list[FrameOut]
-    total: int
-    limit: int
-    offset: int
-
-
-class PitchLineOut(BaseModel):
-    """One in-image run of a projected pitch element."""
-
-    model_config = ConfigDict(populate_by_name=True, serialize_by_alias=True)
-
-    class_: str = Field(alias="class")
-    points: list[Point2]
-
-
-class OptimisedBoxOut(BaseModel):
-    """The view's optimised box (paper Eq. min_diametre, drawn by ``Settings.optimised_box_method``): by
-    default (``exact_ray``) the box of the exact image of the 0.22 m sphere at the 3D ball's depth on the
-    labelled ray (an ellipse's box off-axis); ``paper``: the square of side ``d_px`` on the labelled centre.
-    ``d_px`` is the diameter d_opt (px) and ``error_m`` the paper's ``optimized_error`` (metres)."""
-
-    box: Box
-    d_px: float
-    error_m: float
-
-
-class ViewOut(BaseModel):
-    """One view of a system, everything the overlay draws."""
-
-    frame_id: int
-    name: str
-    role: Literal["action", "replay", "camera", "static"]
-    width: int
-    height: int
-    image_url: Optional[str] = Field(description="None when the dataset ships no image: draw a blank canvas.")
-    calibration: Optional[CalibrationOut]
-    pitch_lines: list[PitchLineOut]
-    field_lines: dict[str, list[list[Point2]]]
-    ball: BallOut
-    optimised_box: Optional[OptimisedBoxOut]
-    reprojected_ball: Optional[Point2]
-    reprojection_error_px: Optional[float]
-    reprojection_error_scaled_px: Optional[float] = Field(
-        description="The same error in the scale the pair rule compares with tau (px of a 1920-px-wide image "
-        "for max_scaled_1920; app.geometry.triangulation.scaled_error_px); null without a triangulation.")
-    error_above_tau: bool = Field(
-        description="The reprojection error, scaled to the rule's reference width, is above the stored tau "
-        "(app.geometry.triangulation.error_above_tau; the queue's views_above_tau counts by the same rule).")
-    camera_position: Optional[Point3]
-    review: ReviewOut
-    etag: str = Field(description="The frame's strong ETag: the version of its ball label, field lines, review and "
-                                  "exclusion (send it as If-Match with a write to the frame).")
-
-
-class FrameView(ViewOut):
-    """``GET /api/frames/{id}``: the frame as the system view draws it, and its system."""
-
-    system_id: int
-
-
-class PairOut(BaseModel):
-    """One triangulation pair; views named by frame id."""
-
-    view_a: int
-    view_b: int
-    point: Optional[Point3]
-    error_px: Optional[float]
-    parallax_deg: Optional[float]
-    baseline_m: float
-    kept: bool
-    reason: Optional[str]
-
-
-class TriangulationOut(BaseModel):
-    """A system's triangulation and the settings it was made with."""
-
-    status: str
-    tau_px: float
-    rule: str
-    reference_width_px: Optional[float] = Field(
-        description="Width (px) the rule scales a view's error to before comparing it with tau; null: raw px.")
-    min_baseline_m: float
-    pairs: list[PairOut]
-
-
-class SystemView(BaseModel):
-    """The system view of ``docs/architecture.md`` (the UI contract)."""
-
-    id: int
-    name: str
-    kind: str = Field("soccernet-v3", description="soccernet-v3, single-view or issia (a frame of a sequence).")
-    frame_index: Optional[int] = Field(None, description="issia: the frame's index in its sequence.")
-    game: GameRef
-    review: ReviewOut
-    etag: str = Field(description="The strong ETag of the system's review decision (If-Match of a system review).")
-    prev_id: Optional[int]
-    next_id: Optional[int]
-    ball3d: Optional[Point3]
-    triangulation: Optional[TriangulationOut]
-    views: list[ViewOut]
-    doubts: list[DoubtOut] = Field(description="The system's doubts, stored with its last recomputation.")

@@ -40,7 +40,7 @@ def load_demo_if_empty(settings: Settings) -> str:
     from app.db.session import make_engine, make_session_factory
     from app.demo import generate_demo_dataset
     from app.services.importing import import_soccernet_v3
-    from app.services.views import has_games
+    from app.services.queue import has_games
 
     engine = make_engine(settings.database_url)
     try:

@@ -19,12 +19,15 @@ from app.datasets.records import FrameRecord, GameRecord, ImportedCalibration, S
 from app.datasets.soccernet_v3 import FrameImages, find_labels, game_key, v3_lines, v3_systems
 from app.db.models import BallKind, CalibrationStatus, FrameRole, ReviewStatus, SystemKind
 from app.geometry.camera import Camera
+from app.geometry.jac import JAC_GAMMAS
 from app.services._labels import LabelError, check_box, check_point
 from app.services.errors import DatasetError
 from app.services.calibrating import CalibrationFields
 
 V3D_LABELS = "Labels-v3D.json"
 V3D_CSV = "SNv3D.csv"
+#: The format's JaC keys (``Labels-v3D.json`` ``JaC`` object and ``SNv3D.csv`` columns), one per stored gamma.
+JAC_KEYS: tuple[str, ...] = tuple(f"JaC@{g:g}" for g in JAC_GAMMAS)
 
 
 def _cell_json(value: str | None, file: Path, where: str) -> Any:
@@ -84,7 +87,7 @@ def _v3d_calibration(item: Mapping[str, Any], file: Path, where: str) -> Importe
     jac_in = item.get("JaC") or {}
     jac_in = mapping(jac_in, file, f"{where}.JaC")
     jac = []
-    for g in ("JaC@0.005", "JaC@0.01", "JaC@0.02"):
+    for g in JAC_KEYS:
         v = jac_in.get(g)
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= 1):
             raise DatasetError(file, f"{where}.JaC.{g}", f"expected a number in [0, 1] or null, got {v!r}")

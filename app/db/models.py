@@ -36,6 +36,10 @@ import sqlalchemy as sa
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from app.db.types import JSONDoc, UTCDateTime, enum_by_value, utcnow
+from app.geometry.jac import JAC_GAMMAS
+
+#: The column of each stored JaC gamma (``app.geometry.jac.JAC_GAMMAS``, fractions of the image diagonal).
+JAC_COLUMNS: dict[float, str] = dict(zip(JAC_GAMMAS, ("jac_0005", "jac_001", "jac_002"), strict=True))
 
 #: Constraint names Alembic can rely on (same on SQLite and PostgreSQL).
 NAMING_CONVENTION = {
@@ -334,8 +338,9 @@ class Calibration(Base):
     frame: Mapped[Frame] = relationship(back_populates="calibration")
 
     def jac(self) -> dict[str, Optional[float]]:
-        """``{"0.005": .., "0.01": .., "0.02": ..}`` (the keys of the API and of exports)."""
-        return {"0.005": self.jac_0005, "0.01": self.jac_001, "0.02": self.jac_002}
+        """JaC per gamma of :data:`JAC_COLUMNS`, keyed by the gamma as text in increasing order
+        (``{"0.005": .., "0.01": .., "0.02": ..}``: the keys of the API and of exports)."""
+        return {f"{g:g}": getattr(self, column) for g, column in JAC_COLUMNS.items()}
 
 
 class BallLabel(Base):

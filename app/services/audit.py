@@ -69,21 +69,11 @@ def record_summary(session: Session, action: str, counts: dict[str, Any], *, act
     return entry
 
 
-def entry_json(entry: AuditEntry) -> dict[str, Any]:
-    """The API's JSON of an entry (``at`` ISO 8601 UTC)."""
-    return {
-        "id": entry.id, "at": entry.at.isoformat(), "actor": entry.actor, "action": entry.action,
-        "frame_id": entry.frame_id, "system_id": entry.system_id, "game_id": entry.game_id,
-        "before": entry.before, "after": entry.after, "reverts_id": entry.reverts_id,
-        "revertible": entry.action not in SUMMARY_ACTIONS,
-    }
-
-
 @dataclass(frozen=True)
 class AuditPage:
     """One page of entries, newest first, and how many match."""
 
-    items: list[dict[str, Any]]
+    items: list[AuditEntry]
     total: int
 
 
@@ -109,15 +99,15 @@ def list_entries(session: Session, *, frame_id: Optional[int] = None, system_id:
     total = session.scalar(sa.select(sa.func.count()).select_from(AuditEntry).where(*where))
     rows = session.scalars(sa.select(AuditEntry).where(*where).order_by(AuditEntry.id.desc())
                            .limit(limit).offset(offset))
-    return AuditPage(items=[entry_json(e) for e in rows], total=int(total or 0))
+    return AuditPage(items=list(rows), total=int(total or 0))
 
 
 def latest_entry(session: Session, *, frame_id: Optional[int] = None,
-                 system_id: Optional[int] = None) -> Optional[dict[str, Any]]:
+                 system_id: Optional[int] = None) -> Optional[AuditEntry]:
     """The newest entry of a frame (``frame_id``) or of a system's own decisions (``system_id`` alone:
-    entries without a frame), as JSON; None when there is none."""
+    entries without a frame); None when there is none."""
     where = _conditions(frame_id, system_id, None)
     if frame_id is None:
         where.append(AuditEntry.frame_id.is_(None))
     entry = session.scalars(sa.select(AuditEntry).where(*where).order_by(AuditEntry.id.desc()).limit(1)).first()
-    return entry_json(entry) if entry is not None else None
+    return entry

@@ -30,7 +30,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
-from app.db.models import Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, System, SystemKind
+from app.db.models import JAC_COLUMNS, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, System, SystemKind
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
@@ -43,8 +43,6 @@ from app.services.progress import Progress
 _J = TypeVar("_J")
 _R = TypeVar("_R")
 
-#: The stored column of each JaC gamma (:data:`app.geometry.jac.JAC_GAMMAS`, fractions of the diagonal).
-_JAC_COLUMNS = dict(zip(JAC_GAMMAS, ("jac_0005", "jac_001", "jac_002")))
 #: Calibration flag of a camera given by its dataset with no field lines to compute JaC on (an ISSIA
 #: ``issia_calibration.json`` camera without ``issia_lines.json``): admitted as given.
 GIVEN_CAMERA_FLAG = "given_camera"
@@ -272,7 +270,7 @@ def admission_jac(calibration: Calibration, settings: Settings) -> float | None:
     Raises:
         ValueError: the gamma is not one of the stored :data:`JAC_GAMMAS`.
     """
-    return getattr(calibration, _JAC_COLUMNS[_gamma(settings)])
+    return getattr(calibration, JAC_COLUMNS[_gamma(settings)])
 
 
 def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
@@ -328,7 +326,7 @@ def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[i
     the game's rig: calibrated, JaC@gamma > ``admit_jac_min``, not rig-assisted. One query that reads
     only the centre out of each stored camera (the rig needs nothing else), so an edit does not decode
     every calibration of its game."""
-    jac = getattr(Calibration, _JAC_COLUMNS[_gamma(settings)])
+    jac = getattr(Calibration, JAC_COLUMNS[_gamma(settings)])
     query = (select(Calibration.frame_id, Frame.role, Calibration.camera["position_meters"])
              .join(Frame, Frame.id == Calibration.frame_id)
              .join(System, System.id == Frame.system_id)
@@ -373,7 +371,7 @@ def with_rig_retry(first: CalibrationFields, retried: CalibrationFields) -> Cali
 
 
 def _gamma(settings: Settings) -> float:
-    if settings.admit_jac_gamma not in _JAC_COLUMNS:
+    if settings.admit_jac_gamma not in JAC_COLUMNS:
         raise ValueError(f"settings.admit_jac_gamma={settings.admit_jac_gamma!r} is not a stored JaC gamma; "
                          f"choose one of {list(JAC_GAMMAS)}")
     return settings.admit_jac_gamma

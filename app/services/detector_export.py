@@ -52,7 +52,7 @@ from app.geometry.ball import box_centre_and_diameter
 from app.geometry.camera import Camera
 from app.geometry.refined_box import refine_box
 from app.services.exporting import exported_systems, split_of
-from app.services.views import ImageUnavailable, frame_image
+from app.services.images import ImageUnavailable, frame_image
 
 BALL_CLASS = "Ball"
 #: SoccerNet-v3 box classes other than the ball, in class-id order after it.

@@ -18,7 +18,7 @@ Every system-level recomputation also replaces the system's doubts (``app.servic
 Every write is attributed and guarded, in its transaction: it first claims its resource
 (``app.services.versions``: compare-and-set of the frame's ``edit_version`` or the system's
 ``review_version`` against ``expected``, the versions of the client's ``If-Match``; None accepts any),
-raising :class:`~app.services.errors.StaleVersionError` (with the resource's current JSON and its
+raising :class:`~app.services.errors.StaleVersionError` (with the resource's current rows and its
 newest audit entry) when another write came first; then it applies the change, recomputes, and records
 one audit entry (``app.services.audit``, by ``actor``, None meaning :func:`~app.services.audit.local_actor`)
 with the edited part's state before and after. ``revert`` marks the write as the revert of an audit
@@ -51,10 +51,11 @@ from app.db.session import begin_write
 from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.services._labels import LabelError, check_box, check_line_points, check_point
-from app.services import audit, views
+from app.services import audit
 from app.services.errors import ConflictError, InvalidInputError, NotFoundError, StaleVersionError
 from app.services.issia import refit_after_edit
 from app.services.recompute import recompute_frame, recompute_system
+from app.services.system_page import load_frame
 from app.services.versions import claim_frame, claim_system_review
 
 T = TypeVar("T")
@@ -113,12 +114,14 @@ def _in_transaction(session: Session, work: Callable[[], T], *, system_id: int) 
 
 
 def _describe_current(session: Session, exc: StaleVersionError) -> None:
+    """Fill a stale write's current state: the frame loaded for its view, or the system and its review."""
     if exc.kind == "frame":
-        exc.current = views.frame_view(session, exc.ident)
+        exc.current = load_frame(session, exc.ident)
         exc.last_change = audit.latest_entry(session, frame_id=exc.ident)
     else:
         system = get_system(session, exc.ident)
-        exc.current = {"id": system.id, "etag": exc.etag, "review": views.review_json(system.review)}
+        system.review  # loaded now: the answer is shaped after the session is gone
+        exc.current = system
         exc.last_change = audit.latest_entry(session, system_id=exc.ident)
 
 

@@ -56,15 +56,16 @@ class ForbiddenError(ServiceError, PermissionError):
 class StaleVersionError(ServiceError):
     """A write's expected version (HTTP ``If-Match``) is not the resource's current one: nothing was
     changed (HTTP 412). ``kind`` is "frame" or "system", ``etag`` the current strong ETag; the services
-    fill ``current`` (the resource's JSON now) and ``last_change`` (its newest audit entry, or None)
-    after rolling back, so the client can show who changed it and to what."""
+    fill ``current`` (the resource now: the ``Frame`` loaded for its view, or the ``System`` with its
+    review) and ``last_change`` (its newest ``AuditEntry``, or None) after rolling back, so the client can
+    be shown who changed it and to what."""
 
     def __init__(self, kind: str, ident: int, etag: str) -> None:
         super().__init__(f"{kind} {ident} was changed by someone else (it is now {etag}): nothing was stored; "
                          "reload it, then apply your change again")
         self.kind, self.ident, self.etag = kind, ident, etag
-        self.current: dict | None = None
-        self.last_change: dict | None = None
+        self.current: object | None = None
+        self.last_change: object | None = None
 
 
 class ConflictError(ServiceError):

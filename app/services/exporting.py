@@ -49,16 +49,17 @@ from sqlalchemy import Select, select
 from sqlalchemy.orm import Session, selectinload
 
 from app.db.models import (
-    BallLabel, BallReprojection, Calibration, FieldLineAnnotation, Frame, FrameRole, Game, OptimisedBox,
+    JAC_COLUMNS, BallLabel, BallReprojection, Calibration, FieldLineAnnotation, Frame, FrameRole, Game, OptimisedBox,
     ReviewDecision, ReviewStatus, System, Triangulation,
 )
+from app.datasets.soccernet_v3d import JAC_KEYS
 from app.db.types import json_loads
 from app.services.errors import InvalidInputError
 
 #: Columns of ``SNv3D.csv``: method.md section 9, then v3d's own.
 CSV_COLUMNS = (
     "league", "season", "match", "main_action", "action", "replay", "img_w", "img_h", "is_ball", "ball_bbox",
-    "calibration", "JaC@0.005", "JaC@0.01", "JaC@0.02", "ball_3D", "rep_error", "optimized_error", "optimized_d",
+    "calibration", *JAC_KEYS, "ball_3D", "rep_error", "optimized_error", "optimized_d",
     "set", "ball_point", "original_ball_bbox", "original_ball_point", "optimized_bbox",
 )
 #: Share of games in the train split (the paper's split is about 80 / 20).
@@ -124,7 +125,7 @@ def _frame_json(row: Any, admitted_replays: list[str] | None) -> dict[str, Any]:
         "imageMetadata": meta,
         "lines": lines,
         "calibration": _camera(row),
-        "JaC": {"JaC@0.005": row.jac_0005, "JaC@0.01": row.jac_001, "JaC@0.02": row.jac_002},
+        "JaC": {key: getattr(row, column) for key, column in zip(JAC_KEYS, JAC_COLUMNS.values())},
         "v3d": {
             "source": row.cal_source.value if calibrated else None,
             "status": row.cal_status.value if calibrated else None,
@@ -164,7 +165,7 @@ def _csv_row(game: Any, row: Any, split: str) -> list[str]:
         str(row.width), str(row.height),
         "True" if row.label_frame is not None and row.ball_kind is not None else "False",  # is_ball
         _raw(row.ball_box), _raw(row.camera_json),
-        _cell(row.jac_0005), _cell(row.jac_001), _cell(row.jac_002),
+        *(_cell(getattr(row, column)) for column in JAC_COLUMNS.values()),
         _raw(row.ball3d), _cell(row.rep_error_px), _cell(row.opt_error_m), _cell(row.opt_d_px),
         split,
         _raw(row.ball_point), _raw(row.original_box), _raw(row.original_point), _raw(row.opt_box),

@@ -1,7 +1,8 @@
 """What is stored of an ISSIA sequence, read back: the trajectory view and the ``ISSIA-3D.csv`` export.
 
-* :func:`trajectory_view`: a sequence's trajectory over time for the API and the system page (per
-  frame: observed ``ball_3D``, fitted ``ball_3D_smoothed`` and its source, flagged cameras).
+* :func:`sequence_data`: a sequence's stored systems and trajectory points, which the API shapes into
+  its trajectory over time (per frame: observed ``ball_3D``, fitted ``ball_3D_smoothed`` and its source,
+  flagged cameras).
 * :func:`export_issia3d`: one folder per sequence with ``ISSIA-3D.csv``
   (:func:`app.datasets.issia3d.write_issia3d_csv` of :func:`app.datasets.issia3d.issia3d_rows` built
   from the stored labels, cameras and trajectory points) and ``split.json``. The paper's split is by
@@ -43,44 +44,32 @@ def _names(systems: list[System]) -> list[str]:
     return sorted(pos, key=lambda n: (pos[n], n))
 
 
-def trajectory_view(session: Session, game_id: int) -> dict[str, Any]:
-    """The stored trajectory of the ISSIA sequence ``game_id``::
+@dataclass(frozen=True)
+class SequenceData:
+    """A stored ISSIA sequence read back for its trajectory view: the game, its systems in frame order
+    (frames, review, trajectory point loaded) and its camera views' names in camera order."""
 
-        {"game_id", "game", "fps", "cameras": ["cam1", ...], "camera_set": {"cam1": "test", ...},
-         "pieces": [{"kind", "first_frame", "last_frame"}],
-         "frames": [{"frame_index", "system_id", "ball3d", "ball3d_smoothed", "source",
-                     "cam_list": [view names], "flagged": [view names], "label_doubts", "status"}]}
+    game: Game
+    systems: list[System]
+    cameras: list[str]
 
-    World metres (z down). Raises :class:`NotFoundError` for an unknown game or one without ISSIA
-    systems.
-    """
+    @property
+    def camera_set(self) -> dict[str, str]:
+        """View name -> ``"train"`` or ``"test"`` (the paper's split by camera, :data:`CAMERA_SET`)."""
+        return {n: CAMERA_SET.get(_cam_id(n), "unknown") for n in self.cameras}
+
+
+def sequence_data(session: Session, game_id: int) -> SequenceData:
+    """The ISSIA sequence ``game_id`` as stored (for ``GET /api/games/{id}/trajectory``, shaped by
+    ``app.api.issia_schemas.TrajectoryOut``). Raises :class:`NotFoundError` for an unknown game or one
+    without ISSIA systems."""
     game = session.get(Game, game_id)
     if game is None:
         raise NotFoundError("game", game_id)
     systems = load_sequence(session, game_id)
     if not systems:
         raise NotFoundError("ISSIA sequence of game", game_id)
-    names = _names(systems)
-    pieces: dict[tuple[int, int], dict[str, Any]] = {}
-    frames = []
-    for s in systems:
-        tp = s.trajectory_point
-        by_id = {f.id: f.name for f in s.frames}
-        if tp is not None and tp.piece:
-            pieces.setdefault((tp.piece["first_frame"], tp.piece["last_frame"]),
-                              {k: tp.piece[k] for k in ("kind", "first_frame", "last_frame")})
-        frames.append({
-            "frame_index": s.frame_index, "system_id": s.id,
-            "ball3d": tp.ball3d if tp else None, "ball3d_smoothed": tp.ball3d_smoothed if tp else None,
-            "source": tp.source if tp else None,
-            "cam_list": [by_id[i] for i in (tp.cam_list if tp else []) if i in by_id],
-            "flagged": [by_id[i] for i in (tp.flagged if tp else []) if i in by_id],
-            "label_doubts": s.label_doubts,
-            "status": (s.review.status.value if s.review is not None else ReviewStatus.PENDING.value),
-        })
-    return {"game_id": game.id, "game": game.path, "fps": FPS, "cameras": names,
-            "camera_set": {n: CAMERA_SET.get(_cam_id(n), "unknown") for n in names},
-            "pieces": sorted(pieces.values(), key=lambda p: p["first_frame"]), "frames": frames}
+    return SequenceData(game, systems, _names(systems))
 
 
 @dataclass

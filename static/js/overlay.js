@@ -6,6 +6,9 @@
 // The SVG viewBox is the image's pixel frame, so drawings and pointer positions map exactly at any display
 // size (pointer positions go through getScreenCTM()). On release the element dispatches "ball-change"
 // {frameId, box} or {frameId, point}; the page saves it and sets the recomputed view back.
+//
+// Size (over 400 lines): one custom element: its drawing, the box's drag/resize and the facts panel share
+// the view's state and the SVG's coordinate mapping; split, each part would need the others' private fields.
 
 import { el, svg, fmt, fmtJac, isNum, errorClass, viewColour, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 
@@ -148,6 +151,8 @@ export class ViewPanel extends HTMLElement {
     const label = `V${index + 1}`;
     const cal = v.calibration || {};
     const jac = cal.jac || {};
+    const gammas = Object.keys(jac); // "0.005", ...: the gammas the server stores, in increasing order
+    const pct = (g) => String(Number((100 * Number(g)).toFixed(2)));
     const ball = v.ball || {};
     const opt = v.optimised_box;
     const multiView = this.#ctx.viewCount !== 1;
@@ -253,16 +258,18 @@ export class ViewPanel extends HTMLElement {
             flags,
             cal.reason ? el("div", { class: "reason", "data-testid": "view-reason" }, cal.reason) : null,
           ),
-          el("dt", { title: "JaC at 0.5 %, 1 % and 2 % of the image diagonal" }, "JaC 0.5/1/2%"),
+          el("dt", { title: gammas.length ? `JaC at ${gammas.map((g) => `${pct(g)} %`).join(", ")} of the image diagonal` : "JaC: not calibrated" },
+            gammas.length ? `JaC ${gammas.map(pct).join("/")}%` : "JaC"),
           el(
             "dd",
             { class: "mono", "data-testid": "view-jac" },
-            // coloured by the server's admission decision (its threshold is a setting)
-            el("span", { class: cal.admitted === true ? "ok" : cal.admitted === false ? "bad" : "" }, fmtJac(jac["0.005"])),
-            " / ",
-            fmtJac(jac["0.01"]),
-            " / ",
-            fmtJac(jac["0.02"]),
+            // the gammas the server stores, in its order; the first (the admission's) coloured by the
+            // server's admission decision (its threshold is a setting)
+            gammas.length ? null : "—",
+            ...gammas.flatMap((g, i) => [
+              i ? " / " : null,
+              i ? fmtJac(jac[g]) : el("span", { class: cal.admitted === true ? "ok" : cal.admitted === false ? "bad" : "" }, fmtJac(jac[g])),
+            ]),
           ),
           el("dt", { title: `Reprojection error of the 3D ball in this view; tau = ${fmt(tau, 1)} px (${rule || "rule unknown"})` }, "Reproj. error"),
           el("dd", { class: `mono ${errorClass(v.reprojection_error_scaled_px, tau)}`, "data-testid": "view-reproj-error" }, errText),

@@ -3,15 +3,15 @@ problems at the head of the review queue where a newcomer sees them first, each 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 
 from tests.demo.support import Demo
 
-importing = pytest.importorskip("app.services.importing", reason="the import service has not landed")
-views = pytest.importorskip("app.services.views", reason="the view service has not landed")
+from app.api.view_schemas import SystemView
+from app.services import importing, queue
+from app.services.system_page import system_page
 
 
 def test_demo_imports_into_the_review_queue(demo: Demo, db_session: Session, db_settings: Settings) -> None:
@@ -20,12 +20,12 @@ def test_demo_imports_into_the_review_queue(demo: Demo, db_session: Session, db_
     assert (report.games, report.systems, report.frames) == (1, len(demo.truth["systems"]), n_views)
     assert report.calibrated == n_views and report.refused == 0
 
-    page = views.list_systems(db_session, limit=100)
+    page = queue.list_systems(db_session, limit=100)
     assert page.total == len(demo.truth["systems"]) and page.counts["pending"] == page.total
 
     by_action = {}
     for item in page.items:
-        view = views.system_view(db_session, item.system.id)
+        view = SystemView.of(system_page(db_session, item.id)).model_dump(mode="json", by_alias=True)
         action = next(v["name"] for v in view["views"] if v["role"] == "action")
         by_action[action] = (item, view)
     truth = {s["action"]: s for s in demo.truth["systems"]}
@@ -47,7 +47,7 @@ def test_demo_imports_into_the_review_queue(demo: Demo, db_session: Session, db_
     planted = {by_kind[k][0] for k in by_kind}
     head = []
     for item in page.items[: len(planted)]:
-        head.append(next(a for a, (it, _) in by_action.items() if it.system.id == item.system.id))
+        head.append(next(a for a, (it, _) in by_action.items() if it.id == item.id))
     assert set(head) == planted, head
     expected = {"wrong_ball_box": "ball_off_consensus", "mirrored_lines": "mirrored_labels",
                 "missing_ball": "ball_missing", "near_duplicate_viewpoint": "near_duplicate_view"}

@@ -79,8 +79,8 @@ def test_a_stale_expected_version_changes_nothing(db_session, settings, v3_tree)
     with pytest.raises(StaleVersionError) as caught:
         editing.update_ball_label(db_session, frame.id, box=[b - 2 for b in box], settings=settings, expected={1})
     assert caught.value.etag == f'"frame-{frame.id}-2"'
-    assert caught.value.current["ball"]["box"] == [b + 2 for b in box]
-    assert caught.value.last_change["action"] == "ball.edit"
+    assert caught.value.current.id == frame.id and caught.value.current.ball_label.box == [b + 2 for b in box]
+    assert caught.value.last_change.action == "ball.edit"
     db_session.expire_all()
     assert db_session.get(Frame, frame.id).ball_label.box == [b + 2 for b in box]
     assert len(_entries(db_session)) == 2

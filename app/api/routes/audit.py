@@ -1,17 +1,18 @@
 """``/api/audit``: the audit log (every role reads it) and the revert of an entry (reviewers)."""
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from app.api.audit_schemas import AuditPageOut, AuditQuery
+from app.api.audit_schemas import AuditEntryOut, AuditPageOut, AuditQuery
 from app.api.auth import PrincipalDep, ReviewerDep
 from app.api.conditional import with_etag
-from app.api.schemas import DbInt
 from app.api.deps import SessionDep, SettingsDep
-from app.api.schemas import INVALID, NOT_FOUND, ErrorOut, QueueQuery, SystemView
-from app.services import audit, editing, views
+from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, QueueQuery
+from app.api.view_schemas import SystemView
+from app.services import audit, editing
+from app.services.system_page import system_page
 from app.services.reverting import revert_entry
 from app.services.versions import frame_etag, system_etag
 
@@ -19,12 +20,13 @@ router = APIRouter(prefix="/audit", tags=["audit"])
 
 
 @router.get("", response_model=AuditPageOut)
-def list_audit(session: SessionDep, _: PrincipalDep, query: Annotated[AuditQuery, Query()]) -> dict[str, Any]:
+def list_audit(session: SessionDep, _: PrincipalDep, query: Annotated[AuditQuery, Query()]) -> AuditPageOut:
     """One page of the audit log, newest first: who changed what, when, and the state before and after.
     ``system_id`` gives the system's decisions and every edit of its views; ``user`` an actor's exact name."""
     page = audit.list_entries(session, frame_id=query.frame_id, system_id=query.system_id, user=query.user,
                               limit=query.limit, offset=query.offset)
-    return {"items": page.items, "total": page.total, "limit": query.limit, "offset": query.offset}
+    return AuditPageOut(items=[AuditEntryOut.model_validate(e) for e in page.items], total=page.total,
+                        limit=query.limit, offset=query.offset)
 
 
 @router.post(
@@ -36,7 +38,7 @@ def list_audit(session: SessionDep, _: PrincipalDep, query: Annotated[AuditQuery
 def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, entry_id: DbInt,
            query: Annotated[QueueQuery, Query()], response: Response,
            force: Annotated[bool, Query(description="Revert even when the resource changed since the entry.")] = False,
-           ) -> dict[str, Any]:
+           ) -> SystemView:
     """Restore the entry's ``before`` state through the service of the original edit (the system is
     recomputed), audited as action ``revert``; answers the recomputed system view and the resource's new
     ``ETag``. 409 when the resource changed since the entry (unless ``force``); 422 for an import or a
@@ -46,4 +48,4 @@ def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, e
         with_etag(response, frame_etag(editing.get_frame(session, done.ident)))
     else:
         with_etag(response, system_etag(editing.get_system(session, done.ident)))
-    return views.system_view(session, done.system_id, query.filters(), query.sort)
+    return SystemView.of(system_page(session, done.system_id, query.filters(), query.sort))

@@ -8,7 +8,7 @@ a token sends none) and answers the frame's new ETag in its ``ETag`` header.
 """
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Depends, Header, Query, Response
 from fastapi.responses import StreamingResponse
@@ -18,10 +18,11 @@ from app.api.auth import AnnotatorDep, PrincipalDep, require_role
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import FrameDep, SessionDep, SettingsDep
 from app.api.schemas import (
-    INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, FramePageOut, FrameView,
-    QueueQuery, ReviewIn, ReviewOut, SystemView,
+    INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, QueueQuery, ReviewIn,
 )
-from app.services import editing, views
+from app.api.view_schemas import FrameOut, FramePageOut, FrameView, ReviewOut, SystemView
+from app.services import editing, images, queue
+from app.services.system_page import load_frame, system_page
 from app.services.versions import expected_versions, frame_etag
 
 #: OpenAPI ``responses`` of the frame's edits.
@@ -47,27 +48,28 @@ def etag_matches(if_none_match: str | None, etag: str) -> bool:
 
 
 @router.get("", response_model=FramePageOut)
-def list_frames(session: SessionDep, query: Annotated[FrameListQuery, Query()]) -> dict[str, Any]:
+def list_frames(session: SessionDep, query: Annotated[FrameListQuery, Query()]) -> FramePageOut:
     """One page of frames, filtered by calibration status, admission, JaC@0.5% and error ranges."""
-    page = views.list_frames(session, query.filters(), query.sort, query.limit, query.offset)
-    return {"items": page.items, "total": page.total, "limit": query.limit, "offset": query.offset}
+    page = queue.list_frames(session, query.filters(), query.sort, query.limit, query.offset)
+    return FramePageOut(items=[FrameOut.of(f) for f in page.items], total=page.total, limit=query.limit,
+                        offset=query.offset)
 
 
 @router.get("/{frame_id}", response_model=FrameView, responses=NOT_FOUND)
-def read_frame(session: SessionDep, frame: FrameDep, response: Response, _: PrincipalDep) -> dict[str, Any]:
+def read_frame(session: SessionDep, frame: FrameDep, response: Response, _: PrincipalDep) -> FrameView:
     """The frame as the system view draws it (ball label, field lines, calibration, review, reprojection)
     with its ``system_id``; the ``ETag`` header (and ``etag`` field) is the version of what people edit on
     it, unchanged when a sibling view's edit recomputes it."""
-    out = views.frame_view(session, frame.id)
-    with_etag(response, out["etag"])
+    out = FrameView.of_frame(load_frame(session, frame.id))
+    with_etag(response, out.etag)
     return out
 
 
-def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery) -> dict[str, Any]:
+def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery) -> SystemView:
     """The recomputed system view after an edit of ``frame_id``, its new ETag in the header."""
     frame = editing.get_frame(session, frame_id)
     with_etag(response, frame_etag(frame))
-    return views.system_view(session, frame.system_id, query.filters(), query.sort)
+    return SystemView.of(system_page(session, frame.system_id, query.filters(), query.sort))
 
 
 @router.get(
@@ -81,7 +83,7 @@ def _edited(session: Session, frame_id: int, response: Response, query: QueueQue
 )
 def frame_image(frame: FrameDep, if_none_match: Annotated[str | None, Header()] = None) -> Response:
     """The frame's image, streamed from its zip member (never extracted) or file, with an ``ETag``."""
-    image = views.frame_image(frame)
+    image = images.frame_image(frame)
     headers = {"ETag": image.etag, "Cache-Control": IMAGE_CACHE_CONTROL}
     if etag_matches(if_none_match, image.etag):
         return Response(status_code=304, headers=headers)
@@ -91,7 +93,7 @@ def frame_image(frame: FrameDep, if_none_match: Annotated[str | None, Header()] 
 
 @router.patch("/{frame_id}/ball", response_model=SystemView, responses=EDIT_RESPONSES)
 def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-              frame: FrameDep, body: BallEdit, query: Annotated[QueueQuery, Query()], response: Response) -> dict[str, Any]:
+              frame: FrameDep, body: BallEdit, query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
     """Set the frame's ball box or point (or remove it with null) and answer the recomputed system view.
 
     422 naming ``box`` or ``point``: non-finite numbers, x2 <= x1 or y2 <= y1, a box entirely outside
@@ -105,7 +107,7 @@ def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDe
 @router.put("/{frame_id}/field-lines", response_model=SystemView, responses=EDIT_RESPONSES)
 def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
                         frame: FrameDep, body: FieldLinesEdit, query: Annotated[QueueQuery, Query()],
-                        response: Response) -> dict[str, Any]:
+                        response: Response) -> SystemView:
     """Replace the frame's field lines, recalibrate it, and answer the recomputed system view.
 
     422 naming ``lines`` (and the class and polyline): an unknown class, an empty polyline, NaN or
@@ -118,7 +120,7 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
 
 @router.post("/{frame_id}/field-lines/mirror", response_model=SystemView, responses=EDIT_RESPONSES)
 def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-                       frame: FrameDep, query: Annotated[QueueQuery, Query()], response: Response) -> dict[str, Any]:
+                       frame: FrameDep, query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
     """Replace the frame's field lines by their mirrored labelling (left <-> right, top <-> bottom),
     recalibrate it, and answer the recomputed system view: the fix offered for a view flagged
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines.
@@ -131,7 +133,7 @@ def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: An
 @router.post("/{frame_id}/exclusion", response_model=SystemView, responses=EDIT_RESPONSES)
 def set_exclusion(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
                   frame: FrameDep, body: ExclusionIn, query: Annotated[QueueQuery, Query()],
-                  response: Response) -> dict[str, Any]:
+                  response: Response) -> SystemView:
     """Exclude the view from its system's triangulation (``{"excluded": true}``) or restore it
     (``false``), recompute the system, and answer the recomputed system view. The decision is stored
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
@@ -148,4 +150,4 @@ def review_frame(session: SessionDep, principal: AnnotatorDep, if_match: IfMatch
     decision = editing.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment,
                                      actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
     with_etag(response, frame_etag(editing.get_frame(session, frame.id)))
-    return ReviewOut.model_validate(views.review_json(decision))
+    return ReviewOut.of(decision)

@@ -4,8 +4,8 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.api.deps import SessionDep
-from app.api.schemas import GameOut
-from app.services import views
+from app.api.view_schemas import GameOut, GameRef
+from app.services import queue
 
 router = APIRouter(prefix="/games", tags=["games"])
 
@@ -14,6 +14,5 @@ router = APIRouter(prefix="/games", tags=["games"])
 def list_games(session: SessionDep) -> list[GameOut]:
     """Every game with its number of systems, in (league, season, match) order."""
     return [
-        GameOut(id=g.id, league=g.league, season=g.season, match=g.match, systems=n)
-        for g, n in views.list_games(session)
+        GameOut(**GameRef.model_validate(g).model_dump(), systems=n) for g, n in queue.list_games(session)
     ]

@@ -26,7 +26,7 @@ def game_trajectory(
 ) -> TrajectoryOut:
     """The ISSIA sequence's ball over time: per frame the observed ``ball3d``, the fitted
     ``ball3d_smoothed`` and its source, the kept and the flagged cameras; the motion pieces."""
-    return TrajectoryOut.model_validate(issia_export.trajectory_view(session, game_id))
+    return TrajectoryOut.of(issia_export.sequence_data(session, game_id))
 
 
 @router.get(

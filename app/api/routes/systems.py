@@ -5,38 +5,38 @@ carries its frame's ``etag``); a decision is a conditional write on it (``app.ap
 needs the reviewer role."""
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
 from app.api.auth import ReviewerDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import SessionDep, SystemDep
-from app.api.schemas import (
-    INVALID, NOT_FOUND, QueueQuery, ReviewIn, ReviewOut, SystemListQuery, SystemPageOut, SystemView,
-)
-from app.services import editing, views
+from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
+from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
+from app.services import editing, queue
+from app.services.system_page import system_page
 from app.services.versions import expected_versions, system_etag
 
 router = APIRouter(prefix="/systems", tags=["systems"])
 
 
 @router.get("", response_model=SystemPageOut)
-def list_systems(session: SessionDep, query: Annotated[SystemListQuery, Query()]) -> dict[str, Any]:
+def list_systems(session: SessionDep, query: Annotated[SystemListQuery, Query()]) -> SystemPageOut:
     """One page of the review queue, filtered and sorted, with the progress per review status."""
-    page = views.list_systems(session, query.filters(), query.sort, query.limit, query.offset)
-    return {"items": [s.as_json() for s in page.items], "total": page.total, "limit": query.limit,
-            "offset": query.offset, "counts": page.counts}
+    page = queue.list_systems(session, query.filters(), query.sort, query.limit, query.offset)
+    return SystemPageOut(items=[SystemSummaryOut.of(s) for s in page.items], total=page.total, limit=query.limit,
+                         offset=query.offset, counts=page.counts)
 
 
 @router.get("/{system_id}", response_model=SystemView, responses=NOT_FOUND)
 def read_system(session: SessionDep, system: SystemDep, query: Annotated[QueueQuery, Query()],
-                response: Response) -> dict[str, Any]:
+                response: Response) -> SystemView:
     """The system view (``docs/architecture.md``); ``prev_id`` / ``next_id`` follow the queue given by
     the query parameters (by default the whole queue, largest error first). ``ETag``: the system's
     review decision's."""
-    out = views.system_view(session, system.id, query.filters(), query.sort)
-    with_etag(response, out["etag"])
+    out = SystemView.of(system_page(session, system.id, query.filters(), query.sort))
+    with_etag(response, out.etag)
     return out
 
 
@@ -48,4 +48,4 @@ def review_system(session: SessionDep, principal: ReviewerDep, if_match: IfMatch
     decision = editing.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
                                      actor=principal.name, expected=expected_versions(if_match, "system", system.id))
     with_etag(response, system_etag(editing.get_system(session, system.id)))
-    return ReviewOut.model_validate(views.review_json(decision))
+    return ReviewOut.of(decision)

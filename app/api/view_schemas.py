@@ -1,0 +1,409 @@
+"""Response models of the review views, shaped from ORM objects: the games, the review queue, the frame list
+and the system view of ``docs/architecture.md`` (the UI contract).
+
+Every answer is built by these models from the rows the services load (``app.services.queue``,
+``app.services.system_page``): fields whose ORM attribute has the same meaning and name are read from it
+(``from_attributes``), the others by each model's ``of(...)``; no dict is built by hand. Units: pixels of
+the frame's own image (continuous coordinates, origin at the top-left corner), world metres (SoccerNet:
+origin at the centre spot, z down), JaC as fractions in [0, 1].
+"""
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Optional
+
+from pydantic import AliasChoices, BaseModel, ConfigDict, Field, computed_field
+
+from app.api.audit_schemas import AuditEntryOut
+from app.db.models import (
+    BallKind, BallLabel, Calibration, CalibrationSource, CalibrationStatus, Doubt, Frame, FrameRole, OptimisedBox,
+    ReviewDecision, ReviewStatus, System, SystemKind, Triangulation, TriangulationStatus,
+)
+from app.geometry.calibration.frame import MIRROR_FLAG
+from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
+from app.geometry.jac import JAC_GAMMAS
+from app.geometry.triangulation import error_above_tau, rule_reference_width_px, scaled_error_px
+from app.services.images import frame_has_image
+from app.services.system_page import SystemPageData, pitch_lines, round_px
+from app.services.versions import frame_etag, system_etag
+
+Box = tuple[float, float, float, float]
+Point2 = tuple[float, float]
+Point3 = tuple[float, float, float]
+
+_ORM = ConfigDict(from_attributes=True)
+
+
+class GameRef(BaseModel):
+    """A game's identity."""
+
+    model_config = _ORM
+
+    id: int
+    league: str
+    season: str
+    match: str
+
+
+class GameOut(GameRef):
+    """A game and its number of systems."""
+
+    systems: int
+
+
+class ReviewOut(BaseModel):
+    """A review decision; pending with no time when never decided."""
+
+    model_config = _ORM
+
+    status: ReviewStatus = ReviewStatus.PENDING
+    comment: str = ""
+    decided_at: Optional[datetime] = None
+    excluded: bool = Field(False, description="Views only: excluded from the system's triangulation by a reviewer.")
+
+    @classmethod
+    def of(cls, decision: Optional[ReviewDecision]) -> "ReviewOut":
+        """The decision, or pending when there is none."""
+        return cls() if decision is None else cls.model_validate(decision)
+
+
+class DoubtOut(BaseModel):
+    """A doubt of a system (``app.geometry.doubts``): a label problem the geometry sees, or information."""
+
+    kind: str = Field(description=f"Label-accusing: {', '.join(LABEL_KINDS)}; information: {', '.join(INFO_KINDS)}.")
+    frame_id: Optional[int] = Field(description="The view it names; null for the system as a whole.")
+    frame: Optional[str] = Field(description="That view's image name.")
+    accuses_label: bool
+    message: str = Field(description="One sentence with its numbers.")
+    evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, degrees).")
+    suggestion: Optional[dict[str, Any]] = Field(
+        description=f"The fix: {{'action': one of {', '.join(SUGGESTION_ACTIONS)}, 'box': [x1, y1, x2, y2] px for "
+        "snap_box}; null when nothing can be suggested.")
+
+    @classmethod
+    def of(cls, doubt: Doubt, frame_names: dict[int, str]) -> "DoubtOut":
+        """A stored doubt; ``frame`` is the named view's image name (from ``frame_names``, id -> name)."""
+        return cls(kind=doubt.kind, frame_id=doubt.frame_id,
+                   frame=frame_names.get(doubt.frame_id) if doubt.frame_id is not None else None,
+                   accuses_label=doubt.accuses_label, message=doubt.message, evidence=doubt.evidence,
+                   suggestion=doubt.suggestion)
+
+
+class SystemSummaryOut(BaseModel):
+    """A row of the review queue: figures stored by the system's last recomputation (aggregates over the
+    admitted views, ``app.services.recompute.update_summary``)."""
+
+    model_config = _ORM
+
+    id: int
+    name: str
+    kind: SystemKind
+    game: GameRef
+    review: ReviewOut
+    ball3d: Optional[Point3]
+    views_total: int
+    views_calibrated: int
+    views_admitted: int
+    views_labelled: int
+    lowest_jac: Optional[float] = Field(description="Lowest JaC@0.5% among admitted views.")
+    worst_error_px: Optional[float] = Field(description="Largest reprojection error among admitted views, px.")
+    views_flagged: int = Field(description="Views whose field-line labels are flagged probably mirrored.")
+    views_above_tau: int = Field(
+        description="Admitted labelled views whose reprojection error is above tau (the system view's "
+        "error_above_tau rule: error scaled to the rule's reference width, compared with the stored tau).")
+    doubt_counts: dict[str, int] = Field(description="Stored doubts of the system per kind.")
+    label_doubts: int = Field(description="How many of its doubts accuse a label.")
+
+    @classmethod
+    def of(cls, system: System) -> "SystemSummaryOut":
+        """A queue row from a system loaded with its game, review and triangulation."""
+        tri = system.triangulation
+        return cls.model_validate({
+            **{name: getattr(system, name) for name in cls.model_fields if name not in ("game", "review", "ball3d")},
+            "game": system.game, "review": ReviewOut.of(system.review),
+            "ball3d": tri.ball3d if tri is not None else None, "doubt_counts": system.doubt_counts or {},
+        })
+
+
+class SystemPageOut(BaseModel):
+    """A page of the queue; ``counts`` per review status over the filters other than ``status``."""
+
+    items: list[SystemSummaryOut]
+    total: int
+    limit: int
+    offset: int
+    counts: dict[ReviewStatus, int]
+
+
+class CalibrationOut(BaseModel):
+    """A view's camera (SoccerNet JSON) and its quality."""
+
+    model_config = _ORM
+
+    status: CalibrationStatus
+    source: CalibrationSource
+    camera: Optional[dict[str, Any]]
+    jac: dict[str, Optional[float]] = Field(
+        description="JaC at each gamma of the diagonal, keyed by the gamma as text, in increasing order: "
+        + ", ".join(f'"{g:g}"' for g in JAC_GAMMAS) + ".")
+    admitted: bool
+    reason: Optional[str]
+    flags: list[str]
+    residuals_px: dict[str, Any]
+    mirror_evidence: Optional[dict[str, Any]] = Field(
+        None, description="Evidence on mirrored labels (app.geometry.mirror.MirrorVerdict.as_dict): verdict, "
+        "margin, camera y, side and rig votes and distances, pair errors as labelled and mirrored, and a sentence; "
+        f"the flag '{MIRROR_FLAG}' follows the verdict. Null when never judged.")
+
+    @computed_field(description="The field-line labels are probably mirrored (the flag in flags): offer the "
+                                "mirrored labelling.")  # type: ignore[prop-decorator]
+    @property
+    def probably_mirrored(self) -> bool:
+        return MIRROR_FLAG in self.flags
+
+    @classmethod
+    def of(cls, cal: Optional[Calibration]) -> Optional["CalibrationOut"]:
+        """The calibration row, or None when the frame was never calibrated."""
+        if cal is None:
+            return None
+        return cls.model_validate({"status": cal.status, "source": cal.source, "camera": cal.camera, "jac": cal.jac(),
+                                   "admitted": cal.admitted, "reason": cal.reason, "flags": cal.flags or [],
+                                   "residuals_px": cal.residuals_px or {}, "mirror_evidence": cal.mirror_evidence})
+
+
+class BallOut(BaseModel):
+    """A view's ball label and the imported original."""
+
+    model_config = _ORM
+
+    kind: Optional[BallKind] = None
+    box: Optional[Box] = None
+    point: Optional[Point2] = None
+    original_box: Optional[Box] = None
+    original_point: Optional[Point2] = None
+    edited: bool = False
+
+    @classmethod
+    def of(cls, label: Optional[BallLabel]) -> "BallOut":
+        """The label, or no ball when the frame never had one."""
+        return cls() if label is None else cls.model_validate(label)
+
+
+class _FrameFields(BaseModel):
+    """What every answer about a frame shows: its image, calibration, ball label, reprojection error and review."""
+
+    name: str
+    role: FrameRole
+    width: int
+    height: int
+    image_url: Optional[str] = Field(description="None when the dataset ships no image: draw a blank canvas.")
+    calibration: Optional[CalibrationOut]
+    ball: BallOut
+    reprojection_error_px: Optional[float]
+    review: ReviewOut
+
+    @staticmethod
+    def frame_fields(frame: Frame) -> dict[str, Any]:
+        """These fields of a frame loaded with its calibration, ball label, reprojection and review."""
+        rep = frame.reprojection
+        return {"name": frame.name, "role": frame.role, "width": frame.width, "height": frame.height,
+                "image_url": image_url(frame), "calibration": CalibrationOut.of(frame.calibration),
+                "ball": BallOut.of(frame.ball_label), "reprojection_error_px": rep.error_px if rep is not None else None,
+                "review": ReviewOut.of(frame.review)}
+
+
+class FrameOut(_FrameFields):
+    """A row of ``GET /api/frames``."""
+
+    id: int
+    system_id: int
+
+    @classmethod
+    def of(cls, frame: Frame) -> "FrameOut":
+        """A frame loaded with its calibration, ball label, reprojection and review."""
+        return cls(**cls.frame_fields(frame), id=frame.id, system_id=frame.system_id)
+
+
+class FramePageOut(BaseModel):
+    """A page of frames."""
+
+    items: list[FrameOut]
+    total: int
+    limit: int
+    offset: int
+
+
+class PitchLineOut(BaseModel):
+    """One in-image run of a projected pitch element."""
+
+    model_config = ConfigDict(populate_by_name=True, serialize_by_alias=True)
+
+    class_: str = Field(alias="class")
+    points: list[Point2]
+
+
+class OptimisedBoxOut(BaseModel):
+    """The view's optimised box (paper Eq. min_diametre, drawn by ``Settings.optimised_box_method``): by
+    default (``exact_ray``) the box of the exact image of the 0.22 m sphere at the 3D ball's depth on the
+    labelled ray (an ellipse's box off-axis); ``paper``: the square of side ``d_px`` on the labelled centre.
+    ``d_px`` is the diameter d_opt (px) and ``error_m`` the paper's ``optimized_error`` (metres)."""
+
+    box: Box
+    d_px: float
+    error_m: float
+
+    @classmethod
+    def of(cls, opt: Optional[OptimisedBox]) -> Optional["OptimisedBoxOut"]:
+        """The stored optimised box (px rounded), or None."""
+        return None if opt is None else cls(box=round_px(opt.box), d_px=opt.d_opt_px, error_m=opt.error_m)
+
+
+def image_url(frame: Frame) -> Optional[str]:
+    """The API address of the frame's image, None when it has none (the UI draws a blank canvas)."""
+    return f"/api/frames/{frame.id}/image" if frame_has_image(frame) else None
+
+
+class ViewOut(_FrameFields):
+    """One view of a system, everything the overlay draws."""
+
+    frame_id: int
+    pitch_lines: list[PitchLineOut]
+    field_lines: dict[str, list[list[Point2]]]
+    optimised_box: Optional[OptimisedBoxOut]
+    reprojected_ball: Optional[Point2]
+    reprojection_error_scaled_px: Optional[float] = Field(
+        description="The same error in the scale the pair rule compares with tau (px of a 1920-px-wide image "
+        "for max_scaled_1920; app.geometry.triangulation.scaled_error_px); null without a triangulation.")
+    error_above_tau: bool = Field(
+        description="The reprojection error, scaled to the rule's reference width, is above the stored tau "
+        "(app.geometry.triangulation.error_above_tau; the queue's views_above_tau counts by the same rule).")
+    camera_position: Optional[Point3]
+    etag: str = Field(description="The frame's strong ETag: the version of its ball label, field lines, review and "
+                                  "exclusion (send it as If-Match with a write to the frame).")
+
+    @classmethod
+    def fields_of(cls, frame: Frame, tri: Optional[Triangulation]) -> dict[str, Any]:
+        """The fields of a frame's view, from the frame (loaded as ``app.services.system_page`` does) and its
+        system's triangulation (the rule and tau its reprojection error is judged by)."""
+        cal = frame.calibration
+        camera = cal.camera if cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera else None
+        rep = frame.reprojection
+        error = rep.error_px if rep is not None else None
+        judged = rep is not None and tri is not None
+        return {
+            **cls.frame_fields(frame), "frame_id": frame.id,
+            "pitch_lines": [PitchLineOut(class_=cls_, points=points)
+                            for cls_, points in pitch_lines(camera, frame.width, frame.height)],
+            "field_lines": frame.field_lines.lines if frame.field_lines is not None else {},
+            "optimised_box": OptimisedBoxOut.of(frame.optimised_box),
+            "reprojected_ball": round_px(rep.point) if rep is not None else None,
+            "reprojection_error_scaled_px": scaled_error_px(error, frame.width, tri.rule) if judged else None,
+            "error_above_tau": judged and error_above_tau(error, frame.width, tri.tau_px, tri.rule),
+            "camera_position": camera["position_meters"] if camera is not None else None,
+            "etag": frame_etag(frame),
+        }
+
+    @classmethod
+    def of(cls, frame: Frame, tri: Optional[Triangulation]) -> "ViewOut":
+        """A view of the system view (:meth:`fields_of`)."""
+        return cls(**cls.fields_of(frame, tri))
+
+
+class FrameView(ViewOut):
+    """``GET /api/frames/{id}``: the frame as the system view draws it, and its system."""
+
+    system_id: int
+
+    @classmethod
+    def of_frame(cls, frame: Frame) -> "FrameView":
+        """A frame loaded by ``app.services.system_page.load_frame``."""
+        return cls(**cls.fields_of(frame, frame.system.triangulation), system_id=frame.system_id)
+
+
+class PairOut(BaseModel):
+    """One triangulation pair; views named by frame id."""
+
+    model_config = _ORM
+
+    view_a: int = Field(validation_alias=AliasChoices("view_a", "frame_a_id"))
+    view_b: int = Field(validation_alias=AliasChoices("view_b", "frame_b_id"))
+    point: Optional[Point3]
+    error_px: Optional[float]
+    parallax_deg: Optional[float]
+    baseline_m: float
+    kept: bool
+    reason: Optional[str]
+
+
+class TriangulationOut(BaseModel):
+    """A system's triangulation and the settings it was made with."""
+
+    model_config = _ORM
+
+    status: TriangulationStatus
+    tau_px: float
+    rule: str
+    min_baseline_m: float
+    pairs: list[PairOut]
+
+    @computed_field(description="Width (px) the rule scales a view's error to before comparing it with tau; "
+                                "null: raw px.")  # type: ignore[prop-decorator]
+    @property
+    def reference_width_px(self) -> Optional[float]:
+        return rule_reference_width_px(self.rule)
+
+
+class SystemView(BaseModel):
+    """The system view of ``docs/architecture.md`` (the UI contract)."""
+
+    id: int
+    name: str
+    kind: SystemKind = Field(description="soccernet-v3, single-view or issia (a frame of a sequence).")
+    frame_index: Optional[int] = Field(None, description="issia: the frame's index in its sequence.")
+    game: GameRef
+    review: ReviewOut
+    etag: str = Field(description="The strong ETag of the system's review decision (If-Match of a system review).")
+    prev_id: Optional[int]
+    next_id: Optional[int]
+    ball3d: Optional[Point3]
+    triangulation: Optional[TriangulationOut]
+    views: list[ViewOut]
+    doubts: list[DoubtOut] = Field(description="The system's doubts, stored with its last recomputation.")
+
+    @classmethod
+    def of(cls, page: SystemPageData) -> "SystemView":
+        """The system view of a system loaded for its page (``app.services.system_page.system_page``)."""
+        system, tri = page.system, page.system.triangulation
+        names = {f.id: f.name for f in system.frames}
+        return cls(
+            id=system.id, name=system.name, kind=system.kind, frame_index=system.frame_index,
+            game=GameRef.model_validate(system.game), review=ReviewOut.of(system.review), etag=system_etag(system),
+            prev_id=page.prev_id, next_id=page.next_id, ball3d=tri.ball3d if tri is not None else None,
+            triangulation=TriangulationOut.model_validate(tri) if tri is not None else None,
+            views=[ViewOut.of(f, tri) for f in system.frames],
+            doubts=[DoubtOut.of(d, names) for d in system.doubts],
+        )
+
+
+class SystemStateOut(BaseModel):
+    """A system's review decision as a stale write (412) answers it: the current state and its ETag."""
+
+    id: int
+    etag: str
+    review: ReviewOut
+
+    @classmethod
+    def of(cls, system: System) -> "SystemStateOut":
+        """The system's decision now."""
+        return cls(id=system.id, etag=system_etag(system), review=ReviewOut.of(system.review))
+
+
+class StaleOut(BaseModel):
+    """412: the write's ``If-Match`` is stale. ``current`` is the resource now (a frame as
+    ``GET /api/frames/{id}`` answers it, or :class:`SystemStateOut` of a system), ``etag`` its ETag (also
+    in the ``ETag`` header) and ``last_change`` its newest audit entry (who changed it), when any."""
+
+    detail: str
+    etag: str
+    current: Optional[FrameView | SystemStateOut]
+    last_change: Optional[AuditEntryOut]
