@@ -24,6 +24,15 @@ Role = Literal["annotator", "reviewer", "admin"]
 ROLES: tuple[Role, ...] = ("annotator", "reviewer", "admin")
 
 
+def held_roles(role: Role) -> list[Role]:
+    """The roles whose routes a user of ``role`` may call: its own and every less trusted one.
+
+    >>> held_roles("reviewer")
+    ['annotator', 'reviewer']
+    """
+    return list(ROLES[:ROLES.index(role) + 1])
+
+
 @dataclass(frozen=True)
 class Principal:
     """The authenticated user of one request.
@@ -44,7 +53,7 @@ class Principal:
         >>> Principal(1, "ana", "reviewer", "token").may("annotator"), Principal(1, "ana", "reviewer", "token").may("admin")
         (True, False)
         """
-        return ROLES.index(self.role) >= ROLES.index(role)
+        return role in held_roles(self.role)
 
 
 def current_principal(request: Request) -> Principal:

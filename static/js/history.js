@@ -62,7 +62,8 @@ export class HistoryPanel {
     this.root = root;
     this.onReverted = onReverted;
     this.onError = onError;
-    this.mayRevert = getMe().then((me) => !me || me.role !== "annotator").catch(() => true);
+    // reverts need the reviewer role; the server says which roles the user holds (its ranking, not a copy)
+    this.mayRevert = getMe().then((me) => !me || (me.roles || []).includes("reviewer")).catch(() => true);
   }
 
   /** Read and draw the history of `system` (views named V1, V2, ... as on the page). */

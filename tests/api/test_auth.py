@@ -188,14 +188,15 @@ def test_login_sets_a_strict_httponly_cookie_and_me_answers_the_csrf_token(anony
     answer = anonymous.post("/api/auth/login", json={"name": "test-annotator", "password": accounts["annotator"].password})
     assert answer.status_code == 200
     body = answer.json()
-    assert (body["name"], body["role"], body["via"]) == ("test-annotator", "annotator", "session")
+    assert (body["name"], body["role"], body["roles"], body["via"]) == ("test-annotator", "annotator", ["annotator"], "session")
     cookie = answer.headers["set-cookie"].lower()
     assert cookie.startswith(f"{SESSION_COOKIE}=") and "httponly" in cookie and "samesite=strict" in cookie
     assert "max-age=43200" in cookie and "secure" not in cookie
     me = anonymous.get("/api/auth/me").json()
     assert me == body and len(me["csrf_token"]) >= 40
     assert as_token(anonymous, accounts["admin"]).get("/api/auth/me").json() == {
-        "name": "test-admin", "role": "admin", "via": "token", "csrf_token": None}
+        "name": "test-admin", "role": "admin", "roles": ["annotator", "reviewer", "admin"], "via": "token",
+        "csrf_token": None}
 
 
 def test_secure_cookies_setting_marks_the_cookie_secure(db_settings: Settings, app: FastAPI,

@@ -10,7 +10,7 @@ from typing import Literal, Optional
 from fastapi import APIRouter, HTTPException, Request, Response, status
 from pydantic import BaseModel, Field
 
-from app.api.auth import PrincipalDep
+from app.api.auth import PrincipalDep, held_roles
 from app.api.authentication import start_session
 from app.api.deps import SessionDep
 from app.api.schemas import ErrorOut, _In
@@ -34,6 +34,9 @@ class MeOut(BaseModel):
 
     name: str
     role: Literal["annotator", "reviewer", "admin"]
+    roles: list[Literal["annotator", "reviewer", "admin"]] = Field(
+        description="Every role whose routes this user may call: its own and the less trusted ones (the ranking "
+        "of app.api.auth.ROLES; the UI offers only what the user may do).")
     via: Literal["session", "token"]
     csrf_token: Optional[str]
 
@@ -59,7 +62,8 @@ def login(request: Request, session: SessionDep, body: LoginIn) -> MeOut:
         request.session.clear()
         raise HTTPException(status_code=status.HTTP_401_UNAUTHORIZED, detail=WRONG_CREDENTIALS)
     csrf = start_session(request.session, user.id, user.session_generation)
-    return MeOut(name=user.name, role=user.role.value, via="session", csrf_token=csrf)
+    return MeOut(name=user.name, role=user.role.value, roles=held_roles(user.role.value),
+                 via="session", csrf_token=csrf)
 
 
 @public_router.get("/demo", response_model=DemoOut)
@@ -74,7 +78,8 @@ def demo(session: SessionDep) -> DemoOut:
 def me(request: Request, principal: PrincipalDep) -> MeOut:
     """The logged-in user, and the CSRF token of this browser session."""
     csrf = request.session.get("csrf") if principal.via == "session" else None
-    return MeOut(name=principal.name, role=principal.role, via=principal.via, csrf_token=csrf)
+    return MeOut(name=principal.name, role=principal.role, roles=held_roles(principal.role),
+                 via=principal.via, csrf_token=csrf)
 
 
 @router.post("/logout", status_code=status.HTTP_204_NO_CONTENT)
