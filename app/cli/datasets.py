@@ -25,11 +25,12 @@ from app.services.job_kinds import import_params
 DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
 _STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating", "rig": "calibrating with game rigs",
-           "triangulate": "triangulating"}
+           "triangulate": "triangulating", "recompute": "recomputing systems", "export": "exporting games"}
 
 
 class _Bars:
-    """One tqdm bar per stage of an import, fed by the services' ``progress(stage, done, total)``."""
+    """One tqdm bar per stage of a job (import, recompute, export), fed by the services'
+    ``progress(stage, done, total)``."""
 
     def __init__(self) -> None:
         self.bars: dict[str, tqdm] = {}
@@ -79,10 +80,11 @@ def database_session(settings: Settings) -> Iterator[Any]:
         yield session
 
 
-def _run_import(settings: Settings, params: dict[str, Any]) -> None:
-    """Run the import job of ``params`` in this process, drawing its progress; resume the same job when
-    an earlier run was killed (``jobs.find_resumable``). Exits 2 naming the file and field when the
-    dataset cannot be imported (nothing of it stored), 1 for any other failure."""
+def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+    """Run a job of ``kind`` with ``params`` in this process, drawing its progress (tqdm bars per stage);
+    resume the same job when an earlier run was killed (``jobs.find_resumable``). Returns ``(job id,
+    result)``; exits 2 with the job's message when its input is invalid (a dataset that cannot be imported:
+    nothing of it stored), 1 for any other failure."""
     from app.db.models import JobState
     from app.services import jobs
 
@@ -90,11 +92,11 @@ def _run_import(settings: Settings, params: dict[str, Any]) -> None:
     owner = jobs.owner_name()
     with session_factory(settings) as factory:
         with factory() as session:
-            job = jobs.find_resumable(session, "import", params, settings)
+            job = jobs.find_resumable(session, kind, params, settings)
             if job is not None and jobs.claim(session, job, owner):
-                typer.echo(f"resuming import job {job.id}, left unfinished by {job.owner}", err=True)
+                typer.echo(f"resuming {kind} job {job.id}, left unfinished by {job.owner}", err=True)
             else:
-                job = jobs.submit(session, "import", params, owner=owner)
+                job = jobs.submit(session, kind, params, owner=owner)
             job_id = job.id
         try:
             final = jobs.run_job(factory, job_id, settings, owner, progress=bars)
@@ -103,7 +105,12 @@ def _run_import(settings: Settings, params: dict[str, Any]) -> None:
     if final.state is not JobState.DONE:
         typer.echo(f"error: {final.message}", err=True)
         raise typer.Exit(code=2 if (final.result or {}).get("invalid_input") else 1)
-    r = final.result or {}
+    return job_id, final.result or {}
+
+
+def _run_import(settings: Settings, params: dict[str, Any]) -> None:
+    """Run the import job of ``params`` here (:func:`run_job_here`) and print its counts."""
+    job_id, r = run_job_here(settings, "import", params)
     typer.echo(f"imported {r['source']}: {r['games']} game(s), {r['systems']} system(s), {r['frames']} frame(s) "
                f"({r['systems_new']} new, {r['systems_changed']} changed) in {r['seconds']:.1f} s (job {job_id})")
     typer.echo(f"calibrated {r['calibrated']} ({r['rig_assisted']} with the game's camera rig), refused "
@@ -189,11 +196,14 @@ def export_soccernet_v3d_cmd(
     from app.services.exporting import export_soccernet_v3d
 
     settings = cli_settings(database_url, None)
+    bars = _Bars()
     try:
         with database_session(settings) as session:
-            report = export_soccernet_v3d(session, out_dir, include_all=include_all)
+            report = export_soccernet_v3d(session, out_dir, include_all=include_all, progress=bars)
     except InvalidInputError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(code=2) from None
+    finally:
+        bars.close()
     typer.echo(f"exported {report.systems} system(s) of {report.games} game(s), {report.rows} row(s) "
                f"to {report.out_dir} ({report.csv_path.name})")

@@ -1,4 +1,5 @@
-"""``v3d jobs list`` and ``v3d jobs run``: the background jobs of the database (``app.services.jobs``).
+"""``v3d jobs list`` and ``v3d jobs run``: the background jobs of the database (``app.services.jobs``);
+``v3d recompute``: the full recompute, a job run in this process with its progress.
 
 ``list`` prints the newest jobs with their state and progress; ``run`` runs the queued jobs (and the
 ones a killed process left running) in this process until none is left, for a database served with
@@ -11,7 +12,7 @@ from typing import Annotated, Optional
 import typer
 
 from app.cli._root import cli
-from app.cli.datasets import DatabaseOpt, cli_settings, session_factory
+from app.cli.datasets import DatabaseOpt, cli_settings, run_job_here, session_factory
 
 jobs_cli = typer.Typer(help="Background jobs: imports, full recomputes, exports.", no_args_is_help=True)
 cli.add_typer(jobs_cli, name="jobs")
@@ -62,3 +63,13 @@ def run_cmd(database_url: DatabaseOpt = None) -> None:
         while (job_id := jobs.claim_next(factory, owner, settings)) is not None:
             job = jobs.run_job(factory, job_id, settings, owner)
             typer.echo(f"job {job.id} ({job.kind}): {job.state.value}" + (f": {job.message}" if job.message else ""))
+
+
+@cli.command("recompute")
+def recompute_cmd(database_url: DatabaseOpt = None) -> None:
+    """Recompute every system with the current settings (calibrations untouched: admission, triangulation,
+    reprojections, optimised boxes, mirror flags, doubts, queue figures), 500 systems a transaction, with
+    progress; killed, the same command run again resumes the job. One audit entry."""
+    settings = cli_settings(database_url, None)
+    job_id, result = run_job_here(settings, "recompute", {})
+    typer.echo(f"recomputed {result['systems']} system(s), {result['triangulated']} triangulated (job {job_id})")

@@ -325,7 +325,8 @@ def _exported_game(game: Any, rows: list[Any]) -> ExportedGame:
     return ExportedGame(game.league, game.season, game.match, doc, csv_rows, len(systems))
 
 
-def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: bool = False) -> ExportReport:
+def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: bool = False,
+                         progress: Callable[[str, int, int], None] | None = None) -> ExportReport:
     """Write the SoccerNet-v3D tree of the database under ``out_dir`` (see the module docstring), game
     by game (:func:`iter_soccernet_v3d`), the CSV written as the games come.
 
@@ -334,6 +335,7 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
         out_dir: destination folder, created if missing; existing files of the same names are
             overwritten.
         include_all: export every system, not only the accepted ones.
+        progress: ``progress("export", games done, games)`` after each game (:func:`iter_soccernet_v3d`).
 
     Returns:
         An :class:`ExportReport`.
@@ -342,7 +344,7 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
         InvalidInputError: a league, season or match that cannot be a folder name (nothing written).
     """
     out = Path(out_dir)
-    games = iter_soccernet_v3d(session, include_all)
+    games = iter_soccernet_v3d(session, include_all, progress)
     first = next(games, None)  # validates every folder name before anything is written
     out.mkdir(parents=True, exist_ok=True)
     csv_path = out / "SNv3D.csv"

@@ -1,6 +1,7 @@
 """``v3d import`` as a job, ``v3d jobs list`` and ``v3d jobs run`` on a temporary SQLite file."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -54,3 +55,29 @@ def test_jobs_run_runs_the_queued_jobs(url: str) -> None:
     ran = runner.invoke(cli, ["jobs", "run", "--database-url", url])
     assert ran.exit_code == 0 and ran.output.strip() == f"job {queued.id} (recompute): done", ran.output
     assert runner.invoke(cli, ["jobs", "run", "--database-url", url]).output == ""
+
+
+def test_recompute_and_export_show_their_progress_and_counts(shared_dir: Path, tmp_path: Path, url: str) -> None:
+    """``v3d recompute`` is a job run here with a progress bar and one audit entry; ``v3d export`` draws the
+    games it writes."""
+    from app.db.models import AuditEntry, Job
+
+    archive = write_calibration_zip(shared_dir, tmp_path / "wc" / "annotations.zip")
+    assert runner.invoke(cli, ["import", "sn-calibration", str(archive), "--width", "960", "--height", "540",
+                               "--database-url", url, "--workers", "1"]).exit_code == 0
+    ran = runner.invoke(cli, ["recompute", "--database-url", url])
+    assert ran.exit_code == 0, ran.output
+    counted = re.search(r"recomputed (\d+) system\(s\), (\d+) triangulated \(job (\d+)\)", ran.output)
+    assert "recomputing systems" in ran.output and counted, ran.output
+    n = int(counted.group(1))
+    engine = make_engine(url)
+    try:
+        with make_session_factory(engine)() as session:
+            job = session.query(Job).filter_by(kind="recompute").one()
+            assert job.state.value == "done" and job.result["systems"] == n and job.done == job.total == n
+            assert session.query(AuditEntry).filter_by(action="recompute").count() == 1
+    finally:
+        engine.dispose()
+    out = runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / "out"), "--all", "--database-url", url])
+    assert out.exit_code == 0 and "exporting games" in out.output, out.output
+    assert (tmp_path / "out" / "SNv3D.csv").is_file()
