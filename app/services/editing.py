@@ -52,7 +52,7 @@ from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.services._labels import LabelError, check_box, check_line_points, check_point
 from app.services import audit
-from app.services.errors import ConflictError, InvalidInputError, NotFoundError, StaleVersionError
+from app.services.errors import ConflictError, InvalidInputError, NotFoundError, StaleVersionError, found
 from app.services.issia import refit_after_edit
 from app.services.recompute import recompute_frame, recompute_system
 from app.services.system_page import load_frame
@@ -189,18 +189,12 @@ def review_state(subject: Frame | System) -> dict[str, Any]:
 
 def get_frame(session: Session, frame_id: int) -> Frame:
     """The frame with this id. Raises :class:`NotFoundError`."""
-    frame = session.get(Frame, frame_id)
-    if frame is None:
-        raise NotFoundError("frame", frame_id)
-    return frame
+    return found(session.get(Frame, frame_id), "frame", frame_id)
 
 
 def get_system(session: Session, system_id: int) -> System:
     """The system with this id. Raises :class:`NotFoundError`."""
-    system = session.get(System, system_id)
-    if system is None:
-        raise NotFoundError("system", system_id)
-    return system
+    return found(session.get(System, system_id), "system", system_id)
 
 
 def update_ball_label(session: Session, frame_id: int, box: Any = None, point: Any = None, *,

@@ -13,6 +13,9 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TypeVar
+
+T = TypeVar("T")
 
 
 class ServiceError(Exception):
@@ -26,6 +29,17 @@ class NotFoundError(ServiceError, LookupError):
         super().__init__(f"{kind} {ident!r} not found")
         self.kind = kind
         self.ident = ident
+
+
+def found(row: T | None, kind: str, ident: object) -> T:
+    """``row`` (a lookup's result), or :class:`NotFoundError` naming ``kind`` and ``ident`` when it is None.
+
+    >>> found(3, "frame", 7)
+    3
+    """
+    if row is None:
+        raise NotFoundError(kind, ident)
+    return row
 
 
 class InvalidInputError(ServiceError, ValueError):

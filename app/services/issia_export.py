@@ -26,7 +26,7 @@ from app.datasets.issia import ANNOTATION_SIZE, CAMERA_SET, IssiaSequence
 from app.datasets.issia3d import issia3d_rows, write_issia3d_csv
 from app.db.models import Game, ReviewStatus, System, SystemKind
 from app.geometry.camera import Camera
-from app.services.errors import NotFoundError
+from app.services.errors import NotFoundError, found
 from app.services.issia_trajectory import FPS, load_sequence
 
 CSV_NAME, SPLIT_NAME = "ISSIA-3D.csv", "split.json"
@@ -63,9 +63,7 @@ def sequence_data(session: Session, game_id: int) -> SequenceData:
     """The ISSIA sequence ``game_id`` as stored (for ``GET /api/games/{id}/trajectory``, shaped by
     ``app.api.issia_schemas.TrajectoryOut``). Raises :class:`NotFoundError` for an unknown game or one
     without ISSIA systems."""
-    game = session.get(Game, game_id)
-    if game is None:
-        raise NotFoundError("game", game_id)
+    game = found(session.get(Game, game_id), "game", game_id)
     systems = load_sequence(session, game_id)
     if not systems:
         raise NotFoundError("ISSIA sequence of game", game_id)

@@ -44,7 +44,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.core.config import Settings
 from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
-from app.services.errors import InvalidInputError, NotFoundError, ServiceError
+from app.services.errors import InvalidInputError, ServiceError, found
 from app.services.progress import Progress
 
 log = logging.getLogger(__name__)
@@ -126,10 +126,7 @@ def submit(session: Session, kind: str, params: dict[str, Any], *, owner: str | 
 
 def get_job(session: Session, job_id: int) -> Job:
     """The job ``job_id``; raises :class:`NotFoundError` naming it."""
-    job = session.get(Job, job_id)
-    if job is None:
-        raise NotFoundError("job", job_id)
-    return job
+    return found(session.get(Job, job_id), "job", job_id)
 
 
 def list_jobs(session: Session, state: JobState | None = None, kind: str | None = None, limit: int = 50,

@@ -20,7 +20,7 @@ from app.core.config import Settings
 from app.db.models import AuditEntry
 from app.services import editing
 from app.services.audit import SUMMARY_ACTIONS
-from app.services.errors import InvalidInputError, NotFoundError
+from app.services.errors import InvalidInputError, found
 
 
 @dataclass(frozen=True)
@@ -42,9 +42,7 @@ def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: 
         InvalidInputError: an entry that cannot be reverted: an import or a recompute (field "id").
         ConflictError: the resource changed since the entry (not forced); nothing changed.
     """
-    entry = session.get(AuditEntry, entry_id)
-    if entry is None:
-        raise NotFoundError("audit entry", entry_id)
+    entry = found(session.get(AuditEntry, entry_id), "audit entry", entry_id)
     if entry.action in SUMMARY_ACTIONS or not isinstance(entry.before, dict):
         raise InvalidInputError(f"audit entry {entry_id} is {'an' if entry.action[0] in 'aeiou' else 'a'} "
                                 f"{entry.action}: it changed many rows at once and cannot be reverted", field="id")

@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session, joinedload, selectinload
 from app.db.models import Frame, System, Triangulation
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
-from app.services.errors import NotFoundError
+from app.services.errors import found
 from app.services.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
 
 #: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
@@ -86,10 +86,7 @@ def load_system(session: Session, system_id: int) -> System:
         selectinload(System.frames).options(*_frame_loads(joinedload)),
         selectinload(System.doubts),
     )
-    system = session.scalars(stmt).unique().first()
-    if system is None:
-        raise NotFoundError("system", system_id)
-    return system
+    return found(session.scalars(stmt).unique().first(), "system", system_id)
 
 
 def load_frame(session: Session, frame_id: int) -> Frame:
@@ -101,10 +98,7 @@ def load_frame(session: Session, frame_id: int) -> Frame:
     """
     stmt = sa.select(Frame).where(Frame.id == frame_id).options(
         joinedload(Frame.system).joinedload(System.triangulation), *_frame_loads(joinedload))
-    frame = session.scalars(stmt).unique().first()
-    if frame is None:
-        raise NotFoundError("frame", frame_id)
-    return frame
+    return found(session.scalars(stmt).unique().first(), "frame", frame_id)
 
 
 def system_page(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
