@@ -20,9 +20,10 @@ is then moved by up to three frames to the place with the lowest total cost.
 Each piece is fitted by iteratively reweighted linear least squares on the algebraic residual
 ``(r_1 - x r_3) . (p - C)``, ``(r_2 - y r_3) . (p - C)`` (``r_i`` rows of R, ``(x, y)`` the
 undistorted normalised label), reweighted by the depth so that it equals the pixel error, with
-Cauchy weights, then refined by :func:`scipy.optimize.least_squares` (``loss="cauchy"``) on the
-pixel residuals themselves. Residuals are expressed on a 1920-px-wide image
-(:data:`app.geometry.triangulation.REFERENCE_WIDTH_PX`).
+Cauchy weights, then refined by a robust (Cauchy) least squares of the pixel residuals themselves;
+both fits live in :mod:`app.geometry.motion` (the models, the batched linear fit the segmentation's
+candidate cuts share, the Levenberg-Marquardt refinement with the analytic Jacobian). Residuals are
+expressed on a 1920-px-wide image (:data:`app.geometry.triangulation.REFERENCE_WIDTH_PX`).
 
 Outputs per frame (:class:`TrajectoryFit`): the trajectory's position, its source
 (``triangulated``: the frame has its own triangulation from two or more kept labels; ``fitted``: one
@@ -34,10 +35,9 @@ only the frames whose place on the trajectory can have changed, re-triangulating
 kept labels changed (:func:`refit_local`, its fast path, reads only the pieces around the edit).
 
 World: SoccerNet metres, origin at the centre spot, z down. Image: continuous pixels, origin at
-the top-left corner. Pure: numpy and scipy only. (About 700 lines: the model, its segmentation,
-the per-frame assembly and the re-fit after an edit, which replays the segmentation's own tests on a
-few pieces, share the private label table and the segmentation's helpers; split apart they would
-import each other's private parts.)
+the top-left corner. Pure: numpy only. (About 700 lines: the segmentation, the per-frame assembly and
+the re-fit after an edit, which replays the segmentation's own tests on a few pieces, share the
+segmentation's helpers; split apart they would import each other's private parts.)
 """
 from __future__ import annotations
 
@@ -45,15 +45,15 @@ from dataclasses import dataclass
 from typing import Hashable, Sequence
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from app.geometry.camera import Camera
 from app.geometry.consensus import ball_consensus
-from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px, triangulate_ball
+from app.geometry.motion import (
+    BALL_RADIUS_M, GRAVITY_M_S2, KINDS, LabelTable as _Labels, linear_fits, positions as _positions, refine as _refine,
+    robust_cost, stop_time as _stop_time,
+)
+from app.geometry.triangulation import BallObservation, reprojection_error_px, triangulate_ball
 
-GRAVITY_M_S2 = 9.81
-BALL_RADIUS_M = 0.11
-KINDS = ("flight", "roll")
 SOURCES = ("triangulated", "fitted", "interpolated")
 
 #: Defaults (pixels on a 1920-px-wide image). Label noise is about 1 px; a wrong label is tens to
@@ -62,7 +62,6 @@ SOURCES = ("triangulated", "fitted", "interpolated")
 DEFAULT_FLAG_PX = 15.0
 DEFAULT_BREAK_PX = 10.0
 DEFAULT_TAU_PX = 20.0
-_CAUCHY_PX = 3.0
 _MIN_FRAMES = 4
 #: A roll is chosen over a flight unless the flight's robust cost is lower by more than this per label (px^2):
 #: label noise alone costs about 1 px^2 per label, so smaller gains are noise.
@@ -130,6 +129,9 @@ class Piece:
         params: (6,) flight ``(p0, v0)``; roll ``(x0, y0, vx, vy, ax, ay)``; metres, seconds, at
             ``t = (frame - first_frame) / fps``.
         cost: robust cost of its labels (Cauchy, px^2 at 1920 width).
+        alternative: (6,) the params of the other model fitted to the same labels (``None`` when it was
+            not fitted, e.g. fewer than three frames): where that model's refinement starts after an
+            edit of the piece (the two models' costs choose the kind).
     """
 
     kind: str
@@ -137,6 +139,7 @@ class Piece:
     last_frame: int
     params: np.ndarray
     cost: float
+    alternative: np.ndarray | None = None
 
     def position(self, frames: np.ndarray, fps: float) -> np.ndarray:
         """(N,) frame indices (may lie outside the piece) -> (N, 3) world positions, metres."""
@@ -159,135 +162,22 @@ class Piece:
         return np.array([q[2] + q[4] * t, q[3] + q[5] * t, 0.0])
 
 
-def _basis(kind: str, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N,) seconds -> B (N, 3, 6), c (N, 3) with p = B q + c."""
-    n = len(t)
-    B = np.zeros((n, 3, 6))
-    c = np.zeros((n, 3))
-    if kind == "flight":
-        for i in range(3):
-            B[:, i, i] = 1.0
-            B[:, i, 3 + i] = t
-        c[:, 2] = 0.5 * GRAVITY_M_S2 * t ** 2
-    else:
-        for i in range(2):
-            B[:, i, i] = 1.0
-            B[:, i, 2 + i] = t
-            B[:, i, 4 + i] = 0.5 * t ** 2
-        c[:, 2] = -BALL_RADIUS_M
-    return B, c
-
-
-def _stop_time(kind: str, q: np.ndarray) -> float:
-    """A decelerating roll stops when its speed along ``v0`` vanishes: ``-(v0 . a) / |a|^2``, then stays."""
-    va = float(q[2:4] @ q[4:6]) if kind == "roll" else 0.0
-    return -va / float(q[4:6] @ q[4:6]) if va < 0 else np.inf
-
-
-def _positions(kind: str, q: np.ndarray, t: np.ndarray) -> np.ndarray:
-    B, c = _basis(kind, np.minimum(np.atleast_1d(t), _stop_time(kind, q)))
-    return B @ q + c
-
-
-class _Labels:
-    """Flattened labels: per label its frame, camera, normalised undistorted point and geometry."""
-
-    def __init__(self, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
-                 use: np.ndarray, first_frame: int = 0):
-        frames, cams = np.nonzero(use)
-        self.frame, self.cam = frames + first_frame, cams  # sequence frame indices (row + first_frame)
-        xy = np.zeros((len(frames), 2))
-        for k, cam in enumerate(cameras):
-            sel = cams == k
-            if sel.any():
-                xy[sel] = cam.normalise_pixels(points[frames[sel], k], undistort=True)  # rows of ``points``
-        self.xy = xy
-        self.R = np.stack([cameras[k].R for k in cams]) if len(cams) else np.zeros((0, 3, 3))
-        self.C = np.stack([cameras[k].C for k in cams]) if len(cams) else np.zeros((0, 3))
-        scale = np.array([0.5 * (cam.K[0, 0] + cam.K[1, 1]) * REFERENCE_WIDTH_PX / w if cam is not None else 1.0
-                          for cam, w in zip(cameras, widths)])
-        self.scale = scale[cams]  # normalised units -> px at 1920 width
-        # (N, 2, 3) rows of the algebraic residual (r_1 - x r_3, r_2 - y r_3) of each label (module docstring)
-        self.rows = self.R[:, :2, :] - self.xy[:, :, None] * self.R[:, 2:3, :]
-
-    def take(self, idx: np.ndarray) -> "_Labels":
-        """The labels ``idx`` alone (row i of the result is label ``idx[i]``): a fit's many passes over
-        the same labels then index nothing."""
-        sub = object.__new__(_Labels)
-        for name in ("frame", "cam", "xy", "R", "C", "scale", "rows"):
-            setattr(sub, name, getattr(self, name)[idx])
-        return sub
-
-    def residuals(self, idx: np.ndarray | slice, pos: np.ndarray) -> np.ndarray:
-        """(n, 2) pixel residuals (1920 width) of labels ``idx`` at world positions ``pos`` (n, 3)."""
-        xc = np.einsum("nij,nj->ni", self.R[idx], pos - self.C[idx])
-        z = np.where(xc[:, 2] > 1e-6, xc[:, 2], 1e-6)
-        return (xc[:, :2] / z[:, None] - self.xy[idx]) * self.scale[idx, None]
-
-
 def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine: bool,
          start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """Fit one model to labels ``idx``; returns (params (6,), robust cost). With ``refine`` and ``start``
-    (the params of a fit of nearly the same labels, e.g. before an edit) the refinement starts there
-    instead of at the reweighted linear solution: the same minimum, in fewer iterations."""
-    L, idx = L.take(idx), slice(None)  # the labels of the piece, indexed once
-    t = (L.frame[idx] - first) / fps
-    if refine and start is not None:
-        q = np.asarray(start, float)
-        refine_only = True
-    else:
-        refine_only = False
-    rows = L.rows[idx]  # (n, 2, 3)
-    depth = np.linalg.norm(L.C[idx], axis=1)
-    w = np.ones(len(t))
-    if not refine_only:
-        q = np.zeros(6)
-    for _ in range(0 if refine_only else 6):
-        # a roll that stops inside the piece: times after the stop are held at the stop (linear given it)
-        B, c = _basis(kind, np.minimum(t, _stop_time(kind, q)))
-        A = np.einsum("nrj,njk->nrk", rows, B)  # (n, 2, 6)
-        b = np.einsum("nrj,nj->nr", rows, L.C[idx] - c)
-        s = (np.sqrt(w) * L.scale[idx] / depth)[:, None]
-        q = np.linalg.lstsq((A * s[:, :, None]).reshape(-1, 6), (b * s).reshape(-1), rcond=None)[0]
-        pos = _positions(kind, q, t)
-        depth = np.maximum(np.einsum("nj,nj->n", L.R[idx][:, 2, :], pos - L.C[idx]), 0.5)
-        e = np.linalg.norm(L.residuals(idx, pos), axis=1)
-        w = 1.0 / (1.0 + (e / _CAUCHY_PX) ** 2)
-    if refine:
-        def fun(qq):
-            return L.residuals(idx, _positions(kind, qq, t)).reshape(-1)
-        q = least_squares(fun, q, jac=lambda qq: _jacobian(L, idx, kind, qq, t), loss="cauchy", f_scale=_CAUCHY_PX,
-                          method="trf", x_scale="jac").x
-    e = np.linalg.norm(L.residuals(idx, _positions(kind, q, t)), axis=1)
-    return q, float(np.sum(_CAUCHY_PX ** 2 * np.log1p((e / _CAUCHY_PX) ** 2)))
-
-
-def _jacobian(L: _Labels, idx: np.ndarray, kind: str, q: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(2n, 6) derivative of ``L.residuals(idx, _positions(kind, q, t)).reshape(-1)`` with respect to ``q``.
-
-    A residual is ``s (x_c[:2] / z - xy)`` with ``x_c = R (p - C)``, ``z = x_c[2]``, so its derivative in
-    ``p`` is ``s / z (R_{0,1} - (x_c[:2] / z) R_2)``; ``p = B(t') q + c(t')`` with ``t' = min(t, t_stop(q))``:
-    ``B(t')``, plus, for a roll's frames after its stop, ``v(t_stop) (d t_stop / d q)`` with
-    ``t_stop = -(v0 . a) / |a|^2`` (:func:`_stop_time`).
-    """
-    ts = _stop_time(kind, q)
-    B, c = _basis(kind, np.minimum(t, ts))
-    pos = B @ q + c
-    R, C = L.R[idx], L.C[idx]
-    xc = np.einsum("nij,nj->ni", R, pos - C)
-    z = np.where(xc[:, 2] > 1e-6, xc[:, 2], 1e-6)
-    uv = xc[:, :2] / z[:, None]
-    D = (R[:, :2, :] - uv[:, :, None] * R[:, 2:3, :]) * (L.scale[idx] / z)[:, None, None]  # (n, 2, 3)
-    if kind == "roll" and np.isfinite(ts):
-        stopped = t >= ts
-        if stopped.any():
-            aa, va = float(q[4:6] @ q[4:6]), float(q[2:4] @ q[4:6])
-            v = np.array([q[2] + q[4] * ts, q[3] + q[5] * ts, 0.0])
-            g = np.array([0.0, 0.0, -q[4] / aa, -q[5] / aa, -q[2] / aa + 2 * va * q[4] / aa ** 2,
-                          -q[3] / aa + 2 * va * q[5] / aa ** 2])
-            B = B.copy()
-            B[stopped] += np.outer(v, g)
-    return np.einsum("nij,njk->nik", D, B).reshape(-1, 6)
+    """Fit one model to labels ``idx`` (``t = 0`` at frame ``first``); returns (params (6,), robust cost).
+    Unrefined: the reweighted linear fit (:func:`app.geometry.motion.linear_fits`). Refined: the robust
+    fit of the pixel residuals (:func:`app.geometry.motion.refine`) from ``start`` (the params of a fit of
+    nearly the same labels, e.g. before an edit, or the linear solution already computed) or else from
+    the linear solution."""
+    if not refine or start is None:
+        q, cost = linear_fits(L, [(idx, kind, first)], fps)[0]
+        if not refine:
+            return q, cost
+        start = q
+    sub = L.take(idx)
+    t = (sub.frame - first) / fps
+    q = _refine(sub, kind, start, t)
+    return q, robust_cost(sub.residuals(slice(None), _positions(kind, q, t)))
 
 
 def _best_piece(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int], fps: float,
@@ -308,9 +198,20 @@ def _model_fits(L: _Labels, by_frame, frames: Sequence[int], fps: float, refine:
     first = int(frames[0])
     kinds = KINDS if len(frames) >= 3 else ("flight",)
     warm = dict(linear or {}) if refine else {}
-    if start is not None and start.first_frame == first:
+    if refine and start is not None and start.first_frame == first:
         warm[start.kind] = start.params
-    return {kind: _fit(L, idx, kind, first, fps, refine, warm.get(kind)) for kind in kinds}
+        if start.alternative is not None:
+            warm[_other(start.kind)] = start.alternative
+    missing = [kind for kind in kinds if kind not in warm]
+    fits = dict(zip(missing, linear_fits(L, [(idx, kind, first) for kind in missing], fps)))
+    if not refine:
+        return fits
+    return {kind: _fit(L, idx, kind, first, fps, True, warm[kind] if kind in warm else fits[kind][0])
+            for kind in kinds}
+
+
+def _other(kind: str) -> str:
+    return KINDS[1 - KINDS.index(kind)]
 
 
 def _choose(frames: Sequence[int], fits: dict[str, tuple[np.ndarray, float]], labels: int) -> Piece:
@@ -319,7 +220,9 @@ def _choose(frames: Sequence[int], fits: dict[str, tuple[np.ndarray, float]], la
     kind = min(fits, key=lambda k: fits[k][1])
     if "roll" in fits and fits["roll"][1] <= fits["flight"][1] + _ROLL_PREFERENCE_PX2 * labels:
         kind = "roll"  # within noise of each other (e.g. one camera): the ball on the grass, the common case
-    return Piece(kind, int(frames[0]), int(frames[-1]), fits[kind][0], fits[kind][1])
+    other = fits.get(_other(kind))
+    return Piece(kind, int(frames[0]), int(frames[-1]), fits[kind][0], fits[kind][1],
+                 other[0] if other is not None else None)
 
 
 class _Best:
@@ -334,9 +237,25 @@ class _Best:
         key = tuple(frames)
         done = self._done.get(key)
         if done is None:
-            fits = _model_fits(self.L, self.by_frame, key, self.fps, False)
-            done = self._done[key] = (_choose(key, fits, sum(len(self.by_frame[f]) for f in key)), fits)
+            self.prefetch([key])
+            done = self._done[key]
         return done
+
+    def prefetch(self, lists: Sequence[Sequence[int]]) -> None:
+        """Fit the frame lists not fitted yet, all at once (:func:`app.geometry.motion.linear_fits`: the
+        same result as one by one)."""
+        todo = list(dict.fromkeys(tuple(f) for f in lists if f and tuple(f) not in self._done))
+        jobs, owners = [], []
+        for key in todo:
+            idx = np.concatenate([self.by_frame[f] for f in key])
+            for kind in (KINDS if len(key) >= 3 else ("flight",)):
+                jobs.append((idx, kind, int(key[0])))
+                owners.append((key, kind))
+        fits: dict[tuple[int, ...], dict[str, tuple[np.ndarray, float]]] = {key: {} for key in todo}
+        for (key, kind), fit in zip(owners, linear_fits(self.L, jobs, self.fps)):
+            fits[key][kind] = fit
+        for key in todo:
+            self._done[key] = (_choose(key, fits[key], sum(len(self.by_frame[f]) for f in key)), fits[key])
 
     def __call__(self, frames: Sequence[int]) -> Piece:
         return self._get(frames)[0]
@@ -392,6 +311,7 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
             if run is not None:  # a kick the growth missed (a small change of velocity): best cut near it
                 r0 = a + head + run
                 options = range(max(a + 2, r0 - 2 * _SHIFT), min(b - 2, r0 + _SHIFT) + 1)
+                best.prefetch([frames[a:c] for c in options] + [frames[c:b] for c in options])
                 costs = [(best(frames[a:c]).cost + best(frames[c:b]).cost, c) for c in options]
                 if costs:
                     cuts.add(min(costs)[1])
@@ -422,7 +342,9 @@ def _shift_bounds(L, by_frame, frames, fps, bounds, best: _Best | None = None):
     for b in range(1, len(bounds)):
         (a0, a1), (_, b1) = bounds[b - 1], bounds[b]
         lowest = None
-        for cut in range(max(a0 + 1, a1 - _SHIFT), min(b1 - 1, a1 + _SHIFT) + 1):
+        cuts = range(max(a0 + 1, a1 - _SHIFT), min(b1 - 1, a1 + _SHIFT) + 1)
+        best.prefetch([frames[a0:cut] for cut in cuts] + [frames[cut:b1] for cut in cuts])
+        for cut in cuts:
             cost = best(frames[a0:cut]).cost + best(frames[cut:b1]).cost
             if lowest is None or cost < lowest[0] - 1e-9:
                 lowest = (cost, cut)

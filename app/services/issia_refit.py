@@ -46,7 +46,9 @@ from app.db.models import (
 from app.db.types import utcnow
 from app.geometry.camera import Camera
 from app.geometry.trajectory import Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window
-from app.services.issia_trajectory import FPS, TRIANGULATION_FIELDS, Changed, fit_args, fit_sequence, row_values
+from app.services.issia_trajectory import (
+    FPS, TRIANGULATION_FIELDS, Changed, fit_args, fit_sequence, piece_from_json, row_values,
+)
 
 _POINT_COLUMNS = ("ball3d", "ball3d_smoothed", "source", "piece", "cam_list", "residuals_px", "flagged")
 
@@ -111,8 +113,7 @@ def _stored_pieces(session: Session, game_id: int) -> tuple[tuple[Piece, ...], d
     seen: dict[tuple[int, int], Piece] = {}
     for _, _, _, d in rows:
         if d and (d["first_frame"], d["last_frame"]) not in seen:
-            seen[(d["first_frame"], d["last_frame"])] = Piece(d["kind"], d["first_frame"], d["last_frame"],
-                                                              np.asarray(d["params"], float), d["cost"])
+            seen[(d["first_frame"], d["last_frame"])] = piece_from_json(d)
     pieces = tuple(sorted(seen.values(), key=lambda p: p.first_frame))
     return pieces, {int(i): sid for sid, i, _, _ in rows}, all(tp is not None for _, _, tp, _ in rows)
 

@@ -102,9 +102,19 @@ def sequence_arrays(systems: Sequence[System], settings: Settings) -> SequenceAr
     return SequenceArrays(by_index, camera_names, points, cameras, widths, frame_ids)
 
 
-def _piece_json(p: Piece) -> dict[str, Any]:
+def piece_json(p: Piece) -> dict[str, Any]:
+    """The stored form of a :class:`Piece` (``TrajectoryPoint.piece``): kind, frames, params, cost and the
+    other model's params (``alternative``, where an edit's re-fit starts that model; null if none)."""
     return {"kind": p.kind, "first_frame": int(p.first_frame), "last_frame": int(p.last_frame),
-            "params": [float(v) for v in p.params], "cost": float(p.cost)}
+            "params": [float(v) for v in p.params], "cost": float(p.cost),
+            "alternative": [float(v) for v in p.alternative] if p.alternative is not None else None}
+
+
+def piece_from_json(d: dict[str, Any]) -> Piece:
+    """:func:`piece_json`'s inverse (a piece stored before ``alternative`` existed has none)."""
+    alt = d.get("alternative")
+    return Piece(d["kind"], int(d["first_frame"]), int(d["last_frame"]), np.asarray(d["params"], float),
+                 float(d["cost"]), np.asarray(alt, float) if alt is not None else None)
 
 
 def _vec(v: np.ndarray) -> list[float] | None:
@@ -132,7 +142,7 @@ def row_values(fit: TrajectoryFit, frame: int, ids: np.ndarray) -> dict[str, Any
     piece = next((p for p in fit.pieces if p.first_frame <= frame <= p.last_frame), None)
     return dict(
         ball3d=_vec(fit.ball_3d[i]), ball3d_smoothed=_vec(fit.positions[i]), source=fit.sources[i],
-        piece=_piece_json(piece) if piece is not None else None,
+        piece=piece_json(piece) if piece is not None else None,
         cam_list=[int(ids[k]) for k in fit.cam_lists[i]],
         residuals_px={str(int(ids[k])): round(float(fit.residuals_px[i, k]), 4)
                       for k in range(len(ids)) if ids[k] >= 0 and np.isfinite(fit.residuals_px[i, k])},
