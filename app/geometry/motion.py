@@ -145,59 +145,66 @@ def linear_fits(L: LabelTable, jobs: Sequence[tuple[np.ndarray, str, int]], fps:
     m = len(jobs)
     if m == 0:
         return []
+    # flights first, then rolls: each model's rows are one slice
+    order = sorted(range(m), key=lambda j: jobs[j][1] == "roll")
+    jobs = [jobs[j] for j in order]
     sizes = np.array([len(j[0]) for j in jobs])
     ends = np.cumsum(sizes)
     starts = ends - sizes
     idx = np.concatenate([np.asarray(j[0], int) for j in jobs])
-    gid = np.repeat(np.arange(m), sizes)
-    is_roll = np.array([j[1] == "roll" for j in jobs])
-    rr = np.nonzero(is_roll[gid])[0]  # the rows of roll sets
-    t = (L.frame[idx] - np.array([j[2] for j in jobs], float)[gid]) / fps
+    n_sets_flight = sum(j[1] != "roll" for j in jobs)
+    nf = int(ends[n_sets_flight - 1]) if n_sets_flight else 0  # rows [0, nf) flights, [nf, n) rolls
+    t = (L.frame[idx] - np.repeat(np.array([j[2] for j in jobs], float), sizes)) / fps
     rows, R, C, xy, scale = L.rows[idx], L.R[idx], L.C[idx], L.xy[idx], L.scale[idx]
     n = len(idx)
     # p = B(t) q + c(t): c is gravity's drop for a flight, the radius for a roll; b = rows . (C - c)
-    cz = 0.5 * GRAVITY_M_S2 * t ** 2
-    cz[rr] = -BALL_RADIUS_M
+    cz = np.empty(n)
+    cz[:nf] = 0.5 * GRAVITY_M_S2 * t[:nf] ** 2
+    cz[nf:] = -BALL_RADIUS_M
     Cc = C.copy()
     Cc[:, 2] -= cz
     b = np.einsum("nrj,nj->nr", rows, Cc)
-    if len(rr):
-        rows_xy = rows[rr, :, 0:2]
+    rows_xy, t_roll = rows[nf:, :, 0:2], t[nf:]
+    roll_sizes = sizes[n_sets_flight:]
     W = np.empty((n, 2, 7))  # the weighted equations [A | b] * s
     depth = np.linalg.norm(C, axis=1)
     w = np.ones(n)
-    stops = np.full(m, np.inf)
+    q = np.zeros((m, 6))
+    tr = t_roll
     for _ in range(LINEAR_ROUNDS):
-        s = (np.sqrt(w) * scale / depth)[:, None, None]
-        st = s * t[:, None, None]
-        W[:, :, 0:3] = rows * s
-        W[:, :, 3:6] = rows * st
-        W[:, :, 6] = b * s[:, :, 0]
-        if len(rr):
+        s = (np.sqrt(w) * scale / depth)[:, None]
+        W[:, :, 6] = b * s
+        s = s[:, :, None]
+        W[:nf, :, 0:3] = rows[:nf] * s[:nf]
+        W[:nf, :, 3:6] = rows[:nf] * (s[:nf] * t[:nf, None, None])
+        if nf < n:
             # a roll that stops inside the set: its times after the stop are held at the stop (linear given it)
-            tr = np.minimum(t[rr], stops[gid[rr]])[:, None, None]
-            sr = s[rr]
-            W[rr, :, 0:2] = rows_xy * sr
-            W[rr, :, 2:4] = rows_xy * (sr * tr)
-            W[rr, :, 4:6] = rows_xy * (sr * 0.5 * tr ** 2)
+            sr, trr = s[nf:], tr[:, None, None]
+            W[nf:, :, 0:2] = rows_xy * sr
+            W[nf:, :, 2:4] = rows_xy * (sr * trr)
+            W[nf:, :, 4:6] = rows_xy * (sr * (0.5 * trr ** 2))
         q = _solve_sets(W, starts, ends)
-        stops = np.array([stop_time("roll", qq) if r else np.inf for qq, r in zip(q, is_roll)])
-        qs = q[gid]
-        pos = qs[:, 0:3] + qs[:, 3:6] * t[:, None]
-        pos[:, 2] += cz
-        if len(rr):
-            tr = np.minimum(t[rr], stops[gid[rr]])[:, None]
-            pos[rr, 0:2] = qs[rr, 0:2] + qs[rr, 2:4] * tr + 0.5 * qs[rr, 4:6] * tr ** 2
-            pos[rr, 2] = -BALL_RADIUS_M
-        d = pos - C
-        xc = np.einsum("nij,nj->ni", R, d)
+        qs = np.repeat(q, sizes, axis=0)
+        pos = np.empty((n, 3))
+        pos[:nf] = qs[:nf, 0:3] + qs[:nf, 3:6] * t[:nf, None]
+        pos[:nf, 2] += cz[:nf]
+        if nf < n:
+            stops = np.repeat([stop_time("roll", qq) for qq in q[n_sets_flight:]], roll_sizes)
+            tr = np.minimum(t_roll, stops)
+            trr = tr[:, None]
+            pos[nf:, 0:2] = qs[nf:, 0:2] + qs[nf:, 2:4] * trr + 0.5 * qs[nf:, 4:6] * trr ** 2
+            pos[nf:, 2] = -BALL_RADIUS_M
+        xc = np.einsum("nij,nj->ni", R, pos - C)
         depth = np.maximum(xc[:, 2], 0.5)
         z = np.where(xc[:, 2] > 1e-6, xc[:, 2], 1e-6)
         res = (xc[:, :2] / z[:, None] - xy) * scale[:, None]
         e2 = np.einsum("ij,ij->i", res, res)
         w = 1.0 / (1.0 + e2 / CAUCHY_PX ** 2)
     cost = CAUCHY_PX ** 2 * np.log1p(e2 / CAUCHY_PX ** 2)
-    return [(q[i].copy(), float(np.sum(cost[starts[i]:ends[i]]))) for i in range(m)]
+    out: list[tuple[np.ndarray, float]] = [(np.zeros(6), 0.0)] * m
+    for i, j in enumerate(order):
+        out[j] = (q[i].copy(), float(np.sum(cost[starts[i]:ends[i]])))
+    return out
 
 
 def _solve_sets(W: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
