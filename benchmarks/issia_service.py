@@ -38,7 +38,7 @@ from benchmarks.issia import SHARED
 STAGES = (
     ("recompute edited frame (lines)", "app.services.editing", "recompute_frame"),
     ("refit_sequence", "app.services.issia", "refit_sequence"),
-    ("  stored pieces (DB)", "app.services.issia_refit", "_stored_pieces"),
+    ("  stored pieces (DB)", "app.services.issia_refit", "_pieces_around"),
     ("  cameras (DB)", "app.services.issia_refit", "sequence_columns"),
     ("  window (DB)", "app.services.issia_refit", "_load_window"),
     ("  refit_window", "app.services.issia_refit", "refit_window"),

@@ -372,7 +372,9 @@ class TrajectoryFit:
         first_frame: the sequence frame index of row 0 of the per-frame arrays. A fit of the whole
             sequence has ``first_frame = 0`` and F rows; :func:`refit_window` answers a *window*: rows
             ``first_frame .. first_frame + len(positions) - 1`` (the frames the re-fit may have changed),
-            while ``pieces`` always describe the whole sequence (sequence frame indices).
+            while ``pieces`` describe the whole sequence (sequence frame indices), or, in a fit given to
+            the re-fit after an edit, a run of consecutive pieces holding at least those within
+            :data:`REFIT_REACH` of the edit (its answer then holds that run with the pieces it replaced).
     """
 
     fps: float
@@ -447,6 +449,11 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
 #: this many labelled frames inside them: beyond the frames a break may move by (``_SHIFT``) and the frames
 #: that confirm a break (``_CONFIRM``).
 _MARGIN = _SHIFT + _CONFIRM
+#: The re-fit after an edit (:func:`refit_window`, :func:`refit_local`, :func:`refit_span`,
+#: :func:`local_span`) reads only the pieces holding the edit (between pieces: the two around it) and
+#: up to this many on each side: the neighbours it may fit again and, beyond them, the pieces whose
+#: ends bound the Hermite gaps it fills. A caller may pass just those pieces (``TrajectoryFit.pieces``).
+REFIT_REACH = 2
 
 
 def _stretch(pieces: Sequence[Piece], first_frame: int, last_frame: int) -> tuple[int, int]:
@@ -610,7 +617,8 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
     Args:
         fit: the fit before the edit, of the whole sequence or of a window of it (``fit.first_frame``)
             that holds at least the frames of ``refit_span(fit.pieces, first_frame, last_frame)``;
-            made with the same ``cameras`` (a camera change needs :func:`fit_trajectory`).
+            made with the same ``cameras`` (a camera change needs :func:`fit_trajectory`). Its pieces
+            may be only those within :data:`REFIT_REACH` of the edit (a run of consecutive pieces).
         points: (len(fit.positions), K, 2) labels of the frames ``fit.frames`` with the edit applied.
         cameras, widths, flag_px, break_px, tau_px: as in :func:`fit_trajectory`.
 
@@ -718,5 +726,5 @@ def _hermite_gap(positions: np.ndarray, first: int, a: Piece, b: Piece, fps: flo
     positions[fr - first] = h @ np.stack([p0, v0, p1, v1])
 
 
-__all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "FrameTriangulation", "triangulate_frame", "Piece",
+__all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "REFIT_REACH", "FrameTriangulation", "triangulate_frame", "Piece",
            "TrajectoryFit", "fit_trajectory", "local_span", "refit_local", "refit_span", "refit_window"]

@@ -43,9 +43,11 @@ from app.core.config import Settings
 from app.db.models import (
     BallLabel, Calibration, Frame, ReviewDecision, System, SystemKind, TrajectoryPoint, Triangulation,
 )
-from app.db.types import utcnow
+from app.db.types import json_loads, utcnow
 from app.geometry.camera import Camera
-from app.geometry.trajectory import Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window
+from app.geometry.trajectory import (
+    REFIT_REACH, Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window,
+)
 from app.services.issia_trajectory import (
     FPS, TRIANGULATION_FIELDS, Changed, fit_args, fit_sequence, piece_from_json, row_values,
 )
@@ -67,55 +69,89 @@ class SequenceColumns:
 def sequence_columns(session: Session, game_id: int, settings: Settings) -> SequenceColumns:
     """The cameras of the ISSIA sequence ``game_id`` as :func:`~app.services.issia_trajectory.sequence_arrays`
     chooses them (camera order by view position then name; the camera of each camera's first admitted view
-    in frame order), read with a name query and a calibration query streamed in frame order that stops
-    as soon as every camera has its admitted view."""
+    in frame order), read without visiting the whole sequence: the views of the first few systems in
+    frame order with their calibrations (names, positions and widths from the first system: every
+    system of a sequence has the same views, the importer makes one per camera for every frame), then,
+    while a camera has no admitted view yet, the next systems, twice as many each time."""
     from app.services.calibrating import is_admitted
 
-    rows = session.execute(
-        sa.select(Frame.name, sa.func.min(Frame.position), sa.func.max(Frame.width))
-        .join(System, Frame.system_id == System.id)
-        .where(System.game_id == game_id, System.kind == SystemKind.ISSIA).group_by(Frame.name)
-    ).all()
-    rows.sort(key=lambda r: (r[1], r[0]))
-    names = [r[0] for r in rows]
-    col = {n: k for k, n in enumerate(names)}
-    cameras: list[Camera | None] = [None] * len(names)
-    first: list[int | None] = [None] * len(names)
-    missing = len(names)
-    result = session.execute(
-        sa.select(Frame.name, System.frame_index, Calibration)
-        .join(System, Frame.system_id == System.id).join(Calibration, Calibration.frame_id == Frame.id)
-        .where(System.game_id == game_id, System.kind == SystemKind.ISSIA)
-        .order_by(System.frame_index, Frame.position, Frame.id)
-        .execution_options(yield_per=4 * max(len(names), 1))
-    )
-    try:
-        for name, index, cal in result:
-            k = col[name]
-            if cameras[k] is None and is_admitted(cal, settings):
+    in_game = (System.game_id == game_id, System.kind == SystemKind.ISSIA)
+    start = sa.select(sa.func.min(System.frame_index)).where(*in_game).scalar_subquery()
+    span, names, rows, cameras, first, col = _CALIBRATION_CHUNK, None, [], [], [], {}
+    low: Any = start
+    while True:
+        found = session.execute(
+            sa.select(Frame.name, Frame.position, Frame.width, System.frame_index, *_ADMISSION_COLUMNS)
+            .join(System, Frame.system_id == System.id).outerjoin(Calibration, Calibration.frame_id == Frame.id)
+            .where(*in_game, System.frame_index >= low, System.frame_index < low + span)
+            .order_by(System.frame_index, Frame.position, Frame.id)
+        ).all()
+        if names is None:
+            if not found:
+                return SequenceColumns([], [], [], [])
+            low = found[0][3]
+            rows = sorted({(r[0], r[1], r[2]) for r in found if r[3] == low}, key=lambda r: (r[1], r[0]))
+            names = [r[0] for r in rows]
+            col = {n: k for k, n in enumerate(names)}
+            cameras, first = [None] * len(names), [None] * len(names)
+        for name, _, _, index, *admission in found:
+            k = col.get(name)
+            if k is None or cameras[k] is not None or admission[0] is None:
+                continue
+            cal = Calibration(**dict(zip(_ADMISSION_NAMES, admission)))  # not added to the session
+            if is_admitted(cal, settings):
                 cameras[k] = Camera.from_soccernet(cal.camera)  # type: ignore[arg-type]
                 first[k] = index
-                missing -= 1
-                if not missing:
-                    break
-    finally:
-        result.close()
+        if all(c is not None for c in cameras):
+            break
+        low, span = low + span, 2 * span
+        if session.scalar(sa.select(sa.func.max(System.frame_index)).where(*in_game)) < low:
+            break
     return SequenceColumns(names, [float(r[2]) for r in rows], cameras, first)
 
 
-def _stored_pieces(session: Session, game_id: int) -> tuple[tuple[Piece, ...], dict[int, int], bool]:
-    """(pieces in frame order, frame index -> system id, every system has a stored point)."""
-    rows = session.execute(
-        sa.select(System.id, System.frame_index, TrajectoryPoint.system_id, TrajectoryPoint.piece)
-        .outerjoin(TrajectoryPoint, TrajectoryPoint.system_id == System.id)
-        .where(System.game_id == game_id, System.kind == SystemKind.ISSIA, System.frame_index.is_not(None))
-    ).all()
-    seen: dict[tuple[int, int], Piece] = {}
-    for _, _, _, d in rows:
-        if d and (d["first_frame"], d["last_frame"]) not in seen:
-            seen[(d["first_frame"], d["last_frame"])] = piece_from_json(d)
-    pieces = tuple(sorted(seen.values(), key=lambda p: p.first_frame))
-    return pieces, {int(i): sid for sid, i, _, _ in rows}, all(tp is not None for _, _, tp, _ in rows)
+#: Frames whose calibrations :func:`sequence_columns` reads first (then twice as many, and so on).
+_CALIBRATION_CHUNK = 1
+#: The calibration columns admission reads (``app.services.calibrating.is_admitted``).
+_ADMISSION_NAMES = ("status", "camera", "flags", "jac_0005", "jac_001", "jac_002")
+_ADMISSION_COLUMNS = tuple(getattr(Calibration, n) for n in _ADMISSION_NAMES)
+#: Frames on each side of an edit whose stored pieces :func:`_pieces_around` reads first (then twice as
+#: many, and so on, until it has the pieces the re-fit needs).
+_PIECES_WINDOW = 128
+
+
+def _pieces_around(session: Session, game_id: int, first: int, last: int) -> tuple[Piece, ...]:
+    """The stored pieces of the sequence around frames ``first..last``, in frame order: every piece within
+    :data:`~app.geometry.trajectory.REFIT_REACH` pieces of those holding the edit (or, between pieces, of
+    the two around it), or up to the sequence's ends. Read as the distinct piece documents of the stored
+    rows of a window of frames around the edit (the pieces of a window's rows are every piece that
+    overlaps it, whole), widened until it holds them. ``()`` when no stored row has a piece."""
+    in_game = (System.game_id == game_id, System.kind == SystemKind.ISSIA)
+    width, bounds = _PIECES_WINDOW, None
+    while True:
+        lo, hi = first - width, last + width
+        texts = session.scalars(
+            sa.select(sa.distinct(sa.cast(TrajectoryPoint.piece, sa.Text)))
+            .join(System, TrajectoryPoint.system_id == System.id).where(*in_game, System.frame_index.between(lo, hi))
+        ).all()
+        seen: dict[tuple[int, int], Piece] = {}
+        for text in texts:
+            d = json_loads(text) if text is not None else None
+            if d:
+                seen[(d["first_frame"], d["last_frame"])] = piece_from_json(d)
+        pieces = tuple(sorted(seen.values(), key=lambda p: p.first_frame))
+        touched = any(p.last_frame >= first and p.first_frame <= last for p in pieces)
+        need = REFIT_REACH + (0 if touched else 1)  # between pieces the nearest on each side is touched too
+        enough_before = sum(p.last_frame < first for p in pieces) >= need
+        enough_after = sum(p.first_frame > last for p in pieces) >= need
+        if enough_before and enough_after:
+            return pieces
+        if bounds is None:
+            bounds = tuple(session.execute(sa.select(sa.func.min(System.frame_index), sa.func.max(System.frame_index))
+                                           .where(*in_game)).one())
+        if bounds[0] is None or ((enough_before or lo <= bounds[0]) and (enough_after or hi >= bounds[1])):
+            return pieces
+        width *= 2
 
 
 @dataclass
@@ -129,6 +165,12 @@ class _Window:
     stored: dict[int, dict[str, Any]]
     system_ids: dict[int, int]
     doubting: set[int]
+
+    @property
+    def complete(self) -> bool:
+        """Every system of the window has a stored trajectory point (else the sequence is fitted whole)."""
+        return all(i in self.stored for i in range(self.first, self.first + len(self.points))
+                   if (self.frame_ids[i - self.first] >= 0).any())
 
 
 def _load_window(session: Session, game_id: int, first: int, last: int, columns: SequenceColumns) -> _Window:
@@ -199,18 +241,22 @@ def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame:
         recompute them or judge their doubts again (kept labels changed, flagged labels, or a stored
         ``ball_off_consensus`` doubt); the others carry ``system=None``.
     """
-    pieces, _, complete = _stored_pieces(session, game_id)
-    if not pieces or not complete:
+    pieces = _pieces_around(session, game_id, first_frame, last_frame)
+    if not pieces:
         return fit_sequence(session, game_id, settings)
     columns = sequence_columns(session, game_id, settings)
     fit, window = None, None
     narrow = local_span(pieces, first_frame, last_frame)
     if narrow is not None:  # the edit inside one piece: its frames are enough unless the piece must be split
         window = _load_window(session, game_id, *narrow, columns)
+        if not window.complete:
+            return fit_sequence(session, game_id, settings)
         fit = refit_local(_previous_fit(window, pieces), window.points, columns.cameras, columns.widths,
                           first_frame, last_frame, **fit_args(settings))
     if fit is None:
         window = _load_window(session, game_id, *refit_span(pieces, first_frame, last_frame), columns)
+        if not window.complete:
+            return fit_sequence(session, game_id, settings)
         fit = refit_window(_previous_fit(window, pieces), window.points, columns.cameras, columns.widths,
                            first_frame, last_frame, **fit_args(settings))
     return _store_rows(session, window, fit, (first_frame, last_frame))
@@ -231,30 +277,55 @@ def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: t
     """Write the columns of the rows of ``fit`` whose values differ from the stored ones (executemany
     UPDATEs by primary key); load the systems of the ``edited`` frames and of the changed rows the caller
     must recompute or judge again (:data:`RECOMPUTE_LOADS`)."""
+    updates, changed = _changed_rows(window, fit)
+    _write_rows(session, updates)
+    wanted = [window.system_ids[i] for i, labels, doubts in changed if labels or doubts]
+    wanted += [sid for i, sid in window.system_ids.items() if edited[0] <= i <= edited[1]]
+    systems = _load_systems(session, wanted)
+    return [Changed(systems.get(window.system_ids[i]), labels) for i, labels, _ in changed]
+
+
+def _changed_rows(window: _Window, fit: TrajectoryFit) -> tuple[list[dict[str, Any]], list[tuple[int, bool, bool]]]:
+    """The UPDATE parameters of the rows of ``fit`` that differ from the stored ones (changed columns only,
+    with ``system_id`` and ``computed_at``) and, per such frame, (frame index, its kept labels changed,
+    it has flagged labels or a stored ``ball_off_consensus`` doubt)."""
     updates, changed = [], []
     now = utcnow()
+    documents: dict[int, dict[str, Any]] = {}  # one piece document per piece, shared by its rows
     for i in fit.frames:
         old = window.stored.get(i)
         if old is None:
             continue
-        values = row_values(fit, i, window.frame_ids[i - window.first])
+        values = row_values(fit, i, window.frame_ids[i - window.first], documents)
         new = {k: v for k, v in values.items() if old[k] != v}
         if not new:
             continue
         labels = any(k in new for k in TRIANGULATION_FIELDS)
         updates.append({"system_id": window.system_ids[i], **new, "computed_at": now})
         changed.append((i, labels, bool(values["flagged"]) or i in window.doubting))
-    for keys in {tuple(u) for u in updates}:  # one executemany per set of changed columns
-        session.execute(sa.update(TrajectoryPoint), [u for u in updates if tuple(u) == keys])
-    for u in updates:  # objects already in the session see the new values on next access
+    return updates, changed
+
+
+def _write_rows(session: Session, updates: list[dict[str, Any]]) -> None:
+    """One executemany UPDATE (by primary key) per set of changed columns; objects already in the session
+    are expired so that they read the new values."""
+    table = TrajectoryPoint.__table__
+    for keys in {tuple(u) for u in updates}:
+        stmt = sa.update(table).where(table.c.system_id == sa.bindparam("key_system_id")).values(
+            {k: sa.bindparam(k) for k in keys if k != "system_id"})
+        session.execute(stmt, [{**u, "key_system_id": u["system_id"]} for u in updates if tuple(u) == keys])
+    for u in updates:
         tp = session.identity_map.get(session.identity_key(TrajectoryPoint, u["system_id"]))  # type: ignore[arg-type]
         if tp is not None:
             session.expire(tp)
-    wanted = [window.system_ids[i] for i, labels, doubts in changed if labels or doubts]
-    wanted += [sid for i, sid in window.system_ids.items() if edited[0] <= i <= edited[1]]
-    systems = {s.id: s for s in session.scalars(
-        sa.select(System).where(System.id.in_(wanted)).options(*RECOMPUTE_LOADS)).unique()}
-    return [Changed(systems.get(window.system_ids[i]), labels) for i, labels, _ in changed]
+
+
+def _load_systems(session: Session, ids: list[int]) -> dict[int, System]:
+    """The systems ``ids`` with what the recomputation reads (:data:`RECOMPUTE_LOADS`), by id."""
+    if not ids:
+        return {}
+    return {s.id: s for s in session.scalars(
+        sa.select(System).where(System.id.in_(ids)).options(*RECOMPUTE_LOADS)).unique()}
 
 
 __all__ = ["SequenceColumns", "sequence_columns", "refit_sequence"]

@@ -135,14 +135,23 @@ class Changed:
     labels: bool
 
 
-def row_values(fit: TrajectoryFit, frame: int, ids: np.ndarray) -> dict[str, Any]:
+def row_values(fit: TrajectoryFit, frame: int, ids: np.ndarray,
+               documents: dict[int, dict[str, Any]] | None = None) -> dict[str, Any]:
     """The :class:`TrajectoryPoint` column values of sequence frame ``frame`` of ``fit`` (a whole or
-    windowed fit holding it); ``ids`` (K,) the frame ids of its views, -1 where it has none."""
+    windowed fit holding it); ``ids`` (K,) the frame ids of its views, -1 where it has none;
+    ``documents``: the piece documents already made for other frames of ``fit`` (by piece index), reused."""
     i = frame - fit.first_frame
-    piece = next((p for p in fit.pieces if p.first_frame <= frame <= p.last_frame), None)
+    at = next((j for j, p in enumerate(fit.pieces) if p.first_frame <= frame <= p.last_frame), None)
+    document = None
+    if at is not None:
+        document = documents.get(at) if documents is not None else None
+        if document is None:
+            document = piece_json(fit.pieces[at])
+            if documents is not None:
+                documents[at] = document
     return dict(
         ball3d=_vec(fit.ball_3d[i]), ball3d_smoothed=_vec(fit.positions[i]), source=fit.sources[i],
-        piece=piece_json(piece) if piece is not None else None,
+        piece=document,
         cam_list=[int(ids[k]) for k in fit.cam_lists[i]],
         residuals_px={str(int(ids[k])): round(float(fit.residuals_px[i, k]), 4)
                       for k in range(len(ids)) if ids[k] >= 0 and np.isfinite(fit.residuals_px[i, k])},
