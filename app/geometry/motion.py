@@ -123,6 +123,17 @@ def positions(kind: str, q: np.ndarray, t: np.ndarray) -> np.ndarray:
     return out
 
 
+def shifted(kind: str, q: np.ndarray, dt: float) -> np.ndarray:
+    """The parameters of model ``kind`` with ``t = 0`` moved ``dt`` seconds later (the same motion for a
+    flight; for a roll the same until its stop): position and velocity at ``dt`` (a roll's at its stop
+    when ``dt`` is past it), the acceleration unchanged."""
+    q = np.asarray(q, float)
+    if kind == "flight":
+        return np.concatenate([positions(kind, q, np.array([dt]))[0], q[3:6] + np.array([0.0, 0.0, GRAVITY_M_S2 * dt])])
+    te = min(dt, stop_time(kind, q))
+    return np.concatenate([positions(kind, q, np.array([te]))[0, :2], q[2:4] + q[4:6] * te, q[4:6]])
+
+
 def robust_cost(residuals_px: np.ndarray) -> float:
     """Cauchy cost of labels, ``sum_i c^2 log(1 + |r_i|^2 / c^2)`` (px^2), ``residuals_px`` (n, 2)."""
     e2 = np.einsum("ij,ij->i", residuals_px, residuals_px)
@@ -270,6 +281,20 @@ def residuals_and_jacobian(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarra
     return f, J.reshape(-1, 6)
 
 
+def determined(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_condition: float = 1e12) -> bool:
+    """The labels of ``L`` (times ``t``) determine model ``kind`` near ``q``: the Cauchy-weighted normal
+    matrix ``J^T diag(rho') J`` of the pixel residuals, equilibrated, has a condition number below
+    ``max_condition`` (a fit of too few labels, e.g. two frames of one camera, leaves directions free,
+    and its minimum then depends on where the fit started)."""
+    f, J = residuals_and_jacobian(L, kind, q, t)
+    H = (J / (1.0 + (f / CAUCHY_PX) ** 2)[:, None]).T @ J
+    d = np.sqrt(np.diag(H))
+    if not np.all(d > 0):
+        return False
+    ev = np.linalg.eigvalsh(H / d[:, None] / d[None, :])
+    return bool(ev[0] > ev[-1] / max_condition)
+
+
 def _loss(f: np.ndarray) -> float:
     return float(np.sum(np.log1p((f / CAUCHY_PX) ** 2))) * CAUCHY_PX ** 2
 
@@ -322,4 +347,4 @@ def refine(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_iterat
 
 
 __all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "CAUCHY_PX", "LINEAR_ROUNDS", "LabelTable", "stop_time",
-           "positions", "robust_cost", "linear_fits", "residuals_and_jacobian", "refine"]
+           "positions", "shifted", "robust_cost", "determined", "linear_fits", "residuals_and_jacobian", "refine"]

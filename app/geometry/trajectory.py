@@ -50,7 +50,7 @@ from app.geometry.camera import Camera
 from app.geometry.consensus import ball_consensus
 from app.geometry.motion import (
     BALL_RADIUS_M, GRAVITY_M_S2, KINDS, LabelTable as _Labels, linear_fits, positions as _positions, refine as _refine,
-    robust_cost, stop_time as _stop_time,
+    determined as _determined, robust_cost, shifted as _shifted, stop_time as _stop_time,
 )
 from app.geometry.triangulation import BallObservation, reprojection_error_px, triangulate_ball
 
@@ -68,6 +68,11 @@ _MIN_FRAMES = 4
 _ROLL_PREFERENCE_PX2 = 1.0
 _CONFIRM = 3
 _SHIFT = 3
+#: The segmentation grows a piece one frame at a time; the fits of its next lengths are made together
+#: (:meth:`_Best.prefetch`), this many first, twice as many each time up to ``_GROWTH_BATCH_MAX`` (the
+#: lengths it does not reach are fitted for nothing: a cost, never a different result).
+_GROWTH_BATCH = 4
+_GROWTH_BATCH_MAX = 16
 
 
 @dataclass(frozen=True)
@@ -163,20 +168,26 @@ class Piece:
 
 
 def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine: bool,
-         start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+         start: np.ndarray | None = None, linear: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Fit one model to labels ``idx`` (``t = 0`` at frame ``first``); returns (params (6,), robust cost).
     Unrefined: the reweighted linear fit (:func:`app.geometry.motion.linear_fits`). Refined: the robust
     fit of the pixel residuals (:func:`app.geometry.motion.refine`) from ``start`` (the params of a fit of
-    nearly the same labels, e.g. before an edit, or the linear solution already computed) or else from
-    the linear solution."""
-    if not refine or start is None:
+    nearly the same labels, e.g. before an edit: the same minimum, in fewer iterations), else from the
+    linear solution (``linear`` when the caller has it). A minimum from ``start`` that the labels do not
+    determine (:func:`app.geometry.motion.determined`: a piece of a few labels of one camera, say) is
+    replaced by the one from the linear solution, as a fit from scratch finds it."""
+    if not refine or (start is None and linear is None):
         q, cost = linear_fits(L, [(idx, kind, first)], fps)[0]
         if not refine:
             return q, cost
-        start = q
+        linear = q
     sub = L.take(idx)
     t = (sub.frame - first) / fps
-    q = _refine(sub, kind, start, t)
+    q = _refine(sub, kind, start if start is not None else linear, t)
+    if start is not None and not _determined(sub, kind, q, t):
+        if linear is None:
+            linear = linear_fits(L, [(idx, kind, first)], fps)[0][0]
+        q = _refine(sub, kind, linear, t)
     return q, robust_cost(sub.residuals(slice(None), _positions(kind, q, t)))
 
 
@@ -184,9 +195,11 @@ def _best_piece(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[in
                 refine: bool = False, start: Piece | None = None,
                 linear: dict[str, np.ndarray] | None = None) -> Piece:
     """The piece of the better model for ``frames`` (a roll unless a flight is clearly better); ``start``:
-    a piece of the same first frame whose params start its model's refinement (:func:`_fit`); ``linear``:
-    the reweighted linear solution of each model for these ``frames`` (:meth:`_Best.linear`), where the
-    refinement of the models without ``start`` starts (it would compute the same solution first)."""
+    a piece fitted to nearly the same frames (before an edit) whose params, and those of its other model
+    (``alternative``), re-expressed at ``frames[0]`` (:func:`app.geometry.motion.shifted`), start the
+    refinement of each model (:func:`_fit`); ``linear``: the reweighted linear solution of each model for
+    these ``frames`` (:meth:`_Best.linear`), where the refinement of a model without a start begins (it
+    would compute the same solution first)."""
     fits = _model_fits(L, by_frame, frames, fps, refine, start, linear)
     return _choose(frames, fits, sum(len(by_frame[f]) for f in frames))
 
@@ -197,17 +210,20 @@ def _model_fits(L: _Labels, by_frame, frames: Sequence[int], fps: float, refine:
     idx = np.concatenate([by_frame[f] for f in frames])
     first = int(frames[0])
     kinds = KINDS if len(frames) >= 3 else ("flight",)
-    warm = dict(linear or {}) if refine else {}
-    if refine and start is not None and start.first_frame == first:
-        warm[start.kind] = start.params
+    lin = dict(linear or {}) if refine else {}
+    warm: dict[str, np.ndarray] = {}
+    if refine and start is not None:  # re-expressed at this first frame when the piece's start moved
+        dt = (first - start.first_frame) / fps
+        warm[start.kind] = _shifted(start.kind, start.params, dt) if dt else start.params
         if start.alternative is not None:
-            warm[_other(start.kind)] = start.alternative
-    missing = [kind for kind in kinds if kind not in warm]
+            other = _other(start.kind)
+            warm[other] = _shifted(other, start.alternative, dt) if dt else start.alternative
+    missing = [kind for kind in kinds if kind not in lin and (not refine or kind not in warm)]
     fits = dict(zip(missing, linear_fits(L, [(idx, kind, first) for kind in missing], fps)))
     if not refine:
         return fits
-    return {kind: _fit(L, idx, kind, first, fps, True, warm[kind] if kind in warm else fits[kind][0])
-            for kind in kinds}
+    lin.update({kind: q for kind, (q, _) in fits.items()})
+    return {kind: _fit(L, idx, kind, first, fps, True, warm.get(kind), lin.get(kind)) for kind in kinds}
 
 
 def _other(kind: str) -> str:
@@ -260,6 +276,10 @@ class _Best:
     def __call__(self, frames: Sequence[int]) -> Piece:
         return self._get(frames)[0]
 
+    def has(self, frames: Sequence[int]) -> bool:
+        """``frames`` is fitted already."""
+        return tuple(frames) in self._done
+
     def linear(self, frames: Sequence[int]) -> dict[str, np.ndarray]:
         """Each model's reweighted linear solution for ``frames`` (the ``linear`` of :func:`_best_piece`)."""
         return {kind: q for kind, (q, _) in self._get(frames)[1].items()}
@@ -275,8 +295,11 @@ def _frame_bad(L: _Labels, by_frame, piece: Piece, frame: int, fps: float, break
 
 
 def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int], fps: float,
-             break_px: float = DEFAULT_BREAK_PX) -> list[Piece]:
-    """Split labelled ``frames`` (sorted) into pieces (module docstring); each piece refined."""
+             break_px: float = DEFAULT_BREAK_PX, previous: Sequence[Piece] = ()) -> list[Piece]:
+    """Split labelled ``frames`` (sorted) into pieces (module docstring); each piece refined, from the
+    params of the piece of ``previous`` (the pieces before an edit) it overlaps most when there is one,
+    re-expressed at its first frame (:func:`_fit`: the same minimum, in fewer iterations)."""
+    previous = sorted(previous, key=lambda p: p.first_frame)
     frames = list(frames)
     n = len(frames)
     best = _Best(L, by_frame, fps)
@@ -288,11 +311,15 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
         while j - i > 1 and any(_frame_bad(L, by_frame, piece, f, fps, break_px) for f in frames[i:j]):
             j -= 1  # the opening frames straddle a break: a shorter piece
             piece = best(frames[i:j])
+        batch = _GROWTH_BATCH
         while j - i >= _MIN_FRAMES and j < n:
             ahead = frames[j:j + _CONFIRM]
-            if len(ahead) == _CONFIRM and all(_frame_bad(L, by_frame, piece, f, fps, break_px) for f in ahead):
+            if len(ahead) == _CONFIRM and _bad_frames(L, by_frame, piece, ahead, fps, break_px)[0].all():
                 break
             j += 1
+            if not best.has(frames[i:j]):  # the next few lengths at once: fitted together, used if it grows
+                best.prefetch([frames[i:k] for k in range(j, min(j + batch, n) + 1)])
+                batch = min(2 * batch, _GROWTH_BATCH_MAX)
             piece = best(frames[i:j])
         bounds.append((i, j))
         i = j
@@ -301,12 +328,12 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
         split = []
         for a, b in bounds:
             piece = best(frames[a:b])
-            bad = [_frame_bad(L, by_frame, piece, f, fps, break_px) for f in frames[a:b]]
+            bad_all, bad_one = _bad_frames(L, by_frame, piece, frames[a:b], fps, break_px)
+            bad, off = bad_all.tolist(), bad_one.tolist()
             head = next((i for i, x in enumerate(bad) if not x), len(bad))
             tail = next((i for i, x in enumerate(bad[::-1]) if not x), len(bad))
             cuts = {a, b, *(c for c in (a + head, b - tail) if a < c < b)}
             # inside: three frames in a row each with a label off the model (one wrong label is alone)
-            off = [_frame_bad(L, by_frame, piece, f, fps, break_px, worst=True) for f in frames[a:b]]
             run = _bad_run(off[head:len(off) - tail])
             if run is not None:  # a kick the growth missed (a small change of velocity): best cut near it
                 r0 = a + head + run
@@ -320,8 +347,16 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
         if len(split) == len(bounds):
             break
         bounds = _shift_bounds(L, by_frame, frames, fps, split, best)
-    return [_best_piece(L, by_frame, frames[a:b], fps, refine=True, linear=best.linear(frames[a:b]))
-            for a, b in bounds if b > a]
+    return [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=_overlapping(previous, frames[a], frames[b - 1]),
+                        linear=best.linear(frames[a:b])) for a, b in bounds if b > a]
+
+
+def _overlapping(pieces: Sequence[Piece], first: int, last: int) -> Piece | None:
+    """The piece of ``pieces`` sharing the most frames with ``first..last`` (None if none does)."""
+    overlap = [(min(p.last_frame, last) - max(p.first_frame, first), -i) for i, p in enumerate(pieces)]
+    if not overlap or max(overlap)[0] < 0:
+        return None
+    return pieces[-max(overlap)[1]]
 
 
 def _bad_run(bad: list[bool]) -> int | None:
@@ -639,7 +674,7 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
         start = min(first_frame, pieces[lo].first_frame)
         end = max(last_frame, pieces[hi].last_frame)
         frames = [f for f in sorted(by_frame) if start <= f <= end]
-        new = _segment(L, by_frame, frames, fit.fps, break_px) if frames else []
+        new = _segment(L, by_frame, frames, fit.fps, break_px, pieces[lo:hi + 1]) if frames else []
     else:
         lo, hi = 0, -1
         new = _segment(L, by_frame, sorted(by_frame), fit.fps, break_px) if by_frame else []
