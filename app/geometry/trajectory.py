@@ -713,19 +713,27 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
         res = np.linalg.norm(L.residuals(sel, positions[L.frame[sel] - a]), axis=1)
         residuals[L.frame[sel] - a, L.cam[sel]] = res
     outliers = np.nan_to_num(residuals, nan=0.0) > flag_px
+    keep_mask = np.isfinite(residuals) & ~outliers
+    # the frames whose kept labels are those of ``previous`` (outside the edit) keep its triangulation
+    same = np.zeros(n, bool)
+    if previous is not None and edited is not None:
+        rows = np.arange(a, b + 1) - previous.first_frame
+        inside = (rows >= 0) & (rows < len(previous.positions))
+        before = np.isfinite(previous.residuals_px) & ~previous.outliers
+        same[inside] = (before[rows[inside]] == keep_mask[inside]).all(axis=1)
+        same &= (np.arange(a, b + 1) < edited[0]) | (np.arange(a, b + 1) > edited[1])
     ball = np.full((n, 3), np.nan)
     cam_lists: list[tuple[int, ...]] = []
     sources: list[str | None] = []
+    placed = np.isfinite(positions).all(axis=1).tolist()
     for r in range(n):
-        f = a + r
-        keep = tuple(int(k) for k in np.nonzero(np.isfinite(residuals[r]) & ~outliers[r])[0])
-        old = f - previous.first_frame if previous is not None else -1
-        if (previous is not None and 0 <= old < len(previous.positions) and edited is not None
-                and not edited[0] <= f <= edited[1] and previous.kept_labels(old) == keep):
-            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None
-            kept = tuple(previous.cam_lists[old])
+        keep = tuple(np.flatnonzero(keep_mask[r]).tolist())
+        if same[r]:
+            old = a + r - previous.first_frame  # type: ignore[union-attr]
+            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None  # type: ignore[union-attr]
+            kept = tuple(previous.cam_lists[old])  # type: ignore[union-attr]
         else:
-            row = f - pts_first
+            row = a + r - pts_first
             tri = triangulate_frame([BallObservation(k, cameras[k], pts[row, k], widths[k]) for k in keep],
                                     tau_px=tau_px) if len(keep) >= 2 else FrameTriangulation(None, (), {})
             point = tri.point
@@ -733,7 +741,7 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
         if point is not None:
             ball[r] = point
         cam_lists.append(kept)
-        if not np.all(np.isfinite(positions[r])):
+        if not placed[r]:
             sources.append(None)
         elif point is not None:
             sources.append("triangulated")

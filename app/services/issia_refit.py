@@ -41,15 +41,16 @@ from sqlalchemy.orm import Session, joinedload, selectinload
 
 from app.core.config import Settings
 from app.db.models import (
-    BallLabel, Calibration, Frame, ReviewDecision, System, SystemKind, TrajectoryPoint, Triangulation,
+    BallLabel, Calibration, Doubt, Frame, ReviewDecision, System, SystemKind, TrajectoryPoint, Triangulation,
 )
-from app.db.types import json_loads, utcnow
+from app.db.types import json_loads, json_safe, utcnow
 from app.geometry.camera import Camera
 from app.geometry.trajectory import (
     REFIT_REACH, Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window,
 )
 from app.services.issia_trajectory import (
-    FPS, TRIANGULATION_FIELDS, Changed, fit_args, fit_sequence, piece_from_json, row_values,
+    FPS, TRIANGULATION_FIELDS, Changed, DoubtFrame, fit_args, fit_sequence, flagged_label_doubts, piece_from_json,
+    row_values,
 )
 
 _POINT_COLUMNS = ("ball3d", "ball3d_smoothed", "source", "piece", "cam_list", "residuals_px", "flagged")
@@ -131,7 +132,7 @@ def _pieces_around(session: Session, game_id: int, first: int, last: int) -> tup
     while True:
         lo, hi = first - width, last + width
         texts = session.scalars(
-            sa.select(sa.distinct(sa.cast(TrajectoryPoint.piece, sa.Text)))
+            sa.select(sa.cast(TrajectoryPoint.piece, sa.Text)).distinct()
             .join(System, TrajectoryPoint.system_id == System.id).where(*in_game, System.frame_index.between(lo, hi))
         ).all()
         seen: dict[tuple[int, int], Piece] = {}
@@ -164,7 +165,8 @@ class _Window:
     frame_ids: np.ndarray
     stored: dict[int, dict[str, Any]]
     system_ids: dict[int, int]
-    doubting: set[int]
+    #: frame index -> the system's stored count of ``ball_off_consensus`` doubts, where it has some
+    doubting: dict[int, int]
 
     @property
     def complete(self) -> bool:
@@ -190,7 +192,7 @@ def _load_window(session: Session, game_id: int, first: int, last: int, columns:
         c = BallLabel.centre_of(box, point)
         if c is not None and not excluded:
             points[r, k] = c
-    stored, system_ids, doubting = {}, {}, set()
+    stored, system_ids, doubting = {}, {}, {}
     for row in session.execute(
         sa.select(System.frame_index, System.id, System.doubt_counts, *(getattr(TrajectoryPoint, c) for c in _POINT_COLUMNS))
         .join(TrajectoryPoint, TrajectoryPoint.system_id == System.id).where(*in_window)
@@ -199,7 +201,7 @@ def _load_window(session: Session, game_id: int, first: int, last: int, columns:
         stored[index] = dict(zip(_POINT_COLUMNS, values))
         system_ids[index] = sid
         if (doubts or {}).get("ball_off_consensus"):
-            doubting.add(index)
+            doubting[index] = int(doubts["ball_off_consensus"])
     return _Window(first, points, frame_ids, stored, system_ids, doubting)
 
 
@@ -275,20 +277,27 @@ RECOMPUTE_LOADS = (
 
 def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: tuple[int, int]) -> list[Changed]:
     """Write the columns of the rows of ``fit`` whose values differ from the stored ones (executemany
-    UPDATEs by primary key); load the systems of the ``edited`` frames and of the changed rows the caller
-    must recompute or judge again (:data:`RECOMPUTE_LOADS`)."""
+    UPDATEs by primary key); load the systems of the ``edited`` frames and of the rows whose kept labels
+    changed (:data:`RECOMPUTE_LOADS`: the caller recomputes them); replace the trajectory doubts of the
+    others that have flagged labels (:func:`_refresh_trajectory_doubts`: their labels, and so every other
+    doubt, are unchanged, only their place on the trajectory moved)."""
     updates, changed = _changed_rows(window, fit)
     _write_rows(session, updates)
-    wanted = [window.system_ids[i] for i, labels, doubts in changed if labels or doubts]
-    wanted += [sid for i, sid in window.system_ids.items() if edited[0] <= i <= edited[1]]
-    systems = _load_systems(session, wanted)
-    return [Changed(systems.get(window.system_ids[i]), labels) for i, labels, _ in changed]
+    ids = window.system_ids
+    edits = {i for i in ids if edited[0] <= i <= edited[1]}
+    # moved, labels unchanged, its stored trajectory doubts one per flagged label: those doubts alone change
+    light = {i for i, labels, doubts, values in changed if doubts and not labels and i not in edits
+             and window.doubting.get(i, 0) == len(values["flagged"])}
+    wanted = [ids[i] for i, labels, doubts, _ in changed if (labels or doubts) and i not in edits | light]
+    systems = _load_systems(session, wanted + [ids[i] for i in sorted(edits)])
+    _refresh_trajectory_doubts(session, [(ids[i], i, values) for i, _, _, values in changed if i in light])
+    return [Changed(systems.get(ids[i]), labels) for i, labels, _, _ in changed]
 
 
-def _changed_rows(window: _Window, fit: TrajectoryFit) -> tuple[list[dict[str, Any]], list[tuple[int, bool, bool]]]:
+def _changed_rows(window: _Window, fit: TrajectoryFit) -> tuple[list[dict[str, Any]], list[tuple[int, bool, bool, dict[str, Any]]]]:
     """The UPDATE parameters of the rows of ``fit`` that differ from the stored ones (changed columns only,
     with ``system_id`` and ``computed_at``) and, per such frame, (frame index, its kept labels changed,
-    it has flagged labels or a stored ``ball_off_consensus`` doubt)."""
+    it has flagged labels or a stored ``ball_off_consensus`` doubt, its new column values)."""
     updates, changed = [], []
     now = utcnow()
     documents: dict[int, dict[str, Any]] = {}  # one piece document per piece, shared by its rows
@@ -302,8 +311,46 @@ def _changed_rows(window: _Window, fit: TrajectoryFit) -> tuple[list[dict[str, A
             continue
         labels = any(k in new for k in TRIANGULATION_FIELDS)
         updates.append({"system_id": window.system_ids[i], **new, "computed_at": now})
-        changed.append((i, labels, bool(values["flagged"]) or i in window.doubting))
+        changed.append((i, labels, bool(values["flagged"]) or bool(window.doubting.get(i)), values))
     return updates, changed
+
+
+def _refresh_trajectory_doubts(session: Session, rows: list[tuple[int, int, dict[str, Any]]]) -> None:
+    """Replace the stored ``ball_off_consensus`` doubts of systems whose trajectory point moved but whose
+    kept and flagged labels did not (``(system id, frame index, new point values)``) by
+    :func:`~app.services.issia_trajectory.flagged_label_doubts` of the new values: what
+    ``update_doubts`` would store for them (the other doubts, the counts and their order are unchanged:
+    the new rows come last, as ``merge_doubts`` puts them), without loading the systems."""
+    if not rows:
+        return
+    sids = [sid for sid, _, _ in rows]
+    flagged = {fid for _, _, v in rows for fid in v["flagged"] or []}
+    views: dict[int, dict[int, DoubtFrame]] = {sid: {} for sid in sids}
+    for fid, sid, name, width, height, camera in session.execute(
+        sa.select(Frame.id, Frame.system_id, Frame.name, Frame.width, Frame.height, Calibration.camera)
+        .outerjoin(Calibration, Calibration.frame_id == Frame.id).where(Frame.system_id.in_(sids))
+    ):
+        cam = Camera.from_soccernet(camera) if fid in flagged and camera is not None else None
+        views[sid][fid] = DoubtFrame(name, width, height, cam)
+    table = Doubt.__table__
+    stale = session.execute(sa.select(table.c.id, table.c.system_id).where(
+        table.c.system_id.in_(sids), table.c.kind == "ball_off_consensus")).all()
+    found = [(sid, d) for sid, index, values in rows for d in flagged_label_doubts(index, values, views[sid])]
+    if stale:
+        session.execute(sa.delete(table).where(table.c.id.in_([i for i, _ in stale])))
+    if found:
+        session.execute(sa.insert(table), [
+            {"system_id": sid, "frame_id": d.view_id, "kind": d.kind, "accuses_label": d.accuses_label,
+             "message": d.message, "evidence": json_safe(d.evidence),
+             "suggestion": json_safe(d.suggestion) if d.suggestion else None} for sid, d in found])
+    for doubt_id, sid in stale:  # objects already in the session: gone, and their systems' lists reloaded
+        obj = session.identity_map.get(session.identity_key(Doubt, doubt_id))  # type: ignore[arg-type]
+        if obj is not None:
+            session.expunge(obj)
+    for sid in sids:
+        system = session.identity_map.get(session.identity_key(System, sid))  # type: ignore[arg-type]
+        if system is not None:
+            session.expire(system, ["doubts"])
 
 
 def _write_rows(session: Session, updates: list[dict[str, Any]]) -> None:

@@ -210,29 +210,57 @@ def consensus_observations(system: System, observations: list[BallObservation], 
     return [o for o in obs if o.view_id in kept]
 
 
+@dataclass(frozen=True)
+class DoubtFrame:
+    """What a trajectory doubt says of a view: its name, image size (px) and camera (None if none)."""
+
+    name: str
+    width: int
+    height: int
+    camera: Camera | None
+
+
 def trajectory_doubts(system: System, cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
     """``ball_off_consensus`` doubts of the labels of ``system`` that break the sequence's trajectory
-    (stored ``TrajectoryPoint.flagged``): evidence the residual (px at 1920 width), the fitted position
-    (m) and the frame index; fix ``exclude_view``, or ``snap_point`` to where the trajectory projects
-    when that is inside the image."""
+    (stored ``TrajectoryPoint.flagged``; :func:`flagged_label_doubts` of its stored rows; ``cameras``:
+    frame id -> camera already built, else each view's stored calibration)."""
     tp = system.trajectory_point
     if tp is None or not tp.flagged:
         return []
     cameras = cameras or {}
+    views = {}
+    for f in system.frames:
+        cam = cameras.get(f.id)
+        if cam is None and f.id in tp.flagged and f.calibration is not None and f.calibration.camera is not None:
+            cam = Camera.from_soccernet(f.calibration.camera)
+        views[f.id] = DoubtFrame(f.name, f.width, f.height, cam)
+    return flagged_label_doubts(system.frame_index, {c: getattr(tp, c) for c in DOUBT_POINT_COLUMNS}, views)
+
+
+#: The :class:`TrajectoryPoint` columns a trajectory doubt is made of.
+DOUBT_POINT_COLUMNS = ("flagged", "residuals_px", "ball3d_smoothed", "source")
+
+
+def flagged_label_doubts(frame_index: int | None, point: dict[str, Any], views: dict[int, DoubtFrame]) -> list[JudgedDoubt]:
+    """The ``ball_off_consensus`` doubt of each flagged label of a frame: evidence the residual (px at
+    1920 width), the fitted position (m) and the frame index; fix ``exclude_view``, or ``snap_point`` to
+    where the trajectory projects when that is inside the image.
+
+    Args:
+        frame_index: the system's frame index.
+        point: the frame's trajectory point (:data:`DOUBT_POINT_COLUMNS` as stored).
+        views: frame id -> :class:`DoubtFrame` of the system's views.
+    """
     out = []
-    by_id = {f.id: f for f in system.frames}
-    for fid in tp.flagged:
-        f = by_id.get(fid)
+    for fid in point["flagged"] or []:
+        f = views.get(fid)
         if f is None:
             continue
-        res = (tp.residuals_px or {}).get(str(fid))
+        res = (point["residuals_px"] or {}).get(str(fid))
         suggestion: dict[str, Any] = {"action": "exclude_view"}
         projected = None
-        cam = cameras.get(fid)
-        if cam is None and f.calibration is not None and f.calibration.camera is not None:
-            cam = Camera.from_soccernet(f.calibration.camera)
-        if cam is not None and tp.ball3d_smoothed is not None:
-            uv, front = cam.project(np.asarray(tp.ball3d_smoothed, float).reshape(1, 3))
+        if f.camera is not None and point["ball3d_smoothed"] is not None:
+            uv, front = f.camera.project(np.asarray(point["ball3d_smoothed"], float).reshape(1, 3))
             if front[0]:
                 projected = [round(float(uv[0, 0]), 2), round(float(uv[0, 1]), 2)]
                 if 0 <= projected[0] <= f.width and 0 <= projected[1] <= f.height:
@@ -240,10 +268,11 @@ def trajectory_doubts(system: System, cameras: dict[int, Camera] | None = None) 
         far = "an unknown distance" if res is None else f"{res:.0f} px (at 1920 width)"
         out.append(JudgedDoubt(
             "ball_off_consensus", fid,
-            f"{f.name}'s ball label at frame {system.frame_index} is {far} from where the sequence's "
-            f"ball trajectory projects ({tp.source or 'no'} position); it breaks the trajectory.",
-            json_safe({"residual_px_1920": res, "fitted_position_m": tp.ball3d_smoothed, "source": tp.source,
-                       "frame_index": system.frame_index, "projected_px": projected, "by": "trajectory"}),
+            f"{f.name}'s ball label at frame {frame_index} is {far} from where the sequence's "
+            f"ball trajectory projects ({point['source'] or 'no'} position); it breaks the trajectory.",
+            json_safe({"residual_px_1920": res, "fitted_position_m": point["ball3d_smoothed"],
+                       "source": point["source"], "frame_index": frame_index, "projected_px": projected,
+                       "by": "trajectory"}),
             suggestion))
     return out
 
