@@ -76,7 +76,7 @@ def sequence_columns(session: Session, game_id: int, settings: Settings) -> Sequ
     while a camera has no admitted view yet, the next systems, twice as many each time."""
     from app.services.calibrating import is_admitted
 
-    in_game = (System.game_id == game_id, System.kind == SystemKind.ISSIA)
+    in_game = _in_sequence(game_id)
     start = sa.select(sa.func.min(System.frame_index)).where(*in_game).scalar_subquery()
     span, names, rows, cameras, first, col = _CALIBRATION_CHUNK, None, [], [], [], {}
     low: Any = start
@@ -111,6 +111,16 @@ def sequence_columns(session: Session, game_id: int, settings: Settings) -> Sequ
     return SequenceColumns(names, [float(r[2]) for r in rows], cameras, first)
 
 
+def _in_sequence(game_id: int) -> tuple[Any, ...]:
+    """The WHERE terms of the systems of the ISSIA sequence ``game_id``, written so that a query adding a
+    frame-index range reads only the systems of that range: ``game_id + 0`` is an expression, not a
+    column, so SQLite (which plans without statistics, and would prefer the equality on the game's
+    index, every system of the sequence, then filter the frame indices) uses the frame-index index;
+    PostgreSQL plans from its statistics either way. Without it an edit's reads grow with the length of
+    the sequence."""
+    return (System.game_id + 0 == game_id, System.kind == SystemKind.ISSIA)
+
+
 #: Frames whose calibrations :func:`sequence_columns` reads first (then twice as many, and so on).
 _CALIBRATION_CHUNK = 1
 #: The calibration columns admission reads (``app.services.calibrating.is_admitted``).
@@ -127,7 +137,7 @@ def _pieces_around(session: Session, game_id: int, first: int, last: int) -> tup
     the two around it), or up to the sequence's ends. Read as the distinct piece documents of the stored
     rows of a window of frames around the edit (the pieces of a window's rows are every piece that
     overlaps it, whole), widened until it holds them. ``()`` when no stored row has a piece."""
-    in_game = (System.game_id == game_id, System.kind == SystemKind.ISSIA)
+    in_game = _in_sequence(game_id)
     width, bounds = _PIECES_WINDOW, None
     while True:
         lo, hi = first - width, last + width
@@ -148,8 +158,8 @@ def _pieces_around(session: Session, game_id: int, first: int, last: int) -> tup
         if enough_before and enough_after:
             return pieces
         if bounds is None:
-            bounds = tuple(session.execute(sa.select(sa.func.min(System.frame_index), sa.func.max(System.frame_index))
-                                           .where(*in_game)).one())
+            bounds = (session.scalar(sa.select(sa.func.min(System.frame_index)).where(*in_game)),
+                      session.scalar(sa.select(sa.func.max(System.frame_index)).where(*in_game)))
         if bounds[0] is None or ((enough_before or lo <= bounds[0]) and (enough_after or hi >= bounds[1])):
             return pieces
         width *= 2
@@ -180,7 +190,7 @@ def _load_window(session: Session, game_id: int, first: int, last: int, columns:
     n, K = last - first + 1, len(columns.names)
     points = np.full((n, K, 2), np.nan)
     frame_ids = np.full((n, K), -1, dtype=int)
-    in_window = (System.game_id == game_id, System.kind == SystemKind.ISSIA, System.frame_index.between(first, last))
+    in_window = (*_in_sequence(game_id), System.frame_index.between(first, last))
     for index, fid, name, box, point, excluded in session.execute(
         sa.select(System.frame_index, Frame.id, Frame.name, BallLabel.box, BallLabel.point, ReviewDecision.excluded)
         .join(System, Frame.system_id == System.id)
@@ -289,7 +299,7 @@ def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: t
     light = {i for i, labels, doubts, values in changed if doubts and not labels and i not in edits
              and window.doubting.get(i, 0) == len(values["flagged"])}
     wanted = [ids[i] for i, labels, doubts, _ in changed if (labels or doubts) and i not in edits | light]
-    systems = _load_systems(session, wanted + [ids[i] for i in sorted(edits)])
+    systems = load_for_recompute(session, wanted + [ids[i] for i in sorted(edits)])
     _refresh_trajectory_doubts(session, [(ids[i], i, values) for i, _, _, values in changed if i in light])
     return [Changed(systems.get(ids[i]), labels) for i, labels, _, _ in changed]
 
@@ -367,12 +377,13 @@ def _write_rows(session: Session, updates: list[dict[str, Any]]) -> None:
             session.expire(tp)
 
 
-def _load_systems(session: Session, ids: list[int]) -> dict[int, System]:
-    """The systems ``ids`` with what the recomputation reads (:data:`RECOMPUTE_LOADS`), by id."""
+def load_for_recompute(session: Session, ids: list[int]) -> dict[int, System]:
+    """The systems ``ids`` with what ``recompute_system`` and ``update_doubts`` read (:data:`RECOMPUTE_LOADS`),
+    by id, in a few queries (systems already in the session get their relations that are not loaded)."""
     if not ids:
         return {}
     return {s.id: s for s in session.scalars(
         sa.select(System).where(System.id.in_(ids)).options(*RECOMPUTE_LOADS)).unique()}
 
 
-__all__ = ["SequenceColumns", "sequence_columns", "refit_sequence"]
+__all__ = ["SequenceColumns", "sequence_columns", "refit_sequence", "load_for_recompute", "RECOMPUTE_LOADS"]
