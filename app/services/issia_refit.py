@@ -310,12 +310,11 @@ def _changed_rows(window: _Window, fit: TrajectoryFit) -> tuple[list[dict[str, A
     it has flagged labels or a stored ``ball_off_consensus`` doubt, its new column values)."""
     updates, changed = [], []
     now = utcnow()
-    documents: dict[int, dict[str, Any]] = {}  # one piece document per piece, shared by its rows
-    for i in fit.frames:
-        old = window.stored.get(i)
-        if old is None:
-            continue
-        values = row_values(fit, i, window.frame_ids[i - window.first], documents)
+    frames = [i for i in fit.frames if i in window.stored]
+    rows = row_values(fit, frames, window.frame_ids[np.asarray(frames, int) - window.first]) if frames else {}
+    for i in frames:
+        old = window.stored[i]
+        values = rows[i]
         new = {k: v for k, v in values.items() if old[k] != v}
         if not new:
             continue

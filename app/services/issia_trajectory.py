@@ -19,6 +19,7 @@ caller commits (the importer, or the edit's transaction).
 """
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -117,10 +118,6 @@ def piece_from_json(d: dict[str, Any]) -> Piece:
                  float(d["cost"]), np.asarray(alt, float) if alt is not None else None)
 
 
-def _vec(v: np.ndarray) -> list[float] | None:
-    return [float(x) for x in v] if np.all(np.isfinite(v)) else None
-
-
 #: The fields of a :class:`TrajectoryPoint` the system's triangulation depends on (the labels it keeps).
 TRIANGULATION_FIELDS = ("ball3d", "cam_list", "flagged")
 
@@ -135,36 +132,49 @@ class Changed:
     labels: bool
 
 
-def row_values(fit: TrajectoryFit, frame: int, ids: np.ndarray,
-               documents: dict[int, dict[str, Any]] | None = None) -> dict[str, Any]:
-    """The :class:`TrajectoryPoint` column values of sequence frame ``frame`` of ``fit`` (a whole or
-    windowed fit holding it); ``ids`` (K,) the frame ids of its views, -1 where it has none;
-    ``documents``: the piece documents already made for other frames of ``fit`` (by piece index), reused."""
-    i = frame - fit.first_frame
-    at = next((j for j, p in enumerate(fit.pieces) if p.first_frame <= frame <= p.last_frame), None)
-    document = None
-    if at is not None:
-        document = documents.get(at) if documents is not None else None
-        if document is None:
-            document = piece_json(fit.pieces[at])
-            if documents is not None:
-                documents[at] = document
-    return dict(
-        ball3d=_vec(fit.ball_3d[i]), ball3d_smoothed=_vec(fit.positions[i]), source=fit.sources[i],
-        piece=document,
-        cam_list=[int(ids[k]) for k in fit.cam_lists[i]],
-        residuals_px={str(int(ids[k])): round(float(fit.residuals_px[i, k]), 4)
-                      for k in range(len(ids)) if ids[k] >= 0 and np.isfinite(fit.residuals_px[i, k])},
-        flagged=[int(ids[k]) for k in range(len(ids)) if ids[k] >= 0 and fit.outliers[i, k]],
-    )
+def row_values(fit: TrajectoryFit, frames: Sequence[int], ids: np.ndarray) -> dict[int, dict[str, Any]]:
+    """The :class:`TrajectoryPoint` column values of sequence frames ``frames`` of ``fit`` (a whole or
+    windowed fit holding them), by frame; ``ids`` (len(frames), K) the frame ids of each frame's views,
+    -1 where it has none. The rows of one piece share its document (:func:`piece_json`); residuals are
+    rounded to 1e-4 px."""
+    rows = np.asarray(frames, int) - fit.first_frame
+    ball = fit.ball_3d[rows]
+    pos = fit.positions[rows]
+    ball_ok, pos_ok = np.isfinite(ball).all(axis=1).tolist(), np.isfinite(pos).all(axis=1).tolist()
+    ball_l, pos_l = ball.tolist(), pos.tolist()
+    ids = np.asarray(ids)
+    has = ids >= 0
+    measured = (np.isfinite(fit.residuals_px[rows]) & has).tolist()
+    flagged = (fit.outliers[rows] & has).tolist()
+    res_l, ids_l = fit.residuals_px[rows].tolist(), ids.tolist()
+    starts = [p.first_frame for p in fit.pieces]
+    documents: dict[int, dict[str, Any]] = {}
+    out = {}
+    for j, frame in enumerate(frames):
+        i = rows[j]
+        at = bisect.bisect_right(starts, frame) - 1  # the piece holding the frame, if one does
+        at = at if at >= 0 and fit.pieces[at].last_frame >= frame else None
+        if at is not None and at not in documents:
+            documents[at] = piece_json(fit.pieces[at])
+        fid = ids_l[j]
+        out[frame] = dict(
+            ball3d=ball_l[j] if ball_ok[j] else None, ball3d_smoothed=pos_l[j] if pos_ok[j] else None,
+            source=fit.sources[i], piece=documents.get(at) if at is not None else None,
+            cam_list=[fid[k] for k in fit.cam_lists[i]],
+            residuals_px={str(fid[k]): round(r, 4) for k, r in enumerate(res_l[j]) if measured[j][k]},
+            flagged=[fid[k] for k, f in enumerate(flagged[j]) if f],
+        )
+    return out
 
 
 def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
     """Write each system's :class:`TrajectoryPoint` from ``fit`` (a fit of the whole sequence); returns
     the systems whose stored point changed."""
     changed = []
+    frames = list(arrays.systems)
+    rows = row_values(fit, frames, arrays.frame_ids[frames])
     for i, s in arrays.systems.items():
-        values = row_values(fit, i, arrays.frame_ids[i])
+        values = rows[i]
         tp = s.trajectory_point
         if tp is None:
             tp = TrajectoryPoint()
