@@ -3,29 +3,34 @@ stretch within the edit round-trip targets").
 
 An edit of a ball label or of a view's exclusion changes the labels of one frame. The re-fit
 (:func:`refit_sequence`) reads from the database only what the stretch it touches needs, with light
-column queries (no ORM graph of the whole sequence):
+column queries (no ORM graph of the sequence), none of which visits the whole sequence, so an edit
+costs the same in a sequence of any length:
 
-1. the motion pieces stored on the sequence's :class:`~app.db.models.TrajectoryPoint` rows (one small
-   JSON per frame), from which :func:`app.geometry.trajectory.local_span` (the fast path) or
+1. the motion pieces within :data:`~app.geometry.trajectory.REFIT_REACH` of the edit, from the piece
+   documents stored on the :class:`~app.db.models.TrajectoryPoint` rows of a window of frames around it
+   (:func:`_pieces_around`), from which :func:`app.geometry.trajectory.local_span` (the fast path) or
    :func:`~app.geometry.trajectory.refit_span` name the frames the re-fit reads and may change;
-2. the labels of the frames it reads, the stored rows of those frames (the previous fit as a windowed
-   :class:`~app.geometry.trajectory.TrajectoryFit`: positions, residuals, flags, each frame's own
-   triangulation and kept labels), and each camera's calibration (the first admitted view of each
-   camera, as :func:`app.services.issia_trajectory.sequence_arrays`; the query stops there);
+2. each camera's calibration (the first admitted view of each camera, as
+   :func:`app.services.issia_trajectory.sequence_arrays`: :func:`sequence_columns` reads the first
+   systems only), the labels of the frames it reads and the stored rows of those frames (the previous
+   fit as a windowed :class:`~app.geometry.trajectory.TrajectoryFit`: positions, residuals, flags, each
+   frame's own triangulation and kept labels);
 3. :func:`app.geometry.trajectory.refit_local` re-fits the piece holding the edit, reading only that
-   piece's frames (:func:`~app.geometry.trajectory.local_span`); when it does not apply (the edit near a
-   break, or the piece no longer explains its frames) the frames of ``refit_span`` are read and
-   :func:`~app.geometry.trajectory.refit_window` segments the pieces around the edit again; both
+   piece's frames (:func:`~app.geometry.trajectory.local_span`); when it does not apply (the edit near
+   the stretch's ends, or the piece no longer explains its frames) the frames of ``refit_span`` are read
+   and :func:`~app.geometry.trajectory.refit_window` segments the pieces around the edit again; both
    re-triangulate only the frames whose labels or kept labels changed;
-4. only the columns that changed are written (executemany UPDATEs by primary key), and the System
-   objects are loaded (with what the recomputation reads) only for the edited frames and those the
-   caller must recompute or judge again.
+4. only the columns that changed are written (executemany UPDATEs by primary key); the System objects
+   are loaded (with what the recomputation reads) only for the edited frames and those whose kept labels
+   changed, which the caller recomputes; the trajectory doubts of frames that only moved are replaced
+   from their new rows (:func:`_refresh_trajectory_doubts`).
 
-Nothing is cached between requests: the per-frame triangulations reused are the stored rows, which
-every path that changes their inputs rewrites (a label or exclusion edit re-triangulates its frame; a
-calibration edit of the view that gives its camera to the sequence re-fits the whole sequence, see
-``app.services.issia.refit_after_edit``). A sequence with a frame never fitted is fitted whole
-(:func:`app.services.issia_trajectory.fit_sequence`).
+Every query selects the sequence's systems by a frame-index range (:func:`_in_sequence`). Nothing is
+cached between requests: the per-frame triangulations reused are the stored rows, which every path that
+changes their inputs rewrites (a label or exclusion edit re-triangulates its frame; a calibration edit
+of the view that gives its camera to the sequence re-fits the whole sequence, see
+``app.services.issia.refit_after_edit``), so several server processes never serve stale data. A window
+with a frame never fitted makes the whole sequence fitted (:func:`app.services.issia_trajectory.fit_sequence`).
 
 World: SoccerNet metres, z down; residuals px at 1920 width. Writes go to the session; the caller
 commits (the edit's transaction).
