@@ -633,7 +633,8 @@ def refit_local(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera
 
 def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
                  first_frame: int, last_frame: int, *, flag_px: float = DEFAULT_FLAG_PX,
-                 break_px: float = DEFAULT_BREAK_PX, tau_px: float = DEFAULT_TAU_PX) -> TrajectoryFit:
+                 break_px: float = DEFAULT_BREAK_PX, tau_px: float = DEFAULT_TAU_PX,
+                 fast_path: bool = True) -> TrajectoryFit:
     """Re-fit after labels changed in frames ``first_frame..last_frame`` (inclusive; sequence indices).
 
     Fast path (:func:`refit_local`): the piece holding the edit (and, when the edit lies within
@@ -656,6 +657,8 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
             may be only those within :data:`REFIT_REACH` of the edit (a run of consecutive pieces).
         points: (len(fit.positions), K, 2) labels of the frames ``fit.frames`` with the edit applied.
         cameras, widths, flag_px, break_px, tau_px: as in :func:`fit_trajectory`.
+        fast_path: False when the caller knows the fast path does not apply (:func:`refit_local` answered
+            ``None`` for the same edit): the pieces are segmented again without trying it a second time.
 
     Returns:
         A windowed :class:`TrajectoryFit`: all pieces of the sequence, per-frame rows for the frames
@@ -666,7 +669,8 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
     """
     pts, L, by_frame = _window_labels(fit, points, cameras, widths, refit_span(fit.pieces, first_frame, last_frame))
     pieces = list(fit.pieces)
-    fast = _refit_local(L, by_frame, pieces, first_frame, last_frame, fit.fps, break_px) if pieces else None
+    fast = _refit_local(L, by_frame, pieces, first_frame, last_frame, fit.fps, break_px) \
+        if pieces and fast_path else None
     if fast is not None:
         lo, hi, new = fast
     elif pieces:

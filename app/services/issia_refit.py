@@ -262,9 +262,10 @@ def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame:
     if not pieces:
         return fit_sequence(session, game_id, settings)
     columns = sequence_columns(session, game_id, settings)
-    fit, window = None, None
+    fit, window, tried = None, None, False
     narrow = local_span(pieces, first_frame, last_frame)
     if narrow is not None:  # the edit inside one piece: its frames are enough unless the piece must be split
+        tried = True
         window = _load_window(session, game_id, *narrow, columns)
         if not window.complete:
             return fit_sequence(session, game_id, settings)
@@ -275,7 +276,7 @@ def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame:
         if not window.complete:
             return fit_sequence(session, game_id, settings)
         fit = refit_window(_previous_fit(window, pieces), window.points, columns.cameras, columns.widths,
-                           first_frame, last_frame, **fit_args(settings))
+                           first_frame, last_frame, fast_path=not tried, **fit_args(settings))
     return _store_rows(session, window, fit, (first_frame, last_frame))
 
 
