@@ -1,6 +1,7 @@
 """ISSIA-3D through the service: import the dev sequence, then score the **stored** values against the truth.
 
-Usage: ``python -m benchmarks.issia_service [--data DIR] [--truth FILE] [--json OUT] [--edits N] [--modes json,lines]``
+Usage: ``python -m benchmarks.issia_service [--data DIR] [--truth FILE] [--json OUT] [--edits N] [--modes json,lines]
+[--gc-threshold N]``
 
 Both modes (``issia_calibration.json``; ``issia_lines.json`` alone), each into a fresh SQLite file:
 ``v3d import issia`` (``app.services.issia.import_issia``), then the figures of issue 9 from the
@@ -109,11 +110,14 @@ def _pct(values, q):
     return float(np.percentile(np.asarray(values) * 1000.0, q)) if values else float("nan")
 
 
-def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_ball_edits=None) -> dict:
+def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_ball_edits=None,
+               gc_threshold: int | None = None) -> dict:
     """The HTTP edit round trip on the imported sequence (module docstring): p50/p95 ms per kind, all
     ball/exclusion edits together, and per stage the mean ms over the requests that ran it (and how
     many did). ``after_ball_edits()`` is called between the ball/exclusion edits (each undone) and the field-line edits; its answer is
-    returned as ``"after_ball_edits"``."""
+    returned as ``"after_ball_edits"``. ``gc_threshold``: the garbage collector's young-generation threshold during
+    the requests (``gc.set_threshold(gc_threshold, 10, 10)``, restored after; None: Python's default, 700), to
+    measure what a server process configured so would answer."""
     from fastapi.testclient import TestClient
 
     from app.core.config import Settings
@@ -168,6 +172,9 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
 
     load_before = os.getloadavg()[0]
     gc.callbacks.append(on_gc)
+    thresholds = gc.get_threshold()
+    if gc_threshold is not None:
+        gc.set_threshold(gc_threshold, 10, 10)
     try:
         # If-Match "*": a token's write must name the version it was made against where writes are
         # conditional (any version here: the benchmark is the only writer)
@@ -197,6 +204,7 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
                     call(label, "PUT", f"/api/frames/{fid}/field-lines", {"lines": shifted})
                     call(label, "PUT", f"/api/frames/{fid}/field-lines", {"lines": original})
     finally:
+        gc.set_threshold(*thresholds)
         gc.callbacks.remove(on_gc)
         timer.close()
     out = {kind: {"n": len(v), "p50_ms": _pct(v, 50), "p95_ms": _pct(v, 95), "cpu_p50_ms": _pct(cpu[kind], 50),
@@ -256,7 +264,7 @@ def service_figures(session: Session, game_id: int, truth: dict) -> dict:
     }
 
 
-def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0) -> dict:
+def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0, gc_threshold: int | None = None) -> dict:
     """Import ``data`` into a fresh database in one mode; figures, import and edit timings."""
     from app.core.config import Settings
     from app.db.models import Game, System
@@ -295,7 +303,7 @@ def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0
             eng.dispose()
             return all(now[k] == v or (isinstance(v, float) and abs(now[k] - v) < 1e-6) for k, v in figures.items())
 
-        out["http_edits"] = http_edits(url, game_id, edits, after_ball_edits=same_figures)
+        out["http_edits"] = http_edits(url, game_id, edits, after_ball_edits=same_figures, gc_threshold=gc_threshold)
         out["figures_equal_after_undone_edits"] = out["http_edits"].pop("after_ball_edits")
     return out
 
@@ -307,13 +315,15 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path)
     ap.add_argument("--edits", type=int, default=6, help="frames edited through HTTP (0: none)")
     ap.add_argument("--modes", default="json,lines", help="json, lines or both (comma-separated)")
+    ap.add_argument("--gc-threshold", type=int, help="young-generation GC threshold during the HTTP edits "
+                    "(default: Python's, 700; the README reports 20000 beside it)")
     args = ap.parse_args(argv)
     truth = json.loads(args.truth.read_text())
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         modes = [m.strip() for m in args.modes.split(",")]
         for from_lines in [m == "lines" for m in ("json", "lines") if m in modes]:
-            r = run(args.data, truth, from_lines, Path(tmp), args.edits)
+            r = run(args.data, truth, from_lines, Path(tmp), args.edits, args.gc_threshold)
             results.append(r)
             print(f"== {r['mode']} ==")
             for k, v in r.items():
