@@ -46,7 +46,8 @@ from sqlalchemy.orm import Session, joinedload, selectinload
 
 from app.core.config import Settings
 from app.db.models import (
-    BallLabel, Calibration, Doubt, Frame, ReviewDecision, System, SystemKind, TrajectoryPoint, Triangulation,
+    BallLabel, Calibration, CalibrationStatus, Doubt, Frame, ReviewDecision, System, SystemKind, TrajectoryPoint,
+    Triangulation,
 )
 from app.db.types import json_loads, json_safe, utcnow
 from app.geometry.camera import Camera
@@ -75,45 +76,53 @@ class SequenceColumns:
 def sequence_columns(session: Session, game_id: int, settings: Settings) -> SequenceColumns:
     """The cameras of the ISSIA sequence ``game_id`` as :func:`~app.services.issia_trajectory.sequence_arrays`
     chooses them (camera order by view position then name; the camera of each camera's first admitted view
-    in frame order), read without visiting the whole sequence: the views of the first few systems in
-    frame order with their calibrations (names, positions and widths from the first system: every
-    system of a sequence has the same views, the importer makes one per camera for every frame), then,
-    while a camera has no admitted view yet, the next systems, twice as many each time."""
+    in frame order), read without visiting the sequence in Python: the views of its first system with
+    their calibrations (names, positions and widths: every system of a sequence has the same views, the
+    importer makes one per camera for every frame), usually every camera's admitted view; for a camera
+    whose first view is not admitted, the distinct calibrations of its views with the first frame of each
+    (grouped by the database), the first admitted of them."""
     from app.services.calibrating import is_admitted
 
     in_game = _in_sequence(game_id)
     start = sa.select(sa.func.min(System.frame_index)).where(*in_game).scalar_subquery()
-    span, names, rows, cameras, first, col = _CALIBRATION_CHUNK, None, [], [], [], {}
-    low: Any = start
-    while True:
-        found = session.execute(
-            sa.select(Frame.name, Frame.position, Frame.width, System.frame_index, *_ADMISSION_COLUMNS)
-            .join(System, Frame.system_id == System.id).outerjoin(Calibration, Calibration.frame_id == Frame.id)
-            .where(*in_game, System.frame_index >= low, System.frame_index < low + span)
-            .order_by(System.frame_index, Frame.position, Frame.id)
-        ).all()
-        if names is None:
-            if not found:
-                return SequenceColumns([], [], [], [])
-            low = found[0][3]
-            rows = sorted({(r[0], r[1], r[2]) for r in found if r[3] == low}, key=lambda r: (r[1], r[0]))
-            names = [r[0] for r in rows]
-            col = {n: k for k, n in enumerate(names)}
-            cameras, first = [None] * len(names), [None] * len(names)
-        for name, _, _, index, *admission in found:
-            k = col.get(name)
-            if k is None or cameras[k] is not None or admission[0] is None:
-                continue
-            cal = Calibration(**dict(zip(_ADMISSION_NAMES, admission)))  # not added to the session
-            if is_admitted(cal, settings):
-                cameras[k] = Camera.from_soccernet(cal.camera)  # type: ignore[arg-type]
-                first[k] = index
-        if all(c is not None for c in cameras):
-            break
-        low, span = low + span, 2 * span
-        if session.scalar(sa.select(sa.func.max(System.frame_index)).where(*in_game)) < low:
-            break
+    found = session.execute(
+        sa.select(Frame.name, Frame.position, Frame.width, System.frame_index, *_ADMISSION_COLUMNS)
+        .join(System, Frame.system_id == System.id).outerjoin(Calibration, Calibration.frame_id == Frame.id)
+        .where(*in_game, System.frame_index == start).order_by(Frame.position, Frame.id)
+    ).all()
+    if not found:
+        return SequenceColumns([], [], [], [])
+    rows = sorted({(r[0], r[1], r[2]) for r in found}, key=lambda r: (r[1], r[0]))
+    names = [r[0] for r in rows]
+    col = {n: k for k, n in enumerate(names)}
+    cameras: list[Camera | None] = [None] * len(names)
+    first: list[int | None] = [None] * len(names)
+    candidates = [(r[3], r[0], r[4:]) for r in found]
+    missing = sorted({name for _, name, admission in candidates if not _admitted(admission, settings, is_admitted)})
+    if missing:
+        index = sa.func.min(System.frame_index)
+        variants = (Calibration.status, sa.cast(Calibration.camera, sa.Text), sa.cast(Calibration.flags, sa.Text),
+                    *_ADMISSION_COLUMNS[3:])
+        candidates += [(i, name, (status, json_loads(cam) if cam else None, json_loads(flags) if flags else None, *jac))
+                       for name, i, status, cam, flags, *jac in session.execute(
+            sa.select(Frame.name, index, *variants).join(System, Frame.system_id == System.id)
+            .join(Calibration, Calibration.frame_id == Frame.id)
+            .where(System.game_id == game_id, System.kind == SystemKind.ISSIA, Frame.name.in_(missing),
+                   Calibration.status == CalibrationStatus.CALIBRATED)
+            .group_by(Frame.name, *variants))]
+    for index, name, admission in sorted(candidates, key=lambda c: c[0]):
+        k = col.get(name)
+        if k is not None and cameras[k] is None and _admitted(admission, settings, is_admitted):
+            cameras[k] = Camera.from_soccernet(admission[1])
+            first[k] = index
     return SequenceColumns(names, [float(r[2]) for r in rows], cameras, first)
+
+
+def _admitted(admission: tuple[Any, ...], settings: Settings, is_admitted: Any) -> bool:
+    """``is_admitted`` of a calibration given by its :data:`_ADMISSION_NAMES` columns (None: no calibration)."""
+    if admission[0] is None:
+        return False
+    return is_admitted(Calibration(**dict(zip(_ADMISSION_NAMES, admission))), settings)  # not added to the session
 
 
 def _in_sequence(game_id: int) -> tuple[Any, ...]:
@@ -126,8 +135,6 @@ def _in_sequence(game_id: int) -> tuple[Any, ...]:
     return (System.game_id + 0 == game_id, System.kind == SystemKind.ISSIA)
 
 
-#: Frames whose calibrations :func:`sequence_columns` reads first (then twice as many, and so on).
-_CALIBRATION_CHUNK = 1
 #: The calibration columns admission reads (``app.services.calibrating.is_admitted``).
 _ADMISSION_NAMES = ("status", "camera", "flags", "jac_0005", "jac_001", "jac_002")
 _ADMISSION_COLUMNS = tuple(getattr(Calibration, n) for n in _ADMISSION_NAMES)

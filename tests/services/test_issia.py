@@ -350,3 +350,35 @@ def test_the_pieces_an_edit_reads_are_those_within_reach(db_session, db_settings
         spans = [(p.first_frame, p.last_frame) for p in got]
         assert all((p.first_frame, p.last_frame) in spans for p in every[lo:hi + 1]), f
         assert spans == sorted(spans) and set(spans) <= {(p.first_frame, p.last_frame) for p in every}
+
+
+def test_the_cameras_an_edit_reads_are_those_of_the_whole_sequence(db_session, db_settings, stretch):
+    """``sequence_columns`` reads the first system's views, and the later views of a camera only when its
+    first view is not admitted: the same cameras (each camera's first admitted view in frame order) as the
+    whole sequence gives (``sequence_arrays``), whether that view is the first, a later one, or none."""
+    from app.db.models import CalibrationStatus
+    from app.services.issia_refit import sequence_columns
+    from app.services.issia_trajectory import load_sequence, sequence_arrays
+
+    import_issia(db_session, stretch, db_settings)
+    game = db_session.scalars(sa.select(Game)).one()
+    systems = _systems(db_session)
+    for index in (0, 1, 2):  # cam3 admitted from frame 3 on (a different camera there), cam5 never
+        _view(systems[index], "cam3").calibration.jac_0005 = 0.1
+    later = _view(systems[3], "cam3").calibration
+    later.camera = {**later.camera, "position_meters": [p + 0.5 for p in later.camera["position_meters"]]}
+    for s in systems.values():
+        cal = _view(s, "cam5").calibration
+        cal.status, cal.camera = CalibrationStatus.REFUSED, None
+    db_session.flush()
+    columns = sequence_columns(db_session, game.id, db_settings)
+    arrays = sequence_arrays(load_sequence(db_session, game.id), db_settings)
+    assert columns.names == arrays.camera_names and columns.widths == arrays.widths
+    for k, name in enumerate(columns.names):
+        mine, whole = columns.cameras[k], arrays.cameras[k]
+        assert (mine is None) == (whole is None), name
+        if mine is not None:
+            np.testing.assert_array_equal(mine.projection_matrix, whole.projection_matrix)
+    by_name = dict(zip(columns.names, columns.first_admitted))
+    assert by_name["cam3"] == 3 and by_name["cam5"] is None and by_name["cam1"] == 0
+    np.testing.assert_allclose(columns.cameras[columns.names.index("cam3")].C, later.camera["position_meters"])
