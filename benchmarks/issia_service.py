@@ -1,6 +1,7 @@
 """ISSIA-3D through the service: import the dev sequence, then score the **stored** values against the truth.
 
-Usage: ``python -m benchmarks.issia_service [--data DIR] [--truth FILE] [--json OUT] [--edits N] [--modes json,lines]``
+Usage: ``python -m benchmarks.issia_service [--data DIR] [--truth FILE] [--json OUT] [--edits N] [--modes json,lines]
+[--gc-threshold N]``
 
 Both modes (``issia_calibration.json``; ``issia_lines.json`` alone), each into a fresh SQLite file:
 ``v3d import issia`` (``app.services.issia.import_issia``), then the figures of issue 9 from the
@@ -15,14 +16,18 @@ point turned into a box, the box moved by 3 px and back to the point, the label 
 the view excluded and restored; then field lines shifted by 2 px and back, of a view in the middle (its
 camera is not the one the sequence uses: nothing to re-fit) and of the first frame's view (it gives the
 sequence its camera: the whole sequence is fitted again). Prints p50/p95 (wall and process CPU time)
-per kind and over all ball/exclusion edits, and the time per stage (the functions listed in
-:data:`STAGES`, wall time summed per request, nested stages included in their parent), and whether
-the undone edits left the issue's figures as imported.
+per kind and over all ball/exclusion edits, the time per stage (the functions listed in
+:data:`STAGES`, wall time summed per request, nested stages included in their parent; mean and median
+over the requests that ran it), the full garbage collections that fell in the ball/exclusion edits
+(their wall ms: a pause of the whole process, not of one stage) and the load average around them,
+and whether the undone edits left the issue's figures as imported.
 """
 from __future__ import annotations
 
 import argparse
+import gc
 import json
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -38,15 +43,20 @@ from benchmarks.issia import SHARED
 STAGES = (
     ("recompute edited frame (lines)", "app.services.editing", "recompute_frame"),
     ("refit_sequence", "app.services.issia", "refit_sequence"),
-    ("  stored pieces (DB)", "app.services.issia_refit", "_stored_pieces"),
+    ("  stored pieces (DB)", "app.services.issia_refit", "_pieces_around"),
     ("  cameras (DB)", "app.services.issia_refit", "sequence_columns"),
     ("  window (DB)", "app.services.issia_refit", "_load_window"),
     ("  refit_window", "app.services.issia_refit", "refit_window"),
     ("    local re-fit (fast path)", "app.geometry.trajectory", "_refit_local"),
+    ("      break's candidate cuts", "app.geometry.trajectory", "_shift_bounds"),
     ("    _segment", "app.geometry.trajectory", "_segment"),
     ("    _assemble", "app.geometry.trajectory", "_assemble"),
     ("    triangulate_frame", "app.geometry.trajectory", "triangulate_frame"),
     ("  store changed rows", "app.services.issia_refit", "_store_rows"),
+    ("    rows that changed", "app.services.issia_refit", "_changed_rows"),
+    ("    UPDATEs", "app.services.issia_refit", "_write_rows"),
+    ("    systems to recompute loaded", "app.services.issia_refit", "load_for_recompute"),
+    ("    moved trajectory doubts", "app.services.issia_refit", "_refresh_trajectory_doubts"),
     ("whole fit (camera changed)", "app.services.issia", "fit_sequence"),
     ("recompute systems", "app.services.issia", "recompute_system"),
     ("recompute non-ISSIA", "app.services.editing", "recompute_system"),
@@ -100,11 +110,14 @@ def _pct(values, q):
     return float(np.percentile(np.asarray(values) * 1000.0, q)) if values else float("nan")
 
 
-def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_ball_edits=None) -> dict:
+def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_ball_edits=None,
+               gc_threshold: int | None = None) -> dict:
     """The HTTP edit round trip on the imported sequence (module docstring): p50/p95 ms per kind, all
     ball/exclusion edits together, and per stage the mean ms over the requests that ran it (and how
     many did). ``after_ball_edits()`` is called between the ball/exclusion edits (each undone) and the field-line edits; its answer is
-    returned as ``"after_ball_edits"``."""
+    returned as ``"after_ball_edits"``. ``gc_threshold``: the garbage collector's young-generation threshold during
+    the requests (``gc.set_threshold(gc_threshold, 10, 10)``, restored after; None: Python's default, 700), to
+    measure what a server process configured so would answer."""
     from fastapi.testclient import TestClient
 
     from app.core.config import Settings
@@ -133,6 +146,16 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
     cpu: dict[str, list[float]] = {}  # process CPU time of each request (a loaded machine inflates wall time)
     stages: dict[str, list[float]] = {}
     timer = StageTimer()
+    full_gc: list[float] = []  # wall ms of each full (generation 2) garbage collection during the requests
+    gc_started = [0.0]
+
+    def on_gc(phase, info):
+        if info.get("generation") != 2:
+            return
+        if phase == "start":
+            gc_started[0] = time.perf_counter()
+        else:
+            full_gc.append((time.perf_counter() - gc_started[0]) * 1000.0)
 
     def call(kind, method, path, body):
         timer.take()
@@ -147,6 +170,11 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
             stages.setdefault(k, []).append(v)
         stages.setdefault("(requests)", []).append(dt)
 
+    load_before = os.getloadavg()[0]
+    gc.callbacks.append(on_gc)
+    thresholds = gc.get_threshold()
+    if gc_threshold is not None:
+        gc.set_threshold(gc_threshold, 10, 10)
     try:
         # If-Match "*": a token's write must name the version it was made against where writes are
         # conditional (any version here: the benchmark is the only writer)
@@ -166,6 +194,8 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
                 call("exclusion", "POST", f"/api/frames/{fid}/exclusion", {"excluded": False})
             ball = [t for v in times.values() for t in v]
             ball_stages = {f"{k} ({len(v)} requests)": float(np.mean(v)) * 1000.0 for k, v in stages.items()}
+            ball_stage_medians = {f"{k} ({len(v)} requests)": float(np.median(v)) * 1000.0 for k, v in stages.items()}
+            ball_gc, load_after = list(full_gc), os.getloadavg()[0]
             stages.clear()
             checked = after_ball_edits() if after_ball_edits is not None else None
             for label, (fid, original) in lines.items():
@@ -174,6 +204,8 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
                     call(label, "PUT", f"/api/frames/{fid}/field-lines", {"lines": shifted})
                     call(label, "PUT", f"/api/frames/{fid}/field-lines", {"lines": original})
     finally:
+        gc.set_threshold(*thresholds)
+        gc.callbacks.remove(on_gc)
         timer.close()
     out = {kind: {"n": len(v), "p50_ms": _pct(v, 50), "p95_ms": _pct(v, 95), "cpu_p50_ms": _pct(cpu[kind], 50),
                   "cpu_p95_ms": _pct(cpu[kind], 95)} for kind, v in times.items()}
@@ -181,6 +213,9 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
     out["all ball/exclusion edits"] = {"n": len(ball), "p50_ms": _pct(ball, 50), "p95_ms": _pct(ball, 95),
                                        "cpu_p50_ms": _pct(ball_cpu, 50), "cpu_p95_ms": _pct(ball_cpu, 95)}
     out["stages_mean_ms (ball/exclusion edits)"] = ball_stages
+    out["stages_median_ms (ball/exclusion edits)"] = ball_stage_medians
+    out["full_gc_ms (ball/exclusion edits)"] = [round(v, 1) for v in ball_gc]
+    out["load_average (before, after the ball/exclusion edits)"] = [load_before, load_after]
     if stages:
         out["stages_mean_ms (field lines)"] = {f"{k} ({len(v)} requests)": float(np.mean(v)) * 1000.0
                                                for k, v in stages.items()}
@@ -229,7 +264,7 @@ def service_figures(session: Session, game_id: int, truth: dict) -> dict:
     }
 
 
-def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0) -> dict:
+def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0, gc_threshold: int | None = None) -> dict:
     """Import ``data`` into a fresh database in one mode; figures, import and edit timings."""
     from app.core.config import Settings
     from app.db.models import Game, System
@@ -268,7 +303,7 @@ def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0
             eng.dispose()
             return all(now[k] == v or (isinstance(v, float) and abs(now[k] - v) < 1e-6) for k, v in figures.items())
 
-        out["http_edits"] = http_edits(url, game_id, edits, after_ball_edits=same_figures)
+        out["http_edits"] = http_edits(url, game_id, edits, after_ball_edits=same_figures, gc_threshold=gc_threshold)
         out["figures_equal_after_undone_edits"] = out["http_edits"].pop("after_ball_edits")
     return out
 
@@ -280,13 +315,15 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path)
     ap.add_argument("--edits", type=int, default=6, help="frames edited through HTTP (0: none)")
     ap.add_argument("--modes", default="json,lines", help="json, lines or both (comma-separated)")
+    ap.add_argument("--gc-threshold", type=int, help="young-generation GC threshold during the HTTP edits "
+                    "(default: Python's, 700; the README reports 20000 beside it)")
     args = ap.parse_args(argv)
     truth = json.loads(args.truth.read_text())
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         modes = [m.strip() for m in args.modes.split(",")]
         for from_lines in [m == "lines" for m in ("json", "lines") if m in modes]:
-            r = run(args.data, truth, from_lines, Path(tmp), args.edits)
+            r = run(args.data, truth, from_lines, Path(tmp), args.edits, args.gc_threshold)
             results.append(r)
             print(f"== {r['mode']} ==")
             for k, v in r.items():
@@ -295,7 +332,9 @@ def main(argv=None) -> int:
             for kind, v in r.get("http_edits", {}).items():
                 if v is None:
                     continue
-                if "p50_ms" in v:
+                if isinstance(v, list):
+                    print(f"  {kind}: {v}")
+                elif "p50_ms" in v:
                     print(f"  HTTP {kind}: n={v['n']} p50 {v['p50_ms']:.1f} ms, p95 {v['p95_ms']:.1f} ms "
                           f"(CPU p50 {v['cpu_p50_ms']:.1f} ms, p95 {v['cpu_p95_ms']:.1f} ms)")
                 else:

@@ -20,9 +20,10 @@ is then moved by up to three frames to the place with the lowest total cost.
 Each piece is fitted by iteratively reweighted linear least squares on the algebraic residual
 ``(r_1 - x r_3) . (p - C)``, ``(r_2 - y r_3) . (p - C)`` (``r_i`` rows of R, ``(x, y)`` the
 undistorted normalised label), reweighted by the depth so that it equals the pixel error, with
-Cauchy weights, then refined by :func:`scipy.optimize.least_squares` (``loss="cauchy"``) on the
-pixel residuals themselves. Residuals are expressed on a 1920-px-wide image
-(:data:`app.geometry.triangulation.REFERENCE_WIDTH_PX`).
+Cauchy weights, then refined by a robust (Cauchy) least squares of the pixel residuals themselves;
+both fits live in :mod:`app.geometry.motion` (the models, the batched linear fit the segmentation's
+candidate cuts share, the Levenberg-Marquardt refinement with the analytic Jacobian). Residuals are
+expressed on a 1920-px-wide image (:data:`app.geometry.triangulation.REFERENCE_WIDTH_PX`).
 
 Outputs per frame (:class:`TrajectoryFit`): the trajectory's position, its source
 (``triangulated``: the frame has its own triangulation from two or more kept labels; ``fitted``: one
@@ -34,10 +35,9 @@ only the frames whose place on the trajectory can have changed, re-triangulating
 kept labels changed (:func:`refit_local`, its fast path, reads only the pieces around the edit).
 
 World: SoccerNet metres, origin at the centre spot, z down. Image: continuous pixels, origin at
-the top-left corner. Pure: numpy and scipy only. (About 700 lines: the model, its segmentation,
-the per-frame assembly and the re-fit after an edit, which replays the segmentation's own tests on a
-few pieces, share the private label table and the segmentation's helpers; split apart they would
-import each other's private parts.)
+the top-left corner. Pure: numpy only. (About 770 lines: the segmentation, the per-frame assembly and
+the re-fit after an edit, which replays the segmentation's own tests on a few pieces, share the
+segmentation's helpers; split apart they would import each other's private parts.)
 """
 from __future__ import annotations
 
@@ -45,15 +45,15 @@ from dataclasses import dataclass
 from typing import Hashable, Sequence
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from app.geometry.camera import Camera
 from app.geometry.consensus import ball_consensus
-from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px, triangulate_ball
+from app.geometry.motion import (
+    BALL_RADIUS_M, GRAVITY_M_S2, KINDS, LabelTable as _Labels, linear_fits, positions as _positions, refine as _refine,
+    determined as _determined, robust_cost, shifted as _shifted, stop_time as _stop_time,
+)
+from app.geometry.triangulation import BallObservation, reprojection_error_px, triangulate_ball
 
-GRAVITY_M_S2 = 9.81
-BALL_RADIUS_M = 0.11
-KINDS = ("flight", "roll")
 SOURCES = ("triangulated", "fitted", "interpolated")
 
 #: Defaults (pixels on a 1920-px-wide image). Label noise is about 1 px; a wrong label is tens to
@@ -62,13 +62,17 @@ SOURCES = ("triangulated", "fitted", "interpolated")
 DEFAULT_FLAG_PX = 15.0
 DEFAULT_BREAK_PX = 10.0
 DEFAULT_TAU_PX = 20.0
-_CAUCHY_PX = 3.0
 _MIN_FRAMES = 4
 #: A roll is chosen over a flight unless the flight's robust cost is lower by more than this per label (px^2):
 #: label noise alone costs about 1 px^2 per label, so smaller gains are noise.
 _ROLL_PREFERENCE_PX2 = 1.0
 _CONFIRM = 3
 _SHIFT = 3
+#: The segmentation grows a piece one frame at a time; the fits of its next lengths are made together
+#: (:meth:`_Best.prefetch`), this many first, twice as many each time up to ``_GROWTH_BATCH_MAX`` (the
+#: lengths it does not reach are fitted for nothing: a cost, never a different result).
+_GROWTH_BATCH = 4
+_GROWTH_BATCH_MAX = 16
 
 
 @dataclass(frozen=True)
@@ -130,6 +134,9 @@ class Piece:
         params: (6,) flight ``(p0, v0)``; roll ``(x0, y0, vx, vy, ax, ay)``; metres, seconds, at
             ``t = (frame - first_frame) / fps``.
         cost: robust cost of its labels (Cauchy, px^2 at 1920 width).
+        alternative: (6,) the params of the other model fitted to the same labels (``None`` when it was
+            not fitted, e.g. fewer than three frames): where that model's refinement starts after an
+            edit of the piece (the two models' costs choose the kind).
     """
 
     kind: str
@@ -137,6 +144,7 @@ class Piece:
     last_frame: int
     params: np.ndarray
     cost: float
+    alternative: np.ndarray | None = None
 
     def position(self, frames: np.ndarray, fps: float) -> np.ndarray:
         """(N,) frame indices (may lie outside the piece) -> (N, 3) world positions, metres."""
@@ -159,144 +167,39 @@ class Piece:
         return np.array([q[2] + q[4] * t, q[3] + q[5] * t, 0.0])
 
 
-def _basis(kind: str, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N,) seconds -> B (N, 3, 6), c (N, 3) with p = B q + c."""
-    n = len(t)
-    B = np.zeros((n, 3, 6))
-    c = np.zeros((n, 3))
-    if kind == "flight":
-        for i in range(3):
-            B[:, i, i] = 1.0
-            B[:, i, 3 + i] = t
-        c[:, 2] = 0.5 * GRAVITY_M_S2 * t ** 2
-    else:
-        for i in range(2):
-            B[:, i, i] = 1.0
-            B[:, i, 2 + i] = t
-            B[:, i, 4 + i] = 0.5 * t ** 2
-        c[:, 2] = -BALL_RADIUS_M
-    return B, c
-
-
-def _stop_time(kind: str, q: np.ndarray) -> float:
-    """A decelerating roll stops when its speed along ``v0`` vanishes: ``-(v0 . a) / |a|^2``, then stays."""
-    va = float(q[2:4] @ q[4:6]) if kind == "roll" else 0.0
-    return -va / float(q[4:6] @ q[4:6]) if va < 0 else np.inf
-
-
-def _positions(kind: str, q: np.ndarray, t: np.ndarray) -> np.ndarray:
-    B, c = _basis(kind, np.minimum(np.atleast_1d(t), _stop_time(kind, q)))
-    return B @ q + c
-
-
-class _Labels:
-    """Flattened labels: per label its frame, camera, normalised undistorted point and geometry."""
-
-    def __init__(self, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
-                 use: np.ndarray, first_frame: int = 0):
-        frames, cams = np.nonzero(use)
-        self.frame, self.cam = frames + first_frame, cams  # sequence frame indices (row + first_frame)
-        xy = np.zeros((len(frames), 2))
-        for k, cam in enumerate(cameras):
-            sel = cams == k
-            if sel.any():
-                xy[sel] = cam.normalise_pixels(points[frames[sel], k], undistort=True)  # rows of ``points``
-        self.xy = xy
-        self.R = np.stack([cameras[k].R for k in cams]) if len(cams) else np.zeros((0, 3, 3))
-        self.C = np.stack([cameras[k].C for k in cams]) if len(cams) else np.zeros((0, 3))
-        scale = np.array([0.5 * (cam.K[0, 0] + cam.K[1, 1]) * REFERENCE_WIDTH_PX / w if cam is not None else 1.0
-                          for cam, w in zip(cameras, widths)])
-        self.scale = scale[cams]  # normalised units -> px at 1920 width
-        # (N, 2, 3) rows of the algebraic residual (r_1 - x r_3, r_2 - y r_3) of each label (module docstring)
-        self.rows = self.R[:, :2, :] - self.xy[:, :, None] * self.R[:, 2:3, :]
-
-    def take(self, idx: np.ndarray) -> "_Labels":
-        """The labels ``idx`` alone (row i of the result is label ``idx[i]``): a fit's many passes over
-        the same labels then index nothing."""
-        sub = object.__new__(_Labels)
-        for name in ("frame", "cam", "xy", "R", "C", "scale", "rows"):
-            setattr(sub, name, getattr(self, name)[idx])
-        return sub
-
-    def residuals(self, idx: np.ndarray | slice, pos: np.ndarray) -> np.ndarray:
-        """(n, 2) pixel residuals (1920 width) of labels ``idx`` at world positions ``pos`` (n, 3)."""
-        xc = np.einsum("nij,nj->ni", self.R[idx], pos - self.C[idx])
-        z = np.where(xc[:, 2] > 1e-6, xc[:, 2], 1e-6)
-        return (xc[:, :2] / z[:, None] - self.xy[idx]) * self.scale[idx, None]
-
-
 def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine: bool,
-         start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """Fit one model to labels ``idx``; returns (params (6,), robust cost). With ``refine`` and ``start``
-    (the params of a fit of nearly the same labels, e.g. before an edit) the refinement starts there
-    instead of at the reweighted linear solution: the same minimum, in fewer iterations."""
-    L, idx = L.take(idx), slice(None)  # the labels of the piece, indexed once
-    t = (L.frame[idx] - first) / fps
-    if refine and start is not None:
-        q = np.asarray(start, float)
-        refine_only = True
-    else:
-        refine_only = False
-    rows = L.rows[idx]  # (n, 2, 3)
-    depth = np.linalg.norm(L.C[idx], axis=1)
-    w = np.ones(len(t))
-    if not refine_only:
-        q = np.zeros(6)
-    for _ in range(0 if refine_only else 6):
-        # a roll that stops inside the piece: times after the stop are held at the stop (linear given it)
-        B, c = _basis(kind, np.minimum(t, _stop_time(kind, q)))
-        A = np.einsum("nrj,njk->nrk", rows, B)  # (n, 2, 6)
-        b = np.einsum("nrj,nj->nr", rows, L.C[idx] - c)
-        s = (np.sqrt(w) * L.scale[idx] / depth)[:, None]
-        q = np.linalg.lstsq((A * s[:, :, None]).reshape(-1, 6), (b * s).reshape(-1), rcond=None)[0]
-        pos = _positions(kind, q, t)
-        depth = np.maximum(np.einsum("nj,nj->n", L.R[idx][:, 2, :], pos - L.C[idx]), 0.5)
-        e = np.linalg.norm(L.residuals(idx, pos), axis=1)
-        w = 1.0 / (1.0 + (e / _CAUCHY_PX) ** 2)
-    if refine:
-        def fun(qq):
-            return L.residuals(idx, _positions(kind, qq, t)).reshape(-1)
-        q = least_squares(fun, q, jac=lambda qq: _jacobian(L, idx, kind, qq, t), loss="cauchy", f_scale=_CAUCHY_PX,
-                          method="trf", x_scale="jac").x
-    e = np.linalg.norm(L.residuals(idx, _positions(kind, q, t)), axis=1)
-    return q, float(np.sum(_CAUCHY_PX ** 2 * np.log1p((e / _CAUCHY_PX) ** 2)))
-
-
-def _jacobian(L: _Labels, idx: np.ndarray, kind: str, q: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(2n, 6) derivative of ``L.residuals(idx, _positions(kind, q, t)).reshape(-1)`` with respect to ``q``.
-
-    A residual is ``s (x_c[:2] / z - xy)`` with ``x_c = R (p - C)``, ``z = x_c[2]``, so its derivative in
-    ``p`` is ``s / z (R_{0,1} - (x_c[:2] / z) R_2)``; ``p = B(t') q + c(t')`` with ``t' = min(t, t_stop(q))``:
-    ``B(t')``, plus, for a roll's frames after its stop, ``v(t_stop) (d t_stop / d q)`` with
-    ``t_stop = -(v0 . a) / |a|^2`` (:func:`_stop_time`).
-    """
-    ts = _stop_time(kind, q)
-    B, c = _basis(kind, np.minimum(t, ts))
-    pos = B @ q + c
-    R, C = L.R[idx], L.C[idx]
-    xc = np.einsum("nij,nj->ni", R, pos - C)
-    z = np.where(xc[:, 2] > 1e-6, xc[:, 2], 1e-6)
-    uv = xc[:, :2] / z[:, None]
-    D = (R[:, :2, :] - uv[:, :, None] * R[:, 2:3, :]) * (L.scale[idx] / z)[:, None, None]  # (n, 2, 3)
-    if kind == "roll" and np.isfinite(ts):
-        stopped = t >= ts
-        if stopped.any():
-            aa, va = float(q[4:6] @ q[4:6]), float(q[2:4] @ q[4:6])
-            v = np.array([q[2] + q[4] * ts, q[3] + q[5] * ts, 0.0])
-            g = np.array([0.0, 0.0, -q[4] / aa, -q[5] / aa, -q[2] / aa + 2 * va * q[4] / aa ** 2,
-                          -q[3] / aa + 2 * va * q[5] / aa ** 2])
-            B = B.copy()
-            B[stopped] += np.outer(v, g)
-    return np.einsum("nij,njk->nik", D, B).reshape(-1, 6)
+         start: np.ndarray | None = None, linear: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """Fit one model to labels ``idx`` (``t = 0`` at frame ``first``); returns (params (6,), robust cost).
+    Unrefined: the reweighted linear fit (:func:`app.geometry.motion.linear_fits`). Refined: the robust
+    fit of the pixel residuals (:func:`app.geometry.motion.refine`) from ``start`` (the params of a fit of
+    nearly the same labels, e.g. before an edit: the same minimum, in fewer iterations), else from the
+    linear solution (``linear`` when the caller has it). A minimum from ``start`` that the labels do not
+    determine (:func:`app.geometry.motion.determined`: a piece of a few labels of one camera, say) is
+    replaced by the one from the linear solution, as a fit from scratch finds it."""
+    if not refine or (start is None and linear is None):
+        q, cost = linear_fits(L, [(idx, kind, first)], fps)[0]
+        if not refine:
+            return q, cost
+        linear = q
+    sub = L.take(idx)
+    t = (sub.frame - first) / fps
+    q = _refine(sub, kind, start if start is not None else linear, t)
+    if start is not None and not _determined(sub, kind, q, t):
+        if linear is None:
+            linear = linear_fits(L, [(idx, kind, first)], fps)[0][0]
+        q = _refine(sub, kind, linear, t)
+    return q, robust_cost(sub.residuals(slice(None), _positions(kind, q, t)))
 
 
 def _best_piece(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int], fps: float,
                 refine: bool = False, start: Piece | None = None,
                 linear: dict[str, np.ndarray] | None = None) -> Piece:
     """The piece of the better model for ``frames`` (a roll unless a flight is clearly better); ``start``:
-    a piece of the same first frame whose params start its model's refinement (:func:`_fit`); ``linear``:
-    the reweighted linear solution of each model for these ``frames`` (:meth:`_Best.linear`), where the
-    refinement of the models without ``start`` starts (it would compute the same solution first)."""
+    a piece fitted to nearly the same frames (before an edit) whose params, and those of its other model
+    (``alternative``), re-expressed at ``frames[0]`` (:func:`app.geometry.motion.shifted`), start the
+    refinement of each model (:func:`_fit`); ``linear``: the reweighted linear solution of each model for
+    these ``frames`` (:meth:`_Best.linear`), where the refinement of a model without a start begins (it
+    would compute the same solution first)."""
     fits = _model_fits(L, by_frame, frames, fps, refine, start, linear)
     return _choose(frames, fits, sum(len(by_frame[f]) for f in frames))
 
@@ -307,10 +210,24 @@ def _model_fits(L: _Labels, by_frame, frames: Sequence[int], fps: float, refine:
     idx = np.concatenate([by_frame[f] for f in frames])
     first = int(frames[0])
     kinds = KINDS if len(frames) >= 3 else ("flight",)
-    warm = dict(linear or {}) if refine else {}
-    if start is not None and start.first_frame == first:
-        warm[start.kind] = start.params
-    return {kind: _fit(L, idx, kind, first, fps, refine, warm.get(kind)) for kind in kinds}
+    lin = dict(linear or {}) if refine else {}
+    warm: dict[str, np.ndarray] = {}
+    if refine and start is not None:  # re-expressed at this first frame when the piece's start moved
+        dt = (first - start.first_frame) / fps
+        warm[start.kind] = _shifted(start.kind, start.params, dt) if dt else start.params
+        if start.alternative is not None:
+            other = _other(start.kind)
+            warm[other] = _shifted(other, start.alternative, dt) if dt else start.alternative
+    missing = [kind for kind in kinds if kind not in lin and (not refine or kind not in warm)]
+    fits = dict(zip(missing, linear_fits(L, [(idx, kind, first) for kind in missing], fps)))
+    if not refine:
+        return fits
+    lin.update({kind: q for kind, (q, _) in fits.items()})
+    return {kind: _fit(L, idx, kind, first, fps, True, warm.get(kind), lin.get(kind)) for kind in kinds}
+
+
+def _other(kind: str) -> str:
+    return KINDS[1 - KINDS.index(kind)]
 
 
 def _choose(frames: Sequence[int], fits: dict[str, tuple[np.ndarray, float]], labels: int) -> Piece:
@@ -319,7 +236,9 @@ def _choose(frames: Sequence[int], fits: dict[str, tuple[np.ndarray, float]], la
     kind = min(fits, key=lambda k: fits[k][1])
     if "roll" in fits and fits["roll"][1] <= fits["flight"][1] + _ROLL_PREFERENCE_PX2 * labels:
         kind = "roll"  # within noise of each other (e.g. one camera): the ball on the grass, the common case
-    return Piece(kind, int(frames[0]), int(frames[-1]), fits[kind][0], fits[kind][1])
+    other = fits.get(_other(kind))
+    return Piece(kind, int(frames[0]), int(frames[-1]), fits[kind][0], fits[kind][1],
+                 other[0] if other is not None else None)
 
 
 class _Best:
@@ -334,12 +253,32 @@ class _Best:
         key = tuple(frames)
         done = self._done.get(key)
         if done is None:
-            fits = _model_fits(self.L, self.by_frame, key, self.fps, False)
-            done = self._done[key] = (_choose(key, fits, sum(len(self.by_frame[f]) for f in key)), fits)
+            self.prefetch([key])
+            done = self._done[key]
         return done
+
+    def prefetch(self, lists: Sequence[Sequence[int]]) -> None:
+        """Fit the frame lists not fitted yet, all at once (:func:`app.geometry.motion.linear_fits`: the
+        same result as one by one)."""
+        todo = list(dict.fromkeys(tuple(f) for f in lists if f and tuple(f) not in self._done))
+        jobs, owners = [], []
+        for key in todo:
+            idx = np.concatenate([self.by_frame[f] for f in key])
+            for kind in (KINDS if len(key) >= 3 else ("flight",)):
+                jobs.append((idx, kind, int(key[0])))
+                owners.append((key, kind))
+        fits: dict[tuple[int, ...], dict[str, tuple[np.ndarray, float]]] = {key: {} for key in todo}
+        for (key, kind), fit in zip(owners, linear_fits(self.L, jobs, self.fps)):
+            fits[key][kind] = fit
+        for key in todo:
+            self._done[key] = (_choose(key, fits[key], sum(len(self.by_frame[f]) for f in key)), fits[key])
 
     def __call__(self, frames: Sequence[int]) -> Piece:
         return self._get(frames)[0]
+
+    def has(self, frames: Sequence[int]) -> bool:
+        """``frames`` is fitted already."""
+        return tuple(frames) in self._done
 
     def linear(self, frames: Sequence[int]) -> dict[str, np.ndarray]:
         """Each model's reweighted linear solution for ``frames`` (the ``linear`` of :func:`_best_piece`)."""
@@ -356,8 +295,11 @@ def _frame_bad(L: _Labels, by_frame, piece: Piece, frame: int, fps: float, break
 
 
 def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int], fps: float,
-             break_px: float = DEFAULT_BREAK_PX) -> list[Piece]:
-    """Split labelled ``frames`` (sorted) into pieces (module docstring); each piece refined."""
+             break_px: float = DEFAULT_BREAK_PX, previous: Sequence[Piece] = ()) -> list[Piece]:
+    """Split labelled ``frames`` (sorted) into pieces (module docstring); each piece refined, from the
+    params of the piece of ``previous`` (the pieces before an edit) it overlaps most when there is one,
+    re-expressed at its first frame (:func:`_fit`: the same minimum, in fewer iterations)."""
+    previous = sorted(previous, key=lambda p: p.first_frame)
     frames = list(frames)
     n = len(frames)
     best = _Best(L, by_frame, fps)
@@ -369,11 +311,15 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
         while j - i > 1 and any(_frame_bad(L, by_frame, piece, f, fps, break_px) for f in frames[i:j]):
             j -= 1  # the opening frames straddle a break: a shorter piece
             piece = best(frames[i:j])
+        batch = _GROWTH_BATCH
         while j - i >= _MIN_FRAMES and j < n:
             ahead = frames[j:j + _CONFIRM]
-            if len(ahead) == _CONFIRM and all(_frame_bad(L, by_frame, piece, f, fps, break_px) for f in ahead):
+            if len(ahead) == _CONFIRM and _bad_frames(L, by_frame, piece, ahead, fps, break_px)[0].all():
                 break
             j += 1
+            if not best.has(frames[i:j]):  # the next few lengths at once: fitted together, used if it grows
+                best.prefetch([frames[i:k] for k in range(j, min(j + batch, n) + 1)])
+                batch = min(2 * batch, _GROWTH_BATCH_MAX)
             piece = best(frames[i:j])
         bounds.append((i, j))
         i = j
@@ -382,16 +328,17 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
         split = []
         for a, b in bounds:
             piece = best(frames[a:b])
-            bad = [_frame_bad(L, by_frame, piece, f, fps, break_px) for f in frames[a:b]]
+            bad_all, bad_one = _bad_frames(L, by_frame, piece, frames[a:b], fps, break_px)
+            bad, off = bad_all.tolist(), bad_one.tolist()
             head = next((i for i, x in enumerate(bad) if not x), len(bad))
             tail = next((i for i, x in enumerate(bad[::-1]) if not x), len(bad))
             cuts = {a, b, *(c for c in (a + head, b - tail) if a < c < b)}
             # inside: three frames in a row each with a label off the model (one wrong label is alone)
-            off = [_frame_bad(L, by_frame, piece, f, fps, break_px, worst=True) for f in frames[a:b]]
             run = _bad_run(off[head:len(off) - tail])
             if run is not None:  # a kick the growth missed (a small change of velocity): best cut near it
                 r0 = a + head + run
                 options = range(max(a + 2, r0 - 2 * _SHIFT), min(b - 2, r0 + _SHIFT) + 1)
+                best.prefetch([frames[a:c] for c in options] + [frames[c:b] for c in options])
                 costs = [(best(frames[a:c]).cost + best(frames[c:b]).cost, c) for c in options]
                 if costs:
                     cuts.add(min(costs)[1])
@@ -400,8 +347,16 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
         if len(split) == len(bounds):
             break
         bounds = _shift_bounds(L, by_frame, frames, fps, split, best)
-    return [_best_piece(L, by_frame, frames[a:b], fps, refine=True, linear=best.linear(frames[a:b]))
-            for a, b in bounds if b > a]
+    return [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=_overlapping(previous, frames[a], frames[b - 1]),
+                        linear=best.linear(frames[a:b])) for a, b in bounds if b > a]
+
+
+def _overlapping(pieces: Sequence[Piece], first: int, last: int) -> Piece | None:
+    """The piece of ``pieces`` sharing the most frames with ``first..last`` (None if none does)."""
+    overlap = [(min(p.last_frame, last) - max(p.first_frame, first), -i) for i, p in enumerate(pieces)]
+    if not overlap or max(overlap)[0] < 0:
+        return None
+    return pieces[-max(overlap)[1]]
 
 
 def _bad_run(bad: list[bool]) -> int | None:
@@ -422,7 +377,9 @@ def _shift_bounds(L, by_frame, frames, fps, bounds, best: _Best | None = None):
     for b in range(1, len(bounds)):
         (a0, a1), (_, b1) = bounds[b - 1], bounds[b]
         lowest = None
-        for cut in range(max(a0 + 1, a1 - _SHIFT), min(b1 - 1, a1 + _SHIFT) + 1):
+        cuts = range(max(a0 + 1, a1 - _SHIFT), min(b1 - 1, a1 + _SHIFT) + 1)
+        best.prefetch([frames[a0:cut] for cut in cuts] + [frames[cut:b1] for cut in cuts])
+        for cut in cuts:
             cost = best(frames[a0:cut]).cost + best(frames[cut:b1]).cost
             if lowest is None or cost < lowest[0] - 1e-9:
                 lowest = (cost, cut)
@@ -450,7 +407,9 @@ class TrajectoryFit:
         first_frame: the sequence frame index of row 0 of the per-frame arrays. A fit of the whole
             sequence has ``first_frame = 0`` and F rows; :func:`refit_window` answers a *window*: rows
             ``first_frame .. first_frame + len(positions) - 1`` (the frames the re-fit may have changed),
-            while ``pieces`` always describe the whole sequence (sequence frame indices).
+            while ``pieces`` describe the whole sequence (sequence frame indices), or, in a fit given to
+            the re-fit after an edit, a run of consecutive pieces holding at least those within
+            :data:`REFIT_REACH` of the edit (its answer then holds that run with the pieces it replaced).
     """
 
     fps: float
@@ -525,6 +484,11 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
 #: this many labelled frames inside them: beyond the frames a break may move by (``_SHIFT``) and the frames
 #: that confirm a break (``_CONFIRM``).
 _MARGIN = _SHIFT + _CONFIRM
+#: The re-fit after an edit (:func:`refit_window`, :func:`refit_local`, :func:`refit_span`,
+#: :func:`local_span`) reads only the pieces holding the edit (between pieces: the two around it) and
+#: up to this many on each side: the neighbours it may fit again and, beyond them, the pieces whose
+#: ends bound the Hermite gaps it fills. A caller may pass just those pieces (``TrajectoryFit.pieces``).
+REFIT_REACH = 2
 
 
 def _stretch(pieces: Sequence[Piece], first_frame: int, last_frame: int) -> tuple[int, int]:
@@ -669,7 +633,8 @@ def refit_local(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera
 
 def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
                  first_frame: int, last_frame: int, *, flag_px: float = DEFAULT_FLAG_PX,
-                 break_px: float = DEFAULT_BREAK_PX, tau_px: float = DEFAULT_TAU_PX) -> TrajectoryFit:
+                 break_px: float = DEFAULT_BREAK_PX, tau_px: float = DEFAULT_TAU_PX,
+                 fast_path: bool = True) -> TrajectoryFit:
     """Re-fit after labels changed in frames ``first_frame..last_frame`` (inclusive; sequence indices).
 
     Fast path (:func:`refit_local`): the piece holding the edit (and, when the edit lies within
@@ -688,9 +653,12 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
     Args:
         fit: the fit before the edit, of the whole sequence or of a window of it (``fit.first_frame``)
             that holds at least the frames of ``refit_span(fit.pieces, first_frame, last_frame)``;
-            made with the same ``cameras`` (a camera change needs :func:`fit_trajectory`).
+            made with the same ``cameras`` (a camera change needs :func:`fit_trajectory`). Its pieces
+            may be only those within :data:`REFIT_REACH` of the edit (a run of consecutive pieces).
         points: (len(fit.positions), K, 2) labels of the frames ``fit.frames`` with the edit applied.
         cameras, widths, flag_px, break_px, tau_px: as in :func:`fit_trajectory`.
+        fast_path: False when the caller knows the fast path does not apply (:func:`refit_local` answered
+            ``None`` for the same edit): the pieces are segmented again without trying it a second time.
 
     Returns:
         A windowed :class:`TrajectoryFit`: all pieces of the sequence, per-frame rows for the frames
@@ -701,7 +669,8 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
     """
     pts, L, by_frame = _window_labels(fit, points, cameras, widths, refit_span(fit.pieces, first_frame, last_frame))
     pieces = list(fit.pieces)
-    fast = _refit_local(L, by_frame, pieces, first_frame, last_frame, fit.fps, break_px) if pieces else None
+    fast = _refit_local(L, by_frame, pieces, first_frame, last_frame, fit.fps, break_px) \
+        if pieces and fast_path else None
     if fast is not None:
         lo, hi, new = fast
     elif pieces:
@@ -709,7 +678,7 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
         start = min(first_frame, pieces[lo].first_frame)
         end = max(last_frame, pieces[hi].last_frame)
         frames = [f for f in sorted(by_frame) if start <= f <= end]
-        new = _segment(L, by_frame, frames, fit.fps, break_px) if frames else []
+        new = _segment(L, by_frame, frames, fit.fps, break_px, pieces[lo:hi + 1]) if frames else []
     else:
         lo, hi = 0, -1
         new = _segment(L, by_frame, sorted(by_frame), fit.fps, break_px) if by_frame else []
@@ -748,19 +717,27 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
         res = np.linalg.norm(L.residuals(sel, positions[L.frame[sel] - a]), axis=1)
         residuals[L.frame[sel] - a, L.cam[sel]] = res
     outliers = np.nan_to_num(residuals, nan=0.0) > flag_px
+    keep_mask = np.isfinite(residuals) & ~outliers
+    # the frames whose kept labels are those of ``previous`` (outside the edit) keep its triangulation
+    same = np.zeros(n, bool)
+    if previous is not None and edited is not None:
+        rows = np.arange(a, b + 1) - previous.first_frame
+        inside = (rows >= 0) & (rows < len(previous.positions))
+        before = np.isfinite(previous.residuals_px) & ~previous.outliers
+        same[inside] = (before[rows[inside]] == keep_mask[inside]).all(axis=1)
+        same &= (np.arange(a, b + 1) < edited[0]) | (np.arange(a, b + 1) > edited[1])
     ball = np.full((n, 3), np.nan)
     cam_lists: list[tuple[int, ...]] = []
     sources: list[str | None] = []
+    placed = np.isfinite(positions).all(axis=1).tolist()
     for r in range(n):
-        f = a + r
-        keep = tuple(int(k) for k in np.nonzero(np.isfinite(residuals[r]) & ~outliers[r])[0])
-        old = f - previous.first_frame if previous is not None else -1
-        if (previous is not None and 0 <= old < len(previous.positions) and edited is not None
-                and not edited[0] <= f <= edited[1] and previous.kept_labels(old) == keep):
-            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None
-            kept = tuple(previous.cam_lists[old])
+        keep = tuple(np.flatnonzero(keep_mask[r]).tolist())
+        if same[r]:
+            old = a + r - previous.first_frame  # type: ignore[union-attr]
+            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None  # type: ignore[union-attr]
+            kept = tuple(previous.cam_lists[old])  # type: ignore[union-attr]
         else:
-            row = f - pts_first
+            row = a + r - pts_first
             tri = triangulate_frame([BallObservation(k, cameras[k], pts[row, k], widths[k]) for k in keep],
                                     tau_px=tau_px) if len(keep) >= 2 else FrameTriangulation(None, (), {})
             point = tri.point
@@ -768,7 +745,7 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
         if point is not None:
             ball[r] = point
         cam_lists.append(kept)
-        if not np.all(np.isfinite(positions[r])):
+        if not placed[r]:
             sources.append(None)
         elif point is not None:
             sources.append("triangulated")
@@ -796,5 +773,5 @@ def _hermite_gap(positions: np.ndarray, first: int, a: Piece, b: Piece, fps: flo
     positions[fr - first] = h @ np.stack([p0, v0, p1, v1])
 
 
-__all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "FrameTriangulation", "triangulate_frame", "Piece",
+__all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "REFIT_REACH", "FrameTriangulation", "triangulate_frame", "Piece",
            "TrajectoryFit", "fit_trajectory", "local_span", "refit_local", "refit_span", "refit_window"]

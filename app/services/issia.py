@@ -41,7 +41,7 @@ from app.services.doubts import update_doubts
 from app.services.errors import DatasetError
 from app.services.audit import record_summary
 from app.services.importing import ImportReport, audit_counts
-from app.services.issia_refit import refit_sequence, sequence_columns
+from app.services.issia_refit import load_for_recompute, refit_sequence, sequence_columns
 from app.services.issia_trajectory import fit_sequence
 from app.geometry.jac import JAC_GAMMAS
 from app.services.calibrating import GIVEN_CAMERA_FLAG, CalibrationFields, apply_calibration
@@ -235,6 +235,9 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
             return []  # an earlier view of this camera gives the camera: the trajectory is unchanged
         changed = fit_sequence(session, system.game_id, settings)
         touched = []
+        # what the recomputations below read, for all of them in a few queries (not one per system and relation)
+        load_for_recompute(session, [c.system.id for c in changed if c.system is not None and (
+            c.labels or c.system.trajectory_point.flagged or c.system.doubt_counts.get("ball_off_consensus"))])
     for c in changed:
         s = c.system
         if s is None or s in touched:

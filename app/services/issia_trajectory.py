@@ -19,6 +19,7 @@ caller commits (the importer, or the edit's transaction).
 """
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -102,13 +103,19 @@ def sequence_arrays(systems: Sequence[System], settings: Settings) -> SequenceAr
     return SequenceArrays(by_index, camera_names, points, cameras, widths, frame_ids)
 
 
-def _piece_json(p: Piece) -> dict[str, Any]:
+def piece_json(p: Piece) -> dict[str, Any]:
+    """The stored form of a :class:`Piece` (``TrajectoryPoint.piece``): kind, frames, params, cost and the
+    other model's params (``alternative``, where an edit's re-fit starts that model; null if none)."""
     return {"kind": p.kind, "first_frame": int(p.first_frame), "last_frame": int(p.last_frame),
-            "params": [float(v) for v in p.params], "cost": float(p.cost)}
+            "params": [float(v) for v in p.params], "cost": float(p.cost),
+            "alternative": [float(v) for v in p.alternative] if p.alternative is not None else None}
 
 
-def _vec(v: np.ndarray) -> list[float] | None:
-    return [float(x) for x in v] if np.all(np.isfinite(v)) else None
+def piece_from_json(d: dict[str, Any]) -> Piece:
+    """:func:`piece_json`'s inverse (a piece stored before ``alternative`` existed has none)."""
+    alt = d.get("alternative")
+    return Piece(d["kind"], int(d["first_frame"]), int(d["last_frame"]), np.asarray(d["params"], float),
+                 float(d["cost"]), np.asarray(alt, float) if alt is not None else None)
 
 
 #: The fields of a :class:`TrajectoryPoint` the system's triangulation depends on (the labels it keeps).
@@ -125,27 +132,49 @@ class Changed:
     labels: bool
 
 
-def row_values(fit: TrajectoryFit, frame: int, ids: np.ndarray) -> dict[str, Any]:
-    """The :class:`TrajectoryPoint` column values of sequence frame ``frame`` of ``fit`` (a whole or
-    windowed fit holding it); ``ids`` (K,) the frame ids of its views, -1 where it has none."""
-    i = frame - fit.first_frame
-    piece = next((p for p in fit.pieces if p.first_frame <= frame <= p.last_frame), None)
-    return dict(
-        ball3d=_vec(fit.ball_3d[i]), ball3d_smoothed=_vec(fit.positions[i]), source=fit.sources[i],
-        piece=_piece_json(piece) if piece is not None else None,
-        cam_list=[int(ids[k]) for k in fit.cam_lists[i]],
-        residuals_px={str(int(ids[k])): round(float(fit.residuals_px[i, k]), 4)
-                      for k in range(len(ids)) if ids[k] >= 0 and np.isfinite(fit.residuals_px[i, k])},
-        flagged=[int(ids[k]) for k in range(len(ids)) if ids[k] >= 0 and fit.outliers[i, k]],
-    )
+def row_values(fit: TrajectoryFit, frames: Sequence[int], ids: np.ndarray) -> dict[int, dict[str, Any]]:
+    """The :class:`TrajectoryPoint` column values of sequence frames ``frames`` of ``fit`` (a whole or
+    windowed fit holding them), by frame; ``ids`` (len(frames), K) the frame ids of each frame's views,
+    -1 where it has none. The rows of one piece share its document (:func:`piece_json`); residuals are
+    rounded to 1e-4 px."""
+    rows = np.asarray(frames, int) - fit.first_frame
+    ball = fit.ball_3d[rows]
+    pos = fit.positions[rows]
+    ball_ok, pos_ok = np.isfinite(ball).all(axis=1).tolist(), np.isfinite(pos).all(axis=1).tolist()
+    ball_l, pos_l = ball.tolist(), pos.tolist()
+    ids = np.asarray(ids)
+    has = ids >= 0
+    measured = (np.isfinite(fit.residuals_px[rows]) & has).tolist()
+    flagged = (fit.outliers[rows] & has).tolist()
+    res_l, ids_l = fit.residuals_px[rows].tolist(), ids.tolist()
+    starts = [p.first_frame for p in fit.pieces]
+    documents: dict[int, dict[str, Any]] = {}
+    out = {}
+    for j, frame in enumerate(frames):
+        i = rows[j]
+        at = bisect.bisect_right(starts, frame) - 1  # the piece holding the frame, if one does
+        at = at if at >= 0 and fit.pieces[at].last_frame >= frame else None
+        if at is not None and at not in documents:
+            documents[at] = piece_json(fit.pieces[at])
+        fid = ids_l[j]
+        out[frame] = dict(
+            ball3d=ball_l[j] if ball_ok[j] else None, ball3d_smoothed=pos_l[j] if pos_ok[j] else None,
+            source=fit.sources[i], piece=documents.get(at) if at is not None else None,
+            cam_list=[fid[k] for k in fit.cam_lists[i]],
+            residuals_px={str(fid[k]): round(r, 4) for k, r in enumerate(res_l[j]) if measured[j][k]},
+            flagged=[fid[k] for k, f in enumerate(flagged[j]) if f],
+        )
+    return out
 
 
 def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
     """Write each system's :class:`TrajectoryPoint` from ``fit`` (a fit of the whole sequence); returns
     the systems whose stored point changed."""
     changed = []
+    frames = list(arrays.systems)
+    rows = row_values(fit, frames, arrays.frame_ids[frames])
     for i, s in arrays.systems.items():
-        values = row_values(fit, i, arrays.frame_ids[i])
+        values = rows[i]
         tp = s.trajectory_point
         if tp is None:
             tp = TrajectoryPoint()
@@ -191,29 +220,57 @@ def consensus_observations(system: System, observations: list[BallObservation], 
     return [o for o in obs if o.view_id in kept]
 
 
+@dataclass(frozen=True)
+class DoubtFrame:
+    """What a trajectory doubt says of a view: its name, image size (px) and camera (None if none)."""
+
+    name: str
+    width: int
+    height: int
+    camera: Camera | None
+
+
 def trajectory_doubts(system: System, cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
     """``ball_off_consensus`` doubts of the labels of ``system`` that break the sequence's trajectory
-    (stored ``TrajectoryPoint.flagged``): evidence the residual (px at 1920 width), the fitted position
-    (m) and the frame index; fix ``exclude_view``, or ``snap_point`` to where the trajectory projects
-    when that is inside the image."""
+    (stored ``TrajectoryPoint.flagged``; :func:`flagged_label_doubts` of its stored rows; ``cameras``:
+    frame id -> camera already built, else each view's stored calibration)."""
     tp = system.trajectory_point
     if tp is None or not tp.flagged:
         return []
     cameras = cameras or {}
+    views = {}
+    for f in system.frames:
+        cam = cameras.get(f.id)
+        if cam is None and f.id in tp.flagged and f.calibration is not None and f.calibration.camera is not None:
+            cam = Camera.from_soccernet(f.calibration.camera)
+        views[f.id] = DoubtFrame(f.name, f.width, f.height, cam)
+    return flagged_label_doubts(system.frame_index, {c: getattr(tp, c) for c in DOUBT_POINT_COLUMNS}, views)
+
+
+#: The :class:`TrajectoryPoint` columns a trajectory doubt is made of.
+DOUBT_POINT_COLUMNS = ("flagged", "residuals_px", "ball3d_smoothed", "source")
+
+
+def flagged_label_doubts(frame_index: int | None, point: dict[str, Any], views: dict[int, DoubtFrame]) -> list[JudgedDoubt]:
+    """The ``ball_off_consensus`` doubt of each flagged label of a frame: evidence the residual (px at
+    1920 width), the fitted position (m) and the frame index; fix ``exclude_view``, or ``snap_point`` to
+    where the trajectory projects when that is inside the image.
+
+    Args:
+        frame_index: the system's frame index.
+        point: the frame's trajectory point (:data:`DOUBT_POINT_COLUMNS` as stored).
+        views: frame id -> :class:`DoubtFrame` of the system's views.
+    """
     out = []
-    by_id = {f.id: f for f in system.frames}
-    for fid in tp.flagged:
-        f = by_id.get(fid)
+    for fid in point["flagged"] or []:
+        f = views.get(fid)
         if f is None:
             continue
-        res = (tp.residuals_px or {}).get(str(fid))
+        res = (point["residuals_px"] or {}).get(str(fid))
         suggestion: dict[str, Any] = {"action": "exclude_view"}
         projected = None
-        cam = cameras.get(fid)
-        if cam is None and f.calibration is not None and f.calibration.camera is not None:
-            cam = Camera.from_soccernet(f.calibration.camera)
-        if cam is not None and tp.ball3d_smoothed is not None:
-            uv, front = cam.project(np.asarray(tp.ball3d_smoothed, float).reshape(1, 3))
+        if f.camera is not None and point["ball3d_smoothed"] is not None:
+            uv, front = f.camera.project(np.asarray(point["ball3d_smoothed"], float).reshape(1, 3))
             if front[0]:
                 projected = [round(float(uv[0, 0]), 2), round(float(uv[0, 1]), 2)]
                 if 0 <= projected[0] <= f.width and 0 <= projected[1] <= f.height:
@@ -221,10 +278,11 @@ def trajectory_doubts(system: System, cameras: dict[int, Camera] | None = None) 
         far = "an unknown distance" if res is None else f"{res:.0f} px (at 1920 width)"
         out.append(JudgedDoubt(
             "ball_off_consensus", fid,
-            f"{f.name}'s ball label at frame {system.frame_index} is {far} from where the sequence's "
-            f"ball trajectory projects ({tp.source or 'no'} position); it breaks the trajectory.",
-            json_safe({"residual_px_1920": res, "fitted_position_m": tp.ball3d_smoothed, "source": tp.source,
-                       "frame_index": system.frame_index, "projected_px": projected, "by": "trajectory"}),
+            f"{f.name}'s ball label at frame {frame_index} is {far} from where the sequence's "
+            f"ball trajectory projects ({point['source'] or 'no'} position); it breaks the trajectory.",
+            json_safe({"residual_px_1920": res, "fitted_position_m": point["ball3d_smoothed"],
+                       "source": point["source"], "frame_index": frame_index, "projected_px": projected,
+                       "by": "trajectory"}),
             suggestion))
     return out
 

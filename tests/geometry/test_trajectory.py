@@ -243,3 +243,106 @@ def test_bad_inputs_raise():
         fit_trajectory(np.zeros((5, 3, 2)), CAMERAS, [1920] * 4, FPS)
     with pytest.raises(ValueError, match="fps"):
         fit_trajectory(np.zeros((5, 4, 2)), CAMERAS, [1920] * 4, 0.0)
+
+
+def test_refit_given_only_the_pieces_within_reach_is_the_same(scene):
+    """The service passes the re-fit only the pieces within ``REFIT_REACH`` of the edit (it never reads the
+    whole sequence): the answer is the one the whole list of pieces gives, at a break and inside a piece."""
+    truth, pts = scene
+    pts = np.concatenate([pts, pts])  # the ball thrown back to the start: ten pieces
+    pts[146:154] = np.nan  # and unseen around the throw: a gap between two pieces (Hermite-filled)
+    before = fit(pts)
+    middle = next(i for i, p in enumerate(before.pieces) if p.first_frame > 200)  # two pieces after the gap
+    assert before.pieces[middle - 2].last_frame < 146 and before.pieces[middle - 1].first_frame > 153
+    assert middle + trajectory_module.REFIT_REACH < len(before.pieces) - 1
+    piece = before.pieces[middle]
+    for f in (piece.first_frame, (piece.first_frame + piece.last_frame) // 2):
+        edited = pts.copy()
+        k = int(np.nonzero(np.isfinite(pts[f]).all(axis=1))[0][0])
+        edited[f, k] += (2.0, -1.0)
+        hit = next(i for i, p in enumerate(before.pieces) if p.first_frame <= f <= p.last_frame)
+        reach = trajectory_module.REFIT_REACH
+        run = before.pieces[max(hit - reach, 0):hit + reach + 1]
+        a, b = refit_span(before.pieces, f, f)
+        assert refit_span(run, f, f) == (a, b) and local_span(run, f, f) == local_span(before.pieces, f, f)
+        whole = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f)
+        part = before.window(a, b)
+        part = trajectory_module.TrajectoryFit(part.fps, tuple(run), part.positions, part.sources, part.residuals_px,
+                                               part.outliers, part.ball_3d, part.cam_lists, first_frame=a)
+        ran = refit_window(part, edited[a:b + 1], CAMERAS, [1920] * 4, f, f)
+        assert [(p.kind, p.first_frame, p.last_frame) for p in ran.pieces] == \
+            [(p.kind, p.first_frame, p.last_frame) for p in whole.pieces if p.last_frame >= run[0].first_frame
+             and p.first_frame <= run[-1].last_frame]
+        np.testing.assert_array_equal(ran.positions, whole.positions)
+        assert ran.cam_lists == whole.cam_lists and np.array_equal(ran.outliers, whole.outliers)
+
+
+def test_linear_fits_of_many_sets_equal_those_of_each_alone(scene):
+    """The segmentation fits a break's candidate cuts together: a set's result is the same, bit for bit,
+    whatever it is fitted with (its own normal equations, its own rows)."""
+    from app.geometry import motion
+
+    truth, pts = scene
+    _, use = trajectory_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
+    L = motion.LabelTable(pts, CAMERAS, [1920] * 4, use)
+    by_frame = trajectory_module._group(L)
+    frames = sorted(by_frame)
+    jobs = []
+    for a, b in ((0, 40), (45, 60), (90, 100), (98, 99), (120, 149)):
+        idx = np.concatenate([by_frame[f] for f in frames if a <= f <= b])
+        jobs += [(idx, kind, a) for kind in motion.KINDS]
+    together = motion.linear_fits(L, jobs, FPS)
+    for job, (q, cost) in zip(jobs, together):
+        alone_q, alone_cost = motion.linear_fits(L, [job], FPS)[0]
+        assert np.array_equal(q, alone_q) and cost == alone_cost
+        assert np.all(np.isfinite(q)) and cost >= 0
+
+
+def test_refinement_reaches_the_minimum_scipy_finds(scene):
+    """``motion.refine`` minimises the function ``scipy.optimize.least_squares(loss="cauchy", f_scale=3)``
+    minimises: from the same start it ends at a cost no higher (TRF stops at a relative change of 1e-8)
+    and at the same place, for the model that fits and for the one that does not."""
+    from scipy.optimize import least_squares
+
+    from app.geometry import motion
+
+    truth, pts = scene
+    before = fit(pts)
+    _, use = trajectory_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
+    L = motion.LabelTable(pts, CAMERAS, [1920] * 4, use)
+    for piece in before.pieces[:3]:
+        sub = L.take(np.nonzero((L.frame >= piece.first_frame) & (L.frame <= piece.last_frame))[0])
+        t = (sub.frame - piece.first_frame) / FPS
+        for kind in motion.KINDS:
+            start = motion.linear_fits(sub, [(np.arange(len(t)), kind, piece.first_frame)], FPS)[0][0]
+            ours = motion.refine(sub, kind, start, t)
+            theirs = least_squares(lambda q: motion.residuals_and_jacobian(sub, kind, q, t, False)[0], start,
+                                   jac=lambda q: motion.residuals_and_jacobian(sub, kind, q, t)[1], loss="cauchy",
+                                   f_scale=motion.CAUCHY_PX, x_scale="jac").x
+
+            def cost(q):
+                return motion._loss(motion.residuals_and_jacobian(sub, kind, q, t, False)[0])
+
+            assert cost(ours) <= cost(theirs) * (1 + 1e-8)
+            if kind == piece.kind:  # the model the piece has: one well-defined minimum
+                assert np.abs(motion.positions(kind, ours, t) - motion.positions(kind, theirs, t)).max() < 1e-4
+
+
+def test_shifted_params_describe_the_same_motion_and_few_labels_do_not_determine_a_flight(scene):
+    from app.geometry import motion
+
+    t = np.linspace(0.0, 1.0, 11)
+    flight = np.array([1.0, 2.0, -3.0, 4.0, -1.0, -6.0])
+    roll = np.array([1.0, 2.0, 5.0, 1.0, -2.5, -0.5])  # stops at 2 s
+    for kind, q in (("flight", flight), ("roll", roll)):
+        moved = motion.shifted(kind, q, 0.4)
+        np.testing.assert_allclose(motion.positions(kind, moved, t - 0.4)[4:], motion.positions(kind, q, t)[4:],
+                                   atol=1e-12)
+    truth, pts = scene
+    _, use = trajectory_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
+    L = motion.LabelTable(pts, CAMERAS, [1920] * 4, use)
+    two_frames_one_camera = L.take(np.nonzero((L.frame <= 1) & (L.cam == L.cam[0]))[0])
+    many = L.take(np.nonzero(L.frame <= 30)[0])
+    q = motion.linear_fits(many, [(np.arange(len(many.frame)), "flight", 0)], FPS)[0][0]
+    assert motion.determined(many, "flight", q, many.frame / FPS)
+    assert not motion.determined(two_frames_one_camera, "flight", q, two_frames_one_camera.frame / FPS)

@@ -294,3 +294,91 @@ def test_a_field_line_edit_refits_the_whole_sequence_only_when_its_view_gives_th
     after = _stored_trajectory(db_session)
     assert after != before  # cam3's camera is now the one its first view's lines give
     assert fit_sequence(db_session, game.id, db_settings) == []  # stored = the fit from scratch
+
+
+def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(db_session, db_settings, stretch,
+                                                                                 monkeypatch):
+    """An edit in the piece of frame 13 (cam4's wrong label) moves frame 13 on the trajectory without changing
+    its labels: its trajectory doubt is replaced from the new stored point without loading the system, and is
+    what judging the whole system again stores (same doubts, order, counts; the evidence's new position)."""
+    from app.services import issia_refit
+    from app.services.doubts import update_doubts
+
+    import_issia(db_session, stretch, db_settings)
+    s13 = _systems(db_session)[13]
+    before = s13.trajectory_point.ball3d_smoothed
+    loaded = []
+    real = issia_refit.load_for_recompute
+    monkeypatch.setattr(issia_refit, "load_for_recompute", lambda session, ids: loaded.extend(ids) or real(session, ids))
+    view = next(f for f in _systems(db_session)[18].frames if f.ball_label is not None)
+    update_ball_label(db_session, view.id, point=[view.ball_label.point[0] + 4.0, view.ball_label.point[1]],
+                      settings=db_settings)
+    assert s13.id not in loaded
+
+    def stored(system_id):
+        db_session.expire_all()
+        s = db_session.get(System, system_id)
+        return (s.trajectory_point.ball3d_smoothed, dict(s.doubt_counts), s.label_doubts,
+                [(d.kind, d.frame_id, d.accuses_label, d.message, d.evidence, d.suggestion) for d in s.doubts])
+
+    light = stored(s13.id)
+    assert light[0] != before
+    boc = [d for d in light[3] if d[0] == "ball_off_consensus"]
+    assert len(boc) == 1 and boc[0][4]["fitted_position_m"] == light[0]
+    update_doubts(db_session.get(System, s13.id), db_settings)
+    db_session.flush()
+    assert stored(s13.id) == light
+
+
+def test_the_pieces_an_edit_reads_are_those_within_reach(db_session, db_settings, shared_dir, tmp_path):
+    """``_pieces_around`` reads the stored pieces of a window of frames around the edit, widened until it holds
+    every piece within ``REFIT_REACH`` of the one the edit touches: the same pieces the whole list gives."""
+    from app.geometry.trajectory import REFIT_REACH
+    from app.services.issia_refit import _pieces_around
+    from app.services.issia_trajectory import piece_from_json
+
+    import_issia(db_session, write_issia_stretch(shared_dir, tmp_path / "issia-dev", 0, 199, videos=False), db_settings)
+    game = db_session.scalars(sa.select(Game)).one()
+    every = sorted({(p.first_frame, p.last_frame): p for p in (
+        piece_from_json(d) for d in db_session.scalars(sa.select(TrajectoryPoint.piece)) if d)}.values(),
+        key=lambda p: p.first_frame)
+    assert len(every) > 2 * REFIT_REACH
+    for f in (0, 16, 70, 115, 181, 199):
+        hit = [i for i, p in enumerate(every) if p.first_frame <= f <= p.last_frame]
+        lo, hi = max(min(hit) - REFIT_REACH, 0), min(max(hit) + REFIT_REACH, len(every) - 1)
+        got = _pieces_around(db_session, game.id, f, f)
+        spans = [(p.first_frame, p.last_frame) for p in got]
+        assert all((p.first_frame, p.last_frame) in spans for p in every[lo:hi + 1]), f
+        assert spans == sorted(spans) and set(spans) <= {(p.first_frame, p.last_frame) for p in every}
+
+
+def test_the_cameras_an_edit_reads_are_those_of_the_whole_sequence(db_session, db_settings, stretch):
+    """``sequence_columns`` reads the first system's views, and the later views of a camera only when its
+    first view is not admitted: the same cameras (each camera's first admitted view in frame order) as the
+    whole sequence gives (``sequence_arrays``), whether that view is the first, a later one, or none."""
+    from app.db.models import CalibrationStatus
+    from app.services.issia_refit import sequence_columns
+    from app.services.issia_trajectory import load_sequence, sequence_arrays
+
+    import_issia(db_session, stretch, db_settings)
+    game = db_session.scalars(sa.select(Game)).one()
+    systems = _systems(db_session)
+    for index in (0, 1, 2):  # cam3 admitted from frame 3 on (a different camera there), cam5 never
+        _view(systems[index], "cam3").calibration.jac_0005 = 0.1
+    later = _view(systems[3], "cam3").calibration
+    later.camera = {**later.camera, "position_meters": [p + 0.5 for p in later.camera["position_meters"]]}
+    for s in systems.values():
+        cal = _view(s, "cam5").calibration
+        cal.status, cal.camera = CalibrationStatus.REFUSED, None
+    db_session.flush()
+    columns = sequence_columns(db_session, game.id, db_settings)
+    arrays = sequence_arrays(load_sequence(db_session, game.id), db_settings)
+    assert columns.names == arrays.camera_names and columns.widths == arrays.widths
+    for k, name in enumerate(columns.names):
+        mine, whole = columns.cameras[k], arrays.cameras[k]
+        assert (mine is None) == (whole is None), name
+        if mine is not None:
+            np.testing.assert_array_equal(mine.projection_matrix, whole.projection_matrix)
+    by_name = dict(zip(columns.names, columns.first_admitted))
+    assert by_name["cam3"] == 3 and by_name["cam5"] is None and by_name["cam1"] == 0
+    np.testing.assert_allclose(columns.cameras[columns.names.index("cam3")].C, later.camera["position_meters"])
