@@ -12,7 +12,8 @@ is never served stale), and the OpenAPI docs at ``/docs`` (Swagger UI, ``static/
 is not served: its bundle fetches a logo from ``cdn.redoc.ly``. Every answer carries the security
 headers of ``app.api.security`` (a CSP allowing this server's own scripts only). With
 ``Settings.job_runner`` the app's lifespan runs a :class:`~app.services.jobs.JobRunner` (queued
-imports, recomputes and exports; a job a killed process left running is resumed).
+imports, recomputes and exports; a job a killed process left running is resumed) and sets the garbage
+collector's young-generation threshold (``Settings.gc_young_threshold``).
 
 Authentication (``app.api.authentication``): the session cookie middleware (its signing key read from
 ``V3D_SESSION_SECRET`` or the database when the middleware is built, at the first request or lifespan
@@ -21,6 +22,7 @@ pages (``/``, ``/login``, ``/systems/{id}``), static files and the docs are publ
 """
 from __future__ import annotations
 
+import gc
 import html
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -113,6 +115,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(application: FastAPI) -> AsyncIterator[None]:
+        if settings.gc_young_threshold:  # a served process: rarer full collections (Settings.gc_young_threshold)
+            gc.set_threshold(settings.gc_young_threshold, 10, 10)
         runner = None
         if settings.job_runner:  # queued imports, recomputes and exports run in a thread of this process
             runner = JobRunner(application.state.session_factory, settings)

@@ -127,6 +127,14 @@ class Settings(BaseSettings):
         12 * 3600, gt=0, description="A browser session ends this long after its login (seconds).",
     )
 
+    # --- serving ---
+    gc_young_threshold: int = Field(
+        20_000, ge=0, description="The garbage collector's young-generation threshold in a server process "
+        "(gc.set_threshold(n, 10, 10); 0 keeps Python's default, 700). A full collection of a server's objects "
+        "takes 0.2-0.4 s on the 2-core machine and, at the default, falls in about one edit in 20 (an edit's ORM "
+        "objects outlive young collections); 20,000 makes full collections ~30x rarer "
+        "(python -m benchmarks.issia_service --gc-threshold N shows the effect).")
+
     # --- background jobs and uploads (app.services.jobs, app.services.archives) ---
     import_batch_frames: int = Field(
         2000, gt=0, description="An import is stored in transactions of whole games of about this many frames: memory "
