@@ -231,7 +231,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--long-seconds", type=float, default=180.0, help="0: no long sequence")
     ap.add_argument("--long-seed", type=int, default=4)
-    ap.add_argument("--workdir", type=Path, default=Path("/tmp/issia-long"))
+    ap.add_argument("--workdir", type=Path, default=Path("/tmp/v3d-issia-synth"))
     ap.add_argument("--timing-lengths", default="8,30,60,120,180", help="seconds of the long sequence; empty: none")
     ap.add_argument("--refits", type=int, default=12)
     ap.add_argument("--json", type=Path)

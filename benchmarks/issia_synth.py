@@ -59,6 +59,9 @@ follows what it states and what its 200 frames show, and says below what it had 
   (a restart, played from where it is).
 * A bounce whose upward speed would be below 1.0 m/s ends the bouncing: the ball rolls on from there
   (hops below 5 cm are not modelled).
+* Boards 4 m outside the lines, at any height: a ball that reaches them comes back, its velocity across
+  them turned into -0.6 times itself (without them an uncontrolled ball flew up to 20 m out, among the
+  cameras, in 1-2 % of the frames).
 * Occlusion chains run over every frame (also out of the image); only in-image frames are reported
   occluded.
 
@@ -67,7 +70,7 @@ or rolling shutter, videos.
 
 The truth JSON has the dev truth's keys (``generator, seed, fps, duration_s, image_size, video_size,
 frame_numbering, conventions, physics, noise_model, cameras, kicks, summary, frames``) and ``events``
-(bounces, starts of a roll after the last bounce, stops, with time and position); each kick also has its
+(bounces, starts of a roll after the last bounce, stops, hits of the boards, with time and position); each kick also has its
 ``frame`` and ``target``. ``summary`` adds ``kicks_per_second``, ``lofted_kicks``, ``events`` (counts),
 ``phase_share`` (air / ground moving / ground at rest), ``frames_by_correct_labels`` and
 ``frames_ball_in_no_image``; ``summary.seconds`` is the generation's wall time (the dev value, 3.1, matches
@@ -77,9 +80,9 @@ each camera has the dev keys; ``motion_piece`` counts the motion pieces (a kick,
 a roll after the last bounce each begin one; a stop does not); ``phase`` is ``"air"`` or ``"ground"``.
 
 **Checked against the dev truth** (10 seeds x 60 s, mean; dev in brackets): in-image labels per frame 2.0
-(2.09), occluded share of in-image frames 0.028 (0.014: 3 runs), outliers per annotated label 0.010
-(0.005: 2 labels), kicks per second 0.37 (0.375), frames in the air 0.49 (0.42), frames with the ball in no
-image 0.09 (0.135), frames with two or more correct labels 0.81 (0.845); 40 seeds x 8 s: per-camera
+(2.09), occluded share of in-image frames 0.027 (0.014: 3 runs), outliers per annotated label 0.010
+(0.005: 2 labels), kicks per second 0.37 (0.375), frames in the air 0.50 (0.42), frames with the ball in no
+image 0.09 (0.135), frames with two or more correct labels 0.82 (0.845); 40 seeds x 8 s: per-camera
 in-image shares 0.20 0.18 0.58 0.54 0.26 0.25 (0.12 0.17 0.29 0.74 0.24 0.52; the dev kick-off heads
 towards cameras 4 and 6). ``coverage_2`` with the dev cameras: 0.916735..., equal to the dev value.
 """
@@ -126,6 +129,7 @@ class Physics:
     receive_offset_s: tuple[float, float] = (-0.2, 0.4)
     min_kick_interval_s: float = 0.4
     min_bounce_speed: float = 1.0
+    boards_m: float = 4.0
     target_margin_m: float = 3.0
     out_of_pitch_m: float = 1.0
 
@@ -150,7 +154,8 @@ class Segment:
     """A stretch of free motion from ``t0`` (s) to ``t1`` (``inf``: until a kick).
 
     ``kind``: ``"air"`` (``p0 + v0 t + (0, 0, g t^2 / 2)``) or ``"ground"`` (centre at ``z = -r``, speed
-    falling by ``a`` along ``v0`` until it stops, then at rest). ``piece``: the truth's ``motion_piece``.
+    falling by ``a`` along ``v0`` until it stops, then at rest). ``piece``: the truth's ``motion_piece``;
+    ``start``: what began it (``kick``, ``bounce``, ``roll`` after the last bounce, ``wall``: the boards).
     """
 
     kind: str
@@ -159,6 +164,7 @@ class Segment:
     v0: np.ndarray
     t1: float
     piece: int
+    start: str = "kick"
 
     def state(self, t: float, ph: Physics) -> tuple[np.ndarray, np.ndarray]:
         """(position, velocity) at absolute time ``t`` (metres, m/s)."""
@@ -175,36 +181,77 @@ class Segment:
         return self.p0 + u * (speed * s - 0.5 * ph.rolling_deceleration * s * s), u * v
 
 
+def _wall_time(p: np.ndarray, v: np.ndarray, ph: Physics, roll: bool) -> tuple[float, int]:
+    """(seconds until the ball's centre reaches the boards, axis 0 or 1 of the board it reaches), or
+    ``(inf, -1)``: boards stand ``boards_m`` outside the lines. ``roll``: the ball decelerates along ``v``."""
+    best, axis = np.inf, -1
+    speed = float(np.hypot(v[0], v[1]))
+    for i in (0, 1):
+        if abs(v[i]) < 1e-12:
+            continue
+        wall = np.sign(v[i]) * (PITCH_HALF[i] + ph.boards_m)
+        if abs(p[i]) >= abs(wall) and np.sign(p[i]) == np.sign(wall):
+            continue  # already beyond (a kick from there): let it come back
+        if roll:
+            dist = (wall - p[i]) / v[i] * speed  # metres along the path
+            a = ph.rolling_deceleration
+            if dist > speed * speed / (2 * a):
+                continue
+            t = (speed - np.sqrt(max(speed * speed - 2 * a * dist, 0.0))) / a
+        else:
+            t = (wall - p[i]) / v[i]
+        if 0 < t < best:
+            best, axis = t, i
+    return best, axis
+
+
 def free_motion(t0: float, p0: np.ndarray, v0: np.ndarray, lofted: bool, piece: int, ph: Physics,
                 horizon_s: float = 120.0) -> list[Segment]:
     """The ball's motion after a kick at ``t0`` from ``p0`` with velocity ``v0`` when nobody touches it:
-    flights and bounces, then a roll that stops, then rest (segments up to ``t0 + horizon_s``)."""
+    flights and bounces, then a roll that stops, then rest, with reflections off the boards (segments up
+    to ``t0 + horizon_s``; each segment's ``start`` says what began it)."""
     r = ph.ball_radius_m
     segs: list[Segment] = []
     p, v, t = np.asarray(p0, float).copy(), np.asarray(v0, float).copy(), t0
     in_air = lofted or p[2] < -r - 1e-6
     if not in_air:
         p[2], v = -r, np.array([v[0], v[1], 0.0])
+    start = "kick"
     while t < t0 + horizon_s:
         if in_air:
             # z(s) = p_z + v_z s + g s^2 / 2 = -r, the later root
             a, b, c = 0.5 * ph.g, v[2], p[2] + r
-            s = (-b + np.sqrt(max(b * b - 4 * a * c, 0.0))) / (2 * a)
-            seg = Segment("air", t, p, v, t + s, piece)
+            land = (-b + np.sqrt(max(b * b - 4 * a * c, 0.0))) / (2 * a)
+            hit, axis = _wall_time(p, v, ph, roll=False)
+            s = min(land, hit)
+            seg = Segment("air", t, p, v, t + s, piece, start)
             segs.append(seg)
             p, v = seg.state(t + s, ph)
-            p[2] = -r
             t += s
-            up = ph.restitution * v[2]
             piece += 1
+            if hit < land:
+                v[axis] = -ph.restitution * v[axis]
+                start = "wall"
+                continue
+            p[2] = -r
+            up = ph.restitution * v[2]
             if up < ph.min_bounce_speed:
                 v = np.array([v[0], v[1], 0.0])
-                in_air = False
+                in_air, start = False, "roll"
             else:
                 v = np.array([v[0], v[1], -up])
+                start = "bounce"
         else:
-            segs.append(Segment("ground", t, p, v, np.inf, piece))
-            break
+            hit, axis = _wall_time(p, v, ph, roll=True)
+            seg = Segment("ground", t, p, v, t + hit, piece, start)
+            segs.append(seg)
+            if not np.isfinite(hit):
+                break
+            p, v = seg.state(t + hit, ph)
+            t += hit
+            piece += 1
+            v[axis] = -ph.restitution * v[axis]
+            start = "wall"
     return segs
 
 
@@ -261,7 +308,7 @@ def _receive_frame(rng: np.random.Generator, segs: list[Segment], kick_frame: in
     if lofted or segs[0].kind == "air":
         t_reach = segs[0].t1  # first landing
     else:
-        g = segs[-1]
+        g = segs[0]
         speed = float(np.linalg.norm(g.v0[:2]))
         t_stop = g.t0 + speed / ph.rolling_deceleration if speed > 0 else g.t0
         u = g.v0[:2] / speed if speed > 0 else np.zeros(2)
@@ -274,6 +321,7 @@ def _receive_frame(rng: np.random.Generator, segs: list[Segment], kick_frame: in
             t_reach = t_stop + (along - reach) / ph.receiver_speed_m_s
         else:
             t_reach = g.t0
+        t_reach = min(t_reach, g.t1)  # the boards came first
     if rng.random() < ph.p_uncontrolled:
         t_recv = t_reach + rng.exponential(ph.uncontrolled_mean_s)
     else:
@@ -294,8 +342,8 @@ def simulate(n_frames: int, fps: float, rng: np.random.Generator, ph: Physics
              ) -> tuple[list[dict], list[dict], list[dict]]:
     """The ball over ``n_frames`` frames: (kicks in the dev truth's format, events, per-frame states
     ``{frame, t, ball_3d, ball_velocity, phase, motion_piece}``). Events are what happened between kicks:
-    ``{"kind": "bounce" | "roll" | "stop", "t", "position"}`` (``roll``: the last bounce, after which the
-    ball rolls; ``stop``: a roll comes to rest)."""
+    ``{"kind": "bounce" | "roll" | "stop" | "wall", "t", "position"}`` (``roll``: the last bounce, after
+    which the ball rolls; ``stop``: a roll comes to rest; ``wall``: the ball hits the boards)."""
     third_visits = np.zeros(3)
     kicks: list[dict] = []
     events: list[dict] = []
@@ -312,16 +360,16 @@ def simulate(n_frames: int, fps: float, rng: np.random.Generator, ph: Physics
         segs = free_motion(kick_frame / fps, p, v, lofted, piece, ph)
         nxt = _receive_frame(rng, segs, kick_frame, target, lofted, fps, n_frames - 1, ph)
         t_next = min(nxt, n_frames) / fps
-        for prev, seg in zip(segs, segs[1:]):
+        for seg in segs[1:]:
             if seg.t0 < t_next:
-                events.append({"kind": "bounce" if seg.kind == "air" else "roll", "t": round(seg.t0, 6),
+                events.append({"kind": seg.start, "t": round(seg.t0, 6),
                                "position": [round(float(x), 4) for x in seg.p0]})
-        last = segs[-1]
-        speed = float(np.linalg.norm(last.v0[:2]))
-        if last.kind == "ground" and speed > 0 and last.t0 + speed / ph.rolling_deceleration < t_next:
-            t_stop = last.t0 + speed / ph.rolling_deceleration
-            events.append({"kind": "stop", "t": round(t_stop, 6),
-                           "position": [round(float(x), 4) for x in last.state(t_stop, ph)[0]]})
+        for seg in segs:
+            speed = float(np.linalg.norm(seg.v0[:2]))
+            t_stop = seg.t0 + speed / ph.rolling_deceleration
+            if seg.kind == "ground" and speed > 0 and t_stop < min(seg.t1, t_next):
+                events.append({"kind": "stop", "t": round(t_stop, 6),
+                               "position": [round(float(x), 4) for x in seg.state(t_stop, ph)[0]]})
         # the frames after the kick up to the next kick (that frame still shows the ball before its kick)
         for f in range(kick_frame + 1 if frames else 0, min(nxt, n_frames - 1) + 1):
             t = f / fps
@@ -460,7 +508,7 @@ def summarise(frames: list[dict], kicks: list[dict], events: list[dict], cameras
         "video_bytes": None,
         "kicks_per_second": round(len(kicks) / (n / fps), 4),
         "lofted_kicks": sum(k["lofted"] for k in kicks),
-        "events": {kind: sum(e["kind"] == kind for e in events) for kind in ("bounce", "roll", "stop")},
+        "events": {kind: sum(e["kind"] == kind for e in events) for kind in ("bounce", "roll", "stop", "wall")},
         "phase_share": {"air": air / n, "ground_moving": (n - air - rest) / n, "ground_at_rest": rest / n},
         "frames_by_correct_labels": dict(sorted(by_ann.items(), key=lambda kv: int(kv[0]))),
         "frames_ball_in_no_image": sum(not any(c["in_image"] for c in f["cams"].values()) for f in frames),
