@@ -19,7 +19,7 @@ Then it **diagnoses** (:func:`diagnose`) every failing item against the truth's 
 more correct labels but no ``ball_3D``, frames whose ``ball_3D`` or ``ball_3D_smoothed`` is more than
 :data:`BAD_M` off, outlier labels kept, correct labels left out. Each is put in the first matching context,
 in this order: ``camera not used`` (the label's camera was refused), ``kick`` / ``bounce`` / ``roll start`` /
-``stop`` (within :data:`NEAR` frames of that event of the truth), ``no label`` (the frame has no kept label:
+``stop`` / ``wall`` (within :data:`NEAR` frames of that event of the truth), ``no label`` (the frame has no kept label:
 the trajectory interpolates), ``short piece`` (the fitted piece holding it spans fewer than 8 frames),
 otherwise ``steady``; and runs of consecutive failing frames are listed with their context.
 
@@ -50,7 +50,7 @@ BAD_M = 0.25
 #: Frames on either side of an event of the truth that count as "near" it.
 NEAR = 3
 SHORT_PIECE = 8
-CONTEXTS = ("camera not used", "kick", "bounce", "roll start", "stop", "no label", "short piece", "steady")
+CONTEXTS = ("camera not used", "kick", "bounce", "roll start", "stop", "wall", "no label", "short piece", "steady")
 
 
 def met(figures: dict) -> dict[str, bool]:
@@ -66,7 +66,7 @@ def _events(truth: dict) -> list[tuple[float, str]]:
     """(frame, kind) of the truth's kicks and events (fractional frames for events between frames)."""
     fps = float(truth["fps"])
     ev = [(float(k["frame"]) + 0.5, "kick") for k in truth["kicks"] if k["frame"] > 0]  # it acts after its frame
-    ev += [(e["t"] * fps, {"bounce": "bounce", "roll": "roll start", "stop": "stop"}[e["kind"]])
+    ev += [(e["t"] * fps, {"bounce": "bounce", "roll": "roll start", "stop": "stop", "wall": "wall"}[e["kind"]])
            for e in truth.get("events", [])]
     return sorted(ev)
 
