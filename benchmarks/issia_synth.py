@@ -71,8 +71,8 @@ or rolling shutter, videos.
 The truth JSON has the dev truth's keys (``generator, seed, fps, duration_s, image_size, video_size,
 frame_numbering, conventions, physics, noise_model, cameras, kicks, summary, frames``) and ``events``
 (bounces, starts of a roll after the last bounce, stops, hits of the boards, with time and position); each
-kick also has its ``frame`` and ``target``. ``summary`` adds ``kicks_per_second``, ``lofted_kicks``, ``events`` (counts),
-``phase_share`` (air / ground moving / ground at rest), ``frames_by_correct_labels`` and
+kick also has its ``frame`` and ``target``. ``summary`` adds ``kicks_per_second``, ``lofted_kicks``,
+``events`` (counts), ``phase_share`` (air / ground moving / ground at rest), ``frames_by_correct_labels`` and
 ``frames_ball_in_no_image``; ``summary.seconds`` is the generation's wall time (the dev value, 3.1, matches
 no duration of its frames); ``coverage_1`` and ``coverage_2`` use a grid that reproduces the dev values
 exactly (:func:`pitch_coverage`); ``video_size`` and ``video_bytes`` are ``null`` (no videos). Per frame,
