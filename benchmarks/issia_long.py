@@ -101,8 +101,9 @@ def diagnose(fit, truth: dict, camera_ids, used: list[bool]) -> dict:
     """Every failing item of the issue's figures, with its context (module docstring).
 
     Returns ``{"counts": {item: {context: n}}, "runs": [ {item, first, last, context, detail, max_error_m,
-    labels, sources, phase} ]}``: ``labels`` the correct labels per frame of the run, ``phase`` the truth's
-    phases in it.
+    labels, sources, phase} ], "smoothed_error_by_correct_labels": {"0" | "1" | "2" | "3+": {frames, median_m,
+    p90_m, max_m}}}``: ``labels`` the correct labels per frame of the run, ``phase`` the truth's phases in it;
+    the last, over the frames where the ball is in an image, by their number of correct labels.
     """
     idx = {c: k for k, c in enumerate(camera_ids)}
     ev = _events(truth)
@@ -131,6 +132,15 @@ def diagnose(fit, truth: dict, camera_ids, used: list[bool]) -> dict:
         items["correct left out"] += [(f, k) for k in ok if k not in fit.cam_lists[f]]
     counts: dict[str, dict[str, int]] = {}
     runs = []
+    n_ok_a = np.array(n_ok)
+    seen = np.array([any(v["in_image"] for v in fr["cams"].values()) for fr in truth["frames"][: len(T)]])
+    by_labels = {}
+    for name, sel in (("0", n_ok_a == 0), ("1", n_ok_a == 1), ("2", n_ok_a == 2), ("3+", n_ok_a >= 3)):
+        e = es[seen & sel]
+        e = e[np.isfinite(e)]
+        if len(e):
+            by_labels[name] = {"frames": int(len(e)), "median_m": float(np.median(e)),
+                               "p90_m": float(np.percentile(e, 90)), "max_m": float(np.max(e))}
     for item, hits in items.items():
         ctx = [(f, k, *_context(f, k, ev, fit, used)) for f, k in hits]
         counts[item] = {c: n for c in CONTEXTS if (n := sum(x[2] == c for x in ctx))}
@@ -149,7 +159,7 @@ def diagnose(fit, truth: dict, camera_ids, used: list[bool]) -> dict:
                 "sources": sorted({s or "none" for s in fit.sources[a:b + 1]}),
                 "phase": sorted({truth["frames"][f]["phase"] for f in range(a, b + 1)}),
             })
-    return {"counts": counts, "runs": runs}
+    return {"counts": counts, "runs": runs, "smoothed_error_by_correct_labels": by_labels}
 
 
 def run_sequence(data: Path, truth: dict) -> list[dict]:
@@ -252,6 +262,11 @@ def main(argv=None) -> int:
             for item, c in d["counts"].items():
                 if c:
                     print(f"    {item}: {c}")
+            print("    smoothed error by correct labels in the frame: " + "; ".join(
+                f"{k}: {v['frames']} frames, median {v['median_m']:.3f} p90 {v['p90_m']:.2f} max {v['max_m']:.1f} m"
+                for k, v in d["smoothed_error_by_correct_labels"].items()))
+            if figures["cameras_refused"]:
+                print(f"    cameras refused: {figures['cameras_refused']}")
     print_table(results)
     timings = []
     lengths = [float(x) for x in args.timing_lengths.split(",") if x.strip()]
