@@ -263,7 +263,7 @@ def main(argv=None) -> int:
                 if c:
                     print(f"    {item}: {c}")
             print("    smoothed error by correct labels in the frame: " + "; ".join(
-                f"{k}: {v['frames']} frames, median {v['median_m']:.3f} p90 {v['p90_m']:.2f} max {v['max_m']:.1f} m"
+                f"{k}: {v['frames']} frames, median {v['median_m']:.3f} p90 {v['p90_m']:.2f} max {v['max_m']:.2f} m"
                 for k, v in d["smoothed_error_by_correct_labels"].items()))
             if figures["cameras_refused"]:
                 print(f"    cameras refused: {figures['cameras_refused']}")
