@@ -33,7 +33,8 @@ def test_add_prints_a_token_on_the_last_line_that_works_against_the_api(url: str
     assert token.startswith("v3d_") and " " not in token
     with TestClient(create_app(Settings(database_url=url))) as client:
         me = client.get("/api/auth/me", headers={"Authorization": f"Bearer {token}"})
-        assert me.json() == {"name": "ana", "role": "reviewer", "via": "token", "csrf_token": None}
+        assert me.json() == {"name": "ana", "role": "reviewer", "roles": ["annotator", "reviewer"], "via": "token",
+                             "csrf_token": None}
         assert client.get("/api/games", headers={"Authorization": f"Bearer {token}x"}).status_code == 401
         login = client.post("/api/auth/login", json={"name": "ana", "password": "my browser password"})
         assert login.status_code == 200  # the password read from standard input is the browser's
