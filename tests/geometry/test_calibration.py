@@ -278,9 +278,10 @@ def test_rig_computes_jac_once_for_the_chosen_position(monkeypatch: pytest.Monke
 
 
 def test_frames_calibrated_together_equal_one_call_each() -> None:
-    """``calibrate_frames_together`` (the rig's lock step: one stacked residual evaluation per round)
-    gives every job exactly ``calibrate_frame``'s result, bit for bit: fixed centres at three
-    positions, one free fit and a frame of other labels in the same call."""
+    """``calibrate_frames_together`` (the rig's call: jobs with the same lines share their
+    observations and what is computed once from them) gives every job exactly ``calibrate_frame``'s
+    result, bit for bit: fixed centres at three positions, one free fit and a frame of other labels
+    in the same call."""
     from app.geometry.calibration.frame import calibrate_frames_together
 
     main = (2.0, 64.0, -19.0)
