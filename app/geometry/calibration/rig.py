@@ -100,17 +100,19 @@ def estimate_rig(centres: np.ndarray | Sequence[Sequence[float]], *, radius_m: f
         raise ValueError(f"main_camera must give one flag per camera ({len(C)}), got {main.shape}")
     left = np.arange(len(C))
     positions: list[RigPosition] = []
+    near = np.linalg.norm(C[:, None, :] - C[None, :, :], axis=2) <= radius_m  # once: the rounds take sub-matrices
     while len(left):
-        d = np.linalg.norm(C[left][:, None, :] - C[left][None, :, :], axis=2)
-        counts = (d <= radius_m).sum(axis=1)
+        within = near[np.ix_(left, left)]
+        counts = within.sum(axis=1)
         seed = int(np.argmax(counts))
-        members = left[d[seed] <= radius_m]
+        if counts[seed] < min_frames:
+            break  # no point has enough neighbours left: every later group would be dropped too
+        members = left[within[seed]]
         centre = np.median(C[members], axis=0)
-        if len(members) >= min_frames:
-            spread = float(np.median(np.linalg.norm(C[members] - centre, axis=1)))
-            positions.append(RigPosition(centre_m=tuple(float(v) for v in centre),  # type: ignore[arg-type]
-                                         frames=int(len(members)), spread_m=spread,
-                                         main_frames=int(main[members].sum())))
+        spread = float(np.median(np.linalg.norm(C[members] - centre, axis=1)))
+        positions.append(RigPosition(centre_m=tuple(float(v) for v in centre),  # type: ignore[arg-type]
+                                     frames=int(len(members)), spread_m=spread,
+                                     main_frames=int(main[members].sum())))
         left = np.setdiff1d(left, members)
     positions.sort(key=lambda p: -p.frames)
     return CameraRig(positions=tuple(positions))
