@@ -67,7 +67,7 @@ from app.geometry.calibration.residuals import (
     residual_rows,
     undistort_radial_k1,
 )
-from app.geometry.calibration.solver import robust_lm, soft_l1_cost
+from app.geometry.calibration.solver import abs_percentile, robust_lm, soft_l1_cost
 from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
@@ -285,7 +285,7 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
     P = projection_matrix(f, param.principal_point, R, C)
     if not np.isfinite(sol.cost) or ground_points_in_front(P, obs) < 0.999:
         return None
-    return _Candidate(x=sol.x, param=param, cost=sol.cost, p90=float(np.percentile(np.abs(sol.residuals), 90)),
+    return _Candidate(x=sol.x, param=param, cost=sol.cost, p90=abs_percentile(sol.residuals, 90),
                       jacobian=sol.jacobian, origin=origin)
 
 

@@ -71,7 +71,7 @@ def fit_conic(points: np.ndarray) -> np.ndarray | None:
 def _fit_image_line(pts: np.ndarray) -> np.ndarray | None:
     """Total-least-squares homogeneous line (3,) through (N, 2) points; ``None`` if they coincide."""
     mu = pts.mean(axis=0)
-    _, s, vt = np.linalg.svd(pts - mu)
+    _, s, vt = np.linalg.svd(pts - mu, full_matrices=False)
     if len(pts) < 2 or s[0] < 1e-6:
         return None
     n = vt[-1]
@@ -187,7 +187,7 @@ def _pair_rows(ww: np.ndarray, ii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _solve_dlt(A: np.ndarray, T: np.ndarray, S: np.ndarray) -> np.ndarray | None:
     if len(A) < 8:
         return None
-    _, s, vt = np.linalg.svd(A, full_matrices=True)
+    _, s, vt = np.linalg.svd(A, full_matrices=False)  # (n, 9): only the right singular vectors are needed
     if s[7] < 1e-9 * s[0] if len(s) > 7 else True:
         return None
     G = vt[-1].reshape(3, 3)
