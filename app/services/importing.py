@@ -198,7 +198,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                 system = systems.get(srec.name)
                 new = system is None
                 if system is None:
-                    system = System(name=srec.name, kind=srec.kind)
+                    # Relationships a recomputation reads are set now, so none is lazily loaded after the flush.
+                    system = System(name=srec.name, kind=srec.kind, triangulation=None, doubts=[])
                     game.systems.append(system)
                     system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                 system.kind = srec.kind
@@ -210,7 +211,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                 for pos, frec in enumerate(srec.frames):
                     frame = frames.get(frec.name)
                     if frame is None:
-                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height)
+                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height,
+                                      calibration=None, ball_label=None, reprojection=None, optimised_box=None)
                         system.frames.append(frame)
                         frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                         changed = True
@@ -253,7 +255,9 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
     report.calibration_seconds = time.perf_counter() - t0
     report.rig_assisted += sum(RIG_FLAG in r.flags for r in results)
-    preload_systems(session, touched)  # the first write of the import
+    # The first write of the import. Systems new in this batch hold every row a recomputation reads
+    # already (their relationships were set when they were created): only stored ones are loaded.
+    preload_systems(session, [s for s in touched if s.id is not None])
     for frame, fields in zip(to_calibrate, results):
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
