@@ -246,10 +246,12 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     progress("merge", done, n_systems)
 
     t0 = time.perf_counter()
-    results = first_pass(to_calibrate, to_calibrate_recs, settings, progress, pool, ahead)
-    first_ms = [r.elapsed_ms for r in results]
+    batch = first_pass(to_calibrate, to_calibrate_recs, settings, progress, pool, ahead)
+    first_ms, rig_ms = batch.first_ms, dict(batch.rig_ms)
     with session.no_autoflush:
-        results, rig_ms = retry_with_game_rigs(session, to_calibrate, results, settings, progress, pool)
+        results, retried_ms = retry_with_game_rigs(session, to_calibrate, batch.results, settings, progress, pool,
+                                                   batch.finished)
+    rig_ms.update(retried_ms)
     if after_calibration is not None:
         after_calibration()
     report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
@@ -333,7 +335,7 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     try:
         with calibration_pool(settings.calibration_workers) as pool:
             loaded = [read() for read in batches.pop(0)] if batches else None
-            ahead = start_first_pass(session, loaded, pool) if loaded else None
+            ahead = start_first_pass(session, loaded, pool, settings) if loaded else None
             while loaded is not None:
                 batch, last = loaded, not batches
                 following: list[list[GameRecord] | None] = [None]
@@ -342,7 +344,7 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
                 def start_next() -> None:  # the next batch calibrates while this one is stored
                     if batches:
                         following[0] = [read() for read in batches.pop(0)]
-                        started[0] = start_first_pass(session, following[0], pool)
+                        started[0] = start_first_pass(session, following[0], pool, settings)
 
                 _store(session, batch, settings, report, progress if last and done == 0 else None, pool,
                        ahead, start_next)
