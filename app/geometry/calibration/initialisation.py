@@ -187,7 +187,9 @@ def _pair_rows(ww: np.ndarray, ii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _solve_dlt(A: np.ndarray, T: np.ndarray, S: np.ndarray) -> np.ndarray | None:
     if len(A) < 8:
         return None
-    _, s, vt = np.linalg.svd(A, full_matrices=False)  # (n, 9): only the right singular vectors are needed
+    # Only the right singular vectors are needed: without U (n x n) when n >= 9 rows, where all nine
+    # are computed anyway; with exactly 8 rows the ninth (the null vector) needs the full decomposition.
+    _, s, vt = np.linalg.svd(A, full_matrices=len(A) < A.shape[1])
     if s[7] < 1e-9 * s[0] if len(s) > 7 else True:
         return None
     G = vt[-1].reshape(3, 3)
