@@ -181,8 +181,8 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
                                  reason="no rig position for this game (no well-calibrated frames to estimate it)",
                                  rms_px=None, elapsed_ms=0.0)
     # JaC is the evaluation, never the choice: it is computed once, for the chosen position.
-    # Every position is fitted, all in lock step (one vectorised residual evaluation serves them all:
-    # the same results as one calibrate_frame call each, several times faster).
+    # Every position is fitted; the fits share the frame's observations (the same results as one
+    # calibrate_frame call each).
     t0 = time.perf_counter()
     results = calibrate_frames_together(
         [(lines, width, height, CalibrationPrior(expected_side=expected_side, centre_m=p.centre_m))
