@@ -111,13 +111,15 @@ class TreeMemorySampler:
     ``interval_s`` seconds in a thread. ``peak_mb`` and ``peak_processes`` hold the largest sum seen
     and how many processes made it; ``cpu_s`` the CPU time (user + system, s) of every process of
     the tree as last sampled, summed (a figure the machine's other load barely changes; up to one
-    interval of a process's last CPU time is missed)."""
+    interval of a process's last CPU time is missed), ``main_cpu_s`` that of the root process alone
+    (the import's serial part: reading, storing, recomputing; the rest is its calibration workers)."""
 
     def __init__(self, pid: int, interval_s: float = _SAMPLE_S) -> None:
         self.psutil = _psutil()
         self.pid, self.interval_s = pid, interval_s
         self.peak_mb, self.peak_processes, self.samples = 0.0, 0, 0
         self._cpu: dict[tuple[int, float], float] = {}  # (pid, create time) -> CPU seconds
+        self.main_cpu_s = 0.0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -136,6 +138,8 @@ class TreeMemorySampler:
                 n += 1
                 t = p.cpu_times()
                 self._cpu[(p.pid, p.create_time())] = t.user + t.system
+                if p.pid == self.pid:
+                    self.main_cpu_s = t.user + t.system
             except (ps.NoSuchProcess, ps.AccessDenied):
                 pass
         mb = total / 2**20
@@ -231,6 +235,7 @@ class ImportFigures:
     stage_seconds: dict[str, float] = field(default_factory=dict)
     cpu_s: float = 0.0
     cpu_ms_per_frame: float = 0.0
+    main_cpu_ms_per_frame: float = 0.0
     load_average: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
@@ -265,6 +270,7 @@ def run_import(tree: Path, db: Path, workers: Optional[int] = None) -> ImportFig
     return ImportFigures(seconds=seconds, games=games, systems=systems, frames=frames,
                          frames_per_s=frames / seconds, peak_mb=mem.peak_mb, peak_processes=mem.peak_processes,
                          stage_seconds=_stage_seconds(text), cpu_s=mem.cpu_s, cpu_ms_per_frame=1e3 * mem.cpu_s / frames,
+                         main_cpu_ms_per_frame=1e3 * mem.main_cpu_s / frames,
                          load_average=os.getloadavg())
 
 
@@ -506,7 +512,10 @@ def format_report(result: dict[str, Any]) -> str:
                      f"{imp['peak_processes']} processes (target <= {IMPORT_MAX_PEAK_MB:g}: {'ok' if ok_mem else 'MISSED'})")
         if imp.get("cpu_s"):
             lines.append(f"  CPU time of the process tree {imp['cpu_s']:.0f} s = {imp['cpu_ms_per_frame']:.1f} ms per frame "
-                         f"(load average at the end {', '.join(f'{v:.1f}' for v in imp['load_average'])})")
+                         f"(main process {imp.get('main_cpu_ms_per_frame', 0.0):.1f}, calibration workers "
+                         f"{imp['cpu_ms_per_frame'] - imp.get('main_cpu_ms_per_frame', 0.0):.1f}; CPU-limited on "
+                         f"{os.cpu_count()} cores: {1e3 * (os.cpu_count() or 1) / imp['cpu_ms_per_frame']:.0f} frames/s; "
+                         f"load average at the end {', '.join(f'{v:.1f}' for v in imp['load_average'])})")
         if imp.get("stage_seconds"):
             lines.append("  stages (tqdm bars): " + ", ".join(f"{k} {v:.0f} s" for k, v in imp["stage_seconds"].items()))
     if "demo" not in result:

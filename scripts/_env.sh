@@ -24,5 +24,8 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   else
     .venv/bin/python -m pip install --quiet -e .
   fi
+  # Compile the calibration's numba kernels once into their on-disk cache (about 15 s), so that the first
+  # calibration of a server or of a test does not pay it.
+  .venv/bin/python -c "from app.geometry.calibration.solver import compile_kernels; compile_kernels()"
   touch "$stamp"
 fi

@@ -152,9 +152,25 @@ def read_soccernet_v3(path: str | Path) -> list[GameRecord]:
         DatasetError: naming the file and field (truncated JSON, unknown line class, NaN or
             out-of-image ball box, unsafe zip entry, unknown linked replay, bad image size, ...).
     """
-    games = []
-    for labels in find_labels(Path(path), V3_LABELS):
-        league, season, match = game_key(labels.parent)
-        systems = v3_systems(labels, load_json_file(labels), FrameImages(labels.parent))
-        games.append(GameRecord(league, season, match, str(labels.parent.resolve()), systems))
-    return games
+    return [read_soccernet_v3_game(labels) for labels in soccernet_v3_labels(path)]
+
+
+def soccernet_v3_labels(path: str | Path) -> list[Path]:
+    """The ``Labels-v3.json`` of every game under ``path`` (as :func:`read_soccernet_v3` reads them,
+    sorted), so that a caller can read the games one at a time (:func:`read_soccernet_v3_game`).
+
+    Raises:
+        DatasetError: ``path`` does not exist or holds no ``Labels-v3.json``.
+    """
+    return find_labels(Path(path), V3_LABELS)
+
+
+def read_soccernet_v3_game(labels: Path) -> GameRecord:
+    """Read and validate one game's ``Labels-v3.json`` (see :func:`read_soccernet_v3`).
+
+    Raises:
+        DatasetError: naming the file and field.
+    """
+    league, season, match = game_key(labels.parent)
+    systems = v3_systems(labels, load_json_file(labels), FrameImages(labels.parent))
+    return GameRecord(league, season, match, str(labels.parent.resolve()), systems)

@@ -13,6 +13,7 @@ Conventions (method.md sections 1-2):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, Mapping
 
 import numpy as np
@@ -227,9 +228,9 @@ class Camera:
         }
 
     # ----- derived quantities -------------------------------------------------------------------
-    @property
+    @cached_property
     def has_distortion(self) -> bool:
-        """True when any distortion coefficient is non-zero."""
+        """True when any distortion coefficient is non-zero (computed once: the arrays are read-only)."""
         return bool(np.any(self.radial) or np.any(self.tangential) or np.any(self.thin_prism))
 
     @property

@@ -225,16 +225,6 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: P
     return out
 
 
-def start_calibrating(jobs: Sequence[CalibrationJob], pool: CalibrationPool) -> Iterator[CalibrationFields] | None:
-    """Hand ``jobs`` to the pool's processes now and return at once: the returned iterator yields one
-    :class:`CalibrationFields` per job, in order, waiting for each (so the caller can do other work
-    meanwhile, e.g. store the previous batch of an import). None when the pool runs in this process
-    or there are too few jobs (then calibrate them with :func:`calibrate_many` when needed)."""
-    if pool.executor is None or len(jobs) < _MIN_JOBS_FOR_POOL:
-        return None
-    return pool.map(_calibrate_job, jobs, chunksize=_chunk_size(jobs, pool.workers))
-
-
 def _chunk_size(jobs: Sequence[CalibrationJob], workers: int) -> int:
     """Jobs per round trip to a worker: fewer round trips, but a chunk is the tail one worker may run
     alone at the end; rig retries (a full fit per rig position) get small chunks."""

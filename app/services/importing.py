@@ -4,7 +4,9 @@ Every importer works in two phases so that bad input stores nothing:
 
 1. **read and validate** the whole input into plain records (``app.datasets``:
    :func:`read_soccernet_v3`, :func:`read_sn_calibration`, :func:`read_soccernet_v3d`); any problem
-   raises :class:`~app.services.errors.DatasetError` naming the file and the field;
+   raises :class:`~app.services.errors.DatasetError` naming the file and the field. A SoccerNet-v3
+   tree is validated game by game and its records dropped; each batch is read again when it is
+   stored, so memory holds two batches of records, not the whole tree;
 2. **write** the records in transactions of whole games (``Settings.import_batch_frames`` frames or so
    each, so that memory stays bounded at SoccerNet size): games, systems and frames are matched by
    their natural keys (league/season/match, system name, frame name), so importing the same input
@@ -27,6 +29,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import datetime
+from functools import partial
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -41,7 +44,7 @@ from app.db.models import (
 from app.db.types import utcnow
 from app.datasets.records import FrameRecord, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
-from app.datasets.soccernet_v3 import read_soccernet_v3
+from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
 from app.datasets.soccernet_v3d import read_soccernet_v3d
 from app.services.audit import record_summary
 from app.services.import_calibration import FirstPassAhead, first_pass, retry_with_game_rigs, start_first_pass
@@ -195,7 +198,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                 system = systems.get(srec.name)
                 new = system is None
                 if system is None:
-                    system = System(name=srec.name, kind=srec.kind)
+                    # Relationships a recomputation reads are set now, so none is lazily loaded after the flush.
+                    system = System(name=srec.name, kind=srec.kind, triangulation=None, doubts=[])
                     game.systems.append(system)
                     system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                 system.kind = srec.kind
@@ -207,7 +211,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                 for pos, frec in enumerate(srec.frames):
                     frame = frames.get(frec.name)
                     if frame is None:
-                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height)
+                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height,
+                                      calibration=None, ball_label=None, reprojection=None, optimised_box=None)
                         system.frames.append(frame)
                         frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                         changed = True
@@ -241,16 +246,20 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     progress("merge", done, n_systems)
 
     t0 = time.perf_counter()
-    results = first_pass(to_calibrate, to_calibrate_recs, settings, progress, pool, ahead)
-    first_ms = [r.elapsed_ms for r in results]
+    batch = first_pass(to_calibrate, to_calibrate_recs, settings, progress, pool, ahead)
+    first_ms, rig_ms = batch.first_ms, dict(batch.rig_ms)
     with session.no_autoflush:
-        results, rig_ms = retry_with_game_rigs(session, to_calibrate, results, settings, progress, pool)
+        results, retried_ms = retry_with_game_rigs(session, to_calibrate, batch.results, settings, progress, pool,
+                                                   batch.finished)
+    rig_ms.update(retried_ms)
     if after_calibration is not None:
         after_calibration()
     report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
     report.calibration_seconds = time.perf_counter() - t0
     report.rig_assisted += sum(RIG_FLAG in r.flags for r in results)
-    preload_systems(session, touched)  # the first write of the import
+    # The first write of the import. Systems new in this batch hold every row a recomputation reads
+    # already (their relationships were set when they were created): only stored ones are loaded.
+    preload_systems(session, [s for s in touched if s.id is not None])
     for frame, fields in zip(to_calibrate, results):
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
@@ -264,13 +273,21 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
 
 
-def _batches(records: list[GameRecord], max_frames: int) -> Iterator[list[GameRecord]]:
-    """Whole games, in order, grouped so that a group holds at most ``max_frames`` frames (a larger
-    game forms a group alone)."""
-    batch: list[GameRecord] = []
+#: One game of an import's input: reads (and validates) it when called, as often as needed.
+GameReader = Callable[[], GameRecord]
+
+
+def _held(records: list[GameRecord]) -> list[GameReader]:
+    """Readers of games already in memory (inputs read whole: a calibration set, a v3D export)."""
+    return [lambda rec=rec: rec for rec in records]
+
+
+def _batches(frames_per_game: list[int], max_frames: int) -> Iterator[list[int]]:
+    """Indices of whole games, in order, grouped so that a group holds at most ``max_frames`` frames
+    (a larger game forms a group alone)."""
+    batch: list[int] = []
     n = 0
-    for g in records:
-        frames = sum(len(s.frames) for s in g.systems)
+    for g, frames in enumerate(frames_per_game):
         if batch and n + frames > max_frames:
             yield batch
             batch, n = [], 0
@@ -288,49 +305,62 @@ def audit_counts(report: ImportReport) -> dict[str, object]:
 
 
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
-         read: Callable[[], list[GameRecord]], actor: str | None = None) -> ImportReport:
+         games: Callable[[], list[GameReader]], actor: str | None = None) -> ImportReport:
     """Read and validate everything (nothing is stored when the input is bad), then store it in
-    batches of whole games (``settings.import_batch_frames`` frames or so: memory stays bounded by a
-    batch, and a crash leaves whole games stored or not at all), each calibrated, recomputed and committed
-    before the next is read into the session; the calibration processes serve every batch. With
-    more than one batch ``progress`` reports the stage "games" (games stored / total) instead of the
-    inner stages of each batch. The import's audit entry (by ``actor``, None: the local user) is
-    written with the last batch."""
+    batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
+    stored or not at all), each calibrated, recomputed and committed before the next is stored; the
+    calibration processes serve every batch. ``games`` lists the input's games as readers: the
+    validation reads each once and drops it, and each batch is read again when its calibration
+    starts, so memory holds two batches of records, not the whole input (an input file changed
+    meanwhile can still fail the import then, after whole games were stored; running it again
+    completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
+    total) instead of the inner stages of each batch. The import's audit entry (by ``actor``, None:
+    the local user) is written with the last batch."""
     t0 = time.perf_counter()
     report = ImportReport(source=str(path))
-    records = read()  # validation: raises before anything is written
+    readers = games()
+    frames_per_game: list[int] = []
+    for read in readers:  # validation: raises before anything is written
+        rec = read()
+        report.systems += len(rec.systems)
+        frames_per_game.append(sum(len(s.frames) for s in rec.systems))
+        del rec
     report.read_seconds = time.perf_counter() - t0
-    report.games = len(records)
-    report.systems = sum(len(g.systems) for g in records)
-    report.frames = sum(len(s.frames) for g in records for s in g.systems)
-    batches = list(_batches(records, settings.import_batch_frames))
-    del records
+    report.games = len(readers)
+    report.frames = sum(frames_per_game)
+    batches = [[readers[i] for i in group] for group in _batches(frames_per_game, settings.import_batch_frames)]
     calibration_ms: list[float] = []
     calibration_seconds = 0.0
     done = 0
     try:
         with calibration_pool(settings.calibration_workers) as pool:
-            ahead = start_first_pass(session, batches[0], pool) if batches else None
-            while batches:
-                batch = batches.pop(0)
+            loaded = [read() for read in batches.pop(0)] if batches else None
+            ahead = start_first_pass(session, loaded, pool, settings) if loaded else None
+            while loaded is not None:
+                batch, last = loaded, not batches
+                following: list[list[GameRecord] | None] = [None]
                 started: list[FirstPassAhead | None] = [None]
 
                 def start_next() -> None:  # the next batch calibrates while this one is stored
                     if batches:
-                        started[0] = start_first_pass(session, batches[0], pool)
+                        following[0] = [read() for read in batches.pop(0)]
+                        started[0] = start_first_pass(session, following[0], pool, settings)
 
-                _store(session, batch, settings, report, progress if len(batches) == 0 and done == 0 else None, pool,
+                _store(session, batch, settings, report, progress if last and done == 0 else None, pool,
                        ahead, start_next)
-                ahead = started[0]
-                if not batches:
+                ahead, loaded = started[0], following[0]
+                if loaded is None and batches:  # not started ahead
+                    loaded = [read() for read in batches.pop(0)]
+                if last:
                     record_summary(session, "import", audit_counts(report), actor=actor)
                 session.commit()
                 session.expunge_all()
                 calibration_ms += report.calibration_ms
                 calibration_seconds += report.calibration_seconds
                 done += len(batch)
-                if progress and (batches or done > len(batch)):
+                if progress and (not last or done > len(batch)):  # more than one batch
                     progress("games", done, report.games)
+                del batch
     except BaseException:
         session.rollback()
         raise
@@ -354,7 +384,8 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: read_soccernet_v3(path), actor)
+    return _run(session, path, settings, progress,
+                lambda: [partial(read_soccernet_v3_game, labels) for labels in soccernet_v3_labels(path)], actor)
 
 
 def import_sn_calibration(session: Session, path: str | Path, settings: Settings, width: int | None = None,
@@ -368,7 +399,7 @@ def import_sn_calibration(session: Session, path: str | Path, settings: Settings
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: [read_sn_calibration(path, width, height)], actor)
+    return _run(session, path, settings, progress, lambda: _held([read_sn_calibration(path, width, height)]), actor)
 
 
 def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
@@ -382,4 +413,4 @@ def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: read_soccernet_v3d(path), actor)
+    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path)), actor)

@@ -62,6 +62,8 @@ def test_harness_on_one_game(two_games: Path, tmp_path: Path) -> None:
     assert figures.frames_per_s == pytest.approx(figures.frames / figures.seconds)
     assert 50.0 < figures.peak_mb < 4096.0 and figures.peak_processes >= 1  # one Python with numpy at least
     assert "calibrating" in figures.stage_seconds
+    # The main process's share of the tree's CPU (the rest is its calibration workers', if any).
+    assert 0.0 < figures.main_cpu_ms_per_frame <= figures.cpu_ms_per_frame
 
     with scale.Server(tmp_path / "scale.sqlite3") as server:
         assert httpx.get(f"{server.base_url}/api/systems").status_code == 401  # the benchmark logs in
@@ -83,7 +85,7 @@ def test_harness_on_one_game(two_games: Path, tmp_path: Path) -> None:
     rows = {r["measure"]: r for r in scale.compare(demo, measured)}
     assert rows["queue_p95_ms"]["ratio"] == pytest.approx(2.0)
     report = scale.format_report({"import": figures.__dict__, "demo": demo, "scale": measured})
-    assert "frames/s" in report and "queue_p95_ms" in report
+    assert "frames/s" in report and "queue_p95_ms" in report and "main process" in report
 
 
 def test_main_names_a_missing_database(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -145,6 +145,30 @@ def test_camera_from_homography_inverts_projection() -> None:
     np.testing.assert_allclose(C, truth.C, atol=1e-6)
 
 
+def test_a_homography_from_exactly_eight_equations_is_the_true_one() -> None:
+    """Four labelled lines, two points each, two along each pitch direction: eight point-on-line
+    equations, the fewest that fix the ground homography; its null vector needs the full SVD of the
+    (8, 9) DLT matrix (a thin SVD has no ninth vector)."""
+    from app.geometry.calibration.initialisation import ground_homographies
+
+    truth = _camera((-5.0, 60.0, -18.0), (-30.0, 0.0, 0.0), 1200.0, 960, 540)
+    ends = {"Side line top": ([-45.0, -34.0, 0.0], [-20.0, -34.0, 0.0]),
+            "Big rect. left bottom": ([-50.0, 20.16, 0.0], [-38.0, 20.16, 0.0]),
+            "Big rect. left main": ([-36.0, -15.0, 0.0], [-36.0, 15.0, 0.0]),
+            "Middle line": ([0.0, -25.0, 0.0], [0.0, 25.0, 0.0])}
+    lines = {}
+    for cls, (a, b) in ends.items():
+        uv, ok = truth.project(np.array([a, b]))
+        assert ok.all()
+        lines[cls] = [uv]
+    obs = build_observations(lines)
+    (name, H), *_ = ground_homographies(obs, principal_point(960, 540), 960.0)
+    assert name == "lines"
+    H_true = truth.projection_matrix[:, (0, 1, 3)]
+    H_true = H_true / np.linalg.norm(H_true) * np.sign(H_true[2, 2] * H[2, 2])
+    np.testing.assert_allclose(H, H_true, atol=1e-9)
+
+
 def test_one_line_is_refused_with_reason() -> None:
     lines = {"Side line top": [np.array([[10.0, 100.0], [900.0, 120.0]])]}
     result = calibrate_frame(lines, 960, 540, compute_jac=False)
@@ -278,9 +302,10 @@ def test_rig_computes_jac_once_for_the_chosen_position(monkeypatch: pytest.Monke
 
 
 def test_frames_calibrated_together_equal_one_call_each() -> None:
-    """``calibrate_frames_together`` (the rig's lock step: one stacked residual evaluation per round)
-    gives every job exactly ``calibrate_frame``'s result, bit for bit: fixed centres at three
-    positions, one free fit and a frame of other labels in the same call."""
+    """``calibrate_frames_together`` (the rig's call: jobs with the same lines share their
+    observations and what is computed once from them) gives every job exactly ``calibrate_frame``'s
+    result, bit for bit: fixed centres at three positions, one free fit and a frame of other labels
+    in the same call."""
     from app.geometry.calibration.frame import calibrate_frames_together
 
     main = (2.0, 64.0, -19.0)

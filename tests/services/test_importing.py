@@ -286,3 +286,37 @@ def test_batches_of_games_store_the_same_rows_as_one_batch(shared_dir, fresh_ses
     alone = fresh_session_factory("alone")
     import_soccernet_v3(alone, dev, Settings(calibration_workers=1))
     assert snapshot(alone) == snapshot(one)
+
+
+def test_an_import_reads_each_game_twice_and_holds_two_batches_at_most(shared_dir, fresh_session_factory,
+                                                                       monkeypatch):
+    """Validation reads every game and drops it; each batch is read again when its calibration starts,
+    so memory holds the records of two batches at most, not the whole input (400 games at SoccerNet
+    size)."""
+    import gc
+    import weakref
+
+    from app.core.config import Settings
+    from app.services import importing
+
+    dev = shared_dir / "data" / "synthetic" / "soccernet-v3-dev"
+    alive: list[weakref.ref] = []
+    reads: list[str] = []
+    alive_at_read: list[int] = []
+    real = importing.read_soccernet_v3_game
+
+    def read(labels):
+        gc.collect()
+        alive_at_read.append(sum(ref() is not None for ref in alive))
+        rec = real(labels)
+        alive.append(weakref.ref(rec))
+        reads.append(rec.match)
+        return rec
+
+    monkeypatch.setattr(importing, "read_soccernet_v3_game", read)
+    report = import_soccernet_v3(fresh_session_factory("twice"), dev,
+                                 Settings(calibration_workers=1, import_batch_frames=1))
+    games = sorted(set(reads))
+    assert report.games == len(games) == 2 and reads == games + games  # validation, then batch by batch
+    # Nothing is held after the validation; the second game is read while the first is being stored.
+    assert alive_at_read == [0, 0, 0, 1]

@@ -28,11 +28,9 @@ Method (every step pure numpy):
    (too few constraints, parallel or collinear labels) or no camera fits them within
    ``refuse_gamma`` of the diagonal. A budget of residual evaluations bounds the time per frame.
 
-Steps: every fit is a step generator (:func:`calibration_steps`; ``_fit`` over
-:func:`~.solver.robust_lm_steps`) that yields the residual evaluations it needs. :func:`calibrate_frame`
-answers them one by one; :func:`calibrate_frames_together` runs several frames' searches in lock step
-and answers each round with one stacked evaluation (:func:`~.residuals.stacked_residuals`), with the
-same arithmetic per fit, hence the same results (the game rig fits a frame at every position so).
+Every fit (``_fit``) is one compiled call (:func:`~.solver.robust_lm`), and every ranking of
+starts one compiled evaluation of all of them (:func:`~.residuals.residual_rows`); what stays in
+Python is the search below, which decides the order of the fits.
 
 Over 400 lines on purpose: the search above is one algorithm whose steps share private candidates,
 budgets and settings; split, its order (which decides the results) would be spread over modules.
@@ -49,7 +47,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Generator, Literal, Mapping
+from typing import Any, Callable, Literal, Mapping
 
 import numpy as np
 
@@ -66,11 +64,10 @@ from app.geometry.calibration.residuals import (
     ground_points_in_front,
     point_distances,
     projection_matrix,
-    residuals,
-    stacked_residuals,
+    residual_rows,
     undistort_radial_k1,
 )
-from app.geometry.calibration.solver import robust_lm_steps, run_lockstep, run_steps, soft_l1_cost
+from app.geometry.calibration.solver import abs_percentile, robust_lm, soft_l1_cost
 from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
@@ -257,33 +254,19 @@ class _Budget:
     lookat_done: bool = False
 
 
-#: What a calibration step generator yields: residuals wanted, as ``(x, observations, parametrisation)``
-#: with ``x`` one (k,) vector or a (B, k) batch; it is sent back their :func:`.residuals`, in order.
-Request = tuple[np.ndarray, Observations, CameraParametrisation]
-#: A calibration step generator (``_fit`` and its callers): yields lists of :data:`Request`, is sent
-#: lists of residual arrays, returns its result.
-CalSteps = Generator[list[Request], list[np.ndarray], Any]
-
-
-def evaluate_requests(requests: list[Request]) -> list[np.ndarray]:
-    """Answer one step generator's requests, each with its own :func:`.residuals` call."""
-    return [residuals(x, obs, param) for x, obs, param in requests]
-
-
-def _ask(steps: Generator[np.ndarray, np.ndarray, Any], obs: Observations, param: CameraParametrisation) -> CalSteps:
-    """Run a :func:`robust_lm_steps` fit as calibration steps (its batches become requests)."""
-    try:
-        x = next(steps)
-        while True:
-            x = steps.send((yield [(x, obs, param)])[0])
-    except StopIteration as stop:
-        return stop.value
+def _start_costs(xs: list[np.ndarray], params: list[CameraParametrisation], obs: Observations,
+                 scale: float) -> list[float]:
+    """Robust cost (px^2) of each start ``xs[i]`` under ``params[i]`` (all of one shape), in one
+    compiled evaluation."""
+    if not xs:
+        return []
+    return soft_l1_cost(residual_rows(np.array(xs), obs, params), scale).tolist()
 
 
 def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, origin: str,
-         budget: _Budget, max_iter: int = 25) -> CalSteps:
+         budget: _Budget, max_iter: int = 25) -> _Candidate | None:
     """Refine from ``x0`` and keep the result if it is a physical camera seeing its labels in front
-    (steps returning a :class:`_Candidate` or None)."""
+    (a :class:`_Candidate`, or None)."""
     if budget.evaluations <= 0:
         return None
     lower = np.full(len(x0), -np.inf)
@@ -292,8 +275,8 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
     if param.fixed_centre is None:
         upper[6] = -0.5  # above the ground (z points down); lower is a degenerate edge-on view
     try:
-        sol = yield from _ask(robust_lm_steps(x0, scale, lower=lower, upper=upper, max_iter=max_iter, tol=1e-5,
-                                              max_evaluations=budget.evaluations), obs, param)
+        sol = robust_lm(x0, obs, param, scale, lower=lower, upper=upper, max_iter=max_iter, tol=1e-5,
+                        max_evaluations=budget.evaluations)
     except (ValueError, np.linalg.LinAlgError):
         budget.evaluations -= max_iter
         return None
@@ -302,7 +285,7 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
     P = projection_matrix(f, param.principal_point, R, C)
     if not np.isfinite(sol.cost) or ground_points_in_front(P, obs) < 0.999:
         return None
-    return _Candidate(x=sol.x, param=param, cost=sol.cost, p90=float(np.percentile(np.abs(sol.residuals), 90)),
+    return _Candidate(x=sol.x, param=param, cost=sol.cost, p90=abs_percentile(sol.residuals, 90),
                       jacobian=sol.jacobian, origin=origin)
 
 
@@ -348,7 +331,7 @@ def _validate(lines: Any, width: Any, height: Any) -> None:
 
 
 def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior | None,
-            settings: CalibrationSettings, budget: _Budget, stage: str = "homography") -> CalSteps:
+            settings: CalibrationSettings, budget: _Budget, stage: str = "homography") -> _Candidate | None:
     """Best camera from one family of starts.
 
     ``stage="homography"``: the closed-form cameras of the candidate ground homographies (the
@@ -370,20 +353,20 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
     target = labelled_target(obs)
     if prior is not None and prior.centre_m is not None:
         centre = np.asarray(prior.centre_m, dtype=float)
-        starts = yield from _fixed_centre_starts(obs, centre, pp, width, scale)
+        starts = _fixed_centre_starts(obs, centre, pp, width, scale)
         for _, param, x0 in starts[:FIXED_CENTRE_REFINED]:
-            if consider((yield from _fit(x0, obs, param, scale, "rig", budget))):
+            if consider(_fit(x0, obs, param, scale, "rig", budget)):
                 break
         return best
 
-    starts = (yield from _homography_starts(obs, pp, scale)) if stage == "homography" else []
+    starts = _homography_starts(obs, pp, scale) if stage == "homography" else []
     for _, name, param, x0 in starts[:2]:
-        cand = yield from _fit(x0, obs, param, scale, name, budget)
+        cand = _fit(x0, obs, param, scale, name, budget)
         if consider(cand):
             return best
         if cand is not None and cand is best and obs.n_points >= settings.k1_min_points:
             # The lines may be curved by the lens: try the radial term before another start.
-            best = yield from _with_k1(cand, obs, scale, settings, budget)
+            best = _with_k1(cand, obs, scale, settings, budget)
             if best.p90 < accept:
                 return best
 
@@ -403,15 +386,14 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         except ValueError:
             continue
         fixed = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=c0)
-        cand = yield from _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", budget,
-                               max_iter=8)
+        cand = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", budget, max_iter=8)
         if cand is not None:
             ptz.append(cand)
     ptz.sort(key=lambda c: c.cost)
     for cand in ptz[:2]:
         f1, R1, C1, _ = cand.param.split(cand.x)
         free = CameraParametrisation(principal_point=pp, R0=R1)
-        if consider((yield from _fit(free.vector(float(f1), C1), obs, free, scale, cand.origin, budget))):
+        if consider(_fit(free.vector(float(f1), C1), obs, free, scale, cand.origin, budget)):
             break
     return best
 
@@ -423,9 +405,10 @@ FIXED_CENTRE_FOCALS_W: tuple[float, ...] = (0.5, 0.8, 1.25, 2.0, 3.2, 5.0, 8.0)
 FIXED_CENTRE_REFINED = 3
 
 
-def _fixed_centre_starts(obs: Observations, centre: np.ndarray, pp: np.ndarray, width: int, scale: float) -> CalSteps:
-    """Starts of a fit with the centre held fixed, ranked by robust cost (steps returning
-    ``[(cost, parametrisation, x0)]``): for each focal hypothesis of
+def _fixed_centre_starts(obs: Observations, centre: np.ndarray, pp: np.ndarray, width: int, scale: float
+                         ) -> list[tuple[float, CameraParametrisation, np.ndarray]]:
+    """Starts of a fit with the centre held fixed, ranked by robust cost (``[(cost, parametrisation,
+    x0)]``): for each focal hypothesis of
     :data:`FIXED_CENTRE_FOCALS_W`, the rotation that puts the labels' anchors where the labels show
     them (:func:`~.initialisation.fixed_centre_rotations`, a Wahba fit of image rays to world
     directions), and the rotation looking at the labelled part of the pitch."""
@@ -440,15 +423,15 @@ def _fixed_centre_starts(obs: Observations, centre: np.ndarray, pp: np.ndarray, 
         pass
     params = [CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=centre) for R0 in rotations]
     x0s = [param.vector(float(f0), centre) for param, f0 in zip(params, f_all)]
-    rs = yield [(x0, obs, param) for x0, param in zip(x0s, params)]
-    starts = [(float(soft_l1_cost(r, scale)), param, x0) for r, param, x0 in zip(rs, params, x0s)]
+    starts = list(zip(_start_costs(x0s, params, obs, scale), params, x0s))
     starts.sort(key=lambda t: t[0])
     return starts
 
 
-def _homography_starts(obs: Observations, pp: np.ndarray, scale: float) -> CalSteps:
-    """Closed-form cameras of the candidate ground homographies, ranked by robust cost (steps
-    returning ``[(cost, name, parametrisation, x0)]``)."""
+def _homography_starts(obs: Observations, pp: np.ndarray, scale: float
+                       ) -> list[tuple[float, str, CameraParametrisation, np.ndarray]]:
+    """Closed-form cameras of the candidate ground homographies, ranked by robust cost
+    (``[(cost, name, parametrisation, x0)]``)."""
     inits: list[tuple[str, CameraParametrisation, np.ndarray]] = []
     for name, H in ground_homographies(obs, pp, float(2.0 * pp[0] + 1.0)):
         init = camera_from_homography(H, pp)
@@ -457,16 +440,17 @@ def _homography_starts(obs: Observations, pp: np.ndarray, scale: float) -> CalSt
         f0, R0, C0 = init
         param = CameraParametrisation(principal_point=pp, R0=R0)
         inits.append((name, param, param.vector(f0, C0)))
-    rs = (yield [(x0, obs, param) for _, param, x0 in inits]) if inits else []
-    starts = [(float(soft_l1_cost(r, scale)), name, param, x0) for r, (name, param, x0) in zip(rs, inits)]
+    costs = _start_costs([x0 for _, _, x0 in inits], [param for _, param, _ in inits], obs, scale)
+    starts = [(cost, name, param, x0) for cost, (name, param, x0) in zip(costs, inits)]
     starts.sort(key=lambda t: t[0])
     return starts
 
 
 def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | None, width: int, height: int,
-                       settings: CalibrationSettings, budget: _Budget) -> CalSteps:
-    """Best camera that fits every labelled class but one (a mislabelled line), or ``None`` (steps
-    returning ``(class left out, candidate, its observations)`` or None).
+                       settings: CalibrationSettings, budget: _Budget
+                       ) -> tuple[str, _Candidate, Observations] | None:
+    """Best camera that fits every labelled class but one (a mislabelled line): ``(class left out,
+    candidate, its observations)``, or ``None``.
 
     Every class is left out in turn; the closed-form homography cameras of the remaining labels and
     the current best camera are ranked by robust cost, and the three best are refined. The winner
@@ -484,16 +468,15 @@ def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | 
         reduced = build_observations({c: v for c, v in lines.items() if c != cls})
         if reduced.constraint_count() < settings.min_constraints or len(reduced.classes) < 3:
             continue
-        starts = yield from _homography_starts(reduced, pp, scale)
+        starts = _homography_starts(reduced, pp, scale)
         if best is not None:
-            (r,) = yield [(best.x, reduced, best.param)]
-            starts.append((float(soft_l1_cost(r, scale)), "current", best.param, best.x))
+            starts.append((_start_costs([best.x], [best.param], reduced, scale)[0], "current", best.param, best.x))
         for cost, _, param, x0 in starts:
             ranked.append((cost / max(reduced.n_points, 1), cls, reduced, param, x0))
     ranked.sort(key=lambda t: t[0])
     winner: tuple[float, str, _Candidate, Observations] | None = None
     for _, cls, reduced, param, x0 in ranked[:3]:
-        cand = yield from _fit(x0, reduced, param, scale, f"without {cls!r}", budget)
+        cand = _fit(x0, reduced, param, scale, f"without {cls!r}", budget)
         if cand is None:
             continue
         worst = max(_class_residuals(cand.param.camera(cand.x), reduced)[0].values())
@@ -511,14 +494,14 @@ def _worst(cand: _Candidate | None, obs: Observations) -> float:
 
 
 def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: CalibrationSettings,
-             budget: _Budget) -> CalSteps:
-    """Add the radial coefficient when it lowers the robust cost by ``k1_min_gain`` or more (steps
-    returning the better :class:`_Candidate`)."""
+             budget: _Budget) -> _Candidate:
+    """Add the radial coefficient when it lowers the robust cost by ``k1_min_gain`` or more (the
+    better :class:`_Candidate`)."""
     f, R, C, _ = best.param.split(best.x)
     param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
                                   fixed_centre=best.param.fixed_centre)
     best.k1_tried = True
-    cand = yield from _fit(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1", budget)
+    cand = _fit(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1", budget)
     if cand is None or abs(cand.x[-1]) > settings.max_k1:
         return best
     if cand.cost < (1.0 - settings.k1_min_gain) * best.cost:
@@ -558,22 +541,20 @@ def calibrate_frame(
         AnnotationError: ``lines`` is not a mapping of known line classes (SoccerNet spelling) ->
             list of finite (N, 2) arrays.
     """
-    return run_steps(calibration_steps(lines, width, height, prior=prior, settings=settings, compute_jac=compute_jac,
-                                       jac_function=jac_function), evaluate_requests)
+    return _calibrate(lines, width, height, prior=prior, settings=settings, compute_jac=compute_jac,
+                      jac_function=jac_function)
 
 
 def calibrate_frames_together(jobs: list[tuple[FieldLines, int, int, CalibrationPrior | None]], *,
                               settings: CalibrationSettings | None = None, compute_jac: bool = True
                               ) -> list[CalibrationResult]:
-    """:func:`calibrate_frame` of several frames computed together: the fits of all of them advance
-    in lock step and share each vectorised residual evaluation (:func:`.residuals.stacked_residuals`),
-    which is several times cheaper than one call each when the frames share their labels (a frame
-    fitted at each position of its game's rig). Every result is exactly :func:`calibrate_frame`'s for
-    that job (same arithmetic per fit); only ``elapsed_ms`` is the time of the whole call.
+    """:func:`calibrate_frame` of several frames; jobs whose ``lines`` are the same object share
+    their observations (and what is computed once from them: the fixed-centre anchors, the compiled
+    residuals' arrays), as a frame fitted at each position of its game's rig does. Every result is
+    :func:`calibrate_frame`'s for that job; only ``elapsed_ms`` is the time of the whole call.
 
     Args:
-        jobs: ``(lines, width, height, prior)`` per frame, as :func:`calibrate_frame`'s arguments;
-            jobs whose ``lines`` are the same object share their observations.
+        jobs: ``(lines, width, height, prior)`` per frame, as :func:`calibrate_frame`'s arguments.
         settings, compute_jac: as :func:`calibrate_frame`.
 
     Raises:
@@ -581,20 +562,19 @@ def calibrate_frames_together(jobs: list[tuple[FieldLines, int, int, Calibration
     """
     t0 = time.perf_counter()
     shared: dict[int, Observations] = {}
-    steps = []
+    results = []
     for lines, width, height, prior in jobs:
         _validate(lines, width, height)
         obs = shared.get(id(lines))
         if obs is None:
             obs = shared[id(lines)] = build_observations(lines)
-        steps.append(calibration_steps(lines, width, height, prior=prior, settings=settings, compute_jac=compute_jac,
-                                       observations=obs))
-    results = run_lockstep(steps, stacked_residuals, evaluate_requests)
+        results.append(_calibrate(lines, width, height, prior=prior, settings=settings, compute_jac=compute_jac,
+                                  observations=obs))
     elapsed = (time.perf_counter() - t0) * 1e3
     return [replace(r, elapsed_ms=elapsed) for r in results]
 
 
-def calibration_steps(
+def _calibrate(
     lines: FieldLines,
     width: int,
     height: int,
@@ -604,10 +584,9 @@ def calibration_steps(
     compute_jac: bool = True,
     jac_function: Callable[..., Mapping[float, float]] | None = None,
     observations: Observations | None = None,
-) -> CalSteps:
-    """:func:`calibrate_frame` as step generator (yields lists of :data:`Request`, returns the
-    :class:`CalibrationResult`); ``observations``: ``build_observations(lines)`` when the caller
-    has it already."""
+) -> CalibrationResult:
+    """:func:`calibrate_frame`; ``observations``: ``build_observations(lines)`` when the caller has
+    it already."""
     t0 = time.perf_counter()
     _validate(lines, width, height)
     settings = settings or CalibrationSettings()
@@ -633,28 +612,28 @@ def calibration_steps(
         return _refused("degenerate configuration: all labelled points are collinear in the image", t0, tuple(flags))
     try:
         budget = _Budget(settings.max_evaluations)
-        best = yield from _search(obs, width, height, prior, settings, budget)
+        best = _search(obs, width, height, prior, settings, budget)
         fit_obs = obs
         scale = settings.loss_scale_gamma * diag
         limit = settings.refuse_gamma * diag
 
-        def polish(c: _Candidate | None, b: _Budget) -> CalSteps:
+        def polish(c: _Candidate | None, b: _Budget) -> _Candidate | None:
             if c is not None and not c.k1_tried and c.p90 > 0.5 * scale and obs.n_points >= settings.k1_min_points:
-                return (yield from _with_k1(c, obs, scale, settings, b))
+                return _with_k1(c, obs, scale, settings, b)
             return c
 
-        best = yield from polish(best, budget)
+        best = polish(best, budget)
         if _worst(best, obs) > limit and not fixed:
             if len(obs.classes) >= 4:
                 # One mislabelled line (left/right confusion, a wrong goal post) spoils a frame.
-                alt = yield from _without_one_class(lines, obs, best, width, height, settings,
-                                                    _Budget(settings.max_evaluations // 2))
+                alt = _without_one_class(lines, obs, best, width, height, settings,
+                                         _Budget(settings.max_evaluations // 2))
                 if alt is not None and _worst(alt[1], alt[2]) <= limit:
                     dropped, best, fit_obs = alt
                     flags.append(f"ignored_class:{dropped}")
             if fit_obs is obs and budget.evaluations > 0 and not budget.lookat_done:
-                other = yield from _search(obs, width, height, prior, settings, budget, stage="look-at")
-                other = yield from polish(other, budget)
+                other = _search(obs, width, height, prior, settings, budget, stage="look-at")
+                other = polish(other, budget)
                 if other is not None and (best is None or other.cost < best.cost):
                     best = other
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown

@@ -21,11 +21,14 @@ step, and are chosen between by one caller (:mod:`.frame`).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from app.geometry.calibration.observations import Observations
+from app.geometry.calibration.residuals import JIT
 from app.geometry.pitch import GOAL_CLASSES
 
 _WORLD_SCALE_M = 50.0
@@ -68,7 +71,7 @@ def fit_conic(points: np.ndarray) -> np.ndarray | None:
 def _fit_image_line(pts: np.ndarray) -> np.ndarray | None:
     """Total-least-squares homogeneous line (3,) through (N, 2) points; ``None`` if they coincide."""
     mu = pts.mean(axis=0)
-    _, s, vt = np.linalg.svd(pts - mu)
+    _, s, vt = np.linalg.svd(pts - mu, full_matrices=False)
     if len(pts) < 2 or s[0] < 1e-6:
         return None
     n = vt[-1]
@@ -184,7 +187,9 @@ def _pair_rows(ww: np.ndarray, ii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _solve_dlt(A: np.ndarray, T: np.ndarray, S: np.ndarray) -> np.ndarray | None:
     if len(A) < 8:
         return None
-    _, s, vt = np.linalg.svd(A, full_matrices=True)
+    # Only the right singular vectors are needed: without U (n x n) when n >= 9 rows, where all nine
+    # are computed anyway; with exactly 8 rows the ninth (the null vector) needs the full decomposition.
+    _, s, vt = np.linalg.svd(A, full_matrices=len(A) < A.shape[1])
     if s[7] < 1e-9 * s[0] if len(s) > 7 else True:
         return None
     G = vt[-1].reshape(3, 3)
@@ -393,6 +398,15 @@ def anchor_correspondences(obs: Observations, scale_px: float) -> list[tuple[np.
     return out
 
 
+@njit(**JIT)
+def _wahba(camera_dirs: np.ndarray, world_dirs: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    B = (camera_dirs * weights.reshape(-1, 1)).T @ world_dirs
+    u, _, vt = np.linalg.svd(B)
+    fix = np.eye(3)
+    fix[2, 2] = np.linalg.det(u @ vt)
+    return u @ fix @ vt
+
+
 def wahba_rotation(camera_dirs: np.ndarray, world_dirs: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     """The rotation ``R`` (world to camera) minimising ``sum w_i |c_i - R w_i|^2`` (Wahba's problem,
     solved by SVD as in Kabsch's algorithm; Markley 1988).
@@ -407,10 +421,46 @@ def wahba_rotation(camera_dirs: np.ndarray, world_dirs: np.ndarray, weights: np.
     >>> np.round(R @ [1.0, 0.0, 0.0], 6).tolist(), round(float(np.linalg.det(R)), 6)
     ([0.0, 1.0, 0.0], 1.0)
     """
-    w = np.ones(len(camera_dirs)) if weights is None else np.asarray(weights, dtype=float)
-    B = (np.asarray(camera_dirs, float) * w[:, None]).T @ np.asarray(world_dirs, float)
-    u, _, vt = np.linalg.svd(B)
-    return u @ np.diag([1.0, 1.0, float(np.linalg.det(u @ vt))]) @ vt
+    c = np.ascontiguousarray(camera_dirs, dtype=float)
+    w = np.ones(len(c)) if weights is None else np.ascontiguousarray(weights, dtype=float)
+    return _wahba(c, np.ascontiguousarray(world_dirs, dtype=float), w)
+
+
+@njit(**JIT)
+def _upright_rotations(uv: np.ndarray, world: np.ndarray, pp: np.ndarray, focals: np.ndarray, anchor_sigma_px: float,
+                       roll_sigma_rad: float) -> np.ndarray:
+    """:func:`fixed_centre_rotations` from the anchors' pixels ``uv`` (A, 2) and unit world directions
+    ``world`` (A, 3) seen from the centre: (F, 3, 3)."""
+    n = uv.shape[0]
+    w_dirs = np.empty((n + 1, 3))
+    w_dirs[:n] = world
+    w_dirs[n, 0], w_dirs[n, 1], w_dirs[n, 2] = 0.0, 0.0, 1.0  # down
+    cam = np.empty((n + 1, 3))
+    weights = np.empty(n + 1)
+    out = np.empty((focals.shape[0], 3, 3))
+    for i in range(focals.shape[0]):
+        f = focals[i]
+        weights[:n] = (f / anchor_sigma_px) ** 2
+        weights[n] = 1.0 / roll_sigma_rad**2
+        for a in range(n):
+            x, y = (uv[a, 0] - pp[0]) / f, (uv[a, 1] - pp[1]) / f
+            norm = math.sqrt(x * x + y * y + 1.0)
+            cam[a, 0], cam[a, 1], cam[a, 2] = x / norm, y / norm, 1.0 / norm
+        # No-roll prior: the camera's x axis is horizontal, i.e. the world's down direction seen from
+        # the camera, R (0, 0, 1), has no x component. As a Wahba pair: down <-> R down with its x
+        # component removed, from the current estimate (a fixed point reached in a few rounds);
+        # first guess: down is the image's y axis.
+        cam[n, 0], cam[n, 1], cam[n, 2] = 0.0, 1.0, 0.0
+        R = np.eye(3)
+        for _ in range(4):
+            R = _wahba(cam, w_dirs, weights)
+            vy, vz = R[1, 2], R[2, 2]  # R down, its x component removed
+            norm = math.sqrt(vy * vy + vz * vz)
+            if norm < 1e-9:  # looking straight down: the roll is free
+                break
+            cam[n, 0], cam[n, 1], cam[n, 2] = 0.0, vy / norm, vz / norm
+        out[i] = R
+    return out
 
 
 def fixed_centre_rotations(obs: Observations, centre: np.ndarray, principal_point: np.ndarray,
@@ -459,23 +509,6 @@ def fixed_centre_rotations(obs: Observations, centre: np.ndarray, principal_poin
     if np.any(norms < 1e-6):
         return np.zeros((0, 3, 3))
     world /= norms[:, None]
-    # No-roll prior: the camera's x axis is horizontal, i.e. the world's down direction seen from
-    # the camera, R (0, 0, 1), has no x component. As a Wahba pair: down <-> R down with its x
-    # component removed, from the current estimate (a fixed point reached in a few rounds).
-    down = np.array([0.0, 0.0, 1.0])
-    w_dirs = np.vstack([world, down])
-    out = []
-    for f in focals:
-        w_all = np.append(np.full(len(uv), (f / anchor_sigma_px) ** 2), 1.0 / np.radians(roll_sigma_deg) ** 2)
-        rays = np.hstack([(uv - principal_point) / f, np.ones((len(uv), 1))])
-        rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-        seen = np.array([0.0, 1.0, 0.0])  # first guess: down is the image's y axis
-        for _ in range(4):
-            R = wahba_rotation(np.vstack([rays, seen]), w_dirs, w_all)
-            v = R @ down
-            v[0] = 0.0
-            if np.linalg.norm(v) < 1e-9:  # looking straight down: the roll is free
-                break
-            seen = v / np.linalg.norm(v)
-        out.append(R)
-    return np.array(out)
+    return _upright_rotations(np.ascontiguousarray(uv, dtype=float), np.ascontiguousarray(world),
+                              np.ascontiguousarray(principal_point, dtype=float), np.ascontiguousarray(focals),
+                              float(anchor_sigma_px), float(np.radians(roll_sigma_deg)))

@@ -94,6 +94,26 @@ class Observations:
         c, r = self.circle_centre[self.circle_index], self.circle_radius[self.circle_index]
         return c[:, 0] ** 2 + c[:, 1] ** 2 - r**2
 
+    @cached_property
+    def kernel_arrays(self) -> tuple[np.ndarray, ...]:
+        """The arrays the compiled residuals read (:mod:`.residuals`), C-contiguous float64 (the index
+        int64): ``(seg_a, seg_b, seg_index, seg_points, seg_weight, circle_point_cx, circle_point_cy,
+        circle_point_k, circle_points, circle_weight)``."""
+        f = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+        return (f(self.seg_a.reshape(-1, 3)), f(self.seg_b.reshape(-1, 3)),
+                np.ascontiguousarray(self.seg_index, dtype=np.int64), f(self.seg_points.reshape(-1, 2)),
+                f(self.seg_weight), f(self.circle_point_cx), f(self.circle_point_cy), f(self.circle_point_k),
+                f(self.circle_points.reshape(-1, 2)), f(self.circle_weight))
+
+    @cached_property
+    def ground_points(self) -> np.ndarray:
+        """(G, 2) annotated pixels of ground elements (straight ones but goal posts and crossbars, then
+        circles), C-contiguous."""
+        goal = np.array([c in GOAL_CLASSES for c in self.seg_classes], dtype=bool)
+        keep = ~goal[self.seg_index] if len(self.seg_points) else np.zeros(0, bool)
+        return np.ascontiguousarray(np.concatenate([self.seg_points[keep], self.circle_points]).reshape(-1, 2),
+                                    dtype=np.float64)
+
     @property
     def n_points(self) -> int:
         """Number of annotated points used (straight and circular)."""

@@ -11,13 +11,16 @@ functions: the service layer chooses which frames feed the rig and which are ret
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
+from numba import njit
 
 from app.geometry.annotations import FieldLines
+from app.geometry.calibration.residuals import JIT
 from app.geometry.calibration.frame import (
     RIG_FLAG,
     CalibrationPrior,
@@ -60,6 +63,40 @@ class CameraRig:
         return best if best is not None and self.positions[best].main_frames > 0 else None
 
 
+@njit(**JIT)
+def _greedy_groups(C: np.ndarray, radius_m: float, min_frames: int) -> np.ndarray:
+    """:func:`estimate_rig`'s greedy grouping of the centres ``C`` (N, 3) metres: the group (0, 1, ...
+    in the order they are formed) of each centre, -1 for the centres left out. A round seeds a group
+    with the remaining centre that has the most remaining neighbours within ``radius_m`` (the first
+    such centre on ties), which joins it with them; the rounds end when that count is below
+    ``min_frames`` (every later group would be smaller still)."""
+    n = C.shape[0]
+    near = np.empty((n, n), dtype=np.bool_)
+    for i in range(n):
+        for j in range(n):
+            dx, dy, dz = C[i, 0] - C[j, 0], C[i, 1] - C[j, 1], C[i, 2] - C[j, 2]
+            near[i, j] = math.sqrt(dx * dx + dy * dy + dz * dz) <= radius_m
+    group = np.full(n, -1)
+    left = np.ones(n, dtype=np.bool_)
+    g = 0
+    while True:
+        best, seed = -1, -1
+        for i in range(n):
+            if left[i]:
+                count = 0
+                for j in range(n):
+                    if left[j] and near[i, j]:
+                        count += 1
+                if count > best:
+                    best, seed = count, i
+        if seed < 0 or best < min_frames:
+            return group
+        for j in range(n):
+            if left[j] and near[seed, j]:
+                group[j], left[j] = g, False
+        g += 1
+
+
 def estimate_rig(centres: np.ndarray | Sequence[Sequence[float]], *, radius_m: float = 3.0, min_frames: int = 2,
                  main_camera: Sequence[bool] | None = None) -> CameraRig:
     """Group the centres of well-calibrated cameras of one game into fixed positions.
@@ -98,20 +135,15 @@ def estimate_rig(centres: np.ndarray | Sequence[Sequence[float]], *, radius_m: f
     main = np.zeros(len(C), dtype=bool) if main_camera is None else np.asarray(main_camera, dtype=bool)
     if main.shape != (len(C),):
         raise ValueError(f"main_camera must give one flag per camera ({len(C)}), got {main.shape}")
-    left = np.arange(len(C))
+    group = _greedy_groups(np.ascontiguousarray(C), float(radius_m), int(min_frames))
     positions: list[RigPosition] = []
-    while len(left):
-        d = np.linalg.norm(C[left][:, None, :] - C[left][None, :, :], axis=2)
-        counts = (d <= radius_m).sum(axis=1)
-        seed = int(np.argmax(counts))
-        members = left[d[seed] <= radius_m]
+    for g in range(int(group.max(initial=-1)) + 1):
+        members = np.flatnonzero(group == g)
         centre = np.median(C[members], axis=0)
-        if len(members) >= min_frames:
-            spread = float(np.median(np.linalg.norm(C[members] - centre, axis=1)))
-            positions.append(RigPosition(centre_m=tuple(float(v) for v in centre),  # type: ignore[arg-type]
-                                         frames=int(len(members)), spread_m=spread,
-                                         main_frames=int(main[members].sum())))
-        left = np.setdiff1d(left, members)
+        spread = float(np.median(np.linalg.norm(C[members] - centre, axis=1)))
+        positions.append(RigPosition(centre_m=tuple(float(v) for v in centre),  # type: ignore[arg-type]
+                                     frames=int(len(members)), spread_m=spread,
+                                     main_frames=int(main[members].sum())))
     positions.sort(key=lambda p: -p.frames)
     return CameraRig(positions=tuple(positions))
 
@@ -149,8 +181,8 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
                                  reason="no rig position for this game (no well-calibrated frames to estimate it)",
                                  rms_px=None, elapsed_ms=0.0)
     # JaC is the evaluation, never the choice: it is computed once, for the chosen position.
-    # Every position is fitted, all in lock step (one vectorised residual evaluation serves them all:
-    # the same results as one calibrate_frame call each, several times faster).
+    # Every position is fitted; the fits share the frame's observations (the same results as one
+    # calibrate_frame call each).
     t0 = time.perf_counter()
     results = calibrate_frames_together(
         [(lines, width, height, CalibrationPrior(expected_side=expected_side, centre_m=p.centre_m))
