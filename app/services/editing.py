@@ -54,7 +54,7 @@ from app.services._labels import LabelError, check_box, check_line_points, check
 from app.services import audit
 from app.services.errors import ConflictError, InvalidInputError, NotFoundError, StaleVersionError, found
 from app.services.issia import refit_after_edit
-from app.services.recompute import recompute_frame, recompute_system
+from app.services.recompute import load_for_recompute, recompute_frame, recompute_system
 from app.services.system_page import load_frame
 from app.services.versions import claim_frame, claim_system_review
 
@@ -252,6 +252,8 @@ def _recompute(session: Session, system: System, settings: Settings) -> None:
     of its sequence's trajectory the edit touches, and the systems whose place on it changed
     (``app.services.issia.refit_after_edit``), in the same transaction."""
     if not refit_after_edit(session, system, settings):  # an ISSIA system is recomputed after its re-fit
+        session.flush()
+        load_for_recompute(session, [system.id])  # what it reads, in a few queries (not one per relation and view)
         recompute_system(session, system, settings)
 
 

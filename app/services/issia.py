@@ -41,12 +41,12 @@ from app.services.doubts import update_doubts
 from app.services.errors import DatasetError
 from app.services.audit import record_summary
 from app.services.importing import ImportReport, audit_counts
-from app.services.issia_refit import load_for_recompute, refit_sequence, sequence_columns
+from app.services.issia_refit import refit_sequence, sequence_columns
 from app.services.issia_trajectory import fit_sequence
 from app.geometry.jac import JAC_GAMMAS
 from app.services.calibrating import GIVEN_CAMERA_FLAG, CalibrationFields, apply_calibration
 from app.services.progress import Progress
-from app.services.recompute import recompute_system, recompute_systems
+from app.services.recompute import load_for_recompute, recompute_system, recompute_systems
 
 LEAGUE, SEASON = "issia", "sequences"
 #: Calibration flag of a camera calibrated again from the ball's trajectory of the others.

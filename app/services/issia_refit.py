@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 import sqlalchemy as sa
-from sqlalchemy.orm import Session, joinedload, selectinload
+from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
@@ -54,6 +54,7 @@ from app.geometry.camera import Camera
 from app.geometry.trajectory import (
     REFIT_REACH, Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window,
 )
+from app.services.recompute import load_for_recompute
 from app.services.issia_trajectory import (
     FPS, TRIANGULATION_FIELDS, Changed, DoubtFrame, fit_args, fit_sequence, flagged_label_doubts, piece_from_json,
     row_values,
@@ -289,19 +290,10 @@ def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame:
 
 #: What ``recompute_system`` and ``update_doubts`` read of a system, loaded in a few queries instead of
 #: one lazy load per view and relation.
-RECOMPUTE_LOADS = (
-    selectinload(System.frames).options(joinedload(Frame.calibration), joinedload(Frame.ball_label),
-                                        joinedload(Frame.review), joinedload(Frame.reprojection),
-                                        joinedload(Frame.optimised_box), joinedload(Frame.field_lines)),
-    joinedload(System.triangulation).selectinload(Triangulation.pairs),
-    selectinload(System.doubts), joinedload(System.trajectory_point), joinedload(System.review),
-)
-
-
 def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: tuple[int, int]) -> list[Changed]:
     """Write the columns of the rows of ``fit`` whose values differ from the stored ones (executemany
     UPDATEs by primary key); load the systems of the ``edited`` frames and of the rows whose kept labels
-    changed (:data:`RECOMPUTE_LOADS`: the caller recomputes them); replace the trajectory doubts of the
+    changed (``recompute.load_for_recompute``: the caller recomputes them); replace the trajectory doubts of the
     others that have flagged labels (:func:`_refresh_trajectory_doubts`: their labels, and so every other
     doubt, are unchanged, only their place on the trajectory moved)."""
     updates, changed = _changed_rows(window, fit)
@@ -389,13 +381,4 @@ def _write_rows(session: Session, updates: list[dict[str, Any]]) -> None:
             session.expire(tp)
 
 
-def load_for_recompute(session: Session, ids: list[int]) -> dict[int, System]:
-    """The systems ``ids`` with what ``recompute_system`` and ``update_doubts`` read (:data:`RECOMPUTE_LOADS`),
-    by id, in a few queries (systems already in the session get their relations that are not loaded)."""
-    if not ids:
-        return {}
-    return {s.id: s for s in session.scalars(
-        sa.select(System).where(System.id.in_(ids)).options(*RECOMPUTE_LOADS)).unique()}
-
-
-__all__ = ["SequenceColumns", "sequence_columns", "refit_sequence", "load_for_recompute", "RECOMPUTE_LOADS"]
+__all__ = ["SequenceColumns", "sequence_columns", "refit_sequence"]

@@ -33,7 +33,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 from sqlalchemy import select
-from sqlalchemy.orm import Session, selectinload
+from sqlalchemy.orm import Session, joinedload, selectinload
 
 from app.core.config import Settings
 from app.db.models import (
@@ -293,28 +293,36 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
     frame.optimised_box = row
 
 
-#: Everything :func:`recompute_system` reads or replaces, loaded up front for many systems.
-_RECOMPUTE_LOADS = (
-    selectinload(System.triangulation).selectinload(Triangulation.pairs),
-    selectinload(System.doubts), selectinload(System.review),
-    selectinload(System.frames).options(
-        selectinload(Frame.calibration), selectinload(Frame.ball_label), selectinload(Frame.reprojection),
-        selectinload(Frame.optimised_box), selectinload(Frame.review), selectinload(Frame.field_lines),
-    ),
+#: What :func:`recompute_system` and ``update_doubts`` read or replace (an ISSIA system's trajectory point too):
+#: the frames' one-to-one rows joined to them, the lists one query each.
+RECOMPUTE_LOADS = (
+    selectinload(System.frames).options(joinedload(Frame.calibration), joinedload(Frame.ball_label),
+                                        joinedload(Frame.review), joinedload(Frame.reprojection),
+                                        joinedload(Frame.optimised_box), joinedload(Frame.field_lines)),
+    joinedload(System.triangulation).selectinload(Triangulation.pairs),
+    selectinload(System.doubts), joinedload(System.trajectory_point), joinedload(System.review),
 )
 _LOAD_CHUNK = 500
 #: Systems recomputed per transaction by :func:`refresh_stale_systems`.
 _REFRESH_BATCH = 500
 
 
-def preload_systems(session: Session, systems: Sequence[System]) -> None:
-    """Flush, then load the frames, calibrations, labels and derived rows of ``systems`` in a few
-    ``selectin`` queries (instead of one lazy load per attribute and frame)."""
-    session.flush()
-    ids = [s.id for s in systems]
+def load_for_recompute(session: Session, ids: Sequence[int]) -> dict[int, System]:
+    """The systems ``ids`` with what :func:`recompute_system` and ``update_doubts`` read (:data:`RECOMPUTE_LOADS`),
+    by id, in a few queries per :data:`_LOAD_CHUNK` systems instead of one lazy load per attribute and frame
+    (systems already in the session get the relations they have not loaded; changed attributes are kept)."""
+    out: dict[int, System] = {}
+    ids = list(ids)
     for start in range(0, len(ids), _LOAD_CHUNK):
-        session.scalars(select(System).where(System.id.in_(ids[start:start + _LOAD_CHUNK]))
-                        .options(*_RECOMPUTE_LOADS)).all()
+        out.update((s.id, s) for s in session.scalars(
+            select(System).where(System.id.in_(ids[start:start + _LOAD_CHUNK])).options(*RECOMPUTE_LOADS)).unique())
+    return out
+
+
+def preload_systems(session: Session, systems: Sequence[System]) -> None:
+    """Flush, then load what recomputing ``systems`` reads (:func:`load_for_recompute`)."""
+    session.flush()
+    load_for_recompute(session, [s.id for s in systems])
 
 
 def recompute_systems(session: Session, systems: Iterable[System], settings: Settings,
