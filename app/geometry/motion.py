@@ -134,6 +134,49 @@ def shifted(kind: str, q: np.ndarray, dt: float) -> np.ndarray:
     return np.concatenate([positions(kind, q, np.array([te]))[0, :2], q[2:4] + q[4:6] * te, q[4:6]])
 
 
+#: The fastest ball a fitted piece may have, m/s (the hardest shots on record are about 35 m/s): a piece
+#: faster than this fitted a wrong label, not a ball.
+MAX_BALL_SPEED_M_S = 45.0
+#: A roll decelerating harder than this (m/s^2; grass slows a ball by about 0.5-3 m/s^2) is a stop a
+#: break should explain, not a roll.
+MAX_ROLL_DECELERATION_M_S2 = 20.0
+#: How far (m) a fitted ball may lie beyond the SoccerNet pitch's touch and goal lines (105 x 68 m) or
+#: below the grass (a flight's lowest point: bounces are at ``z = -r``, so noise only), and how high it
+#: may fly (m above the grass).
+PLAY_MARGIN_M = 15.0
+BELOW_GRASS_M = 0.5
+MAX_HEIGHT_M = 40.0
+
+
+def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
+    """A ball could move as model ``kind`` with parameters ``q`` (6,) does for ``duration_s`` seconds:
+    never faster than :data:`MAX_BALL_SPEED_M_S`, inside the pitch with :data:`PLAY_MARGIN_M` around it,
+    a flight never more than :data:`BELOW_GRASS_M` below the grass nor :data:`MAX_HEIGHT_M` above it, a
+    roll decelerating by at most :data:`MAX_ROLL_DECELERATION_M_S2`. A fit of a few labels that one wrong
+    label pulls, or of one camera whose depth the labels barely fix, breaks these long before it looks
+    wrong in the image. World: SoccerNet metres (pitch 105 x 68 m centred on the centre spot, z down)."""
+    q = np.asarray(q, float)
+    if not np.all(np.isfinite(q)) or duration_s < 0:
+        return False
+    T = float(duration_s)
+    if kind == "flight":
+        speeds = [np.linalg.norm(q[3:6] + np.array([0.0, 0.0, GRAVITY_M_S2 * t])) for t in (0.0, T)]
+        apex = min(max(-q[5] / GRAVITY_M_S2, 0.0), T)  # the highest point (z smallest) inside the piece
+        ends = positions(kind, q, np.array([0.0, T, apex]))
+        if max(ends[:2, 2]) > BELOW_GRASS_M or ends[2, 2] < -MAX_HEIGHT_M:
+            return False
+    else:
+        if float(np.hypot(q[4], q[5])) > MAX_ROLL_DECELERATION_M_S2:
+            return False
+        te = min(T, stop_time(kind, q))
+        speeds = [float(np.hypot(*(q[2:4] + q[4:6] * t))) for t in (0.0, te)]
+        ends = positions(kind, q, np.array([0.0, te]))
+    if max(speeds) > MAX_BALL_SPEED_M_S:
+        return False
+    half = np.array([52.5, 34.0]) + PLAY_MARGIN_M
+    return bool(np.all(np.abs(ends[:, :2]) <= half))
+
+
 def robust_cost(residuals_px: np.ndarray) -> float:
     """Cauchy cost of labels, ``sum_i c^2 log(1 + |r_i|^2 / c^2)`` (px^2), ``residuals_px`` (n, 2)."""
     e2 = np.einsum("ij,ij->i", residuals_px, residuals_px)

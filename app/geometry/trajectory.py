@@ -15,7 +15,12 @@ restitution; the fitted pieces on each side find that without being told). Piece
 the data (``_segment``): a piece grows frame by frame while its model *predicts* the next
 labelled frames; when three consecutive labelled frames all disagree with the prediction (every
 label of the frame further than ``break_px``), the piece ends and a new one starts; each boundary
-is then moved by up to three frames to the place with the lowest total cost.
+is then moved by up to three frames to the place with the lowest total cost. A piece no ball could
+follow (:func:`app.geometry.motion.plausible`: faster than 45 m/s, under the grass, far off the pitch) or
+shorter than four labelled frames between two others (most often a wrong label at a kick that a piece of
+its own explains) is left out: the trajectory crosses its frames by a cubic Hermite curve between the
+neighbouring pieces, against which their labels are judged; there the frame's own consensus of two or
+more labels on a ball near the curve keeps those labels.
 
 Each piece is fitted by iteratively reweighted linear least squares on the algebraic residual
 ``(r_1 - x r_3) . (p - C)``, ``(r_2 - y r_3) . (p - C)`` (``r_i`` rows of R, ``(x, y)`` the
@@ -35,7 +40,7 @@ only the frames whose place on the trajectory can have changed, re-triangulating
 kept labels changed (:func:`refit_local`, its fast path, reads only the pieces around the edit).
 
 World: SoccerNet metres, origin at the centre spot, z down. Image: continuous pixels, origin at
-the top-left corner. Pure: numpy only. (About 770 lines: the segmentation, the per-frame assembly and
+the top-left corner. Pure: numpy only. (About 830 lines: the segmentation, the per-frame assembly and
 the re-fit after an edit, which replays the segmentation's own tests on a few pieces, share the
 segmentation's helpers; split apart they would import each other's private parts.)
 """
@@ -50,7 +55,7 @@ from app.geometry.camera import Camera
 from app.geometry.consensus import ball_consensus
 from app.geometry.motion import (
     BALL_RADIUS_M, GRAVITY_M_S2, KINDS, LabelTable as _Labels, linear_fits, positions as _positions, refine as _refine,
-    determined as _determined, robust_cost, shifted as _shifted, stop_time as _stop_time,
+    determined as _determined, plausible as _plausible, robust_cost, shifted as _shifted, stop_time as _stop_time,
 )
 from app.geometry.triangulation import BallObservation, reprojection_error_px, triangulate_ball
 
@@ -63,6 +68,9 @@ DEFAULT_FLAG_PX = 15.0
 DEFAULT_BREAK_PX = 10.0
 DEFAULT_TAU_PX = 20.0
 _MIN_FRAMES = 4
+#: Between pieces (a Hermite gap) the frame's own consensus keeps its labels when its point lies within
+#: this many metres of the curve (the curve is off by tenths of a metre across a short kick or bounce).
+GAP_CONSENSUS_M = 2.0
 #: A roll is chosen over a flight unless the flight's robust cost is lower by more than this per label (px^2):
 #: label noise alone costs about 1 px^2 per label, so smaller gains are noise.
 _ROLL_PREFERENCE_PX2 = 1.0
@@ -295,10 +303,12 @@ def _frame_bad(L: _Labels, by_frame, piece: Piece, frame: int, fps: float, break
 
 
 def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int], fps: float,
-             break_px: float = DEFAULT_BREAK_PX, previous: Sequence[Piece] = ()) -> list[Piece]:
+             break_px: float = DEFAULT_BREAK_PX, previous: Sequence[Piece] = (),
+             ends: tuple[bool, bool] = (True, True)) -> list[Piece]:
     """Split labelled ``frames`` (sorted) into pieces (module docstring); each piece refined, from the
     params of the piece of ``previous`` (the pieces before an edit) it overlaps most when there is one,
-    re-expressed at its first frame (:func:`_fit`: the same minimum, in fewer iterations)."""
+    re-expressed at its first frame (:func:`_fit`: the same minimum, in fewer iterations); pieces no ball
+    could follow are left out (:func:`_plausible_pieces`; ``ends``: ``frames`` starts / ends the sequence)."""
     previous = sorted(previous, key=lambda p: p.first_frame)
     frames = list(frames)
     n = len(frames)
@@ -347,8 +357,40 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
         if len(split) == len(bounds):
             break
         bounds = _shift_bounds(L, by_frame, frames, fps, split, best)
-    return [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=_overlapping(previous, frames[a], frames[b - 1]),
-                        linear=best.linear(frames[a:b])) for a, b in bounds if b > a]
+    bounds = [(a, b) for a, b in bounds if b > a]
+    pieces = [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=_overlapping(previous, frames[a], frames[b - 1]),
+                          linear=best.linear(frames[a:b])) for a, b in bounds]
+    return _plausible_pieces(L, by_frame, frames, fps, bounds, pieces, ends)
+
+
+def _acceptable(piece: Piece, labelled: int, fps: float, alone: bool) -> bool:
+    """``piece`` (``labelled`` labelled frames) can be the ball's motion: :func:`app.geometry.motion.plausible`
+    over its frames, and, unless it is ``alone`` (the only piece), at least ``_MIN_FRAMES`` labelled frames:
+    a shorter piece between two others is most often the segmentation fitting a wrong label at a break."""
+    if not alone and labelled < _MIN_FRAMES:
+        return False
+    return _plausible(piece.kind, piece.params, (piece.last_frame - piece.first_frame) / fps)
+
+
+def _plausible_pieces(L: _Labels, by_frame, frames: Sequence[int], fps: float, bounds: Sequence[tuple[int, int]],
+                      pieces: Sequence[Piece], ends: tuple[bool, bool]) -> list[Piece]:
+    """``pieces`` (of ``frames[a:b]`` for ``bounds``) without those that are not :func:`_acceptable`: their
+    frames become a gap the trajectory crosses by a Hermite curve between the neighbours (:func:`_assemble`),
+    so their labels are judged against the motion around them and a wrong one is flagged. A piece at an end
+    of the sequence (``ends``: ``frames`` starts / ends the sequence) has no neighbour on that side: it is
+    fitted together with its neighbour instead (kept when that is acceptable; the labels it does not
+    explain are flagged), or dropped."""
+    alone = len(pieces) == 1
+    ok = [_acceptable(p, b - a, fps, alone) for (a, b), p in zip(bounds, pieces)]
+    out: list[Piece | None] = [p if good else None for p, good in zip(pieces, ok)]
+    for end, (i, j) in zip(ends, ((0, 1), (len(pieces) - 1, len(pieces) - 2))):
+        if not end or len(pieces) < 2 or ok[i] or not ok[j]:
+            continue
+        (a, b) = (bounds[i][0], bounds[j][1]) if i < j else (bounds[j][0], bounds[i][1])
+        merged = _best_piece(L, by_frame, frames[a:b], fps, refine=True, start=pieces[j])
+        if _acceptable(merged, b - a, fps, True):
+            out[i], out[j] = None, merged
+    return [p for p in out if p is not None]
 
 
 def _overlapping(pieces: Sequence[Piece], first: int, last: int) -> Piece | None:
@@ -493,12 +535,14 @@ REFIT_REACH = 2
 
 def _stretch(pieces: Sequence[Piece], first_frame: int, last_frame: int) -> tuple[int, int]:
     """Indices (lo, hi) of the pieces the segmentation of :func:`refit_window` replaces: those that
-    overlap ``first_frame..last_frame`` (or, between pieces, the two around it) and one neighbour
-    on each side."""
+    overlap ``first_frame..last_frame`` and one neighbour on each side (the breaks to them can move);
+    when the window lies between pieces (a gap), the two around it (the breaks beyond them are as far
+    from the edit as the pieces are long)."""
     hit = [i for i, p in enumerate(pieces) if p.last_frame >= first_frame and p.first_frame <= last_frame]
     if not hit:  # the window lies between pieces (or outside): its neighbours
-        hit = [i for i, p in enumerate(pieces) if p.last_frame < first_frame][-1:] + \
-              [i for i, p in enumerate(pieces) if p.first_frame > last_frame][:1]
+        around = [i for i, p in enumerate(pieces) if p.last_frame < first_frame][-1:] + \
+                 [i for i, p in enumerate(pieces) if p.first_frame > last_frame][:1]
+        return min(around), max(around)
     return max(min(hit) - 1, 0), min(max(hit) + 1, len(pieces) - 1)
 
 
@@ -541,11 +585,18 @@ def _local_stretch(pieces: Sequence[Piece], first_frame: int, last_frame: int) -
     if not hit or any(not any(p.first_frame <= f <= p.last_frame for p in pieces) for f in (first_frame, last_frame)):
         return None
     lo, hi = min(hit), max(hit)
-    if lo > 0 and first_frame - pieces[lo].first_frame < _MARGIN:
+    if lo > 0 and first_frame - pieces[lo].first_frame < _MARGIN and not _gap_between(pieces[lo - 1], pieces[lo]):
         lo -= 1
-    if hi + 1 < len(pieces) and pieces[hi].last_frame - last_frame < _MARGIN:
+    if hi + 1 < len(pieces) and pieces[hi].last_frame - last_frame < _MARGIN and \
+            not _gap_between(pieces[hi], pieces[hi + 1]):
         hi += 1
     return lo, hi
+
+
+def _gap_between(a: Piece, b: Piece) -> bool:
+    """Frames lie between consecutive pieces ``a`` and ``b`` (a piece left out there, or frames without
+    labels): the break between them cannot move, the Hermite curve crosses the frames between."""
+    return b.first_frame > a.last_frame + 1
 
 
 def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int, last_frame: int, fps: float,
@@ -557,7 +608,8 @@ def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int
     This applies when the edit lies at least ``_MARGIN`` labelled frames inside the stretch (beyond
     the frames a break may move by and those that confirm one) and every piece, fitted again, still
     explains its frames as :func:`_segment` requires of a piece (the same model as before, its first
-    and last frame within ``break_px``, no ``_CONFIRM`` frames in a row with a label off it)."""
+    and last frame within ``break_px``, no ``_CONFIRM`` frames in a row with a label off it, and
+    :func:`_acceptable`)."""
     stretch = _local_stretch(pieces, first_frame, last_frame)
     if stretch is None:
         return None
@@ -566,7 +618,10 @@ def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int
     frames = [f for f in sorted(by_frame) if old[0].first_frame <= f <= old[-1].last_frame]
     if not frames or frames[0] != old[0].first_frame or frames[-1] != old[-1].last_frame:
         return None
-    if sum(f < first_frame for f in frames) < _MARGIN or sum(f > last_frame for f in frames) < _MARGIN:
+    # the stretch's outer ends stay: a break the edit lies near could move, a gap's edge cannot
+    if (sum(f < first_frame for f in frames) < _MARGIN and not (lo > 0 and _gap_between(pieces[lo - 1], old[0]))) or \
+            (sum(f > last_frame for f in frames) < _MARGIN and
+             not (hi + 1 < len(pieces) and _gap_between(old[-1], pieces[hi + 1]))):
         return None
     cuts = [sum(f < p.first_frame for f in frames) for p in old] + [len(frames)]
     bounds = list(zip(cuts[:-1], cuts[1:]))
@@ -582,8 +637,11 @@ def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int
         if bad[0] or bad[-1] or _bad_run(list(off)) is not None:
             return None
     # refined as :func:`_segment` does, each model's refinement started from the piece before the edit
-    return lo, hi, [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=p, linear=best.linear(frames[a:b]))
-                    for (a, b), p in zip(bounds, old)]
+    new = [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=p, linear=best.linear(frames[a:b]))
+           for (a, b), p in zip(bounds, old)]
+    if not all(_acceptable(p, b - a, fps, len(pieces) == 1) for (a, b), p in zip(bounds, new)):
+        return None  # the segmentation would leave it out (:func:`_plausible_pieces`)
+    return lo, hi, new
 
 
 def local_span(pieces: Sequence[Piece], first_frame: int, last_frame: int) -> tuple[int, int] | None:
@@ -678,7 +736,8 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
         start = min(first_frame, pieces[lo].first_frame)
         end = max(last_frame, pieces[hi].last_frame)
         frames = [f for f in sorted(by_frame) if start <= f <= end]
-        new = _segment(L, by_frame, frames, fit.fps, break_px, pieces[lo:hi + 1]) if frames else []
+        new = _segment(L, by_frame, frames, fit.fps, break_px, pieces[lo:hi + 1],
+                       ends=(lo == 0, hi == len(pieces) - 1)) if frames else []
     else:
         lo, hi = 0, -1
         new = _segment(L, by_frame, sorted(by_frame), fit.fps, break_px) if by_frame else []
@@ -717,6 +776,19 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
         res = np.linalg.norm(L.residuals(sel, positions[L.frame[sel] - a]), axis=1)
         residuals[L.frame[sel] - a, L.cam[sel]] = res
     outliers = np.nan_to_num(residuals, nan=0.0) > flag_px
+    # between pieces the trajectory is a Hermite curve, not a fitted motion: there labels that agree among
+    # themselves (the frame's own consensus of two or more) on a ball near the curve are kept whatever
+    # their pixel distance to it (two labels agree by chance when one lies near the other's epipolar line,
+    # but then their point lies metres away along the ray)
+    covered = np.zeros(n, bool)
+    for p in pieces:
+        covered[max(p.first_frame, a) - a:min(p.last_frame, b) - a + 1] = True
+    for r in np.flatnonzero(~covered & (np.isfinite(residuals).sum(axis=1) >= 2) & outliers.any(axis=1)):
+        row = a + r - pts_first
+        tri = triangulate_frame([BallObservation(int(k), cameras[k], pts[row, k], widths[k])
+                                 for k in np.flatnonzero(np.isfinite(residuals[r]))], tau_px=tau_px)
+        if tri.point is not None and np.linalg.norm(tri.point - positions[r]) <= GAP_CONSENSUS_M:
+            outliers[r, list(tri.kept)] = False
     keep_mask = np.isfinite(residuals) & ~outliers
     # the frames whose kept labels are those of ``previous`` (outside the edit) keep its triangulation
     same = np.zeros(n, bool)

@@ -346,3 +346,35 @@ def test_shifted_params_describe_the_same_motion_and_few_labels_do_not_determine
     q = motion.linear_fits(many, [(np.arange(len(many.frame)), "flight", 0)], FPS)[0][0]
     assert motion.determined(many, "flight", q, many.frame / FPS)
     assert not motion.determined(two_frames_one_camera, "flight", q, two_frames_one_camera.frame / FPS)
+
+
+def test_plausible_refuses_motions_no_ball_makes():
+    """motion.plausible: a kicked flight and a decelerating roll pass; too fast, under the grass, far off the
+    pitch, too high or stopping too hard do not (the pieces a wrong label at a break fits)."""
+    from app.geometry.motion import plausible
+
+    assert plausible("flight", np.array([0, 0, -0.11, 10, 5, -12]), 2.0)  # a lob that lands 2.4 s later
+    assert plausible("roll", np.array([10, -5, 8, 1, -1.5, -0.2]), 3.0)
+    assert not plausible("flight", np.array([0, 0, -0.11, 700, 0, 0]), 0.08)  # 700 m/s: a label 28 m off in 1 frame
+    assert not plausible("flight", np.array([0, 0, -0.11, 10, 0, 5]), 1.0)  # ends 9.8 m under the grass
+    assert not plausible("flight", np.array([36.8, -52.6, -6.7, 1, 1, 0]), 0.1)  # 18.6 m beyond the touch line
+    assert not plausible("flight", np.array([0, 0, -0.11, 0, 0, -30]), 6.0)  # 46 m up
+    assert not plausible("roll", np.array([0, 0, 5, 0, -40, 0]), 0.1)  # 40 m/s^2 on grass
+    assert not plausible("roll", np.array([0, 0, np.nan, 0, 0, 0]), 0.1)
+
+
+def test_a_wrong_label_at_a_kick_is_left_out_not_fitted_by_a_short_piece(scene):
+    """A wrong label of the first frame after a kick, its frame's other labels missing: the segmentation
+    fits it with a short piece of its own only if it is allowed to; with the plausibility rule the short
+    piece goes, the frames between the pieces are crossed by the Hermite curve and the label is flagged."""
+    truth, pts = scene
+    pts = pts.copy()
+    kick = int(np.ceil(2.02 * FPS))  # first frame after the lofted kick
+    pts[kick, 1:] = np.nan
+    pts[kick, 0] = pts[kick, 0] + np.array([400.0, -250.0])
+    fit = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS)
+    assert fit.outliers[kick, 0] and 0 not in fit.cam_lists[kick]
+    for p in fit.pieces:
+        assert p.last_frame - p.first_frame + 1 >= 4 or len(fit.pieces) == 1
+    err = np.linalg.norm(fit.positions - truth, axis=1)
+    assert np.nanmedian(err) < 0.05 and err[kick] < 1.0

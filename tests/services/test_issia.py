@@ -342,9 +342,12 @@ def test_the_pieces_an_edit_reads_are_those_within_reach(db_session, db_settings
     every = sorted({(p.first_frame, p.last_frame): p for p in (
         piece_from_json(d) for d in db_session.scalars(sa.select(TrajectoryPoint.piece)) if d)}.values(),
         key=lambda p: p.first_frame)
-    assert len(every) > 2 * REFIT_REACH
-    for f in (0, 16, 70, 115, 181, 199):
-        hit = [i for i, p in enumerate(every) if p.first_frame <= f <= p.last_frame]
+    assert len(every) > REFIT_REACH + 1
+    gaps = [p.last_frame + 1 for p, q in zip(every, every[1:]) if q.first_frame > p.last_frame + 1]
+    assert gaps, "the dev sequence's fit has a gap between pieces (a short piece left out)"
+    for f in (0, 16, 70, 115, gaps[0], 199):
+        hit = [i for i, p in enumerate(every) if p.first_frame <= f <= p.last_frame] or \
+            [i for i, p in enumerate(every) if p.last_frame < f][-1:] + [i for i, p in enumerate(every) if p.first_frame > f][:1]
         lo, hi = max(min(hit) - REFIT_REACH, 0), min(max(hit) + REFIT_REACH, len(every) - 1)
         got = _pieces_around(db_session, game.id, f, f)
         spans = [(p.first_frame, p.last_frame) for p in got]
