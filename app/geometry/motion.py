@@ -324,6 +324,19 @@ def residuals_and_jacobian(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarra
     return f, J.reshape(-1, 6)
 
 
+def position_prior(times_s: Sequence[float], targets: np.ndarray, sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """A flight's position at ``times_s`` (m,) s (after the piece's first frame) pulled towards ``targets``
+    (m, 3) world metres with standard deviation ``sigma_m``: the ``prior`` of :func:`refine`, scaled so
+    that ``sigma_m`` weighs as much as :data:`CAUCHY_PX` of a label's residual. Linear in ``q`` because
+    ``p(t) = p0 + v0 t + (0, 0, g t^2 / 2)``."""
+    rows, rhs = [], []
+    w = CAUCHY_PX / sigma_m
+    for tau, target in zip(times_s, np.asarray(targets, float)):
+        rows.append(np.hstack([np.eye(3), tau * np.eye(3)]) * w)
+        rhs.append((target - np.array([0.0, 0.0, 0.5 * GRAVITY_M_S2 * tau ** 2])) * w)
+    return np.vstack(rows), np.concatenate(rhs)
+
+
 def determined(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_condition: float = 1e12) -> bool:
     """The labels of ``L`` (times ``t``) determine model ``kind`` near ``q``: the Cauchy-weighted normal
     matrix ``J^T diag(rho') J`` of the pixel residuals, equilibrated, has a condition number below
@@ -342,9 +355,14 @@ def _loss(f: np.ndarray) -> float:
     return float(np.sum(np.log1p((f / CAUCHY_PX) ** 2))) * CAUCHY_PX ** 2
 
 
-def refine(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_iterations: int = 100) -> np.ndarray:
+def refine(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_iterations: int = 100,
+           prior: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The robust least-squares fit (module docstring) of model ``kind`` to all labels of ``L`` at times
     ``t`` (n,) s, from ``q`` (6,); returns the parameters (6,).
+
+    ``prior``: ``(A, b)``, (m, 6) and (m,): linear residuals ``A q - b``, in the units of a pixel
+    residual, added to the cost as plain squares (a prior is not an outlier to discount): e.g.
+    :func:`position_prior`.
 
     Levenberg-Marquardt on ``sum_j c^2 log(1 + f_j^2 / c^2)`` (:data:`CAUCHY_PX`): gradient ``J^T (rho' f)``,
     curvature ``H = J^T diag(max(rho' + 2 z rho'', eps)) J`` (``z = f^2 / c^2``), step
@@ -353,11 +371,25 @@ def refine(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_iterat
     decreasing, or ``max_iterations``).
     """
     q = np.asarray(q, float).copy()
-    f, J = residuals_and_jacobian(L, kind, q, t)
-    cost = _loss(f)
+
+    m = 0 if prior is None else len(prior[1])
+
+    def rows(q, jacobian=True):  # the labels' residuals, then the prior's
+        f, J = residuals_and_jacobian(L, kind, q, t, jacobian)
+        if prior is None:
+            return f, J
+        A, b = prior
+        return np.concatenate([f, A @ q - b]), (np.vstack([J, A]) if J is not None else None)
+
+    def loss(f):  # Cauchy on the labels' rows, squares on the prior's
+        return _loss(f[:len(f) - m]) + float(np.sum(f[len(f) - m:] ** 2))
+
+    f, J = rows(q)
+    cost = loss(f)
     lam = 1e-3
     for _ in range(max_iterations):
         z = (f / CAUCHY_PX) ** 2
+        z[len(f) - m:] = 0.0  # the prior's rows: rho' = 1, curvature 1
         grad = J.T @ (f / (1.0 + z))
         H = (J * np.maximum((1.0 - z) / (1.0 + z) ** 2, 1e-6)[:, None]).T @ J
         diag = np.diag(np.maximum(np.diag(H), 1e-12 * max(float(np.max(np.diag(H))), 1e-300)))
@@ -374,7 +406,7 @@ def refine(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_iterat
                 step = None
             if step is not None and np.all(np.isfinite(step)):
                 new = q + step
-                new_cost = _loss(residuals_and_jacobian(L, kind, new, t, jacobian=False)[0])
+                new_cost = loss(rows(new, jacobian=False)[0])
                 if new_cost <= cost:
                     break
             lam *= 10.0
@@ -385,9 +417,10 @@ def refine(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_iterat
         if flat:
             break
         lam = max(lam * 0.1, 1e-9)
-        f, J = residuals_and_jacobian(L, kind, q, t)
+        f, J = rows(q)
     return q
 
 
 __all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "CAUCHY_PX", "LINEAR_ROUNDS", "LabelTable", "stop_time",
-           "positions", "shifted", "robust_cost", "determined", "linear_fits", "residuals_and_jacobian", "refine"]
+           "positions", "shifted", "robust_cost", "determined", "linear_fits", "residuals_and_jacobian", "refine",
+           "position_prior", "plausible"]

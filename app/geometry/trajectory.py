@@ -55,7 +55,7 @@ from app.geometry.camera import Camera
 from app.geometry.consensus import ball_consensus
 from app.geometry.motion import (
     BALL_RADIUS_M, GRAVITY_M_S2, KINDS, LabelTable as _Labels, linear_fits, positions as _positions, refine as _refine,
-    determined as _determined, plausible as _plausible, robust_cost, shifted as _shifted, stop_time as _stop_time,
+    determined as _determined, plausible as _plausible, position_prior as _position_prior, robust_cost, shifted as _shifted, stop_time as _stop_time,
 )
 from app.geometry.triangulation import BallObservation, reprojection_error_px, triangulate_ball
 
@@ -68,6 +68,12 @@ DEFAULT_FLAG_PX = 15.0
 DEFAULT_BREAK_PX = 10.0
 DEFAULT_TAU_PX = 20.0
 _MIN_FRAMES = 4
+#: A one-camera flight's position at a break is tied to its neighbour's this tightly (m): a kick changes
+#: the velocity, not the position, and the break lies within half a frame of the midpoint (at 30 m/s,
+#: 0.6 m); the depth it fixes is otherwise tens of metres loose. Neighbours further than
+#: ``_ANCHOR_GAP`` frames away (frames without labels between) do not tie it.
+ANCHOR_SIGMA_M = 0.5
+_ANCHOR_GAP = 3
 #: Between pieces (a Hermite gap) the frame's own consensus keeps its labels when its point lies within
 #: this many metres of the curve (the curve is off by tenths of a metre across a short kick or bounce).
 GAP_CONSENSUS_M = 2.0
@@ -360,7 +366,53 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
     bounds = [(a, b) for a, b in bounds if b > a]
     pieces = [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=_overlapping(previous, frames[a], frames[b - 1]),
                           linear=best.linear(frames[a:b])) for a, b in bounds]
+    pieces = _anchored(L, by_frame, fps, pieces, range(len(pieces)))
     return _plausible_pieces(L, by_frame, frames, fps, bounds, pieces, ends)
+
+
+def _one_camera_flight(L: _Labels, by_frame, piece: Piece) -> bool:
+    """``piece`` is a flight all of whose labels come from one camera: the labels fix the ball's direction
+    from that camera, its depth only through gravity's curvature (tens of metres off over a second)."""
+    if piece.kind != "flight":
+        return False
+    idx = [by_frame[f] for f in range(piece.first_frame, piece.last_frame + 1) if f in by_frame]
+    return bool(idx) and len(np.unique(L.cam[np.concatenate(idx)])) == 1
+
+
+def _anchored(L: _Labels, by_frame, fps: float, pieces: Sequence[Piece], which: range) -> list[Piece]:
+    """``pieces`` with those of ``which`` that are one-camera flights (:func:`_one_camera_flight`) fitted
+    again with their ends tied to their neighbours: the ball does not jump at a kick, a bounce or a wall,
+    so at the break (half-way between the two pieces' frames, when at most :data:`_ANCHOR_GAP` frames
+    apart) the flight's position is pulled towards the neighbour's (:func:`app.geometry.motion.position_prior`,
+    :data:`ANCHOR_SIGMA_M`), unless the neighbour is a one-camera flight itself; kept when the tied flight
+    is :func:`~app.geometry.motion.plausible`."""
+    out = list(pieces)
+    for i in which:
+        p = pieces[i]
+        if not _one_camera_flight(L, by_frame, p):
+            continue
+        times, targets = [], []
+        for j in (i - 1, i + 1):
+            if not 0 <= j < len(pieces) or _one_camera_flight(L, by_frame, pieces[j]):
+                continue
+            n = pieces[j]
+            gap = p.first_frame - n.last_frame if j < i else n.first_frame - p.last_frame
+            if gap > _ANCHOR_GAP:
+                continue
+            tb = (n.last_frame + p.first_frame) / 2 if j < i else (p.last_frame + n.first_frame) / 2
+            times.append((tb - p.first_frame) / fps)
+            targets.append(n.position([tb], fps)[0])
+        if not times:
+            continue
+        idx = np.concatenate([by_frame[f] for f in range(p.first_frame, p.last_frame + 1) if f in by_frame])
+        sub = L.take(idx)
+        t = (sub.frame - p.first_frame) / fps
+        q = _refine(sub, "flight", p.params, t, prior=_position_prior(times, np.array(targets), ANCHOR_SIGMA_M))
+        if not _plausible("flight", q, (p.last_frame - p.first_frame) / fps):
+            continue  # tied, the labels need a motion no ball makes (a wall or a bounce inside the piece)
+        out[i] = Piece("flight", p.first_frame, p.last_frame, q,
+                       robust_cost(sub.residuals(slice(None), _positions("flight", q, t))), p.alternative)
+    return out
 
 
 def _acceptable(piece: Piece, labelled: int, fps: float, alone: bool) -> bool:
@@ -639,6 +691,8 @@ def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int
     # refined as :func:`_segment` does, each model's refinement started from the piece before the edit
     new = [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=p, linear=best.linear(frames[a:b]))
            for (a, b), p in zip(bounds, old)]
+    new = _anchored(L, by_frame, fps, list(pieces[:lo]) + new + list(pieces[hi + 1:]),
+                    range(lo, lo + len(new)))[lo:lo + len(new)]
     if not all(_acceptable(p, b - a, fps, len(pieces) == 1) for (a, b), p in zip(bounds, new)):
         return None  # the segmentation would leave it out (:func:`_plausible_pieces`)
     return lo, hi, new

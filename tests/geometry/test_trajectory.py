@@ -378,3 +378,19 @@ def test_a_wrong_label_at_a_kick_is_left_out_not_fitted_by_a_short_piece(scene):
         assert p.last_frame - p.first_frame + 1 >= 4 or len(fit.pieces) == 1
     err = np.linalg.norm(fit.positions - truth, axis=1)
     assert np.nanmedian(err) < 0.05 and err[kick] < 1.0
+
+
+def test_a_flight_seen_by_one_camera_is_tied_to_its_neighbours(scene, monkeypatch):
+    """One camera alone sees the lob from the kick to the bounce: its labels fix the ball's direction, the
+    depth only through gravity; tied at its ends to the roll before and the flight after (the ball does not
+    jump), the flight stays nearer the truth than the untied fit of the same labels."""
+    truth, pts = scene
+    pts = pts.copy()
+    one = slice(51, 97)  # the lofted kick acts between frames 50 and 51, the bounce between 96 and 97
+    pts[one, [0, 2, 3]] = np.nan
+    err = lambda f: np.linalg.norm(f.positions[one] - truth[one], axis=1).max()  # noqa: E731
+    tied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS)
+    monkeypatch.setattr(trajectory_module, "_anchored", lambda L, by_frame, fps, pieces, which: list(pieces))
+    untied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS)
+    assert err(tied) < 0.15 and err(tied) < err(untied) / 2, (err(tied), err(untied))
+    assert all(k == (1,) for k in tied.cam_lists[one])
