@@ -151,7 +151,7 @@ class _SortKey:
     def beyond(self, value: Any, side: Literal["before", "after"]) -> list[Any]:
         """SQL: a row's key sorts strictly before (``side="before"``) or after ``value`` (the current
         row's), as conditions each of which an index answers with a range seek, nearest first: after a
-        value of a key whose NULLs come last lie the larger (smaller) values, then the NULLs."""
+        value of a key whose NULLs come last come the values beyond it, then the NULLs."""
         if self.nulls_last and value is None:
             return [self.expr.is_not(None)] if side == "before" else []
         beyond = self.expr > value if self.desc == (side == "before") else self.expr < value
@@ -258,8 +258,8 @@ def _neighbour(base: sa.Select[Any], conds: list[Any], keys: list[_SortKey], cur
     one before, and so on (:meth:`_SortKey.beyond`: a key whose NULLs come last adds its NULLs after its
     values). Each of these sets is one ``LIMIT 1`` subquery with an equality prefix and a range on one
     key, which SQLite answers with a seek on the sort's index; ``coalesce`` takes the first that finds a
-    row and evaluates no further one. (One ``OR`` of the sets instead is planned as a scan of the index
-    from the end of the queue to the current row: its cost grew with the database, about 0.5 ms a side
+    row and evaluates no further one. (One ``OR`` of the sets instead was planned as a scan of the index
+    from one end of the queue to the current row: its cost grew with the database, about 0.5 ms a side
     at 12,800 systems.)
     """
     reverse = side == "before"
