@@ -171,6 +171,11 @@ class System(Base):
     __table_args__ = (
         sa.UniqueConstraint("game_id", "name"),
         sa.Index("ix_systems_label_doubts_worst_error_px", "label_doubts", "worst_error_px"),
+        # the sort keys within a review status: the "pending" queue and its neighbours are index seeks
+        sa.Index("ix_systems_review_status_label_doubts_worst_error_px", "review_status", "label_doubts",
+                 "worst_error_px"),
+        sa.Index("ix_systems_review_status_worst_error_px", "review_status", "worst_error_px"),
+        sa.Index("ix_systems_review_status_lowest_jac", "review_status", "lowest_jac"),
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)

