@@ -212,17 +212,29 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
     order = _system_order(sort)
     conds = _system_conditions(filters)
     items = list(session.scalars(_queue_from().where(*conds).order_by(*order).limit(limit).offset(offset)))
-    # one indexed GROUP BY on the stored status gives the progress and the total (no window over the queue)
-    status = _review_status()
-    by_status = session.execute(
-        sa.select(status, sa.func.count(System.id)).where(*_system_conditions(filters, with_status=False))
-        .group_by(status)
-    ).all()
-    counts = {s.value: 0 for s in ReviewStatus}
-    for s, n in by_status:
-        counts[ReviewStatus(s).value] += int(n)
+    counts = _status_counts(session, _system_conditions(filters, with_status=False))
     total = counts[ReviewStatus(filters.status).value] if filters.status is not None else sum(counts.values())
     return SystemPage(items=items, total=int(total), counts=counts)
+
+
+def _status_counts(session: Session, conds: list[Any]) -> dict[str, int]:
+    """Systems per review status under ``conds``: one GROUP BY on the stored status (its index); without
+    conditions, the reviewed systems by status (index lookups: as many as have been reviewed) and the
+    pending ones as the rest of the table's row count (a count SQLite reads from the table's b-tree
+    without visiting its rows), so the unfiltered queue's progress costs what the review has done, not
+    the size of the database."""
+    status = _review_status()
+    counts = {s.value: 0 for s in ReviewStatus}
+    if conds:
+        rows = session.execute(sa.select(status, sa.func.count()).where(*conds).group_by(status)).all()
+    else:
+        reviewed = [s.value for s in ReviewStatus if s is not ReviewStatus.PENDING]
+        rows = session.execute(sa.select(status, sa.func.count()).where(status.in_(reviewed)).group_by(status)).all()
+        everything = session.scalar(sa.select(sa.func.count()).select_from(System))
+        rows.append((ReviewStatus.PENDING.value, int(everything) - sum(int(n) for _, n in rows)))
+    for s, n in rows:
+        counts[ReviewStatus(s).value] += int(n)
+    return counts
 
 
 def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
