@@ -70,7 +70,7 @@ from app.geometry.annotations import FieldLines, image_diagonal, mirror_lines
 from app.geometry.calibration.frame import MIRROR_FLAG, CalibrationSettings, side_vote
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig
 from app.geometry.camera import Camera, as_points
-from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M
+from app.geometry.pitch import PITCH_WIDTH_M, within_play_volume
 from app.geometry.triangulation import BallObservation, triangulate_pair
 
 #: The 180-degree rotation of the world about the vertical axis through the centre spot.
@@ -296,9 +296,8 @@ def _rig_vote(d: float | None, d_mirror: float | None, s: MirrorSettings) -> int
 
 
 def _plausible(point: np.ndarray, s: MirrorSettings) -> bool:
-    x, y, z = (float(v) for v in point)
-    return (abs(x) <= PITCH_LENGTH_M / 2 + s.plausible_margin_m and abs(y) <= PITCH_WIDTH_M / 2 + s.plausible_margin_m
-            and -s.max_height_m <= z <= s.max_depth_m)
+    return bool(within_play_volume(point, margin_m=s.plausible_margin_m, max_height_m=s.max_height_m,
+                                   max_below_m=s.max_depth_m)[0])
 
 
 def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings) -> tuple[float | None, np.ndarray | None]:

@@ -38,6 +38,7 @@ from typing import Sequence
 import numpy as np
 
 from app.geometry.camera import Camera
+from app.geometry.pitch import within_play_volume
 from app.geometry.triangulation import REFERENCE_WIDTH_PX
 
 GRAVITY_M_S2 = 9.81
@@ -151,10 +152,11 @@ MAX_HEIGHT_M = 40.0
 def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
     """A ball could move as model ``kind`` with parameters ``q`` (6,) does for ``duration_s`` seconds:
     never faster than :data:`MAX_BALL_SPEED_M_S`, inside the pitch with :data:`PLAY_MARGIN_M` around it,
-    a flight never more than :data:`BELOW_GRASS_M` below the grass nor :data:`MAX_HEIGHT_M` above it, a
-    roll decelerating by at most :data:`MAX_ROLL_DECELERATION_M_S2`. A fit of a few labels that one wrong
-    label pulls, or of one camera whose depth the labels barely fix, breaks these long before it looks
-    wrong in the image. World: SoccerNet metres (pitch 105 x 68 m centred on the centre spot, z down)."""
+    a flight never more than :data:`BELOW_GRASS_M` below the grass nor :data:`MAX_HEIGHT_M` above it
+    (:func:`app.geometry.pitch.within_play_volume` at its ends and its highest point), a roll decelerating
+    by at most :data:`MAX_ROLL_DECELERATION_M_S2`. A fit of a few labels that one wrong label pulls, or of
+    one camera whose depth the labels barely fix, breaks these long before it looks wrong in the image.
+    World: SoccerNet metres (pitch 105 x 68 m centred on the centre spot, z down)."""
     q = np.asarray(q, float)
     if not np.all(np.isfinite(q)) or duration_s < 0:
         return False
@@ -163,8 +165,6 @@ def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
         speeds = [np.linalg.norm(q[3:6] + np.array([0.0, 0.0, GRAVITY_M_S2 * t])) for t in (0.0, T)]
         apex = min(max(-q[5] / GRAVITY_M_S2, 0.0), T)  # the highest point (z smallest) inside the piece
         ends = positions(kind, q, np.array([0.0, T, apex]))
-        if max(ends[:2, 2]) > BELOW_GRASS_M or ends[2, 2] < -MAX_HEIGHT_M:
-            return False
     else:
         if float(np.hypot(q[4], q[5])) > MAX_ROLL_DECELERATION_M_S2:
             return False
@@ -173,8 +173,8 @@ def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
         ends = positions(kind, q, np.array([0.0, te]))
     if max(speeds) > MAX_BALL_SPEED_M_S:
         return False
-    half = np.array([52.5, 34.0]) + PLAY_MARGIN_M
-    return bool(np.all(np.abs(ends[:, :2]) <= half))
+    return bool(within_play_volume(ends, margin_m=PLAY_MARGIN_M, max_height_m=MAX_HEIGHT_M,
+                                   max_below_m=BELOW_GRASS_M).all())
 
 
 def robust_cost(residuals_px: np.ndarray) -> float:

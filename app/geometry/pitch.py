@@ -68,6 +68,23 @@ MIRROR_CLASSES: Mapping[str, str] = MappingProxyType({
 })
 
 
+def within_play_volume(points_m: np.ndarray, *, margin_m: float, max_height_m: float,
+                       max_below_m: float) -> np.ndarray:
+    """Which ball positions a game could hold: inside the pitch with ``margin_m`` beyond the touch and goal
+    lines, at most ``max_height_m`` above the grass and ``max_below_m`` below it.
+
+    Args:
+        points_m: (N, 3) world points, metres (SoccerNet: origin at the centre spot, z down).
+        margin_m, max_height_m, max_below_m: metres.
+
+    Returns:
+        (N,) bool.
+    """
+    p = np.asarray(points_m, float).reshape(-1, 3)
+    return ((np.abs(p[:, 0]) <= PITCH_LENGTH_M / 2 + margin_m) & (np.abs(p[:, 1]) <= PITCH_WIDTH_M / 2 + margin_m)
+            & (p[:, 2] >= -max_height_m) & (p[:, 2] <= max_below_m))
+
+
 def _key_points() -> dict[str, np.ndarray]:
     half_l, half_w = PITCH_LENGTH_M / 2.0, PITCH_WIDTH_M / 2.0
     pa_x = half_l - PENALTY_AREA_LENGTH_M
