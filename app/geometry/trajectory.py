@@ -375,8 +375,14 @@ def _one_camera_flight(L: _Labels, by_frame, piece: Piece) -> bool:
     from that camera, its depth only through gravity's curvature (tens of metres off over a second)."""
     if piece.kind != "flight":
         return False
+    idx = _piece_labels(by_frame, piece)
+    return len(idx) > 0 and len(np.unique(L.cam[idx])) == 1
+
+
+def _piece_labels(by_frame, piece: Piece) -> np.ndarray:
+    """Indices of the labels of ``piece``'s frames (those ``by_frame`` holds), frame order."""
     idx = [by_frame[f] for f in range(piece.first_frame, piece.last_frame + 1) if f in by_frame]
-    return bool(idx) and len(np.unique(L.cam[np.concatenate(idx)])) == 1
+    return np.concatenate(idx) if idx else np.zeros(0, int)
 
 
 def _anchored(L: _Labels, by_frame, fps: float, pieces: Sequence[Piece], which: range) -> list[Piece]:
@@ -387,13 +393,20 @@ def _anchored(L: _Labels, by_frame, fps: float, pieces: Sequence[Piece], which: 
     :data:`ANCHOR_SIGMA_M`), unless the neighbour is a one-camera flight itself; kept when the tied flight
     is :func:`~app.geometry.motion.plausible`."""
     out = list(pieces)
+    weak: dict[int, bool] = {}  # piece index -> one-camera flight, each decided once
+
+    def one_camera(i: int) -> bool:
+        if i not in weak:
+            weak[i] = _one_camera_flight(L, by_frame, pieces[i])
+        return weak[i]
+
     for i in which:
         p = pieces[i]
-        if not _one_camera_flight(L, by_frame, p):
+        if not one_camera(i):
             continue
         times, targets = [], []
         for j in (i - 1, i + 1):
-            if not 0 <= j < len(pieces) or _one_camera_flight(L, by_frame, pieces[j]):
+            if not 0 <= j < len(pieces) or one_camera(j):
                 continue
             n = pieces[j]
             gap = p.first_frame - n.last_frame if j < i else n.first_frame - p.last_frame
@@ -404,8 +417,7 @@ def _anchored(L: _Labels, by_frame, fps: float, pieces: Sequence[Piece], which: 
             targets.append(n.position([tb], fps)[0])
         if not times:
             continue
-        idx = np.concatenate([by_frame[f] for f in range(p.first_frame, p.last_frame + 1) if f in by_frame])
-        sub = L.take(idx)
+        sub = L.take(_piece_labels(by_frame, p))
         t = (sub.frame - p.first_frame) / fps
         q = _refine(sub, "flight", p.params, t, prior=_position_prior(times, np.array(targets), ANCHOR_SIGMA_M))
         if not _plausible("flight", q, (p.last_frame - p.first_frame) / fps):
