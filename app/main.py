@@ -11,7 +11,7 @@ is never served stale), and the OpenAPI docs at ``/docs`` (Swagger UI, ``static/
 ``static/js/docs.js``) with their JavaScript and CSS from the ``fastapi-offline`` package: no CDN. ReDoc
 is not served: its bundle fetches a logo from ``cdn.redoc.ly``. Every answer carries the security
 headers of ``app.api.security`` (a CSP allowing this server's own scripts only). With
-``Settings.job_runner`` the app's lifespan runs a :class:`~app.services.jobs.JobRunner` (queued
+``Settings.job_runner`` the app's lifespan runs a :class:`~app.services.jobs.runner.JobRunner` (queued
 imports, recomputes and exports; a job a killed process left running is resumed) and sets the garbage
 collector's young-generation threshold (``Settings.gc_young_threshold``).
 
@@ -42,10 +42,10 @@ from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
-from app.services.editing import get_system
-from app.services.errors import NotFoundError
-from app.services.jobs import JobRunner
-from app.services.users import session_secret
+from app.services.curation.editing import get_system
+from app.core.errors import NotFoundError
+from app.services.jobs.runner import JobRunner
+from app.services.accounts.users import session_secret
 
 #: Where the local Swagger UI assets (from fastapi-offline) are mounted.
 DOCS_ASSETS_URL = "/docs-assets"

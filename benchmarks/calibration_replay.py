@@ -3,7 +3,7 @@ results to compare between two versions of the code (issue 8's import speed).
 
 For the first ``--games`` games of a SoccerNet-v3 tree (sorted by path, as the importer walks them)
 it builds the jobs an import of a fresh database gives the calibration pool
-(``app.services.import_calibration``): the first pass of every frame from its lines alone
+(``app.services.calibration.first_pass``): the first pass of every frame from its lines alone
 (``import_calibration.new_frame_job``), then, per game, the rig retry of the frames
 ``calibrating.wants_rig_retry`` picks, with the rig ``calibrating.game_rig`` estimates from the game's
 first-pass results. Each job runs through ``calibrating.calibrate_lines``, as in a worker, timed with
@@ -36,10 +36,10 @@ sys.path.insert(0, str(ROOT))
 from app.core.config import Settings  # noqa: E402
 from app.datasets.soccernet_v3 import read_soccernet_v3  # noqa: E402
 from app.db.models import SystemKind  # noqa: E402
-from app.services.calibrating import (  # noqa: E402
+from app.services.calibration.calibrating import (  # noqa: E402
     CalibrationFields, calibrate_lines, game_rig, wants_rig_retry,
 )
-from app.services.import_calibration import new_frame_job  # noqa: E402
+from app.services.calibration.first_pass import new_frame_job  # noqa: E402
 
 
 def _timed(job: tuple, profiler: cProfile.Profile | None) -> tuple[CalibrationFields, float]:

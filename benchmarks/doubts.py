@@ -3,7 +3,7 @@
 Each set is imported exactly as the service does (``import_soccernet_v3`` into a fresh, Alembic-migrated
 SQLite database with ``Settings()``: v3d's own calibration, game rig, mirror flags), once: ``--db-dir``
 keeps the databases between runs so that a sweep does not re-import. Every stored system becomes
-:class:`DoubtView` s through ``app.services.doubts.doubt_views`` (the adapter the service uses), is
+:class:`DoubtView` s through ``app.services.curation.doubts.doubt_views`` (the adapter the service uses), is
 judged, and the doubts are scored against the truth file beside the set, exactly as issue 6 scores them:
 
 * a corrupted system is *observable* when its corrupted view has at least 4 line classes (visible minus
@@ -67,8 +67,8 @@ from app.core.paths import SHARED_DIR  # noqa: E402
 from app.db.models import Frame, System  # noqa: E402
 from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
 from app.geometry.doubts import LABEL_KINDS, Doubt, DoubtSettings, DoubtView, judge_system  # noqa: E402
-from app.services.doubts import doubt_settings, doubt_views  # noqa: E402
-from app.services.importing import import_soccernet_v3  # noqa: E402
+from app.services.curation.doubts import doubt_settings, doubt_views  # noqa: E402
+from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
 
 SETS = {"dev-large": "soccernet-v3-dev-large", "dev": "soccernet-v3-dev"}
 MIN_CLASSES = 4

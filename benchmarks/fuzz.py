@@ -4,7 +4,7 @@ The real application (``app.main.create_app``, in process over ASGI) on a fresh 
 seeded with the built-in demo (``app.cli.serve.load_demo_if_empty``, as ``v3d serve --demo`` does), every
 operation of its ``/openapi.json``:
 
-* **authenticated** as an admin with an API token (``app.services.users.create_user``): for each
+* **authenticated** as an admin with an API token (``app.services.accounts.users.create_user``): for each
   operation ``--examples`` cases generated from the schema (positive: valid by the schema) and as many
   negative ones (invalid by the schema: wrong types, out-of-range numbers, missing or unknown fields,
   ...). Operations with path ids draw them from the ids the database holds as often as at random, so the
@@ -236,7 +236,7 @@ def prepare(workdir: Path, database_url: Optional[str] = None) -> tuple[Any, str
     from app.core.config import Settings
     from app.db.models import Frame, Game, System
     from app.db.session import make_engine, make_session_factory, upgrade_database
-    from app.services.users import create_user
+    from app.services.accounts.users import create_user
 
     url = database_url or f"sqlite:///{workdir / 'fuzz.sqlite3'}"
     upgrade_database(url)

@@ -42,7 +42,7 @@ from app.db.session import make_engine, make_session_factory, upgrade_database  
 from app.geometry.annotations import lines_from_json_lists  # noqa: E402
 from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.jac import evaluate_jac  # noqa: E402
-from app.services.importing import import_sn_calibration  # noqa: E402
+from app.services.transfer.importing import import_sn_calibration  # noqa: E402
 
 DATASETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
 WIDTH, HEIGHT = 960, 540

@@ -4,7 +4,7 @@ Usage: ``python -m benchmarks.issia_service [--data DIR] [--truth FILE] [--json 
 [--gc-threshold N]``
 
 Both modes (``issia_calibration.json``; ``issia_lines.json`` alone), each into a fresh SQLite file:
-``v3d import issia`` (``app.services.issia.import_issia``), then the figures of issue 9 from the
+``v3d import issia`` (``app.services.issia.sequences.import_issia``), then the figures of issue 9 from the
 stored ``TrajectoryPoint`` rows (``ball_3D``, ``ball_3D_smoothed``, ``cam_list``): the same
 definitions as :mod:`benchmarks.issia` (which scores the pure fit). Also times the import and one
 edit's round trip (a label moved and back, each re-fitted and committed).
@@ -41,26 +41,26 @@ from benchmarks.issia import SHARED
 #: Stages of an edit's round trip timed by :func:`http_edits`: (label, module, function). A function
 #: that does not exist (another version of the code) is skipped.
 STAGES = (
-    ("recompute edited frame (lines)", "app.services.editing", "recompute_frame"),
-    ("refit_sequence", "app.services.issia", "refit_sequence"),
-    ("  stored pieces (DB)", "app.services.issia_refit", "_pieces_around"),
-    ("  cameras (DB)", "app.services.issia_refit", "sequence_columns"),
-    ("  window (DB)", "app.services.issia_refit", "_load_window"),
-    ("  refit_window", "app.services.issia_refit", "refit_window"),
+    ("recompute edited frame (lines)", "app.services.curation.editing", "recompute_frame"),
+    ("refit_sequence", "app.services.issia.sequences", "refit_sequence"),
+    ("  stored pieces (DB)", "app.services.issia.refit", "_pieces_around"),
+    ("  cameras (DB)", "app.services.issia.refit", "sequence_columns"),
+    ("  window (DB)", "app.services.issia.refit", "_load_window"),
+    ("  refit_window", "app.services.issia.refit", "refit_window"),
     ("    local re-fit (fast path)", "app.geometry.trajectory", "_refit_local"),
     ("      break's candidate cuts", "app.geometry.trajectory", "_shift_bounds"),
     ("    _segment", "app.geometry.trajectory", "_segment"),
     ("    _assemble", "app.geometry.trajectory", "_assemble"),
     ("    triangulate_frame", "app.geometry.trajectory", "triangulate_frame"),
-    ("  store changed rows", "app.services.issia_refit", "_store_rows"),
-    ("    rows that changed", "app.services.issia_refit", "_changed_rows"),
-    ("    UPDATEs", "app.services.issia_refit", "_write_rows"),
-    ("    systems to recompute loaded", "app.services.issia_refit", "load_for_recompute"),
-    ("    moved trajectory doubts", "app.services.issia_refit", "_refresh_trajectory_doubts"),
-    ("whole fit (camera changed)", "app.services.issia", "fit_sequence"),
-    ("recompute systems", "app.services.issia", "recompute_system"),
-    ("recompute non-ISSIA", "app.services.editing", "recompute_system"),
-    ("update_doubts (moved)", "app.services.issia", "update_doubts"),
+    ("  store changed rows", "app.services.issia.refit", "_store_rows"),
+    ("    rows that changed", "app.services.issia.refit", "_changed_rows"),
+    ("    UPDATEs", "app.services.issia.refit", "_write_rows"),
+    ("    systems to recompute loaded", "app.services.issia.refit", "load_for_recompute"),
+    ("    moved trajectory doubts", "app.services.issia.refit", "_refresh_trajectory_doubts"),
+    ("whole fit (camera changed)", "app.services.issia.sequences", "fit_sequence"),
+    ("recompute systems", "app.services.issia.sequences", "recompute_system"),
+    ("recompute non-ISSIA", "app.services.curation.editing", "recompute_system"),
+    ("update_doubts (moved)", "app.services.issia.sequences", "update_doubts"),
     ("commit", "sqlalchemy.orm", "Session.commit"),
     ("system view (answer)", "app.api.view_schemas", "SystemView.of"),
 )
@@ -123,8 +123,8 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
     from app.core.config import Settings
     from app.db.models import System, SystemKind
     from app.main import create_app
-    from app.services.issia_trajectory import load_sequence
-    from app.services.users import create_user
+    from app.services.issia.trajectory import load_sequence
+    from app.services.accounts.users import create_user
 
     settings = Settings(database_url=url)
     app = create_app(settings)
@@ -225,7 +225,7 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
 
 def service_figures(session: Session, game_id: int, truth: dict) -> dict:
     """Figures of the stored sequence ``game_id`` against ``truth`` (issia-dev.truth.json)."""
-    from app.services.issia_trajectory import load_sequence
+    from app.services.issia.trajectory import load_sequence
 
     systems = {s.frame_index: s for s in load_sequence(session, game_id)}
     good2, seen, e3, es = [], [], [], []
@@ -269,8 +269,8 @@ def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0
     from app.core.config import Settings
     from app.db.models import Game, System
     from app.db.session import make_engine, make_session_factory, upgrade_database
-    from app.services.editing import update_ball_label
-    from app.services.issia import import_issia
+    from app.services.curation.editing import update_ball_label
+    from app.services.issia.sequences import import_issia
 
     url = f"sqlite:///{workdir / ('lines' if from_lines else 'json')}.sqlite3"
     upgrade_database(url)

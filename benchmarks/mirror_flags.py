@@ -61,8 +61,8 @@ from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
 from app.geometry.calibration import CalibrationPrior, calibrate_frame  # noqa: E402
 from app.geometry.mirror import MirrorView, mirror_evidence  # noqa: E402
 from app.geometry.pitch import MIRROR_CLASSES  # noqa: E402
-from app.services.editing import apply_mirrored_labels  # noqa: E402
-from app.services.importing import import_soccernet_v3  # noqa: E402
+from app.services.curation.editing import apply_mirrored_labels  # noqa: E402
+from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
 from app.geometry.calibration.frame import MIRROR_FLAG# noqa: E402
 
 DEV = Path("data/synthetic/soccernet-v3-dev")

@@ -7,7 +7,7 @@ own calibration, as a user would) into a fresh SQLite file. Views compared: a st
 annotated box, and a truth view that is not corrupted. The refined box is offered only where the 3D
 ball is well constrained: the view is in a kept pair of its system (else the export box is kept).
 
-Uncertainties (``app.services.detector_export.refined_boxes``; priors, not fitted to the truth): the
+Uncertainties (``app.services.transfer.detector_export.refined_boxes``; priors, not fitted to the truth): the
 annotated centre's sigma is ``kappa`` times the annotated box diameter (kappa = 0.1 in the export,
 also printed for 0.05 and 0.2); the reprojection's sigma is the median reprojection error of the
 system's other contributing views, at least 0.5 px. "refined" is the export's ball box at kappa 0.1.
@@ -36,8 +36,8 @@ from app.db.session import make_engine, make_session_factory, upgrade_database  
 from app.geometry.ball import box_centre_and_diameter, optimise_box  # noqa: E402
 from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.metrics import box_iou  # noqa: E402
-from app.services.detector_export import refined_boxes  # noqa: E402
-from app.services.importing import import_soccernet_v3  # noqa: E402
+from app.services.transfer.detector_export import refined_boxes  # noqa: E402
+from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
 
 SETS = ("soccernet-v3-dev", "soccernet-v3-dev-large")
 KAPPAS = (0.05, 0.1, 0.2)

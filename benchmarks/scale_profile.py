@@ -86,8 +86,9 @@ def main(argv: list[str] | None = None) -> int:
     from app.api.view_schemas import SystemPageOut, SystemSummaryOut, SystemView
     from app.core.config import Settings
     from app.db.session import make_engine, make_session_factory
-    from app.services import editing, queue as queues
-    from app.services.system_page import system_page
+    from app.services.curation import editing
+    from app.services.curation import queue as queues
+    from app.services.curation.system_page import system_page
 
     sql = SqlCounter()
     settings = Settings(database_url=f"sqlite:///{args.db.resolve()}")

@@ -1,12 +1,12 @@
 """End-to-end benchmark of v3d's own pipeline on the synthetic SoccerNet-v3 dev set.
 
 Unlike ``benchmarks/synthetic_ball.py`` (true cameras), this imports the dev set exactly as the service
-does (``app.services.importing.import_soccernet_v3`` into a fresh, Alembic-migrated SQLite database:
+does (``app.services.transfer.importing.import_soccernet_v3`` into a fresh, Alembic-migrated SQLite database:
 calibration in the process pool, the game-rig retry, admission, triangulation, reprojections and
 optimised boxes), reads back what was stored and compares it with ``soccernet-v3-dev.truth.json``:
 
 1. **Calibration per view**, without and with the game rig. The service has no switch for the rig
-   (``app.services.recompute``: a frame refused from its lines alone, or calibrated below admission,
+   (``app.services.curation.recompute``: a frame refused from its lines alone, or calibrated below admission,
    is always retried with the game's rig), so the *no-rig* row calls the pure ``calibrate_frame`` on
    each stored view's lines with the prior the service gives it (``calibrating.expected_side``), which is the service's first pass;
    the *with-rig* row is what the service stored. A third row retries the views the service retries
@@ -62,9 +62,9 @@ from app.geometry.ball import OPTIMISED_BOX_METHODS, optimise_box  # noqa: E402
 from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.jac import jac_at_gammas  # noqa: E402
 from app.geometry.metrics import box_iou, box_size_error_pct  # noqa: E402
-from app.services.importing import ImportReport, import_soccernet_v3  # noqa: E402
+from app.services.transfer.importing import ImportReport, import_soccernet_v3  # noqa: E402
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG# noqa: E402
-from app.services.calibrating import admission_jac, expected_side
+from app.services.calibration.calibrating import admission_jac, expected_side
 
 #: Corruption kinds of the synthetic truth (``systems[].corruption``), None excepted.
 CORRUPTIONS = ("desync", "wrong_ball", "mirrored", "no_ball")

@@ -73,8 +73,8 @@ class Database:
         the page's size (SQL statements, views, doubts, pairs, pitch runs)."""
         from app.api.deps import system_by_id
         from app.api.view_schemas import SystemView
-        from app.services.queue import DEFAULT_SORT, SystemFilters, queue_neighbours
-        from app.services.system_page import SystemPageData, load_system
+        from app.services.curation.queue import DEFAULT_SORT, SystemFilters, queue_neighbours
+        from app.services.curation.system_page import SystemPageData, load_system
 
         filters = SystemFilters()
         n0 = self.statements

@@ -1,4 +1,4 @@
-"""Test accounts: one user per role, made through ``app.services.users`` in a migrated database, and
+"""Test accounts: one user per role, made through ``app.services.accounts.users`` in a migrated database, and
 the ways tests authenticate as them (a browser session logged in through ``POST /api/auth/login``, or
 an API token). Hashing a password with argon2 takes about a second here, so accounts are made once per
 database and logged in once per test session."""
@@ -13,7 +13,7 @@ from app.api.authentication import CSRF_HEADER, SESSION_COOKIE
 from app.core.config import Settings
 from app.db.session import make_engine, make_session_factory
 from app.main import create_app
-from app.services.users import create_user
+from app.services.accounts.users import create_user
 
 #: Every test account's password (the name is ``test-<role>``).
 PASSWORD = "correct horse battery staple"

@@ -7,11 +7,11 @@ from typing import Any, Optional
 from pydantic import BaseModel, ConfigDict, Field, computed_field
 
 from app.api.schemas import DB_INT_MAX, DbInt, QueryText
-from app.services.audit import SUMMARY_ACTIONS
+from app.services.accounts.audit import SUMMARY_ACTIONS
 
 
 class AuditEntryOut(BaseModel):
-    """One audited write (``app.services.audit``): who, when, what, the edited part before and after
+    """One audited write (``app.services.accounts.audit``): who, when, what, the edited part before and after
     (``{"ball": {box, point}}``, ``{"lines": {...}}``, ``{"excluded": bool}``, ``{"review": {status,
     comment}}``; an import's or recompute's counts in ``after``). Read from the ``AuditEntry`` row."""
 

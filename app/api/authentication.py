@@ -3,10 +3,10 @@
 
 Two ways in, resolved once per request by :class:`AuthenticationMiddleware`:
 
-* ``Authorization: Bearer <token>``: an API token (``app.services.users``: only its SHA-256 is stored),
+* ``Authorization: Bearer <token>``: an API token (``app.services.accounts.users``: only its SHA-256 is stored),
   for scripts. A request with this header is judged by it alone (a wrong token is anonymous).
 * the browser's session cookie ``v3d_session`` (Starlette's ``SessionMiddleware``: JSON signed with
-  itsdangerous by the key of ``app.services.users.session_secret``; ``HttpOnly``, ``SameSite=Strict``,
+  itsdangerous by the key of ``app.services.accounts.users.session_secret``; ``HttpOnly``, ``SameSite=Strict``,
   ``Secure`` with ``V3D_SECURE_COOKIES``; it ends ``V3D_SESSION_MAX_AGE_S`` after the login, at logout
   and when the user is disabled). It holds the user id, the user's session generation and the
   session's CSRF token.
@@ -32,7 +32,7 @@ from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from app.api.auth import Principal, current_principal
-from app.services import users
+from app.services.accounts import users
 
 #: The session cookie's name.
 SESSION_COOKIE = "v3d_session"

@@ -1,17 +1,17 @@
 """Domain errors to HTTP answers, in one place.
 
-* :class:`~app.services.errors.NotFoundError` and :class:`~app.services.images.ImageUnavailable`: 404
+* :class:`~app.core.errors.NotFoundError` and :class:`~app.services.transfer.images.ImageUnavailable`: 404
   with the message (it names the missing id or file);
-* :class:`~app.services.errors.ForbiddenError`: 403 (e.g. an import path outside the data root);
-* :class:`~app.services.archives.UploadTooLarge`: 413 (an upload above ``V3D_MAX_UPLOAD_MB``);
-* :class:`~app.services.jobs.JobNotReady`: 409 (a job's file asked for before it exists);
-* :class:`~app.services.errors.DatasetError`: 400, the server-side dataset cannot be imported (the
+* :class:`~app.core.errors.ForbiddenError`: 403 (e.g. an import path outside the data root);
+* :class:`~app.services.transfer.archives.UploadTooLarge`: 413 (an upload above ``V3D_MAX_UPLOAD_MB``);
+* :class:`~app.services.jobs.runner.JobNotReady`: 409 (a job's file asked for before it exists);
+* :class:`~app.core.errors.DatasetError`: 400, the server-side dataset cannot be imported (the
   message names the file and the field);
-* :class:`~app.services.errors.StaleVersionError`: 412 with the resource's current state, its ETag (also
+* :class:`~app.core.errors.StaleVersionError`: 412 with the resource's current state, its ETag (also
   in the ``ETag`` header) and its newest audit entry (``app.api.view_schemas.StaleOut``, shaped from the rows
   the service read after rolling back);
-* :class:`~app.services.errors.ConflictError`: 409 with the message and, when known, ``current``;
-* :class:`~app.services.errors.InvalidInputError` and
+* :class:`~app.core.errors.ConflictError`: 409 with the message and, when known, ``current``;
+* :class:`~app.core.errors.InvalidInputError` and
   :class:`~app.geometry.annotations.AnnotationError`: 422 with the message and, when known, ``field``.
 
 Request validation errors keep FastAPI's form (422, ``detail`` a list of ``{loc, msg, type}``), so a
@@ -31,12 +31,12 @@ from app.api.audit_schemas import AuditEntryOut
 from app.api.view_schemas import FrameView, StaleOut, SystemStateOut
 from app.db.models import Frame
 from app.geometry.annotations import AnnotationError
-from app.services.errors import (
+from app.core.errors import (
     ConflictError, DatasetError, ForbiddenError, InvalidInputError, NotFoundError, StaleVersionError,
 )
-from app.services.archives import UploadTooLarge
-from app.services.jobs import JobNotReady
-from app.services.images import ImageUnavailable
+from app.services.transfer.archives import UploadTooLarge
+from app.services.jobs.runner import JobNotReady
+from app.services.transfer.images import ImageUnavailable
 
 
 def _answer(code: int, exc: Exception, field: str | None = None) -> JSONResponse:

@@ -6,8 +6,8 @@ from typing import Literal, Optional
 from pydantic import BaseModel, Field
 
 from app.db.models import ReviewStatus, System
-from app.services.issia_export import SequenceData
-from app.services.issia_trajectory import FPS
+from app.services.issia.export import SequenceData
+from app.services.issia.trajectory import FPS
 
 Point3 = tuple[float, float, float]
 
@@ -48,7 +48,7 @@ class TrajectoryFrameOut(BaseModel):
 
 
 class TrajectoryOut(BaseModel):
-    """A sequence's trajectory over time (``app.services.issia_export.sequence_data``), world metres, z down."""
+    """A sequence's trajectory over time (``app.services.issia.export.sequence_data``), world metres, z down."""
 
     game_id: int
     game: str

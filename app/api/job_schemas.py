@@ -1,5 +1,5 @@
 """Pydantic schemas of the background-job routes: imports (a path or an upload), export jobs, and the
-jobs themselves (``app.services.jobs``). Apart from ``app.api.schemas`` to keep each under ~400 lines."""
+jobs themselves (``app.services.jobs.runner``). Apart from ``app.api.schemas`` to keep each under ~400 lines."""
 from __future__ import annotations
 
 from datetime import datetime
@@ -58,7 +58,7 @@ class ExportJobIn(_In):
 
 
 class JobOut(BaseModel):
-    """A background job (``app.services.jobs``): its progress while it runs, its result when done."""
+    """A background job (``app.services.jobs.runner``): its progress while it runs, its result when done."""
 
     model_config = ConfigDict(from_attributes=True)
 

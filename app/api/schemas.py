@@ -14,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
 
 from app.db.models import ReviewStatus
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
-from app.services.queue import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
+from app.services.curation.queue import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
 
 #: A coordinate of a request body: a JSON number (``true`` or ``"1"`` are refused naming the field, not
 #: read as 1.0); NaN and infinity pass here so that the services refuse them with their message.
@@ -162,7 +162,7 @@ MAX_POLYLINE_POINTS = 1000
 
 class FieldLinesEdit(_In):
     """The frame's complete new field lines, SoccerNet class -> polylines of [x, y] px (finite, at most
-    5 % of the image's size outside it: ``app.services._labels.check_line_points``)."""
+    5 % of the image's size outside it: ``app.datasets.labels.check_line_points``)."""
 
     lines: dict[str, list[Annotated[list[InPoint2], Field(max_length=MAX_POLYLINE_POINTS)]]] = Field(
         max_length=64, description="At most 64 classes, 100 polylines per class and 1000 points per polyline.")

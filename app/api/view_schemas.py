@@ -1,8 +1,8 @@
 """Response models of the review views, shaped from ORM objects: the games, the review queue, the frame list
 and the system view of ``docs/architecture.md`` (the UI contract).
 
-Every answer is built by these models from the rows the services load (``app.services.queue``,
-``app.services.system_page``): fields whose ORM attribute has the same meaning and name are read from it
+Every answer is built by these models from the rows the services load (``app.services.curation.queue``,
+``app.services.curation.system_page``): fields whose ORM attribute has the same meaning and name are read from it
 (``from_attributes``), the others by each model's ``of(...)``; no dict is built by hand. Units: pixels of
 the frame's own image (continuous coordinates, origin at the top-left corner), world metres (SoccerNet:
 origin at the centre spot, z down), JaC as fractions in [0, 1].
@@ -23,9 +23,9 @@ from app.geometry.calibration.frame import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.triangulation import error_above_tau, rule_reference_width_px, scaled_error_px
-from app.services.images import frame_has_image
-from app.services.system_page import SystemPageData, pitch_lines, round_px
-from app.services.versions import frame_etag, system_etag
+from app.services.transfer.images import frame_has_image
+from app.services.curation.system_page import SystemPageData, pitch_lines, round_px
+from app.services.curation.versions import frame_etag, system_etag
 
 Box = tuple[float, float, float, float]
 Point2 = tuple[float, float]
@@ -91,7 +91,7 @@ class DoubtOut(BaseModel):
 
 class SystemSummaryOut(BaseModel):
     """A row of the review queue: figures stored by the system's last recomputation (aggregates over the
-    admitted views, ``app.services.recompute.update_summary``)."""
+    admitted views, ``app.services.curation.recompute.update_summary``)."""
 
     model_config = _ORM
 
@@ -283,7 +283,7 @@ class ViewOut(_FrameFields):
 
     @classmethod
     def fields_of(cls, frame: Frame, tri: Optional[Triangulation]) -> dict[str, Any]:
-        """The fields of a frame's view, from the frame (loaded as ``app.services.system_page`` does) and its
+        """The fields of a frame's view, from the frame (loaded as ``app.services.curation.system_page`` does) and its
         system's triangulation (the rule and tau its reprojection error is judged by)."""
         cal = frame.calibration
         camera = cal.camera if cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera else None
@@ -316,7 +316,7 @@ class FrameView(ViewOut):
 
     @classmethod
     def of_frame(cls, frame: Frame) -> "FrameView":
-        """A frame loaded by ``app.services.system_page.load_frame``."""
+        """A frame loaded by ``app.services.curation.system_page.load_frame``."""
         return cls(**cls.fields_of(frame, frame.system.triangulation), system_id=frame.system_id)
 
 
@@ -372,7 +372,7 @@ class SystemView(BaseModel):
 
     @classmethod
     def of(cls, page: SystemPageData) -> "SystemView":
-        """The system view of a system loaded for its page (``app.services.system_page.system_page``)."""
+        """The system view of a system loaded for its page (``app.services.curation.system_page.system_page``)."""
         system, tri = page.system, page.system.triangulation
         names = {f.id: f.name for f in system.frames}
         return cls(

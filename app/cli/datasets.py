@@ -1,8 +1,8 @@
-"""``v3d import ...`` and ``v3d export ...``: thin wrappers over ``app.services.importing`` and
-``app.services.exporting`` (registered on :data:`app.cli._root.import_cli` / ``export_cli``).
+"""``v3d import ...`` and ``v3d export ...``: thin wrappers over ``app.services.transfer.importing`` and
+``app.services.transfer.exporting`` (registered on :data:`app.cli._root.import_cli` / ``export_cli``).
 
 The database is ``V3D_DATABASE_URL`` (or ``--database-url``); it is migrated to the latest schema
-before use. An import is a background job (``app.services.jobs``) that the command creates already
+before use. An import is a background job (``app.services.jobs.runner``) that the command creates already
 claimed and runs in its own process, drawing its progress (tqdm bars per stage); killed, the same
 command run again resumes that job (imports are idempotent). A dataset error prints
 ``error: <file>: <field>: <problem>`` and exits with status 2, leaving the database unchanged; any other
@@ -19,8 +19,8 @@ from tqdm import tqdm
 
 from app.cli._root import export_cli, import_cli
 from app.core.config import Settings, get_settings
-from app.services.errors import InvalidInputError
-from app.services.job_kinds import import_params
+from app.core.errors import InvalidInputError
+from app.services.jobs.kinds import import_params
 
 DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
@@ -86,7 +86,7 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
     result)``; exits 2 with the job's message when its input is invalid (a dataset that cannot be imported:
     nothing of it stored), 1 for any other failure."""
     from app.db.models import JobState
-    from app.services import jobs
+    from app.services.jobs import runner as jobs
 
     bars = _Bars()
     owner = jobs.owner_name()
@@ -177,7 +177,7 @@ def export_issia3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """Export ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test)."""
-    from app.services.issia_export import export_issia3d
+    from app.services.issia.export import export_issia3d
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
@@ -193,7 +193,7 @@ def export_soccernet_v3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """Export reviewed labels as a SoccerNet-v3D tree (Labels-v3D.json per game, SNv3D.csv)."""
-    from app.services.exporting import export_soccernet_v3d
+    from app.services.transfer.exporting import export_soccernet_v3d
 
     settings = cli_settings(database_url, None)
     bars = _Bars()

@@ -1,6 +1,6 @@
 """``v3d export yolo|coco`` and ``v3d evaluate monocular|sensitivity``: detector data and the monocular
-3D ball benchmark (thin wrappers over ``app.services.detector_export``, ``app.services.monocular`` and
-``app.services.monocular_plots``). A bad input prints ``error: ...`` and exits with status 2.
+3D ball benchmark (thin wrappers over ``app.services.transfer.detector_export``, ``app.services.evaluation.monocular`` and
+``app.services.evaluation.plots``). A bad input prints ``error: ...`` and exits with status 2.
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import typer
 
 from app.cli._root import cli, export_cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session
-from app.services.errors import InvalidInputError
+from app.core.errors import InvalidInputError
 
 evaluate_cli = typer.Typer(help="Evaluate detectors against the curated labels.", no_args_is_help=True)
 cli.add_typer(evaluate_cli, name="evaluate")
@@ -21,7 +21,7 @@ AllOpt = Annotated[bool, typer.Option("--all", help="Every system, not only the 
 
 
 def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None) -> None:
-    from app.services.detector_export import export_detector
+    from app.services.transfer.detector_export import export_detector
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
@@ -71,7 +71,7 @@ def evaluate_monocular_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """AP@0.5, MAE (m, %), P@2m and the precision-threshold curve of ball detections, per split."""
-    from app.services.monocular import default_estimator, evaluate_predictions, reference_views
+    from app.services.evaluation.monocular import default_estimator, evaluate_predictions, reference_views
 
     settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)
@@ -95,7 +95,7 @@ def evaluate_monocular_cmd(
         json_out.write_text(json.dumps(report, indent=1))
         typer.echo(f"wrote {json_out}")
     if plots:
-        from app.services.monocular_plots import plot_precision_curve, plot_sensitivity, sensitivity_curves
+        from app.services.evaluation.plots import plot_precision_curve, plot_sensitivity, sensitivity_curves
 
         paths = plot_precision_curve(report, plots) + plot_sensitivity(
             sensitivity_curves(views, settings.ball_diameter_m, estimator=estimator), plots)
@@ -113,10 +113,10 @@ def evaluate_sensitivity_cmd(
     """The paper's sensitivity study on the curated labels: box size +-10 %, centre up to 2 % of the diagonal."""
     import numpy as np
 
-    from app.services.monocular import reference_views
-    from app.services.monocular_plots import plot_sensitivity, sensitivity_curves
+    from app.services.evaluation.monocular import reference_views
+    from app.services.evaluation.plots import plot_sensitivity, sensitivity_curves
 
-    from app.services.monocular import default_estimator
+    from app.services.evaluation.monocular import default_estimator
 
     settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)

@@ -1,4 +1,4 @@
-"""``v3d jobs list`` and ``v3d jobs run``: the background jobs of the database (``app.services.jobs``);
+"""``v3d jobs list`` and ``v3d jobs run``: the background jobs of the database (``app.services.jobs.runner``);
 ``v3d recompute``: the full recompute, a job run in this process with its progress.
 
 ``list`` prints the newest jobs with their state and progress; ``run`` runs the queued jobs (and the
@@ -32,7 +32,7 @@ def list_cmd(
 ) -> None:
     """Print the newest jobs: id, kind, state, progress, what they run and, failed, why."""
     from app.db.models import JobState
-    from app.services import jobs
+    from app.services.jobs import runner as jobs
 
     try:
         wanted = JobState(state) if state else None
@@ -55,7 +55,7 @@ def list_cmd(
 @jobs_cli.command("run")
 def run_cmd(database_url: DatabaseOpt = None) -> None:
     """Run queued jobs (and stale ones) in this process until none is left; prints each outcome."""
-    from app.services import jobs
+    from app.services.jobs import runner as jobs
 
     settings = cli_settings(database_url, None)
     owner = jobs.owner_name()

@@ -39,8 +39,8 @@ def load_demo_if_empty(settings: Settings) -> str:
     """
     from app.db.session import make_engine, make_session_factory
     from app.demo import generate_demo_dataset
-    from app.services.importing import import_soccernet_v3
-    from app.services.queue import has_games
+    from app.services.transfer.importing import import_soccernet_v3
+    from app.services.curation.queue import has_games
 
     engine = make_engine(settings.database_url)
     try:
@@ -60,7 +60,7 @@ def refresh_derived(settings: Settings) -> str | None:
     doubts and queue figures), so that everything served is current. Returns a line for the console,
     None when nothing was stale."""
     from app.db.session import make_engine, make_session_factory
-    from app.services.recompute import refresh_stale_systems
+    from app.services.curation.recompute import refresh_stale_systems
 
     engine = make_engine(settings.database_url)
     try:
@@ -72,10 +72,10 @@ def refresh_derived(settings: Settings) -> str | None:
 
 
 def ensure_demo_account(settings: Settings) -> str:
-    """Make the demo account unless it exists (``app.services.users.ensure_demo_account``); returns
+    """Make the demo account unless it exists (``app.services.accounts.users.ensure_demo_account``); returns
     the console line saying how to log in."""
     from app.db.session import make_engine, make_session_factory
-    from app.services.users import ensure_demo_account as ensure
+    from app.services.accounts.users import ensure_demo_account as ensure
 
     engine = make_engine(settings.database_url)
     try:

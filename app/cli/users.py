@@ -1,4 +1,4 @@
-"""``v3d users ...``: the people who may log in and their API tokens (``app.services.users``).
+"""``v3d users ...``: the people who may log in and their API tokens (``app.services.accounts.users``).
 
 Run by whoever owns the machine: no token needed, the database is ``V3D_DATABASE_URL`` (or
 ``--database-url``), migrated first. ``add`` and ``token`` print the new API token alone on the last
@@ -14,7 +14,7 @@ import typer
 
 from app.cli._root import cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session
-from app.services.errors import InvalidInputError, NotFoundError
+from app.core.errors import InvalidInputError, NotFoundError
 
 users_cli = typer.Typer(help="Users, roles and API tokens.", no_args_is_help=True)
 cli.add_typer(users_cli, name="users")
@@ -40,7 +40,7 @@ def add_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """Add a user; prints its first API token alone on the last line."""
-    from app.services.users import check_new_user, create_user
+    from app.services.accounts.users import check_new_user, create_user
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
@@ -56,7 +56,7 @@ def add_cmd(
 @users_cli.command("token")
 def token_cmd(name: Annotated[str, typer.Argument(help="An existing user.")], database_url: DatabaseOpt = None) -> None:
     """Issue another API token to a user; prints it alone on the last line."""
-    from app.services.users import issue_token
+    from app.services.accounts.users import issue_token
 
     with database_session(cli_settings(database_url, None)) as session:
         try:
@@ -70,7 +70,7 @@ def token_cmd(name: Annotated[str, typer.Argument(help="An existing user.")], da
 @users_cli.command("list")
 def list_cmd(database_url: DatabaseOpt = None) -> None:
     """List the users: name, role, created (UTC), number of API tokens, state."""
-    from app.services.users import list_users
+    from app.services.accounts.users import list_users
 
     with database_session(cli_settings(database_url, None)) as session:
         rows = list_users(session)
@@ -81,7 +81,7 @@ def list_cmd(database_url: DatabaseOpt = None) -> None:
 
 
 def _set_disabled(name: str, disabled: bool, database_url: str | None) -> None:
-    from app.services.users import set_disabled
+    from app.services.accounts.users import set_disabled
 
     with database_session(cli_settings(database_url, None)) as session:
         try:

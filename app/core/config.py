@@ -114,7 +114,7 @@ class Settings(BaseSettings):
         "(403) without saying whether it exists. None: HTTP imports of server paths are refused (the CLI, run by "
         "the machine's owner, is not confined).",
     )
-    # --- users and sessions (app.api.authentication, app.services.users) ---
+    # --- users and sessions (app.api.authentication, app.services.accounts.users) ---
     session_secret: Optional[SecretStr] = Field(
         None,
         description="Key that signs the browser's session cookies (V3D_SESSION_SECRET). None: the key generated "
@@ -135,7 +135,7 @@ class Settings(BaseSettings):
         "objects outlive young collections); 20,000 makes full collections ~30x rarer "
         "(python -m benchmarks.issia_service --gc-threshold N shows the effect).")
 
-    # --- background jobs and uploads (app.services.jobs, app.services.archives) ---
+    # --- background jobs and uploads (app.services.jobs.runner, app.services.transfer.archives) ---
     import_batch_frames: int = Field(
         2000, gt=0, description="An import is stored in transactions of whole games of about this many frames: memory "
         "stays bounded by a batch, and a killed import leaves whole games stored (completed by running it again).")

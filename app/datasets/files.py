@@ -2,7 +2,7 @@
 entry names are checked before anything is read (an absolute name, a drive or a ``..`` component
 refuses the archive), the ``*.json`` files of a folder or zip, image sizes. No database.
 
-Every problem raises :class:`~app.services.errors.DatasetError` naming the file (``archive.zip!member``
+Every problem raises :class:`~app.core.errors.DatasetError` naming the file (``archive.zip!member``
 inside zips) and the field, except :func:`json_files`, the lister of the offline commands, which raises
 :class:`InputFileError`.
 """
@@ -17,7 +17,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from app.services.errors import DatasetError
+from app.core.errors import DatasetError
 
 #: Image files a frame may come with.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")

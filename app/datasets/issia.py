@@ -13,7 +13,7 @@ Folder (method.md section 9, issue 9):
   the caller (``flipped_cameras``) and applied to images, never to the labels.
 
 A sequence is one game; a multi-view system is one frame index across the cameras; frame ``i`` is
-at ``t = i / fps``. Errors name the file and the field (:class:`app.services.errors.DatasetError`).
+at ``t = i / fps``. Errors name the file and the field (:class:`app.core.errors.DatasetError`).
 
 ``ISSIA-3D.csv`` rows are read and written by :mod:`app.datasets.issia3d`. Cameras 3-6 are the
 training set and 1-2 the test set, as in the paper (:data:`CAMERA_SET`).
@@ -32,7 +32,7 @@ import numpy as np
 
 from app.geometry.annotations import AnnotationError, FieldLines, from_soccernet_calibration
 from app.geometry.camera import Camera
-from app.services.errors import DatasetError
+from app.core.errors import DatasetError
 
 CAMERA_IDS = ("1", "2", "3", "4", "5", "6")
 CAMERA_SET = {"1": "test", "2": "test", "3": "train", "4": "train", "5": "train", "6": "train"}

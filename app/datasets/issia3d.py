@@ -19,7 +19,7 @@ import numpy as np
 
 from app.datasets.issia import CAMERA_IDS, IssiaSequence
 from app.geometry.camera import Camera
-from app.services.errors import DatasetError
+from app.core.errors import DatasetError
 
 _PER_CAMERA = ("x", "y", "err", "opt_d", "opt_e")
 ISSIA3D_COLUMNS = ("frame", *(f"{c}_cam{k}" for k in CAMERA_IDS for c in _PER_CAMERA), "num_cameras", "ball_3D",

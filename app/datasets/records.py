@@ -1,13 +1,45 @@
 """Validated dataset input, nothing stored yet: the plain records every reader of ``app.datasets``
-produces and ``app.services.importing`` stores (games, multi-view systems, frames with their field
+produces and ``app.services.transfer.importing`` stores (games, multi-view systems, frames with their field
 lines in pixels, ball labels and, for exports, calibrations)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
-from app.db.models import BallKind, FrameRole, ReviewStatus, SystemKind
-from app.services.calibrating import CalibrationFields
+from app.db.models import BallKind, CalibrationStatus, FrameRole, ReviewStatus, SystemKind
+
+
+@dataclass(frozen=True)
+class CalibrationFields:
+    """What is stored of a calibration: plain values, picklable across processes.
+
+    Attributes:
+        status: calibrated or refused.
+        camera: SoccerNet camera JSON (method.md section 2) at the frame's resolution, or None.
+        jac: JaC at the gammas of ``JAC_GAMMAS`` (None where not computed).
+        residuals_px: class -> residual in pixels.
+        flags: warnings raised by calibration (e.g. probable mirrored labels).
+        reason: why calibration was refused (None when calibrated).
+        elapsed_ms: wall time of the calibration, rig positions and mirrored-labels check included
+            (not stored; import reports use it).
+        rms_px: RMS distance (px) of every labelled point to its model element under the camera, or
+            under the best rejected one (not stored): how a rig retry is compared with the first
+            result (:func:`app.services.calibration.calibrating.with_rig_retry`).
+        mirror_evidence: for a frame refused even with the game's rig whose mirrored labels fit a
+            rig position (``app.geometry.mirror.mirrored_fit_at_rig``), that evidence (JSON); the
+            flag ``MIRROR_FLAG`` is then in ``flags``. Calibrated frames get theirs from
+            ``recompute_system``.
+    """
+
+    status: CalibrationStatus
+    camera: dict[str, Any] | None
+    jac: tuple[float | None, float | None, float | None]
+    residuals_px: dict[str, Any] = field(default_factory=dict)
+    flags: list[str] = field(default_factory=list)
+    reason: str | None = None
+    elapsed_ms: float | None = None
+    mirror_evidence: dict[str, Any] | None = None
+    rms_px: float | None = None
 
 
 @dataclass(frozen=True)

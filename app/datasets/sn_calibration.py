@@ -14,7 +14,7 @@ from app.datasets.files import (
 from app.datasets.records import FrameRecord, GameRecord, SystemRecord
 from app.db.models import FrameRole, SystemKind
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration, lines_to_json_lists
-from app.services.errors import DatasetError
+from app.core.errors import DatasetError
 
 #: League given to games made from a SoccerNet-calibration folder or zip.
 SN_CALIBRATION_LEAGUE = "sn-calibration"

@@ -5,7 +5,7 @@ A multi-view system is an action and its ``linked_replays``; the ball is the box
 field lines become pixels. The SoccerNet-v3D reader (:mod:`app.datasets.soccernet_v3d`) reads the same
 layout with its own frame reader (:data:`FrameReader`). Images are located, never extracted: a record
 holds the zip path and member name or a file path. Every problem raises
-:class:`~app.services.errors.DatasetError` naming the file and the field.
+:class:`~app.core.errors.DatasetError` naming the file and the field.
 """
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from app.datasets.files import image_size_field, load_json_file, mapping, open_z
 from app.datasets.records import FrameRecord, GameRecord, SystemRecord
 from app.db.models import FrameRole, SystemKind
 from app.geometry.annotations import AnnotationError, from_soccernet_v3, lines_to_json_lists
-from app.services._labels import LabelError, check_box
-from app.services.errors import DatasetError
+from app.datasets.labels import LabelError, check_box
+from app.core.errors import DatasetError
 
 V3_LABELS = "Labels-v3.json"
 V3_FRAMES_ZIP = "Frames-v3.zip"

@@ -1,8 +1,8 @@
 """SoccerNet-v3D exports (``Labels-v3D.json`` per game and ``SNv3D.csv`` at the root, as
-:mod:`app.services.exporting` writes them) -> validated records; no database.
+:mod:`app.services.transfer.exporting` writes them) -> validated records; no database.
 
 Calibrations and field lines come from the JSON, ball labels from the CSV; the layout is SoccerNet-v3's
-(:mod:`app.datasets.soccernet_v3`). Every problem raises :class:`~app.services.errors.DatasetError`
+(:mod:`app.datasets.soccernet_v3`). Every problem raises :class:`~app.core.errors.DatasetError`
 naming the file and the field.
 """
 from __future__ import annotations
@@ -20,9 +20,9 @@ from app.datasets.soccernet_v3 import FrameImages, find_labels, game_key, v3_lin
 from app.db.models import BallKind, CalibrationStatus, FrameRole, ReviewStatus, SystemKind
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
-from app.services._labels import LabelError, check_box, check_point
-from app.services.errors import DatasetError
-from app.services.calibrating import CalibrationFields
+from app.datasets.labels import LabelError, check_box, check_point
+from app.core.errors import DatasetError
+from app.datasets.records import CalibrationFields
 
 V3D_LABELS = "Labels-v3D.json"
 V3D_CSV = "SNv3D.csv"
@@ -170,7 +170,7 @@ def _v3d_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, 
 
 def read_soccernet_v3d(path: str | Path) -> list[GameRecord]:
     """Read and validate a SoccerNet-v3D tree: ``Labels-v3D.json`` per game and ``SNv3D.csv`` at the
-    root (``path``), as :func:`app.services.exporting.export_soccernet_v3d` writes them.
+    root (``path``), as :func:`app.services.transfer.exporting.export_soccernet_v3d` writes them.
 
     Calibrations (camera, JaC) come from the JSON and are kept as they are; field lines from the
     JSON; ball labels from the CSV (``ball_bbox``; ``ball_point`` for point labels). Images are found

@@ -114,7 +114,7 @@ class TriangulationStatus(str, enum.Enum):
 
 
 class JobState(str, enum.Enum):
-    """Where a background job is (``app.services.jobs``)."""
+    """Where a background job is (``app.services.jobs.runner``)."""
 
     QUEUED = "queued"  # waiting for a runner
     RUNNING = "running"  # claimed by the runner named in ``Job.owner``, which beats ``heartbeat_at``
@@ -199,7 +199,7 @@ class System(Base):
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True, order_by="Doubt.id"
     )
     # ----- the review queue's figures, written by every recomputation of the system
-    # (``app.services.recompute.update_summary``) so that the queue reads them instead of aggregating
+    # (``app.services.curation.recompute.update_summary``) so that the queue reads them instead of aggregating
     # on every request. Aggregates are over the **admitted** views, the ones the 3D ball is made of.
     #: Doubts per kind (``{kind: n}``, every kind present), written with the doubts.
     doubt_counts: Mapped[dict[str, Any]] = mapped_column(default=dict)
@@ -223,15 +223,15 @@ class System(Base):
     #: transaction of every decision and recomputation: the queue filters and counts by it.
     review_status: Mapped[ReviewStatus] = mapped_column(
         enum_by_value(ReviewStatus, "system_review_status"), default=ReviewStatus.PENDING, index=True)
-    #: Version of the derived rows and figures (``app.services.recompute.DERIVED_VERSION``); a system
+    #: Version of the derived rows and figures (``app.services.curation.recompute.DERIVED_VERSION``); a system
     #: stored by an older version is recomputed before it is served (``refresh_stale_systems``).
     derived_version: Mapped[int] = mapped_column(default=0)
     #: ISSIA systems: the frame index in the sequence (frame ``i`` at ``t = i / fps``); None otherwise.
     frame_index: Mapped[Optional[int]] = mapped_column(index=True)
     #: Version of the system's review decision, bumped by every decision on the system (its strong ETag,
-    #: ``app.services.versions``); recomputations never touch it.
+    #: ``app.services.curation.versions``); recomputations never touch it.
     review_version: Mapped[int] = mapped_column(default=1)
-    #: ISSIA systems: the frame's place on the sequence's trajectory (``app.services.issia``).
+    #: ISSIA systems: the frame's place on the sequence's trajectory (``app.services.issia.sequences``).
     trajectory_point: Mapped[Optional[TrajectoryPoint]] = relationship(
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True
     )
@@ -268,7 +268,7 @@ class Frame(Base):
     media_flipped: Mapped[bool] = mapped_column(default=False)
     #: Version of what people edit on the frame (ball label, field lines, its review and exclusion),
     #: bumped by each such write and by an import that changes them (its strong ETag,
-    #: ``app.services.versions``); a recomputation caused by a sibling view's edit never touches it.
+    #: ``app.services.curation.versions``); a recomputation caused by a sibling view's edit never touches it.
     edit_version: Mapped[int] = mapped_column(default=1)
 
     system: Mapped[System] = relationship(back_populates="frames")
@@ -541,7 +541,7 @@ class TrajectoryPoint(Base):
 class User(Base):
     """A person (or a script's owner) who may log in: ``name`` is unique and is what the audit log records.
 
-    ``password_hash`` is an argon2 PHC string (``app.services.users``, via pwdlib), never the password;
+    ``password_hash`` is an argon2 PHC string (``app.services.accounts.users``, via pwdlib), never the password;
     ``disabled`` users can neither log in nor use their tokens; ``demo`` marks the account
     ``v3d serve --demo`` made (its password is public: the login page shows it).
     ``session_generation`` is stored in every session cookie; logging out raises it, which ends every
@@ -567,7 +567,7 @@ class User(Base):
 class ApiToken(Base):
     """An API token of a user (``Authorization: Bearer <token>``). Only the SHA-256 of the token is
     stored (hex, 64 characters): the token itself is shown once, when it is issued.
-    ``last_used_at`` is refreshed at most once a minute (``app.services.users.TOKEN_USE_RESOLUTION``)."""
+    ``last_used_at`` is refreshed at most once a minute (``app.services.accounts.users.TOKEN_USE_RESOLUTION``)."""
 
     __tablename__ = "api_tokens"
 
@@ -592,7 +592,7 @@ class ServerSecret(Base):
 
 
 class AuditEntry(Base):
-    """One accepted write (``app.services.audit``): who (``actor``, the user's name as text, so the log
+    """One accepted write (``app.services.accounts.audit``): who (``actor``, the user's name as text, so the log
     outlives users), when (``at``, UTC), what (``action``: ``ball.edit``, ``field_lines.replace``,
     ``field_lines.mirror``, ``view.exclusion``, ``view.review``, ``system.review``, ``import``,
     ``recompute``, ``revert``) and the state of the edited part before and after (JSON; an import or a
@@ -615,7 +615,7 @@ class AuditEntry(Base):
     #: A revert: the entry it undid.
     reverts_id: Mapped[Optional[int]] = mapped_column(sa.ForeignKey("audit_entries.id"))
 class Job(Base):
-    """A background job (``app.services.jobs``): an import, a full recompute or an export.
+    """A background job (``app.services.jobs.runner``): an import, a full recompute or an export.
 
     ``params`` is what the job needs to run again from the start (a job interrupted by a killed process
     is resumed by running it again: imports are idempotent); ``stage``, ``done`` and ``total`` are its

@@ -10,7 +10,7 @@ behind another writer, so no read-modify-write ever has to upgrade a read lock (
 that reads and then writes fails at once with "database is locked" when another process committed in
 between: WAL cannot upgrade a stale snapshot, and no busy timeout helps). Reads keep a deferred
 ``BEGIN`` and never wait for writers (WAL). On PostgreSQL the option changes nothing; the services lock
-the rows they read-modify-write (``SELECT ... FOR UPDATE``, ``app.services.editing``).
+the rows they read-modify-write (``SELECT ... FOR UPDATE``, ``app.services.curation.editing``).
 """
 from __future__ import annotations
 

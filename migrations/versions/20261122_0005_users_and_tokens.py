@@ -55,7 +55,7 @@ def upgrade() -> None:
     sa.PrimaryKeyConstraint('name', name=op.f('pk_server_secrets'))
     )
     # The session-signing key, made once here (migrations run before the workers start), so that every
-    # worker reads the same one; app.services.users.session_secret makes it again if the row is lost.
+    # worker reads the same one; app.services.accounts.users.session_secret makes it again if the row is lost.
     op.bulk_insert(secrets_table, [{'name': 'session', 'value': secrets.token_urlsafe(48),
                                     'created_at': app.db.types.utcnow()}])
 

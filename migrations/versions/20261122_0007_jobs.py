@@ -1,4 +1,4 @@
-"""Background jobs (issues 7 and 8): the ``jobs`` table of ``app.services.jobs`` (imports, full
+"""Background jobs (issues 7 and 8): the ``jobs`` table of ``app.services.jobs.runner`` (imports, full
 recomputes and exports run by a runner that a killed process's successor resumes).
 
 Revision ID: 0007

@@ -77,8 +77,8 @@ def scene(db_session: Session, db_settings: Settings, tmp_path) -> Scene:
 
 def run_queued(app: FastAPI) -> list[int]:
     """Run the app's queued jobs to their end, in this thread, as a server's runner would (the real
-    ``app.services.jobs`` claim and run); returns their ids."""
-    from app.services import jobs
+    ``app.services.jobs.runner`` claim and run); returns their ids."""
+    from app.services.jobs import runner as jobs
 
     owner = jobs.owner_name()
     ran = []

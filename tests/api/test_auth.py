@@ -17,7 +17,7 @@ from app.api.auth import ROLES
 from app.api.authentication import CSRF_HEADER, SESSION_COOKIE
 from app.core.config import Settings
 from app.main import create_app
-from app.services import users
+from app.services.accounts import users
 from tests.accounts import Account, as_session, as_token
 
 from .factories import Scene

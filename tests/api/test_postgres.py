@@ -10,7 +10,7 @@ from app.db.models import System
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.main import create_app
 from app.geometry.calibration.frame import MIRROR_FLAG
-from app.services.recompute import update_summary
+from app.services.curation.recompute import update_summary
 
 from tests.accounts import as_token, make_accounts
 
@@ -95,7 +95,7 @@ def test_soccernet_v3d_export_on_postgresql(pg_url: str, tmp_path) -> None:
     import json
 
     from app.db.models import Frame
-    from app.services.exporting import export_soccernet_v3d
+    from app.services.transfer.exporting import export_soccernet_v3d
 
     settings = Settings(database_url=pg_url, calibration_workers=1)
     sid = _seed(pg_url, settings, lambda session, game: make_system(session, settings, game, "2.png").system_id)

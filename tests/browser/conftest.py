@@ -34,7 +34,7 @@ def seeded_settings(tmp_path_factory: pytest.TempPathFactory):
     from app.core.config import Settings
     from app.db.session import make_engine, make_session_factory, upgrade_database
     from app.demo import generate_demo_dataset
-    from app.services.importing import import_sn_calibration, import_soccernet_v3
+    from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3
 
     root = tmp_path_factory.mktemp("ui")
     settings = Settings(database_url=f"sqlite:///{root / 'ui.sqlite3'}", calibration_workers=1,

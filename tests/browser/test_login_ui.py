@@ -9,7 +9,7 @@ import re
 import pytest
 
 from app.db.session import make_engine, make_session_factory
-from app.services.users import ensure_demo_account
+from app.services.accounts.users import ensure_demo_account
 from tests.accounts import Account
 from tests.browser.support import api_json, log_in, tid
 

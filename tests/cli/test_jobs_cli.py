@@ -11,7 +11,7 @@ import app.cli.datasets  # noqa: F401  (registers the commands)
 import app.cli.jobs  # noqa: F401
 from app.cli._root import cli
 from app.db.session import make_engine, make_session_factory
-from app.services import jobs
+from app.services.jobs import runner as jobs
 from tests.services.datasets import write_calibration_zip
 
 runner = CliRunner()

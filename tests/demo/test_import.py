@@ -10,8 +10,9 @@ from app.core.config import Settings
 from tests.demo.support import Demo
 
 from app.api.view_schemas import SystemView
-from app.services import importing, queue
-from app.services.system_page import system_page
+from app.services.transfer import importing
+from app.services.curation import queue
+from app.services.curation.system_page import system_page
 
 
 def test_demo_imports_into_the_review_queue(demo: Demo, db_session: Session, db_settings: Settings) -> None:

@@ -152,7 +152,7 @@ def _kill_mid_import(url: str, tree: Path) -> None:
 
 def _resume_and_compare(url: str, tree: Path, clean: dict[str, Any]) -> None:
     from app.core.config import Settings
-    from app.services.jobs import is_stale
+    from app.services.jobs.runner import is_stale
 
     _soundness(url)
     [job] = _job(url)

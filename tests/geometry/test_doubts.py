@@ -201,7 +201,7 @@ def test_the_consensus_is_general_for_n_views_and_ambiguous_between_two_camps():
 
 
 def test_settings_defaults_are_the_doubt_settings_defaults():
-    from app.services.doubts import doubt_settings
+    from app.services.curation.doubts import doubt_settings
 
     assert doubt_settings(Settings(_env_file=None)) == DoubtSettings()
 

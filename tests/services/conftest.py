@@ -59,10 +59,11 @@ def imported(db_session: Session, settings: Settings, v3_tree: Path, shared_dir:
     from app.geometry.annotations import lines_from_json_lists
     from app.geometry.camera import Camera
     from app.geometry.jac import jac_at_gammas
-    from app.services.importing import import_soccernet_v3
+    from app.services.transfer.importing import import_soccernet_v3
     from app.geometry.jac import JAC_GAMMAS
-    from app.services.calibrating import CalibrationFields, apply_calibration
-    from app.services.recompute import recompute_systems
+    from app.datasets.records import CalibrationFields
+    from app.services.calibration.calibrating import apply_calibration
+    from app.services.curation.recompute import recompute_systems
 
     from .datasets import true_cameras
 

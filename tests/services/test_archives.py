@@ -1,4 +1,4 @@
-"""The one safe unpacker of uploads (``app.services.archives``): real zips made here, each hostile
+"""The one safe unpacker of uploads (``app.services.transfer.archives``): real zips made here, each hostile
 kind refused naming its member, nothing left extracted; a valid tree unpacked byte for byte."""
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from app.services.archives import ArchiveLimits, UploadTooLarge, receive, unpack_zip
-from app.services.errors import DatasetError
+from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, receive, unpack_zip
+from app.core.errors import DatasetError
 
 LIMITS = ArchiveLimits(max_members=100, max_unpacked_bytes=10 << 20)
 

@@ -10,11 +10,12 @@ import pytest
 import sqlalchemy as sa
 
 from app.db.models import AuditEntry, Frame, System
-from app.services import audit, editing
-from app.services.errors import InvalidInputError, StaleVersionError
-from app.services.importing import import_soccernet_v3
-from app.services.recompute import refresh_stale_systems
-from app.services.reverting import revert_entry
+from app.services.accounts import audit
+from app.services.curation import editing
+from app.core.errors import InvalidInputError, StaleVersionError
+from app.services.transfer.importing import import_soccernet_v3
+from app.services.curation.recompute import refresh_stale_systems
+from app.services.curation.reverting import revert_entry
 
 
 def _entries(session) -> list[AuditEntry]:
@@ -91,7 +92,7 @@ def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_url, settings
     """Writer A claims the frame and holds its transaction open; writer B, with the same expected version,
     waits on the row lock, then finds the version moved: 412 for B, A's edit stored, one entry."""
     from app.db.session import make_engine, make_session_factory, upgrade_database
-    from app.services.versions import claim_frame
+    from app.services.curation.versions import claim_frame
 
     upgrade_database(pg_url)
     engine = make_engine(pg_url)

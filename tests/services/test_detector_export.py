@@ -1,4 +1,4 @@
-"""YOLO and COCO exports (``app.services.detector_export``) of three dev systems (true cameras), read
+"""YOLO and COCO exports (``app.services.transfer.detector_export``) of three dev systems (true cameras), read
 back by third-party readers: supervision (``DetectionDataset.from_yolo`` / ``from_coco``; it needs no
 deep-learning framework) and pycocotools."""
 from __future__ import annotations
@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from app.db.models import ReviewStatus
-from app.services.detector_export import CLASSES, ball_boxes, export_coco, export_yolo, image_stem
-from app.services.editing import decide_review
+from app.services.kinds import image_stem
+from app.services.transfer.detector_export import CLASSES, ball_boxes, export_coco, export_yolo
+from app.services.curation.editing import decide_review
 
 from .datasets import dev_game_dir
 

@@ -1,4 +1,4 @@
-"""Doubts in the service (``app.services.doubts``): stored with every recomputation in the edit's
+"""Doubts in the service (``app.services.curation.doubts``): stored with every recomputation in the edit's
 transaction, counted per system, mapped from the settings, and left untouched by an edit that fails."""
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from app.core.config import Settings
 from app.db.models import System
 from app.geometry.ball import sphere_image_box
 from app.geometry.doubts import LABEL_KINDS, DoubtSettings
-from app.services import doubts as doubt_service
-from app.services import editing
-from app.services.doubts import doubt_settings
+from app.services.curation import doubts as doubt_service
+from app.services.curation import editing
+from app.services.curation.doubts import doubt_settings
 
 from tests.api.factories import BALL, make_game, make_system
 
@@ -107,7 +107,7 @@ def test_exclusion_is_stored_reversible_and_leaves_the_view_out(db_session: Sess
 def test_systems_stored_by_an_older_version_are_recomputed_once(db_session: Session, db_settings: Settings) -> None:
     """After a schema upgrade the stored doubts and queue figures are empty (``derived_version`` 0):
     ``refresh_stale_systems`` recomputes exactly those systems, and then nothing."""
-    from app.services.recompute import DERIVED_VERSION, refresh_stale_systems
+    from app.services.curation.recompute import DERIVED_VERSION, refresh_stale_systems
 
     scene = make_system(db_session, db_settings, make_game(db_session), shift_px=(0.0, 0.0, 80.0))
     system = _stored(db_session, scene.system_id)

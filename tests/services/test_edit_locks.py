@@ -11,8 +11,8 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Game, System, SystemKind
 from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
-from app.services.editing import lock_system
-from app.services.errors import NotFoundError
+from app.services.curation.editing import lock_system
+from app.core.errors import NotFoundError
 
 pytestmark = pytest.mark.postgres
 

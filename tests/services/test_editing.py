@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from app.db.models import BallKind, CalibrationSource, CalibrationStatus, Frame, ReviewStatus, System, TriangulationStatus
-from app.services.editing import decide_review, replace_field_lines, update_ball_label
-from app.services.errors import InvalidInputError, NotFoundError
-from app.services.calibrating import calibrate_lines, expected_side
+from app.services.curation.editing import decide_review, replace_field_lines, update_ball_label
+from app.core.errors import InvalidInputError, NotFoundError
+from app.services.calibration.calibrating import calibrate_lines, expected_side
 
 
 def _frame(systems, system, name) -> Frame:

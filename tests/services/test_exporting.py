@@ -10,9 +10,10 @@ import sqlalchemy as sa
 from sqlalchemy.orm import selectinload
 
 from app.db.models import CalibrationSource, Frame, Game, ReviewStatus, System
-from app.services.editing import decide_review, replace_field_lines, update_ball_label
-from app.services.exporting import CSV_COLUMNS, export_soccernet_v3d, split_of
-from app.services.importing import import_sn_calibration, import_soccernet_v3, import_soccernet_v3d
+from app.services.curation.editing import decide_review, replace_field_lines, update_ball_label
+from app.services.kinds import split_of
+from app.services.transfer.exporting import CSV_COLUMNS, export_soccernet_v3d
+from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, import_soccernet_v3d
 
 from .datasets import DEV_GAME, write_calibration_zip
 
@@ -142,7 +143,7 @@ def test_export_then_import_reproduces_every_label_camera_and_number(
 
 
 def test_v3d_import_needs_the_csv_row_of_every_frame(db_session, settings, v3_tree, tmp_path):
-    from app.services.errors import DatasetError
+    from app.core.errors import DatasetError
 
     import_soccernet_v3(db_session, v3_tree, settings)
     export_soccernet_v3d(db_session, tmp_path / "export", include_all=True)

@@ -12,8 +12,8 @@ from app.db.models import (
     BallKind, CalibrationSource, CalibrationStatus, Frame, FrameRole, Game, ReviewStatus, System, SystemKind,
     TriangulationStatus,
 )
-from app.services.errors import DatasetError
-from app.services.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
+from app.core.errors import DatasetError
+from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
 from app.geometry.calibration.frame import RIG_FLAG
 
 from .datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
@@ -97,7 +97,7 @@ def test_import_twice_gives_the_same_rows(db_session, settings, v3_tree):
 
 
 def test_reimport_refreshes_originals_but_keeps_a_reviewers_edit(db_session, settings, shared_dir, tmp_path):
-    from app.services.editing import update_ball_label
+    from app.services.curation.editing import update_ball_label
 
     root = tmp_path / "v3"
     write_v3_game(shared_dir, root, actions=("0.png",))
@@ -297,7 +297,7 @@ def test_an_import_reads_each_game_twice_and_holds_two_batches_at_most(shared_di
     import weakref
 
     from app.core.config import Settings
-    from app.services import importing
+    from app.services.transfer import importing
 
     dev = shared_dir / "data" / "synthetic" / "soccernet-v3-dev"
     alive: list[weakref.ref] = []

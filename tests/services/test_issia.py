@@ -1,4 +1,4 @@
-"""ISSIA sequences through the service (``app.services.issia``): import in both modes, idempotent
+"""ISSIA sequences through the service (``app.services.issia.sequences``): import in both modes, idempotent
 re-import, edits that re-fit the trajectory in their transaction, the ISSIA-3D export round trip, and
 the issue's figures on the whole dev sequence read back from the stored rows."""
 from __future__ import annotations
@@ -15,10 +15,10 @@ from app.db.models import (
     BallKind, CalibrationSource, Doubt, Frame, FrameRole, Game, System, SystemKind, TrajectoryPoint,
 )
 from app.geometry.camera import Camera
-from app.services import issia as issia_service
-from app.services.editing import decide_review, set_view_excluded, update_ball_label
-from app.services.issia import import_issia
-from app.services.issia_export import export_issia3d
+from app.services.issia import sequences as issia_service
+from app.services.curation.editing import decide_review, set_view_excluded, update_ball_label
+from app.services.issia.sequences import import_issia
+from app.services.issia.export import export_issia3d
 from app.db.models import ReviewStatus
 from tests.services.issia_data import dev_dir, dev_truth, write_issia_stretch
 
@@ -231,8 +231,8 @@ def test_an_edits_incremental_refit_equals_a_fit_from_scratch(db_session, db_set
     sources, flagged labels, kept labels and per-frame triangulations. On frames 0-119 of the dev
     sequence (pieces 0-23, 24-114, 115-119): frame 70 lies well inside a piece (that piece alone is
     re-fitted), frame 115 at a break (the pieces around it are segmented again)."""
-    from app.services import issia_refit
-    from app.services.issia_trajectory import fit_sequence
+    from app.services.issia import refit as issia_refit
+    from app.services.issia.trajectory import fit_sequence
 
     import_issia(db_session, write_issia_stretch(shared_dir, tmp_path / "issia-dev", 0, 119, videos=False), db_settings)
     view = next(f for f in _systems(db_session)[frame].frames if f.ball_label is not None)
@@ -276,8 +276,8 @@ def test_a_field_line_edit_refits_the_whole_sequence_only_when_its_view_gives_th
     """The sequence uses each camera's first admitted view's camera for every frame: new field lines of a
     later view leave the trajectory as it was; new field lines of that first view change the camera of
     every frame, and the stored trajectory is then the fit from scratch with the new camera."""
-    from app.services.editing import replace_field_lines
-    from app.services.issia_trajectory import fit_sequence
+    from app.services.curation.editing import replace_field_lines
+    from app.services.issia.trajectory import fit_sequence
 
     import_issia(db_session, stretch, db_settings)
     game = db_session.scalars(sa.select(Game)).one()
@@ -301,8 +301,8 @@ def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(
     """An edit in the piece of frame 13 (cam4's wrong label) moves frame 13 on the trajectory without changing
     its labels: its trajectory doubt is replaced from the new stored point without loading the system, and is
     what judging the whole system again stores (same doubts, order, counts; the evidence's new position)."""
-    from app.services import issia_refit
-    from app.services.doubts import update_doubts
+    from app.services.issia import refit as issia_refit
+    from app.services.curation.doubts import update_doubts
 
     import_issia(db_session, stretch, db_settings)
     s13 = _systems(db_session)[13]
@@ -334,8 +334,8 @@ def test_the_pieces_an_edit_reads_are_those_within_reach(db_session, db_settings
     """``_pieces_around`` reads the stored pieces of a window of frames around the edit, widened until it holds
     every piece within ``REFIT_REACH`` of the one the edit touches: the same pieces the whole list gives."""
     from app.geometry.trajectory import REFIT_REACH
-    from app.services.issia_refit import _pieces_around
-    from app.services.issia_trajectory import piece_from_json
+    from app.services.issia.refit import _pieces_around
+    from app.services.issia.trajectory import piece_from_json
 
     import_issia(db_session, write_issia_stretch(shared_dir, tmp_path / "issia-dev", 0, 199, videos=False), db_settings)
     game = db_session.scalars(sa.select(Game)).one()
@@ -360,8 +360,8 @@ def test_the_cameras_an_edit_reads_are_those_of_the_whole_sequence(db_session, d
     first view is not admitted: the same cameras (each camera's first admitted view in frame order) as the
     whole sequence gives (``sequence_arrays``), whether that view is the first, a later one, or none."""
     from app.db.models import CalibrationStatus
-    from app.services.issia_refit import sequence_columns
-    from app.services.issia_trajectory import load_sequence, sequence_arrays
+    from app.services.issia.refit import sequence_columns
+    from app.services.issia.trajectory import load_sequence, sequence_arrays
 
     import_issia(db_session, stretch, db_settings)
     game = db_session.scalars(sa.select(Game)).one()

@@ -1,4 +1,4 @@
-"""The job queue (``app.services.jobs``) on real databases: claims are compare-and-set, a job whose
+"""The job queue (``app.services.jobs.runner``) on real databases: claims are compare-and-set, a job whose
 process is gone is stale at once, and a server's runner thread resumes it and runs queued imports."""
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from app.core.config import Settings
 from app.db.models import Game, Job, JobState
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.db.types import utcnow
-from app.services import jobs
+from app.services.jobs import runner as jobs
 
 from .datasets import write_v3_game
 

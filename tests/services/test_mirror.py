@@ -14,11 +14,11 @@ from app.db.models import Frame
 from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.geometry.camera import Camera
 from app.geometry.mirror import mirror_camera
-from app.services.editing import apply_mirrored_labels
-from app.services.errors import InvalidInputError, NotFoundError
-from app.services.importing import import_soccernet_v3
+from app.services.curation.editing import apply_mirrored_labels
+from app.core.errors import InvalidInputError, NotFoundError
+from app.services.transfer.importing import import_soccernet_v3
 from app.geometry.calibration.frame import MIRROR_FLAG
-from app.services.recompute import recompute_system
+from app.services.curation.recompute import recompute_system
 from tests.api.factories import make_game, make_system
 
 

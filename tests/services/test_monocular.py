@@ -1,4 +1,4 @@
-"""The monocular benchmark (``app.services.monocular``) on hand-built views with known answers.
+"""The monocular benchmark (``app.services.evaluation.monocular``) on hand-built views with known answers.
 
 Two views of one camera 1000 px focal: ball A 15 m in front of the camera on its optical axis, ball
 B 50 m away off the axis. Reference boxes are the paper's boxes of those balls (Eq. min_diametre on
@@ -16,8 +16,8 @@ from app.geometry.ball import optimise_box, sphere_image_box
 from app.geometry.camera import Camera
 from app.geometry.metrics import Detections
 from app.geometry.sensitivity import scale_boxes
-from app.services.errors import InvalidInputError
-from app.services.monocular import ReferenceView, evaluate, load_predictions
+from app.core.errors import InvalidInputError
+from app.services.evaluation.monocular import ReferenceView, evaluate, load_predictions
 
 CAM = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0, tilt_deg=90.0,
                              roll_deg=0.0, position_m=[0.0, 50.0, -10.0])

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from app.db.models import Calibration, CalibrationSource, CalibrationStatus, TriangulationStatus
-from app.services.importing import read_soccernet_v3
-from app.services.calibrating import admission_jac, calibrate_many, expected_side, is_admitted
-from app.services.recompute import recompute_system
+from app.services.transfer.importing import read_soccernet_v3
+from app.services.calibration.calibrating import admission_jac, calibrate_many, expected_side, is_admitted
+from app.services.curation.recompute import recompute_system
 
 from .datasets import true_balls
 

@@ -6,10 +6,10 @@ import numpy as np
 import sqlalchemy as sa
 
 from app.db.models import CalibrationStatus, System, SystemKind
-from app.services.editing import replace_field_lines
-from app.services.importing import import_sn_calibration
+from app.services.curation.editing import replace_field_lines
+from app.services.transfer.importing import import_sn_calibration
 from app.geometry.calibration.frame import RIG_FLAG
-from app.services.calibrating import calibrate_lines, calibration_job, game_rig, uses_rig
+from app.services.calibration.calibrating import calibrate_lines, calibration_job, game_rig, uses_rig
 
 from .datasets import true_cameras, write_calibration_zip
 
@@ -49,7 +49,7 @@ def test_calibration_datasets_never_use_a_rig(db_session, settings, imported, sh
 
 
 def test_a_rig_from_fresh_results_of_a_game_not_stored_yet(settings, shared_dir):
-    from app.services.calibrating import CalibrationFields
+    from app.datasets.records import CalibrationFields
 
     mains = [cam for (system, frame), cam in true_cameras(shared_dir).items() if system == frame]  # actions
     good = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (1.0, 1.0, 1.0)) for cam in mains]
@@ -64,7 +64,7 @@ def test_a_frame_calibrated_below_admission_is_retried_and_the_better_fit_kept(d
                                                                                shared_dir):
     """0.png's lines alone settle on a camera 10 m from the truth (JaC@0.5 % = 0.75, not admitted,
     4.2 px RMS); at the game's main-camera position the same labels fit within about 1 px."""
-    from app.services.calibrating import wants_rig_retry
+    from app.services.calibration.calibrating import wants_rig_retry
 
     frame = next(f for f in imported["0.png"].frames if f.name == "0.png")
     alone = calibrate_lines(*calibration_job(frame))
@@ -87,7 +87,7 @@ def test_a_rig_position_the_labels_do_not_fit_is_refused_not_stored(shared_dir):
 
     from app.geometry.annotations import from_soccernet_v3, lines_to_json_lists
     from app.geometry.calibration import CameraRig, RigPosition
-    from app.services.calibrating import with_rig_retry
+    from app.services.calibration.calibrating import with_rig_retry
 
     from .datasets import dev_game_dir
 
@@ -113,7 +113,8 @@ def test_a_rig_position_the_labels_do_not_fit_is_refused_not_stored(shared_dir):
 
 
 def test_with_rig_retry_keeps_the_fit_with_the_smaller_residual():
-    from app.services.calibrating import CalibrationFields, with_rig_retry
+    from app.datasets.records import CalibrationFields
+    from app.services.calibration.calibrating import with_rig_retry
 
     refused = CalibrationFields(CalibrationStatus.REFUSED, None, (None, None, None), reason="few lines")
     poor = CalibrationFields(CalibrationStatus.CALIBRATED, {"c": 1}, (0.5, 1.0, 1.0), rms_px=4.2)

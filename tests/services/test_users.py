@@ -1,4 +1,4 @@
-"""``app.services.users``: argon2 password hashes, API tokens stored as SHA-256 only, token and
+"""``app.services.accounts.users``: argon2 password hashes, API tokens stored as SHA-256 only, token and
 session resolution, bad names and roles, the demo account and the session-signing key."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.db.models import ApiToken, ServerSecret, User
-from app.services import users
-from app.services.errors import InvalidInputError, NotFoundError
+from app.services.accounts import users
+from app.core.errors import InvalidInputError, NotFoundError
 
 
 def test_passwords_are_stored_as_argon2id_hashes_that_verify(db_session: Session) -> None:

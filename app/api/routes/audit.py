@@ -11,10 +11,11 @@ from app.api.conditional import with_etag
 from app.api.deps import SessionDep, SettingsDep
 from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, QueueQuery
 from app.api.view_schemas import SystemView
-from app.services import audit, editing
-from app.services.system_page import system_page
-from app.services.reverting import revert_entry
-from app.services.versions import frame_etag, system_etag
+from app.services.accounts import audit
+from app.services.curation import editing
+from app.services.curation.system_page import system_page
+from app.services.curation.reverting import revert_entry
+from app.services.curation.versions import frame_etag, system_etag
 
 router = APIRouter(prefix="/audit", tags=["audit"])
 

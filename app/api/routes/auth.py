@@ -14,7 +14,7 @@ from app.api.auth import PrincipalDep, held_roles
 from app.api.authentication import start_session
 from app.api.deps import SessionDep
 from app.api.schemas import ErrorOut, _In
-from app.services import users
+from app.services.accounts import users
 
 public_router = APIRouter(prefix="/auth", tags=["auth"])
 router = APIRouter(prefix="/auth", tags=["auth"])

@@ -16,10 +16,11 @@ from starlette.background import BackgroundTask
 from app.api.auth import require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.schemas import InvalidOut
-from app.services import detector_export, monocular
+from app.services.transfer import detector_export
+from app.services.evaluation import monocular
 from app.core.config import Settings
-from app.services.archives import ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
-from app.services.errors import InvalidInputError
+from app.services.transfer.archives import ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
+from app.core.errors import InvalidInputError
 
 router = APIRouter(tags=["detectors"])
 #: Every export needs the admin role; evaluating detections against the labels (it stores nothing) any role.
@@ -82,7 +83,7 @@ _ZIP = {200: {"content": {"application/zip": {}}, "description": "The export as 
 
 @router.get("/exports/yolo", response_class=FileResponse, responses=_ZIP, dependencies=[ADMIN])
 def export_yolo(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> FileResponse:
-    """Ultralytics YOLO layout (``app.services.detector_export``): images/<split>, labels/<split>, data.yaml.
+    """Ultralytics YOLO layout (``app.services.transfer.detector_export``): images/<split>, labels/<split>, data.yaml.
     ``X-V3D-Images`` and ``X-V3D-Skipped-Without-Image`` give its size."""
     return _zip_export("yolo", session, include_all, settings.ball_diameter_m)
 
@@ -95,7 +96,7 @@ def export_coco(session: SessionDep, settings: SettingsDep, include_all: AllQuer
 
 def _unpack(upload: UploadFile, dest: Path, settings: Settings) -> Path:
     """The upload saved under ``dest`` (counted against ``V3D_MAX_UPLOAD_MB`` while it is written: 413
-    beyond): a zip is unpacked by the one safe unpacker (``app.services.archives.unpack_zip``: unsafe,
+    beyond): a zip is unpacked by the one safe unpacker (``app.services.transfer.archives.unpack_zip``: unsafe,
     linked or repeated member names and zip bombs refused naming the member; its YOLO ``.txt`` and
     ``.yaml`` files kept) and its folder returned; anything else is taken as a COCO results JSON."""
     path = dest / "upload"
@@ -126,7 +127,7 @@ def evaluate_monocular(
     estimator: Annotated[Optional[Literal["paper", "exact"]], Query(
         description="Monocular ball from a box; default: the one matching the optimised boxes.")] = None,
 ) -> MonocularReportOut:
-    """The monocular 3D ball benchmark (``app.services.monocular``) of the uploaded detections against
+    """The monocular 3D ball benchmark (``app.services.evaluation.monocular``) of the uploaded detections against
     the curated labels: AP50, MAE_m, MAE_pct, P_2m, the precision-threshold curve and counts, for the
     whole set and per split."""
     est = estimator or monocular.default_estimator(settings.optimised_box_method)

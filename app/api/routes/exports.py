@@ -13,7 +13,8 @@ from app.api.auth import require_role
 from app.api.deps import SessionDep
 from app.api.job_schemas import ExportJobIn, JobOut
 from app.api.routes.jobs import accepted
-from app.services import exporting, jobs
+from app.services.transfer import exporting
+from app.services.jobs import runner as jobs
 
 router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
 
@@ -27,7 +28,7 @@ def export_soccernet_v3d(
     request: Request,
     include_all: Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")] = False,
 ) -> StreamingResponse:
-    """A zip of the SoccerNet-v3D export (``app.services.exporting``), streamed while the database is
+    """A zip of the SoccerNet-v3D export (``app.services.transfer.exporting``), streamed while the database is
     read, game by game (nothing of the size of the export is built in memory or on disk).
     ``X-V3D-Systems`` and ``X-V3D-Rows`` give its size. The stream reads through a session of its own,
     closed when the download ends (the request's session closes before a streamed body is sent)."""

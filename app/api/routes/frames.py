@@ -2,7 +2,7 @@
 
 Edits answer the recomputed system view: the frame's calibration (after new field lines), the
 system's triangulation, reprojections and optimised boxes. The edit, its recomputation and its audit
-entry are committed together or not at all (``app.services.editing``). Every edit is a conditional
+entry are committed together or not at all (``app.services.curation.editing``). Every edit is a conditional
 write (``app.api.conditional``): it takes ``If-Match`` with the frame's ETag (412 when stale, 428 when
 a token sends none) and answers the frame's new ETag in its ``ETag`` header.
 """
@@ -21,9 +21,11 @@ from app.api.schemas import (
     INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, QueueQuery, ReviewIn,
 )
 from app.api.view_schemas import FrameOut, FramePageOut, FrameView, ReviewOut, SystemView
-from app.services import editing, images, queue
-from app.services.system_page import load_frame, system_page
-from app.services.versions import expected_versions, frame_etag
+from app.services.curation import editing
+from app.services.transfer import images
+from app.services.curation import queue
+from app.services.curation.system_page import load_frame, system_page
+from app.services.curation.versions import expected_versions, frame_etag
 
 #: OpenAPI ``responses`` of the frame's edits.
 EDIT_RESPONSES = {**NOT_FOUND, **INVALID, **PRECONDITIONS}

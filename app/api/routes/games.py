@@ -5,7 +5,7 @@ from fastapi import APIRouter
 
 from app.api.deps import SessionDep
 from app.api.view_schemas import GameOut, GameRef
-from app.services import queue
+from app.services.curation import queue
 
 router = APIRouter(prefix="/games", tags=["games"])
 

@@ -4,7 +4,7 @@ from an uploaded zip (multipart).
 Both answer 202 with the queued job (``Location: /api/jobs/{id}``); the job's progress and report are
 read at ``GET /api/jobs/{id}``. What can be checked at once is answered at once: a path outside the data
 root (403), a missing path (400), a too large upload (413, counted while it streams to disk), an unsafe
-or broken zip (400 naming the member: ``app.services.archives``). Errors inside the dataset's files fail
+or broken zip (400 naming the member: ``app.services.transfer.archives``). Errors inside the dataset's files fail
 the job with a message naming the file and the field.
 """
 from __future__ import annotations
@@ -28,11 +28,11 @@ from app.api.routes.jobs import accepted
 from app.api.job_schemas import ImportIn, ImportOptions, ImportUploadIn, JobOut
 from app.api.schemas import ErrorOut
 from app.core.config import Settings, jobs_dir
-from app.services import jobs
-from app.services.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
-from app.services.data_root import confined_path
-from app.services.errors import DatasetError, InvalidInputError
-from app.services.job_kinds import import_params
+from app.services.jobs import runner as jobs
+from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
+from app.services.transfer.data_root import confined_path
+from app.core.errors import DatasetError, InvalidInputError
+from app.services.jobs.kinds import import_params
 
 router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
 

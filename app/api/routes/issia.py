@@ -14,7 +14,7 @@ from app.api.auth import require_role
 from app.api.deps import SessionDep
 from app.api.issia_schemas import TrajectoryOut
 from app.api.schemas import DB_INT_MAX, DB_INT_MIN, ErrorOut
-from app.services import issia_export
+from app.services.issia import export as issia_export
 
 router = APIRouter(tags=["issia"])
 
@@ -40,7 +40,7 @@ def export_issia3d(
     session: SessionDep,
     include_all: Annotated[bool, Query(alias="all", description="Every frame, not only the accepted ones.")] = False,
 ) -> FileResponse:
-    """A zip of the ISSIA-3D export (``app.services.issia_export``). ``X-V3D-Sequences`` and
+    """A zip of the ISSIA-3D export (``app.services.issia.export``). ``X-V3D-Sequences`` and
     ``X-V3D-Rows`` give its size."""
     tmp = Path(tempfile.mkdtemp(prefix="v3d-issia-"))
     try:

@@ -1,4 +1,4 @@
-"""``/api/jobs``: background jobs (imports, full recomputes, exports; ``app.services.jobs``), and
+"""``/api/jobs``: background jobs (imports, full recomputes, exports; ``app.services.jobs.runner``), and
 ``POST /api/recompute`` that queues a full recompute.
 
 A job is created by ``POST /api/imports``, ``POST /api/recompute`` or ``POST /api/exports/soccernet-v3d``
@@ -20,9 +20,9 @@ from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import JobOut, JobPageOut
 from app.api.schemas import DB_INT_MAX, NOT_FOUND, ErrorOut
 from app.db.models import Job, JobState
-from app.services import jobs
-from app.services.errors import NotFoundError
-from app.services.job_kinds import export_path
+from app.services.jobs import runner as jobs
+from app.core.errors import NotFoundError
+from app.services.jobs.kinds import export_path
 
 router = APIRouter(tags=["jobs"])
 JobId = Annotated[int, Path(description="Job id.")]

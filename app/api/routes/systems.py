@@ -14,9 +14,10 @@ from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import SessionDep, SystemDep
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
-from app.services import editing, queue
-from app.services.system_page import system_page
-from app.services.versions import expected_versions, system_etag
+from app.services.curation import editing
+from app.services.curation import queue
+from app.services.curation.system_page import system_page
+from app.services.curation.versions import expected_versions, system_etag
 
 router = APIRouter(prefix="/systems", tags=["systems"])
 

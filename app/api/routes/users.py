@@ -10,7 +10,7 @@ from pydantic import BaseModel, Field
 from app.api.auth import require_role
 from app.api.deps import SessionDep
 from app.api.schemas import INVALID, NOT_FOUND, _In
-from app.services import users
+from app.services.accounts import users
 
 router = APIRouter(prefix="/users", tags=["users"], dependencies=[Depends(require_role("admin"))])
 RoleName = Literal["annotator", "reviewer", "admin"]

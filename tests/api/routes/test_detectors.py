@@ -10,7 +10,7 @@ import pytest
 from sqlalchemy.orm import Session
 
 from app.db.models import Frame
-from app.services.detector_export import image_stem
+from app.services.kinds import image_stem
 
 from ..factories import zip_listing
 

@@ -95,7 +95,7 @@ def test_streamed_zip_holds_the_same_tree_as_the_folder_export(client: TestClien
                                                                 db_session, tmp_path) -> None:
     """The API streams the archive while it reads the database (game by game, the CSV last); its
     members are byte for byte the files ``export_soccernet_v3d`` writes into a folder."""
-    from app.services.exporting import export_soccernet_v3d
+    from app.services.transfer.exporting import export_soccernet_v3d
 
     answer = client.get("/api/exports/soccernet-v3d", params={"all": "true"})
     assert answer.status_code == 200

@@ -242,7 +242,7 @@ def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session:
     stored with the flag by the recomputation (``update_summary``), never aggregated per request."""
     from app.db.models import Frame
     from app.geometry.calibration.frame import MIRROR_FLAG
-    from app.services.recompute import update_summary
+    from app.services.curation.recompute import update_summary
 
     frame = db_session.get(Frame, queue["other"].frame_ids[1])
     frame.calibration.flags = ["rig_assisted", MIRROR_FLAG]
@@ -273,7 +273,7 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     admitted labelled views above tau by the rule the system view's ``error_above_tau`` uses: the
     error scaled to the rule's reference width (960-px views: x 2), against the stored tau."""
     from app.db.models import Frame, Triangulation
-    from app.services.recompute import update_summary
+    from app.services.curation.recompute import update_summary
 
     g = make_game(db_session, match="2017-03-04 - 12-30 Liverpool 3 - 1 Arsenal")
     # the replay's box 40 px off drags the ball: errors 7.9, 11.6 and 13.5 px, below tau = 20 raw,

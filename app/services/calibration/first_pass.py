@@ -1,0 +1,184 @@
+"""Calibration of an import's batches (``app.services.transfer.importing``): the first pass of every frame
+from its lines alone, and the retry with the game's camera rig of the frames of SoccerNet-v3 games
+that their lines alone refuse or calibrate below admission. A game new to the database needs
+nothing stored (its rig comes from its own first pass), so it is calibrated whole, both passes, in
+one task on the pool's processes, started ahead: the next batch's games calibrate while this
+process stores the current batch. Frames of stored games are calibrated when their batch is
+stored (their rig reads the stored calibrations). Reads the session, never writes it.
+"""
+from __future__ import annotations
+
+from typing import Iterator, NamedTuple, Sequence
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import Frame, FrameRole, Game
+from app.datasets.records import FrameRecord, GameRecord
+from app.services.calibration.calibrating import (
+    CalibrationFields, CalibrationJob, CalibrationPool, calibrate_lines, calibrate_many, calibration_job, expected_side,
+    game_rig, uses_rig, wants_rig_retry, with_rig_retry,
+)
+from app.services.jobs.progress import Progress
+from app.services.kinds import policy
+
+
+class GameJob(NamedTuple):
+    """The calibration of a game new to the database, both passes, as one task (:func:`calibrate_game`):
+    per frame (in the game's order: systems, then their frames) its job (``calibrating.calibration_job``
+    of the frame to be created), its role, and whether its system uses the game's rig
+    (``calibrating.uses_rig``); ``settings`` decide the retry and the rig."""
+
+    jobs: list[CalibrationJob]
+    roles: list[FrameRole]
+    rig_ok: list[bool]
+    settings: Settings
+
+
+class GameCalibration(NamedTuple):
+    """What :func:`calibrate_game` gives per frame: the result from its lines alone (``first``), the one
+    stored (``final``: ``calibrating.with_rig_retry`` of the rig retry, or ``first``), and the rig pass's
+    time (ms) of each retried frame, by index."""
+
+    first: list[CalibrationFields]
+    final: list[CalibrationFields]
+    rig_ms: dict[int, float]
+
+
+def calibrate_game(job: GameJob) -> GameCalibration:
+    """Calibrate a game new to the database: every frame from its lines, then the frames
+    ``calibrating.wants_rig_retry`` picks (of systems using the rig) with the game's rig estimated from
+    those fresh results (``calibrating.game_rig``: nothing of the game is stored), exactly as
+    :func:`retry_with_game_rigs` does for a batch holding the game. Pure; runs in a worker process."""
+    first = [calibrate_lines(*j) for j in job.jobs]
+    final = list(first)
+    rig_ms: dict[int, float] = {}
+    retry = [i for i, f in enumerate(first) if job.rig_ok[i] and wants_rig_retry(f, job.settings)]
+    if retry:
+        rig = game_rig(None, None, job.settings, extra=first, extra_roles=job.roles)
+        for i in retry if rig.positions else ():
+            lines, width, height, side, _, main = job.jobs[i]
+            fields = calibrate_lines(lines, width, height, side, rig, main)
+            final[i] = with_rig_retry(first[i], fields)
+            rig_ms[i] = fields.elapsed_ms or 0.0
+    return GameCalibration(first, final, rig_ms)
+
+
+class FirstPassAhead(NamedTuple):
+    """Calibrations of a batch's new games started before the batch is merged (:func:`start_first_pass`):
+    per frame record (by ``id``), its job, its game's index in ``results`` and its index in that game;
+    and the frame records of each game."""
+
+    jobs: dict[int, tuple[CalibrationJob, int, int]]
+    games: list[list[int]]
+    results: Iterator[GameCalibration]
+
+
+class BatchCalibration(NamedTuple):
+    """:func:`first_pass` of a batch: per frame its result so far and its first pass's time (ms), the
+    indices already retried with their game's rig (their ``results`` are final) and those retries'
+    times (ms)."""
+
+    results: list[CalibrationFields]
+    first_ms: list[float | None]
+    finished: set[int]
+    rig_ms: dict[int, float]
+
+
+def new_frame_job(rec: FrameRecord) -> CalibrationJob:
+    """The job ``calibrating.calibration_job`` gives a frame created from ``rec`` (its lines as imported)."""
+    return (rec.lines, rec.width, rec.height, expected_side(rec.role), None, rec.role is FrameRole.ACTION)
+
+
+def start_first_pass(session: Session, records: list[GameRecord], pool: CalibrationPool, settings: Settings
+                     ) -> FirstPassAhead | None:
+    """Start the calibration of ``records``' games that are not stored yet (:func:`calibrate_game`, one
+    task each: every frame of such a game is calibrated from its imported lines, then retried with the
+    game's rig) on the pool's processes, and return at once, so that they calibrate while this process
+    stores the previous batch. Games already stored are left to ``importing._store`` (most of their
+    frames may need no calibration). None when the pool runs in this process. Reads only."""
+    if pool.executor is None:
+        return None
+    jobs: dict[int, tuple[CalibrationJob, int, int]] = {}
+    games: list[list[int]] = []
+    tasks: list[GameJob] = []
+    for grec in records:
+        if session.scalar(select(Game.id).where(Game.league == grec.league, Game.season == grec.season,
+                                                Game.match == grec.match)) is not None:
+            continue
+        frames = [(srec, frec) for srec in grec.systems for frec in srec.frames if frec.calibration is None]
+        if not frames:
+            continue
+        for k, (_, frec) in enumerate(frames):
+            jobs[id(frec)] = (new_frame_job(frec), len(tasks), k)
+        games.append([id(frec) for _, frec in frames])
+        tasks.append(GameJob(jobs=[jobs[id(frec)][0] for _, frec in frames], roles=[frec.role for _, frec in frames],
+                             rig_ok=[policy(srec.kind).uses_rig for srec, _ in frames], settings=settings))
+    if not tasks:
+        return None
+    return FirstPassAhead(jobs, games, pool.map(calibrate_game, tasks))
+
+
+def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings, progress: Progress | None,
+               pool: CalibrationPool | None, ahead: FirstPassAhead | None) -> BatchCalibration:
+    """The calibration of each frame from its lines alone, or, for the frames of a game calibrated
+    ahead whose every job is the one started (always, for a game new to the database), its final
+    result (both passes); the other frames are calibrated now."""
+    jobs = [calibration_job(f) for f in frames]
+    results: list[CalibrationFields | None] = [None] * len(jobs)
+    first_ms: list[float | None] = [None] * len(jobs)
+    finished: set[int] = set()
+    rig_ms: dict[int, float] = {}
+    if ahead is not None:
+        index = {id(rec): i for i, rec in enumerate(recs)}
+        done = 0
+        for game, calibrated in zip(ahead.games, ahead.results):  # waits for each game in turn
+            done += len(game)
+            if progress:
+                progress("calibrate", min(done, len(jobs)), len(jobs))
+            mine = [index.get(key) for key in game]
+            if any(i is None or ahead.jobs[key][0] != jobs[i] for i, key in zip(mine, game)):
+                continue  # a frame's job changed: the game is calibrated now, both passes
+            for k, i in enumerate(mine):
+                results[i], first_ms[i] = calibrated.final[k], calibrated.first[k].elapsed_ms
+                finished.add(i)
+                if k in calibrated.rig_ms:
+                    rig_ms[i] = calibrated.rig_ms[k]
+    rest = [i for i, r in enumerate(results) if r is None]
+    done = len(jobs) - len(rest)
+    step = (lambda stage, n, total: progress(stage, done + n, len(jobs))) if progress else None
+    for i, fields in zip(rest, calibrate_many([jobs[i] for i in rest], settings.calibration_workers, step, pool=pool)):
+        results[i], first_ms[i] = fields, fields.elapsed_ms
+    return BatchCalibration(results, first_ms, finished, rig_ms)  # type: ignore[arg-type]
+
+
+def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],
+                          settings: Settings, progress: Progress | None, pool: CalibrationPool | None = None,
+                          finished: Sequence[int] | set[int] = ()) -> tuple[list[CalibrationFields], dict[int, float]]:
+    """Recalibrate the frames of SoccerNet-v3 games refused or calibrated below admission
+    (``calibrating.wants_rig_retry``) with their game's camera rig, estimated from the game's stored
+    calibrations (except the frames being recalibrated) and this import's fresh ones
+    (``calibrating.game_rig``). Writes nothing (the caller disables autoflush). Returns the final
+    result per frame (``calibrating.with_rig_retry``: the better fit by residual, a refusal carrying
+    the rig's mirror flag) and the rig pass's time per retried frame index (ms). Frames in ``finished``
+    (their game calibrated whole ahead, :func:`calibrate_game`) are left as they are."""
+    done = set(finished)
+    retry = [i for i, (f, r) in enumerate(zip(frames, results))
+             if i not in done and wants_rig_retry(r, settings) and uses_rig(f.system)]
+    if not retry:
+        return results, {}
+    rigs = {}
+    for game in {id(frames[i].system.game): frames[i].system.game for i in retry}.values():
+        mine = [i for i, f in enumerate(frames) if f.system.game is game]
+        rigs[id(game)] = game_rig(session, game.id, settings,
+                                  exclude_frame_ids=[frames[i].id for i in mine if frames[i].id is not None],
+                                  extra=[results[i] for i in mine], extra_roles=[frames[i].role for i in mine])
+    retry = [i for i in retry if rigs[id(frames[i].system.game)].positions]
+    jobs = [calibration_job(frames[i], rigs[id(frames[i].system.game)]) for i in retry]
+    out = list(results)
+    rig_ms: dict[int, float] = {}
+    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig", pool=pool)):
+        out[i] = with_rig_retry(out[i], fields)
+        rig_ms[i] = fields.elapsed_ms or 0.0
+    return out, rig_ms

@@ -1,0 +1,331 @@
+"""The review queue and the frame list: filters, the stored sort keys, pages and queue neighbours.
+
+Nothing here writes, and nothing is aggregated per request: the queue reads the per-system figures that
+every recomputation stores on ``System`` (``app.services.curation.recompute.update_summary``; aggregates over the
+**admitted** views, the ones the 3D ball is made of, method.md sections 4 and 5): ``lowest_jac``
+(JaC@0.5 %), ``worst_error_px`` (the largest reprojection error of the fused ball, px of the view's own
+image, SoccerNet-v3D's ``rep_error``), ``views_flagged`` (every view flagged probably mirrored),
+``views_above_tau`` (by ``app.geometry.triangulation.error_above_tau``, the rule the system view's
+per-view ``error_above_tau`` uses too: queue and system page cannot disagree), and the doubt counts.
+Rows come back as ORM objects with what their answer shows loaded; the API's response models
+(``app.api.view_schemas``) shape them.
+
+Queue order (``sort``): ``doubts`` (the stored count of label-accusing doubts, ties by the largest
+reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
+systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id (in the
+sort's direction, so a descending sort is its index scanned backwards). The default, :data:`DEFAULT_SORT`,
+puts the systems with the most doubts first: the labels the geometry accuses are reviewed first. ``name``
+orders by game, then system name with numeric names in numeric order (2.png before 10.png). The ``doubt``
+filter keeps systems with a doubt of one kind (or any label-accusing one); doubts and their counts are
+stored by the recomputation (``app.services.curation.doubts``), never computed here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal, Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
+
+from app.db.models import BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, ReviewStatus, System
+
+SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
+FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
+#: The review queue's default order: the most label doubts first (then the largest reprojection error).
+DEFAULT_SORT: SystemSort = "-doubts"
+
+
+@dataclass(frozen=True)
+class SystemFilters:
+    """Filters of the review queue; None means "any". Ranges are inclusive."""
+
+    game_id: Optional[int] = None
+    status: Optional[ReviewStatus] = None
+    jac_min: Optional[float] = None
+    jac_max: Optional[float] = None
+    error_min: Optional[float] = None
+    error_max: Optional[float] = None
+    #: Only systems with a doubt of this kind (``app.geometry.doubts``), or ``"any"``: with at least
+    #: one label-accusing doubt; ``"none"``: with none.
+    doubt: Optional[str] = None
+
+
+@dataclass(frozen=True)
+class FrameFilters:
+    """Filters of the frame list; None means "any". ``calibration`` is a status or ``"none"`` (no
+    calibration row yet). JaC is JaC@0.5 %; error is the view's reprojection error in px."""
+
+    game_id: Optional[int] = None
+    system_id: Optional[int] = None
+    calibration: Optional[Literal["calibrated", "refused", "none"]] = None
+    admitted: Optional[bool] = None
+    jac_min: Optional[float] = None
+    jac_max: Optional[float] = None
+    error_min: Optional[float] = None
+    error_max: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class SystemPage:
+    """One page of the queue: ``items`` are systems with their game, review decision and triangulation
+    loaded; ``total`` rows match the filters; ``counts`` are per review status over the same filters except
+    the status one (the progress of the whole filtered queue)."""
+
+    items: list[System]
+    total: int
+    counts: dict[str, int]
+
+
+@dataclass(frozen=True)
+class FramePage:
+    """One page of frames (calibration, label, reprojection and review loaded) and how many match."""
+
+    items: list[Frame]
+    total: int
+
+
+def _review_status() -> Any:
+    """A system's review status: the copy stored on the system (pending without a decision)."""
+    return System.review_status
+
+
+def _queue_from() -> sa.Select[Any]:
+    """The queue's rows: each system with its game, review decision and triangulation (the 3D ball); the
+    per-system figures are the stored ``System`` columns (no aggregation here)."""
+    return (
+        sa.select(System).join(Game, Game.id == System.game_id)
+        .options(contains_eager(System.game), joinedload(System.review), joinedload(System.triangulation))
+    )
+
+
+def _range(column: Any, lo: Optional[float], hi: Optional[float]) -> list[sa.ColumnElement[bool]]:
+    out = []
+    if lo is not None:
+        out.append(column >= lo)
+    if hi is not None:
+        out.append(column <= hi)
+    return out
+
+
+def _system_conditions(filters: SystemFilters, with_status: bool = True) -> list[Any]:
+    conds: list[Any] = []
+    if filters.game_id is not None:
+        conds.append(System.game_id == filters.game_id)
+    if with_status and filters.status is not None:
+        conds.append(_review_status() == filters.status)
+    conds += _range(System.lowest_jac, filters.jac_min, filters.jac_max)
+    conds += _range(System.worst_error_px, filters.error_min, filters.error_max)
+    if filters.doubt == "any":
+        conds.append(System.label_doubts > 0)
+    elif filters.doubt == "none":
+        conds.append(System.label_doubts == 0)
+    elif filters.doubt is not None:
+        conds.append(sa.exists().where(Doubt.system_id == System.id, Doubt.kind == filters.doubt))
+    return conds
+
+
+def _natural_name(column: Any) -> list[Any]:
+    # numeric names ("2.png", "10.png") in numeric order: shorter first, then text
+    return [sa.func.length(column), column]
+
+
+@dataclass(frozen=True)
+class _SortKey:
+    """One key of the queue's order: an SQL expression, its direction, and whether NULLs come last
+    (the stored aggregates are NULL without a 3D ball or an admitted view)."""
+
+    expr: Any
+    desc: bool = False
+    nulls_last: bool = False
+
+    def clause(self, reverse: bool = False) -> Any:
+        desc = self.desc != reverse
+        c = self.expr.desc() if desc else self.expr.asc()
+        if self.nulls_last:
+            c = c.nulls_first() if reverse else c.nulls_last()
+        return c
+
+    def equal(self, value: Any) -> Any:
+        return self.expr.is_(None) if value is None else self.expr == value
+
+    def beyond(self, value: Any, side: Literal["before", "after"]) -> list[Any]:
+        """SQL: a row's key sorts strictly before (``side="before"``) or after ``value`` (the current
+        row's), as conditions each of which an index answers with a range seek, nearest first: after a
+        value of a key whose NULLs come last come the values beyond it, then the NULLs."""
+        if self.nulls_last and value is None:
+            return [self.expr.is_not(None)] if side == "before" else []
+        beyond = self.expr > value if self.desc == (side == "before") else self.expr < value
+        return [beyond, self.expr.is_(None)] if self.nulls_last and side == "after" else [beyond]
+
+
+def _sort_keys(sort: SystemSort) -> list[_SortKey]:
+    """The queue's order as keys; the system id comes last, in the sort's direction, so that the order
+    is strict and a descending sort is an index scanned backwards (no sort of the whole queue)."""
+    desc = sort.startswith("-")
+    key = sort.lstrip("-")
+    tie = _SortKey(System.id, desc)
+    if key == "name":
+        cols = [Game.league, Game.season, Game.match, *_natural_name(System.name)]
+        return [_SortKey(c, desc) for c in cols] + [tie]
+    if key == "doubts":  # ties by the largest reprojection error
+        return [_SortKey(System.label_doubts, desc), _SortKey(System.worst_error_px, True, True), tie]
+    column = {"worst_error": System.worst_error_px, "lowest_jac": System.lowest_jac}.get(key)
+    if column is None:
+        raise ValueError(f"unknown sort {sort!r}")
+    return [_SortKey(column, desc, True), tie]
+
+
+def _system_order(sort: SystemSort) -> list[Any]:
+    return [k.clause() for k in _sort_keys(sort)]
+
+
+def list_games(session: Session) -> list[tuple[Game, int]]:
+    """Every game with its number of systems, in (league, season, match) order."""
+    n = sa.func.count(System.id)
+    stmt = (
+        sa.select(Game, n).outerjoin(System, System.game_id == Game.id)
+        .group_by(Game.id).order_by(Game.league, Game.season, Game.match, Game.id)
+    )
+    return [(g, int(c)) for g, c in session.execute(stmt).all()]
+
+
+def has_games(session: Session) -> bool:
+    """True when the database holds at least one game."""
+    return session.execute(sa.select(Game.id).limit(1)).first() is not None
+
+
+def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sort: SystemSort = DEFAULT_SORT,
+                 limit: int = 50, offset: int = 0) -> SystemPage:
+    """One page of the review queue.
+
+    Args:
+        filters: see :class:`SystemFilters` (JaC as a fraction, errors in px).
+        sort: one of :data:`SystemSort` (module docstring).
+        limit, offset: the page (``limit >= 1``, ``offset >= 0``).
+
+    Returns:
+        :class:`SystemPage`.
+
+    Raises:
+        ValueError: an unknown ``sort``.
+    """
+    order = _system_order(sort)
+    conds = _system_conditions(filters)
+    items = list(session.scalars(_queue_from().where(*conds).order_by(*order).limit(limit).offset(offset)))
+    counts = _status_counts(session, _system_conditions(filters, with_status=False))
+    total = counts[ReviewStatus(filters.status).value] if filters.status is not None else sum(counts.values())
+    return SystemPage(items=items, total=int(total), counts=counts)
+
+
+def _status_counts(session: Session, conds: list[Any]) -> dict[str, int]:
+    """Systems per review status under ``conds``: one GROUP BY on the stored status (its index); without
+    conditions, the reviewed systems by status (index lookups: as many as have been reviewed) and the
+    pending ones as the rest of the table's row count (a count SQLite reads from the table's b-tree
+    without visiting its rows), so the unfiltered queue's progress costs what the review has done, not
+    the size of the database."""
+    status = _review_status()
+    counts = {s.value: 0 for s in ReviewStatus}
+    if conds:
+        rows = session.execute(sa.select(status, sa.func.count()).where(*conds).group_by(status)).all()
+    else:
+        reviewed = [s.value for s in ReviewStatus if s is not ReviewStatus.PENDING]
+        rows = session.execute(sa.select(status, sa.func.count()).where(status.in_(reviewed)).group_by(status)).all()
+        everything = session.scalar(sa.select(sa.func.count()).select_from(System))
+        rows.append((ReviewStatus.PENDING.value, int(everything) - sum(int(n) for _, n in rows)))
+    for s, n in rows:
+        counts[ReviewStatus(s).value] += int(n)
+    return counts
+
+
+def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
+                     sort: SystemSort = DEFAULT_SORT) -> tuple[Optional[int], Optional[int]]:
+    """``(prev_id, next_id)`` of a system in the queue ``filters`` + ``sort`` (None at either end, or
+    for an unknown id).
+
+    The system itself need not match the filters (it may just have been reviewed out of a
+    "pending" queue): its neighbours are then those it would have if it did.
+
+    Two statements whatever the size of the queue: the system's sort keys, then both neighbours
+    (:func:`_neighbour`), each found by index seeks from the system's place, never by scanning the
+    queue up to it.
+    """
+    keys = _sort_keys(sort)
+    base = sa.select(System.id).join(Game, Game.id == System.game_id)
+    current = session.execute(base.with_only_columns(*(k.expr for k in keys)).where(System.id == system_id)).first()
+    if current is None:
+        return None, None
+    conds = _system_conditions(filters)
+    prev_id, next_id = session.execute(sa.select(_neighbour(base, conds, keys, tuple(current), "before"),
+                                                 _neighbour(base, conds, keys, tuple(current), "after"))).one()
+    return prev_id, next_id
+
+
+def _neighbour(base: sa.Select[Any], conds: list[Any], keys: list[_SortKey], current: tuple[Any, ...],
+               side: Literal["before", "after"]) -> Any:
+    """SQL: the id of the nearest row of ``base`` + ``conds`` strictly ``side`` of the row whose sort keys
+    are ``current``, or NULL.
+
+    The rows beyond the current one in the order are, nearest first, those equal to it on every key but
+    the last and beyond it on the last, then those equal on every key but the last two and beyond on the
+    one before, and so on (:meth:`_SortKey.beyond`: a key whose NULLs come last adds its NULLs after its
+    values). Each of these sets is one ``LIMIT 1`` subquery with an equality prefix and a range on one
+    key, which SQLite answers with a seek on the sort's index; ``coalesce`` takes the first that finds a
+    row and evaluates no further one. (One ``OR`` of the sets instead was planned as a scan of the index
+    from one end of the queue to the current row: its cost grew with the database, about 0.5 ms a side
+    at 12,800 systems.)
+    """
+    reverse = side == "before"
+    order = [k.clause(reverse=reverse) for k in keys]
+    nearest_first = [
+        base.where(*conds, *(k.equal(v) for k, v in zip(keys[:i], current)), beyond)
+        .order_by(*order).limit(1).scalar_subquery()
+        for i in reversed(range(len(keys))) for beyond in keys[i].beyond(current[i], side)
+    ]
+    return sa.func.coalesce(*nearest_first) if len(nearest_first) > 1 else nearest_first[0]
+
+
+def list_frames(session: Session, filters: FrameFilters = FrameFilters(), sort: FrameSort = "name",
+                limit: int = 50, offset: int = 0) -> FramePage:
+    """One page of frames (calibration, label and reprojection loaded).
+
+    ``sort``: ``error`` (the view's reprojection error), ``jac`` (JaC@0.5 %) or ``name`` (game,
+    system, position), descending with a leading ``-``; missing values last, ties by id.
+
+    Raises:
+        ValueError: an unknown ``sort``.
+    """
+    conds: list[Any] = []
+    if filters.game_id is not None:
+        conds.append(System.game_id == filters.game_id)
+    if filters.system_id is not None:
+        conds.append(Frame.system_id == filters.system_id)
+    if filters.calibration == "none":
+        conds.append(Calibration.frame_id.is_(None))
+    elif filters.calibration is not None:
+        conds.append(Calibration.status == CalibrationStatus(filters.calibration))
+    if filters.admitted is not None:
+        conds.append(sa.func.coalesce(Calibration.admitted, False).is_(filters.admitted))
+    conds += _range(Calibration.jac_0005, filters.jac_min, filters.jac_max)
+    conds += _range(BallReprojection.error_px, filters.error_min, filters.error_max)
+    base = (
+        sa.select(Frame).join(System, System.id == Frame.system_id).join(Game, Game.id == System.game_id)
+        .outerjoin(Calibration, Calibration.frame_id == Frame.id)
+        .outerjoin(BallReprojection, BallReprojection.frame_id == Frame.id)
+        .where(*conds)
+    )
+    desc = sort.startswith("-")
+    key = sort.lstrip("-")
+    if key == "name":
+        cols = [Game.league, Game.season, Game.match, *_natural_name(System.name), Frame.position]
+        order = [c.desc() if desc else c.asc() for c in cols]
+    elif key in ("error", "jac"):
+        col = BallReprojection.error_px if key == "error" else Calibration.jac_0005
+        order = [(col.desc() if desc else col.asc()).nulls_last()]
+    else:
+        raise ValueError(f"unknown sort {sort!r}")
+    total = session.scalar(sa.select(sa.func.count()).select_from(base.with_only_columns(Frame.id).subquery()))
+    stmt = base.order_by(*order, Frame.id).limit(limit).offset(offset).options(
+        selectinload(Frame.calibration), selectinload(Frame.ball_label), selectinload(Frame.reprojection),
+        selectinload(Frame.review),
+    )
+    return FramePage(items=list(session.scalars(stmt)), total=int(total or 0))

@@ -1,0 +1,350 @@
+"""Recomputation of everything derived from annotations: calibration, admission, triangulation,
+reprojections and optimised boxes.
+
+Chain (docs/architecture.md): a frame's field lines -> its calibration (:func:`recompute_frame`) ->
+its system's admission and triangulation -> reprojections and optimised boxes of the system's frames
+(:func:`recompute_system`). These functions only change the session; the caller commits, so an edit
+and its recomputation land in one transaction (``app.services.curation.editing``).
+
+Admission and calibration: ``app.services.calibration.calibrating`` (the frame's calibration, the game rig, the pool).
+
+Derived rows:
+
+* ``Triangulation`` (+ ``TriangulationPair`` per pair of admitted labelled views), always present
+  after recomputation, with the status of ``app.geometry.triangulation.triangulate_ball``;
+* ``BallReprojection`` for every frame with a camera when the system has a 3D ball (the error is
+  against the frame's label, None without one);
+* ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a label
+  when the system has a 3D ball and the ball lies in front of the camera along the labelled ray;
+* ``Doubt`` rows and the system's doubt counts (``app.services.curation.doubts.update_doubts``, last).
+
+A view a reviewer excluded (``ReviewDecision.excluded``) keeps its calibration and labels but takes no
+part in the triangulation.
+
+Mirrored labels (``app.geometry.mirror``): after admission, every calibrated frame of the system is
+judged from its camera's side, the game's rig and its ball ray against the other views; the verdict
+sets the flag :data:`MIRROR_FLAG` and ``Calibration.mirror_evidence``. The flag replaces
+``calibrate_frame``'s camera-side flag for calibrated frames, which it reproduces for a frame with no
+other evidence (a single frame, a view without a ball). Labels are never changed here.
+"""
+from __future__ import annotations
+
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session, joinedload, selectinload
+
+from app.core.config import Settings
+from app.db.models import (
+    BallReprojection, CalibrationSource, CalibrationStatus, Frame, OptimisedBox, ReviewStatus, System,
+    Triangulation, TriangulationPair, TriangulationStatus,
+)
+from app.db.session import begin_write
+from app.db.types import json_safe, utcnow
+from app.geometry.ball import optimise_box
+from app.geometry.calibration.frame import MIRROR_FLAG
+from app.geometry.calibration.rig import estimate_rig
+from app.geometry.camera import Camera
+from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence
+from app.geometry.triangulation import BallObservation, error_above_tau, triangulate_ball
+from app.services.accounts.audit import record_summary
+from app.services.calibration.calibrating import (
+    apply_calibration, calibrate_lines, calibration_job, expected_side, game_rig, is_admitted, rig_centres, rig_rows,
+    uses_rig, wants_rig_retry, with_rig_retry,
+)
+from app.services.curation.doubts import is_excluded, update_doubts
+from app.services.jobs.progress import Progress
+from app.services.kinds import kind_of
+
+#: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
+#: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
+DERIVED_VERSION = 1
+
+
+def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Triangulation:
+    """Recalibrate ``frame`` from its current field lines, then recompute its system.
+
+    A frame of a SoccerNet-v3 game that its lines alone cannot calibrate, or calibrate only below
+    admission (:func:`wants_rig_retry`), is retried with the game's rig (:func:`game_rig`, the other
+    frames' camera positions; :func:`with_rig_retry` keeps the better fit). The calibration's source
+    becomes "computed". The caller flushes or commits.
+
+    Raises:
+        ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
+    """
+    fields = calibrate_lines(*calibration_job(frame))
+    rig_sources = None
+    if wants_rig_retry(fields, settings) and uses_rig(frame.system) and frame.system.game_id is not None:
+        # read once: the retry's rig and the system's mirror evidence both use the game's stored
+        # cameras, and the evidence leaves this system's frames out, so this frame's new row is moot
+        stored = rig_rows(session, frame.system.game_id, settings)
+        rig_sources = [(fid, c) for fid, c, _ in stored]
+        rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id], stored=stored)
+        if rig.positions:
+            fields = with_rig_retry(fields, calibrate_lines(*calibration_job(frame, rig)))
+    apply_calibration(frame, fields, CalibrationSource.COMPUTED)
+    return recompute_system(session, frame.system, settings, rig_sources)
+
+
+def recompute_system(session: Session, system: System, settings: Settings,
+                     rig_sources: Sequence[tuple[int, np.ndarray]] | None = None) -> Triangulation:
+    """Admission, mirror evidence, triangulation, reprojections and optimised boxes of one system,
+    from its current calibrations and ball labels (see the module docstring). Replaces the previous
+    derived rows in the session; the caller flushes or commits. The system's frames must have ids
+    (be flushed).
+
+    Args:
+        rig_sources: ``(frame id, camera centre)`` feeding the game's rig (:func:`rig_centres`), to spare
+            a query per system in bulk; read from the session when None.
+
+    Returns:
+        The system's :class:`Triangulation` row.
+    """
+    frames = list(system.frames)
+    cameras: dict[int, Camera] = {}
+    observations: list[BallObservation] = []
+    for f in frames:
+        cal = f.calibration
+        if cal is not None:
+            cal.admitted = is_admitted(cal, settings)
+            if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
+                cameras[f.id] = Camera.from_soccernet(cal.camera)
+        centre = _label_centre(f)
+        if cal is not None and cal.admitted and centre is not None and not is_excluded(f):
+            observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
+                                                image_width=f.width))
+    kind = kind_of(system)
+    if kind.broadcast_priors:
+        _update_mirror_flags(session, system, cameras, settings, rig_sources)
+    observations = kind.consensus_observations(system, observations, settings)
+    result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg)
+
+    tri = system.triangulation
+    if tri is None:
+        tri = Triangulation(system=system, status=TriangulationStatus(result.status), tau_px=result.tau_px,
+                            rule=result.rule, min_baseline_m=result.min_baseline_m)
+        session.add(tri)
+    tri.status = TriangulationStatus(result.status)
+    tri.ball3d = None if result.point is None else [float(v) for v in result.point]
+    tri.tau_px, tri.rule, tri.min_baseline_m = result.tau_px, result.rule, result.min_baseline_m
+    tri.computed_at = utcnow()
+    tri.pairs.clear()
+    for p in result.pairs:
+        tri.pairs.append(TriangulationPair(
+            frame_a_id=p.view_a, frame_b_id=p.view_b,
+            point=None if p.point is None else [float(v) for v in p.point],
+            error_px=json_safe(p.error), parallax_deg=json_safe(p.parallax_deg), baseline_m=float(p.baseline_m),
+            kept=bool(p.kept), reason=p.reason,
+        ))
+
+    ball = None if result.point is None else np.asarray(result.point, dtype=float)
+    for f in frames:
+        _update_reprojection(f, cameras.get(f.id), ball)
+        admitted = f.calibration is not None and f.calibration.admitted
+        _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
+    update_doubts(system, settings, cameras)
+    update_summary(system, tri)
+    system.derived_version = DERIVED_VERSION
+    return tri
+
+
+def update_summary(system: System, tri: Triangulation) -> None:
+    """Store the review queue's figures of ``system`` (``System.views_total`` ... ``views_above_tau``,
+    model docstring) from its current frames and triangulation: aggregates over the **admitted** views,
+    ``views_flagged`` over every view, ``views_above_tau`` by ``app.geometry.triangulation.error_above_tau``."""
+    frames = list(system.frames)
+    cals = [f.calibration for f in frames]
+    admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
+    system.review_status = system.review.status if system.review is not None else ReviewStatus.PENDING
+    system.views_total = len(frames)
+    system.views_calibrated = sum(c is not None and c.status is CalibrationStatus.CALIBRATED for c in cals)
+    system.views_admitted = len(admitted)
+    system.views_labelled = sum(f.ball_label is not None and f.ball_label.kind is not None for f in frames)
+    jacs = [f.calibration.jac_0005 for f in admitted if f.calibration.jac_0005 is not None]
+    system.lowest_jac = min(jacs) if jacs else None
+    labelled = [f for f in admitted if f.ball_label is not None and f.ball_label.kind is not None
+                and f.reprojection is not None and f.reprojection.error_px is not None]
+    system.worst_error_px = max((f.reprojection.error_px for f in labelled), default=None)
+    system.views_flagged = sum(c is not None and MIRROR_FLAG in (c.flags or []) for c in cals)
+    system.views_above_tau = sum(error_above_tau(f.reprojection.error_px, f.width, tri.tau_px, tri.rule)
+                                 for f in labelled)
+
+
+def refresh_stale_systems(session: Session, settings: Settings, progress: Progress | None = None) -> int:
+    """Recompute (calibrations untouched) every system stored by an older version of the derived rows
+    (``System.derived_version < DERIVED_VERSION``, e.g. after a schema upgrade) and commit; returns how
+    many. Serving or reporting a database calls it first, so stored doubts and queue figures are current.
+    Systems are recomputed and committed :data:`_REFRESH_BATCH` at a time (a crash leaves the rest stale,
+    to be refreshed next time), each in a write transaction (``app.db.session.begin_write``), so a
+    server running meanwhile never sees half a batch and its edits wait their turn. The recompute is one audit entry (action "recompute", by the local
+    user), written with the last batch."""
+    ids = list(session.scalars(select(System.id).where(System.derived_version < DERIVED_VERSION).order_by(System.id)))
+    _recompute_in_batches(session, ids, settings, progress, {"reason": "stored by an older version",
+                                                             "derived_version": DERIVED_VERSION})
+    return len(ids)
+
+
+def recompute_all_systems(session: Session, settings: Settings, progress: Progress | None = None,
+                          actor: str | None = None) -> tuple[int, int]:
+    """The full recompute: every system recomputed with the current settings (calibrations untouched:
+    admission, triangulation, reprojections, optimised boxes, mirror flags, doubts and queue figures),
+    committed :data:`_REFRESH_BATCH` systems at a time with ``progress("recompute", done, total)``
+    after each commit. Idempotent: run again after a crash, it gives the same rows. One audit entry
+    (action "recompute", by ``actor``; None: the local user), written with the last batch.
+
+    Returns:
+        ``(systems recomputed, systems triangulated)``.
+    """
+    ids = list(session.scalars(select(System.id).order_by(System.id)))
+    return len(ids), _recompute_in_batches(session, ids, settings, progress, {"reason": "full recompute"}, actor)
+
+
+def _recompute_in_batches(session: Session, ids: list[int], settings: Settings, progress: Progress | None,
+                          audit_after: dict[str, Any], actor: str | None = None) -> int:
+    """Recompute the systems ``ids``, committing and releasing :data:`_REFRESH_BATCH` at a time (bounded
+    memory), each batch in a write transaction (``app.db.session.begin_write``, so a server running
+    meanwhile never sees half a batch and its edits wait their turn), the audit entry ("recompute",
+    ``audit_after`` with the counts) written with the last batch; returns how many were triangulated."""
+    triangulated = 0
+    for start in range(0, len(ids), _REFRESH_BATCH):
+        begin_write(session)  # each batch read and written under the write lock (SQLite: BEGIN IMMEDIATE)
+        batch = session.scalars(select(System).where(System.id.in_(ids[start:start + _REFRESH_BATCH]))).all()
+        triangulated += recompute_systems(session, batch, settings)
+        if start + _REFRESH_BATCH >= len(ids):
+            record_summary(session, "recompute", {"systems": len(ids), **audit_after}, actor=actor)
+        session.commit()
+        session.expunge_all()
+        if progress:
+            progress("recompute", min(start + _REFRESH_BATCH, len(ids)), len(ids))
+    return triangulated
+
+
+def mirror_settings(settings: Settings) -> MirrorSettings:
+    """The mirror evidence's settings: the triangulation's tau and pair-error rule, the rest default."""
+    return MirrorSettings(tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule)
+
+
+def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Camera], settings: Settings,
+                         rig_sources: Sequence[tuple[int, np.ndarray]] | None) -> None:
+    """Judge every calibrated frame of the system (``app.geometry.mirror.mirror_evidence``: ball rays
+    of every calibrated, labelled frame, side prior, the game's rig estimated without this system's
+    frames) and set :data:`MIRROR_FLAG` and ``mirror_evidence`` on its calibration. Refused frames
+    keep what their rig retry found (:func:`with_rig_retry`).
+
+    Rays of frames below the admission threshold count too: JaC is the same for labels and their
+    mirror, so admission says nothing about mirroring, and a rough camera cannot bring two rays
+    within tau by chance (it gives no agreement, hence no evidence). Counting them flagged more of
+    the dev set's injected mirrored views with no false flag either way; today's figures are in the
+    docstring of ``benchmarks/mirror_flags.py`` (73 of 92 flagged)."""
+    frames = [f for f in system.frames if f.id in cameras]
+    if not frames:
+        return
+    positions = None
+    if uses_rig(system) and system.game_id is not None:
+        sources = rig_sources if rig_sources is not None else rig_centres(session, system.game_id, settings)
+        mine = {f.id for f in system.frames}
+        rig = estimate_rig(np.array([c for fid, c in sources if fid not in mine]).reshape(-1, 3))
+        positions = np.array([p.centre_m for p in rig.positions]).reshape(-1, 3)
+    views = [MirrorView(view_id=f.id, camera=cameras[f.id], ball_px=_label_centre(f), image_width=f.width,
+                        expected_side=expected_side(f.role), rays=True, name=f.name)
+             for f in frames]
+    verdicts = mirror_evidence(views, positions, mirror_settings(settings))
+    for f in frames:
+        cal, verdict = f.calibration, verdicts[f.id]
+        flags = [x for x in (cal.flags or []) if x != MIRROR_FLAG]
+        cal.flags = [*flags, MIRROR_FLAG] if verdict.flagged else flags
+        cal.mirror_evidence = json_safe(verdict.as_dict())
+
+
+def _label_centre(frame: Frame) -> np.ndarray | None:
+    """(2,) labelled ball centre in pixels, or None without a current label."""
+    centre = frame.ball_label.centre if frame.ball_label is not None else None
+    return None if centre is None else np.asarray(centre, dtype=float)
+
+
+def _update_reprojection(frame: Frame, camera: Camera | None, ball: np.ndarray | None) -> None:
+    uv = None
+    if camera is not None and ball is not None:
+        proj, in_front = camera.project(ball.reshape(1, 3))
+        uv = proj[0] if in_front[0] else None
+    if uv is None:
+        frame.reprojection = None
+        return
+    centre = _label_centre(frame)
+    error = None if centre is None else float(np.linalg.norm(uv - centre))
+    rep = frame.reprojection or BallReprojection(point=[0.0, 0.0])
+    rep.point, rep.error_px = [float(uv[0]), float(uv[1])], error
+    frame.reprojection = rep
+
+
+def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray | None, settings: Settings) -> None:
+    opt = None
+    centre = _label_centre(frame)
+    if camera is not None and ball is not None and centre is not None:
+        r = optimise_box(camera, centre, ball, settings.ball_diameter_m, method=settings.optimised_box_method)
+        opt = r if r.status == "ok" else None
+    if opt is None:
+        frame.optimised_box = None
+        return
+    row = frame.optimised_box or OptimisedBox(box=[], d_opt_px=0.0, error_m=0.0)
+    row.box, row.d_opt_px, row.error_m = [float(v) for v in opt.box], float(opt.d_px), float(opt.error_m)
+    frame.optimised_box = row
+
+
+#: What :func:`recompute_system` and ``update_doubts`` read or replace (an ISSIA system's trajectory point too):
+#: the frames' one-to-one rows joined to them, the lists one query each.
+RECOMPUTE_LOADS = (
+    selectinload(System.frames).options(joinedload(Frame.calibration), joinedload(Frame.ball_label),
+                                        joinedload(Frame.review), joinedload(Frame.reprojection),
+                                        joinedload(Frame.optimised_box), joinedload(Frame.field_lines)),
+    joinedload(System.triangulation).selectinload(Triangulation.pairs),
+    selectinload(System.doubts), joinedload(System.trajectory_point), joinedload(System.review),
+)
+_LOAD_CHUNK = 500
+#: Systems recomputed per transaction by :func:`refresh_stale_systems`.
+_REFRESH_BATCH = 500
+
+
+def load_for_recompute(session: Session, ids: Sequence[int]) -> dict[int, System]:
+    """The systems ``ids`` with what :func:`recompute_system` and ``update_doubts`` read (:data:`RECOMPUTE_LOADS`),
+    by id, in a few queries per :data:`_LOAD_CHUNK` systems instead of one lazy load per attribute and frame
+    (systems already in the session get the relations they have not loaded; changed attributes are kept)."""
+    out: dict[int, System] = {}
+    ids = list(ids)
+    for start in range(0, len(ids), _LOAD_CHUNK):
+        out.update((s.id, s) for s in session.scalars(
+            select(System).where(System.id.in_(ids[start:start + _LOAD_CHUNK])).options(*RECOMPUTE_LOADS)).unique())
+    return out
+
+
+def preload_systems(session: Session, systems: Sequence[System]) -> None:
+    """Flush, then load what recomputing ``systems`` reads (:func:`load_for_recompute`)."""
+    session.flush()
+    load_for_recompute(session, [s.id for s in systems])
+
+
+def recompute_systems(session: Session, systems: Iterable[System], settings: Settings,
+                      progress: Progress | None = None, *, preloaded: bool = False) -> int:
+    """:func:`recompute_system` for each system, then one flush; returns how many were triangulated.
+
+    The systems' frames and derived rows are loaded in a few ``selectin`` queries first
+    (:func:`preload_systems`; skipped when ``preloaded``: the caller did it), so that recomputing
+    thousands of systems does not issue one lazy load per attribute.
+    """
+    systems = list(systems)
+    if preloaded:
+        session.flush()
+    else:
+        preload_systems(session, systems)
+    sources = {gid: rig_centres(session, gid, settings)
+               for gid in {s.game_id for s in systems if uses_rig(s) and s.game_id is not None}}
+    n = 0
+    for i, s in enumerate(systems, 1):
+        if recompute_system(session, s, settings, sources.get(s.game_id)).status is TriangulationStatus.TRIANGULATED:
+            n += 1
+        if progress:
+            progress("triangulate", i, len(systems))
+    session.flush()
+    return n

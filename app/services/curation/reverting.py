@@ -1,0 +1,71 @@
+"""Revert an audited write: restore its ``before`` state through the service function of the original
+edit (so the system is recomputed as after any edit), itself audited as action ``revert``.
+
+The edited part is read from the entry's self-describing state (``app.services.accounts.audit``): ``ball`` ->
+:func:`~app.services.curation.editing.update_ball_label`, ``lines`` -> :func:`~app.services.curation.editing.replace_field_lines`
+(also for a mirroring: the lines before it are restored as they were), ``excluded`` ->
+:func:`~app.services.curation.editing.set_view_excluded`, ``review`` -> :func:`~app.services.curation.editing.decide_review`
+(its ``decided_at`` becomes now). A revert is refused (409) when the resource changed since the entry
+(its current state, read under the write's lock, is not the entry's ``after``) unless ``force``.
+Restoring field lines recalibrates the frame: an imported camera (source "imported") becomes a computed one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import AuditEntry
+from app.services.curation import editing
+from app.services.accounts.audit import SUMMARY_ACTIONS
+from app.core.errors import InvalidInputError, found
+
+
+@dataclass(frozen=True)
+class Reverted:
+    """What a revert changed: the system to show again, and the resource (``kind`` "frame" or "system",
+    ``ident``) whose ETag changed."""
+
+    system_id: int
+    kind: str
+    ident: int
+
+
+def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: Optional[str] = None,
+                 force: bool = False) -> Reverted:
+    """Restore audit entry ``entry_id``'s ``before`` state and commit, with its own audit entry.
+
+    Raises:
+        NotFoundError: no such entry, or its frame or system no longer exists.
+        InvalidInputError: an entry that cannot be reverted: an import or a recompute (field "id").
+        ConflictError: the resource changed since the entry (not forced); nothing changed.
+    """
+    entry = found(session.get(AuditEntry, entry_id), "audit entry", entry_id)
+    if entry.action in SUMMARY_ACTIONS or not isinstance(entry.before, dict):
+        raise InvalidInputError(f"audit entry {entry_id} is {'an' if entry.action[0] in 'aeiou' else 'a'} "
+                                f"{entry.action}: it changed many rows at once and cannot be reverted", field="id")
+    before = entry.before
+    guard = editing.Revert(entry_id, expect=None if force else entry.after)
+    common = {"actor": actor, "revert": guard}
+    if "review" in before:
+        review = before["review"]
+        if entry.frame_id is None:
+            editing.decide_review(session, system_id=entry.system_id, status=review["status"],
+                                  comment=review["comment"], **common)
+            return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
+        editing.decide_review(session, frame_id=entry.frame_id, status=review["status"], comment=review["comment"],
+                              **common)
+    elif "ball" in before:
+        ball = before["ball"]
+        editing.update_ball_label(session, entry.frame_id, box=ball["box"], point=ball["point"],  # type: ignore[arg-type]
+                                  settings=settings, **common)
+    elif "lines" in before:
+        editing.replace_field_lines(session, entry.frame_id, before["lines"], settings=settings, **common)  # type: ignore[arg-type]
+    elif "excluded" in before:
+        editing.set_view_excluded(session, entry.frame_id, bool(before["excluded"]), settings=settings, **common)  # type: ignore[arg-type]
+    else:
+        raise InvalidInputError(f"audit entry {entry_id} records no state this version can restore", field="id")
+    frame = editing.get_frame(session, entry.frame_id)  # type: ignore[arg-type]
+    return Reverted(frame.system_id, "frame", frame.id)

@@ -1,0 +1,128 @@
+"""What the system page shows, read in a few queries: a system with every relation its views draw, one
+frame the same way, its neighbours in the queue, and the pitch model projected into a view.
+
+Read only. The API's response models (``app.api.view_schemas``) shape these ORM objects into the system
+view of ``docs/architecture.md``; the one computation left to the read path, the projected pitch, depends
+only on the calibration and is computed once per camera and image size (:func:`pitch_lines`).
+"""
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, joinedload, selectinload
+
+from app.db.models import Frame, System, Triangulation
+from app.geometry.camera import Camera
+from app.geometry.projection import project_pitch_polylines
+from app.core.errors import found
+from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
+
+#: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
+#: per view, smooth at 1920 px, a tenth of the JaC sampling.
+_DRAW_DIST_M = 0.5
+_DRAW_DIST_CIRCLES_M = 0.25
+#: Pixel coordinates sent to the UI are rounded to this many decimals.
+PX_DECIMALS = 2
+#: Projected pitches kept (:func:`_projected_pitch`): one per view of about the last 400 systems read.
+_PITCH_CACHE_SIZE = 1024
+
+
+@dataclass(frozen=True)
+class SystemPageData:
+    """A system loaded for its page (game, review, triangulation and pairs, frames with field lines,
+    calibration, ball label, reprojection, optimised box and review, doubts) and its queue neighbours."""
+
+    system: System
+    prev_id: Optional[int]
+    next_id: Optional[int]
+
+
+def round_px(values: Any) -> Any:
+    """Pixel coordinates (nested lists or arrays) rounded to :data:`PX_DECIMALS` for JSON, as lists.
+
+    >>> round_px([[1.23456, 2.0], [3.0, 4.98765]])
+    [[1.23, 2.0], [3.0, 4.99]]
+    """
+    return np.round(np.asarray(values, dtype=float), PX_DECIMALS).tolist()
+
+
+def pitch_lines(camera_json: Optional[dict[str, Any]], width: int, height: int) -> list[tuple[str, list[list[float]]]]:
+    """The pitch model projected by a stored camera (SoccerNet JSON, world metres, z down) and clipped to
+    its ``width`` x ``height`` image: ``[(class, [[x, y], ...] px rounded)]``, one item per in-image run of
+    two points or more; empty without a camera. It depends only on the calibration, so it is computed once
+    per camera and image size and kept (:func:`_projected_pitch`, an LRU cache keyed by the camera JSON),
+    not on every request; the lists are made from the kept array per request."""
+    if not camera_json:
+        return []
+    classes, points, bounds = _projected_pitch(json.dumps(camera_json, sort_keys=True), int(width), int(height))
+    xy = points.tolist()
+    return [(cls, xy[s:e]) for cls, s, e in zip(classes, bounds, bounds[1:])]
+
+
+@functools.lru_cache(maxsize=_PITCH_CACHE_SIZE)
+def _projected_pitch(camera_key: str, width: int, height: int) -> tuple[tuple[str, ...], np.ndarray, tuple[int, ...]]:
+    """``(classes, points, bounds)`` of :func:`pitch_lines`: run ``k`` of class ``classes[k]`` is
+    ``points[bounds[k]:bounds[k + 1]]`` ((N, 2) px, rounded to :data:`PX_DECIMALS`). A view takes 6 kB on
+    average, 25 kB at most (nested lists of floats took about 8 times as much), so the cache holds at most
+    25 MB. A miss costs about 0.5 ms of CPU, a hit the lists' 0.04 ms."""
+    camera = Camera.from_soccernet(json.loads(camera_key))
+    runs = project_pitch_polylines(camera, width, height, _DRAW_DIST_M, _DRAW_DIST_CIRCLES_M, mode="clip")
+    kept = [(cls, run) for cls, polys in runs.items() for run in polys if len(run) >= 2]
+    if not kept:
+        return (), np.zeros((0, 2)), (0,)
+    points = np.round(np.concatenate([run for _, run in kept], axis=0).astype(float), PX_DECIMALS)
+    points.setflags(write=False)
+    return tuple(cls for cls, _ in kept), points, tuple(np.cumsum([0, *(len(run) for _, run in kept)]).tolist())
+
+
+def _frame_loads(load: Any) -> list[Any]:
+    """The frame's one-to-one rows the view draws, joined to their parent."""
+    return [load(Frame.field_lines), load(Frame.calibration), load(Frame.ball_label), load(Frame.reprojection),
+            load(Frame.optimised_box), load(Frame.review)]
+
+
+def load_system(session: Session, system_id: int) -> System:
+    """The system with every relation its page draws loaded: one-to-one rows joined to their parent (one
+    query for the system, one for its views), the lists (pairs, doubts) one query each: four queries
+    whatever the number of views.
+
+    Raises:
+        NotFoundError: no system has this id.
+    """
+    stmt = sa.select(System).where(System.id == system_id).options(
+        joinedload(System.game), joinedload(System.review),
+        joinedload(System.triangulation).selectinload(Triangulation.pairs),
+        selectinload(System.frames).options(*_frame_loads(joinedload)),
+        selectinload(System.doubts),
+    )
+    return found(session.scalars(stmt).unique().first(), "system", system_id)
+
+
+def load_frame(session: Session, frame_id: int) -> Frame:
+    """One frame with what its view draws loaded (and its system's triangulation, for the reprojection
+    error's rule and tau).
+
+    Raises:
+        NotFoundError: no frame has this id.
+    """
+    stmt = sa.select(Frame).where(Frame.id == frame_id).options(
+        joinedload(Frame.system).joinedload(System.triangulation), *_frame_loads(joinedload))
+    return found(session.scalars(stmt).unique().first(), "frame", frame_id)
+
+
+def system_page(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
+                sort: SystemSort = DEFAULT_SORT) -> SystemPageData:
+    """The system for its page (:func:`load_system`) and its neighbours in the queue ``filters`` + ``sort``
+    (by default the whole queue in its default order; ``app.services.curation.queue.queue_neighbours``).
+
+    Raises:
+        NotFoundError: no system has this id.
+    """
+    system = load_system(session, system_id)
+    prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
+    return SystemPageData(system, prev_id, next_id)

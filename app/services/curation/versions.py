@@ -1,0 +1,114 @@
+"""Versions of what people edit, their strong ETags, and the compare-and-set every write starts with.
+
+Two resources are edited: a frame (its ball label, field lines, review and exclusion:
+``Frame.edit_version``) and a system's review decision (``System.review_version``). Their ETags are
+strong and opaque to clients: ``"frame-<id>-<version>"`` and ``"system-<id>-<version>"`` (quotes
+included, as HTTP writes them). A recomputation never bumps a version, so a frame's ETag does not
+change when a sibling view's edit recomputes it.
+
+A write claims its resource **inside its transaction** with one ``UPDATE ... SET version = version + 1
+WHERE id = :id [AND version IN (:expected)]``: the database checks the expected version and takes the
+row's write lock in the same statement (compare-and-set), so two writers holding the same ETag cannot
+both succeed, and nothing is read, checked and written across a commit. A frame's claim first locks its
+system's row (``SELECT ... FOR UPDATE`` on PostgreSQL; SQLite's write lock covers the database), so two
+edits of sibling views recompute their system one after the other.
+"""
+from __future__ import annotations
+
+import re
+from collections.abc import Collection
+from typing import Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.db.models import Frame, System
+from app.core.errors import NotFoundError, StaleVersionError
+
+_ETAG = re.compile(r'^"(frame|system)-(\d+)-(\d+)"$')
+
+
+def etag(kind: str, ident: int, version: int) -> str:
+    """The strong ETag of version ``version`` of resource ``kind`` ("frame" or "system") ``ident``.
+
+    >>> etag("frame", 12, 3)
+    '"frame-12-3"'
+    """
+    return f'"{kind}-{int(ident)}-{int(version)}"'
+
+
+def frame_etag(frame: Frame) -> str:
+    """The frame's current ETag (:func:`etag` of its ``edit_version``)."""
+    return etag("frame", frame.id, frame.edit_version)
+
+
+def system_etag(system: System) -> str:
+    """The ETag of the system's review decision (:func:`etag` of its ``review_version``)."""
+    return etag("system", system.id, system.review_version)
+
+
+def expected_versions(if_match: Optional[str], kind: str, ident: int) -> Optional[frozenset[int]]:
+    """The versions an ``If-Match`` header accepts for resource ``kind`` ``ident``.
+
+    None when there is no header or it is ``*`` (any version); otherwise the versions of the listed
+    strong ETags that name this resource, possibly none (weak, foreign or malformed tags never match:
+    RFC 9110 section 13.1.1 compares strongly), which makes the write fail with 412.
+
+    >>> sorted(expected_versions('"frame-4-2", "frame-4-5", W/"frame-4-7", "system-4-1"', "frame", 4))
+    [2, 5]
+    >>> expected_versions("*", "frame", 4) is None, expected_versions('"x"', "frame", 4)
+    (True, frozenset())
+    """
+    if if_match is None or if_match.strip() == "*":
+        return None
+    out = set()
+    for tag in if_match.split(","):
+        m = _ETAG.match(tag.strip())
+        if m and m.group(1) == kind and int(m.group(2)) == ident:
+            out.add(int(m.group(3)))
+    return frozenset(out)
+
+
+def _lock_system(session: Session, system_id: int) -> None:
+    session.execute(sa.select(System.id).where(System.id == system_id).with_for_update())
+
+
+def claim_frame(session: Session, frame_id: int, expected: Optional[Collection[int]]) -> None:
+    """Bump the frame's ``edit_version`` if it is one of ``expected`` (any when None), in the caller's
+    transaction, after locking its system's row; then expire the session so that everything read
+    afterwards is the state under the lock.
+
+    Raises:
+        NotFoundError: no such frame.
+        StaleVersionError: its version is not in ``expected`` (nothing changed; the caller rolls back).
+    """
+    system_id = session.scalar(sa.select(Frame.system_id).where(Frame.id == frame_id))
+    if system_id is None:
+        raise NotFoundError("frame", frame_id)
+    _lock_system(session, system_id)
+    _compare_and_set(session, Frame, Frame.edit_version, "frame", frame_id, expected)
+
+
+def claim_system_review(session: Session, system_id: int, expected: Optional[Collection[int]]) -> None:
+    """Bump the system's ``review_version`` if it is one of ``expected`` (any when None), in the
+    caller's transaction; then expire the session (see :func:`claim_frame`).
+
+    Raises:
+        NotFoundError: no such system.
+        StaleVersionError: its version is not in ``expected``.
+    """
+    _compare_and_set(session, System, System.review_version, "system", system_id, expected)
+
+
+def _compare_and_set(session: Session, model: type, column: sa.orm.InstrumentedAttribute, kind: str, ident: int,
+                     expected: Optional[Collection[int]]) -> None:
+    stmt = sa.update(model).where(model.id == ident).values({column.key: column + 1})
+    if expected is not None:
+        stmt = stmt.where(column.in_(sorted(expected)))
+    done = session.execute(stmt.execution_options(synchronize_session=False)).rowcount
+    if done != 1:
+        current = session.scalar(sa.select(column).where(model.id == ident))
+        if current is None:
+            raise NotFoundError(kind, ident)
+        raise StaleVersionError(kind, ident, etag(kind, ident, current))
+    session.expire_all()

@@ -1,0 +1,282 @@
+"""ISSIA-3D sequences in the service (issue 9): import, edits' re-fit, frame images and the export.
+
+* :func:`import_issia`: a folder read by :func:`app.datasets.issia.read_issia` becomes one game
+  (league :data:`LEAGUE`, season :data:`SEASON`, match the folder's name), one multi-view system of
+  kind ``issia`` per frame index (``System.frame_index``, name the index) and one view per camera
+  ("cam<k>", role ``static``). Each static camera is calibrated once
+  (:func:`app.datasets.issia.sequence_cameras`: ``issia_calibration.json``, or the field lines with
+  ``from_lines``) and stored on each of its views' calibrations (JaC against the camera's lines when
+  there are lines). Point labels become :class:`~app.db.models.BallLabel` points. Then the sequence's
+  trajectory is fitted (``app.services.issia.trajectory``) and every system recomputed (admission,
+  triangulation of the labels the trajectory keeps, reprojections, optimised boxes, doubts), and the
+  transaction commits. Idempotent by natural keys; a reviewer's edited label is kept on re-import.
+* :func:`refit_after_edit`: after an edit of an ISSIA view (in the edit's transaction), the stretch of
+  the trajectory it touches is re-fitted (``app.services.issia.refit``) and the systems whose place on
+  it changed are recomputed; a new calibration of the view that gives its camera to the sequence
+  re-fits the whole sequence.
+* :func:`read_video_frame`: a view's image decoded on demand from its video or frame folder, at the
+  view's (annotation) resolution, as PNG bytes.
+* :func:`export_issia3d`: ``ISSIA-3D.csv`` of a stored sequence (:mod:`app.datasets.issia3d`).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, selectinload
+
+from app.core.config import Settings
+from app.datasets.issia import CAMERA_SET, FPS, CameraChoice, IssiaSequence, read_frame_image, read_issia, sequence_cameras
+from app.db.models import (
+    BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game, System,
+    SystemKind,
+)
+from app.db.types import json_safe, utcnow
+from app.geometry.annotations import lines_to_json_lists
+from app.geometry.jac import jac_at_gammas
+from app.services.curation.doubts import update_doubts
+from app.core.errors import DatasetError
+from app.services.accounts.audit import record_summary
+from app.services.transfer.importing import ImportReport, audit_counts
+from app.services.issia.refit import refit_sequence, sequence_columns
+from app.services.issia.trajectory import fit_sequence
+from app.geometry.jac import JAC_GAMMAS
+from app.datasets.records import CalibrationFields
+from app.services.calibration.calibrating import GIVEN_CAMERA_FLAG, apply_calibration
+from app.services.jobs.progress import Progress
+from app.services.curation.recompute import load_for_recompute, recompute_system, recompute_systems
+
+LEAGUE, SEASON = "issia", "sequences"
+#: Calibration flag of a camera calibrated again from the ball's trajectory of the others.
+BALL_ASSISTED_FLAG = "ball_assisted"
+
+
+def view_name(camera_id: str) -> str:
+    """The view name of an ISSIA camera id ("3" -> "cam3")."""
+    return f"cam{camera_id}"
+
+
+def _camera_fields(seq: IssiaSequence, cid: str, choice: CameraChoice) -> CalibrationFields:
+    if choice.camera is None:
+        return CalibrationFields(CalibrationStatus.REFUSED, None, (None, None, None), reason=choice.reason)
+    w, h = seq.image_size
+    flags = [BALL_ASSISTED_FLAG] if choice.source == "lines+ball" else []
+    if cid in seq.lines:
+        jac = jac_at_gammas(choice.camera, seq.lines[cid], w, h, JAC_GAMMAS)
+        values = tuple(float(jac[g]) for g in JAC_GAMMAS)
+    else:
+        values, flags = (None, None, None), flags + [GIVEN_CAMERA_FLAG]
+    return CalibrationFields(CalibrationStatus.CALIBRATED, json_safe(choice.camera.to_soccernet()), values, flags=flags)  # type: ignore[arg-type]
+
+
+def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:
+    """Store the imported point (the original; the current follows unless a reviewer edited it)."""
+    kind = BallKind.POINT if point is not None else None
+    new = (kind, None, [float(point[0]), float(point[1])] if point is not None else None)
+    label = frame.ball_label
+    if label is None:
+        if kind is None:
+            return False
+        label = BallLabel()
+        frame.ball_label = label
+        edited = False
+    else:
+        if (label.original_kind, label.original_box, label.original_point) == new:
+            return False
+        edited = label.edited
+    label.original_kind, label.original_box, label.original_point = new
+    if not edited:
+        label.kind, label.box, label.point = new
+        label.edited_at = None
+    if label.kind is None and label.original_kind is None:
+        frame.ball_label = None
+    return True
+
+
+def import_issia(session: Session, path: str | Path, settings: Settings, *, from_lines: bool = False,
+                 flipped_cameras: Iterable[str] = (), progress: Progress | None = None,
+                 actor: str | None = None) -> ImportReport:
+    """Import an ISSIA folder (module docstring) in one transaction.
+
+    Args:
+        from_lines: calibrate each camera from ``issia_lines.json`` even when ``issia_calibration.json``
+            is present.
+        flipped_cameras: camera ids ("1".."6") whose footage is mirrored horizontally (images only).
+        actor: who imports, for the import's one audit entry (None: the local user).
+
+    Raises:
+        DatasetError: invalid folder, files or camera ids (nothing is stored).
+    """
+    t0 = time.perf_counter()
+    report = ImportReport(source=str(path))
+    seq = read_issia(path, flipped_cameras=flipped_cameras)
+    report.read_seconds = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    choice = sequence_cameras(seq, from_lines=from_lines)
+    fields = {cid: _camera_fields(seq, cid, choice[cid]) for cid in seq.camera_ids}
+    source = CalibrationSource.COMPUTED if from_lines or not seq.cameras else CalibrationSource.IMPORTED
+    report.calibration_seconds = time.perf_counter() - t1
+    report.games, report.systems, report.frames = 1, len(seq.frames), len(seq.frames) * len(seq.camera_ids)
+    for f in fields.values():
+        if f.status is CalibrationStatus.CALIBRATED:
+            report.calibrated += 1
+        else:
+            report.refused += 1
+            report.refusal_reasons[f.reason or "unspecified"] += 1
+    try:
+        game = _store(session, seq, fields, source, report)
+        session.flush()
+        fit_sequence(session, game.id, settings)
+        systems = [s for s in game.systems if s.kind is SystemKind.ISSIA]
+        report.triangulated = recompute_systems(session, systems, settings, progress)
+        record_summary(session, "import", audit_counts(report), actor=actor, game_id=game.id)
+        session.commit()
+    except BaseException:
+        session.rollback()
+        raise
+    report.seconds = time.perf_counter() - t0
+    report.store_seconds = report.seconds - report.read_seconds - report.calibration_seconds
+    return report
+
+
+def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFields], source: CalibrationSource,
+           report: ImportReport) -> Game:
+    root = seq.root.resolve()
+    game = session.scalars(
+        sa.select(Game).where(Game.league == LEAGUE, Game.season == SEASON, Game.match == root.name)
+        .options(selectinload(Game.systems).selectinload(System.frames).selectinload(Frame.ball_label),
+                 selectinload(Game.systems).selectinload(System.frames).selectinload(Frame.calibration),
+                 selectinload(Game.systems).selectinload(System.frames).selectinload(Frame.field_lines))
+    ).one_or_none()
+    if game is None:
+        game = Game(league=LEAGUE, season=SEASON, match=root.name, source_path=str(root))
+        session.add(game)
+    game.source_path = str(root)
+    systems = {s.name: s for s in game.systems}
+    lines = {cid: lines_to_json_lists(seq.lines[cid]) for cid in seq.lines}
+    now = utcnow()
+    w, h = seq.image_size
+    for i, index in enumerate(seq.frames):
+        system = systems.get(str(index))
+        new = system is None
+        if new:
+            system = System(name=str(index), kind=SystemKind.ISSIA, frame_index=index)
+            game.systems.append(system)
+            report.systems_new += 1
+        system.frame_index = index
+        frames = {f.name: f for f in system.frames}
+        changed = False
+        for k, cid in enumerate(seq.camera_ids):
+            name = view_name(cid)
+            frame = frames.get(name)
+            if frame is None:
+                frame = Frame(name=name, role=FrameRole.STATIC, position=k, width=w, height=h)
+                system.frames.append(frame)
+                changed = True
+            media = seq.media.get(cid)
+            frame.position, frame.width, frame.height = k, w, h
+            frame.image_path = str(media.resolve()) if media is not None else None
+            frame.media_frame = index if media is not None else None
+            frame.media_flipped = cid in seq.flipped
+            lines_changed = False
+            if cid in lines:
+                fl = frame.field_lines
+                if fl is None:
+                    frame.field_lines = FieldLineAnnotation(lines=lines[cid], original_lines=lines[cid])
+                elif fl.original_lines != lines[cid]:
+                    lines_changed = not fl.edited
+                    if not fl.edited:
+                        fl.lines = lines[cid]
+                    fl.original_lines = lines[cid]
+            cal, f = frame.calibration, fields[cid]
+            ours = [x for x in (cal.flags or []) if x in (BALL_ASSISTED_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
+            if cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags) or cal.source is not source:
+                apply_calibration(frame, f, source)
+                changed = True
+            label_changed = _set_label(frame, seq.point(index, cid), now)
+            if (label_changed or lines_changed) and frame.id is not None:
+                frame.edit_version += 1  # what people edit changed under them: their ETag goes stale
+            changed |= label_changed
+        if changed and not new:
+            report.systems_changed += 1
+    return game
+
+
+def refit_after_edit(session: Session, system: System, settings: Settings, *,
+                     recalibrated: Frame | None = None) -> list[System]:
+    """After an edit of a view of an ISSIA ``system``, in the edit's transaction (changes the session
+    only). Returns the systems touched; a system that is not ISSIA is left alone (``[]``).
+
+    * A ball label or exclusion edit (``recalibrated`` None): re-fit the stretch of the sequence around
+      the system's frame (:func:`app.services.issia.refit.refit_sequence`), then recompute ``system``
+      (once, after the re-fit: its triangulation reads the labels the trajectory keeps) and every other
+      system whose kept labels changed, and judge again the doubts of those whose only change is their
+      place on the trajectory but that have flagged labels (their evidence names the fitted position).
+    * A new calibration of view ``recalibrated`` (field lines; the caller recomputed ``system``): the
+      sequence uses the camera of each camera's first admitted view, so when ``recalibrated`` is (or,
+      before the edit, may have been) that view the camera changed for every frame and the whole
+      sequence is fitted again from scratch (about a second on the 200-frame dev sequence, plus the
+      recomputation of the systems whose kept labels changed); otherwise the trajectory's inputs did
+      not change and nothing is re-fitted.
+    """
+    if system.kind is not SystemKind.ISSIA or system.frame_index is None:
+        return []
+    session.flush()
+    if recalibrated is None:
+        changed = refit_sequence(session, system.game_id, system.frame_index, system.frame_index, settings)
+        recompute_system(session, system, settings)
+        touched = [system]
+    else:
+        columns = sequence_columns(session, system.game_id, settings)
+        first = dict(zip(columns.names, columns.first_admitted)).get(recalibrated.name)
+        if first is not None and system.frame_index > first:
+            return []  # an earlier view of this camera gives the camera: the trajectory is unchanged
+        changed = fit_sequence(session, system.game_id, settings)
+        touched = []
+        # what the recomputations below read, for all of them in a few queries (not one per system and relation)
+        load_for_recompute(session, [c.system.id for c in changed if c.system is not None and (
+            c.labels or c.system.trajectory_point.flagged or c.system.doubt_counts.get("ball_off_consensus"))])
+    for c in changed:
+        s = c.system
+        if s is None or s in touched:
+            continue
+        if c.labels:
+            recompute_system(session, s, settings)
+        elif s.trajectory_point.flagged or s.doubt_counts.get("ball_off_consensus"):
+            update_doubts(s, settings)
+        else:
+            continue
+        touched.append(s)
+    return touched
+
+
+def read_video_frame(frame: Frame) -> bytes:
+    """The view's image at its own (annotation) resolution, PNG bytes, decoded on demand from its
+    video (``Frame.image_path``, frame ``Frame.media_frame``) or frame folder, flipped back when
+    ``Frame.media_flipped`` (:func:`app.datasets.issia.read_frame_image`).
+
+    Raises:
+        DatasetError: the video or folder is missing or the frame cannot be read.
+    """
+    import cv2
+
+    if frame.image_path is None or frame.media_frame is None:
+        raise DatasetError(Path(f"frame {frame.id}"), None, "no video or frame folder")
+    cid = frame.name
+    media = Path(frame.image_path)
+    if not media.exists():
+        raise DatasetError(media, None, "missing")
+    seq = IssiaSequence(root=media.parent, camera_ids=(cid,), image_size=(frame.width, frame.height), cameras={},
+                        lines={}, frames=(), points=np.empty((0, 1, 2)), media={cid: media},
+                        flipped=frozenset({cid}) if frame.media_flipped else frozenset())
+    img = read_frame_image(seq, cid, frame.media_frame).image
+    ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not ok:
+        raise DatasetError(media, f"frame {frame.media_frame}", "cannot be encoded as PNG")
+    return buf.tobytes()
+
+
+__all__ = ["LEAGUE", "SEASON", "CAMERA_SET", "FPS", "import_issia", "refit_after_edit", "read_video_frame", "view_name"]

@@ -1,0 +1,127 @@
+"""What each kind of background job does (``app.services.jobs.runner`` runs them): ``import`` (a dataset
+through ``app.services.transfer.importing`` or ``app.services.issia.sequences``), ``recompute`` (every system,
+``recompute.recompute_all_systems``) and ``export`` (the SoccerNet-v3D zip written to a file while the
+database is read, ``exporting.stream_soccernet_v3d_zip``).
+
+Each is ``work(session, params, settings, progress, job_id) -> result`` (a JSON-able dict) and may be run
+again from the start after a kill: imports are idempotent, a recompute gives the same rows, an export
+rewrites its file (``<jobs dir>/exports/job-<id>-soccernet-v3d.zip``, written as ``.part`` and renamed
+when complete).
+"""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings, jobs_dir
+from app.core.errors import InvalidInputError
+from app.services.jobs.progress import Progress
+
+#: Dataset kinds an import job takes (``params["kind"]``).
+IMPORT_KINDS = ("soccernet-v3", "soccernet-v3d", "sn-calibration", "issia")
+
+
+def import_params(kind: str, path: str | Path, *, width: int | None = None, height: int | None = None,
+                  from_lines: bool = False, flip: list[str] | None = None,
+                  calibration_workers: int | None = None, upload: bool = False) -> dict[str, Any]:
+    """The ``params`` of an import job (one shape for the API and the CLI, so that a command run again
+    finds the job it started: ``jobs.find_resumable``). ``path`` is stored resolved; ``upload``: it is an
+    unpacked upload of its own, removed when the dataset cannot be imported."""
+    out = {"kind": kind, "path": str(Path(path).expanduser().resolve()), "width": width, "height": height,
+           "from_lines": from_lines, "flip": list(flip or []), "calibration_workers": calibration_workers}
+    if upload:
+        out["upload"] = True
+    return out
+
+
+def import_result(report: Any) -> dict[str, Any]:
+    """The stored result of an import job: the counts of its ``ImportReport``."""
+    keys = ("source", "games", "systems", "frames", "systems_new", "systems_changed", "calibrated", "refused",
+            "rig_assisted", "triangulated", "seconds")
+    out = {k: getattr(report, k) for k in keys}
+    out["refusal_reasons"] = dict(report.refusal_reasons)
+    out["refusal_kinds"] = dict(report.refusal_kinds().most_common())
+    return out
+
+
+def run_import(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
+               job_id: int) -> dict[str, Any]:
+    """Import ``params["path"]`` as ``params["kind"]`` (see :func:`import_params`).
+
+    Raises:
+        DatasetError: the dataset cannot be imported (nothing of it stored; an upload's folder is removed).
+    """
+    try:
+        return _import(session, params, settings, progress)
+    except InvalidInputError:
+        if params.get("upload"):
+            shutil.rmtree(params["path"], ignore_errors=True)
+        raise
+
+
+def _import(session: Session, params: dict[str, Any], settings: Settings, progress: Progress) -> dict[str, Any]:
+    from app.services.transfer import importing
+
+    if params.get("calibration_workers") is not None:
+        settings = settings.model_copy(update={"calibration_workers": params["calibration_workers"]})
+    kind, path = params["kind"], params["path"]
+    actor = params.get("actor")  # who queued it (the import's audit entry); None: the local user (CLI)
+    if kind == "soccernet-v3":
+        report = importing.import_soccernet_v3(session, path, settings, progress=progress, actor=actor)
+    elif kind == "soccernet-v3d":
+        report = importing.import_soccernet_v3d(session, path, settings, progress=progress, actor=actor)
+    elif kind == "sn-calibration":
+        report = importing.import_sn_calibration(session, path, settings, width=params.get("width"),
+                                                 height=params.get("height"), progress=progress, actor=actor)
+    elif kind == "issia":
+        from app.services.issia.sequences import import_issia
+
+        report = import_issia(session, path, settings, from_lines=bool(params.get("from_lines")),
+                              flipped_cameras=params.get("flip") or [], progress=progress, actor=actor)
+    else:
+        raise ValueError(f"unknown import kind {kind!r}")
+    return import_result(report)
+
+
+def run_recompute(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
+                  job_id: int) -> dict[str, Any]:
+    """Recompute every system with the current settings (calibrations untouched)."""
+    from app.services.curation.recompute import recompute_all_systems
+
+    systems, triangulated = recompute_all_systems(session, settings, progress, actor=params.get("actor"))
+    return {"systems": systems, "triangulated": triangulated}
+
+
+def export_path(settings: Settings, name: str) -> Path:
+    """Where an export job's file ``name`` lies (``<jobs dir>/exports/<name>``)."""
+    return jobs_dir(settings) / "exports" / Path(name).name
+
+
+def run_export(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
+               job_id: int) -> dict[str, Any]:
+    """Write the SoccerNet-v3D zip (``params["all"]``: every system, else the accepted ones) to the job's
+    file while the database is read; ``progress("export", games, total)``."""
+    from app.services.transfer.exporting import export_size, stream_soccernet_v3d_zip
+
+    include_all = bool(params.get("all", False))
+    name = f"job-{job_id}-soccernet-v3d.zip"
+    target = export_path(settings, name)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    part = target.with_name(target.name + ".part")
+    systems, rows = export_size(session, include_all)
+    size = 0
+    with open(part, "wb") as out:
+        for chunk in stream_soccernet_v3d_zip(session, include_all, progress):
+            out.write(chunk)
+            size += len(chunk)
+    os.replace(part, target)
+    return {"file": name, "bytes": size, "systems": systems, "rows": rows, "media_type": "application/zip",
+            "filename": "soccernet-v3d.zip"}
+
+
+#: kind -> work (``app.services.jobs.runner.Work``).
+WORK = {"import": run_import, "recompute": run_recompute, "export": run_export}

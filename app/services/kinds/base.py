@@ -1,0 +1,101 @@
+"""What every system kind decides, with the defaults of broadcast footage (:class:`KindPolicy`)."""
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
+
+from app.db.models import Frame, Game, System, SystemKind
+
+if TYPE_CHECKING:
+    from sqlalchemy.orm import Session
+
+    from app.core.config import Settings
+    from app.geometry.camera import Camera
+    from app.geometry.doubts import Doubt as DoubtFinding
+    from app.geometry.triangulation import BallObservation
+
+#: Exports and benchmarks that select systems by kind: the SoccerNet-v3D dataset (``Labels-v3D.json`` and
+#: CSV), the detector-training exports (YOLO, COCO), the monocular benchmark's reference, and the ISSIA-3D
+#: export.
+EXPORTS = frozenset({"soccernet-v3d", "yolo", "coco", "monocular", "issia-3d"})
+
+#: Share of SoccerNet games in the train split (:func:`split_of`).
+TRAIN_FRACTION = 0.8
+
+
+def split_of(game_path: str) -> str:
+    """"train" or "test" for a game, from a stable hash of ``league/season/match`` (about 80 / 20).
+
+    >>> split_of("england_epl/2014-2015/2015-02-21 - 18-00 Chelsea 1 - 1 Burnley") in ("train", "test")
+    True
+    """
+    h = int.from_bytes(hashlib.sha256(game_path.encode("utf-8")).digest()[:8], "big")
+    return "train" if (h % 10_000) < TRAIN_FRACTION * 10_000 else "test"
+
+
+def image_stem(game: Game, frame: Frame) -> str:
+    """File stem of a view in the exports, unique across games: a slug of the match name, 8 hex digits
+    of a hash of ``league/season/match`` and the frame's stem.
+
+    >>> image_stem(Game(league="l", season="s", match="A 1 - 0 B"), Frame(name="12_3.png"))
+    'A_1_-_0_B-80c8c009_12_3'
+    """
+    slug = re.sub(r"[^A-Za-z0-9-]+", "_", game.match).strip("_")[:40] or "game"
+    digest = hashlib.sha256(game.path.encode("utf-8")).hexdigest()[:8]
+    stem = Path(frame.name).stem
+    return f"{slug}-{digest}_{re.sub(r'[^A-Za-z0-9-]+', '_', stem)}"
+
+
+@dataclass(frozen=True)
+class KindPolicy:
+    """The policy of one system kind. Subclasses (one module per kind) override what differs.
+
+    Attributes:
+        kind: the stored :class:`SystemKind`.
+        import_formats: dataset formats whose readers produce systems of this kind (``v3d import ...``).
+        exports: the names of :data:`EXPORTS` that write its systems.
+        uses_rig: calibration may fix the camera centre at one of the game's positions (cameras fixed
+            during a broadcast game; ``app.services.calibration.calibrating.game_rig``).
+        broadcast_priors: the broadcast camera-side priors hold (main camera on the y > 0 side), so the
+            mirrored-labels flags are computed on recomputation.
+        edit_locks_game: an edit of one system may change other systems of its game (a sequence's
+            trajectory), so the edit locks the game row before the system's.
+    """
+
+    kind: SystemKind
+    import_formats: tuple[str, ...]
+    exports: frozenset[str]
+    uses_rig: bool = False
+    broadcast_priors: bool = True
+    edit_locks_game: bool = False
+
+    def split(self, system: System, frame: Frame) -> str:
+        """"train" or "test" of one view in the exports and benchmarks (default: the game's hash split,
+        :func:`split_of`)."""
+        return split_of(system.game.path)
+
+    def view_stem(self, game: Game, frame: Frame) -> str:
+        """File stem of one view in the detector exports and the monocular benchmark, unique across
+        games (default: :func:`image_stem`)."""
+        return image_stem(game, frame)
+
+    def consensus_observations(self, system: System, observations: list[BallObservation],
+                               settings: Settings) -> list[BallObservation]:
+        """The ball observations the system's triangulation uses (default: all those given, already
+        restricted to admitted calibrations and included labels)."""
+        return observations
+
+    def judge_doubts(self, system: System, found: list[DoubtFinding],
+                     cameras: dict[int, Camera] | None) -> list[DoubtFinding]:
+        """The doubts stored for the system from those of the multi-view judgement ``found``
+        (default: unchanged)."""
+        return found
+
+    def refit_after_edit(self, session: Session, system: System, settings: Settings,
+                         recalibrated: Frame | None = None) -> Sequence[System]:
+        """Work beyond the system an edit of one of its views needs, in the edit's transaction; returns the
+        systems recomputed by it (empty: the caller recomputes ``system`` itself). Default: nothing."""
+        return []

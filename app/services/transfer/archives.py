@@ -1,0 +1,205 @@
+"""Uploads and zip archives from outside: received to disk under a size limit, unpacked safely.
+
+One home for the rules every upload follows (the dataset imports of ``POST /api/imports`` and the
+predictions of ``POST /api/evaluations/monocular``):
+
+* :func:`receive` copies an upload to a file chunk by chunk, counting bytes, and stops at the limit
+  (:class:`UploadTooLarge`, HTTP 413) without ever holding the upload in memory;
+* :func:`unpack_zip` checks the whole central directory before writing anything: every member name
+  is relative without ``..``, drive or backslash tricks (``app.datasets.files.is_safe_member``), no member is a
+  symbolic link, names are unique, the member count and the total uncompressed size (members of nested
+  zips included) stay under the limits (zip bombs); then extracts, counting the bytes really written,
+  and decodes every image (``.png``, ``.jpg``, ``.jpeg``, in nested zips too) with OpenCV: a file named
+  like an image that does not decode is refused naming it. Refusals raise
+  :class:`~app.core.errors.DatasetError` naming the archive and the member (HTTP 400) and leave
+  nothing extracted.
+
+``zipfile`` never yields more than a member's declared size (it stops there and checks the CRC), so
+the declared sizes summed before extraction bound what extraction can write.
+"""
+from __future__ import annotations
+
+import shutil
+import stat
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO, Callable, Iterable
+
+import numpy as np
+
+from app.core.config import Settings
+from app.datasets.files import is_safe_member
+from app.core.errors import DatasetError, ServiceError
+
+#: File names decoded to check they are images.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+_CHUNK = 1 << 20
+MB = 1 << 20
+
+
+class UploadTooLarge(ServiceError):
+    """An upload above the size limit (HTTP 413); nothing of it is kept."""
+
+    def __init__(self, limit_bytes: int, field: str) -> None:
+        super().__init__(f"{field}: the upload is larger than the limit of {limit_bytes / MB:g} MB (V3D_MAX_UPLOAD_MB)")
+        self.field = field
+
+
+@dataclass(frozen=True)
+class ArchiveLimits:
+    """Bounds of an uploaded zip: ``max_members`` members and ``max_unpacked_bytes`` uncompressed bytes
+    in all, nested image zips included."""
+
+    max_members: int
+    max_unpacked_bytes: int
+
+    @classmethod
+    def from_settings(cls, settings: Settings) -> "ArchiveLimits":
+        """``V3D_MAX_UPLOAD_MEMBERS`` and ``V3D_MAX_UNPACKED_MB``."""
+        return cls(settings.max_upload_members, int(settings.max_unpacked_mb * MB))
+
+
+def upload_limit_bytes(settings: Settings) -> int:
+    """``V3D_MAX_UPLOAD_MB`` in bytes."""
+    return int(settings.max_upload_mb * MB)
+
+
+def receive(chunks: Iterable[bytes], path: Path, limit_bytes: int, field: str = "file") -> int:
+    """Write ``chunks`` to ``path``, stopping as soon as more than ``limit_bytes`` arrived; returns the
+    size written (bytes).
+
+    Raises:
+        UploadTooLarge: the limit was passed (the partial file is removed).
+    """
+    size = 0
+    try:
+        with open(path, "wb") as out:
+            for chunk in chunks:
+                size += len(chunk)
+                if size > limit_bytes:
+                    raise UploadTooLarge(limit_bytes, field)
+                out.write(chunk)
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+    return size
+
+
+def file_chunks(handle: BinaryIO) -> Iterable[bytes]:
+    """The content of an open binary file, 1 MB at a time."""
+    return iter(lambda: handle.read(_CHUNK), b"")
+
+
+def is_image_name(name: str) -> bool:
+    """True for a member or file named like an image (:data:`IMAGE_SUFFIXES`, any case)."""
+    return name.lower().endswith(IMAGE_SUFFIXES)
+
+
+def check_image(raw: bytes, where: str) -> None:
+    """Decode ``raw`` with OpenCV; raises :class:`DatasetError` naming ``where`` when it is not an image."""
+    import cv2
+
+    img = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED) if raw else None
+    if img is None:
+        raise DatasetError(where, None, "named like an image but does not decode as one")
+
+
+def _is_symlink(info: zipfile.ZipInfo) -> bool:
+    return info.create_system == 3 and stat.S_ISLNK(info.external_attr >> 16)
+
+
+def _checked_members(zf: zipfile.ZipFile, where: str, limits: ArchiveLimits, budget: list[int]) -> list[zipfile.ZipInfo]:
+    """The archive's members after the checks of the module docstring; ``budget`` is [members left,
+    bytes left], shared with nested archives."""
+    seen: set[str] = set()
+    infos = zf.infolist()
+    for info in infos:
+        name = info.filename
+        if not is_safe_member(name):
+            raise DatasetError(where, f"member {name!r}", "unsafe name (absolute, drive or '..' component); "
+                                                          "refusing the archive")
+        if _is_symlink(info):
+            raise DatasetError(where, f"member {name!r}", "is a symbolic link; refusing the archive")
+        key = name.rstrip("/")
+        if key in seen:
+            raise DatasetError(where, f"member {name!r}", "appears twice; refusing the archive")
+        seen.add(key)
+        budget[0] -= 1
+        budget[1] -= info.file_size
+        if budget[0] < 0:
+            raise DatasetError(where, None, f"more than {limits.max_members} members (V3D_MAX_UPLOAD_MEMBERS); "
+                                            "refusing the archive")
+        if budget[1] < 0:
+            raise DatasetError(where, None, f"more than {limits.max_unpacked_bytes / MB:g} MB uncompressed "
+                                            "(V3D_MAX_UNPACKED_MB); refusing the archive")
+    return infos
+
+
+def _check_nested(zf: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, limits: ArchiveLimits,
+                  budget: list[int]) -> None:
+    """A zip inside the upload (e.g. a game's ``Frames-v3.zip``, read in place, never extracted): the
+    same member checks, and its images decoded."""
+    inner_where = f"{where}!{info.filename}"
+    with zf.open(info) as handle:
+        try:
+            inner = zipfile.ZipFile(handle)
+        except zipfile.BadZipFile as exc:
+            raise DatasetError(inner_where, None, f"named like a zip but is not a readable one ({exc})") from None
+        with inner:
+            _check_inner(inner, inner_where, limits, budget)
+
+
+def _check_inner(inner: zipfile.ZipFile, inner_where: str, limits: ArchiveLimits, budget: list[int]) -> None:
+    for member in _checked_members(inner, inner_where, limits, budget):
+        if not member.is_dir() and is_image_name(member.filename):
+            check_image(inner.read(member), f"{inner_where}!{member.filename}")
+
+
+def unpack_zip(archive: Path | BinaryIO, dest: Path, limits: ArchiveLimits, *, where: str | None = None,
+               keep: Callable[[str], bool] | None = None) -> Path:
+    """Extract the zip ``archive`` into the folder ``dest`` (created) after the checks of the module
+    docstring; returns ``dest``.
+
+    Args:
+        archive: the zip file on disk, or an open seekable binary file of it (an upload's spool).
+        dest: the folder to extract into; removed again when the archive is refused.
+        limits: member count and uncompressed size bounds.
+        where: the name used in messages (default: the archive's file name).
+        keep: extract only the members whose name it accepts (all are still checked).
+
+    Raises:
+        DatasetError: not a zip, an unsafe, linked or repeated member, too many members or bytes, an
+            image that does not decode (naming the archive and the member; nothing is left in ``dest``).
+    """
+    where = where or (archive.name if isinstance(archive, Path) else "upload.zip")
+    try:
+        zf = zipfile.ZipFile(archive)
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise DatasetError(where, None, f"not a readable zip archive ({exc})") from None
+    budget = [limits.max_members, limits.max_unpacked_bytes]
+    dest.mkdir(parents=True, exist_ok=True)
+    try:
+        with zf:
+            infos = _checked_members(zf, where, limits, budget)
+            root = dest.resolve()
+            for info in infos:
+                if info.is_dir() or (keep is not None and not keep(info.filename)):
+                    continue
+                target = (root / info.filename.replace("\\", "/")).resolve()
+                if root not in target.parents:  # belt and braces: is_safe_member already refused it
+                    raise DatasetError(where, f"member {info.filename!r}", "lands outside the destination")
+                target.parent.mkdir(parents=True, exist_ok=True)
+                with zf.open(info) as src, open(target, "wb") as out:
+                    shutil.copyfileobj(src, out, _CHUNK)
+                if is_image_name(info.filename):
+                    check_image(target.read_bytes(), f"{where}!{info.filename}")
+                elif info.filename.lower().endswith(".zip"):
+                    _check_nested(zf, info, where, limits, budget)
+    except zipfile.BadZipFile as exc:
+        shutil.rmtree(dest, ignore_errors=True)
+        raise DatasetError(where, None, f"corrupt zip archive ({exc})") from None
+    except BaseException:
+        shutil.rmtree(dest, ignore_errors=True)
+        raise
+    return dest

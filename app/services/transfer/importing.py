@@ -1,0 +1,417 @@
+"""Import of SoccerNet-v3 trees, SoccerNet-calibration folders or zips, and SoccerNet-v3D exports.
+
+Every importer works in two phases so that bad input stores nothing:
+
+1. **read and validate** the whole input into plain records (``app.datasets``:
+   :func:`read_soccernet_v3`, :func:`read_sn_calibration`, :func:`read_soccernet_v3d`); any problem
+   raises :class:`~app.core.errors.DatasetError` naming the file and the field. A SoccerNet-v3
+   tree is validated game by game and its records dropped; each batch is read again when it is
+   stored, so memory holds two batches of records, not the whole tree;
+2. **write** the records in transactions of whole games (``Settings.import_batch_frames`` frames or so
+   each, so that memory stays bounded at SoccerNet size): games, systems and frames are matched by
+   their natural keys (league/season/match, system name, frame name), so importing the same input
+   twice gives the same rows, and an import cut short (a crash, a kill) leaves whole games stored and
+   is completed by running it again. A re-import refreshes the imported originals; a current value
+   that a reviewer edited is kept. In each batch the frames whose lines are new or changed are
+   calibrated in the import's process pool before the batch's first write, then the batch is written,
+   its touched systems recomputed (``app.services.curation.recompute``) and committed, or rolled back. The
+   pool does not wait meanwhile: the first pass of the next batch's new games is calibrating
+   (``app.services.calibration.first_pass``) while this process stores the current batch.
+
+Images are never extracted: a frame stores the zip path and member name (or a file path).
+An import is one audit entry (``app.services.accounts.audit.record_summary``, action "import", its counts), written
+with its last batch; a frame whose labels or lines it changes gets a new edit version (ETag).
+"""
+from __future__ import annotations
+
+import re
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from datetime import datetime
+from functools import partial
+from pathlib import Path
+from typing import Callable, Iterator
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session, selectinload
+
+from app.core.config import Settings
+from app.db.models import (
+    BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, Game, ReviewDecision,
+    ReviewStatus, System,
+)
+from app.db.types import utcnow
+from app.datasets.records import FrameRecord, GameRecord
+from app.datasets.sn_calibration import read_sn_calibration
+from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
+from app.datasets.soccernet_v3d import read_soccernet_v3d
+from app.services.accounts.audit import record_summary
+from app.services.calibration.first_pass import FirstPassAhead, first_pass, retry_with_game_rigs, start_first_pass
+from app.geometry.calibration.frame import RIG_FLAG
+from app.datasets.records import CalibrationFields
+from app.services.calibration.calibrating import CalibrationPool, apply_calibration, calibration_pool
+from app.services.jobs.progress import Progress
+from app.services.curation.recompute import preload_systems, recompute_systems
+
+__all__ = [
+    "ImportReport", "audit_counts", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",
+    "read_soccernet_v3", "read_sn_calibration", "read_soccernet_v3d",
+]
+
+
+@dataclass
+class ImportReport:
+    """What an import did.
+
+    Attributes:
+        source: the path imported.
+        games, systems, frames: how many the input holds.
+        systems_new, systems_changed: systems created, and existing systems whose input changed.
+        calibrated, refused: outcome of the calibrations run (or imported) by this import.
+        rig_assisted: frames of SoccerNet-v3 games refused from their lines alone, or calibrated
+            below admission, whose stored calibration is their game's camera rig's (counted in
+            ``calibrated``).
+        refusal_reasons: reason -> count among ``refused``.
+        triangulated: recomputed systems that got a 3D ball.
+        read_seconds, calibration_seconds, store_seconds: wall time of reading and validating the
+            input, of the calibration step, and of writing, recomputing and committing;
+            seconds: of the whole import.
+        calibration_ms: calibration time of each calibrated frame (ms, in its worker): its
+            ``calibrate_frame`` call plus, for a frame retried with its game's rig, the rig pass.
+    """
+
+    source: str
+    games: int = 0
+    systems: int = 0
+    frames: int = 0
+    systems_new: int = 0
+    systems_changed: int = 0
+    calibrated: int = 0
+    refused: int = 0
+    rig_assisted: int = 0
+    refusal_reasons: Counter = field(default_factory=Counter)
+    triangulated: int = 0
+    read_seconds: float = 0.0
+    calibration_seconds: float = 0.0
+    store_seconds: float = 0.0
+    seconds: float = 0.0
+    calibration_ms: list[float] = field(default_factory=list)
+
+    def refusal_kinds(self) -> Counter:
+        """``refusal_reasons`` with every number replaced by ``N`` and every quoted line class by
+        ``<class>``, so that reasons of one kind are counted together.
+
+        >>> ImportReport("x", refusal_reasons=Counter({"residual too high: 'Side line top' is 70.1 px": 2,
+        ...                                            "residual too high: 'Circle left' is 99 px": 1})).refusal_kinds()
+        Counter({'residual too high: <class> is N px': 3})
+        """
+        out: Counter = Counter()
+        for reason, n in self.refusal_reasons.items():
+            out[re.sub(r"'[^']*'", "<class>", re.sub(r"\d+(?:\.\d+)?", "N", reason))] += n
+        return out
+
+
+# ----- writing ------------------------------------------------------------------------------------
+def _upsert_game(session: Session, rec: GameRecord) -> Game:
+    game = session.scalars(
+        select(Game).where(Game.league == rec.league, Game.season == rec.season, Game.match == rec.match)
+        .options(selectinload(Game.systems).selectinload(System.frames))
+    ).one_or_none()
+    if game is None:
+        game = Game(league=rec.league, season=rec.season, match=rec.match, source_path=rec.source_path)
+        session.add(game)
+    game.source_path = rec.source_path
+    return game
+
+
+def _set_lines(frame: Frame, rec: FrameRecord, now: datetime) -> bool:
+    """Store the imported lines; returns True when the frame needs recalibration."""
+    original = rec.original_lines if rec.original_lines is not None else rec.lines
+    fl = frame.field_lines
+    if fl is None:
+        frame.field_lines = FieldLineAnnotation(lines=rec.lines, original_lines=original,
+                                                edited_at=now if rec.lines != original else None)
+        return True
+    if fl.original_lines == original and (rec.original_lines is None or fl.lines == rec.lines):
+        return False
+    if rec.original_lines is not None or not fl.edited:
+        fl.lines = rec.lines
+    fl.original_lines = original
+    return True
+
+
+def _set_ball(frame: Frame, rec: FrameRecord, now: datetime) -> bool:
+    """Store the imported ball label; returns True when the stored label changed.
+
+    Without ``rec.original_ball`` (SoccerNet-v3) the record is the original; the current label
+    follows it unless a reviewer edited it. With it (a v3D export) both are taken as given.
+    """
+    kind = BallKind.BOX if rec.ball_box is not None else BallKind.POINT if rec.ball_point is not None else None
+    current = (kind, rec.ball_box, rec.ball_point)
+    original = rec.original_ball if rec.original_ball is not None else current
+    label = frame.ball_label
+    if label is None:
+        if current[0] is None and original[0] is None:
+            return False
+        label = BallLabel()
+        frame.ball_label = label
+        stored_current = stored_original = None
+        edited = False
+    else:
+        stored_current = (label.kind, label.box, label.point)
+        stored_original = (label.original_kind, label.original_box, label.original_point)
+        edited = label.edited
+    if stored_original == original and (rec.original_ball is None or stored_current == current):
+        return False
+    label.original_kind, label.original_box, label.original_point = original
+    if rec.original_ball is not None or not edited:
+        label.kind, label.box, label.point = current
+        label.edited_at = now if current != original else None
+    if label.kind is None and label.original_kind is None:
+        frame.ball_label = None
+    return True
+
+
+def _store(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
+           progress: Progress | None, pool: CalibrationPool | None = None, ahead: FirstPassAhead | None = None,
+           after_calibration: Callable[[], None] | None = None) -> None:
+    """Upsert ``records`` into the session (no autoflush), calibrate the frames whose lines are new or
+    changed in a process pool (then the refused ones of SoccerNet-v3 games with their game's rig)
+    while nothing is written yet, so that a long import does not hold SQLite's write lock; then
+    flush, store the calibrations and recompute the touched systems.
+
+    ``ahead``: first-pass calibrations started before the merge (``import_calibration.start_first_pass``); a
+    frame whose job is the one started takes its result. ``after_calibration`` is called once every
+    calibration of the batch is done (the caller starts the next batch's first pass then)."""
+    now = utcnow()
+    to_calibrate: list[Frame] = []
+    to_calibrate_recs: list[FrameRecord] = []
+    imported: list[tuple[Frame, CalibrationFields]] = []
+    touched: list[System] = []
+    n_systems = sum(len(g.systems) for g in records)
+    done = 0
+    with session.no_autoflush:  # nothing is written before calibration: the write lock is taken late
+        for grec in records:
+            game = _upsert_game(session, grec)
+            systems = {s.name: s for s in game.systems}
+            for srec in grec.systems:
+                system = systems.get(srec.name)
+                new = system is None
+                if system is None:
+                    # Relationships a recomputation reads are set now, so none is lazily loaded after the flush.
+                    system = System(name=srec.name, kind=srec.kind, triangulation=None, doubts=[])
+                    game.systems.append(system)
+                    system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
+                system.kind = srec.kind
+                if srec.review is not None and system.review is not None and system.review.status is ReviewStatus.PENDING:
+                    system.review.status = srec.review
+                    system.review.decided_at = now
+                changed = False
+                frames = {f.name: f for f in system.frames}
+                for pos, frec in enumerate(srec.frames):
+                    frame = frames.get(frec.name)
+                    if frame is None:
+                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height,
+                                      calibration=None, ball_label=None, reprojection=None, optimised_box=None)
+                        system.frames.append(frame)
+                        frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
+                        changed = True
+                    elif (frame.width, frame.height) != (frec.width, frec.height):
+                        changed = True
+                    frame.role, frame.position, frame.width, frame.height = frec.role, pos, frec.width, frec.height
+                    frame.image_zip, frame.image_member, frame.image_path = frec.image_zip, frec.image_member, frec.image_path
+                    lines_changed = _set_lines(frame, frec, now)
+                    ball_changed = _set_ball(frame, frec, now)
+                    if (lines_changed or ball_changed) and frame.id is not None:
+                        frame.edit_version += 1  # what people edit changed under them: their ETag goes stale
+                    if frec.calibration is not None:
+                        cal = frame.calibration
+                        fields = frec.calibration.fields
+                        if cal is None or cal.camera != fields.camera or (cal.jac_0005, cal.jac_001, cal.jac_002) != fields.jac:
+                            imported.append((frame, fields))
+                            changed = True
+                    elif lines_changed or frame.calibration is None:
+                        to_calibrate.append(frame)
+                        to_calibrate_recs.append(frec)
+                        changed = True
+                    changed = changed or ball_changed
+                if new:
+                    report.systems_new += 1
+                elif changed:
+                    report.systems_changed += 1
+                if changed or system.triangulation is None:
+                    touched.append(system)
+                done += 1
+                if progress:
+                    progress("merge", done, n_systems)
+
+    t0 = time.perf_counter()
+    batch = first_pass(to_calibrate, to_calibrate_recs, settings, progress, pool, ahead)
+    first_ms, rig_ms = batch.first_ms, dict(batch.rig_ms)
+    with session.no_autoflush:
+        results, retried_ms = retry_with_game_rigs(session, to_calibrate, batch.results, settings, progress, pool,
+                                                   batch.finished)
+    rig_ms.update(retried_ms)
+    if after_calibration is not None:
+        after_calibration()
+    report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
+    report.calibration_seconds = time.perf_counter() - t0
+    report.rig_assisted += sum(RIG_FLAG in r.flags for r in results)
+    # The first write of the import. Systems new in this batch hold every row a recomputation reads
+    # already (their relationships were set when they were created): only stored ones are loaded.
+    preload_systems(session, [s for s in touched if s.id is not None])
+    for frame, fields in zip(to_calibrate, results):
+        apply_calibration(frame, fields, CalibrationSource.COMPUTED)
+    for frame, fields in imported:
+        apply_calibration(frame, fields, CalibrationSource.IMPORTED)
+    for fields in [*results, *(f for _, f in imported)]:
+        if fields.status is CalibrationStatus.CALIBRATED:
+            report.calibrated += 1
+        else:
+            report.refused += 1
+            report.refusal_reasons[fields.reason or "unspecified"] += 1
+    report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
+
+
+#: One game of an import's input: reads (and validates) it when called, as often as needed.
+GameReader = Callable[[], GameRecord]
+
+
+def _held(records: list[GameRecord]) -> list[GameReader]:
+    """Readers of games already in memory (inputs read whole: a calibration set, a v3D export)."""
+    return [lambda rec=rec: rec for rec in records]
+
+
+def _batches(frames_per_game: list[int], max_frames: int) -> Iterator[list[int]]:
+    """Indices of whole games, in order, grouped so that a group holds at most ``max_frames`` frames
+    (a larger game forms a group alone)."""
+    batch: list[int] = []
+    n = 0
+    for g, frames in enumerate(frames_per_game):
+        if batch and n + frames > max_frames:
+            yield batch
+            batch, n = [], 0
+        batch.append(g)
+        n += frames
+    if batch:
+        yield batch
+
+
+def audit_counts(report: ImportReport) -> dict[str, object]:
+    """The counts an import's audit entry keeps (``after``)."""
+    return {"source": report.source, "games": report.games, "systems": report.systems, "frames": report.frames,
+            "systems_new": report.systems_new, "systems_changed": report.systems_changed,
+            "calibrated": report.calibrated, "refused": report.refused, "triangulated": report.triangulated}
+
+
+def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
+         games: Callable[[], list[GameReader]], actor: str | None = None) -> ImportReport:
+    """Read and validate everything (nothing is stored when the input is bad), then store it in
+    batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
+    stored or not at all), each calibrated, recomputed and committed before the next is stored; the
+    calibration processes serve every batch. ``games`` lists the input's games as readers: the
+    validation reads each once and drops it, and each batch is read again when its calibration
+    starts, so memory holds two batches of records, not the whole input (an input file changed
+    meanwhile can still fail the import then, after whole games were stored; running it again
+    completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
+    total) instead of the inner stages of each batch. The import's audit entry (by ``actor``, None:
+    the local user) is written with the last batch."""
+    t0 = time.perf_counter()
+    report = ImportReport(source=str(path))
+    readers = games()
+    frames_per_game: list[int] = []
+    for read in readers:  # validation: raises before anything is written
+        rec = read()
+        report.systems += len(rec.systems)
+        frames_per_game.append(sum(len(s.frames) for s in rec.systems))
+        del rec
+    report.read_seconds = time.perf_counter() - t0
+    report.games = len(readers)
+    report.frames = sum(frames_per_game)
+    batches = [[readers[i] for i in group] for group in _batches(frames_per_game, settings.import_batch_frames)]
+    calibration_ms: list[float] = []
+    calibration_seconds = 0.0
+    done = 0
+    try:
+        with calibration_pool(settings.calibration_workers) as pool:
+            loaded = [read() for read in batches.pop(0)] if batches else None
+            ahead = start_first_pass(session, loaded, pool, settings) if loaded else None
+            while loaded is not None:
+                batch, last = loaded, not batches
+                following: list[list[GameRecord] | None] = [None]
+                started: list[FirstPassAhead | None] = [None]
+
+                def start_next() -> None:  # the next batch calibrates while this one is stored
+                    if batches:
+                        following[0] = [read() for read in batches.pop(0)]
+                        started[0] = start_first_pass(session, following[0], pool, settings)
+
+                _store(session, batch, settings, report, progress if last and done == 0 else None, pool,
+                       ahead, start_next)
+                ahead, loaded = started[0], following[0]
+                if loaded is None and batches:  # not started ahead
+                    loaded = [read() for read in batches.pop(0)]
+                if last:
+                    record_summary(session, "import", audit_counts(report), actor=actor)
+                session.commit()
+                session.expunge_all()
+                calibration_ms += report.calibration_ms
+                calibration_seconds += report.calibration_seconds
+                done += len(batch)
+                if progress and (not last or done > len(batch)):  # more than one batch
+                    progress("games", done, report.games)
+                del batch
+    except BaseException:
+        session.rollback()
+        raise
+    report.calibration_ms, report.calibration_seconds = calibration_ms, calibration_seconds
+    report.seconds = time.perf_counter() - t0
+    report.store_seconds = report.seconds - report.read_seconds - report.calibration_seconds
+    return report
+
+
+def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
+                        progress: Progress | None = None, *, actor: str | None = None) -> ImportReport:
+    """Import a SoccerNet-v3 tree (see :func:`read_soccernet_v3`), calibrate its frames (process pool
+    over ``calibrate_frame``), triangulate its systems, and commit game batch by game batch.
+
+    Idempotent: a second import of the same tree changes nothing. ``progress(stage, done, total)``
+    is called for the stages "merge" (records matched to rows), "calibrate", "rig" (frames retried
+    with their game's camera rig, when there are any) and "triangulate".
+
+    ``actor`` is the import's audit entry's (None: the local user).
+
+    Raises:
+        DatasetError: invalid input (nothing is stored).
+    """
+    return _run(session, path, settings, progress,
+                lambda: [partial(read_soccernet_v3_game, labels) for labels in soccernet_v3_labels(path)], actor)
+
+
+def import_sn_calibration(session: Session, path: str | Path, settings: Settings, width: int | None = None,
+                          height: int | None = None, progress: Progress | None = None, *,
+                          actor: str | None = None) -> ImportReport:
+    """Import a SoccerNet-calibration folder or zip (see :func:`read_sn_calibration`): each frame
+    becomes a single-view system, calibrated in a process pool, reviewed for its calibration.
+
+    ``actor`` is the import's audit entry's (None: the local user).
+
+    Raises:
+        DatasetError: invalid input (nothing is stored).
+    """
+    return _run(session, path, settings, progress, lambda: _held([read_sn_calibration(path, width, height)]), actor)
+
+
+def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
+                         progress: Progress | None = None, *, actor: str | None = None) -> ImportReport:
+    """Import a SoccerNet-v3D tree (see :func:`read_soccernet_v3d`). Calibrations are stored with
+    source "imported" and not recomputed; admission, triangulation and optimised boxes are
+    recomputed from them and from the ball labels of ``SNv3D.csv``.
+
+    ``actor`` is the import's audit entry's (None: the local user).
+
+    Raises:
+        DatasetError: invalid input (nothing is stored).
+    """
+    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path)), actor)
