@@ -35,6 +35,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.types import Scope
 
 from app.api.authentication import AuthenticationMiddleware, SessionCookieMiddleware
+from app.api.bodies import BodyLimitMiddleware
 from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
 from app.api.main import api_router
@@ -45,6 +46,7 @@ from app.db.session import make_engine, make_session_factory
 from app.services.curation.editing import get_system
 from app.core.errors import NotFoundError
 from app.services.jobs.runner import JobRunner
+from app.services.accounts.throttle import login_throttle
 from app.services.accounts.users import session_secret
 
 #: Where the local Swagger UI assets (from fastapi-offline) are mounted.
@@ -140,16 +142,21 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.state.session_factory = make_session_factory(engine)
+    # Failed logins counted in the database, through the app's session factory of the moment (tests swap it).
+    app.state.login_throttle = login_throttle(settings, lambda: app.state.session_factory())
 
     def secret() -> str:
         override = settings.session_secret.get_secret_value() if settings.session_secret else None
         with app.state.session_factory() as session:
             return session_secret(session, override)
 
-    # Added innermost first: security headers around the session cookie around the authentication.
-    app.add_middleware(AuthenticationMiddleware)
+    # Added innermost first: security headers around the body limits around the session cookie around the
+    # authentication (a body too large is refused before anything looks at the request).
+    app.add_middleware(AuthenticationMiddleware, max_age_s=settings.session_max_age_s)
     app.add_middleware(SessionCookieMiddleware, secret=secret, max_age=settings.session_max_age_s,
                        https_only=settings.secure_cookies)
+    app.add_middleware(BodyLimitMiddleware, max_json_bytes=int(settings.max_json_kb * 1024),
+                       max_upload_bytes=int(settings.max_upload_mb * 2**20))
     app.add_middleware(SecurityHeadersMiddleware)
 
     install_error_handlers(app)

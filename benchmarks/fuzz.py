@@ -30,6 +30,7 @@ failure. Run::
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 import tempfile
 import time
@@ -122,7 +123,8 @@ def is_public(operation: Any) -> bool:
 
 def case_strategy(operation: Any, mode: GenerationMode, path_ids: dict[str, list[Any]]) -> st.SearchStrategy:
     """Cases of ``operation`` in ``mode``; where the path names a parameter of ``path_ids`` (e.g.
-    ``frame_id``), half of them take one of its known values (existing rows) and half are generated."""
+    ``frame_id``), half of them take one of its known values (existing rows) and half are generated; with several
+    such parameters, the known values are also combined (``/api/users/{name}/tokens/{token_id}`` of a real token)."""
     names = [p.name for p in operation.path_parameters] if operation.path_parameters else []
     free = operation.as_strategy(generation_mode=mode)
     known = [name for name in names if path_ids.get(name)]
@@ -132,6 +134,9 @@ def case_strategy(operation: Any, mode: GenerationMode, path_ids: dict[str, list
         operation.as_strategy(generation_mode=mode, path_parameters={name: value})
         for name in known for value in path_ids[name]
     ]
+    if len(known) > 1:  # every known value at once (a user's name and one of its token ids): the handler's success
+        fixed += [operation.as_strategy(generation_mode=mode, path_parameters=dict(zip(known, values)))
+                  for values in itertools.product(*(path_ids[name] for name in known))]
     return st.one_of(free, st.one_of(fixed))
 
 
@@ -143,8 +148,13 @@ def _curl(case: Any, headers: dict[str, str]) -> str:
 
 
 def _send(case: Any, headers: dict[str, str], report: FuzzReport, label: str,
-          checks: list[Callable], expect_status: Optional[int] = None) -> None:
-    """Send ``case``, count it, and record every failed check (an exception raised by the app is a 500)."""
+          checks: list[Callable], expect_status: Optional[int] = None,
+          etag_of: Optional[Callable[[Any], Optional[str]]] = None) -> None:
+    """Send ``case`` (with ``If-Match: etag_of(case)`` when that gives one), count it, and record every
+    failed check (an exception raised by the app is a 500)."""
+    etag = etag_of(case) if etag_of is not None else None
+    if etag is not None:
+        headers = {**headers, "If-Match": etag}
     report.requests[label] += 1
     counts = report.statuses.setdefault(label, Counter())
     try:
@@ -155,6 +165,11 @@ def _send(case: Any, headers: dict[str, str], report: FuzzReport, label: str,
         report.add_failure(Failure(label, "not_a_server_error (exception)", 500, tail[:300], _curl(case, headers)))
         return
     counts[response.status_code] += 1
+    if expect_status is None and response.status_code == 401 and not label.startswith("POST /api/auth/login"):
+        # authenticated: a 401 means the pass lost its principal (its own token revoked, its user disabled), and
+        # every later case would stop at the 401 instead of reaching its handler (path ids: :func:`prepare`)
+        report.add_failure(Failure(label, "the fuzzing principal was lost (401)", 401, response.text[:300],
+                                   _curl(case, headers)))
     if expect_status is not None and response.status_code != expect_status:
         report.add_failure(Failure(label, f"status {expect_status}", response.status_code,
                                    response.text[:300], _curl(case, headers)))
@@ -169,16 +184,46 @@ def _send(case: Any, headers: dict[str, str], report: FuzzReport, label: str,
 
 
 def admin_headers(token: str) -> dict[str, str]:
-    """The authenticated pass's headers: the admin's API token, and ``If-Match: *`` (any version) so that a
-    token's writes reach their handlers instead of the 428 a write without ``If-Match`` gets (that rule
-    has its own tests: ``tests/api/routes/test_audit_etags.py``)."""
-    return {"Authorization": f"Bearer {token}", "If-Match": "*"}
+    """The authenticated pass's headers: the admin's API token. Its conditional writes name the current
+    version of their resource (:func:`current_etags`), as a script must: a token's write without a real
+    ETag gets 428 (``tests/api/routes/test_audit_etags.py``)."""
+    return {"Authorization": f"Bearer {token}"}
+
+
+#: Conditional writes (``If-Match``) by the path parameter that names their resource, and the GET that
+#: answers that resource's current ETag.
+ETAG_SOURCES = {"frame_id": "/api/frames/{}", "system_id": "/api/systems/{}"}
+
+
+def current_etags(app: Any, headers: dict[str, str]) -> Callable[[Any], Optional[str]]:
+    """For a case, the current ``ETag`` of the frame or system its path names (read with a GET of
+    :data:`ETAG_SOURCES` just before the case is sent, with ``headers``), so that fuzzed writes reach their
+    handlers instead of the 428 or 412; None for a read, a path without such an id, or an id that answers
+    no ETag (a generated one that does not exist: the write then gets its 428)."""
+    from starlette.testclient import TestClient
+
+    client = TestClient(app, headers=headers)
+
+    def etag(case: Any) -> Optional[str]:
+        if case.method.upper() == "GET":
+            return None
+        for name, path in ETAG_SOURCES.items():
+            value = (case.path_parameters or {}).get(name)
+            if value is not None:
+                try:
+                    return client.get(path.format(value)).headers.get("etag")
+                except Exception:  # noqa: BLE001 - an id the GET cannot take is the case's own business
+                    return None
+        return None
+
+    return etag
 
 
 def fuzz(schema: Any, headers: dict[str, str], *, examples: int, path_ids: dict[str, list[Any]] | None = None,
          modes: Iterable[GenerationMode] = (GenerationMode.POSITIVE, GenerationMode.NEGATIVE),
          anonymous: bool = False, only: Optional[set[str]] = None, seed: Optional[int] = None,
-         deadline: Optional[float] = None, report: Optional[FuzzReport] = None) -> FuzzReport:
+         deadline: Optional[float] = None, report: Optional[FuzzReport] = None,
+         etag_of: Optional[Callable[[Any], Optional[str]]] = None) -> FuzzReport:
     """Send up to ``examples`` generated cases per operation of ``schema`` and per mode.
 
     Args:
@@ -188,6 +233,7 @@ def fuzz(schema: Any, headers: dict[str, str], *, examples: int, path_ids: dict[
         only: operation labels to fuzz (all when None).
         seed: Hypothesis seed; None: derandomised (the same cases every run).
         deadline: ``time.monotonic()`` after which no operation is started (they go to ``skipped``).
+        etag_of: the ``If-Match`` of a case (:func:`current_etags`), or None for none.
 
     Returns:
         The report (``report`` extended when given).
@@ -212,7 +258,8 @@ def fuzz(schema: Any, headers: dict[str, str], *, examples: int, path_ids: dict[
                                  print_blob=False)
             @hypothesis.given(case=case_strategy(operation, mode, path_ids or {}))
             def run(case: Any) -> None:
-                _send(case, headers, report, label, [not_a_server_error] if anonymous else checks, expect)
+                _send(case, headers, report, label, [not_a_server_error] if anonymous else checks, expect,
+                      None if anonymous else etag_of)
 
             if seed is not None:
                 run = hypothesis.seed(seed)(run)
@@ -229,14 +276,15 @@ def fuzz(schema: Any, headers: dict[str, str], *, examples: int, path_ids: dict[
 def prepare(workdir: Path, database_url: Optional[str] = None) -> tuple[Any, str, dict[str, list[Any]]]:
     """Migrate the database (default: a SQLite file in ``workdir``; else ``database_url``, an empty
     database), import the demo into it and make an admin with an API token. ``workdir`` is the data root.
-    Returns the settings, the token and known path ids (a few frames, systems, games, user names)."""
+    Returns the settings, the token and known path ids (a few frames, systems, games; the name and token ids of
+    another user, ``fuzz-target``, so that the pass never revokes or disables its own principal)."""
     import sqlalchemy as sa
 
     from app.cli.serve import load_demo_if_empty
     from app.core.config import Settings
     from app.db.models import Frame, Game, System
     from app.db.session import make_engine, make_session_factory, upgrade_database
-    from app.services.accounts.users import create_user
+    from app.services.accounts.users import create_user, issue_token
 
     url = database_url or f"sqlite:///{workdir / 'fuzz.sqlite3'}"
     upgrade_database(url)
@@ -246,11 +294,16 @@ def prepare(workdir: Path, database_url: Optional[str] = None) -> tuple[Any, str
     try:
         with make_session_factory(engine)() as session:
             _, token = create_user(session, "fuzz-admin", "admin", "fuzz-admin password")
+            # the user routes' known name is another user's, with tokens of its own: the pass may change its role,
+            # disable it and revoke its tokens, never its own principal
+            create_user(session, "fuzz-target", "annotator", "fuzz-target password")
+            target_tokens = [issue_token(session, "fuzz-target", label=f"t{i}").id for i in range(3)]
             ids = {
                 "frame_id": session.scalars(sa.select(Frame.id).order_by(Frame.id).limit(4)).all(),
                 "system_id": session.scalars(sa.select(System.id).order_by(System.id).limit(3)).all(),
                 "game_id": session.scalars(sa.select(Game.id).order_by(Game.id).limit(2)).all(),
-                "name": ["fuzz-admin"],
+                "name": ["fuzz-target"],
+                "token_id": target_tokens,
             }
     finally:
         engine.dispose()
@@ -289,8 +342,9 @@ def main(argv: Optional[list[str]] = None) -> int:
         schema = load_schema(app)
         deadline = time.monotonic() + args.deadline_s
         only = set(args.only) if args.only else None
-        authed = fuzz(schema, admin_headers(token), examples=args.examples, path_ids=path_ids,
-                      only=only, seed=args.seed, deadline=deadline)
+        headers = admin_headers(token)
+        authed = fuzz(schema, headers, examples=args.examples, path_ids=path_ids,
+                      only=only, seed=args.seed, deadline=deadline, etag_of=current_etags(app, headers))
         print_report("authenticated (admin token)", authed)
         anon = fuzz(schema, {}, examples=args.anonymous_examples, path_ids=path_ids, anonymous=True, only=only,
                     seed=args.seed, deadline=deadline)

@@ -12,7 +12,9 @@ One run:
    only, a fixed number of requests, each with a timeout):
 
    * queue page: ``GET /api/systems`` with the default sort (p50 / p95), and a mix of
-     filter / sort / offset variants (:data:`QUEUE_VARIANTS`, p95);
+     filter / sort / offset variants (:data:`QUEUE_VARIANTS`, p95); every sort (:data:`QUEUE_SORTS`) at
+     random depths, by ``offset`` and by cursor (``after=`` / ``before=`` the page's ``next_cursor`` /
+     ``prev_cursor``; p95, issue 16);
    * system page: ``GET /api/systems/{id}`` on random systems (p95);
    * ball edit round trip: ``PATCH /api/frames/{id}/ball`` (with ``If-Match``, the view's ETag) moving an existing box by one pixel and
      back, the answer parsed (p95 over both PATCHes; the database ends as it started, up to the
@@ -26,7 +28,7 @@ One run:
 Usage (from the checkout, with the ``bench`` extra installed: ``pip install -e '.[bench]'``)::
 
     .venv/bin/python benchmarks/scale.py --scale-dir /work/scale-data/soccernet-v3-scale \\
-        [--games N] [--requests 200] [--db var/scale.sqlite3] [--skip-import | --import-only] [--json out.json]
+        [--games N] [--requests 200] [--db var/scale.sqlite3] [--skip-import | --import-only] [--with-images] [--json out.json]
 
 ``--scale-dir`` is the unpacked ``shared/data/synthetic/soccernet-v3-scale.tar.gz`` (unpack it
 outside the checkout; never commit it). ``--games N`` imports only the first N games (sorted by
@@ -64,6 +66,7 @@ sys.path.insert(0, str(ROOT))
 #: Issue 8's done-when: per measure, (largest ratio scale / demo, largest absolute value).
 TARGETS: dict[str, tuple[Optional[float], Optional[float]]] = {
     "queue_p95_ms": (2.0, 40.0),
+    "queue_depth_p95_ms": (2.0, 40.0),  # issue 16: every sort at random depths, by offset and by cursor
     "system_p95_ms": (1.5, 60.0),
     "ball_edit_p95_ms": (1.5, 80.0),
     "export_s": (None, 10.0),
@@ -80,6 +83,8 @@ QUEUE_VARIANTS: tuple[dict[str, Any], ...] = (
     {"sort": "-lowest_jac", "jac_max": 0.9},
     {"sort": "-worst_error", "offset": "{mid}"},
 )
+#: Every order of the queue, measured at random depths (issue 16 item 6).
+QUEUE_SORTS = ("-doubts", "doubts", "-worst_error", "worst_error", "lowest_jac", "-lowest_jac", "name", "-name")
 _SAMPLE_S = 0.2
 _TIMEOUT_S = 120.0
 
@@ -209,16 +214,43 @@ def game_dirs(scale_dir: Path) -> list[Path]:
     return games
 
 
-def subset_tree(scale_dir: Path, games: int, dest: Path) -> Path:
+def subset_tree(scale_dir: Path, games: int, dest: Path, images: bool = False) -> Path:
     """Copy the first ``games`` game folders of ``scale_dir`` (labels only, small) into ``dest``,
-    keeping the ``<league>/<season>/<game>`` layout. Returns ``dest``."""
+    keeping the ``<league>/<season>/<game>`` layout; with ``images``, each game also gets a ``Frames-v3.zip``
+    (:func:`write_frame_images`), so that the import checks every image's header. Returns ``dest``."""
     chosen = game_dirs(scale_dir)[:games]
     if dest.exists():
         shutil.rmtree(dest)
     for g in chosen:
         target = dest / g.relative_to(scale_dir)
         shutil.copytree(g, target)
+        if images:
+            write_frame_images(target)
     return dest
+
+
+def write_frame_images(game_dir: Path) -> int:
+    """Write ``game_dir/Frames-v3.zip`` (stored, not deflated, as a release's) with one PNG per action and replay
+    image of its ``Labels-v3.json``, grey, at the size the labels give it (the scale set ships no images; the
+    import then opens each member and checks its header: issue 15, item 2). Returns the number of images."""
+    import zipfile
+
+    import cv2
+    import numpy as np
+
+    data = json.loads((game_dir / "Labels-v3.json").read_text(encoding="utf-8"))
+    encoded: dict[tuple[int, int], bytes] = {}
+    n = 0
+    with zipfile.ZipFile(game_dir / "Frames-v3.zip", "w", zipfile.ZIP_STORED) as zf:
+        for table in ("actions", "replays"):
+            for name, entry in (data.get(table) or {}).items():
+                meta = entry.get("imageMetadata") or {}
+                size = (int(meta.get("width", 1920)), int(meta.get("height", 1080)))
+                if size not in encoded:
+                    encoded[size] = cv2.imencode(".png", np.full((size[1], size[0], 3), 96, np.uint8))[1].tobytes()
+                zf.writestr(name, encoded[size])
+                n += 1
+    return n
 
 
 @dataclass
@@ -306,7 +338,7 @@ def bench_token(db: Path, name: str = "bench-admin") -> str:
             try:
                 return create_user(session, name, "admin", secrets.token_urlsafe(16))[1]
             except InvalidInputError:
-                return issue_token(session, name)
+                return issue_token(session, name).token
     finally:
         engine.dispose()
 
@@ -433,6 +465,18 @@ def measure_server(base_url: str, requests: int = 100, seed: int = 0, export: bo
         every = [x for xs in variants.values() for x in xs]
         out["queue_variants_p95_ms"] = percentile(every, 95)
         out["queue_variant_p95_ms"] = {k: percentile(xs, 95) for k, xs in variants.items()}
+        # every sort at random depths: a page by offset, then the pages after and before it by its cursors
+        depth: dict[str, list[float]] = {}
+        for i in range(requests):
+            sort = QUEUE_SORTS[i % len(QUEUE_SORTS)]
+            ms, page = _timed(client, "GET", "/api/systems", params={"sort": sort, "offset": rng.randrange(total)})
+            depth.setdefault(f"{sort} offset", []).append(ms)
+            for key, param in (("next_cursor", "after"), ("prev_cursor", "before")):
+                if page.get(key):
+                    depth.setdefault(f"{sort} cursor", []).append(
+                        _timed(client, "GET", "/api/systems", params={"sort": sort, param: page[key]})[0])
+        out["queue_depth_p95_ms"] = percentile([x for xs in depth.values() for x in xs], 95)
+        out["queue_depth_variant_p95_ms"] = {k: percentile(xs, 95) for k, xs in depth.items()}
 
         ids = _system_ids(client, total, requests, rng)
         system = [_timed(client, "GET", f"/api/systems/{i}")[0] for i in ids]
@@ -482,7 +526,8 @@ def compare(demo: dict[str, Any], scale: dict[str, Any]) -> list[dict[str, Any]]
     """Rows ``{measure, demo, scale, ratio, target, ok}`` of the scale / demo comparison against
     :data:`TARGETS` (``ok`` None when a figure is missing)."""
     rows = []
-    for key in ("queue_p50_ms", "queue_p95_ms", "queue_variants_p95_ms", "system_p95_ms", "ball_edit_p95_ms",
+    for key in ("queue_p50_ms", "queue_p95_ms", "queue_variants_p95_ms", "queue_depth_p95_ms", "system_p95_ms",
+                "ball_edit_p95_ms",
                 "export_s"):
         d, s = demo.get(key), scale.get(key)
         ratio = s / d if d and s is not None else None
@@ -533,12 +578,14 @@ def format_report(result: dict[str, Any]) -> str:
                      f"{scale['export_mb']:.1f} MB zip")
     lines.append("queue variants p95 ms (scale): " + ", ".join(
         f"{k} {v:.0f}" for k, v in scale.get("queue_variant_p95_ms", {}).items()))
+    lines.append("queue at random depths p95 ms (scale): " + ", ".join(
+        f"{k} {v:.0f}" for k, v in scale.get("queue_depth_variant_p95_ms", {}).items()))
     return "\n".join(lines)
 
 
 def run(scale_dir: Optional[Path], db: Optional[Path], games: Optional[int], skip_import: bool,
         requests: int, work_dir: Path, workers: Optional[int] = None, export: bool = True,
-        import_only: bool = False) -> dict[str, Any]:
+        import_only: bool = False, images: bool = False) -> dict[str, Any]:
     """The whole benchmark (module docstring); returns the result written by ``--json``."""
     work_dir.mkdir(parents=True, exist_ok=True)
     db = Path(db) if db else work_dir / "scale" / "v3d-scale.sqlite3"
@@ -550,8 +597,9 @@ def run(scale_dir: Optional[Path], db: Optional[Path], games: Optional[int], ski
         if scale_dir is None:
             raise BenchError("--scale-dir is required unless --skip-import is given")
         tree = Path(scale_dir)
-        if games is not None:
-            tree = subset_tree(Path(scale_dir), games, work_dir / "subset" / Path(scale_dir).name)
+        if games is not None or images:
+            tree = subset_tree(Path(scale_dir), games or len(game_dirs(tree)), work_dir / "subset" / Path(scale_dir).name,
+                               images=images)
         else:
             game_dirs(tree)  # a clear error for a wrong folder
         print(f"importing {tree} into {db} ...", flush=True)
@@ -580,6 +628,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument("--work-dir", type=Path, help="Folder for the demo database and the subset (default: temporary).")
     p.add_argument("--json", type=Path, help="Write the figures as JSON here.")
     p.add_argument("--import-only", action="store_true", help="Measure the import only (no demo, no requests).")
+    p.add_argument("--with-images", action="store_true", help="Give each game of the (copied) set a Frames-v3.zip of "
+                                                              "PNGs at the labelled sizes, so the import checks them.")
     args = p.parse_args(argv)
     if args.games is not None and args.games < 1:
         p.error("--games must be at least 1")
@@ -594,7 +644,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         work_dir = Path(tmp.name)
     try:
         result = run(args.scale_dir, args.db, args.games, args.skip_import, args.requests, work_dir,
-                     args.workers, export=not args.no_export, import_only=args.import_only)
+                     args.workers, export=not args.no_export, import_only=args.import_only,
+                     images=args.with_images)
     except BenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -14,16 +14,16 @@ if [ ! -x .venv/bin/python ]; then
   echo "==> creating .venv with $PY"
   "$PY" -m venv .venv
 fi
-# Re-install only when pyproject.toml changed since the last install.
+# The packages come from the lock file (requirements/app.lock or test.lock: exact versions with their hashes, made by
+# scripts/lock.sh from pyproject.toml), so that a fresh machine installs what was tested; then v3d itself, editable.
+# Re-install only when pyproject.toml or the lock changed since the last install.
 stamp=.venv/.v3d-installed-$1
-if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
-  echo "==> installing v3d ($1) into .venv"
+lock=requirements/$1.lock
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ "$lock" -nt "$stamp" ]; then
+  echo "==> installing v3d ($1) into .venv from $lock"
   .venv/bin/python -m pip install --quiet --upgrade pip
-  if [ "$1" = test ]; then
-    .venv/bin/python -m pip install --quiet -e '.[test]'
-  else
-    .venv/bin/python -m pip install --quiet -e .
-  fi
+  .venv/bin/python -m pip install --quiet --require-hashes -r "$lock"
+  .venv/bin/python -m pip install --quiet --no-deps -e .
   # Compile the calibration's numba kernels once into their on-disk cache (about 15 s), so that the first
   # calibration of a server or of a test does not pay it.
   .venv/bin/python -c "from app.geometry.calibration.solver import compile_kernels; compile_kernels()"

@@ -7,7 +7,7 @@ from typing import Any, Optional
 from pydantic import BaseModel, ConfigDict, Field, computed_field
 
 from app.api.schemas import DB_INT_MAX, DbInt, QueryText
-from app.services.accounts.audit import SUMMARY_ACTIONS
+from app.services.accounts import audit
 
 
 class AuditEntryOut(BaseModel):
@@ -28,10 +28,10 @@ class AuditEntryOut(BaseModel):
     after: Optional[dict[str, Any]]
     reverts_id: Optional[int] = Field(description="A revert: the entry it undid.")
 
-    @computed_field(description="False for imports and recomputes.")  # type: ignore[prop-decorator]
+    @computed_field(description="False for imports, recomputes and changes of users and tokens.")  # type: ignore[prop-decorator]
     @property
     def revertible(self) -> bool:
-        return self.action not in SUMMARY_ACTIONS
+        return audit.revertible(self.action)
 
 
 class AuditPageOut(BaseModel):

@@ -7,9 +7,10 @@ Two ways in, resolved once per request by :class:`AuthenticationMiddleware`:
   for scripts. A request with this header is judged by it alone (a wrong token is anonymous).
 * the browser's session cookie ``v3d_session`` (Starlette's ``SessionMiddleware``: JSON signed with
   itsdangerous by the key of ``app.services.accounts.users.session_secret``; ``HttpOnly``, ``SameSite=Strict``,
-  ``Secure`` with ``V3D_SECURE_COOKIES``; it ends ``V3D_SESSION_MAX_AGE_S`` after the login, at logout
-  and when the user is disabled). It holds the user id, the user's session generation and the
-  session's CSRF token.
+  ``Secure`` with ``V3D_SECURE_COOKIES``; it ends ``V3D_SESSION_MAX_AGE_S`` after the login itself (the
+  login time is signed into the cookie: re-signing it on every answer does not extend it), at logout and
+  when the user is disabled). It holds the user id, the user's session generation, the login time and
+  the session's CSRF token.
 
 Every path under ``/api`` but :data:`PUBLIC_API_PATHS` needs a principal: without one the answer is
 401 before anything else is looked at (body, CSRF header, role). A write (POST, PUT, PATCH, DELETE)
@@ -21,6 +22,7 @@ public (the pages then ask the API, and send the person to the login page on 401
 from __future__ import annotations
 
 import secrets
+import time
 from typing import Any, Callable, Optional
 
 from fastapi import Depends, Security
@@ -61,19 +63,24 @@ def new_csrf_token() -> str:
     return secrets.token_urlsafe(32)
 
 
-def start_session(cookie_session: dict[str, Any], user_id: int, generation: int) -> str:
-    """Fill a fresh browser session for the user (after a login) and return its CSRF token."""
+def start_session(cookie_session: dict[str, Any], user_id: int, generation: int,
+                  now: Optional[float] = None) -> str:
+    """Fill a fresh browser session for the user (after a login: its time, Unix seconds, is ``now`` or
+    the clock's) and return its CSRF token."""
     cookie_session.clear()
     csrf = new_csrf_token()
-    cookie_session.update({"uid": user_id, "gen": generation, "csrf": csrf})
+    cookie_session.update({"uid": user_id, "gen": generation, "csrf": csrf,
+                           "at": int(time.time() if now is None else now)})
     return csrf
 
 
 def resolve_principal(session_factory: Callable[[], Any], authorization: Optional[str],
-                      cookie_session: dict[str, Any]) -> Optional[Principal]:
+                      cookie_session: dict[str, Any], max_age_s: Optional[float] = None,
+                      now: Optional[float] = None) -> Optional[Principal]:
     """The principal of a request from its ``Authorization`` header, else its session cookie's
     contents; None when neither names an enabled user. Touches the database only when one is present.
-    A session whose user is gone, disabled or logged out is emptied (the cookie is then cleared)."""
+    A session whose user is gone, disabled or logged out, that has no login time, or whose login is more
+    than ``max_age_s`` seconds before ``now`` (the clock's), is emptied (the cookie is then cleared)."""
     if authorization is not None:
         scheme, _, token = authorization.partition(" ")
         if scheme.lower() != "bearer" or not token.strip():
@@ -81,8 +88,12 @@ def resolve_principal(session_factory: Callable[[], Any], authorization: Optiona
         with session_factory() as db:
             user = users.resolve_token(db, token.strip())
             return Principal(user.id, user.name, user.role.value, "token") if user else None
-    uid, gen = cookie_session.get("uid"), cookie_session.get("gen")
+    uid, gen, at = cookie_session.get("uid"), cookie_session.get("gen"), cookie_session.get("at")
     if not isinstance(uid, int) or not isinstance(gen, int):
+        return None
+    if max_age_s is not None and (not isinstance(at, int)
+                                  or (time.time() if now is None else now) - at > max_age_s):
+        cookie_session.clear()
         return None
     with session_factory() as db:
         user = users.resolve_session_user(db, uid, gen)
@@ -102,12 +113,14 @@ def csrf_ok(cookie_session: dict[str, Any], sent: Optional[str]) -> bool:
 
 class AuthenticationMiddleware:
     """Resolves the principal of every HTTP request (``scope["state"]["principal"]``) and refuses,
-    under ``/api``, anonymous requests (401) and session writes without the CSRF token (403).
+    under ``/api``, anonymous requests (401) and session writes without the CSRF token (403). Sessions end
+    ``max_age_s`` seconds after their login (None: only the cookie's own age limits them).
     Must run inside :class:`SessionCookieMiddleware` (it reads ``scope["session"]``); the database is
     the app's ``state.session_factory``, read per request (tests replace it)."""
 
-    def __init__(self, app: ASGIApp) -> None:
+    def __init__(self, app: ASGIApp, max_age_s: Optional[float] = None) -> None:
         self.app = app
+        self.max_age_s = max_age_s
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http" or scope["path"].startswith(_STATIC_PREFIXES):
@@ -116,7 +129,8 @@ class AuthenticationMiddleware:
         conn = HTTPConnection(scope)
         cookie_session = scope.get("session", {})
         principal = await run_in_threadpool(
-            resolve_principal, scope["app"].state.session_factory, conn.headers.get("authorization"), cookie_session)
+            resolve_principal, scope["app"].state.session_factory, conn.headers.get("authorization"), cookie_session,
+            self.max_age_s)
         scope.setdefault("state", {})["principal"] = principal
         if is_protected(scope["path"]):
             answer = None

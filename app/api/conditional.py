@@ -4,8 +4,8 @@ A write names the version it was made against with ``If-Match: <ETag>`` (the ETa
 ``GET /api/frames/{id}`` or of the system view, or the ``etag`` fields of the system view's JSON). A
 stale one is answered 412 with the resource's current state (``app.api.errors``). A write without
 ``If-Match`` is refused with 428 when it comes with an API token (``Principal.via == "token"``), so
-no script overwrites someone's edit by accident; the browser's session writes stay accepted without it
-(the UI always sends it). The comparison happens in the write's transaction (``app.services.curation.versions``).
+no script overwrites someone's edit by accident; ``If-Match: *`` (any version) does not stand in for an
+ETag there. The browser's session writes stay accepted without it (the UI always sends it). The comparison happens in the write's transaction (``app.services.curation.versions``).
 """
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ from app.api.view_schemas import StaleOut
 PRECONDITIONS: dict[int | str, dict[str, Any]] = {
     412: {"model": StaleOut, "description": "If-Match names a version that is no longer current: nothing was "
                                             "stored; the body holds the current state, its ETag and its last change."},
-    428: {"model": ErrorOut, "description": "A write with an API token must send If-Match (the resource's ETag)."},
+    428: {"model": ErrorOut, "description": "A write with an API token must send If-Match with the resource's ETag "
+                                          "('*' is not one)."},
 }
 
 
@@ -30,10 +31,11 @@ def if_match_header(
     if_match: Annotated[Optional[str], Header(description="The ETag of the resource this write was made against "
                                                           "(required with an API token).")] = None,
 ) -> Optional[str]:
-    """The request's ``If-Match`` header; 428 when it is missing on a token's write."""
-    if if_match is None and principal.via == "token":
+    """The request's ``If-Match`` header; 428 when a token's write sends none or only ``*``."""
+    if principal.via == "token" and (if_match is None or if_match.strip() == "*"):
         raise HTTPException(status_code=428, detail="If-Match is required: send the resource's ETag (from "
-                            "GET /api/frames/{id} or the system view) so that you never overwrite someone's edit")
+                            "GET /api/frames/{id} or the system view; '*' is not one) so that you never "
+                            "overwrite someone's edit")
     return if_match
 
 

@@ -55,6 +55,8 @@ class ExportJobIn(_In):
     """An export to run as a background job."""
 
     all: bool = Field(False, strict=True, description="Every system, not only the accepted ones.")
+    images: bool = Field(True, strict=True, description="Each game's Frames-v3.zip (its images) beside its "
+                                                       "Labels-v3D.json; false leaves them out.")
 
 
 class JobOut(BaseModel):

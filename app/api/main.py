@@ -10,18 +10,19 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.api.authentication import PROTECTED
+from app.api.bodies import TOO_LARGE
 from app.api.schemas import ErrorOut
 from app.api.routes import (
-    audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, systems, users,
+    audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, pitch, systems, users,
 )
 
-api_router = APIRouter()
+api_router = APIRouter(responses=TOO_LARGE)
 api_router.include_router(auth.public_router)
 api_router.include_router(health.router)
 _protected = APIRouter(dependencies=PROTECTED, responses={
     401: {"model": ErrorOut, "description": "No session or token (log in, or send Authorization: Bearer <token>)."},
     403: {"model": ErrorOut, "description": "The role is below the route's, or a session write lacks X-CSRF-Token."},
 })
-for _module in (auth, users, games, systems, frames, imports, exports, jobs, detectors, issia, audit):
+for _module in (auth, users, games, systems, frames, imports, exports, jobs, detectors, issia, audit, pitch):
     _protected.include_router(_module.router)
 api_router.include_router(_protected)

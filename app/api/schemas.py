@@ -109,7 +109,9 @@ class SystemListQuery(QueueQuery):
     """:class:`QueueQuery` and the page."""
 
     limit: int = Field(50, ge=1, le=500)
-    offset: int = Field(0, ge=0, le=DB_INT_MAX)
+    offset: int = Field(0, ge=0, le=DB_INT_MAX, description="Rows to skip (from `after`'s row when given).")
+    after: Optional[str] = Field(None, max_length=4096, description="A page's next_cursor: the rows right after it.")
+    before: Optional[str] = Field(None, max_length=4096, description="A page's prev_cursor: the rows right before it.")
 
 
 class FrameListQuery(BaseModel):
@@ -145,6 +147,10 @@ class BallEdit(_In):
     box: Optional[InBox] = Field(None, description="[x1, y1, x2, y2] px; finite, x1 < x2, y1 < y2, not entirely "
                                                    "outside the image.")
     point: Optional[InPoint2] = Field(None, description="[x, y] px inside the image (point-only datasets).")
+    provenance: Optional[dict[str, Any]] = Field(
+        None, description="Only for a label made from a doubt's suggestion (the fix key sends what the doubt's "
+                          "`suggestion.request` says): {doubt, code, from_views}. Such a label joins no triangulation "
+                          "until a person places it; an edit without provenance (drawn, moved, confirmed) clears it.")
 
     @model_validator(mode="after")
     def _one_of(self) -> "BallEdit":
@@ -166,6 +172,10 @@ class FieldLinesEdit(_In):
 
     lines: dict[str, list[Annotated[list[InPoint2], Field(max_length=MAX_POLYLINE_POINTS)]]] = Field(
         max_length=64, description="At most 64 classes, 100 polylines per class and 1000 points per polyline.")
+    undo_of: Optional[DbInt] = Field(None, description=(
+        "This write undoes audit entry `undo_of` (a page's undo or redo of its own edit): a write of this frame's "
+        "field lines whose `before` lines are exactly `lines` (else 422 naming `undo_of`). Audited as "
+        "`field_lines.replace` with `reverts_id` = `undo_of`."))
 
     @model_validator(mode="after")
     def _bounded(self) -> "FieldLinesEdit":

@@ -7,6 +7,7 @@ A pure ASGI middleware, so that streamed answers (image bytes, export zips) pass
 """
 from __future__ import annotations
 
+from fastapi import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 #: The policy: everything from this origin, scripts only from files it serves.
@@ -47,3 +48,10 @@ class SecurityHeadersMiddleware:
             await send(message)
 
         await self.app(scope, receive, send_with_headers)
+
+
+def no_store(response: Response) -> None:
+    """Route dependency: the answer carries ``Cache-Control: no-store``, so that no browser, proxy or
+    disk cache keeps it. For answers that hold a secret: API tokens (``/api/users``) and the session's
+    CSRF token (``/api/auth``)."""
+    response.headers["Cache-Control"] = "no-store"

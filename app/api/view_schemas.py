@@ -21,9 +21,11 @@ from app.db.models import (
 )
 from app.geometry.calibration.frame import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
+from app.geometry import pitch
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.triangulation import error_above_tau, rule_reference_width_px, scaled_error_px
 from app.services.transfer.images import frame_has_image
+from app.services.curation.doubts import doubt_provenance, suggestion_json
 from app.services.curation.system_page import SystemPageData, pitch_lines, round_px
 from app.services.curation.versions import frame_etag, system_etag
 
@@ -60,11 +62,46 @@ class ReviewOut(BaseModel):
     comment: str = ""
     decided_at: Optional[datetime] = None
     excluded: bool = Field(False, description="Views only: excluded from the system's triangulation by a reviewer.")
+    reset_reason: Optional[str] = Field(None, description="Why the decision is pending again (a system's: one of its "
+                                        "views was recalibrated after it was decided); null otherwise.")
+    calibration: Optional["CalibrationReviewOut"] = Field(
+        None, description="Views only: the decision on the view's calibration, beside the decision on its ball.")
 
     @classmethod
     def of(cls, decision: Optional[ReviewDecision]) -> "ReviewOut":
-        """The decision, or pending when there is none."""
-        return cls() if decision is None else cls.model_validate(decision)
+        """The decision, or pending when there is none (a view's with its calibration decision)."""
+        if decision is None:
+            return cls()
+        out = cls.model_validate(decision)
+        if decision.frame_id is not None:
+            out.calibration = CalibrationReviewOut.of(decision)
+        return out
+
+    @classmethod
+    def of_view(cls, decision: Optional[ReviewDecision]) -> "ReviewOut":
+        """A view's decision: as :meth:`of`, with its calibration decision even when never decided."""
+        out = cls.of(decision)
+        if out.calibration is None:
+            out.calibration = CalibrationReviewOut()
+        return out
+
+
+class CalibrationReviewOut(BaseModel):
+    """The reviewer's decision on a view's calibration (its field lines and the camera fitted to them)."""
+
+    status: ReviewStatus = ReviewStatus.PENDING
+    comment: str = ""
+    decided_at: Optional[datetime] = None
+    reset_reason: Optional[str] = Field(None, description="Why it is pending again: an edit of the view's field "
+                                        "lines recalibrated it after it was decided; null otherwise.")
+
+    @classmethod
+    def of(cls, decision: Optional[ReviewDecision]) -> "CalibrationReviewOut":
+        """The calibration decision held by a view's decision row, or pending when there is none."""
+        if decision is None:
+            return cls()
+        return cls(status=decision.calibration_status, comment=decision.calibration_comment or "",
+                   decided_at=decision.calibration_decided_at, reset_reason=decision.calibration_reset_reason)
 
 
 class DoubtOut(BaseModel):
@@ -78,7 +115,8 @@ class DoubtOut(BaseModel):
     evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, degrees).")
     suggestion: Optional[dict[str, Any]] = Field(
         description=f"The fix: {{'action': one of {', '.join(SUGGESTION_ACTIONS)}, 'box': [x1, y1, x2, y2] px for "
-        "snap_box}; null when nothing can be suggested.")
+        "snap_box, 'request': {'method', 'path', 'body'}: the exact request the page's fix key sends (add the "
+        "frame's If-Match ETag)}; null when nothing can be suggested.")
 
     @classmethod
     def of(cls, doubt: Doubt, frame_names: dict[int, str]) -> "DoubtOut":
@@ -86,7 +124,7 @@ class DoubtOut(BaseModel):
         return cls(kind=doubt.kind, frame_id=doubt.frame_id,
                    frame=frame_names.get(doubt.frame_id) if doubt.frame_id is not None else None,
                    accuses_label=doubt.accuses_label, message=doubt.message, evidence=doubt.evidence,
-                   suggestion=doubt.suggestion)
+                   suggestion=suggestion_json(doubt.frame_id, doubt.suggestion, doubt_provenance(doubt)))
 
 
 class SystemSummaryOut(BaseModel):
@@ -131,8 +169,12 @@ class SystemPageOut(BaseModel):
     items: list[SystemSummaryOut]
     total: int
     limit: int
-    offset: int
+    #: The offset asked for; None for a page asked by cursor (``after`` / ``before``).
+    offset: Optional[int]
     counts: dict[ReviewStatus, int]
+    #: ``after=`` this for the next page, ``before=`` this for the previous; None at either end.
+    next_cursor: Optional[str] = None
+    prev_cursor: Optional[str] = None
 
 
 class CalibrationOut(BaseModel):
@@ -154,6 +196,12 @@ class CalibrationOut(BaseModel):
         None, description="Evidence on mirrored labels (app.geometry.mirror.MirrorVerdict.as_dict): verdict, "
         "margin, camera y, side and rig votes and distances, pair errors as labelled and mirrored, and a sentence; "
         f"the flag '{MIRROR_FLAG}' follows the verdict. Null when never judged.")
+    uncertainty: Optional[dict[str, Any]] = Field(
+        None, description="Standard deviations of the camera's parameters from the line fit (the fit's Jacobian "
+        "times the line noise): position_m {x, y, z} (metres, SoccerNet world), pan_deg, tilt_deg, roll_deg "
+        "(degrees), focal_px (pixels), line_noise_px, points; a parameter the lines leave undetermined is null. "
+        "Position 0 for a rig-assisted fit (centre fixed). Null when not fitted from lines here (refused, "
+        "imported, or calibrated before this was stored).")
 
     @computed_field(description="The field-line labels are probably mirrored (the flag in flags): offer the "
                                 "mirrored labelling.")  # type: ignore[prop-decorator]
@@ -168,7 +216,8 @@ class CalibrationOut(BaseModel):
             return None
         return cls.model_validate({"status": cal.status, "source": cal.source, "camera": cal.camera, "jac": cal.jac(),
                                    "admitted": cal.admitted, "reason": cal.reason, "flags": cal.flags or [],
-                                   "residuals_px": cal.residuals_px or {}, "mirror_evidence": cal.mirror_evidence})
+                                   "residuals_px": cal.residuals_px or {}, "mirror_evidence": cal.mirror_evidence,
+                                   "uncertainty": cal.uncertainty})
 
 
 class BallOut(BaseModel):
@@ -182,6 +231,9 @@ class BallOut(BaseModel):
     original_box: Optional[Box] = None
     original_point: Optional[Point2] = None
     edited: bool = False
+    provenance: Optional[dict[str, Any]] = Field(
+        None, description="Set while the label is a doubt's suggestion no person has placed: {source, doubt, code, "
+                          "from_views}. It makes no 3D ball until confirmed (an edit without provenance).")
 
     @classmethod
     def of(cls, label: Optional[BallLabel]) -> "BallOut":
@@ -209,7 +261,7 @@ class _FrameFields(BaseModel):
         return {"name": frame.name, "role": frame.role, "width": frame.width, "height": frame.height,
                 "image_url": image_url(frame), "calibration": CalibrationOut.of(frame.calibration),
                 "ball": BallOut.of(frame.ball_label), "reprojection_error_px": rep.error_px if rep is not None else None,
-                "review": ReviewOut.of(frame.review)}
+                "review": ReviewOut.of_view(frame.review)}
 
 
 class FrameOut(_FrameFields):
@@ -242,6 +294,29 @@ class PitchLineOut(BaseModel):
     points: list[Point2]
 
 
+class PitchClassOut(BaseModel):
+    """One field-line class of the pitch model (SoccerNet's name, trailing space included)."""
+
+    name: str
+    mirror: str = Field(description="The class it becomes when the pitch is turned 180 degrees.")
+    modelled: bool = Field(description="False for 'Goal unknown' and 'Line unknown': valid labels the geometry ignores.")
+
+
+class PitchModelOut(BaseModel):
+    """The pitch model the calibration fits lines to (``app.geometry.pitch``): the classes a field line may
+    carry, in SoccerNet's order, and the pitch's size (metres)."""
+
+    classes: list[PitchClassOut]
+    length_m: float
+    width_m: float
+
+    @classmethod
+    def of_model(cls) -> "PitchModelOut":
+        return cls(classes=[PitchClassOut(name=c, mirror=pitch.MIRROR_CLASSES[c], modelled=c not in pitch.UNKNOWN_CLASSES)
+                            for c in pitch.LINE_CLASSES],
+                   length_m=pitch.PITCH_LENGTH_M, width_m=pitch.PITCH_WIDTH_M)
+
+
 class OptimisedBoxOut(BaseModel):
     """The view's optimised box (paper Eq. min_diametre, drawn by ``Settings.optimised_box_method``): by
     default (``exact_ray``) the box of the exact image of the 0.22 m sphere at the 3D ball's depth on the
@@ -270,6 +345,8 @@ class ViewOut(_FrameFields):
     pitch_lines: list[PitchLineOut]
     field_lines: dict[str, list[list[Point2]]]
     optimised_box: Optional[OptimisedBoxOut]
+    precise_box: Optional[Box] = Field(None, description="The view's precise ball box (px; the paper's Table 1 "
+                                       "reference, ``v3d import precise-boxes``), null without one.")
     reprojected_ball: Optional[Point2]
     reprojection_error_scaled_px: Optional[float] = Field(
         description="The same error in the scale the pair rule compares with tau (px of a 1920-px-wide image "
@@ -296,6 +373,7 @@ class ViewOut(_FrameFields):
                             for cls_, points in pitch_lines(camera, frame.width, frame.height)],
             "field_lines": frame.field_lines.lines if frame.field_lines is not None else {},
             "optimised_box": OptimisedBoxOut.of(frame.optimised_box),
+            "precise_box": frame.precise_box,
             "reprojected_ball": round_px(rep.point) if rep is not None else None,
             "reprojection_error_scaled_px": scaled_error_px(error, frame.width, tri.rule) if judged else None,
             "error_above_tau": judged and error_above_tau(error, frame.width, tri.tau_px, tri.rule),

@@ -170,40 +170,110 @@ def import_issia_cmd(
     _run_import(settings, import_params("issia", path, from_lines=from_lines, flip=flipped))
 
 
+@import_cli.command("split")
+def import_split_cmd(
+    path: Annotated[Path, typer.Argument(help="A list of images, one <league>/<season>/<match>/<image> a line "
+                                              "(the released SNv3D-train.txt / SNv3D-test.txt).")],
+    set_name: Annotated[str, typer.Option("--set", help="The split these images form: train or test.")],
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Make the listed images the train or test split that exports and benchmarks use; lines naming no stored
+    image are reported."""
+    from app.services.transfer.splits import import_split
+
+    settings = cli_settings(database_url, None)
+    try:
+        with database_session(settings) as session:
+            report = import_split(session, path, set_name)
+    except InvalidInputError as exc:  # DatasetError included: the file cannot be read
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"{report.frames} image(s) of {report.lines} line(s) are now in {report.set} "
+               f"({report.changed} changed); {len(report.unknown)} line(s) name no stored image")
+    for line in report.unknown[:20]:
+        typer.echo(f"  unknown: {line}")
+    if len(report.unknown) > 20:
+        typer.echo(f"  ... and {len(report.unknown) - 20} more")
+
+
+@import_cli.command("precise-boxes")
+def import_precise_boxes_cmd(
+    path: Annotated[Path, typer.Argument(help="A CSV league,season,match,image,x1,y1,x2,y2 (pixels of that image).")],
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Store precise ball boxes per view (the paper's Table 1; ``v3d evaluate boxes``); a row naming an unknown
+    game or image stores nothing."""
+    from app.services.evaluation.boxes import store_precise_boxes
+
+    settings = cli_settings(database_url, None)
+    try:
+        with database_session(settings) as session:
+            n = store_precise_boxes(session, path)
+    except InvalidInputError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"stored {n} precise box(es)")
+
+
 @export_cli.command("issia-3d")
 def export_issia3d_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: Annotated[bool, typer.Option("--all", help="Export every frame, not only accepted ones.")] = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test)."""
+    """Export ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test; calibration/cam<k>.json)."""
     from app.services.issia.export import export_issia3d
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
         report = export_issia3d(session, out_dir, include_all=include_all)
     typer.echo(f"exported {report.rows} frame row(s) of {report.sequences} sequence(s) to {report.out_dir} "
-               f"(cameras 3-6 train, 1-2 test: split.json)")
+               f"(cameras 3-6 train, 1-2 test: split.json; {report.calibrations} camera calibration(s))")
 
 
 @export_cli.command("soccernet-v3d")
 def export_soccernet_v3d_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: Annotated[bool, typer.Option("--all", help="Export every system, not only accepted ones.")] = False,
+    no_images: Annotated[bool, typer.Option("--no-images", help="Leave out each game's Frames-v3.zip "
+                                                                "(the images).")] = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export reviewed labels as a SoccerNet-v3D tree (Labels-v3D.json per game, SNv3D.csv)."""
+    """Export reviewed labels as a SoccerNet-v3D tree (Labels-v3D.json and Frames-v3.zip per game, SNv3D.csv)."""
     from app.services.transfer.exporting import export_soccernet_v3d
+    from app.services.transfer.images import ImageUnavailable
 
     settings = cli_settings(database_url, None)
     bars = _Bars()
     try:
         with database_session(settings) as session:
-            report = export_soccernet_v3d(session, out_dir, include_all=include_all, progress=bars)
-    except InvalidInputError as exc:
+            report = export_soccernet_v3d(session, out_dir, include_all=include_all, progress=bars,
+                                          images=not no_images)
+    except (InvalidInputError, ImageUnavailable) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(code=2) from None
     finally:
         bars.close()
     typer.echo(f"exported {report.systems} system(s) of {report.games} game(s), {report.rows} row(s) "
-               f"to {report.out_dir} ({report.csv_path.name})")
+               f"and {report.images} image(s) to {report.out_dir} ({report.csv_path.name})")
+
+
+@export_cli.command("cameras")
+def export_cameras_cmd(
+    out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
+    include_all: Annotated[bool, typer.Option("--all", help="Export every system, not only accepted ones.")] = False,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Export the admitted cameras of SoccerNet-v3 and single-view (SoccerNet-calibration) frames as
+    <league>/<season>/<match>/camera_<image stem>.json (SoccerNet-calibration format)."""
+    from app.services.transfer.cameras_export import export_cameras
+
+    settings = cli_settings(database_url, None)
+    try:
+        with database_session(settings) as session:
+            report = export_cameras(session, out_dir, include_all=include_all)
+    except InvalidInputError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    kinds = ", ".join(f"{n} {k}" for k, n in sorted(report.by_kind.items())) or "none"
+    typer.echo(f"exported {report.cameras} camera(s) to {report.out_dir} ({kinds})")

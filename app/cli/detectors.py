@@ -25,7 +25,8 @@ def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
-        report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m)  # type: ignore[arg-type]
+        report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]
+                                 settings.export_ball_box)
     per_split = ", ".join(f"{s}: {report.images[s]} image(s), {report.ball_boxes[s]} ball box(es), "
                           f"{report.other_boxes[s]} other box(es)" for s in report.images)
     typer.echo(f"exported {fmt} to {report.out_dir}: {per_split}")
@@ -67,6 +68,9 @@ def evaluate_monocular_cmd(
     ball_class: Annotated[Optional[int], typer.Option("--ball-class", help="Ball class (YOLO) or category id (COCO).")] = None,
     estimator: Annotated[Optional[str], typer.Option(help="'paper' (Eq. ball3Destimation) or 'exact' (sphere "
                                                    "silhouette); default: the one matching V3D_OPTIMISED_BOX_METHOD.")] = None,
+    cameras: Annotated[Optional[Path], typer.Option("--cameras", help="Score with these cameras instead of the stored "
+                                                    "ones: <DIR>/<league>/<season>/<match>/camera_<image stem>.json "
+                                                    "(SoccerNet-calibration).")] = None,
     include_all: AllOpt = False,
     database_url: DatabaseOpt = None,
 ) -> None:
@@ -78,8 +82,9 @@ def evaluate_monocular_cmd(
     try:
         with database_session(settings) as session:
             report = evaluate_predictions(session, predictions, include_all, ball_class, settings.ball_diameter_m,
-                                          estimator)
-            views = reference_views(session, include_all, settings.ball_diameter_m) if plots else []
+                                          estimator, cameras_dir=cameras, ball_box=settings.export_ball_box)
+            views = (reference_views(session, include_all, settings.ball_diameter_m, settings.export_ball_box)
+                     if plots else [])
     except InvalidInputError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(code=2) from None
@@ -89,7 +94,8 @@ def evaluate_monocular_cmd(
                    f"MAE {_fmt(rep['MAE_pct'], '{:.2f}')} %  P@2m {_fmt(rep['P_2m'], '{:.3f}')}  "
                    f"({c['localised']} of {c['reference_views']} views localised, {c['detections']} detections)")
     typer.echo(f"ignored {report['counts']['ignored_detections']} detection(s) in images without a 3D ball; "
-               f"monocular estimator: {estimator}")
+               f"monocular estimator: {estimator}; cameras: {report['cameras']}"
+               + (f" ({report['counts']['views_without_camera']} view(s) without one left out)" if cameras else ""))
     if json_out:
         json_out.parent.mkdir(parents=True, exist_ok=True)
         json_out.write_text(json.dumps(report, indent=1))
@@ -100,6 +106,63 @@ def evaluate_monocular_cmd(
         paths = plot_precision_curve(report, plots) + plot_sensitivity(
             sensitivity_curves(views, settings.ball_diameter_m, estimator=estimator), plots)
         typer.echo("wrote " + ", ".join(str(p) for p in paths))
+
+
+@evaluate_cli.command("boxes")
+def evaluate_boxes_cmd(
+    precise: Annotated[Optional[Path], typer.Argument(help="A CSV league,season,match,image,x1,y1,x2,y2 (pixels); "
+                                                           "stored first. Default: the stored precise boxes.")] = None,
+    json_out: Annotated[Optional[Path], typer.Option("--json", help="Write the report as JSON here.")] = None,
+    include_all: AllOpt = False,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """The paper's Table 1: IoU and size error of the original, optimised and refined ball boxes against the
+    precise boxes (views of accepted systems, every system with --all)."""
+    from app.services.evaluation.boxes import BOX_KINDS, evaluate_boxes, store_precise_boxes
+
+    settings = cli_settings(database_url, None)
+    try:
+        with database_session(settings) as session:
+            if precise is not None:
+                typer.echo(f"stored {store_precise_boxes(session, precise)} precise box(es)")
+            report = evaluate_boxes(session, include_all, settings.ball_diameter_m)
+    except InvalidInputError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"{report['views']} view(s) with a precise box")
+    for k in BOX_KINDS:
+        r = report[k]
+        figures = "-" if not r["n"] else f"IoU {r['iou']:.3f}, size error {r['size_error_pct']:.1f} %"
+        typer.echo(f"  {k:<9} n={r['n']:<5} {figures}")
+    if json_out is not None:
+        json_out.write_text(json.dumps(report, indent=1) + "\n")
+
+
+@cli.command("stats")
+def stats_cmd(
+    json_out: Annotated[Optional[Path], typer.Option("--json", help="Write the statistics as JSON here.")] = None,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """The dataset at a glance: systems and images (calibrated, admitted) per kind and split, systems kept against
+    the JaC admission threshold (the paper's Fig. 3) and distributions (app.services.evaluation.stats)."""
+    from app.services.evaluation.stats import dataset_stats
+
+    settings = cli_settings(database_url, None)
+    with database_session(settings) as session:
+        stats = dataset_stats(session, settings)
+    for kind, k in stats["kinds"].items():
+        typer.echo(f"{kind}: {k['systems']} system(s), {k['images']} image(s), {k['calibrated_images']} calibrated, "
+                   f"{k['admitted_images']} admitted")
+        for split, c in sorted(k["splits"].items()):
+            typer.echo(f"  {split:<5}  {c['systems']} system(s), {c['images']} image(s), {c['calibrated_images']} "
+                       f"calibrated, {c['admitted_images']} admitted")
+    if stats["stale_systems"]:
+        typer.echo(f"{stats['stale_systems']} system(s) were computed with other settings: stale until `v3d recompute`")
+    typer.echo("systems kept by JaC threshold: " + ", ".join(
+        f"{r['threshold']:.2f}: {r['systems_kept']}" for r in stats["jac_sweep"][::4]))
+    if json_out is not None:
+        json_out.write_text(json.dumps(stats, indent=1) + "\n")
+        typer.echo(f"wrote {json_out}")
 
 
 @evaluate_cli.command("sensitivity")
@@ -121,7 +184,7 @@ def evaluate_sensitivity_cmd(
     settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)
     with database_session(settings) as session:
-        views = reference_views(session, include_all, settings.ball_diameter_m)
+        views = reference_views(session, include_all, settings.ball_diameter_m, settings.export_ball_box)
     if not views:
         typer.echo("error: no view with a 3D ball among the selected systems (accept systems, or use --all)", err=True)
         raise typer.Exit(code=2)

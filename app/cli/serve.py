@@ -5,7 +5,11 @@ file ``var/v3d.sqlite3`` of the checkout, whose folder is created). With ``--dem
 that holds no game, the demo dataset (:func:`app.demo.generate_demo_dataset`) is written beside the
 SQLite file (``var/demo/``) and imported as a SoccerNet-v3 tree before the server starts, and the demo
 account (``demo`` / ``demo``, role admin, flagged as a demo) is made unless it exists; the console says
-how to log in. Systems stored by an older version of the derived rows (doubts, queue figures) are
+how to log in. The demo account never faces a network: ``--demo`` with a host other than a loopback
+address is refused (exit 2), and so is ``--demo`` behind a declared reverse proxy (``V3D_TRUSTED_PROXIES``) and
+any non-loopback host while an enabled demo account exists in the database; the demo account's login (and the
+login page's hint) answers only requests made on this machine without a proxy
+(``app.services.accounts.throttle.from_this_machine``), which covers a proxy left undeclared. Systems stored by an older version of the derived rows (doubts, queue figures) are
 recomputed first.
 
 ``--workers N`` (N > 1) serves with N uvicorn worker processes: the start-up work above runs once, in
@@ -16,11 +20,12 @@ transactions wait their turn (``app.db.session.begin_write``), so N workers beha
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Optional
 
 import typer
 from app.cli._root import cli
 from app.core.config import Settings, get_settings, var_dir
+from app.services.accounts.throttle import is_loopback
 
 #: What uvicorn's worker processes import and call to build the app (settings from the environment).
 APP_FACTORY = "app.main:create_app"
@@ -57,18 +62,26 @@ def load_demo_if_empty(settings: Settings) -> str:
 
 def refresh_derived(settings: Settings) -> str | None:
     """Recompute the systems stored by an older version of the derived rows (after a schema upgrade:
-    doubts and queue figures), so that everything served is current. Returns a line for the console,
-    None when nothing was stale."""
+    doubts and queue figures), so that everything served is current, and count those computed with other
+    settings (a changed ``V3D_PROFILE``: stale until ``v3d recompute``, which may take long, so not done here).
+    Returns lines for the console, None when nothing was stale."""
     from app.db.session import make_engine, make_session_factory
     from app.services.curation.recompute import refresh_stale_systems
+
+    from app.services.curation.recompute import systems_computed_otherwise
 
     engine = make_engine(settings.database_url)
     try:
         with make_session_factory(engine)() as session:
             n = refresh_stale_systems(session, settings)
+            otherwise = systems_computed_otherwise(session, settings)
     finally:
         engine.dispose()
-    return f"recomputed {n} system(s) stored by an older version (doubts and queue figures)" if n else None
+    lines = [f"recomputed {n} system(s) stored by an older version (doubts and queue figures)"] if n else []
+    if otherwise:
+        lines.append(f"{otherwise} system(s) were computed with other settings (V3D_PROFILE={settings.profile}, "
+                     "the triangulation, box and admission settings): their results are stale until `v3d recompute`")
+    return "\n".join(lines) or None
 
 
 def ensure_demo_account(settings: Settings) -> str:
@@ -83,6 +96,25 @@ def ensure_demo_account(settings: Settings) -> str:
             return ensure(session)
     finally:
         engine.dispose()
+
+
+def demo_account_name(settings: Settings) -> Optional[str]:
+    """The name of the enabled demo account of the (migrated) database, or None."""
+    from app.db.session import make_engine, make_session_factory
+    from app.services.accounts.users import demo_account
+
+    engine = make_engine(settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            user = demo_account(session)
+            return None if user is None else user.name
+    finally:
+        engine.dispose()
+
+
+def _refuse(message: str) -> None:
+    typer.echo(f"v3d serve: refused: {message}", err=True)
+    raise typer.Exit(code=2)
 
 
 @cli.command("serve")
@@ -101,8 +133,24 @@ def serve(
     from app.db.session import upgrade_database
     from app.main import create_app
 
+    if not is_loopback(host):
+        if demo:
+            _refuse(f"--demo on {host!r}: the demo account (demo / demo, admin) has a public password and "
+                    "must never face a network. Serve on 127.0.0.1 to try v3d, or create a real admin "
+                    "(`v3d users add NAME --role admin`) and serve without --demo.")
     settings = get_settings()
+    if demo and settings.trusted_proxies:
+        _refuse("--demo with V3D_TRUSTED_PROXIES set: a reverse proxy forwards the network to this server, and the "
+                "demo account (demo / demo, admin) has a public password and must never face a network. Unset "
+                "V3D_TRUSTED_PROXIES to try v3d on this machine, or create a real admin "
+                "(`v3d users add NAME --role admin`) and serve without --demo.")
     upgrade_database(settings.database_url)
+    if not is_loopback(host):
+        exposed = demo_account_name(settings)
+        if exposed is not None:
+            _refuse(f"the demo account {exposed!r} (public password, admin) is enabled in this database and "
+                    f"must never face a network: end it with `v3d users disable {exposed}` before serving "
+                    f"on {host!r}.")
     refreshed = refresh_derived(settings)
     if refreshed:
         typer.echo(refreshed)

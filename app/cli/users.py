@@ -2,13 +2,13 @@
 
 Run by whoever owns the machine: no token needed, the database is ``V3D_DATABASE_URL`` (or
 ``--database-url``), migrated first. ``add`` and ``token`` print the new API token alone on the last
-line of standard output (``TOKEN=$(v3d users add ana --role annotator --password-stdin <pw | tail -n1)``);
+line of standard output (``token`` prints its id on the line before) (``TOKEN=$(v3d users add ana --role annotator --password-stdin <pw | tail -n1)``);
 the token is shown only then. Errors print ``error: ...`` and exit with status 2, changing nothing.
 """
 from __future__ import annotations
 
 import sys
-from typing import Annotated
+from typing import Annotated, Optional
 
 import typer
 
@@ -54,17 +54,75 @@ def add_cmd(
 
 
 @users_cli.command("token")
-def token_cmd(name: Annotated[str, typer.Argument(help="An existing user.")], database_url: DatabaseOpt = None) -> None:
-    """Issue another API token to a user; prints it alone on the last line."""
+def token_cmd(
+    name: Annotated[str, typer.Argument(help="An existing user.")],
+    label: Annotated[Optional[str], typer.Option("--label", help="What the token is for (listed with it).")] = None,
+    expires_days: Annotated[Optional[float], typer.Option("--expires-days", help="The token stops working this "
+                                                          "many days from now (default: until revoked).")] = None,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Issue another API token to a user; prints its id, then the token alone on the last line."""
     from app.services.accounts.users import issue_token
 
     with database_session(cli_settings(database_url, None)) as session:
         try:
-            token = issue_token(session, name)
+            issued = issue_token(session, name, label=label, expires_days=expires_days)
+        except (NotFoundError, InvalidInputError) as exc:
+            raise _fail(exc) from None
+    expiry = f", expires {issued.expires_at:%Y-%m-%d %H:%M} UTC" if issued.expires_at else ""
+    typer.echo(f"new API token {issued.id} of {name}{expiry} (shown once; revoke it with "
+               f"`v3d users revoke {name} {issued.id}`):")
+    typer.echo(issued.token)
+
+
+@users_cli.command("tokens")
+def tokens_cmd(name: Annotated[str, typer.Argument(help="An existing user.")], database_url: DatabaseOpt = None) -> None:
+    """List a user's API tokens: id, label, created, last used, expiry (UTC), state. Never the tokens."""
+    from app.services.accounts.users import list_tokens
+
+    with database_session(cli_settings(database_url, None)) as session:
+        try:
+            rows = list_tokens(session, name)
         except NotFoundError as exc:
             raise _fail(exc) from None
-    typer.echo(f"new API token of {name} (shown once):")
-    typer.echo(token)
+
+    def when(t):
+        return f"{t:%Y-%m-%d %H:%M}" if t else "-"
+
+    typer.echo(f"{'id':>6}  {'label':<24} {'created':<16} {'last used':<16} {'expires':<16} state")
+    for t in rows:
+        typer.echo(f"{t.id:>6}  {(t.label or '-'):<24} {when(t.created_at):<16} {when(t.last_used_at):<16} "
+                   f"{when(t.expires_at):<16} {t.state}")
+
+
+@users_cli.command("revoke")
+def revoke_cmd(name: Annotated[str, typer.Argument(help="The token's user.")],
+               token_id: Annotated[int, typer.Argument(help="The token's id (v3d users tokens NAME).")],
+               database_url: DatabaseOpt = None) -> None:
+    """Revoke one API token: it stops working at once, for good."""
+    from app.services.accounts.users import revoke_token
+
+    with database_session(cli_settings(database_url, None)) as session:
+        try:
+            revoke_token(session, name, token_id)
+        except NotFoundError as exc:
+            raise _fail(exc) from None
+    typer.echo(f"token {token_id} of {name}: revoked")
+
+
+@users_cli.command("role")
+def role_cmd(name: Annotated[str, typer.Argument(help="An existing user.")],
+             role: Annotated[str, typer.Argument(help="annotator, reviewer or admin.")],
+             database_url: DatabaseOpt = None) -> None:
+    """Give a user another role (its sessions and tokens carry it from their next request)."""
+    from app.services.accounts.users import set_role
+
+    with database_session(cli_settings(database_url, None)) as session:
+        try:
+            set_role(session, name, role)
+        except (NotFoundError, InvalidInputError) as exc:
+            raise _fail(exc) from None
+    typer.echo(f"{name}: role {role}")
 
 
 @users_cli.command("list")
@@ -88,16 +146,16 @@ def _set_disabled(name: str, disabled: bool, database_url: str | None) -> None:
             set_disabled(session, name, disabled)
         except NotFoundError as exc:
             raise _fail(exc) from None
-    typer.echo(f"{name}: {'disabled (sessions and tokens stop working)' if disabled else 'enabled'}")
+    typer.echo(f"{name}: {'disabled (sessions end; every API token revoked for good)' if disabled else 'enabled (log in again; issue a new token with v3d users token)'}")
 
 
 @users_cli.command("disable")
 def disable_cmd(name: Annotated[str, typer.Argument(help="An existing user.")], database_url: DatabaseOpt = None) -> None:
-    """Disable a user: no login, and its sessions and tokens stop working at once."""
+    """Disable a user: no login, its sessions end and every API token it holds is revoked for good."""
     _set_disabled(name, True, database_url)
 
 
 @users_cli.command("enable")
 def enable_cmd(name: Annotated[str, typer.Argument(help="A disabled user.")], database_url: DatabaseOpt = None) -> None:
-    """Enable a disabled user again (its tokens work again; it logs in anew)."""
+    """Enable a disabled user again: it logs in anew; its revoked tokens stay revoked."""
     _set_disabled(name, False, database_url)

@@ -7,12 +7,31 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
-from typing import Literal, Optional
+from typing import Any, Literal, Optional
 
-from pydantic import Field, SecretStr
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from app.core.paths import PROJECT_ROOT
+
+
+#: Shortest ``V3D_SESSION_SECRET`` accepted (characters): 32 random URL-safe characters carry 192 bits.
+MIN_SESSION_SECRET_CHARS = 32
+
+
+#: The paper's choices where v3d's defaults differ (``V3D_PROFILE=paper``; an explicit ``V3D_*`` setting wins):
+#: Eq. min_diametre's square box (v3d: the exact image of the sphere, ``exact_ray``; the monocular benchmark's
+#: default estimator follows it, ``app.services.evaluation.monocular.default_estimator``) and no parallax filter
+#: (v3d drops pairs whose rays meet below 2 degrees: near-duplicate viewpoints), and the optimised box as the detector
+#: exports' ball box (v3d: the refined box where the 3D ball is well constrained).
+PAPER_PROFILE: dict[str, Any] = {"optimised_box_method": "paper", "min_parallax_deg": 0.0, "export_ball_box": "optimised"}
+
+
+#: The settings a system's stored rows (admission, 3D ball, pairs, reprojections, optimised boxes) are computed with:
+#: their values' fingerprint is stored with each system (``Settings.derived_fingerprint``). The export's ball box is
+#: chosen when exporting, not stored.
+DERIVED_SETTINGS = ("admit_jac_gamma", "admit_jac_min", "triangulation_tau_px", "pair_error_rule", "min_baseline_m",
+                    "min_parallax_deg", "optimised_box_method", "ball_diameter_m")
 
 
 class Settings(BaseSettings):
@@ -22,6 +41,37 @@ class Settings(BaseSettings):
     """
 
     model_config = SettingsConfigDict(env_prefix="V3D_", env_file=".env", extra="ignore")
+
+    profile: Literal["v3d", "paper"] = Field(
+        "v3d",
+        description="'paper' sets every choice where v3d's default differs from the paper (PAPER_PROFILE: the "
+        "optimised box of Eq. min_diametre, hence the paper's monocular estimator, no parallax filter, the optimised "
+        "box as the exports' ball box); a "
+        "V3D_* setting given explicitly still wins. 'v3d': v3d's defaults (README, 'The paper's settings').",
+    )
+
+    def derived_fingerprint(self) -> str:
+        """16 hex digits naming the values of :data:`DERIVED_SETTINGS`: what a system's stored 3D ball, pairs and
+        boxes were computed with (``System.derived_settings``); a profile or setting changed since makes them stale
+        for ``v3d recompute`` (``app.services.curation.recompute.systems_computed_otherwise``).
+
+        >>> Settings(_env_file=None).derived_fingerprint() == Settings(_env_file=None, profile="paper").derived_fingerprint()
+        False
+        """
+        import hashlib
+        import json
+
+        values = json.dumps({k: getattr(self, k) for k in DERIVED_SETTINGS}, sort_keys=True)
+        return hashlib.sha256(values.encode("utf-8")).hexdigest()[:16]
+
+    @model_validator(mode="after")
+    def _apply_profile(self) -> "Settings":
+        """Under ``profile == "paper"``, :data:`PAPER_PROFILE`'s values for the settings not given explicitly."""
+        if self.profile == "paper":
+            for name, value in PAPER_PROFILE.items():
+                if name not in self.model_fields_set:
+                    object.__setattr__(self, name, value)
+        return self
 
     database_url: str = Field(
         default=f"sqlite:///{PROJECT_ROOT / 'var' / 'v3d.sqlite3'}",
@@ -60,6 +110,11 @@ class Settings(BaseSettings):
         "0.08 % vs 1.4 % for 'paper' on the synthetic dev set with true cameras).",
     )
     ball_diameter_m: float = Field(0.22, description="phi, the ball diameter in metres.")
+    export_ball_box: Literal["refined", "optimised"] = Field(
+        "refined", description="The ball box of the detector exports (YOLO, COCO) and the monocular benchmark's "
+        "reference: 'refined' (v3d: the refined box where the 3D ball is well constrained, else the optimised box, "
+        "else the annotated one; app.services.transfer.detector_export.ball_boxes) or 'optimised' (the paper: the "
+        "optimised box, else the annotated one).")
     # --- doubts (app.geometry.doubts.DoubtSettings: field f is read from doubt_f, else from f) ---
     # Chosen with benchmarks/doubts.py (synthetic dev + dev-large, v3d's own calibrations, PR plot).
     doubt_consensus_tau_px: float = Field(
@@ -117,9 +172,18 @@ class Settings(BaseSettings):
     # --- users and sessions (app.api.authentication, app.services.accounts.users) ---
     session_secret: Optional[SecretStr] = Field(
         None,
-        description="Key that signs the browser's session cookies (V3D_SESSION_SECRET). None: the key generated "
-        "once in the database (table server_secrets), shared by every worker and kept across restarts.",
+        description="Key that signs the browser's session cookies (V3D_SESSION_SECRET), at least "
+        "32 characters (e.g. `python -c 'import secrets; print(secrets.token_urlsafe(48))'`). None: the key "
+        "generated once in the database (table server_secrets), shared by every worker and kept across restarts.",
     )
+    login_max_failures_per_name: int = Field(10, gt=0, description="Failed logins of one name from one client "
+                                                                    "address per window before 429 (V3D_LOGIN_MAX_FAILURES_PER_NAME).")
+    login_max_failures_per_address: int = Field(50, gt=0, description="Failed logins from one client address per "
+                                                                       "window before 429 (V3D_LOGIN_MAX_FAILURES_PER_ADDRESS).")
+    login_window_s: int = Field(300, gt=0, description="The window of the failed-login limits (seconds).")
+    trusted_proxies: list[str] = Field(
+        default_factory=list, description="Reverse proxies (addresses or networks, JSON list) whose X-Forwarded-For "
+        "names the client of a request (V3D_TRUSTED_PROXIES); otherwise the client is the socket peer.")
     secure_cookies: bool = Field(
         False, description="Send the session cookie with Secure (HTTPS only): set it behind TLS (V3D_SECURE_COOKIES).",
     )
@@ -152,6 +216,8 @@ class Settings(BaseSettings):
     jobs_dir: Optional[Path] = Field(
         None, description="Where uploads are unpacked (uploads/) and export jobs write their files (exports/); "
         "default: jobs/ beside a SQLite database file, else var/jobs in the checkout.")
+    max_json_kb: float = Field(1024.0, gt=0, description="Largest request body that is not an upload (JSON), in KB "
+                                                       "(2^10 bytes): 413 before it is parsed (V3D_MAX_JSON_KB).")
     max_upload_mb: float = Field(2048.0, gt=0, description="Largest upload accepted (MB, 2^20 bytes), counted while "
                                                             "it is written to disk: 413 beyond it.")
     max_unpacked_mb: float = Field(
@@ -159,6 +225,18 @@ class Settings(BaseSettings):
         "zips included (MB): a zip bomb is refused (400) before anything is extracted.")
     max_upload_members: int = Field(200_000, gt=0, description="Most members an uploaded zip may hold (nested "
                                                                 "image zips included).")
+    max_image_pixels: int = Field(
+        50_000_000, gt=0, description="Most pixels (width x height) an imported image or video frame may have, read "
+        "from its header before anything is decoded: a larger one refuses the import (400 / exit 2) naming it.")
+
+    @field_validator("session_secret")
+    @classmethod
+    def _session_secret_long_enough(cls, value: Optional[SecretStr]) -> Optional[SecretStr]:
+        """A cookie-signing key short enough to guess is refused at start-up, naming the variable."""
+        if value is not None and len(value.get_secret_value()) < MIN_SESSION_SECRET_CHARS:
+            raise ValueError(f"V3D_SESSION_SECRET must be at least {MIN_SESSION_SECRET_CHARS} characters (it signs "
+                             "every browser session); unset it to use the key kept in the database")
+        return value
 
 
 def var_dir(settings: Settings, name: str) -> Path:

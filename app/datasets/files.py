@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any, Callable, Mapping
+from typing import Any, BinaryIO, Callable, Mapping
 
-import numpy as np
 
 from app.core.errors import DatasetError
 
@@ -41,6 +41,94 @@ def load_json_file(path: Path) -> Any:
     except OSError as exc:
         raise DatasetError(path, None, f"cannot read: {exc.strerror}") from None
     return load_json_bytes(raw, str(path))
+
+
+def read_text_file(path: Path, max_bytes: int, what: str = "text file") -> str:
+    """The UTF-8 text of a small input file (a BOM dropped), refused beyond ``max_bytes``.
+
+    Raises:
+        DatasetError: naming ``path``: missing, larger than ``max_bytes``, unreadable or not UTF-8 (``what``
+            says what it should have been, e.g. "CSV").
+    """
+    try:
+        if path.stat().st_size > max_bytes:
+            raise DatasetError(path, None, f"larger than {max_bytes} bytes")
+        return path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise DatasetError(path, None, "missing") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DatasetError(path, None, f"not a readable {what}: {exc}") from exc
+
+
+# ----- the closed world of an import: every file it reads lies inside the dataset's own folder
+def dataset_root(path: str | Path) -> Path:
+    """The folder an import of ``path`` may read from, resolved: ``path`` itself when it is a folder, the
+    folder holding it when it is a file (a ``Labels-v3.json``, a zip of a calibration set).
+
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> _ = (d / "set.zip").write_bytes(b"")
+    >>> dataset_root(d) == d.resolve(), dataset_root(d / "set.zip") == d.resolve()
+    (True, True)
+    """
+    resolved = Path(path).expanduser().resolve()
+    return resolved if resolved.is_dir() or not resolved.exists() else resolved.parent
+
+
+def inside_dataset(root: Path, path: str | Path, field: str | None = None) -> Path:
+    """``path`` resolved (``..`` and symbolic links followed; a relative ``path`` from the working directory, as
+    the input it was built from), when it lies inside the dataset folder ``root`` (:func:`dataset_root`); a link
+    inside the dataset that points out of it is refused.
+
+    Raises:
+        DatasetError: naming ``path`` (as the dataset names it, not where a link points) and ``field``,
+            when it resolves outside ``root``; nothing is read from it.
+
+    >>> import os, tempfile
+    >>> d = Path(tempfile.mkdtemp()).resolve()
+    >>> os.symlink("/etc/passwd", d / "0.png")
+    >>> inside_dataset(d, d / "1.png") == d / "1.png"
+    True
+    >>> inside_dataset(d, d / "0.png", "image")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    app.core.errors.DatasetError: ...0.png: image: resolves outside the dataset's folder (a link or '..' leading out of it); an import reads only inside its own folder
+    """
+    root = Path(root).resolve()
+    # ``path`` is what the reader built from its input (the folder or file given, joined with names from the
+    # dataset): a relative one is relative to the working directory like that input, never to ``root``
+    # (joined to ``root`` it named a file that does not exist inside it, so a link leading out passed).
+    resolved = Path(path).expanduser().resolve()
+    if not resolved.is_relative_to(root):
+        raise DatasetError(path, field, "resolves outside the dataset's folder (a link or '..' leading out of it); "
+                                        "an import reads only inside its own folder")
+    return resolved
+
+
+def dataset_relative(root: Path, path: str | Path, field: str | None = None) -> str:
+    """``path`` as stored in the database: POSIX, relative to the dataset folder ``root``
+    (:func:`inside_dataset` checks it first)."""
+    return inside_dataset(root, path, field).relative_to(Path(root).resolve()).as_posix()
+
+
+def refuse_links_out(path: str | Path, field: str = "path") -> None:
+    """Walk the dataset ``path`` (a folder, links not followed; a file alone) and refuse it when a
+    symbolic link in it resolves outside it (:func:`inside_dataset`): the check ``POST /api/imports``
+    answers at once (400), before the import job reads anything. Readers check each file they read too.
+
+    Raises:
+        DatasetError: naming the first link leading out (its path inside the dataset) and ``field``.
+    """
+    root = dataset_root(path)
+    start = Path(path)
+    if not start.is_dir():
+        inside_dataset(root, start, field)
+        return
+    for folder, dirs, files in os.walk(start, followlinks=False):
+        for name in sorted(dirs + files):
+            entry = Path(folder) / name
+            if entry.is_symlink():
+                inside_dataset(root, entry, field)
 
 
 def is_safe_member(name: str) -> bool:
@@ -94,15 +182,88 @@ def image_size_field(meta: Any, file: str | Path, where: str) -> tuple[int, int]
     return out[0], out[1]
 
 
-def decoded_image_size(raw: bytes, where: str) -> tuple[int, int]:
-    """``(width, height)`` in pixels of an encoded image, by decoding it (OpenCV); raises
-    :class:`DatasetError` naming ``where`` when it does not decode."""
-    import cv2
+#: Default of ``V3D_MAX_IMAGE_PIXELS``: the most pixels (width x height) an imported image may have.
+MAX_IMAGE_PIXELS = 50_000_000
+#: Image types a frame may be, as :func:`image_header` names them, and the media type each is served as.
+IMAGE_MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg"}
+_PIL_FORMATS = {"PNG": "png", "JPEG": "jpeg"}
 
-    img = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise DatasetError(where, None, "cannot decode the image to read its size")
-    return int(img.shape[1]), int(img.shape[0])
+
+@dataclass(frozen=True)
+class ImageHeader:
+    """What an image's header says: ``type`` ("png" or "jpeg", a key of :data:`IMAGE_MEDIA_TYPES`) and
+    its size in pixels."""
+
+    type: str
+    width: int
+    height: int
+
+
+def image_header(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
+    """Type and size of the image in the open binary ``stream`` (a file, or a zip member opened with
+    ``ZipFile.open``: streamed, never read whole), from its header only (Pillow's lazy ``Image.open``:
+    the PNG chunks before the pixel data, the JPEG markers up to its frame header); nothing is decoded.
+
+    Raises:
+        DatasetError: naming ``where``: not a PNG or JPEG (whatever its name says: an HTML page named
+            ``0.png`` is refused), a broken header, or more than ``max_pixels`` pixels (``V3D_MAX_IMAGE_PIXELS``).
+
+    >>> import io
+    >>> from PIL import Image
+    >>> def png(w, h):
+    ...     buf = io.BytesIO()
+    ...     Image.new("1", (w, h)).save(buf, "PNG")
+    ...     return buf.getvalue()
+    >>> image_header(io.BytesIO(png(960, 540)), "0.png")
+    ImageHeader(type='png', width=960, height=540)
+    >>> image_header(io.BytesIO(png(8000, 7000)), "big.png")
+    Traceback (most recent call last):
+    ...
+    app.core.errors.DatasetError: big.png: image of 8000x7000 = 56,000,000 pixels, above V3D_MAX_IMAGE_PIXELS (50,000,000)
+    >>> image_header(io.BytesIO(b"<html><script>alert(1)</script>"), "0.html")
+    Traceback (most recent call last):
+    ...
+    app.core.errors.DatasetError: 0.html: not a PNG or JPEG image (read from its header; the name does not count)
+    """
+    import warnings
+
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            saved, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # the limit is ours, checked below
+            try:
+                with Image.open(stream, formats=tuple(_PIL_FORMATS)) as img:
+                    kind, (width, height) = _PIL_FORMATS[img.format or ""], img.size
+            finally:
+                Image.MAX_IMAGE_PIXELS = saved
+    except (OSError, SyntaxError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        raise DatasetError(where, None, "not a PNG or JPEG image (read from its header; the name does not count)") from None
+    if width < 1 or height < 1:
+        raise DatasetError(where, None, f"image of {width}x{height} pixels")
+    if width * height > max_pixels:
+        raise DatasetError(where, None, f"image of {width}x{height} = {width * height:,} pixels, above "
+                                        f"V3D_MAX_IMAGE_PIXELS ({max_pixels:,})")
+    return ImageHeader(kind, width, height)
+
+
+def file_image_header(path: Path, where: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
+    """:func:`image_header` of the file ``path`` (``where`` names it in messages)."""
+    try:
+        with open(path, "rb") as fh:
+            return image_header(fh, str(where), max_pixels)
+    except OSError as exc:
+        raise DatasetError(where, None, f"cannot read: {exc.strerror}") from None
+
+
+def member_image_header(zf: zipfile.ZipFile, member: str, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
+    """:func:`image_header` of the zip member ``member`` (streamed out of the archive, never read whole)."""
+    try:
+        with zf.open(member) as fh:
+            return image_header(fh, where, max_pixels)
+    except (KeyError, OSError, zipfile.BadZipFile) as exc:
+        raise DatasetError(where, None, f"cannot read ({type(exc).__name__})") from None
 
 
 # ----- the JSON files of a folder or zip (the offline commands' inputs and SoccerNet-calibration sets)
@@ -126,12 +287,19 @@ class JsonFile:
             raise InputFileError(f"{self.label}: not readable JSON ({exc})") from exc
 
 
+#: The most a JSON member of a zip may unpack to (a SoccerNet-calibration frame file or a camera is a few kB): a
+#: member is read whole to be parsed, so a small member unpacking to gigabytes (a zip bomb) is refused from the
+#: archive's directory before anything is read.
+MAX_JSON_MEMBER_BYTES = 64 * 1024 * 1024
+
+
 def json_files(path: Path, what: str) -> list[JsonFile]:
     """Every ``*.json`` file of a folder (recursively) or a zip (``__MACOSX/`` left out), sorted by path.
 
     Raises:
         InputFileError: ``path`` is missing, or neither a folder nor a zip archive (the message
-            starts with ``what``, the argument's name).
+            starts with ``what``, the argument's name); a zip's JSON member unpacks to more than
+            :data:`MAX_JSON_MEMBER_BYTES`.
     """
     if not path.exists():
         raise InputFileError(f"{what}: no such file or folder: {path}")
@@ -142,5 +310,11 @@ def json_files(path: Path, what: str) -> list[JsonFile]:
         archive = zipfile.ZipFile(path)
         names = sorted(n for n in archive.namelist()
                        if n.endswith(".json") and not n.endswith("/") and not n.startswith("__MACOSX/"))
+        for n in names:
+            size = archive.getinfo(n).file_size  # zipfile never unpacks a member past its declared size
+            if size > MAX_JSON_MEMBER_BYTES:
+                archive.close()
+                raise InputFileError(f"{path}:{n}: unpacks to {size} bytes, more than the "
+                                     f"{MAX_JSON_MEMBER_BYTES} a JSON file may hold")
         return [JsonFile(f"{path}:{n}", n, (lambda n=n: archive.read(n))) for n in names]
     raise InputFileError(f"{what}: {path} is neither a folder nor a zip archive")

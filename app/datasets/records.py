@@ -29,6 +29,8 @@ class CalibrationFields:
             rig position (``app.geometry.mirror.mirrored_fit_at_rig``), that evidence (JSON); the
             flag ``MIRROR_FLAG`` is then in ``flags``. Calibrated frames get theirs from
             ``recompute_system``.
+        uncertainty: standard deviations of the camera's parameters from the line fit
+            (``app.geometry.calibration.CalibrationUncertainty.to_json``), None when refused or imported.
     """
 
     status: CalibrationStatus
@@ -39,6 +41,7 @@ class CalibrationFields:
     reason: str | None = None
     elapsed_ms: float | None = None
     mirror_evidence: dict[str, Any] | None = None
+    uncertainty: dict[str, Any] | None = None
     rms_px: float | None = None
 
 
@@ -51,7 +54,11 @@ class ImportedCalibration:
 
 @dataclass(frozen=True)
 class FrameRecord:
-    """One validated frame: size, image source, field lines (JSON lists, pixels), ball label."""
+    """One validated frame: size, image source, field lines (JSON lists, pixels), ball label.
+
+    The image source is the dataset's folder ``image_root`` (absolute, resolved) and, relative to it
+    (POSIX), a zip ``image_zip`` with its member ``image_member`` or a file ``image_path``; the readers
+    checked that it resolves inside ``image_root`` (``app.datasets.files.inside_dataset``)."""
 
     name: str
     role: FrameRole
@@ -63,10 +70,18 @@ class FrameRecord:
     image_zip: str | None = None
     image_member: str | None = None
     image_path: str | None = None
+    image_root: str | None = None
+    #: The image's type read from its header ("png" or "jpeg", ``app.datasets.files.image_header``).
+    image_type: str | None = None
     calibration: ImportedCalibration | None = None
     #: Exports carry the imported originals too (``None``: the current values are the originals).
     original_lines: dict[str, Any] | None = None
     original_ball: tuple[BallKind | None, list[float] | None, list[float] | None] | None = None
+    #: What a release carries of the frame that v3d does not edit (stored as ``frames.release``): the frame's
+    #: entry of the labels file as imported, every key (``imageMetadata``, every ``bboxes`` entry with the
+    #: imported ball's, ``linked_replays`` / ``linked_action``, ...), without ``lines`` when the stored field
+    #: lines give them back (``app.datasets.soccernet_v3.release_entry``); None for formats without one.
+    release: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -88,3 +103,7 @@ class GameRecord:
     match: str
     source_path: str
     systems: list[SystemRecord]
+    #: What the labels file carries beside its systems (stored as ``games.release``): its top-level keys other
+    #: than ``actions`` and ``replays`` (``GameMetadata``, every key), and under ``replays`` the replays no
+    #: action links (they belong to no system); None for formats without one.
+    release: dict[str, Any] | None = None

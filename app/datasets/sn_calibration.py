@@ -9,7 +9,9 @@ from pathlib import Path, PurePosixPath
 from typing import Any, Iterator
 
 from app.datasets.files import (
-    IMAGE_SUFFIXES, decoded_image_size, json_files, load_json_bytes, open_zip, safe_names,
+    IMAGE_SUFFIXES, MAX_IMAGE_PIXELS, InputFileError, dataset_relative, dataset_root, file_image_header, inside_dataset,
+    json_files,
+    load_json_bytes, member_image_header, open_zip, safe_names,
 )
 from app.datasets.records import FrameRecord, GameRecord, SystemRecord
 from app.db.models import FrameRole, SystemKind
@@ -31,29 +33,37 @@ def is_frame_file(name: str) -> bool:
     return base.endswith(".json") and base not in NOT_FRAMES and not base.startswith("camera_")
 
 
-def frame_entries(root: Path) -> Iterator[tuple[str, str, bytes, Any]]:
+def frame_entries(root: Path, max_pixels: int = MAX_IMAGE_PIXELS) -> Iterator[tuple[str, str, bytes, Any]]:
     """``(frame name, where, JSON bytes, image)`` per frame file of a SoccerNet-calibration folder or
     zip, sub-folders included, in natural order of their paths (``where`` names the file,
     ``archive.zip!member`` in zips). A frame is named by its file's stem, as ``v3d jac`` pairs
-    annotations with cameras; ``image`` is ``(loader of the bytes, image source fields, where)`` of
-    the ``.jpg``/``.png`` of the same path, or None. The import and ``v3d calibrate`` both read sets
+    annotations with cameras; ``image`` is ``(reader of its header, image source fields, where)`` of
+    the ``.jpg``/``.png`` of the same path, or None (the reader checks the type and the pixel limit,
+    :func:`app.datasets.files.image_header`, and answers an ``ImageHeader``). The import and ``v3d calibrate`` both read sets
     through this function.
 
     Raises:
         DatasetError: ``root`` is missing or neither a folder nor a zip; an unsafe zip entry name;
-            two frame files of one stem (in different sub-folders).
+            two frame files of one stem (in different sub-folders); a frame or image file resolving
+            outside the set's folder (:func:`app.datasets.files.inside_dataset`).
     """
     if not root.exists():
         raise DatasetError(root, None, "no such file or folder")
     if not root.is_dir() and not zipfile.is_zipfile(root):
         raise DatasetError(root, None, "neither a folder nor a zip archive")
-    files = [f for f in json_files(root, str(root)) if is_frame_file(f.name)]
+    try:
+        files = [f for f in json_files(root, str(root)) if is_frame_file(f.name)]
+    except InputFileError as exc:  # a JSON member too large to parse
+        raise DatasetError(root, None, str(exc).removeprefix(f"{root}:")) from None
     keys = [PurePosixPath(f.name).with_suffix("") for f in files]
     if root.is_dir():
-        yield from _named(root, files, keys, _images(root, None))
+        top = dataset_root(root)
+        for f in files:
+            inside_dataset(top, root / f.name, "frame file")
+        yield from _named(root, files, keys, _images(root, None, max_pixels))
         return
     with open_zip(root) as zf:
-        yield from _named(root, files, keys, _images(root, zf))
+        yield from _named(root, files, keys, _images(root, zf, max_pixels))
 
 
 def _named(root: Path, files: list[Any], keys: list[PurePosixPath], images: dict[str, Any]
@@ -69,21 +79,25 @@ def _named(root: Path, files: list[Any], keys: list[PurePosixPath], images: dict
         yield name, where, f.read(), images.get(key.as_posix())
 
 
-def _images(root: Path, zf: zipfile.ZipFile | None) -> dict[str, Any]:
+def _images(root: Path, zf: zipfile.ZipFile | None, max_pixels: int) -> dict[str, Any]:
     """Path without suffix -> (loader, image source fields, where) of the images of the set (the
-    folder ``root``, or the open archive ``zf`` of ``root``, whose entry names are checked first)."""
+    folder ``root``, or the open archive ``zf`` of ``root``, whose entry names are checked first); an
+    image file that resolves outside the set's folder (a link leading out) refuses the set."""
     out: dict[str, Any] = {}
+    top = dataset_root(root)
     if zf is None:
         for p in sorted(root.rglob("*")):
             if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file():
                 rel = p.relative_to(root).with_suffix("").as_posix()
-                out.setdefault(rel, ((lambda q=p: q.read_bytes()), {"image_path": str(p.resolve())}, str(p)))
+                source = {"image_root": str(top), "image_path": dataset_relative(top, p, "image")}
+                out.setdefault(rel, ((lambda q=p: file_image_header(q, q, max_pixels)), source, str(p)))
         return out
+    source_zip = {"image_root": str(top), "image_zip": dataset_relative(top, root, "path")}
     for n in safe_names(zf, root):
         if n.lower().endswith(IMAGE_SUFFIXES):
             key = PurePosixPath(n).with_suffix("").as_posix()
-            out.setdefault(key, ((lambda m=n: zf.read(m)),
-                                 {"image_zip": str(root.resolve()), "image_member": n}, f"{root}!{n}"))
+            out.setdefault(key, ((lambda m=n: member_image_header(zf, m, f"{root}!{m}", max_pixels)),
+                                 {**source_zip, "image_member": n}, f"{root}!{n}"))
     return out
 
 
@@ -93,14 +107,16 @@ def _natural(name: str) -> tuple:
     return (parent, 0, int(stem), name) if stem.isdigit() else (parent, 1, 0, name)
 
 
-def read_sn_calibration(path: str | Path, width: int | None = None, height: int | None = None) -> GameRecord:
+def read_sn_calibration(path: str | Path, width: int | None = None, height: int | None = None,
+                        max_pixels: int = MAX_IMAGE_PIXELS) -> GameRecord:
     """Read and validate a SoccerNet-calibration folder or zip of per-frame JSON (normalised points).
 
     Every ``<stem>.json`` of the folder or zip, sub-folders included (:func:`frame_entries`;
     metadata, summaries and ``camera_*.json`` excepted), is one frame and one single-view system
     named ``<stem>``. Image size: ``width`` and ``height`` when given, else read from the image
     ``<stem>.jpg``/``.png`` beside the JSON (in the folder or the zip), which also becomes the
-    frame's image source. Normalised points become pixels as ``x (W - 1), y (H - 1)``.
+    frame's image source; every such image is checked from its header (PNG or JPEG, at most
+    ``max_pixels`` pixels) whether or not the size is given. Normalised points become pixels as ``x (W - 1), y (H - 1)``.
 
     The game is ``sn-calibration / <parent folder name> / <folder or zip stem>``.
 
@@ -113,12 +129,14 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     if width is not None and (width <= 1 or height <= 1):  # type: ignore[operator]
         raise DatasetError(root, "--width/--height", f"must be > 1, got {width}x{height}")
     systems = []
-    for stem, where, raw, image in frame_entries(root):
+    for stem, where, raw, image in frame_entries(root, max_pixels):
         data = load_json_bytes(raw, where)
+        header = image[0]() if image is not None else None
+        img_src = {**image[1], "image_type": header.type} if image is not None and header is not None else {}
         if width is not None:
-            w, h, img_src = int(width), int(height), image[1] if image else {}  # type: ignore[arg-type]
-        elif image is not None:
-            (w, h), img_src = decoded_image_size(image[0](), image[2]), image[1]
+            w, h = int(width), int(height)  # type: ignore[arg-type]
+        elif header is not None:
+            w, h = header.width, header.height
         else:
             raise DatasetError(where, None, "image size unknown: pass --width and --height or put the image "
                                             f"{stem}.jpg beside it")

@@ -2,17 +2,23 @@
 folder) -> validated records (:mod:`app.datasets.records`); no database.
 
 A multi-view system is an action and its ``linked_replays``; the ball is the box of class "Ball";
-field lines become pixels. The SoccerNet-v3D reader (:mod:`app.datasets.soccernet_v3d`) reads the same
+field lines become pixels. What v3d does not edit but a release carries (``GameMetadata``, each frame's
+``imageMetadata``, every ``bboxes`` entry, the links) is kept as it came (``release`` of the records,
+:func:`release_entry`, :func:`game_release`), so that exports never read the source files again. The SoccerNet-v3D reader (:mod:`app.datasets.soccernet_v3d`) reads the same
 layout with its own frame reader (:data:`FrameReader`). Images are located, never extracted: a record
 holds the zip path and member name or a file path. Every problem raises
 :class:`~app.core.errors.DatasetError` naming the file and the field.
 """
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from app.datasets.files import image_size_field, load_json_file, mapping, open_zip, safe_names
+from app.datasets.files import (
+    MAX_IMAGE_PIXELS, dataset_relative, dataset_root, file_image_header, image_size_field, inside_dataset,
+    load_json_file, mapping, member_image_header, open_zip, safe_names,
+)
 from app.datasets.records import FrameRecord, GameRecord, SystemRecord
 from app.db.models import FrameRole, SystemKind
 from app.geometry.annotations import AnnotationError, from_soccernet_v3, lines_to_json_lists
@@ -21,6 +27,94 @@ from app.core.errors import DatasetError
 
 V3_LABELS = "Labels-v3.json"
 V3_FRAMES_ZIP = "Frames-v3.zip"
+#: The class of the ball's entry in a frame's ``bboxes``.
+BALL_CLASS = "Ball"
+#: The sections of a labels document that hold frames (the rest is the game's, :func:`game_release`).
+FRAME_SECTIONS = ("actions", "replays")
+#: ``GameMetadata`` keys that list or count the document's frames: an export writes them for the frames it holds.
+LISTING_KEYS = ("list_actions", "list_replays", "num_actions", "num_replays")
+
+
+def flat_lines(lines: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Field lines as stored (``{class: [[[x, y], ...], ...]}``, pixels) -> SoccerNet-v3's ``lines`` list
+    ``[{"class", "points": [x1, y1, x2, y2, ...]}]``, classes in their stored order, unrounded (the inverse of
+    :func:`v3_lines` up to the order of interleaved classes).
+
+    >>> flat_lines({"Circle left": [[[1.0, 2.0], [3.0, 4.5]]]})
+    [{'class': 'Circle left', 'points': [1.0, 2.0, 3.0, 4.5]}]
+    """
+    return [{"class": cls, "points": [v for pt in poly for v in pt]} for cls, polys in lines.items() for poly in polys]
+
+
+#: Key of a stored release entry holding the class of each imported line, in order, where the stored field lines give
+#: the lines back but not their order on every backend (PostgreSQL's JSONB sorts an object's keys); exports drop it.
+LINE_ORDER_KEY = "v3d_line_order"
+
+
+def ordered_lines(lines: Mapping[str, Any], order: list[Any] | None) -> list[dict[str, Any]]:
+    """:func:`flat_lines` with the lines in ``order`` (a class per line: the k-th line of a class takes its k-th
+    polyline); polylines ``order`` does not name follow in stored order. ``order`` None: :func:`flat_lines`.
+
+    >>> ordered_lines({"A": [[[0.0, 0.0]]], "B": [[[1.0, 1.0]], [[2.0, 2.0]]]}, ["B", "A", "B"])
+    [{'class': 'B', 'points': [1.0, 1.0]}, {'class': 'A', 'points': [0.0, 0.0]}, {'class': 'B', 'points': [2.0, 2.0]}]
+    """
+    if order is None:
+        return flat_lines(lines)
+    taken: dict[Any, int] = {}
+    out = []
+    for cls in order:
+        polys = lines.get(cls, []) if isinstance(cls, str) else []
+        k = taken.get(cls, 0)
+        if k < len(polys):
+            out.append({"class": cls, "points": [v for pt in polys[k] for v in pt]})
+            taken[cls] = k + 1
+    for cls, polys in lines.items():
+        out += [{"class": cls, "points": [v for pt in poly for v in pt]} for poly in polys[taken.get(cls, 0):]]
+    return out
+
+
+def release_entry(item: Mapping[str, Any], lines: Mapping[str, Any]) -> dict[str, Any]:
+    """What a release carries of one frame (``FrameRecord.release``): the frame's entry ``item`` as imported,
+    every key, but ``lines`` when the stored field lines ``lines`` (pixels, :func:`v3_lines`) give them back exactly
+    in their order (:func:`ordered_lines`): then only the class of each line is kept, in order
+    (:data:`LINE_ORDER_KEY`), so that an export writes them back as they came on any database.
+
+    >>> release_entry({"imageMetadata": {"width": 2}, "lines": []}, {})
+    {'imageMetadata': {'width': 2}, 'v3d_line_order': []}
+    """
+    entry = dict(item)
+    raw = item.get("lines")
+    if isinstance(raw, list) and all(isinstance(line, Mapping) for line in raw):
+        order = [line.get("class") for line in raw]
+        if ordered_lines(lines, order) == raw:
+            del entry["lines"]
+            entry[LINE_ORDER_KEY] = order
+    return entry
+
+
+def ball_index(bboxes: Any) -> int | None:
+    """Index of the first entry of class "Ball" in a frame's ``bboxes`` list (None: no ball entry)."""
+    if isinstance(bboxes, list):
+        for i, b in enumerate(bboxes):
+            if isinstance(b, Mapping) and b.get("class") == BALL_CLASS:
+                return i
+    return None
+
+
+def game_release(data: Mapping[str, Any], systems: list[SystemRecord]) -> dict[str, Any]:
+    """What a release carries of a game beside its systems (``GameRecord.release``): the labels document's
+    top-level keys other than ``actions`` and ``replays`` (``GameMetadata``, every key but those that list the
+    frames, :data:`LISTING_KEYS`, which an export writes for what it holds), and under ``replays`` the replay
+    entries no action links, as they came (they belong to no system)."""
+    out = {k: v for k, v in data.items() if k not in FRAME_SECTIONS}
+    if isinstance(out.get("GameMetadata"), Mapping):
+        out["GameMetadata"] = {k: v for k, v in out["GameMetadata"].items() if k not in LISTING_KEYS}
+    linked = {f.name for s in systems for f in s.frames if f.role is FrameRole.REPLAY}
+    replays = data.get("replays")
+    unlinked = {k: v for k, v in replays.items() if k not in linked} if isinstance(replays, Mapping) else {}
+    if unlinked:
+        out["replays"] = unlinked
+    return out
 
 
 def v3_lines(item: Mapping[str, Any], width: int, height: int, file: str | Path, where: str) -> dict[str, Any]:
@@ -39,42 +133,74 @@ def _v3_ball(item: Mapping[str, Any], width: int, height: int, file: str | Path,
     boxes = item.get("bboxes", [])
     if not isinstance(boxes, list):
         raise DatasetError(file, f"{where}.bboxes", "expected a list of boxes")
-    for i, b in enumerate(boxes):
-        if isinstance(b, Mapping) and b.get("class") == "Ball":
-            pts = b.get("points")
-            if not isinstance(pts, Mapping):
-                raise DatasetError(file, f"{where}.bboxes[{i}].points", "expected {x1, y1, x2, y2}")
-            try:
-                return check_box([pts.get(k) for k in ("x1", "y1", "x2", "y2")], width, height)
-            except LabelError as exc:
-                raise DatasetError(file, f"{where}.bboxes[{i}] (Ball)", str(exc)) from None
-    return None
+    i = ball_index(boxes)
+    if i is None:
+        return None
+    pts = boxes[i].get("points")
+    if not isinstance(pts, Mapping):
+        raise DatasetError(file, f"{where}.bboxes[{i}].points", "expected {x1, y1, x2, y2}")
+    try:
+        return check_box([pts.get(k) for k in ("x1", "y1", "x2", "y2")], width, height)
+    except LabelError as exc:
+        raise DatasetError(file, f"{where}.bboxes[{i}] (Ball)", str(exc)) from None
 
 
 class FrameImages:
-    """Where a game's frame images are: ``Frames-v3.zip`` (members), a folder, or nowhere."""
+    """Where a game's frame images are: ``Frames-v3.zip`` (members), a folder, or nowhere; each inside
+    the dataset's folder ``root`` (resolved, ``app.datasets.files.dataset_root``): a zip, folder or image
+    that resolves outside it (a symbolic link leading out) refuses the game. Each located image is
+    checked from its header (PNG or JPEG, at most ``max_pixels`` pixels, ``app.datasets.files.image_header``);
+    the zip stays open while the game is read (use as a context manager)."""
 
-    def __init__(self, game_dir: Path) -> None:
+    def __init__(self, game_dir: Path, root: Path | None = None, max_pixels: int = MAX_IMAGE_PIXELS) -> None:
+        self.root = root if root is not None else dataset_root(game_dir)
+        self.max_pixels = max_pixels
         self.zip_path: Path | None = None
         self.members: set[str] = set()
         self.folders: list[Path] = []
+        self._zf: zipfile.ZipFile | None = None
+        self._where = str(game_dir / V3_FRAMES_ZIP)
         zp = game_dir / V3_FRAMES_ZIP
-        if zp.is_file():
-            with open_zip(zp) as zf:
-                self.members = set(safe_names(zf, zp))
-            self.zip_path = zp.resolve()
+        if zp.is_file() or zp.is_symlink():
+            resolved = inside_dataset(self.root, zp, V3_FRAMES_ZIP)
+            self._zf = open_zip(resolved)
+            self.members = set(safe_names(self._zf, zp))
+            self.zip_path = resolved
         for folder in (game_dir / "Frames-v3", game_dir):
-            if folder.is_dir():
-                self.folders.append(folder.resolve())
+            if folder.is_dir() or folder.is_symlink():
+                self.folders.append(inside_dataset(self.root, folder, "frames folder"))
+
+    def __enter__(self) -> "FrameImages":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Close the game's zip."""
+        if self._zf is not None:
+            self._zf.close()
+            self._zf = None
 
     def locate(self, name: str) -> dict[str, str | None]:
-        """The image source fields of the frame image ``name`` (zip member or file), ``{}`` when absent."""
-        if self.zip_path is not None and name in self.members:
-            return {"image_zip": str(self.zip_path), "image_member": name}
+        """The image source fields of the frame image ``name`` (zip member or file, relative to the
+        dataset's folder, and its checked ``image_type``), ``{}`` when absent.
+
+        Raises:
+            DatasetError: the frame's file is a link leading out of the dataset's folder, or it is not a
+                PNG or JPEG image within the pixel limit (naming it).
+        """
+        if self.zip_path is not None and self._zf is not None and name in self.members:
+            header = member_image_header(self._zf, name, f"{self._where}!{name}", self.max_pixels)
+            return {"image_root": str(self.root), "image_zip": self.zip_path.relative_to(self.root).as_posix(),
+                    "image_member": name, "image_type": header.type}
         if "/" not in name and "\\" not in name and ".." not in name:
             for folder in self.folders:
-                if (folder / name).is_file():
-                    return {"image_path": str(folder / name)}
+                candidate = folder / name
+                if candidate.is_file() or candidate.is_symlink():
+                    relative = dataset_relative(self.root, candidate, f"image of frame {name!r}")
+                    header = file_image_header(candidate, candidate, self.max_pixels)
+                    return {"image_root": str(self.root), "image_path": relative, "image_type": header.type}
         return {}
 
 
@@ -104,10 +230,10 @@ def _v3_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, i
     where = f"{section}[{name!r}]"
     item = mapping(item, file, where)
     width, height = image_size_field(item.get("imageMetadata"), file, f"{where}.imageMetadata")
+    lines = v3_lines(item, width, height, file, where)
     return FrameRecord(
-        name=name, role=role, width=width, height=height,
-        lines=v3_lines(item, width, height, file, where),
-        ball_box=_v3_ball(item, width, height, file, where),
+        name=name, role=role, width=width, height=height, lines=lines,
+        ball_box=_v3_ball(item, width, height, file, where), release=release_entry(item, lines),
         **images.locate(name),
     )
 
@@ -140,19 +266,21 @@ def v3_systems(file: Path, data: Any, images: FrameImages, frame_reader: FrameRe
     return systems
 
 
-def read_soccernet_v3(path: str | Path) -> list[GameRecord]:
+def read_soccernet_v3(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> list[GameRecord]:
     """Read and validate a SoccerNet-v3 tree (``<league>/<season>/<game>/Labels-v3.json``).
 
     ``path`` may be the tree's root, any folder inside it, or one ``Labels-v3.json``. A system is an
     action and its ``linked_replays``; the ball is the box of class "Ball". Images come from
     ``Frames-v3.zip`` beside the labels (members, never extracted) or a folder of frames
-    (``Frames-v3/`` or the game folder itself).
+    (``Frames-v3/`` or the game folder itself). Every file read resolves inside ``path``'s folder
+    (:func:`app.datasets.files.inside_dataset`: a link leading out of it refuses the input).
 
     Raises:
         DatasetError: naming the file and field (truncated JSON, unknown line class, NaN or
             out-of-image ball box, unsafe zip entry, unknown linked replay, bad image size, ...).
     """
-    return [read_soccernet_v3_game(labels) for labels in soccernet_v3_labels(path)]
+    root = dataset_root(path)
+    return [read_soccernet_v3_game(labels, root, max_pixels) for labels in soccernet_v3_labels(path)]
 
 
 def soccernet_v3_labels(path: str | Path) -> list[Path]:
@@ -160,17 +288,28 @@ def soccernet_v3_labels(path: str | Path) -> list[Path]:
     sorted), so that a caller can read the games one at a time (:func:`read_soccernet_v3_game`).
 
     Raises:
-        DatasetError: ``path`` does not exist or holds no ``Labels-v3.json``.
+        DatasetError: ``path`` does not exist or holds no ``Labels-v3.json``, or one of them resolves
+            outside ``path``'s folder (``app.datasets.files.inside_dataset``).
     """
-    return find_labels(Path(path), V3_LABELS)
+    root = dataset_root(path)
+    found = find_labels(Path(path), V3_LABELS)
+    for labels in found:
+        inside_dataset(root, labels, V3_LABELS)
+    return found
 
 
-def read_soccernet_v3_game(labels: Path) -> GameRecord:
-    """Read and validate one game's ``Labels-v3.json`` (see :func:`read_soccernet_v3`).
+def read_soccernet_v3_game(labels: Path, root: Path | None = None, max_pixels: int = MAX_IMAGE_PIXELS) -> GameRecord:
+    """Read and validate one game's ``Labels-v3.json`` (see :func:`read_soccernet_v3`); ``root`` is the
+    imported folder (resolved, :func:`app.datasets.files.dataset_root`; default: the game's folder),
+    which every file read must resolve inside; each frame image is a PNG or JPEG of at most ``max_pixels``
+    pixels (``V3D_MAX_IMAGE_PIXELS``), read from its header.
 
     Raises:
         DatasetError: naming the file and field.
     """
+    root = root if root is not None else dataset_root(labels.parent)
     league, season, match = game_key(labels.parent)
-    systems = v3_systems(labels, load_json_file(labels), FrameImages(labels.parent))
-    return GameRecord(league, season, match, str(labels.parent.resolve()), systems)
+    data = load_json_file(inside_dataset(root, labels, V3_LABELS))
+    with FrameImages(labels.parent, root, max_pixels) as images:
+        systems = v3_systems(labels, data, images)
+    return GameRecord(league, season, match, str(labels.parent.resolve()), systems, game_release(data, systems))

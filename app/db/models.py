@@ -153,6 +153,11 @@ class Game(Base):
     #: Folder or archive the game was imported from (absolute path at import time).
     source_path: Mapped[str] = mapped_column(sa.Text)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    #: What the imported labels file carries beside its systems, as it came (``GameRecord.release``: its
+    #: top-level keys but ``actions`` and ``replays``, e.g. ``GameMetadata`` with ``UrlYoutube``, and the
+    #: replays no action links), written back by the SoccerNet-v3D export; None for formats without one.
+    #: Deferred: read by the exports only.
+    release: Mapped[Optional[dict[str, Any]]] = mapped_column(deferred=True)
 
     systems: Mapped[list[System]] = relationship(
         back_populates="game", cascade="all, delete-orphan", passive_deletes=True, order_by="System.id"
@@ -176,6 +181,9 @@ class System(Base):
                  "worst_error_px"),
         sa.Index("ix_systems_review_status_worst_error_px", "review_status", "worst_error_px"),
         sa.Index("ix_systems_review_status_lowest_jac", "review_status", "lowest_jac"),
+        # keyset pages of the queue (app.services.curation.queue._slices, migration 0013): the numeric name
+        # order within a game as an index walk
+        sa.Index("ix_systems_game_id_name_length_name", "game_id", sa.text("length(name)"), "name"),
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -226,6 +234,9 @@ class System(Base):
     #: Version of the derived rows and figures (``app.services.curation.recompute.DERIVED_VERSION``); a system
     #: stored by an older version is recomputed before it is served (``refresh_stale_systems``).
     derived_version: Mapped[int] = mapped_column(default=0)
+    #: The fingerprint of the settings the derived rows were computed with (``Settings.derived_fingerprint``,
+    #: e.g. ``V3D_PROFILE``'s choices); None before it was recorded. A different one: stale for ``v3d recompute``.
+    derived_settings: Mapped[Optional[str]] = mapped_column(sa.String(16))
     #: ISSIA systems: the frame index in the sequence (frame ``i`` at ``t = i / fps``); None otherwise.
     frame_index: Mapped[Optional[int]] = mapped_column(index=True)
     #: Version of the system's review decision, bumped by every decision on the system (its strong ETag,
@@ -241,7 +252,9 @@ class Frame(Base):
     """One image of a system and where its pixels are read from.
 
     The image is either a member of a zip archive (``image_zip`` + ``image_member``, read without
-    extracting) or a file (``image_path``); both empty when the dataset ships no images.
+    extracting) or a file (``image_path``), both relative (POSIX) to the imported dataset's folder
+    ``image_root`` and checked to resolve inside it when imported and when served
+    (``app.services.transfer.images.stored_image_file``); all empty when the dataset ships no images.
     """
 
     __tablename__ = "frames"
@@ -261,11 +274,27 @@ class Frame(Base):
     image_zip: Mapped[Optional[str]] = mapped_column(sa.Text)
     image_member: Mapped[Optional[str]] = mapped_column(sa.Text)
     image_path: Mapped[Optional[str]] = mapped_column(sa.Text)
+    #: The imported dataset's folder (absolute, resolved) that ``image_zip`` / ``image_path`` are relative to.
+    image_root: Mapped[Optional[str]] = mapped_column(sa.Text)
+    #: The image's type checked from its header at import ("png" or "jpeg"); served with that media type.
+    image_type: Mapped[Optional[str]] = mapped_column(sa.String(16))
     #: Frame number inside ``image_path`` when that is a video or a folder of numbered frames
     #: (ISSIA); the image is decoded on demand and resized to ``width`` x ``height``.
     media_frame: Mapped[Optional[int]]
     #: The footage is mirrored horizontally relative to the labels: flipped back when read.
     media_flipped: Mapped[bool] = mapped_column(default=False)
+    #: The split a release gives the image ("train" or "test", ``v3d import split``); None: the kind's own
+    #: (``app.services.kinds.KindPolicy.split``).
+    split: Mapped[Optional[str]] = mapped_column(sa.String(8))
+    #: A precise ball box ``[x1, y1, x2, y2]`` px of this image (paper Table 1, ``v3d import precise-boxes``), or None.
+    precise_box: Mapped[Optional[list[float]]]
+    #: What a release carries of the frame that v3d does not edit, as it came (``FrameRecord.release``: the
+    #: frame's entry of the labels file, every key: ``imageMetadata``, every ``bboxes`` entry (players,
+    #: goalkeepers, referees, the imported ball), the links; ``lines`` only where the stored field lines do not
+    #: give them back). The SoccerNet-v3D export writes it with the curated lines and ball box, the detector
+    #: exports take their other boxes from it: no export reads the source files again. None for formats without
+    #: one (SoccerNet-calibration, ISSIA). Deferred: read by the exports only.
+    release: Mapped[Optional[dict[str, Any]]] = mapped_column(deferred=True)
     #: Version of what people edit on the frame (ball label, field lines, its review and exclusion),
     #: bumped by each such write and by an import that changes them (its strong ETag,
     #: ``app.services.curation.versions``); a recomputation caused by a sibling view's edit never touches it.
@@ -322,6 +351,8 @@ class Calibration(Base):
     ``mirror_evidence`` is the evidence on mirrored labels (``app.geometry.mirror``,
     ``MirrorVerdict.as_dict``): written by the system recomputation for a calibrated frame, by the
     rig retry for a refused one; the flag ``"probably_mirrored"`` in ``flags`` follows its verdict.
+    ``uncertainty`` is the camera's standard deviations from the line fit
+    (``app.geometry.calibration.CalibrationUncertainty.to_json``); null when not fitted from lines here.
     """
 
     __tablename__ = "calibrations"
@@ -338,6 +369,7 @@ class Calibration(Base):
     jac_002: Mapped[Optional[float]]
     admitted: Mapped[bool] = mapped_column(default=False)
     mirror_evidence: Mapped[Optional[dict[str, Any]]]
+    uncertainty: Mapped[Optional[dict[str, Any]]]
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
     frame: Mapped[Frame] = relationship(back_populates="calibration")
@@ -353,7 +385,7 @@ class BallLabel(Base):
 
     The imported original is kept beside the current value. ``kind`` None means a reviewer removed
     the label (the ball is not visible) while the original is kept; a frame that never had a label
-    has no row.
+    has no row. ``provenance`` marks a label made from a doubt's suggestion (:attr:`suggested`).
     """
 
     __tablename__ = "ball_labels"
@@ -366,8 +398,19 @@ class BallLabel(Base):
     original_box: Mapped[Optional[list[float]]]
     original_point: Mapped[Optional[list[float]]]
     edited_at: Mapped[Optional[datetime]]
+    #: Where a label made from a doubt's suggestion came from (migration 0017): ``{"source": "suggestion",
+    #: "doubt", "code", "from_views": [frame ids]}``; None for a label a person placed. A suggested label is not
+    #: independent evidence (it lies where the other views put the ball by construction): it joins no
+    #: triangulation and no doubt vote until a person places it (moves or confirms it: any edit without a
+    #: provenance clears it).
+    provenance: Mapped[Optional[dict[str, Any]]]
 
     frame: Mapped[Frame] = relationship(back_populates="ball_label")
+
+    @property
+    def suggested(self) -> bool:
+        """True while the current label is a suggestion no person has placed."""
+        return self.kind is not None and bool(self.provenance)
 
     @property
     def edited(self) -> bool:
@@ -465,7 +508,10 @@ class OptimisedBox(Base):
 
 
 class ReviewDecision(Base):
-    """The current review decision on a system or on a frame (exactly one of the two)."""
+    """The current review decision on a system or on a frame (exactly one of the two); a frame's holds two: its
+    ball's (``status``, ``comment``) and its calibration's (``calibration_*``). ``reset_reason`` and
+    ``calibration_reset_reason`` say why a decision is pending again (an edit recalibrated a view after it was
+    decided: ``app.services.curation.editing.reset_decisions_after_recalibration``)."""
 
     __tablename__ = "review_decisions"
     __table_args__ = (
@@ -484,6 +530,17 @@ class ReviewDecision(Base):
     #: Frame decisions only: the reviewer excluded this view from its system's triangulation
     #: (reversible; the view keeps its labels and calibration).
     excluded: Mapped[bool] = mapped_column(default=False)
+    #: Why ``status`` is pending again (a system's: one of its views was recalibrated after the decision);
+    #: None when decided or never reset. Cleared by the next decision.
+    reset_reason: Mapped[Optional[str]] = mapped_column(sa.Text)
+    #: Frame decisions only: the reviewer's decision on the view's calibration (its field lines and the
+    #: camera fitted to them), apart from the decision on its ball (``status``).
+    calibration_status: Mapped[ReviewStatus] = mapped_column(
+        enum_by_value(ReviewStatus, "calibration_review_status"), default=ReviewStatus.PENDING)
+    calibration_comment: Mapped[str] = mapped_column(sa.Text, default="")
+    calibration_decided_at: Mapped[Optional[datetime]]
+    #: Why ``calibration_status`` is pending again (an edit of the field lines recalibrated the view).
+    calibration_reset_reason: Mapped[Optional[str]] = mapped_column(sa.Text)
 
     system: Mapped[Optional[System]] = relationship(back_populates="review", foreign_keys=[system_id])
     frame: Mapped[Optional[Frame]] = relationship(back_populates="review", foreign_keys=[frame_id])
@@ -566,8 +623,10 @@ class User(Base):
 
 class ApiToken(Base):
     """An API token of a user (``Authorization: Bearer <token>``). Only the SHA-256 of the token is
-    stored (hex, 64 characters): the token itself is shown once, when it is issued.
-    ``last_used_at`` is refreshed at most once a minute (``app.services.accounts.users.TOKEN_USE_RESOLUTION``)."""
+    stored (hex, 64 characters): the token itself is shown once, when it is issued. ``id`` names it in
+    listings and revocations; ``label`` says what it is for. ``last_used_at`` is refreshed at most once a
+    minute (``app.services.accounts.users.TOKEN_USE_RESOLUTION``). A token works until ``expires_at`` (None:
+    no expiry) unless ``revoked_at`` is set (revoked alone, or with every token of a disabled user)."""
 
     __tablename__ = "api_tokens"
 
@@ -576,8 +635,24 @@ class ApiToken(Base):
     token_hash: Mapped[str] = mapped_column(sa.String(64), unique=True)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     last_used_at: Mapped[Optional[datetime]]
+    label: Mapped[Optional[str]] = mapped_column(sa.String(100))
+    expires_at: Mapped[Optional[datetime]]
+    revoked_at: Mapped[Optional[datetime]]
 
     user: Mapped[User] = relationship(back_populates="tokens")
+
+
+class RateLimitCounter(Base):
+    """One fixed-window counter of ``app.services.accounts.throttle`` (the storage of the ``limits`` library
+    that every server process shares): ``key`` names the limit and who it counts (e.g. failed logins of one
+    name from one address), ``hits`` what was counted in the window, which ends at ``expires_at`` (Unix
+    seconds); an expired row counts as zero and is reused."""
+
+    __tablename__ = "rate_limit_counters"
+
+    key: Mapped[str] = mapped_column(sa.String(300), primary_key=True)
+    hits: Mapped[int] = mapped_column(default=0)
+    expires_at: Mapped[float] = mapped_column(sa.Float, index=True)
 
 
 class ServerSecret(Base):
@@ -594,7 +669,7 @@ class ServerSecret(Base):
 class AuditEntry(Base):
     """One accepted write (``app.services.accounts.audit``): who (``actor``, the user's name as text, so the log
     outlives users), when (``at``, UTC), what (``action``: ``ball.edit``, ``field_lines.replace``,
-    ``field_lines.mirror``, ``view.exclusion``, ``view.review``, ``system.review``, ``import``,
+    ``field_lines.mirror``, ``view.exclusion``, ``view.review``, ``view.calibration_review``, ``system.review``, ``import``,
     ``recompute``, ``revert``) and the state of the edited part before and after (JSON; an import or a
     recompute stores its counts in ``after``). ``frame_id`` / ``system_id`` / ``game_id`` are plain indexed
     ids without foreign keys: deleting or re-importing data never deletes its history. Append-only: the

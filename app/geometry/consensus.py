@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from itertools import combinations
-from typing import Hashable, Sequence
+from typing import Callable, Hashable, Mapping, Sequence
 
 import numpy as np
 
@@ -65,7 +65,9 @@ def _scaled_error(o: BallObservation, point: np.ndarray) -> float | None:
 
 
 def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, min_baseline_m: float = 1.0,
-                   min_parallax_deg: float = 0.0) -> Consensus:
+                   min_parallax_deg: float = 0.0, weights: Mapping[Hashable, float] | None = None,
+                   tolerances_px: Mapping[Hashable, float] | None = None,
+                   plausible: Callable[[np.ndarray], bool] | None = None) -> Consensus:
     """The ball most labelled views agree on (see the module docstring), for any number of views.
 
     Args:
@@ -74,6 +76,13 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
             is below this (px).
         min_baseline_m: pairs whose camera centres are closer do not propose a ball (metres).
         min_parallax_deg: pairs whose rays meet at a smaller angle do not propose a ball (degrees).
+        weights: view id -> weight of its vote (default 1): what the view's calibration is worth (the doubt
+            judge gives a view of uncertain calibration half a vote). Proposals are ranked by the sum of
+            their voters' weights; "ambiguous" compares those sums.
+        tolerances_px: view id -> its own tolerance (px at 1920 width, default ``tau_px``): a view whose
+            calibration predicts a larger pixel error agrees within that.
+        plausible: a test of a proposed ball (world metres -> bool); a pair whose point fails it proposes
+            nothing (two rays that meet under the grass or far outside the stadium agree by coincidence).
 
     Returns:
         A :class:`Consensus`; ``point`` is None when no pair proposes a ball both its views agree with.
@@ -99,7 +108,9 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
     if len(set(ids)) != len(ids):
         raise ValueError(f"observations: view ids must be unique, got {ids!r}")
     undist = [undistort_pixels(o.camera, o.point_px)[0] for o in obs]
-    proposals: list[tuple[int, float, frozenset[int], np.ndarray]] = []
+    w = [1.0 if weights is None else float(weights.get(o.view_id, 1.0)) for o in obs]
+    tol = [tau_px if tolerances_px is None else max(tau_px, float(tolerances_px.get(o.view_id, tau_px))) for o in obs]
+    proposals: list[tuple[float, float, frozenset[int], np.ndarray]] = []
     best_pair: float | None = None
     for i, j in combinations(range(len(obs)), 2):
         a, b = obs[i], obs[j]
@@ -116,17 +127,20 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
         if errors[i] is None or errors[j] is None:  # the rays diverge: the pair cannot agree
             best_pair = math.inf if best_pair is None else best_pair
             continue
+        if plausible is not None and not plausible(point):  # they meet where no ball can be
+            best_pair = math.inf if best_pair is None else best_pair
+            continue
         pair_e = max(errors[i], errors[j])
         best_pair = pair_e if best_pair is None else min(best_pair, pair_e)
-        if not pair_e < tau_px:
+        if not (errors[i] < tol[i] and errors[j] < tol[j]):
             continue
-        voters = frozenset(k for k, e in enumerate(errors) if e is not None and e < tau_px)
-        proposals.append((len(voters), sum(errors[k] for k in voters), voters, point))
+        voters = frozenset(k for k, e in enumerate(errors) if e is not None and e < tol[k])
+        proposals.append((sum(w[k] for k in voters), sum(errors[k] for k in voters), voters, point))
     if not proposals:
         return Consensus(None, (), tuple(ids), {v: None for v in ids}, False, best_pair, 0)
     proposals.sort(key=lambda p: (-p[0], p[1]))
     n_best, _, voters, point = proposals[0]
-    ambiguous = any(n == n_best and not (v & voters) for n, _, v, _ in proposals[1:])
+    ambiguous = any(abs(n - n_best) < 1e-9 and not (v & voters) for n, _, v, _ in proposals[1:])
     if len(voters) > 2:
         members = sorted(voters)
         h = triangulate_dlt(np.stack([obs[k].camera.projection_matrix for k in members]),
@@ -134,10 +148,10 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
         if abs(h[3]) > 1e-12:
             refit = h[:3] / h[3]
             errs = [_scaled_error(obs[k], refit) for k in members]
-            if all(e is not None and e < tau_px for e in errs):
+            if all(e is not None and e < tol[k] for e, k in zip(errs, members)):
                 point = refit
     errors = {o.view_id: _scaled_error(o, point) for o in obs}
-    inliers = tuple(o.view_id for o in obs if errors[o.view_id] is not None and errors[o.view_id] < tau_px)
+    inliers = tuple(o.view_id for o, t in zip(obs, tol) if errors[o.view_id] is not None and errors[o.view_id] < t)
     outliers = tuple(v for v in ids if v not in inliers)
     point = np.asarray(point, float)
     point.setflags(write=False)

@@ -15,12 +15,24 @@ is pure (numpy / OpenCV, no database, no settings object). Kinds that accuse lab
 
 Information kinds (:data:`INFO_KINDS`) say why a view does not take part, without accusing a label.
 
+Each doubt carries a ``code`` (which reasoning found it, :data:`CODES`) and its numbers; the sentence a
+person reads is composed above this module (``app.services.curation.doubt_words``).
+
+Evidence is weighed by what each calibration is worth (:func:`pixel_sigma` from the stored calibration
+uncertainty): a view below admission whose calibration is sure still votes (half a vote), an admitted
+view whose calibration is unsure votes half and is accused only beyond its own pixel sigma. Agreement is
+judged with each pair's conditioning: a pair whose rays meet only where no ball can be (under the grass,
+far outside the stadium) does not agree, and a pair too poorly conditioned to triangulate (a near
+duplicate) is judged by each label's distance to the other view's ray across the play volume
+(:func:`epipolar_pair_error`). With one other labelled view the ball lies on that view's ray at an
+unknown height: a view misses the ball only when that whole segment lies inside its image.
+
 World frame: SoccerNet (metres, origin at the centre spot, z down). Pixels: continuous, origin at the
 top-left corner of each view's own image.
 
-Thresholds: :class:`DoubtSettings` (chosen with ``benchmarks/doubts.py``). The module has about 480
-lines because the contract, the settings and the judge's rules belong together; the robust
-consensus lives in :mod:`app.geometry.consensus`.
+Thresholds: :class:`DoubtSettings` (chosen with ``benchmarks/doubts.py`` and ``benchmarks/doubts_seeds.py``
+on the sets that script names). The module is long because the contract, the settings and the judge's
+rules belong together; the robust consensus lives in :mod:`app.geometry.consensus`.
 """
 from __future__ import annotations
 
@@ -34,14 +46,16 @@ import numpy as np
 from app.geometry.ball import ball_from_box_exact, sphere_image_box
 from app.geometry.camera import Camera
 from app.geometry.consensus import Consensus, ball_consensus
-from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation
+from app.geometry.mirror import mirror_camera
+from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M, within_play_volume
+from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px
 
 #: Kinds that accuse a label (the review queue counts, filters and sorts by them).
 LABEL_KINDS: tuple[str, ...] = (
     "mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view",
 )
 #: Kinds that inform without accusing a label.
-INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_assisted", "few_lines")
+INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_assisted", "few_lines", "suggested_label")
 
 #: ``suggestion["action"]`` values: what the fix of a doubt does (one key on the system page).
 #: ``snap_box``: set the view's ball label to ``suggestion["box"]``; ``exclude_view``: exclude the
@@ -50,6 +64,17 @@ INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_as
 #: ``snap_point``: set the view's point label to ``suggestion["point"]`` (ISSIA, where the sequence's
 #: trajectory projects).
 SUGGESTION_ACTIONS: tuple[str, ...] = ("snap_box", "exclude_view", "mirror_labels", "snap_point")
+
+#: ``Doubt.code`` per kind: which reasoning found the doubt (the words layer writes one sentence per code).
+CODES: dict[str, tuple[str, ...]] = {
+    "calibration_refused": ("refused",), "below_admission": ("below_admission",),
+    "rig_assisted": ("rig_assisted",), "few_lines": ("few_lines",), "suggested_label": ("unconfirmed",),
+    "mirrored_labels": ("flagged", "suspected"),
+    "ball_off_consensus": ("off_consensus", "behind_camera", "trajectory"),
+    "ball_missing": ("consensus", "epipolar", "epipolar_box"),
+    "views_disagree": ("no_agreement", "ambiguous", "epipolar"),
+    "near_duplicate_view": ("near_duplicate",),
+}
 
 
 @dataclass(frozen=True)
@@ -72,6 +97,11 @@ class DoubtView:
         mirror_evidence: ``MirrorVerdict.as_dict()`` of the view, or None.
         calibration_reason: why calibration was refused, None otherwise.
         rig_assisted: the camera was fitted at a position of the game's camera rig.
+        uncertainty: the calibration's standard deviations as stored
+            (``CalibrationUncertainty.to_json()``), or None (then the camera is taken as exact).
+        suggested: the ball label was made from a doubt's suggestion and no person has placed it: it lies
+            where the other views put the ball by construction, so it votes for nothing (info doubt
+            ``suggested_label``) and the view is not called missing either.
     """
 
     view_id: Hashable
@@ -90,6 +120,8 @@ class DoubtView:
     mirror_evidence: dict[str, Any] | None = None
     calibration_reason: str | None = None
     rig_assisted: bool = False
+    uncertainty: dict[str, Any] | None = None
+    suggested: bool = False
 
 
 @dataclass(frozen=True)
@@ -99,7 +131,8 @@ class Doubt:
     Attributes:
         kind: one of :data:`LABEL_KINDS` or :data:`INFO_KINDS`.
         view_id: the view it names (None: the system as a whole).
-        message: one sentence with its numbers.
+        code: which reasoning found it (one of :data:`CODES` of its kind); the words are composed from
+            ``kind``, ``code`` and ``evidence`` by ``app.services.curation.doubt_words``.
         evidence: the numbers behind it (JSON-ready: floats, ints, strings, lists, dicts).
         suggestion: the fix, ``{"action": one of SUGGESTION_ACTIONS, ...}`` (``"box"``:
             ``[x1, y1, x2, y2]`` in the named view's own pixels for ``snap_box``), or None.
@@ -107,7 +140,7 @@ class Doubt:
 
     kind: str
     view_id: Hashable | None
-    message: str
+    code: str
     evidence: dict[str, Any] = field(default_factory=dict)
     suggestion: dict[str, Any] | None = None
 
@@ -142,17 +175,20 @@ class DoubtSettings:
             distinct broadcast viewpoints at least 10 deg apart.
         inside_margin_px: the ball of the other views must project at least this far inside the image
             for ``ball_missing`` (px at 1920 width; negative lets it lie that far outside).
-        single_view_margin_px: with a single other labelled view the ball's depth along its ray is
-            uncertain (a ball in the air put on the grass moves along the epipolar line): it must
-            project at least this far inside the image for ``ball_missing`` (px at 1920 width).
-        ground_box_tolerance: with a single other labelled view, the ball is put on the grass when the
-            monocular depth from the box is within this relative difference of the grass depth on its
-            ray (fraction; SoccerNet-v3 boxes err by about 19 % in size).
+        single_view_margin_px: unused since the judge reasons on the whole epipolar segment (kept so that
+            a deployment's ``V3D_DOUBT_SINGLE_VIEW_MARGIN_PX`` stays valid).
+        ground_box_tolerance: a labelled view places the ball on the grass when the monocular depth from
+            its box is within this relative difference of the grass depth on its ray (fraction; SoccerNet-v3
+            boxes err by about 19 % in size): the reference point of its calibration's pixel sigma and of the
+            near-duplicate angle.
         mirror_rig_near_m, mirror_rig_gap_m: an unflagged view is suspected mirrored when its ray meets
             another view's only mirrored and its mirrored camera stands within ``mirror_rig_near_m`` of a
             known camera position of the game while as labelled it stands ``mirror_rig_gap_m`` farther
             (metres; calibrated centres of one camera scatter by about a metre).
-        max_ball_height_m: highest plausible ball (metres above the grass) for a placed ball.
+        max_ball_height_m: highest plausible ball (metres above the grass).
+        max_below_m: lowest plausible ball centre below the grass (metres: triangulation noise).
+        play_margin_m: a ball more than this beyond the touch or goal lines is not a ball position
+            (metres; the mirror evidence's margin).
         min_line_classes: a view with fewer distinct line classes gets the info doubt ``few_lines`` and
             takes no part in the checks: with the game's rig, two or three classes give a camera that
             fits its own lines perfectly (JaC 1.0) yet may turn its ball ray by degrees, so its ball
@@ -170,6 +206,8 @@ class DoubtSettings:
     single_view_margin_px: float = 40.0
     ground_box_tolerance: float = 0.35
     max_ball_height_m: float = 30.0
+    max_below_m: float = 0.5
+    play_margin_m: float = 15.0
     mirror_rig_near_m: float = 1.0
     mirror_rig_gap_m: float = 2.0
     min_line_classes: int = 4
@@ -206,8 +244,83 @@ def _project(view: DoubtView, point: np.ndarray) -> np.ndarray | None:
 
 
 def _plausible(point: np.ndarray, s: DoubtSettings) -> bool:
-    """A ball in or near the stadium: within 30 m of the pitch, below ``max_ball_height_m``, not underground."""
-    return bool(abs(point[0]) < 82.5 and abs(point[1]) < 64.0 and -s.max_ball_height_m <= point[2] <= 0.5)
+    """A ball position a game could hold (:func:`app.geometry.pitch.within_play_volume` with the judge's margins)."""
+    return bool(within_play_volume(np.asarray(point, float).reshape(1, 3), margin_m=s.play_margin_m,
+                                   max_height_m=s.max_ball_height_m, max_below_m=s.max_below_m)[0])
+
+
+def pixel_sigma(view: DoubtView, point: np.ndarray, s: DoubtSettings) -> float:
+    """How far (px at 1920 width) the view's calibration may put ``point``'s projection: the first-order
+    propagation of its stored uncertainty (``calibrations.uncertainty``,
+    :class:`app.geometry.calibration.uncertainty.CalibrationUncertainty`) to the pixel of ``point``, with
+    the rotation and focal terms independent: ``sqrt((f s_pan)^2 + (f s_tilt)^2 + (r s_roll)^2 + (r s_f / f)^2)``
+    (angles in radians, ``r`` the pixel's distance to the principal point). The centre's terms are left
+    out: the fit trades the centre along the viewing direction against the focal length, which moves
+    the ball's pixel little (with them the figure overstates the error of the synthetic sets' views
+    about 25 times at the median; without them about 5 times, and it still ranks the views whose
+    calibration failed: of the admitted views above ``consensus_tau_px`` 11 % project the true ball more
+    than that far off, of those below it 0.3 %). 0 without a stored uncertainty; ``inf`` for a parameter the
+    lines leave undetermined.
+    """
+    u = view.uncertainty
+    if not u or view.camera is None:
+        return 0.0
+    uv = _project(view, point)
+    if uv is None:
+        return math.inf
+    f = float(view.camera.K[0, 0])
+    r = float(np.linalg.norm(uv - view.camera.K[:2, 2]))
+    def num(key: str) -> float:
+        v = u.get(key)
+        return math.inf if v is None else float(v)
+    terms = (f * math.radians(num("pan_deg")), f * math.radians(num("tilt_deg")), r * math.radians(num("roll_deg")),
+             r * num("focal_px") / f)
+    if any(math.isinf(t) or math.isnan(t) for t in terms):
+        return math.inf
+    return float(math.sqrt(sum(t * t for t in terms))) * _scale(view, s)
+
+
+def calibration_weight(view: DoubtView, s: DoubtSettings) -> tuple[float, float]:
+    """What the view's calibration is worth as evidence of a ball, and its pixel sigma: ``(weight, sigma)``.
+
+    ``sigma`` (px at 1920 width) is :func:`pixel_sigma` where the view's ball label's ray meets the grass
+    (the pixel sigma hardly depends on the point's depth), else where its optical axis does, else 50 m
+    along the axis. ``weight``: for a view with at least ``min_line_classes`` line classes the vote of
+    :func:`_vote_weight` (1 admitted and sure, 0.5 unsure or below admission but sure, else 0); for a view
+    with fewer classes (its camera is not fixed by its own lines: with the game's rig two or three classes
+    fit exactly yet may turn the ball ray by degrees) half a vote when its stored uncertainty is sure (sigma
+    within ``consensus_tau_px``) and it fits at least half of its lines (JaC@0.5 % >= 0.5), else 0.
+    The doubt judge weighs its votes with it; the triangulation (``app.geometry.triangulation.triangulate_ball``
+    ``view_weights``) lets no pair without a full vote make a ball, and no weaker pair move one that
+    full votes make. A view without a camera: ``(0.0, inf)``."""
+    if view.camera is None:
+        return 0.0, math.inf
+    c = _centre(view)
+    ref = None if c is None else _ray_at_height(view.camera.C, view.camera.rays(c.reshape(1, 2))[0],
+                                                  -s.ball_diameter_m / 2)
+    if ref is None:
+        ref = _axis_on_grass(view, s)
+    if ref is None:  # a camera looking above the horizon: a point 50 m along its axis
+        ref = view.camera.C + 50.0 * view.camera.R[2]
+    sigma = pixel_sigma(view, ref, s)
+    if view.line_classes >= s.min_line_classes:
+        return _vote_weight(view, sigma, s), sigma
+    sure = bool(view.uncertainty) and sigma <= s.consensus_tau_px and (view.jac or 0.0) >= 0.5
+    return (0.5 if sure else 0.0), sigma
+
+
+def _vote_weight(view: DoubtView, sigma_1920: float, s: DoubtSettings) -> float:
+    """What the view's calibration is worth in the consensus: 1 for an admitted view whose pixel sigma
+    (:func:`pixel_sigma`) is within ``consensus_tau_px``; half a vote for an admitted view above it or
+    for a view below admission within it (each projects the true ball more than tau off about one time in
+    ten on the synthetic sets, against 0.3 % for full votes), the latter only when it fits at least half of
+    its own lines (JaC@0.5 % >= 0.5); 0 otherwise."""
+    sure = sigma_1920 <= s.consensus_tau_px
+    if view.admitted:
+        return 1.0 if sure else 0.5
+    # below admission: its uncertainty speaks for it only if the camera fits most of its own lines
+    # (JaC@0.5 % of at least a half; a camera that fits none, JaC 0, is a failed fit whatever its sigma)
+    return 0.5 if sure and (view.jac or 0.0) >= 0.5 else 0.0
 
 
 def _info_doubts(views: Sequence[DoubtView], s: DoubtSettings) -> list[Doubt]:
@@ -215,54 +328,100 @@ def _info_doubts(views: Sequence[DoubtView], s: DoubtSettings) -> list[Doubt]:
     for v in views:
         if v.camera is None:
             reason = v.calibration_reason or "no calibration"
-            out.append(Doubt("calibration_refused", v.view_id, f"{v.name} has no camera ({reason}), so its labels "
-                             "cannot be checked against the other views.", {"reason": reason}))
+            out.append(Doubt("calibration_refused", v.view_id, "refused", {"reason": reason}))
         elif not v.admitted:
-            out.append(Doubt("below_admission", v.view_id, f"{v.name} is calibrated with JaC@0.5 % "
-                             f"{_fmt(v.jac)}, below admission, so it takes no part in the checks.",
+            out.append(Doubt("below_admission", v.view_id, "below_admission",
                              {"jac": None if v.jac is None else _r(v.jac, 4)}))
         if v.rig_assisted:
-            out.append(Doubt("rig_assisted", v.view_id, f"{v.name} was calibrated at a camera position of the "
-                             "game's rig (its lines alone did not fix the camera).", {}))
+            out.append(Doubt("rig_assisted", v.view_id, "rig_assisted", {}))
+        if v.suggested:
+            out.append(Doubt("suggested_label", v.view_id, "unconfirmed", {}))
         if v.line_classes < s.min_line_classes:
-            out.append(Doubt("few_lines", v.view_id, f"{v.name} has {v.line_classes} field-line classes "
-                             f"(fewer than {s.min_line_classes}), too few to fix its camera reliably.",
+            out.append(Doubt("few_lines", v.view_id, "few_lines",
                              {"line_classes": int(v.line_classes), "min_line_classes": int(s.min_line_classes)}))
     return out
 
 
-def _fmt(x: float | None, nd: int = 3) -> str:
-    return "unknown" if x is None else f"{x:.{nd}f}"
-
-
-def _mirror_doubt(v: DoubtView) -> Doubt:
+def _mirror_doubt(v: DoubtView, code: str, others: Consensus | None, s: DoubtSettings) -> Doubt:
+    """``mirrored_labels`` for ``v`` (``code``: ``flagged``, ``suspected`` or ``refit``), with the fix when the
+    mirrored calibration and the ball agree better (:func:`_mirror_fix_check`)."""
     ev = dict(v.mirror_evidence or {})
-    evidence = {k: ev[k] for k in ("verdict", "margin", "camera_y_m", "mirrored_camera_y_m", "side_vote",
-                                   "rig_distance_m", "rig_distance_mirrored_m", "rig_vote", "sentence") if k in ev}
+    evidence: dict[str, Any] = {k: ev[k] for k in ("verdict", "margin", "camera_y_m", "mirrored_camera_y_m",
+                                                    "side_vote", "rig_distance_m", "rig_distance_mirrored_m",
+                                                    "rig_vote", "refit") if k in ev}
     evidence["flagged"] = bool(v.mirror_flagged)
-    if v.mirror_flagged:
-        margin = ev.get("margin")
-        why = "the mirror evidence flags it" + (f" (margin {margin:.1f})" if isinstance(margin, (int, float)) else "")
-    else:
-        why = (f"its ball ray meets another view's only mirrored, and mirrored its camera stands "
-               f"{ev['rig_distance_mirrored_m']:.2f} m from a known camera of the game against "
-               f"{ev['rig_distance_m']:.1f} m as labelled")
-    return Doubt("mirrored_labels", v.view_id, f"{v.name}'s field lines look labelled left for right: {why}.",
-                 evidence, {"action": "mirror_labels"})
+    fix_ok, why_not, numbers = _mirror_fix_check(v, ev, others, s)
+    evidence.update(numbers)
+    evidence["fix_agrees"] = fix_ok
+    if not fix_ok:
+        evidence["no_fix"] = why_not
+    return Doubt("mirrored_labels", v.view_id, code, evidence, {"action": "mirror_labels"} if fix_ok else None)
+
+
+def _mirror_fix_check(v: DoubtView, ev: dict[str, Any], others: Consensus | None,
+                      s: DoubtSettings) -> tuple[bool, str, dict[str, Any]]:
+    """Whether mirroring the view's labels is a fix the other views' ball confirms: (offered, code of why
+    not, numbers).
+
+    The mirror fix replaces the view's camera by its mirror image (``app.geometry.mirror.mirror_camera``:
+    the camera its mirrored labels calibrate to, exactly). With a ball the other views agree on and a ball
+    label in this view, the fix is offered only when the mirrored camera brings the label closer to that
+    ball than the camera as labelled does, and within tolerance (``as_labelled_fits`` / ``mirrored_misses``
+    otherwise; the numbers ``error_as_labelled_px_1920``, ``error_mirrored_px_1920``). Without such a ball no
+    fix is offered unless the game's rig says which view is mirrored: a single other view's ray meeting this one
+    only mirrored (``app.geometry.mirror.pair_relation`` "different") cannot tell which of the two is mirrored,
+    the rig can (the mirrored camera within ``mirror_rig_near_m`` of a known camera position, the camera as
+    labelled ``mirror_rig_gap_m`` farther; else ``one_view_cannot_tell``; ``as_labelled_meets`` when a ray meets
+    it as labelled, ``no_ray_confirms`` without any). A view
+    without a camera (refused as labelled) whose mirrored labels fit (``refit``) gets the fix: it has no
+    camera to make worse.
+    """
+    if v.camera is None:
+        return (True, "", {}) if ev.get("refit") or ev.get("verdict") == "probably_mirrored" else (False, "no_ray_confirms", {})
+    c = _centre(v)
+    if others is not None and others.point is not None and not others.ambiguous and c is not None:
+        k = _scale(v, s)
+        e_as = reprojection_error_px(v.camera, others.point, c)
+        e_mi = reprojection_error_px(mirror_camera(v.camera), others.point, c)
+        numbers = {"error_as_labelled_px_1920": None if e_as is None else _r(e_as * k),
+                   "error_mirrored_px_1920": None if e_mi is None else _r(e_mi * k),
+                   "agreeing_views": list(others.inliers)}
+        tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+        if e_as is not None and (e_mi is None or e_as <= e_mi):
+            return False, "as_labelled_fits", numbers
+        if e_mi is None or e_mi * k > tau:
+            return False, "mirrored_misses", numbers
+        return True, "", numbers
+    pairs = [p for p in ev.get("pairs") or [] if isinstance(p, dict)]
+    if any(p.get("relation") == "same" for p in pairs):
+        return False, "as_labelled_meets", {}
+    if not any(p.get("relation") == "different" for p in pairs):
+        return False, "no_ray_confirms", {}
+    # one other view's ray cannot tell which of the two is mirrored (mirroring either meets it): the game's rig
+    # can, when the mirrored camera stands at a known camera position (within mirror_rig_near_m) and the camera
+    # as labelled at least mirror_rig_gap_m farther from every one; without it, on a clean view such a fix
+    # moved a right camera, and its 3D ball, across the pitch
+    d, dm = ev.get("rig_distance_m"), ev.get("rig_distance_mirrored_m")
+    if isinstance(d, (int, float)) and isinstance(dm, (int, float)) and dm <= s.mirror_rig_near_m \
+            and d >= dm + s.mirror_rig_gap_m:
+        return True, "", {"rig_confirms": True}
+    return False, "one_view_cannot_tell", {}
 
 
 def _mirror_suspected(v: DoubtView, s: DoubtSettings) -> bool:
-    """Not flagged, but the mirror evidence points at this view: its ball ray meets another view's only
-    when one of the two is mirrored (relation "different"), and its mirrored camera stands at a known
-    camera position of the game (within ``mirror_rig_near_m``) while as labelled it stands at least
-    ``mirror_rig_gap_m`` farther from every one. The flag itself weighs that rig vote low so that it
-    never flags alone; a doubt asks a person to look, so the pair's disagreement plus the rig suffice."""
+    """Not flagged, but the mirror evidence points at this view: no other view's ball ray meets its ray
+    only as labelled, and its mirrored camera stands at a known camera position of the game (within
+    ``mirror_rig_near_m``) while as labelled it stands at least ``mirror_rig_gap_m`` farther from every one.
+    The flag itself weighs that rig vote low so that it never flags alone (a replay camera seen once whose
+    mirror image happens to stand near a known position); a doubt asks a person to look, and a mirror
+    image within a metre of a known camera, with the camera itself far from any, is rare by chance. The
+    fix is still offered only when the ball confirms it (:func:`_mirror_fix_check`)."""
     ev = v.mirror_evidence or {}
     d, dm = ev.get("rig_distance_m"), ev.get("rig_distance_mirrored_m")
     if v.mirror_flagged or not isinstance(d, (int, float)) or not isinstance(dm, (int, float)):
         return False
-    different = any(p.get("relation") == "different" for p in ev.get("pairs") or [])
-    return bool(different and dm <= s.mirror_rig_near_m and d >= dm + s.mirror_rig_gap_m)
+    same = any(p.get("relation") == "same" for p in ev.get("pairs") or [])
+    return bool(not same and dm <= s.mirror_rig_near_m and d >= dm + s.mirror_rig_gap_m)
 
 
 def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtSettings) -> list[Doubt]:
@@ -293,9 +452,7 @@ def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtS
         keep, drop = sorted((a, b), key=lambda v: (_centre(v) is None, v.role != "action", -(v.jac or 0.0)))
         named.add(drop.view_id)
         out.append(Doubt(
-            "near_duplicate_view", drop.view_id,
-            f"{drop.name} sees the ball from nearly the same place as {keep.name} (their cameras are "
-            f"{angle:.2f} deg apart seen from the ball, {np.linalg.norm(u - w):.1f} m apart), so it adds no depth.",
+            "near_duplicate_view", drop.view_id, "near_duplicate",
             {"other_view": keep.view_id, "angle_deg": _r(angle, 3), "baseline_m": _r(np.linalg.norm(u - w), 2),
              "max_deg": s.near_duplicate_max_deg},
             {"action": "exclude_view"}))
@@ -331,9 +488,9 @@ def _single_view_ball(v: DoubtView, s: DoubtSettings) -> tuple[np.ndarray | None
     c = _centre(v)
     ray = v.camera.rays(c.reshape(1, 2))[0]
     grass = _ray_at_height(v.camera.C, ray, -s.ball_diameter_m / 2)
-    if v.box is None:
+    mono = _mono(v, s)
+    if mono is None:
         return grass, "grass"
-    mono = ball_from_box_exact(v.camera, np.asarray(v.box, float), s.ball_diameter_m)[0]
     if grass is not None:
         ratio = np.linalg.norm(mono - v.camera.C) / np.linalg.norm(grass - v.camera.C)
         if abs(ratio - 1.0) <= s.ground_box_tolerance:
@@ -341,33 +498,101 @@ def _single_view_ball(v: DoubtView, s: DoubtSettings) -> tuple[np.ndarray | None
     return mono, "box"
 
 
-def _epipolar_px(labelled: DoubtView, missing: DoubtView, s: DoubtSettings, samples: int = 64) -> list[list[float]]:
-    """The labelled view's ball ray seen in the missing view: pixels of the missing view inside its image,
-    from 1 m in front of the labelled camera to where the ray meets the ball-on-grass height (or 300 m),
-    at most ``samples`` points evenly spread in depth over the stretch of the ray the view sees."""
-    c = _centre(labelled)
-    ray = labelled.camera.rays(c.reshape(1, 2))[0]
-    grass = _ray_at_height(labelled.camera.C, ray, -s.ball_diameter_m / 2)
-    far = 300.0 if grass is None else min(300.0, float(np.linalg.norm(grass - labelled.camera.C)))
-    if far <= 1.0:
-        return []
-    def inside(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        uv, ok = missing.camera.project(labelled.camera.C + t[:, None] * ray)
-        with np.errstate(invalid="ignore"):
-            keep = ok & (uv[:, 0] >= 0) & (uv[:, 0] <= missing.width) & (uv[:, 1] >= 0) & (uv[:, 1] <= missing.height)
-        return uv, keep
-
-    coarse = np.geomspace(1.0, far, 4 * samples)  # find the stretch of the ray that the view sees ...
-    _, keep = inside(coarse)
-    if not keep.any():
-        return []
-    idx = np.flatnonzero(keep)
-    lo, hi = coarse[max(idx[0] - 1, 0)], coarse[min(idx[-1] + 1, len(coarse) - 1)]
-    uv, keep = inside(np.linspace(lo, hi, samples))  # ... then sample it evenly
-    return [[_r(x, 1), _r(y, 1)] for x, y in uv[keep]]
+def _mono(v: DoubtView, s: DoubtSettings) -> np.ndarray | None:
+    """The monocular ball of the view's box (method.md section 6, exact silhouette), world metres, or None
+    without a box or where the camera cannot place it (a badly distorted camera far outside its valid field)."""
+    if v.box is None:
+        return None
+    try:
+        with np.errstate(all="ignore"):
+            mono = ball_from_box_exact(v.camera, np.asarray(v.box, float), s.ball_diameter_m)[0]
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    return mono if np.all(np.isfinite(mono)) else None
 
 
-def _missing_doubt(v: DoubtView, ball: np.ndarray, s: DoubtSettings, source: str,
+def ray_in_play_volume(camera: Camera, pixel: np.ndarray, s: DoubtSettings) -> tuple[float, float] | None:
+    """The depths ``t`` (metres along the unit ray from the camera centre) at which the ball seen at
+    ``pixel`` would lie in the play volume (:func:`_plausible`: the pitch plus ``play_margin_m``, from
+    ``max_ball_height_m`` above the grass to ``max_below_m`` below it), at least 1 m in front of the
+    camera: ``(t_near, t_far)``, or None when the ray never enters it (slab intersection of the ray with
+    the volume's box)."""
+    ray = camera.rays(np.asarray(pixel, float).reshape(1, 2))[0]
+    C = camera.C
+    lo = np.array([-(PITCH_LENGTH_M / 2 + s.play_margin_m), -(PITCH_WIDTH_M / 2 + s.play_margin_m), -s.max_ball_height_m])
+    hi = np.array([PITCH_LENGTH_M / 2 + s.play_margin_m, PITCH_WIDTH_M / 2 + s.play_margin_m, s.max_below_m])
+    t0, t1 = 1.0, math.inf
+    for k in range(3):
+        if abs(ray[k]) < 1e-12:
+            if not lo[k] <= C[k] <= hi[k]:
+                return None
+            continue
+        a, b = (lo[k] - C[k]) / ray[k], (hi[k] - C[k]) / ray[k]
+        t0, t1 = max(t0, min(a, b)), min(t1, max(a, b))
+    return (float(t0), float(t1)) if t0 < t1 else None
+
+
+def _segment(labelled: DoubtView, other: DoubtView, s: DoubtSettings, samples: int = 64,
+             by_box: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+    """The labelled view's ball ray across the play volume (:func:`ray_in_play_volume`), seen in
+    ``other``: ``(world points (N, 3), pixels (N, 2) of other, NaN where behind its camera)``, ``samples``
+    points evenly spread in depth; None when the ray misses the volume. ``by_box``: only the depths
+    the view's box size allows (the monocular depth, method.md section 6, within ``ground_box_tolerance``
+    of it), for a box label."""
+    span = ray_in_play_volume(labelled.camera, _centre(labelled), s)
+    if span is None:
+        return None
+    ray = labelled.camera.rays(_centre(labelled).reshape(1, 2))[0]
+    mono = _mono(labelled, s) if by_box else None
+    if mono is not None:  # the box's size bounds the depth (boxes err by ~20 % in size)
+        d = float(np.linalg.norm(mono - labelled.camera.C))
+        span = (max(span[0], d * (1 - s.ground_box_tolerance)), min(span[1], d * (1 + s.ground_box_tolerance)))
+        if span[0] >= span[1]:
+            return None
+    t = np.linspace(span[0], span[1], samples)
+    pts = labelled.camera.C + t[:, None] * ray
+    uv, ok = other.camera.project(pts)
+    uv = np.where(ok[:, None], uv, np.nan)
+    return pts, uv
+
+
+def _polyline_distance(uv: np.ndarray, p: np.ndarray) -> tuple[float, int]:
+    """Distance (px) from ``p`` to the polyline ``uv`` (N, 2; NaN rows break it) and the index of the
+    nearest vertex; ``(inf, -1)`` without a finite segment."""
+    a, b = uv[:-1], uv[1:]
+    ok = np.isfinite(a).all(1) & np.isfinite(b).all(1)
+    if not ok.any():
+        return math.inf, -1
+    a, b = a[ok], b[ok]
+    ab = b - a
+    L = np.maximum(np.sum(ab * ab, axis=1), 1e-12)
+    t = np.clip(np.sum((p - a) * ab, axis=1) / L, 0.0, 1.0)
+    d = np.linalg.norm(a + t[:, None] * ab - p, axis=1)
+    k = int(np.argmin(d))
+    idx = np.flatnonzero(ok)[k] + (1 if t[k] > 0.5 else 0)
+    return float(d[k]), int(idx)
+
+
+def epipolar_pair_error(a: DoubtView, b: DoubtView, s: DoubtSettings) -> float | None:
+    """How far (px at 1920 width) two labelled views are from seeing one ball the game could hold: the
+    smaller of the two distances from a view's label to the other view's ball ray across the play
+    volume, seen in it (its epipolar segment). It needs no triangulation, so it judges pairs of any
+    conditioning: a near-duplicate pair (the rays nearly parallel, no depth) and a pair whose rays meet
+    only under the grass are tested as well as a wide one. ``inf`` when a ray misses the play volume;
+    None when neither segment is seen by the other camera."""
+    best: float | None = None
+    for x, y in ((a, b), (b, a)):
+        seg = _segment(x, y, s)
+        if seg is None:
+            return math.inf
+        d, _ = _polyline_distance(seg[1], _centre(y))
+        if math.isfinite(d):
+            d *= _scale(y, s)
+            best = d if best is None else min(best, d)
+    return best
+
+
+def _missing_doubt(v: DoubtView, ball: np.ndarray, s: DoubtSettings, code: str,
                    extra: dict[str, Any], margin_px: float | None = None) -> Doubt | None:
     """``ball_missing`` for an unlabelled view when ``ball`` projects inside its image by ``margin_px``
     (px at 1920 width; default ``inside_margin_px``), else None."""
@@ -378,11 +603,59 @@ def _missing_doubt(v: DoubtView, ball: np.ndarray, s: DoubtSettings, source: str
     box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
     if box is None:
         return None
-    evidence = {"projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball], "source": source,
-                **extra}
-    return Doubt("ball_missing", v.view_id,
-                 f"{v.name} has no ball label, but the ball {source} projects inside it at "
-                 f"({uv[0]:.0f}, {uv[1]:.0f}) px.", evidence, {"action": "snap_box", "box": _box_list(box)})
+    evidence = {"projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball], **extra}
+    return Doubt("ball_missing", v.view_id, code, evidence, {"action": "snap_box", "box": _box_list(box)})
+
+
+def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> Doubt | None:
+    """``ball_missing`` for ``v`` when one other view is labelled. One ray does not fix the ball's depth: the
+    ball lies on that view's ray, within the depths its box size allows (:func:`_segment` ``by_box``), at an
+    unknown height. ``v`` is said to miss it when the ball is more likely inside ``v``'s image than not: it
+    projects inside (by ``inside_margin_px``) where :func:`_single_view_ball` places it (on the grass when
+    the box size agrees, else at the box's depth), and the chance that it lies inside, the box-size depth
+    taken as a normal law (sigma ``ground_box_tolerance`` / 2) over the segment, is at least a half. A ball
+    in the air that only the grass guess puts inside is not claimed (an out-of-frame replay would be called
+    missing). The segment is drawn (``evidence["epipolar_px"]``); a box is suggested only where the
+    segment is short enough that any point on it lies within ``consensus_tau_px`` of its middle (code
+    ``epipolar_box``; ``epipolar`` without a box). A suggested box lies on the other view's ray by
+    construction, so it is a guess, not evidence (the service keeps its provenance)."""
+    ball, how = _single_view_ball(only, s)
+    if ball is None or not _plausible(ball, s):
+        return None
+    uv0 = _project(v, ball)
+    m = s.inside_margin_px / _scale(v, s)
+    if uv0 is None or not _inside(v, uv0, m):
+        return None
+    seg = _segment(only, v, s, by_box=True)
+    if seg is None:
+        return None
+    pts, uv = seg
+    with np.errstate(invalid="ignore"):
+        inside = np.isfinite(uv).all(1) & (uv[:, 0] >= m) & (uv[:, 0] <= v.width - m) & (uv[:, 1] >= m) & (
+            uv[:, 1] <= v.height - m)
+    # the chance that the ball is inside: the box-size depth as a normal law (sigma half the tolerance,
+    # so the segment spans two sigmas each side), weighed over the segment's samples
+    mono = _mono(only, s)
+    if mono is not None:
+        depth = np.linalg.norm(pts - only.camera.C, axis=1) / np.linalg.norm(mono - only.camera.C)
+        w = np.exp(-0.5 * ((depth - 1.0) / (s.ground_box_tolerance / 2)) ** 2)
+    else:
+        w = np.ones(len(pts))
+    chance = float(np.sum(w * inside) / np.sum(w))
+    if chance < 0.5:
+        return None
+    seen = uv[inside]
+    length = float(np.sum(np.linalg.norm(np.diff(seen, axis=0), axis=1))) * _scale(v, s)
+    evidence: dict[str, Any] = {"agreeing_views": [only.view_id], "epipolar_px": [[_r(x), _r(y)] for x, y in seen],
+                                "segment_length_px_1920": _r(length), "inside_fraction": _r(inside.mean(), 2), "inside_chance": _r(chance, 2),
+                                "grass_px": [_r(uv0[0]), _r(uv0[1])], "placed": how, "depth_known": False}
+    if length / 2 > s.consensus_tau_px or not inside.all():
+        return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
+    box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
+    if box is None:
+        return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
+    evidence.update(projected_px=[_r(uv0[0]), _r(uv0[1])], ball3d=[_r(x, 3) for x in ball])
+    return Doubt("ball_missing", v.view_id, "epipolar_box", evidence, {"action": "snap_box", "box": _box_list(box)})
 
 
 def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSettings()) -> list[Doubt]:
@@ -391,21 +664,29 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
     Rules, in order:
 
     1. info doubts per view (refused calibration, below admission, rig-assisted, few line classes);
-    2. views that take part: calibrated, admitted, not excluded by the reviewer, with at least
-       ``min_line_classes`` line classes. A calibrated view flagged mirrored (admitted or not: JaC is
-       the same for labels and their mirror), or a view that takes part and is suspected mirrored
+    2. views that take part: calibrated, not excluded by the reviewer, with at least
+       ``min_line_classes`` line classes, and a vote (:func:`_vote_weight`: what the calibration is worth,
+       from admission and the calibration's pixel sigma, :func:`pixel_sigma`). A view with at least
+       ``min_line_classes`` classes flagged mirrored (refused, calibrated or below admission: JaC is the
+       same for labels and their mirror), or a view that takes part and is suspected mirrored
        (:func:`_mirror_suspected`), gets ``mirrored_labels`` and takes no further part (its camera is
        the mirrored one, so its ray says nothing about its ball label, and it is not accused twice);
     3. the labelled views' robust consensus (:func:`app.geometry.consensus.ball_consensus` with
-       ``consensus_tau_px``): each labelled view off a non-ambiguous consensus gets
-       ``ball_off_consensus`` (fix: exclude it, or snap to the consensus ball's box); labelled views
-       with no consensus or an ambiguous one give one ``views_disagree`` for the system;
+       ``consensus_tau_px``, votes weighted, each view's tolerance widened to its pixel sigma, a proposal
+       outside the play volume refused): each labelled view off a non-ambiguous consensus gets
+       ``ball_off_consensus`` (fix: exclude it, or snap to the consensus ball's box); labelled views with no
+       consensus or an ambiguous one give one ``views_disagree`` for the system, also when the only pairs
+       are too poorly conditioned to triangulate but their labels miss each other's ray across the play
+       volume by more than tau (:func:`epipolar_pair_error`);
     4. each unlabelled view in which the consensus ball projects inside the image (by
        ``inside_margin_px``) gets ``ball_missing`` with the exact sphere box there; with a single
-       labelled view the ball is placed on its ray (:func:`_single_view_ball`) and the ray's epipolar
-       segment goes in the evidence (``epipolar_px``);
+       labelled view, only when the ball is more likely inside than not (:func:`_missing_from_one_view`:
+       the segment drawn, a box only on a short segment);
     5. pairs of views from nearly the same viewpoint give ``near_duplicate_view`` naming the one that
        adds nothing (an unlabelled one, else a replay, else the lower JaC).
+
+    Words are not written here: each doubt carries a ``code`` and its numbers, and
+    ``app.services.curation.doubt_words`` composes the sentence.
 
     Args:
         views: the system's views (ids unique).
@@ -423,24 +704,43 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
     if len(set(ids)) != len(ids):
         raise ValueError(f"views: view ids must be unique, got {ids!r}")
     doubts = _info_doubts(views, s)
-    usable = [v for v in views if v.camera is not None and v.admitted and not v.excluded
-              and v.line_classes >= s.min_line_classes]
+    lined = [v for v in views if not v.excluded and v.line_classes >= s.min_line_classes]
+    calibrated = [v for v in lined if v.camera is not None]
     # the mirror flag is today's verdict whatever the view's admission (JaC is the same for labels and
-    # their mirror); the ray-based suspicion needs a view that takes part
-    flagged = [v for v in views if v.mirror_flagged and v.camera is not None and not v.excluded]
-    mirrored = flagged + [v for v in usable if v not in flagged and _mirror_suspected(v, s)]
-    doubts += [_mirror_doubt(v) for v in mirrored]
-    judged = [v for v in usable if v not in mirrored]
+    # their mirror), also for a view refused as labelled; the ray-based suspicion needs a view that takes part
+    flagged = [v for v in lined if v.mirror_flagged]
+    suspected = [v for v in calibrated if v not in flagged and v.admitted and _mirror_suspected(v, s)]
+    mirrored = flagged + suspected
+    # views with few line classes are not judged (their camera is not fixed by their lines), but one whose
+    # calibration is sure (pixel sigma within tau, e.g. a rig camera whose few lines fix its rotation)
+    # lends its label half a vote to the consensus
+    helpers = [v for v in views if not v.excluded and v.camera is not None and v.line_classes < s.min_line_classes
+               and not v.mirror_flagged and not v.suggested and _centre(v) is not None]
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    sigma: dict[Hashable, float] = {}
+    weight: dict[Hashable, float] = {}
+    for v in calibrated + helpers:
+        weight[v.view_id], sigma[v.view_id] = calibration_weight(v, s)
+    helpers = [v for v in helpers if weight[v.view_id] > 0]
+    judged = [v for v in calibrated if v not in mirrored and weight[v.view_id] > 0 and not v.suggested]
     labelled = [v for v in judged if _centre(v) is not None]
     unlabelled = [v for v in judged if _centre(v) is None]
-    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
-    obs = [BallObservation(v.view_id, v.camera, _centre(v), REFERENCE_WIDTH_PX / _scale(v, s))
-           for v in labelled]
-    cons = ball_consensus(obs, tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg)
+    voters = labelled + helpers
+    obs = [BallObservation(v.view_id, v.camera, _centre(v), REFERENCE_WIDTH_PX / _scale(v, s)) for v in voters]
+    cons = ball_consensus(obs, tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
+                          weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s))
+    lone_contradicted = bool(helpers) and len(labelled) == 1 and (
+        labelled[0].view_id not in cons.inliers and (cons.point is not None or cons.best_pair_error_1920 is not None))
+    if not any(i in {v.view_id for v in labelled} for i in cons.inliers):
+        cons = ball_consensus([], tau_px=tau)  # helpers alone say nothing
+    helper_ids = {v.view_id for v in helpers}
+    doubts += [_mirror_doubt(v, "flagged" if v in flagged else "suspected", cons, s) for v in mirrored]
     by_id = {v.view_id: v for v in views}
     if cons.point is not None and not cons.ambiguous:
-        support = [by_id[i].name for i in cons.inliers]
-        for vid in cons.outliers:
+        accusing = sum(weight[i] for i in cons.inliers) >= 1.5  # a full vote and at least a half one
+        for vid in cons.outliers if accusing else ():
+            if vid in helper_ids:
+                continue
             v = by_id[vid]
             e = cons.errors_1920[vid]
             uv = _project(v, cons.point)
@@ -449,45 +749,50 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
             suggestion: dict[str, Any] = {"action": "exclude_view"}
             if box is not None:
                 suggestion["box"] = _box_list(box)
-            far = "behind the camera" if e is None else f"{e:.0f} px (at 1920 width) away"
             doubts.append(Doubt(
-                "ball_off_consensus", vid,
-                f"{v.name}'s ball label is {far} from the ball that {', '.join(support)} agree on "
-                f"(tolerance {tau:.0f} px).",
-                {"error_px_1920": None if e is None else _r(e), "tau_px": tau, "agreeing_views": list(cons.inliers),
+                "ball_off_consensus", vid, "off_consensus" if e is not None else "behind_camera",
+                {"error_px_1920": None if e is None else _r(e), "tau_px": _r(max(tau, sigma.get(vid, 0.0))),
+                 "calibration_sigma_px_1920": _r(sigma.get(vid, 0.0)), "agreeing_views": list(cons.inliers),
                  "ball3d": [_r(x, 3) for x in cons.point],
                  "projected_px": None if uv is None else [_r(uv[0]), _r(uv[1])]},
                 suggestion))
         for v in unlabelled:
-            d = _missing_doubt(v, cons.point, s, f"that {', '.join(support)} agree on",
-                               {"agreeing_views": list(cons.inliers)})
+            d = _missing_doubt(v, cons.point, s, "consensus", {"agreeing_views": list(cons.inliers)})
             if d is not None:
                 doubts.append(d)
-    elif len(labelled) >= 2 and cons.best_pair_error_1920 is not None:
-        doubts.append(_disagree_doubt(labelled, cons, tau))
-    elif len(labelled) == 1:
-        only = labelled[0]
-        ball, how = _single_view_ball(only, s)
-        if ball is not None and _plausible(ball, s):
-            for v in unlabelled:
-                src = f"of {only.name} ({'on the grass along its ray' if how == 'grass' else 'from its box size'})"
-                d = _missing_doubt(v, ball, s, src, {"agreeing_views": [only.view_id], "placed": how,
-                                                     "epipolar_px": _epipolar_px(only, v, s)},
-                                   margin_px=s.single_view_margin_px)
-                if d is not None:
-                    doubts.append(d)
+    elif len(labelled) >= 2:
+        own = cons if not helpers else ball_consensus(  # the labelled views' own agreement, without the helpers
+            obs[:len(labelled)], tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
+            weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s))
+        d = _disagree_doubt(labelled, own, tau, s)
+        if d is not None:
+            doubts.append(d)
+    elif len(labelled) == 1 and not lone_contradicted:
+        # (a helper's label that misses the lone label contradicts it: nothing is placed from it)
+        for v in unlabelled:
+            d = _missing_from_one_view(labelled[0], v, s)
+            if d is not None:
+                doubts.append(d)
     doubts += _near_duplicates(judged, cons, s)
     return doubts
 
 
-def _disagree_doubt(labelled: Sequence[DoubtView], cons: Consensus, tau: float) -> Doubt:
-    names = ", ".join(v.name for v in labelled)
+def _disagree_doubt(labelled: Sequence[DoubtView], cons: Consensus, tau: float, s: DoubtSettings) -> Doubt | None:
+    """``views_disagree`` when no ball is agreed on: with a pair error from the consensus (``no_agreement``,
+    or ``ambiguous`` for two camps), or, when no pair had the geometry to triangulate, from the labels'
+    distances to each other's ray across the play volume (``epipolar``: above tau for every pair). None
+    when the views agree within tau but no pair could triangulate (a near-duplicate pair that agrees)."""
     best = cons.best_pair_error_1920
-    miss = "their rays diverge" if math.isinf(best) else f"best pair misses by {best:.0f} px at 1920 width"
-    decide = ("a third view of the ball" if len(labelled) == 2 else "another view of the ball") + \
-        " or a check of the replays' timing would tell which label is wrong"
-    return Doubt("views_disagree", None,
-                 f"The ball labels of {names} cannot all be right ({miss}, tolerance "
-                 f"{tau:.0f} px); {decide}.",
-                 {"views": [v.view_id for v in labelled], "best_pair_error_px_1920": None if math.isinf(best) else _r(best),
-                  "tau_px": tau, "ambiguous": cons.ambiguous, "decide_by": decide})
+    code = "ambiguous" if cons.ambiguous else "no_agreement"
+    if cons.point is not None and not cons.ambiguous:
+        return None  # they agree, but no ball is agreed on by the helpers' votes: nothing to say
+    if best is None:
+        errs = [epipolar_pair_error(a, b, s) for a, b in combinations(labelled, 2)]
+        errs = [e for e in errs if e is not None]
+        if not errs or min(errs) <= tau:
+            return None
+        best, code = min(errs), "epipolar"
+    return Doubt("views_disagree", None, code,
+                 {"views": [v.view_id for v in labelled],
+                  "best_pair_error_px_1920": None if math.isinf(best) else _r(best),
+                  "tau_px": tau, "ambiguous": cons.ambiguous, "third_view": len(labelled) == 2})

@@ -49,6 +49,9 @@ against false flags:
 * other views that are themselves doubtful are not trusted blindly: all hypotheses are scored
   jointly, so a view is judged against the most probable state of the others.
 
+Verdicts are numbers and codes; the sentence a person reads is composed above the geometry
+(``app.services.curation.doubt_words.mirror_sentence``).
+
 A frame that calibration refuses has no camera, hence no ray: :func:`mirrored_fit_at_rig` gives it
 the rig and side priors by calibrating its mirrored labels at the game's camera positions.
 
@@ -236,7 +239,11 @@ class MirrorVerdict:
         rig_distance_mirrored_m: distance of ``M C`` to the nearest rig position.
         rig_vote: +1, -1 or 0 as ``side_vote``.
         pairs: one :class:`PairEvidence` per other view with a ray.
-        sentence: a human sentence stating the verdict and the numbers behind it.
+        refit: for the verdict of :func:`mirrored_fit_at_rig`, the numbers of the mirrored labels' fit
+            (``position_m``: the rig position they fit, ``rms_px``); None otherwise.
+
+    The sentence a person reads is composed from these numbers above the geometry
+    (``app.services.curation.doubt_words.mirror_sentence``).
     """
 
     view_id: Hashable
@@ -248,7 +255,7 @@ class MirrorVerdict:
     rig_distance_mirrored_m: float | None
     rig_vote: int
     pairs: tuple[PairEvidence, ...] = field(default=())
-    sentence: str = ""
+    refit: dict | None = None
 
     @property
     def flagged(self) -> bool:
@@ -260,7 +267,8 @@ class MirrorVerdict:
         return {"verdict": self.verdict, "margin": round(self.margin, 3), "camera_y_m": self.camera_y_m,
                 "mirrored_camera_y_m": -self.camera_y_m, "side_vote": self.side_vote,
                 "rig_distance_m": self.rig_distance_m, "rig_distance_mirrored_m": self.rig_distance_mirrored_m,
-                "rig_vote": self.rig_vote, "pairs": [p.as_dict() for p in self.pairs], "sentence": self.sentence}
+                "rig_vote": self.rig_vote, "pairs": [p.as_dict() for p in self.pairs],
+                **({"refit": self.refit} if self.refit is not None else {})}
 
 
 def rig_distances(camera: Camera, rig_positions: np.ndarray | None) -> tuple[float | None, float | None]:
@@ -386,15 +394,12 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     verdicts = [VERDICT_MIRRORED if m >= settings.decision_margin
                 else VERDICT_AS_LABELLED if m + settings.prior <= -settings.decision_margin
                 else VERDICT_UNDECIDED for m in margins]
-    names = {v.view_id: v.name or v.view_id for v in vs}
-    flagged = {v.view_id for v, verdict in zip(vs, verdicts) if verdict == VERDICT_MIRRORED}
     out: dict[Hashable, MirrorVerdict] = {}
     for i, v in enumerate(vs):
-        pe = tuple(pair_ev[i])
         out[v.view_id] = MirrorVerdict(
             view_id=v.view_id, verdict=verdicts[i], margin=float(margins[i]), camera_y_m=float(v.camera.C[1]),
             side_vote=sides[i], rig_distance_m=dists[i][0], rig_distance_mirrored_m=dists[i][1], rig_vote=rigs[i],
-            pairs=pe, sentence=_sentence(verdicts[i], v, sides[i], dists[i], rigs[i], pe, names, flagged))
+            pairs=tuple(pair_ev[i]))
     return out
 
 
@@ -417,58 +422,6 @@ def _max_marginals(n: int, unary: np.ndarray, constraints: list[tuple[int, int, 
         on = H[:, pos[i]] == 1
         margins[i] = float(score[on].max() - score[~on].max())
     return margins
-
-
-def _fmt(v: float | None) -> str:
-    return "-" if v is None else f"{v:.0f}"
-
-
-def _miss(error: float | None, other: str) -> str:
-    """How a ray misses another (``other`` names it): by how many px, or behind a camera."""
-    if error is None:
-        return f"meets {other} only behind a camera"
-    return f"misses {other} by {error:.0f} px"
-
-
-def _sentence(verdict: str, view: MirrorView, side: int, dist: tuple[float | None, float | None], rig: int,
-              pairs: tuple[PairEvidence, ...], names: dict, flagged: set) -> str:
-    """A human sentence with the numbers behind the verdict: the evidence for mirroring first, then
-    the evidence against it ("against: ..."); a pair with a view that is itself flagged says so."""
-    pro: list[str] = []  # evidence that this view's labels are mirrored
-    con: list[str] = []  # evidence that they are right
-    y = float(view.camera.C[1])
-    if side == 1:
-        pro.append(f"the camera stands at y = {y:+.0f} m, beyond the far side line for a main camera "
-                   f"(mirrored: y = {-y:+.0f} m)")
-    elif side == -1:
-        con.append(f"the camera stands at y = {y:+.0f} m, on the main camera's side")
-    if rig == 1:
-        pro.append(f"its mirror image is {dist[1]:.1f} m from a camera position of the game, the camera "
-                   f"itself {dist[0]:.0f} m from any")
-    elif rig == -1:
-        con.append(f"the camera is {dist[0]:.1f} m from a camera position of the game, its mirror image "
-                   f"{dist[1]:.0f} m from any")
-    for p in pairs:
-        other = names.get(p.other, p.other)
-        note = f" (view {other} is itself flagged)" if p.other in flagged else ""
-        if p.relation == DIFFERENT:
-            (con if note else pro).append(
-                f"as labelled its ball ray {_miss(p.error_as_labelled_px, f'the ray of view {other}')}, mirrored it "
-                f"meets it within {_fmt(p.error_mirrored_px)} px{note}")
-        elif p.relation == SAME:
-            (pro if note else con).append(
-                f"as labelled its ball ray meets the ray of view {other} within "
-                f"{_fmt(p.error_as_labelled_px)} px, mirrored it {_miss(p.error_mirrored_px, 'it')}{note}")
-        elif p.relation == AMBIGUOUS:
-            con.append(f"with view {other} the ball is too near the centre spot to tell")
-    head = {VERDICT_MIRRORED: "Labels probably mirrored",
-            VERDICT_AS_LABELLED: "Labels as given agree with the evidence",
-            VERDICT_UNDECIDED: "Mirroring undecided"}[verdict]
-    first, second = (con, pro) if verdict == VERDICT_AS_LABELLED else (pro, con)
-    if not first and not second:
-        return head + ": no evidence either way."
-    text = head + ": " + ("; ".join(first) if first else "nothing for it")
-    return text + ("; against: " + "; ".join(second) if second else "") + "."
 
 
 def mirrored_fit_at_rig(lines: FieldLines, width: int, height: int, rig: CameraRig, *,
@@ -512,10 +465,7 @@ def mirrored_fit_at_rig(lines: FieldLines, width: int, height: int, rig: CameraR
         return None
     d, d_mirror = rig_distances(as_labelled, np.array([p.centre_m for p in rig.positions]))
     c = result.camera.C
-    sentence = (f"Labels probably mirrored: as labelled they fit no camera position of the game; mirrored, they "
-                f"fit the position ({c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}) m within {result.rms_px:.1f} px RMS"
-                + (f"; as labelled the camera would stand at y = {as_labelled.C[1]:+.0f} m, beyond the far side line "
-                   f"for a main camera" if side == 1 else "") + ".")
     return MirrorVerdict(view_id=None, verdict=VERDICT_MIRRORED, margin=float(margin),
                          camera_y_m=float(as_labelled.C[1]), side_vote=side, rig_distance_m=d,
-                         rig_distance_mirrored_m=d_mirror, rig_vote=1, sentence=sentence)
+                         rig_distance_mirrored_m=d_mirror, rig_vote=1,
+                         refit={"position_m": [round(float(x), 2) for x in c], "rms_px": round(float(result.rms_px), 2)})

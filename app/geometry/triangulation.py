@@ -17,7 +17,9 @@ For every pair (i, j) of calibrated views with a ball label:
    angle is measured on the rays, so calibration error along the axis does not hide it.
 
 The ball is the mean of the kept ``p_ij``; each labelled view then gets the reprojection error of
-that fused ball in its own pixels (SoccerNet-v3D's ``rep_error``).
+that fused ball in its own pixels (SoccerNet-v3D's ``rep_error``). Beyond the paper, views may be weighed
+by what their calibration is worth (``view_weights`` of :func:`triangulate_ball`): a pair of weak
+calibrations makes no ball and weaker pairs do not move the ball sure pairs make.
 
 Points behind a camera: a pair whose ``p_ij`` has a camera depth below
 :data:`app.geometry.camera.MIN_DEPTH_M` in either view is dropped with reason ``behind_camera``
@@ -35,11 +37,13 @@ and the pair records between modules.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 import numbers
 from dataclasses import dataclass
 from itertools import combinations
-from typing import Callable, Hashable, Sequence
+from typing import Callable, Hashable, Mapping, Sequence
 
 import numpy as np
 
@@ -119,7 +123,11 @@ def error_above_tau(error_px: float | None, width_px: float, tau_px: float | Non
 
 #: Reasons a pair is dropped, in the order they are tested (a pair reports the first that applies).
 DROP_REASONS = ("degenerate", "point_at_infinity", "behind_camera", "baseline_below_min", "parallax_below_min",
-                "error_above_tau")
+                "error_above_tau", "outside_play_volume", "weak_calibrations", "outweighed")
+
+#: Least sum of the two views' calibration weights (``triangulate_ball`` ``view_weights``) of a pair that makes a
+#: ball: a full vote and at least a half one (the doubt judge's rule for a consensus that accuses a view).
+MIN_PAIR_WEIGHT = 1.5
 
 #: Result statuses of :func:`triangulate_ball`.
 STATUS_TRIANGULATED = "triangulated"
@@ -409,8 +417,44 @@ def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, r
     return PairResult(a.view_id, b.view_id, point, (e_a, e_b), e, beta, baseline, True, None)
 
 
+def _weigh_pairs(pairs: Sequence[PairResult], weights: Mapping[Hashable, float]) -> list[PairResult]:
+    """The pairs with ``weak_calibrations`` and ``outweighed`` drops applied (:func:`triangulate_ball`
+    ``view_weights``)."""
+    def total(p: PairResult) -> float:
+        return float(weights.get(p.view_a, 1.0)) + float(weights.get(p.view_b, 1.0))
+
+    out = [dataclasses.replace(p, kept=False, reason="weak_calibrations")
+           if p.kept and total(p) < MIN_PAIR_WEIGHT else p for p in pairs]
+    best = max((total(p) for p in out if p.kept), default=None)
+    return [dataclasses.replace(p, kept=False, reason="outweighed") if p.kept and total(p) < best else p
+            for p in out]
+
+
+#: Standard deviation (m) added to every pair's camera-position variance when weighting by uncertainty:
+#: a floor, so that two views with tiny standard deviations do not take all the weight.
+POSITION_STD_FLOOR_M = 0.1
+
+
+def _pair_weights(kept: Sequence[PairResult], std_m: Mapping[Hashable, float] | None) -> np.ndarray:
+    """Weights of the kept pairs' points: all 1 without ``std_m``, else ``1 / (s0^2 + s_a^2 + s_b^2)``;
+    all 1 again when every weight is 0 (every pair has an undetermined camera)."""
+    if std_m is None:
+        return np.ones(len(kept))
+
+    def var(view: Hashable) -> float:
+        s = std_m.get(view)
+        return 0.0 if s is None else float(s) ** 2
+
+    w = np.array([1.0 / (POSITION_STD_FLOOR_M**2 + var(p.view_a) + var(p.view_b)) for p in kept])
+    w = np.where(np.isfinite(w), w, 0.0)
+    return w if w.sum() > 0 else np.ones(len(kept))
+
+
 def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, rule: str = "max_scaled_1920",
-                     min_baseline_m: float = 1.0, min_parallax_deg: float = 0.0) -> TriangulationResult:
+                     min_baseline_m: float = 1.0, min_parallax_deg: float = 0.0,
+                     view_position_std_m: Mapping[Hashable, float] | None = None,
+                     play_volume: Callable[[np.ndarray], bool] | None = None,
+                     view_weights: Mapping[Hashable, float] | None = None) -> TriangulationResult:
     """The 3D ball of a multi-view system (paper Eq. triangulation, method.md section 5).
 
     Every pair of observations is triangulated (:func:`triangulate_pair`); the ball is the mean of
@@ -423,6 +467,24 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
         rule: a key of :data:`PAIR_ERROR_RULES`.
         min_baseline_m: minimum camera-centre distance of a kept pair, metres (paper: 1 m).
         min_parallax_deg: minimum angle between the rays of a kept pair, degrees (0: the paper's rule).
+        view_position_std_m: optional view id -> standard deviation of its camera position, metres
+            (``app.geometry.calibration.CalibrationUncertainty.position_std_m``; ``inf`` for an
+            undetermined one). Given, the kept ``p_ij`` are averaged with weights
+            ``1 / (s0^2 + s_i^2 + s_j^2)`` (inverse-variance, :data:`POSITION_STD_FLOOR_M` = ``s0``; a
+            view without a value counts as ``s0``) instead of the paper's plain mean, so that weakly
+            calibrated views count less. ``None`` (default): the paper's mean.
+        play_volume: optional test of a ball position (world metres -> bool, e.g.
+            ``app.geometry.pitch.within_play_volume``): a pair kept by the paper's rules whose ``p_ij`` fails it
+            (two rays that meet metres under the grass, or far outside the stadium, agree by coincidence) is
+            dropped with reason ``outside_play_volume``. ``None`` (default): the paper's rules only.
+        view_weights: optional view id -> what its calibration is worth as evidence (1 a full vote, 0.5 half,
+            0 none; ``app.geometry.doubts.calibration_weight``, a view without a value counts 1). Given, a weak
+            calibration neither makes nor moves a ball on its own: a pair kept by the rules above whose two
+            weights sum below :data:`MIN_PAIR_WEIGHT` (two half votes, or a full vote and none) is dropped with
+            reason ``weak_calibrations``, and of the pairs left only those of the highest weight sum are
+            averaged, the others dropped with reason ``outweighed`` (two sure views fix the ball; a
+            third view whose few lines may turn its ray by degrees would pull it metres off). ``None``
+            (default): every view counts alike.
 
     Returns:
         A :class:`TriangulationResult`. Fewer than two observations give status
@@ -453,10 +515,15 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
     pairs = [triangulate_pair(a, b, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m,
                               min_parallax_deg=min_parallax_deg)
              for a, b in combinations(obs, 2)]
+    if play_volume is not None:
+        pairs = [dataclasses.replace(p, kept=False, reason="outside_play_volume")
+                 if p.kept and not play_volume(p.point) else p for p in pairs]
+    if view_weights is not None:
+        pairs = _weigh_pairs(pairs, view_weights)
     kept = [p.point for p in pairs if p.kept]
     if not kept:
         return result(STATUS_NO_PAIR_KEPT, pairs=pairs)
-    ball = np.mean(kept, axis=0)
+    ball = np.average(kept, axis=0, weights=_pair_weights([p for p in pairs if p.kept], view_position_std_m))
     ball.setflags(write=False)
     errors = {o.view_id: reprojection_error_px(o.camera, ball, o.point_px) for o in obs}
     return result(STATUS_TRIANGULATED, ball, pairs, errors)

@@ -68,7 +68,8 @@ function toLogin() {
 
 /** fetch with the CSRF header on writes (unless `init.csrf` is false: the login, before any session)
  * and the 401 rule; `init.body` as given (JSON text or FormData). Answers {body (parsed), etag (the
- * answer's ETag header: a write's edited resource's new version)}, or throws ApiError. */
+ * answer's ETag header: a write's edited resource's new version), entry (X-V3D-Audit-Entry: the
+ * audit entry of a field-line write, else null)}, or throws ApiError. */
 async function fetchJson(method, url, { csrf = true, ...init } = {}) {
   const headers = { Accept: "application/json", ...(init.headers || {}) };
   if (csrf && UNSAFE.has(method)) Object.assign(headers, await writeHeaders());
@@ -91,7 +92,7 @@ async function fetchJson(method, url, { csrf = true, ...init } = {}) {
   if (!response.ok) {
     throw new ApiError(response.status, describeError(response.status, data, response.statusText || "request failed"), data);
   }
-  return { body: data, etag: response.headers.get("ETag") };
+  return { body: data, etag: response.headers.get("ETag"), entry: Number(response.headers.get("X-V3D-Audit-Entry")) || null };
 }
 
 /** fetchJson answering the parsed body only (uploads and other pages' requests). */
@@ -167,10 +168,43 @@ export function postReview(id, status, comment, ifMatch) {
   return exchange("POST", `/api/systems/${encodeURIComponent(id)}/review`, { status, comment }, ifMatch);
 }
 
+/** POST /api/frames/{id}/review {status, comment}, If-Match: the view's etag: the decision on one view (its
+ * ball); {body: the view's decision, etag}. */
+export function postViewReview(frameId, status, comment, ifMatch) {
+  return exchange("POST", `/api/frames/${encodeURIComponent(frameId)}/review`, { status, comment }, ifMatch);
+}
+
+/** POST /api/frames/{id}/calibration-review {status, comment}, If-Match: the view's etag: the decision on the
+ * view's calibration; {body: the view's decision (its `calibration` holds this one), etag}. */
+export function postCalibrationReview(frameId, status, comment, ifMatch) {
+  return exchange("POST", `/api/frames/${encodeURIComponent(frameId)}/calibration-review`, { status, comment }, ifMatch);
+}
+
 /** PATCH /api/frames/{id}/ball with {box} or {point}, If-Match: the view's etag; {body: the recomputed
  * system view (prev_id / next_id follow the queue given by `params`, as for getSystem), etag}. */
 export function patchBall(frameId, change, params = {}, ifMatch) {
   return exchange("PATCH", `/api/frames/${encodeURIComponent(frameId)}/ball${toQuery(params)}`, change, ifMatch);
+}
+
+/** PUT /api/frames/{id}/field-lines {lines, undo_of?}, If-Match: the view's etag: replace the frame's
+ * field lines ({class: [[[x, y], ...], ...]}, image px), recalibrate it; {body: the recomputed system
+ * view, etag, entry: the write's audit entry}. `undoOf`: the audit entry this write undoes (its lines
+ * before must be `lines`). */
+export function putFieldLines(frameId, lines, params = {}, ifMatch, undoOf = null) {
+  const body = undoOf ? { lines, undo_of: undoOf } : { lines };
+  return exchange("PUT", `/api/frames/${encodeURIComponent(frameId)}/field-lines${toQuery(params)}`, body, ifMatch);
+}
+
+let pitchModel = null;
+/** GET /api/pitch-model, once per page: {classes: [{name, mirror, modelled}], length_m, width_m}. */
+export function getPitchModel() {
+  if (!pitchModel) {
+    pitchModel = request("GET", "/api/pitch-model").catch((err) => {
+      pitchModel = null;
+      throw err;
+    });
+  }
+  return pitchModel;
 }
 
 /** POST /api/frames/{id}/field-lines/mirror: replace the frame's field lines by their mirrored

@@ -11,6 +11,7 @@ const ACTION_LABEL = {
   "field_lines.mirror": "mirrored lines",
   "view.exclusion": "exclusion",
   "view.review": "view review",
+  "view.calibration_review": "calibration review",
   "system.review": "system review",
   import: "import",
   recompute: "recompute",
@@ -34,8 +35,8 @@ export function describeState(state) {
     return `${n} line${n === 1 ? "" : "s"} (${Object.keys(lines).length} classes)`;
   }
   if ("excluded" in state) return state.excluded ? "excluded from the 3D ball" : "in the 3D ball";
-  if ("review" in state) {
-    const r = state.review || {};
+  if ("review" in state || "calibration_review" in state) {
+    const r = state.review || state.calibration_review || {};
     return `${human(r.status || "pending")}${r.comment ? ` “${r.comment}”` : ""}`;
   }
   return Object.entries(state).filter(([, v]) => typeof v === "number").map(([k, v]) => `${v} ${human(k)}`).join(", ") || "—";
@@ -53,7 +54,9 @@ export function describeEntry(entry, viewName) {
   const what = ACTION_LABEL[entry.action] || entry.action;
   const where = viewName ? ` of ${viewName}` : "";
   const change = entry.before ? `${describeState(entry.before)} → ${describeState(entry.after)}` : describeState(entry.after);
-  return `${entry.actor}, ${when(entry.at)}: ${what}${where}: ${change}`;
+  // an edit naming the entry it reverses without being a revert: a page's undo (or redo) of its own edit
+  const undo = entry.reverts_id && entry.action !== "revert" ? ` (undo of entry ${entry.reverts_id})` : "";
+  return `${entry.actor}, ${when(entry.at)}: ${what}${where}${undo}: ${change}`;
 }
 
 export class HistoryPanel {

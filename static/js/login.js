@@ -5,11 +5,21 @@ import { ApiError, login, getDemoAccount } from "./api.js";
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const form = $("login-form");
 
-/** The page to return to: a path of this site (never another origin, never the login page itself). */
-export function nextPage(search = location.search) {
+/** The page to return to: a path of this site (never another origin, never the login page itself).
+ * `next` is resolved as the browser resolves it when it navigates (dropping tabs and newlines, reading `\`
+ * as `/`: `/%09/evil.example` and `/\\evil.example` both mean `//evil.example`) and kept only when it stays
+ * on this origin; the answer is rebuilt from the resolved path, query and fragment. */
+export function nextPage(search = location.search, origin = location.origin) {
   const next = new URLSearchParams(search).get("next") || "/";
-  const sameSite = next.startsWith("/") && !next.startsWith("//") && !next.startsWith("/\\");
-  return sameSite && !next.startsWith("/login") ? next : "/";
+  let url;
+  try {
+    url = new URL(next, origin);
+  } catch {
+    return "/";
+  }
+  if (!next.startsWith("/") || url.origin !== origin || url.pathname.startsWith("/login")) return "/";
+  // A path that resolved to `//host` (from `/..//host`) would be read as another origin: one leading slash.
+  return url.pathname.replace(/^\/+/, "/") + url.search + url.hash;
 }
 
 function showError(message) {

@@ -1,5 +1,6 @@
 // Monocular 3D ball benchmark page: uploads predictions to POST /api/evaluations/monocular and shows
-// the report (figures per split, precision-threshold curve as SVG).
+// the report (figures per split, precision-threshold curve as SVG); and the paper's Table 1 from
+// GET /api/evaluations/boxes (original, optimised and refined ball boxes against the stored precise boxes).
 import { ApiError, send, toQuery } from "./api.js";
 import "./session.js";
 import { el, svg, fmt, viewColour } from "./format.js";
@@ -97,3 +98,40 @@ form.addEventListener("submit", async (event) => {
     button.disabled = false;
   }
 });
+
+// ----- Table 1: the ball boxes against the stored precise boxes ------------------------------------------------------
+const BOX_ROWS = [
+  ["original", "original (as imported)"],
+  ["optimised", "optimised (consistent with the 3D ball)"],
+  ["refined", "refined (the export's ball box)"],
+];
+
+function renderBoxes(report) {
+  const tbody = document.querySelector("[data-testid=boxes-table] tbody");
+  tbody.replaceChildren(...BOX_ROWS.map(([key, label]) => {
+    const r = report[key];
+    return el("tr", { dataset: { testid: `boxes-${key}` } },
+      el("td", { text: label }),
+      el("td", { class: "num", text: r.n }),
+      el("td", { class: "num", dataset: { testid: `boxes-iou-${key}` }, text: r.iou === null ? "–" : r.iou.toFixed(3) }),
+      el("td", { class: "num", dataset: { testid: `boxes-size-${key}` }, text: r.size_error_pct === null ? "–" : r.size_error_pct.toFixed(1) }));
+  }));
+  document.querySelector("[data-testid=boxes-note]").textContent = report.views
+    ? `${report.views} view(s) with a precise box. IoU and size error (|diagonal − precise diagonal| / precise diagonal) are means over the views that have each box.`
+    : "No view of the chosen systems has a precise box: store them with v3d import precise-boxes PRECISE.csv (league,season,match,image,x1,y1,x2,y2).";
+}
+
+async function scoreBoxes(all) {
+  try {
+    renderBoxes(await send("GET", `/api/evaluations/boxes${toQuery({ all: all ? "true" : "" })}`));
+  } catch (err) {
+    showError(err instanceof ApiError ? err.message : String(err));
+  }
+}
+
+const boxesForm = document.querySelector("[data-testid=boxes-form]");
+boxesForm.addEventListener("submit", (event) => {
+  event.preventDefault();
+  scoreBoxes(new FormData(boxesForm).get("all"));
+});
+scoreBoxes(false);

@@ -11,9 +11,17 @@
 // the view's state and the SVG's coordinate mapping; split, each part would need the others' private fields.
 
 import { el, svg, fmt, fmtJac, isNum, errorClass, viewColour, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
+import { suggestedNote } from "./suggested.js";
+import { LineEditor } from "./lineseditor.js";
 
 const ZOOM_PX = 150; // displayed size of the zoom inset
 const MIN_BOX = 2; // smallest box side, image pixels
+
+/** The calibration's standard deviations as one line: "x/y/z m · pan/tilt/roll ° · f px". */
+function uncertaintyText(u) {
+  const p = u.position_m || {};
+  return `${fmt(p.x, 2)}/${fmt(p.y, 2)}/${fmt(p.z, 2)} m · ${fmt(u.pan_deg, 2)}/${fmt(u.tilt_deg, 2)}/${fmt(u.roll_deg, 2)}° · f ${fmt(u.focal_px, 0)} px`;
+}
 
 function boxCentre(b) {
   return [(b[0] + b[2]) / 2, (b[1] + b[3]) / 2];
@@ -73,6 +81,7 @@ export class ViewPanel extends HTMLElement {
   #resizeObserver = null;
   #built = false;
   #nudgeTimer = null;
+  lines = new LineEditor(this); // the field-line editor of this view (lineseditor.js)
 
   connectedCallback() {
     if (!this.#resizeObserver) {
@@ -95,12 +104,17 @@ export class ViewPanel extends HTMLElement {
     this.#drag = null;
     this.#saving = false;
     this.#zoomBox = null;
+    this.lines.update(frameChanged);
     if (frameChanged || view.image_url !== this.#imageUrl) this.#loadImage(view.image_url);
     this.#build();
   }
 
   get view() {
     return this.#view;
+  }
+
+  get saving() {
+    return this.#saving;
   }
 
   set saving(value) {
@@ -114,11 +128,22 @@ export class ViewPanel extends HTMLElement {
     this.querySelector(".view")?.classList.toggle("selected", value);
   }
 
+  /** Draw the overlay again at the frame SVG's current viewBox (after a zoom or pan). */
+  redraw() {
+    this.#drawOverlays();
+  }
+
   /** Put back the last saved label (after a failed save). */
   revert() {
     this.#live = null;
     this.#drag = null;
+    this.lines.revert();
     this.saving = false;
+    this.#drawOverlays();
+  }
+
+  /** Draw the overlays again (the line editor's live state changed). */
+  redraw() {
     this.#drawOverlays();
   }
 
@@ -172,7 +197,7 @@ export class ViewPanel extends HTMLElement {
       // no ball label: drawing a box on the frame adds one
       frameSvg.classList.add("draw");
       frameSvg.addEventListener("pointerdown", (e) => {
-        if (!this.#currentLabel() || this.#drag) this.#startDrag(e, frameSvg, "draw");
+        if ((!this.#currentLabel() || this.#drag) && !this.lines.editing) this.#startDrag(e, frameSvg, "draw");
       });
     }
 
@@ -241,6 +266,7 @@ export class ViewPanel extends HTMLElement {
         frameSvg,
         el("span", { class: "saving", "data-testid": "view-saving", hidden: !this.#saving }, "saving…"),
       ),
+      this.lines.bar(),
       el(
         "div",
         { class: "below" },
@@ -271,6 +297,8 @@ export class ViewPanel extends HTMLElement {
               i ? fmtJac(jac[g]) : el("span", { class: cal.admitted === true ? "ok" : cal.admitted === false ? "bad" : "" }, fmtJac(jac[g])),
             ]),
           ),
+          cal.uncertainty ? el("dt", { title: "Standard deviations of the camera from the line fit (its Jacobian times the line noise): position x/y/z (m), pan/tilt/roll (degrees), focal (px); — where the lines leave it undetermined" }, "Camera ±") : null,
+          cal.uncertainty ? el("dd", { class: "mono", "data-testid": "view-uncertainty" }, uncertaintyText(cal.uncertainty)) : null,
           el("dt", { title: `Reprojection error of the 3D ball in this view; tau = ${fmt(tau, 1)} px (${rule || "rule unknown"})` }, "Reproj. error"),
           el("dd", { class: `mono ${errorClass(v.reprojection_error_scaled_px, tau)}`, "data-testid": "view-reproj-error" }, errText),
           el("dt", { title: "The annotated ball box: size and centre, image pixels" }, "Ball (red)"),
@@ -288,7 +316,11 @@ export class ViewPanel extends HTMLElement {
             multiView ? el("button", { type: "button", "data-testid": excluded ? "restore-view" : "exclude-view",
               title: excluded ? "Let this view take part in the 3D ball again (x on the selected view)"
                 : "Leave this view out of the triangulation; its labels are kept (x on the selected view)",
-              onclick: () => this.toggleExclusion() }, excluded ? "restore to 3D ball" : "exclude from 3D ball") : null),
+              onclick: () => this.toggleExclusion() }, excluded ? "restore to 3D ball" : "exclude from 3D ball") : null,
+            this.lines.toggleButton()),
+          ...this.lines.facts(),
+          ...suggestedNote(ball, this.#ctx.names || {}, () => this.dispatchEvent(new CustomEvent("ball-change", {
+            detail: ball.kind === "box" ? { frameId: v.frame_id, box: ball.box } : { frameId: v.frame_id, point: ball.point }, bubbles: true }))),
           doubtItems.length ? el("dt", { class: labelDoubts.length ? "bad" : "" }, "Doubts") : null,
           doubtItems.length ? el("dd", { class: "doubts", "data-testid": "view-doubts" }, doubtItems) : null,
           notes(v, multiView).length ? el("dt", {}, "Notes") : null,
@@ -339,7 +371,8 @@ export class ViewPanel extends HTMLElement {
     const frameSvg = this.querySelector("[data-testid=view-svg]");
     const zoomSvg = this.querySelector("[data-testid=view-zoom]");
     const width = frameSvg.getBoundingClientRect().width || 560;
-    this.#drawInto(frameSvg, width / v.width, true);
+    // the viewBox is the window shown (the whole frame, or a zoom: zoom.js): marks keep their screen size
+    this.#drawInto(frameSvg, width / (frameSvg.viewBox.baseVal?.width || v.width), true);
     const zw = this.#zoomWindow();
     const zoomLabel = this.querySelector("[data-testid=zoom-label]");
     if (zw) {
@@ -376,14 +409,7 @@ export class ViewPanel extends HTMLElement {
       g.append(svg("polyline", { class: "pitch", points: line.points.map((p) => p.join(",")).join(" ") },
         svg("title", { text: `projected: ${line.class}` })));
     }
-    for (const [cls, polylines] of Object.entries(v.field_lines || {})) {
-      for (const pts of polylines) {
-        if (pts.length > 1) g.append(svg("polyline", { class: "annot-line", points: pts.map((p) => p.join(",")).join(" ") }));
-        for (const p of pts) {
-          g.append(svg("circle", { class: "annot", cx: p[0], cy: p[1], r: 2.2 * s }, svg("title", { text: `annotated: ${cls}` })));
-        }
-      }
-    }
+    this.lines.drawLines(g, s, isMain);
     const ball = v.ball || {};
     if (ball.edited && validBox(ball.original_box) && !(ball.kind === "box" && sameBox(ball.original_box, ball.box))) {
       g.append(this.#rect(ball.original_box, "box-prev", "imported box (before edits)"));
@@ -392,6 +418,9 @@ export class ViewPanel extends HTMLElement {
     if (opt && validBox(opt.box)) {
       g.append(this.#rect(opt.box, "halo"));
       g.append(this.#rect(opt.box, "box-opt", `optimised box, d = ${fmt(opt.d_px, 1)} px`, "box-opt"));
+    }
+    if (validBox(v.precise_box)) { // the paper's Fig. 4: the reference Table 1 scores the boxes against
+      g.append(this.#rect(v.precise_box, "box-precise", "precise box (Table 1 reference)", isMain ? "precise-box" : null));
     }
     for (const d of this.#ctx.doubts || []) {
       const epi = (d.evidence || {}).epipolar_px;
@@ -441,6 +470,7 @@ export class ViewPanel extends HTMLElement {
       g.append(svg("path", { class: "reproj", d, "data-testid": isMain ? "reprojected-ball" : null },
         svg("title", { text: `3D ball reprojected: (${x.toFixed(1)}, ${y.toFixed(1)})` })));
     }
+    if (isMain) this.lines.drawHandles(g, root, s); // above the ball's box, in edit mode
     nodes.push(g);
     root.replaceChildren(...nodes);
   }
@@ -568,7 +598,8 @@ export class ViewPanel extends HTMLElement {
     if (action === "snap_box" && validBox(doubt.suggestion.box)) {
       const round = (x) => Math.round(x * 10) / 10;
       this.saving = true;
-      this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: doubt.suggestion.box.map(round) }, bubbles: true }));
+      const provenance = ((doubt.suggestion.request || {}).body || {}).provenance; // the label keeps where it came from
+      this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: doubt.suggestion.box.map(round), provenance }, bubbles: true }));
       return true;
     }
     if (action === "snap_point" && Array.isArray(doubt.suggestion.point) && doubt.suggestion.point.length === 2) {

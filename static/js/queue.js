@@ -5,15 +5,23 @@
 import { listSystems, listGames } from "./api.js";
 import "./session.js";
 import { JobsPanel } from "./jobs.js";
+import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
 import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const PAGE_SIZE = 50;
 
-/** Query parameters of GET /api/systems for one page of the queue. */
+const pageSize = (state) => state.limit || PAGE_SIZE;
+
+/** Query parameters of GET /api/systems for one page of the queue: by cursor when the pager turned
+ * pages (keyset paging: as quick at any depth), by offset for a link to page N. */
 export function apiParams(state) {
-  return { ...apiFilters(state), limit: PAGE_SIZE, offset: state.page * PAGE_SIZE };
+  const page = { limit: pageSize(state) };
+  if (state.after) page.after = state.after;
+  else if (state.before) page.before = state.before;
+  else page.offset = state.page * page.limit;
+  return { ...apiFilters(state), ...page };
 }
 
 /** Chips for what makes a system doubtful before opening it: the stored doubts per kind first. */
@@ -41,6 +49,8 @@ class QueuePage {
   rows = [];
   selected = 0;
   total = 0;
+  nextCursor = null;
+  prevCursor = null;
 
   constructor() {
     const form = $("filters");
@@ -52,7 +62,8 @@ class QueuePage {
       if (e.target.tagName === "SELECT") this.applyForm();
     });
     $("reset").addEventListener("click", () => {
-      this.state = { ...Object.fromEntries(FILTERS.map((k) => [k, ""])), sort: DEFAULT_SORT, page: 0 };
+      this.state = { ...Object.fromEntries(FILTERS.map((k) => [k, ""])), sort: DEFAULT_SORT };
+      this.firstPage();
       this.fillForm();
       this.navigate();
     });
@@ -67,6 +78,8 @@ class QueuePage {
       const tr = e.target.closest("tr[data-id]");
       if (tr) this.open(tr.dataset.id);
     });
+    this.keys = this.keyTable();
+    this.keys.push(keysHelp(this.keys, "Keys of the queue"));
     document.addEventListener("keydown", (e) => this.onKey(e));
     window.addEventListener("popstate", () => {
       this.state = readState();
@@ -103,7 +116,7 @@ class QueuePage {
         return;
       }
     }
-    this.state.page = 0;
+    this.firstPage();
     this.navigate();
   }
 
@@ -113,7 +126,7 @@ class QueuePage {
     const first = key === "worst_error" || key === "doubts" ? `-${key}` : key;
     const flipped = first.startsWith("-") ? key : `-${key}`;
     this.state.sort = current === first ? flipped : first;
-    this.state.page = 0;
+    this.firstPage();
     this.fillForm();
     this.navigate();
   }
@@ -129,10 +142,16 @@ class QueuePage {
     }
   }
 
+  firstPage() {
+    Object.assign(this.state, { page: 0, after: "", before: "" });
+  }
+
   turnPage(delta) {
-    const page = this.state.page + delta;
-    if (page < 0 || page * PAGE_SIZE >= this.total) return;
-    this.state.page = page;
+    const cursor = delta > 0 ? this.nextCursor : this.prevCursor;
+    if (!cursor) return;
+    const page = Math.max(0, this.state.page + delta);
+    if (page === 0) this.firstPage();
+    else Object.assign(this.state, { page, after: delta > 0 ? cursor : "", before: delta > 0 ? "" : cursor });
     this.navigate();
   }
 
@@ -162,6 +181,9 @@ class QueuePage {
       clearError();
       this.rows = answer.items || [];
       this.total = isNum(answer.total) ? answer.total : this.rows.length;
+      this.nextCursor = answer.next_cursor || null;
+      this.prevCursor = answer.prev_cursor || null;
+      if (!this.prevCursor && this.state.page > 0 && (this.state.after || this.state.before)) this.state.page = 0;
       // back from a system page (…#system-12): keep that system selected
       const back = location.hash.match(/^#system-(.+)$/);
       const at = back ? this.rows.findIndex((r) => String(r.id) === decodeURIComponent(back[1])) : -1;
@@ -199,11 +221,12 @@ class QueuePage {
       }),
     );
     $("empty").hidden = this.rows.length > 0;
-    const from = this.total ? this.state.page * PAGE_SIZE + 1 : 0;
-    const to = this.state.page * PAGE_SIZE + this.rows.length;
+    const size = pageSize(this.state);
+    const from = this.rows.length ? this.state.page * size + 1 : 0;
+    const to = this.state.page * size + this.rows.length;
     $("page-info").textContent = `${from}–${to} of ${this.total}`;
-    $("page-prev").disabled = this.state.page === 0;
-    $("page-next").disabled = to >= this.total;
+    $("page-prev").disabled = !this.prevCursor;
+    $("page-next").disabled = !this.nextCursor;
   }
 
   renderProgress(counts) {
@@ -239,20 +262,20 @@ class QueuePage {
       if (e.key === "Escape") e.target.blur();
       return;
     }
-    if (e.key === "j" || e.key === "ArrowDown") {
-      e.preventDefault();
-      this.select(this.selected + 1);
-    } else if (e.key === "k" || e.key === "ArrowUp") {
-      e.preventDefault();
-      this.select(this.selected - 1);
-    } else if (e.key === "Enter" && this.rows[this.selected] && !e.target.closest?.("a, button")) {
-      e.preventDefault();
-      this.open(this.rows[this.selected].id);
-    } else if (e.key === "/") {
-      e.preventDefault();
-      $("filter-status").focus();
-    } else if (e.key === "n") this.turnPage(1);
-    else if (e.key === "p") this.turnPage(-1);
+    dispatchKey(this.keys, e);
+  }
+
+  /** The queue's keys: the one table the handler reads and the `?` overlay shows (keys.js). */
+  keyTable() {
+    return [
+      { keys: ["j", "ArrowDown"], show: ["j", "↓"], does: "next row", run: () => this.select(this.selected + 1) },
+      { keys: ["k", "ArrowUp"], show: ["k", "↑"], does: "previous row", run: () => this.select(this.selected - 1) },
+      { keys: ["Enter"], does: "open the selected system",
+        run: (e) => (this.rows[this.selected] && !e.target.closest?.("a, button") ? this.open(this.rows[this.selected].id) : false) },
+      { keys: ["n"], does: "next page", run: () => { this.turnPage(1); } },
+      { keys: ["p"], does: "previous page", run: () => { this.turnPage(-1); } },
+      { keys: ["/"], does: "filters (Esc to leave)", run: () => $("filter-status").focus() },
+    ];
   }
 }
 

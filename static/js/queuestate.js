@@ -13,6 +13,12 @@ export function readState(search = location.search) {
   for (const key of FILTERS) state[key] = q.get(key) || "";
   if (!state.sort) state.sort = DEFAULT_SORT;
   state.page = Math.max(0, parseInt(q.get("page") || "0", 10) || 0);
+  // the page's place by cursor (the API's next_cursor / prev_cursor); `page` then only numbers it
+  // rows per page (a link may ask for another size; the API takes 1-500)
+  const limit = parseInt(q.get("limit") || "", 10);
+  state.limit = limit >= 1 && limit <= 500 ? limit : "";
+  state.after = q.get("after") || "";
+  state.before = q.get("before") || "";
   return state;
 }
 
@@ -22,7 +28,10 @@ export function stateQuery(state, { withPage = true } = {}) {
   for (const key of FILTERS) {
     if (state[key] && !(key === "sort" && state[key] === DEFAULT_SORT)) q.set(key, state[key]);
   }
+  if (withPage && state.limit) q.set("limit", String(state.limit));
   if (withPage && state.page) q.set("page", String(state.page));
+  if (withPage && state.after) q.set("after", state.after);
+  else if (withPage && state.before) q.set("before", state.before);
   const s = q.toString();
   return s ? `?${s}` : "";
 }

@@ -5,16 +5,21 @@
 // Every write sends If-Match with the version the page drew (each view's `etag`, the system's `etag`);
 // writes to one view go one after the other, each with the ETag the previous one answered. A 412
 // (someone else changed it) draws their state and shows the conflict notice (conflict.js); the
-// history panel (history.js) lists the system's audit entries with a one-click revert.
+// history panel (history.js) lists the system's audit entries with a one-click revert. Field lines are
+// edited in each view (lineseditor.js); the page keeps the undo / redo stack of its own line edits.
 // (Over 400 lines: it is the one controller of the page's state; views, map, trajectory, conflict
 // notice and history are their own modules.)
 
-import { ApiError, getSystem, getTrajectory, postReview, patchBall, mirrorFieldLines, postExclusion } from "./api.js";
+import { ApiError, getSystem, getTrajectory, postReview, patchBall, mirrorFieldLines, postExclusion, putFieldLines } from "./api.js";
 import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
 import { notes, isMirrorFlagged } from "./overlay.js";
 import { showConflict } from "./conflict.js";
 import { HistoryPanel, describeState } from "./history.js";
+import { dispatchKey, keysHelp, renderKeys } from "./keys.js";
+import { EditHistory, lineKeys } from "./lineseditor.js";
+import { ViewDecisions, decisionNote } from "./viewdecisions.js";
+import { ZoomSync } from "./zoom.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -48,6 +53,9 @@ class SystemPage {
       if (e.key === "Escape") e.currentTarget.blur();
     });
     $("views").addEventListener("ball-change", (e) => this.saveBall(e.target, e.detail));
+    $("views").addEventListener("lines-change", (e) => this.saveLines(e.target, e.detail));
+    this.lineHistory = new EditHistory((item, lines, undoOf, kind) => this.undoLines(item, lines, undoOf, kind),
+      () => this.settle());
     $("views").addEventListener("mirror-request", (e) => this.applyMirror(e.target, e.detail));
     $("views").addEventListener("exclusion-request", (e) => this.setExclusion(e.target, e.detail));
     $("views").addEventListener("pointerdown", (e) => {
@@ -62,6 +70,11 @@ class SystemPage {
       },
       onError: showError,
     });
+    this.decisions = new ViewDecisions(this, toast);
+    this.zoom = new ZoomSync($("views"), document.querySelector(".topbar .navs"));
+    this.keys = this.keyTable();
+    this.keys.push(keysHelp(this.keys, "Keys of the system page"));
+    renderKeys(this.keys, $("keys"));
     document.addEventListener("keydown", (e) => this.onKey(e));
     window.addEventListener("popstate", () => this.load(idFromPath(), false));
   }
@@ -140,10 +153,13 @@ class SystemPage {
         container.append(panel);
       }
       const viewDoubts = (sys.doubts || []).filter((d) => d.frame_id === view.frame_id);
-      panel.update(view, { ...ctx, index, viewCount: sys.views.length, doubts: viewDoubts });
+      const names = Object.fromEntries(sys.views.map((x) => [x.frame_id, x.name]));
+      panel.update(view, { ...ctx, index, viewCount: sys.views.length, doubts: viewDoubts, names });
       panel.selected = index === this.selected;
+      this.decorate(panel, view);
     });
     for (const extra of panels.slice(sys.views.length)) extra.remove();
+    this.zoom.drawBar();
 
     this.renderDoubts(sys);
     // a single view (a calibration dataset's frame) is reviewed for its calibration: no 3D ball to show
@@ -158,6 +174,12 @@ class SystemPage {
       cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
     };
     this.renderTrajectory(sys);
+  }
+
+  /** What the page adds to a view's panel after each rebuild: its decision bar, the synchronised zoom. */
+  decorate(panel, view) {
+    this.decisions.attach(panel, view);
+    this.zoom.applyTo(panel);
   }
 
   /** An ISSIA frame: its sequence's trajectory over time (re-read after every render, so an edit's
@@ -219,10 +241,8 @@ class SystemPage {
     for (const id of ["accept", "reject", "needs-fix"]) {
       $(id).classList.toggle("current", $(id).dataset.status === status);
     }
-    const when = review?.decided_at ? new Date(review.decided_at) : null;
-    $("review-meta").textContent = when && !Number.isNaN(when.getTime())
-      ? `Decided ${when.toLocaleString()}: ${STATUS_LABEL[status] || status}.`
-      : "Not decided yet.";
+    $("review-meta").textContent = decisionNote(review);
+    $("review-meta").classList.toggle("bad", status === "pending" && Boolean(review?.reset_reason));
   }
 
   renderBall(sys) {
@@ -324,7 +344,13 @@ class SystemPage {
     clearError();
     if (frameId !== null) this.noteEtag(frameId, answer.etag);
     const sys = answer.body;
-    if (this.system.id === shown && sys && Array.isArray(sys.views)) this.render(sys);
+    if (this.system.id === shown && sys && Array.isArray(sys.views)) {
+      const start = performance.now();
+      this.render(sys);
+      // the redraw's time: the script, then up to the painted frame (read by benchmarks/line_edit.py)
+      performance.measure("v3d:render", { start });
+      requestAnimationFrame(() => setTimeout(() => performance.measure("v3d:redraw", { start }), 0));
+    }
   }
 
   /** A write to one view (`send(ifMatch)` -> {body, etag}), after the previous write to that view so it
@@ -361,12 +387,49 @@ class SystemPage {
     const name = index >= 0 ? this.system.views[index].name : `frame ${frameId}`;
     showConflict($("conflict"), { error: err, what: `${viewName || "the view"} (${name})`, mine, viewName,
       reapply: () => this.frameWrite(panel, frameId, mine, send, done) });
+    $("conflict").scrollIntoView({ block: "center" }); // a key (an undo) may have sent it from far down the page
   }
 
   saveBall(panel, detail) {
     const change = "box" in detail ? { box: detail.box } : { point: detail.point };
+    if (detail.provenance) change.provenance = detail.provenance; // a doubt's suggestion: not evidence until placed
     this.frameWrite(panel, detail.frameId, describeState({ ball: change }),
       (etag) => patchBall(detail.frameId, change, this.params, etag));
+  }
+
+  /** Send a view's edited field lines (lineseditor.js "lines-change"), draw the recalibrated system and
+   * say what the edit did to the view's JaC; the write joins the page's undo stack. */
+  saveLines(panel, detail) {
+    const systemId = this.system.id;
+    const before = this.system.views.find((v) => v.frame_id === detail.frameId);
+    this.frameWrite(panel, detail.frameId, detail.what,
+      (etag) => putFieldLines(detail.frameId, detail.lines, this.params, etag).then((answer) => {
+        this.lineHistory.push({ systemId, frameId: detail.frameId, before: detail.before, after: detail.lines,
+          entry: answer.entry, what: detail.what });
+        return answer;
+      }),
+      (sys) => toast(`${detail.what}: ${jacChange(before, sys.views.find((v) => v.frame_id === detail.frameId))}`));
+  }
+
+  /** An undo or redo of the line stack: the write of `lines` to the item's view naming `undoOf`, on its
+   * system's page (loaded first when another is shown). Answers the new audit entry, null when it failed
+   * (a 412 shows the conflict notice). */
+  async undoLines(item, lines, undoOf, kind) {
+    if (this.system?.id !== item.systemId) await this.load(item.systemId, true);
+    const index = this.system?.views.findIndex((v) => v.frame_id === item.frameId) ?? -1;
+    const panel = $("views").children[index];
+    if (!panel) return null;
+    let entry = null;
+    const before = this.system.views[index];
+    panel.saving = true;
+    this.frameWrite(panel, item.frameId, `${kind} of “${item.what}”`,
+      (etag) => putFieldLines(item.frameId, lines, this.params, etag, undoOf).then((answer) => {
+        entry = answer.entry;
+        return answer;
+      }),
+      (sys) => toast(`${kind}: ${item.what} · ${jacChange(before, sys.views.find((v) => v.frame_id === item.frameId))}`));
+    await this.chains.get(item.frameId);
+    return entry;
   }
 
   /** Replace a flagged view's field lines by their mirrored labelling, then draw the recomputed system. */
@@ -415,45 +478,56 @@ class SystemPage {
     panels.forEach((p, i) => (p.selected = i === index));
   }
 
-  onKey(e) {
-    if (e.ctrlKey || e.metaKey || e.altKey || isTyping(e)) return;
-    const keys = { a: "accepted", r: "rejected", f: "needs_fix" };
-    if (keys[e.key]) {
-      e.preventDefault();
-      this.review(keys[e.key]);
-    } else if (e.key === "j") this.go(this.system?.next_id);
-    else if (e.key === "k") this.go(this.system?.prev_id);
-    else if ((e.key === "," || e.key === ".") && this.system?.kind === "issia") this.go(this.frameNeighbour(e.key === "." ? 1 : -1));
-    else if (e.key === "u") this.settle().then(() => location.assign(this.queueUrl()));
-    else if (e.key === "c") {
-      e.preventDefault();
-      $("comment").focus();
-    } else if (e.key === "o") {
-      document.body.classList.toggle("overlays-hidden"); // look at the bare frames
-    } else if (e.key === "m") {
-      if (this.mirrorTarget()?.requestMirror()) e.preventDefault();
-    } else if (e.key === "s") {
-      const target = this.fixTarget();
-      if (target && target[0].applyFix(target[1])) e.preventDefault();
-    } else if (e.key === "x") {
-      const panel = $("views").children[this.selected];
-      if (panel && this.system.views.length > 1 && panel.toggleExclusion()) e.preventDefault();
-    } else if (/^[1-9]$/.test(e.key)) this.select(Number(e.key) - 1);
-    else if (this.selected >= 0 && this.editKey(e)) e.preventDefault();
+  /** The page's keys: the one table the handler reads and the key card and `?` overlay show (keys.js). */
+  keyTable() {
+    const view = () => $("views").children[this.selected] || null;
+    const nudge = (dx, dy, ds) => (e) => {
+      const panel = view();
+      if (!panel) return false;
+      const step = e.shiftKey ? 5 : 1;
+      panel.nudge(dx * step, dy * step, ds);
+      return true;
+    };
+    return [
+      { keys: ["a"], does: "accept, next system", run: () => this.review("accepted") },
+      { keys: ["r"], does: "reject, next system", run: () => this.review("rejected") },
+      { keys: ["f"], does: "needs fix, next system", run: () => this.review("needs_fix") },
+      { keys: ["j"], does: "next system", run: () => this.go(this.system?.next_id) },
+      { keys: ["k"], does: "previous system", run: () => this.go(this.system?.prev_id) },
+      { keys: [",", "."], does: "previous / next frame of a sequence (ISSIA)",
+        run: (e) => (this.system?.kind === "issia" ? this.go(this.frameNeighbour(e.key === "." ? 1 : -1)) : false) },
+      { keys: ["c"], does: "comment (Esc to leave)", run: () => $("comment").focus() },
+      { keys: ["u"], does: "back to the queue", run: () => this.settle().then(() => location.assign(this.queueUrl())) },
+      { keys: ["o"], does: "hide / show the overlays",
+        run: () => { document.body.classList.toggle("overlays-hidden"); } }, // look at the bare frames
+      { keys: ["1", "2", "3", "4", "5", "6", "7", "8", "9"], show: ["1…9"], does: "select a view",
+        run: (e) => this.select(Number(e.key) - 1) },
+      { keys: ["ArrowLeft", "ArrowUp", "ArrowRight", "ArrowDown"], show: ["←↑→↓"],
+        does: "move the selected view's ball box 1 px (Shift 5 px)",
+        run: (e) => nudge(...{ ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, -1], ArrowDown: [0, 1] }[e.key], 0)(e) },
+      { keys: ["+", "="], show: ["+"], does: "grow its box", run: (e) => nudge(0, 0, 0.5)(e) },
+      { keys: ["-"], does: "shrink its box", run: (e) => nudge(0, 0, -0.5)(e) },
+      ...lineKeys(view, this.lineHistory), // before the ball's Del: a selected line point goes first
+      { keys: ["Delete", "Backspace"], show: ["Del"], does: "no ball in this view (remove its label)",
+        run: () => view()?.removeLabel() ?? false },
+      { keys: ["z"], does: "restore its imported label", run: () => view()?.restoreLabel() ?? false },
+      { keys: ["s"], does: "apply the suggested fix of a doubt (selected view, or the only one with a fix)",
+        run: () => {
+          const target = this.fixTarget();
+          return Boolean(target && target[0].applyFix(target[1]));
+        } },
+      { keys: ["x"], does: "exclude the selected view from the 3D ball, or restore it",
+        run: () => Boolean(view() && this.system.views.length > 1 && view().toggleExclusion()) },
+      { keys: ["m"], does: "apply mirrored labels (selected flagged view, or the only one)",
+        run: () => Boolean(this.mirrorTarget()?.requestMirror()) },
+      ...this.decisions.keyEntries(() => view() || (this.system?.views.length === 1 ? $("views").children[0] : null)),
+      ...this.zoom.keyEntries(),
+    ];
   }
 
-  editKey(e) {
-    const panel = $("views").children[this.selected];
-    if (!panel) return false;
-    const step = e.shiftKey ? 5 : 1;
-    const moves = { ArrowLeft: [-step, 0, 0], ArrowRight: [step, 0, 0], ArrowUp: [0, -step, 0], ArrowDown: [0, step, 0],
-      "+": [0, 0, 0.5], "=": [0, 0, 0.5], "-": [0, 0, -0.5] };
-    if (e.key === "Delete" || e.key === "Backspace") return panel.removeLabel();
-    if (e.key === "z") return panel.restoreLabel();
-    const m = moves[e.key];
-    if (!m) return false;
-    panel.nudge(...m);
-    return true;
+  onKey(e) {
+    if (isTyping(e)) return;
+    dispatchKey(this.keys, e); // Ctrl / Cmd chords only reach entries marked `ctrl`
   }
 }
 
@@ -467,6 +541,15 @@ function shortDoubt(text) {
   if (SHORT_DOUBTS[text]) return SHORT_DOUBTS[text];
   if (text.startsWith("not calibrated")) return "uncalibrated";
   return text;
+}
+
+/** A view's JaC at the admission gamma before -> after an edit, in words. */
+function jacChange(before, after) {
+  const jac = (v) => {
+    const values = Object.values((v?.calibration || {}).jac || {});
+    return values.length && isNum(values[0]) ? values[0].toFixed(3) : "refused";
+  };
+  return `JaC ${jac(before)} → ${jac(after)}`;
 }
 
 function idFromPath() {

@@ -118,11 +118,11 @@ def make_system(session: Session, settings: Settings, game: Game, name: str = "1
             zip_path = image_dir / "Frames-v3.zip"
             with zipfile.ZipFile(zip_path, "a") as zf:
                 zf.writestr(frame_name, png_bytes())
-            frame.image_zip, frame.image_member = str(zip_path), frame_name
+            frame.image_root, frame.image_zip, frame.image_member = str(image_dir.resolve()), zip_path.name, frame_name
         elif image_dir is not None and i == 1:
             path = image_dir / frame_name
             path.write_bytes(png_bytes())
-            frame.image_path = str(path)
+            frame.image_root, frame.image_path = str(image_dir.resolve()), path.name
     session.flush()
     recompute_system(session, system, settings)
     session.commit()

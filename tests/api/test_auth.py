@@ -11,7 +11,7 @@ import pytest
 from fastapi import FastAPI
 from fastapi.routing import iter_route_contexts
 from fastapi.testclient import TestClient
-from pydantic import SecretStr
+from pydantic import SecretStr, ValidationError
 
 from app.api.auth import ROLES
 from app.api.authentication import CSRF_HEADER, SESSION_COOKIE
@@ -109,6 +109,9 @@ EXPECTED_LEAST_ROLE = {
     ("GET", "/api/exports/coco"): "admin",
     ("GET", "/api/users"): "admin",
     ("POST", "/api/users"): "admin",
+    ("PATCH", "/api/users/{name}"): "admin",
+    ("GET", "/api/users/{name}/tokens"): "admin",
+    ("DELETE", "/api/users/{name}/tokens/{token_id}"): "admin",
     ("POST", "/api/recompute"): "admin",
     ("POST", "/api/exports/soccernet-v3d"): "admin",
     ("GET", "/api/jobs/{job_id}/result"): "admin",
@@ -237,20 +240,62 @@ def test_every_app_on_the_database_shares_the_session_key_unless_overridden(db_s
                                                                             accounts: dict[str, Account]) -> None:
     """The cookie logged in by another app (another uvicorn worker, or before a restart) is accepted;
     with another ``V3D_SESSION_SECRET`` it is not."""
-    for secret, expected in ((None, 200), ("another key", 401)):
+    for secret, expected in ((None, 200), ("another key, long enough to be accepted", 401)):
         worker = create_app(db_settings.model_copy(update={"session_secret": SecretStr(secret) if secret else None}))
         worker.state.session_factory = app.state.session_factory
         with TestClient(worker) as c:
             assert as_session(c, accounts["admin"]).get("/api/games").status_code == expected
 
 
-def test_demo_hint_names_the_demo_account_only_when_it_exists(app: FastAPI, anonymous: TestClient) -> None:
-    assert anonymous.get("/api/auth/demo").json() == {"account": None}
+def test_a_short_session_secret_is_refused_naming_the_variable(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("V3D_SESSION_SECRET", "x" * 31)
+    with pytest.raises(ValidationError, match="V3D_SESSION_SECRET must be at least 32 characters"):
+        Settings()
+    monkeypatch.setenv("V3D_SESSION_SECRET", "x" * 32)
+    assert Settings().session_secret.get_secret_value() == "x" * 32
+
+
+def test_answers_holding_a_token_or_the_csrf_token_are_never_stored(client: TestClient,
+                                                                    anonymous: TestClient,
+                                                                    accounts: dict[str, Account]) -> None:
+    """Token and CSRF answers carry ``Cache-Control: no-store`` (issue 15): no browser, proxy or disk
+    cache keeps a secret."""
+    login = anonymous.post("/api/auth/login", json={"name": "test-annotator",
+                                                    "password": accounts["annotator"].password})
+    made = client.post("/api/users", json={"name": "nora", "role": "annotator", "password": "pw"})
+    for answer in (login, anonymous.get("/api/auth/me"), made, client.post("/api/users/nora/tokens"),
+                   client.get("/api/users")):
+        assert answer.status_code in (200, 201) and answer.headers["cache-control"] == "no-store", answer.url
+
+
+def test_demo_hint_names_the_demo_account_only_when_it_exists(app: FastAPI) -> None:
+    with TestClient(app, client=("127.0.0.1", 50000)) as here:
+        assert here.get("/api/auth/demo").json() == {"account": None}
+        with app.state.session_factory() as session:
+            assert "log in as 'demo' with password 'demo'" in users.ensure_demo_account(session)
+        assert here.get("/api/auth/demo").json() == {"account": {"name": "demo", "password": "demo"}}
+        answer = here.post("/api/auth/login", json={"name": "demo", "password": "demo"})
+        assert answer.status_code == 200 and answer.json()["role"] == "admin"
+
+
+@pytest.mark.parametrize("peer, headers", [
+    (("203.0.113.9", 50000), {}),  # another machine
+    (("::ffff:198.51.100.7", 50000), {}),
+    (("127.0.0.1", 50000), {"X-Forwarded-For": "203.0.113.9"}),  # a proxy on this machine, declared or not
+    (("127.0.0.1", 50000), {"Forwarded": "for=203.0.113.9"}),
+    (("::1", 50000), {"X-Real-IP": "203.0.113.9"}),
+])
+def test_the_demo_account_never_logs_in_over_a_network_nor_through_a_proxy(app: FastAPI, peer, headers) -> None:
+    """Was: ``v3d serve --demo`` on 127.0.0.1 behind a reverse proxy (nginx forwarding the network to it) gave
+    anyone the demo admin, its password shown by ``GET /api/auth/demo``. The account logs in only from this machine
+    without a proxy: 403 saying why (the hint says nothing); a declared proxy is refused by ``v3d serve --demo``."""
     with app.state.session_factory() as session:
-        assert "log in as 'demo' with password 'demo'" in users.ensure_demo_account(session)
-    assert anonymous.get("/api/auth/demo").json() == {"account": {"name": "demo", "password": "demo"}}
-    answer = anonymous.post("/api/auth/login", json={"name": "demo", "password": "demo"})
-    assert answer.status_code == 200 and answer.json()["role"] == "admin"
+        users.ensure_demo_account(session)
+    with TestClient(app, client=peer) as there:
+        assert there.get("/api/auth/demo", headers=headers).json() == {"account": None}
+        answer = there.post("/api/auth/login", json={"name": "demo", "password": "demo"}, headers=headers)
+        assert answer.status_code == 403 and "only on the machine that serves v3d" in answer.json()["detail"]
+        assert "v3d_session" not in answer.cookies and there.get("/api/auth/me").status_code == 401
 
 
 def test_users_routes_make_a_user_whose_token_works(client: TestClient, tokens: TestClient) -> None:
@@ -276,3 +321,99 @@ def test_openapi_declares_the_bearer_and_session_schemes(anonymous: TestClient) 
     assert (schemes["session"]["in"], schemes["session"]["name"]) == ("cookie", SESSION_COOKIE)
     assert spec["paths"]["/api/frames/{frame_id}/ball"]["patch"]["security"] == [{"bearer": []}, {"session": []}]
     assert "security" not in spec["paths"]["/api/auth/login"]["post"]
+
+
+def test_tokens_are_listed_issued_with_a_label_and_expiry_and_revoked_one_by_one(client: TestClient,
+                                                                                 tokens: TestClient) -> None:
+    made = client.post("/api/users", json={"name": "otto", "role": "annotator", "password": "pw"}).json()
+    assert made["label"] == "first token" and made["expires_at"] is None and isinstance(made["id"], int)
+    ci = client.post("/api/users/otto/tokens", json={"label": "CI", "expires_days": 7})
+    assert ci.status_code == 201 and ci.json()["label"] == "CI" and ci.json()["expires_at"]
+    listed = client.get("/api/users/otto/tokens").json()
+    assert [(t["id"], t["label"], t["state"]) for t in listed] == [(made["id"], "first token", "active"),
+                                                                   (ci.json()["id"], "CI", "active")]
+    assert all("token" not in t for t in listed)
+    script = as_token(tokens, Account("otto", "annotator", "pw", ci.json()["token"]))
+    assert script.get("/api/games").status_code == 200
+    gone = client.delete(f"/api/users/otto/tokens/{ci.json()['id']}")
+    assert gone.status_code == 200 and gone.json()["state"] == "revoked"
+    assert script.get("/api/games").status_code == 401
+    first = as_token(tokens, Account("otto", "annotator", "pw", made["token"]))
+    assert first.get("/api/games").status_code == 200
+    assert client.delete("/api/users/otto/tokens/999999").status_code == 404
+    assert client.get("/api/users/nobody/tokens").status_code == 404
+    bad = client.post("/api/users/otto/tokens", json={"expires_days": 0})
+    assert bad.status_code == 422 and bad.json()["detail"][0]["loc"][-1] == "expires_days"
+
+
+def test_disable_then_enable_brings_no_token_back(client: TestClient, tokens: TestClient) -> None:
+    """The attack of issue 15: ``disable`` then ``enable`` revived every old token."""
+    made = client.post("/api/users", json={"name": "pia", "role": "reviewer", "password": "pw"}).json()
+    script = as_token(tokens, Account("pia", "reviewer", "pw", made["token"]))
+    assert script.get("/api/games").status_code == 200
+    assert client.patch("/api/users/pia", json={"disabled": True}).json()["disabled"] is True
+    assert script.get("/api/games").status_code == 401
+    assert client.patch("/api/users/pia", json={"disabled": False}).json()["disabled"] is False
+    assert script.get("/api/games").status_code == 401
+    assert [t["state"] for t in client.get("/api/users/pia/tokens").json()] == ["revoked"]
+    assert tokens.post("/api/auth/login", json={"name": "pia", "password": "pw"}).status_code == 200
+
+
+def test_a_role_change_applies_to_the_next_request(client: TestClient, tokens: TestClient) -> None:
+    made = client.post("/api/users", json={"name": "quin", "role": "annotator", "password": "pw"}).json()
+    script = as_token(tokens, Account("quin", "annotator", "pw", made["token"]))
+    assert script.get("/api/users").status_code == 403
+    changed = client.patch("/api/users/quin", json={"role": "admin"})
+    assert changed.status_code == 200 and changed.json()["role"] == "admin"
+    assert script.get("/api/users").status_code == 200
+    assert client.patch("/api/users/quin", json={"role": "boss"}).status_code == 422
+    assert client.patch("/api/users/nobody", json={}).status_code == 404
+
+
+def test_admin_actions_are_audited_and_listed_to_admins_only(client: TestClient, tokens: TestClient,
+                                                             accounts: dict[str, Account]) -> None:
+    made = client.post("/api/users", json={"name": "rex", "role": "annotator", "password": "secret pw"}).json()
+    issued = client.post("/api/users/rex/tokens", json={"label": "laptop"}).json()
+    client.patch("/api/users/rex", json={"role": "reviewer"})
+    client.delete(f"/api/users/rex/tokens/{issued['id']}")
+    client.patch("/api/users/rex", json={"disabled": True})
+    client.patch("/api/users/rex", json={"disabled": False})
+    log = client.get("/api/audit?limit=6").json()
+    assert [e["action"] for e in reversed(log["items"])] == [
+        "user.create", "token.issue", "user.role", "token.revoke", "user.disable", "user.enable"]
+    assert {e["actor"] for e in log["items"]} == {"test-admin"}  # the fixture's own users: cli:<os user>
+    assert not any(e["revertible"] for e in log["items"])
+    text = repr(log)
+    assert made["token"] not in text and issued["token"] not in text and "secret pw" not in text
+    reviewer = as_token(tokens, accounts["reviewer"])
+    seen = reviewer.get("/api/audit?limit=50").json()
+    assert seen["total"] == 0 and not any(e["action"].startswith(("user.", "token.")) for e in seen["items"])
+    entry = log["items"][0]["id"]
+    refused = client.post(f"/api/audit/{entry}/revert")
+    assert refused.status_code == 422 and "changed a user or a token" in refused.json()["detail"]
+
+
+def test_a_session_ends_twelve_hours_after_the_login_however_busy(app: FastAPI, accounts: dict[str, Account],
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Starlette re-signs the cookie on every answer, which used to restart its 12 hours; the login time
+    is now signed into it and counted from (issue 15)."""
+    import app.api.authentication as authentication
+
+    clock = [1_900_000_000.0]
+    monkeypatch.setattr(authentication.time, "time", lambda: clock[0])
+    with TestClient(app) as browser:
+        login = browser.post("/api/auth/login", json={"name": "test-reviewer", "password": accounts["reviewer"].password})
+        assert login.status_code == 200
+        for hours in (1, 4, 8, 11.9):  # a request every few hours: each re-signs the cookie
+            clock[0] = 1_900_000_000.0 + hours * 3600
+            assert browser.get("/api/auth/me").status_code == 200, hours
+        clock[0] = 1_900_000_000.0 + 12 * 3600 + 1
+        assert browser.get("/api/auth/me").status_code == 401
+
+
+def test_a_session_cookie_without_a_login_time_is_refused() -> None:
+    """A cookie signed before the login time was stored (or forged without it) names no principal."""
+    from app.api.authentication import resolve_principal
+
+    cookie = {"uid": 1, "gen": 0, "csrf": "x"}
+    assert resolve_principal(lambda: None, None, cookie, max_age_s=43200) is None and cookie == {}

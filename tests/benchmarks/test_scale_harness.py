@@ -74,6 +74,7 @@ def test_harness_on_one_game(two_games: Path, tmp_path: Path) -> None:
                         for v in httpx.get(f"{server.base_url}/api/systems/{i}", headers=server.headers).json()["views"]}
     assert measured["systems"] == figures.systems
     assert 0 < measured["queue_p50_ms"] <= measured["queue_p95_ms"]
+    assert measured["queue_depth_p95_ms"] > 0 and any(k.endswith(" offset") for k in measured["queue_depth_variant_p95_ms"])
     assert measured["system_p95_ms"] > 0 and measured["export_s"] > 0 and measured["export_mb"] > 0
     assert measured["ball_edits"] >= 2 and measured["ball_edits"] % 2 == 0  # each nudge is undone
     with scale.Server(tmp_path / "scale.sqlite3") as server:
@@ -91,3 +92,24 @@ def test_harness_on_one_game(two_games: Path, tmp_path: Path) -> None:
 def test_main_names_a_missing_database(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert scale.main(["--skip-import", "--db", str(tmp_path / "none.sqlite3"), "--work-dir", str(tmp_path)]) == 2
     assert "none.sqlite3" in capsys.readouterr().err
+
+
+def test_with_images_each_game_gets_a_frames_zip_whose_headers_the_import_checks(two_games: Path, tmp_path: Path) -> None:
+    """``--with-images`` (issue 15: the scale import's frames/s with the image checks on): every action and replay
+    image of the labels is a PNG member of the game's Frames-v3.zip, at the labelled size, as the reader finds it."""
+    import zipfile
+
+    from app.datasets.files import member_image_header
+    from app.datasets.soccernet_v3 import FrameImages
+
+    game = scale.game_dirs(scale.subset_tree(two_games, 1, tmp_path / "img", images=True))[0]
+    labels = json.loads((game / "Labels-v3.json").read_text())
+    entries = {**labels["actions"], **labels["replays"]}
+    with zipfile.ZipFile(game / "Frames-v3.zip") as zf:
+        assert sorted(zf.namelist()) == sorted(entries)
+        for name, entry in entries.items():
+            header = member_image_header(zf, name, name)
+            assert (header.type, header.width, header.height) == (
+                "png", entry["imageMetadata"]["width"], entry["imageMetadata"]["height"])
+    with FrameImages(game) as images:
+        assert {images.locate(name)["image_type"] for name in entries} == {"png"}

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.accounts import Account, make_accounts
-from tests.browser.support import log_in
+from tests.browser.support import import_into_new_database, log_in
 from tests.live_server import serve_app
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -32,26 +32,16 @@ def seeded_settings(tmp_path_factory: pytest.TempPathFactory):
     """Settings of a fresh database built by the migrations and filled with the demo dataset through
     the SoccerNet-v3 importer, as a user would (``v3d demo`` then ``v3d import``)."""
     from app.core.config import Settings
-    from app.db.session import make_engine, make_session_factory, upgrade_database
     from app.demo import generate_demo_dataset
-    from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3
+    from app.services.transfer.importing import import_sn_calibration
 
     root = tmp_path_factory.mktemp("ui")
     settings = Settings(database_url=f"sqlite:///{root / 'ui.sqlite3'}", calibration_workers=1,
                         data_root=tmp_path_factory.getbasetemp())
-    upgrade_database(settings.database_url)
     dataset = generate_demo_dataset(root / "demo")
     calibration_only = _calibration_only_folder(dataset, root / "calibration-only")
-    engine = make_engine(settings.database_url)
-    try:
-        with make_session_factory(engine)() as session:
-            import_soccernet_v3(session, dataset, settings)
-            session.commit()
-            import_sn_calibration(session, calibration_only, settings, width=CALIB_ONLY_SIZE[0],
-                                  height=CALIB_ONLY_SIZE[1])
-            session.commit()
-    finally:
-        engine.dispose()
+    import_into_new_database(settings, dataset, then=lambda session: import_sn_calibration(
+        session, calibration_only, settings, width=CALIB_ONLY_SIZE[0], height=CALIB_ONLY_SIZE[1]))
     return settings
 
 

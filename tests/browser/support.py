@@ -6,6 +6,27 @@ from __future__ import annotations
 TESTID = "[data-testid={}]"
 
 
+def import_into_new_database(settings, *datasets, then=None) -> None:
+    """Migrate ``settings.database_url`` (a new database) and import each SoccerNet-v3 tree of ``datasets``
+    through the importer, as ``v3d import soccernet-v3`` does; ``then(session)``, when given, runs after them
+    in the same session (another import, a user). Each import commits on its own."""
+    from app.db.session import make_engine, make_session_factory, upgrade_database
+    from app.services.transfer.importing import import_soccernet_v3
+
+    upgrade_database(settings.database_url)
+    engine = make_engine(settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            for dataset in datasets:
+                import_soccernet_v3(session, dataset, settings)
+                session.commit()
+            if then is not None:
+                then(session)
+                session.commit()
+    finally:
+        engine.dispose()
+
+
 def tid(name: str) -> str:
     """The CSS selector of the element whose ``data-testid`` is ``name``."""
     return TESTID.format(name)

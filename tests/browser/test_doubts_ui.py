@@ -73,7 +73,19 @@ def test_missing_ball_is_fixed_with_its_key(page, artifacts):
     assert not [d for d in after["doubts"] if d["kind"] == "ball_missing"]
     assert after["views"][k]["ball"]["kind"] == "box"
     assert after["views"][k]["reprojection_error_px"] < 3.0  # the snapped box agrees with the 3D ball
+    # the snapped label keeps where it came from and is no evidence until a person places it (issue 18)
+    assert patch.value.request.post_data_json["provenance"]["doubt"] == "ball_missing"
+    assert after["views"][k]["ball"]["provenance"]["from_views"] == doubt["evidence"]["agreeing_views"]
+    note = view.locator(tid("view-suggested"))
+    note.wait_for()
+    assert "no 3D ball until you check it" in note.inner_text()
     page.screenshot(path=str(artifacts / "doubts-missing-after.png"), full_page=True)
+    with page.expect_response(lambda r: r.request.method == "PATCH" and "/ball" in r.url) as confirm:
+        view.locator(tid("confirm-suggested")).click()
+    assert confirm.value.ok and "provenance" not in confirm.value.request.post_data_json
+    note.wait_for(state="detached")
+    assert _api(page, f"/api/systems/{system['id']}")["views"][k]["ball"]["provenance"] is None
+    page.screenshot(path=str(artifacts / "doubts-missing-confirmed.png"), full_page=True)
 
     removed = api_write(page, "PATCH", f"/api/frames/{doubt['frame_id']}/ball", {"box": None})
     assert removed.ok and any(d["kind"] == "ball_missing" for d in removed.json()["doubts"])

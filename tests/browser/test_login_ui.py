@@ -72,3 +72,30 @@ def test_the_demo_hint_appears_once_the_demo_account_exists(browser, server_url,
         assert visitor.locator(tid("user")).inner_text() == "demo · admin"
     finally:
         context.close()
+
+
+@pytest.mark.parametrize("next_param, expected", [
+    ("%2Fsystems%2F3%3Fsort%3Dname%23v2", "/systems/3?sort=name#v2"),
+    ("%2F%09%2Fevil.example", "/"),          # the browser drops the tab: //evil.example
+    ("%2F%0A%2Fevil.example%2Fx", "/"),      # a newline likewise
+    ("%2F%5Cevil.example", "/"),             # /\evil.example is read as //evil.example
+    ("%2F%5C%5Cevil.example", "/"),
+    ("%2F%2Fevil.example", "/"),
+    ("https%3A%2F%2Fevil.example%2F", "/"),
+    ("javascript%3Aalert(1)", "/"),
+    ("%2Flogin%3Fnext%3D%2F", "/"),          # never back to the login page
+    ("%2F..%2F%2Fevil.example", "/evil.example"),  # dot segments resolve on this site
+])
+def test_the_login_page_returns_only_to_a_page_of_this_site(browser, server_url, next_param: str,
+                                                            expected: str) -> None:
+    """``nextPage`` (static/js/login.js) resolves ``next`` as the browser will when it navigates, and keeps
+    it only when it stays on this origin: ``/%09/evil.example`` left the site before (issue 15)."""
+    context = browser.new_context(base_url=server_url)
+    try:
+        visitor = context.new_page()
+        visitor.goto(f"/login?next={next_param}")
+        visitor.locator(tid("login-form")).wait_for()
+        got = visitor.evaluate("async () => (await import('/static/js/login.js')).nextPage()")
+        assert got == expected
+    finally:
+        context.close()

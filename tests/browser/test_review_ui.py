@@ -435,7 +435,11 @@ def test_mirrored_labels_are_shown_with_their_evidence_and_fixed_by_one_key(page
     assert after["reprojection_error_px"] < 5.0 and shown == pytest.approx(after["reprojection_error_px"], abs=0.01)
     page.screenshot(path=str(artifacts / "mirrored-after.png"), full_page=True)
 
-    restored = api_write(page, "POST", f"/api/frames/{flagged['frame_id']}/field-lines/mirror")
+    # mirroring a right camera again is refused (the mirrored calibration and the ball would not agree better)
+    again = api_write(page, "POST", f"/api/frames/{flagged['frame_id']}/field-lines/mirror")
+    assert again.status == 409 and "do not agree better" in again.text()
+    restored = api_write(page, "PUT", f"/api/frames/{flagged['frame_id']}/field-lines",
+                         data={"lines": flagged["field_lines"]})
     assert restored.ok and _mirror_flagged(restored.json()["views"][k])
 
 
@@ -475,3 +479,42 @@ def test_stale_system_link_says_so_and_leads_back_to_the_queue(page):
     page.click(tid("queue-link"))
     page.wait_for_url(re.compile(r"/\?sort=name$"))
     page.locator(tid("queue-row")).first.wait_for()
+
+
+def test_queue_pager_turns_pages_by_cursor(page, artifacts):
+    """The pager asks the API by cursor (``after=`` / ``before=`` in the address bar) and shows the
+    same rows as the pages by offset; its ends are disabled."""
+    everything = [str(s["id"]) for s in _api(page, "/api/systems?sort=name&limit=500")["items"]]
+    assert len(everything) > 6, "the demo should hold more than two pages of 3"
+    ids = lambda: [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]  # noqa: E731
+
+    def shows(rows: list[str]) -> None:
+        page.wait_for_function("(want) => [...document.querySelectorAll('[data-testid=queue-row]')]"
+                               ".map((r) => r.dataset.id).join(',') === want", arg=",".join(rows))
+
+    page.goto("/?sort=name&limit=3")
+    shows(everything[:3])
+    assert page.locator(tid("page-prev")).is_disabled() and page.locator(tid("page-info")).inner_text().startswith("1–3")
+    page.click(tid("page-next"))
+    page.wait_for_url(re.compile(r"after="))
+    shows(everything[3:6])
+    assert page.locator(tid("page-info")).inner_text().startswith("4–6")
+    page.keyboard.press("n")
+    shows(everything[6:9])
+    page.screenshot(path=str(artifacts / "queue-pager-by-cursor.png"))
+    page.click(tid("page-prev"))
+    page.wait_for_url(re.compile(r"before="))
+    shows(everything[3:6])
+    page.reload()  # the cursor lives in the address bar
+    shows(everything[3:6])
+    page.click(tid("page-prev"))
+    shows(everything[:3])
+    assert page.locator(tid("page-prev")).is_disabled()
+    # to the end: next is disabled on the last page
+    while not page.locator(tid("page-next")).is_disabled():
+        before = ids()
+        page.click(tid("page-next"))
+        page.wait_for_function("(old) => [...document.querySelectorAll('[data-testid=queue-row]')]"
+                               ".map((r) => r.dataset.id).join(',') !== old", arg=",".join(before))
+    n = len(everything)
+    shows(everything[(n - 1) // 3 * 3:])

@@ -1,7 +1,6 @@
 """``v3d import ...`` and ``v3d export ...`` end to end on small datasets (temporary SQLite files)."""
 from __future__ import annotations
 
-import csv
 import re
 import zipfile
 from pathlib import Path
@@ -45,14 +44,19 @@ def test_import_sn_calibration_then_export_all(shared_dir, tmp_path, url):
     assert again.exit_code == 0 and "(0 new, 0 changed)" in again.output
     assert _count(url, "frames") == 3
 
+    # issue 19: single-view frames leave as cameras (SoccerNet-calibration JSON), not in the SoccerNet-v3D export
     out = tmp_path / "export"
-    accepted = runner.invoke(cli, ["export", "soccernet-v3d", str(out), "--database-url", url])
-    assert accepted.exit_code == 0 and "exported 0 system(s)" in accepted.output
     everything = runner.invoke(cli, ["export", "soccernet-v3d", str(out), "--all", "--database-url", url])
-    assert everything.exit_code == 0 and "exported 3 system(s) of 1 game(s), 3 row(s)" in everything.output
-    with (out / "SNv3D.csv").open() as fh:
-        assert [r["main_action"] for r in csv.DictReader(fh)] == ["1.json", "2.json", "3.json"]
-    assert (out / "sn-calibration" / "wc" / "annotations" / "Labels-v3D.json").is_file()
+    assert everything.exit_code == 0 and "exported 0 system(s) of 0 game(s), 0 row(s)" in everything.output
+    cams = tmp_path / "cameras"
+    accepted = runner.invoke(cli, ["export", "cameras", str(cams), "--database-url", url])
+    assert accepted.exit_code == 0 and "exported 0 camera(s)" in accepted.output, accepted.output
+    admitted = _count(url, "calibrations WHERE admitted AND camera IS NOT NULL")
+    assert admitted >= 1
+    every = runner.invoke(cli, ["export", "cameras", str(cams), "--all", "--database-url", url])
+    assert every.exit_code == 0 and f"exported {admitted} camera(s)" in every.output, every.output
+    files = sorted(p.name for p in (cams / "sn-calibration" / "wc" / "annotations").iterdir())
+    assert len(files) == admitted and set(files) <= {"camera_1.json", "camera_2.json", "camera_3.json"}
 
 
 def test_import_soccernet_v3_and_v3d(shared_dir, tmp_path, url):
@@ -61,7 +65,12 @@ def test_import_soccernet_v3_and_v3d(shared_dir, tmp_path, url):
     assert result.exit_code == 0, result.output
     assert "1 game(s), 1 system(s), 4 frame(s) (1 new, 0 changed)" in result.output
     outcome = re.search(r"calibrated (\d+) .*, refused (\d+); triangulated (\d+) system", result.output).groups()
-    assert runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / "out"), "--all", "--database-url", url]).exit_code == 0
+    exported = runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / "out"), "--all", "--database-url", url])
+    assert exported.exit_code == 0 and "4 row(s) and 4 image(s)" in exported.output
+    assert len(list((tmp_path / "out").rglob("Frames-v3.zip"))) == 1
+    bare = runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / "bare"), "--all", "--no-images",
+                               "--database-url", url])
+    assert bare.exit_code == 0 and "and 0 image(s)" in bare.output and not list((tmp_path / "bare").rglob("*.zip"))
     other = f"sqlite:///{tmp_path / 'other.sqlite3'}"
     back = runner.invoke(cli, ["import", "soccernet-v3d", str(tmp_path / "out"), "--database-url", other])
     assert back.exit_code == 0, back.output
@@ -101,3 +110,49 @@ def test_each_bad_label_exits_2_naming_file_and_field(shared_dir, tmp_path, url,
     assert "error:" in result.output and "Labels-v3.json" in result.output
     assert field in result.output and detail in result.output
     assert _count(url, "games") == 0
+
+
+def test_a_link_leading_out_of_the_dataset_exits_2_naming_it(shared_dir, tmp_path, url):
+    """Issue 15, item 1: the ``v3d import`` command is not confined to a data root, but a dataset still
+    reads nothing outside its own folder: a frame linked to /etc/passwd exits 2 and stores nothing."""
+    game_dir = write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",), with_images=False)
+    (game_dir / "Frames-v3").mkdir()
+    (game_dir / "Frames-v3" / "0.png").symlink_to("/etc/passwd")
+    result = runner.invoke(cli, ["import", "soccernet-v3", str(tmp_path / "v3"), "--database-url", url])
+    assert result.exit_code == 2, result.output
+    assert "Frames-v3/0.png: image of frame '0.png': resolves outside the dataset's folder" in result.output
+    assert _count(url, "games") == 0
+
+
+def test_import_split_makes_the_listed_images_the_exports_split(shared_dir, tmp_path, url):
+    """Issue 19: ``v3d import split FILE --set train|test`` (lines ``<league>/<season>/<match>/<image>``, as the
+    released SNv3D-train.txt / SNv3D-test.txt) sets the split the exports use; unknown lines are reported."""
+    import csv
+
+    from app.services.kinds import split_of
+    from tests.services.datasets import DEV_GAME
+
+    write_v3_game(shared_dir, tmp_path / "v3", actions=("2.png",))
+    assert runner.invoke(cli, ["import", "soccernet-v3", str(tmp_path / "v3"), "--database-url", url]).exit_code == 0
+    own = split_of("/".join(DEV_GAME))
+    other = "test" if own == "train" else "train"
+    listed = tmp_path / f"SNv3D-{other}.txt"
+    game = "/".join(DEV_GAME)
+    listed.write_text(f"{game}/2.png\n{game}/2_1\n\n{game}/99.png\nnowhere/x/y/1.png\nnot-an-image-line\n")
+    result = runner.invoke(cli, ["import", "split", str(listed), "--set", other, "--database-url", url])
+    assert result.exit_code == 0, result.output
+    assert f"2 image(s) of 5 line(s) are now in {other} (2 changed); 3 line(s) name no stored image" in result.output
+    for line in (f"{game}/99.png", "nowhere/x/y/1.png", "not-an-image-line"):
+        assert f"unknown: {line}" in result.output
+    out = tmp_path / "out"
+    assert runner.invoke(cli, ["export", "soccernet-v3d", str(out), "--all", "--no-images",
+                               "--database-url", url]).exit_code == 0
+    with (out / "SNv3D.csv").open() as fh:
+        sets = {(r["replay"] or r["main_action"]): r["set"] for r in csv.DictReader(fh)}
+    assert sets == {"2.png": other, "2_1.png": other, "2_2.png": own, "2_3.png": own}
+    again = runner.invoke(cli, ["import", "split", str(listed), "--set", other, "--database-url", url])
+    assert "(0 changed)" in again.output
+    bad = runner.invoke(cli, ["import", "split", str(listed), "--set", "val", "--database-url", url])
+    assert bad.exit_code == 2 and "set" in bad.output
+    missing = runner.invoke(cli, ["import", "split", str(tmp_path / "none.txt"), "--set", "test", "--database-url", url])
+    assert missing.exit_code == 2 and "none.txt" in missing.output

@@ -59,7 +59,7 @@ def test_exported_labels_as_predictions_give_ap_1(dev):
                               "--database-url", dev["url"]])
     assert res.exit_code == 0, res.output
     rep = json.loads(out.read_text())
-    assert set(rep) == {"AP50", "MAE_m", "MAE_pct", "P_2m", "curve", "counts", "splits"}
+    assert set(rep) == {"AP50", "MAE_m", "MAE_pct", "P_2m", "curve", "counts", "splits", "cameras"}
     assert rep["AP50"] == 1.0
     assert rep["counts"]["localised"] == rep["counts"]["reference_views"] >= 60  # measured 64
     assert rep["MAE_pct"] < 0.5  # measured 0.05 %: the views that made each 3D ball agree with it
@@ -100,3 +100,113 @@ def test_bad_predictions_exit_with_status_2(dev):
     assert res.exit_code == 2 and "no such file" in res.output
     res = runner.invoke(cli, ["evaluate", "monocular", str(dev["yolo"] / "labels"), "--database-url", dev["url"]])
     assert res.exit_code == 2 and "no view with a 3D ball" in res.output  # nothing accepted yet
+
+
+def test_evaluate_boxes_on_the_dev_set_from_the_truths_precise_boxes(dev, shared_dir):
+    """Issue 19 (Table 1): ``v3d evaluate boxes PRECISE.csv`` stores the precise boxes and scores the original,
+    optimised and refined boxes; ``v3d import precise-boxes`` and the stored boxes give the same report."""
+    from benchmarks.table1_boxes import precise_csv
+
+    csv_path = precise_csv(shared_dir / "data" / "synthetic" / "soccernet-v3-dev.truth.json", dev["tmp"] / "p.csv")
+    out = dev["tmp"] / "boxes.json"
+    res = runner.invoke(cli, ["evaluate", "boxes", str(csv_path), "--all", "--json", str(out),
+                              "--database-url", dev["url"]])
+    assert res.exit_code == 0, res.output
+    report = json.loads(out.read_text())
+    assert "stored 105 precise box(es)" in res.output and report["views"] == 105
+    assert report["original"]["n"] > 50
+    assert report["refined"]["iou"] > report["optimised"]["iou"] > report["original"]["iou"]
+    assert report["optimised"]["size_error_pct"] < report["original"]["size_error_pct"]
+    stored = runner.invoke(cli, ["import", "precise-boxes", str(csv_path), "--database-url", dev["url"]])
+    assert stored.exit_code == 0 and "stored 105 precise box(es)" in stored.output
+    again = runner.invoke(cli, ["evaluate", "boxes", "--all", "--json", str(dev["tmp"] / "b2.json"),
+                                "--database-url", dev["url"]])
+    assert again.exit_code == 0 and json.loads((dev["tmp"] / "b2.json").read_text()) == report
+    bad = runner.invoke(cli, ["import", "precise-boxes", str(dev["tmp"] / "missing.csv"), "--database-url", dev["url"]])
+    assert bad.exit_code == 2 and "missing.csv" in bad.output
+
+
+def _truth_cameras(shared_dir: Path, dest: Path, perturb_m: float = 0.0) -> Path:
+    """A cameras tree (``<league>/<season>/<match>/camera_<image stem>.json``) of the truth's cameras, each camera
+    centre moved by ``perturb_m`` along x (seeded nowhere: a fixed shift)."""
+    raw = json.loads((shared_dir / "data" / "synthetic" / "soccernet-v3-dev.truth.json").read_text())
+    for g in raw["games"]:
+        folder = dest / g["league"] / g["season"] / g["match"]
+        folder.mkdir(parents=True, exist_ok=True)
+        for s in g["systems"]:
+            for v in s["views"]:
+                cam = dict(v["camera"])
+                cam["position_meters"] = [cam["position_meters"][0] + perturb_m, *cam["position_meters"][1:]]
+                (folder / f"camera_{Path(v['image']).stem}.json").write_text(json.dumps(cam))
+    return dest
+
+
+def test_monocular_rows_with_given_cameras(dev, shared_dir):
+    """Issue 19 (Table 2): ``--cameras DIR`` scores with the cameras given; the stored cameras written by
+    ``v3d export cameras`` give the oracle row again, the truth's cameras their own row, perturbed ones a worse one."""
+    pred = _predictions(dev["yolo"] / "labels", dev["tmp"] / "pred-c", 1.0)
+    rows = {}
+    stored = dev["tmp"] / "stored-cameras"
+    res = runner.invoke(cli, ["export", "cameras", str(stored), "--all", "--database-url", dev["url"]])
+    assert res.exit_code == 0, res.output
+    for name, cams in (("oracle", None), ("stored", stored),
+                       ("truth", _truth_cameras(shared_dir, dev["tmp"] / "truth-cameras")),
+                       ("perturbed", _truth_cameras(shared_dir, dev["tmp"] / "perturbed-cameras", 2.0))):
+        out = dev["tmp"] / f"{name}.json"
+        args = ["evaluate", "monocular", str(pred), "--all", "--json", str(out), "--database-url", dev["url"]]
+        res = runner.invoke(cli, args + (["--cameras", str(cams)] if cams else []))
+        assert res.exit_code == 0, res.output
+        rows[name] = json.loads(out.read_text())
+    assert rows["oracle"]["cameras"] == "stored" and rows["truth"]["cameras"] == "given"
+    assert rows["stored"]["MAE_m"] == rows["oracle"]["MAE_m"] and rows["stored"]["counts"]["views_without_camera"] == 0
+    assert rows["truth"]["counts"]["views_without_camera"] == 0
+    assert rows["truth"]["counts"]["localised"] == rows["oracle"]["counts"]["localised"]
+    assert rows["oracle"]["MAE_m"] < rows["truth"]["MAE_m"] < rows["perturbed"]["MAE_m"]
+    print({k: round(r["MAE_m"], 3) for k, r in rows.items()})
+    with pytest.MonkeyPatch.context() as mp:  # a relative --cameras, from the working directory (issue 15)
+        mp.chdir(dev["tmp"])
+        res = runner.invoke(cli, ["evaluate", "monocular", str(pred), "--all", "--json", "relative.json",
+                                  "--database-url", dev["url"], "--cameras", "stored-cameras"])
+        assert res.exit_code == 0, res.output
+        relative = json.loads((dev["tmp"] / "relative.json").read_text())
+    assert relative["MAE_m"] == rows["stored"]["MAE_m"] and relative["counts"]["views_without_camera"] == 0
+    bad = runner.invoke(cli, ["evaluate", "monocular", str(pred), "--all", "--cameras", str(dev["tmp"] / "nope"),
+                              "--database-url", dev["url"]])
+    assert bad.exit_code == 2 and "cameras" in bad.output
+
+
+def test_stats_of_the_dev_set(dev):
+    """Issue 19 (item 6): ``v3d stats --json`` counts per kind and split, the JaC sweep and the distributions."""
+    import sqlalchemy as sa
+
+    from app.db.session import make_engine
+
+    out = dev["tmp"] / "stats.json"
+    res = runner.invoke(cli, ["stats", "--json", str(out), "--database-url", dev["url"]])
+    assert res.exit_code == 0, res.output
+    stats = json.loads(out.read_text())
+    engine = make_engine(dev["url"])
+    with engine.connect() as conn:
+        n = {q: conn.execute(sa.text(q)).scalar() for q in (
+            "SELECT count(*) FROM systems", "SELECT count(*) FROM frames",
+            "SELECT count(*) FROM calibrations WHERE camera IS NOT NULL AND camera != 'null'",  # JSON null: refused
+            "SELECT count(*) FROM calibrations WHERE admitted AND camera IS NOT NULL AND camera != 'null'",
+            "SELECT count(*) FROM triangulation_pairs WHERE error_px IS NOT NULL")}
+    engine.dispose()
+    k = stats["kinds"]["soccernet-v3"]
+    assert list(stats["kinds"]) == ["soccernet-v3"]
+    assert [k["systems"], k["images"], k["calibrated_images"], k["admitted_images"]] == list(n.values())[:4]
+    for c in ("images", "calibrated_images", "admitted_images"):
+        assert sum(s[c] for s in k["splits"].values()) == k[c]
+    sweep = stats["jac_sweep"]
+    assert sweep[0]["threshold"] == 0.0 and sweep[-1]["threshold"] == 1.0
+    kept = [r["systems_kept"] for r in sweep]
+    assert kept == sorted(kept, reverse=True) and 0 < kept[0] <= k["systems"]
+    d = stats["distributions"]
+    assert d["pair_reprojection_error_px"]["n"] == list(n.values())[4]
+    assert 0 < d["jac"]["n"] <= k["calibrated_images"]
+    for name in ("jac", "ball_distance_m", "box_size_px"):
+        assert d[name]["n"] > 0 and sum(d[name]["counts"]) + d[name]["above"] == d[name]["n"]
+        assert len(d[name]["edges"]) == 21
+    assert stats["jac_sweep_by_kind"] == {"soccernet-v3": sweep}
+    assert stats["admission"] == {"gamma": 0.005, "jac_min": 0.75}

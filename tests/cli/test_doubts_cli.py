@@ -48,6 +48,12 @@ def test_doubts_json_names_systems_and_frames_by_image_name(demo_db, tmp_path: P
     (missing,) = truth["problems"]["missing_ball"]
     named = [d for s in systems for d in s["doubts"] if d["kind"] == "ball_missing" and d["frame"] == missing]
     assert len(named) == 1 and named[0]["suggestion"]["action"] == "snap_box" and len(named[0]["suggestion"]["box"]) == 4
+    req = named[0]["suggestion"]["request"]
+    # the label a fix makes keeps where it came from: not independent evidence until a person places it
+    assert req == {"method": "PATCH", "path": f"/api/frames/{named[0]['frame_id']}/ball",
+                   "body": {"box": [round(v) for v in named[0]["suggestion"]["box"]],
+                            "provenance": {"doubt": "ball_missing", "code": "consensus",
+                                           "from_views": named[0]["evidence"]["agreeing_views"]}}}
 
 
 def test_doubts_table_counts_every_label_kind(demo_db) -> None:

@@ -12,7 +12,7 @@ import app.cli.jobs  # noqa: F401
 from app.cli._root import cli
 from app.db.session import make_engine, make_session_factory
 from app.services.jobs import runner as jobs
-from tests.services.datasets import write_calibration_zip
+from tests.services.datasets import write_calibration_zip, write_v3_game
 
 runner = CliRunner()
 
@@ -78,6 +78,12 @@ def test_recompute_and_export_show_their_progress_and_counts(shared_dir: Path, t
             assert session.query(AuditEntry).filter_by(action="recompute").count() == 1
     finally:
         engine.dispose()
-    out = runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / "out"), "--all", "--database-url", url])
+    # The SoccerNet-v3D export holds SoccerNet-v3 systems only (single frames leave as cameras): add one game.
+    game = write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",), with_images=False)
+    assert runner.invoke(cli, ["import", "soccernet-v3", str(game.parents[2]), "--database-url", url,
+                               "--workers", "1"]).exit_code == 0
+    out = runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / "out"), "--all", "--no-images",
+                              "--database-url", url])
     assert out.exit_code == 0 and "exporting games" in out.output, out.output
+    assert re.search(r"exported 1 system\(s\) of 1 game\(s\)", out.output), out.output
     assert (tmp_path / "out" / "SNv3D.csv").is_file()

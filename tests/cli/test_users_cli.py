@@ -1,5 +1,6 @@
-"""``v3d users add|list|token|disable|enable``: the token printed alone on the last line works against
-the API; the password from standard input or from a hidden prompt asked twice; clear errors."""
+"""``v3d users add|list|token|tokens|revoke|role|disable|enable``: the token printed alone on the last line
+works against the API; the password from standard input or from a hidden prompt asked twice; tokens with
+an id, a label and an expiry, revoked one by one; role changes; clear errors."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -59,7 +60,7 @@ def test_list_token_and_disable(url: str) -> None:
     listed = runner.invoke(cli, ["users", "list", "--database-url", url])
     assert listed.exit_code == 0
     rows = {line.split()[0]: line.split() for line in listed.stdout.splitlines()[1:]}
-    assert rows["cy"][1] == "admin" and rows["cy"][4] == "1" and rows["cy"][5] == "disabled"
+    assert rows["cy"][1] == "admin" and rows["cy"][4] == "0" and rows["cy"][5] == "disabled"  # tokens revoked
     assert rows["dee"][1] == "annotator" and rows["dee"][4] == "2" and rows["dee"][5] == "active"
 
 
@@ -73,3 +74,33 @@ def test_errors_are_clear_and_change_nothing(url: str) -> None:
     assert missing.exit_code == 2 and "user 'nobody' not found" in missing.stderr
     listed = runner.invoke(cli, ["users", "list", "--database-url", url]).stdout
     assert [line.split()[0] for line in listed.splitlines()[1:]] == ["eve"]
+
+
+def test_tokens_are_labelled_listed_and_revoked_and_roles_change(url: str) -> None:
+    assert _add(url, "gil", "annotator").exit_code == 0
+    made = runner.invoke(cli, ["users", "token", "gil", "--label", "nightly CI", "--expires-days", "30",
+                               "--database-url", url])
+    assert made.exit_code == 0, made.output
+    token = made.stdout.strip().splitlines()[-1]
+    token_id = int(made.stdout.split("new API token ")[1].split()[0])
+    assert "expires" in made.stdout and f"v3d users revoke gil {token_id}" in made.stdout
+    listed = runner.invoke(cli, ["users", "tokens", "gil", "--database-url", url])
+    assert listed.exit_code == 0 and token not in listed.stdout
+    rows = [line.split() for line in listed.stdout.splitlines()[1:]]
+    assert [(int(r[0]), r[-1]) for r in rows] == [(token_id - 1, "active"), (token_id, "active")]
+    assert "nightly" in listed.stdout and "first" in listed.stdout
+    with TestClient(create_app(Settings(database_url=url))) as client:
+        assert client.get("/api/games", headers={"Authorization": f"Bearer {token}"}).status_code == 200
+        assert runner.invoke(cli, ["users", "revoke", "gil", str(token_id), "--database-url", url]).exit_code == 0
+        assert client.get("/api/games", headers={"Authorization": f"Bearer {token}"}).status_code == 401
+        assert runner.invoke(cli, ["users", "role", "gil", "admin", "--database-url", url]).exit_code == 0
+        first = runner.invoke(cli, ["users", "token", "gil", "--database-url", url]).stdout.strip().splitlines()[-1]
+        assert client.get("/api/users", headers={"Authorization": f"Bearer {first}"}).status_code == 200
+    assert runner.invoke(cli, ["users", "tokens", "gil", "--database-url", url]).stdout.splitlines()[2].split()[-1] \
+        == "revoked"
+    bad_role = runner.invoke(cli, ["users", "role", "gil", "boss", "--database-url", url])
+    assert bad_role.exit_code == 2 and "error: role: unknown role 'boss'" in bad_role.stderr
+    bad_id = runner.invoke(cli, ["users", "revoke", "gil", "99999", "--database-url", url])
+    assert bad_id.exit_code == 2 and "token 99999 not found" in bad_id.stderr
+    bad_days = runner.invoke(cli, ["users", "token", "gil", "--expires-days", "0", "--database-url", url])
+    assert bad_days.exit_code == 2 and "expires_days" in bad_days.stderr

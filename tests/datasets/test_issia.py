@@ -169,3 +169,48 @@ def test_dev_video_frames_come_at_annotation_scale(issia_dev):
     native = read_frame_image(seq, "3", 100, at_annotation_size=False)
     assert native.image.shape == (540, 960, 3) and native.scale == (2.0, 2.0)  # 960x540 video, 1920x1080 labels
     assert read_frame_image(seq, "3", 100).image.shape == (1080, 1920, 3)
+
+
+def _released_folder(src: Path, dest: Path, *, frame_column: bool) -> Path:
+    """``dest`` with ``src``'s calibration and, in place of ball_points.csv, the labels as the authors' release
+    writes them (``ISSIA-3D.csv``: every column of the format, the ``frame`` column only when asked)."""
+    import csv
+
+    dest.mkdir(parents=True)
+    (dest / "issia_calibration.json").write_text((src / "issia_calibration.json").read_text())
+    with (src / "ball_points.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    columns = [c for c in ISSIA3D_COLUMNS if frame_column or c != "frame"]
+    with (dest / "ISSIA-3D.csv").open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns)
+        w.writeheader()
+        for r in rows:
+            cells = {c: "" for c in columns}
+            cells.update({k: v for k, v in r.items() if k in cells})
+            cells["num_cameras"] = str(sum(bool(r[f"x_cam{k}"]) for k in range(1, 7)))
+            w.writerow(cells)
+    return dest
+
+
+@pytest.mark.parametrize("frame_column", [True, False], ids=["frame_column", "row_order"])
+def test_the_released_issia3d_csv_reads_as_ball_points(shared_dir, tmp_path, frame_column):
+    """Issue 19: ``v3d import issia`` takes the released ISSIA-3D.csv in place of ball_points.csv (x_camK /
+    y_camK columns; a frame column when present, else row order): the same labels as ball_points.csv."""
+    src = shared_dir / "data" / "synthetic" / "issia-dev"
+    expected = read_issia(src)
+    assert expected.frames == tuple(range(len(expected.frames)))  # row order == frame index on this set
+    got = read_issia(_released_folder(src, tmp_path / "rel", frame_column=frame_column))
+    assert got.camera_ids == expected.camera_ids and got.frames == expected.frames
+    np.testing.assert_array_equal(got.points, expected.points)
+
+
+def test_a_broken_released_issia3d_csv_names_row_and_column(tmp_path):
+    folder = make_folder(tmp_path / "bad")
+    (folder / "ball_points.csv").unlink()
+    (folder / "ISSIA-3D.csv").write_text("frame,x_cam1,y_cam1,ball_3D\n0,10.0,,\n")
+    with pytest.raises(DatasetError) as err:
+        read_issia(folder)
+    assert "ISSIA-3D.csv" in str(err.value) and "row 2 x_cam1/y_cam1" in str(err.value)
+    (folder / "ISSIA-3D.csv").write_text("frame,ball_3D\n0,\n")
+    with pytest.raises(DatasetError, match="no x_camK column"):
+        read_issia(folder)

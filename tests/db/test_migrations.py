@@ -115,3 +115,47 @@ def test_upgrading_a_filled_sqlite_database_keeps_every_row(tmp_path):
             assert (system.review_status.value, system.views_total, len(system.frames)) == ("accepted", 2, 2)
     finally:
         engine.dispose()
+
+
+def test_0009_turns_stored_image_paths_into_the_dataset_folder_and_a_relative_path(tmp_path):
+    """Issue 15, item 1: rows stored before 0009 held absolute paths; they become the game's folder (or the
+    file's folder) plus a relative path, and the downgrade joins them again."""
+    url = f"sqlite:///{tmp_path / 'images.sqlite3'}"
+    upgrade_database(url, "0008")
+    engine = make_engine(url)
+    rows = {1: ("/data/l/s/g/Frames-v3.zip", "0.png", None), 2: (None, None, "/data/l/s/g/Frames-v3/1.png"),
+            3: (None, None, "/etc/passwd"), 4: (None, None, None)}
+    try:
+        with engine.begin() as conn:
+            conn.execute(sa.text("INSERT INTO games (id, league, season, match, source_path, created_at) "
+                                 "VALUES (1, 'l', 's', 'g', '/data/l/s/g', '2026-01-01 00:00:00')"))
+            conn.execute(sa.text("INSERT INTO systems (id, game_id, name, kind, created_at) "
+                                 "VALUES (1, 1, '0.png', 'soccernet-v3', '2026-01-01 00:00:00')"))
+            for i, (z, m, p) in rows.items():
+                conn.execute(sa.text("INSERT INTO frames (id, system_id, name, role, position, width, height, "
+                                     "image_zip, image_member, image_path) VALUES "
+                                     "(:i, 1, :n, 'replay', :i, 960, 540, :z, :m, :p)"),
+                             {"i": i, "n": f"{i}.png", "z": z, "m": m, "p": p})
+    finally:
+        engine.dispose()
+    upgrade_database(url, "0009")
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            got = {r[0]: tuple(r[1:]) for r in conn.execute(sa.text(
+                "SELECT id, image_root, image_zip, image_member, image_path, image_type FROM frames"))}
+    finally:
+        engine.dispose()
+    assert got == {1: ("/data/l/s/g", "Frames-v3.zip", "0.png", None, None),
+                   2: ("/data/l/s/g", None, None, "Frames-v3/1.png", None),
+                   3: ("/etc", None, None, "passwd", None),  # kept, but no longer served: not an image
+                   4: (None, None, None, None, None)}
+    command.downgrade(alembic_config(url), "0008")
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            back = {r[0]: tuple(r[1:]) for r in conn.execute(sa.text(
+                "SELECT id, image_zip, image_member, image_path FROM frames"))}
+    finally:
+        engine.dispose()
+    assert back == rows

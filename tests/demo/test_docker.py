@@ -1,5 +1,6 @@
 """Static checks of docker/ (Docker cannot run here): the compose file parses and wires the service
-to PostgreSQL 16, and the Dockerfile copies paths that exist and starts the demo server."""
+to PostgreSQL 16, and the Dockerfile copies paths that exist and starts the server without the demo
+(whose account's password is public), since both listen on every interface."""
 from __future__ import annotations
 
 import re
@@ -46,6 +47,10 @@ def test_compose_service_against_postgres16(compose: dict) -> None:
         assert services[name]["healthcheck"]["test"], name
 
 
+def test_compose_serves_without_the_demo(compose: dict) -> None:
+    assert compose["services"]["app"]["command"] == ["v3d", "serve", "--host", "0.0.0.0"]
+
+
 def test_compose_named_volumes_are_declared(compose: dict) -> None:
     declared = set(compose.get("volumes") or {})
     used = {v.split(":", 1)[0] for s in compose["services"].values() for v in s.get("volumes", [])}
@@ -72,7 +77,7 @@ def test_dockerfile_base_copies_and_command() -> None:
                     continue  # optional files matched by a wildcard
                 assert (PROJECT_ROOT / src).exists(), f"COPY source {src} missing from the repository"
     cmd = [json_arg.strip('" ') for json_arg in dict(instr)["CMD"].strip("[]").split(",")]
-    assert cmd == ["v3d", "serve", "--host", "0.0.0.0", "--demo"]
+    assert cmd == ["v3d", "serve", "--host", "0.0.0.0"]  # never --demo: its password is public
     scripts = tomllib.loads((PROJECT_ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]["scripts"]
     assert "v3d" in scripts
 
@@ -90,3 +95,12 @@ def test_healthchecks_query_an_api_route_that_exists(compose: dict) -> None:
 
     assert "get" in create_app(Settings(database_url="sqlite://")).openapi()["paths"][path]
     assert not is_protected(path)
+
+
+def test_the_readme_and_the_docker_files_show_how_to_make_the_first_admin() -> None:
+    """Without the demo, a fresh container has no account: the README and both Docker files say how to create
+    the first admin in it (``docker compose ... run --rm app v3d users add NAME --role admin``)."""
+    readme = (PROJECT_ROOT / "README.md").read_text(encoding="utf-8")
+    assert "docker compose -f docker/compose.yaml run --rm app v3d users add NAME --role admin" in readme
+    assert "run --rm app v3d users add NAME --role admin" in (DOCKER / "compose.yaml").read_text(encoding="utf-8")
+    assert "v3d users add NAME --role admin" in (DOCKER / "Dockerfile").read_text(encoding="utf-8")

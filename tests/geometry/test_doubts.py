@@ -14,7 +14,10 @@ from app.core.config import Settings
 from app.geometry.ball import sphere_image_box
 from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
 from app.geometry.consensus import ball_consensus
-from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, DoubtSettings, DoubtView, judge_system
+from app.geometry.mirror import mirror_camera
+from app.geometry.doubts import (CODES, INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, DoubtSettings, DoubtView,
+                                 epipolar_pair_error, judge_system, pixel_sigma)
+from app.services.curation.doubt_words import doubt_message
 from app.geometry.triangulation import BallObservation
 
 BALL = np.array([10.0, 5.0, -0.11])  # on the grass
@@ -51,12 +54,12 @@ def camera(name: str) -> Camera:
 
 
 def view(name, position, focal, *, ball=BALL, box="exact", target=None, role="replay", **kw) -> DoubtView:
-    cam = look_at(position, BALL if target is None else target, focal)
+    cam = kw.pop("camera", None) or look_at(position, BALL if target is None else target, focal)
     if isinstance(box, str):
         box = sphere_image_box(cam, ball, R_BALL)
-    return DoubtView(view_id=name, name=f"{name}.png", role=role, width=W, height=H, camera=cam, admitted=True,
-                     jac=0.95, line_classes=kw.pop("line_classes", 8), box=None if box is None else np.asarray(box),
-                     **kw)
+    return DoubtView(view_id=name, name=f"{name}.png", role=role, width=W, height=H, camera=cam,
+                     admitted=kw.pop("admitted", True), jac=kw.pop("jac", 0.95), line_classes=kw.pop("line_classes", 8),
+                     box=None if box is None else np.asarray(box), **kw)
 
 
 def scene(**overrides) -> list[DoubtView]:
@@ -77,7 +80,8 @@ def test_a_clean_system_has_no_label_doubt_and_every_doubt_follows_the_contract(
     for d in judge_system(scene(corner={"box": None}, goal={"box": [5.0, 5.0, 20.0, 20.0]})):
         assert d.kind in LABEL_KINDS + INFO_KINDS
         assert d.suggestion is None or d.suggestion["action"] in SUGGESTION_ACTIONS
-        assert d.message.endswith(".")
+        assert d.code in CODES[d.kind] and not hasattr(d, "message")  # geometry: codes and numbers only
+        assert doubt_message(d, {}).endswith(".")  # the words are composed above it
         json.dumps(d.evidence), json.dumps(d.suggestion)  # JSON-ready
 
 
@@ -104,19 +108,26 @@ def test_a_missing_ball_label_gets_the_exact_sphere_box_where_the_other_views_ag
     assert np.abs(np.asarray(doubts[0].suggestion["box"]) - truth).max() < 0.5
 
 
-def test_with_one_other_view_the_missing_ball_is_put_on_the_grass_along_its_ray_with_its_epipolar_segment():
+def test_with_one_other_view_the_missing_ball_is_a_segment_and_a_box_only_where_it_is_short():
     views = [v for v in scene(goal={"box": None}) if v.view_id in ("main", "goal")]
     doubts = accusing(judge_system(views))
     assert [(d.kind, d.view_id) for d in doubts] == [("ball_missing", "goal")]
     d = doubts[0]
-    assert d.evidence["placed"] == "grass"
-    truth = sphere_image_box(camera("goal"), BALL, R_BALL)
-    assert np.abs(np.asarray(d.suggestion["box"]) - truth).max() < 0.5  # exact box: on the grass is exact
+    assert d.evidence["placed"] == "grass" and d.evidence["inside_chance"] >= 0.5
     seg = np.asarray(d.evidence["epipolar_px"])
     assert len(seg) >= 10 and np.all((seg >= 0) & (seg <= [W, H]))
+    truth = sphere_image_box(camera("goal"), BALL, R_BALL)
     centre = (truth[:2] + truth[2:]) / 2
-    # the true ball lies on the segment (distance to the polyline's nearest sample below 3 px)
-    assert np.min(np.linalg.norm(seg - centre, axis=1)) < 3.0 or _polyline_distance(seg, centre) < 1.0
+    # the true ball lies on the segment, whatever its height
+    assert _polyline_distance(seg, centre) < 1.0
+    if d.code == "epipolar":  # a long segment: one ray does not fix the depth, no box to snap
+        assert d.suggestion is None and d.evidence["segment_length_px_1920"] / 2 > DoubtSettings().consensus_tau_px
+    else:  # a short one: the box is a guess on it, within tau of anywhere on it
+        assert d.code == "epipolar_box" and np.abs(np.asarray(d.suggestion["box"]) - truth).max() < 0.5
+    assert "label on the segment" in doubt_message(d, {"main": "main.png"}) or d.code == "epipolar_box"
+    # far from the segment's middle the box would be a guess: shortened tolerance, no box
+    d2 = accusing(judge_system(views, dataclasses.replace(DoubtSettings(), consensus_tau_px=1.0)))[0]
+    assert d2.code == "epipolar" and d2.suggestion is None
 
 
 def _polyline_distance(poly: np.ndarray, p: np.ndarray) -> float:
@@ -127,14 +138,59 @@ def _polyline_distance(poly: np.ndarray, p: np.ndarray) -> float:
     return best
 
 
-def test_a_ball_in_the_air_whose_box_disagrees_with_the_grass_is_placed_by_its_box():
+def test_a_ball_in_the_air_seen_by_one_view_is_placed_by_its_box_and_lies_on_the_segment():
     ball = np.array([10.0, 5.0, -6.0])
     views = [view("main", *CAMERAS["main"], ball=ball, role="action"), view("goal", *CAMERAS["goal"], box=None)]
     d = accusing(judge_system(views))[0]
-    assert d.evidence["placed"] == "box"
+    assert d.kind == "ball_missing" and d.evidence["placed"] == "box"
     truth = sphere_image_box(views[1].camera, ball, R_BALL)
-    assert np.linalg.norm((np.asarray(d.suggestion["box"][:2]) + d.suggestion["box"][2:]) / 2
-                          - (truth[:2] + truth[2:]) / 2) < 5.0
+    # the true ball lies on the drawn segment, whatever its height
+    assert _polyline_distance(np.asarray(d.evidence["epipolar_px"]), (truth[:2] + truth[2:]) / 2) < 3.0
+
+
+def test_an_out_of_frame_ball_seen_by_one_view_is_not_called_missing_when_it_is_more_likely_outside():
+    # the goal camera looks 35 m to the side of the ball: on the grass the ball would lie outside its image
+    off = view("off", *CAMERAS["goal"], target=BALL + [0.0, 35.0, 0.0], box=None)
+    uv, _ = off.camera.project(BALL)
+    assert not (0 <= uv[0][0] <= W and 0 <= uv[0][1] <= H)
+    assert accusing(judge_system([scene()[0], off])) == []
+
+
+def test_two_views_too_close_in_direction_to_triangulate_are_judged_by_their_epipolar_segments():
+    twin_pos, f = [0.6, 60.4, -15.2], 4000.0
+    good = [scene()[0], view("twin", twin_pos, f)]
+    assert epipolar_pair_error(*good, DoubtSettings()) < 5.0
+    assert [d.kind for d in accusing(judge_system(good))] == ["near_duplicate_view"]
+    bad = [scene()[0], view("twin", twin_pos, f, ball=BALL + [0.0, 0.0, -3.0])]  # the replay shows another instant
+    assert epipolar_pair_error(*bad, DoubtSettings()) > 25.0
+    kinds = [(d.kind, d.code) for d in accusing(judge_system(bad))]
+    assert ("views_disagree", "epipolar") in kinds
+
+
+def test_two_rays_that_meet_only_under_the_grass_do_not_agree():
+    under = BALL + [0.0, 0.0, 6.0]  # 6 m below the grass: what two wrong labels can agree on by coincidence
+    views = [v for v in scene(goal={"ball": under}, main={"ball": under}) if v.view_id in ("main", "goal")]
+    assert [(d.kind, d.view_id) for d in accusing(judge_system(views))] == [("views_disagree", None)]
+
+
+def test_votes_are_weighted_by_what_the_calibration_is_worth():
+    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0, "position_m": {"x": .1, "y": .1, "z": .1}}
+    unsure = {**sure, "pan_deg": 2.0, "tilt_deg": 2.0}
+    s = DoubtSettings()
+    assert pixel_sigma(scene(main={"uncertainty": sure})[0], BALL, s) < 5.0
+    assert pixel_sigma(scene(main={"uncertainty": unsure})[0], BALL, s) > 50.0
+    # a view below admission whose calibration is sure still votes: two against one, the culprit is named
+    wrong = {"box": sphere_image_box(camera("opposite"), BALL, R_BALL) + [200.0, 0.0, 200.0, 0.0]}
+    views = [v for v in scene(opposite=wrong, goal={"admitted": False, "jac": 0.7, "uncertainty": sure})
+             if v.view_id in ("main", "goal", "opposite")]
+    assert [(d.kind, d.view_id) for d in accusing(judge_system(views))] == [("ball_off_consensus", "opposite")]
+    # unsure and below admission, it takes no part: one against one, the culprit cannot be told
+    views = [v for v in scene(opposite=wrong, goal={"admitted": False, "jac": 0.7, "uncertainty": unsure})
+             if v.view_id in ("main", "goal", "opposite")]
+    assert [(d.kind, d.view_id) for d in accusing(judge_system(views))] == [("views_disagree", None)]
+    # an admitted view whose calibration is unsure is not accused within its own pixel sigma
+    views = scene(opposite={**wrong, "uncertainty": {**sure, "pan_deg": 8.0, "tilt_deg": 8.0}})
+    assert accusing(judge_system(views)) == []
 
 
 def test_a_view_looking_away_from_the_ball_is_not_called_missing():
@@ -158,16 +214,47 @@ def test_two_views_that_miss_cannot_name_the_culprit_and_say_what_would_decide()
     views = [v for v in scene(goal={"ball": BALL + [4.0, 0.0, 0.0]}) if v.view_id in ("main", "goal")]
     doubts = accusing(judge_system(views))
     assert [(d.kind, d.view_id) for d in doubts] == [("views_disagree", None)]
-    assert "third view" in doubts[0].message and doubts[0].suggestion is None
+    assert "third view" in doubt_message(doubts[0], {}) and doubts[0].suggestion is None
 
 
 def test_excluded_mirrored_and_few_line_views_are_not_accused_of_their_ball():
     off = {"ball": BALL + [5.0, 5.0, 0.0]}
     doubts = judge_system(scene(opposite={**off, "excluded": True}))
     assert accusing(doubts) == []
+    # flagged by a prior alone: the doubt, but no fix (nothing confirms the mirrored camera)
     doubts = accusing(judge_system(scene(opposite={**off, "mirror_flagged": True})))
+    assert [(d.kind, d.view_id, d.suggestion) for d in doubts] == [("mirrored_labels", "opposite", None)]
+    assert "no fix is offered" in doubt_message(doubts[0], {}) and doubts[0].evidence["fix_agrees"] is False
+    # truly mirrored labels: the camera as calibrated is the mirror image of the true one; mirrored back, the
+    # label meets the ball the other views agree on, so the fix is offered, with both errors
+    mirrored_cam = mirror_camera(camera("opposite"))
+    true_box = sphere_image_box(camera("opposite"), BALL, R_BALL)
+    doubts = accusing(judge_system(scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True})))
     assert [(d.kind, d.view_id, d.suggestion) for d in doubts] == [
         ("mirrored_labels", "opposite", {"action": "mirror_labels"})]
+    assert doubts[0].evidence["error_mirrored_px_1920"] < 1.0 < doubts[0].evidence["error_as_labelled_px_1920"]
+    # a clean view flagged by a prior: mirrored it would move away from the ball, no fix, and it says why
+    doubts = accusing(judge_system(scene(opposite={"mirror_flagged": True})))
+    assert doubts[0].suggestion is None and doubts[0].evidence["no_fix"] == "as_labelled_fits"
+    assert "do not agree better" in doubt_message(doubts[0], {})
+    # without a ball the others agree on, the pair relations decide: as labelled its ray meets another's
+    same = {"verdict": "mirrored", "margin": 3.0, "pairs": [{"other": "main", "relation": "same"}]}
+    two = [v for v in scene(opposite={**off, "mirror_flagged": True, "mirror_evidence": same})
+           if v.view_id in ("main", "opposite")]
+    doubts = accusing(judge_system(two))
+    assert doubts[0].suggestion is None and doubts[0].evidence["no_fix"] == "as_labelled_meets"
+    # one other view meeting it only mirrored cannot tell which of the two is mirrored; the game's rig can
+    different = {"verdict": "probably_mirrored", "margin": 6.0, "pairs": [{"other": "main", "relation": "different"}],
+                 "rig_distance_m": 40.0, "rig_distance_mirrored_m": 41.0}
+    pair = [v for v in scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True,
+                                       "mirror_evidence": different}) if v.view_id in ("main", "opposite")]
+    d = accusing(judge_system(pair))[0]
+    assert d.suggestion is None and d.evidence["no_fix"] == "one_view_cannot_tell"
+    at_rig = {**different, "rig_distance_mirrored_m": 0.2}
+    pair = [v for v in scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True,
+                                       "mirror_evidence": at_rig}) if v.view_id in ("main", "opposite")]
+    d = accusing(judge_system(pair))[0]
+    assert d.suggestion == {"action": "mirror_labels"} and d.evidence["rig_confirms"] is True
     doubts = judge_system(scene(opposite={**off, "line_classes": 2}))
     assert accusing(doubts) == [] and [d.kind for d in doubts if d.view_id == "opposite"] == ["few_lines"]
 
@@ -216,7 +303,8 @@ def test_the_judge_meets_the_issue_figures_on_the_dev_set_and_one_dev_large_game
     game = next(large.glob("*/*/*Glenrock 0 - 1 Arden"))
     subset = tmp_path / "subset"
     (subset / game.relative_to(large)).mkdir(parents=True)
-    (subset / game.relative_to(large) / "Labels-v3.json").symlink_to(game / "Labels-v3.json")  # linked, not copied
+    # copied, not linked: a link leading out of the imported folder is refused
+    (subset / game.relative_to(large) / "Labels-v3.json").write_bytes((game / "Labels-v3.json").read_bytes())
     judged, truth = [], {}
     for name, root in (("dev", None), ("dev-large", subset)):
         url = bench.ensure_database(shared_dir, name, tmp_path / "db", source=root)

@@ -309,3 +309,66 @@ def test_bad_widths_and_pixel_shapes_raise_value_errors_naming_the_field():
     with pytest.raises(ValueError, match="points_px"):
         undistort_pixels(cam, [1.0, 2.0, 3.0])
     assert undistort_pixels(cam, [1.0, 2.0]).shape == (1, 2)
+
+
+def test_uncertainty_weighting_lets_a_weakly_calibrated_view_count_less():
+    """Issue 17: a view whose camera is off by 2 m (its calibration says so: std 2 m) pulls the plain
+    mean; the inverse-variance weights of ``view_position_std_m`` bring the ball back."""
+    cams = rig()
+    obs = observe(cams)  # labels from the true cameras
+    off = cams[1]
+    obs[1] = BallObservation("v1", Camera(K=off.K, R=off.R, C=off.C + np.array([0.0, 2.0, -1.0])), obs[1].point_px,
+                             obs[1].image_width)
+    plain = triangulate_ball(obs, tau_px=500.0)
+    std = {"v0": 0.05, "v1": 2.0, "v2": 0.08}
+    weighted = triangulate_ball(obs, tau_px=500.0, view_position_std_m=std)
+    assert all(p.kept for p in plain.pairs)
+    pts = [p.point for p in weighted.pairs]
+    w = [1.0 / (0.1**2 + std[p.view_a] ** 2 + std[p.view_b] ** 2) for p in weighted.pairs]
+    np.testing.assert_allclose(weighted.point, np.average(pts, axis=0, weights=w))
+    err_plain, err_weighted = np.linalg.norm(plain.point - BALL), np.linalg.norm(weighted.point - BALL)
+    assert err_weighted < 0.25 * err_plain and err_plain > 0.1
+    # An undetermined camera (inf) gets no weight; every pair undetermined falls back to the mean.
+    inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={"v1": float("inf")})
+    np.testing.assert_allclose(inf.point, plain.pairs[1].point)  # (v0, v2): the only pair without v1
+    all_inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={k: float("inf") for k in std})
+    np.testing.assert_allclose(all_inf.point, plain.point)
+
+
+def _turned(camera: Camera, pan_deg: float) -> Camera:
+    """``camera`` turned by ``pan_deg`` about the world vertical (a calibration that turns the ball ray, as
+    a rig camera fitted to two line classes does)."""
+    a = np.radians(pan_deg)
+    turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    return Camera(K=camera.K, R=camera.R @ turn, C=camera.C)
+
+
+def test_weak_calibrations_neither_make_nor_move_a_ball():
+    """Issue 18 (seed-204's made-wrong system): two views whose few lines turned their cameras by 1.5 deg meet
+    metres off the ball; with ``view_weights`` their pair makes no ball (``weak_calibrations``), and beside a
+    pair of sure views their pairs do not move it (``outweighed``); a weak view still confirms a sure one."""
+    cams = rig() + [look_at([-70.0, 6.0, -16.0], BALL + [1.0, -1.0, 0.0], focal=2800.0)]
+    obs = observe(cams)  # labels as the true cameras see the ball
+    weak = {"v1", "v3"}
+    obs = [BallObservation(o.view_id, _turned(o.camera, 1.5), o.point_px, o.image_width) if o.view_id in weak else o
+           for o in obs]
+    weights = {"v0": 1.0, "v2": 1.0, "v1": 0.5, "v3": 0.5}
+    weak_pair = triangulate_ball([obs[1], obs[3]], tau_px=500.0)
+    assert weak_pair.status == STATUS_TRIANGULATED and np.linalg.norm(weak_pair.point - BALL) > 1.0
+
+    plain = triangulate_ball(obs, tau_px=500.0)
+    weighted = triangulate_ball(obs, tau_px=500.0, view_weights=weights)
+    assert np.linalg.norm(plain.point - BALL) > 0.5
+    np.testing.assert_allclose(weighted.point, BALL, atol=1e-6)  # the sure pair (v0, v2) alone
+    reasons = {(p.view_a, p.view_b): p.reason for p in weighted.pairs}
+    assert reasons == {("v0", "v1"): "outweighed", ("v0", "v2"): None, ("v0", "v3"): "outweighed",
+                       ("v1", "v2"): "outweighed", ("v1", "v3"): "weak_calibrations", ("v2", "v3"): "outweighed"}
+    assert set(reasons.values()) - {None} <= set(DROP_REASONS)
+
+    # two half votes make no ball; a full vote and a half one do; a view worth nothing joins no pair
+    assert triangulate_ball([obs[1], obs[3]], tau_px=500.0, view_weights=weights).status == STATUS_NO_PAIR_KEPT
+    assert triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights=weights).status == STATUS_TRIANGULATED
+    none = triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights={"v1": 0.0})
+    assert none.status == STATUS_NO_PAIR_KEPT and none.pairs[0].reason == "weak_calibrations"
+    # without weights (or all full) nothing changes: the paper's mean
+    np.testing.assert_allclose(triangulate_ball(obs, tau_px=500.0, view_weights={}).point, plain.point)

@@ -67,12 +67,12 @@ def test_symbolic_links_are_refused(tmp_path: Path) -> None:
     assert not (tmp_path / "out").exists()
 
 
-def test_an_image_that_does_not_decode_is_refused_naming_the_file(tmp_path: Path) -> None:
+def test_a_file_named_like_an_image_that_is_not_one_is_refused_naming_it(tmp_path: Path) -> None:
     archive = _zip(tmp_path / "img.zip", {"g/1.png": _png(), "g/2.png": b"not a png at all"})
-    with pytest.raises(DatasetError, match=r"img.zip!g/2.png: named like an image but does not decode"):
+    with pytest.raises(DatasetError, match=r"img.zip!g/2.png: not a PNG or JPEG image"):
         unpack_zip(archive, tmp_path / "out", LIMITS)
     nested = _zip(tmp_path / "nested.zip", {"g/Frames-v3.zip": _frames_zip({"1.png": _png(), "7.png": b"\x89PNG broken"})})
-    with pytest.raises(DatasetError, match=r"nested.zip!g/Frames-v3.zip!7.png: named like an image"):
+    with pytest.raises(DatasetError, match=r"nested.zip!g/Frames-v3.zip!7.png: not a PNG or JPEG image"):
         unpack_zip(nested, tmp_path / "out2", LIMITS)
     assert not (tmp_path / "out").exists() and not (tmp_path / "out2").exists()
 
@@ -114,3 +114,22 @@ def test_receive_stops_at_the_limit_without_keeping_the_file(tmp_path: Path) -> 
     assert not (tmp_path / "up").exists()
     assert receive((bytes(1000) for _ in range(10)), tmp_path / "up", 10_000) == 10_000
     assert (tmp_path / "up").stat().st_size == 10_000
+
+
+def test_a_json_member_unpacking_past_the_limit_is_refused_before_it_is_read(tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """Was: a SoccerNet-calibration zip read in place (a data-root import, ``v3d import``) had each JSON member read
+    whole (``archive.read``): one small member unpacking to gigabytes filled the memory. Its declared size is now
+    checked from the archive's directory first (zipfile never unpacks past it)."""
+    from app.datasets import files
+    from app.datasets.sn_calibration import frame_entries
+
+    monkeypatch.setattr(files, "MAX_JSON_MEMBER_BYTES", 1 << 20)
+    bomb = _zip(tmp_path / "set.zip", {"1.json": b"{}", "2.json": b" " * (2 << 20)})
+    assert bomb.stat().st_size < 50_000
+    with pytest.raises(files.InputFileError, match=r"set.zip:2.json: unpacks to 2097152 bytes, more than the 1048576"):
+        files.json_files(bomb, "cameras")
+    with pytest.raises(DatasetError, match=r"set.zip: 2.json: unpacks to 2097152 bytes"):
+        list(frame_entries(bomb))
+    _zip(tmp_path / "fine.zip", {"1.json": b"{}", "2.json": b" " * (1 << 20)})
+    assert [f.name for f in files.json_files(tmp_path / "fine.zip", "cameras")] == ["1.json", "2.json"]

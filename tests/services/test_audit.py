@@ -19,16 +19,19 @@ from app.services.curation.reverting import revert_entry
 
 
 def _entries(session) -> list[AuditEntry]:
-    return list(session.scalars(sa.select(AuditEntry).order_by(AuditEntry.id)))
+    """The entries of the data's edits, imports and recomputes (the test users' own ``user.create`` entries,
+    made once per test session, left out)."""
+    return list(session.scalars(sa.select(AuditEntry).where(AuditEntry.action.not_in(audit.ADMIN_ACTIONS))
+                                .order_by(AuditEntry.id)))
 
 
 def test_an_import_is_one_entry_with_its_counts_and_cannot_be_reverted(db_session, settings, v3_tree):
     report = import_soccernet_v3(db_session, v3_tree, settings, actor="admin-ada")
     (entry,) = _entries(db_session)
     assert (entry.action, entry.actor, entry.before, entry.frame_id) == ("import", "admin-ada", None, None)
-    assert entry.after == {"source": str(v3_tree), "games": 1, "systems": 3, "frames": 8, "systems_new": 3,
+    assert entry.after == {"source": str(v3_tree), "source_name": "v3", "games": 1, "systems": 3, "frames": 8, "systems_new": 3,
                            "systems_changed": 0, "calibrated": report.calibrated, "refused": report.refused,
-                           "triangulated": report.triangulated}
+                           "triangulated": report.triangulated, "batch": 1, "batches": 1, "batch_games": 1}
     versions = dict(db_session.execute(sa.select(Frame.id, Frame.edit_version)).all())
     assert set(versions.values()) == {1}
     again = import_soccernet_v3(db_session, v3_tree, settings)  # unchanged input: no version moves
@@ -48,7 +51,30 @@ def test_a_full_recompute_is_one_entry(db_session, settings, v3_tree):
     entries = _entries(db_session)
     assert [e.action for e in entries] == ["import", "recompute"]
     assert entries[1].after["systems"] == 3 and entries[1].actor.startswith("cli:")
+    assert (entries[1].after["batch"], entries[1].after["batches"], entries[1].after["batch_systems"]) == (1, 1, 3)
     assert refresh_stale_systems(db_session, settings) == 0 and len(_entries(db_session)) == 2  # nothing to do: no entry
+
+
+def test_every_committed_batch_of_an_import_or_a_recompute_is_an_entry(db_session, settings, shared_dir, tmp_path,
+                                                                      monkeypatch):
+    """Issue 15: an import or a recompute that committed earlier batches wrote one entry, for the last only, so
+    a crash after the first batches left stored games without a trace."""
+    from app.services.curation import recompute
+    from tests.services.datasets import write_v3_game
+
+    root = tmp_path / "two"
+    write_v3_game(shared_dir, root, game=("league-a", "2020-2021", "game one"))
+    write_v3_game(shared_dir, root, game=("league-a", "2020-2021", "game two"))
+    import_soccernet_v3(db_session, root, settings.model_copy(update={"import_batch_frames": 1}), actor="ada")
+    imports = _entries(db_session)
+    assert [(e.action, e.actor, e.after["batch"], e.after["batches"], e.after["batch_games"]) for e in imports] == [
+        ("import", "ada", 1, 2, 1), ("import", "ada", 2, 2, 1)]
+    assert imports[1].after["games"] == 2 and imports[1].after["systems"] == 6
+    monkeypatch.setattr(recompute, "_REFRESH_BATCH", 4)
+    recompute.recompute_all_systems(db_session, settings, actor="ada")
+    recomputes = [e.after for e in _entries(db_session) if e.action == "recompute"]
+    assert [(a["batch"], a["batches"], a["batch_systems"], a["systems"]) for a in recomputes] == [(1, 2, 4, 6),
+                                                                                              (2, 2, 2, 6)]
 
 
 def test_service_edits_are_attributed_to_the_local_user_by_default(db_session, settings, v3_tree):

@@ -79,3 +79,15 @@ def test_only_accepted_systems_are_exported_by_default(db_session, imported, tmp
     db_session.commit()
     report = export_yolo(db_session, tmp_path / "one")
     assert sum(report.images.values()) == len(imported["0.png"].frames)
+
+
+def test_the_paper_profile_exports_the_optimised_ball_box(db_session, imported, tmp_path):
+    """``export_ball_box="optimised"`` (``V3D_PROFILE=paper``): the optimised box wherever a view has one, as the
+    paper's detectors were trained on; the refined box is v3d's default."""
+    report = export_yolo(db_session, tmp_path / "paper", include_all=True, ball_box="optimised")
+    assert report.refined_ball_boxes == 0 and report.optimised_ball_boxes == 6
+    for system in imported.values():
+        boxes = ball_boxes(system, ball_box="optimised")
+        for frame in system.frames:
+            if frame.optimised_box is not None:
+                assert boxes[frame.id] == (frame.optimised_box.box, "optimised")

@@ -9,9 +9,10 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import selectinload
 
-from app.db.models import CalibrationSource, Frame, Game, ReviewStatus, System
+from app.db.models import CalibrationSource, Frame, Game, ReviewStatus, System, SystemKind
 from app.services.curation.editing import decide_review, replace_field_lines, update_ball_label
 from app.services.kinds import split_of
+from app.services.transfer.cameras_export import export_cameras
 from app.services.transfer.exporting import CSV_COLUMNS, export_soccernet_v3d
 from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, import_soccernet_v3d
 
@@ -79,23 +80,29 @@ def test_split_is_deterministic_and_about_80_20():
     assert 0.77 < splits.count("train") / len(splits) < 0.83
 
 
-def _snapshot(session) -> dict:
-    """Every label, camera and number of the database, keyed by natural keys (no ids)."""
+def _snapshot(session, kinds=tuple(SystemKind)) -> dict:
+    """Every label, camera and number of the database (of systems of ``kinds``), keyed by natural keys (no ids)."""
     out = {}
     frames = session.scalars(sa.select(Frame).options(selectinload("*"))).all()
     for f in frames:
         s = f.system
+        if s.kind not in kinds:
+            continue
         key = (s.game.league, s.game.season, s.game.match, s.name, f.name)
         cal, lab, fl, opt, rep = f.calibration, f.ball_label, f.field_lines, f.optimised_box, f.reprojection
         tri = s.triangulation
         names = {fr.id: fr.name for fr in s.frames}
         out[key] = {
-            "frame": (f.role, f.position, f.width, f.height, f.image_zip, f.image_member, f.image_path, s.kind,
-                      s.review.status),
+            # images are compared by their bytes where asked: an export names no server path (its Frames-v3.zip
+            # carries them)
+            "frame": (f.role, f.position, f.width, f.height, s.kind, s.review.status),
+            # what the release carries (player boxes, imageMetadata, links; GameMetadata): issue 19
+            "release": (f.release, s.game.release),
             "lines": (fl.lines, fl.original_lines),
             "ball": None if lab is None else (lab.kind, lab.box, lab.point, lab.original_kind, lab.original_box,
                                               lab.original_point),
-            "calibration": (cal.status, cal.camera, cal.jac(), cal.reason, cal.flags, cal.residuals_px, cal.admitted),
+            "calibration": (cal.status, cal.camera, cal.jac(), cal.reason, cal.flags, cal.residuals_px, cal.admitted,
+                            cal.uncertainty),
             "triangulation": (tri.status, tri.ball3d, tri.tau_px, tri.rule, tri.min_baseline_m, [
                 (names[p.frame_a_id], names[p.frame_b_id], p.point, p.error_px, p.parallax_deg, p.baseline_m, p.kept,
                  p.reason) for p in tri.pairs]),
@@ -107,30 +114,86 @@ def _snapshot(session) -> dict:
 
 def test_export_then_import_reproduces_every_label_camera_and_number(
         db_session, settings, v3_tree, shared_dir, tmp_path, fresh_session_factory):
+    """Issue 19's round trip: ``export soccernet-v3d --all`` then an import into an empty database gives the same
+    games, systems, frames, field lines (original and edited), ball labels (original and edited), player boxes and
+    everything else the release carries, calibrations and images, with edits made before the export; the edited
+    frames' entries carry the curated lines and ball box, the imported ones under ``v3d``."""
+    from app.services.transfer.images import frame_image
+
     import_soccernet_v3(db_session, v3_tree, settings)
     import_sn_calibration(db_session, write_calibration_zip(shared_dir, tmp_path / "wc" / "a.zip"), settings,
                           width=960, height=540)
     systems = _systems(db_session)
     f = next(fr for fr in systems["2.png"].frames if fr.name == "2_2.png")
-    update_ball_label(db_session, f.id, box=[b + 3.25 for b in f.ball_label.box], settings=settings)
+    imported_ball = f.ball_label.box
+    moved = [b + 3.25 for b in imported_ball]
+    update_ball_label(db_session, f.id, box=moved, settings=settings)
     g = next(fr for fr in systems["3.png"].frames if fr.name == "3_1.png")
     update_ball_label(db_session, g.id, point=[321.5, 123.25], settings=settings)
-    one = systems["1"].frames[0]
-    replace_field_lines(db_session, one.id, {k: v for k, v in one.field_lines.lines.items()}, settings=settings)
+    gone = next(fr for fr in systems["0.png"].frames if fr.name == "0_1.png")
+    update_ball_label(db_session, gone.id, box=None, settings=settings)  # "no ball here"
+    one = next(fr for fr in systems["0.png"].frames if fr.field_lines is not None)
+    first = next(iter(one.field_lines.lines))  # its first class's first polyline moved by half a pixel
+    edited_lines = {k: ([[[x + 0.5, y] for x, y in v[0]], *v[1:]] if k == first else v)
+                    for k, v in one.field_lines.lines.items()}
+    replace_field_lines(db_session, one.id, edited_lines, settings=settings)
+    assert one.field_lines.lines != one.field_lines.original_lines
     decide_review(db_session, system_id=systems["2.png"].id, status="accepted")
     decide_review(db_session, system_id=systems["0.png"].id, status="needs_fix")
 
+    # issue 19: the SoccerNet-v3D export holds the SoccerNet-v3 systems only; the single-view frames leave as cameras
     report = export_soccernet_v3d(db_session, tmp_path / "export", include_all=True)
-    assert (report.games, report.systems) == (2, 6)
+    v3 = [s for s in systems.values() if s.kind is SystemKind.SOCCERNET_V3]
+    assert (report.games, report.systems) == (1, len(v3))
+    cams = export_cameras(db_session, tmp_path / "cameras", include_all=True)
+    single = [f for s in systems.values() if s.kind is SystemKind.SINGLE_VIEW for f in s.frames
+              if f.calibration is not None and f.calibration.admitted]
+    assert single and cams.by_kind.get("single-view") == len(single)
+    for f in single:
+        g = f.system.game
+        path = tmp_path / "cameras" / g.league / g.season / g.match / f"camera_{f.name.rsplit('.', 1)[0]}.json"
+        assert json.loads(path.read_text()) == f.calibration.camera
+
+    # the edited frames carry the curated values, the imported ones under v3d; the others are as imported
+    source = json.loads((v3_tree.joinpath(*DEV_GAME) / "Labels-v3.json").read_text())
+    doc = json.loads(report.label_files[0].read_text())
+    entry = doc["replays"]["2_2.png"]
+    (ball,) = [b for b in entry["bboxes"] if b["class"] == "Ball"]
+    assert [ball["points"][k] for k in ("x1", "y1", "x2", "y2")] == moved
+    (as_imported,) = [b for b in source["replays"]["2_2.png"]["bboxes"] if b["class"] == "Ball"]
+    assert entry["v3d"]["original_ball"] == as_imported
+    assert [b for b in entry["bboxes"] if b["class"] != "Ball"] == [
+        b for b in source["replays"]["2_2.png"]["bboxes"] if b["class"] != "Ball"]
+    for name, section in (("3_1.png", "replays"), ("0_1.png", "replays")):  # a point, a removed label: no ball box
+        assert [b for b in doc[section][name]["bboxes"] if b["class"] == "Ball"] == []
+        assert doc[section][name]["v3d"]["original_ball"]["class"] == "Ball"
+    section = "actions" if one.role.value == "action" else "replays"
+    assert doc[section][one.name]["v3d"]["original_lines"] == source[section][one.name]["lines"]
+    assert doc[section][one.name]["lines"] != source[section][one.name]["lines"]
+    assert doc["actions"]["2.png"]["bboxes"] == source["actions"]["2.png"]["bboxes"]
+    assert doc["actions"]["2.png"]["v3d"]["original_lines"] is None
+    assert doc["GameMetadata"]["UrlYoutube"] == source["GameMetadata"]["UrlYoutube"]
 
     fresh = fresh_session_factory("reimported")
     try:
         back = import_soccernet_v3d(fresh, tmp_path / "export", settings)
-        assert (back.games, back.systems, back.frames, back.calibrated + back.refused) == (2, 6, 11, 11)
-        original, reimported = _snapshot(db_session), _snapshot(fresh)
+        n_frames = sum(len(s.frames) for s in v3)
+        assert (back.games, back.systems, back.frames, back.calibrated + back.refused) == (1, len(v3), n_frames, n_frames)
+        original, reimported = _snapshot(db_session, (SystemKind.SOCCERNET_V3,)), _snapshot(fresh)
         assert set(original) == set(reimported)
         for key in original:
             assert reimported[key] == original[key], key
+        assert all(v["release"][0]["bboxes"] for v in reimported.values())  # the player boxes came along
+        images = {f.name: b"".join(frame_image(f).chunks()) for f in db_session.scalars(sa.select(Frame))
+                  if f.system.kind is SystemKind.SOCCERNET_V3}
+        assert {f.name: b"".join(frame_image(f).chunks()) for f in fresh.scalars(sa.select(Frame))} == images
+        # and the re-imported database exports the same document (its calibrations now "imported")
+        export_soccernet_v3d(fresh, tmp_path / "again", include_all=True, images=False)
+        again = json.loads((tmp_path / "again").joinpath(*DEV_GAME, "Labels-v3D.json").read_text())
+        for d in (doc, again):
+            for item in (*d["actions"].values(), *d["replays"].values()):
+                item["v3d"]["source"] = None
+        assert again == doc
         assert all(c.source is CalibrationSource.IMPORTED for c in
                    fresh.scalars(sa.select(Frame)).all() for c in [c.calibration])
         assert fresh.scalars(sa.select(Game)).all()[0].systems[0].review.status in set(ReviewStatus)
@@ -140,6 +203,48 @@ def test_export_then_import_reproduces_every_label_camera_and_number(
         assert _snapshot(fresh) == reimported
     finally:
         fresh.close()
+
+
+def test_the_export_carries_each_games_images_and_re_imports_with_them(db_session, settings, v3_tree, tmp_path,
+                                                                      fresh_session_factory):
+    """Issue 15 / 19: the SoccerNet-v3D export writes each game's frames as Frames-v3.zip beside its
+    Labels-v3D.json (bytes as imported, members named by the frame), so that it re-imports with its images;
+    ``images=False`` leaves them out; the streamed zip holds the same."""
+    import io
+    import zipfile
+
+    from app.services.transfer.exporting import stream_soccernet_v3d_zip
+    from app.services.transfer.images import frame_image
+
+    import_soccernet_v3(db_session, v3_tree, settings)
+    frames = db_session.scalars(sa.select(Frame).order_by(Frame.name)).all()
+    originals = {f.name: b"".join(frame_image(f).chunks()) for f in frames}
+    report = export_soccernet_v3d(db_session, tmp_path / "export", include_all=True)
+    assert report.images == len(originals) == 8
+    (zip_path,) = (tmp_path / "export").rglob("Frames-v3.zip")
+    assert zip_path.parent == (tmp_path / "export" / report.label_files[0].relative_to(tmp_path / "export")).parent
+    with zipfile.ZipFile(zip_path) as zf:
+        assert {i.filename: zf.read(i) for i in zf.infolist()} == originals
+        assert {i.compress_type for i in zf.infolist()} == {zipfile.ZIP_STORED}
+
+    fresh = fresh_session_factory("with-images")
+    try:
+        import_soccernet_v3d(fresh, tmp_path / "export", settings)
+        back = {f.name: b"".join(frame_image(f).chunks()) for f in fresh.scalars(sa.select(Frame))}
+        assert back == originals
+    finally:
+        fresh.close()
+
+    bare = export_soccernet_v3d(db_session, tmp_path / "bare", include_all=True, images=False)
+    assert bare.images == 0 and not list((tmp_path / "bare").rglob("Frames-v3.zip"))
+    streamed = b"".join(stream_soccernet_v3d_zip(db_session, include_all=True))
+    with zipfile.ZipFile(io.BytesIO(streamed)) as outer:
+        inner_name = next(n for n in outer.namelist() if n.endswith("/Frames-v3.zip"))
+        assert inner_name == zip_path.relative_to(tmp_path / "export").as_posix()
+        with zipfile.ZipFile(io.BytesIO(outer.read(inner_name))) as inner:
+            assert {i.filename: inner.read(i) for i in inner.infolist()} == originals
+    without = b"".join(stream_soccernet_v3d_zip(db_session, include_all=True, images=False))
+    assert not any(n.endswith("Frames-v3.zip") for n in zipfile.ZipFile(io.BytesIO(without)).namelist())
 
 
 def test_v3d_import_needs_the_csv_row_of_every_frame(db_session, settings, v3_tree, tmp_path):
@@ -179,3 +284,43 @@ def test_v3d_csv_cells_are_read_flexibly(db_session, settings, imported, tmp_pat
         assert _snapshot(fresh) == _snapshot(db_session)
     finally:
         fresh.close()
+
+
+def test_a_v3d_export_whose_original_ball_disagrees_with_its_csv_is_refused(db_session, settings, v3_tree, tmp_path):
+    """``v3d.original_ball`` (the imported ball entry) and the CSV's ``original_ball_bbox`` say the same: a file
+    where they differ, or whose original ball is not a ball entry, is refused naming the field."""
+    from app.core.errors import DatasetError
+
+    import_soccernet_v3(db_session, v3_tree, settings)
+    export_soccernet_v3d(db_session, tmp_path / "export", include_all=True, images=False)
+    path = (tmp_path / "export").joinpath(*DEV_GAME, "Labels-v3D.json")
+    doc = json.loads(path.read_text())
+    entry = doc["actions"]["0.png"]["v3d"]
+    entry["original_ball"]["points"]["x1"] += 5
+    path.write_text(json.dumps(doc))
+    with pytest.raises(DatasetError, match=r"actions\['0.png'\]\.v3d\.original_ball: points .* are not the CSV's"):
+        import_soccernet_v3d(db_session, tmp_path / "export", settings)
+    entry["original_ball"] = {"class": "Ball", "points": [1, 2, 3, 4]}
+    path.write_text(json.dumps(doc))
+    with pytest.raises(DatasetError, match=r"original_ball: expected null or a bboxes entry"):
+        import_soccernet_v3d(db_session, tmp_path / "export", settings)
+
+
+def test_a_v3d_export_carries_the_calibration_uncertainty_and_refuses_a_malformed_one(db_session, settings, v3_tree,
+                                                                                      tmp_path):
+    """The fit's standard deviations travel with the camera (the triangulation weighs views by them, issue 18): the
+    export writes them under ``v3d.uncertainty``; a file whose entry is not such an object is refused naming it."""
+    from app.core.errors import DatasetError
+
+    import_soccernet_v3(db_session, v3_tree, settings)
+    export_soccernet_v3d(db_session, tmp_path / "export", include_all=True, images=False)
+    path = (tmp_path / "export").joinpath(*DEV_GAME, "Labels-v3D.json")
+    doc = json.loads(path.read_text())
+    entry = doc["actions"]["0.png"]
+    stored = _systems(db_session)["0.png"].frames[0].calibration
+    assert entry["v3d"]["uncertainty"] == stored.uncertainty and set(stored.uncertainty) >= {"pan_deg", "position_m"}
+    for bad, message in (("x", "expected a JSON object"), ({"position_m": 3}, "malformed standard deviations")):
+        entry["v3d"]["uncertainty"] = bad
+        path.write_text(json.dumps(doc))
+        with pytest.raises(DatasetError, match=r"actions\['0.png'\]\.v3d\.uncertainty: " + message):
+            import_soccernet_v3d(db_session, tmp_path / "export", settings)

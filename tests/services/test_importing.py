@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import json
 import zipfile
+from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 import sqlalchemy as sa
@@ -46,8 +48,10 @@ def test_import_soccernet_v3_stores_systems_frames_labels_and_derived_rows(db_se
     f = _frame(db_session, "0.png", "0_1.png")
     item = src["replays"]["0_1.png"]
     assert (f.width, f.height) == (item["imageMetadata"]["width"], item["imageMetadata"]["height"])
-    assert f.image_zip.endswith("Frames-v3.zip") and f.image_member == "0_1.png" and f.image_path is None
-    with zipfile.ZipFile(f.image_zip) as zf:
+    assert f.image_root == str(v3_tree.resolve())
+    assert f.image_zip.endswith("/Frames-v3.zip") and f.image_member == "0_1.png" and f.image_path is None
+    assert not f.image_zip.startswith("/")  # relative to the dataset's folder
+    with zipfile.ZipFile(Path(f.image_root) / f.image_zip) as zf:
         assert zf.read(f.image_member)[:8] == b"\x89PNG\r\n\x1a\n"
     ball = next(b["points"] for b in item["bboxes"] if b["class"] == "Ball")
     assert f.ball_label.kind is BallKind.BOX
@@ -75,8 +79,11 @@ def test_import_soccernet_v3_stores_systems_frames_labels_and_derived_rows(db_se
         tri = system.triangulation
         assert len(tri.pairs) == len(views) * (len(views) - 1) // 2
         for pair in tri.pairs:
-            assert pair.kept == (pair.error_px is not None and pair.error_px < settings.triangulation_tau_px
-                                 and pair.baseline_m >= settings.min_baseline_m)
+            paper = (pair.error_px is not None and pair.error_px < settings.triangulation_tau_px
+                     and pair.baseline_m >= settings.min_baseline_m)
+            # beyond the paper: a pair of weak calibrations, or one outweighed by a pair of sure ones, is left out
+            assert pair.kept == (paper and pair.reason not in ("weak_calibrations", "outweighed"))
+            assert pair.reason not in ("weak_calibrations", "outweighed") or paper
         if any(p.kept for p in tri.pairs):
             assert tri.status is TriangulationStatus.TRIANGULATED
             assert np.linalg.norm(np.subtract(tri.ball3d, balls[system.name])) < 1.0  # metres, vs the truth
@@ -185,10 +192,12 @@ def test_zip_entries_escaping_the_archive_are_refused(db_session, settings, shar
 def test_a_folder_of_frames_is_used_when_there_is_no_zip(db_session, settings, shared_dir, tmp_path):
     game_dir = write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",), with_images=False)
     (game_dir / "Frames-v3").mkdir()
-    (game_dir / "Frames-v3" / "0.png").write_bytes(b"\x89PNG\r\n\x1a\n")
+    ok, png = cv2.imencode(".png", np.zeros((54, 96), np.uint8))
+    (game_dir / "Frames-v3" / "0.png").write_bytes(png.tobytes())
     import_soccernet_v3(db_session, tmp_path / "v3", settings)
     action, replay = _frame(db_session, "0.png", "0.png"), _frame(db_session, "0.png", "0_1.png")
-    assert action.image_path == str((game_dir / "Frames-v3" / "0.png").resolve()) and action.image_zip is None
+    assert action.image_root == str((tmp_path / "v3").resolve()) and action.image_zip is None
+    assert Path(action.image_root) / action.image_path == (game_dir / "Frames-v3" / "0.png").resolve()
     assert (replay.image_path, replay.image_zip) == (None, None)  # no image anywhere: none stored
 
 
@@ -234,7 +243,7 @@ def test_sn_calibration_size_from_images_beside_the_json(shared_dir, tmp_path):
     (folder / "8.json").unlink()
     game = read_sn_calibration(folder)
     frame = game.systems[0].frames[0]
-    assert (frame.width, frame.height, frame.image_path) == (480, 270, str((folder / "7.jpg").resolve()))
+    assert (frame.width, frame.height, frame.image_root, frame.image_path) == (480, 270, str(folder.resolve()), "7.jpg")
 
 
 def test_sn_calibration_errors_name_the_member(db_session, settings, shared_dir, tmp_path):
@@ -305,10 +314,10 @@ def test_an_import_reads_each_game_twice_and_holds_two_batches_at_most(shared_di
     alive_at_read: list[int] = []
     real = importing.read_soccernet_v3_game
 
-    def read(labels):
+    def read(labels, *args):
         gc.collect()
         alive_at_read.append(sum(ref() is not None for ref in alive))
-        rec = real(labels)
+        rec = real(labels, *args)
         alive.append(weakref.ref(rec))
         reads.append(rec.match)
         return rec

@@ -63,7 +63,7 @@ def test_import_from_calibration_json_stores_the_sequence(db_session, db_setting
             assert f.ball_label.point == [float(x), float(rows[13][f"y_{f.name}"])]
         else:
             assert f.ball_label is None
-        assert f.media_frame == 13 and f.image_path.endswith(f"{f.name}.mp4")
+        assert f.media_frame == 13 and f.image_path == f"videos/{f.name}.mp4" and f.image_root.startswith("/")
     # the wrong label of cam4 at frame 13 breaks the trajectory: flagged, left out, a doubt with its fix
     tp = s13.trajectory_point
     cam4 = _view(s13, "cam4")
@@ -385,3 +385,69 @@ def test_the_cameras_an_edit_reads_are_those_of_the_whole_sequence(db_session, d
     by_name = dict(zip(columns.names, columns.first_admitted))
     assert by_name["cam3"] == 3 and by_name["cam5"] is None and by_name["cam1"] == 0
     np.testing.assert_allclose(columns.cameras[columns.names.index("cam3")].C, later.camera["position_meters"])
+
+
+def test_issia3d_export_writes_each_cameras_calibration(db_session, db_settings, stretch, tmp_path):
+    """Issue 19: ``<sequence>/calibration/cam<k>.json`` beside ISSIA-3D.csv, the camera given at import (its
+    projection), with which the CSV's ``ball_3D`` projects to within the CSV's own ``err_camK`` of the label."""
+    import_issia(db_session, stretch, db_settings)
+    report = export_issia3d(db_session, tmp_path / "out", include_all=True)
+    folder = tmp_path / "out" / "issia-dev" / "calibration"
+    assert report.calibrations == 6
+    assert sorted(p.name for p in folder.iterdir()) == [f"cam{k}.json" for k in range(1, 7)]
+    given = json.loads((stretch / "issia_calibration.json").read_text())
+    cameras = {k: Camera.from_soccernet(json.loads((folder / f"cam{k}.json").read_text())) for k in range(1, 7)}
+    for k, cam in cameras.items():
+        np.testing.assert_allclose(cam.projection_matrix, Camera.from_soccernet(given[str(k)]).projection_matrix,
+                                   rtol=1e-9, atol=1e-9)
+    checked = 0
+    for r in read_issia3d_csv(report.csv_paths[0]):
+        if r.ball_3d is None:
+            continue
+        for k, (x, y, err, *_rest) in r.per_camera.items():
+            if x is None or err is None:
+                continue
+            uv, _ = cameras[k].project(np.asarray([r.ball_3d], float))
+            u, v = uv[0]
+            assert np.hypot(u - x, v - y) == pytest.approx(err, abs=0.01)
+            checked += 1
+    assert checked >= 80  # 86 labelled views with a 3D ball in frames 0-39
+
+
+def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and_split_per_camera(
+        db_session, db_settings, shared_dir, tmp_path):
+    """Issue 19: the SoccerNet-v3D export holds no ISSIA row; in the detector exports every ISSIA view has a
+    file of its own, ``<sequence slug>-<hash>_cam<k>_<frame index, 6 digits>``, cameras 1-2 in test, 3-6 in
+    train, and the files written are those reported (frames 10-17: each exported view decodes a video frame)."""
+    from app.services.kinds import game_stem, kind_of
+    from app.services.transfer.detector_export import export_coco, export_yolo
+    from app.services.transfer.exporting import export_soccernet_v3d
+
+    import_issia(db_session, write_issia_stretch(shared_dir, tmp_path / "issia-dev", 10, 17), db_settings)
+    report = export_soccernet_v3d(db_session, tmp_path / "v3d", include_all=True)
+    assert (report.games, report.systems, report.rows) == (0, 0, 0)
+    with (tmp_path / "v3d" / "SNv3D.csv").open() as fh:
+        assert len(list(csv.reader(fh))) == 1
+    game = db_session.scalars(sa.select(Game)).one()
+    s13 = _systems(db_session)[13]
+    policy = kind_of(s13)
+    assert policy.view_stem(game, _view(s13, "cam4")) == f"{game_stem(game)}_cam4_000013"
+    assert game_stem(game).startswith("issia-dev-")
+    assert [policy.split(s13, _view(s13, f"cam{k}")) for k in range(1, 7)] == ["test"] * 2 + ["train"] * 4
+
+    yolo = export_yolo(db_session, tmp_path / "yolo", include_all=True)
+    total = 0
+    for split in ("train", "test"):
+        images = sorted(p.stem for p in (tmp_path / "yolo" / "images" / split).iterdir())
+        labels = sorted(p.stem for p in (tmp_path / "yolo" / "labels" / split).iterdir())
+        assert images == labels and len(images) == yolo.images[split]
+        cams = {s.split("_")[-2] for s in images}
+        assert cams <= ({"cam1", "cam2"} if split == "test" else {"cam3", "cam4", "cam5", "cam6"})
+        total += len(images)
+    assert total > 30 and yolo.images["test"] > 0  # 8 frames of 6 cameras, views with an optimised box
+    coco = export_coco(db_session, tmp_path / "coco", include_all=True)
+    for split in ("train", "test"):
+        doc = json.loads((tmp_path / "coco" / split / "instances.json").read_text())
+        names = [im["file_name"] for im in doc["images"]]
+        assert len(names) == len(set(names)) == coco.images[split] == yolo.images[split]
+        assert sorted(p.name for p in (tmp_path / "coco" / split).iterdir() if p.name != "instances.json") == sorted(names)

@@ -15,7 +15,7 @@ from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists,
 from app.geometry.camera import Camera
 from app.geometry.mirror import mirror_camera
 from app.services.curation.editing import apply_mirrored_labels
-from app.core.errors import InvalidInputError, NotFoundError
+from app.core.errors import ConflictError, InvalidInputError, NotFoundError
 from app.services.transfer.importing import import_soccernet_v3
 from app.geometry.calibration.frame import MIRROR_FLAG
 from app.services.curation.recompute import recompute_system
@@ -57,10 +57,14 @@ def test_a_mirrored_replay_is_flagged_with_its_evidence_and_fixed_in_one_call(db
     assert replay.reprojection.error_px < 3.0
     # The slip was made after the import: the fix gives back exactly the imported labels.
     assert replay.field_lines.lines == replay.field_lines.original_lines
-    # Applying it again gives the mirrored labels back (and the flag): nothing is lost.
-    apply_mirrored_labels(db_session, replay.id, settings=db_settings)
+    # Applying it again would mirror a right camera across the pitch: the mirrored calibration and the ball
+    # do not agree better, so nothing is stored and the refusal says by how much.
+    lines = replay.field_lines.lines
+    with pytest.raises(ConflictError, match="do not agree better"):
+        apply_mirrored_labels(db_session, replay.id, settings=db_settings)
     db_session.expire_all()
-    assert _flagged(db_session.get(Frame, scene.frame_ids[2]))
+    replay = db_session.get(Frame, scene.frame_ids[2])
+    assert not _flagged(replay) and replay.field_lines.lines == lines
 
 
 def test_apply_mirrored_labels_refuses_unknown_frames_and_frames_without_lines(db_session: Session,

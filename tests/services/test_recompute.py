@@ -69,3 +69,23 @@ def test_the_process_pool_gives_the_in_process_results(v3_tree):
     strip = [(r.status, r.camera, r.jac, r.residuals_px, r.flags, r.reason) for r in pooled]
     assert strip == [(r.status, r.camera, r.jac, r.residuals_px, r.flags, r.reason) for r in inline]
     assert seen[-1] == ("calibrate", len(jobs), len(jobs)) and len(seen) == len(jobs)
+
+
+def test_a_changed_profile_marks_the_stored_results_stale_until_recompute(db_session, settings, imported):
+    """Issue 19 (item 5): each system stores the fingerprint of the settings it was computed with; under
+    ``V3D_PROFILE=paper`` every system computed with v3d's defaults counts as stale (``/api/stats``, ``v3d serve``)
+    until ``v3d recompute``; an explicit setting equal to the default changes nothing."""
+    from app.core.config import Settings
+    from app.services.curation.recompute import recompute_all_systems, systems_computed_otherwise
+    from app.services.evaluation.stats import dataset_stats
+
+    n = len(imported)
+    assert systems_computed_otherwise(db_session, settings) == 0
+    paper = Settings(_env_file=None, database_url=settings.database_url, calibration_workers=1, profile="paper")
+    assert systems_computed_otherwise(db_session, paper) == n
+    assert dataset_stats(db_session, paper)["stale_systems"] == n
+    same = settings.model_copy(update={"min_parallax_deg": settings.min_parallax_deg})
+    assert systems_computed_otherwise(db_session, same) == 0
+    assert recompute_all_systems(db_session, paper)[0] == n
+    assert systems_computed_otherwise(db_session, paper) == 0
+    assert systems_computed_otherwise(db_session, settings) == n

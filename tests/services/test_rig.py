@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import sqlalchemy as sa
 
-from app.db.models import CalibrationStatus, System, SystemKind
+from app.db.models import CalibrationSource, CalibrationStatus, System, SystemKind
 from app.services.curation.editing import replace_field_lines
 from app.services.transfer.importing import import_sn_calibration
 from app.geometry.calibration.frame import RIG_FLAG
-from app.services.calibration.calibrating import calibrate_lines, calibration_job, game_rig, uses_rig
+from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, game_rig, uses_rig
 
 from .datasets import true_cameras, write_calibration_zip
 
@@ -28,6 +28,26 @@ def test_a_frame_with_too_few_lines_is_calibrated_with_the_game_rig(db_session, 
     assert cal.status is CalibrationStatus.CALIBRATED and RIG_FLAG in cal.flags
     true_centre = true_cameras(shared_dir)[("0.png", "0.png")]["position_meters"]
     assert np.linalg.norm(np.subtract(cal.camera["position_meters"], true_centre)) < 1.0  # metres
+    # The centre was fixed by the rig: its uncertainty holds angles and focal only (issue 17).
+    u = cal.uncertainty
+    assert u["position_m"] == {"x": 0.0, "y": 0.0, "z": 0.0} and u["points"] == sum(len(p) for v in few.values() for p in v)
+    assert u["focal_px"] is None or u["focal_px"] > 0
+
+
+def test_a_frame_calibrated_from_its_lines_stores_its_uncertainty(db_session, imported, shared_dir):
+    """The true camera of a synthetic frame lies within a few standard deviations of the fitted one."""
+    frame = next(f for f in imported["0.png"].frames if f.name == "0.png")
+    fields = calibrate_lines(*calibration_job(frame))
+    assert fields.status is CalibrationStatus.CALIBRATED and RIG_FLAG not in fields.flags
+    u = fields.uncertainty
+    assert frame.calibration.uncertainty is None  # the fixture's true camera was not fitted here
+    apply_calibration(frame, fields, CalibrationSource.COMPUTED)
+    assert frame.calibration.uncertainty == u
+    true = true_cameras(shared_dir)[("0.png", "0.png")]
+    err = np.abs(np.subtract(fields.camera["position_meters"], true["position_meters"]))
+    std = np.array([u["position_m"][k] for k in "xyz"])
+    assert np.all(std > 0) and np.all(err <= 4 * std + 0.05), (err, std)
+    assert abs(fields.camera["x_focal_length"] - true["x_focal_length"]) <= 4 * u["focal_px"] + 1.0
 
 
 def test_rig_assisted_frames_do_not_feed_the_rig_and_calibration_games_have_none(db_session, settings, imported):

@@ -12,6 +12,7 @@ from app.api.deps import SessionDep, SettingsDep
 from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, QueueQuery
 from app.api.view_schemas import SystemView
 from app.services.accounts import audit
+from app.services.transfer.data_root import shown_import_counts
 from app.services.curation import editing
 from app.services.curation.system_page import system_page
 from app.services.curation.reverting import revert_entry
@@ -21,13 +22,18 @@ router = APIRouter(prefix="/audit", tags=["audit"])
 
 
 @router.get("", response_model=AuditPageOut)
-def list_audit(session: SessionDep, _: PrincipalDep, query: Annotated[AuditQuery, Query()]) -> AuditPageOut:
+def list_audit(session: SessionDep, principal: PrincipalDep, query: Annotated[AuditQuery, Query()]) -> AuditPageOut:
     """One page of the audit log, newest first: who changed what, when, and the state before and after.
-    ``system_id`` gives the system's decisions and every edit of its views; ``user`` an actor's exact name."""
+    ``system_id`` gives the system's decisions and every edit of its views; ``user`` an actor's exact name.
+    Changes of users and tokens (``user.*``, ``token.*``) are listed to admins only. An import's ``source`` is
+    its server path for admins, the dataset's name for the other roles."""
     page = audit.list_entries(session, frame_id=query.frame_id, system_id=query.system_id, user=query.user,
-                              limit=query.limit, offset=query.offset)
-    return AuditPageOut(items=[AuditEntryOut.model_validate(e) for e in page.items], total=page.total,
-                        limit=query.limit, offset=query.offset)
+                              limit=query.limit, offset=query.offset, include_admin=principal.role == "admin")
+    items = [AuditEntryOut.model_validate(e) for e in page.items]
+    if not principal.may("admin"):
+        items = [i.model_copy(update={"after": shown_import_counts(i.after)}) if i.action == "import" else i
+                 for i in items]
+    return AuditPageOut(items=items, total=page.total, limit=query.limit, offset=query.offset)
 
 
 @router.post(

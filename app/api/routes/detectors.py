@@ -10,7 +10,7 @@ from typing import Annotated, Literal, Optional
 
 from fastapi import APIRouter, Depends, File, Query, UploadFile
 from fastapi.responses import FileResponse
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 from starlette.background import BackgroundTask
 
 from app.api.auth import require_role
@@ -62,10 +62,11 @@ class MonocularReportOut(MonocularFiguresOut):
 
 
 def _zip_export(fmt: Literal["yolo", "coco"], session: SessionDep, include_all: bool,
-                ball_diameter_m: float) -> FileResponse:
+                settings: Settings) -> FileResponse:
     tmp = Path(tempfile.mkdtemp(prefix=f"v3d-{fmt}-"))
     try:
-        report = detector_export.export_detector(session, fmt, tmp / fmt, include_all, ball_diameter_m)
+        report = detector_export.export_detector(session, fmt, tmp / fmt, include_all, settings.ball_diameter_m,
+                                                 settings.export_ball_box)
         archive = shutil.make_archive(str(tmp / f"v3d-{fmt}"), "zip", root_dir=tmp / fmt)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -85,13 +86,13 @@ _ZIP = {200: {"content": {"application/zip": {}}, "description": "The export as 
 def export_yolo(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> FileResponse:
     """Ultralytics YOLO layout (``app.services.transfer.detector_export``): images/<split>, labels/<split>, data.yaml.
     ``X-V3D-Images`` and ``X-V3D-Skipped-Without-Image`` give its size."""
-    return _zip_export("yolo", session, include_all, settings.ball_diameter_m)
+    return _zip_export("yolo", session, include_all, settings)
 
 
 @router.get("/exports/coco", response_class=FileResponse, responses=_ZIP, dependencies=[ADMIN])
 def export_coco(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> FileResponse:
     """COCO layout: per split the images and ``instances.json`` (image ids = frame ids)."""
-    return _zip_export("coco", session, include_all, settings.ball_diameter_m)
+    return _zip_export("coco", session, include_all, settings)
 
 
 def _unpack(upload: UploadFile, dest: Path, settings: Settings) -> Path:
@@ -133,5 +134,86 @@ def evaluate_monocular(
     est = estimator or monocular.default_estimator(settings.optimised_box_method)
     with tempfile.TemporaryDirectory(prefix="v3d-predictions-") as tmp:
         path = _unpack(predictions, Path(tmp), settings)
-        report = monocular.evaluate_predictions(session, path, include_all, ball_class, settings.ball_diameter_m, est)
+        report = monocular.evaluate_predictions(session, path, include_all, ball_class, settings.ball_diameter_m, est,
+                                                ball_box=settings.export_ball_box)
     return MonocularReportOut.model_validate({**report, "estimator": est})
+
+
+class BoxFiguresOut(BaseModel):
+    """Means over the ``n`` views with both boxes; null where ``n`` is 0."""
+
+    n: int
+    iou: Optional[float]
+    size_error_pct: Optional[float]
+
+
+class BoxesReportOut(BaseModel):
+    """The paper's Table 1 against the stored precise boxes (``app.services.evaluation.boxes``)."""
+
+    views: int
+    original: BoxFiguresOut
+    optimised: BoxFiguresOut
+    refined: BoxFiguresOut
+
+
+@router.get("/evaluations/boxes", response_model=BoxesReportOut, dependencies=[Depends(require_role("annotator"))])
+def evaluate_boxes(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> BoxesReportOut:
+    """IoU and size error (% of the precise box's diagonal) of the original, optimised and refined ball boxes
+    against the stored precise boxes (``v3d import precise-boxes``), over the views of accepted systems (every
+    system with ``all=true``) that have one."""
+    from app.services.evaluation.boxes import evaluate_boxes as run
+
+    return BoxesReportOut.model_validate(run(session, include_all, settings.ball_diameter_m))
+
+
+class HistogramOut(BaseModel):
+    """Equal bins (``edges``, ``counts``); ``n`` values in all, ``above`` of them beyond the last edge (a long tail)."""
+
+    edges: list[float]
+    counts: list[int]
+    n: int
+    above: int = 0
+
+
+class CountsPerSplitOut(BaseModel):
+    systems: int
+    images: int
+    calibrated_images: int
+    admitted_images: int
+
+
+class KindStatsOut(CountsPerSplitOut):
+    splits: dict[str, CountsPerSplitOut]
+
+
+class SweepPointOut(BaseModel):
+    threshold: float
+    systems_kept: int
+
+
+class AdmissionOut(BaseModel):
+    """The admission threshold in force: JaC at ``gamma`` (fraction of the image diagonal) above ``jac_min``."""
+
+    gamma: float
+    jac_min: float
+
+
+class StatsOut(BaseModel):
+    """The dataset at a glance (``app.services.evaluation.stats``)."""
+
+    kinds: dict[str, KindStatsOut]
+    jac_sweep: list[SweepPointOut]
+    jac_sweep_by_kind: dict[str, list[SweepPointOut]]
+    admission: AdmissionOut
+    stale_systems: int = Field(description="Systems computed with other settings (a changed V3D_PROFILE): stale "
+                                           "until `v3d recompute`.")
+    distributions: dict[str, HistogramOut]
+
+
+@router.get("/stats", response_model=StatsOut, dependencies=[Depends(require_role("annotator"))])
+def stats(session: SessionDep, settings: SettingsDep) -> StatsOut:
+    """Systems and images (calibrated, admitted) per kind and split, systems kept against the JaC admission
+    threshold (the paper's Fig. 3) and distributions of JaC, pair reprojection error, ball distance and box size."""
+    from app.services.evaluation.stats import dataset_stats
+
+    return StatsOut.model_validate(dataset_stats(session, settings))

@@ -22,11 +22,13 @@ router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(re
 @router.get(
     "/soccernet-v3d",
     response_class=StreamingResponse,
-    responses={200: {"content": {"application/zip": {}}, "description": "Labels-v3D.json per game and SNv3D.csv."}},
+    responses={200: {"content": {"application/zip": {}},
+                     "description": "Labels-v3D.json and Frames-v3.zip per game, and SNv3D.csv."}},
 )
 def export_soccernet_v3d(
     request: Request,
     include_all: Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")] = False,
+    images: Annotated[bool, Query(description="Each game's Frames-v3.zip (its images); false leaves them out.")] = True,
 ) -> StreamingResponse:
     """A zip of the SoccerNet-v3D export (``app.services.transfer.exporting``), streamed while the database is
     read, game by game (nothing of the size of the export is built in memory or on disk).
@@ -35,7 +37,7 @@ def export_soccernet_v3d(
     session = request.app.state.session_factory()
     try:
         systems, rows = exporting.export_size(session, include_all)
-        chunks = exporting.stream_soccernet_v3d_zip(session, include_all)
+        chunks = exporting.stream_soccernet_v3d_zip(session, include_all, images=images)
         first = next(chunks)  # a game name that cannot be a folder fails here, before the answer starts
     except BaseException:
         session.close()
@@ -62,4 +64,4 @@ async def create_export_job(session: SessionDep,
     is written to a file while the database is read, with progress per game; when the job is done its
     ``result_url`` (``/api/jobs/{id}/result``) streams the file."""
     return accepted(await run_in_threadpool(jobs.submit, session, "export", {"format": "soccernet-v3d",
-                                                                            "all": body.all}))
+                                                                            "all": body.all, "images": body.images}))

@@ -21,18 +21,23 @@ from app.api.schemas import (
     INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, QueueQuery, ReviewIn,
 )
 from app.api.view_schemas import FrameOut, FramePageOut, FrameView, ReviewOut, SystemView
+from app.services.accounts import audit
 from app.services.curation import editing
 from app.services.transfer import images
 from app.services.curation import queue
 from app.services.curation.system_page import load_frame, system_page
 from app.services.curation.versions import expected_versions, frame_etag
 
+#: The header naming the audit entry of a field-line write.
+AUDIT_ENTRY_HEADER = "X-V3D-Audit-Entry"
 #: OpenAPI ``responses`` of the frame's edits.
 EDIT_RESPONSES = {**NOT_FOUND, **INVALID, **PRECONDITIONS}
 
 #: Frame edits (ball, field lines, mirror, exclusion, per-view review) need the annotator role.
 router = APIRouter(prefix="/frames", tags=["frames"], dependencies=[Depends(require_role("annotator"))])
 
+#: Served images are inert: the browser takes the checked type as it is and runs nothing from them.
+IMAGE_SECURITY_HEADERS = {"X-Content-Type-Options": "nosniff", "Content-Security-Policy": "sandbox"}
 #: Frame images never change under their id; the ETag covers a re-import from other files.
 IMAGE_CACHE_CONTROL = "private, max-age=86400"
 
@@ -80,13 +85,19 @@ def _edited(session: Session, frame_id: int, response: Response, query: QueueQue
     responses={
         200: {"content": {"image/png": {}, "image/jpeg": {}}, "description": "The image bytes."},
         304: {"description": "Not modified (If-None-Match names the current ETag)."},
-        404: {"model": ErrorOut, "description": "No such frame, or it has no image: draw a blank canvas of its size."},
+        404: {"model": ErrorOut, "description": "No such frame, or it has no image (or none that is a PNG or JPEG "
+                                                "inside its dataset's folder): draw a blank canvas of its size."},
     },
 )
-def frame_image(frame: FrameDep, if_none_match: Annotated[str | None, Header()] = None) -> Response:
-    """The frame's image, streamed from its zip member (never extracted) or file, with an ``ETag``."""
-    image = images.frame_image(frame)
-    headers = {"ETag": image.etag, "Cache-Control": IMAGE_CACHE_CONTROL}
+def frame_image(frame: FrameDep, settings: SettingsDep,
+                if_none_match: Annotated[str | None, Header()] = None) -> Response:
+    """The frame's image, streamed from its zip member (never extracted) or file, with an ``ETag``.
+
+    Its media type is ``image/png`` or ``image/jpeg`` as read from the image's header (never from its
+    name; anything else is a 404), with ``X-Content-Type-Options: nosniff`` and
+    ``Content-Security-Policy: sandbox``, so that no imported file can run in this origin."""
+    image = images.frame_image(frame, settings.max_image_pixels)
+    headers = {"ETag": image.etag, "Cache-Control": IMAGE_CACHE_CONTROL, **IMAGE_SECURITY_HEADERS}
     if etag_matches(if_none_match, image.etag):
         return Response(status_code=304, headers=headers)
     headers["Content-Length"] = str(image.size)
@@ -99,10 +110,12 @@ def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDe
     """Set the frame's ball box or point (or remove it with null) and answer the recomputed system view.
 
     422 naming ``box`` or ``point``: non-finite numbers, x2 <= x1 or y2 <= y1, a box entirely outside
-    the image, a point outside it; nothing is stored then.
+    the image, a point outside it; ``provenance`` of another shape; nothing is stored then. A label sent with
+    a ``provenance`` (a doubt's suggestion) is stored as suggested: it makes no 3D ball until a person places it.
     """
-    editing.update_ball_label(session, frame.id, box=body.box, point=body.point, settings=settings,
-                              actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
+    editing.update_ball_label(session, frame.id, box=body.box, point=body.point, provenance=body.provenance,
+                              settings=settings, actor=principal.name,
+                              expected=expected_versions(if_match, "frame", frame.id))
     return _edited(session, frame.id, response, query)
 
 
@@ -110,13 +123,18 @@ def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDe
 def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
                         frame: FrameDep, body: FieldLinesEdit, query: Annotated[QueueQuery, Query()],
                         response: Response) -> SystemView:
-    """Replace the frame's field lines, recalibrate it, and answer the recomputed system view.
+    """Replace the frame's field lines, recalibrate it, and answer the recomputed system view, with the
+    id of the write's audit entry in ``X-V3D-Audit-Entry`` (what a later ``undo_of`` names).
 
     422 naming ``lines`` (and the class and polyline): an unknown class, an empty polyline, NaN or
-    infinity; nothing is stored then.
+    infinity; naming ``undo_of``: not a field-line write of this frame whose lines before were ``lines``;
+    nothing is stored then.
     """
     editing.replace_field_lines(session, frame.id, body.lines, settings=settings, actor=principal.name,
-                                expected=expected_versions(if_match, "frame", frame.id))
+                                expected=expected_versions(if_match, "frame", frame.id), undo_of=body.undo_of)
+    entry_id = audit.recorded_entry_id(session)
+    if entry_id is not None:
+        response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
     return _edited(session, frame.id, response, query)
 
 
@@ -151,5 +169,18 @@ def review_frame(session: SessionDep, principal: AnnotatorDep, if_match: IfMatch
     ETag in the header."""
     decision = editing.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment,
                                      actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
+    with_etag(response, frame_etag(editing.get_frame(session, frame.id)))
+    return ReviewOut.of(decision)
+
+
+@router.post("/{frame_id}/calibration-review", response_model=ReviewOut, responses=EDIT_RESPONSES)
+def review_calibration(session: SessionDep, principal: AnnotatorDep, if_match: IfMatchDep, frame: FrameDep,
+                       body: ReviewIn, response: Response) -> ReviewOut:
+    """Record the reviewer's decision on the view's calibration (its field lines and the camera fitted to
+    them), beside the decision on its ball (``POST /review``); answered as the view's decision, its
+    ``calibration`` holding this one; the frame's new ETag in the header. An edit of the view's field lines
+    sets a decided calibration (and its system's decision) back to pending with the reason."""
+    decision = editing.decide_calibration(session, frame.id, status=body.status, comment=body.comment,
+                                          actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
     with_etag(response, frame_etag(editing.get_frame(session, frame.id)))
     return ReviewOut.of(decision)

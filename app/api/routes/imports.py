@@ -32,6 +32,7 @@ from app.services.jobs import runner as jobs
 from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
 from app.services.transfer.data_root import confined_path
 from app.core.errors import DatasetError, InvalidInputError
+from app.datasets.files import refuse_links_out
 from app.services.jobs.kinds import import_params
 
 router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
@@ -108,13 +109,15 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
     path = confined_path(body.path, settings.data_root)
     if not path.exists():
         raise DatasetError(body.path, None, "no such file or folder under the data root")
+    await run_in_threadpool(refuse_links_out, path)  # a link leading out of the dataset: 400 at once
     return import_params(body.kind, path, width=body.width, height=body.height, from_lines=body.from_lines,
                          flip=body.flip)
 
 
 @router.post(
     "", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, openapi_extra={"requestBody": _BODY},
-    responses={400: {"model": ErrorOut, "description": "A missing path, or an unsafe or broken zip (the member named)."},
+    responses={400: {"model": ErrorOut, "description": "A missing path, a symbolic link in the dataset leading out of "
+                                                       "it, or an unsafe or broken zip (the member named)."},
                403: {"model": ErrorOut, "description": "The path is outside the data root (V3D_DATA_ROOT)."},
                413: {"model": ErrorOut, "description": "The upload is larger than V3D_MAX_UPLOAD_MB."},
                422: {"description": "Invalid fields (named)."}},
@@ -127,10 +130,12 @@ async def create_import(request: Request, session: SessionDep, settings: Setting
 
     * ``application/json`` ``{"kind", "path", ...}``: ``path`` is absolute or relative to the data root
       (``V3D_DATA_ROOT``); 403 when it lies outside it (or no root is set), without saying whether it
-      exists.
+      exists; 400 when a symbolic link inside the dataset leads out of it (the import reads only inside
+      its own folder).
     * ``multipart/form-data`` with ``file`` (a zip of the dataset) and ``kind`` (and the options): at
       most ``V3D_MAX_UPLOAD_MB`` (413), unpacked after checking every member (400 naming a member with an
-      unsafe name, a link, an image that does not decode; too many members or bytes uncompressed).
+      unsafe name, a link, a file named like an image that is not a PNG or JPEG within V3D_MAX_IMAGE_PIXELS;
+      too many members or bytes uncompressed).
 
     The import is one audit entry, by the admin who queued it.
     """

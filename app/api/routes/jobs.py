@@ -15,27 +15,33 @@ from fastapi import APIRouter, Depends, Path, Query, status
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, JSONResponse
 
-from app.api.auth import AdminDep, require_role
+from app.api.auth import AdminDep, Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import JobOut, JobPageOut
-from app.api.schemas import DB_INT_MAX, NOT_FOUND, ErrorOut
+from app.api.schemas import DB_INT_MAX, DB_INT_MIN, NOT_FOUND, ErrorOut
 from app.db.models import Job, JobState
 from app.services.jobs import runner as jobs
 from app.core.errors import NotFoundError
-from app.services.jobs.kinds import export_path
+from app.core.config import Settings
+from app.services.jobs.kinds import export_path, without_server_paths
 
 router = APIRouter(tags=["jobs"])
-JobId = Annotated[int, Path(description="Job id.")]
+#: A job id within the database's integer column (beyond it PostgreSQL refused the query: a 500, found by fuzzing).
+JobId = Annotated[int, Path(description="Job id.", ge=DB_INT_MIN, le=DB_INT_MAX)]
 
 
-def job_out(job: Job) -> JobOut:
-    """The API's view of a job row."""
+def job_out(job: Job, principal: Principal | None = None, settings: Settings | None = None) -> JobOut:
+    """The API's view of a job row; for an annotator or reviewer (``principal`` below admin) an import's
+    path, source and message name the dataset, never a server path (``kinds.without_server_paths``)."""
     url = f"/api/jobs/{job.id}"
     has_file = job.kind == "export" and job.state is JobState.DONE
+    params, result, message = job.params, job.result, job.message
+    if principal is not None and settings is not None and not principal.may("admin"):
+        params, result, message = without_server_paths(job.id, params, result, message, settings)
     return JobOut.model_validate({
-        **{k: getattr(job, k) for k in ("id", "kind", "params", "stage", "done", "total", "message", "result",
-                                        "owner", "attempts", "created_at", "started_at", "finished_at",
-                                        "heartbeat_at")},
+        **{k: getattr(job, k) for k in ("id", "kind", "stage", "done", "total", "owner", "attempts", "created_at",
+                                        "started_at", "finished_at", "heartbeat_at")},
+        "params": params, "result": result, "message": message,
         "state": job.state.value, "url": url, "result_url": f"{url}/result" if has_file else None,
     })
 
@@ -50,20 +56,24 @@ def accepted(job: Job) -> JSONResponse:
 @router.get("/jobs", response_model=JobPageOut)
 def list_jobs(
     session: SessionDep,
+    settings: SettingsDep,
+    principal: PrincipalDep,
     state: Annotated[Optional[Literal["queued", "running", "done", "failed"]], Query()] = None,
     kind: Annotated[Optional[Literal["import", "recompute", "export"]], Query()] = None,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
     offset: Annotated[int, Query(ge=0, le=DB_INT_MAX)] = 0,
 ) -> JobPageOut:
-    """Jobs, newest first, optionally of one state and kind."""
+    """Jobs, newest first, optionally of one state and kind (annotators and reviewers see an import's
+    dataset by name, never its server path)."""
     items, total = jobs.list_jobs(session, JobState(state) if state else None, kind, limit, offset)
-    return JobPageOut(items=[job_out(j) for j in items], total=total, limit=limit, offset=offset)
+    return JobPageOut(items=[job_out(j, principal, settings) for j in items], total=total, limit=limit, offset=offset)
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut, responses=NOT_FOUND)
-def get_job(session: SessionDep, job_id: JobId) -> JobOut:
-    """One job: its state, progress and, when done, its result (failed: ``message`` says why)."""
-    return job_out(jobs.get_job(session, job_id))
+def get_job(session: SessionDep, settings: SettingsDep, principal: PrincipalDep, job_id: JobId) -> JobOut:
+    """One job: its state, progress and, when done, its result (failed: ``message`` says why). Annotators
+    and reviewers see an import's dataset by name (an upload as ``upload <job id>/...``), never a server path."""
+    return job_out(jobs.get_job(session, job_id), principal, settings)
 
 
 @router.get(

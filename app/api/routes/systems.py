@@ -22,12 +22,17 @@ from app.services.curation.versions import expected_versions, system_etag
 router = APIRouter(prefix="/systems", tags=["systems"])
 
 
-@router.get("", response_model=SystemPageOut)
+@router.get("", response_model=SystemPageOut, responses=INVALID)
 def list_systems(session: SessionDep, query: Annotated[SystemListQuery, Query()]) -> SystemPageOut:
-    """One page of the review queue, filtered and sorted, with the progress per review status."""
-    page = queue.list_systems(session, query.filters(), query.sort, query.limit, query.offset)
+    """One page of the review queue, filtered and sorted, with the progress per review status; by
+    ``offset`` or by cursor (``after`` / ``before``: a page's ``next_cursor`` / ``prev_cursor``; 422
+    naming the field for a cursor of another sort or both at once)."""
+    page = queue.list_systems(session, query.filters(), query.sort, query.limit, query.offset, query.after,
+                              query.before)
+    cursor = query.after is not None or query.before is not None
     return SystemPageOut(items=[SystemSummaryOut.of(s) for s in page.items], total=page.total, limit=query.limit,
-                         offset=query.offset, counts=page.counts)
+                         offset=None if cursor else query.offset, counts=page.counts,
+                         next_cursor=page.next_cursor, prev_cursor=page.prev_cursor)
 
 
 @router.get("/{system_id}", response_model=SystemView, responses=NOT_FOUND)

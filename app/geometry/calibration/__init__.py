@@ -14,8 +14,10 @@ from app.geometry.calibration.frame import (
     principal_point,
 )
 from app.geometry.calibration.rig import CameraRig, RigPosition, calibrate_with_rig, estimate_rig
+from app.geometry.calibration.uncertainty import CalibrationUncertainty, calibration_uncertainty
 
 __all__ = [
     "JAC_GAMMAS", "CalibrationPrior", "CalibrationResult", "CalibrationSettings", "calibrate_frame",
     "frame_jac", "principal_point", "CameraRig", "RigPosition", "estimate_rig", "calibrate_with_rig",
+    "CalibrationUncertainty", "calibration_uncertainty",
 ]

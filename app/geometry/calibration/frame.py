@@ -58,14 +58,13 @@ from app.geometry.calibration.initialisation import (
     ground_homographies,
     labelled_target,
 )
+from app.geometry.calibration.held_out import distances_by_class
 from app.geometry.calibration.observations import Observations, build_observations
 from app.geometry.calibration.residuals import (
     CameraParametrisation,
     ground_points_in_front,
-    point_distances,
     projection_matrix,
     residual_rows,
-    undistort_radial_k1,
 )
 from app.geometry.calibration.solver import abs_percentile, robust_lm, soft_l1_cost
 from app.geometry.camera import Camera, look_at_rotation
@@ -291,17 +290,9 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
 
 def _class_residuals(camera: Camera, obs: Observations) -> tuple[dict[str, float], float]:
     """Largest distance (px) of each class's points to its element, and the RMS over all points."""
-    f = float(camera.K[0, 0])
-    pp = camera.K[:2, 2]
-    k1 = float(camera.radial[0])
-    P = projection_matrix(f, pp, camera.R, camera.C)
-    d_seg, d_cir = point_distances(P, obs, undistort_radial_k1(obs.seg_points, f, pp, k1),
-                                   undistort_radial_k1(obs.circle_points, f, pp, k1))
-    out: dict[str, float] = {}
-    for classes, d, idx in ((obs.seg_classes, d_seg, obs.seg_index), (obs.circle_classes, d_cir, obs.circle_index)):
-        for i, c in enumerate(classes):
-            out[c] = float(np.max(np.abs(d[idx == i])))
-    allr = np.concatenate([d_seg, d_cir])
+    per_point = distances_by_class(camera, obs)
+    out = {c: float(np.max(d)) for c, d in per_point.items()}
+    allr = np.concatenate(list(per_point.values())) if per_point else np.zeros(0)
     return out, float(np.sqrt(np.mean(allr**2))) if len(allr) else 0.0
 
 

@@ -3,9 +3,11 @@
 An entry says who (``actor``: the user's name, or ``cli:<os user>`` for work run on the machine, see
 :func:`local_actor`), when (UTC), what (``action``, :data:`ACTIONS`) and the state of the edited part
 before and after the write, as self-describing JSON: ``{"ball": {"box", "point"}}``,
-``{"lines": {class: polylines}}``, ``{"excluded": bool}`` or ``{"review": {"status", "comment"}}``.
+``{"lines": {class: polylines}}``, ``{"excluded": bool}``, ``{"review": {"status", "comment"}}`` or
+``{"calibration_review": {"status", "comment"}}`` (a view's calibration decision).
 An import or a full recompute is one entry of its own (:func:`record_summary`: its counts in
-``after``, no ``before``); they cannot be reverted (``app.services.curation.reverting``). Entries name their
+``after``, no ``before``); they cannot be reverted (``app.services.curation.reverting``), nor can an
+administrator's change of a user or a token (:data:`ADMIN_ACTIONS`, listed to admins only). Entries name their
 frame, system and game by id without foreign keys, so history outlives the rows it talks about.
 """
 from __future__ import annotations
@@ -20,11 +22,24 @@ from sqlalchemy.orm import Session
 from app.db.models import AuditEntry, Frame, System
 from app.db.types import json_safe
 
-#: Every action an entry may record.
-ACTIONS = ("ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",
-           "system.review", "import", "recompute", "revert")
 #: Actions that change many rows at once and are never reverted.
 SUMMARY_ACTIONS = ("import", "recompute")
+#: An administrator's changes of users and tokens (``app.services.accounts.users``): listed to admins only,
+#: never reverted (``after`` names the user and the token id, never a secret).
+ADMIN_ACTIONS = ("user.create", "user.role", "user.disable", "user.enable", "token.issue", "token.revoke")
+#: Every action an entry may record.
+ACTIONS = ("ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",
+           "view.calibration_review", "system.review", *SUMMARY_ACTIONS, "revert", *ADMIN_ACTIONS)
+
+
+def revertible(action: str) -> bool:
+    """Whether an entry of ``action`` can be reverted: an edit of one resource, not an import or a
+    recompute (many rows) nor an administrator's change of a user or a token.
+
+    >>> revertible("ball.edit"), revertible("import"), revertible("token.revoke")
+    (True, False, False)
+    """
+    return action not in SUMMARY_ACTIONS and action not in ADMIN_ACTIONS
 
 
 def local_actor() -> str:
@@ -42,6 +57,8 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
            reverts_id: Optional[int] = None) -> AuditEntry:
     """Add one entry to the session (the caller's transaction commits it with the write).
 
+    ``reverts_id``: the entry this write undoes: a revert (action ``revert``), or a page's undo of its own edit,
+    audited as that edit's action (``app.services.curation.editing.replace_field_lines``' ``undo_of``).
     ``frame`` sets ``frame_id``, ``system_id`` and ``game_id``; ``system`` alone sets the last two.
     ``actor`` None is :func:`local_actor`. Raises ``ValueError`` for an action outside :data:`ACTIONS`.
     """
@@ -55,7 +72,23 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
         reverts_id=reverts_id,
     )
     session.add(entry)
+    session.info[_RECORDED] = entry
     return entry
+
+
+#: ``session.info`` key of the entry :func:`record` added last (read by :func:`recorded_entry_id`).
+_RECORDED = "v3d.audit.recorded"
+
+
+def recorded_entry_id(session: Session) -> Optional[int]:
+    """The id of the entry :func:`record` added last in ``session`` once its write committed, and forget
+    it (None when there is none, or when it was rolled back). The API answers it with the write
+    (``X-V3D-Audit-Entry``), so a page can name its own edit later (an undo's ``undo_of``)."""
+    entry = session.info.pop(_RECORDED, None)
+    if entry is None:
+        return None
+    identity = sa.inspect(entry).identity  # kept after the commit expired the row: no query
+    return int(identity[0]) if identity else None
 
 
 def record_summary(session: Session, action: str, counts: dict[str, Any], *, actor: Optional[str] = None,
@@ -77,8 +110,9 @@ class AuditPage:
     total: int
 
 
-def _conditions(frame_id: Optional[int], system_id: Optional[int], user: Optional[str]) -> list[Any]:
-    out = []
+def _conditions(frame_id: Optional[int], system_id: Optional[int], user: Optional[str],
+                include_admin: bool = True) -> list[Any]:
+    out = [] if include_admin else [AuditEntry.action.not_in(ADMIN_ACTIONS)]
     if frame_id is not None:
         out.append(AuditEntry.frame_id == frame_id)
     if system_id is not None:
@@ -89,13 +123,14 @@ def _conditions(frame_id: Optional[int], system_id: Optional[int], user: Optiona
 
 
 def list_entries(session: Session, *, frame_id: Optional[int] = None, system_id: Optional[int] = None,
-                 user: Optional[str] = None, limit: int = 50, offset: int = 0) -> AuditPage:
+                 user: Optional[str] = None, limit: int = 50, offset: int = 0,
+                 include_admin: bool = True) -> AuditPage:
     """Entries matching every given filter, newest first (by id, the commit order of their writes).
 
     ``system_id`` matches the system's own decisions and every edit of its views; ``user`` is an
-    actor's exact name.
+    actor's exact name; ``include_admin`` False leaves out :data:`ADMIN_ACTIONS` (for non-admins).
     """
-    where = _conditions(frame_id, system_id, user)
+    where = _conditions(frame_id, system_id, user, include_admin)
     total = session.scalar(sa.select(sa.func.count()).select_from(AuditEntry).where(*where))
     rows = session.scalars(sa.select(AuditEntry).where(*where).order_by(AuditEntry.id.desc())
                            .limit(limit).offset(offset))

@@ -5,7 +5,12 @@
   so that the answer takes as long whether the name or the password was wrong.
 * API tokens are ``secrets.token_urlsafe(32)`` (256 random bits) prefixed ``v3d_``; only their SHA-256
   (hex) is stored, which suffices for a secret of that entropy (no slow hash needed) and lets a request
-  find its token by an indexed equality. The token is shown once, when issued.
+  find its token by an indexed equality. The token is shown once, when issued. Each has an id, a label,
+  its creation and last-use times and an optional expiry; one can be revoked alone, and disabling a user
+  revokes all of its tokens for good (enabling it again does not bring them back).
+* Every change of a user or a token is audited in its own transaction (``user.create``, ``user.role``,
+  ``user.disable``, ``user.enable``, ``token.issue``, ``token.revoke``: who, when, which user and token id,
+  never a secret); ``actor`` None is the machine's owner (``cli:<os user>``).
 * The key that signs session cookies is ``V3D_SESSION_SECRET`` when set, else the ``session`` row of
   ``server_secrets`` (made by migration 0005; made again here if missing), so that several uvicorn
   workers and restarts share it.
@@ -28,9 +33,10 @@ from pwdlib import PasswordHash
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from app.core.errors import InvalidInputError, NotFoundError
 from app.db.models import ApiToken, ServerSecret, User, UserRole
 from app.db.types import utcnow
-from app.core.errors import InvalidInputError, NotFoundError
+from app.services.accounts import audit
 
 #: argon2id with pwdlib's recommended parameters.
 PASSWORDS = PasswordHash.recommended()
@@ -47,6 +53,8 @@ DEMO_PASSWORD = "demo"
 #: logins queues instead of exhausting the server's memory.
 _HASHING = threading.BoundedSemaphore(2)
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@-]{0,99}$")
+#: Longest expiry a token may be given (days).
+MAX_TOKEN_DAYS = 3650
 
 
 @dataclass(frozen=True)
@@ -59,6 +67,37 @@ class UserSummary:
     tokens: int
     disabled: bool
     demo: bool
+
+
+@dataclass(frozen=True)
+class TokenSummary:
+    """One API token as ``v3d users tokens`` and ``GET /api/users/{name}/tokens`` list it (never the token)."""
+
+    id: int
+    label: Optional[str]
+    created_at: datetime
+    last_used_at: Optional[datetime]
+    expires_at: Optional[datetime]
+    revoked_at: Optional[datetime]
+    state: str  # "active", "expired" or "revoked"
+
+    @classmethod
+    def of(cls, token: ApiToken, now: Optional[datetime] = None) -> "TokenSummary":
+        now = now or utcnow()
+        state = ("revoked" if token.revoked_at is not None
+                 else "expired" if token.expires_at is not None and token.expires_at <= now else "active")
+        return cls(token.id, token.label, token.created_at, token.last_used_at, token.expires_at,
+                   token.revoked_at, state)
+
+
+@dataclass(frozen=True)
+class IssuedToken:
+    """A token just issued: the only time ``token`` itself is seen."""
+
+    id: int
+    token: str
+    label: Optional[str]
+    expires_at: Optional[datetime]
 
 
 def hash_token(token: str) -> str:
@@ -109,8 +148,10 @@ def check_new_user(session: Session, name: str, role: str) -> None:
         raise InvalidInputError(f"a user named {name!r} already exists", field="name")
 
 
-def create_user(session: Session, name: str, role: str, password: str, *, demo: bool = False) -> tuple[User, str]:
-    """Store a new user with an argon2 hash of ``password`` and issue its first API token; commits.
+def create_user(session: Session, name: str, role: str, password: str, *, demo: bool = False,
+                actor: Optional[str] = None) -> tuple[User, str]:
+    """Store a new user with an argon2 hash of ``password`` and issue its first API token (label
+    ``first token``, no expiry); audited (``user.create``, naming the token's id); commits.
 
     Returns:
         The user and its API token (the only time the token is seen).
@@ -129,35 +170,115 @@ def create_user(session: Session, name: str, role: str, password: str, *, demo: 
     except IntegrityError:
         session.rollback()
         raise InvalidInputError(f"a user named {name!r} already exists", field="name") from None
-    token = _add_token(session, user)
+    row, token = _add_token(session, user, "first token", None)
+    audit.record(session, actor=actor, action="user.create",
+                 after={"user": name, "role": user.role.value, "demo": demo, "token_id": row.id})
     session.commit()
     return user, token
 
 
-def _add_token(session: Session, user: User) -> str:
+def _add_token(session: Session, user: User, label: Optional[str],
+               expires_days: Optional[float]) -> tuple[ApiToken, str]:
+    if label is not None and not (0 < len(label) <= 100):
+        raise InvalidInputError("a token's label has 1 to 100 characters", field="label")
+    if expires_days is not None and not (0 < expires_days <= MAX_TOKEN_DAYS):
+        raise InvalidInputError(f"a token expires after more than 0 and at most {MAX_TOKEN_DAYS} days",
+                                field="expires_days")
     token = TOKEN_PREFIX + secrets.token_urlsafe(32)
-    session.add(ApiToken(user_id=user.id, token_hash=hash_token(token)))
+    row = ApiToken(user_id=user.id, token_hash=hash_token(token), label=label,
+                   expires_at=utcnow() + timedelta(days=expires_days) if expires_days is not None else None)
+    session.add(row)
     session.flush()
-    return token
+    return row, token
 
 
-def issue_token(session: Session, name: str) -> str:
-    """Issue another API token to the user ``name`` (its other tokens keep working); commits.
+def issue_token(session: Session, name: str, *, label: Optional[str] = None, expires_days: Optional[float] = None,
+                actor: Optional[str] = None) -> IssuedToken:
+    """Issue another API token to the user ``name`` (its other tokens keep working), valid for
+    ``expires_days`` days (None: until revoked); audited (``token.issue``); commits.
 
     Raises:
         NotFoundError: no such user.
+        InvalidInputError: a label longer than 100 characters (field ``label``), an expiry outside
+            (0, :data:`MAX_TOKEN_DAYS`] days (field ``expires_days``), a disabled user (field ``name``: its
+            tokens would be revoked anyway).
     """
-    token = _add_token(session, get_user(session, name))
-    session.commit()
-    return token
-
-
-def set_disabled(session: Session, name: str, disabled: bool = True) -> User:
-    """Disable (or enable again) the user ``name``: a disabled user cannot log in, and its sessions and
-    tokens stop working at their next request; commits. Raises :class:`NotFoundError`."""
     user = get_user(session, name)
+    if user.disabled:
+        raise InvalidInputError(f"{name!r} is disabled: enable it before issuing a token", field="name")
+    row, token = _add_token(session, user, label, expires_days)
+    audit.record(session, actor=actor, action="token.issue",
+                 after={"user": name, "token_id": row.id, "label": label,
+                        "expires_at": row.expires_at.isoformat() if row.expires_at else None})
+    session.commit()
+    return IssuedToken(row.id, token, label, row.expires_at)
+
+
+def list_tokens(session: Session, name: str) -> list[TokenSummary]:
+    """Every API token of the user ``name`` (revoked and expired ones included), oldest first.
+    Raises :class:`NotFoundError`."""
+    user = get_user(session, name)
+    now = utcnow()
+    rows = session.scalars(sa.select(ApiToken).where(ApiToken.user_id == user.id).order_by(ApiToken.id))
+    return [TokenSummary.of(t, now) for t in rows]
+
+
+def revoke_token(session: Session, name: str, token_id: int, *, actor: Optional[str] = None) -> TokenSummary:
+    """Revoke one API token of the user ``name``: it stops working at once, for good; audited
+    (``token.revoke``) unless it was revoked already; commits.
+
+    Raises:
+        NotFoundError: no such user, or no token ``token_id`` of that user.
+    """
+    user = get_user(session, name)
+    row = session.scalar(sa.select(ApiToken).where(ApiToken.id == token_id, ApiToken.user_id == user.id))
+    if row is None:
+        raise NotFoundError("token", token_id)
+    if row.revoked_at is None:
+        row.revoked_at = utcnow()
+        audit.record(session, actor=actor, action="token.revoke",
+                     after={"user": name, "token_id": row.id, "label": row.label})
+        session.commit()
+    return TokenSummary.of(row)
+
+
+def set_role(session: Session, name: str, role: str, *, actor: Optional[str] = None) -> User:
+    """Give the user ``name`` another role (annotator, reviewer, admin); it applies to the user's next
+    request, sessions and tokens alike; audited (``user.role``, before and after) when it changes; commits.
+
+    Raises:
+        NotFoundError: no such user.
+        InvalidInputError: an unknown role (field ``role``).
+    """
+    user = get_user(session, name)
+    new = _role(role)
+    if user.role != new:
+        before = user.role.value
+        user.role = new
+        audit.record(session, actor=actor, action="user.role", before={"user": name, "role": before},
+                     after={"user": name, "role": new.value})
+        session.commit()
+    return user
+
+
+def set_disabled(session: Session, name: str, disabled: bool = True, *, actor: Optional[str] = None) -> User:
+    """Disable (or enable again) the user ``name``; audited (``user.disable`` / ``user.enable``); commits.
+
+    A disabled user cannot log in, its sessions end at their next request, and every API token it holds
+    is revoked for good: enabling it again lets it log in anew but brings no token back (issue a new one).
+    Raises :class:`NotFoundError`.
+    """
+    user = get_user(session, name)
+    revoked = 0
+    if disabled:
+        revoked = session.execute(
+            sa.update(ApiToken).where(ApiToken.user_id == user.id, ApiToken.revoked_at.is_(None))
+            .values(revoked_at=utcnow())
+        ).rowcount or 0
     user.disabled = disabled
     user.session_generation += 1
+    audit.record(session, actor=actor, action="user.disable" if disabled else "user.enable",
+                 after={"user": name, **({"tokens_revoked": revoked} if disabled else {})})
     session.commit()
     return user
 
@@ -180,19 +301,20 @@ def authenticate_password(session: Session, name: str, password: str) -> Optiona
 
 
 def resolve_token(session: Session, token: str) -> Optional[User]:
-    """The enabled user owning the API token ``token``, else None. Refreshes the token's
+    """The enabled user owning the API token ``token`` (neither revoked nor expired), else None. Refreshes the token's
     ``last_used_at`` when older than :data:`TOKEN_USE_RESOLUTION` (commits then; best effort: when the
     database's write lock is busy the refresh waits for a later request)."""
     if not token.startswith(TOKEN_PREFIX) or len(token) > 200:
         return None
+    now = utcnow()
     row = session.execute(
         sa.select(ApiToken, User).join(User, ApiToken.user_id == User.id)
-        .where(ApiToken.token_hash == hash_token(token), User.disabled.is_(False))
+        .where(ApiToken.token_hash == hash_token(token), User.disabled.is_(False), ApiToken.revoked_at.is_(None),
+               sa.or_(ApiToken.expires_at.is_(None), ApiToken.expires_at > now))
     ).first()
     if row is None:
         return None
     api_token, user = row
-    now = utcnow()
     if api_token.last_used_at is None or now - api_token.last_used_at > TOKEN_USE_RESOLUTION:
         api_token.last_used_at = now
         user_id = user.id
@@ -223,8 +345,10 @@ def end_sessions(session: Session, user_id: int) -> None:
 
 
 def list_users(session: Session) -> list[UserSummary]:
-    """Every user by name, with the number of API tokens."""
+    """Every user by name, with the number of API tokens that work (neither revoked nor expired)."""
     counts = (sa.select(ApiToken.user_id, sa.func.count(ApiToken.id).label("n"))
+              .where(ApiToken.revoked_at.is_(None),
+                     sa.or_(ApiToken.expires_at.is_(None), ApiToken.expires_at > utcnow()))
               .group_by(ApiToken.user_id).subquery())
     rows = session.execute(
         sa.select(User, sa.func.coalesce(counts.c.n, 0)).outerjoin(counts, counts.c.user_id == User.id)

@@ -32,12 +32,14 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, System
 from app.db.types import json_safe, utcnow
-from app.geometry.annotations import lines_from_json_lists
-from app.geometry.calibration import CalibrationPrior, calibrate_frame
+from app.geometry.annotations import mirror_lines, FieldLines, lines_from_json_lists
+from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
+from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.mirror import mirrored_fit_at_rig
+from app.services.curation.doubt_words import with_sentence
 from app.datasets.records import CalibrationFields
 from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
@@ -77,21 +79,55 @@ def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: i
     lines = lines_from_json_lists(lines_json)
     if rig is not None:
         fields = _fields_from_result(calibrate_with_rig(lines, width, height, rig, expected_side=side,
-                                                        main_camera=main_camera))
+                                                        main_camera=main_camera), lines)
         if fields.status is CalibrationStatus.REFUSED:
             verdict = mirrored_fit_at_rig(lines, width, height, rig, expected_side=side)
             if verdict is not None:
                 fields = dataclasses.replace(fields, flags=[*fields.flags, MIRROR_FLAG],
-                                             mirror_evidence=json_safe(verdict.as_dict()))
+                                             mirror_evidence=json_safe(with_sentence(verdict.as_dict(), {})))
         return dataclasses.replace(fields, elapsed_ms=(time.perf_counter() - t0) * 1e3)
     prior = CalibrationPrior(expected_side=side) if side is not None else None
-    return _fields_from_result(calibrate_frame(lines, width, height, prior=prior))
+    fields = _fields_from_result(calibrate_frame(lines, width, height, prior=prior), lines)
+    if fields.status is CalibrationStatus.REFUSED and side is not None:
+        fields = _with_mirrored_refit(fields, lines, width, height, prior)
+    return dataclasses.replace(fields, elapsed_ms=(time.perf_counter() - t0) * 1e3)
 
 
-def _fields_from_result(result: Any) -> CalibrationFields:
-    """Plain fields of an ``app.geometry.calibration.CalibrationResult``."""
+def _with_mirrored_refit(fields: CalibrationFields, lines: FieldLines, width: int, height: int,
+                         prior: CalibrationPrior) -> CalibrationFields:
+    """The mirrored re-fit of a main-camera frame its labels cannot calibrate (issue 18).
+
+    Labels and their mirror fit mirrored cameras equally well (``app.geometry.mirror``), except where a prior
+    breaks the symmetry: a main camera is expected on the near side (``expected_side``), so mirrored labels,
+    which need the camera on the far side, can be refused outright. When the mirrored labelling
+    (``app.geometry.annotations.mirror_lines``) calibrates under the same prior, the refusal is flagged
+    :data:`MIRROR_FLAG` with evidence ``refit`` (the camera position and RMS of the mirrored fit, its JaC@0.5 %):
+    a mirrored-labels doubt whose fix (mirroring the lines) gives that camera. The labels are not changed here.
+    """
+    mirrored = calibrate_frame(mirror_lines(lines), width, height, prior=prior)
+    if str(getattr(mirrored.status, "value", mirrored.status)) != "calibrated" or mirrored.camera is None:
+        return fields
+    if MIRROR_FLAG in (mirrored.flags or ()):  # mirrored, it lands beyond the far side as well: no evidence
+        return fields
+    c = mirrored.camera.C
+    evidence = {"verdict": MIRROR_FLAG, "margin": None, "camera_y_m": None, "side_vote": 0, "rig_distance_m": None,
+                "rig_distance_mirrored_m": None, "rig_vote": 0, "pairs": [],
+                "refit": {"position_m": [round(float(x), 2) for x in c],
+                          "rms_px": None if mirrored.rms_px is None else round(float(mirrored.rms_px), 2),
+                          "jac": None if not mirrored.jac else _opt_float(mirrored.jac.get(f"{JAC_GAMMAS[0]:g}")),
+                          "source": "lines"}}
+    return dataclasses.replace(fields, flags=[*fields.flags, MIRROR_FLAG],
+                               mirror_evidence=json_safe(with_sentence(evidence, {})))
+
+
+def _fields_from_result(result: Any, lines: FieldLines | None = None) -> CalibrationFields:
+    """Plain fields of an ``app.geometry.calibration.CalibrationResult``; given the ``lines`` it was
+    fitted to, with the camera's uncertainty (:func:`fit_uncertainty`)."""
     camera = result.camera
     status = CalibrationStatus(str(getattr(result.status, "value", result.status)))
+    uncertainty = None
+    if lines is not None and camera is not None and status is CalibrationStatus.CALIBRATED:
+        uncertainty = fit_uncertainty(camera, lines, tuple(result.flags or ()))
     jac = tuple(_opt_float(result.jac.get(f"{g:g}")) for g in JAC_GAMMAS) if result.jac else (None, None, None)
     return CalibrationFields(
         status=status,
@@ -102,7 +138,21 @@ def _fields_from_result(result: Any) -> CalibrationFields:
         reason=result.reason,
         elapsed_ms=float(result.elapsed_ms),
         rms_px=_opt_float(result.rms_px),
+        uncertainty=uncertainty,
     )
+
+
+def fit_uncertainty(camera: Camera, lines: FieldLines, flags: tuple[str, ...]) -> dict[str, Any] | None:
+    """JSON of ``app.geometry.calibration.calibration_uncertainty`` for a camera fitted to ``lines``:
+    a class the fit ignored (flag ``ignored_class:<class>``) is left out, a rig-assisted fit
+    (:data:`RIG_FLAG`) had its centre fixed. None when it cannot be computed."""
+    ignored = {f.split(":", 1)[1] for f in flags if f.startswith("ignored_class:")}
+    used = {c: v for c, v in lines.items() if c not in ignored}
+    try:
+        u = calibration_uncertainty(camera, used, fixed_centre=RIG_FLAG in flags)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+        return None
+    return None if u is None else u.to_json()
 
 
 def _opt_float(v: Any) -> float | None:
@@ -218,6 +268,7 @@ def apply_calibration(frame: Frame, fields: CalibrationFields, source: Calibrati
     cal.flags = list(fields.flags)
     cal.reason = fields.reason
     cal.mirror_evidence = fields.mirror_evidence
+    cal.uncertainty = fields.uncertainty
     cal.admitted = False
     cal.updated_at = utcnow()
     return cal

@@ -1,4 +1,5 @@
-"""Doubts of a multi-view system: what the service stores of ``app.geometry.doubts``.
+"""Doubts of a multi-view system: what the service stores of ``app.geometry.doubts`` (its codes and numbers,
+with the sentence ``app.services.curation.doubt_words`` composes).
 
 :func:`update_doubts` runs at the end of every system recomputation (``app.services.curation.recompute``), so
 a system's doubts change in the transaction of the edit that changed them and the queue never
@@ -18,11 +19,12 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.db.models import CalibrationStatus, Doubt, Frame, Game, System
+from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Game, System
 from app.db.types import json_safe
 from app.geometry.camera import Camera
-from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
+from app.geometry.doubts import DoubtSettings, DoubtView, calibration_weight, judge_system
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
+from app.services.curation.doubt_words import doubt_message
 from app.services.kinds import kind_of
 
 
@@ -64,7 +66,8 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
         excluded=is_excluded(frame), mirror_flagged=MIRROR_FLAG in flags,
         mirror_evidence=cal.mirror_evidence if cal is not None else None,
         calibration_reason=cal.reason if cal is not None and cal.status is CalibrationStatus.REFUSED else None,
-        rig_assisted=RIG_FLAG in flags,
+        rig_assisted=RIG_FLAG in flags, uncertainty=cal.uncertainty if calibrated else None,  # type: ignore[union-attr]
+        suggested=label is not None and label.suggested,
     )
 
 
@@ -75,15 +78,33 @@ def doubt_views(system: System, cameras: dict[int, Camera] | None = None) -> lis
     return [doubt_view(f, cameras.get(f.id)) for f in system.frames]
 
 
+def calibration_weights(system: System, settings: Settings, cameras: dict[int, Camera] | None = None) -> dict[int, float]:
+    """Frame id -> what its calibration is worth as evidence of the ball (``app.geometry.doubts.calibration_weight``
+    with the judge's settings: 1, 0.5 or 0), for every calibrated frame of ``system``; what the triangulation
+    weighs views by (``app.geometry.triangulation.triangulate_ball`` ``view_weights``), so that it trusts the
+    views the judge trusts. Cameras known to be fitted to the view's lines are weighed: computed by v3d, or
+    imported with the fit's standard deviations (v3d's own export carries them, so a round trip gives the same
+    balls). A camera a person set (source "edited") or one imported without them (a release's camera, how it
+    was made unknown) counts full (1): the number of lines it shows says nothing of it.
+    Reads the frames' admission as set on them."""
+    s = doubt_settings(settings)
+    fitted = {f.id for f in system.frames if f.calibration is not None and (
+        f.calibration.source is CalibrationSource.COMPUTED
+        or (f.calibration.source is CalibrationSource.IMPORTED and f.calibration.uncertainty is not None))}
+    return {v.view_id: calibration_weight(v, s)[0] if v.view_id in fitted else 1.0
+            for v in doubt_views(system, cameras) if v.camera is not None}
+
+
 def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera] | None = None) -> list[Doubt]:
     """Judge the system (``app.geometry.doubts.judge_system``) and replace its stored doubts and
     counts. Changes the session only; the caller commits (with the edit that caused it)."""
     found = judge_system(doubt_views(system, cameras), doubt_settings(settings))
     found = kind_of(system).judge_doubts(system, found, cameras)
+    names = {f.id: f.name for f in system.frames}
     system.doubts.clear()
     rows = [
-        Doubt(frame_id=d.view_id, kind=d.kind, accuses_label=d.accuses_label, message=d.message,
-              evidence=json_safe(d.evidence), suggestion=json_safe(d.suggestion) if d.suggestion else None)
+        Doubt(frame_id=d.view_id, kind=d.kind, accuses_label=d.accuses_label, message=doubt_message(d, names),
+              evidence=json_safe({**d.evidence, "code": d.code}), suggestion=json_safe(d.suggestion) if d.suggestion else None)
         for d in found
     ]
     system.doubts.extend(rows)
@@ -92,13 +113,60 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     return rows
 
 
+def suggestion_request(frame_id: int | None, suggestion: dict[str, Any] | None,
+                       provenance: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    """The exact request the system page's fix key sends for ``suggestion`` on frame ``frame_id``:
+    ``{"method", "path", "body"}`` (body None: no JSON body), or None when the suggestion has no request.
+
+    ``snap_box``: ``PATCH /api/frames/{id}/ball {"box": [x1, y1, x2, y2], "provenance": {...}}`` (pixels rounded
+    to integers as the page rounds them; ``provenance`` = ``{"doubt", "code", "from_views"}`` of the doubt, so
+    that the label is stored as a suggestion, not independent evidence, until a person places it);
+    ``snap_point``: the same with ``{"point": [x, y]}``; ``exclude_view``: ``POST /api/frames/{id}/exclusion
+    {"excluded": true}``; ``mirror_labels``: ``POST /api/frames/{id}/field-lines/mirror``. The caller adds the
+    frame's ``If-Match`` ETag."""
+    if frame_id is None or not suggestion:
+        return None
+    action = suggestion.get("action")
+    base = f"/api/frames/{int(frame_id)}"
+    extra = {"provenance": provenance} if provenance else {}
+    if action == "snap_box" and suggestion.get("box") is not None:
+        return {"method": "PATCH", "path": f"{base}/ball",
+                "body": {"box": [round(float(x)) for x in suggestion["box"]], **extra}}
+    if action == "snap_point" and suggestion.get("point") is not None:
+        return {"method": "PATCH", "path": f"{base}/ball",
+                "body": {"point": [round(float(x)) for x in suggestion["point"]], **extra}}
+    if action == "exclude_view":
+        return {"method": "POST", "path": f"{base}/exclusion", "body": {"excluded": True}}
+    if action == "mirror_labels":
+        return {"method": "POST", "path": f"{base}/field-lines/mirror", "body": None}
+    return None
+
+
+def doubt_provenance(doubt: Doubt) -> dict[str, Any]:
+    """The provenance a label made from ``doubt``'s suggestion keeps: the doubt's kind and code (the code is
+    stored in its evidence, ``code``) and the views it came from (``agreeing_views``)."""
+    ev = doubt.evidence or {}
+    views = [int(v) for v in ev.get("agreeing_views") or [] if isinstance(v, int)]
+    return {"doubt": doubt.kind, "code": ev.get("code"), "from_views": views}
+
+
+def suggestion_json(frame_id: int | None, suggestion: dict[str, Any] | None,
+                    provenance: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    """A stored suggestion as the API sends it: itself plus ``request`` (:func:`suggestion_request`)."""
+    if not suggestion:
+        return None
+    req = suggestion_request(frame_id, suggestion, provenance)
+    return {**suggestion, "request": req} if req is not None else dict(suggestion)
+
+
 def doubt_json(doubt: Doubt, frame_names: dict[int, str]) -> dict[str, Any]:
-    """A stored doubt as the API sends it: ``frame`` is the image name (None for the system)."""
+    """A stored doubt as the API sends it: ``frame`` is the image name (None for the system); the
+    suggestion carries the request its fix key sends (:func:`suggestion_json`)."""
     return {
         "kind": doubt.kind, "frame_id": doubt.frame_id,
         "frame": frame_names.get(doubt.frame_id) if doubt.frame_id is not None else None,
         "accuses_label": doubt.accuses_label, "message": doubt.message, "evidence": doubt.evidence,
-        "suggestion": doubt.suggestion,
+        "suggestion": suggestion_json(doubt.frame_id, doubt.suggestion, doubt_provenance(doubt)),
     }
 
 

@@ -40,21 +40,25 @@ from collections.abc import Collection
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Optional, TypeVar
 
+import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
-    BallKind, BallLabel, FieldLineAnnotation, Frame, Game, ReviewDecision, ReviewStatus, System,
+    AuditEntry, BallKind, BallLabel, FieldLineAnnotation, Frame, Game, ReviewDecision, ReviewStatus, System,
 )
 from app.db.session import begin_write
 from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.datasets.labels import LabelError, check_box, check_line_points, check_point
+from app.geometry.consensus import ball_consensus
+from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px
 from app.services.accounts import audit
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
 from app.services.curation.recompute import load_for_recompute, recompute_frame, recompute_system
+from app.services.calibration.calibrating import admission_jac, is_admitted
 from app.services.curation.system_page import load_frame
 from app.services.curation.versions import claim_frame, claim_system_review
 
@@ -132,10 +136,11 @@ def _same(a: Any, b: Any) -> bool:
 
 def _write(session: Session, system_id: int, claim: Callable[[], None], subject: Callable[[], Frame | System],
            state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], T], action: str,
-           actor: Optional[str], revert: Optional[Revert]) -> T:
+           actor: Optional[str], revert: Optional[Revert], undo_of: Optional[int] = None) -> T:
     """The guarded, audited write every edit goes through (module docstring), in one write transaction
     holding the lock of system ``system_id`` (:func:`_in_transaction`): ``claim`` (compare-and-set),
-    ``state`` of ``subject()`` before, ``apply`` (change and recompute), ``state`` after, one audit entry."""
+    ``state`` of ``subject()`` before, ``apply`` (change and recompute), ``state`` after, one audit entry
+    (``undo_of``: the entry this edit undoes, recorded as its ``reverts_id`` under the edit's own action)."""
 
     def work() -> T:
         claim()
@@ -150,24 +155,47 @@ def _write(session: Session, system_id: int, claim: Callable[[], None], subject:
         frame = target if isinstance(target, Frame) else None
         audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
                      system=target if frame is None else None, before=before, after=state(target),
-                     reverts_id=revert.entry_id if revert is not None else None)
+                     reverts_id=revert.entry_id if revert is not None else undo_of)
         return result
 
     return _in_transaction(session, work, system_id=system_id)
 
 
 def _frame_write(session: Session, frame_id: int, expected: Expected, state: Callable[[Frame], dict[str, Any]],
-                 apply: Callable[[Frame], T], action: str, actor: Optional[str], revert: Optional[Revert]) -> T:
+                 apply: Callable[[Frame], T], action: str, actor: Optional[str], revert: Optional[Revert],
+                 undo_of: Optional[int] = None) -> T:
     system_id = get_frame(session, frame_id).system_id
     return _write(session, system_id, lambda: claim_frame(session, frame_id, expected),
-                  lambda: get_frame(session, frame_id), state, apply, action, actor, revert)
+                  lambda: get_frame(session, frame_id), state, apply, action, actor, revert, undo_of)
 
 
 # ----- the states the audit log records (and a revert restores) -------------------------------------
 def ball_state(frame: Frame) -> dict[str, Any]:
-    """``{"ball": {"box", "point"}}``: the frame's current ball label (both None: no ball)."""
+    """``{"ball": {"box", "point"}}``: the frame's current ball label (both None: no ball), with its
+    ``provenance`` when it was made from a suggestion and no person has placed it yet."""
     label = frame.ball_label
-    return {"ball": {"box": label.box if label else None, "point": label.point if label else None}}
+    state: dict[str, Any] = {"box": label.box if label else None, "point": label.point if label else None}
+    if label is not None and label.suggested:
+        state["provenance"] = label.provenance
+    return {"ball": state}
+
+
+def check_provenance(provenance: Any) -> dict[str, Any] | None:
+    """A suggested label's provenance as stored: ``{"source": "suggestion", "doubt": str, "code": str | None,
+    "from_views": [int]}``, or None. Raises :class:`InvalidInputError` (field ``provenance``) for another shape."""
+    if provenance is None:
+        return None
+    if not isinstance(provenance, Mapping):
+        raise InvalidInputError("provenance must be an object", field="provenance")
+    doubt, code, views = provenance.get("doubt"), provenance.get("code"), provenance.get("from_views", [])
+    if not isinstance(doubt, str) or not doubt or len(doubt) > 64:
+        raise InvalidInputError("provenance.doubt must name the doubt kind the label was suggested by", field="provenance")
+    if code is not None and (not isinstance(code, str) or len(code) > 64):
+        raise InvalidInputError("provenance.code must be a short string", field="provenance")
+    if not isinstance(views, list) or len(views) > 64 or not all(isinstance(v, int) and not isinstance(v, bool)
+                                                                   for v in views):
+        raise InvalidInputError("provenance.from_views must be a list of frame ids", field="provenance")
+    return {"source": "suggestion", "doubt": doubt, "code": code, "from_views": list(views)}
 
 
 def lines_state(frame: Frame) -> dict[str, Any]:
@@ -187,6 +215,15 @@ def review_state(subject: Frame | System) -> dict[str, Any]:
                        "comment": review.comment if review else ""}}
 
 
+def calibration_review_state(frame: Frame) -> dict[str, Any]:
+    """``{"calibration_review": {"status", "comment"}}``: the decision on a view's calibration (pending
+    without one)."""
+    review = frame.review
+    return {"calibration_review": {
+        "status": review.calibration_status.value if review else ReviewStatus.PENDING.value,
+        "comment": review.calibration_comment if review else ""}}
+
+
 def get_frame(session: Session, frame_id: int) -> Frame:
     """The frame with this id. Raises :class:`NotFoundError`."""
     return found(session.get(Frame, frame_id), "frame", frame_id)
@@ -198,8 +235,8 @@ def get_system(session: Session, system_id: int) -> System:
 
 
 def update_ball_label(session: Session, frame_id: int, box: Any = None, point: Any = None, *,
-                      settings: Settings, actor: Optional[str] = None, expected: Expected = None,
-                      revert: Optional[Revert] = None) -> Frame:
+                      settings: Settings, provenance: Any = None, actor: Optional[str] = None,
+                      expected: Expected = None, revert: Optional[Revert] = None) -> Frame:
     """Set a frame's ball label to a box or a point, or remove it, then recompute its system.
 
     Args:
@@ -208,6 +245,9 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
         point: ``[x, y]`` pixels inside the image. Give at most one of ``box`` and ``point``; giving
             neither removes the label (the ball is not visible in this view).
         settings: admission and triangulation parameters.
+        provenance: for a label made from a doubt's suggestion, where it came from
+            (:func:`check_provenance`): stored on the label, which then joins no triangulation and no doubt
+            vote until a person places it; None (a person placed it: drawn, moved or confirmed) clears it.
         actor, expected, revert: attribution and guard (module docstring); audited as ``ball.edit``.
 
     Returns:
@@ -227,6 +267,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
         new_point = check_point(point, frame.width, frame.height) if point is not None else None
     except LabelError as exc:
         raise InvalidInputError(str(exc), field="box" if box is not None else "point") from None
+    new_provenance = check_provenance(provenance) if (new_box is not None or new_point is not None) else None
 
     def apply(frame: Frame) -> Frame:
         label = frame.ball_label
@@ -240,6 +281,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
                 label = BallLabel()
                 frame.ball_label = label
             label.kind, label.box, label.point = kind, new_box, new_point
+            label.provenance = new_provenance
             label.edited_at = utcnow()
         _recompute(session, frame.system, settings)
         return frame
@@ -283,7 +325,7 @@ def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], setting
 
 def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any], *, settings: Settings,
                         actor: Optional[str] = None, expected: Expected = None,
-                        revert: Optional[Revert] = None) -> Frame:
+                        revert: Optional[Revert] = None, undo_of: Optional[int] = None) -> Frame:
     """Replace a frame's field lines, recalibrate the frame and recompute its system.
 
     Args:
@@ -293,6 +335,11 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         settings: admission and triangulation parameters.
         actor, expected, revert: attribution and guard (module docstring); audited as
             ``field_lines.replace``.
+        undo_of: this write undoes audit entry ``undo_of`` (a page's undo, or the redo that undoes an
+            undo): a field-line write of the same frame whose ``before`` lines are ``lines`` exactly
+            (:func:`check_undo`). Audited as ``field_lines.replace`` with ``reverts_id = undo_of``. The
+            calibration is computed from the lines alone, so the camera and JaC come back as they were
+            when nothing else in the game changed meanwhile.
 
     Returns:
         The frame with its new lines, calibration (source "computed") and derived rows, committed.
@@ -300,14 +347,106 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
     Raises:
         NotFoundError: no such frame.
         InvalidInputError: unknown class, malformed polyline, NaN or infinity, a point more than
-            5 % of the image's size outside it (field "lines", the message names the class and polyline).
+            5 % of the image's size outside it (field "lines", the message names the class and polyline);
+            an ``undo_of`` that is no field-line write of this frame with ``lines`` before it (field "undo_of").
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
     frame = get_frame(session, frame_id)
     parsed = _parse_lines(lines, frame.width, frame.height)
-    return _frame_write(session, frame_id, expected, lines_state,
-                        lambda frame: _store_lines(session, frame, parsed, settings),
-                        "field_lines.replace", actor, revert)
+
+    def apply(frame: Frame) -> Frame:
+        before = lines_state(frame), calibration_words(frame, settings)
+        _store_lines(session, frame, parsed, settings)
+        verb = "replaced" if undo_of is None else f"put back (undo of audit entry {undo_of})"
+        reset_decisions_after_recalibration(session, frame, before, verb, actor, settings)
+        return frame
+
+    if undo_of is not None:
+        check_undo(session, undo_of, frame_id, parsed)
+    return _frame_write(session, frame_id, expected, lines_state, apply, "field_lines.replace", actor, revert,
+                        undo_of)
+
+
+def calibration_words(frame: Frame, settings: Settings) -> str:
+    """The frame's calibration in a few words: "JaC@0.5 % 0.812, admitted" (the admission's gamma), or
+    "not calibrated"."""
+    cal = frame.calibration
+    if cal is None or cal.camera is None:
+        return "not calibrated"
+    jac = admission_jac(cal, settings)
+    pct = f"{100 * settings.admit_jac_gamma:g}"
+    return (f"JaC@{pct} % {jac:.3f}" if jac is not None else f"JaC@{pct} % unknown") + (
+        ", admitted" if is_admitted(cal, settings) else ", not admitted")
+
+
+def reset_decisions_after_recalibration(session: Session, frame: Frame, before: tuple[dict[str, Any], str],
+                                        verb: str, actor: Optional[str], settings: Settings) -> Optional[str]:
+    """After ``frame``'s field lines changed (``before``: :func:`lines_state` and :func:`calibration_words`
+    before the edit) and it was recalibrated, in the edit's transaction: a decided calibration decision of the view and a decided decision
+    of its system go back to pending with the reason (``calibration_reset_reason``, ``reset_reason``), each
+    with its own audit entry (``view.calibration_review``, ``system.review``: revertible) added before the
+    edit's own, so the edit stays the frame's newest entry. The system's ``review_version`` is bumped (a page
+    that drew the old decision gets 412 on deciding). Nothing changes when the lines did not.
+
+    Returns:
+        The reason (one sentence naming the view, the edit, who, and the calibration before and after), or
+        None when nothing was reset.
+    """
+    lines_before, words_before = before
+    if _same(lines_before, lines_state(frame)):
+        return None
+    review, system = frame.review, frame.system
+    calibration_decided = review is not None and review.calibration_status != ReviewStatus.PENDING
+    system_decided = system.review is not None and system.review.status != ReviewStatus.PENDING
+    if not (calibration_decided or system_decided):
+        return None
+    who = actor or audit.local_actor()
+    reason = (f"{frame.name}: field lines {verb} by {who}, the view was recalibrated "
+              f"({words_before} -> {calibration_words(frame, settings)}); decide it again")
+    now = utcnow()
+    if calibration_decided:
+        before = calibration_review_state(frame)
+        review.calibration_status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
+        review.calibration_reset_reason = reason  # type: ignore[union-attr]
+        review.calibration_decided_at = now  # type: ignore[union-attr]
+        audit.record(session, actor=actor, action="view.calibration_review", frame=frame, before=before,
+                     after=calibration_review_state(frame))
+    if system_decided:
+        before = review_state(system)
+        decision = system.review
+        decision.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
+        decision.reset_reason = reason  # type: ignore[union-attr]
+        decision.decided_at = now  # type: ignore[union-attr]
+        system.review_status = ReviewStatus.PENDING  # type: ignore[assignment]  # the queue's copy
+        system.review_version += 1
+        audit.record(session, actor=actor, action="system.review", system=system, before=before,
+                     after=review_state(system))
+    session.flush()
+    return reason
+
+
+def check_undo(session: Session, entry_id: int, frame_id: int, parsed: dict[str, Any]) -> None:
+    """Check that writing the lines ``parsed`` (validated JSON lists, :func:`_parse_lines`) to frame ``frame_id``
+    undoes audit entry ``entry_id``: the entry is a write of that frame's field lines (a replacement, a
+    mirroring, a revert or an undo of one) and its ``before`` lines are ``parsed`` (equal as JSON once read the
+    same way: an imported ``100`` is ``100.0``). Entries never change, so this is read before the write's lock.
+
+    Raises:
+        InvalidInputError: field "undo_of", naming what does not match.
+    """
+    entry = session.get(AuditEntry, entry_id)
+    if entry is None:
+        raise InvalidInputError(f"undo_of: no audit entry {entry_id}", field="undo_of")
+    if entry.frame_id != frame_id or not isinstance(entry.before, dict) or "lines" not in entry.before:
+        raise InvalidInputError(f"undo_of: audit entry {entry_id} is no field-line write of frame {frame_id}",
+                                field="undo_of")
+    try:
+        before = lines_to_json_lists(lines_from_json_lists(entry.before["lines"]))
+    except AnnotationError:
+        before = entry.before["lines"]
+    if not _same(before, parsed):
+        raise InvalidInputError(f"undo_of: the lines sent are not those before audit entry {entry_id}; an undo "
+                                "writes back exactly the lines the entry replaced", field="undo_of")
 
 
 def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings, actor: Optional[str] = None,
@@ -321,20 +460,64 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
     original is kept, so the edit can be undone by applying it again. The reviewer decides; nothing
     mirrors labels without this call. Audited as ``field_lines.mirror``.
 
+    The fix is applied only when the mirrored calibration and the ball agree better: when the frame has a
+    ball label and the system's other views agree on a ball (:func:`ball_error_to_others`), the label must
+    come closer to that ball with the mirrored camera than with the camera as labelled; otherwise nothing is
+    stored and :class:`ConflictError` says by how much (a clean view's camera moved across the pitch, its 3D
+    ball with it, was the harm this guards against).
+
     Raises:
         NotFoundError: no such frame.
         InvalidInputError: the frame has no field lines (field "lines").
+        ConflictError: the mirrored calibration brings the ball label no closer to the other views' ball.
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
 
     def apply(frame: Frame) -> Frame:
         if frame.field_lines is None or not frame.field_lines.lines:
             raise InvalidInputError(f"frame {frame_id} has no field lines to mirror", field="lines")
+        before = ball_error_to_others(frame, settings)
+        lines_before = lines_state(frame), calibration_words(frame, settings)
         mirrored = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
-        return _store_lines(session, frame, mirrored, settings)
+        out = _store_lines(session, frame, mirrored, settings)
+        after = ball_error_to_others(out, settings)
+        if before is not None and before[0] is not None and (after is None or after[0] is None or after[0] >= before[0]):
+            mi = "an unknown number of" if after is None or after[0] is None else f"{after[0]:.0f}"
+            raise ConflictError(
+                f"mirroring {frame.name}'s field lines was not applied: with the mirrored calibration its ball label "
+                f"would be {mi} px (at 1920 width) from the ball {before[1]} agree on, against {before[0]:.0f} px as "
+                "labelled, so the mirrored calibration and the ball do not agree better")
+        reset_decisions_after_recalibration(session, out, lines_before, "mirrored", actor, settings)
+        return out
 
     get_frame(session, frame_id)
     return _frame_write(session, frame_id, expected, lines_state, apply, "field_lines.mirror", actor, None)
+
+
+def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None, str] | None:
+    """How far (px at 1920 width) ``frame``'s ball label lies from the ball the system's other views agree on
+    (``app.geometry.consensus.ball_consensus`` of their admitted, included, person-placed labels, the doubt
+    judge's tolerance), with the camera the frame has now, and those views' names; ``(None, names)`` when the
+    frame has no camera or the ball projects behind it; None without a label or without an agreed ball."""
+    from app.services.curation.doubts import doubt_settings, doubt_views  # the judge's adapter and tolerance
+    s = doubt_settings(settings)
+    views = doubt_views(frame.system)
+    me = next((v for v in views if v.view_id == frame.id), None)
+    if me is None or (me.box is None and me.point is None) or me.suggested:
+        return None
+    others = [v for v in views if v.view_id != frame.id and v.camera is not None and v.admitted and not v.excluded
+              and not v.suggested and (v.box is not None or v.point is not None)]
+    centre = lambda v: (np.asarray(v.box[:2]) + np.asarray(v.box[2:])) / 2 if v.box is not None else np.asarray(v.point)  # noqa: E731
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    cons = ball_consensus([BallObservation(v.view_id, v.camera, centre(v), v.width) for v in others], tau_px=tau,
+                          min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg)
+    if cons.point is None or cons.ambiguous:
+        return None
+    names = ", ".join(v.name for v in others if v.view_id in cons.inliers)
+    if me.camera is None:
+        return None, names
+    e = reprojection_error_px(me.camera, cons.point, centre(me))
+    return (None if e is None else float(e) * REFERENCE_WIDTH_PX / me.width), names
 
 
 def decide_review(session: Session, *, system_id: int | None = None, frame_id: int | None = None,
@@ -358,13 +541,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
     """
     if (system_id is None) == (frame_id is None):
         raise InvalidInputError("give exactly one of system_id and frame_id", field="system_id")
-    try:
-        status = ReviewStatus(status)
-    except ValueError:
-        raise InvalidInputError(f"unknown review status {status!r}; choose one of "
-                                f"{[s.value for s in ReviewStatus]}", field="status") from None
-    if not isinstance(comment, str):
-        raise InvalidInputError("comment must be text", field="comment")
+    status = _check_decision(status, comment)
 
     def apply(subject: System | Frame) -> ReviewDecision:
         review = subject.review
@@ -374,6 +551,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         review.status = status  # type: ignore[assignment]
         review.comment = comment
         review.decided_at = utcnow()
+        review.reset_reason = None
         if isinstance(subject, System):
             subject.review_status = status  # type: ignore[assignment]  # the queue's copy
         return review
@@ -384,6 +562,54 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
                       lambda: get_system(session, system_id), review_state, apply, "system.review", actor, revert)
     get_frame(session, frame_id)  # type: ignore[arg-type]
     return _frame_write(session, frame_id, expected, review_state, apply, "view.review", actor, revert)  # type: ignore[arg-type]
+
+
+def _check_decision(status: ReviewStatus | str, comment: Any) -> ReviewStatus:
+    """The status as the enum; raises :class:`InvalidInputError` (field "status" or "comment")."""
+    try:
+        status = ReviewStatus(status)
+    except ValueError:
+        raise InvalidInputError(f"unknown review status {status!r}; choose one of "
+                                f"{[s.value for s in ReviewStatus]}", field="status") from None
+    if not isinstance(comment, str):
+        raise InvalidInputError("comment must be text", field="comment")
+    return status
+
+
+def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus | str, comment: str = "",
+                       actor: Optional[str] = None, expected: Expected = None,
+                       revert: Optional[Revert] = None) -> ReviewDecision:
+    """Record the reviewer's decision on a view's calibration (its field lines and the camera fitted to
+    them), beside the decision on its ball (:func:`decide_review`). Clears ``calibration_reset_reason``.
+    Audited as ``view.calibration_review`` (``actor``, ``expected``: versions of the frame, ``revert``:
+    module docstring). An edit of the view's field lines sets a decided calibration back to pending
+    (:func:`reset_decisions_after_recalibration`).
+
+    Returns:
+        The committed :class:`ReviewDecision` of the frame (created with a pending ball decision when the
+        view had none).
+
+    Raises:
+        InvalidInputError: an unknown status (field "status"), a comment that is not text.
+        NotFoundError: no such frame.
+        StaleVersionError: the frame's version is not in ``expected``; nothing changed.
+    """
+    status = _check_decision(status, comment)
+
+    def apply(frame: Frame) -> ReviewDecision:
+        review = frame.review
+        if review is None:
+            review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
+            frame.review = review
+        review.calibration_status = status  # type: ignore[assignment]
+        review.calibration_comment = comment
+        review.calibration_decided_at = utcnow()
+        review.calibration_reset_reason = None
+        return review
+
+    get_frame(session, frame_id)
+    return _frame_write(session, frame_id, expected, calibration_review_state, apply, "view.calibration_review",
+                        actor, revert)
 
 
 def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settings: Settings,

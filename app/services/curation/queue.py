@@ -18,15 +18,28 @@ puts the systems with the most doubts first: the labels the geometry accuses are
 orders by game, then system name with numeric names in numeric order (2.png before 10.png). The ``doubt``
 filter keeps systems with a doubt of one kind (or any label-accusing one); doubts and their counts are
 stored by the recomputation (``app.services.curation.doubts``), never computed here.
+
+Pages: by ``offset`` (links and scripts that jump to page N) or by cursor (``after`` / ``before``: the
+sort key values of a page's last / first row, :func:`encode_cursor`). Either way the page is read as
+*slices* of the order (:func:`_slices`), each an index range scanned in the index's own order: the rows
+equal to the cursor on every key but the last and beyond it on the last, then those equal on every key
+but the last two, ... (the seek of :func:`queue_neighbours`, with a ``LIMIT`` of a page), and, from the
+start of the queue, a key whose NULLs come last as its values, then its NULLs. No slice needs ``NULLS
+LAST`` on a column that holds NULLs, so no page sorts the queue; a deep ``offset`` skips ids along the
+sort's index (covering: the sort keys and the row id) and reads the rows of the page only.
 """
 from __future__ import annotations
 
+import base64
+import binascii
+import json
 from dataclasses import dataclass
 from typing import Any, Literal, Optional
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
 
+from app.core.errors import InvalidInputError
 from app.db.models import BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, ReviewStatus, System
 
 SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
@@ -69,11 +82,14 @@ class FrameFilters:
 class SystemPage:
     """One page of the queue: ``items`` are systems with their game, review decision and triangulation
     loaded; ``total`` rows match the filters; ``counts`` are per review status over the same filters except
-    the status one (the progress of the whole filtered queue)."""
+    the status one (the progress of the whole filtered queue). ``next_cursor`` / ``prev_cursor`` page on
+    (``after=``) or back (``before=``) in the same order, None when no row lies beyond the page that way."""
 
     items: list[System]
     total: int
     counts: dict[str, int]
+    next_cursor: Optional[str] = None
+    prev_cursor: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -138,10 +154,12 @@ class _SortKey:
     desc: bool = False
     nulls_last: bool = False
 
-    def clause(self, reverse: bool = False) -> Any:
+    def clause(self, reverse: bool = False, plain: bool = False) -> Any:
+        """The ORDER BY term; ``plain``: without the NULLs placement (for rows where the key is known
+        to be all NULL or all non-NULL, so that the order is the index's own)."""
         desc = self.desc != reverse
         c = self.expr.desc() if desc else self.expr.asc()
-        if self.nulls_last:
+        if self.nulls_last and not plain:
             c = c.nulls_first() if reverse else c.nulls_last()
         return c
 
@@ -175,8 +193,86 @@ def _sort_keys(sort: SystemSort) -> list[_SortKey]:
     return [_SortKey(column, desc, True), tie]
 
 
-def _system_order(sort: SystemSort) -> list[Any]:
-    return [k.clause() for k in _sort_keys(sort)]
+def encode_cursor(sort: SystemSort, values: tuple[Any, ...]) -> str:
+    """A queue cursor: the sort and a row's sort key values (:func:`_sort_keys`, the system id last),
+    as URL-safe base64 of JSON (floats round-trip exactly). Opaque to clients."""
+    raw = json.dumps([sort, list(values)], separators=(",", ":")).encode()
+    return base64.urlsafe_b64encode(raw).decode().rstrip("=")
+
+
+def decode_cursor(cursor: str, sort: SystemSort, field: str = "after") -> tuple[Any, ...]:
+    """The sort key values of :func:`encode_cursor`'s ``cursor``.
+
+    Raises:
+        InvalidInputError (``field``): not a cursor of this queue, or made for another ``sort``.
+    """
+    keys = _sort_keys(sort)
+    try:
+        raw = base64.urlsafe_b64decode(cursor + "=" * (-len(cursor) % 4))
+        made_for, values = json.loads(raw)
+    except (binascii.Error, ValueError, TypeError) as exc:
+        raise InvalidInputError("not a queue cursor (use next_cursor / prev_cursor of a page)", field=field) from exc
+    if made_for != sort:
+        raise InvalidInputError(f"the cursor was made for sort={made_for!r}, not sort={sort!r}", field=field)
+    if not isinstance(values, list) or len(values) != len(keys) or not all(
+            v is None or (isinstance(v, (int, float, str)) and not isinstance(v, bool)) for v in values):
+        raise InvalidInputError("not a queue cursor (use next_cursor / prev_cursor of a page)", field=field)
+    if not isinstance(values[-1], int):
+        raise InvalidInputError("not a queue cursor (its last value is a system id)", field=field)
+    return tuple(values)
+
+
+def _slices(keys: list[_SortKey], current: Optional[tuple[Any, ...]],
+            side: Literal["before", "after"]) -> list[tuple[list[Any], list[Any]]]:
+    """The rows strictly ``side`` of the row whose sort keys are ``current`` (None: from the start of
+    the order for ``"after"``, from its end for ``"before"``) as disjoint slices, nearest first, each
+    ``(conditions, order)`` with the order read from ``current`` outwards.
+
+    With a current row: the rows equal on ``keys[:i]`` and beyond on ``keys[i]`` for i from the last key
+    down (:meth:`_SortKey.beyond`), as in :func:`_neighbour`. Without: the whole order, a first key whose
+    NULLs come last cut into its values and its NULLs. Every key whose NULL-ness a slice fixes is ordered
+    without a NULLs placement, so a slice is its index read in order.
+    """
+    reverse = side == "before"
+    if current is None:
+        first = keys[0]
+        if not first.nulls_last:
+            return [([], [k.clause(reverse) for k in keys])]
+        order = [first.clause(reverse, plain=True)] + [k.clause(reverse) for k in keys[1:]]
+        parts = [[first.expr.is_not(None)], [first.expr.is_(None)]]
+        return [(p, order) for p in (reversed(parts) if reverse else parts)]
+    out = []
+    for i in reversed(range(len(keys))):
+        order = [keys[i].clause(reverse, plain=True)] + [k.clause(reverse) for k in keys[i + 1:]]
+        for beyond in keys[i].beyond(current[i], side):
+            out.append(([*(k.equal(v) for k, v in zip(keys[:i], current)), beyond], order))
+    return out
+
+
+def _walk(session: Session, sort: SystemSort, conds: list[Any], current: Optional[tuple[Any, ...]],
+          side: Literal["before", "after"], limit: int, skip: int = 0) -> list[tuple[Any, ...]]:
+    """Up to ``limit`` rows' sort key values (system id last), nearest first, strictly ``side`` of
+    ``current`` (see :func:`_slices`) under ``conds``, after skipping ``skip`` rows. Reads ids and sort
+    keys only (the sort's index); a slice is counted only to be skipped whole."""
+    keys = _sort_keys(sort)
+    base = sa.select(*(k.expr for k in keys)).select_from(System)
+    if sort.lstrip("-") == "name":
+        base = base.join(Game, Game.id == System.game_id)
+    rows: list[tuple[Any, ...]] = []
+    slices = _slices(keys, current, side)
+    for n, (where, order) in enumerate(slices):
+        stmt = base.where(*conds, *where)
+        if skip and n < len(slices) - 1:
+            inside = int(session.scalar(sa.select(sa.func.count()).select_from(
+                stmt.with_only_columns(System.id).subquery())) or 0)
+            if skip >= inside:
+                skip -= inside
+                continue
+        rows += [tuple(r) for r in session.execute(stmt.order_by(*order).limit(limit - len(rows)).offset(skip))]
+        skip = 0
+        if len(rows) >= limit:
+            break
+    return rows
 
 
 def list_games(session: Session) -> list[tuple[Game, int]]:
@@ -195,26 +291,47 @@ def has_games(session: Session) -> bool:
 
 
 def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sort: SystemSort = DEFAULT_SORT,
-                 limit: int = 50, offset: int = 0) -> SystemPage:
+                 limit: int = 50, offset: int = 0, after: Optional[str] = None,
+                 before: Optional[str] = None) -> SystemPage:
     """One page of the review queue.
 
     Args:
         filters: see :class:`SystemFilters` (JaC as a fraction, errors in px).
         sort: one of :data:`SystemSort` (module docstring).
-        limit, offset: the page (``limit >= 1``, ``offset >= 0``).
+        limit, offset: the page (``limit >= 1``, ``offset >= 0``); ``offset`` counts from ``after``'s row
+            when both are given, and is ignored with ``before``.
+        after, before: at most one, a cursor of this ``sort`` (a page's ``next_cursor`` /
+            ``prev_cursor``): the ``limit`` rows right after / right before that row. Filters may differ
+            from the page that made the cursor (the cursor is a place in the order, not a row).
 
     Returns:
-        :class:`SystemPage`.
+        :class:`SystemPage` with ``next_cursor`` / ``prev_cursor``.
 
     Raises:
         ValueError: an unknown ``sort``.
+        InvalidInputError: both cursors, or a cursor that is not one of this ``sort`` (``field``: its name).
     """
-    order = _system_order(sort)
+    if after is not None and before is not None:
+        raise InvalidInputError("give after or before, not both", field="before")
     conds = _system_conditions(filters)
-    items = list(session.scalars(_queue_from().where(*conds).order_by(*order).limit(limit).offset(offset)))
+    if before is not None:
+        rows = _walk(session, sort, conds, decode_cursor(before, sort, "before"), "before", limit + 1)
+        more_before = len(rows) > limit
+        rows = rows[:limit][::-1]
+        more_after = bool(rows) and bool(_walk(session, sort, conds, rows[-1], "after", 1))
+    else:
+        start = decode_cursor(after, sort, "after") if after is not None else None
+        rows = _walk(session, sort, conds, start, "after", limit + 1, skip=offset)
+        more_after = len(rows) > limit
+        rows = rows[:limit]
+        more_before = bool(rows) and bool(_walk(session, sort, conds, rows[0], "before", 1))
+    ids = [r[-1] for r in rows]
+    by_id = {s.id: s for s in session.scalars(_queue_from().where(System.id.in_(ids))).unique()} if ids else {}
     counts = _status_counts(session, _system_conditions(filters, with_status=False))
     total = counts[ReviewStatus(filters.status).value] if filters.status is not None else sum(counts.values())
-    return SystemPage(items=items, total=int(total), counts=counts)
+    return SystemPage(items=[by_id[i] for i in ids if i in by_id], total=int(total), counts=counts,
+                      next_cursor=encode_cursor(sort, rows[-1]) if more_after else None,
+                      prev_cursor=encode_cursor(sort, rows[0]) if more_before else None)
 
 
 def _status_counts(session: Session, conds: list[Any]) -> dict[str, int]:

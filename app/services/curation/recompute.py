@@ -32,7 +32,7 @@ from __future__ import annotations
 from typing import Any, Iterable, Sequence
 
 import numpy as np
-from sqlalchemy import select
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session, joinedload, selectinload
 
 from app.core.config import Settings
@@ -47,19 +47,22 @@ from app.geometry.calibration.frame import MIRROR_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence
+from app.geometry.pitch import within_play_volume
 from app.geometry.triangulation import BallObservation, error_above_tau, triangulate_ball
 from app.services.accounts.audit import record_summary
 from app.services.calibration.calibrating import (
     apply_calibration, calibrate_lines, calibration_job, expected_side, game_rig, is_admitted, rig_centres, rig_rows,
     uses_rig, wants_rig_retry, with_rig_retry,
 )
-from app.services.curation.doubts import is_excluded, update_doubts
+from app.services.curation.doubt_words import with_sentence
+from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
 from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 1
+DERIVED_VERSION = 3  # 2: pairs outside the play volume dropped, suggested labels left out (issue 18); 3: pairs weighed
+# by what their calibrations are worth (weak_calibrations, outweighed)
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Triangulation:
@@ -111,15 +114,23 @@ def recompute_system(session: Session, system: System, settings: Settings,
             if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
                 cameras[f.id] = Camera.from_soccernet(cal.camera)
         centre = _label_centre(f)
-        if cal is not None and cal.admitted and centre is not None and not is_excluded(f):
+        suggested = f.ball_label is not None and f.ball_label.suggested  # not independent evidence until placed
+        if cal is not None and cal.admitted and centre is not None and not is_excluded(f) and not suggested:
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
     kind = kind_of(system)
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources)
     observations = kind.consensus_observations(system, observations, settings)
+    # a weak calibration (few line classes, an unsure camera) neither makes nor moves a ball on its own
+    weights = calibration_weights(system, settings, cameras) if kind.weighs_calibrations else None
+    ms = mirror_settings(settings)  # a ball position a game could hold: the mirror evidence's play volume
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg)
+                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
+                              play_volume=lambda p: bool(within_play_volume(
+                                  np.asarray(p, float).reshape(1, 3), margin_m=ms.plausible_margin_m,
+                                  max_height_m=ms.max_height_m, max_below_m=ms.max_depth_m)[0]),
+                              view_weights=weights)
 
     tri = system.triangulation
     if tri is None:
@@ -147,6 +158,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
     update_doubts(system, settings, cameras)
     update_summary(system, tri)
     system.derived_version = DERIVED_VERSION
+    system.derived_settings = settings.derived_fingerprint()
     return tri
 
 
@@ -178,12 +190,21 @@ def refresh_stale_systems(session: Session, settings: Settings, progress: Progre
     many. Serving or reporting a database calls it first, so stored doubts and queue figures are current.
     Systems are recomputed and committed :data:`_REFRESH_BATCH` at a time (a crash leaves the rest stale,
     to be refreshed next time), each in a write transaction (``app.db.session.begin_write``), so a
-    server running meanwhile never sees half a batch and its edits wait their turn. The recompute is one audit entry (action "recompute", by the local
-    user), written with the last batch."""
+    server running meanwhile never sees half a batch and its edits wait their turn. Each batch is one audit entry
+    (action "recompute", by the local user), written in its transaction."""
     ids = list(session.scalars(select(System.id).where(System.derived_version < DERIVED_VERSION).order_by(System.id)))
     _recompute_in_batches(session, ids, settings, progress, {"reason": "stored by an older version",
                                                              "derived_version": DERIVED_VERSION})
     return len(ids)
+
+
+def systems_computed_otherwise(session: Session, settings: Settings) -> int:
+    """How many systems were computed with other settings than ``settings`` (``System.derived_settings`` differs
+    from ``settings.derived_fingerprint()``, e.g. after ``V3D_PROFILE`` changed): their stored results are stale until
+    ``v3d recompute`` (:func:`recompute_all_systems`). Systems stored before the fingerprint was recorded (None) are
+    not counted."""
+    return int(session.scalar(select(func.count(System.id)).where(
+        System.derived_settings.is_not(None), System.derived_settings != settings.derived_fingerprint())) or 0)
 
 
 def recompute_all_systems(session: Session, settings: Settings, progress: Progress | None = None,
@@ -191,8 +212,8 @@ def recompute_all_systems(session: Session, settings: Settings, progress: Progre
     """The full recompute: every system recomputed with the current settings (calibrations untouched:
     admission, triangulation, reprojections, optimised boxes, mirror flags, doubts and queue figures),
     committed :data:`_REFRESH_BATCH` systems at a time with ``progress("recompute", done, total)``
-    after each commit. Idempotent: run again after a crash, it gives the same rows. One audit entry
-    (action "recompute", by ``actor``; None: the local user), written with the last batch.
+    after each commit. Idempotent: run again after a crash, it gives the same rows. One audit entry per
+    committed batch (action "recompute", by ``actor``; None: the local user), in the batch's transaction.
 
     Returns:
         ``(systems recomputed, systems triangulated)``.
@@ -205,15 +226,17 @@ def _recompute_in_batches(session: Session, ids: list[int], settings: Settings, 
                           audit_after: dict[str, Any], actor: str | None = None) -> int:
     """Recompute the systems ``ids``, committing and releasing :data:`_REFRESH_BATCH` at a time (bounded
     memory), each batch in a write transaction (``app.db.session.begin_write``, so a server running
-    meanwhile never sees half a batch and its edits wait their turn), the audit entry ("recompute",
-    ``audit_after`` with the counts) written with the last batch; returns how many were triangulated."""
+    meanwhile never sees half a batch and its edits wait their turn), each batch's audit entry ("recompute",
+    ``audit_after`` with the counts, ``batch`` of ``batches``) written in its transaction; returns how many were
+    triangulated."""
     triangulated = 0
     for start in range(0, len(ids), _REFRESH_BATCH):
         begin_write(session)  # each batch read and written under the write lock (SQLite: BEGIN IMMEDIATE)
         batch = session.scalars(select(System).where(System.id.in_(ids[start:start + _REFRESH_BATCH]))).all()
         triangulated += recompute_systems(session, batch, settings)
-        if start + _REFRESH_BATCH >= len(ids):
-            record_summary(session, "recompute", {"systems": len(ids), **audit_after}, actor=actor)
+        record_summary(session, "recompute", {"systems": len(ids), **audit_after, "batch": start // _REFRESH_BATCH + 1,
+                                              "batches": -(-len(ids) // _REFRESH_BATCH), "batch_systems": len(batch)},
+                       actor=actor)
         session.commit()
         session.expunge_all()
         if progress:
@@ -247,15 +270,19 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
         mine = {f.id for f in system.frames}
         rig = estimate_rig(np.array([c for fid, c in sources if fid not in mine]).reshape(-1, 3))
         positions = np.array([p.centre_m for p in rig.positions]).reshape(-1, 3)
-    views = [MirrorView(view_id=f.id, camera=cameras[f.id], ball_px=_label_centre(f), image_width=f.width,
+    views = [MirrorView(view_id=f.id, camera=cameras[f.id],
+                        ball_px=None if f.ball_label is not None and f.ball_label.suggested else _label_centre(f),
+                        image_width=f.width,
                         expected_side=expected_side(f.role), rays=True, name=f.name)
              for f in frames]
     verdicts = mirror_evidence(views, positions, mirror_settings(settings))
+    names = {f.id: f.name for f in system.frames}
+    flagged = {fid for fid, v in verdicts.items() if v.flagged}
     for f in frames:
         cal, verdict = f.calibration, verdicts[f.id]
         flags = [x for x in (cal.flags or []) if x != MIRROR_FLAG]
         cal.flags = [*flags, MIRROR_FLAG] if verdict.flagged else flags
-        cal.mirror_evidence = json_safe(verdict.as_dict())
+        cal.mirror_evidence = json_safe(with_sentence(verdict.as_dict(), names, flagged))
 
 
 def _label_centre(frame: Frame) -> np.ndarray | None:

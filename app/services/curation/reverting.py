@@ -4,7 +4,8 @@ edit (so the system is recomputed as after any edit), itself audited as action `
 The edited part is read from the entry's self-describing state (``app.services.accounts.audit``): ``ball`` ->
 :func:`~app.services.curation.editing.update_ball_label`, ``lines`` -> :func:`~app.services.curation.editing.replace_field_lines`
 (also for a mirroring: the lines before it are restored as they were), ``excluded`` ->
-:func:`~app.services.curation.editing.set_view_excluded`, ``review`` -> :func:`~app.services.curation.editing.decide_review`
+:func:`~app.services.curation.editing.set_view_excluded`, ``calibration_review`` ->
+:func:`~app.services.curation.editing.decide_calibration`, ``review`` -> :func:`~app.services.curation.editing.decide_review`
 (its ``decided_at`` becomes now). A revert is refused (409) when the resource changed since the entry
 (its current state, read under the write's lock, is not the entry's ``after``) unless ``force``.
 Restoring field lines recalibrates the frame: an imported camera (source "imported") becomes a computed one.
@@ -19,7 +20,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.models import AuditEntry
 from app.services.curation import editing
-from app.services.accounts.audit import SUMMARY_ACTIONS
+from app.services.accounts.audit import revertible
 from app.core.errors import InvalidInputError, found
 
 
@@ -39,13 +40,16 @@ def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: 
 
     Raises:
         NotFoundError: no such entry, or its frame or system no longer exists.
-        InvalidInputError: an entry that cannot be reverted: an import or a recompute (field "id").
+        InvalidInputError: an entry that cannot be reverted: an import or a recompute, or a change of a user
+            or a token (field "id").
         ConflictError: the resource changed since the entry (not forced); nothing changed.
     """
     entry = found(session.get(AuditEntry, entry_id), "audit entry", entry_id)
-    if entry.action in SUMMARY_ACTIONS or not isinstance(entry.before, dict):
+    if not revertible(entry.action) or not isinstance(entry.before, dict):
+        what = ("it changed many rows at once" if entry.action in ("import", "recompute")
+                else "it changed a user or a token")
         raise InvalidInputError(f"audit entry {entry_id} is {'an' if entry.action[0] in 'aeiou' else 'a'} "
-                                f"{entry.action}: it changed many rows at once and cannot be reverted", field="id")
+                                f"{entry.action}: {what} and cannot be reverted", field="id")
     before = entry.before
     guard = editing.Revert(entry_id, expect=None if force else entry.after)
     common = {"actor": actor, "revert": guard}
@@ -57,10 +61,14 @@ def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: 
             return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
         editing.decide_review(session, frame_id=entry.frame_id, status=review["status"], comment=review["comment"],
                               **common)
+    elif "calibration_review" in before:
+        review = before["calibration_review"]
+        editing.decide_calibration(session, entry.frame_id, status=review["status"], comment=review["comment"],  # type: ignore[arg-type]
+                                   **common)
     elif "ball" in before:
         ball = before["ball"]
         editing.update_ball_label(session, entry.frame_id, box=ball["box"], point=ball["point"],  # type: ignore[arg-type]
-                                  settings=settings, **common)
+                                  provenance=ball.get("provenance"), settings=settings, **common)
     elif "lines" in before:
         editing.replace_field_lines(session, entry.frame_id, before["lines"], settings=settings, **common)  # type: ignore[arg-type]
     elif "excluded" in before:

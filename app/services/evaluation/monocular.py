@@ -24,21 +24,24 @@ ground-truth view is scored with its most confident detection whose IoU with the
 """
 from __future__ import annotations
 
+import json
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Hashable
 
 import numpy as np
 from sqlalchemy.orm import Session
 
+from app.datasets.files import dataset_root, inside_dataset
 from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
 from app.geometry.metrics import (Detections, average_precision, box_iou, load_coco_results,
                                   load_yolo_detections, monocular_metrics, precision_curve)
 from app.services.kinds import kind_of
 from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes
-from app.core.errors import InvalidInputError
+from app.core.errors import DatasetError, InvalidInputError
+from app.services.transfer.cameras_export import camera_file
 from app.services.transfer.exporting import exported_systems
 
 #: Thresholds (metres) of the precision-threshold curve.
@@ -70,10 +73,47 @@ class ReferenceView:
     box: np.ndarray
     ball: np.ndarray
     camera: Camera
+    #: ``league/season/match`` of the view's game and the frame's name (where a cameras tree holds its camera).
+    game_path: str = ""
+    frame_name: str = ""
 
 
-def reference_views(session: Session, include_all: bool = False, ball_diameter_m: float = 0.22
-                    ) -> list[ReferenceView]:
+def with_cameras(views: list[ReferenceView], cameras_dir: str | Path) -> tuple[list[ReferenceView], int]:
+    """The views scored with the cameras given in ``cameras_dir`` instead of the stored ones: SoccerNet-calibration
+    camera JSON at ``<cameras_dir>/<league>/<season>/<match>/camera_<image stem>.json`` (the layout of
+    ``v3d export cameras``, ``app.services.transfer.cameras_export.camera_file``), pixels of the view's image.
+    The reference box and 3D ball stay the stored ones (the "given cameras" rows of the paper's Table 2). Views
+    without a camera file are left out.
+
+    Returns:
+        ``(views with their given camera, number of views left out for want of a camera file)``.
+
+    Raises:
+        InvalidInputError: ``cameras_dir`` is not a folder (field ``cameras``).
+        DatasetError: a camera file that leads out of the folder, is not JSON or not a SoccerNet camera (naming it).
+    """
+    root = Path(cameras_dir)
+    if not root.is_dir():
+        raise InvalidInputError(f"not a folder: {root}", field="cameras")
+    top = dataset_root(root)
+    out, missing = [], 0
+    for v in views:
+        league, season, match = v.game_path.split("/", 2)
+        path = root / camera_file(league, season, match, v.frame_name)
+        if not (path.exists() or path.is_symlink()):
+            missing += 1
+            continue
+        path = inside_dataset(top, path, "camera")
+        try:
+            camera = Camera.from_soccernet(json.loads(path.read_text(encoding="utf-8")))
+        except (OSError, UnicodeDecodeError, ValueError, TypeError, KeyError) as exc:
+            raise DatasetError(path, None, f"not a SoccerNet camera: {exc}") from exc
+        out.append(replace(v, camera=camera))
+    return out, missing
+
+
+def reference_views(session: Session, include_all: bool = False, ball_diameter_m: float = 0.22,
+                    ball_box: str = "refined") -> list[ReferenceView]:
     """The views of the selected systems (accepted unless ``include_all``) whose label made their
     system's 3D ball: views in at least one kept triangulation pair, with an optimised box. A view whose
     label disagrees with the 3D ball (in no kept pair: a wrong box, a desynchronised replay, an excluded
@@ -84,7 +124,7 @@ def reference_views(session: Session, include_all: bool = False, ball_diameter_m
         tri = system.triangulation
         if tri is None or tri.ball3d is None:
             continue
-        boxes = ball_boxes(system, ball_diameter_m)
+        boxes = ball_boxes(system, ball_diameter_m, ball_box)
         contributing = {f for p in tri.pairs if p.kept for f in (p.frame_a_id, p.frame_b_id)}
         for frame in system.frames:
             cal = frame.calibration
@@ -93,7 +133,8 @@ def reference_views(session: Session, include_all: bool = False, ball_diameter_m
             kind = kind_of(system)
             out.append(ReferenceView(frame.id, kind.view_stem(system.game, frame), kind.split(system, frame),
                                      frame.width, frame.height, np.asarray(boxes[frame.id][0], float),
-                                     np.asarray(tri.ball3d, float), Camera.from_soccernet(cal.camera)))
+                                     np.asarray(tri.ball3d, float), Camera.from_soccernet(cal.camera),
+                                     system.game.path, frame.name))
     return out
 
 
@@ -220,10 +261,20 @@ def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 
 
 def evaluate_predictions(session: Session, predictions: str | Path, include_all: bool = False,
                          ball_class: int | None = None, ball_diameter_m: float = 0.22,
-                         estimator: str = "exact") -> dict[str, Any]:
-    """:func:`evaluate` of the predictions at ``predictions`` against the database's curated labels."""
-    views = reference_views(session, include_all, ball_diameter_m)
+                         estimator: str = "exact", cameras_dir: str | Path | None = None,
+                         ball_box: str = "refined") -> dict[str, Any]:
+    """:func:`evaluate` of the predictions at ``predictions`` against the database's curated labels, with the
+    stored cameras (the "oracle" row: cameras fitted on the annotated lines) or, with ``cameras_dir``, the
+    cameras given there (:func:`with_cameras`; ``counts.views_without_camera`` says how many views had none);
+    the reference boxes are the exported ones (``ball_box``, :func:`reference_views`)."""
+    views = reference_views(session, include_all, ball_diameter_m, ball_box)
+    missing = 0
+    if cameras_dir is not None:
+        views, missing = with_cameras(views, cameras_dir)
     if not views:
         return evaluate(views, Detections((), np.zeros((0, 4)), np.zeros(0)))  # raises, naming the cause
     dets, ignored = load_predictions(predictions, views, ball_class)
-    return evaluate(views, dets, ignored, ball_diameter_m, estimator)
+    out = evaluate(views, dets, ignored, ball_diameter_m, estimator)
+    out["counts"]["views_without_camera"] = missing
+    out["cameras"] = "given" if cameras_dir is not None else "stored"
+    return out

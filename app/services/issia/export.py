@@ -9,7 +9,9 @@
   camera: cameras 3-6 are the training set and 1-2 the test set (:data:`app.datasets.issia.CAMERA_SET`);
   every row holds all six cameras' columns (``x_camK`` ...), so the split shows in ``split.json``
   (``{"train": [3, 4, 5, 6], "test": [1, 2], "by": "camera"}``): a detector trained on ISSIA-3D reads
-  the ``camK`` columns of its split. Accepted frames only unless ``include_all``.
+  the ``camK`` columns of its split. Beside them ``calibration/cam<k>.json``: each camera's calibration in the
+  SoccerNet-calibration camera format (:func:`sequence_calibrations`), so that a user of the CSV can project
+  the ``ball_3D`` columns into the views. Accepted frames only unless ``include_all``.
 """
 from __future__ import annotations
 
@@ -24,12 +26,12 @@ from sqlalchemy.orm import Session
 
 from app.datasets.issia import ANNOTATION_SIZE, CAMERA_SET, IssiaSequence
 from app.datasets.issia3d import issia3d_rows, write_issia3d_csv
-from app.db.models import Game, ReviewStatus, System, SystemKind
+from app.db.models import Calibration, Frame, Game, ReviewStatus, System, SystemKind
 from app.geometry.camera import Camera
 from app.core.errors import NotFoundError, found
 from app.services.issia.trajectory import FPS, load_sequence
 
-CSV_NAME, SPLIT_NAME = "ISSIA-3D.csv", "split.json"
+CSV_NAME, SPLIT_NAME, CALIBRATION_DIR = "ISSIA-3D.csv", "split.json", "calibration"
 
 
 def _cam_id(name: str) -> str:
@@ -78,6 +80,26 @@ class Issia3DExport:
     sequences: int = 0
     rows: int = 0
     csv_paths: list[Path] = field(default_factory=list)
+    #: ``calibration/cam<k>.json`` files written.
+    calibrations: int = 0
+
+
+def sequence_calibrations(session: Session, game_id: int) -> dict[str, dict[str, Any]]:
+    """View name (``cam<k>``) -> the camera of that static ISSIA camera in the SoccerNet-calibration camera
+    format as stored (method.md section 2: ``position_meters``, ``rotation_matrix``, ``x_focal_length``, ...,
+    SoccerNet world, metres, z down): the admitted calibration of the camera's view at the sequence's first
+    frame index that has one (the cameras do not move). Cameras without an admitted calibration are absent."""
+    rows = session.execute(
+        sa.select(Frame.name, Calibration.camera)
+        .join(System, System.id == Frame.system_id).join(Calibration, Calibration.frame_id == Frame.id)
+        .where(System.game_id == game_id, System.kind == SystemKind.ISSIA, Calibration.admitted.is_(True),
+               Calibration.camera.is_not(None))
+        .order_by(System.frame_index, Frame.position))
+    out: dict[str, dict[str, Any]] = {}
+    for name, camera in rows:
+        if camera is not None:
+            out.setdefault(name, camera)
+    return dict(sorted(out.items()))
 
 
 def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> list:
@@ -138,7 +160,7 @@ class _StoredFit:
 
 
 def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = False) -> Issia3DExport:
-    """Write ``<out_dir>/<match>/ISSIA-3D.csv`` and ``split.json`` for every stored ISSIA sequence
+    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json`` and ``calibration/cam<k>.json`` for every stored ISSIA sequence
     (module docstring). Accepted frames only unless ``include_all``; a sequence with no exported
     frame gets no folder."""
     out = Path(out_dir)
@@ -156,6 +178,10 @@ def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = Fa
                  "test": sorted(int(c) for c, v in CAMERA_SET.items() if v == "test"),
                  "columns": "x_camK, y_camK, err_camK, opt_d_camK, opt_e_camK of camera K"}
         (folder / SPLIT_NAME).write_text(json.dumps(split, indent=1) + "\n")
+        for name, camera in sequence_calibrations(session, game.id).items():
+            (folder / CALIBRATION_DIR).mkdir(exist_ok=True)
+            (folder / CALIBRATION_DIR / f"{name}.json").write_text(json.dumps(camera, indent=1) + "\n")
+            report.calibrations += 1
         report.sequences += 1
         report.rows += len(rows)
         report.csv_paths.append(folder / CSV_NAME)

@@ -55,6 +55,7 @@ from app.geometry.trajectory import (
     REFIT_REACH, Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window,
 )
 from app.services.curation.recompute import load_for_recompute
+from app.services.curation.doubt_words import doubt_message
 from app.services.issia.trajectory import (
     FPS, TRIANGULATION_FIELDS, Changed, DoubtFrame, fit_args, fit_sequence, flagged_label_doubts, piece_from_json,
     row_values,
@@ -355,7 +356,8 @@ def _refresh_trajectory_doubts(session: Session, rows: list[tuple[int, int, dict
     if found:
         session.execute(sa.insert(table), [
             {"system_id": sid, "frame_id": d.view_id, "kind": d.kind, "accuses_label": d.accuses_label,
-             "message": d.message, "evidence": json_safe(d.evidence),
+             "message": doubt_message(d, {d.view_id: views[sid][d.view_id].name}),
+             "evidence": json_safe({**d.evidence, "code": d.code}),
              "suggestion": json_safe(d.suggestion) if d.suggestion else None} for sid, d in found])
     for doubt_id, sid in stale:  # objects already in the session: gone, and their systems' lists reloaded
         obj = session.identity_map.get(session.identity_key(Doubt, doubt_id))  # type: ignore[arg-type]

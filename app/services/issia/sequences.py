@@ -29,6 +29,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
+from app.datasets.files import MAX_IMAGE_PIXELS
 from app.datasets.issia import CAMERA_SET, FPS, CameraChoice, IssiaSequence, read_frame_image, read_issia, sequence_cameras
 from app.db.models import (
     BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game, System,
@@ -47,6 +48,7 @@ from app.geometry.jac import JAC_GAMMAS
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import GIVEN_CAMERA_FLAG, apply_calibration
 from app.services.jobs.progress import Progress
+from app.services.transfer.images import stored_image_file
 from app.services.curation.recompute import load_for_recompute, recompute_system, recompute_systems
 
 LEAGUE, SEASON = "issia", "sequences"
@@ -98,7 +100,7 @@ def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:
 
 def import_issia(session: Session, path: str | Path, settings: Settings, *, from_lines: bool = False,
                  flipped_cameras: Iterable[str] = (), progress: Progress | None = None,
-                 actor: str | None = None) -> ImportReport:
+                 actor: str | None = None, source_name: str | None = None) -> ImportReport:
     """Import an ISSIA folder (module docstring) in one transaction.
 
     Args:
@@ -106,13 +108,14 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
             is present.
         flipped_cameras: camera ids ("1".."6") whose footage is mirrored horizontally (images only).
         actor: who imports, for the import's one audit entry (None: the local user).
+        source_name: how the entry names the folder to non-admins (default: its last component).
 
     Raises:
         DatasetError: invalid folder, files or camera ids (nothing is stored).
     """
     t0 = time.perf_counter()
-    report = ImportReport(source=str(path))
-    seq = read_issia(path, flipped_cameras=flipped_cameras)
+    report = ImportReport(source=str(path), source_name=source_name or Path(path).name)
+    seq = read_issia(path, flipped_cameras=flipped_cameras, max_pixels=settings.max_image_pixels)
     report.read_seconds = time.perf_counter() - t0
     t1 = time.perf_counter()
     choice = sequence_cameras(seq, from_lines=from_lines)
@@ -178,7 +181,8 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
                 changed = True
             media = seq.media.get(cid)
             frame.position, frame.width, frame.height = k, w, h
-            frame.image_path = str(media.resolve()) if media is not None else None
+            frame.image_root = str(root) if media is not None else None
+            frame.image_path = media.resolve().relative_to(root).as_posix() if media is not None else None
             frame.media_frame = index if media is not None else None
             frame.media_flipped = cid in seq.flipped
             lines_changed = False
@@ -253,7 +257,7 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
     return touched
 
 
-def read_video_frame(frame: Frame) -> bytes:
+def read_video_frame(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS) -> bytes:
     """The view's image at its own (annotation) resolution, PNG bytes, decoded on demand from its
     video (``Frame.image_path``, frame ``Frame.media_frame``) or frame folder, flipped back when
     ``Frame.media_flipped`` (:func:`app.datasets.issia.read_frame_image`).
@@ -266,13 +270,13 @@ def read_video_frame(frame: Frame) -> bytes:
     if frame.image_path is None or frame.media_frame is None:
         raise DatasetError(Path(f"frame {frame.id}"), None, "no video or frame folder")
     cid = frame.name
-    media = Path(frame.image_path)
+    media = stored_image_file(frame, frame.image_path)
     if not media.exists():
-        raise DatasetError(media, None, "missing")
+        raise DatasetError(frame.image_path, None, "missing")
     seq = IssiaSequence(root=media.parent, camera_ids=(cid,), image_size=(frame.width, frame.height), cameras={},
                         lines={}, frames=(), points=np.empty((0, 1, 2)), media={cid: media},
                         flipped=frozenset({cid}) if frame.media_flipped else frozenset())
-    img = read_frame_image(seq, cid, frame.media_frame).image
+    img = read_frame_image(seq, cid, frame.media_frame, max_pixels=max_pixels).image
     ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
     if not ok:
         raise DatasetError(media, f"frame {frame.media_frame}", "cannot be encoded as PNG")

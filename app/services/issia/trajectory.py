@@ -275,11 +275,8 @@ def flagged_label_doubts(frame_index: int | None, point: dict[str, Any], views: 
                 projected = [round(float(uv[0, 0]), 2), round(float(uv[0, 1]), 2)]
                 if 0 <= projected[0] <= f.width and 0 <= projected[1] <= f.height:
                     suggestion = {"action": "snap_point", "point": projected}
-        far = "an unknown distance" if res is None else f"{res:.0f} px (at 1920 width)"
         out.append(JudgedDoubt(
-            "ball_off_consensus", fid,
-            f"{f.name}'s ball label at frame {frame_index} is {far} from where the sequence's "
-            f"ball trajectory projects ({point['source'] or 'no'} position); it breaks the trajectory.",
+            "ball_off_consensus", fid, "trajectory",
             json_safe({"residual_px_1920": res, "fitted_position_m": point["ball3d_smoothed"],
                        "source": point["source"], "frame_index": frame_index, "projected_px": projected,
                        "by": "trajectory"}),

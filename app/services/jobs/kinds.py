@@ -56,32 +56,60 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
         DatasetError: the dataset cannot be imported (nothing of it stored; an upload's folder is removed).
     """
     try:
-        return _import(session, params, settings, progress)
+        return _import(session, params, settings, progress, job_id)
     except InvalidInputError:
         if params.get("upload"):
             shutil.rmtree(params["path"], ignore_errors=True)
         raise
 
 
-def _import(session: Session, params: dict[str, Any], settings: Settings, progress: Progress) -> dict[str, Any]:
+def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None) -> str:
+    """How an import job's ``params["path"]`` is shown to annotators and reviewers (no server path:
+    ``app.services.transfer.data_root.dataset_name``; an upload as ``upload <job id>/...``)."""
+    from app.services.transfer.data_root import dataset_name
+
+    return dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
+                        job_id if params.get("upload") else None)
+
+
+def without_server_paths(job_id: int, params: dict[str, Any], result: dict[str, Any] | None, message: str | None,
+                         settings: Settings) -> tuple[dict[str, Any], dict[str, Any] | None, str | None]:
+    """An import job's params, result and message as annotators and reviewers see them: the imported
+    path (and any file named inside it) by its shown name (:func:`shown_source`); other jobs unchanged."""
+    if "path" not in params:
+        return params, result, message
+    from app.services.transfer import data_root
+
+    path, name = str(params["path"]), shown_source(params, settings, job_id)
+    params = {**params, "path": name}
+    if result is not None and "source" in result:
+        result = {**result, "source": name}
+    if message:
+        message = data_root.without_server_paths(message, path, name)
+    return params, result, message
+
+
+def _import(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
+            job_id: int | None = None) -> dict[str, Any]:
     from app.services.transfer import importing
 
     if params.get("calibration_workers") is not None:
         settings = settings.model_copy(update={"calibration_workers": params["calibration_workers"]})
     kind, path = params["kind"], params["path"]
     actor = params.get("actor")  # who queued it (the import's audit entry); None: the local user (CLI)
+    named = {"actor": actor, "source_name": shown_source(params, settings, job_id)}
     if kind == "soccernet-v3":
-        report = importing.import_soccernet_v3(session, path, settings, progress=progress, actor=actor)
+        report = importing.import_soccernet_v3(session, path, settings, progress=progress, **named)
     elif kind == "soccernet-v3d":
-        report = importing.import_soccernet_v3d(session, path, settings, progress=progress, actor=actor)
+        report = importing.import_soccernet_v3d(session, path, settings, progress=progress, **named)
     elif kind == "sn-calibration":
         report = importing.import_sn_calibration(session, path, settings, width=params.get("width"),
-                                                 height=params.get("height"), progress=progress, actor=actor)
+                                                 height=params.get("height"), progress=progress, **named)
     elif kind == "issia":
         from app.services.issia.sequences import import_issia
 
         report = import_issia(session, path, settings, from_lines=bool(params.get("from_lines")),
-                              flipped_cameras=params.get("flip") or [], progress=progress, actor=actor)
+                              flipped_cameras=params.get("flip") or [], progress=progress, **named)
     else:
         raise ValueError(f"unknown import kind {kind!r}")
     return import_result(report)
@@ -103,8 +131,9 @@ def export_path(settings: Settings, name: str) -> Path:
 
 def run_export(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
                job_id: int) -> dict[str, Any]:
-    """Write the SoccerNet-v3D zip (``params["all"]``: every system, else the accepted ones) to the job's
-    file while the database is read; ``progress("export", games, total)``."""
+    """Write the SoccerNet-v3D zip (``params["all"]``: every system, else the accepted ones; ``params["images"]``,
+    default true: each game's ``Frames-v3.zip``) to the job's file while the database is read;
+    ``progress("export", games, total)``."""
     from app.services.transfer.exporting import export_size, stream_soccernet_v3d_zip
 
     include_all = bool(params.get("all", False))
@@ -115,7 +144,8 @@ def run_export(session: Session, params: dict[str, Any], settings: Settings, pro
     systems, rows = export_size(session, include_all)
     size = 0
     with open(part, "wb") as out:
-        for chunk in stream_soccernet_v3d_zip(session, include_all, progress):
+        images = bool(params.get("images", True))
+        for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=images):
             out.write(chunk)
             size += len(chunk)
     os.replace(part, target)

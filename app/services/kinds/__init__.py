@@ -13,7 +13,7 @@ Use :func:`kind_of` (a system) or :func:`policy` (a kind) to get the :class:`~.b
 from __future__ import annotations
 
 from app.db.models import System, SystemKind
-from app.services.kinds.base import EXPORTS, KindPolicy, image_stem, split_of
+from app.services.kinds.base import EXPORTS, KindPolicy, game_stem, image_stem, split_of
 from app.services.kinds.issia import ISSIA
 from app.services.kinds.single_view import SINGLE_VIEW
 from app.services.kinds.soccernet_v3 import SOCCERNET_V3
@@ -47,4 +47,4 @@ def kinds_exported_by(export: str) -> list[SystemKind]:
     return [k for k, p in POLICIES.items() if export in p.exports]
 
 
-__all__ = ["EXPORTS", "KindPolicy", "POLICIES", "image_stem", "kind_of", "kinds_exported_by", "policy", "split_of"]
+__all__ = ["EXPORTS", "KindPolicy", "POLICIES", "game_stem", "image_stem", "kind_of", "kinds_exported_by", "policy", "split_of"]

@@ -18,9 +18,9 @@ if TYPE_CHECKING:
     from app.geometry.triangulation import BallObservation
 
 #: Exports and benchmarks that select systems by kind: the SoccerNet-v3D dataset (``Labels-v3D.json`` and
-#: CSV), the detector-training exports (YOLO, COCO), the monocular benchmark's reference, and the ISSIA-3D
-#: export.
-EXPORTS = frozenset({"soccernet-v3d", "yolo", "coco", "monocular", "issia-3d"})
+#: CSV), the detector-training exports (YOLO, COCO), the monocular benchmark's reference, the ISSIA-3D
+#: export and the cameras export (SoccerNet-calibration JSON per view).
+EXPORTS = frozenset({"soccernet-v3d", "yolo", "coco", "monocular", "issia-3d", "cameras"})
 
 #: Share of SoccerNet games in the train split (:func:`split_of`).
 TRAIN_FRACTION = 0.8
@@ -43,10 +43,20 @@ def image_stem(game: Game, frame: Frame) -> str:
     >>> image_stem(Game(league="l", season="s", match="A 1 - 0 B"), Frame(name="12_3.png"))
     'A_1_-_0_B-80c8c009_12_3'
     """
+    stem = Path(frame.name).stem
+    return f"{game_stem(game)}_{re.sub(r'[^A-Za-z0-9-]+', '_', stem)}"
+
+
+def game_stem(game: Game) -> str:
+    """The game's part of a view's file stem: a slug of the match name (at most 40 characters) and 8 hex
+    digits of a hash of ``league/season/match`` (two games of one name differ by the hash).
+
+    >>> game_stem(Game(league="l", season="s", match="A 1 - 0 B"))
+    'A_1_-_0_B-80c8c009'
+    """
     slug = re.sub(r"[^A-Za-z0-9-]+", "_", game.match).strip("_")[:40] or "game"
     digest = hashlib.sha256(game.path.encode("utf-8")).hexdigest()[:8]
-    stem = Path(frame.name).stem
-    return f"{slug}-{digest}_{re.sub(r'[^A-Za-z0-9-]+', '_', stem)}"
+    return f"{slug}-{digest}"
 
 
 @dataclass(frozen=True)
@@ -63,6 +73,10 @@ class KindPolicy:
             mirrored-labels flags are computed on recomputation.
         edit_locks_game: an edit of one system may change other systems of its game (a sequence's
             trajectory), so the edit locks the game row before the system's.
+        weighs_calibrations: the triangulation weighs each view by what its calibration from field lines is
+            worth (``app.geometry.doubts.calibration_weight``: a view whose few lines leave its camera unsure
+            neither makes a 3D ball with another weak one nor moves the ball two sure views make); False where
+            the labels the triangulation uses are chosen otherwise (ISSIA's trajectory).
     """
 
     kind: SystemKind
@@ -71,11 +85,18 @@ class KindPolicy:
     uses_rig: bool = False
     broadcast_priors: bool = True
     edit_locks_game: bool = False
+    weighs_calibrations: bool = True
 
     def split(self, system: System, frame: Frame) -> str:
-        """"train" or "test" of one view in the exports and benchmarks (default: the game's hash split,
-        :func:`split_of`)."""
-        return split_of(system.game.path)
+        """"train" or "test" of one view in the exports and benchmarks: the split a release gave the image
+        (``frame.split``, ``v3d import split``) where there is one, else (default) the game's hash split,
+        :func:`split_of`."""
+        return frame.split or split_of(system.game.path)
+
+    def image_name(self, frame: Frame) -> str:
+        """The name a file of per-image rows (precise boxes, ``v3d import precise-boxes``) gives one view of its
+        game (default: the frame's name, e.g. ``12_1.png``)."""
+        return frame.name
 
     def view_stem(self, game: Game, frame: Frame) -> str:
         """File stem of one view in the detector exports and the monocular benchmark, unique across

@@ -4,14 +4,19 @@ The sequence's physical trajectory (``app.services.issia.trajectory``) chooses t
 triangulation uses and judges them; an edit re-fits the stretch of the trajectory it touches, which may
 recompute other systems of the sequence (``app.services.issia.sequences.refit_after_edit``), so an edit
 locks the sequence's game row first.
+
+Exports: ISSIA leaves as ISSIA-3D (``app.services.issia.export``) and in the detector exports and the
+monocular benchmark, never in the SoccerNet-v3D export (which holds broadcast games). Its views are split as
+in the paper, by camera (1-2 test, 3-6 train), and named ``<sequence slug>-<hash>_cam<k>_<frame index>``.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Sequence
 
-from app.db.models import Frame, System, SystemKind
-from app.services.kinds.base import KindPolicy
+from app.datasets.issia import CAMERA_SET
+from app.db.models import Frame, Game, System, SystemKind
+from app.services.kinds.base import KindPolicy, game_stem
 
 if TYPE_CHECKING:
     from sqlalchemy.orm import Session
@@ -25,6 +30,33 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class IssiaPolicy(KindPolicy):
     """Static cameras on every side of the pitch: no broadcast priors, no game rig; the trajectory."""
+
+    def split(self, system: System, frame: Frame) -> str:
+        """The split a release gave the view (``frame.split``) where there is one, else the paper's split by
+        camera: cameras 1-2 "test", 3-6 "train" (:data:`app.datasets.issia.CAMERA_SET`; a view of another
+        camera is "train")."""
+        return frame.split or CAMERA_SET.get(frame.name.removeprefix("cam"), "train")
+
+    def image_name(self, frame: Frame) -> str:
+        """``cam<k>_<frame index, 6 digits>``: one name per view of the sequence (the end of :meth:`view_stem`; a
+        camera's frames share its name ``cam<k>``).
+
+        Raises:
+            ValueError: the view's system has no frame index.
+        """
+        index = frame.system.frame_index
+        if index is None:
+            raise ValueError(f"ISSIA view {frame.name!r} of system {frame.system.name!r} has no frame index")
+        return f"{frame.name}_{index:06d}"
+
+    def view_stem(self, game: Game, frame: Frame) -> str:
+        """``<sequence slug>-<hash>_cam<k>_<frame index, 6 digits>``: one file per view (camera and frame
+        index), unique across sequences (:func:`~app.services.kinds.base.game_stem`).
+
+        Raises:
+            ValueError: the view's system has no frame index.
+        """
+        return f"{game_stem(game)}_{self.image_name(frame)}"
 
     def consensus_observations(self, system: System, observations: list[BallObservation],
                                settings: Settings) -> list[BallObservation]:
@@ -49,7 +81,8 @@ class IssiaPolicy(KindPolicy):
 ISSIA = IssiaPolicy(
     kind=SystemKind.ISSIA,
     import_formats=("issia",),
-    exports=frozenset({"soccernet-v3d", "yolo", "coco", "monocular", "issia-3d"}),
+    exports=frozenset({"yolo", "coco", "monocular", "issia-3d"}),
     broadcast_priors=False,
     edit_locks_game=True,
+    weighs_calibrations=False,
 )

@@ -9,8 +9,9 @@ predictions of ``POST /api/evaluations/monocular``):
   is relative without ``..``, drive or backslash tricks (``app.datasets.files.is_safe_member``), no member is a
   symbolic link, names are unique, the member count and the total uncompressed size (members of nested
   zips included) stay under the limits (zip bombs); then extracts, counting the bytes really written,
-  and decodes every image (``.png``, ``.jpg``, ``.jpeg``, in nested zips too) with OpenCV: a file named
-  like an image that does not decode is refused naming it. Refusals raise
+  and checks every image (``.png``, ``.jpg``, ``.jpeg``, in nested zips too) from its header, streamed
+  (``app.datasets.files.image_header``: PNG or JPEG, at most ``V3D_MAX_IMAGE_PIXELS``; nothing is
+  decoded): a file named like an image that is not one is refused naming it. Refusals raise
   :class:`~app.core.errors.DatasetError` naming the archive and the member (HTTP 400) and leave
   nothing extracted.
 
@@ -26,10 +27,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Callable, Iterable
 
-import numpy as np
 
 from app.core.config import Settings
-from app.datasets.files import is_safe_member
+from app.datasets.files import MAX_IMAGE_PIXELS, image_header, is_safe_member
 from app.core.errors import DatasetError, ServiceError
 
 #: File names decoded to check they are images.
@@ -53,11 +53,12 @@ class ArchiveLimits:
 
     max_members: int
     max_unpacked_bytes: int
+    max_image_pixels: int = MAX_IMAGE_PIXELS
 
     @classmethod
     def from_settings(cls, settings: Settings) -> "ArchiveLimits":
-        """``V3D_MAX_UPLOAD_MEMBERS`` and ``V3D_MAX_UNPACKED_MB``."""
-        return cls(settings.max_upload_members, int(settings.max_unpacked_mb * MB))
+        """``V3D_MAX_UPLOAD_MEMBERS``, ``V3D_MAX_UNPACKED_MB`` and ``V3D_MAX_IMAGE_PIXELS``."""
+        return cls(settings.max_upload_members, int(settings.max_unpacked_mb * MB), settings.max_image_pixels)
 
 
 def upload_limit_bytes(settings: Settings) -> int:
@@ -96,13 +97,10 @@ def is_image_name(name: str) -> bool:
     return name.lower().endswith(IMAGE_SUFFIXES)
 
 
-def check_image(raw: bytes, where: str) -> None:
-    """Decode ``raw`` with OpenCV; raises :class:`DatasetError` naming ``where`` when it is not an image."""
-    import cv2
-
-    img = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED) if raw else None
-    if img is None:
-        raise DatasetError(where, None, "named like an image but does not decode as one")
+def check_image(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> None:
+    """Check the image in the open binary ``stream`` from its header (``app.datasets.files.image_header``);
+    raises :class:`DatasetError` naming ``where`` when it is not a PNG or JPEG within ``max_pixels``."""
+    image_header(stream, where, max_pixels)
 
 
 def _is_symlink(info: zipfile.ZipInfo) -> bool:
@@ -153,7 +151,8 @@ def _check_nested(zf: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, limits
 def _check_inner(inner: zipfile.ZipFile, inner_where: str, limits: ArchiveLimits, budget: list[int]) -> None:
     for member in _checked_members(inner, inner_where, limits, budget):
         if not member.is_dir() and is_image_name(member.filename):
-            check_image(inner.read(member), f"{inner_where}!{member.filename}")
+            with inner.open(member) as stream:
+                check_image(stream, f"{inner_where}!{member.filename}", limits.max_image_pixels)
 
 
 def unpack_zip(archive: Path | BinaryIO, dest: Path, limits: ArchiveLimits, *, where: str | None = None,
@@ -169,8 +168,9 @@ def unpack_zip(archive: Path | BinaryIO, dest: Path, limits: ArchiveLimits, *, w
         keep: extract only the members whose name it accepts (all are still checked).
 
     Raises:
-        DatasetError: not a zip, an unsafe, linked or repeated member, too many members or bytes, an
-            image that does not decode (naming the archive and the member; nothing is left in ``dest``).
+        DatasetError: not a zip, an unsafe, linked or repeated member, too many members or bytes, a
+            file named like an image that is not a PNG or JPEG within V3D_MAX_IMAGE_PIXELS (naming the archive
+            and the member; nothing is left in ``dest``).
     """
     where = where or (archive.name if isinstance(archive, Path) else "upload.zip")
     try:
@@ -193,7 +193,8 @@ def unpack_zip(archive: Path | BinaryIO, dest: Path, limits: ArchiveLimits, *, w
                 with zf.open(info) as src, open(target, "wb") as out:
                     shutil.copyfileobj(src, out, _CHUNK)
                 if is_image_name(info.filename):
-                    check_image(target.read_bytes(), f"{where}!{info.filename}")
+                    with open(target, "rb") as stream:
+                        check_image(stream, f"{where}!{info.filename}", limits.max_image_pixels)
                 elif info.filename.lower().endswith(".zip"):
                     _check_nested(zf, info, where, limits, budget)
     except zipfile.BadZipFile as exc:

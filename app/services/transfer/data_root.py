@@ -7,6 +7,7 @@ server's disk.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from app.core.errors import ForbiddenError
 
@@ -35,3 +36,54 @@ def confined_path(path: str | Path, data_root: Path | None) -> Path:
     if resolved != root and root not in resolved.parents:
         raise ForbiddenError("path: outside the data root (V3D_DATA_ROOT); HTTP imports read only from there")
     return resolved
+
+
+def dataset_name(path: str | Path, data_root: Path | None, uploads_dir: Path, upload_job: int | None = None) -> str:
+    """How an imported path is shown to annotators and reviewers (issue 15, item 7: no server path):
+    an upload's as ``upload <job id>/<path inside it>`` (``upload_job``; the upload's folder name when not
+    given), a path under the data root relative to it, anything else by its last component alone.
+
+    >>> dataset_name("/srv/data/sn/v3", Path("/srv/data"), Path("/var/jobs/uploads"))
+    'sn/v3'
+    >>> dataset_name("/var/jobs/uploads/20261123-0001-ab12/league/Labels-v3.json", None, Path("/var/jobs/uploads"), 7)
+    'upload 7/league/Labels-v3.json'
+    >>> dataset_name("/home/ana/datasets/issia-dev", None, Path("/var/jobs/uploads"))
+    'issia-dev'
+    """
+    p = Path(path)
+    uploads = Path(uploads_dir).expanduser().resolve()
+    if p.is_relative_to(uploads) and p != uploads:
+        folder, *inside = p.relative_to(uploads).parts
+        return "/".join([f"upload {upload_job if upload_job is not None else folder}", *inside])
+    if data_root is not None:
+        root = Path(data_root).expanduser().resolve()
+        if p.is_relative_to(root):
+            return p.relative_to(root).as_posix() or "."
+    return p.name
+
+
+def without_server_paths(text: str, path: str | Path, name: str) -> str:
+    """``text`` (a job's message, an error) with the imported ``path`` replaced by its shown ``name``
+    (:func:`dataset_name`), so that a file inside the dataset is named from the dataset's own folder.
+
+    >>> without_server_paths("/srv/data/sn/v3/l/s/g/Labels-v3.json: invalid JSON", "/srv/data/sn/v3", "sn/v3")
+    'sn/v3/l/s/g/Labels-v3.json: invalid JSON'
+    """
+    return text.replace(str(path), name)
+
+
+def shown_import_counts(after: dict[str, Any] | None) -> dict[str, Any] | None:
+    """An import's audit counts (``importing.audit_counts``) as annotators and reviewers see them: its
+    ``source`` is the dataset's shown name (``source_name``, :func:`dataset_name`; entries written before
+    it: the path's last component), never a server path.
+
+    >>> shown_import_counts({"source": "/srv/data/sn/v3", "source_name": "sn/v3", "games": 2})
+    {'source': 'sn/v3', 'games': 2}
+    >>> shown_import_counts({"source": "/var/jobs/uploads/x", "games": 1})
+    {'source': 'x', 'games': 1}
+    """
+    if not after or "source" not in after:
+        return after
+    shown = {k: v for k, v in after.items() if k != "source_name"}
+    shown["source"] = after.get("source_name") or Path(str(after["source"])).name
+    return shown

@@ -12,16 +12,18 @@ Both exports write every view (frame) of the selected systems that has an image:
   only a point (or was
   removed by a reviewer) gets no ball box, and a point-only view is skipped altogether (its ball is
   visible but has no box, which would teach a detector a false negative);
-* the **other boxes** (players, goalkeepers, referees, ...) are not stored by the importer: they are
-  read at export time from the game's source ``Labels-v3.json`` (``Game.source_path``), class names
-  as in the source. Games imported from elsewhere (SoccerNet-v3D trees, SoccerNet-calibration) have
-  balls only.
+* the **other boxes** (players, goalkeepers, referees, ...) are the non-ball ``bboxes`` entries the release
+  carries, stored at import (``frames.release``; SoccerNet-v3 trees and SoccerNet-v3D exports), class names
+  as imported; no source file is read. Frames without them (SoccerNet-calibration, ISSIA) have balls only.
 
 Class ids: 0 is ``Ball``, then :data:`OTHER_CLASSES` (the SoccerNet-v3 box classes); an unknown
 source class is skipped and counted. Image names are ``<game slug>-<hash>_<frame stem>``
-(the kind's ``view_stem``, ``app.services.kinds``), unique across games; evaluation (``app.services.evaluation.monocular``) matches
+(ISSIA: ``<sequence slug>-<hash>_cam<k>_<frame index, 6 digits>``; the kind's ``view_stem``,
+``app.services.kinds``), unique across games and views (a repeated name is an error, never an overwrite:
+the files written are those the report counts); evaluation (``app.services.evaluation.monocular``) matches
 predictions to views by this stem (YOLO) or by the COCO image id, which is the frame's database id.
-Splits are those of the SoccerNet-v3D export (the kind's ``split``, ``app.services.kinds``).
+Splits are the kind's (``split``, ``app.services.kinds``): a SoccerNet game's hash split as in the SoccerNet-v3D
+export; ISSIA by camera as in the paper (cameras 1-2 test, 3-6 train).
 
 Layouts:
 
@@ -61,7 +63,6 @@ OTHER_CLASSES = (
 )
 CLASSES = (BALL_CLASS, *OTHER_CLASSES)
 SPLITS = ("train", "test")
-_SOURCE_LABELS = ("Labels-v3.json",)
 #: Standard deviation of an annotated ball centre as a fraction of the annotated box's diameter
 #: (a prior: a hand-drawn box is off by a fraction of its size; not fitted to the dev truth).
 ANNOTATION_SIGMA_FRACTION = 0.1
@@ -147,10 +148,12 @@ def refined_boxes(system: System, ball_diameter_m: float = 0.22,
     return out
 
 
-def ball_boxes(system: System, ball_diameter_m: float = 0.22) -> dict[int, tuple[list[float], str]]:
+def ball_boxes(system: System, ball_diameter_m: float = 0.22,
+               ball_box: str = "refined") -> dict[int, tuple[list[float], str]]:
     """Frame id -> ``(box [x1, y1, x2, y2] px, source)`` of the views of ``system`` that have a ball box
-    to export; source is ``"refined"``, ``"optimised"`` or ``"annotated"`` (module docstring)."""
-    refined = refined_boxes(system, ball_diameter_m)
+    to export; source is ``"refined"``, ``"optimised"`` or ``"annotated"`` (module docstring). ``ball_box``
+    (``Settings.export_ball_box``) "optimised" leaves the refined boxes out (the paper's choice)."""
+    refined = refined_boxes(system, ball_diameter_m) if ball_box == "refined" else {}
     out: dict[int, tuple[list[float], str]] = {}
     for f in system.frames:
         if f.id in refined:
@@ -170,23 +173,10 @@ BALL_BOX_LOADS = (
 )
 
 
-def _source_boxes(game: Game) -> dict[str, list[dict[str, Any]]]:
-    """Frame name -> the non-ball ``bboxes`` of the game's source ``Labels-v3.json`` (empty if none)."""
-    for name in _SOURCE_LABELS:
-        path = Path(game.source_path) / name
-        if path.is_file():
-            try:
-                data = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
-                return {}
-            out: dict[str, list[dict[str, Any]]] = {}
-            for section in ("actions", "replays"):
-                for fname, item in (data.get(section) or {}).items():
-                    if isinstance(item, dict):
-                        out[fname] = [b for b in item.get("bboxes", []) or []
-                                      if isinstance(b, dict) and b.get("class") != BALL_CLASS]
-            return out
-    return {}
+def _other_boxes(frame: Frame) -> list[Any]:
+    """The non-ball ``bboxes`` entries of the frame's release (``frames.release``, as imported; ``[]`` without)."""
+    boxes = (frame.release or {}).get("bboxes")
+    return [b for b in boxes if not (isinstance(b, dict) and b.get("class") == BALL_CLASS)] if isinstance(boxes, list) else []
 
 
 def _clip(box: list[float], width: int, height: int) -> tuple[float, float, float, float] | None:
@@ -195,20 +185,18 @@ def _clip(box: list[float], width: int, height: int) -> tuple[float, float, floa
 
 
 def iter_export_views(session: Session, export: Literal["yolo", "coco"], include_all: bool,
-                      report: DetectorExportReport, ball_diameter_m: float = 0.22) -> Iterator[ExportView]:
+                      report: DetectorExportReport, ball_diameter_m: float = 0.22,
+                      ball_box: str = "refined") -> Iterator[ExportView]:
     """The views ``export`` writes, game by game (systems of the kinds that take it, accepted unless
     ``include_all``), with their boxes, split and file stem as the system's kind names them.
 
     Counts skipped views in ``report``.
     """
-    query = exported_systems(export, include_all, *BALL_BOX_LOADS)
-    source: dict[int, dict[str, list[dict[str, Any]]]] = {}
+    query = exported_systems(export, include_all, *BALL_BOX_LOADS, selectinload(System.frames).undefer(Frame.release))
+    stems: set[str] = set()
     for system in session.scalars(query.execution_options(yield_per=_CHUNK)):
         game = system.game
-        if game.id not in source:
-            source.clear()  # one game at a time
-            source[game.id] = _source_boxes(game)
-        balls = ball_boxes(system, ball_diameter_m)
+        balls = ball_boxes(system, ball_diameter_m, ball_box)
         for frame in system.frames:
             if not (frame.image_path or (frame.image_zip and frame.image_member)):
                 report.skipped_without_image += 1
@@ -223,12 +211,12 @@ def iter_export_views(session: Session, export: Literal["yolo", "coco"], include
                 boxes.append((0, b))
                 report.optimised_ball_boxes += int(origin == "optimised")
                 report.refined_ball_boxes += int(origin == "refined")
-            for raw in source[game.id].get(frame.name, []):
-                cls = raw.get("class")
+            for raw in _other_boxes(frame):
+                cls = raw.get("class") if isinstance(raw, dict) else None
                 if cls not in CLASSES:
                     report.unknown_classes[str(cls)] += 1
                     continue
-                pts = raw.get("points") or {}
+                pts = raw.get("points") or {}  # type: ignore[union-attr]
                 try:
                     box = [float(pts[k]) for k in ("x1", "y1", "x2", "y2")]
                 except (KeyError, TypeError, ValueError):
@@ -237,8 +225,11 @@ def iter_export_views(session: Session, export: Literal["yolo", "coco"], include
                 if (b := _clip(box, frame.width, frame.height)) is not None:
                     boxes.append((CLASSES.index(cls), b))
             kind = kind_of(system)
-            yield ExportView(frame, game, system, kind.split(system, frame), kind.view_stem(game, frame),
-                             tuple(boxes))
+            stem = kind.view_stem(game, frame)
+            if stem in stems:  # one file per view: a repeated name would overwrite a view already written
+                raise RuntimeError(f"two exported views named {stem!r} (game {game.path!r}, view {frame.name!r})")
+            stems.add(stem)
+            yield ExportView(frame, game, system, kind.split(system, frame), stem, tuple(boxes))
 
 
 def _copy_image(frame: Frame, dest_without_ext: Path) -> Path | None:
@@ -246,7 +237,7 @@ def _copy_image(frame: Frame, dest_without_ext: Path) -> Path | None:
         img = frame_image(frame)
     except ImageUnavailable:
         return None
-    ext = Path(img.member or (img.path.name if img.path else "x.png")).suffix or ".png"
+    ext = ".jpg" if img.media_type == "image/jpeg" else ".png"  # the type checked from its header, not its name
     dest = dest_without_ext.with_suffix(ext)
     with dest.open("wb") as fh:
         for chunk in img.chunks():
@@ -261,7 +252,7 @@ def _count(report: DetectorExportReport, view: ExportView) -> None:
 
 
 def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False,
-                ball_diameter_m: float = 0.22) -> DetectorExportReport:
+                ball_diameter_m: float = 0.22, ball_box: str = "refined") -> DetectorExportReport:
     """Write the Ultralytics YOLO layout under ``out_dir`` (module docstring); existing files of the
     same names are overwritten.
 
@@ -273,7 +264,7 @@ def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False
     for split in SPLITS:
         (out / "images" / split).mkdir(parents=True, exist_ok=True)
         (out / "labels" / split).mkdir(parents=True, exist_ok=True)
-    for view in iter_export_views(session, "yolo", include_all, report, ball_diameter_m):
+    for view in iter_export_views(session, "yolo", include_all, report, ball_diameter_m, ball_box):
         if _copy_image(view.frame, out / "images" / view.split / view.stem) is None:
             report.skipped_without_image += 1
             continue
@@ -290,7 +281,7 @@ def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False
 
 
 def export_coco(session: Session, out_dir: str | Path, include_all: bool = False,
-                ball_diameter_m: float = 0.22) -> DetectorExportReport:
+                ball_diameter_m: float = 0.22, ball_box: str = "refined") -> DetectorExportReport:
     """Write the COCO layout under ``out_dir``: per split the images and ``instances.json``.
 
     COCO image ids are the frames' database ids; category ids are the class ids + 1.
@@ -300,7 +291,7 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
     docs: dict[str, dict[str, list]] = {s: {"images": [], "annotations": []} for s in SPLITS}
     for split in SPLITS:
         (out / split).mkdir(parents=True, exist_ok=True)
-    for view in iter_export_views(session, "coco", include_all, report, ball_diameter_m):
+    for view in iter_export_views(session, "coco", include_all, report, ball_diameter_m, ball_box):
         dest = _copy_image(view.frame, out / view.split / view.stem)
         if dest is None:
             report.skipped_without_image += 1
@@ -323,6 +314,7 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
 
 
 def export_detector(session: Session, fmt: Literal["yolo", "coco"], out_dir: str | Path,
-                    include_all: bool = False, ball_diameter_m: float = 0.22) -> DetectorExportReport:
-    """:func:`export_yolo` or :func:`export_coco` by name."""
-    return (export_yolo if fmt == "yolo" else export_coco)(session, out_dir, include_all, ball_diameter_m)
+                    include_all: bool = False, ball_diameter_m: float = 0.22,
+                    ball_box: str = "refined") -> DetectorExportReport:
+    """:func:`export_yolo` or :func:`export_coco` by name (``ball_box``: ``Settings.export_ball_box``)."""
+    return (export_yolo if fmt == "yolo" else export_coco)(session, out_dir, include_all, ball_diameter_m, ball_box)

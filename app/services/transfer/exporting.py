@@ -2,21 +2,32 @@
 
 Written under ``out_dir``:
 
-* per game ``<league>/<season>/<game>/Labels-v3D.json``: the SoccerNet-v3 layout (``GameMetadata``,
-  ``actions``, ``replays``) with, per game, ``GameMetadata.reconstructions`` (actions whose system has
-  more than one admitted frame) and, per frame, ``imageMetadata.calibrated_replays`` (actions: the
-  admitted replays), ``calibration`` (SoccerNet camera JSON, section 2, or null) and
-  ``JaC {"JaC@0.005", "JaC@0.01", "JaC@0.02"}``. v3d adds what a faithful re-import needs: the field
-  lines (full precision, pixels), ``GameMetadata.v3d_reviews`` (system -> review status),
+* per game ``<league>/<season>/<game>/Labels-v3D.json``: the imported ``Labels-v3.json`` with every key kept
+  (what the release carries and v3d does not edit is stored at import, ``games.release`` and ``frames.release``:
+  ``GameMetadata`` with e.g. ``UrlYoutube``, each frame's ``imageMetadata``, every ``bboxes`` entry, the links;
+  no source file is read) and v3d's work added (``app.datasets.soccernet_v3d.curated_entry``): each frame's
+  ``lines`` and the "Ball" entry of its ``bboxes`` are the curated (current) ones, the imported ones kept
+  under ``v3d.original_lines`` (where edited; null otherwise) and ``v3d.original_ball`` (the imported ball
+  entry, or null). Per game ``GameMetadata.reconstructions`` (actions whose system has more than one admitted
+  frame; ``list_actions``, ``list_replays`` and their counts are those written) and, per frame,
+  ``imageMetadata.calibrated_replays`` (actions: the admitted replays), ``calibration`` (SoccerNet camera JSON,
+  section 2, or null) and ``JaC {"JaC@0.005", "JaC@0.01", "JaC@0.02"}``. v3d adds what a faithful re-import
+  needs: the field lines at full precision (pixels), ``GameMetadata.v3d_reviews`` (system -> review status),
   ``GameMetadata.v3d_systems`` (action frame -> system name, where they differ) and per frame
-  ``v3d {source, status, reason, flags, residuals_px, admitted, original_lines, image}`` (``image``:
-  where the frame's pixels were, used by a re-import when the tree has no images of its own). Single-view
-  systems are written as actions with ``imageType`` "camera".
+  ``v3d {source, status, reason, flags, residuals_px, uncertainty, admitted, original_lines, original_ball}`` (no server
+  path: a re-import finds images in the tree itself). Replays no action links are written as they came. Only
+  SoccerNet-v3 systems are written (the kinds that take the ``soccernet-v3d`` export, ``app.services.kinds``):
+  single SoccerNet-calibration frames leave as cameras (``app.services.transfer.cameras_export``), ISSIA
+  sequences as ISSIA-3D (``app.services.issia.export``).
+* per game ``<league>/<season>/<game>/Frames-v3.zip`` beside the labels (unless ``images=False``): the
+  frames' images as the SoccerNet-v3 release packs them (members named by the frame, bytes as stored), so
+  that the export re-imports with its images (:func:`write_frames_zip`).
 * one ``SNv3D.csv`` at the root, one row per exported frame, with every column of section 9 (lists
   and dicts as JSON, boxes ``[x1, y1, x2, y2]`` in pixels, empty cells for missing values such as
   ``replay`` on actions) followed by v3d's columns ``ball_point``, ``original_ball_bbox``,
-  ``original_ball_point`` and ``optimized_bbox``. ``set`` is train or test per game, from a stable
-  hash of the game path (about 80 / 20).
+  ``original_ball_point`` and ``optimized_bbox``. ``set`` is train or test: the split a release gave the
+  image (``v3d import split``) where there is one, else per game from a stable hash of the game path (about
+  80 / 20).
 
 Only accepted systems are exported unless ``include_all``. Floats are written in their shortest form
 that reads back exactly (``repr``; ``orjson``), so that :func:`app.services.transfer.importing.import_soccernet_v3d`
@@ -24,7 +35,7 @@ reads back the same numbers.
 
 Speed: the export reads each batch of games with one SQL query of plain rows (no ORM objects), takes
 JSON columns as their stored text and embeds them as they are (``orjson.Fragment`` in the documents,
-the text itself in CSV cells), and decodes only the field lines it must flatten: a 12,800-system
+the text itself in CSV cells), and decodes only the field lines it must flatten and each frame's release: a 12,800-system
 export is CPU-bound at about 0.2 ms a frame (40 scale games: 0.7 s for 3,546 frames).
 
 Size (over 400 lines): the SoccerNet-v3D format (its documents, CSV rows and the row query that feeds them)
@@ -39,21 +50,23 @@ import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, BinaryIO, Callable, Iterator
 
 import orjson
 import sqlalchemy as sa
 from sqlalchemy import Select, select
-from sqlalchemy.orm import Session, selectinload
+from sqlalchemy.orm import Session, selectinload, undefer
 
 from app.db.models import (
     JAC_COLUMNS, BallLabel, BallReprojection, Calibration, FieldLineAnnotation, Frame, FrameRole, Game, OptimisedBox,
     ReviewDecision, ReviewStatus, System, Triangulation,
 )
-from app.datasets.soccernet_v3d import JAC_KEYS
+from app.datasets.soccernet_v3 import V3_FRAMES_ZIP
+from app.datasets.soccernet_v3d import JAC_KEYS, curated_entry
 from app.db.types import json_loads
 from app.core.errors import InvalidInputError
 from app.services.kinds import kinds_exported_by, split_of
+from app.services.transfer.images import frame_has_image, frame_image
 
 #: Columns of ``SNv3D.csv``: method.md section 9, then v3d's own.
 CSV_COLUMNS = (
@@ -72,20 +85,14 @@ class ExportReport:
     rows: int
     csv_path: Path
     label_files: tuple[Path, ...]
+    #: Images written into the games' ``Frames-v3.zip`` (0 with ``images=False``).
+    images: int = 0
 
 
 def _safe_component(value: str, what: str) -> str:
     if not value or value in (".", "..") or "/" in value or "\\" in value or "\0" in value:
         raise InvalidInputError(f"cannot be used as a folder name: {value!r}", field=what)
     return value
-
-
-def _flat_lines(lines_json: str | None) -> list[dict[str, Any]]:
-    """Stored field lines (JSON text of ``{class: [[[x, y], ...], ...]}``, pixels) -> SoccerNet-v3
-    ``[{class, points [x1, y1, ...]}]``, unrounded; ``[]`` for none."""
-    lines = json_loads(lines_json) if lines_json else {}
-    return [{"class": cls, "points": [v for pt in poly for v in pt]}
-            for cls, polys in lines.items() for poly in polys]
 
 
 def _cell(value: Any) -> str:
@@ -99,17 +106,25 @@ def _cell(value: Any) -> str:
 
 
 def _frame_json(row: Any, admitted_replays: list[str] | None) -> dict[str, Any]:
-    """One frame's ``Labels-v3D.json`` entry from its export row (:func:`_frame_rows`)."""
+    """One frame's ``Labels-v3D.json`` entry from its export row (:func:`_frame_rows`): the release's entry
+    with the curated lines and ball box (``app.datasets.soccernet_v3d.curated_entry``) and v3d's keys."""
     calibrated = row.cal_source is not None
-    meta: dict[str, Any] = {"width": row.width, "height": row.height, "imageType": row.role.value}
+    release = json_loads(row.release_json) if row.release_json else None
+    lines = json_loads(row.lines_json) if row.lines_json else {}
+    # Most frames were never edited: their original lines are the same text.
+    edited = row.original_json is not None and row.original_json != row.lines_json
+    ball_box = json_loads(row.ball_box) if _raw(row.ball_box) else None
+    original_box = json_loads(row.original_box) if _raw(row.original_box) else None
+    entry, original_ball, original_lines = curated_entry(
+        release, lines, json_loads(row.original_json) if edited else None, ball_box, original_box)
+    meta = entry.get("imageMetadata")
+    meta = dict(meta) if isinstance(meta, dict) else {}
+    meta.update(width=row.width, height=row.height)
+    meta.setdefault("imageType", row.role.value)
     if admitted_replays is not None:
         meta["calibrated_replays"] = admitted_replays
-    lines = _flat_lines(row.lines_json)
-    # Most frames were never edited: their original lines are the same text, flattened once.
-    original = lines if row.original_json == row.lines_json else _flat_lines(row.original_json)
-    return {
-        "imageMetadata": meta,
-        "lines": lines,
+    entry["imageMetadata"] = meta
+    entry.update({
         "calibration": _camera(row),
         "JaC": {key: getattr(row, column) for key, column in zip(JAC_KEYS, JAC_COLUMNS.values())},
         "v3d": {
@@ -117,11 +132,13 @@ def _frame_json(row: Any, admitted_replays: list[str] | None) -> dict[str, Any]:
             "status": row.cal_status.value if calibrated else None,
             "reason": row.reason, "flags": _fragment(row.flags_json, "[]") if calibrated else [],
             "residuals_px": _fragment(row.residuals_json, "{}") if calibrated else {},
+            "uncertainty": _fragment(row.uncertainty_json, "null") if calibrated else None,
             "admitted": bool(row.admitted) if calibrated else False,
-            "original_lines": original,
-            "image": {"zip": row.image_zip, "member": row.image_member, "path": row.image_path},
+            "original_lines": original_lines,
+            "original_ball": original_ball,
         },
-    }
+    })
+    return entry
 
 
 def _fragment(json_text: str | None, empty: str) -> orjson.Fragment:
@@ -179,21 +196,22 @@ def _frame_rows(session: Session, game_ids: list[int], include_all: bool) -> lis
         select(
             S.game_id, S.id.label("system_id"), S.name.label("system_name"), _json_text(T.ball3d, "ball3d"),
             D.status.label("review_status"),
-            F.name, F.role, F.width, F.height, F.image_zip, F.image_member, F.image_path,
+            F.id.label("frame_id"), F.name, F.role, F.width, F.height, F.split.label("frame_split"),
             C.source.label("cal_source"), C.status.label("cal_status"),
             _json_text(C.camera, "camera_json"), C.reason, _json_text(C.flags, "flags_json"),
-            _json_text(C.residuals_px, "residuals_json"), C.admitted, C.jac_0005, C.jac_001, C.jac_002,
+            _json_text(C.residuals_px, "residuals_json"), _json_text(C.uncertainty, "uncertainty_json"), C.admitted,
+            C.jac_0005, C.jac_001, C.jac_002,
             _json_text(L.lines, "lines_json"), _json_text(L.original_lines, "original_json"),
             B.frame_id.label("label_frame"), B.kind.label("ball_kind"), _json_text(B.box, "ball_box"),
             _json_text(B.point, "ball_point"), _json_text(B.original_box, "original_box"), _json_text(B.original_point, "original_point"),
             _json_text(O.box, "opt_box"), O.d_opt_px.label("opt_d_px"), O.error_m.label("opt_error_m"),
-            R.error_px.label("rep_error_px"),
+            R.error_px.label("rep_error_px"), _json_text(F.release, "release_json"),
         )
         .select_from(F).join(S, S.id == F.system_id)
         .outerjoin(T, T.system_id == S.id).outerjoin(D, D.system_id == S.id)
         .outerjoin(C, C.frame_id == F.id).outerjoin(L, L.frame_id == F.id).outerjoin(B, B.frame_id == F.id)
         .outerjoin(O, O.frame_id == F.id).outerjoin(R, R.frame_id == F.id)
-        .where(S.game_id.in_(game_ids))
+        .where(S.game_id.in_(game_ids), S.kind.in_(kinds_exported_by("soccernet-v3d")))
         .order_by(S.game_id, S.id, F.position, F.id)
     )
     if not include_all:
@@ -226,11 +244,18 @@ class ExportedGame:
     doc: dict[str, Any]
     rows: list[list[str]]
     systems: int
+    #: (frame id, frame name) of every exported frame, in the document's order.
+    frames: tuple[tuple[int, str], ...] = ()
 
     @property
     def labels_path(self) -> str:
         """``league/season/match/Labels-v3D.json``, the file's place in the tree (POSIX separators)."""
         return f"{self.league}/{self.season}/{self.match}/Labels-v3D.json"
+
+    @property
+    def frames_path(self) -> str:
+        """``league/season/match/Frames-v3.zip``, where the game's images go (POSIX separators)."""
+        return f"{self.league}/{self.season}/{self.match}/{V3_FRAMES_ZIP}"
 
     def labels_json(self) -> bytes:
         """The ``Labels-v3D.json`` bytes (UTF-8, one line, written by ``orjson``: floats in their shortest
@@ -253,7 +278,8 @@ def iter_soccernet_v3d(session: Session, include_all: bool = False,
     if not include_all:
         wanted = wanted.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
     games = list(session.scalars(
-        select(Game).where(Game.id.in_(wanted)).order_by(Game.league, Game.season, Game.match, Game.id)
+        select(Game).where(Game.id.in_(wanted)).options(undefer(Game.release))
+        .order_by(Game.league, Game.season, Game.match, Game.id)
     ))
     for game in games:  # validate every folder name before writing anything
         for value, what in ((game.league, "league"), (game.season, "season"), (game.match, "match")):
@@ -297,13 +323,21 @@ def _exported_game(game: Any, rows: list[Any]) -> ExportedGame:
             rj = _frame_json(f, None)
             rj["linked_action"] = main.name
             replays[f.name] = rj
-        csv_rows.extend(_csv_row(game, f, split) for f in frames)
+        csv_rows.extend(_csv_row(game, f, f.frame_split or split) for f in frames)
         reviews[name] = (main.review_status or ReviewStatus.PENDING).value
         if main.name != name:
             renamed[main.name] = name
+    release = dict(game.release or {})
+    unlinked = release.pop("replays", None)  # replays no action links, as they came
+    if isinstance(unlinked, dict):
+        replays.update((k, v) for k, v in unlinked.items() if k not in replays)
+    meta = release.get("GameMetadata")
     doc = {
+        **release,
         "GameMetadata": {
-            "UrlLocal": f"{game.path}/", "list_actions": list(actions), "list_replays": list(replays),
+            **(meta if isinstance(meta, dict) else {}),
+            "UrlLocal": meta["UrlLocal"] if isinstance(meta, dict) and "UrlLocal" in meta else f"{game.path}/",
+            "list_actions": list(actions), "list_replays": list(replays),
             "num_actions": len(actions), "num_replays": len(replays), "reconstructions": reconstructions,
             "v3d_reviews": reviews,
             "v3d_systems": renamed,
@@ -311,11 +345,38 @@ def _exported_game(game: Any, rows: list[Any]) -> ExportedGame:
         "actions": actions,
         "replays": replays,
     }
-    return ExportedGame(game.league, game.season, game.match, doc, csv_rows, len(systems))
+    return ExportedGame(game.league, game.season, game.match, doc, csv_rows, len(systems),
+                        tuple((f.frame_id, f.name) for f in rows))
+
+
+def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], target: BinaryIO) -> int:
+    """Write the images of ``frames`` ((frame id, frame name) pairs) into a new zip on ``target`` as the
+    SoccerNet-v3 ``Frames-v3.zip`` holds them: one member per frame, named by the frame, its bytes copied from
+    the stored image as they are (PNG or JPEG, read through ``app.services.transfer.images.frame_image``, which
+    checks the header and that the file lies inside its dataset), stored without recompression. Frames
+    without an image (their dataset shipped none) are left out.
+
+    Returns:
+        The number of images written (0: the zip is empty).
+
+    Raises:
+        ImageUnavailable: a frame's image is gone or no longer the image imported.
+    """
+    written = 0
+    with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_STORED) as zf:
+        for frame_id, name in frames:
+            frame = session.get(Frame, frame_id)
+            if frame is None or not frame_has_image(frame):
+                continue
+            with zf.open(name, "w", force_zip64=True) as member:
+                for chunk in frame_image(frame).chunks():
+                    member.write(chunk)
+            written += 1
+    return written
 
 
 def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: bool = False,
-                         progress: Callable[[str, int, int], None] | None = None) -> ExportReport:
+                         progress: Callable[[str, int, int], None] | None = None, images: bool = True) -> ExportReport:
     """Write the SoccerNet-v3D tree of the database under ``out_dir`` (see the module docstring), game
     by game (:func:`iter_soccernet_v3d`), the CSV written as the games come.
 
@@ -325,12 +386,16 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
             overwritten.
         include_all: export every system, not only the accepted ones.
         progress: ``progress("export", games done, games)`` after each game (:func:`iter_soccernet_v3d`).
+        images: write each game's images as ``Frames-v3.zip`` beside its ``Labels-v3D.json``
+            (:func:`write_frames_zip`; a game whose frames have no image gets none), so that the export
+            re-imports with its images; False leaves them out.
 
     Returns:
         An :class:`ExportReport`.
 
     Raises:
         InvalidInputError: a league, season or match that cannot be a folder name (nothing written).
+        ImageUnavailable: a frame's stored image is gone or changed since its import.
     """
     out = Path(out_dir)
     games = iter_soccernet_v3d(session, include_all, progress)
@@ -338,7 +403,7 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
     out.mkdir(parents=True, exist_ok=True)
     csv_path = out / "SNv3D.csv"
     files: list[Path] = []
-    n_games = n_systems = n_rows = 0
+    n_games = n_systems = n_rows = n_images = 0
     with csv_path.open("w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh)
         writer.writerow(CSV_COLUMNS)
@@ -347,9 +412,28 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(exported.labels_json())
             files.append(path)
+            if images:
+                n_images += _write_game_frames(session, exported, out / exported.frames_path)
             writer.writerows(exported.rows)
             n_games, n_systems, n_rows = n_games + 1, n_systems + exported.systems, n_rows + len(exported.rows)
-    return ExportReport(out, n_games, n_systems, n_rows, csv_path, tuple(files))
+    return ExportReport(out, n_games, n_systems, n_rows, csv_path, tuple(files), n_images)
+
+
+def _write_game_frames(session: Session, exported: ExportedGame, path: Path) -> int:
+    """The game's ``Frames-v3.zip`` at ``path`` (written as ``.part`` and renamed); none when no frame of it
+    has an image. Returns the images written."""
+    part = path.with_name(path.name + ".part")
+    try:
+        with part.open("wb") as fh:
+            written = write_frames_zip(session, exported.frames, fh)
+        if written:
+            part.replace(path)
+        else:
+            part.unlink()
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
+    return written
 
 
 def _chain(first: ExportedGame | None, rest: Iterator[ExportedGame]) -> Iterator[ExportedGame]:
@@ -385,6 +469,20 @@ class _ZipSink(io.RawIOBase):
         return data
 
 
+def _stream_game_frames(session: Session, exported: ExportedGame, zf: zipfile.ZipFile,
+                        sink: _ZipSink) -> Iterator[bytes]:
+    """Copy the game's ``Frames-v3.zip`` (built in a temporary file) into the streamed archive ``zf``,
+    stored, handing on its bytes as they are written."""
+    with tempfile.TemporaryFile() as tmp:
+        if not write_frames_zip(session, exported.frames, tmp):
+            return
+        tmp.seek(0)
+        with zf.open(zipfile.ZipInfo(exported.frames_path), "w", force_zip64=True) as member:
+            for chunk in iter(lambda: tmp.read(1 << 20), b""):
+                member.write(chunk)
+                yield sink.drain()
+
+
 def export_size(session: Session, include_all: bool = False) -> tuple[int, int]:
     """``(systems, rows)`` an export would write (rows: one per frame of an exported system), counted
     without loading them."""
@@ -399,12 +497,14 @@ def export_size(session: Session, include_all: bool = False) -> tuple[int, int]:
 
 
 def stream_soccernet_v3d_zip(session: Session, include_all: bool = False,
-                             progress: Callable[[str, int, int], None] | None = None) -> Iterator[bytes]:
+                             progress: Callable[[str, int, int], None] | None = None,
+                             images: bool = True) -> Iterator[bytes]:
     """The export as a zip archive, produced while the database is read: each game's
-    ``Labels-v3D.json`` is compressed and handed on before the next game is read; ``SNv3D.csv`` is
-    spooled (in memory up to 8 MB, then a temporary file) and written last. Memory stays bounded by one
-    game and the spool. The archive is the same tree as :func:`export_soccernet_v3d` writes.
-    ``progress`` as :func:`iter_soccernet_v3d`.
+    ``Labels-v3D.json`` is compressed and handed on before the next game is read, followed (``images``) by
+    its ``Frames-v3.zip`` (built in a temporary file, then copied in); ``SNv3D.csv`` is spooled (in memory
+    up to 8 MB, then a temporary file) and written last. Memory stays bounded by one game and the spool.
+    The archive is the same tree as :func:`export_soccernet_v3d` writes. ``progress`` as
+    :func:`iter_soccernet_v3d`.
 
     Raises:
         InvalidInputError: as :func:`iter_soccernet_v3d`, before the first byte.
@@ -420,6 +520,8 @@ def stream_soccernet_v3d_zip(session: Session, include_all: bool = False,
                 zf.writestr(exported.labels_path, exported.labels_json())
                 writer.writerows(exported.rows)
                 yield sink.drain()
+                if images:
+                    yield from _stream_game_frames(session, exported, zf, sink)
             spool.seek(0)
             with zf.open("SNv3D.csv", "w", force_zip64=True) as member:
                 for chunk in iter(lambda: spool.read(1 << 20), ""):

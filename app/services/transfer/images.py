@@ -1,15 +1,22 @@
 """Frame images: where a frame's image bytes are (a zip member, a file, or a frame of a video or frame
-folder decoded on demand) and how to stream them with a strong ETag. Zip members are never extracted."""
+folder decoded on demand) and how to stream them with a strong ETag. Zip members are never extracted.
+
+A frame stores its dataset's folder (``Frame.image_root``) and the zip or file relative to it; the
+file is resolved again (links included) each time it is served and refused when it lies outside that
+folder (:func:`stored_image_file`), so that a stored reference can never reach the rest of the disk.
+Its media type comes from the image's header, read again when it is served (PNG or JPEG within
+``V3D_MAX_IMAGE_PIXELS``, and the type the import checked, ``Frame.image_type``), never from its name:
+anything else is not served."""
 from __future__ import annotations
 
-import mimetypes
 import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
+from typing import BinaryIO, Optional
 
-from app.datasets.files import is_safe_member
+from app.core.errors import DatasetError
+from app.datasets.files import IMAGE_MEDIA_TYPES, MAX_IMAGE_PIXELS, image_header, is_safe_member
 from app.db.models import Frame
 from app.core.errors import ServiceError
 
@@ -57,46 +64,85 @@ class FrameImage:
             yield from iter(lambda: fh.read(_CHUNK), b"")
 
 
-def _media_type(name: str) -> str:
-    return mimetypes.guess_type(name)[0] or "application/octet-stream"
+def stored_image_file(frame: Frame, relative: str) -> Path:
+    """The file ``relative`` (``Frame.image_zip`` or ``Frame.image_path``) of the frame's dataset folder
+    ``Frame.image_root``, resolved (``..`` and links followed).
+
+    Raises:
+        ImageUnavailable: the frame has no dataset folder, or the file resolves outside it (an absolute
+            name, ``..``, a link placed after the import).
+    """
+    if not frame.image_root:
+        raise ImageUnavailable(f"frame {frame.id}: its image reference has no dataset folder; import it again")
+    root = Path(frame.image_root).resolve()
+    resolved = (root / relative).resolve()
+    if not resolved.is_relative_to(root):
+        raise ImageUnavailable(f"frame {frame.id}: refusing an image reference outside its dataset's folder")
+    return resolved
 
 
-def frame_image(frame: Frame) -> FrameImage:
-    """Locate a frame's image without reading it (zip members are never extracted).
+def _checked_media_type(frame: Frame, stream: BinaryIO, name: str, max_pixels: int) -> str:
+    """``image/png`` or ``image/jpeg`` from the header of the open image ``stream``
+    (``app.datasets.files.image_header``), when it is the type the import checked (``Frame.image_type``;
+    rows imported before the check have none).
+
+    Raises:
+        ImageUnavailable: not a PNG or JPEG within ``max_pixels`` pixels, or not the type checked at import.
+    """
+    try:
+        header = image_header(stream, name, max_pixels)
+    except DatasetError as exc:
+        raise ImageUnavailable(f"frame {frame.id}: not served: {exc}") from None
+    if frame.image_type is not None and header.type != frame.image_type:
+        raise ImageUnavailable(f"frame {frame.id}: not served: {name} is no longer the {frame.image_type} "
+                               "image that was imported")
+    return IMAGE_MEDIA_TYPES[header.type]
+
+
+def frame_image(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS) -> FrameImage:
+    """Locate a frame's image and check its header (zip members are never extracted; nothing is
+    decoded but an ISSIA video frame, which is served as a PNG v3d encodes).
 
     Raises:
         ImageUnavailable: the frame has no image (SoccerNet-calibration imports ship none), its
-            member name is unsafe, or the archive, member or file is missing.
+            member name is unsafe, its file resolves outside its dataset's folder
+            (:func:`stored_image_file`), the archive, member or file is missing, or it is not a PNG or
+            JPEG image within ``max_pixels`` pixels (whatever its name).
     """
     where = f"frame {frame.id}"
     if frame.media_frame is not None and frame.image_path:
-        return _media_frame_image(frame, where)
+        return _media_frame_image(frame, where, max_pixels)
     if frame.image_zip and frame.image_member:
         member = frame.image_member
         if not is_safe_member(member):
             raise ImageUnavailable(f"{where}: refusing unsafe archive member name {member!r}")
-        zip_path = Path(frame.image_zip)
+        zip_path = stored_image_file(frame, frame.image_zip)
         try:
             with zipfile.ZipFile(zip_path) as zf:
                 info = zf.getinfo(member)
+                with zf.open(info) as stream:
+                    media_type = _checked_media_type(frame, stream, member, max_pixels)
         except FileNotFoundError:
-            raise ImageUnavailable(f"{where}: image archive {zip_path} is missing") from None
+            raise ImageUnavailable(f"{where}: image archive {frame.image_zip} is missing") from None
         except KeyError:
-            raise ImageUnavailable(f"{where}: {member!r} is not in {zip_path}") from None
+            raise ImageUnavailable(f"{where}: {member!r} is not in {frame.image_zip}") from None
         except (zipfile.BadZipFile, OSError) as exc:
-            raise ImageUnavailable(f"{where}: cannot read image archive {zip_path} ({exc})") from None
+            raise ImageUnavailable(f"{where}: cannot read image archive {frame.image_zip} "
+                                   f"({type(exc).__name__})") from None
         return FrameImage(
-            media_type=_media_type(member), etag=f'"{info.CRC:08x}-{info.file_size:x}"', size=info.file_size,
+            media_type=media_type, etag=f'"{info.CRC:08x}-{info.file_size:x}"', size=info.file_size,
             zip_path=zip_path, member=member,
         )
     if frame.image_path:
-        path = Path(frame.image_path)
+        path = stored_image_file(frame, frame.image_path)
         try:
             st = path.stat()
+            with path.open("rb") as stream:
+                media_type = _checked_media_type(frame, stream, frame.image_path, max_pixels)
         except OSError:
-            raise ImageUnavailable(f"{where}: image file {path} is missing") from None
+            raise ImageUnavailable(f"{where}: image file {frame.image_path} is missing") from None
         return FrameImage(
-            media_type=_media_type(path.name), etag=f'"{st.st_mtime_ns:x}-{st.st_size:x}"', size=st.st_size,
+            media_type=media_type, etag=f'"{st.st_mtime_ns:x}-{st.st_size:x}"', size=st.st_size,
             path=path,
         )
     raise ImageUnavailable(
@@ -105,16 +151,15 @@ def frame_image(frame: Frame) -> FrameImage:
     )
 
 
-def _media_frame_image(frame: Frame, where: str) -> FrameImage:
+def _media_frame_image(frame: Frame, where: str, max_pixels: int) -> FrameImage:
     """A frame of a video or frame folder (ISSIA), decoded and resized to the frame's own size, PNG."""
-    from app.core.errors import DatasetError
     from app.services.issia.sequences import read_video_frame
 
-    path = Path(frame.image_path or "")
+    path = stored_image_file(frame, frame.image_path or "")
     try:
         st = path.stat()
-        data = read_video_frame(frame)
+        data = read_video_frame(frame, max_pixels)
     except (OSError, DatasetError) as exc:
-        raise ImageUnavailable(f"{where}: cannot read frame {frame.media_frame} of {path} ({exc})") from None
+        raise ImageUnavailable(f"{where}: cannot read frame {frame.media_frame} of {frame.image_path}") from None
     etag = f'"{st.st_mtime_ns:x}-{st.st_size:x}-{frame.media_frame:x}-{int(frame.media_flipped)}-{frame.width}x{frame.height}"'
     return FrameImage(media_type="image/png", etag=etag, size=len(data), data=data)

@@ -18,9 +18,15 @@ Every importer works in two phases so that bad input stores nothing:
    pool does not wait meanwhile: the first pass of the next batch's new games is calibrating
    (``app.services.calibration.first_pass``) while this process stores the current batch.
 
-Images are never extracted: a frame stores the zip path and member name (or a file path).
-An import is one audit entry (``app.services.accounts.audit.record_summary``, action "import", its counts), written
-with its last batch; a frame whose labels or lines it changes gets a new edit version (ETag).
+What a release carries that v3d does not edit (``GameMetadata``, each frame's ``imageMetadata`` and every
+``bboxes`` entry, the links) is stored as it came (``games.release``, ``frames.release``) and refreshed by a
+re-import; the exports write it back without reading the source files.
+
+Images are never extracted: a frame stores the dataset's folder and, relative to it, the zip path and
+member name (or a file path); the readers refuse a file that resolves outside the imported folder.
+Each committed batch of an import is one audit entry (``app.services.accounts.audit.record_summary``, action
+"import": the counts so far, ``batch`` of ``batches``; the last one holds the import's totals), written in the
+batch's own transaction; a frame whose labels or lines it changes gets a new edit version (ETag).
 """
 from __future__ import annotations
 
@@ -34,7 +40,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from sqlalchemy import select
-from sqlalchemy.orm import Session, selectinload
+from sqlalchemy.orm import Session, selectinload, undefer
 
 from app.core.config import Settings
 from app.db.models import (
@@ -42,6 +48,7 @@ from app.db.models import (
     ReviewStatus, System,
 )
 from app.db.types import utcnow
+from app.datasets.files import dataset_root
 from app.datasets.records import FrameRecord, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
 from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
@@ -66,6 +73,8 @@ class ImportReport:
 
     Attributes:
         source: the path imported.
+        source_name: how annotators and reviewers see it (no server path:
+            ``app.services.transfer.data_root.dataset_name``; default: its last component).
         games, systems, frames: how many the input holds.
         systems_new, systems_changed: systems created, and existing systems whose input changed.
         calibrated, refused: outcome of the calibrations run (or imported) by this import.
@@ -82,6 +91,7 @@ class ImportReport:
     """
 
     source: str
+    source_name: str = ""
     games: int = 0
     systems: int = 0
     frames: int = 0
@@ -116,12 +126,15 @@ class ImportReport:
 def _upsert_game(session: Session, rec: GameRecord) -> Game:
     game = session.scalars(
         select(Game).where(Game.league == rec.league, Game.season == rec.season, Game.match == rec.match)
-        .options(selectinload(Game.systems).selectinload(System.frames))
+        .options(undefer(Game.release), selectinload(Game.systems).selectinload(System.frames).undefer(Frame.release))
     ).one_or_none()
     if game is None:
-        game = Game(league=rec.league, season=rec.season, match=rec.match, source_path=rec.source_path)
+        game = Game(league=rec.league, season=rec.season, match=rec.match, source_path=rec.source_path,
+                    release=rec.release)
         session.add(game)
     game.source_path = rec.source_path
+    if game.release != rec.release:
+        game.release = rec.release
     return game
 
 
@@ -213,14 +226,18 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     frame = frames.get(frec.name)
                     if frame is None:
                         frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height,
-                                      calibration=None, ball_label=None, reprojection=None, optimised_box=None)
+                                      calibration=None, ball_label=None, reprojection=None, optimised_box=None,
+                                      release=frec.release)
                         system.frames.append(frame)
                         frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                         changed = True
                     elif (frame.width, frame.height) != (frec.width, frec.height):
                         changed = True
                     frame.role, frame.position, frame.width, frame.height = frec.role, pos, frec.width, frec.height
+                    frame.image_root, frame.image_type = frec.image_root, frec.image_type
                     frame.image_zip, frame.image_member, frame.image_path = frec.image_zip, frec.image_member, frec.image_path
+                    if frame.release != frec.release:  # what the release carries: kept as it came
+                        frame.release = frec.release
                     lines_changed = _set_lines(frame, frec, now)
                     ball_changed = _set_ball(frame, frec, now)
                     if (lines_changed or ball_changed) and frame.id is not None:
@@ -300,13 +317,14 @@ def _batches(frames_per_game: list[int], max_frames: int) -> Iterator[list[int]]
 
 def audit_counts(report: ImportReport) -> dict[str, object]:
     """The counts an import's audit entry keeps (``after``)."""
-    return {"source": report.source, "games": report.games, "systems": report.systems, "frames": report.frames,
+    return {"source": report.source, "source_name": report.source_name or Path(report.source).name,
+            "games": report.games, "systems": report.systems, "frames": report.frames,
             "systems_new": report.systems_new, "systems_changed": report.systems_changed,
             "calibrated": report.calibrated, "refused": report.refused, "triangulated": report.triangulated}
 
 
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
-         games: Callable[[], list[GameReader]], actor: str | None = None) -> ImportReport:
+         games: Callable[[], list[GameReader]], actor: str | None = None, source_name: str | None = None) -> ImportReport:
     """Read and validate everything (nothing is stored when the input is bad), then store it in
     batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
     stored or not at all), each calibrated, recomputed and committed before the next is stored; the
@@ -315,10 +333,10 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     starts, so memory holds two batches of records, not the whole input (an input file changed
     meanwhile can still fail the import then, after whole games were stored; running it again
     completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
-    total) instead of the inner stages of each batch. The import's audit entry (by ``actor``, None:
-    the local user) is written with the last batch."""
+    total) instead of the inner stages of each batch. Each batch writes its audit entry (by ``actor``,
+    None: the local user) in its own transaction."""
     t0 = time.perf_counter()
-    report = ImportReport(source=str(path))
+    report = ImportReport(source=str(path), source_name=source_name or Path(path).name)
     readers = games()
     frames_per_game: list[int] = []
     for read in readers:  # validation: raises before anything is written
@@ -330,6 +348,7 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     report.games = len(readers)
     report.frames = sum(frames_per_game)
     batches = [[readers[i] for i in group] for group in _batches(frames_per_game, settings.import_batch_frames)]
+    total_batches, batch_number = len(batches), 1
     calibration_ms: list[float] = []
     calibration_seconds = 0.0
     done = 0
@@ -352,8 +371,12 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
                 ahead, loaded = started[0], following[0]
                 if loaded is None and batches:  # not started ahead
                     loaded = [read() for read in batches.pop(0)]
-                if last:
-                    record_summary(session, "import", audit_counts(report), actor=actor)
+                # every committed batch is audited in its own transaction: a crash after it leaves the entry
+                # of what was stored (the counts so far, the batch's number; the last one carries the totals)
+                record_summary(session, "import", {**audit_counts(report), "batch": batch_number,
+                                                   "batches": total_batches, "batch_games": len(batch)},
+                               actor=actor)
+                batch_number += 1
                 session.commit()
                 session.expunge_all()
                 calibration_ms += report.calibration_ms
@@ -372,7 +395,8 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
 
 
 def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
-                        progress: Progress | None = None, *, actor: str | None = None) -> ImportReport:
+                        progress: Progress | None = None, *, actor: str | None = None,
+                        source_name: str | None = None) -> ImportReport:
     """Import a SoccerNet-v3 tree (see :func:`read_soccernet_v3`), calibrate its frames (process pool
     over ``calibrate_frame``), triangulate its systems, and commit game batch by game batch.
 
@@ -380,38 +404,45 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
     is called for the stages "merge" (records matched to rows), "calibrate", "rig" (frames retried
     with their game's camera rig, when there are any) and "triangulate".
 
-    ``actor`` is the import's audit entry's (None: the local user).
+    ``actor`` is the import's audit entry's (None: the local user); ``source_name`` how it names the
+    input to non-admins (default: the path's last component).
 
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
     return _run(session, path, settings, progress,
-                lambda: [partial(read_soccernet_v3_game, labels) for labels in soccernet_v3_labels(path)], actor)
+                lambda: [partial(read_soccernet_v3_game, labels, dataset_root(path), settings.max_image_pixels)
+                         for labels in soccernet_v3_labels(path)], actor, source_name)
 
 
 def import_sn_calibration(session: Session, path: str | Path, settings: Settings, width: int | None = None,
                           height: int | None = None, progress: Progress | None = None, *,
-                          actor: str | None = None) -> ImportReport:
+                          actor: str | None = None, source_name: str | None = None) -> ImportReport:
     """Import a SoccerNet-calibration folder or zip (see :func:`read_sn_calibration`): each frame
     becomes a single-view system, calibrated in a process pool, reviewed for its calibration.
 
-    ``actor`` is the import's audit entry's (None: the local user).
+    ``actor`` is the import's audit entry's (None: the local user); ``source_name`` how it names the
+    input to non-admins (default: the path's last component).
 
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: _held([read_sn_calibration(path, width, height)]), actor)
+    return _run(session, path, settings, progress, lambda: _held([read_sn_calibration(path, width, height, settings.max_image_pixels)]), actor,
+                source_name)
 
 
 def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
-                         progress: Progress | None = None, *, actor: str | None = None) -> ImportReport:
+                         progress: Progress | None = None, *, actor: str | None = None,
+                         source_name: str | None = None) -> ImportReport:
     """Import a SoccerNet-v3D tree (see :func:`read_soccernet_v3d`). Calibrations are stored with
     source "imported" and not recomputed; admission, triangulation and optimised boxes are
     recomputed from them and from the ball labels of ``SNv3D.csv``.
 
-    ``actor`` is the import's audit entry's (None: the local user).
+    ``actor`` is the import's audit entry's (None: the local user); ``source_name`` how it names the
+    input to non-admins (default: the path's last component).
 
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path)), actor)
+    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path, settings.max_image_pixels)), actor,
+                source_name)

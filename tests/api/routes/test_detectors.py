@@ -94,3 +94,29 @@ def test_malformed_evaluation_requests_answer_the_declared_422(client, app, scen
                     headers={"Content-Type": "multipart/form-data; boundary=b"})
     assert r.status_code == 422, r.text
     assert r.json()["detail"][0]["loc"][0] == "body"
+
+
+def test_stats_and_box_evaluation_routes(client, scene, db_session):
+    """Issue 19: ``/api/stats`` (counts per kind and split, JaC sweep, distributions) and ``/api/evaluations/boxes``
+    (Table 1 against the stored precise boxes) answer what the services compute."""
+    from app.services.evaluation.boxes import evaluate_boxes
+    from app.services.evaluation.stats import dataset_stats
+
+    stats = client.get("/api/stats")
+    assert stats.status_code == 200, stats.text
+    body = stats.json()
+    assert body["kinds"]["soccernet-v3"]["images"] == 3 and body["kinds"]["soccernet-v3"]["systems"] == 1
+    assert len(body["jac_sweep"]) == 21 and set(body["distributions"]) == {
+        "jac", "pair_reprojection_error_px", "ball_distance_m", "box_size_px"}
+    frames = db_session.query(Frame).all()
+    for f in frames:
+        x1, y1, x2, y2 = f.ball_label.box
+        f.precise_box = [x1 + 1.0, y1 + 1.0, x2 - 1.0, y2 - 1.0]
+    db_session.commit()
+    boxes = client.get("/api/evaluations/boxes", params={"all": "true"})
+    assert boxes.status_code == 200, boxes.text
+    expected = evaluate_boxes(db_session, include_all=True)
+    assert boxes.json()["views"] == 3 and boxes.json()["original"] == pytest.approx(expected["original"])
+    assert 0 < boxes.json()["original"]["iou"] < 1
+    assert client.get("/api/evaluations/boxes").json()["views"] == 0  # nothing accepted
+    assert client.get("/api/stats").json() == json.loads(json.dumps(dataset_stats(db_session, client.app.state.settings)))

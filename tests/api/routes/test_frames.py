@@ -148,6 +148,13 @@ def test_put_field_lines_recalibrates_the_frame(client: TestClient, scene: Scene
     assert after["calibration"]["source"] == "computed"
     assert after["calibration"]["status"] in ("calibrated", "refused")
     assert set(after["field_lines"]) == set(lines)
+    u = after["calibration"]["uncertainty"]  # issue 17: the camera's standard deviations from the fit
+    if after["calibration"]["status"] == "calibrated":
+        assert set(u) == {"position_m", "pan_deg", "tilt_deg", "roll_deg", "focal_px", "line_noise_px", "points"}
+        assert set(u["position_m"]) == {"x", "y", "z"} and u["line_noise_px"] >= 1.0
+        assert u["points"] == sum(len(p) for polys in lines.values() for p in polys)
+    else:
+        assert u is None
 
 
 def test_post_mirror_fixes_a_view_flagged_mirrored(client: TestClient, scene: Scene, db_session: Session,
@@ -258,6 +265,26 @@ def test_frame_review_shows_in_the_view(client: TestClient, scene: Scene) -> Non
     assert bad.status_code == 422 and "status" in bad.text
 
 
+def test_calibration_review_beside_the_ball_review(client: TestClient, scene: Scene) -> None:
+    url = f"/api/frames/{scene.frame_ids[1]}"
+    assert _view(client, scene)["views"][1]["review"]["calibration"] == {
+        "status": "pending", "comment": "", "decided_at": None, "reset_reason": None}
+    etag = client.get(url).headers["etag"]
+    answer = client.post(f"{url}/calibration-review", json={"status": "rejected", "comment": "posts swapped"},
+                         headers={"If-Match": etag})
+    assert answer.status_code == 200 and answer.headers["etag"] != etag
+    body = answer.json()
+    assert body["status"] == "pending" and body["calibration"]["status"] == "rejected"
+    assert body["calibration"]["comment"] == "posts swapped" and body["calibration"]["decided_at"]
+    view = _view(client, scene)["views"][1]
+    assert view["review"]["calibration"]["status"] == "rejected" and view["etag"] == answer.headers["etag"]
+    stale = client.post(f"{url}/calibration-review", json={"status": "accepted"}, headers={"If-Match": etag})
+    assert stale.status_code == 412
+    bad = client.post(f"{url}/calibration-review", json={"status": "maybe"})
+    assert bad.status_code == 422 and "status" in bad.text
+    assert _view(client, scene)["views"][1]["review"]["calibration"]["status"] == "rejected"
+
+
 def test_frame_list_filters(client: TestClient, scene: Scene, db_session: Session) -> None:
     client.patch(f"/api/frames/{scene.frame_ids[2]}/ball", json={"box": [0.0, 0.0, 12.0, 12.0]})
     everything = client.get("/api/frames").json()
@@ -277,7 +304,7 @@ def test_frame_list_filters(client: TestClient, scene: Scene, db_session: Sessio
 @pytest.mark.parametrize(("method", "path", "body"), [
     ("get", "image", None), ("patch", "ball", {"box": None}), ("put", "field-lines", {"lines": {}}),
     ("post", "field-lines/mirror", None), ("post", "exclusion", {"excluded": True}),
-    ("post", "review", {"status": "accepted"}),
+    ("post", "review", {"status": "accepted"}), ("post", "calibration-review", {"status": "accepted"}),
 ])
 def test_frame_ids_beyond_the_id_column_are_422_naming_frame_id(client: TestClient, method: str, path: str,
                                                          body: dict | None) -> None:
@@ -287,7 +314,7 @@ def test_frame_ids_beyond_the_id_column_are_422_naming_frame_id(client: TestClie
     assert answer.json()["detail"][0]["loc"] == ["path", "frame_id"]
 
 
-@pytest.mark.parametrize("path", ["ball", "field-lines", "exclusion", "review"])
+@pytest.mark.parametrize("path", ["ball", "field-lines", "exclusion", "review", "calibration-review"])
 def test_a_body_that_is_not_utf8_json_is_422_naming_the_body(client: TestClient, scene: Scene, path: str) -> None:
     """Found by benchmarks/fuzz.py: FastAPI answered an undeclared 400 "There was an error parsing the body"."""
     method = {"ball": "PATCH", "field-lines": "PUT"}.get(path, "POST")

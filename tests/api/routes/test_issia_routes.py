@@ -70,6 +70,9 @@ def test_video_frame_image_at_annotation_size(client, issia):
     assert view["image_url"]
     r = client.get(view["image_url"])
     assert r.status_code == 200 and r.headers["content-type"] == "image/png"
+    # a frame v3d decoded and encoded itself, served inert like every image (issue 15, item 2)
+    assert r.headers["x-content-type-options"] == "nosniff" and r.headers["content-security-policy"] == "sandbox"
+    assert r.content[:8] == b"\x89PNG\r\n\x1a\n"
     img = cv2.imdecode(np.frombuffer(r.content, np.uint8), cv2.IMREAD_COLOR)
     assert img.shape == (1080, 1920, 3)  # the 960x540 video, resized to the labels' resolution
     assert img.std() > 5  # a real picture, not a blank
@@ -86,12 +89,25 @@ def test_point_edit_refits_and_export_zip(client, issia):
     assert r.status_code == 200, r.text
     doubts = [d for d in r.json()["doubts"] if d["kind"] == "ball_off_consensus"]
     assert [d["frame"] for d in doubts] == ["cam3"] and doubts[0]["suggestion"]["action"] == "snap_point"
+    # the suggestion carries the exact request its fix key sends; sent as it is, it fixes the label
+    req = doubts[0]["suggestion"]["request"]
+    point = [round(v) for v in doubts[0]["suggestion"]["point"]]
+    # snapped to where the trajectory projects, the label agrees by construction: it keeps its provenance (issue 18)
+    assert req == {"method": "PATCH", "path": f"/api/frames/{view['frame_id']}/ball",
+                   "body": {"point": point, "provenance": {"doubt": "ball_off_consensus", "code": "trajectory",
+                                                          "from_views": []}}}
+    fixed = client.request(req["method"], req["path"], json=req["body"])
+    assert fixed.status_code == 200, fixed.text
+    assert [d for d in fixed.json()["doubts"] if d["kind"] == "ball_off_consensus" and d["frame"] == "cam3"] == []
+    r = client.patch(f"/api/frames/{view['frame_id']}/ball", json={"point": [x + 80, y]})
+    assert r.status_code == 200, r.text
     t = client.get(f"/api/games/{traj['game_id']}/trajectory").json()
     assert t["frames"][20]["flagged"] == ["cam3"]
     r = client.get("/api/exports/issia-3d", params={"all": "true"})
     assert r.status_code == 200 and r.headers["x-v3d-rows"] == "25"
     with zipfile.ZipFile(io.BytesIO(r.content)) as zf:
-        assert sorted(n for n in zf.namelist() if not n.endswith("/")) == ["issia-dev/ISSIA-3D.csv", "issia-dev/split.json"]
+        assert sorted(n for n in zf.namelist() if not n.endswith("/")) == [
+            "issia-dev/ISSIA-3D.csv", *(f"issia-dev/calibration/cam{k}.json" for k in range(1, 7)), "issia-dev/split.json"]
         lines = zf.read("issia-dev/ISSIA-3D.csv").decode().splitlines()
     assert len(lines) == 26 and lines[0].startswith("frame,x_cam1,")
     assert client.get("/api/exports/issia-3d").headers["x-v3d-rows"] == "0"  # nothing accepted yet

@@ -94,7 +94,7 @@ def test_hostile_or_broken_uploads_are_refused_naming_the_member(jobs_app, clien
     slip = _upload(client, zipped({"l/s/g/Labels-v3.json": b"{}", "../../escape.json": b"{}"}))
     assert slip.status_code == 400 and "'../../escape.json'" in slip.json()["detail"], slip.text
     image = _upload(client, zipped({"l/s/g/Labels-v3.json": b"{}", "l/s/g/12.png": b"GIF89a not a png"}))
-    assert image.status_code == 400 and "l/s/g/12.png: named like an image but does not decode" in image.json()["detail"]
+    assert image.status_code == 400 and "l/s/g/12.png: not a PNG or JPEG image" in image.json()["detail"]
     notzip = _upload(client, b"just text")
     assert notzip.status_code == 400 and "not a readable zip" in notzip.json()["detail"]
     nofile = client.post("/api/imports", data={"kind": "soccernet-v3"}, files={"other": ("x", b"y")})
@@ -112,7 +112,8 @@ def test_full_recompute_and_export_jobs(jobs_app, client: TestClient, scene: Sce
     recompute = client.post("/api/recompute")
     assert recompute.status_code == 202 and recompute.json()["kind"] == "recompute"
     export = client.post("/api/exports/soccernet-v3d", json={"all": True})
-    assert export.status_code == 202 and export.json()["params"] == {"format": "soccernet-v3d", "all": True}
+    assert export.status_code == 202 and export.json()["params"] == {"format": "soccernet-v3d", "all": True,
+                                                                      "images": True}
     early = client.get(f"{export.json()['url']}/result")
     assert early.status_code == 409 and "queued" in early.json()["detail"]
     assert run_queued(jobs_app) == [recompute.json()["id"], export.json()["id"]]
@@ -146,3 +147,13 @@ def test_an_upload_whose_dataset_fails_is_removed(jobs_app, client: TestClient, 
     job = client.get(answer.json()["url"]).json()
     assert job["state"] == "failed" and "Labels-v3.json" in job["message"] and "width" in job["message"], job
     assert not folder.exists() and client.get("/api/games").json() == []
+
+
+@pytest.mark.parametrize("path", ["/api/jobs/{}", "/api/jobs/{}/result"])
+def test_job_ids_beyond_the_database_integers_are_422_naming_them(client: TestClient, path: str) -> None:
+    """Found by benchmarks/fuzz.py on PostgreSQL (issue 15): ``GET /api/jobs/206647351355/result`` reached the query,
+    which PostgreSQL refused (integer out of range): a 500."""
+    for job_id in (206647351355, -(2**31) - 1, 2**63):
+        answer = client.get(path.format(job_id))
+        assert answer.status_code == 422 and answer.json()["detail"][0]["loc"] == ["path", "job_id"], answer.text
+    assert client.get(path.format(2**31 - 1)).status_code == 404

@@ -153,7 +153,10 @@ def test_system_view_carries_the_ui_contract(client: TestClient, queue: dict[str
     scene = queue["exact"]
     view = client.get(f"/api/systems/{scene.system_id}").json()
     assert view["name"] == "2.png" and view["game"]["id"] == scene.game_id
-    assert view["review"] == {"status": "pending", "comment": "", "decided_at": None, "excluded": False}
+    assert view["review"] == {"status": "pending", "comment": "", "decided_at": None, "excluded": False,
+                              "reset_reason": None, "calibration": None}  # a system has no calibration decision
+    assert view["views"][0]["review"]["calibration"] == {"status": "pending", "comment": "", "decided_at": None,
+                                                         "reset_reason": None}
     np.testing.assert_allclose(view["ball3d"], BALL, atol=1e-6)
     tri = view["triangulation"]
     assert tri["status"] == "triangulated" and tri["tau_px"] == 20.0 and len(tri["pairs"]) == 3
@@ -352,3 +355,24 @@ def test_prev_and_next_follow_the_listed_order_for_every_sort(client: TestClient
     after = [i for i in full[full.index(sid) + 1:] if i in pending]
     assert view["prev_id"] == (before[-1] if before else None)
     assert view["next_id"] == (after[0] if after else None)
+
+
+def test_cursor_pages_follow_the_offset_pages(client: TestClient, queue: dict[str, Scene]) -> None:
+    """``after=next_cursor`` / ``before=prev_cursor`` walk the same pages as ``offset`` (every sort is
+    checked against the order in tests/services/test_queue_paging.py)."""
+    full = _ids(client.get("/api/systems", params={"sort": "name"}).json())
+    first = client.get("/api/systems", params={"sort": "name", "limit": 3}).json()
+    assert _ids(first) == full[:3] and first["prev_cursor"] is None and first["offset"] == 0
+    second = client.get("/api/systems", params={"sort": "name", "limit": 3, "after": first["next_cursor"]}).json()
+    assert _ids(second) == full[3:] and second["next_cursor"] is None and second["offset"] is None
+    back = client.get("/api/systems", params={"sort": "name", "limit": 3, "before": second["prev_cursor"]}).json()
+    assert _ids(back) == full[:3] and back["prev_cursor"] is None and back["next_cursor"] == first["next_cursor"]
+
+
+@pytest.mark.parametrize("field", ["after", "before"])
+def test_bad_cursors_are_422_naming_the_field(client: TestClient, queue: dict[str, Scene], field: str) -> None:
+    made = client.get("/api/systems", params={"sort": "name", "limit": 1}).json()["next_cursor"]
+    for cursor, says in ((made, "sort='name'"), ("garbage!", "not a queue cursor")):
+        answer = client.get("/api/systems", params={"sort": "-worst_error", field: cursor})
+        assert answer.status_code == 422
+        assert answer.json()["field"] == field and says in answer.json()["detail"]

@@ -1,0 +1,261 @@
+"""The words of doubts and mirror verdicts: one sentence per code, composed from the numbers the geometry returns.
+
+The geometry (``app.geometry.doubts``, ``app.geometry.mirror``) returns codes and numbers only; this module is
+the one place where they become sentences for people: the stored ``Doubt.message`` (the API's ``message``,
+the system page, ``v3d doubts --json``) and the ``sentence`` of a calibration's ``mirror_evidence``. Views are
+named by their image names (``names``: view id -> name).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Hashable, Mapping
+
+from app.geometry.doubts import Doubt as DoubtFinding
+from app.geometry.mirror import AMBIGUOUS, DIFFERENT, SAME, VERDICT_AS_LABELLED, VERDICT_MIRRORED
+
+Names = Mapping[Hashable, str]
+
+
+def _num(x: Any, nd: int = 0, unknown: str = "an unknown number of") -> str:
+    return unknown if not isinstance(x, (int, float)) or (isinstance(x, float) and math.isnan(x)) else f"{x:.{nd}f}"
+
+
+def _list(ids: Any, names: Names) -> str:
+    return ", ".join(names.get(i, str(i)) for i in (ids or []))
+
+
+def doubt_message(d: DoubtFinding, names: Names) -> str:
+    """One sentence with the numbers of the doubt ``d`` (its ``kind``, ``code`` and ``evidence``).
+
+    Args:
+        d: a doubt of ``app.geometry.doubts.judge_system`` (or of a kind's own judge, e.g. ISSIA's trajectory).
+        names: view id -> image name.
+
+    Raises:
+        KeyError: a kind/code pair this module has no sentence for (a new code must get its words here).
+    """
+    return _WRITERS[(d.kind, d.code)](d.evidence or {}, names.get(d.view_id, str(d.view_id)), names)
+
+
+def _refused(ev, v, n):
+    return f"{v} has no camera ({ev.get('reason') or 'no calibration'}), so its labels cannot be checked against the other views."
+
+
+def _below(ev, v, n):
+    jac = ev.get("jac")
+    return (f"{v} is calibrated with JaC@0.5 % {'unknown' if jac is None else f'{jac:.3f}'}, below admission, so its "
+            "labels are checked only as far as its calibration's uncertainty allows.")
+
+
+def _rig(ev, v, n):
+    return f"{v} was calibrated at a camera position of the game's rig (its lines alone did not fix the camera)."
+
+
+def _few(ev, v, n):
+    return (f"{v} has {ev.get('line_classes')} field-line classes (fewer than {ev.get('min_line_classes')}), "
+            "too few to fix its camera reliably.")
+
+
+_NO_FIX = {
+    "as_labelled_meets": "as labelled its ball ray meets another view's, mirrored it would not",
+    "no_ray_confirms": "no other view's ball confirms the mirrored camera",
+    "one_view_cannot_tell": "a single other view's ray meets it only mirrored, but one other view cannot tell which "
+                            "of the two is mirrored, and the game's rig does not place the mirrored camera at a known "
+                            "camera; a third view of the ball would tell",
+    "as_labelled_fits": "as labelled its ball label is closer ({as_} px at 1920 width) to the ball the other views agree "
+                        "on than mirrored ({mi} px), so the mirrored calibration and the ball do not agree better",
+    "mirrored_misses": "mirrored, its ball label would still be {mi} px (at 1920 width) from the ball the other views "
+                       "agree on",
+}
+
+
+def _mirror(ev, v, n, suspected: bool = False):
+    if suspected:
+        why = (f"no other view's ball ray meets its ray only as labelled, and mirrored its camera stands "
+               f"{_num(ev.get('rig_distance_mirrored_m'), 2)} m from a known camera of the game against "
+               f"{_num(ev.get('rig_distance_m'), 1)} m as labelled")
+    elif ev.get("refit"):
+        r = ev["refit"]
+        pos = ", ".join(_num(x) for x in r.get("position_m") or [])
+        why = (f"as labelled they calibrate no camera on the main camera's side; mirrored they do, at ({pos}) m, "
+               f"within {_num(r.get('rms_px'), 1)} px RMS" if r.get("source") == "lines" else
+               f"as labelled they fit no camera; mirrored they fit the game's camera position ({pos}) m within "
+               f"{_num(r.get('rms_px'), 1)} px RMS")
+    else:
+        margin = ev.get("margin")
+        why = "the mirror evidence flags it" + (f" (margin {margin:.1f})" if isinstance(margin, (int, float)) else "")
+    if ev.get("fix_agrees"):
+        if ev.get("error_mirrored_px_1920") is not None:
+            why += (f"; mirrored, its ball label is {_num(ev['error_mirrored_px_1920'])} px (at 1920 width) from the ball "
+                    f"the other views agree on, against {_num(ev.get('error_as_labelled_px_1920'), 0, 'more')} px as labelled")
+        return f"{v}'s field lines look labelled left for right: {why}."
+    no_fix = _NO_FIX.get(ev.get("no_fix"), "nothing confirms the mirrored camera").format(
+        as_=_num(ev.get("error_as_labelled_px_1920")), mi=_num(ev.get("error_mirrored_px_1920"), 0, "an unknown number of"))
+    return f"{v}'s field lines look labelled left for right: {why}; no fix is offered: {no_fix}."
+
+
+def _off(ev, v, n):
+    sig = ev.get("calibration_sigma_px_1920") or 0
+    tol = f"tolerance {_num(ev.get('tau_px'))} px" + (f", its calibration's own uncertainty {_num(sig)} px" if sig > (ev.get("tau_px") or 0) - 1e-9 and sig else "")
+    return (f"{v}'s ball label is {_num(ev.get('error_px_1920'))} px (at 1920 width) away from the ball that "
+            f"{_list(ev.get('agreeing_views'), n)} agree on ({tol}).")
+
+
+def _behind(ev, v, n):
+    return (f"{v}'s ball label is behind the camera seen from the ball that {_list(ev.get('agreeing_views'), n)} agree on "
+            f"(tolerance {_num(ev.get('tau_px'))} px).")
+
+
+def _trajectory(ev, v, n):
+    res = ev.get("residual_px_1920")
+    far = "an unknown distance" if res is None else f"{res:.0f} px (at 1920 width)"
+    return (f"{v}'s ball label at frame {ev.get('frame_index')} is {far} from where the sequence's ball trajectory "
+            f"projects ({ev.get('source') or 'no'} position); it breaks the trajectory.")
+
+
+def _missing(ev, v, n):
+    p = ev.get("projected_px") or [math.nan, math.nan]
+    return (f"{v} has no ball label, but the ball that {_list(ev.get('agreeing_views'), n)} agree on projects inside "
+            f"it at ({_num(p[0])}, {_num(p[1])}) px.")
+
+
+def _missing_epipolar(ev, v, n):
+    other = _list(ev.get("agreeing_views"), n)
+    g = ev.get("grass_px") or [math.nan, math.nan]
+    frac = ev.get("inside_fraction")
+    where = "if it is on the grass, as its box size says" if ev.get("placed") == "grass" else "at the depth its box size gives"
+    return (f"{v} has no ball label, but the ball of {other} lies on that view's ray, inside {v} at ({_num(g[0])}, "
+            f"{_num(g[1])}) px {where}, and "
+            f"{'wholly' if frac == 1 else f'{_num(100 * frac if frac is not None else None)} % of it'} inside {v} over "
+            f"the depths its box size allows (a chance of {_num(100 * (ev.get('inside_chance') or 0))} % that the ball is inside) (the segment drawn, {_num(ev.get('segment_length_px_1920'))} px at 1920 "
+            f"width); its height is unknown with only {other} labelled, so no box is suggested: place the label on the "
+            f"segment.")
+
+
+def _missing_epipolar_box(ev, v, n):
+    other = _list(ev.get("agreeing_views"), n)
+    p = ev.get("projected_px") or [math.nan, math.nan]
+    return (f"{v} has no ball label, but the ball of {other} lies on that view's ray, whose stretch over the depths its box "
+            f"size allows lies inside {v} and is short ({_num(ev.get('segment_length_px_1920'))} px at 1920 width): the box "
+            f"suggested at ({_num(p[0])}, {_num(p[1])}) px, on the grass, is a guess along it, not evidence, until a "
+            f"person places it.")
+
+
+def _disagree(ev, v, n):
+    names = _list(ev.get("views"), n)
+    best = ev.get("best_pair_error_px_1920")
+    miss = "their rays diverge or meet where no ball can be" if best is None else f"best pair misses by {best:.0f} px at 1920 width"
+    decide = ("a third view of the ball" if ev.get("third_view") else "another view of the ball") + \
+        " or a check of the replays' timing would tell which label is wrong"
+    return f"The ball labels of {names} cannot all be right ({miss}, tolerance {_num(ev.get('tau_px'))} px); {decide}."
+
+
+def _disagree_epipolar(ev, v, n):
+    names = _list(ev.get("views"), n)
+    decide = ("a third view of the ball" if ev.get("third_view") else "another view of the ball") + \
+        " or a check of the replays' timing would tell which label is wrong"
+    return (f"The ball labels of {names} cannot all be right: their cameras are too close in direction to triangulate, "
+            f"but each label lies at least {_num(ev.get('best_pair_error_px_1920'))} px (at 1920 width) from the other "
+            f"view's ray across the play volume (tolerance {_num(ev.get('tau_px'))} px); {decide}.")
+
+
+def _near_dup(ev, v, n):
+    return (f"{v} sees the ball from nearly the same place as {n.get(ev.get('other_view'), ev.get('other_view'))} (their "
+            f"cameras are {ev.get('angle_deg', 0):.2f} deg apart seen from the ball, {ev.get('baseline_m', 0):.1f} m apart), "
+            "so it adds no depth.")
+
+
+_WRITERS: dict[tuple[str, str], Callable[[dict, str, Names], str]] = {
+    ("calibration_refused", "refused"): _refused,
+    ("below_admission", "below_admission"): _below,
+    ("rig_assisted", "rig_assisted"): _rig,
+    ("few_lines", "few_lines"): _few,
+    ("suggested_label", "unconfirmed"): lambda ev, v, n: (
+        f"{v}'s ball label was suggested by a doubt and no person has placed it yet: it makes no 3D ball and confirms "
+        "nothing until someone moves or confirms it on the image."),
+    ("mirrored_labels", "flagged"): _mirror,
+    ("mirrored_labels", "suspected"): lambda ev, v, n: _mirror(ev, v, n, suspected=True),
+    ("ball_off_consensus", "off_consensus"): _off,
+    ("ball_off_consensus", "behind_camera"): _behind,
+    ("ball_off_consensus", "trajectory"): _trajectory,
+    ("ball_missing", "consensus"): _missing,
+    ("ball_missing", "epipolar"): _missing_epipolar,
+    ("ball_missing", "epipolar_box"): _missing_epipolar_box,
+    ("views_disagree", "no_agreement"): _disagree,
+    ("views_disagree", "ambiguous"): _disagree,
+    ("views_disagree", "epipolar"): _disagree_epipolar,
+    ("near_duplicate_view", "near_duplicate"): _near_dup,
+}
+
+
+def _miss(error: float | None, other: str) -> str:
+    """How a ray misses another (``other`` names it): by how many px, or behind a camera."""
+    if error is None:
+        return f"meets {other} only behind a camera"
+    return f"misses {other} by {error:.0f} px"
+
+
+def _fmt(v: float | None) -> str:
+    return "-" if v is None else f"{v:.0f}"
+
+
+def mirror_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | frozenset = frozenset()) -> str:
+    """The sentence of one view's mirror verdict (``MirrorVerdict.as_dict()``): the evidence for mirroring first,
+    then the evidence against it ("against: ..."); a pair with a view that is itself flagged (``flagged``: ids)
+    says so. A verdict of ``app.geometry.mirror.mirrored_fit_at_rig`` (``refit``) states the fit."""
+    refit = verdict.get("refit")
+    if refit and refit.get("source") == "lines":
+        pos = ", ".join(_num(x) for x in refit.get("position_m") or [])
+        return (f"Labels probably mirrored: as labelled they calibrate no camera on the main camera's side; mirrored, "
+                f"they calibrate with the camera at ({pos}) m within {_num(refit.get('rms_px'), 1)} px RMS.")
+    if refit:
+        pos = ", ".join(_num(x) for x in refit.get("position_m") or [])
+        y = verdict.get("camera_y_m")
+        side = (f"; as labelled the camera would stand at y = {y:+.0f} m, beyond the far side line for a main camera"
+                if verdict.get("side_vote") == 1 and isinstance(y, (int, float)) else "")
+        return (f"Labels probably mirrored: as labelled they fit no camera position of the game; mirrored, they fit the "
+                f"position ({pos}) m within {_num(refit.get('rms_px'), 1)} px RMS{side}.")
+    pro: list[str] = []  # evidence that this view's labels are mirrored
+    con: list[str] = []  # evidence that they are right
+    y = float(verdict.get("camera_y_m") or 0.0)
+    side, rig = verdict.get("side_vote"), verdict.get("rig_vote")
+    d, dm = verdict.get("rig_distance_m"), verdict.get("rig_distance_mirrored_m")
+    if side == 1:
+        pro.append(f"the camera stands at y = {y:+.0f} m, beyond the far side line for a main camera "
+                   f"(mirrored: y = {-y:+.0f} m)")
+    elif side == -1:
+        con.append(f"the camera stands at y = {y:+.0f} m, on the main camera's side")
+    if rig == 1:
+        pro.append(f"its mirror image is {_num(dm, 1)} m from a camera position of the game, the camera "
+                   f"itself {_num(d)} m from any")
+    elif rig == -1:
+        con.append(f"the camera is {_num(d, 1)} m from a camera position of the game, its mirror image "
+                   f"{_num(dm)} m from any")
+    for p in verdict.get("pairs") or []:
+        other = names.get(p.get("other"), str(p.get("other")))
+        note = f" (view {other} is itself flagged)" if p.get("other") in flagged else ""
+        rel = p.get("relation")
+        if rel == DIFFERENT:
+            (con if note else pro).append(
+                f"as labelled its ball ray {_miss(p.get('error_as_labelled_px'), f'the ray of view {other}')}, mirrored it "
+                f"meets it within {_fmt(p.get('error_mirrored_px'))} px{note}")
+        elif rel == SAME:
+            (pro if note else con).append(
+                f"as labelled its ball ray meets the ray of view {other} within "
+                f"{_fmt(p.get('error_as_labelled_px'))} px, mirrored it {_miss(p.get('error_mirrored_px'), 'it')}{note}")
+        elif rel == AMBIGUOUS:
+            con.append(f"with view {other} the ball is too near the centre spot to tell")
+    v = verdict.get("verdict")
+    head = {VERDICT_MIRRORED: "Labels probably mirrored", VERDICT_AS_LABELLED: "Labels as given agree with the evidence"
+            }.get(v, "Mirroring undecided")
+    first, second = (con, pro) if v == VERDICT_AS_LABELLED else (pro, con)
+    if not first and not second:
+        return head + ": no evidence either way."
+    text = head + ": " + ("; ".join(first) if first else "nothing for it")
+    return text + ("; against: " + "; ".join(second) if second else "") + "."
+
+
+def with_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | frozenset = frozenset()) -> dict[str, Any]:
+    """``verdict`` (a ``MirrorVerdict.as_dict()``) with its ``sentence`` (:func:`mirror_sentence`): what a
+    calibration's ``mirror_evidence`` stores."""
+    return {**verdict, "sentence": mirror_sentence(verdict, names, flagged)}

@@ -1,0 +1,59 @@
+"""``?`` on the system page and the queue: an overlay (``data-testid="keys-help"``) listing every key,
+drawn from the one table the page's key handler reads (static/js/keys.js), like the system page's key
+card, so the overlay, the card and the handler cannot drift."""
+from __future__ import annotations
+
+import pytest
+
+from tests.browser.support import api_json as _api
+from tests.browser.support import tid
+
+pytestmark = pytest.mark.browser
+
+
+def _rows(page, selector: str) -> list[str]:
+    """The (keys, what) rows of a key grid, as text."""
+    return page.eval_on_selector(selector, "(g) => { const c = [...g.children].map((n) => n.textContent.trim());"
+                                           " const out = []; for (let i = 0; i < c.length; i += 2) out.push(c[i] + ' = ' + c[i + 1]);"
+                                           " return out; }")
+
+
+def test_question_mark_lists_every_key_of_the_system_page(page, artifacts):
+    first = _api(page, "/api/systems?sort=name&limit=1")["items"][0]["id"]
+    page.goto(f"/systems/{first}?sort=name")
+    page.locator(tid("view")).first.wait_for()
+    help_ = page.locator(tid("keys-help"))
+    assert not help_.is_visible()
+    page.keyboard.press("?")
+    help_.wait_for(state="visible")
+    page.screenshot(path=str(artifacts / "keys-help-system.png"))
+    listed = _rows(page, "[data-testid=keys-help] .keys-grid")
+    card = _rows(page, "[data-testid=keys]")
+    assert listed[:-1] == card[:-1] and listed[-1] == "? = this list of keys"
+    for row in ("a = accept, next system", "j = next system", "1…9 = select a view",
+                "Del = no ball in this view (remove its label)", "m = apply mirrored labels (selected flagged view, or the only one)"):
+        assert row in listed, row
+    # the page's keys wait while the list is open; ? closes it, Esc too
+    page.keyboard.press("j")
+    assert page.url.endswith(f"/systems/{first}?sort=name")
+    page.keyboard.press("?")
+    help_.wait_for(state="hidden")
+    page.keyboard.press("?")
+    help_.wait_for(state="visible")
+    page.keyboard.press("Escape")
+    help_.wait_for(state="hidden")
+
+
+def test_question_mark_lists_the_queue_keys(page, artifacts):
+    page.goto("/")
+    page.locator(tid("queue-row")).first.wait_for()
+    page.keyboard.press("?")
+    page.locator(tid("keys-help")).wait_for(state="visible")
+    listed = _rows(page, "[data-testid=keys-help] .keys-grid")
+    assert listed == ["j / ↓ = next row", "k / ↑ = previous row", "Enter = open the selected system", "n = next page",
+                      "p = previous page", "/ = filters (Esc to leave)", "? = this list of keys"]
+    page.screenshot(path=str(artifacts / "keys-help-queue.png"))
+    page.keyboard.press("Escape")
+    page.locator(tid("keys-help")).wait_for(state="hidden")
+    page.keyboard.press("j")  # the keys work again
+    assert page.locator(tid("queue-row")).nth(1).get_attribute("class") == "selected"

@@ -1,0 +1,146 @@
+"""The review queue's pages (``app.services.curation.queue.list_systems``): by offset and by cursor, for
+every sort and the filters, against the order computed here from the stored figures (NULLs last, ties by
+id in the sort's direction, names in numeric order within a game)."""
+from __future__ import annotations
+
+import random
+from typing import Any, Optional
+
+import pytest
+from sqlalchemy.orm import Session
+
+from app.core.errors import InvalidInputError
+from app.db.models import Doubt, Game, ReviewStatus, System, SystemKind
+from app.services.curation import queue
+from app.services.curation.queue import SystemFilters
+
+SORTS = ["-doubts", "doubts", "-worst_error", "worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
+FILTERS = {
+    "none": SystemFilters(),
+    "pending": SystemFilters(status=ReviewStatus.PENDING),
+    "error_min": SystemFilters(error_min=2.0),
+    "doubt_any": SystemFilters(doubt="any"),
+    "doubt_kind": SystemFilters(doubt="ball_off_consensus"),
+}
+
+
+@pytest.fixture
+def many(db_session: Session) -> list[System]:
+    """61 systems in three games with ties and NULLs in every sort key (seed 5): doubts 0-2, errors
+    from a set of 6 values or NULL, JaC from 5 values or NULL, a quarter reviewed."""
+    rng = random.Random(5)
+    games = [Game(league="england_epl", season="2014-2015", match=m, source_path="/nowhere")
+             for m in ("b match", "a match", "c match")]
+    db_session.add_all(games)
+    db_session.flush()
+    systems = []
+    numbers = rng.sample(range(1, 200), 61)  # digits only: PostgreSQL's collation orders them as Python does
+    for i in range(61):
+        s = System(game_id=games[i % 3].id, name=f"{numbers[i]}.png", kind=SystemKind.SOCCERNET_V3,
+                   label_doubts=rng.choice([0, 0, 1, 2]),
+                   worst_error_px=rng.choice([None, 0.5, 1.25, 2.0, 3.5, 3.5, 9.0]),
+                   lowest_jac=rng.choice([None, 0.6, 0.8, 0.8, 0.95]),
+                   review_status=rng.choice([ReviewStatus.PENDING] * 3 + [ReviewStatus.ACCEPTED]))
+        systems.append(s)
+    db_session.add_all(systems)
+    db_session.flush()
+    for s in systems[::4]:
+        db_session.add(Doubt(system_id=s.id, kind="ball_off_consensus", accuses_label=True, message="test"))
+    db_session.flush()
+    return systems
+
+
+def _expected(db_session: Session, systems: list[System], sort: str, filters: SystemFilters) -> list[int]:
+    """The queue's order computed in Python from the rows."""
+    doubted = {d.system_id for d in db_session.query(Doubt).filter(Doubt.kind == "ball_off_consensus")}
+    rows = [s for s in systems if (filters.status is None or s.review_status == filters.status)
+            and (filters.error_min is None or (s.worst_error_px is not None and s.worst_error_px >= filters.error_min))
+            and (filters.doubt != "any" or s.label_doubts > 0)
+            and (filters.doubt != "ball_off_consensus" or s.id in doubted)]
+    desc = sort.startswith("-")
+    key = sort.lstrip("-")
+    games = {g.id: g for g in db_session.query(Game)}
+
+    def nulls_last(v: Optional[float], descending: bool) -> tuple[int, float]:
+        return (1, 0.0) if v is None else (0, -v if descending else v)
+
+    def sort_key(s: System) -> Any:
+        sign = -1 if desc else 1
+        if key == "doubts":
+            return (sign * s.label_doubts, nulls_last(s.worst_error_px, True), sign * s.id)
+        col = s.worst_error_px if key == "worst_error" else s.lowest_jac
+        return (nulls_last(col, desc), sign * s.id)
+
+    if key == "name":
+        def name_key(s: System) -> Any:
+            g = games[s.game_id]
+            return (g.league, g.season, g.match, len(s.name), s.name, s.id)
+        return [s.id for s in sorted(rows, key=name_key, reverse=desc)]
+    return [s.id for s in sorted(rows, key=sort_key)]
+
+
+@pytest.mark.parametrize("sort", SORTS)
+@pytest.mark.parametrize("which", list(FILTERS))
+def test_offset_and_cursor_pages_walk_the_same_order(db_session: Session, many: list[System], sort: str,
+                                                     which: str) -> None:
+    filters = FILTERS[which]
+    expected = _expected(db_session, many, sort, filters)
+    assert expected, "the fixture gives every filter some rows"
+    whole = queue.list_systems(db_session, filters, sort, limit=500)
+    assert [s.id for s in whole.items] == expected and whole.total == len(expected)
+    assert whole.next_cursor is None and whole.prev_cursor is None
+    # by offset, 7 a page
+    by_offset = [queue.list_systems(db_session, filters, sort, limit=7, offset=o) for o in range(0, len(expected), 7)]
+    assert [s.id for p in by_offset for s in p.items] == expected
+    assert queue.list_systems(db_session, filters, sort, limit=7, offset=len(expected)).items == []
+    # forwards by next_cursor, from the first page
+    page, forwards, pages = queue.list_systems(db_session, filters, sort, limit=7), [], []
+    while True:
+        pages.append(page)
+        forwards += [s.id for s in page.items]
+        if page.next_cursor is None:
+            break
+        page = queue.list_systems(db_session, filters, sort, limit=7, after=page.next_cursor)
+    assert forwards == expected
+    assert pages[0].prev_cursor is None and all(p.prev_cursor for p in pages[1:])
+    assert [[s.id for s in p.items] for p in pages] == [[s.id for s in p.items] for p in by_offset]
+    # backwards by prev_cursor, from the last page
+    page, backwards = pages[-1], []
+    while True:
+        backwards = [s.id for s in page.items] + backwards
+        if page.prev_cursor is None:
+            break
+        page = queue.list_systems(db_session, filters, sort, limit=7, before=page.prev_cursor)
+        assert page.next_cursor is not None
+    assert backwards == expected
+    # a cursor is a place in the order: after the 10th row, skipping 3 more
+    tenth = queue.list_systems(db_session, filters, sort, limit=10)
+    if tenth.next_cursor:
+        assert [s.id for s in queue.list_systems(db_session, filters, sort, limit=5, offset=3,
+                                                 after=tenth.next_cursor).items] == expected[13:18]
+
+
+def test_a_cursor_made_under_other_filters_still_places_the_page(db_session: Session, many: list[System]) -> None:
+    sort = "-worst_error"
+    first = queue.list_systems(db_session, SystemFilters(), sort, limit=20)
+    pending = _expected(db_session, many, sort, FILTERS["pending"])
+    whole = _expected(db_session, many, sort, FILTERS["none"])
+    after = [i for i in whole[20:] if i in pending]
+    page = queue.list_systems(db_session, FILTERS["pending"], sort, limit=500, after=first.next_cursor)
+    assert [s.id for s in page.items] == after
+
+
+@pytest.mark.parametrize(("cursor", "message"), [
+    ("not-a-cursor", "not a queue cursor"),
+    (queue.encode_cursor("name", ("a", "b", "c", 1, "x", 3)), "sort='name'"),
+    (queue.encode_cursor("-worst_error", (1.0,)), "not a queue cursor"),
+    (queue.encode_cursor("-worst_error", (1.0, "7")), "system id"),
+])
+def test_bad_cursors_are_refused_naming_the_field(db_session: Session, many: list[System], cursor: str,
+                                                  message: str) -> None:
+    for field in ("after", "before"):
+        with pytest.raises(InvalidInputError, match=message) as err:
+            queue.list_systems(db_session, SystemFilters(), "-worst_error", **{field: cursor})
+        assert err.value.field == field
+    with pytest.raises(InvalidInputError, match="not both"):
+        queue.list_systems(db_session, SystemFilters(), "-worst_error", after=cursor, before=cursor)
