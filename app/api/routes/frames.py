@@ -32,6 +32,11 @@ from app.services.curation.versions import expected_versions, frame_etag
 AUDIT_ENTRY_HEADER = "X-V3D-Audit-Entry"
 #: OpenAPI ``responses`` of the frame's edits.
 EDIT_RESPONSES = {**NOT_FOUND, **INVALID, **PRECONDITIONS}
+#: The mirror guard: the mirrored calibration would bring the view's ball label no closer to the others' 3D ball.
+MIRROR_REFUSED = {409: {"model": ErrorOut, "description": "Not applied: with the mirrored calibration the view's "
+                                                          "ball label comes no closer to the ball the other views "
+                                                          "agree on (the message gives both distances); nothing "
+                                                          "changed."}}
 
 #: Frame edits (ball, field lines, mirror, exclusion, per-view review) need the annotator role.
 router = APIRouter(prefix="/frames", tags=["frames"], dependencies=[Depends(require_role("annotator"))])
@@ -138,12 +143,14 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     return _edited(session, frame.id, response, query)
 
 
-@router.post("/{frame_id}/field-lines/mirror", response_model=SystemView, responses=EDIT_RESPONSES)
+@router.post("/{frame_id}/field-lines/mirror", response_model=SystemView,
+             responses={**EDIT_RESPONSES, **MIRROR_REFUSED})
 def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
                        frame: FrameDep, query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
     """Replace the frame's field lines by their mirrored labelling (left <-> right, top <-> bottom),
     recalibrate it, and answer the recomputed system view: the fix offered for a view flagged
-    ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines.
+    ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines; 409 when the mirror
+    guard refuses the mirrored calibration (nothing is stored then).
     """
     editing.apply_mirrored_labels(session, frame.id, settings=settings, actor=principal.name,
                                   expected=expected_versions(if_match, "frame", frame.id))
