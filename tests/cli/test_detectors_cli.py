@@ -61,7 +61,7 @@ def test_exported_labels_as_predictions_give_ap_1(dev):
     rep = json.loads(out.read_text())
     assert set(rep) == {"AP50", "MAE_m", "MAE_pct", "P_2m", "curve", "counts", "splits", "cameras"}
     assert rep["AP50"] == 1.0
-    assert rep["counts"]["localised"] == rep["counts"]["reference_views"] >= 60  # measured 64
+    assert rep["counts"]["localised"] == rep["counts"]["reference_views"] >= 50  # measured 55 (64 before weak calibrations were outweighed, issue 18)
     assert rep["MAE_pct"] < 0.5  # measured 0.05 %: the views that made each 3D ball agree with it
     assert all(s["AP50"] == 1.0 for s in rep["splits"].values())
 
