@@ -32,7 +32,7 @@ from typing import Any, Callable, Iterable, Optional
 
 import numpy as np
 
-from app.datasets.files import MAX_IMAGE_PIXELS, dataset_root, file_image_header, inside_dataset
+from app.datasets.files import MAX_IMAGE_PIXELS, dataset_root, file_image_header, inside_dataset, read_text_file
 from app.geometry.annotations import AnnotationError, FieldLines, from_soccernet_calibration
 from app.geometry.camera import Camera
 from app.core.errors import DatasetError
@@ -44,6 +44,8 @@ FPS = 25.0
 CALIBRATION_FILE, LINES_FILE, POINTS_FILE = "issia_calibration.json", "issia_lines.json", "ball_points.csv"
 #: The authors' released labels, read in place of :data:`POINTS_FILE` when that is absent.
 RELEASED_POINTS_FILE = "ISSIA-3D.csv"
+#: Largest CSV a sequence may carry: a frame is a row of a few hundred bytes, so an hour at 25 fps is ~20 MB.
+MAX_CSV_BYTES = 64 * 1024 * 1024
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
@@ -197,13 +199,25 @@ def _read_json_object(path: Path) -> dict[str, Any]:
     return {str(k): v for k, v in data.items()}
 
 
-def _read_points(path: Path) -> tuple[tuple[str, ...], tuple[int, ...], np.ndarray]:
+def _csv_rows(path: Path) -> list[list[str]]:
+    """The rows of one of a sequence's CSV files (``ball_points.csv``, a released ``ISSIA-3D.csv``), at most
+    :data:`MAX_CSV_BYTES`.
+
+    Raises:
+        DatasetError: naming ``path``: missing, too large, not UTF-8, not CSV, or empty.
+    """
+    text = read_text_file(path, MAX_CSV_BYTES, "CSV")
     try:
-        rows = list(csv.reader(io.StringIO(path.read_text(encoding="utf-8"))))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:
         raise DatasetError(path, None, f"not a readable CSV: {exc}") from exc
     if not rows:
         raise DatasetError(path, None, "empty file")
+    return rows
+
+
+def _read_points(path: Path) -> tuple[tuple[str, ...], tuple[int, ...], np.ndarray]:
+    rows = _csv_rows(path)
     header = [c.strip() for c in rows[0]]
     ids = []
     if not header or header[0] != "frame" or len(header) < 3 or len(header) % 2 == 0:
@@ -273,12 +287,7 @@ def read_released_points(path: Path) -> tuple[tuple[str, ...], tuple[int, ...], 
         DatasetError: unreadable file, no ``x_camK``/``y_camK`` pair, a coordinate without the other, cells
             that are not finite numbers, frames not increasing (the message names row and column).
     """
-    try:
-        rows = list(csv.reader(io.StringIO(path.read_text(encoding="utf-8-sig"))))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise DatasetError(path, None, f"not a readable CSV: {exc}") from exc
-    if not rows:
-        raise DatasetError(path, None, "empty file")
+    rows = _csv_rows(path)
     header = [c.strip() for c in rows[0]]
     col = {name: i for i, name in enumerate(header)}
     ids = [m.group(1) for h in header if (m := re.fullmatch(r"x_cam(\w+)", h))]

@@ -56,6 +56,25 @@ def test_malformed_points_csv_names_file_and_field(tmp_path, text, field):
     assert exc.value.field == field and "ball_points.csv" in str(exc.value)
 
 
+@pytest.mark.parametrize("text, message", [
+    ("", "empty file"),
+    (b"\xff\xfe" + "frame".encode("utf-16-le"), "not a readable CSV"),
+    ("\ufeff" + HEADER + "\n0,,,,,980.5,326.0,,,,,,\n", None),  # a BOM is dropped
+    (HEADER + "\n" + "0,,,,,,,,,,,,\n" * 200, "larger than 2000 bytes"),
+])
+def test_points_csv_is_read_within_bounds(tmp_path, monkeypatch, text, message):
+    monkeypatch.setattr("app.datasets.issia.MAX_CSV_BYTES", 2000)
+    folder = make_folder(tmp_path)
+    path = folder / "ball_points.csv"
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    if message is None:
+        assert read_issia(folder).point(0, "3") == (980.5, 326.0)
+        return
+    with pytest.raises(DatasetError, match=message) as exc:
+        read_issia(folder)
+    assert "ball_points.csv" in str(exc.value)
+
+
 def test_missing_and_unknown_cameras(tmp_path):
     seq = read_issia(make_folder(tmp_path / "a", cameras=(1, 2, 3, 4, 5)))
     choice = sequence_cameras(seq)
