@@ -345,7 +345,8 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
     """Best camera from one family of starts.
 
     ``stage="homography"``: the closed-form cameras of the candidate ground homographies (the
-    look-at starts too when there is none); ``stage="look-at"``: the look-at starts only. With a
+    look-at starts too when there is none); ``stage="look-at"``: the look-at starts only;
+    ``stage="anchors"``: look-at starts at the learned prior's anchors (``prior.camera_prior``). With a
     known centre (rig prior) only fixed-centre fits are made.
     """
     pp = principal_point(width, height)
@@ -386,17 +387,26 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         return best
 
     # Look-at starts: a pan-tilt-zoom fit at each plausible centre (cheap, 4 parameters), then the
-    # free refinement of the best two.
+    # free refinement of the best two. The learned anchors (stage "anchors"): the best
+    # ANCHOR_STARTS of them by the look-at start's robust cost.
     budget.lookat_done = True
-    ptz: list[_Candidate] = []
-    for centre in START_CENTRES_M:
-        c0 = np.asarray(centre, dtype=float)
+    centres = [np.asarray(c, dtype=float) for c in START_CENTRES_M]
+    if stage == "anchors":
+        centres = [np.asarray(c, dtype=float) for c in prior.camera_prior.anchors_m]  # type: ignore[union-attr]
+    starts_ptz: list[tuple[str, CameraParametrisation, np.ndarray]] = []
+    for c0 in centres:
         try:
             R0 = look_at_rotation(c0, target)
         except ValueError:
             continue
         fixed = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=c0)
-        cand = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", budget, max_iter=8)
+        starts_ptz.append((f"start {tuple(c0.tolist())}", fixed, fixed.vector(1.5 * width, c0)))
+    if stage == "anchors" and starts_ptz:
+        costs = _start_costs([x0 for _, _, x0 in starts_ptz], [q for _, q, _ in starts_ptz], obs, scale)
+        starts_ptz = [starts_ptz[i] for i in np.argsort(costs, kind="stable")[:ANCHOR_STARTS]]
+    ptz: list[_Candidate] = []
+    for name, fixed, x0 in starts_ptz:
+        cand = _fit(x0, obs, fixed, scale, name, budget, max_iter=8)
         if cand is not None:
             ptz.append(cand)
     ptz.sort(key=lambda c: c.cost)
@@ -407,6 +417,10 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
             break
     return best
 
+
+#: Anchors of a learned prior refined as look-at starts (the best by the start's robust cost) when
+#: no other start fits the labels.
+ANCHOR_STARTS = 6
 
 #: Focal length hypotheses (multiples of the image width) of a camera with a known centre: from a
 #: wide view (0.5 W, about 90 degrees across) to a tight zoom (8 W, about 7 degrees), geometric steps.
@@ -678,6 +692,14 @@ def _calibrate(
                 if other is not None and (best is None or other.cost < best.cost):
                     best = other
         centre_prior = None
+        if (not fixed and prior is not None and prior.camera_prior is not None and prior.camera_prior.anchors_m
+                and _worst(best, fit_obs) > limit):
+            # No start fitted the labels: the learned camera positions are starts too.
+            anchor_budget = _Budget(settings.max_evaluations)
+            other = polish(_search(obs, width, height, prior, settings, anchor_budget, stage="anchors"), anchor_budget)
+            if other is not None and _worst(other, obs) <= limit:
+                best, fit_obs = other, obs
+                flags[:] = [f for f in flags if not f.startswith("ignored_class:")]
         if best is not None and not fixed and prior is not None and prior.camera_prior is not None:
             best, centre_prior = _with_camera_prior(best, fit_obs, prior.camera_prior, scale, limit, settings)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
