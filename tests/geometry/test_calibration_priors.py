@@ -90,9 +90,10 @@ def test_anchor_order_follows_the_fits_covariance() -> None:
     assert np.allclose(rows.whitening, 5.0 * np.eye(3)) and rows.roll_weight == pytest.approx(1.5 / np.radians(0.4))
 
 
-def _prior_at(centre, std=0.3) -> CalibrationPrior:
+def _prior_at(centre, std=0.3, confident_std_m=0.0) -> CalibrationPrior:
     return CalibrationPrior(camera_prior=CameraPrior(anchors_m=(tuple(float(v) for v in centre),), anchor_std_m=(std,),
-                                                     anchor_frames=(10,), roll_std_deg=0.4, confident_fits=10))
+                                                     anchor_frames=(10,), roll_std_deg=0.4, confident_fits=10,
+                                                     confident_std_m=confident_std_m))
 
 
 def test_map_fit_settles_an_under_determined_camera_at_the_learned_position() -> None:
@@ -132,3 +133,18 @@ def test_map_fit_hardly_moves_a_camera_the_lines_fix() -> None:
     moved = np.linalg.norm(fitted.camera.C - free.camera.C)
     assert moved < 0.2  # ~ s_fit^2 / (s_fit^2 + s_a^2) of the 1.5 m offset, s_fit ~0.13 m per axis
     assert np.linalg.norm(free.camera.C - truth.C) < 0.3
+
+
+def test_a_fit_as_sure_as_the_confident_ones_is_left_as_the_lines_have_it() -> None:
+    # The JaC guard: the prior was learned from fits whose position std is at or below
+    # confident_std_m; a fit that sure of its centre is not moved (no MAP fit, no flag).
+    truth = _camera((-20.0, 55.0, -16.0), target=(-35.0, 0.0, 0.0), focal=700.0)
+    lines = _lines(truth, noise_px=1.0, seed=1)
+    free = calibrate_frame(lines, W, H, compute_jac=False)
+    std = calibration_uncertainty(free.camera, lines).position_std_m
+    offset = truth.C + np.array([0.0, 1.0, -1.1])
+    kept = calibrate_frame(lines, W, H, prior=_prior_at(offset, std=0.5, confident_std_m=1.5 * std), compute_jac=False)
+    assert PRIOR_FLAG not in kept.flags and kept.centre_prior is None
+    assert np.array_equal(kept.camera.C, free.camera.C)
+    moved = calibrate_frame(lines, W, H, prior=_prior_at(offset, std=0.5, confident_std_m=0.5 * std), compute_jac=False)
+    assert PRIOR_FLAG in moved.flags

@@ -104,9 +104,10 @@ class CalibrationPrior:
             cameras can stand anywhere). Used only to flag probably mirrored labels; never to fit.
         centre_m: (3,) known camera centre (world, metres), e.g. from the game's rig; the centre is
             then held fixed and only focal length and rotation are fitted.
-        camera_prior: a dataset's learned :class:`~.priors.CameraPrior`: the free fit is refined
-            into a MAP fit (lines and prior) at the anchors most consistent with it (ignored with
-            ``centre_m``).
+        camera_prior: a dataset's learned :class:`~.priors.CameraPrior`: a free fit less sure of its
+            centre than the prior's confident fits is refined into a MAP fit (lines and prior) at the
+            anchors most consistent with it; the anchors are starts too when no other start fits
+            (ignored with ``centre_m``).
     """
 
     expected_side: int | None = None
@@ -542,7 +543,8 @@ def _with_camera_prior(best: _Candidate, obs: Observations, camera_prior: Camera
 
     The lines' covariance of the centre (Gauss-Newton, :func:`~.uncertainty.parameter_covariance`,
     line noise :func:`~.uncertainty.line_noise` of the free fit's line residuals) orders the anchors
-    (:func:`~.priors.anchor_order`); up to ``settings.prior_anchors`` of those within
+    (:func:`~.priors.anchor_order`); a fit whose position std is at or below the prior's
+    ``confident_std_m`` is left as it is; else up to ``settings.prior_anchors`` of those within
     ``settings.prior_max_d2`` are tried from ``best``, and the lowest MAP cost (lines and prior) wins.
     """
     if best.param.fixed_centre is not None or not camera_prior.anchors_m:
@@ -551,6 +553,8 @@ def _with_camera_prior(best: _Candidate, obs: Observations, camera_prior: Camera
     sigma = line_noise(r, len(best.x))
     cov, undetermined = parameter_covariance(best.jacobian, sigma)
     cov_c = cov[4:7, 4:7] + np.diag(np.where(undetermined[4:7], 1e6, 0.0))
+    if np.sqrt(np.trace(cov_c)) <= camera_prior.confident_std_m:
+        return best, None  # the lines fix the centre as well as those the prior was learned from
     order, d2 = anchor_order(camera_prior, best.param.split(best.x)[2], cov_c)
     budget = _Budget(settings.prior_max_evaluations)
     winner: tuple[_Candidate, PriorRows] | None = None

@@ -17,8 +17,9 @@ data at hand, never from another calibration or synthetic truth:
 * roll: broadcast heads are levelled; its std is the robust std (1.4826 MAD) of the confident fits'
   roll, floored at :data:`MIN_ROLL_STD_DEG`.
 
-The MAP fit (:func:`.frame.calibrate_frame` with ``CalibrationPrior(camera_prior=...)``) adds the
-prior as residual rows (:class:`.solver.PriorRows`) to the lines' robust cost. The anchor is the one
+The MAP fit (:func:`.frame.calibrate_frame` with ``CalibrationPrior(camera_prior=...)``), made only
+for fits less sure of their centre than the confident ones (:attr:`CameraPrior.confident_std_m`), adds
+the prior as residual rows (:class:`.solver.PriorRows`) to the lines' robust cost. The anchor is the one
 most consistent with the lines' own estimate (:func:`anchor_order`: Mahalanobis distance under the
 fit's covariance plus the anchor's); the prior's weight against the lines is the Gaussian one, so it
 shrinks as the lines constrain more: the posterior shift is ``S_fit (S_fit + S_anchor)^-1`` of the
@@ -55,6 +56,10 @@ class CameraPrior:
         anchor_frames: (K,) confident fits behind each anchor.
         roll_std_deg: std of the roll prior (zero mean), degrees; ``inf`` for none.
         confident_fits: fits the prior was learned from.
+        confident_std_m: the position std (m, root-sum-square) at or below which a fit counted as
+            confident. A fit whose lines fix its centre that well is left as the lines have it (the
+            MAP fit is made only above it): the prior was learned from such fits, and it must not
+            move them (the JaC guard); ``inf`` when nothing was learned.
     """
 
     anchors_m: tuple[tuple[float, float, float], ...]
@@ -62,6 +67,7 @@ class CameraPrior:
     anchor_frames: tuple[int, ...]
     roll_std_deg: float
     confident_fits: int
+    confident_std_m: float = float("inf")
 
     def __post_init__(self) -> None:
         if len(self.anchor_std_m) != len(self.anchors_m) or len(self.anchor_frames) != len(self.anchors_m):
@@ -99,7 +105,8 @@ def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float
     finite = np.isfinite(std)
     if not np.any(finite):
         return CameraPrior(anchors_m=(), anchor_std_m=(), anchor_frames=(), roll_std_deg=float("inf"), confident_fits=0)
-    confident = finite & (std <= np.quantile(std[finite], confident_quantile))
+    cut = float(np.quantile(std[finite], confident_quantile))
+    confident = finite & (std <= cut)
     chosen = [c for c, ok in zip(cameras, confident) if ok]
     rig = estimate_rig(np.array([c.C for c in chosen]).reshape(-1, 3), radius_m=radius_m, min_frames=min_frames)
     rolls = np.array([pan_tilt_roll_from_rotation(c.R)[2] for c in chosen])
@@ -108,7 +115,8 @@ def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float
     return CameraPrior(
         anchors_m=tuple(p.centre_m for p in rig.positions),
         anchor_std_m=tuple(max(p.spread_m / _MEDIAN_RADIUS_3D, MIN_ANCHOR_STD_M) for p in rig.positions),
-        anchor_frames=tuple(p.frames for p in rig.positions), roll_std_deg=roll_std, confident_fits=len(chosen))
+        anchor_frames=tuple(p.frames for p in rig.positions), roll_std_deg=roll_std, confident_fits=len(chosen),
+        confident_std_m=cut)
 
 
 def anchor_order(prior: CameraPrior, centre_m: np.ndarray, centre_cov_m2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
