@@ -90,18 +90,21 @@ def full_fit(frames: list[tuple[str, dict]], priors: dict[str, CameraPrior] | No
             "cameras": cams, "position_std_m": stds}
 
 
-def fold_priors(frames: list[tuple[str, dict]], full: dict, seed: int) -> dict[str, CameraPrior]:
+def fold_priors(frames: list[tuple[str, dict]], full: dict, seed: int, folds: int = 2) -> dict[str, CameraPrior]:
     """Held-out folds of the learned prior: ``frame -> prior`` learned from the full fits of the
-    other half of a seeded split (``numpy.random.default_rng([seed, 2])`` permutation)."""
+    frames outside its fold, the frames split into ``folds`` parts by a seeded permutation
+    (``numpy.random.default_rng([seed, 2])``; two halves by default, each used with the other's prior)."""
     names = [f for f, _ in frames]
     order = np.random.default_rng([int(seed), 2]).permutation(len(names))
-    halves = [set(names[i] for i in order[: len(names) // 2]), set(names[i] for i in order[len(names) // 2:])]
+    # Contiguous blocks of the permutation: fold j holds positions [n j / folds, n (j + 1) / folds).
+    bounds = [len(names) * j // folds for j in range(1, folds)]
+    fold_of = {names[i]: int(np.searchsorted(bounds, k, side="right")) for k, i in enumerate(order)}
     learned = []
-    for half in halves:
-        fitted = [f for f in sorted(half) if full["cameras"].get(f) is not None]
+    for k in range(folds):
+        fitted = [f for f in sorted(names) if fold_of[f] != k and full["cameras"].get(f) is not None]
         learned.append(learn_camera_prior([full["cameras"][f] for f in fitted],
                                           [full["position_std_m"][f] for f in fitted]))
-    return {f: learned[1] if f in halves[0] else learned[0] for f in names}
+    return {f: learned[fold_of[f]] for f in names}
 
 
 def held_out(frames: list[tuple[str, dict]], seed: int, full_cameras: dict | None = None,
@@ -155,6 +158,7 @@ def main() -> None:
     ap.add_argument("--sets", default="sn22,wc14")
     ap.add_argument("--limit", type=int, default=None, help="first N frames of each set only")
     ap.add_argument("--prior", action="store_true", help="learned camera prior in held-out folds")
+    ap.add_argument("--folds", type=int, default=2, help="folds of the prior (2: halves)")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
     rows = []
@@ -164,10 +168,11 @@ def main() -> None:
         frames = load_set(key, args.limit)
         full = full_fit(frames)
         for seed in (int(s) for s in args.seeds.split(",")):
-            priors = fold_priors(frames, full, seed) if args.prior else None
+            priors = fold_priors(frames, full, seed, args.folds) if args.prior else None
             shown = full if priors is None else full_fit(frames, priors)
             r = held_out(frames, seed, full["cameras"], priors)
-            r.update(set=key, prior=bool(args.prior), completeness=shown["completeness"], jac_5=shown["jac_5"],
+            r.update(set=key, prior=bool(args.prior), folds=args.folds if args.prior else None,
+                     completeness=shown["completeness"], jac_5=shown["jac_5"],
                      cpu_ms_full=shown["cpu_ms_median"])
             rows.append(r)
             print(f"{key:5} {seed:4d} {r['held_out_frames']:6d} {r['refused_share']:8.4f} {r['points']:6d} "
