@@ -21,7 +21,7 @@ the other half's frames, and the halves swap; no frame is fitted with a prior th
 JaC@5 / completeness are then those of the full fits with the other half's prior (the JaC guard).
 
 Usage: ``.venv/bin/python benchmarks/held_out_class.py [--seeds 1,2,3] [--sets sn22,wc14] [--limit N]
-[--prior] [--json out.json]``. Targets (issue 17): within 5 px >= 0.90 (sn22), >= 0.95 (wc14); refused
+[--prior [--folds K]] [--json out.json]``. Targets (issue 17): within 5 px >= 0.90 (sn22), >= 0.95 (wc14); refused
 <= 1 %. The peer's cameras and synthetic truth are never read; the prior is learned from v3d's own fits.
 """
 from __future__ import annotations
