@@ -148,3 +148,17 @@ def test_a_fit_as_sure_as_the_confident_ones_is_left_as_the_lines_have_it() -> N
     assert np.array_equal(kept.camera.C, free.camera.C)
     moved = calibrate_frame(lines, W, H, prior=_prior_at(offset, std=0.5, confident_std_m=0.5 * std), compute_jac=False)
     assert PRIOR_FLAG in moved.flags
+
+
+def test_the_service_stores_the_posterior_std_of_a_map_fit() -> None:
+    from app.services.calibration.calibrating import _fields_from_result, fit_uncertainty
+
+    truth = _camera((0.5, 60.0, -14.0), target=(0.0, 10.0, 0.0), focal=1800.0)
+    lines = _lines(truth, {"Middle line", "Side line top", "Circle central"}, noise_px=1.5, seed=0)
+    result = calibrate_frame(lines, W, H, prior=_prior_at(truth.C), compute_jac=False)
+    assert result.centre_prior is not None
+    stored = _fields_from_result(result, lines).uncertainty
+    posterior = calibration_uncertainty(result.camera, lines, prior=result.centre_prior).to_json()
+    assert stored == posterior
+    lines_only = fit_uncertainty(result.camera, lines, result.flags)
+    assert stored["position_m"]["y"] < 0.5 < lines_only["position_m"]["y"]

@@ -36,6 +36,7 @@ from app.geometry.annotations import mirror_lines, FieldLines, lines_from_json_l
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
+from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.mirror import mirrored_fit_at_rig
@@ -127,7 +128,7 @@ def _fields_from_result(result: Any, lines: FieldLines | None = None) -> Calibra
     status = CalibrationStatus(str(getattr(result.status, "value", result.status)))
     uncertainty = None
     if lines is not None and camera is not None and status is CalibrationStatus.CALIBRATED:
-        uncertainty = fit_uncertainty(camera, lines, tuple(result.flags or ()))
+        uncertainty = fit_uncertainty(camera, lines, tuple(result.flags or ()), getattr(result, "centre_prior", None))
     jac = tuple(_opt_float(result.jac.get(f"{g:g}")) for g in JAC_GAMMAS) if result.jac else (None, None, None)
     return CalibrationFields(
         status=status,
@@ -142,14 +143,16 @@ def _fields_from_result(result: Any, lines: FieldLines | None = None) -> Calibra
     )
 
 
-def fit_uncertainty(camera: Camera, lines: FieldLines, flags: tuple[str, ...]) -> dict[str, Any] | None:
+def fit_uncertainty(camera: Camera, lines: FieldLines, flags: tuple[str, ...],
+                    prior: PriorRows | None = None) -> dict[str, Any] | None:
     """JSON of ``app.geometry.calibration.calibration_uncertainty`` for a camera fitted to ``lines``:
     a class the fit ignored (flag ``ignored_class:<class>``) is left out, a rig-assisted fit
-    (:data:`RIG_FLAG`) had its centre fixed. None when it cannot be computed."""
+    (:data:`RIG_FLAG`) had its centre fixed, a MAP fit with a learned prior (``prior``: its
+    ``CalibrationResult.centre_prior``) gets the posterior's std. None when it cannot be computed."""
     ignored = {f.split(":", 1)[1] for f in flags if f.startswith("ignored_class:")}
     used = {c: v for c, v in lines.items() if c not in ignored}
     try:
-        u = calibration_uncertainty(camera, used, fixed_centre=RIG_FLAG in flags)
+        u = calibration_uncertainty(camera, used, fixed_centre=RIG_FLAG in flags, prior=prior)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError):
         return None
     return None if u is None else u.to_json()
