@@ -27,6 +27,11 @@ Method (every step pure numpy):
    the evaluation). The result is refused, with a reason, when the labels cannot fix a camera
    (too few constraints, parallel or collinear labels) or no camera fits them within
    ``refuse_gamma`` of the diagonal. A budget of residual evaluations bounds the time per frame.
+6. With a dataset's learned camera prior (``CalibrationPrior.camera_prior``, :mod:`.priors`): when no
+   start fits the labels, the prior's anchors are look-at starts too; and a free fit less sure of
+   its centre than the fits the prior was learned from is refined into a MAP fit (the prior's rows
+   added to the robust line cost, :class:`~.solver.PriorRows`) at the anchors most consistent with
+   it, kept when every class stays within ``refuse_gamma`` (flag ``"learned_prior"``).
 
 Every fit (``_fit``) is one compiled call (:func:`~.solver.robust_lm`), and every ranking of
 starts one compiled evaluation of all of them (:func:`~.residuals.residual_rows`); what stays in
