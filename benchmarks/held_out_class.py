@@ -14,9 +14,15 @@ annotated point of that class is measured against that class's projection. Print
   JaC@5 px over every frame (``benchmarks/calibration.py``'s), the held-out class's share within 5 px
   when it is fitted too, and CPU ms per frame (median) of both fits.
 
+With ``--prior`` the fits use a learned camera prior (:mod:`app.geometry.calibration.priors`, a MAP
+fit) in two held-out folds: the frames are split in two halves by a seeded permutation (seed: the
+class-draw seed), the prior is learned from one half's full fits (every class, no prior) and used on
+the other half's frames, and the halves swap; no frame is fitted with a prior that saw its own fit.
+JaC@5 / completeness are then those of the full fits with the other half's prior (the JaC guard).
+
 Usage: ``.venv/bin/python benchmarks/held_out_class.py [--seeds 1,2,3] [--sets sn22,wc14] [--limit N]
-[--json out.json]``. Targets (issue 17): within 5 px >= 0.90 (sn22), >= 0.95 (wc14); refused <= 1 %.
-Never learns anything: the peer's cameras and synthetic truth are not read.
+[--prior [--folds K]] [--json out.json]``. Targets (issue 17): within 5 px >= 0.90 (sn22), >= 0.95 (wc14); refused
+<= 1 %. The peer's cameras and synthetic truth are never read; the prior is learned from v3d's own fits.
 """
 from __future__ import annotations
 
@@ -37,6 +43,7 @@ from app.core.paths import SHARED_DIR  # noqa: E402
 from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty  # noqa: E402
 from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class  # noqa: E402
+from app.geometry.calibration.priors import CameraPrior, learn_camera_prior  # noqa: E402
 from app.geometry.jac import evaluate_jac  # noqa: E402
 
 SETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
@@ -60,23 +67,50 @@ def _cpu(fn, *args, **kwargs):
     return out, (time.process_time() - t0) * 1e3
 
 
-def full_fit(frames: list[tuple[str, dict]]) -> dict:
-    """Every class fitted: completeness, mean JaC@5 over every frame's calibrated ones, CPU ms per
-    frame, and the cameras (``frame -> Camera | None``)."""
-    cams, jac5, ms = {}, [], []
+def _prior(frame: str, priors: dict[str, CameraPrior] | None) -> CalibrationPrior:
+    return PRIOR if priors is None else CalibrationPrior(expected_side=1, camera_prior=priors[frame])
+
+
+def full_fit(frames: list[tuple[str, dict]], priors: dict[str, CameraPrior] | None = None) -> dict:
+    """Every class fitted (with ``priors[frame]``, a learned prior, when given): completeness, mean
+    JaC@5 over every frame's calibrated ones, CPU ms per frame, the cameras (``frame -> Camera |
+    None``) and their position std (m, :func:`calibration_uncertainty`; ``frame -> float``)."""
+    cams, jac5, ms, stds = {}, [], [], {}
     for frame, lines in frames:
-        result, dt = _cpu(calibrate_frame, lines, W, H, prior=PRIOR, compute_jac=False)
+        result, dt = _cpu(calibrate_frame, lines, W, H, prior=_prior(frame, priors), compute_jac=False)
         ms.append(dt)
         cams[frame] = result.camera
         if result.camera is not None:
             jac5.append(evaluate_jac(result.camera, lines, W, H, (5.0,)).jac[5.0])
+            ignored = {f.split(":", 1)[1] for f in result.flags if f.startswith("ignored_class:")}
+            u = calibration_uncertainty(result.camera, {c: v for c, v in lines.items() if c not in ignored})
+            stds[frame] = u.position_std_m if u is not None else float("inf")
     return {"frames": len(frames), "completeness": len(jac5) / max(len(frames), 1),
             "jac_5": float(np.mean(jac5)) if jac5 else 0.0, "cpu_ms_median": statistics.median(ms) if ms else 0.0,
-            "cameras": cams}
+            "cameras": cams, "position_std_m": stds}
 
 
-def held_out(frames: list[tuple[str, dict]], seed: int, full_cameras: dict | None = None) -> dict:
-    """The held-out-class measure of one class-draw ``seed`` (see the module docstring)."""
+def fold_priors(frames: list[tuple[str, dict]], full: dict, seed: int, folds: int = 2) -> dict[str, CameraPrior]:
+    """Held-out folds of the learned prior: ``frame -> prior`` learned from the full fits of the
+    frames outside its fold, the frames split into ``folds`` parts by a seeded permutation
+    (``numpy.random.default_rng([seed, 2])``; two halves by default, each used with the other's prior)."""
+    names = [f for f, _ in frames]
+    order = np.random.default_rng([int(seed), 2]).permutation(len(names))
+    # Contiguous blocks of the permutation: fold j holds positions [n j / folds, n (j + 1) / folds).
+    bounds = [len(names) * j // folds for j in range(1, folds)]
+    fold_of = {names[i]: int(np.searchsorted(bounds, k, side="right")) for k, i in enumerate(order)}
+    learned = []
+    for k in range(folds):
+        fitted = [f for f in sorted(names) if fold_of[f] != k and full["cameras"].get(f) is not None]
+        learned.append(learn_camera_prior([full["cameras"][f] for f in fitted],
+                                          [full["position_std_m"][f] for f in fitted]))
+    return {f: learned[fold_of[f]] for f in names}
+
+
+def held_out(frames: list[tuple[str, dict]], seed: int, full_cameras: dict | None = None,
+             priors: dict[str, CameraPrior] | None = None) -> dict:
+    """The held-out-class measure of one class-draw ``seed`` (see the module docstring), with
+    ``priors[frame]`` (a learned prior, :func:`fold_priors`) when given."""
     dists, fitted_too, ms, stds = [], [], [], []
     n_frames = refused = missed_points = 0
     for frame, lines in frames:
@@ -84,7 +118,8 @@ def held_out(frames: list[tuple[str, dict]], seed: int, full_cameras: dict | Non
         if cls is None:
             continue
         n_frames += 1
-        result, dt = _cpu(calibrate_frame, without_class(lines, cls), W, H, prior=PRIOR, compute_jac=False)
+        result, dt = _cpu(calibrate_frame, without_class(lines, cls), W, H, prior=_prior(frame, priors),
+                          compute_jac=False)
         ms.append(dt)
         if result.camera is None:
             refused += 1
@@ -92,7 +127,8 @@ def held_out(frames: list[tuple[str, dict]], seed: int, full_cameras: dict | Non
             continue
         dists.append(class_point_distances(result.camera, lines)[cls])
         ignored = {f.split(":", 1)[1] for f in result.flags if f.startswith("ignored_class:")}
-        u = calibration_uncertainty(result.camera, {c: v for c, v in without_class(lines, cls).items() if c not in ignored})
+        u = calibration_uncertainty(result.camera, {c: v for c, v in without_class(lines, cls).items() if c not in ignored},
+                                    prior=result.centre_prior)
         stds.append(u.position_std_m if u is not None else float("inf"))
         if full_cameras is not None and full_cameras.get(frame) is not None:
             fitted_too.append(class_point_distances(full_cameras[frame], lines)[cls])
@@ -121,6 +157,8 @@ def main() -> None:
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--sets", default="sn22,wc14")
     ap.add_argument("--limit", type=int, default=None, help="first N frames of each set only")
+    ap.add_argument("--prior", action="store_true", help="learned camera prior in held-out folds")
+    ap.add_argument("--folds", type=int, default=2, help="folds of the prior (2: halves)")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
     rows = []
@@ -130,9 +168,12 @@ def main() -> None:
         frames = load_set(key, args.limit)
         full = full_fit(frames)
         for seed in (int(s) for s in args.seeds.split(",")):
-            r = held_out(frames, seed, full["cameras"])
-            r.update(set=key, completeness=full["completeness"], jac_5=full["jac_5"],
-                     cpu_ms_full=full["cpu_ms_median"])
+            priors = fold_priors(frames, full, seed, args.folds) if args.prior else None
+            shown = full if priors is None else full_fit(frames, priors)
+            r = held_out(frames, seed, full["cameras"], priors)
+            r.update(set=key, prior=bool(args.prior), folds=args.folds if args.prior else None,
+                     completeness=shown["completeness"], jac_5=shown["jac_5"],
+                     cpu_ms_full=shown["cpu_ms_median"])
             rows.append(r)
             print(f"{key:5} {seed:4d} {r['held_out_frames']:6d} {r['refused_share']:8.4f} {r['points']:6d} "
                   f"{r['within_5px']:6.4f} {r['within_5px_refused_as_missed']:6.4f} {r['median_px']:7.2f} "

@@ -12,6 +12,7 @@ const FAST_MS = 2000;
 const SLOW_MS = 5000;
 const STAGE_LABEL = {
   games: "games stored", merge: "merging", calibrate: "calibrating", rig: "calibrating with game rigs",
+  prior: "calibrating with the learned prior",
   triangulate: "triangulating", recompute: "systems recomputed", export: "games exported",
 };
 

@@ -27,6 +27,11 @@ Method (every step pure numpy):
    the evaluation). The result is refused, with a reason, when the labels cannot fix a camera
    (too few constraints, parallel or collinear labels) or no camera fits them within
    ``refuse_gamma`` of the diagonal. A budget of residual evaluations bounds the time per frame.
+6. With a dataset's learned camera prior (``CalibrationPrior.camera_prior``, :mod:`.priors`): when no
+   start fits the labels, the prior's anchors are look-at starts too; and a free fit less sure of
+   its centre than the fits the prior was learned from is refined into a MAP fit (the prior's rows
+   added to the robust line cost, :class:`~.solver.PriorRows`) at the anchors most consistent with
+   it, kept when every class stays within ``refuse_gamma`` (flag ``"learned_prior"``).
 
 Every fit (``_fit``) is one compiled call (:func:`~.solver.robust_lm`), and every ranking of
 starts one compiled evaluation of all of them (:func:`~.residuals.residual_rows`); what stays in
@@ -66,13 +71,17 @@ from app.geometry.calibration.residuals import (
     projection_matrix,
     residual_rows,
 )
-from app.geometry.calibration.solver import abs_percentile, robust_lm, soft_l1_cost
+from app.geometry.calibration.priors import CameraPrior, anchor_order, prior_rows
+from app.geometry.calibration.solver import PriorRows, abs_percentile, robust_lm, soft_l1_cost
+from app.geometry.calibration.uncertainty import line_noise, parameter_covariance
 from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
 
 #: Flag of a calibration made with its centre fixed by a prior (a position of the game's camera rig).
 RIG_FLAG = "rig_assisted"
+#: Flag of a calibration fitted with a learned camera prior (a MAP fit, :mod:`.priors`).
+PRIOR_FLAG = "learned_prior"
 #: Flag of a frame whose field-line labels are probably mirrored (camera-side prior here; the
 #: multi-view verdict of ``app.geometry.mirror`` sets the same flag in the service).
 MIRROR_FLAG = "probably_mirrored"
@@ -100,10 +109,15 @@ class CalibrationPrior:
             cameras can stand anywhere). Used only to flag probably mirrored labels; never to fit.
         centre_m: (3,) known camera centre (world, metres), e.g. from the game's rig; the centre is
             then held fixed and only focal length and rotation are fitted.
+        camera_prior: a dataset's learned :class:`~.priors.CameraPrior`: a free fit less sure of its
+            centre than the prior's confident fits is refined into a MAP fit (lines and prior) at the
+            anchors most consistent with it; the anchors are starts too when no other start fits
+            (ignored with ``centre_m``).
     """
 
     expected_side: int | None = None
     centre_m: tuple[float, float, float] | None = None
+    camera_prior: CameraPrior | None = None
 
     def __post_init__(self) -> None:
         if self.expected_side not in (None, 1, -1):
@@ -137,6 +151,11 @@ class CalibrationSettings:
             camera (a typical frame needs 20 to 40); the leave-one-class-out step gets half as many.
         leave_out_max_classes: classes left out in turn, the worst fitted first (all of them when no
             camera was found).
+        prior_anchors: with a learned camera prior, MAP fits made (one per anchor, the most
+            consistent with the lines first); the lowest MAP cost wins.
+        prior_max_d2: an anchor is tried only when its squared Mahalanobis distance to the free fit
+            (:func:`~.priors.anchor_order`) is at most this (chi-square, 3 degrees of freedom, 0.999).
+        prior_max_evaluations: residual evaluations allowed to the MAP fits of a frame.
     """
 
     min_constraints: int = 7
@@ -148,6 +167,9 @@ class CalibrationSettings:
     max_k1: float = 0.5
     max_evaluations: int = 140
     leave_out_max_classes: int = 7
+    prior_anchors: int = 3
+    prior_max_d2: float = 16.27
+    prior_max_evaluations: int = 60
 
 
 @dataclass(frozen=True)
@@ -172,6 +194,8 @@ class CalibrationResult:
         elapsed_ms: wall time of the call, milliseconds.
         mirrored_lines: when ``"probably_mirrored"`` is flagged, the mirrored labelling offered as
             the fix (:func:`app.geometry.annotations.mirror_lines`).
+        centre_prior: the prior rows of a MAP fit (flag ``"learned_prior"``), for
+            :func:`~.uncertainty.calibration_uncertainty`'s posterior covariance; ``None`` otherwise.
     """
 
     status: Status
@@ -183,6 +207,7 @@ class CalibrationResult:
     rms_px: float | None
     elapsed_ms: float
     mirrored_lines: FieldLines | None = field(default=None, repr=False)
+    centre_prior: PriorRows | None = field(default=None, repr=False)
 
     @property
     def calibrated(self) -> bool:
@@ -263,9 +288,9 @@ def _start_costs(xs: list[np.ndarray], params: list[CameraParametrisation], obs:
 
 
 def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, origin: str,
-         budget: _Budget, max_iter: int = 25) -> _Candidate | None:
-    """Refine from ``x0`` and keep the result if it is a physical camera seeing its labels in front
-    (a :class:`_Candidate`, or None)."""
+         budget: _Budget, max_iter: int = 25, prior: PriorRows | None = None) -> _Candidate | None:
+    """Refine from ``x0`` (with the MAP ``prior`` rows, if any) and keep the result if it is a
+    physical camera seeing its labels in front (a :class:`_Candidate`, or None)."""
     if budget.evaluations <= 0:
         return None
     lower = np.full(len(x0), -np.inf)
@@ -275,7 +300,7 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
         upper[6] = -0.5  # above the ground (z points down); lower is a degenerate edge-on view
     try:
         sol = robust_lm(x0, obs, param, scale, lower=lower, upper=upper, max_iter=max_iter, tol=1e-5,
-                        max_evaluations=budget.evaluations)
+                        max_evaluations=budget.evaluations, prior=prior)
     except (ValueError, np.linalg.LinAlgError):
         budget.evaluations -= max_iter
         return None
@@ -326,7 +351,8 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
     """Best camera from one family of starts.
 
     ``stage="homography"``: the closed-form cameras of the candidate ground homographies (the
-    look-at starts too when there is none); ``stage="look-at"``: the look-at starts only. With a
+    look-at starts too when there is none); ``stage="look-at"``: the look-at starts only;
+    ``stage="anchors"``: look-at starts at the learned prior's anchors (``prior.camera_prior``). With a
     known centre (rig prior) only fixed-centre fits are made.
     """
     pp = principal_point(width, height)
@@ -367,17 +393,26 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         return best
 
     # Look-at starts: a pan-tilt-zoom fit at each plausible centre (cheap, 4 parameters), then the
-    # free refinement of the best two.
+    # free refinement of the best two. The learned anchors (stage "anchors"): the best
+    # ANCHOR_STARTS of them by the look-at start's robust cost.
     budget.lookat_done = True
-    ptz: list[_Candidate] = []
-    for centre in START_CENTRES_M:
-        c0 = np.asarray(centre, dtype=float)
+    centres = [np.asarray(c, dtype=float) for c in START_CENTRES_M]
+    if stage == "anchors":
+        centres = [np.asarray(c, dtype=float) for c in prior.camera_prior.anchors_m]  # type: ignore[union-attr]
+    starts_ptz: list[tuple[str, CameraParametrisation, np.ndarray]] = []
+    for c0 in centres:
         try:
             R0 = look_at_rotation(c0, target)
         except ValueError:
             continue
         fixed = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=c0)
-        cand = _fit(fixed.vector(1.5 * width, c0), obs, fixed, scale, f"start {centre}", budget, max_iter=8)
+        starts_ptz.append((f"start {tuple(c0.tolist())}", fixed, fixed.vector(1.5 * width, c0)))
+    if stage == "anchors" and starts_ptz:
+        costs = _start_costs([x0 for _, _, x0 in starts_ptz], [q for _, q, _ in starts_ptz], obs, scale)
+        starts_ptz = [starts_ptz[i] for i in np.argsort(costs, kind="stable")[:ANCHOR_STARTS]]
+    ptz: list[_Candidate] = []
+    for name, fixed, x0 in starts_ptz:
+        cand = _fit(x0, obs, fixed, scale, name, budget, max_iter=8)
         if cand is not None:
             ptz.append(cand)
     ptz.sort(key=lambda c: c.cost)
@@ -388,6 +423,10 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
             break
     return best
 
+
+#: Anchors of a learned prior refined as look-at starts (the best by the start's robust cost) when
+#: no other start fits the labels.
+ANCHOR_STARTS = 6
 
 #: Focal length hypotheses (multiples of the image width) of a camera with a known centre: from a
 #: wide view (0.5 W, about 90 degrees across) to a tight zoom (8 W, about 7 degrees), geometric steps.
@@ -499,6 +538,40 @@ def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: Calibr
         cand.k1_tried = True
         return cand
     return best
+
+
+def _with_camera_prior(best: _Candidate, obs: Observations, camera_prior: CameraPrior, scale: float, limit: float,
+                       settings: CalibrationSettings) -> tuple[_Candidate, PriorRows | None]:
+    """The MAP refinement of the free fit ``best`` with a learned prior (:mod:`.priors`):
+    ``(candidate, its prior rows)``, or ``(best, None)`` when no anchor is consistent with the lines'
+    estimate or no MAP fit keeps every class within ``limit`` px.
+
+    The lines' covariance of the centre (Gauss-Newton, :func:`~.uncertainty.parameter_covariance`,
+    line noise :func:`~.uncertainty.line_noise` of the free fit's line residuals) orders the anchors
+    (:func:`~.priors.anchor_order`); a fit whose position std is at or below the prior's
+    ``confident_std_m`` is left as it is; else up to ``settings.prior_anchors`` of those within
+    ``settings.prior_max_d2`` are tried from ``best``, and the lowest MAP cost (lines and prior) wins.
+    """
+    if best.param.fixed_centre is not None or not camera_prior.anchors_m:
+        return best, None
+    r = residual_rows(best.x, obs, [best.param])
+    sigma = line_noise(r, len(best.x))
+    cov, undetermined = parameter_covariance(best.jacobian, sigma)
+    cov_c = cov[4:7, 4:7] + np.diag(np.where(undetermined[4:7], 1e6, 0.0))
+    if np.sqrt(np.trace(cov_c)) <= camera_prior.confident_std_m:
+        return best, None  # the lines fix the centre as well as those the prior was learned from
+    order, d2 = anchor_order(camera_prior, best.param.split(best.x)[2], cov_c)
+    budget = _Budget(settings.prior_max_evaluations)
+    winner: tuple[_Candidate, PriorRows] | None = None
+    for a in order[d2 <= settings.prior_max_d2][:settings.prior_anchors]:
+        rows = prior_rows(camera_prior, int(a), sigma)
+        cand = _fit(best.x, obs, best.param, scale, best.origin + " +prior", budget, prior=rows)
+        if cand is not None and (winner is None or cand.cost < winner[0].cost):
+            winner = (cand, rows)
+    if winner is None or _worst(winner[0], obs) > limit:
+        return best, None
+    winner[0].k1_tried = best.k1_tried
+    return winner
 
 
 def calibrate_frame(
@@ -627,6 +700,17 @@ def _calibrate(
                 other = polish(other, budget)
                 if other is not None and (best is None or other.cost < best.cost):
                     best = other
+        centre_prior = None
+        if (not fixed and prior is not None and prior.camera_prior is not None and prior.camera_prior.anchors_m
+                and _worst(best, fit_obs) > limit):
+            # No start fitted the labels: the learned camera positions are starts too.
+            anchor_budget = _Budget(settings.max_evaluations)
+            other = polish(_search(obs, width, height, prior, settings, anchor_budget, stage="anchors"), anchor_budget)
+            if other is not None and _worst(other, obs) <= limit:
+                best, fit_obs = other, obs
+                flags[:] = [f for f in flags if not f.startswith("ignored_class:")]
+        if best is not None and not fixed and prior is not None and prior.camera_prior is not None:
+            best, centre_prior = _with_camera_prior(best, fit_obs, prior.camera_prior, scale, limit, settings)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
         return _refused(f"solver failed: {exc}", t0, tuple(flags))
     if best is None:
@@ -636,6 +720,8 @@ def _calibrate(
     per_class, rms = _class_residuals(camera, obs)
     if fixed:
         flags.append(RIG_FLAG)
+    if centre_prior is not None:
+        flags.append(PRIOR_FLAG)
     if camera.radial[0] != 0.0:
         flags.append("radial_distortion")
     fitted = {c: per_class[c] for c in fit_obs.classes}
@@ -659,7 +745,7 @@ def _calibrate(
         jac = frame_jac(camera, lines, width, height, jac_function)
     return CalibrationResult(status="calibrated", camera=camera, reason=None, jac=jac, residuals_px=per_class,
                              flags=tuple(flags), rms_px=rms, elapsed_ms=(time.perf_counter() - t0) * 1e3,
-                             mirrored_lines=mirrored)
+                             mirrored_lines=mirrored, centre_prior=centre_prior)
 
 
 def frame_jac(camera: Camera, lines: FieldLines, width: int, height: int,

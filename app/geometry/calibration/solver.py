@@ -39,6 +39,35 @@ class SolverResult:
     evaluations: int
 
 
+#: Rows a :class:`PriorRows` appends to the residuals: three for the centre, one for the roll.
+PRIOR_ROWS = 4
+
+
+@dataclass(frozen=True)
+class PriorRows:
+    """Prior terms of a MAP fit, as pixel residuals appended to the lines' (:func:`robust_lm`).
+
+    With the line noise ``sigma`` (px), the lines' cost ``sum r^2`` is ``sigma^2`` times their negative
+    log-likelihood (times 2); a Gaussian prior ``N(mean, S)`` on the centre adds
+    ``sigma^2 (C - mean)^T S^-1 (C - mean)``, i.e. the rows ``whitening (C - mean)`` with
+    ``whitening = sigma S^-1/2`` (px per metre), and a zero-mean roll prior of std ``s_roll`` (radians)
+    the row ``sigma / s_roll * roll`` (``roll_weight``, px per radian; roll in SoccerNet's convention,
+    ``atan2(R[0, 2], R[1, 2])`` of the world-to-camera ``R``, method.md section 2). Built by
+    :mod:`.priors`.
+
+    Attributes:
+        mean: (3,) prior centre, world metres (z down). whitening: (3, 3) px per metre.
+        roll_weight: px per radian (0: no roll prior).
+    """
+
+    mean: np.ndarray
+    whitening: np.ndarray
+    roll_weight: float
+
+
+_NO_PRIOR = PriorRows(mean=np.zeros(3), whitening=np.zeros((3, 3)), roll_weight=0.0)
+
+
 @njit(**JIT)
 def _soft_l1(r: np.ndarray, scale: float) -> float:
     total = 0.0
@@ -129,10 +158,12 @@ def _solve_into(A: np.ndarray, g: np.ndarray, out: np.ndarray) -> bool:
 @njit(**JIT)
 def _robust_lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: float, max_iter: int, rel_step: float,
                tol: float, max_evaluations: int, pp: np.ndarray, R0: np.ndarray, centre: np.ndarray, fixed: bool,
-               fit_k1: bool, o: tuple) -> tuple:
+               fit_k1: bool, o: tuple, prior_on: bool, prior_mean: np.ndarray, prior_whitening: np.ndarray,
+               roll_weight: float) -> tuple:
     R, P, sp, cp, d_line, d_ext, d_cir, scratch = workspace(o)
     k = x0.shape[0]
-    n = 2 * d_line.shape[0] + d_cir.shape[0]
+    n_lines = 2 * d_line.shape[0] + d_cir.shape[0]
+    n = n_lines + (PRIOR_ROWS if prior_on else 0)
     x, x_new, probe = np.empty(k), np.empty(k), np.empty(k)
     for j in range(k):
         x[j] = _clip(x0[j], lo[j], hi[j])
@@ -142,6 +173,14 @@ def _robust_lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: float, max
 
     def evaluate(at: np.ndarray, out: np.ndarray) -> None:
         residuals_into(at, pp, R0, centre, fixed, fit_k1, o, out, R, P, sp, cp, d_line, d_ext, d_cir, scratch)
+        if prior_on:
+            # The prior's rows (px): whitened centre offset, then the roll (R holds the rotation now).
+            for a in range(3):
+                s = 0.0
+                for b in range(3):
+                    s += prior_whitening[a, b] * (at[4 + b] - prior_mean[b])
+                out[n_lines + a] = s
+            out[n_lines + 3] = roll_weight * math.atan2(R[0, 2], R[1, 2])
 
     def jacobian(at: np.ndarray, r_at: np.ndarray) -> None:
         # Forward differences, step relative to max(1, |x|) per parameter.
@@ -210,7 +249,8 @@ def _robust_lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: float, max
 
 def robust_lm(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, *,
               lower: np.ndarray | None = None, upper: np.ndarray | None = None, max_iter: int = 40,
-              rel_step: float = 1e-6, tol: float = 1e-6, max_evaluations: int = 1000) -> SolverResult:
+              rel_step: float = 1e-6, tol: float = 1e-6, max_evaluations: int = 1000,
+              prior: PriorRows | None = None) -> SolverResult:
     """Minimise the soft-L1 cost of the frame's residuals (:func:`.residuals.residuals`) over the
     camera parameters ``x`` of ``param``, from ``x0``.
 
@@ -224,16 +264,22 @@ def robust_lm(x0: np.ndarray, obs: Observations, param: CameraParametrisation, s
         lower, upper: optional (k,) bounds; steps are clipped into them.
         max_iter: most linearisations. max_evaluations: most trial points (the start counts one).
         tol: stop when an accepted step lowers the cost by less than ``tol`` relative.
+        prior: optional :class:`PriorRows` (a MAP fit): :data:`PRIOR_ROWS` rows appended to the
+            residuals (and to the result's ``residuals`` / ``jacobian``), under the same loss; only for
+            a parametrisation with a free centre.
 
     Returns:
         :class:`SolverResult`.
 
     Raises:
-        ValueError: ``x0`` is not a finite 1-D vector of ``param.size`` values.
+        ValueError: ``x0`` is not a finite 1-D vector of ``param.size`` values, or a ``prior`` is given
+            with the centre fixed.
     """
     x = np.ascontiguousarray(x0, dtype=float)
     if x.ndim != 1 or len(x) != param.size or not np.all(np.isfinite(x)):
         raise ValueError("robust_lm: x0 must be a finite 1-D vector of the parametrisation's size")
+    if prior is not None and param.fixed_centre is not None:
+        raise ValueError("robust_lm: a centre prior needs a free centre")
     k = len(x)
     lo = np.full(k, -np.inf) if lower is None else np.ascontiguousarray(lower, dtype=float)
     hi = np.full(k, np.inf) if upper is None else np.ascontiguousarray(upper, dtype=float)
@@ -242,7 +288,9 @@ def robust_lm(x0: np.ndarray, obs: Observations, param: CameraParametrisation, s
     xs, cost, r, J, it, nfev = _robust_lm(
         x, lo, hi, float(scale), int(max_iter), float(rel_step), float(tol), int(max_evaluations),
         np.ascontiguousarray(param.principal_point, dtype=float), np.ascontiguousarray(param.R0, dtype=float),
-        centre, fixed, bool(param.fit_k1), obs.kernel_arrays)
+        centre, fixed, bool(param.fit_k1), obs.kernel_arrays, prior is not None,
+        np.ascontiguousarray((prior or _NO_PRIOR).mean, dtype=float),
+        np.ascontiguousarray((prior or _NO_PRIOR).whitening, dtype=float), float((prior or _NO_PRIOR).roll_weight))
     return SolverResult(x=xs, cost=float(cost), residuals=r, jacobian=J, iterations=int(it), evaluations=int(nfev))
 
 

@@ -28,6 +28,7 @@ import numpy as np
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration.observations import build_observations
 from app.geometry.calibration.residuals import CameraParametrisation, residuals, rotation_from_vector
+from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
 
 #: Smallest line noise assumed, px (annotation clicks).
@@ -86,6 +87,51 @@ class CalibrationUncertainty:
         return float(np.sqrt(np.sum(np.square(self.position_m))))
 
 
+def line_noise(residuals_px: np.ndarray, parameters: int) -> float:
+    """The line noise of a fit (px): the standard error ``sqrt(|r|^2 / (n - k))`` of its ``n``
+    line residuals ``residuals_px`` for ``parameters`` = ``k`` fitted parameters, floored at
+    :data:`MIN_LINE_NOISE_PX`."""
+    r = np.asarray(residuals_px, dtype=float)
+    return max(float(np.sqrt(np.sum(r**2) / max(len(r) - parameters, 1))), MIN_LINE_NOISE_PX)
+
+
+def parameter_covariance(jacobian: np.ndarray, sigma_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Newton covariance ``sigma^2 (J^T J)^+`` of a least-squares fit's parameters
+    (Hartley and Zisserman, result 5.11).
+
+    Args:
+        jacobian: (n, k) Jacobian of the residuals (px) with respect to the parameters.
+        sigma_px: residual noise, px.
+
+    Returns:
+        ``(cov, undetermined)``: (k, k) covariance in the parameters' units squared, and (k,) True for
+        the parameters touched by a direction ``J`` does not determine (relative eigenvalue below
+        1e-12; their variance is infinite, the covariance leaves that direction out). The columns are
+        scaled to unit norm before inverting, so that focal (px) and rotation (rad) are comparable.
+    """
+    J = np.asarray(jacobian, dtype=float)
+    k = J.shape[1]
+    norms = np.linalg.norm(J, axis=0)
+    norms[norms == 0] = 1.0
+    Js = J / norms
+    _, s, vt = np.linalg.svd(Js.T @ Js)
+    inv_s = np.where(s > _RCOND * s[0], 1.0 / np.where(s > 0, s, 1.0), np.inf)
+    # Directions with an infinite variance make every parameter they touch infinite.
+    finite = np.isfinite(inv_s)
+    cov_s = (vt[finite].T * inv_s[finite]) @ vt[finite]
+    cov = sigma_px**2 * cov_s / np.outer(norms, norms)
+    undetermined = np.zeros(k, dtype=bool)
+    if not np.all(finite):
+        undetermined = np.any(np.abs(vt[~finite]) > 1e-6, axis=0)
+    return cov, undetermined
+
+
+def _prior_residuals(prior: PriorRows, param: CameraParametrisation, x: np.ndarray) -> np.ndarray:
+    """The rows :func:`.solver.robust_lm` appends for ``prior`` at the vector ``x`` (px)."""
+    _, R, C, _ = param.split(x)
+    return np.concatenate([prior.whitening @ (C - prior.mean), [prior.roll_weight * np.arctan2(R[0, 2], R[1, 2])]])
+
+
 def _angles(R0: np.ndarray, w: np.ndarray) -> np.ndarray:
     return np.asarray(pan_tilt_roll_from_rotation(rotation_from_vector(w) @ R0), dtype=float)
 
@@ -95,7 +141,8 @@ def _wrap_deg(d: np.ndarray) -> np.ndarray:
 
 
 def calibration_uncertainty(camera: Camera, lines: FieldLines, *, fixed_centre: bool = False,
-                            line_noise_px: float | None = None) -> CalibrationUncertainty | None:
+                            line_noise_px: float | None = None,
+                            prior: PriorRows | None = None) -> CalibrationUncertainty | None:
     """Standard deviations of ``camera``'s parameters given the annotated ``lines`` it was fitted to.
 
     Args:
@@ -104,7 +151,10 @@ def calibration_uncertainty(camera: Camera, lines: FieldLines, *, fixed_centre: 
             ignored), same pixels.
         fixed_centre: the centre was held fixed (rig): only focal, rotation (and ``k1``) were fitted.
         line_noise_px: line noise to propagate; default the residuals' standard error, floored at
-            :data:`MIN_LINE_NOISE_PX`.
+            :data:`MIN_LINE_NOISE_PX` (:func:`line_noise`).
+        prior: the prior rows of a MAP fit (:attr:`.frame.CalibrationResult.centre_prior`): the
+            covariance is then the posterior's, ``sigma^2 (J^T J + Jp^T Jp)^+`` with ``Jp`` the prior
+            rows' Jacobian, so a centre the lines leave open gets the anchor's std rather than ``inf``.
 
     Returns:
         :class:`CalibrationUncertainty`, or ``None`` when the lines have no point with a model element.
@@ -130,23 +180,13 @@ def calibration_uncertainty(camera: Camera, lines: FieldLines, *, fixed_centre: 
     X = x0 + np.diag(steps)
     J = (residuals(X, obs, param) - r0) / steps[:, None]  # (k, n)
     J = J.T
-    dof = max(len(r0) - k, 1)
-    sigma = float(np.sqrt(np.sum(r0**2) / dof)) if line_noise_px is None else float(line_noise_px)
-    if line_noise_px is None:
-        sigma = max(sigma, MIN_LINE_NOISE_PX)
-    # Scale the columns so that focal (px) and rotation (rad) are comparable before inverting.
-    norms = np.linalg.norm(J, axis=0)
-    norms[norms == 0] = 1.0
-    Js = J / norms
-    u, s, vt = np.linalg.svd(Js.T @ Js)
-    inv_s = np.where(s > _RCOND * s[0], 1.0 / np.where(s > 0, s, 1.0), np.inf)
-    # Directions with an infinite variance make every parameter they touch infinite.
-    finite = np.isfinite(inv_s)
-    cov_s = (vt[finite].T * inv_s[finite]) @ vt[finite]
-    cov = sigma**2 * cov_s / np.outer(norms, norms)
-    undetermined = np.zeros(k, dtype=bool)
-    if not np.all(finite):
-        undetermined = np.any(np.abs(vt[~finite]) > 1e-6, axis=0)
+    sigma = line_noise(r0, k) if line_noise_px is None else float(line_noise_px)
+    if prior is not None and not fixed_centre:
+        # The MAP fit's prior rows are residuals like the lines': their Jacobian joins the lines'.
+        p0 = _prior_residuals(prior, param, x0)
+        Jp = np.stack([(_prior_residuals(prior, param, X[j]) - p0) / steps[j] for j in range(k)], axis=1)
+        J = np.vstack([J, Jp])
+    cov, undetermined = parameter_covariance(J, sigma)
     var = np.where(undetermined, np.inf, np.diag(cov))
     # Angles: Jacobian of (pan, tilt, roll) with respect to the rotation vector at w = 0.
     a0 = _angles(param.R0, np.zeros(3))

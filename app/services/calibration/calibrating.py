@@ -33,9 +33,12 @@ from app.core.config import Settings
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, System
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import mirror_lines, FieldLines, lines_from_json_lists
-from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty
+from app.geometry.calibration import (
+    CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior,
+)
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
+from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.mirror import mirrored_fit_at_rig
@@ -64,7 +67,7 @@ def expected_side(role: FrameRole) -> int | None:
 
 
 def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: int | None = None,
-                    rig: CameraRig | None = None, main_camera: bool = False) -> CalibrationFields:
+                    rig: CameraRig | CameraPrior | None = None, main_camera: bool = False) -> CalibrationFields:
     """Calibrate one frame from its stored field lines (``{class: [[[x, y], ...], ...]}``, pixels).
 
     Pure: calls ``app.geometry.calibration.calibrate_frame`` (JaC at :data:`JAC_GAMMAS` included)
@@ -73,10 +76,16 @@ def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: i
     filmed by the main camera, whose position is preferred among equally fitting ones), and converts
     the result. A frame the rig cannot calibrate either is flagged :data:`MIRROR_FLAG` when its
     mirrored labels fit a rig position (``app.geometry.mirror.mirrored_fit_at_rig``; the result stays
-    a refusal: labels are never changed silently). Safe to run in a worker process.
+    a refusal: labels are never changed silently). Given a dataset's learned ``CameraPrior`` in place
+    of a rig (:func:`dataset_prior`), the free fit is made a MAP fit where the lines leave the centre
+    open (``CalibrationPrior.camera_prior``). Safe to run in a worker process.
     """
     t0 = time.perf_counter()
     lines = lines_from_json_lists(lines_json)
+    if isinstance(rig, CameraPrior):
+        fields = _fields_from_result(calibrate_frame(lines, width, height, prior=CalibrationPrior(
+            expected_side=side, camera_prior=rig)), lines)
+        return dataclasses.replace(fields, elapsed_ms=(time.perf_counter() - t0) * 1e3)
     if rig is not None:
         fields = _fields_from_result(calibrate_with_rig(lines, width, height, rig, expected_side=side,
                                                         main_camera=main_camera), lines)
@@ -127,7 +136,7 @@ def _fields_from_result(result: Any, lines: FieldLines | None = None) -> Calibra
     status = CalibrationStatus(str(getattr(result.status, "value", result.status)))
     uncertainty = None
     if lines is not None and camera is not None and status is CalibrationStatus.CALIBRATED:
-        uncertainty = fit_uncertainty(camera, lines, tuple(result.flags or ()))
+        uncertainty = fit_uncertainty(camera, lines, tuple(result.flags or ()), getattr(result, "centre_prior", None))
     jac = tuple(_opt_float(result.jac.get(f"{g:g}")) for g in JAC_GAMMAS) if result.jac else (None, None, None)
     return CalibrationFields(
         status=status,
@@ -142,14 +151,16 @@ def _fields_from_result(result: Any, lines: FieldLines | None = None) -> Calibra
     )
 
 
-def fit_uncertainty(camera: Camera, lines: FieldLines, flags: tuple[str, ...]) -> dict[str, Any] | None:
+def fit_uncertainty(camera: Camera, lines: FieldLines, flags: tuple[str, ...],
+                    prior: PriorRows | None = None) -> dict[str, Any] | None:
     """JSON of ``app.geometry.calibration.calibration_uncertainty`` for a camera fitted to ``lines``:
     a class the fit ignored (flag ``ignored_class:<class>``) is left out, a rig-assisted fit
-    (:data:`RIG_FLAG`) had its centre fixed. None when it cannot be computed."""
+    (:data:`RIG_FLAG`) had its centre fixed, a MAP fit with a learned prior (``prior``: its
+    ``CalibrationResult.centre_prior``) gets the posterior's std. None when it cannot be computed."""
     ignored = {f.split(":", 1)[1] for f in flags if f.startswith("ignored_class:")}
     used = {c: v for c, v in lines.items() if c not in ignored}
     try:
-        u = calibration_uncertainty(camera, used, fixed_centre=RIG_FLAG in flags)
+        u = calibration_uncertainty(camera, used, fixed_centre=RIG_FLAG in flags, prior=prior)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError):
         return None
     return None if u is None else u.to_json()
@@ -159,16 +170,18 @@ def _opt_float(v: Any) -> float | None:
     return None if v is None else float(v)
 
 
-#: ``(lines_json, width, height, side, rig, main_camera)``: the arguments of :func:`calibrate_lines`.
-CalibrationJob = tuple[dict[str, Any], int, int, "int | None", "CameraRig | None", bool]
+#: ``(lines_json, width, height, side, rig, main_camera)``: the arguments of :func:`calibrate_lines`
+#: (``rig``: a game's rig, or a dataset's learned prior).
+CalibrationJob = tuple[dict[str, Any], int, int, "int | None", "CameraRig | CameraPrior | None", bool]
 
 
 def _calibrate_job(job: CalibrationJob) -> CalibrationFields:
     return calibrate_lines(*job)
 
 
-def calibration_job(frame: Frame, rig: CameraRig | None = None) -> CalibrationJob:
-    """The job that calibrates ``frame`` from its current field lines (with the game ``rig``, if any)."""
+def calibration_job(frame: Frame, rig: CameraRig | CameraPrior | None = None) -> CalibrationJob:
+    """The job that calibrates ``frame`` from its current field lines (with the game ``rig``, or a
+    dataset's learned prior, if any)."""
     if frame.field_lines is None:
         raise ValueError(f"frame {frame.id} ({frame.name!r}) has no field lines to calibrate from")
     return (frame.field_lines.lines, frame.width, frame.height, expected_side(frame.role), rig,
@@ -247,7 +260,7 @@ def calibrate_many(jobs: Sequence[CalibrationJob], workers: int = 0, progress: P
 def _chunk_size(jobs: Sequence[CalibrationJob], workers: int) -> int:
     """Jobs per round trip to a worker: fewer round trips, but a chunk is the tail one worker may run
     alone at the end; rig retries (a full fit per rig position) get small chunks."""
-    heavy = any(len(job) > 4 and job[4] is not None for job in jobs)
+    heavy = any(len(job) > 4 and isinstance(job[4], CameraRig) for job in jobs)
     return max(1, min(4 if heavy else 16, len(jobs) // (workers * 8)))
 
 
@@ -344,6 +357,46 @@ def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[i
                     Calibration.camera.is_not(None), jac > settings.admit_jac_min,
                     sa.cast(Calibration.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%')))
     return [(fid, np.asarray(centre, float), role is FrameRole.ACTION) for fid, role, centre in session.execute(query)]
+
+
+#: Fewest calibrated frames of an import's systems without a rig from which a dataset prior is learned
+#: (half of them confident: a handful of anchors at least).
+MIN_PRIOR_FRAMES = 40
+
+
+def dataset_prior(results: Sequence[CalibrationFields]) -> CameraPrior | None:
+    """The learned camera prior of a dataset (``app.geometry.calibration.learn_camera_prior``) from
+    its frames' calibrations from their lines alone: the calibrated ones, not rig-assisted, with an
+    uncertainty (camera and position std read from the fields). None below :data:`MIN_PRIOR_FRAMES`
+    such frames or when no anchor is found."""
+    cams, stds = [], []
+    for r in results:
+        if r.status is not CalibrationStatus.CALIBRATED or r.camera is None or r.uncertainty is None or RIG_FLAG in r.flags:
+            continue
+        p = r.uncertainty["position_m"]
+        cams.append(Camera.from_soccernet(r.camera))
+        stds.append(float(np.sqrt(sum(float("inf") if p[k] is None else float(p[k]) ** 2 for k in "xyz"))))
+    if len(cams) < MIN_PRIOR_FRAMES:
+        return None
+    prior = learn_camera_prior(cams, stds)
+    return prior if prior.anchors_m else None
+
+
+def wants_prior_retry(fields: CalibrationFields, prior: CameraPrior) -> bool:
+    """True when a frame's calibration from its lines alone is worth refitting with the dataset's
+    learned ``prior``: refused, or calibrated with a camera-position std above the prior's confident
+    ones' (``CameraPrior.confident_std_m``: the lines leave the centre open). Frames whose lines fix
+    the camera as well as the confident ones are never refitted (their calibration stays as it is),
+    nor refusals flagged :data:`MIRROR_FLAG` (the prior's anchors, on the labelled side, would fit
+    mirrored labels with a wrong camera)."""
+    if fields.status is CalibrationStatus.REFUSED:
+        return MIRROR_FLAG not in fields.flags  # mirrored labels: a prior on this side would hide it
+    if fields.uncertainty is None or RIG_FLAG in fields.flags:
+        return False
+    p = fields.uncertainty["position_m"]
+    if any(p[k] is None for k in "xyz"):
+        return True
+    return float(np.sqrt(sum(float(p[k]) ** 2 for k in "xyz"))) > prior.confident_std_m
 
 
 def wants_rig_retry(fields: CalibrationFields, settings: Settings) -> bool:

@@ -54,7 +54,9 @@ from app.datasets.sn_calibration import read_sn_calibration
 from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
 from app.datasets.soccernet_v3d import read_soccernet_v3d
 from app.services.accounts.audit import record_summary
-from app.services.calibration.first_pass import FirstPassAhead, first_pass, retry_with_game_rigs, start_first_pass
+from app.services.calibration.first_pass import (
+    FirstPassAhead, first_pass, retry_with_dataset_prior, retry_with_game_rigs, start_first_pass,
+)
 from app.geometry.calibration.frame import RIG_FLAG
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import CalibrationPool, apply_calibration, calibration_pool
@@ -270,6 +272,9 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         results, retried_ms = retry_with_game_rigs(session, to_calibrate, batch.results, settings, progress, pool,
                                                    batch.finished)
     rig_ms.update(retried_ms)
+    results, prior_ms = retry_with_dataset_prior(to_calibrate, results, settings, progress, pool)
+    for i, ms in prior_ms.items():
+        rig_ms[i] = rig_ms.get(i, 0.0) + ms
     if after_calibration is not None:
         after_calibration()
     report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
@@ -402,7 +407,8 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
 
     Idempotent: a second import of the same tree changes nothing. ``progress(stage, done, total)``
     is called for the stages "merge" (records matched to rows), "calibrate", "rig" (frames retried
-    with their game's camera rig, when there are any) and "triangulate".
+    with their game's camera rig, when there are any), "prior" (frames of calibration datasets refitted
+    with the dataset's learned camera prior, when there are any) and "triangulate".
 
     ``actor`` is the import's audit entry's (None: the local user); ``source_name`` how it names the
     input to non-admins (default: the path's last component).

@@ -1,0 +1,72 @@
+"""The import's learned dataset prior (issue 17): learned from a dataset's fresh calibrations, used to
+refit only the frames whose lines leave the camera open, never those the lines fix."""
+from __future__ import annotations
+
+import numpy as np
+
+from app.db.models import CalibrationStatus
+from app.geometry.calibration.frame import PRIOR_FLAG
+from app.geometry.camera import Camera, look_at_rotation
+from app.geometry.pitch import sample_pitch_polylines
+from app.services.calibration.calibrating import (
+    MIN_PRIOR_FRAMES, calibrate_lines, dataset_prior, wants_prior_retry,
+)
+
+W, H = 960, 540
+#: Two stadiums' main cameras (world metres, z down).
+POSITIONS = (np.array([0.5, 60.0, -14.0]), np.array([-1.0, 58.0, -19.0]))
+
+
+def _lines_json(centre: np.ndarray, target, focal: float, rng, classes=None, noise_px: float = 1.0) -> dict:
+    C = np.asarray(centre, float)
+    camera = Camera(K=np.array([[focal, 0.0, (W - 1) / 2], [0.0, focal, (H - 1) / 2], [0.0, 0.0, 1.0]]),
+                    R=look_at_rotation(C, np.asarray(target, float)), C=C)
+    out = {}
+    for cls, X in sample_pitch_polylines().items():
+        if classes is not None and cls not in classes:
+            continue
+        uv, ok = camera.project(X)
+        inside = ok & (uv[:, 0] > 2) & (uv[:, 0] < W - 3) & (uv[:, 1] > 2) & (uv[:, 1] < H - 3)
+        if inside.sum() >= 10:
+            pts = uv[inside][np.linspace(0, int(inside.sum()) - 1, 10).astype(int)]
+            out[cls] = [(pts + rng.normal(0.0, noise_px, pts.shape)).tolist()]
+    return out
+
+
+def _dataset(rng) -> list:
+    """Wide views of either half from the two positions (the lines fix these cameras)."""
+    fields = []
+    for k in range(MIN_PRIOR_FRAMES + 6):
+        centre = POSITIONS[k % 2] + rng.normal(0.0, 0.15, 3)
+        target = (-35.0 if k % 4 < 2 else 35.0, rng.uniform(-10.0, 10.0), 0.0)
+        fields.append(calibrate_lines(_lines_json(centre, target, 650.0, rng), W, H, 1))
+    return fields
+
+
+def test_the_import_prior_is_learned_from_the_dataset_and_refits_only_open_cameras() -> None:
+    rng = np.random.default_rng(5)
+    fields = _dataset(rng)
+    assert sum(f.status is CalibrationStatus.CALIBRATED for f in fields) >= MIN_PRIOR_FRAMES
+    prior = dataset_prior(fields)
+    assert prior is not None and len(prior.anchors_m) >= 2
+    learned = np.array(prior.anchors_m[:2])
+    for p in POSITIONS:
+        assert np.min(np.linalg.norm(learned - p, axis=1)) < 0.5
+    # Too few frames: no prior.
+    assert dataset_prior(fields[:MIN_PRIOR_FRAMES - 1]) is None
+    # The confident frames are not retried; half the dataset at most is above the confident cut.
+    retried = [wants_prior_retry(f, prior) for f in fields]
+    assert sum(retried) <= len(fields) // 2 + 1
+    # A centre view of three classes from the first position: the lines leave it open.
+    truth = POSITIONS[0]
+    open_view = _lines_json(truth, (0.0, 10.0, 0.0), 1800.0, rng,
+                            {"Middle line", "Side line top", "Circle central"}, noise_px=1.5)
+    first = calibrate_lines(open_view, W, H, 1)
+    assert first.status is CalibrationStatus.CALIBRATED and wants_prior_retry(first, prior)
+    refit = calibrate_lines(open_view, W, H, 1, prior)
+    assert refit.status is CalibrationStatus.CALIBRATED and PRIOR_FLAG in refit.flags
+    c_first = np.array(first.camera["position_meters"])
+    c_refit = np.array(refit.camera["position_meters"])
+    assert np.linalg.norm(c_refit - truth) < 0.5 < np.linalg.norm(c_first - truth)
+    # The stored std is the posterior's: far below the lines' own.
+    assert refit.uncertainty["position_m"]["y"] < 0.5 * first.uncertainty["position_m"]["y"]
