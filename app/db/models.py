@@ -158,6 +158,9 @@ class Game(Base):
     #: replays no action links), written back by the SoccerNet-v3D export; None for formats without one.
     #: Deferred: read by the exports only.
     release: Mapped[Optional[dict[str, Any]]] = mapped_column(deferred=True)
+    #: A calibration dataset's learned camera prior (``CameraPrior.to_json``, issue 17): learned by its import
+    #: from its own confident fits, used by every later recalibration of its frames; None when none was learned.
+    camera_prior: Mapped[Optional[dict[str, Any]]] = mapped_column(default=None)
 
     systems: Mapped[list[System]] = relationship(
         back_populates="game", cascade="all, delete-orphan", passive_deletes=True, order_by="System.id"

@@ -3,14 +3,21 @@ refit only the frames whose lines leave the camera open, never those the lines f
 from __future__ import annotations
 
 import numpy as np
+import pytest
+import sqlalchemy as sa
 
-from app.db.models import CalibrationStatus
+from app.db.models import Calibration, CalibrationStatus, Frame, Game
+from app.geometry.calibration import CameraPrior
 from app.geometry.calibration.frame import PRIOR_FLAG
 from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.pitch import sample_pitch_polylines
 from app.services.calibration.calibrating import (
     MIN_PRIOR_FRAMES, calibrate_lines, dataset_prior, wants_prior_retry,
 )
+from app.services.curation.editing import replace_field_lines
+from app.services.transfer.importing import import_sn_calibration
+
+from .datasets import write_calibration_zip
 
 W, H = 960, 540
 #: Two stadiums' main cameras (world metres, z down).
@@ -70,3 +77,34 @@ def test_the_import_prior_is_learned_from_the_dataset_and_refits_only_open_camer
     assert np.linalg.norm(c_refit - truth) < 0.5 < np.linalg.norm(c_first - truth)
     # The stored std is the posterior's: far below the lines' own.
     assert refit.uncertainty["position_m"]["y"] < 0.5 * first.uncertainty["position_m"]["y"]
+
+
+@pytest.mark.shared
+def test_the_imported_prior_is_stored_and_every_later_recalibration_uses_it(db_session, settings, shared_dir,
+                                                                            tmp_path):
+    """60 real WorldCup 2014 frames (a calibration dataset): the import learns the prior, keeps it on the game, and
+    refits the frames its lines leave open with it (flag ``learned_prior``). A line edit of such a frame that gives
+    back the same lines refits it with the stored prior too: the same camera, where without the stored prior it
+    would be refitted from its lines alone and move."""
+    names = [f"{k}.json" for k in range(1, 61)]
+    import_sn_calibration(db_session, write_calibration_zip(shared_dir, tmp_path / "wc.zip", names), settings,
+                          width=960, height=540)
+    game = db_session.scalars(sa.select(Game)).one()
+    prior = CameraPrior.from_json(game.camera_prior)
+    assert prior.anchors_m and prior == CameraPrior.from_json(prior.to_json())
+    frames = db_session.scalars(sa.select(Frame).join(Calibration)).all()
+    with_prior = [f for f in frames if PRIOR_FLAG in (f.calibration.flags or ())]
+    assert with_prior and len(with_prior) < len(frames) // 2 + 1
+    frame = with_prior[0]
+    camera, jac = frame.calibration.camera, frame.calibration.jac_0005
+    alone = calibrate_lines(frame.field_lines.lines, 960, 540, 1)
+    assert alone.camera != camera  # the lines alone put this camera elsewhere
+    replace_field_lines(db_session, frame.id, frame.field_lines.lines, settings=settings)
+    db_session.refresh(frame.calibration)
+    assert PRIOR_FLAG in frame.calibration.flags
+    assert frame.calibration.camera == camera and frame.calibration.jac_0005 == jac
+    # A dataset whose import learned nothing: no prior stored, the edit fits from the lines alone.
+    game.camera_prior = None
+    replace_field_lines(db_session, frame.id, frame.field_lines.lines, settings=settings)
+    db_session.refresh(frame.calibration)
+    assert PRIOR_FLAG not in (frame.calibration.flags or ()) and frame.calibration.camera == alone.camera

@@ -75,6 +75,36 @@ class CameraPrior:
         if any(not s > 0 for s in self.anchor_std_m) or not self.roll_std_deg > 0:
             raise ValueError("CameraPrior: stds must be positive")
 
+    def to_json(self) -> dict:
+        """The prior as JSON (what ``games.camera_prior`` stores): lists of floats; an infinite std or
+        cut as null."""
+        def fin(v: float) -> float | None:
+            return float(v) if np.isfinite(v) else None
+
+        return {"anchors_m": [[float(x) for x in a] for a in self.anchors_m],
+                "anchor_std_m": [float(s) for s in self.anchor_std_m],
+                "anchor_frames": [int(n) for n in self.anchor_frames],
+                "roll_std_deg": fin(self.roll_std_deg), "confident_fits": int(self.confident_fits),
+                "confident_std_m": fin(self.confident_std_m)}
+
+    @classmethod
+    def from_json(cls, data: dict) -> "CameraPrior":
+        """The prior :meth:`to_json` wrote.
+
+        Raises:
+            ValueError: missing keys, or values :class:`CameraPrior` refuses.
+        """
+        try:
+            return cls(anchors_m=tuple(tuple(float(x) for x in a) for a in data["anchors_m"]),
+                       anchor_std_m=tuple(float(s) for s in data["anchor_std_m"]),
+                       anchor_frames=tuple(int(n) for n in data["anchor_frames"]),
+                       roll_std_deg=float("inf") if data["roll_std_deg"] is None else float(data["roll_std_deg"]),
+                       confident_fits=int(data["confident_fits"]),
+                       confident_std_m=float("inf") if data["confident_std_m"] is None
+                       else float(data["confident_std_m"]))
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"not a stored CameraPrior: {exc}") from exc
+
 
 def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float], *,
                        confident_quantile: float = 0.5, radius_m: float = 1.5, min_frames: int = 2) -> CameraPrior:

@@ -382,6 +382,25 @@ def dataset_prior(results: Sequence[CalibrationFields]) -> CameraPrior | None:
     return prior if prior.anchors_m else None
 
 
+def stored_camera_prior(system: System) -> CameraPrior | None:
+    """The learned camera prior stored on ``system``'s game (``games.camera_prior``: its calibration
+    dataset's import learned it), or None: no game, a kind that uses rigs (:func:`uses_rig`: a game's
+    cameras are its rig), nothing stored, or a stored value that is not a prior (then it is ignored)."""
+    game = system.game
+    if game is None or game.camera_prior is None or uses_rig(system):
+        return None
+    try:
+        return CameraPrior.from_json(game.camera_prior)
+    except ValueError:
+        return None
+
+
+def with_prior_refit(first: CalibrationFields, refit: CalibrationFields) -> CalibrationFields:
+    """The calibration kept after a :func:`wants_prior_retry` refit: the refit when it calibrates (the MAP
+    fit is the better estimate where the lines leave the centre open), the first fit otherwise."""
+    return refit if refit.status is CalibrationStatus.CALIBRATED else first
+
+
 def wants_prior_retry(fields: CalibrationFields, prior: CameraPrior) -> bool:
     """True when a frame's calibration from its lines alone is worth refitting with the dataset's
     learned ``prior``: refused, or calibrated with a camera-position std above the prior's confident

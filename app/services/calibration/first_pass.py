@@ -16,9 +16,11 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.models import CalibrationStatus, Frame, FrameRole, Game
 from app.datasets.records import FrameRecord, GameRecord
+from app.geometry.calibration import CameraPrior
 from app.services.calibration.calibrating import (
     CalibrationFields, CalibrationJob, CalibrationPool, calibrate_lines, calibrate_many, calibration_job, dataset_prior,
-    expected_side, game_rig, uses_rig, wants_prior_retry, wants_rig_retry, with_rig_retry,
+    expected_side, game_rig, stored_camera_prior, uses_rig, wants_prior_retry, wants_rig_retry, with_prior_refit,
+    with_rig_retry,
 )
 from app.services.jobs.progress import Progress
 from app.services.kinds import policy
@@ -186,23 +188,24 @@ def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[Ca
 
 def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationFields], settings: Settings,
                              progress: Progress | None, pool: CalibrationPool | None = None
-                             ) -> tuple[list[CalibrationFields], dict[int, float]]:
+                             ) -> tuple[list[CalibrationFields], dict[int, float], CameraPrior | None]:
     """Refit, with the learned camera prior of the batch's frames of systems without a rig
     (calibration datasets: frames from many stadiums; ``calibrating.dataset_prior`` from their fresh
     calibrations), those of them ``calibrating.wants_prior_retry`` picks: refused, or calibrated with
     a camera position the lines leave open (issue 17). A refit is kept when it calibrates; frames
-    whose lines fix the camera as the confident ones do are left as they are (the JaC guard). Returns
-    the final result per frame and the retry's time per retried frame index (ms). Writes nothing."""
+    whose lines fix the camera as the confident ones do are left as they are (the JaC guard). When the
+    batch is too small to learn from (an import of a few changed frames), each frame's game's stored
+    prior (``calibrating.stored_camera_prior``) is used instead. Returns the final result per frame, the
+    retry's time per retried frame index (ms) and the prior learned from this batch (None: none was).
+    Writes nothing."""
     mine = [i for i, f in enumerate(frames) if not uses_rig(f.system)]
-    prior = dataset_prior([results[i] for i in mine])
-    if prior is None:
-        return results, {}
-    retry = [i for i in mine if wants_prior_retry(results[i], prior)]
+    learned = dataset_prior([results[i] for i in mine])
+    priors = {i: learned if learned is not None else stored_camera_prior(frames[i].system) for i in mine}
+    retry = [i for i in mine if priors[i] is not None and wants_prior_retry(results[i], priors[i])]
     out = list(results)
     ms: dict[int, float] = {}
-    jobs = [calibration_job(frames[i], prior) for i in retry]
+    jobs = [calibration_job(frames[i], priors[i]) for i in retry]
     for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="prior", pool=pool)):
-        if fields.status is CalibrationStatus.CALIBRATED:
-            out[i] = fields
+        out[i] = with_prior_refit(out[i], fields)
         ms[i] = fields.elapsed_ms or 0.0
-    return out, ms
+    return out, ms, learned

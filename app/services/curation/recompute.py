@@ -52,7 +52,7 @@ from app.geometry.triangulation import BallObservation, error_above_tau, triangu
 from app.services.accounts.audit import record_summary
 from app.services.calibration.calibrating import (
     apply_calibration, calibrate_lines, calibration_job, expected_side, game_rig, is_admitted, rig_centres, rig_rows,
-    uses_rig, wants_rig_retry, with_rig_retry,
+    stored_camera_prior, uses_rig, wants_prior_retry, wants_rig_retry, with_prior_refit, with_rig_retry,
 )
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
@@ -70,7 +70,9 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
 
     A frame of a SoccerNet-v3 game that its lines alone cannot calibrate, or calibrate only below
     admission (:func:`wants_rig_retry`), is retried with the game's rig (:func:`game_rig`, the other
-    frames' camera positions; :func:`with_rig_retry` keeps the better fit). The calibration's source
+    frames' camera positions; :func:`with_rig_retry` keeps the better fit). A frame of a calibration
+    dataset whose import learned a camera prior (:func:`stored_camera_prior`) is refitted with it where
+    its lines leave the camera open (:func:`wants_prior_retry`), as the import did (issue 17). The calibration's source
     becomes "computed". The caller flushes or commits.
 
     Raises:
@@ -86,6 +88,8 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
         rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id], stored=stored)
         if rig.positions:
             fields = with_rig_retry(fields, calibrate_lines(*calibration_job(frame, rig)))
+    elif (prior := stored_camera_prior(frame.system)) is not None and wants_prior_retry(fields, prior):
+        fields = with_prior_refit(fields, calibrate_lines(*calibration_job(frame, prior)))
     apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     return recompute_system(session, frame.system, settings, rig_sources)
 

@@ -59,7 +59,7 @@ from app.services.calibration.first_pass import (
 )
 from app.geometry.calibration.frame import RIG_FLAG
 from app.datasets.records import CalibrationFields
-from app.services.calibration.calibrating import CalibrationPool, apply_calibration, calibration_pool
+from app.services.calibration.calibrating import CalibrationPool, apply_calibration, calibration_pool, uses_rig
 from app.services.jobs.progress import Progress
 from app.services.curation.recompute import preload_systems, recompute_systems
 
@@ -272,7 +272,10 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         results, retried_ms = retry_with_game_rigs(session, to_calibrate, batch.results, settings, progress, pool,
                                                    batch.finished)
     rig_ms.update(retried_ms)
-    results, prior_ms = retry_with_dataset_prior(to_calibrate, results, settings, progress, pool)
+    results, prior_ms, learned_prior = retry_with_dataset_prior(to_calibrate, results, settings, progress, pool)
+    if learned_prior is not None:  # kept for every later recalibration of these datasets' frames
+        for game in {id(f.system.game): f.system.game for f in to_calibrate if not uses_rig(f.system)}.values():
+            game.camera_prior = learned_prior.to_json()
     for i, ms in prior_ms.items():
         rig_ms[i] = rig_ms.get(i, 0.0) + ms
     if after_calibration is not None:
