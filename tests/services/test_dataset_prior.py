@@ -87,14 +87,14 @@ def test_the_imported_prior_is_stored_and_every_later_recalibration_uses_it(db_s
     back the same lines refits it with the stored prior too: the same camera, where without the stored prior it
     would be refitted from its lines alone and move."""
     names = [f"{k}.json" for k in range(1, 61)]
-    import_sn_calibration(db_session, write_calibration_zip(shared_dir, tmp_path / "wc.zip", names), settings,
-                          width=960, height=540)
+    report = import_sn_calibration(db_session, write_calibration_zip(shared_dir, tmp_path / "wc.zip", names),
+                                   settings, width=960, height=540)
     game = db_session.scalars(sa.select(Game)).one()
     prior = CameraPrior.from_json(game.camera_prior)
     assert prior.anchors_m and prior == CameraPrior.from_json(prior.to_json())
     frames = db_session.scalars(sa.select(Frame).join(Calibration)).all()
     with_prior = [f for f in frames if PRIOR_FLAG in (f.calibration.flags or ())]
-    assert with_prior and len(with_prior) < len(frames) // 2 + 1
+    assert with_prior and len(with_prior) < len(frames) // 2 + 1 and report.prior_fitted == len(with_prior)
     frame = with_prior[0]
     camera, jac = frame.calibration.camera, frame.calibration.jac_0005
     alone = calibrate_lines(frame.field_lines.lines, 960, 540, 1)

@@ -41,7 +41,7 @@ def import_params(kind: str, path: str | Path, *, width: int | None = None, heig
 def import_result(report: Any) -> dict[str, Any]:
     """The stored result of an import job: the counts of its ``ImportReport``."""
     keys = ("source", "games", "systems", "frames", "systems_new", "systems_changed", "calibrated", "refused",
-            "rig_assisted", "triangulated", "seconds")
+            "rig_assisted", "prior_fitted", "triangulated", "seconds")
     out = {k: getattr(report, k) for k in keys}
     out["refusal_reasons"] = dict(report.refusal_reasons)
     out["refusal_kinds"] = dict(report.refusal_kinds().most_common())
