@@ -363,29 +363,53 @@ def read_frame_image(seq: IssiaSequence, camera_id: str, frame: int, *, at_annot
 @dataclass(frozen=True)
 class CameraChoice:
     """The camera a sequence uses for one id: ``camera`` (``None`` when not usable), where it came
-    from (``"calibration_json"`` or ``"lines"``), JaC@0.5 % against its lines when calibrated from
-    them, and why it is not used (``None`` when used)."""
+    from (:data:`CAMERA_SOURCES`), JaC@0.5 % against its lines when calibrated from them, and why it is
+    not used (``None`` when used)."""
 
     camera: Camera | None
     source: str
     jac: float | None = None
     reason: str | None = None
 
+    @property
+    def ball_assisted(self) -> bool:
+        """Resected from the ball's trajectory of the other cameras (:func:`_ball_assisted`)."""
+        return "ball" in self.source.split("+")
+
+    @property
+    def bundle_adjusted(self) -> bool:
+        """Refined by the bundle adjustment of the lines and the ball labels (:func:`_bundle_adjusted`)."""
+        return "bundle" in self.source.split("+")
+
+
+#: Where a sequence's camera comes from: the calibration JSON; its field lines; resected from the ball's
+#: trajectory of the other cameras (``+ball``); refined together with the others from their lines and the
+#: ball's labels (``+bundle``).
+CAMERA_SOURCES = ("calibration_json", "lines", "lines+ball", "lines+bundle", "lines+ball+bundle")
+
 
 def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_min: float = 0.75,
-                     ball_assist: bool = True) -> dict[str, CameraChoice]:
+                     ball_assist: bool = True, bundle: bool = True) -> dict[str, CameraChoice]:
     """One camera per id: ``issia_calibration.json`` when present (as in the paper), unless
     ``from_lines`` or it is absent; then each static camera is calibrated once from its field lines
     (:func:`app.geometry.calibration.calibrate_frame`) and admitted when JaC@0.5 % > ``admit_jac_min``
     (the paper's admission rule); a refused or not admitted camera has ``camera=None`` and a reason.
-    With ``ball_assist`` and two or more admitted cameras, each refused camera is calibrated again
-    from the ball trajectory of the admitted ones and its own labels (source ``"lines+ball"``,
-    :mod:`app.geometry.static_cameras`; admitted by the same JaC rule against its lines).
+    With two or more admitted cameras, the ball's trajectory is fitted with them
+    (:func:`app.geometry.trajectory.fit_trajectory`), then:
+
+    * with ``ball_assist``, each refused camera is calibrated again from that trajectory and its own
+      labels (source ``"lines+ball"``, :mod:`app.geometry.static_cameras`; admitted by the same JaC rule
+      against its lines);
+    * with ``bundle``, the cameras are refined together from their lines and the ball labels the
+      trajectory keeps (:func:`app.geometry.static_bundle.bundle_adjust`; source ``"+bundle"``); a
+      refined camera is kept only when its JaC@0.5 % against its own lines is still above
+      ``admit_jac_min`` (the lines stay the judge), otherwise the camera before the adjustment stays.
 
     Raises:
         DatasetError: ``from_lines`` without ``issia_lines.json``.
     """
     from app.geometry.calibration import calibrate_frame
+    from app.geometry.trajectory import fit_trajectory
 
     if seq.cameras and not from_lines:
         return {cid: CameraChoice(seq.cameras.get(cid), "calibration_json",
@@ -407,21 +431,25 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
         else:
             out[cid] = CameraChoice(res.camera, "lines", jac)
     refused = [c for c in seq.camera_ids if out[c].camera is None and c in seq.lines]
-    if ball_assist and refused and sum(out[c].camera is not None for c in seq.camera_ids) >= 2:
-        out.update(_ball_assisted(seq, out, refused, admit_jac_min))
+    assist = ball_assist and bool(refused)
+    if (assist or bundle) and sum(out[c].camera is not None for c in seq.camera_ids) >= 2:
+        pts = seq.dense_points()
+        fit = fit_trajectory(pts, [out[c].camera for c in seq.camera_ids], [seq.image_size[0]] * len(seq.camera_ids),
+                             FPS)
+        if assist:
+            out.update(_ball_assisted(seq, out, refused, admit_jac_min, fit))
+        if bundle:
+            out.update(_bundle_adjusted(seq, out, fit, admit_jac_min))
     return out
 
 
 def _ball_assisted(seq: IssiaSequence, choice: dict[str, CameraChoice], refused: list[str],
-                   admit_jac_min: float) -> dict[str, CameraChoice]:
-    """Calibrate refused static cameras from the trajectory of the admitted ones
+                   admit_jac_min: float, fit) -> dict[str, CameraChoice]:
+    """Calibrate refused static cameras from ``fit``, the trajectory of the admitted ones
     (:func:`app.geometry.static_cameras.calibrate_with_ball`)."""
     from app.geometry.static_cameras import calibrate_with_ball
-    from app.geometry.trajectory import fit_trajectory
 
     pts = seq.dense_points()
-    cams = [choice[c].camera for c in seq.camera_ids]
-    fit = fit_trajectory(pts, cams, [seq.image_size[0]] * len(cams), FPS)
     out = {}
     for cid in refused:
         k = seq.camera_ids.index(cid)
@@ -432,4 +460,45 @@ def _ball_assisted(seq: IssiaSequence, choice: dict[str, CameraChoice], refused:
             out[cid] = CameraChoice(cam, "lines+ball", jac)
         elif jac is not None:
             out[cid] = replace(choice[cid], reason=f"{choice[cid].reason}; with the ball's trajectory JaC@0.5% {jac}")
+    return out
+
+
+def _bundle_adjusted(seq: IssiaSequence, choice: dict[str, CameraChoice], fit,
+                     admit_jac_min: float) -> dict[str, CameraChoice]:
+    """The cameras of ``choice`` refined together from their lines and the ball's labels
+    (:func:`app.geometry.static_bundle.bundle_adjust`), each kept when its JaC@0.5 % against its own lines
+    stays above ``admit_jac_min``.
+
+    ``fit`` is the trajectory of the cameras admitted from their lines: its kept labels are the inliers and
+    its per-frame triangulations (else its positions) the starting points. A camera resected since
+    (``"lines+ball"``, not in ``fit``) adds its labels within the trajectory's ``flag_px`` of the
+    trajectory's projection, as the trajectory judges a label."""
+    from app.geometry.jac import jac_at_gammas
+    from app.geometry.static_bundle import bundle_adjust
+    from app.geometry.trajectory import DEFAULT_FLAG_PX
+    from app.geometry.triangulation import REFERENCE_WIDTH_PX
+
+    ids = seq.camera_ids
+    cams = [choice[c].camera for c in ids]
+    if sum(c is not None for c in cams) < 2:
+        return {}
+    pts = seq.dense_points()
+    inliers = np.isfinite(fit.residuals_px) & ~fit.outliers
+    for k, cid in enumerate(ids):
+        if choice[cid].ball_assisted and cams[k] is not None:
+            uv, front = cams[k].project(np.nan_to_num(fit.positions))
+            err = np.linalg.norm(uv - pts[:, k], axis=1) * REFERENCE_WIDTH_PX / seq.image_size[0]
+            inliers[:, k] = front & np.all(np.isfinite(fit.positions), axis=1) & (err <= DEFAULT_FLAG_PX)
+    start = np.where(np.all(np.isfinite(fit.ball_3d), axis=1)[:, None], fit.ball_3d, fit.positions)
+    try:
+        res = bundle_adjust(cams, [seq.lines.get(c) for c in ids], pts, inliers, start)
+    except ValueError:
+        return {}
+    out = {}
+    for k, cid in enumerate(ids):
+        if res.cameras[k] is None or cid not in seq.lines:
+            continue
+        jac = float(jac_at_gammas(res.cameras[k], seq.lines[cid], *seq.image_size, (0.005,))[0.005])
+        if jac > admit_jac_min:
+            out[cid] = CameraChoice(res.cameras[k], choice[cid].source + "+bundle", jac)
     return out

@@ -167,6 +167,11 @@ def test_issue_figures_on_issia_dev(issia_dev, from_lines, tmp_path):
     assert fig["smoothed_coverage"] >= 0.98 and fig["smoothed_median_error_m"] <= 0.045
     assert fig["outlier_labels"] > 0 and fig["outliers_in_cam_list"] == 0
     assert fig["correct_kept_share"] >= 0.97
+    if from_lines:  # the bundle adjustment of lines and ball: 0.043 / 0.014 m (0.056 / 0.033 m from the lines alone)
+        assert fig["ball_3D_median_error_m"] <= 0.048 and fig["smoothed_median_error_m"] <= 0.02
+        choice = sequence_cameras(seq, from_lines=True)
+        assert all(c.bundle_adjusted and c.jac > 0.75 for c in choice.values())
+        assert choice["4"].ball_assisted  # refused from its lines, resected from the ball, then adjusted
     # the CSV of the fitted sequence survives a round trip and agrees with the fit
     cams = {c: ch.camera for c, ch in sequence_cameras(seq, from_lines=from_lines).items()}
     rows = issia3d_rows(seq, cams, fit)

@@ -103,6 +103,7 @@ def test_import_from_lines_calibrates_each_camera_once(db_session, db_settings, 
         assert view.calibration.admitted == (view.calibration.camera is not None)
         if view.calibration.admitted:
             assert view.calibration.jac_0005 > 0.75
+            assert "ball_bundle" in view.calibration.flags  # refined with the others from lines and ball
     truth = {fr["frame"]: fr for fr in dev_truth(shared_dir)["frames"]}
     errors = [np.linalg.norm(np.asarray(s.trajectory_point.ball3d_smoothed) - truth[i]["ball_3d"])
               for i, s in systems.items() if s.trajectory_point.ball3d_smoothed is not None]

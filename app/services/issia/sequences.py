@@ -54,6 +54,8 @@ from app.services.curation.recompute import load_for_recompute, recompute_system
 LEAGUE, SEASON = "issia", "sequences"
 #: Calibration flag of a camera calibrated again from the ball's trajectory of the others.
 BALL_ASSISTED_FLAG = "ball_assisted"
+#: Calibration flag of a camera refined together with the others from their lines and the ball's labels.
+BALL_BUNDLE_FLAG = "ball_bundle"
 
 
 def view_name(camera_id: str) -> str:
@@ -65,7 +67,7 @@ def _camera_fields(seq: IssiaSequence, cid: str, choice: CameraChoice) -> Calibr
     if choice.camera is None:
         return CalibrationFields(CalibrationStatus.REFUSED, None, (None, None, None), reason=choice.reason)
     w, h = seq.image_size
-    flags = [BALL_ASSISTED_FLAG] if choice.source == "lines+ball" else []
+    flags = [BALL_ASSISTED_FLAG] * choice.ball_assisted + [BALL_BUNDLE_FLAG] * choice.bundle_adjusted
     if cid in seq.lines:
         jac = jac_at_gammas(choice.camera, seq.lines[cid], w, h, JAC_GAMMAS)
         values = tuple(float(jac[g]) for g in JAC_GAMMAS)
@@ -196,7 +198,7 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
                         fl.lines = lines[cid]
                     fl.original_lines = lines[cid]
             cal, f = frame.calibration, fields[cid]
-            ours = [x for x in (cal.flags or []) if x in (BALL_ASSISTED_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
+            ours = [x for x in (cal.flags or []) if x in (BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
             if cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags) or cal.source is not source:
                 apply_calibration(frame, f, source)
                 changed = True
