@@ -9,7 +9,7 @@ from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibrat
 from app.geometry.calibration.frame import PRIOR_FLAG
 from app.geometry.calibration.priors import CameraPrior, anchor_order, learn_camera_prior, prior_rows
 from app.geometry.camera import Camera, look_at_rotation, pan_tilt_roll_from_rotation, rotation_from_pan_tilt_roll
-from app.geometry.pitch import sample_pitch_polylines
+from tests.geometry.synthetic import visible_model_points
 
 W, H = 960, 540
 
@@ -21,21 +21,9 @@ def _camera(centre, target=(0.0, 0.0, 0.0), focal=1500.0, roll_deg=0.0) -> Camer
     return Camera(K=K, R=rotation_from_pan_tilt_roll(pan, tilt, roll_deg), C=C)
 
 
-def _lines(camera: Camera, classes=None, noise_px=0.0, seed=0, per_class=10) -> dict[str, list[np.ndarray]]:
-    """Projected model points of the classes in view (``per_class`` evenly chosen points each),
-    with Gaussian pixel noise."""
-    rng = np.random.default_rng(seed)
-    out = {}
-    for cls, X in sample_pitch_polylines().items():
-        if classes is not None and cls not in classes:
-            continue
-        uv, ok = camera.project(X)
-        inside = ok & (uv[:, 0] > 2) & (uv[:, 0] < W - 3) & (uv[:, 1] > 2) & (uv[:, 1] < H - 3)
-        if inside.sum() < per_class:
-            continue
-        pts = uv[inside][np.linspace(0, int(inside.sum()) - 1, per_class).astype(int)]
-        out[cls] = [pts + rng.normal(0.0, noise_px, pts.shape)]
-    return out
+def _lines(camera: Camera, classes=None, noise_px=0.0, seed=0) -> dict[str, list[np.ndarray]]:
+    """Ten evenly chosen model points of each class in view, with Gaussian pixel noise."""
+    return visible_model_points(camera, W, H, np.random.default_rng(seed), classes=classes, noise_px=noise_px)
 
 
 def test_learning_recovers_the_positions_their_spread_and_the_roll_from_confident_fits() -> None:

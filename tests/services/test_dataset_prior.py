@@ -10,12 +10,13 @@ from app.db.models import Calibration, CalibrationStatus, Frame, Game
 from app.geometry.calibration import CameraPrior
 from app.geometry.calibration.frame import PRIOR_FLAG
 from app.geometry.camera import Camera, look_at_rotation
-from app.geometry.pitch import sample_pitch_polylines
 from app.services.calibration.calibrating import (
     MIN_PRIOR_FRAMES, calibrate_lines, dataset_prior, wants_prior_retry,
 )
 from app.services.curation.editing import replace_field_lines
 from app.services.transfer.importing import import_sn_calibration
+
+from tests.geometry.synthetic import visible_model_points
 
 from .datasets import write_calibration_zip
 
@@ -28,16 +29,8 @@ def _lines_json(centre: np.ndarray, target, focal: float, rng, classes=None, noi
     C = np.asarray(centre, float)
     camera = Camera(K=np.array([[focal, 0.0, (W - 1) / 2], [0.0, focal, (H - 1) / 2], [0.0, 0.0, 1.0]]),
                     R=look_at_rotation(C, np.asarray(target, float)), C=C)
-    out = {}
-    for cls, X in sample_pitch_polylines().items():
-        if classes is not None and cls not in classes:
-            continue
-        uv, ok = camera.project(X)
-        inside = ok & (uv[:, 0] > 2) & (uv[:, 0] < W - 3) & (uv[:, 1] > 2) & (uv[:, 1] < H - 3)
-        if inside.sum() >= 10:
-            pts = uv[inside][np.linspace(0, int(inside.sum()) - 1, 10).astype(int)]
-            out[cls] = [(pts + rng.normal(0.0, noise_px, pts.shape)).tolist()]
-    return out
+    points = visible_model_points(camera, W, H, rng, classes=classes, noise_px=noise_px)
+    return {cls: [p.tolist() for p in polylines] for cls, polylines in points.items()}
 
 
 def _dataset(rng) -> list:
