@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 from app.core.paths import SHARED_DIR  # noqa: E402
 from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty  # noqa: E402
+from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, radial_px2  # noqa: E402
 from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class  # noqa: E402
 from app.geometry.calibration.priors import CameraPrior, learn_camera_prior  # noqa: E402
 from app.geometry.jac import evaluate_jac  # noqa: E402
@@ -75,7 +75,7 @@ def full_fit(frames: list[tuple[str, dict]], priors: dict[str, CameraPrior] | No
     """Every class fitted (with ``priors[frame]``, a learned prior, when given): completeness, mean
     JaC@5 over every frame's calibrated ones, CPU ms per frame, the cameras (``frame -> Camera |
     None``) and their position std (m, :func:`calibration_uncertainty`; ``frame -> float``)."""
-    cams, jac5, ms, stds = {}, [], [], {}
+    cams, jac5, ms, stds, kappa = {}, [], [], {}, {}
     for frame, lines in frames:
         result, dt = _cpu(calibrate_frame, lines, W, H, prior=_prior(frame, priors), compute_jac=False)
         ms.append(dt)
@@ -83,14 +83,18 @@ def full_fit(frames: list[tuple[str, dict]], priors: dict[str, CameraPrior] | No
         if result.camera is not None:
             jac5.append(evaluate_jac(result.camera, lines, W, H, (5.0,)).jac[5.0])
             ignored = {f.split(":", 1)[1] for f in result.flags if f.startswith("ignored_class:")}
-            u = calibration_uncertainty(result.camera, {c: v for c, v in lines.items() if c not in ignored})
+            used = {c: v for c, v in lines.items() if c not in ignored}
+            u = calibration_uncertainty(result.camera, used)
             stds[frame] = u.position_std_m if u is not None else float("inf")
+            if priors is None:
+                kappa[frame] = radial_px2(result.camera, used, W, H)
     return {"frames": len(frames), "completeness": len(jac5) / max(len(frames), 1),
             "jac_5": float(np.mean(jac5)) if jac5 else 0.0, "cpu_ms_median": statistics.median(ms) if ms else 0.0,
-            "cameras": cams, "position_std_m": stds}
+            "cameras": cams, "position_std_m": stds, "radial_px2": kappa}
 
 
-def fold_priors(frames: list[tuple[str, dict]], full: dict, seed: int, folds: int = 2) -> dict[str, CameraPrior]:
+def fold_priors(frames: list[tuple[str, dict]], full: dict, seed: int, folds: int = 2,
+                radial: bool = True) -> dict[str, CameraPrior]:
     """Held-out folds of the learned prior: ``frame -> prior`` learned from the full fits of the
     frames outside its fold, the frames split into ``folds`` parts by a seeded permutation
     (``numpy.random.default_rng([seed, 2])``; two halves by default, each used with the other's prior)."""
@@ -103,7 +107,8 @@ def fold_priors(frames: list[tuple[str, dict]], full: dict, seed: int, folds: in
     for k in range(folds):
         fitted = [f for f in sorted(names) if fold_of[f] != k and full["cameras"].get(f) is not None]
         learned.append(learn_camera_prior([full["cameras"][f] for f in fitted],
-                                          [full["position_std_m"][f] for f in fitted]))
+                                          [full["position_std_m"][f] for f in fitted],
+                                          radial_px2=[full["radial_px2"][f] for f in fitted] if radial else None))
     return {f: learned[fold_of[f]] for f in names}
 
 
@@ -159,6 +164,7 @@ def main() -> None:
     ap.add_argument("--limit", type=int, default=None, help="first N frames of each set only")
     ap.add_argument("--prior", action="store_true", help="learned camera prior in held-out folds")
     ap.add_argument("--folds", type=int, default=2, help="folds of the prior (2: halves)")
+    ap.add_argument("--no-radial", action="store_true", help="the prior without its radial term")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
     rows = []
@@ -168,10 +174,11 @@ def main() -> None:
         frames = load_set(key, args.limit)
         full = full_fit(frames)
         for seed in (int(s) for s in args.seeds.split(",")):
-            priors = fold_priors(frames, full, seed, args.folds) if args.prior else None
+            priors = fold_priors(frames, full, seed, args.folds, not args.no_radial) if args.prior else None
             shown = full if priors is None else full_fit(frames, priors)
             r = held_out(frames, seed, full["cameras"], priors)
             r.update(set=key, prior=bool(args.prior), folds=args.folds if args.prior else None,
+                     radial=bool(args.prior and not args.no_radial),
                      completeness=shown["completeness"], jac_5=shown["jac_5"],
                      cpu_ms_full=shown["cpu_ms_median"])
             rows.append(r)

@@ -82,6 +82,11 @@ from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
 RIG_FLAG = "rig_assisted"
 #: Flag of a calibration fitted with a learned camera prior (a MAP fit, :mod:`.priors`).
 PRIOR_FLAG = "learned_prior"
+#: Flag of a calibration whose radial term was fitted under a learned radial prior (:mod:`.priors`).
+RADIAL_PRIOR_FLAG = "radial_prior"
+#: Largest relative radial distortion at the image corner, ``|k1| (h / f)^2`` with ``h`` the half
+#: diagonal, accepted from a fit under the radial prior (the real sets' median is 0.04).
+MAX_CORNER_DISTORTION = 0.2
 #: Flag of a frame whose field-line labels are probably mirrored (camera-side prior here; the
 #: multi-view verdict of ``app.geometry.mirror`` sets the same flag in the service).
 MIRROR_FLAG = "probably_mirrored"
@@ -194,8 +199,9 @@ class CalibrationResult:
         elapsed_ms: wall time of the call, milliseconds.
         mirrored_lines: when ``"probably_mirrored"`` is flagged, the mirrored labelling offered as
             the fix (:func:`app.geometry.annotations.mirror_lines`).
-        centre_prior: the prior rows of a MAP fit (flag ``"learned_prior"``), for
-            :func:`~.uncertainty.calibration_uncertainty`'s posterior covariance; ``None`` otherwise.
+        centre_prior: the prior rows of a MAP fit (a centre prior: flag ``"learned_prior"``; the
+            radial prior: flag ``"radial_prior"``), for :func:`~.uncertainty.calibration_uncertainty`'s
+            posterior covariance; ``None`` otherwise.
     """
 
     status: Status
@@ -540,6 +546,58 @@ def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: Calibr
     return best
 
 
+def _with_radial_prior(best: _Candidate, obs: Observations, camera_prior: CameraPrior, scale: float, limit: float,
+                       half_diagonal: float, settings: CalibrationSettings) -> tuple[_Candidate, PriorRows | None]:
+    """Refit ``best`` with ``k1`` free under the learned radial prior (:mod:`.priors`):
+    ``(candidate, its prior rows)``, or ``(best, None)`` when the fit fails, leaves a class further
+    from its element than ``limit`` px (or than ``best`` did) or bends the image corner by more than
+    :data:`MAX_CORNER_DISTORTION`. The start is ``best``'s ``k1`` or the prior's ``kappa_0 f^2``."""
+    f, R, C, k1 = best.param.split(best.x)
+    f, k1 = float(f), float(k1)
+    param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
+                                  fixed_centre=best.param.fixed_centre)
+    sigma = line_noise(residual_rows(best.x, obs, [best.param]), len(best.x))
+    rows = prior_rows(camera_prior, None, sigma)
+    start = k1 if k1 != 0.0 else camera_prior.k1_px2 * f * f
+    cand = _fit(param.vector(f, C, start), obs, param, scale, best.origin + " +radial prior",
+                _Budget(settings.prior_max_evaluations), prior=rows)
+    if cand is None or abs(cand.x[-1]) * (half_diagonal / cand.x[0]) ** 2 > MAX_CORNER_DISTORTION:
+        return best, None
+    if _worst(cand, obs) > max(limit, _worst(best, obs)):
+        return best, None
+    cand.k1_tried = True
+    return cand, rows
+
+
+def radial_px2(camera: Camera, lines: FieldLines, width: int, height: int,
+               settings: CalibrationSettings | None = None) -> float:
+    """The radial term in pixel units, ``k1 / f^2`` (px^-2), of ``camera`` refitted to ``lines`` with
+    ``k1`` free (focal, rotation, centre and ``k1``; no gain gate, no prior): the value a learned
+    radial prior is learned from (:func:`.priors.learn_camera_prior`).
+
+    Args:
+        camera: a fit of ``lines`` (principal point fixed, square pixels). lines: the classes it
+            used (:data:`~app.geometry.annotations.FieldLines`, pixels). width, height: image size, px.
+
+    Returns:
+        ``k1 / f^2`` (px^-2), or NaN when the refit fails or bends the image corner by more than
+        :data:`MAX_CORNER_DISTORTION`.
+    """
+    settings = settings or CalibrationSettings()
+    obs = build_observations(lines)
+    if obs.n_points < settings.k1_min_points:
+        return float("nan")
+    f = float(camera.K[0, 0])
+    param = CameraParametrisation(principal_point=np.asarray(camera.K[:2, 2], dtype=float), R0=np.asarray(camera.R),
+                                  fit_k1=True)
+    cand = _fit(param.vector(f, np.asarray(camera.C, dtype=float), float(camera.radial[0])), obs, param,
+                settings.loss_scale_gamma * image_diagonal(width, height), "radial", _Budget(settings.prior_max_evaluations))
+    if cand is None:
+        return float("nan")
+    kappa = float(cand.x[-1] / cand.x[0] ** 2)
+    return kappa if abs(kappa) * (image_diagonal(width, height) / 2.0) ** 2 <= MAX_CORNER_DISTORTION else float("nan")
+
+
 def _with_camera_prior(best: _Candidate, obs: Observations, camera_prior: CameraPrior, scale: float, limit: float,
                        settings: CalibrationSettings) -> tuple[_Candidate, PriorRows | None]:
     """The MAP refinement of the free fit ``best`` with a learned prior (:mod:`.priors`):
@@ -709,6 +767,10 @@ def _calibrate(
             if other is not None and _worst(other, obs) <= limit:
                 best, fit_obs = other, obs
                 flags[:] = [f for f in flags if not f.startswith("ignored_class:")]
+        radial_prior = None
+        if best is not None and prior is not None and prior.camera_prior is not None and prior.camera_prior.has_radial:
+            best, radial_prior = _with_radial_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
+                                                    settings)
         if best is not None and not fixed and prior is not None and prior.camera_prior is not None:
             best, centre_prior = _with_camera_prior(best, fit_obs, prior.camera_prior, scale, limit, settings)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
@@ -722,6 +784,8 @@ def _calibrate(
         flags.append(RIG_FLAG)
     if centre_prior is not None:
         flags.append(PRIOR_FLAG)
+    if radial_prior is not None and best.param.fit_k1:
+        flags.append(RADIAL_PRIOR_FLAG)
     if camera.radial[0] != 0.0:
         flags.append("radial_distortion")
     fitted = {c: per_class[c] for c in fit_obs.classes}
@@ -745,7 +809,7 @@ def _calibrate(
         jac = frame_jac(camera, lines, width, height, jac_function)
     return CalibrationResult(status="calibrated", camera=camera, reason=None, jac=jac, residuals_px=per_class,
                              flags=tuple(flags), rms_px=rms, elapsed_ms=(time.perf_counter() - t0) * 1e3,
-                             mirrored_lines=mirrored, centre_prior=centre_prior)
+                             mirrored_lines=mirrored, centre_prior=centre_prior or radial_prior)
 
 
 def frame_jac(camera: Camera, lines: FieldLines, width: int, height: int,

@@ -39,8 +39,9 @@ class SolverResult:
     evaluations: int
 
 
-#: Rows a :class:`PriorRows` appends to the residuals: three for the centre, one for the roll.
-PRIOR_ROWS = 4
+#: Rows a :class:`PriorRows` appends to the residuals: three for the centre, one for the roll, one for
+#: the radial term.
+PRIOR_ROWS = 5
 
 
 @dataclass(frozen=True)
@@ -52,17 +53,24 @@ class PriorRows:
     ``sigma^2 (C - mean)^T S^-1 (C - mean)``, i.e. the rows ``whitening (C - mean)`` with
     ``whitening = sigma S^-1/2`` (px per metre), and a zero-mean roll prior of std ``s_roll`` (radians)
     the row ``sigma / s_roll * roll`` (``roll_weight``, px per radian; roll in SoccerNet's convention,
-    ``atan2(R[0, 2], R[1, 2])`` of the world-to-camera ``R``, method.md section 2). Built by
-    :mod:`.priors`.
+    ``atan2(R[0, 2], R[1, 2])`` of the world-to-camera ``R``, method.md section 2), and a Gaussian prior
+    on the radial term in pixel units, ``kappa = k1 / f^2`` (px^-2: the distortion ``k1 rho`` of a
+    point ``r`` px from the principal point is ``kappa r^2`` whatever the zoom) of mean ``kappa_0``
+    and std ``s_kappa``, the row ``sigma / s_kappa (k1 / f^2 - kappa_0)`` (``k1_weight``; only when
+    ``k1`` is fitted). Built by :mod:`.priors`. With the centre held fixed the centre rows are zero.
 
     Attributes:
-        mean: (3,) prior centre, world metres (z down). whitening: (3, 3) px per metre.
+        mean: (3,) prior centre, world metres (z down). whitening: (3, 3) px per metre (zeros: no
+            centre prior).
         roll_weight: px per radian (0: no roll prior).
+        k1_mean_px2: ``kappa_0``, px^-2. k1_weight: ``sigma / s_kappa``, px^3 (0: no radial prior).
     """
 
     mean: np.ndarray
     whitening: np.ndarray
     roll_weight: float
+    k1_mean_px2: float = 0.0
+    k1_weight: float = 0.0
 
 
 _NO_PRIOR = PriorRows(mean=np.zeros(3), whitening=np.zeros((3, 3)), roll_weight=0.0)
@@ -159,7 +167,7 @@ def _solve_into(A: np.ndarray, g: np.ndarray, out: np.ndarray) -> bool:
 def _robust_lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: float, max_iter: int, rel_step: float,
                tol: float, max_evaluations: int, pp: np.ndarray, R0: np.ndarray, centre: np.ndarray, fixed: bool,
                fit_k1: bool, o: tuple, prior_on: bool, prior_mean: np.ndarray, prior_whitening: np.ndarray,
-               roll_weight: float) -> tuple:
+               roll_weight: float, k1_mean: float, k1_weight: float) -> tuple:
     R, P, sp, cp, d_line, d_ext, d_cir, scratch = workspace(o)
     k = x0.shape[0]
     n_lines = 2 * d_line.shape[0] + d_cir.shape[0]
@@ -174,13 +182,16 @@ def _robust_lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: float, max
     def evaluate(at: np.ndarray, out: np.ndarray) -> None:
         residuals_into(at, pp, R0, centre, fixed, fit_k1, o, out, R, P, sp, cp, d_line, d_ext, d_cir, scratch)
         if prior_on:
-            # The prior's rows (px): whitened centre offset, then the roll (R holds the rotation now).
+            # The prior's rows (px): whitened centre offset, the roll (R holds the rotation now), then
+            # the radial term in pixel units.
             for a in range(3):
                 s = 0.0
-                for b in range(3):
-                    s += prior_whitening[a, b] * (at[4 + b] - prior_mean[b])
+                if not fixed:
+                    for b in range(3):
+                        s += prior_whitening[a, b] * (at[4 + b] - prior_mean[b])
                 out[n_lines + a] = s
             out[n_lines + 3] = roll_weight * math.atan2(R[0, 2], R[1, 2])
+            out[n_lines + 4] = k1_weight * (at[k - 1] / (at[0] * at[0]) - k1_mean) if fit_k1 else 0.0
 
     def jacobian(at: np.ndarray, r_at: np.ndarray) -> None:
         # Forward differences, step relative to max(1, |x|) per parameter.
@@ -265,20 +276,20 @@ def robust_lm(x0: np.ndarray, obs: Observations, param: CameraParametrisation, s
         max_iter: most linearisations. max_evaluations: most trial points (the start counts one).
         tol: stop when an accepted step lowers the cost by less than ``tol`` relative.
         prior: optional :class:`PriorRows` (a MAP fit): :data:`PRIOR_ROWS` rows appended to the
-            residuals (and to the result's ``residuals`` / ``jacobian``), under the same loss; only for
-            a parametrisation with a free centre.
+            residuals (and to the result's ``residuals`` / ``jacobian``), under the same loss; a centre
+            prior only for a parametrisation with a free centre.
 
     Returns:
         :class:`SolverResult`.
 
     Raises:
-        ValueError: ``x0`` is not a finite 1-D vector of ``param.size`` values, or a ``prior`` is given
-            with the centre fixed.
+        ValueError: ``x0`` is not a finite 1-D vector of ``param.size`` values, or a ``prior`` with a
+            centre prior is given with the centre fixed.
     """
     x = np.ascontiguousarray(x0, dtype=float)
     if x.ndim != 1 or len(x) != param.size or not np.all(np.isfinite(x)):
         raise ValueError("robust_lm: x0 must be a finite 1-D vector of the parametrisation's size")
-    if prior is not None and param.fixed_centre is not None:
+    if prior is not None and param.fixed_centre is not None and np.any(prior.whitening):
         raise ValueError("robust_lm: a centre prior needs a free centre")
     k = len(x)
     lo = np.full(k, -np.inf) if lower is None else np.ascontiguousarray(lower, dtype=float)
@@ -290,7 +301,8 @@ def robust_lm(x0: np.ndarray, obs: Observations, param: CameraParametrisation, s
         np.ascontiguousarray(param.principal_point, dtype=float), np.ascontiguousarray(param.R0, dtype=float),
         centre, fixed, bool(param.fit_k1), obs.kernel_arrays, prior is not None,
         np.ascontiguousarray((prior or _NO_PRIOR).mean, dtype=float),
-        np.ascontiguousarray((prior or _NO_PRIOR).whitening, dtype=float), float((prior or _NO_PRIOR).roll_weight))
+        np.ascontiguousarray((prior or _NO_PRIOR).whitening, dtype=float), float((prior or _NO_PRIOR).roll_weight),
+        float((prior or _NO_PRIOR).k1_mean_px2), float((prior or _NO_PRIOR).k1_weight))
     return SolverResult(x=xs, cost=float(cost), residuals=r, jacobian=J, iterations=int(it), evaluations=int(nfev))
 
 

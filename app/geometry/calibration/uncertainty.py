@@ -128,8 +128,10 @@ def parameter_covariance(jacobian: np.ndarray, sigma_px: float) -> tuple[np.ndar
 
 def _prior_residuals(prior: PriorRows, param: CameraParametrisation, x: np.ndarray) -> np.ndarray:
     """The rows :func:`.solver.robust_lm` appends for ``prior`` at the vector ``x`` (px)."""
-    _, R, C, _ = param.split(x)
-    return np.concatenate([prior.whitening @ (C - prior.mean), [prior.roll_weight * np.arctan2(R[0, 2], R[1, 2])]])
+    f, R, C, k1 = param.split(x)
+    centre = np.zeros(3) if param.fixed_centre is not None else prior.whitening @ (C - prior.mean)
+    radial = prior.k1_weight * (k1 / (f * f) - prior.k1_mean_px2) if param.fit_k1 else 0.0
+    return np.concatenate([centre, [prior.roll_weight * np.arctan2(R[0, 2], R[1, 2]), radial]])
 
 
 def _angles(R0: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -181,7 +183,7 @@ def calibration_uncertainty(camera: Camera, lines: FieldLines, *, fixed_centre: 
     J = (residuals(X, obs, param) - r0) / steps[:, None]  # (k, n)
     J = J.T
     sigma = line_noise(r0, k) if line_noise_px is None else float(line_noise_px)
-    if prior is not None and not fixed_centre:
+    if prior is not None:
         # The MAP fit's prior rows are residuals like the lines': their Jacobian joins the lines'.
         p0 = _prior_residuals(prior, param, x0)
         Jp = np.stack([(_prior_residuals(prior, param, X[j]) - p0) / steps[j] for j in range(k)], axis=1)

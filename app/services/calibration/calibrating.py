@@ -34,7 +34,7 @@ from app.db.models import JAC_COLUMNS, Calibration, CalibrationSource, Calibrati
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import mirror_lines, FieldLines, lines_from_json_lists
 from app.geometry.calibration import (
-    CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior,
+    CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior, radial_px2,
 )
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
@@ -364,21 +364,37 @@ def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[i
 MIN_PRIOR_FRAMES = 40
 
 
-def dataset_prior(results: Sequence[CalibrationFields]) -> CameraPrior | None:
+def dataset_prior(results: Sequence[CalibrationFields],
+                  lines: Sequence[tuple[FieldLines, int, int]] | None = None) -> CameraPrior | None:
     """The learned camera prior of a dataset (``app.geometry.calibration.learn_camera_prior``) from
     its frames' calibrations from their lines alone: the calibrated ones, not rig-assisted, with an
-    uncertainty (camera and position std read from the fields). None below :data:`MIN_PRIOR_FRAMES`
-    such frames or when no anchor is found."""
-    cams, stds = [], []
-    for r in results:
+    uncertainty (camera and position std read from the fields). With ``lines`` (per result: its
+    frame's field lines, width and height, px) the prior learns the radial term too, from the
+    confident fits refitted with ``k1`` free (``radial_px2``; classes a fit ignored left out). None
+    below :data:`MIN_PRIOR_FRAMES` such frames or when no anchor is found."""
+    cams, stds, used = [], [], []
+    for i, r in enumerate(results):
         if r.status is not CalibrationStatus.CALIBRATED or r.camera is None or r.uncertainty is None or RIG_FLAG in r.flags:
             continue
         p = r.uncertainty["position_m"]
         cams.append(Camera.from_soccernet(r.camera))
         stds.append(float(np.sqrt(sum(float("inf") if p[k] is None else float(p[k]) ** 2 for k in "xyz"))))
+        used.append(i)
     if len(cams) < MIN_PRIOR_FRAMES:
         return None
-    prior = learn_camera_prior(cams, stds)
+    radial = None
+    if lines is not None:
+        finite = [s for s in stds if np.isfinite(s)]
+        cut = float(np.median(finite)) if finite else float("-inf")
+        radial = []
+        for cam, std, i in zip(cams, stds, used):
+            if not std <= cut:
+                radial.append(float("nan"))  # not among the confident fits the prior learns from
+                continue
+            field_lines, width, height = lines[i]
+            ignored = {f.split(":", 1)[1] for f in results[i].flags if f.startswith("ignored_class:")}
+            radial.append(radial_px2(cam, {c: v for c, v in field_lines.items() if c not in ignored}, width, height))
+    prior = learn_camera_prior(cams, stds, radial_px2=radial)
     return prior if prior.anchors_m else None
 
 
@@ -403,15 +419,19 @@ def with_prior_refit(first: CalibrationFields, refit: CalibrationFields) -> Cali
 
 def wants_prior_retry(fields: CalibrationFields, prior: CameraPrior) -> bool:
     """True when a frame's calibration from its lines alone is worth refitting with the dataset's
-    learned ``prior``: refused, or calibrated with a camera-position std above the prior's confident
-    ones' (``CameraPrior.confident_std_m``: the lines leave the centre open). Frames whose lines fix
-    the camera as well as the confident ones are never refitted (their calibration stays as it is),
-    nor refusals flagged :data:`MIRROR_FLAG` (the prior's anchors, on the labelled side, would fit
-    mirrored labels with a wrong camera)."""
+    learned ``prior``: refused, or calibrated while the prior has a radial term (every fit takes
+    it: the lines of one frame rarely fix the lens), or calibrated with a camera-position std above the
+    prior's confident ones' (``CameraPrior.confident_std_m``: the lines leave the centre open). Without
+    a radial term, frames whose lines fix the camera as well as the confident ones are never refitted
+    (their calibration stays as it is); refusals flagged :data:`MIRROR_FLAG` never are (the prior's
+    anchors, on the labelled side, would fit mirrored labels with a wrong camera), nor rig-assisted
+    fits."""
     if fields.status is CalibrationStatus.REFUSED:
         return MIRROR_FLAG not in fields.flags  # mirrored labels: a prior on this side would hide it
     if fields.uncertainty is None or RIG_FLAG in fields.flags:
         return False
+    if prior.has_radial:
+        return True
     p = fields.uncertainty["position_m"]
     if any(p[k] is None for k in "xyz"):
         return True

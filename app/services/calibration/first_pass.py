@@ -16,6 +16,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.models import CalibrationStatus, Frame, FrameRole, Game
 from app.datasets.records import FrameRecord, GameRecord
+from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import CameraPrior
 from app.services.calibration.calibrating import (
     CalibrationFields, CalibrationJob, CalibrationPool, calibrate_lines, calibrate_many, calibration_job, dataset_prior,
@@ -191,15 +192,18 @@ def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationField
                              ) -> tuple[list[CalibrationFields], dict[int, float], CameraPrior | None]:
     """Refit, with the learned camera prior of the batch's frames of systems without a rig
     (calibration datasets: frames from many stadiums; ``calibrating.dataset_prior`` from their fresh
-    calibrations), those of them ``calibrating.wants_prior_retry`` picks: refused, or calibrated with
-    a camera position the lines leave open (issue 17). A refit is kept when it calibrates; frames
+    calibrations and field lines), those of them ``calibrating.wants_prior_retry`` picks: refused,
+    every calibrated one when the prior has a radial term, else those with a camera position the
+    lines leave open (issue 17). A refit is kept when it calibrates; frames
     whose lines fix the camera as the confident ones do are left as they are (the JaC guard). When the
     batch is too small to learn from (an import of a few changed frames), each frame's game's stored
     prior (``calibrating.stored_camera_prior``) is used instead. Returns the final result per frame, the
     retry's time per retried frame index (ms) and the prior learned from this batch (None: none was).
     Writes nothing."""
     mine = [i for i, f in enumerate(frames) if not uses_rig(f.system)]
-    learned = dataset_prior([results[i] for i in mine])
+    learned = dataset_prior([results[i] for i in mine],
+                            [(lines_from_json_lists(frames[i].field_lines.lines) if frames[i].field_lines is not None else {},
+                              frames[i].width, frames[i].height) for i in mine])
     priors = {i: learned if learned is not None else stored_camera_prior(frames[i].system) for i in mine}
     retry = [i for i in mine if priors[i] is not None and wants_prior_retry(results[i], priors[i])]
     out = list(results)
