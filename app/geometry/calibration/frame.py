@@ -31,7 +31,10 @@ Method (every step pure numpy):
    start fits the labels, the prior's anchors are look-at starts too; and a free fit less sure of
    its centre than the fits the prior was learned from is refined into a MAP fit (the prior's rows
    added to the robust line cost, :class:`~.solver.PriorRows`) at the anchors most consistent with
-   it, kept when every class stays within ``refuse_gamma`` (flag ``"learned_prior"``).
+   it, kept when every class stays within ``refuse_gamma`` (flag ``"learned_prior"``). Before that, when the
+   prior holds the set's radial term (``kappa = k1 / f^2``, px^-2), every fit is refined with ``k1`` free
+   under the prior's row (flag ``"radial_prior"``): one frame's lines rarely fix the lens, and a pinhole
+   fit puts the lines it did not see up to 10 px off near the border (:mod:`.priors`).
 
 Every fit (``_fit``) is one compiled call (:func:`~.solver.robust_lm`), and every ranking of
 starts one compiled evaluation of all of them (:func:`~.residuals.residual_rows`); what stays in
@@ -521,6 +524,32 @@ def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | 
     return None if winner is None else (winner[1], winner[2], winner[3])
 
 
+def _anchors_without_one_class(lines: FieldLines, obs: Observations, ref: _Candidate | None, width: int, height: int,
+                               prior: CalibrationPrior, settings: CalibrationSettings, limit: float
+                               ) -> tuple[str, _Candidate, Observations] | None:
+    """The learned anchors as starts with each class left out in turn (a mislabelled line spoils the
+    anchors' fits as it spoils the others; :func:`_without_one_class` has only the homography starts,
+    which the remaining labels may not give): ``(class left out, candidate, its observations)`` for
+    the first class whose removal lets a fit keep every other class within ``limit`` px, or None.
+    Classes are tried worst fitted by ``ref`` first, at most ``settings.leave_out_max_classes``; one
+    budget of ``2 settings.max_evaluations`` for all of them (only frames no other start fits pay it)."""
+    order = list(obs.classes)
+    if ref is not None:
+        per_class = _class_residuals(ref.param.camera(ref.x), obs)[0]
+        order = sorted(order, key=lambda c: -per_class[c])
+    budget = _Budget(2 * settings.max_evaluations)
+    for cls in order[:settings.leave_out_max_classes]:
+        reduced = build_observations({c: v for c, v in lines.items() if c != cls})
+        if reduced.constraint_count() < settings.min_constraints or len(reduced.classes) < 3:
+            continue
+        if budget.evaluations <= 0:
+            break
+        cand = _search(reduced, width, height, prior, settings, budget, stage="anchors")
+        if cand is not None and _worst(cand, reduced) <= limit:
+            return cls, cand, reduced
+    return None
+
+
 def _worst(cand: _Candidate | None, obs: Observations) -> float:
     """Largest class residual (px) of a candidate, infinity for none."""
     if cand is None:
@@ -767,6 +796,12 @@ def _calibrate(
             if other is not None and _worst(other, obs) <= limit:
                 best, fit_obs = other, obs
                 flags[:] = [f for f in flags if not f.startswith("ignored_class:")]
+            elif len(obs.classes) >= 4:
+                alt = _anchors_without_one_class(lines, obs, other if other is not None else best, width, height,
+                                                 prior, settings, limit)
+                if alt is not None:
+                    dropped, best, fit_obs = alt
+                    flags[:] = [f for f in flags if not f.startswith("ignored_class:")] + [f"ignored_class:{dropped}"]
         radial_prior = None
         if best is not None and prior is not None and prior.camera_prior is not None and prior.camera_prior.has_radial:
             best, radial_prior = _with_radial_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,

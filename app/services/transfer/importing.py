@@ -57,7 +57,7 @@ from app.services.accounts.audit import record_summary
 from app.services.calibration.first_pass import (
     FirstPassAhead, first_pass, retry_with_dataset_prior, retry_with_game_rigs, start_first_pass,
 )
-from app.geometry.calibration.frame import PRIOR_FLAG, RIG_FLAG
+from app.geometry.calibration.frame import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import CalibrationPool, apply_calibration, calibration_pool, uses_rig
 from app.services.jobs.progress import Progress
@@ -84,7 +84,8 @@ class ImportReport:
             below admission, whose stored calibration is their game's camera rig's (counted in
             ``calibrated``).
         prior_fitted: frames of calibration datasets whose stored calibration is a MAP fit with the
-            dataset's learned camera prior (flag ``learned_prior``; counted in ``calibrated``).
+            dataset's learned camera prior (flag ``learned_prior``: its centre, or ``radial_prior``: its
+            lens; counted in ``calibrated``).
         refusal_reasons: reason -> count among ``refused``.
         triangulated: recomputed systems that got a 3D ball.
         read_seconds, calibration_seconds, store_seconds: wall time of reading and validating the
@@ -286,7 +287,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     report.calibration_ms = [ms + rig_ms.get(i, 0.0) for i, ms in enumerate(first_ms) if ms is not None]
     report.calibration_seconds = time.perf_counter() - t0
     report.rig_assisted += sum(RIG_FLAG in r.flags for r in results)
-    report.prior_fitted += sum(PRIOR_FLAG in r.flags for r in results)
+    report.prior_fitted += sum(PRIOR_FLAG in r.flags or RADIAL_PRIOR_FLAG in r.flags for r in results)
     # The first write of the import. Systems new in this batch hold every row a recomputation reads
     # already (their relationships were set when they were created): only stored ones are loaded.
     preload_systems(session, [s for s in touched if s.id is not None])
