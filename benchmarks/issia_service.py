@@ -110,12 +110,13 @@ def _pct(values, q):
     return float(np.percentile(np.asarray(values) * 1000.0, q)) if values else float("nan")
 
 
-def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_ball_edits=None,
+def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_ball_edits=None, after_line_edits=None,
                gc_threshold: int | None = None) -> dict:
     """The HTTP edit round trip on the imported sequence (module docstring): p50/p95 ms per kind, all
     ball/exclusion edits together, and per stage the mean ms over the requests that ran it (and how
     many did). ``after_ball_edits()`` is called between the ball/exclusion edits (each undone) and the field-line edits; its answer is
-    returned as ``"after_ball_edits"``. ``gc_threshold``: the garbage collector's young-generation threshold during
+    returned as ``"after_ball_edits"``; ``after_line_edits()`` after the field-line edits (each undone), returned as
+    ``"after_line_edits"``. ``gc_threshold``: the garbage collector's young-generation threshold during
     the requests (``gc.set_threshold(gc_threshold, 10, 10)``, restored after; None: Python's default, 700), to
     measure what a server process configured so would answer."""
     from fastapi.testclient import TestClient
@@ -207,6 +208,7 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
                 for _ in range(lines_edits):
                     call(label, "PUT", f"/api/frames/{fid}/field-lines", {"lines": shifted})
                     call(label, "PUT", f"/api/frames/{fid}/field-lines", {"lines": original})
+            checked_lines = after_line_edits() if after_line_edits is not None else None
     finally:
         gc.set_threshold(*thresholds)
         gc.callbacks.remove(on_gc)
@@ -224,6 +226,7 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
         out["stages_mean_ms (field lines)"] = {f"{k} ({len(v)} requests)": float(np.mean(v)) * 1000.0
                                                for k, v in stages.items()}
     out["after_ball_edits"] = checked
+    out["after_line_edits"] = checked_lines
     return out
 
 
@@ -307,8 +310,17 @@ def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0
             eng.dispose()
             return all(now[k] == v or (isinstance(v, float) and abs(now[k] - v) < 1e-6) for k, v in figures.items())
 
-        out["http_edits"] = http_edits(url, game_id, edits, after_ball_edits=same_figures, gc_threshold=gc_threshold)
+        def figures_now() -> dict:  # the issue's figures after the field-line edits, each undone
+            eng = make_engine(url)
+            with make_session_factory(eng)() as s:
+                now = service_figures(s, game_id, truth)
+            eng.dispose()
+            return {k: now[k] for k in ("ball_3D_median_error_m", "smoothed_median_error_m")}
+
+        out["http_edits"] = http_edits(url, game_id, edits, after_ball_edits=same_figures, after_line_edits=figures_now,
+                                       gc_threshold=gc_threshold)
         out["figures_equal_after_undone_edits"] = out["http_edits"].pop("after_ball_edits")
+        out["figures_after_undone_line_edits"] = out["http_edits"].pop("after_line_edits")
     return out
 
 

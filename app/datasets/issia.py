@@ -28,7 +28,7 @@ import json
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Iterable, Optional
+from typing import Any, Callable, Iterable, Optional, Sequence
 
 import numpy as np
 
@@ -466,39 +466,60 @@ def _ball_assisted(seq: IssiaSequence, choice: dict[str, CameraChoice], refused:
 def _bundle_adjusted(seq: IssiaSequence, choice: dict[str, CameraChoice], fit,
                      admit_jac_min: float) -> dict[str, CameraChoice]:
     """The cameras of ``choice`` refined together from their lines and the ball's labels
-    (:func:`app.geometry.static_bundle.bundle_adjust`), each kept when its JaC@0.5 % against its own lines
-    stays above ``admit_jac_min``.
+    (:func:`bundle_refined_cameras`), each kept when its JaC@0.5 % against its own lines stays above
+    ``admit_jac_min``."""
+    ids = seq.camera_ids
+    refined = bundle_refined_cameras([choice[c].camera for c in ids], [seq.lines.get(c) for c in ids],
+                                     seq.dense_points(), seq.image_size, fit,
+                                     [choice[c].ball_assisted for c in ids], admit_jac_min)
+    return {cid: CameraChoice(r[0], choice[cid].source + "+bundle", r[1])
+            for cid, r in zip(ids, refined) if r is not None}
 
-    ``fit`` is the trajectory of the cameras admitted from their lines: its kept labels are the inliers and
-    its per-frame triangulations (else its positions) the starting points. A camera resected since
-    (``"lines+ball"``, not in ``fit``) adds its labels within the trajectory's ``flag_px`` of the
-    trajectory's projection, as the trajectory judges a label."""
+
+def bundle_refined_cameras(cameras: Sequence[Camera | None], lines: Sequence[FieldLines | None], points: np.ndarray,
+                           image_size: tuple[int, int], fit, resected: Sequence[bool],
+                           admit_jac_min: float) -> list[tuple[Camera, float] | None]:
+    """Static cameras refined together from their field lines and the ball's labels
+    (:func:`app.geometry.static_bundle.bundle_adjust`): per camera ``(refined camera, its JaC@0.5 %
+    against its own lines)`` when that JaC stays above ``admit_jac_min`` (the lines stay the judge),
+    else ``None`` (also for a camera without lines or camera). Used by the import
+    (:func:`sequence_cameras`) and by a line edit of a view whose camera it refined.
+
+    Args:
+        cameras: K cameras (``None``: not calibrated). lines: K field-line annotations (pixels of
+            ``image_size``) or ``None``. points: (F, K, 2) ball labels by frame number, px, NaN where none.
+        image_size: (width, height) px of every camera.
+        fit: the ball's :class:`~app.geometry.trajectory.TrajectoryFit` with the cameras calibrated from
+            their lines: its kept labels are the inliers and its per-frame triangulations (else its
+            positions) the starting points.
+        resected: per camera, resected from that trajectory since (not in ``fit``): its labels within
+            the trajectory's ``flag_px`` of the trajectory's projection are added, as the trajectory
+            judges a label.
+    """
     from app.geometry.jac import jac_at_gammas
     from app.geometry.static_bundle import bundle_adjust
     from app.geometry.trajectory import DEFAULT_FLAG_PX
     from app.geometry.triangulation import REFERENCE_WIDTH_PX
 
-    ids = seq.camera_ids
-    cams = [choice[c].camera for c in ids]
+    cams = list(cameras)
+    out: list[tuple[Camera, float] | None] = [None] * len(cams)
     if sum(c is not None for c in cams) < 2:
-        return {}
-    pts = seq.dense_points()
+        return out
     inliers = np.isfinite(fit.residuals_px) & ~fit.outliers
-    for k, cid in enumerate(ids):
-        if choice[cid].ball_assisted and cams[k] is not None:
-            uv, front = cams[k].project(np.nan_to_num(fit.positions))
-            err = np.linalg.norm(uv - pts[:, k], axis=1) * REFERENCE_WIDTH_PX / seq.image_size[0]
+    for k, cam in enumerate(cams):
+        if resected[k] and cam is not None:
+            uv, front = cam.project(np.nan_to_num(fit.positions))
+            err = np.linalg.norm(uv - points[:, k], axis=1) * REFERENCE_WIDTH_PX / image_size[0]
             inliers[:, k] = front & np.all(np.isfinite(fit.positions), axis=1) & (err <= DEFAULT_FLAG_PX)
     start = np.where(np.all(np.isfinite(fit.ball_3d), axis=1)[:, None], fit.ball_3d, fit.positions)
     try:
-        res = bundle_adjust(cams, [seq.lines.get(c) for c in ids], pts, inliers, start)
+        res = bundle_adjust(cams, list(lines), points, inliers, start)
     except ValueError:
-        return {}
-    out = {}
-    for k, cid in enumerate(ids):
-        if res.cameras[k] is None or cid not in seq.lines:
+        return out
+    for k in range(len(cams)):
+        if res.cameras[k] is None or lines[k] is None:
             continue
-        jac = float(jac_at_gammas(res.cameras[k], seq.lines[cid], *seq.image_size, (0.005,))[0.005])
+        jac = float(jac_at_gammas(res.cameras[k], lines[k], *image_size, (0.005,))[0.005])
         if jac > admit_jac_min:
-            out[cid] = CameraChoice(res.cameras[k], choice[cid].source + "+bundle", jac)
+            out[k] = (res.cameras[k], jac)
     return out

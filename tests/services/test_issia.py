@@ -297,6 +297,34 @@ def test_a_field_line_edit_refits_the_whole_sequence_only_when_its_view_gives_th
     assert fit_sequence(db_session, game.id, db_settings) == []  # stored = the fit from scratch
 
 
+def test_a_line_edit_of_a_camera_refined_with_the_ball_refines_it_again(db_session, db_settings, stretch):
+    """Imported ``--from-lines``, every camera is refined with the ball's labels (flag ``ball_bundle``). A field-line
+    edit of the view giving cam3 its camera, which gives back the same lines, refines the new camera from its lines
+    with the ball's labels again: the camera comes back to the imported one (the lines alone put it elsewhere), with
+    the flag, and the stored trajectory is the fit from scratch with it."""
+    from app.services.calibration.calibrating import calibrate_lines
+    from app.services.curation.editing import replace_field_lines
+    from app.services.issia.trajectory import fit_sequence
+
+    import_issia(db_session, stretch, db_settings, from_lines=True)
+    game = db_session.scalars(sa.select(Game)).one()
+    first = _view(_systems(db_session)[0], "cam3")
+    imported = Camera.from_soccernet(first.calibration.camera)
+    assert "ball_bundle" in first.calibration.flags
+    lines = first.field_lines.lines
+    alone = Camera.from_soccernet(calibrate_lines(lines, first.width, first.height, None).camera)
+    taught = np.linalg.norm(alone.C - imported.C)
+    assert taught > 0.005  # what the ball taught the camera
+    shifted = {c: [[[x + 2.0, y] for x, y in poly] for poly in polys] for c, polys in lines.items()}
+    replace_field_lines(db_session, first.id, shifted, settings=db_settings)
+    replace_field_lines(db_session, first.id, lines, settings=db_settings)
+    cal = db_session.get(Frame, first.id).calibration
+    assert "ball_bundle" in cal.flags and cal.jac_0005 > 0.75
+    again = Camera.from_soccernet(cal.camera)
+    assert np.linalg.norm(again.C - imported.C) < 0.25 * taught
+    assert fit_sequence(db_session, game.id, db_settings) == []  # stored = the fit from scratch
+
+
 def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(db_session, db_settings, stretch,
                                                                                  monkeypatch):
     """An edit in the piece of frame 13 (cam4's wrong label) moves frame 13 on the trajectory without changing

@@ -72,8 +72,9 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
     admission (:func:`wants_rig_retry`), is retried with the game's rig (:func:`game_rig`, the other
     frames' camera positions; :func:`with_rig_retry` keeps the better fit). A frame of a calibration
     dataset whose import learned a camera prior (:func:`stored_camera_prior`) is refitted with it where
-    its lines leave the camera open (:func:`wants_prior_retry`), as the import did (issue 17). The calibration's source
-    becomes "computed". The caller flushes or commits.
+    its lines leave the camera open (:func:`wants_prior_retry`), as the import did (issue 17). The system's kind
+    may refine the result (``KindPolicy.refine_calibration``: an ISSIA camera refined with the ball's labels at
+    import is refined so again). The calibration's source becomes "computed". The caller flushes or commits.
 
     Raises:
         ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
@@ -90,6 +91,7 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
             fields = with_rig_retry(fields, calibrate_lines(*calibration_job(frame, rig)))
     elif (prior := stored_camera_prior(frame.system)) is not None and wants_prior_retry(fields, prior):
         fields = with_prior_refit(fields, calibrate_lines(*calibration_job(frame, prior)))
+    fields = kind_of(frame.system).refine_calibration(session, frame, fields, settings)
     apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     return recompute_system(session, frame.system, settings, rig_sources)
 

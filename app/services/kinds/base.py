@@ -13,6 +13,7 @@ if TYPE_CHECKING:
     from sqlalchemy.orm import Session
 
     from app.core.config import Settings
+    from app.datasets.records import CalibrationFields
     from app.geometry.camera import Camera
     from app.geometry.doubts import Doubt as DoubtFinding
     from app.geometry.triangulation import BallObservation
@@ -114,6 +115,12 @@ class KindPolicy:
         """The doubts stored for the system from those of the multi-view judgement ``found``
         (default: unchanged)."""
         return found
+
+    def refine_calibration(self, session: Session, frame: Frame, fields: CalibrationFields,
+                           settings: Settings) -> CalibrationFields:
+        """A view's calibration from its edited field lines, refined with what the kind knows beyond the
+        lines (read before the new calibration is stored: the stored one is the previous). Default: as it is."""
+        return fields
 
     def refit_after_edit(self, session: Session, system: System, settings: Settings,
                          recalibrated: Frame | None = None) -> Sequence[System]:

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from sqlalchemy.orm import Session
 
     from app.core.config import Settings
+    from app.datasets.records import CalibrationFields
     from app.geometry.camera import Camera
     from app.geometry.doubts import Doubt as DoubtFinding
     from app.geometry.triangulation import BallObservation
@@ -69,6 +70,13 @@ class IssiaPolicy(KindPolicy):
         """The multi-view doubts merged with the trajectory's judgement of the labels (issue 9)."""
         from app.services.issia.trajectory import merge_doubts
         return merge_doubts(system, found, cameras)
+
+    def refine_calibration(self, session: Session, frame: Frame, fields: CalibrationFields,
+                           settings: Settings) -> CalibrationFields:
+        """A camera the import refined with the ball's labels is refined with them again after a line edit
+        (``app.services.issia.sequences.refined_with_ball``)."""
+        from app.services.issia.sequences import refined_with_ball
+        return refined_with_ball(session, frame, fields, settings)
 
     def refit_after_edit(self, session: Session, system: System, settings: Settings,
                          recalibrated: Frame | None = None) -> Sequence[System]:
