@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 from app.core.paths import SHARED_DIR  # noqa: E402
 from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, radial_px2  # noqa: E402
+from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, radial_corner  # noqa: E402
 from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class  # noqa: E402
 from app.geometry.calibration.priors import CameraPrior, learn_camera_prior  # noqa: E402
 from app.geometry.jac import evaluate_jac  # noqa: E402
@@ -75,7 +75,7 @@ def full_fit(frames: list[tuple[str, dict]], priors: dict[str, CameraPrior] | No
     """Every class fitted (with ``priors[frame]``, a learned prior, when given): completeness, mean
     JaC@5 over every frame's calibrated ones, CPU ms per frame, the cameras (``frame -> Camera |
     None``) and their position std (m, :func:`calibration_uncertainty`; ``frame -> float``)."""
-    cams, jac5, ms, stds, kappa = {}, [], [], {}, {}
+    cams, jac5, ms, stds, corner = {}, [], [], {}, {}
     for frame, lines in frames:
         result, dt = _cpu(calibrate_frame, lines, W, H, prior=_prior(frame, priors), compute_jac=False)
         ms.append(dt)
@@ -87,10 +87,10 @@ def full_fit(frames: list[tuple[str, dict]], priors: dict[str, CameraPrior] | No
             u = calibration_uncertainty(result.camera, used)
             stds[frame] = u.position_std_m if u is not None else float("inf")
             if priors is None:
-                kappa[frame] = radial_px2(result.camera, used, W, H)
+                corner[frame] = radial_corner(result.camera, used, W, H)
     return {"frames": len(frames), "completeness": len(jac5) / max(len(frames), 1),
             "jac_5": float(np.mean(jac5)) if jac5 else 0.0, "cpu_ms_median": statistics.median(ms) if ms else 0.0,
-            "cameras": cams, "position_std_m": stds, "radial_px2": kappa}
+            "cameras": cams, "position_std_m": stds, "radial_corner": corner}
 
 
 def fold_priors(frames: list[tuple[str, dict]], full: dict, seed: int, folds: int = 2,
@@ -108,7 +108,7 @@ def fold_priors(frames: list[tuple[str, dict]], full: dict, seed: int, folds: in
         fitted = [f for f in sorted(names) if fold_of[f] != k and full["cameras"].get(f) is not None]
         learned.append(learn_camera_prior([full["cameras"][f] for f in fitted],
                                           [full["position_std_m"][f] for f in fitted],
-                                          radial_px2=[full["radial_px2"][f] for f in fitted] if radial else None))
+                                          radial_corner=[full["radial_corner"][f] for f in fitted] if radial else None))
     return {f: learned[fold_of[f]] for f in names}
 
 

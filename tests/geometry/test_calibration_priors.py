@@ -74,7 +74,7 @@ def test_anchor_order_follows_the_fits_covariance() -> None:
     # The lines leave the centre free along y (a 5 m std): the anchor 4 m along y is the consistent one.
     order, d2 = anchor_order(prior, centre, np.diag([0.01, 25.0, 0.01]))
     assert order.tolist() == [0, 1] and d2[0] < 2.0 < d2[1]
-    rows = prior_rows(prior, 0, 1.5)
+    rows = prior_rows(prior, 0, 1.5, 550.0)
     assert np.allclose(rows.whitening, 5.0 * np.eye(3)) and rows.roll_weight == pytest.approx(1.5 / np.radians(0.4))
 
 

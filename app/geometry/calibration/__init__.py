@@ -4,7 +4,7 @@ Public entry points: :func:`calibrate_frame` -> :class:`CalibrationResult`, with
 :class:`CalibrationPrior` and :class:`CalibrationSettings`; the game-level rig:
 :func:`estimate_rig` -> :class:`CameraRig`, and :func:`calibrate_with_rig`; a dataset's learned prior:
 :func:`learn_camera_prior` -> :class:`CameraPrior` (given as ``CalibrationPrior(camera_prior=...)``), its
-radial term learned from :func:`radial_px2` of the dataset's fits.
+lens learned from :func:`radial_corner` of the dataset's fits.
 """
 from app.geometry.calibration.frame import (
     JAC_GAMMAS,
@@ -14,7 +14,7 @@ from app.geometry.calibration.frame import (
     calibrate_frame,
     frame_jac,
     principal_point,
-    radial_px2,
+    radial_corner,
 )
 from app.geometry.calibration.priors import CameraPrior, learn_camera_prior
 from app.geometry.calibration.rig import CameraRig, RigPosition, calibrate_with_rig, estimate_rig
@@ -24,5 +24,5 @@ __all__ = [
     "JAC_GAMMAS", "CalibrationPrior", "CalibrationResult", "CalibrationSettings", "calibrate_frame",
     "frame_jac", "principal_point", "CameraRig", "RigPosition", "estimate_rig", "calibrate_with_rig",
     "CalibrationUncertainty", "calibration_uncertainty", "CameraPrior", "learn_camera_prior",
-    "radial_px2",
+    "radial_corner",
 ]

@@ -32,7 +32,7 @@ Method (every step pure numpy):
    its centre than the fits the prior was learned from is refined into a MAP fit (the prior's rows
    added to the robust line cost, :class:`~.solver.PriorRows`) at the anchors most consistent with
    it, kept when every class stays within ``refuse_gamma`` (flag ``"learned_prior"``). Before that, when the
-   prior holds the set's radial term (``kappa = k1 / f^2``, px^-2), every fit is refined with ``k1`` free
+   prior holds the set's lens (its radial distortion at the image corner), every fit is refined with ``k1`` free
    under the prior's row (flag ``"radial_prior"``): one frame's lines rarely fix the lens, and a pinhole
    fit puts the lines it did not see up to 10 px off near the border (:mod:`.priors`).
 
@@ -580,14 +580,14 @@ def _with_radial_prior(best: _Candidate, obs: Observations, camera_prior: Camera
     """Refit ``best`` with ``k1`` free under the learned radial prior (:mod:`.priors`):
     ``(candidate, its prior rows)``, or ``(best, None)`` when the fit fails, leaves a class further
     from its element than ``limit`` px (or than ``best`` did) or bends the image corner by more than
-    :data:`MAX_CORNER_DISTORTION`. The start is ``best``'s ``k1`` or the prior's ``kappa_0 f^2``."""
+    :data:`MAX_CORNER_DISTORTION`. The start is ``best``'s ``k1`` or the prior's ``c_0 (f / h)^2``."""
     f, R, C, k1 = best.param.split(best.x)
     f, k1 = float(f), float(k1)
     param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
                                   fixed_centre=best.param.fixed_centre)
     sigma = line_noise(residual_rows(best.x, obs, [best.param]), len(best.x))
-    rows = prior_rows(camera_prior, None, sigma)
-    start = k1 if k1 != 0.0 else camera_prior.k1_px2 * f * f
+    rows = prior_rows(camera_prior, None, sigma, half_diagonal)
+    start = k1 if k1 != 0.0 else camera_prior.radial_corner * (f / half_diagonal) ** 2
     cand = _fit(param.vector(f, C, start), obs, param, scale, best.origin + " +radial prior",
                 _Budget(settings.prior_max_evaluations), prior=rows)
     if cand is None or abs(cand.x[-1]) * (half_diagonal / cand.x[0]) ** 2 > MAX_CORNER_DISTORTION:
@@ -598,19 +598,19 @@ def _with_radial_prior(best: _Candidate, obs: Observations, camera_prior: Camera
     return cand, rows
 
 
-def radial_px2(camera: Camera, lines: FieldLines, width: int, height: int,
-               settings: CalibrationSettings | None = None) -> float:
-    """The radial term in pixel units, ``k1 / f^2`` (px^-2), of ``camera`` refitted to ``lines`` with
-    ``k1`` free (focal, rotation, centre and ``k1``; no gain gate, no prior): the value a learned
-    radial prior is learned from (:func:`.priors.learn_camera_prior`).
+def radial_corner(camera: Camera, lines: FieldLines, width: int, height: int,
+                  settings: CalibrationSettings | None = None) -> float:
+    """The relative radial distortion at the image corner, ``k1 (h / f)^2`` (``h`` the half diagonal,
+    px), of ``camera`` refitted to ``lines`` with ``k1`` free (focal, rotation, centre and ``k1``; no
+    gain gate, no prior): the value a learned radial prior is learned from
+    (:func:`.priors.learn_camera_prior`). The same lens gives the same value at any zoom and image size.
 
     Args:
         camera: a fit of ``lines`` (principal point fixed, square pixels). lines: the classes it
             used (:data:`~app.geometry.annotations.FieldLines`, pixels). width, height: image size, px.
 
     Returns:
-        ``k1 / f^2`` (px^-2), or NaN when the refit fails or bends the image corner by more than
-        :data:`MAX_CORNER_DISTORTION`.
+        ``k1 (h / f)^2``, or NaN when the refit fails or its magnitude exceeds :data:`MAX_CORNER_DISTORTION`.
     """
     settings = settings or CalibrationSettings()
     obs = build_observations(lines)
@@ -623,12 +623,12 @@ def radial_px2(camera: Camera, lines: FieldLines, width: int, height: int,
                 settings.loss_scale_gamma * image_diagonal(width, height), "radial", _Budget(settings.prior_max_evaluations))
     if cand is None:
         return float("nan")
-    kappa = float(cand.x[-1] / cand.x[0] ** 2)
-    return kappa if abs(kappa) * (image_diagonal(width, height) / 2.0) ** 2 <= MAX_CORNER_DISTORTION else float("nan")
+    corner = float(cand.x[-1] * (image_diagonal(width, height) / 2.0 / cand.x[0]) ** 2)
+    return corner if abs(corner) <= MAX_CORNER_DISTORTION else float("nan")
 
 
 def _with_camera_prior(best: _Candidate, obs: Observations, camera_prior: CameraPrior, scale: float, limit: float,
-                       settings: CalibrationSettings) -> tuple[_Candidate, PriorRows | None]:
+                       half_diagonal: float, settings: CalibrationSettings) -> tuple[_Candidate, PriorRows | None]:
     """The MAP refinement of the free fit ``best`` with a learned prior (:mod:`.priors`):
     ``(candidate, its prior rows)``, or ``(best, None)`` when no anchor is consistent with the lines'
     estimate or no MAP fit keeps every class within ``limit`` px.
@@ -651,7 +651,7 @@ def _with_camera_prior(best: _Candidate, obs: Observations, camera_prior: Camera
     budget = _Budget(settings.prior_max_evaluations)
     winner: tuple[_Candidate, PriorRows] | None = None
     for a in order[d2 <= settings.prior_max_d2][:settings.prior_anchors]:
-        rows = prior_rows(camera_prior, int(a), sigma)
+        rows = prior_rows(camera_prior, int(a), sigma, half_diagonal)
         cand = _fit(best.x, obs, best.param, scale, best.origin + " +prior", budget, prior=rows)
         if cand is not None and (winner is None or cand.cost < winner[0].cost):
             winner = (cand, rows)
@@ -807,7 +807,8 @@ def _calibrate(
             best, radial_prior = _with_radial_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
                                                     settings)
         if best is not None and not fixed and prior is not None and prior.camera_prior is not None:
-            best, centre_prior = _with_camera_prior(best, fit_obs, prior.camera_prior, scale, limit, settings)
+            best, centre_prior = _with_camera_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
+                                                     settings)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
         return _refused(f"solver failed: {exc}", t0, tuple(flags))
     if best is None:

@@ -16,12 +16,13 @@ data at hand, never from another calibration or synthetic truth:
   game rig groups them (:func:`.rig.estimate_rig`), each with an isotropic std from its own spread;
 * roll: broadcast heads are levelled; its std is the robust std (1.4826 MAD) of the confident fits'
   roll, floored at :data:`MIN_ROLL_STD_DEG`;
-* radial distortion in pixel units, ``kappa = k1 / f^2`` (px^-2): the confident fits refitted with
-  ``k1`` free (:func:`.frame.radial_px2`) give its median and robust std. A set's frames share it
-  whatever the zoom (real sets, 960x540: a median near 1.0-1.4e-7 px^-2 at every focal length, i.e.
-  ``k1`` growing as ``f^2`` from 0.2 at 1,300 px to 0.7 at 2,600 px), yet a frame's lines rarely fix
-  it: without it a fit puts a line it did not see up to 10 px off near the image border (the
-  held-out-class measure, :mod:`.held_out`).
+* the lens: the radial term as the relative distortion at the image corner, ``c = k1 (h / f)^2``
+  (``h`` the half diagonal, px; the same number at any image size), whose median and robust std the
+  confident fits refitted with ``k1`` free (:func:`.frame.radial_corner`) give. A set's frames share it
+  whatever the zoom (real sets, 960x540: medians 0.033 sn22 and 0.042 wc14, i.e. ``k1 / f^2`` near
+  1.1-1.4e-7 px^-2 at every focal length while ``k1`` grows from 0.3 at 1,400 px to 1.0 at 3,600 px),
+  yet a frame's lines rarely fix it: without it a fit puts a line it did not see up to 10 px off near
+  the image border (the held-out-class measure, :mod:`.held_out`).
 
 The radial prior refines every fit (:func:`.frame.calibrate_frame` with
 ``CalibrationPrior(camera_prior=...)``, ``k1`` free under the prior's row). The centre's MAP fit is made only
@@ -49,8 +50,8 @@ from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
 MIN_ANCHOR_STD_M = 0.25
 #: Smallest roll std, degrees.
 MIN_ROLL_STD_DEG = 0.1
-#: Smallest std of the radial prior, px^-2 (a tenth of the real sets' median).
-MIN_RADIAL_STD_PX2 = 1e-8
+#: Smallest std of the radial prior (relative distortion at the corner; a tenth of the real sets' median).
+MIN_RADIAL_STD = 0.003
 #: Fewest refitted confident fits a radial prior is learned from.
 MIN_RADIAL_FITS = 10
 #: Median distance to the centre of a 3D isotropic Gaussian, in stds (sqrt of chi-square(3)'s median).
@@ -71,8 +72,9 @@ class CameraPrior:
             confident. A fit whose lines fix its centre that well is left as the lines have it (the
             MAP fit is made only above it): the prior was learned from such fits, and it must not
             move them (the JaC guard); ``inf`` when nothing was learned.
-        k1_px2: median radial term in pixel units, ``k1 / f^2`` (px^-2), of the confident fits refitted
-            with ``k1`` free. k1_px2_std: its robust std (px^-2); ``inf`` for no radial prior.
+        radial_corner: median relative radial distortion at the image corner, ``k1 (h / f)^2`` (``h`` the
+            half diagonal), of the confident fits refitted with ``k1`` free. radial_corner_std: its robust
+            std; ``inf`` for no radial prior.
         radial_fits: refitted fits the radial prior was learned from.
     """
 
@@ -82,22 +84,22 @@ class CameraPrior:
     roll_std_deg: float
     confident_fits: int
     confident_std_m: float = float("inf")
-    k1_px2: float = 0.0
-    k1_px2_std: float = float("inf")
+    radial_corner: float = 0.0
+    radial_corner_std: float = float("inf")
     radial_fits: int = 0
 
     @property
     def has_radial(self) -> bool:
-        """Whether the prior holds a radial term (a finite ``k1_px2_std``)."""
-        return bool(np.isfinite(self.k1_px2_std))
+        """Whether the prior holds a radial term (a finite ``radial_corner_std``)."""
+        return bool(np.isfinite(self.radial_corner_std))
 
     def __post_init__(self) -> None:
         if len(self.anchor_std_m) != len(self.anchors_m) or len(self.anchor_frames) != len(self.anchors_m):
             raise ValueError("CameraPrior: one std and one frame count per anchor")
-        if any(not s > 0 for s in self.anchor_std_m) or not self.roll_std_deg > 0 or not self.k1_px2_std > 0:
+        if any(not s > 0 for s in self.anchor_std_m) or not self.roll_std_deg > 0 or not self.radial_corner_std > 0:
             raise ValueError("CameraPrior: stds must be positive")
-        if not np.isfinite(self.k1_px2):
-            raise ValueError("CameraPrior: k1_px2 must be finite")
+        if not np.isfinite(self.radial_corner):
+            raise ValueError("CameraPrior: radial_corner must be finite")
 
     def to_json(self) -> dict:
         """The prior as JSON (what ``games.camera_prior`` stores): lists of floats; an infinite std or
@@ -109,8 +111,8 @@ class CameraPrior:
                 "anchor_std_m": [float(s) for s in self.anchor_std_m],
                 "anchor_frames": [int(n) for n in self.anchor_frames],
                 "roll_std_deg": fin(self.roll_std_deg), "confident_fits": int(self.confident_fits),
-                "confident_std_m": fin(self.confident_std_m), "k1_px2": float(self.k1_px2),
-                "k1_px2_std": fin(self.k1_px2_std), "radial_fits": int(self.radial_fits)}
+                "confident_std_m": fin(self.confident_std_m), "radial_corner": float(self.radial_corner),
+                "radial_corner_std": fin(self.radial_corner_std), "radial_fits": int(self.radial_fits)}
 
     @classmethod
     def from_json(cls, data: dict) -> "CameraPrior":
@@ -127,15 +129,16 @@ class CameraPrior:
                        confident_fits=int(data["confident_fits"]),
                        confident_std_m=float("inf") if data["confident_std_m"] is None
                        else float(data["confident_std_m"]),
-                       k1_px2=float(data.get("k1_px2", 0.0)),
-                       k1_px2_std=float("inf") if data.get("k1_px2_std") is None else float(data["k1_px2_std"]),
+                       radial_corner=float(data.get("radial_corner", 0.0)),
+                       radial_corner_std=float("inf") if data.get("radial_corner_std") is None
+                       else float(data["radial_corner_std"]),
                        radial_fits=int(data.get("radial_fits", 0)))
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not a stored CameraPrior: {exc}") from exc
 
 
 def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float], *,
-                       radial_px2: Sequence[float] | None = None,
+                       radial_corner: Sequence[float] | None = None,
                        confident_quantile: float = 0.5, radius_m: float = 1.5, min_frames: int = 2) -> CameraPrior:
     """Learn a :class:`CameraPrior` from a dataset's own calibrations.
 
@@ -143,8 +146,8 @@ def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float
         cameras: calibrated cameras of the dataset (one per frame, SoccerNet world).
         position_std_m: per camera, the root-sum-square position std of its fit (m;
             :attr:`.uncertainty.CalibrationUncertainty.position_std_m`, ``inf`` allowed).
-        radial_px2: per camera, its fit's radial term in pixel units with ``k1`` free
-            (:func:`.frame.radial_px2`, px^-2; NaN where the refit failed); ``None``: no radial prior.
+        radial_corner: per camera, its fit's relative radial distortion at the image corner with ``k1``
+            free (:func:`.frame.radial_corner`; NaN where the refit failed); ``None``: no radial prior.
             Learned from the confident fits' values when there are :data:`MIN_RADIAL_FITS` or more.
         confident_quantile: fits whose position std is at or below this quantile of the finite ones
             feed the prior.
@@ -159,7 +162,7 @@ def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float
     """
     from app.geometry.calibration.rig import estimate_rig  # rig imports frame, which imports this module
 
-    if len(cameras) != len(position_std_m) or (radial_px2 is not None and len(radial_px2) != len(cameras)):
+    if len(cameras) != len(position_std_m) or (radial_corner is not None and len(radial_corner) != len(cameras)):
         raise ValueError("learn_camera_prior: one position std (and radial term) per camera")
     if not 0.0 < confident_quantile <= 1.0:
         raise ValueError(f"confident_quantile must be in (0, 1], got {confident_quantile!r}")
@@ -175,13 +178,13 @@ def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float
     roll_std = (max(1.4826 * float(np.median(np.abs(rolls - np.median(rolls)))), MIN_ROLL_STD_DEG)
                 if len(rolls) >= 3 else float("inf"))
     radial: dict = {}
-    if radial_px2 is not None:
-        kappa = np.asarray(radial_px2, dtype=float)[confident]
-        kappa = kappa[np.isfinite(kappa)]
-        if len(kappa) >= MIN_RADIAL_FITS:
-            mid = float(np.median(kappa))
-            radial = {"k1_px2": mid, "radial_fits": int(len(kappa)),
-                      "k1_px2_std": max(1.4826 * float(np.median(np.abs(kappa - mid))), MIN_RADIAL_STD_PX2)}
+    if radial_corner is not None:
+        corner = np.asarray(radial_corner, dtype=float)[confident]
+        corner = corner[np.isfinite(corner)]
+        if len(corner) >= MIN_RADIAL_FITS:
+            mid = float(np.median(corner))
+            radial = {"radial_corner": mid, "radial_fits": int(len(corner)),
+                      "radial_corner_std": max(1.4826 * float(np.median(np.abs(corner - mid))), MIN_RADIAL_STD)}
     return CameraPrior(
         anchors_m=tuple(p.centre_m for p in rig.positions),
         anchor_std_m=tuple(max(p.spread_m / _MEDIAN_RADIUS_3D, MIN_ANCHOR_STD_M) for p in rig.positions),
@@ -213,17 +216,19 @@ def anchor_order(prior: CameraPrior, centre_m: np.ndarray, centre_cov_m2: np.nda
     return order, d2[order]
 
 
-def prior_rows(prior: CameraPrior, anchor: int | None, line_noise_px: float) -> PriorRows:
+def prior_rows(prior: CameraPrior, anchor: int | None, line_noise_px: float, half_diagonal_px: float) -> PriorRows:
     """The MAP residual rows (:class:`.solver.PriorRows`) of anchor ``anchor`` (``None``: no centre
-    prior), the roll prior and the radial prior against lines of noise ``line_noise_px`` (px):
-    ``whitening = sigma / s_a I`` (px per metre), ``roll_weight = sigma / s_roll`` (px per radian; 0
-    without a roll prior), ``k1_weight = sigma / s_kappa`` (px^3; 0 without a radial prior)."""
+    prior), the roll prior and the radial prior against lines of noise ``line_noise_px`` (px), for an
+    image of half diagonal ``half_diagonal_px`` (``h``): ``whitening = sigma / s_a I`` (px per metre),
+    ``roll_weight = sigma / s_roll`` (px per radian; 0 without a roll prior), the radial prior in pixel
+    units, ``kappa_0 = c_0 / h^2`` (px^-2) and ``k1_weight = sigma h^2 / s_c`` (px^3; 0 without one)."""
     roll = 0.0 if not np.isfinite(prior.roll_std_deg) else line_noise_px / np.radians(prior.roll_std_deg)
-    radial = line_noise_px / prior.k1_px2_std if prior.has_radial else 0.0
+    h2 = float(half_diagonal_px) ** 2
+    radial = line_noise_px * h2 / prior.radial_corner_std if prior.has_radial else 0.0
     if anchor is None:
         mean, whitening = np.zeros(3), np.zeros((3, 3))
     else:
         mean = np.asarray(prior.anchors_m[anchor], dtype=float)
         whitening = (line_noise_px / float(prior.anchor_std_m[anchor])) * np.eye(3)
-    return PriorRows(mean=mean, whitening=whitening, roll_weight=float(roll), k1_mean_px2=float(prior.k1_px2),
-                     k1_weight=float(radial))
+    return PriorRows(mean=mean, whitening=whitening, roll_weight=float(roll),
+                     k1_mean_px2=float(prior.radial_corner / h2), k1_weight=float(radial))

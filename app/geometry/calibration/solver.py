@@ -55,7 +55,8 @@ class PriorRows:
     the row ``sigma / s_roll * roll`` (``roll_weight``, px per radian; roll in SoccerNet's convention,
     ``atan2(R[0, 2], R[1, 2])`` of the world-to-camera ``R``, method.md section 2), and a Gaussian prior
     on the radial term in pixel units, ``kappa = k1 / f^2`` (px^-2: the distortion ``k1 rho`` of a
-    point ``r`` px from the principal point is ``kappa r^2`` whatever the zoom) of mean ``kappa_0``
+    point ``r`` px from the principal point is ``kappa r^2`` whatever the zoom; :mod:`.priors` learns it
+    as the distortion at the corner, ``kappa h^2``, and converts it per image) of mean ``kappa_0``
     and std ``s_kappa``, the row ``sigma / s_kappa (k1 / f^2 - kappa_0)`` (``k1_weight``; only when
     ``k1`` is fitted). Built by :mod:`.priors`. With the centre held fixed the centre rows are zero.
 

@@ -34,7 +34,7 @@ from app.db.models import JAC_COLUMNS, Calibration, CalibrationSource, Calibrati
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import mirror_lines, FieldLines, lines_from_json_lists
 from app.geometry.calibration import (
-    CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior, radial_px2,
+    CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior, radial_corner,
 )
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
@@ -370,7 +370,7 @@ def dataset_prior(results: Sequence[CalibrationFields],
     its frames' calibrations from their lines alone: the calibrated ones, not rig-assisted, with an
     uncertainty (camera and position std read from the fields). With ``lines`` (per result: its
     frame's field lines, width and height, px) the prior learns the radial term too, from the
-    confident fits refitted with ``k1`` free (``radial_px2``; classes a fit ignored left out). None
+    confident fits refitted with ``k1`` free (``radial_corner``; classes a fit ignored left out). None
     below :data:`MIN_PRIOR_FRAMES` such frames or when no anchor is found."""
     cams, stds, used = [], [], []
     for i, r in enumerate(results):
@@ -393,8 +393,8 @@ def dataset_prior(results: Sequence[CalibrationFields],
                 continue
             field_lines, width, height = lines[i]
             ignored = {f.split(":", 1)[1] for f in results[i].flags if f.startswith("ignored_class:")}
-            radial.append(radial_px2(cam, {c: v for c, v in field_lines.items() if c not in ignored}, width, height))
-    prior = learn_camera_prior(cams, stds, radial_px2=radial)
+            radial.append(radial_corner(cam, {c: v for c, v in field_lines.items() if c not in ignored}, width, height))
+    prior = learn_camera_prior(cams, stds, radial_corner=radial)
     return prior if prior.anchors_m else None
 
 
