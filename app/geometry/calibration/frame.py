@@ -498,14 +498,9 @@ def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | 
     pp = principal_point(width, height)
     scale = settings.loss_scale_gamma * image_diagonal(width, height)
     ranked: list[tuple[float, str, Observations, CameraParametrisation, np.ndarray]] = []
-    candidates = list(obs.classes)
-    if best is not None:
-        # The mislabelled class is almost always among those the current camera fits worst.
-        per_class = _class_residuals(best.param.camera(best.x), obs)[0]
-        candidates = sorted(candidates, key=lambda c: -per_class[c])[:settings.leave_out_max_classes]
-    for cls in candidates:
-        reduced = build_observations({c: v for c, v in lines.items() if c != cls})
-        if reduced.constraint_count() < settings.min_constraints or len(reduced.classes) < 3:
+    for cls in _leave_out_order(obs, best, settings):
+        reduced = _without_class_observations(lines, cls, settings)
+        if reduced is None:
             continue
         starts = _homography_starts(reduced, pp, scale)
         if best is not None:
@@ -524,6 +519,24 @@ def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | 
     return None if winner is None else (winner[1], winner[2], winner[3])
 
 
+def _leave_out_order(obs: Observations, ref: _Candidate | None, settings: CalibrationSettings) -> list[str]:
+    """The classes to leave out in turn: with a camera ``ref``, the ``settings.leave_out_max_classes``
+    it fits worst, worst first (the mislabelled class is almost always among them); else every class."""
+    if ref is None:
+        return list(obs.classes)
+    per_class = _class_residuals(ref.param.camera(ref.x), obs)[0]
+    return sorted(obs.classes, key=lambda c: -per_class[c])[:settings.leave_out_max_classes]
+
+
+def _without_class_observations(lines: FieldLines, cls: str, settings: CalibrationSettings) -> Observations | None:
+    """The observations of ``lines`` without class ``cls``, or None when the rest cannot fix a camera
+    (fewer than ``settings.min_constraints`` constraints or three classes)."""
+    reduced = build_observations({c: v for c, v in lines.items() if c != cls})
+    if reduced.constraint_count() < settings.min_constraints or len(reduced.classes) < 3:
+        return None
+    return reduced
+
+
 def _anchors_without_one_class(lines: FieldLines, obs: Observations, ref: _Candidate | None, width: int, height: int,
                                prior: CalibrationPrior, settings: CalibrationSettings, limit: float
                                ) -> tuple[str, _Candidate, Observations] | None:
@@ -533,14 +546,10 @@ def _anchors_without_one_class(lines: FieldLines, obs: Observations, ref: _Candi
     the first class whose removal lets a fit keep every other class within ``limit`` px, or None.
     Classes are tried worst fitted by ``ref`` first, at most ``settings.leave_out_max_classes``; one
     budget of ``2 settings.max_evaluations`` for all of them (only frames no other start fits pay it)."""
-    order = list(obs.classes)
-    if ref is not None:
-        per_class = _class_residuals(ref.param.camera(ref.x), obs)[0]
-        order = sorted(order, key=lambda c: -per_class[c])
     budget = _Budget(2 * settings.max_evaluations)
-    for cls in order[:settings.leave_out_max_classes]:
-        reduced = build_observations({c: v for c, v in lines.items() if c != cls})
-        if reduced.constraint_count() < settings.min_constraints or len(reduced.classes) < 3:
+    for cls in _leave_out_order(obs, ref, settings)[:settings.leave_out_max_classes]:
+        reduced = _without_class_observations(lines, cls, settings)
+        if reduced is None:
             continue
         if budget.evaluations <= 0:
             break
@@ -558,13 +567,20 @@ def _worst(cand: _Candidate | None, obs: Observations) -> float:
     return max(per_class.values()) if per_class else 0.0
 
 
+def _with_free_k1(best: _Candidate) -> tuple[CameraParametrisation, float, np.ndarray, float]:
+    """``best``'s parametrisation with ``k1`` free (its rotation as the reference, its centre fixed if
+    it was), with its focal (px), centre (m) and ``k1``: what a refit with the radial term starts from."""
+    f, R, C, k1 = best.param.split(best.x)
+    param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
+                                  fixed_centre=best.param.fixed_centre)
+    return param, float(f), C, float(k1)
+
+
 def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: CalibrationSettings,
              budget: _Budget) -> _Candidate:
     """Add the radial coefficient when it lowers the robust cost by ``k1_min_gain`` or more (the
     better :class:`_Candidate`)."""
-    f, R, C, _ = best.param.split(best.x)
-    param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
-                                  fixed_centre=best.param.fixed_centre)
+    param, f, C, _ = _with_free_k1(best)
     best.k1_tried = True
     cand = _fit(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1", budget)
     if cand is None or abs(cand.x[-1]) > settings.max_k1:
@@ -581,10 +597,7 @@ def _with_radial_prior(best: _Candidate, obs: Observations, camera_prior: Camera
     ``(candidate, its prior rows)``, or ``(best, None)`` when the fit fails, leaves a class further
     from its element than ``limit`` px (or than ``best`` did) or bends the image corner by more than
     :data:`MAX_CORNER_DISTORTION`. The start is ``best``'s ``k1`` or the prior's ``c_0 (f / h)^2``."""
-    f, R, C, k1 = best.param.split(best.x)
-    f, k1 = float(f), float(k1)
-    param = CameraParametrisation(principal_point=best.param.principal_point, R0=R, fit_k1=True,
-                                  fixed_centre=best.param.fixed_centre)
+    param, f, C, k1 = _with_free_k1(best)
     sigma = line_noise(residual_rows(best.x, obs, [best.param]), len(best.x))
     rows = prior_rows(camera_prior, None, sigma, half_diagonal)
     start = k1 if k1 != 0.0 else camera_prior.radial_corner * (f / half_diagonal) ** 2

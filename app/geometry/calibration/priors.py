@@ -137,6 +137,24 @@ class CameraPrior:
             raise ValueError(f"not a stored CameraPrior: {exc}") from exc
 
 
+def confident_mask(position_std_m: Sequence[float], quantile: float = 0.5) -> tuple[np.ndarray, float]:
+    """Which fits count as confident: ``(mask (N,), cut)`` with ``cut`` the ``quantile`` of the finite
+    position stds (m) and the mask true where a std is finite and at or below it (all false, cut
+    ``inf``, when none is finite). What :func:`learn_camera_prior` learns from, and what a caller
+    computing per-fit inputs for it (the radial refits) needs to compute them for only."""
+    std = np.asarray(position_std_m, dtype=float)
+    finite = np.isfinite(std)
+    if not np.any(finite):
+        return np.zeros(len(std), dtype=bool), float("inf")
+    cut = float(np.quantile(std[finite], quantile))
+    return finite & (std <= cut), cut
+
+
+def _robust_std(values: np.ndarray) -> float:
+    """1.4826 times the median absolute deviation from the median (a Gaussian's std)."""
+    return 1.4826 * float(np.median(np.abs(values - np.median(values))))
+
+
 def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float], *,
                        radial_corner: Sequence[float] | None = None,
                        confident_quantile: float = 0.5, radius_m: float = 1.5, min_frames: int = 2) -> CameraPrior:
@@ -166,25 +184,20 @@ def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float
         raise ValueError("learn_camera_prior: one position std (and radial term) per camera")
     if not 0.0 < confident_quantile <= 1.0:
         raise ValueError(f"confident_quantile must be in (0, 1], got {confident_quantile!r}")
-    std = np.asarray(position_std_m, dtype=float)
-    finite = np.isfinite(std)
-    if not np.any(finite):
+    confident, cut = confident_mask(position_std_m, confident_quantile)
+    if not np.any(confident):
         return CameraPrior(anchors_m=(), anchor_std_m=(), anchor_frames=(), roll_std_deg=float("inf"), confident_fits=0)
-    cut = float(np.quantile(std[finite], confident_quantile))
-    confident = finite & (std <= cut)
     chosen = [c for c, ok in zip(cameras, confident) if ok]
     rig = estimate_rig(np.array([c.C for c in chosen]).reshape(-1, 3), radius_m=radius_m, min_frames=min_frames)
     rolls = np.array([pan_tilt_roll_from_rotation(c.R)[2] for c in chosen])
-    roll_std = (max(1.4826 * float(np.median(np.abs(rolls - np.median(rolls)))), MIN_ROLL_STD_DEG)
-                if len(rolls) >= 3 else float("inf"))
+    roll_std = max(_robust_std(rolls), MIN_ROLL_STD_DEG) if len(rolls) >= 3 else float("inf")
     radial: dict = {}
     if radial_corner is not None:
         corner = np.asarray(radial_corner, dtype=float)[confident]
         corner = corner[np.isfinite(corner)]
         if len(corner) >= MIN_RADIAL_FITS:
-            mid = float(np.median(corner))
-            radial = {"radial_corner": mid, "radial_fits": int(len(corner)),
-                      "radial_corner_std": max(1.4826 * float(np.median(np.abs(corner - mid))), MIN_RADIAL_STD)}
+            radial = {"radial_corner": float(np.median(corner)), "radial_fits": int(len(corner)),
+                      "radial_corner_std": max(_robust_std(corner), MIN_RADIAL_STD)}
     return CameraPrior(
         anchors_m=tuple(p.centre_m for p in rig.positions),
         anchor_std_m=tuple(max(p.spread_m / _MEDIAN_RADIUS_3D, MIN_ANCHOR_STD_M) for p in rig.positions),

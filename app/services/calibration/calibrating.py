@@ -37,6 +37,7 @@ from app.geometry.calibration import (
     CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior, radial_corner,
 )
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
+from app.geometry.calibration.priors import confident_mask
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
 from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
@@ -384,11 +385,10 @@ def dataset_prior(results: Sequence[CalibrationFields],
         return None
     radial = None
     if lines is not None:
-        finite = [s for s in stds if np.isfinite(s)]
-        cut = float(np.median(finite)) if finite else float("-inf")
+        confident, _ = confident_mask(stds)
         radial = []
-        for cam, std, i in zip(cams, stds, used):
-            if not std <= cut:
+        for cam, sure, i in zip(cams, confident, used):
+            if not sure:
                 radial.append(float("nan"))  # not among the confident fits the prior learns from
                 continue
             field_lines, width, height = lines[i]
