@@ -107,3 +107,8 @@ def test_prior_rows_and_the_stored_prior_carry_the_radial_term() -> None:
     with pytest.raises(ValueError):
         CameraPrior(anchors_m=(), anchor_std_m=(), anchor_frames=(), roll_std_deg=0.4, confident_fits=0,
                     radial_corner=CORNER, radial_corner_std=0.0)
+    # A stored prior whose lens is not a number is refused, not fitted with (the service then ignores it).
+    for bad in ({"radial_corner": float("nan")}, {"radial_corner_std": float("nan")}, {"radial_corner_std": -0.01},
+                {"radial_corner": "0.03; drop"}):
+        with pytest.raises(ValueError):
+            CameraPrior.from_json(dict(prior.to_json(), **bad))
