@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 from app.core.paths import SHARED_DIR  # noqa: E402
 from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, radial_corner  # noqa: E402
+from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, lines_used, radial_corner  # noqa: E402
 from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class  # noqa: E402
 from app.geometry.calibration.priors import CameraPrior, learn_camera_prior  # noqa: E402
 from app.geometry.jac import evaluate_jac  # noqa: E402
@@ -82,8 +82,7 @@ def full_fit(frames: list[tuple[str, dict]], priors: dict[str, CameraPrior] | No
         cams[frame] = result.camera
         if result.camera is not None:
             jac5.append(evaluate_jac(result.camera, lines, W, H, (5.0,)).jac[5.0])
-            ignored = {f.split(":", 1)[1] for f in result.flags if f.startswith("ignored_class:")}
-            used = {c: v for c, v in lines.items() if c not in ignored}
+            used = lines_used(lines, result.flags)
             u = calibration_uncertainty(result.camera, used)
             stds[frame] = u.position_std_m if u is not None else float("inf")
             if priors is None:
@@ -131,8 +130,7 @@ def held_out(frames: list[tuple[str, dict]], seed: int, full_cameras: dict | Non
             missed_points += sum(len(np.asarray(p).reshape(-1, 2)) for p in lines[cls])
             continue
         dists.append(class_point_distances(result.camera, lines)[cls])
-        ignored = {f.split(":", 1)[1] for f in result.flags if f.startswith("ignored_class:")}
-        u = calibration_uncertainty(result.camera, {c: v for c, v in without_class(lines, cls).items() if c not in ignored},
+        u = calibration_uncertainty(result.camera, lines_used(without_class(lines, cls), result.flags),
                                     prior=result.centre_prior)
         stds.append(u.position_std_m if u is not None else float("inf"))
         if full_cameras is not None and full_cameras.get(frame) is not None:

@@ -13,6 +13,7 @@ from app.geometry.calibration.frame import (
     CalibrationSettings,
     calibrate_frame,
     frame_jac,
+    lines_used,
     principal_point,
     radial_corner,
 )
@@ -24,5 +25,5 @@ __all__ = [
     "JAC_GAMMAS", "CalibrationPrior", "CalibrationResult", "CalibrationSettings", "calibrate_frame",
     "frame_jac", "principal_point", "CameraRig", "RigPosition", "estimate_rig", "calibrate_with_rig",
     "CalibrationUncertainty", "calibration_uncertainty", "CameraPrior", "learn_camera_prior",
-    "radial_corner",
+    "radial_corner", "lines_used",
 ]

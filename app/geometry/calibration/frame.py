@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Literal, Mapping
+from typing import Any, Callable, Literal, Mapping, Sequence
 
 import numpy as np
 
@@ -859,6 +859,13 @@ def _calibrate(
     return CalibrationResult(status="calibrated", camera=camera, reason=None, jac=jac, residuals_px=per_class,
                              flags=tuple(flags), rms_px=rms, elapsed_ms=(time.perf_counter() - t0) * 1e3,
                              mirrored_lines=mirrored, centre_prior=centre_prior or radial_prior)
+
+
+def lines_used(lines: FieldLines, flags: Sequence[str]) -> FieldLines:
+    """The classes of ``lines`` a calibration with ``flags`` was fitted to: without those it flagged
+    ``ignored_class:<class>`` (a new mapping; the arrays are shared)."""
+    ignored = {f.split(":", 1)[1] for f in flags if f.startswith("ignored_class:")}
+    return {c: v for c, v in lines.items() if c not in ignored}
 
 
 def frame_jac(camera: Camera, lines: FieldLines, width: int, height: int,

@@ -34,7 +34,7 @@ from app.db.models import JAC_COLUMNS, Calibration, CalibrationSource, Calibrati
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import mirror_lines, FieldLines, lines_from_json_lists
 from app.geometry.calibration import (
-    CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior, radial_corner,
+    CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior, lines_used, radial_corner,
 )
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.priors import confident_mask
@@ -158,10 +158,8 @@ def fit_uncertainty(camera: Camera, lines: FieldLines, flags: tuple[str, ...],
     a class the fit ignored (flag ``ignored_class:<class>``) is left out, a rig-assisted fit
     (:data:`RIG_FLAG`) had its centre fixed, a MAP fit with a learned prior (``prior``: its
     ``CalibrationResult.centre_prior``) gets the posterior's std. None when it cannot be computed."""
-    ignored = {f.split(":", 1)[1] for f in flags if f.startswith("ignored_class:")}
-    used = {c: v for c, v in lines.items() if c not in ignored}
     try:
-        u = calibration_uncertainty(camera, used, fixed_centre=RIG_FLAG in flags, prior=prior)
+        u = calibration_uncertainty(camera, lines_used(lines, flags), fixed_centre=RIG_FLAG in flags, prior=prior)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError):
         return None
     return None if u is None else u.to_json()
@@ -392,8 +390,7 @@ def dataset_prior(results: Sequence[CalibrationFields],
                 radial.append(float("nan"))  # not among the confident fits the prior learns from
                 continue
             field_lines, width, height = lines[i]
-            ignored = {f.split(":", 1)[1] for f in results[i].flags if f.startswith("ignored_class:")}
-            radial.append(radial_corner(cam, {c: v for c, v in field_lines.items() if c not in ignored}, width, height))
+            radial.append(radial_corner(cam, lines_used(field_lines, results[i].flags), width, height))
     prior = learn_camera_prior(cams, stds, radial_corner=radial)
     return prior if prior.anchors_m else None
 
