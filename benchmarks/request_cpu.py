@@ -1,0 +1,178 @@
+"""Server CPU per request, as a ratio to ``GET /api/health`` (issue 29's table), in one run.
+
+One run makes a fresh demo database (``benchmarks.load.fresh_database``), starts the real server with one
+worker (``v3d serve --workers 1``, a subprocess) and an annotator, then measures, in interleaved rounds, the
+server process's CPU time (user + system, ``psutil`` over the server and its children: the same counters as
+``/proc/<pid>/stat``) spent on a batch of each request, one client, one request at a time:
+
+* ``health``: ``GET /api/health``;
+* ``page``: ``GET /api/systems/{id}`` of a 4-view system (its wire and JSON sizes are printed, asked with
+  ``Accept-Encoding: gzip``);
+* ``ball``: ``PATCH /api/frames/{id}/ball`` moving the view's box by 2-3 px back and forth (every edit changes
+  the label, so none skips its recomputation);
+* ``line``: ``PUT /api/frames/{id}/field-lines`` moving one point of the view's lines by 0.05 px back and forth.
+
+Each round runs every kind's batch in a shuffled order; the per-request CPU of a kind is its batch's CPU over its
+size; the figures printed are the medians over rounds (ms) and their ratios to health's median. Interleaving the
+kinds in every round keeps a slow phase of the machine from falling on one kind only.
+
+Bounded: ``--rounds`` x ``--batch`` requests per kind, a timeout per request, loopback only; the server is stopped
+at the end.
+
+Usage (from the checkout)::
+
+    .venv/bin/python benchmarks/request_cpu.py --rounds 7 --batch 10
+    .venv/bin/python benchmarks/request_cpu.py --database-url postgresql+psycopg://postgres@127.0.0.1:5432/test
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import statistics
+import sys
+from pathlib import Path
+from typing import Any, Callable, Optional
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.load import fresh_database, served, user_tokens  # noqa: E402
+from benchmarks.scale import BenchError  # noqa: E402
+
+KINDS = ("health", "page", "ball", "line")
+
+
+def server_process(port: int) -> Any:
+    """The ``psutil.Process`` of the server listening on ``port`` (the one whose command line names it).
+
+    Raises:
+        BenchError: no such process.
+    """
+    import psutil
+
+    for proc in psutil.process_iter(["cmdline"]):
+        cmd = proc.info.get("cmdline") or []
+        if "serve" in cmd and "--port" in cmd and str(port) in cmd:
+            return proc
+    raise BenchError(f"no server process found for port {port}")
+
+
+def cpu_seconds(proc: Any) -> float:
+    """User + system CPU seconds of ``proc`` and of its living children (uvicorn's workers)."""
+    total = 0.0
+    for p in [proc, *proc.children(recursive=True)]:
+        try:
+            t = p.cpu_times()
+            total += t.user + t.system
+        except Exception:  # a child that ended between the listing and the read
+            pass
+    return total
+
+
+def four_view_system(client: Any) -> dict[str, Any]:
+    """The system view of the first system with four views, each with a ball box and field lines.
+
+    Raises:
+        BenchError: the database holds none.
+    """
+    for s in client.get("/api/systems", params={"sort": "name", "limit": 500}).json()["items"]:
+        view = client.get(f"/api/systems/{s['id']}").json()
+        views = view["views"]
+        if len(views) == 4 and all(v["ball"]["kind"] == "box" and v["field_lines"] for v in views):
+            return view
+    raise BenchError("no 4-view system with ball boxes in the database")
+
+
+def requests_of(client: Any, system: dict[str, Any]) -> dict[str, Callable[[int], Any]]:
+    """One callable per kind, taking the request's sequence number and sending it (asserting a 2xx)."""
+    view = system["views"][0]
+    fid, box = view["frame_id"], view["ball"]["box"]
+    lines = client.get(f"/api/frames/{fid}").json()["field_lines"]
+    cls = next(c for c, polys in lines.items() if polys and polys[0])
+
+    etag = [client.get(f"/api/frames/{fid}").headers["ETag"]]  # writes send If-Match: the frame's newest ETag
+
+    def ok(r: Any) -> Any:
+        if r.status_code >= 300:
+            raise BenchError(f"{r.request.method} {r.request.url.path}: {r.status_code} {r.text[:200]}")
+        if r.request.method != "GET":
+            etag[0] = r.headers["ETag"]
+        return r
+
+    def ball(i: int) -> Any:
+        d = 2.0 + (i % 2)  # 2 px or 3 px: every edit changes the stored box
+        return ok(client.patch(f"/api/frames/{fid}/ball", headers={"If-Match": etag[0]},
+                               json={"box": [box[0] + d, box[1], box[2] + d, box[3]]}))
+
+    def line(i: int) -> Any:
+        moved = json.loads(json.dumps(lines))
+        moved[cls][0][0][0] += 0.05 * (1 + i % 2)
+        return ok(client.put(f"/api/frames/{fid}/field-lines", headers={"If-Match": etag[0]}, json={"lines": moved}))
+
+    return {
+        "health": lambda i: ok(client.get("/api/health")),
+        "page": lambda i: ok(client.get(f"/api/systems/{system['id']}", headers={"Accept-Encoding": "gzip"})),
+        "ball": ball,
+        "line": line,
+    }
+
+
+def measure(base: str, token: str, rounds: int, batch: int, seed: int) -> dict[str, Any]:
+    """Per-request server CPU (ms, medians over ``rounds``) of each kind, their ratios to health, and the
+    system page's sizes (bytes on the wire and of its JSON)."""
+    import httpx
+
+    port = int(base.rsplit(":", 1)[1])
+    proc = server_process(port)
+    rng = random.Random(seed)
+    with httpx.Client(base_url=base, headers={"Authorization": f"Bearer {token}"}, timeout=60.0) as client:
+        system = four_view_system(client)
+        send = requests_of(client, system)
+        for kind in KINDS:  # warm every path once
+            send[kind](0)
+        per_kind: dict[str, list[float]] = {k: [] for k in KINDS}
+        seq = 1
+        for _ in range(rounds):
+            order = list(KINDS)
+            rng.shuffle(order)
+            for kind in order:
+                before = cpu_seconds(proc)
+                for _ in range(batch):
+                    send[kind](seq)
+                    seq += 1
+                per_kind[kind].append((cpu_seconds(proc) - before) / batch * 1000.0)
+        page = client.get(f"/api/systems/{system['id']}", headers={"Accept-Encoding": "gzip"})
+        wire = page.num_bytes_downloaded
+        size = len(page.content)
+    med = {k: statistics.median(v) for k, v in per_kind.items()}
+    return {"cpu_ms": med, "ratio": {k: med[k] / med["health"] for k in KINDS},
+            "page_wire_bytes": wire, "page_json_bytes": size, "rounds": rounds, "batch": batch}
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--database-url", default=None, help="PostgreSQL server URL (default: a SQLite file)")
+    ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--batch", type=int, default=10)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--json", action="store_true", help="print the result as JSON")
+    args = ap.parse_args(argv)
+    with fresh_database(args.database_url) as url:
+        token = user_tokens(url, 1)[0]
+        with served(url, workers=1) as base:
+            out = measure(base, token, args.rounds, args.batch, args.seed)
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"server CPU per request, medians of {out['rounds']} interleaved rounds of {out['batch']}:")
+    print("| request | CPU ms | x health |")
+    print("|---|---|---|")
+    for k in KINDS:
+        print(f"| {k} | {out['cpu_ms'][k]:.1f} | {out['ratio'][k]:.1f} |")
+    print(f"system page: {out['page_wire_bytes'] / 1024:.1f} KB on the wire, {out['page_json_bytes'] / 1024:.1f} KB JSON")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
