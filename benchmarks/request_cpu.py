@@ -70,6 +70,23 @@ def cpu_seconds(proc: Any) -> float:
     return total
 
 
+def postgres_cpu_seconds(database: str) -> float:
+    """User + system CPU seconds of the PostgreSQL backends serving ``database`` (their process titles name it:
+    ``postgres: USER DATABASE HOST(PORT) STATE``); 0 when there are none."""
+    import psutil
+
+    total = 0.0
+    for p in psutil.process_iter(["cmdline"]):
+        title = " ".join(p.info.get("cmdline") or [])
+        if title.startswith("postgres: ") and f" {database} " in title:
+            try:
+                t = p.cpu_times()
+                total += t.user + t.system
+            except Exception:
+                pass
+    return total
+
+
 def four_view_system(client: Any) -> dict[str, Any]:
     """The system view of the first system with four views, each with a ball box and field lines.
 
@@ -118,9 +135,11 @@ def requests_of(client: Any, system: dict[str, Any]) -> dict[str, Callable[[int]
     }
 
 
-def measure(base: str, token: str, rounds: int, batch: int, seed: int) -> dict[str, Any]:
+def measure(base: str, token: str, rounds: int, batch: int, seed: int,
+            postgres_database: Optional[str] = None) -> dict[str, Any]:
     """Per-request server CPU (ms, medians over ``rounds``) of each kind, their ratios to health, and the
-    system page's sizes (bytes on the wire and of its JSON)."""
+    system page's sizes (bytes on the wire and of its JSON); with ``postgres_database`` also the CPU of the
+    PostgreSQL backends serving it (ms per request, medians)."""
     import httpx
 
     port = int(base.rsplit(":", 1)[1])
@@ -132,21 +151,26 @@ def measure(base: str, token: str, rounds: int, batch: int, seed: int) -> dict[s
         for kind in KINDS:  # warm every path once
             send[kind](0)
         per_kind: dict[str, list[float]] = {k: [] for k in KINDS}
+        per_kind_pg: dict[str, list[float]] = {k: [] for k in KINDS}
         seq = 1
         for _ in range(rounds):
             order = list(KINDS)
             rng.shuffle(order)
             for kind in order:
                 before = cpu_seconds(proc)
+                pg_before = postgres_cpu_seconds(postgres_database) if postgres_database else 0.0
                 for _ in range(batch):
                     send[kind](seq)
                     seq += 1
                 per_kind[kind].append((cpu_seconds(proc) - before) / batch * 1000.0)
+                if postgres_database:
+                    per_kind_pg[kind].append((postgres_cpu_seconds(postgres_database) - pg_before) / batch * 1000.0)
         page = client.get(f"/api/systems/{system['id']}", headers={"Accept-Encoding": "gzip"})
         wire = page.num_bytes_downloaded
         size = len(page.content)
     med = {k: statistics.median(v) for k, v in per_kind.items()}
-    return {"cpu_ms": med, "ratio": {k: med[k] / med["health"] for k in KINDS},
+    pg = {k: statistics.median(v) for k, v in per_kind_pg.items()} if postgres_database else None
+    return {"cpu_ms": med, "ratio": {k: med[k] / med["health"] for k in KINDS}, "postgres_cpu_ms": pg,
             "page_wire_bytes": wire, "page_json_bytes": size, "rounds": rounds, "batch": batch}
 
 
@@ -161,15 +185,20 @@ def main(argv: Optional[list[str]] = None) -> int:
     with fresh_database(args.database_url) as url:
         token = user_tokens(url, 1)[0]
         with served(url, workers=1) as base:
-            out = measure(base, token, args.rounds, args.batch, args.seed)
+            from sqlalchemy.engine import make_url
+
+            u = make_url(url)
+            pg = u.database if u.get_backend_name() == "postgresql" else None
+            out = measure(base, token, args.rounds, args.batch, args.seed, postgres_database=pg)
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
     print(f"server CPU per request, medians of {out['rounds']} interleaved rounds of {out['batch']}:")
-    print("| request | CPU ms | x health |")
-    print("|---|---|---|")
+    pg = out["postgres_cpu_ms"]
+    print("| request | CPU ms | x health |" + (" PostgreSQL CPU ms |" if pg else ""))
+    print("|---|---|---|" + ("---|" if pg else ""))
     for k in KINDS:
-        print(f"| {k} | {out['cpu_ms'][k]:.1f} | {out['ratio'][k]:.1f} |")
+        print(f"| {k} | {out['cpu_ms'][k]:.1f} | {out['ratio'][k]:.1f} |" + (f" {pg[k]:.1f} |" if pg else ""))
     print(f"system page: {out['page_wire_bytes'] / 1024:.1f} KB on the wire, {out['page_json_bytes'] / 1024:.1f} KB JSON")
     return 0
 
