@@ -36,6 +36,7 @@ from starlette.types import Scope
 
 from app.api.authentication import AuthenticationMiddleware, SessionCookieMiddleware
 from app.api.bodies import BodyLimitMiddleware
+from app.api.compression import CompressionMiddleware
 from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
 from app.api.main import api_router
@@ -151,7 +152,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             return session_secret(session, override)
 
     # Added innermost first: security headers around the body limits around the session cookie around the
-    # authentication (a body too large is refused before anything looks at the request).
+    # authentication (a body too large is refused before anything looks at the request); the compression of
+    # answers innermost (app.api.compression: never an answer carrying a secret).
+    app.add_middleware(CompressionMiddleware)
     app.add_middleware(AuthenticationMiddleware, max_age_s=settings.session_max_age_s)
     app.add_middleware(SessionCookieMiddleware, secret=secret, max_age=settings.session_max_age_s,
                        https_only=settings.secure_cookies)

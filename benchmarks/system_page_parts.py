@@ -4,7 +4,7 @@ Companion of ``benchmarks/scale.py`` (which times the real server over loopback,
 ``benchmarks/scale_profile.py`` (cProfile of one system): this one runs what the route runs, part by
 part, on random systems of each database in turn, and reports the **CPU time** (``time.process_time``,
 robust to other load on the machine) and the wall time of each part, p50 and p95 over the requests,
-with the number of SQL statements and what the pages hold (views, doubts, pairs, pitch runs), so that a
+with the number of SQL statements and what the pages hold (views, doubts, pairs, pitch-line addresses), so that a
 part that grows with the database can be told from one that grows with the data of its systems.
 
 Parts, as the route calls them: ``lookup`` (the ``SystemDep`` 404 check), ``load``
@@ -70,7 +70,7 @@ class Database:
 
     def request(self, system_id: int) -> None:
         """Run the parts of ``GET /api/systems/{system_id}`` once, recording (CPU ms, wall ms) of each and
-        the page's size (SQL statements, views, doubts, pairs, pitch runs)."""
+        the page's size (SQL statements, views, doubts, pairs, pitch-line addresses)."""
         from app.api.deps import system_by_id
         from app.api.view_schemas import SystemView
         from app.services.curation.queue import DEFAULT_SORT, SystemFilters, queue_neighbours
@@ -98,7 +98,7 @@ class Database:
             self.times[part].append(((b[0] - a[0]) * 1000.0, (b[1] - a[1]) * 1000.0))
         tri = system.triangulation
         self.sizes.append((self.statements - n0, len(view.views), len(view.doubts),
-                           len(tri.pairs) if tri is not None else 0, sum(len(v.pitch_lines) for v in view.views)))
+                           len(tri.pairs) if tri is not None else 0, sum(v.pitch_lines_url is not None for v in view.views)))
 
     def report(self) -> str:
         """The table of parts: CPU and wall p50 / p95 in ms, and the mean page size."""
@@ -112,7 +112,7 @@ class Database:
                          f"{percentile(wall, 50):9.2f} {percentile(wall, 95):9.2f}")
         means = [sum(col) / n for col in zip(*self.sizes)]
         lines.append("  per page: {:.1f} SQL statements, {:.2f} views, {:.2f} doubts, {:.2f} pairs, "
-                     "{:.1f} pitch runs".format(*means))
+                     "{:.1f} pitch-line addresses (the lines are fetched once per camera)".format(*means))
         return "\n".join(lines)
 
 

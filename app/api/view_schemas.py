@@ -26,7 +26,7 @@ from app.geometry.jac import JAC_GAMMAS
 from app.geometry.triangulation import error_above_tau, rule_reference_width_px, scaled_error_px
 from app.services.transfer.images import frame_has_image
 from app.services.curation.doubts import doubt_provenance, suggestion_json
-from app.services.curation.system_page import SystemPageData, pitch_lines, round_px
+from app.services.curation.system_page import SystemPageData, pitch_lines, pitch_lines_key, round_px
 from app.services.curation.versions import frame_etag, system_etag
 
 Box = tuple[float, float, float, float]
@@ -294,6 +294,28 @@ class PitchLineOut(BaseModel):
     points: list[Point2]
 
 
+class PitchLinesOut(BaseModel):
+    """``GET /api/frames/{id}/pitch-lines``: the pitch model projected by the frame's current camera and clipped
+    to its image (px), fetched once per calibration: ``camera`` is the version a view's ``pitch_lines_url`` names."""
+
+    frame_id: int
+    camera: Optional[str] = Field(description="The version of these lines (app.services.curation.system_page."
+                                              "pitch_lines_key): camera and image size; null without a camera.")
+    lines: list[PitchLineOut]
+
+
+def calibrated_camera(frame: Frame) -> Optional[dict[str, Any]]:
+    """The frame's stored camera (SoccerNet JSON) when it is calibrated, else None."""
+    cal = frame.calibration
+    return cal.camera if cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera else None
+
+
+def pitch_lines_url(frame: Frame) -> Optional[str]:
+    """Where the view's projected pitch is fetched, versioned by its camera (None without one)."""
+    key = pitch_lines_key(calibrated_camera(frame), frame.width, frame.height)
+    return None if key is None else f"/api/frames/{frame.id}/pitch-lines?camera={key}"
+
+
 class PitchClassOut(BaseModel):
     """One field-line class of the pitch model (SoccerNet's name, trailing space included)."""
 
@@ -342,7 +364,9 @@ class ViewOut(_FrameFields):
     """One view of a system, everything the overlay draws."""
 
     frame_id: int
-    pitch_lines: list[PitchLineOut]
+    pitch_lines_url: Optional[str] = Field(description=(
+        "GET it for the pitch model projected by the view's camera (PitchLinesOut); the address changes with the "
+        "camera, so its answer may be kept as long as it is named; null without a camera."))
     field_lines: dict[str, list[list[Point2]]]
     optimised_box: Optional[OptimisedBoxOut]
     precise_box: Optional[Box] = Field(None, description="The view's precise ball box (px; the paper's Table 1 "
@@ -362,15 +386,13 @@ class ViewOut(_FrameFields):
     def fields_of(cls, frame: Frame, tri: Optional[Triangulation]) -> dict[str, Any]:
         """The fields of a frame's view, from the frame (loaded as ``app.services.curation.system_page`` does) and its
         system's triangulation (the rule and tau its reprojection error is judged by)."""
-        cal = frame.calibration
-        camera = cal.camera if cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera else None
+        camera = calibrated_camera(frame)
         rep = frame.reprojection
         error = rep.error_px if rep is not None else None
         judged = rep is not None and tri is not None
         return {
             **cls.frame_fields(frame), "frame_id": frame.id,
-            "pitch_lines": [PitchLineOut(class_=cls_, points=points)
-                            for cls_, points in pitch_lines(camera, frame.width, frame.height)],
+            "pitch_lines_url": pitch_lines_url(frame),
             "field_lines": frame.field_lines.lines if frame.field_lines is not None else {},
             "optimised_box": OptimisedBoxOut.of(frame.optimised_box),
             "precise_box": frame.precise_box,
@@ -388,14 +410,23 @@ class ViewOut(_FrameFields):
 
 
 class FrameView(ViewOut):
-    """``GET /api/frames/{id}``: the frame as the system view draws it, and its system."""
+    """``GET /api/frames/{id}``: the frame as the system view draws it, its system, and its projected pitch."""
 
     system_id: int
+    pitch_lines: list[PitchLineOut] = Field(description="The pitch model projected by the view's camera (as "
+                                                        "pitch_lines_url answers it); empty without a camera.")
 
     @classmethod
     def of_frame(cls, frame: Frame) -> "FrameView":
         """A frame loaded by ``app.services.curation.system_page.load_frame``."""
-        return cls(**cls.fields_of(frame, frame.system.triangulation), system_id=frame.system_id)
+        return cls(**cls.fields_of(frame, frame.system.triangulation), system_id=frame.system_id,
+                   pitch_lines=projected_pitch_of(frame))
+
+
+def projected_pitch_of(frame: Frame) -> list[PitchLineOut]:
+    """The pitch model projected by the frame's calibrated camera, clipped to its image (px)."""
+    return [PitchLineOut(class_=c, points=points) for c, points in pitch_lines(calibrated_camera(frame), frame.width,
+                                                                                  frame.height)]
 
 
 class PairOut(BaseModel):

@@ -197,6 +197,20 @@ export function putFieldLines(frameId, lines, params = {}, ifMatch, undoOf = nul
 
 let pitchModel = null;
 /** GET /api/pitch-model, once per page: {classes: [{name, mirror, modelled}], length_m, width_m}. */
+/** The pitch projected by a view's camera, from the view's `pitch_lines_url` (its address names the camera, so
+ * one answer serves as long as that address is named): a promise of [{class, points}], asked once per address. */
+const pitchLines = new Map();
+export function getPitchLines(url) {
+  if (!pitchLines.has(url)) {
+    if (pitchLines.size > 512) pitchLines.clear();
+    pitchLines.set(url, request("GET", url).then((answer) => answer.lines, (err) => {
+      pitchLines.delete(url);
+      throw err;
+    }));
+  }
+  return pitchLines.get(url);
+}
+
 export function getPitchModel() {
   if (!pitchModel) {
     pitchModel = request("GET", "/api/pitch-model").catch((err) => {

@@ -13,6 +13,7 @@
 import { el, svg, fmt, fmtJac, isNum, errorClass, viewColour, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 import { suggestedNote } from "./suggested.js";
 import { LineEditor } from "./lineseditor.js";
+import { getPitchLines } from "./api.js";
 
 const ZOOM_PX = 150; // displayed size of the zoom inset
 const MIN_BOX = 2; // smallest box side, image pixels
@@ -107,6 +108,21 @@ export class ViewPanel extends HTMLElement {
     this.lines.update(frameChanged);
     if (frameChanged || view.image_url !== this.#imageUrl) this.#loadImage(view.image_url);
     this.#build();
+    this.#loadPitchLines(view);
+  }
+
+  /** The view's projected pitch (`pitch_lines_url`, fetched once per camera) as `view.pitch_lines`, drawn when
+   * it arrives; a view without a camera has none. */
+  #loadPitchLines(view) {
+    if (view.pitch_lines || !view.pitch_lines_url) {
+      view.pitch_lines = view.pitch_lines || [];
+      return;
+    }
+    getPitchLines(view.pitch_lines_url).then((lines) => {
+      if (this.#view !== view) return; // a newer view came meanwhile: it fetches its own
+      view.pitch_lines = lines;
+      this.#drawOverlays();
+    }, () => {}); // not drawn: the rest of the view stands without it
   }
 
   get view() {

@@ -65,7 +65,7 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         assert pending["counts"] == {"pending": 2, "accepted": 1, "rejected": 0, "needs_fix": 0}
         view = client.get(f"/api/systems/{exact}", params={"status": "pending", "sort": "-worst_error"}).json()
         assert (view["prev_id"], view["next_id"]) == (shifted, lonely)
-        assert len(view["views"]) == 3 and view["views"][0]["pitch_lines"]
+        assert len(view["views"]) == 3 and client.get(view["views"][0]["pitch_lines_url"]).json()["lines"]
 
 
 def test_views_above_tau_on_postgresql(pg_url: str) -> None:

@@ -222,7 +222,9 @@ def test_frame_without_image_is_drawn_on_a_blank_canvas(page, artifacts):
     system = _api(page, f"/api/systems/{listing['items'][0]['id']}")
     v = system["views"][0]
     assert v["image_url"] is None or page.request.get(v["image_url"]).status == 404
-    assert v["pitch_lines"], "the calibration-only frame should be calibrated"
+    assert v["pitch_lines_url"], "the calibration-only frame should be calibrated"
+    pitch = _api(page, v["pitch_lines_url"])["lines"]
+    assert pitch
 
     # the game filter of the queue, picked in the page, finds it
     page.goto("/")
@@ -243,7 +245,8 @@ def test_frame_without_image_is_drawn_on_a_blank_canvas(page, artifacts):
     frame_svg = view.locator(tid("view-svg"))
     assert frame_svg.get_attribute("viewBox") == f"0 0 {v['width']} {v['height']}"
     assert frame_svg.locator("image").count() == 0
-    assert view.locator("[data-testid=overlay] polyline.pitch").count() == len(v["pitch_lines"])
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=view] [data-testid=overlay] polyline.pitch')"
+                           ".length === n", arg=len(pitch))
     # an annotated point is drawn where its pixel coordinates say, at the displayed scale
     cls, polylines = next(iter(v["field_lines"].items()))
     x, y = polylines[0][0]

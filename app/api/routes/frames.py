@@ -20,12 +20,14 @@ from app.api.deps import FrameDep, SessionDep, SettingsDep
 from app.api.schemas import (
     INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, QueueQuery, ReviewIn,
 )
-from app.api.view_schemas import FrameOut, FramePageOut, FrameView, ReviewOut, SystemView
+from app.api.view_schemas import (
+    FrameOut, FramePageOut, FrameView, PitchLinesOut, ReviewOut, SystemView, calibrated_camera, projected_pitch_of,
+)
 from app.services.accounts import audit
 from app.services.curation import editing
 from app.services.transfer import images
 from app.services.curation import queue
-from app.services.curation.system_page import load_frame, system_page
+from app.services.curation.system_page import load_frame, pitch_lines_key, system_page
 from app.services.curation.versions import expected_versions, frame_etag
 
 #: The header naming the audit entry of a field-line write.
@@ -75,6 +77,32 @@ def read_frame(session: SessionDep, frame: FrameDep, response: Response, _: Prin
     out = FrameView.of_frame(load_frame(session, frame.id))
     with_etag(response, out.etag)
     return out
+
+
+#: A view's projected pitch, asked at the address of its version (its ``camera`` key): the same address always
+#: answers the same lines, so the browser keeps them without asking again.
+PITCH_LINES_KEPT = "private, max-age=31536000, immutable"
+
+
+@router.get("/{frame_id}/pitch-lines", response_model=PitchLinesOut, responses={
+    **NOT_FOUND, 304: {"description": "Not modified (If-None-Match names the current ETag)."}})
+def read_pitch_lines(session: SessionDep, frame: FrameDep, response: Response, _: PrincipalDep,
+                     camera: Annotated[str | None, Query(max_length=64, description=(
+                         "The version named by the view's pitch_lines_url; when it is the current one the answer "
+                         "may be kept for good (Cache-Control immutable), else it must be asked again."))] = None,
+                     if_none_match: Annotated[str | None, Header()] = None) -> Response | PitchLinesOut:
+    """The pitch model projected by the frame's current camera and clipped to its image (px), with an ``ETag``
+    (its version: camera and image size). Asked once per calibration: the system view names it in each view's
+    ``pitch_lines_url`` instead of sending the lines with every answer."""
+    loaded = load_frame(session, frame.id)
+    key = pitch_lines_key(calibrated_camera(loaded), loaded.width, loaded.height)
+    etag = f'"pitch-{key or "none"}"'
+    headers = {"ETag": etag, "Cache-Control": PITCH_LINES_KEPT if camera is not None and camera == key
+               else "private, no-cache"}
+    if etag_matches(if_none_match, etag):
+        return Response(status_code=304, headers=headers)
+    response.headers.update(headers)
+    return PitchLinesOut(frame_id=loaded.id, camera=key, lines=projected_pitch_of(loaded))
 
 
 def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery) -> SystemView:

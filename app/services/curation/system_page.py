@@ -8,6 +8,7 @@ only on the calibration and is computed once per camera and image size (:func:`p
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
 from dataclasses import dataclass
 from typing import Any, Optional
@@ -62,6 +63,20 @@ def pitch_lines(camera_json: Optional[dict[str, Any]], width: int, height: int) 
     classes, points, bounds = _projected_pitch(json.dumps(camera_json, sort_keys=True), int(width), int(height))
     xy = points.tolist()
     return [(cls, xy[s:e]) for cls, s, e in zip(classes, bounds, bounds[1:])]
+
+
+def pitch_lines_key(camera_json: Optional[dict[str, Any]], width: int, height: int) -> Optional[str]:
+    """The version of a view's projected pitch (:func:`pitch_lines`): 16 hex digits of the SHA-256 of its
+    camera (SoccerNet JSON, keys sorted) and image size, None without a camera. Equal keys mean equal lines,
+    so a client keeps the lines of a key for as long as it likes (``GET /api/frames/{id}/pitch-lines``).
+
+    >>> pitch_lines_key(None, 1920, 1080) is None, len(pitch_lines_key({"a": 1}, 1920, 1080))
+    (True, 16)
+    """
+    if not camera_json:
+        return None
+    text = f"{json.dumps(camera_json, sort_keys=True)}|{int(width)}x{int(height)}"
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 @functools.lru_cache(maxsize=_PITCH_CACHE_SIZE)

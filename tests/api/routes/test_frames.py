@@ -336,3 +336,44 @@ def test_nul_characters_in_a_body_are_422_naming_the_field(client: TestClient, s
     answer = client.put(f"/api/frames/{scene.frame_ids[0]}/field-lines", json={"lines": {"Circle\x00": [[[1, 2]]]}})
     assert answer.status_code == 422 and "lines: text must not contain NUL" in answer.json()["detail"][0]["msg"]
     assert _view(client, scene)["views"][0]["review"]["status"] == "pending"
+
+
+# ----- the projected pitch, at its own address ------------------------------------------------------
+def test_pitch_lines_are_fetched_once_per_camera(client: TestClient, scene: Scene) -> None:
+    """The system view names each view's projected pitch by its camera (issue 29: the lines were two thirds of every
+    system answer); the address answers them with an ETag and, while it names the current camera, keeps for good."""
+    view = _view(client, scene)["views"][0]
+    assert "pitch_lines" not in view
+    url = view["pitch_lines_url"]
+    fid = scene.frame_ids[0]
+    assert url.startswith(f"/api/frames/{fid}/pitch-lines?camera=")
+    answer = client.get(url)
+    assert answer.status_code == 200
+    body = answer.json()
+    assert body["frame_id"] == fid and url.endswith(body["camera"]) and body["lines"]
+    assert "immutable" in answer.headers["cache-control"]
+    assert body["lines"] == client.get(f"/api/frames/{fid}").json()["pitch_lines"]  # one frame's answer keeps them
+    assert client.get(url, headers={"If-None-Match": answer.headers["etag"]}).status_code == 304
+    # another camera (the lines moved by 40 px): another address; the old one is answered anew, not kept
+    lines = {cls: [[[x + 40.0, y] for x, y in poly] for poly in polys] for cls, polys in view["field_lines"].items()}
+    edited = client.put(f"/api/frames/{fid}/field-lines", json={"lines": lines}).json()["views"][0]
+    if edited["pitch_lines_url"] is not None:
+        assert edited["pitch_lines_url"] != url
+        assert client.get(edited["pitch_lines_url"]).json()["lines"] != body["lines"]
+    stale = client.get(url)
+    assert stale.headers["cache-control"] == "private, no-cache" and stale.headers["etag"] != answer.headers["etag"]
+
+
+def test_pitch_lines_of_an_unknown_frame_are_404(client: TestClient) -> None:
+    assert client.get("/api/frames/2147483647/pitch-lines").status_code == 404
+
+
+def test_large_answers_are_compressed_but_never_a_secret(client: TestClient, scene: Scene) -> None:
+    """JSON answers above 1 KB go gzip-compressed to a client that accepts it; the answers carrying the CSRF token
+    (or an API token) never do (BREACH: app.api.compression)."""
+    answer = client.get(f"/api/systems/{scene.system_id}", headers={"Accept-Encoding": "gzip"})
+    assert answer.headers.get("content-encoding") == "gzip" and answer.json()["id"] == scene.system_id
+    me = client.get("/api/auth/me", headers={"Accept-Encoding": "gzip"})
+    assert me.status_code == 200 and "content-encoding" not in me.headers
+    plain = client.get(f"/api/systems/{scene.system_id}", headers={"Accept-Encoding": "identity"})
+    assert "content-encoding" not in plain.headers

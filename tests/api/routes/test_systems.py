@@ -168,10 +168,11 @@ def test_system_view_carries_the_ui_contract(client: TestClient, queue: dict[str
     assert first["calibration"]["admitted"] is True
     assert first["calibration"]["jac"]["0.005"] == pytest.approx(0.90)
     np.testing.assert_allclose(first["camera_position"], scene.cameras[0].C)
-    # pitch lines at the image's resolution, clipped to it; the centre circle is in view
-    classes = {line["class"] for line in first["pitch_lines"]}
+    # pitch lines at the image's resolution, clipped to it, at their own address; the centre circle is in view
+    pitch = client.get(first["pitch_lines_url"]).json()["lines"]
+    classes = {line["class"] for line in pitch}
     assert "Circle central" in classes or "Middle line" in classes
-    pts = np.concatenate([np.array(line["points"]) for line in first["pitch_lines"]])
+    pts = np.concatenate([np.array(line["points"]) for line in pitch])
     assert pts.min() >= -0.01 and pts[:, 0].max() <= WIDTH + 0.01 and pts[:, 1].max() <= HEIGHT + 0.01
     assert first["field_lines"] and all(len(pt) == 2 for polys in first["field_lines"].values()
                                         for poly in polys for pt in poly)
