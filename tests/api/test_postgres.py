@@ -144,3 +144,26 @@ def test_ids_beyond_32_bits_and_nul_characters_are_422_on_postgresql(pg_url: str
     with TestClient(create_app(settings)) as anonymous:
         answer = anonymous.post("/api/auth/login", json={"name": "test-admin\x00", "password": "x"})
         assert answer.status_code == 422 and "name" in answer.json()["detail"][0]["msg"]
+
+
+def test_connections_run_without_jit_and_migrations_analyse(pg_url: str) -> None:
+    """Issue 29: on a database without statistics (autovacuum off or not yet run) the planner's estimates passed
+    the JIT threshold and an edit's frames query compiled for about 64 ms; v3d's connections run with JIT off and
+    the migrations (as every import) end with ANALYZE, so the tables carry statistics from the start."""
+    upgrade_database(pg_url)
+    engine = make_engine(pg_url)
+    try:
+        with engine.connect() as conn:
+            assert conn.exec_driver_sql("SHOW jit").scalar() == "off"
+            analysed = conn.exec_driver_sql(
+                "SELECT count(*) FROM pg_stat_user_tables WHERE relname IN ('frames', 'systems') "
+                "AND coalesce(last_analyze, last_autoanalyze) IS NOT NULL").scalar()
+            assert analysed == 2
+    finally:
+        engine.dispose()
+    explicit = make_engine(pg_url, connect_args={"options": "-c jit=on"})
+    try:
+        with explicit.connect() as conn:  # an explicit choice in the options wins
+            assert conn.exec_driver_sql("SHOW jit").scalar() == "on"
+    finally:
+        explicit.dispose()

@@ -41,6 +41,7 @@ from app.db.models import (
     BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game, System,
     SystemKind,
 )
+from app.db.session import refresh_statistics
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists
 from app.geometry.calibration.held_out import class_point_distances
@@ -151,6 +152,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
     except BaseException:
         session.rollback()
         raise
+    refresh_statistics(session)  # the edits that follow are planned on the imported rows
     report.seconds = time.perf_counter() - t0
     report.store_seconds = report.seconds - report.read_seconds - report.calibration_seconds
     return report

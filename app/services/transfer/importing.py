@@ -47,6 +47,7 @@ from app.db.models import (
     BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, Game, ReviewDecision,
     ReviewStatus, System,
 )
+from app.db.session import refresh_statistics
 from app.db.types import utcnow
 from app.datasets.files import dataset_root
 from app.datasets.records import FrameRecord, GameRecord
@@ -401,6 +402,7 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     except BaseException:
         session.rollback()
         raise
+    refresh_statistics(session)  # the edits that follow are planned on the imported rows
     report.calibration_ms, report.calibration_seconds = calibration_ms, calibration_seconds
     report.seconds = time.perf_counter() - t0
     report.store_seconds = report.seconds - report.read_seconds - report.calibration_seconds
