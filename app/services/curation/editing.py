@@ -25,13 +25,38 @@ with the edited part's state before and after. ``revert`` marks the write as the
 entry (``app.services.curation.reverting``): it is recorded as action ``revert``, and refused with
 :class:`~app.core.errors.ConflictError` when the state under the lock is not ``revert.expect``.
 
-Concurrency (several server processes, issue 7): every edit is one write unit of work
-(:func:`_in_transaction`, which :func:`_write` runs in): it begins a write transaction (``app.db.session.begin_write``: SQLite's
-``BEGIN IMMEDIATE``, waiting its turn for the write lock) and locks the edited system's row
-(:func:`lock_system`: ``SELECT ... FOR UPDATE`` on PostgreSQL, also the game's row for an ISSIA system,
-whose edits re-fit its whole sequence) before it reads anything it changes, so two edits of one
-system's views run one after the other and the second recomputes from the first's labels. Nothing is
-read before the lock and written after it: the objects loaded earlier are expired and read again.
+Concurrency (several server processes, issues 7 and 27): one locking design for every edit
+(:func:`_write`). Nobody waits on another's geometry:
+
+1. **Compute before the lock.** An edit that recomputes (``ball.edit``, ``field_lines.replace``,
+   ``field_lines.mirror``, ``view.exclusion``) first runs its ``apply`` in a read snapshot
+   (``app.db.session.begin_snapshot``: SQLite's deferred ``BEGIN`` under WAL, PostgreSQL ``REPEATABLE READ``; no
+   lock, nothing flushed, :func:`_compute_before_lock`). Each recomputation it asks for (:func:`_recompute_planned`:
+   the edited frame's calibration with its rig or prior retry, admission, mirror evidence, triangulation,
+   reprojections, boxes, doubts, queue figures) is computed there, and the digest of every input it read
+   (``recompute.recompute_inputs``: every view's ball label, field lines, exclusion and calibration of the
+   system, its review status, the game's rig rows or learned camera prior) is kept with its results as plain
+   values (``recompute.system_results``). The snapshot is rolled back; audit entries and decision resets made
+   there are never written.
+2. **Compare and write under the lock.** Then the write transaction begins (``begin_write``: SQLite's
+   ``BEGIN IMMEDIATE``) and locks the edited system's row (:func:`lock_system`: ``SELECT ... FOR UPDATE`` on
+   PostgreSQL, the game's row first for an ISSIA system) before it reads anything it changes; the objects loaded
+   earlier are expired. Under the lock the edit claims its version (412), checks a revert (409), applies its
+   change again and, at each recomputation, loads the system in a few queries and digests its inputs: equal to
+   the digest computed from, the kept results are stored (``recompute.store_system_results``); different (another
+   edit of the system, or of its game's rig, committed meanwhile), it is recomputed under the lock from what the
+   other committed. The audit entry and the decision resets are written in the same transaction, as before.
+   ``session.info[LAST_RECOMPUTATION]`` says which happened ("precomputed", "recomputed", "under_lock").
+
+Two edits of one system's views therefore never lose each other's label: the later one finds the earlier one's
+label under the lock and recomputes. Kinds whose edit re-fits beyond the system (ISSIA's trajectory:
+``KindPolicy.computes_before_lock`` False) and writes that recompute nothing (review decisions) compute under the
+lock as before. The lock is held only to compare and write, so waits are short: a served process waits at most
+``V3D_WRITE_LOCK_TIMEOUT_S`` (SQLite busy timeout, PostgreSQL ``lock_timeout``) and the API answers 503 with
+``Retry-After`` beyond it (``app.api.errors``).
+
+Bounded work: a field-line edit gives a view at most ``V3D_MAX_LINE_POINTS_PER_FRAME`` points (2,000; 422 naming
+``lines`` before any geometry); lines stored before the cap still calibrate, mirror and edit.
 """
 from __future__ import annotations
 
@@ -451,7 +476,8 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
     Raises:
         NotFoundError: no such frame.
         InvalidInputError: unknown class, malformed polyline, NaN or infinity, a point more than
-            5 % of the image's size outside it (field "lines", the message names the class and polyline);
+            5 % of the image's size outside it (field "lines", the message names the class and polyline), more
+            than ``settings.max_line_points_per_frame`` points in all (field "lines", before any geometry);
             an ``undo_of`` that is no field-line write of this frame with ``lines`` before it (field "undo_of").
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
