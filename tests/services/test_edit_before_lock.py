@@ -6,7 +6,6 @@ between its geometry and its lock while the other commits."""
 from __future__ import annotations
 
 import contextlib
-import copy
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -25,6 +24,7 @@ from app.services.curation.editing import (
 )
 from app.services.curation.recompute import load_for_recompute, recompute_system
 
+from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene, make_game, make_system
 from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
 
@@ -139,20 +139,6 @@ def test_edits_of_two_views_interleaved_store_the_ball_of_both(database, monkeyp
     assert np.linalg.norm(np.subtract(a_alone, both)) > 1e-3  # what A computed alone was another ball
 
 
-def _dense_lines(lines: dict, total: int) -> dict:
-    """``lines`` with each polyline resampled so that the set holds exactly ``total`` points (px, on the same
-    segments)."""
-    polys = [(c, i, np.asarray(p, float)) for c, ps in lines.items() for i, p in enumerate(ps) if len(p) >= 2]
-    per = [total // len(polys)] * len(polys)
-    per[0] += total - sum(per)
-    out = copy.deepcopy(lines)
-    for (c, i, p), n in zip(polys, per):
-        seg = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))]
-        t = np.linspace(0.0, seg[-1], n)
-        out[c][i] = np.c_[np.interp(t, seg, p[:, 0]), np.interp(t, seg, p[:, 1])].round(3).tolist()
-    return out
-
-
 def test_an_unrelated_write_is_not_blocked_by_a_capped_size_line_edits_geometry(database, monkeypatch) -> None:
     """A field-line edit of 2,000 points (the cap) computes its calibration and recomputation outside the lock:
     held after its geometry, it holds no lock, and an edit of another system (and a review decision) commit
@@ -161,7 +147,7 @@ def test_an_unrelated_write_is_not_blocked_by_a_capped_size_line_edits_geometry(
     assert settings.max_line_points_per_frame == 2000
     fid = scene.frame_ids[0]
     with factory() as s:
-        lines = _dense_lines(s.get(Frame, fid).field_lines.lines, settings.max_line_points_per_frame)
+        lines = dense_lines(s.get(Frame, fid).field_lines.lines, settings.max_line_points_per_frame)
     computed, done = threading.Event(), threading.Event()
     timing: dict[str, float] = {}
 

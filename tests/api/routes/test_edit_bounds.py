@@ -19,11 +19,12 @@ from app.db.models import Frame
 from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
 from app.main import create_app
 from app.services.accounts.users import create_user
+from app.services.curation import editing
 from app.services.curation.editing import lock_system
 
+from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene, make_game, make_system
 from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
-from tests.services.test_edit_before_lock import _dense_lines
 
 
 def _moved(box: list[float], dx: float) -> list[float]:
@@ -34,14 +35,14 @@ def test_a_line_edit_above_the_cap_is_422_naming_lines_and_changes_nothing(clien
     fid = scene.frame_ids[0]
     frame = client.get(f"/api/frames/{fid}")
     etag, lines = frame.headers["ETag"], frame.json()["field_lines"]
-    too_many = _dense_lines(lines, 2001)
+    too_many = dense_lines(lines, 2001)
     answer = client.put(f"/api/frames/{fid}/field-lines", json={"lines": too_many}, headers={"If-Match": etag})
     assert answer.status_code == 422, answer.text
     assert answer.json()["field"] == "lines"
     assert "2001 points" in answer.json()["detail"] and "V3D_MAX_LINE_POINTS_PER_FRAME" in answer.json()["detail"]
     after = client.get(f"/api/frames/{fid}")
     assert after.headers["ETag"] == etag and after.json()["field_lines"] == lines
-    at_cap = _dense_lines(lines, 2000)
+    at_cap = dense_lines(lines, 2000)
     assert client.put(f"/api/frames/{fid}/field-lines", json={"lines": at_cap},
                       headers={"If-Match": etag}).status_code == 200
 
@@ -50,7 +51,7 @@ def test_a_view_stored_with_more_points_before_the_cap_still_opens_and_edits(
         client: TestClient, scene: Scene, db_session: Session) -> None:
     fid = scene.frame_ids[1]
     frame = db_session.get(Frame, fid)
-    frame.field_lines.lines = _dense_lines(frame.field_lines.lines, 3000)  # stored before the cap
+    frame.field_lines.lines = dense_lines(frame.field_lines.lines, 3000)  # stored before the cap
     db_session.commit()
     assert client.get(f"/api/systems/{scene.system_id}").status_code == 200
     got = client.get(f"/api/frames/{fid}")
@@ -86,8 +87,16 @@ def served(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Tes
         yield client, scene, request.param, holder
 
 
-def test_a_write_waiting_past_the_lock_timeout_is_503_with_retry_after(served) -> None:
+def test_a_write_waiting_past_the_lock_timeout_is_503_with_retry_after(served, monkeypatch) -> None:
     client, scene, backend, holder = served
+    stored: list[int] = []
+    store = editing.store_system_results
+
+    def counted(session, system, results):  # the real store, counted: an HTTP edit computes before its lock
+        stored.append(system.id)
+        return store(session, system, results)
+
+    monkeypatch.setattr(editing, "store_system_results", counted)
     fid = scene.frame_ids[0]
     got = client.get(f"/api/frames/{fid}")
     etag, box = got.headers["ETag"], got.json()["ball"]["box"]
@@ -105,3 +114,4 @@ def test_a_write_waiting_past_the_lock_timeout_is_503_with_retry_after(served) -
     assert after.headers["ETag"] == etag and after.json()["ball"]["box"] == box  # nothing changed
     again = client.patch(f"/api/frames/{fid}/ball", json={"box": _moved(box, 6.0)}, headers={"If-Match": etag})
     assert again.status_code == 200, again.text  # the same request, sent again once the lock is free
+    assert stored == [scene.system_id]  # its recomputation was computed before the lock, stored under it
