@@ -114,7 +114,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         The FastAPI app. Its engine is disposed of when the app's lifespan ends.
     """
     settings = settings or get_settings()
-    engine = make_engine(settings.database_url)
+    engine = make_engine(settings.database_url, write_lock_timeout_s=settings.write_lock_timeout_s)
 
     @asynccontextmanager
     async def lifespan(application: FastAPI) -> AsyncIterator[None]:

@@ -12,7 +12,11 @@
   the service read after rolling back);
 * :class:`~app.core.errors.ConflictError`: 409 with the message and, when known, ``current``;
 * :class:`~app.core.errors.InvalidInputError` and
-  :class:`~app.geometry.annotations.AnnotationError`: 422 with the message and, when known, ``field``.
+  :class:`~app.geometry.annotations.AnnotationError`: 422 with the message and, when known, ``field``;
+* a write that gave up waiting for the database's lock (``sqlalchemy.exc.OperationalError`` that
+  ``app.db.session.is_lock_timeout`` recognises: SQLite "database is locked", PostgreSQL ``lock_timeout``,
+  after ``V3D_WRITE_LOCK_TIMEOUT_S``): 503 with ``Retry-After`` (:data:`RETRY_AFTER_S`), never 500; nothing was
+  written, the same request may be sent again. Any other ``OperationalError`` stays a server error.
 
 Request validation errors keep FastAPI's form (422, ``detail`` a list of ``{loc, msg, type}``), so a
 NaN box answers ``loc: ["body", "box", 0]``. A body FastAPI cannot read at all (JSON that is not UTF-8, a
@@ -25,11 +29,13 @@ from fastapi import FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.responses import JSONResponse
+from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.api.audit_schemas import AuditEntryOut
 from app.api.view_schemas import FrameView, StaleOut, SystemStateOut
 from app.db.models import Frame
+from app.db.session import is_lock_timeout
 from app.geometry.annotations import AnnotationError
 from app.core.errors import (
     ConflictError, DatasetError, ForbiddenError, InvalidInputError, NotFoundError, StaleVersionError,
@@ -84,6 +90,20 @@ async def _conflict(_: Request, exc: Exception) -> JSONResponse:
     return JSONResponse(jsonable_encoder(body), status_code=status.HTTP_409_CONFLICT)
 
 
+#: Seconds a client is asked to wait before sending again a write answered 503 (the database's lock was busy).
+RETRY_AFTER_S = 2
+
+
+async def _database_error(_: Request, exc: Exception) -> JSONResponse:
+    """503 + ``Retry-After`` for a lock wait past its timeout; any other operational error re-raised (500)."""
+    if not is_lock_timeout(exc):
+        raise exc
+    return JSONResponse({"detail": "the database is busy with other writes; nothing was changed, send the request "
+                                   f"again in {RETRY_AFTER_S} s"},
+                        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+                        headers={"Retry-After": str(RETRY_AFTER_S), "Cache-Control": "no-store"})
+
+
 async def _http_error(request: Request, exc: Exception) -> JSONResponse:
     """FastAPI's answer to ``HTTPException``, except the 400 that FastAPI and Starlette raise when they
     cannot read a request body ("There was an error parsing the body", "Invalid multipart data."; v3d's
@@ -110,3 +130,4 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(ConflictError, _conflict)
     app.add_exception_handler(AnnotationError, _invalid)
     app.add_exception_handler(StarletteHTTPException, _http_error)
+    app.add_exception_handler(OperationalError, _database_error)

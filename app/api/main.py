@@ -22,6 +22,9 @@ api_router.include_router(health.router)
 _protected = APIRouter(dependencies=PROTECTED, responses={
     401: {"model": ErrorOut, "description": "No session or token (log in, or send Authorization: Bearer <token>)."},
     403: {"model": ErrorOut, "description": "The role is below the route's, or a session write lacks X-CSRF-Token."},
+    503: {"model": ErrorOut, "description": "A write waited for the database's lock longer than "
+                                            "V3D_WRITE_LOCK_TIMEOUT_S: nothing was changed; send it again after the "
+                                            "Retry-After header's seconds."},
 })
 for _module in (auth, users, games, systems, frames, imports, exports, jobs, detectors, issia, audit, pitch):
     _protected.include_router(_module.router)

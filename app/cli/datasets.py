@@ -118,6 +118,8 @@ def _run_import(settings: Settings, params: dict[str, Any]) -> None:
                f"{r['refused']}; triangulated {r['triangulated']} system(s)")
     for reason, n in r["refusal_kinds"].items():
         typer.echo(f"  refused x{n}: {reason}")
+    for skipped in r.get("skipped_systems", []):
+        typer.echo(f"  system left out: {skipped}")
 
 
 @import_cli.command("soccernet-v3")

@@ -229,6 +229,23 @@ class Settings(BaseSettings):
         50_000_000, gt=0, description="Most pixels (width x height) an imported image or video frame may have, read "
         "from its header before anything is decoded: a larger one refuses the import (400 / exit 2) naming it.")
 
+    max_line_points_per_frame: int = Field(
+        2000, gt=0, description="Most field-line points one edit may give a view (all its classes and polylines "
+        "together): a larger PUT .../field-lines is refused with 422 naming the field 'lines' before any geometry "
+        "runs (the real SoccerNet-calibration frames have at most 61 (sn22) and 71 (wc14)). Lines stored before the "
+        "cap still open, calibrate and mirror (V3D_MAX_LINE_POINTS_PER_FRAME).")
+    max_views_per_system: int = Field(
+        16, gt=0, description="Most views (action and replays) an imported system may have: a system with more is "
+        "left out of the import, which names it and the count in its report (skipped_systems); the rest of the "
+        "dataset imports. Pairwise work grows with the square of the views. Systems stored before the cap still "
+        "open and edit (V3D_MAX_VIEWS_PER_SYSTEM).")
+    write_lock_timeout_s: float = Field(
+        5.0, gt=0, description="How long a served request waits for the database's write lock (SQLite's busy "
+        "timeout; PostgreSQL's lock_timeout on the row locks of an edit) before it is answered 503 with Retry-After "
+        "(V3D_WRITE_LOCK_TIMEOUT_S). Edits compute their geometry before they take the lock and hold it only to "
+        "compare and write (app.services.curation.editing), so a wait beyond a few seconds means the database is "
+        "overloaded, not that another edit is computing.")
+
     @field_validator("session_secret")
     @classmethod
     def _session_secret_long_enough(cls, value: Optional[SecretStr]) -> Optional[SecretStr]:

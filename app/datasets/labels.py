@@ -70,6 +70,24 @@ def check_point(point: Any, width: int, height: int) -> list[float]:
 LINE_MARGIN = 0.05
 
 
+def check_line_point_count(lines: dict[str, list[list[list[float]]]], max_points: int) -> int:
+    """The number of points of a line set (every class and polyline; finite JSON lists, parsed already), or
+    :class:`LabelError` when it exceeds ``max_points`` (``V3D_MAX_LINE_POINTS_PER_FRAME``: what one edit of a
+    view may ask the calibration to fit; issue 27).
+
+    >>> check_line_point_count({"Middle line": [[[0, 0], [1, 1]], [[2, 2]]]}, 3)
+    3
+    >>> check_line_point_count({"Middle line": [[[0, 0], [1, 1]], [[2, 2]]]}, 2)
+    Traceback (most recent call last):
+    ...
+    app.datasets.labels.LabelError: 3 points in all; at most 2 per view (V3D_MAX_LINE_POINTS_PER_FRAME)
+    """
+    n = sum(len(polyline) for polylines in lines.values() for polyline in polylines)
+    if n > max_points:
+        raise LabelError(f"{n} points in all; at most {max_points} per view (V3D_MAX_LINE_POINTS_PER_FRAME)")
+    return n
+
+
 def check_line_points(lines: dict[str, list[list[list[float]]]], width: int, height: int) -> None:
     """Refuse a line set with a point farther than :data:`LINE_MARGIN` of the image's size outside the
     ``width`` x ``height`` image (pixels); ``lines`` are finite JSON lists (parsed already).

@@ -11,6 +11,12 @@ that reads and then writes fails at once with "database is locked" when another 
 between: WAL cannot upgrade a stale snapshot, and no busy timeout helps). Reads keep a deferred
 ``BEGIN`` and never wait for writers (WAL). On PostgreSQL the option changes nothing; the services lock
 the rows they read-modify-write (``SELECT ... FOR UPDATE``, ``app.services.curation.editing``).
+
+How long a write waits (issue 27): the served processes' engines are made with ``write_lock_timeout_s``
+(``V3D_WRITE_LOCK_TIMEOUT_S``, a few seconds: SQLite's turn and busy timeout, PostgreSQL's ``lock_timeout``);
+past it the wait fails with an ``OperationalError`` that :func:`is_lock_timeout` recognises and the API answers
+503 with ``Retry-After``. Edits hold the lock only to compare and write (they compute before it), so such a wait
+means overload, never another annotator's geometry. Command-line engines keep :data:`SQLITE_BUSY_TIMEOUT_S`.
 """
 from __future__ import annotations
 
@@ -32,9 +38,9 @@ from app.db.types import json_loads
 ALEMBIC_INI = PROJECT_ROOT / "alembic.ini"
 #: Execution option of a connection whose transaction writes: SQLite begins it ``BEGIN IMMEDIATE``.
 WRITE_OPTION = "v3d_write"
-#: How long a SQLite write transaction waits for the write lock before "database is locked" (seconds):
-#: far above a queue of edits (an edit's transaction takes 0.1 to 0.2 s of CPU on the demo; 20 annotators
-#: on 2 processes wait about 3 s at the median, 6 s at p95: README, benchmarks/load.py).
+#: How long a SQLite write transaction of a command-line engine waits for the write lock before "database is
+#: locked" (seconds): an import in the CLI may queue behind a server's import batch. Served engines wait
+#: ``Settings.write_lock_timeout_s`` instead (``make_engine(write_lock_timeout_s=)``).
 SQLITE_BUSY_TIMEOUT_S = 60.0
 #: ``Session.info`` keys: the transaction :func:`begin_write` began, the last transaction that flushed.
 _WRITE_TX, _FLUSHED_TX = "v3d_write_transaction", "v3d_flushed_transaction"
@@ -124,27 +130,34 @@ def _prepare_sqlite(engine: Engine, url: sa.URL, busy_timeout_s: float) -> None:
     event.listen(engine.pool, "checkin", lambda _dbapi, record: _WriteTurns.release(record))  # never leaked
 
 
-def make_engine(url: str | sa.URL, **kwargs: Any) -> Engine:
+def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **kwargs: Any) -> Engine:
     """A SQLAlchemy engine for ``url`` (SQLite or PostgreSQL).
 
     SQLite engines enforce foreign keys, use WAL for files, allow use from the API's worker threads,
     decode JSON columns with orjson (:func:`app.db.types.json_loads`), support savepoints (see
-    :func:`_prepare_sqlite`), wait up to :data:`SQLITE_BUSY_TIMEOUT_S` for the write lock, and begin the
-    transactions of :func:`begin_write` with ``BEGIN IMMEDIATE``. Extra ``kwargs`` go to ``create_engine``.
+    :func:`_prepare_sqlite`), wait up to ``write_lock_timeout_s`` (None: :data:`SQLITE_BUSY_TIMEOUT_S`; an
+    explicit ``connect_args={"timeout": ...}`` wins) for the write lock, and begin the transactions of
+    :func:`begin_write` with ``BEGIN IMMEDIATE``. PostgreSQL engines given ``write_lock_timeout_s`` set the
+    connections' ``lock_timeout`` to it (a row lock waited for longer fails, :func:`is_lock_timeout`).
+    Extra ``kwargs`` go to ``create_engine``.
     """
     u = make_url(url)
     if u.get_backend_name() == "sqlite":
         kwargs.setdefault("connect_args", {}).setdefault("check_same_thread", False)
-        timeout = kwargs["connect_args"].setdefault("timeout", SQLITE_BUSY_TIMEOUT_S)
+        timeout = kwargs["connect_args"].setdefault(
+            "timeout", SQLITE_BUSY_TIMEOUT_S if write_lock_timeout_s is None else write_lock_timeout_s)
         kwargs.setdefault("json_deserializer", json_loads)
         engine = sa.create_engine(u, **kwargs)
         _prepare_sqlite(engine, u, timeout)
         return engine
     kwargs.setdefault("pool_pre_ping", True)
-    if u.get_backend_name() == "postgresql":  # no JIT: see POSTGRES_OPTIONS
+    if u.get_backend_name() == "postgresql":
         options = kwargs.setdefault("connect_args", {}).get("options", "")
-        if "jit" not in options:
-            kwargs["connect_args"]["options"] = f"{options} {POSTGRES_OPTIONS}".strip()
+        if "jit" not in options:  # no JIT: see POSTGRES_OPTIONS
+            options = f"{options} {POSTGRES_OPTIONS}".strip()
+        if write_lock_timeout_s is not None:
+            options = f"{options} -c lock_timeout={max(1, int(write_lock_timeout_s * 1000))}".strip()
+        kwargs["connect_args"]["options"] = options
     return sa.create_engine(u, **kwargs)
 
 
@@ -167,6 +180,24 @@ def refresh_statistics(session: Session) -> None:
     session.commit()
 
 
+#: PostgreSQL's SQLSTATE of a lock not obtained within ``lock_timeout`` (lock_not_available).
+_PG_LOCK_NOT_AVAILABLE = "55P03"
+
+
+def is_lock_timeout(exc: BaseException) -> bool:
+    """True when ``exc`` is a write that gave up waiting for a lock: SQLite's "database is locked" / "database
+    is busy" (the write lock, :func:`begin_write`) or PostgreSQL's ``lock_timeout`` (SQLSTATE 55P03, a row lock
+    of ``SELECT ... FOR UPDATE``). The API answers it 503 with ``Retry-After`` (``app.api.errors``): the request
+    may be sent again as it was."""
+    if not isinstance(exc, sa.exc.OperationalError):
+        return False
+    orig = exc.orig
+    if getattr(orig, "sqlstate", None) == _PG_LOCK_NOT_AVAILABLE or getattr(orig, "pgcode", None) == _PG_LOCK_NOT_AVAILABLE:
+        return True
+    text = str(orig if orig is not None else exc).lower()
+    return any(w in text for w in ("database is locked", "database is busy", "lock timeout"))
+
+
 def make_session_factory(engine: Engine) -> sessionmaker[Session]:
     """Sessions bound to ``engine``; objects stay readable after commit (``expire_on_commit=False``)
     so that services can return the ORM rows they just committed."""
@@ -177,6 +208,33 @@ def make_session_factory(engine: Engine) -> sessionmaker[Session]:
 def _note_flush(session: Session, _context: Any) -> None:
     """Remember which transaction wrote (so :func:`begin_write` never discards flushed work)."""
     session.info[_FLUSHED_TX] = session.get_transaction()
+
+
+def has_written(session: Session) -> bool:
+    """True when the session holds changes of its current transaction: pending objects or a flush."""
+    tx = session.get_transaction()
+    return bool(session.new or session.dirty or session.deleted
+                or (tx is not None and session.info.get(_FLUSHED_TX) is tx))
+
+
+def begin_snapshot(session: Session) -> None:
+    """Begin a read transaction that sees one state of the database from its first read to its end, for work
+    done before a write lock (an edit's recomputation, ``app.services.curation.editing``): a read-only
+    transaction already open is ended (its objects expire), then PostgreSQL's is ``REPEATABLE READ``; SQLite's
+    deferred ``BEGIN`` is one already (WAL: the snapshot of its first read; it never waits for writers). A
+    session joined to its caller's transaction is left alone (its caller rolls back what it reads).
+
+    Raises:
+        RuntimeError: the session's transaction has written (:func:`has_written`): ending it would lose that.
+    """
+    if has_written(session):
+        raise RuntimeError("begin_snapshot: the session's transaction has written")
+    if isinstance(session.get_bind(), sa.Connection):
+        return
+    if session.get_transaction() is not None:
+        session.rollback()
+    if session.get_bind().dialect.name == "postgresql":
+        session.connection(execution_options={"isolation_level": "REPEATABLE READ"})
 
 
 def begin_write(session: Session) -> None:
@@ -202,7 +260,7 @@ def begin_write(session: Session) -> None:
     if tx is not None:
         if session.info.get(_WRITE_TX) is tx:
             return
-        if session.new or session.dirty or session.deleted or session.info.get(_FLUSHED_TX) is tx:
+        if has_written(session):
             raise RuntimeError("begin_write: the session's transaction has already written; "
                                "begin the write transaction before the unit of work changes anything")
         session.rollback()

@@ -25,39 +25,67 @@ with the edited part's state before and after. ``revert`` marks the write as the
 entry (``app.services.curation.reverting``): it is recorded as action ``revert``, and refused with
 :class:`~app.core.errors.ConflictError` when the state under the lock is not ``revert.expect``.
 
-Concurrency (several server processes, issue 7): every edit is one write unit of work
-(:func:`_in_transaction`, which :func:`_write` runs in): it begins a write transaction (``app.db.session.begin_write``: SQLite's
-``BEGIN IMMEDIATE``, waiting its turn for the write lock) and locks the edited system's row
-(:func:`lock_system`: ``SELECT ... FOR UPDATE`` on PostgreSQL, also the game's row for an ISSIA system,
-whose edits re-fit its whole sequence) before it reads anything it changes, so two edits of one
-system's views run one after the other and the second recomputes from the first's labels. Nothing is
-read before the lock and written after it: the objects loaded earlier are expired and read again.
+Concurrency (several server processes, issues 7 and 27): one locking design for every edit
+(:func:`_write`). Nobody waits on another's geometry:
+
+1. **Compute before the lock.** An edit that recomputes (``ball.edit``, ``field_lines.replace``,
+   ``field_lines.mirror``, ``view.exclusion``) first runs its ``apply`` in a read snapshot
+   (``app.db.session.begin_snapshot``: SQLite's deferred ``BEGIN`` under WAL, PostgreSQL ``REPEATABLE READ``; no
+   lock, nothing flushed, :func:`_compute_before_lock`). Each recomputation it asks for (:func:`_recompute_planned`:
+   the edited frame's calibration with its rig or prior retry, admission, mirror evidence, triangulation,
+   reprojections, boxes, doubts, queue figures) is computed there, and the digest of every input it read
+   (``recompute.recompute_inputs``: every view's ball label, field lines, exclusion and calibration of the
+   system, its review status, the game's rig rows or learned camera prior) is kept with its results as plain
+   values (``recompute.system_results``). The snapshot is rolled back; audit entries and decision resets made
+   there are never written.
+2. **Compare and write under the lock.** Then the write transaction begins (``begin_write``: SQLite's
+   ``BEGIN IMMEDIATE``) and locks the edited system's row (:func:`lock_system`: ``SELECT ... FOR UPDATE`` on
+   PostgreSQL, the game's row first for an ISSIA system) before it reads anything it changes; the objects loaded
+   earlier are expired. Under the lock the edit claims its version (412), checks a revert (409), applies its
+   change again and, at each recomputation, loads the system in a few queries and digests its inputs: equal to
+   the digest computed from, the kept results are stored (``recompute.store_system_results``); different (another
+   edit of the system, or of its game's rig, committed meanwhile), it is recomputed under the lock from what the
+   other committed. The audit entry and the decision resets are written in the same transaction, as before.
+   ``session.info[LAST_RECOMPUTATION]`` says which happened ("precomputed", "recomputed", "under_lock").
+
+Two edits of one system's views therefore never lose each other's label: the later one finds the earlier one's
+label under the lock and recomputes. Kinds whose edit re-fits beyond the system (ISSIA's trajectory:
+``KindPolicy.computes_before_lock`` False) and writes that recompute nothing (review decisions) compute under the
+lock as before. The lock is held only to compare and write, so waits are short: a served process waits at most
+``V3D_WRITE_LOCK_TIMEOUT_S`` (SQLite busy timeout, PostgreSQL ``lock_timeout``) and the API answers 503 with
+``Retry-After`` beyond it (``app.api.errors``).
+
+Bounded work: a field-line edit gives a view at most ``V3D_MAX_LINE_POINTS_PER_FRAME`` points (2,000; 422 naming
+``lines`` before any geometry); lines stored before the cap still calibrate, mirror and edit.
 """
 from __future__ import annotations
 
 import json
 from collections.abc import Collection
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional, TypeVar
 
 import numpy as np
-from sqlalchemy import select
+from sqlalchemy import event, select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
     AuditEntry, BallKind, BallLabel, FieldLineAnnotation, Frame, Game, ReviewDecision, ReviewStatus, System,
 )
-from app.db.session import begin_write
+from app.db.session import begin_snapshot, begin_write
 from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
-from app.datasets.labels import LabelError, check_box, check_line_points, check_point
+from app.datasets.labels import LabelError, check_box, check_line_point_count, check_line_points, check_point
 from app.geometry.consensus import ball_consensus
 from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px
 from app.services.accounts import audit
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
-from app.services.curation.recompute import load_for_recompute, recompute_frame, recompute_system
+from app.services.curation.recompute import (
+    SystemResults, load_for_recompute, recompute_frame, recompute_inputs, recompute_system, store_system_results,
+    system_results,
+)
 from app.services.calibration.calibrating import admission_jac, is_admitted
 from app.services.curation.system_page import load_frame
 from app.services.curation.versions import claim_frame, claim_system_review
@@ -96,6 +124,98 @@ def lock_system(session: Session, system_id: int) -> None:
         session.execute(select(Game.id).where(Game.id == row.game_id).with_for_update())
     session.execute(select(System.id).where(System.id == system_id).with_for_update())
     session.expire_all()
+
+
+# ----- the one locking design of the edit path (module docstring, "Concurrency") ---------------------------
+#: ``session.info`` key of the running edit's :class:`_Plan`.
+_PLAN = "v3d.edit.plan"
+#: ``session.info`` key: how the last edit's recomputation was stored: "precomputed" (computed before the lock,
+#: its inputs unchanged under it), "recomputed" (an input changed meanwhile: computed again under the lock) or
+#: "under_lock" (computed under the lock only: the kind re-fits beyond its system, or nothing was computed before).
+LAST_RECOMPUTATION = "v3d.edit.recomputation"
+#: The audited actions whose edits recompute their system, hence compute before the lock.
+_RECOMPUTING = frozenset({"ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion"})
+
+
+@dataclass
+class _Plan:
+    """An edit's recomputations as computed before the write lock: per recomputation, in order, the digest of
+    the inputs it read (``recompute.recompute_inputs``) and its results (``recompute.system_results``)."""
+
+    capturing: bool = True
+    entries: list[tuple[str, SystemResults]] = field(default_factory=list)
+    used: int = 0
+    recomputed: int = 0
+
+
+class _NoWriteBeforeLock(Exception):
+    """Raised by a flush while an edit computes before its lock: what follows the recomputation (audit entries,
+    decision resets) is written under the lock only."""
+
+
+@event.listens_for(Session, "before_flush")
+def _no_flush_before_lock(session: Session, _context: Any, _instances: Any) -> None:
+    plan = session.info.get(_PLAN)
+    if plan is not None and plan.capturing:
+        raise _NoWriteBeforeLock()
+
+
+def computed_before_lock(system_id: int) -> None:
+    """Called once an edit of system ``system_id`` has computed its recomputation, before it asks for the write
+    lock (a hook: does nothing; the concurrency tests hold an edit here while another commits)."""
+
+
+def _compute_before_lock(session: Session, system_id: int, subject: Callable[[], Any],
+                         apply: Callable[[Any], Any]) -> Optional[_Plan]:
+    """Run the edit's ``apply`` on ``subject()`` in a read snapshot (``begin_snapshot``: no lock, nothing
+    flushed), keep what each of its recomputations read and found (:func:`_recompute_planned`), then roll the
+    snapshot back. None when there is nothing to reuse: the system's kind re-fits beyond it
+    (``KindPolicy.computes_before_lock``), the session holds unwritten changes of its caller, or nothing was
+    computed. Whatever fails here is decided again under the lock (the same error, or none if the state changed)."""
+    try:
+        begin_snapshot(session)
+    except RuntimeError:
+        return None
+    plan = _Plan()
+    session.info[_PLAN] = plan
+    try:
+        with session.no_autoflush:
+            if kind_of(get_system(session, system_id)).computes_before_lock:
+                apply(subject())
+    except Exception:  # noqa: BLE001  # _NoWriteBeforeLock once the recomputation is done; anything else: under the lock
+        pass
+    finally:
+        session.info.pop(_PLAN, None)
+        audit.recorded_entry_id(session)  # an entry apply added here is never written
+        session.rollback()
+    computed_before_lock(system_id)
+    plan.capturing = False
+    return plan if plan.entries else None
+
+
+def _recompute_planned(session: Session, system: System, settings: Settings, compute: Callable[[], Any]) -> None:
+    """Run the recomputation ``compute`` of ``system`` within the running edit's plan: what it reads is loaded
+    first (``load_for_recompute``, after a flush under the lock); before the lock it is computed and its inputs'
+    digest and results kept; under the lock its results are stored when the inputs' digest is the one computed
+    from (``store_system_results``), else it is computed again. Without a plan it is computed."""
+    plan: Optional[_Plan] = session.info.get(_PLAN)
+    if plan is None or not plan.capturing:
+        session.flush()
+    load_for_recompute(session, [system.id])  # what it reads, in a few queries (not one per relation and view)
+    if plan is None or not kind_of(system).computes_before_lock:
+        compute()
+        return
+    inputs = recompute_inputs(session, system, settings)
+    if plan.capturing:
+        compute()
+        plan.entries.append((inputs, system_results(system)))
+        return
+    i, plan.used = plan.used, plan.used + 1
+    if i < len(plan.entries) and plan.entries[i][0] == inputs:
+        store_system_results(session, system, plan.entries[i][1])
+    else:  # a view's label, lines, exclusion or calibration, or the game's rig, changed since: compute again
+        plan.recomputed += 1
+        compute()
 
 
 def _in_transaction(session: Session, work: Callable[[], T], *, system_id: int) -> T:
@@ -158,7 +278,16 @@ def _write(session: Session, system_id: int, claim: Callable[[], None], subject:
                      reverts_id=revert.entry_id if revert is not None else undo_of)
         return result
 
-    return _in_transaction(session, work, system_id=system_id)
+    plan = _compute_before_lock(session, system_id, subject, apply) if action in _RECOMPUTING else None
+    if plan is not None:
+        session.info[_PLAN] = plan
+    try:
+        result = _in_transaction(session, work, system_id=system_id)
+    finally:
+        session.info.pop(_PLAN, None)
+    session.info[LAST_RECOMPUTATION] = ("under_lock" if plan is None or plan.used == 0
+                                        else "recomputed" if plan.recomputed else "precomputed")
+    return result
 
 
 def _frame_write(session: Session, frame_id: int, expected: Expected, state: Callable[[Frame], dict[str, Any]],
@@ -294,16 +423,16 @@ def _recompute(session: Session, system: System, settings: Settings) -> None:
     of its sequence's trajectory the edit touches, and the systems whose place on it changed
     (the kind's ``refit_after_edit``), in the same transaction."""
     if not kind_of(system).refit_after_edit(session, system, settings):  # an ISSIA system is recomputed after its re-fit
-        session.flush()
-        load_for_recompute(session, [system.id])  # what it reads, in a few queries (not one per relation and view)
-        recompute_system(session, system, settings)
+        _recompute_planned(session, system, settings, lambda: recompute_system(session, system, settings))
 
 
-def _parse_lines(lines: Mapping[str, Any], width: int, height: int) -> dict[str, Any]:
-    """Field lines as given -> validated JSON lists (px of a ``width`` x ``height`` frame); raises
-    :class:`InvalidInputError` (field "lines") naming the class and polyline."""
+def _parse_lines(lines: Mapping[str, Any], width: int, height: int, max_points: int) -> dict[str, Any]:
+    """Field lines as given -> validated JSON lists (px of a ``width`` x ``height`` frame, at most ``max_points``
+    points in all: ``V3D_MAX_LINE_POINTS_PER_FRAME``); raises :class:`InvalidInputError` (field "lines") naming
+    the class and polyline, or the count."""
     try:
         parsed = lines_to_json_lists(lines_from_json_lists(lines))
+        check_line_point_count(parsed, max_points)
         check_line_points(parsed, width, height)
         return parsed
     except (AnnotationError, LabelError) as exc:
@@ -318,7 +447,7 @@ def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], setting
     else:
         fl.lines = parsed
         fl.edited_at = utcnow()
-    recompute_frame(session, frame, settings)
+    _recompute_planned(session, frame.system, settings, lambda: recompute_frame(session, frame, settings))
     kind_of(frame.system).refit_after_edit(session, frame.system, settings, recalibrated=frame)
     return frame
 
@@ -347,12 +476,13 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
     Raises:
         NotFoundError: no such frame.
         InvalidInputError: unknown class, malformed polyline, NaN or infinity, a point more than
-            5 % of the image's size outside it (field "lines", the message names the class and polyline);
+            5 % of the image's size outside it (field "lines", the message names the class and polyline), more
+            than ``settings.max_line_points_per_frame`` points in all (field "lines", before any geometry);
             an ``undo_of`` that is no field-line write of this frame with ``lines`` before it (field "undo_of").
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
     frame = get_frame(session, frame_id)
-    parsed = _parse_lines(lines, frame.width, frame.height)
+    parsed = _parse_lines(lines, frame.width, frame.height, settings.max_line_points_per_frame)
 
     def apply(frame: Frame) -> Frame:
         before = lines_state(frame), calibration_words(frame, settings)

@@ -29,16 +29,20 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 """
 from __future__ import annotations
 
+import hashlib
+from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
 import numpy as np
+import orjson
+import sqlalchemy as sa
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session, joinedload, selectinload
 
 from app.core.config import Settings
 from app.db.models import (
-    BallReprojection, CalibrationSource, CalibrationStatus, Frame, OptimisedBox, ReviewStatus, System,
-    Triangulation, TriangulationPair, TriangulationStatus,
+    BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Doubt, Frame, OptimisedBox, ReviewStatus,
+    System, Triangulation, TriangulationPair, TriangulationStatus,
 )
 from app.db.session import begin_write
 from app.db.types import json_safe, utcnow
@@ -166,6 +170,126 @@ def recompute_system(session: Session, system: System, settings: Settings,
     system.derived_version = DERIVED_VERSION
     system.derived_settings = settings.derived_fingerprint()
     return tri
+
+
+# ----- the recomputation split for edits: its inputs, its results as plain values, their store -------------
+#: The columns of a system :func:`recompute_system` writes (``update_doubts`` and :func:`update_summary`).
+SUMMARY_COLUMNS = ("doubt_counts", "label_doubts", "review_status", "views_total", "views_calibrated",
+                   "views_admitted", "views_labelled", "lowest_jac", "worst_error_px", "views_flagged",
+                   "views_above_tau", "derived_version", "derived_settings")
+#: Per derived row type, the keys a stored row takes from its owner (never copied between rows).
+_OWNER_KEYS: dict[type, tuple[str, ...]] = {
+    Calibration: ("frame_id",), BallReprojection: ("frame_id",), OptimisedBox: ("frame_id",),
+    Triangulation: ("system_id",), TriangulationPair: ("id", "system_id"), Doubt: ("id", "system_id"),
+}
+
+
+def _values(row: Any) -> dict[str, Any] | None:
+    """The column values of a derived row (None for no row), its owner's keys left out."""
+    if row is None:
+        return None
+    skip = _OWNER_KEYS[type(row)]
+    return {a.key: getattr(row, a.key) for a in sa.inspect(type(row)).column_attrs if a.key not in skip}
+
+
+def _put(row: Any, values: dict[str, Any]) -> Any:
+    """Set ``values`` on ``row`` (a NOT NULL column a pending row left unset keeps its default); returns it."""
+    columns = sa.inspect(type(row)).columns
+    for key, value in values.items():
+        if value is None and not columns[key].nullable:
+            continue
+        setattr(row, key, value)
+    return row
+
+
+@dataclass(frozen=True)
+class SystemResults:
+    """What a recomputation of one system wrote (:func:`recompute_frame` or :func:`recompute_system`), as plain
+    column values: per frame id its ``calibration``, ``reprojection`` and ``optimised_box`` rows (None: no row),
+    the system's triangulation and pairs, its doubts and its queue figures (:data:`SUMMARY_COLUMNS`). Taken by
+    :func:`system_results` where the edit computed it (outside the write lock), stored by
+    :func:`store_system_results` under the lock (``app.services.curation.editing``)."""
+
+    frames: dict[int, dict[str, dict[str, Any] | None]]
+    triangulation: dict[str, Any] | None
+    pairs: list[dict[str, Any]]
+    doubts: list[dict[str, Any]]
+    summary: dict[str, Any]
+
+
+def system_results(system: System) -> SystemResults:
+    """The derived rows of ``system`` as they are in the session now (after :func:`recompute_frame` or
+    :func:`recompute_system`), as plain values that outlive the session's transaction."""
+    tri = system.triangulation
+    return SystemResults(
+        frames={f.id: {"calibration": _values(f.calibration), "reprojection": _values(f.reprojection),
+                       "optimised_box": _values(f.optimised_box)} for f in system.frames},
+        triangulation=_values(tri), pairs=[_values(p) for p in tri.pairs] if tri is not None else [],  # type: ignore[misc]
+        doubts=[_values(d) for d in system.doubts],  # type: ignore[misc]
+        summary={k: getattr(system, k) for k in SUMMARY_COLUMNS})
+
+
+_ROW_TYPES = {"calibration": Calibration, "reprojection": BallReprojection, "optimised_box": OptimisedBox}
+
+
+def store_system_results(session: Session, system: System, results: SystemResults) -> Triangulation:
+    """Write ``results`` (:func:`system_results` of a recomputation from the same inputs,
+    :func:`recompute_inputs`) into ``system``'s rows in the session, as the recomputation would have: its
+    frames' calibrations, reprojections and optimised boxes, triangulation and pairs, doubts and queue figures.
+    The caller flushes or commits; returns the triangulation row.
+
+    Raises:
+        KeyError: ``results`` is of another set of frames (the inputs were not the same).
+    """
+    for f in system.frames:
+        rows = results.frames[f.id]
+        for attr, row_type in _ROW_TYPES.items():
+            values, row = rows[attr], getattr(f, attr)
+            if values is None:
+                setattr(f, attr, None)
+            else:
+                setattr(f, attr, _put(row if row is not None else row_type(), values))
+    tri = system.triangulation
+    if tri is None:
+        tri = Triangulation(system=system)
+        session.add(tri)
+    _put(tri, results.triangulation or {})
+    tri.pairs.clear()
+    tri.pairs.extend(TriangulationPair(**values) for values in results.pairs)
+    system.doubts.clear()
+    system.doubts.extend(Doubt(**values) for values in results.doubts)
+    for key, value in results.summary.items():
+        setattr(system, key, value)
+    return tri
+
+
+def recompute_inputs(session: Session, system: System, settings: Settings) -> str:
+    """A digest (hex SHA-256) of everything :func:`recompute_frame` and :func:`recompute_system` read for
+    ``system``, as the session sees it now: per view its name, role, size and position, field lines, ball label
+    (kind, box, point, provenance), exclusion and every calibration column (``updated_at`` aside); the system's
+    kind, game and review status; the game's rig rows (:func:`rig_rows`, kinds that use a rig) or its learned
+    camera prior. Two equal digests mean a recomputation gives the same rows (same ``settings``). Kinds whose
+    recomputation reads beyond the system (a re-fit of ISSIA's trajectory) are not covered
+    (``KindPolicy.computes_before_lock``)."""
+    frames = []
+    for f in sorted(system.frames, key=lambda x: x.id):
+        label, review, cal = f.ball_label, f.review, f.calibration
+        frames.append([
+            f.id, f.name, f.role, f.width, f.height, f.position,
+            f.field_lines.lines if f.field_lines is not None else None,
+            [label.kind, label.box, label.point, label.provenance] if label is not None else None,
+            bool(review is not None and review.excluded),
+            {k: v for k, v in (_values(cal) or {}).items() if k != "updated_at"} if cal is not None else None,
+        ])
+    game: Any = None
+    if uses_rig(system) and system.game_id is not None:
+        game = [[fid, centre.tolist(), main] for fid, centre, main in rig_rows(session, system.game_id, settings)]
+    elif system.game is not None:
+        game = system.game.camera_prior
+    doc = {"system": [system.id, system.kind, system.game_id, system.review.status if system.review else None],
+           "frames": frames, "game": game}
+    return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SORT_KEYS | orjson.OPT_SERIALIZE_NUMPY
+                                       | orjson.OPT_NON_STR_KEYS)).hexdigest()
 
 
 def update_summary(system: System, tri: Triangulation) -> None:

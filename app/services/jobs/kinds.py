@@ -45,6 +45,7 @@ def import_result(report: Any) -> dict[str, Any]:
     out = {k: getattr(report, k) for k in keys}
     out["refusal_reasons"] = dict(report.refusal_reasons)
     out["refusal_kinds"] = dict(report.refusal_kinds().most_common())
+    out["skipped_systems"] = list(getattr(report, "skipped_systems", []))  # named, with why (the view cap)
     return out
 
 

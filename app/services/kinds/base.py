@@ -74,6 +74,10 @@ class KindPolicy:
             mirrored-labels flags are computed on recomputation.
         edit_locks_game: an edit of one system may change other systems of its game (a sequence's
             trajectory), so the edit locks the game row before the system's.
+        computes_before_lock: an edit's recomputation reads nothing beyond its system and game
+            (``app.services.curation.recompute.recompute_inputs`` covers every input), so the edit computes it
+            before it takes the write lock and only compares and writes under it (``app.services.curation.editing``);
+            False where it re-fits beyond the system (ISSIA's trajectory): computed under the lock.
         weighs_calibrations: the triangulation weighs each view by what its calibration from field lines is
             worth (``app.geometry.doubts.calibration_weight``: a view whose few lines leave its camera unsure
             neither makes a 3D ball with another weak one nor moves the ball two sure views make); False where
@@ -86,6 +90,7 @@ class KindPolicy:
     uses_rig: bool = False
     broadcast_priors: bool = True
     edit_locks_game: bool = False
+    computes_before_lock: bool = True
     weighs_calibrations: bool = True
 
     def split(self, system: System, frame: Frame) -> str:

@@ -92,5 +92,6 @@ ISSIA = IssiaPolicy(
     exports=frozenset({"yolo", "coco", "monocular", "issia-3d"}),
     broadcast_priors=False,
     edit_locks_game=True,
+    computes_before_lock=False,
     weighs_calibrations=False,
 )

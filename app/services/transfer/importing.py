@@ -30,6 +30,7 @@ batch's own transaction; a frame whose labels or lines it changes gets a new edi
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 import time
 from collections import Counter
@@ -114,6 +115,9 @@ class ImportReport:
     store_seconds: float = 0.0
     seconds: float = 0.0
     calibration_ms: list[float] = field(default_factory=list)
+    #: Systems of the input left out, each ``"<league>/<season>/<match>/<system>: <why>"`` (more views than
+    #: ``V3D_MAX_VIEWS_PER_SYSTEM``); the rest of the dataset imports. Counted in ``systems``.
+    skipped_systems: list[str] = field(default_factory=list)
 
     def refusal_kinds(self) -> Counter:
         """``refusal_reasons`` with every number replaced by ``N`` and every quoted line class by
@@ -337,6 +341,25 @@ def audit_counts(report: ImportReport) -> dict[str, object]:
             "calibrated": report.calibrated, "refused": report.refused, "triangulated": report.triangulated}
 
 
+def _within_view_cap(rec: GameRecord, settings: Settings, skipped: list[str] | None = None) -> GameRecord:
+    """The game ``rec`` without its systems of more than ``settings.max_views_per_system`` views (issue 27:
+    pairwise work grows with the square of the views), each named with its count in ``skipped`` when given.
+    A system stored before the cap is left as it is."""
+    cap = settings.max_views_per_system
+    kept = [s for s in rec.systems if len(s.frames) <= cap]
+    if len(kept) == len(rec.systems):
+        return rec
+    if skipped is not None:
+        skipped += [f"{rec.league}/{rec.season}/{rec.match}/{s.name}: {len(s.frames)} views, more than "
+                    f"{cap} (V3D_MAX_VIEWS_PER_SYSTEM); not imported" for s in rec.systems if len(s.frames) > cap]
+    return dataclasses.replace(rec, systems=kept)
+
+
+def _read_within_view_cap(read: GameReader, settings: Settings) -> GameRecord:
+    """``read()`` through :func:`_within_view_cap` (what a batch stores)."""
+    return _within_view_cap(read(), settings)
+
+
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
          games: Callable[[], list[GameReader]], actor: str | None = None, source_name: str | None = None) -> ImportReport:
     """Read and validate everything (nothing is stored when the input is bad), then store it in
@@ -356,8 +379,10 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     for read in readers:  # validation: raises before anything is written
         rec = read()
         report.systems += len(rec.systems)
+        rec = _within_view_cap(rec, settings, report.skipped_systems)
         frames_per_game.append(sum(len(s.frames) for s in rec.systems))
         del rec
+    readers = [partial(_read_within_view_cap, read, settings) for read in readers]
     report.read_seconds = time.perf_counter() - t0
     report.games = len(readers)
     report.frames = sum(frames_per_game)
