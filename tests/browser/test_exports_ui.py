@@ -98,6 +98,8 @@ def test_an_admin_downloads_every_export_from_the_queue_page(browser, server_url
         assert info.value.suggested_filename == "v3d-coco.zip"
         assert sum(n.endswith("/instances.json") for n in _names(Path(info.value.path()).read_bytes())) == 2
         page.screenshot(path=str(SHOTS / "stats-exports-1366x768.png"))
+        page.goto("/static/monocular.html")
+        page.locator(tid("export-yolo")).wait_for()  # the benchmark page's two links, for admins
     finally:
         context.close()
     assert not errors, f"JavaScript errors on the page: {errors}"
@@ -117,5 +119,9 @@ def test_an_annotator_sees_no_export(browser, server_url, accounts):
         page.wait_for_selector(tid("user"))
         page.wait_for_timeout(500)
         assert page.locator(tid("export-soccernet-v3d")).count() == 0
+        page.goto("/static/monocular.html")
+        page.wait_for_selector(tid("user"))
+        page.wait_for_timeout(500)
+        assert page.locator(tid("export-yolo")).is_hidden() and page.locator(tid("export-coco")).is_hidden()
     finally:
         context.close()

@@ -43,6 +43,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.errors import DatasetError, InvalidInputError
+from app.datasets.files import dataset_root, inside_dataset, load_json_bytes
 from app.db.models import JAC_COLUMNS, Frame, System
 from app.geometry.annotations import lines_from_json_lists
 from app.services.kinds import kind_of
@@ -206,8 +207,6 @@ def read_cameras(root: Path) -> dict[tuple[str, str], dict[str, Any]]:
         DatasetError: no readable ``cameras.json``, a set whose zip is missing, leads out of ``root`` or is not
             a zip, a camera file too large or not JSON (naming the file).
     """
-    from app.datasets.files import dataset_root, inside_dataset, load_json_bytes
-
     top = dataset_root(root)
     index_path = inside_dataset(top, root / INDEX, "cameras")
     if not index_path.is_file():
