@@ -59,6 +59,12 @@ class ExportJobIn(_In):
                                                        "Labels-v3D.json; false leaves them out.")
 
 
+class TreeExportJobIn(_In):
+    """An export other than SoccerNet-v3D to run as a background job."""
+
+    all: bool = Field(False, strict=True, description="Every system, not only the accepted ones.")
+
+
 class JobOut(BaseModel):
     """A background job (``app.services.jobs.runner``): its progress while it runs, its result when done."""
 

@@ -267,8 +267,9 @@ def export_cameras_cmd(
     include_all: Annotated[bool, typer.Option("--all", help="Export every system, not only accepted ones.")] = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export the admitted cameras of SoccerNet-v3 and single-view (SoccerNet-calibration) frames as
-    <league>/<season>/<match>/camera_<image stem>.json (SoccerNet-calibration format)."""
+    """Export the admitted cameras of SoccerNet-v3 and single-view (SoccerNet-calibration) frames as SoccerNet's
+    calibration evaluator reads them: per image size <W>x<H>/ground_truth.zip (<split>/<name>.json field lines)
+    and <W>x<H>/predictions.zip (camera_<name>.json), and cameras.json (names back to games and frames)."""
     from app.services.transfer.cameras_export import export_cameras
 
     settings = cli_settings(database_url, None)
@@ -279,4 +280,6 @@ def export_cameras_cmd(
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(code=2) from None
     kinds = ", ".join(f"{n} {k}" for k, n in sorted(report.by_kind.items())) or "none"
-    typer.echo(f"exported {report.cameras} camera(s) to {report.out_dir} ({kinds})")
+    sizes = ", ".join(f"{s}: {n} view(s)" for s, n in report.sizes.items()) or "no view"
+    typer.echo(f"exported {report.cameras} camera(s) to {report.out_dir} ({kinds}; {sizes}; "
+               f"{report.ground_truth} ground-truth file(s))")

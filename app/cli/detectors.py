@@ -32,6 +32,8 @@ def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None
     typer.echo(f"exported {fmt} to {report.out_dir}: {per_split}")
     typer.echo(f"ball boxes refined: {report.refined_ball_boxes}, optimised: {report.optimised_ball_boxes}; skipped {report.skipped_without_image} "
                f"view(s) without an image, {report.skipped_point_only} with a point-only ball")
+    for split in report.empty_splits:
+        typer.echo(f"split {split!r} has no image (its folders exist, empty)")
     for cls, n in report.unknown_classes.items():
         typer.echo(f"  skipped x{n} box(es) of unknown class {cls!r}")
 
@@ -69,8 +71,8 @@ def evaluate_monocular_cmd(
     estimator: Annotated[Optional[str], typer.Option(help="'paper' (Eq. ball3Destimation) or 'exact' (sphere "
                                                    "silhouette); default: the one matching V3D_OPTIMISED_BOX_METHOD.")] = None,
     cameras: Annotated[Optional[Path], typer.Option("--cameras", help="Score with these cameras instead of the stored "
-                                                    "ones: <DIR>/<league>/<season>/<match>/camera_<image stem>.json "
-                                                    "(SoccerNet-calibration).")] = None,
+                                                    "ones: a cameras export (v3d export cameras: cameras.json, "
+                                                    "<W>x<H>/predictions.zip).")] = None,
     include_all: AllOpt = False,
     database_url: DatabaseOpt = None,
 ) -> None:

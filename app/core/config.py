@@ -216,6 +216,10 @@ class Settings(BaseSettings):
     jobs_dir: Optional[Path] = Field(
         None, description="Where uploads are unpacked (uploads/) and export jobs write their files (exports/); "
         "default: jobs/ beside a SQLite database file, else var/jobs in the checkout.")
+    export_keep_hours: float = Field(
+        24.0, gt=0, description="How long the file an export job wrote is kept for download (hours, from when it was "
+        "written): older export files under <jobs dir>/exports are removed when an export job starts or a file is "
+        "asked for (then 404).")
     max_json_kb: float = Field(1024.0, gt=0, description="Largest request body that is not an upload (JSON), in KB "
                                                        "(2^10 bytes): 413 before it is parsed (V3D_MAX_JSON_KB).")
     max_upload_mb: float = Field(2048.0, gt=0, description="Largest upload accepted (MB, 2^20 bytes), counted while "

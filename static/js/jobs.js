@@ -13,14 +13,14 @@ const SLOW_MS = 5000;
 const STAGE_LABEL = {
   games: "games stored", merge: "merging", calibrate: "calibrating", rig: "calibrating with game rigs",
   prior: "calibrating with the learned prior",
-  triangulate: "triangulating", recompute: "systems recomputed", export: "games exported",
+  triangulate: "triangulating", recompute: "systems recomputed", export: "games exported", zip: "files zipped",
 };
 
 /** One line saying what a job runs: an import's kind and folder, an export's selection. */
 export function jobTitle(job) {
   const p = job.params || {};
   if (job.kind === "import") return `import ${p.kind || ""} ${String(p.path || "").split("/").slice(-2).join("/")}`;
-  if (job.kind === "export") return `export ${p.format || ""}${p.all ? " (all systems)" : " (accepted systems)"}`;
+  if (job.kind === "export") return `export ${p.format || ""}${p.images === false ? " without images" : ""}${p.all ? " (all systems)" : " (accepted systems)"}`;
   return "full recompute";
 }
 

@@ -1,7 +1,7 @@
 // Monocular 3D ball benchmark page: uploads predictions to POST /api/evaluations/monocular and shows
 // the report (figures per split, precision-threshold curve as SVG); and the paper's Table 1 from
 // GET /api/evaluations/boxes (original, optimised and refined ball boxes against the stored precise boxes).
-import { ApiError, send, toQuery } from "./api.js";
+import { ApiError, getMe, send, toQuery } from "./api.js";
 import "./session.js";
 import { el, svg, fmt, viewColour } from "./format.js";
 
@@ -13,6 +13,10 @@ function showError(message) {
   errorBar.classList.add("visible");
 }
 errorBar.querySelector("button").addEventListener("click", () => errorBar.classList.remove("visible"));
+// the export links only for the role that may export (admins; the API refuses the others)
+getMe().then((me) => {
+  document.querySelector("[data-testid=monocular-exports]").hidden = me.role !== "admin";
+}).catch(() => {});
 
 async function evaluate(formData) {
   const params = {

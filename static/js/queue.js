@@ -5,6 +5,7 @@
 import { listSystems, listGames } from "./api.js";
 import "./session.js";
 import { JobsPanel } from "./jobs.js";
+import { mountExports } from "./exports.js";
 import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
 import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
@@ -90,6 +91,7 @@ class QueuePage {
     this.loadGames();
     this.load();
     // an import or a recompute that ends while the page is open changes the queue: reload it
+    mountExports($("exports")); // admins only: every export as a job with its download
     this.jobs = new JobsPanel($("jobs"), (job) => {
       if (job.state === "done" && job.kind !== "export") {
         this.loadGames();

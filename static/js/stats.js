@@ -4,6 +4,7 @@
 // ball box size. Every number shown comes from the server's answer (app/services/evaluation/stats.py).
 import { ApiError, send } from "./api.js";
 import "./session.js";
+import { mountExports } from "./exports.js";
 import { el, svg, showError, viewColour } from "./format.js";
 
 const W = 560; // SVG user units; the plots scale to their panel
@@ -193,3 +194,5 @@ send("GET", "/api/stats").then(render).catch((err) => {
   document.querySelector("[data-testid=stats-loading]").textContent = "The statistics could not be loaded.";
   showError(err instanceof ApiError ? err.message : String(err));
 });
+
+mountExports(document.querySelector('[data-testid="exports"]')); // admins only: every export as a job

@@ -55,8 +55,10 @@ def test_import_sn_calibration_then_export_all(shared_dir, tmp_path, url):
     assert admitted >= 1
     every = runner.invoke(cli, ["export", "cameras", str(cams), "--all", "--database-url", url])
     assert every.exit_code == 0 and f"exported {admitted} camera(s)" in every.output, every.output
-    files = sorted(p.name for p in (cams / "sn-calibration" / "wc" / "annotations").iterdir())
-    assert len(files) == admitted and set(files) <= {"camera_1.json", "camera_2.json", "camera_3.json"}
+    # issue 28: one predictions zip per image size, names unique across games (<game stem>_<frame stem>)
+    with zipfile.ZipFile(cams / "960x540" / "predictions.zip") as zf:
+        files = sorted(zf.namelist())
+    assert len(files) == admitted and all(re.fullmatch(r"camera_annotations-[0-9a-f]{8}_[123]\.json", f) for f in files)
 
 
 def test_import_soccernet_v3_and_v3d(shared_dir, tmp_path, url):

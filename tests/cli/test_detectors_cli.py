@@ -18,6 +18,9 @@ from typer.testing import CliRunner
 import app.cli.datasets  # noqa: F401  (registers the commands)
 import app.cli.detectors  # noqa: F401
 from app.cli._root import cli
+from app.db.models import Frame, Game
+from app.services.kinds import image_stem
+from app.services.transfer.cameras_export import CameraView, write_camera_sets
 
 pytestmark = pytest.mark.shared
 runner = CliRunner()
@@ -127,17 +130,19 @@ def test_evaluate_boxes_on_the_dev_set_from_the_truths_precise_boxes(dev, shared
 
 
 def _truth_cameras(shared_dir: Path, dest: Path, perturb_m: float = 0.0) -> Path:
-    """A cameras tree (``<league>/<season>/<match>/camera_<image stem>.json``) of the truth's cameras, each camera
-    centre moved by ``perturb_m`` along x (seeded nowhere: a fixed shift)."""
+    """A cameras export (the layout of ``v3d export cameras``, written by its own writer) of the truth's cameras,
+    each camera centre moved by ``perturb_m`` along x (seeded nowhere: a fixed shift)."""
     raw = json.loads((shared_dir / "data" / "synthetic" / "soccernet-v3-dev.truth.json").read_text())
+    views = []
     for g in raw["games"]:
-        folder = dest / g["league"] / g["season"] / g["match"]
-        folder.mkdir(parents=True, exist_ok=True)
+        game = Game(league=g["league"], season=g["season"], match=g["match"])
         for s in g["systems"]:
             for v in s["views"]:
                 cam = dict(v["camera"])
                 cam["position_meters"] = [cam["position_meters"][0] + perturb_m, *cam["position_meters"][1:]]
-                (folder / f"camera_{Path(v['image']).stem}.json").write_text(json.dumps(cam))
+                views.append(CameraView(image_stem(game, Frame(name=v["image"])), "test", game.path, v["image"],
+                                        "soccernet-v3", v["width"], v["height"], cam, None))
+    write_camera_sets(dest, views)
     return dest
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import zipfile
 
 import pytest
 import sqlalchemy as sa
@@ -149,10 +150,13 @@ def test_export_then_import_reproduces_every_label_camera_and_number(
     single = [f for s in systems.values() if s.kind is SystemKind.SINGLE_VIEW for f in s.frames
               if f.calibration is not None and f.calibration.admitted]
     assert single and cams.by_kind.get("single-view") == len(single)
+    # issue 28: the layout SoccerNet's calibration evaluator reads (a predictions zip per image size)
+    index = json.loads((tmp_path / "cameras" / "cameras.json").read_text())
+    where = {(v["game"], v["frame"]): (s["predictions"], v["name"]) for s in index["sets"] for v in s["views"]}
     for f in single:
-        g = f.system.game
-        path = tmp_path / "cameras" / g.league / g.season / g.match / f"camera_{f.name.rsplit('.', 1)[0]}.json"
-        assert json.loads(path.read_text()) == f.calibration.camera
+        zpath, name = where[(f.system.game.path, f.name)]
+        with zipfile.ZipFile(tmp_path / "cameras" / zpath) as zf:
+            assert json.loads(zf.read(f"camera_{name}.json")) == f.calibration.camera
 
     # the edited frames carry the curated values, the imported ones under v3d; the others are as imported
     source = json.loads((v3_tree.joinpath(*DEV_GAME) / "Labels-v3.json").read_text())

@@ -1,20 +1,30 @@
 """``/api/exports``: download reviewed labels, streamed in the request (``GET``) or written to a file by
-a background job (``POST``, for large exports: the file is then read at ``/api/jobs/{id}/result``)."""
+a background job (``POST``, for large exports and the UI: the file is then read at ``/api/jobs/{id}/result``).
+
+``POST /api/exports/{format}`` queues any export (``soccernet-v3d``, ``issia-3d``, ``cameras``, ``yolo``,
+``coco``; ``app.services.transfer.export_files``); ``GET /api/exports/cameras`` (as ``GET`` of ``yolo``,
+``coco`` and ``issia-3d``, in ``detectors.py`` and ``issia.py``) answers the zip in the request. Every route
+needs the admin role."""
 from __future__ import annotations
 
+import shutil
+import tempfile
 from collections.abc import Iterator
-from typing import Annotated
+from pathlib import Path as FilePath
+from typing import Annotated, Literal
 
-from fastapi import APIRouter, Body, Depends, Query, Request, status
+from fastapi import APIRouter, Body, Depends, Path, Query, Request, status
 from fastapi.concurrency import run_in_threadpool
-from fastapi.responses import JSONResponse, StreamingResponse
+from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
+from starlette.background import BackgroundTask
 
 from app.api.auth import require_role
-from app.api.deps import SessionDep
-from app.api.job_schemas import ExportJobIn, JobOut
+from app.api.deps import SessionDep, SettingsDep
+from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
-from app.services.transfer import exporting
+from app.services.transfer import export_files, exporting
 from app.services.jobs import runner as jobs
+from app.services.jobs.kinds import export_params
 
 router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
 
@@ -63,5 +73,45 @@ async def create_export_job(session: SessionDep,
     """Queue the SoccerNet-v3D export as a background job: the zip (the same archive the ``GET`` streams)
     is written to a file while the database is read, with progress per game; when the job is done its
     ``result_url`` (``/api/jobs/{id}/result``) streams the file."""
-    return accepted(await run_in_threadpool(jobs.submit, session, "export", {"format": "soccernet-v3d",
-                                                                            "all": body.all, "images": body.images}))
+    return accepted(await run_in_threadpool(jobs.submit, session, "export",
+                                            export_params("soccernet-v3d", body.all, body.images)))
+
+
+TreeFormat = Literal["issia-3d", "cameras", "yolo", "coco"]
+
+
+@router.post("/{export_format}", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+async def create_tree_export_job(
+    session: SessionDep,
+    export_format: Annotated[TreeFormat, Path(description="issia-3d, cameras, yolo or coco (soccernet-v3d: above).")],
+    body: Annotated[TreeExportJobIn, Body(default_factory=TreeExportJobIn)],
+) -> JSONResponse:
+    """Queue an export as a background job: the same tree its ``GET`` answers, written to a file (progress per
+    file zipped) kept ``V3D_EXPORT_KEEP_HOURS`` for download at the job's ``result_url``
+    (``/api/jobs/{id}/result``). The job's ``result`` holds the export's counts (a YOLO split without images
+    in ``empty_splits``)."""
+    return accepted(await run_in_threadpool(jobs.submit, session, "export", export_params(export_format, body.all)))
+
+
+@router.get(
+    "/cameras",
+    response_class=FileResponse,
+    responses={200: {"content": {"application/zip": {}},
+                     "description": "cameras.json and per image size <W>x<H>/ground_truth.zip and predictions.zip."}},
+)
+def export_cameras(
+    session: SessionDep, settings: SettingsDep,
+    include_all: Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")] = False,
+) -> FileResponse:
+    """The cameras export (``app.services.transfer.cameras_export``, as ``v3d export cameras``) as a zip: per image
+    size the ground truth (``<split>/<name>.json`` field lines) and predictions (``camera_<name>.json``) zips that
+    SoccerNet's calibration evaluator reads as they are, and ``cameras.json``. ``X-V3D-Cameras`` gives its size."""
+    tmp = FilePath(tempfile.mkdtemp(prefix="v3d-cameras-"))
+    try:
+        report = export_files.write_export_zip(session, "cameras", tmp / "cameras.zip", include_all, settings)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return FileResponse(tmp / "cameras.zip", media_type="application/zip", filename="cameras.zip",
+                        headers={"X-V3D-Cameras": str(report["cameras"])},
+                        background=BackgroundTask(shutil.rmtree, tmp, ignore_errors=True))

@@ -1,10 +1,10 @@
 """``/api/jobs``: background jobs (imports, full recomputes, exports; ``app.services.jobs.runner``), and
 ``POST /api/recompute`` that queues a full recompute.
 
-A job is created by ``POST /api/imports``, ``POST /api/recompute`` or ``POST /api/exports/soccernet-v3d``
+A job is created by ``POST /api/imports``, ``POST /api/recompute`` or ``POST /api/exports/{format}``
 (202, ``Location: /api/jobs/{id}``) and run by a server process's job runner; ``GET /api/jobs/{id}``
 shows its state and progress (``stage``, ``done`` of ``total``), then its result;
-``GET /api/jobs/{id}/result`` streams a finished export's file. Every role may follow jobs; a full
+``GET /api/jobs/{id}/result`` streams a finished export's file (kept ``V3D_EXPORT_KEEP_HOURS``). Every role may follow jobs; a full
 recompute and an export's file need the admin role (as imports and exports do).
 """
 from __future__ import annotations
@@ -24,6 +24,7 @@ from app.services.jobs import runner as jobs
 from app.core.errors import NotFoundError
 from app.core.config import Settings
 from app.services.jobs.kinds import export_path, without_server_paths
+from app.services.transfer.export_files import prune_exports
 
 router = APIRouter(tags=["jobs"])
 #: A job id within the database's integer column (beyond it PostgreSQL refused the query: a 500, found by fuzzing).
@@ -83,11 +84,13 @@ def get_job(session: SessionDep, settings: SettingsDep, principal: PrincipalDep,
                409: {"model": ErrorOut, "description": "Not an export, or not done yet."}},
 )
 def job_result(session: SessionDep, settings: SettingsDep, job_id: JobId) -> FileResponse:
-    """The file a finished export job wrote (streamed from disk)."""
+    """The file a finished export job wrote (streamed from disk; only the server's own file of that job, kept
+    ``V3D_EXPORT_KEEP_HOURS`` after it was written: older export files are removed here, then 404)."""
     job = jobs.get_job(session, job_id)
     if job.kind != "export" or job.state is not JobState.DONE or not job.result:
         raise jobs.JobNotReady(f"job {job_id} is a {job.kind} job in state {job.state.value}: no file to download")
     path = export_path(settings, job.result["file"])
+    prune_exports(path.parent, settings.export_keep_hours)
     if not path.is_file():
         raise NotFoundError("export file of job", job_id)
     return FileResponse(path, media_type=job.result.get("media_type", "application/octet-stream"),

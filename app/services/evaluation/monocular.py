@@ -24,7 +24,6 @@ ground-truth view is scored with its most confident detection whose IoU with the
 """
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -33,7 +32,6 @@ from typing import Any, Hashable
 import numpy as np
 from sqlalchemy.orm import Session
 
-from app.datasets.files import dataset_root, inside_dataset
 from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
 from app.geometry.metrics import (Detections, average_precision, box_iou, load_coco_results,
@@ -41,7 +39,7 @@ from app.geometry.metrics import (Detections, average_precision, box_iou, load_c
 from app.services.kinds import kind_of
 from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes
 from app.core.errors import DatasetError, InvalidInputError
-from app.services.transfer.cameras_export import camera_file
+from app.services.transfer.cameras_export import read_cameras
 from app.services.transfer.exporting import exported_systems
 
 #: Thresholds (metres) of the precision-threshold curve.
@@ -79,35 +77,34 @@ class ReferenceView:
 
 
 def with_cameras(views: list[ReferenceView], cameras_dir: str | Path) -> tuple[list[ReferenceView], int]:
-    """The views scored with the cameras given in ``cameras_dir`` instead of the stored ones: SoccerNet-calibration
-    camera JSON at ``<cameras_dir>/<league>/<season>/<match>/camera_<image stem>.json`` (the layout of
-    ``v3d export cameras``, ``app.services.transfer.cameras_export.camera_file``), pixels of the view's image.
-    The reference box and 3D ball stay the stored ones (the "given cameras" rows of the paper's Table 2). Views
-    without a camera file are left out.
+    """The views scored with the cameras given in ``cameras_dir`` instead of the stored ones: a cameras export
+    (``v3d export cameras``: ``cameras.json`` and per image size ``<W>x<H>/predictions.zip`` of
+    SoccerNet-calibration cameras, ``app.services.transfer.cameras_export.read_cameras``), pixels of the
+    view's image. The reference box and 3D ball stay the stored ones (the "given cameras" rows of the paper's
+    Table 2). Views without a camera are left out.
 
     Returns:
-        ``(views with their given camera, number of views left out for want of a camera file)``.
+        ``(views with their given camera, number of views left out for want of a camera)``.
 
     Raises:
         InvalidInputError: ``cameras_dir`` is not a folder (field ``cameras``).
-        DatasetError: a camera file that leads out of the folder, is not JSON or not a SoccerNet camera (naming it).
+        DatasetError: no ``cameras.json``, a zip that leads out of the folder or cannot be read, a camera file
+            that is not JSON or not a SoccerNet camera (naming it).
     """
     root = Path(cameras_dir)
     if not root.is_dir():
         raise InvalidInputError(f"not a folder: {root}", field="cameras")
-    top = dataset_root(root)
+    given = read_cameras(root)
     out, missing = [], 0
     for v in views:
-        league, season, match = v.game_path.split("/", 2)
-        path = root / camera_file(league, season, match, v.frame_name)
-        if not (path.exists() or path.is_symlink()):
+        raw = given.get((v.game_path, v.frame_name))
+        if raw is None:
             missing += 1
             continue
-        path = inside_dataset(top, path, "camera")
         try:
-            camera = Camera.from_soccernet(json.loads(path.read_text(encoding="utf-8")))
-        except (OSError, UnicodeDecodeError, ValueError, TypeError, KeyError) as exc:
-            raise DatasetError(path, None, f"not a SoccerNet camera: {exc}") from exc
+            camera = Camera.from_soccernet(raw)
+        except (ValueError, TypeError, KeyError) as exc:
+            raise DatasetError(root, f"{v.game_path}/{v.frame_name}", f"not a SoccerNet camera: {exc}") from exc
         out.append(replace(v, camera=camera))
     return out, missing
 

@@ -1,16 +1,16 @@
 """What each kind of background job does (``app.services.jobs.runner`` runs them): ``import`` (a dataset
 through ``app.services.transfer.importing`` or ``app.services.issia.sequences``), ``recompute`` (every system,
-``recompute.recompute_all_systems``) and ``export`` (the SoccerNet-v3D zip written to a file while the
-database is read, ``exporting.stream_soccernet_v3d_zip``).
+``recompute.recompute_all_systems``) and ``export`` (any export as a zip file,
+``app.services.transfer.export_files``: SoccerNet-v3D streamed while the database is read, the others written
+as a tree and zipped).
 
 Each is ``work(session, params, settings, progress, job_id) -> result`` (a JSON-able dict) and may be run
 again from the start after a kill: imports are idempotent, a recompute gives the same rows, an export
-rewrites its file (``<jobs dir>/exports/job-<id>-soccernet-v3d.zip``, written as ``.part`` and renamed
-when complete).
+rewrites its file (``<jobs dir>/exports/job-<id>-<format>.zip``, written as ``.part`` and renamed
+when complete, removed ``Settings.export_keep_hours`` later).
 """
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 from typing import Any
@@ -126,32 +126,44 @@ def run_recompute(session: Session, params: dict[str, Any], settings: Settings, 
 
 
 def export_path(settings: Settings, name: str) -> Path:
-    """Where an export job's file ``name`` lies (``<jobs dir>/exports/<name>``)."""
+    """Where an export job's file ``name`` lies (``<jobs dir>/exports/<name>``; only the last part of ``name``)."""
     return jobs_dir(settings) / "exports" / Path(name).name
+
+
+def export_params(fmt: str, include_all: bool = False, images: bool = True) -> dict[str, Any]:
+    """The ``params`` of an export job: ``format`` (``export_files.EXPORT_FORMATS``), ``all``, and for
+    SoccerNet-v3D ``images``.
+
+    Raises:
+        InvalidInputError: an unknown format (field ``format``).
+    """
+    from app.services.transfer.export_files import EXPORT_FORMATS
+
+    if fmt not in EXPORT_FORMATS:
+        raise InvalidInputError(f"unknown export {fmt!r}; one of {', '.join(EXPORT_FORMATS)}", field="format")
+    out: dict[str, Any] = {"format": fmt, "all": bool(include_all)}
+    if fmt == "soccernet-v3d":
+        out["images"] = bool(images)
+    return out
 
 
 def run_export(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
                job_id: int) -> dict[str, Any]:
-    """Write the SoccerNet-v3D zip (``params["all"]``: every system, else the accepted ones; ``params["images"]``,
-    default true: each game's ``Frames-v3.zip``) to the job's file while the database is read;
-    ``progress("export", games, total)``."""
-    from app.services.transfer.exporting import export_size, stream_soccernet_v3d_zip
+    """Write the export ``params["format"]`` (default ``soccernet-v3d``; ``params["all"]``: every system, else
+    the accepted ones; ``params["images"]``, SoccerNet-v3D only, default true: each game's ``Frames-v3.zip``)
+    as a zip to the job's file ``job-<id>-<format>.zip`` (``export_files.write_export_zip``), after removing
+    export files older than ``Settings.export_keep_hours`` (``export_files.prune_exports``); progress per game
+    (SoccerNet-v3D) or per file zipped."""
+    from app.services.transfer.export_files import DOWNLOAD_NAMES, prune_exports, write_export_zip
 
-    include_all = bool(params.get("all", False))
-    name = f"job-{job_id}-soccernet-v3d.zip"
-    target = export_path(settings, name)
+    fmt = str(params.get("format", "soccernet-v3d"))
+    target = export_path(settings, f"job-{job_id}-{fmt}.zip")
     target.parent.mkdir(parents=True, exist_ok=True)
-    part = target.with_name(target.name + ".part")
-    systems, rows = export_size(session, include_all)
-    size = 0
-    with open(part, "wb") as out:
-        images = bool(params.get("images", True))
-        for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=images):
-            out.write(chunk)
-            size += len(chunk)
-    os.replace(part, target)
-    return {"file": name, "bytes": size, "systems": systems, "rows": rows, "media_type": "application/zip",
-            "filename": "soccernet-v3d.zip"}
+    prune_exports(target.parent, settings.export_keep_hours)
+    report = write_export_zip(session, fmt, target, bool(params.get("all", False)), settings, progress,
+                              images=bool(params.get("images", True)))
+    filename = "soccernet-v3d-no-images.zip" if fmt == "soccernet-v3d" and params.get("images") is False else DOWNLOAD_NAMES[fmt]
+    return {**report, "file": target.name, "media_type": "application/zip", "filename": filename}
 
 
 #: kind -> work (``app.services.jobs.runner.Work``).

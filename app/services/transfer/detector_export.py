@@ -28,7 +28,11 @@ export; ISSIA by camera as in the paper (cameras 1-2 test, 3-6 train).
 Layouts:
 
 * YOLO: ``images/<split>/<stem>.<ext>``, ``labels/<split>/<stem>.txt`` (``class cx cy w h``, normalised
-  by the image size), ``data.yaml`` (``path``, ``train``, ``val``, ``test``, ``names``).
+  by the image size), ``data.yaml`` (``train``, ``val``, ``test``, ``nc``, ``names``). ``data.yaml`` has no
+  ``path:`` key and its split folders are relative: Ultralytics (``check_det_dataset``) then takes the folder
+  of ``data.yaml`` as the dataset root, so the export works wherever it is unpacked or moved. Both split
+  folders always exist; a split without images is said so in a comment of ``data.yaml`` and in the
+  report (``empty_splits``).
 * COCO: ``<split>/<stem>.<ext>`` and ``<split>/instances.json`` beside them (boxes ``[x, y, w, h]``
   pixels, category ids = class id + 1).
 
@@ -87,13 +91,19 @@ class DetectorExportReport:
     skipped_point_only: int = 0
     unknown_classes: Counter = field(default_factory=Counter)
 
+    @property
+    def empty_splits(self) -> list[str]:
+        """The splits that received no image (their folders exist, empty)."""
+        return [s for s in SPLITS if not self.images[s]]
+
     def as_dict(self) -> dict[str, Any]:
         return {"out_dir": str(self.out_dir), "format": self.format, "images": self.images,
                 "ball_boxes": self.ball_boxes, "other_boxes": self.other_boxes,
                 "optimised_ball_boxes": self.optimised_ball_boxes,
                 "refined_ball_boxes": self.refined_ball_boxes,
                 "skipped_without_image": self.skipped_without_image,
-                "skipped_point_only": self.skipped_point_only, "unknown_classes": dict(self.unknown_classes)}
+                "skipped_point_only": self.skipped_point_only, "unknown_classes": dict(self.unknown_classes),
+                "empty_splits": self.empty_splits}
 
 
 @dataclass(frozen=True)
@@ -273,11 +283,19 @@ def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False
                  f"{(b[3] - b[1]) / h:.8f}" for c, b in view.boxes]
         (out / "labels" / view.split / f"{view.stem}.txt").write_text("".join(s + "\n" for s in lines))
         _count(report, view)
-    names = "\n".join(f"  {i}: {json.dumps(n)}" for i, n in enumerate(CLASSES))
-    (out / "data.yaml").write_text(
-        f"# v3d export: ball = class 0 (refined, else optimised, else annotated box)\npath: {json.dumps(str(out.resolve()))}\n"
-        f"train: images/train\nval: images/test\ntest: images/test\nnc: {len(CLASSES)}\nnames:\n{names}\n")
+    (out / "data.yaml").write_text(yolo_data_yaml(report))
     return report
+
+
+def yolo_data_yaml(report: DetectorExportReport) -> str:
+    """The ``data.yaml`` of a YOLO export: no ``path:`` key (Ultralytics resolves the relative ``train``,
+    ``val`` and ``test`` folders from the folder of ``data.yaml``: the export is relocatable), val = the test
+    split (v3d has no separate validation split), a comment naming any split without images."""
+    names = "\n".join(f"  {i}: {json.dumps(n)}" for i, n in enumerate(CLASSES))
+    empty = "".join(f"# split {s!r} has no image: images/{s} and labels/{s} are empty\n" for s in report.empty_splits)
+    return ("# v3d export: ball = class 0 (refined, else optimised, else annotated box)\n"
+            "# no 'path:' key: the dataset root is the folder of this file (relocatable)\n"
+            f"{empty}train: images/train\nval: images/test\ntest: images/test\nnc: {len(CLASSES)}\nnames:\n{names}\n")
 
 
 def export_coco(session: Session, out_dir: str | Path, include_all: bool = False,

@@ -1,0 +1,138 @@
+"""Every export as one zip file, written by a background job (``app.services.jobs.kinds.run_export``) or a
+request: the formats, the zip of an export tree, and how long the server keeps an export job's file.
+
+Formats (:data:`EXPORT_FORMATS`): ``soccernet-v3d`` (``app.services.transfer.exporting``, streamed into the
+zip), ``issia-3d`` (``app.services.issia.export``), ``cameras`` (``app.services.transfer.cameras_export``),
+``yolo`` and ``coco`` (``app.services.transfer.detector_export``). The tree exports are written to a work
+folder, zipped with paths relative to the tree's root (:func:`zip_tree`; folders, empty ones included, kept
+as entries: a YOLO split without images still exists once unpacked) and the folder removed. No file of any
+export names a server folder: every export is relocatable.
+
+An export job's file lies in ``<jobs dir>/exports/`` (``app.core.config.jobs_dir``, beside the database or
+under ``var/``) and is removed ``Settings.export_keep_hours`` after it was written (:func:`prune_exports`, run
+whenever an export job starts and whenever a file is asked for), or with its job.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import time
+import zipfile
+from pathlib import Path
+from typing import Any, Callable
+
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.services.jobs.progress import Progress
+
+#: What ``POST /api/exports/{format}`` and the export jobs write; the names of the ``GET /api/exports/...`` routes.
+EXPORT_FORMATS = ("soccernet-v3d", "issia-3d", "cameras", "yolo", "coco")
+#: The file name a download of each format gets.
+DOWNLOAD_NAMES = {"soccernet-v3d": "soccernet-v3d.zip", "issia-3d": "issia-3d.zip", "cameras": "cameras.zip",
+                  "yolo": "v3d-yolo.zip", "coco": "v3d-coco.zip"}
+
+
+def zip_tree(root: Path, target: Path, progress: Progress | None = None) -> int:
+    """Zip every file and folder under ``root`` into ``target`` with paths relative to ``root`` (POSIX; folders as
+    entries, so that empty ones survive), ``progress("zip", files done, files)`` as it goes. Returns the zip's
+    size in bytes."""
+    entries = sorted(root.rglob("*"))
+    files = [p for p in entries if p.is_file()]
+    done = 0
+    with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
+        for p in entries:
+            rel = p.relative_to(root).as_posix()
+            if p.is_dir():
+                zf.writestr(zipfile.ZipInfo(rel + "/"), b"")
+                continue
+            zf.write(p, rel)
+            done += 1
+            if progress is not None:
+                progress("zip", done, len(files))
+    return target.stat().st_size
+
+
+def write_tree(session: Session, fmt: str, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
+    """Write the export ``fmt`` (a tree format of :data:`EXPORT_FORMATS`, not ``soccernet-v3d``) under ``out``;
+    its counts (no path).
+
+    Raises:
+        ValueError: an unknown or streamed format.
+        InvalidInputError: names that cannot be files (nothing written), as each export raises.
+    """
+    if fmt == "issia-3d":
+        from app.services.issia.export import export_issia3d
+
+        r = export_issia3d(session, out, include_all=include_all)
+        return {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations}
+    if fmt == "cameras":
+        from app.services.transfer.cameras_export import export_cameras
+
+        return export_cameras(session, out, include_all=include_all).as_dict()
+    if fmt in ("yolo", "coco"):
+        from app.services.transfer.detector_export import export_detector
+
+        report = export_detector(session, fmt, out, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]
+                                 settings.export_ball_box).as_dict()
+        report.pop("out_dir", None)
+        return report
+    raise ValueError(f"not a tree export: {fmt!r}; one of {', '.join(EXPORT_FORMATS[1:])}")
+
+
+def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool, settings: Settings,
+                     progress: Progress | None = None, images: bool = True) -> dict[str, Any]:
+    """The export ``fmt`` as the zip ``target`` (written as ``<target>.part`` and renamed when complete; a
+    tree export's work folder ``<target>.work`` removed in every case); its counts, ``bytes`` and ``format``.
+    ``images``: SoccerNet-v3D only (each game's ``Frames-v3.zip``).
+
+    Raises:
+        ValueError: an unknown format. As each export raises otherwise.
+    """
+    if fmt not in EXPORT_FORMATS:
+        raise ValueError(f"unknown export {fmt!r}; one of {', '.join(EXPORT_FORMATS)}")
+    part = target.with_name(target.name + ".part")
+    work = target.with_name(target.name + ".work")
+    report: dict[str, Any]
+    try:
+        if fmt == "soccernet-v3d":
+            from app.services.transfer.exporting import export_size, stream_soccernet_v3d_zip
+
+            systems, rows = export_size(session, include_all)
+            with open(part, "wb") as out:
+                for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=images):
+                    out.write(chunk)
+            report = {"systems": systems, "rows": rows}
+        else:
+            shutil.rmtree(work, ignore_errors=True)
+            work.mkdir(parents=True)
+            if progress is not None:
+                progress("export", 0, 0)
+            report = write_tree(session, fmt, work, include_all, settings)
+            zip_tree(work, part, progress)
+        os.replace(part, target)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+        part.unlink(missing_ok=True)
+    return {**report, "format": fmt, "bytes": target.stat().st_size}
+
+
+def prune_exports(folder: Path, keep_hours: float, now: Callable[[], float] = time.time) -> list[str]:
+    """Remove the files (and left-over work folders) of ``folder`` last written more than ``keep_hours`` ago;
+    the names removed. A missing folder is nothing to prune."""
+    if not folder.is_dir():
+        return []
+    limit = now() - keep_hours * 3600.0
+    removed = []
+    for p in folder.iterdir():
+        try:
+            if p.lstat().st_mtime >= limit:
+                continue
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p, ignore_errors=True)
+            else:
+                p.unlink(missing_ok=True)
+            removed.append(p.name)
+        except FileNotFoundError:
+            continue
+    return removed
