@@ -267,7 +267,11 @@ export class ViewPanel extends HTMLElement {
           title: `${fixTitle(d.suggestion)} and recompute (${FIX_KEY[d.suggestion.action]} on the selected view)`,
           onclick: () => this.applyFix(d) }, `${fixLabel(d.suggestion)} `, el("kbd", {}, FIX_KEY[d.suggestion.action]))
         : null,
-      ...alternativeFixes(d, excluded, (action) => this.applyFix({ ...d, suggestion: { action } }))));
+      ...alternativeFixes(d, excluded, (action) => this.applyFix({ ...d, suggestion: { action } })),
+      d.kind === "suggested_label" && ball.kind && ball.provenance
+        ? el("button", { type: "button", "data-testid": "confirm-placement", title: "Keep this label as yours: it then counts as evidence (Enter)",
+          onclick: () => this.confirmPlacement() }, "Confirm placement ", el("kbd", {}, "Enter"))
+        : null));
 
     const article = el(
       "article",
@@ -359,7 +363,7 @@ export class ViewPanel extends HTMLElement {
     );
     this.replaceChildren(article);
     // doubtful views first on the page (CSS order; their V numbers and keys stay): label doubts, then notes
-    this.dataset.doubt = labelDoubts.length ? "label" : doubtful.length ? "note" : "none";
+    this.dataset.doubt = labelDoubts.length || (ball.kind && ball.provenance) ? "label" : doubtful.length ? "note" : "none";
     this.#built = true;
     this.#resizeObserver?.disconnect();
     if (this.isConnected) this.#resizeObserver?.observe(article.querySelector(".frame"));
