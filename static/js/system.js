@@ -219,7 +219,7 @@ class SystemPage {
       const i = indexOf(d.frame_id);
       chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", "data-kind": d.kind, title: d.message,
         onclick: () => { if (i >= 0) { this.select(i); $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }); } } },
-      `${i >= 0 ? `V${i + 1} ` : ""}${DOUBT_LABEL[d.kind] || human(d.kind)}`));
+      `${i >= 0 ? `V${i + 1} ` : ""}${chip("doubt", d.kind)}`));
     }
     sys.views.forEach((v, i) => {
       const why = notes(v, sys.views.length !== 1);
