@@ -115,7 +115,10 @@ class DoubtOut(BaseModel):
     evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, degrees).")
     suggestion: Optional[dict[str, Any]] = Field(
         description=f"The fix: {{'action': one of {', '.join(SUGGESTION_ACTIONS)}, 'box': [x1, y1, x2, y2] px for "
-        "snap_box, 'request': {'method', 'path', 'body'}: the exact request the page's fix key sends (add the "
+        "snap_box, 'box_sigma_px' (or 'point_sigma_px' for snap_point): the uncertainty of that box or point, px of "
+        "the view, one standard deviation (the box the other views agree on: their RMS reprojection error and the "
+        "view's calibration sigma in quadrature), 'alternatives': the other fixes that apply (e.g. ['exclude_view']), "
+        "'request': {'method', 'path', 'body'}: the exact request the page's fix key sends (add the "
         "frame's If-Match ETag)}; null when nothing can be suggested.")
 
     @classmethod

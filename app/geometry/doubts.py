@@ -62,7 +62,10 @@ INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_as
 #: view from the triangulation (a stored, reversible per-view decision); ``mirror_labels``: replace
 #: the view's field lines by their mirrored labelling.
 #: ``snap_point``: set the view's point label to ``suggestion["point"]`` (ISSIA, where the sequence's
-#: trajectory projects).
+#: trajectory projects). A doubt that accuses a ball label (``ball_off_consensus``, ``ball_missing``) and has
+#: a box the other views agree on offers it (``snap_box``) with its uncertainty ``box_sigma_px`` (px of the
+#: view, one standard deviation; :func:`consensus_fix`) and lists the other fixes that apply in
+#: ``suggestion["alternatives"]`` (e.g. ``["exclude_view"]``).
 SUGGESTION_ACTIONS: tuple[str, ...] = ("snap_box", "exclude_view", "mirror_labels", "snap_point")
 
 #: ``Doubt.code`` per kind: which reasoning found the doubt (the words layer writes one sentence per code).
@@ -592,10 +595,45 @@ def epipolar_pair_error(a: DoubtView, b: DoubtView, s: DoubtSettings) -> float |
     return best
 
 
-def _missing_doubt(v: DoubtView, ball: np.ndarray, s: DoubtSettings, code: str,
+def consensus_box_sigma_px(v: DoubtView, consensus: Consensus, s: DoubtSettings) -> float | None:
+    """How far (px of ``v``'s own image, one standard deviation) the consensus ball's box in ``v`` may lie from
+    where the ball is: the agreeing views' own spread (the RMS of their reprojection errors to the consensus
+    ball, px at 1920 width: how well the rays that made it meet) and ``v``'s calibration's pixel sigma at that
+    ball (:func:`pixel_sigma`: how far its camera may put the ball's projection), added in quadrature and
+    scaled to ``v``'s pixels. None when ``v``'s calibration leaves the pixel undetermined (``inf``)."""
+    errs = [consensus.errors_1920.get(i) for i in consensus.inliers]
+    errs = [e for e in errs if e is not None and math.isfinite(e)]
+    spread = math.sqrt(sum(e * e for e in errs) / len(errs)) if errs else 0.0
+    own = pixel_sigma(v, consensus.point, s)
+    if not math.isfinite(own):
+        return None
+    return _r(math.hypot(spread, own) / _scale(v, s), 2)
+
+
+def consensus_fix(v: DoubtView, consensus: Consensus, box: np.ndarray | None, s: DoubtSettings,
+                  alternatives: Sequence[str] = ("exclude_view",)) -> dict[str, Any]:
+    """The fix of a doubt that accuses ``v``'s ball label (``ball_off_consensus``) or its absence
+    (``ball_missing``): snap the label to the box the other views agree on, ``box`` (the exact sphere box of
+    the consensus ball in ``v``, ``[x1, y1, x2, y2]`` px of ``v``), with its uncertainty ``box_sigma_px``
+    (:func:`consensus_box_sigma_px`) and the other fixes that apply (``alternatives``: actions of
+    :data:`SUGGESTION_ACTIONS`, e.g. excluding the view when its label is right and its timing or camera is
+    not). Without a box (the ball projects outside ``v`` or behind its camera) the first alternative is the
+    fix, ``{"action": "exclude_view"}``."""
+    if box is None:
+        return {"action": alternatives[0]} if alternatives else {"action": "exclude_view"}
+    out: dict[str, Any] = {"action": "snap_box", "box": _box_list(box),
+                           "box_sigma_px": consensus_box_sigma_px(v, consensus, s)}
+    if alternatives:
+        out["alternatives"] = list(alternatives)
+    return out
+
+
+def _missing_doubt(v: DoubtView, consensus: Consensus, s: DoubtSettings, code: str,
                    extra: dict[str, Any], margin_px: float | None = None) -> Doubt | None:
-    """``ball_missing`` for an unlabelled view when ``ball`` projects inside its image by ``margin_px``
-    (px at 1920 width; default ``inside_margin_px``), else None."""
+    """``ball_missing`` for an unlabelled view when the consensus ball projects inside its image by
+    ``margin_px`` (px at 1920 width; default ``inside_margin_px``), else None; its fix is
+    :func:`consensus_fix` (the sphere box with its uncertainty)."""
+    ball = consensus.point
     uv = _project(v, ball)
     margin = s.inside_margin_px if margin_px is None else margin_px
     if uv is None or not _inside(v, uv, margin / _scale(v, s)):
@@ -604,7 +642,7 @@ def _missing_doubt(v: DoubtView, ball: np.ndarray, s: DoubtSettings, code: str,
     if box is None:
         return None
     evidence = {"projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball], **extra}
-    return Doubt("ball_missing", v.view_id, code, evidence, {"action": "snap_box", "box": _box_list(box)})
+    return Doubt("ball_missing", v.view_id, code, evidence, consensus_fix(v, consensus, box, s, alternatives=()))
 
 
 def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> Doubt | None:
@@ -655,7 +693,9 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     if box is None:
         return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
     evidence.update(projected_px=[_r(uv0[0]), _r(uv0[1])], ball3d=[_r(x, 3) for x in ball])
-    return Doubt("ball_missing", v.view_id, "epipolar_box", evidence, {"action": "snap_box", "box": _box_list(box)})
+    # its uncertainty: the ball may lie anywhere on the stretch drawn, half its length either side of the box
+    return Doubt("ball_missing", v.view_id, "epipolar_box", evidence,
+                 {"action": "snap_box", "box": _box_list(box), "box_sigma_px": _r(length / 2 / _scale(v, s))})
 
 
 def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSettings()) -> list[Doubt]:
@@ -674,7 +714,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
     3. the labelled views' robust consensus (:func:`app.geometry.consensus.ball_consensus` with
        ``consensus_tau_px``, votes weighted, each view's tolerance widened to its pixel sigma, a proposal
        outside the play volume refused): each labelled view off a non-ambiguous consensus gets
-       ``ball_off_consensus`` (fix: exclude it, or snap to the consensus ball's box); labelled views with no
+       ``ball_off_consensus`` (fix: snap to the consensus ball's box with its uncertainty, :func:`consensus_fix`,
+       or exclude it; exclude only when that ball does not project inside it); labelled views with no
        consensus or an ambiguous one give one ``views_disagree`` for the system, also when the only pairs
        are too poorly conditioned to triangulate but their labels miss each other's ray across the play
        volume by more than tau (:func:`epipolar_pair_error`);
@@ -746,9 +787,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
             uv = _project(v, cons.point)
             box = sphere_image_box(v.camera, cons.point, s.ball_diameter_m / 2) if uv is not None and _inside(
                 v, uv, 0.0) else None
-            suggestion: dict[str, Any] = {"action": "exclude_view"}
-            if box is not None:
-                suggestion["box"] = _box_list(box)
+            suggestion = consensus_fix(v, cons, box, s)
             doubts.append(Doubt(
                 "ball_off_consensus", vid, "off_consensus" if e is not None else "behind_camera",
                 {"error_px_1920": None if e is None else _r(e), "tau_px": _r(max(tau, sigma.get(vid, 0.0))),
@@ -757,7 +796,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
                  "projected_px": None if uv is None else [_r(uv[0]), _r(uv[1])]},
                 suggestion))
         for v in unlabelled:
-            d = _missing_doubt(v, cons.point, s, "consensus", {"agreeing_views": list(cons.inliers)})
+            d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
             if d is not None:
                 doubts.append(d)
     elif len(labelled) >= 2:

@@ -3,14 +3,13 @@
 export const STATUSES = ["pending", "accepted", "rejected", "needs_fix"];
 export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected: "rejected", needs_fix: "needs fix" };
 
-/** Short names of the doubt kinds that accuse a label (app/geometry/doubts.py LABEL_KINDS). */
-export const DOUBT_LABEL = {
-  mirrored_labels: "mirrored labels",
-  ball_off_consensus: "ball off consensus",
-  ball_missing: "ball missing",
-  views_disagree: "views disagree",
-  near_duplicate_view: "near-duplicate view",
-};
+import { WORDS } from "./words.js";
+
+/** Short names of the doubt kinds that accuse a label (app/geometry/doubts.py LABEL_KINDS), from the one
+ * table of words (words.js). */
+export const DOUBT_LABEL = Object.fromEntries(
+  ["mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view"]
+    .map((k) => [k, WORDS.doubt[k].chip]));
 
 export const isNum = (v) => typeof v === "number" && Number.isFinite(v);
 

@@ -40,12 +40,13 @@ export function renderKeys(table, container) {
 
 /**
  * The `?` overlay: a dialog listing every key of `table`, opened and closed by `?` (Escape or a click
- * outside closes it too). Returns the entry to add to the table.
+ * outside closes it too), then `extra` (an element: the chips' legend, words.js chipLegend). Returns the
+ * entry to add to the table.
  */
-export function keysHelp(table, title = "Keys") {
+export function keysHelp(table, title = "Keys", extra = null) {
   const list = el("div", { class: "keys-grid" });
   const dialog = el("dialog", { class: "keys-help", "data-testid": "keys-help", "aria-label": title },
-    el("h2", {}, title), list, el("p", { class: "muted" }, "? or Esc to close"));
+    el("h2", {}, title), list, extra, el("p", { class: "muted" }, "? or Esc to close"));
   dialog.addEventListener("click", (e) => { if (e.target === dialog) dialog.close(); });
   dialog.addEventListener("keydown", (e) => {
     e.stopPropagation(); // the page's keys wait while the list is open

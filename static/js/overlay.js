@@ -12,6 +12,7 @@
 
 import { el, svg, fmt, fmtJac, isNum, errorClass, viewColour, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 import { suggestedNote } from "./suggested.js";
+import { chip, word, tauText } from "./words.js";
 import { LineEditor } from "./lineseditor.js";
 import { getPitchLines } from "./api.js";
 
@@ -55,7 +56,7 @@ export function notes(view, multiView = true) {
   else if (cal.admitted === false) out.push("calibration not admitted");
   if (cal.reason) out.push(cal.reason);
   if (view.review?.excluded) out.push("excluded from the 3D ball");
-  else if (view.error_above_tau === true && multiView) out.push("reprojection error above tau");
+  else if (view.error_above_tau === true && multiView) out.push("reprojection error above τ");
   return out;
 }
 
@@ -68,6 +69,34 @@ const FIX_LABEL = {
 };
 /** The key of each fix on the system page. */
 export const FIX_KEY = { snap_box: "s", exclude_view: "x", mirror_labels: "m", snap_point: "s" };
+
+/** A fix's uncertainty in words: "± 1.5 px" (the box or point the other views agree on, one sigma), or "". */
+function sigmaText(suggestion) {
+  const s = suggestion.box_sigma_px ?? suggestion.point_sigma_px;
+  return isNum(s) ? `± ${s.toFixed(1)} px` : "";
+}
+
+/** A fix's button text: a box or point the other views agree on says so, with its uncertainty. */
+function fixLabel(suggestion) {
+  const sigma = sigmaText(suggestion);
+  if (suggestion.action === "snap_box" && sigma) return `Snap to the box the other views agree on (${sigma})`;
+  if (suggestion.action === "snap_point" && sigma) return `Snap to the trajectory (${sigma})`;
+  return FIX_LABEL[suggestion.action];
+}
+
+function fixTitle(suggestion) {
+  const sigma = sigmaText(suggestion);
+  return `${FIX_LABEL[suggestion.action]}${sigma ? ` (its uncertainty, one standard deviation: ${sigma})` : ""}; it stays a suggestion until you confirm it (Enter)`;
+}
+
+/** The buttons of a doubt's other fixes (`suggestion.alternatives`, e.g. exclude the view). */
+function alternativeFixes(doubt, excluded, apply) {
+  return (doubt.suggestion?.alternatives || [])
+    .filter((a) => FIX_LABEL[a] && !(a === "exclude_view" && excluded))
+    .map((a) => el("button", { type: "button", "data-testid": "apply-alt-fix", "data-action": a,
+      title: `${FIX_LABEL[a]} instead (${FIX_KEY[a]} on the selected view)`, onclick: () => apply(a) },
+    `${FIX_LABEL[a]} `, el("kbd", {}, FIX_KEY[a])));
+}
 
 export class ViewPanel extends HTMLElement {
   #view = null;
@@ -240,19 +269,24 @@ export class ViewPanel extends HTMLElement {
       ? `d ${fmt(opt.d_px, 1)} px, ${fmt(opt.error_m, 2)} m off`
       : "—";
 
-    const flags = (cal.flags || []).map((f) => el("span", { class: "chip", "data-testid": "view-flag" }, f));
+    const flags = (cal.flags || []).map((f) => el("span", { class: "chip", "data-testid": "view-flag", "data-flag": f, title: word("flag", f).means }, chip("flag", f)));
     const review = v.review && v.review.status && v.review.status !== "pending"
       ? el("span", { class: `badge ${v.review.status}` }, STATUS_LABEL[v.review.status] || v.review.status)
       : null;
     const doubtItems = viewDoubts.map((d) => el("div", { class: `doubt${d.accuses_label ? " bad" : ""}`, "data-testid": "view-doubt", "data-kind": d.kind },
-      el("span", { class: `chip${d.accuses_label ? " bad" : " info"}` }, DOUBT_LABEL[d.kind] || d.kind.replaceAll("_", " ")),
+      el("span", { class: `chip${d.accuses_label ? " bad" : " info"}`, title: word("doubt", d.kind).means }, chip("doubt", d.kind)),
       " ",
       el("span", { class: "msg", "data-testid": d.kind === "mirrored_labels" ? "view-mirror-evidence" : "view-doubt-message",
         title: evidenceTitle(d.evidence) }, d.kind === "mirrored_labels" ? ((v.calibration || {}).mirror_evidence || {}).sentence || d.message : d.message),
       d.suggestion && FIX_LABEL[d.suggestion.action] && !(d.suggestion.action === "exclude_view" && excluded)
         ? el("button", { type: "button", "data-testid": d.kind === "mirrored_labels" ? "apply-mirror" : "apply-fix", "data-action": d.suggestion.action,
-          title: `${FIX_LABEL[d.suggestion.action]} and recompute (${FIX_KEY[d.suggestion.action]} on the selected view)`,
-          onclick: () => this.applyFix(d) }, `${FIX_LABEL[d.suggestion.action]} `, el("kbd", {}, FIX_KEY[d.suggestion.action]))
+          title: `${fixTitle(d.suggestion)} and recompute (${FIX_KEY[d.suggestion.action]} on the selected view)`,
+          onclick: () => this.applyFix(d) }, `${fixLabel(d.suggestion)} `, el("kbd", {}, FIX_KEY[d.suggestion.action]))
+        : null,
+      ...alternativeFixes(d, excluded, (action) => this.applyFix({ ...d, suggestion: { action } })),
+      d.kind === "suggested_label" && ball.kind && ball.provenance
+        ? el("button", { type: "button", "data-testid": "confirm-placement", title: "Keep this label as yours: it then counts as evidence (Enter)",
+          onclick: () => this.confirmPlacement() }, "Confirm placement ", el("kbd", {}, "Enter"))
         : null));
 
     const article = el(
@@ -276,6 +310,8 @@ export class ViewPanel extends HTMLElement {
         review,
         el("span", { class: "size" }, `${v.width}×${v.height}`),
       ),
+      // the view's doubts and their fixes right under its header, above the frame: on screen without scrolling
+      doubtItems.length ? el("div", { class: `view-doubts-bar${labelDoubts.length ? " bad" : ""}`, "data-testid": "view-doubts" }, doubtItems) : null,
       el(
         "div",
         { class: "frame" },
@@ -315,7 +351,7 @@ export class ViewPanel extends HTMLElement {
           ),
           cal.uncertainty ? el("dt", { title: "Standard deviations of the camera from the line fit (its Jacobian times the line noise): position x/y/z (m), pan/tilt/roll (degrees), focal (px); — where the lines leave it undetermined" }, "Camera ±") : null,
           cal.uncertainty ? el("dd", { class: "mono", "data-testid": "view-uncertainty" }, uncertaintyText(cal.uncertainty)) : null,
-          el("dt", { title: `Reprojection error of the 3D ball in this view; tau = ${fmt(tau, 1)} px (${rule || "rule unknown"})` }, "Reproj. error"),
+          el("dt", { title: `Reprojection error of the 3D ball in this view; ${tauText(tau)} (${rule ? word("rule", rule).means : "rule unknown"})` }, "Reproj. error"),
           el("dd", { class: `mono ${errorClass(v.reprojection_error_scaled_px, tau)}`, "data-testid": "view-reproj-error" }, errText),
           el("dt", { title: "The annotated ball box: size and centre, image pixels" }, "Ball (red)"),
           el("dd", { class: "mono", "data-testid": "view-box" }, boxText),
@@ -335,16 +371,15 @@ export class ViewPanel extends HTMLElement {
               onclick: () => this.toggleExclusion() }, excluded ? "restore to 3D ball" : "exclude from 3D ball") : null,
             this.lines.toggleButton()),
           ...this.lines.facts(),
-          ...suggestedNote(ball, this.#ctx.names || {}, () => this.dispatchEvent(new CustomEvent("ball-change", {
-            detail: ball.kind === "box" ? { frameId: v.frame_id, box: ball.box } : { frameId: v.frame_id, point: ball.point }, bubbles: true }))),
-          doubtItems.length ? el("dt", { class: labelDoubts.length ? "bad" : "" }, "Doubts") : null,
-          doubtItems.length ? el("dd", { class: "doubts", "data-testid": "view-doubts" }, doubtItems) : null,
+          ...suggestedNote(ball, this.#ctx.names || {}, () => this.confirmPlacement()),
           notes(v, multiView).length ? el("dt", {}, "Notes") : null,
           notes(v, multiView).length ? el("dd", { class: "bad", "data-testid": "view-notes" }, notes(v, multiView).join("; ")) : null,
         ),
       ),
     );
     this.replaceChildren(article);
+    // doubtful views first on the page (CSS order; their V numbers and keys stay): label doubts, then notes
+    this.dataset.doubt = labelDoubts.length || (ball.kind && ball.provenance) ? "label" : doubtful.length ? "note" : "none";
     this.#built = true;
     this.#resizeObserver?.disconnect();
     if (this.isConnected) this.#resizeObserver?.observe(article.querySelector(".frame"));
@@ -446,6 +481,12 @@ export class ViewPanel extends HTMLElement {
       }
       const sb = d.suggestion && d.suggestion.box;
       if (validBox(sb)) {
+        const sigma = d.suggestion.box_sigma_px;
+        if (isNum(sigma) && sigma > 0) { // its uncertainty: a circle of 2 sigma around its centre
+          const [cx, cy] = boxCentre(sb);
+          g.append(svg("circle", { class: "sugg-sigma", cx, cy, r: Math.max(2 * sigma, 1.5 * s) },
+            svg("title", { text: `where the ball may be (2 σ = ${(2 * sigma).toFixed(1)} px)` })));
+        }
         g.append(this.#rect(sb, "box-sugg", `suggested box (${FIX_KEY.snap_box} snaps the ball label to it)`, isMain ? "suggested-box" : null));
       }
     }
@@ -636,6 +677,34 @@ export class ViewPanel extends HTMLElement {
     this.saving = true;
     this.dispatchEvent(new CustomEvent("exclusion-request", { detail: { frameId: this.#view.frame_id, excluded: want }, bubbles: true }));
     return true;
+  }
+
+  /** A label placed from a doubt's suggestion, not confirmed by a person yet (the placement Enter confirms). */
+  get pendingPlacement() {
+    const ball = this.#view?.ball || {};
+    return Boolean(ball.kind && ball.provenance);
+  }
+
+  /** Confirm a pending placement: send the same label as a person's (no provenance). False when none. */
+  confirmPlacement() {
+    const ball = this.#view?.ball || {};
+    if (this.#saving || this.#drag || !this.pendingPlacement) return false;
+    this.saving = true;
+    this.dispatchEvent(new CustomEvent("ball-change", {
+      detail: ball.kind === "box" ? { frameId: this.#view.frame_id, box: ball.box } : { frameId: this.#view.frame_id, point: ball.point },
+      bubbles: true }));
+    return true;
+  }
+
+  /** Where a zoom should centre this view (image pixels): on the box or point the other views agree on when a
+   * doubt accuses its ball label and offers one (the real ball, not the doubted label), else null. */
+  get suggestedCentre() {
+    for (const d of this.#ctx.doubts || []) {
+      if (!d.accuses_label || !d.suggestion) continue;
+      if (validBox(d.suggestion.box)) return boxCentre(d.suggestion.box);
+      if (validPoint(d.suggestion.point)) return d.suggestion.point;
+    }
+    return null;
   }
 
   /** Put back the label as imported, before any edit. */

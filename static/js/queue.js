@@ -8,7 +8,8 @@ import { JobsPanel } from "./jobs.js";
 import { mountExports } from "./exports.js";
 import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
-import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
+import { el, fmt, fmtJac, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
+import { WORDS, chipLegend, heightText } from "./words.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const PAGE_SIZE = 50;
@@ -30,7 +31,7 @@ function rowDoubts(s) {
   const chips = [];
   for (const [kind, label] of Object.entries(DOUBT_LABEL)) {
     const n = (s.doubt_counts || {})[kind] || 0;
-    if (n > 0) chips.push(el("span", { class: "chip bad", "data-testid": "row-doubt", "data-kind": kind, title: `${n} doubt(s): ${label}; open the system to see the evidence and apply the fix` }, `${n} ${label}`));
+    if (n > 0) chips.push(el("span", { class: "chip bad", "data-testid": "row-doubt", "data-kind": kind, title: `${n} doubt(s): ${WORDS.doubt[kind].means}` }, `${n} ${label}`));
   }
   const notAdmitted = (s.views_calibrated ?? 0) - (s.views_admitted ?? 0);
   const uncalibrated = (s.views_total ?? 0) - (s.views_calibrated ?? 0);
@@ -80,7 +81,8 @@ class QueuePage {
       if (tr) this.open(tr.dataset.id);
     });
     this.keys = this.keyTable();
-    this.keys.push(keysHelp(this.keys, "Keys of the queue"));
+    this.keys.push(keysHelp(this.keys, "Keys of the queue", chipLegend("What the chips say")));
+    $("chip-legend-slot")?.replaceChildren(chipLegend("")); // under its <summary>
     document.addEventListener("keydown", (e) => this.onKey(e));
     window.addEventListener("popstate", () => {
       this.state = readState();
@@ -217,7 +219,10 @@ class QueuePage {
             `${s.views_calibrated ?? "—"}/${s.views_total ?? "—"}`),
           el("td", { class: "num" }, fmt(s.worst_error_px, 2, " px")),
           el("td", { class: "num" }, fmtJac(jac)),
-          el("td", { class: "num" }, Array.isArray(s.ball3d) ? fmtXYZ(s.ball3d, 1) : el("span", { class: "muted" }, s.views_total > 1 ? "none" : "single view")),
+          el("td", { class: "num", title: Array.isArray(s.ball3d) ? "x, y on the pitch (m); height above the grass" : null },
+            Array.isArray(s.ball3d) && s.ball3d.every(isNum)
+              ? `${s.ball3d[0].toFixed(1)}, ${s.ball3d[1].toFixed(1)} · ${heightText(s.ball3d[2])}`
+              : el("span", { class: "muted" }, s.views_total > 1 ? "none" : "single view")),
           el("td", { "data-testid": "row-doubts" }, rowDoubts(s)),
         );
       }),

@@ -4,6 +4,7 @@
 // provenance). Dragging or resizing the box places it as well.
 
 import { el } from "./format.js";
+import { chip } from "./words.js";
 
 /**
  * The facts-panel rows (a <dt> and a <dd>) of a suggested label, or [] for a label a person placed.
@@ -18,7 +19,7 @@ export function suggestedNote(ball, names, onConfirm) {
   return [
     el("dt", { class: "bad" }, "Suggested"),
     el("dd", { class: "suggested", "data-testid": "view-suggested" },
-      `placed from ${from || "the other views"} by a ${String(p.doubt || "doubt").replaceAll("_", " ")} fix: it makes no 3D ball until you check it on the close-up and confirm or move it. `,
+      `placed from ${from || "the other views"} by a ${p.doubt ? chip("doubt", p.doubt) : "doubt"} fix: it makes no 3D ball until you check it on the close-up and confirm or move it. `,
       el("button", { type: "button", "data-testid": "confirm-suggested", onclick: onConfirm }, "Confirm placement")),
   ];
 }

@@ -20,6 +20,7 @@ import { dispatchKey, keysHelp, renderKeys } from "./keys.js";
 import { EditHistory, lineKeys } from "./lineseditor.js";
 import { ViewDecisions, decisionNote } from "./viewdecisions.js";
 import { ZoomSync } from "./zoom.js";
+import { WORDS, chip, chipLegend, heightText, tauText } from "./words.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -73,7 +74,7 @@ class SystemPage {
     this.decisions = new ViewDecisions(this, toast);
     this.zoom = new ZoomSync($("views"), document.querySelector(".topbar .navs"));
     this.keys = this.keyTable();
-    this.keys.push(keysHelp(this.keys, "Keys of the system page"));
+    this.keys.push(keysHelp(this.keys, "Keys of the system page", chipLegend("What the chips say")));
     renderKeys(this.keys, $("keys"));
     document.addEventListener("keydown", (e) => this.onKey(e));
     window.addEventListener("popstate", () => this.load(idFromPath(), false));
@@ -218,7 +219,7 @@ class SystemPage {
       const i = indexOf(d.frame_id);
       chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", "data-kind": d.kind, title: d.message,
         onclick: () => { if (i >= 0) { this.select(i); $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }); } } },
-      `${i >= 0 ? `V${i + 1} ` : ""}${DOUBT_LABEL[d.kind] || human(d.kind)}`));
+      `${i >= 0 ? `V${i + 1} ` : ""}${chip("doubt", d.kind)}`));
     }
     sys.views.forEach((v, i) => {
       const why = notes(v, sys.views.length !== 1);
@@ -228,7 +229,8 @@ class SystemPage {
       `V${i + 1} ${shortDoubt(why[0])}${why.length > 1 ? ` +${why.length - 1}` : ""}`));
     });
     if (!Array.isArray(sys.ball3d) && sys.views.length > 1) {
-      chips.push(el("span", { class: "chip", "data-testid": "doubt" }, `no 3D ball (${human(sys.triangulation?.status || "not triangulated")})`));
+      chips.push(el("span", { class: "chip", "data-testid": "doubt", title: WORDS.note.no_ball3d.means },
+        `${WORDS.note.no_ball3d.chip} (${sys.triangulation?.status ? chip("triangulation", sys.triangulation.status) : "not triangulated"})`));
     }
     $("system-doubts").replaceChildren(...chips);
   }
@@ -251,13 +253,13 @@ class SystemPage {
     $("ball3d-x").textContent = ok ? `${b[0].toFixed(2)} m` : "—";
     $("ball3d-y").textContent = ok ? `${b[1].toFixed(2)} m` : "—";
     $("ball3d-z").textContent = ok ? `${b[2].toFixed(2)} m` : "—";
-    $("ball3d-h").textContent = ok ? `${(-b[2]).toFixed(2)} m` : "—";
+    $("ball3d-h").textContent = ok ? heightText(b[2], 2) : "—";
     $("ball3d").title = ok ? `world metres, z down: (${fmtXYZ(b, 3)})` : "no 3D ball";
     const tri = sys.triangulation || {};
-    $("triangulation-status").textContent = tri.status ? `· ${human(tri.status)}` : "";
+    $("triangulation-status").textContent = tri.status ? `· ${chip("triangulation", tri.status)}` : "";
     const kept = (tri.pairs || []).filter((p) => p.kept).length;
     $("triangulation-rule").textContent =
-      `τ = ${fmt(tri.tau_px, 1)} px (${tri.rule || "?"}), baseline ≥ ${fmt(tri.min_baseline_m, 1)} m; ` +
+      `${tauText(tri.tau_px)} (${tri.rule ? chip("rule", tri.rule) : "?"}), baseline ≥ ${fmt(tri.min_baseline_m, 1)} m; ` +
       `${kept} of ${(tri.pairs || []).length} pairs kept.`;
   }
 
@@ -278,7 +280,7 @@ class SystemPage {
         el("td", { class: `num ${isNum(p.parallax_deg) && p.parallax_deg < 5 ? "warn" : ""}` }, fmt(p.parallax_deg, 1, "°")),
         el("td", { class: `num ${isNum(p.baseline_m) && isNum(tri.min_baseline_m) && p.baseline_m < tri.min_baseline_m ? "bad" : ""}` }, fmt(p.baseline_m, 1, " m")),
         el("td", {}, p.kept ? el("span", { class: "ok" }, "kept") : el("span", { class: "bad" }, "dropped"),
-          !p.kept && p.reason ? el("div", { class: "reason muted" }, human(p.reason)) : null),
+          !p.kept && p.reason ? el("div", { class: "reason muted", title: WORDS.pair_reason[p.reason]?.means }, chip("pair_reason", p.reason)) : null),
       ),
     );
     if (!rows.length) {
@@ -463,6 +465,16 @@ class SystemPage {
     return fixable.length === 1 ? fixable[0] : null;
   }
 
+  /** The view Enter confirms a placement in: the selected one when it has one pending, else the only one that
+   * has (a label placed from a doubt's suggestion, not confirmed by a person yet). */
+  placementTarget() {
+    const panels = [...$("views").children];
+    const selected = panels[this.selected];
+    if (selected?.pendingPlacement) return selected;
+    const pending = panels.filter((p) => p.pendingPlacement);
+    return pending.length === 1 ? pending[0] : null;
+  }
+
   /** The view `m` acts on: the selected one, else the only flagged one. */
   mirrorTarget() {
     const panels = [...$("views").children];
@@ -511,6 +523,8 @@ class SystemPage {
       { keys: ["Delete", "Backspace"], show: ["Del"], does: "no ball in this view (remove its label)",
         run: () => view()?.removeLabel() ?? false },
       { keys: ["z"], does: "restore its imported label", run: () => view()?.restoreLabel() ?? false },
+      { keys: ["Enter"], does: "confirm the pending placement (selected view, or the only one with a suggested label)",
+        run: () => Boolean(this.placementTarget()?.confirmPlacement()) },
       { keys: ["s"], does: "apply the suggested fix of a doubt (selected view, or the only one with a fix)",
         run: () => {
           const target = this.fixTarget();
@@ -532,14 +546,14 @@ class SystemPage {
 }
 
 const SHORT_DOUBTS = {
-  "reprojection error above tau": "error > τ",
-  "calibration not admitted": "not admitted",
-  "excluded from the 3D ball": "excluded",
+  "reprojection error above τ": WORDS.note.error_above_tau.chip,
+  "calibration not admitted": WORDS.note.not_admitted.chip,
+  "excluded from the 3D ball": WORDS.note.excluded.chip,
 };
 /** Short form of a doubt for the top bar (the full list is in the chip's title and the view card). */
 function shortDoubt(text) {
   if (SHORT_DOUBTS[text]) return SHORT_DOUBTS[text];
-  if (text.startsWith("not calibrated")) return "uncalibrated";
+  if (text.startsWith("not calibrated")) return WORDS.note.not_calibrated.chip;
   return text;
 }
 

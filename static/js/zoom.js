@@ -1,8 +1,10 @@
 // Synchronised zoom and pan of the system page's views (issue 16). One state for the page: a zoom factor z
 // (1 = the whole frame) and a pan, the offset of the window's centre from the ball as fractions of the image's
 // width and height, so views of any resolution move alike. Every view shows the window of its own image
-// centred on its ball plus the pan: the ball label's centre (box or point), else the 3D ball's reprojection,
-// else the optimised box's centre, else the image's centre; the window is kept inside the image.
+// centred on its ball plus the pan: where a doubt accuses the view's ball label, the box the other views agree
+// on (the panel's `suggestedCentre`: the real ball is on screen, not the doubted label); else the ball label's
+// centre (box or point), else the 3D ball's reprojection, else the optimised box's centre, else the image's
+// centre; the window is kept inside the image.
 //
 // Crisp at any zoom: the window is the frame SVG's viewBox (image pixels), so the overlay is vector-drawn
 // again at the new scale (the panel redraws its marks in screen pixels, strokes do not scale) and the frame
@@ -75,7 +77,8 @@ export class ZoomSync {
     const view = panel.view;
     const frame = panel.querySelector("[data-testid=view-svg]");
     if (!view || !frame) return;
-    const win = viewWindow(view.width, view.height, ballCentre(view), this.state.z, this.state.pan);
+    // a view whose ball label is doubted centres on the ball the other views agree on (the real ball)
+    const win = viewWindow(view.width, view.height, panel.suggestedCentre || ballCentre(view), this.state.z, this.state.pan);
     frame.setAttribute("viewBox", win.map((x) => Number(x.toFixed(3))).join(" "));
     frame.dataset.zoom = String(this.state.z);
     const shown = frame.getBoundingClientRect().width || 560;

@@ -65,3 +65,25 @@ def test_doubts_table_counts_every_label_kind(demo_db) -> None:
     rows = {line.split()[0]: line.split()[1:3] for line in lines[2:]}
     assert set(LABEL_KINDS) <= set(rows)
     assert int(rows["ball_missing"][0]) >= 1 and int(rows["mirrored_labels"][0]) >= 1
+
+
+def test_the_misplaced_ball_is_offered_the_true_box_with_its_uncertainty(demo_db, tmp_path: Path) -> None:
+    """The demo's planted wrong ball box (known truth): its ``ball_off_consensus`` doubt offers, as the one-key
+    fix, the box the other views agree on, within a few px of the true ball's box and within its stated
+    uncertainty; excluding the view stays offered."""
+    url, truth = demo_db
+    out = tmp_path / "doubts.json"
+    assert runner.invoke(cli, ["doubts", "--json", str(out), "--database-url", url]).exit_code == 0
+    (wrong,) = truth["problems"]["wrong_ball_box"]
+    true_view = next(v for s in truth["systems"] for v in s["views"] if v["image"] == wrong)
+    (doubt,) = [d for s in json.loads(out.read_text())["systems"] for d in s["doubts"]
+                if d["kind"] == "ball_off_consensus" and d["frame"] == wrong]
+    fix = doubt["suggestion"]
+    assert fix["action"] == "snap_box" and fix["alternatives"] == ["exclude_view"]
+    box, precise = fix["box"], true_view["precise_box"]
+    centre_error = ((box[0] + box[2] - precise[0] - precise[2]) ** 2 + (box[1] + box[3] - precise[1] - precise[3]) ** 2) ** 0.5 / 2
+    assert centre_error < 3.0, (box, precise)
+    assert max(abs(a - b) for a, b in zip(box, precise)) < 3.0
+    assert 0.0 < fix["box_sigma_px"] < 5.0 and centre_error < 3 * fix["box_sigma_px"] + 1.0
+    # the page's fix key sends the box as a suggestion (its provenance), not as a person's label
+    assert fix["request"]["body"]["provenance"]["doubt"] == "ball_off_consensus"

@@ -95,9 +95,36 @@ def test_the_one_bad_view_among_four_is_named_and_offered_the_consensus_box(corr
     assert [(d.kind, d.view_id) for d in doubts] == [("ball_off_consensus", "opposite")]
     d = doubts[0]
     assert d.evidence["error_px_1920"] > 60 and sorted(d.evidence["agreeing_views"]) == ["corner", "goal", "main"]
-    assert d.suggestion["action"] == "exclude_view"
+    # the one-key fix is the box the other views agree on (issue 28 item 6); excluding the view stays offered
+    assert d.suggestion["action"] == "snap_box" and d.suggestion["alternatives"] == ["exclude_view"]
     truth = sphere_image_box(camera("opposite"), BALL, R_BALL)
     assert np.abs(np.asarray(d.suggestion["box"]) - truth).max() < 0.5
+    # exact cameras and labels: the agreeing views meet exactly, the cameras carry no uncertainty
+    assert d.suggestion["box_sigma_px"] == pytest.approx(0.0, abs=0.05)
+
+
+def test_the_consensus_box_carries_the_uncertainty_of_the_agreeing_views_and_of_the_camera():
+    """The box's sigma: the agreeing views' RMS error to the consensus ball and the accused view's calibration
+    sigma in quadrature, in the view's pixels; the truth lies within a few sigmas of the box."""
+    rng = np.random.default_rng(3)
+    noisy = {}
+    for name in ("main", "goal", "corner"):
+        cam = camera(name)
+        box = sphere_image_box(cam, BALL, R_BALL) + np.repeat(rng.normal(0.0, 2.0, 2), 2)[[0, 2, 1, 3]]
+        noisy[name] = {"box": box}
+    u = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 2.0}
+    bad = {"box": sphere_image_box(camera("opposite"), BALL, R_BALL) + [160.0, -40.0, 160.0, -40.0], "uncertainty": u}
+    views = scene(opposite=bad, **noisy)
+    (d,) = accusing(judge_system(views))
+    assert d.kind == "ball_off_consensus" and d.suggestion["action"] == "snap_box"
+    opposite = next(v for v in views if v.view_id == "opposite")
+    own = pixel_sigma(opposite, np.asarray(d.evidence["ball3d"]), DoubtSettings())
+    assert own > 1.0  # the camera's uncertainty counts
+    sigma = d.suggestion["box_sigma_px"]
+    assert own <= sigma < 15.0  # at least the camera's own sigma, and no more than a few px of label noise
+    truth = sphere_image_box(camera("opposite"), BALL, R_BALL)
+    centre = lambda b: np.array([(b[0] + b[2]) / 2, (b[1] + b[3]) / 2])
+    assert np.linalg.norm(centre(np.asarray(d.suggestion["box"])) - centre(truth)) < 3 * sigma
 
 
 def test_a_missing_ball_label_gets_the_exact_sphere_box_where_the_other_views_agree():

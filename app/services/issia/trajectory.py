@@ -33,7 +33,7 @@ from app.db.types import json_safe, utcnow
 from app.geometry.camera import Camera
 from app.geometry.doubts import Doubt as JudgedDoubt
 from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
-from app.geometry.triangulation import BallObservation
+from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation
 
 #: Frame rate of ISSIA sequences (frame ``i`` at ``t = i / FPS`` s), as ``app.datasets.issia.FPS``.
 FPS = 25.0
@@ -253,8 +253,9 @@ DOUBT_POINT_COLUMNS = ("flagged", "residuals_px", "ball3d_smoothed", "source")
 
 def flagged_label_doubts(frame_index: int | None, point: dict[str, Any], views: dict[int, DoubtFrame]) -> list[JudgedDoubt]:
     """The ``ball_off_consensus`` doubt of each flagged label of a frame: evidence the residual (px at
-    1920 width), the fitted position (m) and the frame index; fix ``exclude_view``, or ``snap_point`` to
-    where the trajectory projects when that is inside the image.
+    1920 width), the fitted position (m) and the frame index; fix ``snap_point`` to where the trajectory
+    projects when that is inside the image (with ``point_sigma_px``, :func:`_trajectory_sigma_px`, and
+    ``alternatives`` ``["exclude_view"]``), else ``exclude_view``.
 
     Args:
         frame_index: the system's frame index.
@@ -274,7 +275,9 @@ def flagged_label_doubts(frame_index: int | None, point: dict[str, Any], views: 
             if front[0]:
                 projected = [round(float(uv[0, 0]), 2), round(float(uv[0, 1]), 2)]
                 if 0 <= projected[0] <= f.width and 0 <= projected[1] <= f.height:
-                    suggestion = {"action": "snap_point", "point": projected}
+                    suggestion = {"action": "snap_point", "point": projected,
+                                  "point_sigma_px": _trajectory_sigma_px(point, f.width),
+                                  "alternatives": ["exclude_view"]}
         out.append(JudgedDoubt(
             "ball_off_consensus", fid, "trajectory",
             json_safe({"residual_px_1920": res, "fitted_position_m": point["ball3d_smoothed"],
@@ -282,6 +285,18 @@ def flagged_label_doubts(frame_index: int | None, point: dict[str, Any], views: 
                        "by": "trajectory"}),
             suggestion))
     return out
+
+
+def _trajectory_sigma_px(point: dict[str, Any], width: int) -> float | None:
+    """The uncertainty (px of a ``width``-px-wide view, one standard deviation) of where the trajectory's
+    ball projects: the RMS of the residuals (px at 1920 width) of the frame's labels it does not flag (how
+    well the trajectory fits the labels it keeps); None when it keeps none."""
+    flagged = {str(f) for f in point["flagged"] or []}
+    kept = [float(r) for k, r in (point["residuals_px"] or {}).items()
+            if k not in flagged and isinstance(r, (int, float)) and np.isfinite(r)]
+    if not kept:
+        return None
+    return round(float(np.sqrt(np.mean(np.square(kept)))) * width / REFERENCE_WIDTH_PX, 2)
 
 
 def merge_doubts(system: System, judged: list[JudgedDoubt], cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:

@@ -1,0 +1,191 @@
+"""The words of the review pages: one table of what every machine code shown on a page reads as (issue 28 item 7).
+
+The geometry and the services speak in codes (``ball_off_consensus``, ``probably_mirrored``,
+``ignored_class:<class>``, ``no_pair_kept``, ``error_above_tau``, ``max_scaled_1920``); a person reads
+:data:`WORDS`: for each code its ``chip`` (the few words on a chip or a cell) and ``means`` (one sentence,
+the chip's legend and its tooltip). The pages import the same table from ``static/js/words.js``, written from
+this one (:func:`words_js`; ``python -m app.services.curation.words > static/js/words.js``) and checked
+against it by ``tests/services/test_words.py``, so the server's codes and the pages' words cannot drift.
+The sentences of doubts themselves (their numbers) are composed by ``app.services.curation.doubt_words``.
+
+Groups:
+
+* ``doubt``: every doubt kind (``app.geometry.doubts.LABEL_KINDS`` and ``INFO_KINDS``);
+* ``flag``: every calibration flag; ``flag_prefix``: flags that carry a value after ``:`` (``{}`` in the
+  chip stands for it);
+* ``note``: what the system page says of a view's state besides the doubts (``notes()`` of overlay.js);
+* ``triangulation``: the triangulation's statuses; ``pair_reason``: why a pair of views was dropped
+  (``app.geometry.triangulation.DROP_REASONS``); ``rule``: the pair-error rules (``PAIR_ERROR_RULES``);
+* ``calibration``: a calibration's statuses and sources.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from typing import Any
+
+WORDS: dict[str, dict[str, dict[str, str]]] = {
+    "doubt": {
+        "mirrored_labels": {"chip": "mirrored labels",
+                            "means": "the view's field lines look labelled left for right; m applies the mirrored labels"},
+        "ball_off_consensus": {"chip": "ball off consensus",
+                               "means": "the view's ball label is far from the ball the other views agree on; s snaps it "
+                                        "to their box, x leaves the view out"},
+        "ball_missing": {"chip": "ball missing",
+                         "means": "the view has no ball label but the other views' ball is inside it; s places their box"},
+        "views_disagree": {"chip": "views disagree",
+                           "means": "the ball labels cannot all be right and the wrong one cannot be told"},
+        "near_duplicate_view": {"chip": "near-duplicate view",
+                                "means": "two views from nearly the same place: this one adds no depth; x leaves it out"},
+        "calibration_refused": {"chip": "no camera",
+                                "means": "the view's field lines fit no camera, so its labels cannot be checked"},
+        "below_admission": {"chip": "below admission",
+                            "means": "the camera fits its lines less well than the admission threshold"},
+        "rig_assisted": {"chip": "rig position",
+                         "means": "the camera was fitted at a known camera position of the game"},
+        "few_lines": {"chip": "few lines",
+                      "means": "too few field-line classes to fix the camera reliably"},
+        "suggested_label": {"chip": "placement to confirm",
+                            "means": "the ball label was placed from a doubt's fix; Enter confirms it"},
+    },
+    "flag": {
+        "probably_mirrored": {"chip": "labels mirrored?",
+                              "means": "the field lines are probably labelled left for right"},
+        "rig_assisted": {"chip": "rig position", "means": "fitted at a known camera position of the game"},
+        "learned_prior": {"chip": "learned prior", "means": "fitted with the camera prior learned from the dataset"},
+        "radial_prior": {"chip": "lens prior", "means": "the lens distortion was fitted under the learned prior"},
+        "radial_distortion": {"chip": "lens distortion", "means": "the lens distortion was fitted"},
+        "few_lines": {"chip": "few lines", "means": "three field-line classes or fewer"},
+        "given_camera": {"chip": "given camera", "means": "the camera came with the data, not from its lines"},
+        "ball_assisted": {"chip": "ball-assisted", "means": "calibrated again from the ball seen by the other cameras"},
+        "ball_bundle": {"chip": "ball bundle", "means": "refined with the other cameras from their lines and the ball"},
+    },
+    "flag_prefix": {
+        "ignored_class": {"chip": "ignores {}",
+                          "means": "that field-line class disagrees with every camera fitting the others, so the fit "
+                                   "leaves it out"},
+    },
+    "note": {
+        "not_calibrated": {"chip": "no camera", "means": "the view has no calibrated camera"},
+        "not_admitted": {"chip": "not admitted", "means": "the camera fits its lines less well than the admission threshold"},
+        "excluded": {"chip": "excluded", "means": "a reviewer left the view out of the 3D ball (x restores it)"},
+        "error_above_tau": {"chip": "error > τ",
+                            "means": "the 3D ball reprojects farther from the view's label than the reprojection error "
+                                     "limit τ"},
+        "no_ball3d": {"chip": "no 3D ball", "means": "no pair of views agrees on a ball"},
+        "without_ball": {"chip": "without ball", "means": "views without a ball label"},
+    },
+    "triangulation": {
+        "triangulated": {"chip": "triangulated", "means": "at least one pair of views agrees on the ball"},
+        "insufficient_views": {"chip": "too few views",
+                               "means": "fewer than two admitted views with a ball label"},
+        "no_pair_kept": {"chip": "no pair kept", "means": "every pair of views was dropped"},
+    },
+    "pair_reason": {
+        "degenerate": {"chip": "rays identical", "means": "the two rays are the same line"},
+        "point_at_infinity": {"chip": "rays parallel", "means": "the two rays meet at infinity"},
+        "behind_camera": {"chip": "behind a camera", "means": "the rays meet behind one of the cameras"},
+        "baseline_below_min": {"chip": "cameras too close", "means": "the camera centres are closer than the minimum baseline"},
+        "parallax_below_min": {"chip": "angle too small", "means": "the rays meet at too small an angle to fix the depth"},
+        "error_above_tau": {"chip": "error > τ", "means": "the pair's reprojection error is above the limit τ"},
+        "outside_play_volume": {"chip": "outside the pitch", "means": "the rays meet where no ball can be"},
+        "weak_calibrations": {"chip": "weak cameras", "means": "neither camera is sure enough to make a ball"},
+        "outweighed": {"chip": "outweighed", "means": "pairs of surer cameras agree on another ball"},
+    },
+    "rule": {
+        "max_scaled_1920": {"chip": "worse view, at 1920 px width",
+                            "means": "a pair's error is the larger of its two views' errors, each scaled to a "
+                                     "1920-px-wide image"},
+        "mean_scaled_1920": {"chip": "mean of the views, at 1920 px width",
+                             "means": "a pair's error is the mean of its two views' errors, each scaled to a "
+                                      "1920-px-wide image"},
+        "max_px": {"chip": "worse view, in its pixels",
+                   "means": "a pair's error is the larger of its two views' errors, in their own pixels"},
+    },
+    "calibration": {
+        "calibrated": {"chip": "calibrated", "means": "a camera fits the view's field lines"},
+        "refused": {"chip": "refused", "means": "no camera fits the view's field lines"},
+        "computed": {"chip": "computed", "means": "fitted by v3d to the current field lines"},
+        "imported": {"chip": "imported", "means": "read from an export"},
+        "edited": {"chip": "edited", "means": "set by a person"},
+    },
+}
+
+
+def words_js() -> str:
+    """The ES module ``static/js/words.js``: :data:`WORDS` as one JSON literal between the markers the test
+    reads, and the helpers the pages use."""
+    table = json.dumps(WORDS, indent=1, ensure_ascii=False)
+    return JS_TEMPLATE.replace("__WORDS__", table)
+
+
+JS_TEMPLATE = """// The words of the review pages (issue 28 item 7): what every machine code shown on a page reads as, one
+// table. WRITTEN FROM app/services/curation/words.py (python -m app.services.curation.words > static/js/words.js);
+// tests/services/test_words.py checks that the two agree. Do not edit the table here.
+
+export const WORDS = /*WORDS*/__WORDS__/*END*/;
+
+const humanise = (code) => String(code).replaceAll("_", " ");
+
+/** The entry {chip, means} of `code` in `group` (a flag with a value: its prefix's entry, the value put in);
+ * an unknown code reads as its words (underscores as spaces), never as the raw token. */
+export function word(group, code) {
+  const table = WORDS[group] || {};
+  if (table[code]) return table[code];
+  if (group === "flag" && typeof code === "string" && code.includes(":")) {
+    const [prefix, value] = [code.slice(0, code.indexOf(":")), code.slice(code.indexOf(":") + 1)];
+    const p = WORDS.flag_prefix[prefix];
+    if (p) return { chip: p.chip.replace("{}", value), means: `${value}: ${p.means}` };
+  }
+  return { chip: humanise(code ?? ""), means: "" };
+}
+
+/** The chip words of `code` in `group`. */
+export const chip = (group, code) => word(group, code).chip;
+
+/** A height above the grass in words: "height 9.0 m" (the SoccerNet world's z points down: a height is -z). */
+export function heightText(z, digits = 1) {
+  if (typeof z !== "number" || !Number.isFinite(z)) return "height —";
+  const h = (-z).toFixed(digits);
+  return `height ${Number(h) === 0 ? (0).toFixed(digits) : h} m`;
+}
+
+/** tau named where it is shown: "reprojection error limit τ = 20.0 px". */
+export function tauText(tau, digits = 1) {
+  return `reprojection error limit τ = ${typeof tau === "number" && Number.isFinite(tau) ? tau.toFixed(digits) : "?"} px`;
+}
+
+/** The legend's entries of the chips a page shows: [[chip, means], ...] of the given groups, each chip once. */
+export function legendEntries(groups = ["doubt", "note", "flag", "flag_prefix"]) {
+  const seen = new Set();
+  return groups.flatMap((g) => Object.values(WORDS[g] || {}).map((e) => [e.chip.replace("{}", "…"), e.means]))
+    .filter(([c]) => !seen.has(c) && seen.add(c));
+}
+
+/** The legend of every chip (data-testid="chip-legend"): a chip and its meaning per entry. */
+export function chipLegend(title = "Chips", groups = undefined) {
+  const box = document.createElement("section");
+  box.className = "chip-legend";
+  box.dataset.testid = "chip-legend";
+  const h = document.createElement("h3");
+  h.textContent = title;
+  const grid = document.createElement("div");
+  grid.className = "chip-legend-grid";
+  for (const [c, means] of legendEntries(groups)) {
+    const item = document.createElement("div");
+    item.dataset.testid = "chip-legend-entry";
+    const span = document.createElement("span");
+    span.className = "chip";
+    span.textContent = c;
+    item.append(span, ` ${means}`);
+    grid.append(item);
+  }
+  if (title) box.append(h);
+  box.append(grid);
+  return box;
+}
+"""
+
+
+if __name__ == "__main__":
+    sys.stdout.write(words_js())
