@@ -7,6 +7,7 @@ import "./session.js";
 import { JobsPanel } from "./jobs.js";
 import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
+import { resumeLink } from "./pass.js";
 import { el, fmt, fmtJac, fmtXYZ, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -89,6 +90,10 @@ class QueuePage {
     this.fillForm();
     this.loadGames();
     this.load();
+    // the person's unfinished review pass (pass.js), resumed where they left it, in any browser
+    const resume = el("span", { class: "resume-pass", "data-testid": "resume", hidden: true });
+    $("progress-text").after(resume);
+    resumeLink(resume);
     // an import or a recompute that ends while the page is open changes the queue: reload it
     this.jobs = new JobsPanel($("jobs"), (job) => {
       if (job.state === "done" && job.kind !== "export") {
