@@ -30,7 +30,7 @@ function reasons(page) {
   const pass = page.pass;
   const editor = () => view()?.lines || null;
   const notEditing = (what) => () => {
-    if (!view()) return `${SELECT_FIRST}, then e to edit its lines`;
+    if (!view()) return `${what}: select a view (1…9), then press e to edit its field lines`;
     return editor()?.editing ? what : `${what}: press e to edit ${name(view())}'s field lines first`;
   };
   const viewDecision = () => loading() || (view() || page.system.views.length === 1 ? null : SELECT_FIRST);
