@@ -131,3 +131,27 @@ def test_keys_that_cannot_act_say_why(page, artifacts):
     page.keyboard.press("1")
     _says(page, "ArrowUp", "V1 has no ball label to move")
     _says(page, "Delete", "V1 has no ball label to remove")
+
+
+def test_the_queue_offers_to_resume_the_open_pass_where_it_was_left(page):
+    pending = [s["id"] for s in _api(page, "/api/systems?sort=name&status=pending&limit=100")["items"]]
+    assert len(pending) >= 2
+    _open(page, pending[1])
+    pass_id = int(re.search(r"pass=(\d+)", page.url).group(1))
+    mine = _api(page, "/api/passes")
+    assert mine[0]["id"] == pass_id
+
+    # another browser of the same user (a fresh context: no sessionStorage, no history) resumes it
+    context = page.context.browser.new_context(base_url=page.url.split("/systems/")[0],
+                                               storage_state=page.context.storage_state())
+    try:
+        other = context.new_page()
+        other.goto("/")
+        link = other.locator(tid("resume-pass"))
+        link.wait_for()
+        assert f"pass={pass_id}" in link.get_attribute("href")
+        link.click()
+        other.wait_for_url(re.compile(rf"/systems/{pending[1]}\?.*pass={pass_id}"))
+        other.locator(tid("pass-progress")).filter(has_text="pass ").wait_for()
+    finally:
+        context.close()
