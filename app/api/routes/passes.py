@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, status
 
-from app.api.auth import PrincipalDep
+from app.api.auth import AnnotatorDep, PrincipalDep
 from app.api.deps import SessionDep
 from app.api.pass_schemas import PassIn, PassOut, PassPlaceOut, VisitIn
 from app.api.schemas import INVALID, NOT_FOUND, DbInt
@@ -16,7 +16,7 @@ router = APIRouter(prefix="/passes", tags=["passes"])
 
 
 @router.post("", response_model=PassOut, status_code=status.HTTP_201_CREATED, responses=INVALID)
-def start_pass(session: SessionDep, principal: PrincipalDep, body: PassIn) -> PassOut:
+def start_pass(session: SessionDep, principal: AnnotatorDep, body: PassIn) -> PassOut:
     """Begin a pass over the queue ``filter`` + ``sort`` (every system of every page, frozen in the queue's
     order now), or continue the caller's newest open pass of that queue holding ``system_id``
     (``fresh``: always a new one). Answers the pass with its ``systems``."""
@@ -51,7 +51,7 @@ def read_place(session: SessionDep, pass_id: DbInt,
 
 
 @router.post("/{pass_id}/visits", response_model=PassPlaceOut, responses={**NOT_FOUND, **INVALID})
-def visit(session: SessionDep, principal: PrincipalDep, pass_id: DbInt, body: VisitIn) -> PassPlaceOut:
+def visit(session: SessionDep, principal: AnnotatorDep, pass_id: DbInt, body: VisitIn) -> PassPlaceOut:
     """The pass's owner opened ``system_id``: its position moves there (resumed from there later); answers
     the place as GET .../place does. 403 for another user's pass."""
     rp = passes.get_pass(session, pass_id)
