@@ -2,8 +2,9 @@
 
 A reviewer opens the queue, presses Enter on its first row, and on every system decides each view's
 calibration (``1``..``9`` selects the view, ``Shift+G`` accepts an admitted calibration, ``Shift+N`` marks one the
-page says is not admitted, or a view without a camera, as needing a fix), then ``a`` accepts the system and
-the page moves to the next one, until the page says it was the last system of the queue. Nothing is clicked;
+page says is not admitted, or a view without a camera, as needing a fix), then ``a`` accepts the system (and
+``Enter`` when the accept guard lists open label doubts) and the page moves to the review pass's next pending
+system, until the page says nothing pending is left in the pass. Nothing is clicked;
 the page is read only to know when it is ready and what it says of each view's calibration.
 
 :func:`review_by_keyboard` is the walk (``tests/browser/test_keyboard_review.py`` runs it on the 40 systems of
@@ -36,8 +37,8 @@ from typing import Any, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-#: The last system's page says so in its toast (static/js/system.js).
-LAST_SYSTEM_TEXT = "That was the last system of this queue."
+#: The last decision of a review pass says so in its toast (static/js/system.js, LAST_OF_PASS).
+LAST_SYSTEM_TEXT = "Nothing pending is left in this pass."
 CHROMIUM = Path("/usr/bin/chromium")
 TIMEOUT_MS = 60_000
 
@@ -94,6 +95,15 @@ def review_by_keyboard(page, queue_url: str, limit: Optional[int] = None) -> lis
         keys.append("a")
         for key in keys:
             page.keyboard.press(key)
+        page.wait_for_function(
+            "([previous, last]) => document.querySelector('[data-testid=accept-guard]')?.open"
+            " || document.querySelector('[data-testid=toast]')?.textContent.endsWith(last)"
+            " || (!document.body.classList.contains('loading')"
+            " && document.querySelector('[data-testid=view]')?.dataset.frameId !== previous)",
+            arg=[first, LAST_SYSTEM_TEXT], timeout=TIMEOUT_MS)
+        if page.evaluate("() => Boolean(document.querySelector('[data-testid=accept-guard]')?.open)"):
+            keys.append("Enter")  # the accept guard (issue 28) lists the open label doubts: accept anyway
+            page.keyboard.press("Enter")
         page.wait_for_function(
             "([previous, last]) => document.querySelector('[data-testid=toast]')?.textContent.endsWith(last)"
             " || (!document.body.classList.contains('loading')"

@@ -720,3 +720,22 @@ class Job(Base):
     started_at: Mapped[Optional[datetime]]
     finished_at: Mapped[Optional[datetime]]
     heartbeat_at: Mapped[Optional[datetime]]
+
+
+class ReviewPass(Base):
+    """A review pass (issue 28, ``app.services.curation.passes``): the frozen list of the systems of a review
+    queue (``filters`` as ``app.services.curation.queue.SystemFilters`` fields, ``sort``) in its order as it
+    stood when ``user_name`` began it, across all its pages; ``position`` is the index in ``system_ids`` of
+    the system the user last opened. Statuses are not copied: they are read from the systems."""
+
+    __tablename__ = "review_passes"
+    __table_args__ = (sa.Index("ix_review_passes_user_name_id", "user_name", "id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_name: Mapped[str] = mapped_column(sa.String(200))
+    filters: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    sort: Mapped[str] = mapped_column(sa.String(20))
+    system_ids: Mapped[list[Any]] = mapped_column(default=list)
+    position: Mapped[int] = mapped_column(default=0)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    visited_at: Mapped[datetime] = mapped_column(default=utcnow)

@@ -248,3 +248,30 @@ export function revertEntry(id, params = {}, force = false) {
 export function getTrajectory(gameId) {
   return request("GET", `/api/games/${encodeURIComponent(gameId)}/trajectory`);
 }
+
+/** POST /api/passes {filter, sort, system_id}: begin (or continue) the caller's review pass over a queue;
+ * answers the pass {id, systems (frozen ids, every page), position, counts, ...}. */
+export function startPass(filter, sort, systemId) {
+  return request("POST", "/api/passes", { filter, sort, system_id: systemId });
+}
+
+/** POST /api/passes/{id}/visits {system_id}: the owner opened that system (the pass resumes there);
+ * answers its place {index, total, prev_id, next_id, next_pending_id, first_pending_id, counts, finished}. */
+export function visitPass(passId, systemId) {
+  return request("POST", `/api/passes/${encodeURIComponent(passId)}/visits`, { system_id: systemId });
+}
+
+/** GET /api/passes/{id}/place?system_id=: where a system stands in a pass, statuses read now. */
+export function passPlace(passId, systemId) {
+  return request("GET", `/api/passes/${encodeURIComponent(passId)}/place${toQuery({ system_id: systemId })}`);
+}
+
+/** GET /api/passes: the caller's newest passes (without their system lists), to resume one. */
+export function listPasses(params = {}) {
+  return request("GET", `/api/passes${toQuery(params)}`);
+}
+
+/** GET /api/passes/{id}: a review pass with its frozen `systems` and counts. */
+export function getPass(passId) {
+  return request("GET", `/api/passes/${encodeURIComponent(passId)}`);
+}

@@ -4,22 +4,34 @@
 //
 // An entry: { keys: [KeyboardEvent.key values it answers], show: [labels drawn for them, default the
 // keys], does: "what it does", ctrl: true for a Ctrl (or Cmd) chord, run(e) -> false when the key was
-// not used (the next entry answering it is tried), else it was (its default is then prevented) }.
+// not used (the next entry answering it is tried), a string when it was not used and says why (the
+// next entry is tried too; when none uses the key, the page is told why: every key answers), else it
+// was used (its default is then prevented) }.
 // Entries answer keys without Ctrl / Meta / Alt unless `ctrl`; Shift is the key's own business (e.key
 // carries it).
 
 import { el } from "./format.js";
 
-/** Run the entries of `table` that answer `e` in order until one uses it; true when one did. */
-export function dispatchKey(table, e) {
+/** Run the entries of `table` that answer `e` in order until one uses it; true when one did. When none
+ * did and one said why it could not (a string), `cannot(why)` is called with the last such reason (the key
+ * is then taken too). */
+export function dispatchKey(table, e, cannot = null) {
   if (e.altKey) return false;
   const chord = e.ctrlKey || e.metaKey;
+  let why = null;
   for (const entry of table) {
     if (!entry.keys.includes(e.key) || Boolean(entry.ctrl) !== chord) continue;
-    if (entry.run(e) !== false) {
+    const used = entry.run(e);
+    if (typeof used === "string") why = used;
+    else if (used !== false) {
       e.preventDefault();
       return true;
     }
+  }
+  if (why !== null && cannot) {
+    e.preventDefault();
+    cannot(why);
+    return true;
   }
   return false;
 }

@@ -10,6 +10,7 @@ import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
 import { el, fmt, fmtJac, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 import { WORDS, chipLegend, heightText } from "./words.js";
+import { resumeLink } from "./pass.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const PAGE_SIZE = 50;
@@ -92,6 +93,10 @@ class QueuePage {
     this.fillForm();
     this.loadGames();
     this.load();
+    // the person's unfinished review pass (pass.js), resumed where they left it, in any browser
+    const resume = el("span", { class: "resume-pass", "data-testid": "resume", hidden: true });
+    $("progress-text").after(resume);
+    resumeLink(resume);
     // an import or a recompute that ends while the page is open changes the queue: reload it
     mountExports($("exports")); // admins only: every export as a job with its download
     this.jobs = new JobsPanel($("jobs"), (job) => {

@@ -21,6 +21,9 @@ import { EditHistory, lineKeys } from "./lineseditor.js";
 import { ViewDecisions, decisionNote } from "./viewdecisions.js";
 import { ZoomSync } from "./zoom.js";
 import { WORDS, chip, chipLegend, heightText, tauText } from "./words.js";
+import { ReviewPass, withPass } from "./pass.js";
+import { AcceptGuard } from "./guard.js";
+import { explainKeys } from "./keyreasons.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -44,8 +47,8 @@ class SystemPage {
   constructor() {
     this.search = location.search;
     this.params = apiFilters(readState(location.search));
-    $("prev").addEventListener("click", () => this.go(this.system?.prev_id));
-    $("next").addEventListener("click", () => this.go(this.system?.next_id));
+    $("prev").addEventListener("click", () => this.go(this.stepId(-1)));
+    $("next").addEventListener("click", () => this.go(this.stepId(1)));
     for (const id of ["accept", "reject", "needs-fix"]) {
       $(id).addEventListener("click", (e) => this.review(e.currentTarget.dataset.status));
     }
@@ -73,7 +76,9 @@ class SystemPage {
     });
     this.decisions = new ViewDecisions(this, toast);
     this.zoom = new ZoomSync($("views"), document.querySelector(".topbar .navs"));
-    this.keys = this.keyTable();
+    this.pass = new ReviewPass(document.querySelector(".topbar .navs"), (id) => this.go(id)); // pass.js
+    this.guard = new AcceptGuard(); // guard.js
+    this.keys = explainKeys(this.keyTable(), this); // keyreasons.js: a key that cannot act says why
     this.keys.push(keysHelp(this.keys, "Keys of the system page", chipLegend("What the chips say")));
     renderKeys(this.keys, $("keys"));
     document.addEventListener("keydown", (e) => this.onKey(e));
@@ -94,6 +99,7 @@ class SystemPage {
       this.selected = -1;
       this.render(system);
       window.scrollTo(0, 0);
+      this.passReady = this.followPass(system);
     } catch (err) {
       showError(err.message);
     } finally {
@@ -126,7 +132,32 @@ class SystemPage {
 
   /** The queue this system was opened from, with this system's row selected. */
   queueUrl() {
-    return `/${this.search}${this.system ? `#system-${this.system.id}` : ""}`;
+    return `/${withPass(this.search, null)}${this.system ? `#system-${this.system.id}` : ""}`;
+  }
+
+  /** The review pass (pass.js) follows the shown system: begun on the first system opened, its id then kept
+   * in the address; prev / next become the pass's neighbours. */
+  async followPass(sys) {
+    try {
+      const search = await this.pass.visit(sys, this.search);
+      if (this.system?.id !== sys.id) return;
+      if (search !== this.search) {
+        this.search = search;
+        history.replaceState(null, "", `/systems/${encodeURIComponent(sys.id)}${search}`);
+      }
+      $("queue-link").href = this.queueUrl();
+      $("prev").disabled = this.stepId(-1) == null;
+      $("next").disabled = this.stepId(1) == null;
+      this.prefetch(this.pass.place?.next_pending_id);
+    } catch (err) {
+      showError(`review pass: ${err.message} (prev / next follow the queue)`);
+    }
+  }
+
+  /** The system one step after (1) or before (-1) the shown one: in the pass, else in the queue. */
+  stepId(step) {
+    if (this.pass.place && this.pass.systemId === this.system?.id) return step > 0 ? this.pass.nextId() : this.pass.prevId();
+    return step > 0 ? this.system?.next_id : this.system?.prev_id;
   }
 
   render(sys) {
@@ -139,8 +170,8 @@ class SystemPage {
     $("system-name").textContent = sys.name;
     $("system-game").textContent = [game.league, game.season, game.match].filter(Boolean).join(" · ");
     this.renderStatus(sys.review);
-    $("prev").disabled = sys.prev_id === null || sys.prev_id === undefined;
-    $("next").disabled = sys.next_id === null || sys.next_id === undefined;
+    $("prev").disabled = this.stepId(-1) == null; // in a pass: its neighbours (pass.js)
+    $("next").disabled = this.stepId(1) == null;
     $("comment").value = sys.review?.comment || "";
 
     const tri = sys.triangulation || {};
@@ -169,7 +200,7 @@ class SystemPage {
     $("pairs-card").hidden = singleView;
     this.renderBall(sys);
     this.renderPairs(sys);
-    this.prefetch(sys.next_id);
+    this.prefetch(this.pass.systemId === sys.id ? this.pass.place?.next_pending_id : sys.next_id);
     $("pitch-map").data = {
       ball3d: sys.ball3d,
       cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
@@ -296,17 +327,26 @@ class SystemPage {
     const text = comment ?? $("comment").value.trim();
     try {
       await this.settle();
+      // the accept guard (guard.js): open label doubts are listed first; Esc leaves the system pending
+      if (status === "accepted" && !(await this.guard.ask(this.system))) {
+        toast(`${sys.name}: not accepted, still ${STATUS_LABEL[this.system.review?.status || "pending"].toLowerCase()}`);
+        return;
+      }
       const { body: answer, etag } = await postReview(sys.id, status, text, ifMatch ?? this.system.etag);
       const current = this.system; // re-rendered by the edits just settled: its next_id is current
       clearError();
       this.renderStatus(answer || { status });
-      const next = current.next_id;
+      // in a pass: the next system of the pass still pending now (a fix never reorders the pass)
+      await this.passReady;
+      const place = await this.pass.fresh(sys.id).catch(() => null);
+      const next = place ? place.next_pending_id : current.next_id;
       this.busy = false;
       if (next !== null && next !== undefined) {
         toast(`${sys.name}: ${STATUS_LABEL[status]}`);
         await this.load(next, true);
       } else {
-        toast(`${sys.name}: ${STATUS_LABEL[status]}. That was the last system of this queue.`);
+        if (place) this.pass.showFinished(place, this.queueUrl());
+        toast(`${sys.name}: ${STATUS_LABEL[status]}. ${place ? LAST_OF_PASS : "That was the last system of this queue."}`);
         if (this.system === current && etag) current.etag = etag; // the page stays: its next decision needs it
         this.history.load(current, this.params);
       }
@@ -497,15 +537,14 @@ class SystemPage {
       const panel = view();
       if (!panel) return false;
       const step = e.shiftKey ? 5 : 1;
-      panel.nudge(dx * step, dy * step, ds);
-      return true;
+      return panel.nudge(dx * step, dy * step, ds) !== false;
     };
     return [
-      { keys: ["a"], does: "accept, next system", run: () => this.review("accepted") },
-      { keys: ["r"], does: "reject, next system", run: () => this.review("rejected") },
-      { keys: ["f"], does: "needs fix, next system", run: () => this.review("needs_fix") },
-      { keys: ["j"], does: "next system", run: () => this.go(this.system?.next_id) },
-      { keys: ["k"], does: "previous system", run: () => this.go(this.system?.prev_id) },
+      { keys: ["a"], does: "accept, next pending system (open doubts are listed first: Enter / Esc)", run: () => this.review("accepted") },
+      { keys: ["r"], does: "reject, next pending system", run: () => this.review("rejected") },
+      { keys: ["f"], does: "needs fix, next pending system", run: () => this.review("needs_fix") },
+      { keys: ["j"], does: "next system of the pass", run: () => this.go(this.stepId(1)) },
+      { keys: ["k"], does: "previous system of the pass", run: () => this.go(this.stepId(-1)) },
       { keys: [",", "."], does: "previous / next frame of a sequence (ISSIA)",
         run: (e) => (this.system?.kind === "issia" ? this.go(this.frameNeighbour(e.key === "." ? 1 : -1)) : false) },
       { keys: ["c"], does: "comment (Esc to leave)", run: () => $("comment").focus() },
@@ -541,9 +580,12 @@ class SystemPage {
 
   onKey(e) {
     if (isTyping(e)) return;
-    dispatchKey(this.keys, e); // Ctrl / Cmd chords only reach entries marked `ctrl`
+    dispatchKey(this.keys, e, toast); // Ctrl / Cmd chords only reach entries marked `ctrl`; a key that cannot act says why
   }
 }
+
+/** The toast of the last decision of a pass (nothing pending left after the system). */
+export const LAST_OF_PASS = "Nothing pending is left in this pass.";
 
 const SHORT_DOUBTS = {
   "reprojection error above τ": WORDS.note.error_above_tau.chip,

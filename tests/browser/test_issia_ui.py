@@ -4,6 +4,7 @@ blank canvases), the trajectory over time with the flagged frame and the current
 the pitch map's track; the scrubber and the ``.`` key move from frame to frame."""
 from __future__ import annotations
 
+import re
 import time
 
 import pytest
@@ -37,6 +38,11 @@ def _import(page, path) -> dict:
     return _api(page, f"/api/games/{game['id']}/trajectory")
 
 
+def _at(system_id: int) -> re.Pattern:
+    """The address of a system's page (with the review pass the page follows, issue 28)."""
+    return re.compile(rf"/systems/{system_id}(\?pass=\d+)?$")
+
+
 def test_sequence_from_videos_and_without(page, sequences, artifacts):
     with_videos, without = sequences
     traj = _import(page, with_videos)
@@ -61,18 +67,30 @@ def test_sequence_from_videos_and_without(page, sequences, artifacts):
 
     # the scrubber moves the page to another frame's system
     page.locator(tid("trajectory-scrubber")).fill("20")
-    page.wait_for_url(f"**/systems/{traj['frames'][20]['system_id']}")
+    page.wait_for_url(_at(traj['frames'][20]['system_id']))
     page.locator(tid("system-name")).get_by_text("20", exact=True).wait_for()
     page.locator(tid("trajectory-frame")).get_by_text("frame 20").wait_for()
     # "." and "," step frame by frame
     page.keyboard.press(".")
-    page.wait_for_url(f"**/systems/{traj['frames'][21]['system_id']}")
+    page.wait_for_url(_at(traj['frames'][21]['system_id']))
     page.locator(tid("system-name")).get_by_text("21", exact=True).wait_for()
     page.locator(tid("trajectory-frame")).get_by_text("frame 21").wait_for()
     page.keyboard.press(",")
-    page.wait_for_url(f"**/systems/{traj['frames'][20]['system_id']}")
+    page.wait_for_url(_at(traj['frames'][20]['system_id']))
     page.locator(tid("trajectory-frame")).get_by_text("frame 20").wait_for()
     page.screenshot(path=str(artifacts / "issia-frame20.png"), full_page=True)
+
+    # a review pass over the queue (issue 28): it lists every frame of the sequence as a system; a decision
+    # goes to the pass's next pending system
+    pass_id = int(re.search(r"pass=(\d+)", page.url).group(1))
+    frozen = _api(page, f"/api/passes/{pass_id}")
+    assert {f["system_id"] for f in traj["frames"]} <= set(frozen["systems"])
+    f20 = traj["frames"][20]["system_id"]
+    place = _api(page, f"/api/passes/{pass_id}/place?system_id={f20}")
+    assert place["index"] == frozen["systems"].index(f20) and place["next_pending_id"] is not None
+    page.keyboard.press("r")
+    page.wait_for_url(_at(place["next_pending_id"]))
+    assert _api(page, f"/api/systems/{f20}")["review"]["status"] == "rejected"
 
     # without videos: the same page, no images (blank canvases), the trajectory all the same
     bare = _import(page, without)

@@ -3,6 +3,8 @@ drawn from the one table the page's key handler reads (static/js/keys.js), like 
 card, so the overlay, the card and the handler cannot drift."""
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from tests.browser.support import api_json as _api
@@ -30,12 +32,14 @@ def test_question_mark_lists_every_key_of_the_system_page(page, artifacts):
     listed = _rows(page, "[data-testid=keys-help] .keys-grid")
     card = _rows(page, "[data-testid=keys]")
     assert listed[:-1] == card[:-1] and listed[-1] == "? = this list of keys"
-    for row in ("a = accept, next system", "j = next system", "1…9 = select a view",
+    # issue 28: a decision goes to the pass's next pending system, j / k step through the pass
+    for row in ("a = accept, next pending system (open doubts are listed first: Enter / Esc)",
+                "j = next system of the pass", "1…9 = select a view",
                 "Del = no ball in this view (remove its label)", "m = apply mirrored labels (selected flagged view, or the only one)"):
         assert row in listed, row
     # the page's keys wait while the list is open; ? closes it, Esc too
     page.keyboard.press("j")
-    assert page.url.endswith(f"/systems/{first}?sort=name")
+    assert re.search(rf"/systems/{first}\?sort=name(&pass=\d+)?$", page.url)
     page.keyboard.press("?")
     help_.wait_for(state="hidden")
     page.keyboard.press("?")

@@ -157,7 +157,7 @@ def test_synchronised_zoom_and_pan_kept_across_systems(page, artifacts):
     page.wait_for_function("() => document.querySelector('[data-testid=zoom-level]').textContent === '×7.59'")
     next_id = system["next_id"]
     page.keyboard.press("j")
-    page.wait_for_url(re.compile(rf"/systems/{next_id}\?sort=name$"))
+    page.wait_for_url(re.compile(rf"/systems/{next_id}\?sort=name&pass=\d+$"))
     page.wait_for_function(f"() => document.querySelector('[data-testid=view]')?.dataset.frameId === "
                            f"'{_api(page, f'/api/systems/{next_id}?sort=name')['views'][0]['frame_id']}'")
     nxt = _api(page, f"/api/systems/{next_id}?sort=name")

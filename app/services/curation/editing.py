@@ -344,6 +344,20 @@ def review_state(subject: Frame | System) -> dict[str, Any]:
                        "comment": review.comment if review else ""}}
 
 
+def system_review_state(system: System) -> dict[str, Any]:
+    """:func:`review_state` of a system, plus, when it is accepted over open label doubts (issue 28's accept
+    guard), ``"overrode_doubts": [{"kind", "frame_id", "message"}]``: the doubts accusing a label that the
+    accept stands over (whether the page's guard showed them or a script accepted), as the audit entry of
+    the decision records them. A function of the stored state, so a revert's guard compares it as any other."""
+    state = review_state(system)
+    if state["review"]["status"] == ReviewStatus.ACCEPTED.value:
+        open_doubts = [{"kind": d.kind, "frame_id": d.frame_id, "message": d.message}
+                       for d in sorted(system.doubts, key=lambda d: d.id) if d.accuses_label]
+        if open_doubts:
+            state["overrode_doubts"] = open_doubts
+    return state
+
+
 def calibration_review_state(frame: Frame) -> dict[str, Any]:
     """``{"calibration_review": {"status", "comment"}}``: the decision on a view's calibration (pending
     without one)."""
@@ -689,7 +703,8 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
     if system_id is not None:
         get_system(session, system_id)
         return _write(session, system_id, lambda: claim_system_review(session, system_id, expected),
-                      lambda: get_system(session, system_id), review_state, apply, "system.review", actor, revert)
+                      lambda: get_system(session, system_id), system_review_state, apply, "system.review", actor,
+                      revert)
     get_frame(session, frame_id)  # type: ignore[arg-type]
     return _frame_write(session, frame_id, expected, review_state, apply, "view.review", actor, revert)  # type: ignore[arg-type]
 

@@ -334,6 +334,21 @@ def list_systems(session: Session, filters: SystemFilters = SystemFilters(), sor
                       prev_cursor=encode_cursor(sort, rows[0]) if more_before else None)
 
 
+def queue_ids(session: Session, filters: SystemFilters = SystemFilters(), sort: SystemSort = DEFAULT_SORT) -> list[int]:
+    """Every system id of the queue ``filters`` + ``sort``, in the queue's order, across all its pages (what
+    :func:`list_systems` pages through: the same slices of the sort's index, read to the end; ids and sort
+    keys only). A review pass freezes this list (``app.services.curation.passes``).
+
+    Raises:
+        ValueError: an unknown ``sort``.
+    """
+    conds = _system_conditions(filters)
+    total = int(session.scalar(sa.select(sa.func.count()).select_from(System).where(*conds)) or 0)
+    if total == 0:
+        return []
+    return [int(r[-1]) for r in _walk(session, sort, conds, None, "after", total)]
+
+
 def _status_counts(session: Session, conds: list[Any]) -> dict[str, int]:
     """Systems per review status under ``conds``: one GROUP BY on the stored status (its index); without
     conditions, the reviewed systems by status (index lookups: as many as have been reviewed) and the

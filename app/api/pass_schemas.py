@@ -1,0 +1,85 @@
+"""Request and response bodies of ``/api/passes`` (review passes, ``app.services.curation.passes``)."""
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Optional
+
+from pydantic import BaseModel, Field
+
+from app.api.schemas import DbInt, QueueQuery, _In
+from app.db.models import ReviewPass
+from app.services.curation.passes import PassPlace
+from app.services.curation.queue import SystemSort
+
+
+class PassIn(_In):
+    """Begin (or continue) a pass over a review queue."""
+
+    filter: QueueQuery = Field(default_factory=QueueQuery, description=(
+        "The queue's filters, as GET /api/systems takes them (game_id, status, jac_min, jac_max, error_min, "
+        "error_max, doubt); a `sort` here is overridden by the body's `sort`."))
+    sort: Optional[SystemSort] = Field(None, description="The queue's order (GET /api/systems' `sort`); default: the "
+                                "filter's sort, else the most doubts first.")
+    system_id: Optional[DbInt] = Field(None, description="The system opened: the pass starts there, and an open "
+                                       "pass of the same queue holding it is continued.")
+    fresh: bool = Field(False, description="true: freeze a new pass even when one of this queue is open.")
+
+
+class VisitIn(_In):
+    """The system the pass's owner opened."""
+
+    system_id: DbInt
+
+
+class PassCounts(BaseModel):
+    """The pass's systems by their current status; ``skipped``: still pending."""
+
+    accepted: int
+    rejected: int
+    needs_fix: int
+    skipped: int
+
+
+class PassOut(BaseModel):
+    """A review pass: its queue (``filter``, ``sort``), the frozen ``systems`` (ids, in the order the queue
+    had when the pass began, every page), the ``position`` (index in ``systems``) last opened by its owner."""
+
+    id: int
+    user: str
+    filter: dict[str, Any]
+    sort: str
+    systems: list[int]
+    position: int
+    total: int
+    counts: PassCounts
+    created_at: datetime
+    visited_at: datetime
+
+    @classmethod
+    def of(cls, rp: ReviewPass, counts: dict[str, int], with_systems: bool = True) -> "PassOut":
+        return cls(id=rp.id, user=rp.user_name, filter=dict(rp.filters), sort=rp.sort,
+                   systems=list(rp.system_ids) if with_systems else [], position=rp.position,
+                   total=len(rp.system_ids), counts=PassCounts(**counts), created_at=rp.created_at,
+                   visited_at=rp.visited_at)
+
+
+class PassPlaceOut(BaseModel):
+    """Where a system stands in a pass (statuses read now): ``index`` (null: not in the pass), its
+    neighbours in the pass's order, the next system after it that is still pending, the first pending one
+    of the pass, the counts, and ``finished`` (no pending system after it)."""
+
+    pass_id: int
+    index: Optional[int]
+    total: int
+    prev_id: Optional[int]
+    next_id: Optional[int]
+    next_pending_id: Optional[int]
+    first_pending_id: Optional[int]
+    counts: PassCounts
+    finished: bool
+
+    @classmethod
+    def of(cls, p: PassPlace) -> "PassPlaceOut":
+        return cls(pass_id=p.pass_id, index=p.index, total=p.total, prev_id=p.prev_id, next_id=p.next_id,
+                   next_pending_id=p.next_pending_id, first_pending_id=p.first_pending_id,
+                   counts=PassCounts(**p.counts), finished=p.finished)

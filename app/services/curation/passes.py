@@ -1,0 +1,185 @@
+"""Review passes (issue 28): every system of a review queue once, in the order it had when the pass began.
+
+A pass freezes the ids of every system of a queue (its filters and sort, :func:`~app.services.curation.queue.queue_ids`:
+all its pages) when a user opens a system from it. The system page then moves within that frozen list: a fix
+that moves a system in the queue's current order (a mirror fix changes its doubts, the doubts sort's key)
+never reorders the pass. After a decision the page goes to the **next pending** system of the pass: the
+first one after the current one whose *current* review status (read when asked, never copied into the pass)
+is pending, so a system decided meanwhile, by this user or another, is skipped. When none is left the pass
+is finished; its counts are the current statuses of its systems (``skipped``: still pending, i.e. visited
+or stepped over without a decision).
+
+A pass belongs to the user who began it (``user_name``) and is stored on the server, so it resumes after a
+reload or in another browser (:func:`list_passes`); ``position`` is the index of the system the user last
+opened (:func:`visit`). Opening a system from the same queue again continues the user's newest unfinished
+pass of that queue which holds the system (:func:`start_pass`) instead of freezing a new one.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.core.errors import ForbiddenError, InvalidInputError, found
+from app.db.models import ReviewPass, ReviewStatus, System
+from app.db.session import begin_write
+from app.db.types import utcnow
+from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_ids
+
+#: The counts of a pass: decisions by status, and ``skipped``: systems still pending.
+COUNT_KEYS = ("accepted", "rejected", "needs_fix", "skipped")
+#: Ids per ``IN (...)`` when reading the statuses of a long pass (below every backend's parameter limit).
+_CHUNK = 5000
+
+
+@dataclass(frozen=True)
+class PassPlace:
+    """Where a system stands in a pass, with the pass's statuses read now.
+
+    ``index``: the system's index in the pass (None: not one of its systems; the neighbours are then those
+    of the pass's stored position). ``prev_id`` / ``next_id``: the systems before / after it in the pass's
+    order (None at either end). ``next_pending_id``: the first system after it whose current status is
+    pending (None: none left after it); ``first_pending_id``: the first pending one of the whole pass (a
+    system skipped earlier). ``counts``: :data:`COUNT_KEYS` over the pass. ``finished``: no pending system
+    after it."""
+
+    pass_id: int
+    index: Optional[int]
+    total: int
+    prev_id: Optional[int]
+    next_id: Optional[int]
+    next_pending_id: Optional[int]
+    first_pending_id: Optional[int]
+    counts: dict[str, int]
+    finished: bool
+
+
+def filters_json(filters: SystemFilters) -> dict[str, Any]:
+    """The queue filters as stored in a pass: the fields of :class:`SystemFilters` that are set (the status
+    by value)."""
+    out = {}
+    for f in dataclasses.fields(filters):
+        value = getattr(filters, f.name)
+        if value is not None:
+            out[f.name] = value.value if isinstance(value, ReviewStatus) else value
+    return out
+
+
+def start_pass(session: Session, user: str, filters: SystemFilters = SystemFilters(), sort: SystemSort = DEFAULT_SORT,
+               system_id: Optional[int] = None, fresh: bool = False) -> ReviewPass:
+    """Begin a pass over the queue ``filters`` + ``sort`` for ``user``, or continue one, and commit.
+
+    Continues (answers unchanged) the user's newest pass of the same filters and sort that holds
+    ``system_id`` (any of its systems when None) and still has a pending system, unless ``fresh``.
+    Otherwise freezes the queue's ids now (all pages, in order) into a new pass whose position is
+    ``system_id``'s index (0 when it is not in the queue).
+
+    Raises:
+        ValueError: an unknown ``sort`` (the API validates it first).
+    """
+    stored = filters_json(filters)
+    if not fresh:
+        candidates = session.scalars(sa.select(ReviewPass).where(ReviewPass.user_name == user, ReviewPass.sort == sort)
+                                     .order_by(ReviewPass.id.desc()).limit(20))
+        for rp in candidates:
+            if rp.filters != stored or (system_id is not None and system_id not in rp.system_ids):
+                continue
+            statuses = _statuses(session, rp.system_ids)
+            if any(s is ReviewStatus.PENDING for s in statuses.values()):
+                return rp
+    ids = queue_ids(session, filters, sort)
+    begin_write(session)
+    try:
+        rp = ReviewPass(user_name=user, filters=stored, sort=sort, system_ids=ids,
+                        position=ids.index(system_id) if system_id in ids else 0)
+        session.add(rp)
+        session.commit()
+    except BaseException:
+        session.rollback()
+        raise
+    return rp
+
+
+def get_pass(session: Session, pass_id: int) -> ReviewPass:
+    """The pass with this id. Raises :class:`~app.core.errors.NotFoundError`."""
+    return found(session.get(ReviewPass, pass_id), "review pass", pass_id)
+
+
+def list_passes(session: Session, user: Optional[str] = None, limit: int = 20) -> list[ReviewPass]:
+    """The newest ``limit`` passes, of ``user`` only unless None."""
+    stmt = sa.select(ReviewPass).order_by(ReviewPass.id.desc()).limit(limit)
+    if user is not None:
+        stmt = stmt.where(ReviewPass.user_name == user)
+    return list(session.scalars(stmt))
+
+
+def _statuses(session: Session, ids: list[int]) -> dict[int, ReviewStatus]:
+    """The current review status of each system of ``ids`` that still exists (a re-import may have
+    removed some)."""
+    out: dict[int, ReviewStatus] = {}
+    for i in range(0, len(ids), _CHUNK):
+        chunk = ids[i:i + _CHUNK]
+        for sid, status in session.execute(sa.select(System.id, System.review_status).where(System.id.in_(chunk))):
+            out[int(sid)] = ReviewStatus(status)
+    return out
+
+
+def pass_counts(session: Session, rp: ReviewPass) -> dict[str, int]:
+    """:data:`COUNT_KEYS` of the pass's systems by their current status (``skipped``: pending)."""
+    return _counts(_statuses(session, rp.system_ids))
+
+
+def _counts(statuses: dict[int, ReviewStatus]) -> dict[str, int]:
+    counts = dict.fromkeys(COUNT_KEYS, 0)
+    for status in statuses.values():
+        counts["skipped" if status is ReviewStatus.PENDING else status.value] += 1
+    return counts
+
+
+def place(session: Session, rp: ReviewPass, system_id: int) -> PassPlace:
+    """Where ``system_id`` stands in the pass ``rp`` (:class:`PassPlace`), statuses read now."""
+    statuses = _statuses(session, rp.system_ids)
+    ids = [i for i in rp.system_ids if i in statuses]  # systems removed since the pass began are gone from it
+    index = ids.index(system_id) if system_id in statuses and system_id in ids else None
+    anchor = index
+    if anchor is None:  # a system outside the pass (an ISSIA neighbour frame): from the stored position
+        stored = rp.system_ids[rp.position] if 0 <= rp.position < len(rp.system_ids) else None
+        anchor = ids.index(stored) if stored in ids else -1
+    pending = [j for j, i in enumerate(ids) if statuses[i] is ReviewStatus.PENDING]
+    next_pending = next((ids[j] for j in pending if j > anchor), None)
+    return PassPlace(
+        pass_id=rp.id, index=index, total=len(ids),
+        prev_id=ids[anchor - 1] if anchor is not None and anchor > 0 else None,
+        next_id=ids[anchor + 1] if anchor + 1 < len(ids) else None,
+        next_pending_id=next_pending, first_pending_id=ids[pending[0]] if pending else None,
+        counts=_counts(statuses), finished=next_pending is None,
+    )
+
+
+def visit(session: Session, rp: ReviewPass, system_id: int, user: str) -> PassPlace:
+    """Record that ``user`` (the pass's owner) opened ``system_id``: the pass's position becomes its index
+    (unchanged for a system outside the pass); commit and answer its :func:`place`.
+
+    Raises:
+        ForbiddenError: ``user`` is not the pass's owner (another user reads a pass, never moves it).
+        InvalidInputError: ``system_id`` is not an id (field ``system_id``).
+    """
+    if rp.user_name != user:
+        raise ForbiddenError(f"review pass {rp.id} is {rp.user_name}'s: only they move it")
+    if not isinstance(system_id, int) or isinstance(system_id, bool):
+        raise InvalidInputError("system_id must be a system id", field="system_id")
+    if system_id in rp.system_ids:
+        pass_id = rp.id
+        begin_write(session)
+        try:
+            rp = get_pass(session, pass_id)
+            rp.position = rp.system_ids.index(system_id)
+            rp.visited_at = utcnow()
+            session.commit()
+        except BaseException:
+            session.rollback()
+            raise
+    return place(session, rp, system_id)

@@ -1,0 +1,76 @@
+// The accept guard (issue 28): accepting a system with open label doubts first lists them in words
+// (data-testid="accept-guard": each doubt's view, its name and the server's sentence), `Enter` accepts
+// anyway, `Esc` cancels. The server records the doubts an accept stood over in the decision's audit entry
+// whether or not this dialog was shown (a script's accept too).
+
+import { el, human, DOUBT_LABEL } from "./format.js";
+
+/** The doubts of a system view that accuse a label (the ones an accept overrides). */
+export function openLabelDoubts(sys) {
+  return (sys?.doubts || []).filter((d) => d.accuses_label);
+}
+
+/** One doubt in words: "V2 (5_1.png) · ball off consensus: <the server's sentence>". */
+export function doubtWords(sys, d) {
+  const i = (sys.views || []).findIndex((v) => v.frame_id === d.frame_id);
+  const where = i >= 0 ? `V${i + 1} (${sys.views[i].name})` : "the system";
+  return `${where} · ${DOUBT_LABEL[d.kind] || human(d.kind)}: ${d.message}`;
+}
+
+export class AcceptGuard {
+  #resolve = null;
+
+  constructor() {
+    this.list = el("ul", { "data-testid": "accept-guard-doubts" });
+    this.confirmButton = el("button", { type: "button", class: "accept", "data-testid": "accept-guard-confirm",
+      onclick: () => this.#close(true) }, "Accept anyway ", el("kbd", {}, "Enter"));
+    this.cancelButton = el("button", { type: "button", "data-testid": "accept-guard-cancel",
+      onclick: () => this.#close(false) }, "Cancel ", el("kbd", {}, "Esc"));
+    this.title = el("h2", {}, "Accept over open doubts?");
+    this.dialog = el("dialog", { class: "keys-help accept-guard", "data-testid": "accept-guard",
+      "aria-label": "accept over open doubts" },
+    this.title, el("p", {}, "The geometry doubts these labels. Accepting keeps them as they are:"), this.list,
+    el("div", { class: "guard-actions" }, this.confirmButton, this.cancelButton));
+    this.dialog.addEventListener("keydown", (e) => {
+      e.stopPropagation(); // the page's keys wait while the guard is open
+      if (e.key === "Enter") {
+        e.preventDefault();
+        this.#close(true);
+      } else if (e.key === "Escape") {
+        e.preventDefault();
+        this.#close(false);
+      }
+    });
+    this.dialog.addEventListener("cancel", (e) => {
+      e.preventDefault();
+      this.#close(false);
+    });
+    document.body.append(this.dialog);
+  }
+
+  get open() {
+    return this.dialog.open;
+  }
+
+  /** Resolve true when `sys` may be accepted: at once without open label doubts, else when the person
+   * confirms (Enter or the button); false when they cancel (Esc or the button). */
+  ask(sys) {
+    const doubts = openLabelDoubts(sys);
+    if (!doubts.length) return Promise.resolve(true);
+    this.title.textContent = `Accept ${sys.name} over ${doubts.length} open doubt${doubts.length === 1 ? "" : "s"}?`;
+    this.list.replaceChildren(...doubts.map((d) => el("li", { "data-testid": "accept-guard-doubt", "data-kind": d.kind },
+      doubtWords(sys, d))));
+    this.dialog.showModal();
+    this.confirmButton.focus();
+    return new Promise((resolve) => {
+      this.#resolve = resolve;
+    });
+  }
+
+  #close(answer) {
+    if (this.dialog.open) this.dialog.close();
+    const resolve = this.#resolve;
+    this.#resolve = null;
+    resolve?.(answer);
+  }
+}
