@@ -76,7 +76,8 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
         system_id=system.id if system is not None else None, game_id=system.game_id if system is not None else None,
         before=before, after=after, reverts_id=reverts_id,
         summary=summarize(action, before, after, view=view_name(frame) if frame is not None else None,
-                          reverts_id=reverts_id, facts=facts)[:SUMMARY_MAX],
+                          reverts_id=reverts_id, facts=facts,
+                          redo=action != "revert" and _is_undo(session, reverts_id))[:SUMMARY_MAX],
     )
     session.add(entry)
     session.info[_RECORDED] = entry
@@ -93,6 +94,19 @@ def note_facts(session: Session, **facts: Any) -> None:
     """Keep what only a running write knows (``calibration=(before, after)`` in words) for the summary of the
     next entry :func:`record` adds in ``session`` (``app.services.accounts.summaries.summarize``'s ``facts``)."""
     session.info.setdefault(_FACTS, {}).update(facts)
+
+
+def _is_undo(session: Session, entry_id: Optional[int]) -> bool:
+    """Whether entry ``entry_id`` is an undo (an edit naming the entry it undoes) and not itself a redo: an undo
+    of it is then a redo. Follows the chain of undos (undo, redo, undo, ...) back to the edit."""
+    depth = 0
+    while entry_id is not None and depth < 1000:
+        row = session.execute(sa.select(AuditEntry.action, AuditEntry.reverts_id).where(AuditEntry.id == entry_id)).first()
+        if row is None or row.action == "revert" or row.reverts_id is None:
+            break
+        depth += 1
+        entry_id = row.reverts_id
+    return depth % 2 == 1
 
 
 def view_name(frame: Frame) -> str:

@@ -147,7 +147,7 @@ def _decision_words(state: Any, what: str) -> str:
 
 
 def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = None,
-              reverts_id: Optional[int] = None, facts: Optional[Mapping[str, Any]] = None) -> str:
+              reverts_id: Optional[int] = None, facts: Optional[Mapping[str, Any]] = None, redo: bool = False) -> str:
     """One line in words for an audit entry.
 
     Args:
@@ -158,6 +158,7 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         reverts_id: the entry this one reverts (action ``revert``) or undoes (any other action).
         facts: what only the write knew: ``calibration`` = (before, after) in words ("JaC 0.909",
             "refused") for a field-line write.
+        redo: the entry undoes an undo (a page's redo): said "redo of entry N" instead of "undo of entry N".
 
     >>> summarize("view.exclusion", {"excluded": False}, {"excluded": True}, view="V3")
     'V3 excluded from the 3D ball'
@@ -175,7 +176,7 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
             inner = "an unknown change"
         else:
             inner = summarize(state_action if action == "revert" else action, before, after, view=view, facts=facts)
-        what = "reverted" if action == "revert" else "undo of"
+        what = "reverted" if action == "revert" else "redo of" if redo else "undo of"
         return f"{what} entry {reverts_id}: {inner}" if reverts_id is not None else f"{what}: {inner}"
     if action == "ball.edit":
         return ball_words(before.get("ball"), after.get("ball"), v)

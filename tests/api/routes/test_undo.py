@@ -85,6 +85,12 @@ def test_undo_and_redo_of_a_ball_nudge_restore_label_camera_and_3d_ball(client: 
     redone = _undo(client, undo_id)  # the redo: the undo of the undo
     assert redone.status_code == 200, redone.text
     assert _numbers(redone.json()) == _numbers(after_nudge)
+    redo_id = int(redone.headers["x-v3d-audit-entry"])
+    again = _undo(client, redo_id)  # and its undo: an undo again
+    assert again.status_code == 200 and _numbers(again.json()) == _numbers(before)
+    log = {e["id"]: e for e in _audit(client)}
+    assert log[redo_id]["summary"] == f"redo of entry {undo_id}: ball of V2 moved 13.0 px"
+    assert log[int(again.headers["x-v3d-audit-entry"])]["summary"] == f"undo of entry {redo_id}: ball of V2 moved 13.0 px"
 
 
 def test_undo_of_an_exclusion_restores_the_3d_ball(client: TestClient, scene: Scene, act_as) -> None:
