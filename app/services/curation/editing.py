@@ -15,6 +15,13 @@ recomputation leaves the edit unstored too. Invalid input raises
 
 Every system-level recomputation also replaces the system's doubts (``app.services.curation.doubts``).
 
+One rule for decisions after edits (issue 28): an edit that changes a system's labels or 3D result sets the
+system's decision and the touched view's decision (its ball decision; its calibration decision for field lines)
+back to pending with the reason, in the edit's transaction (:func:`reset_decisions_after_edit`); an edit that
+changes nothing resets nothing. ``undo`` (:func:`check_undo_state`) marks a write as the undo of an audit entry
+(``app.services.curation.reverting.undo_entry``): audited under the edit's own action with ``reverts_id``, refused
+(409) when the edited part is not the entry's ``after`` under the lock; an undo resets decisions as any edit.
+
 Every write is attributed and guarded, in its transaction: it first claims its resource
 (``app.services.curation.versions``: compare-and-set of the frame's ``edit_version`` or the system's
 ``review_version`` against ``expected``, the versions of the client's ``If-Match``; None accepts any),
@@ -55,6 +62,7 @@ from app.datasets.labels import LabelError, check_box, check_line_points, check_
 from app.geometry.consensus import ball_consensus
 from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px
 from app.services.accounts import audit
+from app.services.accounts.summaries import summarize
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
 from app.services.curation.recompute import load_for_recompute, recompute_frame, recompute_system
@@ -424,14 +432,13 @@ def reset_after_change(session: Session, frame: Frame, action: str, before: dict
     """After an edit of ``frame``'s ball label or exclusion (``action``, its state ``before`` and ``after``, as
     :func:`ball_state` / :func:`excluded_state` give them): when the state changed, the view's ball decision and
     the system's decision go back to pending (:func:`reset_decisions_after_edit`) with the reason, the edit in
-    words (``app.services.accounts.summaries.summarize``), who made it and, for an undo, which entry it undid.
+    words (the audit log's, ``app.services.accounts.summaries.summarize``), who made it and, for an undo, which entry it undid.
 
     Returns:
         The reason, or None when the edit changed nothing or nothing was decided.
     """
     if _same(before, after):
         return None
-    from app.services.accounts.summaries import summarize  # the audit log's words for the same change
     words = summarize(action, before, after, view=audit.view_name(frame))
     undone = f" (undo of audit entry {undo.entry_id})" if undo is not None else ""
     reason = f"{frame.name}: {words}{undone} by {actor or audit.local_actor()}; decide it again"

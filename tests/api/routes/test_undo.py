@@ -270,3 +270,16 @@ def test_an_edit_that_changes_nothing_resets_nothing(client: TestClient, scene: 
     log = _audit(client)
     assert [e["action"] for e in log[: len(log) - count]] == ["field_lines.replace", "view.exclusion", "ball.edit"]
     assert log[1]["summary"] == "V2 exclusion unchanged (included)" and log[2]["summary"] == "ball of V2 unchanged"
+
+
+def test_an_entry_recorded_before_summaries_gets_the_same_words_when_read(client: TestClient, scene: Scene,
+                                                                          db_session) -> None:
+    from app.db.models import AuditEntry
+
+    old = AuditEntry(actor="ana", action="view.exclusion", frame_id=scene.frame_ids[2], system_id=scene.system_id,
+                     game_id=scene.game_id, before={"excluded": False}, after={"excluded": True})
+    db_session.add(old)
+    db_session.commit()
+    assert old.summary is None
+    (entry,) = [e for e in _audit(client, system_id=scene.system_id) if e["id"] == old.id]
+    assert entry["summary"] == "V3 excluded from the 3D ball"
