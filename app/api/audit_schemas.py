@@ -4,10 +4,11 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Optional
 
-from pydantic import BaseModel, ConfigDict, Field, computed_field
+from pydantic import BaseModel, ConfigDict, Field, computed_field, model_validator
 
 from app.api.schemas import DB_INT_MAX, DbInt, QueryText
 from app.services.accounts import audit
+from app.services.accounts.summaries import summarize
 
 
 class AuditEntryOut(BaseModel):
@@ -26,7 +27,18 @@ class AuditEntryOut(BaseModel):
     game_id: Optional[int]
     before: Optional[dict[str, Any]]
     after: Optional[dict[str, Any]]
-    reverts_id: Optional[int] = Field(description="A revert: the entry it undid.")
+    reverts_id: Optional[int] = Field(description="A revert (action `revert`) or an undo (the edit's own action): "
+                                                  "the entry it undid.")
+    summary: Optional[str] = Field(None, description=(
+        "The change in one line of words (\"ball of V2 moved 12.3 px\", \"V3 excluded from the 3D ball\", "
+        "\"moved point 9 of Circle right (V3): JaC 0.909 -> refused\", \"system accepted\"), written when the entry "
+        "was recorded; for entries older than that, computed from `before` and `after` when read."))
+
+    @model_validator(mode="after")
+    def _summarised(self) -> "AuditEntryOut":
+        if not self.summary:  # an entry recorded before summaries, read outside the list (a 412's last change)
+            self.summary = summarize(self.action, self.before, self.after, reverts_id=self.reverts_id)
+        return self
 
     @computed_field(description="False for imports, recomputes and changes of users and tokens.")  # type: ignore[prop-decorator]
     @property

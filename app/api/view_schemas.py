@@ -62,8 +62,9 @@ class ReviewOut(BaseModel):
     comment: str = ""
     decided_at: Optional[datetime] = None
     excluded: bool = Field(False, description="Views only: excluded from the system's triangulation by a reviewer.")
-    reset_reason: Optional[str] = Field(None, description="Why the decision is pending again (a system's: one of its "
-                                        "views was recalibrated after it was decided); null otherwise.")
+    reset_reason: Optional[str] = Field(None, description="Why the decision is pending again (an edit changed the "
+                                        "system's labels or 3D result after it was decided: a ball label, an exclusion, "
+                                        "field lines, an undo); null otherwise.")
     calibration: Optional["CalibrationReviewOut"] = Field(
         None, description="Views only: the decision on the view's calibration, beside the decision on its ball.")
 

@@ -692,6 +692,10 @@ class AuditEntry(Base):
     after: Mapped[Optional[dict[str, Any]]]
     #: A revert: the entry it undid.
     reverts_id: Mapped[Optional[int]] = mapped_column(sa.ForeignKey("audit_entries.id"))
+    #: The change in one line of words ("ball of V2 moved 12.3 px"; ``app.services.accounts.summaries``),
+    #: written with the entry; None for entries recorded before the column (computed when read).
+    summary: Mapped[Optional[str]] = mapped_column(sa.String(300))
+
 class Job(Base):
     """A background job (``app.services.jobs.runner``): an import, a full recompute or an export.
 

@@ -69,7 +69,7 @@ function toLogin() {
 /** fetch with the CSRF header on writes (unless `init.csrf` is false: the login, before any session)
  * and the 401 rule; `init.body` as given (JSON text or FormData). Answers {body (parsed), etag (the
  * answer's ETag header: a write's edited resource's new version), entry (X-V3D-Audit-Entry: the
- * audit entry of a field-line write, else null)}, or throws ApiError. */
+ * audit entry of the write, else null)}, or throws ApiError. */
 async function fetchJson(method, url, { csrf = true, ...init } = {}) {
   const headers = { Accept: "application/json", ...(init.headers || {}) };
   if (csrf && UNSAFE.has(method)) Object.assign(headers, await writeHeaders());
@@ -242,6 +242,13 @@ export function listAudit(params) {
  * resource changed since the entry, unless `force`. */
 export function revertEntry(id, params = {}, force = false) {
   return exchange("POST", `/api/audit/${encodeURIComponent(id)}/revert${toQuery({ ...params, force: force || undefined })}`);
+}
+
+/** POST /api/audit/{id}/undo: undo the entry (the page's Ctrl+Z; the redo is the undo of the undo's entry):
+ * {body: the recomputed system view, etag: the resource's new one, entry: the undo's own audit entry}. 409
+ * when the resource changed since the entry; 403 for an annotator undoing another's edit or a system decision. */
+export function undoEntry(id, params = {}) {
+  return exchange("POST", `/api/audit/${encodeURIComponent(id)}/undo${toQuery(params)}`);
 }
 
 /** GET /api/games/{id}/trajectory: an ISSIA sequence's ball over time (observed and fitted, per frame). */

@@ -1,5 +1,6 @@
 // The system page's history panel: the system's audit entries (its decisions and its views' edits),
-// newest first, one compact line each (who, when, what, before -> after), with a one-click revert for
+// newest first, one line each (who, when, the change in words: the entry's summary; before -> after in its
+// tooltip), with a one-click revert for
 // reviewers. Also the one place that says an entry's change in words (the conflict notice uses it).
 
 import { listAudit, revertEntry, getMe, ApiError } from "./api.js";
@@ -49,6 +50,12 @@ export function when(iso) {
   return t.toDateString() === new Date().toDateString() ? t.toLocaleTimeString() : t.toLocaleString();
 }
 
+/** The entry's one line in words, as the server wrote it ("ball of V2 moved 12.3 px"; older entries get the
+ * same words computed when read), after who and when: "ana, 12:03:04: ball of V2 moved 12.3 px". */
+export function summaryLine(entry) {
+  return `${entry.actor}, ${when(entry.at)}: ${entry.summary || ACTION_LABEL[entry.action] || entry.action}`;
+}
+
 /** "ana, 12:03:04: ball label of V2 box [..] -> box [..]". */
 export function describeEntry(entry, viewName) {
   const what = ACTION_LABEL[entry.action] || entry.action;
@@ -90,12 +97,13 @@ export class HistoryPanel {
   }
 
   row(entry, viewName, mayRevert) {
-    const text = describeEntry(entry, viewName);
+    const text = summaryLine(entry);
     const button = entry.revertible && mayRevert
       ? el("button", { type: "button", class: "small", "data-testid": "history-revert", title: `Restore the state before entry ${entry.id}`,
         onclick: () => this.revert(entry) }, "revert")
       : null;
-    return el("li", { "data-testid": "history-entry", "data-action": entry.action, title: `entry ${entry.id}` },
+    return el("li", { "data-testid": "history-entry", "data-action": entry.action, "data-entry": entry.id,
+      title: `entry ${entry.id}: ${describeEntry(entry, viewName)}` },
       el("span", { class: "history-text" }, text), button);
   }
 

@@ -9,8 +9,9 @@
 // Contract of the browser tests: each annotated point of the main frame is an SVG circle with
 // data-testid="line-point", data-frame-id, data-class (SoccerNet class), data-polyline, data-index.
 //
-// EditHistory is the page's undo / redo stack of its own field-line writes: an undo is a new write of the
-// earlier lines naming the entry it undoes (`undo_of`), so the server audits it as that edit's undo.
+// EditHistory is the page's one undo / redo stack of its own writes (field lines, ball, exclusion, mirror,
+// decisions): an undo is a new write naming the entry it undoes (for field lines a write of the earlier lines
+// with `undo_of`, for the others POST /api/audit/{id}/undo), so the server audits it as that edit's undo.
 
 import { getPitchModel } from "./api.js";
 import { el, svg, isNum } from "./format.js";
@@ -448,10 +449,13 @@ export class EditHistory {
   undone = [];
   #turn = Promise.resolve(); // undos and redos run one after the other
 
-  /** `settle()`: resolves when the page's writes on their way are answered (so that the stack holds them). */
-  constructor(write, settle = async () => {}) {
+  /** `write(item, state, undoOf, kind)`: the write of an undo or redo ("undo" / "redo"), answering its new
+   * audit entry (null: failed, the stack is emptied); `settle()`: resolves when the page's writes on their way
+   * are answered (so that the stack holds them); `onEmpty(kind)`: nothing to undo or redo. */
+  constructor(write, settle = async () => {}, onEmpty = () => {}) {
     this.write = write;
     this.settle = settle;
+    this.onEmpty = onEmpty;
   }
 
   push(item) {
@@ -477,7 +481,10 @@ export class EditHistory {
     this.#turn = this.#turn.then(async () => {
       await this.settle();
       const item = from.pop();
-      if (!item) return false;
+      if (!item) {
+        this.onEmpty(kind);
+        return false;
+      }
       const entry = await this.write(item, item[side], item.entry, kind);
       if (entry === null) this.clear();
       else to.push({ ...item, entry });
@@ -505,7 +512,8 @@ export function lineKeys(view, history) {
     { keys: ["n"], does: "draw a new line of the chosen class (click its points)", run: () => editor()?.startLine() ?? false },
     { keys: ["Enter"], does: "finish the line being drawn", run: () => editor()?.finishLine() ?? false },
     { keys: ["Escape"], show: ["Esc"], does: "cancel the line being drawn, or the line selection", run: () => editor()?.cancel() ?? false },
-    { keys: ["z"], ctrl: true, show: ["Ctrl+Z"], does: "undo the page's last field-line edit", run: () => { history.undo(); } },
+    { keys: ["z"], ctrl: true, show: ["Ctrl+Z"], does: "undo the page's last edit (ball, exclusion, mirror, lines, decision)",
+      run: () => { history.undo(); } },
     { keys: ["Z", "y"], ctrl: true, show: ["Ctrl+Shift+Z", "Ctrl+Y"], does: "redo it", run: () => { history.redo(); } },
   ];
 }

@@ -6,11 +6,12 @@
 // writes to one view go one after the other, each with the ETag the previous one answered. A 412
 // (someone else changed it) draws their state and shows the conflict notice (conflict.js); the
 // history panel (history.js) lists the system's audit entries with a one-click revert. Field lines are
-// edited in each view (lineseditor.js); the page keeps the undo / redo stack of its own line edits.
+// edited in each view (lineseditor.js); the page keeps one undo / redo stack of its own edits (Ctrl+Z /
+// Ctrl+Shift+Z: ball, exclusion, mirror, lines, decisions; each undo a write naming the entry it undoes).
 // (Over 400 lines: it is the one controller of the page's state; views, map, trajectory, conflict
 // notice and history are their own modules.)
 
-import { ApiError, getSystem, getTrajectory, postReview, patchBall, mirrorFieldLines, postExclusion, putFieldLines } from "./api.js";
+import { ApiError, getSystem, getTrajectory, listAudit, postReview, patchBall, mirrorFieldLines, postExclusion, putFieldLines, undoEntry } from "./api.js";
 import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
 import { notes, isMirrorFlagged } from "./overlay.js";
@@ -58,8 +59,10 @@ class SystemPage {
     });
     $("views").addEventListener("ball-change", (e) => this.saveBall(e.target, e.detail));
     $("views").addEventListener("lines-change", (e) => this.saveLines(e.target, e.detail));
-    this.lineHistory = new EditHistory((item, lines, undoOf, kind) => this.undoLines(item, lines, undoOf, kind),
-      () => this.settle());
+    this.undoStack = new EditHistory(
+      (item, lines, undoOf, kind) => (item.kind === "lines" ? this.undoLines(item, lines, undoOf, kind) : this.undoWrite(item, undoOf, kind)),
+      () => this.settle(),
+      (kind) => toast(kind === "undo" ? "Nothing to undo: no edit of this page yet (or the last undo failed)" : "Nothing to redo"));
     $("views").addEventListener("mirror-request", (e) => this.applyMirror(e.target, e.detail));
     $("views").addEventListener("exclusion-request", (e) => this.setExclusion(e.target, e.detail));
     $("views").addEventListener("pointerdown", (e) => {
@@ -332,7 +335,8 @@ class SystemPage {
         toast(`${sys.name}: not accepted, still ${STATUS_LABEL[this.system.review?.status || "pending"].toLowerCase()}`);
         return;
       }
-      const { body: answer, etag } = await postReview(sys.id, status, text, ifMatch ?? this.system.etag);
+      const { body: answer, etag, entry } = await postReview(sys.id, status, text, ifMatch ?? this.system.etag);
+      if (entry) this.undoStack.push({ kind: "entry", systemId: sys.id, frameId: null, entry, what: `${sys.name}: ${STATUS_LABEL[status]}` });
       const current = this.system; // re-rendered by the edits just settled: its next_id is current
       clearError();
       this.renderStatus(answer || { status });
@@ -395,20 +399,22 @@ class SystemPage {
     }
   }
 
-  /** A write to one view (`send(ifMatch)` -> {body, etag}), after the previous write to that view so it
-   * sends the ETag that one answered. `mine` says the change in words for the conflict notice;
-   * `done(system)` runs after the answer is drawn. */
-  frameWrite(panel, frameId, mine, send, done = null) {
+  /** A write to one view (`send(ifMatch)` -> {body, etag, entry}), after the previous write to that view so it
+   * sends the ETag that one answered. `mine` says the change in words for the conflict notice and the undo's
+   * toast; `done(system)` runs after the answer is drawn; `undoable` false: the write is not pushed on the
+   * page's undo stack (a line edit pushes its own item, an undo is not undone by Ctrl+Z). */
+  frameWrite(panel, frameId, mine, send, done = null, undoable = true) {
     const shown = this.system.id;
     const previous = this.chains.get(frameId) || Promise.resolve();
     const save = previous.then(async () => {
       try {
         const answer = await send(this.etags.get(frameId));
+        if (undoable && answer.entry) this.undoStack.push({ kind: "entry", systemId: shown, frameId, entry: answer.entry, what: mine });
         this.afterWrite(shown, frameId, answer);
         if (done && this.system.id === shown) done(answer.body);
       } catch (err) {
         panel.revert();
-        if (err instanceof ApiError && err.status === 412) await this.conflict(panel, frameId, mine, send, done, err);
+        if (err instanceof ApiError && err.status === 412) await this.conflict(panel, frameId, mine, send, done, err, undoable);
         else showError(err.message);
       }
     });
@@ -421,21 +427,21 @@ class SystemPage {
   }
 
   /** Someone changed the view first: draw their state, say who and what, offer to re-apply. */
-  async conflict(panel, frameId, mine, send, done, err) {
+  async conflict(panel, frameId, mine, send, done, err, undoable = true) {
     this.noteEtag(frameId, err.body?.etag);
     await this.reload();
     const index = this.system.views.findIndex((v) => v.frame_id === frameId);
     const viewName = index >= 0 ? `V${index + 1}` : null;
     const name = index >= 0 ? this.system.views[index].name : `frame ${frameId}`;
     showConflict($("conflict"), { error: err, what: `${viewName || "the view"} (${name})`, mine, viewName,
-      reapply: () => this.frameWrite(panel, frameId, mine, send, done) });
+      reapply: () => this.frameWrite(panel, frameId, mine, send, done, undoable) });
     $("conflict").scrollIntoView({ block: "center" }); // a key (an undo) may have sent it from far down the page
   }
 
   saveBall(panel, detail) {
     const change = "box" in detail ? { box: detail.box } : { point: detail.point };
     if (detail.provenance) change.provenance = detail.provenance; // a doubt's suggestion: not evidence until placed
-    this.frameWrite(panel, detail.frameId, describeState({ ball: change }),
+    this.frameWrite(panel, detail.frameId, `${viewLabel(this.system, detail.frameId)} ball: ${describeState({ ball: change })}`,
       (etag) => patchBall(detail.frameId, change, this.params, etag));
   }
 
@@ -446,11 +452,11 @@ class SystemPage {
     const before = this.system.views.find((v) => v.frame_id === detail.frameId);
     this.frameWrite(panel, detail.frameId, detail.what,
       (etag) => putFieldLines(detail.frameId, detail.lines, this.params, etag).then((answer) => {
-        this.lineHistory.push({ systemId, frameId: detail.frameId, before: detail.before, after: detail.lines,
+        this.undoStack.push({ kind: "lines", systemId, frameId: detail.frameId, before: detail.before, after: detail.lines,
           entry: answer.entry, what: detail.what });
         return answer;
       }),
-      (sys) => toast(`${detail.what}: ${jacChange(before, sys.views.find((v) => v.frame_id === detail.frameId))}`));
+      (sys) => toast(`${detail.what}: ${jacChange(before, sys.views.find((v) => v.frame_id === detail.frameId))}`), false);
   }
 
   /** An undo or redo of the line stack: the write of `lines` to the item's view naming `undoOf`, on its
@@ -469,15 +475,56 @@ class SystemPage {
         entry = answer.entry;
         return answer;
       }),
-      (sys) => toast(`${kind}: ${item.what} · ${jacChange(before, sys.views.find((v) => v.frame_id === item.frameId))}`));
+      (sys) => toast(`${kind}: ${item.what} · ${jacChange(before, sys.views.find((v) => v.frame_id === item.frameId))}`), false);
     await this.chains.get(item.frameId);
     return entry;
+  }
+
+  /** An undo or redo of any other edit (ball, exclusion, mirror, decisions): POST /api/audit/{undoOf}/undo on
+   * the item's system's page (loaded first when another is shown), after the writes on their way. Answers the
+   * new audit entry, null when it was refused (the resource changed since: said in the error bar). */
+  async undoWrite(item, undoOf, kind) {
+    if (this.system?.id !== item.systemId) await this.load(item.systemId, true);
+    if (this.system?.id !== item.systemId) return null;
+    const write = (async () => {
+      try {
+        const answer = await undoEntry(undoOf, this.params);
+        this.afterWrite(item.systemId, item.frameId, answer);
+        if (item.frameId === null && answer.etag && this.system.id === item.systemId) this.system.etag = answer.etag;
+        toast(`${kind === "undo" ? "Undone" : "Redone"}: ${await this.entryWords(kind === "undo" ? undoOf : answer.entry, item.what)}`);
+        return answer.entry;
+      } catch (err) {
+        showError(`${kind} of “${item.what}” refused: ${err.message}`);
+        return null;
+      }
+    })();
+    if (item.frameId !== null) { // the view's next write waits for it and sends the ETag it answers
+      this.chains.set(item.frameId, write);
+      this.saves.add(write);
+      write.finally(() => {
+        this.saves.delete(write);
+        if (this.chains.get(item.frameId) === write) this.chains.delete(item.frameId);
+      });
+    }
+    return write;
+  }
+
+  /** The server's words for audit entry `id` ("ball of V2 moved 3.0 px", without an "undo of entry N: "),
+   * `fallback` when they cannot be read. */
+  async entryWords(id, fallback) {
+    try {
+      const page = await listAudit({ system_id: this.system.id, limit: 30 });
+      const entry = page.items.find((e) => e.id === id);
+      return entry?.summary?.replace(/^(undo|redo) of entry \d+: /, "") || fallback;
+    } catch {
+      return fallback;
+    }
   }
 
   /** Replace a flagged view's field lines by their mirrored labelling, then draw the recomputed system. */
   applyMirror(panel, detail) {
     const name = panel.view?.name || "view";
-    this.frameWrite(panel, detail.frameId, "mirrored field lines",
+    this.frameWrite(panel, detail.frameId, `${viewLabel(this.system, detail.frameId)} mirrored field lines`,
       (etag) => mirrorFieldLines(detail.frameId, this.params, etag),
       (sys) => {
         const after = sys.views.find((v) => v.frame_id === detail.frameId);
@@ -488,7 +535,7 @@ class SystemPage {
   /** Exclude a view from the triangulation or restore it, then draw the recomputed system. */
   setExclusion(panel, detail) {
     const name = panel.view?.name || "view";
-    this.frameWrite(panel, detail.frameId, describeState({ excluded: detail.excluded }),
+    this.frameWrite(panel, detail.frameId, `${viewLabel(this.system, detail.frameId)} ${describeState({ excluded: detail.excluded })}`,
       (etag) => postExclusion(detail.frameId, detail.excluded, this.params, etag),
       () => toast(`${name}: ${detail.excluded ? "excluded from" : "restored to"} the 3D ball`));
   }
@@ -558,7 +605,7 @@ class SystemPage {
         run: (e) => nudge(...{ ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, -1], ArrowDown: [0, 1] }[e.key], 0)(e) },
       { keys: ["+", "="], show: ["+"], does: "grow its box", run: (e) => nudge(0, 0, 0.5)(e) },
       { keys: ["-"], does: "shrink its box", run: (e) => nudge(0, 0, -0.5)(e) },
-      ...lineKeys(view, this.lineHistory), // before the ball's Del: a selected line point goes first
+      ...lineKeys(view, this.undoStack), // before the ball's Del: a selected line point goes first
       { keys: ["Delete", "Backspace"], show: ["Del"], does: "no ball in this view (remove its label)",
         run: () => view()?.removeLabel() ?? false },
       { keys: ["z"], does: "restore its imported label", run: () => view()?.restoreLabel() ?? false },
@@ -597,6 +644,12 @@ function shortDoubt(text) {
   if (SHORT_DOUBTS[text]) return SHORT_DOUBTS[text];
   if (text.startsWith("not calibrated")) return WORDS.note.not_calibrated.chip;
   return text;
+}
+
+/** "V2": the view's name on the page (its place among the system's views). */
+function viewLabel(sys, frameId) {
+  const i = (sys?.views || []).findIndex((v) => v.frame_id === frameId);
+  return i >= 0 ? `V${i + 1}` : "the view";
 }
 
 /** A view's JaC at the admission gamma before -> after an edit, in words. */

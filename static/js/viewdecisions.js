@@ -71,7 +71,7 @@ export class ViewDecisions {
     const sys = this.page.system;
     const index = sys.views.findIndex((v) => v.frame_id === view.frame_id);
     const name = index >= 0 ? `V${index + 1}` : view.name;
-    this.page.frameWrite(panel, view.frame_id, `${p.what}: ${STATUS_LABEL[status]}`,
+    this.page.frameWrite(panel, view.frame_id, `${name} ${p.label.toLowerCase()}: ${STATUS_LABEL[status]}`,
       (etag) => p.send(view.frame_id, status, "", etag),
       (review) => {
         const shown = this.page.system.views.find((v) => v.frame_id === view.frame_id);

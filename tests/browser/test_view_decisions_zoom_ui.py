@@ -67,8 +67,8 @@ def test_per_view_and_calibration_decisions(page, artifacts):
     assert after["views"][1]["review"]["status"] == "needs_fix"
     assert after["views"][1]["review"]["calibration"]["status"] == "accepted"
     assert after["views"][0]["review"]["calibration"]["status"] == "pending"
-    # the history lists the calibration decision
-    page.locator(tid("history")).get_by_text("calibration review").first.wait_for()
+    # the history lists the calibration decision, in the words of its summary (issue 28)
+    page.locator(tid("history")).get_by_text("calibration of V2 accepted").first.wait_for()
     _shot(page, artifacts, "view-decisions.png")
 
     # the system accepted, then V2's field lines edited (by someone, through the API): both decisions go back

@@ -87,7 +87,8 @@ def test_an_edit_that_changes_a_calibration_sets_the_decisions_back_to_pending(d
     decide_calibration(db_session, frame.id, status="rejected")
     assert system.review.reset_reason is None and frame.review.calibration_reset_reason is None
 
-    # a pending decision has nothing to reset; a ball edit changes no calibration
+    # a pending decision has nothing to reset; a ball edit changes no calibration (but it changes the labels:
+    # the system's decision goes back to pending, issue 28 item 3)
     count = len(_entries(db_session))
     decide_review(db_session, system_id=system.id, status="pending")
     decide_calibration(db_session, frame.id, status="pending")
@@ -97,7 +98,8 @@ def test_an_edit_that_changes_a_calibration_sets_the_decisions_back_to_pending(d
     decide_review(db_session, system_id=system.id, status="accepted")
     box = other.ball_label.box
     update_ball_label(db_session, other.id, box=[box[0] + 1, box[1], box[2] + 1, box[3]], settings=settings)
-    assert system.review.status is ReviewStatus.ACCEPTED
+    assert system.review.status is ReviewStatus.PENDING and "ball of V" in system.review.reset_reason
+    assert other.review.calibration_status is ReviewStatus.ACCEPTED
 
 
 def test_the_resets_commit_with_the_edit_or_not_at_all(db_session, settings, imported, monkeypatch):

@@ -6,16 +6,17 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response
 
 from app.api.audit_schemas import AuditEntryOut, AuditPageOut, AuditQuery
-from app.api.auth import PrincipalDep, ReviewerDep
+from app.api.auth import AnnotatorDep, PrincipalDep, ReviewerDep
 from app.api.conditional import with_etag
 from app.api.deps import SessionDep, SettingsDep
 from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, QueueQuery
 from app.api.view_schemas import SystemView
 from app.services.accounts import audit
+from app.services.accounts.audit import AUDIT_ENTRY_HEADER
 from app.services.transfer.data_root import shown_import_counts
 from app.services.curation import editing
 from app.services.curation.system_page import system_page
-from app.services.curation.reverting import revert_entry
+from app.services.curation.reverting import Reverted, revert_entry, undo_entry
 from app.services.curation.versions import frame_etag, system_etag
 
 router = APIRouter(prefix="/audit", tags=["audit"])
@@ -29,7 +30,10 @@ def list_audit(session: SessionDep, principal: PrincipalDep, query: Annotated[Au
     its server path for admins, the dataset's name for the other roles."""
     page = audit.list_entries(session, frame_id=query.frame_id, system_id=query.system_id, user=query.user,
                               limit=query.limit, offset=query.offset, include_admin=principal.role == "admin")
-    items = [AuditEntryOut.model_validate(e) for e in page.items]
+    names = audit.view_names(session, [e for e in page.items if not e.summary])  # entries older than summaries
+    items = [AuditEntryOut.model_validate(e).model_copy(
+        update={"summary": audit.entry_summary(e, names.get(e.frame_id) if e.frame_id is not None else None)})
+        for e in page.items]
     if not principal.may("admin"):
         items = [i.model_copy(update={"after": shown_import_counts(i.after)}) if i.action == "import" else i
                  for i in items]
@@ -51,6 +55,34 @@ def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, e
     ``ETag``. 409 when the resource changed since the entry (unless ``force``); 422 for an import or a
     recompute, which cannot be reverted. The entry itself is the precondition: no If-Match is needed."""
     done = revert_entry(session, entry_id, settings=settings, actor=principal.name, force=force)
+    return _restored(session, done, query, response)
+
+
+@router.post(
+    "/{entry_id}/undo", response_model=SystemView,
+    responses={**NOT_FOUND, **INVALID,
+               403: {"model": ErrorOut, "description": "An annotator undoing a system decision, another's entry, or "
+                                                       "an entry someone else's write of the view followed."},
+               409: {"model": ErrorOut, "description": "The resource changed since the entry: an undo restores "
+                                                       "only what nothing changed since (undo the newer first)."}},
+)
+def undo(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, entry_id: DbInt,
+         query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
+    """Undo the entry (the system page's Ctrl+Z; its redo, Ctrl+Shift+Z, is the undo of the undo's entry):
+    its ``before`` state written back through the service of its edit (the system is recomputed), audited as
+    that edit's action with ``reverts_id`` naming the entry; answers the recomputed system view, the resource's
+    new ``ETag`` and the new entry's id in ``X-V3D-Audit-Entry``. Labels, camera and 3D ball come back exactly:
+    409 when the edited part is no longer what the entry left. Reviewers undo any edit; an annotator their own,
+    when no one else wrote the view since (403 otherwise, and for a system decision, a reviewer's edit)."""
+    done = undo_entry(session, entry_id, settings=settings, actor=principal.name, may_review=principal.may("reviewer"))
+    entry = audit.recorded_entry_id(session)
+    if entry is not None:
+        response.headers[AUDIT_ENTRY_HEADER] = str(entry)
+    return _restored(session, done, query, response)
+
+
+def _restored(session: SessionDep, done: Reverted, query: QueueQuery, response: Response) -> SystemView:
+    """The recomputed system view after a revert or an undo, the resource's new ETag in the header."""
     if done.kind == "frame":
         with_etag(response, frame_etag(editing.get_frame(session, done.ident)))
     else:

@@ -30,8 +30,8 @@ from app.services.curation import queue
 from app.services.curation.system_page import load_frame, pitch_lines_key, system_page
 from app.services.curation.versions import expected_versions, frame_etag
 
-#: The header naming the audit entry of a field-line write.
-AUDIT_ENTRY_HEADER = "X-V3D-Audit-Entry"
+#: The header naming the audit entry of a write (what a later undo names).
+AUDIT_ENTRY_HEADER = audit.AUDIT_ENTRY_HEADER
 #: OpenAPI ``responses`` of the frame's edits.
 EDIT_RESPONSES = {**NOT_FOUND, **INVALID, **PRECONDITIONS}
 #: The mirror guard: the mirrored calibration would bring the view's ball label no closer to the others' 3D ball.
@@ -105,8 +105,17 @@ def read_pitch_lines(session: SessionDep, frame: FrameDep, response: Response, _
     return PitchLinesOut(frame_id=loaded.id, camera=key, lines=projected_pitch_of(loaded))
 
 
+def name_entry(session: Session, response: Response) -> None:
+    """Answer the id of the audit entry the write just committed in ``X-V3D-Audit-Entry`` (what the page's undo
+    names, ``POST /api/audit/{id}/undo``)."""
+    entry_id = audit.recorded_entry_id(session)
+    if entry_id is not None:
+        response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
+
+
 def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery) -> SystemView:
-    """The recomputed system view after an edit of ``frame_id``, its new ETag in the header."""
+    """The recomputed system view after an edit of ``frame_id``, its new ETag and its audit entry in the header."""
+    name_entry(session, response)
     frame = editing.get_frame(session, frame_id)
     with_etag(response, frame_etag(frame))
     return SystemView.of(system_page(session, frame.system_id, query.filters(), query.sort))
@@ -165,9 +174,6 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     """
     editing.replace_field_lines(session, frame.id, body.lines, settings=settings, actor=principal.name,
                                 expected=expected_versions(if_match, "frame", frame.id), undo_of=body.undo_of)
-    entry_id = audit.recorded_entry_id(session)
-    if entry_id is not None:
-        response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
     return _edited(session, frame.id, response, query)
 
 
@@ -204,6 +210,7 @@ def review_frame(session: SessionDep, principal: AnnotatorDep, if_match: IfMatch
     ETag in the header."""
     decision = editing.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment,
                                      actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
+    name_entry(session, response)
     with_etag(response, frame_etag(editing.get_frame(session, frame.id)))
     return ReviewOut.of(decision)
 
@@ -217,5 +224,6 @@ def review_calibration(session: SessionDep, principal: AnnotatorDep, if_match: I
     sets a decided calibration (and its system's decision) back to pending with the reason."""
     decision = editing.decide_calibration(session, frame.id, status=body.status, comment=body.comment,
                                           actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
+    name_entry(session, response)
     with_etag(response, frame_etag(editing.get_frame(session, frame.id)))
     return ReviewOut.of(decision)

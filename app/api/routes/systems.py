@@ -12,6 +12,7 @@ from fastapi import APIRouter, Query, Response
 from app.api.auth import ReviewerDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import SessionDep, SystemDep
+from app.api.routes.frames import name_entry
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
 from app.services.curation import editing
@@ -50,8 +51,9 @@ def read_system(session: SessionDep, system: SystemDep, query: Annotated[QueueQu
 def review_system(session: SessionDep, principal: ReviewerDep, if_match: IfMatchDep, system: SystemDep,
                   body: ReviewIn, response: Response) -> ReviewOut:
     """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``);
-    the decision's new ETag in the header."""
+    the decision's new ETag in the header, its audit entry in ``X-V3D-Audit-Entry`` (what an undo names)."""
     decision = editing.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
                                      actor=principal.name, expected=expected_versions(if_match, "system", system.id))
+    name_entry(session, response)
     with_etag(response, system_etag(editing.get_system(session, system.id)))
     return ReviewOut.of(decision)

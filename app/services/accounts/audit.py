@@ -21,7 +21,10 @@ from sqlalchemy.orm import Session
 
 from app.db.models import AuditEntry, Frame, System
 from app.db.types import json_safe
+from app.services.accounts.summaries import summarize
 
+#: The response header naming the audit entry of a write (what a later undo names).
+AUDIT_ENTRY_HEADER = "X-V3D-Audit-Entry"
 #: Actions that change many rows at once and are never reverted.
 SUMMARY_ACTIONS = ("import", "recompute")
 #: An administrator's changes of users and tokens (``app.services.accounts.users``): listed to admins only,
@@ -65,15 +68,76 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
     if action not in ACTIONS:
         raise ValueError(f"unknown audit action {action!r}")
     system = frame.system if frame is not None else system
+    before = json_safe(before) if before is not None else None
+    after = json_safe(after) if after is not None else None
+    facts = session.info.pop(_FACTS, None)
     entry = AuditEntry(
         actor=actor or local_actor(), action=action, frame_id=frame.id if frame is not None else None,
         system_id=system.id if system is not None else None, game_id=system.game_id if system is not None else None,
-        before=json_safe(before) if before is not None else None, after=json_safe(after) if after is not None else None,
-        reverts_id=reverts_id,
+        before=before, after=after, reverts_id=reverts_id,
+        summary=summarize(action, before, after, view=view_name(frame) if frame is not None else None,
+                          reverts_id=reverts_id, facts=facts,
+                          redo=action != "revert" and _is_undo(session, reverts_id))[:SUMMARY_MAX],
     )
     session.add(entry)
     session.info[_RECORDED] = entry
     return entry
+
+
+#: ``session.info`` key of the facts :func:`note_facts` keeps for the next :func:`record` of the session.
+_FACTS = "v3d.audit.facts"
+#: The longest summary stored (characters; ``audit_entries.summary``).
+SUMMARY_MAX = 300
+
+
+def note_facts(session: Session, **facts: Any) -> None:
+    """Keep what only a running write knows (``calibration=(before, after)`` in words) for the summary of the
+    next entry :func:`record` adds in ``session`` (``app.services.accounts.summaries.summarize``'s ``facts``)."""
+    session.info.setdefault(_FACTS, {}).update(facts)
+
+
+def _is_undo(session: Session, entry_id: Optional[int]) -> bool:
+    """Whether entry ``entry_id`` is an undo (an edit naming the entry it undoes) and not itself a redo: an undo
+    of it is then a redo. Follows the chain of undos (undo, redo, undo, ...) back to the edit."""
+    depth = 0
+    while entry_id is not None and depth < 1000:
+        row = session.execute(sa.select(AuditEntry.action, AuditEntry.reverts_id).where(AuditEntry.id == entry_id)).first()
+        if row is None or row.action == "revert" or row.reverts_id is None:
+            break
+        depth += 1
+        entry_id = row.reverts_id
+    return depth % 2 == 1
+
+
+def view_name(frame: Frame) -> str:
+    """The view's name on the system page: "V<n>", n its place among its system's views (``Frame.position``
+    order, as the page lists them), 1-based."""
+    frames = frame.system.frames if frame.system is not None else []
+    index = next((i for i, f in enumerate(frames) if f.id == frame.id), None)
+    return f"V{index + 1}" if index is not None else f"frame {frame.id}"
+
+
+def entry_summary(entry: AuditEntry, view: Optional[str] = None) -> str:
+    """The entry's stored summary, or (an entry recorded before summaries were) the one computed from its
+    states by the same function (``view``: its view's name on the page, when known)."""
+    if entry.summary:
+        return entry.summary
+    return summarize(entry.action, entry.before, entry.after, view=view, reverts_id=entry.reverts_id)[:SUMMARY_MAX]
+
+
+def view_names(session: Session, entries: list[AuditEntry]) -> dict[int, str]:
+    """Frame id -> "V<n>" for the frames the ``entries`` name (one query over their systems' views)."""
+    systems = {e.system_id for e in entries if e.frame_id is not None and e.system_id is not None}
+    if not systems:
+        return {}
+    rows = session.execute(sa.select(Frame.id, Frame.system_id).where(Frame.system_id.in_(systems))
+                           .order_by(Frame.system_id, Frame.position, Frame.id)).all()
+    out: dict[int, str] = {}
+    place: dict[int, int] = {}
+    for frame_id, system_id in rows:
+        place[system_id] = place.get(system_id, 0) + 1
+        out[frame_id] = f"V{place[system_id]}"
+    return out
 
 
 #: ``session.info`` key of the entry :func:`record` added last (read by :func:`recorded_entry_id`).

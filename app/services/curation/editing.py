@@ -15,6 +15,13 @@ recomputation leaves the edit unstored too. Invalid input raises
 
 Every system-level recomputation also replaces the system's doubts (``app.services.curation.doubts``).
 
+One rule for decisions after edits (issue 28): an edit that changes a system's labels or 3D result sets the
+system's decision and the touched view's decision (its ball decision; its calibration decision for field lines)
+back to pending with the reason, in the edit's transaction (:func:`reset_decisions_after_edit`); an edit that
+changes nothing resets nothing. ``undo`` (:func:`check_undo_state`) marks a write as the undo of an audit entry
+(``app.services.curation.reverting.undo_entry``): audited under the edit's own action with ``reverts_id``, refused
+(409) when the edited part is not the entry's ``after`` under the lock; an undo resets decisions as any edit.
+
 Every write is attributed and guarded, in its transaction: it first claims its resource
 (``app.services.curation.versions``: compare-and-set of the frame's ``edit_version`` or the system's
 ``review_version`` against ``expected``, the versions of the client's ``If-Match``; None accepts any),
@@ -80,6 +87,7 @@ from app.datasets.labels import LabelError, check_box, check_line_point_count, c
 from app.geometry.consensus import ball_consensus
 from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px
 from app.services.accounts import audit
+from app.services.accounts.summaries import summarize
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
 from app.services.curation.recompute import (
@@ -379,7 +387,8 @@ def get_system(session: Session, system_id: int) -> System:
 
 def update_ball_label(session: Session, frame_id: int, box: Any = None, point: Any = None, *,
                       settings: Settings, provenance: Any = None, actor: Optional[str] = None,
-                      expected: Expected = None, revert: Optional[Revert] = None) -> Frame:
+                      expected: Expected = None, revert: Optional[Revert] = None,
+                      undo: Optional[Revert] = None) -> Frame:
     """Set a frame's ball label to a box or a point, or remove it, then recompute its system.
 
     Args:
@@ -392,6 +401,11 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
             (:func:`check_provenance`): stored on the label, which then joins no triangulation and no doubt
             vote until a person places it; None (a person placed it: drawn, moved or confirmed) clears it.
         actor, expected, revert: attribution and guard (module docstring); audited as ``ball.edit``.
+        undo: this write undoes audit entry ``undo.entry_id`` (:func:`check_undo_state`; audited as
+            ``ball.edit`` with ``reverts_id``).
+
+    A label that changes sets the view's ball decision and the system's decision back to pending
+    (:func:`reset_decisions_after_edit`).
 
     Returns:
         The frame, with its ``ball_label`` and its system's derived rows updated and committed.
@@ -413,6 +427,8 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
     new_provenance = check_provenance(provenance) if (new_box is not None or new_point is not None) else None
 
     def apply(frame: Frame) -> Frame:
+        before = ball_state(frame)
+        check_undo_state(undo, before)
         label = frame.ball_label
         kind = BallKind.BOX if new_box is not None else BallKind.POINT if new_point is not None else None
         if label is None and kind is None:
@@ -427,9 +443,11 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
             label.provenance = new_provenance
             label.edited_at = utcnow()
         _recompute(session, frame.system, settings)
+        reset_after_change(session, frame, "ball.edit", before, ball_state(frame), actor, undo)
         return frame
 
-    return _frame_write(session, frame_id, expected, ball_state, apply, "ball.edit", actor, revert)
+    return _frame_write(session, frame_id, expected, ball_state, apply, "ball.edit", actor, revert,
+                        undo.entry_id if undo is not None else None)
 
 
 def _recompute(session: Session, system: System, settings: Settings) -> None:
@@ -468,7 +486,8 @@ def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], setting
 
 def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any], *, settings: Settings,
                         actor: Optional[str] = None, expected: Expected = None,
-                        revert: Optional[Revert] = None, undo_of: Optional[int] = None) -> Frame:
+                        revert: Optional[Revert] = None, undo_of: Optional[int] = None,
+                        undo: Optional[Revert] = None) -> Frame:
     """Replace a frame's field lines, recalibrate the frame and recompute its system.
 
     Args:
@@ -483,6 +502,8 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
             (:func:`check_undo`). Audited as ``field_lines.replace`` with ``reverts_id = undo_of``. The
             calibration is computed from the lines alone, so the camera and JaC come back as they were
             when nothing else in the game changed meanwhile.
+        undo: the same as ``undo_of = undo.entry_id``, and refused (409) unless the lines under the lock are
+            ``undo.expect`` (:func:`check_undo_state`; the undo of ``POST /api/audit/{id}/undo``).
 
     Returns:
         The frame with its new lines, calibration (source "computed") and derived rows, committed.
@@ -497,12 +518,17 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
     """
     frame = get_frame(session, frame_id)
     parsed = _parse_lines(lines, frame.width, frame.height, settings.max_line_points_per_frame)
+    if undo is not None:
+        undo_of = undo.entry_id
 
     def apply(frame: Frame) -> Frame:
         before = lines_state(frame), calibration_words(frame, settings)
+        check_undo_state(undo, before[0])
+        jac_before = jac_words(frame, settings)
         _store_lines(session, frame, parsed, settings)
         verb = "replaced" if undo_of is None else f"put back (undo of audit entry {undo_of})"
         reset_decisions_after_recalibration(session, frame, before, verb, actor, settings)
+        audit.note_facts(session, calibration=(jac_before, jac_words(frame, settings)))
         return frame
 
     if undo_of is not None:
@@ -539,22 +565,66 @@ def reset_decisions_after_recalibration(session: Session, frame: Frame, before: 
     lines_before, words_before = before
     if _same(lines_before, lines_state(frame)):
         return None
-    review, system = frame.review, frame.system
-    calibration_decided = review is not None and review.calibration_status != ReviewStatus.PENDING
-    system_decided = system.review is not None and system.review.status != ReviewStatus.PENDING
-    if not (calibration_decided or system_decided):
-        return None
     who = actor or audit.local_actor()
     reason = (f"{frame.name}: field lines {verb} by {who}, the view was recalibrated "
               f"({words_before} -> {calibration_words(frame, settings)}); decide it again")
+    return reason if reset_decisions_after_edit(session, frame, reason, actor, calibration=True) else None
+
+
+def reset_after_change(session: Session, frame: Frame, action: str, before: dict[str, Any], after: dict[str, Any],
+                       actor: Optional[str], undo: Optional[Revert] = None) -> Optional[str]:
+    """After an edit of ``frame``'s ball label or exclusion (``action``, its state ``before`` and ``after``, as
+    :func:`ball_state` / :func:`excluded_state` give them): when the state changed, the view's ball decision and
+    the system's decision go back to pending (:func:`reset_decisions_after_edit`) with the reason, the edit in
+    words (the audit log's, ``app.services.accounts.summaries.summarize``), who made it and, for an undo, which entry it undid.
+
+    Returns:
+        The reason, or None when the edit changed nothing or nothing was decided.
+    """
+    if _same(before, after):
+        return None
+    words = summarize(action, before, after, view=audit.view_name(frame))
+    undone = f" (undo of audit entry {undo.entry_id})" if undo is not None else ""
+    reason = f"{frame.name}: {words}{undone} by {actor or audit.local_actor()}; decide it again"
+    return reason if reset_decisions_after_edit(session, frame, reason, actor, calibration=False) else None
+
+
+def reset_decisions_after_edit(session: Session, frame: Frame, reason: str, actor: Optional[str], *,
+                               calibration: bool) -> bool:
+    """One rule for decisions after an edit that changed a system's labels or 3D result (issue 28, item 3), in
+    the edit's transaction: the touched view's decision (its calibration decision when ``calibration``, i.e. a
+    field-line edit; else its ball decision) and the system's decision, when decided, go back to pending with
+    ``reason`` (``calibration_reset_reason`` / ``reset_reason``), each with its own audit entry
+    (``view.calibration_review`` / ``view.review``, ``system.review``: revertible) added before the edit's own,
+    so the edit stays the frame's newest entry. The system's ``review_version`` is bumped (a page that drew the
+    old decision gets 412 on deciding).
+
+    Returns:
+        Whether anything was reset.
+    """
+    review, system = frame.review, frame.system
+    if calibration:
+        view_decided = review is not None and review.calibration_status != ReviewStatus.PENDING
+    else:
+        view_decided = review is not None and review.status != ReviewStatus.PENDING
+    system_decided = system.review is not None and system.review.status != ReviewStatus.PENDING
+    if not (view_decided or system_decided):
+        return False
     now = utcnow()
-    if calibration_decided:
+    if view_decided and calibration:
         before = calibration_review_state(frame)
         review.calibration_status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
         review.calibration_reset_reason = reason  # type: ignore[union-attr]
         review.calibration_decided_at = now  # type: ignore[union-attr]
         audit.record(session, actor=actor, action="view.calibration_review", frame=frame, before=before,
                      after=calibration_review_state(frame))
+    elif view_decided:
+        before = review_state(frame)
+        review.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
+        review.reset_reason = reason  # type: ignore[union-attr]
+        review.decided_at = now  # type: ignore[union-attr]
+        audit.record(session, actor=actor, action="view.review", frame=frame, before=before,
+                     after=review_state(frame))
     if system_decided:
         before = review_state(system)
         decision = system.review
@@ -566,7 +636,25 @@ def reset_decisions_after_recalibration(session: Session, frame: Frame, before: 
         audit.record(session, actor=actor, action="system.review", system=system, before=before,
                      after=review_state(system))
     session.flush()
-    return reason
+    return True
+
+
+def check_undo_state(undo: Optional[Revert], state: dict[str, Any]) -> None:
+    """An undo restores exactly only what nothing changed since: refuse it (:class:`ConflictError`, 409) when
+    the edited part's state under the write's lock (``state``) is not the undone entry's ``after``
+    (``undo.expect``). Nothing to check without an undo."""
+    if undo is None or undo.expect is None or _same(state, undo.expect):
+        return
+    raise ConflictError(f"audit entry {undo.entry_id} cannot be undone: its resource changed since (it is now "
+                        f"{json.dumps(state)[:300]}); undo the newer entries first", current=state)
+
+
+def jac_words(frame: Frame, settings: Settings) -> str:
+    """The frame's calibration for an entry's summary: "JaC 0.909" (at the admission's gamma,
+    :func:`~app.services.calibration.calibrating.admission_jac`), or "refused" (no camera, or no JaC)."""
+    cal = frame.calibration
+    jac = admission_jac(cal, settings) if cal is not None and cal.camera is not None else None
+    return f"JaC {jac:.3f}" if jac is not None else "refused"
 
 
 def check_undo(session: Session, entry_id: int, frame_id: int, parsed: dict[str, Any]) -> None:
@@ -622,6 +710,7 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
             raise InvalidInputError(f"frame {frame_id} has no field lines to mirror", field="lines")
         before = ball_error_to_others(frame, settings)
         lines_before = lines_state(frame), calibration_words(frame, settings)
+        jac_before = jac_words(frame, settings)
         mirrored = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
         out = _store_lines(session, frame, mirrored, settings)
         after = ball_error_to_others(out, settings)
@@ -632,6 +721,7 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
                 f"would be {mi} px (at 1920 width) from the ball {before[1]} agree on, against {before[0]:.0f} px as "
                 "labelled, so the mirrored calibration and the ball do not agree better")
         reset_decisions_after_recalibration(session, out, lines_before, "mirrored", actor, settings)
+        audit.note_facts(session, calibration=(jac_before, jac_words(out, settings)))
         return out
 
     get_frame(session, frame_id)
@@ -666,7 +756,8 @@ def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None
 
 def decide_review(session: Session, *, system_id: int | None = None, frame_id: int | None = None,
                   status: ReviewStatus | str, comment: str = "", actor: Optional[str] = None,
-                  expected: Expected = None, revert: Optional[Revert] = None) -> ReviewDecision:
+                  expected: Expected = None, revert: Optional[Revert] = None,
+                  undo: Optional[Revert] = None) -> ReviewDecision:
     """Record a review decision on a system or on a frame (exactly one of the two ids).
 
     Args:
@@ -674,6 +765,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         comment: free text (kept as given).
         actor, expected, revert: attribution and guard (module docstring; ``expected`` are versions of
             the system's review, or of the frame); audited as ``system.review`` or ``view.review``.
+        undo: this write undoes audit entry ``undo.entry_id`` (:func:`check_undo_state`).
 
     Returns:
         The committed :class:`ReviewDecision` (``decided_at`` is now, UTC).
@@ -688,6 +780,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
     status = _check_decision(status, comment)
 
     def apply(subject: System | Frame) -> ReviewDecision:
+        check_undo_state(undo, review_state(subject))
         review = subject.review
         if review is None:
             review = ReviewDecision()
@@ -704,9 +797,10 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         get_system(session, system_id)
         return _write(session, system_id, lambda: claim_system_review(session, system_id, expected),
                       lambda: get_system(session, system_id), system_review_state, apply, "system.review", actor,
-                      revert)
+                      revert, undo.entry_id if undo is not None else None)
     get_frame(session, frame_id)  # type: ignore[arg-type]
-    return _frame_write(session, frame_id, expected, review_state, apply, "view.review", actor, revert)  # type: ignore[arg-type]
+    return _frame_write(session, frame_id, expected, review_state, apply, "view.review", actor, revert,  # type: ignore[arg-type]
+                        undo.entry_id if undo is not None else None)
 
 
 def _check_decision(status: ReviewStatus | str, comment: Any) -> ReviewStatus:
@@ -723,11 +817,11 @@ def _check_decision(status: ReviewStatus | str, comment: Any) -> ReviewStatus:
 
 def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus | str, comment: str = "",
                        actor: Optional[str] = None, expected: Expected = None,
-                       revert: Optional[Revert] = None) -> ReviewDecision:
+                       revert: Optional[Revert] = None, undo: Optional[Revert] = None) -> ReviewDecision:
     """Record the reviewer's decision on a view's calibration (its field lines and the camera fitted to
     them), beside the decision on its ball (:func:`decide_review`). Clears ``calibration_reset_reason``.
     Audited as ``view.calibration_review`` (``actor``, ``expected``: versions of the frame, ``revert``:
-    module docstring). An edit of the view's field lines sets a decided calibration back to pending
+    module docstring; ``undo``: :func:`check_undo_state`). An edit of the view's field lines sets a decided calibration back to pending
     (:func:`reset_decisions_after_recalibration`).
 
     Returns:
@@ -742,6 +836,7 @@ def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus 
     status = _check_decision(status, comment)
 
     def apply(frame: Frame) -> ReviewDecision:
+        check_undo_state(undo, calibration_review_state(frame))
         review = frame.review
         if review is None:
             review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
@@ -754,19 +849,21 @@ def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus 
 
     get_frame(session, frame_id)
     return _frame_write(session, frame_id, expected, calibration_review_state, apply, "view.calibration_review",
-                        actor, revert)
+                        actor, revert, undo.entry_id if undo is not None else None)
 
 
 def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settings: Settings,
                       actor: Optional[str] = None, expected: Expected = None,
-                      revert: Optional[Revert] = None) -> Frame:
+                      revert: Optional[Revert] = None, undo: Optional[Revert] = None) -> Frame:
     """Exclude a view from its system's triangulation, or restore it, then recompute the system, in
     one transaction.
 
     The decision is stored on the view's review (``ReviewDecision.excluded``, created pending when the
     view has none) and is reversible: the view keeps its labels and calibration, is drawn and judged,
     but takes no part in the 3D ball. Its review status and comment are left as they are. Audited as
-    ``view.exclusion`` (``actor``, ``expected``, ``revert``: module docstring).
+    ``view.exclusion`` (``actor``, ``expected``, ``revert``: module docstring; ``undo``:
+    :func:`check_undo_state`). A change sets the view's ball decision and the system's decision back to
+    pending (:func:`reset_decisions_after_edit`).
 
     Raises:
         NotFoundError: no such frame.
@@ -778,12 +875,16 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
     get_frame(session, frame_id)
 
     def apply(frame: Frame) -> Frame:
+        before = excluded_state(frame)
+        check_undo_state(undo, before)
         review = frame.review
         if review is None:
             review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
             frame.review = review
         review.excluded = excluded
         _recompute(session, frame.system, settings)
+        reset_after_change(session, frame, "view.exclusion", before, excluded_state(frame), actor, undo)
         return frame
 
-    return _frame_write(session, frame_id, expected, excluded_state, apply, "view.exclusion", actor, revert)
+    return _frame_write(session, frame_id, expected, excluded_state, apply, "view.exclusion", actor, revert,
+                        undo.entry_id if undo is not None else None)

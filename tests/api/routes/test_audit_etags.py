@@ -129,11 +129,16 @@ def test_system_review_is_a_conditional_write_of_reviewers(client: TestClient, s
     assert stale.status_code == 412
     assert stale.json()["current"]["review"]["status"] == "accepted" and stale.json()["last_change"]["actor"] == "rita"
     assert client.get(f"/api/systems/{sid}").json()["review"]["status"] == "accepted"
-    # a frame's edit leaves the system's review ETag alone
+    # a frame's edit of the accepted system sets its decision back to pending (issue 28): its ETag moves, so a
+    # page that drew "accepted" cannot decide over the edit unseen; a frame's edit of a pending system leaves it alone
     frame, fetag = _frame(client, scene.frame_ids[0])
-    client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", json={"box": _moved(frame["ball"]["box"], 2.0)},
-                 headers={"If-Match": fetag})
-    assert client.get(f"/api/systems/{sid}").headers["etag"] == done.headers["etag"]
+    edit = client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", json={"box": _moved(frame["ball"]["box"], 2.0)},
+                        headers={"If-Match": fetag})
+    reset = client.get(f"/api/systems/{sid}")
+    assert reset.json()["review"]["status"] == "pending" and reset.headers["etag"] == f'"system-{sid}-3"'
+    client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", json={"box": _moved(frame["ball"]["box"], 4.0)},
+                 headers={"If-Match": edit.headers["etag"]})
+    assert client.get(f"/api/systems/{sid}").headers["etag"] == reset.headers["etag"]
 
 
 # ----- the audit log -------------------------------------------------------------------------------
