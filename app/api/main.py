@@ -13,7 +13,7 @@ from app.api.authentication import PROTECTED
 from app.api.bodies import TOO_LARGE
 from app.api.schemas import ErrorOut
 from app.api.routes import (
-    audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, pitch, systems, users,
+    assignments, audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, pitch, systems, users,
 )
 
 api_router = APIRouter(responses=TOO_LARGE)
@@ -23,6 +23,7 @@ _protected = APIRouter(dependencies=PROTECTED, responses={
     401: {"model": ErrorOut, "description": "No session or token (log in, or send Authorization: Bearer <token>)."},
     403: {"model": ErrorOut, "description": "The role is below the route's, or a session write lacks X-CSRF-Token."},
 })
-for _module in (auth, users, games, systems, frames, imports, exports, jobs, detectors, issia, audit, pitch):
+for _module in (auth, users, games, systems, assignments, frames, imports, exports, jobs, detectors, issia, audit,
+                pitch):
     _protected.include_router(_module.router)
 api_router.include_router(_protected)

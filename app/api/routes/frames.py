@@ -77,11 +77,12 @@ def read_frame(session: SessionDep, frame: FrameDep, response: Response, _: Prin
     return out
 
 
-def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery) -> SystemView:
-    """The recomputed system view after an edit of ``frame_id``, its new ETag in the header."""
+def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery, me: str) -> SystemView:
+    """The recomputed system view after an edit of ``frame_id`` by ``me`` (whom ``assignee=me`` names), its new
+    ETag in the header."""
     frame = editing.get_frame(session, frame_id)
     with_etag(response, frame_etag(frame))
-    return SystemView.of(system_page(session, frame.system_id, query.filters(), query.sort))
+    return SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort))
 
 
 @router.get(
@@ -121,7 +122,7 @@ def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDe
     editing.update_ball_label(session, frame.id, box=body.box, point=body.point, provenance=body.provenance,
                               settings=settings, actor=principal.name,
                               expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query)
+    return _edited(session, frame.id, response, query, principal.name)
 
 
 @router.put("/{frame_id}/field-lines", response_model=SystemView, responses=EDIT_RESPONSES)
@@ -140,7 +141,7 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     entry_id = audit.recorded_entry_id(session)
     if entry_id is not None:
         response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
-    return _edited(session, frame.id, response, query)
+    return _edited(session, frame.id, response, query, principal.name)
 
 
 @router.post("/{frame_id}/field-lines/mirror", response_model=SystemView,
@@ -154,7 +155,7 @@ def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: An
     """
     editing.apply_mirrored_labels(session, frame.id, settings=settings, actor=principal.name,
                                   expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query)
+    return _edited(session, frame.id, response, query, principal.name)
 
 
 @router.post("/{frame_id}/exclusion", response_model=SystemView, responses=EDIT_RESPONSES)
@@ -166,7 +167,7 @@ def set_exclusion(session: SessionDep, settings: SettingsDep, principal: Annotat
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
     editing.set_view_excluded(session, frame.id, body.excluded, settings=settings, actor=principal.name,
                               expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query)
+    return _edited(session, frame.id, response, query, principal.name)
 
 
 @router.post("/{frame_id}/review", response_model=ReviewOut, responses=EDIT_RESPONSES)
