@@ -20,6 +20,7 @@ import { dispatchKey, keysHelp, renderKeys } from "./keys.js";
 import { EditHistory, lineKeys } from "./lineseditor.js";
 import { ViewDecisions, decisionNote } from "./viewdecisions.js";
 import { ZoomSync } from "./zoom.js";
+import { SystemPresence } from "./presence.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -71,6 +72,7 @@ class SystemPage {
       onError: showError,
     });
     this.decisions = new ViewDecisions(this, toast);
+    this.presence = new SystemPresence($("system-status")); // who it is assigned to, who else has it open
     this.zoom = new ZoomSync($("views"), document.querySelector(".topbar .navs"));
     this.keys = this.keyTable();
     this.keys.push(keysHelp(this.keys, "Keys of the system page"));
@@ -138,6 +140,7 @@ class SystemPage {
     $("system-name").textContent = sys.name;
     $("system-game").textContent = [game.league, game.season, game.match].filter(Boolean).join(" · ");
     this.renderStatus(sys.review);
+    this.presence.show(sys);
     $("prev").disabled = sys.prev_id === null || sys.prev_id === undefined;
     $("next").disabled = sys.next_id === null || sys.next_id === undefined;
     $("comment").value = sys.review?.comment || "";
