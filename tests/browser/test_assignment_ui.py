@@ -110,6 +110,8 @@ def test_admin_assigns_a_sees_my_systems_b_sees_a_present(browser, server_url, p
         assert text.startswith("ana has this system open (since ") and "your edits may cross theirs" in text
         assert b.locator(tid("system-assignee")).inner_text() == "assigned to ana"
         b.screenshot(path=str(shots / "4-ben-system-sees-ana-1366.png"))
+        b.set_viewport_size({"width": 1920, "height": 1080})
+        b.screenshot(path=str(shots / "5-ben-system-sees-ana-1920.png"))
         # A sees B in turn at her next heartbeat (sent at once when her tab becomes visible)
         a.evaluate("document.dispatchEvent(new Event('visibilitychange'))")
         a.locator(tid("presence")).filter(has_text="ben has this system open").wait_for()

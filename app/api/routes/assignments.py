@@ -16,7 +16,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 from app.api.assignment_schemas import AssignedOut, AssigneeOut, AssignIn, PresenceStateOut
-from app.api.auth import PrincipalDep, ReviewerDep
+from app.api.auth import AnnotatorDep, ReviewerDep
 from app.api.deps import SessionDep, SystemDep
 from app.api.schemas import INVALID, NOT_FOUND
 from app.db.types import utcnow
@@ -49,7 +49,7 @@ def list_assignees(session: SessionDep, principal: ReviewerDep) -> list[Assignee
 
 
 @router.put("/systems/{system_id}/presence", response_model=PresenceStateOut, responses=NOT_FOUND)
-def claim_presence(session: SessionDep, principal: PrincipalDep, system: SystemDep) -> PresenceStateOut:
+def claim_presence(session: SessionDep, principal: AnnotatorDep, system: SystemDep) -> PresenceStateOut:
     """The page's heartbeat while the caller has the system open (send it every ``heartbeat_seconds``): a soft
     claim that lapses ``ttl_seconds`` after its last refresh, and the others who have the system open now.
     Writes only when the claim is missing or older than 80 s (``wrote``); any role. Not a lock: edits by
@@ -59,7 +59,7 @@ def claim_presence(session: SessionDep, principal: PrincipalDep, system: SystemD
 
 
 @router.delete("/systems/{system_id}/presence", status_code=204, responses=NOT_FOUND)
-def release_presence(session: SessionDep, principal: PrincipalDep, system: SystemDep) -> Response:
+def release_presence(session: SessionDep, principal: AnnotatorDep, system: SystemDep) -> Response:
     """The caller left the system (closed or moved on): their claim ends now instead of lapsing. 204 either way."""
     presence.release(session, system.id, principal.user_id)
     return Response(status_code=204)
