@@ -9,6 +9,8 @@ import { el, showError } from "./format.js";
 import { sinceWords } from "./presence.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
+/** How often the queue re-reads who has its rows open (one read of the page's rows; nothing is written). */
+const PEOPLE_REFRESH_MS = 30000;
 
 /** The queue filters as the body of an assignment by filter (numbers as numbers, no sort, no empty value). */
 export function filterBody(state) {
@@ -21,9 +23,12 @@ export function filterBody(state) {
 }
 
 export class QueueAssignment {
-  /** `page`: the queue page (its `state`, `rows`, `selected`, `total`, `firstPage()`, `navigate()`, `load()`). */
-  constructor(page) {
+  /** `page`: the queue page (its `state`, `rows`, `selected`, `total`, `firstPage()`, `navigate()`, `load()`);
+   * `params()`: the query of GET /api/systems for the page shown (to refresh its rows' people). */
+  constructor(page, params) {
     this.page = page;
+    this.params = params;
+    setInterval(() => this.refreshPeople(), PEOPLE_REFRESH_MS);
     this.myName = null;
     const form = $("filters");
     // the filter's form field (the queue reads every filter from the form), driven by the toggle
@@ -50,6 +55,27 @@ export class QueueAssignment {
       const row = this.page.rows[this.page.selected];
       this.forGame.disabled = !row;
       this.forSelected.disabled = !row;
+    }
+  }
+
+  /** Re-read the shown page's rows and redraw only their assignee and presence chips (while the tab is seen). */
+  async refreshPeople() {
+    if (document.visibilityState !== "visible" || !this.page.rows.length) return;
+    let answer;
+    try {
+      answer = await send("GET", `/api/systems?${new URLSearchParams(
+        Object.entries(this.params()).filter(([, v]) => v !== "" && v !== undefined && v !== null))}`);
+    } catch {
+      return; // a hint only: the next load shows the truth
+    }
+    for (const s of answer.items || []) {
+      const row = this.page.rows.find((r) => r.id === s.id);
+      const cell = document.querySelector(`[data-testid="queue-row"][data-id="${s.id}"] [data-testid="system-link"]`)?.parentElement;
+      if (!row || !cell) continue;
+      Object.assign(row, { assignment: s.assignment, open_by: s.open_by });
+      cell.querySelector(".people")?.remove();
+      const chips = this.chips(s);
+      if (chips) cell.append(chips);
     }
   }
 

@@ -79,7 +79,8 @@ class QueuePage {
       const tr = e.target.closest("tr[data-id]");
       if (tr) this.open(tr.dataset.id);
     });
-    this.assignment = new QueueAssignment(this); // "My systems", who has what, the assign bar
+    // "My systems", who has what (re-read every 30 s), the assign bar
+    this.assignment = new QueueAssignment(this, () => apiParams(this.state));
     this.keys = this.keyTable();
     this.keys.push(keysHelp(this.keys, "Keys of the queue"));
     document.addEventListener("keydown", (e) => this.onKey(e));

@@ -1,7 +1,8 @@
 """Work assignment and presence in Chromium (issue 28, item 10), two annotators and an admin at 1366x768:
 the admin assigns systems to annotator A from the queue's assign bar (the selected system, then every system a
 filter matches), A finds exactly those under "My systems" and opens one; annotator B sees "A has this system
-open" on that system's page and in its queue row; A leaving the system ends the claim at once."""
+open" in its queue row (B's queue page, already open, refreshes it) and on that system's page; A leaving the
+system ends the claim at once."""
 from __future__ import annotations
 
 import pytest
@@ -95,10 +96,10 @@ def test_admin_assigns_a_sees_my_systems_b_sees_a_present(browser, server_url, p
         assert a.locator(tid("presence")).is_hidden()  # nobody else there
         assert "assignee=me" in a.url  # prev / next stay within her systems
 
-        # ----- B: the queue row and the system page say that A has it open
-        b.reload()
+        # ----- B: the queue row (B's queue was open before A came: it re-reads its rows' people every 30 s)
+        # and the system page say that A has it open
         row = b.locator(f'{tid("queue-row")}[data-id="{target}"]')
-        row.wait_for()
+        row.locator(tid("row-presence")).wait_for(timeout=40_000)
         assert row.locator(tid("row-presence")).inner_text() == "ana has it open"
         assert row.locator(tid("row-assignee")).inner_text() == "→ ana"
         row.scroll_into_view_if_needed()
