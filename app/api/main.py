@@ -13,7 +13,8 @@ from app.api.authentication import PROTECTED
 from app.api.bodies import TOO_LARGE
 from app.api.schemas import ErrorOut
 from app.api.routes import (
-    audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, passes, pitch, systems, users,
+    assignments, audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, passes, pitch, systems,
+    users,
 )
 
 api_router = APIRouter(responses=TOO_LARGE)
@@ -26,7 +27,7 @@ _protected = APIRouter(dependencies=PROTECTED, responses={
                                             "V3D_WRITE_LOCK_TIMEOUT_S: nothing was changed; send it again after the "
                                             "Retry-After header's seconds."},
 })
-for _module in (auth, users, games, systems, frames, imports, exports, jobs, detectors, issia, audit, pitch,
-                passes):
+for _module in (auth, users, games, systems, assignments, frames, imports, exports, jobs, detectors, issia, audit,
+                pitch, passes):
     _protected.include_router(_module.router)
 api_router.include_router(_protected)

@@ -88,13 +88,21 @@ class QueueQuery(BaseModel):
     doubt: Optional[DoubtFilter] = Field(
         None, description="Only systems with a doubt of this kind; 'any': with a label-accusing doubt; "
         "'none': without one.")
+    assignee: Optional[str] = Field(
+        None, min_length=1, max_length=100,
+        description="Only systems assigned to this user (a name), 'me' (the caller's), or 'none' (unassigned ones); "
+        "422 for an unknown name.")
     sort: SystemSort = Field(DEFAULT_SORT, description="Order; a leading '-' means descending. Missing values last.")
 
-    def filters(self) -> SystemFilters:
-        """The service-level filters."""
+    def filters(self, me: Optional[str] = None) -> SystemFilters:
+        """The service-level filters; ``me``: the caller's name, which ``assignee=me`` stands for (without it,
+        ``assignee=me`` filters nothing out)."""
+        assignee = self.assignee
+        if assignee == "me":
+            assignee = me
         return SystemFilters(game_id=self.game_id, status=self.status, jac_min=self.jac_min,
                              jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max,
-                             doubt=self.doubt)
+                             doubt=self.doubt, assignee=assignee)
 
     @model_validator(mode="after")
     def _ranges(self) -> "QueueQuery":

@@ -14,7 +14,9 @@ from typing import Any, Optional
 
 from pydantic import AliasChoices, BaseModel, ConfigDict, Field, computed_field
 
+from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.audit_schemas import AuditEntryOut
+from app.db.types import utcnow
 from app.db.models import (
     BallKind, BallLabel, Calibration, CalibrationSource, CalibrationStatus, Doubt, Frame, FrameRole, OptimisedBox,
     ReviewDecision, ReviewStatus, System, SystemKind, Triangulation, TriangulationStatus,
@@ -155,15 +157,22 @@ class SystemSummaryOut(BaseModel):
         "error_above_tau rule: error scaled to the rule's reference width, compared with the stored tau).")
     doubt_counts: dict[str, int] = Field(description="Stored doubts of the system per kind.")
     label_doubts: int = Field(description="How many of its doubts accuse a label.")
+    assignment: Optional[AssignmentOut] = Field(None, description="Who the system is assigned to.")
+    open_by: list[PresenceOut] = Field(default_factory=list,
+                                       description="Who has the system open now (live claims, oldest first).")
 
     @classmethod
-    def of(cls, system: System) -> "SystemSummaryOut":
-        """A queue row from a system loaded with its game, review and triangulation."""
+    def of(cls, system: System, assignment: Optional[AssignmentOut] = None,
+           open_by: Optional[list[PresenceOut]] = None) -> "SystemSummaryOut":
+        """A queue row from a system loaded with its game, review and triangulation, with its assignment and
+        presence when given."""
         tri = system.triangulation
+        shaped = ("game", "review", "ball3d", "assignment", "open_by")
         return cls.model_validate({
-            **{name: getattr(system, name) for name in cls.model_fields if name not in ("game", "review", "ball3d")},
+            **{name: getattr(system, name) for name in cls.model_fields if name not in shaped},
             "game": system.game, "review": ReviewOut.of(system.review),
             "ball3d": tri.ball3d if tri is not None else None, "doubt_counts": system.doubt_counts or {},
+            "assignment": assignment, "open_by": open_by or [],
         })
 
 
@@ -482,12 +491,17 @@ class SystemView(BaseModel):
     triangulation: Optional[TriangulationOut]
     views: list[ViewOut]
     doubts: list[DoubtOut] = Field(description="The system's doubts, stored with its last recomputation.")
+    assignment: AssignmentOut = Field(description="Who the system is assigned to (POST /api/assignments).")
+    open_by: list[PresenceOut] = Field(
+        description="Everyone who has the system open now, the caller included (live presence claims, oldest first; "
+                    "PUT /api/systems/{id}/presence).")
 
     @classmethod
     def of(cls, page: SystemPageData) -> "SystemView":
         """The system view of a system loaded for its page (``app.services.curation.system_page.system_page``)."""
         system, tri = page.system, page.system.triangulation
         names = {f.id: f.name for f in system.frames}
+        now = utcnow()
         return cls(
             id=system.id, name=system.name, kind=system.kind, frame_index=system.frame_index,
             game=GameRef.model_validate(system.game), review=ReviewOut.of(system.review), etag=system_etag(system),
@@ -495,6 +509,7 @@ class SystemView(BaseModel):
             triangulation=TriangulationOut.model_validate(tri) if tri is not None else None,
             views=[ViewOut.of(f, tri) for f in system.frames],
             doubts=[DoubtOut.of(d, names) for d in system.doubts],
+            assignment=AssignmentOut.of(page.assignment), open_by=[PresenceOut.of(p, now) for p in page.open_by],
         )
 
 

@@ -14,6 +14,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
                  - TrajectoryPoint                     (ISSIA: the frame on the sequence's trajectory)
 
     User -> ApiToken                                   (people and their API tokens, hashed)
+    System - User (assignee), SystemPresence           (work assignment; who has a system open, expiring)
     ServerSecret                                       (the session-signing key, shared by every worker)
     AuditEntry                                         (append-only log of accepted writes; ids, no FKs)
     Job                                                (a background import, full recompute or export)
@@ -249,6 +250,14 @@ class System(Base):
     trajectory_point: Mapped[Optional[TrajectoryPoint]] = relationship(
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True
     )
+    # ----- work assignment (issue 28, ``app.services.curation.assignment``): who should review the system.
+    #: The id of the user the system is assigned to (None: nobody). A plain indexed id, as the audit log's: a
+    #: foreign key would need SQLite to rebuild ``systems`` (migration 0020); users are disabled, never deleted.
+    assignee_id: Mapped[Optional[int]] = mapped_column(index=True)
+    #: When it was last assigned (or unassigned), UTC; None when never.
+    assigned_at: Mapped[Optional[datetime]]
+    #: Who assigned it (the audit log's actor name, so that it outlives the user); None when never.
+    assigned_by: Mapped[Optional[str]] = mapped_column(sa.String(200))
 
 
 class Frame(Base):
@@ -622,6 +631,22 @@ class User(Base):
     tokens: Mapped[list[ApiToken]] = relationship(
         back_populates="user", cascade="all, delete-orphan", passive_deletes=True, order_by="ApiToken.id"
     )
+
+
+class SystemPresence(Base):
+    """A soft claim: ``user_id`` has system ``system_id`` open in a page (``app.services.curation.presence``).
+
+    ``since`` is when the page opened it (kept by every refresh), ``expires_at`` when the claim lapses
+    unless refreshed (UTC). A claim past ``expires_at`` counts as absent: readers filter on it, and the next
+    claim written by anyone deletes the lapsed rows, so no cleanup job is needed. Written when a page opens a
+    system and refreshed at most once per ``presence.REFRESH_AFTER``, never per heartbeat."""
+
+    __tablename__ = "system_presence"
+
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), primary_key=True)
+    user_id: Mapped[int] = mapped_column(sa.ForeignKey("users.id", ondelete="CASCADE"), primary_key=True)
+    since: Mapped[datetime]
+    expires_at: Mapped[datetime] = mapped_column(index=True)
 
 
 class ApiToken(Base):

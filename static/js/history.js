@@ -14,6 +14,7 @@ const ACTION_LABEL = {
   "view.review": "view review",
   "view.calibration_review": "calibration review",
   "system.review": "system review",
+  "system.assign": "assignment",
   import: "import",
   recompute: "recompute",
   revert: "revert",
@@ -36,6 +37,7 @@ export function describeState(state) {
     return `${n} line${n === 1 ? "" : "s"} (${Object.keys(lines).length} classes)`;
   }
   if ("excluded" in state) return state.excluded ? "excluded from the 3D ball" : "in the 3D ball";
+  if ("assignee" in state) return state.assignee ? `assigned to ${state.assignee}` : "unassigned";
   if ("review" in state || "calibration_review" in state) {
     const r = state.review || state.calibration_review || {};
     return `${human(r.status || "pending")}${r.comment ? ` “${r.comment}”` : ""}`;

@@ -6,6 +6,7 @@ import { listSystems, listGames } from "./api.js";
 import "./session.js";
 import { JobsPanel } from "./jobs.js";
 import { mountExports } from "./exports.js";
+import { QueueAssignment } from "./assignment.js";
 import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
 import { el, fmt, fmtJac, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
@@ -81,6 +82,8 @@ class QueuePage {
       const tr = e.target.closest("tr[data-id]");
       if (tr) this.open(tr.dataset.id);
     });
+    // "My systems", who has what (re-read every 30 s), the assign bar
+    this.assignment = new QueueAssignment(this, () => apiParams(this.state));
     this.keys = this.keyTable();
     this.keys.push(keysHelp(this.keys, "Keys of the queue", chipLegend("What the chips say")));
     $("chip-legend-slot")?.replaceChildren(chipLegend("")); // under its <summary>
@@ -198,6 +201,7 @@ class QueuePage {
       const at = back ? this.rows.findIndex((r) => String(r.id) === decodeURIComponent(back[1])) : -1;
       this.selected = at >= 0 ? at : Math.min(this.selected, Math.max(0, this.rows.length - 1));
       this.renderRows();
+      this.assignment.update();
       if (at >= 0) $("queue").querySelectorAll("tbody tr")[at].scrollIntoView({ block: "nearest" });
       this.renderProgress(answer.counts || {});
     } catch (err) {
@@ -217,7 +221,8 @@ class QueuePage {
           "tr",
           { "data-testid": "queue-row", "data-id": s.id, tabindex: "-1", class: i === this.selected ? "selected" : "" },
           el("td", { class: "game", title: [game.league, game.season, game.match].filter(Boolean).join(" / ") }, game.match || game.id || "—"),
-          el("td", {}, el("a", { href: `/systems/${encodeURIComponent(s.id)}${handOn}`, "data-testid": "system-link" }, s.name)),
+          el("td", {}, el("a", { href: `/systems/${encodeURIComponent(s.id)}${handOn}`, "data-testid": "system-link" }, s.name),
+            this.assignment.chips(s)),
           el("td", {}, el("span", { class: `badge ${status}` }, STATUS_LABEL[status] || status)),
           el("td", { class: `num ${s.views_calibrated < Math.min(2, s.views_total) ? "bad" : ""}`,
             title: `${s.views_calibrated} calibrated, ${s.views_admitted} admitted (JaC@0.5% above the threshold), ${s.views_labelled} with a ball label, of ${s.views_total} views` },
@@ -258,6 +263,7 @@ class QueuePage {
   select(i) {
     if (!this.rows.length) return;
     this.selected = Math.max(0, Math.min(this.rows.length - 1, i));
+    this.assignment.update();
     const trs = $("queue").querySelectorAll("tbody tr");
     trs.forEach((tr, j) => tr.classList.toggle("selected", j === this.selected));
     trs[this.selected].scrollIntoView({ block: "nearest" });

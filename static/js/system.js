@@ -25,6 +25,7 @@ import { WORDS, chip, chipLegend, heightText, tauText } from "./words.js";
 import { ReviewPass, withPass } from "./pass.js";
 import { AcceptGuard } from "./guard.js";
 import { explainKeys } from "./keyreasons.js";
+import { SystemPresence } from "./presence.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -78,6 +79,7 @@ class SystemPage {
       onError: showError,
     });
     this.decisions = new ViewDecisions(this, toast);
+    this.presence = new SystemPresence($("system-status")); // who it is assigned to, who else has it open
     this.zoom = new ZoomSync($("views"), document.querySelector(".topbar .navs"));
     this.pass = new ReviewPass(document.querySelector(".topbar .navs"), (id) => this.go(id)); // pass.js
     this.guard = new AcceptGuard(); // guard.js
@@ -173,6 +175,7 @@ class SystemPage {
     $("system-name").textContent = sys.name;
     $("system-game").textContent = [game.league, game.season, game.match].filter(Boolean).join(" · ");
     this.renderStatus(sys.review);
+    this.presence.show(sys);
     $("prev").disabled = this.stepId(-1) == null; // in a pass: its neighbours (pass.js)
     $("next").disabled = this.stepId(1) == null;
     $("comment").value = sys.review?.comment || "";

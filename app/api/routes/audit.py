@@ -87,4 +87,4 @@ def _restored(session: SessionDep, done: Reverted, query: QueueQuery, response: 
         with_etag(response, frame_etag(editing.get_frame(session, done.ident)))
     else:
         with_etag(response, system_etag(editing.get_system(session, done.ident)))
-    return SystemView.of(system_page(session, done.system_id, query.filters(), query.sort))
+    return SystemView.of(system_page(session, done.system_id, query.filters(me=principal.name), query.sort))

@@ -113,12 +113,13 @@ def name_entry(session: Session, response: Response) -> None:
         response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
 
 
-def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery) -> SystemView:
-    """The recomputed system view after an edit of ``frame_id``, its new ETag and its audit entry in the header."""
+def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery, me: str) -> SystemView:
+    """The recomputed system view after an edit of ``frame_id`` by ``me`` (whom ``assignee=me`` names), its new
+    ETag and its audit entry in the header."""
     name_entry(session, response)
     frame = editing.get_frame(session, frame_id)
     with_etag(response, frame_etag(frame))
-    return SystemView.of(system_page(session, frame.system_id, query.filters(), query.sort))
+    return SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort))
 
 
 @router.get(
@@ -158,7 +159,7 @@ def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDe
     editing.update_ball_label(session, frame.id, box=body.box, point=body.point, provenance=body.provenance,
                               settings=settings, actor=principal.name,
                               expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query)
+    return _edited(session, frame.id, response, query, principal.name)
 
 
 @router.put("/{frame_id}/field-lines", response_model=SystemView, responses=EDIT_RESPONSES)
@@ -174,7 +175,7 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     """
     editing.replace_field_lines(session, frame.id, body.lines, settings=settings, actor=principal.name,
                                 expected=expected_versions(if_match, "frame", frame.id), undo_of=body.undo_of)
-    return _edited(session, frame.id, response, query)
+    return _edited(session, frame.id, response, query, principal.name)
 
 
 @router.post("/{frame_id}/field-lines/mirror", response_model=SystemView,
@@ -188,7 +189,7 @@ def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: An
     """
     editing.apply_mirrored_labels(session, frame.id, settings=settings, actor=principal.name,
                                   expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query)
+    return _edited(session, frame.id, response, query, principal.name)
 
 
 @router.post("/{frame_id}/exclusion", response_model=SystemView, responses=EDIT_RESPONSES)
@@ -200,7 +201,7 @@ def set_exclusion(session: SessionDep, settings: SettingsDep, principal: Annotat
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
     editing.set_view_excluded(session, frame.id, body.excluded, settings=settings, actor=principal.name,
                               expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query)
+    return _edited(session, frame.id, response, query, principal.name)
 
 
 @router.post("/{frame_id}/review", response_model=ReviewOut, responses=EDIT_RESPONSES)

@@ -9,13 +9,15 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from app.api.auth import ReviewerDep
+from app.api.assignment_schemas import AssignmentOut, PresenceOut
+from app.api.auth import PrincipalDep, ReviewerDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import SessionDep, SystemDep
 from app.api.routes.frames import name_entry
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
-from app.services.curation import editing
+from app.db.types import utcnow
+from app.services.curation import assignment, editing, presence
 from app.services.curation import queue
 from app.services.curation.system_page import system_page
 from app.services.curation.versions import expected_versions, system_etag
@@ -24,25 +26,37 @@ router = APIRouter(prefix="/systems", tags=["systems"])
 
 
 @router.get("", response_model=SystemPageOut, responses=INVALID)
-def list_systems(session: SessionDep, query: Annotated[SystemListQuery, Query()]) -> SystemPageOut:
+def list_systems(session: SessionDep, principal: PrincipalDep,
+                 query: Annotated[SystemListQuery, Query()]) -> SystemPageOut:
     """One page of the review queue, filtered and sorted, with the progress per review status; by
     ``offset`` or by cursor (``after`` / ``before``: a page's ``next_cursor`` / ``prev_cursor``; 422
-    naming the field for a cursor of another sort or both at once)."""
-    page = queue.list_systems(session, query.filters(), query.sort, query.limit, query.offset, query.after,
+    naming the field for a cursor of another sort or both at once). ``assignee=NAME|me|none``: the systems
+    assigned to that user, to the caller, or to nobody (422 naming ``assignee`` for an unknown name). Each row
+    carries its ``assignment`` and who has it open now (``open_by``)."""
+    filters = query.filters(me=principal.name)
+    if filters.assignee not in (None, "none"):
+        assignment.known_user(session, filters.assignee)
+    page = queue.list_systems(session, filters, query.sort, query.limit, query.offset, query.after,
                               query.before)
     cursor = query.after is not None or query.before is not None
-    return SystemPageOut(items=[SystemSummaryOut.of(s) for s in page.items], total=page.total, limit=query.limit,
+    ids = [s.id for s in page.items]
+    assigned, now = assignment.assignments_of(session, ids), utcnow()
+    present = presence.open_on(session, ids, now)
+    items = [SystemSummaryOut.of(s, AssignmentOut.of(assigned.get(s.id)),
+                                 [PresenceOut.of(p, now) for p in present.get(s.id, [])]) for s in page.items]
+    return SystemPageOut(items=items, total=page.total, limit=query.limit,
                          offset=None if cursor else query.offset, counts=page.counts,
                          next_cursor=page.next_cursor, prev_cursor=page.prev_cursor)
 
 
 @router.get("/{system_id}", response_model=SystemView, responses=NOT_FOUND)
-def read_system(session: SessionDep, system: SystemDep, query: Annotated[QueueQuery, Query()],
-                response: Response) -> SystemView:
+def read_system(session: SessionDep, principal: PrincipalDep, system: SystemDep,
+                query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
     """The system view (``docs/architecture.md``); ``prev_id`` / ``next_id`` follow the queue given by
-    the query parameters (by default the whole queue, largest error first). ``ETag``: the system's
+    the query parameters (by default the whole queue, largest error first; ``assignee=me`` is the caller).
+    ``assignment`` and ``open_by`` say who it is assigned to and who has it open. ``ETag``: the system's
     review decision's."""
-    out = SystemView.of(system_page(session, system.id, query.filters(), query.sort))
+    out = SystemView.of(system_page(session, system.id, query.filters(me=principal.name), query.sort))
     with_etag(response, out.etag)
     return out
 

@@ -40,7 +40,9 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
 
 from app.core.errors import InvalidInputError
-from app.db.models import BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, ReviewStatus, System
+from app.db.models import (
+    BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, ReviewStatus, System, User,
+)
 
 SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
@@ -61,6 +63,9 @@ class SystemFilters:
     #: Only systems with a doubt of this kind (``app.geometry.doubts``), or ``"any"``: with at least
     #: one label-accusing doubt; ``"none"``: with none.
     doubt: Optional[str] = None
+    #: Only systems assigned to the user of this name (``app.services.curation.assignment``), or ``"none"``:
+    #: the unassigned ones. An unknown name matches nothing (the API refuses it first).
+    assignee: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -137,7 +142,17 @@ def _system_conditions(filters: SystemFilters, with_status: bool = True) -> list
         conds.append(System.label_doubts == 0)
     elif filters.doubt is not None:
         conds.append(sa.exists().where(Doubt.system_id == System.id, Doubt.kind == filters.doubt))
+    if filters.assignee == "none":
+        conds.append(System.assignee_id.is_(None))
+    elif filters.assignee is not None:  # the index on assignee_id, the user's id looked up once
+        conds.append(System.assignee_id == sa.select(User.id).where(User.name == filters.assignee).scalar_subquery())
     return conds
+
+
+def matching_system_ids(filters: SystemFilters) -> sa.Select[Any]:
+    """SQL: the ids of every system the queue ``filters`` match (all pages, status filter included), in id
+    order: what a bulk action on "the result of this filter" acts on (``app.services.curation.assignment``)."""
+    return sa.select(System.id).where(*_system_conditions(filters)).order_by(System.id)
 
 
 def _natural_name(column: Any) -> list[Any]:

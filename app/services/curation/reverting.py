@@ -23,7 +23,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import AuditEntry
-from app.services.curation import editing
+from app.services.curation import assignment, editing
 from app.services.accounts.audit import revertible
 from app.core.errors import ForbiddenError, InvalidInputError, found
 
@@ -77,6 +77,10 @@ def _restore(session: Session, entry: AuditEntry, settings: Settings, common: di
                                   provenance=ball.get("provenance"), settings=settings, **common)
     elif "lines" in before:
         editing.replace_field_lines(session, entry.frame_id, before["lines"], settings=settings, **common)  # type: ignore[arg-type]
+    elif "assignee" in before:
+        assignment.revert_assignment(session, system_id=int(entry.system_id), before=before,  # type: ignore[arg-type]
+                                     after=entry.after or {}, entry_id=entry_id, actor=actor, force=force)
+        return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
     elif "excluded" in before:
         editing.set_view_excluded(session, entry.frame_id, bool(before["excluded"]), settings=settings, **common)  # type: ignore[arg-type]
     else:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Optional
 
 import numpy as np
@@ -21,6 +21,8 @@ from app.db.models import Frame, System, Triangulation
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.core.errors import found
+from app.services.curation.assignment import Assignment, assignments_of
+from app.services.curation.presence import Presence, open_on
 from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
 
 #: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
@@ -36,11 +38,14 @@ _PITCH_CACHE_SIZE = 1024
 @dataclass(frozen=True)
 class SystemPageData:
     """A system loaded for its page (game, review, triangulation and pairs, frames with field lines,
-    calibration, ball label, reprojection, optimised box and review, doubts) and its queue neighbours."""
+    calibration, ball label, reprojection, optimised box and review, doubts), its queue neighbours, its
+    assignment and who has it open now (``app.services.curation.presence``, everyone's live claims)."""
 
     system: System
     prev_id: Optional[int]
     next_id: Optional[int]
+    assignment: Optional[Assignment] = None
+    open_by: list[Presence] = field(default_factory=list)
 
 
 def round_px(values: Any) -> Any:
@@ -132,12 +137,14 @@ def load_frame(session: Session, frame_id: int) -> Frame:
 
 def system_page(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
                 sort: SystemSort = DEFAULT_SORT) -> SystemPageData:
-    """The system for its page (:func:`load_system`) and its neighbours in the queue ``filters`` + ``sort``
-    (by default the whole queue in its default order; ``app.services.curation.queue.queue_neighbours``).
+    """The system for its page (:func:`load_system`), its neighbours in the queue ``filters`` + ``sort``
+    (by default the whole queue in its default order; ``app.services.curation.queue.queue_neighbours``), its
+    assignment and its live presence claims (two indexed reads).
 
     Raises:
         NotFoundError: no system has this id.
     """
     system = load_system(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
-    return SystemPageData(system, prev_id, next_id)
+    return SystemPageData(system, prev_id, next_id, assignments_of(session, [system_id]).get(system_id),
+                          open_on(session, [system_id]).get(system_id, []))
