@@ -4,7 +4,7 @@ in that order, and where the user is (``position``, an index into ``system_ids``
 the next pending system of a pass is read from the systems' current review status.
 
 Revision ID: 0021
-Revises: 0019
+Revises: 0020
 Create Date: 2026-11-23 21:30:00+00:00
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from sqlalchemy.dialects import postgresql
 import app.db.types
 
 revision: str = '0021'
-down_revision: Union[str, None] = '0019'
+down_revision: Union[str, None] = '0020'
 branch_labels: Union[str, Sequence[str], None] = None
 depends_on: Union[str, Sequence[str], None] = None
 

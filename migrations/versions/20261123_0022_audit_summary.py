@@ -5,7 +5,7 @@ revision keep NULL (the table is append-only: no row is rewritten) and get the s
 Plain ``ADD COLUMN`` / ``DROP COLUMN`` (no batch copy): the append-only triggers of the table stay in place.
 
 Revision ID: 0022
-Revises: 0019
+Revises: 0021
 Create Date: 2026-11-23 21:30:00+00:00
 """
 from __future__ import annotations
@@ -16,7 +16,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = '0022'
-down_revision: Union[str, None] = '0019'
+down_revision: Union[str, None] = '0021'
 branch_labels: Union[str, Sequence[str], None] = None
 depends_on: Union[str, Sequence[str], None] = None
 
