@@ -181,3 +181,17 @@ def test_a_downloaded_yolo_zip_resolves_as_ultralytics_resolves_it(jobs_app, cli
                                                "../../elsewhere/unpacked/data.yaml")
             assert len(ds) == len(list((root / "images" / split).iterdir()))
             assert ds.classes[0] == "Ball" and sum(int((d.class_id == 0).sum()) for _, _, d in ds) >= 1
+
+
+def test_the_cameras_export_in_the_request(client: TestClient, scene: Scene, act_as) -> None:
+    """``GET /api/exports/cameras``: the same zip as ``v3d export cameras`` (per image size the evaluator's pair of
+    zips and the index), accepted systems unless ``all``; admins only."""
+    every = client.get("/api/exports/cameras", params={"all": "true"})
+    assert every.status_code == 200 and every.headers["x-v3d-cameras"] == "3"
+    files = _all_bytes(every.content)
+    assert "cameras.json" in files and sum("predictions.zip!camera_" in n for n in files) == 3
+    assert sum(n.startswith("960x540/ground_truth.zip!") and n.count("/") == 2 for n in files) == 3
+    accepted = client.get("/api/exports/cameras")
+    assert accepted.headers["x-v3d-cameras"] == "0" and "cameras.json" in _all_bytes(accepted.content)
+    act_as("rita", "reviewer")
+    assert client.get("/api/exports/cameras").status_code == 403
