@@ -148,7 +148,8 @@ def assign(session: Session, *, assignee: Optional[str], system_ids: Optional[li
         for chunk in _chunks(ids):  # locked in id order: two bulk assignments never wait for each other in a cycle
             systems.update((s.id, s) for s in session.scalars(
                 sa.select(System).where(System.id.in_(chunk)).order_by(System.id).with_for_update()))
-        if expect is not None and any(systems[i].assignee_id != v for i, v in expect.items()):
+        ids = [i for i in ids if i in systems]  # (PostgreSQL: a system deleted between the selection and the lock)
+        if expect is not None and any(i not in systems or systems[i].assignee_id != v for i, v in expect.items()):
             raise ConflictError("the system was assigned to someone else since this entry")
         changed = [i for i in ids if systems[i].assignee_id != new_id]
         names = _names(session, {v for i in changed if (v := systems[i].assignee_id) is not None})
