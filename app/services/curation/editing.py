@@ -360,7 +360,7 @@ def system_review_state(system: System) -> dict[str, Any]:
     state = review_state(system)
     if state["review"]["status"] == ReviewStatus.ACCEPTED.value:
         open_doubts = [{"kind": d.kind, "frame_id": d.frame_id, "message": d.message}
-                       for d in sorted(system.doubts, key=lambda d: d.id) if d.accuses_label]
+                       for d in system.doubts if d.accuses_label]  # in id order
         if open_doubts:
             state["overrode_doubts"] = open_doubts
     return state
@@ -764,7 +764,8 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         status: pending, accepted, rejected or needs_fix (enum or its value).
         comment: free text (kept as given).
         actor, expected, revert: attribution and guard (module docstring; ``expected`` are versions of
-            the system's review, or of the frame); audited as ``system.review`` or ``view.review``.
+            the system's review, or of the frame); audited as ``system.review`` or ``view.review``. An
+            accept of a system records the label doubts open at that moment (:func:`system_review_state`).
         undo: this write undoes audit entry ``undo.entry_id`` (:func:`check_undo_state`).
 
     Returns:
