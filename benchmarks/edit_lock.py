@@ -5,14 +5,16 @@ Before issue 27 an edit computed its recomputation while it held the database's 
 locked". Now a line edit gives a view at most ``V3D_MAX_LINE_POINTS_PER_FRAME`` points (2,000) and computes
 before it takes the lock. This benchmark, per round:
 
+0. another annotator's write alone (``PATCH /api/frames/{id}/ball`` on a view of another system, its box moved by
+   1 px, then back): its status and time (``alone``);
 1. one annotator sends ``PUT /api/frames/{id}/field-lines`` with the view's lines resampled to ``--points``
    points (default 2,000: the cap), in a thread;
-2. ``--delay`` seconds later (the edit is computing) another annotator sends ``POST /api/systems/{id}/review`` on
-   another system, and its status and time are recorded, with whether it finished before the line edit
-   (``overlapped``);
+2. ``--delay`` seconds later (the edit is computing) the same write again (``unrelated_write``), with whether it
+   finished before the line edit (``overlapped``);
 3. the line edit's status and time.
 
-Then one edit of ``--refused-points`` (96,000) is sent and its status and time recorded (422 at once when capped).
+Then one edit of ``--refused-points`` (96,000, whole pixels so that the body stays within ``V3D_MAX_JSON_KB``) is
+sent and its status and time recorded (422 at once when capped).
 
 The server is ``v3d serve --workers N`` on a fresh SQLite (or PostgreSQL) database holding the demo
 (``benchmarks.load.fresh_database``, ``served``); ``--root`` runs the server from another checkout (e.g. main's) on
@@ -44,9 +46,9 @@ sys.path.insert(0, str(ROOT))
 from benchmarks import load  # noqa: E402
 
 
-def dense_lines(lines: dict[str, Any], total: int) -> dict[str, Any]:
+def dense_lines(lines: dict[str, Any], total: int, decimals: int = 3) -> dict[str, Any]:
     """``lines`` (``{class: [[[x, y], ...], ...]}``, px) with each polyline of two points or more resampled along
-    its own segments, so that the set holds exactly ``total`` points (rounded to 1/1000 px)."""
+    its own segments, so that the set holds exactly ``total`` points (rounded to ``decimals``)."""
     polys = [(c, i, np.asarray(p, float)) for c, ps in lines.items() for i, p in enumerate(ps) if len(p) >= 2]
     per = [total // len(polys)] * len(polys)
     per[0] += total - sum(per)
@@ -54,7 +56,7 @@ def dense_lines(lines: dict[str, Any], total: int) -> dict[str, Any]:
     for (c, i, p), n in zip(polys, per):
         seg = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))]
         t = np.linspace(0.0, seg[-1], n)
-        out[c][i] = np.c_[np.interp(t, seg, p[:, 0]), np.interp(t, seg, p[:, 1])].round(3).tolist()
+        out[c][i] = np.c_[np.interp(t, seg, p[:, 0]), np.interp(t, seg, p[:, 1])].round(decimals).tolist()
     return out
 
 
@@ -88,6 +90,20 @@ def _line_edit(base: str, token: str, frame_id: int, lines: dict[str, Any], out:
     out.update(status=r.status_code, seconds=round(time.monotonic() - t0, 3), end=time.monotonic())
 
 
+def _ball_edit(base: str, token: str, frame_id: int, box: list[float], dx: float) -> dict[str, Any]:
+    """``PATCH /api/frames/{frame_id}/ball`` with ``box`` moved by ``dx`` px: status, seconds, Retry-After, end."""
+    import httpx
+
+    headers = {"Authorization": f"Bearer {token}"}
+    etag = httpx.get(f"{base}/api/frames/{frame_id}", headers=headers, timeout=120).headers["ETag"]
+    t0 = time.monotonic()
+    r = httpx.patch(f"{base}/api/frames/{frame_id}/ball", json={"box": [box[0] + dx, box[1], box[2] + dx, box[3]]},
+                    headers={**headers, "If-Match": etag}, timeout=600)
+    end = time.monotonic()
+    return {"status": r.status_code, "seconds": round(end - t0, 3), "retry_after": r.headers.get("Retry-After"),
+            "end": end}
+
+
 def run(database_url: Optional[str], rounds: int, points: int, refused_points: int, delay_s: float, workers: int,
         root: Optional[Path]) -> dict[str, Any]:
     """The measurement of the module docstring; returns its figures."""
@@ -98,38 +114,37 @@ def run(database_url: Optional[str], rounds: int, points: int, refused_points: i
         tokens = load.user_tokens(url, 2)
         with _root(root), load.served(url, workers) as base:
             a = {"Authorization": f"Bearer {tokens[0]}"}
-            b = {"Authorization": f"Bearer {tokens[1]}"}
             systems = httpx.get(f"{base}/api/systems", params={"sort": "name", "limit": 50}, headers=a,
                                 timeout=30).json()["items"]
-            edited, other = systems[0]["id"], systems[1]["id"]
+            views = load.labelled_views(httpx.Client(base_url=base, headers=a, timeout=60))
+            edited = systems[0]["id"]
             view = httpx.get(f"{base}/api/systems/{edited}", headers=a, timeout=30).json()["views"][0]
             frame_id = view["frame_id"]
+            _, other_frame, other_box, _, _ = next(v for v in views if v[0] != edited)
             lines = httpx.get(f"{base}/api/frames/{frame_id}", headers=a, timeout=30).json()["field_lines"]
             result["line_classes"] = len(lines)
             for k in range(rounds):
                 shifted = dense_lines(lines, points)
                 first = next(iter(shifted))
                 shifted[first][0][0] = [shifted[first][0][0][0] + 0.5 * (k + 1), shifted[first][0][0][1]]
+                alone = _ball_edit(base, tokens[1], other_frame, other_box, 1.0)
+                _ball_edit(base, tokens[1], other_frame, other_box, 0.0)
                 edit: dict[str, Any] = {}
                 thread = threading.Thread(target=_line_edit, args=(base, tokens[0], frame_id, shifted, edit))
                 thread.start()
                 time.sleep(delay_s)
-                got = httpx.get(f"{base}/api/systems/{other}", headers=b, timeout=120)
-                t0 = time.monotonic()
-                review = httpx.post(f"{base}/api/systems/{other}/review",
-                                    json={"status": "accepted" if k % 2 == 0 else "pending"},
-                                    headers={**b, "If-Match": got.headers["ETag"]}, timeout=600)
-                t1 = time.monotonic()
+                during = _ball_edit(base, tokens[1], other_frame, other_box, 1.0)
                 thread.join()
+                _ball_edit(base, tokens[1], other_frame, other_box, 0.0)
                 result["rounds"].append({
-                    "unrelated_write": {"status": review.status_code, "seconds": round(t1 - t0, 3),
-                                        "retry_after": review.headers.get("Retry-After")},
+                    "alone": {k2: v for k2, v in alone.items() if k2 != "end"},
+                    "unrelated_write": {k2: v for k2, v in during.items() if k2 != "end"},
                     "line_edit": {k2: v for k2, v in edit.items() if k2 != "end"},
-                    "overlapped": t1 < edit.get("end", 0.0),
+                    "overlapped": during["end"] < edit.get("end", 0.0),
                 })
             if refused_points:
                 edit = {}
-                _line_edit(base, tokens[0], frame_id, dense_lines(lines, refused_points), edit)
+                _line_edit(base, tokens[0], frame_id, dense_lines(lines, refused_points, decimals=0), edit)
                 result["refused"] = {"points": refused_points, "status": edit["status"], "seconds": edit["seconds"]}
     return result
 
