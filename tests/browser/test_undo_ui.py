@@ -115,3 +115,34 @@ def test_a_decision_is_undone_by_ctrl_z_on_its_system(page, artifacts):
     page.wait_for_url(f"**/systems/{sid}*")
     assert _api(page, f"/api/systems/{sid}")["review"]["status"] == status
     page.screenshot(path=str(artifacts / "undo-decision.png"))
+
+
+def test_a_mirror_fix_is_undone_to_the_same_numbers(page, artifacts):
+    listing = _api(page, "/api/systems?sort=name&limit=500")["items"]
+    found = None
+    for s in listing:
+        system = _api(page, f"/api/systems/{s['id']}")
+        k = next((i for i, v in enumerate(system["views"]) if (v.get("calibration") or {}).get("probably_mirrored")), None)
+        if k is not None:
+            found = (system, k)
+            break
+    assert found is not None, "the demo data should have a view flagged as mirrored"
+    system, k = found
+    sid = system["id"]
+    before = _api(page, f"/api/systems/{sid}")
+    page.goto(f"/systems/{sid}")
+    page.locator(tid("view")).nth(k).wait_for()
+    page.keyboard.press(str(k + 1))
+    with page.expect_response(lambda r: r.request.method == "POST" and "/field-lines/mirror" in r.url) as answer:
+        page.keyboard.press("m")
+    assert answer.value.status == 200, answer.value.text()
+    fixed = _api(page, f"/api/systems/{sid}")
+    assert fixed["views"][k]["calibration"]["camera"] != before["views"][k]["calibration"]["camera"]
+    with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
+        page.keyboard.press("Control+z")
+    assert answer.value.status == 200, answer.value.text()
+    undone = _api(page, f"/api/systems/{sid}")
+    assert _numbers(undone) == _numbers(before)
+    assert undone["views"][k]["field_lines"] == before["views"][k]["field_lines"]
+    page.wait_for_function("() => document.querySelector('[data-testid=toast]').textContent.startsWith('Undone: field lines of V')")
+    page.screenshot(path=str(artifacts / "undo-mirror.png"))

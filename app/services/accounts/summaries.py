@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping, Optional
 
+from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
+
 #: A review status in words.
 STATUS_WORDS = {"accepted": "accepted", "rejected": "rejected", "needs_fix": "marked as needing a fix",
                 "pending": "set back to pending"}
@@ -92,6 +94,17 @@ def _same_poly(a: list, b: list) -> bool:
     return len(a) == len(b) and all(_same_point(p, q) for p, q in zip(a, b))
 
 
+def _mirrored(before: dict[str, list], after: dict[str, list]) -> bool:
+    """Whether ``after`` is ``before`` with every class renamed by the pitch's 180-degree rotation
+    (``app.geometry.annotations.mirror_lines``: the mirror fix, or its undo)."""
+    try:
+        mirrored = _polys(lines_to_json_lists(mirror_lines(lines_from_json_lists(before))))
+    except (AnnotationError, ValueError, TypeError):
+        return False
+    return set(mirrored) == set(after) and all(
+        len(mirrored[c]) == len(after[c]) and all(_same_poly(p, q) for p, q in zip(mirrored[c], after[c])) for c in after)
+
+
 def lines_words(before: Any, after: Any) -> str:
     """A field-line change as the line editor says it: "moved point 9 of Circle right", "added a point to X",
     "deleted point 3 of X", "deleted a X line", "drew a X line", "relabelled a X line as Y"; otherwise the
@@ -126,6 +139,8 @@ def lines_words(before: Any, after: Any) -> str:
             return f"deleted a {name} line"
         elif len(pa) == len(pb) + 1:
             return f"drew a {name} line"
+    if _mirrored(b, a):
+        return "field lines mirrored"
     if len(changed) == 2:
         x, y = changed
         for src, dst in ((x, y), (y, x)):

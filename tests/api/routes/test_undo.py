@@ -121,6 +121,7 @@ def test_undo_of_a_mirror_fix_restores_the_lines_the_camera_and_the_3d_ball(clie
     undo_entry = log[int(undone.headers["x-v3d-audit-entry"])]
     assert (undo_entry["action"], undo_entry["reverts_id"]) == ("field_lines.replace", entry)
     assert log[entry]["summary"].startswith("field lines of V1 mirrored: JaC ")
+    assert undo_entry["summary"].startswith(f"undo of entry {entry}: field lines mirrored (V1): JaC ")
 
 
 def test_an_undo_of_a_changed_resource_is_refused_and_changes_nothing(client: TestClient, scene: Scene,
