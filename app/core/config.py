@@ -231,7 +231,8 @@ class Settings(BaseSettings):
         "unpacks; a zip bomb is refused (400; 422 for the monocular benchmark's predictions).")
     max_predictions_mb: float = Field(
         64.0, gt=0, description="Largest COCO results JSON the monocular benchmark reads (MB), read as a stream: 422 "
-        "beyond it. Each YOLO .txt may hold 1 MiB and data.yaml 64 KiB (app.geometry.metrics).")
+        "beyond it. Each YOLO .txt may hold 1 MiB (app.geometry.metrics) and data.yaml 64 KiB "
+        "(app.services.evaluation.monocular).")
     max_image_pixels: int = Field(
         50_000_000, gt=0, description="Most pixels (width x height) an imported image or video frame may have, read "
         "from its header before anything is decoded: a larger one refuses the import (400 / exit 2) naming it.")

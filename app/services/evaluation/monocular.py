@@ -172,6 +172,8 @@ def ball_class_of_yaml(lines: Iterable[str], ball: str = BALL_CLASS) -> int | No
     numbered = flow = block = None
     in_block, block_index = False, 0
     for raw in lines:
+        if not raw or raw.isspace():
+            continue
         line = _uncommented(raw).rstrip()
         text = line.strip()
         if not text:
