@@ -4,7 +4,6 @@ the server's temporary folder in the answer), made here in memory: zipfile and d
 from __future__ import annotations
 
 import io
-import json
 import time
 import tracemalloc
 import zipfile
