@@ -22,6 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from app.core.config import Settings  # noqa: E402
 from app.core.paths import SHARED_DIR  # noqa: E402
 from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
+from app.datasets.csv_cells import inert_row  # noqa: E402
 from app.services.evaluation.boxes import PRECISE_COLUMNS, evaluate_boxes, store_precise_boxes  # noqa: E402
 from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
 
@@ -38,7 +39,7 @@ def precise_csv(truth_path: Path, out: Path) -> Path:
             for s in g["systems"]:
                 for v in s["views"]:
                     if v.get("precise_box"):
-                        w.writerow([g["league"], g["season"], g["match"], v["image"], *v["precise_box"]])
+                        w.writerow([*inert_row([g["league"], g["season"], g["match"], v["image"]]), *v["precise_box"]])
     return out
 
 
@@ -54,7 +55,7 @@ def issia_precise_csv(truth_path: Path, sequence: str, out: Path) -> Path:
         for f in raw["frames"]:
             for cam, v in f["cams"].items():
                 if v.get("precise_box"):
-                    w.writerow([LEAGUE, SEASON, sequence, f"cam{cam}_{f['frame']:06d}", *v["precise_box"]])
+                    w.writerow([*inert_row([LEAGUE, SEASON, sequence, f"cam{cam}_{f['frame']:06d}"]), *v["precise_box"]])
     return out
 
 

@@ -84,7 +84,8 @@ def evaluate_monocular_cmd(
     try:
         with database_session(settings) as session:
             report = evaluate_predictions(session, predictions, include_all, ball_class, settings.ball_diameter_m,
-                                          estimator, cameras_dir=cameras, ball_box=settings.export_ball_box)
+                                          estimator, cameras_dir=cameras, ball_box=settings.export_ball_box,
+                                          max_coco_bytes=int(settings.max_predictions_mb * (1 << 20)))
             views = (reference_views(session, include_all, settings.ball_diameter_m, settings.export_ball_box)
                      if plots else [])
     except InvalidInputError as exc:

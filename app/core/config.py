@@ -229,6 +229,14 @@ class Settings(BaseSettings):
         "zips included (MB): a zip bomb is refused (400) before anything is extracted.")
     max_upload_members: int = Field(200_000, gt=0, description="Most members an uploaded zip may hold (nested "
                                                                 "image zips included).")
+    max_zip_ratio: float = Field(
+        100.0, gt=1, description="Most bytes an uploaded zip's member, or the whole zip (nested zips too), may unpack "
+        "to per byte it packs, beyond its first MiB: checked from the zip's directory and counted again while it "
+        "unpacks; a zip bomb is refused (400; 422 for the monocular benchmark's predictions).")
+    max_predictions_mb: float = Field(
+        64.0, gt=0, description="Largest COCO results JSON the monocular benchmark reads (MB), read as a stream: 422 "
+        "beyond it. Each YOLO .txt may hold 1 MiB (app.geometry.metrics) and data.yaml 64 KiB "
+        "(app.services.evaluation.monocular).")
     max_image_pixels: int = Field(
         50_000_000, gt=0, description="Most pixels (width x height) an imported image or video frame may have, read "
         "from its header before anything is decoded: a larger one refuses the import (400 / exit 2) naming it.")

@@ -14,7 +14,7 @@ import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any, BinaryIO, Callable, Mapping
+from typing import Any, BinaryIO, Callable, Iterator, Mapping
 
 
 from app.core.errors import DatasetError
@@ -153,6 +153,44 @@ def safe_names(zf: zipfile.ZipFile, zip_path: Path) -> list[str]:
             raise DatasetError(zip_path, f"entry {name!r}", "unsafe entry name (absolute, drive or '..' "
                                                             "component); refusing the archive")
     return names
+
+
+#: Default of ``V3D_MAX_ZIP_RATIO``: the most a zip member, or a whole zip, may unpack to per byte it packs, beyond
+#: its first :data:`RATIO_FLOOR_BYTES` (a zip bomb of repeated bytes packs about 1000:1; JSON labels about 10:1,
+#: images about 1:1).
+MAX_ZIP_RATIO = 100.0
+#: What any member or archive may unpack to whatever its ratio (a small file of repeated bytes packs far beyond
+#: :data:`MAX_ZIP_RATIO` and is no bomb).
+RATIO_FLOOR_BYTES = 1 << 20
+
+
+def ratio_cap(packed_bytes: int, max_ratio: float = MAX_ZIP_RATIO) -> int:
+    """The most bytes ``packed_bytes`` of a zip (a member's compressed size, or a whole archive's) may unpack
+    to: :data:`RATIO_FLOOR_BYTES` plus ``max_ratio`` per packed byte.
+
+    >>> ratio_cap(0), ratio_cap(300_000)
+    (1048576, 31048576)
+    """
+    return RATIO_FLOOR_BYTES + int(max_ratio * max(packed_bytes, 0))
+
+
+def member_chunks(zf: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, max_bytes: int,
+                  chunk_bytes: int = 1 << 20) -> Iterator[bytes]:
+    """The unpacked bytes of the zip member ``info``, ``chunk_bytes`` at a time, counted as they come: the
+    member is refused as soon as it has given more than ``max_bytes`` (whatever its header declared), so no
+    more than ``max_bytes + chunk_bytes`` are ever held or written.
+
+    Raises:
+        DatasetError: naming ``where`` (``archive.zip!member``), past ``max_bytes``.
+    """
+    seen = 0
+    with zf.open(info) as src:
+        while chunk := src.read(chunk_bytes):
+            seen += len(chunk)
+            if seen > max_bytes:
+                raise DatasetError(where, None, f"unpacks to more than {max_bytes:,} bytes (counted while unpacking; "
+                                                "a zip bomb); refusing the archive")
+            yield chunk
 
 
 def open_zip(path: Path) -> zipfile.ZipFile:
@@ -299,7 +337,8 @@ def json_files(path: Path, what: str) -> list[JsonFile]:
     Raises:
         InputFileError: ``path`` is missing, or neither a folder nor a zip archive (the message
             starts with ``what``, the argument's name); a zip's JSON member unpacks to more than
-            :data:`MAX_JSON_MEMBER_BYTES`.
+            :data:`MAX_JSON_MEMBER_BYTES` or :func:`ratio_cap` of its compressed size (from the archive's
+            directory; the read counts the bytes again: :func:`member_chunks`).
     """
     if not path.exists():
         raise InputFileError(f"{what}: no such file or folder: {path}")
@@ -311,10 +350,21 @@ def json_files(path: Path, what: str) -> list[JsonFile]:
         names = sorted(n for n in archive.namelist()
                        if n.endswith(".json") and not n.endswith("/") and not n.startswith("__MACOSX/"))
         for n in names:
-            size = archive.getinfo(n).file_size  # zipfile never unpacks a member past its declared size
+            info = archive.getinfo(n)
+            size = info.file_size  # zipfile never unpacks a member past its declared size
             if size > MAX_JSON_MEMBER_BYTES:
                 archive.close()
                 raise InputFileError(f"{path}:{n}: unpacks to {size} bytes, more than the "
                                      f"{MAX_JSON_MEMBER_BYTES} a JSON file may hold")
-        return [JsonFile(f"{path}:{n}", n, (lambda n=n: archive.read(n))) for n in names]
+            if size > ratio_cap(info.compress_size):
+                archive.close()
+                raise InputFileError(f"{path}:{n}: unpacks to {size} bytes from {info.compress_size}, more than "
+                                     f"{MAX_ZIP_RATIO:g} to 1 (a zip bomb)")
+
+        def read(n: str) -> bytes:
+            info = archive.getinfo(n)
+            cap = min(MAX_JSON_MEMBER_BYTES, ratio_cap(info.compress_size))
+            return b"".join(member_chunks(archive, info, f"{path}!{n}", cap))
+
+        return [JsonFile(f"{path}:{n}", n, (lambda n=n: read(n))) for n in names]
     raise InputFileError(f"{what}: {path} is neither a folder nor a zip archive")

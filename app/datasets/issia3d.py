@@ -17,6 +17,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from app.datasets.csv_cells import inert_cell, read_cell
 from app.datasets.issia import CAMERA_IDS, IssiaSequence
 from app.geometry.camera import Camera
 from app.core.errors import DatasetError
@@ -62,12 +63,13 @@ def issia3d_row_cells(row: Issia3DRow) -> dict[str, str]:
 
 
 def write_issia3d_csv(path: str | Path, rows: Iterable[Issia3DRow]) -> None:
-    """Write ``ISSIA-3D.csv`` (UTF-8, header :data:`ISSIA3D_COLUMNS`)."""
+    """Write ``ISSIA-3D.csv`` (UTF-8, header :data:`ISSIA3D_COLUMNS`; every cell through
+    ``app.datasets.csv_cells.inert_cell``: numbers stay numbers, no text cell is ever a formula)."""
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=ISSIA3D_COLUMNS)
         w.writeheader()
         for row in rows:
-            w.writerow(issia3d_row_cells(row))
+            w.writerow({k: inert_cell(v) for k, v in issia3d_row_cells(row).items()})
 
 
 def read_issia3d_csv(path: str | Path) -> list[Issia3DRow]:
@@ -85,7 +87,7 @@ def read_issia3d_csv(path: str | Path) -> list[Issia3DRow]:
         out = []
         for n, r in enumerate(reader, start=2):
             def cell(col, parse):
-                text = r[col].strip()
+                text = read_cell(r[col] or "").strip()
                 try:
                     return parse(text) if text else None
                 except (ValueError, TypeError, json.JSONDecodeError) as exc:
@@ -97,7 +99,7 @@ def read_issia3d_csv(path: str | Path) -> list[Issia3DRow]:
                     raise ValueError("expected [x, y, z]")
                 return tuple(float(x) for x in v)
 
-            source = r["ball_3D_source"].strip() or None
+            source = read_cell(r["ball_3D_source"] or "").strip() or None
             if source not in (None, "triangulated", "fitted", "interpolated"):
                 raise DatasetError(path, f"row {n} ball_3D_source", f"unknown source {source!r}")
             out.append(Issia3DRow(

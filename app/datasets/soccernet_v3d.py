@@ -20,6 +20,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Mapping
 
+from app.datasets.csv_cells import read_cell
 from app.datasets.files import (
     MAX_IMAGE_PIXELS, dataset_root, file_image_header, image_size_field, inside_dataset, is_safe_member, load_json_file,
     mapping, member_image_header, open_zip, safe_names,
@@ -176,7 +177,8 @@ def _cell_bool(value: str | None, file: Path, where: str) -> bool:
 
 
 def _read_v3d_csv(csv_path: Path) -> dict[tuple[str, str, str, str], dict[str, Any]]:
-    """Rows of ``SNv3D.csv`` keyed by (league, season, match, frame name)."""
+    """Rows of ``SNv3D.csv`` keyed by (league, season, match, frame name), each cell as v3d's export was given it
+    (``app.datasets.csv_cells.read_cell``: the escape of a formula-like cell undone)."""
     try:
         text = csv_path.read_text(encoding="utf-8")
     except OSError as exc:
@@ -187,7 +189,8 @@ def _read_v3d_csv(csv_path: Path) -> dict[tuple[str, str, str, str], dict[str, A
     if missing:
         raise DatasetError(csv_path, "header", f"missing column(s) {sorted(missing)}")
     rows = {}
-    for i, row in enumerate(reader, start=2):
+    for i, raw in enumerate(reader, start=2):
+        row = {k: read_cell(v) if isinstance(v, str) else v for k, v in raw.items()}
         where = f"line {i}"
         is_action = _cell_bool(row["action"], csv_path, f"{where}.action")
         name = row["main_action"] if is_action else row["replay"]

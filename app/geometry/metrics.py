@@ -9,10 +9,14 @@
 """
 from __future__ import annotations
 
+import codecs
 import json
+import math
+import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Hashable, Mapping, Sequence
+from typing import Any, BinaryIO, Hashable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -171,9 +175,52 @@ def voc_ap(recall: np.ndarray, precision: np.ndarray) -> float:
     return float(np.sum((mrec[i + 1] - mrec[i]) * mpre[i + 1]))
 
 
+#: Most bytes one YOLO predictions file may hold (one image's detections: Ultralytics keeps at most 300 by default,
+#: some 50 bytes each); a longer one is refused, never read whole.
+MAX_YOLO_FILE_BYTES = 1 << 20
+#: Longest line of a YOLO predictions file (six numbers).
+MAX_YOLO_LINE_BYTES = 1024
+#: Default bound of a COCO results file (bytes; ``V3D_MAX_PREDICTIONS_MB`` for the HTTP benchmark).
+MAX_COCO_FILE_BYTES = 64 << 20
+#: Longest entry of a COCO results list (characters): a detection is some 100, a segmentation a few thousand.
+MAX_COCO_ENTRY_CHARS = 64 << 10
+#: Deepest nesting of a COCO results entry (the entry's object is depth 1, its ``bbox`` 2, a polygon list 3).
+MAX_JSON_DEPTH = 16
+#: Characters of an input quoted in a message, at most.
+EXCERPT_CHARS = 40
+_READ_BYTES = 1 << 20
+_WHITESPACE = re.compile(r"[ \t\n\r]*")
+
+
+def excerpt(text: str | bytes, limit: int = EXCERPT_CHARS) -> str:
+    """``text`` quoted for a message: its ``repr``, the text cut to ``limit`` characters with ``...`` after.
+
+    >>> excerpt("0 0.5 0.5"), excerpt("x" * 100, 5)
+    ("'0 0.5 0.5'", "'xxxxx'...")
+    """
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", errors="replace")
+    return repr(text[:limit]) + ("..." if len(text) > limit else "")
+
+
+def _finite(value: object) -> float | None:
+    """``value`` as a float when it is a finite number (a float or an int, not a boolean), else None."""
+    kind = type(value)
+    if kind is float:
+        return value if math.isfinite(value) else None  # type: ignore[arg-type,return-value]
+    if kind is not int:
+        return None
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except OverflowError:
+        return None
+
+
 def load_yolo_detections(path: str | Path, width: float, height: float, class_id: int | None = None,
-                         image_id: Hashable | None = None) -> Detections:
-    """Detections of one image from a YOLO txt file (``class cx cy w h conf`` per line, normalised).
+                         image_id: Hashable | None = None, *, name: str | None = None,
+                         max_bytes: int = MAX_YOLO_FILE_BYTES) -> Detections:
+    """Detections of one image from a YOLO txt file (``class cx cy w h conf`` per line, normalised), read line
+    by line (never more than ``max_bytes`` nor a line longer than :data:`MAX_YOLO_LINE_BYTES`).
 
     Box in pixels: ``x1 = (cx - w/2) width``, ``y1 = (cy - h/2) height``, and so on (continuous
     pixels; the image spans [0, width] x [0, height]).
@@ -183,51 +230,204 @@ def load_yolo_detections(path: str | Path, width: float, height: float, class_id
         width, height: image size in pixels.
         class_id: keep only this class (``None``: all).
         image_id: id given to the detections (default: the file's stem).
+        name: how messages name the file (default: ``path``), e.g. its path inside an upload.
+        max_bytes: the most the file may hold.
 
     Raises:
-        ValueError: a line without 6 numbers (the message names the file and line).
+        ValueError: ``name:line: problem`` for a line that is not 6 finite numbers (quoting at most
+            :data:`EXCERPT_CHARS` of it), too long or not UTF-8, or ``name: problem`` for a file above ``max_bytes``.
     """
     path = Path(path)
+    label = str(path) if name is None else name
     ident = path.stem if image_id is None else image_id
     boxes, scores = [], []
-    for n, line in enumerate(path.read_text().splitlines(), start=1):
-        if not line.strip():
-            continue
-        try:
-            cls, cx, cy, w, h, conf = (float(v) for v in line.split())
-        except ValueError:
-            raise ValueError(f"{path}:{n}: expected 'class cx cy w h conf', got {line!r}") from None
-        if class_id is not None and int(cls) != class_id:
-            continue
-        boxes.append([(cx - w / 2) * width, (cy - h / 2) * height, (cx + w / 2) * width, (cy + h / 2) * height])
-        scores.append(conf)
+    size = n = 0
+    with open(path, "rb") as fh:
+        while raw := fh.readline(MAX_YOLO_LINE_BYTES + 1):
+            n += 1
+            size += len(raw)
+            if size > max_bytes:
+                raise ValueError(f"{label}: more than {max_bytes:,} bytes, more than a predictions file may hold")
+            if len(raw) > MAX_YOLO_LINE_BYTES:
+                raise ValueError(f"{label}:{n}: a line longer than {MAX_YOLO_LINE_BYTES} bytes, starting {excerpt(raw)}")
+            try:
+                line = raw.decode("utf-8")
+            except UnicodeDecodeError:
+                raise ValueError(f"{label}:{n}: not UTF-8 text: {excerpt(raw)}") from None
+            if not line.strip():
+                continue
+            values = [_finite(v) for v in _floats(line.split())]
+            if len(values) != 6 or any(v is None for v in values):
+                raise ValueError(f"{label}:{n}: expected 'class cx cy w h conf' (6 finite numbers), "
+                                 f"got {excerpt(line.strip())}")
+            cls, cx, cy, w, h, conf = values
+            if class_id is not None and int(cls) != class_id:
+                continue
+            boxes.append([(cx - w / 2) * width, (cy - h / 2) * height, (cx + w / 2) * width, (cy + h / 2) * height])
+            scores.append(conf)
     return Detections((ident,) * len(boxes), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
 
 
-def load_coco_results(path: str | Path, category_id: int | None = None) -> Detections:
-    """Detections from a COCO results JSON: a list of ``{"image_id", "category_id", "bbox": [x, y, w, h], "score"}``.
+def _floats(words: list[str]) -> list[float | None]:
+    out: list[float | None] = []
+    for w in words[:7]:  # one beyond six is enough to say the line is wrong
+        try:
+            out.append(float(w))
+        except ValueError:
+            out.append(None)
+    return out if len(words) <= 7 else out + [None]
+
+
+def coco_results(path: str | Path, *, name: str | None = None, max_bytes: int = MAX_COCO_FILE_BYTES
+                 ) -> Iterator[tuple[Hashable, Any, list[float], float]]:
+    """The entries of a COCO results JSON (a list of ``{"image_id", "category_id", "bbox": [x, y, w, h],
+    "score"}``), one at a time: ``(image_id, category_id, [x1, y1, x2, y2] px, score)``. The file is read as a
+    stream (1 MiB at a time, each entry parsed alone), never beyond ``max_bytes``; an entry holds at most
+    :data:`MAX_COCO_ENTRY_CHARS` characters nested at most :data:`MAX_JSON_DEPTH` deep. Other keys of an entry
+    (``segmentation``, ...) are ignored.
+
+    Raises:
+        ValueError: ``name: entry N: problem`` (quoting at most :data:`EXCERPT_CHARS` of it): not a JSON list,
+            an entry that is not an object, lacks a field, has an ``image_id`` that is neither an integer nor a
+            string, a ``bbox`` that is not 4 finite numbers or a ``score`` that is not one, is too long or too
+            deep, or not JSON; the file above ``max_bytes`` or not UTF-8.
+    """
+    label = str(path) if name is None else name
+    with open(path, "rb") as fh:
+        if os.fstat(fh.fileno()).st_size > max_bytes:  # a regular file says so at once; any stream is counted
+            raise ValueError(f"{label}: more than {max_bytes:,} bytes, more than a results file may hold "
+                             "(V3D_MAX_PREDICTIONS_MB)")
+        for n, entry in _json_list(fh, label, max_bytes):
+            yield _coco_entry(entry, label, n)
+
+
+def _coco_entry(r: Any, label: str, n: int) -> tuple[Hashable, Any, list[float], float]:
+    for key in ("image_id", "bbox", "score"):
+        if key not in r:
+            raise ValueError(f"{label}: entry {n} lacks {key!r}")
+    image_id = r["image_id"]
+    if isinstance(image_id, bool) or not isinstance(image_id, (int, str)):
+        raise ValueError(f"{label}: entry {n}: image_id must be an integer or a string, got {excerpt(json.dumps(image_id))}")
+    bbox = r["bbox"]
+    values = [_finite(v) for v in bbox] if isinstance(bbox, list) and len(bbox) == 4 else [None]
+    if any(v is None for v in values):
+        raise ValueError(f"{label}: entry {n}: bbox must be [x, y, w, h] (4 finite numbers), "
+                         f"got {excerpt(json.dumps(bbox))}")
+    score = _finite(r["score"])
+    if score is None:
+        raise ValueError(f"{label}: entry {n}: score must be a finite number, got {excerpt(json.dumps(r['score']))}")
+    x, y, w, h = values  # type: ignore[misc]
+    return image_id, r.get("category_id"), [x, y, x + w, y + h], score
+
+
+def _json_list(fh: BinaryIO, label: str, max_bytes: int) -> Iterator[tuple[int, dict[str, Any]]]:
+    """``(index, object)`` of each entry of the JSON list in the binary stream ``fh``, parsed one entry at a
+    time from a buffer of at most one read plus one entry (messages as :func:`coco_results`)."""
+    decoder, text = json.JSONDecoder(), codecs.getincrementaldecoder("utf-8-sig")()
+    buf, pos, read, eof = "", 0, 0, False
+
+    def more() -> bool:
+        nonlocal buf, pos, read, eof
+        if eof:
+            return False
+        raw = fh.read(_READ_BYTES)
+        read += len(raw)
+        if read > max_bytes:
+            raise ValueError(f"{label}: more than {max_bytes:,} bytes, more than a results file may hold "
+                             "(V3D_MAX_PREDICTIONS_MB)")
+        try:
+            chunk = text.decode(raw, final=not raw)
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{label}: not UTF-8 text (at byte {read - len(raw) + max(exc.start, 0)})") from None
+        buf, pos, eof = buf[pos:] + chunk, 0, not raw
+        return True
+
+    def skip() -> str:
+        """The next character after whitespace ("" at the end of the file)."""
+        nonlocal pos
+        while True:
+            pos = _WHITESPACE.match(buf, pos).end()  # type: ignore[union-attr]
+            if pos < len(buf) or not more():
+                return buf[pos:pos + 1]
+
+    if skip() != "[":
+        got = excerpt(buf[pos:]) if pos < len(buf) else "the end of the file"
+        raise ValueError(f"{label}: a COCO results file is a JSON list, starting with '[': got {got}")
+    pos += 1
+    n = 0
+    while True:
+        c = skip()
+        if c == "]" and n == 0:
+            return
+        if c != "{":
+            got = excerpt(buf[pos:]) if c else "the end of the file"
+            raise ValueError(f"{label}: entry {n}: expected an object {{\"image_id\", \"bbox\", \"score\", ...}}, "
+                             f"got {got}")
+        while True:
+            try:
+                value, end = decoder.raw_decode(buf, pos)
+            except RecursionError:
+                raise ValueError(f"{label}: entry {n}: nested deeper than {MAX_JSON_DEPTH}") from None
+            except ValueError as exc:  # incomplete (read on) or not JSON
+                if len(buf) - pos <= MAX_COCO_ENTRY_CHARS and more():
+                    continue
+                if len(buf) - pos > MAX_COCO_ENTRY_CHARS:
+                    raise ValueError(f"{label}: entry {n}: longer than {MAX_COCO_ENTRY_CHARS:,} characters, "
+                                     f"starting {excerpt(buf[pos:])}") from None
+                msg = str(getattr(exc, "msg", exc))[:100]
+                raise ValueError(f"{label}: entry {n}: not JSON ({msg}), starting {excerpt(buf[pos:])}") from None
+            break
+        if end - pos > MAX_COCO_ENTRY_CHARS:
+            raise ValueError(f"{label}: entry {n}: longer than {MAX_COCO_ENTRY_CHARS:,} characters, "
+                             f"starting {excerpt(buf[pos:])}")
+        if buf.count("[", pos, end) + buf.count("{", pos, end) > MAX_JSON_DEPTH and _depth(value) > MAX_JSON_DEPTH:
+            raise ValueError(f"{label}: entry {n}: nested deeper than {MAX_JSON_DEPTH}")
+        pos = end
+        yield n, value
+        n += 1
+        c = skip()
+        if c == "]":
+            pos += 1
+            if skip():
+                raise ValueError(f"{label}: text after the list: {excerpt(buf[pos:])}")
+            return
+        if c != ",":
+            got = excerpt(buf[pos:]) if c else "the end of the file"
+            raise ValueError(f"{label}: after entry {n - 1}: expected ',' or ']', got {got}")
+        pos += 1
+
+
+def _depth(value: Any) -> int:
+    """Nesting depth of a parsed JSON value (a scalar is 0, ``[]`` 1), walked without recursion."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        v, d = stack.pop()
+        if isinstance(v, (list, dict)):
+            deepest = max(deepest, d)
+            stack.extend((c, d + 1) for c in (v.values() if isinstance(v, dict) else v))
+    return deepest
+
+
+def load_coco_results(path: str | Path, category_id: int | None = None, *, name: str | None = None,
+                      max_bytes: int = MAX_COCO_FILE_BYTES) -> Detections:
+    """Detections from a COCO results JSON (:func:`coco_results`: read as a stream, every entry checked).
 
     Args:
         path: the JSON file.
         category_id: keep only this category (``None``: all).
+        name: how messages name the file (default: ``path``).
+        max_bytes: the most the file may hold.
 
     Raises:
-        ValueError: not a list, or an entry missing a field (the message names it and the index).
+        ValueError: as :func:`coco_results` (the message names the file and the entry).
     """
-    data = json.loads(Path(path).read_text())
-    if not isinstance(data, list):
-        raise ValueError(f"{path}: a COCO results file is a JSON list")
     ids, boxes, scores = [], [], []
-    for n, r in enumerate(data):
-        for key in ("image_id", "bbox", "score"):
-            if key not in r:
-                raise ValueError(f"{path}: entry {n} lacks {key!r}")
-        if category_id is not None and r.get("category_id") != category_id:
+    for image_id, category, box, score in coco_results(path, name=name, max_bytes=max_bytes):
+        if category_id is not None and category != category_id:
             continue
-        x, y, w, h = (float(v) for v in r["bbox"])
-        ids.append(r["image_id"])
-        boxes.append([x, y, x + w, y + h])
-        scores.append(float(r["score"]))
+        ids.append(image_id)
+        boxes.append(box)
+        scores.append(score)
     return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
 
 

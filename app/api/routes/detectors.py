@@ -19,8 +19,9 @@ from app.api.schemas import InvalidOut
 from app.services.transfer import detector_export
 from app.services.evaluation import monocular
 from app.core.config import Settings
-from app.services.transfer.archives import ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
-from app.core.errors import InvalidInputError
+from app.geometry.metrics import MAX_YOLO_FILE_BYTES
+from app.services.transfer.archives import MB, ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
+from app.core.errors import DatasetError, InvalidInputError
 
 router = APIRouter(tags=["detectors"])
 #: Every export needs the admin role; evaluating detections against the labels (it stores nothing) any role.
@@ -98,20 +99,30 @@ def export_coco(session: SessionDep, settings: SettingsDep, include_all: AllQuer
 def _unpack(upload: UploadFile, dest: Path, settings: Settings) -> Path:
     """The upload saved under ``dest`` (counted against ``V3D_MAX_UPLOAD_MB`` while it is written: 413
     beyond): a zip is unpacked by the one safe unpacker (``app.services.transfer.archives.unpack_zip``: unsafe,
-    linked or repeated member names and zip bombs refused naming the member; its YOLO ``.txt`` and
-    ``.yaml`` files kept) and its folder returned; anything else is taken as a COCO results JSON."""
+    linked or repeated member names and zip bombs refused naming the member, 422 here; only its YOLO ``.txt``
+    and ``.yaml`` files kept, each at most ``app.geometry.metrics.MAX_YOLO_FILE_BYTES``, counted while they
+    unpack) and its folder returned; anything else is taken as a COCO results JSON."""
     path = dest / "upload"
     if not receive(file_chunks(upload.file), path, upload_limit_bytes(settings), field="predictions"):
         raise InvalidInputError("the upload is empty", field="predictions")
     if not zipfile.is_zipfile(path):
         return path
     folder = dest / "predictions"
-    limits = ArchiveLimits.from_settings(settings)
-    unpack_zip(path, folder, limits, where=upload.filename or "predictions.zip",
-               keep=lambda name: name.endswith((".txt", ".yaml")))
+    limits = ArchiveLimits.from_settings(settings, max_member_bytes=MAX_YOLO_FILE_BYTES)
+    try:
+        unpack_zip(path, folder, limits, where=_upload_name(upload, "predictions.zip"),
+                   keep=lambda name: name.endswith((".txt", ".yaml")))
+    except DatasetError as exc:  # predictions are no dataset: an unusable upload is the benchmark's 422
+        raise InvalidInputError(str(exc), field="predictions") from None
     if not any(folder.rglob("*.txt")):
         raise InvalidInputError("the zip holds no YOLO .txt file", field="predictions")
     return folder
+
+
+def _upload_name(upload: UploadFile, default: str) -> str:
+    """How messages name the upload: its file name as the client sent it (no folder of the client's, never one
+    of the server's), cut to 100 characters."""
+    return Path((upload.filename or "").replace("\\", "/")).name[:100] or default
 
 
 @router.post(
@@ -134,8 +145,11 @@ def evaluate_monocular(
     est = estimator or monocular.default_estimator(settings.optimised_box_method)
     with tempfile.TemporaryDirectory(prefix="v3d-predictions-") as tmp:
         path = _unpack(predictions, Path(tmp), settings)
+        default = "predictions.zip" if path.is_dir() else "predictions.json"
         report = monocular.evaluate_predictions(session, path, include_all, ball_class, settings.ball_diameter_m, est,
-                                                ball_box=settings.export_ball_box)
+                                                ball_box=settings.export_ball_box,
+                                                name=_upload_name(predictions, default),
+                                                max_coco_bytes=int(settings.max_predictions_mb * MB))
     return MonocularReportOut.model_validate({**report, "estimator": est})
 
 

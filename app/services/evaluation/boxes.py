@@ -32,6 +32,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.errors import DatasetError
+from app.datasets.csv_cells import read_cell
 from app.datasets.files import read_text_file
 from app.db.models import Frame, Game, ReviewDecision, ReviewStatus, System
 from app.geometry.metrics import box_iou, box_size_error_pct
@@ -79,7 +80,8 @@ def read_precise_boxes(path: str | Path) -> list[PreciseBox]:
             raise DatasetError(path, f"row {n} x1..y2", "not finite")
         if box[2] <= box[0] or box[3] <= box[1]:
             raise DatasetError(path, f"row {n} x1..y2", "the box has no area (needs x2 > x1 and y2 > y1)")
-        out.append(PreciseBox(r["league"], r["season"], r["match"], r["image"], box, n))  # type: ignore[arg-type]
+        names = (read_cell(r[c] or "") for c in ("league", "season", "match", "image"))  # as a v3d CSV escaped them
+        out.append(PreciseBox(*names, box, n))  # type: ignore[arg-type]
     return out
 
 

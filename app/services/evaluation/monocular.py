@@ -24,17 +24,16 @@ ground-truth view is scored with its most confident detection whose IoU with the
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Hashable
+from typing import Any, Hashable, Iterable
 
 import numpy as np
 from sqlalchemy.orm import Session
 
 from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
-from app.geometry.metrics import (Detections, average_precision, box_iou, load_coco_results,
+from app.geometry.metrics import (MAX_COCO_FILE_BYTES, Detections, average_precision, box_iou, coco_results,
                                   load_yolo_detections, monocular_metrics, precision_curve)
 from app.services.kinds import kind_of
 from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes
@@ -135,57 +134,162 @@ def reference_views(session: Session, include_all: bool = False, ball_diameter_m
     return out
 
 
-def _ball_class_from_yaml(root: Path) -> int | None:
+#: Most bytes a ``data.yaml`` of predictions may hold (Ultralytics writes a few hundred).
+MAX_DATA_YAML_BYTES = 64 << 10
+#: Most detections one evaluation keeps (the ball class, in reference views): Ultralytics keeps at most 300 an
+#: image, and a benchmark has a few thousand reference views.
+MAX_DETECTIONS = 1_000_000
+
+
+def _unquoted(value: str) -> str:
+    value = value.strip()
+    return value[1:-1] if len(value) >= 2 and value[0] == value[-1] and value[0] in "'\"" else value
+
+
+def _uncommented(line: str) -> str:
+    """``line`` without a YAML comment (``#`` at its start or after a blank)."""
+    if line.lstrip().startswith("#"):
+        return ""
+    cut = min((i for i in (line.find(" #"), line.find("\t#")) if i >= 0), default=-1)
+    return line if cut < 0 else line[:cut]
+
+
+def ball_class_of_yaml(lines: Iterable[str], ball: str = BALL_CLASS) -> int | None:
+    """The class id of ``ball`` (any case, quoted or not) in the lines of a YOLO ``data.yaml``, read one line at a
+    time (linear in the text; no YAML library, no regular expression): a line ``N: Ball`` (Ultralytics' ``names``
+    mapping; the first one anywhere), else its index in ``names: [a, b, Ball]``, else in a block list ``names:``
+    followed by ``- a`` lines; None when it names no ball.
+
+    >>> ball_class_of_yaml(["path: x", "names:", "  0: Player", "  3: 'ball'  # the ball"])
+    3
+    >>> ball_class_of_yaml(["names: [player, 'Ball']"]), ball_class_of_yaml(["names:", "- player", "- Ball"])
+    (1, 1)
+    """
+    target = ball.lower()
+    numbered = flow = block = None
+    in_block, block_index = False, 0
+    for raw in lines:
+        if not raw or raw.isspace():
+            continue
+        line = _uncommented(raw).rstrip()
+        text = line.strip()
+        if not text:
+            continue
+        top = line == text
+        if in_block and text.startswith("-"):
+            if block is None and _unquoted(text[1:]).lower() == target:
+                block = block_index
+            block_index += 1
+            continue
+        in_block = in_block and not top
+        key, colon, value = text.partition(":")
+        key = key.strip()
+        if colon and numbered is None and key.isascii() and key.isdigit() and len(key) < 10 \
+                and _unquoted(value).lower() == target:
+            numbered = int(key)
+        if top and colon and key == "names":
+            value = value.strip()
+            if value.startswith("[") and value.endswith("]") and flow is None:
+                names = [_unquoted(n).lower() for n in value[1:-1].split(",")]
+                flow = names.index(target) if target in names else None
+            elif not value:
+                in_block, block_index = True, 0
+    return numbered if numbered is not None else flow if flow is not None else block
+
+
+def _ball_class_from_yaml(root: Path, name: str) -> int | None:
+    """:func:`ball_class_of_yaml` of the first ``data.yaml`` under ``root`` (sorted) that names the ball; each
+    read to at most :data:`MAX_DATA_YAML_BYTES` (ValueError naming it, as ``name/<path inside root>``, beyond)."""
     for path in sorted(root.rglob("data.yaml")) if root.is_dir() else []:
-        text = path.read_text(encoding="utf-8", errors="replace")
-        m = re.search(r'^\s*(\d+)\s*:\s*"?' + BALL_CLASS + r'"?\s*$', text, flags=re.M | re.I)
-        if m:
-            return int(m.group(1))
-        m = re.search(r"^names\s*:\s*\[(.*)\]", text, flags=re.M)
-        if m:
-            names = [n.strip().strip("'\"").lower() for n in m.group(1).split(",")]
-            if BALL_CLASS.lower() in names:
-                return names.index(BALL_CLASS.lower())
+        if not path.is_file():
+            continue
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_DATA_YAML_BYTES + 1)
+        if len(raw) > MAX_DATA_YAML_BYTES:
+            raise ValueError(f"{_inner_name(name, root, path)}: more than {MAX_DATA_YAML_BYTES:,} bytes, more than a "
+                             "data.yaml may hold")
+        found = ball_class_of_yaml(raw.decode("utf-8", errors="replace").splitlines())
+        if found is not None:
+            return found
     return None
 
 
-def load_predictions(path: str | Path, views: list[ReferenceView], ball_class: int | None = None
-                     ) -> tuple[Detections, int]:
+def _inner_name(name: str, root: Path, path: Path) -> str:
+    """How messages name ``path`` inside the folder ``root`` that messages call ``name``: ``name!inner`` for an
+    unpacked zip (``name`` ending in ``.zip``), else ``name/inner``."""
+    inner = path.relative_to(root).as_posix()
+    return f"{name}!{inner}" if name.lower().endswith(".zip") else f"{name}/{inner}"
+
+
+def load_predictions(path: str | Path, views: list[ReferenceView], ball_class: int | None = None, *,
+                     name: str | None = None, max_coco_bytes: int = MAX_COCO_FILE_BYTES) -> tuple[Detections, int]:
     """Ball detections of ``path`` keyed by view stem, and the number of detections ignored (images
     that are not ground-truth views).
+
+    Every file is read with bounds, as a stream (:func:`app.geometry.metrics.load_yolo_detections`: 1 MiB a
+    ``.txt``; :func:`app.geometry.metrics.coco_results`: ``max_coco_bytes``; ``data.yaml``:
+    :data:`MAX_DATA_YAML_BYTES`), and at most :data:`MAX_DETECTIONS` detections are kept.
 
     Args:
         path: a folder of YOLO txt files (searched recursively; the ball class from ``ball_class``,
             else from a ``data.yaml`` found there naming ``Ball``, else 0) or a COCO results JSON
             (category ``ball_class``, default 1 as in the COCO export).
         views: :func:`reference_views`.
+        name: how messages name ``path`` (default: the path itself): an upload's file name, so that no
+            message shows the server's folders; a file inside the folder is ``name!inner/path`` when ``name``
+            ends in ``.zip``, else ``name/inner/path``.
+        max_coco_bytes: the largest COCO results file read (``V3D_MAX_PREDICTIONS_MB`` over HTTP).
 
     Raises:
-        InvalidInputError: no such file or folder, or a malformed file (the message names it).
+        InvalidInputError: no such file or folder, or a malformed or too large file (field ``predictions``; the
+            message names the file, the line or entry, and quotes at most a short excerpt).
     """
     p = Path(path)
+    label = str(p) if name is None else name
     by_stem = {v.stem: v for v in views}
+    kept = 0
+
+    def count(n: int) -> None:
+        nonlocal kept
+        kept += n
+        if kept > MAX_DETECTIONS:
+            raise ValueError(f"{label}: more than {MAX_DETECTIONS:,} detections of the ball in reference views")
+
     try:
         if p.is_dir():
-            cls = ball_class if ball_class is not None else _ball_class_from_yaml(p)
+            cls = ball_class if ball_class is not None else _ball_class_from_yaml(p, label)
             cls = 0 if cls is None else cls
             parts, ignored = [], 0
             for txt in sorted(p.rglob("*.txt")):
+                if not txt.is_file():
+                    continue
                 view = by_stem.get(txt.stem)
-                dets = load_yolo_detections(txt, view.width if view else 1.0, view.height if view else 1.0, cls)
+                dets = load_yolo_detections(txt, view.width if view else 1.0, view.height if view else 1.0, cls,
+                                            name=_inner_name(label, p, txt))
                 if view is None:
                     ignored += len(dets.scores)
                 else:
+                    count(len(dets.scores))
                     parts.append(dets)
             return Detections.concat(parts), ignored
         if p.is_file():
-            dets = load_coco_results(p, 1 if ball_class is None else ball_class)
+            category = 1 if ball_class is None else ball_class
             by_id = {v.frame_id: v.stem for v in views}
-            keep = [i for i, k in enumerate(dets.image_ids) if k in by_id]
-            return (Detections(tuple(by_id[dets.image_ids[i]] for i in keep), dets.boxes[keep], dets.scores[keep]),
-                    len(dets.scores) - len(keep))
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise InvalidInputError(str(exc), field="predictions") from None
+            ids, boxes, scores, ignored = [], [], [], 0
+            for image_id, cat, box, score in coco_results(p, name=label, max_bytes=max_coco_bytes):
+                if cat != category:
+                    continue
+                if image_id not in by_id:
+                    ignored += 1
+                    continue
+                count(1)
+                ids.append(by_id[image_id])
+                boxes.append(box)
+                scores.append(score)
+            return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float)), ignored
+    except (ValueError, OSError) as exc:
+        raise InvalidInputError(str(exc) if isinstance(exc, ValueError) else f"{label}: cannot read ({exc.strerror})",
+                                field="predictions") from None
     raise InvalidInputError(f"no such file or folder: {p}", field="predictions")
 
 
@@ -259,18 +363,20 @@ def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 
 def evaluate_predictions(session: Session, predictions: str | Path, include_all: bool = False,
                          ball_class: int | None = None, ball_diameter_m: float = 0.22,
                          estimator: str = "exact", cameras_dir: str | Path | None = None,
-                         ball_box: str = "refined") -> dict[str, Any]:
+                         ball_box: str = "refined", *, name: str | None = None,
+                         max_coco_bytes: int = MAX_COCO_FILE_BYTES) -> dict[str, Any]:
     """:func:`evaluate` of the predictions at ``predictions`` against the database's curated labels, with the
     stored cameras (the "oracle" row: cameras fitted on the annotated lines) or, with ``cameras_dir``, the
     cameras given there (:func:`with_cameras`; ``counts.views_without_camera`` says how many views had none);
-    the reference boxes are the exported ones (``ball_box``, :func:`reference_views`)."""
+    the reference boxes are the exported ones (``ball_box``, :func:`reference_views`); ``name`` and
+    ``max_coco_bytes`` as :func:`load_predictions`."""
     views = reference_views(session, include_all, ball_diameter_m, ball_box)
     missing = 0
     if cameras_dir is not None:
         views, missing = with_cameras(views, cameras_dir)
     if not views:
         return evaluate(views, Detections((), np.zeros((0, 4)), np.zeros(0)))  # raises, naming the cause
-    dets, ignored = load_predictions(predictions, views, ball_class)
+    dets, ignored = load_predictions(predictions, views, ball_class, name=name, max_coco_bytes=max_coco_bytes)
     out = evaluate(views, dets, ignored, ball_diameter_m, estimator)
     out["counts"]["views_without_camera"] = missing
     out["cameras"] = "given" if cameras_dir is not None else "stored"

@@ -8,15 +8,19 @@ predictions of ``POST /api/evaluations/monocular``):
 * :func:`unpack_zip` checks the whole central directory before writing anything: every member name
   is relative without ``..``, drive or backslash tricks (``app.datasets.files.is_safe_member``), no member is a
   symbolic link, names are unique, the member count and the total uncompressed size (members of nested
-  zips included) stay under the limits (zip bombs); then extracts, counting the bytes really written,
-  and checks every image (``.png``, ``.jpg``, ``.jpeg``, in nested zips too) from its header, streamed
-  (``app.datasets.files.image_header``: PNG or JPEG, at most ``V3D_MAX_IMAGE_PIXELS``; nothing is
+  zips included) stay under the limits, and so does the compression ratio (``V3D_MAX_ZIP_RATIO``, 100:1
+  beyond the first MiB, ``app.datasets.files.ratio_cap``) of each member and of each archive (nested ones
+  included) and, where the caller bounds it, each extracted member's size (zip bombs); then extracts, counting
+  the bytes really written against the same bounds (``app.datasets.files.member_chunks``: a header that lies
+  gains nothing), and checks every image (``.png``, ``.jpg``, ``.jpeg``, in nested zips too) from its header,
+  streamed (``app.datasets.files.image_header``: PNG or JPEG, at most ``V3D_MAX_IMAGE_PIXELS``; nothing is
   decoded): a file named like an image that is not one is refused naming it. Refusals raise
   :class:`~app.core.errors.DatasetError` naming the archive and the member (HTTP 400) and leave
   nothing extracted.
 
 ``zipfile`` never yields more than a member's declared size (it stops there and checks the CRC), so
-the declared sizes summed before extraction bound what extraction can write.
+the declared sizes checked before extraction already bound what extraction can write; the count while
+writing holds the bounds whatever the reader does.
 """
 from __future__ import annotations
 
@@ -29,7 +33,8 @@ from typing import BinaryIO, Callable, Iterable
 
 
 from app.core.config import Settings
-from app.datasets.files import MAX_IMAGE_PIXELS, image_header, is_safe_member
+from app.datasets.files import (MAX_IMAGE_PIXELS, MAX_ZIP_RATIO, image_header, is_safe_member, member_chunks,
+                                ratio_cap)
 from app.core.errors import DatasetError, ServiceError
 
 #: File names decoded to check they are images.
@@ -49,16 +54,22 @@ class UploadTooLarge(ServiceError):
 @dataclass(frozen=True)
 class ArchiveLimits:
     """Bounds of an uploaded zip: ``max_members`` members and ``max_unpacked_bytes`` uncompressed bytes
-    in all, nested image zips included."""
+    in all, nested image zips included; each member and each archive unpacking to at most
+    ``app.datasets.files.ratio_cap`` of its packed bytes at ``max_ratio``; each extracted member to at most
+    ``max_member_bytes`` (None: no bound of its own)."""
 
     max_members: int
     max_unpacked_bytes: int
     max_image_pixels: int = MAX_IMAGE_PIXELS
+    max_ratio: float = MAX_ZIP_RATIO
+    max_member_bytes: int | None = None
 
     @classmethod
-    def from_settings(cls, settings: Settings) -> "ArchiveLimits":
-        """``V3D_MAX_UPLOAD_MEMBERS``, ``V3D_MAX_UNPACKED_MB`` and ``V3D_MAX_IMAGE_PIXELS``."""
-        return cls(settings.max_upload_members, int(settings.max_unpacked_mb * MB), settings.max_image_pixels)
+    def from_settings(cls, settings: Settings, max_member_bytes: int | None = None) -> "ArchiveLimits":
+        """``V3D_MAX_UPLOAD_MEMBERS``, ``V3D_MAX_UNPACKED_MB``, ``V3D_MAX_IMAGE_PIXELS`` and ``V3D_MAX_ZIP_RATIO``;
+        ``max_member_bytes`` as given."""
+        return cls(settings.max_upload_members, int(settings.max_unpacked_mb * MB), settings.max_image_pixels,
+                   settings.max_zip_ratio, max_member_bytes)
 
 
 def upload_limit_bytes(settings: Settings) -> int:
@@ -107,11 +118,13 @@ def _is_symlink(info: zipfile.ZipInfo) -> bool:
     return info.create_system == 3 and stat.S_ISLNK(info.external_attr >> 16)
 
 
-def _checked_members(zf: zipfile.ZipFile, where: str, limits: ArchiveLimits, budget: list[int]) -> list[zipfile.ZipInfo]:
+def _checked_members(zf: zipfile.ZipFile, where: str, limits: ArchiveLimits, budget: list[int],
+                     packed_bytes: int) -> list[zipfile.ZipInfo]:
     """The archive's members after the checks of the module docstring; ``budget`` is [members left,
-    bytes left], shared with nested archives."""
+    bytes left], shared with nested archives; ``packed_bytes`` the archive's own size."""
     seen: set[str] = set()
     infos = zf.infolist()
+    total = 0
     for info in infos:
         name = info.filename
         if not is_safe_member(name):
@@ -125,12 +138,20 @@ def _checked_members(zf: zipfile.ZipFile, where: str, limits: ArchiveLimits, bud
         seen.add(key)
         budget[0] -= 1
         budget[1] -= info.file_size
+        total += info.file_size
         if budget[0] < 0:
             raise DatasetError(where, None, f"more than {limits.max_members} members (V3D_MAX_UPLOAD_MEMBERS); "
                                             "refusing the archive")
         if budget[1] < 0:
             raise DatasetError(where, None, f"more than {limits.max_unpacked_bytes / MB:g} MB uncompressed "
                                             "(V3D_MAX_UNPACKED_MB); refusing the archive")
+        if info.file_size > ratio_cap(info.compress_size, limits.max_ratio):
+            raise DatasetError(where, f"member {name!r}", f"unpacks to {info.file_size:,} bytes from "
+                                                          f"{info.compress_size:,}, more than {limits.max_ratio:g} to "
+                                                          "1 (V3D_MAX_ZIP_RATIO; a zip bomb); refusing the archive")
+    if total > ratio_cap(packed_bytes, limits.max_ratio):
+        raise DatasetError(where, None, f"unpacks to {total:,} bytes from {packed_bytes:,}, more than "
+                                        f"{limits.max_ratio:g} to 1 (V3D_MAX_ZIP_RATIO; a zip bomb); refusing the archive")
     return infos
 
 
@@ -145,14 +166,45 @@ def _check_nested(zf: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, limits
         except zipfile.BadZipFile as exc:
             raise DatasetError(inner_where, None, f"named like a zip but is not a readable one ({exc})") from None
         with inner:
-            _check_inner(inner, inner_where, limits, budget)
+            _check_inner(inner, inner_where, limits, budget, info.file_size)
 
 
-def _check_inner(inner: zipfile.ZipFile, inner_where: str, limits: ArchiveLimits, budget: list[int]) -> None:
-    for member in _checked_members(inner, inner_where, limits, budget):
+def _check_inner(inner: zipfile.ZipFile, inner_where: str, limits: ArchiveLimits, budget: list[int],
+                 packed_bytes: int) -> None:
+    for member in _checked_members(inner, inner_where, limits, budget, packed_bytes):
         if not member.is_dir() and is_image_name(member.filename):
             with inner.open(member) as stream:
                 check_image(stream, f"{inner_where}!{member.filename}", limits.max_image_pixels)
+
+
+def _size_of(archive: Path | BinaryIO) -> int:
+    """Bytes of the zip file ``archive`` (a path, or an open seekable file: its position is kept)."""
+    if isinstance(archive, Path):
+        return archive.stat().st_size
+    here = archive.tell()
+    try:
+        return archive.seek(0, 2)
+    finally:
+        archive.seek(here)
+
+
+def _extract(zf: zipfile.ZipFile, info: zipfile.ZipInfo, target: Path, where: str, limits: ArchiveLimits,
+             left: list[int]) -> None:
+    """Write the member ``info`` to ``target``, counting its bytes against its own bounds (the member's ratio,
+    ``max_member_bytes``) and ``left[0]``, the bytes the whole archive may still unpack to."""
+    cap = ratio_cap(info.compress_size, limits.max_ratio)
+    if limits.max_member_bytes is not None:
+        if info.file_size > limits.max_member_bytes:
+            raise DatasetError(where, f"member {info.filename!r}", f"unpacks to {info.file_size:,} bytes, more than the "
+                                                                   f"{limits.max_member_bytes:,} such a file may hold")
+        cap = min(cap, limits.max_member_bytes)
+    with open(target, "wb") as out:
+        for chunk in member_chunks(zf, info, f"{where}!{info.filename}", cap, _CHUNK):
+            left[0] -= len(chunk)
+            if left[0] < 0:
+                raise DatasetError(where, None, "unpacks to more than its bounds (V3D_MAX_UNPACKED_MB, "
+                                                "V3D_MAX_ZIP_RATIO; counted while unpacking); refusing the archive")
+            out.write(chunk)
 
 
 def unpack_zip(archive: Path | BinaryIO, dest: Path, limits: ArchiveLimits, *, where: str | None = None,
@@ -163,14 +215,15 @@ def unpack_zip(archive: Path | BinaryIO, dest: Path, limits: ArchiveLimits, *, w
     Args:
         archive: the zip file on disk, or an open seekable binary file of it (an upload's spool).
         dest: the folder to extract into; removed again when the archive is refused.
-        limits: member count and uncompressed size bounds.
+        limits: member count, uncompressed size, compression ratio and extracted member size bounds.
         where: the name used in messages (default: the archive's file name).
         keep: extract only the members whose name it accepts (all are still checked).
 
     Raises:
-        DatasetError: not a zip, an unsafe, linked or repeated member, too many members or bytes, a
-            file named like an image that is not a PNG or JPEG within V3D_MAX_IMAGE_PIXELS (naming the archive
-            and the member; nothing is left in ``dest``).
+        DatasetError: not a zip, an unsafe, linked or repeated member, too many members or bytes, a member
+            or archive unpacking beyond ``limits.max_ratio`` to 1 or a member beyond ``limits.max_member_bytes``
+            (from the directory, and counted while unpacking), a file named like an image that is not a PNG
+            or JPEG within V3D_MAX_IMAGE_PIXELS (naming the archive and the member; nothing is left in ``dest``).
     """
     where = where or (archive.name if isinstance(archive, Path) else "upload.zip")
     try:
@@ -178,10 +231,12 @@ def unpack_zip(archive: Path | BinaryIO, dest: Path, limits: ArchiveLimits, *, w
     except (zipfile.BadZipFile, OSError) as exc:
         raise DatasetError(where, None, f"not a readable zip archive ({exc})") from None
     budget = [limits.max_members, limits.max_unpacked_bytes]
+    packed = _size_of(archive)
+    left = [min(limits.max_unpacked_bytes, ratio_cap(packed, limits.max_ratio))]
     dest.mkdir(parents=True, exist_ok=True)
     try:
         with zf:
-            infos = _checked_members(zf, where, limits, budget)
+            infos = _checked_members(zf, where, limits, budget, packed)
             root = dest.resolve()
             for info in infos:
                 if info.is_dir() or (keep is not None and not keep(info.filename)):
@@ -190,8 +245,7 @@ def unpack_zip(archive: Path | BinaryIO, dest: Path, limits: ArchiveLimits, *, w
                 if root not in target.parents:  # belt and braces: is_safe_member already refused it
                     raise DatasetError(where, f"member {info.filename!r}", "lands outside the destination")
                 target.parent.mkdir(parents=True, exist_ok=True)
-                with zf.open(info) as src, open(target, "wb") as out:
-                    shutil.copyfileobj(src, out, _CHUNK)
+                _extract(zf, info, target, where, limits, left)
                 if is_image_name(info.filename):
                     with open(target, "rb") as stream:
                         check_image(stream, f"{where}!{info.filename}", limits.max_image_pixels)

@@ -61,6 +61,7 @@ from app.db.models import (
     JAC_COLUMNS, BallLabel, BallReprojection, Calibration, FieldLineAnnotation, Frame, FrameRole, Game, OptimisedBox,
     ReviewDecision, ReviewStatus, System, Triangulation,
 )
+from app.datasets.csv_cells import inert_row
 from app.datasets.soccernet_v3 import V3_FRAMES_ZIP
 from app.datasets.soccernet_v3d import JAC_KEYS, curated_entry
 from app.db.types import json_loads
@@ -159,9 +160,10 @@ def _raw(json_text: str | None) -> str:
 
 def _csv_row(game: Any, row: Any, split: str) -> list[str]:
     """One frame's ``SNv3D.csv`` row, the cells in :data:`CSV_COLUMNS` order (method.md section 9, then
-    v3d's columns), from its export row. JSON cells are the stored JSON text, as it is."""
+    v3d's columns), from its export row. JSON cells are the stored JSON text, as it is; a cell a spreadsheet
+    would run as a formula (a dataset's name starting with ``=``...) is escaped (``app.datasets.csv_cells``)."""
     is_action = row.role is not FrameRole.REPLAY
-    return [
+    return inert_row([
         game.league, game.season, game.match,
         row.name if is_action else row.system_name,  # main_action
         "True" if is_action else "False", "" if is_action else row.name,  # action, replay
@@ -172,7 +174,7 @@ def _csv_row(game: Any, row: Any, split: str) -> list[str]:
         _raw(row.ball3d), _cell(row.rep_error_px), _cell(row.opt_error_m), _cell(row.opt_d_px),
         split,
         _raw(row.ball_point), _raw(row.original_box), _raw(row.original_point), _raw(row.opt_box),
-    ]
+    ])
 
 
 #: Games read per query by :func:`iter_soccernet_v3d` (bounded memory, few round trips).
