@@ -55,7 +55,7 @@ def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, e
     ``ETag``. 409 when the resource changed since the entry (unless ``force``); 422 for an import or a
     recompute, which cannot be reverted. The entry itself is the precondition: no If-Match is needed."""
     done = revert_entry(session, entry_id, settings=settings, actor=principal.name, force=force)
-    return _restored(session, done, query, response)
+    return _restored(session, done, query, response, principal.name)
 
 
 @router.post(
@@ -78,13 +78,14 @@ def undo(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, en
     entry = audit.recorded_entry_id(session)
     if entry is not None:
         response.headers[AUDIT_ENTRY_HEADER] = str(entry)
-    return _restored(session, done, query, response)
+    return _restored(session, done, query, response, principal.name)
 
 
-def _restored(session: SessionDep, done: Reverted, query: QueueQuery, response: Response) -> SystemView:
-    """The recomputed system view after a revert or an undo, the resource's new ETag in the header."""
+def _restored(session: SessionDep, done: Reverted, query: QueueQuery, response: Response, me: str) -> SystemView:
+    """The recomputed system view after a revert or an undo by ``me`` (whom ``assignee=me`` names), the resource's
+    new ETag in the header."""
     if done.kind == "frame":
         with_etag(response, frame_etag(editing.get_frame(session, done.ident)))
     else:
         with_etag(response, system_etag(editing.get_system(session, done.ident)))
-    return SystemView.of(system_page(session, done.system_id, query.filters(me=principal.name), query.sort))
+    return SystemView.of(system_page(session, done.system_id, query.filters(me=me), query.sort))

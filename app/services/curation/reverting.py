@@ -78,8 +78,10 @@ def _restore(session: Session, entry: AuditEntry, settings: Settings, common: di
     elif "lines" in before:
         editing.replace_field_lines(session, entry.frame_id, before["lines"], settings=settings, **common)  # type: ignore[arg-type]
     elif "assignee" in before:
+        guard = common.get("revert")  # an undo (no revert guard) is never forced: the assignee must be what it left
         assignment.revert_assignment(session, system_id=int(entry.system_id), before=before,  # type: ignore[arg-type]
-                                     after=entry.after or {}, entry_id=entry_id, actor=actor, force=force)
+                                     after=entry.after or {}, entry_id=entry_id, actor=common.get("actor"),
+                                     force=guard is not None and guard.expect is None)
         return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
     elif "excluded" in before:
         editing.set_view_excluded(session, entry.frame_id, bool(before["excluded"]), settings=settings, **common)  # type: ignore[arg-type]
