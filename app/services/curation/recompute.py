@@ -283,7 +283,8 @@ def recompute_inputs(session: Session, system: System, settings: Settings) -> st
         ])
     game: Any = None
     if uses_rig(system) and system.game_id is not None:
-        game = [[fid, centre.tolist(), main] for fid, centre, main in rig_rows(session, system.game_id, settings)]
+        # by frame id: the rows come in the order the planner reads them, which changes with the table's statistics
+        game = sorted([[fid, centre.tolist(), main] for fid, centre, main in rig_rows(session, system.game_id, settings)])
     elif system.game is not None:
         game = system.game.camera_prior
     doc = {"system": [system.id, system.kind, system.game_id, system.review.status if system.review else None],

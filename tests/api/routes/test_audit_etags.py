@@ -42,6 +42,8 @@ def _geometry(view: dict[str, Any]) -> dict[str, Any]:
 def test_get_frame_answers_the_frame_with_its_ball_and_a_strong_etag(client: TestClient, scene: Scene) -> None:
     frame, etag = _frame(client, scene.frame_ids[2])
     system = client.get(f"/api/systems/{scene.system_id}").json()
+    pitch = frame.pop("pitch_lines")  # one frame's answer carries its projected pitch; the system view names its address
+    assert pitch == client.get(system["views"][2]["pitch_lines_url"]).json()["lines"]
     assert frame == {**system["views"][2], "system_id": scene.system_id}
     assert etag == frame["etag"] == f'"frame-{scene.frame_ids[2]}-1"' and not etag.startswith("W/")
     assert frame["ball"]["kind"] == "box" and len(frame["ball"]["box"]) == 4
