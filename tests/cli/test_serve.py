@@ -139,7 +139,8 @@ def test_demo_makes_a_labelled_demo_account_and_says_how_to_log_in(database: str
         assert result.exit_code == 0, result.output
         assert "demo account (role admin, for trying v3d only): log in as 'demo' with password 'demo'" in result.output
         assert "http://127.0.0.1:8000/login" in result.output
-    with TestClient(served[-1]["app"], client=("127.0.0.1", 50000)) as client:  # a browser on this machine
+    with TestClient(served[-1]["app"], client=("127.0.0.1", 50000),
+                    base_url="http://127.0.0.1:8000") as client:  # a browser on this machine (loopback peer and Host)
         assert client.get("/api/auth/demo").json() == {"account": {"name": "demo", "password": "demo"}}
         login = client.post("/api/auth/login", json={"name": "demo", "password": "demo"})
         assert login.status_code == 200 and login.json()["role"] == "admin"
