@@ -336,7 +336,8 @@ def prepare(workdir: Path, database_url: Optional[str] = None) -> tuple[Any, str
 
     url = database_url or f"sqlite:///{workdir / 'fuzz.sqlite3'}"
     upgrade_database(url)
-    settings = Settings(database_url=url, calibration_workers=1, data_root=workdir)
+    # schemathesis' in-process ASGI transport names the host ``testserver``: allowed here by name (app.api.hosts)
+    settings = Settings(database_url=url, calibration_workers=1, data_root=workdir, allowed_hosts=["testserver"])
     print(load_demo_if_empty(settings), flush=True)
     engine = make_engine(url)
     try:
