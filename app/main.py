@@ -18,7 +18,10 @@ collector's young-generation threshold (``Settings.gc_young_threshold``).
 Authentication (``app.api.authentication``): the session cookie middleware (its signing key read from
 ``V3D_SESSION_SECRET`` or the database when the middleware is built, at the first request or lifespan
 start), then the middleware that resolves the principal and answers 401 / CSRF 403 under ``/api``. The
-pages (``/``, ``/login``, ``/systems/{id}``), static files and the docs are public.
+pages (``/``, ``/login``, ``/systems/{id}``), static files and the docs are public. Before both: a request
+naming a ``Host`` that is neither a loopback name nor one of ``V3D_ALLOWED_HOSTS`` gets 400
+(``app.api.hosts``: DNS rebinding), and a body is bounded by its route (``app.api.bodies``: 415 for a type the
+route does not take, 413 beyond its limit).
 """
 from __future__ import annotations
 
@@ -31,12 +34,14 @@ from pathlib import Path
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import FileResponse, HTMLResponse, Response
 from fastapi_offline import FastAPIOffline
+from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.staticfiles import StaticFiles
 from starlette.types import Scope
 
 from app.api.authentication import AuthenticationMiddleware, SessionCookieMiddleware
 from app.api.bodies import BodyLimitMiddleware
 from app.api.compression import CompressionMiddleware
+from app.api.hosts import allowed_hosts
 from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
 from app.api.main import api_router
@@ -151,15 +156,18 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         with app.state.session_factory() as session:
             return session_secret(session, override)
 
-    # Added innermost first: security headers around the body limits around the session cookie around the
-    # authentication (a body too large is refused before anything looks at the request); the compression of
-    # answers innermost (app.api.compression: never an answer carrying a secret).
+    # Added innermost first: security headers around the Host check around the session cookie around the
+    # authentication around the body limits. A request naming a foreign Host is refused before anything looks at
+    # it; an anonymous request to a protected route gets its 401 without a byte of its body read; a body of a type
+    # its route does not take, or too large, is refused before the route reads it. The compression of answers is
+    # innermost (app.api.compression: never an answer carrying a secret).
     app.add_middleware(CompressionMiddleware)
+    app.add_middleware(BodyLimitMiddleware, routes=app.router.routes, max_json_bytes=int(settings.max_json_kb * 1024),
+                       max_upload_bytes=int(settings.max_upload_mb * 2**20))
     app.add_middleware(AuthenticationMiddleware, max_age_s=settings.session_max_age_s)
     app.add_middleware(SessionCookieMiddleware, secret=secret, max_age=settings.session_max_age_s,
                        https_only=settings.secure_cookies)
-    app.add_middleware(BodyLimitMiddleware, max_json_bytes=int(settings.max_json_kb * 1024),
-                       max_upload_bytes=int(settings.max_upload_mb * 2**20))
+    app.add_middleware(TrustedHostMiddleware, allowed_hosts=allowed_hosts(settings), www_redirect=False)
     app.add_middleware(SecurityHeadersMiddleware)
 
     install_error_handlers(app)

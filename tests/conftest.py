@@ -3,9 +3,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import os
+
 import pytest
 
 from app.core.paths import SHARED_DIR
+
+#: The Host of Starlette's test client (``http://testserver``) is no loopback name: the apps of the tests accept
+#: it because the tests' settings name it (``app.api.hosts``; a served v3d refuses it unless V3D_ALLOWED_HOSTS
+#: does). ``tests/api/test_hosts.py`` builds apps without it to see the refusal.
+TEST_CLIENT_HOST = "testserver"
+os.environ["V3D_ALLOWED_HOSTS"] = ",".join(filter(None, [os.environ.get("V3D_ALLOWED_HOSTS"), TEST_CLIENT_HOST]))
 
 
 @pytest.fixture(scope="session")
@@ -18,7 +26,6 @@ def shared_dir() -> Path:
 
 # ----- database fixtures (app/db): a migrated SQLite database per test session, one rolled-back
 # transaction per test (SQLAlchemy's "join a session into an external transaction" recipe) ---------
-import os  # noqa: E402
 from collections.abc import Iterator  # noqa: E402
 from contextlib import contextmanager  # noqa: E402
 
@@ -117,7 +124,7 @@ def db_settings(db_url: str, tmp_path_factory: pytest.TempPathFactory) -> Settin
     read the test session's temporary folders (the data root); no job runner thread (tests run queued
     jobs themselves, on their own session factory; the fault tests start real servers)."""
     return Settings(database_url=db_url, calibration_workers=1, data_root=tmp_path_factory.getbasetemp(),
-                    job_runner=False)
+                    job_runner=False, allowed_hosts=[TEST_CLIENT_HOST])
 
 
 #: The local PostgreSQL server of the ``postgres``-marked tests (trust authentication).

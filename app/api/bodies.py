@@ -1,27 +1,44 @@
-"""Request bodies are bounded before they are parsed, and while they stream (issue 15).
+"""Request bodies are bounded by the route they are sent to, before they are parsed and while they
+stream (issue 15; issue 27, item 1: never by what the client's ``Content-Type`` says).
 
-:class:`BodyLimitMiddleware` is a pure ASGI middleware in front of every route: a multipart body (an
-upload: ``POST /api/imports``, ``POST /api/evaluations/monocular``) may carry up to ``V3D_MAX_UPLOAD_MB``,
-any other body (JSON) up to ``V3D_MAX_JSON_KB``. A ``Content-Length`` above the limit is answered 413 at
-once, before a byte of the body is read; a body without one (chunked) or lying about it is counted as it
-streams and answered 413 as soon as it passes the limit, so that no route (FastAPI's JSON parsing, the
-multipart parser's spooling to disk) ever holds more than the limit. :data:`TOO_LARGE` is the OpenAPI
-answer of every route.
+:class:`BodyLimitMiddleware` is a pure ASGI middleware in front of every route. It finds the route a
+request goes to and the media types that route takes (:func:`route_media_types`: what its OpenAPI request
+body declares, derived from the route itself, so that the table cannot drift from the routes):
+
+* a body of a type the route does not take (multipart to a JSON route, ``text/plain``, a body without a
+  ``Content-Type`` to a JSON route) is answered **415 before a byte of it is read** (a body: a
+  ``Content-Length`` above 0, or chunked); a route that takes no body accepts a JSON one and ignores it;
+* a ``multipart/form-data`` body to an **upload route** (one that takes multipart: :func:`upload_routes`,
+  today ``POST /api/imports`` and ``POST /api/evaluations/monocular``) may carry up to ``V3D_MAX_UPLOAD_MB``;
+  every other body, whatever its declared type, up to ``V3D_MAX_JSON_KB``.
+
+A ``Content-Length`` above the limit is answered 413 at once; a body without one (chunked) or lying about it
+is counted as it streams and answered 413 as soon as it passes the limit, so that no route (FastAPI's JSON
+parsing, the multipart parser's spooling to disk) ever holds more than the limit. :data:`BODY_REFUSED` is the
+OpenAPI answer of every route (413, 415). Refusals close the connection (the unread body is never drained).
 """
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, Optional
 
 from fastapi import HTTPException
+from fastapi.routing import APIRoute, iter_route_contexts
 from starlette.responses import JSONResponse
+from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.api.schemas import ErrorOut
 
-#: The OpenAPI ``responses`` entry of every route (``app.api.main``).
-TOO_LARGE: dict[int | str, dict[str, Any]] = {
+#: The media type of JSON bodies, and of uploads (the only type that may use ``V3D_MAX_UPLOAD_MB``).
+JSON_TYPE, UPLOAD_TYPE = "application/json", "multipart/form-data"
+
+#: The OpenAPI ``responses`` entries of every route (``app.api.main``).
+BODY_REFUSED: dict[int | str, dict[str, Any]] = {
     413: {"model": ErrorOut, "description": "The body is larger than V3D_MAX_JSON_KB (JSON) or V3D_MAX_UPLOAD_MB "
                                             "(an upload): refused before it is parsed."},
+    415: {"model": ErrorOut, "description": "The body's Content-Type is not one this route takes (e.g. multipart to "
+                                            "a JSON route): refused before it is read."},
 }
 
 
@@ -35,24 +52,95 @@ class BodyTooLarge(HTTPException):
                          headers={"Connection": "close"})
 
 
-def body_limit(content_type: str, max_json_bytes: int, max_upload_bytes: int) -> tuple[int, str]:
-    """The limit (bytes) and the setting naming it for a request of ``content_type``.
+def media_type(content_type: str) -> str:
+    """The media type of a ``Content-Type`` header, lower case, without parameters (``""`` when absent).
 
-    >>> body_limit("multipart/form-data; boundary=x", 1024, 10)
-    (10, 'V3D_MAX_UPLOAD_MB')
-    >>> body_limit("application/json", 1024, 10)
-    (1024, 'V3D_MAX_JSON_KB')
+    >>> media_type("Multipart/Form-Data; boundary=x"), media_type("")
+    ('multipart/form-data', '')
     """
-    if content_type.lower().startswith("multipart/"):
+    return content_type.split(";", 1)[0].strip().lower()
+
+
+def is_json(media: str) -> bool:
+    """Whether FastAPI parses a body of ``media`` as JSON (``application/json``, ``application/*+json``).
+
+    >>> is_json("application/json"), is_json("application/merge-patch+json"), is_json("text/plain")
+    (True, True, False)
+    """
+    return media == JSON_TYPE or (media.startswith("application/") and media.endswith("+json"))
+
+
+def route_media_types(route: BaseRoute) -> frozenset[str]:
+    """The media types of the bodies ``route`` takes, as its OpenAPI operation declares them: the
+    ``requestBody`` of its ``openapi_extra`` when it states one (a route that reads its body itself, such as
+    ``POST /api/imports``), else its body parameters' (FastAPI: a model or ``Body`` is JSON, ``Form``
+    ``application/x-www-form-urlencoded``, ``File`` / ``UploadFile`` ``multipart/form-data``); empty for a route
+    without a body and for anything that is not an API route (static files, pages). ``route``: a route or
+    FastAPI's context of an included one (``fastapi.routing.iter_route_contexts``)."""
+    route = getattr(route, "original_route", route)
+    if not isinstance(route, APIRoute):
+        return frozenset()
+    declared = ((route.openapi_extra or {}).get("requestBody") or {}).get("content")
+    if declared:
+        return frozenset(media_type(m) for m in declared)
+    if route.body_field is None:
+        return frozenset()
+    return frozenset({media_type(getattr(route.body_field.field_info, "media_type", JSON_TYPE))})
+
+
+def upload_routes(routes: Sequence[BaseRoute]) -> list[tuple[str, str]]:
+    """``(method, path)`` of every route of an app's ``routes`` (included routers walked) that takes an upload
+    (multipart), sorted: those whose bodies may reach ``V3D_MAX_UPLOAD_MB``."""
+    return sorted((m, str(c.path)) for c in iter_route_contexts(routes) if UPLOAD_TYPE in route_media_types(c)
+                  for m in (c.methods or ()))
+
+
+def route_of(routes: Sequence[BaseRoute], scope: Scope) -> Optional[BaseRoute]:
+    """The route of an app's ``routes`` (included routers walked) that will answer ``scope``, as the router
+    matches: the first full match, else the first whose path matches with another method (405); None: a 404."""
+    partial = None
+    for route in iter_route_contexts(routes):
+        match, _ = route.matches(scope)
+        if match is Match.FULL:
+            return route
+        if match is Match.PARTIAL and partial is None:
+            partial = route
+    return partial
+
+
+def body_policy(takes: frozenset[str], content_type: str, max_json_bytes: int,
+                max_upload_bytes: int) -> Optional[tuple[int, str]]:
+    """The limit (bytes) and the setting naming it for a body of ``content_type`` sent to a route that takes
+    ``takes`` (:func:`route_media_types`), or None when the route does not take that type (415).
+
+    >>> body_policy(frozenset({"multipart/form-data"}), "multipart/form-data; boundary=x", 1024, 10)
+    (10, 'V3D_MAX_UPLOAD_MB')
+    >>> body_policy(frozenset({"application/json"}), "multipart/form-data; boundary=x", 1024, 10) is None
+    True
+    >>> body_policy(frozenset(), "application/json", 1024, 10), body_policy(frozenset(), "text/plain", 1024, 10)
+    ((1024, 'V3D_MAX_JSON_KB'), None)
+    """
+    media = media_type(content_type)
+    if media == UPLOAD_TYPE and UPLOAD_TYPE in takes:
         return max_upload_bytes, "V3D_MAX_UPLOAD_MB"
-    return max_json_bytes, "V3D_MAX_JSON_KB"
+    if media in takes or (is_json(media) and (not takes or JSON_TYPE in takes)):
+        return max_json_bytes, "V3D_MAX_JSON_KB"
+    return None
+
+
+def _refusal(status: int, detail: str) -> JSONResponse:
+    return JSONResponse({"detail": detail}, status_code=status, headers={"Connection": "close"})
 
 
 class BodyLimitMiddleware:
-    """413 for an HTTP request body above its limit (:func:`body_limit`), declared or streamed."""
+    """415 for a body of a type its route does not take, 413 for one above its route's limit
+    (:func:`body_policy`), declared or streamed. ``routes``: the app's route list (read at each request, so
+    routes added after the middleware count)."""
 
-    def __init__(self, app: ASGIApp, *, max_json_bytes: int, max_upload_bytes: int) -> None:
+    def __init__(self, app: ASGIApp, *, routes: Sequence[BaseRoute], max_json_bytes: int,
+                 max_upload_bytes: int) -> None:
         self.app = app
+        self.routes = routes
         self.max_json_bytes = max_json_bytes
         self.max_upload_bytes = max_upload_bytes
 
@@ -61,8 +149,20 @@ class BodyLimitMiddleware:
             await self.app(scope, receive, send)
             return
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
-        limit, setting = body_limit(headers.get("content-type", ""), self.max_json_bytes, self.max_upload_bytes)
-        declared = headers.get("content-length", "")
+        declared = headers.get("content-length", "").strip()
+        has_body = "chunked" in headers.get("transfer-encoding", "").lower() or (declared not in ("", "0"))
+        content_type = headers.get("content-type", "")
+        route = route_of(self.routes, scope) if has_body else None  # no body: nothing to look up
+        takes = route_media_types(route) if route is not None else frozenset()
+        policy = body_policy(takes, content_type, self.max_json_bytes, self.max_upload_bytes)
+        if policy is None:
+            if has_body:
+                wanted = " or ".join(sorted(takes)) or "no body (or JSON, ignored)"
+                shown = media_type(content_type)[:100] or "a body without a Content-Type"
+                await _refusal(415, f"this route takes {wanted}, not {shown}")(scope, receive, send)
+                return
+            policy = self.max_json_bytes, "V3D_MAX_JSON_KB"
+        limit, setting = policy
         if declared.isdigit() and int(declared) > limit:
             await self._refuse(scope, receive, send, limit, setting)
             return

@@ -19,14 +19,21 @@
   written, the same request may be sent again. Any other ``OperationalError`` stays a server error.
 
 Request validation errors keep FastAPI's form (422, ``detail`` a list of ``{loc, msg, type}``), so a
-NaN box answers ``loc: ["body", "box", 0]``. A body FastAPI cannot read at all (JSON that is not UTF-8, a
+NaN box answers ``loc: ["body", "box", 0]``; an error quotes its ``input`` back only when it is short (at most
+:data:`MAX_ECHO_CHARS` as JSON) and holds no secret (:data:`SECRET_FIELDS`: a login without a name does not
+answer its password), so that no error answer echoes a body (issue 27, item 1). Every other error's
+``detail`` text is cut at :data:`MAX_DETAIL_CHARS`. A body FastAPI cannot read at all (JSON that is not UTF-8, a
 broken multipart form), which FastAPI and Starlette answer with an undeclared 400, answers in that form
 too: 422, ``loc: ["body"]``, ``type: "body_unparsable"`` (found by ``benchmarks/fuzz.py``).
 """
 from __future__ import annotations
 
+import json
+from typing import Any
+
 from fastapi import FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import OperationalError
@@ -45,8 +52,68 @@ from app.services.jobs.runner import JobNotReady
 from app.services.transfer.images import ImageUnavailable
 
 
+#: Longest ``input`` (as JSON, characters) a validation error quotes back; a longer one is left out.
+MAX_ECHO_CHARS = 200
+#: Longest ``detail`` text of an error answer (characters); the rest is cut (a message never quotes a body whole).
+MAX_DETAIL_CHARS = 2000
+#: Fields whose values an error never quotes (a login's password, a token, a secret), wherever they appear.
+SECRET_FIELDS = frozenset({"password", "token", "secret"})
+
+
+def shortened(text: str, limit: int = MAX_DETAIL_CHARS) -> str:
+    """``text`` cut to ``limit`` characters, saying how much was left out.
+
+    >>> shortened("abcdef", 3)
+    'abc... (3 more characters)'
+    """
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text) - limit} more characters)"
+
+
+def _holds_secret(value: Any) -> bool:
+    if isinstance(value, dict):
+        return any(str(k).lower() in SECRET_FIELDS or _holds_secret(v) for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return any(_holds_secret(v) for v in value)
+    return False
+
+
+def shown_validation_error(error: dict[str, Any]) -> dict[str, Any]:
+    """One error of a :class:`RequestValidationError` as the answer shows it: ``type``, ``loc``, ``msg`` (cut at
+    :data:`MAX_DETAIL_CHARS`), and ``input`` / ``ctx`` only when each is short
+    (at most :data:`MAX_ECHO_CHARS` as JSON) and neither names nor sits at a secret field (:data:`SECRET_FIELDS`).
+
+    >>> shown_validation_error({"type": "missing", "loc": ("body", "name"), "msg": "Field required",
+    ...                         "input": {"password": "hunter2"}})
+    {'type': 'missing', 'loc': ['body', 'name'], 'msg': 'Field required'}
+    >>> shown_validation_error({"type": "int_parsing", "loc": ("query", "limit"), "msg": "m", "input": "x" * 300})
+    {'type': 'int_parsing', 'loc': ['query', 'limit'], 'msg': 'm'}
+    """
+    loc = list(error.get("loc", ()))
+    out: dict[str, Any] = {"type": error.get("type"), "loc": loc, "msg": shortened(str(error.get("msg", "")))}
+    secret_place = any(str(part).lower() in SECRET_FIELDS for part in loc)
+    for key in ("input", "ctx"):
+        if key not in error or secret_place or _holds_secret(error[key]) or isinstance(error[key], (bytes, bytearray)):
+            continue
+        try:
+            value = jsonable_encoder(error[key])
+            text = json.dumps(value)
+        except (TypeError, ValueError):
+            continue
+        if len(text) <= MAX_ECHO_CHARS:
+            out[key] = value
+    return out
+
+
+async def _validation_error(_: Request, exc: Exception) -> JSONResponse:
+    """FastAPI's 422 of a request that fails validation, quoting no long input and no secret
+    (:func:`shown_validation_error`)."""
+    assert isinstance(exc, RequestValidationError)
+    return JSONResponse({"detail": [shown_validation_error(e) for e in exc.errors()]},
+                        status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
+
+
 def _answer(code: int, exc: Exception, field: str | None = None) -> JSONResponse:
-    body: dict[str, object] = {"detail": str(exc)}
+    body: dict[str, object] = {"detail": shortened(str(exc))}
     if field:
         body["field"] = field
     return JSONResponse(body, status_code=code)
@@ -110,7 +177,8 @@ async def _http_error(request: Request, exc: Exception) -> JSONResponse:
     own code raises no 400 ``HTTPException``): that one becomes the 422 of a malformed body, naming it."""
     if isinstance(exc, StarletteHTTPException) and exc.status_code == status.HTTP_400_BAD_REQUEST:
         cause = exc.__cause__ or exc.__context__
-        reason = f"{exc.detail} ({type(cause).__name__}: {cause})" if cause is not None else str(exc.detail)
+        reason = shortened(f"{exc.detail} ({type(cause).__name__}: {cause})" if cause is not None else str(exc.detail),
+                           MAX_ECHO_CHARS)
         return JSONResponse({"detail": [{"type": "body_unparsable", "loc": ["body"],
                                          "msg": f"the body cannot be read: {reason}"}]},
                             status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
@@ -131,3 +199,4 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(AnnotationError, _invalid)
     app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(OperationalError, _database_error)
+    app.add_exception_handler(RequestValidationError, _validation_error)

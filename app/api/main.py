@@ -10,14 +10,14 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.api.authentication import PROTECTED
-from app.api.bodies import TOO_LARGE
+from app.api.bodies import BODY_REFUSED
 from app.api.schemas import ErrorOut
 from app.api.routes import (
     assignments, audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, passes, pitch, systems,
     users,
 )
 
-api_router = APIRouter(responses=TOO_LARGE)
+api_router = APIRouter(responses=BODY_REFUSED)
 api_router.include_router(auth.public_router)
 api_router.include_router(health.router)
 _protected = APIRouter(dependencies=PROTECTED, responses={

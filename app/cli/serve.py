@@ -159,6 +159,10 @@ def serve(
         typer.echo(ensure_demo_account(settings))
     typer.echo(f"v3d: review UI at http://{host}:{port}/  (API docs at http://{host}:{port}/docs)")
     typer.echo(f"v3d: log in at http://{host}:{port}/login; add users with `v3d users add NAME --role admin`")
+    if not is_loopback(host):  # app.api.hosts: any other Host header gets 400 (DNS rebinding)
+        named = ", ".join(settings.allowed_hosts) or "none: set V3D_ALLOWED_HOSTS to the name other machines use"
+        typer.echo(f"v3d: reachable as localhost, 127.0.0.1 and [::1], and as V3D_ALLOWED_HOSTS ({named}); "
+                   "requests naming another host get 400")
     if workers > 1:  # each worker process builds its own app (and engine) from the environment
         typer.echo(f"v3d: {workers} worker processes")
         uvicorn.run(APP_FACTORY, factory=True, host=host, port=port, workers=workers)

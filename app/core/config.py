@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Annotated, Any, Literal, Optional
 
 from pydantic import Field, SecretStr, field_validator, model_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from app.core.paths import PROJECT_ROOT
 
@@ -184,6 +184,11 @@ class Settings(BaseSettings):
     trusted_proxies: list[str] = Field(
         default_factory=list, description="Reverse proxies (addresses or networks, JSON list) whose X-Forwarded-For "
         "names the client of a request (V3D_TRUSTED_PROXIES); otherwise the client is the socket peer.")
+    allowed_hosts: Annotated[list[str], NoDecode] = Field(
+        default_factory=list, description="Host names (or addresses) this server is reached by besides the loopback "
+        "ones (localhost, 127.0.0.1, [::1]), comma-separated, any port; '*.example.org' names a domain's hosts "
+        "(V3D_ALLOWED_HOSTS). A request naming another Host gets 400: a web page cannot reach the server by a name "
+        "of its own that resolves here (DNS rebinding). Name the host the users type, e.g. v3d.example.org.")
     secure_cookies: bool = Field(
         False, description="Send the session cookie with Secure (HTTPS only): set it behind TLS (V3D_SECURE_COOKIES).",
     )
@@ -257,6 +262,26 @@ class Settings(BaseSettings):
         "(V3D_WRITE_LOCK_TIMEOUT_S). Edits compute their geometry before they take the lock and hold it only to "
         "compare and write (app.services.curation.editing), so a wait beyond a few seconds means the database is "
         "overloaded, not that another edit is computing.")
+    @field_validator("allowed_hosts", mode="before")
+    @classmethod
+    def _comma_separated_hosts(cls, value: Any) -> Any:
+        """``V3D_ALLOWED_HOSTS=a.example,b.example`` (or a JSON list): the names, stripped and lower case."""
+        if isinstance(value, str):
+            text = value.strip()
+            if text.startswith("["):
+                import json
+
+                value = json.loads(text)
+            else:
+                value = text.split(",")
+        if isinstance(value, (list, tuple)):
+            names = [str(v).strip().lower() for v in value if str(v).strip()]
+            for name in names:
+                if "*" in name[1:] or (name.startswith("*") and name != "*" and not name.startswith("*.")):
+                    raise ValueError(f"V3D_ALLOWED_HOSTS: {name!r}: a wildcard names a domain's hosts, as '*.example.org'")
+            # an IPv6 address is written in brackets in a Host header
+            return [f"[{n}]" if ":" in n and not n.startswith("[") else n for n in names]
+        return value
 
     @field_validator("session_secret")
     @classmethod

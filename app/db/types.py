@@ -16,6 +16,11 @@ from sqlalchemy.dialects.postgresql import JSONB
 from sqlalchemy.engine import Dialect
 from sqlalchemy.types import TypeDecorator
 
+#: Bounds of the ``INTEGER`` columns (ids, counts): 32-bit signed on PostgreSQL (SQLite's are 64-bit). A number
+#: beyond them compared with a column fails in the database or its driver ("integer out of range",
+#: OverflowError): callers refuse it first (the API's path and query parameters, the queue's cursors).
+DB_INT_MIN, DB_INT_MAX = -(2**31), 2**31 - 1
+
 
 class UTCDateTime(TypeDecorator[datetime]):
     """A timezone-aware UTC timestamp on every backend.

@@ -272,7 +272,8 @@ def test_answers_holding_a_token_or_the_csrf_token_are_never_stored(client: Test
 
 
 def test_demo_hint_names_the_demo_account_only_when_it_exists(app: FastAPI) -> None:
-    with TestClient(app, client=("127.0.0.1", 50000)) as here:
+    # a browser on this machine: a loopback peer naming a loopback Host (issue 27, item 3)
+    with TestClient(app, client=("127.0.0.1", 50000), base_url="http://127.0.0.1:8000") as here:
         assert here.get("/api/auth/demo").json() == {"account": None}
         with app.state.session_factory() as session:
             assert "log in as 'demo' with password 'demo'" in users.ensure_demo_account(session)

@@ -50,6 +50,28 @@ def test_fuzzing_as_admin_finds_no_server_error(app: FastAPI, scene: Scene, acco
     assert report.server_errors == 0 and not report.failures, _failures(report)
 
 
+def test_bodies_of_every_declared_and_one_undeclared_media_type_find_no_server_error(
+        app: FastAPI, scene: Scene, accounts: dict[str, Account]) -> None:
+    """Issue 27: each operation with a body gets bodies of each type it declares (the import route: JSON and
+    multipart) and of one it does not (415 before it is read, never a 500)."""
+    with TestClient(app):
+        schema = fuzz.load_schema(app)
+        headers = fuzz.admin_headers(accounts["admin"].token)
+        path_ids = {"frame_id": list(scene.frame_ids), "system_id": [scene.system_id]}
+        report = fuzz.fuzz_media_types(schema, headers, examples=2, path_ids=path_ids,
+                                       etag_of=fuzz.current_etags(app, headers))
+    with_body = [op for op in fuzz.operations(schema) if op.get_request_payload_content_types()]
+    assert len(with_body) >= 10
+    assert "POST /api/imports [multipart/form-data]" in report.requests
+    assert "POST /api/imports [application/json]" in report.requests
+    for label, counts in report.statuses.items():  # every declared type reached its route (no 415)
+        if fuzz.UNDECLARED_MEDIA_TYPE not in label:
+            assert 415 not in counts, (label, counts)
+    undeclared = {label: counts for label, counts in report.statuses.items() if fuzz.UNDECLARED_MEDIA_TYPE in label}
+    assert len(undeclared) == len(with_body) and all(set(c) == {415} for c in undeclared.values()), undeclared
+    assert report.server_errors == 0 and not report.failures, _failures(report)
+
+
 def test_fuzzing_anonymously_answers_401_everywhere_but_the_public_routes(app: FastAPI, scene: Scene) -> None:
     with TestClient(app):
         schema = fuzz.load_schema(app)

@@ -139,7 +139,8 @@ def test_demo_makes_a_labelled_demo_account_and_says_how_to_log_in(database: str
         assert result.exit_code == 0, result.output
         assert "demo account (role admin, for trying v3d only): log in as 'demo' with password 'demo'" in result.output
         assert "http://127.0.0.1:8000/login" in result.output
-    with TestClient(served[-1]["app"], client=("127.0.0.1", 50000)) as client:  # a browser on this machine
+    with TestClient(served[-1]["app"], client=("127.0.0.1", 50000),
+                    base_url="http://127.0.0.1:8000") as client:  # a browser on this machine (loopback peer and Host)
         assert client.get("/api/auth/demo").json() == {"account": {"name": "demo", "password": "demo"}}
         login = client.post("/api/auth/login", json={"name": "demo", "password": "demo"})
         assert login.status_code == 200 and login.json()["role"] == "admin"
@@ -163,3 +164,22 @@ def test_workers_start_up_once_then_uvicorn_builds_the_app_per_process(database:
 
     built = create_app()  # what each worker does: the settings of the environment
     assert isinstance(built, FastAPI) and built.state.settings.database_url == database
+
+
+def test_serving_to_a_network_says_which_host_names_are_answered(database: str, served: list,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 27, item 3: requests naming a Host other than a loopback name or one of V3D_ALLOWED_HOSTS get 400, so
+    serving on a network interface says which names are answered (and how to add one)."""
+    monkeypatch.setenv("V3D_ALLOWED_HOSTS", "")
+    get_settings.cache_clear()
+    result = CliRunner().invoke(cli, ["serve", "--host", "0.0.0.0"])
+    assert result.exit_code == 0 and "set V3D_ALLOWED_HOSTS to the name other machines use" in result.output
+    monkeypatch.setenv("V3D_ALLOWED_HOSTS", "v3d.example.org")
+    get_settings.cache_clear()
+    result = CliRunner().invoke(cli, ["serve", "--host", "0.0.0.0"])
+    assert "as V3D_ALLOWED_HOSTS (v3d.example.org)" in result.output
+    with TestClient(served[-1]["app"], base_url="http://v3d.example.org") as named:
+        assert named.get("/api/health").status_code == 200
+    with TestClient(served[-1]["app"], base_url="http://192.0.2.7:8000") as by_address:
+        assert by_address.get("/api/health").status_code == 400
+    assert "reachable" not in CliRunner().invoke(cli, ["serve"]).output  # loopback: nothing to say

@@ -104,3 +104,14 @@ def test_the_readme_and_the_docker_files_show_how_to_make_the_first_admin() -> N
     assert "docker compose -f docker/compose.yaml run --rm app v3d users add NAME --role admin" in readme
     assert "run --rm app v3d users add NAME --role admin" in (DOCKER / "compose.yaml").read_text(encoding="utf-8")
     assert "v3d users add NAME --role admin" in (DOCKER / "Dockerfile").read_text(encoding="utf-8")
+
+
+def test_compose_and_the_readme_show_how_to_name_the_served_host(compose: dict) -> None:
+    """Issue 27, item 3: a Host other than a loopback name or V3D_ALLOWED_HOSTS gets 400, so the Docker files pass
+    the served name on and the README's deployment part says how to set it."""
+    assert compose["services"]["app"]["environment"]["V3D_ALLOWED_HOSTS"] == "${V3D_ALLOWED_HOSTS:-}"
+    text = (DOCKER / "compose.yaml").read_text(encoding="utf-8")
+    assert "V3D_ALLOWED_HOSTS=v3d.example.org docker compose -f docker/compose.yaml up -d" in text
+    readme = (DOCKER.parent / "README.md").read_text(encoding="utf-8")
+    assert "V3D_ALLOWED_HOSTS=v3d.example.org docker compose -f docker/compose.yaml up -d" in readme
+    assert "DNS rebinding" in readme

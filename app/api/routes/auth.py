@@ -16,6 +16,7 @@ from pydantic import BaseModel, Field
 from app.api.auth import PrincipalDep, held_roles
 from app.api.authentication import start_session
 from app.api.deps import SessionDep
+from app.api.hosts import loopback_host
 from app.api.schemas import ErrorOut, _In
 from app.api.security import no_store
 from app.services.accounts.throttle import client_address, from_this_machine
@@ -63,8 +64,8 @@ _PASSWORD_CHECKS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="v3d-pas
 
 
 #: Why the demo account does not log in from elsewhere (403).
-DEMO_ONLY_HERE = ("the demo account (public password) logs in only on the machine that serves v3d, not over a "
-                  "network nor through a proxy: log in with your own account")
+DEMO_ONLY_HERE = ("the demo account (public password) logs in only on the machine that serves v3d (a loopback address "
+                  "such as http://127.0.0.1:8000), not over a network nor through a proxy: log in with your own account")
 
 
 def _check_password(session_factory: Any, name: str, password: str) -> Optional[tuple[int, str, str, int, bool]]:
@@ -75,8 +76,12 @@ def _check_password(session_factory: Any, name: str, password: str) -> Optional[
 
 
 def _here(request: Request) -> bool:
-    """The request came straight from this machine (``app.services.accounts.throttle.from_this_machine``)."""
-    return from_this_machine(request.client.host if request.client else None, request.headers)
+    """The request came straight from this machine (``app.services.accounts.throttle.from_this_machine``: a
+    loopback peer, no proxy header) and names it by a loopback ``Host`` (``app.api.hosts.loopback_host``): a page
+    of another site whose name was rebound to 127.0.0.1 (DNS rebinding) sends its own name, even with
+    ``V3D_ALLOWED_HOSTS`` letting that name through."""
+    return (from_this_machine(request.client.host if request.client else None, request.headers)
+            and loopback_host(request.headers.get("host")))
 
 
 @public_router.post("/login", response_model=MeOut, responses={

@@ -33,6 +33,7 @@ from __future__ import annotations
 import base64
 import binascii
 import json
+import math
 from dataclasses import dataclass
 from typing import Any, Literal, Optional
 
@@ -40,6 +41,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
 
 from app.core.errors import InvalidInputError
+from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.db.models import (
     BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, ReviewStatus, System, User,
 )
@@ -157,7 +159,7 @@ def matching_system_ids(filters: SystemFilters) -> sa.Select[Any]:
 
 def _natural_name(column: Any) -> list[Any]:
     # numeric names ("2.png", "10.png") in numeric order: shorter first, then text
-    return [sa.func.length(column), column]
+    return [sa.func.length(column, type_=sa.Integer), column]
 
 
 @dataclass(frozen=True)
@@ -219,22 +221,57 @@ def decode_cursor(cursor: str, sort: SystemSort, field: str = "after") -> tuple[
     """The sort key values of :func:`encode_cursor`'s ``cursor``.
 
     Raises:
-        InvalidInputError (``field``): not a cursor of this queue, or made for another ``sort``.
+        InvalidInputError (``field``): not a cursor of this queue, or made for another ``sort``; a forged or
+            damaged one (a system id that is not a positive integer within the id column, a value its sort key's
+            column cannot hold: :func:`_fits`), so that no cursor reaches the database as a query that fails.
     """
     keys = _sort_keys(sort)
+    if len(cursor) > _MAX_CURSOR_CHARS:
+        raise InvalidInputError(f"not a queue cursor (longer than {_MAX_CURSOR_CHARS} characters)", field=field)
     try:
         raw = base64.urlsafe_b64decode(cursor + "=" * (-len(cursor) % 4))
         made_for, values = json.loads(raw)
-    except (binascii.Error, ValueError, TypeError) as exc:
+    except (binascii.Error, ValueError, TypeError, RecursionError) as exc:
         raise InvalidInputError("not a queue cursor (use next_cursor / prev_cursor of a page)", field=field) from exc
     if made_for != sort:
-        raise InvalidInputError(f"the cursor was made for sort={made_for!r}, not sort={sort!r}", field=field)
-    if not isinstance(values, list) or len(values) != len(keys) or not all(
-            v is None or (isinstance(v, (int, float, str)) and not isinstance(v, bool)) for v in values):
+        shown = made_for if isinstance(made_for, str) and len(made_for) <= 20 else "another sort"
+        raise InvalidInputError(f"the cursor was made for sort={shown!r}, not sort={sort!r}", field=field)
+    if not isinstance(values, list) or len(values) != len(keys):
         raise InvalidInputError("not a queue cursor (use next_cursor / prev_cursor of a page)", field=field)
-    if not isinstance(values[-1], int):
+    if not isinstance(values[-1], int) or isinstance(values[-1], bool) or not 1 <= values[-1] <= DB_INT_MAX:
         raise InvalidInputError("not a queue cursor (its last value is a system id)", field=field)
+    for i, (key, value) in enumerate(zip(keys, values)):
+        if not _fits(key, value):
+            raise InvalidInputError(f"not a queue cursor (its value {i + 1} cannot be a stored "
+                                    f"{_kind(key)}: forged or damaged)", field=field)
     return tuple(values)
+
+
+#: Longest cursor read (characters): a real one holds a few short values (names at most 200 + 200 + 400 + 200).
+_MAX_CURSOR_CHARS = 4096
+
+
+def _kind(key: _SortKey) -> str:
+    """What a sort key's column holds: ``integer``, ``number`` or ``text``."""
+    if isinstance(key.expr.type, sa.Integer):
+        return "integer"
+    return "number" if isinstance(key.expr.type, (sa.Float, sa.Numeric)) else "text"
+
+
+def _fits(key: _SortKey, value: Any) -> bool:
+    """Whether a cursor's ``value`` can be a value of ``key``'s column, so that comparing it in SQL cannot fail
+    on any database: an integer within the ``INTEGER`` columns' range (``app.db.types.DB_INT_MAX``), a finite
+    number, text without a NUL character (PostgreSQL's text cannot hold one); NULL where the key's NULLs sort."""
+    if value is None:
+        return key.nulls_last
+    if isinstance(value, bool):
+        return False
+    kind = _kind(key)
+    if kind == "integer":
+        return isinstance(value, int) and DB_INT_MIN <= value <= DB_INT_MAX
+    if kind == "number":
+        return isinstance(value, (int, float)) and abs(value) < 1e300 and math.isfinite(value)
+    return isinstance(value, str) and "\x00" not in value
 
 
 def _slices(keys: list[_SortKey], current: Optional[tuple[Any, ...]],

@@ -69,6 +69,8 @@ def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None)
     ``app.services.transfer.data_root.dataset_name``; an upload as ``upload <job id>/...``)."""
     from app.services.transfer.data_root import dataset_name
 
+    if params.get("upload") and job_id is not None:  # wherever its folder lies (the jobs folder may have moved since)
+        return f"upload {job_id}"
     return dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
                         job_id if params.get("upload") else None)
 
@@ -86,8 +88,21 @@ def without_server_paths(job_id: int, params: dict[str, Any], result: dict[str, 
     if result is not None and "source" in result:
         result = {**result, "source": name}
     if message:
-        message = data_root.without_server_paths(message, path, name)
+        message = data_root.without_server_paths(message, path, name, server_folders(settings))
     return params, result, message
+
+
+def server_folders(settings: Settings) -> dict[str, str]:
+    """The server's folders a job message must not show to annotators and reviewers, each with what stands for it
+    (``app.services.transfer.data_root.without_server_paths``): the uploads folder, the jobs folder, the data root
+    and the temporary folder."""
+    import tempfile
+
+    folders = {str(jobs_dir(settings) / "uploads"): "upload", str(jobs_dir(settings)): "(jobs)"}
+    if settings.data_root is not None:
+        folders[str(settings.data_root)] = "(data root)"
+    folders[tempfile.gettempdir()] = "(temporary folder)"
+    return folders
 
 
 def _import(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,

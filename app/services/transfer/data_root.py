@@ -50,7 +50,8 @@ def dataset_name(path: str | Path, data_root: Path | None, uploads_dir: Path, up
     >>> dataset_name("/home/ana/datasets/issia-dev", None, Path("/var/jobs/uploads"))
     'issia-dev'
     """
-    p = Path(path)
+    p = Path(path).expanduser()
+    p = p if p.is_absolute() else p.resolve()  # a relative path (a relative V3D_JOBS_DIR) as the import read it
     uploads = Path(uploads_dir).expanduser().resolve()
     if p.is_relative_to(uploads) and p != uploads:
         folder, *inside = p.relative_to(uploads).parts
@@ -62,14 +63,36 @@ def dataset_name(path: str | Path, data_root: Path | None, uploads_dir: Path, up
     return p.name
 
 
-def without_server_paths(text: str, path: str | Path, name: str) -> str:
-    """``text`` (a job's message, an error) with the imported ``path`` replaced by its shown ``name``
-    (:func:`dataset_name`), so that a file inside the dataset is named from the dataset's own folder.
+def path_forms(path: str | Path) -> list[str]:
+    """Every way a message may write ``path``: as given, absolute, and with symbolic links resolved (the readers
+    name files by the resolved dataset folder), longest first.
+
+    >>> path_forms("/srv/data/sn/v3")
+    ['/srv/data/sn/v3']
+    """
+    given = Path(path).expanduser()
+    forms = {str(path), str(given), str(given.absolute()), str(given.resolve())}
+    return sorted((f for f in forms if f not in ("", ".")), key=len, reverse=True)
+
+
+def without_server_paths(text: str, path: str | Path, name: str, folders: dict[str, str] | None = None) -> str:
+    """``text`` (a job's message, an error) with the imported ``path``, in each of its forms (:func:`path_forms`),
+    replaced by its shown ``name`` (:func:`dataset_name`), so that a file inside the dataset is named from the
+    dataset's own folder; then each server folder of ``folders`` that is still written (the uploads folder, the
+    jobs folder, the temporary folder: the keys; a folder inside another first) by what stands for it (the values).
 
     >>> without_server_paths("/srv/data/sn/v3/l/s/g/Labels-v3.json: invalid JSON", "/srv/data/sn/v3", "sn/v3")
     'sn/v3/l/s/g/Labels-v3.json: invalid JSON'
+    >>> without_server_paths("/srv/data/other/x.json: missing", "/srv/data/sn/v3", "sn/v3", {"/srv/data": "(data)"})
+    '(data)/other/x.json: missing'
     """
-    return text.replace(str(path), name)
+    for form in path_forms(path):
+        text = text.replace(form, name)
+    # a folder inside another first, whichever order they are given in
+    for form, shown in sorted(((f, v) for k, v in (folders or {}).items() for f in path_forms(k)),
+                              key=lambda pair: len(pair[0]), reverse=True):
+        text = text.replace(form, shown)
+    return text
 
 
 def shown_import_counts(after: dict[str, Any] | None) -> dict[str, Any] | None:

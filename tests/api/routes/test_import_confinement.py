@@ -171,3 +171,48 @@ def test_annotators_and_reviewers_see_dataset_names_admins_the_server_paths(root
         assert client.get(f"/api/jobs/{ids[2]}").json()["result"]["source"] == upload_name
         sources = [e["after"]["source"] for e in client.get("/api/audit").json()["items"] if e["action"] == "import"]
         assert sorted(sources) == sorted(["sets/calib", upload_name])
+
+
+@pytest.mark.parametrize("jobs_folder", ["relative", "linked", "moved"])
+def test_a_failed_upload_names_its_files_from_the_upload_whatever_the_jobs_folder(
+        app, client: TestClient, tmp_path: Path, monkeypatch, act_as, jobs_folder: str) -> None:
+    """Issue 27, item 7. Was: once the server ran with another ``V3D_JOBS_DIR`` than the one the upload was
+    unpacked under (a restart, another worker), a failed upload's message (``GET /api/jobs``, the job's detail)
+    named the upload's server folder (``.../real-jobs/uploads/20261123-...``, here under the server's temporary
+    folder) to annotators, as did its params. An upload is now ``upload <job id>`` whatever the jobs folder, in
+    every form the message may write it (relative, through a link)."""
+    real = tmp_path / "real-jobs"
+    real.mkdir()
+    if jobs_folder == "relative":
+        monkeypatch.chdir(tmp_path)
+        jobs = Path("real-jobs")
+    elif jobs_folder == "moved":
+        jobs = real
+    else:
+        (tmp_path / "jobs-link").symlink_to(real)
+        jobs = tmp_path / "jobs-link"
+    app.state.settings = app.state.settings.model_copy(update={"jobs_dir": jobs})
+    ids = []
+    for kind, member in (("soccernet-v3", "league/season/game/Labels-v3.json"), ("sn-calibration", "set/00000.json")):
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w") as zf:
+            zf.writestr(member, b"{not json")
+        queued = client.post("/api/imports", data={"kind": kind},
+                             files={"file": ("broken.zip", buf.getvalue(), "application/zip")})
+        assert queued.status_code == 202, queued.text
+        ids.append(queued.json()["id"])
+    run_queued(app)
+    if jobs_folder == "moved":  # the server restarted with its jobs elsewhere
+        app.state.settings = app.state.settings.model_copy(update={"jobs_dir": tmp_path / "new-jobs"})
+    expected = {ids[0]: f"upload {ids[0]}/league/season/game/Labels-v3.json: invalid or truncated JSON",
+                ids[1]: f"upload {ids[1]}/set/00000.json: invalid or truncated JSON"}
+    for role in ("annotator", "reviewer"):
+        act_as("ana", role)
+        listed = {j["id"]: j for j in client.get("/api/jobs").json()["items"]}
+        for job_id, start in expected.items():
+            detail = client.get(f"/api/jobs/{job_id}").json()
+            for job in (listed[job_id], detail):
+                assert job["state"] == "failed" and job["message"].startswith(start), job["message"]
+                text = json.dumps(job)
+                assert str(tmp_path) not in text and "/tmp" not in text and "real-jobs" not in text, text
+                assert job["params"]["path"] == f"upload {job_id}"

@@ -377,3 +377,69 @@ def test_bad_cursors_are_422_naming_the_field(client: TestClient, queue: dict[st
         answer = client.get("/api/systems", params={"sort": "-worst_error", field: cursor})
         assert answer.status_code == 422
         assert answer.json()["field"] == field and says in answer.json()["detail"]
+
+
+def _tampered(cursor: str, index: int, value) -> str:
+    import base64
+    import json
+
+    sort, values = json.loads(base64.urlsafe_b64decode(cursor + "=" * (-len(cursor) % 4)))
+    values[index] = value
+    raw = json.dumps([sort, values]).replace('"INF"', "1e400")  # JSON for a number beyond any float
+    return base64.urlsafe_b64encode(raw.encode()).decode().rstrip("=")
+
+
+@pytest.mark.parametrize("sort", ["-worst_error", "name", "doubts", "lowest_jac"])
+def test_forged_cursors_are_422_naming_the_field(client: TestClient, queue: dict[str, Scene], sort: str) -> None:
+    """Issue 27, item 6. Was: a cursor whose system id exceeds any integer answered 500 (the database or its driver
+    refused the comparison); so did other values a column cannot hold. Every forged value is now a 422 naming the
+    cursor's field, on SQLite and PostgreSQL."""
+    made = client.get("/api/systems", params={"sort": sort, "limit": 1}).json()["next_cursor"]
+    assert made is not None
+    forged = [_tampered(made, -1, v) for v in (10**20, 2**63, 2**31, -1, 0, "7", 1.5, None, True)]
+    forged += [made[:-3], "A" + made, "x" * 5000, "WzFd", "W10"]  # damaged, too long, not a pair, empty
+    if sort == "name":
+        forged += [_tampered(made, 0, "a\x00b"), _tampered(made, 3, 10**20), _tampered(made, 0, 7)]
+    else:
+        forged += [_tampered(made, 0, "INF"), _tampered(made, 0, "text")]
+    for field in ("after", "before"):
+        for cursor in forged:
+            answer = client.get("/api/systems", params={"sort": sort, field: cursor})
+            assert answer.status_code == 422, (cursor, answer.text)
+            said = answer.json()
+            if isinstance(said["detail"], list):  # FastAPI's form, for a cursor longer than any made
+                assert said["detail"][0]["loc"] == ["query", field], said
+            else:
+                assert said["field"] == field and "cursor" in said["detail"], said
+            assert len(answer.text) < 600
+    assert client.get("/api/systems", params={"sort": sort, "after": made}).status_code == 200
+
+
+def test_ids_beyond_any_integer_are_422_naming_the_parameter(client: TestClient, queue: dict[str, Scene]) -> None:
+    """Every path and query id of every GET route, beyond the databases' integers or negative beyond them: a 422
+    naming the parameter, never a 500 (PostgreSQL's INTEGER is 32-bit; SQLite's driver overflows past 64 bits)."""
+    import re
+
+    paths = client.app.openapi()["paths"]
+    checked = 0
+    for path, ops in paths.items():
+        if "get" not in ops:
+            continue
+        params = [p for p in ops["get"].get("parameters", []) if p["schema"].get("type") == "integer"
+                  or any(s.get("type") == "integer" for s in p["schema"].get("anyOf", []))]
+        for param in params:
+            for huge in ("99999999999999999999", str(2**63), str(-(2**63) - 1), str(2**31)):
+                url = path
+                query = {}
+                if param["in"] == "path":
+                    url = path.replace("{" + param["name"] + "}", huge)
+                else:
+                    query = {param["name"]: huge}
+                url = re.sub(r"\{[a-z_]+\}", str(queue["exact"].system_id), url)
+                answer = client.get(url, params=query)
+                assert answer.status_code == 422, (url, query, answer.status_code, answer.text[:200])
+                assert any(e["loc"][-1] == param["name"] for e in answer.json()["detail"]), answer.text
+                checked += 1
+    assert checked >= 20
+    page = client.get("/systems/99999999999999999999")  # the UI page of a system
+    assert page.status_code == 404 and "System not found" in page.text
