@@ -480,3 +480,34 @@ def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and
         names = [im["file_name"] for im in doc["images"]]
         assert len(names) == len(set(names)) == coco.images[split] == yolo.images[split]
         assert sorted(p.name for p in (tmp_path / "coco" / split).iterdir() if p.name != "instances.json") == sorted(names)
+
+
+def test_an_edit_sets_back_to_pending_every_decided_system_whose_3d_ball_the_refit_moved(db_session, db_settings,
+                                                                                        stretch):
+    """Issue 28 item 3, the one rule for decisions after edits: an ISSIA edit re-fits its trajectory, which moves
+    the 3D ball of neighbouring frames; each of those that was decided goes back to pending with the reason (and
+    its own audit entry), the systems whose place on the trajectory did not change keep their decision."""
+    import_issia(db_session, stretch, db_settings)
+    systems = _systems(db_session)
+    for s in systems.values():
+        decide_review(db_session, system_id=s.id, status=ReviewStatus.ACCEPTED)
+    db_session.expire_all()
+    def point(s):  # the system's place on the trajectory, as stored
+        tp = s.trajectory_point
+        return json.dumps([tp.ball3d, tp.ball3d_smoothed, tp.source, tp.piece, tp.cam_list, tp.residuals_px,
+                           tp.flagged], sort_keys=True, default=str)
+
+    before = {i: point(s) for i, s in _systems(db_session).items()}
+    cam3 = _view(_systems(db_session)[20], "cam3")
+    x, y = cam3.ball_label.point
+    update_ball_label(db_session, cam3.id, point=[x + 80.0, y], settings=db_settings, actor="ana")
+    db_session.expire_all()
+    moved, kept = [], []
+    for i, s in _systems(db_session).items():
+        (moved if point(s) != before[i] or i == 20 else kept).append(s)
+    assert len(moved) > 1 and kept  # the re-fit reached neighbours, not the whole sequence
+    for s in moved:
+        assert s.review.status == ReviewStatus.PENDING, s.name
+        if s.frame_index != 20:
+            assert "re-fit after an edit of" in s.review.reset_reason and "by ana" in s.review.reset_reason
+    assert all(s.review.status == ReviewStatus.ACCEPTED for s in kept)

@@ -68,7 +68,7 @@ Bounded work: a field-line edit gives a view at most ``V3D_MAX_LINE_POINTS_PER_F
 from __future__ import annotations
 
 import json
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional, TypeVar
 
@@ -442,7 +442,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
             label.kind, label.box, label.point = kind, new_box, new_point
             label.provenance = new_provenance
             label.edited_at = utcnow()
-        _recompute(session, frame.system, settings)
+        _recompute(session, frame.system, settings, actor)
         reset_after_change(session, frame, "ball.edit", before, ball_state(frame), actor, undo)
         return frame
 
@@ -450,12 +450,45 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
                         undo.entry_id if undo is not None else None)
 
 
-def _recompute(session: Session, system: System, settings: Settings) -> None:
-    """The system-level recomputation of an edit; for an ISSIA system also the re-fit of the stretch
-    of its sequence's trajectory the edit touches, and the systems whose place on it changed
-    (the kind's ``refit_after_edit``), in the same transaction."""
-    if not kind_of(system).refit_after_edit(session, system, settings):  # an ISSIA system is recomputed after its re-fit
+def _recompute(session: Session, system: System, settings: Settings, actor: Optional[str]) -> None:
+    """The system-level recomputation of an edit by ``actor``; for an ISSIA system also the re-fit of the stretch
+    of its sequence's trajectory the edit touches, and the systems whose place on it changed (the kind's
+    ``refit_after_edit``), whose decisions go back to pending (:func:`reset_refitted_systems`), in the same
+    transaction."""
+    refitted = kind_of(system).refit_after_edit(session, system, settings)
+    if not refitted:  # an ISSIA system is recomputed after its re-fit
         _recompute_planned(session, system, settings, lambda: recompute_system(session, system, settings))
+    reset_refitted_systems(session, system, refitted, actor)
+
+
+def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[System], actor: Optional[str]) -> int:
+    """The one rule for decisions after edits (issue 28, item 3) for the systems an edit changed beside its own: an
+    ISSIA edit re-fits its sequence's trajectory, which moves the 3D ball of neighbouring frames (``refitted``: the
+    systems whose place on it changed); each of those, other than ``edited`` (whose decisions the edit itself
+    resets), that was decided goes back to pending with the reason and its own ``system.review`` audit entry.
+
+    Returns:
+        How many systems were set back to pending.
+    """
+    who = actor or audit.local_actor()
+    done = 0
+    for other in refitted:
+        decision = other.review
+        if other.id == edited.id or decision is None or decision.status == ReviewStatus.PENDING:
+            continue
+        before = review_state(other)
+        decision.status = ReviewStatus.PENDING  # type: ignore[assignment]
+        decision.reset_reason = (f"{other.name}: its 3D ball moved with the trajectory's re-fit after an edit of "
+                                 f"{edited.name} by {who}; decide it again")
+        decision.decided_at = utcnow()
+        other.review_status = ReviewStatus.PENDING  # type: ignore[assignment]  # the queue's copy
+        other.review_version += 1
+        audit.record(session, actor=actor, action="system.review", system=other, before=before,
+                     after=review_state(other))
+        done += 1
+    if done:
+        session.flush()
+    return done
 
 
 def _parse_lines(lines: Mapping[str, Any], width: int, height: int, max_points: int) -> dict[str, Any]:
@@ -471,8 +504,10 @@ def _parse_lines(lines: Mapping[str, Any], width: int, height: int, max_points: 
         raise InvalidInputError(str(exc), field="lines") from None
 
 
-def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], settings: Settings) -> Frame:
-    """Store ``parsed`` as the frame's current lines, recalibrate the frame and recompute its system."""
+def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], settings: Settings,
+                 actor: Optional[str]) -> Frame:
+    """Store ``parsed`` as the frame's current lines, recalibrate the frame and recompute its system (an edit by
+    ``actor``; the systems an ISSIA re-fit changed go back to pending: :func:`reset_refitted_systems`)."""
     fl = frame.field_lines
     if fl is None:
         frame.field_lines = FieldLineAnnotation(lines=parsed, original_lines={}, edited_at=utcnow())
@@ -480,7 +515,8 @@ def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], setting
         fl.lines = parsed
         fl.edited_at = utcnow()
     _recompute_planned(session, frame.system, settings, lambda: recompute_frame(session, frame, settings))
-    kind_of(frame.system).refit_after_edit(session, frame.system, settings, recalibrated=frame)
+    refitted = kind_of(frame.system).refit_after_edit(session, frame.system, settings, recalibrated=frame)
+    reset_refitted_systems(session, frame.system, refitted, actor)
     return frame
 
 
@@ -525,7 +561,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         before = lines_state(frame), calibration_words(frame, settings)
         check_undo_state(undo, before[0])
         jac_before = jac_words(frame, settings)
-        _store_lines(session, frame, parsed, settings)
+        _store_lines(session, frame, parsed, settings, actor)
         verb = "replaced" if undo_of is None else f"put back (undo of audit entry {undo_of})"
         reset_decisions_after_recalibration(session, frame, before, verb, actor, settings)
         audit.note_facts(session, calibration=(jac_before, jac_words(frame, settings)))
@@ -712,7 +748,7 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         lines_before = lines_state(frame), calibration_words(frame, settings)
         jac_before = jac_words(frame, settings)
         mirrored = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
-        out = _store_lines(session, frame, mirrored, settings)
+        out = _store_lines(session, frame, mirrored, settings, actor)
         after = ball_error_to_others(out, settings)
         if before is not None and before[0] is not None and (after is None or after[0] is None or after[0] >= before[0]):
             mi = "an unknown number of" if after is None or after[0] is None else f"{after[0]:.0f}"
@@ -883,7 +919,7 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
             review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
             frame.review = review
         review.excluded = excluded
-        _recompute(session, frame.system, settings)
+        _recompute(session, frame.system, settings, actor)
         reset_after_change(session, frame, "view.exclusion", before, excluded_state(frame), actor, undo)
         return frame
 

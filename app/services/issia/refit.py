@@ -307,7 +307,7 @@ def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: t
     wanted = [ids[i] for i, labels, doubts, _ in changed if (labels or doubts) and i not in edits | light]
     systems = load_for_recompute(session, wanted + [ids[i] for i in sorted(edits)])
     _refresh_trajectory_doubts(session, [(ids[i], i, values) for i, _, _, values in changed if i in light])
-    return [Changed(systems.get(ids[i]), labels) for i, labels, _, _ in changed]
+    return [Changed(systems.get(ids[i]), labels, ids[i]) for i, labels, _, _ in changed]
 
 
 def _changed_rows(window: _Window, fit: TrajectoryFit) -> tuple[list[dict[str, Any]], list[tuple[int, bool, bool, dict[str, Any]]]]:

@@ -38,8 +38,8 @@ from app.datasets.issia import (
     CAMERA_SET, FPS, CameraChoice, IssiaSequence, bundle_refined_cameras, read_frame_image, read_issia, sequence_cameras,
 )
 from app.db.models import (
-    BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game, System,
-    SystemKind,
+    BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game,
+    ReviewStatus, System, SystemKind,
 )
 from app.db.session import refresh_statistics
 from app.db.types import json_safe, utcnow
@@ -269,7 +269,9 @@ def refined_with_ball(session: Session, frame: Frame, fields: CalibrationFields,
 def refit_after_edit(session: Session, system: System, settings: Settings, *,
                      recalibrated: Frame | None = None) -> list[System]:
     """After an edit of a view of an ISSIA ``system``, in the edit's transaction (changes the session
-    only). Returns the systems touched; a system that is not ISSIA is left alone (``[]``).
+    only). Returns the systems touched: ``system`` and every system whose place on the trajectory (its 3D ball)
+    changed, recomputed or not (the edit sets their decisions back to pending); a system that is not ISSIA is left
+    alone (``[]``).
 
     * A ball label or exclusion edit (``recalibrated`` None): re-fit the stretch of the sequence around
       the system's frame (:func:`app.services.issia.refit.refit_sequence`), then recompute ``system``
@@ -300,6 +302,12 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
         # what the recomputations below read, for all of them in a few queries (not one per system and relation)
         load_for_recompute(session, [c.system.id for c in changed if c.system is not None and (
             c.labels or c.system.trajectory_point.flagged or c.system.doubt_counts.get("ball_off_consensus"))])
+    # decided systems whose place on the trajectory moved but that the re-fit did not load: the edit sets their
+    # decisions back to pending (one query for all of them)
+    unloaded = [c.system_id for c in changed if c.system is None and c.system_id is not None]
+    if unloaded:
+        touched += session.scalars(sa.select(System).where(System.id.in_(unloaded),
+                                                           System.review_status != ReviewStatus.PENDING)).all()
     for c in changed:
         s = c.system
         if s is None or s in touched:
@@ -308,9 +316,7 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
             recompute_system(session, s, settings)
         elif s.trajectory_point.flagged or s.doubt_counts.get("ball_off_consensus"):
             update_doubts(s, settings)
-        else:
-            continue
-        touched.append(s)
+        touched.append(s)  # its place on the trajectory (its 3D ball) changed, recomputed or not
     return touched
 
 

@@ -130,6 +130,8 @@ class Changed:
 
     system: System | None
     labels: bool
+    #: the system's id (also when ``system`` was not loaded)
+    system_id: int | None = None
 
 
 def row_values(fit: TrajectoryFit, frames: Sequence[int], ids: np.ndarray) -> dict[int, dict[str, Any]]:
@@ -187,7 +189,7 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
         for k, v in values.items():
             setattr(tp, k, v)
         tp.computed_at = utcnow()
-        changed.append(Changed(s, labels))
+        changed.append(Changed(s, labels, s.id))
     return changed
 
 
