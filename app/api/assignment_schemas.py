@@ -77,7 +77,7 @@ class AssignIn(_In):
     """Assign systems to a user (``assignee``: a name) or unassign them (``assignee`` null); select them with
     exactly one of ``system_ids``, ``game_id`` and ``filter``."""
 
-    assignee: Optional[str] = Field(..., min_length=1, max_length=100,
+    assignee: Optional[str] = Field(..., min_length=1, max_length=100, pattern=r"^[^\x00]*$",
                                     description="An enabled user's name; null clears the assignee.")
     system_ids: Optional[list[DbInt]] = Field(None, min_length=1, max_length=MAX_SYSTEM_IDS,
                                               description="These systems (one or more ids).")

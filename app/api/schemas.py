@@ -88,7 +88,7 @@ class QueueQuery(BaseModel):
     doubt: Optional[DoubtFilter] = Field(
         None, description="Only systems with a doubt of this kind; 'any': with a label-accusing doubt; "
         "'none': without one.")
-    assignee: Optional[str] = Field(
+    assignee: Optional[QueryText] = Field(
         None, min_length=1, max_length=100,
         description="Only systems assigned to this user (a name), 'me' (the caller's), or 'none' (unassigned ones); "
         "422 for an unknown name.")
