@@ -67,3 +67,17 @@ def true_balls(shared_dir: Path, game: tuple[str, str, str] = DEV_GAME) -> dict[
     truth = json.loads((shared_dir / "data" / "synthetic" / "soccernet-v3-dev.truth.json").read_text())
     (g,) = [g for g in truth["games"] if (g["league"], g["season"], g["match"]) == game]
     return {s["action"]: s["ball_3d"] for s in g["systems"]}
+
+
+def zip_files(data: bytes, where: str = "") -> dict[str, bytes]:
+    """Every file of a zip (its bytes) by name, nested zips opened too (``outer.zip!inner``)."""
+    import io
+
+    out = {}
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        for name in zf.namelist():
+            raw = zf.read(name)
+            out[where + name] = raw
+            if name.endswith(".zip"):
+                out.update(zip_files(raw, f"{where}{name}!"))
+    return out

@@ -4,23 +4,12 @@ decoded from the videos) holds no file that names the export's folder, the data 
 /tmp path; nested zips are opened too."""
 from __future__ import annotations
 
-import io
-import zipfile
 
 from app.services.issia.sequences import import_issia
 from app.services.transfer.export_files import EXPORT_FORMATS, write_export_zip
+from tests.services.datasets import zip_files
 from tests.services.issia_data import write_issia_stretch
 
-
-def _files(data: bytes, where: str = "") -> dict[str, bytes]:
-    out = {}
-    with zipfile.ZipFile(io.BytesIO(data)) as zf:
-        for name in zf.namelist():
-            raw = zf.read(name)
-            out[where + name] = raw
-            if name.endswith(".zip"):
-                out.update(_files(raw, f"{where}{name}!"))
-    return out
 
 
 def test_no_file_of_any_export_names_a_server_folder(db_session, db_settings, shared_dir, tmp_path):
@@ -33,7 +22,7 @@ def test_no_file_of_any_export_names_a_server_folder(db_session, db_settings, sh
     for fmt in EXPORT_FORMATS:
         report = write_export_zip(db_session, fmt, out / f"{fmt}.zip", True, db_settings)
         assert sorted(p.name for p in out.iterdir()) == sorted(f"{f}.zip" for f in sizes | {fmt: 0})  # no work left
-        files = _files((out / f"{fmt}.zip").read_bytes())
+        files = zip_files((out / f"{fmt}.zip").read_bytes())
         sizes[fmt] = len(files)
         for name, raw in files.items():
             assert not name.startswith("/") and ".." not in name.split("/"), (fmt, name)

@@ -476,15 +476,8 @@ def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[
         decision = other.review
         if other.id == edited.id or decision is None or decision.status == ReviewStatus.PENDING:
             continue
-        before = review_state(other)
-        decision.status = ReviewStatus.PENDING  # type: ignore[assignment]
-        decision.reset_reason = (f"{other.name}: its 3D ball moved with the trajectory's re-fit after an edit of "
-                                 f"{edited.name} by {who}; decide it again")
-        decision.decided_at = utcnow()
-        other.review_status = ReviewStatus.PENDING  # type: ignore[assignment]  # the queue's copy
-        other.review_version += 1
-        audit.record(session, actor=actor, action="system.review", system=other, before=before,
-                     after=review_state(other))
+        _system_back_to_pending(session, other, f"{other.name}: its 3D ball moved with the trajectory's re-fit after "
+                                f"an edit of {edited.name} by {who}; decide it again", actor, utcnow())
         done += 1
     if done:
         session.flush()
@@ -662,17 +655,23 @@ def reset_decisions_after_edit(session: Session, frame: Frame, reason: str, acto
         audit.record(session, actor=actor, action="view.review", frame=frame, before=before,
                      after=review_state(frame))
     if system_decided:
-        before = review_state(system)
-        decision = system.review
-        decision.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
-        decision.reset_reason = reason  # type: ignore[union-attr]
-        decision.decided_at = now  # type: ignore[union-attr]
-        system.review_status = ReviewStatus.PENDING  # type: ignore[assignment]  # the queue's copy
-        system.review_version += 1
-        audit.record(session, actor=actor, action="system.review", system=system, before=before,
-                     after=review_state(system))
+        _system_back_to_pending(session, system, reason, actor, now)
     session.flush()
     return True
+
+
+def _system_back_to_pending(session: Session, system: System, reason: str, actor: Optional[str], now: Any) -> None:
+    """Set ``system``'s decided decision back to pending with ``reason``, bump its ``review_version`` (a page that
+    drew the old decision gets 412 on deciding) and record the change (``system.review``, revertible)."""
+    before = review_state(system)
+    decision = system.review
+    decision.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
+    decision.reset_reason = reason  # type: ignore[union-attr]
+    decision.decided_at = now  # type: ignore[union-attr]
+    system.review_status = ReviewStatus.PENDING  # type: ignore[assignment]  # the queue's copy
+    system.review_version += 1
+    audit.record(session, actor=actor, action="system.review", system=system, before=before,
+                 after=review_state(system))
 
 
 def check_undo_state(undo: Optional[Revert], state: dict[str, Any]) -> None:

@@ -22,6 +22,8 @@ from fastapi.testclient import TestClient
 
 from app.services.transfer.export_files import EXPORT_FORMATS, prune_exports
 
+from tests.services.datasets import zip_files
+
 from ..conftest import run_queued
 from ..factories import Scene
 
@@ -90,17 +92,6 @@ def _export_job(client: TestClient, app, fmt: str, **body) -> tuple[dict, bytes]
     return done, file.content
 
 
-def _all_bytes(data: bytes, where: str = "") -> dict[str, bytes]:
-    """Every file of a zip, nested zips opened too (``outer.zip!inner``)."""
-    out = {}
-    with zipfile.ZipFile(io.BytesIO(data)) as zf:
-        for name in zf.namelist():
-            raw = zf.read(name)
-            out[where + name] = raw
-            if name.endswith(".zip"):
-                out.update(_all_bytes(raw, f"{where}{name}!"))
-    return out
-
 
 def test_every_export_is_a_job_whose_zip_names_no_server_folder(jobs_app, client: TestClient, scene: Scene,
                                                                tmp_path: Path, act_as) -> None:
@@ -112,7 +103,7 @@ def test_every_export_is_a_job_whose_zip_names_no_server_folder(jobs_app, client
         job, content = _export_job(client, jobs_app, fmt)
         assert job["params"]["format"] == fmt and job["result"]["format"] == fmt
         assert all(k not in job["result"] for k in ("out_dir", "path")) and "/" not in job["result"]["file"]
-        files = _all_bytes(content)
+        files = zip_files(content)
         if expected[fmt]:
             assert expected[fmt] in files, (fmt, sorted(files))
         for name, raw in files.items():
@@ -120,9 +111,9 @@ def test_every_export_is_a_job_whose_zip_names_no_server_folder(jobs_app, client
                 continue
             for folder in forbidden:
                 assert folder.encode() not in raw, f"{fmt}: {name} names {folder}"
-    coco = _all_bytes(_export_job(client, jobs_app, "coco")[1])
+    coco = zip_files(_export_job(client, jobs_app, "coco")[1])
     assert sum(n.endswith("instances.json") for n in coco) == 2 and sum(n.endswith(".png") for n in coco) == 2
-    cams = _all_bytes(_export_job(client, jobs_app, "cameras")[1])
+    cams = zip_files(_export_job(client, jobs_app, "cameras")[1])
     assert {n.split("!")[0] for n in cams if "!" in n} == {"960x540/ground_truth.zip", "960x540/predictions.zip"}
     names = sorted(n.split("!camera_")[1] for n in cams if "!camera_" in n)
     assert len(names) == 3 and names == sorted(n.split("!train/")[-1].split("!test/")[-1]
@@ -188,10 +179,10 @@ def test_the_cameras_export_in_the_request(client: TestClient, scene: Scene, act
     zips and the index), accepted systems unless ``all``; admins only."""
     every = client.get("/api/exports/cameras", params={"all": "true"})
     assert every.status_code == 200 and every.headers["x-v3d-cameras"] == "3"
-    files = _all_bytes(every.content)
+    files = zip_files(every.content)
     assert "cameras.json" in files and sum("predictions.zip!camera_" in n for n in files) == 3
     assert sum(n.startswith("960x540/ground_truth.zip!") and n.count("/") == 2 for n in files) == 3
     accepted = client.get("/api/exports/cameras")
-    assert accepted.headers["x-v3d-cameras"] == "0" and "cameras.json" in _all_bytes(accepted.content)
+    assert accepted.headers["x-v3d-cameras"] == "0" and "cameras.json" in zip_files(accepted.content)
     act_as("rita", "reviewer")
     assert client.get("/api/exports/cameras").status_code == 403
