@@ -280,21 +280,38 @@ class QueuePage {
       if (e.key === "Escape") e.target.blur();
       return;
     }
-    dispatchKey(this.keys, e);
+    dispatchKey(this.keys, e, toast); // a key that cannot act says why
   }
 
   /** The queue's keys: the one table the handler reads and the `?` overlay shows (keys.js). */
   keyTable() {
     return [
-      { keys: ["j", "ArrowDown"], show: ["j", "↓"], does: "next row", run: () => this.select(this.selected + 1) },
-      { keys: ["k", "ArrowUp"], show: ["k", "↑"], does: "previous row", run: () => this.select(this.selected - 1) },
+      { keys: ["j", "ArrowDown"], show: ["j", "↓"], does: "next row",
+        run: () => (!this.rows.length ? "no system on this page"
+          : this.selected >= this.rows.length - 1 ? (this.nextCursor ? "last row of this page: n for the next page" : "last system of the queue")
+          : this.select(this.selected + 1)) },
+      { keys: ["k", "ArrowUp"], show: ["k", "↑"], does: "previous row",
+        run: () => (!this.rows.length ? "no system on this page"
+          : this.selected <= 0 ? (this.prevCursor ? "first row of this page: p for the previous page" : "first system of the queue")
+          : this.select(this.selected - 1)) },
       { keys: ["Enter"], does: "open the selected system",
-        run: (e) => (this.rows[this.selected] && !e.target.closest?.("a, button") ? this.open(this.rows[this.selected].id) : false) },
-      { keys: ["n"], does: "next page", run: () => { this.turnPage(1); } },
-      { keys: ["p"], does: "previous page", run: () => { this.turnPage(-1); } },
+        run: (e) => (e.target.closest?.("a, button") ? false
+          : this.rows[this.selected] ? this.open(this.rows[this.selected].id) : "no system selected: j / k choose one") },
+      { keys: ["n"], does: "next page", run: () => (this.nextCursor ? this.turnPage(1) : "this is the last page of the queue") },
+      { keys: ["p"], does: "previous page", run: () => (this.prevCursor ? this.turnPage(-1) : "this is the first page of the queue") },
       { keys: ["/"], does: "filters (Esc to leave)", run: () => $("filter-status").focus() },
     ];
   }
+}
+
+let toastTimer = null;
+/** A short message at the bottom of the page (why a key cannot act). */
+function toast(message) {
+  const t = $("toast");
+  t.textContent = message;
+  t.classList.add("visible");
+  clearTimeout(toastTimer);
+  toastTimer = setTimeout(() => t.classList.remove("visible"), 2500);
 }
 
 new QueuePage();

@@ -61,3 +61,19 @@ def test_question_mark_lists_the_queue_keys(page, artifacts):
     page.locator(tid("keys-help")).wait_for(state="hidden")
     page.keyboard.press("j")  # the keys work again
     assert page.locator(tid("queue-row")).nth(1).get_attribute("class") == "selected"
+
+
+def test_queue_keys_that_cannot_act_say_why(page):
+    """Issue 28 item 5 on the queue page: a key that cannot act says why in a toast (the first page has no previous
+    page, the first row no row above it, a queue of one page no next page)."""
+    total = _api(page, "/api/systems?sort=name")["total"]
+    page.goto(f"/?sort=name&limit={total}")  # the whole queue on one page
+    page.locator(tid("queue-row")).first.wait_for()
+    toast = page.locator(tid("toast"))
+    for key, words in (("p", "first page of the queue"), ("n", "last page of the queue")):
+        page.keyboard.press(key)
+        toast.wait_for(state="visible")
+        assert words in toast.inner_text(), (key, toast.inner_text())
+    page.keyboard.press("k")  # the first row is selected: no row above it
+    page.wait_for_function("() => document.querySelector('[data-testid=toast]').textContent.includes('first system')")
+    assert page.locator(tid("queue-row")).count() == total  # nothing moved
