@@ -81,7 +81,7 @@ def test_admin_assigns_a_sees_my_systems_b_sees_a_present(browser, server_url, p
         assert a.locator(tid("assign-bar")).count() == 0
         a.click(tid("my-systems"))
         a.wait_for_url("**assignee=me**")
-        a.wait_for_function("document.querySelector('[data-testid=my-systems]').getAttribute('aria-pressed') === 'true'")
+        a.wait_for_function("() => document.querySelector('[data-testid=my-systems]').getAttribute('aria-pressed') === 'true'")
         a.wait_for_function(f"document.querySelectorAll('[data-testid=queue-row]').length === {len(assigned)}")
         rows = {int(r.get_attribute("data-id")) for r in a.locator(tid("queue-row")).all()}
         assert rows == assigned

@@ -388,7 +388,9 @@ def test_keyboard_nudge_is_saved_before_the_decision(page):
     page.keyboard.press(str(k + 1))
     assert "selected" in page.locator(tid("view")).nth(k).get_attribute("class")
     methods: list[str] = []
-    page.on("request", lambda r: methods.append(r.method) if "/api/" in r.url and r.method != "GET" else None)
+    # the edits and the decision (the review pass's own bookkeeping, /api/passes, and the presence heartbeat aside)
+    page.on("request", lambda r: methods.append(r.method) if ("/api/frames/" in r.url or "/review" in r.url)
+            and r.method != "GET" else None)
     page.keyboard.press("ArrowRight")
     page.keyboard.press("ArrowRight")
     page.keyboard.press("Shift+ArrowDown")
