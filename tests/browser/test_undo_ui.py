@@ -112,7 +112,7 @@ def test_a_decision_is_undone_by_ctrl_z_on_its_system(page, artifacts):
     with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
         page.keyboard.press("Control+z")  # back on the decided system, its decision undone
     assert answer.value.status == 200
-    page.wait_for_url(f"**/systems/{sid}*")
+    page.wait_for_url(f"**/systems/{sid}*", wait_until="commit")
     assert _api(page, f"/api/systems/{sid}")["review"]["status"] == status
     page.screenshot(path=str(artifacts / "undo-decision.png"))
 
