@@ -258,8 +258,8 @@ export function getTrajectory(gameId) {
 
 /** POST /api/passes {filter, sort, system_id}: begin (or continue) the caller's review pass over a queue;
  * answers the pass {id, systems (frozen ids, every page), position, counts, ...}. */
-export function startPass(filter, sort, systemId) {
-  return request("POST", "/api/passes", { filter, sort, system_id: systemId });
+export function startPass(filter, sort, systemId, fresh = false) {
+  return request("POST", "/api/passes", { filter, sort, system_id: systemId, fresh });
 }
 
 /** POST /api/passes/{id}/visits {system_id}: the owner opened that system (the pass resumes there);

@@ -38,9 +38,11 @@ function reasons(page) {
 
   return [
     [["a", "r", "f"], false, { before: busy }],
-    [["j"], false, { before: () => busy() || ((pass?.place ? pass.nextId() : page.system.next_id) == null
+    // page.stepId: the pass's neighbours once the shown system's place is known, the queue's until then (a place
+    // still of the system shown before must not answer for this one)
+    [["j"], false, { before: () => busy() || (page.stepId(1) == null
       ? (pass?.place ? "this is the last system of the pass (u: back to the queue)" : "this is the last system of the queue") : null) }],
-    [["k"], false, { before: () => busy() || ((pass?.place ? pass.prevId() : page.system.prev_id) == null
+    [["k"], false, { before: () => busy() || (page.stepId(-1) == null
       ? (pass?.place ? "this is the first system of the pass" : "this is the first system of the queue") : null) }],
     [[",", "."], false, { before: (e) => loading() || (page.system.kind !== "issia"
       ? "only the frames of an ISSIA sequence have a frame before and after"

@@ -37,6 +37,12 @@ export function describeCounts(c = {}) {
   return `${c.accepted ?? 0} accepted · ${c.rejected ?? 0} rejected · ${c.needs_fix ?? 0} needs fix · ${c.skipped ?? 0} skipped`;
 }
 
+/** True when a query string asks for a new pass (`?pass=new`: begin one even if an open pass of the same queue
+ * holds the system). */
+export function wantsNewPass(search = location.search) {
+  return new URLSearchParams(search).get(PASS_PARAM) === "new";
+}
+
 export class ReviewPass {
   id = passIdOf();
   place = null; // the shown system's place in the pass (GET .../place), null until known
@@ -57,7 +63,7 @@ export class ReviewPass {
   async visit(sys, search) {
     const begin = async () => {
       const { filter, sort } = queueOf(search);
-      this.id = (await startPass(filter, sort, sys.id)).id;
+      this.id = (await startPass(filter, sort, sys.id, wantsNewPass(search))).id;
     };
     if (this.id === null) await begin();
     let place;
