@@ -95,3 +95,15 @@ export function clearError() {
   const bar = document.querySelector("[data-testid=error]");
   if (bar) bar.classList.remove("visible");
 }
+
+let toastTimer = null;
+/** A short message at the bottom of the page (`data-testid="toast"`) for 2.5 s: what a key or an edit did, or why
+ * a key cannot act. */
+export function toast(message) {
+  const t = document.querySelector('[data-testid="toast"]');
+  if (!t) return;
+  t.textContent = message;
+  t.classList.add("visible");
+  clearTimeout(toastTimer);
+  toastTimer = setTimeout(() => t.classList.remove("visible"), 2500);
+}

@@ -9,7 +9,7 @@ import { mountExports } from "./exports.js";
 import { QueueAssignment } from "./assignment.js";
 import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
-import { el, fmt, fmtJac, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
+import { el, fmt, fmtJac, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL, toast } from "./format.js";
 import { WORDS, chipLegend, heightText } from "./words.js";
 import { resumeLink } from "./pass.js";
 
@@ -304,14 +304,5 @@ class QueuePage {
   }
 }
 
-let toastTimer = null;
-/** A short message at the bottom of the page (why a key cannot act). */
-function toast(message) {
-  const t = $("toast");
-  t.textContent = message;
-  t.classList.add("visible");
-  clearTimeout(toastTimer);
-  toastTimer = setTimeout(() => t.classList.remove("visible"), 2500);
-}
 
 new QueuePage();

@@ -12,7 +12,7 @@
 // notice and history are their own modules.)
 
 import { ApiError, getSystem, getTrajectory, listAudit, postReview, patchBall, mirrorFieldLines, postExclusion, putFieldLines, undoEntry } from "./api.js";
-import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, DOUBT_LABEL } from "./format.js";
+import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, DOUBT_LABEL, toast } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
 import { notes, isMirrorFlagged } from "./overlay.js";
 import { showConflict } from "./conflict.js";
@@ -669,14 +669,6 @@ function idFromPath() {
   return m ? decodeURIComponent(m[1]) : null;
 }
 
-let toastTimer = null;
-function toast(message) {
-  const t = $("toast");
-  t.textContent = message;
-  t.classList.add("visible");
-  clearTimeout(toastTimer);
-  toastTimer = setTimeout(() => t.classList.remove("visible"), 2500);
-}
 
 const page = new SystemPage();
 page.load(idFromPath());
