@@ -1,0 +1,39 @@
+"""Database statements of one ball edit (issue 29, item 2): the service's ``update_ball_label`` on a 4-view system
+of a fresh demo database, counted with SQLAlchemy's ``before_cursor_execute`` event, grouped by kind and table.
+
+Deterministic (no timing): the figure item 2's work must bring down. Usage (from the checkout)::
+
+    .venv/bin/python benchmarks/edit_statements.py
+    .venv/bin/python benchmarks/edit_statements.py postgresql+psycopg://postgres@127.0.0.1:5432/test
+"""
+import sys, collections
+sys.path.insert(0, ".")
+from sqlalchemy import event, select
+from benchmarks.load import fresh_database
+from app.core.config import Settings
+from app.db.session import make_engine, make_session_factory
+from app.db.models import Frame
+from app.services.curation.editing import update_ball_label
+
+url_arg = sys.argv[1] if len(sys.argv) > 1 else None
+with fresh_database(url_arg) as url:
+    eng = make_engine(url)
+    SF = make_session_factory(eng)
+    counts = collections.Counter()
+    def before(conn, cursor, statement, params, context, executemany):
+        """Count ``statement`` under its verb and, for a SELECT, its first table."""
+        words = statement.split()
+        table = statement.split("FROM")[1].split()[0] if words[0].upper() == "SELECT" and "FROM" in statement else ""
+        counts[f"{words[0].upper()} {table}".strip()] += 1
+    event.listen(eng, "before_cursor_execute", before)
+    with SF() as s:
+        f = next(fr for fr in s.scalars(select(Frame).order_by(Frame.id))
+                 if fr.ball_label is not None and fr.ball_label.box is not None and len(fr.system.frames) == 4)
+        fid = f.id; box = list(f.ball_label.box)
+    settings = Settings(database_url=url)
+    for i in range(3):
+        counts.clear()
+        with SF() as s:
+            b = [box[0] + 2 + i, box[1], box[2] + 2 + i, box[3]]
+            update_ball_label(s, fid, box=b, settings=settings, actor="x")
+        print("edit", i, sum(counts.values()), dict(counts.most_common(12)))
