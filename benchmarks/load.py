@@ -264,10 +264,14 @@ def labelled_views(client: Any) -> list[tuple[int, int, list[float], int, int]]:
     return out
 
 
-def edit_box(box: list[float], client: int, seq: int) -> list[float]:
+def edit_box(box: list[float], client: int, seq: int, move_px: float = 0.0) -> list[float]:
     """The box of edit ``seq`` of ``client``: ``box`` moved by a sub-pixel amount unique to the pair
-    (dx in [-1, 1] px by the client, dy in (0, 1.28] px by the edit number)."""
-    dx = round((client % 21 - 10) * 0.1, 3)
+    (dx in [-1, 1] px by the client, dy in (0, 1.28] px by the edit number); with ``move_px`` > 0, dx is at least
+    ``move_px`` (px) instead, to the right on even edits and to the left on odd ones (``move_px`` plus 0.1 px per
+    client), so that consecutive edits of a view move its box by at least twice that (issue 29: no edit is small
+    enough to leave its system's derived rows as they were)."""
+    dx = round((client % 21 - 10) * 0.1, 3) if move_px <= 0 else \
+        round((1 if seq % 2 == 0 else -1) * (move_px + (client % 21) * 0.1), 3)
     dy = round(((seq % 256) + 1) * 0.005, 3)
     return [round(box[0] + dx, 3), round(box[1] + dy, 3), round(box[2] + dx, 3), round(box[3] + dy, 3)]
 
@@ -288,7 +292,7 @@ def same_box(a: Optional[list[float]], b: Optional[list[float]]) -> bool:
 
 def run_clients(base: str, views: list[tuple[int, int, list[float], int, int]], report: LoadReport,
                 tokens: list[Optional[str]], if_match: bool, contend: bool, timeout_s: float,
-                max_seconds: float) -> None:
+                max_seconds: float, move_px: float = 0.0) -> None:
     """Run the annotators (threads, started together) and append every edit to ``report.edits``."""
     import httpx
 
@@ -311,7 +315,7 @@ def run_clients(base: str, views: list[tuple[int, int, list[float], int, int]], 
                     report.stopped_by_deadline = True
                     return
                 _, frame_id, box, _, _ = views[rng.choice(mine) if contend else mine[seq % len(mine)]]
-                new = edit_box(box, c, seq)
+                new = edit_box(box, c, seq, move_px)
                 for _attempt in range(5 if if_match else 1):
                     h = {}
                     if if_match:
@@ -432,7 +436,8 @@ def check_recomputations(database_url: str, system_ids: list[int], report: LoadR
 def run_load(database_url: Optional[str] = None, clients: int = 20, edits: int = 500, workers: int = 2, *,
              launcher: str = "v3d", token: Optional[str] = None, users: bool = True, if_match: bool = True,
              contend: bool = False, audit: bool = False, timeout_s: float = 60.0, max_seconds: float = 1800.0,
-             keep: bool = False, log: Optional[Path] = None, template: Optional[Path] = None) -> LoadReport:
+             keep: bool = False, log: Optional[Path] = None, template: Optional[Path] = None,
+             move_px: float = 0.0) -> LoadReport:
     """One bounded run (module docstring): fresh database with the demo, server, annotators, checks.
 
     Raises:
@@ -449,7 +454,7 @@ def run_load(database_url: Optional[str] = None, clients: int = 20, edits: int =
             headers = {"Authorization": f"Bearer {tokens[0]}"} if tokens[0] else {}
             with httpx.Client(base_url=base, timeout=timeout_s, headers=headers) as http:
                 views = labelled_views(http)
-                run_clients(base, views, report, tokens, if_match, contend, timeout_s, max_seconds)
+                run_clients(base, views, report, tokens, if_match, contend, timeout_s, max_seconds, move_px)
                 check_final_state(http, views, report, audit)
         check_recomputations(url, sorted({s for s, *_ in views}), report)
     return report
@@ -471,6 +476,8 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help="send If-Match with every write (a token's write needs it); count 412 answers")
     p.add_argument("--contend", action="store_true", help="every annotator edits every view (with --if-match)")
     p.add_argument("--audit", action="store_true", help="check GET /api/audit?frame_id= against the accepted edits")
+    p.add_argument("--move-px", type=float, default=0.0,
+                   help="move each box by at least this many pixels (default: sub-pixel moves)")
     p.add_argument("--timeout", type=float, default=60.0, help="seconds per request")
     p.add_argument("--max-seconds", type=float, default=1800.0, help="clients stop sending after this")
     p.add_argument("--keep", action="store_true", help="keep the PostgreSQL database")
@@ -480,7 +487,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     try:
         report = run_load(a.database_url, a.clients, a.edits, a.workers, launcher=a.launcher, token=a.token,
                           users=a.users, if_match=a.if_match, contend=a.contend, audit=a.audit,
-                          timeout_s=a.timeout, max_seconds=a.max_seconds, keep=a.keep, log=a.log)
+                          timeout_s=a.timeout, max_seconds=a.max_seconds, keep=a.keep, log=a.log,
+                          move_px=a.move_px)
     except BenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
