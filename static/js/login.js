@@ -42,6 +42,9 @@ form.addEventListener("submit", async (event) => {
     button.disabled = false;
   }
 });
+// The page's button is disabled until now: a person (or a test) quicker than this module would have sent the
+// form natively, a GET to /login with the password in the address (issue 29's CI run: a login that never left).
+$("login-submit").disabled = false;
 
 async function showDemoHint() {
   let answer;

@@ -99,3 +99,28 @@ def test_the_login_page_returns_only_to_a_page_of_this_site(browser, server_url,
         assert got == expected
     finally:
         context.close()
+
+
+def test_a_login_sent_before_the_page_script_runs_never_puts_the_password_in_the_address(browser, server_url) -> None:
+    """The login page's submit button is disabled until login.js handles the submit: with the script held back
+    (a slow network, or a quick test), Enter in the password field and a click send nothing, where the form's
+    native submit sent a GET with the password in the address and left the login page waiting forever (the
+    CI run that failed test_assignment_ui)."""
+    context = browser.new_context(base_url=server_url)
+    try:
+        visitor = context.new_page()
+        visitor.route("**/static/js/login.js", lambda route: route.abort())
+        visitor.goto("/login")
+        visitor.fill(tid("login-name"), "someone")
+        visitor.fill(tid("login-password"), "a secret")
+        visitor.press(tid("login-password"), "Enter")
+        assert visitor.locator(tid("login-submit")).is_disabled()
+        visitor.wait_for_timeout(300)
+        assert visitor.url == f"{server_url}/login"
+        assert "secret" not in visitor.url
+        visitor.unroute("**/static/js/login.js")
+        visitor.reload()
+        visitor.locator(tid("login-submit")).wait_for()
+        visitor.wait_for_function("() => !document.querySelector('[data-testid=login-submit]').disabled")
+    finally:
+        context.close()
