@@ -28,7 +28,7 @@ from typing import Callable, Hashable, Mapping, Sequence
 
 import numpy as np
 
-from app.geometry.triangulation import (REFERENCE_WIDTH_PX, BallObservation, parallax_angle_deg,
+from app.geometry.triangulation import (REFERENCE_WIDTH_PX, BallObservation, PairGeometry, pair_geometry,
                                         reprojection_error_px, triangulate_dlt, undistort_pixels)
 
 
@@ -67,7 +67,8 @@ def _scaled_error(o: BallObservation, point: np.ndarray) -> float | None:
 def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, min_baseline_m: float = 1.0,
                    min_parallax_deg: float = 0.0, weights: Mapping[Hashable, float] | None = None,
                    tolerances_px: Mapping[Hashable, float] | None = None,
-                   plausible: Callable[[np.ndarray], bool] | None = None) -> Consensus:
+                   plausible: Callable[[np.ndarray], bool] | None = None,
+                   geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry) -> Consensus:
     """The ball most labelled views agree on (see the module docstring), for any number of views.
 
     Args:
@@ -83,6 +84,8 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
             calibration predicts a larger pixel error agrees within that.
         plausible: a test of a proposed ball (world metres -> bool); a pair whose point fails it proposes
             nothing (two rays that meet under the grass or far outside the stadium agree by coincidence).
+        geometry: where each pair's baseline, parallax and DLT solution come from
+            (``app.geometry.triangulation.pair_geometry``, or the recomputation's ``PairGeometryMemo``).
 
     Returns:
         A :class:`Consensus`; ``point`` is None when no pair proposes a ball both its views agree with.
@@ -113,13 +116,12 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
     proposals: list[tuple[float, float, frozenset[int], np.ndarray]] = []
     best_pair: float | None = None
     for i, j in combinations(range(len(obs)), 2):
-        a, b = obs[i], obs[j]
-        if np.linalg.norm(a.camera.C - b.camera.C) < min_baseline_m:
+        g = geometry(obs[i], obs[j])
+        if g.baseline_m < min_baseline_m:
             continue
-        if parallax_angle_deg(a.camera, a.point_px, b.camera, b.point_px) < min_parallax_deg:
+        if g.parallax_deg < min_parallax_deg:
             continue
-        h = triangulate_dlt(np.stack([a.camera.projection_matrix, b.camera.projection_matrix]),
-                            np.stack([undist[i], undist[j]]))
+        h = g.h  # the DLT of the two undistorted pixels
         if abs(h[3]) < 1e-12:
             continue
         point = h[:3] / h[3]

@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from itertools import combinations
-from typing import Any, Hashable, Sequence
+from typing import Any, Callable, Hashable, Sequence
 
 import numpy as np
 
@@ -48,7 +48,8 @@ from app.geometry.camera import Camera
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.mirror import mirror_camera
 from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M, within_play_volume
-from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px
+from app.geometry.triangulation import (REFERENCE_WIDTH_PX, BallObservation, PairGeometry, pair_geometry,
+                                        reprojection_error_px)
 
 #: Kinds that accuse a label (the review queue counts, filters and sorts by them).
 LABEL_KINDS: tuple[str, ...] = (
@@ -698,7 +699,8 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
                  {"action": "snap_box", "box": _box_list(box), "box_sigma_px": _r(length / 2 / _scale(v, s))})
 
 
-def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSettings()) -> list[Doubt]:
+def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSettings(),
+                 geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry) -> list[Doubt]:
     """Every doubt of one multi-view system (pure, deterministic; see the module docstring for the kinds).
 
     Rules, in order:
@@ -732,6 +734,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
     Args:
         views: the system's views (ids unique).
         settings: thresholds (:class:`DoubtSettings`).
+        geometry: where the consensus's pairs' raw geometry comes from (``app.geometry.consensus.ball_consensus``).
 
     Returns:
         The doubts: info kinds first, then ``mirrored_labels``, ``ball_off_consensus``, ``ball_missing``,
@@ -769,7 +772,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
     voters = labelled + helpers
     obs = [BallObservation(v.view_id, v.camera, _centre(v), REFERENCE_WIDTH_PX / _scale(v, s)) for v in voters]
     cons = ball_consensus(obs, tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
-                          weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s))
+                          weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
     lone_contradicted = bool(helpers) and len(labelled) == 1 and (
         labelled[0].view_id not in cons.inliers and (cons.point is not None or cons.best_pair_error_1920 is not None))
     if not any(i in {v.view_id for v in labelled} for i in cons.inliers):
@@ -802,7 +805,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSett
     elif len(labelled) >= 2:
         own = cons if not helpers else ball_consensus(  # the labelled views' own agreement, without the helpers
             obs[:len(labelled)], tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
-            weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s))
+            weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
         d = _disagree_doubt(labelled, own, tau, s)
         if d is not None:
             doubts.append(d)

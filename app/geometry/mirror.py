@@ -65,7 +65,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from itertools import combinations, product
-from typing import Hashable, Sequence
+from typing import Callable, Hashable, Sequence
 
 import numpy as np
 
@@ -74,7 +74,7 @@ from app.geometry.calibration.frame import MIRROR_FLAG, CalibrationSettings, sid
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig
 from app.geometry.camera import Camera, as_points
 from app.geometry.pitch import PITCH_WIDTH_M, within_play_volume
-from app.geometry.triangulation import BallObservation, triangulate_pair
+from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, triangulate_pair
 
 #: The 180-degree rotation of the world about the vertical axis through the centre spot.
 MIRROR_ROTATION = np.diag([-1.0, -1.0, 1.0])
@@ -308,7 +308,9 @@ def _plausible(point: np.ndarray, s: MirrorSettings) -> bool:
                                    max_below_m=s.max_depth_m)[0])
 
 
-def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings) -> tuple[float | None, np.ndarray | None]:
+def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings,
+          geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
+          ) -> tuple[float | None, np.ndarray | None]:
     """Pair error (rule px) and point when the two rays meet within tau at a plausible place.
 
     A pixel that a camera's distortion cannot undistort (a strongly distorted, poorly calibrated
@@ -316,7 +318,7 @@ def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings) -> tuple[fl
     """
     try:
         with np.errstate(all="ignore"):
-            pr = triangulate_pair(a, b, tau_px=s.tau_px, rule=s.rule, min_baseline_m=0.0)
+            pr = triangulate_pair(a, b, tau_px=s.tau_px, rule=s.rule, min_baseline_m=0.0, geometry=geometry)
     except (np.linalg.LinAlgError, ValueError):
         return None, None
     if pr.error is not None and not np.isfinite(pr.error):
@@ -326,16 +328,21 @@ def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings) -> tuple[fl
     return pr.error, (pr.point if pr.error < s.tau_px and _plausible(pr.point, s) else None)
 
 
-def pair_relation(a: MirrorView, b: MirrorView, settings: MirrorSettings = MirrorSettings()) -> PairEvidence:
+def pair_relation(a: MirrorView, b: MirrorView, settings: MirrorSettings = MirrorSettings(),
+                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
+                  ) -> PairEvidence:
     """Relation of two views' rays: as calibrated and with ``a``'s camera mirrored (module docstring).
 
-    Both views need ``ball_px``. The evidence is stated from ``a``'s side (``other`` is ``b``).
+    Both views need ``ball_px``. The evidence is stated from ``a``'s side (``other`` is ``b``). ``geometry``: where
+    the pairs' raw geometry comes from (``app.geometry.triangulation.PairGeometryMemo`` shares it with the
+    triangulation and the doubts of one recomputation).
     """
     if a.ball_px is None or b.ball_px is None:
         raise ValueError("pair_relation needs a ball label in both views")
     ob = BallObservation(b.view_id, b.camera, b.ball_px, b.image_width)
-    e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings)
-    e_diff, p_diff = _meet(BallObservation(a.view_id, mirror_camera(a.camera), a.ball_px, a.image_width), ob, settings)
+    e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings, geometry)
+    e_diff, p_diff = _meet(BallObservation(a.view_id, mirror_camera(a.camera), a.ball_px, a.image_width), ob, settings,
+                           geometry)
     axis = [float(np.hypot(p[0], p[1])) for p in (p_same, p_diff) if p is not None]
     if p_same is not None and p_diff is not None:
         relation = AMBIGUOUS
@@ -349,7 +356,9 @@ def pair_relation(a: MirrorView, b: MirrorView, settings: MirrorSettings = Mirro
 
 
 def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | None = None,
-                    settings: MirrorSettings = MirrorSettings()) -> dict[Hashable, MirrorVerdict]:
+                    settings: MirrorSettings = MirrorSettings(),
+                    geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
+                    ) -> dict[Hashable, MirrorVerdict]:
     """Judge, for every calibrated view of one multi-view system, whether its labels are mirrored.
 
     Args:
@@ -358,6 +367,7 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
         rig_positions: (K, 3) camera positions of the game (world metres), best estimated without
             this system's own frames; None or empty: no rig prior.
         settings: :class:`MirrorSettings`.
+        geometry: the pairs' raw geometry (:func:`pair_relation`).
 
     Returns:
         view id -> :class:`MirrorVerdict`, by the rule of the module docstring.
@@ -381,7 +391,7 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     constraints: list[tuple[int, int, int]] = []  # (i, j, +1 same / -1 different)
     rayed = [i for i, v in enumerate(vs) if v.rays and v.ball_px is not None]
     for i, j in combinations(rayed, 2):
-        ev_i = pair_relation(vs[i], vs[j], settings)
+        ev_i = pair_relation(vs[i], vs[j], settings, geometry)
         pair_ev[i].append(ev_i)
         # Seen from j: mirroring j instead of i gives the same errors (M applied to both is rigid).
         ev_j = PairEvidence(vs[i].view_id, ev_i.error_as_labelled_px, ev_i.error_mirrored_px, ev_i.relation,

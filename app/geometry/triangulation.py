@@ -372,8 +372,84 @@ def _rule(rule: str) -> Callable[[float, float, float, float], float]:
         raise ValueError(f"pair_error_rule {rule!r} is unknown; choose one of {sorted(PAIR_ERROR_RULES)}") from None
 
 
+@dataclass(frozen=True)
+class PairGeometry:
+    """The raw geometry of two views' ball rays, before any rule (tau, pair-error rule, baseline, parallax) is
+    applied: what the triangulation, the mirror evidence and the doubts' consensus each judge by their own rules.
+
+    Attributes:
+        baseline_m: distance between the two camera centres, metres.
+        parallax_deg: angle between the two viewing rays, degrees in [0, 180].
+        h: (4,) unit homogeneous DLT solution of the two undistorted pixels (:func:`triangulate_dlt`).
+        full_rank: False when the DLT system's null space is two-dimensional (the rays coincide).
+        at_infinity: ``h``'s last coordinate is ~0 (parallel rays).
+        point: (3,) ``p_ij`` in world metres, None when not full rank or at infinity.
+        errors_px: reprojection errors of ``point`` in view a and view b (own pixels), None without a point or
+            when it lies behind either camera.
+    """
+
+    baseline_m: float
+    parallax_deg: float
+    h: np.ndarray
+    full_rank: bool
+    at_infinity: bool
+    point: np.ndarray | None
+    errors_px: tuple[float, float] | None
+
+
+def pair_geometry(a: BallObservation, b: BallObservation) -> PairGeometry:
+    """:class:`PairGeometry` of observations ``a`` and ``b`` (their cameras and distorted pixels): baseline,
+    parallax (:func:`parallax_angle_deg`), the DLT of the undistorted pixels (Hartley and Zisserman 12.2) and,
+    when its point is finite, its reprojection error in each view (:func:`reprojection_error_px`; None behind a
+    camera). World frame: SoccerNet (metres, z down)."""
+    baseline = float(np.linalg.norm(a.camera.C - b.camera.C))
+    beta = parallax_angle_deg(a.camera, a.point_px, b.camera, b.point_px)
+    P = np.stack([a.camera.projection_matrix, b.camera.projection_matrix])
+    uv = np.vstack([undistort_pixels(a.camera, a.point_px), undistort_pixels(b.camera, b.point_px)])
+    h, s = _dlt(P, uv)
+    h.setflags(write=False)
+    full_rank = bool(s[2] > _RANK_EPS * s[0])
+    at_infinity = bool(abs(h[3]) <= _INFINITY_EPS * np.linalg.norm(h[:3]))
+    point, errors = None, None
+    if full_rank and not at_infinity:
+        point = h[:3] / h[3]
+        point.setflags(write=False)
+        e_a = reprojection_error_px(a.camera, point, a.point_px)
+        e_b = reprojection_error_px(b.camera, point, b.point_px)
+        errors = None if e_a is None or e_b is None else (e_a, e_b)
+    return PairGeometry(baseline, beta, h, full_rank, at_infinity, point, errors)
+
+
+class PairGeometryMemo:
+    """:func:`pair_geometry` computed once per pair of rays within one recomputation of a system (issue 29, item 1):
+    the triangulation, the mirror evidence and the doubts' consensus ask the same pairs of the same cameras and
+    labels, and each applies its own rules to the one answer. Keyed by the identity of both cameras and the bytes of
+    both pixels (and the order of the two); the memo holds the cameras, so an id is never reused while it lives.
+    Use one memo per recomputation: a camera object is never changed in place, but a new one is made per edit."""
+
+    def __init__(self) -> None:
+        self._pairs: dict[tuple, tuple[Camera, Camera, PairGeometry]] = {}
+        self.asked = 0
+        self.computed = 0
+
+    def __call__(self, a: BallObservation, b: BallObservation) -> PairGeometry:
+        """The geometry of ``a`` and ``b``, computed on the first ask of this pair."""
+        pa, pb = np.asarray(a.point_px, float), np.asarray(b.point_px, float)
+        key = (id(a.camera), pa.tobytes(), id(b.camera), pb.tobytes())
+        self.asked += 1
+        hit = self._pairs.get(key)
+        if hit is not None and hit[0] is a.camera and hit[1] is b.camera:
+            return hit[2]
+        self.computed += 1
+        g = pair_geometry(a, b)
+        self._pairs[key] = (a.camera, b.camera, g)
+        return g
+
+
 def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, rule: str,
-                     min_baseline_m: float, min_parallax_deg: float = 0.0) -> PairResult:
+                     min_baseline_m: float, min_parallax_deg: float = 0.0,
+                     geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
+                     ) -> PairResult:
     """Triangulate one pair of views and decide whether it is kept (see the module docstring).
 
     Args:
@@ -383,30 +459,27 @@ def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, r
         min_baseline_m: keep only when ``|C_a - C_b| >= min_baseline_m`` (metres).
         min_parallax_deg: keep only when the angle between the two rays is at least this (degrees;
             0 reproduces the paper).
+        geometry: where the pair's raw geometry comes from (:func:`pair_geometry`, or a
+            :class:`PairGeometryMemo` shared by one recomputation's judges).
 
     Raises:
         ValueError: unknown rule.
     """
     _rule(rule)
-    baseline = float(np.linalg.norm(a.camera.C - b.camera.C))
-    beta = parallax_angle_deg(a.camera, a.point_px, b.camera, b.point_px)
-    P = np.stack([a.camera.projection_matrix, b.camera.projection_matrix])
-    uv = np.vstack([undistort_pixels(a.camera, a.point_px), undistort_pixels(b.camera, b.point_px)])
-    h, s = _dlt(P, uv)
+    g = geometry(a, b)
+    beta, baseline = g.parallax_deg, g.baseline_m
 
     def dropped(reason: str, point=None, errors=None, error=None) -> PairResult:
         return PairResult(a.view_id, b.view_id, point, errors, error, beta, baseline, False, reason)
 
-    if s[2] <= _RANK_EPS * s[0]:
+    if not g.full_rank:
         return dropped("degenerate")  # two-dimensional null space: the rays coincide
-    if abs(h[3]) <= _INFINITY_EPS * np.linalg.norm(h[:3]):
+    if g.at_infinity:
         return dropped("point_at_infinity")
-    point = h[:3] / h[3]
-    point.setflags(write=False)
-    e_a = reprojection_error_px(a.camera, point, a.point_px)
-    e_b = reprojection_error_px(b.camera, point, b.point_px)
-    if e_a is None or e_b is None:
+    point = g.point
+    if g.errors_px is None:
         return dropped("behind_camera", point)
+    e_a, e_b = g.errors_px
     e = pair_error((e_a, e_b), (a.image_width, b.image_width), rule)
     if baseline < min_baseline_m:
         return dropped("baseline_below_min", point, (e_a, e_b), e)
@@ -454,7 +527,9 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
                      min_baseline_m: float = 1.0, min_parallax_deg: float = 0.0,
                      view_position_std_m: Mapping[Hashable, float] | None = None,
                      play_volume: Callable[[np.ndarray], bool] | None = None,
-                     view_weights: Mapping[Hashable, float] | None = None) -> TriangulationResult:
+                     view_weights: Mapping[Hashable, float] | None = None,
+                     geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
+                     ) -> TriangulationResult:
     """The 3D ball of a multi-view system (paper Eq. triangulation, method.md section 5).
 
     Every pair of observations is triangulated (:func:`triangulate_pair`); the ball is the mean of
@@ -485,6 +560,8 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
             averaged, the others dropped with reason ``outweighed`` (two sure views fix the ball; a
             third view whose few lines may turn its ray by degrees would pull it metres off). ``None``
             (default): every view counts alike.
+        geometry: where each pair's raw geometry comes from (:func:`pair_geometry`, or a
+            :class:`PairGeometryMemo` the recomputation shares with the mirror evidence and the doubts).
 
     Returns:
         A :class:`TriangulationResult`. Fewer than two observations give status
@@ -513,7 +590,7 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
     if len(obs) < 2:
         return result(STATUS_INSUFFICIENT_VIEWS)
     pairs = [triangulate_pair(a, b, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m,
-                              min_parallax_deg=min_parallax_deg)
+                              min_parallax_deg=min_parallax_deg, geometry=geometry)
              for a, b in combinations(obs, 2)]
     if play_volume is not None:
         pairs = [dataclasses.replace(p, kept=False, reason="outside_play_volume")

@@ -87,6 +87,72 @@ def test_an_edit_computes_before_the_lock_and_stores_what_a_recomputation_gives(
         assert s.info[LAST_RECOMPUTATION] == "under_lock"
 
 
+def _pairs_and_doubts(factory: Callable[[], Session], system_id: int, settings: Settings | None = None
+                      ) -> tuple[list[tuple], list[tuple]]:
+    """The system's stored pair and doubt rows (id first), or, given ``settings``, the ones a recomputation from its
+    stored labels gives (ids None; nothing is written)."""
+    with factory() as s:
+        system = load_for_recompute(s, [system_id])[system_id]
+        if settings is not None:
+            with s.no_autoflush:
+                recompute_system(s, system, settings)
+        pairs = [(p.id, p.frame_a_id, p.frame_b_id, p.point, p.error_px, p.parallax_deg, p.baseline_m, p.kept, p.reason)
+                 for p in system.triangulation.pairs]
+        doubts = [(d.id, d.frame_id, d.kind, d.accuses_label, d.message, d.evidence, d.suggestion) for d in system.doubts]
+        s.rollback()
+    return pairs, doubts
+
+
+def test_an_edit_updates_its_pairs_and_doubts_in_place(database) -> None:
+    """Issue 29, item 2: the edit's pairs and doubts are the rows a recomputation gives, written over the stored
+    rows (same ids, no delete and re-insert), so that a pair the edit leaves as it was costs no statement."""
+    factory, settings, scene, _ = database
+    fid = scene.frame_ids[0]
+    before_pairs, before_doubts = _pairs_and_doubts(factory, scene.system_id)
+    assert len(before_pairs) == 3  # three views, every one labelled
+    with factory() as s:
+        update_ball_label(s, fid, box=_moved(_box(factory, fid), 7.0), settings=settings)
+        assert s.info[LAST_RECOMPUTATION] == "precomputed"
+    pairs, doubts = _pairs_and_doubts(factory, scene.system_id)
+    fresh_pairs, fresh_doubts = _pairs_and_doubts(factory, scene.system_id, settings)
+    assert [p[0] for p in pairs] == [p[0] for p in before_pairs]  # the same rows
+    assert [p[1:] for p in pairs] == [p[1:] for p in fresh_pairs]  # holding what a recomputation gives
+    assert pairs != before_pairs  # the moved label moved the pairs' points
+    assert [d[1:] for d in doubts] == [d[1:] for d in fresh_doubts]
+    kept = min(len(doubts), len(before_doubts))
+    assert [d[0] for d in doubts[:kept]] == [d[0] for d in before_doubts[:kept]]
+
+
+def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch) -> None:
+    """Issue 29: the rig rows the inputs' digest reads are the ones the recomputation uses (the mirror evidence's
+    rig, a line edit's rig retry): a ball edit reads them twice (the digest before the lock and the one under it),
+    not three times, and a line edit as often, and stores what a recomputation gives."""
+    from app.services.calibration import calibrating
+
+    factory, settings, scene, _ = database
+    calls = []
+    real = calibrating.rig_rows
+    monkeypatch.setattr(calibrating, "rig_rows", lambda *a, **k: calls.append(1) or real(*a, **k))
+    import app.services.curation.recompute as recompute_module
+    monkeypatch.setattr(recompute_module, "rig_rows", calibrating.rig_rows)
+    fid = scene.frame_ids[0]
+    with factory() as s:
+        update_ball_label(s, fid, box=_moved(_box(factory, fid), 5.0), settings=settings)
+        assert s.info[LAST_RECOMPUTATION] == "precomputed"
+    assert len(calls) == 2
+    calls.clear()
+    with factory() as s:
+        lines = s.get(Frame, fid).field_lines.lines
+        lines = {cls: [[[x + 0.5, y] for x, y in poly] for poly in polys] for cls, polys in lines.items()}
+        editing.replace_field_lines(s, fid, lines, settings=settings)
+        assert s.info[LAST_RECOMPUTATION] == "precomputed"
+    assert len(calls) == 2
+    pairs, doubts = _pairs_and_doubts(factory, scene.system_id)
+    fresh_pairs, fresh_doubts = _pairs_and_doubts(factory, scene.system_id, settings)
+    assert [p[1:] for p in pairs] == [p[1:] for p in fresh_pairs]
+    assert [d[1:] for d in doubts] == [d[1:] for d in fresh_doubts]
+
+
 def test_edits_of_two_views_interleaved_store_the_ball_of_both(database, monkeypatch) -> None:
     """Edit A computes outside the lock, is held there while edit B of another view of the same system commits,
     then compares its inputs under the lock, finds B's label, and recomputes: the stored 3D ball is the one of

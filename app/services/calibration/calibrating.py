@@ -178,13 +178,19 @@ def _calibrate_job(job: CalibrationJob) -> CalibrationFields:
     return calibrate_lines(*job)
 
 
-def calibration_job(frame: Frame, rig: CameraRig | CameraPrior | None = None) -> CalibrationJob:
-    """The job that calibrates ``frame`` from its current field lines (with the game ``rig``, or a
-    dataset's learned prior, if any)."""
-    if frame.field_lines is None:
-        raise ValueError(f"frame {frame.id} ({frame.name!r}) has no field lines to calibrate from")
-    return (frame.field_lines.lines, frame.width, frame.height, expected_side(frame.role), rig,
-            frame.role is FrameRole.ACTION)
+def calibration_job(frame: Frame, rig: CameraRig | CameraPrior | None = None,
+                    lines: dict[str, Any] | None = None) -> CalibrationJob:
+    """The job that calibrates ``frame`` from its current field lines, or from ``lines`` (JSON lists, px)
+    in their place (with the game ``rig``, or a dataset's learned prior, if any).
+
+    Raises:
+        ValueError: the frame has no field lines and no ``lines`` are given.
+    """
+    if lines is None:
+        if frame.field_lines is None:
+            raise ValueError(f"frame {frame.id} ({frame.name!r}) has no field lines to calibrate from")
+        lines = frame.field_lines.lines
+    return (lines, frame.width, frame.height, expected_side(frame.role), rig, frame.role is FrameRole.ACTION)
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import Counter
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import sqlalchemy as sa
@@ -23,6 +23,7 @@ from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Ga
 from app.db.types import json_safe
 from app.geometry.camera import Camera
 from app.geometry.doubts import DoubtSettings, DoubtView, calibration_weight, judge_system
+from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
 from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
 from app.services.curation.doubt_words import doubt_message
 from app.services.kinds import kind_of
@@ -95,10 +96,12 @@ def calibration_weights(system: System, settings: Settings, cameras: dict[int, C
             for v in doubt_views(system, cameras) if v.camera is not None}
 
 
-def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera] | None = None) -> list[Doubt]:
-    """Judge the system (``app.geometry.doubts.judge_system``) and replace its stored doubts and
-    counts. Changes the session only; the caller commits (with the edit that caused it)."""
-    found = judge_system(doubt_views(system, cameras), doubt_settings(settings))
+def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,
+                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry) -> list[Doubt]:
+    """Judge the system (``app.geometry.doubts.judge_system``; ``geometry``: the recomputation's pair geometry, shared
+    with its triangulation) and replace its stored doubts and counts. Changes the session only; the caller commits
+    (with the edit that caused it)."""
+    found = judge_system(doubt_views(system, cameras), doubt_settings(settings), geometry)
     found = kind_of(system).judge_doubts(system, found, cameras)
     names = {f.id: f.name for f in system.frames}
     system.doubts.clear()

@@ -92,7 +92,7 @@ from app.core.errors import ConflictError, InvalidInputError, NotFoundError, Sta
 from app.services.kinds import kind_of, policy
 from app.services.curation.recompute import (
     SystemResults, load_for_recompute, recompute_frame, recompute_inputs, recompute_system, store_system_results,
-    system_results,
+    system_results, system_rig_rows,
 )
 from app.services.calibration.calibrating import admission_jac, is_admitted
 from app.services.curation.system_page import load_frame
@@ -201,21 +201,24 @@ def _compute_before_lock(session: Session, system_id: int, subject: Callable[[],
     return plan if plan.entries else None
 
 
-def _recompute_planned(session: Session, system: System, settings: Settings, compute: Callable[[], Any]) -> None:
+def _recompute_planned(session: Session, system: System, settings: Settings,
+                       compute: Callable[[Optional[list[tuple[int, Any, bool]]]], Any]) -> None:
     """Run the recomputation ``compute`` of ``system`` within the running edit's plan: what it reads is loaded
     first (``load_for_recompute``, after a flush under the lock); before the lock it is computed and its inputs'
     digest and results kept; under the lock its results are stored when the inputs' digest is the one computed
-    from (``store_system_results``), else it is computed again. Without a plan it is computed."""
+    from (``store_system_results``), else it is computed again. Without a plan it is computed. ``compute(rig)`` takes
+    the game's rig rows the digest read (``recompute.system_rig_rows``; None: not read), so it reads them once."""
     plan: Optional[_Plan] = session.info.get(_PLAN)
     if plan is None or not plan.capturing:
         session.flush()
     load_for_recompute(session, [system.id])  # what it reads, in a few queries (not one per relation and view)
     if plan is None or not kind_of(system).computes_before_lock:
-        compute()
+        compute(None)
         return
-    inputs = recompute_inputs(session, system, settings)
+    rig = system_rig_rows(session, system, settings)
+    inputs = recompute_inputs(session, system, settings, rig)
     if plan.capturing:
-        compute()
+        compute(rig)
         plan.entries.append((inputs, system_results(system)))
         return
     i, plan.used = plan.used, plan.used + 1
@@ -223,7 +226,7 @@ def _recompute_planned(session: Session, system: System, settings: Settings, com
         store_system_results(session, system, plan.entries[i][1])
     else:  # a view's label, lines, exclusion or calibration, or the game's rig, changed since: compute again
         plan.recomputed += 1
-        compute()
+        compute(rig)
 
 
 def _in_transaction(session: Session, work: Callable[[], T], *, system_id: int) -> T:
@@ -457,7 +460,8 @@ def _recompute(session: Session, system: System, settings: Settings, actor: Opti
     transaction."""
     refitted = kind_of(system).refit_after_edit(session, system, settings)
     if not refitted:  # an ISSIA system is recomputed after its re-fit
-        _recompute_planned(session, system, settings, lambda: recompute_system(session, system, settings))
+        _recompute_planned(session, system, settings, lambda rig: recompute_system(
+            session, system, settings, None if rig is None else [(fid, c) for fid, c, _ in rig]))
     reset_refitted_systems(session, system, refitted, actor)
 
 
@@ -484,7 +488,7 @@ def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[
     return done
 
 
-def _parse_lines(lines: Mapping[str, Any], width: int, height: int, max_points: int) -> dict[str, Any]:
+def parse_field_lines(lines: Mapping[str, Any], width: int, height: int, max_points: int) -> dict[str, Any]:
     """Field lines as given -> validated JSON lists (px of a ``width`` x ``height`` frame, at most ``max_points``
     points in all: ``V3D_MAX_LINE_POINTS_PER_FRAME``); raises :class:`InvalidInputError` (field "lines") naming
     the class and polyline, or the count."""
@@ -507,7 +511,7 @@ def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], setting
     else:
         fl.lines = parsed
         fl.edited_at = utcnow()
-    _recompute_planned(session, frame.system, settings, lambda: recompute_frame(session, frame, settings))
+    _recompute_planned(session, frame.system, settings, lambda rig: recompute_frame(session, frame, settings, rig))
     refitted = kind_of(frame.system).refit_after_edit(session, frame.system, settings, recalibrated=frame)
     reset_refitted_systems(session, frame.system, refitted, actor)
     return frame
@@ -546,7 +550,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
     frame = get_frame(session, frame_id)
-    parsed = _parse_lines(lines, frame.width, frame.height, settings.max_line_points_per_frame)
+    parsed = parse_field_lines(lines, frame.width, frame.height, settings.max_line_points_per_frame)
     if undo is not None:
         undo_of = undo.entry_id
 
@@ -693,7 +697,7 @@ def jac_words(frame: Frame, settings: Settings) -> str:
 
 
 def check_undo(session: Session, entry_id: int, frame_id: int, parsed: dict[str, Any]) -> None:
-    """Check that writing the lines ``parsed`` (validated JSON lists, :func:`_parse_lines`) to frame ``frame_id``
+    """Check that writing the lines ``parsed`` (validated JSON lists, :func:`parse_field_lines`) to frame ``frame_id``
     undoes audit entry ``entry_id``: the entry is a write of that frame's field lines (a replacement, a
     mirroring, a revert or an undo of one) and its ``before`` lines are ``parsed`` (equal as JSON once read the
     same way: an imported ``100`` is ``100.0``). Entries never change, so this is read before the write's lock.

@@ -52,8 +52,9 @@ from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence
 from app.geometry.pitch import within_play_volume
-from app.geometry.triangulation import BallObservation, error_above_tau, triangulate_ball
+from app.geometry.triangulation import BallObservation, PairGeometryMemo, error_above_tau, triangulate_ball
 from app.services.accounts.audit import record_summary
+from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import (
     apply_calibration, calibrate_lines, calibration_job, expected_side, game_rig, is_admitted, rig_centres, rig_rows,
     stored_camera_prior, uses_rig, wants_prior_retry, wants_rig_retry, with_prior_refit, with_rig_retry,
@@ -69,8 +70,45 @@ DERIVED_VERSION = 3  # 2: pairs outside the play volume dropped, suggested label
 # by what their calibrations are worth (weak_calibrations, outweighed)
 
 
-def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Triangulation:
-    """Recalibrate ``frame`` from its current field lines, then recompute its system.
+def recompute_frame(session: Session, frame: Frame, settings: Settings,
+                    rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> Triangulation:
+    """Recalibrate ``frame`` from its current field lines (:func:`calibrate_frame_lines`), store the
+    calibration (source "computed"), then recompute its system. The caller flushes or commits.
+
+    Args:
+        rig: the game's rig rows (:func:`rig_rows`) as the session holds them now, when the caller has read them
+            (an edit's :func:`recompute_inputs`): not read again.
+
+    Raises:
+        ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
+    """
+    calibrated = calibrate_frame_lines(session, frame, settings, rig=rig)
+    apply_calibration(frame, calibrated.fields, CalibrationSource.COMPUTED)
+    sources = calibrated.rig_sources
+    if sources is None and rig is not None:
+        sources = [(fid, c) for fid, c, _ in rig]
+    return recompute_system(session, frame.system, settings, sources)
+
+
+@dataclass(frozen=True)
+class FrameCalibration:
+    """What :func:`calibrate_frame_lines` gives: the calibration to store (``fields``), which retry made it
+    (``retry``: "rig", "prior" or None: the lines alone) and the game's stored cameras it read for the rig
+    (``rig_sources``: ``(frame id, camera centre)``, None when it read none), which
+    :func:`recompute_system` takes to spare a query."""
+
+    fields: CalibrationFields
+    retry: str | None
+    rig_sources: list[tuple[int, np.ndarray]] | None
+
+
+def calibrate_frame_lines(session: Session, frame: Frame, settings: Settings,
+                          lines: dict[str, Any] | None = None, *, refine: bool = True,
+                          rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> FrameCalibration:
+    """The calibration of ``frame`` from its field lines, or from ``lines`` (validated JSON lists,
+    ``{class: [[[x, y], ...], ...]}`` px) in their place, as an edit computes it: the one calibration of
+    both the commit (:func:`recompute_frame`) and its dry run (``app.services.curation.calibration_preview``).
+    Reads the session and writes nothing.
 
     A frame of a SoccerNet-v3 game that its lines alone cannot calibrate, or calibrate only below
     admission (:func:`wants_rig_retry`), is retried with the game's rig (:func:`game_rig`, the other
@@ -78,26 +116,31 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings) -> Trian
     dataset whose import learned a camera prior (:func:`stored_camera_prior`) is refitted with it where
     its lines leave the camera open (:func:`wants_prior_retry`), as the import did (issue 17). The system's kind
     may refine the result (``KindPolicy.refine_calibration``: an ISSIA camera refined with the ball's labels at
-    import is refined so again). The calibration's source becomes "computed". The caller flushes or commits.
+    import is refined so again) unless ``refine`` is False (``KindPolicy.calibration_refinement`` says what that
+    leaves out). ``rig``: the game's rig rows (:func:`rig_rows`) when the caller has read them.
 
     Raises:
-        ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
+        ValueError: the frame has no field lines (and no ``lines`` are given).
     """
-    fields = calibrate_lines(*calibration_job(frame))
-    rig_sources = None
+    fields = calibrate_lines(*calibration_job(frame, lines=lines))
+    retry, rig_sources = None, None
     if wants_rig_retry(fields, settings) and uses_rig(frame.system) and frame.system.game_id is not None:
         # read once: the retry's rig and the system's mirror evidence both use the game's stored
         # cameras, and the evidence leaves this system's frames out, so this frame's new row is moot
-        stored = rig_rows(session, frame.system.game_id, settings)
+        stored = list(rig) if rig is not None else rig_rows(session, frame.system.game_id, settings)
         rig_sources = [(fid, c) for fid, c, _ in stored]
         rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id], stored=stored)
         if rig.positions:
-            fields = with_rig_retry(fields, calibrate_lines(*calibration_job(frame, rig)))
+            retried = calibrate_lines(*calibration_job(frame, rig, lines=lines))
+            fields = with_rig_retry(fields, retried)
+            retry = "rig" if fields is retried else None
     elif (prior := stored_camera_prior(frame.system)) is not None and wants_prior_retry(fields, prior):
-        fields = with_prior_refit(fields, calibrate_lines(*calibration_job(frame, prior)))
-    fields = kind_of(frame.system).refine_calibration(session, frame, fields, settings)
-    apply_calibration(frame, fields, CalibrationSource.COMPUTED)
-    return recompute_system(session, frame.system, settings, rig_sources)
+        refit = calibrate_lines(*calibration_job(frame, prior, lines=lines))
+        fields = with_prior_refit(fields, refit)
+        retry = "prior" if fields is refit else None
+    if refine:
+        fields = kind_of(frame.system).refine_calibration(session, frame, fields, settings)
+    return FrameCalibration(fields, retry, rig_sources)
 
 
 def recompute_system(session: Session, system: System, settings: Settings,
@@ -129,8 +172,9 @@ def recompute_system(session: Session, system: System, settings: Settings,
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
     kind = kind_of(system)
+    geometry = PairGeometryMemo()  # each pair's rays once, for the mirror evidence, the triangulation and the doubts
     if kind.broadcast_priors:
-        _update_mirror_flags(session, system, cameras, settings, rig_sources)
+        _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     observations = kind.consensus_observations(system, observations, settings)
     # a weak calibration (few line classes, an unsure camera) neither makes nor moves a ball on its own
     weights = calibration_weights(system, settings, cameras) if kind.weighs_calibrations else None
@@ -140,7 +184,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
                               play_volume=lambda p: bool(within_play_volume(
                                   np.asarray(p, float).reshape(1, 3), margin_m=ms.plausible_margin_m,
                                   max_height_m=ms.max_height_m, max_below_m=ms.max_depth_m)[0]),
-                              view_weights=weights)
+                              view_weights=weights, geometry=geometry)
 
     tri = system.triangulation
     if tri is None:
@@ -165,7 +209,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_reprojection(f, cameras.get(f.id), ball)
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
-    update_doubts(system, settings, cameras)
+    update_doubts(system, settings, cameras, geometry)
     update_summary(system, tri)
     system.derived_version = DERIVED_VERSION
     system.derived_settings = settings.derived_fingerprint()
@@ -254,23 +298,48 @@ def store_system_results(session: Session, system: System, results: SystemResult
         tri = Triangulation(system=system)
         session.add(tri)
     _put(tri, results.triangulation or {})
-    tri.pairs.clear()
-    tri.pairs.extend(TriangulationPair(**values) for values in results.pairs)
-    system.doubts.clear()
-    system.doubts.extend(Doubt(**values) for values in results.doubts)
+    _replace_rows(tri.pairs, TriangulationPair, results.pairs)
+    _replace_rows(system.doubts, Doubt, results.doubts)
     for key, value in results.summary.items():
         setattr(system, key, value)
     return tri
 
 
-def recompute_inputs(session: Session, system: System, settings: Settings) -> str:
+def _replace_rows(rows: list[Any], row_type: type, values: list[dict[str, Any]]) -> None:
+    """Make the ordered collection ``rows`` (pairs or doubts, ordered by id) hold one row per item of ``values``,
+    in order, updating the stored rows in place: a row whose values did not change writes nothing, so that an edit
+    that leaves a pair or a doubt as it was costs no statement for it (issue 29); rows beyond ``values`` are deleted
+    (the relationship's delete-orphan), missing ones added. Nothing refers to these rows' ids (no foreign key,
+    API or page names one), so a doubt kept in another place of the list is the same as a new one."""
+    columns = sa.inspect(row_type).columns
+    if any(v is None and not columns[k].nullable for item in values for k, v in item.items()):
+        rows.clear()  # a pending row left a default unset: only an insert gives it its default
+        rows.extend(row_type(**item) for item in values)
+        return
+    for row, item in zip(rows, values):
+        _put(row, item)
+    if len(rows) > len(values):
+        del rows[len(values):]
+    rows.extend(row_type(**item) for item in values[len(rows):])
+
+
+def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:
+    """The rig rows (:func:`rig_rows`) of ``system``'s game when its kind uses a rig, else None."""
+    if uses_rig(system) and system.game_id is not None:
+        return rig_rows(session, system.game_id, settings)
+    return None
+
+
+def recompute_inputs(session: Session, system: System, settings: Settings,
+                     rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> str:
     """A digest (hex SHA-256) of everything :func:`recompute_frame` and :func:`recompute_system` read for
     ``system``, as the session sees it now: per view its name, role, size and position, field lines, ball label
     (kind, box, point, provenance), exclusion and every calibration column (``updated_at`` aside); the system's
     kind, game and review status; the game's rig rows (:func:`rig_rows`, kinds that use a rig) or its learned
     camera prior. Two equal digests mean a recomputation gives the same rows (same ``settings``). Kinds whose
     recomputation reads beyond the system (a re-fit of ISSIA's trajectory) are not covered
-    (``KindPolicy.computes_before_lock``)."""
+    (``KindPolicy.computes_before_lock``). ``rig``: the rig rows (:func:`system_rig_rows`) when the caller has read
+    them (to hand them on to the recomputation), else read here."""
     frames = []
     for f in sorted(system.frames, key=lambda x: x.id):
         label, review, cal = f.ball_label, f.review, f.calibration
@@ -283,8 +352,9 @@ def recompute_inputs(session: Session, system: System, settings: Settings) -> st
         ])
     game: Any = None
     if uses_rig(system) and system.game_id is not None:
+        rows = rig if rig is not None else rig_rows(session, system.game_id, settings)
         # by frame id: the rows come in the order the planner reads them, which changes with the table's statistics
-        game = sorted([[fid, centre.tolist(), main] for fid, centre, main in rig_rows(session, system.game_id, settings)])
+        game = sorted([[fid, centre.tolist(), main] for fid, centre, main in rows])
     elif system.game is not None:
         game = system.game.camera_prior
     doc = {"system": [system.id, system.kind, system.game_id, system.review.status if system.review else None],
@@ -381,7 +451,8 @@ def mirror_settings(settings: Settings) -> MirrorSettings:
 
 
 def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Camera], settings: Settings,
-                         rig_sources: Sequence[tuple[int, np.ndarray]] | None) -> None:
+                         rig_sources: Sequence[tuple[int, np.ndarray]] | None,
+                         geometry: PairGeometryMemo | None = None) -> None:
     """Judge every calibrated frame of the system (``app.geometry.mirror.mirror_evidence``: ball rays
     of every calibrated, labelled frame, side prior, the game's rig estimated without this system's
     frames) and set :data:`MIRROR_FLAG` and ``mirror_evidence`` on its calibration. Refused frames
@@ -406,7 +477,7 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
                         image_width=f.width,
                         expected_side=expected_side(f.role), rays=True, name=f.name)
              for f in frames]
-    verdicts = mirror_evidence(views, positions, mirror_settings(settings))
+    verdicts = mirror_evidence(views, positions, mirror_settings(settings), geometry or PairGeometryMemo())
     names = {f.id: f.name for f in system.frames}
     flagged = {fid for fid, v in verdicts.items() if v.flagged}
     for f in frames:

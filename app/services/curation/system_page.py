@@ -57,15 +57,18 @@ def round_px(values: Any) -> Any:
     return np.round(np.asarray(values, dtype=float), PX_DECIMALS).tolist()
 
 
-def pitch_lines(camera_json: Optional[dict[str, Any]], width: int, height: int) -> list[tuple[str, list[list[float]]]]:
+def pitch_lines(camera_json: Optional[dict[str, Any]], width: int, height: int, *,
+                keep: bool = True) -> list[tuple[str, list[list[float]]]]:
     """The pitch model projected by a stored camera (SoccerNet JSON, world metres, z down) and clipped to
     its ``width`` x ``height`` image: ``[(class, [[x, y], ...] px rounded)]``, one item per in-image run of
     two points or more; empty without a camera. It depends only on the calibration, so it is computed once
     per camera and image size and kept (:func:`_projected_pitch`, an LRU cache keyed by the camera JSON),
-    not on every request; the lists are made from the kept array per request."""
+    not on every request; the lists are made from the kept array per request. ``keep=False`` projects without
+    the cache (a camera seen once, as a drag's preview: it would push the stored views' pitches out)."""
     if not camera_json:
         return []
-    classes, points, bounds = _projected_pitch(json.dumps(camera_json, sort_keys=True), int(width), int(height))
+    project = _projected_pitch if keep else _projected_pitch.__wrapped__
+    classes, points, bounds = project(json.dumps(camera_json, sort_keys=True), int(width), int(height))
     xy = points.tolist()
     return [(cls, xy[s:e]) for cls, s, e in zip(classes, bounds, bounds[1:])]
 
@@ -114,6 +117,9 @@ def load_system(session: Session, system_id: int) -> System:
     Raises:
         NotFoundError: no system has this id.
     """
+    loaded = _loaded_system(session, system_id)
+    if loaded is not None:
+        return loaded
     stmt = sa.select(System).where(System.id == system_id).options(
         joinedload(System.game), joinedload(System.review),
         joinedload(System.triangulation).selectinload(Triangulation.pairs),
@@ -121,6 +127,32 @@ def load_system(session: Session, system_id: int) -> System:
         selectinload(System.doubts),
     )
     return found(session.scalars(stmt).unique().first(), "system", system_id)
+
+
+#: What :func:`load_system` loads, per object: the system's lists and each view's one-to-one rows (its game and
+#: review, one row each, are read by a lazy load where the session does not hold them).
+_SYSTEM_PAGE_RELATIONS = ("triangulation", "frames", "doubts")
+_FRAME_PAGE_RELATIONS = ("field_lines", "calibration", "ball_label", "reprojection", "optimised_box", "review")
+
+
+def _loaded_system(session: Session, system_id: int) -> Optional[System]:
+    """The system as the session holds it already with everything its page draws loaded and nothing expired (an
+    edit's answer: the edit loaded and recomputed it under its lock and committed it, ``expire_on_commit`` off),
+    else None. Spares the answer of every edit a second round of queries for rows it has just written (issue 29)."""
+    system = session.identity_map.get(session.identity_key(System, system_id))  # type: ignore[arg-type]
+    if system is None:
+        return None
+    state = sa.inspect(system)
+    if state.expired or state.unloaded & set(_SYSTEM_PAGE_RELATIONS) or state.modified:
+        return None
+    tri = system.triangulation
+    if tri is not None and (sa.inspect(tri).unloaded & {"pairs"} or sa.inspect(tri).expired):
+        return None
+    for frame in system.frames:
+        fs = sa.inspect(frame)
+        if fs.expired or fs.unloaded & set(_FRAME_PAGE_RELATIONS):
+            return None
+    return system
 
 
 def load_frame(session: Session, frame_id: int) -> Frame:

@@ -377,3 +377,22 @@ def test_large_answers_are_compressed_but_never_a_secret(client: TestClient, sce
     assert me.status_code == 200 and "content-encoding" not in me.headers
     plain = client.get(f"/api/systems/{scene.system_id}", headers={"Accept-Encoding": "identity"})
     assert "content-encoding" not in plain.headers
+
+
+def _lines_of(client: TestClient, scene: Scene) -> dict:
+    return {"lines": _view(client, scene)["views"][0]["field_lines"]}
+
+
+@pytest.mark.parametrize(("method", "path", "body"), [
+    ("patch", "/api/frames/{f2}/ball", lambda c, s: {"box": [10.0, 10.0, 22.0, 21.0]}),
+    ("patch", "/api/frames/{f1}/ball", lambda c, s: {"box": None}),
+    ("put", "/api/frames/{f0}/field-lines", _lines_of),
+    ("post", "/api/frames/{f2}/exclusion", lambda c, s: {"excluded": True}),
+], ids=["ball", "removal", "field-lines", "exclusion"])
+def test_an_edit_answers_the_system_as_stored(client: TestClient, scene: Scene, method: str, path: str, body) -> None:
+    """Issue 29: an edit answers its system from the rows it has just written (no second round of queries); the
+    answer is the page a later GET reads, pairs and doubts it dropped or added included."""
+    ids = {f"f{i}": fid for i, fid in enumerate(scene.frame_ids)}
+    answer = getattr(client, method)(path.format(**ids), json=body(client, scene))
+    assert answer.status_code == 200, answer.text
+    assert answer.json() == _view(client, scene)
