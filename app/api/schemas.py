@@ -174,23 +174,28 @@ MAX_POLYLINES_PER_CLASS = 100
 MAX_POLYLINE_POINTS = 1000
 
 
-class FieldLinesEdit(_In):
-    """The frame's complete new field lines, SoccerNet class -> polylines of [x, y] px (finite, at most
-    5 % of the image's size outside it: ``app.datasets.labels.check_line_points``)."""
+class FieldLinesIn(_In):
+    """A frame's complete field lines, SoccerNet class -> polylines of [x, y] px (finite, at most 5 % of the
+    image's size outside it: ``app.datasets.labels.check_line_points``): the body of a calibration preview."""
 
     lines: dict[str, list[Annotated[list[InPoint2], Field(max_length=MAX_POLYLINE_POINTS)]]] = Field(
         max_length=64, description="At most 64 classes, 100 polylines per class and 1000 points per polyline.")
-    undo_of: Optional[DbInt] = Field(None, description=(
-        "This write undoes audit entry `undo_of` (a page's undo or redo of its own edit): a write of this frame's "
-        "field lines whose `before` lines are exactly `lines` (else 422 naming `undo_of`). Audited as "
-        "`field_lines.replace` with `reverts_id` = `undo_of`."))
 
     @model_validator(mode="after")
-    def _bounded(self) -> "FieldLinesEdit":
+    def _bounded(self) -> "FieldLinesIn":
         for name, polylines in self.lines.items():
             if len(polylines) > MAX_POLYLINES_PER_CLASS:
                 raise ValueError(f"lines[{name!r}]: more than {MAX_POLYLINES_PER_CLASS} polylines")
         return self
+
+
+class FieldLinesEdit(FieldLinesIn):
+    """The frame's complete new field lines (as :class:`FieldLinesIn`), and the audit entry the write undoes."""
+
+    undo_of: Optional[DbInt] = Field(None, description=(
+        "This write undoes audit entry `undo_of` (a page's undo or redo of its own edit): a write of this frame's "
+        "field lines whose `before` lines are exactly `lines` (else 422 naming `undo_of`). Audited as "
+        "`field_lines.replace` with `reverts_id` = `undo_of`."))
 
 
 class ReviewIn(_In):

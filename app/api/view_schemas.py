@@ -317,6 +317,39 @@ class PitchLinesOut(BaseModel):
     lines: list[PitchLineOut]
 
 
+class CalibrationPreviewOut(BaseModel):
+    """``POST /api/frames/{id}/calibration-preview``: the calibration a field-line edit with these lines would
+    store, computed as the commit computes it and stored nowhere (``app.services.curation.calibration_preview``)."""
+
+    frame_id: int
+    status: CalibrationStatus
+    camera: Optional[dict[str, Any]] = Field(description="SoccerNet camera JSON (world metres, z down); null when "
+                                                         "refused.")
+    jac: dict[str, Optional[float]] = Field(description="JaC at each gamma of the diagonal, keyed as the view's "
+                                                        "calibration.jac.")
+    admitted: bool = Field(description="Whether the system's triangulation would admit the view.")
+    reason: Optional[str] = Field(description="Why the lines do not calibrate the view, when refused.")
+    flags: list[str]
+    residuals_px: dict[str, Any] = Field(description="Per-class mean distance of the annotated points to the "
+                                                     "projected model element, px.")
+    retry: Optional[str] = Field(description='"rig" or "prior" when that retry made the camera, as the commit would.')
+    differs: Optional[str] = Field(description="When the commit computes more than this preview (an ISSIA camera "
+                                               "refined with the ball's labels), what; else null.")
+    pitch_lines: list[PitchLineOut] = Field(description="The pitch model projected by this camera, clipped to the "
+                                                        "image (px).")
+    elapsed_ms: float = Field(description="The server's time for the calibration and the projection, ms.")
+
+    @classmethod
+    def of(cls, preview: Any) -> "CalibrationPreviewOut":
+        """Shape an ``app.services.curation.calibration_preview.CalibrationPreview``."""
+        f = preview.fields
+        return cls(frame_id=preview.frame_id, status=f.status, camera=f.camera,
+                   jac=preview.jac, admitted=preview.admitted, reason=f.reason,
+                   flags=list(f.flags), residuals_px=f.residuals_px or {}, retry=preview.retry,
+                   differs=preview.differs, elapsed_ms=round(preview.elapsed_ms, 2),
+                   pitch_lines=[PitchLineOut(class_=c, points=p) for c, p in preview.pitch_lines])
+
+
 def calibrated_camera(frame: Frame) -> Optional[dict[str, Any]]:
     """The frame's stored camera (SoccerNet JSON) when it is calibrated, else None."""
     cal = frame.calibration

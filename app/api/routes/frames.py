@@ -8,9 +8,11 @@ a token sends none) and answers the frame's new ETag in its ``ETag`` header.
 """
 from __future__ import annotations
 
-from typing import Annotated
+import contextlib
+import threading
+from typing import Annotated, Iterator
 
-from fastapi import APIRouter, Depends, Header, Query, Response
+from fastapi import APIRouter, Depends, Header, HTTPException, Query, Response
 from fastapi.responses import StreamingResponse
 from sqlalchemy.orm import Session
 
@@ -18,13 +20,15 @@ from app.api.auth import AnnotatorDep, PrincipalDep, require_role
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import FrameDep, SessionDep, SettingsDep
 from app.api.schemas import (
-    INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FrameListQuery, QueueQuery, ReviewIn,
+    INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FieldLinesIn, FrameListQuery, QueueQuery,
+    ReviewIn,
 )
 from app.api.view_schemas import (
-    FrameOut, FramePageOut, FrameView, PitchLinesOut, ReviewOut, SystemView, calibrated_camera, projected_pitch_of,
+    CalibrationPreviewOut, FrameOut, FramePageOut, FrameView, PitchLinesOut, ReviewOut, SystemView, calibrated_camera, projected_pitch_of,
 )
 from app.services.accounts import audit
 from app.services.curation import editing
+from app.services.curation.calibration_preview import preview_calibration
 from app.services.transfer import images
 from app.services.curation import queue
 from app.services.curation.system_page import load_frame, pitch_lines_key, system_page
@@ -176,6 +180,48 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     editing.replace_field_lines(session, frame.id, body.lines, settings=settings, actor=principal.name,
                                 expected=expected_versions(if_match, "frame", frame.id), undo_of=body.undo_of)
     return _edited(session, frame.id, response, query, principal.name)
+
+
+#: The calibration previews being computed in this process, by (user, frame): one at a time each.
+_PREVIEWS: set[tuple[str, int]] = set()
+_PREVIEWS_LOCK = threading.Lock()
+PREVIEW_BUSY = {429: {"model": ErrorOut, "description": "A preview of this view is already being computed for "
+                                                        "you: send the next one when its answer comes."}}
+
+
+@contextlib.contextmanager
+def _one_preview(user: str, frame_id: int) -> Iterator[None]:
+    """Hold the (``user``, ``frame_id``) preview slot for the span of one preview; 429 when it is taken (a page
+    keeps one preview in flight per view, so a second is a client that does not: it waits, as the page does)."""
+    key = (user, frame_id)
+    with _PREVIEWS_LOCK:
+        if key in _PREVIEWS:
+            raise HTTPException(429, detail=f"a calibration preview of frame {frame_id} is already being computed "
+                                            "for you: send the next when its answer comes",
+                                headers={"Retry-After": "1"})
+        _PREVIEWS.add(key)
+    try:
+        yield
+    finally:
+        with _PREVIEWS_LOCK:
+            _PREVIEWS.discard(key)
+
+
+@router.post("/{frame_id}/calibration-preview", response_model=CalibrationPreviewOut,
+             responses={**NOT_FOUND, **INVALID, **PREVIEW_BUSY})
+def calibration_preview(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, frame: FrameDep,
+                        body: FieldLinesIn, response: Response) -> CalibrationPreviewOut:
+    """The calibration these field lines would give the frame, computed as ``PUT .../field-lines`` computes it
+    (the game rig's retry and a learned prior's refit included) and stored nowhere: camera, JaC, admission,
+    per-class residuals and the projected pitch, for a drag that shows the camera while a point moves. Nothing is
+    written or audited; ``differs`` says when the commit computes more (an ISSIA camera refined with the ball).
+
+    422 naming ``lines``, as the edit; 429 while a preview of the same view is in flight for the same user.
+    """
+    with _one_preview(principal.name, frame.id):
+        preview = preview_calibration(session, frame.id, body.lines, settings=settings)
+    response.headers["Cache-Control"] = "no-store"
+    return CalibrationPreviewOut.of(preview)
 
 
 @router.post("/{frame_id}/field-lines/mirror", response_model=SystemView,

@@ -127,6 +127,12 @@ class KindPolicy:
         lines (read before the new calibration is stored: the stored one is the previous). Default: as it is."""
         return fields
 
+    def calibration_refinement(self, frame: Frame) -> str | None:
+        """What :meth:`refine_calibration` adds to ``frame``'s calibration beyond its lines, in a sentence, when it
+        changes anything for this view (a dry run of an edit leaves it out and says so: it may take seconds);
+        None when the lines' calibration is the whole of it. Default: None."""
+        return None
+
     def refit_after_edit(self, session: Session, system: System, settings: Settings,
                          recalibrated: Frame | None = None) -> Sequence[System]:
         """Work beyond the system an edit of one of its views needs, in the edit's transaction; returns the

@@ -78,6 +78,16 @@ class IssiaPolicy(KindPolicy):
         from app.services.issia.sequences import refined_with_ball
         return refined_with_ball(session, frame, fields, settings)
 
+    def calibration_refinement(self, frame: Frame) -> str | None:
+        """A camera the import refined with the ball's labels (flag ``BALL_BUNDLE_FLAG``) is refined again on commit,
+        from the sequence's ball labels (about a second): the lines alone give another camera."""
+        from app.services.issia.sequences import BALL_BUNDLE_FLAG
+        cal = frame.calibration
+        if cal is None or BALL_BUNDLE_FLAG not in (cal.flags or ()):
+            return None
+        return ("on release this camera is also refined with the sequence's ball labels, as the import refined it: "
+                "the preview shows the fit of the lines alone")
+
     def refit_after_edit(self, session: Session, system: System, settings: Settings,
                          recalibrated: Frame | None = None) -> Sequence[System]:
         """Re-fit the trajectory's stretch the edit touches and recompute the systems whose place on it

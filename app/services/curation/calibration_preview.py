@@ -1,0 +1,77 @@
+"""The dry run of a field-line edit (issue 29, item 5): while a person drags a line point, the view's camera,
+JaC, worst-line residuals and projected pitch follow the pointer, computed from the lines as they would be
+sent on release, with the same calibration the commit runs (:func:`app.services.curation.recompute.
+calibrate_frame_lines`: the rig retry and the learned prior's refit included). Nothing is written: no row, no
+audit entry, no recomputation of the system; the release commits as any field-line edit does
+(``app.services.curation.editing.replace_field_lines``).
+
+One refinement is left out on purpose: a view whose kind refines its camera beyond the lines on commit (an ISSIA
+camera refined with the sequence's ball labels, about a second) is previewed from its lines alone, and the
+preview says so (``differs``), so that a person never takes the preview for the stored result.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Mapping, Optional
+
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.datasets.records import CalibrationFields
+from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
+from app.services.calibration.calibrating import is_admitted
+from app.services.curation.editing import get_frame, parse_field_lines
+from app.services.curation.recompute import calibrate_frame_lines
+from app.services.curation.system_page import pitch_lines
+from app.services.kinds import kind_of
+
+
+@dataclass(frozen=True)
+class CalibrationPreview:
+    """The calibration an edit of a view's field lines would store, not stored.
+
+    ``fields``: status, camera (SoccerNet JSON, world metres, z down), JaC at each stored gamma, per-class
+    residuals (px), flags and refusal reason, as :func:`calibrate_frame_lines` gives them; ``jac``: its JaC keyed as
+    a stored calibration's (``Calibration.jac``); ``admitted``: whether
+    the system's triangulation would admit it (``is_admitted``: JaC at ``settings.admit_jac_gamma`` above
+    ``admit_jac_min``); ``retry``: "rig" or "prior" when that retry made the camera; ``differs``: a sentence when
+    the commit computes more than this (``KindPolicy.calibration_refinement``), else None; ``pitch_lines``: the
+    pitch model projected by the camera, clipped to the image (``[(class, [[x, y], ...])]`` px, rounded; empty
+    when refused); ``elapsed_ms``: the server's wall time of the calibration and projection.
+    """
+
+    frame_id: int
+    fields: CalibrationFields
+    jac: dict[str, Optional[float]]
+    admitted: bool
+    retry: Optional[str]
+    differs: Optional[str]
+    pitch_lines: list[tuple[str, list[list[float]]]]
+    elapsed_ms: float
+
+
+def preview_calibration(session: Session, frame_id: int, lines: Mapping[str, Any], *,
+                        settings: Settings) -> CalibrationPreview:
+    """Calibrate frame ``frame_id`` from ``lines`` (``{class: [[[x, y], ...], ...]}``, pixels of the frame, the
+    view's complete lines as a field-line edit would send them) without storing anything.
+
+    Raises:
+        NotFoundError: no such frame.
+        InvalidInputError: the lines a field-line edit would refuse (field "lines": unknown class, malformed
+            polyline, NaN or infinity, a point far outside the image, more than
+            ``settings.max_line_points_per_frame`` points), checked before any geometry.
+    """
+    t0 = time.perf_counter()
+    frame = get_frame(session, frame_id)
+    parsed = parse_field_lines(lines, frame.width, frame.height, settings.max_line_points_per_frame)
+    with session.no_autoflush:
+        calibrated = calibrate_frame_lines(session, frame, settings, lines=parsed, refine=False)
+    fields = calibrated.fields
+    as_stored = Calibration(status=fields.status, camera=fields.camera, flags=list(fields.flags),
+                            **dict(zip(JAC_COLUMNS.values(), fields.jac)))  # transient: never added to the session
+    camera = fields.camera if fields.status is CalibrationStatus.CALIBRATED else None
+    drawn = pitch_lines(camera, frame.width, frame.height, keep=False)
+    return CalibrationPreview(frame_id=frame.id, fields=fields, jac=as_stored.jac(), admitted=is_admitted(as_stored, settings),
+                              retry=calibrated.retry, differs=kind_of(frame.system).calibration_refinement(frame),
+                              pitch_lines=drawn, elapsed_ms=(time.perf_counter() - t0) * 1e3)
