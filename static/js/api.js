@@ -195,6 +195,13 @@ export function putFieldLines(frameId, lines, params = {}, ifMatch, undoOf = nul
   return exchange("PUT", `/api/frames/${encodeURIComponent(frameId)}/field-lines${toQuery(params)}`, body, ifMatch);
 }
 
+/** POST /api/frames/{id}/calibration-preview {lines}: the calibration these lines would give the view, computed as
+ * the edit computes it and stored nowhere: {status, camera, jac, admitted, reason, flags, residuals_px, retry,
+ * differs, pitch_lines: [{class, points}], elapsed_ms}. */
+export function previewCalibration(frameId, lines) {
+  return request("POST", `/api/frames/${encodeURIComponent(frameId)}/calibration-preview`, { lines });
+}
+
 let pitchModel = null;
 /** GET /api/pitch-model, once per page: {classes: [{name, mirror, modelled}], length_m, width_m}. */
 /** The pitch projected by a view's camera, from the view's `pitch_lines_url` (its address names the camera, so

@@ -15,6 +15,7 @@
 
 import { getPitchModel } from "./api.js";
 import { el, svg, isNum } from "./format.js";
+import { DragPreview, previewText } from "./linepreview.js";
 
 /** How many of the worst-fitting classes are marked. */
 const WORST_SHOWN = 3;
@@ -70,6 +71,7 @@ export class LineEditor {
   /** `panel`: the <v3d-view> (its `view`, `redraw()`, `saving`). */
   constructor(panel) {
     this.panel = panel;
+    this.preview = new DragPreview(() => this.panel.redraw());
   }
 
   get view() {
@@ -81,6 +83,7 @@ export class LineEditor {
   update(frameChanged) {
     this.#live = null;
     this.#drag = null;
+    this.preview.clear();
     if (frameChanged) {
       this.editing = false;
       this.selected = null;
@@ -95,6 +98,18 @@ export class LineEditor {
   revert() {
     this.#live = null;
     this.#drag = null;
+    this.preview.clear();
+  }
+
+  /** The view as drawn: during a drag, with the preview's calibration (JaC, residuals) in place of the stored one. */
+  shownView() {
+    const answer = this.preview.answer;
+    return answer ? { ...this.view, calibration: answer } : this.view;
+  }
+
+  /** The projected pitch to draw: the drag preview's camera's, else the stored camera's. */
+  pitchLines() {
+    return this.preview.answer ? this.preview.answer.pitch_lines || [] : this.view.pitch_lines || [];
   }
 
   lines() {
@@ -160,10 +175,10 @@ export class LineEditor {
   /** Draw the annotated lines into `g` (an SVG group in image px; `s` = one screen px in image px),
    * the chosen class's projected model line highlighted and the worst classes marked. */
   drawLines(g, s, isMain) {
-    const v = this.view;
+    const v = this.shownView();
     const lines = this.lines();
     if (this.chosen && this.editing) {
-      for (const line of v.pitch_lines || []) {
+      for (const line of this.pitchLines()) {
         if (line.class !== this.chosen || !line.points || line.points.length < 2) continue;
         g.append(svg("polyline", { class: "pitch-hl", points: pointsAttr(line.points),
           "data-testid": isMain ? "model-line-highlight" : null, "data-class": line.class },
@@ -187,6 +202,13 @@ export class LineEditor {
           pts.forEach((p, index) => g.append(this.#point(cls, poly, index, p, 2.2 * s, isMain, bad)));
         }
       });
+    }
+    const answer = this.preview.answer;
+    if (answer && isMain) {
+      g.append(svg("text", { class: `preview-badge${answer.admitted ? "" : " bad"}`, x: 8 * s, y: v.height - 10 * s,
+        "font-size": 13 * s, "data-testid": "drag-preview", "data-drawn": this.preview.drawn,
+        "data-jac": Object.values(answer.jac || {})[0] ?? "", text: previewText(answer) },
+      svg("title", { text: answer.differs || "The calibration these lines would give the view, computed as the release computes it; nothing is stored until the release" })));
     }
   }
 
@@ -217,7 +239,8 @@ export class LineEditor {
       }
       return;
     }
-    const worst = new Map(worstClasses(this.view));
+    const shown = this.shownView();
+    const worst = new Map(worstClasses(shown));
     for (const [cls, polylines] of Object.entries(lines)) { // every line's hit stroke first, below every point
       polylines.forEach((pts, poly) => {
         if (pts.length > 1) {
@@ -238,7 +261,7 @@ export class LineEditor {
     for (const [cls, polylines] of Object.entries(lines)) {
       polylines.forEach((pts, poly) => {
         pts.forEach((p, index) => {
-          const dot = this.#point(cls, poly, index, p, HANDLE_PX * s, true, worst.has(cls) && residualLevel(this.view, worst.get(cls)) !== "fine");
+          const dot = this.#point(cls, poly, index, p, HANDLE_PX * s, true, worst.has(cls) && residualLevel(shown, worst.get(cls)) !== "fine");
           dot.classList.add("handle-pt");
           dot.addEventListener("pointerdown", (e) => this.#startDrag(e, root, cls, poly, index));
           g.append(dot);
@@ -280,6 +303,7 @@ export class LineEditor {
     if (!start) return;
     this.#drag = { cls, poly, index, start, origin: this.lines()[cls][poly][index], moved: false };
     this.#live = copyLines(this.view.field_lines);
+    this.preview.begin();
     const move = (e) => {
       const d = this.#drag;
       const p = d && this.#toImage(root, e);
@@ -289,6 +313,7 @@ export class LineEditor {
       const y = Math.min(v.height, Math.max(0, d.origin[1] + p[1] - d.start[1]));
       d.moved = d.moved || Math.hypot(p[0] - d.start[0], p[1] - d.start[1]) > 0.3;
       this.#live[cls][poly][index] = [x, y];
+      if (d.moved) this.preview.push(v.frame_id, this.#live);
       this.panel.redraw();
     };
     const up = (e) => {
@@ -300,9 +325,11 @@ export class LineEditor {
       this.#drag = null;
       this.#live = null;
       if (!d || e.type === "pointercancel" || !d.moved) {
+        this.preview.end(false);
         this.select({ cls, poly, index });
         return;
       }
+      this.preview.end(true); // its last answer stays drawn until the release's own answer is
       lines[cls][poly][index] = roundPx(lines[cls][poly][index]);
       this.selected = { cls, poly, index };
       this.#live = lines; // shown until the answer is drawn

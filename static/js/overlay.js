@@ -455,7 +455,7 @@ export class ViewPanel extends HTMLElement {
       }
     }
     const g = svg("g", { "data-testid": isMain ? "overlay" : "zoom-overlay" });
-    for (const line of v.pitch_lines || []) {
+    for (const line of this.lines.pitchLines()) { // a drag's preview camera while a line point moves
       if (!line.points || line.points.length < 2) continue;
       g.append(svg("polyline", { class: "pitch", points: line.points.map((p) => p.join(",")).join(" ") },
         svg("title", { text: `projected: ${line.class}` })));
