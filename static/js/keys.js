@@ -61,6 +61,9 @@ export function keysHelp(table, title = "Keys", extra = null) {
     el("h2", {}, title), list, extra, el("p", { class: "muted" }, "? or Esc to close"));
   dialog.addEventListener("click", (e) => { if (e.target === dialog) dialog.close(); });
   dialog.addEventListener("keydown", (e) => {
+    // Chromium may still send a key to the dialog just after Esc closed it (focus goes back a moment later):
+    // such a key is the page's, not the closed list's
+    if (!dialog.open) return;
     e.stopPropagation(); // the page's keys wait while the list is open
     if (e.key === "?") {
       e.preventDefault();

@@ -61,6 +61,9 @@ def test_question_mark_lists_the_queue_keys(page, artifacts):
     page.locator(tid("keys-help")).wait_for(state="hidden")
     page.keyboard.press("j")  # the keys work again
     assert page.locator(tid("queue-row")).nth(1).get_attribute("class") == "selected"
+    # Chromium may send the key after Esc to the closed dialog (focus goes back a moment later): the page takes it
+    page.eval_on_selector(tid("keys-help"), "(d) => d.dispatchEvent(new KeyboardEvent('keydown', {key: 'j', bubbles: true}))")
+    assert page.locator(tid("queue-row")).nth(2).get_attribute("class") == "selected"
 
 
 def test_queue_keys_that_cannot_act_say_why(page):
