@@ -12,7 +12,7 @@ server's time per preview (its ``elapsed_ms``) and the round trip seen by the pa
 :func:`main` builds the demo (``v3d serve --demo``'s data), serves it with ``v3d serve`` (``benchmarks.scale.Server``),
 logs a reviewer in through the login page and prints the figures of ``--runs`` drags (medians), e.g.::
 
-    .venv/bin/python benchmarks/drag_preview.py [--runs 5] [--seconds 4] [--moves-per-s 60] [--json out.json]
+    .venv/bin/python benchmarks/drag_preview.py [--runs 5] [--seconds 4] [--moves-per-s 60] [--in-page] [--json out.json]
 
 Browser, server and their Python share this machine's two cores: a busy machine gives pessimistic figures.
 """
@@ -57,6 +57,19 @@ class DragRun:
     commit_status: int
 
 
+#: The in-page pointer (``drag_with_preview(in_page=True)``): one ``pointermove`` on the view's SVG (where the line
+#: editor listens during a drag) per point, one every ``period`` ms by the page's timer; returns the seconds taken.
+_PAGE_MOVES = """async (svg, [points, period]) => {
+  const t0 = performance.now();
+  for (const [clientX, clientY] of points) {
+    svg.dispatchEvent(new PointerEvent("pointermove", { clientX, clientY, pointerId: 1, pointerType: "mouse",
+      isPrimary: true, buttons: 1, bubbles: true }));
+    await new Promise((done) => setTimeout(done, period));
+  }
+  return (performance.now() - t0) / 1000;
+}"""
+
+
 def _to_screen(view):
     """The map of a view card's image px to screen px (its SVG's screen CTM, read once: a drag scrolls nothing)."""
     a, b, c, d, e, f = view.locator("[data-testid=view-svg]").evaluate(
@@ -71,11 +84,16 @@ def _drawn(view) -> int:
 
 def drag_with_preview(page, view_index: int, point: tuple[float, float], *, seconds: float = 3.0,
                       moves_per_s: float = 60.0, amplitude_px: float = 30.0,
-                      screenshot: Optional[Path] = None) -> DragRun:
+                      screenshot: Optional[Path] = None, in_page: bool = False) -> DragRun:
     """Drag the annotated point at image px ``point`` of view ``view_index`` (in edit mode on the system page)
     back and forth along x by up to ``amplitude_px`` image px for ``seconds``, rest until the previews in flight
     are answered, release it at ``point`` + ``amplitude_px`` / 2 and wait for the release's answer. ``screenshot``:
     a PNG of the page during the rest, the pointer still down (the preview drawn).
+
+    The moves are Playwright's ``mouse.move``, each awaited by this process (about 30 ms a move here: the driver,
+    not the page, then sets the rate), or with ``in_page`` pointer events the page dispatches to the view itself on
+    a timer, ``moves_per_s`` a second whatever the driver's speed (a real pointer's pace; the press and the release
+    stay Playwright's). ``moving_s`` is then the page's own clock, so a page slower than the pointer shows in it.
 
     Raises:
         AssertionError: no preview badge was drawn, or the release got no answer.
@@ -112,13 +130,17 @@ def drag_with_preview(page, view_index: int, point: tuple[float, float], *, seco
         page.mouse.down()
         drawn0 = _drawn(view)
         n = max(1, int(seconds * moves_per_s))
-        t0 = time.perf_counter()
-        for i in range(n):
-            phase = (i % 40) / 40.0  # a triangle wave: out to the amplitude and back, 40 moves a period
-            dx = amplitude_px * (2 * phase if phase < 0.5 else 2 * (1 - phase))
-            page.mouse.move(*screen(x + dx, y))
-            page.wait_for_timeout(1000.0 / moves_per_s)
-        moving_s = time.perf_counter() - t0
+        wave = [amplitude_px * (2 * ph if ph < 0.5 else 2 * (1 - ph))  # a triangle wave: out and back, 40 moves a period
+                for ph in ((i % 40) / 40.0 for i in range(n))]
+        if in_page:
+            moving_s = view.locator("[data-testid=view-svg]").evaluate(_PAGE_MOVES, [
+                [screen(x + dx, y) for dx in wave], 1000.0 / moves_per_s])
+        else:
+            t0 = time.perf_counter()
+            for dx in wave:
+                page.mouse.move(*screen(x + dx, y))
+                page.wait_for_timeout(1000.0 / moves_per_s)
+            moving_s = time.perf_counter() - t0
         drawn = _drawn(view) - drawn0
         page.mouse.move(*screen(x + amplitude_px / 2, y))
         deadline = time.monotonic() + 10.0
@@ -173,6 +195,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument("--runs", type=int, default=5, help="Drags measured (each on the next view of the system).")
     p.add_argument("--seconds", type=float, default=4.0)
     p.add_argument("--moves-per-s", type=float, default=60.0)
+    p.add_argument("--in-page", action="store_true", help="Pointer moves dispatched by the page on a timer, at "
+                   "--moves-per-s whatever the driver's speed (default: Playwright's mouse, one awaited call a move).")
     p.add_argument("--json", type=Path)
     p.add_argument("--screenshot", type=Path, help="A PNG of the page during the last drag's rest (pointer down).")
     args = p.parse_args(argv)
@@ -203,7 +227,7 @@ def main(argv: Optional[list[str]] = None) -> int:
                     open_for_editing(page, system["id"], k)
                     shot = args.screenshot if r == args.runs - 1 else None
                     run = drag_with_preview(page, k, inner_point(view), seconds=args.seconds,
-                                            moves_per_s=args.moves_per_s, screenshot=shot)
+                                            moves_per_s=args.moves_per_s, screenshot=shot, in_page=args.in_page)
                     runs.append(run)
                     print(f"drag {r + 1} (view {k + 1}): {run.moves} moves and {run.drawn} previews drawn in "
                           f"{run.moving_s:.2f} s = {run.rate_per_s:.1f}/s; {run.sent} sent, at most {run.max_in_flight} in flight; server "
