@@ -68,10 +68,10 @@ export class LineEditor {
   #bar = null;
   #lastPress = null; // {what, t, x, y} of the last press on a line or the drawing canvas
 
-  /** `panel`: the <v3d-view> (its `view`, `redraw()`, `saving`). */
+  /** `panel`: the <v3d-view> (its `view`, `redraw()`, `redrawSoon()`, `saving`). */
   constructor(panel) {
     this.panel = panel;
-    this.preview = new DragPreview(() => this.panel.redraw());
+    this.preview = new DragPreview(() => this.panel.redrawSoon());
   }
 
   get view() {
@@ -314,7 +314,7 @@ export class LineEditor {
       d.moved = d.moved || Math.hypot(p[0] - d.start[0], p[1] - d.start[1]) > 0.3;
       this.#live[cls][poly][index] = [x, y];
       if (d.moved) this.preview.push(v.frame_id, this.#live);
-      this.panel.redraw();
+      this.panel.redrawSoon(); // moves faster than the screen draws are drawn once a frame
     };
     const up = (e) => {
       root.removeEventListener("pointermove", move);

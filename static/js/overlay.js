@@ -105,6 +105,7 @@ export class ViewPanel extends HTMLElement {
   #imageUrl = null;
   #live = null; // box or point being dragged (image pixels)
   #drag = null;
+  #redrawQueued = false; // a redrawSoon() waits for the next animation frame
   #zoomBox = null; // [x, y, size] of the inset, frozen while dragging
   #saving = false;
   #selected = false;
@@ -173,9 +174,22 @@ export class ViewPanel extends HTMLElement {
     this.querySelector(".view")?.classList.toggle("selected", value);
   }
 
-  /** Draw the overlay again at the frame SVG's current viewBox (after a zoom or pan). */
+  /** Draw the overlay again at the frame SVG's current viewBox (after a zoom or pan, or a change of the line
+   * editor's live state). */
   redraw() {
+    this.#redrawQueued = false;
     this.#drawOverlays();
+  }
+
+  /** Draw the overlay again at the next animation frame: the changes made meanwhile (a drag's pointer moves, a drag
+   * preview's answer) are drawn once, so that a pointer sending moves faster than the screen is drawn never queues
+   * redraws behind it. */
+  redrawSoon() {
+    if (this.#redrawQueued) return;
+    this.#redrawQueued = true;
+    requestAnimationFrame(() => {
+      if (this.#redrawQueued) this.redraw();
+    });
   }
 
   /** Put back the last saved label (after a failed save). */
@@ -184,11 +198,6 @@ export class ViewPanel extends HTMLElement {
     this.#drag = null;
     this.lines.revert();
     this.saving = false;
-    this.#drawOverlays();
-  }
-
-  /** Draw the overlays again (the line editor's live state changed). */
-  redraw() {
     this.#drawOverlays();
   }
 
