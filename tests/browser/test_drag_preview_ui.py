@@ -96,3 +96,30 @@ def test_a_preview_answer_after_the_release_is_dropped(page):
         assert len(api_json(page, f"/api/audit?frame_id={fid}&limit=500")["items"]) == entries + 1
     finally:
         page.unroute("**/calibration-preview")
+
+
+def test_a_pointer_faster_than_the_screen_redraws_once_a_frame(page):
+    """Pointer moves at 240 a second, faster than the screen's frames (the page's own timer dispatches them:
+    ``drag_with_preview(in_page=True)``): the view is redrawn at most once per animation frame, not once per move and
+    per preview answer, and still one preview in flight at a time and the release storing what the last showed."""
+    system = _four_view_system(page)
+    k = 3
+    view = system["views"][k]
+    open_for_editing(page, system["id"], k)
+    card = page.locator(tid("view")).nth(k)
+    card.locator("polyline.pitch").first.wait_for(state="attached")
+    page.evaluate("""(fid) => {  // count the frame SVG's redraws (each replaces its children) and the screen's frames
+      const svgEl = document.querySelector(`[data-testid=view][data-frame-id="${fid}"] [data-testid=view-svg]`);
+      window.__redraws = 0; window.__frames = 0;
+      new MutationObserver((records) => { window.__redraws += records.length; }).observe(svgEl, { childList: true });
+      const tick = () => { window.__frames += 1; requestAnimationFrame(tick); };
+      requestAnimationFrame(tick);
+    }""", view["frame_id"])
+    run = drag_with_preview(page, k, inner_point(view), seconds=1.0, moves_per_s=240, in_page=True)
+    redraws, frames = page.evaluate("() => [window.__redraws, window.__frames]")
+    assert run.commit_status == 200 and run.drawn >= 2 and run.max_in_flight == 1
+    assert run.last_jac == pytest.approx(run.stored_jac, abs=0.02)
+    # without the coalescing: once per move and once per answer (329 here); with it, at most about once per frame
+    # (the rest, the release and its answer add a few of their own; 141 redraws in 166 frames here)
+    assert redraws < run.moves, (redraws, frames, run.moves)
+    assert redraws <= frames + 10, (redraws, frames)
