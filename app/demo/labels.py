@@ -20,8 +20,6 @@ from app.geometry import metrics
 from app.geometry.camera import Camera
 from app.geometry.pitch import GOAL_CLASSES, LINE_CLASSES
 
-#: Spacing (metres) of the model polylines projected for labels and for the visibility test.
-LABEL_SAMPLING_M = 0.1
 #: Sigma (px at 1920 px wide) of the annotators' click noise across the line, truncated at 1.5 sigma.
 LINE_SIGMA_PX_AT_1920 = 1.0
 #: A visible piece shorter than this (px at 1920 px wide) is not annotated.

@@ -125,12 +125,6 @@ def from_soccernet_v3(lines: Iterable[Mapping[str, Any]], width: int, height: in
     return out
 
 
-def to_soccernet_v3(lines: FieldLines) -> list[dict[str, Any]]:
-    """Inverse of :func:`from_soccernet_v3` (pixels, flat lists, rounded to 0.01 px)."""
-    return [{"class": cls, "points": [round(float(v), 2) for v in p.reshape(-1)]}
-            for cls, polys in lines.items() for p in polys]
-
-
 def mirror_lines(lines: FieldLines) -> FieldLines:
     """Relabel every class by the pitch's 180-degree rotation (SoccerNet ``mirror_labels``).
 

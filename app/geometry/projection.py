@@ -24,8 +24,6 @@ import numpy as np
 from app.geometry.camera import MIN_DEPTH_M, Camera
 from app.geometry.pitch import sample_pitch_polylines
 
-ProjectedLines = dict[str, list[np.ndarray]]
-
 #: Straight-element spacing (metres) of the official evaluator: ``get_polylines(..., sampling_factor=0.9)``
 #: passes 0.9 as the *first* argument of ``sample_field_points(dist=0.1, dist_circles=0.2)``, so
 #: straight elements are sampled every 0.9 m and circles keep the default 0.2 m.

@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 import app.cli.calibration  # noqa: F401  (registers ``v3d calibrate``)
+import app.cli.evaluation  # noqa: F401  (registers ``v3d jac``)
 from app.cli._root import cli
 from app.geometry.annotations import to_soccernet_calibration
 from app.geometry.calibration import principal_point
@@ -66,7 +67,6 @@ def test_calibrate_writes_cameras_and_summary(annotations_zip: Path, tmp_path: P
 
 
 def test_output_is_scored_by_v3d_jac(annotations_zip: Path, tmp_path: Path) -> None:
-    pytest.importorskip("app.cli.evaluation", reason="v3d jac not merged yet")
     out = tmp_path / "cams"
     assert runner.invoke(cli, ["calibrate", str(annotations_zip), str(out), "--workers", "1"]).exit_code == 0
     # v3d jac reads every *.json of the annotations: score against the two good frames only.

@@ -89,7 +89,6 @@ def test_exact_labels_give_exact_camera() -> None:
 
 
 def test_jac_of_synthetic_frame_is_high() -> None:
-    pytest.importorskip("app.geometry.jac", reason="JaC module not merged yet")
     truth = _camera((0.0, 62.0, -18.0), (0.0, -4.0, 0.0), 900.0, 960, 540)
     lines = synthetic_lines(truth, 960, 540, sigma_px=1.0, seed=3)
     result = calibrate_frame(lines, 960, 540)

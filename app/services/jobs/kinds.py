@@ -21,9 +21,6 @@ from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
 from app.services.jobs.progress import Progress
 
-#: Dataset kinds an import job takes (``params["kind"]``).
-IMPORT_KINDS = ("soccernet-v3", "soccernet-v3d", "sn-calibration", "issia")
-
 
 def import_params(kind: str, path: str | Path, *, width: int | None = None, height: int | None = None,
                   from_lines: bool = False, flip: list[str] | None = None,
