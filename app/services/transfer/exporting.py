@@ -351,6 +351,10 @@ def _exported_game(game: Any, rows: list[Any]) -> ExportedGame:
                         tuple((f.frame_id, f.name) for f in rows))
 
 
+#: Frames read per query by :func:`write_frames_zip` (below every database's bound on an ``IN`` list).
+_FRAMES_PER_QUERY = 500
+
+
 def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], target: BinaryIO) -> int:
     """Write the images of ``frames`` ((frame id, frame name) pairs) into a new zip on ``target`` as the
     SoccerNet-v3 ``Frames-v3.zip`` holds them: one member per frame, named by the frame, its bytes copied from
@@ -365,9 +369,13 @@ def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], targ
         ImageUnavailable: a frame's image is gone or no longer the image imported.
     """
     written = 0
+    ids = [frame_id for frame_id, _ in frames]
+    loaded: dict[int, Frame] = {}
+    for start in range(0, len(ids), _FRAMES_PER_QUERY):  # one query per chunk, not one per frame
+        loaded.update((f.id, f) for f in session.scalars(select(Frame).where(Frame.id.in_(ids[start:start + _FRAMES_PER_QUERY]))))
     with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_STORED) as zf:
         for frame_id, name in frames:
-            frame = session.get(Frame, frame_id)
+            frame = loaded.get(frame_id)
             if frame is None or not frame_has_image(frame):
                 continue
             with zf.open(name, "w", force_zip64=True) as member:
