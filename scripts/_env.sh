@@ -30,6 +30,6 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ "$lock" -nt "$stamp
   .venv/bin/python -m pip install --quiet --no-deps -e .
   # Compile the calibration's numba kernels once into their on-disk cache (about 15 s), so that the first
   # calibration of a server or of a test does not pay it.
-  .venv/bin/python -c "from app.geometry.calibration.solver import compile_kernels; compile_kernels()"
+  .venv/bin/python -c "from app.geometry.calibration.warmup import compile_kernels; compile_kernels()"
   touch "$stamp"
 fi

@@ -17,7 +17,8 @@ from app.geometry.calibration.frame import (
     principal_point,
     radial_corner,
 )
-from app.geometry.calibration.priors import CameraPrior, learn_camera_prior
+from app.geometry.calibration.learning import learn_camera_prior
+from app.geometry.calibration.priors import CameraPrior
 from app.geometry.calibration.rig import CameraRig, RigPosition, calibrate_with_rig, estimate_rig
 from app.geometry.calibration.uncertainty import CalibrationUncertainty, calibration_uncertainty
 

@@ -616,7 +616,7 @@ def radial_corner(camera: Camera, lines: FieldLines, width: int, height: int,
     """The relative radial distortion at the image corner, ``k1 (h / f)^2`` (``h`` the half diagonal,
     px), of ``camera`` refitted to ``lines`` with ``k1`` free (focal, rotation, centre and ``k1``; no
     gain gate, no prior): the value a learned radial prior is learned from
-    (:func:`.priors.learn_camera_prior`). The same lens gives the same value at any zoom and image size.
+    (:func:`.learning.learn_camera_prior`). The same lens gives the same value at any zoom and image size.
 
     Args:
         camera: a fit of ``lines`` (principal point fixed, square pixels). lines: the classes it

@@ -8,14 +8,15 @@ distance for focal length (on failed held-out fits of the real sets the centre m
 (median distance between a confident fit's centre and its nearest neighbour: 0.29 m on the sn22 test
 set, 0.24 m on wc14), and a Gaussian around those clusters is a prior the lines can be weighed against.
 
-The prior (:class:`CameraPrior`), **learned** by :func:`learn_camera_prior` from v3d's own fits of the
-data at hand, never from another calibration or synthetic truth:
+The prior (:class:`CameraPrior`), **learned** by :func:`.learning.learn_camera_prior` from v3d's own fits of
+the data at hand, never from another calibration or synthetic truth (this module holds the prior and its rows
+in a fit; learning it groups camera centres as the rig does, so it sits above :mod:`.rig`, in :mod:`.learning`):
 
 * anchors: the groups of confident camera centres (fits whose position std, from
   :func:`.uncertainty.calibration_uncertainty`, is at or below a quantile of the set's), grouped as the
   game rig groups them (:func:`.rig.estimate_rig`), each with an isotropic std from its own spread;
 * roll: broadcast heads are levelled; its std is the robust std (1.4826 MAD) of the confident fits'
-  roll, floored at :data:`MIN_ROLL_STD_DEG`;
+  roll, floored at :data:`.learning.MIN_ROLL_STD_DEG`;
 * the lens: the radial term as the relative distortion at the image corner, ``c = k1 (h / f)^2``
   (``h`` the half diagonal, px; the same number at any image size), whose median and robust std the
   confident fits refitted with ``k1`` free (:func:`.frame.radial_corner`) give. A set's frames share it
@@ -43,24 +44,11 @@ from typing import Sequence
 import numpy as np
 
 from app.geometry.calibration.solver import PriorRows
-from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
-
-#: Smallest anchor std, metres: a group of a few near-identical fits is not a camera known to
-#: centimetres (calibrated centres of one camera scatter by tens of centimetres, :mod:`.rig`).
-MIN_ANCHOR_STD_M = 0.25
-#: Smallest roll std, degrees.
-MIN_ROLL_STD_DEG = 0.1
-#: Smallest std of the radial prior (relative distortion at the corner; a tenth of the real sets' median).
-MIN_RADIAL_STD = 0.003
-#: Fewest refitted confident fits a radial prior is learned from.
-MIN_RADIAL_FITS = 10
-#: Median distance to the centre of a 3D isotropic Gaussian, in stds (sqrt of chi-square(3)'s median).
-_MEDIAN_RADIUS_3D = 1.5382
 
 
 @dataclass(frozen=True)
 class CameraPrior:
-    """A dataset's learned camera prior (:func:`learn_camera_prior`).
+    """A dataset's learned camera prior (:func:`.learning.learn_camera_prior`).
 
     Attributes:
         anchors_m: (K, 3) anchor centres, world metres (z down), most supported first.
@@ -140,7 +128,7 @@ class CameraPrior:
 def confident_mask(position_std_m: Sequence[float], quantile: float = 0.5) -> tuple[np.ndarray, float]:
     """Which fits count as confident: ``(mask (N,), cut)`` with ``cut`` the ``quantile`` of the finite
     position stds (m) and the mask true where a std is finite and at or below it (all false, cut
-    ``inf``, when none is finite). What :func:`learn_camera_prior` learns from, and what a caller
+    ``inf``, when none is finite). What :func:`.learning.learn_camera_prior` learns from, and what a caller
     computing per-fit inputs for it (the radial refits) needs to compute them for only."""
     std = np.asarray(position_std_m, dtype=float)
     finite = np.isfinite(std)
@@ -148,61 +136,6 @@ def confident_mask(position_std_m: Sequence[float], quantile: float = 0.5) -> tu
         return np.zeros(len(std), dtype=bool), float("inf")
     cut = float(np.quantile(std[finite], quantile))
     return finite & (std <= cut), cut
-
-
-def _robust_std(values: np.ndarray) -> float:
-    """1.4826 times the median absolute deviation from the median (a Gaussian's std)."""
-    return 1.4826 * float(np.median(np.abs(values - np.median(values))))
-
-
-def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float], *,
-                       radial_corner: Sequence[float] | None = None,
-                       confident_quantile: float = 0.5, radius_m: float = 1.5, min_frames: int = 2) -> CameraPrior:
-    """Learn a :class:`CameraPrior` from a dataset's own calibrations.
-
-    Args:
-        cameras: calibrated cameras of the dataset (one per frame, SoccerNet world).
-        position_std_m: per camera, the root-sum-square position std of its fit (m;
-            :attr:`.uncertainty.CalibrationUncertainty.position_std_m`, ``inf`` allowed).
-        radial_corner: per camera, its fit's relative radial distortion at the image corner with ``k1``
-            free (:func:`.frame.radial_corner`; NaN where the refit failed); ``None``: no radial prior.
-            Learned from the confident fits' values when there are :data:`MIN_RADIAL_FITS` or more.
-        confident_quantile: fits whose position std is at or below this quantile of the finite ones
-            feed the prior.
-        radius_m, min_frames: grouping of the confident centres (:func:`.rig.estimate_rig`).
-
-    Returns:
-        The prior (without anchors when no group has ``min_frames`` confident fits; roll std from the
-        confident fits, ``inf`` with fewer than 3).
-
-    Raises:
-        ValueError: lengths differ or ``confident_quantile`` is outside (0, 1].
-    """
-    from app.geometry.calibration.rig import estimate_rig  # rig imports frame, which imports this module
-
-    if len(cameras) != len(position_std_m) or (radial_corner is not None and len(radial_corner) != len(cameras)):
-        raise ValueError("learn_camera_prior: one position std (and radial term) per camera")
-    if not 0.0 < confident_quantile <= 1.0:
-        raise ValueError(f"confident_quantile must be in (0, 1], got {confident_quantile!r}")
-    confident, cut = confident_mask(position_std_m, confident_quantile)
-    if not np.any(confident):
-        return CameraPrior(anchors_m=(), anchor_std_m=(), anchor_frames=(), roll_std_deg=float("inf"), confident_fits=0)
-    chosen = [c for c, ok in zip(cameras, confident) if ok]
-    rig = estimate_rig(np.array([c.C for c in chosen]).reshape(-1, 3), radius_m=radius_m, min_frames=min_frames)
-    rolls = np.array([pan_tilt_roll_from_rotation(c.R)[2] for c in chosen])
-    roll_std = max(_robust_std(rolls), MIN_ROLL_STD_DEG) if len(rolls) >= 3 else float("inf")
-    radial: dict = {}
-    if radial_corner is not None:
-        corner = np.asarray(radial_corner, dtype=float)[confident]
-        corner = corner[np.isfinite(corner)]
-        if len(corner) >= MIN_RADIAL_FITS:
-            radial = {"radial_corner": float(np.median(corner)), "radial_fits": int(len(corner)),
-                      "radial_corner_std": max(_robust_std(corner), MIN_RADIAL_STD)}
-    return CameraPrior(
-        anchors_m=tuple(p.centre_m for p in rig.positions),
-        anchor_std_m=tuple(max(p.spread_m / _MEDIAN_RADIUS_3D, MIN_ANCHOR_STD_M) for p in rig.positions),
-        anchor_frames=tuple(p.frames for p in rig.positions), roll_std_deg=roll_std, confident_fits=len(chosen),
-        confident_std_m=cut, **radial)
 
 
 def anchor_order(prior: CameraPrior, centre_m: np.ndarray, centre_cov_m2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

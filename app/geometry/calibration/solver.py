@@ -305,25 +305,3 @@ def robust_lm(x0: np.ndarray, obs: Observations, param: CameraParametrisation, s
         np.ascontiguousarray((prior or _NO_PRIOR).whitening, dtype=float), float((prior or _NO_PRIOR).roll_weight),
         float((prior or _NO_PRIOR).k1_mean_px2), float((prior or _NO_PRIOR).k1_weight))
     return SolverResult(x=xs, cost=float(cost), residuals=r, jacobian=J, iterations=int(it), evaluations=int(nfev))
-
-
-def compile_kernels() -> None:
-    """Compile every numba kernel of the calibration now (or load it from numba's on-disk cache):
-    one calibration of a synthetic frame, free and with its centre known, with the radial term.
-    For an image build or a warm-up; calibrating does it on first use anyway."""
-    from app.geometry.calibration.frame import CalibrationPrior, calibrate_frame  # the caller of the kernels
-    from app.geometry.camera import Camera, look_at_rotation
-    from app.geometry.pitch import sample_pitch_polylines
-
-    centre = np.array([0.0, 62.0, -18.0])
-    camera = Camera(K=np.array([[900.0, 0.0, 479.5], [0.0, 900.0, 269.5], [0.0, 0.0, 1.0]]),
-                    R=look_at_rotation(centre, np.array([-20.0, -4.0, 0.0])), C=centre,
-                    radial=np.array([0.05, 0.0, 0.0, 0.0, 0.0, 0.0]))
-    lines = {}
-    for cls, X in sample_pitch_polylines().items():
-        uv, ok = camera.project(X)
-        inside = ok & (uv[:, 0] >= 0) & (uv[:, 0] <= 959) & (uv[:, 1] >= 0) & (uv[:, 1] <= 539)
-        if inside.sum() >= 4:
-            lines[cls] = [uv[inside][:: max(1, int(inside.sum()) // 12)]]
-    calibrate_frame(lines, 960, 540)
-    calibrate_frame(lines, 960, 540, prior=CalibrationPrior(centre_m=(0.0, 62.0, -18.0)))
