@@ -17,8 +17,8 @@
   the trajectory it touches is re-fitted (``app.services.issia.refit``) and the systems whose place on
   it changed are recomputed; a new calibration of the view that gives its camera to the sequence
   re-fits the whole sequence.
-* :func:`read_video_frame`: a view's image decoded on demand from its video or frame folder, at the
-  view's (annotation) resolution, as PNG bytes.
+* a view's image is decoded on demand from its video or frame folder by
+  ``app.services.transfer.images.read_video_frame``.
 * :func:`export_issia3d`: ``ISSIA-3D.csv`` of a stored sequence (:mod:`app.datasets.issia3d`).
 """
 from __future__ import annotations
@@ -33,9 +33,8 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.datasets.files import MAX_IMAGE_PIXELS
 from app.datasets.issia import (
-    CAMERA_SET, FPS, CameraChoice, IssiaSequence, bundle_refined_cameras, read_frame_image, read_issia, sequence_cameras,
+    CAMERA_SET, FPS, CameraChoice, IssiaSequence, bundle_refined_cameras, read_issia, sequence_cameras,
 )
 from app.db.models import (
     BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game,
@@ -52,20 +51,18 @@ from app.services.curation.doubts import update_doubts
 from app.core.errors import DatasetError
 from app.services.accounts.audit import record_summary
 from app.services.transfer.importing import ImportReport, audit_counts
+from app.services.kinds.issia import BALL_BUNDLE_FLAG
 from app.services.issia.refit import refit_sequence, sequence_columns
 from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence, sequence_arrays
 from app.geometry.jac import JAC_GAMMAS
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import GIVEN_CAMERA_FLAG, apply_calibration, fit_uncertainty
 from app.services.jobs.progress import Progress
-from app.services.transfer.images import stored_image_file
 from app.services.curation.recompute import load_for_recompute, recompute_system, recompute_systems
 
 LEAGUE, SEASON = "issia", "sequences"
 #: Calibration flag of a camera calibrated again from the ball's trajectory of the others.
 BALL_ASSISTED_FLAG = "ball_assisted"
-#: Calibration flag of a camera refined together with the others from their lines and the ball's labels.
-BALL_BUNDLE_FLAG = "ball_bundle"
 
 
 def view_name(camera_id: str) -> str:
@@ -320,30 +317,4 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
     return touched
 
 
-def read_video_frame(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS) -> bytes:
-    """The view's image at its own (annotation) resolution, PNG bytes, decoded on demand from its
-    video (``Frame.image_path``, frame ``Frame.media_frame``) or frame folder, flipped back when
-    ``Frame.media_flipped`` (:func:`app.datasets.issia.read_frame_image`).
-
-    Raises:
-        DatasetError: the video or folder is missing or the frame cannot be read.
-    """
-    import cv2
-
-    if frame.image_path is None or frame.media_frame is None:
-        raise DatasetError(Path(f"frame {frame.id}"), None, "no video or frame folder")
-    cid = frame.name
-    media = stored_image_file(frame, frame.image_path)
-    if not media.exists():
-        raise DatasetError(frame.image_path, None, "missing")
-    seq = IssiaSequence(root=media.parent, camera_ids=(cid,), image_size=(frame.width, frame.height), cameras={},
-                        lines={}, frames=(), points=np.empty((0, 1, 2)), media={cid: media},
-                        flipped=frozenset({cid}) if frame.media_flipped else frozenset())
-    img = read_frame_image(seq, cid, frame.media_frame, max_pixels=max_pixels).image
-    ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-    if not ok:
-        raise DatasetError(media, f"frame {frame.media_frame}", "cannot be encoded as PNG")
-    return buf.tobytes()
-
-
-__all__ = ["LEAGUE", "SEASON", "CAMERA_SET", "FPS", "import_issia", "refit_after_edit", "read_video_frame", "view_name"]
+__all__ = ["LEAGUE", "SEASON", "CAMERA_SET", "FPS", "import_issia", "refit_after_edit", "view_name"]

@@ -5,6 +5,11 @@ triangulation uses and judges them; an edit re-fits the stretch of the trajector
 recompute other systems of the sequence (``app.services.issia.sequences.refit_after_edit``), so an edit
 locks the sequence's game row first.
 
+The trajectory's work lives in the ISSIA services, which import the recomputation, which asks the kinds: so this
+policy never imports them. They hand it their functions (:class:`IssiaHooks`) when their package is imported
+(``app.services.issia``, which ``app.services`` imports first of all): a kind is data, its services register from
+above, and the import graph has no circle (``tests/test_layers.py``).
+
 Exports: ISSIA leaves as ISSIA-3D (``app.services.issia.export``) and in the detector exports and the
 monocular benchmark, never in the SoccerNet-v3D export (which holds broadcast games). Its views are split as
 in the paper, by camera (1-2 test, 3-6 train), and named ``<sequence slug>-<hash>_cam<k>_<frame index>``.
@@ -12,7 +17,7 @@ in the paper, by camera (1-2 test, 3-6 train), and named ``<sequence slug>-<hash
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
 
 from app.datasets.issia import CAMERA_SET
 from app.db.models import Frame, Game, System, SystemKind
@@ -26,6 +31,42 @@ if TYPE_CHECKING:
     from app.geometry.camera import Camera
     from app.geometry.doubts import Doubt as DoubtFinding
     from app.geometry.triangulation import BallObservation
+
+
+#: Calibration flag of a camera the ISSIA import refined with the sequence's ball labels (bundle adjustment, ``v3d
+#: import issia --from-lines``); a line edit of the view refines it so again (``app.services.issia.sequences``).
+BALL_BUNDLE_FLAG = "ball_bundle"
+
+
+@dataclass(frozen=True)
+class IssiaHooks:
+    """The ISSIA services' functions this policy delegates to, registered by ``app.services.issia``
+    (:func:`register_hooks`): ``consensus_observations`` and ``merge_doubts`` of ``app.services.issia.trajectory``,
+    ``refined_with_ball`` and ``refit_after_edit`` of ``app.services.issia.sequences`` (their own signatures)."""
+
+    consensus_observations: Callable[..., Any]
+    merge_doubts: Callable[..., Any]
+    refined_with_ball: Callable[..., Any]
+    refit_after_edit: Callable[..., Any]
+
+
+_HOOKS: list[IssiaHooks] = []  # the registered hooks, the last one (an empty list: none yet)
+
+
+def register_hooks(hooks: IssiaHooks) -> None:
+    """Give the ISSIA policy its services' functions (called once, by ``app.services.issia`` on import)."""
+    _HOOKS.append(hooks)
+
+
+def _hooks() -> IssiaHooks:
+    """The registered :class:`IssiaHooks`.
+
+    Raises:
+        RuntimeError: none is registered (``app.services.issia`` was never imported: ``app.services`` imports it).
+    """
+    if not _HOOKS:
+        raise RuntimeError("the ISSIA kind's hooks are not registered: import app.services.issia")
+    return _HOOKS[-1]
 
 
 @dataclass(frozen=True)
@@ -62,26 +103,22 @@ class IssiaPolicy(KindPolicy):
     def consensus_observations(self, system: System, observations: list[BallObservation],
                                settings: Settings) -> list[BallObservation]:
         """The labels the sequence's trajectory keeps that agree (``app.services.issia.trajectory``)."""
-        from app.services.issia.trajectory import consensus_observations
-        return consensus_observations(system, observations, settings)
+        return _hooks().consensus_observations(system, observations, settings)
 
     def judge_doubts(self, system: System, found: list[DoubtFinding],
                      cameras: dict[int, Camera] | None) -> list[DoubtFinding]:
         """The multi-view doubts merged with the trajectory's judgement of the labels (issue 9)."""
-        from app.services.issia.trajectory import merge_doubts
-        return merge_doubts(system, found, cameras)
+        return _hooks().merge_doubts(system, found, cameras)
 
     def refine_calibration(self, session: Session, frame: Frame, fields: CalibrationFields,
                            settings: Settings) -> CalibrationFields:
         """A camera the import refined with the ball's labels is refined with them again after a line edit
         (``app.services.issia.sequences.refined_with_ball``)."""
-        from app.services.issia.sequences import refined_with_ball
-        return refined_with_ball(session, frame, fields, settings)
+        return _hooks().refined_with_ball(session, frame, fields, settings)
 
     def calibration_refinement(self, frame: Frame) -> str | None:
         """A camera the import refined with the ball's labels (flag ``BALL_BUNDLE_FLAG``) is refined again on commit,
         from the sequence's ball labels (about a second): the lines alone give another camera."""
-        from app.services.issia.sequences import BALL_BUNDLE_FLAG
         cal = frame.calibration
         if cal is None or BALL_BUNDLE_FLAG not in (cal.flags or ()):
             return None
@@ -92,8 +129,7 @@ class IssiaPolicy(KindPolicy):
                          recalibrated: Frame | None = None) -> Sequence[System]:
         """Re-fit the trajectory's stretch the edit touches and recompute the systems whose place on it
         changed (``app.services.issia.sequences.refit_after_edit``)."""
-        from app.services.issia.sequences import refit_after_edit
-        return refit_after_edit(session, system, settings, recalibrated=recalibrated)
+        return _hooks().refit_after_edit(session, system, settings, recalibrated=recalibrated)
 
 
 ISSIA = IssiaPolicy(

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Optional
 
+import numpy as np
+
 from app.core.errors import DatasetError
 from app.datasets.files import IMAGE_MEDIA_TYPES, MAX_IMAGE_PIXELS, image_header, is_safe_member
 from app.db.models import Frame
@@ -153,8 +155,6 @@ def frame_image(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS) -> FrameImage:
 
 def _media_frame_image(frame: Frame, where: str, max_pixels: int) -> FrameImage:
     """A frame of a video or frame folder (ISSIA), decoded and resized to the frame's own size, PNG."""
-    from app.services.issia.sequences import read_video_frame
-
     path = stored_image_file(frame, frame.image_path or "")
     try:
         st = path.stat()
@@ -163,3 +163,31 @@ def _media_frame_image(frame: Frame, where: str, max_pixels: int) -> FrameImage:
         raise ImageUnavailable(f"{where}: cannot read frame {frame.media_frame} of {frame.image_path}") from None
     etag = f'"{st.st_mtime_ns:x}-{st.st_size:x}-{frame.media_frame:x}-{int(frame.media_flipped)}-{frame.width}x{frame.height}"'
     return FrameImage(media_type="image/png", etag=etag, size=len(data), data=data)
+
+
+def read_video_frame(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS) -> bytes:
+    """The view's image at its own (annotation) resolution, PNG bytes, decoded on demand from its
+    video (``Frame.image_path``, frame ``Frame.media_frame``) or frame folder, flipped back when
+    ``Frame.media_flipped`` (:func:`app.datasets.issia.read_frame_image`).
+
+    Raises:
+        DatasetError: the video or folder is missing or the frame cannot be read.
+    """
+    import cv2
+
+    from app.datasets.issia import IssiaSequence, read_frame_image
+
+    if frame.image_path is None or frame.media_frame is None:
+        raise DatasetError(Path(f"frame {frame.id}"), None, "no video or frame folder")
+    cid = frame.name
+    media = stored_image_file(frame, frame.image_path)
+    if not media.exists():
+        raise DatasetError(frame.image_path, None, "missing")
+    seq = IssiaSequence(root=media.parent, camera_ids=(cid,), image_size=(frame.width, frame.height), cameras={},
+                        lines={}, frames=(), points=np.empty((0, 1, 2)), media={cid: media},
+                        flipped=frozenset({cid}) if frame.media_flipped else frozenset())
+    img = read_frame_image(seq, cid, frame.media_frame, max_pixels=max_pixels).image
+    ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not ok:
+        raise DatasetError(media, f"frame {frame.media_frame}", "cannot be encoded as PNG")
+    return buf.tobytes()
