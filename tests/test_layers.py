@@ -117,6 +117,16 @@ def test_the_imports_form_no_circle():
     assert not circles, [sorted(c) for c in circles]
 
 
+def test_no_module_of_app_is_imported_by_a_string():
+    """``importlib.import_module("app....")`` or ``__import__`` would hide an edge from the graph above."""
+    dynamic = [f"{p.relative_to(APP.parent)}:{node.lineno}"
+               for p in sorted(APP.rglob("*.py"))
+               for node in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
+               if isinstance(node, ast.Call) and (getattr(node.func, "attr", None) == "import_module"
+                                                  or getattr(node.func, "id", None) in ("__import__", "import_module"))]
+    assert not dynamic, dynamic
+
+
 def test_the_issia_kind_finds_its_hooks_registered():
     from app.services.issia.trajectory import consensus_observations
     from app.services.kinds.issia import _hooks
