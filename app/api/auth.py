@@ -18,10 +18,13 @@ from typing import Annotated, Literal
 
 from fastapi import Depends, HTTPException, Request
 
-Role = Literal["annotator", "reviewer", "admin"]
+from app.db.models import UserRole
 
-#: The roles from least to most trusted; a role may do everything a lower one may.
-ROLES: tuple[Role, ...] = ("annotator", "reviewer", "admin")
+#: A role's name, as the API takes and answers it (the values of ``UserRole``: one home).
+Role = Literal[tuple(r.value for r in UserRole)]  # type: ignore[valid-type]
+
+#: The roles from least to most trusted (``UserRole``'s order); a role may do everything a lower one may.
+ROLES: tuple[str, ...] = tuple(r.value for r in UserRole)
 
 
 def held_roles(role: Role) -> list[Role]:

@@ -8,12 +8,21 @@ from typing import Any, Literal, Optional
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.api.schemas import _In
+from app.db.models import JobState
+from app.services.jobs.kinds import WORK
+from app.services.kinds import POLICIES
+
+#: The dataset formats an import takes: every kind's ``import_formats``, once each, in the kinds' order.
+ImportFormat = Literal[tuple(dict.fromkeys(f for p in POLICIES.values() for f in p.import_formats))]  # type: ignore[valid-type]
+#: What a job runs (``app.services.jobs.kinds.WORK``) and where it is (``JobState``).
+JobKindName = Literal[tuple(WORK)]  # type: ignore[valid-type]
+JobStateName = Literal[tuple(s.value for s in JobState)]  # type: ignore[valid-type]
 
 
 class ImportOptions(_In):
     """How to read a dataset to import (the form fields of an upload; :class:`ImportIn` adds the path)."""
 
-    kind: Literal["soccernet-v3", "soccernet-v3d", "sn-calibration", "issia"] = Field(
+    kind: ImportFormat = Field(
         description="Dataset layout: SoccerNet-v3 tree, SoccerNet-v3D export, SoccerNet-calibration set, ISSIA folder.")
     width: Optional[int] = Field(None, gt=1, le=65535, description="sn-calibration only: image width (px) when there "
                                                                   "are no images.")
@@ -44,7 +53,7 @@ class ImportUploadIn(BaseModel):
 
     file: bytes = Field(json_schema_extra={"format": "binary"}, description="A zip of the dataset (e.g. "
                         "<league>/<season>/<game>/Labels-v3.json and Frames-v3.zip for kind soccernet-v3).")
-    kind: Literal["soccernet-v3", "soccernet-v3d", "sn-calibration", "issia"]
+    kind: ImportFormat
     width: Optional[int] = Field(None, gt=1, le=65535)
     height: Optional[int] = Field(None, gt=1, le=65535)
     from_lines: bool = False
@@ -71,9 +80,9 @@ class JobOut(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 
     id: int
-    kind: Literal["import", "recompute", "export"]
+    kind: JobKindName
     params: dict[str, Any] = Field(description="What it runs (an import's kind and path, an export's 'all').")
-    state: Literal["queued", "running", "done", "failed"]
+    state: JobStateName
     stage: Optional[str] = Field(description="The step it is in: games, merge, calibrate, rig, triangulate, "
                                              "recompute, export.")
     done: int = Field(description="Items of the stage done.")

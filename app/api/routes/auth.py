@@ -13,7 +13,7 @@ from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
 
-from app.api.auth import PrincipalDep, held_roles
+from app.api.auth import PrincipalDep, Role, held_roles
 from app.api.authentication import start_session
 from app.api.deps import SessionDep
 from app.api.hosts import loopback_host
@@ -39,8 +39,8 @@ class MeOut(BaseModel):
     this browser session must carry (null for an API token, whose writes need none)."""
 
     name: str
-    role: Literal["annotator", "reviewer", "admin"]
-    roles: list[Literal["annotator", "reviewer", "admin"]] = Field(
+    role: Role
+    roles: list[Role] = Field(
         description="Every role whose routes this user may call: its own and the less trusted ones (the ranking "
         "of app.api.auth.ROLES; the UI offers only what the user may do).")
     via: Literal["session", "token"]

@@ -9,7 +9,7 @@ recompute and an export's file need the admin role (as imports and exports do).
 """
 from __future__ import annotations
 
-from typing import Annotated, Literal, Optional
+from typing import Annotated, Optional
 
 from fastapi import APIRouter, Depends, Path, Query, status
 from fastapi.concurrency import run_in_threadpool
@@ -17,7 +17,7 @@ from fastapi.responses import FileResponse, JSONResponse
 
 from app.api.auth import AdminDep, Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
-from app.api.job_schemas import JobOut, JobPageOut
+from app.api.job_schemas import JobKindName, JobOut, JobPageOut, JobStateName
 from app.api.schemas import DB_INT_MAX, DB_INT_MIN, NOT_FOUND, ErrorOut
 from app.db.models import Job, JobState
 from app.services.jobs import runner as jobs
@@ -59,8 +59,8 @@ def list_jobs(
     session: SessionDep,
     settings: SettingsDep,
     principal: PrincipalDep,
-    state: Annotated[Optional[Literal["queued", "running", "done", "failed"]], Query()] = None,
-    kind: Annotated[Optional[Literal["import", "recompute", "export"]], Query()] = None,
+    state: Annotated[Optional[JobStateName], Query()] = None,
+    kind: Annotated[Optional[JobKindName], Query()] = None,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
     offset: Annotated[int, Query(ge=0, le=DB_INT_MAX)] = 0,
 ) -> JobPageOut:

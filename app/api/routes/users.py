@@ -9,7 +9,7 @@ from typing import Annotated, Literal, Optional
 from fastapi import APIRouter, Depends, Path, status
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.api.auth import PrincipalDep, require_role
+from app.api.auth import PrincipalDep, Role, require_role
 from app.api.deps import SessionDep
 from app.api.schemas import INVALID, NOT_FOUND, DbInt, _In
 from app.api.security import no_store
@@ -17,12 +17,11 @@ from app.services.accounts import users
 
 router = APIRouter(prefix="/users", tags=["users"],
                    dependencies=[Depends(require_role("admin")), Depends(no_store)])
-RoleName = Literal["annotator", "reviewer", "admin"]
 
 
 class UserOut(BaseModel):
     name: str
-    role: RoleName
+    role: Role
     created_at: datetime
     tokens: int
     disabled: bool
@@ -31,7 +30,7 @@ class UserOut(BaseModel):
 
 class UserIn(_In):
     name: str = Field(max_length=100)
-    role: RoleName
+    role: Role
     password: str = Field(min_length=1, max_length=1024)
 
 
@@ -67,7 +66,7 @@ class TokenSummaryOut(BaseModel):
 
 
 class UserPatch(_In):
-    role: Optional[RoleName] = Field(None, description="The user's new role.")
+    role: Optional[Role] = Field(None, description="The user's new role.")
     disabled: Optional[bool] = Field(None, description="true: no login, sessions end, every token revoked for "
                                                        "good; false: may log in again (no token comes back).")
 
