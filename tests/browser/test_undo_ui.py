@@ -4,6 +4,8 @@ same numbers), Ctrl+Shift+Z redoes it; an exclusion (`x`) is undone the same way
 panel says each entry in words."""
 from __future__ import annotations
 
+from urllib.parse import urlsplit
+
 import pytest
 
 from tests.browser.support import api_json as _api
@@ -109,6 +111,9 @@ def test_a_decision_is_undone_by_ctrl_z_on_its_system(page, artifacts):
         page.keyboard.press("f")  # needs fix, then the next system is shown
     assert answer.value.status == 200
     assert _api(page, f"/api/systems/{sid}")["review"]["status"] == "needs_fix"
+    # the next system's page is loaded (a key pressed while the browser changes pages reaches neither page)
+    page.wait_for_url(lambda url: urlsplit(url).path != f"/systems/{sid}")
+    page.locator(tid("view")).first.wait_for()
     with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
         page.keyboard.press("Control+z")  # back on the decided system, its decision undone
     assert answer.value.status == 200
