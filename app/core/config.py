@@ -13,6 +13,7 @@ from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from app.core.paths import PROJECT_ROOT
+from app.geometry.pitch import BALL_DIAMETER_M
 
 
 #: Shortest ``V3D_SESSION_SECRET`` accepted (characters): 32 random URL-safe characters carry 192 bits.
@@ -106,10 +107,10 @@ class Settings(BaseSettings):
         "exact_ray",
         description="How the optimised box is drawn (app.geometry.ball.optimise_box): 'paper' is Eq. "
         "min_diametre (square box of side d_opt on the annotated centre); 'exact_ray' is the exact image "
-        "of the 0.22 m sphere at the same point of the annotated ray (an ellipse's box off-axis: size error "
+        "of the phi sphere at the same point of the annotated ray (an ellipse's box off-axis: size error "
         "0.08 % vs 1.4 % for 'paper' on the synthetic dev set with true cameras).",
     )
-    ball_diameter_m: float = Field(0.22, description="phi, the ball diameter in metres.")
+    ball_diameter_m: float = Field(BALL_DIAMETER_M, description="phi, the ball diameter in metres.")
     export_ball_box: Literal["refined", "optimised"] = Field(
         "refined", description="The ball box of the detector exports (YOLO, COCO) and the monocular benchmark's "
         "reference: 'refined' (v3d: the refined box where the 3D ball is well constrained, else the optimised box, "

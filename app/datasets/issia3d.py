@@ -21,6 +21,7 @@ from app.datasets.csv_cells import inert_cell, read_cell
 from app.datasets.issia import CAMERA_IDS, IssiaSequence
 from app.geometry.camera import Camera
 from app.core.errors import DatasetError
+from app.geometry.pitch import BALL_DIAMETER_M
 
 _PER_CAMERA = ("x", "y", "err", "opt_d", "opt_e")
 ISSIA3D_COLUMNS = ("frame", *(f"{c}_cam{k}" for k in CAMERA_IDS for c in _PER_CAMERA), "num_cameras", "ball_3D",
@@ -111,7 +112,7 @@ def read_issia3d_csv(path: str | Path) -> list[Issia3DRow]:
     return out
 
 
-def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *, ball_diameter_m: float = 0.22,
+def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *, ball_diameter_m: float = BALL_DIAMETER_M,
                  box_method: str = "paper") -> list[Issia3DRow]:
     """Build the ``ISSIA-3D.csv`` rows of ``seq`` from a :class:`app.geometry.trajectory.TrajectoryFit`.
 

@@ -10,8 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.geometry.camera import Camera
+from app.geometry.pitch import BALL_DIAMETER_M
 
-BALL_RADIUS_M = 0.11
+BALL_RADIUS_M = BALL_DIAMETER_M / 2.0
 #: Height of a player figure, metres.
 PLAYER_HEIGHT_M = 1.8
 

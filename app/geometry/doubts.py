@@ -47,7 +47,7 @@ from app.geometry.ball import ball_from_box_exact, sphere_image_box
 from app.geometry.camera import Camera
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.mirror import mirror_camera
-from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M, within_play_volume
+from app.geometry.pitch import BALL_DIAMETER_M, PITCH_LENGTH_M, PITCH_WIDTH_M, within_play_volume
 from app.geometry.triangulation import (REFERENCE_WIDTH_PX, BallObservation, PairGeometry, pair_geometry,
                                         reprojection_error_px)
 
@@ -203,7 +203,7 @@ class DoubtSettings:
     pair_error_rule: str = "max_scaled_1920"
     min_baseline_m: float = 1.0
     min_parallax_deg: float = 2.0
-    ball_diameter_m: float = 0.22
+    ball_diameter_m: float = BALL_DIAMETER_M
     consensus_tau_px: float = 25.0
     near_duplicate_max_deg: float = 3.0
     inside_margin_px: float = 0.0

@@ -38,11 +38,11 @@ from typing import Sequence
 import numpy as np
 
 from app.geometry.camera import Camera
-from app.geometry.pitch import within_play_volume
+from app.geometry.pitch import BALL_DIAMETER_M, within_play_volume
 from app.geometry.triangulation import REFERENCE_WIDTH_PX
 
 GRAVITY_M_S2 = 9.81
-BALL_RADIUS_M = 0.11
+BALL_RADIUS_M = BALL_DIAMETER_M / 2.0
 KINDS = ("flight", "roll")
 #: Scale of the Cauchy loss on pixel residuals (px at 1920 width): label noise is about 1 px.
 CAUCHY_PX = 3.0

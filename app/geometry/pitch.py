@@ -24,6 +24,8 @@ GOAL_AREA_LENGTH_M = 5.5
 CENTER_CIRCLE_RADIUS_M = 9.15
 GOAL_HEIGHT_M = 2.44
 GOAL_LENGTH_M = 7.32
+#: phi, the diameter of a size-5 ball (FIFA Laws of the Game, law 2: 68-70 cm round), metres; the paper's 0.22 m.
+BALL_DIAMETER_M = 0.22
 
 #: Every class a SoccerNet field-line annotation may carry (note the trailing space of
 #: "Goal left post left "). "Goal unknown" and "Line unknown" are valid labels with no model element.

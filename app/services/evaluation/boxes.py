@@ -38,6 +38,7 @@ from app.db.models import Frame, Game, ReviewDecision, ReviewStatus, System
 from app.geometry.metrics import box_iou, box_size_error_pct
 from app.services.kinds import kind_of
 from app.services.transfer.detector_export import BALL_BOX_LOADS, refined_boxes
+from app.geometry.pitch import BALL_DIAMETER_M
 
 PRECISE_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y2")
 BOX_KINDS = ("original", "optimised", "refined")
@@ -123,7 +124,7 @@ def _summary(boxes: list[np.ndarray], precise: list[np.ndarray]) -> dict[str, An
             "size_error_pct": float(np.mean(box_size_error_pct(a, b)))}
 
 
-def evaluate_boxes(session: Session, include_all: bool = False, ball_diameter_m: float = 0.22) -> dict[str, Any]:
+def evaluate_boxes(session: Session, include_all: bool = False, ball_diameter_m: float = BALL_DIAMETER_M) -> dict[str, Any]:
     """``{"original": {"n", "iou", "size_error_pct"}, "optimised": {...}, "refined": {...}, "views": n}``
     over the views with a precise box of the chosen systems (module docstring); ``iou`` and
     ``size_error_pct`` are None where ``n`` is 0."""

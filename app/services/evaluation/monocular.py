@@ -40,6 +40,7 @@ from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SP
 from app.core.errors import DatasetError, InvalidInputError
 from app.services.transfer.cameras_export import read_cameras
 from app.services.transfer.exporting import exported_systems
+from app.geometry.pitch import BALL_DIAMETER_M
 
 #: Thresholds (metres) of the precision-threshold curve.
 CURVE_THRESHOLDS_M = tuple(float(t) for t in np.round(np.arange(0.0, 10.0001, 0.25), 2))
@@ -108,7 +109,7 @@ def with_cameras(views: list[ReferenceView], cameras_dir: str | Path) -> tuple[l
     return out, missing
 
 
-def reference_views(session: Session, include_all: bool = False, ball_diameter_m: float = 0.22,
+def reference_views(session: Session, include_all: bool = False, ball_diameter_m: float = BALL_DIAMETER_M,
                     ball_box: str = "refined") -> list[ReferenceView]:
     """The views of the selected systems (accepted unless ``include_all``) whose label made their
     system's 3D ball: views in at least one kept triangulation pair, with an optimised box. A view whose
@@ -335,7 +336,7 @@ def _report(views: list[ReferenceView], dets: Detections, ball_diameter_m: float
 
 
 def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 0,
-             ball_diameter_m: float = 0.22, estimator: str = "exact") -> dict[str, Any]:
+             ball_diameter_m: float = BALL_DIAMETER_M, estimator: str = "exact") -> dict[str, Any]:
     """The benchmark report: the whole set's figures at the top level and ``splits`` {split: figures}.
 
     Args:
@@ -361,7 +362,7 @@ def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 
 
 
 def evaluate_predictions(session: Session, predictions: str | Path, include_all: bool = False,
-                         ball_class: int | None = None, ball_diameter_m: float = 0.22,
+                         ball_class: int | None = None, ball_diameter_m: float = BALL_DIAMETER_M,
                          estimator: str = "exact", cameras_dir: str | Path | None = None,
                          ball_box: str = "refined", *, name: str | None = None,
                          max_coco_bytes: int = MAX_COCO_FILE_BYTES) -> dict[str, Any]:

@@ -9,6 +9,7 @@ import numpy as np
 
 from app.geometry.sensitivity import centre_sensitivity, size_sensitivity
 from app.services.evaluation.monocular import ReferenceView
+from app.geometry.pitch import BALL_DIAMETER_M
 
 #: Variations of the sensitivity study (paper: box size +-10 %, centre up to 2 % of the diagonal).
 SIZE_PCT = tuple(float(v) for v in np.linspace(-10.0, 10.0, 41))
@@ -54,7 +55,7 @@ def plot_precision_curve(report: dict[str, Any], out_dir: str | Path) -> list[Pa
     return paths
 
 
-def sensitivity_curves(views: list[ReferenceView], ball_diameter_m: float = 0.22, samples: int = 100,
+def sensitivity_curves(views: list[ReferenceView], ball_diameter_m: float = BALL_DIAMETER_M, samples: int = 100,
                        seed: int = 0, estimator: str = "exact") -> dict[str, Any]:
     """Errors (m) against the reference 3D ball of up to ``samples`` views (drawn with ``seed``) under
     the size and centre variations of their reference boxes, with the monocular ``estimator``

@@ -58,6 +58,7 @@ from app.geometry.refined_box import refine_box
 from app.services.kinds import kind_of
 from app.services.transfer.exporting import exported_systems
 from app.services.transfer.images import ImageUnavailable, frame_image
+from app.geometry.pitch import BALL_DIAMETER_M
 
 BALL_CLASS = "Ball"
 #: SoccerNet-v3 box classes other than the ball, in class-id order after it.
@@ -118,7 +119,7 @@ class ExportView:
     boxes: tuple[tuple[int, tuple[float, float, float, float]], ...]
 
 
-def refined_boxes(system: System, ball_diameter_m: float = 0.22,
+def refined_boxes(system: System, ball_diameter_m: float = BALL_DIAMETER_M,
                   sigma_fraction: float = ANNOTATION_SIGMA_FRACTION) -> dict[int, np.ndarray]:
     """Frame id -> refined ball box (4,) px of the views of ``system`` whose 3D ball is well constrained.
 
@@ -158,7 +159,7 @@ def refined_boxes(system: System, ball_diameter_m: float = 0.22,
     return out
 
 
-def ball_boxes(system: System, ball_diameter_m: float = 0.22,
+def ball_boxes(system: System, ball_diameter_m: float = BALL_DIAMETER_M,
                ball_box: str = "refined") -> dict[int, tuple[list[float], str]]:
     """Frame id -> ``(box [x1, y1, x2, y2] px, source)`` of the views of ``system`` that have a ball box
     to export; source is ``"refined"``, ``"optimised"`` or ``"annotated"`` (module docstring). ``ball_box``
@@ -195,7 +196,7 @@ def _clip(box: list[float], width: int, height: int) -> tuple[float, float, floa
 
 
 def iter_export_views(session: Session, export: Literal["yolo", "coco"], include_all: bool,
-                      report: DetectorExportReport, ball_diameter_m: float = 0.22,
+                      report: DetectorExportReport, ball_diameter_m: float = BALL_DIAMETER_M,
                       ball_box: str = "refined") -> Iterator[ExportView]:
     """The views ``export`` writes, game by game (systems of the kinds that take it, accepted unless
     ``include_all``), with their boxes, split and file stem as the system's kind names them.
@@ -262,7 +263,7 @@ def _count(report: DetectorExportReport, view: ExportView) -> None:
 
 
 def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False,
-                ball_diameter_m: float = 0.22, ball_box: str = "refined") -> DetectorExportReport:
+                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined") -> DetectorExportReport:
     """Write the Ultralytics YOLO layout under ``out_dir`` (module docstring); existing files of the
     same names are overwritten.
 
@@ -299,7 +300,7 @@ def yolo_data_yaml(report: DetectorExportReport) -> str:
 
 
 def export_coco(session: Session, out_dir: str | Path, include_all: bool = False,
-                ball_diameter_m: float = 0.22, ball_box: str = "refined") -> DetectorExportReport:
+                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined") -> DetectorExportReport:
     """Write the COCO layout under ``out_dir``: per split the images and ``instances.json``.
 
     COCO image ids are the frames' database ids; category ids are the class ids + 1.
@@ -332,7 +333,7 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
 
 
 def export_detector(session: Session, fmt: Literal["yolo", "coco"], out_dir: str | Path,
-                    include_all: bool = False, ball_diameter_m: float = 0.22,
+                    include_all: bool = False, ball_diameter_m: float = BALL_DIAMETER_M,
                     ball_box: str = "refined") -> DetectorExportReport:
     """:func:`export_yolo` or :func:`export_coco` by name (``ball_box``: ``Settings.export_ball_box``)."""
     return (export_yolo if fmt == "yolo" else export_coco)(session, out_dir, include_all, ball_diameter_m, ball_box)
