@@ -13,7 +13,7 @@ from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from app.core.paths import PROJECT_ROOT
-from app.geometry.pitch import BALL_DIAMETER_M
+from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES
 
 
 #: Shortest ``V3D_SESSION_SECRET`` accepted (characters): 32 random URL-safe characters carry 192 bits.
@@ -158,7 +158,7 @@ class Settings(BaseSettings):
         2.0, description="... while as labelled it stands at least this much farther from every one (metres).",
     )
     doubt_min_line_classes: int = Field(
-        4,
+        MIN_LINE_CLASSES,
         description="Views with fewer distinct field-line classes take no part in the doubt checks (info few_lines): "
         "rig cameras fitted to 2 classes reach JaC 1.0 yet turn the ball ray; 2 gives 9 clean false alarms of 233 "
         "on the dev sets, 3 and 4 one, 5 misses corrupted views.",

@@ -47,7 +47,7 @@ from app.geometry.ball import ball_from_box_exact, sphere_image_box
 from app.geometry.camera import Camera
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.mirror import mirror_camera
-from app.geometry.pitch import BALL_DIAMETER_M, PITCH_LENGTH_M, PITCH_WIDTH_M, within_play_volume
+from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, PITCH_LENGTH_M, PITCH_WIDTH_M, within_play_volume
 from app.geometry.triangulation import (REFERENCE_WIDTH_PX, BallObservation, PairGeometry, pair_geometry,
                                         reprojection_error_px)
 
@@ -214,7 +214,7 @@ class DoubtSettings:
     play_margin_m: float = 15.0
     mirror_rig_near_m: float = 1.0
     mirror_rig_gap_m: float = 2.0
-    min_line_classes: int = 4
+    min_line_classes: int = MIN_LINE_CLASSES
 
 
 def _scale(view: DoubtView, s: DoubtSettings) -> float:

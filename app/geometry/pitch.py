@@ -26,6 +26,10 @@ GOAL_HEIGHT_M = 2.44
 GOAL_LENGTH_M = 7.32
 #: phi, the diameter of a size-5 ball (FIFA Laws of the Game, law 2: 68-70 cm round), metres; the paper's 0.22 m.
 BALL_DIAMETER_M = 0.22
+#: A view with fewer distinct field-line classes is few-lined: its camera may fit its own lines perfectly (JaC 1.0)
+#: yet turn its ball ray by degrees. The calibration flags it ``few_lines``; the doubts take it out of their checks
+#: (``V3D_DOUBT_MIN_LINE_CLASSES`` defaults to it).
+MIN_LINE_CLASSES = 4
 
 #: Every class a SoccerNet field-line annotation may carry (note the trailing space of
 #: "Goal left post left "). "Goal unknown" and "Line unknown" are valid labels with no model element.

@@ -68,7 +68,7 @@ export const WORDS = /*WORDS*/{
   },
   "few_lines": {
    "chip": "few lines",
-   "means": "three field-line classes or fewer"
+   "means": "fewer than 4 field-line classes"
   },
   "given_camera": {
    "chip": "given camera",

@@ -79,7 +79,7 @@ from app.geometry.calibration.solver import PriorRows, abs_percentile, robust_lm
 from app.geometry.calibration.uncertainty import line_noise, parameter_covariance
 from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
-from app.geometry.pitch import MIRROR_CLASSES, PITCH_WIDTH_M
+from app.geometry.pitch import MIN_LINE_CLASSES, MIRROR_CLASSES, PITCH_WIDTH_M
 
 #: Flag of a calibration made with its centre fixed by a prior (a position of the game's camera rig).
 RIG_FLAG = "rig_assisted"
@@ -195,7 +195,7 @@ class CalibrationResult:
             the line that disagrees.
         flags: ``"probably_mirrored"`` (camera on the other side than ``prior.expected_side``, beyond
             the far side line: the labels are probably mirrored, :attr:`mirrored_lines` is the fix),
-            ``"few_lines"`` (3 labelled classes or fewer), ``"radial_distortion"`` (``k1`` fitted),
+            ``"few_lines"`` (fewer labelled classes than :data:`app.geometry.pitch.MIN_LINE_CLASSES`), ``"radial_distortion"`` (``k1`` fitted),
             ``"ignored_class:<class>"`` (that class disagrees with every camera fitting the others;
             its residual stays in :attr:`residuals_px`), ``"rig_assisted"`` (centre fixed by a prior).
         rms_px: root mean square point distance, px.
@@ -760,7 +760,7 @@ def _calibrate(
     need = 4 if fixed else settings.min_constraints
     n_constraints = obs.constraint_count()
     flags: list[str] = []
-    if len(obs.classes) <= 3:
+    if len(obs.classes) < MIN_LINE_CLASSES:
         flags.append("few_lines")
     if n_constraints < need:
         return _refused(f"fewer than {need} independent line constraints ({n_constraints}: "

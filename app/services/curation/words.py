@@ -24,6 +24,8 @@ import json
 import sys
 from typing import Any
 
+from app.geometry.pitch import MIN_LINE_CLASSES
+
 WORDS: dict[str, dict[str, dict[str, str]]] = {
     "doubt": {
         "mirrored_labels": {"chip": "mirrored labels",
@@ -55,7 +57,7 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "learned_prior": {"chip": "learned prior", "means": "fitted with the camera prior learned from the dataset"},
         "radial_prior": {"chip": "lens prior", "means": "the lens distortion was fitted under the learned prior"},
         "radial_distortion": {"chip": "lens distortion", "means": "the lens distortion was fitted"},
-        "few_lines": {"chip": "few lines", "means": "three field-line classes or fewer"},
+        "few_lines": {"chip": "few lines", "means": f"fewer than {MIN_LINE_CLASSES} field-line classes"},
         "given_camera": {"chip": "given camera", "means": "the camera came with the data, not from its lines"},
         "ball_assisted": {"chip": "ball-assisted", "means": "calibrated again from the ball seen by the other cameras"},
         "ball_bundle": {"chip": "ball bundle", "means": "refined with the other cameras from their lines and the ball"},
