@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.datasets.issia import read_issia, sequence_cameras
+from app.datasets.issia import read_issia
+from app.services.issia.cameras import sequence_cameras
 from app.geometry.trajectory import fit_trajectory, refit_window
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic"

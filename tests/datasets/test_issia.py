@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from app.datasets.issia import read_frame_image, read_issia, sequence_cameras
+from app.datasets.issia import read_frame_image, read_issia
+from app.services.issia.cameras import sequence_cameras
 from app.datasets.issia3d import ISSIA3D_COLUMNS, Issia3DRow, issia3d_rows, read_issia3d_csv, write_issia3d_csv
 from app.geometry.camera import Camera
 from app.core.errors import DatasetError

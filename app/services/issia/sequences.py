@@ -4,7 +4,7 @@
   (league :data:`LEAGUE`, season :data:`SEASON`, match the folder's name), one multi-view system of
   kind ``issia`` per frame index (``System.frame_index``, name the index) and one view per camera
   ("cam<k>", role ``static``). Each static camera is calibrated once
-  (:func:`app.datasets.issia.sequence_cameras`: ``issia_calibration.json``, or the field lines with
+  (:func:`app.services.issia.cameras.sequence_cameras`: ``issia_calibration.json``, or the field lines with
   ``from_lines``) and stored on each of its views' calibrations (JaC against the camera's lines when
   there are lines). Point labels become :class:`~app.db.models.BallLabel` points. Then the sequence's
   trajectory is fitted (``app.services.issia.trajectory``) and every system recomputed (admission,
@@ -33,9 +33,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.datasets.issia import (
-    CAMERA_SET, FPS, CameraChoice, IssiaSequence, bundle_refined_cameras, read_issia, sequence_cameras,
-)
+from app.datasets.issia import CAMERA_SET, FPS, IssiaSequence, read_issia
 from app.db.models import (
     BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game,
     ReviewStatus, System, SystemKind,
@@ -47,6 +45,7 @@ from app.geometry.calibration.held_out import class_point_distances
 from app.geometry.camera import Camera
 from app.geometry.jac import jac_at_gammas
 from app.geometry.trajectory import fit_trajectory
+from app.services.issia.cameras import CameraChoice, bundle_refined_cameras, sequence_cameras
 from app.services.curation.doubts import update_doubts
 from app.core.errors import DatasetError
 from app.services.accounts.audit import record_summary
@@ -223,7 +222,7 @@ def refined_with_ball(session: Session, frame: Frame, fields: CalibrationFields,
     """The calibration of an ISSIA view recalibrated from its edited field lines (``fields``, from the lines
     alone), refined again from its lines and the sequence's ball labels when its stored calibration was so
     refined (flag :data:`BALL_BUNDLE_FLAG`: ``v3d import issia --from-lines``), as the import refined it
-    (:func:`app.datasets.issia.bundle_refined_cameras`): the other cameras are the sequence's (each camera's
+    (:func:`app.services.issia.cameras.bundle_refined_cameras`): the other cameras are the sequence's (each camera's
     first admitted view's) with their views' lines, the ball labels those of the stored sequence, the
     trajectory fitted with these cameras. Kept, with the flag, when its JaC@0.5 % against the view's lines
     stays above ``admit_jac_min``; ``fields`` otherwise (and for any other view). Changes nothing stored.
