@@ -9,12 +9,13 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.api.schemas import _In
 from app.db.models import JobState
-from app.services.jobs.kinds import WORK
+from app.services.jobs.work import WORK
+from app.services.transfer.import_formats import refused_options
 from app.services.kinds import POLICIES
 
 #: The dataset formats an import takes: every kind's ``import_formats``, once each, in the kinds' order.
 ImportFormat = Literal[tuple(dict.fromkeys(f for p in POLICIES.values() for f in p.import_formats))]  # type: ignore[valid-type]
-#: What a job runs (``app.services.jobs.kinds.WORK``) and where it is (``JobState``).
+#: What a job runs (``app.services.jobs.work.WORK``) and where it is (``JobState``).
 JobKindName = Literal[tuple(WORK)]  # type: ignore[valid-type]
 JobStateName = Literal[tuple(s.value for s in JobState)]  # type: ignore[valid-type]
 
@@ -35,10 +36,9 @@ class ImportOptions(_In):
 
     @model_validator(mode="after")
     def _size_for_calibration_only(self) -> "ImportOptions":
-        if self.kind != "sn-calibration" and (self.width is not None or self.height is not None):
-            raise ValueError("width and height apply to kind 'sn-calibration' only")
-        if self.kind != "issia" and (self.from_lines or self.flip):
-            raise ValueError("from_lines and flip apply to kind 'issia' only")
+        why = refused_options(self.kind, self.model_dump(include={"width", "height", "from_lines", "flip"}))
+        if why:
+            raise ValueError(why)
         return self
 
 

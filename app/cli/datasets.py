@@ -20,7 +20,7 @@ from tqdm import tqdm
 from app.cli._root import export_cli, import_cli
 from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
-from app.services.jobs.kinds import import_params
+from app.services.jobs.work import import_params
 
 DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]

@@ -10,7 +10,7 @@ from pathlib import Path
 import sqlalchemy as sa
 
 from app.db.models import Frame, System
-from app.services.jobs.kinds import import_result
+from app.services.jobs.work import import_result
 from app.services.transfer.importing import import_soccernet_v3
 
 from .datasets import DEV_GAME, dev_game_dir, write_v3_game

@@ -24,7 +24,7 @@ from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
 from app.services.transfer import export_files, exporting
 from app.services.jobs import runner as jobs
-from app.services.jobs.kinds import export_params
+from app.services.jobs.work import export_params
 
 router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
 

@@ -33,7 +33,7 @@ from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack
 from app.services.transfer.data_root import confined_path
 from app.core.errors import DatasetError, InvalidInputError
 from app.datasets.files import refuse_links_out
-from app.services.jobs.kinds import import_params
+from app.services.jobs.work import import_params
 
 router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
 

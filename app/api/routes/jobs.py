@@ -23,7 +23,7 @@ from app.db.models import Job, JobState
 from app.services.jobs import runner as jobs
 from app.core.errors import NotFoundError
 from app.core.config import Settings
-from app.services.jobs.kinds import export_path, without_server_paths
+from app.services.jobs.work import export_path, without_server_paths
 from app.services.transfer.export_files import prune_exports
 
 router = APIRouter(tags=["jobs"])

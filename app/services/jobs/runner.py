@@ -23,7 +23,7 @@ keys and left as they are), a recompute recomputes every system again, an export
 A runner whose job was taken over (its heartbeat found another owner) stops at its next progress
 report (:class:`JobLost`) without writing anything more.
 
-What each kind does is in ``app.services.jobs.kinds``.
+What each kind does is in ``app.services.jobs.work``.
 """
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ from app.services.jobs.progress import Progress
 
 log = logging.getLogger(__name__)
 
-#: The kinds of job and what each does (``app.services.jobs.kinds``).
+#: The kinds of job and what each does (``app.services.jobs.work``).
 JOB_KINDS = ("import", "recompute", "export")
 UNFINISHED = (JobState.QUEUED, JobState.RUNNING)
 
@@ -306,7 +306,7 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
     Returns:
         The job as stored at the end (as last read when it was taken over: :class:`JobLost`).
     """
-    from app.services.jobs.kinds import WORK
+    from app.services.jobs.work import WORK
 
     live = _Live()
     with session_factory() as session:

@@ -1,4 +1,4 @@
-"""Every export as one zip file, written by a background job (``app.services.jobs.kinds.run_export``) or a
+"""Every export as one zip file, written by a background job (``app.services.jobs.work.run_export``) or a
 request: the formats, the zip of an export tree, and how long the server keeps an export job's file.
 
 Formats (:data:`EXPORT_FORMATS`): ``soccernet-v3d`` (``app.services.transfer.exporting``, streamed into the

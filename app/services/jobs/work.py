@@ -20,6 +20,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
 from app.services.jobs.progress import Progress
+from app.services.transfer.import_formats import import_format
 
 
 def import_params(kind: str, path: str | Path, *, width: int | None = None, height: int | None = None,
@@ -104,27 +105,12 @@ def server_folders(settings: Settings) -> dict[str, str]:
 
 def _import(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
             job_id: int | None = None) -> dict[str, Any]:
-    from app.services.transfer import importing
-
     if params.get("calibration_workers") is not None:
         settings = settings.model_copy(update={"calibration_workers": params["calibration_workers"]})
-    kind, path = params["kind"], params["path"]
+    fmt = import_format(params["kind"])
     actor = params.get("actor")  # who queued it (the import's audit entry); None: the local user (CLI)
-    named = {"actor": actor, "source_name": shown_source(params, settings, job_id)}
-    if kind == "soccernet-v3":
-        report = importing.import_soccernet_v3(session, path, settings, progress=progress, **named)
-    elif kind == "soccernet-v3d":
-        report = importing.import_soccernet_v3d(session, path, settings, progress=progress, **named)
-    elif kind == "sn-calibration":
-        report = importing.import_sn_calibration(session, path, settings, width=params.get("width"),
-                                                 height=params.get("height"), progress=progress, **named)
-    elif kind == "issia":
-        from app.services.issia.sequences import import_issia
-
-        report = import_issia(session, path, settings, from_lines=bool(params.get("from_lines")),
-                              flipped_cameras=params.get("flip") or [], progress=progress, **named)
-    else:
-        raise ValueError(f"unknown import kind {kind!r}")
+    report = fmt.run(session, params["path"], settings, {o: params.get(o) for o in fmt.options}, progress=progress,
+                     actor=actor, source_name=shown_source(params, settings, job_id))
     return import_result(report)
 
 
