@@ -48,7 +48,7 @@ class Settings(BaseSettings):
         description="'paper' sets every choice where v3d's default differs from the paper (PAPER_PROFILE: the "
         "optimised box of Eq. min_diametre, hence the paper's monocular estimator, no parallax filter, the optimised "
         "box as the exports' ball box); a "
-        "V3D_* setting given explicitly still wins. 'v3d': v3d's defaults (README, 'The paper's settings').",
+        "V3D_* setting given explicitly still wins. 'v3d': v3d's defaults (docs/configuration.md, 'The paper's settings in one switch').",
     )
 
     def derived_fingerprint(self) -> str:
