@@ -49,7 +49,7 @@ from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
-from app.services.curation.editing import get_system
+from app.services.curation.writing import get_system
 from app.core.errors import NotFoundError
 from app.services.jobs.runner import JobRunner
 from app.services.accounts.throttle import login_throttle

@@ -410,7 +410,7 @@ def check_recomputations(database_url: str, system_ids: list[int], report: LoadR
     from app.db.models import System
     from app.db.session import make_engine, make_session_factory
     from app.api.view_schemas import SystemView
-    from app.services.curation.recompute import recompute_system
+    from app.services.derivation.recompute import recompute_system
     from app.services.curation.system_page import system_page
 
     def system_view(session, system_id):  # the system view's JSON, as GET /api/systems/{id} answers it

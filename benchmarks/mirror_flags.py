@@ -61,7 +61,7 @@ from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
 from app.geometry.calibration import CalibrationPrior, calibrate_frame  # noqa: E402
 from app.geometry.mirror import MirrorView, mirror_evidence  # noqa: E402
 from app.geometry.pitch import MIRROR_CLASSES  # noqa: E402
-from app.services.curation.editing import apply_mirrored_labels  # noqa: E402
+from app.services.curation.editing import apply_mirrored_labels
 from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
 from app.geometry.calibration.frame import MIRROR_FLAG# noqa: E402
 

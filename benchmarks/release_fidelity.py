@@ -4,7 +4,7 @@ export's ``Labels-v3D.json`` (a field: a leaf of the JSON document, found by its
 each export is then read the way SoccerNet-v3's devkit reads a ``Labels-v3.json`` (:func:`devkit_read`).
 
 Nothing is edited here, so every imported field must be in the export with its value (the curated lines and ball
-box are the imported ones); edits are the round trip's business (``tests/services/test_exporting.py``).
+box are the imported ones); edits are the round trip's business (``tests/services/transfer/test_exporting.py``).
 
 Run: ``.venv/bin/python benchmarks/release_fidelity.py TREE [TREE ...] [--json OUT]`` (default: the synthetic
 SoccerNet-v3 dev sets and the doubts seeds under ``../shared``). Prints per tree the games, frames, fields

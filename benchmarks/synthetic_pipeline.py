@@ -6,7 +6,7 @@ calibration in the process pool, the game-rig retry, admission, triangulation, r
 optimised boxes), reads back what was stored and compares it with ``soccernet-v3-dev.truth.json``:
 
 1. **Calibration per view**, without and with the game rig. The service has no switch for the rig
-   (``app.services.curation.recompute``: a frame refused from its lines alone, or calibrated below admission,
+   (``app.services.derivation.recompute``: a frame refused from its lines alone, or calibrated below admission,
    is always retried with the game's rig), so the *no-rig* row calls the pure ``calibrate_frame`` on
    each stored view's lines with the prior the service gives it (``calibrating.expected_side``), which is the service's first pass;
    the *with-rig* row is what the service stored. A third row retries the views the service retries
@@ -29,7 +29,7 @@ Nothing is tuned here: the settings are the service's defaults (``Settings()`` w
 ``V3D_*`` variables still apply and are printed).
 
 Run: ``cd /work/main && .venv/bin/python benchmarks/synthetic_pipeline.py [--json OUT] [--shared ../shared]``.
-The acceptance test ``tests/services/test_synthetic_pipeline.py`` calls :func:`run` and checks its figures.
+The acceptance test ``tests/services/derivation/test_synthetic_pipeline.py`` calls :func:`run` and checks its figures.
 """
 from __future__ import annotations
 

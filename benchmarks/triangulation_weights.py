@@ -33,7 +33,7 @@ from app.geometry import triangulation as T  # noqa: E402
 from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.pitch import within_play_volume  # noqa: E402
 from app.services.curation.doubts import calibration_weights, is_excluded  # noqa: E402
-from app.services.curation.recompute import _label_centre, mirror_settings  # noqa: E402
+from app.services.derivation.recompute import _label_centre, mirror_settings  # noqa: E402
 from benchmarks.doubts_seeds import SETS  # noqa: E402
 
 VARIANTS: dict[str, float | None] = {"paper": None, "tier only": 0.0, "min 1.0": 1.0, "min 1.5": 1.5}

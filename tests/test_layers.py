@@ -123,7 +123,7 @@ def test_the_imports_form_no_circle():
     """Imports inside functions count: one that hides a circle from the interpreter still ties the two modules.
     Untied by issue 30: the calibration package's (the learned prior and the kernels' warm-up sit above what they
     call), the ISSIA kind's (its services register their hooks from above, ``app.services.issia``) and the images'
-    (a video frame is decoded by ``transfer.images`` itself)."""
+    (a video frame is decoded by ``images.serving`` itself)."""
     circles = _circles(_module_graph())
     assert not circles, [sorted(c) for c in circles]
 

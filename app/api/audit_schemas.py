@@ -7,12 +7,12 @@ from typing import Any, Optional
 from pydantic import BaseModel, ConfigDict, Field, computed_field, model_validator
 
 from app.api.schemas import DB_INT_MAX, DbInt, QueryText
-from app.services.accounts import audit
-from app.services.accounts.summaries import summarize
+from app.services.audit import log as audit
+from app.services.audit.summaries import summarize
 
 
 class AuditEntryOut(BaseModel):
-    """One audited write (``app.services.accounts.audit``): who, when, what, the edited part before and after
+    """One audited write (``app.services.audit.log``): who, when, what, the edited part before and after
     (``{"ball": {box, point}}``, ``{"lines": {...}}``, ``{"excluded": bool}``, ``{"review": {status,
     comment}}``; an import's or recompute's counts in ``after``). Read from the ``AuditEntry`` row."""
 

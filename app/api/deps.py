@@ -16,8 +16,8 @@ from sqlalchemy.orm import Session
 from app.api.schemas import DB_INT_MAX, DB_INT_MIN
 from app.core.config import Settings
 from app.db.models import Frame, System
-from app.services.curation.editing import get_frame as _get_frame
-from app.services.curation.editing import get_system as _get_system
+from app.services.curation.writing import get_frame as _get_frame
+from app.services.curation.writing import get_system as _get_system
 
 
 def get_app_settings(request: Request) -> Settings:

@@ -1,6 +1,6 @@
 """Domain errors to HTTP answers, in one place.
 
-* :class:`~app.core.errors.NotFoundError` and :class:`~app.services.transfer.images.ImageUnavailable`: 404
+* :class:`~app.core.errors.NotFoundError` and :class:`~app.services.images.serving.ImageUnavailable`: 404
   with the message (it names the missing id or file);
 * :class:`~app.core.errors.ForbiddenError`: 403 (e.g. an import path outside the data root);
 * :class:`~app.services.transfer.archives.UploadTooLarge`: 413 (an upload above ``V3D_MAX_UPLOAD_MB``);
@@ -49,7 +49,7 @@ from app.core.errors import (
 )
 from app.services.transfer.archives import UploadTooLarge
 from app.services.jobs.runner import JobNotReady
-from app.services.transfer.images import ImageUnavailable
+from app.services.images.serving import ImageUnavailable
 
 
 #: Longest ``input`` (as JSON, characters) a validation error quotes back; a longer one is left out.

@@ -26,7 +26,7 @@ from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.geometry import pitch
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.triangulation import error_above_tau, rule_reference_width_px, scaled_error_px
-from app.services.transfer.images import frame_has_image
+from app.services.images.serving import frame_has_image
 from app.services.curation.doubts import doubt_provenance, suggestion_json
 from app.services.curation.system_page import SystemPageData, pitch_lines, pitch_lines_key, round_px
 from app.services.curation.versions import frame_etag, system_etag
@@ -135,7 +135,7 @@ class DoubtOut(BaseModel):
 
 class SystemSummaryOut(BaseModel):
     """A row of the review queue: figures stored by the system's last recomputation (aggregates over the
-    admitted views, ``app.services.curation.recompute.update_summary``)."""
+    admitted views, ``app.services.derivation.recompute.update_summary``)."""
 
     model_config = _ORM
 

@@ -27,7 +27,7 @@ def doubts_cmd(
 ) -> None:
     """Report the doubts of every system: counts per kind, and optionally the whole list as JSON."""
     from app.services.curation.doubts import doubts_report
-    from app.services.curation.recompute import refresh_stale_systems
+    from app.services.derivation.recompute import refresh_stale_systems
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:

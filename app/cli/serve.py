@@ -66,9 +66,9 @@ def refresh_derived(settings: Settings) -> str | None:
     settings (a changed ``V3D_PROFILE``: stale until ``v3d recompute``, which may take long, so not done here).
     Returns lines for the console, None when nothing was stale."""
     from app.db.session import make_engine, make_session_factory
-    from app.services.curation.recompute import refresh_stale_systems
+    from app.services.derivation.recompute import refresh_stale_systems
 
-    from app.services.curation.recompute import systems_computed_otherwise
+    from app.services.derivation.recompute import systems_computed_otherwise
 
     engine = make_engine(settings.database_url)
     try:

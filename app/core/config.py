@@ -54,7 +54,7 @@ class Settings(BaseSettings):
     def derived_fingerprint(self) -> str:
         """16 hex digits naming the values of :data:`DERIVED_SETTINGS`: what a system's stored 3D ball, pairs and
         boxes were computed with (``System.derived_settings``); a profile or setting changed since makes them stale
-        for ``v3d recompute`` (``app.services.curation.recompute.systems_computed_otherwise``).
+        for ``v3d recompute`` (``app.services.derivation.recompute.systems_computed_otherwise``).
 
         >>> Settings(_env_file=None).derived_fingerprint() == Settings(_env_file=None, profile="paper").derived_fingerprint()
         False

@@ -211,7 +211,7 @@ class System(Base):
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True, order_by="Doubt.id"
     )
     # ----- the review queue's figures, written by every recomputation of the system
-    # (``app.services.curation.recompute.update_summary``) so that the queue reads them instead of aggregating
+    # (``app.services.derivation.recompute.update_summary``) so that the queue reads them instead of aggregating
     # on every request. Aggregates are over the **admitted** views, the ones the 3D ball is made of.
     #: Doubts per kind (``{kind: n}``, every kind present), written with the doubts.
     doubt_counts: Mapped[dict[str, Any]] = mapped_column(default=dict)
@@ -235,7 +235,7 @@ class System(Base):
     #: transaction of every decision and recomputation: the queue filters and counts by it.
     review_status: Mapped[ReviewStatus] = mapped_column(
         enum_by_value(ReviewStatus, "system_review_status"), default=ReviewStatus.PENDING, index=True)
-    #: Version of the derived rows and figures (``app.services.curation.recompute.DERIVED_VERSION``); a system
+    #: Version of the derived rows and figures (``app.services.derivation.recompute.DERIVED_VERSION``); a system
     #: stored by an older version is recomputed before it is served (``refresh_stale_systems``).
     derived_version: Mapped[int] = mapped_column(default=0)
     #: The fingerprint of the settings the derived rows were computed with (``Settings.derived_fingerprint``,
@@ -266,7 +266,7 @@ class Frame(Base):
     The image is either a member of a zip archive (``image_zip`` + ``image_member``, read without
     extracting) or a file (``image_path``), both relative (POSIX) to the imported dataset's folder
     ``image_root`` and checked to resolve inside it when imported and when served
-    (``app.services.transfer.images.stored_image_file``); all empty when the dataset ships no images.
+    (``app.services.images.serving.stored_image_file``); all empty when the dataset ships no images.
     """
 
     __tablename__ = "frames"
@@ -523,7 +523,7 @@ class ReviewDecision(Base):
     """The current review decision on a system or on a frame (exactly one of the two); a frame's holds two: its
     ball's (``status``, ``comment``) and its calibration's (``calibration_*``). ``reset_reason`` and
     ``calibration_reset_reason`` say why a decision is pending again (an edit recalibrated a view after it was
-    decided: ``app.services.curation.editing.reset_decisions_after_recalibration``)."""
+    decided: ``app.services.curation.resets.reset_decisions_after_recalibration``)."""
 
     __tablename__ = "review_decisions"
     __table_args__ = (
@@ -695,7 +695,7 @@ class ServerSecret(Base):
 
 
 class AuditEntry(Base):
-    """One accepted write (``app.services.accounts.audit``): who (``actor``, the user's name as text, so the log
+    """One accepted write (``app.services.audit.log``): who (``actor``, the user's name as text, so the log
     outlives users), when (``at``, UTC), what (``action``: ``ball.edit``, ``field_lines.replace``,
     ``field_lines.mirror``, ``view.exclusion``, ``view.review``, ``view.calibration_review``, ``system.review``, ``import``,
     ``recompute``, ``revert``) and the state of the edited part before and after (JSON; an import or a
@@ -717,7 +717,7 @@ class AuditEntry(Base):
     after: Mapped[Optional[dict[str, Any]]]
     #: A revert: the entry it undid.
     reverts_id: Mapped[Optional[int]] = mapped_column(sa.ForeignKey("audit_entries.id"))
-    #: The change in one line of words ("ball of V2 moved 12.3 px"; ``app.services.accounts.summaries``),
+    #: The change in one line of words ("ball of V2 moved 12.3 px"; ``app.services.audit.summaries``),
     #: written with the entry; None for entries recorded before the column (computed when read).
     summary: Mapped[Optional[str]] = mapped_column(sa.String(300))
 

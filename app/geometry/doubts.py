@@ -1,7 +1,7 @@
 """Doubts: the label problems the geometry of one multi-view system can see, each with its evidence
 and, where there is one, its fix.
 
-A system's doubts are recomputed with every edit (``app.services.curation.recompute``) and stored; this module
+A system's doubts are recomputed with every edit (``app.services.derivation.recompute``) and stored; this module
 is pure (numpy / OpenCV, no database, no settings object). Kinds that accuse labels
 (:data:`LABEL_KINDS`):
 

@@ -2,7 +2,7 @@
 
 ``frames.image_root`` (new) holds the dataset's folder; ``image_zip`` and ``image_path`` become POSIX paths
 relative to it, and the image route resolves them again and refuses anything outside the folder
-(``app.services.transfer.images.stored_image_file``). ``frames.image_type`` (new) holds the type the image
+(``app.services.images.serving.stored_image_file``). ``frames.image_type`` (new) holds the type the image
 check read from the file's header at import ("png" or "jpeg"); rows stored before it are checked when served.
 
 Existing rows: the folder is the game's ``source_path`` when the image lies inside it, else the folder

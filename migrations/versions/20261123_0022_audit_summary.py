@@ -1,5 +1,5 @@
 """Every audit entry's change in one line of words (issue 28, item 4): ``audit_entries.summary``, text or NULL,
-written when the entry is recorded (``app.services.accounts.summaries.summarize``). Entries recorded before this
+written when the entry is recorded (``app.services.audit.summaries.summarize``). Entries recorded before this
 revision keep NULL (the table is append-only: no row is rewritten) and get the same function's summary when read.
 
 Plain ``ADD COLUMN`` / ``DROP COLUMN`` (no batch copy): the append-only triggers of the table stay in place.

@@ -1,6 +1,6 @@
 // The words of the review pages (issue 28 item 7): what every machine code shown on a page reads as, one
 // table. WRITTEN FROM app/services/curation/words.py (python -m app.services.curation.words > static/js/words.js);
-// tests/services/test_words.py checks that the two agree. Do not edit the table here.
+// tests/services/curation/test_words.py checks that the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/{
  "doubt": {

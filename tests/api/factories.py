@@ -1,5 +1,5 @@
 """Small factories of API test data: a synthetic scene with known truth, stored through the ORM and
-made consistent by the real recomputation (``app.services.curation.recompute.recompute_system``).
+made consistent by the real recomputation (``app.services.derivation.recompute.recompute_system``).
 
 Cameras look at the pitch from the main stand (y > 0, z < 0 is above the ground); their field lines
 are the pitch model projected by the camera itself, so the stored calibrations are exact and the
@@ -24,7 +24,7 @@ from app.db.models import (
 from app.geometry.annotations import lines_to_json_lists
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
-from app.services.curation.recompute import recompute_system
+from app.services.derivation.recompute import recompute_system
 
 WIDTH, HEIGHT = 960, 540
 #: The true ball of the default scene: on the grass (z down, radius 0.11 m).

@@ -103,7 +103,7 @@ def test_bad_input_exits_2_with_the_file_and_field_and_stores_nothing(shared_dir
 
 @pytest.mark.parametrize("case", ["nan", "outside", "class", "replay", "size"])
 def test_each_bad_label_exits_2_naming_file_and_field(shared_dir, tmp_path, url, case):
-    from tests.services.test_importing import _damage
+    from tests.services.transfer.test_importing import _damage
 
     edit, field, detail = _damage(case)
     write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",), edit=edit)

@@ -155,8 +155,8 @@ def test_yolo_and_coco_write_what_they_report_and_split_issia_by_camera(one_db, 
 
 
 def test_the_export_imported_into_an_empty_database_gives_the_same_dataset(one_db, tmp_path):
-    from app.services.transfer.images import frame_image
-    from tests.services.test_exporting import _snapshot
+    from app.services.images.serving import frame_image
+    from tests.services.transfer.test_exporting import _snapshot
 
     out, _ = _export(one_db, "soccernet-v3d")
     url = f"sqlite:///{tmp_path / 'back.sqlite3'}"

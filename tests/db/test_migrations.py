@@ -107,7 +107,7 @@ def test_upgrading_a_filled_sqlite_database_keeps_every_row(tmp_path):
         from app.core.config import Settings
         from app.db.models import System
         from app.db.session import make_session_factory
-        from app.services.curation.recompute import refresh_stale_systems
+        from app.services.derivation.recompute import refresh_stale_systems
 
         with make_session_factory(engine)() as session:
             assert refresh_stale_systems(session, Settings(database_url=url)) == 1

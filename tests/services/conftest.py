@@ -63,7 +63,7 @@ def imported(db_session: Session, settings: Settings, v3_tree: Path, shared_dir:
     from app.geometry.jac import JAC_GAMMAS
     from app.datasets.records import CalibrationFields
     from app.services.calibration.calibrating import apply_calibration
-    from app.services.curation.recompute import recompute_systems
+    from app.services.derivation.recompute import recompute_systems
 
     from .datasets import true_cameras
 

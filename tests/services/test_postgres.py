@@ -7,11 +7,12 @@ import sqlalchemy as sa
 
 from app.db.models import Frame, System
 from app.db.session import make_engine, make_session_factory, upgrade_database
-from app.services.curation.editing import decide_review, update_ball_label
+from app.services.curation.decisions import decide_review
+from app.services.curation.editing import update_ball_label
 from app.services.transfer.exporting import export_soccernet_v3d
 from app.services.transfer.importing import import_soccernet_v3, import_soccernet_v3d
 
-from .test_exporting import _snapshot
+from .transfer.test_exporting import _snapshot
 
 
 @pytest.mark.postgres

@@ -11,12 +11,12 @@ from app.api.conditional import with_etag
 from app.api.deps import SessionDep, SettingsDep
 from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, QueueQuery
 from app.api.view_schemas import SystemView
-from app.services.accounts import audit
-from app.services.accounts.audit import AUDIT_ENTRY_HEADER
+from app.services.audit import log as audit
+from app.services.audit.log import AUDIT_ENTRY_HEADER
 from app.services.transfer.data_root import shown_import_counts
-from app.services.curation import editing
+from app.services.curation import writing
 from app.services.curation.system_page import system_page
-from app.services.curation.reverting import Reverted, revert_entry, undo_entry
+from app.services.audit.reverting import Reverted, revert_entry, undo_entry
 from app.services.curation.versions import frame_etag, system_etag
 
 router = APIRouter(prefix="/audit", tags=["audit"])
@@ -85,7 +85,7 @@ def _restored(session: SessionDep, done: Reverted, query: QueueQuery, response: 
     """The recomputed system view after a revert or an undo by ``me`` (whom ``assignee=me`` names), the resource's
     new ETag in the header."""
     if done.kind == "frame":
-        with_etag(response, frame_etag(editing.get_frame(session, done.ident)))
+        with_etag(response, frame_etag(writing.get_frame(session, done.ident)))
     else:
-        with_etag(response, system_etag(editing.get_system(session, done.ident)))
+        with_etag(response, system_etag(writing.get_system(session, done.ident)))
     return SystemView.of(system_page(session, done.system_id, query.filters(me=me), query.sort))

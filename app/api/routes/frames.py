@@ -26,10 +26,10 @@ from app.api.schemas import (
 from app.api.view_schemas import (
     CalibrationPreviewOut, FrameOut, FramePageOut, FrameView, PitchLinesOut, ReviewOut, SystemView, calibrated_camera, projected_pitch_of,
 )
-from app.services.accounts import audit
-from app.services.curation import editing
+from app.services.audit import log as audit
+from app.services.curation import decisions, editing, writing
 from app.services.curation.calibration_preview import preview_calibration
-from app.services.transfer import images
+from app.services.images import serving as images
 from app.services.curation import queue
 from app.services.curation.system_page import load_frame, pitch_lines_key, system_page
 from app.services.curation.versions import expected_versions, frame_etag
@@ -121,7 +121,7 @@ def _edited(session: Session, frame_id: int, response: Response, query: QueueQue
     """The recomputed system view after an edit of ``frame_id`` by ``me`` (whom ``assignee=me`` names), its new
     ETag and its audit entry in the header."""
     name_entry(session, response)
-    frame = editing.get_frame(session, frame_id)
+    frame = writing.get_frame(session, frame_id)
     with_etag(response, frame_etag(frame))
     return SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort))
 
@@ -255,10 +255,10 @@ def review_frame(session: SessionDep, principal: AnnotatorDep, if_match: IfMatch
                  response: Response) -> ReviewOut:
     """Record the reviewer's decision on one view (for example a wrong calibration); the frame's new
     ETag in the header."""
-    decision = editing.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment,
+    decision = decisions.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment,
                                      actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
     name_entry(session, response)
-    with_etag(response, frame_etag(editing.get_frame(session, frame.id)))
+    with_etag(response, frame_etag(writing.get_frame(session, frame.id)))
     return ReviewOut.of(decision)
 
 
@@ -269,8 +269,8 @@ def review_calibration(session: SessionDep, principal: AnnotatorDep, if_match: I
     them), beside the decision on its ball (``POST /review``); answered as the view's decision, its
     ``calibration`` holding this one; the frame's new ETag in the header. An edit of the view's field lines
     sets a decided calibration (and its system's decision) back to pending with the reason."""
-    decision = editing.decide_calibration(session, frame.id, status=body.status, comment=body.comment,
+    decision = decisions.decide_calibration(session, frame.id, status=body.status, comment=body.comment,
                                           actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
     name_entry(session, response)
-    with_etag(response, frame_etag(editing.get_frame(session, frame.id)))
+    with_etag(response, frame_etag(writing.get_frame(session, frame.id)))
     return ReviewOut.of(decision)

@@ -17,7 +17,7 @@ from app.api.routes.frames import name_entry
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
 from app.db.types import utcnow
-from app.services.curation import assignment, editing, presence
+from app.services.curation import assignment, decisions, presence, writing
 from app.services.curation import queue
 from app.services.curation.system_page import system_page
 from app.services.curation.versions import expected_versions, system_etag
@@ -66,8 +66,8 @@ def review_system(session: SessionDep, principal: ReviewerDep, if_match: IfMatch
                   body: ReviewIn, response: Response) -> ReviewOut:
     """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``);
     the decision's new ETag in the header, its audit entry in ``X-V3D-Audit-Entry`` (what an undo names)."""
-    decision = editing.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
+    decision = decisions.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
                                      actor=principal.name, expected=expected_versions(if_match, "system", system.id))
     name_entry(session, response)
-    with_etag(response, system_etag(editing.get_system(session, system.id)))
+    with_etag(response, system_etag(writing.get_system(session, system.id)))
     return ReviewOut.of(decision)

@@ -36,7 +36,7 @@ from sqlalchemy.orm import Session
 from app.core.errors import InvalidInputError, NotFoundError
 from app.db.models import ApiToken, ServerSecret, User, UserRole
 from app.db.types import utcnow
-from app.services.accounts import audit
+from app.services.audit import log as audit
 
 #: argon2id with pwdlib's recommended parameters.
 PASSWORDS = PasswordHash.recommended()

@@ -1,6 +1,6 @@
 """The dry run of a field-line edit (issue 29, item 5): while a person drags a line point, the view's camera,
 JaC, worst-line residuals and projected pitch follow the pointer, computed from the lines as they would be
-sent on release, with the same calibration the commit runs (:func:`app.services.curation.recompute.
+sent on release, with the same calibration the commit runs (:func:`app.services.derivation.recompute.
 calibrate_frame_lines`: the rig retry and the learned prior's refit included). Nothing is written: no row, no
 audit entry, no recomputation of the system; the release commits as any field-line edit does
 (``app.services.curation.editing.replace_field_lines``).
@@ -22,7 +22,7 @@ from app.datasets.records import CalibrationFields
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
 from app.services.calibration.calibrating import is_admitted
 from app.services.curation.editing import get_frame, parse_field_lines
-from app.services.curation.recompute import calibrate_frame_lines
+from app.services.derivation.recompute import calibrate_frame_lines
 from app.services.curation.system_page import pitch_lines
 from app.services.kinds import kind_of
 

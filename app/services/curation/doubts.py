@@ -1,7 +1,7 @@
 """Doubts of a multi-view system: what the service stores of ``app.geometry.doubts`` (its codes and numbers,
 with the sentence ``app.services.curation.doubt_words`` composes).
 
-:func:`update_doubts` runs at the end of every system recomputation (``app.services.curation.recompute``), so
+:func:`update_doubts` runs at the end of every system recomputation (``app.services.derivation.recompute``), so
 a system's doubts change in the transaction of the edit that changed them and the queue never
 recomputes them: it reads ``System.doubt_counts`` (``{kind: n}``) and ``System.label_doubts`` (how
 many accuse a label, the queue's sort key) written here. :func:`doubt_views` is the one adapter from

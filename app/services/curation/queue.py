@@ -1,7 +1,7 @@
 """The review queue and the frame list: filters, the stored sort keys, pages and queue neighbours.
 
 Nothing here writes, and nothing is aggregated per request: the queue reads the per-system figures that
-every recomputation stores on ``System`` (``app.services.curation.recompute.update_summary``; aggregates over the
+every recomputation stores on ``System`` (``app.services.derivation.recompute.update_summary``; aggregates over the
 **admitted** views, the ones the 3D ball is made of, method.md sections 4 and 5): ``lowest_jac``
 (JaC@0.5 %), ``worst_error_px`` (the largest reprojection error of the fused ball, px of the view's own
 image, SoccerNet-v3D's ``rep_error``), ``views_flagged`` (every view flagged probably mirrored),

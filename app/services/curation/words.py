@@ -5,7 +5,7 @@ The geometry and the services speak in codes (``ball_off_consensus``, ``probably
 :data:`WORDS`: for each code its ``chip`` (the few words on a chip or a cell) and ``means`` (one sentence,
 the chip's legend and its tooltip). The pages import the same table from ``static/js/words.js``, written from
 this one (:func:`words_js`; ``python -m app.services.curation.words > static/js/words.js``) and checked
-against it by ``tests/services/test_words.py``, so the server's codes and the pages' words cannot drift.
+against it by ``tests/services/curation/test_words.py``, so the server's codes and the pages' words cannot drift.
 The sentences of doubts themselves (their numbers) are composed by ``app.services.curation.doubt_words``.
 
 Groups:
@@ -123,7 +123,7 @@ def words_js() -> str:
 
 JS_TEMPLATE = """// The words of the review pages (issue 28 item 7): what every machine code shown on a page reads as, one
 // table. WRITTEN FROM app/services/curation/words.py (python -m app.services.curation.words > static/js/words.js);
-// tests/services/test_words.py checks that the two agree. Do not edit the table here.
+// tests/services/curation/test_words.py checks that the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/__WORDS__/*END*/;
 

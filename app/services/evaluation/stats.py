@@ -19,7 +19,7 @@ against the JaC admission threshold) and distributions.
   :data:`JAC_THRESHOLDS`, over every system and per kind (``jac_sweep_by_kind``: the paper's figure is SoccerNet-v3's;
   ISSIA's static cameras have one calibration each); ``admission`` is the threshold in force (``Settings.admit_jac_gamma``, ``admit_jac_min``),
   so that a plot can mark it; ``stale_systems`` counts the systems computed with other settings (a changed
-  ``V3D_PROFILE``, ``app.services.curation.recompute.systems_computed_otherwise``): their figures here are stale
+  ``V3D_PROFILE``, ``app.services.derivation.recompute.systems_computed_otherwise``): their figures here are stale
   until ``v3d recompute``.
 * distributions (:data:`HISTOGRAM_BINS` equal bins between the smallest and largest value, a long tail counted
   apart, :func:`histogram`): ``jac`` (JaC at the
@@ -37,7 +37,7 @@ from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
 from app.db.models import JAC_COLUMNS, Frame, System, TriangulationPair
-from app.services.curation.recompute import systems_computed_otherwise
+from app.services.derivation.recompute import systems_computed_otherwise
 from app.services.kinds import kind_of
 
 #: JaC admission thresholds of the sweep (Fig. 3), 0 to 1 by 0.05.

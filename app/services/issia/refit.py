@@ -54,7 +54,7 @@ from app.geometry.camera import Camera
 from app.geometry.trajectory import (
     REFIT_REACH, Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window,
 )
-from app.services.curation.recompute import load_for_recompute
+from app.services.derivation.recompute import load_for_recompute
 from app.services.curation.doubt_words import doubt_message
 from app.services.issia.trajectory import (
     FPS, TRIANGULATION_FIELDS, Changed, DoubtFrame, fit_args, fit_sequence, flagged_label_doubts, piece_from_json,

@@ -18,7 +18,7 @@
   it changed are recomputed; a new calibration of the view that gives its camera to the sequence
   re-fits the whole sequence.
 * a view's image is decoded on demand from its video or frame folder by
-  ``app.services.transfer.images.read_video_frame``.
+  ``app.services.images.serving.read_video_frame``.
 * :func:`export_issia3d`: ``ISSIA-3D.csv`` of a stored sequence (:mod:`app.datasets.issia3d`).
 """
 from __future__ import annotations
@@ -48,7 +48,7 @@ from app.geometry.trajectory import fit_trajectory
 from app.services.issia.cameras import CameraChoice, bundle_refined_cameras, sequence_cameras
 from app.services.curation.doubts import update_doubts
 from app.core.errors import DatasetError
-from app.services.accounts.audit import record_summary
+from app.services.audit.log import record_summary
 from app.services.transfer.importing import ImportReport, audit_counts
 from app.services.kinds.issia import BALL_BUNDLE_FLAG
 from app.services.issia.refit import refit_sequence, sequence_columns
@@ -57,7 +57,7 @@ from app.geometry.jac import JAC_GAMMAS
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import GIVEN_CAMERA_FLAG, apply_calibration, fit_uncertainty
 from app.services.jobs.progress import Progress
-from app.services.curation.recompute import load_for_recompute, recompute_system, recompute_systems
+from app.services.derivation.recompute import load_for_recompute, recompute_system, recompute_systems
 
 LEAGUE, SEASON = "issia", "sequences"
 #: Calibration flag of a camera calibrated again from the ball's trajectory of the others.

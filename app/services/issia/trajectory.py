@@ -10,7 +10,7 @@ and whose views are static cameras (``Frame.name`` "cam<k>"). This module
   ``ball_3D``, ``ball_3D_smoothed`` and its source, the kept labels, the residuals, the flagged labels);
 * gives the per-frame triangulation of an ISSIA system its semantics (:func:`consensus_observations`:
   labels the trajectory flags are left out, then the labels that agree on one ball are chosen, as
-  :func:`app.geometry.trajectory.triangulate_frame`), used by ``app.services.curation.recompute``;
+  :func:`app.geometry.trajectory.triangulate_frame`), used by ``app.services.derivation.recompute``;
 * turns flagged labels into ``ball_off_consensus`` doubts naming the camera, with the residual, the
   fitted position and the fix (:func:`trajectory_doubts`, used by ``app.services.curation.doubts``).
 

@@ -117,7 +117,7 @@ def _import(session: Session, params: dict[str, Any], settings: Settings, progre
 def run_recompute(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
                   job_id: int) -> dict[str, Any]:
     """Recompute every system with the current settings (calibrations untouched)."""
-    from app.services.curation.recompute import recompute_all_systems
+    from app.services.derivation.recompute import recompute_all_systems
 
     systems, triangulated = recompute_all_systems(session, settings, progress, actor=params.get("actor"))
     return {"systems": systems, "triangulated": triangulated}

@@ -57,7 +57,7 @@ from app.geometry.camera import Camera
 from app.geometry.refined_box import refine_box
 from app.services.kinds import kind_of
 from app.services.transfer.exporting import exported_systems
-from app.services.transfer.images import ImageUnavailable, frame_image
+from app.services.images.serving import ImageUnavailable, frame_image
 from app.geometry.pitch import BALL_DIAMETER_M
 
 BALL_CLASS = "Ball"

@@ -67,7 +67,7 @@ from app.datasets.soccernet_v3d import JAC_KEYS, curated_entry
 from app.db.types import json_loads
 from app.core.errors import InvalidInputError
 from app.services.kinds import kinds_exported_by, split_of
-from app.services.transfer.images import frame_has_image, frame_image
+from app.services.images.serving import frame_has_image, frame_image
 
 #: Columns of ``SNv3D.csv``: method.md section 9, then v3d's own.
 CSV_COLUMNS = (
@@ -358,7 +358,7 @@ _FRAMES_PER_QUERY = 500
 def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], target: BinaryIO) -> int:
     """Write the images of ``frames`` ((frame id, frame name) pairs) into a new zip on ``target`` as the
     SoccerNet-v3 ``Frames-v3.zip`` holds them: one member per frame, named by the frame, its bytes copied from
-    the stored image as they are (PNG or JPEG, read through ``app.services.transfer.images.frame_image``, which
+    the stored image as they are (PNG or JPEG, read through ``app.services.images.serving.frame_image``, which
     checks the header and that the file lies inside its dataset), stored without recompression. Frames
     without an image (their dataset shipped none) are left out.
 

@@ -14,7 +14,7 @@ Every importer works in two phases so that bad input stores nothing:
    is completed by running it again. A re-import refreshes the imported originals; a current value
    that a reviewer edited is kept. In each batch the frames whose lines are new or changed are
    calibrated in the import's process pool before the batch's first write, then the batch is written,
-   its touched systems recomputed (``app.services.curation.recompute``) and committed, or rolled back. The
+   its touched systems recomputed (``app.services.derivation.recompute``) and committed, or rolled back. The
    pool does not wait meanwhile: the first pass of the next batch's new games is calibrating
    (``app.services.calibration.first_pass``) while this process stores the current batch.
 
@@ -24,7 +24,7 @@ re-import; the exports write it back without reading the source files.
 
 Images are never extracted: a frame stores the dataset's folder and, relative to it, the zip path and
 member name (or a file path); the readers refuse a file that resolves outside the imported folder.
-Each committed batch of an import is one audit entry (``app.services.accounts.audit.record_summary``, action
+Each committed batch of an import is one audit entry (``app.services.audit.log.record_summary``, action
 "import": the counts so far, ``batch`` of ``batches``; the last one holds the import's totals), written in the
 batch's own transaction; a frame whose labels or lines it changes gets a new edit version (ETag).
 """
@@ -55,7 +55,7 @@ from app.datasets.records import FrameRecord, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
 from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
 from app.datasets.soccernet_v3d import read_soccernet_v3d
-from app.services.accounts.audit import record_summary
+from app.services.audit.log import record_summary
 from app.services.calibration.first_pass import (
     FirstPassAhead, first_pass, retry_with_dataset_prior, retry_with_game_rigs, start_first_pass,
 )
@@ -63,7 +63,7 @@ from app.geometry.calibration.frame import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FL
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import CalibrationPool, apply_calibration, calibration_pool, uses_rig
 from app.services.jobs.progress import Progress
-from app.services.curation.recompute import preload_systems, recompute_systems
+from app.services.derivation.recompute import preload_systems, recompute_systems
 
 __all__ = [
     "ImportReport", "audit_counts", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",

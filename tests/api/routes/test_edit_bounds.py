@@ -19,8 +19,8 @@ from app.db.models import Frame
 from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
 from app.main import create_app
 from app.services.accounts.users import create_user
-from app.services.curation import editing
-from app.services.curation.editing import lock_system
+from app.services.curation import writing
+from app.services.curation.writing import lock_system
 
 from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene, make_game, make_system
@@ -90,13 +90,13 @@ def served(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Tes
 def test_a_write_waiting_past_the_lock_timeout_is_503_with_retry_after(served, monkeypatch) -> None:
     client, scene, backend, holder = served
     stored: list[int] = []
-    store = editing.store_system_results
+    store = writing.store_system_results
 
     def counted(session, system, results):  # the real store, counted: an HTTP edit computes before its lock
         stored.append(system.id)
         return store(session, system, results)
 
-    monkeypatch.setattr(editing, "store_system_results", counted)
+    monkeypatch.setattr(writing, "store_system_results", counted)
     fid = scene.frame_ids[0]
     got = client.get(f"/api/frames/{fid}")
     etag, box = got.headers["ETag"], got.json()["ball"]["box"]

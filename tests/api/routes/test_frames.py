@@ -165,7 +165,7 @@ def test_post_mirror_fixes_a_view_flagged_mirrored(client: TestClient, scene: Sc
     from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists, mirror_lines
     from app.geometry.camera import Camera
     from app.geometry.mirror import mirror_camera
-    from app.services.curation.recompute import recompute_system
+    from app.services.derivation.recompute import recompute_system
 
     frame = db_session.get(Frame, scene.frame_ids[2])
     frame.field_lines.lines = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))

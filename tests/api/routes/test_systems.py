@@ -246,7 +246,7 @@ def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session:
     stored with the flag by the recomputation (``update_summary``), never aggregated per request."""
     from app.db.models import Frame
     from app.geometry.calibration.frame import MIRROR_FLAG
-    from app.services.curation.recompute import update_summary
+    from app.services.derivation.recompute import update_summary
 
     frame = db_session.get(Frame, queue["other"].frame_ids[1])
     frame.calibration.flags = ["rig_assisted", MIRROR_FLAG]
@@ -277,7 +277,7 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     admitted labelled views above tau by the rule the system view's ``error_above_tau`` uses: the
     error scaled to the rule's reference width (960-px views: x 2), against the stored tau."""
     from app.db.models import Frame, Triangulation
-    from app.services.curation.recompute import update_summary
+    from app.services.derivation.recompute import update_summary
 
     g = make_game(db_session, match="2017-03-04 - 12-30 Liverpool 3 - 1 Arsenal")
     # the replay's box 40 px off drags the ball: errors 7.9, 11.6 and 13.5 px, below tau = 20 raw,
@@ -360,7 +360,7 @@ def test_prev_and_next_follow_the_listed_order_for_every_sort(client: TestClient
 
 def test_cursor_pages_follow_the_offset_pages(client: TestClient, queue: dict[str, Scene]) -> None:
     """``after=next_cursor`` / ``before=prev_cursor`` walk the same pages as ``offset`` (every sort is
-    checked against the order in tests/services/test_queue_paging.py)."""
+    checked against the order in tests/services/curation/test_queue_paging.py)."""
     full = _ids(client.get("/api/systems", params={"sort": "name"}).json())
     first = client.get("/api/systems", params={"sort": "name", "limit": 3}).json()
     assert _ids(first) == full[:3] and first["prev_cursor"] is None and first["offset"] == 0

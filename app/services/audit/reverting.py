@@ -1,0 +1,136 @@
+"""Revert an audited write: restore its ``before`` state through the service function of the original
+edit (so the system is recomputed as after any edit), itself audited as action ``revert``.
+
+The edited part is read from the entry's self-describing state (``app.services.audit.log``): ``ball`` ->
+:func:`~app.services.curation.editing.update_ball_label`, ``lines`` -> :func:`~app.services.curation.editing.replace_field_lines`
+(also for a mirroring: the lines before it are restored as they were), ``excluded`` ->
+:func:`~app.services.curation.editing.set_view_excluded`, ``calibration_review`` ->
+:func:`~app.services.curation.decisions.decide_calibration`, ``review`` -> :func:`~app.services.curation.decisions.decide_review`
+(its ``decided_at`` becomes now). A revert is refused (409) when the resource changed since the entry
+(its current state, read under the write's lock, is not the entry's ``after``) unless ``force``.
+Restoring field lines recalibrates the frame: an imported camera (source "imported") becomes a computed one.
+
+:func:`undo_entry` is the page's undo (and redo) of any edit, annotators' own included: the same restore, audited
+as the edit's own action with ``reverts_id``, never forced.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import AuditEntry
+from app.services.curation import assignment, decisions, editing, writing
+from app.services.audit.log import revertible
+from app.core.errors import ForbiddenError, InvalidInputError, found
+
+
+@dataclass(frozen=True)
+class Reverted:
+    """What a revert changed: the system to show again, and the resource (``kind`` "frame" or "system",
+    ``ident``) whose ETag changed."""
+
+    system_id: int
+    kind: str
+    ident: int
+
+
+def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: Optional[str] = None,
+                 force: bool = False) -> Reverted:
+    """Restore audit entry ``entry_id``'s ``before`` state and commit, with its own audit entry.
+
+    Raises:
+        NotFoundError: no such entry, or its frame or system no longer exists.
+        InvalidInputError: an entry that cannot be reverted: an import or a recompute, or a change of a user
+            or a token (field "id").
+        ConflictError: the resource changed since the entry (not forced); nothing changed.
+    """
+    entry = _revertible_entry(session, entry_id)
+    guard = writing.Revert(entry_id, expect=None if force else entry.after)
+    return _restore(session, entry, settings, {"actor": actor, "revert": guard})
+
+
+def _restore(session: Session, entry: AuditEntry, settings: Settings, common: dict[str, Any]) -> Reverted:
+    """Write back ``entry``'s ``before`` state through the service of its edit (``common``: the actor and the
+    ``revert`` or ``undo`` guard)."""
+    before = entry.before
+    entry_id = entry.id
+    assert isinstance(before, dict)
+    if "review" in before:
+        review = before["review"]
+        if entry.frame_id is None:
+            decisions.decide_review(session, system_id=entry.system_id, status=review["status"],
+                                  comment=review["comment"], **common)
+            return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
+        decisions.decide_review(session, frame_id=entry.frame_id, status=review["status"], comment=review["comment"],
+                              **common)
+    elif "calibration_review" in before:
+        review = before["calibration_review"]
+        decisions.decide_calibration(session, entry.frame_id, status=review["status"], comment=review["comment"],  # type: ignore[arg-type]
+                                   **common)
+    elif "ball" in before:
+        ball = before["ball"]
+        editing.update_ball_label(session, entry.frame_id, box=ball["box"], point=ball["point"],  # type: ignore[arg-type]
+                                  provenance=ball.get("provenance"), settings=settings, **common)
+    elif "lines" in before:
+        editing.replace_field_lines(session, entry.frame_id, before["lines"], settings=settings, **common)  # type: ignore[arg-type]
+    elif "assignee" in before:
+        guard = common.get("revert")  # an undo (no revert guard) is never forced: the assignee must be what it left
+        assignment.revert_assignment(session, system_id=int(entry.system_id), before=before,  # type: ignore[arg-type]
+                                     after=entry.after or {}, entry_id=entry_id, actor=common.get("actor"),
+                                     force=guard is not None and guard.expect is None)
+        return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
+    elif "excluded" in before:
+        editing.set_view_excluded(session, entry.frame_id, bool(before["excluded"]), settings=settings, **common)  # type: ignore[arg-type]
+    else:
+        raise InvalidInputError(f"audit entry {entry_id} records no state this version can restore", field="id")
+    frame = writing.get_frame(session, entry.frame_id)  # type: ignore[arg-type]
+    return Reverted(frame.system_id, "frame", frame.id)
+
+
+def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: str, may_review: bool) -> Reverted:
+    """Undo audit entry ``entry_id`` (issue 28, item 4): write back its ``before`` state through the service of
+    its edit, audited as that edit (the same action; a mirroring's undo as ``field_lines.replace``) with
+    ``reverts_id`` naming the entry, and committed. The redo of an undo is the undo of the undo's entry. The
+    state comes back exactly (labels, camera, 3D ball) because it is refused unless the edited part is, under
+    the write's lock, still what the entry left (``after``): an undo never overwrites a newer change.
+
+    Who may: a reviewer (``may_review``) any edit's entry; an annotator only their own (``actor`` is the entry's)
+    when no one else wrote that resource (the frame, or the system's own decisions) since, and never a system
+    decision (a reviewer's edit, so its undo is a reviewer's).
+
+    Raises:
+        NotFoundError: no such entry, or its frame or system no longer exists.
+        InvalidInputError: an import, a recompute, a change of a user or a token (field "id").
+        ForbiddenError: an annotator undoing a system decision, another's entry, or an entry someone else's
+            write of the same resource followed.
+        ConflictError: the resource changed since the entry; nothing changed.
+    """
+    entry = _revertible_entry(session, entry_id)
+    if not may_review:
+        if entry.frame_id is None:
+            raise ForbiddenError(f"audit entry {entry_id} is a decision on the whole system: a reviewer's edit, "
+                                 "so only a reviewer may undo it")
+        if entry.actor != actor:
+            raise ForbiddenError(f"audit entry {entry_id} is {entry.actor}'s edit: an annotator undoes only their own")
+        other = session.scalars(sa.select(AuditEntry.actor).where(
+            AuditEntry.id > entry.id, AuditEntry.frame_id == entry.frame_id, AuditEntry.actor != actor).limit(1)).first()
+        if other is not None:
+            raise ForbiddenError(f"audit entry {entry_id} cannot be undone by an annotator: {other} changed the view "
+                                 "since (a reviewer may revert it from the history)")
+    guard = writing.Revert(entry_id, expect=entry.after)
+    return _restore(session, entry, settings, {"actor": actor, "undo": guard})
+
+
+def _revertible_entry(session: Session, entry_id: int) -> AuditEntry:
+    """The entry, when a revert or an undo can restore it. Raises NotFoundError, InvalidInputError (field "id")."""
+    entry = found(session.get(AuditEntry, entry_id), "audit entry", entry_id)
+    if not revertible(entry.action) or not isinstance(entry.before, dict):
+        what = ("it changed many rows at once" if entry.action in ("import", "recompute")
+                else "it changed a user or a token")
+        raise InvalidInputError(f"audit entry {entry_id} is {'an' if entry.action[0] in 'aeiou' else 'a'} "
+                                f"{entry.action}: {what} and cannot be reverted", field="id")
+    return entry

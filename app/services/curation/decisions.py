@@ -1,0 +1,121 @@
+"""Review decisions: a system's, a view's ball and a view's calibration, each a guarded, audited write
+(``app.services.curation.writing``) that recomputes nothing.
+"""
+from __future__ import annotations
+
+
+from typing import Any, Optional
+
+from sqlalchemy.orm import Session
+
+from app.db.models import (
+    Frame, ReviewDecision, ReviewStatus, System,
+)
+from app.db.types import utcnow
+from app.core.errors import InvalidInputError
+from app.services.curation.versions import claim_system_review
+from app.services.curation.states import (
+    calibration_review_state, review_state, system_review_state,
+)
+from app.services.curation.writing import (
+    Expected, Revert, check_undo_state, get_frame, get_system, guarded_frame_write, guarded_write,
+)
+
+
+def decide_review(session: Session, *, system_id: int | None = None, frame_id: int | None = None,
+                  status: ReviewStatus | str, comment: str = "", actor: Optional[str] = None,
+                  expected: Expected = None, revert: Optional[Revert] = None,
+                  undo: Optional[Revert] = None) -> ReviewDecision:
+    """Record a review decision on a system or on a frame (exactly one of the two ids).
+
+    Args:
+        status: pending, accepted, rejected or needs_fix (enum or its value).
+        comment: free text (kept as given).
+        actor, expected, revert: attribution and guard (module docstring; ``expected`` are versions of
+            the system's review, or of the frame); audited as ``system.review`` or ``view.review``. An
+            accept of a system records the label doubts open at that moment (:func:`system_review_state`).
+        undo: this write undoes audit entry ``undo.entry_id`` (:func:`check_undo_state`).
+
+    Returns:
+        The committed :class:`ReviewDecision` (``decided_at`` is now, UTC).
+
+    Raises:
+        InvalidInputError: both or neither id, or an unknown status.
+        NotFoundError: no such system or frame.
+        StaleVersionError: the version is not in ``expected``; nothing changed.
+    """
+    if (system_id is None) == (frame_id is None):
+        raise InvalidInputError("give exactly one of system_id and frame_id", field="system_id")
+    status = _check_decision(status, comment)
+
+    def apply(subject: System | Frame) -> ReviewDecision:
+        check_undo_state(undo, review_state(subject))
+        review = subject.review
+        if review is None:
+            review = ReviewDecision()
+            subject.review = review
+        review.status = status  # type: ignore[assignment]
+        review.comment = comment
+        review.decided_at = utcnow()
+        review.reset_reason = None
+        if isinstance(subject, System):
+            subject.review_status = status  # type: ignore[assignment]  # the queue's copy
+        return review
+
+    if system_id is not None:
+        get_system(session, system_id)
+        return guarded_write(session, system_id, lambda: claim_system_review(session, system_id, expected),
+                      lambda: get_system(session, system_id), system_review_state, apply, "system.review", actor,
+                      revert, undo.entry_id if undo is not None else None)
+    get_frame(session, frame_id)  # type: ignore[arg-type]
+    return guarded_frame_write(session, frame_id, expected, review_state, apply, "view.review", actor, revert,  # type: ignore[arg-type]
+                        undo.entry_id if undo is not None else None)
+
+
+def _check_decision(status: ReviewStatus | str, comment: Any) -> ReviewStatus:
+    """The status as the enum; raises :class:`InvalidInputError` (field "status" or "comment")."""
+    try:
+        status = ReviewStatus(status)
+    except ValueError:
+        raise InvalidInputError(f"unknown review status {status!r}; choose one of "
+                                f"{[s.value for s in ReviewStatus]}", field="status") from None
+    if not isinstance(comment, str):
+        raise InvalidInputError("comment must be text", field="comment")
+    return status
+
+
+def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus | str, comment: str = "",
+                       actor: Optional[str] = None, expected: Expected = None,
+                       revert: Optional[Revert] = None, undo: Optional[Revert] = None) -> ReviewDecision:
+    """Record the reviewer's decision on a view's calibration (its field lines and the camera fitted to
+    them), beside the decision on its ball (:func:`decide_review`). Clears ``calibration_reset_reason``.
+    Audited as ``view.calibration_review`` (``actor``, ``expected``: versions of the frame, ``revert``:
+    module docstring; ``undo``: :func:`check_undo_state`). An edit of the view's field lines sets a decided calibration back to pending
+    (:func:`reset_decisions_after_recalibration`).
+
+    Returns:
+        The committed :class:`ReviewDecision` of the frame (created with a pending ball decision when the
+        view had none).
+
+    Raises:
+        InvalidInputError: an unknown status (field "status"), a comment that is not text.
+        NotFoundError: no such frame.
+        StaleVersionError: the frame's version is not in ``expected``; nothing changed.
+    """
+    status = _check_decision(status, comment)
+
+    def apply(frame: Frame) -> ReviewDecision:
+        check_undo_state(undo, calibration_review_state(frame))
+        review = frame.review
+        if review is None:
+            review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
+            frame.review = review
+        review.calibration_status = status  # type: ignore[assignment]
+        review.calibration_comment = comment
+        review.calibration_decided_at = utcnow()
+        review.calibration_reset_reason = None
+        return review
+
+    get_frame(session, frame_id)
+    return guarded_frame_write(session, frame_id, expected, calibration_review_state, apply, "view.calibration_review",
+                        actor, revert, undo.entry_id if undo is not None else None)

@@ -1,0 +1,170 @@
+"""Decisions back to pending after an edit: the one rule.
+
+One rule for decisions after edits (issue 28): an edit that changes a system's labels or 3D result sets the
+system's decision and the touched view's decision (its ball decision; its calibration decision for field lines)
+back to pending with the reason, in the edit's transaction (:func:`reset_decisions_after_edit`); an edit that
+changes nothing resets nothing. ``undo`` (:func:`check_undo_state`) marks a write as the undo of an audit entry
+(``app.services.audit.reverting.undo_entry``): audited under the edit's own action with ``reverts_id``, refused
+(409) when the edited part is not the entry's ``after`` under the lock; an undo resets decisions as any edit.
+"""
+from __future__ import annotations
+
+
+from collections.abc import Sequence
+from typing import Any, Optional
+
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import (
+    Frame, ReviewStatus, System,
+)
+from app.db.types import utcnow
+from app.services.audit import log as audit
+from app.services.audit.summaries import summarize
+from app.services.calibration.calibrating import admission_jac, is_admitted
+from app.services.curation.states import (
+    calibration_review_state, lines_state, review_state, same_json,
+)
+from app.services.curation.writing import (
+    Revert,
+)
+
+
+def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[System], actor: Optional[str]) -> int:
+    """The one rule for decisions after edits (issue 28, item 3) for the systems an edit changed beside its own: an
+    ISSIA edit re-fits its sequence's trajectory, which moves the 3D ball of neighbouring frames (``refitted``: the
+    systems whose place on it changed); each of those, other than ``edited`` (whose decisions the edit itself
+    resets), that was decided goes back to pending with the reason and its own ``system.review`` audit entry.
+
+    Returns:
+        How many systems were set back to pending.
+    """
+    who = actor or audit.local_actor()
+    done = 0
+    for other in refitted:
+        decision = other.review
+        if other.id == edited.id or decision is None or decision.status == ReviewStatus.PENDING:
+            continue
+        _system_back_to_pending(session, other, f"{other.name}: its 3D ball moved with the trajectory's re-fit after "
+                                f"an edit of {edited.name} by {who}; decide it again", actor, utcnow())
+        done += 1
+    if done:
+        session.flush()
+    return done
+
+
+def calibration_words(frame: Frame, settings: Settings) -> str:
+    """The frame's calibration in a few words: "JaC@0.5 % 0.812, admitted" (the admission's gamma), or
+    "not calibrated"."""
+    cal = frame.calibration
+    if cal is None or cal.camera is None:
+        return "not calibrated"
+    jac = admission_jac(cal, settings)
+    pct = f"{100 * settings.admit_jac_gamma:g}"
+    return (f"JaC@{pct} % {jac:.3f}" if jac is not None else f"JaC@{pct} % unknown") + (
+        ", admitted" if is_admitted(cal, settings) else ", not admitted")
+
+
+def reset_decisions_after_recalibration(session: Session, frame: Frame, before: tuple[dict[str, Any], str],
+                                        verb: str, actor: Optional[str], settings: Settings) -> Optional[str]:
+    """After ``frame``'s field lines changed (``before``: :func:`lines_state` and :func:`calibration_words`
+    before the edit) and it was recalibrated, in the edit's transaction: a decided calibration decision of the view and a decided decision
+    of its system go back to pending with the reason (``calibration_reset_reason``, ``reset_reason``), each
+    with its own audit entry (``view.calibration_review``, ``system.review``: revertible) added before the
+    edit's own, so the edit stays the frame's newest entry. The system's ``review_version`` is bumped (a page
+    that drew the old decision gets 412 on deciding). Nothing changes when the lines did not.
+
+    Returns:
+        The reason (one sentence naming the view, the edit, who, and the calibration before and after), or
+        None when nothing was reset.
+    """
+    lines_before, words_before = before
+    if same_json(lines_before, lines_state(frame)):
+        return None
+    who = actor or audit.local_actor()
+    reason = (f"{frame.name}: field lines {verb} by {who}, the view was recalibrated "
+              f"({words_before} -> {calibration_words(frame, settings)}); decide it again")
+    return reason if reset_decisions_after_edit(session, frame, reason, actor, calibration=True) else None
+
+
+def reset_after_change(session: Session, frame: Frame, action: str, before: dict[str, Any], after: dict[str, Any],
+                       actor: Optional[str], undo: Optional[Revert] = None) -> Optional[str]:
+    """After an edit of ``frame``'s ball label or exclusion (``action``, its state ``before`` and ``after``, as
+    :func:`ball_state` / :func:`excluded_state` give them): when the state changed, the view's ball decision and
+    the system's decision go back to pending (:func:`reset_decisions_after_edit`) with the reason, the edit in
+    words (the audit log's, ``app.services.audit.summaries.summarize``), who made it and, for an undo, which entry it undid.
+
+    Returns:
+        The reason, or None when the edit changed nothing or nothing was decided.
+    """
+    if same_json(before, after):
+        return None
+    words = summarize(action, before, after, view=audit.view_name(frame))
+    undone = f" (undo of audit entry {undo.entry_id})" if undo is not None else ""
+    reason = f"{frame.name}: {words}{undone} by {actor or audit.local_actor()}; decide it again"
+    return reason if reset_decisions_after_edit(session, frame, reason, actor, calibration=False) else None
+
+
+def reset_decisions_after_edit(session: Session, frame: Frame, reason: str, actor: Optional[str], *,
+                               calibration: bool) -> bool:
+    """One rule for decisions after an edit that changed a system's labels or 3D result (issue 28, item 3), in
+    the edit's transaction: the touched view's decision (its calibration decision when ``calibration``, i.e. a
+    field-line edit; else its ball decision) and the system's decision, when decided, go back to pending with
+    ``reason`` (``calibration_reset_reason`` / ``reset_reason``), each with its own audit entry
+    (``view.calibration_review`` / ``view.review``, ``system.review``: revertible) added before the edit's own,
+    so the edit stays the frame's newest entry. The system's ``review_version`` is bumped (a page that drew the
+    old decision gets 412 on deciding).
+
+    Returns:
+        Whether anything was reset.
+    """
+    review, system = frame.review, frame.system
+    if calibration:
+        view_decided = review is not None and review.calibration_status != ReviewStatus.PENDING
+    else:
+        view_decided = review is not None and review.status != ReviewStatus.PENDING
+    system_decided = system.review is not None and system.review.status != ReviewStatus.PENDING
+    if not (view_decided or system_decided):
+        return False
+    now = utcnow()
+    if view_decided and calibration:
+        before = calibration_review_state(frame)
+        review.calibration_status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
+        review.calibration_reset_reason = reason  # type: ignore[union-attr]
+        review.calibration_decided_at = now  # type: ignore[union-attr]
+        audit.record(session, actor=actor, action="view.calibration_review", frame=frame, before=before,
+                     after=calibration_review_state(frame))
+    elif view_decided:
+        before = review_state(frame)
+        review.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
+        review.reset_reason = reason  # type: ignore[union-attr]
+        review.decided_at = now  # type: ignore[union-attr]
+        audit.record(session, actor=actor, action="view.review", frame=frame, before=before,
+                     after=review_state(frame))
+    if system_decided:
+        _system_back_to_pending(session, system, reason, actor, now)
+    session.flush()
+    return True
+
+
+def _system_back_to_pending(session: Session, system: System, reason: str, actor: Optional[str], now: Any) -> None:
+    """Set ``system``'s decided decision back to pending with ``reason``, bump its ``review_version`` (a page that
+    drew the old decision gets 412 on deciding) and record the change (``system.review``, revertible)."""
+    before = review_state(system)
+    decision = system.review
+    decision.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
+    decision.reset_reason = reason  # type: ignore[union-attr]
+    decision.decided_at = now  # type: ignore[union-attr]
+    system.review_status = ReviewStatus.PENDING  # type: ignore[assignment]  # the queue's copy
+    system.review_version += 1
+    audit.record(session, actor=actor, action="system.review", system=system, before=before,
+                 after=review_state(system))
+
+
+def jac_words(frame: Frame, settings: Settings) -> str:
+    """The frame's calibration for an entry's summary: "JaC 0.909" (at the admission's gamma,
+    :func:`~app.services.calibration.calibrating.admission_jac`), or "refused" (no camera, or no JaC)."""
+    cal = frame.calibration
+    jac = admission_jac(cal, settings) if cal is not None and cal.camera is not None else None
+    return f"JaC {jac:.3f}" if jac is not None else "refused"

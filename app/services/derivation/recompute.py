@@ -1,0 +1,579 @@
+"""Recomputation of everything derived from annotations: calibration, admission, triangulation,
+reprojections and optimised boxes.
+
+Chain (docs/architecture.md): a frame's field lines -> its calibration (:func:`recompute_frame`) ->
+its system's admission and triangulation -> reprojections and optimised boxes of the system's frames
+(:func:`recompute_system`). These functions only change the session; the caller commits, so an edit
+and its recomputation land in one transaction (``app.services.curation.editing``).
+
+Admission and calibration: ``app.services.calibration.calibrating`` (the frame's calibration, the game rig, the pool).
+
+Derived rows:
+
+* ``Triangulation`` (+ ``TriangulationPair`` per pair of admitted labelled views), always present
+  after recomputation, with the status of ``app.geometry.triangulation.triangulate_ball``;
+* ``BallReprojection`` for every frame with a camera when the system has a 3D ball (the error is
+  against the frame's label, None without one);
+* ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a label
+  when the system has a 3D ball and the ball lies in front of the camera along the labelled ray;
+* ``Doubt`` rows and the system's doubt counts (``app.services.curation.doubts.update_doubts``, last).
+
+A view a reviewer excluded (``ReviewDecision.excluded``) keeps its calibration and labels but takes no
+part in the triangulation.
+
+Mirrored labels (``app.geometry.mirror``): after admission, every calibrated frame of the system is
+judged from its camera's side, the game's rig and its ball ray against the other views; the verdict
+sets the flag :data:`MIRROR_FLAG` and ``Calibration.mirror_evidence``. The flag replaces
+``calibrate_frame``'s camera-side flag for calibrated frames, which it reproduces for a frame with no
+other evidence (a single frame, a view without a ball). Labels are never changed here.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+import orjson
+import sqlalchemy as sa
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session, joinedload, selectinload
+
+from app.core.config import Settings
+from app.db.models import (
+    BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Doubt, Frame, OptimisedBox, ReviewStatus,
+    System, Triangulation, TriangulationPair, TriangulationStatus,
+)
+from app.db.session import begin_write
+from app.db.types import json_safe, utcnow
+from app.geometry.ball import optimise_box
+from app.geometry.calibration.frame import MIRROR_FLAG
+from app.geometry.calibration.rig import estimate_rig
+from app.geometry.camera import Camera
+from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence
+from app.geometry.pitch import within_play_volume
+from app.geometry.triangulation import BallObservation, PairGeometryMemo, error_above_tau, triangulate_ball
+from app.services.audit.log import record_summary
+from app.datasets.records import CalibrationFields
+from app.services.calibration.calibrating import (
+    apply_calibration, calibrate_lines, calibration_job, expected_side, game_rig, is_admitted, rig_centres, rig_rows,
+    stored_camera_prior, uses_rig, wants_prior_retry, wants_rig_retry, with_prior_refit, with_rig_retry,
+)
+from app.services.curation.doubt_words import with_sentence
+from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
+from app.services.jobs.progress import Progress
+from app.services.kinds import kind_of
+
+#: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
+#: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
+DERIVED_VERSION = 3  # 2: pairs outside the play volume dropped, suggested labels left out (issue 18); 3: pairs weighed
+# by what their calibrations are worth (weak_calibrations, outweighed)
+
+
+def recompute_frame(session: Session, frame: Frame, settings: Settings,
+                    rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> Triangulation:
+    """Recalibrate ``frame`` from its current field lines (:func:`calibrate_frame_lines`), store the
+    calibration (source "computed"), then recompute its system. The caller flushes or commits.
+
+    Args:
+        rig: the game's rig rows (:func:`rig_rows`) as the session holds them now, when the caller has read them
+            (an edit's :func:`recompute_inputs`): not read again.
+
+    Raises:
+        ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
+    """
+    calibrated = calibrate_frame_lines(session, frame, settings, rig=rig)
+    apply_calibration(frame, calibrated.fields, CalibrationSource.COMPUTED)
+    sources = calibrated.rig_sources
+    if sources is None and rig is not None:
+        sources = [(fid, c) for fid, c, _ in rig]
+    return recompute_system(session, frame.system, settings, sources)
+
+
+@dataclass(frozen=True)
+class FrameCalibration:
+    """What :func:`calibrate_frame_lines` gives: the calibration to store (``fields``), which retry made it
+    (``retry``: "rig", "prior" or None: the lines alone) and the game's stored cameras it read for the rig
+    (``rig_sources``: ``(frame id, camera centre)``, None when it read none), which
+    :func:`recompute_system` takes to spare a query."""
+
+    fields: CalibrationFields
+    retry: str | None
+    rig_sources: list[tuple[int, np.ndarray]] | None
+
+
+def calibrate_frame_lines(session: Session, frame: Frame, settings: Settings,
+                          lines: dict[str, Any] | None = None, *, refine: bool = True,
+                          rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> FrameCalibration:
+    """The calibration of ``frame`` from its field lines, or from ``lines`` (validated JSON lists,
+    ``{class: [[[x, y], ...], ...]}`` px) in their place, as an edit computes it: the one calibration of
+    both the commit (:func:`recompute_frame`) and its dry run (``app.services.curation.calibration_preview``).
+    Reads the session and writes nothing.
+
+    A frame of a SoccerNet-v3 game that its lines alone cannot calibrate, or calibrate only below
+    admission (:func:`wants_rig_retry`), is retried with the game's rig (:func:`game_rig`, the other
+    frames' camera positions; :func:`with_rig_retry` keeps the better fit). A frame of a calibration
+    dataset whose import learned a camera prior (:func:`stored_camera_prior`) is refitted with it where
+    its lines leave the camera open (:func:`wants_prior_retry`), as the import did (issue 17). The system's kind
+    may refine the result (``KindPolicy.refine_calibration``: an ISSIA camera refined with the ball's labels at
+    import is refined so again) unless ``refine`` is False (``KindPolicy.calibration_refinement`` says what that
+    leaves out). ``rig``: the game's rig rows (:func:`rig_rows`) when the caller has read them.
+
+    Raises:
+        ValueError: the frame has no field lines (and no ``lines`` are given).
+    """
+    fields = calibrate_lines(*calibration_job(frame, lines=lines))
+    retry, rig_sources = None, None
+    if wants_rig_retry(fields, settings) and uses_rig(frame.system) and frame.system.game_id is not None:
+        # read once: the retry's rig and the system's mirror evidence both use the game's stored
+        # cameras, and the evidence leaves this system's frames out, so this frame's new row is moot
+        stored = list(rig) if rig is not None else rig_rows(session, frame.system.game_id, settings)
+        rig_sources = [(fid, c) for fid, c, _ in stored]
+        rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id], stored=stored)
+        if rig.positions:
+            retried = calibrate_lines(*calibration_job(frame, rig, lines=lines))
+            fields = with_rig_retry(fields, retried)
+            retry = "rig" if fields is retried else None
+    elif (prior := stored_camera_prior(frame.system)) is not None and wants_prior_retry(fields, prior):
+        refit = calibrate_lines(*calibration_job(frame, prior, lines=lines))
+        fields = with_prior_refit(fields, refit)
+        retry = "prior" if fields is refit else None
+    if refine:
+        fields = kind_of(frame.system).refine_calibration(session, frame, fields, settings)
+    return FrameCalibration(fields, retry, rig_sources)
+
+
+def recompute_system(session: Session, system: System, settings: Settings,
+                     rig_sources: Sequence[tuple[int, np.ndarray]] | None = None) -> Triangulation:
+    """Admission, mirror evidence, triangulation, reprojections and optimised boxes of one system,
+    from its current calibrations and ball labels (see the module docstring). Replaces the previous
+    derived rows in the session; the caller flushes or commits. The system's frames must have ids
+    (be flushed).
+
+    Args:
+        rig_sources: ``(frame id, camera centre)`` feeding the game's rig (:func:`rig_centres`), to spare
+            a query per system in bulk; read from the session when None.
+
+    Returns:
+        The system's :class:`Triangulation` row.
+    """
+    frames = list(system.frames)
+    cameras: dict[int, Camera] = {}
+    observations: list[BallObservation] = []
+    for f in frames:
+        cal = f.calibration
+        if cal is not None:
+            cal.admitted = is_admitted(cal, settings)
+            if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
+                cameras[f.id] = Camera.from_soccernet(cal.camera)
+        centre = _label_centre(f)
+        suggested = f.ball_label is not None and f.ball_label.suggested  # not independent evidence until placed
+        if cal is not None and cal.admitted and centre is not None and not is_excluded(f) and not suggested:
+            observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
+                                                image_width=f.width))
+    kind = kind_of(system)
+    geometry = PairGeometryMemo()  # each pair's rays once, for the mirror evidence, the triangulation and the doubts
+    if kind.broadcast_priors:
+        _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
+    observations = kind.consensus_observations(system, observations, settings)
+    # a weak calibration (few line classes, an unsure camera) neither makes nor moves a ball on its own
+    weights = calibration_weights(system, settings, cameras) if kind.weighs_calibrations else None
+    ms = mirror_settings(settings)  # a ball position a game could hold: the mirror evidence's play volume
+    result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
+                              play_volume=lambda p: bool(within_play_volume(
+                                  np.asarray(p, float).reshape(1, 3), margin_m=ms.plausible_margin_m,
+                                  max_height_m=ms.max_height_m, max_below_m=ms.max_depth_m)[0]),
+                              view_weights=weights, geometry=geometry)
+
+    tri = system.triangulation
+    if tri is None:
+        tri = Triangulation(system=system, status=TriangulationStatus(result.status), tau_px=result.tau_px,
+                            rule=result.rule, min_baseline_m=result.min_baseline_m)
+        session.add(tri)
+    tri.status = TriangulationStatus(result.status)
+    tri.ball3d = None if result.point is None else [float(v) for v in result.point]
+    tri.tau_px, tri.rule, tri.min_baseline_m = result.tau_px, result.rule, result.min_baseline_m
+    tri.computed_at = utcnow()
+    tri.pairs.clear()
+    for p in result.pairs:
+        tri.pairs.append(TriangulationPair(
+            frame_a_id=p.view_a, frame_b_id=p.view_b,
+            point=None if p.point is None else [float(v) for v in p.point],
+            error_px=json_safe(p.error), parallax_deg=json_safe(p.parallax_deg), baseline_m=float(p.baseline_m),
+            kept=bool(p.kept), reason=p.reason,
+        ))
+
+    ball = None if result.point is None else np.asarray(result.point, dtype=float)
+    for f in frames:
+        _update_reprojection(f, cameras.get(f.id), ball)
+        admitted = f.calibration is not None and f.calibration.admitted
+        _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
+    update_doubts(system, settings, cameras, geometry)
+    update_summary(system, tri)
+    system.derived_version = DERIVED_VERSION
+    system.derived_settings = settings.derived_fingerprint()
+    return tri
+
+
+# ----- the recomputation split for edits: its inputs, its results as plain values, their store -------------
+#: The columns of a system :func:`recompute_system` writes (``update_doubts`` and :func:`update_summary`).
+SUMMARY_COLUMNS = ("doubt_counts", "label_doubts", "review_status", "views_total", "views_calibrated",
+                   "views_admitted", "views_labelled", "lowest_jac", "worst_error_px", "views_flagged",
+                   "views_above_tau", "derived_version", "derived_settings")
+#: Per derived row type, the keys a stored row takes from its owner (never copied between rows).
+_OWNER_KEYS: dict[type, tuple[str, ...]] = {
+    Calibration: ("frame_id",), BallReprojection: ("frame_id",), OptimisedBox: ("frame_id",),
+    Triangulation: ("system_id",), TriangulationPair: ("id", "system_id"), Doubt: ("id", "system_id"),
+}
+
+
+def _values(row: Any) -> dict[str, Any] | None:
+    """The column values of a derived row (None for no row), its owner's keys left out."""
+    if row is None:
+        return None
+    skip = _OWNER_KEYS[type(row)]
+    return {a.key: getattr(row, a.key) for a in sa.inspect(type(row)).column_attrs if a.key not in skip}
+
+
+def _put(row: Any, values: dict[str, Any]) -> Any:
+    """Set ``values`` on ``row`` (a NOT NULL column a pending row left unset keeps its default); returns it."""
+    columns = sa.inspect(type(row)).columns
+    for key, value in values.items():
+        if value is None and not columns[key].nullable:
+            continue
+        setattr(row, key, value)
+    return row
+
+
+@dataclass(frozen=True)
+class SystemResults:
+    """What a recomputation of one system wrote (:func:`recompute_frame` or :func:`recompute_system`), as plain
+    column values: per frame id its ``calibration``, ``reprojection`` and ``optimised_box`` rows (None: no row),
+    the system's triangulation and pairs, its doubts and its queue figures (:data:`SUMMARY_COLUMNS`). Taken by
+    :func:`system_results` where the edit computed it (outside the write lock), stored by
+    :func:`store_system_results` under the lock (``app.services.curation.editing``)."""
+
+    frames: dict[int, dict[str, dict[str, Any] | None]]
+    triangulation: dict[str, Any] | None
+    pairs: list[dict[str, Any]]
+    doubts: list[dict[str, Any]]
+    summary: dict[str, Any]
+
+
+def system_results(system: System) -> SystemResults:
+    """The derived rows of ``system`` as they are in the session now (after :func:`recompute_frame` or
+    :func:`recompute_system`), as plain values that outlive the session's transaction."""
+    tri = system.triangulation
+    return SystemResults(
+        frames={f.id: {"calibration": _values(f.calibration), "reprojection": _values(f.reprojection),
+                       "optimised_box": _values(f.optimised_box)} for f in system.frames},
+        triangulation=_values(tri), pairs=[_values(p) for p in tri.pairs] if tri is not None else [],  # type: ignore[misc]
+        doubts=[_values(d) for d in system.doubts],  # type: ignore[misc]
+        summary={k: getattr(system, k) for k in SUMMARY_COLUMNS})
+
+
+_ROW_TYPES = {"calibration": Calibration, "reprojection": BallReprojection, "optimised_box": OptimisedBox}
+
+
+def store_system_results(session: Session, system: System, results: SystemResults) -> Triangulation:
+    """Write ``results`` (:func:`system_results` of a recomputation from the same inputs,
+    :func:`recompute_inputs`) into ``system``'s rows in the session, as the recomputation would have: its
+    frames' calibrations, reprojections and optimised boxes, triangulation and pairs, doubts and queue figures.
+    The caller flushes or commits; returns the triangulation row.
+
+    Raises:
+        KeyError: ``results`` is of another set of frames (the inputs were not the same).
+    """
+    for f in system.frames:
+        rows = results.frames[f.id]
+        for attr, row_type in _ROW_TYPES.items():
+            values, row = rows[attr], getattr(f, attr)
+            if values is None:
+                setattr(f, attr, None)
+            else:
+                setattr(f, attr, _put(row if row is not None else row_type(), values))
+    tri = system.triangulation
+    if tri is None:
+        tri = Triangulation(system=system)
+        session.add(tri)
+    _put(tri, results.triangulation or {})
+    _replace_rows(tri.pairs, TriangulationPair, results.pairs)
+    _replace_rows(system.doubts, Doubt, results.doubts)
+    for key, value in results.summary.items():
+        setattr(system, key, value)
+    return tri
+
+
+def _replace_rows(rows: list[Any], row_type: type, values: list[dict[str, Any]]) -> None:
+    """Make the ordered collection ``rows`` (pairs or doubts, ordered by id) hold one row per item of ``values``,
+    in order, updating the stored rows in place: a row whose values did not change writes nothing, so that an edit
+    that leaves a pair or a doubt as it was costs no statement for it (issue 29); rows beyond ``values`` are deleted
+    (the relationship's delete-orphan), missing ones added. Nothing refers to these rows' ids (no foreign key,
+    API or page names one), so a doubt kept in another place of the list is the same as a new one."""
+    columns = sa.inspect(row_type).columns
+    if any(v is None and not columns[k].nullable for item in values for k, v in item.items()):
+        rows.clear()  # a pending row left a default unset: only an insert gives it its default
+        rows.extend(row_type(**item) for item in values)
+        return
+    for row, item in zip(rows, values):
+        _put(row, item)
+    if len(rows) > len(values):
+        del rows[len(values):]
+    rows.extend(row_type(**item) for item in values[len(rows):])
+
+
+def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:
+    """The rig rows (:func:`rig_rows`) of ``system``'s game when its kind uses a rig, else None."""
+    if uses_rig(system) and system.game_id is not None:
+        return rig_rows(session, system.game_id, settings)
+    return None
+
+
+def recompute_inputs(session: Session, system: System, settings: Settings,
+                     rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> str:
+    """A digest (hex SHA-256) of everything :func:`recompute_frame` and :func:`recompute_system` read for
+    ``system``, as the session sees it now: per view its name, role, size and position, field lines, ball label
+    (kind, box, point, provenance), exclusion and every calibration column (``updated_at`` aside); the system's
+    kind, game and review status; the game's rig rows (:func:`rig_rows`, kinds that use a rig) or its learned
+    camera prior. Two equal digests mean a recomputation gives the same rows (same ``settings``). Kinds whose
+    recomputation reads beyond the system (a re-fit of ISSIA's trajectory) are not covered
+    (``KindPolicy.computes_before_lock``). ``rig``: the rig rows (:func:`system_rig_rows`) when the caller has read
+    them (to hand them on to the recomputation), else read here."""
+    frames = []
+    for f in sorted(system.frames, key=lambda x: x.id):
+        label, review, cal = f.ball_label, f.review, f.calibration
+        frames.append([
+            f.id, f.name, f.role, f.width, f.height, f.position,
+            f.field_lines.lines if f.field_lines is not None else None,
+            [label.kind, label.box, label.point, label.provenance] if label is not None else None,
+            bool(review is not None and review.excluded),
+            {k: v for k, v in (_values(cal) or {}).items() if k != "updated_at"} if cal is not None else None,
+        ])
+    game: Any = None
+    if uses_rig(system) and system.game_id is not None:
+        rows = rig if rig is not None else rig_rows(session, system.game_id, settings)
+        # by frame id: the rows come in the order the planner reads them, which changes with the table's statistics
+        game = sorted([[fid, centre.tolist(), main] for fid, centre, main in rows])
+    elif system.game is not None:
+        game = system.game.camera_prior
+    doc = {"system": [system.id, system.kind, system.game_id, system.review.status if system.review else None],
+           "frames": frames, "game": game}
+    return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SORT_KEYS | orjson.OPT_SERIALIZE_NUMPY
+                                       | orjson.OPT_NON_STR_KEYS)).hexdigest()
+
+
+def update_summary(system: System, tri: Triangulation) -> None:
+    """Store the review queue's figures of ``system`` (``System.views_total`` ... ``views_above_tau``,
+    model docstring) from its current frames and triangulation: aggregates over the **admitted** views,
+    ``views_flagged`` over every view, ``views_above_tau`` by ``app.geometry.triangulation.error_above_tau``."""
+    frames = list(system.frames)
+    cals = [f.calibration for f in frames]
+    admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
+    system.review_status = system.review.status if system.review is not None else ReviewStatus.PENDING
+    system.views_total = len(frames)
+    system.views_calibrated = sum(c is not None and c.status is CalibrationStatus.CALIBRATED for c in cals)
+    system.views_admitted = len(admitted)
+    system.views_labelled = sum(f.ball_label is not None and f.ball_label.kind is not None for f in frames)
+    jacs = [f.calibration.jac_0005 for f in admitted if f.calibration.jac_0005 is not None]
+    system.lowest_jac = min(jacs) if jacs else None
+    labelled = [f for f in admitted if f.ball_label is not None and f.ball_label.kind is not None
+                and f.reprojection is not None and f.reprojection.error_px is not None]
+    system.worst_error_px = max((f.reprojection.error_px for f in labelled), default=None)
+    system.views_flagged = sum(c is not None and MIRROR_FLAG in (c.flags or []) for c in cals)
+    system.views_above_tau = sum(error_above_tau(f.reprojection.error_px, f.width, tri.tau_px, tri.rule)
+                                 for f in labelled)
+
+
+def refresh_stale_systems(session: Session, settings: Settings, progress: Progress | None = None) -> int:
+    """Recompute (calibrations untouched) every system stored by an older version of the derived rows
+    (``System.derived_version < DERIVED_VERSION``, e.g. after a schema upgrade) and commit; returns how
+    many. Serving or reporting a database calls it first, so stored doubts and queue figures are current.
+    Systems are recomputed and committed :data:`_REFRESH_BATCH` at a time (a crash leaves the rest stale,
+    to be refreshed next time), each in a write transaction (``app.db.session.begin_write``), so a
+    server running meanwhile never sees half a batch and its edits wait their turn. Each batch is one audit entry
+    (action "recompute", by the local user), written in its transaction."""
+    ids = list(session.scalars(select(System.id).where(System.derived_version < DERIVED_VERSION).order_by(System.id)))
+    _recompute_in_batches(session, ids, settings, progress, {"reason": "stored by an older version",
+                                                             "derived_version": DERIVED_VERSION})
+    return len(ids)
+
+
+def systems_computed_otherwise(session: Session, settings: Settings) -> int:
+    """How many systems were computed with other settings than ``settings`` (``System.derived_settings`` differs
+    from ``settings.derived_fingerprint()``, e.g. after ``V3D_PROFILE`` changed): their stored results are stale until
+    ``v3d recompute`` (:func:`recompute_all_systems`). Systems stored before the fingerprint was recorded (None) are
+    not counted."""
+    return int(session.scalar(select(func.count(System.id)).where(
+        System.derived_settings.is_not(None), System.derived_settings != settings.derived_fingerprint())) or 0)
+
+
+def recompute_all_systems(session: Session, settings: Settings, progress: Progress | None = None,
+                          actor: str | None = None) -> tuple[int, int]:
+    """The full recompute: every system recomputed with the current settings (calibrations untouched:
+    admission, triangulation, reprojections, optimised boxes, mirror flags, doubts and queue figures),
+    committed :data:`_REFRESH_BATCH` systems at a time with ``progress("recompute", done, total)``
+    after each commit. Idempotent: run again after a crash, it gives the same rows. One audit entry per
+    committed batch (action "recompute", by ``actor``; None: the local user), in the batch's transaction.
+
+    Returns:
+        ``(systems recomputed, systems triangulated)``.
+    """
+    ids = list(session.scalars(select(System.id).order_by(System.id)))
+    return len(ids), _recompute_in_batches(session, ids, settings, progress, {"reason": "full recompute"}, actor)
+
+
+def _recompute_in_batches(session: Session, ids: list[int], settings: Settings, progress: Progress | None,
+                          audit_after: dict[str, Any], actor: str | None = None) -> int:
+    """Recompute the systems ``ids``, committing and releasing :data:`_REFRESH_BATCH` at a time (bounded
+    memory), each batch in a write transaction (``app.db.session.begin_write``, so a server running
+    meanwhile never sees half a batch and its edits wait their turn), each batch's audit entry ("recompute",
+    ``audit_after`` with the counts, ``batch`` of ``batches``) written in its transaction; returns how many were
+    triangulated."""
+    triangulated = 0
+    for start in range(0, len(ids), _REFRESH_BATCH):
+        begin_write(session)  # each batch read and written under the write lock (SQLite: BEGIN IMMEDIATE)
+        batch = session.scalars(select(System).where(System.id.in_(ids[start:start + _REFRESH_BATCH]))).all()
+        triangulated += recompute_systems(session, batch, settings)
+        record_summary(session, "recompute", {"systems": len(ids), **audit_after, "batch": start // _REFRESH_BATCH + 1,
+                                              "batches": -(-len(ids) // _REFRESH_BATCH), "batch_systems": len(batch)},
+                       actor=actor)
+        session.commit()
+        session.expunge_all()
+        if progress:
+            progress("recompute", min(start + _REFRESH_BATCH, len(ids)), len(ids))
+    return triangulated
+
+
+def mirror_settings(settings: Settings) -> MirrorSettings:
+    """The mirror evidence's settings: the triangulation's tau and pair-error rule, the rest default."""
+    return MirrorSettings(tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule)
+
+
+def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Camera], settings: Settings,
+                         rig_sources: Sequence[tuple[int, np.ndarray]] | None,
+                         geometry: PairGeometryMemo | None = None) -> None:
+    """Judge every calibrated frame of the system (``app.geometry.mirror.mirror_evidence``: ball rays
+    of every calibrated, labelled frame, side prior, the game's rig estimated without this system's
+    frames) and set :data:`MIRROR_FLAG` and ``mirror_evidence`` on its calibration. Refused frames
+    keep what their rig retry found (:func:`with_rig_retry`).
+
+    Rays of frames below the admission threshold count too: JaC is the same for labels and their
+    mirror, so admission says nothing about mirroring, and a rough camera cannot bring two rays
+    within tau by chance (it gives no agreement, hence no evidence). Counting them flagged more of
+    the dev set's injected mirrored views with no false flag either way; today's figures are in the
+    docstring of ``benchmarks/mirror_flags.py`` (73 of 92 flagged)."""
+    frames = [f for f in system.frames if f.id in cameras]
+    if not frames:
+        return
+    positions = None
+    if uses_rig(system) and system.game_id is not None:
+        sources = rig_sources if rig_sources is not None else rig_centres(session, system.game_id, settings)
+        mine = {f.id for f in system.frames}
+        rig = estimate_rig(np.array([c for fid, c in sources if fid not in mine]).reshape(-1, 3))
+        positions = np.array([p.centre_m for p in rig.positions]).reshape(-1, 3)
+    views = [MirrorView(view_id=f.id, camera=cameras[f.id],
+                        ball_px=None if f.ball_label is not None and f.ball_label.suggested else _label_centre(f),
+                        image_width=f.width,
+                        expected_side=expected_side(f.role), rays=True, name=f.name)
+             for f in frames]
+    verdicts = mirror_evidence(views, positions, mirror_settings(settings), geometry or PairGeometryMemo())
+    names = {f.id: f.name for f in system.frames}
+    flagged = {fid for fid, v in verdicts.items() if v.flagged}
+    for f in frames:
+        cal, verdict = f.calibration, verdicts[f.id]
+        flags = [x for x in (cal.flags or []) if x != MIRROR_FLAG]
+        cal.flags = [*flags, MIRROR_FLAG] if verdict.flagged else flags
+        cal.mirror_evidence = json_safe(with_sentence(verdict.as_dict(), names, flagged))
+
+
+def _label_centre(frame: Frame) -> np.ndarray | None:
+    """(2,) labelled ball centre in pixels, or None without a current label."""
+    centre = frame.ball_label.centre if frame.ball_label is not None else None
+    return None if centre is None else np.asarray(centre, dtype=float)
+
+
+def _update_reprojection(frame: Frame, camera: Camera | None, ball: np.ndarray | None) -> None:
+    uv = None
+    if camera is not None and ball is not None:
+        proj, in_front = camera.project(ball.reshape(1, 3))
+        uv = proj[0] if in_front[0] else None
+    if uv is None:
+        frame.reprojection = None
+        return
+    centre = _label_centre(frame)
+    error = None if centre is None else float(np.linalg.norm(uv - centre))
+    rep = frame.reprojection or BallReprojection(point=[0.0, 0.0])
+    rep.point, rep.error_px = [float(uv[0]), float(uv[1])], error
+    frame.reprojection = rep
+
+
+def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray | None, settings: Settings) -> None:
+    opt = None
+    centre = _label_centre(frame)
+    if camera is not None and ball is not None and centre is not None:
+        r = optimise_box(camera, centre, ball, settings.ball_diameter_m, method=settings.optimised_box_method)
+        opt = r if r.status == "ok" else None
+    if opt is None:
+        frame.optimised_box = None
+        return
+    row = frame.optimised_box or OptimisedBox(box=[], d_opt_px=0.0, error_m=0.0)
+    row.box, row.d_opt_px, row.error_m = [float(v) for v in opt.box], float(opt.d_px), float(opt.error_m)
+    frame.optimised_box = row
+
+
+#: What :func:`recompute_system` and ``update_doubts`` read or replace (an ISSIA system's trajectory point too):
+#: the frames' one-to-one rows joined to them, the lists one query each.
+RECOMPUTE_LOADS = (
+    selectinload(System.frames).options(joinedload(Frame.calibration), joinedload(Frame.ball_label),
+                                        joinedload(Frame.review), joinedload(Frame.reprojection),
+                                        joinedload(Frame.optimised_box), joinedload(Frame.field_lines)),
+    joinedload(System.triangulation).selectinload(Triangulation.pairs),
+    selectinload(System.doubts), joinedload(System.trajectory_point), joinedload(System.review),
+)
+_LOAD_CHUNK = 500
+#: Systems recomputed per transaction by :func:`refresh_stale_systems`.
+_REFRESH_BATCH = 500
+
+
+def load_for_recompute(session: Session, ids: Sequence[int]) -> dict[int, System]:
+    """The systems ``ids`` with what :func:`recompute_system` and ``update_doubts`` read (:data:`RECOMPUTE_LOADS`),
+    by id, in a few queries per :data:`_LOAD_CHUNK` systems instead of one lazy load per attribute and frame
+    (systems already in the session get the relations they have not loaded; changed attributes are kept)."""
+    out: dict[int, System] = {}
+    ids = list(ids)
+    for start in range(0, len(ids), _LOAD_CHUNK):
+        out.update((s.id, s) for s in session.scalars(
+            select(System).where(System.id.in_(ids[start:start + _LOAD_CHUNK])).options(*RECOMPUTE_LOADS)).unique())
+    return out
+
+
+def preload_systems(session: Session, systems: Sequence[System]) -> None:
+    """Flush, then load what recomputing ``systems`` reads (:func:`load_for_recompute`)."""
+    session.flush()
+    load_for_recompute(session, [s.id for s in systems])
+
+
+def recompute_systems(session: Session, systems: Iterable[System], settings: Settings,
+                      progress: Progress | None = None, *, preloaded: bool = False) -> int:
+    """:func:`recompute_system` for each system, then one flush; returns how many were triangulated.
+
+    The systems' frames and derived rows are loaded in a few ``selectin`` queries first
+    (:func:`preload_systems`; skipped when ``preloaded``: the caller did it), so that recomputing
+    thousands of systems does not issue one lazy load per attribute.
+    """
+    systems = list(systems)
+    if preloaded:
+        session.flush()
+    else:
+        preload_systems(session, systems)
+    sources = {gid: rig_centres(session, gid, settings)
+               for gid in {s.game_id for s in systems if uses_rig(s) and s.game_id is not None}}
+    n = 0
+    for i, s in enumerate(systems, 1):
+        if recompute_system(session, s, settings, sources.get(s.game_id)).status is TriangulationStatus.TRIANGULATED:
+            n += 1
+        if progress:
+            progress("triangulate", i, len(systems))
+    session.flush()
+    return n

@@ -1,0 +1,256 @@
+"""The one locking design of the edit path (issue 27, item 4): an edit computes its recomputation in a read
+snapshot before it takes the write lock, and under the lock only compares every input it read and writes; it
+recomputes under the lock only when an input changed meanwhile. Real SQLite files (two engines stand for two
+server processes) and PostgreSQL; threads, and the hook ``writing.computed_before_lock`` holding one edit
+between its geometry and its lock while the other commits."""
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import Frame, ReviewStatus, System
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.services.curation import editing, writing
+from app.services.curation.writing import LAST_RECOMPUTATION
+from app.services.curation.decisions import decide_review
+from app.services.curation.editing import replace_field_lines, update_ball_label
+from app.services.derivation.recompute import load_for_recompute, recompute_system
+
+from benchmarks.edit_lock import dense_lines
+from tests.api.factories import Scene, make_game, make_system
+from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
+def database(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Callable[[], Session], Settings, Scene, Scene]]:
+    """A migrated SQLite file or fresh PostgreSQL database holding one game with two three-view systems (exact
+    cameras, every view labelled); yields a session factory whose engine waits at most 1 s for a lock (as a
+    served process would, ``V3D_WRITE_LOCK_TIMEOUT_S``), the settings and the two scenes."""
+    with contextlib.ExitStack() as stack:
+        url = (f"sqlite:///{tmp_path / 'edits.sqlite3'}" if request.param == "sqlite"
+               else stack.enter_context(fresh_postgresql_database(PG_ADMIN_URL)))
+        upgrade_database(url)
+        settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False,
+                            write_lock_timeout_s=1.0)
+        engine = make_engine(url, write_lock_timeout_s=settings.write_lock_timeout_s)
+        stack.callback(engine.dispose)
+        factory = make_session_factory(engine)
+        with factory() as s:
+            game = make_game(s)
+            first = make_system(s, settings, game, "1.png")
+            second = make_system(s, settings, game, "2.png")
+        yield factory, settings, first, second
+
+
+def _moved(box: list[float], dx: float) -> list[float]:
+    return [box[0] + dx, box[1], box[2] + dx, box[3]]
+
+
+def _box(factory: Callable[[], Session], frame_id: int) -> list[float]:
+    with factory() as s:
+        return list(s.get(Frame, frame_id).ball_label.box)
+
+
+def _stored_and_fresh_ball(factory: Callable[[], Session], system_id: int, settings: Settings,
+                           change: Callable[[System], None] | None = None) -> tuple[list[float], list[float]]:
+    """The stored 3D ball of the system and the one a recomputation from its stored labels gives (after
+    ``change`` of them in memory; nothing is written)."""
+    with factory() as s:
+        system = load_for_recompute(s, [system_id])[system_id]
+        stored = list(system.triangulation.ball3d)
+        if change is not None:
+            change(system)
+        with s.no_autoflush:
+            fresh = list(recompute_system(s, system, settings).ball3d)
+        s.rollback()
+    return stored, fresh
+
+
+def test_an_edit_computes_before_the_lock_and_stores_what_a_recomputation_gives(database) -> None:
+    factory, settings, scene, _ = database
+    fid = scene.frame_ids[0]
+    with factory() as s:
+        update_ball_label(s, fid, box=_moved(_box(factory, fid), 9.0), settings=settings)
+        assert s.info[LAST_RECOMPUTATION] == "precomputed"  # stored as computed outside the lock
+    stored, fresh = _stored_and_fresh_ball(factory, scene.system_id, settings)
+    assert np.allclose(stored, fresh, atol=1e-9)
+    with factory() as s:  # a review decision recomputes nothing: nothing computed before its lock
+        decide_review(s, system_id=scene.system_id, status=ReviewStatus.ACCEPTED)
+        assert s.info[LAST_RECOMPUTATION] == "under_lock"
+
+
+def _pairs_and_doubts(factory: Callable[[], Session], system_id: int, settings: Settings | None = None
+                      ) -> tuple[list[tuple], list[tuple]]:
+    """The system's stored pair and doubt rows (id first), or, given ``settings``, the ones a recomputation from its
+    stored labels gives (ids None; nothing is written)."""
+    with factory() as s:
+        system = load_for_recompute(s, [system_id])[system_id]
+        if settings is not None:
+            with s.no_autoflush:
+                recompute_system(s, system, settings)
+        pairs = [(p.id, p.frame_a_id, p.frame_b_id, p.point, p.error_px, p.parallax_deg, p.baseline_m, p.kept, p.reason)
+                 for p in system.triangulation.pairs]
+        doubts = [(d.id, d.frame_id, d.kind, d.accuses_label, d.message, d.evidence, d.suggestion) for d in system.doubts]
+        s.rollback()
+    return pairs, doubts
+
+
+def test_an_edit_updates_its_pairs_and_doubts_in_place(database) -> None:
+    """Issue 29, item 2: the edit's pairs and doubts are the rows a recomputation gives, written over the stored
+    rows (same ids, no delete and re-insert), so that a pair the edit leaves as it was costs no statement."""
+    factory, settings, scene, _ = database
+    fid = scene.frame_ids[0]
+    before_pairs, before_doubts = _pairs_and_doubts(factory, scene.system_id)
+    assert len(before_pairs) == 3  # three views, every one labelled
+    with factory() as s:
+        update_ball_label(s, fid, box=_moved(_box(factory, fid), 7.0), settings=settings)
+        assert s.info[LAST_RECOMPUTATION] == "precomputed"
+    pairs, doubts = _pairs_and_doubts(factory, scene.system_id)
+    fresh_pairs, fresh_doubts = _pairs_and_doubts(factory, scene.system_id, settings)
+    assert [p[0] for p in pairs] == [p[0] for p in before_pairs]  # the same rows
+    assert [p[1:] for p in pairs] == [p[1:] for p in fresh_pairs]  # holding what a recomputation gives
+    assert pairs != before_pairs  # the moved label moved the pairs' points
+    assert [d[1:] for d in doubts] == [d[1:] for d in fresh_doubts]
+    kept = min(len(doubts), len(before_doubts))
+    assert [d[0] for d in doubts[:kept]] == [d[0] for d in before_doubts[:kept]]
+
+
+def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch) -> None:
+    """Issue 29: the rig rows the inputs' digest reads are the ones the recomputation uses (the mirror evidence's
+    rig, a line edit's rig retry): a ball edit reads them twice (the digest before the lock and the one under it),
+    not three times, and a line edit as often, and stores what a recomputation gives."""
+    from app.services.calibration import calibrating
+
+    factory, settings, scene, _ = database
+    calls = []
+    real = calibrating.rig_rows
+    monkeypatch.setattr(calibrating, "rig_rows", lambda *a, **k: calls.append(1) or real(*a, **k))
+    import app.services.derivation.recompute as recompute_module
+    monkeypatch.setattr(recompute_module, "rig_rows", calibrating.rig_rows)
+    fid = scene.frame_ids[0]
+    with factory() as s:
+        update_ball_label(s, fid, box=_moved(_box(factory, fid), 5.0), settings=settings)
+        assert s.info[LAST_RECOMPUTATION] == "precomputed"
+    assert len(calls) == 2
+    calls.clear()
+    with factory() as s:
+        lines = s.get(Frame, fid).field_lines.lines
+        lines = {cls: [[[x + 0.5, y] for x, y in poly] for poly in polys] for cls, polys in lines.items()}
+        editing.replace_field_lines(s, fid, lines, settings=settings)
+        assert s.info[LAST_RECOMPUTATION] == "precomputed"
+    assert len(calls) == 2
+    pairs, doubts = _pairs_and_doubts(factory, scene.system_id)
+    fresh_pairs, fresh_doubts = _pairs_and_doubts(factory, scene.system_id, settings)
+    assert [p[1:] for p in pairs] == [p[1:] for p in fresh_pairs]
+    assert [d[1:] for d in doubts] == [d[1:] for d in fresh_doubts]
+
+
+def test_edits_of_two_views_interleaved_store_the_ball_of_both(database, monkeypatch) -> None:
+    """Edit A computes outside the lock, is held there while edit B of another view of the same system commits,
+    then compares its inputs under the lock, finds B's label, and recomputes: the stored 3D ball is the one of
+    both edits, not the one A computed from the labels before B."""
+    factory, settings, scene, _ = database
+    fa, fb = scene.frame_ids[0], scene.frame_ids[1]
+    box_a, box_b = _moved(_box(factory, fa), 12.0), _moved(_box(factory, fb), -10.0)
+    computed, committed = threading.Event(), threading.Event()
+
+    def hold_a(system_id: int) -> None:
+        if threading.current_thread().name == "edit-a":
+            computed.set()
+            assert committed.wait(30)
+
+    monkeypatch.setattr(writing, "computed_before_lock", hold_a)
+    outcome: dict[str, object] = {}
+
+    def edit_a() -> None:
+        try:
+            with factory() as s:
+                update_ball_label(s, fa, box=box_a, settings=settings)
+                outcome["a"] = s.info[LAST_RECOMPUTATION]
+        except BaseException as exc:  # noqa: BLE001  # reported below
+            outcome["a"] = exc
+
+    thread = threading.Thread(target=edit_a, name="edit-a")
+    thread.start()
+    try:
+        assert computed.wait(60), "edit A never computed"
+        t0 = time.monotonic()
+        with factory() as s:
+            update_ball_label(s, fb, box=box_b, settings=settings)  # A computed but holds no lock: B goes on
+            outcome["b"] = s.info[LAST_RECOMPUTATION]
+        b_seconds = time.monotonic() - t0
+    finally:
+        committed.set()
+        thread.join(60)
+    assert outcome == {"a": "recomputed", "b": "precomputed"}, outcome
+    assert b_seconds < settings.write_lock_timeout_s
+    assert _box(factory, fa) == box_a and _box(factory, fb) == box_b
+
+    stored, both = _stored_and_fresh_ball(factory, scene.system_id, settings)
+    assert np.allclose(stored, both, atol=1e-9)  # the ball of both edits
+
+    def without_b(system: System) -> None:
+        frame = next(f for f in system.frames if f.id == fb)
+        frame.ball_label.box = _moved(box_b, 10.0)  # B's label as A read it
+
+    _, a_alone = _stored_and_fresh_ball(factory, scene.system_id, settings, without_b)
+    assert np.linalg.norm(np.subtract(a_alone, both)) > 1e-3  # what A computed alone was another ball
+
+
+def test_an_unrelated_write_is_not_blocked_by_a_capped_size_line_edits_geometry(database, monkeypatch) -> None:
+    """A field-line edit of 2,000 points (the cap) computes its calibration and recomputation outside the lock:
+    held after its geometry, it holds no lock, and an edit of another system (and a review decision) commit
+    at once, well within a 1 s lock timeout; then the line edit stores what it computed."""
+    factory, settings, scene, other = database
+    assert settings.max_line_points_per_frame == 2000
+    fid = scene.frame_ids[0]
+    with factory() as s:
+        lines = dense_lines(s.get(Frame, fid).field_lines.lines, settings.max_line_points_per_frame)
+    computed, done = threading.Event(), threading.Event()
+    timing: dict[str, float] = {}
+
+    def hold(system_id: int) -> None:
+        if threading.current_thread().name == "line-edit":
+            timing["geometry"] = time.monotonic() - timing["start"]
+            computed.set()
+            assert done.wait(30)
+
+    monkeypatch.setattr(writing, "computed_before_lock", hold)
+    outcome: dict[str, object] = {}
+
+    def line_edit() -> None:
+        try:
+            with factory() as s:
+                timing["start"] = time.monotonic()
+                replace_field_lines(s, fid, lines, settings=settings)
+                outcome["lines"] = s.info[LAST_RECOMPUTATION]
+        except BaseException as exc:  # noqa: BLE001
+            outcome["lines"] = exc
+
+    thread = threading.Thread(target=line_edit, name="line-edit")
+    thread.start()
+    try:
+        assert computed.wait(120), "the line edit never computed"
+        t0 = time.monotonic()
+        with factory() as s:
+            other_fid = other.frame_ids[1]
+            update_ball_label(s, other_fid, box=_moved(_box(factory, other_fid), 4.0), settings=settings)
+            decide_review(s, system_id=other.system_id, status=ReviewStatus.ACCEPTED)
+        unrelated = time.monotonic() - t0
+    finally:
+        done.set()
+        thread.join(120)
+    assert outcome == {"lines": "precomputed"}, outcome
+    assert unrelated < settings.write_lock_timeout_s, (unrelated, timing)
+    with factory() as s:
+        stored = s.get(Frame, fid).field_lines.lines
+        assert sum(len(p) for ps in stored.values() for p in ps) == 2000
+        assert s.get(Frame, fid).calibration.source.value == "computed"

@@ -1,0 +1,111 @@
+"""Mirror flags in the service: recomputation flags views from all the evidence, and
+``apply_mirrored_labels`` fixes them in one transaction."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import Frame
+from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists, mirror_lines
+from app.geometry.camera import Camera
+from app.geometry.mirror import mirror_camera
+from app.services.curation.editing import apply_mirrored_labels
+from app.core.errors import ConflictError, InvalidInputError, NotFoundError
+from app.services.transfer.importing import import_soccernet_v3
+from app.geometry.calibration.frame import MIRROR_FLAG
+from app.services.derivation.recompute import recompute_system
+from tests.api.factories import make_game, make_system
+
+
+def _flagged(frame: Frame) -> bool:
+    return frame.calibration is not None and MIRROR_FLAG in (frame.calibration.flags or [])
+
+
+def _mirror_view(session: Session, settings: Settings, frame: Frame) -> None:
+    """Give ``frame`` mirrored labels and the camera they calibrate to, as an annotator's slip would."""
+    frame.field_lines.lines = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
+    frame.calibration.camera = mirror_camera(Camera.from_soccernet(frame.calibration.camera)).to_soccernet()
+    recompute_system(session, frame.system, settings)
+    session.commit()
+
+
+def test_a_mirrored_replay_is_flagged_with_its_evidence_and_fixed_in_one_call(db_session: Session,
+                                                                              db_settings: Settings) -> None:
+    scene = make_system(db_session, db_settings, make_game(db_session))
+    frames = [db_session.get(Frame, i) for i in scene.frame_ids]
+    assert not any(_flagged(f) for f in frames)
+    assert all(f.calibration.mirror_evidence["verdict"] == "as_labelled" for f in frames)
+    replay = frames[2]
+    _mirror_view(db_session, db_settings, replay)
+    assert [_flagged(f) for f in frames] == [False, False, True]
+    evidence = replay.calibration.mirror_evidence
+    assert evidence["verdict"] == "probably_mirrored" and evidence["margin"] >= 1.0
+    assert {p["relation"] for p in evidence["pairs"]} == {"different"}
+    assert "1.png" in evidence["sentence"] and "mirrored it meets it" in evidence["sentence"]
+    assert replay.reprojection is None or replay.reprojection.error_px > 100.0
+
+    apply_mirrored_labels(db_session, replay.id, settings=db_settings)
+    db_session.expire_all()
+    replay = db_session.get(Frame, scene.frame_ids[2])
+    assert not _flagged(replay) and replay.calibration.status.value == "calibrated"
+    assert replay.calibration.source.value == "computed"
+    assert replay.reprojection.error_px < 3.0
+    # The slip was made after the import: the fix gives back exactly the imported labels.
+    assert replay.field_lines.lines == replay.field_lines.original_lines
+    # Applying it again would mirror a right camera across the pitch: the mirrored calibration and the ball
+    # do not agree better, so nothing is stored and the refusal says by how much.
+    lines = replay.field_lines.lines
+    with pytest.raises(ConflictError, match="do not agree better"):
+        apply_mirrored_labels(db_session, replay.id, settings=db_settings)
+    db_session.expire_all()
+    replay = db_session.get(Frame, scene.frame_ids[2])
+    assert not _flagged(replay) and replay.field_lines.lines == lines
+
+
+def test_apply_mirrored_labels_refuses_unknown_frames_and_frames_without_lines(db_session: Session,
+                                                                              db_settings: Settings) -> None:
+    scene = make_system(db_session, db_settings, make_game(db_session))
+    with pytest.raises(NotFoundError):
+        apply_mirrored_labels(db_session, 10**9, settings=db_settings)
+    frame = db_session.get(Frame, scene.frame_ids[1])
+    frame.field_lines.lines = {}
+    db_session.commit()
+    with pytest.raises(InvalidInputError) as err:
+        apply_mirrored_labels(db_session, frame.id, settings=db_settings)
+    assert err.value.field == "lines"
+
+
+@pytest.mark.shared
+def test_dev_set_every_mirrored_view_is_flagged_and_no_other(shared_dir: Path, fresh_session_factory,
+                                                             tmp_path: Path) -> None:
+    """Measured: 2 mirrored views (a replay caught by its rays, a refused action by the rig and side
+    priors), both flagged; none of the 103 others. Mirroring any other view in turn flags 71 of 92
+    and no bystander (``benchmarks/mirror_flags.py``)."""
+    truth = json.loads((shared_dir / "data/synthetic/soccernet-v3-dev.truth.json").read_text())
+    mirrored = {(g["match"], v["image"]) for g in truth["games"] for s in g["systems"] for v in s["views"]
+                if v["lines_mirrored"]}
+    session = fresh_session_factory("dev")
+    settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
+    import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
+    frames = session.scalars(sa.select(Frame)).all()
+    flagged = {(f.system.game.match, f.name) for f in frames if _flagged(f)}
+    assert len(frames) == 105 and len(mirrored) >= 2
+    assert flagged == mirrored
+    for f in frames:
+        if (f.system.game.match, f.name) in mirrored:
+            assert f.calibration.mirror_evidence["sentence"].startswith("Labels probably mirrored")
+    # The fix: the flag goes and each view calibrates where the truth says its camera is.
+    cameras = {(g["match"], v["image"]): v["camera"] for g in truth["games"] for s in g["systems"]
+               for v in s["views"]}
+    for f in [f for f in frames if (f.system.game.match, f.name) in mirrored]:
+        apply_mirrored_labels(session, f.id, settings=settings)
+        session.refresh(f)
+        session.refresh(f.calibration)
+        assert not _flagged(f) and f.calibration.status.value == "calibrated"
+        true_c = Camera.from_soccernet(cameras[(f.system.game.match, f.name)]).C
+        assert abs(Camera.from_soccernet(f.calibration.camera).C - true_c).max() < 3.0

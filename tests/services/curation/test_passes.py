@@ -1,0 +1,121 @@
+"""Review passes (issue 28, ``app.services.curation.passes``): the frozen order of a queue across its pages,
+kept through a decision and a fix that reorder the queue; the next pending system read from current statuses;
+an accept over open label doubts records them in its audit entry."""
+from __future__ import annotations
+
+import pytest
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.core.errors import ForbiddenError
+from app.db.models import ReviewStatus
+from app.services.audit import log as audit
+from app.services.curation import decisions, editing, passes, queue, writing
+from app.services.curation.queue import SystemFilters
+
+from tests.api.factories import Scene, ball_box, make_game, make_system
+
+
+@pytest.fixture
+def six(db_session: Session, db_settings: Settings) -> list[Scene]:
+    """Six three-view systems of one game; three of them with one ball box off by 40-60 px (a label doubt
+    each), so the doubts sort puts them first."""
+    game = make_game(db_session)
+    shifts = [(0.0, 0.0, 0.0), (0.0, 60.0, 0.0), (0.0, 0.0, 0.0), (40.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+              (0.0, 0.0, 50.0)]
+    return [make_system(db_session, db_settings, game, f"{i + 1}.png", shift_px=s) for i, s in enumerate(shifts)]
+
+
+def _pages(session: Session, sort: str, limit: int) -> tuple[list[int], int]:
+    """The queue's ids as the queue page reads them: page after page by cursor; and how many pages."""
+    ids, cursor, pages = [], None, 0
+    while True:
+        page = queue.list_systems(session, SystemFilters(), sort, limit=limit, after=cursor)
+        ids += [s.id for s in page.items]
+        pages += 1
+        if page.next_cursor is None:
+            return ids, pages
+        cursor = page.next_cursor
+
+
+def test_a_pass_keeps_the_queue_order_of_its_start_through_a_decision_and_a_fix(
+        db_session: Session, db_settings: Settings, six: list[Scene]) -> None:
+    order, pages = _pages(db_session, "-doubts", limit=4)
+    assert pages == 2 and sorted(order) == sorted(s.system_id for s in six)
+    doubtful = [s.system_id for s in six if writing.get_system(db_session, s.system_id).label_doubts > 0]
+    assert len(doubtful) >= 2 and order[:len(doubtful)] == sorted(  # the doubts sort: the doubtful first
+        doubtful, key=lambda i: order.index(i))
+
+    rp = passes.start_pass(db_session, "ana", SystemFilters(), "-doubts", system_id=order[0])
+    assert rp.system_ids == order and rp.position == 0
+
+    # a decision on the first, and a fix of the second (its label put back where the other views agree)
+    decisions.decide_review(db_session, system_id=order[0], status="rejected", actor="ana")
+    fixed = order[1]
+    scene = next(s for s in six if s.system_id == fixed)
+    for frame_id, camera in zip(scene.frame_ids, scene.cameras):
+        editing.update_ball_label(db_session, frame_id, box=ball_box(camera), settings=db_settings, actor="ana")
+    assert writing.get_system(db_session, fixed).label_doubts == 0
+    now, _ = _pages(db_session, "-doubts", limit=4)
+    assert now != order and now.index(fixed) > 1  # the fix moved it in the queue's current order ...
+    assert passes.get_pass(db_session, rp.id).system_ids == order  # ... not in the pass
+
+    # the next pending after the fixed system is the pass's next, not the fixed system's queue neighbour
+    at_fixed = passes.place(db_session, rp, fixed)
+    assert at_fixed.index == 1 and at_fixed.next_id == order[2] and at_fixed.next_pending_id == order[2]
+    assert at_fixed.prev_id == order[0]
+
+    # decided systems are skipped: accept the third and fourth, then from the second the next pending is the fifth
+    for sid in order[2:4]:
+        decisions.decide_review(db_session, system_id=sid, status="accepted", actor="bob")
+    at_fixed = passes.place(db_session, rp, fixed)
+    assert at_fixed.next_pending_id == order[4] and not at_fixed.finished
+    assert at_fixed.first_pending_id == order[1]  # the fixed one itself is still pending
+    assert at_fixed.counts == {"accepted": 2, "rejected": 1, "needs_fix": 0, "skipped": 3}
+
+    # the last one: nothing pending after it; the pass is finished there
+    last = passes.place(db_session, rp, order[-1])
+    assert last.finished and last.next_pending_id is None and last.next_id is None
+
+    # opening a system of the same queue continues the pass; a fresh one freezes the queue's order now
+    assert passes.start_pass(db_session, "ana", SystemFilters(), "-doubts", system_id=order[4]).id == rp.id
+    fresh = passes.start_pass(db_session, "ana", SystemFilters(), "-doubts", system_id=order[4], fresh=True)
+    assert fresh.id != rp.id and fresh.system_ids == now and fresh.position == now.index(order[4])
+    assert passes.start_pass(db_session, "bob", SystemFilters(), "-doubts").id not in (rp.id, fresh.id)
+
+
+def test_a_pass_of_a_filtered_queue_and_its_position(db_session: Session, six: list[Scene]) -> None:
+    pending = SystemFilters(status=ReviewStatus.PENDING, doubt="any")
+    expected = [s.id for s in queue.list_systems(db_session, pending, "name", limit=100).items]
+    rp = passes.start_pass(db_session, "ana", pending, "name")
+    assert rp.system_ids == expected and rp.filters == {"status": "pending", "doubt": "any"} and rp.sort == "name"
+    assert len(expected) >= 2
+
+    place = passes.visit(db_session, rp, expected[1], "ana")
+    assert passes.get_pass(db_session, rp.id).position == 1 and place.index == 1
+    with pytest.raises(ForbiddenError):
+        passes.visit(db_session, rp, expected[0], "bob")
+    outside = next(s.system_id for s in six if s.system_id not in expected)
+    there = passes.visit(db_session, rp, outside, "ana")  # not in the pass: the stored position is the anchor
+    assert there.index is None and there.prev_id == expected[0] and passes.get_pass(db_session, rp.id).position == 1
+    assert [p.id for p in passes.list_passes(db_session, "ana")] == [rp.id]
+
+
+def test_an_accept_over_open_label_doubts_records_them(db_session: Session, six: list[Scene]) -> None:
+    doubtful = next(s.system_id for s in six if writing.get_system(db_session, s.system_id).label_doubts > 0)
+    system = writing.get_system(db_session, doubtful)
+    open_doubts = [(d.kind, d.frame_id, d.message) for d in system.doubts if d.accuses_label]
+    assert open_doubts
+
+    decisions.decide_review(db_session, system_id=doubtful, status="accepted", actor="script")
+    entry = audit.latest_entry(db_session, system_id=doubtful)
+    assert entry.action == "system.review" and entry.after["review"]["status"] == "accepted"
+    assert [(d["kind"], d["frame_id"], d["message"]) for d in entry.after["overrode_doubts"]] == open_doubts
+    assert "overrode_doubts" not in entry.before
+
+    # a reject records none; an accept of a clean system records none
+    decisions.decide_review(db_session, system_id=doubtful, status="rejected", actor="script")
+    assert "overrode_doubts" not in audit.latest_entry(db_session, system_id=doubtful).after
+    clean = next(s.system_id for s in six if writing.get_system(db_session, s.system_id).label_doubts == 0)
+    decisions.decide_review(db_session, system_id=clean, status="accepted", actor="script")
+    assert "overrode_doubts" not in audit.latest_entry(db_session, system_id=clean).after

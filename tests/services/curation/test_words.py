@@ -1,0 +1,48 @@
+"""The one table of words (app.services.curation.words): every code a page shows has its words, and the pages'
+module (static/js/words.js) is exactly the table the server holds."""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+from app.db.models import CalibrationSource, CalibrationStatus, TriangulationStatus
+from app.geometry.calibration.frame import MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
+from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
+from app.geometry.triangulation import DROP_REASONS, PAIR_ERROR_RULES
+from app.services.calibration.calibrating import GIVEN_CAMERA_FLAG
+from app.services.curation.words import WORDS, words_js
+from app.services.issia.sequences import BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG
+
+WORDS_JS = Path(__file__).resolve().parents[3] / "static" / "js" / "words.js"
+
+
+def test_the_pages_module_is_the_servers_table() -> None:
+    text = WORDS_JS.read_text(encoding="utf-8")
+    assert text == words_js(), "static/js/words.js is stale: python -m app.services.curation.words > static/js/words.js"
+    literal = text.split("/*WORDS*/", 1)[1].split("/*END*/", 1)[0]
+    assert json.loads(literal) == WORDS
+
+
+def test_every_code_a_page_shows_has_words_and_no_chip_is_a_code() -> None:
+    assert set(WORDS["doubt"]) == set(LABEL_KINDS) | set(INFO_KINDS)
+    flags = {MIRROR_FLAG, RIG_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, GIVEN_CAMERA_FLAG, BALL_ASSISTED_FLAG,
+             BALL_BUNDLE_FLAG, "few_lines", "radial_distortion"}
+    assert flags <= set(WORDS["flag"])
+    assert "ignored_class" in WORDS["flag_prefix"]
+    assert set(WORDS["pair_reason"]) == set(DROP_REASONS)
+    assert set(WORDS["rule"]) == set(PAIR_ERROR_RULES)
+    assert set(WORDS["triangulation"]) == {s.value for s in TriangulationStatus}
+    assert {s.value for s in CalibrationStatus} | {s.value for s in CalibrationSource} <= set(WORDS["calibration"])
+    for group in WORDS.values():
+        for code, entry in group.items():
+            assert set(entry) == {"chip", "means"}, code
+            for text in entry.values():
+                assert text and not re.search(r"[a-z]_[a-z]", text), (code, text)  # words, not snake_case codes
+
+
+def test_the_flags_the_calibration_writes_are_all_in_the_table() -> None:
+    """Every literal flag ``calibrate_frame`` appends is in the table (a new flag must get its words)."""
+    source = (Path(__file__).resolve().parents[3] / "app" / "geometry" / "calibration" / "frame.py").read_text()
+    literal = set(re.findall(r'flags\.append\("([a-z_]+)"\)', source))
+    assert literal and literal <= set(WORDS["flag"])

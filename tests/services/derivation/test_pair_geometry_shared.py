@@ -1,0 +1,96 @@
+"""Issue 29, item 1: one recomputation computes each pair of ball rays once (``PairGeometryMemo``) and the mirror
+evidence, the triangulation and the doubts' consensus judge that one answer by their own rules. On the synthetic
+SoccerNet-v3 dev set (40 systems, mirrored views, wrong labels, near-duplicate replays), every derived row of every
+system is the same as when each judge computes its own pairs."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import sqlalchemy as sa
+
+from app.core.config import Settings
+from app.db.models import System
+from app.geometry import triangulation
+from app.services.derivation import recompute
+from app.services.derivation.recompute import load_for_recompute, recompute_system, system_results
+from app.services.transfer.importing import import_soccernet_v3
+
+
+class _Unshared(triangulation.PairGeometryMemo):
+    """Each ask computed anew: what the judges did before they shared the memo."""
+
+    def __call__(self, a, b):
+        self.asked += 1
+        self.computed += 1
+        return triangulation.pair_geometry(a, b)
+
+
+def _timestamps_out(results):
+    """The results without the time stamps a recomputation writes (computed_at, updated_at)."""
+    tri = dict(results.triangulation or {})
+    tri.pop("computed_at", None)
+    frames = {fid: {k: ({c: v for c, v in (row or {}).items() if c != "updated_at"} if row else row)
+                    for k, row in parts.items()} for fid, parts in results.frames.items()}
+    return frames, tri, results.pairs, results.doubts, results.summary
+
+
+def test_shared_pair_geometry_changes_no_derived_row_of_the_dev_set(shared_dir: Path, fresh_session_factory,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    session = fresh_session_factory("dev")
+    settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
+    import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
+    ids = session.scalars(sa.select(System.id).order_by(System.id)).all()
+    assert len(ids) == 40
+    memos: list[triangulation.PairGeometryMemo] = []
+
+    def run(memo_type) -> dict[int, tuple]:
+        monkeypatch.setattr(recompute, "PairGeometryMemo", lambda: memos.append(memo_type()) or memos[-1])
+        out = {}
+        with session.no_autoflush:
+            systems = load_for_recompute(session, ids)
+            for sid in ids:
+                recompute_system(session, systems[sid], settings)
+                out[sid] = _timestamps_out(system_results(systems[sid]))
+        session.rollback()
+        return out
+
+    unshared = run(_Unshared)
+    asked_unshared = sum(m.computed for m in memos)
+    memos.clear()
+    shared = run(triangulation.PairGeometryMemo)
+    for sid in ids:
+        assert shared[sid] == unshared[sid], f"system {sid}"
+    computed, asked = sum(m.computed for m in memos), sum(m.asked for m in memos)
+    assert asked == asked_unshared  # the same questions
+    print(f"pair geometry: {asked} asks, {computed} computed")
+    assert computed < 0.7 * asked  # most answered from the memo: the triangulation's and the consensus's pairs
+
+
+def test_a_memo_answers_a_pair_once_and_never_another_camera() -> None:
+    """The memo's key is the cameras' identity and the pixels: the same pair is computed once; an equal but distinct
+    camera object, or another pixel, is computed anew (a camera is never trusted by its id alone)."""
+    import numpy as np
+
+    from app.geometry.camera import Camera
+    from app.geometry.triangulation import BallObservation, PairGeometryMemo, pair_geometry
+
+    def cam(pan: float, pos: list[float]) -> Camera:
+        return Camera.from_parameters(focal_px=1500.0, principal_point=(960.0, 540.0), pan_deg=pan, tilt_deg=80.0,
+                                      roll_deg=0.0, position_m=pos)
+
+    a_cam, b_cam = cam(0.0, [0, 60, -15]), cam(90.0, [-70, 0, -15])
+    ball = np.array([1.0, 2.0, -0.11])
+    a = BallObservation(1, a_cam, a_cam.project(ball.reshape(1, 3))[0][0], 1920)
+    b = BallObservation(2, b_cam, b_cam.project(ball.reshape(1, 3))[0][0], 1920)
+    memo = PairGeometryMemo()
+    g = memo(a, b)
+    assert memo(BallObservation(7, a_cam, a.point_px.copy(), 960), b) is g  # ids and widths do not enter the geometry
+    assert (memo.asked, memo.computed) == (2, 1)
+    np.testing.assert_allclose(g.point, ball, atol=1e-6)
+    fresh = pair_geometry(a, b)
+    assert (g.baseline_m, g.parallax_deg, g.errors_px) == (fresh.baseline_m, fresh.parallax_deg, fresh.errors_px)
+    twin = cam(0.0, [0, 60, -15])  # equal, another object
+    assert memo(BallObservation(1, twin, a.point_px, 1920), b) is not g
+    assert memo(BallObservation(1, a_cam, a.point_px + [5.0, 0.0], 1920), b) is not g
+    assert memo.computed == 3

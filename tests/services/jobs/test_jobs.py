@@ -1,0 +1,107 @@
+"""The job queue (``app.services.jobs.runner``) on real databases: claims are compare-and-set, a job whose
+process is gone is stale at once, and a server's runner thread resumes it and runs queued imports."""
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import time
+from datetime import timedelta
+from pathlib import Path
+
+import httpx
+import pytest
+import sqlalchemy as sa
+
+from app.core.config import Settings
+from app.db.models import Game, Job, JobState
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.types import utcnow
+from app.services.jobs import runner as jobs
+
+from ..datasets import write_v3_game
+
+
+@pytest.fixture
+def factory(tmp_path: Path):
+    url = f"sqlite:///{tmp_path / 'jobs.sqlite3'}"
+    upgrade_database(url)
+    engine = make_engine(url)
+    yield url, make_session_factory(engine)
+    engine.dispose()
+
+
+def _dead_pid() -> int:
+    proc = subprocess.Popen(["true"])
+    proc.wait()
+    return proc.pid
+
+
+def test_a_claim_is_taken_once(factory) -> None:
+    url, make = factory
+    with make() as session:
+        job = jobs.submit(session, "recompute", {})
+    with make() as a, make() as b:
+        seen_a, seen_b = a.get(Job, job.id), b.get(Job, job.id)  # both runners read it queued
+        assert jobs.claim(a, seen_a, "host:1:a") is True
+        assert jobs.claim(b, seen_b, "host:2:b") is False  # the row changed since b read it
+    with make() as session:
+        stored = session.get(Job, job.id)
+        assert (stored.state, stored.owner, stored.attempts) == (JobState.RUNNING, "host:1:a", 1)
+    with pytest.raises(jobs.InvalidInputError, match="unknown job kind 'backup'"):
+        with make() as session:
+            jobs.submit(session, "backup", {})
+
+
+def test_staleness(factory) -> None:
+    url, make = factory
+    here = socket.gethostname()
+    sqlite, pg = Settings(database_url=url, job_stale_seconds=60), Settings(
+        database_url="postgresql+psycopg://x@h/db", job_stale_seconds=60)
+    old = utcnow() - timedelta(seconds=3600)
+    gone = Job(kind="import", params={}, state=JobState.RUNNING, owner=f"{here}:{_dead_pid()}:t", heartbeat_at=utcnow())
+    alive_quiet = Job(kind="import", params={}, state=JobState.RUNNING, owner=f"{here}:{os.getpid()}:t", heartbeat_at=old)
+    elsewhere = Job(kind="import", params={}, state=JobState.RUNNING, owner="other-host:1:t", heartbeat_at=old)
+    fresh_elsewhere = Job(kind="import", params={}, state=JobState.RUNNING, owner="other-host:1:t", heartbeat_at=utcnow())
+    assert jobs.is_stale(gone, sqlite) and jobs.is_stale(gone, pg)  # its process is gone: at once
+    # a live local process beats only between its transactions on SQLite: never stale while it lives
+    assert not jobs.is_stale(alive_quiet, sqlite) and jobs.is_stale(alive_quiet, pg)
+    assert jobs.is_stale(elsewhere, pg) and not jobs.is_stale(fresh_elsewhere, pg)
+    assert not jobs.is_stale(Job(kind="import", params={}, state=JobState.DONE, owner=gone.owner), sqlite)
+
+
+def test_a_server_runner_resumes_a_killed_job_and_runs_a_queued_import(shared_dir: Path, tmp_path: Path,
+                                                                        factory) -> None:
+    """A job left running by a process that is gone, and a queued import, both run by the runner
+    thread a served app starts (the real thread, the real HTTP API)."""
+    from app.main import create_app
+    from tests.accounts import make_accounts
+    from tests.live_server import serve_app
+
+    url, make = factory
+    game = write_v3_game(shared_dir, tmp_path / "tree", with_images=False)
+    with make() as session:
+        killed = Job(kind="recompute", params={}, state=JobState.RUNNING, owner=f"{socket.gethostname()}:{_dead_pid()}:x",
+                     attempts=1, heartbeat_at=utcnow(), stage="recompute", done=0, total=0)
+        session.add(killed)
+        session.commit()
+    admin = make_accounts(url, login=False, roles=("admin",))["admin"]
+    settings = Settings(database_url=url, calibration_workers=2, data_root=tmp_path, job_poll_seconds=0.1,
+                        job_heartbeat_seconds=0.2)
+    with serve_app(create_app(settings)) as base:
+        queued = httpx.post(f"{base}/api/imports", json={"kind": "soccernet-v3", "path": str(game.parent.parent.parent)},
+                            headers=admin.bearer)
+        assert queued.status_code == 202
+        deadline = time.monotonic() + 300
+        while True:
+            states = {j["id"]: j for j in httpx.get(f"{base}/api/jobs", headers=admin.bearer).json()["items"]}
+            if all(j["state"] in ("done", "failed") for j in states.values()):
+                break
+            assert time.monotonic() < deadline, states
+            time.sleep(0.2)
+    resumed, imported = states[killed.id], states[queued.json()["id"]]
+    assert (resumed["state"], resumed["attempts"], resumed["result"]) == ("done", 2, {"systems": 0, "triangulated": 0})
+    assert imported["state"] == "done" and imported["result"]["systems"] == 3 and imported["attempts"] == 1
+    assert resumed["owner"] == imported["owner"] and resumed["owner"].startswith(f"{socket.gethostname()}:")
+    with make() as session:
+        assert session.scalar(sa.select(sa.func.count(Game.id))) == 1
