@@ -11,6 +11,7 @@ import pytest
 
 from app.geometry.camera import Camera
 from app.geometry import trajectory as trajectory_module
+from app.geometry.trajectory import fit as fit_module, refit as refit_module, segmentation as segmentation_module
 from app.geometry.trajectory import (
     fit_trajectory, local_span, refit_local, refit_span, refit_window, triangulate_frame,
 )
@@ -180,7 +181,7 @@ def test_refit_of_a_window_equals_a_fit_from_scratch(scene, edit, monkeypatch):
     assert a <= f <= b and b - a + 1 < len(pts)
     calls = []
     real = trajectory_module.triangulate_frame
-    monkeypatch.setattr(trajectory_module, "triangulate_frame", lambda obs, **kw: calls.append(1) or real(obs, **kw))
+    monkeypatch.setattr(fit_module, "triangulate_frame", lambda obs, **kw: calls.append(1) or real(obs, **kw))
     part = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f)
     monkeypatch.undo()
     scratch = fit(edited)
@@ -283,9 +284,9 @@ def test_linear_fits_of_many_sets_equal_those_of_each_alone(scene):
     from app.geometry import motion
 
     truth, pts = scene
-    _, use = trajectory_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
+    _, use = fit_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
     L = motion.LabelTable(pts, CAMERAS, [1920] * 4, use)
-    by_frame = trajectory_module._group(L)
+    by_frame = segmentation_module._group(L)
     frames = sorted(by_frame)
     jobs = []
     for a, b in ((0, 40), (45, 60), (90, 100), (98, 99), (120, 149)):
@@ -308,7 +309,7 @@ def test_refinement_reaches_the_minimum_scipy_finds(scene):
 
     truth, pts = scene
     before = fit(pts)
-    _, use = trajectory_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
+    _, use = fit_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
     L = motion.LabelTable(pts, CAMERAS, [1920] * 4, use)
     for piece in before.pieces[:3]:
         sub = L.take(np.nonzero((L.frame >= piece.first_frame) & (L.frame <= piece.last_frame))[0])
@@ -339,7 +340,7 @@ def test_shifted_params_describe_the_same_motion_and_few_labels_do_not_determine
         np.testing.assert_allclose(motion.positions(kind, moved, t - 0.4)[4:], motion.positions(kind, q, t)[4:],
                                    atol=1e-12)
     truth, pts = scene
-    _, use = trajectory_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
+    _, use = fit_module._check_inputs(pts, CAMERAS, [1920] * 4, FPS)
     L = motion.LabelTable(pts, CAMERAS, [1920] * 4, use)
     two_frames_one_camera = L.take(np.nonzero((L.frame <= 1) & (L.cam == L.cam[0]))[0])
     many = L.take(np.nonzero(L.frame <= 30)[0])
@@ -390,7 +391,8 @@ def test_a_flight_seen_by_one_camera_is_tied_to_its_neighbours(scene, monkeypatc
     pts[one, [0, 2, 3]] = np.nan
     err = lambda f: np.linalg.norm(f.positions[one] - truth[one], axis=1).max()  # noqa: E731
     tied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS)
-    monkeypatch.setattr(trajectory_module, "_anchored", lambda L, by_frame, fps, pieces, which: list(pieces))
+    for module in (segmentation_module, refit_module):
+        monkeypatch.setattr(module, "_anchored", lambda L, by_frame, fps, pieces, which: list(pieces))
     untied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS)
     assert err(tied) < 0.15 and err(tied) < err(untied) / 2, (err(tied), err(untied))
     assert all(k == (1,) for k in tied.cam_lists[one])
