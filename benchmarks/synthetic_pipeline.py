@@ -63,7 +63,7 @@ from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.jac import jac_at_gammas  # noqa: E402
 from app.geometry.metrics import box_iou, box_size_error_pct  # noqa: E402
 from app.services.transfer.importing import ImportReport, import_soccernet_v3  # noqa: E402
-from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG# noqa: E402
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG# noqa: E402
 from app.services.calibration.calibrating import admission_jac, expected_side
 
 #: Corruption kinds of the synthetic truth (``systems[].corruption``), None excepted.

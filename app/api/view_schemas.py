@@ -21,7 +21,7 @@ from app.db.models import (
     BallKind, BallLabel, Calibration, CalibrationSource, CalibrationStatus, Doubt, Frame, FrameRole, OptimisedBox,
     ReviewDecision, ReviewStatus, System, SystemKind, Triangulation, TriangulationStatus,
 )
-from app.geometry.calibration.frame import MIRROR_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.geometry import pitch
 from app.geometry.jac import JAC_GAMMAS

@@ -70,7 +70,7 @@ from typing import Callable, Hashable, Sequence
 import numpy as np
 
 from app.geometry.annotations import FieldLines, image_diagonal, mirror_lines
-from app.geometry.calibration.frame import MIRROR_FLAG, CalibrationSettings, side_vote
+from app.geometry.calibration.result import MIRROR_FLAG, CalibrationSettings, side_vote
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig
 from app.geometry.camera import Camera, as_points
 from app.geometry.pitch import PITCH_WIDTH_M, within_play_volume

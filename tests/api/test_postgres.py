@@ -9,7 +9,7 @@ from app.core.config import Settings
 from app.db.models import System
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.main import create_app
-from app.geometry.calibration.frame import MIRROR_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG
 from app.services.derivation.recompute import update_summary
 
 from tests.accounts import as_token, make_accounts

@@ -21,14 +21,8 @@ from numba import njit
 
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration.residuals import JIT
-from app.geometry.calibration.frame import (
-    RIG_FLAG,
-    CalibrationPrior,
-    CalibrationResult,
-    CalibrationSettings,
-    calibrate_frames_together,
-    frame_jac,
-)
+from app.geometry.calibration.result import RIG_FLAG, CalibrationPrior, CalibrationResult, CalibrationSettings
+from app.geometry.calibration.frame import calibrate_frames_together, frame_jac
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from app.geometry.annotations import mirror_lines, FieldLines, lines_from_json_l
 from app.geometry.calibration import (
     CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, learn_camera_prior, lines_used, radial_corner,
 )
-from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.priors import confident_mask
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig, estimate_rig
 from app.geometry.calibration.solver import PriorRows

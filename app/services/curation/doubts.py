@@ -24,7 +24,7 @@ from app.db.types import json_safe
 from app.geometry.camera import Camera
 from app.geometry.doubts import DoubtSettings, DoubtView, calibration_weight, judge_system
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
-from app.geometry.calibration.frame import MIRROR_FLAG, RIG_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.services.curation.doubt_words import doubt_message
 from app.services.kinds import kind_of
 

@@ -47,7 +47,7 @@ from app.db.models import (
 from app.db.session import begin_write
 from app.db.types import json_safe, utcnow
 from app.geometry.ball import optimise_box
-from app.geometry.calibration.frame import MIRROR_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence

@@ -59,7 +59,7 @@ from app.services.audit.log import record_summary
 from app.services.calibration.first_pass import (
     FirstPassAhead, first_pass, retry_with_dataset_prior, retry_with_game_rigs, start_first_pass,
 )
-from app.geometry.calibration.frame import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
+from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import CalibrationPool, apply_calibration, calibration_pool, uses_rig
 from app.services.jobs.progress import Progress

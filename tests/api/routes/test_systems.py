@@ -245,7 +245,7 @@ def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session:
     ``probably_mirrored`` looked clean in the queue (empty doubts) until it was opened. The count is
     stored with the flag by the recomputation (``update_summary``), never aggregated per request."""
     from app.db.models import Frame
-    from app.geometry.calibration.frame import MIRROR_FLAG
+    from app.geometry.calibration.result import MIRROR_FLAG
     from app.services.derivation.recompute import update_summary
 
     frame = db_session.get(Frame, queue["other"].frame_ids[1])

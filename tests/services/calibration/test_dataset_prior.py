@@ -9,7 +9,7 @@ import sqlalchemy as sa
 from app.db.models import Calibration, CalibrationStatus, Frame, Game
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import CameraPrior
-from app.geometry.calibration.frame import PRIOR_FLAG, RADIAL_PRIOR_FLAG
+from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG
 from app.geometry.camera import Camera, look_at_rotation
 from app.services.calibration.calibrating import (
     MIN_PRIOR_FRAMES, calibrate_lines, dataset_prior, wants_prior_retry,

@@ -17,7 +17,7 @@ from app.geometry.mirror import mirror_camera
 from app.services.curation.editing import apply_mirrored_labels
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError
 from app.services.transfer.importing import import_soccernet_v3
-from app.geometry.calibration.frame import MIRROR_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG
 from app.services.derivation.recompute import recompute_system
 from tests.api.factories import make_game, make_system
 

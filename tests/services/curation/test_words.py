@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 from app.db.models import CalibrationSource, CalibrationStatus, TriangulationStatus
-from app.geometry.calibration.frame import MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
 from app.geometry.triangulation import DROP_REASONS, PAIR_ERROR_RULES
 from app.services.calibration.calibrating import GIVEN_CAMERA_FLAG
@@ -42,7 +42,8 @@ def test_every_code_a_page_shows_has_words_and_no_chip_is_a_code() -> None:
 
 
 def test_the_flags_the_calibration_writes_are_all_in_the_table() -> None:
-    """Every literal flag ``calibrate_frame`` appends is in the table (a new flag must get its words)."""
-    source = (Path(__file__).resolve().parents[3] / "app" / "geometry" / "calibration" / "frame.py").read_text()
+    """Every literal flag the calibration package appends is in the table (a new flag must get its words)."""
+    package = Path(__file__).resolve().parents[3] / "app" / "geometry" / "calibration"
+    source = "".join(f.read_text() for f in sorted(package.glob("*.py")))
     literal = set(re.findall(r'flags\.append\("([a-z_]+)"\)', source))
     assert literal and literal <= set(WORDS["flag"])

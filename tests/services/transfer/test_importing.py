@@ -16,7 +16,7 @@ from app.db.models import (
 )
 from app.core.errors import DatasetError
 from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
-from app.geometry.calibration.frame import RIG_FLAG
+from app.geometry.calibration.result import RIG_FLAG
 
 from ..datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
 
