@@ -5,7 +5,7 @@ export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected
 
 import { WORDS } from "./words.js";
 
-/** Short names of the doubt kinds that accuse a label (app/geometry/doubts.py LABEL_KINDS), from the one
+/** Short names of the doubt kinds that accuse a label (app/geometry/doubts/contract.py LABEL_KINDS), from the one
  * table of words (words.js). */
 export const DOUBT_LABEL = Object.fromEntries(
   ["mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view"]

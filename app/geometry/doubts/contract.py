@@ -1,0 +1,224 @@
+"""The doubts' contract: the kinds that accuse a label and those that inform, the codes of each reasoning, the
+suggested fixes, a view as the judge sees it (:class:`DoubtView`), a doubt (:class:`Doubt`) and the
+thresholds (:class:`DoubtSettings`); with the small view helpers every rule shares (centre, projection,
+inside the image, the play volume).
+
+World frame: SoccerNet (metres, origin at the centre spot, z down); pixels of each view's own image.
+"""
+from __future__ import annotations
+
+
+from dataclasses import dataclass, field
+from typing import Any, Hashable
+
+import numpy as np
+
+from app.geometry.camera import Camera
+from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, within_play_volume
+from app.geometry.triangulation import (REFERENCE_WIDTH_PX)
+
+
+#: Kinds that accuse a label (the review queue counts, filters and sorts by them).
+LABEL_KINDS: tuple[str, ...] = (
+    "mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view",
+)
+
+
+#: Kinds that inform without accusing a label.
+INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_assisted", "few_lines", "suggested_label")
+
+
+#: ``suggestion["action"]`` values: what the fix of a doubt does (one key on the system page).
+#: ``snap_box``: set the view's ball label to ``suggestion["box"]``; ``exclude_view``: exclude the
+#: view from the triangulation (a stored, reversible per-view decision); ``mirror_labels``: replace
+#: the view's field lines by their mirrored labelling.
+#: ``snap_point``: set the view's point label to ``suggestion["point"]`` (ISSIA, where the sequence's
+#: trajectory projects). A doubt that accuses a ball label (``ball_off_consensus``, ``ball_missing``) and has
+#: a box the other views agree on offers it (``snap_box``) with its uncertainty ``box_sigma_px`` (px of the
+#: view, one standard deviation; :func:`consensus_fix`) and lists the other fixes that apply in
+#: ``suggestion["alternatives"]`` (e.g. ``["exclude_view"]``).
+SUGGESTION_ACTIONS: tuple[str, ...] = ("snap_box", "exclude_view", "mirror_labels", "snap_point")
+
+
+#: ``Doubt.code`` per kind: which reasoning found the doubt (the words layer writes one sentence per code).
+CODES: dict[str, tuple[str, ...]] = {
+    "calibration_refused": ("refused",), "below_admission": ("below_admission",),
+    "rig_assisted": ("rig_assisted",), "few_lines": ("few_lines",), "suggested_label": ("unconfirmed",),
+    "mirrored_labels": ("flagged", "suspected"),
+    "ball_off_consensus": ("off_consensus", "behind_camera", "trajectory"),
+    "ball_missing": ("consensus", "epipolar", "epipolar_box"),
+    "views_disagree": ("no_agreement", "ambiguous", "epipolar"),
+    "near_duplicate_view": ("near_duplicate",),
+}
+
+
+@dataclass(frozen=True)
+class DoubtView:
+    """One view of a system as the doubt judge sees it.
+
+    Attributes:
+        view_id: the view's identifier (the service passes the frame id).
+        name: the image name (``"12_1.png"``).
+        role: ``"action"``, ``"replay"`` or ``"camera"`` (single-view systems).
+        width, height: image size, pixels.
+        camera: the calibrated camera at this resolution, or None (refused, never calibrated).
+        admitted: the calibration clears admission (JaC@0.5 % above the threshold).
+        jac: JaC@0.5 % of the calibration (fraction), None without one.
+        line_classes: number of distinct annotated field-line classes.
+        box: (4,) ``[x1, y1, x2, y2]`` ball box in pixels, or None.
+        point: (2,) ball point in pixels for point-only labels (ISSIA), or None.
+        excluded: a reviewer excluded this view from the triangulation.
+        mirror_flagged: the view's labels are flagged probably mirrored.
+        mirror_evidence: ``MirrorVerdict.as_dict()`` of the view, or None.
+        calibration_reason: why calibration was refused, None otherwise.
+        rig_assisted: the camera was fitted at a position of the game's camera rig.
+        uncertainty: the calibration's standard deviations as stored
+            (``CalibrationUncertainty.to_json()``), or None (then the camera is taken as exact).
+        suggested: the ball label was made from a doubt's suggestion and no person has placed it: it lies
+            where the other views put the ball by construction, so it votes for nothing (info doubt
+            ``suggested_label``) and the view is not called missing either.
+    """
+
+    view_id: Hashable
+    name: str
+    role: str
+    width: int
+    height: int
+    camera: Camera | None
+    admitted: bool
+    jac: float | None = None
+    line_classes: int = 0
+    box: np.ndarray | None = None
+    point: np.ndarray | None = None
+    excluded: bool = False
+    mirror_flagged: bool = False
+    mirror_evidence: dict[str, Any] | None = None
+    calibration_reason: str | None = None
+    rig_assisted: bool = False
+    uncertainty: dict[str, Any] | None = None
+    suggested: bool = False
+
+
+@dataclass(frozen=True)
+class Doubt:
+    """One doubt of a system.
+
+    Attributes:
+        kind: one of :data:`LABEL_KINDS` or :data:`INFO_KINDS`.
+        view_id: the view it names (None: the system as a whole).
+        code: which reasoning found it (one of :data:`CODES` of its kind); the words are composed from
+            ``kind``, ``code`` and ``evidence`` by ``app.services.curation.doubt_words``.
+        evidence: the numbers behind it (JSON-ready: floats, ints, strings, lists, dicts).
+        suggestion: the fix, ``{"action": one of SUGGESTION_ACTIONS, ...}`` (``"box"``:
+            ``[x1, y1, x2, y2]`` in the named view's own pixels for ``snap_box``), or None.
+    """
+
+    kind: str
+    view_id: Hashable | None
+    code: str
+    evidence: dict[str, Any] = field(default_factory=dict)
+    suggestion: dict[str, Any] | None = None
+
+    @property
+    def accuses_label(self) -> bool:
+        """True for the kinds of :data:`LABEL_KINDS`."""
+        return self.kind in LABEL_KINDS
+
+
+@dataclass(frozen=True)
+class DoubtSettings:
+    """Thresholds of :func:`judge_system`.
+
+    The first five fields carry the names of the service's triangulation settings
+    (``app.core.config.Settings``); every other field ``f`` is read from ``Settings.doubt_f``. The
+    defaults are the operating point chosen with ``benchmarks/doubts.py`` (precision against recall on
+    the synthetic SoccerNet-v3 dev sets, v3d's own calibration); see that script's docstring.
+
+    Attributes:
+        triangulation_tau_px: tau of the triangulation (px at 1920 width); unused by the judge except
+            as the floor of ``consensus_tau_px`` (a view the triangulation keeps is never accused).
+        pair_error_rule: the triangulation's pair-error rule; ``max_px`` makes every error below raw
+            pixels, the other rules pixels of a 1920-px-wide image.
+        min_baseline_m: pairs of cameras closer than this propose no ball (metres).
+        min_parallax_deg: pairs whose ball rays meet at a smaller angle propose no ball (degrees).
+        ball_diameter_m: phi (metres).
+        consensus_tau_px: a labelled view is off the consensus ball, and two views disagree, when the
+            reprojection error exceeds this (px at 1920 width). Swept: good views of v3d's own
+            calibrations reach about 20 px, corrupted ones mostly exceed 60 px.
+        near_duplicate_max_deg: two views are near duplicates when their camera centres subtend less
+            than this angle at the ball (degrees). Swept: true near duplicates are within 0.6 deg,
+            distinct broadcast viewpoints at least 10 deg apart.
+        inside_margin_px: the ball of the other views must project at least this far inside the image
+            for ``ball_missing`` (px at 1920 width; negative lets it lie that far outside).
+        single_view_margin_px: unused since the judge reasons on the whole epipolar segment (kept so that
+            a deployment's ``V3D_DOUBT_SINGLE_VIEW_MARGIN_PX`` stays valid).
+        ground_box_tolerance: a labelled view places the ball on the grass when the monocular depth from
+            its box is within this relative difference of the grass depth on its ray (fraction; SoccerNet-v3
+            boxes err by about 19 % in size): the reference point of its calibration's pixel sigma and of the
+            near-duplicate angle.
+        mirror_rig_near_m, mirror_rig_gap_m: an unflagged view is suspected mirrored when its ray meets
+            another view's only mirrored and its mirrored camera stands within ``mirror_rig_near_m`` of a
+            known camera position of the game while as labelled it stands ``mirror_rig_gap_m`` farther
+            (metres; calibrated centres of one camera scatter by about a metre).
+        max_ball_height_m: highest plausible ball (metres above the grass).
+        max_below_m: lowest plausible ball centre below the grass (metres: triangulation noise).
+        play_margin_m: a ball more than this beyond the touch or goal lines is not a ball position
+            (metres; the mirror evidence's margin).
+        min_line_classes: a view with fewer distinct line classes gets the info doubt ``few_lines`` and
+            takes no part in the checks: with the game's rig, two or three classes give a camera that
+            fits its own lines perfectly (JaC 1.0) yet may turn its ball ray by degrees, so its ball
+            would be accused for its camera's fault (on dev-large, every false alarm of that kind).
+    """
+
+    triangulation_tau_px: float = 20.0
+    pair_error_rule: str = "max_scaled_1920"
+    min_baseline_m: float = 1.0
+    min_parallax_deg: float = 2.0
+    ball_diameter_m: float = BALL_DIAMETER_M
+    consensus_tau_px: float = 25.0
+    near_duplicate_max_deg: float = 3.0
+    inside_margin_px: float = 0.0
+    single_view_margin_px: float = 40.0
+    ground_box_tolerance: float = 0.35
+    max_ball_height_m: float = 30.0
+    max_below_m: float = 0.5
+    play_margin_m: float = 15.0
+    mirror_rig_near_m: float = 1.0
+    mirror_rig_gap_m: float = 2.0
+    min_line_classes: int = MIN_LINE_CLASSES
+
+
+def _scale(view: DoubtView, s: DoubtSettings) -> float:
+    """Factor from the view's pixels to the units of the settings (1920-px width, or raw px)."""
+    return 1.0 if s.pair_error_rule == "max_px" else REFERENCE_WIDTH_PX / view.width
+
+
+def _centre(view: DoubtView) -> np.ndarray | None:
+    if view.box is not None:
+        b = np.asarray(view.box, float)
+        return np.array([(b[0] + b[2]) / 2, (b[1] + b[3]) / 2])
+    return None if view.point is None else np.asarray(view.point, float).reshape(2)
+
+
+def _r(x: float, nd: int = 1) -> float:
+    return round(float(x), nd)
+
+
+def _box_list(box: np.ndarray | None) -> list[float] | None:
+    return None if box is None else [_r(v, 2) for v in box]
+
+
+def _inside(view: DoubtView, uv: np.ndarray, margin_px: float) -> bool:
+    """The pixel lies inside the view's image shrunk by ``margin_px`` (view pixels)."""
+    return bool(margin_px <= uv[0] <= view.width - margin_px and margin_px <= uv[1] <= view.height - margin_px)
+
+
+def _project(view: DoubtView, point: np.ndarray) -> np.ndarray | None:
+    uv, ok = view.camera.project(np.asarray(point, float).reshape(1, 3))
+    return uv[0] if ok[0] else None
+
+
+def _plausible(point: np.ndarray, s: DoubtSettings) -> bool:
+    """A ball position a game could hold (:func:`app.geometry.pitch.within_play_volume` with the judge's margins)."""
+    return bool(within_play_volume(np.asarray(point, float).reshape(1, 3), margin_m=s.play_margin_m,
+                                   max_height_m=s.max_ball_height_m, max_below_m=s.max_below_m)[0])

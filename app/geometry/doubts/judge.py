@@ -1,0 +1,399 @@
+"""The judge: the rules that find a system's doubts from its views (consensus, mirrored labels, missing balls,
+near duplicates, disagreement), each doubt with its code, evidence and fix (package docstring: the kinds).
+"""
+from __future__ import annotations
+
+import math
+from itertools import combinations
+from typing import Any, Callable, Hashable, Sequence
+
+import numpy as np
+
+from app.geometry.ball import sphere_image_box
+from app.geometry.consensus import Consensus, ball_consensus
+from app.geometry.mirror import mirror_camera
+from app.geometry.triangulation import (REFERENCE_WIDTH_PX, BallObservation, PairGeometry, pair_geometry,
+                                        reprojection_error_px)
+from app.geometry.doubts.contract import (Doubt, DoubtSettings, DoubtView, _box_list, _centre, _inside, _plausible, _project, _r, _scale)
+from app.geometry.doubts.weighting import (calibration_weight, pixel_sigma)
+from app.geometry.doubts.epipolar import (_axis_on_grass, _mono, _sees, _segment, _single_view_ball, epipolar_pair_error)
+
+
+def _info_doubts(views: Sequence[DoubtView], s: DoubtSettings) -> list[Doubt]:
+    out: list[Doubt] = []
+    for v in views:
+        if v.camera is None:
+            reason = v.calibration_reason or "no calibration"
+            out.append(Doubt("calibration_refused", v.view_id, "refused", {"reason": reason}))
+        elif not v.admitted:
+            out.append(Doubt("below_admission", v.view_id, "below_admission",
+                             {"jac": None if v.jac is None else _r(v.jac, 4)}))
+        if v.rig_assisted:
+            out.append(Doubt("rig_assisted", v.view_id, "rig_assisted", {}))
+        if v.suggested:
+            out.append(Doubt("suggested_label", v.view_id, "unconfirmed", {}))
+        if v.line_classes < s.min_line_classes:
+            out.append(Doubt("few_lines", v.view_id, "few_lines",
+                             {"line_classes": int(v.line_classes), "min_line_classes": int(s.min_line_classes)}))
+    return out
+
+
+def _mirror_doubt(v: DoubtView, code: str, others: Consensus | None, s: DoubtSettings) -> Doubt:
+    """``mirrored_labels`` for ``v`` (``code``: ``flagged``, ``suspected`` or ``refit``), with the fix when the
+    mirrored calibration and the ball agree better (:func:`_mirror_fix_check`)."""
+    ev = dict(v.mirror_evidence or {})
+    evidence: dict[str, Any] = {k: ev[k] for k in ("verdict", "margin", "camera_y_m", "mirrored_camera_y_m",
+                                                    "side_vote", "rig_distance_m", "rig_distance_mirrored_m",
+                                                    "rig_vote", "refit") if k in ev}
+    evidence["flagged"] = bool(v.mirror_flagged)
+    fix_ok, why_not, numbers = _mirror_fix_check(v, ev, others, s)
+    evidence.update(numbers)
+    evidence["fix_agrees"] = fix_ok
+    if not fix_ok:
+        evidence["no_fix"] = why_not
+    return Doubt("mirrored_labels", v.view_id, code, evidence, {"action": "mirror_labels"} if fix_ok else None)
+
+
+def _mirror_fix_check(v: DoubtView, ev: dict[str, Any], others: Consensus | None,
+                      s: DoubtSettings) -> tuple[bool, str, dict[str, Any]]:
+    """Whether mirroring the view's labels is a fix the other views' ball confirms: (offered, code of why
+    not, numbers).
+
+    The mirror fix replaces the view's camera by its mirror image (``app.geometry.mirror.mirror_camera``:
+    the camera its mirrored labels calibrate to, exactly). With a ball the other views agree on and a ball
+    label in this view, the fix is offered only when the mirrored camera brings the label closer to that
+    ball than the camera as labelled does, and within tolerance (``as_labelled_fits`` / ``mirrored_misses``
+    otherwise; the numbers ``error_as_labelled_px_1920``, ``error_mirrored_px_1920``). Without such a ball no
+    fix is offered unless the game's rig says which view is mirrored: a single other view's ray meeting this one
+    only mirrored (``app.geometry.mirror.pair_relation`` "different") cannot tell which of the two is mirrored,
+    the rig can (the mirrored camera within ``mirror_rig_near_m`` of a known camera position, the camera as
+    labelled ``mirror_rig_gap_m`` farther; else ``one_view_cannot_tell``; ``as_labelled_meets`` when a ray meets
+    it as labelled, ``no_ray_confirms`` without any). A view
+    without a camera (refused as labelled) whose mirrored labels fit (``refit``) gets the fix: it has no
+    camera to make worse.
+    """
+    if v.camera is None:
+        return (True, "", {}) if ev.get("refit") or ev.get("verdict") == "probably_mirrored" else (False, "no_ray_confirms", {})
+    c = _centre(v)
+    if others is not None and others.point is not None and not others.ambiguous and c is not None:
+        k = _scale(v, s)
+        e_as = reprojection_error_px(v.camera, others.point, c)
+        e_mi = reprojection_error_px(mirror_camera(v.camera), others.point, c)
+        numbers = {"error_as_labelled_px_1920": None if e_as is None else _r(e_as * k),
+                   "error_mirrored_px_1920": None if e_mi is None else _r(e_mi * k),
+                   "agreeing_views": list(others.inliers)}
+        tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+        if e_as is not None and (e_mi is None or e_as <= e_mi):
+            return False, "as_labelled_fits", numbers
+        if e_mi is None or e_mi * k > tau:
+            return False, "mirrored_misses", numbers
+        return True, "", numbers
+    pairs = [p for p in ev.get("pairs") or [] if isinstance(p, dict)]
+    if any(p.get("relation") == "same" for p in pairs):
+        return False, "as_labelled_meets", {}
+    if not any(p.get("relation") == "different" for p in pairs):
+        return False, "no_ray_confirms", {}
+    # one other view's ray cannot tell which of the two is mirrored (mirroring either meets it): the game's rig
+    # can, when the mirrored camera stands at a known camera position (within mirror_rig_near_m) and the camera
+    # as labelled at least mirror_rig_gap_m farther from every one; without it, on a clean view such a fix
+    # moved a right camera, and its 3D ball, across the pitch
+    d, dm = ev.get("rig_distance_m"), ev.get("rig_distance_mirrored_m")
+    if isinstance(d, (int, float)) and isinstance(dm, (int, float)) and dm <= s.mirror_rig_near_m \
+            and d >= dm + s.mirror_rig_gap_m:
+        return True, "", {"rig_confirms": True}
+    return False, "one_view_cannot_tell", {}
+
+
+def _mirror_suspected(v: DoubtView, s: DoubtSettings) -> bool:
+    """Not flagged, but the mirror evidence points at this view: no other view's ball ray meets its ray
+    only as labelled, and its mirrored camera stands at a known camera position of the game (within
+    ``mirror_rig_near_m``) while as labelled it stands at least ``mirror_rig_gap_m`` farther from every one.
+    The flag itself weighs that rig vote low so that it never flags alone (a replay camera seen once whose
+    mirror image happens to stand near a known position); a doubt asks a person to look, and a mirror
+    image within a metre of a known camera, with the camera itself far from any, is rare by chance. The
+    fix is still offered only when the ball confirms it (:func:`_mirror_fix_check`)."""
+    ev = v.mirror_evidence or {}
+    d, dm = ev.get("rig_distance_m"), ev.get("rig_distance_mirrored_m")
+    if v.mirror_flagged or not isinstance(d, (int, float)) or not isinstance(dm, (int, float)):
+        return False
+    same = any(p.get("relation") == "same" for p in ev.get("pairs") or [])
+    return bool(not same and dm <= s.mirror_rig_near_m and d >= dm + s.mirror_rig_gap_m)
+
+
+def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtSettings) -> list[Doubt]:
+    """Pairs of views that both show the ball and whose camera centres subtend less than
+    ``near_duplicate_max_deg`` at it.
+
+    The angle is measured at the consensus ball, else at the ball a labelled view of the pair places
+    on the grass or by its box, else where the first view's optical axis meets the grass: calibrated
+    centres err mostly along the viewing direction, which barely changes that angle."""
+    out: list[Doubt] = []
+    named: set[Hashable] = set()
+    for a, b in combinations(views, 2):
+        if a.view_id in named or b.view_id in named:
+            continue
+        ref = consensus.point
+        for v in (a, b):
+            if ref is None and _centre(v) is not None:
+                ref = _single_view_ball(v, s)[0]
+        if ref is None:
+            ref = _axis_on_grass(a, s)
+        if ref is None:
+            continue
+        u, w = ref - a.camera.C, ref - b.camera.C
+        angle = math.degrees(math.atan2(np.linalg.norm(np.cross(u, w)), float(u @ w)))
+        if angle >= s.near_duplicate_max_deg or not (_sees(a, ref) and _sees(b, ref)):
+            continue
+        # Name the view that adds nothing: an unlabelled one, else a replay, else the lower JaC.
+        keep, drop = sorted((a, b), key=lambda v: (_centre(v) is None, v.role != "action", -(v.jac or 0.0)))
+        named.add(drop.view_id)
+        out.append(Doubt(
+            "near_duplicate_view", drop.view_id, "near_duplicate",
+            {"other_view": keep.view_id, "angle_deg": _r(angle, 3), "baseline_m": _r(np.linalg.norm(u - w), 2),
+             "max_deg": s.near_duplicate_max_deg},
+            {"action": "exclude_view"}))
+    return out
+
+
+def consensus_box_sigma_px(v: DoubtView, consensus: Consensus, s: DoubtSettings) -> float | None:
+    """How far (px of ``v``'s own image, one standard deviation) the consensus ball's box in ``v`` may lie from
+    where the ball is: the agreeing views' own spread (the RMS of their reprojection errors to the consensus
+    ball, px at 1920 width: how well the rays that made it meet) and ``v``'s calibration's pixel sigma at that
+    ball (:func:`pixel_sigma`: how far its camera may put the ball's projection), added in quadrature and
+    scaled to ``v``'s pixels. None when ``v``'s calibration leaves the pixel undetermined (``inf``)."""
+    errs = [consensus.errors_1920.get(i) for i in consensus.inliers]
+    errs = [e for e in errs if e is not None and math.isfinite(e)]
+    spread = math.sqrt(sum(e * e for e in errs) / len(errs)) if errs else 0.0
+    own = pixel_sigma(v, consensus.point, s)
+    if not math.isfinite(own):
+        return None
+    return _r(math.hypot(spread, own) / _scale(v, s), 2)
+
+
+def consensus_fix(v: DoubtView, consensus: Consensus, box: np.ndarray | None, s: DoubtSettings,
+                  alternatives: Sequence[str] = ("exclude_view",)) -> dict[str, Any]:
+    """The fix of a doubt that accuses ``v``'s ball label (``ball_off_consensus``) or its absence
+    (``ball_missing``): snap the label to the box the other views agree on, ``box`` (the exact sphere box of
+    the consensus ball in ``v``, ``[x1, y1, x2, y2]`` px of ``v``), with its uncertainty ``box_sigma_px``
+    (:func:`consensus_box_sigma_px`) and the other fixes that apply (``alternatives``: actions of
+    :data:`SUGGESTION_ACTIONS`, e.g. excluding the view when its label is right and its timing or camera is
+    not). Without a box (the ball projects outside ``v`` or behind its camera) the first alternative is the
+    fix, ``{"action": "exclude_view"}``."""
+    if box is None:
+        return {"action": alternatives[0]} if alternatives else {"action": "exclude_view"}
+    out: dict[str, Any] = {"action": "snap_box", "box": _box_list(box),
+                           "box_sigma_px": consensus_box_sigma_px(v, consensus, s)}
+    if alternatives:
+        out["alternatives"] = list(alternatives)
+    return out
+
+
+def _missing_doubt(v: DoubtView, consensus: Consensus, s: DoubtSettings, code: str,
+                   extra: dict[str, Any], margin_px: float | None = None) -> Doubt | None:
+    """``ball_missing`` for an unlabelled view when the consensus ball projects inside its image by
+    ``margin_px`` (px at 1920 width; default ``inside_margin_px``), else None; its fix is
+    :func:`consensus_fix` (the sphere box with its uncertainty)."""
+    ball = consensus.point
+    uv = _project(v, ball)
+    margin = s.inside_margin_px if margin_px is None else margin_px
+    if uv is None or not _inside(v, uv, margin / _scale(v, s)):
+        return None
+    box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
+    if box is None:
+        return None
+    evidence = {"projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball], **extra}
+    return Doubt("ball_missing", v.view_id, code, evidence, consensus_fix(v, consensus, box, s, alternatives=()))
+
+
+def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> Doubt | None:
+    """``ball_missing`` for ``v`` when one other view is labelled. One ray does not fix the ball's depth: the
+    ball lies on that view's ray, within the depths its box size allows (:func:`_segment` ``by_box``), at an
+    unknown height. ``v`` is said to miss it when the ball is more likely inside ``v``'s image than not: it
+    projects inside (by ``inside_margin_px``) where :func:`_single_view_ball` places it (on the grass when
+    the box size agrees, else at the box's depth), and the chance that it lies inside, the box-size depth
+    taken as a normal law (sigma ``ground_box_tolerance`` / 2) over the segment, is at least a half. A ball
+    in the air that only the grass guess puts inside is not claimed (an out-of-frame replay would be called
+    missing). The segment is drawn (``evidence["epipolar_px"]``); a box is suggested only where the
+    segment is short enough that any point on it lies within ``consensus_tau_px`` of its middle (code
+    ``epipolar_box``; ``epipolar`` without a box). A suggested box lies on the other view's ray by
+    construction, so it is a guess, not evidence (the service keeps its provenance)."""
+    ball, how = _single_view_ball(only, s)
+    if ball is None or not _plausible(ball, s):
+        return None
+    uv0 = _project(v, ball)
+    m = s.inside_margin_px / _scale(v, s)
+    if uv0 is None or not _inside(v, uv0, m):
+        return None
+    seg = _segment(only, v, s, by_box=True)
+    if seg is None:
+        return None
+    pts, uv = seg
+    with np.errstate(invalid="ignore"):
+        inside = np.isfinite(uv).all(1) & (uv[:, 0] >= m) & (uv[:, 0] <= v.width - m) & (uv[:, 1] >= m) & (
+            uv[:, 1] <= v.height - m)
+    # the chance that the ball is inside: the box-size depth as a normal law (sigma half the tolerance,
+    # so the segment spans two sigmas each side), weighed over the segment's samples
+    mono = _mono(only, s)
+    if mono is not None:
+        depth = np.linalg.norm(pts - only.camera.C, axis=1) / np.linalg.norm(mono - only.camera.C)
+        w = np.exp(-0.5 * ((depth - 1.0) / (s.ground_box_tolerance / 2)) ** 2)
+    else:
+        w = np.ones(len(pts))
+    chance = float(np.sum(w * inside) / np.sum(w))
+    if chance < 0.5:
+        return None
+    seen = uv[inside]
+    length = float(np.sum(np.linalg.norm(np.diff(seen, axis=0), axis=1))) * _scale(v, s)
+    evidence: dict[str, Any] = {"agreeing_views": [only.view_id], "epipolar_px": [[_r(x), _r(y)] for x, y in seen],
+                                "segment_length_px_1920": _r(length), "inside_fraction": _r(inside.mean(), 2), "inside_chance": _r(chance, 2),
+                                "grass_px": [_r(uv0[0]), _r(uv0[1])], "placed": how, "depth_known": False}
+    if length / 2 > s.consensus_tau_px or not inside.all():
+        return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
+    box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
+    if box is None:
+        return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
+    evidence.update(projected_px=[_r(uv0[0]), _r(uv0[1])], ball3d=[_r(x, 3) for x in ball])
+    # its uncertainty: the ball may lie anywhere on the stretch drawn, half its length either side of the box
+    return Doubt("ball_missing", v.view_id, "epipolar_box", evidence,
+                 {"action": "snap_box", "box": _box_list(box), "box_sigma_px": _r(length / 2 / _scale(v, s))})
+
+
+def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSettings(),
+                 geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry) -> list[Doubt]:
+    """Every doubt of one multi-view system (pure, deterministic; see the module docstring for the kinds).
+
+    Rules, in order:
+
+    1. info doubts per view (refused calibration, below admission, rig-assisted, few line classes);
+    2. views that take part: calibrated, not excluded by the reviewer, with at least
+       ``min_line_classes`` line classes, and a vote (:func:`_vote_weight`: what the calibration is worth,
+       from admission and the calibration's pixel sigma, :func:`pixel_sigma`). A view with at least
+       ``min_line_classes`` classes flagged mirrored (refused, calibrated or below admission: JaC is the
+       same for labels and their mirror), or a view that takes part and is suspected mirrored
+       (:func:`_mirror_suspected`), gets ``mirrored_labels`` and takes no further part (its camera is
+       the mirrored one, so its ray says nothing about its ball label, and it is not accused twice);
+    3. the labelled views' robust consensus (:func:`app.geometry.consensus.ball_consensus` with
+       ``consensus_tau_px``, votes weighted, each view's tolerance widened to its pixel sigma, a proposal
+       outside the play volume refused): each labelled view off a non-ambiguous consensus gets
+       ``ball_off_consensus`` (fix: snap to the consensus ball's box with its uncertainty, :func:`consensus_fix`,
+       or exclude it; exclude only when that ball does not project inside it); labelled views with no
+       consensus or an ambiguous one give one ``views_disagree`` for the system, also when the only pairs
+       are too poorly conditioned to triangulate but their labels miss each other's ray across the play
+       volume by more than tau (:func:`epipolar_pair_error`);
+    4. each unlabelled view in which the consensus ball projects inside the image (by
+       ``inside_margin_px``) gets ``ball_missing`` with the exact sphere box there; with a single
+       labelled view, only when the ball is more likely inside than not (:func:`_missing_from_one_view`:
+       the segment drawn, a box only on a short segment);
+    5. pairs of views from nearly the same viewpoint give ``near_duplicate_view`` naming the one that
+       adds nothing (an unlabelled one, else a replay, else the lower JaC).
+
+    Words are not written here: each doubt carries a ``code`` and its numbers, and
+    ``app.services.curation.doubt_words`` composes the sentence.
+
+    Args:
+        views: the system's views (ids unique).
+        settings: thresholds (:class:`DoubtSettings`).
+        geometry: where the consensus's pairs' raw geometry comes from (``app.geometry.consensus.ball_consensus``).
+
+    Returns:
+        The doubts: info kinds first, then ``mirrored_labels``, ``ball_off_consensus``, ``ball_missing``,
+        ``views_disagree`` and ``near_duplicate_view``.
+
+    Raises:
+        ValueError: duplicate view ids.
+    """
+    s = settings
+    ids = [v.view_id for v in views]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"views: view ids must be unique, got {ids!r}")
+    doubts = _info_doubts(views, s)
+    lined = [v for v in views if not v.excluded and v.line_classes >= s.min_line_classes]
+    calibrated = [v for v in lined if v.camera is not None]
+    # the mirror flag is today's verdict whatever the view's admission (JaC is the same for labels and
+    # their mirror), also for a view refused as labelled; the ray-based suspicion needs a view that takes part
+    flagged = [v for v in lined if v.mirror_flagged]
+    suspected = [v for v in calibrated if v not in flagged and v.admitted and _mirror_suspected(v, s)]
+    mirrored = flagged + suspected
+    # views with few line classes are not judged (their camera is not fixed by their lines), but one whose
+    # calibration is sure (pixel sigma within tau, e.g. a rig camera whose few lines fix its rotation)
+    # lends its label half a vote to the consensus
+    helpers = [v for v in views if not v.excluded and v.camera is not None and v.line_classes < s.min_line_classes
+               and not v.mirror_flagged and not v.suggested and _centre(v) is not None]
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    sigma: dict[Hashable, float] = {}
+    weight: dict[Hashable, float] = {}
+    for v in calibrated + helpers:
+        weight[v.view_id], sigma[v.view_id] = calibration_weight(v, s)
+    helpers = [v for v in helpers if weight[v.view_id] > 0]
+    judged = [v for v in calibrated if v not in mirrored and weight[v.view_id] > 0 and not v.suggested]
+    labelled = [v for v in judged if _centre(v) is not None]
+    unlabelled = [v for v in judged if _centre(v) is None]
+    voters = labelled + helpers
+    obs = [BallObservation(v.view_id, v.camera, _centre(v), REFERENCE_WIDTH_PX / _scale(v, s)) for v in voters]
+    cons = ball_consensus(obs, tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
+                          weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
+    lone_contradicted = bool(helpers) and len(labelled) == 1 and (
+        labelled[0].view_id not in cons.inliers and (cons.point is not None or cons.best_pair_error_1920 is not None))
+    if not any(i in {v.view_id for v in labelled} for i in cons.inliers):
+        cons = ball_consensus([], tau_px=tau)  # helpers alone say nothing
+    helper_ids = {v.view_id for v in helpers}
+    doubts += [_mirror_doubt(v, "flagged" if v in flagged else "suspected", cons, s) for v in mirrored]
+    by_id = {v.view_id: v for v in views}
+    if cons.point is not None and not cons.ambiguous:
+        accusing = sum(weight[i] for i in cons.inliers) >= 1.5  # a full vote and at least a half one
+        for vid in cons.outliers if accusing else ():
+            if vid in helper_ids:
+                continue
+            v = by_id[vid]
+            e = cons.errors_1920[vid]
+            uv = _project(v, cons.point)
+            box = sphere_image_box(v.camera, cons.point, s.ball_diameter_m / 2) if uv is not None and _inside(
+                v, uv, 0.0) else None
+            suggestion = consensus_fix(v, cons, box, s)
+            doubts.append(Doubt(
+                "ball_off_consensus", vid, "off_consensus" if e is not None else "behind_camera",
+                {"error_px_1920": None if e is None else _r(e), "tau_px": _r(max(tau, sigma.get(vid, 0.0))),
+                 "calibration_sigma_px_1920": _r(sigma.get(vid, 0.0)), "agreeing_views": list(cons.inliers),
+                 "ball3d": [_r(x, 3) for x in cons.point],
+                 "projected_px": None if uv is None else [_r(uv[0]), _r(uv[1])]},
+                suggestion))
+        for v in unlabelled:
+            d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
+            if d is not None:
+                doubts.append(d)
+    elif len(labelled) >= 2:
+        own = cons if not helpers else ball_consensus(  # the labelled views' own agreement, without the helpers
+            obs[:len(labelled)], tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
+            weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
+        d = _disagree_doubt(labelled, own, tau, s)
+        if d is not None:
+            doubts.append(d)
+    elif len(labelled) == 1 and not lone_contradicted:
+        # (a helper's label that misses the lone label contradicts it: nothing is placed from it)
+        for v in unlabelled:
+            d = _missing_from_one_view(labelled[0], v, s)
+            if d is not None:
+                doubts.append(d)
+    doubts += _near_duplicates(judged, cons, s)
+    return doubts
+
+
+def _disagree_doubt(labelled: Sequence[DoubtView], cons: Consensus, tau: float, s: DoubtSettings) -> Doubt | None:
+    """``views_disagree`` when no ball is agreed on: with a pair error from the consensus (``no_agreement``,
+    or ``ambiguous`` for two camps), or, when no pair had the geometry to triangulate, from the labels'
+    distances to each other's ray across the play volume (``epipolar``: above tau for every pair). None
+    when the views agree within tau but no pair could triangulate (a near-duplicate pair that agrees)."""
+    best = cons.best_pair_error_1920
+    code = "ambiguous" if cons.ambiguous else "no_agreement"
+    if cons.point is not None and not cons.ambiguous:
+        return None  # they agree, but no ball is agreed on by the helpers' votes: nothing to say
+    if best is None:
+        errs = [epipolar_pair_error(a, b, s) for a, b in combinations(labelled, 2)]
+        errs = [e for e in errs if e is not None]
+        if not errs or min(errs) <= tau:
+            return None
+        best, code = min(errs), "epipolar"
+    return Doubt("views_disagree", None, code,
+                 {"views": [v.view_id for v in labelled],
+                  "best_pair_error_px_1920": None if math.isinf(best) else _r(best),
+                  "tau_px": tau, "ambiguous": cons.ambiguous, "third_view": len(labelled) == 2})
