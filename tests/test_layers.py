@@ -55,14 +55,21 @@ def test_a_layer_imports_nothing_above_it(package):
 
 def _module_graph() -> dict[str, set[str]]:
     """app's modules (a package by its ``__init__``) -> the app modules each imports, anywhere in it: ``from a.b
-    import c`` names module ``a.b.c`` when that is one, else ``a.b``."""
+    import c`` names module ``a.b.c`` when that is one, else ``a.b``. One kind of import is no edge: a type-only
+    import (under ``if TYPE_CHECKING:``, never run) of a sibling module of the same package, as the models'
+    relationships name the models of the other domains (``app.db.models``: the registry resolves them)."""
     modules = {".".join(p.relative_to(APP.parent).with_suffix("").parts).removesuffix(".__init__"): p
                for p in APP.rglob("*.py")}
     graph: dict[str, set[str]] = {m: set() for m in modules}
     for module, path in modules.items():
         tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        type_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
+                     and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
+                     for stmt in block.body for n in ast.walk(stmt)}
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                if id(node) in type_only and node.module.rpartition(".")[0] == module.rpartition(".")[0]:
+                    continue  # a sibling's model named by a relationship's annotation only
                 names = [f"{node.module}.{a.name}" for a in node.names]
                 graph[module] |= {n for n in names if n in modules} or ({node.module} & modules.keys())
             elif isinstance(node, ast.Import):

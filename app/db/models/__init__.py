@@ -1,0 +1,86 @@
+"""SQLAlchemy 2 typed models of v3d.
+
+Entity graph (``->`` is "has many", ``-`` is "has one")::
+
+    Game -> System -> Frame - FieldLineAnnotation      (current + imported original, pixels)
+                 |          - Calibration              (SoccerNet camera JSON, JaC@gamma, admitted)
+                 |          - BallLabel                (box or point, current + imported original)
+                 |          - BallReprojection         (fused 3D ball projected into the view)
+                 |          - OptimisedBox             (paper Eq. min_diametre)
+                 |          - ReviewDecision           (frame level)
+                 - Triangulation -> TriangulationPair  (per pair e_ij, parallax, baseline, kept)
+                 - ReviewDecision                      (system level)
+                 -> Doubt                              (label problems the geometry sees, with fixes)
+                 - TrajectoryPoint                     (ISSIA: the frame on the sequence's trajectory)
+
+    User -> ApiToken                                   (people and their API tokens, hashed)
+    System - User (assignee), SystemPresence           (work assignment; who has a system open, expiring)
+    ServerSecret                                       (the session-signing key, shared by every worker)
+    AuditEntry                                         (append-only log of accepted writes; ids, no FKs)
+    Job                                                (a background import, full recompute or export)
+
+Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
+world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
+``[x1, y1, x2, y2]`` and points ``[x, y]`` JSON lists. Enums are stored by value.
+The schema is created by the Alembic migrations (``migrations/``), never by ``create_all``.
+
+Size (over 400 lines): one typed model per table, in one registry so that relationships and the entity graph
+
+One module per domain: :mod:`~.base` (the registry), :mod:`~.enums`, :mod:`~.labels` (what a dataset brings),
+:mod:`~.derived` (what the recomputation derives), :mod:`~.review`, :mod:`~.accounts`, :mod:`~.operations`
+(audit log, jobs). Every model is importable from here; importing the package registers them all.
+"""
+
+from app.db.models.base import Base, JAC_COLUMNS, NAMING_CONVENTION
+from app.db.models.enums import (
+    BallKind,
+    CalibrationSource,
+    CalibrationStatus,
+    FrameRole,
+    JobState,
+    ReviewStatus,
+    SystemKind,
+    TriangulationStatus,
+    UserRole,
+)
+from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, System, TrajectoryPoint
+from app.db.models.derived import BallReprojection, Calibration, Doubt, OptimisedBox, Triangulation, TriangulationPair
+from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
+from app.db.models.accounts import ApiToken, RateLimitCounter, ServerSecret, User
+from app.db.models.operations import AuditEntry, Job
+
+__all__ = [
+    "Base",
+    "JAC_COLUMNS",
+    "NAMING_CONVENTION",
+    "BallKind",
+    "CalibrationSource",
+    "CalibrationStatus",
+    "FrameRole",
+    "JobState",
+    "ReviewStatus",
+    "SystemKind",
+    "TriangulationStatus",
+    "UserRole",
+    "BallLabel",
+    "FieldLineAnnotation",
+    "Frame",
+    "Game",
+    "System",
+    "TrajectoryPoint",
+    "BallReprojection",
+    "Calibration",
+    "Doubt",
+    "OptimisedBox",
+    "Triangulation",
+    "TriangulationPair",
+    "ReviewDecision",
+    "ReviewPass",
+    "SystemPresence",
+    "ApiToken",
+    "RateLimitCounter",
+    "ServerSecret",
+    "User",
+    "AuditEntry",
+    "Job",
+]

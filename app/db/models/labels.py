@@ -1,0 +1,314 @@
+"""What a dataset brings: games, multi-view systems, frames and their labels (field lines, ball label), and
+an ISSIA frame's place on its sequence's trajectory.
+
+Units: pixels of the frame's own image (origin top-left), world metres in SoccerNet's frame (z down).
+"""
+from __future__ import annotations
+
+
+from datetime import datetime
+from typing import TYPE_CHECKING, Any, Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Mapped, mapped_column, relationship
+
+from app.db.types import enum_by_value, utcnow
+from app.db.models.base import Base
+from app.db.models.enums import (BallKind, FrameRole, ReviewStatus, SystemKind)
+
+if TYPE_CHECKING:  # the relationships name these; the registry resolves them at run time
+    from app.db.models.derived import BallReprojection, Calibration, Doubt, OptimisedBox, Triangulation
+    from app.db.models.review import ReviewDecision
+
+
+# ----- entities ------------------------------------------------------------------------------------
+class Game(Base):
+    """One game (SoccerNet-v3) or one calibration dataset (its frames are single-view systems)."""
+
+    __tablename__ = "games"
+    __table_args__ = (sa.UniqueConstraint("league", "season", "match"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    league: Mapped[str] = mapped_column(sa.String(200))
+    season: Mapped[str] = mapped_column(sa.String(200))
+    match: Mapped[str] = mapped_column(sa.String(400))
+    #: Folder or archive the game was imported from (absolute path at import time).
+    source_path: Mapped[str] = mapped_column(sa.Text)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    #: What the imported labels file carries beside its systems, as it came (``GameRecord.release``: its
+    #: top-level keys but ``actions`` and ``replays``, e.g. ``GameMetadata`` with ``UrlYoutube``, and the
+    #: replays no action links), written back by the SoccerNet-v3D export; None for formats without one.
+    #: Deferred: read by the exports only.
+    release: Mapped[Optional[dict[str, Any]]] = mapped_column(deferred=True)
+    #: A calibration dataset's learned camera prior (``CameraPrior.to_json``, issue 17): learned by its import
+    #: from its own confident fits, used by every later recalibration of its frames; None when none was learned.
+    camera_prior: Mapped[Optional[dict[str, Any]]] = mapped_column(default=None)
+
+    systems: Mapped[list[System]] = relationship(
+        back_populates="game", cascade="all, delete-orphan", passive_deletes=True, order_by="System.id"
+    )
+
+    @property
+    def path(self) -> str:
+        """``league/season/match``: the game's folder in SoccerNet trees and its key in exports."""
+        return f"{self.league}/{self.season}/{self.match}"
+
+
+class System(Base):
+    """A multi-view system: an action frame and its linked replays, or one single-view frame."""
+
+    __tablename__ = "systems"
+    __table_args__ = (
+        sa.UniqueConstraint("game_id", "name"),
+        sa.Index("ix_systems_label_doubts_worst_error_px", "label_doubts", "worst_error_px"),
+        # the sort keys within a review status: the "pending" queue and its neighbours are index seeks
+        sa.Index("ix_systems_review_status_label_doubts_worst_error_px", "review_status", "label_doubts",
+                 "worst_error_px"),
+        sa.Index("ix_systems_review_status_worst_error_px", "review_status", "worst_error_px"),
+        sa.Index("ix_systems_review_status_lowest_jac", "review_status", "lowest_jac"),
+        # keyset pages of the queue (app.services.curation.queue._slices, migration 0013): the numeric name
+        # order within a game as an index walk
+        sa.Index("ix_systems_game_id_name_length_name", "game_id", sa.text("length(name)"), "name"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    game_id: Mapped[int] = mapped_column(sa.ForeignKey("games.id", ondelete="CASCADE"), index=True)
+    #: The action frame's name ("12.png") or the calibration frame's file stem ("00002").
+    name: Mapped[str] = mapped_column(sa.String(200))
+    kind: Mapped[SystemKind] = mapped_column(enum_by_value(SystemKind, "system_kind"))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    game: Mapped[Game] = relationship(back_populates="systems")
+    frames: Mapped[list[Frame]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True, order_by="Frame.position"
+    )
+    triangulation: Mapped[Optional[Triangulation]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True
+    )
+    review: Mapped[Optional[ReviewDecision]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True
+    )
+    doubts: Mapped[list[Doubt]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True, order_by="Doubt.id"
+    )
+    # ----- the review queue's figures, written by every recomputation of the system
+    # (``app.services.derivation.recompute.update_summary``) so that the queue reads them instead of aggregating
+    # on every request. Aggregates are over the **admitted** views, the ones the 3D ball is made of.
+    #: Doubts per kind (``{kind: n}``, every kind present), written with the doubts.
+    doubt_counts: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    #: How many doubts accuse a label (``app.geometry.doubts.LABEL_KINDS``): the queue sorts by it.
+    label_doubts: Mapped[int] = mapped_column(default=0)
+    views_total: Mapped[int] = mapped_column(default=0)
+    views_calibrated: Mapped[int] = mapped_column(default=0)
+    views_admitted: Mapped[int] = mapped_column(default=0)
+    #: Views with a current ball label.
+    views_labelled: Mapped[int] = mapped_column(default=0)
+    #: Lowest JaC@0.5 % among admitted views (None without one).
+    lowest_jac: Mapped[Optional[float]] = mapped_column(index=True)
+    #: Largest reprojection error (px, the view's own) of the fused ball among admitted labelled views.
+    worst_error_px: Mapped[Optional[float]] = mapped_column(index=True)
+    #: Views (admitted or not) whose field-line labels are flagged probably mirrored.
+    views_flagged: Mapped[int] = mapped_column(default=0)
+    #: Admitted labelled views whose reprojection error is above tau
+    #: (``app.geometry.triangulation.error_above_tau``).
+    views_above_tau: Mapped[int] = mapped_column(default=0)
+    #: The system's review status (a copy of ``review.status``, pending without a decision), kept in the
+    #: transaction of every decision and recomputation: the queue filters and counts by it.
+    review_status: Mapped[ReviewStatus] = mapped_column(
+        enum_by_value(ReviewStatus, "system_review_status"), default=ReviewStatus.PENDING, index=True)
+    #: Version of the derived rows and figures (``app.services.derivation.recompute.DERIVED_VERSION``); a system
+    #: stored by an older version is recomputed before it is served (``refresh_stale_systems``).
+    derived_version: Mapped[int] = mapped_column(default=0)
+    #: The fingerprint of the settings the derived rows were computed with (``Settings.derived_fingerprint``,
+    #: e.g. ``V3D_PROFILE``'s choices); None before it was recorded. A different one: stale for ``v3d recompute``.
+    derived_settings: Mapped[Optional[str]] = mapped_column(sa.String(16))
+    #: ISSIA systems: the frame index in the sequence (frame ``i`` at ``t = i / fps``); None otherwise.
+    frame_index: Mapped[Optional[int]] = mapped_column(index=True)
+    #: Version of the system's review decision, bumped by every decision on the system (its strong ETag,
+    #: ``app.services.curation.versions``); recomputations never touch it.
+    review_version: Mapped[int] = mapped_column(default=1)
+    #: ISSIA systems: the frame's place on the sequence's trajectory (``app.services.issia.sequences``).
+    trajectory_point: Mapped[Optional[TrajectoryPoint]] = relationship(
+        back_populates="system", cascade="all, delete-orphan", passive_deletes=True
+    )
+    # ----- work assignment (issue 28, ``app.services.curation.assignment``): who should review the system.
+    #: The id of the user the system is assigned to (None: nobody). A plain indexed id, as the audit log's: a
+    #: foreign key would need SQLite to rebuild ``systems`` (migration 0020); users are disabled, never deleted.
+    assignee_id: Mapped[Optional[int]] = mapped_column(index=True)
+    #: When it was last assigned (or unassigned), UTC; None when never.
+    assigned_at: Mapped[Optional[datetime]]
+    #: Who assigned it (the audit log's actor name, so that it outlives the user); None when never.
+    assigned_by: Mapped[Optional[str]] = mapped_column(sa.String(200))
+
+
+class Frame(Base):
+    """One image of a system and where its pixels are read from.
+
+    The image is either a member of a zip archive (``image_zip`` + ``image_member``, read without
+    extracting) or a file (``image_path``), both relative (POSIX) to the imported dataset's folder
+    ``image_root`` and checked to resolve inside it when imported and when served
+    (``app.services.images.serving.stored_image_file``); all empty when the dataset ships no images.
+    """
+
+    __tablename__ = "frames"
+    __table_args__ = (
+        sa.UniqueConstraint("system_id", "name"),
+        sa.CheckConstraint("width > 0 AND height > 0", name="positive_size"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(sa.String(200))
+    role: Mapped[FrameRole] = mapped_column(enum_by_value(FrameRole, "frame_role"))
+    #: Order of the views in the system (the action first, then replays in file order).
+    position: Mapped[int] = mapped_column(default=0)
+    width: Mapped[int]
+    height: Mapped[int]
+    image_zip: Mapped[Optional[str]] = mapped_column(sa.Text)
+    image_member: Mapped[Optional[str]] = mapped_column(sa.Text)
+    image_path: Mapped[Optional[str]] = mapped_column(sa.Text)
+    #: The imported dataset's folder (absolute, resolved) that ``image_zip`` / ``image_path`` are relative to.
+    image_root: Mapped[Optional[str]] = mapped_column(sa.Text)
+    #: The image's type checked from its header at import ("png" or "jpeg"); served with that media type.
+    image_type: Mapped[Optional[str]] = mapped_column(sa.String(16))
+    #: Frame number inside ``image_path`` when that is a video or a folder of numbered frames
+    #: (ISSIA); the image is decoded on demand and resized to ``width`` x ``height``.
+    media_frame: Mapped[Optional[int]]
+    #: The footage is mirrored horizontally relative to the labels: flipped back when read.
+    media_flipped: Mapped[bool] = mapped_column(default=False)
+    #: The split a release gives the image ("train" or "test", ``v3d import split``); None: the kind's own
+    #: (``app.services.kinds.KindPolicy.split``).
+    split: Mapped[Optional[str]] = mapped_column(sa.String(8))
+    #: A precise ball box ``[x1, y1, x2, y2]`` px of this image (paper Table 1, ``v3d import precise-boxes``), or None.
+    precise_box: Mapped[Optional[list[float]]]
+    #: What a release carries of the frame that v3d does not edit, as it came (``FrameRecord.release``: the
+    #: frame's entry of the labels file, every key: ``imageMetadata``, every ``bboxes`` entry (players,
+    #: goalkeepers, referees, the imported ball), the links; ``lines`` only where the stored field lines do not
+    #: give them back). The SoccerNet-v3D export writes it with the curated lines and ball box, the detector
+    #: exports take their other boxes from it: no export reads the source files again. None for formats without
+    #: one (SoccerNet-calibration, ISSIA). Deferred: read by the exports only.
+    release: Mapped[Optional[dict[str, Any]]] = mapped_column(deferred=True)
+    #: Version of what people edit on the frame (ball label, field lines, its review and exclusion),
+    #: bumped by each such write and by an import that changes them (its strong ETag,
+    #: ``app.services.curation.versions``); a recomputation caused by a sibling view's edit never touches it.
+    edit_version: Mapped[int] = mapped_column(default=1)
+
+    system: Mapped[System] = relationship(back_populates="frames")
+    field_lines: Mapped[Optional[FieldLineAnnotation]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    calibration: Mapped[Optional[Calibration]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    ball_label: Mapped[Optional[BallLabel]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    reprojection: Mapped[Optional[BallReprojection]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    optimised_box: Mapped[Optional[OptimisedBox]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+    review: Mapped[Optional[ReviewDecision]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
+    )
+
+
+class FieldLineAnnotation(Base):
+    """A frame's field lines: ``{class: [[[x, y], ...], ...]}`` in pixels (repeated classes kept).
+
+    ``original_lines`` is what the dataset said; ``lines`` is the current value (equal until edited).
+    """
+
+    __tablename__ = "field_lines"
+
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
+    lines: Mapped[dict[str, Any]]
+    original_lines: Mapped[dict[str, Any]]
+    edited_at: Mapped[Optional[datetime]]
+
+    frame: Mapped[Frame] = relationship(back_populates="field_lines")
+
+    @property
+    def edited(self) -> bool:
+        """True when the current lines differ from the imported ones."""
+        return self.lines != self.original_lines
+
+
+class BallLabel(Base):
+    """A frame's ball label: a box ``[x1, y1, x2, y2]`` or a point ``[x, y]`` in pixels.
+
+    The imported original is kept beside the current value. ``kind`` None means a reviewer removed
+    the label (the ball is not visible) while the original is kept; a frame that never had a label
+    has no row. ``provenance`` marks a label made from a doubt's suggestion (:attr:`suggested`).
+    """
+
+    __tablename__ = "ball_labels"
+
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
+    kind: Mapped[Optional[BallKind]] = mapped_column(enum_by_value(BallKind, "ball_kind"))
+    box: Mapped[Optional[list[float]]]
+    point: Mapped[Optional[list[float]]]
+    original_kind: Mapped[Optional[BallKind]] = mapped_column(enum_by_value(BallKind, "ball_original_kind"))
+    original_box: Mapped[Optional[list[float]]]
+    original_point: Mapped[Optional[list[float]]]
+    edited_at: Mapped[Optional[datetime]]
+    #: Where a label made from a doubt's suggestion came from (migration 0017): ``{"source": "suggestion",
+    #: "doubt", "code", "from_views": [frame ids]}``; None for a label a person placed. A suggested label is not
+    #: independent evidence (it lies where the other views put the ball by construction): it joins no
+    #: triangulation and no doubt vote until a person places it (moves or confirms it: any edit without a
+    #: provenance clears it).
+    provenance: Mapped[Optional[dict[str, Any]]]
+
+    frame: Mapped[Frame] = relationship(back_populates="ball_label")
+
+    @property
+    def suggested(self) -> bool:
+        """True while the current label is a suggestion no person has placed."""
+        return self.kind is not None and bool(self.provenance)
+
+    @property
+    def edited(self) -> bool:
+        """True when the current label differs from the imported one."""
+        return (self.kind, self.box, self.point) != (self.original_kind, self.original_box, self.original_point)
+
+    @property
+    def centre(self) -> list[float] | None:
+        """The labelled ball centre ``[x, y]`` in pixels (the box centre or the point), or None when
+        the current label was removed."""
+        return BallLabel.centre_of(self.box, self.point)
+
+    @staticmethod
+    def centre_of(box: list[float] | None, point: list[float] | None) -> list[float] | None:
+        """:attr:`centre` of stored ``box`` / ``point`` columns (read without the ORM object)."""
+        if box is not None:
+            x1, y1, x2, y2 = box
+            return [(x1 + x2) / 2.0, (y1 + y2) / 2.0]
+        return None if point is None else list(point)
+
+
+class TrajectoryPoint(Base):
+    """An ISSIA system's frame on its sequence's fitted trajectory (``app.geometry.trajectory``).
+
+    ``ball3d`` is the frame's own triangulation (``triangulate_frame`` of the labels the trajectory
+    keeps; ISSIA-3D's ``ball_3D``), ``ball3d_smoothed`` the trajectory's position and ``source`` how
+    it was obtained (``triangulated``, ``fitted``, ``interpolated``), all world metres (z down) or
+    None. ``cam_list`` holds the frame ids of the kept labels, ``residuals_px`` frame id (str) -> the
+    label's distance to the trajectory's projection (px at 1920 width).
+    """
+
+    __tablename__ = "trajectory_points"
+
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), primary_key=True)
+    ball3d: Mapped[Optional[list[float]]]
+    ball3d_smoothed: Mapped[Optional[list[float]]]
+    source: Mapped[Optional[str]] = mapped_column(sa.String(20))
+    #: The motion piece the frame lies in (``Piece``: kind, first_frame, last_frame, params, cost).
+    piece: Mapped[Optional[dict[str, Any]]]
+    cam_list: Mapped[list[Any]] = mapped_column(default=list)
+    residuals_px: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    #: Frame ids of the labels that break the trajectory (residual above ``flag_px``).
+    flagged: Mapped[list[Any]] = mapped_column(default=list)
+    computed_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
+
+    system: Mapped[System] = relationship(back_populates="trajectory_point")

@@ -1,0 +1,72 @@
+"""What the service did: the append-only audit log of accepted writes and the background jobs.
+"""
+from __future__ import annotations
+
+
+from datetime import datetime
+from typing import Any, Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Mapped, mapped_column
+
+from app.db.types import enum_by_value, utcnow
+from app.db.models.base import Base
+from app.db.models.enums import (JobState)
+
+
+class AuditEntry(Base):
+    """One accepted write (``app.services.audit.log``): who (``actor``, the user's name as text, so the log
+    outlives users), when (``at``, UTC), what (``action``: ``ball.edit``, ``field_lines.replace``,
+    ``field_lines.mirror``, ``view.exclusion``, ``view.review``, ``view.calibration_review``, ``system.review``, ``import``,
+    ``recompute``, ``revert``) and the state of the edited part before and after (JSON; an import or a
+    recompute stores its counts in ``after``). ``frame_id`` / ``system_id`` / ``game_id`` are plain indexed
+    ids without foreign keys: deleting or re-importing data never deletes its history. Append-only: the
+    migration adds triggers refusing UPDATE and DELETE.
+    """
+
+    __tablename__ = "audit_entries"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    at: Mapped[datetime] = mapped_column(default=utcnow)
+    actor: Mapped[str] = mapped_column(sa.String(200), index=True)
+    action: Mapped[str] = mapped_column(sa.String(40))
+    frame_id: Mapped[Optional[int]] = mapped_column(index=True)
+    system_id: Mapped[Optional[int]] = mapped_column(index=True)
+    game_id: Mapped[Optional[int]] = mapped_column(index=True)
+    before: Mapped[Optional[dict[str, Any]]]
+    after: Mapped[Optional[dict[str, Any]]]
+    #: A revert: the entry it undid.
+    reverts_id: Mapped[Optional[int]] = mapped_column(sa.ForeignKey("audit_entries.id"))
+    #: The change in one line of words ("ball of V2 moved 12.3 px"; ``app.services.audit.summaries``),
+    #: written with the entry; None for entries recorded before the column (computed when read).
+    summary: Mapped[Optional[str]] = mapped_column(sa.String(300))
+
+
+class Job(Base):
+    """A background job (``app.services.jobs.runner``): an import, a full recompute or an export.
+
+    ``params`` is what the job needs to run again from the start (a job interrupted by a killed process
+    is resumed by running it again: imports are idempotent); ``stage``, ``done`` and ``total`` are its
+    progress (``total`` 0: unknown); ``owner`` names the process running it (``host:pid:token``) and
+    ``heartbeat_at`` when that process last showed it was alive; ``attempts`` counts claims (a claim is
+    a compare-and-set on it). ``result`` is the job's report (an import's counts, an export's file).
+    """
+
+    __tablename__ = "jobs"
+    __table_args__ = (sa.Index("ix_jobs_state_id", "state", "id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    kind: Mapped[str] = mapped_column(sa.String(20))
+    params: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    state: Mapped[JobState] = mapped_column(enum_by_value(JobState, "job_state"), default=JobState.QUEUED)
+    stage: Mapped[Optional[str]] = mapped_column(sa.String(40))
+    done: Mapped[int] = mapped_column(default=0)
+    total: Mapped[int] = mapped_column(default=0)
+    message: Mapped[Optional[str]] = mapped_column(sa.Text)
+    result: Mapped[Optional[dict[str, Any]]]
+    owner: Mapped[Optional[str]] = mapped_column(sa.String(200))
+    attempts: Mapped[int] = mapped_column(default=0)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[Optional[datetime]]
+    finished_at: Mapped[Optional[datetime]]
+    heartbeat_at: Mapped[Optional[datetime]]

@@ -1,0 +1,91 @@
+"""The review: decisions on systems and views, review passes, who has a system open.
+"""
+from __future__ import annotations
+
+
+from datetime import datetime
+from typing import TYPE_CHECKING, Any, Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Mapped, mapped_column, relationship
+
+from app.db.types import enum_by_value, utcnow
+from app.db.models.base import Base
+from app.db.models.enums import (ReviewStatus)
+
+if TYPE_CHECKING:  # the relationships name these; the registry resolves them at run time
+    from app.db.models.labels import Frame, System
+
+
+class ReviewDecision(Base):
+    """The current review decision on a system or on a frame (exactly one of the two); a frame's holds two: its
+    ball's (``status``, ``comment``) and its calibration's (``calibration_*``). ``reset_reason`` and
+    ``calibration_reset_reason`` say why a decision is pending again (an edit recalibrated a view after it was
+    decided: ``app.services.curation.resets.reset_decisions_after_recalibration``)."""
+
+    __tablename__ = "review_decisions"
+    __table_args__ = (
+        sa.CheckConstraint("(system_id IS NULL) <> (frame_id IS NULL)", name="one_subject"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    system_id: Mapped[Optional[int]] = mapped_column(
+        sa.ForeignKey("systems.id", ondelete="CASCADE"), unique=True
+    )
+    frame_id: Mapped[Optional[int]] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), unique=True)
+    status: Mapped[ReviewStatus] = mapped_column(enum_by_value(ReviewStatus, "review_status"),
+                                                 default=ReviewStatus.PENDING)
+    comment: Mapped[str] = mapped_column(sa.Text, default="")
+    decided_at: Mapped[Optional[datetime]]
+    #: Frame decisions only: the reviewer excluded this view from its system's triangulation
+    #: (reversible; the view keeps its labels and calibration).
+    excluded: Mapped[bool] = mapped_column(default=False)
+    #: Why ``status`` is pending again (a system's: one of its views was recalibrated after the decision);
+    #: None when decided or never reset. Cleared by the next decision.
+    reset_reason: Mapped[Optional[str]] = mapped_column(sa.Text)
+    #: Frame decisions only: the reviewer's decision on the view's calibration (its field lines and the
+    #: camera fitted to them), apart from the decision on its ball (``status``).
+    calibration_status: Mapped[ReviewStatus] = mapped_column(
+        enum_by_value(ReviewStatus, "calibration_review_status"), default=ReviewStatus.PENDING)
+    calibration_comment: Mapped[str] = mapped_column(sa.Text, default="")
+    calibration_decided_at: Mapped[Optional[datetime]]
+    #: Why ``calibration_status`` is pending again (an edit of the field lines recalibrated the view).
+    calibration_reset_reason: Mapped[Optional[str]] = mapped_column(sa.Text)
+
+    system: Mapped[Optional[System]] = relationship(back_populates="review", foreign_keys=[system_id])
+    frame: Mapped[Optional[Frame]] = relationship(back_populates="review", foreign_keys=[frame_id])
+
+
+class SystemPresence(Base):
+    """A soft claim: ``user_id`` has system ``system_id`` open in a page (``app.services.curation.presence``).
+
+    ``since`` is when the page opened it (kept by every refresh), ``expires_at`` when the claim lapses
+    unless refreshed (UTC). A claim past ``expires_at`` counts as absent: readers filter on it, and the next
+    claim written by anyone deletes the lapsed rows, so no cleanup job is needed. Written when a page opens a
+    system and refreshed at most once per ``presence.REFRESH_AFTER``, never per heartbeat."""
+
+    __tablename__ = "system_presence"
+
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), primary_key=True)
+    user_id: Mapped[int] = mapped_column(sa.ForeignKey("users.id", ondelete="CASCADE"), primary_key=True)
+    since: Mapped[datetime]
+    expires_at: Mapped[datetime] = mapped_column(index=True)
+
+
+class ReviewPass(Base):
+    """A review pass (issue 28, ``app.services.curation.passes``): the frozen list of the systems of a review
+    queue (``filters`` as ``app.services.curation.queue.SystemFilters`` fields, ``sort``) in its order as it
+    stood when ``user_name`` began it, across all its pages; ``position`` is the index in ``system_ids`` of
+    the system the user last opened. Statuses are not copied: they are read from the systems."""
+
+    __tablename__ = "review_passes"
+    __table_args__ = (sa.Index("ix_review_passes_user_name_id", "user_name", "id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_name: Mapped[str] = mapped_column(sa.String(200))
+    filters: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    sort: Mapped[str] = mapped_column(sa.String(20))
+    system_ids: Mapped[list[Any]] = mapped_column(default=list)
+    position: Mapped[int] = mapped_column(default=0)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    visited_at: Mapped[datetime] = mapped_column(default=utcnow)
