@@ -25,7 +25,7 @@ from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.geometry import pitch
 from app.geometry.jac import JAC_GAMMAS
-from app.geometry.triangulation import error_above_tau, rule_reference_width_px, scaled_error_px
+from app.geometry.pair_error import error_above_tau, rule_reference_width_px, scaled_error_px
 from app.services.images.serving import frame_has_image
 from app.services.curation.doubts import doubt_provenance, suggestion_json
 from app.services.curation.system_page import SystemPageData, pitch_lines, pitch_lines_key, round_px
@@ -420,10 +420,10 @@ class ViewOut(_FrameFields):
     reprojected_ball: Optional[Point2]
     reprojection_error_scaled_px: Optional[float] = Field(
         description="The same error in the scale the pair rule compares with tau (px of a 1920-px-wide image "
-        "for max_scaled_1920; app.geometry.triangulation.scaled_error_px); null without a triangulation.")
+        "for max_scaled_1920; app.geometry.pair_error.scaled_error_px); null without a triangulation.")
     error_above_tau: bool = Field(
         description="The reprojection error, scaled to the rule's reference width, is above the stored tau "
-        "(app.geometry.triangulation.error_above_tau; the queue's views_above_tau counts by the same rule).")
+        "(app.geometry.pair_error.error_above_tau; the queue's views_above_tau counts by the same rule).")
     camera_position: Optional[Point3]
     etag: str = Field(description="The frame's strong ETag: the version of its ball label, field lines, review and "
                                   "exclusion (send it as If-Match with a write to the frame).")

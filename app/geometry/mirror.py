@@ -117,7 +117,7 @@ class MirrorSettings:
 
     Attributes:
         tau_px, rule: the triangulation's pair threshold and error rule
-            (:data:`app.geometry.triangulation.PAIR_ERROR_RULES`); the service passes its own.
+            (:data:`app.geometry.pair_error.PAIR_ERROR_RULES`); the service passes its own.
         side_line_margin_m: a camera votes with the side prior when ``|C_y|`` exceeds this (metres;
             default the half width, 34 m: beyond a side line, as ``calibrate_frame``'s flag).
         rig_near_m: a centre this close to a rig position (metres) stands there: calibrated centres

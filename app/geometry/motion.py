@@ -9,7 +9,7 @@ Models (6 parameters ``q``, ``t`` seconds after the piece's first frame; world: 
   a decelerating roll stops at ``t_stop = -(v0 . a) / |a|^2`` (:func:`stop_time`) and stays there.
 
 A label is the undistorted normalised point ``(x, y)`` of a camera ``(R, C)``; its residual is the pixel
-distance, on a 1920-px-wide image (:data:`app.geometry.triangulation.REFERENCE_WIDTH_PX`), between it
+distance, on a 1920-px-wide image (:data:`app.geometry.pair_error.REFERENCE_WIDTH_PX`), between it
 and the projection of ``p(t)``. Two fits, each of a *set* of labels (a stretch of frames) and one model:
 
 * :func:`linear_fits`: iteratively reweighted linear least squares on the algebraic residual
@@ -39,7 +39,7 @@ import numpy as np
 
 from app.geometry.camera import Camera
 from app.geometry.pitch import BALL_DIAMETER_M, within_play_volume
-from app.geometry.triangulation import REFERENCE_WIDTH_PX
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
 
 GRAVITY_M_S2 = 9.81
 BALL_RADIUS_M = BALL_DIAMETER_M / 2.0

@@ -7,19 +7,8 @@ import numpy as np
 import pytest
 
 from app.geometry.camera import Camera
-from app.geometry.triangulation import (
-    DROP_REASONS,
-    PAIR_ERROR_RULES,
-    STATUS_INSUFFICIENT_VIEWS,
-    STATUS_NO_PAIR_KEPT,
-    STATUS_TRIANGULATED,
-    BallObservation,
-    pair_error,
-    parallax_angle_deg,
-    triangulate_ball,
-    triangulate_dlt,
-    undistort_pixels,
-)
+from app.geometry.triangulation import DROP_REASONS, STATUS_INSUFFICIENT_VIEWS, STATUS_NO_PAIR_KEPT, STATUS_TRIANGULATED, BallObservation, parallax_angle_deg, triangulate_ball, triangulate_dlt, undistort_pixels
+from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
 
 BALL = np.array([20.0, -10.0, -1.5])
 

@@ -110,7 +110,7 @@ class System(Base):
     #: Views (admitted or not) whose field-line labels are flagged probably mirrored.
     views_flagged: Mapped[int] = mapped_column(default=0)
     #: Admitted labelled views whose reprojection error is above tau
-    #: (``app.geometry.triangulation.error_above_tau``).
+    #: (``app.geometry.pair_error.error_above_tau``).
     views_above_tau: Mapped[int] = mapped_column(default=0)
     #: The system's review status (a copy of ``review.status``, pending without a decision), kept in the
     #: transaction of every decision and recomputation: the queue filters and counts by it.

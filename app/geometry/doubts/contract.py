@@ -15,7 +15,7 @@ import numpy as np
 
 from app.geometry.camera import Camera
 from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, within_play_volume
-from app.geometry.triangulation import (REFERENCE_WIDTH_PX)
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
 
 
 #: Kinds that accuse a label (the review queue counts, filters and sorts by them).

@@ -12,8 +12,8 @@ import numpy as np
 from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.mirror import mirror_camera
-from app.geometry.triangulation import (REFERENCE_WIDTH_PX, BallObservation, PairGeometry, pair_geometry,
-                                        reprojection_error_px)
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
 from app.geometry.doubts.contract import (Doubt, DoubtSettings, DoubtView, _box_list, _centre, _inside, _plausible, _project, _r, _scale)
 from app.geometry.doubts.weighting import (calibration_weight, pixel_sigma)
 from app.geometry.doubts.epipolar import (_axis_on_grass, _mono, _sees, _segment, _single_view_ball, epipolar_pair_error)

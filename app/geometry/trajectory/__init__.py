@@ -28,7 +28,7 @@ undistorted normalised label), reweighted by the depth so that it equals the pix
 Cauchy weights, then refined by a robust (Cauchy) least squares of the pixel residuals themselves;
 both fits live in :mod:`app.geometry.motion` (the models, the batched linear fit the segmentation's
 candidate cuts share, the Levenberg-Marquardt refinement with the analytic Jacobian). Residuals are
-expressed on a 1920-px-wide image (:data:`app.geometry.triangulation.REFERENCE_WIDTH_PX`).
+expressed on a 1920-px-wide image (:data:`app.geometry.pair_error.REFERENCE_WIDTH_PX`).
 
 Outputs per frame (:class:`TrajectoryFit`): the trajectory's position, its source
 (``triangulated``: the frame has its own triangulation from two or more kept labels; ``fitted``: one

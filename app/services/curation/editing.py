@@ -36,7 +36,8 @@ from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.datasets.labels import LabelError, check_box, check_line_point_count, check_line_points, check_point
 from app.geometry.consensus import ball_consensus
-from app.geometry.triangulation import REFERENCE_WIDTH_PX, BallObservation, reprojection_error_px
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.triangulation import BallObservation, reprojection_error_px
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, InvalidInputError
 from app.services.kinds import kind_of

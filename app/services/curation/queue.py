@@ -5,7 +5,7 @@ every recomputation stores on ``System`` (``app.services.derivation.recompute.up
 **admitted** views, the ones the 3D ball is made of, method.md sections 4 and 5): ``lowest_jac``
 (JaC@0.5 %), ``worst_error_px`` (the largest reprojection error of the fused ball, px of the view's own
 image, SoccerNet-v3D's ``rep_error``), ``views_flagged`` (every view flagged probably mirrored),
-``views_above_tau`` (by ``app.geometry.triangulation.error_above_tau``, the rule the system view's
+``views_above_tau`` (by ``app.geometry.pair_error.error_above_tau``, the rule the system view's
 per-view ``error_above_tau`` uses too: queue and system page cannot disagree), and the doubt counts.
 Rows come back as ORM objects with what their answer shows loaded; the API's response models
 (``app.api.view_schemas``) shape them.

@@ -52,7 +52,8 @@ from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence
 from app.geometry.pitch import within_play_volume
-from app.geometry.triangulation import BallObservation, PairGeometryMemo, error_above_tau, triangulate_ball
+from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball
+from app.geometry.pair_error import error_above_tau
 from app.services.audit.log import record_summary
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import (
@@ -366,7 +367,7 @@ def recompute_inputs(session: Session, system: System, settings: Settings,
 def update_summary(system: System, tri: Triangulation) -> None:
     """Store the review queue's figures of ``system`` (``System.views_total`` ... ``views_above_tau``,
     model docstring) from its current frames and triangulation: aggregates over the **admitted** views,
-    ``views_flagged`` over every view, ``views_above_tau`` by ``app.geometry.triangulation.error_above_tau``."""
+    ``views_flagged`` over every view, ``views_above_tau`` by ``app.geometry.pair_error.error_above_tau``."""
     frames = list(system.frames)
     cals = [f.calibration for f in frames]
     admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]

@@ -23,7 +23,7 @@ from app.geometry.jac import jac_at_gammas
 from app.geometry.static_bundle import bundle_adjust
 from app.geometry.static_cameras import calibrate_with_ball
 from app.geometry.trajectory import DEFAULT_FLAG_PX, fit_trajectory
-from app.geometry.triangulation import REFERENCE_WIDTH_PX
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
 
 
 @dataclass(frozen=True)

@@ -322,9 +322,9 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
 
 
 def test_error_reference_widths_follow_the_pair_error_rules() -> None:
-    """The reference width of each rule is the one ``app.geometry.triangulation.pair_error`` scales by."""
-    from app.geometry.triangulation import PAIR_ERROR_RULES, pair_error
-    from app.geometry.triangulation import RULE_REFERENCE_WIDTH_PX, rule_reference_width_px
+    """The reference width of each rule is the one ``app.geometry.pair_error.pair_error`` scales by."""
+    from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
+    from app.geometry.pair_error import RULE_REFERENCE_WIDTH_PX, rule_reference_width_px
 
     assert set(RULE_REFERENCE_WIDTH_PX) <= set(PAIR_ERROR_RULES)
     for rule in PAIR_ERROR_RULES:
