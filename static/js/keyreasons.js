@@ -5,7 +5,7 @@
 // nothing, or would act without effect) and after it declined (`after`), and dispatchKey (keys.js) tells
 // the page the reason when no entry used the key.
 
-import { isMirrorFlagged } from "./overlay.js";
+import { isMirrorFlagged } from "./viewfacts.js";
 
 const SELECT_FIRST = "select a view first (1…9)";
 

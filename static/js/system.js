@@ -8,20 +8,22 @@
 // history panel (history.js) lists the system's audit entries with a one-click revert. Field lines are
 // edited in each view (lineseditor.js); the page keeps one undo / redo stack of its own edits (Ctrl+Z /
 // Ctrl+Shift+Z: ball, exclusion, mirror, lines, decisions; each undo a write naming the entry it undoes).
-// (Over 400 lines: it is the one controller of the page's state; views, map, trajectory, conflict
-// notice and history are their own modules.)
+// The page is the one controller of its state; the views (overlay.js), the summary cards (systemcards.js),
+// the map, the trajectory, the conflict notice and the history are their own modules.
 
 import { ApiError, getSystem, getTrajectory, listAudit, postReview, patchBall, mirrorFieldLines, postExclusion, putFieldLines, undoEntry } from "./api.js";
-import { el, fmt, fmtXYZ, human, isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, DOUBT_LABEL, toast } from "./format.js";
+import { isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, toast } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
-import { notes, isMirrorFlagged } from "./overlay.js";
+import "./overlay.js"; // defines <v3d-view>
+import { isMirrorFlagged } from "./viewfacts.js";
+import { renderBall, renderDoubts, renderPairs, renderStatus } from "./systemcards.js";
 import { showConflict } from "./conflict.js";
 import { HistoryPanel, describeState } from "./history.js";
 import { dispatchKey, keysHelp, renderKeys } from "./keys.js";
 import { EditHistory, lineKeys } from "./lineseditor.js";
-import { ViewDecisions, decisionNote } from "./viewdecisions.js";
+import { ViewDecisions } from "./viewdecisions.js";
 import { ZoomSync } from "./zoom.js";
-import { WORDS, chip, chipLegend, heightText, tauText } from "./words.js";
+import { chipLegend } from "./words.js";
 import { ReviewPass, withPass } from "./pass.js";
 import { AcceptGuard } from "./guard.js";
 import { explainKeys } from "./keyreasons.js";
@@ -174,7 +176,7 @@ class SystemPage {
     document.title = `${sys.name} · v3d review`;
     $("system-name").textContent = sys.name;
     $("system-game").textContent = [game.league, game.season, game.match].filter(Boolean).join(" · ");
-    this.renderStatus(sys.review);
+    renderStatus(sys.review);
     this.presence.show(sys);
     $("prev").disabled = this.stepId(-1) == null; // in a pass: its neighbours (pass.js)
     $("next").disabled = this.stepId(1) == null;
@@ -199,13 +201,13 @@ class SystemPage {
     for (const extra of panels.slice(sys.views.length)) extra.remove();
     this.zoom.drawBar();
 
-    this.renderDoubts(sys);
+    renderDoubts(sys, (i) => this.select(i));
     // a single view (a calibration dataset's frame) is reviewed for its calibration: no 3D ball to show
     const singleView = sys.views.length === 1;
     $("ball3d-card").hidden = singleView;
     $("pairs-card").hidden = singleView;
-    this.renderBall(sys);
-    this.renderPairs(sys);
+    renderBall(sys);
+    renderPairs(sys);
     this.prefetch(this.pass.systemId === sys.id ? this.pass.place?.next_pending_id : sys.next_id);
     $("pitch-map").data = {
       ball3d: sys.ball3d,
@@ -220,12 +222,13 @@ class SystemPage {
     this.zoom.applyTo(panel);
   }
 
-  /** An ISSIA frame: its sequence's trajectory over time (re-read after every render, so an edit's
-   * re-fit shows), the current frame marked, and the track on the pitch map. */
+  /** A frame of a sequence (the system has a `frame_index`: ISSIA's static cameras): its sequence's trajectory
+   * over time (re-read after every render, so an edit's re-fit shows), the current frame marked, and the track
+   * on the pitch map. */
   async renderTrajectory(sys) {
-    const issia = sys.kind === "issia";
-    $("trajectory-card").hidden = !issia;
-    if (!issia) return;
+    const inSequence = inASequence(sys);
+    $("trajectory-card").hidden = !inSequence;
+    if (!inSequence) return;
     try {
       const trajectory = await getTrajectory(sys.game.id);
       if (this.system !== sys) return; // another system was rendered meanwhile
@@ -245,87 +248,6 @@ class SystemPage {
     return i >= 0 && frames[i + step] ? frames[i + step].system_id : null;
   }
 
-  /** One chip per label doubt of the server (a click selects and scrolls to its view), then one per
-   * view whose state needs an eye (calibration, error above tau): nothing doubtful is left below the
-   * fold unnoticed. */
-  renderDoubts(sys) {
-    const chips = [];
-    const indexOf = (fid) => sys.views.findIndex((v) => v.frame_id === fid);
-    for (const d of sys.doubts || []) {
-      if (!d.accuses_label) continue;
-      const i = indexOf(d.frame_id);
-      chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", "data-kind": d.kind, title: d.message,
-        onclick: () => { if (i >= 0) { this.select(i); $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }); } } },
-      `${i >= 0 ? `V${i + 1} ` : ""}${chip("doubt", d.kind)}`));
-    }
-    sys.views.forEach((v, i) => {
-      const why = notes(v, sys.views.length !== 1);
-      if (!why.length) return;
-      chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", title: why.join("; "),
-        onclick: () => $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }) },
-      `V${i + 1} ${shortDoubt(why[0])}${why.length > 1 ? ` +${why.length - 1}` : ""}`));
-    });
-    if (!Array.isArray(sys.ball3d) && sys.views.length > 1) {
-      chips.push(el("span", { class: "chip", "data-testid": "doubt", title: WORDS.note.no_ball3d.means },
-        `${WORDS.note.no_ball3d.chip} (${sys.triangulation?.status ? chip("triangulation", sys.triangulation.status) : "not triangulated"})`));
-    }
-    $("system-doubts").replaceChildren(...chips);
-  }
-
-  renderStatus(review) {
-    const status = review?.status || "pending";
-    const badge = $("system-status");
-    badge.className = `badge ${status}`;
-    badge.textContent = STATUS_LABEL[status] || status;
-    for (const id of ["accept", "reject", "needs-fix"]) {
-      $(id).classList.toggle("current", $(id).dataset.status === status);
-    }
-    $("review-meta").textContent = decisionNote(review);
-    $("review-meta").classList.toggle("bad", status === "pending" && Boolean(review?.reset_reason));
-  }
-
-  renderBall(sys) {
-    const b = sys.ball3d;
-    const ok = Array.isArray(b) && b.every(isNum);
-    $("ball3d-x").textContent = ok ? `${b[0].toFixed(2)} m` : "—";
-    $("ball3d-y").textContent = ok ? `${b[1].toFixed(2)} m` : "—";
-    $("ball3d-z").textContent = ok ? `${b[2].toFixed(2)} m` : "—";
-    $("ball3d-h").textContent = ok ? heightText(b[2], 2) : "—";
-    $("ball3d").title = ok ? `world metres, z down: (${fmtXYZ(b, 3)})` : "no 3D ball";
-    const tri = sys.triangulation || {};
-    $("triangulation-status").textContent = tri.status ? `· ${chip("triangulation", tri.status)}` : "";
-    const kept = (tri.pairs || []).filter((p) => p.kept).length;
-    $("triangulation-rule").textContent =
-      `${tauText(tri.tau_px)} (${tri.rule ? chip("rule", tri.rule) : "?"}), baseline ≥ ${fmt(tri.min_baseline_m, 1)} m; ` +
-      `${kept} of ${(tri.pairs || []).length} pairs kept.`;
-  }
-
-  renderPairs(sys) {
-    const views = sys.views;
-    const labelOf = (ref) => {
-      const i = views.findIndex((v) => v.frame_id === ref || v.name === ref || String(v.frame_id) === String(ref));
-      return i < 0 ? String(ref) : `V${i + 1}`;
-    };
-    const tri = sys.triangulation || {};
-    const tbody = $("pairs").querySelector("tbody");
-    const rows = (tri.pairs || []).map((p) =>
-      el(
-        "tr",
-        { class: p.kept ? "kept" : "dropped", "data-testid": "pair", title: Array.isArray(p.point) ? `p_ij = (${fmtXYZ(p.point, 2)}) m` : null },
-        el("td", { class: "mono" }, `${labelOf(p.view_a)}–${labelOf(p.view_b)}`),
-        el("td", { class: `num ${isNum(p.error_px) && isNum(tri.tau_px) ? (p.error_px < tri.tau_px ? "ok" : "bad") : ""}` }, fmt(p.error_px, 2)),
-        el("td", { class: `num ${isNum(p.parallax_deg) && p.parallax_deg < 5 ? "warn" : ""}` }, fmt(p.parallax_deg, 1, "°")),
-        el("td", { class: `num ${isNum(p.baseline_m) && isNum(tri.min_baseline_m) && p.baseline_m < tri.min_baseline_m ? "bad" : ""}` }, fmt(p.baseline_m, 1, " m")),
-        el("td", {}, p.kept ? el("span", { class: "ok" }, "kept") : el("span", { class: "bad" }, "dropped"),
-          !p.kept && p.reason ? el("div", { class: "reason muted", title: WORDS.pair_reason[p.reason]?.means }, chip("pair_reason", p.reason)) : null),
-      ),
-    );
-    if (!rows.length) {
-      rows.push(el("tr", {}, el("td", { colspan: 5, class: "muted" }, "No pair: fewer than two calibrated views with a ball label.")));
-    }
-    tbody.replaceChildren(...rows);
-  }
-
   async review(status, comment = null, ifMatch = null) {
     if (!this.system || this.busy) return;
     this.busy = true;
@@ -342,7 +264,7 @@ class SystemPage {
       if (entry) this.undoStack.push({ kind: "entry", systemId: sys.id, frameId: null, entry, what: `${sys.name}: ${STATUS_LABEL[status]}` });
       const current = this.system; // re-rendered by the edits just settled: its next_id is current
       clearError();
-      this.renderStatus(answer || { status });
+      renderStatus(answer || { status });
       // in a pass: the next system of the pass still pending now (a fix never reorders the pass)
       await this.passReady;
       const place = await this.pass.fresh(sys.id).catch(() => null);
@@ -596,7 +518,7 @@ class SystemPage {
       { keys: ["j"], does: "next system of the pass", run: () => this.go(this.stepId(1)) },
       { keys: ["k"], does: "previous system of the pass", run: () => this.go(this.stepId(-1)) },
       { keys: [",", "."], does: "previous / next frame of a sequence (ISSIA)",
-        run: (e) => (this.system?.kind === "issia" ? this.go(this.frameNeighbour(e.key === "." ? 1 : -1)) : false) },
+        run: (e) => (inASequence(this.system) ? this.go(this.frameNeighbour(e.key === "." ? 1 : -1)) : false) },
       { keys: ["c"], does: "comment (Esc to leave)", run: () => $("comment").focus() },
       { keys: ["u"], does: "back to the queue", run: () => this.settle().then(() => location.assign(this.queueUrl())) },
       { keys: ["o"], does: "hide / show the overlays",
@@ -637,18 +559,6 @@ class SystemPage {
 /** The toast of the last decision of a pass (nothing pending left after the system). */
 export const LAST_OF_PASS = "Nothing pending is left in this pass.";
 
-const SHORT_DOUBTS = {
-  "reprojection error above τ": WORDS.note.error_above_tau.chip,
-  "calibration not admitted": WORDS.note.not_admitted.chip,
-  "excluded from the 3D ball": WORDS.note.excluded.chip,
-};
-/** Short form of a doubt for the top bar (the full list is in the chip's title and the view card). */
-function shortDoubt(text) {
-  if (SHORT_DOUBTS[text]) return SHORT_DOUBTS[text];
-  if (text.startsWith("not calibrated")) return WORDS.note.not_calibrated.chip;
-  return text;
-}
-
 /** "V2": the view's name on the page (its place among the system's views). */
 function viewLabel(sys, frameId) {
   const i = (sys?.views || []).findIndex((v) => v.frame_id === frameId);
@@ -662,6 +572,11 @@ function jacChange(before, after) {
     return values.length && isNum(values[0]) ? values[0].toFixed(3) : "refused";
   };
   return `JaC ${jac(before)} → ${jac(after)}`;
+}
+
+/** The system is one frame of a sequence (its `frame_index` is set), so it has a trajectory and neighbours. */
+function inASequence(sys) {
+  return Number.isInteger(sys?.frame_index);
 }
 
 function idFromPath() {
