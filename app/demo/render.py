@@ -13,9 +13,6 @@ Everything is drawn from 3D geometry through the frame's true :class:`~app.geome
 Pixels: continuous coordinates with the origin at the top-left corner of the image (pixel ``i``
 covers ``[i, i + 1)``); OpenCV draws integer coordinates at pixel centres, hence the 0.5 shifts.
 World: SoccerNet frame (metres, z down). Colours are BGR ``uint8``.
-
-Size (over 400 lines): one renderer; the painting order, the supersampled ribbons and the ray-cast ball share
-the camera and pixel conventions above. Demo-only code.
 """
 from __future__ import annotations
 

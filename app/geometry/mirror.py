@@ -57,9 +57,6 @@ the rig and side priors by calibrating its mirrored labels at the game's camera 
 
 World frame: SoccerNet (metres, origin at the centre spot, z down). Pixels: continuous, origin at the
 top-left corner of each view's own image.
-
-Size (over 400 lines): the three kinds of evidence and the vote that weighs them are one verdict with one set
-of settings (:class:`MirrorSettings`); split, each would need the others' conventions.
 """
 from __future__ import annotations
 

@@ -24,8 +24,6 @@ world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes
 ``[x1, y1, x2, y2]`` and points ``[x, y]`` JSON lists. Enums are stored by value.
 The schema is created by the Alembic migrations (``migrations/``), never by ``create_all``.
 
-Size (over 400 lines): one typed model per table, in one registry so that relationships and the entity graph
-
 One module per domain: :mod:`~.base` (the registry), :mod:`~.enums`, :mod:`~.labels` (what a dataset brings),
 :mod:`~.derived` (what the recomputation derives), :mod:`~.review`, :mod:`~.accounts`, :mod:`~.operations`
 (audit log, jobs). Every model is importable from here; importing the package registers them all.

@@ -15,9 +15,6 @@ Three families:
 * **Known centre** (:func:`fixed_centre_rotations`): with the camera centre known (a game's rig),
   the rotation that brings the image rays of the labels' anchors (:func:`anchor_correspondences`)
   onto their world directions (Wahba's problem, :func:`wahba_rotation`), per focal hypothesis.
-
-Size (over 400 lines): the three families share the anchor correspondences and the homography-to-camera
-step, and are chosen between by one caller (:mod:`.frame`).
 """
 from __future__ import annotations
 

@@ -21,10 +21,6 @@ The arithmetic is compiled with numba (``cache=True``: compiled once per install
 process in well under a second), point by point in scalar loops: a frame has 10 to 150 points, where
 numpy's per-call overhead, not the arithmetic, dominated. Each formula has one implementation here,
 shared by the fits (:mod:`.solver`), the ranking of starts and the final per-class residuals.
-
-Size (over 400 lines): the compiled kernels and their numpy entry points read one layout of the
-observations (:attr:`.observations.Observations.kernel_arrays`); split, that layout would be spread
-over modules.
 """
 from __future__ import annotations
 

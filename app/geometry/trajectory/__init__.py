@@ -40,8 +40,7 @@ only the frames whose place on the trajectory can have changed, re-triangulating
 kept labels changed (:func:`refit_local`, its fast path, reads only the pieces around the edit).
 
 World: SoccerNet metres, origin at the centre spot, z down. Image: continuous pixels, origin at
-the top-left corner. Pure: numpy only. (About 830 lines: the segmentation, the per-frame assembly and
-the re-fit after an edit, which replays the segmentation's own tests on a few pieces, share the
+the top-left corner. Pure: numpy only.
 
 Modules, one idea each: :mod:`~app.geometry.trajectory.frames` (one frame's own triangulation),
 :mod:`~app.geometry.trajectory.segmentation` (pieces found from the data), :mod:`~app.geometry.trajectory.fit`

@@ -37,9 +37,6 @@ Speed: the export reads each batch of games with one SQL query of plain rows (no
 JSON columns as their stored text and embeds them as they are (``orjson.Fragment`` in the documents,
 the text itself in CSV cells), and decodes only the field lines it must flatten and each frame's release: a 12,800-system
 export is CPU-bound at about 0.2 ms a frame (40 scale games: 0.7 s for 3,546 frames).
-
-Size (over 400 lines): the SoccerNet-v3D format (its documents, CSV rows and the row query that feeds them)
-and its two writers (a folder, a streamed zip) change together.
 """
 from __future__ import annotations
 
