@@ -40,6 +40,8 @@ from app.core.errors import DatasetError
 CAMERA_IDS = ("1", "2", "3", "4", "5", "6")
 CAMERA_SET = {"1": "test", "2": "test", "3": "train", "4": "train", "5": "train", "6": "train"}
 ANNOTATION_SIZE = (1920, 1080)
+#: Frame rate of ISSIA sequences (frame ``i`` at ``t = i / FPS`` s): the one home of the 25 fps the services,
+#: the API and the exports read.
 FPS = 25.0
 CALIBRATION_FILE, LINES_FILE, POINTS_FILE = "issia_calibration.json", "issia_lines.json", "ball_points.csv"
 #: The authors' released labels, read in place of :data:`POINTS_FILE` when that is absent.

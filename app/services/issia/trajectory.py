@@ -29,15 +29,13 @@ from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
 from app.db.models import Frame, System, SystemKind, TrajectoryPoint
+from app.datasets.issia import FPS
 from app.db.types import json_safe, utcnow
 from app.geometry.camera import Camera
 from app.geometry.doubts import Doubt as JudgedDoubt
 from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
-
-#: Frame rate of ISSIA sequences (frame ``i`` at ``t = i / FPS`` s), as ``app.datasets.issia.FPS``.
 from app.geometry.triangulation import BallObservation
-FPS = 25.0
 
 
 @dataclass
