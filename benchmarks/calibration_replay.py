@@ -5,7 +5,7 @@ For the first ``--games`` games of a SoccerNet-v3 tree (sorted by path, as the i
 it builds the jobs an import of a fresh database gives the calibration pool
 (``app.services.calibration.first_pass``): the first pass of every frame from its lines alone
 (``import_calibration.new_frame_job``), then, per game, the rig retry of the frames
-``calibrating.wants_rig_retry`` picks, with the rig ``calibrating.game_rig`` estimates from the game's
+``rigs.wants_rig_retry`` picks, with the rig ``rigs.game_rig`` estimates from the game's
 first-pass results. Each job runs through ``calibrating.calibrate_lines``, as in a worker, timed with
 this process's CPU clock (robust to other load).
 
@@ -36,10 +36,9 @@ sys.path.insert(0, str(ROOT))
 from app.core.config import Settings  # noqa: E402
 from app.datasets.soccernet_v3 import read_soccernet_v3  # noqa: E402
 from app.db.models import SystemKind  # noqa: E402
-from app.services.calibration.calibrating import (  # noqa: E402
-    CalibrationFields, calibrate_lines, game_rig, wants_rig_retry,
-)
+from app.services.calibration.calibrating import CalibrationFields, calibrate_lines  # noqa: E402
 from app.services.calibration.first_pass import new_frame_job  # noqa: E402
+from app.services.calibration.rigs import game_rig, wants_rig_retry  # noqa: E402
 
 
 def _timed(job: tuple, profiler: cProfile.Profile | None) -> tuple[CalibrationFields, float]:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.core.config import Settings
 from app.datasets.issia import read_issia
 from app.services.issia.cameras import sequence_cameras
 from app.geometry.trajectory import fit_trajectory, refit_window
@@ -29,7 +30,7 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic"
 def evaluate(seq, truth: dict, *, from_lines: bool) -> tuple[dict, object]:
     """Fit ``seq`` in one mode and score it against ``truth`` (issia-dev.truth.json); returns (figures, fit)."""
     t0 = time.perf_counter()
-    choice = sequence_cameras(seq, from_lines=from_lines)
+    choice = sequence_cameras(seq, from_lines=from_lines, admit_jac_min=Settings().admit_jac_min)
     t1 = time.perf_counter()
     cams = [choice[c].camera for c in seq.camera_ids]
     fit = fit_trajectory(seq.dense_points(), cams, [seq.image_size[0]] * len(cams), float(truth.get("fps", 25)))

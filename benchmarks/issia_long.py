@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.core.config import Settings
 from app.datasets.issia import read_issia
 from app.services.issia.cameras import sequence_cameras
 from app.geometry.trajectory import fit_trajectory, refit_window
@@ -181,7 +182,7 @@ def run_sequence(data: Path, truth: dict) -> list[dict]:
 def timing(data: Path, lengths_s: list[float], refits: int, fps: float = 25.0) -> list[dict]:
     """Fit and one-label re-fit times on the first N seconds of ``data`` (calibration-JSON cameras)."""
     seq = read_issia(data)
-    choice = sequence_cameras(seq)
+    choice = sequence_cameras(seq, admit_jac_min=Settings().admit_jac_min)
     cams = [choice[c].camera for c in seq.camera_ids]
     widths = [seq.image_size[0]] * len(cams)
     dense = seq.dense_points()

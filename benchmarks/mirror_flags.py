@@ -63,7 +63,7 @@ from app.geometry.mirror import MirrorView, mirror_evidence  # noqa: E402
 from app.geometry.pitch import MIRROR_CLASSES  # noqa: E402
 from app.services.curation.editing import apply_mirrored_labels
 from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
-from app.geometry.calibration.result import MIRROR_FLAG# noqa: E402
+from app.geometry.calibration.result import MIRROR_FLAG  # noqa: E402
 
 DEV = Path("data/synthetic/soccernet-v3-dev")
 DEV_TRUTH = Path("data/synthetic/soccernet-v3-dev.truth.json")

@@ -63,8 +63,9 @@ from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.jac import jac_at_gammas  # noqa: E402
 from app.geometry.metrics import box_iou, box_size_error_pct  # noqa: E402
 from app.services.transfer.importing import ImportReport, import_soccernet_v3  # noqa: E402
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG# noqa: E402
-from app.services.calibration.calibrating import admission_jac, expected_side
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG  # noqa: E402
+from app.services.calibration.admission import admission_jac
+from app.services.calibration.calibrating import expected_side
 
 #: Corruption kinds of the synthetic truth (``systems[].corruption``), None excepted.
 CORRUPTIONS = ("desync", "wrong_ball", "mirrored", "no_ball")
@@ -361,7 +362,7 @@ def run(shared: Path = SHARED_DIR, workdir: Path | None = None, workers: int = 0
     with_rig = {k: stored_calib(v) for k, v in views.items()}
     true_rig = dict(no_rig)
     for k, c in no_rig.items():
-        # As the service (calibrating.wants_rig_retry / with_rig_retry): views refused or calibrated
+        # As the service (rigs.wants_rig_retry / with_rig_retry): views refused or calibrated
         # below admission are retried, and the rig's fit is kept when it fits the labels better.
         if not (c.calibrated and c.jac is not None and c.jac > admit_min):
             retried = calibrate_with_true_rig(views[k], truth.rigs[k[0]], gamma)

@@ -3,7 +3,7 @@
 Registered on :data:`app.cli._root.cli`. No database: reads a folder or a zip of frame JSON files
 (``<frame>.json``, normalised points), calibrates every frame with
 :func:`app.geometry.calibration.calibrate_frame` in the service's process pool
-(``app.services.calibration.calibrating.calibration_pool``), writes one
+(``app.services.calibration.pool.calibration_pool``), writes one
 ``camera_<frame>.json`` (SoccerNet camera format, ``Camera.to_soccernet()``) per calibrated frame and
 ``calibration_summary.json`` (status, reason, flags, residuals per frame), and prints a summary. The
 output folder is what ``v3d jac ANNOTATIONS OUT_DIR`` scores.
@@ -25,7 +25,7 @@ from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
 from app.core.errors import DatasetError
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
-from app.services.calibration.calibrating import calibration_pool
+from app.services.calibration.pool import calibration_pool
 
 SUMMARY_FILE = CALIBRATION_SUMMARY
 

@@ -24,7 +24,7 @@ class CalibrationFields:
             (not stored; import reports use it).
         rms_px: RMS distance (px) of every labelled point to its model element under the camera, or
             under the best rejected one (not stored): how a rig retry is compared with the first
-            result (:func:`app.services.calibration.calibrating.with_rig_retry`).
+            result (:func:`app.services.calibration.rigs.with_rig_retry`).
         mirror_evidence: for a frame refused even with the game's rig whose mirrored labels fit a
             rig position (``app.geometry.mirror.mirrored_fit_at_rig``), that evidence (JSON); the
             flag ``MIRROR_FLAG`` is then in ``flags``. Calibrated frames get theirs from

@@ -108,6 +108,18 @@ class JaCResult:
         raise KeyError(f"threshold {threshold_px!r} px was not evaluated; have {list(self.jac)}")
 
 
+def jac_admitted(jac: float | None, admit_jac_min: float) -> bool:
+    """The admission rule (method.md section 4): a calibration whose JaC at the admission's gamma is strictly
+    above ``admit_jac_min`` (a fraction in [0, 1]; ``V3D_ADMIT_JAC_MIN``) joins the triangulation; no JaC (a
+    refused fit, no lines to judge) never does. The one home of the comparison: stored calibrations
+    (``app.services.calibration.admission``), its SQL form, the rig's feed and ISSIA's cameras all call it.
+
+    >>> jac_admitted(0.76, 0.75), jac_admitted(0.75, 0.75), jac_admitted(None, 0.75)
+    (True, False, False)
+    """
+    return jac is not None and jac > admit_jac_min
+
+
 def point_to_polyline_distances(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
     """Distance from each point to a polyline, as the evaluator's ``distance_to_polyline``.
 

@@ -24,7 +24,7 @@ from scipy.optimize import least_squares, minimize
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.geometry.camera import Camera
-from app.geometry.jac import jac_at_gammas
+from app.geometry.jac import jac_admitted, jac_at_gammas
 
 
 #: Focal lengths (as multiples of the image width) from which :func:`resect_from_ball` tries a RANSAC
@@ -173,7 +173,7 @@ def _rq(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def calibrate_with_ball(lines: FieldLines | None, world_m: np.ndarray, image_px: np.ndarray, width: int, height: int,
-                        *, admit_jac_min: float = 0.75, search_m: float = 1.0,
+                        *, admit_jac_min: float, search_m: float = 1.0,
                         max_evaluations: int = 150) -> tuple[Camera | None, float | None]:
     """Resect a static camera from ball correspondences (:func:`resect_from_ball`), then, with
     lines, re-fit focal length and rotation to them with the centre held fixed, moving the centre
@@ -217,4 +217,4 @@ def calibrate_with_ball(lines: FieldLines | None, world_m: np.ndarray, image_px:
         candidates.append(best)
     scored = [(jac_at_gammas(c, lines, width, height, (0.005,))[0.005], i, c) for i, c in enumerate(candidates)]
     jac, _, best = max(scored, key=lambda s: (s[0], s[1]))  # equal JaC: the camera fitted to the lines
-    return (best if jac > admit_jac_min else None), float(jac)
+    return (best if jac_admitted(jac, admit_jac_min) else None), float(jac)

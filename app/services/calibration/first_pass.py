@@ -14,15 +14,14 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
-from app.db.models import CalibrationStatus, Frame, FrameRole, Game
+from app.db.models import Frame, FrameRole, Game
 from app.datasets.records import FrameRecord, GameRecord
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import CameraPrior
-from app.services.calibration.calibrating import (
-    CalibrationFields, CalibrationJob, CalibrationPool, calibrate_lines, calibrate_many, calibration_job, dataset_prior,
-    expected_side, game_rig, stored_camera_prior, uses_rig, wants_prior_retry, wants_rig_retry, with_prior_refit,
-    with_rig_retry,
-)
+from app.services.calibration.calibrating import CalibrationFields, CalibrationJob, calibrate_lines, calibration_job, expected_side
+from app.services.calibration.priors import dataset_prior, stored_camera_prior, wants_prior_retry, with_prior_refit
+from app.services.calibration.rigs import game_rig, uses_rig, wants_rig_retry, with_rig_retry
+from app.services.calibration.pool import CalibrationPool, calibrate_many
 from app.services.jobs.progress import Progress
 from app.services.kinds import policy
 
@@ -31,7 +30,7 @@ class GameJob(NamedTuple):
     """The calibration of a game new to the database, both passes, as one task (:func:`calibrate_game`):
     per frame (in the game's order: systems, then their frames) its job (``calibrating.calibration_job``
     of the frame to be created), its role, and whether its system uses the game's rig
-    (``calibrating.uses_rig``); ``settings`` decide the retry and the rig."""
+    (``rigs.uses_rig``); ``settings`` decide the retry and the rig."""
 
     jobs: list[CalibrationJob]
     roles: list[FrameRole]
@@ -41,7 +40,7 @@ class GameJob(NamedTuple):
 
 class GameCalibration(NamedTuple):
     """What :func:`calibrate_game` gives per frame: the result from its lines alone (``first``), the one
-    stored (``final``: ``calibrating.with_rig_retry`` of the rig retry, or ``first``), and the rig pass's
+    stored (``final``: ``rigs.with_rig_retry`` of the rig retry, or ``first``), and the rig pass's
     time (ms) of each retried frame, by index."""
 
     first: list[CalibrationFields]
@@ -51,8 +50,8 @@ class GameCalibration(NamedTuple):
 
 def calibrate_game(job: GameJob) -> GameCalibration:
     """Calibrate a game new to the database: every frame from its lines, then the frames
-    ``calibrating.wants_rig_retry`` picks (of systems using the rig) with the game's rig estimated from
-    those fresh results (``calibrating.game_rig``: nothing of the game is stored), exactly as
+    ``rigs.wants_rig_retry`` picks (of systems using the rig) with the game's rig estimated from
+    those fresh results (``rigs.game_rig``: nothing of the game is stored), exactly as
     :func:`retry_with_game_rigs` does for a batch holding the game. Pure; runs in a worker process."""
     first = [calibrate_lines(*j) for j in job.jobs]
     final = list(first)
@@ -160,10 +159,10 @@ def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[Ca
                           settings: Settings, progress: Progress | None, pool: CalibrationPool | None = None,
                           finished: Sequence[int] | set[int] = ()) -> tuple[list[CalibrationFields], dict[int, float]]:
     """Recalibrate the frames of SoccerNet-v3 games refused or calibrated below admission
-    (``calibrating.wants_rig_retry``) with their game's camera rig, estimated from the game's stored
+    (``rigs.wants_rig_retry``) with their game's camera rig, estimated from the game's stored
     calibrations (except the frames being recalibrated) and this import's fresh ones
-    (``calibrating.game_rig``). Writes nothing (the caller disables autoflush). Returns the final
-    result per frame (``calibrating.with_rig_retry``: the better fit by residual, a refusal carrying
+    (``rigs.game_rig``). Writes nothing (the caller disables autoflush). Returns the final
+    result per frame (``rigs.with_rig_retry``: the better fit by residual, a refusal carrying
     the rig's mirror flag) and the rig pass's time per retried frame index (ms). Frames in ``finished``
     (their game calibrated whole ahead, :func:`calibrate_game`) are left as they are."""
     done = set(finished)
@@ -191,13 +190,13 @@ def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationField
                              progress: Progress | None, pool: CalibrationPool | None = None
                              ) -> tuple[list[CalibrationFields], dict[int, float], CameraPrior | None]:
     """Refit, with the learned camera prior of the batch's frames of systems without a rig
-    (calibration datasets: frames from many stadiums; ``calibrating.dataset_prior`` from their fresh
-    calibrations and field lines), those of them ``calibrating.wants_prior_retry`` picks: refused,
+    (calibration datasets: frames from many stadiums; ``priors.dataset_prior`` from their fresh
+    calibrations and field lines), those of them ``priors.wants_prior_retry`` picks: refused,
     every calibrated one when the prior has a radial term, else those with a camera position the
     lines leave open (issue 17). A refit is kept when it calibrates; frames
     whose lines fix the camera as the confident ones do are left as they are (the JaC guard). When the
     batch is too small to learn from (an import of a few changed frames), each frame's game's stored
-    prior (``calibrating.stored_camera_prior``) is used instead. Returns the final result per frame, the
+    prior (``priors.stored_camera_prior``) is used instead. Returns the final result per frame, the
     retry's time per retried frame index (ms) and the prior learned from this batch (None: none was).
     Writes nothing."""
     mine = [i for i, f in enumerate(frames) if not uses_rig(f.system)]

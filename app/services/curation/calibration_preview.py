@@ -20,7 +20,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.datasets.records import CalibrationFields
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
-from app.services.calibration.calibrating import is_admitted
+from app.services.calibration.admission import is_admitted
 from app.services.curation.editing import get_frame, parse_field_lines
 from app.services.derivation.recompute import calibrate_frame_lines
 from app.services.curation.system_page import pitch_lines

@@ -22,7 +22,7 @@ from app.db.models import (
 from app.db.types import utcnow
 from app.services.audit import log as audit
 from app.services.audit.summaries import summarize
-from app.services.calibration.calibrating import admission_jac, is_admitted
+from app.services.calibration.admission import admission_jac, is_admitted
 from app.services.curation.states import (
     calibration_review_state, lines_state, review_state, same_json,
 )
@@ -164,7 +164,7 @@ def _system_back_to_pending(session: Session, system: System, reason: str, actor
 
 def jac_words(frame: Frame, settings: Settings) -> str:
     """The frame's calibration for an entry's summary: "JaC 0.909" (at the admission's gamma,
-    :func:`~app.services.calibration.calibrating.admission_jac`), or "refused" (no camera, or no JaC)."""
+    :func:`~app.services.calibration.admission.admission_jac`), or "refused" (no camera, or no JaC)."""
     cal = frame.calibration
     jac = admission_jac(cal, settings) if cal is not None and cal.camera is not None else None
     return f"JaC {jac:.3f}" if jac is not None else "refused"

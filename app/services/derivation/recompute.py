@@ -56,10 +56,10 @@ from app.geometry.triangulation import BallObservation, PairGeometryMemo, triang
 from app.geometry.pair_error import error_above_tau
 from app.services.audit.log import record_summary
 from app.datasets.records import CalibrationFields
-from app.services.calibration.calibrating import (
-    apply_calibration, calibrate_lines, calibration_job, expected_side, game_rig, is_admitted, rig_centres, rig_rows,
-    stored_camera_prior, uses_rig, wants_prior_retry, wants_rig_retry, with_prior_refit, with_rig_retry,
-)
+from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
+from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
+from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
+from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
 from app.services.jobs.progress import Progress

@@ -19,7 +19,7 @@ from app.datasets.issia import FPS, LINES_FILE, IssiaSequence
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration import calibrate_frame
 from app.geometry.camera import Camera
-from app.geometry.jac import jac_at_gammas
+from app.geometry.jac import jac_admitted, jac_at_gammas
 from app.geometry.static_bundle import bundle_adjust
 from app.geometry.static_cameras import calibrate_with_ball
 from app.geometry.trajectory import DEFAULT_FLAG_PX, fit_trajectory
@@ -54,7 +54,7 @@ class CameraChoice:
 CAMERA_SOURCES = ("calibration_json", "lines", "lines+ball", "lines+bundle", "lines+ball+bundle")
 
 
-def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_min: float = 0.75,
+def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_min: float,
                      ball_assist: bool = True, bundle: bool = True) -> dict[str, CameraChoice]:
     """One camera per id: ``issia_calibration.json`` when present (as in the paper), unless
     ``from_lines`` or it is absent; then each static camera is calibrated once from its field lines
@@ -90,7 +90,7 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
         jac = res.jac.get("0.005") if res.jac else None
         if res.camera is None:
             out[cid] = CameraChoice(None, "lines", None, f"refused: {res.reason}")
-        elif jac is None or not jac > admit_jac_min:
+        elif not jac_admitted(jac, admit_jac_min):
             out[cid] = CameraChoice(None, "lines", jac, f"JaC@0.5% {jac} not above {admit_jac_min}")
         else:
             out[cid] = CameraChoice(res.camera, "lines", jac)
@@ -179,6 +179,6 @@ def bundle_refined_cameras(cameras: Sequence[Camera | None], lines: Sequence[Fie
         if res.cameras[k] is None or lines[k] is None:
             continue
         jac = float(jac_at_gammas(res.cameras[k], lines[k], *image_size, (0.005,))[0.005])
-        if jac > admit_jac_min:
+        if jac_admitted(jac, admit_jac_min):
             out[k] = (res.cameras[k], jac)
     return out

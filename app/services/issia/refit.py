@@ -83,7 +83,7 @@ def sequence_columns(session: Session, game_id: int, settings: Settings) -> Sequ
     importer makes one per camera for every frame), usually every camera's admitted view; for a camera
     whose first view is not admitted, the distinct calibrations of its views with the first frame of each
     (grouped by the database), the first admitted of them."""
-    from app.services.calibration.calibrating import is_admitted
+    from app.services.calibration.admission import is_admitted
 
     in_game = _in_sequence(game_id)
     start = sa.select(sa.func.min(System.frame_index)).where(*in_game).scalar_subquery()
@@ -137,7 +137,7 @@ def _in_sequence(game_id: int) -> tuple[Any, ...]:
     return (System.game_id + 0 == game_id, System.kind == SystemKind.ISSIA)
 
 
-#: The calibration columns admission reads (``app.services.calibration.calibrating.is_admitted``).
+#: The calibration columns admission reads (``app.services.calibration.admission.is_admitted``).
 _ADMISSION_NAMES = ("status", "camera", "flags", "jac_0005", "jac_001", "jac_002")
 _ADMISSION_COLUMNS = tuple(getattr(Calibration, n) for n in _ADMISSION_NAMES)
 #: Frames on each side of an edit whose stored pieces :func:`_pieces_around` reads first (then twice as

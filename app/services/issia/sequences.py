@@ -55,7 +55,8 @@ from app.services.issia.refit import refit_sequence, sequence_columns
 from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence, sequence_arrays
 from app.geometry.jac import JAC_GAMMAS
 from app.datasets.records import CalibrationFields
-from app.services.calibration.calibrating import GIVEN_CAMERA_FLAG, apply_calibration, fit_uncertainty
+from app.services.calibration.admission import GIVEN_CAMERA_FLAG
+from app.services.calibration.calibrating import apply_calibration, fit_uncertainty
 from app.services.jobs.progress import Progress
 from app.services.derivation.recompute import load_for_recompute, recompute_system, recompute_systems
 
@@ -126,7 +127,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
     seq = read_issia(path, flipped_cameras=flipped_cameras, max_pixels=settings.max_image_pixels)
     report.read_seconds = time.perf_counter() - t0
     t1 = time.perf_counter()
-    choice = sequence_cameras(seq, from_lines=from_lines)
+    choice = sequence_cameras(seq, from_lines=from_lines, admit_jac_min=settings.admit_jac_min)
     fields = {cid: _camera_fields(seq, cid, choice[cid]) for cid in seq.camera_ids}
     source = CalibrationSource.COMPUTED if from_lines or not seq.cameras else CalibrationSource.IMPORTED
     report.calibration_seconds = time.perf_counter() - t1

@@ -75,7 +75,7 @@ def load_sequence(session: Session, game_id: int) -> list[System]:
 def sequence_arrays(systems: Sequence[System], settings: Settings) -> SequenceArrays:
     """Current labels and admitted cameras of a stored sequence (see :class:`SequenceArrays`)."""
     from app.services.curation.doubts import is_excluded
-    from app.services.calibration.calibrating import is_admitted
+    from app.services.calibration.admission import is_admitted
 
     by_index = {s.frame_index: s for s in systems if s.frame_index is not None}
     names: dict[str, int] = {}

@@ -69,7 +69,7 @@ class KindPolicy:
         import_formats: dataset formats whose readers produce systems of this kind (``v3d import ...``).
         exports: the names of :data:`EXPORTS` that write its systems.
         uses_rig: calibration may fix the camera centre at one of the game's positions (cameras fixed
-            during a broadcast game; ``app.services.calibration.calibrating.game_rig``).
+            during a broadcast game; ``app.services.calibration.rigs.game_rig``).
         broadcast_priors: the broadcast camera-side priors hold (main camera on the y > 0 side), so the
             mirrored-labels flags are computed on recomputation.
         edit_locks_game: an edit of one system may change other systems of its game (a sequence's

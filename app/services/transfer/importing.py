@@ -61,7 +61,9 @@ from app.services.calibration.first_pass import (
 )
 from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.datasets.records import CalibrationFields
-from app.services.calibration.calibrating import CalibrationPool, apply_calibration, calibration_pool, uses_rig
+from app.services.calibration.pool import CalibrationPool, calibration_pool
+from app.services.calibration.calibrating import apply_calibration
+from app.services.calibration.rigs import uses_rig
 from app.services.jobs.progress import Progress
 from app.services.derivation.recompute import preload_systems, recompute_systems
 

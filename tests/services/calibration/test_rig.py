@@ -9,7 +9,8 @@ from app.db.models import CalibrationSource, CalibrationStatus, System, SystemKi
 from app.services.curation.editing import replace_field_lines
 from app.services.transfer.importing import import_sn_calibration
 from app.geometry.calibration.result import RIG_FLAG
-from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, game_rig, uses_rig
+from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job
+from app.services.calibration.rigs import game_rig, uses_rig
 
 from ..datasets import true_cameras, write_calibration_zip
 
@@ -84,7 +85,7 @@ def test_a_frame_calibrated_below_admission_is_retried_and_the_better_fit_kept(d
                                                                                shared_dir):
     """0.png's lines alone settle on a camera 10 m from the truth (JaC@0.5 % = 0.75, not admitted,
     4.2 px RMS); at the game's main-camera position the same labels fit within about 1 px."""
-    from app.services.calibration.calibrating import wants_rig_retry
+    from app.services.calibration.rigs import wants_rig_retry
 
     frame = next(f for f in imported["0.png"].frames if f.name == "0.png")
     alone = calibrate_lines(*calibration_job(frame))
@@ -107,7 +108,7 @@ def test_a_rig_position_the_labels_do_not_fit_is_refused_not_stored(shared_dir):
 
     from app.geometry.annotations import from_soccernet_v3, lines_to_json_lists
     from app.geometry.calibration import CameraRig, RigPosition
-    from app.services.calibration.calibrating import with_rig_retry
+    from app.services.calibration.rigs import with_rig_retry
 
     from ..datasets import dev_game_dir
 
@@ -134,7 +135,7 @@ def test_a_rig_position_the_labels_do_not_fit_is_refused_not_stored(shared_dir):
 
 def test_with_rig_retry_keeps_the_fit_with_the_smaller_residual():
     from app.datasets.records import CalibrationFields
-    from app.services.calibration.calibrating import with_rig_retry
+    from app.services.calibration.rigs import with_rig_retry
 
     refused = CalibrationFields(CalibrationStatus.REFUSED, None, (None, None, None), reason="few lines")
     poor = CalibrationFields(CalibrationStatus.CALIBRATED, {"c": 1}, (0.5, 1.0, 1.0), rms_px=4.2)

@@ -127,14 +127,14 @@ def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch)
     """Issue 29: the rig rows the inputs' digest reads are the ones the recomputation uses (the mirror evidence's
     rig, a line edit's rig retry): a ball edit reads them twice (the digest before the lock and the one under it),
     not three times, and a line edit as often, and stores what a recomputation gives."""
-    from app.services.calibration import calibrating
+    from app.services.calibration import rigs
 
     factory, settings, scene, _ = database
     calls = []
-    real = calibrating.rig_rows
-    monkeypatch.setattr(calibrating, "rig_rows", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = rigs.rig_rows
+    monkeypatch.setattr(rigs, "rig_rows", lambda *a, **k: calls.append(1) or real(*a, **k))
     import app.services.derivation.recompute as recompute_module
-    monkeypatch.setattr(recompute_module, "rig_rows", calibrating.rig_rows)
+    monkeypatch.setattr(recompute_module, "rig_rows", rigs.rig_rows)
     fid = scene.frame_ids[0]
     with factory() as s:
         update_ball_label(s, fid, box=_moved(_box(factory, fid), 5.0), settings=settings)

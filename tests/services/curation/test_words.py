@@ -11,7 +11,7 @@ from app.geometry.calibration.result import MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIO
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
 from app.geometry.triangulation import DROP_REASONS
 from app.geometry.pair_error import PAIR_ERROR_RULES
-from app.services.calibration.calibrating import GIVEN_CAMERA_FLAG
+from app.services.calibration.admission import GIVEN_CAMERA_FLAG
 from app.services.curation.words import WORDS, words_js
 from app.services.issia.sequences import BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG
 
