@@ -33,7 +33,7 @@ from app.geometry import triangulation as T  # noqa: E402
 from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.pitch import within_play_volume  # noqa: E402
 from app.services.curation.doubts import calibration_weights, is_excluded  # noqa: E402
-from app.services.derivation.recompute import _label_centre, mirror_settings  # noqa: E402
+from app.services.derivation.recompute import _label_centre  # noqa: E402
 from benchmarks.doubts_seeds import SETS  # noqa: E402
 
 VARIANTS: dict[str, float | None] = {"paper": None, "tier only": 0.0, "min 1.0": 1.0, "min 1.5": 1.5}
@@ -44,11 +44,9 @@ def score(name: str, db: Path) -> dict[str, dict[str, int]]:
     truth = json.loads(SETS[name].with_name(SETS[name].name + ".truth.json").read_text())
     true_ball = {(g["match"], s["action"]): s["ball_3d"] for g in truth["games"] for s in g["systems"]}
     st = Settings()
-    ms = mirror_settings(st)
 
     def volume(p: np.ndarray) -> bool:
-        return bool(within_play_volume(np.asarray(p, float).reshape(1, 3), margin_m=ms.plausible_margin_m,
-                                       max_height_m=ms.max_height_m, max_below_m=ms.max_depth_m)[0])
+        return bool(within_play_volume(p)[0])  # pitch.PLAY_VOLUME, as the service
 
     out = {k: {"right": 0, "wrong": 0, "none": 0} for k in VARIANTS}
     with Session(sa.create_engine(f"sqlite:///{db}")) as session:

@@ -13,7 +13,7 @@ from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from app.core.paths import PROJECT_ROOT
-from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES
+from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, PLAY_VOLUME
 
 
 #: Shortest ``V3D_SESSION_SECRET`` accepted (characters): 32 random URL-safe characters carry 192 bits.
@@ -148,7 +148,9 @@ class Settings(BaseSettings):
         description="With a single other labelled view, the ball goes on the grass along its ray when the box's "
         "monocular depth is within this relative difference of the grass depth (boxes err by about 19 % in size).",
     )
-    doubt_max_ball_height_m: float = Field(30.0, description="Highest plausible placed ball, metres above the grass.")
+    doubt_max_ball_height_m: float = Field(
+        PLAY_VOLUME.max_height_m, description="Highest ball the doubts count as agreement, metres above the grass "
+        "(the play volume's height, app.geometry.pitch.PLAY_VOLUME, unless set).")
     doubt_mirror_rig_near_m: float = Field(
         1.0,
         description="An unflagged view is suspected mirrored when its ball ray meets another view's only mirrored "

@@ -123,11 +123,6 @@ class MirrorSettings:
         rig_far_m: a centre farther than this from every rig position (metres) stands at none.
         min_axis_distance_m: a ball closer than this to the vertical axis through the centre spot
             (metres, horizontal) is nearly its own mirror image: its rays say nothing.
-        plausible_margin_m: a triangulated ball farther than this outside the pitch (metres), or
-            outside [-max_height_m, max_depth_m] in z, is not a ball position: such agreement is a
-            coincidence of two skew rays.
-        max_height_m: highest plausible ball (metres above the ground).
-        max_depth_m: lowest plausible ball centre (metres below the ground: triangulation noise).
         prior: log-odds against a view being mirrored (mirrored labels hit about 5 % of views; ln 19).
         side_weight: log-likelihood ratio of the side vote, ln(1594 / 9) from the real cameras.
         rig_weight_as_labelled: log-likelihood ratio of the rig's "as labelled" vote (the camera
@@ -149,9 +144,6 @@ class MirrorSettings:
     rig_near_m: float = 5.0
     rig_far_m: float = 15.0
     min_axis_distance_m: float = 1.0
-    plausible_margin_m: float = 15.0
-    max_height_m: float = 40.0
-    max_depth_m: float = 1.0
     prior: float = float(np.log(19.0))
     side_weight: float = float(np.log(1594.0 / 9.0))
     rig_weight_as_labelled: float = 4.0
@@ -301,8 +293,7 @@ def _rig_vote(d: float | None, d_mirror: float | None, s: MirrorSettings) -> int
 
 
 def _plausible(point: np.ndarray, s: MirrorSettings) -> bool:
-    return bool(within_play_volume(point, margin_m=s.plausible_margin_m, max_height_m=s.max_height_m,
-                                   max_below_m=s.max_depth_m)[0])
+    return bool(within_play_volume(point)[0])
 
 
 def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings,

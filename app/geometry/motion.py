@@ -141,19 +141,11 @@ MAX_BALL_SPEED_M_S = 45.0
 #: A roll decelerating harder than this (m/s^2; grass slows a ball by about 0.5-3 m/s^2) is a stop a
 #: break should explain, not a roll.
 MAX_ROLL_DECELERATION_M_S2 = 20.0
-#: How far (m) a fitted ball may lie beyond the SoccerNet pitch's touch and goal lines (105 x 68 m) or
-#: below the grass (a flight's lowest point: bounces are at ``z = -r``, so noise only), and how high it
-#: may fly (m above the grass).
-PLAY_MARGIN_M = 15.0
-BELOW_GRASS_M = 0.5
-MAX_HEIGHT_M = 40.0
 
 
 def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
     """A ball could move as model ``kind`` with parameters ``q`` (6,) does for ``duration_s`` seconds:
-    never faster than :data:`MAX_BALL_SPEED_M_S`, inside the pitch with :data:`PLAY_MARGIN_M` around it,
-    a flight never more than :data:`BELOW_GRASS_M` below the grass nor :data:`MAX_HEIGHT_M` above it
-    (:func:`app.geometry.pitch.within_play_volume` at its ends and its highest point), a roll decelerating
+    never faster than :data:`MAX_BALL_SPEED_M_S`, inside the play volume (:data:`app.geometry.pitch.PLAY_VOLUME`) at its ends and its highest point, a roll decelerating
     by at most :data:`MAX_ROLL_DECELERATION_M_S2`. A fit of a few labels that one wrong label pulls, or of
     one camera whose depth the labels barely fix, breaks these long before it looks wrong in the image.
     World: SoccerNet metres (pitch 105 x 68 m centred on the centre spot, z down)."""
@@ -173,8 +165,7 @@ def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
         ends = positions(kind, q, np.array([0.0, te]))
     if max(speeds) > MAX_BALL_SPEED_M_S:
         return False
-    return bool(within_play_volume(ends, margin_m=PLAY_MARGIN_M, max_height_m=MAX_HEIGHT_M,
-                                   max_below_m=BELOW_GRASS_M).all())
+    return bool(within_play_volume(ends).all())
 
 
 def robust_cost(residuals_px: np.ndarray) -> float:

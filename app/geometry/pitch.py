@@ -8,6 +8,7 @@ z = -2.44). Dimensions and class names follow SoccerNet's ``src/soccerpitch.py``
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 from types import MappingProxyType
 from typing import Mapping
@@ -74,21 +75,40 @@ MIRROR_CLASSES: Mapping[str, str] = MappingProxyType({
 })
 
 
-def within_play_volume(points_m: np.ndarray, *, margin_m: float, max_height_m: float,
-                       max_below_m: float) -> np.ndarray:
-    """Which ball positions a game could hold: inside the pitch with ``margin_m`` beyond the touch and goal
-    lines, at most ``max_height_m`` above the grass and ``max_below_m`` below it.
+@dataclass(frozen=True)
+class PlayVolume:
+    """The volume a ball in a game can occupy: the pitch with ``margin_m`` beyond the touch and goal lines, from
+    ``max_height_m`` above the grass to ``max_below_m`` below it (a ball centre under the grass is triangulation
+    noise). Metres, SoccerNet world (origin at the centre spot, z down)."""
+
+    margin_m: float
+    max_height_m: float
+    max_below_m: float
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lo, hi)``: the volume's corners, (3,) world metres each (z of ``lo`` is the highest ball)."""
+        x, y = PITCH_LENGTH_M / 2 + self.margin_m, PITCH_WIDTH_M / 2 + self.margin_m
+        return np.array([-x, -y, -self.max_height_m]), np.array([x, y, self.max_below_m])
+
+
+#: The one play volume (issue 30): the triangulation drops a pair whose point lies outside it, the mirror evidence
+#: and the doubts count no agreement outside it, the ISSIA trajectory fits no piece that leaves it. Chosen by
+#: measurement among the three it replaced (benchmarks/DOUBTS.md, "One play volume").
+PLAY_VOLUME = PlayVolume(margin_m=15.0, max_height_m=40.0, max_below_m=0.5)
+
+
+def within_play_volume(points_m: np.ndarray, volume: PlayVolume = PLAY_VOLUME) -> np.ndarray:
+    """Which ball positions a game could hold: inside ``volume`` (:data:`PLAY_VOLUME` unless given).
 
     Args:
-        points_m: (N, 3) world points, metres (SoccerNet: origin at the centre spot, z down).
-        margin_m, max_height_m, max_below_m: metres.
+        points_m: (N, 3) or (3,) world points, metres (SoccerNet: origin at the centre spot, z down).
 
     Returns:
         (N,) bool.
     """
     p = np.asarray(points_m, float).reshape(-1, 3)
-    return ((np.abs(p[:, 0]) <= PITCH_LENGTH_M / 2 + margin_m) & (np.abs(p[:, 1]) <= PITCH_WIDTH_M / 2 + margin_m)
-            & (p[:, 2] >= -max_height_m) & (p[:, 2] <= max_below_m))
+    lo, hi = volume.bounds()
+    return np.all((p >= lo) & (p <= hi), axis=1)
 
 
 def _key_points() -> dict[str, np.ndarray]:

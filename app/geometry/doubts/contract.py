@@ -14,7 +14,7 @@ from typing import Any, Hashable
 import numpy as np
 
 from app.geometry.camera import Camera
-from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, within_play_volume
+from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, PLAY_VOLUME, PlayVolume, within_play_volume
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 
 
@@ -160,10 +160,8 @@ class DoubtSettings:
             another view's only mirrored and its mirrored camera stands within ``mirror_rig_near_m`` of a
             known camera position of the game while as labelled it stands ``mirror_rig_gap_m`` farther
             (metres; calibrated centres of one camera scatter by about a metre).
-        max_ball_height_m: highest plausible ball (metres above the grass).
-        max_below_m: lowest plausible ball centre below the grass (metres: triangulation noise).
-        play_margin_m: a ball more than this beyond the touch or goal lines is not a ball position
-            (metres; the mirror evidence's margin).
+        play_volume: where a ball can be (:data:`app.geometry.pitch.PLAY_VOLUME`; its height from
+            ``V3D_DOUBT_MAX_BALL_HEIGHT_M``): a proposal outside it is no agreement.
         min_line_classes: a view with fewer distinct line classes gets the info doubt ``few_lines`` and
             takes no part in the checks: with the game's rig, two or three classes give a camera that
             fits its own lines perfectly (JaC 1.0) yet may turn its ball ray by degrees, so its ball
@@ -180,9 +178,7 @@ class DoubtSettings:
     inside_margin_px: float = 0.0
     single_view_margin_px: float = 40.0
     ground_box_tolerance: float = 0.35
-    max_ball_height_m: float = 30.0
-    max_below_m: float = 0.5
-    play_margin_m: float = 15.0
+    play_volume: PlayVolume = PLAY_VOLUME
     mirror_rig_near_m: float = 1.0
     mirror_rig_gap_m: float = 2.0
     min_line_classes: int = MIN_LINE_CLASSES
@@ -220,5 +216,4 @@ def _project(view: DoubtView, point: np.ndarray) -> np.ndarray | None:
 
 def _plausible(point: np.ndarray, s: DoubtSettings) -> bool:
     """A ball position a game could hold (:func:`app.geometry.pitch.within_play_volume` with the judge's margins)."""
-    return bool(within_play_volume(np.asarray(point, float).reshape(1, 3), margin_m=s.play_margin_m,
-                                   max_height_m=s.max_ball_height_m, max_below_m=s.max_below_m)[0])
+    return bool(within_play_volume(point, s.play_volume)[0])

@@ -11,7 +11,6 @@ import numpy as np
 
 from app.geometry.ball import ball_from_box_exact
 from app.geometry.camera import Camera
-from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M
 from app.geometry.doubts.contract import (DoubtSettings, DoubtView, _centre, _inside, _project, _scale)
 
 
@@ -69,14 +68,12 @@ def _mono(v: DoubtView, s: DoubtSettings) -> np.ndarray | None:
 
 def ray_in_play_volume(camera: Camera, pixel: np.ndarray, s: DoubtSettings) -> tuple[float, float] | None:
     """The depths ``t`` (metres along the unit ray from the camera centre) at which the ball seen at
-    ``pixel`` would lie in the play volume (:func:`_plausible`: the pitch plus ``play_margin_m``, from
-    ``max_ball_height_m`` above the grass to ``max_below_m`` below it), at least 1 m in front of the
+    ``pixel`` would lie in the play volume (``s.play_volume``, :class:`app.geometry.pitch.PlayVolume`), at least 1 m in front of the
     camera: ``(t_near, t_far)``, or None when the ray never enters it (slab intersection of the ray with
     the volume's box)."""
     ray = camera.rays(np.asarray(pixel, float).reshape(1, 2))[0]
     C = camera.C
-    lo = np.array([-(PITCH_LENGTH_M / 2 + s.play_margin_m), -(PITCH_WIDTH_M / 2 + s.play_margin_m), -s.max_ball_height_m])
-    hi = np.array([PITCH_LENGTH_M / 2 + s.play_margin_m, PITCH_WIDTH_M / 2 + s.play_margin_m, s.max_below_m])
+    lo, hi = s.play_volume.bounds()
     t0, t1 = 1.0, math.inf
     for k in range(3):
         if abs(ray[k]) < 1e-12:

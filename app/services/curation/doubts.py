@@ -22,6 +22,7 @@ from app.core.config import Settings
 from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Game, System
 from app.db.types import json_safe
 from app.geometry.camera import Camera
+from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.doubts import DoubtSettings, DoubtView, calibration_weight, judge_system
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
@@ -33,7 +34,7 @@ def doubt_settings(settings: Settings) -> DoubtSettings:
     """The judge's settings: each field ``f`` of :class:`DoubtSettings` from ``settings.doubt_f`` when
     the service has that setting, else from ``settings.f`` (the triangulation's tau, rule, baseline,
     parallax and ball diameter), else the judge's default."""
-    values: dict[str, Any] = {}
+    values: dict[str, Any] = {"play_volume": dataclasses.replace(PLAY_VOLUME, max_height_m=settings.doubt_max_ball_height_m)}
     for f in dataclasses.fields(DoubtSettings):
         for name in (f"doubt_{f.name}", f.name):
             if name in Settings.model_fields:

@@ -179,12 +179,9 @@ def recompute_system(session: Session, system: System, settings: Settings,
     observations = kind.consensus_observations(system, observations, settings)
     # a weak calibration (few line classes, an unsure camera) neither makes nor moves a ball on its own
     weights = calibration_weights(system, settings, cameras) if kind.weighs_calibrations else None
-    ms = mirror_settings(settings)  # a ball position a game could hold: the mirror evidence's play volume
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
                               min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
-                              play_volume=lambda p: bool(within_play_volume(
-                                  np.asarray(p, float).reshape(1, 3), margin_m=ms.plausible_margin_m,
-                                  max_height_m=ms.max_height_m, max_below_m=ms.max_depth_m)[0]),
+                              play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
                               view_weights=weights, geometry=geometry)
 
     tri = system.triangulation
