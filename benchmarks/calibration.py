@@ -33,6 +33,7 @@ sys.path.insert(0, str(ROOT))
 from app.core.paths import SHARED_DIR  # noqa: E402
 from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
 from app.geometry.calibration import CalibrationPrior, calibrate_frame  # noqa: E402
+from app.services.curation.words import refusal_sentence  # noqa: E402
 from app.geometry.jac import evaluate_jac, gamma_thresholds  # noqa: E402
 
 SETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
@@ -64,7 +65,7 @@ def run_set(key: str, limit: int | None) -> dict:
         wall_ms.append((time.perf_counter() - w0) * 1e3)
         flags.update(f.split(":")[0] for f in result.flags)
         if result.camera is None:
-            refusals.append((frame, result.reason or ""))
+            refusals.append((frame, refusal_sentence(result.refusal) or ""))
             continue
         scores = evaluate_jac(result.camera, lines, W, H, (5.0, 10.0, 20.0, gamma_px)).jac
         jac.append([scores[5.0], scores[10.0], scores[20.0]])

@@ -23,6 +23,7 @@ from tqdm import tqdm
 from app.cli._root import cli
 from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
 from app.core.errors import DatasetError
+from app.services.curation.words import refusal_sentence
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.services.calibration.pool import calibration_pool
@@ -71,7 +72,7 @@ def calibrate_one(job: tuple[str, bytes, int, int, Optional[int]]) -> FrameOutco
                             (time.perf_counter() - t0) * 1e3)
     prior = CalibrationPrior(expected_side=side) if side is not None else None
     r = calibrate_frame(lines, width, height, prior=prior, compute_jac=False)
-    return FrameOutcome(frame, r.status, r.reason, r.camera.to_soccernet() if r.camera is not None else None,
+    return FrameOutcome(frame, r.status, refusal_sentence(r.refusal), r.camera.to_soccernet() if r.camera is not None else None,
                         r.flags, dict(r.residuals_px), r.rms_px, r.elapsed_ms)
 
 

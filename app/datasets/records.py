@@ -39,6 +39,7 @@ class CalibrationFields:
     residuals_px: dict[str, Any] = field(default_factory=dict)
     flags: list[str] = field(default_factory=list)
     reason: str | None = None
+    refusal: str | None = None
     elapsed_ms: float | None = None
     mirror_evidence: dict[str, Any] | None = None
     uncertainty: dict[str, Any] | None = None

@@ -202,6 +202,52 @@ export const WORDS = /*WORDS*/{
    "chip": "edited",
    "means": "set by a person"
   }
+ },
+ "refusal": {
+  "few_constraints": {
+   "chip": "too few lines",
+   "means": "fewer independent line constraints than a camera has unknowns"
+  },
+  "parallel_lines": {
+   "chip": "parallel lines",
+   "means": "every labelled line is parallel on the pitch and no circle or goal fixes the view"
+  },
+  "collinear_points": {
+   "chip": "collinear points",
+   "means": "every labelled point lies on one image line"
+  },
+  "solver_failed": {
+   "chip": "solver failed",
+   "means": "the camera fit raised an error"
+  },
+  "no_camera_fits": {
+   "chip": "no camera fits",
+   "means": "every starting camera failed or put the pitch behind the camera"
+  },
+  "residual_too_high": {
+   "chip": "a line off",
+   "means": "one labelled line stays too far from its pitch line under every camera"
+  },
+  "centre_misfit": {
+   "chip": "misfit at rig position",
+   "means": "the labels do not fit a camera at the game's known camera position"
+  },
+  "no_rig_position": {
+   "chip": "no rig position",
+   "means": "the game has no camera position yet (no well-calibrated frame to estimate it)"
+  },
+  "no_lines": {
+   "chip": "no field lines",
+   "means": "the static camera has no field lines to calibrate from"
+  },
+  "below_admission": {
+   "chip": "below admission",
+   "means": "the static camera fits its lines less well than the admission threshold"
+  },
+  "unspecified": {
+   "chip": "refused",
+   "means": "refused without a recorded reason"
+  }
  }
 }/*END*/;
 

@@ -24,7 +24,7 @@ Method (every step pure numpy):
    mislabelled line, e.g. a left/right confusion, spoils a whole frame) and the look-at starts
    are tried; the class left out is flagged ``ignored_class:<class>``.
 5. The candidate with the smallest robust cost wins (the labels' JaC is never used to choose: it is
-   the evaluation). The result is refused, with a reason, when the labels cannot fix a camera
+   the evaluation). The result is refused, with a refusal code and its numbers (:class:`~.result.Refusal`), when the labels cannot fix a camera
    (too few constraints, parallel or collinear labels) or no camera fits them within
    ``refuse_gamma`` of the diagonal. A budget of residual evaluations bounds the time per frame.
 6. With a dataset's learned camera prior (``CalibrationPrior.camera_prior``, :mod:`.priors`): when no
@@ -60,14 +60,14 @@ from app.geometry.calibration.observations import Observations, build_observatio
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIN_LINE_CLASSES, MIRROR_CLASSES
-from app.geometry.calibration.result import (CalibrationPrior, CalibrationResult, CalibrationSettings, MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG, side_vote)
+from app.geometry.calibration.result import (CalibrationPrior, CalibrationResult, Refusal, CalibrationSettings, MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG, side_vote)
 from app.geometry.calibration.starts import (_Budget, _Candidate, _class_residuals, _search, _worst, _with_k1)
 from app.geometry.calibration.fallbacks import (_anchors_without_one_class, _with_camera_prior, _with_radial_prior, _without_one_class)
 
 
-def _refused(reason: str, t0: float, flags: tuple[str, ...] = (), residuals_px: Mapping[str, float] | None = None,
+def _refused(refusal: Refusal, t0: float, flags: tuple[str, ...] = (), residuals_px: Mapping[str, float] | None = None,
              rms: float | None = None) -> CalibrationResult:
-    return CalibrationResult(status="refused", camera=None, reason=reason, jac={}, residuals_px=dict(residuals_px or {}),
+    return CalibrationResult(status="refused", camera=None, refusal=refusal, jac={}, residuals_px=dict(residuals_px or {}),
                              flags=flags, rms_px=rms, elapsed_ms=(time.perf_counter() - t0) * 1e3)
 
 
@@ -179,17 +179,16 @@ def _calibrate(
     if len(obs.classes) < MIN_LINE_CLASSES:
         flags.append("few_lines")
     if n_constraints < need:
-        return _refused(f"fewer than {need} independent line constraints ({n_constraints}: "
-                        f"{len(obs.classes)} usable line(s))", t0, tuple(flags))
+        return _refused(Refusal("few_constraints", {"need": need, "constraints": n_constraints,
+                                                    "lines": len(obs.classes)}), t0, tuple(flags))
     nx, ny = obs.ground_line_directions()
     if not obs.circle_classes and (nx == 0 or ny == 0) and len(obs.classes) - nx - ny == 0:
-        return _refused("degenerate configuration: all labelled lines are parallel on the pitch and no "
-                        "circle or goal fixes the view", t0, tuple(flags))
+        return _refused(Refusal("parallel_lines"), t0, tuple(flags))
     pts = obs.all_points
     centred = pts - pts.mean(axis=0)
     normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
     if np.max(np.abs(centred @ normal)) < settings.loss_scale_gamma * diag:
-        return _refused("degenerate configuration: all labelled points are collinear in the image", t0, tuple(flags))
+        return _refused(Refusal("collinear_points"), t0, tuple(flags))
     try:
         budget = _Budget(settings.max_evaluations)
         best = _search(obs, width, height, prior, settings, budget)
@@ -239,10 +238,9 @@ def _calibrate(
             best, centre_prior = _with_camera_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
                                                      settings)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
-        return _refused(f"solver failed: {exc}", t0, tuple(flags))
+        return _refused(Refusal("solver_failed", {"error": str(exc)}), t0, tuple(flags))
     if best is None:
-        return _refused("no camera fits the labels (every start failed or put the pitch behind the camera)",
-                        t0, tuple(flags))
+        return _refused(Refusal("no_camera_fits"), t0, tuple(flags))
     camera = best.param.camera(best.x)
     per_class, rms = _class_residuals(camera, obs)
     if fixed:
@@ -257,14 +255,14 @@ def _calibrate(
     worst = max(fitted.values()) if fitted else 0.0
     if worst > limit:
         bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]
-        return _refused(f"residual too high: {bad!r} is {worst:.1f} px from its model element "
-                        f"(limit {limit:.1f} px)", t0, tuple(flags), per_class, rms)
+        return _refused(Refusal("residual_too_high", {"line": bad, "px": worst, "limit_px": limit}), t0, tuple(flags),
+                        per_class, rms)
     if fixed and rms > settings.accept_gamma * diag:
         # With the centre known only focal length and rotation are free and few lines are labelled:
         # the fit absorbs little, so labels it cannot bring within the tolerance of a good
         # single-frame fit (accept_gamma, the admission threshold's scale) disagree with the centre.
-        return _refused(f"labels do not fit a camera at the known centre: {rms:.1f} px RMS "
-                        f"(limit {settings.accept_gamma * diag:.1f} px)", t0, tuple(flags), per_class, rms)
+        return _refused(Refusal("centre_misfit", {"rms_px": rms, "limit_px": settings.accept_gamma * diag}), t0,
+                        tuple(flags), per_class, rms)
     mirrored = None
     if prior is not None and side_vote(camera, prior.expected_side) == 1:
         flags.append(MIRROR_FLAG)
@@ -272,7 +270,7 @@ def _calibrate(
     jac: dict[str, float] = {}
     if compute_jac:
         jac = frame_jac(camera, lines, width, height, jac_function)
-    return CalibrationResult(status="calibrated", camera=camera, reason=None, jac=jac, residuals_px=per_class,
+    return CalibrationResult(status="calibrated", camera=camera, refusal=None, jac=jac, residuals_px=per_class,
                              flags=tuple(flags), rms_px=rms, elapsed_ms=(time.perf_counter() - t0) * 1e3,
                              mirrored_lines=mirrored, centre_prior=centre_prior or radial_prior)
 

@@ -117,6 +117,33 @@ class CalibrationSettings:
     prior_max_evaluations: int = 60
 
 
+#: Why a calibration was refused, as codes (their numbers in :attr:`Refusal.numbers`); the words a person reads are
+#: the services' (``app.services.curation.words``: ``WORDS["refusal"]`` and ``refusal_sentence``).
+REFUSAL_CODES: tuple[str, ...] = (
+    "few_constraints",   # fewer independent line constraints than the camera has unknowns: need, constraints, lines
+    "parallel_lines",    # every labelled line parallel on the pitch, and no circle or goal fixes the view
+    "collinear_points",  # every labelled point on one image line
+    "solver_failed",     # the solver raised: error
+    "no_camera_fits",    # every start failed or put the pitch behind the camera
+    "residual_too_high", # a class too far from its model element: line, px, limit_px
+    "centre_misfit",     # the labels do not fit a camera at the known centre: rms_px, limit_px
+    "no_rig_position",   # the game's rig has no position (no well-calibrated frame to estimate it)
+)
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """Why :func:`calibrate_frame` refused a frame: ``code`` (one of :data:`REFUSAL_CODES`) and the numbers behind
+    it (``numbers``: name -> number, or a line class name for ``residual_too_high``; pixels of the frame)."""
+
+    code: str
+    numbers: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        """``{"code": ..., **numbers}``."""
+        return {"code": self.code, **dict(self.numbers)}
+
+
 @dataclass(frozen=True)
 class CalibrationResult:
     """Outcome of :func:`calibrate_frame`.
@@ -124,7 +151,7 @@ class CalibrationResult:
     Attributes:
         status: ``"calibrated"`` or ``"refused"``.
         camera: the camera (pixels of the frame, SoccerNet world) or ``None`` when refused.
-        reason: why the frame was refused (``None`` when calibrated).
+        refusal: why the frame was refused (:class:`Refusal`; ``None`` when calibrated).
         jac: JaC at each gamma of :data:`JAC_GAMMAS` (keys ``"0.005"``, ``"0.01"``, ``"0.02"``), from
             :mod:`app.geometry.jac`; empty when refused or not computed.
         residuals_px: per labelled class, the largest distance (px) of its points to the model
@@ -146,7 +173,7 @@ class CalibrationResult:
 
     status: Status
     camera: Camera | None
-    reason: str | None
+    refusal: Refusal | None
     jac: Mapping[str, float]
     residuals_px: Mapping[str, float]
     flags: tuple[str, ...]
@@ -165,7 +192,7 @@ class CalibrationResult:
         return {
             "status": self.status,
             "camera": self.camera.to_soccernet() if self.camera is not None else None,
-            "reason": self.reason,
+            "refusal": self.refusal.to_json() if self.refusal is not None else None,
             "jac": dict(self.jac),
             "residuals_px": dict(self.residuals_px),
             "flags": list(self.flags),

@@ -21,7 +21,7 @@ from numba import njit
 
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration.residuals import JIT
-from app.geometry.calibration.result import RIG_FLAG, CalibrationPrior, CalibrationResult, CalibrationSettings
+from app.geometry.calibration.result import RIG_FLAG, CalibrationPrior, CalibrationResult, CalibrationSettings, Refusal
 from app.geometry.calibration.frame import calibrate_frames_together, frame_jac
 
 
@@ -172,7 +172,7 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
     """
     if not rig.positions:
         return CalibrationResult(status="refused", camera=None, jac={}, residuals_px={}, flags=(RIG_FLAG,),
-                                 reason="no rig position for this game (no well-calibrated frames to estimate it)",
+                                 refusal=Refusal("no_rig_position"),
                                  rms_px=None, elapsed_ms=0.0)
     # JaC is the evaluation, never the choice: it is computed once, for the chosen position.
     # Every position is fitted; the fits share the frame's observations (the same results as one

@@ -23,6 +23,7 @@ from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.mirror import mirrored_fit_at_rig
+from app.services.curation.words import refusal_sentence
 from app.services.curation.doubt_words import with_sentence
 from app.datasets.records import CalibrationFields
 
@@ -113,7 +114,8 @@ def _fields_from_result(result: Any, lines: FieldLines | None = None) -> Calibra
         jac=jac,  # type: ignore[arg-type]
         residuals_px=json_safe(dict(result.residuals_px or {})),
         flags=[str(f) for f in (result.flags or ())],
-        reason=result.reason,
+        reason=refusal_sentence(result.refusal),
+        refusal=result.refusal.code if result.refusal is not None else None,
         elapsed_ms=float(result.elapsed_ms),
         rms_px=_opt_float(result.rms_px),
         uncertainty=uncertainty,

@@ -16,7 +16,8 @@ Groups:
 * ``note``: what the system page says of a view's state besides the doubts (``notes()`` of overlay.js);
 * ``triangulation``: the triangulation's statuses; ``pair_reason``: why a pair of views was dropped
   (``app.geometry.triangulation.DROP_REASONS``); ``rule``: the pair-error rules (``PAIR_ERROR_RULES``);
-* ``calibration``: a calibration's statuses and sources.
+* ``calibration``: a calibration's statuses and sources; ``refusal``: why a calibration was refused
+  (``app.geometry.calibration.result.REFUSAL_CODES``; the stored sentence with its numbers: :func:`refusal_sentence`).
 """
 from __future__ import annotations
 
@@ -111,7 +112,55 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "imported": {"chip": "imported", "means": "read from an export"},
         "edited": {"chip": "edited", "means": "set by a person"},
     },
+    "refusal": {
+        "few_constraints": {"chip": "too few lines",
+                            "means": "fewer independent line constraints than a camera has unknowns"},
+        "parallel_lines": {"chip": "parallel lines",
+                           "means": "every labelled line is parallel on the pitch and no circle or goal fixes the view"},
+        "collinear_points": {"chip": "collinear points", "means": "every labelled point lies on one image line"},
+        "solver_failed": {"chip": "solver failed", "means": "the camera fit raised an error"},
+        "no_camera_fits": {"chip": "no camera fits",
+                           "means": "every starting camera failed or put the pitch behind the camera"},
+        "residual_too_high": {"chip": "a line off",
+                              "means": "one labelled line stays too far from its pitch line under every camera"},
+        "centre_misfit": {"chip": "misfit at rig position",
+                          "means": "the labels do not fit a camera at the game's known camera position"},
+        "no_rig_position": {"chip": "no rig position",
+                            "means": "the game has no camera position yet (no well-calibrated frame to estimate it)"},
+        "no_lines": {"chip": "no field lines", "means": "the static camera has no field lines to calibrate from"},
+        "below_admission": {"chip": "below admission",
+                            "means": "the static camera fits its lines less well than the admission threshold"},
+        "unspecified": {"chip": "refused", "means": "refused without a recorded reason"},
+    },
 }
+
+#: The stored sentence of each refusal code, its numbers filled in (the calibration's ``reason``, as the review
+#: page and the exports show it).
+REFUSAL_SENTENCES: dict[str, str] = {
+    "few_constraints": "fewer than {need} independent line constraints ({constraints}: {lines} usable line(s))",
+    "parallel_lines": "degenerate configuration: all labelled lines are parallel on the pitch and no circle or goal "
+                      "fixes the view",
+    "collinear_points": "degenerate configuration: all labelled points are collinear in the image",
+    "solver_failed": "solver failed: {error}",
+    "no_camera_fits": "no camera fits the labels (every start failed or put the pitch behind the camera)",
+    "residual_too_high": "residual too high: {line!r} is {px:.1f} px from its model element (limit {limit_px:.1f} px)",
+    "centre_misfit": "labels do not fit a camera at the known centre: {rms_px:.1f} px RMS (limit {limit_px:.1f} px)",
+    "no_rig_position": "no rig position for this game (no well-calibrated frames to estimate it)",
+}
+
+
+def refusal_sentence(refusal: Any) -> str | None:
+    """The sentence of a calibration's refusal (``app.geometry.calibration.Refusal``: its code and numbers), or
+    None for no refusal. An unknown code reads as its code.
+
+    >>> from app.geometry.calibration.result import Refusal
+    >>> refusal_sentence(Refusal("few_constraints", {"need": 7, "constraints": 4, "lines": 2}))
+    'fewer than 7 independent line constraints (4: 2 usable line(s))'
+    """
+    if refusal is None:
+        return None
+    template = REFUSAL_SENTENCES.get(refusal.code)
+    return template.format(**refusal.numbers) if template is not None else refusal.code
 
 
 def words_js() -> str:

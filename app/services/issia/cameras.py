@@ -20,6 +20,7 @@ from app.geometry.annotations import FieldLines
 from app.geometry.calibration import calibrate_frame
 from app.geometry.camera import Camera
 from app.geometry.jac import jac_admitted, jac_at_gammas
+from app.services.curation.words import refusal_sentence
 from app.geometry.static_bundle import bundle_adjust
 from app.geometry.static_cameras import calibrate_with_ball
 from app.geometry.trajectory import DEFAULT_FLAG_PX, fit_trajectory
@@ -36,6 +37,8 @@ class CameraChoice:
     source: str
     jac: float | None = None
     reason: str | None = None
+    #: The refusal's code (``WORDS["refusal"]``: the calibration's, ``no_lines`` or ``below_admission``).
+    refusal: str | None = None
 
     @property
     def ball_assisted(self) -> bool:
@@ -84,14 +87,14 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
     out = {}
     for cid in seq.camera_ids:
         if cid not in seq.lines:
-            out[cid] = CameraChoice(None, "lines", reason="no field lines")
+            out[cid] = CameraChoice(None, "lines", reason="no field lines", refusal="no_lines")
             continue
         res = calibrate_frame(seq.lines[cid], *seq.image_size)
         jac = res.jac.get("0.005") if res.jac else None
         if res.camera is None:
-            out[cid] = CameraChoice(None, "lines", None, f"refused: {res.reason}")
+            out[cid] = CameraChoice(None, "lines", None, f"refused: {refusal_sentence(res.refusal)}", res.refusal.code)
         elif not jac_admitted(jac, admit_jac_min):
-            out[cid] = CameraChoice(None, "lines", jac, f"JaC@0.5% {jac} not above {admit_jac_min}")
+            out[cid] = CameraChoice(None, "lines", jac, f"JaC@0.5% {jac} not above {admit_jac_min}", "below_admission")
         else:
             out[cid] = CameraChoice(res.camera, "lines", jac)
     refused = [c for c in seq.camera_ids if out[c].camera is None and c in seq.lines]

@@ -29,7 +29,7 @@ from app.datasets.issia3d import issia3d_rows, write_issia3d_csv
 from app.db.models import Calibration, Frame, Game, ReviewStatus, System, SystemKind
 from app.geometry.camera import Camera
 from app.core.errors import NotFoundError, found
-from app.services.issia.trajectory import FPS, load_sequence
+from app.services.issia.trajectory import load_sequence
 
 CSV_NAME, SPLIT_NAME, CALIBRATION_DIR = "ISSIA-3D.csv", "split.json", "calibration"
 

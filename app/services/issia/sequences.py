@@ -72,7 +72,8 @@ def view_name(camera_id: str) -> str:
 
 def _camera_fields(seq: IssiaSequence, cid: str, choice: CameraChoice) -> CalibrationFields:
     if choice.camera is None:
-        return CalibrationFields(CalibrationStatus.REFUSED, None, (None, None, None), reason=choice.reason)
+        return CalibrationFields(CalibrationStatus.REFUSED, None, (None, None, None), reason=choice.reason,
+                                 refusal=choice.refusal)
     w, h = seq.image_size
     flags = [BALL_ASSISTED_FLAG] * choice.ball_assisted + [BALL_BUNDLE_FLAG] * choice.bundle_adjusted
     if cid in seq.lines:
@@ -137,7 +138,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
             report.calibrated += 1
         else:
             report.refused += 1
-            report.refusal_reasons[f.reason or "unspecified"] += 1
+            report.refusal_reasons[f.refusal or "unspecified"] += 1
     try:
         game = _store(session, seq, fields, source, report)
         session.flush()

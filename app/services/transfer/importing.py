@@ -31,7 +31,6 @@ batch's own transaction; a frame whose labels or lines it changes gets a new edi
 from __future__ import annotations
 
 import dataclasses
-import re
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -55,6 +54,7 @@ from app.datasets.records import FrameRecord, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
 from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
 from app.datasets.soccernet_v3d import read_soccernet_v3d
+from app.services.curation.words import WORDS
 from app.services.audit.log import record_summary
 from app.services.calibration.first_pass import (
     FirstPassAhead, first_pass, retry_with_dataset_prior, retry_with_game_rigs, start_first_pass,
@@ -90,7 +90,7 @@ class ImportReport:
         prior_fitted: frames of calibration datasets whose stored calibration is a MAP fit with the
             dataset's learned camera prior (flag ``learned_prior``: its centre, or ``radial_prior``: its
             lens; counted in ``calibrated``).
-        refusal_reasons: reason -> count among ``refused``.
+        refusal_reasons: refusal code (``WORDS["refusal"]``) -> count among ``refused``.
         triangulated: recomputed systems that got a 3D ball.
         read_seconds, calibration_seconds, store_seconds: wall time of reading and validating the
             input, of the calibration step, and of writing, recomputing and committing;
@@ -122,17 +122,13 @@ class ImportReport:
     skipped_systems: list[str] = field(default_factory=list)
 
     def refusal_kinds(self) -> Counter:
-        """``refusal_reasons`` with every number replaced by ``N`` and every quoted line class by
-        ``<class>``, so that reasons of one kind are counted together.
+        """``refusal_reasons`` in words: each refusal code's meaning (``WORDS["refusal"]``, the review pages'
+        table) -> count.
 
-        >>> ImportReport("x", refusal_reasons=Counter({"residual too high: 'Side line top' is 70.1 px": 2,
-        ...                                            "residual too high: 'Circle left' is 99 px": 1})).refusal_kinds()
-        Counter({'residual too high: <class> is N px': 3})
+        >>> ImportReport("x", refusal_reasons=Counter({"residual_too_high": 3})).refusal_kinds()
+        Counter({'one labelled line stays too far from its pitch line under every camera': 3})
         """
-        out: Counter = Counter()
-        for reason, n in self.refusal_reasons.items():
-            out[re.sub(r"'[^']*'", "<class>", re.sub(r"\d+(?:\.\d+)?", "N", reason))] += n
-        return out
+        return Counter({WORDS["refusal"].get(code, {}).get("means", code): n for code, n in self.refusal_reasons.items()})
 
 
 # ----- writing ------------------------------------------------------------------------------------
@@ -307,7 +303,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
             report.calibrated += 1
         else:
             report.refused += 1
-            report.refusal_reasons[fields.reason or "unspecified"] += 1
+            report.refusal_reasons[fields.refusal or "unspecified"] += 1
     report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
 
 

@@ -48,3 +48,17 @@ def test_the_flags_the_calibration_writes_are_all_in_the_table() -> None:
     source = "".join(f.read_text() for f in sorted(package.glob("*.py")))
     literal = set(re.findall(r'flags\.append\("([a-z_]+)"\)', source))
     assert literal and literal <= set(WORDS["flag"])
+
+
+def test_every_refusal_code_of_the_calibration_has_words_and_a_sentence() -> None:
+    """The calibration refuses with codes and numbers (``REFUSAL_CODES``); the words table names each and writes
+    its stored sentence with the numbers, so the import counts codes and a person reads words."""
+    from app.geometry.calibration.result import REFUSAL_CODES, Refusal
+    from app.services.curation.words import REFUSAL_SENTENCES, refusal_sentence
+
+    assert set(REFUSAL_CODES) <= set(WORDS["refusal"]) and set(REFUSAL_CODES) == set(REFUSAL_SENTENCES)
+    numbers = {"need": 7, "constraints": 4, "lines": 2, "error": "singular matrix", "line": "Side line top",
+               "px": 70.06, "limit_px": 27.5, "rms_px": 31.2}
+    sentences = {code: refusal_sentence(Refusal(code, numbers)) for code in REFUSAL_CODES}
+    assert sentences["residual_too_high"] == "residual too high: 'Side line top' is 70.1 px from its model element (limit 27.5 px)"
+    assert all(s and "{" not in s for s in sentences.values()), sentences

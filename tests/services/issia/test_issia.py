@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
+from app.geometry.calibration.result import REFUSAL_CODES
 from app.datasets.issia3d import read_issia3d_csv
 from app.db.models import (
     BallKind, CalibrationSource, Doubt, Frame, FrameRole, Game, System, SystemKind, TrajectoryPoint,
@@ -96,6 +97,8 @@ def test_import_from_calibration_json_stores_the_sequence(db_session, db_setting
 def test_import_from_lines_calibrates_each_camera_once(db_session, db_settings, stretch, shared_dir):
     report = import_issia(db_session, stretch, db_settings, from_lines=True)
     assert report.calibrated + report.refused == 6 and report.calibrated >= 4
+    assert sum(report.refusal_reasons.values()) == report.refused
+    assert set(report.refusal_reasons) <= {*REFUSAL_CODES, "no_lines", "below_admission"}, report.refusal_reasons
     systems = _systems(db_session)
     for view in systems[0].frames:
         cams = {json.dumps(_view(s, view.name).calibration.camera, sort_keys=True) for s in systems.values()}

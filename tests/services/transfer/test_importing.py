@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
+from app.services.curation.words import WORDS
 from app.db.models import (
     BallKind, CalibrationSource, CalibrationStatus, Frame, FrameRole, Game, ReviewStatus, System, SystemKind,
     TriangulationStatus,
@@ -37,6 +38,9 @@ def test_import_soccernet_v3_stores_systems_frames_labels_and_derived_rows(db_se
 
     assert (report.games, report.systems, report.frames, report.systems_new) == (1, 3, 8, 3)
     assert report.calibrated + report.refused == 8
+    # refusals are counted by the calibration's codes, each with its words (no sentence parsed back)
+    assert sum(report.refusal_reasons.values()) == report.refused
+    assert set(report.refusal_reasons) <= set(WORDS["refusal"]), report.refusal_reasons
     game = db_session.scalars(sa.select(Game)).one()
     assert (game.league, game.season, game.match) == DEV_GAME
     systems = {s.name: s for s in game.systems}
