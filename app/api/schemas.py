@@ -3,7 +3,7 @@
 Separate from the ORM models (``app.db.models``); only the enums are shared. Units: pixels of the
 frame's own image (continuous coordinates, origin at the top-left corner), world metres (z down), JaC
 as fractions in [0, 1]. The answers of the review views (the system view, the UI contract of
-``docs/architecture.md``) are in ``app.api.view_schemas``; those of other routers beside them
+``docs/api.md``) are in ``app.api.view_schemas``; those of other routers beside them
 (``audit_schemas``, ``job_schemas``, ``issia_schemas``).
 """
 from __future__ import annotations

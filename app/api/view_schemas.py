@@ -1,5 +1,5 @@
 """Response models of the review views, shaped from ORM objects: the games, the review queue, the frame list
-and the system view of ``docs/architecture.md`` (the UI contract).
+and the system view of ``docs/api.md`` (the UI contract).
 
 Every answer is built by these models from the rows the services load (``app.services.curation.queue``,
 ``app.services.curation.system_page``): fields whose ORM attribute has the same meaning and name are read from it
@@ -509,7 +509,7 @@ class TriangulationOut(BaseModel):
 
 
 class SystemView(BaseModel):
-    """The system view of ``docs/architecture.md`` (the UI contract)."""
+    """The system view of ``docs/api.md`` (the UI contract)."""
 
     id: int
     name: str

@@ -134,7 +134,7 @@ class PairResult:
     reason: str | None
 
     def as_dict(self) -> dict:
-        """JSON-ready form with the keys of the system view contract (docs/architecture.md)."""
+        """JSON-ready form with the keys of the system view contract (docs/api.md)."""
         return {"view_a": self.view_a, "view_b": self.view_b,
                 "point": None if self.point is None else [float(v) for v in self.point],
                 "error_px": self.error, "parallax_deg": self.parallax_deg, "baseline_m": self.baseline_m,

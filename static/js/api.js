@@ -32,7 +32,7 @@ function describeError(status, body, fallback) {
 
 /** Methods that change something: a browser session must send its CSRF token with them. */
 const UNSAFE = new Set(["POST", "PUT", "PATCH", "DELETE"]);
-/** The header, and the page a person logs in on (docs/architecture.md, "Users and roles"). */
+/** The header, and the page a person logs in on (docs/api.md, "Users, roles and the authentication layer"). */
 export const CSRF_HEADER = "X-CSRF-Token";
 export const LOGIN_PAGE = "/login";
 
@@ -157,7 +157,7 @@ export function listGames() {
   return request("GET", "/api/games");
 }
 
-/** GET /api/systems/{id}: the system view (docs/architecture.md). `params` are the queue filters,
+/** GET /api/systems/{id}: the system view (docs/api.md). `params` are the queue filters,
  * so that prev_id / next_id follow the queue the reviewer came from. */
 export function getSystem(id, params = {}) {
   return request("GET", `/api/systems/${encodeURIComponent(id)}${toQuery(params)}`);

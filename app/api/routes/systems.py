@@ -52,7 +52,7 @@ def list_systems(session: SessionDep, principal: PrincipalDep,
 @router.get("/{system_id}", response_model=SystemView, responses=NOT_FOUND)
 def read_system(session: SessionDep, principal: PrincipalDep, system: SystemDep,
                 query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
-    """The system view (``docs/architecture.md``); ``prev_id`` / ``next_id`` follow the queue given by
+    """The system view (``docs/api.md``); ``prev_id`` / ``next_id`` follow the queue given by
     the query parameters (by default the whole queue, largest error first; ``assignee=me`` is the caller).
     ``assignment`` and ``open_by`` say who it is assigned to and who has it open. ``ETag``: the system's
     review decision's."""

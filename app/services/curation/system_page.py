@@ -2,7 +2,7 @@
 frame the same way, its neighbours in the queue, and the pitch model projected into a view.
 
 Read only. The API's response models (``app.api.view_schemas``) shape these ORM objects into the system
-view of ``docs/architecture.md``; the one computation left to the read path, the projected pitch, depends
+view of ``docs/api.md``; the one computation left to the read path, the projected pitch, depends
 only on the calibration and is computed once per camera and image size (:func:`pitch_lines`).
 """
 from __future__ import annotations
