@@ -85,7 +85,7 @@ def test_views_above_tau_on_postgresql(pg_url: str) -> None:
         rows = {s["id"]: s["views_above_tau"] for s in client.get("/api/systems").json()["items"]}
         assert rows == {exact: 0, wrong: 2}
         view = client.get(f"/api/systems/{wrong}").json()
-        assert [v["error_above_tau"] for v in view["views"]] == [False, True, True]
+        assert [v["error_above_tau"] for v in view["views"]] == [True, False, True]
 
 
 def test_soccernet_v3d_export_on_postgresql(pg_url: str, tmp_path) -> None:

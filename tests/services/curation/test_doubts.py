@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from sqlalchemy.orm import Session
 
+from app.geometry.calibration.result import Refusal
 from app.core.config import Settings
 from app.db.models import System
 from app.geometry.ball import sphere_image_box
@@ -175,7 +176,7 @@ def test_a_refused_main_view_whose_mirrored_labels_calibrate_is_flagged_with_the
         calls.append(lines)
         if len(calls) == 1:  # as labelled: refused (the side prior finds no camera on the near side)
             return dataclasses.replace(real(lines, width, height, **kw), status="refused", camera=None,
-                                       reason="no camera fits the labels")
+                                       refusal=Refusal("no_camera_fits"))
         return real(lines, width, height, **kw)
 
     monkeypatch.setattr(calibrating, "calibrate_frame", refuse_as_labelled)
@@ -219,8 +220,9 @@ def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: 
     np.testing.assert_allclose(system.triangulation.ball3d, BALL, atol=1e-6)  # the sure views alone
     reasons = {frozenset((p.frame_a_id, p.frame_b_id)): p.reason for p in system.triangulation.pairs}
     assert reasons[frozenset(weak_ids)] == "weak_calibrations"
-    assert sum(r is None for r in reasons.values()) == 1 and set(reasons.values()) == {None, "weak_calibrations",
-                                                                                     "outweighed"}
+    # the mixed pairs are kept out: outweighed by the sure pair, or meeting under the grass (outside the play volume)
+    assert sum(r is None for r in reasons.values()) == 1 and "outweighed" in reasons.values()
+    assert set(reasons.values()) <= {None, "weak_calibrations", "outweighed", "outside_play_volume"}
     # the two weak views alone: their rays meet metres off, yet no 3D ball is made
     for fid in scene.frame_ids:
         if fid not in weak_ids:
