@@ -12,18 +12,23 @@ import pytest
 
 from app.core.config import Settings
 from app.geometry.ball import sphere_image_box
+from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
 from app.geometry.consensus import ball_consensus
 from app.geometry.mirror import mirror_camera
-from app.geometry.doubts import (CODES, INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, DoubtSettings, DoubtView,
+from app.geometry.doubts import (CODES, INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, DoubtView,
                                  epipolar_pair_error, judge_system, pixel_sigma)
 from app.services.curation.doubt_words import doubt_message
+from app.services.curation.doubts import doubt_settings
 from app.geometry.triangulation import BallObservation
 
 BALL = np.array([10.0, 5.0, -0.11])  # on the grass
 R_BALL = 0.11
 W, H = 1920, 1080
 
+
+#: The judge's thresholds as the service builds them from the settings' defaults (the geometry has none).
+SETTINGS = doubt_settings(Settings())
 
 def look_at(position, target, focal=2500.0, width=W, height=H) -> Camera:
     """An undistorted camera at ``position`` whose optical axis passes through ``target`` (world, z down)."""
@@ -75,9 +80,9 @@ def accusing(doubts):
 
 
 def test_a_clean_system_has_no_label_doubt_and_every_doubt_follows_the_contract():
-    doubts = judge_system(scene(), DoubtSettings())
+    doubts = judge_system(scene(), SETTINGS)
     assert accusing(doubts) == []
-    for d in judge_system(scene(corner={"box": None}, goal={"box": [5.0, 5.0, 20.0, 20.0]})):
+    for d in judge_system(scene(corner={"box": None}, goal={"box": [5.0, 5.0, 20.0, 20.0]}), settings=SETTINGS):
         assert d.kind in LABEL_KINDS + INFO_KINDS
         assert d.suggestion is None or d.suggestion["action"] in SUGGESTION_ACTIONS
         assert d.code in CODES[d.kind] and not hasattr(d, "message")  # geometry: codes and numbers only
@@ -91,7 +96,7 @@ def test_the_one_bad_view_among_four_is_named_and_offered_the_consensus_box(corr
         bad = {"box": sphere_image_box(camera("opposite"), BALL, R_BALL) + [160.0, -40.0, 160.0, -40.0]}
     else:  # the replay shows the ball 4 m from where the other views see it
         bad = {"ball": BALL + [3.0, -2.5, 0.0]}
-    doubts = accusing(judge_system(scene(opposite=bad)))
+    doubts = accusing(judge_system(scene(opposite=bad), settings=SETTINGS))
     assert [(d.kind, d.view_id) for d in doubts] == [("ball_off_consensus", "opposite")]
     d = doubts[0]
     assert d.evidence["error_px_1920"] > 60 and sorted(d.evidence["agreeing_views"]) == ["corner", "goal", "main"]
@@ -115,10 +120,10 @@ def test_the_consensus_box_carries_the_uncertainty_of_the_agreeing_views_and_of_
     u = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 2.0}
     bad = {"box": sphere_image_box(camera("opposite"), BALL, R_BALL) + [160.0, -40.0, 160.0, -40.0], "uncertainty": u}
     views = scene(opposite=bad, **noisy)
-    (d,) = accusing(judge_system(views))
+    (d,) = accusing(judge_system(views, settings=SETTINGS))
     assert d.kind == "ball_off_consensus" and d.suggestion["action"] == "snap_box"
     opposite = next(v for v in views if v.view_id == "opposite")
-    own = pixel_sigma(opposite, np.asarray(d.evidence["ball3d"]), DoubtSettings())
+    own = pixel_sigma(opposite, np.asarray(d.evidence["ball3d"]), SETTINGS)
     assert own > 1.0  # the camera's uncertainty counts
     sigma = d.suggestion["box_sigma_px"]
     assert own <= sigma < 15.0  # at least the camera's own sigma, and no more than a few px of label noise
@@ -128,7 +133,7 @@ def test_the_consensus_box_carries_the_uncertainty_of_the_agreeing_views_and_of_
 
 
 def test_a_missing_ball_label_gets_the_exact_sphere_box_where_the_other_views_agree():
-    doubts = accusing(judge_system(scene(corner={"box": None})))
+    doubts = accusing(judge_system(scene(corner={"box": None}), settings=SETTINGS))
     assert [(d.kind, d.view_id) for d in doubts] == [("ball_missing", "corner")]
     truth = sphere_image_box(camera("corner"), BALL, R_BALL)
     assert doubts[0].suggestion["action"] == "snap_box"
@@ -137,7 +142,7 @@ def test_a_missing_ball_label_gets_the_exact_sphere_box_where_the_other_views_ag
 
 def test_with_one_other_view_the_missing_ball_is_a_segment_and_a_box_only_where_it_is_short():
     views = [v for v in scene(goal={"box": None}) if v.view_id in ("main", "goal")]
-    doubts = accusing(judge_system(views))
+    doubts = accusing(judge_system(views, settings=SETTINGS))
     assert [(d.kind, d.view_id) for d in doubts] == [("ball_missing", "goal")]
     d = doubts[0]
     assert d.evidence["placed"] == "grass" and d.evidence["inside_chance"] >= 0.5
@@ -148,12 +153,12 @@ def test_with_one_other_view_the_missing_ball_is_a_segment_and_a_box_only_where_
     # the true ball lies on the segment, whatever its height
     assert _polyline_distance(seg, centre) < 1.0
     if d.code == "epipolar":  # a long segment: one ray does not fix the depth, no box to snap
-        assert d.suggestion is None and d.evidence["segment_length_px_1920"] / 2 > DoubtSettings().consensus_tau_px
+        assert d.suggestion is None and d.evidence["segment_length_px_1920"] / 2 > SETTINGS.consensus_tau_px
     else:  # a short one: the box is a guess on it, within tau of anywhere on it
         assert d.code == "epipolar_box" and np.abs(np.asarray(d.suggestion["box"]) - truth).max() < 0.5
     assert "label on the segment" in doubt_message(d, {"main": "main.png"}) or d.code == "epipolar_box"
     # far from the segment's middle the box would be a guess: shortened tolerance, no box
-    d2 = accusing(judge_system(views, dataclasses.replace(DoubtSettings(), consensus_tau_px=1.0)))[0]
+    d2 = accusing(judge_system(views, dataclasses.replace(SETTINGS, consensus_tau_px=1.0)))[0]
     assert d2.code == "epipolar" and d2.suggestion is None
 
 
@@ -168,7 +173,7 @@ def _polyline_distance(poly: np.ndarray, p: np.ndarray) -> float:
 def test_a_ball_in_the_air_seen_by_one_view_is_placed_by_its_box_and_lies_on_the_segment():
     ball = np.array([10.0, 5.0, -6.0])
     views = [view("main", *CAMERAS["main"], ball=ball, role="action"), view("goal", *CAMERAS["goal"], box=None)]
-    d = accusing(judge_system(views))[0]
+    d = accusing(judge_system(views, settings=SETTINGS))[0]
     assert d.kind == "ball_missing" and d.evidence["placed"] == "box"
     truth = sphere_image_box(views[1].camera, ball, R_BALL)
     # the true ball lies on the drawn segment, whatever its height
@@ -180,44 +185,44 @@ def test_an_out_of_frame_ball_seen_by_one_view_is_not_called_missing_when_it_is_
     off = view("off", *CAMERAS["goal"], target=BALL + [0.0, 35.0, 0.0], box=None)
     uv, _ = off.camera.project(BALL)
     assert not (0 <= uv[0][0] <= W and 0 <= uv[0][1] <= H)
-    assert accusing(judge_system([scene()[0], off])) == []
+    assert accusing(judge_system([scene()[0], off], settings=SETTINGS)) == []
 
 
 def test_two_views_too_close_in_direction_to_triangulate_are_judged_by_their_epipolar_segments():
     twin_pos, f = [0.6, 60.4, -15.2], 4000.0
     good = [scene()[0], view("twin", twin_pos, f)]
-    assert epipolar_pair_error(*good, DoubtSettings()) < 5.0
-    assert [d.kind for d in accusing(judge_system(good))] == ["near_duplicate_view"]
+    assert epipolar_pair_error(*good, SETTINGS) < 5.0
+    assert [d.kind for d in accusing(judge_system(good, settings=SETTINGS))] == ["near_duplicate_view"]
     bad = [scene()[0], view("twin", twin_pos, f, ball=BALL + [0.0, 0.0, -3.0])]  # the replay shows another instant
-    assert epipolar_pair_error(*bad, DoubtSettings()) > 25.0
-    kinds = [(d.kind, d.code) for d in accusing(judge_system(bad))]
+    assert epipolar_pair_error(*bad, SETTINGS) > 25.0
+    kinds = [(d.kind, d.code) for d in accusing(judge_system(bad, settings=SETTINGS))]
     assert ("views_disagree", "epipolar") in kinds
 
 
 def test_two_rays_that_meet_only_under_the_grass_do_not_agree():
     under = BALL + [0.0, 0.0, 6.0]  # 6 m below the grass: what two wrong labels can agree on by coincidence
     views = [v for v in scene(goal={"ball": under}, main={"ball": under}) if v.view_id in ("main", "goal")]
-    assert [(d.kind, d.view_id) for d in accusing(judge_system(views))] == [("views_disagree", None)]
+    assert [(d.kind, d.view_id) for d in accusing(judge_system(views, settings=SETTINGS))] == [("views_disagree", None)]
 
 
 def test_votes_are_weighted_by_what_the_calibration_is_worth():
     sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0, "position_m": {"x": .1, "y": .1, "z": .1}}
     unsure = {**sure, "pan_deg": 2.0, "tilt_deg": 2.0}
-    s = DoubtSettings()
+    s = SETTINGS
     assert pixel_sigma(scene(main={"uncertainty": sure})[0], BALL, s) < 5.0
     assert pixel_sigma(scene(main={"uncertainty": unsure})[0], BALL, s) > 50.0
     # a view below admission whose calibration is sure still votes: two against one, the culprit is named
     wrong = {"box": sphere_image_box(camera("opposite"), BALL, R_BALL) + [200.0, 0.0, 200.0, 0.0]}
     views = [v for v in scene(opposite=wrong, goal={"admitted": False, "jac": 0.7, "uncertainty": sure})
              if v.view_id in ("main", "goal", "opposite")]
-    assert [(d.kind, d.view_id) for d in accusing(judge_system(views))] == [("ball_off_consensus", "opposite")]
+    assert [(d.kind, d.view_id) for d in accusing(judge_system(views, settings=SETTINGS))] == [("ball_off_consensus", "opposite")]
     # unsure and below admission, it takes no part: one against one, the culprit cannot be told
     views = [v for v in scene(opposite=wrong, goal={"admitted": False, "jac": 0.7, "uncertainty": unsure})
              if v.view_id in ("main", "goal", "opposite")]
-    assert [(d.kind, d.view_id) for d in accusing(judge_system(views))] == [("views_disagree", None)]
+    assert [(d.kind, d.view_id) for d in accusing(judge_system(views, settings=SETTINGS))] == [("views_disagree", None)]
     # an admitted view whose calibration is unsure is not accused within its own pixel sigma
     views = scene(opposite={**wrong, "uncertainty": {**sure, "pan_deg": 8.0, "tilt_deg": 8.0}})
-    assert accusing(judge_system(views)) == []
+    assert accusing(judge_system(views, settings=SETTINGS)) == []
 
 
 def test_a_view_looking_away_from_the_ball_is_not_called_missing():
@@ -225,80 +230,80 @@ def test_a_view_looking_away_from_the_ball_is_not_called_missing():
     uv, _ = away.camera.project(BALL)
     assert uv[0][0] < -100  # the ball lies well outside that image
     for views in (scene() + [away], [scene()[0], away]):
-        assert accusing(judge_system(views)) == []
+        assert accusing(judge_system(views, settings=SETTINGS)) == []
 
 
 def test_a_near_duplicate_view_is_named_and_a_camera_at_the_same_place_looking_elsewhere_is_not():
     twin = view("twin", [0.3, 60.2, -15.1], 4000.0)
-    doubts = accusing(judge_system([scene()[0], twin]))
+    doubts = accusing(judge_system([scene()[0], twin], settings=SETTINGS))
     assert [(d.kind, d.view_id) for d in doubts] == [("near_duplicate_view", "twin")]
     assert doubts[0].evidence["angle_deg"] < 1.0 and doubts[0].suggestion == {"action": "exclude_view"}
     elsewhere = view("elsewhere", [0.3, 60.2, -15.1], 4000.0, target=[-40.0, 20.0, 0.0], box=None)
-    assert accusing(judge_system(scene() + [elsewhere])) == []
+    assert accusing(judge_system(scene() + [elsewhere], settings=SETTINGS)) == []
 
 
 def test_two_views_that_miss_cannot_name_the_culprit_and_say_what_would_decide():
     views = [v for v in scene(goal={"ball": BALL + [4.0, 0.0, 0.0]}) if v.view_id in ("main", "goal")]
-    doubts = accusing(judge_system(views))
+    doubts = accusing(judge_system(views, settings=SETTINGS))
     assert [(d.kind, d.view_id) for d in doubts] == [("views_disagree", None)]
     assert "third view" in doubt_message(doubts[0], {}) and doubts[0].suggestion is None
 
 
 def test_excluded_mirrored_and_few_line_views_are_not_accused_of_their_ball():
     off = {"ball": BALL + [5.0, 5.0, 0.0]}
-    doubts = judge_system(scene(opposite={**off, "excluded": True}))
+    doubts = judge_system(scene(opposite={**off, "excluded": True}), settings=SETTINGS)
     assert accusing(doubts) == []
     # flagged by a prior alone: the doubt, but no fix (nothing confirms the mirrored camera)
-    doubts = accusing(judge_system(scene(opposite={**off, "mirror_flagged": True})))
+    doubts = accusing(judge_system(scene(opposite={**off, "mirror_flagged": True}), settings=SETTINGS))
     assert [(d.kind, d.view_id, d.suggestion) for d in doubts] == [("mirrored_labels", "opposite", None)]
     assert "no fix is offered" in doubt_message(doubts[0], {}) and doubts[0].evidence["fix_agrees"] is False
     # truly mirrored labels: the camera as calibrated is the mirror image of the true one; mirrored back, the
     # label meets the ball the other views agree on, so the fix is offered, with both errors
     mirrored_cam = mirror_camera(camera("opposite"))
     true_box = sphere_image_box(camera("opposite"), BALL, R_BALL)
-    doubts = accusing(judge_system(scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True})))
+    doubts = accusing(judge_system(scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True}), settings=SETTINGS))
     assert [(d.kind, d.view_id, d.suggestion) for d in doubts] == [
         ("mirrored_labels", "opposite", {"action": "mirror_labels"})]
     assert doubts[0].evidence["error_mirrored_px_1920"] < 1.0 < doubts[0].evidence["error_as_labelled_px_1920"]
     # a clean view flagged by a prior: mirrored it would move away from the ball, no fix, and it says why
-    doubts = accusing(judge_system(scene(opposite={"mirror_flagged": True})))
+    doubts = accusing(judge_system(scene(opposite={"mirror_flagged": True}), settings=SETTINGS))
     assert doubts[0].suggestion is None and doubts[0].evidence["no_fix"] == "as_labelled_fits"
     assert "do not agree better" in doubt_message(doubts[0], {})
     # without a ball the others agree on, the pair relations decide: as labelled its ray meets another's
     same = {"verdict": "mirrored", "margin": 3.0, "pairs": [{"other": "main", "relation": "same"}]}
     two = [v for v in scene(opposite={**off, "mirror_flagged": True, "mirror_evidence": same})
            if v.view_id in ("main", "opposite")]
-    doubts = accusing(judge_system(two))
+    doubts = accusing(judge_system(two, settings=SETTINGS))
     assert doubts[0].suggestion is None and doubts[0].evidence["no_fix"] == "as_labelled_meets"
     # one other view meeting it only mirrored cannot tell which of the two is mirrored; the game's rig can
     different = {"verdict": "probably_mirrored", "margin": 6.0, "pairs": [{"other": "main", "relation": "different"}],
                  "rig_distance_m": 40.0, "rig_distance_mirrored_m": 41.0}
     pair = [v for v in scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True,
                                        "mirror_evidence": different}) if v.view_id in ("main", "opposite")]
-    d = accusing(judge_system(pair))[0]
+    d = accusing(judge_system(pair, settings=SETTINGS))[0]
     assert d.suggestion is None and d.evidence["no_fix"] == "one_view_cannot_tell"
     at_rig = {**different, "rig_distance_mirrored_m": 0.2}
     pair = [v for v in scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True,
                                        "mirror_evidence": at_rig}) if v.view_id in ("main", "opposite")]
-    d = accusing(judge_system(pair))[0]
+    d = accusing(judge_system(pair, settings=SETTINGS))[0]
     assert d.suggestion == {"action": "mirror_labels"} and d.evidence["rig_confirms"] is True
-    doubts = judge_system(scene(opposite={**off, "line_classes": 2}))
+    doubts = judge_system(scene(opposite={**off, "line_classes": 2}), settings=SETTINGS)
     assert accusing(doubts) == [] and [d.kind for d in doubts if d.view_id == "opposite"] == ["few_lines"]
 
 
 def test_an_unflagged_view_whose_mirrored_camera_stands_at_the_rig_is_suspected_mirrored():
     evidence = {"verdict": "undecided", "margin": 0.0, "rig_distance_m": 4.6, "rig_distance_mirrored_m": 0.07,
                 "pairs": [{"other": "main", "relation": "different"}]}
-    doubts = accusing(judge_system(scene(opposite={"mirror_evidence": evidence})))
+    doubts = accusing(judge_system(scene(opposite={"mirror_evidence": evidence}), settings=SETTINGS))
     assert [(d.kind, d.view_id) for d in doubts] == [("mirrored_labels", "opposite")]
     same = {**evidence, "pairs": [{"other": "main", "relation": "same"}]}
-    assert accusing(judge_system(scene(opposite={"mirror_evidence": same}))) == []
+    assert accusing(judge_system(scene(opposite={"mirror_evidence": same}), settings=SETTINGS)) == []
 
 
 def test_info_doubts_say_why_a_view_takes_no_part():
     refused = DoubtView("r", "r.png", "replay", W, H, None, False, calibration_reason="no camera fits the labels")
     low = dataclasses.replace(scene()[1], view_id="low", admitted=False, jac=0.6, rig_assisted=True)
-    kinds = {(d.kind, d.view_id) for d in judge_system(scene()[:1] + [refused, low])}
+    kinds = {(d.kind, d.view_id) for d in judge_system(scene()[:1] + [refused, low], settings=SETTINGS)}
     assert kinds == {("calibration_refused", "r"), ("few_lines", "r"), ("below_admission", "low"),
                      ("rig_assisted", "low")}
 
@@ -314,10 +319,16 @@ def test_the_consensus_is_general_for_n_views_and_ambiguous_between_two_camps():
     assert ball_consensus(split, tau_px=20.0).ambiguous
 
 
-def test_settings_defaults_are_the_doubt_settings_defaults():
-    from app.services.curation.doubts import doubt_settings
-
-    assert doubt_settings(Settings(_env_file=None)) == DoubtSettings()
+def test_the_judges_operating_point_is_the_settings_defaults():
+    """The judge has no defaults of its own: its operating point (benchmarks/doubts.py) is the settings' defaults,
+    read without an environment file."""
+    s = doubt_settings(Settings(_env_file=None))
+    assert (s.triangulation_tau_px, s.pair_error_rule, s.min_baseline_m, s.min_parallax_deg) == (20.0, "max_scaled_1920",
+                                                                                                   1.0, 2.0)
+    assert (s.consensus_tau_px, s.near_duplicate_max_deg, s.inside_margin_px, s.single_view_margin_px,
+            s.ground_box_tolerance, s.mirror_rig_near_m, s.mirror_rig_gap_m, s.min_line_classes) == (
+        25.0, 3.0, 0.0, 40.0, 0.35, 1.0, 2.0, 4)
+    assert s.play_volume == PLAY_VOLUME and s.ball_diameter_m == 0.22
 
 
 # ----- the benchmark on the synthetic dev data --------------------------------------------------------------
@@ -336,7 +347,7 @@ def test_the_judge_meets_the_issue_figures_on_the_dev_set_and_one_dev_large_game
     for name, root in (("dev", None), ("dev-large", subset)):
         url = bench.ensure_database(shared_dir, name, tmp_path / "db", source=root)
         inputs = bench.load_judged_input(url)
-        judged += bench.judge_all(inputs, DoubtSettings())[0]
+        judged += bench.judge_all(inputs, SETTINGS)[0]
         truth.update(bench.load_truth(shared_dir, name))
     sc = bench.score(judged, truth)
     # measured: caught 7/7, guilty 7/7, clean flagged 1/52, near duplicates 2/2, out of frame 0/5, suggestion 1.5 px

@@ -129,10 +129,11 @@ class Doubt:
 class DoubtSettings:
     """Thresholds of :func:`judge_system`.
 
-    The first five fields carry the names of the service's triangulation settings
-    (``app.core.config.Settings``); every other field ``f`` is read from ``Settings.doubt_f``. The
-    defaults are the operating point chosen with ``benchmarks/doubts.py`` (precision against recall on
-    the synthetic SoccerNet-v3 dev sets, v3d's own calibration); see that script's docstring.
+    No defaults of its own: the service builds it from ``app.core.config.Settings``
+    (``app.services.curation.doubts.doubt_settings``: the triangulation's settings for the first five fields,
+    ``Settings.doubt_*`` for the others), whose defaults are the operating point chosen with
+    ``benchmarks/doubts.py`` (precision against recall on the synthetic SoccerNet-v3 dev sets, v3d's own
+    calibration); see that script's docstring.
 
     Attributes:
         triangulation_tau_px: tau of the triangulation (px at 1920 width); unused by the judge except
@@ -168,20 +169,20 @@ class DoubtSettings:
             would be accused for its camera's fault (on dev-large, every false alarm of that kind).
     """
 
-    triangulation_tau_px: float = 20.0
-    pair_error_rule: str = "max_scaled_1920"
-    min_baseline_m: float = 1.0
-    min_parallax_deg: float = 2.0
-    ball_diameter_m: float = BALL_DIAMETER_M
-    consensus_tau_px: float = 25.0
-    near_duplicate_max_deg: float = 3.0
-    inside_margin_px: float = 0.0
-    single_view_margin_px: float = 40.0
-    ground_box_tolerance: float = 0.35
-    play_volume: PlayVolume = PLAY_VOLUME
-    mirror_rig_near_m: float = 1.0
-    mirror_rig_gap_m: float = 2.0
-    min_line_classes: int = MIN_LINE_CLASSES
+    triangulation_tau_px: float
+    pair_error_rule: str
+    min_baseline_m: float
+    min_parallax_deg: float
+    ball_diameter_m: float
+    consensus_tau_px: float
+    near_duplicate_max_deg: float
+    inside_margin_px: float
+    single_view_margin_px: float
+    ground_box_tolerance: float
+    play_volume: PlayVolume
+    mirror_rig_near_m: float
+    mirror_rig_gap_m: float
+    min_line_classes: int
 
 
 def _scale(view: DoubtView, s: DoubtSettings) -> float:

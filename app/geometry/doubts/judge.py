@@ -258,7 +258,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
                  {"action": "snap_box", "box": _box_list(box), "box_sigma_px": _r(length / 2 / _scale(v, s))})
 
 
-def judge_system(views: Sequence[DoubtView], settings: DoubtSettings = DoubtSettings(),
+def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry) -> list[Doubt]:
     """Every doubt of one multi-view system (pure, deterministic; see the module docstring for the kinds).
 

@@ -31,16 +31,19 @@ from app.services.kinds import kind_of
 
 
 def doubt_settings(settings: Settings) -> DoubtSettings:
-    """The judge's settings: each field ``f`` of :class:`DoubtSettings` from ``settings.doubt_f`` when
-    the service has that setting, else from ``settings.f`` (the triangulation's tau, rule, baseline,
-    parallax and ball diameter), else the judge's default."""
-    values: dict[str, Any] = {"play_volume": dataclasses.replace(PLAY_VOLUME, max_height_m=settings.doubt_max_ball_height_m)}
-    for f in dataclasses.fields(DoubtSettings):
-        for name in (f"doubt_{f.name}", f.name):
-            if name in Settings.model_fields:
-                values[f.name] = getattr(settings, name)
-                break
-    return DoubtSettings(**values)
+    """The judge's settings, every one from ``settings``: the triangulation's tau, rule, baseline, parallax and
+    ball diameter, the ``doubt_*`` thresholds (``V3D_DOUBT_*``), and the play volume
+    (``app.geometry.pitch.PLAY_VOLUME``, its height ``doubt_max_ball_height_m``)."""
+    return DoubtSettings(
+        triangulation_tau_px=settings.triangulation_tau_px, pair_error_rule=settings.pair_error_rule,
+        min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
+        ball_diameter_m=settings.ball_diameter_m, consensus_tau_px=settings.doubt_consensus_tau_px,
+        near_duplicate_max_deg=settings.doubt_near_duplicate_max_deg, inside_margin_px=settings.doubt_inside_margin_px,
+        single_view_margin_px=settings.doubt_single_view_margin_px,
+        ground_box_tolerance=settings.doubt_ground_box_tolerance,
+        play_volume=dataclasses.replace(PLAY_VOLUME, max_height_m=settings.doubt_max_ball_height_m),
+        mirror_rig_near_m=settings.doubt_mirror_rig_near_m, mirror_rig_gap_m=settings.doubt_mirror_rig_gap_m,
+        min_line_classes=settings.doubt_min_line_classes)
 
 
 def is_excluded(frame: Frame) -> bool:

@@ -40,8 +40,9 @@ def test_settings_map_onto_the_judge_field_by_field() -> None:
             assert getattr(mapped, f.name) == getattr(settings, f"doubt_{f.name}"), f.name
         elif f.name in Settings.model_fields:
             assert getattr(mapped, f.name) == getattr(settings, f.name), f.name
-    if "triangulation_tau_px" in {f.name for f in dataclasses.fields(DoubtSettings)}:
-        assert mapped.triangulation_tau_px == 17.0
+    assert mapped.triangulation_tau_px == 17.0
+    assert mapped.play_volume.max_height_m == settings.doubt_max_ball_height_m  # the volume's height is a setting
+    assert doubt_settings(Settings(doubt_max_ball_height_m=12.0)).play_volume.max_height_m == 12.0
 
 
 def test_a_clean_system_has_no_label_doubt(db_session: Session, db_settings: Settings) -> None:
