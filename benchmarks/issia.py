@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from app.core.config import Settings
+from app.services.issia.trajectory import fit_args
 from app.datasets.issia import read_issia
 from app.services.issia.cameras import sequence_cameras
 from app.geometry.trajectory import fit_trajectory, refit_window
@@ -30,13 +31,14 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic"
 def evaluate(seq, truth: dict, *, from_lines: bool) -> tuple[dict, object]:
     """Fit ``seq`` in one mode and score it against ``truth`` (issia-dev.truth.json); returns (figures, fit)."""
     t0 = time.perf_counter()
-    choice = sequence_cameras(seq, from_lines=from_lines, admit_jac_min=Settings().admit_jac_min)
+    choice = sequence_cameras(seq, from_lines=from_lines, admit_jac_min=Settings().admit_jac_min,
+                              pair_rules=fit_args(Settings()))
     t1 = time.perf_counter()
     cams = [choice[c].camera for c in seq.camera_ids]
-    fit = fit_trajectory(seq.dense_points(), cams, [seq.image_size[0]] * len(cams), float(truth.get("fps", 25)))
+    fit = fit_trajectory(seq.dense_points(), cams, [seq.image_size[0]] * len(cams), float(truth.get("fps", 25)), **fit_args(Settings()))
     t2 = time.perf_counter()
     mid = len(fit.positions) // 2  # an edit in the middle: only the pieces it touches are fitted again
-    refit_window(fit, seq.dense_points(), cams, [seq.image_size[0]] * len(cams), mid, mid)
+    refit_window(fit, seq.dense_points(), cams, [seq.image_size[0]] * len(cams), mid, mid, **fit_args(Settings()))
     t3 = time.perf_counter()
     idx = {c: k for k, c in enumerate(seq.camera_ids)}
     good2, seen, n_out, out_kept, n_ok, ok_kept, out_flagged = [], [], 0, 0, 0, 0, 0

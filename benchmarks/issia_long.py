@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from app.core.config import Settings
+from app.services.issia.trajectory import fit_args
 from app.datasets.issia import read_issia
 from app.services.issia.cameras import sequence_cameras
 from app.geometry.trajectory import fit_trajectory, refit_window
@@ -182,7 +183,7 @@ def run_sequence(data: Path, truth: dict) -> list[dict]:
 def timing(data: Path, lengths_s: list[float], refits: int, fps: float = 25.0) -> list[dict]:
     """Fit and one-label re-fit times on the first N seconds of ``data`` (calibration-JSON cameras)."""
     seq = read_issia(data)
-    choice = sequence_cameras(seq, admit_jac_min=Settings().admit_jac_min)
+    choice = sequence_cameras(seq, admit_jac_min=Settings().admit_jac_min, pair_rules=fit_args(Settings()))
     cams = [choice[c].camera for c in seq.camera_ids]
     widths = [seq.image_size[0]] * len(cams)
     dense = seq.dense_points()
@@ -191,7 +192,7 @@ def timing(data: Path, lengths_s: list[float], refits: int, fps: float = 25.0) -
         n = min(int(round(secs * fps)), len(dense))
         pts = dense[:n].copy()
         t0, c0 = time.perf_counter(), time.process_time()
-        fit = fit_trajectory(pts, cams, widths, fps)
+        fit = fit_trajectory(pts, cams, widths, fps, **fit_args(Settings()))
         fit_wall, fit_cpu = time.perf_counter() - t0, time.process_time() - c0
         walls, cpus = [], []
         labelled = [f for f in range(n) if np.isfinite(pts[f]).all(axis=1).any()]
@@ -200,7 +201,7 @@ def timing(data: Path, lengths_s: list[float], refits: int, fps: float = 25.0) -
             edited = pts.copy()
             edited[f, k, 0] += 3.0
             t0, c0 = time.perf_counter(), time.process_time()
-            refit_window(fit, edited, cams, widths, f, f)
+            refit_window(fit, edited, cams, widths, f, f, **fit_args(Settings()))
             walls.append(time.perf_counter() - t0)
             cpus.append(time.process_time() - c0)
         rows.append({"seconds": n / fps, "frames": n, "pieces": len(fit.pieces), "fit_wall_s": fit_wall,

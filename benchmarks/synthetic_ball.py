@@ -33,6 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from app.core.config import Settings  # noqa: E402
 from app.geometry.ball import (  # noqa: E402
     OPTIMISED_BOX_METHODS,
     ball_from_box,
@@ -259,7 +260,7 @@ def issia_study(shared: Path, tau_px: float, rule: str) -> dict[str, float]:
             f = frames[int(row["frame"])]
             obs = [BallObservation(k, cams[k], [float(row[f"x_cam{k}"]), float(row[f"y_cam{k}"])], width)
                    for k in cams if row[f"x_cam{k}"]]
-            res = triangulate_ball(obs, tau_px=tau_px, rule=rule)
+            res = triangulate_ball(obs, tau_px=tau_px, rule=rule, min_baseline_m=Settings().min_baseline_m)
             bad = {o.view_id for o in obs if f["cams"][o.view_id]["outlier"]}
             outliers += len(bad)
             outliers_kept += len(bad & res.contributing_views)
@@ -295,7 +296,7 @@ def timings(systems: list[DevSystem], tau_px: float, rule: str, repeats: int = 5
     obs = [observations(s) for s in systems]
     views = [(v.camera, v.box, s.ball_3d) for s in systems for v in s.views if v.box is not None]
     out = {"triangulate_ball per system": median_us(
-        lambda: [triangulate_ball(o, tau_px=tau_px, rule=rule) for o in obs], len(obs))}
+        lambda: [triangulate_ball(o, tau_px=tau_px, rule=rule, min_baseline_m=Settings().min_baseline_m) for o in obs], len(obs))}
     for m in OPTIMISED_BOX_METHODS:
         out[f"optimise_box {m} per view"] = median_us(
             lambda m=m: [optimise_box(c, box_centre_and_diameter(b)[0][0], p, BALL_DIAMETER_M, method=m)

@@ -434,8 +434,8 @@ def _pair_weights(kept: Sequence[PairResult], std_m: Mapping[Hashable, float] | 
     return w if w.sum() > 0 else np.ones(len(kept))
 
 
-def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, rule: str = "max_scaled_1920",
-                     min_baseline_m: float = 1.0, min_parallax_deg: float = 0.0,
+def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, rule: str,
+                     min_baseline_m: float, min_parallax_deg: float = 0.0,
                      view_position_std_m: Mapping[Hashable, float] | None = None,
                      play_volume: Callable[[np.ndarray], bool] | None = None,
                      view_weights: Mapping[Hashable, float] | None = None,

@@ -312,11 +312,11 @@ def test_the_consensus_is_general_for_n_views_and_ambiguous_between_two_camps():
     cams = [camera(k) for k in CAMERAS] + [look_at([-70.0, 0.0, -12.0], BALL, 3000.0),
                                                       look_at([-30.0, -50.0, -10.0], BALL, 3000.0)]
     obs = [BallObservation(i, c, c.project(BALL)[0][0], W) for i, c in enumerate(cams)]
-    r = ball_consensus(obs, tau_px=20.0, min_parallax_deg=2.0)
+    r = ball_consensus(obs, tau_px=20.0, min_parallax_deg=2.0, min_baseline_m=1.0)
     assert r.inliers == tuple(range(6)) and np.linalg.norm(r.point - BALL) < 1e-6 and not r.ambiguous
     other = BALL + [6.0, -4.0, 0.0]
     split = obs[:2] + [BallObservation(i, cams[i], cams[i].project(other)[0][0], W) for i in (2, 3)]
-    assert ball_consensus(split, tau_px=20.0).ambiguous
+    assert ball_consensus(split, tau_px=20.0, min_baseline_m=1.0).ambiguous
 
 
 def test_the_judges_operating_point_is_the_settings_defaults():

@@ -49,10 +49,10 @@ edit).
 """
 from app.geometry.motion import BALL_RADIUS_M, GRAVITY_M_S2, KINDS
 from app.geometry.trajectory.fit import SOURCES, TrajectoryFit, fit_trajectory
-from app.geometry.trajectory.frames import DEFAULT_TAU_PX, FrameTriangulation, triangulate_frame
+from app.geometry.trajectory.frames import FrameTriangulation, triangulate_frame
 from app.geometry.trajectory.refit import REFIT_REACH, local_span, refit_local, refit_span, refit_window
 from app.geometry.trajectory.segmentation import DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece
 
 __all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "REFIT_REACH", "FrameTriangulation", "triangulate_frame",
            "Piece", "TrajectoryFit", "fit_trajectory", "local_span", "refit_local", "refit_span", "refit_window",
-           "DEFAULT_TAU_PX", "DEFAULT_BREAK_PX", "DEFAULT_FLAG_PX"]
+           "DEFAULT_BREAK_PX", "DEFAULT_FLAG_PX"]

@@ -15,7 +15,7 @@ from app.geometry.motion import (
     LabelTable as _Labels,
 )
 from app.geometry.triangulation import BallObservation
-from app.geometry.trajectory.frames import (DEFAULT_TAU_PX, FrameTriangulation, triangulate_frame)
+from app.geometry.trajectory.frames import (FrameTriangulation, triangulate_frame)
 from app.geometry.trajectory.segmentation import (DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece, _group, _segment)
 
 
@@ -94,7 +94,7 @@ def _check_inputs(points, cameras, widths, fps):
 
 def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float], fps: float, *,
                    flag_px: float = DEFAULT_FLAG_PX, break_px: float = DEFAULT_BREAK_PX,
-                   tau_px: float = DEFAULT_TAU_PX) -> TrajectoryFit:
+                   tau_px: float, rule: str, min_baseline_m: float) -> TrajectoryFit:
     """Fit the ball's trajectory to all labels of all cameras at once (module docstring).
 
     Args:
@@ -104,7 +104,8 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
         fps: frame rate; frame ``i`` is at ``t = i / fps`` seconds.
         flag_px: label residual above which the label is an outlier, px at 1920 width.
         break_px: prediction error that ends a piece (three frames in a row), px at 1920 width.
-        tau_px: per-frame triangulation threshold (:func:`triangulate_frame`).
+        tau_px, rule, min_baseline_m: the per-frame triangulation's threshold (px at 1920 width), pair-error rule
+            and least baseline (metres) (:func:`triangulate_frame`; the service passes its settings').
 
     Returns:
         :class:`TrajectoryFit` of the whole sequence (``first_frame = 0``, F rows).
@@ -116,10 +117,11 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
     L = _Labels(pts, cameras, widths, use)
     by_frame = _group(L)
     pieces = _segment(L, by_frame, sorted(by_frame), fps, break_px)
-    return _assemble(pts, 0, cameras, widths, fps, L, pieces, flag_px, tau_px, 0, len(pts) - 1)
+    return _assemble(pts, 0, cameras, widths, fps, L, pieces, flag_px, tau_px, 0, len(pts) - 1, rule=rule,
+                     min_baseline_m=min_baseline_m)
 
 
-def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, a, b, *,
+def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, a, b, *, rule: str, min_baseline_m: float,
               previous: TrajectoryFit | None = None, edited: tuple[int, int] | None = None) -> TrajectoryFit:
     """The per-frame rows of frames ``a..b`` (sequence indices; ``pts`` row 0 is frame ``pts_first``)
     from ``pieces``. A frame outside ``edited`` whose kept labels are those of ``previous`` keeps its
@@ -151,7 +153,8 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
     for r in np.flatnonzero(~covered & (np.isfinite(residuals).sum(axis=1) >= 2) & outliers.any(axis=1)):
         row = a + r - pts_first
         tri = triangulate_frame([BallObservation(int(k), cameras[k], pts[row, k], widths[k])
-                                 for k in np.flatnonzero(np.isfinite(residuals[r]))], tau_px=tau_px)
+                                 for k in np.flatnonzero(np.isfinite(residuals[r]))], tau_px=tau_px, rule=rule,
+                                min_baseline_m=min_baseline_m)
         if tri.point is not None and np.linalg.norm(tri.point - positions[r]) <= GAP_CONSENSUS_M:
             outliers[r, list(tri.kept)] = False
     keep_mask = np.isfinite(residuals) & ~outliers
@@ -176,7 +179,8 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
         else:
             row = a + r - pts_first
             tri = triangulate_frame([BallObservation(k, cameras[k], pts[row, k], widths[k]) for k in keep],
-                                    tau_px=tau_px) if len(keep) >= 2 else FrameTriangulation(None, (), {})
+                                    tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m) if len(keep) >= 2 \
+                else FrameTriangulation(None, (), {})
             point = tri.point
             kept = tuple(sorted(tri.kept)) if tri.point is not None else keep
         if point is not None:

@@ -13,7 +13,6 @@ from app.geometry.consensus import ball_consensus
 from app.geometry.triangulation import BallObservation, reprojection_error_px, triangulate_ball
 
 
-DEFAULT_TAU_PX = 20.0
 
 
 @dataclass(frozen=True)
@@ -31,8 +30,8 @@ class FrameTriangulation:
     errors_px: dict[Hashable, float | None]
 
 
-def triangulate_frame(observations: Sequence[BallObservation], *, tau_px: float = DEFAULT_TAU_PX,
-                      rule: str = "max_scaled_1920", min_baseline_m: float = 1.0) -> FrameTriangulation:
+def triangulate_frame(observations: Sequence[BallObservation], *, tau_px: float, rule: str,
+                      min_baseline_m: float) -> FrameTriangulation:
     """The paper's pairwise triangulation (method.md section 5) of the labels that agree, robust to
     wrong cameras.
 

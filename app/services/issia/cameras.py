@@ -10,7 +10,7 @@ bundle refined runs :func:`bundle_refined_cameras` again.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -58,13 +58,15 @@ CAMERA_SOURCES = ("calibration_json", "lines", "lines+ball", "lines+bundle", "li
 
 
 def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_min: float,
+                     pair_rules: Mapping[str, Any],
                      ball_assist: bool = True, bundle: bool = True) -> dict[str, CameraChoice]:
     """One camera per id: ``issia_calibration.json`` when present (as in the paper), unless
     ``from_lines`` or it is absent; then each static camera is calibrated once from its field lines
     (:func:`app.geometry.calibration.calibrate_frame`) and admitted when JaC@0.5 % > ``admit_jac_min``
     (the paper's admission rule); a refused or not admitted camera has ``camera=None`` and a reason.
     With two or more admitted cameras, the ball's trajectory is fitted with them
-    (:func:`app.geometry.trajectory.fit_trajectory`), then:
+    (:func:`app.geometry.trajectory.fit_trajectory`, its per-frame triangulation's ``tau_px``, ``rule`` and
+    ``min_baseline_m`` given as ``pair_rules``: ``app.services.issia.trajectory.fit_args`` of the settings), then:
 
     * with ``ball_assist``, each refused camera is calibrated again from that trajectory and its own
       labels (source ``"lines+ball"``, :mod:`app.geometry.static_cameras`; admitted by the same JaC rule
@@ -102,7 +104,7 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
     if (assist or bundle) and sum(out[c].camera is not None for c in seq.camera_ids) >= 2:
         pts = seq.dense_points()
         fit = fit_trajectory(pts, [out[c].camera for c in seq.camera_ids], [seq.image_size[0]] * len(seq.camera_ids),
-                             FPS)
+                             FPS, **pair_rules)
         if assist:
             out.update(_ball_assisted(seq, out, refused, admit_jac_min, fit))
         if bundle:

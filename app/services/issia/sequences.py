@@ -128,7 +128,8 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
     seq = read_issia(path, flipped_cameras=flipped_cameras, max_pixels=settings.max_image_pixels)
     report.read_seconds = time.perf_counter() - t0
     t1 = time.perf_counter()
-    choice = sequence_cameras(seq, from_lines=from_lines, admit_jac_min=settings.admit_jac_min)
+    choice = sequence_cameras(seq, from_lines=from_lines, admit_jac_min=settings.admit_jac_min,
+                              pair_rules=fit_args(settings))
     fields = {cid: _camera_fields(seq, cid, choice[cid]) for cid in seq.camera_ids}
     source = CalibrationSource.COMPUTED if from_lines or not seq.cameras else CalibrationSource.IMPORTED
     report.calibration_seconds = time.perf_counter() - t1

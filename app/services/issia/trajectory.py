@@ -193,8 +193,9 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
 
 
 def fit_args(settings: Settings) -> dict[str, float]:
-    """The keyword arguments of the trajectory fit taken from the settings."""
-    return {"tau_px": settings.triangulation_tau_px}
+    """The keyword arguments of the trajectory fit taken from the settings (its per-frame triangulation's)."""
+    return {"tau_px": settings.triangulation_tau_px, "rule": settings.pair_error_rule,
+            "min_baseline_m": settings.min_baseline_m}
 
 
 def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[Changed]:
