@@ -71,6 +71,9 @@ REAL = ("data/real/sn-calib-2022-test-main/annotations.zip", "data/real/wc14-tes
 REAL_SIZE = (960, 540)
 
 
+#: The triangulation's tau and rule the mirror evidence is given, the settings' (as the service).
+SETTINGS = Settings()
+
 def _flagged(frame: Frame) -> bool:
     return frame.calibration is not None and MIRROR_FLAG in (frame.calibration.flags or [])
 
@@ -192,7 +195,8 @@ def _judge_real(item: tuple[str, bytes]) -> dict[str, Any]:
     res = calibrate_frame(lines, *REAL_SIZE, prior=CalibrationPrior(expected_side=1), compute_jac=False)
     if not res.calibrated:
         return {"name": name, "calibrated": False, "flagged": False, "calibration_flag": False}
-    verdict = mirror_evidence([MirrorView(name, res.camera, expected_side=1)])[name]
+    verdict = mirror_evidence([MirrorView(name, res.camera, expected_side=1)], tau_px=SETTINGS.triangulation_tau_px,
+                              rule=SETTINGS.pair_error_rule)[name]
     return {"name": name, "calibrated": True, "flagged": verdict.flagged, "y": float(res.camera.C[1]),
             "calibration_flag": "probably_mirrored" in res.flags}
 

@@ -110,11 +110,10 @@ def mirror_camera(camera: Camera) -> Camera:
 
 @dataclass(frozen=True)
 class MirrorSettings:
-    """Constants of :func:`mirror_evidence` (defaults are the service's).
+    """The mirror evidence's own constants (its priors and weights, fitted here; the triangulation's tau and rule
+    are the caller's, from the settings: :func:`mirror_evidence`'s ``tau_px`` and ``rule``).
 
     Attributes:
-        tau_px, rule: the triangulation's pair threshold and error rule
-            (:data:`app.geometry.pair_error.PAIR_ERROR_RULES`); the service passes its own.
         side_line_margin_m: a camera votes with the side prior when ``|C_y|`` exceeds this (metres;
             default the half width, 34 m: beyond a side line, as ``calibrate_frame``'s flag).
         rig_near_m: a centre this close to a rig position (metres) stands there: calibrated centres
@@ -138,8 +137,6 @@ class MirrorSettings:
             view is judged by its priors only (systems have 2 to 4 views).
     """
 
-    tau_px: float = 20.0
-    rule: str = "max_scaled_1920"
     side_line_margin_m: float = PITCH_WIDTH_M / 2.0
     rig_near_m: float = 5.0
     rig_far_m: float = 15.0
@@ -296,7 +293,7 @@ def _plausible(point: np.ndarray, s: MirrorSettings) -> bool:
     return bool(within_play_volume(point)[0])
 
 
-def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings,
+def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings, tau_px: float, rule: str,
           geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
           ) -> tuple[float | None, np.ndarray | None]:
     """Pair error (rule px) and point when the two rays meet within tau at a plausible place.
@@ -306,31 +303,32 @@ def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings,
     """
     try:
         with np.errstate(all="ignore"):
-            pr = triangulate_pair(a, b, tau_px=s.tau_px, rule=s.rule, min_baseline_m=0.0, geometry=geometry)
+            pr = triangulate_pair(a, b, tau_px=tau_px, rule=rule, min_baseline_m=0.0, geometry=geometry)
     except (np.linalg.LinAlgError, ValueError):
         return None, None
     if pr.error is not None and not np.isfinite(pr.error):
         return None, None
     if pr.error is None or pr.point is None:
         return pr.error, None
-    return pr.error, (pr.point if pr.error < s.tau_px and _plausible(pr.point, s) else None)
+    return pr.error, (pr.point if pr.error < tau_px and _plausible(pr.point, s) else None)
 
 
 def pair_relation(a: MirrorView, b: MirrorView, settings: MirrorSettings = MirrorSettings(),
-                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
-                  ) -> PairEvidence:
+                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry, *,
+                  tau_px: float, rule: str) -> PairEvidence:
     """Relation of two views' rays: as calibrated and with ``a``'s camera mirrored (module docstring).
 
     Both views need ``ball_px``. The evidence is stated from ``a``'s side (``other`` is ``b``). ``geometry``: where
     the pairs' raw geometry comes from (``app.geometry.triangulation.PairGeometryMemo`` shares it with the
-    triangulation and the doubts of one recomputation).
+    triangulation and the doubts of one recomputation). ``tau_px``, ``rule``: the triangulation's (px at 1920 width,
+    :data:`app.geometry.pair_error.PAIR_ERROR_RULES`), the settings'.
     """
     if a.ball_px is None or b.ball_px is None:
         raise ValueError("pair_relation needs a ball label in both views")
     ob = BallObservation(b.view_id, b.camera, b.ball_px, b.image_width)
-    e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings, geometry)
+    e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings, tau_px, rule, geometry)
     e_diff, p_diff = _meet(BallObservation(a.view_id, mirror_camera(a.camera), a.ball_px, a.image_width), ob, settings,
-                           geometry)
+                           tau_px, rule, geometry)
     axis = [float(np.hypot(p[0], p[1])) for p in (p_same, p_diff) if p is not None]
     if p_same is not None and p_diff is not None:
         relation = AMBIGUOUS
@@ -345,8 +343,8 @@ def pair_relation(a: MirrorView, b: MirrorView, settings: MirrorSettings = Mirro
 
 def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | None = None,
                     settings: MirrorSettings = MirrorSettings(),
-                    geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
-                    ) -> dict[Hashable, MirrorVerdict]:
+                    geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry, *,
+                    tau_px: float, rule: str) -> dict[Hashable, MirrorVerdict]:
     """Judge, for every calibrated view of one multi-view system, whether its labels are mirrored.
 
     Args:
@@ -356,6 +354,8 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
             this system's own frames; None or empty: no rig prior.
         settings: :class:`MirrorSettings`.
         geometry: the pairs' raw geometry (:func:`pair_relation`).
+        tau_px, rule: the triangulation's pair threshold (px at 1920 width) and error rule
+            (:data:`app.geometry.pair_error.PAIR_ERROR_RULES`), the settings' (the service passes its own).
 
     Returns:
         view id -> :class:`MirrorVerdict`, by the rule of the module docstring.
@@ -379,7 +379,7 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     constraints: list[tuple[int, int, int]] = []  # (i, j, +1 same / -1 different)
     rayed = [i for i, v in enumerate(vs) if v.rays and v.ball_px is not None]
     for i, j in combinations(rayed, 2):
-        ev_i = pair_relation(vs[i], vs[j], settings, geometry)
+        ev_i = pair_relation(vs[i], vs[j], settings, geometry, tau_px=tau_px, rule=rule)
         pair_ev[i].append(ev_i)
         # Seen from j: mirroring j instead of i gives the same errors (M applied to both is rigid).
         ev_j = PairEvidence(vs[i].view_id, ev_i.error_as_labelled_px, ev_i.error_mirrored_px, ev_i.relation,

@@ -70,7 +70,7 @@ def test_mirrored_labels_calibrate_to_the_mirrored_camera() -> None:
 
 def test_a_mirrored_replay_among_three_views_is_flagged_and_only_it() -> None:
     views = [view("main"), view("behind_goal"), view("opposite", mirrored=True)]
-    verdicts = mirror_evidence(views)
+    verdicts = mirror_evidence(views, tau_px=20.0, rule="max_scaled_1920")
     assert [verdicts[v.view_id].verdict for v in views] == [VERDICT_AS_LABELLED, VERDICT_AS_LABELLED,
                                                              VERDICT_MIRRORED]
     flagged = verdicts["opposite"]
@@ -87,19 +87,19 @@ def test_a_mirrored_replay_among_three_views_is_flagged_and_only_it() -> None:
 def test_without_the_side_prior_the_smaller_group_is_the_mirrored_one() -> None:
     # Three replays, no side prior: the two that agree outvote the one that agrees only mirrored.
     views = [view("behind_goal"), view("corner"), view("opposite", mirrored=True)]
-    verdicts = mirror_evidence(views)
+    verdicts = mirror_evidence(views, tau_px=20.0, rule="max_scaled_1920")
     assert verdicts["opposite"].flagged
     assert not verdicts["behind_goal"].flagged and not verdicts["corner"].flagged
 
 
 def test_two_views_are_decided_by_the_side_prior_or_not_at_all() -> None:
     # Mirroring either of two views makes their rays meet: only a prior can say which.
-    with_main = mirror_evidence([view("main"), view("opposite", mirrored=True)])
+    with_main = mirror_evidence([view("main"), view("opposite", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")
     assert with_main["opposite"].flagged and with_main["main"].verdict == VERDICT_AS_LABELLED
-    two_replays = mirror_evidence([view("behind_goal"), view("opposite", mirrored=True)])
+    two_replays = mirror_evidence([view("behind_goal"), view("opposite", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")
     assert [v.verdict for v in two_replays.values()] == [VERDICT_UNDECIDED, VERDICT_UNDECIDED]
     # A main camera whose labels are mirrored stands beyond the far side line: it is the one.
-    mirrored_main = mirror_evidence([view("main", mirrored=True), view("opposite")])
+    mirrored_main = mirror_evidence([view("main", mirrored=True), view("opposite")], tau_px=20.0, rule="max_scaled_1920")
     assert mirrored_main["main"].flagged and not mirrored_main["opposite"].flagged
 
 
@@ -107,14 +107,14 @@ def test_a_ball_near_the_centre_spot_says_nothing() -> None:
     ball = np.array([0.3, -0.2, -0.11])  # its mirror image is 0.7 m away
     views = [view("behind_goal", ball=ball), view("corner", ball=ball),
              view("opposite", mirrored=True, ball=ball)]
-    verdicts = mirror_evidence(views)
+    verdicts = mirror_evidence(views, tau_px=20.0, rule="max_scaled_1920")
     assert all(p.relation == AMBIGUOUS for p in verdicts["opposite"].pairs)
     assert not any(v.flagged for v in verdicts.values())
 
 
 def test_a_wrong_ball_label_is_no_mirror_evidence() -> None:
     views = [view("main"), view("behind_goal"), view("opposite", label_px=np.array([300.0, 200.0]))]
-    verdicts = mirror_evidence(views)
+    verdicts = mirror_evidence(views, tau_px=20.0, rule="max_scaled_1920")
     assert {p.relation for p in verdicts["opposite"].pairs} == {NO_AGREEMENT}
     assert not any(v.flagged for v in verdicts.values())
 
@@ -123,18 +123,18 @@ def test_a_doubtful_other_view_does_not_make_a_false_flag() -> None:
     # The mirrored replay disagrees with everyone; judged jointly, the others stay unflagged even
     # though each of them disagrees with one view.
     views = [view("main"), view("behind_goal"), view("corner"), view("opposite", mirrored=True)]
-    verdicts = mirror_evidence(views)
+    verdicts = mirror_evidence(views, tau_px=20.0, rule="max_scaled_1920")
     assert [v.flagged for v in verdicts.values()] == [False, False, False, True]
     # The margins grow with the evidence: two other views agree when mirrored.
-    assert verdicts["opposite"].margin > mirror_evidence(views[:1] + views[3:])["opposite"].margin
+    assert verdicts["opposite"].margin > mirror_evidence(views[:1] + views[3:], tau_px=20.0, rule="max_scaled_1920")["opposite"].margin
 
 
 def test_a_single_view_reduces_to_the_side_prior() -> None:
-    right = mirror_evidence([view("main")])["main"]
-    wrong = mirror_evidence([view("main", mirrored=True)])["main"]
+    right = mirror_evidence([view("main")], tau_px=20.0, rule="max_scaled_1920")["main"]
+    wrong = mirror_evidence([view("main", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")["main"]
     assert right.verdict == VERDICT_AS_LABELLED and wrong.flagged and wrong.side_vote == 1
     # A replay alone: no evidence.
-    assert mirror_evidence([view("opposite", mirrored=True)])["opposite"].verdict == VERDICT_UNDECIDED
+    assert mirror_evidence([view("opposite", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")["opposite"].verdict == VERDICT_UNDECIDED
     # Between the side lines a main camera gives no vote (behind a goal, for example).
     assert side_vote(camera("behind_goal"), 1) == 0 and side_vote(camera("main"), 1) == -1
     assert side_vote(mirror_camera(camera("main")), 1) == 1 and side_vote(camera("main"), None) == 0
@@ -143,37 +143,37 @@ def test_a_single_view_reduces_to_the_side_prior() -> None:
 def test_rig_prior() -> None:
     rig = np.array([CENTRES["main"], CENTRES["behind_goal"], CENTRES["opposite"]], dtype=float)
     # A replay at a known position: its labels are presumed right.
-    at_rig = mirror_evidence([view("opposite")], rig)["opposite"]
+    at_rig = mirror_evidence([view("opposite")], rig, tau_px=20.0, rule="max_scaled_1920")["opposite"]
     assert at_rig.rig_vote == -1 and at_rig.rig_distance_m < 1e-9 and at_rig.verdict == VERDICT_AS_LABELLED
     # Its mirror image at a known position: the vote alone does not flag (a camera seen once is
     # common), but it decides where the rays leave a tie.
-    mirrored_alone = mirror_evidence([view("opposite", mirrored=True)], rig)["opposite"]
+    mirrored_alone = mirror_evidence([view("opposite", mirrored=True)], rig, tau_px=20.0, rule="max_scaled_1920")["opposite"]
     assert mirrored_alone.rig_vote == 1 and not mirrored_alone.flagged
-    pair = mirror_evidence([view("corner"), view("opposite", mirrored=True)], rig)
+    pair = mirror_evidence([view("corner"), view("opposite", mirrored=True)], rig, tau_px=20.0, rule="max_scaled_1920")
     assert pair["opposite"].flagged and not pair["corner"].flagged
 
 
 def test_pair_relation_is_symmetric_under_mirroring_both() -> None:
     a, b = view("main"), view("behind_goal")
     both = pair_relation(MirrorView("m", mirror_camera(a.camera), a.ball_px, W),
-                         MirrorView("b", mirror_camera(b.camera), b.ball_px, W))
-    plain = pair_relation(a, b)
+                         MirrorView("b", mirror_camera(b.camera), b.ball_px, W), tau_px=20.0, rule="max_scaled_1920")
+    plain = pair_relation(a, b, tau_px=20.0, rule="max_scaled_1920")
     assert plain.relation == both.relation == SAME
     assert both.error_as_labelled_px == pytest.approx(plain.error_as_labelled_px, abs=1e-6)
 
 
 def test_settings_and_inputs_are_checked() -> None:
     with pytest.raises(ValueError, match="unique"):
-        mirror_evidence([view("main"), view("main")])
+        mirror_evidence([view("main"), view("main")], tau_px=20.0, rule="max_scaled_1920")
     with pytest.raises(ValueError, match="expected_side"):
         MirrorView("x", camera("main"), None, W, expected_side=2)
-    assert mirror_evidence([]) == {}
+    assert mirror_evidence([], tau_px=20.0, rule="max_scaled_1920") == {}
     # A view without a ball label gets the priors only.
     no_ball = MirrorView("main", mirror_camera(camera("main")), None, W, expected_side=1)
-    assert mirror_evidence([no_ball, view("opposite")])["main"].flagged
+    assert mirror_evidence([no_ball, view("opposite")], tau_px=20.0, rule="max_scaled_1920")["main"].flagged
     # A stricter decision margin turns the same evidence undecided.
     strict = MirrorSettings(decision_margin=100.0)
-    assert mirror_evidence([view("main", mirrored=True)], settings=strict)["main"].verdict == VERDICT_UNDECIDED
+    assert mirror_evidence([view("main", mirrored=True)], settings=strict, tau_px=20.0, rule="max_scaled_1920")["main"].verdict == VERDICT_UNDECIDED
 
 
 def test_rig_positions_of_the_wrong_shape_are_refused() -> None:
@@ -181,9 +181,9 @@ def test_rig_positions_of_the_wrong_shape_are_refused() -> None:
     without height) were regrouped into made-up 3D positions and voted without a word."""
     flat = np.array([CENTRES["main"][:2], CENTRES["behind_goal"][:2], CENTRES["opposite"][:2]])
     with pytest.raises(ValueError, match="rig_positions"):
-        mirror_evidence([view("opposite")], flat)
-    assert mirror_evidence([view("opposite")], np.zeros((0, 3)))["opposite"].rig_vote == 0
-    one = mirror_evidence([view("opposite")], np.array(CENTRES["opposite"]))["opposite"]
+        mirror_evidence([view("opposite")], flat, tau_px=20.0, rule="max_scaled_1920")
+    assert mirror_evidence([view("opposite")], np.zeros((0, 3)), tau_px=20.0, rule="max_scaled_1920")["opposite"].rig_vote == 0
+    one = mirror_evidence([view("opposite")], np.array(CENTRES["opposite"]), tau_px=20.0, rule="max_scaled_1920")["opposite"]
     assert one.rig_distance_m is not None and one.rig_distance_m < 1e-9
 
 

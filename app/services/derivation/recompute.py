@@ -50,7 +50,7 @@ from app.geometry.ball import optimise_box
 from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
-from app.geometry.mirror import MirrorSettings, MirrorView, mirror_evidence
+from app.geometry.mirror import MirrorView, mirror_evidence
 from app.geometry.pitch import within_play_volume
 from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball
 from app.geometry.pair_error import error_above_tau
@@ -443,11 +443,6 @@ def _recompute_in_batches(session: Session, ids: list[int], settings: Settings, 
     return triangulated
 
 
-def mirror_settings(settings: Settings) -> MirrorSettings:
-    """The mirror evidence's settings: the triangulation's tau and pair-error rule, the rest default."""
-    return MirrorSettings(tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule)
-
-
 def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Camera], settings: Settings,
                          rig_sources: Sequence[tuple[int, np.ndarray]] | None,
                          geometry: PairGeometryMemo | None = None) -> None:
@@ -475,7 +470,8 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
                         image_width=f.width,
                         expected_side=expected_side(f.role), rays=True, name=f.name)
              for f in frames]
-    verdicts = mirror_evidence(views, positions, mirror_settings(settings), geometry or PairGeometryMemo())
+    verdicts = mirror_evidence(views, positions, geometry=geometry or PairGeometryMemo(),
+                               tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule)
     names = {f.id: f.name for f in system.frames}
     flagged = {fid for fid, v in verdicts.items() if v.flagged}
     for f in frames:
