@@ -1,38 +1,37 @@
-// <v3d-view>: one view of a multi-view system. The frame (or a blank canvas of the frame's size when the
-// image is unavailable) with an SVG overlay in image pixels: projected pitch lines, annotated field-line
-// points, the annotated ball box (red, draggable, resizable from its corner), the optimised box (blue) and
-// the reprojected 3D ball (cross). A zoomed inset around the ball makes a 10-pixel box editable.
+// <v3d-view>: the panel of one view of a multi-view system. The frame (or a blank canvas of the frame's size
+// when the image is unavailable) with an SVG overlay in image pixels, drawn by viewdrawing.js (projected pitch
+// lines, field lines, the ball's boxes, the reprojected 3D ball); a zoomed inset around the ball makes a
+// 10-pixel box editable. The panel holds the view's state (its JSON and context, the image's loading, saving,
+// selection), builds its DOM (header, doubts bar, frame, line-editor bar, inset, facts: viewfacts.js), and
+// sends the page the writes it asks for: "ball-change" {frameId, box} or {frameId, point} (its ball label,
+// edited by balledit.js, or a doubt's fix), "exclusion-request" and "mirror-request"; the page saves them and
+// sets the recomputed view back. Its field lines are edited by lineseditor.js.
 //
 // The SVG viewBox is the image's pixel frame, so drawings and pointer positions map exactly at any display
-// size (pointer positions go through getScreenCTM()). On release the element dispatches "ball-change"
-// {frameId, box} or {frameId, point}; the page saves it and sets the recomputed view back.
-// Its facts list and doubts bar are written by viewfacts.js.
+// size (pointer positions go through getScreenCTM()).
 
-import { el, svg, fmt, isNum, viewColour, STATUS_LABEL } from "./format.js";
+import { el, svg, viewColour, STATUS_LABEL } from "./format.js";
 import { LineEditor } from "./lineseditor.js";
+import { BallEditor } from "./balledit.js";
+import { ballWindow, drawView } from "./viewdrawing.js";
 import { getPitchLines } from "./api.js";
-import {
-  FIX_KEY, FIX_LABEL, boxCentre, clamp, isMirrorFlagged, notes, sameBox, validBox, validPoint, viewDoubtItems, viewFacts,
-} from "./viewfacts.js";
+import { FIX_LABEL, boxCentre, isMirrorFlagged, notes, validBox, validPoint, viewDoubtItems, viewFacts } from "./viewfacts.js";
 
 const ZOOM_PX = 150; // displayed size of the zoom inset
-const MIN_BOX = 2; // smallest box side, image pixels
 
 export class ViewPanel extends HTMLElement {
   #view = null;
   #ctx = { index: 0, tau: null, rule: null, referenceWidth: null, viewCount: 0, doubts: [] };
   #imageState = "loading"; // loading | loaded | missing
   #imageUrl = null;
-  #live = null; // box or point being dragged (image pixels)
-  #drag = null;
   #redrawQueued = false; // a redrawSoon() waits for the next animation frame
   #zoomBox = null; // [x, y, size] of the inset, frozen while dragging
   #saving = false;
   #selected = false;
   #resizeObserver = null;
   #built = false;
-  #nudgeTimer = null;
   lines = new LineEditor(this); // the field-line editor of this view (lineseditor.js)
+  ball = new BallEditor(this); // the editor of its ball label (balledit.js)
 
   connectedCallback() {
     if (!this.#resizeObserver) {
@@ -51,8 +50,7 @@ export class ViewPanel extends HTMLElement {
     const frameChanged = !this.#view || this.#view.frame_id !== view.frame_id;
     this.#view = view;
     this.#ctx = { ...this.#ctx, ...ctx };
-    this.#live = null;
-    this.#drag = null;
+    this.ball.forget();
     this.#saving = false;
     this.#zoomBox = null;
     this.lines.update(frameChanged);
@@ -114,8 +112,7 @@ export class ViewPanel extends HTMLElement {
 
   /** Put back the last saved label (after a failed save). */
   revert() {
-    this.#live = null;
-    this.#drag = null;
+    this.ball.forget();
     this.lines.revert();
     this.saving = false;
     this.#drawOverlays();
@@ -166,7 +163,7 @@ export class ViewPanel extends HTMLElement {
       // no ball label: drawing a box on the frame adds one
       frameSvg.classList.add("draw");
       frameSvg.addEventListener("pointerdown", (e) => {
-        if ((!this.#currentLabel() || this.#drag) && !this.lines.editing) this.#startDrag(e, frameSvg, "draw");
+        if ((!this.ball.label() || this.ball.dragging) && !this.lines.editing) this.ball.grab(e, frameSvg, "draw");
       });
     }
 
@@ -222,33 +219,16 @@ export class ViewPanel extends HTMLElement {
   }
 
   // ----- overlay ------------------------------------------------------------------------------
-  #currentLabel() {
-    const ball = this.#view.ball || {};
-    if (this.#live) return this.#live;
-    if (ball.kind === "box" && validBox(ball.box)) return { box: ball.box };
-    if (ball.kind === "point" && validPoint(ball.point)) return { point: ball.point };
-    return null;
+  /** The zoomed inset's window around the ball ([x, y, side], image pixels; null: no ball), frozen until the
+   * next update. */
+  #zoomWindow() {
+    if (!this.#zoomBox) this.#zoomBox = ballWindow(this.#view);
+    return this.#zoomBox;
   }
 
-  #zoomWindow() {
-    if (this.#zoomBox) return this.#zoomBox;
-    const v = this.#view;
-    const ball = v.ball || {};
-    let centre = null;
-    let size = 0;
-    if (ball.kind === "box" && validBox(ball.box)) {
-      centre = boxCentre(ball.box);
-      size = Math.max(ball.box[2] - ball.box[0], ball.box[3] - ball.box[1]);
-    } else if (ball.kind === "point" && validPoint(ball.point)) centre = ball.point;
-    else if (validPoint(v.reprojected_ball)) centre = v.reprojected_ball;
-    if (v.optimised_box && validBox(v.optimised_box.box)) {
-      size = Math.max(size, v.optimised_box.box[2] - v.optimised_box.box[0]);
-      centre = centre || boxCentre(v.optimised_box.box);
-    }
-    if (!centre) return null;
-    const side = Math.min(Math.max(6 * size, 72), Math.min(v.width, v.height));
-    this.#zoomBox = [centre[0] - side / 2, centre[1] - side / 2, side];
-    return this.#zoomBox;
+  /** Keep the zoomed inset where it is while the ball label is edited (balledit.js). */
+  freezeZoom() {
+    this.#zoomWindow();
   }
 
   #drawOverlays() {
@@ -258,12 +238,12 @@ export class ViewPanel extends HTMLElement {
     const zoomSvg = this.querySelector("[data-testid=view-zoom]");
     const width = frameSvg.getBoundingClientRect().width || 560;
     // the viewBox is the window shown (the whole frame, or a zoom: zoom.js): marks keep their screen size
-    this.#drawInto(frameSvg, width / (frameSvg.viewBox.baseVal?.width || v.width), true);
+    this.#draw(frameSvg, width / (frameSvg.viewBox.baseVal?.width || v.width), true);
     const zw = this.#zoomWindow();
     const zoomLabel = this.querySelector("[data-testid=zoom-label]");
     if (zw) {
       zoomSvg.setAttribute("viewBox", `${zw[0]} ${zw[1]} ${zw[2]} ${zw[2]}`);
-      this.#drawInto(zoomSvg, ZOOM_PX / zw[2], false);
+      this.#draw(zoomSvg, ZOOM_PX / zw[2], false);
       zoomLabel.textContent = `ball ×${(ZOOM_PX / zw[2] / (width / v.width)).toFixed(1)}`;
     } else {
       zoomSvg.setAttribute("viewBox", `0 0 ${v.width} ${v.height}`);
@@ -273,194 +253,16 @@ export class ViewPanel extends HTMLElement {
     }
   }
 
-  /** Draw the frame and overlay into `root`; `scale` = screen pixels per image pixel. */
-  #drawInto(root, scale, isMain) {
-    const v = this.#view;
-    const s = 1 / scale; // one screen pixel, in image pixels
-    const nodes = [];
-    if (this.#imageState === "loaded") {
-      nodes.push(svg("image", { href: v.image_url, x: 0, y: 0, width: v.width, height: v.height, preserveAspectRatio: "none" }));
-    } else {
-      nodes.push(svg("rect", { x: 0, y: 0, width: v.width, height: v.height, fill: "#101317" }));
-      if (isMain) {
-        nodes.push(svg("text", {
-          x: 8 * s, y: 18 * s, class: "nodata", "font-size": 11 * s,
-          text: this.#imageState === "loading" ? "loading image…" : `no image: blank ${v.width}×${v.height} canvas`,
-        }));
-      }
-    }
-    const g = svg("g", { "data-testid": isMain ? "overlay" : "zoom-overlay" });
-    for (const line of this.lines.pitchLines()) { // a drag's preview camera while a line point moves
-      if (!line.points || line.points.length < 2) continue;
-      g.append(svg("polyline", { class: "pitch", points: line.points.map((p) => p.join(",")).join(" ") },
-        svg("title", { text: `projected: ${line.class}` })));
-    }
-    this.lines.drawLines(g, s, isMain);
-    const ball = v.ball || {};
-    if (ball.edited && validBox(ball.original_box) && !(ball.kind === "box" && sameBox(ball.original_box, ball.box))) {
-      g.append(this.#rect(ball.original_box, "box-prev", "imported box (before edits)"));
-    }
-    const opt = v.optimised_box;
-    if (opt && validBox(opt.box)) {
-      g.append(this.#rect(opt.box, "halo"));
-      g.append(this.#rect(opt.box, "box-opt", `optimised box, d = ${fmt(opt.d_px, 1)} px`, "box-opt"));
-    }
-    if (validBox(v.precise_box)) { // the paper's Fig. 4: the reference Table 1 scores the boxes against
-      g.append(this.#rect(v.precise_box, "box-precise", "precise box (Table 1 reference)", isMain ? "precise-box" : null));
-    }
-    for (const d of this.#ctx.doubts || []) {
-      const epi = (d.evidence || {}).epipolar_px;
-      if (Array.isArray(epi) && epi.length > 1 && epi.every(validPoint)) {
-        g.append(svg("polyline", { class: "epipolar", points: epi.map((p) => p.join(",")).join(" "), "data-testid": isMain ? "epipolar" : null },
-          svg("title", { text: "epipolar segment: where the other view's ray to its ball crosses this image" })));
-      }
-      const sb = d.suggestion && d.suggestion.box;
-      if (validBox(sb)) {
-        const sigma = d.suggestion.box_sigma_px;
-        if (isNum(sigma) && sigma > 0) { // its uncertainty: a circle of 2 sigma around its centre
-          const [cx, cy] = boxCentre(sb);
-          g.append(svg("circle", { class: "sugg-sigma", cx, cy, r: Math.max(2 * sigma, 1.5 * s) },
-            svg("title", { text: `where the ball may be (2 σ = ${(2 * sigma).toFixed(1)} px)` })));
-        }
-        g.append(this.#rect(sb, "box-sugg", `suggested box (${FIX_KEY.snap_box} snaps the ball label to it)`, isMain ? "suggested-box" : null));
-      }
-    }
-    const label = this.#currentLabel();
-    if (label && label.box) {
-      const b = label.box;
-      g.append(this.#rect(b, "halo"));
-      g.append(this.#rect(b, "box-orig", "annotated ball box (drag to move, corner to resize)", "box-orig"));
-      // hit area at least 18 screen pixels wide, so a 3-pixel box can be grabbed
-      const [cx, cy] = boxCentre(b);
-      const hw = Math.max((b[2] - b[0]) / 2, 9 * s), hh = Math.max((b[3] - b[1]) / 2, 9 * s);
-      const hit = svg("rect", { class: "hit", x: cx - hw, y: cy - hh, width: 2 * hw, height: 2 * hh, "data-testid": isMain ? "ball-hit" : "zoom-ball-hit" });
-      hit.addEventListener("pointerdown", (e) => this.#startDrag(e, root, "move"));
-      g.append(hit);
-      const hs = 8 * s;
-      const handle = svg("rect", { class: "handle", x: b[2] - hs / 2 + (isMain ? hw - (b[2] - b[0]) / 2 : 0), y: b[3] - hs / 2 + (isMain ? hh - (b[3] - b[1]) / 2 : 0),
-        width: hs, height: hs, "data-testid": isMain ? "ball-handle" : "zoom-ball-handle" });
-      handle.addEventListener("pointerdown", (e) => this.#startDrag(e, root, "resize"));
-      g.append(handle);
-    } else if (label && label.point) {
-      const p = label.point;
-      const dot = svg("circle", { class: "point-orig", cx: p[0], cy: p[1], r: 4 * s, "data-testid": isMain ? "ball-point" : "zoom-ball-point" },
-        svg("title", { text: "annotated ball point (drag to move)" }));
-      dot.style.cursor = "move";
-      dot.addEventListener("pointerdown", (e) => this.#startDrag(e, root, "point"));
-      g.append(dot);
-    }
-    if (validPoint(v.reprojected_ball)) {
-      const [x, y] = v.reprojected_ball;
-      const c = label ? (label.box ? boxCentre(label.box) : label.point) : null;
-      if (c) { // the error vector, from the label's centre to the reprojection (clipped at the frame's edge)
-        g.append(svg("line", { class: "err-vec", x1: c[0], y1: c[1], x2: x, y2: y }));
-      }
-      // a cross with an open centre, so that the ball under it stays visible
-      const a = 8 * s, gap = 3 * s;
-      const d = [[-1, -1], [1, 1], [-1, 1], [1, -1]].map(([sx, sy]) => `M${x + sx * gap} ${y + sy * gap} L${x + sx * a} ${y + sy * a}`).join(" ");
-      g.append(svg("path", { class: "halo", d }));
-      g.append(svg("path", { class: "reproj", d, "data-testid": isMain ? "reprojected-ball" : null },
-        svg("title", { text: `3D ball reprojected: (${x.toFixed(1)}, ${y.toFixed(1)})` })));
-    }
-    if (isMain) this.lines.drawHandles(g, root, s); // above the ball's box, in edit mode
-    nodes.push(g);
-    root.replaceChildren(...nodes);
+  /** Draw the frame and overlay into `root` (viewdrawing.js); `scale` = screen pixels per image pixel. */
+  #draw(root, scale, isMain) {
+    drawView(root, { view: this.#view, scale, isMain, imageState: this.#imageState, lines: this.lines,
+      doubts: this.#ctx.doubts || [], label: this.ball.label(), grab: (e, svgRoot, mode) => this.ball.grab(e, svgRoot, mode) });
   }
 
-  #rect(b, cls, title, testid) {
-    const r = svg("rect", { class: cls, x: b[0], y: b[1], width: b[2] - b[0], height: b[3] - b[1], "data-testid": testid });
-    if (title) r.append(svg("title", { text: title }));
-    return r;
-  }
-
-  // ----- editing ------------------------------------------------------------------------------
-  #toImage(root, event) {
-    const m = root.getScreenCTM();
-    if (!m) return null;
-    const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(m.inverse());
-    return [p.x, p.y];
-  }
-
-  #startDrag(event, root, mode) {
-    if (event.button !== 0 || this.#saving) return;
-    event.preventDefault();
-    event.stopPropagation();
-    const start = this.#toImage(root, event);
-    const label = mode === "draw" ? { box: [start[0], start[1], start[0], start[1]] } : this.#currentLabel();
-    if (!start || !label) return;
-    this.#zoomWindow(); // freeze the inset while dragging
-    this.#drag = { mode, start, label: structuredClone(label), moved: false, root, pointerId: event.pointerId };
-    const move = (e) => this.#onDrag(e);
-    const up = (e) => {
-      root.removeEventListener("pointermove", move);
-      root.removeEventListener("pointerup", up);
-      root.removeEventListener("pointercancel", up);
-      this.#endDrag(e.type === "pointercancel");
-    };
-    root.setPointerCapture(event.pointerId);
-    root.addEventListener("pointermove", move);
-    root.addEventListener("pointerup", up);
-    root.addEventListener("pointercancel", up);
-  }
-
-  #onDrag(event) {
-    const d = this.#drag;
-    if (!d) return;
-    const p = this.#toImage(d.root, event);
-    if (!p) return;
-    const v = this.#view;
-    let dx = p[0] - d.start[0], dy = p[1] - d.start[1];
-    if (d.mode === "point") {
-      const q = d.label.point;
-      this.#live = { point: [clamp(q[0] + dx, 0, v.width), clamp(q[1] + dy, 0, v.height)] };
-    } else if (d.mode === "draw") { // a new box where the view had no ball label
-      const [sx, sy] = d.start;
-      const x = clamp(p[0], 0, v.width), y = clamp(p[1], 0, v.height);
-      this.#live = { box: [Math.min(sx, x), Math.min(sy, y), Math.max(sx, x, Math.min(sx, x) + MIN_BOX), Math.max(sy, y, Math.min(sy, y) + MIN_BOX)] };
-    } else if (d.mode === "move") {
-      const b = d.label.box;
-      const [cx, cy] = boxCentre(b);
-      dx = clamp(cx + dx, 0, v.width) - cx;
-      dy = clamp(cy + dy, 0, v.height) - cy;
-      this.#live = { box: [b[0] + dx, b[1] + dy, b[2] + dx, b[3] + dy] };
-    } else {
-      const b = d.label.box;
-      let x2 = Math.max(b[0] + MIN_BOX, b[2] + dx);
-      let y2 = Math.max(b[1] + MIN_BOX, b[3] + dy);
-      if (event.shiftKey) { // keep the box square
-        const side = Math.max(x2 - b[0], y2 - b[1]);
-        x2 = b[0] + side;
-        y2 = b[1] + side;
-      }
-      this.#live = { box: [b[0], b[1], x2, y2] };
-    }
-    d.moved = d.moved || Math.hypot(dx, dy) > 0.05;
-    this.#drawOverlays();
-  }
-
-  #endDrag(cancelled) {
-    const d = this.#drag;
-    this.#drag = null;
-    if (!d) return;
-    if (cancelled || !d.moved || !this.#live) {
-      this.revert();
-      return;
-    }
-    this.#commit();
-  }
-
-  #commit() {
-    const round = (x) => Math.round(x * 10) / 10;
-    const detail = { frameId: this.#view.frame_id };
-    if (this.#live.box) detail.box = this.#live.box.map(round);
-    else detail.point = this.#live.point.map(round);
-    this.saving = true;
-    this.dispatchEvent(new CustomEvent("ball-change", { detail, bubbles: true }));
-  }
-
+  // ----- what the view asks the page to write --------------------------------------------------
   /** Remove the ball label (the ball is not visible in this view). */
   removeLabel() {
-    if (this.#saving || this.#drag || !(this.#view.ball || {}).kind) return false;
+    if (this.#saving || this.ball.dragging || !(this.#view.ball || {}).kind) return false;
     this.saving = true;
     this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: null }, bubbles: true }));
     return true;
@@ -468,7 +270,7 @@ export class ViewPanel extends HTMLElement {
 
   /** Ask the page to replace this view's field lines by their mirrored labelling (flagged views only). */
   requestMirror() {
-    if (this.#saving || this.#drag || !isMirrorFlagged(this.#view)) return false;
+    if (this.#saving || this.ball.dragging || !isMirrorFlagged(this.#view)) return false;
     this.saving = true;
     this.dispatchEvent(new CustomEvent("mirror-request", { detail: { frameId: this.#view.frame_id }, bubbles: true }));
     return true;
@@ -483,7 +285,7 @@ export class ViewPanel extends HTMLElement {
 
   /** Apply a doubt's fix: snap the ball label to the suggested box, exclude the view, or mirror its labels. */
   applyFix(doubt) {
-    if (this.#saving || this.#drag || !doubt || !doubt.suggestion) return false;
+    if (this.#saving || this.ball.dragging || !doubt || !doubt.suggestion) return false;
     const action = doubt.suggestion.action;
     if (action === "mirror_labels") return this.requestMirror();
     if (action === "exclude_view") return this.toggleExclusion(true);
@@ -505,7 +307,7 @@ export class ViewPanel extends HTMLElement {
 
   /** Exclude the view from the triangulation, or restore it (`excluded` forces one of the two). */
   toggleExclusion(excluded = null) {
-    if (this.#saving || this.#drag) return false;
+    if (this.#saving || this.ball.dragging) return false;
     const now = Boolean(this.#view.review?.excluded);
     const want = excluded === null ? !now : excluded;
     if (want === now) return false;
@@ -523,7 +325,7 @@ export class ViewPanel extends HTMLElement {
   /** Confirm a pending placement: send the same label as a person's (no provenance). False when none. */
   confirmPlacement() {
     const ball = this.#view?.ball || {};
-    if (this.#saving || this.#drag || !this.pendingPlacement) return false;
+    if (this.#saving || this.ball.dragging || !this.pendingPlacement) return false;
     this.saving = true;
     this.dispatchEvent(new CustomEvent("ball-change", {
       detail: ball.kind === "box" ? { frameId: this.#view.frame_id, box: ball.box } : { frameId: this.#view.frame_id, point: ball.point },
@@ -545,44 +347,13 @@ export class ViewPanel extends HTMLElement {
   /** Put back the label as imported, before any edit. */
   restoreLabel() {
     const ball = this.#view.ball || {};
-    if (this.#saving || this.#drag || !ball.edited) return false;
+    if (this.#saving || this.ball.dragging || !ball.edited) return false;
     const detail = { frameId: this.#view.frame_id };
     if (validBox(ball.original_box)) detail.box = ball.original_box;
     else if (validPoint(ball.original_point)) detail.point = ball.original_point;
     else return false;
     this.saving = true;
     this.dispatchEvent(new CustomEvent("ball-change", { detail, bubbles: true }));
-    return true;
-  }
-
-  /** Save now a keyboard edit still waiting for its pause (before a decision or moving on). */
-  flush() {
-    if (this.#nudgeTimer === null) return;
-    clearTimeout(this.#nudgeTimer);
-    this.#nudgeTimer = null;
-    if (this.#live && !this.#saving) this.#commit();
-  }
-
-  /** Keyboard editing: move by (dx, dy) and grow every side by `grow` image pixels; saved after a pause. */
-  nudge(dx, dy, grow = 0) {
-    if (this.#saving || this.#drag) return false;
-    const label = this.#currentLabel();
-    if (!label) return false;
-    const v = this.#view;
-    if (label.box) {
-      const b = label.box;
-      if (b[2] - b[0] + 2 * grow < MIN_BOX || b[3] - b[1] + 2 * grow < MIN_BOX) return false;
-      this.#live = { box: [b[0] + dx - grow, b[1] + dy - grow, b[2] + dx + grow, b[3] + dy + grow] };
-    } else {
-      this.#live = { point: [clamp(label.point[0] + dx, 0, v.width), clamp(label.point[1] + dy, 0, v.height)] };
-    }
-    this.#zoomWindow();
-    this.#drawOverlays();
-    clearTimeout(this.#nudgeTimer);
-    this.#nudgeTimer = setTimeout(() => {
-      this.#nudgeTimer = null;
-      this.#commit();
-    }, 450);
     return true;
   }
 }

@@ -44,7 +44,7 @@ class SystemPage {
 
   /** Let every edit of this system reach the server before deciding on it or leaving it. */
   async settle() {
-    for (const panel of $("views").children) panel.flush();
+    for (const panel of $("views").children) panel.ball.flush();
     await Promise.allSettled([...this.saves]);
   }
 
@@ -509,7 +509,7 @@ class SystemPage {
       const panel = view();
       if (!panel) return false;
       const step = e.shiftKey ? 5 : 1;
-      return panel.nudge(dx * step, dy * step, ds) !== false;
+      return panel.ball.nudge(dx * step, dy * step, ds) !== false;
     };
     return [
       { keys: ["a"], does: "accept, next pending system (open doubts are listed first: Enter / Esc)", run: () => this.review("accepted") },
