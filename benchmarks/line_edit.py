@@ -10,7 +10,7 @@ one point of a class (drawn with ``--seed``) moved by up to 20 px, then the undo
 lines, ``undo_of`` its entry); each PUT timed from request to parsed answer (HTTP included). Browser: the
 system page of each 4-view system, the line editor's own event ("lines-change", what a drag's release sends)
 dispatched ``--browser-edits`` times on its views; per edit the page's ``v3d:redraw`` measure (the render of
-the answered system view up to the next painted frame, ``static/js/system.js``), its script alone
+the answered system view up to the next painted frame, ``static/js/systemwrites.js`` afterWrite), its script alone
 (``v3d:render``), and the whole edit from the event to that frame. Prints p50 / p95 (ms) and the ratios. Usage::
 
     .venv/bin/python benchmarks/line_edit.py [--rounds 3] [--browser-edits 24] [--seed 0]

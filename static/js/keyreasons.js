@@ -6,6 +6,7 @@
 // the page the reason when no entry used the key.
 
 import { isMirrorFlagged } from "./viewfacts.js";
+import { inASequence } from "./sequence.js";
 
 const SELECT_FIRST = "select a view first (1…9)";
 
@@ -44,9 +45,9 @@ function reasons(page) {
       ? (pass?.place ? "this is the last system of the pass (u: back to the queue)" : "this is the last system of the queue") : null) }],
     [["k"], false, { before: () => busy() || (page.stepId(-1) == null
       ? (pass?.place ? "this is the first system of the pass" : "this is the first system of the queue") : null) }],
-    [[",", "."], false, { before: (e) => loading() || (page.system.kind !== "issia"
+    [[",", "."], false, { before: (e) => loading() || (!inASequence(page.system)
       ? "only the frames of an ISSIA sequence have a frame before and after"
-      : page.frameNeighbour(e.key === "." ? 1 : -1) == null
+      : page.sequence.neighbour(e.key === "." ? 1 : -1) == null
         ? `this is the ${e.key === "." ? "last" : "first"} frame of the sequence` : null),
     after: () => "only the frames of an ISSIA sequence have a frame before and after" }],
     [["1", "2", "3", "4", "5", "6", "7", "8", "9"], false, { before: (e) => {
@@ -97,7 +98,7 @@ function reasons(page) {
     [["I", "J", "K", "L"], false, { before: () => (zoomed() ? null : "zoom in first (>) to pan"), after: () => "zoom in first (>) to pan" }],
     [["z"], true, { before: () => {
       const h = page.lineHistory;
-      return h && Array.isArray(h.done) && !h.done.length && !page.saves?.size ? "nothing to undo on this page" : null;
+      return h && Array.isArray(h.done) && !h.done.length && !page.writes?.saves?.size ? "nothing to undo on this page" : null;
     } }],
     [["Z", "y"], true, { before: () => {
       const h = page.lineHistory;

@@ -3,16 +3,16 @@
 // The page's query string holds the queue's filters; it is kept when moving between systems and
 // going back to the queue, and forwarded to the API so prev_id / next_id follow that queue.
 // Every write sends If-Match with the version the page drew (each view's `etag`, the system's `etag`);
-// writes to one view go one after the other, each with the ETag the previous one answered. A 412
-// (someone else changed it) draws their state and shows the conflict notice (conflict.js); the
-// history panel (history.js) lists the system's audit entries with a one-click revert. Field lines are
-// edited in each view (lineseditor.js); the page keeps one undo / redo stack of its own edits (Ctrl+Z /
+// the writes to the views, their conflicts and the undo / redo writes are systemwrites.js. The history
+// panel (history.js) lists the system's audit entries with a one-click revert. Field lines are edited in
+// each view (lineseditor.js); the page keeps one undo / redo stack of its own edits (Ctrl+Z /
 // Ctrl+Shift+Z: ball, exclusion, mirror, lines, decisions; each undo a write naming the entry it undoes).
-// The page is the one controller of its state; the views (overlay.js), the summary cards (systemcards.js),
-// the map, the trajectory, the conflict notice and the history are their own modules.
-
-import { ApiError, getSystem, getTrajectory, listAudit, postReview, patchBall, mirrorFieldLines, postExclusion, putFieldLines, undoEntry } from "./api.js";
-import { isNum, isTyping, viewColour, showError, clearError, STATUS_LABEL, toast } from "./format.js";
+// The page is the one controller of its state: it loads and renders a system, decides on it, moves on, and
+// holds the key table; the views (overlay.js), the summary cards (systemcards.js), the map, a sequence's
+// trajectory (sequence.js), the conflict notice and the history are their own modules. What differs between
+// kinds of system is read from the system's data (its views, its `frame_index`), never from its kind's name.
+import { ApiError, getSystem, postReview } from "./api.js";
+import { isTyping, viewColour, showError, clearError, STATUS_LABEL, toast } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
 import "./overlay.js"; // defines <v3d-view>
 import { isMirrorFlagged } from "./viewfacts.js";
@@ -28,6 +28,8 @@ import { ReviewPass, withPass } from "./pass.js";
 import { AcceptGuard } from "./guard.js";
 import { explainKeys } from "./keyreasons.js";
 import { SystemPresence } from "./presence.js";
+import { SequenceCard, inASequence } from "./sequence.js";
+import { ViewWrites } from "./systemwrites.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -38,14 +40,13 @@ class SystemPage {
   system = null;
   busy = false;
   selected = -1;
-  saves = new Set(); // ball edits on their way to the server
-  etags = new Map(); // frame id -> the newest ETag the page knows of the view
-  chains = new Map(); // frame id -> the last write to that view (the next one waits for it)
+  sequence = new SequenceCard(this); // a frame of a sequence: its trajectory, its neighbours (sequence.js)
+  writes = new ViewWrites(this); // the writes to the views, their ETags, conflicts and undo (systemwrites.js)
 
   /** Let every edit of this system reach the server before deciding on it or leaving it. */
   async settle() {
     for (const panel of $("views").children) panel.ball.flush();
-    await Promise.allSettled([...this.saves]);
+    await Promise.allSettled([...this.writes.saves]);
   }
 
   constructor() {
@@ -60,14 +61,14 @@ class SystemPage {
     $("comment").addEventListener("keydown", (e) => {
       if (e.key === "Escape") e.currentTarget.blur();
     });
-    $("views").addEventListener("ball-change", (e) => this.saveBall(e.target, e.detail));
-    $("views").addEventListener("lines-change", (e) => this.saveLines(e.target, e.detail));
+    $("views").addEventListener("ball-change", (e) => this.writes.saveBall(e.target, e.detail));
+    $("views").addEventListener("lines-change", (e) => this.writes.saveLines(e.target, e.detail));
     this.undoStack = new EditHistory(
-      (item, lines, undoOf, kind) => (item.kind === "lines" ? this.undoLines(item, lines, undoOf, kind) : this.undoWrite(item, undoOf, kind)),
+      (item, lines, undoOf, kind) => (item.kind === "lines" ? this.writes.undoLines(item, lines, undoOf, kind) : this.writes.undoWrite(item, undoOf, kind)),
       () => this.settle(),
       (kind) => toast(kind === "undo" ? "Nothing to undo: no edit of this page yet (or the last undo failed)" : "Nothing to redo"));
-    $("views").addEventListener("mirror-request", (e) => this.applyMirror(e.target, e.detail));
-    $("views").addEventListener("exclusion-request", (e) => this.setExclusion(e.target, e.detail));
+    $("views").addEventListener("mirror-request", (e) => this.writes.applyMirror(e.target, e.detail));
+    $("views").addEventListener("exclusion-request", (e) => this.writes.setExclusion(e.target, e.detail));
     $("views").addEventListener("pointerdown", (e) => {
       const panel = e.target.closest("v3d-view");
       if (panel) this.select([...$("views").children].indexOf(panel));
@@ -76,7 +77,7 @@ class SystemPage {
     this.history = new HistoryPanel($("history"), {
       onReverted: (answer) => {
         toast("reverted");
-        this.afterWrite(this.system.id, null, answer);
+        this.writes.afterWrite(this.system.id, null, answer);
       },
       onError: showError,
     });
@@ -169,7 +170,7 @@ class SystemPage {
 
   render(sys) {
     this.system = sys;
-    for (const v of sys.views) this.noteEtag(v.frame_id, v.etag);
+    for (const v of sys.views) this.writes.noteEtag(v.frame_id, v.etag);
     this.history.load(sys, this.params);
     $("queue-link").href = this.queueUrl();
     const game = sys.game || {};
@@ -213,7 +214,7 @@ class SystemPage {
       ball3d: sys.ball3d,
       cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
     };
-    this.renderTrajectory(sys);
+    this.sequence.show(sys);
   }
 
   /** What the page adds to a view's panel after each rebuild: its decision bar, the synchronised zoom. */
@@ -222,32 +223,8 @@ class SystemPage {
     this.zoom.applyTo(panel);
   }
 
-  /** A frame of a sequence (the system has a `frame_index`: ISSIA's static cameras): its sequence's trajectory
-   * over time (re-read after every render, so an edit's re-fit shows), the current frame marked, and the track
-   * on the pitch map. */
-  async renderTrajectory(sys) {
-    const inSequence = inASequence(sys);
-    $("trajectory-card").hidden = !inSequence;
-    if (!inSequence) return;
-    try {
-      const trajectory = await getTrajectory(sys.game.id);
-      if (this.system !== sys) return; // another system was rendered meanwhile
-      this.trajectory = trajectory;
-      $("trajectory").data = { trajectory, current: sys.frame_index };
-      const track = trajectory.frames.map((f) => f.ball3d_smoothed).filter((p) => Array.isArray(p));
-      $("pitch-map").data = { ...$("pitch-map").data, track };
-    } catch (err) {
-      showError(err.message);
-    }
-  }
-
-  /** The system of the frame ``step`` frames away in the ISSIA sequence (null outside it). */
-  frameNeighbour(step) {
-    const frames = this.trajectory?.frames || [];
-    const i = frames.findIndex((f) => f.system_id === this.system?.id);
-    return i >= 0 && frames[i + step] ? frames[i + step].system_id : null;
-  }
-
+  /** Decide on the system (`status`: accepted, rejected, needs_fix) with the comment, after its edits reached the
+   * server, and move on to the next system still pending (a 412: their decision drawn, the conflict notice). */
   async review(status, comment = null, ifMatch = null) {
     if (!this.system || this.busy) return;
     this.busy = true;
@@ -300,169 +277,6 @@ class SystemPage {
     } catch (err) {
       showError(err.message);
     }
-  }
-
-  /** Remember `etag` for a view unless the page already knows a newer version (answers may arrive out
-   * of order; the version is the ETag's last number). */
-  noteEtag(frameId, etag) {
-    if (!etag) return;
-    const version = (tag) => Number(/-(\d+)"$/.exec(tag || "")?.[1] ?? -1);
-    if (version(etag) >= version(this.etags.get(frameId))) this.etags.set(frameId, etag);
-  }
-
-  /** Draw a write's answer ({body: the recomputed system view, etag}) unless the reviewer moved on. */
-  afterWrite(shown, frameId, answer) {
-    clearError();
-    if (frameId !== null) this.noteEtag(frameId, answer.etag);
-    const sys = answer.body;
-    if (this.system.id === shown && sys && Array.isArray(sys.views)) {
-      const start = performance.now();
-      this.render(sys);
-      // the redraw's time: the script, then up to the painted frame (read by benchmarks/line_edit.py)
-      performance.measure("v3d:render", { start });
-      requestAnimationFrame(() => setTimeout(() => performance.measure("v3d:redraw", { start }), 0));
-    }
-  }
-
-  /** A write to one view (`send(ifMatch)` -> {body, etag, entry}), after the previous write to that view so it
-   * sends the ETag that one answered. `mine` says the change in words for the conflict notice and the undo's
-   * toast; `done(system)` runs after the answer is drawn; `undoable` false: the write is not pushed on the
-   * page's undo stack (a line edit pushes its own item, an undo is not undone by Ctrl+Z). */
-  frameWrite(panel, frameId, mine, send, done = null, undoable = true) {
-    const shown = this.system.id;
-    const previous = this.chains.get(frameId) || Promise.resolve();
-    const save = previous.then(async () => {
-      try {
-        const answer = await send(this.etags.get(frameId));
-        if (undoable && answer.entry) this.undoStack.push({ kind: "entry", systemId: shown, frameId, entry: answer.entry, what: mine });
-        this.afterWrite(shown, frameId, answer);
-        if (done && this.system.id === shown) done(answer.body);
-      } catch (err) {
-        panel.revert();
-        if (err instanceof ApiError && err.status === 412) await this.conflict(panel, frameId, mine, send, done, err, undoable);
-        else showError(err.message);
-      }
-    });
-    this.chains.set(frameId, save);
-    this.saves.add(save);
-    save.finally(() => {
-      this.saves.delete(save);
-      if (this.chains.get(frameId) === save) this.chains.delete(frameId);
-    });
-  }
-
-  /** Someone changed the view first: draw their state, say who and what, offer to re-apply. */
-  async conflict(panel, frameId, mine, send, done, err, undoable = true) {
-    this.noteEtag(frameId, err.body?.etag);
-    await this.reload();
-    const index = this.system.views.findIndex((v) => v.frame_id === frameId);
-    const viewName = index >= 0 ? `V${index + 1}` : null;
-    const name = index >= 0 ? this.system.views[index].name : `frame ${frameId}`;
-    showConflict($("conflict"), { error: err, what: `${viewName || "the view"} (${name})`, mine, viewName,
-      reapply: () => this.frameWrite(panel, frameId, mine, send, done, undoable) });
-    $("conflict").scrollIntoView({ block: "center" }); // a key (an undo) may have sent it from far down the page
-  }
-
-  saveBall(panel, detail) {
-    const change = "box" in detail ? { box: detail.box } : { point: detail.point };
-    if (detail.provenance) change.provenance = detail.provenance; // a doubt's suggestion: not evidence until placed
-    this.frameWrite(panel, detail.frameId, `${viewLabel(this.system, detail.frameId)} ball: ${describeState({ ball: change })}`,
-      (etag) => patchBall(detail.frameId, change, this.params, etag));
-  }
-
-  /** Send a view's edited field lines (lineseditor.js "lines-change"), draw the recalibrated system and
-   * say what the edit did to the view's JaC; the write joins the page's undo stack. */
-  saveLines(panel, detail) {
-    const systemId = this.system.id;
-    const before = this.system.views.find((v) => v.frame_id === detail.frameId);
-    this.frameWrite(panel, detail.frameId, detail.what,
-      (etag) => putFieldLines(detail.frameId, detail.lines, this.params, etag).then((answer) => {
-        this.undoStack.push({ kind: "lines", systemId, frameId: detail.frameId, before: detail.before, after: detail.lines,
-          entry: answer.entry, what: detail.what });
-        return answer;
-      }),
-      (sys) => toast(`${detail.what}: ${jacChange(before, sys.views.find((v) => v.frame_id === detail.frameId))}`), false);
-  }
-
-  /** An undo or redo of the line stack: the write of `lines` to the item's view naming `undoOf`, on its
-   * system's page (loaded first when another is shown). Answers the new audit entry, null when it failed
-   * (a 412 shows the conflict notice). */
-  async undoLines(item, lines, undoOf, kind) {
-    if (this.system?.id !== item.systemId) await this.load(item.systemId, true);
-    const index = this.system?.views.findIndex((v) => v.frame_id === item.frameId) ?? -1;
-    const panel = $("views").children[index];
-    if (!panel) return null;
-    let entry = null;
-    const before = this.system.views[index];
-    panel.saving = true;
-    this.frameWrite(panel, item.frameId, `${kind} of “${item.what}”`,
-      (etag) => putFieldLines(item.frameId, lines, this.params, etag, undoOf).then((answer) => {
-        entry = answer.entry;
-        return answer;
-      }),
-      (sys) => toast(`${kind}: ${item.what} · ${jacChange(before, sys.views.find((v) => v.frame_id === item.frameId))}`), false);
-    await this.chains.get(item.frameId);
-    return entry;
-  }
-
-  /** An undo or redo of any other edit (ball, exclusion, mirror, decisions): POST /api/audit/{undoOf}/undo on
-   * the item's system's page (loaded first when another is shown), after the writes on their way. Answers the
-   * new audit entry, null when it was refused (the resource changed since: said in the error bar). */
-  async undoWrite(item, undoOf, kind) {
-    if (this.system?.id !== item.systemId) await this.load(item.systemId, true);
-    if (this.system?.id !== item.systemId) return null;
-    const write = (async () => {
-      try {
-        const answer = await undoEntry(undoOf, this.params);
-        this.afterWrite(item.systemId, item.frameId, answer);
-        if (item.frameId === null && answer.etag && this.system.id === item.systemId) this.system.etag = answer.etag;
-        toast(`${kind === "undo" ? "Undone" : "Redone"}: ${await this.entryWords(kind === "undo" ? undoOf : answer.entry, item.what)}`);
-        return answer.entry;
-      } catch (err) {
-        showError(`${kind} of “${item.what}” refused: ${err.message}`);
-        return null;
-      }
-    })();
-    if (item.frameId !== null) { // the view's next write waits for it and sends the ETag it answers
-      this.chains.set(item.frameId, write);
-      this.saves.add(write);
-      write.finally(() => {
-        this.saves.delete(write);
-        if (this.chains.get(item.frameId) === write) this.chains.delete(item.frameId);
-      });
-    }
-    return write;
-  }
-
-  /** The server's words for audit entry `id` ("ball of V2 moved 3.0 px", without an "undo of entry N: "),
-   * `fallback` when they cannot be read. */
-  async entryWords(id, fallback) {
-    try {
-      const page = await listAudit({ system_id: this.system.id, limit: 30 });
-      const entry = page.items.find((e) => e.id === id);
-      return entry?.summary?.replace(/^(undo|redo) of entry \d+: /, "") || fallback;
-    } catch {
-      return fallback;
-    }
-  }
-
-  /** Replace a flagged view's field lines by their mirrored labelling, then draw the recomputed system. */
-  applyMirror(panel, detail) {
-    const name = panel.view?.name || "view";
-    this.frameWrite(panel, detail.frameId, `${viewLabel(this.system, detail.frameId)} mirrored field lines`,
-      (etag) => mirrorFieldLines(detail.frameId, this.params, etag),
-      (sys) => {
-        const after = sys.views.find((v) => v.frame_id === detail.frameId);
-        toast(`${name}: mirrored labels applied${after && isMirrorFlagged(after) ? " (still flagged)" : ""}`);
-      });
-  }
-
-  /** Exclude a view from the triangulation or restore it, then draw the recomputed system. */
-  setExclusion(panel, detail) {
-    const name = panel.view?.name || "view";
-    this.frameWrite(panel, detail.frameId, `${viewLabel(this.system, detail.frameId)} ${describeState({ excluded: detail.excluded })}`,
-      (etag) => postExclusion(detail.frameId, detail.excluded, this.params, etag),
-      () => toast(`${name}: ${detail.excluded ? "excluded from" : "restored to"} the 3D ball`));
   }
 
   /** The view `s` acts on and its doubt: the selected view's fixable doubt, else the only view with one. */
@@ -518,7 +332,7 @@ class SystemPage {
       { keys: ["j"], does: "next system of the pass", run: () => this.go(this.stepId(1)) },
       { keys: ["k"], does: "previous system of the pass", run: () => this.go(this.stepId(-1)) },
       { keys: [",", "."], does: "previous / next frame of a sequence (ISSIA)",
-        run: (e) => (inASequence(this.system) ? this.go(this.frameNeighbour(e.key === "." ? 1 : -1)) : false) },
+        run: (e) => (inASequence(this.system) ? this.go(this.sequence.neighbour(e.key === "." ? 1 : -1)) : false) },
       { keys: ["c"], does: "comment (Esc to leave)", run: () => $("comment").focus() },
       { keys: ["u"], does: "back to the queue", run: () => this.settle().then(() => location.assign(this.queueUrl())) },
       { keys: ["o"], does: "hide / show the overlays",
@@ -558,26 +372,6 @@ class SystemPage {
 
 /** The toast of the last decision of a pass (nothing pending left after the system). */
 export const LAST_OF_PASS = "Nothing pending is left in this pass.";
-
-/** "V2": the view's name on the page (its place among the system's views). */
-function viewLabel(sys, frameId) {
-  const i = (sys?.views || []).findIndex((v) => v.frame_id === frameId);
-  return i >= 0 ? `V${i + 1}` : "the view";
-}
-
-/** A view's JaC at the admission gamma before -> after an edit, in words. */
-function jacChange(before, after) {
-  const jac = (v) => {
-    const values = Object.values((v?.calibration || {}).jac || {});
-    return values.length && isNum(values[0]) ? values[0].toFixed(3) : "refused";
-  };
-  return `JaC ${jac(before)} → ${jac(after)}`;
-}
-
-/** The system is one frame of a sequence (its `frame_index` is set), so it has a trajectory and neighbours. */
-function inASequence(sys) {
-  return Number.isInteger(sys?.frame_index);
-}
 
 function idFromPath() {
   const m = location.pathname.match(/\/systems\/([^/]+)\/?$/);

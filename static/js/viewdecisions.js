@@ -2,7 +2,7 @@
 // reject / needs fix: POST /api/frames/{id}/review) and beside it the decision on its calibration (its field
 // lines and the camera fitted to them: POST /api/frames/{id}/calibration-review), with the reason when an
 // edit of the view's field lines set the calibration decision back to pending. Both are writes to the view:
-// they go through the page's frameWrite (If-Match with the view's ETag, one after the other, a 412 drawn
+// they go through the page's writes.frameWrite (systemwrites.js: If-Match with the view's ETag, one after the other, a 412 drawn
 // with the conflict notice). Keys (in the page's one key table): Shift+A / R / F the selected view's ball,
 // Shift+G / B / N its calibration (good / bad / needs fix).
 
@@ -32,7 +32,7 @@ export function decisionNote(review) {
 }
 
 export class ViewDecisions {
-  /** `page`: the system page (its `system`, `frameWrite(panel, frameId, mine, send, done)`, `history`,
+  /** `page`: the system page (its `system`, `writes.frameWrite(panel, frameId, mine, send, done)`, `history`,
    * `params`, `decorate(panel, view)`: what the page adds to a panel after it is rebuilt); `toast(message)`. */
   constructor(page, toast) {
     this.page = page;
@@ -71,7 +71,7 @@ export class ViewDecisions {
     const sys = this.page.system;
     const index = sys.views.findIndex((v) => v.frame_id === view.frame_id);
     const name = index >= 0 ? `V${index + 1}` : view.name;
-    this.page.frameWrite(panel, view.frame_id, `${name} ${p.label.toLowerCase()}: ${STATUS_LABEL[status]}`,
+    this.page.writes.frameWrite(panel, view.frame_id, `${name} ${p.label.toLowerCase()}: ${STATUS_LABEL[status]}`,
       (etag) => p.send(view.frame_id, status, "", etag),
       (review) => {
         const shown = this.page.system.views.find((v) => v.frame_id === view.frame_id);

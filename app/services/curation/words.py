@@ -13,7 +13,7 @@ Groups:
 * ``doubt``: every doubt kind (``app.geometry.doubts.LABEL_KINDS`` and ``INFO_KINDS``);
 * ``flag``: every calibration flag; ``flag_prefix``: flags that carry a value after ``:`` (``{}`` in the
   chip stands for it);
-* ``note``: what the system page says of a view's state besides the doubts (``notes()`` of overlay.js);
+* ``note``: what the system page says of a view's state besides the doubts (``notes()`` of viewfacts.js);
 * ``triangulation``: the triangulation's statuses; ``pair_reason``: why a pair of views was dropped
   (``app.geometry.triangulation.DROP_REASONS``); ``rule``: the pair-error rules (``PAIR_ERROR_RULES``);
 * ``calibration``: a calibration's statuses and sources; ``refusal``: why a calibration was refused
