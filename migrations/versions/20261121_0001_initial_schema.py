@@ -1,5 +1,5 @@
 """Initial schema: games, systems, frames and their annotations, calibrations, triangulations,
-optimised boxes and review decisions (see app/db/models.py).
+optimised boxes and review decisions (see app/db/models/).
 
 Revision ID: 0001
 Revises: 

@@ -1,6 +1,6 @@
 """Doubts of a system (label problems the geometry sees, with fixes), the per-view exclusion decision,
-and the review queue's per-system figures and review status stored on the write path (app/db/models.py: Doubt,
-ReviewDecision.excluded, System.doubt_counts ... derived_version). Existing systems get
+and the review queue's per-system figures and review status stored on the write path (app/db/models/: derived.py's Doubt,
+review.py's ReviewDecision.excluded, labels.py's System.doubt_counts ... derived_version). Existing systems get
 derived_version 0: the service recomputes them before serving (app.services.derivation.recompute.refresh_stale_systems).
 
 Revision ID: 0003

@@ -1,4 +1,4 @@
-"""The review queue's sort keys indexed within a review status (app/db/models.py: System's
+"""The review queue's sort keys indexed within a review status (app/db/models/labels.py: System's
 ``ix_systems_review_status_*``): a queue filtered by status (the "pending" queue) and the neighbours of a
 system in it (``app.services.curation.queue.queue_neighbours``) are then index seeks; with the sort key's index
 alone SQLite sorted every system of the status (about 5 ms for the neighbours at 12,800 systems).

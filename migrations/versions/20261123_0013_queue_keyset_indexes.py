@@ -1,4 +1,4 @@
-"""An index for the queue's keyset pages in name order (issue 16 item 6; app/db/models.py: System's indexes):
+"""An index for the queue's keyset pages in name order (issue 16 item 6; app/db/models/labels.py: System's indexes):
 the numeric name order within a game (``game_id, length(name), name``), so that every slice of a page
 (``app.services.curation.queue._slices``) and a deep ``offset`` walk an index in its order instead of
 sorting each game's systems (the last page by offset sorted all 12,800 systems game by game).

@@ -11,6 +11,7 @@ from sqlalchemy.orm import Session
 
 from app.geometry.calibration.result import Refusal
 from app.core.config import Settings
+from app.core.errors import InvalidInputError
 from app.db.models import System
 from app.geometry.ball import sphere_image_box
 from app.geometry.doubts import LABEL_KINDS, DoubtSettings
@@ -102,7 +103,7 @@ def test_exclusion_is_stored_reversible_and_leaves_the_view_out(db_session: Sess
     system = _stored(db_session, scene.system_id)
     assert len(system.triangulation.pairs) == 3
     assert next(f for f in system.frames if f.id == fid).review.excluded is False
-    with pytest.raises(editing.InvalidInputError):
+    with pytest.raises(InvalidInputError):
         editing.set_view_excluded(db_session, fid, "yes", settings=db_settings)  # type: ignore[arg-type]
 
 
@@ -153,7 +154,7 @@ def test_a_label_made_from_a_suggestion_is_no_evidence_until_a_person_places_it(
     assert not frame.ball_label.suggested and frame.ball_label.provenance is None
     assert any(missing_id in (p.frame_a_id, p.frame_b_id) for p in system.triangulation.pairs)
     assert not [d for d in system.doubts if d.frame_id == missing_id and d.kind in ("suggested_label", "ball_missing")]
-    with pytest.raises(editing.InvalidInputError):
+    with pytest.raises(InvalidInputError):
         editing.update_ball_label(db_session, missing_id, box=request["body"]["box"], provenance={"from_views": "x"},
                                   settings=db_settings)
 
