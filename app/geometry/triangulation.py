@@ -464,7 +464,7 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
             (two rays that meet metres under the grass, or far outside the stadium, agree by coincidence) is
             dropped with reason ``outside_play_volume``. ``None`` (default): the paper's rules only.
         view_weights: optional view id -> what its calibration is worth as evidence (1 a full vote, 0.5 half,
-            0 none; ``app.geometry.doubts.calibration_weight``, a view without a value counts 1). Given, a weak
+            0 none; ``app.geometry.weighting.calibration_weight``, a view without a value counts 1). Given, a weak
             calibration neither makes nor moves a ball on its own: a pair kept by the rules above whose two
             weights sum below :data:`MIN_PAIR_WEIGHT` (two half votes, or a full vote and none) is dropped with
             reason ``weak_calibrations``, and of the pairs left only those of the highest weight sum are

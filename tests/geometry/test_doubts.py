@@ -17,7 +17,8 @@ from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
 from app.geometry.consensus import ball_consensus
 from app.geometry.mirror import mirror_camera
 from app.geometry.doubts import (CODES, INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, DoubtView,
-                                 epipolar_pair_error, judge_system, pixel_sigma)
+                                 epipolar_pair_error, judge_system)
+from app.geometry.weighting import pixel_sigma
 from app.services.curation.doubt_words import doubt_message
 from app.services.curation.doubts import doubt_settings
 from app.geometry.triangulation import BallObservation

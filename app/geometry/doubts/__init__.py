@@ -18,9 +18,10 @@ Information kinds (:data:`INFO_KINDS`) say why a view does not take part, withou
 Each doubt carries a ``code`` (which reasoning found it, :data:`CODES`) and its numbers; the sentence a
 person reads is composed above this module (``app.services.curation.doubt_words``).
 
-Evidence is weighed by what each calibration is worth (:func:`pixel_sigma` from the stored calibration
-uncertainty): a view below admission whose calibration is sure still votes (half a vote), an admitted
-view whose calibration is unsure votes half and is accused only beyond its own pixel sigma. Agreement is
+Evidence is weighed by what each calibration is worth (:mod:`app.geometry.weighting`: the pixel sigma from
+the stored calibration uncertainty): a view below admission whose calibration is sure still votes (half a
+vote), an admitted view whose calibration is unsure votes half and is accused only beyond its own pixel sigma.
+Agreement is
 judged with each pair's conditioning: a pair whose rays meet only where no ball can be (under the grass,
 far outside the stadium) does not agree, and a pair too poorly conditioned to triangulate (a near
 duplicate) is judged by each label's distance to the other view's ray across the play volume
@@ -34,16 +35,15 @@ Thresholds: :class:`DoubtSettings` (chosen with ``benchmarks/doubts.py`` and ``b
 on the sets that script names). The robust consensus lives in :mod:`app.geometry.consensus`.
 
 Modules, one idea each: :mod:`~.contract` (the kinds, codes, a view as the judge sees it, a doubt, the
-thresholds), :mod:`~.weighting` (what a calibration is worth: pixel sigma, vote weight), :mod:`~.epipolar`
-(one label against another view's ray across the play volume), :mod:`~.judge` (the rules that find doubts).
+thresholds), :mod:`~.epipolar` (one label against another view's ray across the play volume), :mod:`~.judge`
+(the rules that find doubts); what a calibration is worth is :mod:`app.geometry.weighting`'s, which the
+triangulation's service shares.
 """
 from app.geometry.doubts.contract import (
     CODES, INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, Doubt, DoubtSettings, DoubtView,
 )
 from app.geometry.doubts.epipolar import epipolar_pair_error, ray_in_play_volume
 from app.geometry.doubts.judge import consensus_box_sigma_px, consensus_fix, judge_system
-from app.geometry.doubts.weighting import calibration_weight, pixel_sigma
 
 __all__ = ["CODES", "INFO_KINDS", "LABEL_KINDS", "SUGGESTION_ACTIONS", "Doubt", "DoubtSettings", "DoubtView",
-           "epipolar_pair_error", "ray_in_play_volume", "consensus_box_sigma_px", "consensus_fix", "judge_system",
-           "calibration_weight", "pixel_sigma"]
+           "epipolar_pair_error", "ray_in_play_volume", "consensus_box_sigma_px", "consensus_fix", "judge_system"]

@@ -1,7 +1,7 @@
 """The doubts' contract: the kinds that accuse a label and those that inform, the codes of each reasoning, the
 suggested fixes, a view as the judge sees it (:class:`DoubtView`), a doubt (:class:`Doubt`) and the
-thresholds (:class:`DoubtSettings`); with the small view helpers every rule shares (centre, projection,
-inside the image, the play volume).
+thresholds (:class:`DoubtSettings`); with the small view helpers the rules share (inside the image, the play
+volume; a label's centre, a point's pixel and the rule's units are :mod:`app.geometry.weighting`'s).
 
 World frame: SoccerNet (metres, origin at the centre spot, z down); pixels of each view's own image.
 """
@@ -14,8 +14,7 @@ from typing import Any, Hashable
 import numpy as np
 
 from app.geometry.camera import Camera
-from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, PLAY_VOLUME, PlayVolume, within_play_volume
-from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.pitch import PlayVolume, within_play_volume
 
 
 #: Kinds that accuse a label (the review queue counts, filters and sorts by them).
@@ -185,18 +184,6 @@ class DoubtSettings:
     min_line_classes: int
 
 
-def _scale(view: DoubtView, s: DoubtSettings) -> float:
-    """Factor from the view's pixels to the units of the settings (1920-px width, or raw px)."""
-    return 1.0 if s.pair_error_rule == "max_px" else REFERENCE_WIDTH_PX / view.width
-
-
-def _centre(view: DoubtView) -> np.ndarray | None:
-    if view.box is not None:
-        b = np.asarray(view.box, float)
-        return np.array([(b[0] + b[2]) / 2, (b[1] + b[3]) / 2])
-    return None if view.point is None else np.asarray(view.point, float).reshape(2)
-
-
 def _r(x: float, nd: int = 1) -> float:
     return round(float(x), nd)
 
@@ -208,11 +195,6 @@ def _box_list(box: np.ndarray | None) -> list[float] | None:
 def _inside(view: DoubtView, uv: np.ndarray, margin_px: float) -> bool:
     """The pixel lies inside the view's image shrunk by ``margin_px`` (view pixels)."""
     return bool(margin_px <= uv[0] <= view.width - margin_px and margin_px <= uv[1] <= view.height - margin_px)
-
-
-def _project(view: DoubtView, point: np.ndarray) -> np.ndarray | None:
-    uv, ok = view.camera.project(np.asarray(point, float).reshape(1, 3))
-    return uv[0] if ok[0] else None
 
 
 def _plausible(point: np.ndarray, s: DoubtSettings) -> bool:

@@ -11,38 +11,26 @@ import numpy as np
 
 from app.geometry.ball import ball_from_box_exact
 from app.geometry.camera import Camera
-from app.geometry.doubts.contract import (DoubtSettings, DoubtView, _centre, _inside, _project, _scale)
+from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside
+from app.geometry.weighting import label_centre, project_point, ray_at_height, rule_scale
 
 
 def _sees(v: DoubtView, ball: np.ndarray) -> bool:
     """The view shows the ball: it has a ball label, or the ball projects inside its image (a camera at
     the same place that looks elsewhere is another shot, not a duplicate)."""
-    if _centre(v) is not None:
+    if label_centre(v) is not None:
         return True
-    uv = _project(v, ball)
+    uv = project_point(v, ball)
     return uv is not None and _inside(v, uv, 0.0)
-
-
-def _axis_on_grass(v: DoubtView, s: DoubtSettings) -> np.ndarray | None:
-    """Where the view's optical axis meets the plane of ball centres on the grass, or None."""
-    d = v.camera.R[2]  # optical axis in the world frame
-    return _ray_at_height(v.camera.C, d, -s.ball_diameter_m / 2)
-
-
-def _ray_at_height(origin: np.ndarray, direction: np.ndarray, z: float) -> np.ndarray | None:
-    if abs(direction[2]) < 1e-9:
-        return None
-    t = (z - origin[2]) / direction[2]
-    return None if t <= 0 else origin + t * direction
 
 
 def _single_view_ball(v: DoubtView, s: DoubtSettings) -> tuple[np.ndarray | None, str]:
     """The ball one labelled view places: on the grass along its ray when the box size agrees (most
     balls are on the ground), else at the monocular estimate (method.md section 6, exact silhouette);
     a point label goes on the grass. Returns (point or None, how it was placed)."""
-    c = _centre(v)
+    c = label_centre(v)
     ray = v.camera.rays(c.reshape(1, 2))[0]
-    grass = _ray_at_height(v.camera.C, ray, -s.ball_diameter_m / 2)
+    grass = ray_at_height(v.camera.C, ray, -s.ball_diameter_m / 2)
     mono = _mono(v, s)
     if mono is None:
         return grass, "grass"
@@ -92,10 +80,10 @@ def _segment(labelled: DoubtView, other: DoubtView, s: DoubtSettings, samples: i
     points evenly spread in depth; None when the ray misses the volume. ``by_box``: only the depths
     the view's box size allows (the monocular depth, method.md section 6, within ``ground_box_tolerance``
     of it), for a box label."""
-    span = ray_in_play_volume(labelled.camera, _centre(labelled), s)
+    span = ray_in_play_volume(labelled.camera, label_centre(labelled), s)
     if span is None:
         return None
-    ray = labelled.camera.rays(_centre(labelled).reshape(1, 2))[0]
+    ray = labelled.camera.rays(label_centre(labelled).reshape(1, 2))[0]
     mono = _mono(labelled, s) if by_box else None
     if mono is not None:  # the box's size bounds the depth (boxes err by ~20 % in size)
         d = float(np.linalg.norm(mono - labelled.camera.C))
@@ -138,8 +126,8 @@ def epipolar_pair_error(a: DoubtView, b: DoubtView, s: DoubtSettings) -> float |
         seg = _segment(x, y, s)
         if seg is None:
             return math.inf
-        d, _ = _polyline_distance(seg[1], _centre(y))
+        d, _ = _polyline_distance(seg[1], label_centre(y))
         if math.isfinite(d):
-            d *= _scale(y, s)
+            d *= rule_scale(y, s)
             best = d if best is None else min(best, d)
     return best

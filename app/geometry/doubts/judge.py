@@ -14,9 +14,10 @@ from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.mirror import mirror_camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
-from app.geometry.doubts.contract import (Doubt, DoubtSettings, DoubtView, _box_list, _centre, _inside, _plausible, _project, _r, _scale)
-from app.geometry.doubts.weighting import (calibration_weight, pixel_sigma)
-from app.geometry.doubts.epipolar import (_axis_on_grass, _mono, _sees, _segment, _single_view_ball, epipolar_pair_error)
+from app.geometry.weighting import (axis_on_grass, calibration_weight, label_centre, pixel_sigma, project_point,
+                                   rule_scale)
+from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
+from app.geometry.doubts.epipolar import _mono, _sees, _segment, _single_view_ball, epipolar_pair_error
 
 
 def _info_doubts(views: Sequence[DoubtView], s: DoubtSettings) -> list[Doubt]:
@@ -74,9 +75,9 @@ def _mirror_fix_check(v: DoubtView, ev: dict[str, Any], others: Consensus | None
     """
     if v.camera is None:
         return (True, "", {}) if ev.get("refit") or ev.get("verdict") == "probably_mirrored" else (False, "no_ray_confirms", {})
-    c = _centre(v)
+    c = label_centre(v)
     if others is not None and others.point is not None and not others.ambiguous and c is not None:
-        k = _scale(v, s)
+        k = rule_scale(v, s)
         e_as = reprojection_error_px(v.camera, others.point, c)
         e_mi = reprojection_error_px(mirror_camera(v.camera), others.point, c)
         numbers = {"error_as_labelled_px_1920": None if e_as is None else _r(e_as * k),
@@ -134,10 +135,10 @@ def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtS
             continue
         ref = consensus.point
         for v in (a, b):
-            if ref is None and _centre(v) is not None:
+            if ref is None and label_centre(v) is not None:
                 ref = _single_view_ball(v, s)[0]
         if ref is None:
-            ref = _axis_on_grass(a, s)
+            ref = axis_on_grass(a, s)
         if ref is None:
             continue
         u, w = ref - a.camera.C, ref - b.camera.C
@@ -145,7 +146,7 @@ def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtS
         if angle >= s.near_duplicate_max_deg or not (_sees(a, ref) and _sees(b, ref)):
             continue
         # Name the view that adds nothing: an unlabelled one, else a replay, else the lower JaC.
-        keep, drop = sorted((a, b), key=lambda v: (_centre(v) is None, v.role != "action", -(v.jac or 0.0)))
+        keep, drop = sorted((a, b), key=lambda v: (label_centre(v) is None, v.role != "action", -(v.jac or 0.0)))
         named.add(drop.view_id)
         out.append(Doubt(
             "near_duplicate_view", drop.view_id, "near_duplicate",
@@ -159,7 +160,7 @@ def consensus_box_sigma_px(v: DoubtView, consensus: Consensus, s: DoubtSettings)
     """How far (px of ``v``'s own image, one standard deviation) the consensus ball's box in ``v`` may lie from
     where the ball is: the agreeing views' own spread (the RMS of their reprojection errors to the consensus
     ball, px at 1920 width: how well the rays that made it meet) and ``v``'s calibration's pixel sigma at that
-    ball (:func:`pixel_sigma`: how far its camera may put the ball's projection), added in quadrature and
+    ball (:func:`~app.geometry.weighting.pixel_sigma`: how far its camera may put the ball's projection), added in quadrature and
     scaled to ``v``'s pixels. None when ``v``'s calibration leaves the pixel undetermined (``inf``)."""
     errs = [consensus.errors_1920.get(i) for i in consensus.inliers]
     errs = [e for e in errs if e is not None and math.isfinite(e)]
@@ -167,7 +168,7 @@ def consensus_box_sigma_px(v: DoubtView, consensus: Consensus, s: DoubtSettings)
     own = pixel_sigma(v, consensus.point, s)
     if not math.isfinite(own):
         return None
-    return _r(math.hypot(spread, own) / _scale(v, s), 2)
+    return _r(math.hypot(spread, own) / rule_scale(v, s), 2)
 
 
 def consensus_fix(v: DoubtView, consensus: Consensus, box: np.ndarray | None, s: DoubtSettings,
@@ -194,9 +195,9 @@ def _missing_doubt(v: DoubtView, consensus: Consensus, s: DoubtSettings, code: s
     ``margin_px`` (px at 1920 width; default ``inside_margin_px``), else None; its fix is
     :func:`consensus_fix` (the sphere box with its uncertainty)."""
     ball = consensus.point
-    uv = _project(v, ball)
+    uv = project_point(v, ball)
     margin = s.inside_margin_px if margin_px is None else margin_px
-    if uv is None or not _inside(v, uv, margin / _scale(v, s)):
+    if uv is None or not _inside(v, uv, margin / rule_scale(v, s)):
         return None
     box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
     if box is None:
@@ -220,8 +221,8 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     ball, how = _single_view_ball(only, s)
     if ball is None or not _plausible(ball, s):
         return None
-    uv0 = _project(v, ball)
-    m = s.inside_margin_px / _scale(v, s)
+    uv0 = project_point(v, ball)
+    m = s.inside_margin_px / rule_scale(v, s)
     if uv0 is None or not _inside(v, uv0, m):
         return None
     seg = _segment(only, v, s, by_box=True)
@@ -243,7 +244,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     if chance < 0.5:
         return None
     seen = uv[inside]
-    length = float(np.sum(np.linalg.norm(np.diff(seen, axis=0), axis=1))) * _scale(v, s)
+    length = float(np.sum(np.linalg.norm(np.diff(seen, axis=0), axis=1))) * rule_scale(v, s)
     evidence: dict[str, Any] = {"agreeing_views": [only.view_id], "epipolar_px": [[_r(x), _r(y)] for x, y in seen],
                                 "segment_length_px_1920": _r(length), "inside_fraction": _r(inside.mean(), 2), "inside_chance": _r(chance, 2),
                                 "grass_px": [_r(uv0[0]), _r(uv0[1])], "placed": how, "depth_known": False}
@@ -255,7 +256,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     evidence.update(projected_px=[_r(uv0[0]), _r(uv0[1])], ball3d=[_r(x, 3) for x in ball])
     # its uncertainty: the ball may lie anywhere on the stretch drawn, half its length either side of the box
     return Doubt("ball_missing", v.view_id, "epipolar_box", evidence,
-                 {"action": "snap_box", "box": _box_list(box), "box_sigma_px": _r(length / 2 / _scale(v, s))})
+                 {"action": "snap_box", "box": _box_list(box), "box_sigma_px": _r(length / 2 / rule_scale(v, s))})
 
 
 def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
@@ -266,8 +267,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
 
     1. info doubts per view (refused calibration, below admission, rig-assisted, few line classes);
     2. views that take part: calibrated, not excluded by the reviewer, with at least
-       ``min_line_classes`` line classes, and a vote (:func:`_vote_weight`: what the calibration is worth,
-       from admission and the calibration's pixel sigma, :func:`pixel_sigma`). A view with at least
+       ``min_line_classes`` line classes, and a vote (:func:`app.geometry.weighting.calibration_weight`: what
+       the calibration is worth, from admission and its pixel sigma). A view with at least
        ``min_line_classes`` classes flagged mirrored (refused, calibrated or below admission: JaC is the
        same for labels and their mirror), or a view that takes part and is suspected mirrored
        (:func:`_mirror_suspected`), gets ``mirrored_labels`` and takes no further part (its camera is
@@ -318,7 +319,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
     # calibration is sure (pixel sigma within tau, e.g. a rig camera whose few lines fix its rotation)
     # lends its label half a vote to the consensus
     helpers = [v for v in views if not v.excluded and v.camera is not None and v.line_classes < s.min_line_classes
-               and not v.mirror_flagged and not v.suggested and _centre(v) is not None]
+               and not v.mirror_flagged and not v.suggested and label_centre(v) is not None]
     tau = max(s.consensus_tau_px, s.triangulation_tau_px)
     sigma: dict[Hashable, float] = {}
     weight: dict[Hashable, float] = {}
@@ -326,10 +327,10 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
         weight[v.view_id], sigma[v.view_id] = calibration_weight(v, s)
     helpers = [v for v in helpers if weight[v.view_id] > 0]
     judged = [v for v in calibrated if v not in mirrored and weight[v.view_id] > 0 and not v.suggested]
-    labelled = [v for v in judged if _centre(v) is not None]
-    unlabelled = [v for v in judged if _centre(v) is None]
+    labelled = [v for v in judged if label_centre(v) is not None]
+    unlabelled = [v for v in judged if label_centre(v) is None]
     voters = labelled + helpers
-    obs = [BallObservation(v.view_id, v.camera, _centre(v), REFERENCE_WIDTH_PX / _scale(v, s)) for v in voters]
+    obs = [BallObservation(v.view_id, v.camera, label_centre(v), REFERENCE_WIDTH_PX / rule_scale(v, s)) for v in voters]
     cons = ball_consensus(obs, tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
                           weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
     lone_contradicted = bool(helpers) and len(labelled) == 1 and (
@@ -346,7 +347,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
                 continue
             v = by_id[vid]
             e = cons.errors_1920[vid]
-            uv = _project(v, cons.point)
+            uv = project_point(v, cons.point)
             box = sphere_image_box(v.camera, cons.point, s.ball_diameter_m / 2) if uv is not None and _inside(
                 v, uv, 0.0) else None
             suggestion = consensus_fix(v, cons, box, s)

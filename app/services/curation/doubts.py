@@ -23,9 +23,10 @@ from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Ga
 from app.db.types import json_safe
 from app.geometry.camera import Camera
 from app.geometry.pitch import PLAY_VOLUME
-from app.geometry.doubts import DoubtSettings, DoubtView, calibration_weight, judge_system
+from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
+from app.geometry.weighting import calibration_weight
 from app.services.curation.doubt_words import doubt_message
 from app.services.kinds import kind_of
 
@@ -84,7 +85,7 @@ def doubt_views(system: System, cameras: dict[int, Camera] | None = None) -> lis
 
 
 def calibration_weights(system: System, settings: Settings, cameras: dict[int, Camera] | None = None) -> dict[int, float]:
-    """Frame id -> what its calibration is worth as evidence of the ball (``app.geometry.doubts.calibration_weight``
+    """Frame id -> what its calibration is worth as evidence of the ball (``app.geometry.weighting.calibration_weight``
     with the judge's settings: 1, 0.5 or 0), for every calibrated frame of ``system``; what the triangulation
     weighs views by (``app.geometry.triangulation.triangulate_ball`` ``view_weights``), so that it trusts the
     views the judge trusts. Cameras known to be fitted to the view's lines are weighed: computed by v3d, or

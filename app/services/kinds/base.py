@@ -79,7 +79,7 @@ class KindPolicy:
             before it takes the write lock and only compares and writes under it (``app.services.curation.editing``);
             False where it re-fits beyond the system (ISSIA's trajectory): computed under the lock.
         weighs_calibrations: the triangulation weighs each view by what its calibration from field lines is
-            worth (``app.geometry.doubts.calibration_weight``: a view whose few lines leave its camera unsure
+            worth (``app.geometry.weighting.calibration_weight``: a view whose few lines leave its camera unsure
             neither makes a 3D ball with another weak one nor moves the ball two sure views make); False where
             the labels the triangulation uses are chosen otherwise (ISSIA's trajectory).
     """
