@@ -5,8 +5,9 @@ frames) it calibrates every frame at 960x540 in this one process (one core), sco
 the official JaC (:func:`app.geometry.jac.evaluate_jac`, thresholds 5, 10 and 20 px) and prints:
 
 * completeness (calibrated / frames), mean JaC@5/10/20 px over the calibrated frames, final score
-  (completeness x mean JaC@5, SoccerNet's), the fraction of calibrated frames with JaC@0.5 % > 0.75
-  (the admission rule of a multi-view system; 0.5 % of the 960x540 diagonal is 5.51 px);
+  (completeness x mean JaC@5, SoccerNet's), the fraction of calibrated frames admitted (the admission rule of a
+  multi-view system, :func:`app.geometry.jac.jac_admitted` with the settings' gamma and threshold: JaC@0.5 % > 0.75
+  by default; 0.5 % of the 960x540 diagonal is 5.51 px);
 * median and 99th percentile time per frame, as CPU time of this process (robust to other load on a
   shared machine) and as wall time;
 * refusals with their reasons, flags, and the peer numbers for reference (PnLCalib fed the same
@@ -34,7 +35,9 @@ from app.core.paths import SHARED_DIR  # noqa: E402
 from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
 from app.geometry.calibration import CalibrationPrior, calibrate_frame  # noqa: E402
 from app.services.curation.words import refusal_sentence  # noqa: E402
-from app.geometry.jac import evaluate_jac, gamma_thresholds  # noqa: E402
+from app.core.config import Settings  # noqa: E402
+from app.geometry.jac import evaluate_jac, gamma_thresholds, jac_admitted  # noqa: E402
+from app.services.calibration.admission import admission_args  # noqa: E402
 
 SETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
 TARGETS = {"sn22": (0.837, 0.985), "wc14": (0.902, 0.979)}
@@ -56,7 +59,8 @@ def run_set(key: str, limit: int | None) -> dict:
     cpu_ms, wall_ms, jac, admitted = [], [], [], []
     refusals: list[tuple[str, str]] = []
     flags: collections.Counter[str] = collections.Counter()
-    gamma_px = gamma_thresholds(W, H, (0.005,))[0]
+    admission = admission_args(Settings())
+    gamma_px = gamma_thresholds(W, H, (admission["admit_jac_gamma"],))[0]
     for frame, data in frames:
         lines = from_soccernet_calibration(data, W, H)
         c0, w0 = time.process_time(), time.perf_counter()
@@ -69,7 +73,7 @@ def run_set(key: str, limit: int | None) -> dict:
             continue
         scores = evaluate_jac(result.camera, lines, W, H, (5.0, 10.0, 20.0, gamma_px)).jac
         jac.append([scores[5.0], scores[10.0], scores[20.0]])
-        admitted.append(scores[gamma_px] > 0.75)
+        admitted.append(jac_admitted(scores[gamma_px], admission["admit_jac_min"]))
     J = np.array(jac).reshape(-1, 3)
     completeness = len(J) / len(frames)
     peer_jac, peer_completeness = _peer(folder)
@@ -91,7 +95,7 @@ def main() -> None:
     args = ap.parse_args()
     rows = [run_set(k, args.limit) for k in args.sets.split(",")]
     head = (f"{'set':5} {'frames':>6} {'compl.':>7} {'JaC@5':>7} {'JaC@10':>7} {'JaC@20':>7} {'final':>7} "
-            f"{'>0.75':>6} {'cpu ms med':>10} {'p99':>6} {'wall med':>8} {'p99':>6}   target JaC@5/compl.   PnLCalib")
+            f"{'admit.':>6} {'cpu ms med':>10} {'p99':>6} {'wall med':>8} {'p99':>6}   target JaC@5/compl.   PnLCalib")
     print(head)
     for r in rows:
         t = TARGETS[r["set"]]

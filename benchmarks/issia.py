@@ -22,6 +22,7 @@ import numpy as np
 from app.core.config import Settings
 from app.services.issia.trajectory import fit_args
 from app.datasets.issia import read_issia
+from app.services.calibration.admission import admission_args
 from app.services.issia.cameras import sequence_cameras
 from app.geometry.trajectory import fit_trajectory, refit_window
 
@@ -31,8 +32,7 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic"
 def evaluate(seq, truth: dict, *, from_lines: bool) -> tuple[dict, object]:
     """Fit ``seq`` in one mode and score it against ``truth`` (issia-dev.truth.json); returns (figures, fit)."""
     t0 = time.perf_counter()
-    choice = sequence_cameras(seq, from_lines=from_lines, admit_jac_min=Settings().admit_jac_min,
-                              pair_rules=fit_args(Settings()))
+    choice = sequence_cameras(seq, from_lines=from_lines, **admission_args(Settings()), pair_rules=fit_args(Settings()))
     t1 = time.perf_counter()
     cams = [choice[c].camera for c in seq.camera_ids]
     fit = fit_trajectory(seq.dense_points(), cams, [seq.image_size[0]] * len(cams), float(truth.get("fps", 25)), **fit_args(Settings()))

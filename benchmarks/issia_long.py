@@ -39,6 +39,7 @@ import numpy as np
 from app.core.config import Settings
 from app.services.issia.trajectory import fit_args
 from app.datasets.issia import read_issia
+from app.services.calibration.admission import admission_args
 from app.services.issia.cameras import sequence_cameras
 from app.geometry.trajectory import fit_trajectory, refit_window
 from benchmarks.issia import evaluate
@@ -183,7 +184,7 @@ def run_sequence(data: Path, truth: dict) -> list[dict]:
 def timing(data: Path, lengths_s: list[float], refits: int, fps: float = 25.0) -> list[dict]:
     """Fit and one-label re-fit times on the first N seconds of ``data`` (calibration-JSON cameras)."""
     seq = read_issia(data)
-    choice = sequence_cameras(seq, admit_jac_min=Settings().admit_jac_min, pair_rules=fit_args(Settings()))
+    choice = sequence_cameras(seq, **admission_args(Settings()), pair_rules=fit_args(Settings()))
     cams = [choice[c].camera for c in seq.camera_ids]
     widths = [seq.image_size[0]] * len(cams)
     dense = seq.dense_points()

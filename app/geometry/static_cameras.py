@@ -2,7 +2,7 @@
 
 A static camera (ISSIA) that sees few field lines (the centre circle and two side lines, say) can
 be refused by :func:`app.geometry.calibration.calibrate_frame` or calibrated below admission
-(JaC@0.5 % <= 0.75). Its ball labels still carry information: the other, admitted cameras give the
+(JaC at the admission's gamma not above its threshold: :func:`app.geometry.jac.jac_admitted`). Its ball labels still carry information: the other, admitted cameras give the
 ball's 3D position in many frames (:mod:`app.geometry.trajectory`), and a camera that does not
 move is fixed by those 2D-3D correspondences (camera resection: RANSAC over a grid of focal lengths,
 and the linear DLT of ``P`` split by RQ decomposition, Hartley and Zisserman section 7.1, as starts
@@ -10,8 +10,8 @@ of a robust refinement of focal length, rotation and centre on the reprojection 
 principal point at the image centre). The camera's centre is then given to the line calibration as a prior
 (:class:`~app.geometry.calibration.CalibrationPrior`), which fits focal length and rotation to the
 lines; because focal length and distance trade off along the viewing direction, the centre is
-then moved to where the lines and the ball agree best. The result is admitted only when its JaC@0.5 % against the camera's own lines clears the
-same threshold, so the lines stay the judge.
+then moved to where the lines and the ball agree best. The result is admitted only when its JaC at the admission's
+gamma against the camera's own lines clears the same threshold, so the lines stay the judge.
 
 World: SoccerNet metres, z down. Pure: numpy, scipy, OpenCV.
 """
@@ -173,18 +173,19 @@ def _rq(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def calibrate_with_ball(lines: FieldLines | None, world_m: np.ndarray, image_px: np.ndarray, width: int, height: int,
-                        *, admit_jac_min: float, search_m: float = 1.0,
+                        *, admit_jac_gamma: float, admit_jac_min: float, search_m: float = 1.0,
                         max_evaluations: int = 150) -> tuple[Camera | None, float | None]:
     """Resect a static camera from ball correspondences (:func:`resect_from_ball`), then, with
     lines, re-fit focal length and rotation to them with the centre held fixed, moving the centre
     (Nelder-Mead, first steps ``search_m`` metres, at most ``max_evaluations`` calibrations) to where
     the fit agrees best with both (hypot of the RMS line residual and the median ball reprojection
     error, px); keep the
-    candidate with the higher JaC@0.5 % and admit it when that JaC is above ``admit_jac_min``.
+    candidate with the higher JaC at ``admit_jac_gamma`` (a fraction of the image diagonal) and admit it when
+    that JaC is above ``admit_jac_min`` (:func:`app.geometry.jac.jac_admitted`; the service passes its settings').
 
     Returns:
         ``(camera, jac)``: ``camera`` is ``None`` when nothing is admitted; ``jac`` is the best
-        JaC@0.5 % reached (``None`` without lines or without any candidate). Without lines the
+        JaC at ``admit_jac_gamma`` reached (``None`` without lines or without any candidate). Without lines the
         resected camera is returned unjudged.
     """
     X = np.asarray(world_m, float).reshape(-1, 3)
@@ -215,6 +216,7 @@ def calibrate_with_ball(lines: FieldLines | None, world_m: np.ndarray, image_px:
     best = score(opt.x)[1]
     if best is not None:
         candidates.append(best)
-    scored = [(jac_at_gammas(c, lines, width, height, (0.005,))[0.005], i, c) for i, c in enumerate(candidates)]
+    scored = [(jac_at_gammas(c, lines, width, height, (admit_jac_gamma,))[admit_jac_gamma], i, c)
+              for i, c in enumerate(candidates)]
     jac, _, best = max(scored, key=lambda s: (s[0], s[1]))  # equal JaC: the camera fitted to the lines
     return (best if jac_admitted(jac, admit_jac_min) else None), float(jac)

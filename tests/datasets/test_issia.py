@@ -11,13 +11,16 @@ import pytest
 from app.core.config import Settings
 from app.services.issia.trajectory import fit_args
 from app.datasets.issia import read_frame_image, read_issia
+from app.geometry.calibration import calibrate_frame
+from app.services.calibration.admission import admission_args
 from app.services.issia.cameras import sequence_cameras
 from app.datasets.issia3d import ISSIA3D_COLUMNS, Issia3DRow, issia3d_rows, read_issia3d_csv, write_issia3d_csv
 from app.geometry.camera import Camera
 from app.core.errors import DatasetError
 
-#: The admission threshold in force (Settings, V3D_ADMIT_JAC_MIN), as the import passes it.
-ADMIT = Settings().admit_jac_min
+#: The admission's gamma and threshold in force (Settings, V3D_ADMIT_JAC_GAMMA and V3D_ADMIT_JAC_MIN), as the import
+#: passes them.
+ADMIT = admission_args(Settings())
 #: The per-frame triangulation's rules of the trajectory fit, the settings' (as the import passes them).
 PAIR_RULES = fit_args(Settings())
 
@@ -46,7 +49,7 @@ def test_reads_folder_into_records(tmp_path):
     assert seq.point(0, "3") == (980.5, 326.0) and seq.point(0, "1") is None and seq.point(1, "6") == (12.0, 13.0)
     assert seq.points.shape == (2, 6, 2)
     assert set(seq.cameras) == set(seq.camera_ids) and seq.lines == {} and seq.media == {}
-    assert sequence_cameras(seq, admit_jac_min=ADMIT, pair_rules=PAIR_RULES)["4"].source == "calibration_json"
+    assert sequence_cameras(seq, **ADMIT, pair_rules=PAIR_RULES)["4"].source == "calibration_json"
 
 
 @pytest.mark.parametrize("text, field", [
@@ -85,7 +88,7 @@ def test_points_csv_is_read_within_bounds(tmp_path, monkeypatch, text, message):
 
 def test_missing_and_unknown_cameras(tmp_path):
     seq = read_issia(make_folder(tmp_path / "a", cameras=(1, 2, 3, 4, 5)))
-    choice = sequence_cameras(seq, admit_jac_min=ADMIT, pair_rules=PAIR_RULES)
+    choice = sequence_cameras(seq, **ADMIT, pair_rules=PAIR_RULES)
     assert choice["6"].camera is None and "not in issia_calibration.json" in choice["6"].reason
     folder = make_folder(tmp_path / "b")
     cal = json.loads((folder / "issia_calibration.json").read_text())
@@ -177,11 +180,11 @@ def test_issue_figures_on_issia_dev(issia_dev, from_lines, tmp_path):
     assert fig["correct_kept_share"] >= 0.97
     if from_lines:  # the bundle adjustment of lines and ball: 0.043 / 0.014 m (0.056 / 0.033 m from the lines alone)
         assert fig["ball_3D_median_error_m"] <= 0.048 and fig["smoothed_median_error_m"] <= 0.02
-        choice = sequence_cameras(seq, from_lines=True, admit_jac_min=ADMIT, pair_rules=PAIR_RULES)
+        choice = sequence_cameras(seq, from_lines=True, **ADMIT, pair_rules=PAIR_RULES)
         assert all(c.bundle_adjusted and c.jac > 0.75 for c in choice.values())
         assert choice["4"].ball_assisted  # refused from its lines, resected from the ball, then adjusted
     # the CSV of the fitted sequence survives a round trip and agrees with the fit
-    cams = {c: ch.camera for c, ch in sequence_cameras(seq, from_lines=from_lines, admit_jac_min=ADMIT, pair_rules=PAIR_RULES).items()}
+    cams = {c: ch.camera for c, ch in sequence_cameras(seq, from_lines=from_lines, **ADMIT, pair_rules=PAIR_RULES).items()}
     rows = issia3d_rows(seq, cams, fit)
     write_issia3d_csv(tmp_path / "ISSIA-3D.csv", rows)
     back = read_issia3d_csv(tmp_path / "ISSIA-3D.csv")
@@ -192,6 +195,27 @@ def test_issue_figures_on_issia_dev(issia_dev, from_lines, tmp_path):
     errs = [r.per_camera[c][2] for r in with_ball for c in r.cam_list]
     assert np.median(errs) < 2.0  # px: the kept labels agree with their frame's ball
     assert all(r.per_camera[c][3] > 0 for r in with_ball for c in r.cam_list)  # optimised box diameter
+
+
+@pytest.mark.shared
+def test_cameras_from_lines_are_judged_at_the_admissions_gamma(issia_dev):
+    """A camera calibrated from its lines is admitted by the admission rule at the gamma it is given (the settings'
+    ``admit_jac_gamma``, not a gamma of its own): its JaC is the calibration's at that gamma, a camera below the
+    threshold is refused with that gamma in its reason, and a gamma the calibration does not score is an error."""
+    seq, _ = issia_dev
+    own = {cid: calibrate_frame(seq.lines[cid], *seq.image_size) for cid in seq.camera_ids if cid in seq.lines}
+    for gamma in (0.005, 0.02):
+        key = f"{gamma:g}"
+        choice = sequence_cameras(seq, from_lines=True, admit_jac_gamma=gamma, admit_jac_min=0.0, pair_rules=PAIR_RULES,
+                                  ball_assist=False, bundle=False)
+        calibrated = {cid for cid, res in own.items() if res.camera is not None}
+        assert calibrated and all(choice[cid].jac == own[cid].jac[key] for cid in calibrated)
+        refused = sequence_cameras(seq, from_lines=True, admit_jac_gamma=gamma, admit_jac_min=1.0, pair_rules=PAIR_RULES,
+                                   ball_assist=False, bundle=False)
+        assert all(refused[cid].refusal == "below_admission" and f"JaC@{100 * gamma:g}% " in refused[cid].reason
+                   for cid in calibrated)
+    with pytest.raises(ValueError, match="admit_jac_gamma"):  # a gamma the calibration does not score
+        sequence_cameras(seq, from_lines=True, admit_jac_gamma=0.001, admit_jac_min=0.0, pair_rules=PAIR_RULES)
 
 
 @pytest.mark.shared

@@ -1,7 +1,8 @@
 """Admission (method.md section 4): a stored frame joins the triangulation when it is calibrated with JaC at
 ``settings.admit_jac_gamma`` strictly above ``settings.admit_jac_min``. One predicate on a stored calibration
 (:func:`is_admitted`, from the pure rule ``app.geometry.jac.jac_admitted``) and one SQL expression of the
-same rule (:func:`admitted_jac_sql`) for the queries that select admitted calibrations.
+same rule (:func:`admitted_jac_sql`) for the queries that select admitted calibrations; the rule's two numbers as
+the geometry takes them (:func:`admission_args`) for what judges a camera before it is stored (ISSIA's cameras).
 """
 from __future__ import annotations
 
@@ -45,6 +46,17 @@ def admitted_jac_sql(settings: Settings) -> Any:
         ValueError: the gamma is not one of the stored :data:`JAC_GAMMAS`.
     """
     return getattr(Calibration, JAC_COLUMNS[admission_gamma(settings)]) > settings.admit_jac_min
+
+
+def admission_args(settings: Settings) -> dict[str, float]:
+    """The admission's ``admit_jac_gamma`` (checked: :func:`admission_gamma`) and ``admit_jac_min`` of ``settings``, as
+    the keyword arguments of the geometry and services that judge a camera by the rule before it is stored
+    (``app.geometry.static_cameras.calibrate_with_ball``, ``app.services.issia.cameras.sequence_cameras``).
+
+    Raises:
+        ValueError: the gamma is not one of the stored :data:`JAC_GAMMAS`.
+    """
+    return {"admit_jac_gamma": admission_gamma(settings), "admit_jac_min": settings.admit_jac_min}
 
 
 def admission_gamma(settings: Settings) -> float:

@@ -36,7 +36,8 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.db.models import JAC_COLUMNS, Frame, System, TriangulationPair
+from app.db.models import Frame, System, TriangulationPair
+from app.services.calibration.admission import admission_jac
 from app.services.derivation.recompute import systems_computed_otherwise
 from app.services.kinds import kind_of
 
@@ -84,7 +85,6 @@ def _sweep(per_system_jacs: list[list[float]]) -> list[dict[str, Any]]:
 
 def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
     """The statistics of the whole database (module docstring)."""
-    jac_column = JAC_COLUMNS.get(settings.admit_jac_gamma, "jac_0005")
     kinds: dict[str, dict[str, Any]] = {}
     jac_values: list[float] = []
     per_system_jacs: list[tuple[str, list[float]]] = []
@@ -115,7 +115,7 @@ def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
                 target["calibrated_images"] += int(calibrated)
                 target["admitted_images"] += int(admitted)
             if calibrated:
-                jac = getattr(cal, jac_column)
+                jac = admission_jac(cal, settings)  # type: ignore[arg-type]
                 if jac is not None:
                     jac_values.append(float(jac))
                     jacs.append(float(jac))

@@ -19,7 +19,7 @@ from app.datasets.issia import FPS, LINES_FILE, IssiaSequence
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration import calibrate_frame
 from app.geometry.camera import Camera
-from app.geometry.jac import jac_admitted, jac_at_gammas
+from app.geometry.jac import JAC_GAMMAS, jac_admitted, jac_at_gammas
 from app.services.curation.words import refusal_sentence
 from app.geometry.static_bundle import bundle_adjust
 from app.geometry.static_cameras import calibrate_with_ball
@@ -30,8 +30,8 @@ from app.geometry.pair_error import REFERENCE_WIDTH_PX
 @dataclass(frozen=True)
 class CameraChoice:
     """The camera a sequence uses for one id: ``camera`` (``None`` when not usable), where it came
-    from (:data:`CAMERA_SOURCES`), JaC@0.5 % against its lines when calibrated from them, and why it is
-    not used (``None`` when used)."""
+    from (:data:`CAMERA_SOURCES`), JaC at the admission's gamma against its lines when calibrated from them, and
+    why it is not used (``None`` when used)."""
 
     camera: Camera | None
     source: str
@@ -57,13 +57,14 @@ class CameraChoice:
 CAMERA_SOURCES = ("calibration_json", "lines", "lines+ball", "lines+bundle", "lines+ball+bundle")
 
 
-def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_min: float,
+def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_gamma: float, admit_jac_min: float,
                      pair_rules: Mapping[str, Any],
                      ball_assist: bool = True, bundle: bool = True) -> dict[str, CameraChoice]:
     """One camera per id: ``issia_calibration.json`` when present (as in the paper), unless
     ``from_lines`` or it is absent; then each static camera is calibrated once from its field lines
-    (:func:`app.geometry.calibration.calibrate_frame`) and admitted when JaC@0.5 % > ``admit_jac_min``
-    (the paper's admission rule); a refused or not admitted camera has ``camera=None`` and a reason.
+    (:func:`app.geometry.calibration.calibrate_frame`) and admitted when its JaC at ``admit_jac_gamma`` is above
+    ``admit_jac_min`` (the paper's admission rule, :func:`app.geometry.jac.jac_admitted`; the callers pass the
+    settings' ``admit_jac_gamma`` and ``admit_jac_min``); a refused or not admitted camera has ``camera=None`` and a reason.
     With two or more admitted cameras, the ball's trajectory is fitted with them
     (:func:`app.geometry.trajectory.fit_trajectory`, its per-frame triangulation's ``tau_px``, ``rule`` and
     ``min_baseline_m`` given as ``pair_rules``: ``app.services.issia.trajectory.fit_args`` of the settings), then:
@@ -73,12 +74,16 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
       against its lines);
     * with ``bundle``, the cameras are refined together from their lines and the ball labels the
       trajectory keeps (:func:`app.geometry.static_bundle.bundle_adjust`; source ``"+bundle"``); a
-      refined camera is kept only when its JaC@0.5 % against its own lines is still above
+      refined camera is kept only when its JaC at ``admit_jac_gamma`` against its own lines is still above
       ``admit_jac_min`` (the lines stay the judge), otherwise the camera before the adjustment stays.
 
     Raises:
         DatasetError: ``from_lines`` without ``issia_lines.json``.
+        ValueError: ``admit_jac_gamma`` is not one of :data:`app.geometry.jac.JAC_GAMMAS` (the calibration's JaC).
     """
+    if admit_jac_gamma not in JAC_GAMMAS:
+        raise ValueError(f"admit_jac_gamma={admit_jac_gamma!r} is not a gamma the calibration scores; choose one of "
+                         f"{list(JAC_GAMMAS)}")
 
     if seq.cameras and not from_lines:
         return {cid: CameraChoice(seq.cameras.get(cid), "calibration_json",
@@ -92,11 +97,12 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
             out[cid] = CameraChoice(None, "lines", reason="no field lines", refusal="no_lines")
             continue
         res = calibrate_frame(seq.lines[cid], *seq.image_size)
-        jac = res.jac.get("0.005") if res.jac else None
+        jac = res.jac.get(f"{admit_jac_gamma:g}") if res.jac else None  # calibrate_frame's keys: JAC_GAMMAS
         if res.camera is None:
             out[cid] = CameraChoice(None, "lines", None, f"refused: {refusal_sentence(res.refusal)}", res.refusal.code)
         elif not jac_admitted(jac, admit_jac_min):
-            out[cid] = CameraChoice(None, "lines", jac, f"JaC@0.5% {jac} not above {admit_jac_min}", "below_admission")
+            out[cid] = CameraChoice(None, "lines", jac, f"JaC@{100 * admit_jac_gamma:g}% {jac} not above {admit_jac_min}",
+                                    "below_admission")
         else:
             out[cid] = CameraChoice(res.camera, "lines", jac)
     refused = [c for c in seq.camera_ids if out[c].camera is None and c in seq.lines]
@@ -106,14 +112,14 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
         fit = fit_trajectory(pts, [out[c].camera for c in seq.camera_ids], [seq.image_size[0]] * len(seq.camera_ids),
                              FPS, **pair_rules)
         if assist:
-            out.update(_ball_assisted(seq, out, refused, admit_jac_min, fit))
+            out.update(_ball_assisted(seq, out, refused, admit_jac_gamma, admit_jac_min, fit))
         if bundle:
-            out.update(_bundle_adjusted(seq, out, fit, admit_jac_min))
+            out.update(_bundle_adjusted(seq, out, fit, admit_jac_gamma, admit_jac_min))
     return out
 
 
 def _ball_assisted(seq: IssiaSequence, choice: dict[str, CameraChoice], refused: list[str],
-                   admit_jac_min: float, fit) -> dict[str, CameraChoice]:
+                   admit_jac_gamma: float, admit_jac_min: float, fit) -> dict[str, CameraChoice]:
     """Calibrate refused static cameras from ``fit``, the trajectory of the admitted ones
     (:func:`app.geometry.static_cameras.calibrate_with_ball`)."""
 
@@ -123,33 +129,35 @@ def _ball_assisted(seq: IssiaSequence, choice: dict[str, CameraChoice], refused:
         k = seq.camera_ids.index(cid)
         sel = np.all(np.isfinite(pts[:, k]), axis=1) & np.all(np.isfinite(fit.positions), axis=1)
         cam, jac = calibrate_with_ball(seq.lines[cid], fit.positions[sel], pts[sel, k], *seq.image_size,
-                                       admit_jac_min=admit_jac_min)
+                                       admit_jac_gamma=admit_jac_gamma, admit_jac_min=admit_jac_min)
         if cam is not None:
             out[cid] = CameraChoice(cam, "lines+ball", jac)
         elif jac is not None:
-            out[cid] = replace(choice[cid], reason=f"{choice[cid].reason}; with the ball's trajectory JaC@0.5% {jac}")
+            out[cid] = replace(choice[cid], reason=f"{choice[cid].reason}; with the ball's trajectory "
+                                                   f"JaC@{100 * admit_jac_gamma:g}% {jac}")
     return out
 
 
 def _bundle_adjusted(seq: IssiaSequence, choice: dict[str, CameraChoice], fit,
-                     admit_jac_min: float) -> dict[str, CameraChoice]:
+                     admit_jac_gamma: float, admit_jac_min: float) -> dict[str, CameraChoice]:
     """The cameras of ``choice`` refined together from their lines and the ball's labels
-    (:func:`bundle_refined_cameras`), each kept when its JaC@0.5 % against its own lines stays above
-    ``admit_jac_min``."""
+    (:func:`bundle_refined_cameras`), each kept when its JaC at ``admit_jac_gamma`` against its own lines stays
+    above ``admit_jac_min``."""
     ids = seq.camera_ids
     refined = bundle_refined_cameras([choice[c].camera for c in ids], [seq.lines.get(c) for c in ids],
                                      seq.dense_points(), seq.image_size, fit,
-                                     [choice[c].ball_assisted for c in ids], admit_jac_min)
+                                     [choice[c].ball_assisted for c in ids], admit_jac_gamma=admit_jac_gamma,
+                                     admit_jac_min=admit_jac_min)
     return {cid: CameraChoice(r[0], choice[cid].source + "+bundle", r[1])
             for cid, r in zip(ids, refined) if r is not None}
 
 
 def bundle_refined_cameras(cameras: Sequence[Camera | None], lines: Sequence[FieldLines | None], points: np.ndarray,
                            image_size: tuple[int, int], fit, resected: Sequence[bool],
-                           admit_jac_min: float) -> list[tuple[Camera, float] | None]:
+                           *, admit_jac_gamma: float, admit_jac_min: float) -> list[tuple[Camera, float] | None]:
     """Static cameras refined together from their field lines and the ball's labels
-    (:func:`app.geometry.static_bundle.bundle_adjust`): per camera ``(refined camera, its JaC@0.5 %
-    against its own lines)`` when that JaC stays above ``admit_jac_min`` (the lines stay the judge),
+    (:func:`app.geometry.static_bundle.bundle_adjust`): per camera ``(refined camera, its JaC at
+    admit_jac_gamma against its own lines)`` when that JaC stays above ``admit_jac_min`` (the lines stay the judge),
     else ``None`` (also for a camera without lines or camera). Used by the import
     (:func:`sequence_cameras`) and by a line edit of a view whose camera it refined.
 
@@ -183,7 +191,7 @@ def bundle_refined_cameras(cameras: Sequence[Camera | None], lines: Sequence[Fie
     for k in range(len(cams)):
         if res.cameras[k] is None or lines[k] is None:
             continue
-        jac = float(jac_at_gammas(res.cameras[k], lines[k], *image_size, (0.005,))[0.005])
+        jac = float(jac_at_gammas(res.cameras[k], lines[k], *image_size, (admit_jac_gamma,))[admit_jac_gamma])
         if jac_admitted(jac, admit_jac_min):
             out[k] = (res.cameras[k], jac)
     return out

@@ -46,7 +46,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
-    BallLabel, Calibration, CalibrationStatus, Doubt, Frame, ReviewDecision, System, SystemKind, TrajectoryPoint,
+    JAC_COLUMNS, BallLabel, Calibration, CalibrationStatus, Doubt, Frame, ReviewDecision, System, SystemKind, TrajectoryPoint,
     Triangulation,
 )
 from app.db.types import json_loads, json_safe, utcnow
@@ -54,6 +54,7 @@ from app.geometry.camera import Camera
 from app.geometry.trajectory import (
     REFIT_REACH, Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window,
 )
+from app.services.calibration.admission import is_admitted
 from app.services.derivation.recompute import load_for_recompute
 from app.services.curation.doubt_words import doubt_message
 from app.services.issia.trajectory import (
@@ -83,8 +84,6 @@ def sequence_columns(session: Session, game_id: int, settings: Settings) -> Sequ
     importer makes one per camera for every frame), usually every camera's admitted view; for a camera
     whose first view is not admitted, the distinct calibrations of its views with the first frame of each
     (grouped by the database), the first admitted of them."""
-    from app.services.calibration.admission import is_admitted
-
     in_game = _in_sequence(game_id)
     start = sa.select(sa.func.min(System.frame_index)).where(*in_game).scalar_subquery()
     found = session.execute(
@@ -100,7 +99,7 @@ def sequence_columns(session: Session, game_id: int, settings: Settings) -> Sequ
     cameras: list[Camera | None] = [None] * len(names)
     first: list[int | None] = [None] * len(names)
     candidates = [(r[3], r[0], r[4:]) for r in found]
-    missing = sorted({name for _, name, admission in candidates if not _admitted(admission, settings, is_admitted)})
+    missing = sorted({name for _, name, admission in candidates if not _admitted(admission, settings)})
     if missing:
         index = sa.func.min(System.frame_index)
         variants = (Calibration.status, sa.cast(Calibration.camera, sa.Text), sa.cast(Calibration.flags, sa.Text),
@@ -114,13 +113,13 @@ def sequence_columns(session: Session, game_id: int, settings: Settings) -> Sequ
             .group_by(Frame.name, *variants))]
     for index, name, admission in sorted(candidates, key=lambda c: c[0]):
         k = col.get(name)
-        if k is not None and cameras[k] is None and _admitted(admission, settings, is_admitted):
+        if k is not None and cameras[k] is None and _admitted(admission, settings):
             cameras[k] = Camera.from_soccernet(admission[1])
             first[k] = index
     return SequenceColumns(names, [float(r[2]) for r in rows], cameras, first)
 
 
-def _admitted(admission: tuple[Any, ...], settings: Settings, is_admitted: Any) -> bool:
+def _admitted(admission: tuple[Any, ...], settings: Settings) -> bool:
     """``is_admitted`` of a calibration given by its :data:`_ADMISSION_NAMES` columns (None: no calibration)."""
     if admission[0] is None:
         return False
@@ -138,7 +137,7 @@ def _in_sequence(game_id: int) -> tuple[Any, ...]:
 
 
 #: The calibration columns admission reads (``app.services.calibration.admission.is_admitted``).
-_ADMISSION_NAMES = ("status", "camera", "flags", "jac_0005", "jac_001", "jac_002")
+_ADMISSION_NAMES = ("status", "camera", "flags", *JAC_COLUMNS.values())
 _ADMISSION_COLUMNS = tuple(getattr(Calibration, n) for n in _ADMISSION_NAMES)
 #: Frames on each side of an edit whose stored pieces :func:`_pieces_around` reads first (then twice as
 #: many, and so on, until it has the pieces the re-fit needs).

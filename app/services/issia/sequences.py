@@ -55,7 +55,7 @@ from app.services.issia.refit import refit_sequence, sequence_columns
 from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence, sequence_arrays
 from app.geometry.jac import JAC_GAMMAS
 from app.datasets.records import CalibrationFields
-from app.services.calibration.admission import GIVEN_CAMERA_FLAG
+from app.services.calibration.admission import GIVEN_CAMERA_FLAG, admission_args
 from app.services.calibration.calibrating import apply_calibration, fit_uncertainty
 from app.services.jobs.progress import Progress
 from app.services.derivation.recompute import load_for_recompute, recompute_system, recompute_systems
@@ -128,8 +128,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
     seq = read_issia(path, flipped_cameras=flipped_cameras, max_pixels=settings.max_image_pixels)
     report.read_seconds = time.perf_counter() - t0
     t1 = time.perf_counter()
-    choice = sequence_cameras(seq, from_lines=from_lines, admit_jac_min=settings.admit_jac_min,
-                              pair_rules=fit_args(settings))
+    choice = sequence_cameras(seq, from_lines=from_lines, **admission_args(settings), pair_rules=fit_args(settings))
     fields = {cid: _camera_fields(seq, cid, choice[cid]) for cid in seq.camera_ids}
     source = CalibrationSource.COMPUTED if from_lines or not seq.cameras else CalibrationSource.IMPORTED
     report.calibration_seconds = time.perf_counter() - t1
@@ -227,8 +226,8 @@ def refined_with_ball(session: Session, frame: Frame, fields: CalibrationFields,
     refined (flag :data:`BALL_BUNDLE_FLAG`: ``v3d import issia --from-lines``), as the import refined it
     (:func:`app.services.issia.cameras.bundle_refined_cameras`): the other cameras are the sequence's (each camera's
     first admitted view's) with their views' lines, the ball labels those of the stored sequence, the
-    trajectory fitted with these cameras. Kept, with the flag, when its JaC@0.5 % against the view's lines
-    stays above ``admit_jac_min``; ``fields`` otherwise (and for any other view). Changes nothing stored.
+    trajectory fitted with these cameras. Kept, with the flag, when its JaC at the admission's gamma against the
+    view's lines stays above ``admit_jac_min``; ``fields`` otherwise (and for any other view). Changes nothing stored.
     About a second on the 200-frame dev sequence (a trajectory fit and the adjustment)."""
     old = frame.calibration
     if (fields.status is not CalibrationStatus.CALIBRATED or fields.camera is None or old is None
@@ -253,7 +252,7 @@ def refined_with_ball(session: Session, frame: Frame, fields: CalibrationFields,
     resected[k] = False
     fit = fit_trajectory(arrays.points, cameras, arrays.widths, FPS, **fit_args(settings))
     refined = bundle_refined_cameras(cameras, lines, arrays.points, (frame.width, frame.height), fit, resected,
-                                     settings.admit_jac_min)[k]
+                                     **admission_args(settings))[k]
     if refined is None:
         return fields
     camera = refined[0]

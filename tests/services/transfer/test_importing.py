@@ -18,6 +18,8 @@ from app.db.models import (
 from app.core.errors import DatasetError
 from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
 from app.geometry.calibration.result import RIG_FLAG
+from app.geometry.jac import jac_admitted
+from app.services.calibration.admission import admission_jac
 
 from ..datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
 
@@ -78,7 +80,8 @@ def test_import_soccernet_v3_stores_systems_frames_labels_and_derived_rows(db_se
                 assert cal.camera is not None and 0.0 <= cal.jac_0005 <= cal.jac_001 <= cal.jac_002 <= 1.0
             else:
                 assert cal.camera is None and cal.reason
-            assert cal.admitted == (cal.status is CalibrationStatus.CALIBRATED and cal.jac_0005 > settings.admit_jac_min)
+            assert cal.admitted == (cal.status is CalibrationStatus.CALIBRATED
+                                    and jac_admitted(admission_jac(cal, settings), settings.admit_jac_min))
         views = [f for f in system.frames if f.calibration.admitted and f.ball_label is not None]
         tri = system.triangulation
         assert len(tri.pairs) == len(views) * (len(views) - 1) // 2
