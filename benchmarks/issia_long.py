@@ -38,7 +38,7 @@ import numpy as np
 
 from app.core.config import Settings
 from app.services.issia.trajectory import fit_args
-from app.datasets.issia import read_issia
+from app.datasets.issia import FPS, read_issia
 from app.services.calibration.admission import admission_args
 from app.services.issia.cameras import sequence_cameras
 from app.geometry.trajectory import fit_trajectory, refit_window
@@ -181,7 +181,7 @@ def run_sequence(data: Path, truth: dict) -> list[dict]:
     return out
 
 
-def timing(data: Path, lengths_s: list[float], refits: int, fps: float = 25.0) -> list[dict]:
+def timing(data: Path, lengths_s: list[float], refits: int, fps: float = FPS) -> list[dict]:
     """Fit and one-label re-fit times on the first N seconds of ``data`` (calibration-JSON cameras)."""
     seq = read_issia(data)
     choice = sequence_cameras(seq, **admission_args(Settings()), pair_rules=fit_args(Settings()))

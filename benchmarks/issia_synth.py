@@ -99,6 +99,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.datasets.issia import FPS
 from app.geometry.camera import Camera
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic"
@@ -530,7 +531,7 @@ def points_csv(frames: list[dict], camera_ids) -> str:
 
 
 def generate(out_dir: str | Path, *, seconds: float = 60.0, seed: int = 1, truth_path: str | Path | None = None,
-             cameras_json: str | Path | None = None, lines_json: str | Path | None = None, fps: float = 25.0,
+             cameras_json: str | Path | None = None, lines_json: str | Path | None = None, fps: float = FPS,
              physics: Physics = Physics(), noise: NoiseModel = NoiseModel(),
              image_size: tuple[int, int] = (1920, 1080)) -> dict:
     """Write an ISSIA folder and its truth (module docstring); returns the truth.

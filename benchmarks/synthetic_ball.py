@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.config import Settings  # noqa: E402
+from app.core.config import PAPER_PROFILE, Settings  # noqa: E402
 from app.geometry.ball import (  # noqa: E402
     OPTIMISED_BOX_METHODS,
     ball_from_box,
@@ -139,10 +139,15 @@ def perturbed_cameras(systems: list[DevSystem], sigma_deg: float, focal_sigma: f
     return out
 
 
-def triangulate_all(systems: list[DevSystem], tau_px: float, rule: str, min_baseline_m: float = 1.0,
+#: This study measures the paper's pair rules: its parallax rule is none (``PAPER_PROFILE``).
+PAPER_PARALLAX_DEG = PAPER_PROFILE["min_parallax_deg"]
+
+
+def triangulate_all(systems: list[DevSystem], tau_px: float, rule: str,
                     mirror_calibration: bool = False, noise: dict | None = None) -> list[TriangulationResult]:
     return [triangulate_ball(observations(s, mirror_calibration, None if noise is None else noise[(s.game, s.action)]),
-                             tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m) for s in systems]
+                             tau_px=tau_px, rule=rule, min_baseline_m=Settings().min_baseline_m,
+                             min_parallax_deg=PAPER_PARALLAX_DEG) for s in systems]
 
 
 def fused_errors_m(systems: list[DevSystem], results: list[TriangulationResult]) -> np.ndarray:
@@ -260,7 +265,8 @@ def issia_study(shared: Path, tau_px: float, rule: str) -> dict[str, float]:
             f = frames[int(row["frame"])]
             obs = [BallObservation(k, cams[k], [float(row[f"x_cam{k}"]), float(row[f"y_cam{k}"])], width)
                    for k in cams if row[f"x_cam{k}"]]
-            res = triangulate_ball(obs, tau_px=tau_px, rule=rule, min_baseline_m=Settings().min_baseline_m)
+            res = triangulate_ball(obs, tau_px=tau_px, rule=rule, min_baseline_m=Settings().min_baseline_m,
+                                   min_parallax_deg=PAPER_PARALLAX_DEG)
             bad = {o.view_id for o in obs if f["cams"][o.view_id]["outlier"]}
             outliers += len(bad)
             outliers_kept += len(bad & res.contributing_views)
@@ -296,7 +302,8 @@ def timings(systems: list[DevSystem], tau_px: float, rule: str, repeats: int = 5
     obs = [observations(s) for s in systems]
     views = [(v.camera, v.box, s.ball_3d) for s in systems for v in s.views if v.box is not None]
     out = {"triangulate_ball per system": median_us(
-        lambda: [triangulate_ball(o, tau_px=tau_px, rule=rule, min_baseline_m=Settings().min_baseline_m) for o in obs], len(obs))}
+        lambda: [triangulate_ball(o, tau_px=tau_px, rule=rule, min_baseline_m=Settings().min_baseline_m,
+                                 min_parallax_deg=PAPER_PARALLAX_DEG) for o in obs], len(obs))}
     for m in OPTIMISED_BOX_METHODS:
         out[f"optimise_box {m} per view"] = median_us(
             lambda m=m: [optimise_box(c, box_centre_and_diameter(b)[0][0], p, BALL_DIAMETER_M, method=m)

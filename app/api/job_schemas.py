@@ -1,5 +1,5 @@
 """Pydantic schemas of the background-job routes: imports (a path or an upload), export jobs, and the
-jobs themselves (``app.services.jobs.runner``). Apart from ``app.api.schemas`` to keep each under ~400 lines."""
+jobs themselves (``app.services.jobs.runner``). Apart from ``app.api.schemas``: the jobs' contract is its own idea."""
 from __future__ import annotations
 
 from datetime import datetime

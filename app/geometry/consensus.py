@@ -65,7 +65,7 @@ def _scaled_error(o: BallObservation, point: np.ndarray) -> float | None:
 
 
 def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, min_baseline_m: float,
-                   min_parallax_deg: float = 0.0, weights: Mapping[Hashable, float] | None = None,
+                   min_parallax_deg: float, weights: Mapping[Hashable, float] | None = None,
                    tolerances_px: Mapping[Hashable, float] | None = None,
                    plausible: Callable[[np.ndarray], bool] | None = None,
                    geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry) -> Consensus:
@@ -100,7 +100,7 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
     >>> ball = np.array([1.0, 2.0, -0.11])
     >>> obs = [BallObservation(i, c, c.project(ball)[0][0], 1920) for i, c in enumerate(cams)]
     >>> obs[2] = BallObservation(2, cams[2], obs[2].point_px + [200.0, 0.0], 1920)  # a wrong label
-    >>> r = ball_consensus(obs, tau_px=20.0, min_baseline_m=1.0)
+    >>> r = ball_consensus(obs, tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=2.0)
     >>> r.inliers, r.outliers, np.round(r.point, 6).tolist()
     ((0, 1), (2,), [1.0, 2.0, -0.11])
     """

@@ -303,7 +303,8 @@ def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings, tau_px: flo
     """
     try:
         with np.errstate(all="ignore"):
-            pr = triangulate_pair(a, b, tau_px=tau_px, rule=rule, min_baseline_m=0.0, geometry=geometry)
+            pr = triangulate_pair(a, b, tau_px=tau_px, rule=rule, min_baseline_m=0.0, min_parallax_deg=0.0,
+                                  geometry=geometry)
     except (np.linalg.LinAlgError, ValueError):
         return None, None
     if pr.error is not None and not np.isfinite(pr.error):

@@ -358,7 +358,7 @@ class PairGeometryMemo:
 
 
 def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, rule: str,
-                     min_baseline_m: float, min_parallax_deg: float = 0.0,
+                     min_baseline_m: float, min_parallax_deg: float,
                      geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
                      ) -> PairResult:
     """Triangulate one pair of views and decide whether it is kept (see the module docstring).
@@ -435,7 +435,7 @@ def _pair_weights(kept: Sequence[PairResult], std_m: Mapping[Hashable, float] | 
 
 
 def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, rule: str,
-                     min_baseline_m: float, min_parallax_deg: float = 0.0,
+                     min_baseline_m: float, min_parallax_deg: float,
                      view_position_std_m: Mapping[Hashable, float] | None = None,
                      play_volume: Callable[[np.ndarray], bool] | None = None,
                      view_weights: Mapping[Hashable, float] | None = None,

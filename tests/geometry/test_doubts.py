@@ -317,7 +317,7 @@ def test_the_consensus_is_general_for_n_views_and_ambiguous_between_two_camps():
     assert r.inliers == tuple(range(6)) and np.linalg.norm(r.point - BALL) < 1e-6 and not r.ambiguous
     other = BALL + [6.0, -4.0, 0.0]
     split = obs[:2] + [BallObservation(i, cams[i], cams[i].project(other)[0][0], W) for i in (2, 3)]
-    assert ball_consensus(split, tau_px=20.0, min_baseline_m=1.0).ambiguous
+    assert ball_consensus(split, tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=0.0).ambiguous
 
 
 def test_the_judges_operating_point_is_the_settings_defaults():

@@ -88,7 +88,7 @@ def test_bundle_recovers_the_rig_from_lines_and_ball(seed):
     # the starting points as a sequence gives them: each frame triangulated with the starting cameras
     X0 = np.full_like(X, np.nan)
     for f in range(F):
-        tri = triangulate_frame([BallObservation(k, start[k], pts[f, k], W) for k in range(6) if np.isfinite(pts[f, k, 0])], tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+        tri = triangulate_frame([BallObservation(k, start[k], pts[f, k], W) for k in range(6) if np.isfinite(pts[f, k, 0])], tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
         if tri.point is not None:
             X0[f] = tri.point
     res = bundle_adjust(start, lines, pts, np.isfinite(pts[..., 0]), X0)

@@ -49,7 +49,7 @@ def observe(cameras, point=BALL, noise_px=0.0, seed=0) -> list[BallObservation]:
 
 
 def test_noise_free_rig_recovers_the_ball_exactly():
-    result = triangulate_ball(observe(rig()), tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    result = triangulate_ball(observe(rig()), tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert result.status == STATUS_TRIANGULATED
     assert result.point.shape == (3,)
     np.testing.assert_allclose(result.point, BALL, atol=1e-7)
@@ -69,7 +69,7 @@ def test_distorted_pixels_are_undistorted_before_the_dlt():
     # Distortion moves the ball by several pixels in view 0: ignoring it would bias the point.
     shift = np.linalg.norm(obs[0].point_px - cams[0].project(BALL[None], distort=False)[0][0])
     assert shift > 5.0
-    result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     np.testing.assert_allclose(result.point, BALL, atol=1e-6)
 
 
@@ -88,7 +88,7 @@ def test_dlt_agrees_with_opencv_triangulate_points():
 
 def test_fused_ball_is_the_mean_of_kept_pairs_and_per_view_errors_are_its_reprojection():
     obs = observe(rig(), noise_px=2.0, seed=1)
-    result = triangulate_ball(obs, tau_px=50.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    result = triangulate_ball(obs, tau_px=50.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     np.testing.assert_allclose(result.point, np.mean([p.point for p in result.pairs], axis=0))
     for o in obs:
         uv = o.camera.project(result.point[None])[0][0]
@@ -99,7 +99,7 @@ def test_wrong_label_is_dropped_by_tau_and_does_not_move_the_ball():
     obs = observe(rig())
     bad = obs[2].point_px + [300.0, -150.0]
     obs[2] = BallObservation("v2", obs[2].camera, bad, obs[2].image_width)
-    result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     by_views = {(p.view_a, p.view_b): p for p in result.pairs}
     assert by_views[("v0", "v1")].kept
     assert by_views[("v0", "v2")].reason == "error_above_tau"
@@ -111,7 +111,7 @@ def test_wrong_label_is_dropped_by_tau_and_does_not_move_the_ball():
 
 
 def test_pair_as_dict_has_the_system_view_keys():
-    result = triangulate_ball(observe(rig()), tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    result = triangulate_ball(observe(rig()), tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     d = result.pairs[0].as_dict()
     assert list(d) == ["view_a", "view_b", "point", "error_px", "parallax_deg", "baseline_m", "kept", "reason"]
     assert d["view_a"] == "v0" and d["kept"] is True and d["reason"] is None
@@ -127,21 +127,21 @@ def test_pair_error_rules_scale_to_1920_wide_images():
     with pytest.raises(ValueError, match="pair_error_rule 'median'"):
         pair_error((1.0, 1.0), (1920.0, 1920.0), "median")
     with pytest.raises(ValueError, match="pair_error_rule"):
-        triangulate_ball(observe(rig()), tau_px=20.0, rule="median", min_baseline_m=1.0)
+        triangulate_ball(observe(rig()), tau_px=20.0, rule="median", min_baseline_m=1.0, min_parallax_deg=0.0)
 
 
 def test_pair_error_uses_the_rule_on_real_reprojections():
     obs = observe(rig(), noise_px=2.0, seed=2)
-    pair = triangulate_ball(obs[:2], tau_px=1e6, rule="max_scaled_1920", min_baseline_m=1.0).pairs[0]
+    pair = triangulate_ball(obs[:2], tau_px=1e6, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).pairs[0]
     e0, e1 = pair.errors_px
     assert pair.error == pytest.approx(max(e0 * 1920 / 1920, e1 * 1920 / 960))
-    mean = triangulate_ball(obs[:2], tau_px=1e6, rule="mean_scaled_1920", min_baseline_m=1.0).pairs[0]
+    mean = triangulate_ball(obs[:2], tau_px=1e6, rule="mean_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).pairs[0]
     assert mean.error == pytest.approx((e0 + 2 * e1) / 2)
 
 
 def test_fewer_than_two_views_is_a_result_not_an_exception():
     for obs in ([], observe(rig())[:1]):
-        result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+        result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
         assert result.status == STATUS_INSUFFICIENT_VIEWS
         assert result.point is None and result.pairs == () and result.view_errors_px == {}
 
@@ -150,7 +150,7 @@ def test_identical_cameras_are_degenerate():
     cam = rig()[0]
     obs = [BallObservation("a", cam, cam.project(BALL[None])[0][0], 1920),
            BallObservation("b", cam, cam.project(BALL[None])[0][0], 1920)]
-    result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert result.status == STATUS_NO_PAIR_KEPT and result.point is None
     assert result.pairs[0].reason == "degenerate"
     assert result.pairs[0].baseline_m == 0.0 and result.pairs[0].parallax_deg == pytest.approx(0.0, abs=1e-6)
@@ -161,7 +161,7 @@ def test_parallel_rays_meet_at_infinity():
     b = look_at([5.0, 60.0, -10.0], [5.0, 0.0, -10.0])  # same orientation, 5 m to the side
     centre = np.array([960.0, 540.0])
     result = triangulate_ball([BallObservation("a", a, centre, 1920), BallObservation("b", b, centre, 1920)],
-                              tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+                              tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert result.pairs[0].reason == "point_at_infinity" and result.pairs[0].point is None
     assert result.pairs[0].parallax_deg == pytest.approx(0.0, abs=1e-9)
     assert result.pairs[0].baseline_m == pytest.approx(5.0)
@@ -176,7 +176,7 @@ def test_intersection_behind_a_camera_is_dropped():
     b = look_at(centre_b, 2 * centre_b - BALL)
     obs = [BallObservation("a", a, a.project(BALL[None])[0][0], 1920),
            BallObservation("b", b, b.project((2 * centre_b - BALL)[None])[0][0], 1920)]
-    result = triangulate_ball(obs, tau_px=1e9, rule="max_scaled_1920", min_baseline_m=1.0)
+    result = triangulate_ball(obs, tau_px=1e9, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     pair = result.pairs[0]
     assert pair.reason == "behind_camera" and not pair.kept
     np.testing.assert_allclose(pair.point, BALL, atol=1e-6)
@@ -189,7 +189,7 @@ def test_fused_ball_behind_one_view_has_no_error_for_it():
     centre = np.array([10.0, -55.0, -12.0])
     c = look_at(centre, 2 * centre - BALL)  # looks away from the ball
     obs.append(BallObservation("v2", c, c.project((2 * centre - BALL)[None])[0][0], 1920))
-    result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    result = triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert result.status == STATUS_TRIANGULATED
     assert result.view_errors_px["v2"] is None
     assert {p.reason for p in result.pairs if not p.kept} == {"behind_camera"}
@@ -198,12 +198,12 @@ def test_fused_ball_behind_one_view_has_no_error_for_it():
 def test_short_baseline_is_dropped_whatever_the_error():
     a = rig()[0]
     b = look_at(a.C + [0.6, 0.0, 0.0], BALL, focal=3000.0)
-    result = triangulate_ball(observe([a, b]), tau_px=20.0, min_baseline_m=1.0, rule="max_scaled_1920")
+    result = triangulate_ball(observe([a, b]), tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=0.0, rule="max_scaled_1920")
     pair = result.pairs[0]
     assert pair.reason == "baseline_below_min" and pair.baseline_m == pytest.approx(0.6)
     assert pair.error < 1e-4  # a perfectly consistent pair, dropped only for its baseline
     assert result.status == STATUS_NO_PAIR_KEPT
-    assert triangulate_ball(observe([a, b]), tau_px=20.0, min_baseline_m=0.5, rule="max_scaled_1920").status == STATUS_TRIANGULATED
+    assert triangulate_ball(observe([a, b]), tau_px=20.0, min_baseline_m=0.5, min_parallax_deg=0.0, rule="max_scaled_1920").status == STATUS_TRIANGULATED
 
 
 def test_parallax_of_perpendicular_rays_is_90_degrees():
@@ -223,9 +223,9 @@ def test_bad_input_names_the_field():
         BallObservation("a", "not a camera", [1.0, 2.0], 1920)
     obs = observe(rig())
     with pytest.raises(ValueError, match="view ids must be unique"):
-        triangulate_ball([obs[0], obs[0]], tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0)
+        triangulate_ball([obs[0], obs[0]], tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     with pytest.raises(ValueError, match="tau_px"):
-        triangulate_ball(obs, tau_px=0.0, rule="max_scaled_1920", min_baseline_m=1.0)
+        triangulate_ball(obs, tau_px=0.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     with pytest.raises(ValueError, match=r"projections must have shape \(V, 3, 4\)"):
         triangulate_dlt(np.zeros((2, 3, 3)), np.zeros((2, 2)))
     with pytest.raises(ValueError, match="at least two views"):
@@ -264,7 +264,7 @@ def test_near_duplicate_viewpoint_is_dropped_by_parallax_even_past_the_baseline_
     obs = observe([main, near], noise_px=0.3)
     beta = parallax_angle_deg(main, obs[0].point_px, near, obs[1].point_px)
     assert 0.1 < beta < 2.0
-    paper = triangulate_ball(obs, tau_px=20.0, min_baseline_m=1.0, rule="max_scaled_1920")
+    paper = triangulate_ball(obs, tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=0.0, rule="max_scaled_1920")
     assert paper.pairs[0].kept
     guarded = triangulate_ball(obs, tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=2.0, rule="max_scaled_1920")
     assert not guarded.pairs[0].kept and guarded.pairs[0].reason == "parallax_below_min"
@@ -308,9 +308,9 @@ def test_uncertainty_weighting_lets_a_weakly_calibrated_view_count_less():
     off = cams[1]
     obs[1] = BallObservation("v1", Camera(K=off.K, R=off.R, C=off.C + np.array([0.0, 2.0, -1.0])), obs[1].point_px,
                              obs[1].image_width)
-    plain = triangulate_ball(obs, tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    plain = triangulate_ball(obs, tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     std = {"v0": 0.05, "v1": 2.0, "v2": 0.08}
-    weighted = triangulate_ball(obs, tau_px=500.0, view_position_std_m=std, rule="max_scaled_1920", min_baseline_m=1.0)
+    weighted = triangulate_ball(obs, tau_px=500.0, view_position_std_m=std, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert all(p.kept for p in plain.pairs)
     pts = [p.point for p in weighted.pairs]
     w = [1.0 / (0.1**2 + std[p.view_a] ** 2 + std[p.view_b] ** 2) for p in weighted.pairs]
@@ -318,9 +318,9 @@ def test_uncertainty_weighting_lets_a_weakly_calibrated_view_count_less():
     err_plain, err_weighted = np.linalg.norm(plain.point - BALL), np.linalg.norm(weighted.point - BALL)
     assert err_weighted < 0.25 * err_plain and err_plain > 0.1
     # An undetermined camera (inf) gets no weight; every pair undetermined falls back to the mean.
-    inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={"v1": float("inf")}, rule="max_scaled_1920", min_baseline_m=1.0)
+    inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={"v1": float("inf")}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     np.testing.assert_allclose(inf.point, plain.pairs[1].point)  # (v0, v2): the only pair without v1
-    all_inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={k: float("inf") for k in std}, rule="max_scaled_1920", min_baseline_m=1.0)
+    all_inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={k: float("inf") for k in std}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     np.testing.assert_allclose(all_inf.point, plain.point)
 
 
@@ -342,11 +342,11 @@ def test_weak_calibrations_neither_make_nor_move_a_ball():
     obs = [BallObservation(o.view_id, _turned(o.camera, 1.5), o.point_px, o.image_width) if o.view_id in weak else o
            for o in obs]
     weights = {"v0": 1.0, "v2": 1.0, "v1": 0.5, "v3": 0.5}
-    weak_pair = triangulate_ball([obs[1], obs[3]], tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    weak_pair = triangulate_ball([obs[1], obs[3]], tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert weak_pair.status == STATUS_TRIANGULATED and np.linalg.norm(weak_pair.point - BALL) > 1.0
 
-    plain = triangulate_ball(obs, tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0)
-    weighted = triangulate_ball(obs, tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0)
+    plain = triangulate_ball(obs, tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    weighted = triangulate_ball(obs, tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert np.linalg.norm(plain.point - BALL) > 0.5
     np.testing.assert_allclose(weighted.point, BALL, atol=1e-6)  # the sure pair (v0, v2) alone
     reasons = {(p.view_a, p.view_b): p.reason for p in weighted.pairs}
@@ -355,9 +355,9 @@ def test_weak_calibrations_neither_make_nor_move_a_ball():
     assert set(reasons.values()) - {None} <= set(DROP_REASONS)
 
     # two half votes make no ball; a full vote and a half one do; a view worth nothing joins no pair
-    assert triangulate_ball([obs[1], obs[3]], tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0).status == STATUS_NO_PAIR_KEPT
-    assert triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0).status == STATUS_TRIANGULATED
-    none = triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights={"v1": 0.0}, rule="max_scaled_1920", min_baseline_m=1.0)
+    assert triangulate_ball([obs[1], obs[3]], tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).status == STATUS_NO_PAIR_KEPT
+    assert triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).status == STATUS_TRIANGULATED
+    none = triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights={"v1": 0.0}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert none.status == STATUS_NO_PAIR_KEPT and none.pairs[0].reason == "weak_calibrations"
     # without weights (or all full) nothing changes: the paper's mean
-    np.testing.assert_allclose(triangulate_ball(obs, tau_px=500.0, view_weights={}, rule="max_scaled_1920", min_baseline_m=1.0).point, plain.point)
+    np.testing.assert_allclose(triangulate_ball(obs, tau_px=500.0, view_weights={}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).point, plain.point)

@@ -336,7 +336,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
     lone_contradicted = bool(helpers) and len(labelled) == 1 and (
         labelled[0].view_id not in cons.inliers and (cons.point is not None or cons.best_pair_error_1920 is not None))
     if not any(i in {v.view_id for v in labelled} for i in cons.inliers):
-        cons = ball_consensus([], tau_px=tau, min_baseline_m=s.min_baseline_m)  # helpers alone say nothing
+        # helpers alone say nothing
+        cons = ball_consensus([], tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg)
     helper_ids = {v.view_id for v in helpers}
     doubts += [_mirror_doubt(v, "flagged" if v in flagged else "suspected", cons, s) for v in mirrored]
     by_id = {v.view_id: v for v in views}

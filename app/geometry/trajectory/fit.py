@@ -94,7 +94,7 @@ def _check_inputs(points, cameras, widths, fps):
 
 def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float], fps: float, *,
                    flag_px: float = DEFAULT_FLAG_PX, break_px: float = DEFAULT_BREAK_PX,
-                   tau_px: float, rule: str, min_baseline_m: float) -> TrajectoryFit:
+                   tau_px: float, rule: str, min_baseline_m: float, min_parallax_deg: float) -> TrajectoryFit:
     """Fit the ball's trajectory to all labels of all cameras at once (module docstring).
 
     Args:
@@ -104,8 +104,9 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
         fps: frame rate; frame ``i`` is at ``t = i / fps`` seconds.
         flag_px: label residual above which the label is an outlier, px at 1920 width.
         break_px: prediction error that ends a piece (three frames in a row), px at 1920 width.
-        tau_px, rule, min_baseline_m: the per-frame triangulation's threshold (px at 1920 width), pair-error rule
-            and least baseline (metres) (:func:`triangulate_frame`; the service passes its settings').
+        tau_px, rule, min_baseline_m, min_parallax_deg: the per-frame triangulation's threshold (px at 1920 width),
+            pair-error rule, least baseline (metres) and least parallax (degrees) (:func:`triangulate_frame`; the
+            service passes its settings').
 
     Returns:
         :class:`TrajectoryFit` of the whole sequence (``first_frame = 0``, F rows).
@@ -118,11 +119,12 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
     by_frame = _group(L)
     pieces = _segment(L, by_frame, sorted(by_frame), fps, break_px)
     return _assemble(pts, 0, cameras, widths, fps, L, pieces, flag_px, tau_px, 0, len(pts) - 1, rule=rule,
-                     min_baseline_m=min_baseline_m)
+                     min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg)
 
 
 def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, a, b, *, rule: str, min_baseline_m: float,
-              previous: TrajectoryFit | None = None, edited: tuple[int, int] | None = None) -> TrajectoryFit:
+              min_parallax_deg: float, previous: TrajectoryFit | None = None,
+              edited: tuple[int, int] | None = None) -> TrajectoryFit:
     """The per-frame rows of frames ``a..b`` (sequence indices; ``pts`` row 0 is frame ``pts_first``)
     from ``pieces``. A frame outside ``edited`` whose kept labels are those of ``previous`` keeps its
     triangulation from ``previous``; the others are triangulated (:func:`triangulate_frame`)."""
@@ -154,7 +156,7 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
         row = a + r - pts_first
         tri = triangulate_frame([BallObservation(int(k), cameras[k], pts[row, k], widths[k])
                                  for k in np.flatnonzero(np.isfinite(residuals[r]))], tau_px=tau_px, rule=rule,
-                                min_baseline_m=min_baseline_m)
+                                min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg)
         if tri.point is not None and np.linalg.norm(tri.point - positions[r]) <= GAP_CONSENSUS_M:
             outliers[r, list(tri.kept)] = False
     keep_mask = np.isfinite(residuals) & ~outliers
@@ -179,7 +181,8 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
         else:
             row = a + r - pts_first
             tri = triangulate_frame([BallObservation(k, cameras[k], pts[row, k], widths[k]) for k in keep],
-                                    tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m) if len(keep) >= 2 \
+                                    tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m,
+                                    min_parallax_deg=min_parallax_deg) if len(keep) >= 2 \
                 else FrameTriangulation(None, (), {})
             point = tri.point
             kept = tuple(sorted(tri.kept)) if tri.point is not None else keep

@@ -31,7 +31,7 @@ class FrameTriangulation:
 
 
 def triangulate_frame(observations: Sequence[BallObservation], *, tau_px: float, rule: str,
-                      min_baseline_m: float) -> FrameTriangulation:
+                      min_baseline_m: float, min_parallax_deg: float) -> FrameTriangulation:
     """The paper's pairwise triangulation (method.md section 5) of the labels that agree, robust to
     wrong cameras.
 
@@ -44,7 +44,8 @@ def triangulate_frame(observations: Sequence[BallObservation], *, tau_px: float,
     Args:
         observations: the frame's labels (distinct view ids).
         tau_px: threshold on pair errors and on each kept label's error, px at 1920 width.
-        rule, min_baseline_m: as in :func:`~app.geometry.triangulation.triangulate_ball`.
+        rule, min_baseline_m, min_parallax_deg: as in :func:`~app.geometry.triangulation.triangulate_ball`
+            (the baseline and parallax also for the consensus' proposing pairs).
 
     Returns:
         :class:`FrameTriangulation`.
@@ -53,11 +54,12 @@ def triangulate_frame(observations: Sequence[BallObservation], *, tau_px: float,
     none = FrameTriangulation(None, (), {})
     if len(obs) < 2:
         return none
-    consensus = ball_consensus(obs, tau_px=tau_px, min_baseline_m=min_baseline_m)
+    consensus = ball_consensus(obs, tau_px=tau_px, min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg)
     if consensus.point is None or consensus.ambiguous or len(consensus.inliers) < 2:
         return none
     kept = [o for o in obs if o.view_id in set(consensus.inliers)]
-    res = triangulate_ball(kept, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m)
+    res = triangulate_ball(kept, tau_px=tau_px, rule=rule, min_baseline_m=min_baseline_m,
+                           min_parallax_deg=min_parallax_deg)
     if res.point is None:
         return none
     errors = {o.view_id: reprojection_error_px(o.camera, res.point, o.point_px) for o in obs}

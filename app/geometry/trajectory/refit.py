@@ -157,7 +157,7 @@ def _window_labels(fit: TrajectoryFit, points, cameras, widths, need: tuple[int,
 def refit_local(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
                 first_frame: int, last_frame: int, *, flag_px: float = DEFAULT_FLAG_PX,
                 break_px: float = DEFAULT_BREAK_PX, tau_px: float, rule: str,
-                min_baseline_m: float) -> TrajectoryFit | None:
+                min_baseline_m: float, min_parallax_deg: float) -> TrajectoryFit | None:
     """The fast path of :func:`refit_window` alone, for a window holding only ``local_span(fit.pieces,
     first_frame, last_frame)``: the same result when it applies, ``None`` when it does not (the edit
     outside every piece or too near the stretch's ends, or a piece that no longer explains its frames):
@@ -177,13 +177,14 @@ def refit_local(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera
     lo, hi, new = fast
     pieces = list(fit.pieces[:lo]) + new + list(fit.pieces[hi + 1:])
     return _assemble(pts, fit.first_frame, cameras, widths, fit.fps, L, pieces, flag_px, tau_px, *need,
-                     rule=rule, min_baseline_m=min_baseline_m, previous=fit, edited=(first_frame, last_frame))
+                     rule=rule, min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg, previous=fit,
+                     edited=(first_frame, last_frame))
 
 
 def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camera | None], widths: Sequence[float],
                  first_frame: int, last_frame: int, *, flag_px: float = DEFAULT_FLAG_PX,
                  break_px: float = DEFAULT_BREAK_PX, tau_px: float, rule: str, min_baseline_m: float,
-                 fast_path: bool = True) -> TrajectoryFit:
+                 min_parallax_deg: float, fast_path: bool = True) -> TrajectoryFit:
     """Re-fit after labels changed in frames ``first_frame..last_frame`` (inclusive; sequence indices).
 
     Fast path (:func:`refit_local`): the piece holding the edit (and, when the edit lies within
@@ -205,7 +206,7 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
             made with the same ``cameras`` (a camera change needs :func:`fit_trajectory`). Its pieces
             may be only those within :data:`REFIT_REACH` of the edit (a run of consecutive pieces).
         points: (len(fit.positions), K, 2) labels of the frames ``fit.frames`` with the edit applied.
-        cameras, widths, flag_px, break_px, tau_px, rule, min_baseline_m: as in :func:`fit_trajectory`.
+        cameras, widths, flag_px, break_px, tau_px, rule, min_baseline_m, min_parallax_deg: as in :func:`fit_trajectory`.
         fast_path: False when the caller knows the fast path does not apply (:func:`refit_local` answered
             ``None`` for the same edit): the pieces are segmented again without trying it a second time.
 
@@ -235,4 +236,5 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
     a, b = _span(pieces, lo, hi, first_frame, last_frame)
     pieces = pieces[:lo] + new + pieces[hi + 1:]
     return _assemble(pts, fit.first_frame, cameras, widths, fit.fps, L, pieces, flag_px, tau_px, a, b,
-                     rule=rule, min_baseline_m=min_baseline_m, previous=fit, edited=(first_frame, last_frame))
+                     rule=rule, min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg, previous=fit,
+                     edited=(first_frame, last_frame))

@@ -66,8 +66,9 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
     ``admit_jac_min`` (the paper's admission rule, :func:`app.geometry.jac.jac_admitted`; the callers pass the
     settings' ``admit_jac_gamma`` and ``admit_jac_min``); a refused or not admitted camera has ``camera=None`` and a reason.
     With two or more admitted cameras, the ball's trajectory is fitted with them
-    (:func:`app.geometry.trajectory.fit_trajectory`, its per-frame triangulation's ``tau_px``, ``rule`` and
-    ``min_baseline_m`` given as ``pair_rules``: ``app.services.issia.trajectory.fit_args`` of the settings), then:
+    (:func:`app.geometry.trajectory.fit_trajectory`, its per-frame triangulation's ``tau_px``, ``rule``,
+    ``min_baseline_m`` and ``min_parallax_deg`` given as ``pair_rules``: ``app.services.issia.trajectory.fit_args``
+    of the settings), then:
 
     * with ``ball_assist``, each refused camera is calibrated again from that trajectory and its own
       labels (source ``"lines+ball"``, :mod:`app.geometry.static_cameras`; admitted by the same JaC rule

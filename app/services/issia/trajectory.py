@@ -195,7 +195,7 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
 def fit_args(settings: Settings) -> dict[str, float]:
     """The keyword arguments of the trajectory fit taken from the settings (its per-frame triangulation's)."""
     return {"tau_px": settings.triangulation_tau_px, "rule": settings.pair_error_rule,
-            "min_baseline_m": settings.min_baseline_m}
+            "min_baseline_m": settings.min_baseline_m, "min_parallax_deg": settings.min_parallax_deg}
 
 
 def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[Changed]:
@@ -216,8 +216,7 @@ def consensus_observations(system: System, observations: list[BallObservation], 
     tp = system.trajectory_point
     flagged = set(tp.flagged or []) if tp is not None else set()
     obs = [o for o in observations if o.view_id not in flagged]
-    tri = triangulate_frame(obs, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                            min_baseline_m=settings.min_baseline_m)
+    tri = triangulate_frame(obs, **fit_args(settings))
     kept = set(tri.kept)
     return [o for o in obs if o.view_id in kept]
 
