@@ -244,6 +244,10 @@ export const WORDS = /*WORDS*/{
    "chip": "below admission",
    "means": "the static camera fits its lines less well than the admission threshold"
   },
+  "not_in_calibration_json": {
+   "chip": "no given camera",
+   "means": "the sequence's calibration file gives no camera for this view"
+  },
   "unspecified": {
    "chip": "refused",
    "means": "refused without a recorded reason"

@@ -18,13 +18,16 @@ from app.geometry.calibration.priors import CameraPrior, anchor_order, prior_row
 from app.geometry.calibration.solver import PriorRows
 from app.geometry.calibration.uncertainty import line_noise, parameter_covariance
 from app.geometry.camera import Camera
-from app.geometry.calibration.result import (CalibrationPrior, CalibrationSettings, MAX_CORNER_DISTORTION, principal_point)
-from app.geometry.calibration.starts import (_Budget, _Candidate, _class_residuals, _fit, _homography_starts, _search, _start_costs, _worst, _with_free_k1)
+from app.geometry.calibration.result import MAX_CORNER_DISTORTION, CalibrationPrior, CalibrationSettings, principal_point
+from app.geometry.calibration.starts import (
+    Budget, Candidate, class_residuals, fit_start, homography_starts, search_starts, start_costs, with_free_k1,
+    worst_residual,
+)
 
 
-def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | None, width: int, height: int,
-                       settings: CalibrationSettings, budget: _Budget
-                       ) -> tuple[str, _Candidate, Observations] | None:
+def without_one_class(lines: FieldLines, obs: Observations, best: Candidate | None, width: int, height: int,
+                       settings: CalibrationSettings, budget: Budget
+                       ) -> tuple[str, Candidate, Observations] | None:
     """Best camera that fits every labelled class but one (a mislabelled line): ``(class left out,
     candidate, its observations)``, or ``None``.
 
@@ -39,29 +42,29 @@ def _without_one_class(lines: FieldLines, obs: Observations, best: _Candidate | 
         reduced = _without_class_observations(lines, cls, settings)
         if reduced is None:
             continue
-        starts = _homography_starts(reduced, pp, scale)
+        starts = homography_starts(reduced, pp, scale)
         if best is not None:
-            starts.append((_start_costs([best.x], [best.param], reduced, scale)[0], "current", best.param, best.x))
+            starts.append((start_costs([best.x], [best.param], reduced, scale)[0], "current", best.param, best.x))
         for cost, _, param, x0 in starts:
             ranked.append((cost / max(reduced.n_points, 1), cls, reduced, param, x0))
     ranked.sort(key=lambda t: t[0])
-    winner: tuple[float, str, _Candidate, Observations] | None = None
+    winner: tuple[float, str, Candidate, Observations] | None = None
     for _, cls, reduced, param, x0 in ranked[:3]:
-        cand = _fit(x0, reduced, param, scale, f"without {cls!r}", budget)
+        cand = fit_start(x0, reduced, param, scale, f"without {cls!r}", budget)
         if cand is None:
             continue
-        worst = max(_class_residuals(cand.param.camera(cand.x), reduced)[0].values())
+        worst = max(class_residuals(cand.param.camera(cand.x), reduced)[0].values())
         if winner is None or worst < winner[0]:
             winner = (worst, cls, cand, reduced)
     return None if winner is None else (winner[1], winner[2], winner[3])
 
 
-def _leave_out_order(obs: Observations, ref: _Candidate | None, settings: CalibrationSettings) -> list[str]:
+def _leave_out_order(obs: Observations, ref: Candidate | None, settings: CalibrationSettings) -> list[str]:
     """The classes to leave out in turn: with a camera ``ref``, the ``settings.leave_out_max_classes``
     it fits worst, worst first (the mislabelled class is almost always among them); else every class."""
     if ref is None:
         return list(obs.classes)
-    per_class = _class_residuals(ref.param.camera(ref.x), obs)[0]
+    per_class = class_residuals(ref.param.camera(ref.x), obs)[0]
     return sorted(obs.classes, key=lambda c: -per_class[c])[:settings.leave_out_max_classes]
 
 
@@ -74,24 +77,24 @@ def _without_class_observations(lines: FieldLines, cls: str, settings: Calibrati
     return reduced
 
 
-def _anchors_without_one_class(lines: FieldLines, obs: Observations, ref: _Candidate | None, width: int, height: int,
+def anchors_without_one_class(lines: FieldLines, obs: Observations, ref: Candidate | None, width: int, height: int,
                                prior: CalibrationPrior, settings: CalibrationSettings, limit: float
-                               ) -> tuple[str, _Candidate, Observations] | None:
+                               ) -> tuple[str, Candidate, Observations] | None:
     """The learned anchors as starts with each class left out in turn (a mislabelled line spoils the
-    anchors' fits as it spoils the others; :func:`_without_one_class` has only the homography starts,
+    anchors' fits as it spoils the others; :func:`without_one_class` has only the homography starts,
     which the remaining labels may not give): ``(class left out, candidate, its observations)`` for
     the first class whose removal lets a fit keep every other class within ``limit`` px, or None.
     Classes are tried worst fitted by ``ref`` first, at most ``settings.leave_out_max_classes``; one
     budget of ``2 settings.max_evaluations`` for all of them (only frames no other start fits pay it)."""
-    budget = _Budget(2 * settings.max_evaluations)
+    budget = Budget(2 * settings.max_evaluations)
     for cls in _leave_out_order(obs, ref, settings)[:settings.leave_out_max_classes]:
         reduced = _without_class_observations(lines, cls, settings)
         if reduced is None:
             continue
         if budget.evaluations <= 0:
             break
-        cand = _search(reduced, width, height, prior, settings, budget, stage="anchors")
-        if cand is not None and _worst(cand, reduced) <= limit:
+        cand = search_starts(reduced, width, height, prior, settings, budget, stage="anchors")
+        if cand is not None and worst_residual(cand, reduced) <= limit:
             return cls, cand, reduced
     return None
 
@@ -100,21 +103,21 @@ def _anchors_without_one_class(lines: FieldLines, obs: Observations, ref: _Candi
 
 
 
-def _with_radial_prior(best: _Candidate, obs: Observations, camera_prior: CameraPrior, scale: float, limit: float,
-                       half_diagonal: float, settings: CalibrationSettings) -> tuple[_Candidate, PriorRows | None]:
+def with_radial_prior(best: Candidate, obs: Observations, camera_prior: CameraPrior, scale: float, limit: float,
+                       half_diagonal: float, settings: CalibrationSettings) -> tuple[Candidate, PriorRows | None]:
     """Refit ``best`` with ``k1`` free under the learned radial prior (:mod:`.priors`):
     ``(candidate, its prior rows)``, or ``(best, None)`` when the fit fails, leaves a class further
     from its element than ``limit`` px (or than ``best`` did) or bends the image corner by more than
     :data:`MAX_CORNER_DISTORTION`. The start is ``best``'s ``k1`` or the prior's ``c_0 (f / h)^2``."""
-    param, f, C, k1 = _with_free_k1(best)
+    param, f, C, k1 = with_free_k1(best)
     sigma = line_noise(residual_rows(best.x, obs, [best.param]), len(best.x))
     rows = prior_rows(camera_prior, None, sigma, half_diagonal)
     start = k1 if k1 != 0.0 else camera_prior.radial_corner * (f / half_diagonal) ** 2
-    cand = _fit(param.vector(f, C, start), obs, param, scale, best.origin + " +radial prior",
-                _Budget(settings.prior_max_evaluations), prior=rows)
+    cand = fit_start(param.vector(f, C, start), obs, param, scale, best.origin + " +radial prior",
+                Budget(settings.prior_max_evaluations), prior=rows)
     if cand is None or abs(cand.x[-1]) * (half_diagonal / cand.x[0]) ** 2 > MAX_CORNER_DISTORTION:
         return best, None
-    if _worst(cand, obs) > max(limit, _worst(best, obs)):
+    if worst_residual(cand, obs) > max(limit, worst_residual(best, obs)):
         return best, None
     cand.k1_tried = True
     return cand, rows
@@ -141,16 +144,16 @@ def radial_corner(camera: Camera, lines: FieldLines, width: int, height: int,
     f = float(camera.K[0, 0])
     param = CameraParametrisation(principal_point=np.asarray(camera.K[:2, 2], dtype=float), R0=np.asarray(camera.R),
                                   fit_k1=True)
-    cand = _fit(param.vector(f, np.asarray(camera.C, dtype=float), float(camera.radial[0])), obs, param,
-                settings.loss_scale_gamma * image_diagonal(width, height), "radial", _Budget(settings.prior_max_evaluations))
+    cand = fit_start(param.vector(f, np.asarray(camera.C, dtype=float), float(camera.radial[0])), obs, param,
+                settings.loss_scale_gamma * image_diagonal(width, height), "radial", Budget(settings.prior_max_evaluations))
     if cand is None:
         return float("nan")
     corner = float(cand.x[-1] * (image_diagonal(width, height) / 2.0 / cand.x[0]) ** 2)
     return corner if abs(corner) <= MAX_CORNER_DISTORTION else float("nan")
 
 
-def _with_camera_prior(best: _Candidate, obs: Observations, camera_prior: CameraPrior, scale: float, limit: float,
-                       half_diagonal: float, settings: CalibrationSettings) -> tuple[_Candidate, PriorRows | None]:
+def with_camera_prior(best: Candidate, obs: Observations, camera_prior: CameraPrior, scale: float, limit: float,
+                       half_diagonal: float, settings: CalibrationSettings) -> tuple[Candidate, PriorRows | None]:
     """The MAP refinement of the free fit ``best`` with a learned prior (:mod:`.priors`):
     ``(candidate, its prior rows)``, or ``(best, None)`` when no anchor is consistent with the lines'
     estimate or no MAP fit keeps every class within ``limit`` px.
@@ -170,14 +173,14 @@ def _with_camera_prior(best: _Candidate, obs: Observations, camera_prior: Camera
     if np.sqrt(np.trace(cov_c)) <= camera_prior.confident_std_m:
         return best, None  # the lines fix the centre as well as those the prior was learned from
     order, d2 = anchor_order(camera_prior, best.param.split(best.x)[2], cov_c)
-    budget = _Budget(settings.prior_max_evaluations)
-    winner: tuple[_Candidate, PriorRows] | None = None
+    budget = Budget(settings.prior_max_evaluations)
+    winner: tuple[Candidate, PriorRows] | None = None
     for a in order[d2 <= settings.prior_max_d2][:settings.prior_anchors]:
         rows = prior_rows(camera_prior, int(a), sigma, half_diagonal)
-        cand = _fit(best.x, obs, best.param, scale, best.origin + " +prior", budget, prior=rows)
+        cand = fit_start(best.x, obs, best.param, scale, best.origin + " +prior", budget, prior=rows)
         if cand is not None and (winner is None or cand.cost < winner[0].cost):
             winner = (cand, rows)
-    if winner is None or _worst(winner[0], obs) > limit:
+    if winner is None or worst_residual(winner[0], obs) > limit:
         return best, None
     winner[0].k1_tried = best.k1_tried
     return winner

@@ -36,7 +36,7 @@ Method (every step pure numpy):
    under the prior's row (flag ``"radial_prior"``): one frame's lines rarely fix the lens, and a pinhole
    fit puts the lines it did not see up to 10 px off near the border (:mod:`.priors`).
 
-Every fit (``_fit``) is one compiled call (:func:`~.solver.robust_lm`), and every ranking of
+Every fit (``fit_start``) is one compiled call (:func:`~.solver.robust_lm`), and every ranking of
 starts one compiled evaluation of all of them (:func:`~.residuals.residual_rows`); what stays in
 Python is the search, which decides the order of the fits: the starts and their ranking
 (:mod:`.starts`), the fallbacks and lens terms (:mod:`.fallbacks`), and here the procedure that runs them
@@ -60,9 +60,14 @@ from app.geometry.calibration.observations import Observations, build_observatio
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIN_LINE_CLASSES, MIRROR_CLASSES
-from app.geometry.calibration.result import (CalibrationPrior, CalibrationResult, Refusal, CalibrationSettings, MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG, side_vote)
-from app.geometry.calibration.starts import (_Budget, _Candidate, _class_residuals, _search, _worst, _with_k1)
-from app.geometry.calibration.fallbacks import (_anchors_without_one_class, _with_camera_prior, _with_radial_prior, _without_one_class)
+from app.geometry.calibration.result import (
+    MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG, CalibrationPrior, CalibrationResult, CalibrationSettings,
+    Refusal, side_vote,
+)
+from app.geometry.calibration.starts import Budget, Candidate, class_residuals, search_starts, with_k1, worst_residual
+from app.geometry.calibration.fallbacks import (
+    anchors_without_one_class, with_camera_prior, with_radial_prior, without_one_class,
+)
 
 
 def _refused(refusal: Refusal, t0: float, flags: tuple[str, ...] = (), residuals_px: Mapping[str, float] | None = None,
@@ -190,59 +195,59 @@ def _calibrate(
     if np.max(np.abs(centred @ normal)) < settings.loss_scale_gamma * diag:
         return _refused(Refusal("collinear_points"), t0, tuple(flags))
     try:
-        budget = _Budget(settings.max_evaluations)
-        best = _search(obs, width, height, prior, settings, budget)
+        budget = Budget(settings.max_evaluations)
+        best = search_starts(obs, width, height, prior, settings, budget)
         fit_obs = obs
         scale = settings.loss_scale_gamma * diag
         limit = settings.refuse_gamma * diag
 
-        def polish(c: _Candidate | None, b: _Budget) -> _Candidate | None:
+        def polish(c: Candidate | None, b: Budget) -> Candidate | None:
             if c is not None and not c.k1_tried and c.p90 > 0.5 * scale and obs.n_points >= settings.k1_min_points:
-                return _with_k1(c, obs, scale, settings, b)
+                return with_k1(c, obs, scale, settings, b)
             return c
 
         best = polish(best, budget)
-        if _worst(best, obs) > limit and not fixed:
+        if worst_residual(best, obs) > limit and not fixed:
             if len(obs.classes) >= 4:
                 # One mislabelled line (left/right confusion, a wrong goal post) spoils a frame.
-                alt = _without_one_class(lines, obs, best, width, height, settings,
-                                         _Budget(settings.max_evaluations // 2))
-                if alt is not None and _worst(alt[1], alt[2]) <= limit:
+                alt = without_one_class(lines, obs, best, width, height, settings,
+                                         Budget(settings.max_evaluations // 2))
+                if alt is not None and worst_residual(alt[1], alt[2]) <= limit:
                     dropped, best, fit_obs = alt
                     flags.append(f"ignored_class:{dropped}")
             if fit_obs is obs and budget.evaluations > 0 and not budget.lookat_done:
-                other = _search(obs, width, height, prior, settings, budget, stage="look-at")
+                other = search_starts(obs, width, height, prior, settings, budget, stage="look-at")
                 other = polish(other, budget)
                 if other is not None and (best is None or other.cost < best.cost):
                     best = other
         centre_prior = None
         if (not fixed and prior is not None and prior.camera_prior is not None and prior.camera_prior.anchors_m
-                and _worst(best, fit_obs) > limit):
+                and worst_residual(best, fit_obs) > limit):
             # No start fitted the labels: the learned camera positions are starts too.
-            anchor_budget = _Budget(settings.max_evaluations)
-            other = polish(_search(obs, width, height, prior, settings, anchor_budget, stage="anchors"), anchor_budget)
-            if other is not None and _worst(other, obs) <= limit:
+            anchor_budget = Budget(settings.max_evaluations)
+            other = polish(search_starts(obs, width, height, prior, settings, anchor_budget, stage="anchors"), anchor_budget)
+            if other is not None and worst_residual(other, obs) <= limit:
                 best, fit_obs = other, obs
                 flags[:] = [f for f in flags if not f.startswith("ignored_class:")]
             elif len(obs.classes) >= 4:
-                alt = _anchors_without_one_class(lines, obs, other if other is not None else best, width, height,
+                alt = anchors_without_one_class(lines, obs, other if other is not None else best, width, height,
                                                  prior, settings, limit)
                 if alt is not None:
                     dropped, best, fit_obs = alt
                     flags[:] = [f for f in flags if not f.startswith("ignored_class:")] + [f"ignored_class:{dropped}"]
         radial_prior = None
         if best is not None and prior is not None and prior.camera_prior is not None and prior.camera_prior.has_radial:
-            best, radial_prior = _with_radial_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
+            best, radial_prior = with_radial_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
                                                     settings)
         if best is not None and not fixed and prior is not None and prior.camera_prior is not None:
-            best, centre_prior = _with_camera_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
+            best, centre_prior = with_camera_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
                                                      settings)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:  # numerical breakdown
         return _refused(Refusal("solver_failed", {"error": str(exc)}), t0, tuple(flags))
     if best is None:
         return _refused(Refusal("no_camera_fits"), t0, tuple(flags))
     camera = best.param.camera(best.x)
-    per_class, rms = _class_residuals(camera, obs)
+    per_class, rms = class_residuals(camera, obs)
     if fixed:
         flags.append(RIG_FLAG)
     if centre_prior is not None:

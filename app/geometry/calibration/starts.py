@@ -41,7 +41,11 @@ START_CENTRES_M: tuple[tuple[float, float, float], ...] = (
 
 
 @dataclass
-class _Candidate:
+class Candidate:
+    """A camera fitted from one start: its parameter vector ``x`` under ``param``, robust cost (px^2), 90th
+    percentile point distance ``p90`` (px), Jacobian at ``x``, the start it came from (``origin``, a label
+    carried along) and whether the radial term was tried on it."""
+
     x: np.ndarray
     param: CameraParametrisation
     cost: float
@@ -52,7 +56,7 @@ class _Candidate:
 
 
 @dataclass
-class _Budget:
+class Budget:
     """Residual evaluations left for one frame: bounds the worst-case time of a frame whose labels
     fit no camera, deterministically (the count does not depend on the machine's load)."""
 
@@ -60,7 +64,7 @@ class _Budget:
     lookat_done: bool = False
 
 
-def _start_costs(xs: list[np.ndarray], params: list[CameraParametrisation], obs: Observations,
+def start_costs(xs: list[np.ndarray], params: list[CameraParametrisation], obs: Observations,
                  scale: float) -> list[float]:
     """Robust cost (px^2) of each start ``xs[i]`` under ``params[i]`` (all of one shape), in one
     compiled evaluation."""
@@ -69,10 +73,10 @@ def _start_costs(xs: list[np.ndarray], params: list[CameraParametrisation], obs:
     return soft_l1_cost(residual_rows(np.array(xs), obs, params), scale).tolist()
 
 
-def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, origin: str,
-         budget: _Budget, max_iter: int = 25, prior: PriorRows | None = None) -> _Candidate | None:
+def fit_start(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale: float, origin: str,
+         budget: Budget, max_iter: int = 25, prior: PriorRows | None = None) -> Candidate | None:
     """Refine from ``x0`` (with the MAP ``prior`` rows, if any) and keep the result if it is a
-    physical camera seeing its labels in front (a :class:`_Candidate`, or None)."""
+    physical camera seeing its labels in front (a :class:`Candidate`, or None)."""
     if budget.evaluations <= 0:
         return None
     lower = np.full(len(x0), -np.inf)
@@ -91,11 +95,11 @@ def _fit(x0: np.ndarray, obs: Observations, param: CameraParametrisation, scale:
     P = projection_matrix(f, param.principal_point, R, C)
     if not np.isfinite(sol.cost) or ground_points_in_front(P, obs) < 0.999:
         return None
-    return _Candidate(x=sol.x, param=param, cost=sol.cost, p90=abs_percentile(sol.residuals, 90),
+    return Candidate(x=sol.x, param=param, cost=sol.cost, p90=abs_percentile(sol.residuals, 90),
                       jacobian=sol.jacobian, origin=origin)
 
 
-def _class_residuals(camera: Camera, obs: Observations) -> tuple[dict[str, float], float]:
+def class_residuals(camera: Camera, obs: Observations) -> tuple[dict[str, float], float]:
     """Largest distance (px) of each class's points to its element, and the RMS over all points."""
     per_point = distances_by_class(camera, obs)
     out = {c: float(np.max(d)) for c, d in per_point.items()}
@@ -103,8 +107,8 @@ def _class_residuals(camera: Camera, obs: Observations) -> tuple[dict[str, float
     return out, float(np.sqrt(np.mean(allr**2))) if len(allr) else 0.0
 
 
-def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior | None,
-            settings: CalibrationSettings, budget: _Budget, stage: str = "homography") -> _Candidate | None:
+def search_starts(obs: Observations, width: int, height: int, prior: CalibrationPrior | None,
+            settings: CalibrationSettings, budget: Budget, stage: str = "homography") -> Candidate | None:
     """Best camera from one family of starts.
 
     ``stage="homography"``: the closed-form cameras of the candidate ground homographies (the
@@ -116,9 +120,9 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
     diag = image_diagonal(width, height)
     scale = settings.loss_scale_gamma * diag
     accept = settings.accept_gamma * diag
-    best: _Candidate | None = None
+    best: Candidate | None = None
 
-    def consider(c: _Candidate | None) -> bool:
+    def consider(c: Candidate | None) -> bool:
         nonlocal best
         if c is not None and (best is None or c.cost < best.cost):
             best = c
@@ -129,18 +133,18 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         centre = np.asarray(prior.centre_m, dtype=float)
         starts = _fixed_centre_starts(obs, centre, pp, width, scale)
         for _, param, x0 in starts[:FIXED_CENTRE_REFINED]:
-            if consider(_fit(x0, obs, param, scale, "rig", budget)):
+            if consider(fit_start(x0, obs, param, scale, "rig", budget)):
                 break
         return best
 
-    starts = _homography_starts(obs, pp, scale) if stage == "homography" else []
+    starts = homography_starts(obs, pp, scale) if stage == "homography" else []
     for _, name, param, x0 in starts[:2]:
-        cand = _fit(x0, obs, param, scale, name, budget)
+        cand = fit_start(x0, obs, param, scale, name, budget)
         if consider(cand):
             return best
         if cand is not None and cand is best and obs.n_points >= settings.k1_min_points:
             # The lines may be curved by the lens: try the radial term before another start.
-            best = _with_k1(cand, obs, scale, settings, budget)
+            best = with_k1(cand, obs, scale, settings, budget)
             if best.p90 < accept:
                 return best
 
@@ -165,18 +169,18 @@ def _search(obs: Observations, width: int, height: int, prior: CalibrationPrior 
         fixed = CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=c0)
         starts_ptz.append((f"start {tuple(c0.tolist())}", fixed, fixed.vector(1.5 * width, c0)))
     if stage == "anchors" and starts_ptz:
-        costs = _start_costs([x0 for _, _, x0 in starts_ptz], [q for _, q, _ in starts_ptz], obs, scale)
+        costs = start_costs([x0 for _, _, x0 in starts_ptz], [q for _, q, _ in starts_ptz], obs, scale)
         starts_ptz = [starts_ptz[i] for i in np.argsort(costs, kind="stable")[:ANCHOR_STARTS]]
-    ptz: list[_Candidate] = []
+    ptz: list[Candidate] = []
     for name, fixed, x0 in starts_ptz:
-        cand = _fit(x0, obs, fixed, scale, name, budget, max_iter=8)
+        cand = fit_start(x0, obs, fixed, scale, name, budget, max_iter=8)
         if cand is not None:
             ptz.append(cand)
     ptz.sort(key=lambda c: c.cost)
     for cand in ptz[:2]:
         f1, R1, C1, _ = cand.param.split(cand.x)
         free = CameraParametrisation(principal_point=pp, R0=R1)
-        if consider(_fit(free.vector(float(f1), C1), obs, free, scale, cand.origin, budget)):
+        if consider(fit_start(free.vector(float(f1), C1), obs, free, scale, cand.origin, budget)):
             break
     return best
 
@@ -213,12 +217,12 @@ def _fixed_centre_starts(obs: Observations, centre: np.ndarray, pp: np.ndarray, 
         pass
     params = [CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=centre) for R0 in rotations]
     x0s = [param.vector(float(f0), centre) for param, f0 in zip(params, f_all)]
-    starts = list(zip(_start_costs(x0s, params, obs, scale), params, x0s))
+    starts = list(zip(start_costs(x0s, params, obs, scale), params, x0s))
     starts.sort(key=lambda t: t[0])
     return starts
 
 
-def _homography_starts(obs: Observations, pp: np.ndarray, scale: float
+def homography_starts(obs: Observations, pp: np.ndarray, scale: float
                        ) -> list[tuple[float, str, CameraParametrisation, np.ndarray]]:
     """Closed-form cameras of the candidate ground homographies, ranked by robust cost
     (``[(cost, name, parametrisation, x0)]``)."""
@@ -230,21 +234,21 @@ def _homography_starts(obs: Observations, pp: np.ndarray, scale: float
         f0, R0, C0 = init
         param = CameraParametrisation(principal_point=pp, R0=R0)
         inits.append((name, param, param.vector(f0, C0)))
-    costs = _start_costs([x0 for _, _, x0 in inits], [param for _, param, _ in inits], obs, scale)
+    costs = start_costs([x0 for _, _, x0 in inits], [param for _, param, _ in inits], obs, scale)
     starts = [(cost, name, param, x0) for cost, (name, param, x0) in zip(costs, inits)]
     starts.sort(key=lambda t: t[0])
     return starts
 
 
-def _worst(cand: _Candidate | None, obs: Observations) -> float:
+def worst_residual(cand: Candidate | None, obs: Observations) -> float:
     """Largest class residual (px) of a candidate, infinity for none."""
     if cand is None:
         return float("inf")
-    per_class = _class_residuals(cand.param.camera(cand.x), obs)[0]
+    per_class = class_residuals(cand.param.camera(cand.x), obs)[0]
     return max(per_class.values()) if per_class else 0.0
 
 
-def _with_free_k1(best: _Candidate) -> tuple[CameraParametrisation, float, np.ndarray, float]:
+def with_free_k1(best: Candidate) -> tuple[CameraParametrisation, float, np.ndarray, float]:
     """``best``'s parametrisation with ``k1`` free (its rotation as the reference, its centre fixed if
     it was), with its focal (px), centre (m) and ``k1``: what a refit with the radial term starts from."""
     f, R, C, k1 = best.param.split(best.x)
@@ -253,13 +257,13 @@ def _with_free_k1(best: _Candidate) -> tuple[CameraParametrisation, float, np.nd
     return param, float(f), C, float(k1)
 
 
-def _with_k1(best: _Candidate, obs: Observations, scale: float, settings: CalibrationSettings,
-             budget: _Budget) -> _Candidate:
+def with_k1(best: Candidate, obs: Observations, scale: float, settings: CalibrationSettings,
+             budget: Budget) -> Candidate:
     """Add the radial coefficient when it lowers the robust cost by ``k1_min_gain`` or more (the
-    better :class:`_Candidate`)."""
-    param, f, C, _ = _with_free_k1(best)
+    better :class:`Candidate`)."""
+    param, f, C, _ = with_free_k1(best)
     best.k1_tried = True
-    cand = _fit(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1", budget)
+    cand = fit_start(param.vector(float(f), C, 0.0), obs, param, scale, best.origin + " +k1", budget)
     if cand is None or abs(cand.x[-1]) > settings.max_k1:
         return best
     if cand.cost < (1.0 - settings.k1_min_gain) * best.cost:

@@ -130,12 +130,15 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "no_lines": {"chip": "no field lines", "means": "the static camera has no field lines to calibrate from"},
         "below_admission": {"chip": "below admission",
                             "means": "the static camera fits its lines less well than the admission threshold"},
+        "not_in_calibration_json": {"chip": "no given camera",
+                                    "means": "the sequence's calibration file gives no camera for this view"},
         "unspecified": {"chip": "refused", "means": "refused without a recorded reason"},
     },
 }
 
 #: The stored sentence of each refusal code, its numbers filled in (the calibration's ``reason``, as the review
-#: page and the exports show it).
+#: page and the exports show it): the calibration's codes, then the ISSIA static cameras' (``no_lines``,
+#: ``below_admission``, ``not_in_calibration_json``: ``app.services.issia.cameras``).
 REFUSAL_SENTENCES: dict[str, str] = {
     "few_constraints": "fewer than {need} independent line constraints ({constraints}: {lines} usable line(s))",
     "parallel_lines": "degenerate configuration: all labelled lines are parallel on the pitch and no circle or goal "
@@ -146,6 +149,9 @@ REFUSAL_SENTENCES: dict[str, str] = {
     "residual_too_high": "residual too high: {line!r} is {px:.1f} px from its model element (limit {limit_px:.1f} px)",
     "centre_misfit": "labels do not fit a camera at the known centre: {rms_px:.1f} px RMS (limit {limit_px:.1f} px)",
     "no_rig_position": "no rig position for this game (no well-calibrated frames to estimate it)",
+    "no_lines": "no field lines",
+    "below_admission": "JaC@{gamma_pct:g}% {jac} not above {admit_jac_min}",
+    "not_in_calibration_json": "not in issia_calibration.json",
 }
 
 

@@ -18,6 +18,7 @@ from app.core.errors import DatasetError
 from app.datasets.issia import FPS, LINES_FILE, IssiaSequence
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration import calibrate_frame
+from app.geometry.calibration.result import Refusal
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS, jac_admitted, jac_at_gammas
 from app.services.curation.words import refusal_sentence
@@ -37,7 +38,8 @@ class CameraChoice:
     source: str
     jac: float | None = None
     reason: str | None = None
-    #: The refusal's code (``WORDS["refusal"]``: the calibration's, ``no_lines`` or ``below_admission``).
+    #: The refusal's code (``WORDS["refusal"]``: the calibration's or one of :data:`STATIC_CAMERA_REFUSALS`;
+    #: ``reason`` is its sentence, ``app.services.curation.words.refusal_sentence``).
     refusal: str | None = None
 
     @property
@@ -49,6 +51,12 @@ class CameraChoice:
     def bundle_adjusted(self) -> bool:
         """Refined by the bundle adjustment of the lines and the ball labels (:func:`_bundle_adjusted`)."""
         return "bundle" in self.source.split("+")
+
+
+#: Why a static camera is not used besides the calibration's own refusals (:data:`~app.geometry.calibration.result.
+#: REFUSAL_CODES`): no field lines to calibrate from, JaC@0.5 % not above the admission threshold, or absent from
+#: ``issia_calibration.json``; their words and sentences are in ``app.services.curation.words``.
+STATIC_CAMERA_REFUSALS = ("no_lines", "below_admission", "not_in_calibration_json")
 
 
 #: Where a sequence's camera comes from: the calibration JSON; its field lines; resected from the ball's
@@ -87,23 +95,24 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
                          f"{list(JAC_GAMMAS)}")
 
     if seq.cameras and not from_lines:
-        return {cid: CameraChoice(seq.cameras.get(cid), "calibration_json",
-                                  reason=None if cid in seq.cameras else "not in issia_calibration.json")
+        missing = Refusal("not_in_calibration_json")
+        return {cid: CameraChoice(seq.cameras.get(cid), "calibration_json") if cid in seq.cameras
+                else CameraChoice(None, "calibration_json", reason=refusal_sentence(missing), refusal=missing.code)
                 for cid in seq.camera_ids}
     if not seq.lines:
         raise DatasetError(seq.root / LINES_FILE, None, "missing: cannot calibrate from lines")
     out = {}
     for cid in seq.camera_ids:
         if cid not in seq.lines:
-            out[cid] = CameraChoice(None, "lines", reason="no field lines", refusal="no_lines")
+            out[cid] = CameraChoice(None, "lines", reason=refusal_sentence(Refusal("no_lines")), refusal="no_lines")
             continue
         res = calibrate_frame(seq.lines[cid], *seq.image_size)
         jac = res.jac.get(f"{admit_jac_gamma:g}") if res.jac else None  # calibrate_frame's keys: JAC_GAMMAS
         if res.camera is None:
             out[cid] = CameraChoice(None, "lines", None, f"refused: {refusal_sentence(res.refusal)}", res.refusal.code)
         elif not jac_admitted(jac, admit_jac_min):
-            out[cid] = CameraChoice(None, "lines", jac, f"JaC@{100 * admit_jac_gamma:g}% {jac} not above {admit_jac_min}",
-                                    "below_admission")
+            below = Refusal("below_admission", {"jac": jac, "gamma_pct": 100 * admit_jac_gamma, "admit_jac_min": admit_jac_min})
+            out[cid] = CameraChoice(None, "lines", jac, refusal_sentence(below), below.code)
         else:
             out[cid] = CameraChoice(res.camera, "lines", jac)
     refused = [c for c in seq.camera_ids if out[c].camera is None and c in seq.lines]

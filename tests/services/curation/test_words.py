@@ -55,10 +55,14 @@ def test_every_refusal_code_of_the_calibration_has_words_and_a_sentence() -> Non
     its stored sentence with the numbers, so the import counts codes and a person reads words."""
     from app.geometry.calibration.result import REFUSAL_CODES, Refusal
     from app.services.curation.words import REFUSAL_SENTENCES, refusal_sentence
+    from app.services.issia.cameras import STATIC_CAMERA_REFUSALS
 
-    assert set(REFUSAL_CODES) <= set(WORDS["refusal"]) and set(REFUSAL_CODES) == set(REFUSAL_SENTENCES)
+    codes = (*REFUSAL_CODES, *STATIC_CAMERA_REFUSALS)
+    assert set(codes) <= set(WORDS["refusal"]) and set(codes) == set(REFUSAL_SENTENCES)
+    assert set(WORDS["refusal"]) == {*codes, "unspecified"}
     numbers = {"need": 7, "constraints": 4, "lines": 2, "error": "singular matrix", "line": "Side line top",
-               "px": 70.06, "limit_px": 27.5, "rms_px": 31.2}
-    sentences = {code: refusal_sentence(Refusal(code, numbers)) for code in REFUSAL_CODES}
+               "px": 70.06, "limit_px": 27.5, "rms_px": 31.2, "jac": 0.61, "gamma_pct": 0.5, "admit_jac_min": 0.75}
+    sentences = {code: refusal_sentence(Refusal(code, numbers)) for code in codes}
     assert sentences["residual_too_high"] == "residual too high: 'Side line top' is 70.1 px from its model element (limit 27.5 px)"
+    assert sentences["below_admission"] == "JaC@0.5% 0.61 not above 0.75"
     assert all(s and "{" not in s for s in sentences.values()), sentences

@@ -13,12 +13,13 @@ import sqlalchemy as sa
 from app.geometry.calibration.result import REFUSAL_CODES
 from app.datasets.issia3d import read_issia3d_csv
 from app.db.models import (
-    BallKind, CalibrationSource, Doubt, Frame, FrameRole, Game, System, SystemKind, TrajectoryPoint,
+    BallKind, CalibrationSource, CalibrationStatus, Doubt, Frame, FrameRole, Game, System, SystemKind, TrajectoryPoint,
 )
 from app.geometry.camera import Camera
 from app.services.issia import sequences as issia_service
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import set_view_excluded, update_ball_label
+from app.services.issia.cameras import STATIC_CAMERA_REFUSALS
 from app.services.issia.sequences import import_issia
 from app.services.issia.export import export_issia3d
 from app.db.models import ReviewStatus
@@ -94,11 +95,26 @@ def test_import_from_calibration_json_stores_the_sequence(db_session, db_setting
     assert len(errors) >= 38 and np.median(errors) < 0.05
 
 
+def test_a_camera_absent_from_the_calibration_file_is_refused_with_its_code(db_session, db_settings, stretch):
+    """A camera ``issia_calibration.json`` does not give is stored refused, its reason the words table's sentence,
+    and the import counts it by its code."""
+    path = stretch / "issia_calibration.json"
+    data = json.loads(path.read_text())
+    del data["3"]
+    path.write_text(json.dumps(data))
+    report = import_issia(db_session, stretch, db_settings)
+    assert (report.calibrated, report.refused) == (5, 1)
+    assert report.refusal_reasons == {"not_in_calibration_json": report.refused}
+    reasons = {f.calibration.reason for s in _systems(db_session).values() for f in s.frames
+               if f.calibration.status == CalibrationStatus.REFUSED}
+    assert reasons == {"not in issia_calibration.json"}
+
+
 def test_import_from_lines_calibrates_each_camera_once(db_session, db_settings, stretch, shared_dir):
     report = import_issia(db_session, stretch, db_settings, from_lines=True)
     assert report.calibrated + report.refused == 6 and report.calibrated >= 4
     assert sum(report.refusal_reasons.values()) == report.refused
-    assert set(report.refusal_reasons) <= {*REFUSAL_CODES, "no_lines", "below_admission"}, report.refusal_reasons
+    assert set(report.refusal_reasons) <= {*REFUSAL_CODES, *STATIC_CAMERA_REFUSALS}, report.refusal_reasons
     systems = _systems(db_session)
     for view in systems[0].frames:
         cams = {json.dumps(_view(s, view.name).calibration.camera, sort_keys=True) for s in systems.values()}
@@ -392,7 +408,6 @@ def test_the_cameras_an_edit_reads_are_those_of_the_whole_sequence(db_session, d
     """``sequence_columns`` reads the first system's views, and the later views of a camera only when its
     first view is not admitted: the same cameras (each camera's first admitted view in frame order) as the
     whole sequence gives (``sequence_arrays``), whether that view is the first, a later one, or none."""
-    from app.db.models import CalibrationStatus
     from app.services.issia.refit import sequence_columns
     from app.services.issia.trajectory import load_sequence, sequence_arrays
 
