@@ -9,18 +9,9 @@ to every label of every camera at once (reprojection residuals in pixels, robust
   ``p(t) = p0 + v0 t + a t^2 / 2`` (``a`` the rolling deceleration, fitted) until it stops
   (``t_stop = -(v0 . a) / |a|^2`` when it decelerates), then at rest.
 
-A *piece* is a stretch of frames under one model with its own 6 parameters. Breaks between pieces
-are kicks and bounces (a bounce keeps the horizontal velocity and scales the vertical one by the
-restitution; the fitted pieces on each side find that without being told). Pieces are found from
-the data (``_segment``): a piece grows frame by frame while its model *predicts* the next
-labelled frames; when three consecutive labelled frames all disagree with the prediction (every
-label of the frame further than ``break_px``), the piece ends and a new one starts; each boundary
-is then moved by up to three frames to the place with the lowest total cost. A piece no ball could
-follow (:func:`app.geometry.motion.plausible`: faster than 45 m/s, under the grass, far off the pitch) or
-shorter than four labelled frames between two others (most often a wrong label at a kick that a piece of
-its own explains) is left out: the trajectory crosses its frames by a cubic Hermite curve between the
-neighbouring pieces, against which their labels are judged; there the frame's own consensus of two or
-more labels on a ball near the curve keeps those labels.
+A *piece* is a stretch of frames under one model with its own 6 parameters; breaks between pieces are kicks
+and bounces. Pieces are found from the data, and a piece no ball could follow, or too short between two
+others, is crossed by a Hermite curve instead (:mod:`~app.geometry.trajectory.segmentation` says how).
 
 Each piece is fitted by iteratively reweighted linear least squares on the algebraic residual
 ``(r_1 - x r_3) . (p - C)``, ``(r_2 - y r_3) . (p - C)`` (``r_i`` rows of R, ``(x, y)`` the
