@@ -9,7 +9,7 @@ z = -2.44). Dimensions and class names follow SoccerNet's ``src/soccerpitch.py``
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from types import MappingProxyType
 from typing import Mapping
 
@@ -86,9 +86,16 @@ class PlayVolume:
     max_below_m: float
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(lo, hi)``: the volume's corners, (3,) world metres each (z of ``lo`` is the highest ball)."""
+        """``(lo, hi)``: the volume's corners, (3,) world metres each (z of ``lo`` is the highest ball); computed
+        once per volume (the trajectory's plausibility asks for them at every candidate piece), read-only."""
+        return self._corners
+
+    @cached_property
+    def _corners(self) -> tuple[np.ndarray, np.ndarray]:
         x, y = PITCH_LENGTH_M / 2 + self.margin_m, PITCH_WIDTH_M / 2 + self.margin_m
-        return np.array([-x, -y, -self.max_height_m]), np.array([x, y, self.max_below_m])
+        lo, hi = np.array([-x, -y, -self.max_height_m]), np.array([x, y, self.max_below_m])
+        lo.flags.writeable = hi.flags.writeable = False
+        return lo, hi
 
 
 #: The one play volume (issue 30): the triangulation drops a pair whose point lies outside it, the mirror evidence
