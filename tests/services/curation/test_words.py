@@ -66,3 +66,14 @@ def test_every_refusal_code_of_the_calibration_has_words_and_a_sentence() -> Non
     assert sentences["residual_too_high"] == "residual too high: 'Side line top' is 70.1 px from its model element (limit 27.5 px)"
     assert sentences["below_admission"] == "JaC@0.5% 0.61 not above 0.75"
     assert all(s and "{" not in s for s in sentences.values()), sentences
+
+
+def test_a_dataset_class_name_reaches_a_refusal_sentence_as_text() -> None:
+    """A refusal's numbers may carry a name from the dataset (the line class of ``residual_too_high``): it is
+    inserted as text, never read as a format field or markup, whatever braces or tags it holds."""
+    from app.geometry.calibration.result import Refusal
+    from app.services.curation.words import refusal_sentence
+
+    hostile = "{need}{0}<img src=x onerror=alert(1)>"
+    sentence = refusal_sentence(Refusal("residual_too_high", {"line": hostile, "px": 70.06, "limit_px": 27.5}))
+    assert sentence == f"residual too high: {hostile!r} is 70.1 px from its model element (limit 27.5 px)"
