@@ -233,10 +233,20 @@ class Camera:
         """True when any distortion coefficient is non-zero (computed once: the arrays are read-only)."""
         return bool(np.any(self.radial) or np.any(self.tangential) or np.any(self.thin_prism))
 
-    @property
+    @cached_property
     def projection_matrix(self) -> np.ndarray:
-        """(3, 4) ``P = K R [I | -C]`` (paper Eq. projection), ignoring distortion."""
-        return self.K @ self.R @ np.hstack([np.eye(3), -self.C[:, None]])
+        """(3, 4) ``P = K R [I | -C]`` (paper Eq. projection), ignoring distortion; computed once, read-only
+        (the camera's arrays never change)."""
+        P = self.K @ self.R @ np.hstack([np.eye(3), -self.C[:, None]])
+        P.setflags(write=False)
+        return P
+
+    @cached_property
+    def K_inv(self) -> np.ndarray:
+        """(3, 3) ``K^-1`` (pixels -> normalised camera coordinates), computed once, read-only."""
+        Kinv = np.linalg.inv(self.K)
+        Kinv.setflags(write=False)
+        return Kinv
 
     def scaled(self, sx: float, sy: float | None = None) -> "Camera":
         """The same camera for an image resized by ``sx`` (and ``sy``) in pixels.
@@ -348,7 +358,7 @@ class Camera:
             ValueError: ``uv`` not (N, 2) or (2,).
         """
         p = as_points(uv, 2, "uv")
-        Kinv = np.linalg.inv(self.K)
+        Kinv = self.K_inv
         xy = p @ Kinv[:2, :2].T + Kinv[:2, 2]
         return self.undistort(xy) if undistort else xy
 

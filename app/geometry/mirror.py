@@ -316,19 +316,21 @@ def _meet(a: BallObservation, b: BallObservation, s: MirrorSettings, tau_px: flo
 
 def pair_relation(a: MirrorView, b: MirrorView, settings: MirrorSettings = MirrorSettings(),
                   geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry, *,
-                  tau_px: float, rule: str) -> PairEvidence:
+                  tau_px: float, rule: str, mirrored: Camera | None = None) -> PairEvidence:
     """Relation of two views' rays: as calibrated and with ``a``'s camera mirrored (module docstring).
 
     Both views need ``ball_px``. The evidence is stated from ``a``'s side (``other`` is ``b``). ``geometry``: where
     the pairs' raw geometry comes from (``app.geometry.triangulation.PairGeometryMemo`` shares it with the
     triangulation and the doubts of one recomputation). ``tau_px``, ``rule``: the triangulation's (px at 1920 width,
-    :data:`app.geometry.pair_error.PAIR_ERROR_RULES`), the settings'.
+    :data:`app.geometry.pair_error.PAIR_ERROR_RULES`), the settings'. ``mirrored``: ``mirror_camera(a.camera)`` when
+    the caller made it already (one per view, so that a memo computes the mirrored ray once for all its pairs).
     """
     if a.ball_px is None or b.ball_px is None:
         raise ValueError("pair_relation needs a ball label in both views")
     ob = BallObservation(b.view_id, b.camera, b.ball_px, b.image_width)
     e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings, tau_px, rule, geometry)
-    e_diff, p_diff = _meet(BallObservation(a.view_id, mirror_camera(a.camera), a.ball_px, a.image_width), ob, settings,
+    mirrored = mirror_camera(a.camera) if mirrored is None else mirrored
+    e_diff, p_diff = _meet(BallObservation(a.view_id, mirrored, a.ball_px, a.image_width), ob, settings,
                            tau_px, rule, geometry)
     axis = [float(np.hypot(p[0], p[1])) for p in (p_same, p_diff) if p is not None]
     if p_same is not None and p_diff is not None:
@@ -379,8 +381,9 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     pair_ev: dict[int, list[PairEvidence]] = {i: [] for i in range(n)}
     constraints: list[tuple[int, int, int]] = []  # (i, j, +1 same / -1 different)
     rayed = [i for i, v in enumerate(vs) if v.rays and v.ball_px is not None]
+    mirrored = {i: mirror_camera(vs[i].camera) for i in rayed}
     for i, j in combinations(rayed, 2):
-        ev_i = pair_relation(vs[i], vs[j], settings, geometry, tau_px=tau_px, rule=rule)
+        ev_i = pair_relation(vs[i], vs[j], settings, geometry, tau_px=tau_px, rule=rule, mirrored=mirrored[i])
         pair_ev[i].append(ev_i)
         # Seen from j: mirroring j instead of i gives the same errors (M applied to both is rigid).
         ev_j = PairEvidence(vs[i].view_id, ev_i.error_as_labelled_px, ev_i.error_mirrored_px, ev_i.relation,

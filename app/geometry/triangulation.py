@@ -43,7 +43,7 @@ from typing import Callable, Hashable, Mapping, Sequence
 
 import numpy as np
 
-from app.geometry.camera import Camera, as_points
+from app.geometry.camera import MIN_DEPTH_M, Camera, as_points
 from app.geometry.pair_error import (pair_error,
     _rule)
 
@@ -259,10 +259,41 @@ def parallax_angle_deg(camera_a: Camera, point_a_px: np.ndarray, camera_b: Camer
     Returns:
         The angle between the two rays, degrees.
     """
-    ra = camera_a.rays(np.asarray(point_a_px, float).reshape(1, 2))[0]
-    rb = camera_b.rays(np.asarray(point_b_px, float).reshape(1, 2))[0]
-    # atan2 of |cross| and dot is accurate at small angles, where arccos(dot) is not.
-    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(ra, rb)), float(ra @ rb))))
+    return _ray_angle_deg(view_ray(camera_a, point_a_px).ray, view_ray(camera_b, point_b_px).ray)
+
+
+@dataclass(frozen=True)
+class ViewRay:
+    """One view's ball pixel made ready for triangulation (:func:`view_ray`).
+
+    Attributes:
+        ray: (3,) unit viewing ray in the world frame (SoccerNet, z down), from the camera centre.
+        pixel: (2,) the pixel undistorted, in the same camera's pixels (the distorted pixel itself for a camera
+            without distortion).
+    """
+
+    ray: np.ndarray
+    pixel: np.ndarray
+
+
+def view_ray(camera: Camera, point_px: np.ndarray) -> ViewRay:
+    """The undistorted ray and pixel of one distorted pixel ``point_px`` ((2,), this camera's image): what
+    :func:`parallax_angle_deg` (the ray, as :meth:`Camera.rays`) and the DLT (the pixel, as
+    :func:`undistort_pixels`) take, from one undistortion."""
+    p = np.asarray(point_px, dtype=float).reshape(1, 2)
+    xy = camera.normalise_pixels(p, undistort=True)
+    pixel = xy @ camera.K[:2, :2].T + camera.K[:2, 2] if camera.has_distortion else p
+    d = np.array([xy[0, 0], xy[0, 1], 1.0]) @ camera.R  # R^T d_cam
+    return ViewRay(d / math.sqrt(float(d @ d)), pixel[0])
+
+
+def _ray_angle_deg(ra: np.ndarray, rb: np.ndarray) -> float:
+    """Angle (degrees) between two unit rays: atan2 of |cross| and dot, accurate at small angles where
+    arccos(dot) is not."""
+    ax, ay, az = float(ra[0]), float(ra[1]), float(ra[2])
+    bx, by, bz = float(rb[0]), float(rb[1]), float(rb[2])
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    return math.degrees(math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz))
 
 
 def reprojection_error_px(camera: Camera, point_world: np.ndarray, point_px: np.ndarray) -> float | None:
@@ -277,10 +308,19 @@ def reprojection_error_px(camera: Camera, point_world: np.ndarray, point_px: np.
         The error in this image's pixels, or ``None`` when the point is behind the camera (camera
         depth below :data:`app.geometry.camera.MIN_DEPTH_M`).
     """
-    uv, in_front = camera.project(np.asarray(point_world, float).reshape(1, 3))
-    if not in_front[0]:
+    # Camera.project for one point, without its array handling (issue 29: a few per pair, many pairs per edit)
+    Xc = camera.R @ (np.asarray(point_world, float).reshape(3) - camera.C)
+    z = float(Xc[2])
+    if not z > MIN_DEPTH_M:
         return None
-    return float(np.linalg.norm(uv[0] - np.asarray(point_px, float).reshape(2)))
+    xy = Xc[:2] / z
+    if camera.has_distortion:
+        xy = camera.distort(xy.reshape(1, 2))[0]
+    K = camera.K
+    u = K[0, 0] * xy[0] + K[0, 1] * xy[1] + K[0, 2]
+    v = K[1, 0] * xy[0] + K[1, 1] * xy[1] + K[1, 2]
+    p = np.asarray(point_px, float).reshape(2)
+    return math.hypot(float(u - p[0]), float(v - p[1]))
 
 
 @dataclass(frozen=True)
@@ -313,10 +353,17 @@ def pair_geometry(a: BallObservation, b: BallObservation) -> PairGeometry:
     parallax (:func:`parallax_angle_deg`), the DLT of the undistorted pixels (Hartley and Zisserman 12.2) and,
     when its point is finite, its reprojection error in each view (:func:`reprojection_error_px`; None behind a
     camera). World frame: SoccerNet (metres, z down)."""
-    baseline = float(np.linalg.norm(a.camera.C - b.camera.C))
-    beta = parallax_angle_deg(a.camera, a.point_px, b.camera, b.point_px)
+    return pair_geometry_of_rays(a, b, view_ray(a.camera, a.point_px), view_ray(b.camera, b.point_px))
+
+
+def pair_geometry_of_rays(a: BallObservation, b: BallObservation, ray_a: ViewRay, ray_b: ViewRay) -> PairGeometry:
+    """:func:`pair_geometry` from the two views' rays already computed (:func:`view_ray` of each observation's
+    camera and pixel; :class:`PairGeometryMemo` computes each view's once for all its pairs)."""
+    d = a.camera.C - b.camera.C
+    baseline = math.sqrt(float(d @ d))
+    beta = _ray_angle_deg(ray_a.ray, ray_b.ray)
     P = np.stack([a.camera.projection_matrix, b.camera.projection_matrix])
-    uv = np.vstack([undistort_pixels(a.camera, a.point_px), undistort_pixels(b.camera, b.point_px)])
+    uv = np.stack([ray_a.pixel, ray_b.pixel])
     h, s = _dlt(P, uv)
     h.setflags(write=False)
     full_rank = bool(s[2] > _RANK_EPS * s[0])
@@ -340,6 +387,7 @@ class PairGeometryMemo:
 
     def __init__(self) -> None:
         self._pairs: dict[tuple, tuple[Camera, Camera, PairGeometry]] = {}
+        self._rays: dict[tuple, tuple[Camera, ViewRay]] = {}
         self.asked = 0
         self.computed = 0
 
@@ -352,9 +400,20 @@ class PairGeometryMemo:
         if hit is not None and hit[0] is a.camera and hit[1] is b.camera:
             return hit[2]
         self.computed += 1
-        g = pair_geometry(a, b)
+        g = pair_geometry_of_rays(a, b, self._ray(a.camera, pa, key[1]), self._ray(b.camera, pb, key[3]))
         self._pairs[key] = (a.camera, b.camera, g)
         return g
+
+    def _ray(self, camera: Camera, pixel: np.ndarray, pixel_key: bytes) -> ViewRay:
+        """:func:`view_ray` of ``camera`` and ``pixel``, computed once per camera and pixel (a view is in every
+        pair of its system, and in the mirror evidence's pairs of its camera again)."""
+        key = (id(camera), pixel_key)
+        hit = self._rays.get(key)
+        if hit is not None and hit[0] is camera:
+            return hit[1]
+        ray = view_ray(camera, pixel)
+        self._rays[key] = (camera, ray)
+        return ray
 
 
 def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, rule: str,

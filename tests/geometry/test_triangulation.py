@@ -361,3 +361,43 @@ def test_weak_calibrations_neither_make_nor_move_a_ball():
     assert none.status == STATUS_NO_PAIR_KEPT and none.pairs[0].reason == "weak_calibrations"
     # without weights (or all full) nothing changes: the paper's mean
     np.testing.assert_allclose(triangulate_ball(obs, tau_px=500.0, view_weights={}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).point, plain.point)
+
+
+def test_one_undistortion_per_view_gives_the_rays_pixels_and_errors_of_the_camera_model():
+    """Issue 29: ``pair_geometry`` undistorts each view's pixel once (``view_ray``) and projects one point without
+    ``Camera.project``'s array handling; its parallax, DLT and reprojection errors are those of the camera model's
+    own functions (``Camera.rays``, ``undistort_pixels``, ``Camera.project``), with and without distortion, and a
+    memo that shares rays across pairs gives the same geometry."""
+    from app.geometry.triangulation import PairGeometryMemo, _dlt, pair_geometry, reprojection_error_px
+
+    rng = np.random.default_rng(29)
+    for i in range(200):
+        cams = []
+        for _ in range(2):
+            cam = Camera.from_parameters(focal_px=rng.uniform(1500, 3000), principal_point=(960.0, 540.0),
+                                         pan_deg=rng.uniform(-180, 180), tilt_deg=rng.uniform(60, 85),
+                                         roll_deg=rng.uniform(-2, 2),
+                                         position_m=[rng.uniform(-60, 60), rng.uniform(40, 70), rng.uniform(-30, -10)])
+            if i % 2:
+                cam = Camera(K=cam.K, R=cam.R, C=cam.C, tangential=np.array([1e-4, -1e-4]),
+                             radial=np.array([rng.uniform(-0.05, 0.05), rng.uniform(-0.01, 0.01), 0, 0, 0, 0]))
+            cams.append(cam)
+        pa, pb = rng.uniform(0, 1920, 2), rng.uniform(0, 1080, 2)
+        a, b = (BallObservation(view_id=k, camera=c, point_px=p, image_width=1920)
+                for k, (c, p) in enumerate(zip(cams, (pa, pb))))
+        g = pair_geometry(a, b)
+        ra, rb = cams[0].rays(pa.reshape(1, 2))[0], cams[1].rays(pb.reshape(1, 2))[0]
+        assert g.parallax_deg == pytest.approx(np.degrees(np.arctan2(np.linalg.norm(np.cross(ra, rb)), ra @ rb)),
+                                               abs=1e-9)
+        h, _ = _dlt(np.stack([cams[0].projection_matrix, cams[1].projection_matrix]),
+                    np.vstack([undistort_pixels(cams[0], pa), undistort_pixels(cams[1], pb)]))
+        assert np.allclose(np.abs(g.h), np.abs(h), atol=1e-12)
+        assert g.baseline_m == pytest.approx(float(np.linalg.norm(cams[0].C - cams[1].C)), rel=1e-12)
+        point = rng.uniform(-50, 50, 3) * [1.0, 1.0, 0.1]
+        for cam, p in zip(cams, (pa, pb)):
+            uv, in_front = cam.project(point.reshape(1, 3))
+            expected = float(np.linalg.norm(uv[0] - p)) if in_front[0] else None
+            assert reprojection_error_px(cam, point, p) == (pytest.approx(expected, rel=1e-12)
+                                                            if expected is not None else None)
+        shared = PairGeometryMemo()(a, b)
+        assert shared.parallax_deg == g.parallax_deg and np.array_equal(shared.h, g.h)
