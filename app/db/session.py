@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import weakref
 import time
 from pathlib import Path
 from typing import Any
@@ -97,6 +98,10 @@ class _WriteTurns:
             turns.lock.release()
 
 
+#: Each SQLite engine's :class:`_WriteTurns` (:func:`begin_write_keeping_objects` takes a turn as ``begin`` does).
+_TURNS: "weakref.WeakKeyDictionary[Engine, _WriteTurns]" = weakref.WeakKeyDictionary()
+
+
 def _prepare_sqlite(engine: Engine, url: sa.URL, busy_timeout_s: float) -> None:
     """Foreign keys ON, WAL journal for file databases, and SQLAlchemy's pysqlite recipe for working
     SAVEPOINTs: the driver's own implicit BEGIN is disabled and SQLAlchemy emits ``BEGIN`` itself, so
@@ -105,6 +110,7 @@ def _prepare_sqlite(engine: Engine, url: sa.URL, busy_timeout_s: float) -> None:
     (:class:`_WriteTurns`)."""
     in_memory = url.database in (None, "", ":memory:") or "mode=memory" in str(url)
     turns = _WriteTurns(busy_timeout_s)
+    _TURNS[engine] = turns
 
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_connection: Any, _record: Any) -> None:
@@ -266,6 +272,49 @@ def begin_write(session: Session) -> None:
         session.rollback()
     session.connection(execution_options={WRITE_OPTION: True})
     session.info[_WRITE_TX] = session.get_transaction()
+
+
+def begin_write_keeping_objects(session: Session) -> None:
+    """End the session's read snapshot (:func:`begin_snapshot`) and begin its write transaction (as
+    :func:`begin_write`) on the same connection, keeping every object the snapshot loaded, and every change made
+    to them in memory and not flushed, as they are. SQLAlchemy's own end of a transaction would not: its rollback
+    expires every object (and drops what was changed in memory), so an edit that computed before its lock
+    loaded its system a second time under it (issue 29: an edit loads what it recomputes once).
+
+    The snapshot has ended: rows it read may have changed since. The caller compares what it read with the
+    database under the lock it takes next, and rolls back (which expires everything, as usual) when they differ.
+    SQLite: the read transaction, which wrote nothing, ends at the driver and ``BEGIN IMMEDIATE`` is taken in this
+    process's turn (:class:`_WriteTurns`); PostgreSQL: the ``REPEATABLE READ`` transaction ends at the driver and
+    the next one begins at the connection's default level, as :func:`begin_write`'s does. A session joined to
+    its caller's transaction (a ``Connection`` bind: the tests') is left alone.
+
+    Raises:
+        RuntimeError: the session has no transaction, or its transaction has flushed (it is no read snapshot).
+    """
+    if isinstance(session.get_bind(), sa.Connection):
+        return
+    tx = session.get_transaction()
+    if tx is None or session.info.get(_FLUSHED_TX) is tx:
+        raise RuntimeError("begin_write_keeping_objects: the session holds no read snapshot")
+    conn = session.connection()
+    raw = conn.connection.dbapi_connection
+    if conn.dialect.name == "sqlite":
+        raw.execute("COMMIT")
+        _TURNS[conn.engine].begin(conn)
+    else:
+        raw.commit()
+        conn.dialect.set_isolation_level(raw, conn.dialect.default_isolation_level)
+    session.info[_WRITE_TX] = tx
+
+
+def data_version(session: Session) -> int | None:
+    """SQLite's ``PRAGMA data_version`` on the session's connection: it changes when another connection commits a
+    change to the database, and only then (https://sqlite.org/pragma.html#pragma_data_version); None on
+    PostgreSQL, where nothing says as cheaply that nobody wrote."""
+    conn = session.connection()
+    if conn.dialect.name != "sqlite":
+        return None
+    return int(conn.exec_driver_sql("PRAGMA data_version").scalar_one())
 
 
 def alembic_config(url: str | sa.URL | None = None, connection: sa.Connection | None = None) -> Any:

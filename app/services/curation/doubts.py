@@ -28,6 +28,7 @@ from app.geometry.triangulation import BallObservation, PairGeometry, pair_geome
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.weighting import calibration_weight
 from app.services.curation.doubt_words import doubt_message
+from app.services.derivation.rows import replace_rows
 from app.services.kinds import kind_of
 
 
@@ -109,16 +110,15 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     found = judge_system(doubt_views(system, cameras), doubt_settings(settings), geometry)
     found = kind_of(system).judge_doubts(system, found, cameras)
     names = {f.id: f.name for f in system.frames}
-    system.doubts.clear()
-    rows = [
-        Doubt(frame_id=d.view_id, kind=d.kind, accuses_label=d.accuses_label, message=doubt_message(d, names),
-              evidence=json_safe({**d.evidence, "code": d.code}), suggestion=json_safe(d.suggestion) if d.suggestion else None)
+    replace_rows(system.doubts, Doubt, [  # in place: a doubt the edit leaves as it was writes nothing
+        dict(frame_id=d.view_id, kind=d.kind, accuses_label=d.accuses_label, message=doubt_message(d, names),
+             evidence=json_safe({**d.evidence, "code": d.code}),
+             suggestion=json_safe(d.suggestion) if d.suggestion else None)
         for d in found
-    ]
-    system.doubts.extend(rows)
+    ])
     system.doubt_counts = dict(Counter(d.kind for d in found))
     system.label_doubts = sum(1 for d in found if d.accuses_label)
-    return rows
+    return list(system.doubts)
 
 
 def suggestion_request(frame_id: int | None, suggestion: dict[str, Any] | None,

@@ -21,6 +21,7 @@ from typing import Optional
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
+from sqlalchemy.orm.attributes import set_committed_value
 
 from app.db.models import Frame, System
 from app.core.errors import NotFoundError, StaleVersionError
@@ -73,10 +74,11 @@ def _lock_system(session: Session, system_id: int) -> None:
     session.execute(sa.select(System.id).where(System.id == system_id).with_for_update())
 
 
-def claim_frame(session: Session, frame_id: int, expected: Optional[Collection[int]]) -> None:
+def claim_frame(session: Session, frame_id: int, expected: Optional[Collection[int]], *, expire: bool = True) -> None:
     """Bump the frame's ``edit_version`` if it is one of ``expected`` (any when None), in the caller's
     transaction, after locking its system's row; then expire the session so that everything read
-    afterwards is the state under the lock.
+    afterwards is the state under the lock (``expire`` False: an edit that compared its loaded rows with the stored
+    ones under the lock keeps its objects; the frame's ``edit_version`` in memory is set to the new one).
 
     Raises:
         NotFoundError: no such frame.
@@ -86,7 +88,7 @@ def claim_frame(session: Session, frame_id: int, expected: Optional[Collection[i
     if system_id is None:
         raise NotFoundError("frame", frame_id)
     _lock_system(session, system_id)
-    _compare_and_set(session, Frame, Frame.edit_version, "frame", frame_id, expected)
+    _compare_and_set(session, Frame, Frame.edit_version, "frame", frame_id, expected, expire=expire)
 
 
 def claim_system_review(session: Session, system_id: int, expected: Optional[Collection[int]]) -> None:
@@ -101,7 +103,7 @@ def claim_system_review(session: Session, system_id: int, expected: Optional[Col
 
 
 def _compare_and_set(session: Session, model: type, column: sa.orm.InstrumentedAttribute, kind: str, ident: int,
-                     expected: Optional[Collection[int]]) -> None:
+                     expected: Optional[Collection[int]], *, expire: bool = True) -> None:
     stmt = sa.update(model).where(model.id == ident).values({column.key: column + 1})
     if expected is not None:
         stmt = stmt.where(column.in_(sorted(expected)))
@@ -111,4 +113,9 @@ def _compare_and_set(session: Session, model: type, column: sa.orm.InstrumentedA
         if current is None:
             raise NotFoundError(kind, ident)
         raise StaleVersionError(kind, ident, etag(kind, ident, current))
-    session.expire_all()
+    if expire:
+        session.expire_all()
+        return
+    loaded = session.identity_map.get(session.identity_key(model, ident))  # type: ignore[arg-type]
+    if loaded is not None:
+        set_committed_value(loaded, column.key, session.scalar(sa.select(column).where(model.id == ident)))

@@ -10,27 +10,30 @@ with the edited part's state before and after. ``revert`` marks the write as the
 entry (``app.services.audit.reverting``): it is recorded as action ``revert``, and refused with
 :class:`~app.core.errors.ConflictError` when the state under the lock is not ``revert.expect``.
 
-Concurrency (several server processes, issues 7 and 27): one locking design for every edit
-(:func:`guarded_write`). Nobody waits on another's geometry:
+Concurrency (several server processes, issues 7, 27 and 29): one locking design for every edit
+(:func:`guarded_write`). Nobody waits on another's geometry, and an edit loads what it recomputes once:
 
 1. **Compute before the lock.** An edit that recomputes (``ball.edit``, ``field_lines.replace``,
-   ``field_lines.mirror``, ``view.exclusion``) first runs its ``apply`` in a read snapshot
-   (``app.db.session.begin_snapshot``: SQLite's deferred ``BEGIN`` under WAL, PostgreSQL ``REPEATABLE READ``; no
-   lock, nothing flushed, :func:`_compute_before_lock`). Each recomputation it asks for (:func:`_recompute_planned`:
-   the edited frame's calibration with its rig or prior retry, admission, mirror evidence, triangulation,
-   reprojections, boxes, doubts, queue figures) is computed there, and the digest of every input it read
-   (``recompute.recompute_inputs``: every view's ball label, field lines, exclusion and calibration of the
-   system, its review status, the game's rig rows or learned camera prior) is kept with its results as plain
-   values (``recompute.system_results``). The snapshot is rolled back; audit entries and decision resets made
-   there are never written.
-2. **Compare and write under the lock.** Then the write transaction begins (``begin_write``: SQLite's
-   ``BEGIN IMMEDIATE``) and locks the edited system's row (:func:`lock_system`: ``SELECT ... FOR UPDATE`` on
-   PostgreSQL, the game's row first for an ISSIA system) before it reads anything it changes; the objects loaded
-   earlier are expired. Under the lock the edit claims its version (412), checks a revert (409), applies its
-   change again and, at each recomputation, loads the system in a few queries and digests its inputs: equal to
-   the digest computed from, the kept results are stored (``recompute.store_system_results``); different (another
-   edit of the system, or of its game's rig, committed meanwhile), it is recomputed under the lock from what the
-   other committed. The audit entry and the decision resets are written in the same transaction, as before.
+   ``field_lines.mirror``, ``view.exclusion``) first runs in a read snapshot (``app.db.session.begin_snapshot``:
+   SQLite's deferred ``BEGIN`` under WAL, PostgreSQL ``REPEATABLE READ``; no lock, nothing flushed,
+   :func:`_compute_before_lock`): its state before, its ``apply`` (the change, the recomputation it asks for
+   through :func:`recompute_planned`: the edited frame's calibration with its rig or prior retry, admission, mirror
+   evidence, triangulation, reprojections, boxes, doubts, queue figures; the decision resets) and its state after,
+   all in memory. The recomputation loads its system in a few queries (``recompute.load_for_recompute``) and
+   reads, in the same snapshot, the digest of every stored row it loaded (``recompute.stored_state_digest``: the
+   system, its views and their one-to-one rows, triangulation, pairs, doubts, reviews, the game and its rig
+   rows) and, on SQLite, the database's ``data_version``.
+2. **Compare and write under the lock.** The snapshot ends without expiring anything
+   (``app.db.session.begin_write_keeping_objects``: the same connection, ``BEGIN IMMEDIATE`` on SQLite) and the
+   edited system's row is locked (:func:`lock_system`: ``SELECT ... FOR UPDATE`` on PostgreSQL, the game's row
+   first for an ISSIA system). Under the lock the stored rows are compared with what was read: on SQLite an
+   unchanged ``data_version`` says that no other connection committed anything since; otherwise the digest is
+   read again. Equal, the objects in memory are the stored rows plus this edit's changes: the edit claims its
+   version (412), checks a revert (409), flushes (the unit of work writes only the attributes that changed:
+   the label, the derived rows the recomputation changed, in place) and records its audit entry, and the answer is
+   drawn from the same objects. Different (another edit of the system, or of its game's rig, committed meanwhile),
+   everything is rolled back (objects expired) and the edit runs again under the lock from what the other
+   committed: claim, change, recompute, audit.
    ``session.info[LAST_RECOMPUTATION]`` says which happened ("precomputed", "recomputed", "under_lock").
 
 Two edits of one system's views therefore never lose each other's label: the later one finds the earlier one's
@@ -43,6 +46,7 @@ lock as before. The lock is held only to compare and write, so waits are short: 
 from __future__ import annotations
 
 
+import contextlib
 import json
 from collections.abc import Collection
 from dataclasses import dataclass, field
@@ -55,14 +59,11 @@ from app.core.config import Settings
 from app.db.models import (
     Frame, Game, System,
 )
-from app.db.session import begin_snapshot, begin_write
+from app.db.session import begin_snapshot, begin_write, begin_write_keeping_objects, data_version
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
-from app.services.derivation.recompute import (
-    SystemResults, load_for_recompute, recompute_inputs, store_system_results,
-    system_results, system_rig_rows,
-)
+from app.services.derivation.recompute import load_for_recompute, stored_state_digest, system_rig_rows
 from app.services.curation.system_page import load_frame
 from app.services.curation.versions import claim_frame
 from app.services.curation.states import (
@@ -85,9 +86,11 @@ class Revert:
     expect: Optional[dict[str, Any]] = None
 
 
-def lock_system(session: Session, system_id: int) -> None:
+def lock_system(session: Session, system_id: int, *, expire: bool = True) -> None:
     """Lock the system's row (and, for an ISSIA system, its game's row first) until the transaction
-    ends, then expire every loaded object so that what the caller reads next is read under the lock.
+    ends, then (``expire``) expire every loaded object so that what the caller reads next is read under the lock.
+    An edit that carries its objects from its snapshot (:func:`_write_carried`) does not expire them: it compares
+    the stored rows with what it read instead.
 
     PostgreSQL: ``SELECT ... FOR UPDATE`` makes concurrent edits of one system (one sequence for ISSIA,
     whose edits re-fit the trajectory of the whole game) wait for each other, so no recomputation is
@@ -99,13 +102,15 @@ def lock_system(session: Session, system_id: int) -> None:
     Raises:
         NotFoundError: no system has this id.
     """
-    row = session.execute(select(System.game_id, System.kind).where(System.id == system_id)).one_or_none()
-    if row is None:
-        raise NotFoundError("system", system_id)
-    if policy(row.kind).edit_locks_game:
-        session.execute(select(Game.id).where(Game.id == row.game_id).with_for_update())
-    session.execute(select(System.id).where(System.id == system_id).with_for_update())
-    session.expire_all()
+    with session.no_autoflush if not expire else contextlib.nullcontext():  # kept objects keep their changes unflushed
+        row = session.execute(select(System.game_id, System.kind).where(System.id == system_id)).one_or_none()
+        if row is None:
+            raise NotFoundError("system", system_id)
+        if policy(row.kind).edit_locks_game:
+            session.execute(select(Game.id).where(Game.id == row.game_id).with_for_update())
+        session.execute(select(System.id).where(System.id == system_id).with_for_update())
+    if expire:
+        session.expire_all()
 
 
 # ----- the one locking design of the edit path (module docstring, "Concurrency") ---------------------------
@@ -114,8 +119,9 @@ _PLAN = "v3d.edit.plan"
 
 
 #: ``session.info`` key: how the last edit's recomputation was stored: "precomputed" (computed before the lock,
-#: its inputs unchanged under it), "recomputed" (an input changed meanwhile: computed again under the lock) or
-#: "under_lock" (computed under the lock only: the kind re-fits beyond its system, or nothing was computed before).
+#: the stored rows unchanged under it), "recomputed" (a stored row changed meanwhile: computed again under the
+#: lock) or "under_lock" (computed under the lock only: the kind re-fits beyond its system, or nothing was computed
+#: before).
 LAST_RECOMPUTATION = "v3d.edit.recomputation"
 
 
@@ -125,24 +131,34 @@ _RECOMPUTING = frozenset({"ball.edit", "field_lines.replace", "field_lines.mirro
 
 @dataclass
 class _Plan:
-    """An edit's recomputations as computed before the write lock: per recomputation, in order, the digest of
-    the inputs it read (``recompute.recompute_inputs``) and its results (``recompute.system_results``)."""
+    """What an edit computing before its lock read (:func:`recompute_planned`): per recomputed system, the digest of
+    its stored rows as the snapshot saw them (``recompute.stored_state_digest``), and the snapshot's SQLite
+    ``data_version`` (None on PostgreSQL)."""
 
-    capturing: bool = True
-    entries: list[tuple[str, SystemResults]] = field(default_factory=list)
-    used: int = 0
-    recomputed: int = 0
+    digests: dict[int, str] = field(default_factory=dict)
+    data_version: Optional[int] = None
+    settings: Optional[Settings] = None
+
+
+@dataclass
+class _Carried:
+    """An edit computed in its snapshot, in memory, to be written under the lock when nothing it read changed:
+    its subject, state before and after, result and plan."""
+
+    target: Any
+    before: dict[str, Any]
+    after: dict[str, Any]
+    result: Any
+    plan: _Plan
 
 
 class _NoWriteBeforeLock(Exception):
-    """Raised by a flush while an edit computes before its lock: what follows the recomputation (audit entries,
-    decision resets) is written under the lock only."""
+    """Raised by a flush while an edit computes before its lock: everything is written under the lock only."""
 
 
 @event.listens_for(Session, "before_flush")
 def _no_flush_before_lock(session: Session, _context: Any, _instances: Any) -> None:
-    plan = session.info.get(_PLAN)
-    if plan is not None and plan.capturing:
+    if session.info.get(_PLAN) is not None:
         raise _NoWriteBeforeLock()
 
 
@@ -152,59 +168,91 @@ def computed_before_lock(system_id: int) -> None:
 
 
 def _compute_before_lock(session: Session, system_id: int, subject: Callable[[], Any],
-                         apply: Callable[[Any], Any]) -> Optional[_Plan]:
-    """Run the edit's ``apply`` on ``subject()`` in a read snapshot (``begin_snapshot``: no lock, nothing
-    flushed), keep what each of its recomputations read and found (:func:`recompute_planned`), then roll the
-    snapshot back. None when there is nothing to reuse: the system's kind re-fits beyond it
-    (``KindPolicy.computes_before_lock``), the session holds unwritten changes of its caller, or nothing was
-    computed. Whatever fails here is decided again under the lock (the same error, or none if the state changed)."""
+                         state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], Any]) -> Optional[_Carried]:
+    """Run the edit in a read snapshot (``begin_snapshot``: no lock, nothing flushed): ``state`` of ``subject()``
+    before, ``apply``, ``state`` after, all in memory, with what its recomputation read (:func:`recompute_planned`).
+    The snapshot stays open (the caller ends it keeping the objects, :func:`_write_carried`). None, with the
+    snapshot rolled back, when there is nothing to carry: the system's kind re-fits beyond it
+    (``KindPolicy.computes_before_lock``), the session holds unwritten changes of its caller, the edit recomputed
+    nothing or something else than its system, or it failed (whatever fails here is decided again under the
+    lock: the same error, or none if the state changed)."""
     try:
         begin_snapshot(session)
     except RuntimeError:
         return None
     plan = _Plan()
+    carried = None
     session.info[_PLAN] = plan
     try:
         with session.no_autoflush:
             if kind_of(get_system(session, system_id)).computes_before_lock:
-                apply(subject())
-    except Exception:  # noqa: BLE001  # _NoWriteBeforeLock once the recomputation is done; anything else: under the lock
-        pass
+                target = subject()
+                before = state(target)
+                result = apply(target)
+                if set(plan.digests) == {system_id}:
+                    carried = _Carried(target, before, state(target), result, plan)
+    except Exception:  # noqa: BLE001  # decided again under the lock
+        carried = None
     finally:
         session.info.pop(_PLAN, None)
-        audit.recorded_entry_id(session)  # an entry apply added here is never written
-        session.rollback()
+        if carried is None:
+            audit.recorded_entry_id(session)  # an entry apply added here is never written
+            session.rollback()
     computed_before_lock(system_id)
-    plan.capturing = False
-    return plan if plan.entries else None
+    return carried
 
 
 def recompute_planned(session: Session, system: System, settings: Settings,
                        compute: Callable[[Optional[list[tuple[int, Any, bool]]]], Any]) -> None:
-    """Run the recomputation ``compute`` of ``system`` within the running edit's plan: what it reads is loaded
-    first (``load_for_recompute``, after a flush under the lock); before the lock it is computed and its inputs'
-    digest and results kept; under the lock its results are stored when the inputs' digest is the one computed
-    from (``store_system_results``), else it is computed again. Without a plan it is computed. ``compute(rig)`` takes
-    the game's rig rows the digest read (``recompute.system_rig_rows``; None: not read), so it reads them once."""
+    """Run the recomputation ``compute`` of ``system``: what it reads is loaded first, in a few queries
+    (``load_for_recompute``; after a flush, under the lock). Within an edit computing before its lock
+    (:func:`_compute_before_lock`) the digest of the stored rows it loaded is kept for the comparison under the lock
+    (``recompute.stored_state_digest``), in the same snapshot. ``compute(rig)`` takes the game's rig rows read here
+    (``recompute.system_rig_rows``; None: the kind uses no rig), so they are read once."""
     plan: Optional[_Plan] = session.info.get(_PLAN)
-    if plan is None or not plan.capturing:
+    if plan is None:
         session.flush()
     load_for_recompute(session, [system.id])  # what it reads, in a few queries (not one per relation and view)
-    if plan is None or not kind_of(system).computes_before_lock:
-        compute(None)
-        return
     rig = system_rig_rows(session, system, settings)
-    inputs = recompute_inputs(session, system, settings, rig)
-    if plan.capturing:
-        compute(rig)
-        plan.entries.append((inputs, system_results(system)))
-        return
-    i, plan.used = plan.used, plan.used + 1
-    if i < len(plan.entries) and plan.entries[i][0] == inputs:
-        store_system_results(session, system, plan.entries[i][1])
-    else:  # a view's label, lines, exclusion or calibration, or the game's rig, changed since: compute again
-        plan.recomputed += 1
-        compute(rig)
+    if plan is not None:
+        plan.digests[system.id] = stored_state_digest(session, system.id, rig)
+        plan.data_version, plan.settings = data_version(session), settings
+    compute(rig)
+
+
+def _write_carried(session: Session, system_id: int, carried: _Carried, claim: Callable[..., None],
+                   check: Callable[[dict[str, Any]], None], record: Callable[[Any, dict[str, Any], dict[str, Any]], None]
+                   ) -> bool:
+    """Write an edit computed before the lock (:func:`_compute_before_lock`) under it, in one transaction: end the
+    snapshot keeping its objects (``begin_write_keeping_objects``), lock the system, and compare its stored rows with
+    what the snapshot read (SQLite's ``data_version`` unchanged, or the digest read again equal); then claim the
+    version, ``check`` the state before (a revert's), flush what changed, ``record`` the audit entry and commit.
+    False, with everything rolled back, when a stored row changed meanwhile (the caller runs the edit under the
+    lock). Raises what ``claim`` and ``check`` raise (rolled back; a stale version described)."""
+    try:
+        begin_write_keeping_objects(session)
+        with session.no_autoflush:
+            lock_system(session, system_id, expire=False)
+            plan = carried.plan
+            unchanged = plan.data_version is not None and data_version(session) == plan.data_version
+            if not unchanged:
+                system = session.get(System, system_id)
+                rig = system_rig_rows(session, system, plan.settings) if system is not None else None
+                unchanged = system is not None and stored_state_digest(session, system_id, rig) == plan.digests[system_id]
+            if not unchanged:
+                session.rollback()
+                return False
+            claim(expire=False)
+            check(carried.before)
+        session.flush()
+        record(carried.target, carried.before, carried.after)
+        session.commit()
+        return True
+    except BaseException as exc:
+        session.rollback()
+        if isinstance(exc, StaleVersionError):
+            _describe_current(session, exc)
+        raise
 
 
 def _in_transaction(session: Session, work: Callable[[], T], *, system_id: int) -> T:
@@ -238,39 +286,45 @@ def _describe_current(session: Session, exc: StaleVersionError) -> None:
         exc.last_change = audit.latest_entry(session, system_id=exc.ident)
 
 
-def guarded_write(session: Session, system_id: int, claim: Callable[[], None], subject: Callable[[], Frame | System],
+def guarded_write(session: Session, system_id: int, claim: Callable[..., None], subject: Callable[[], Frame | System],
            state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], T], action: str,
            actor: Optional[str], revert: Optional[Revert], undo_of: Optional[int] = None) -> T:
     """The guarded, audited write every edit goes through (module docstring), in one write transaction
-    holding the lock of system ``system_id`` (:func:`_in_transaction`): ``claim`` (compare-and-set),
-    ``state`` of ``subject()`` before, ``apply`` (change and recompute), ``state`` after, one audit entry
-    (``undo_of``: the entry this edit undoes, recorded as its ``reverts_id`` under the edit's own action)."""
+    holding the lock of system ``system_id``: ``claim`` (compare-and-set; ``claim(expire=False)`` keeps the
+    session's objects), ``state`` of ``subject()`` before, ``apply`` (change and recompute), ``state`` after, one
+    audit entry (``undo_of``: the entry this edit undoes, recorded as its ``reverts_id`` under the edit's own
+    action). An edit that recomputes is computed before the lock and written under it when nothing it read
+    changed (:func:`_compute_before_lock`, :func:`_write_carried`); otherwise, and for every other write, it runs
+    under the lock (:func:`_in_transaction`)."""
+
+    def check(before: dict[str, Any]) -> None:
+        if revert is not None and revert.expect is not None and not same_json(before, revert.expect):
+            raise ConflictError(f"audit entry {revert.entry_id} cannot be reverted: its resource changed since "
+                                f"(it is now {json.dumps(before)[:300]}); revert the newer entries first, or force it",
+                                current=before)
+
+    def record(target: Any, before: dict[str, Any], after: dict[str, Any]) -> None:
+        frame = target if isinstance(target, Frame) else None
+        audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
+                     system=target if frame is None else None, before=before, after=after,
+                     reverts_id=revert.entry_id if revert is not None else undo_of)
 
     def work() -> T:
         claim()
         target = subject()
         before = state(target)
-        if revert is not None and revert.expect is not None and not same_json(before, revert.expect):
-            raise ConflictError(f"audit entry {revert.entry_id} cannot be reverted: its resource changed since "
-                                f"(it is now {json.dumps(before)[:300]}); revert the newer entries first, or force it",
-                                current=before)
+        check(before)
         result = apply(target)
         session.flush()
-        frame = target if isinstance(target, Frame) else None
-        audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
-                     system=target if frame is None else None, before=before, after=state(target),
-                     reverts_id=revert.entry_id if revert is not None else undo_of)
+        record(target, before, state(target))
         return result
 
-    plan = _compute_before_lock(session, system_id, subject, apply) if action in _RECOMPUTING else None
-    if plan is not None:
-        session.info[_PLAN] = plan
-    try:
-        result = _in_transaction(session, work, system_id=system_id)
-    finally:
-        session.info.pop(_PLAN, None)
-    session.info[LAST_RECOMPUTATION] = ("under_lock" if plan is None or plan.used == 0
-                                        else "recomputed" if plan.recomputed else "precomputed")
+    carried = _compute_before_lock(session, system_id, subject, state, apply) if action in _RECOMPUTING else None
+    if carried is not None and _write_carried(session, system_id, carried, claim, check, record):
+        session.info[LAST_RECOMPUTATION] = "precomputed"
+        return carried.result
+    result = _in_transaction(session, work, system_id=system_id)
+    session.info[LAST_RECOMPUTATION] = "recomputed" if carried is not None else "under_lock"
     return result
 
 
@@ -278,7 +332,7 @@ def guarded_frame_write(session: Session, frame_id: int, expected: Expected, sta
                  apply: Callable[[Frame], T], action: str, actor: Optional[str], revert: Optional[Revert],
                  undo_of: Optional[int] = None) -> T:
     system_id = get_frame(session, frame_id).system_id
-    return guarded_write(session, system_id, lambda: claim_frame(session, frame_id, expected),
+    return guarded_write(session, system_id, lambda expire=True: claim_frame(session, frame_id, expected, expire=expire),
                   lambda: get_frame(session, frame_id), state, apply, action, actor, revert, undo_of)
 
 

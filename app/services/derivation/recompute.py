@@ -41,8 +41,9 @@ from sqlalchemy.orm import Session, joinedload, selectinload
 
 from app.core.config import Settings
 from app.db.models import (
-    BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Doubt, Frame, OptimisedBox, ReviewStatus,
-    System, Triangulation, TriangulationPair, TriangulationStatus,
+    BallLabel, BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Doubt, FieldLineAnnotation, Frame,
+    Game, OptimisedBox, ReviewDecision, ReviewStatus, System, TrajectoryPoint, Triangulation, TriangulationPair,
+    TriangulationStatus,
 )
 from app.db.session import begin_write
 from app.db.types import json_safe, utcnow
@@ -62,6 +63,7 @@ from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
+from app.services.derivation.rows import replace_rows
 from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
 
@@ -78,7 +80,7 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings,
 
     Args:
         rig: the game's rig rows (:func:`rig_rows`) as the session holds them now, when the caller has read them
-            (an edit's :func:`recompute_inputs`): not read again.
+            (an edit's :func:`recompute_planned` in ``app.services.curation.writing``): not read again.
 
     Raises:
         ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
@@ -193,14 +195,12 @@ def recompute_system(session: Session, system: System, settings: Settings,
     tri.ball3d = None if result.point is None else [float(v) for v in result.point]
     tri.tau_px, tri.rule, tri.min_baseline_m = result.tau_px, result.rule, result.min_baseline_m
     tri.computed_at = utcnow()
-    tri.pairs.clear()
-    for p in result.pairs:
-        tri.pairs.append(TriangulationPair(
-            frame_a_id=p.view_a, frame_b_id=p.view_b,
-            point=None if p.point is None else [float(v) for v in p.point],
-            error_px=json_safe(p.error), parallax_deg=json_safe(p.parallax_deg), baseline_m=float(p.baseline_m),
-            kept=bool(p.kept), reason=p.reason,
-        ))
+    replace_rows(tri.pairs, TriangulationPair, [dict(  # in place: a pair the edit leaves as it was writes nothing
+        frame_a_id=p.view_a, frame_b_id=p.view_b,
+        point=None if p.point is None else [float(v) for v in p.point],
+        error_px=json_safe(p.error), parallax_deg=json_safe(p.parallax_deg), baseline_m=float(p.baseline_m),
+        kept=bool(p.kept), reason=p.reason,
+    ) for p in result.pairs])
 
     ball = None if result.point is None else np.asarray(result.point, dtype=float)
     for f in frames:
@@ -214,113 +214,6 @@ def recompute_system(session: Session, system: System, settings: Settings,
     return tri
 
 
-# ----- the recomputation split for edits: its inputs, its results as plain values, their store -------------
-#: The columns of a system :func:`recompute_system` writes (``update_doubts`` and :func:`update_summary`).
-SUMMARY_COLUMNS = ("doubt_counts", "label_doubts", "review_status", "views_total", "views_calibrated",
-                   "views_admitted", "views_labelled", "lowest_jac", "worst_error_px", "views_flagged",
-                   "views_above_tau", "derived_version", "derived_settings")
-#: Per derived row type, the keys a stored row takes from its owner (never copied between rows).
-_OWNER_KEYS: dict[type, tuple[str, ...]] = {
-    Calibration: ("frame_id",), BallReprojection: ("frame_id",), OptimisedBox: ("frame_id",),
-    Triangulation: ("system_id",), TriangulationPair: ("id", "system_id"), Doubt: ("id", "system_id"),
-}
-
-
-def _values(row: Any) -> dict[str, Any] | None:
-    """The column values of a derived row (None for no row), its owner's keys left out."""
-    if row is None:
-        return None
-    skip = _OWNER_KEYS[type(row)]
-    return {a.key: getattr(row, a.key) for a in sa.inspect(type(row)).column_attrs if a.key not in skip}
-
-
-def _put(row: Any, values: dict[str, Any]) -> Any:
-    """Set ``values`` on ``row`` (a NOT NULL column a pending row left unset keeps its default); returns it."""
-    columns = sa.inspect(type(row)).columns
-    for key, value in values.items():
-        if value is None and not columns[key].nullable:
-            continue
-        setattr(row, key, value)
-    return row
-
-
-@dataclass(frozen=True)
-class SystemResults:
-    """What a recomputation of one system wrote (:func:`recompute_frame` or :func:`recompute_system`), as plain
-    column values: per frame id its ``calibration``, ``reprojection`` and ``optimised_box`` rows (None: no row),
-    the system's triangulation and pairs, its doubts and its queue figures (:data:`SUMMARY_COLUMNS`). Taken by
-    :func:`system_results` where the edit computed it (outside the write lock), stored by
-    :func:`store_system_results` under the lock (``app.services.curation.editing``)."""
-
-    frames: dict[int, dict[str, dict[str, Any] | None]]
-    triangulation: dict[str, Any] | None
-    pairs: list[dict[str, Any]]
-    doubts: list[dict[str, Any]]
-    summary: dict[str, Any]
-
-
-def system_results(system: System) -> SystemResults:
-    """The derived rows of ``system`` as they are in the session now (after :func:`recompute_frame` or
-    :func:`recompute_system`), as plain values that outlive the session's transaction."""
-    tri = system.triangulation
-    return SystemResults(
-        frames={f.id: {"calibration": _values(f.calibration), "reprojection": _values(f.reprojection),
-                       "optimised_box": _values(f.optimised_box)} for f in system.frames},
-        triangulation=_values(tri), pairs=[_values(p) for p in tri.pairs] if tri is not None else [],  # type: ignore[misc]
-        doubts=[_values(d) for d in system.doubts],  # type: ignore[misc]
-        summary={k: getattr(system, k) for k in SUMMARY_COLUMNS})
-
-
-_ROW_TYPES = {"calibration": Calibration, "reprojection": BallReprojection, "optimised_box": OptimisedBox}
-
-
-def store_system_results(session: Session, system: System, results: SystemResults) -> Triangulation:
-    """Write ``results`` (:func:`system_results` of a recomputation from the same inputs,
-    :func:`recompute_inputs`) into ``system``'s rows in the session, as the recomputation would have: its
-    frames' calibrations, reprojections and optimised boxes, triangulation and pairs, doubts and queue figures.
-    The caller flushes or commits; returns the triangulation row.
-
-    Raises:
-        KeyError: ``results`` is of another set of frames (the inputs were not the same).
-    """
-    for f in system.frames:
-        rows = results.frames[f.id]
-        for attr, row_type in _ROW_TYPES.items():
-            values, row = rows[attr], getattr(f, attr)
-            if values is None:
-                setattr(f, attr, None)
-            else:
-                setattr(f, attr, _put(row if row is not None else row_type(), values))
-    tri = system.triangulation
-    if tri is None:
-        tri = Triangulation(system=system)
-        session.add(tri)
-    _put(tri, results.triangulation or {})
-    _replace_rows(tri.pairs, TriangulationPair, results.pairs)
-    _replace_rows(system.doubts, Doubt, results.doubts)
-    for key, value in results.summary.items():
-        setattr(system, key, value)
-    return tri
-
-
-def _replace_rows(rows: list[Any], row_type: type, values: list[dict[str, Any]]) -> None:
-    """Make the ordered collection ``rows`` (pairs or doubts, ordered by id) hold one row per item of ``values``,
-    in order, updating the stored rows in place: a row whose values did not change writes nothing, so that an edit
-    that leaves a pair or a doubt as it was costs no statement for it (issue 29); rows beyond ``values`` are deleted
-    (the relationship's delete-orphan), missing ones added. Nothing refers to these rows' ids (no foreign key,
-    API or page names one), so a doubt kept in another place of the list is the same as a new one."""
-    columns = sa.inspect(row_type).columns
-    if any(v is None and not columns[k].nullable for item in values for k, v in item.items()):
-        rows.clear()  # a pending row left a default unset: only an insert gives it its default
-        rows.extend(row_type(**item) for item in values)
-        return
-    for row, item in zip(rows, values):
-        _put(row, item)
-    if len(rows) > len(values):
-        del rows[len(values):]
-    rows.extend(row_type(**item) for item in values[len(rows):])
-
-
 def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:
     """The rig rows (:func:`rig_rows`) of ``system``'s game when its kind uses a rig, else None."""
     if uses_rig(system) and system.game_id is not None:
@@ -328,37 +221,49 @@ def system_rig_rows(session: Session, system: System, settings: Settings) -> lis
     return None
 
 
-def recompute_inputs(session: Session, system: System, settings: Settings,
-                     rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> str:
-    """A digest (hex SHA-256) of everything :func:`recompute_frame` and :func:`recompute_system` read for
-    ``system``, as the session sees it now: per view its name, role, size and position, field lines, ball label
-    (kind, box, point, provenance), exclusion and every calibration column (``updated_at`` aside); the system's
-    kind, game and review status; the game's rig rows (:func:`rig_rows`, kinds that use a rig) or its learned
-    camera prior. Two equal digests mean a recomputation gives the same rows (same ``settings``). Kinds whose
-    recomputation reads beyond the system (a re-fit of ISSIA's trajectory) are not covered
-    (``KindPolicy.computes_before_lock``). ``rig``: the rig rows (:func:`system_rig_rows`) when the caller has read
-    them (to hand them on to the recomputation), else read here."""
-    frames = []
-    for f in sorted(system.frames, key=lambda x: x.id):
-        label, review, cal = f.ball_label, f.review, f.calibration
-        frames.append([
-            f.id, f.name, f.role, f.width, f.height, f.position,
-            f.field_lines.lines if f.field_lines is not None else None,
-            [label.kind, label.box, label.point, label.provenance] if label is not None else None,
-            bool(review is not None and review.excluded),
-            {k: v for k, v in (_values(cal) or {}).items() if k != "updated_at"} if cal is not None else None,
-        ])
-    game: Any = None
-    if uses_rig(system) and system.game_id is not None:
-        rows = rig if rig is not None else rig_rows(session, system.game_id, settings)
-        # by frame id: the rows come in the order the planner reads them, which changes with the table's statistics
-        game = sorted([[fid, centre.tolist(), main] for fid, centre, main in rows])
-    elif system.game is not None:
-        game = system.game.camera_prior
-    doc = {"system": [system.id, system.kind, system.game_id, system.review.status if system.review else None],
-           "frames": frames, "game": game}
-    return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SORT_KEYS | orjson.OPT_SERIALIZE_NUMPY
-                                       | orjson.OPT_NON_STR_KEYS)).hexdigest()
+#: The stored rows an edit of a system loads and may write (:func:`load_for_recompute`, the edit's own rows), per
+#: table: the system with its triangulation, review, trajectory point and game; its views with their one-to-one
+#: rows; its pairs and doubts. Read as rows (no ORM objects): ``(statement, key)`` built once.
+_F = Frame.__table__
+_FRAME_ROWS = (FieldLineAnnotation, Calibration, BallLabel, ReviewDecision, BallReprojection, OptimisedBox)
+
+
+def _state_statements() -> list[sa.Select]:
+    sid = sa.bindparam("sid")
+    S, T, R, P, G = (m.__table__ for m in (System, Triangulation, ReviewDecision, TrajectoryPoint, Game))
+    frames = _F
+    for model in _FRAME_ROWS:
+        t = model.__table__
+        frames = frames.outerjoin(t, t.c.frame_id == _F.c.id)
+    return [
+        sa.select(S, T, R, P, G).select_from(
+            S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)
+            .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),
+        sa.select(_F, *(m.__table__ for m in _FRAME_ROWS)).select_from(frames)
+        .where(_F.c.system_id == sid).order_by(_F.c.id),
+        sa.select(TriangulationPair.__table__).where(TriangulationPair.system_id == sid).order_by(TriangulationPair.id),
+        sa.select(Doubt.__table__).where(Doubt.system_id == sid).order_by(Doubt.id),
+    ]
+
+
+_STATE_STATEMENTS: list[sa.Select] = []
+
+
+def stored_state_digest(session: Session, system_id: int,
+                        rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> str:
+    """A digest (hex SHA-256) of every stored row an edit of system ``system_id`` loads and may write, as the
+    session's transaction sees the database (not the objects in memory): the system, its triangulation, review,
+    trajectory point and game; every view with its field lines, calibration, ball label, review, reprojection and
+    optimised box; the pairs and doubts; and the game's rig rows ``rig`` (:func:`system_rig_rows`, read by the
+    caller in the same transaction; None: the kind uses no rig). Two equal digests read before and under an edit's
+    write lock mean that nothing the edit read changed in between: its objects in memory are the stored rows plus
+    its own changes (``app.services.curation.writing``). Four queries of rows, no ORM objects."""
+    if not _STATE_STATEMENTS:
+        _STATE_STATEMENTS.extend(_state_statements())
+    doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _STATE_STATEMENTS]
+    doc.append(sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None)
+    return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
+                                       default=str)).hexdigest()
 
 
 def update_summary(system: System, tri: Triangulation) -> None:

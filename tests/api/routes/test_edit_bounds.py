@@ -90,13 +90,15 @@ def served(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Tes
 def test_a_write_waiting_past_the_lock_timeout_is_503_with_retry_after(served, monkeypatch) -> None:
     client, scene, backend, holder = served
     stored: list[int] = []
-    store = writing.store_system_results
+    write = writing._write_carried
 
-    def counted(session, system, results):  # the real store, counted: an HTTP edit computes before its lock
-        stored.append(system.id)
-        return store(session, system, results)
+    def counted(session, system_id, *args):  # the real write, counted: an HTTP edit computes before its lock
+        done = write(session, system_id, *args)
+        if done:
+            stored.append(system_id)
+        return done
 
-    monkeypatch.setattr(writing, "store_system_results", counted)
+    monkeypatch.setattr(writing, "_write_carried", counted)
     fid = scene.frame_ids[0]
     got = client.get(f"/api/frames/{fid}")
     etag, box = got.headers["ETag"], got.json()["ball"]["box"]

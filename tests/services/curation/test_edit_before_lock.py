@@ -124,9 +124,10 @@ def test_an_edit_updates_its_pairs_and_doubts_in_place(database) -> None:
 
 
 def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch) -> None:
-    """Issue 29: the rig rows the inputs' digest reads are the ones the recomputation uses (the mirror evidence's
-    rig, a line edit's rig retry): a ball edit reads them twice (the digest before the lock and the one under it),
-    not three times, and a line edit as often, and stores what a recomputation gives."""
+    """Issue 29: the rig rows the stored rows' digest reads are the ones the recomputation uses (the mirror evidence's
+    rig, a line edit's rig retry): an edit reads them once before the lock and, on PostgreSQL, once more under it
+    for the comparison (SQLite's data_version says that nobody committed meanwhile, so the digest is not read
+    again), for a ball edit as for a line edit, and stores what a recomputation gives."""
     from app.services.calibration import rigs
 
     factory, settings, scene, _ = database
@@ -137,16 +138,17 @@ def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch)
     monkeypatch.setattr(recompute_module, "rig_rows", rigs.rig_rows)
     fid = scene.frame_ids[0]
     with factory() as s:
+        reads = 1 if s.get_bind().dialect.name == "sqlite" else 2
         update_ball_label(s, fid, box=_moved(_box(factory, fid), 5.0), settings=settings)
         assert s.info[LAST_RECOMPUTATION] == "precomputed"
-    assert len(calls) == 2
+    assert len(calls) == reads
     calls.clear()
     with factory() as s:
         lines = s.get(Frame, fid).field_lines.lines
         lines = {cls: [[[x + 0.5, y] for x, y in poly] for poly in polys] for cls, polys in lines.items()}
         editing.replace_field_lines(s, fid, lines, settings=settings)
         assert s.info[LAST_RECOMPUTATION] == "precomputed"
-    assert len(calls) == 2
+    assert len(calls) == reads
     pairs, doubts = _pairs_and_doubts(factory, scene.system_id)
     fresh_pairs, fresh_doubts = _pairs_and_doubts(factory, scene.system_id, settings)
     assert [p[1:] for p in pairs] == [p[1:] for p in fresh_pairs]
