@@ -32,8 +32,9 @@ Concurrency (several server processes, issues 7, 27 and 29): one locking design 
    version (412), checks a revert (409), flushes (the unit of work writes only the attributes that changed:
    the label, the derived rows the recomputation changed, in place) and records its audit entry, and the answer is
    drawn from the same objects. Different (another edit of the system, or of its game's rig, committed meanwhile),
-   everything is rolled back (objects expired) and the edit runs again under the lock from what the other
-   committed: claim, change, recompute, audit.
+   everything is rolled back (objects expired) and the edit computes again before the lock from what the other
+   committed (:data:`_ATTEMPTS_BEFORE_LOCK` times in all); colliding again, it runs under the lock: claim, change,
+   recompute, audit.
    ``session.info[LAST_RECOMPUTATION]`` says which happened ("precomputed", "recomputed", "under_lock").
 
 Two edits of one system's views therefore never lose each other's label: the later one finds the earlier one's
@@ -119,14 +120,18 @@ _PLAN = "v3d.edit.plan"
 
 
 #: ``session.info`` key: how the last edit's recomputation was stored: "precomputed" (computed before the lock,
-#: the stored rows unchanged under it), "recomputed" (a stored row changed meanwhile: computed again under the
-#: lock) or "under_lock" (computed under the lock only: the kind re-fits beyond its system, or nothing was computed
-#: before).
+#: the stored rows unchanged under it), "recomputed" (a stored row changed after its first computation: computed
+#: again, before the lock or under it) or "under_lock" (computed under the lock only: the kind re-fits beyond its
+#: system, or nothing was computed before).
 LAST_RECOMPUTATION = "v3d.edit.recomputation"
 
 
 #: The audited actions whose edits recompute their system, hence compute before the lock.
 _RECOMPUTING = frozenset({"ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion"})
+#: How many times an edit computes before the lock when another edit of its system commits between its computation
+#: and its lock each time; then it computes under the lock (several annotators on the views of one system take
+#: turns at the lock without computing there, unless they keep colliding).
+_ATTEMPTS_BEFORE_LOCK = 2
 
 
 @dataclass
@@ -319,12 +324,17 @@ def guarded_write(session: Session, system_id: int, claim: Callable[..., None], 
         record(target, before, state(target))
         return result
 
-    carried = _compute_before_lock(session, system_id, subject, state, apply) if action in _RECOMPUTING else None
-    if carried is not None and _write_carried(session, system_id, carried, claim, check, record):
-        session.info[LAST_RECOMPUTATION] = "precomputed"
-        return carried.result
+    changed = False
+    for _ in range(_ATTEMPTS_BEFORE_LOCK if action in _RECOMPUTING else 0):
+        carried = _compute_before_lock(session, system_id, subject, state, apply)
+        if carried is None:
+            break
+        if _write_carried(session, system_id, carried, claim, check, record):
+            session.info[LAST_RECOMPUTATION] = "recomputed" if changed else "precomputed"
+            return carried.result
+        changed = True  # another edit of the system committed meanwhile: compute again from what it committed
     result = _in_transaction(session, work, system_id=system_id)
-    session.info[LAST_RECOMPUTATION] = "recomputed" if carried is not None else "under_lock"
+    session.info[LAST_RECOMPUTATION] = "recomputed" if changed else "under_lock"
     return result
 
 
