@@ -221,14 +221,16 @@ def system_rig_rows(session: Session, system: System, settings: Settings) -> lis
     return None
 
 
-#: The stored rows an edit of a system loads and may write (:func:`load_for_recompute`, the edit's own rows), per
-#: table: the system with its triangulation, review, trajectory point and game; its views with their one-to-one
-#: rows; its pairs and doubts. Read as rows (no ORM objects): ``(statement, key)`` built once.
+#: The stored rows an edit of a system loads and may write (:func:`load_for_recompute`, the edit's own rows): the
+#: system with its triangulation, review, trajectory point and its game's camera prior; its views with their
+#: one-to-one rows; its pairs and doubts. Read as rows (no ORM objects) by four statements built once
+#: (:func:`stored_state_digest`).
 _F = Frame.__table__
 _FRAME_ROWS = (FieldLineAnnotation, Calibration, BallLabel, ReviewDecision, BallReprojection, OptimisedBox)
 
 
 def _state_statements() -> list[sa.Select]:
+    """The statements of :func:`stored_state_digest`, each taking the system's id as ``sid``."""
     sid = sa.bindparam("sid")
     S, T, R, P, G = (m.__table__ for m in (System, Triangulation, ReviewDecision, TrajectoryPoint, Game))
     frames = _F
@@ -236,7 +238,7 @@ def _state_statements() -> list[sa.Select]:
         t = model.__table__
         frames = frames.outerjoin(t, t.c.frame_id == _F.c.id)
     return [
-        sa.select(S, T, R, P, G).select_from(
+        sa.select(S, T, R, P, G.c.id, G.c.camera_prior).select_from(  # the game's prior (its release is the exports')
             S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)
             .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),
         sa.select(_F, *(m.__table__ for m in _FRAME_ROWS)).select_from(frames)
@@ -253,7 +255,7 @@ def stored_state_digest(session: Session, system_id: int,
                         rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> str:
     """A digest (hex SHA-256) of every stored row an edit of system ``system_id`` loads and may write, as the
     session's transaction sees the database (not the objects in memory): the system, its triangulation, review,
-    trajectory point and game; every view with its field lines, calibration, ball label, review, reprojection and
+    trajectory point and its game's camera prior; every view with its field lines, calibration, ball label, review, reprojection and
     optimised box; the pairs and doubts; and the game's rig rows ``rig`` (:func:`system_rig_rows`, read by the
     caller in the same transaction; None: the kind uses no rig). Two equal digests read before and under an edit's
     write lock mean that nothing the edit read changed in between: its objects in memory are the stored rows plus

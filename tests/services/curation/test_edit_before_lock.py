@@ -256,3 +256,46 @@ def test_an_unrelated_write_is_not_blocked_by_a_capped_size_line_edits_geometry(
         stored = s.get(Frame, fid).field_lines.lines
         assert sum(len(p) for ps in stored.values() for p in ps) == 2000
         assert s.get(Frame, fid).calibration.source.value == "computed"
+
+
+def test_the_stored_rows_digest_sees_every_row_an_edit_writes_and_not_the_objects_in_memory(database) -> None:
+    """Issue 29: an edit carries its objects from its snapshot into its write when the digest of the stored rows read
+    under the lock equals the snapshot's (``stored_state_digest``). Every row the edit may write changes it (a view's
+    label, a pair, a doubt, the system's figures, a view's review, the game's camera prior); the game's release (read
+    by the exports only) and the objects changed in memory but not written do not."""
+    from app.db.models import Doubt, Game, ReviewDecision, TriangulationPair
+    from app.services.derivation.recompute import stored_state_digest
+
+    factory, _settings, scene, _ = database
+    with factory() as s:
+        first = stored_state_digest(s, scene.system_id)
+        frame = s.get(Frame, scene.frame_ids[0])
+        frame.ball_label.box = _moved(list(frame.ball_label.box), 3.0)  # in memory only
+        with s.no_autoflush:
+            assert stored_state_digest(s, scene.system_id) == first
+        s.rollback()
+
+    def changed(edit: Callable[[Session], None]) -> bool:
+        with factory() as s:
+            edit(s)
+            s.commit()
+            return stored_state_digest(s, scene.system_id) != first
+
+    def game(s: Session) -> Game:
+        return s.get(Game, s.get(System, scene.system_id).game_id)
+
+    assert not changed(lambda s: setattr(game(s), "release", {"GameMetadata": {"UrlYoutube": "x"}}))
+    for edit in (
+        lambda s: setattr(s.get(Frame, scene.frame_ids[1]).ball_label, "box",
+                          _moved(list(s.get(Frame, scene.frame_ids[1]).ball_label.box), 1.0)),
+        lambda s: setattr(s.query(TriangulationPair).filter_by(system_id=scene.system_id).first(), "error_px", 123.0),
+        lambda s: s.add(Doubt(system_id=scene.system_id, frame_id=scene.frame_ids[0], kind="test", accuses_label=False,
+                              message="m", evidence={})),
+        lambda s: setattr(s.get(System, scene.system_id), "views_flagged", 3),
+        lambda s: setattr(s.get(Frame, scene.frame_ids[2]), "review",
+                          ReviewDecision(status=ReviewStatus.ACCEPTED, comment="")),
+        lambda s: setattr(game(s), "camera_prior", {"anchors_m": []}),
+    ):
+        assert changed(edit)
+        with factory() as s:
+            first = stored_state_digest(s, scene.system_id)
