@@ -137,12 +137,14 @@ _ATTEMPTS_BEFORE_LOCK = 2
 @dataclass
 class _Plan:
     """What an edit computing before its lock read (:func:`recompute_planned`): per recomputed system, the digest of
-    its stored rows as the snapshot saw them (``recompute.stored_state_digest``), and the snapshot's SQLite
-    ``data_version`` (None on PostgreSQL)."""
+    its stored rows as the snapshot saw them (``recompute.stored_state_digest``), the snapshot's SQLite
+    ``data_version`` (None on PostgreSQL), the settings it computed with, and the system loaded for it (``preloaded``:
+    held here, so that the session's identity map, which holds objects weakly, keeps the whole load)."""
 
     digests: dict[int, str] = field(default_factory=dict)
     data_version: Optional[int] = None
     settings: Optional[Settings] = None
+    preloaded: Optional[System] = None
 
 
 @dataclass
@@ -190,7 +192,9 @@ def _compute_before_lock(session: Session, system_id: int, subject: Callable[[],
     session.info[_PLAN] = plan
     try:
         with session.no_autoflush:
-            if kind_of(get_system(session, system_id)).computes_before_lock:
+            # the one load of the edit: what the subject, its state and the recomputation read, in a few queries
+            plan.preloaded = load_for_recompute(session, [system_id]).get(system_id)
+            if plan.preloaded is not None and kind_of(plan.preloaded).computes_before_lock:
                 target = subject()
                 before = state(target)
                 result = apply(target)
@@ -210,14 +214,15 @@ def _compute_before_lock(session: Session, system_id: int, subject: Callable[[],
 def recompute_planned(session: Session, system: System, settings: Settings,
                        compute: Callable[[Optional[list[tuple[int, Any, bool]]]], Any]) -> None:
     """Run the recomputation ``compute`` of ``system``: what it reads is loaded first, in a few queries
-    (``load_for_recompute``; after a flush, under the lock). Within an edit computing before its lock
+    (``load_for_recompute``; after a flush, under the lock; an edit computing before its lock loaded it already). Within an edit computing before its lock
     (:func:`_compute_before_lock`) the digest of the stored rows it loaded is kept for the comparison under the lock
     (``recompute.stored_state_digest``), in the same snapshot. ``compute(rig)`` takes the game's rig rows read here
     (``recompute.system_rig_rows``; None: the kind uses no rig), so they are read once."""
     plan: Optional[_Plan] = session.info.get(_PLAN)
     if plan is None:
         session.flush()
-    load_for_recompute(session, [system.id])  # what it reads, in a few queries (not one per relation and view)
+    if plan is None or plan.preloaded is not system:  # what it reads, in a few queries (not one per relation and view)
+        load_for_recompute(session, [system.id])
     rig = system_rig_rows(session, system, settings)
     if plan is not None:
         plan.digests[system.id] = stored_state_digest(session, system.id, rig)
