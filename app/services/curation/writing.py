@@ -214,10 +214,11 @@ def _compute_before_lock(session: Session, system_id: int, subject: Callable[[],
 def recompute_planned(session: Session, system: System, settings: Settings,
                        compute: Callable[[Optional[list[tuple[int, Any, bool]]]], Any]) -> None:
     """Run the recomputation ``compute`` of ``system``: what it reads is loaded first, in a few queries
-    (``load_for_recompute``; after a flush, under the lock; an edit computing before its lock loaded it already). Within an edit computing before its lock
-    (:func:`_compute_before_lock`) the digest of the stored rows it loaded is kept for the comparison under the lock
-    (``recompute.stored_state_digest``), in the same snapshot. ``compute(rig)`` takes the game's rig rows read here
-    (``recompute.system_rig_rows``; None: the kind uses no rig), so they are read once."""
+    (``load_for_recompute``; after a flush, under the lock; an edit computing before its lock loaded it already).
+    Within an edit computing before its lock (:func:`_compute_before_lock`) the digest of the stored rows it loaded
+    is kept for the comparison under the lock (``recompute.stored_state_digest``), in the same snapshot.
+    ``compute(rig)`` takes the game's rig rows read here (``recompute.system_rig_rows``; None: the kind uses no
+    rig), so they are read once."""
     plan: Optional[_Plan] = session.info.get(_PLAN)
     if plan is None:
         session.flush()
@@ -231,8 +232,8 @@ def recompute_planned(session: Session, system: System, settings: Settings,
 
 
 def _write_carried(session: Session, system_id: int, carried: _Carried, claim: Callable[..., None],
-                   check: Callable[[dict[str, Any]], None], record: Callable[[Any, dict[str, Any], dict[str, Any]], None]
-                   ) -> bool:
+                   check: Callable[[dict[str, Any]], None],
+                   record: Callable[[Any, dict[str, Any], dict[str, Any]], None]) -> bool:
     """Write an edit computed before the lock (:func:`_compute_before_lock`) under it, in one transaction: end the
     snapshot keeping its objects (``begin_write_keeping_objects``), lock the system, and compare its stored rows with
     what the snapshot read (SQLite's ``data_version`` unchanged, or the digest read again equal); then claim the
@@ -246,9 +247,8 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
             plan = carried.plan
             unchanged = plan.data_version is not None and data_version(session) == plan.data_version
             if not unchanged:
-                system = session.get(System, system_id)
-                rig = system_rig_rows(session, system, plan.settings) if system is not None else None
-                unchanged = system is not None and stored_state_digest(session, system_id, rig) == plan.digests[system_id]
+                rig = system_rig_rows(session, plan.preloaded, plan.settings)
+                unchanged = stored_state_digest(session, system_id, rig) == plan.digests[system_id]
             if not unchanged:
                 session.rollback()
                 return False
@@ -259,9 +259,7 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
         session.commit()
         return True
     except BaseException as exc:
-        session.rollback()
-        if isinstance(exc, StaleVersionError):
-            _describe_current(session, exc)
+        _rolled_back(session, exc)
         raise
 
 
@@ -278,10 +276,16 @@ def _in_transaction(session: Session, work: Callable[[], T], *, system_id: int) 
         session.commit()
         return result
     except BaseException as exc:
-        session.rollback()
-        if isinstance(exc, StaleVersionError):
-            _describe_current(session, exc)
+        _rolled_back(session, exc)
         raise
+
+
+def _rolled_back(session: Session, exc: BaseException) -> None:
+    """Roll a failed write back; a stale version (:class:`StaleVersionError`) gets the resource's current state
+    (:func:`_describe_current`), read after the rollback."""
+    session.rollback()
+    if isinstance(exc, StaleVersionError):
+        _describe_current(session, exc)
 
 
 def _describe_current(session: Session, exc: StaleVersionError) -> None:
@@ -347,8 +351,12 @@ def guarded_frame_write(session: Session, frame_id: int, expected: Expected, sta
                  apply: Callable[[Frame], T], action: str, actor: Optional[str], revert: Optional[Revert],
                  undo_of: Optional[int] = None) -> T:
     system_id = get_frame(session, frame_id).system_id
-    return guarded_write(session, system_id, lambda expire=True: claim_frame(session, frame_id, expected, expire=expire),
-                  lambda: get_frame(session, frame_id), state, apply, action, actor, revert, undo_of)
+
+    def claim(expire: bool = True) -> None:
+        claim_frame(session, frame_id, expected, expire=expire)
+
+    return guarded_write(session, system_id, claim, lambda: get_frame(session, frame_id), state, apply, action, actor,
+                         revert, undo_of)
 
 
 def get_frame(session: Session, frame_id: int) -> Frame:

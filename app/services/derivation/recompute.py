@@ -255,11 +255,11 @@ def stored_state_digest(session: Session, system_id: int,
                         rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> str:
     """A digest (hex SHA-256) of every stored row an edit of system ``system_id`` loads and may write, as the
     session's transaction sees the database (not the objects in memory): the system, its triangulation, review,
-    trajectory point and its game's camera prior; every view with its field lines, calibration, ball label, review, reprojection and
-    optimised box; the pairs and doubts; and the game's rig rows ``rig`` (:func:`system_rig_rows`, read by the
-    caller in the same transaction; None: the kind uses no rig). Two equal digests read before and under an edit's
-    write lock mean that nothing the edit read changed in between: its objects in memory are the stored rows plus
-    its own changes (``app.services.curation.writing``). Four queries of rows, no ORM objects."""
+    trajectory point and its game's camera prior; every view with its field lines, calibration, ball label, review,
+    reprojection and optimised box; the pairs and doubts; and the game's rig rows ``rig`` (:func:`system_rig_rows`,
+    read by the caller in the same transaction; None: the kind uses no rig). Two equal digests read before and under
+    an edit's write lock mean that nothing the edit read changed in between: its objects in memory are the stored
+    rows plus its own changes (``app.services.curation.writing``). Four queries of rows, no ORM objects."""
     if not _STATE_STATEMENTS:
         _STATE_STATEMENTS.extend(_state_statements())
     doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _STATE_STATEMENTS]
