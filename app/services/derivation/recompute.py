@@ -29,6 +29,7 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
@@ -229,15 +230,16 @@ _F = Frame.__table__
 _FRAME_ROWS = (FieldLineAnnotation, Calibration, BallLabel, ReviewDecision, BallReprojection, OptimisedBox)
 
 
-def _state_statements() -> list[sa.Select]:
-    """The statements of :func:`stored_state_digest`, each taking the system's id as ``sid``."""
+@functools.cache
+def _state_statements() -> tuple[sa.Select, ...]:
+    """The statements of :func:`stored_state_digest`, each taking the system's id as ``sid`` (built once)."""
     sid = sa.bindparam("sid")
     S, T, R, P, G = (m.__table__ for m in (System, Triangulation, ReviewDecision, TrajectoryPoint, Game))
     frames = _F
     for model in _FRAME_ROWS:
         t = model.__table__
         frames = frames.outerjoin(t, t.c.frame_id == _F.c.id)
-    return [
+    return (
         sa.select(S, T, R, P, G.c.id, G.c.camera_prior).select_from(  # the game's prior (its release is the exports')
             S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)
             .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),
@@ -245,10 +247,7 @@ def _state_statements() -> list[sa.Select]:
         .where(_F.c.system_id == sid).order_by(_F.c.id),
         sa.select(TriangulationPair.__table__).where(TriangulationPair.system_id == sid).order_by(TriangulationPair.id),
         sa.select(Doubt.__table__).where(Doubt.system_id == sid).order_by(Doubt.id),
-    ]
-
-
-_STATE_STATEMENTS: list[sa.Select] = []
+    )
 
 
 def stored_state_digest(session: Session, system_id: int,
@@ -260,9 +259,7 @@ def stored_state_digest(session: Session, system_id: int,
     read by the caller in the same transaction; None: the kind uses no rig). Two equal digests read before and under
     an edit's write lock mean that nothing the edit read changed in between: its objects in memory are the stored
     rows plus its own changes (``app.services.curation.writing``). Four queries of rows, no ORM objects."""
-    if not _STATE_STATEMENTS:
-        _STATE_STATEMENTS.extend(_state_statements())
-    doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _STATE_STATEMENTS]
+    doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _state_statements()]
     doc.append(sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None)
     return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
                                        default=str)).hexdigest()
