@@ -13,7 +13,9 @@ is not served: its bundle fetches a logo from ``cdn.redoc.ly``. Every answer car
 headers of ``app.api.security`` (a CSP allowing this server's own scripts only). With
 ``Settings.job_runner`` the app's lifespan runs a :class:`~app.services.jobs.runner.JobRunner` (queued
 imports, recomputes and exports; a job a killed process left running is resumed) and sets the garbage
-collector's young-generation threshold (``Settings.gc_young_threshold``).
+collector's young-generation threshold (``Settings.gc_young_threshold``). The factory sets how many recomputing edits
+compute at once in this process (``app.services.curation.writing.EditSlots``, ``Settings.edit_slots``), handed to
+every session of its factory.
 
 Authentication (``app.api.authentication``): the session cookie middleware (its signing key read from
 ``V3D_SESSION_SECRET`` or the database when the middleware is built, at the first request or lifespan
@@ -49,7 +51,7 @@ from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
-from app.services.curation.writing import get_system
+from app.services.curation.writing import EDIT_SLOTS, EditSlots, get_system
 from app.core.errors import NotFoundError
 from app.services.jobs.runner import JobRunner
 from app.services.accounts.throttle import login_throttle
@@ -147,7 +149,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         docs_url=None,
     )
     app.state.settings = settings
-    app.state.session_factory = make_session_factory(engine)
+    # Every session carries this process's turns of the recomputing edits (Settings.edit_slots).
+    app.state.session_factory = make_session_factory(
+        engine, info={EDIT_SLOTS: EditSlots(settings.edit_slots, settings.edit_slot_wait_s)})
     # Failed logins counted in the database, through the app's session factory of the moment (tests swap it).
     app.state.login_throttle = login_throttle(settings, lambda: app.state.session_factory())
 

@@ -266,6 +266,17 @@ class Settings(BaseSettings):
         "(V3D_WRITE_LOCK_TIMEOUT_S). Edits compute their geometry before they take the lock and hold it only to "
         "compare and write (app.services.curation.editing), so a wait beyond a few seconds means the database is "
         "overloaded, not that another edit is computing.")
+    edit_slots: int = Field(
+        1, ge=0, description="How many edits that recompute their system (ball, field lines, mirror, exclusion, and "
+        "their undos and reverts) compute at once in one server process; 0: no limit (V3D_EDIT_SLOTS). An edit's "
+        "geometry and ORM work hold Python's GIL, so two such edits in one process only share its core: each takes "
+        "twice as long, the window in which a sibling edit of the same system commits first (and forces a second "
+        "computation) doubles, and an edit holding the write lock is slowed by the others, while the other processes "
+        "wait for the lock. Run more processes (v3d serve --workers) for more edits at once.")
+    edit_slot_wait_s: float = Field(
+        0.5, ge=0, description="How long an edit waits for a slot (edit_slots) before it computes anyway, beside the "
+        "slots' edits (seconds; V3D_EDIT_SLOT_WAIT_S): an edit with a long geometry (a line edit at the point cap) "
+        "delays the edits of its process by at most this.")
     @field_validator("allowed_hosts", mode="before")
     @classmethod
     def _comma_separated_hosts(cls, value: Any) -> Any:

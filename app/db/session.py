@@ -204,10 +204,11 @@ def is_lock_timeout(exc: BaseException) -> bool:
     return any(w in text for w in ("database is locked", "database is busy", "lock timeout"))
 
 
-def make_session_factory(engine: Engine) -> sessionmaker[Session]:
+def make_session_factory(engine: Engine, info: dict[str, Any] | None = None) -> sessionmaker[Session]:
     """Sessions bound to ``engine``; objects stay readable after commit (``expire_on_commit=False``)
-    so that services can return the ORM rows they just committed."""
-    return sessionmaker(bind=engine, expire_on_commit=False)
+    so that services can return the ORM rows they just committed. Each session's ``info`` starts as a copy of
+    ``info`` (the app's: its edits' turns, ``app.services.curation.writing.EditSlots``)."""
+    return sessionmaker(bind=engine, expire_on_commit=False, info=dict(info or {}))
 
 
 @event.listens_for(Session, "after_flush")

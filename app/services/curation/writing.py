@@ -36,6 +36,11 @@ Concurrency (several server processes, issues 7, 27 and 29): one locking design 
    committed (:data:`_ATTEMPTS_BEFORE_LOCK` times in all); colliding again, it runs under the lock: claim, change,
    recompute, audit.
    ``session.info[LAST_RECOMPUTATION]`` says which happened ("precomputed", "recomputed", "under_lock").
+3. **One edit computes at a time per process.** The recomputing edits of one server process take turns
+   (:class:`EditSlots`, ``Settings.edit_slots``, handed to the sessions by the app): their work holds the GIL, so
+   edits computing side by side in one process only stretch each other, widen the window in which a sibling commits
+   first, and slow the one holding the write lock while the other processes wait for it. An edit waits at most
+   ``Settings.edit_slot_wait_s`` for its turn, then computes anyway: a long geometry delays the others by no more.
 
 Two edits of one system's views therefore never lose each other's label: the later one finds the earlier one's
 label under the lock and recomputes. Kinds whose edit re-fits beyond the system (ISSIA's trajectory:
@@ -49,7 +54,8 @@ from __future__ import annotations
 
 import contextlib
 import json
-from collections.abc import Collection
+import threading
+from collections.abc import Collection, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, TypeVar
 
@@ -132,6 +138,46 @@ _RECOMPUTING = frozenset({"ball.edit", "field_lines.replace", "field_lines.mirro
 #: and its lock each time; then it computes under the lock (several annotators on the views of one system take
 #: turns at the lock without computing there, unless they keep colliding).
 _ATTEMPTS_BEFORE_LOCK = 2
+
+
+class EditSlots:
+    """Turns of the recomputing edits of one process (module docstring, "Concurrency", 3): at most ``slots`` compute
+    at once; another waits for a turn at most ``wait_s`` seconds, then computes beside them. ``slots`` 0: no limit.
+    The app factory makes one from ``Settings.edit_slots`` and ``Settings.edit_slot_wait_s`` and hands it to every
+    session of its factory (``session.info[EDIT_SLOTS]``); a session without (a command line, a test of the services)
+    takes no turn.
+
+    Raises:
+        ValueError: a negative ``slots`` or ``wait_s``.
+    """
+
+    def __init__(self, slots: int, wait_s: float) -> None:
+        if slots < 0 or wait_s < 0:
+            raise ValueError(f"edit slots need slots >= 0 and wait_s >= 0, not {slots} and {wait_s}")
+        self.slots, self.wait_s = int(slots), float(wait_s)
+        self._turns = threading.BoundedSemaphore(self.slots) if self.slots else None
+
+    @contextlib.contextmanager
+    def turn(self) -> Iterator[bool]:
+        """Hold a turn for the block: True when one was free within ``wait_s``, False when the block runs without
+        (no limit, or the wait ran out)."""
+        turns = self._turns
+        got = turns is not None and turns.acquire(timeout=self.wait_s)
+        try:
+            yield got
+        finally:
+            if got:
+                turns.release()  # type: ignore[union-attr]
+
+
+#: ``session.info`` key of the :class:`EditSlots` of the session's process (set by the app's session factory).
+EDIT_SLOTS = "v3d.edit.slots"
+
+
+def _edit_turn(session: Session) -> contextlib.AbstractContextManager[Any]:
+    """The turn of a recomputing edit in ``session``'s process (:class:`EditSlots`), or none without slots."""
+    slots: Optional[EditSlots] = session.info.get(EDIT_SLOTS)
+    return slots.turn() if slots is not None else contextlib.nullcontext()
 
 
 @dataclass
@@ -333,18 +379,20 @@ def guarded_write(session: Session, system_id: int, claim: Callable[..., None], 
         record(target, before, state(target))
         return result
 
-    changed = False
-    for _ in range(_ATTEMPTS_BEFORE_LOCK if action in _RECOMPUTING else 0):
-        carried = _compute_before_lock(session, system_id, subject, state, apply)
-        if carried is None:
-            break
-        if _write_carried(session, system_id, carried, claim, check, record):
-            session.info[LAST_RECOMPUTATION] = "recomputed" if changed else "precomputed"
-            return carried.result
-        changed = True  # another edit of the system committed meanwhile: compute again from what it committed
-    result = _in_transaction(session, work, system_id=system_id)
-    session.info[LAST_RECOMPUTATION] = "recomputed" if changed else "under_lock"
-    return result
+    recomputes = action in _RECOMPUTING
+    with _edit_turn(session) if recomputes else contextlib.nullcontext():
+        changed = False
+        for _ in range(_ATTEMPTS_BEFORE_LOCK if recomputes else 0):
+            carried = _compute_before_lock(session, system_id, subject, state, apply)
+            if carried is None:
+                break
+            if _write_carried(session, system_id, carried, claim, check, record):
+                session.info[LAST_RECOMPUTATION] = "recomputed" if changed else "precomputed"
+                return carried.result
+            changed = True  # another edit of the system committed meanwhile: compute again from what it committed
+        result = _in_transaction(session, work, system_id=system_id)
+        session.info[LAST_RECOMPUTATION] = "recomputed" if changed else "under_lock"
+        return result
 
 
 def guarded_frame_write(session: Session, frame_id: int, expected: Expected, state: Callable[[Frame], dict[str, Any]],

@@ -1,0 +1,174 @@
+"""The turns of the recomputing edits of one process (issue 29; ``writing.EditSlots``): with one slot, a second edit
+computes only once the first has committed, so it computes from the first's rows and never collides with it; an
+edit waits at most ``wait_s`` and then computes anyway; decisions take no turn; the app's sessions carry the
+settings' slots. A real SQLite file; threads, and the hook ``writing.computed_before_lock`` holding one edit
+after its geometry (inside its turn)."""
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+from sqlalchemy.engine import Engine
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import Frame, ReviewStatus
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.services.curation import writing
+from app.services.curation.decisions import decide_review
+from app.services.curation.editing import update_ball_label
+from app.services.curation.writing import EDIT_SLOTS, LAST_RECOMPUTATION, EditSlots
+
+from tests.api.factories import Scene, make_game, make_system
+
+
+@pytest.fixture
+def database(tmp_path: Path) -> Iterator[tuple[Engine, Settings, Scene, Scene]]:
+    """A migrated SQLite file with one game of two three-view systems (exact cameras, every view labelled)."""
+    url = f"sqlite:///{tmp_path / 'slots.sqlite3'}"
+    upgrade_database(url)
+    settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False,
+                        write_lock_timeout_s=5.0)
+    engine = make_engine(url, write_lock_timeout_s=settings.write_lock_timeout_s)
+    with make_session_factory(engine)() as s:
+        game = make_game(s)
+        first, second = make_system(s, settings, game, "1.png"), make_system(s, settings, game, "2.png")
+    yield engine, settings, first, second
+    engine.dispose()
+
+
+def _moved_box(factory: Callable[[], Session], frame_id: int, dx: float) -> list[float]:
+    with factory() as s:
+        box = list(s.get(Frame, frame_id).ball_label.box)
+    return [box[0] + dx, box[1], box[2] + dx, box[3]]
+
+
+def _hold_edit_a(monkeypatch: pytest.MonkeyPatch) -> tuple[threading.Event, threading.Event, dict[str, float]]:
+    """Hold the thread named "edit-a" after its geometry until ``release`` is set; note when each thread computed."""
+    computed, release = threading.Event(), threading.Event()
+    at: dict[str, float] = {}
+
+    def hold(system_id: int) -> None:
+        at[threading.current_thread().name] = time.monotonic()
+        if threading.current_thread().name == "edit-a":
+            computed.set()
+            assert release.wait(30)
+
+    monkeypatch.setattr(writing, "computed_before_lock", hold)
+    return computed, release, at
+
+
+def _in_thread(name: str, work: Callable[[], object], outcome: dict[str, object]) -> threading.Thread:
+    def run() -> None:
+        try:
+            outcome[name] = work()
+        except BaseException as exc:  # noqa: BLE001  # asserted by the test
+            outcome[name] = exc
+    thread = threading.Thread(target=run, name=name)
+    thread.start()
+    return thread
+
+
+def _edit(factory: Callable[[], Session], frame_id: int, box: list[float], settings: Settings) -> Callable[[], str]:
+    def work() -> str:
+        with factory() as s:
+            update_ball_label(s, frame_id, box=box, settings=settings)
+            return s.info[LAST_RECOMPUTATION]
+    return work
+
+
+def test_with_one_slot_a_second_edit_computes_after_the_first_committed(database, monkeypatch) -> None:
+    engine, settings, scene, _ = database
+    factory = make_session_factory(engine, info={EDIT_SLOTS: EditSlots(1, 30.0)})
+    fa, fb = scene.frame_ids[0], scene.frame_ids[1]
+    box_a, box_b = _moved_box(factory, fa, 6.0), _moved_box(factory, fb, -5.0)
+    computed, release, at = _hold_edit_a(monkeypatch)
+    outcome: dict[str, object] = {}
+    a = _in_thread("edit-a", _edit(factory, fa, box_a, settings), outcome)
+    try:
+        assert computed.wait(60), "edit A never computed"
+        b = _in_thread("edit-b", _edit(factory, fb, box_b, settings), outcome)
+        b.join(0.5)
+        assert "edit-b" not in at and "edit-b" not in outcome  # B waits for A's turn: it has not computed
+        released = time.monotonic()
+    finally:
+        release.set()
+        a.join(60)
+    b.join(60)
+    # B computed after A committed, from A's label: no collision, both stored precomputed
+    assert outcome == {"edit-a": "precomputed", "edit-b": "precomputed"}, outcome
+    assert at["edit-b"] >= released
+    with factory() as s:
+        assert list(s.get(Frame, fa).ball_label.box) == box_a and list(s.get(Frame, fb).ball_label.box) == box_b
+
+
+def test_an_edit_computes_anyway_once_its_wait_for_a_turn_ran_out(database, monkeypatch) -> None:
+    engine, settings, scene, other = database
+    factory = make_session_factory(engine, info={EDIT_SLOTS: EditSlots(1, 0.2)})
+    fa, fo = scene.frame_ids[0], other.frame_ids[0]
+    box_a, box_o = _moved_box(factory, fa, 6.0), _moved_box(factory, fo, 4.0)
+    computed, release, at = _hold_edit_a(monkeypatch)
+    outcome: dict[str, object] = {}
+    a = _in_thread("edit-a", _edit(factory, fa, box_a, settings), outcome)
+    try:
+        assert computed.wait(60), "edit A never computed"
+        t0 = time.monotonic()
+        b = _in_thread("edit-b", _edit(factory, fo, box_o, settings), outcome)
+        b.join(30)
+        waited = time.monotonic() - t0
+        assert outcome.get("edit-b") == "precomputed", outcome  # done while A still holds its turn
+        assert waited >= 0.2
+    finally:
+        release.set()
+        a.join(60)
+    assert outcome["edit-a"] == "precomputed", outcome
+    with factory() as s:
+        assert list(s.get(Frame, fo).ball_label.box) == box_o and list(s.get(Frame, fa).ball_label.box) == box_a
+
+
+def test_a_review_decision_takes_no_turn(database, monkeypatch) -> None:
+    engine, settings, scene, other = database
+    factory = make_session_factory(engine, info={EDIT_SLOTS: EditSlots(1, 30.0)})
+    fa = scene.frame_ids[0]
+    computed, release, _ = _hold_edit_a(monkeypatch)
+    outcome: dict[str, object] = {}
+    a = _in_thread("edit-a", _edit(factory, fa, _moved_box(factory, fa, 6.0), settings), outcome)
+    try:
+        assert computed.wait(60), "edit A never computed"
+        t0 = time.monotonic()
+        with factory() as s:
+            decide_review(s, system_id=other.system_id, status=ReviewStatus.ACCEPTED)
+        assert time.monotonic() - t0 < settings.write_lock_timeout_s
+    finally:
+        release.set()
+        a.join(60)
+    assert outcome["edit-a"] == "precomputed", outcome
+
+
+def test_edit_slots_count_turns_and_refuse_negative_figures() -> None:
+    slots = EditSlots(2, 0.0)
+    with slots.turn() as first, slots.turn() as second, slots.turn() as third:
+        assert (first, second, third) == (True, True, False)  # the third ran out of its (zero) wait
+    with slots.turn() as again:
+        assert again  # the turns were given back
+    with EditSlots(0, 10.0).turn() as unlimited:
+        assert unlimited is False
+    for slots_, wait in ((-1, 0.5), (1, -0.1)):
+        with pytest.raises(ValueError, match="slots >= 0 and wait_s >= 0"):
+            EditSlots(slots_, wait)
+
+
+def test_the_apps_sessions_carry_the_settings_slots(tmp_path: Path) -> None:
+    from app.main import create_app
+
+    settings = Settings(_env_file=None, database_url=f"sqlite:///{tmp_path / 'app.sqlite3'}", job_runner=False,
+                        edit_slots=3, edit_slot_wait_s=0.25)
+    app = create_app(settings)
+    with app.state.session_factory() as s, app.state.session_factory() as t:
+        slots = s.info[EDIT_SLOTS]
+        assert (slots.slots, slots.wait_s) == (3, 0.25)
+        assert t.info[EDIT_SLOTS] is slots  # one set of turns per app (process)
+    assert Settings(_env_file=None).edit_slots == 1
