@@ -230,6 +230,16 @@ _F = Frame.__table__
 _FRAME_ROWS = (FieldLineAnnotation, Calibration, BallLabel, ReviewDecision, BallReprojection, OptimisedBox)
 
 
+def _stored(*columns: Any) -> list[sa.ColumnElement[Any]]:
+    """``columns`` (tables or columns) as the driver returns them: no JSON decoding, no datetime or enum conversion
+    (the digest compares what is stored, and decoding a system's JSON documents cost more than its queries)."""
+    out: list[sa.ColumnElement[Any]] = []
+    for item in columns:
+        for c in (item.c if isinstance(item, sa.Table) else [item]):
+            out.append(sa.type_coerce(c, sa.types.NullType()).label(f"{c.table.name}_{c.name}"))
+    return out
+
+
 @functools.cache
 def _state_statements() -> tuple[sa.Select, ...]:
     """The statements of :func:`stored_state_digest`, each taking the system's id as ``sid`` (built once)."""
@@ -240,13 +250,14 @@ def _state_statements() -> tuple[sa.Select, ...]:
         t = model.__table__
         frames = frames.outerjoin(t, t.c.frame_id == _F.c.id)
     return (
-        sa.select(S, T, R, P, G.c.id, G.c.camera_prior).select_from(  # the game's prior (its release is the exports')
+        sa.select(*_stored(S, T, R, P, G.c.id, G.c.camera_prior)).select_from(  # the game's prior, not its release
             S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)
             .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),
-        sa.select(_F, *(m.__table__ for m in _FRAME_ROWS)).select_from(frames)
+        sa.select(*_stored(_F, *(m.__table__ for m in _FRAME_ROWS))).select_from(frames)
         .where(_F.c.system_id == sid).order_by(_F.c.id),
-        sa.select(TriangulationPair.__table__).where(TriangulationPair.system_id == sid).order_by(TriangulationPair.id),
-        sa.select(Doubt.__table__).where(Doubt.system_id == sid).order_by(Doubt.id),
+        sa.select(*_stored(TriangulationPair.__table__)).where(TriangulationPair.system_id == sid)
+        .order_by(TriangulationPair.id),
+        sa.select(*_stored(Doubt.__table__)).where(Doubt.system_id == sid).order_by(Doubt.id),
     )
 
 
@@ -258,7 +269,8 @@ def stored_state_digest(session: Session, system_id: int,
     reprojection and optimised box; the pairs and doubts; and the game's rig rows ``rig`` (:func:`system_rig_rows`,
     read by the caller in the same transaction; None: the kind uses no rig). Two equal digests read before and under
     an edit's write lock mean that nothing the edit read changed in between: its objects in memory are the stored
-    rows plus its own changes (``app.services.curation.writing``). Four queries of rows, no ORM objects."""
+    rows plus its own changes (``app.services.curation.writing``). Four queries of rows as stored (no ORM objects, no
+    decoding)."""
     doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _state_statements()]
     doc.append(sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None)
     return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
