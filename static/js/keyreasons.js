@@ -3,7 +3,8 @@
 // entries of viewdecisions.js, zoom.js and lineseditor.js): `explainKeys(table, page)` wraps the last entry
 // answering each key with its reason, checked before the entry runs (`before`: the entry would act on
 // nothing, or would act without effect) and after it declined (`after`), and dispatchKey (keys.js) tells
-// the page the reason when no entry used the key.
+// the page the reason when no entry used the key. Undo and redo (Ctrl+Z, Ctrl+Shift+Z, Ctrl+Y) need no reason
+// here: the page's undo stack (system.js, EditHistory) says itself when it has nothing to undo or redo.
 
 import { isMirrorFlagged } from "./viewfacts.js";
 import { inASequence } from "./sequence.js";
@@ -96,14 +97,6 @@ function reasons(page) {
     } }],
     [["0"], false, { before: () => (zoomed() ? null : "the views already show the whole frames") }],
     [["I", "J", "K", "L"], false, { before: () => (zoomed() ? null : "zoom in first (>) to pan"), after: () => "zoom in first (>) to pan" }],
-    [["z"], true, { before: () => {
-      const h = page.lineHistory;
-      return h && Array.isArray(h.done) && !h.done.length && !page.writes?.saves?.size ? "nothing to undo on this page" : null;
-    } }],
-    [["Z", "y"], true, { before: () => {
-      const h = page.lineHistory;
-      return h && Array.isArray(h.undone) && !h.undone.length ? "nothing to redo" : null;
-    } }],
   ];
 }
 
