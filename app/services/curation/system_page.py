@@ -120,13 +120,19 @@ def load_system(session: Session, system_id: int) -> System:
     loaded = _loaded_system(session, system_id)
     if loaded is not None:
         return loaded
-    stmt = sa.select(System).where(System.id == system_id).options(
+    return found(session.scalars(_system_statement(), {"sid": system_id}).unique().first(), "system", system_id)
+
+
+@functools.cache
+def _system_statement() -> sa.Select:
+    """:func:`load_system`'s statement, taking the system's id as ``sid``; built once (building it and its loader
+    options cost a fifth of the load)."""
+    return sa.select(System).where(System.id == sa.bindparam("sid")).options(
         joinedload(System.game), joinedload(System.review),
         joinedload(System.triangulation).selectinload(Triangulation.pairs),
         selectinload(System.frames).options(*_frame_loads(joinedload)),
         selectinload(System.doubts),
     )
-    return found(session.scalars(stmt).unique().first(), "system", system_id)
 
 
 #: What :func:`load_system` loads, per object: the system's lists and each view's one-to-one rows (its game and

@@ -454,8 +454,15 @@ def load_for_recompute(session: Session, ids: Sequence[int]) -> dict[int, System
     ids = list(ids)
     for start in range(0, len(ids), _LOAD_CHUNK):
         out.update((s.id, s) for s in session.scalars(
-            select(System).where(System.id.in_(ids[start:start + _LOAD_CHUNK])).options(*RECOMPUTE_LOADS)).unique())
+            _recompute_statement(), {"ids": ids[start:start + _LOAD_CHUNK]}).unique())
     return out
+
+
+@functools.cache
+def _recompute_statement() -> sa.Select:
+    """:func:`load_for_recompute`'s statement, taking the systems' ids as ``ids`` (an expanding parameter); built
+    once (building it and its loader options cost a fifth of one system's load)."""
+    return select(System).where(System.id.in_(sa.bindparam("ids", expanding=True))).options(*RECOMPUTE_LOADS)
 
 
 def preload_systems(session: Session, systems: Sequence[System]) -> None:
