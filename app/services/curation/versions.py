@@ -7,11 +7,11 @@ included, as HTTP writes them). A recomputation never bumps a version, so a fram
 change when a sibling view's edit recomputes it.
 
 A write claims its resource **inside its transaction** with one ``UPDATE ... SET version = version + 1
-WHERE id = :id [AND version IN (:expected)]``: the database checks the expected version and takes the
-row's write lock in the same statement (compare-and-set), so two writers holding the same ETag cannot
-both succeed, and nothing is read, checked and written across a commit. A frame's claim first locks its
-system's row (``SELECT ... FOR UPDATE`` on PostgreSQL; SQLite's write lock covers the database), so two
-edits of sibling views recompute their system one after the other.
+WHERE id = :id [AND version IN (:expected)] RETURNING version``: the database checks the expected version
+and takes the row's write lock in the same statement (compare-and-set), so two writers holding the same
+ETag cannot both succeed, and nothing is read, checked and written across a commit. A frame's claim comes
+after its system's row is locked (``SELECT ... FOR UPDATE`` on PostgreSQL; SQLite's write lock covers the
+database), so two edits of sibling views recompute their system one after the other.
 """
 from __future__ import annotations
 
@@ -74,20 +74,23 @@ def _lock_system(session: Session, system_id: int) -> None:
     session.execute(sa.select(System.id).where(System.id == system_id).with_for_update())
 
 
-def claim_frame(session: Session, frame_id: int, expected: Optional[Collection[int]], *, expire: bool = True) -> None:
+def claim_frame(session: Session, frame_id: int, expected: Optional[Collection[int]], *, expire: bool = True,
+                system_locked: bool = False) -> None:
     """Bump the frame's ``edit_version`` if it is one of ``expected`` (any when None), in the caller's
-    transaction, after locking its system's row; then expire the session so that everything read
-    afterwards is the state under the lock (``expire`` False: an edit that compared its loaded rows with the stored
-    ones under the lock keeps its objects; the frame's ``edit_version`` in memory is set to the new one).
+    transaction, after locking its system's row (``system_locked``: the caller has, as the guarded write does,
+    ``app.services.curation.writing.lock_system``); then expire the session so that everything read afterwards is
+    the state under the lock (``expire`` False: an edit that compared its loaded rows with the stored ones under the
+    lock keeps its objects; the frame's ``edit_version`` in memory is set to the new one).
 
     Raises:
         NotFoundError: no such frame.
         StaleVersionError: its version is not in ``expected`` (nothing changed; the caller rolls back).
     """
-    system_id = session.scalar(sa.select(Frame.system_id).where(Frame.id == frame_id))
-    if system_id is None:
-        raise NotFoundError("frame", frame_id)
-    _lock_system(session, system_id)
+    if not system_locked:
+        system_id = session.scalar(sa.select(Frame.system_id).where(Frame.id == frame_id))
+        if system_id is None:
+            raise NotFoundError("frame", frame_id)
+        _lock_system(session, system_id)
     _compare_and_set(session, Frame, Frame.edit_version, "frame", frame_id, expected, expire=expire)
 
 
@@ -104,11 +107,11 @@ def claim_system_review(session: Session, system_id: int, expected: Optional[Col
 
 def _compare_and_set(session: Session, model: type, column: sa.orm.InstrumentedAttribute, kind: str, ident: int,
                      expected: Optional[Collection[int]], *, expire: bool = True) -> None:
-    stmt = sa.update(model).where(model.id == ident).values({column.key: column + 1})
+    stmt = sa.update(model).where(model.id == ident).values({column.key: column + 1}).returning(column)
     if expected is not None:
         stmt = stmt.where(column.in_(sorted(expected)))
-    done = session.execute(stmt.execution_options(synchronize_session=False)).rowcount
-    if done != 1:
+    new = session.execute(stmt.execution_options(synchronize_session=False)).scalar_one_or_none()  # the new version
+    if new is None:
         current = session.scalar(sa.select(column).where(model.id == ident))
         if current is None:
             raise NotFoundError(kind, ident)
@@ -118,4 +121,4 @@ def _compare_and_set(session: Session, model: type, column: sa.orm.InstrumentedA
         return
     loaded = session.identity_map.get(session.identity_key(model, ident))  # type: ignore[arg-type]
     if loaded is not None:
-        set_committed_value(loaded, column.key, session.scalar(sa.select(column).where(model.id == ident)))
+        set_committed_value(loaded, column.key, new)

@@ -400,8 +400,8 @@ def guarded_frame_write(session: Session, frame_id: int, expected: Expected, sta
                  undo_of: Optional[int] = None) -> T:
     system_id = get_frame(session, frame_id).system_id
 
-    def claim(expire: bool = True) -> None:
-        claim_frame(session, frame_id, expected, expire=expire)
+    def claim(expire: bool = True) -> None:  # guarded_write has locked the system (lock_system) before it claims
+        claim_frame(session, frame_id, expected, expire=expire, system_locked=True)
 
     return guarded_write(session, system_id, claim, lambda: get_frame(session, frame_id), state, apply, action, actor,
                          revert, undo_of)
