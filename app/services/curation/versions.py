@@ -107,10 +107,16 @@ def claim_system_review(session: Session, system_id: int, expected: Optional[Col
 
 def _compare_and_set(session: Session, model: type, column: sa.orm.InstrumentedAttribute, kind: str, ident: int,
                      expected: Optional[Collection[int]], *, expire: bool = True) -> None:
-    stmt = sa.update(model).where(model.id == ident).values({column.key: column + 1}).returning(column)
+    stmt = sa.update(model).where(model.id == ident).values({column.key: column + 1})
     if expected is not None:
         stmt = stmt.where(column.in_(sorted(expected)))
-    new = session.execute(stmt.execution_options(synchronize_session=False)).scalar_one_or_none()  # the new version
+    returning = session.get_bind().dialect.update_returning  # SQLite >= 3.35 and PostgreSQL: the new version at once
+    result = session.execute((stmt.returning(column) if returning else stmt)
+                             .execution_options(synchronize_session=False))
+    if returning:
+        new = result.scalar_one_or_none()
+    else:
+        new = session.scalar(sa.select(column).where(model.id == ident)) if result.rowcount == 1 else None
     if new is None:
         current = session.scalar(sa.select(column).where(model.id == ident))
         if current is None:

@@ -113,6 +113,26 @@ def test_a_stale_expected_version_changes_nothing(db_session, settings, v3_tree)
     assert len(_entries(db_session)) == 2
 
 
+@pytest.mark.parametrize("returning", [True, False])
+def test_a_claim_reads_its_new_version_with_or_without_returning(db_session, settings, v3_tree, monkeypatch,
+                                                                  returning):
+    """The claim reads the frame's new version from its ``UPDATE ... RETURNING``; a database without RETURNING
+    (SQLite before 3.35) reads it with a SELECT: the same versions, ETags and refusals either way."""
+    import_soccernet_v3(db_session, v3_tree, settings)
+    monkeypatch.setattr(db_session.get_bind().dialect, "update_returning", returning)
+    frame = db_session.scalars(sa.select(Frame).where(Frame.name == "2_1.png")).one()
+    fid, box = frame.id, list(frame.ball_label.box)
+    editing.update_ball_label(db_session, fid, box=[b + 2 for b in box], settings=settings, expected={1})
+    assert db_session.get(Frame, fid).edit_version == 2
+    editing.update_ball_label(db_session, fid, box=[b + 3 for b in box], settings=settings, expected={2})
+    with pytest.raises(StaleVersionError) as caught:
+        editing.update_ball_label(db_session, fid, box=[b - 2 for b in box], settings=settings, expected={2})
+    assert caught.value.etag == f'"frame-{fid}-3"'
+    db_session.expire_all()
+    assert db_session.get(Frame, fid).edit_version == 3
+    assert db_session.get(Frame, fid).ball_label.box == [b + 3 for b in box]
+
+
 @pytest.mark.postgres
 def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_url, settings, v3_tree):
     """Writer A claims the frame and holds its transaction open; writer B, with the same expected version,
