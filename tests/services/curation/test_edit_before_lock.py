@@ -295,6 +295,11 @@ def test_the_stored_rows_digest_sees_every_row_an_edit_writes_and_not_the_object
         lambda s: setattr(s.get(Frame, scene.frame_ids[2]), "review",
                           ReviewDecision(status=ReviewStatus.ACCEPTED, comment="")),
         lambda s: setattr(game(s), "camera_prior", {"anchors_m": []}),
+        lambda s: setattr(s.get(Frame, scene.frame_ids[0]).calibration, "jac_0005", 0.123),
+        lambda s: setattr(s.get(Frame, scene.frame_ids[1]).field_lines, "lines", {}),
+        lambda s: setattr(s.get(Frame, scene.frame_ids[2]).reprojection, "error_px", 77.0),
+        lambda s: setattr(s.get(Frame, scene.frame_ids[0]), "width", 1921),
+        lambda s: setattr(s.get(System, scene.system_id).triangulation, "tau_px", 21.0),
     ):
         assert changed(edit)
         with factory() as s:
