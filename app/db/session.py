@@ -139,8 +139,9 @@ def _prepare_sqlite(engine: Engine, url: sa.URL, busy_timeout_s: float) -> None:
 def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **kwargs: Any) -> Engine:
     """A SQLAlchemy engine for ``url`` (SQLite or PostgreSQL).
 
-    SQLite engines enforce foreign keys, use WAL for files, allow use from the API's worker threads,
-    decode JSON columns with orjson (:func:`app.db.types.json_loads`), support savepoints (see
+    Both decode JSON columns with orjson (:func:`app.db.types.json_loads`; psycopg's own loader would use
+    ``json.loads``). SQLite engines enforce foreign keys, use WAL for files, allow use from the API's worker threads,
+    support savepoints (see
     :func:`_prepare_sqlite`), wait up to ``write_lock_timeout_s`` (None: :data:`SQLITE_BUSY_TIMEOUT_S`; an
     explicit ``connect_args={"timeout": ...}`` wins) for the write lock, and begin the transactions of
     :func:`begin_write` with ``BEGIN IMMEDIATE``. PostgreSQL engines given ``write_lock_timeout_s`` set the
@@ -158,6 +159,7 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
         return engine
     kwargs.setdefault("pool_pre_ping", True)
     if u.get_backend_name() == "postgresql":
+        kwargs.setdefault("json_deserializer", json_loads)
         options = kwargs.setdefault("connect_args", {}).get("options", "")
         if "jit" not in options:  # no JIT: see POSTGRES_OPTIONS
             options = f"{options} {POSTGRES_OPTIONS}".strip()

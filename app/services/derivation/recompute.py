@@ -38,6 +38,7 @@ import numpy as np
 import orjson
 import sqlalchemy as sa
 from sqlalchemy import func, select
+from sqlalchemy.dialects.postgresql import aggregate_order_by
 from sqlalchemy.orm import Session, joinedload, selectinload
 
 from app.core.config import Settings
@@ -261,6 +262,23 @@ def _state_statements() -> tuple[sa.Select, ...]:
     )
 
 
+@functools.cache
+def _state_statement_postgresql() -> sa.Select:
+    """:func:`_state_statements` as one PostgreSQL statement of four text columns, each the SHA-256 (hex) of one
+    statement's rows as PostgreSQL writes them as text (``CAST(ROW(...) AS TEXT)``, joined in the statement's
+    order by its table's id): one round trip instead of four, and no column descriptions, rows or JSON documents
+    for psycopg to turn into Python objects. Built once."""
+    digests = []
+    for i, (stmt, table) in enumerate(zip(_state_statements(), (System, Frame, TriangulationPair, Doubt))):
+        rows = stmt.subquery(f"rows_{i}")
+        text = sa.cast(sa.tuple_(*rows.c), sa.Text)
+        ordered_sep = aggregate_order_by(sa.literal_column("'|'"), rows.c[f"{table.__tablename__}_id"])
+        agg = sa.func.string_agg(text, ordered_sep)
+        digests.append(sa.select(sa.func.encode(sa.func.sha256(sa.func.convert_to(agg, "UTF8")), "hex"))
+                       .select_from(rows).scalar_subquery().label(f"rows_{i}"))
+    return sa.select(*digests)
+
+
 def stored_state_digest(session: Session, system_id: int,
                         rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> str:
     """A digest (hex SHA-256) of every stored row an edit of system ``system_id`` loads and may write, as the
@@ -269,9 +287,13 @@ def stored_state_digest(session: Session, system_id: int,
     reprojection and optimised box; the pairs and doubts; and the game's rig rows ``rig`` (:func:`system_rig_rows`,
     read by the caller in the same transaction; None: the kind uses no rig). Two equal digests read before and under
     an edit's write lock mean that nothing the edit read changed in between: its objects in memory are the stored
-    rows plus its own changes (``app.services.curation.writing``). Four queries of rows as stored (no ORM objects, no
-    decoding)."""
-    doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _state_statements()]
+    rows plus its own changes (``app.services.curation.writing``). SQLite: four queries of rows as stored (no ORM
+    objects, no decoding); PostgreSQL: one statement in which the database hashes the same rows' text
+    (:func:`_state_statement_postgresql`)."""
+    if session.get_bind().dialect.name == "postgresql":
+        doc: list[Any] = list(session.execute(_state_statement_postgresql(), {"sid": system_id}).one())
+    else:
+        doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _state_statements()]
     doc.append(sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None)
     return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
                                        default=str)).hexdigest()
