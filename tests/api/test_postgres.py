@@ -167,3 +167,43 @@ def test_connections_run_without_jit_and_migrations_analyse(pg_url: str) -> None
             assert conn.exec_driver_sql("SHOW jit").scalar() == "on"
     finally:
         explicit.dispose()
+
+
+def test_statements_stay_prepared_across_rollbacks_and_a_rollback_still_discards(pg_url: str) -> None:
+    """Issue 29: psycopg prepares a statement run 5 times on a connection, but its ``rollback()`` forgot them all,
+    and v3d ends every read-only transaction by a rollback: every statement of an edit was planned anew. The engine's
+    rollback keeps them (``app.db.session._rollback_keeping_prepared``); it still discards what the transaction
+    wrote, ends a failed transaction, and the pool's reset on return goes through it too."""
+    import sqlalchemy as sa
+
+    from app.db.models import Game
+
+    upgrade_database(pg_url)
+    engine = make_engine(pg_url, pool_size=1, max_overflow=0)  # one connection: every session below shares it
+    factory = make_session_factory(engine)
+    lookup = sa.select(Game.id).where(Game.match == sa.bindparam("m"))
+    try:
+        for i in range(7):  # each session ends by a rollback (close, and the pool's reset)
+            with factory() as s:
+                assert s.execute(lookup, {"m": f"none-{i}"}).first() is None
+        with factory() as s:
+            prepared = s.execute(sa.text("SELECT statement FROM pg_prepared_statements")).scalars().all()
+            assert any("FROM games" in p and "games.match" in p for p in prepared), prepared
+            s.add(Game(league="l", season="s", match="rolled back", source_path="/x"))
+            s.flush()
+            s.rollback()
+            assert s.execute(lookup, {"m": "rolled back"}).first() is None
+            with pytest.raises(sa.exc.DataError):
+                s.execute(sa.text("SELECT 1 / 0"))
+            s.rollback()  # a failed transaction ends, and the connection serves again
+            assert s.execute(lookup, {"m": "rolled back"}).first() is None
+            assert s.execute(sa.text("SELECT count(*) FROM pg_prepared_statements WHERE statement LIKE "
+                                     "'%games.match%'")).scalar() == 1
+        raw = engine.raw_connection()  # a connection going back to the pool with its transaction open
+        raw.cursor().execute("INSERT INTO games (league, season, match, source_path, created_at) "
+                             "VALUES ('l', 's', 'left open', '/x', now())")
+        raw.close()  # the pool's reset on return rolls it back
+        with factory() as s:
+            assert s.execute(lookup, {"m": "left open"}).first() is None
+    finally:
+        engine.dispose()
