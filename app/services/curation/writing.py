@@ -93,11 +93,13 @@ class Revert:
     expect: Optional[dict[str, Any]] = None
 
 
-def lock_system(session: Session, system_id: int, *, expire: bool = True) -> None:
+def lock_system(session: Session, system_id: int, *, expire: bool = True, loaded: Optional[System] = None) -> None:
     """Lock the system's row (and, for an ISSIA system, its game's row first) until the transaction
     ends, then (``expire``) expire every loaded object so that what the caller reads next is read under the lock.
     An edit that carries its objects from its snapshot (:func:`_write_carried`) does not expire them: it compares
-    the stored rows with what it read instead.
+    the stored rows with what it read instead, and passes the system it loaded (``loaded``), whose kind and game
+    (never changed once stored) spare looking them up; on SQLite it then locks with nothing more than its
+    transaction's ``BEGIN IMMEDIATE`` (below).
 
     PostgreSQL: ``SELECT ... FOR UPDATE`` makes concurrent edits of one system (one sequence for ISSIA,
     whose edits re-fit the trajectory of the whole game) wait for each other, so no recomputation is
@@ -110,12 +112,17 @@ def lock_system(session: Session, system_id: int, *, expire: bool = True) -> Non
         NotFoundError: no system has this id.
     """
     with session.no_autoflush if not expire else contextlib.nullcontext():  # kept objects keep their changes unflushed
-        row = session.execute(select(System.game_id, System.kind).where(System.id == system_id)).one_or_none()
-        if row is None:
-            raise NotFoundError("system", system_id)
-        if policy(row.kind).edit_locks_game:
-            session.execute(select(Game.id).where(Game.id == row.game_id).with_for_update())
-        session.execute(select(System.id).where(System.id == system_id).with_for_update())
+        if loaded is not None:
+            kind, game_id = loaded.kind, loaded.game_id
+        else:
+            row = session.execute(select(System.game_id, System.kind).where(System.id == system_id)).one_or_none()
+            if row is None:
+                raise NotFoundError("system", system_id)
+            kind, game_id = row.kind, row.game_id
+        if loaded is None or session.get_bind().dialect.name != "sqlite":  # SQLite: FOR UPDATE locks nothing more
+            if policy(kind).edit_locks_game:
+                session.execute(select(Game.id).where(Game.id == game_id).with_for_update())
+            session.execute(select(System.id).where(System.id == system_id).with_for_update())
     if expire:
         session.expire_all()
 
@@ -283,14 +290,15 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
     """Write an edit computed before the lock (:func:`_compute_before_lock`) under it, in one transaction: end the
     snapshot keeping its objects (``begin_write_keeping_objects``), lock the system, and compare its stored rows with
     what the snapshot read (SQLite's ``data_version`` unchanged, or the digest read again equal); then claim the
-    version, ``check`` the state before (a revert's), flush what changed, ``record`` the audit entry and commit.
+    version, ``check`` the state before (a revert's), ``record`` the audit entry and commit (one flush writes what
+    changed and the entry).
     False, with everything rolled back, when a stored row changed meanwhile (the caller runs the edit under the
     lock). Raises what ``claim`` and ``check`` raise (rolled back; a stale version described)."""
     try:
         begin_write_keeping_objects(session)
+        plan = carried.plan
         with session.no_autoflush:
-            lock_system(session, system_id, expire=False)
-            plan = carried.plan
+            lock_system(session, system_id, expire=False, loaded=plan.preloaded)
             unchanged = plan.data_version is not None and data_version(session) == plan.data_version
             if not unchanged:
                 rig = system_rig_rows(session, plan.preloaded, plan.settings)
@@ -300,9 +308,8 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
                 return False
             claim(expire=False)
             check(carried.before)
-        session.flush()
-        record(carried.target, carried.before, carried.after)
-        session.commit()
+            record(carried.target, carried.before, carried.after)
+        session.commit()  # one flush: what changed and the audit entry
         return True
     except BaseException as exc:
         _rolled_back(session, exc)
