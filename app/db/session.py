@@ -189,16 +189,23 @@ def _rollback_keeping_prepared(dbapi_connection: Any) -> None:
     rollback: a session's, the pool's reset on return.
 
     Raises:
-        psycopg.OperationalError: PostgreSQL did not roll back (a broken connection: the pool discards it).
+        psycopg.Error: PostgreSQL did not roll back: the class of its SQLSTATE (``psycopg.errors.lookup``; a server
+            shutting the connection down: ``AdminShutdown``), else ``OperationalError`` (a broken connection: the
+            pool discards it, as after psycopg's own rollback).
     """
-    from psycopg import OperationalError, pq
+    from psycopg import OperationalError, errors, pq
 
     pgconn = dbapi_connection.pgconn
     if pgconn.transaction_status == pq.TransactionStatus.IDLE:
         return
     result = pgconn.exec_(b"ROLLBACK")
     if result.status != pq.ExecStatus.COMMAND_OK:
-        raise OperationalError(f"ROLLBACK failed: {pgconn.error_message.decode(errors='replace').strip()}")
+        sqlstate = result.error_field(pq.DiagnosticField.SQLSTATE)
+        try:
+            cls = errors.lookup(sqlstate.decode()) if sqlstate else OperationalError
+        except KeyError:
+            cls = OperationalError
+        raise cls(f"ROLLBACK failed: {pgconn.error_message.decode(errors='replace').strip()}")
 
 
 #: Options of v3d's PostgreSQL connections. JIT off: v3d's queries read a few rows by key, yet on a database

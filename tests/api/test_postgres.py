@@ -207,3 +207,32 @@ def test_statements_stay_prepared_across_rollbacks_and_a_rollback_still_discards
             assert s.execute(lookup, {"m": "left open"}).first() is None
     finally:
         engine.dispose()
+
+
+def test_a_rollback_on_a_connection_the_server_closed_discards_the_connection(pg_url: str) -> None:
+    """The rollback that keeps psycopg's prepared statements (``app.db.session._rollback_keeping_prepared``) on a
+    connection the server has closed (a restart, an administrator's ``pg_terminate_backend``) raises like psycopg's
+    own, so the pool discards that connection, and the next session works on a new one."""
+    import time
+
+    import sqlalchemy as sa
+
+    upgrade_database(pg_url)
+    engine = make_engine(pg_url, pool_size=1, max_overflow=0)
+    admin = make_engine(pg_url, isolation_level="AUTOCOMMIT")
+    factory = make_session_factory(engine)
+    try:
+        s = factory()
+        pid = s.execute(sa.text("SELECT pg_backend_pid()")).scalar()
+        with admin.connect() as conn:
+            assert conn.execute(sa.text("SELECT pg_terminate_backend(:pid)"), {"pid": pid}).scalar()
+        time.sleep(0.2)
+        with pytest.raises(sa.exc.OperationalError) as raised:
+            s.rollback()
+        assert raised.value.connection_invalidated
+        s.close()
+        with factory() as s:
+            assert s.execute(sa.text("SELECT pg_backend_pid()")).scalar() != pid
+    finally:
+        engine.dispose()
+        admin.dispose()
