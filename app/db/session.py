@@ -180,8 +180,8 @@ def _rollback_keeping_prepared(dbapi_connection: Any) -> None:
     PostgreSQL parses and plans it once instead of at every execution; but its ``Connection.rollback()`` forgets
     every prepared statement (it cannot tell whether the transaction rolled back a DDL change they depend on).
     v3d ends every read-only transaction by a rollback (a request's lookups, an edit's read snapshot, the pool's
-    reset when a session closes), so no statement ever stayed prepared: an edit's 25 statements were planned anew
-    each time (about 5 ms of PostgreSQL CPU per ball edit, issue 29). v3d changes no schema while it serves
+    reset when a session closes), so no statement ever stayed prepared: every statement of every edit was planned
+    anew (about 5 ms of PostgreSQL CPU per ball edit, issue 29). v3d changes no schema while it serves
     (migrations run before, in their own connections), and a statement prepared in a transaction outlives its
     rollback (PostgreSQL's ``PREPARE`` is not transactional), so the rollback is sent through the libpq connection
     (``Connection.pgconn``, psycopg's public low-level interface), which leaves psycopg's cache as it is; the
@@ -189,9 +189,9 @@ def _rollback_keeping_prepared(dbapi_connection: Any) -> None:
     rollback: a session's, the pool's reset on return.
 
     Raises:
-        psycopg.Error: PostgreSQL did not roll back: the class of its SQLSTATE (``psycopg.errors.lookup``; a server
-            shutting the connection down: ``AdminShutdown``), else ``OperationalError`` (a broken connection: the
-            pool discards it, as after psycopg's own rollback).
+        psycopg.Error: PostgreSQL did not roll back: the class of the SQLSTATE it sent (``psycopg.errors.lookup``),
+            else ``OperationalError`` (a connection the server closed: the pool discards it, as after psycopg's own
+            rollback).
     """
     from psycopg import OperationalError, errors, pq
 
