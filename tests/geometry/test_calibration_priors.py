@@ -140,13 +140,15 @@ def test_a_fit_as_sure_as_the_confident_ones_is_left_as_the_lines_have_it() -> N
 
 
 def test_the_service_stores_the_posterior_std_of_a_map_fit() -> None:
-    from app.services.calibration.calibrating import _fields_from_result, fit_uncertainty
+    from app.geometry.annotations import lines_to_json_lists
+    from app.services.calibration.calibrating import calibrate_lines, fit_uncertainty
 
     truth = _camera((0.5, 60.0, -14.0), target=(0.0, 10.0, 0.0), focal=1800.0)
     lines = _lines(truth, {"Middle line", "Side line top", "Circle central"}, noise_px=1.5, seed=0)
-    result = calibrate_frame(lines, W, H, prior=_prior_at(truth.C), compute_jac=False)
+    prior = _prior_at(truth.C)
+    result = calibrate_frame(lines, W, H, prior=prior, compute_jac=False)
     assert result.centre_prior is not None
-    stored = _fields_from_result(result, lines).uncertainty
+    stored = calibrate_lines(lines_to_json_lists(lines), W, H, rig=prior.camera_prior).uncertainty  # as an edit stores it
     posterior = calibration_uncertainty(result.camera, lines, prior=result.centre_prior).to_json()
     assert stored == posterior
     lines_only = fit_uncertainty(result.camera, lines, result.flags)
