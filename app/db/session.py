@@ -150,17 +150,16 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
     Extra ``kwargs`` go to ``create_engine``.
     """
     u = make_url(url)
+    kwargs.setdefault("json_deserializer", json_loads)
     if u.get_backend_name() == "sqlite":
         kwargs.setdefault("connect_args", {}).setdefault("check_same_thread", False)
         timeout = kwargs["connect_args"].setdefault(
             "timeout", SQLITE_BUSY_TIMEOUT_S if write_lock_timeout_s is None else write_lock_timeout_s)
-        kwargs.setdefault("json_deserializer", json_loads)
         engine = sa.create_engine(u, **kwargs)
         _prepare_sqlite(engine, u, timeout)
         return engine
     kwargs.setdefault("pool_pre_ping", True)
     if u.get_backend_name() == "postgresql":
-        kwargs.setdefault("json_deserializer", json_loads)
         options = kwargs.setdefault("connect_args", {}).get("options", "")
         if "jit" not in options:  # no JIT: see POSTGRES_OPTIONS
             options = f"{options} {POSTGRES_OPTIONS}".strip()

@@ -70,27 +70,17 @@ def expected_versions(if_match: Optional[str], kind: str, ident: int) -> Optiona
     return frozenset(out)
 
 
-def _lock_system(session: Session, system_id: int) -> None:
-    session.execute(sa.select(System.id).where(System.id == system_id).with_for_update())
-
-
-def claim_frame(session: Session, frame_id: int, expected: Optional[Collection[int]], *, expire: bool = True,
-                system_locked: bool = False) -> None:
+def claim_frame(session: Session, frame_id: int, expected: Optional[Collection[int]], *, expire: bool = True) -> None:
     """Bump the frame's ``edit_version`` if it is one of ``expected`` (any when None), in the caller's
-    transaction, after locking its system's row (``system_locked``: the caller has, as the guarded write does,
-    ``app.services.curation.writing.lock_system``); then expire the session so that everything read afterwards is
-    the state under the lock (``expire`` False: an edit that compared its loaded rows with the stored ones under the
-    lock keeps its objects; the frame's ``edit_version`` in memory is set to the new one).
+    transaction, whose caller has locked the frame's system (``app.services.curation.writing.lock_system``, as the
+    guarded write does); then expire the session so that everything read afterwards is the state under the lock
+    (``expire`` False: an edit that compared its loaded rows with the stored ones under the lock keeps its objects;
+    the frame's ``edit_version`` in memory is set to the new one).
 
     Raises:
         NotFoundError: no such frame.
         StaleVersionError: its version is not in ``expected`` (nothing changed; the caller rolls back).
     """
-    if not system_locked:
-        system_id = session.scalar(sa.select(Frame.system_id).where(Frame.id == frame_id))
-        if system_id is None:
-            raise NotFoundError("frame", frame_id)
-        _lock_system(session, system_id)
     _compare_and_set(session, Frame, Frame.edit_version, "frame", frame_id, expected, expire=expire)
 
 

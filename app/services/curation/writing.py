@@ -98,15 +98,15 @@ def lock_system(session: Session, system_id: int, *, expire: bool = True, loaded
     ends, then (``expire``) expire every loaded object so that what the caller reads next is read under the lock.
     An edit that carries its objects from its snapshot (:func:`_write_carried`) does not expire them: it compares
     the stored rows with what it read instead, and passes the system it loaded (``loaded``), whose kind and game
-    (never changed once stored) spare looking them up; on SQLite it then locks with nothing more than its
-    transaction's ``BEGIN IMMEDIATE`` (below).
+    (never changed once stored) spare looking them up.
 
     PostgreSQL: ``SELECT ... FOR UPDATE`` makes concurrent edits of one system (one sequence for ISSIA,
     whose edits re-fit the trajectory of the whole game) wait for each other, so no recomputation is
     computed from labels another transaction is changing and then overwrites that transaction's result.
     Rows are always locked game first, then system: no two edits wait for each other in a cycle. Systems
-    of other games, and other systems of a SoccerNet game, are edited in parallel. SQLite ignores
-    ``FOR UPDATE``; its ``BEGIN IMMEDIATE`` already serialises every write transaction.
+    of other games, and other systems of a SoccerNet game, are edited in parallel. SQLite has no ``FOR UPDATE``
+    (its ``BEGIN IMMEDIATE``, which every write transaction begins with, already serialises them): nothing more is
+    sent there.
 
     Raises:
         NotFoundError: no system has this id.
@@ -119,7 +119,7 @@ def lock_system(session: Session, system_id: int, *, expire: bool = True, loaded
             if row is None:
                 raise NotFoundError("system", system_id)
             kind, game_id = row.kind, row.game_id
-        if loaded is None or session.get_bind().dialect.name != "sqlite":  # SQLite: FOR UPDATE locks nothing more
+        if session.get_bind().dialect.name != "sqlite":
             if policy(kind).edit_locks_game:
                 session.execute(select(Game.id).where(Game.id == game_id).with_for_update())
             session.execute(select(System.id).where(System.id == system_id).with_for_update())
@@ -408,7 +408,7 @@ def guarded_frame_write(session: Session, frame_id: int, expected: Expected, sta
     system_id = get_frame(session, frame_id).system_id
 
     def claim(expire: bool = True) -> None:  # guarded_write has locked the system (lock_system) before it claims
-        claim_frame(session, frame_id, expected, expire=expire, system_locked=True)
+        claim_frame(session, frame_id, expected, expire=expire)
 
     return guarded_write(session, system_id, claim, lambda: get_frame(session, frame_id), state, apply, action, actor,
                          revert, undo_of)

@@ -139,6 +139,7 @@ def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_url, settings
     waits on the row lock, then finds the version moved: 412 for B, A's edit stored, one entry."""
     from app.db.session import make_engine, make_session_factory, upgrade_database
     from app.services.curation.versions import claim_frame
+    from app.services.curation.writing import lock_system
 
     upgrade_database(pg_url)
     engine = make_engine(pg_url)
@@ -148,6 +149,7 @@ def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_url, settings
             import_soccernet_v3(setup, v3_tree, settings)
             fid = setup.scalars(sa.select(Frame.id).where(Frame.name == "2_2.png")).one()
         a, b = factory(), factory()
+        lock_system(a, a.get(Frame, fid).system_id)
         claim_frame(a, fid, {1})  # A holds the lock
         outcome: dict[str, object] = {}
 
