@@ -28,7 +28,7 @@ from app.geometry.triangulation import BallObservation, PairGeometry, pair_geome
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.weighting import calibration_weight
 from app.services.curation.doubt_words import doubt_message
-from app.services.derivation.rows import replace_rows
+from app.services.derivation.rows import put_values, replace_rows
 from app.services.kinds import kind_of
 
 
@@ -116,8 +116,8 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
              suggestion=json_safe(d.suggestion) if d.suggestion else None)
         for d in found
     ])
-    system.doubt_counts = dict(Counter(d.kind for d in found))
-    system.label_doubts = sum(1 for d in found if d.accuses_label)
+    put_values(system, {"doubt_counts": dict(Counter(d.kind for d in found)),
+                        "label_doubts": sum(1 for d in found if d.accuses_label)})
     return list(system.doubts)
 
 

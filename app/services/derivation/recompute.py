@@ -65,7 +65,7 @@ from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
-from app.services.derivation.rows import replace_rows
+from app.services.derivation.rows import put_values, replace_rows, set_changed
 from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
 
@@ -168,7 +168,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
     for f in frames:
         cal = f.calibration
         if cal is not None:
-            cal.admitted = is_admitted(cal, settings)
+            set_changed(cal, "admitted", is_admitted(cal, settings))
             if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
                 cameras[f.id] = Camera.from_soccernet(cal.camera)
         centre = _label_centre(f)
@@ -193,9 +193,9 @@ def recompute_system(session: Session, system: System, settings: Settings,
         tri = Triangulation(system=system, status=TriangulationStatus(result.status), tau_px=result.tau_px,
                             rule=result.rule, min_baseline_m=result.min_baseline_m)
         session.add(tri)
-    tri.status = TriangulationStatus(result.status)
-    tri.ball3d = None if result.point is None else [float(v) for v in result.point]
-    tri.tau_px, tri.rule, tri.min_baseline_m = result.tau_px, result.rule, result.min_baseline_m
+    put_values(tri, {"status": TriangulationStatus(result.status),
+                     "ball3d": None if result.point is None else [float(v) for v in result.point],
+                     "tau_px": result.tau_px, "rule": result.rule, "min_baseline_m": result.min_baseline_m})
     tri.computed_at = utcnow()
     replace_rows(tri.pairs, TriangulationPair, [dict(  # in place: a pair the edit leaves as it was writes nothing
         frame_a_id=p.view_a, frame_b_id=p.view_b,
@@ -211,8 +211,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
     update_doubts(system, settings, cameras, geometry)
     update_summary(system, tri)
-    system.derived_version = DERIVED_VERSION
-    system.derived_settings = settings.derived_fingerprint()
+    put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
     return tri
 
 
@@ -306,19 +305,21 @@ def update_summary(system: System, tri: Triangulation) -> None:
     frames = list(system.frames)
     cals = [f.calibration for f in frames]
     admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
-    system.review_status = system.review.status if system.review is not None else ReviewStatus.PENDING
-    system.views_total = len(frames)
-    system.views_calibrated = sum(c is not None and c.status is CalibrationStatus.CALIBRATED for c in cals)
-    system.views_admitted = len(admitted)
-    system.views_labelled = sum(f.ball_label is not None and f.ball_label.kind is not None for f in frames)
     jacs = [f.calibration.jac_0005 for f in admitted if f.calibration.jac_0005 is not None]
-    system.lowest_jac = min(jacs) if jacs else None
     labelled = [f for f in admitted if f.ball_label is not None and f.ball_label.kind is not None
                 and f.reprojection is not None and f.reprojection.error_px is not None]
-    system.worst_error_px = max((f.reprojection.error_px for f in labelled), default=None)
-    system.views_flagged = sum(c is not None and MIRROR_FLAG in (c.flags or []) for c in cals)
-    system.views_above_tau = sum(error_above_tau(f.reprojection.error_px, f.width, tri.tau_px, tri.rule)
-                                 for f in labelled)
+    put_values(system, {
+        "review_status": system.review.status if system.review is not None else ReviewStatus.PENDING,
+        "views_total": len(frames),
+        "views_calibrated": sum(c is not None and c.status is CalibrationStatus.CALIBRATED for c in cals),
+        "views_admitted": len(admitted),
+        "views_labelled": sum(f.ball_label is not None and f.ball_label.kind is not None for f in frames),
+        "lowest_jac": min(jacs) if jacs else None,
+        "worst_error_px": max((f.reprojection.error_px for f in labelled), default=None),
+        "views_flagged": sum(c is not None and MIRROR_FLAG in (c.flags or []) for c in cals),
+        "views_above_tau": sum(error_above_tau(f.reprojection.error_px, f.width, tri.tau_px, tri.rule)
+                               for f in labelled),
+    })
 
 
 def refresh_stale_systems(session: Session, settings: Settings, progress: Progress | None = None) -> int:
@@ -415,8 +416,8 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
     for f in frames:
         cal, verdict = f.calibration, verdicts[f.id]
         flags = [x for x in (cal.flags or []) if x != MIRROR_FLAG]
-        cal.flags = [*flags, MIRROR_FLAG] if verdict.flagged else flags
-        cal.mirror_evidence = json_safe(with_sentence(verdict.as_dict(), names, flagged))
+        put_values(cal, {"flags": [*flags, MIRROR_FLAG] if verdict.flagged else flags,
+                         "mirror_evidence": json_safe(with_sentence(verdict.as_dict(), names, flagged))})
 
 
 def _label_centre(frame: Frame) -> np.ndarray | None:
@@ -431,13 +432,15 @@ def _update_reprojection(frame: Frame, camera: Camera | None, ball: np.ndarray |
         proj, in_front = camera.project(ball.reshape(1, 3))
         uv = proj[0] if in_front[0] else None
     if uv is None:
-        frame.reprojection = None
+        if frame.reprojection is not None:
+            frame.reprojection = None
         return
     centre = _label_centre(frame)
     error = None if centre is None else float(np.linalg.norm(uv - centre))
-    rep = frame.reprojection or BallReprojection(point=[0.0, 0.0])
-    rep.point, rep.error_px = [float(uv[0]), float(uv[1])], error
-    frame.reprojection = rep
+    rep = frame.reprojection
+    if rep is None:
+        frame.reprojection = rep = BallReprojection(point=[0.0, 0.0])
+    put_values(rep, {"point": [float(uv[0]), float(uv[1])], "error_px": error})
 
 
 def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray | None, settings: Settings) -> None:
@@ -447,11 +450,13 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
         r = optimise_box(camera, centre, ball, settings.ball_diameter_m, method=settings.optimised_box_method)
         opt = r if r.status == "ok" else None
     if opt is None:
-        frame.optimised_box = None
+        if frame.optimised_box is not None:
+            frame.optimised_box = None
         return
-    row = frame.optimised_box or OptimisedBox(box=[], d_opt_px=0.0, error_m=0.0)
-    row.box, row.d_opt_px, row.error_m = [float(v) for v in opt.box], float(opt.d_px), float(opt.error_m)
-    frame.optimised_box = row
+    row = frame.optimised_box
+    if row is None:
+        frame.optimised_box = row = OptimisedBox(box=[], d_opt_px=0.0, error_m=0.0)
+    put_values(row, {"box": [float(v) for v in opt.box], "d_opt_px": float(opt.d_px), "error_m": float(opt.error_m)})
 
 
 #: What :func:`recompute_system` and ``update_doubts`` read or replace (an ISSIA system's trajectory point too):

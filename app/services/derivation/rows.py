@@ -13,8 +13,15 @@ def put_values(row: Any, values: dict[str, Any]) -> Any:
     for key, value in values.items():
         if value is None and not columns[key].nullable:
             continue
-        setattr(row, key, value)
+        set_changed(row, key, value)
     return row
+
+
+def set_changed(row: Any, key: str, value: Any) -> None:
+    """Set ``row.key`` to ``value`` unless it holds an equal value already (``==``: numbers, strings, enums, JSON
+    lists and dicts): an unchanged attribute then leaves the row out of the next flush altogether."""
+    if key not in row.__dict__ or row.__dict__[key] != value:
+        setattr(row, key, value)
 
 
 def replace_rows(rows: list[Any], row_type: type, values: list[dict[str, Any]]) -> None:

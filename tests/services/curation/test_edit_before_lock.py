@@ -123,6 +123,36 @@ def test_an_edit_updates_its_pairs_and_doubts_in_place(database) -> None:
     assert [d[0] for d in doubts[:kept]] == [d[0] for d in before_doubts[:kept]]
 
 
+def test_a_recomputation_leaves_rows_whose_values_it_keeps_out_of_the_flush(database) -> None:
+    """Issue 29, item 2: a recomputation sets only the values that change, so the unit of work flushes only the rows
+    it really writes (every dirty object has a changed attribute): recomputing the stored inputs again dirties
+    nothing but the triangulation's ``computed_at``; a moved label dirties its label and the derived rows it moves,
+    never a view row or a pair it leaves as it was."""
+    import sqlalchemy as sa
+
+    from app.db.models import BallLabel, Triangulation
+
+    factory, settings, scene, _ = database
+
+    def changed(obj: object) -> set[str]:
+        return {a.key for a in sa.inspect(obj).attrs if a.history.has_changes()}
+
+    with factory() as s:
+        system = load_for_recompute(s, [scene.system_id])[scene.system_id]
+        with s.no_autoflush:
+            recompute_system(s, system, settings)
+            assert {type(o) for o in s.dirty} == {Triangulation}
+            assert changed(system.triangulation) == {"computed_at"}
+            frame = next(f for f in system.frames if f.id == scene.frame_ids[0])
+            frame.ball_label.box = _moved(frame.ball_label.box, 6.0)
+            recompute_system(s, system, settings)
+            dirty = list(s.dirty)
+        assert all(changed(o) for o in dirty), [(type(o).__name__, changed(o)) for o in dirty]
+        assert not any(isinstance(o, (Frame, System)) and o is not system for o in dirty)
+        assert any(isinstance(o, BallLabel) for o in dirty) and system.triangulation in dirty
+        s.rollback()
+
+
 def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch) -> None:
     """Issue 29: the rig rows the stored rows' digest reads are the ones the recomputation uses (the mirror evidence's
     rig, a line edit's rig retry): an edit reads them once before the lock and, on PostgreSQL, once more under it
