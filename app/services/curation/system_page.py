@@ -15,15 +15,16 @@ from typing import Any, Optional
 
 import numpy as np
 import sqlalchemy as sa
-from sqlalchemy.orm import Session, joinedload, selectinload
+from sqlalchemy.orm import Session, joinedload
 
-from app.db.models import Frame, System, Triangulation
+from app.db.models import Frame, System
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.core.errors import found
 from app.services.curation.assignment import Assignment, assignments_of
 from app.services.curation.presence import Presence, open_on
 from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
+from app.services.derivation.loading import load_systems
 
 #: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
 #: per view, smooth at 1920 px, a tenth of the JaC sampling.
@@ -110,9 +111,9 @@ def _frame_loads(load: Any) -> list[Any]:
 
 
 def load_system(session: Session, system_id: int) -> System:
-    """The system with every relation its page draws loaded: one-to-one rows joined to their parent (one
-    query for the system, one for its views), the lists (pairs, doubts) one query each: four queries
-    whatever the number of views.
+    """The system with every relation its page draws loaded: its game and review joined to it, its views with their
+    one-to-one rows, its pairs and doubts (``app.services.derivation.loading.load_systems``: four queries whatever
+    the number of views), or the system as the session holds it so loaded already (an edit's answer).
 
     Raises:
         NotFoundError: no system has this id.
@@ -120,19 +121,11 @@ def load_system(session: Session, system_id: int) -> System:
     loaded = _loaded_system(session, system_id)
     if loaded is not None:
         return loaded
-    return found(session.scalars(_system_statement(), {"sid": system_id}).unique().first(), "system", system_id)
+    return found(load_systems(session, [system_id], _PAGE_SYSTEM_ROWS).get(system_id), "system", system_id)
 
 
-@functools.cache
-def _system_statement() -> sa.Select:
-    """:func:`load_system`'s statement, taking the system's id as ``sid``; built once (building it and its loader
-    options cost a fifth of the load)."""
-    return sa.select(System).where(System.id == sa.bindparam("sid")).options(
-        joinedload(System.game), joinedload(System.review),
-        joinedload(System.triangulation).selectinload(Triangulation.pairs),
-        selectinload(System.frames).options(*_frame_loads(joinedload)),
-        selectinload(System.doubts),
-    )
+#: The system's one-to-one rows its page draws besides its triangulation (``loading.load_systems``).
+_PAGE_SYSTEM_ROWS = (System.game, System.review)
 
 
 #: What :func:`load_system` loads, per object: the system's lists and each view's one-to-one rows (its game and

@@ -39,7 +39,7 @@ import orjson
 import sqlalchemy as sa
 from sqlalchemy import func, select
 from sqlalchemy.dialects.postgresql import aggregate_order_by
-from sqlalchemy.orm import Session, joinedload, selectinload
+from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
@@ -65,6 +65,7 @@ from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
+from app.services.derivation.loading import load_systems
 from app.services.derivation.rows import put_values, replace_rows, set_changed
 from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
@@ -459,37 +460,18 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
     put_values(row, {"box": [float(v) for v in opt.box], "d_opt_px": float(opt.d_px), "error_m": float(opt.error_m)})
 
 
-#: What :func:`recompute_system` and ``update_doubts`` read or replace (an ISSIA system's trajectory point too):
-#: the frames' one-to-one rows joined to them, the lists one query each.
-RECOMPUTE_LOADS = (
-    selectinload(System.frames).options(joinedload(Frame.calibration), joinedload(Frame.ball_label),
-                                        joinedload(Frame.review), joinedload(Frame.reprojection),
-                                        joinedload(Frame.optimised_box), joinedload(Frame.field_lines)),
-    joinedload(System.triangulation).selectinload(Triangulation.pairs),
-    selectinload(System.doubts), joinedload(System.trajectory_point), joinedload(System.review),
-)
-_LOAD_CHUNK = 500
+#: What :func:`recompute_system` and ``update_doubts`` read of a system besides its views, pairs and doubts (an
+#: ISSIA system's trajectory point too): its one-to-one rows (``loading.load_systems``).
+RECOMPUTE_SYSTEM_ROWS = (System.triangulation, System.trajectory_point, System.review)
 #: Systems recomputed per transaction by :func:`refresh_stale_systems`.
 _REFRESH_BATCH = 500
 
 
 def load_for_recompute(session: Session, ids: Sequence[int]) -> dict[int, System]:
-    """The systems ``ids`` with what :func:`recompute_system` and ``update_doubts`` read (:data:`RECOMPUTE_LOADS`),
-    by id, in a few queries per :data:`_LOAD_CHUNK` systems instead of one lazy load per attribute and frame
+    """The systems ``ids`` with what :func:`recompute_system` and ``update_doubts`` read, by id, in four queries per
+    500 systems (``app.services.derivation.loading.load_systems``) instead of one lazy load per attribute and frame
     (systems already in the session get the relations they have not loaded; changed attributes are kept)."""
-    out: dict[int, System] = {}
-    ids = list(ids)
-    for start in range(0, len(ids), _LOAD_CHUNK):
-        out.update((s.id, s) for s in session.scalars(
-            _recompute_statement(), {"ids": ids[start:start + _LOAD_CHUNK]}).unique())
-    return out
-
-
-@functools.cache
-def _recompute_statement() -> sa.Select:
-    """:func:`load_for_recompute`'s statement, taking the systems' ids as ``ids`` (an expanding parameter); built
-    once (building it and its loader options cost a fifth of one system's load)."""
-    return select(System).where(System.id.in_(sa.bindparam("ids", expanding=True))).options(*RECOMPUTE_LOADS)
+    return load_systems(session, ids, RECOMPUTE_SYSTEM_ROWS)
 
 
 def preload_systems(session: Session, systems: Sequence[System]) -> None:
