@@ -1,0 +1,61 @@
+"""``app.services.derivation.loading.load_systems`` (issue 29, item 2): systems with their views, one-to-one rows,
+pairs and doubts in four queries, the same rows in the same order as the relationships' own lazy loads, and a
+relation the session holds loaded left as it is. The synthetic SoccerNet-v3 dev set (40 systems)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import sqlalchemy as sa
+
+from app.core.config import Settings
+from app.db.models import Doubt, System
+from app.services.derivation.loading import FRAME_ROWS, load_systems
+from app.services.transfer.importing import import_soccernet_v3
+
+
+def _shape(system: System) -> tuple:
+    """Ids of what a system page and a recomputation read of ``system``, in the relationships' order."""
+    tri = system.triangulation
+    return (system.id, system.review is not None, system.game.id,
+            [(f.id, f.position, *[getattr(f, r.key) is not None for r in FRAME_ROWS]) for f in system.frames],
+            None if tri is None else (tri.system_id, [p.id for p in tri.pairs]),
+            [d.id for d in system.doubts])
+
+
+def test_load_systems_reads_what_the_lazy_loads_read_in_four_queries(shared_dir: Path, fresh_session_factory) -> None:
+    session = fresh_session_factory("dev")
+    settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
+    import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
+    ids = session.scalars(sa.select(System.id).order_by(System.id)).all()
+    assert len(ids) == 40
+    session.expunge_all()
+    lazy = {sid: _shape(session.get(System, sid)) for sid in ids}  # one lazy load per relation
+    assert sum(len(s[5]) for s in lazy.values()) > 0 and all(s[4] is not None for s in lazy.values())
+    session.expunge_all()
+
+    statements: list[str] = []
+
+    def count(_conn, _cursor, statement, *_rest) -> None:
+        statements.append(statement)
+
+    engine = session.get_bind()
+    sa.event.listen(engine, "before_cursor_execute", count)
+    try:
+        loaded = load_systems(session, [*reversed(ids), 999_999], (System.review, System.game))
+        assert [s.split()[0] for s in statements] == ["SELECT"] * 4  # one per list, whatever the number of systems
+        statements.clear()
+        assert {sid: _shape(s) for sid, s in loaded.items()} == lazy
+        assert statements == []  # everything read above was loaded
+    finally:
+        sa.event.remove(engine, "before_cursor_execute", count)
+    assert set(loaded) == set(ids)  # an id that names no system is left out
+
+    # a list the session holds loaded is left as it is (a pending doubt stays in it)
+    session.expunge_all()
+    system = session.get(System, ids[0])
+    pending = Doubt(kind="test", accuses_label=False, message="pending", evidence={})
+    system.doubts.append(pending)
+    with session.no_autoflush:
+        again = load_systems(session, [ids[0]])[ids[0]]
+    assert again is system and pending in again.doubts and len(again.doubts) == len(lazy[ids[0]][5]) + 1
+    session.rollback()
