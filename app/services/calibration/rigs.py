@@ -67,14 +67,29 @@ def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[i
     """``(frame id, camera centre (3,) metres, filmed by the main camera)`` of the calibrations feeding
     the game's rig: calibrated, JaC@gamma > ``admit_jac_min``, not rig-assisted. One query that reads
     only the centre out of each stored camera (the rig needs nothing else), so an edit does not decode
-    every calibration of its game."""
-    query = (select(Calibration.frame_id, Frame.role, Calibration.camera["position_meters"])
-             .join(Frame, Frame.id == Calibration.frame_id)
-             .join(System, System.id == Frame.system_id)
-             .where(System.game_id == game_id, Calibration.status == CalibrationStatus.CALIBRATED,
-                    Calibration.camera.is_not(None), admitted_jac_sql(settings),
-                    sa.cast(Calibration.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%')))
-    return [(fid, np.asarray(centre, float), role is FrameRole.ACTION) for fid, role, centre in session.execute(query)]
+    every calibration of its game; its statement is built once per admission rule (:func:`_rig_statement`)."""
+    rows = session.execute(_rig_statement(settings), {"game_id": game_id}).all()
+    return [(fid, np.array(centre, dtype=float), role is FrameRole.ACTION) for fid, role, centre in rows]
+
+
+#: :func:`rig_rows`'s statements by admission rule (``admit_jac_gamma``, ``admit_jac_min``).
+_RIG_STATEMENTS: dict[tuple[float, float], sa.Select] = {}
+
+
+def _rig_statement(settings: Settings) -> sa.Select:
+    """:func:`rig_rows`'s statement for the settings' admission rule, taking the game's id as ``game_id``; built once
+    per rule (building it and its cache key cost as much as running it)."""
+    key = (admission_gamma(settings), settings.admit_jac_min)
+    stmt = _RIG_STATEMENTS.get(key)
+    if stmt is None:
+        stmt = _RIG_STATEMENTS[key] = (
+            select(Calibration.frame_id, Frame.role, Calibration.camera["position_meters"])
+            .join(Frame, Frame.id == Calibration.frame_id)
+            .join(System, System.id == Frame.system_id)
+            .where(System.game_id == sa.bindparam("game_id"), Calibration.status == CalibrationStatus.CALIBRATED,
+                   Calibration.camera.is_not(None), admitted_jac_sql(settings),
+                   sa.cast(Calibration.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%')))
+    return stmt
 
 
 def wants_rig_retry(fields: CalibrationFields, settings: Settings) -> bool:
