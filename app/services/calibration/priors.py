@@ -62,8 +62,10 @@ def stored_camera_prior(system: System) -> CameraPrior | None:
     """The learned camera prior stored on ``system``'s game (``games.camera_prior``: its calibration
     dataset's import learned it), or None: no game, a kind that uses rigs (:func:`uses_rig`: a game's
     cameras are its rig), nothing stored, or a stored value that is not a prior (then it is ignored)."""
+    if uses_rig(system):  # asked first: a rig system's game is not read (a query per line edit)
+        return None
     game = system.game
-    if game is None or game.camera_prior is None or uses_rig(system):
+    if game is None or game.camera_prior is None:
         return None
     try:
         return CameraPrior.from_json(game.camera_prior)
