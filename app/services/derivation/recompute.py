@@ -484,7 +484,7 @@ def recompute_systems(session: Session, systems: Iterable[System], settings: Set
                       progress: Progress | None = None, *, preloaded: bool = False) -> int:
     """:func:`recompute_system` for each system, then one flush; returns how many were triangulated.
 
-    The systems' frames and derived rows are loaded in a few ``selectin`` queries first
+    The systems' frames and derived rows are loaded in four queries first
     (:func:`preload_systems`; skipped when ``preloaded``: the caller did it), so that recomputing
     thousands of systems does not issue one lazy load per attribute.
     """
