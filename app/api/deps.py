@@ -35,7 +35,11 @@ SettingsDep = Annotated[Settings, Depends(get_app_settings)]
 SessionDep = Annotated[Session, Depends(get_session)]
 
 
-def system_by_id(session: SessionDep, system_id: Annotated[int, Path(description="System id.", ge=DB_INT_MIN, le=DB_INT_MAX)]) -> System:
+#: The ``system_id`` path parameter of the system routes (bounded to the database's integers).
+SystemIdPath = Annotated[int, Path(description="System id.", ge=DB_INT_MIN, le=DB_INT_MAX)]
+
+
+def system_by_id(session: SessionDep, system_id: SystemIdPath) -> System:
     """The system named by the ``system_id`` path parameter; 404 naming the id when there is none."""
     return _get_system(session, system_id)
 

@@ -12,7 +12,7 @@ from fastapi import APIRouter, Query, Response
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.auth import PrincipalDep, ReviewerDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
-from app.api.deps import SessionDep, SystemDep
+from app.api.deps import SessionDep, SystemDep, SystemIdPath
 from app.api.routes.frames import name_entry
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
@@ -50,13 +50,13 @@ def list_systems(session: SessionDep, principal: PrincipalDep,
 
 
 @router.get("/{system_id}", response_model=SystemView, responses=NOT_FOUND)
-def read_system(session: SessionDep, principal: PrincipalDep, system: SystemDep,
+def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemIdPath,
                 query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
     """The system view (``docs/api.md``); ``prev_id`` / ``next_id`` follow the queue given by
     the query parameters (by default the whole queue, largest error first; ``assignee=me`` is the caller).
     ``assignment`` and ``open_by`` say who it is assigned to and who has it open. ``ETag``: the system's
-    review decision's."""
-    out = SystemView.of(system_page(session, system.id, query.filters(me=principal.name), query.sort))
+    review decision's. 404 naming the id when there is none (the page's own load finds it: no lookup before)."""
+    out = SystemView.of(system_page(session, system_id, query.filters(me=principal.name), query.sort))
     with_etag(response, out.etag)
     return out
 
