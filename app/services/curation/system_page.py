@@ -24,7 +24,7 @@ from app.core.errors import found
 from app.services.curation.assignment import Assignment, assignments_of
 from app.services.curation.presence import Presence, open_on
 from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
-from app.services.derivation.loading import load_systems
+from app.services.derivation.loading import FRAME_ROWS, load_systems
 
 #: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
 #: per view, smooth at 1920 px, a tenth of the JaC sampling.
@@ -105,9 +105,8 @@ def _projected_pitch(camera_key: str, width: int, height: int) -> tuple[tuple[st
 
 
 def _frame_loads(load: Any) -> list[Any]:
-    """The frame's one-to-one rows the view draws, joined to their parent."""
-    return [load(Frame.field_lines), load(Frame.calibration), load(Frame.ball_label), load(Frame.reprojection),
-            load(Frame.optimised_box), load(Frame.review)]
+    """The frame's one-to-one rows the view draws (``loading.FRAME_ROWS``), joined to their parent."""
+    return [load(r) for r in FRAME_ROWS]
 
 
 def load_system(session: Session, system_id: int) -> System:
@@ -131,7 +130,7 @@ _PAGE_SYSTEM_ROWS = (System.game, System.review)
 #: What :func:`load_system` loads, per object: the system's lists and each view's one-to-one rows (its game and
 #: review, one row each, are read by a lazy load where the session does not hold them).
 _SYSTEM_PAGE_RELATIONS = ("triangulation", "frames", "doubts")
-_FRAME_PAGE_RELATIONS = ("field_lines", "calibration", "ball_label", "reprojection", "optimised_box", "review")
+_FRAME_PAGE_RELATIONS = frozenset(r.key for r in FRAME_ROWS)
 
 
 def _loaded_system(session: Session, system_id: int) -> Optional[System]:
@@ -149,7 +148,7 @@ def _loaded_system(session: Session, system_id: int) -> Optional[System]:
         return None
     for frame in system.frames:
         fs = sa.inspect(frame)
-        if fs.expired or fs.unloaded & set(_FRAME_PAGE_RELATIONS):
+        if fs.expired or fs.unloaded & _FRAME_PAGE_RELATIONS:
             return None
     return system
 

@@ -29,14 +29,14 @@ CHUNK = 500
 
 
 @functools.cache
-def _statements(system_rows: tuple[Any, ...]) -> tuple[sa.Select, sa.Select, sa.Select, sa.Select]:
+def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.Select, sa.Select]:
     """The four statements of :func:`load_systems` (systems, views, pairs, doubts), each taking the systems' ids as
-    ``ids`` (an expanding parameter); ``system_rows``: the system's one-to-one relationships joined to it (the
-    triangulation always). Built once per ``system_rows``."""
+    ``ids`` (an expanding parameter); ``system_rows``: the names of the system's one-to-one relationships joined to it
+    (the triangulation always). Built once per ``system_rows``."""
     ids = sa.bindparam("ids", expanding=True)
     return (
         sa.select(System).where(System.id.in_(ids)).options(
-            *(joinedload(r) for r in dict.fromkeys((System.triangulation, *system_rows)))),
+            *(joinedload(getattr(System, key)) for key in dict.fromkeys(("triangulation", *system_rows)))),
         sa.select(Frame).where(Frame.system_id.in_(ids)).order_by(Frame.system_id, Frame.position, Frame.id)
         .options(*(joinedload(r) for r in FRAME_ROWS)),
         sa.select(TriangulationPair).where(TriangulationPair.system_id.in_(ids)).order_by(TriangulationPair.id),
@@ -50,7 +50,7 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
     four queries per :data:`CHUNK` systems (module docstring)."""
     out: dict[int, System] = {}
     ids = list(dict.fromkeys(ids))
-    systems_q, frames_q, pairs_q, doubts_q = _statements(tuple(system_rows))
+    systems_q, frames_q, pairs_q, doubts_q = _statements(tuple(r.key for r in system_rows))
     for start in range(0, len(ids), CHUNK):
         chunk = {"ids": ids[start:start + CHUNK]}
         systems = {s.id: s for s in session.scalars(systems_q, chunk).unique()}

@@ -66,7 +66,7 @@ from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
 from app.services.derivation.loading import load_systems
-from app.services.derivation.rows import put_values, replace_rows, set_changed
+from app.services.derivation.rows import put_values, replace_rows
 from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
 
@@ -169,7 +169,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
     for f in frames:
         cal = f.calibration
         if cal is not None:
-            set_changed(cal, "admitted", is_admitted(cal, settings))
+            put_values(cal, {"admitted": is_admitted(cal, settings)})
             if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
                 cameras[f.id] = Camera.from_soccernet(cal.camera)
         centre = _label_centre(f)

@@ -8,16 +8,17 @@ import sqlalchemy as sa
 
 def put_values(row: Any, values: dict[str, Any]) -> Any:
     """Set ``values`` (column attribute -> value) on ``row`` (a NOT NULL column a pending row left unset keeps its
-    default); returns the row. The unit of work writes only the attributes whose value changed."""
+    default); returns the row. An attribute that holds an equal value already is not set (:func:`_set_changed`): a row
+    whose values all stay as they were stays out of the next flush altogether."""
     columns = sa.inspect(type(row)).columns
     for key, value in values.items():
         if value is None and not columns[key].nullable:
             continue
-        set_changed(row, key, value)
+        _set_changed(row, key, value)
     return row
 
 
-def set_changed(row: Any, key: str, value: Any) -> None:
+def _set_changed(row: Any, key: str, value: Any) -> None:
     """Set ``row.key`` to ``value`` unless it holds an equal value already (``==``: numbers, strings, enums, JSON
     lists and dicts): an unchanged attribute then leaves the row out of the next flush altogether."""
     if key not in row.__dict__ or row.__dict__[key] != value:
