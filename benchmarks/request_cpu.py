@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import random
 import statistics
 import sys
@@ -59,15 +60,33 @@ def server_process(port: int) -> Any:
 
 
 def cpu_seconds(proc: Any) -> float:
-    """User + system CPU seconds of ``proc`` and of its living children (uvicorn's workers)."""
+    """CPU seconds of ``proc`` and of its living children (uvicorn's workers): the sum over their threads of the
+    time on a CPU that ``/proc/<pid>/task/<tid>/schedstat`` counts in nanoseconds; where the kernel has no
+    schedstat, user + system time from psutil (``/proc/<pid>/stat``, 10 ms clock ticks: a batch of 40 requests
+    then resolves 0.25 ms per request)."""
     total = 0.0
     for p in [proc, *proc.children(recursive=True)]:
         try:
-            t = p.cpu_times()
-            total += t.user + t.system
-        except Exception:  # a child that ended between the listing and the read
-            pass
+            total += _schedstat_seconds(p.pid)
+        except OSError:  # no schedstat here, or a child that ended between the listing and the read
+            try:
+                t = p.cpu_times()
+                total += t.user + t.system
+            except Exception:
+                pass
     return total
+
+
+def _schedstat_seconds(pid: int) -> float:
+    """CPU seconds of every living thread of process ``pid``, from their schedstat (ns). Raises OSError."""
+    ns = 0
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            with open(f"/proc/{pid}/task/{tid}/schedstat") as fh:
+                ns += int(fh.read().split()[0])
+        except FileNotFoundError:  # a thread that ended meanwhile
+            pass
+    return ns / 1e9
 
 
 def postgres_cpu_seconds(database: str) -> float:
