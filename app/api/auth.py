@@ -59,7 +59,7 @@ class Principal:
         return role in held_roles(self.role)
 
 
-def current_principal(request: Request) -> Principal:
+async def current_principal(request: Request) -> Principal:
     """The principal the authentication layer resolved for this request; 401 when there is none."""
     principal = getattr(request.state, "principal", None)
     if principal is None:
@@ -75,7 +75,7 @@ def require_role(role: Role):
     """A dependency answering 403 naming the needed role unless the principal has ``role`` or more;
     it returns the principal (401 first when nobody is authenticated)."""
 
-    def _check(principal: PrincipalDep) -> Principal:
+    async def _check(principal: PrincipalDep) -> Principal:
         if not principal.may(role):
             raise HTTPException(status_code=403, detail=f"this needs the {role} role; you are {principal.role}")
         return principal

@@ -26,7 +26,7 @@ PRECONDITIONS: dict[int | str, dict[str, Any]] = {
 }
 
 
-def if_match_header(
+async def if_match_header(
     principal: PrincipalDep,
     if_match: Annotated[Optional[str], Header(description="The ETag of the resource this write was made against "
                                                           "(required with an API token).")] = None,

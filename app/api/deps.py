@@ -20,7 +20,7 @@ from app.services.curation.writing import get_frame as _get_frame
 from app.services.curation.writing import get_system as _get_system
 
 
-def get_app_settings(request: Request) -> Settings:
+async def get_app_settings(request: Request) -> Settings:
     """The settings the app was created with."""
     return request.app.state.settings
 

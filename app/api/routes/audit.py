@@ -5,6 +5,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
+from app.api.answers import json_answer
 from app.api.audit_schemas import AuditEntryOut, AuditPageOut, AuditQuery
 from app.api.auth import AnnotatorDep, PrincipalDep, ReviewerDep
 from app.api.conditional import with_etag
@@ -49,7 +50,7 @@ def list_audit(session: SessionDep, principal: PrincipalDep, query: Annotated[Au
 def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, entry_id: DbInt,
            query: Annotated[QueueQuery, Query()], response: Response,
            force: Annotated[bool, Query(description="Revert even when the resource changed since the entry.")] = False,
-           ) -> SystemView:
+           ) -> Response:
     """Restore the entry's ``before`` state through the service of the original edit (the system is
     recomputed), audited as action ``revert``; answers the recomputed system view and the resource's new
     ``ETag``. 409 when the resource changed since the entry (unless ``force``); 422 for an import or a
@@ -67,7 +68,7 @@ def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, e
                                                        "only what nothing changed since (undo the newer first)."}},
 )
 def undo(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, entry_id: DbInt,
-         query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
+         query: Annotated[QueueQuery, Query()], response: Response) -> Response:
     """Undo the entry (the system page's Ctrl+Z; its redo, Ctrl+Shift+Z, is the undo of the undo's entry):
     its ``before`` state written back through the service of its edit (the system is recomputed), audited as
     that edit's action with ``reverts_id`` naming the entry; answers the recomputed system view, the resource's
@@ -81,11 +82,11 @@ def undo(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, en
     return _restored(session, done, query, response, principal.name)
 
 
-def _restored(session: SessionDep, done: Reverted, query: QueueQuery, response: Response, me: str) -> SystemView:
+def _restored(session: SessionDep, done: Reverted, query: QueueQuery, response: Response, me: str) -> Response:
     """The recomputed system view after a revert or an undo by ``me`` (whom ``assignee=me`` names), the resource's
-    new ETag in the header."""
+    new ETag in the header (serialised here: ``app.api.answers``)."""
     if done.kind == "frame":
         with_etag(response, frame_etag(writing.get_frame(session, done.ident)))
     else:
         with_etag(response, system_etag(writing.get_system(session, done.ident)))
-    return SystemView.of(system_page(session, done.system_id, query.filters(me=me), query.sort))
+    return json_answer(SystemView.of(system_page(session, done.system_id, query.filters(me=me), query.sort)), response)

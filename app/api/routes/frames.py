@@ -16,6 +16,7 @@ from fastapi import APIRouter, Depends, Header, HTTPException, Query, Response
 from fastapi.responses import StreamingResponse
 from sqlalchemy.orm import Session
 
+from app.api.answers import json_answer
 from app.api.auth import AnnotatorDep, PrincipalDep, require_role
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import FrameDep, SessionDep, SettingsDep
@@ -117,13 +118,13 @@ def name_entry(session: Session, response: Response) -> None:
         response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
 
 
-def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery, me: str) -> SystemView:
+def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery, me: str) -> Response:
     """The recomputed system view after an edit of ``frame_id`` by ``me`` (whom ``assignee=me`` names), its new
-    ETag and its audit entry in the header."""
+    ETag and its audit entry in the header (serialised here: ``app.api.answers``)."""
     name_entry(session, response)
     frame = writing.get_frame(session, frame_id)
     with_etag(response, frame_etag(frame))
-    return SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort))
+    return json_answer(SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort)), response)
 
 
 @router.get(
@@ -153,7 +154,7 @@ def frame_image(frame: FrameDep, settings: SettingsDep,
 
 @router.patch("/{frame_id}/ball", response_model=SystemView, responses=EDIT_RESPONSES)
 def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-              frame: FrameDep, body: BallEdit, query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
+              frame: FrameDep, body: BallEdit, query: Annotated[QueueQuery, Query()], response: Response) -> Response:
     """Set the frame's ball box or point (or remove it with null) and answer the recomputed system view.
 
     422 naming ``box`` or ``point``: non-finite numbers, x2 <= x1 or y2 <= y1, a box entirely outside
@@ -169,7 +170,7 @@ def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDe
 @router.put("/{frame_id}/field-lines", response_model=SystemView, responses=EDIT_RESPONSES)
 def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
                         frame: FrameDep, body: FieldLinesEdit, query: Annotated[QueueQuery, Query()],
-                        response: Response) -> SystemView:
+                        response: Response) -> Response:
     """Replace the frame's field lines, recalibrate it, and answer the recomputed system view, with the
     id of the write's audit entry in ``X-V3D-Audit-Entry`` (what a later ``undo_of`` names).
 
@@ -227,7 +228,7 @@ def calibration_preview(session: SessionDep, settings: SettingsDep, principal: A
 @router.post("/{frame_id}/field-lines/mirror", response_model=SystemView,
              responses={**EDIT_RESPONSES, **MIRROR_REFUSED})
 def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-                       frame: FrameDep, query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
+                       frame: FrameDep, query: Annotated[QueueQuery, Query()], response: Response) -> Response:
     """Replace the frame's field lines by their mirrored labelling (left <-> right, top <-> bottom),
     recalibrate it, and answer the recomputed system view: the fix offered for a view flagged
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines; 409 when the mirror
@@ -241,7 +242,7 @@ def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: An
 @router.post("/{frame_id}/exclusion", response_model=SystemView, responses=EDIT_RESPONSES)
 def set_exclusion(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
                   frame: FrameDep, body: ExclusionIn, query: Annotated[QueueQuery, Query()],
-                  response: Response) -> SystemView:
+                  response: Response) -> Response:
     """Exclude the view from its system's triangulation (``{"excluded": true}``) or restore it
     (``false``), recompute the system, and answer the recomputed system view. The decision is stored
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""

@@ -9,6 +9,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
+from app.api.answers import json_answer
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.auth import PrincipalDep, ReviewerDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
@@ -51,14 +52,14 @@ def list_systems(session: SessionDep, principal: PrincipalDep,
 
 @router.get("/{system_id}", response_model=SystemView, responses=NOT_FOUND)
 def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemIdPath,
-                query: Annotated[QueueQuery, Query()], response: Response) -> SystemView:
+                query: Annotated[QueueQuery, Query()], response: Response) -> Response:
     """The system view (``docs/api.md``); ``prev_id`` / ``next_id`` follow the queue given by
     the query parameters (by default the whole queue, largest error first; ``assignee=me`` is the caller).
     ``assignment`` and ``open_by`` say who it is assigned to and who has it open. ``ETag``: the system's
     review decision's. 404 naming the id when there is none (the page's own load finds it: no lookup before)."""
     out = SystemView.of(system_page(session, system_id, query.filters(me=principal.name), query.sort))
     with_etag(response, out.etag)
-    return out
+    return json_answer(out, response)
 
 
 @router.post("/{system_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID, **PRECONDITIONS})
