@@ -14,6 +14,7 @@ Assignment is a hint for people, not a permission: anyone with the role may stil
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Optional
@@ -174,14 +175,19 @@ def _names(session: Session, user_ids: set[int]) -> dict[int, str]:
     return {int(i): n for i, n in session.execute(sa.select(User.id, User.name).where(User.id.in_(user_ids)))}
 
 
+@functools.cache
+def _assignments_statement() -> sa.Select:
+    """The read of :func:`assignments_of`, taking ``ids`` (expanding): built once."""
+    return (sa.select(System.id, User.name, System.assigned_at, System.assigned_by)
+            .outerjoin(User, User.id == System.assignee_id).where(System.id.in_(sa.bindparam("ids", expanding=True))))
+
+
 def assignments_of(session: Session, system_ids: list[int]) -> dict[int, Assignment]:
     """The assignment of each of ``system_ids`` (every id present; unassigned ones with ``assignee`` None).
     One read (the assignee's name joined), for a page of the queue or one system."""
     out: dict[int, Assignment] = {}
     for chunk in _chunks(sorted(set(system_ids))):
-        rows = session.execute(
-            sa.select(System.id, User.name, System.assigned_at, System.assigned_by)
-            .outerjoin(User, User.id == System.assignee_id).where(System.id.in_(chunk)))
+        rows = session.execute(_assignments_statement(), {"ids": chunk})
         for sid, name, at, by in rows:
             out[sid] = Assignment(sid, name, at, by)
     return out

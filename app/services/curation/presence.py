@@ -21,6 +21,7 @@ the clock.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Optional
@@ -70,6 +71,15 @@ def _live(now: datetime) -> sa.ColumnElement[bool]:
     return SystemPresence.expires_at > now
 
 
+@functools.cache
+def _open_on_statement(excluding: bool) -> sa.Select:
+    """The read of :func:`open_on`, taking ``ids`` (expanding), ``now`` and, ``excluding``, ``user``: built once."""
+    stmt = (sa.select(SystemPresence, User.name).join(User, User.id == SystemPresence.user_id)
+            .where(SystemPresence.system_id.in_(sa.bindparam("ids", expanding=True)), _live(sa.bindparam("now")))
+            .order_by(SystemPresence.since, User.name))
+    return stmt.where(SystemPresence.user_id != sa.bindparam("user")) if excluding else stmt
+
+
 def open_on(session: Session, system_ids: list[int], now: Optional[datetime] = None,
             exclude_user: Optional[int] = None) -> dict[int, list[Presence]]:
     """The live claims on each of ``system_ids`` (systems nobody has open are absent), oldest first.
@@ -79,14 +89,12 @@ def open_on(session: Session, system_ids: list[int], now: Optional[datetime] = N
     """
     if not system_ids:
         return {}
-    now = now or utcnow()
-    stmt = (sa.select(SystemPresence, User.name).join(User, User.id == SystemPresence.user_id)
-            .where(SystemPresence.system_id.in_(system_ids), _live(now))
-            .order_by(SystemPresence.since, User.name))
+    params = {"ids": list(system_ids), "now": now or utcnow()}
     if exclude_user is not None:
-        stmt = stmt.where(SystemPresence.user_id != exclude_user)
+        params["user"] = exclude_user
+    stmt = _open_on_statement(exclude_user is not None)
     out: dict[int, list[Presence]] = {}
-    for row, name in session.execute(stmt):
+    for row, name in session.execute(stmt, params):
         out.setdefault(row.system_id, []).append(
             Presence(row.system_id, row.user_id, name, row.since, row.expires_at))
     return out

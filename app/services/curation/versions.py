@@ -15,6 +15,7 @@ database), so two edits of sibling views recompute their system one after the ot
 """
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Collection
 from typing import Optional
@@ -95,14 +96,23 @@ def claim_system_review(session: Session, system_id: int, expected: Optional[Col
     _compare_and_set(session, System, System.review_version, "system", system_id, expected)
 
 
+@functools.cache
+def _claim_statement(model: type, key: str, with_expected: bool, returning: bool) -> sa.Update:
+    """The compare-and-set of :func:`_compare_and_set` on ``model``'s column ``key``, taking ``ident`` (and the
+    expanding ``expected``); ``RETURNING`` the new version where the database has it. Built once per shape."""
+    table = model.__table__
+    column = table.c[key]
+    stmt = sa.update(table).where(table.c.id == sa.bindparam("ident")).values({key: column + 1})
+    if with_expected:
+        stmt = stmt.where(column.in_(sa.bindparam("expected", expanding=True)))
+    return stmt.returning(column) if returning else stmt
+
+
 def _compare_and_set(session: Session, model: type, column: sa.orm.InstrumentedAttribute, kind: str, ident: int,
                      expected: Optional[Collection[int]], *, expire: bool = True) -> None:
-    stmt = sa.update(model).where(model.id == ident).values({column.key: column + 1})
-    if expected is not None:
-        stmt = stmt.where(column.in_(sorted(expected)))
     returning = session.get_bind().dialect.update_returning  # SQLite >= 3.35 and PostgreSQL: the new version at once
-    result = session.execute((stmt.returning(column) if returning else stmt)
-                             .execution_options(synchronize_session=False))
+    params = {"ident": ident} if expected is None else {"ident": ident, "expected": sorted(expected)}
+    result = session.execute(_claim_statement(model, column.key, expected is not None, returning), params)
     if returning:
         new = result.scalar_one_or_none()
     else:

@@ -246,7 +246,7 @@ def _compute_before_lock(session: Session, system_id: int, subject: Callable[[],
     try:
         with session.no_autoflush:
             # the one load of the edit: what the subject, its state and the recomputation read, in a few queries
-            plan.preloaded = load_for_recompute(session, [system_id]).get(system_id)
+            plan.preloaded = load_for_recompute(session, [system_id], with_game=True).get(system_id)
             if plan.preloaded is not None and kind_of(plan.preloaded).computes_before_lock:
                 target = subject()
                 before = state(target)
