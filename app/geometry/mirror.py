@@ -163,6 +163,8 @@ class MirrorView:
         rays: whether the view's ray joins the pair evidence (a caller may leave out views whose
             camera it distrusts; a rough camera gives no agreement within tau, hence no evidence).
         name: how sentences name the view (image name); the id when None.
+        mirrored: ``mirror_camera(camera)`` when the caller keeps it (one object per camera, so that a pair memo
+            shared across recomputations finds its mirrored pairs again); made here when None.
     """
 
     view_id: Hashable
@@ -172,6 +174,7 @@ class MirrorView:
     expected_side: int | None = None
     rays: bool = True
     name: str | None = None
+    mirrored: Camera | None = None
 
     def __post_init__(self) -> None:
         if self.expected_side not in (None, 1, -1):
@@ -381,7 +384,7 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     pair_ev: dict[int, list[PairEvidence]] = {i: [] for i in range(n)}
     constraints: list[tuple[int, int, int]] = []  # (i, j, +1 same / -1 different)
     rayed = [i for i, v in enumerate(vs) if v.rays and v.ball_px is not None]
-    mirrored = {i: mirror_camera(vs[i].camera) for i in rayed}
+    mirrored = {i: vs[i].mirrored if vs[i].mirrored is not None else mirror_camera(vs[i].camera) for i in rayed}
     for i, j in combinations(rayed, 2):
         ev_i = pair_relation(vs[i], vs[j], settings, geometry, tau_px=tau_px, rule=rule, mirrored=mirrored[i])
         pair_ev[i].append(ev_i)

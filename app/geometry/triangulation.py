@@ -34,11 +34,11 @@ origin at the top-left corner.
 from __future__ import annotations
 
 import dataclasses
-
 import math
 import numbers
+import threading
 from dataclasses import dataclass
-from itertools import combinations
+from itertools import combinations, islice
 from typing import Callable, Hashable, Mapping, Sequence
 
 import numpy as np
@@ -379,15 +379,27 @@ def pair_geometry_of_rays(a: BallObservation, b: BallObservation, ray_a: ViewRay
 
 
 class PairGeometryMemo:
-    """:func:`pair_geometry` computed once per pair of rays within one recomputation of a system (issue 29, item 1):
-    the triangulation, the mirror evidence and the doubts' consensus ask the same pairs of the same cameras and
-    labels, and each applies its own rules to the one answer. Keyed by the identity of both cameras and the bytes of
-    both pixels (and the order of the two); the memo holds the cameras, so an id is never reused while it lives.
-    Use one memo per recomputation: a camera object is never changed in place, but a new one is made per edit."""
+    """:func:`pair_geometry` computed once per pair of rays (issue 29, item 1): the triangulation, the mirror evidence
+    and the doubts' consensus of one recomputation ask the same pairs of the same cameras and labels, and each
+    applies its own rules to the one answer; one memo kept across recomputations (``max_entries``) also answers the
+    pairs an edit did not touch (the views whose camera and label it left as they were). Keyed by the identity of
+    both cameras and the bytes of both pixels (and the order of the two); the memo holds the cameras, so an id is
+    never reused while it lives, and a camera object is never changed in place (its arrays are read-only).
 
-    def __init__(self) -> None:
+    Args:
+        max_entries: pairs (and, apart, rays) kept at most; beyond it the older half is dropped. None: unbounded
+            (a memo for one recomputation).
+
+    Safe to share between threads: a race computes a pair twice, never answers a wrong one.
+    """
+
+    def __init__(self, max_entries: int | None = None) -> None:
+        if max_entries is not None and max_entries < 2:
+            raise ValueError(f"PairGeometryMemo: max_entries must be at least 2, got {max_entries}")
+        self.max_entries = max_entries
         self._pairs: dict[tuple, tuple[Camera, Camera, PairGeometry]] = {}
         self._rays: dict[tuple, tuple[Camera, ViewRay]] = {}
+        self._lock = threading.Lock()
         self.asked = 0
         self.computed = 0
 
@@ -401,7 +413,7 @@ class PairGeometryMemo:
             return hit[2]
         self.computed += 1
         g = pair_geometry_of_rays(a, b, self._ray(a.camera, pa, key[1]), self._ray(b.camera, pb, key[3]))
-        self._pairs[key] = (a.camera, b.camera, g)
+        self._keep(self._pairs, key, (a.camera, b.camera, g))
         return g
 
     def _ray(self, camera: Camera, pixel: np.ndarray, pixel_key: bytes) -> ViewRay:
@@ -412,8 +424,16 @@ class PairGeometryMemo:
         if hit is not None and hit[0] is camera:
             return hit[1]
         ray = view_ray(camera, pixel)
-        self._rays[key] = (camera, ray)
+        self._keep(self._rays, key, (camera, ray))
         return ray
+
+    def _keep(self, table: dict, key: tuple, value: tuple) -> None:
+        """Store ``value``; past :attr:`max_entries`, drop the older half of ``table`` first (insertion order)."""
+        with self._lock:
+            if self.max_entries is not None and len(table) >= self.max_entries:
+                for old in list(islice(table, len(table) // 2)):
+                    del table[old]
+            table[key] = value
 
 
 def triangulate_pair(a: BallObservation, b: BallObservation, *, tau_px: float, rule: str,

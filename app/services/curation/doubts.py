@@ -28,6 +28,7 @@ from app.geometry.triangulation import BallObservation, PairGeometry, pair_geome
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.weighting import calibration_weight
 from app.services.curation.doubt_words import doubt_message
+from app.services.derivation.cameras import stored_camera
 from app.services.derivation.rows import put_values, replace_rows
 from app.services.kinds import kind_of
 
@@ -59,7 +60,7 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
     cal = frame.calibration
     calibrated = cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None
     if camera is None and calibrated:
-        camera = Camera.from_soccernet(cal.camera)  # type: ignore[union-attr]
+        camera = stored_camera(cal.camera)  # type: ignore[union-attr]
     label = frame.ball_label
     box = np.asarray(label.box, float) if label is not None and label.box is not None else None
     point = np.asarray(label.point, float) if label is not None and label.point is not None else None

@@ -65,6 +65,8 @@ from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
+from app.services.derivation import cameras as shared
+from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.loading import load_systems
 from app.services.derivation.rows import put_values, replace_rows
 from app.services.jobs.progress import Progress
@@ -171,14 +173,15 @@ def recompute_system(session: Session, system: System, settings: Settings,
         if cal is not None:
             put_values(cal, {"admitted": is_admitted(cal, settings)})
             if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
-                cameras[f.id] = Camera.from_soccernet(cal.camera)
+                cameras[f.id] = stored_camera(cal.camera)
         centre = _label_centre(f)
         suggested = f.ball_label is not None and f.ball_label.suggested  # not independent evidence until placed
         if cal is not None and cal.admitted and centre is not None and not is_excluded(f) and not suggested:
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
     kind = kind_of(system)
-    geometry = PairGeometryMemo()  # each pair's rays once, for the mirror evidence, the triangulation and the doubts
+    geometry = shared.PAIR_GEOMETRY  # each pair's rays once, for the mirror evidence, the triangulation and the doubts,
+    # and the pairs of the views an edit left as they were from the last recomputation (``cameras`` module docstring)
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     observations = kind.consensus_observations(system, observations, settings)
@@ -408,7 +411,8 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
     views = [MirrorView(view_id=f.id, camera=cameras[f.id],
                         ball_px=None if f.ball_label is not None and f.ball_label.suggested else _label_centre(f),
                         image_width=f.width,
-                        expected_side=expected_side(f.role), rays=True, name=f.name)
+                        expected_side=expected_side(f.role), rays=True, name=f.name,
+                        mirrored=mirrored_camera(cameras[f.id]))
              for f in frames]
     verdicts = mirror_evidence(views, positions, geometry=geometry or PairGeometryMemo(),
                                tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule)

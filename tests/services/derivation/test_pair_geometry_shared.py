@@ -12,7 +12,7 @@ import sqlalchemy as sa
 from app.core.config import Settings
 from app.db.models import System
 from app.geometry import triangulation
-from app.services.derivation import recompute
+from app.services.derivation import cameras
 from app.services.derivation.recompute import load_for_recompute, recompute_system
 from app.services.transfer.importing import import_soccernet_v3
 
@@ -48,15 +48,16 @@ def _derived(system: System) -> tuple:
 
 def test_shared_pair_geometry_changes_no_derived_row_of_the_dev_set(shared_dir: Path, fresh_session_factory,
                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """The memo shared by every recomputation of the process (``cameras.PAIR_GEOMETRY``) gives the rows of judges that
+    each compute their own pairs; recomputing the same systems again computes no pair anew."""
     session = fresh_session_factory("dev")
     settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
     import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
     ids = session.scalars(sa.select(System.id).order_by(System.id)).all()
     assert len(ids) == 40
-    memos: list[triangulation.PairGeometryMemo] = []
 
-    def run(memo_type) -> dict[int, tuple]:
-        monkeypatch.setattr(recompute, "PairGeometryMemo", lambda: memos.append(memo_type()) or memos[-1])
+    def run(memo) -> dict[int, tuple]:
+        monkeypatch.setattr(cameras, "PAIR_GEOMETRY", memo)
         out = {}
         with session.no_autoflush:
             systems = load_for_recompute(session, ids)
@@ -66,16 +67,50 @@ def test_shared_pair_geometry_changes_no_derived_row_of_the_dev_set(shared_dir: 
         session.rollback()
         return out
 
-    unshared = run(_Unshared)
-    asked_unshared = sum(m.computed for m in memos)
-    memos.clear()
-    shared = run(triangulation.PairGeometryMemo)
+    unshared_memo = _Unshared()
+    unshared = run(unshared_memo)
+    memo = triangulation.PairGeometryMemo(max_entries=cameras.PAIRS)
+    shared = run(memo)
     for sid in ids:
         assert shared[sid] == unshared[sid], f"system {sid}"
-    computed, asked = sum(m.computed for m in memos), sum(m.asked for m in memos)
-    assert asked == asked_unshared  # the same questions
-    print(f"pair geometry: {asked} asks, {computed} computed")
-    assert computed < 0.7 * asked  # most answered from the memo: the triangulation's and the consensus's pairs
+    assert memo.asked == unshared_memo.asked  # the same questions
+    print(f"pair geometry: {memo.asked} asks, {memo.computed} computed")
+    assert memo.computed < 0.7 * memo.asked  # most answered from the memo: the triangulation's and the consensus's pairs
+    computed = memo.computed
+    again = run(memo)  # the same labels and cameras, loaded anew: every pair known (cameras.stored_camera)
+    assert again == shared and memo.computed == computed
+
+
+def test_an_edit_computes_only_the_pairs_of_the_view_it_changed(shared_dir: Path, fresh_session_factory,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """A moved ball label of one view of a four-view system: its pairs (as calibrated and mirrored) are computed again,
+    the three pairs of the other views (and their mirrored pairs) come from the last recomputation; the rows are those
+    of a recomputation that computes every pair."""
+    session = fresh_session_factory("dev")
+    settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
+    import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
+    systems = load_for_recompute(session, session.scalars(sa.select(System.id).order_by(System.id)).all())
+    system = next(s for s in systems.values() if len(s.frames) == 4 and all(
+        f.ball_label is not None and f.ball_label.box is not None and f.calibration is not None
+        and f.calibration.admitted for f in s.frames))
+    memo = triangulation.PairGeometryMemo(max_entries=cameras.PAIRS)
+    monkeypatch.setattr(cameras, "PAIR_GEOMETRY", memo)
+    with session.no_autoflush:
+        recompute_system(session, system, settings)
+        before = memo.computed
+        label = system.frames[0].ball_label
+        label.box = [label.box[0] + 3.0, label.box[1], label.box[2] + 3.0, label.box[3]]
+        recompute_system(session, system, settings)
+        new = memo.computed - before
+        shared = _derived(system)
+        monkeypatch.setattr(cameras, "PAIR_GEOMETRY", _Unshared())
+        recompute_system(session, system, settings)
+        assert _derived(system) == shared
+    # the first recomputation computed every pair; after the edit the 3 pairs of the untouched views and their 3
+    # mirrored pairs come from the memo: only the moved view's pairs (as calibrated, mirrored, the consensus's)
+    print("pairs computed: first", before, "after the edit", new)
+    assert 0 < new <= before - 6, (before, new)
+    session.rollback()
 
 
 def test_a_memo_answers_a_pair_once_and_never_another_camera() -> None:
