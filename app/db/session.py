@@ -43,8 +43,9 @@ WRITE_OPTION = "v3d_write"
 #: locked" (seconds): an import in the CLI may queue behind a server's import batch. Served engines wait
 #: ``Settings.write_lock_timeout_s`` instead (``make_engine(write_lock_timeout_s=)``).
 SQLITE_BUSY_TIMEOUT_S = 60.0
-#: ``Session.info`` keys: the transaction :func:`begin_write` began, the last transaction that flushed.
-_WRITE_TX, _FLUSHED_TX = "v3d_write_transaction", "v3d_flushed_transaction"
+#: ``Session.info`` keys: the transaction :func:`begin_write` began, the last transaction that flushed, the read
+#: snapshot :func:`begin_snapshot` began or kept.
+_WRITE_TX, _FLUSHED_TX, _SNAPSHOT_TX = "v3d_write_transaction", "v3d_flushed_transaction", "v3d_snapshot_transaction"
 #: ``Connection.info`` key (the pooled connection's): the :class:`_WriteTurns` whose turn it holds.
 _HOLDS_TURN = "v3d_write_turn"
 
@@ -264,12 +265,15 @@ def has_written(session: Session) -> bool:
                 or (tx is not None and session.info.get(_FLUSHED_TX) is tx))
 
 
-def begin_snapshot(session: Session) -> None:
+def begin_snapshot(session: Session, *, fresh: bool = False) -> None:
     """Begin a read transaction that sees one state of the database from its first read to its end, for work
-    done before a write lock (an edit's recomputation, ``app.services.curation.editing``): a read-only
-    transaction already open is ended (its objects expire), then PostgreSQL's is ``REPEATABLE READ``; SQLite's
-    deferred ``BEGIN`` is one already (WAL: the snapshot of its first read; it never waits for writers). A
-    session joined to its caller's transaction is left alone (its caller rolls back what it reads).
+    done before a write lock (an edit's recomputation, ``app.services.curation.editing``), or keep the one the session
+    holds when it is such a snapshot already: on SQLite every read transaction (a deferred ``BEGIN`` under WAL reads
+    the snapshot of its first read and never waits for writers), on PostgreSQL one this function began
+    (``REPEATABLE READ``). So an edit's lookups before its computation (its frame, its validation) and the computation
+    read one snapshot, in one transaction. Any other transaction, or any with ``fresh`` (the caller waited and wants
+    what was committed meanwhile), is ended first (its objects expire). A session joined to its caller's transaction
+    is left alone (its caller rolls back what it reads).
 
     Raises:
         RuntimeError: the session's transaction has written (:func:`has_written`): ending it would lose that.
@@ -278,10 +282,17 @@ def begin_snapshot(session: Session) -> None:
         raise RuntimeError("begin_snapshot: the session's transaction has written")
     if isinstance(session.get_bind(), sa.Connection):
         return
-    if session.get_transaction() is not None:
+    tx = session.get_transaction()
+    postgresql = session.get_bind().dialect.name == "postgresql"
+    if tx is not None:
+        if not fresh and session.info.get(_WRITE_TX) is not tx and (
+                session.info.get(_SNAPSHOT_TX) is tx or not postgresql):
+            session.info[_SNAPSHOT_TX] = tx
+            return
         session.rollback()
-    if session.get_bind().dialect.name == "postgresql":
+    if postgresql:
         session.connection(execution_options={"isolation_level": "REPEATABLE READ"})
+    session.info[_SNAPSHOT_TX] = session.get_transaction()
 
 
 def begin_write(session: Session) -> None:

@@ -165,26 +165,45 @@ class EditSlots:
         self._turns = threading.BoundedSemaphore(self.slots) if self.slots else None
 
     @contextlib.contextmanager
-    def turn(self) -> Iterator[bool]:
-        """Hold a turn for the block: True when one was free within ``wait_s``, False when the block runs without
-        (no limit, or the wait ran out)."""
+    def turn(self) -> Iterator["Turn"]:
+        """Hold a turn for the block: a :class:`Turn`, true when one was free within ``wait_s``, false when the block
+        runs without (no limit, or the wait ran out); ``waited`` when another edit held the last turn on asking."""
         turns = self._turns
-        got = turns is not None and turns.acquire(timeout=self.wait_s)
+        got = waited = False
+        if turns is not None:
+            got = turns.acquire(blocking=False)
+            if not got:
+                waited = True
+                got = turns.acquire(timeout=self.wait_s)
         try:
-            yield got
+            yield Turn(got, waited)
         finally:
             if got:
                 turns.release()  # type: ignore[union-attr]
+
+
+@dataclass(frozen=True)
+class Turn:
+    """An edit's turn (:meth:`EditSlots.turn`): ``got`` one (its truth value), and ``waited`` for it behind another
+    edit of the process, which may have committed meanwhile: what the edit read before is read again
+    (``app.db.session.begin_snapshot(fresh=True)``)."""
+
+    got: bool
+    waited: bool
+
+    def __bool__(self) -> bool:
+        return self.got
 
 
 #: ``session.info`` key of the :class:`EditSlots` of the session's process (set by the app's session factory).
 EDIT_SLOTS = "v3d.edit.slots"
 
 
-def _edit_turn(session: Session) -> contextlib.AbstractContextManager[Any]:
-    """The turn of a recomputing edit in ``session``'s process (:class:`EditSlots`), or none without slots."""
+def _edit_turn(session: Session) -> contextlib.AbstractContextManager[Turn]:
+    """The turn of a recomputing edit in ``session``'s process (:class:`EditSlots`), or none (a :class:`Turn` neither
+    got nor waited for) without slots."""
     slots: Optional[EditSlots] = session.info.get(EDIT_SLOTS)
-    return slots.turn() if slots is not None else contextlib.nullcontext()
+    return slots.turn() if slots is not None else contextlib.nullcontext(Turn(False, False))
 
 
 @dataclass
@@ -228,16 +247,18 @@ def computed_before_lock(system_id: int) -> None:
 
 
 def _compute_before_lock(session: Session, system_id: int, subject: Callable[[], Any],
-                         state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], Any]) -> Optional[_Carried]:
-    """Run the edit in a read snapshot (``begin_snapshot``: no lock, nothing flushed): ``state`` of ``subject()``
-    before, ``apply``, ``state`` after, all in memory, with what its recomputation read (:func:`recompute_planned`).
+                         state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], Any],
+                         fresh: bool = False) -> Optional[_Carried]:
+    """Run the edit in a read snapshot (``begin_snapshot``: no lock, nothing flushed; the one the edit's lookups read,
+    unless ``fresh``: it waited for its turn): ``state`` of ``subject()`` before, ``apply``, ``state`` after, all in
+    memory, with what its recomputation read (:func:`recompute_planned`).
     The snapshot stays open (the caller ends it keeping the objects, :func:`_write_carried`). None, with the
     snapshot rolled back, when there is nothing to carry: the system's kind re-fits beyond it
     (``KindPolicy.computes_before_lock``), the session holds unwritten changes of its caller, the edit recomputed
     nothing or something else than its system, or it failed (whatever fails here is decided again under the
     lock: the same error, or none if the state changed)."""
     try:
-        begin_snapshot(session)
+        begin_snapshot(session, fresh=fresh)
     except RuntimeError:
         return None
     plan = _Plan()
@@ -387,10 +408,10 @@ def guarded_write(session: Session, system_id: int, claim: Callable[..., None], 
         return result
 
     recomputes = action in _RECOMPUTING
-    with _edit_turn(session) if recomputes else contextlib.nullcontext():
+    with _edit_turn(session) if recomputes else contextlib.nullcontext(Turn(False, False)) as turn:
         changed = False
         for _ in range(_ATTEMPTS_BEFORE_LOCK if recomputes else 0):
-            carried = _compute_before_lock(session, system_id, subject, state, apply)
+            carried = _compute_before_lock(session, system_id, subject, state, apply, fresh=turn.waited)
             if carried is None:
                 break
             if _write_carried(session, system_id, carried, claim, check, record):

@@ -151,11 +151,12 @@ def test_a_review_decision_takes_no_turn(database, monkeypatch) -> None:
 def test_edit_slots_count_turns_and_refuse_negative_figures() -> None:
     slots = EditSlots(2, 0.0)
     with slots.turn() as first, slots.turn() as second, slots.turn() as third:
-        assert (first, second, third) == (True, True, False)  # the third ran out of its (zero) wait
+        assert (bool(first), bool(second), bool(third)) == (True, True, False)  # the third ran out of its (zero) wait
+        assert (first.waited, second.waited, third.waited) == (False, False, True)
     with slots.turn() as again:
-        assert again  # the turns were given back
+        assert again and not again.waited  # the turns were given back
     with EditSlots(0, 10.0).turn() as unlimited:
-        assert unlimited is False
+        assert not unlimited and not unlimited.waited
     for slots_, wait in ((-1, 0.5), (1, -0.1)):
         with pytest.raises(ValueError, match="slots >= 0 and wait_s >= 0"):
             EditSlots(slots_, wait)
