@@ -29,9 +29,10 @@ Concurrency (several server processes, issues 7, 27 and 29): one locking design 
    first for an ISSIA system). Under the lock the stored rows are compared with what was read: on SQLite an
    unchanged ``data_version`` says that no other connection committed anything since; otherwise the digest is
    read again. Equal, the objects in memory are the stored rows plus this edit's changes: the edit claims its
-   version (412), checks a revert (409), flushes (the unit of work writes only the attributes that changed:
-   the label, the derived rows the recomputation changed, in place) and records its audit entry, and the answer is
-   drawn from the same objects. Different (another edit of the system, or of its game's rig, committed meanwhile),
+   version (412), checks a revert (409), writes only the attributes that changed (the derived rows the
+   recomputation changed, in place, as one ``UPDATE`` per table and columns: ``derivation.rows.writing_directly``;
+   the label, new rows and the audit entry through the unit of work), and the answer is drawn from the same
+   objects. Different (another edit of the system, or of its game's rig, committed meanwhile),
    everything is rolled back (objects expired) and the edit computes again before the lock from what the other
    committed (:data:`_ATTEMPTS_BEFORE_LOCK` times in all); colliding again, it runs under the lock: claim, change,
    recompute, audit.
@@ -71,6 +72,7 @@ from app.services.audit import log as audit
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
 from app.services.derivation.recompute import load_for_recompute, stored_state_digest, system_rig_rows
+from app.services.derivation.rows import DirectWrites, writing_directly
 from app.services.curation.system_page import load_frame
 from app.services.curation.versions import claim_frame
 from app.services.curation.states import (
@@ -217,6 +219,7 @@ class _Plan:
     data_version: Optional[int] = None
     settings: Optional[Settings] = None
     preloaded: Optional[System] = None
+    direct: Optional[DirectWrites] = None
 
 
 @dataclass
@@ -265,14 +268,15 @@ def _compute_before_lock(session: Session, system_id: int, subject: Callable[[],
     carried = None
     session.info[_PLAN] = plan
     try:
-        with session.no_autoflush:
+        with session.no_autoflush, writing_directly(session) as direct:
             # the one load of the edit: what the subject, its state and the recomputation read, in a few queries
             plan.preloaded = load_for_recompute(session, [system_id], with_game=True).get(system_id)
             if plan.preloaded is not None and kind_of(plan.preloaded).computes_before_lock:
                 target = subject()
                 before = state(target)
-                result = apply(target)
+                result = apply(target)  # the derived rows' changes collected (rows.writing_directly), not flushed
                 if set(plan.digests) == {system_id}:
+                    plan.direct = direct
                     carried = _Carried(target, before, state(target), result, plan)
     except Exception:  # noqa: BLE001  # decided again under the lock
         carried = None
@@ -330,7 +334,9 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
             claim(expire=False)
             check(carried.before)
             record(carried.target, carried.before, carried.after)
-        session.commit()  # one flush: what changed and the audit entry
+            if plan.direct is not None:
+                plan.direct.write(session)  # the derived rows that changed: one UPDATE per table and columns
+        session.commit()  # one flush: the rest of what changed (the edited label, new rows) and the audit entry
         return True
     except BaseException as exc:
         _rolled_back(session, exc)

@@ -200,7 +200,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
     put_values(tri, {"status": TriangulationStatus(result.status),
                      "ball3d": None if result.point is None else [float(v) for v in result.point],
                      "tau_px": result.tau_px, "rule": result.rule, "min_baseline_m": result.min_baseline_m})
-    tri.computed_at = utcnow()
+    put_values(tri, {"computed_at": utcnow()})
     replace_rows(tri.pairs, TriangulationPair, [dict(  # in place: a pair the edit leaves as it was writes nothing
         frame_a_id=p.view_a, frame_b_id=p.view_b,
         point=None if p.point is None else [float(v) for v in p.point],

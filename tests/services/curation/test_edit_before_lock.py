@@ -153,6 +153,71 @@ def test_a_recomputation_leaves_rows_whose_values_it_keeps_out_of_the_flush(data
         s.rollback()
 
 
+def test_an_edit_writes_its_derived_rows_directly_as_the_unit_of_work_would(database, monkeypatch) -> None:
+    """Issue 29: an edit computed before its lock sends the derived rows it changed as one UPDATE per table and
+    columns (``rows.writing_directly``), not through the unit of work, which flushes only the edited label and the
+    audit entry. The stored rows are then exactly what a recomputation of the stored labels gives (recomputing them
+    changes nothing but the triangulation's time stamp), the objects the edit answers from equal the stored rows,
+    and a calibration's ``updated_at`` moved as its ``onupdate`` says."""
+    import sqlalchemy as sa
+
+    from app.db.models import Calibration, Triangulation
+    from app.services.derivation import rows
+
+    factory, settings, scene, _ = database
+    fid = scene.frame_ids[0]
+    sent: list[int] = []
+    write = rows.DirectWrites.write
+    monkeypatch.setattr(rows.DirectWrites, "write", lambda self, session: sent.append(len(self)) or write(self, session))
+
+    with factory() as s:
+        updated = {c.frame_id: c.updated_at for c in s.scalars(sa.select(Calibration).where(
+            Calibration.frame_id.in_(scene.frame_ids)))}
+    with factory() as s:
+        frame = update_ball_label(s, fid, box=_moved(_box(factory, fid), 5.0), settings=settings)
+        assert s.info[LAST_RECOMPUTATION] == "precomputed"
+        assert sent and sent[0] >= 6  # the pairs, reprojections, boxes, calibrations (mirror evidence), triangulation
+        system = frame.system
+        in_memory = {f.id: (f.calibration.mirror_evidence, f.calibration.updated_at, f.reprojection.point,
+                            f.optimised_box.box) for f in system.frames}
+        ball3d, pairs = list(system.triangulation.ball3d), [(p.id, p.point, p.error_px) for p in system.triangulation.pairs]
+    with factory() as s:
+        loaded = load_for_recompute(s, [scene.system_id])[scene.system_id]
+        assert {f.id: (f.calibration.mirror_evidence, f.calibration.updated_at, f.reprojection.point,
+                       f.optimised_box.box) for f in loaded.frames} == in_memory
+        assert list(loaded.triangulation.ball3d) == ball3d
+        assert [(p.id, p.point, p.error_px) for p in loaded.triangulation.pairs] == pairs
+        assert len(updated) == len(scene.frame_ids)
+        assert all(f.calibration.updated_at > updated[f.id] for f in loaded.frames)
+        with s.no_autoflush:
+            recompute_system(s, loaded, settings)
+            assert {type(o) for o in s.dirty} == {Triangulation}  # the stored rows are what it gives
+        s.rollback()
+
+
+def test_direct_writes_refuse_a_row_gone_and_leave_new_rows_to_the_unit_of_work(database) -> None:
+    """A stored row collected by ``rows.writing_directly`` that vanished before the write fails the write
+    (StaleDataError, nothing silently lost); a row not stored yet is set on the object, for the unit of work."""
+    import sqlalchemy as sa
+    from sqlalchemy.orm.exc import StaleDataError
+
+    from app.db.models import BallReprojection, OptimisedBox
+    from app.services.derivation.rows import put_values, writing_directly
+
+    factory, settings, scene, _ = database
+    with factory() as s:
+        frame = s.get(Frame, scene.frame_ids[0])
+        with writing_directly(s) as direct:
+            put_values(frame.reprojection, {"error_px": 123.0})
+            fresh = put_values(OptimisedBox(box=[0.0, 0.0, 1.0, 1.0], d_opt_px=1.0, error_m=0.0), {"d_opt_px": 2.0})
+        assert len(direct) == 1 and not s.dirty and fresh.d_opt_px == 2.0
+        assert frame.reprojection.error_px == 123.0
+        s.execute(sa.delete(BallReprojection).where(BallReprojection.frame_id == frame.id))
+        with pytest.raises(StaleDataError, match="ball_reprojections: 1 rows to update, 0 found"):
+            direct.write(s)
+        s.rollback()
+
+
 def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch) -> None:
     """Issue 29: the rig rows the stored rows' digest reads are the ones the recomputation uses (the mirror evidence's
     rig, a line edit's rig retry): an edit reads them once before the lock and, on PostgreSQL, once more under it
