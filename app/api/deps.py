@@ -44,7 +44,11 @@ def system_by_id(session: SessionDep, system_id: SystemIdPath) -> System:
     return _get_system(session, system_id)
 
 
-def frame_by_id(session: SessionDep, frame_id: Annotated[int, Path(description="Frame id.", ge=DB_INT_MIN, le=DB_INT_MAX)]) -> Frame:
+#: The ``frame_id`` path parameter of the frame routes (bounded to the database's integers).
+FrameIdPath = Annotated[int, Path(description="Frame id.", ge=DB_INT_MIN, le=DB_INT_MAX)]
+
+
+def frame_by_id(session: SessionDep, frame_id: FrameIdPath) -> Frame:
     """The frame named by the ``frame_id`` path parameter; 404 naming the id when there is none."""
     return _get_frame(session, frame_id)
 

@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 from app.api.answers import json_answer
 from app.api.auth import AnnotatorDep, PrincipalDep, require_role
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
-from app.api.deps import FrameDep, SessionDep, SettingsDep
+from app.api.deps import FrameDep, FrameIdPath, SessionDep, SettingsDep
 from app.api.schemas import (
     INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FieldLinesIn, FrameListQuery, QueueQuery,
     ReviewIn,
@@ -27,6 +27,7 @@ from app.api.schemas import (
 from app.api.view_schemas import (
     CalibrationPreviewOut, FrameOut, FramePageOut, FrameView, PitchLinesOut, ReviewOut, SystemView, calibrated_camera, projected_pitch_of,
 )
+from app.db.models import Frame
 from app.services.audit import log as audit
 from app.services.curation import decisions, editing, writing
 from app.services.curation.calibration_preview import preview_calibration
@@ -118,11 +119,11 @@ def name_entry(session: Session, response: Response) -> None:
         response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
 
 
-def _edited(session: Session, frame_id: int, response: Response, query: QueueQuery, me: str) -> Response:
-    """The recomputed system view after an edit of ``frame_id`` by ``me`` (whom ``assignee=me`` names), its new
-    ETag and its audit entry in the header (serialised here: ``app.api.answers``)."""
+def _edited(session: Session, frame: Frame, response: Response, query: QueueQuery, me: str) -> Response:
+    """The recomputed system view after an edit of ``frame`` by ``me`` (whom ``assignee=me`` names; the frame the
+    edit answered, with its system as it committed it), its new ETag and its audit entry in the header (serialised
+    here: ``app.api.answers``)."""
     name_entry(session, response)
-    frame = writing.get_frame(session, frame_id)
     with_etag(response, frame_etag(frame))
     return json_answer(SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort)), response)
 
@@ -154,22 +155,23 @@ def frame_image(frame: FrameDep, settings: SettingsDep,
 
 @router.patch("/{frame_id}/ball", response_model=SystemView, responses=EDIT_RESPONSES)
 def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-              frame: FrameDep, body: BallEdit, query: Annotated[QueueQuery, Query()], response: Response) -> Response:
+              frame_id: FrameIdPath, body: BallEdit, query: Annotated[QueueQuery, Query()],
+              response: Response) -> Response:
     """Set the frame's ball box or point (or remove it with null) and answer the recomputed system view.
 
     422 naming ``box`` or ``point``: non-finite numbers, x2 <= x1 or y2 <= y1, a box entirely outside
     the image, a point outside it; ``provenance`` of another shape; nothing is stored then. A label sent with
     a ``provenance`` (a doubt's suggestion) is stored as suggested: it makes no 3D ball until a person places it.
     """
-    editing.update_ball_label(session, frame.id, box=body.box, point=body.point, provenance=body.provenance,
-                              settings=settings, actor=principal.name,
-                              expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query, principal.name)
+    frame = editing.update_ball_label(session, frame_id, box=body.box, point=body.point, provenance=body.provenance,
+                                      settings=settings, actor=principal.name,
+                                      expected=expected_versions(if_match, "frame", frame_id))
+    return _edited(session, frame, response, query, principal.name)
 
 
 @router.put("/{frame_id}/field-lines", response_model=SystemView, responses=EDIT_RESPONSES)
 def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-                        frame: FrameDep, body: FieldLinesEdit, query: Annotated[QueueQuery, Query()],
+                        frame_id: FrameIdPath, body: FieldLinesEdit, query: Annotated[QueueQuery, Query()],
                         response: Response) -> Response:
     """Replace the frame's field lines, recalibrate it, and answer the recomputed system view, with the
     id of the write's audit entry in ``X-V3D-Audit-Entry`` (what a later ``undo_of`` names).
@@ -178,9 +180,9 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     infinity; naming ``undo_of``: not a field-line write of this frame whose lines before were ``lines``;
     nothing is stored then.
     """
-    editing.replace_field_lines(session, frame.id, body.lines, settings=settings, actor=principal.name,
-                                expected=expected_versions(if_match, "frame", frame.id), undo_of=body.undo_of)
-    return _edited(session, frame.id, response, query, principal.name)
+    frame = editing.replace_field_lines(session, frame_id, body.lines, settings=settings, actor=principal.name,
+                                        expected=expected_versions(if_match, "frame", frame_id), undo_of=body.undo_of)
+    return _edited(session, frame, response, query, principal.name)
 
 
 #: The calibration previews being computed in this process, by (user, frame): one at a time each.
@@ -228,27 +230,27 @@ def calibration_preview(session: SessionDep, settings: SettingsDep, principal: A
 @router.post("/{frame_id}/field-lines/mirror", response_model=SystemView,
              responses={**EDIT_RESPONSES, **MIRROR_REFUSED})
 def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-                       frame: FrameDep, query: Annotated[QueueQuery, Query()], response: Response) -> Response:
+                       frame_id: FrameIdPath, query: Annotated[QueueQuery, Query()], response: Response) -> Response:
     """Replace the frame's field lines by their mirrored labelling (left <-> right, top <-> bottom),
     recalibrate it, and answer the recomputed system view: the fix offered for a view flagged
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines; 409 when the mirror
     guard refuses the mirrored calibration (nothing is stored then).
     """
-    editing.apply_mirrored_labels(session, frame.id, settings=settings, actor=principal.name,
-                                  expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query, principal.name)
+    frame = editing.apply_mirrored_labels(session, frame_id, settings=settings, actor=principal.name,
+                                          expected=expected_versions(if_match, "frame", frame_id))
+    return _edited(session, frame, response, query, principal.name)
 
 
 @router.post("/{frame_id}/exclusion", response_model=SystemView, responses=EDIT_RESPONSES)
 def set_exclusion(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-                  frame: FrameDep, body: ExclusionIn, query: Annotated[QueueQuery, Query()],
+                  frame_id: FrameIdPath, body: ExclusionIn, query: Annotated[QueueQuery, Query()],
                   response: Response) -> Response:
     """Exclude the view from its system's triangulation (``{"excluded": true}``) or restore it
     (``false``), recompute the system, and answer the recomputed system view. The decision is stored
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
-    editing.set_view_excluded(session, frame.id, body.excluded, settings=settings, actor=principal.name,
-                              expected=expected_versions(if_match, "frame", frame.id))
-    return _edited(session, frame.id, response, query, principal.name)
+    frame = editing.set_view_excluded(session, frame_id, body.excluded, settings=settings, actor=principal.name,
+                                      expected=expected_versions(if_match, "frame", frame_id))
+    return _edited(session, frame, response, query, principal.name)
 
 
 @router.post("/{frame_id}/review", response_model=ReviewOut, responses=EDIT_RESPONSES)

@@ -48,7 +48,7 @@ from app.services.curation.states import (
     ball_state, excluded_state, lines_state, same_json,
 )
 from app.services.curation.writing import (
-    Expected, Revert, check_undo_state, get_frame, guarded_frame_write, recompute_planned,
+    Expected, Revert, check_undo_state, frame_facts, guarded_frame_write, recompute_planned,
 )
 from app.services.curation.resets import (
     calibration_words, jac_words, reset_after_change, reset_decisions_after_recalibration,
@@ -107,10 +107,10 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
     """
     if box is not None and point is not None:
         raise InvalidInputError("give a box or a point, not both", field="box")
-    frame = get_frame(session, frame_id)
+    facts = frame_facts(session, frame_id)
     try:
-        new_box = check_box(box, frame.width, frame.height) if box is not None else None
-        new_point = check_point(point, frame.width, frame.height) if point is not None else None
+        new_box = check_box(box, facts.width, facts.height) if box is not None else None
+        new_point = check_point(point, facts.width, facts.height) if point is not None else None
     except LabelError as exc:
         raise InvalidInputError(str(exc), field="box" if box is not None else "point") from None
     new_provenance = check_provenance(provenance) if (new_box is not None or new_point is not None) else None
@@ -136,7 +136,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
         return frame
 
     return guarded_frame_write(session, frame_id, expected, ball_state, apply, "ball.edit", actor, revert,
-                        undo.entry_id if undo is not None else None)
+                               undo.entry_id if undo is not None else None, system_id=facts.system_id)
 
 
 def _recompute(session: Session, system: System, settings: Settings, actor: Optional[str]) -> None:
@@ -212,8 +212,8 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
             an ``undo_of`` that is no field-line write of this frame with ``lines`` before it (field "undo_of").
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
-    frame = get_frame(session, frame_id)
-    parsed = parse_field_lines(lines, frame.width, frame.height, settings.max_line_points_per_frame)
+    facts = frame_facts(session, frame_id)
+    parsed = parse_field_lines(lines, facts.width, facts.height, settings.max_line_points_per_frame)
     if undo is not None:
         undo_of = undo.entry_id
 
@@ -230,7 +230,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
     if undo_of is not None:
         check_undo(session, undo_of, frame_id, parsed)
     return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.replace", actor, revert,
-                        undo_of)
+                               undo_of, system_id=facts.system_id)
 
 
 def check_undo(session: Session, entry_id: int, frame_id: int, parsed: dict[str, Any]) -> None:
@@ -300,8 +300,9 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         audit.note_facts(session, calibration=(jac_before, jac_words(out, settings)))
         return out
 
-    get_frame(session, frame_id)
-    return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.mirror", actor, None)
+    facts = frame_facts(session, frame_id)
+    return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.mirror", actor, None,
+                               system_id=facts.system_id)
 
 
 def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None, str] | None:
@@ -350,7 +351,7 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
     """
     if not isinstance(excluded, bool):
         raise InvalidInputError("excluded must be true or false", field="excluded")
-    get_frame(session, frame_id)
+    facts = frame_facts(session, frame_id)
 
     def apply(frame: Frame) -> Frame:
         before = excluded_state(frame)
@@ -365,4 +366,4 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
         return frame
 
     return guarded_frame_write(session, frame_id, expected, excluded_state, apply, "view.exclusion", actor, revert,
-                        undo.entry_id if undo is not None else None)
+                               undo.entry_id if undo is not None else None, system_id=facts.system_id)

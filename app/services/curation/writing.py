@@ -54,13 +54,14 @@ from __future__ import annotations
 
 
 import contextlib
+import functools
 import json
 import threading
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, TypeVar
 
-from sqlalchemy import event, select
+from sqlalchemy import bindparam, event, select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
@@ -431,8 +432,12 @@ def guarded_write(session: Session, system_id: int, claim: Callable[..., None], 
 
 def guarded_frame_write(session: Session, frame_id: int, expected: Expected, state: Callable[[Frame], dict[str, Any]],
                  apply: Callable[[Frame], T], action: str, actor: Optional[str], revert: Optional[Revert],
-                 undo_of: Optional[int] = None) -> T:
-    system_id = get_frame(session, frame_id).system_id
+                 undo_of: Optional[int] = None, *, system_id: Optional[int] = None) -> T:
+    """:func:`guarded_write` of frame ``frame_id`` (its system ``system_id``, looked up when None: :func:`frame_facts`),
+    claiming the frame's version. Raises :class:`NotFoundError` for an unknown frame, and what ``guarded_write``
+    raises."""
+    if system_id is None:
+        system_id = frame_facts(session, frame_id).system_id
 
     def claim(expire: bool = True) -> None:  # guarded_write has locked the system (lock_system) before it claims
         claim_frame(session, frame_id, expected, expire=expire)
@@ -444,6 +449,29 @@ def guarded_frame_write(session: Session, frame_id: int, expected: Expected, sta
 def get_frame(session: Session, frame_id: int) -> Frame:
     """The frame with this id. Raises :class:`NotFoundError`."""
     return found(session.get(Frame, frame_id), "frame", frame_id)
+
+
+@dataclass(frozen=True)
+class FrameFacts:
+    """What an edit checks of its frame before it computes: its system and image size (pixels)."""
+
+    id: int
+    system_id: int
+    width: int
+    height: int
+
+
+def frame_facts(session: Session, frame_id: int) -> FrameFacts:
+    """The frame's :class:`FrameFacts`, read by one statement built once (no ORM object: the edit loads the frame
+    with its system next, ``recompute.load_for_recompute``). Raises :class:`NotFoundError`."""
+    row = session.execute(_frame_facts_statement(), {"id": frame_id}).one_or_none()
+    return FrameFacts(*found(row, "frame", frame_id))
+
+
+@functools.cache
+def _frame_facts_statement() -> Any:
+    F = Frame.__table__
+    return select(F.c.id, F.c.system_id, F.c.width, F.c.height).where(F.c.id == bindparam("id"))
 
 
 def get_system(session: Session, system_id: int) -> System:
