@@ -259,7 +259,7 @@ def parallax_angle_deg(camera_a: Camera, point_a_px: np.ndarray, camera_b: Camer
     Returns:
         The angle between the two rays, degrees.
     """
-    return _ray_angle_deg(view_ray(camera_a, point_a_px).ray, view_ray(camera_b, point_b_px).ray)
+    return angle_between_deg(view_ray(camera_a, point_a_px).ray, view_ray(camera_b, point_b_px).ray)
 
 
 @dataclass(frozen=True)
@@ -287,9 +287,10 @@ def view_ray(camera: Camera, point_px: np.ndarray) -> ViewRay:
     return ViewRay(d / math.sqrt(float(d @ d)), pixel[0])
 
 
-def _ray_angle_deg(ra: np.ndarray, rb: np.ndarray) -> float:
-    """Angle (degrees) between two unit rays: atan2 of |cross| and dot, accurate at small angles where
-    arccos(dot) is not."""
+def angle_between_deg(ra: np.ndarray, rb: np.ndarray) -> float:
+    """Angle (degrees, [0, 180]) between two 3-vectors ``ra`` and ``rb`` (any length, e.g. unit rays or the
+    directions from two camera centres to a point): atan2 of |cross| and dot, accurate at small angles where
+    arccos(dot) is not; three-element arithmetic without numpy's array machinery."""
     ax, ay, az = float(ra[0]), float(ra[1]), float(ra[2])
     bx, by, bz = float(rb[0]), float(rb[1]), float(rb[2])
     cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
@@ -361,7 +362,7 @@ def pair_geometry_of_rays(a: BallObservation, b: BallObservation, ray_a: ViewRay
     camera and pixel; :class:`PairGeometryMemo` computes each view's once for all its pairs)."""
     d = a.camera.C - b.camera.C
     baseline = math.sqrt(float(d @ d))
-    beta = _ray_angle_deg(ray_a.ray, ray_b.ray)
+    beta = angle_between_deg(ray_a.ray, ray_b.ray)
     P = np.stack([a.camera.projection_matrix, b.camera.projection_matrix])
     uv = np.stack([ray_a.pixel, ray_b.pixel])
     h, s = _dlt(P, uv)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from itertools import combinations
-from typing import Any, Callable, Hashable, Sequence
+from typing import Any, Callable, Hashable, Mapping, Sequence
 
 import numpy as np
 
@@ -13,7 +13,7 @@ from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.mirror import mirror_camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
-from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
+from app.geometry.triangulation import angle_between_deg, BallObservation, PairGeometry, pair_geometry, reprojection_error_px
 from app.geometry.weighting import (axis_on_grass, calibration_weight, label_centre, pixel_sigma, project_point,
                                    rule_scale)
 from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
@@ -142,7 +142,7 @@ def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtS
         if ref is None:
             continue
         u, w = ref - a.camera.C, ref - b.camera.C
-        angle = math.degrees(math.atan2(np.linalg.norm(np.cross(u, w)), float(u @ w)))
+        angle = angle_between_deg(u, w)
         if angle >= s.near_duplicate_max_deg or not (_sees(a, ref) and _sees(b, ref)):
             continue
         # Name the view that adds nothing: an unlabelled one, else a replay, else the lower JaC.
@@ -260,7 +260,8 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
 
 
 def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
-                 geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry) -> list[Doubt]:
+                 geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
+                 weighed: Mapping[Hashable, tuple[float, float]] | None = None) -> list[Doubt]:
     """Every doubt of one multi-view system (pure, deterministic; see the module docstring for the kinds).
 
     Rules, in order:
@@ -295,6 +296,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
         views: the system's views (ids unique).
         settings: thresholds (:class:`DoubtSettings`).
         geometry: where the consensus's pairs' raw geometry comes from (``app.geometry.consensus.ball_consensus``).
+        weighed: view id -> ``calibration_weight(view, settings)`` (weight, pixel sigma at 1920 px) where the caller
+            computed it for these views and settings already (the triangulation's weights); computed here otherwise.
 
     Returns:
         The doubts: info kinds first, then ``mirrored_labels``, ``ball_off_consensus``, ``ball_missing``,
@@ -324,7 +327,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
     sigma: dict[Hashable, float] = {}
     weight: dict[Hashable, float] = {}
     for v in calibrated + helpers:
-        weight[v.view_id], sigma[v.view_id] = calibration_weight(v, s)
+        known = weighed.get(v.view_id) if weighed is not None else None
+        weight[v.view_id], sigma[v.view_id] = known if known is not None else calibration_weight(v, s)
     helpers = [v for v in helpers if weight[v.view_id] > 0]
     judged = [v for v in calibrated if v not in mirrored and weight[v.view_id] > 0 and not v.suggested]
     labelled = [v for v in judged if label_centre(v) is not None]

@@ -86,7 +86,26 @@ def doubt_views(system: System, cameras: dict[int, Camera] | None = None) -> lis
     return [doubt_view(f, cameras.get(f.id)) for f in system.frames]
 
 
-def calibration_weights(system: System, settings: Settings, cameras: dict[int, Camera] | None = None) -> dict[int, float]:
+@dataclasses.dataclass(frozen=True)
+class WeighedViews:
+    """A system's views as the doubt judge sees them (:func:`doubt_views`) and, per calibrated view, what its
+    calibration is worth (``app.geometry.weighting.calibration_weight`` with the judge's settings: weight and pixel
+    sigma at 1920 px), made once per recomputation for the triangulation's weights and the judge
+    (:func:`weighed_views`)."""
+
+    views: list[DoubtView]
+    weighed: dict[int, tuple[float, float]]
+
+
+def weighed_views(system: System, settings: Settings, cameras: dict[int, Camera] | None = None) -> WeighedViews:
+    """:class:`WeighedViews` of ``system`` as its rows are now (admission and mirror flags as set on them)."""
+    s = doubt_settings(settings)
+    views = doubt_views(system, cameras)
+    return WeighedViews(views, {v.view_id: calibration_weight(v, s) for v in views if v.camera is not None})
+
+
+def calibration_weights(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,
+                        weighed: WeighedViews | None = None) -> dict[int, float]:
     """Frame id -> what its calibration is worth as evidence of the ball (``app.geometry.weighting.calibration_weight``
     with the judge's settings: 1, 0.5 or 0), for every calibrated frame of ``system``; what the triangulation
     weighs views by (``app.geometry.triangulation.triangulate_ball`` ``view_weights``), so that it trusts the
@@ -94,21 +113,22 @@ def calibration_weights(system: System, settings: Settings, cameras: dict[int, C
     imported with the fit's standard deviations (v3d's own export carries them, so a round trip gives the same
     balls). A camera a person set (source "edited") or one imported without them (a release's camera, how it
     was made unknown) counts full (1): the number of lines it shows says nothing of it.
-    Reads the frames' admission as set on them."""
-    s = doubt_settings(settings)
+    Reads the frames' admission as set on them (``weighed``: :func:`weighed_views` of them, when made already)."""
+    weighed = weighed or weighed_views(system, settings, cameras)
     fitted = {f.id for f in system.frames if f.calibration is not None and (
         f.calibration.source is CalibrationSource.COMPUTED
         or (f.calibration.source is CalibrationSource.IMPORTED and f.calibration.uncertainty is not None))}
-    return {v.view_id: calibration_weight(v, s)[0] if v.view_id in fitted else 1.0
-            for v in doubt_views(system, cameras) if v.camera is not None}
+    return {fid: w if fid in fitted else 1.0 for fid, (w, _) in weighed.weighed.items()}
 
 
 def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,
-                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry) -> list[Doubt]:
+                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
+                  weighed: WeighedViews | None = None) -> list[Doubt]:
     """Judge the system (``app.geometry.doubts.judge_system``; ``geometry``: the recomputation's pair geometry, shared
-    with its triangulation) and replace its stored doubts and counts. Changes the session only; the caller commits
-    (with the edit that caused it)."""
-    found = judge_system(doubt_views(system, cameras), doubt_settings(settings), geometry)
+    with its triangulation; ``weighed``: its :func:`weighed_views`, when made already) and replace its stored doubts
+    and counts. Changes the session only; the caller commits (with the edit that caused it)."""
+    weighed = weighed or weighed_views(system, settings, cameras)
+    found = judge_system(weighed.views, doubt_settings(settings), geometry, weighed.weighed)
     found = kind_of(system).judge_doubts(system, found, cameras)
     names = {f.id: f.name for f in system.frames}
     replace_rows(system.doubts, Doubt, [  # in place: a doubt the edit leaves as it was writes nothing

@@ -64,7 +64,7 @@ from app.services.calibration.priors import stored_camera_prior, wants_prior_ret
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
-from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts
+from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts, weighed_views
 from app.services.derivation import cameras as shared
 from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.loading import load_systems
@@ -186,7 +186,8 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     observations = kind.consensus_observations(system, observations, settings)
     # a weak calibration (few line classes, an unsure camera) neither makes nor moves a ball on its own
-    weights = calibration_weights(system, settings, cameras) if kind.weighs_calibrations else None
+    weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the weights and the doubts
+    weights = calibration_weights(system, settings, weighed=weighed) if kind.weighs_calibrations else None
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
                               min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
                               play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
@@ -213,7 +214,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_reprojection(f, cameras.get(f.id), ball)
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
-    update_doubts(system, settings, cameras, geometry)
+    update_doubts(system, settings, cameras, geometry, weighed)
     update_summary(system, tri)
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
     return tri
