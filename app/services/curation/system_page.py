@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any, Optional
 
 import numpy as np
+import orjson
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, joinedload
 
@@ -84,7 +85,16 @@ def pitch_lines_key(camera_json: Optional[dict[str, Any]], width: int, height: i
     """
     if not camera_json:
         return None
-    text = f"{json.dumps(camera_json, sort_keys=True)}|{int(width)}x{int(height)}"
+    return _pitch_lines_key(orjson.dumps(camera_json, option=orjson.OPT_SORT_KEYS | orjson.OPT_NON_STR_KEYS),
+                            int(width), int(height))
+
+
+@functools.lru_cache(maxsize=_PITCH_CACHE_SIZE)
+def _pitch_lines_key(camera: bytes, width: int, height: int) -> str:
+    """:func:`pitch_lines_key` of a camera given as its JSON with sorted keys (orjson's, a cheap cache key); the key
+    itself hashes ``json.dumps`` of the camera, as it always has (the URLs clients keep stay valid). Computed once
+    per camera and image size (every view of every system page and edit answer names it)."""
+    text = f"{json.dumps(orjson.loads(camera), sort_keys=True)}|{width}x{height}"
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
