@@ -33,7 +33,7 @@ from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.paths import PROJECT_ROOT
-from app.db.types import json_loads
+from app.db.types import json_dumps, json_loads
 
 #: The Alembic configuration of the project (``script_location = migrations``).
 ALEMBIC_INI = PROJECT_ROOT / "alembic.ini"
@@ -140,8 +140,8 @@ def _prepare_sqlite(engine: Engine, url: sa.URL, busy_timeout_s: float) -> None:
 def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **kwargs: Any) -> Engine:
     """A SQLAlchemy engine for ``url`` (SQLite or PostgreSQL).
 
-    Both decode JSON columns with orjson (:func:`app.db.types.json_loads`; psycopg's own loader would use
-    ``json.loads``). SQLite engines enforce foreign keys, use WAL for files, allow use from the API's worker threads,
+    Both encode and decode JSON columns with orjson (:func:`app.db.types.json_dumps`, :func:`app.db.types.json_loads`;
+    psycopg's own loader would use ``json.loads``). SQLite engines enforce foreign keys, use WAL for files, allow use from the API's worker threads,
     support savepoints (see
     :func:`_prepare_sqlite`), wait up to ``write_lock_timeout_s`` (None: :data:`SQLITE_BUSY_TIMEOUT_S`; an
     explicit ``connect_args={"timeout": ...}`` wins) for the write lock, and begin the transactions of
@@ -152,6 +152,7 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
     """
     u = make_url(url)
     kwargs.setdefault("json_deserializer", json_loads)
+    kwargs.setdefault("json_serializer", json_dumps)
     if u.get_backend_name() == "sqlite":
         kwargs.setdefault("connect_args", {}).setdefault("check_same_thread", False)
         timeout = kwargs["connect_args"].setdefault(

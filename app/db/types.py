@@ -64,6 +64,18 @@ def json_loads(text: str | bytes) -> Any:
         return json.loads(text)
 
 
+def json_dumps(value: Any) -> str:
+    """Encode a document for a JSON column with ``orjson`` (several times faster than ``json``, compact: an edit
+    writes a few dozen documents), integer keys as strings and numpy numbers as numbers as ``json.dumps`` would;
+    NaN and infinities become ``null`` (:func:`json_safe` keeps them out of new rows already; PostgreSQL's JSONB
+    has no such numbers either). Both engines' JSON columns encode through it (``app.db.session.make_engine``).
+
+    Raises:
+        TypeError: a value JSON cannot hold (orjson's ``JSONEncodeError`` is one).
+    """
+    return orjson.dumps(value, option=orjson.OPT_NON_STR_KEYS | orjson.OPT_SERIALIZE_NUMPY).decode()
+
+
 def utcnow() -> datetime:
     """The current time, timezone-aware UTC (the default of every timestamp column)."""
     return datetime.now(timezone.utc)
@@ -90,6 +102,15 @@ def json_safe(value: Any) -> Any:
     PostgreSQL's JSONB rejects them). Raises ``TypeError`` for anything JSON cannot hold."""
     import numpy as np
 
+    kind = type(value)  # the plain types first: an edit passes a few hundred values through here
+    if kind is float:
+        return value if math.isfinite(value) else None
+    if value is None or kind is str or kind is int or kind is bool:
+        return value
+    if kind is dict:
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if kind is list:
+        return [json_safe(v) for v in value]
     if isinstance(value, dict):
         return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
