@@ -51,6 +51,7 @@ from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
+from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
 from app.services.curation.writing import EDIT_SLOTS, EditSlots, get_system
 from app.core.errors import NotFoundError
 from app.services.jobs.runner import JobRunner
@@ -149,9 +150,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         docs_url=None,
     )
     app.state.settings = settings
-    # Every session carries this process's turns of the recomputing edits (Settings.edit_slots).
+    # Every session carries this process's turns of the recomputing edits (Settings.edit_slots) and the systems its
+    # edits last committed (app.services.curation.kept).
     app.state.session_factory = make_session_factory(
-        engine, info={EDIT_SLOTS: EditSlots(settings.edit_slots, settings.edit_slot_wait_s)})
+        engine, info={EDIT_SLOTS: EditSlots(settings.edit_slots, settings.edit_slot_wait_s), KEPT_SYSTEMS: KeptSystems()})
     # Failed logins counted in the database, through the app's session factory of the moment (tests swap it).
     app.state.login_throttle = login_throttle(settings, lambda: app.state.session_factory())
 

@@ -62,6 +62,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, TypeVar
 
 from sqlalchemy import bindparam, event, select
+from sqlalchemy import exc as sa_exc
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
@@ -72,8 +73,9 @@ from app.db.session import begin_snapshot, begin_write, begin_write_keeping_obje
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
-from app.services.derivation.recompute import load_for_recompute, stored_state_digest, system_rig_rows
+from app.services.derivation.recompute import load_for_recompute, stored_rows_digest, stored_state_digest, system_rig_rows
 from app.services.derivation.rows import DirectWrites, writing_directly
+from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
 from app.services.curation.system_page import load_frame
 from app.services.curation.versions import claim_frame
 from app.services.curation.states import (
@@ -221,6 +223,7 @@ class _Plan:
     settings: Optional[Settings] = None
     preloaded: Optional[System] = None
     direct: Optional[DirectWrites] = None
+    rows_digest: Optional[str] = None  # ``recompute.stored_rows_digest`` of the preloaded system, read in the snapshot
 
 
 @dataclass
@@ -270,8 +273,11 @@ def _compute_before_lock(session: Session, system_id: int, subject: Callable[[],
     session.info[_PLAN] = plan
     try:
         with session.no_autoflush, writing_directly(session) as direct:
-            # the one load of the edit: what the subject, its state and the recomputation read, in a few queries
-            plan.preloaded = load_for_recompute(session, [system_id], with_game=True).get(system_id)
+            # the one load of the edit: what the subject, its state and the recomputation read, in a few queries, or
+            # the objects the last edit of the system in this process committed, when its rows are still those
+            plan.preloaded = _kept_system(session, system_id, plan)
+            if plan.preloaded is None:
+                plan.preloaded = load_for_recompute(session, [system_id], with_game=True).get(system_id)
             if plan.preloaded is not None and kind_of(plan.preloaded).computes_before_lock:
                 target = subject()
                 before = state(target)
@@ -290,6 +296,37 @@ def _compute_before_lock(session: Session, system_id: int, subject: Callable[[],
     return carried
 
 
+def _kept_system(session: Session, system_id: int, plan: _Plan) -> Optional[System]:
+    """The objects of system ``system_id`` as the last edit of this process committed them (``kept.KeptSystems``),
+    attached to ``session``, when the stored rows are still those (the rows' digest, read here in the edit's snapshot
+    and kept in ``plan``) and the session holds nothing yet; None otherwise (the edit loads the system)."""
+    kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
+    if kept is None or session.identity_map or session.new:
+        return None
+    plan.rows_digest = stored_rows_digest(session, system_id)
+    system = kept.take(system_id, plan.rows_digest)
+    if system is not None:
+        try:
+            session.add(system)  # persistent again, with everything it had loaded (cascades to its views and rows)
+        except sa_exc.InvalidRequestError:  # an object still leaving the session that committed it: load instead
+            session.expunge_all()
+            return None
+    return system
+
+
+def _keep_system(session: Session, system_id: int, plan: _Plan) -> Optional[Callable[[], None]]:
+    """Under the lock, after the edit's writes: what keeps the edit's objects for the next edit of the system once the
+    transaction committed (``kept.KeptSystems.keep`` with the digest of the rows as written, read here), or None when
+    the session's process keeps none."""
+    kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
+    if kept is None or plan.preloaded is None:
+        return None
+    session.flush()  # the edited label and new rows, so that the digest reads what the commit stores
+    rows = stored_rows_digest(session, system_id)
+    system = plan.preloaded
+    return lambda: kept.keep(system, rows, list(session.identity_map.values()))
+
+
 def recompute_planned(session: Session, system: System, settings: Settings,
                        compute: Callable[[Optional[list[tuple[int, Any, bool]]]], Any]) -> None:
     """Run the recomputation ``compute`` of ``system``: what it reads is loaded first, in a few queries
@@ -305,7 +342,8 @@ def recompute_planned(session: Session, system: System, settings: Settings,
         load_for_recompute(session, [system.id])
     rig = system_rig_rows(session, system, settings)
     if plan is not None:
-        plan.digests[system.id] = stored_state_digest(session, system.id, rig)
+        rows = plan.rows_digest if plan.preloaded is system else None  # read in this snapshot already
+        plan.digests[system.id] = stored_state_digest(session, system.id, rig, rows=rows)
         plan.data_version, plan.settings = data_version(session), settings
     compute(rig)
 
@@ -337,7 +375,10 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
             record(carried.target, carried.before, carried.after)
             if plan.direct is not None:
                 plan.direct.write(session)  # the derived rows that changed: one UPDATE per table and columns
+            keep = _keep_system(session, system_id, plan)
         session.commit()  # one flush: the rest of what changed (the edited label, new rows) and the audit entry
+        if keep is not None:
+            keep()
         return True
     except BaseException as exc:
         _rolled_back(session, exc)

@@ -284,21 +284,28 @@ def _state_statement_postgresql() -> sa.Select:
 
 
 def stored_state_digest(session: Session, system_id: int,
-                        rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> str:
+                        rig: Sequence[tuple[int, np.ndarray, bool]] | None = None, *, rows: str | None = None) -> str:
     """A digest (hex SHA-256) of every stored row an edit of system ``system_id`` loads and may write, as the
-    session's transaction sees the database (not the objects in memory): the system, its triangulation, review,
-    trajectory point and its game's camera prior; every view with its field lines, calibration, ball label, review,
-    reprojection and optimised box; the pairs and doubts; and the game's rig rows ``rig`` (:func:`system_rig_rows`,
-    read by the caller in the same transaction; None: the kind uses no rig). Two equal digests read before and under
-    an edit's write lock mean that nothing the edit read changed in between: its objects in memory are the stored
-    rows plus its own changes (``app.services.curation.writing``). SQLite: four queries of rows as stored (no ORM
-    objects, no decoding); PostgreSQL: one statement in which the database hashes the same rows' text
-    (:func:`_state_statement_postgresql`)."""
+    session's transaction sees the database (not the objects in memory): the system's own rows
+    (:func:`stored_rows_digest`; ``rows``: that digest when the caller read it in the same transaction) and the
+    game's rig rows ``rig`` (:func:`system_rig_rows`, read by the caller in the same transaction; None: the kind uses
+    no rig). Two equal digests read before and under an edit's write lock mean that nothing the edit read changed in
+    between: its objects in memory are the stored rows plus its own changes (``app.services.curation.writing``)."""
+    doc = [rows if rows is not None else stored_rows_digest(session, system_id),
+           sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None]
+    return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)).hexdigest()
+
+
+def stored_rows_digest(session: Session, system_id: int) -> str:
+    """A digest (hex SHA-256) of the stored rows of system ``system_id`` an edit loads and may write, as the
+    session's transaction sees the database: the system, its triangulation, review, trajectory point and its game's
+    camera prior; every view with its field lines, calibration, ball label, review, reprojection and optimised box;
+    the pairs and doubts. SQLite: four queries of rows as stored (no ORM objects, no decoding); PostgreSQL: one
+    statement in which the database hashes the same rows' text (:func:`_state_statement_postgresql`)."""
     if session.get_bind().dialect.name == "postgresql":
         doc: list[Any] = list(session.execute(_state_statement_postgresql(), {"sid": system_id}).one())
     else:
         doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _state_statements()]
-    doc.append(sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None)
     return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
                                        default=str)).hexdigest()
 

@@ -1,0 +1,123 @@
+"""The systems an edit committed, kept for the next edit of the same system in the process (issue 29,
+``app.services.curation.kept``): taken only while the stored rows are those it committed and its session is closed;
+whatever happens between two edits, the stored rows stay what a recomputation of the stored labels gives. SQLite and
+PostgreSQL (the ``database`` fixture of ``test_edit_before_lock``)."""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pytest
+from sqlalchemy.orm import Session, make_transient_to_detached
+
+from app.db.models import Frame, ReviewStatus, System
+from app.db.session import make_session_factory
+from app.services.curation.decisions import decide_review
+from app.services.curation.editing import update_ball_label
+from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
+from app.services.curation.writing import LAST_RECOMPUTATION
+from app.services.derivation.recompute import load_for_recompute, recompute_system
+
+from tests.services.curation.test_edit_before_lock import _box, _moved, database  # noqa: F401  (the fixture)
+
+
+def _kept_factory(factory: Callable[[], Session]) -> tuple[Callable[[], Session], KeptSystems]:
+    """A session factory on the same engine whose sessions share one :class:`KeptSystems`, as a served process's do."""
+    kept = KeptSystems()
+    engine = factory.kw["bind"]  # type: ignore[attr-defined]
+    return make_session_factory(engine, info={KEPT_SYSTEMS: kept}), kept
+
+
+def _recomputes_to_itself(factory: Callable[[], Session], system_id: int, settings) -> bool:
+    """True when recomputing the system's stored labels changes no stored row but the triangulation's time stamp."""
+    from app.db.models import Triangulation
+
+    with factory() as s:
+        system = load_for_recompute(s, [system_id])[system_id]
+        with s.no_autoflush:
+            recompute_system(s, system, settings)
+            dirty = {type(o) for o in s.dirty}
+        s.rollback()
+    return dirty == {Triangulation}
+
+
+def test_consecutive_edits_of_a_system_take_the_objects_the_last_one_committed(database) -> None:
+    factory, settings, scene, _ = database
+    kept_factory, kept = _kept_factory(factory)
+    fid = scene.frame_ids[0]
+    box = _box(factory, fid)
+    for i in range(4):
+        with kept_factory() as s:
+            frame = update_ball_label(s, fid, box=_moved(box, 2.0 + i), settings=settings)
+            assert s.info[LAST_RECOMPUTATION] == "precomputed"
+            assert frame.ball_label.box == _moved(box, 2.0 + i)
+    assert (kept.taken, kept.missed) == (3, 1)  # the first edit loaded (nothing kept yet), the others took
+    assert _box(factory, fid) == _moved(box, 5.0)
+    assert _recomputes_to_itself(factory, scene.system_id, settings)
+
+
+def test_a_write_between_two_edits_makes_the_next_load_what_is_stored(database) -> None:
+    """Another process's edit of a sibling view, then a decision, between two edits of this process: each time the
+    stored rows' digest differs from the kept one, the edit loads, and both labels are in the stored result."""
+    factory, settings, scene, _ = database
+    kept_factory, kept = _kept_factory(factory)
+    first, second = scene.frame_ids[0], scene.frame_ids[1]
+    box1, box2 = _box(factory, first), _box(factory, second)
+    with kept_factory() as s:
+        update_ball_label(s, first, box=_moved(box1, 3.0), settings=settings)
+    with factory() as s:  # another process: no kept systems
+        update_ball_label(s, second, box=_moved(box2, -4.0), settings=settings)
+    with kept_factory() as s:
+        frame = update_ball_label(s, first, box=_moved(box1, 5.0), settings=settings)
+        boxes = {f.id: f.ball_label.box for f in frame.system.frames}
+    assert (kept.taken, kept.missed) == (0, 2)
+    assert boxes[second] == _moved(box2, -4.0) and boxes[first] == _moved(box1, 5.0)
+    with factory() as s:
+        decide_review(s, system_id=scene.system_id, status=ReviewStatus.ACCEPTED)
+    with kept_factory() as s:
+        update_ball_label(s, first, box=_moved(box1, 6.0), settings=settings)
+        assert s.get(System, scene.system_id).review.status is ReviewStatus.PENDING  # the decision seen, and reset
+    assert (kept.taken, kept.missed) == (0, 3)
+    assert _recomputes_to_itself(factory, scene.system_id, settings)
+
+
+def test_objects_still_held_by_an_open_session_are_not_taken(database) -> None:
+    factory, settings, scene, _ = database
+    kept_factory, kept = _kept_factory(factory)
+    fid = scene.frame_ids[0]
+    box = _box(factory, fid)
+    holder = kept_factory()
+    update_ball_label(holder, fid, box=_moved(box, 2.0), settings=settings)  # its session stays open
+    with kept_factory() as s:
+        update_ball_label(s, fid, box=_moved(box, 3.0), settings=settings)
+    holder.close()
+    assert (kept.taken, kept.missed) == (0, 2)
+    assert _box(factory, fid) == _moved(box, 3.0)
+
+
+def test_kept_systems_are_bounded_and_taken_once() -> None:
+    kept = KeptSystems(max_systems=2)
+    systems = [System(id=i, name=f"{i}.png") for i in (1, 2, 3)]
+    for s in systems:
+        make_transient_to_detached(s)  # as a closed session leaves them
+        kept.keep(s, f"digest-{s.id}", [s])
+    assert len(kept) == 2 and kept.take(1, "digest-1") is None  # the oldest dropped
+    assert kept.take(2, "other") is None and kept.take(2, "digest-2") is None  # a wrong digest removes it too
+    assert kept.take(3, "digest-3") is systems[2] and kept.take(3, "digest-3") is None
+    with pytest.raises(ValueError, match="at least 1"):
+        KeptSystems(0)
+
+
+def test_frames_of_a_taken_system_are_the_sessions_own(database) -> None:
+    """A taken system is attached to the edit's session: its frames are found there by id, and nothing is loaded
+    twice (one object per row)."""
+    factory, settings, scene, _ = database
+    kept_factory, kept = _kept_factory(factory)
+    fid = scene.frame_ids[0]
+    box = _box(factory, fid)
+    with kept_factory() as s:
+        update_ball_label(s, fid, box=_moved(box, 2.0), settings=settings)
+    with kept_factory() as s:
+        frame = update_ball_label(s, fid, box=_moved(box, 3.0), settings=settings)
+        assert kept.taken == 1
+        assert s.get(Frame, fid) is frame and frame in s and frame.system in s
+        assert all(f in s for f in frame.system.frames)
