@@ -17,8 +17,8 @@ reused that is not equal to what would be computed:
   whose label or camera changed makes new keys.
 
 The values are the same numbers, bit for bit, as computing them again: the caches only spare the work
-(``tests/services/derivation/test_pair_geometry_shared.py``). Imports and jobs go through them too; their systems
-are seen once, so they mostly miss, at the cost of a key each.
+(``tests/services/derivation/test_pair_geometry_shared.py``). Bulk recomputations (imports, jobs) keep their
+pairs in memos of their own; their cameras go through :func:`stored_camera` too, at the cost of a key each.
 """
 from __future__ import annotations
 
@@ -33,10 +33,13 @@ from app.geometry.camera import Camera
 from app.geometry.mirror import mirror_camera
 from app.geometry.triangulation import PairGeometryMemo
 
-#: Stored cameras kept (:func:`stored_camera`): every view of the last few hundred systems edited or read.
-CAMERAS = 4096
-#: Pairs (and rays) kept by :data:`PAIR_GEOMETRY`: the pairs of the last few hundred systems recomputed.
-PAIRS = 8192
+#: Stored cameras kept (:func:`stored_camera`, and as many mirrored ones): the views of the last couple of hundred
+#: systems edited or read, about 6 MB.
+CAMERAS = 1024
+#: Pairs (and rays) kept by :data:`PAIR_GEOMETRY`: the pairs of the last hundred or more systems edited (a 4-view
+#: system asks 12 to 14, as calibrated and mirrored), about 4 MB. Bulk recomputations (imports, jobs) use memos of
+#: their own (``recompute.recompute_systems``): they would only push the edited systems' pairs out.
+PAIRS = 2048
 
 #: The pair geometry of every recomputation in the process (module docstring).
 PAIR_GEOMETRY = PairGeometryMemo(max_entries=PAIRS)

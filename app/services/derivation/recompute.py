@@ -152,7 +152,8 @@ def calibrate_frame_lines(session: Session, frame: Frame, settings: Settings,
 
 
 def recompute_system(session: Session, system: System, settings: Settings,
-                     rig_sources: Sequence[tuple[int, np.ndarray]] | None = None) -> Triangulation:
+                     rig_sources: Sequence[tuple[int, np.ndarray]] | None = None,
+                     geometry: PairGeometryMemo | None = None) -> Triangulation:
     """Admission, mirror evidence, triangulation, reprojections and optimised boxes of one system,
     from its current calibrations and ball labels (see the module docstring). Replaces the previous
     derived rows in the session; the caller flushes or commits. The system's frames must have ids
@@ -161,6 +162,9 @@ def recompute_system(session: Session, system: System, settings: Settings,
     Args:
         rig_sources: ``(frame id, camera centre)`` feeding the game's rig (:func:`rig_centres`), to spare
             a query per system in bulk; read from the session when None.
+        geometry: where the pairs' geometry comes from; None: the process's memo shared by every edit
+            (``cameras.PAIR_GEOMETRY``, which keeps the pairs of the views an edit leaves as they were), a memo of its
+            own for a system recomputed in bulk, which no later recomputation asks again.
 
     Returns:
         The system's :class:`Triangulation` row.
@@ -180,8 +184,8 @@ def recompute_system(session: Session, system: System, settings: Settings,
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
     kind = kind_of(system)
-    geometry = shared.PAIR_GEOMETRY  # each pair's rays once, for the mirror evidence, the triangulation and the doubts,
-    # and the pairs of the views an edit left as they were from the last recomputation (``cameras`` module docstring)
+    if geometry is None:  # each pair's rays once, for the mirror evidence, the triangulation and the doubts, and the
+        geometry = shared.PAIR_GEOMETRY  # pairs of views an edit left as they were (``cameras`` module docstring)
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     observations = kind.consensus_observations(system, observations, settings)
@@ -511,7 +515,8 @@ def recompute_systems(session: Session, systems: Iterable[System], settings: Set
                for gid in {s.game_id for s in systems if uses_rig(s) and s.game_id is not None}}
     n = 0
     for i, s in enumerate(systems, 1):
-        if recompute_system(session, s, settings, sources.get(s.game_id)).status is TriangulationStatus.TRIANGULATED:
+        tri = recompute_system(session, s, settings, sources.get(s.game_id), geometry=PairGeometryMemo())
+        if tri.status is TriangulationStatus.TRIANGULATED:
             n += 1
         if progress:
             progress("triangulate", i, len(systems))
