@@ -249,9 +249,10 @@ def _stored(*columns: Any) -> list[sa.ColumnElement[Any]]:
     return out
 
 
-@functools.cache
-def _state_statements() -> tuple[sa.Select, ...]:
-    """The statements of :func:`stored_state_digest`, each taking the system's id as ``sid`` (built once)."""
+def _row_sets(pick: Any) -> tuple[sa.Select, ...]:
+    """The four sets of rows an edit of a system loads and may write (the system with its one-to-one rows and its
+    game; its views with theirs; its pairs; its doubts), each a statement taking the system's id as ``sid``;
+    ``pick(table, columns)`` gives the expressions selected of each table (``columns``: None for all of them)."""
     sid = sa.bindparam("sid")
     S, T, R, P, G = (m.__table__ for m in (System, Triangulation, ReviewDecision, TrajectoryPoint, Game))
     frames = _F
@@ -259,25 +260,39 @@ def _state_statements() -> tuple[sa.Select, ...]:
         t = model.__table__
         frames = frames.outerjoin(t, t.c.frame_id == _F.c.id)
     return (
-        sa.select(*_stored(S, T, R, P, G.c.id, G.c.camera_prior)).select_from(  # the game's prior, not its release
-            S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)
-            .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),
-        sa.select(*_stored(_F, *(m.__table__ for m in _FRAME_ROWS))).select_from(frames)
+        sa.select(*pick(S), *pick(T), *pick(R), *pick(P), *pick(G, (G.c.id, G.c.camera_prior))).select_from(
+            S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)  # the game's prior,
+            .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),  # not its release
+        sa.select(*pick(_F), *(c for m in _FRAME_ROWS for c in pick(m.__table__))).select_from(frames)
         .where(_F.c.system_id == sid).order_by(_F.c.id),
-        sa.select(*_stored(TriangulationPair.__table__)).where(TriangulationPair.system_id == sid)
+        sa.select(*pick(TriangulationPair.__table__)).where(TriangulationPair.system_id == sid)
         .order_by(TriangulationPair.id),
-        sa.select(*_stored(Doubt.__table__)).where(Doubt.system_id == sid).order_by(Doubt.id),
+        sa.select(*pick(Doubt.__table__)).where(Doubt.system_id == sid).order_by(Doubt.id),
     )
 
 
 @functools.cache
+def _state_statements() -> tuple[sa.Select, ...]:
+    """The statements of :func:`stored_rows_digest` on SQLite: every column of every row as stored (built once)."""
+    return _row_sets(lambda table, columns=None: _stored(*(columns if columns is not None else [table])))
+
+
+@functools.cache
 def _state_statement_postgresql() -> sa.Select:
-    """:func:`_state_statements` as one PostgreSQL statement of four text columns, each the SHA-256 (hex) of one
-    statement's rows as PostgreSQL writes them as text (``CAST(ROW(...) AS TEXT)``, joined in the statement's
-    order by its table's id): one round trip instead of four, and no column descriptions, rows or JSON documents
-    for psycopg to turn into Python objects. Built once."""
+    """:func:`stored_rows_digest` on PostgreSQL as one statement of four text columns, each the SHA-256 (hex) of one
+    row set (:func:`_row_sets`) as the key and ``xmin`` of each of its tables' rows (the game's camera prior by value),
+    joined in the set's order by its first table's id. ``xmin``, the transaction that wrote a row's version, changes with every update and every
+    new row (a row written again with the same values too: an edit never sends those, ``rows.put_values``), so
+    equal digests mean that no row changed, as equal contents would: PostgreSQL reads no JSON document, casts no row
+    to text and hashes a few hundred bytes per system, and one round trip brings the four digests. Built once."""
+    def pick(table: sa.Table, columns: Any = None) -> list[sa.ColumnElement[Any]]:
+        if columns is not None:  # the game: its camera prior by value (not its release: large, and read by exports)
+            return [sa.cast(c, sa.Text).label(f"{table.name}_{c.name}") for c in columns]
+        return [*(c.label(f"{table.name}_{c.name}") for c in table.primary_key.columns),
+                sa.cast(sa.literal_column(f"{table.name}.xmin"), sa.Text).label(f"{table.name}_xmin")]
+
     digests = []
-    for i, (stmt, table) in enumerate(zip(_state_statements(), (System, Frame, TriangulationPair, Doubt))):
+    for i, (stmt, table) in enumerate(zip(_row_sets(pick), (System, Frame, TriangulationPair, Doubt))):
         rows = stmt.subquery(f"rows_{i}")
         text = sa.cast(sa.tuple_(*rows.c), sa.Text)
         ordered_sep = aggregate_order_by(sa.literal_column("'|'"), rows.c[f"{table.__tablename__}_id"])
@@ -305,7 +320,8 @@ def stored_rows_digest(session: Session, system_id: int) -> str:
     session's transaction sees the database: the system, its triangulation, review, trajectory point and its game's
     camera prior; every view with its field lines, calibration, ball label, review, reprojection and optimised box;
     the pairs and doubts. SQLite: four queries of rows as stored (no ORM objects, no decoding); PostgreSQL: one
-    statement in which the database hashes the same rows' text (:func:`_state_statement_postgresql`)."""
+    statement in which the database hashes the same rows' keys and row versions (``xmin``,
+    :func:`_state_statement_postgresql`)."""
     if session.get_bind().dialect.name == "postgresql":
         doc: list[Any] = list(session.execute(_state_statement_postgresql(), {"sid": system_id}).one())
     else:
