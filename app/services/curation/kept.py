@@ -65,10 +65,11 @@ class KeptSystems:
 
     def take(self, system_id: int, rows_digest: str) -> Optional[System]:
         """The kept objects of system ``system_id`` when its stored rows' digest is still ``rows_digest`` and the session
-        that committed them is closed; None otherwise. The entry is removed either way: one edit at a time owns it."""
+        that committed them is closed, with nothing changed in memory since; None otherwise. The entry is removed
+        either way: one edit at a time owns it."""
         with self._lock:
             kept = self._kept.pop(system_id, None)
-        if kept is None or kept.rows_digest != rows_digest or not all(sa.inspect(o).detached for o in kept.objects):
+        if kept is None or kept.rows_digest != rows_digest or not all(_untouched(o) for o in kept.objects):
             self.missed += 1
             return None
         self.taken += 1
@@ -76,3 +77,9 @@ class KeptSystems:
 
     def __len__(self) -> int:
         return len(self._kept)
+
+
+def _untouched(obj: Any) -> bool:
+    """True for an object its session let go as it committed it: detached, nothing changed in memory since."""
+    state = sa.inspect(obj)
+    return state.detached and not state.modified

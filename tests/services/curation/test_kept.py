@@ -103,6 +103,9 @@ def test_kept_systems_are_bounded_and_taken_once() -> None:
     assert len(kept) == 2 and kept.take(1, "digest-1") is None  # the oldest dropped
     assert kept.take(2, "other") is None and kept.take(2, "digest-2") is None  # a wrong digest removes it too
     assert kept.take(3, "digest-3") is systems[2] and kept.take(3, "digest-3") is None
+    systems[2].name = "changed in memory, never written"
+    kept.keep(systems[2], "digest-3", [systems[2]])
+    assert kept.take(3, "digest-3") is None
     with pytest.raises(ValueError, match="at least 1"):
         KeptSystems(0)
 
@@ -121,3 +124,39 @@ def test_frames_of_a_taken_system_are_the_sessions_own(database) -> None:
         assert kept.taken == 1
         assert s.get(Frame, fid) is frame and frame in s and frame.system in s
         assert all(f in s for f in frame.system.frames)
+
+
+def test_the_apps_edits_take_the_kept_system_and_answer_as_a_fresh_load(tmp_path) -> None:
+    """Through the served app (its sessions share one KeptSystems): consecutive ball edits of a view take the system
+    the last one committed, and each answer equals the page read afterwards by a fresh load (GET)."""
+    from fastapi.testclient import TestClient
+
+    from app.core.config import Settings
+    from app.db.session import upgrade_database
+    from app.main import create_app
+
+    from tests.accounts import make_accounts
+    from tests.api.factories import make_game, make_system
+
+    url = f"sqlite:///{tmp_path / 'kept.sqlite3'}"
+    upgrade_database(url)
+    settings = Settings(_env_file=None, database_url=url, job_runner=False, calibration_workers=1)
+    admin = make_accounts(url, login=False, roles=("admin",))["admin"]
+    app = create_app(settings)
+    with app.state.session_factory() as s:
+        scene = make_system(s, settings, make_game(s), "1.png")
+        s.commit()
+    kept = app.state.session_factory.kw["info"][KEPT_SYSTEMS]
+    fid = scene.frame_ids[0]
+    with TestClient(app, headers=admin.bearer) as client:
+        etag = client.get(f"/api/frames/{fid}").headers["etag"]
+        box = client.get(f"/api/frames/{fid}").json()["ball"]["box"]
+        for i in range(3):
+            r = client.patch(f"/api/frames/{fid}/ball", json={"box": _moved(box, 2.0 + i)}, headers={"If-Match": etag})
+            assert r.status_code == 200, r.text
+            etag = r.headers["etag"]
+            page = client.get(f"/api/systems/{scene.system_id}").json()
+            answer = r.json()
+            assert answer["views"] == page["views"] and answer["triangulation"] == page["triangulation"]
+            assert answer["doubts"] == page["doubts"]
+    assert (kept.taken, kept.missed) == (2, 1)
