@@ -153,7 +153,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # Every session carries this process's turns of the recomputing edits (Settings.edit_slots) and the systems its
     # edits last committed (app.services.curation.kept).
     app.state.session_factory = make_session_factory(
-        engine, info={EDIT_SLOTS: EditSlots(settings.edit_slots, settings.edit_slot_wait_s), KEPT_SYSTEMS: KeptSystems()})
+        engine, info={EDIT_SLOTS: EditSlots(settings.edit_slots, settings.edit_slot_wait_s),
+                      KEPT_SYSTEMS: KeptSystems()})
     # Failed logins counted in the database, through the app's session factory of the moment (tests swap it).
     app.state.login_throttle = login_throttle(settings, lambda: app.state.session_factory())
 

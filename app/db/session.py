@@ -141,13 +141,13 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
     """A SQLAlchemy engine for ``url`` (SQLite or PostgreSQL).
 
     Both encode and decode JSON columns with orjson (:func:`app.db.types.json_dumps`, :func:`app.db.types.json_loads`;
-    psycopg's own loader would use ``json.loads``). SQLite engines enforce foreign keys, use WAL for files, allow use from the API's worker threads,
-    support savepoints (see
-    :func:`_prepare_sqlite`), wait up to ``write_lock_timeout_s`` (None: :data:`SQLITE_BUSY_TIMEOUT_S`; an
-    explicit ``connect_args={"timeout": ...}`` wins) for the write lock, and begin the transactions of
-    :func:`begin_write` with ``BEGIN IMMEDIATE``. PostgreSQL engines given ``write_lock_timeout_s`` set the
-    connections' ``lock_timeout`` to it (a row lock waited for longer fails, :func:`is_lock_timeout`), and roll
-    back without forgetting the statements psycopg prepared (:func:`_rollback_keeping_prepared`).
+    psycopg's own loader would use ``json.loads``). SQLite engines enforce foreign keys, use WAL for files, allow use
+    from the API's worker threads, support savepoints (see :func:`_prepare_sqlite`), wait up to
+    ``write_lock_timeout_s`` (None: :data:`SQLITE_BUSY_TIMEOUT_S`; an explicit ``connect_args={"timeout": ...}``
+    wins) for the write lock, and begin the transactions of :func:`begin_write` with ``BEGIN IMMEDIATE``.
+    PostgreSQL engines given ``write_lock_timeout_s`` set the connections' ``lock_timeout`` to it (a row lock waited
+    for longer fails, :func:`is_lock_timeout`), and roll back without forgetting the statements psycopg prepared
+    (:func:`_rollback_keeping_prepared`).
     Extra ``kwargs`` go to ``create_engine``.
     """
     u = make_url(url)

@@ -64,9 +64,9 @@ class KeptSystems:
                 self._kept.popitem(last=False)
 
     def take(self, system_id: int, rows_digest: str) -> Optional[System]:
-        """The kept objects of system ``system_id`` when its stored rows' digest is still ``rows_digest`` and the session
-        that committed them is closed, with nothing changed in memory since; None otherwise. The entry is removed
-        either way: one edit at a time owns it."""
+        """The kept objects of system ``system_id`` when its stored rows' digest is still ``rows_digest`` and the
+        session that committed them is closed, with nothing changed in memory since; None otherwise. The entry is
+        removed either way: one edit at a time owns it."""
         with self._lock:
             kept = self._kept.pop(system_id, None)
         if kept is None or kept.rows_digest != rows_digest or not all(_untouched(o) for o in kept.objects):

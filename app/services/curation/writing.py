@@ -73,7 +73,9 @@ from app.db.session import begin_snapshot, begin_write, begin_write_keeping_obje
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
-from app.services.derivation.recompute import load_for_recompute, stored_rows_digest, stored_state_digest, system_rig_rows
+from app.services.derivation.recompute import (
+    load_for_recompute, stored_rows_digest, stored_state_digest, system_rig_rows,
+)
 from app.services.derivation.rows import DirectWrites, writing_directly
 from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
 from app.services.curation.system_page import load_frame

@@ -260,9 +260,10 @@ def _row_sets(pick: Any) -> tuple[sa.Select, ...]:
         t = model.__table__
         frames = frames.outerjoin(t, t.c.frame_id == _F.c.id)
     return (
+        # the game's camera prior, not its release
         sa.select(*pick(S), *pick(T), *pick(R), *pick(P), *pick(G, (G.c.id, G.c.camera_prior))).select_from(
-            S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)  # the game's prior,
-            .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),  # not its release
+            S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)
+            .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),
         sa.select(*pick(_F), *(c for m in _FRAME_ROWS for c in pick(m.__table__))).select_from(frames)
         .where(_F.c.system_id == sid).order_by(_F.c.id),
         sa.select(*pick(TriangulationPair.__table__)).where(TriangulationPair.system_id == sid)
@@ -280,9 +281,10 @@ def _state_statements() -> tuple[sa.Select, ...]:
 @functools.cache
 def _state_statement_postgresql() -> sa.Select:
     """:func:`stored_rows_digest` on PostgreSQL as one statement of four text columns, each the SHA-256 (hex) of one
-    row set (:func:`_row_sets`) as the key and ``xmin`` of each of its tables' rows (the game's camera prior by value),
-    joined in the set's order by its first table's id. ``xmin``, the transaction that wrote a row's version, changes with every update and every
-    new row (a row written again with the same values too: an edit never sends those, ``rows.put_values``), so
+    row set (:func:`_row_sets`) as the key and ``xmin`` of each of its tables' rows (the game's camera prior by
+    value), joined in the set's order by its first table's id. ``xmin``, the transaction that wrote a row's version,
+    changes with every update and every new row (a row written again with the same values too: an edit never sends
+    those, ``rows.put_values``), so
     equal digests mean that no row changed, as equal contents would: PostgreSQL reads no JSON document, casts no row
     to text and hashes a few hundred bytes per system, and one round trip brings the four digests. Built once."""
     def pick(table: sa.Table, columns: Any = None) -> list[sa.ColumnElement[Any]]:

@@ -168,7 +168,8 @@ def test_an_edit_writes_its_derived_rows_directly_as_the_unit_of_work_would(data
     fid = scene.frame_ids[0]
     sent: list[int] = []
     write = rows.DirectWrites.write
-    monkeypatch.setattr(rows.DirectWrites, "write", lambda self, session: sent.append(len(self)) or write(self, session))
+    monkeypatch.setattr(rows.DirectWrites, "write",
+                        lambda self, session: sent.append(len(self)) or write(self, session))
 
     with factory() as s:
         updated = {c.frame_id: c.updated_at for c in s.scalars(sa.select(Calibration).where(
@@ -180,7 +181,8 @@ def test_an_edit_writes_its_derived_rows_directly_as_the_unit_of_work_would(data
         system = frame.system
         in_memory = {f.id: (f.calibration.mirror_evidence, f.calibration.updated_at, f.reprojection.point,
                             f.optimised_box.box) for f in system.frames}
-        ball3d, pairs = list(system.triangulation.ball3d), [(p.id, p.point, p.error_px) for p in system.triangulation.pairs]
+        ball3d = list(system.triangulation.ball3d)
+        pairs = [(p.id, p.point, p.error_px) for p in system.triangulation.pairs]
     with factory() as s:
         loaded = load_for_recompute(s, [scene.system_id])[scene.system_id]
         assert {f.id: (f.calibration.mirror_evidence, f.calibration.updated_at, f.reprojection.point,

@@ -75,7 +75,7 @@ def test_shared_pair_geometry_changes_no_derived_row_of_the_dev_set(shared_dir: 
         assert shared[sid] == unshared[sid], f"system {sid}"
     assert memo.asked == unshared_memo.asked  # the same questions
     print(f"pair geometry: {memo.asked} asks, {memo.computed} computed")
-    assert memo.computed < 0.7 * memo.asked  # most answered from the memo: the triangulation's and the consensus's pairs
+    assert memo.computed < 0.7 * memo.asked  # most from the memo: the triangulation's and the consensus's pairs
     computed = memo.computed
     again = run(memo)  # the same labels and cameras, loaded anew: every pair known (cameras.stored_camera)
     assert again == shared and memo.computed == computed
