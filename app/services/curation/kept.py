@@ -75,6 +75,10 @@ class KeptSystems:
         self.taken += 1
         return kept.system
 
+    def holds(self, system_id: int) -> bool:
+        """Whether objects of system ``system_id`` are kept (to be checked by :meth:`take`)."""
+        return system_id in self._kept
+
     def __len__(self) -> int:
         return len(self._kept)
 

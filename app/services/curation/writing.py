@@ -303,7 +303,7 @@ def _kept_system(session: Session, system_id: int, plan: _Plan) -> Optional[Syst
     attached to ``session``, when the stored rows are still those (the rows' digest, read here in the edit's snapshot
     and kept in ``plan``) and the session holds nothing yet; None otherwise (the edit loads the system)."""
     kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
-    if kept is None or session.identity_map or session.new:
+    if kept is None or not kept.holds(system_id) or session.identity_map or session.new:
         return None
     plan.rows_digest = stored_rows_digest(session, system_id)
     system = kept.take(system_id, plan.rows_digest)
