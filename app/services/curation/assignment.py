@@ -175,6 +175,17 @@ def _names(session: Session, user_ids: set[int]) -> dict[int, str]:
     return {int(i): n for i, n in session.execute(sa.select(User.id, User.name).where(User.id.in_(user_ids)))}
 
 
+def assignment_of(session: Session, system: System) -> Assignment:
+    """The assignment of a system the session holds loaded (its ``assignee_id``, ``assigned_at`` and ``assigned_by``
+    as loaded): the assignee's name read only when it has one (a user by id, the session's own when it holds it).
+    The system page and every edit's answer: most systems are unassigned, and their row is in memory already."""
+    name = None
+    if system.assignee_id is not None:
+        user = session.get(User, system.assignee_id)
+        name = user.name if user is not None else None
+    return Assignment(system.id, name, system.assigned_at, system.assigned_by)
+
+
 @functools.cache
 def _assignments_statement() -> sa.Select:
     """The read of :func:`assignments_of`, taking ``ids`` (expanding): built once."""

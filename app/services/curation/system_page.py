@@ -22,7 +22,7 @@ from app.db.models import Frame, System
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.core.errors import found
-from app.services.curation.assignment import Assignment, assignments_of
+from app.services.curation.assignment import Assignment, assignment_of
 from app.services.curation.presence import Presence, open_on
 from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
 from app.services.derivation.loading import FRAME_ROWS, load_systems
@@ -179,12 +179,12 @@ def system_page(session: Session, system_id: int, filters: SystemFilters = Syste
                 sort: SystemSort = DEFAULT_SORT) -> SystemPageData:
     """The system for its page (:func:`load_system`), its neighbours in the queue ``filters`` + ``sort``
     (by default the whole queue in its default order; ``app.services.curation.queue.queue_neighbours``), its
-    assignment and its live presence claims (two indexed reads).
+    assignment (from the loaded system: ``assignment.assignment_of``) and its live presence claims (one indexed read).
 
     Raises:
         NotFoundError: no system has this id.
     """
     system = load_system(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
-    return SystemPageData(system, prev_id, next_id, assignments_of(session, [system_id]).get(system_id),
+    return SystemPageData(system, prev_id, next_id, assignment_of(session, system),
                           open_on(session, [system_id]).get(system_id, []))
