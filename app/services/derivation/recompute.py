@@ -324,12 +324,26 @@ def stored_rows_digest(session: Session, system_id: int) -> str:
     the pairs and doubts. SQLite: four queries of rows as stored (no ORM objects, no decoding); PostgreSQL: one
     statement in which the database hashes the same rows' keys and row versions (``xmin``,
     :func:`_state_statement_postgresql`)."""
-    if session.get_bind().dialect.name == "postgresql":
+    conn = session.connection()
+    if conn.dialect.name == "postgresql":
         doc: list[Any] = list(session.execute(_state_statement_postgresql(), {"sid": system_id}).one())
-    else:
-        doc = [[tuple(row) for row in session.execute(stmt, {"sid": system_id})] for stmt in _state_statements()]
+    else:  # the driver's own cursor: the rows as stored, without SQLAlchemy's work per statement and row
+        raw = conn.connection.dbapi_connection
+        doc = [raw.execute(sql, (system_id,)).fetchall() for sql in _state_sql_sqlite(conn.dialect)]
     return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
                                        default=str)).hexdigest()
+
+
+@functools.cache
+def _state_sql_sqlite(dialect: Any) -> tuple[str, ...]:
+    """:func:`_state_statements` compiled once for SQLite's driver, each with its one parameter ``sid`` as ``?``."""
+    out = []
+    for stmt in _state_statements():
+        compiled = stmt.compile(dialect=dialect)
+        if list(compiled.positiontup or ()) != ["sid"]:
+            raise RuntimeError(f"the digest's statement takes {compiled.positiontup}, not (sid,)")
+        out.append(compiled.string)
+    return tuple(out)
 
 
 def update_summary(system: System, tri: Triangulation) -> None:

@@ -401,3 +401,24 @@ def test_the_stored_rows_digest_sees_every_row_an_edit_writes_and_not_the_object
         assert changed(edit)
         with factory() as s:
             first = stored_state_digest(s, scene.system_id)
+
+
+def test_the_sqlite_digest_read_by_the_driver_is_that_of_the_rows_read_through_sqlalchemy(database) -> None:
+    """On SQLite ``stored_rows_digest`` reads its four statements through the driver's own cursor (compiled once):
+    the same rows, hence the same digest, as the statements executed through SQLAlchemy."""
+    import hashlib
+
+    import orjson
+
+    from app.services.derivation import recompute
+
+    factory, settings, scene, _ = database
+    with factory() as s:
+        if s.get_bind().dialect.name != "sqlite":
+            pytest.skip("SQLite's digest path (PostgreSQL hashes in the database)")
+        for sid in (scene.system_id, _.system_id):
+            doc = [[tuple(r) for r in s.execute(stmt, {"sid": sid})] for stmt in recompute._state_statements()]
+            assert sum(len(rows) for rows in doc) > len(scene.frame_ids)
+            expected = hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
+                                                   default=str)).hexdigest()
+            assert recompute.stored_rows_digest(s, sid) == expected
