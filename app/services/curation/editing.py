@@ -107,7 +107,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
     """
     if box is not None and point is not None:
         raise InvalidInputError("give a box or a point, not both", field="box")
-    facts = frame_facts(session, frame_id)
+    facts = frame_facts(session, frame_id, snapshot=True)
     try:
         new_box = check_box(box, facts.width, facts.height) if box is not None else None
         new_point = check_point(point, facts.width, facts.height) if point is not None else None
@@ -212,7 +212,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
             an ``undo_of`` that is no field-line write of this frame with ``lines`` before it (field "undo_of").
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
-    facts = frame_facts(session, frame_id)
+    facts = frame_facts(session, frame_id, snapshot=True)
     parsed = parse_field_lines(lines, facts.width, facts.height, settings.max_line_points_per_frame)
     if undo is not None:
         undo_of = undo.entry_id
@@ -300,7 +300,7 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         audit.note_facts(session, calibration=(jac_before, jac_words(out, settings)))
         return out
 
-    facts = frame_facts(session, frame_id)
+    facts = frame_facts(session, frame_id, snapshot=True)
     return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.mirror", actor, None,
                                system_id=facts.system_id)
 
@@ -351,7 +351,7 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
     """
     if not isinstance(excluded, bool):
         raise InvalidInputError("excluded must be true or false", field="excluded")
-    facts = frame_facts(session, frame_id)
+    facts = frame_facts(session, frame_id, snapshot=True)
 
     def apply(frame: Frame) -> Frame:
         before = excluded_state(frame)

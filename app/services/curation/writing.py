@@ -504,9 +504,15 @@ class FrameFacts:
     height: int
 
 
-def frame_facts(session: Session, frame_id: int) -> FrameFacts:
+def frame_facts(session: Session, frame_id: int, *, snapshot: bool = False) -> FrameFacts:
     """The frame's :class:`FrameFacts`, read by one statement built once (no ORM object: the edit loads the frame
-    with its system next, ``recompute.load_for_recompute``). Raises :class:`NotFoundError`."""
+    with its system next, ``recompute.load_for_recompute``). ``snapshot``: read in the read snapshot the edit then
+    computes in (``begin_snapshot``, begun here unless the session has written): on PostgreSQL the lookup would
+    otherwise be a transaction of its own, rolled back before the snapshot (a rollback and a connection more).
+    Raises :class:`NotFoundError`."""
+    if snapshot:
+        with contextlib.suppress(RuntimeError):  # the session has written: its caller's transaction goes on
+            begin_snapshot(session)
     row = session.execute(_frame_facts_statement(), {"id": frame_id}).one_or_none()
     return FrameFacts(*found(row, "frame", frame_id))
 
