@@ -29,10 +29,11 @@ Concurrency (several server processes, issues 7, 27 and 29): one locking design 
    first for an ISSIA system). Under the lock the stored rows are compared with what was read: on SQLite an
    unchanged ``data_version`` says that no other connection committed anything since; otherwise the digest is
    read again. Equal, the objects in memory are the stored rows plus this edit's changes: the edit claims its
-   version (412), checks a revert (409), writes only the attributes that changed (the derived rows the
-   recomputation changed, in place, as one ``UPDATE`` per table and columns: ``derivation.rows.writing_directly``;
-   the label, new rows and the audit entry through the unit of work), and the answer is drawn from the same
-   objects. Different (another edit of the system, or of its game's rig, committed meanwhile),
+   version (412), checks a revert (409), writes only the attributes that changed (the label, new rows and the audit
+   entry through the unit of work; then the derived rows the recomputation changed, in place, as one ``UPDATE`` per
+   table and columns: ``derivation.rows.writing_directly``), and the answer is drawn from the same objects. On
+   PostgreSQL the statements that do not wait for each other's answers go in one round trip (``app.db.together``):
+   the lock, the rig rows and the digest; the derived rows' updates and the digest of what was written. Different (another edit of the system, or of its game's rig, committed meanwhile),
    everything is rolled back (objects expired) and the edit computes again before the lock from what the other
    committed (:data:`_ATTEMPTS_BEFORE_LOCK` times in all); colliding again, it runs under the lock: claim, change,
    recompute, audit.
@@ -73,8 +74,10 @@ from app.db.session import begin_snapshot, begin_write, begin_write_keeping_obje
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
+from app.db.together import Call, send_together
 from app.services.derivation.recompute import (
-    load_for_recompute, stored_rows_digest, stored_state_digest, system_rig_rows,
+    load_for_recompute, read_stored_state, rig_game_of, rows_digest_call, rows_digest_of, state_digest,
+    stored_rows_digest, system_rig_rows,
 )
 from app.services.derivation.rows import DirectWrites, writing_directly
 from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
@@ -102,23 +105,36 @@ class Revert:
 
 def lock_system(session: Session, system_id: int, *, expire: bool = True, loaded: Optional[System] = None) -> None:
     """Lock the system's row (and, for an ISSIA system, its game's row first) until the transaction
-    ends, then (``expire``) expire every loaded object so that what the caller reads next is read under the lock.
-    An edit that carries its objects from its snapshot (:func:`_write_carried`) does not expire them: it compares
-    the stored rows with what it read instead, and passes the system it loaded (``loaded``), whose kind and game
-    (never changed once stored) spare looking them up.
+    ends (:func:`lock_calls`), then (``expire``) expire every loaded object so that what the caller reads next is read
+    under the lock.
+
+    Raises:
+        NotFoundError: no system has this id.
+    """
+    send_together(session, lock_calls(session, system_id, loaded=loaded, autoflush=expire))
+    if expire:
+        session.expire_all()
+
+
+def lock_calls(session: Session, system_id: int, *, loaded: Optional[System] = None,
+               autoflush: bool = False) -> list[Call]:
+    """The statements that lock the system's row (and, for an ISSIA system, its game's row first) until the
+    transaction ends, to be sent (``app.db.together.send_together``) before what the caller reads under the lock, in
+    the same round trip on PostgreSQL. An edit that carries its objects from its snapshot (:func:`_write_carried`)
+    passes the system it loaded (``loaded``), whose kind and game (never changed once stored) spare looking them up;
+    the session's changes are flushed by that lookup only with ``autoflush`` (they are kept in memory otherwise).
 
     PostgreSQL: ``SELECT ... FOR UPDATE`` makes concurrent edits of one system (one sequence for ISSIA,
     whose edits re-fit the trajectory of the whole game) wait for each other, so no recomputation is
     computed from labels another transaction is changing and then overwrites that transaction's result.
     Rows are always locked game first, then system: no two edits wait for each other in a cycle. Systems
     of other games, and other systems of a SoccerNet game, are edited in parallel. SQLite has no ``FOR UPDATE``
-    (its ``BEGIN IMMEDIATE``, which every write transaction begins with, already serialises them): nothing more is
-    sent there.
+    (its ``BEGIN IMMEDIATE``, which every write transaction begins with, already serialises them): no statement.
 
     Raises:
         NotFoundError: no system has this id.
     """
-    with session.no_autoflush if not expire else contextlib.nullcontext():  # kept objects keep their changes unflushed
+    with session.no_autoflush if not autoflush else contextlib.nullcontext():
         if loaded is not None:
             kind, game_id = loaded.kind, loaded.game_id
         else:
@@ -126,12 +142,15 @@ def lock_system(session: Session, system_id: int, *, expire: bool = True, loaded
             if row is None:
                 raise NotFoundError("system", system_id)
             kind, game_id = row.kind, row.game_id
-        if session.get_bind().dialect.name != "sqlite":
-            if policy(kind).edit_locks_game:
-                session.execute(select(Game.id).where(Game.id == game_id).with_for_update())
-            session.execute(select(System.id).where(System.id == system_id).with_for_update())
-    if expire:
-        session.expire_all()
+    if session.get_bind().dialect.name == "sqlite":
+        return []
+    calls = [Call(_LOCK_GAME, {"game_id": game_id})] if policy(kind).edit_locks_game else []
+    return [*calls, Call(_LOCK_SYSTEM, {"system_id": system_id})]
+
+
+#: The row locks of :func:`lock_calls` (PostgreSQL), built once.
+_LOCK_GAME = select(Game.id).where(Game.id == bindparam("game_id")).with_for_update()
+_LOCK_SYSTEM = select(System.id).where(System.id == bindparam("system_id")).with_for_update()
 
 
 # ----- the one locking design of the edit path (module docstring, "Concurrency") ---------------------------
@@ -316,15 +335,19 @@ def _kept_system(session: Session, system_id: int, plan: _Plan) -> Optional[Syst
     return system
 
 
-def _keep_system(session: Session, system_id: int, plan: _Plan) -> Optional[Callable[[], None]]:
-    """Under the lock, after the edit's writes: what keeps the edit's objects for the next edit of the system once the
-    transaction committed (``kept.KeptSystems.keep`` with the digest of the rows as written, read here), or None when
-    the session's process keeps none."""
+def _write_derived_and_keep(session: Session, system_id: int, plan: _Plan) -> Optional[Callable[[], None]]:
+    """Under the lock, after the unit of work flushed the edit's share: the derived rows the recomputation changed
+    (``plan.direct``: one UPDATE per table and columns) and, when the session's process keeps systems, the digest of
+    the rows as written, in one round trip on PostgreSQL; answers what keeps the edit's objects for the next edit of
+    the system once the transaction committed (``kept.KeptSystems.keep``), or None when the process keeps none."""
     kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
-    if kept is None or plan.preloaded is None:
+    keeping = kept is not None and plan.preloaded is not None
+    postgresql = session.get_bind().dialect.name == "postgresql"
+    after = [rows_digest_call(system_id)] if keeping and postgresql else []
+    answers = plan.direct.write(session, after) if plan.direct is not None else send_together(session, after)
+    if not keeping:
         return None
-    session.flush()  # the edited label and new rows, so that the digest reads what the commit stores
-    rows = stored_rows_digest(session, system_id)
+    rows = rows_digest_of(answers[0]) if postgresql else stored_rows_digest(session, system_id)
     system = plan.preloaded
     return lambda: kept.keep(system, rows, list(session.identity_map.values()))
 
@@ -342,10 +365,12 @@ def recompute_planned(session: Session, system: System, settings: Settings,
         session.flush()
     if plan is None or plan.preloaded is not system:  # what it reads, in a few queries (not one per relation and view)
         load_for_recompute(session, [system.id])
-    rig = system_rig_rows(session, system, settings)
-    if plan is not None:
-        rows = plan.rows_digest if plan.preloaded is system else None  # read in this snapshot already
-        plan.digests[system.id] = stored_state_digest(session, system.id, rig, rows=rows)
+    if plan is None:
+        rig = system_rig_rows(session, system, settings)
+    else:  # the rig rows and the stored rows' digest (unless read in this snapshot already) in one round trip
+        known = plan.rows_digest if plan.preloaded is system else None
+        rows, rig = read_stored_state(session, system.id, rig_game_of(system), settings, rows=known)
+        plan.digests[system.id] = state_digest(rows, rig)
         plan.data_version, plan.settings = data_version(session), settings
     compute(rig)
 
@@ -355,30 +380,35 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
                    record: Callable[[Any, dict[str, Any], dict[str, Any]], None]) -> bool:
     """Write an edit computed before the lock (:func:`_compute_before_lock`) under it, in one transaction: end the
     snapshot keeping its objects (``begin_write_keeping_objects``), lock the system, and compare its stored rows with
-    what the snapshot read (SQLite's ``data_version`` unchanged, or the digest read again equal); then claim the
-    version, ``check`` the state before (a revert's), ``record`` the audit entry and commit (one flush writes what
-    changed and the entry).
+    what the snapshot read (SQLite's ``data_version`` unchanged, or the digest read again equal; on PostgreSQL the
+    lock, the rig rows and the digest in one round trip, ``app.db.together``); then claim the version, ``check`` the
+    state before (a revert's), ``record`` the audit entry, flush what the unit of work writes (the edited label, new
+    and deleted rows, the entry), send the derived rows that changed with the digest of the rows as written (one
+    round trip on PostgreSQL, :func:`_write_derived_and_keep`) and commit.
     False, with everything rolled back, when a stored row changed meanwhile (the caller runs the edit under the
     lock). Raises what ``claim`` and ``check`` raise (rolled back; a stale version described)."""
     try:
         begin_write_keeping_objects(session)
         plan = carried.plan
         with session.no_autoflush:
-            lock_system(session, system_id, expire=False, loaded=plan.preloaded)
-            unchanged = plan.data_version is not None and data_version(session) == plan.data_version
-            if not unchanged:
-                rig = system_rig_rows(session, plan.preloaded, plan.settings)
-                unchanged = stored_state_digest(session, system_id, rig) == plan.digests[system_id]
+            lock = lock_calls(session, system_id, loaded=plan.preloaded)  # PostgreSQL's FOR UPDATE; none on SQLite
+            unchanged = False
+            if plan.data_version is not None:  # SQLite: nobody committed since the snapshot if data_version says so
+                send_together(session, lock)
+                lock, unchanged = [], data_version(session) == plan.data_version
+            if not unchanged:  # PostgreSQL: the lock, the rig rows and the digest in one round trip
+                rows, rig = read_stored_state(session, system_id, rig_game_of(plan.preloaded), plan.settings,
+                                              before=lock)
+                unchanged = state_digest(rows, rig) == plan.digests[system_id]
             if not unchanged:
                 session.rollback()
                 return False
             claim(expire=False)
             check(carried.before)
             record(carried.target, carried.before, carried.after)
-            if plan.direct is not None:
-                plan.direct.write(session)  # the derived rows that changed: one UPDATE per table and columns
-            keep = _keep_system(session, system_id, plan)
-        session.commit()  # one flush: the rest of what changed (the edited label, new rows) and the audit entry
+            session.flush()  # the unit of work's share: the edited label, new and deleted rows, the audit entry
+            keep = _write_derived_and_keep(session, system_id, plan)
+        session.commit()
         if keep is not None:
             keep()
         return True
@@ -506,15 +536,16 @@ class FrameFacts:
 
 def frame_facts(session: Session, frame_id: int, *, snapshot: bool = False) -> FrameFacts:
     """The frame's :class:`FrameFacts`, read by one statement built once (no ORM object: the edit loads the frame
-    with its system next, ``recompute.load_for_recompute``). ``snapshot``: read in the read snapshot the edit then
+    with its system next, ``recompute.load_for_recompute``), sent with the ``BEGIN`` of its transaction in one round
+    trip on PostgreSQL (``app.db.together``). ``snapshot``: read in the read snapshot the edit then
     computes in (``begin_snapshot``, begun here unless the session has written): on PostgreSQL the lookup would
     otherwise be a transaction of its own, rolled back before the snapshot (a rollback and a connection more).
     Raises :class:`NotFoundError`."""
     if snapshot:
         with contextlib.suppress(RuntimeError):  # the session has written: its caller's transaction goes on
             begin_snapshot(session)
-    row = session.execute(_frame_facts_statement(), {"id": frame_id}).one_or_none()
-    return FrameFacts(*found(row, "frame", frame_id))
+    rows = send_together(session, [Call(_frame_facts_statement(), {"id": frame_id})])[0]  # with its BEGIN on PostgreSQL
+    return FrameFacts(*found(rows[0] if rows else None, "frame", frame_id))
 
 
 @functools.cache

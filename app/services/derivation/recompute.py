@@ -48,6 +48,7 @@ from app.db.models import (
     TriangulationStatus,
 )
 from app.db.session import begin_write
+from app.db.together import Call, send_together
 from app.db.types import json_safe, utcnow
 from app.geometry.ball import optimise_box
 from app.geometry.calibration.result import MIRROR_FLAG
@@ -61,7 +62,8 @@ from app.services.audit.log import record_summary
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
-from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
+from app.services.calibration.rigs import (game_rig, rig_call, rig_centres, rig_rows, rig_rows_of, uses_rig,
+                                          wants_rig_retry, with_rig_retry)
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts, weighed_views
@@ -226,9 +228,13 @@ def recompute_system(session: Session, system: System, settings: Settings,
 
 def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:
     """The rig rows (:func:`rig_rows`) of ``system``'s game when its kind uses a rig, else None."""
-    if uses_rig(system) and system.game_id is not None:
-        return rig_rows(session, system.game_id, settings)
-    return None
+    game_id = rig_game_of(system)
+    return rig_rows(session, game_id, settings) if game_id is not None else None
+
+
+def rig_game_of(system: System) -> int | None:
+    """The game whose rig rows ``system``'s recomputation reads (:func:`system_rig_rows`), None when it reads none."""
+    return system.game_id if uses_rig(system) and system.game_id is not None else None
 
 
 #: The stored rows an edit of a system loads and may write (:func:`load_for_recompute`, the edit's own rows): the
@@ -312,9 +318,35 @@ def stored_state_digest(session: Session, system_id: int,
     game's rig rows ``rig`` (:func:`system_rig_rows`, read by the caller in the same transaction; None: the kind uses
     no rig). Two equal digests read before and under an edit's write lock mean that nothing the edit read changed in
     between: its objects in memory are the stored rows plus its own changes (``app.services.curation.writing``)."""
-    doc = [rows if rows is not None else stored_rows_digest(session, system_id),
-           sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None]
+    return state_digest(rows if rows is not None else stored_rows_digest(session, system_id), rig)
+
+
+def state_digest(rows: str, rig: Sequence[tuple[int, np.ndarray, bool]] | None) -> str:
+    """:func:`stored_state_digest` of a system's rows' digest ``rows`` (:func:`stored_rows_digest`) and its game's rig
+    rows ``rig`` (None: its kind uses no rig)."""
+    doc = [rows, sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None]
     return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)).hexdigest()
+
+
+def read_stored_state(session: Session, system_id: int, rig_game_id: int | None, settings: Settings, *,
+                      rows: str | None = None, before: Sequence[Call] = ()
+                      ) -> tuple[str, list[tuple[int, np.ndarray, bool]] | None]:
+    """``(rows digest, rig rows)`` of system ``system_id`` as the session's transaction sees the database: the digest of
+    its stored rows (:func:`stored_rows_digest`; ``rows``: that digest, read in the same transaction already) and the
+    rig rows of game ``rig_game_id`` (``rigs.rig_rows``; None when it is None: the kind uses no rig). ``before``: calls
+    to run first in the same transaction, whose answers are dropped (an edit's lock, ``writing.lock_calls``).
+    PostgreSQL: everything in one round trip (``app.db.together``); SQLite: one statement after the other."""
+    calls = [*before]
+    if rig_game_id is not None:
+        calls.append(rig_call(rig_game_id, settings))
+    postgresql = session.get_bind().dialect.name == "postgresql"
+    if rows is None and postgresql:
+        calls.append(rows_digest_call(system_id))
+    answers = send_together(session, calls)[len(before):]
+    rig = rig_rows_of(answers.pop(0)) if rig_game_id is not None else None
+    if rows is None:
+        rows = rows_digest_of(answers[0]) if postgresql else stored_rows_digest(session, system_id)
+    return rows, rig
 
 
 def stored_rows_digest(session: Session, system_id: int) -> str:
@@ -326,10 +358,24 @@ def stored_rows_digest(session: Session, system_id: int) -> str:
     :func:`_state_statement_postgresql`)."""
     conn = session.connection()
     if conn.dialect.name == "postgresql":
-        doc: list[Any] = list(session.execute(_state_statement_postgresql(), {"sid": system_id}).one())
-    else:  # the driver's own cursor: the rows as stored, without SQLAlchemy's work per statement and row
-        raw = conn.connection.dbapi_connection
-        doc = [raw.execute(sql, (system_id,)).fetchall() for sql in _state_sql_sqlite(conn.dialect)]
+        return rows_digest_of(send_together(session, [rows_digest_call(system_id)])[0])
+    raw = conn.connection.dbapi_connection  # the driver's own cursor: the rows as stored, without SQLAlchemy's work
+    return _rows_digest([raw.execute(sql, (system_id,)).fetchall() for sql in _state_sql_sqlite(conn.dialect)])
+
+
+def rows_digest_call(system_id: int) -> Call:
+    """PostgreSQL's :func:`stored_rows_digest` of system ``system_id`` as a call to send with others
+    (``app.db.together``); its one row read by :func:`rows_digest_of`."""
+    return Call(_state_statement_postgresql(), {"sid": system_id})
+
+
+def rows_digest_of(rows: Sequence[Sequence[Any]]) -> str:
+    """:func:`stored_rows_digest` from the answer of :func:`rows_digest_call`."""
+    return _rows_digest(list(rows[0]))
+
+
+def _rows_digest(doc: list[Any]) -> str:
+    """The hex SHA-256 of the rows (or the database's digests of them) ``doc`` read for :func:`stored_rows_digest`."""
     return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
                                        default=str)).hexdigest()
 

@@ -4,21 +4,24 @@ An edit that computes before its write lock (``app.services.curation.writing``) 
 stored rows without the unit of work: :func:`writing_directly` collects, while the recomputation runs, every value
 :func:`put_values` changes on a stored row (and takes it as the row's committed value, so the session sees nothing to
 flush), and :meth:`DirectWrites.write` sends them under the lock as one ``UPDATE`` per table and set of columns,
-executed for all its rows at once. The unit of work flushes only the rest (the edited label, new and deleted rows,
-the audit entry): a ball edit of a 4-view system changes about 18 stored rows of 7 tables, whose bookkeeping in the
-unit of work cost more than their statements. A write that is not sent (the compare under the lock found another
+executed for all its rows at once (all the tables' in one round trip on PostgreSQL, ``app.db.together``). The unit of
+work flushes only the rest (the edited label, new and deleted rows, the audit entry; before the direct writes, which
+leave out a row it deleted): a ball edit of a 4-view system changes about 18 stored rows of 7 tables, whose
+bookkeeping in the unit of work cost more than their statements. A write that is not sent (the compare under the lock found another
 edit's rows) is rolled back with its transaction, which expires every object: nothing collected outlives it.
 """
 from __future__ import annotations
 
 import contextlib
 import functools
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import Any, Optional
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, object_session
 from sqlalchemy.orm.attributes import set_committed_value
+
+from app.db.together import Call, send_together
 
 #: ``Session.info`` key of the :class:`DirectWrites` collecting in the session.
 _DIRECT = "v3d.rows.direct"
@@ -71,7 +74,8 @@ class DirectWrites:
     and sent by :meth:`write`: per row, its table, primary key and changed columns (the last value of each)."""
 
     def __init__(self) -> None:
-        self._rows: dict[tuple[Any, tuple[Any, ...]], dict[str, Any]] = {}  # (mapper, identity) -> attribute values
+        self._rows: dict[tuple[Any, tuple[Any, ...]], tuple[Any, dict[str, Any]]] = {}  # (mapper, identity) ->
+        # (the row's state, its attribute values)
 
     def note(self, row: Any, key: str, value: Any) -> bool:
         """Collect ``row.key = value`` and take it as the row's committed value; False (nothing collected) for a row
@@ -80,7 +84,7 @@ class DirectWrites:
         if not state.persistent or len(state.mapper.tables) != 1:
             return False
         mapper = state.mapper
-        values = self._rows.setdefault((mapper, state.identity), {})
+        _, values = self._rows.setdefault((mapper, state.identity), (state, {}))
         if not values:
             for k, v in _onupdate_values(mapper).items():  # what the unit of work would have set on an UPDATE
                 values[k] = v
@@ -92,28 +96,35 @@ class DirectWrites:
     def __len__(self) -> int:
         return len(self._rows)
 
-    def write(self, session: Session) -> None:
+    def write(self, session: Session, after: Sequence[Call] = ()) -> list[Any]:
         """Send every collected row in the session's transaction: one executemany ``UPDATE`` per table and set of
         columns, by primary key (:func:`_update_statement`), in the order of the tables' names (the same for every
-        edit); then forget them.
+        edit), then the calls ``after`` (whose answers are returned), all in one round trip on PostgreSQL
+        (``app.db.together.send_together``); then forget them. A row the unit of work has deleted since it was
+        collected is left out.
 
         Raises:
             sqlalchemy.orm.exc.StaleDataError: a row was not found (it was deleted since it was read; the caller has
                 compared the rows it read under its lock, so this is a bug, and the transaction is rolled back).
         """
         groups: dict[tuple[Any, tuple[str, ...]], list[dict[str, Any]]] = {}
-        for (mapper, ident), values in self._rows.items():
+        for (mapper, ident), (state, values) in self._rows.items():
+            if state.was_deleted:
+                continue
             keys = tuple(sorted(values))
             params = {f"v_{k}": v for k, v in values.items()}
             params.update({f"pk_{i}": v for i, v in enumerate(ident)})
             groups.setdefault((mapper, keys), []).append(params)
         self._rows = {}
-        conn = session.connection()
-        for (mapper, keys), params in sorted(groups.items(), key=lambda g: (g[0][0].local_table.name, g[0][1])):
-            table = mapper.local_table
-            result = conn.execute(_update_statement(mapper, keys), params)
-            if conn.dialect.supports_sane_multi_rowcount and result.rowcount != len(params):
-                raise sa.orm.exc.StaleDataError(f"{table.name}: {len(params)} rows to update, {result.rowcount} found")
+        ordered = sorted(groups.items(), key=lambda g: (g[0][0].local_table.name, g[0][1]))
+        calls = [Call(_update_statement(mapper, keys), params) for (mapper, keys), params in ordered]
+        answers = send_together(session, [*calls, *after])
+        if session.get_bind().dialect.supports_sane_multi_rowcount:
+            for ((mapper, _), params), matched in zip(ordered, answers):
+                if matched != len(params):
+                    raise sa.orm.exc.StaleDataError(
+                        f"{mapper.local_table.name}: {len(params)} rows to update, {matched} found")
+        return answers[len(calls):]
 
 
 @contextlib.contextmanager

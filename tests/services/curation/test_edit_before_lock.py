@@ -169,7 +169,7 @@ def test_an_edit_writes_its_derived_rows_directly_as_the_unit_of_work_would(data
     sent: list[int] = []
     write = rows.DirectWrites.write
     monkeypatch.setattr(rows.DirectWrites, "write",
-                        lambda self, session: sent.append(len(self)) or write(self, session))
+                        lambda self, session, after=(): sent.append(len(self)) or write(self, session, after))
 
     with factory() as s:
         updated = {c.frame_id: c.updated_at for c in s.scalars(sa.select(Calibration).where(
@@ -214,9 +214,22 @@ def test_direct_writes_refuse_a_row_gone_and_leave_new_rows_to_the_unit_of_work(
             fresh = put_values(OptimisedBox(box=[0.0, 0.0, 1.0, 1.0], d_opt_px=1.0, error_m=0.0), {"d_opt_px": 2.0})
         assert len(direct) == 1 and not s.dirty and fresh.d_opt_px == 2.0
         assert frame.reprojection.error_px == 123.0
-        s.execute(sa.delete(BallReprojection).where(BallReprojection.frame_id == frame.id))
+        # gone behind the session's back (as another connection's delete): the session still holds the row
+        s.execute(sa.delete(BallReprojection).where(BallReprojection.frame_id == frame.id),
+                  execution_options={"synchronize_session": False})
         with pytest.raises(StaleDataError, match="ball_reprojections: 1 rows to update, 0 found"):
             direct.write(s)
+        s.rollback()
+    with factory() as s:  # deleted by the session's own unit of work (flushed before the direct writes): left out
+        frame = s.get(Frame, scene.frame_ids[0])
+        box = frame.optimised_box
+        with writing_directly(s) as direct:
+            put_values(frame.reprojection, {"error_px": 124.0})
+            put_values(box, {"d_opt_px": 3.0})
+        s.delete(box)
+        s.flush()
+        assert direct.write(s) == []
+        assert s.get(BallReprojection, frame.id).error_px == 124.0 and s.get(OptimisedBox, frame.id) is None
         s.rollback()
 
 
@@ -229,10 +242,10 @@ def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch)
 
     factory, settings, scene, _ = database
     calls = []
-    real = rigs.rig_rows
-    monkeypatch.setattr(rigs, "rig_rows", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = rigs.rig_rows_of  # every read of rig rows: alone (rigs.rig_rows) or with the digest (read_stored_state)
+    monkeypatch.setattr(rigs, "rig_rows_of", lambda *a, **k: calls.append(1) or real(*a, **k))
     import app.services.derivation.recompute as recompute_module
-    monkeypatch.setattr(recompute_module, "rig_rows", rigs.rig_rows)
+    monkeypatch.setattr(recompute_module, "rig_rows_of", rigs.rig_rows_of)
     fid = scene.frame_ids[0]
     with factory() as s:
         reads = 1 if s.get_bind().dialect.name == "sqlite" else 2

@@ -1,0 +1,106 @@
+"""``app.db.together.send_together``: statements of one transaction sent in one round trip on PostgreSQL answer what
+SQLAlchemy's ``Connection.execute`` answers for each (rows with values converted by their types, rows matched by an
+UPDATE run for several parameter sets), fail as it fails, and read, after a row lock queued before them, what the
+database holds once the lock is granted."""
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.db.models import Frame, FrameRole, Game, System, SystemKind
+from app.db.session import is_lock_timeout, make_engine, make_session_factory, upgrade_database
+from app.db.together import Call, driver_statement, send_together
+
+
+def _game_with_frames(session: Session) -> tuple[int, int, list[int]]:
+    game = Game(league="l", season="s", match="m", source_path="/x")
+    system = System(game=game, name="sys", kind=SystemKind.SOCCERNET_V3)
+    session.add_all([game, system])
+    for i, role in enumerate([FrameRole.ACTION, FrameRole.REPLAY, FrameRole.REPLAY]):
+        session.add(Frame(system=system, name=f"f{i}", role=role, width=1920, height=1080))
+    session.flush()
+    return game.id, system.id, [f.id for f in system.frames]
+
+
+_ROWS = sa.select(Frame.id, Frame.role, Frame.width).where(Frame.system_id == sa.bindparam("sid")).order_by(Frame.id)
+_WIDTH = sa.update(Frame).where(Frame.id == sa.bindparam("fid")).values(width=sa.bindparam("w"))
+
+
+def test_answers_as_connection_execute_does(db_session: Session) -> None:
+    game_id, sid, fids = _game_with_frames(db_session)
+    expected = [tuple(r) for r in db_session.execute(_ROWS, {"sid": sid}).all()]
+    assert [r[1] for r in expected] == [FrameRole.ACTION, FrameRole.REPLAY, FrameRole.REPLAY]
+    answers = send_together(db_session, [
+        Call(_ROWS, {"sid": sid}),
+        Call(_WIDTH, [{"fid": fids[0], "w": 1280}, {"fid": fids[1], "w": 1280}, {"fid": -1, "w": 1}]),
+        Call(_ROWS, {"sid": sid}),
+    ])
+    assert answers[0] == expected  # the enum converted as SQLAlchemy converts it
+    assert answers[1] == 2  # rows matched in all: the third parameter set names no frame
+    assert [r[2] for r in answers[2]] == [1280, 1280, 1920]  # the later statement reads the earlier one's update
+    assert send_together(db_session, []) == []
+
+
+def test_driver_statement_converts_parameters_by_their_types(db_session: Session) -> None:
+    """JSON documents and enums are sent as SQLAlchemy sends them (the statement's own literals filled in)."""
+    stmt = sa.select(Frame.id).where(Frame.role == sa.bindparam("role", type_=Frame.role.type), Frame.width > 100)
+    from sqlalchemy.dialects.postgresql.psycopg import PGDialect_psycopg
+
+    _game_with_frames(db_session)
+    ds = driver_statement(stmt, PGDialect_psycopg())
+    params = ds.params({"role": FrameRole.ACTION})
+    assert sorted(map(str, params.values())) == ["100", "action"]  # the enum by value; the literal built in
+    assert "%(role)s" in ds.sql
+    with pytest.raises(ValueError, match="positional"):
+        driver_statement(stmt, sa.create_engine("sqlite://").dialect)
+    assert len(send_together(db_session, [Call(stmt, {"role": FrameRole.ACTION})])[0]) >= 1
+
+
+def test_a_lock_timeout_fails_as_connection_execute_fails_and_later_reads_see_the_committed_row(pg_url: str) -> None:
+    """PostgreSQL: a lock queued before a read in the same round trip makes the read wait for it and then see what
+    the holder committed (READ COMMITTED, a snapshot per statement); a lock waited for past ``lock_timeout`` raises
+    SQLAlchemy's ``OperationalError`` that ``is_lock_timeout`` recognises, as ``Connection.execute`` would."""
+    upgrade_database(pg_url)
+    engine = make_engine(pg_url, write_lock_timeout_s=2.0)
+    factory = make_session_factory(engine)
+    with factory() as s:
+        game_id, sid, fids = _game_with_frames(s)
+        s.commit()
+    lock = sa.select(System.id).where(System.id == sa.bindparam("sid")).with_for_update()
+    width = sa.select(Frame.width).where(Frame.id == sa.bindparam("fid"))
+    held, release = threading.Event(), threading.Event()
+
+    def holder() -> None:
+        with factory() as h:
+            h.execute(lock, {"sid": sid})
+            h.execute(sa.update(Frame).where(Frame.id == fids[0]).values(width=640))
+            held.set()
+            release.wait(5)
+            h.commit()
+
+    t = threading.Thread(target=holder)
+    t.start()
+    held.wait(5)
+    try:
+        with factory() as s:
+            threading.Timer(0.3, release.set).start()
+            t0 = time.monotonic()
+            _, rows = send_together(s, [Call(lock, {"sid": sid}), Call(width, {"fid": fids[0]})])
+            assert time.monotonic() - t0 >= 0.25 and rows == [(640,)]  # waited, then read the holder's commit
+            s.rollback()
+    finally:
+        release.set()
+        t.join()
+    fast = make_session_factory(make_engine(pg_url, write_lock_timeout_s=0.2))
+    with factory() as h, fast() as s:
+        h.execute(lock, {"sid": sid})
+        with pytest.raises(sa.exc.OperationalError) as info:
+            send_together(s, [Call(lock, {"sid": sid}), Call(width, {"fid": fids[0]})])
+        assert is_lock_timeout(info.value)
+        s.rollback()
+        h.rollback()
+    engine.dispose()
