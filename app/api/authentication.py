@@ -33,6 +33,7 @@ from starlette.requests import HTTPConnection
 from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
 
+from app.db.session import reads_on_their_own
 from app.api.auth import Principal, current_principal
 from app.services.accounts import users
 
@@ -86,6 +87,7 @@ def resolve_principal(session_factory: Callable[[], Any], authorization: Optiona
         if scheme.lower() != "bearer" or not token.strip():
             return None
         with session_factory() as db:
+            reads_on_their_own(db)  # one lookup: no transaction around it
             user = users.resolve_token(db, token.strip())
             return Principal(user.id, user.name, user.role.value, "token") if user else None
     uid, gen, at = cookie_session.get("uid"), cookie_session.get("gen"), cookie_session.get("at")
@@ -96,6 +98,7 @@ def resolve_principal(session_factory: Callable[[], Any], authorization: Optiona
         cookie_session.clear()
         return None
     with session_factory() as db:
+        reads_on_their_own(db)
         user = users.resolve_session_user(db, uid, gen)
         if user is None:
             cookie_session.clear()

@@ -160,7 +160,7 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
         engine = sa.create_engine(u, **kwargs)
         _prepare_sqlite(engine, u, timeout)
         return engine
-    kwargs.setdefault("pool_pre_ping", True)
+    ping_when_idle = "pool_pre_ping" not in kwargs  # see _ping_when_idle
     if u.get_backend_name() == "postgresql":
         options = kwargs.setdefault("connect_args", {}).get("options", "")
         if "jit" not in options:  # no JIT: see POSTGRES_OPTIONS
@@ -169,9 +169,58 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
             options = f"{options} -c lock_timeout={max(1, int(write_lock_timeout_s * 1000))}".strip()
         kwargs["connect_args"]["options"] = options
     engine = sa.create_engine(u, **kwargs)
+    if ping_when_idle:
+        _ping_when_idle(engine, PING_AFTER_IDLE_S)
     if engine.dialect.driver == "psycopg":
         engine.dialect.do_rollback = _rollback_keeping_prepared  # type: ignore[method-assign]
     return engine
+
+
+#: A pooled connection to a database server (PostgreSQL) is pinged before it is handed out when it has been idle in
+#: the pool for longer than this (seconds): :func:`_ping_when_idle`.
+PING_AFTER_IDLE_S = 10.0
+#: ``ConnectionPoolEntry.info`` key: when the connection went back to the pool (``time.monotonic()``).
+_IDLE_SINCE = "v3d_idle_since"
+
+
+def _ping_when_idle(engine: Engine, idle_s: float) -> None:
+    """Ping a pooled connection before handing it out only when it has been idle for more than ``idle_s`` seconds.
+
+    SQLAlchemy's ``pool_pre_ping`` pings at every checkout: a round trip before every transaction, three per served
+    edit (its authentication, its edit, its answer), where the connection was last used milliseconds before (issue
+    29). A server restart, a network cut or an idle timeout on the server's side strike connections that waited in
+    the pool; those are still pinged. A connection that dies within ``idle_s`` of its last use fails the request
+    using it, and SQLAlchemy then invalidates the pool's connections (``is_disconnect``), so later requests connect
+    afresh. A failed ping raises ``DisconnectionError``: the pool discards the connection and checks out another
+    (SQLAlchemy's recipe for custom pessimistic disconnect handling,
+    https://docs.sqlalchemy.org/en/20/core/pooling.html#disconnect-handling-pessimistic)."""
+
+    @event.listens_for(engine, "checkin")
+    def _idle_from(_dbapi_connection: Any, record: Any) -> None:
+        record.info[_IDLE_SINCE] = time.monotonic()
+
+    @event.listens_for(engine, "checkout")
+    def _ping(dbapi_connection: Any, record: Any, _proxy: Any) -> None:
+        since = record.info.get(_IDLE_SINCE)
+        if since is None or time.monotonic() - since <= idle_s:
+            return
+        try:
+            engine.dialect.do_ping(dbapi_connection)
+        except engine.dialect.loaded_dbapi.Error as exc:
+            raise sa.exc.DisconnectionError(f"the pooled connection did not answer a ping: {exc}") from exc
+
+
+def reads_on_their_own(session: Session) -> None:
+    """Let the session's next reads run without a transaction of their own on PostgreSQL (``AUTOCOMMIT``: each
+    statement sees the database as of its start; no ``BEGIN``, no ``ROLLBACK``: two round trips fewer), for reads that
+    need no common snapshot: a request's authentication lookup, an edit's answer besides the system it holds (its
+    queue neighbours, who has it open). Does nothing when the session is in a transaction already, on SQLite (its
+    statements are calls in the process), or for a session joined to its caller's transaction. A write in such a
+    session commits at once."""
+    bind = session.get_bind()
+    if isinstance(bind, sa.Connection) or bind.dialect.name != "postgresql" or session.in_transaction():
+        return
+    session.connection(execution_options={"isolation_level": "AUTOCOMMIT"})
 
 
 def _rollback_keeping_prepared(dbapi_connection: Any) -> None:

@@ -19,6 +19,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, joinedload
 
 from app.db.models import Frame, System
+from app.db.session import reads_on_their_own
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.core.errors import found
@@ -180,11 +181,17 @@ def system_page(session: Session, system_id: int, filters: SystemFilters = Syste
     """The system for its page (:func:`load_system`), its neighbours in the queue ``filters`` + ``sort``
     (by default the whole queue in its default order; ``app.services.curation.queue.queue_neighbours``), its
     assignment (from the loaded system: ``assignment.assignment_of``) and its live presence claims (one indexed read).
+    After an edit, whose session holds the system as it committed it, those reads run without a transaction of their
+    own (``app.db.session.reads_on_their_own``).
 
     Raises:
         NotFoundError: no system has this id.
     """
-    system = load_system(session, system_id)
+    system = _loaded_system(session, system_id)
+    if system is not None:  # an edit's answer: the system is held as committed, the reads left need no snapshot
+        reads_on_their_own(session)
+    else:
+        system = load_system(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
     return SystemPageData(system, prev_id, next_id, assignment_of(session, system),
                           open_on(session, [system_id]).get(system_id, []))
