@@ -145,7 +145,8 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
     from the API's worker threads, support savepoints (see :func:`_prepare_sqlite`), wait up to
     ``write_lock_timeout_s`` (None: :data:`SQLITE_BUSY_TIMEOUT_S`; an explicit ``connect_args={"timeout": ...}``
     wins) for the write lock, and begin the transactions of :func:`begin_write` with ``BEGIN IMMEDIATE``.
-    PostgreSQL engines given ``write_lock_timeout_s`` set the connections' ``lock_timeout`` to it (a row lock waited
+    PostgreSQL connections run with :data:`POSTGRES_OPTIONS` (JIT off; options in the URL's query or in
+    ``connect_args`` win); engines given ``write_lock_timeout_s`` set the connections' ``lock_timeout`` to it (a row lock waited
     for longer fails, :func:`is_lock_timeout`), and roll back without forgetting the statements psycopg prepared
     (:func:`_rollback_keeping_prepared`).
     Extra ``kwargs`` go to ``create_engine``.
@@ -162,9 +163,12 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
         return engine
     ping_when_idle = "pool_pre_ping" not in kwargs  # see _ping_when_idle
     if u.get_backend_name() == "postgresql":
-        options = kwargs.setdefault("connect_args", {}).get("options", "")
-        if "jit" not in options:  # no JIT: see POSTGRES_OPTIONS
-            options = f"{options} {POSTGRES_OPTIONS}".strip()
+        url_options = u.query.get("options", "")  # the URL's own (the connect_args' below replace them: merged)
+        url_options = " ".join(url_options) if isinstance(url_options, tuple) else url_options
+        options = f'{url_options} {kwargs.setdefault("connect_args", {}).get("options", "")}'.strip()
+        for name, value in POSTGRES_OPTIONS.items():  # see POSTGRES_OPTIONS; an explicit option wins
+            if name not in options:
+                options = f"{options} -c {name}={value}".strip()
         if write_lock_timeout_s is not None:
             options = f"{options} -c lock_timeout={max(1, int(write_lock_timeout_s * 1000))}".strip()
         kwargs["connect_args"]["options"] = options
@@ -258,10 +262,10 @@ def _rollback_keeping_prepared(dbapi_connection: Any) -> None:
         raise cls(f"ROLLBACK failed: {pgconn.error_message.decode(errors='replace').strip()}")
 
 
-#: Options of v3d's PostgreSQL connections. JIT off: v3d's queries read a few rows by key, yet on a database
-#: without statistics the planner's estimates passed the JIT threshold and one edit's frames query spent about
-#: 64 ms compiling, twice per edit (issue 29); an explicit ``jit`` in the URL's options wins.
-POSTGRES_OPTIONS = "-c jit=off"
+#: Options of v3d's PostgreSQL connections (an option named in the URL's or the caller's ``options`` wins). JIT off:
+#: v3d's queries read a few rows by key, yet on a database without statistics the planner's estimates passed the JIT
+#: threshold and one edit's frames query spent about 64 ms compiling, twice per edit (issue 29).
+POSTGRES_OPTIONS = {"jit": "off"}
 
 
 def refresh_statistics(session: Session) -> None:

@@ -149,7 +149,8 @@ def test_ids_beyond_32_bits_and_nul_characters_are_422_on_postgresql(pg_url: str
 def test_connections_run_without_jit_and_migrations_analyse(pg_url: str) -> None:
     """Issue 29: on a database without statistics (autovacuum off or not yet run) the planner's estimates passed
     the JIT threshold and an edit's frames query compiled for about 64 ms; v3d's connections run with JIT off and
-    the migrations (as every import) end with ANALYZE, so the tables carry statistics from the start."""
+    the migrations (as every import) end with ANALYZE, so the tables carry statistics from the start. Options named
+    in the URL's query or in ``connect_args`` win (the URL's were replaced by v3d's own until 2026-11-25)."""
     upgrade_database(pg_url)
     engine = make_engine(pg_url)
     try:
@@ -167,6 +168,14 @@ def test_connections_run_without_jit_and_migrations_analyse(pg_url: str) -> None
             assert conn.exec_driver_sql("SHOW jit").scalar() == "on"
     finally:
         explicit.dispose()
+    in_url = make_engine(f"{pg_url}?options=-c%20jit%3Don%20-c%20work_mem%3D8MB", write_lock_timeout_s=2.0)
+    try:
+        with in_url.connect() as conn:  # so do the URL's options, kept beside v3d's own
+            assert conn.exec_driver_sql("SHOW jit").scalar() == "on"
+            assert conn.exec_driver_sql("SHOW work_mem").scalar() == "8MB"
+            assert conn.exec_driver_sql("SHOW lock_timeout").scalar() == "2s"
+    finally:
+        in_url.dispose()
 
 
 def test_statements_stay_prepared_across_rollbacks_and_a_rollback_still_discards(pg_url: str) -> None:
