@@ -1,7 +1,9 @@
 """Database statements of one ball edit (issue 29, item 2): the service's ``update_ball_label`` on a 4-view system
 of a fresh demo database, counted with SQLAlchemy's ``before_cursor_execute`` event, grouped by kind and table.
 
-Deterministic (no timing): the figure item 2's work must bring down. Usage (from the checkout)::
+Deterministic (no timing): the figure item 2's work must bring down. On PostgreSQL the statements an edit sends
+together (``app.db.together``, psycopg's pipeline mode) do not pass SQLAlchemy's cursor events: they are counted
+apart, with the pipelines that carried them (one round trip each). Usage (from the checkout)::
 
     .venv/bin/python benchmarks/edit_statements.py
     .venv/bin/python benchmarks/edit_statements.py postgresql+psycopg://postgres@127.0.0.1:5432/test
@@ -26,6 +28,28 @@ with fresh_database(url_arg) as url:
         table = statement.split("FROM")[1].split()[0] if words[0].upper() == "SELECT" and "FROM" in statement else ""
         counts[f"{words[0].upper()} {table}".strip()] += 1
     event.listen(eng, "before_cursor_execute", before)
+    import app.db.together as together
+    real_statement = together.driver_statement
+
+    def counted_statement(stmt, dialect):
+        """Count one statement sent in a pipeline (``send_together`` compiles each through this)."""
+        counts["(pipelined statements)"] += 1
+        return real_statement(stmt, dialect)
+
+    together.driver_statement = counted_statement
+    try:
+        import psycopg
+
+        real_pipeline = psycopg.Connection.pipeline
+
+        def counted_pipeline(self):
+            """Count one pipeline: one round trip."""
+            counts["(pipelines)"] += 1
+            return real_pipeline(self)
+
+        psycopg.Connection.pipeline = counted_pipeline
+    except ImportError:
+        pass
     with SF() as s:
         f = next(fr for fr in s.scalars(select(Frame).order_by(Frame.id))
                  if fr.ball_label is not None and fr.ball_label.box is not None and len(fr.system.frames) == 4)
@@ -36,4 +60,6 @@ with fresh_database(url_arg) as url:
         with SF() as s:
             b = [box[0] + 2 + i, box[1], box[2] + 2 + i, box[3]]
             update_ball_label(s, fid, box=b, settings=settings, actor="x")
-        print("edit", i, sum(counts.values()), dict(counts.most_common(12)))
+        alone = sum(v for k, v in counts.items() if not k.startswith("("))
+        print("edit", i, f"{alone} statements alone, {counts['(pipelined statements)']} pipelined in "
+              f"{counts['(pipelines)']} round trips;", dict(counts.most_common(14)))
