@@ -38,6 +38,7 @@ class _Kept:
     rows_digest: str
     system: System
     objects: tuple[Any, ...]  # every object the committing session held: all detached once it closed
+    reads: Any = None  # what the next edit reads with the digest (``KeptSystems.keep``)
 
 
 class KeptSystems:
@@ -54,12 +55,13 @@ class KeptSystems:
         self.taken = 0
         self.missed = 0
 
-    def keep(self, system: System, rows_digest: str, objects: list[Any]) -> None:
+    def keep(self, system: System, rows_digest: str, objects: list[Any], reads: Any = None) -> None:
         """Keep ``system`` (its loaded relations) as committed, with ``rows_digest`` (``stored_rows_digest`` read under
-        the lock after its writes) and ``objects``, every object its session holds (checked detached on take)."""
+        the lock after its writes) and ``objects``, every object its session holds (checked detached on take);
+        ``reads``: what the next edit of the system reads beside the digest (its game's rig, :meth:`reads_of`)."""
         with self._lock:
             self._kept.pop(system.id, None)
-            self._kept[system.id] = _Kept(rows_digest, system, tuple(objects))
+            self._kept[system.id] = _Kept(rows_digest, system, tuple(objects), reads)
             while len(self._kept) > self.max_systems:
                 self._kept.popitem(last=False)
 
@@ -74,6 +76,13 @@ class KeptSystems:
             return None
         self.taken += 1
         return kept.system
+
+    def reads_of(self, system_id: int) -> Any:
+        """The ``reads`` kept with system ``system_id`` (None when none is kept), without taking it: the next edit
+        reads them with the digest it compares (:meth:`take`), in the same round trip."""
+        with self._lock:
+            kept = self._kept.get(system_id)
+        return kept.reads if kept is not None else None
 
     def holds(self, system_id: int) -> bool:
         """Whether objects of system ``system_id`` are kept (to be checked by :meth:`take`)."""

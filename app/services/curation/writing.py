@@ -245,6 +245,7 @@ class _Plan:
     preloaded: Optional[System] = None
     direct: Optional[DirectWrites] = None
     rows_digest: Optional[str] = None  # ``recompute.stored_rows_digest`` of the preloaded system, read in the snapshot
+    rig: Optional[tuple[Settings, Any]] = None  # the settings and rig rows read with ``rows_digest`` (kept system)
 
 
 @dataclass
@@ -324,7 +325,12 @@ def _kept_system(session: Session, system_id: int, plan: _Plan) -> Optional[Syst
     kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
     if kept is None or not kept.holds(system_id) or session.identity_map or session.new:
         return None
-    plan.rows_digest = stored_rows_digest(session, system_id)
+    reads: Optional[_KeptReads] = kept.reads_of(system_id)
+    if reads is not None:  # the rig rows the recomputation reads, with the digest (one round trip on PostgreSQL)
+        plan.rows_digest, rig = read_stored_state(session, system_id, reads.rig_game_id, reads.settings)
+        plan.rig = (reads.settings, rig)
+    else:
+        plan.rows_digest = stored_rows_digest(session, system_id)
     system = kept.take(system_id, plan.rows_digest)
     if system is not None:
         try:
@@ -349,7 +355,17 @@ def _write_derived_and_keep(session: Session, system_id: int, plan: _Plan) -> Op
         return None
     rows = rows_digest_of(answers[0]) if postgresql else stored_rows_digest(session, system_id)
     system = plan.preloaded
-    return lambda: kept.keep(system, rows, list(session.identity_map.values()))
+    reads = _KeptReads(rig_game_of(system), plan.settings) if plan.settings is not None else None
+    return lambda: kept.keep(system, rows, list(session.identity_map.values()), reads)
+
+
+@dataclass(frozen=True)
+class _KeptReads:
+    """What the next edit of a kept system reads with its digest: its game's rig rows (``rig_game_id``; None: its kind
+    reads none) under the admission rule of ``settings``."""
+
+    rig_game_id: Optional[int]
+    settings: Settings
 
 
 def recompute_planned(session: Session, system: System, settings: Settings,
@@ -367,6 +383,10 @@ def recompute_planned(session: Session, system: System, settings: Settings,
         load_for_recompute(session, [system.id])
     if plan is None:
         rig = system_rig_rows(session, system, settings)
+    elif plan.preloaded is system and plan.rig is not None and plan.rig[0] is settings:  # read with the kept digest
+        rig = plan.rig[1]
+        plan.digests[system.id] = state_digest(plan.rows_digest, rig)  # type: ignore[arg-type]
+        plan.data_version, plan.settings = data_version(session), settings
     else:  # the rig rows and the stored rows' digest (unless read in this snapshot already) in one round trip
         known = plan.rows_digest if plan.preloaded is system else None
         rows, rig = read_stored_state(session, system.id, rig_game_of(system), settings, rows=known)

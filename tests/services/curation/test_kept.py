@@ -160,3 +160,29 @@ def test_the_apps_edits_take_the_kept_system_and_answer_as_a_fresh_load(tmp_path
             assert answer["views"] == page["views"] and answer["triangulation"] == page["triangulation"]
             assert answer["doubts"] == page["doubts"]
     assert (kept.taken, kept.missed) == (2, 0)
+
+
+def test_a_kept_system_reads_its_rig_rows_with_its_digest_once(database, monkeypatch) -> None:
+    """Issue 29: the edit that takes a kept system reads its game's rig rows with the stored rows' digest it compares
+    (one round trip on PostgreSQL), and the recomputation uses those: once in the snapshot, once more under the lock
+    on PostgreSQL only (SQLite's data_version spares the digest there), as an edit that loads."""
+    from app.services.calibration import rigs
+    import app.services.derivation.recompute as recompute_module
+
+    factory, settings, scene, _ = database
+    kept_factory, kept = _kept_factory(factory)
+    calls = []
+    real = rigs.rig_rows_of
+    monkeypatch.setattr(rigs, "rig_rows_of", lambda *a, **k: calls.append(1) or real(*a, **k))
+    monkeypatch.setattr(recompute_module, "rig_rows_of", rigs.rig_rows_of)
+    fid = scene.frame_ids[0]
+    box = _box(factory, fid)
+    for i in range(3):
+        calls.clear()
+        with kept_factory() as s:
+            reads = 1 if s.get_bind().dialect.name == "sqlite" else 2
+            update_ball_label(s, fid, box=_moved(box, 2.0 + i), settings=settings)
+            assert s.info[LAST_RECOMPUTATION] == "precomputed"
+        assert len(calls) == reads
+    assert (kept.taken, kept.missed) == (2, 0)
+    assert _recomputes_to_itself(factory, scene.system_id, settings)
