@@ -41,6 +41,7 @@ from app.geometry.triangulation import BallObservation, reprojection_error_px
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, InvalidInputError
 from app.services.kinds import kind_of
+from app.services.derivation.rows import put_values
 from app.services.derivation.recompute import (
     recompute_frame, recompute_system,
 )
@@ -128,9 +129,10 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
             if label is None:
                 label = BallLabel()
                 frame.ball_label = label
-            label.kind, label.box, label.point = kind, new_box, new_point
-            label.provenance = new_provenance
-            label.edited_at = utcnow()
+            # a stored label's new values go with the derived rows' (rows.writing_directly: one round trip on
+            # PostgreSQL), a new one through the unit of work
+            put_values(label, {"kind": kind, "box": new_box, "point": new_point, "provenance": new_provenance,
+                               "edited_at": utcnow()})
         _recompute(session, frame.system, settings, actor)
         reset_after_change(session, frame, "ball.edit", before, ball_state(frame), actor, undo)
         return frame
