@@ -187,11 +187,11 @@ def system_page(session: Session, system_id: int, filters: SystemFilters = Syste
     Raises:
         NotFoundError: no system has this id.
     """
-    system = _loaded_system(session, system_id)
-    if system is not None:  # an edit's answer: the system is held as committed, the reads left need no snapshot
+    system = held = _loaded_system(session, system_id)
+    if held is not None:  # an edit's answer: the system is held as committed, the reads left need no snapshot
         reads_on_their_own(session)
     else:
         system = load_system(session, system_id)
-    prev_id, next_id = queue_neighbours(session, system_id, filters, sort)
+    prev_id, next_id = queue_neighbours(session, system_id, filters, sort, held=held)
     return SystemPageData(system, prev_id, next_id, assignment_of(session, system),
                           open_on(session, [system_id]).get(system_id, []))

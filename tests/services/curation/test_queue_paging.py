@@ -144,3 +144,37 @@ def test_bad_cursors_are_refused_naming_the_field(db_session: Session, many: lis
         assert err.value.field == field
     with pytest.raises(InvalidInputError, match="not both"):
         queue.list_systems(db_session, SystemFilters(), "-worst_error", after=cursor, before=cursor)
+
+
+@pytest.mark.parametrize("sort", SORTS)
+def test_neighbours_of_a_held_system_are_those_of_the_stored_one(db_session: Session, many: list[System],
+                                                                    sort: str) -> None:
+    """An edit's answer takes the sort keys of the system it holds instead of reading them (issue 29): every system's
+    neighbours, in every sort and filter, are the ones the order computed here gives, read or held."""
+    for which, filters in FILTERS.items():
+        order = _expected(db_session, many, sort, filters)
+        for s in many[::5]:
+            read = queue.queue_neighbours(db_session, s.id, filters, sort)
+            held = queue.queue_neighbours(db_session, s.id, filters, sort, held=s)
+            assert held == read, (which, s.id)
+            if s.id in order:
+                i = order.index(s.id)
+                assert read == (order[i - 1] if i > 0 else None, order[i + 1] if i + 1 < len(order) else None)
+
+
+def test_a_held_system_spares_reading_its_sort_keys(db_session: Session, many: list[System]) -> None:
+    """One statement (both neighbours) when the sort's keys are the system's own columns; the name sort, whose keys
+    include its game's, reads them."""
+    import sqlalchemy as sa
+
+    seen: list[str] = []
+    engine = db_session.get_bind().engine
+    listener = lambda *a: seen.append(a[2])  # noqa: E731  # before_cursor_execute's statement
+    sa.event.listen(engine, "before_cursor_execute", listener)
+    try:
+        for sort, statements in (("-doubts", 1), ("worst_error", 1), ("name", 2)):
+            seen.clear()
+            queue.queue_neighbours(db_session, many[7].id, SystemFilters(), sort, held=many[7])
+            assert len([s for s in seen if not s.startswith(("SAVEPOINT", "RELEASE"))]) == statements, sort
+    finally:
+        sa.event.remove(engine, "before_cursor_execute", listener)
