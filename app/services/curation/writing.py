@@ -103,17 +103,16 @@ class Revert:
     expect: Optional[dict[str, Any]] = None
 
 
-def lock_system(session: Session, system_id: int, *, expire: bool = True, loaded: Optional[System] = None) -> None:
+def lock_system(session: Session, system_id: int) -> None:
     """Lock the system's row (and, for an ISSIA system, its game's row first) until the transaction
-    ends (:func:`lock_calls`), then (``expire``) expire every loaded object so that what the caller reads next is read
-    under the lock.
+    ends (:func:`lock_calls`), then expire every loaded object so that what the caller reads next is read under the
+    lock. (An edit that carries its objects from its snapshot sends :func:`lock_calls` with its reads instead.)
 
     Raises:
         NotFoundError: no system has this id.
     """
-    send_together(session, lock_calls(session, system_id, loaded=loaded, autoflush=expire))
-    if expire:
-        session.expire_all()
+    send_together(session, lock_calls(session, system_id, autoflush=True))
+    session.expire_all()
 
 
 def lock_calls(session: Session, system_id: int, *, loaded: Optional[System] = None,
@@ -383,14 +382,13 @@ def recompute_planned(session: Session, system: System, settings: Settings,
         load_for_recompute(session, [system.id])
     if plan is None:
         rig = system_rig_rows(session, system, settings)
-    elif plan.preloaded is system and plan.rig is not None and plan.rig[0] is settings:  # read with the kept digest
-        rig = plan.rig[1]
-        plan.digests[system.id] = state_digest(plan.rows_digest, rig)  # type: ignore[arg-type]
-        plan.data_version, plan.settings = data_version(session), settings
-    else:  # the rig rows and the stored rows' digest (unless read in this snapshot already) in one round trip
-        known = plan.rows_digest if plan.preloaded is system else None
-        rows, rig = read_stored_state(session, system.id, rig_game_of(system), settings, rows=known)
-        plan.digests[system.id] = state_digest(rows, rig)
+    else:
+        if plan.preloaded is system and plan.rig is not None and plan.rig[0] is settings:  # read with the kept digest
+            rows, rig = plan.rows_digest, plan.rig[1]
+        else:  # the rig rows and the stored rows' digest (unless read in this snapshot already) in one round trip
+            known = plan.rows_digest if plan.preloaded is system else None
+            rows, rig = read_stored_state(session, system.id, rig_game_of(system), settings, rows=known)
+        plan.digests[system.id] = state_digest(rows, rig)  # type: ignore[arg-type]
         plan.data_version, plan.settings = data_version(session), settings
     compute(rig)
 
@@ -412,11 +410,9 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
         plan = carried.plan
         with session.no_autoflush:
             lock = lock_calls(session, system_id, loaded=plan.preloaded)  # PostgreSQL's FOR UPDATE; none on SQLite
-            unchanged = False
-            if plan.data_version is not None:  # SQLite: nobody committed since the snapshot if data_version says so
-                send_together(session, lock)
-                lock, unchanged = [], data_version(session) == plan.data_version
-            if not unchanged:  # PostgreSQL: the lock, the rig rows and the digest in one round trip
+            # SQLite (no lock statements): nobody committed since the snapshot if its data_version says so
+            unchanged = plan.data_version is not None and not lock and data_version(session) == plan.data_version
+            if not unchanged:  # PostgreSQL (no data_version): the lock, the rig rows and the digest in one round trip
                 rows, rig = read_stored_state(session, system_id, rig_game_of(plan.preloaded), plan.settings,
                                               before=lock)
                 unchanged = state_digest(rows, rig) == plan.digests[system_id]
