@@ -61,6 +61,8 @@ class DriverStatement:
 
     def row(self, raw: Sequence[Any]) -> tuple[Any, ...]:
         """A row of the driver as SQLAlchemy would answer it (its columns converted by their types)."""
+        if len(raw) != len(self.result_processors):
+            raise ValueError(f"driver_statement: {len(raw)} columns answered, {len(self.result_processors)} known")
         return tuple(v if p is None or v is None else p(v) for p, v in zip(self.result_processors, raw))
 
 
@@ -76,7 +78,7 @@ def driver_statement(stmt: sa.Executable, dialect: sa.Dialect) -> DriverStatemen
     if compiled.positional:
         raise ValueError(f"driver_statement: {dialect.name} compiles positional parameters; named ones are sent")
     binds = {name: bp.type.dialect_impl(dialect).bind_processor(dialect) for name, bp in compiled.binds.items()}
-    columns = getattr(stmt, "selected_columns", None) or []
+    columns = getattr(stmt, "exported_columns", None) or []  # a SELECT's columns, or an UPDATE's RETURNING
     results = tuple(c.type.dialect_impl(dialect).result_processor(dialect, None) for c in columns)
     return DriverStatement(compiled.string, compiled, {k: p for k, p in binds.items() if p is not None}, results)
 

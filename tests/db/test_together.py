@@ -45,6 +45,29 @@ def test_answers_as_connection_execute_does(db_session: Session) -> None:
     assert send_together(db_session, []) == []
 
 
+def test_an_update_returning_answers_its_rows_converted_and_a_claim_sent_together_settles(db_session: Session) -> None:
+    """An ``UPDATE ... RETURNING`` answers its returned rows, converted by their types (the role back as the enum);
+    the claim of a frame's version sent with other calls (``versions.Claim.call``) bumps it and settles as the claim
+    run at once does, and a stale one raises the same 412 error."""
+    from app.core.errors import StaleVersionError
+    from app.services.curation.versions import Claim
+
+    _, sid, fids = _game_with_frames(db_session)
+    back = sa.update(Frame).where(Frame.id == sa.bindparam("fid")).values(width=640).returning(Frame.role, Frame.width)
+    dialect = db_session.get_bind().dialect
+    claim = Claim.frame(fids[0], {1, 7})
+    answers = send_together(db_session, [Call(back, {"fid": fids[1]}), claim.call(dialect)])
+    assert answers == [[(FrameRole.REPLAY, 640)], [(2,)]]
+    claim.settle(db_session, answers[1], expire=False)
+    assert db_session.get(Frame, fids[0]).edit_version == 2
+    stale = Claim.frame(fids[0], {1})
+    answer = send_together(db_session, [stale.call(dialect)])[0]
+    assert answer == []
+    with pytest.raises(StaleVersionError) as caught:
+        stale.settle(db_session, answer)
+    assert caught.value.etag == f'"frame-{fids[0]}-2"'
+
+
 def test_driver_statement_converts_parameters_by_their_types(db_session: Session) -> None:
     """JSON documents and enums are sent as SQLAlchemy sends them (the statement's own literals filled in)."""
     stmt = sa.select(Frame.id).where(Frame.role == sa.bindparam("role", type_=Frame.role.type), Frame.width > 100)

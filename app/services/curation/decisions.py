@@ -13,7 +13,7 @@ from app.db.models import (
 )
 from app.db.types import utcnow
 from app.core.errors import InvalidInputError
-from app.services.curation.versions import claim_system_review
+from app.services.curation.versions import Claim
 from app.services.curation.states import (
     calibration_review_state, review_state, system_review_state,
 )
@@ -64,7 +64,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
 
     if system_id is not None:
         get_system(session, system_id)
-        return guarded_write(session, system_id, lambda: claim_system_review(session, system_id, expected),
+        return guarded_write(session, system_id, Claim.system_review(system_id, expected),
                       lambda: get_system(session, system_id), system_review_state, apply, "system.review", actor,
                       revert, undo.entry_id if undo is not None else None)
     get_frame(session, frame_id)  # type: ignore[arg-type]

@@ -82,7 +82,7 @@ from app.services.derivation.recompute import (
 from app.services.derivation.rows import DirectWrites, writing_directly
 from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
 from app.services.curation.system_page import load_frame
-from app.services.curation.versions import claim_frame
+from app.services.curation.versions import Claim
 from app.services.curation.states import (
     same_json,
 )
@@ -326,7 +326,7 @@ def _kept_system(session: Session, system_id: int, plan: _Plan) -> Optional[Syst
         return None
     reads: Optional[_KeptReads] = kept.reads_of(system_id)
     if reads is not None:  # the rig rows the recomputation reads, with the digest (one round trip on PostgreSQL)
-        plan.rows_digest, rig = read_stored_state(session, system_id, reads.rig_game_id, reads.settings)
+        plan.rows_digest, rig, _ = read_stored_state(session, system_id, reads.rig_game_id, reads.settings)
         plan.rig = (reads.settings, rig)
     else:
         plan.rows_digest = stored_rows_digest(session, system_id)
@@ -387,13 +387,13 @@ def recompute_planned(session: Session, system: System, settings: Settings,
             rows, rig = plan.rows_digest, plan.rig[1]
         else:  # the rig rows and the stored rows' digest (unless read in this snapshot already) in one round trip
             known = plan.rows_digest if plan.preloaded is system else None
-            rows, rig = read_stored_state(session, system.id, rig_game_of(system), settings, rows=known)
+            rows, rig, _ = read_stored_state(session, system.id, rig_game_of(system), settings, rows=known)
         plan.digests[system.id] = state_digest(rows, rig)  # type: ignore[arg-type]
         plan.data_version, plan.settings = data_version(session), settings
     compute(rig)
 
 
-def _write_carried(session: Session, system_id: int, carried: _Carried, claim: Callable[..., None],
+def _write_carried(session: Session, system_id: int, carried: _Carried, claim: Claim,
                    check: Callable[[dict[str, Any]], None],
                    record: Callable[[Any, dict[str, Any], dict[str, Any]], None]) -> bool:
     """Write an edit computed before the lock (:func:`_compute_before_lock`) under it, in one transaction: end the
@@ -410,16 +410,28 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
         plan = carried.plan
         with session.no_autoflush:
             lock = lock_calls(session, system_id, loaded=plan.preloaded)  # PostgreSQL's FOR UPDATE; none on SQLite
-            # SQLite (no lock statements): nobody committed since the snapshot if its data_version says so
-            unchanged = plan.data_version is not None and not lock and data_version(session) == plan.data_version
-            if not unchanged:  # PostgreSQL (no data_version): the lock, the rig rows and the digest in one round trip
-                rows, rig = read_stored_state(session, system_id, rig_game_of(plan.preloaded), plan.settings,
-                                              before=lock)
+            claimed: Optional[list[Any]] = None
+            if lock:  # PostgreSQL: the lock, the rig rows, the digest and the claim (after the digest, which reads the
+                # rows as they were before it) in one round trip; the claim is rolled back with the rest when the
+                # digest differs
+                dialect = session.get_bind().dialect
+                rows, rig, answers = read_stored_state(session, system_id, rig_game_of(plan.preloaded), plan.settings,
+                                                       before=lock,
+                                                       after=[claim.call(dialect)] if dialect.update_returning else [])
+                claimed = answers[0] if answers else None
                 unchanged = state_digest(rows, rig) == plan.digests[system_id]
+            else:  # SQLite: nobody committed since the snapshot if its data_version says so; else the digest again
+                unchanged = plan.data_version is not None and data_version(session) == plan.data_version
+                if not unchanged:
+                    rows, rig, _ = read_stored_state(session, system_id, rig_game_of(plan.preloaded), plan.settings)
+                    unchanged = state_digest(rows, rig) == plan.digests[system_id]
             if not unchanged:
                 session.rollback()
                 return False
-            claim(expire=False)
+            if claimed is not None:
+                claim.settle(session, claimed, expire=False)
+            else:
+                claim(session, expire=False)
             check(carried.before)
             record(carried.target, carried.before, carried.after)
             session.flush()  # the unit of work's share: the edited label, new and deleted rows, the audit entry
@@ -470,12 +482,12 @@ def _describe_current(session: Session, exc: StaleVersionError) -> None:
         exc.last_change = audit.latest_entry(session, system_id=exc.ident)
 
 
-def guarded_write(session: Session, system_id: int, claim: Callable[..., None], subject: Callable[[], Frame | System],
+def guarded_write(session: Session, system_id: int, claim: Claim, subject: Callable[[], Frame | System],
            state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], T], action: str,
            actor: Optional[str], revert: Optional[Revert], undo_of: Optional[int] = None) -> T:
     """The guarded, audited write every edit goes through (module docstring), in one write transaction
-    holding the lock of system ``system_id``: ``claim`` (compare-and-set; ``claim(expire=False)`` keeps the
-    session's objects), ``state`` of ``subject()`` before, ``apply`` (change and recompute), ``state`` after, one
+    holding the lock of system ``system_id``: ``claim`` (the compare-and-set of ``versions.Claim``; an edit written
+    under the lock after computing before it keeps the session's objects), ``state`` of ``subject()`` before, ``apply`` (change and recompute), ``state`` after, one
     audit entry (``undo_of``: the entry this edit undoes, recorded as its ``reverts_id`` under the edit's own
     action). An edit that recomputes is computed before the lock and written under it when nothing it read
     changed (:func:`_compute_before_lock`, :func:`_write_carried`); otherwise, and for every other write, it runs
@@ -494,7 +506,7 @@ def guarded_write(session: Session, system_id: int, claim: Callable[..., None], 
                      reverts_id=revert.entry_id if revert is not None else undo_of)
 
     def work() -> T:
-        claim()
+        claim(session)
         target = subject()
         before = state(target)
         check(before)
@@ -527,12 +539,9 @@ def guarded_frame_write(session: Session, frame_id: int, expected: Expected, sta
     raises."""
     if system_id is None:
         system_id = frame_facts(session, frame_id).system_id
-
-    def claim(expire: bool = True) -> None:  # guarded_write has locked the system (lock_system) before it claims
-        claim_frame(session, frame_id, expected, expire=expire)
-
-    return guarded_write(session, system_id, claim, lambda: get_frame(session, frame_id), state, apply, action, actor,
-                         revert, undo_of)
+    # guarded_write locks the system before it claims the frame
+    return guarded_write(session, system_id, Claim.frame(frame_id, expected), lambda: get_frame(session, frame_id),
+                         state, apply, action, actor, revert, undo_of)
 
 
 def get_frame(session: Session, frame_id: int) -> Frame:

@@ -329,24 +329,31 @@ def state_digest(rows: str, rig: Sequence[tuple[int, np.ndarray, bool]] | None) 
 
 
 def read_stored_state(session: Session, system_id: int, rig_game_id: int | None, settings: Settings, *,
-                      rows: str | None = None, before: Sequence[Call] = ()
-                      ) -> tuple[str, list[tuple[int, np.ndarray, bool]] | None]:
-    """``(rows digest, rig rows)`` of system ``system_id`` as the session's transaction sees the database: the digest of
-    its stored rows (:func:`stored_rows_digest`; ``rows``: that digest, read in the same transaction already) and the
-    rig rows of game ``rig_game_id`` (``rigs.rig_rows``; None when it is None: the kind uses no rig). ``before``: calls
-    to run first in the same transaction, whose answers are dropped (an edit's lock, ``writing.lock_calls``).
+                      rows: str | None = None, before: Sequence[Call] = (), after: Sequence[Call] = ()
+                      ) -> tuple[str, list[tuple[int, np.ndarray, bool]] | None, list[Any]]:
+    """``(rows digest, rig rows, answers of after)`` of system ``system_id`` as the session's transaction sees the
+    database: the digest of its stored rows (:func:`stored_rows_digest`; ``rows``: that digest, read in the same
+    transaction already) and the rig rows of game ``rig_game_id`` (``rigs.rig_rows``; None when it is None: the kind
+    uses no rig). ``before``: calls to run first in the same transaction, whose answers are dropped (an edit's lock,
+    ``writing.lock_calls``); ``after``: calls to run once these were read, whose answers come third (an edit's claim
+    of its version, ``versions.Claim.call``).
     PostgreSQL: everything in one round trip (``app.db.together``); SQLite: one statement after the other."""
     calls = [*before]
     if rig_game_id is not None:
         calls.append(rig_call(rig_game_id, settings))
     postgresql = session.get_bind().dialect.name == "postgresql"
-    if rows is None and postgresql:
+    digest_here = rows is None and postgresql
+    if digest_here:
         calls.append(rows_digest_call(system_id))
-    answers = send_together(session, calls)[len(before):]
+    if rows is None and not postgresql and after:  # SQLite's digest is read by its own statements, before ``after``
+        rows = stored_rows_digest(session, system_id)
+    answers = send_together(session, [*calls, *after])[len(before):]
     rig = rig_rows_of(answers.pop(0)) if rig_game_id is not None else None
-    if rows is None:
-        rows = rows_digest_of(answers[0]) if postgresql else stored_rows_digest(session, system_id)
-    return rows, rig
+    if digest_here:
+        rows = rows_digest_of(answers.pop(0))
+    elif rows is None:
+        rows = stored_rows_digest(session, system_id)
+    return rows, rig, answers
 
 
 def stored_rows_digest(session: Session, system_id: int) -> str:

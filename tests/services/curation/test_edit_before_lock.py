@@ -59,6 +59,11 @@ def _box(factory: Callable[[], Session], frame_id: int) -> list[float]:
         return list(s.get(Frame, frame_id).ball_label.box)
 
 
+def _version(factory: Callable[[], Session], frame_id: int) -> int:
+    with factory() as s:
+        return s.get(Frame, frame_id).edit_version
+
+
 def _stored_and_fresh_ball(factory: Callable[[], Session], system_id: int, settings: Settings,
                            change: Callable[[System], None] | None = None) -> tuple[list[float], list[float]]:
     """The stored 3D ball of the system and the one a recomputation from its stored labels gives (after
@@ -273,6 +278,7 @@ def test_edits_of_two_views_interleaved_store_the_ball_of_both(database, monkeyp
     fa, fb = scene.frame_ids[0], scene.frame_ids[1]
     box_a, box_b = _moved(_box(factory, fa), 12.0), _moved(_box(factory, fb), -10.0)
     computed, committed = threading.Event(), threading.Event()
+    versions = {fid: _version(factory, fid) for fid in (fa, fb)}
 
     def hold_a(system_id: int) -> None:
         if threading.current_thread().name == "edit-a":
@@ -305,6 +311,9 @@ def test_edits_of_two_views_interleaved_store_the_ball_of_both(database, monkeyp
     assert outcome == {"a": "recomputed", "b": "precomputed"}, outcome
     assert b_seconds < settings.write_lock_timeout_s
     assert _box(factory, fa) == box_a and _box(factory, fb) == box_b
+    # each frame claimed once: A's first claim (on PostgreSQL sent with the lock and the digest, which differed) was
+    # rolled back with the rest of its first attempt
+    assert {fid: _version(factory, fid) - v for fid, v in versions.items()} == {fa: 1, fb: 1}
 
     stored, both = _stored_and_fresh_ball(factory, scene.system_id, settings)
     assert np.allclose(stored, both, atol=1e-9)  # the ball of both edits
