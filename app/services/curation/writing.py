@@ -33,7 +33,10 @@ Concurrency (several server processes, issues 7, 27 and 29): one locking design 
    entry through the unit of work; then the derived rows the recomputation changed, in place, as one ``UPDATE`` per
    table and columns: ``derivation.rows.writing_directly``), and the answer is drawn from the same objects. On
    PostgreSQL the statements that do not wait for each other's answers go in one round trip (``app.db.together``):
-   the lock, the rig rows and the digest; the derived rows' updates and the digest of what was written. Different (another edit of the system, or of its game's rig, committed meanwhile),
+   the lock, the rig rows, the digest and the claim; the derived rows' updates and the digest (and rig rows) of what
+   was written. An edit of a system this process kept and trusts (``kept.KeptSystems.take_trusted``, PostgreSQL)
+   reads nothing before its lock: the kept digest stands for the snapshot's. Different (another edit of the system,
+   or of its game's rig, committed meanwhile),
    everything is rolled back (objects expired) and the edit computes again before the lock from what the other
    committed (:data:`_ATTEMPTS_BEFORE_LOCK` times in all); colliding again, it runs under the lock: claim, change,
    recompute, audit.
@@ -70,7 +73,9 @@ from app.core.config import Settings
 from app.db.models import (
     Frame, Game, System,
 )
-from app.db.session import begin_snapshot, begin_write, begin_write_keeping_objects, data_version
+from app.db.session import (
+    begin_snapshot, begin_write, begin_write_keeping_objects, data_version, reads_on_their_own,
+)
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
@@ -79,6 +84,7 @@ from app.services.derivation.recompute import (
     load_for_recompute, read_stored_state, rig_game_of, rows_digest_call, rows_digest_of, state_digest,
     stored_rows_digest, system_rig_rows,
 )
+from app.services.calibration.rigs import rig_call, rig_rows_of
 from app.services.derivation.rows import DirectWrites, writing_directly
 from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
 from app.services.curation.system_page import load_frame
@@ -245,6 +251,7 @@ class _Plan:
     direct: Optional[DirectWrites] = None
     rows_digest: Optional[str] = None  # ``recompute.stored_rows_digest`` of the preloaded system, read in the snapshot
     rig: Optional[tuple[Settings, Any]] = None  # the settings and rig rows read with ``rows_digest`` (kept system)
+    trusted: bool = False  # the kept system was used without reading anything first (``kept.KeptSystems.take_trusted``)
 
 
 @dataclass
@@ -324,6 +331,14 @@ def _kept_system(session: Session, system_id: int, plan: _Plan) -> Optional[Syst
     kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
     if kept is None or not kept.holds(system_id) or session.identity_map or session.new:
         return None
+    if session.get_bind().dialect.name == "postgresql" and (trusted := kept.take_trusted(system_id)) is not None:
+        # PostgreSQL, objects trusted: nothing read before the lock (each read a round trip); the rows' digest and the
+        # rig rows as the last edit wrote them, compared under the lock with the stored ones (_write_carried)
+        system, plan.rows_digest, trusted_reads = trusted
+        if trusted_reads is not None and trusted_reads.rig_written is not None:
+            plan.rig = (trusted_reads.settings, trusted_reads.rig_written[0])
+        plan.trusted = True
+        return _attached(session, system)
     reads: Optional[_KeptReads] = kept.reads_of(system_id)
     if reads is not None:  # the rig rows the recomputation reads, with the digest (one round trip on PostgreSQL)
         plan.rows_digest, rig, _ = read_stored_state(session, system_id, reads.rig_game_id, reads.settings)
@@ -331,12 +346,17 @@ def _kept_system(session: Session, system_id: int, plan: _Plan) -> Optional[Syst
     else:
         plan.rows_digest = stored_rows_digest(session, system_id)
     system = kept.take(system_id, plan.rows_digest)
-    if system is not None:
-        try:
-            session.add(system)  # persistent again, with everything it had loaded (cascades to its views and rows)
-        except sa_exc.InvalidRequestError:  # an object still leaving the session that committed it: load instead
-            session.expunge_all()
-            return None
+    return _attached(session, system) if system is not None else None
+
+
+def _attached(session: Session, system: System) -> Optional[System]:
+    """``system`` (kept objects) attached to ``session``: persistent again, with everything it had loaded (cascades to
+    its views and rows); None when an object is still leaving the session that committed it (the edit loads)."""
+    try:
+        session.add(system)
+    except sa_exc.InvalidRequestError:
+        session.expunge_all()
+        return None
     return system
 
 
@@ -348,13 +368,20 @@ def _write_derived_and_keep(session: Session, system_id: int, plan: _Plan) -> Op
     kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
     keeping = kept is not None and plan.preloaded is not None
     postgresql = session.get_bind().dialect.name == "postgresql"
-    after = [rows_digest_call(system_id)] if keeping and postgresql else []
+    system = plan.preloaded
+    rig_game_id = rig_game_of(system) if keeping and plan.settings is not None else None
+    after = []
+    if keeping and postgresql:  # the rows' digest and the rig rows as written, for the next edit's trusted use
+        after = [rows_digest_call(system_id), *([rig_call(rig_game_id, plan.settings)] if rig_game_id is not None
+                                                else [])]
     answers = plan.direct.write(session, after) if plan.direct is not None else send_together(session, after)
     if not keeping:
         return None
     rows = rows_digest_of(answers[0]) if postgresql else stored_rows_digest(session, system_id)
-    system = plan.preloaded
-    reads = _KeptReads(rig_game_of(system), plan.settings) if plan.settings is not None else None
+    rig_written = None
+    if postgresql and plan.settings is not None:
+        rig_written = (rig_rows_of(answers[1]) if rig_game_id is not None else None,)
+    reads = _KeptReads(rig_game_id, plan.settings, rig_written) if plan.settings is not None else None
     return lambda: kept.keep(system, rows, list(session.identity_map.values()), reads)
 
 
@@ -365,6 +392,9 @@ class _KeptReads:
 
     rig_game_id: Optional[int]
     settings: Settings
+    #: PostgreSQL: ``(rig rows,)`` as the edit wrote them (None inside: its kind reads none), for an edit using the
+    #: kept objects without reading first (``kept.KeptSystems.take_trusted``); None: read them with the digest.
+    rig_written: Optional[tuple[Any]] = None
 
 
 def recompute_planned(session: Session, system: System, settings: Settings,
@@ -427,6 +457,8 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
                     unchanged = state_digest(rows, rig) == plan.digests[system_id]
             if not unchanged:
                 session.rollback()
+                if plan.trusted and (kept := session.info.get(KEPT_SYSTEMS)) is not None:
+                    kept.doubt(system_id)  # another process wrote the system: its next kept objects are checked first
                 return False
             if claimed is not None:
                 claim.settle(session, claimed, expire=False)
@@ -518,7 +550,8 @@ def guarded_write(session: Session, system_id: int, claim: Claim, subject: Calla
     recomputes = action in _RECOMPUTING
     with _edit_turn(session) if recomputes else contextlib.nullcontext(Turn(False, False)) as turn:
         changed = False
-        for _ in range(_ATTEMPTS_BEFORE_LOCK if recomputes else 0):
+        attempts = 0
+        while recomputes and attempts < _ATTEMPTS_BEFORE_LOCK:
             carried = _compute_before_lock(session, system_id, subject, state, apply, fresh=turn.waited)
             if carried is None:
                 break
@@ -526,6 +559,9 @@ def guarded_write(session: Session, system_id: int, claim: Claim, subject: Calla
                 session.info[LAST_RECOMPUTATION] = "recomputed" if changed else "precomputed"
                 return carried.result
             changed = True  # another edit of the system committed meanwhile: compute again from what it committed
+            # kept objects used without reading first and found stale count no attempt: the next one reads (at most
+            # one such attempt per edit, as the objects are no longer kept)
+            attempts += 0 if carried.plan.trusted else 1
         result = _in_transaction(session, work, system_id=system_id)
         session.info[LAST_RECOMPUTATION] = "recomputed" if changed else "under_lock"
         return result
@@ -566,7 +602,11 @@ def frame_facts(session: Session, frame_id: int, *, snapshot: bool = False) -> F
     computes in (``begin_snapshot``, begun here unless the session has written): on PostgreSQL the lookup would
     otherwise be a transaction of its own, rolled back before the snapshot (a rollback and a connection more).
     Raises :class:`NotFoundError`."""
-    if snapshot:
+    kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
+    if snapshot and kept is not None and session.get_bind().dialect.name == "postgresql" and \
+            kept.trusts_frame(frame_id):  # its edit will read nothing before its lock: no snapshot to begin and end
+        reads_on_their_own(session)
+    elif snapshot:
         with contextlib.suppress(RuntimeError):  # the session has written: its caller's transaction goes on
             begin_snapshot(session)
     rows = send_together(session, [Call(_frame_facts_statement(), {"id": frame_id})])[0]  # with its BEGIN on PostgreSQL

@@ -57,9 +57,13 @@ def test_consecutive_edits_of_a_system_take_the_objects_the_last_one_committed(d
 
 def test_a_write_between_two_edits_makes_the_next_load_what_is_stored(database) -> None:
     """Another process's edit of a sibling view, then a decision, between two edits of this process: each time the
-    stored rows' digest differs from the kept one, the edit loads, and both labels are in the stored result."""
+    stored rows' digest differs from the kept one, the edit loads, and both labels are in the stored result.
+    SQLite reads the digest before it uses kept objects (a read in the process). PostgreSQL uses trusted kept objects
+    without reading first and finds them stale under its lock: it computes again from the stored rows, and the
+    objects it keeps next are checked before use (the decision's write is then caught before they are used)."""
     factory, settings, scene, _ = database
     kept_factory, kept = _kept_factory(factory)
+    postgresql = factory.kw["bind"].dialect.name == "postgresql"  # type: ignore[attr-defined]
     first, second = scene.frame_ids[0], scene.frame_ids[1]
     box1, box2 = _box(factory, first), _box(factory, second)
     with kept_factory() as s:
@@ -69,14 +73,22 @@ def test_a_write_between_two_edits_makes_the_next_load_what_is_stored(database) 
     with kept_factory() as s:
         frame = update_ball_label(s, first, box=_moved(box1, 5.0), settings=settings)
         boxes = {f.id: f.ball_label.box for f in frame.system.frames}
-    assert (kept.taken, kept.missed) == (0, 1)
+        assert s.info[LAST_RECOMPUTATION] == ("recomputed" if postgresql else "precomputed")
+    assert (kept.taken, kept.missed) == ((1, 0) if postgresql else (0, 1))
     assert boxes[second] == _moved(box2, -4.0) and boxes[first] == _moved(box1, 5.0)
     with factory() as s:
         decide_review(s, system_id=scene.system_id, status=ReviewStatus.ACCEPTED)
     with kept_factory() as s:
         update_ball_label(s, first, box=_moved(box1, 6.0), settings=settings)
         assert s.get(System, scene.system_id).review.status is ReviewStatus.PENDING  # the decision seen, and reset
-    assert (kept.taken, kept.missed) == (0, 2)
+    assert (kept.taken, kept.missed) == ((1, 1) if postgresql else (0, 2))
+    for i in range(3):  # nobody else writes: loaded (the decision's edit ran under the lock and kept nothing), then
+        # checked before use (the last kept objects were stale) and found current, then trusted again on PostgreSQL
+        with kept_factory() as s:
+            update_ball_label(s, first, box=_moved(box1, 7.0 + i), settings=settings)
+            assert s.info[LAST_RECOMPUTATION] == "precomputed"
+    assert (kept.taken, kept.missed) == ((3, 1) if postgresql else (2, 2))
+    assert _box(factory, first) == _moved(box1, 9.0) and _box(factory, second) == _moved(box2, -4.0)
     assert _recomputes_to_itself(factory, scene.system_id, settings)
 
 
@@ -108,6 +120,34 @@ def test_kept_systems_are_bounded_and_taken_once() -> None:
     assert kept.take(3, "digest-3") is None
     with pytest.raises(ValueError, match="at least 1"):
         KeptSystems(0)
+
+
+def test_kept_objects_found_stale_are_checked_before_use_until_found_current() -> None:
+    """Trust (PostgreSQL's use of kept objects without reading first): kept objects are trusted unless the last ones
+    of their system were found stale, by a :meth:`take` whose digest differed or a :meth:`doubt` after a trusted use;
+    checked and found current, the next ones are trusted again. Frames route to their trusted system."""
+    kept = KeptSystems()
+
+    def system(ident: int) -> System:
+        s = System(id=ident, name=f"{ident}.png")
+        s.frames = [Frame(id=10 * ident + k, name=f"f{k}") for k in range(2)]
+        for o in (s, *s.frames):
+            make_transient_to_detached(o)
+        return s
+
+    kept.keep(system(1), "d1", [])
+    assert kept.trusts_frame(10) and kept.trusts_frame(11) and not kept.trusts_frame(20)
+    taken = kept.take_trusted(1)
+    assert taken is not None and taken[1] == "d1" and not kept.holds(1) and not kept.trusts_frame(10)
+    kept.doubt(1)  # its digest under the lock differed
+    kept.keep(system(1), "d2", [])
+    assert kept.holds(1) and not kept.trusts_frame(10) and kept.take_trusted(1) is None and kept.holds(1)
+    assert kept.take(1, "d3") is None  # checked: stale again
+    kept.keep(system(1), "d3", [])
+    assert kept.take_trusted(1) is None
+    assert kept.take(1, "d3") is not None  # checked: current
+    kept.keep(system(1), "d4", [])
+    assert kept.trusts_frame(11) and kept.take_trusted(1) is not None
 
 
 def test_frames_of_a_taken_system_are_the_sessions_own(database) -> None:
@@ -163,11 +203,13 @@ def test_the_apps_edits_take_the_kept_system_and_answer_as_a_fresh_load(tmp_path
 
 
 def test_a_kept_system_reads_its_rig_rows_with_its_digest_once(database, monkeypatch) -> None:
-    """Issue 29: the edit that takes a kept system reads its game's rig rows with the stored rows' digest it compares
-    (one round trip on PostgreSQL), and the recomputation uses those: once in the snapshot, once more under the lock
-    on PostgreSQL only (SQLite's data_version spares the digest there), as an edit that loads."""
+    """Issue 29: an edit reads its game's rig rows with the stored rows' digest it compares, and the recomputation
+    uses those. SQLite: once, in the snapshot, with the digest of a kept system (data_version spares the digest under
+    the lock). PostgreSQL: the first edit in its snapshot, under its lock and after its writes (kept with its objects);
+    the next ones, using trusted kept objects, read nothing before their lock: under it and after their writes."""
     from app.services.calibration import rigs
     import app.services.derivation.recompute as recompute_module
+    import app.services.curation.writing as writing_module
 
     factory, settings, scene, _ = database
     kept_factory, kept = _kept_factory(factory)
@@ -175,14 +217,53 @@ def test_a_kept_system_reads_its_rig_rows_with_its_digest_once(database, monkeyp
     real = rigs.rig_rows_of
     monkeypatch.setattr(rigs, "rig_rows_of", lambda *a, **k: calls.append(1) or real(*a, **k))
     monkeypatch.setattr(recompute_module, "rig_rows_of", rigs.rig_rows_of)
+    monkeypatch.setattr(writing_module, "rig_rows_of", rigs.rig_rows_of)
     fid = scene.frame_ids[0]
     box = _box(factory, fid)
     for i in range(3):
         calls.clear()
         with kept_factory() as s:
-            reads = 1 if s.get_bind().dialect.name == "sqlite" else 2
+            reads = 1 if s.get_bind().dialect.name == "sqlite" else 3 if i == 0 else 2
             update_ball_label(s, fid, box=_moved(box, 2.0 + i), settings=settings)
             assert s.info[LAST_RECOMPUTATION] == "precomputed"
         assert len(calls) == reads
+    assert (kept.taken, kept.missed) == (2, 0)
+    assert _recomputes_to_itself(factory, scene.system_id, settings)
+
+
+@pytest.mark.postgres
+def test_trusted_kept_objects_spare_every_read_before_the_lock_on_postgresql(database) -> None:
+    """PostgreSQL: an edit of a system whose objects this process kept and trusts sends one statement before its lock
+    (the frame's lookup, outside any transaction: no BEGIN, no COMMIT), where an edit that loads sends its snapshot's
+    reads."""
+    import app.db.together as together
+    from sqlalchemy import event
+
+    factory, settings, scene, _ = database
+    engine = factory.kw["bind"]  # type: ignore[attr-defined]
+    if engine.dialect.name != "postgresql":
+        pytest.skip("PostgreSQL's round trips (SQLite reads in the process)")
+    kept_factory, kept = _kept_factory(factory)
+    sent: list[str] = []
+    event.listen(engine, "before_cursor_execute", lambda *a: sent.append(a[2].split()[0]))
+    real = together.driver_statement
+    fid = scene.frame_ids[0]
+    box = _box(factory, fid)
+    from app.services.curation import writing
+
+    before_lock: list[list[str]] = []
+    orig_hook = writing.computed_before_lock
+    writing.computed_before_lock = lambda system_id: before_lock.append(list(sent))
+    together.driver_statement = lambda stmt, dialect: sent.append("pipelined") or real(stmt, dialect)
+    try:
+        for i in range(3):
+            sent.clear()
+            with kept_factory() as s:
+                update_ball_label(s, fid, box=_moved(box, 2.0 + i), settings=settings)
+    finally:
+        writing.computed_before_lock = orig_hook
+        together.driver_statement = real
+    assert len(before_lock[0]) > 1  # the first edit loads in its snapshot
+    assert before_lock[1:] == [["pipelined"], ["pipelined"]]  # the frame's lookup only
     assert (kept.taken, kept.missed) == (2, 0)
     assert _recomputes_to_itself(factory, scene.system_id, settings)
