@@ -13,15 +13,17 @@ frame, system and game by id without foreign keys, so history outlives the rows 
 """
 from __future__ import annotations
 
+import functools
 import getpass
 from dataclasses import dataclass
 from typing import Any, Optional
 
 import sqlalchemy as sa
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, make_transient_to_detached
 
 from app.db.models import AuditEntry, Frame, System
-from app.db.types import json_safe
+from app.db.together import Call
+from app.db.types import json_safe, utcnow
 from app.services.audit.summaries import summarize
 
 #: The response header naming the audit entry of a write (what a later undo names).
@@ -73,7 +75,7 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
     after = json_safe(after) if after is not None else None
     facts = session.info.pop(_FACTS, None)
     entry = AuditEntry(
-        actor=actor or local_actor(), action=action, frame_id=frame.id if frame is not None else None,
+        at=utcnow(), actor=actor or local_actor(), action=action, frame_id=frame.id if frame is not None else None,
         system_id=system.id if system is not None else None, game_id=system.game_id if system is not None else None,
         before=before, after=after, reverts_id=reverts_id,
         summary=summarize(action, before, after, view=view_name(frame) if frame is not None else None,
@@ -83,6 +85,32 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
     session.add(entry)
     session.info[_RECORDED] = entry
     return entry
+
+
+def insert_call(session: Session, entry: AuditEntry) -> Call:
+    """Take ``entry`` (added by :func:`record`) out of the session's unit of work and answer its ``INSERT ...
+    RETURNING id`` as a call to send with the write's other statements (``app.db.together.send_together``: in the
+    round trip of the derived rows' updates on PostgreSQL, ``app.services.curation.writing``); its answer goes to
+    :func:`inserted`. Until then the entry is not stored: a write that fails before has recorded nothing."""
+    if entry in session:
+        session.expunge(entry)
+    table = AuditEntry.__table__
+    return Call(_insert_statement(), {c.key: getattr(entry, c.key) for c in table.c if c.key != "id"})
+
+
+def inserted(entry: AuditEntry, rows: list[tuple[Any, ...]]) -> None:
+    """Give ``entry`` the id its :func:`insert_call` answered (``rows``): it is then the stored entry, detached (what
+    :func:`recorded_entry_id` answers once the write committed)."""
+    entry.id = int(rows[0][0])
+    make_transient_to_detached(entry)
+
+
+@functools.cache
+def _insert_statement() -> sa.Insert:
+    """``INSERT INTO audit_entries (every column but id) ... RETURNING id``, built once."""
+    table = AuditEntry.__table__
+    return sa.insert(table).values({c.key: sa.bindparam(c.key, type_=c.type) for c in table.c if c.key != "id"}) \
+        .returning(table.c.id)
 
 
 #: ``session.info`` key of the facts :func:`note_facts` keeps for the next :func:`record` of the session.

@@ -61,7 +61,7 @@ import contextlib
 import functools
 import json
 import threading
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, TypeVar
 
@@ -71,7 +71,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
-    Frame, Game, System,
+    AuditEntry, Frame, Game, System,
 )
 from app.db.session import (
     begin_snapshot, begin_write, begin_write_keeping_objects, data_version, reads_on_their_own,
@@ -360,29 +360,32 @@ def _attached(session: Session, system: System) -> Optional[System]:
     return system
 
 
-def _write_derived_and_keep(session: Session, system_id: int, plan: _Plan) -> Optional[Callable[[], None]]:
+def _write_derived_and_keep(session: Session, system_id: int, plan: _Plan, with_writes: Sequence[Call] = ()
+                            ) -> tuple[list[Any], Optional[Callable[[], None]]]:
     """Under the lock, after the unit of work flushed the edit's share: the derived rows the recomputation changed
-    (``plan.direct``: one UPDATE per table and columns) and, when the session's process keeps systems, the digest of
-    the rows as written, in one round trip on PostgreSQL; answers what keeps the edit's objects for the next edit of
-    the system once the transaction committed (``kept.KeptSystems.keep``), or None when the process keeps none."""
+    (``plan.direct``: one UPDATE per table and columns), the calls ``with_writes`` (the audit entry's insert) and, when
+    the session's process keeps systems, the digest of the rows as written, in one round trip on PostgreSQL; answers
+    the answers of ``with_writes`` and what keeps the edit's objects for the next edit of the system once the
+    transaction committed (``kept.KeptSystems.keep``; None when the process keeps none)."""
     kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
     keeping = kept is not None and plan.preloaded is not None
     postgresql = session.get_bind().dialect.name == "postgresql"
     system = plan.preloaded
     rig_game_id = rig_game_of(system) if keeping and plan.settings is not None else None
-    after = []
+    after = [*with_writes]
     if keeping and postgresql:  # the rows' digest and the rig rows as written, for the next edit's trusted use
-        after = [rows_digest_call(system_id), *([rig_call(rig_game_id, plan.settings)] if rig_game_id is not None
-                                                else [])]
+        after += [rows_digest_call(system_id), *([rig_call(rig_game_id, plan.settings)] if rig_game_id is not None
+                                                 else [])]
     answers = plan.direct.write(session, after) if plan.direct is not None else send_together(session, after)
+    written, answers = answers[:len(with_writes)], answers[len(with_writes):]
     if not keeping:
-        return None
+        return written, None
     rows = rows_digest_of(answers[0]) if postgresql else stored_rows_digest(session, system_id)
     rig_written = None
     if postgresql and plan.settings is not None:
         rig_written = (rig_rows_of(answers[1]) if rig_game_id is not None else None,)
     reads = _KeptReads(rig_game_id, plan.settings, rig_written) if plan.settings is not None else None
-    return lambda: kept.keep(system, rows, list(session.identity_map.values()), reads)
+    return written, lambda: kept.keep(system, rows, list(session.identity_map.values()), reads)
 
 
 @dataclass(frozen=True)
@@ -425,14 +428,14 @@ def recompute_planned(session: Session, system: System, settings: Settings,
 
 def _write_carried(session: Session, system_id: int, carried: _Carried, claim: Claim,
                    check: Callable[[dict[str, Any]], None],
-                   record: Callable[[Any, dict[str, Any], dict[str, Any]], None]) -> bool:
+                   record: Callable[[Any, dict[str, Any], dict[str, Any]], AuditEntry]) -> bool:
     """Write an edit computed before the lock (:func:`_compute_before_lock`) under it, in one transaction: end the
     snapshot keeping its objects (``begin_write_keeping_objects``), lock the system, and compare its stored rows with
     what the snapshot read (SQLite's ``data_version`` unchanged, or the digest read again equal; on PostgreSQL the
-    lock, the rig rows and the digest in one round trip, ``app.db.together``); then claim the version, ``check`` the
-    state before (a revert's), ``record`` the audit entry, flush what the unit of work writes (the edited label, new
-    and deleted rows, the entry), send the derived rows that changed with the digest of the rows as written (one
-    round trip on PostgreSQL, :func:`_write_derived_and_keep`) and commit.
+    lock, the rig rows, the digest and the claim of the version in one round trip, ``app.db.together``); then settle
+    the claim, ``check`` the state before (a revert's), ``record`` the audit entry, flush what the unit of work writes
+    (new and deleted rows), send the derived rows that changed and the edited label with the entry's insert and the
+    digest of the rows as written (one round trip on PostgreSQL, :func:`_write_derived_and_keep`) and commit.
     False, with everything rolled back, when a stored row changed meanwhile (the caller runs the edit under the
     lock). Raises what ``claim`` and ``check`` raise (rolled back; a stale version described)."""
     try:
@@ -465,9 +468,14 @@ def _write_carried(session: Session, system_id: int, carried: _Carried, claim: C
             else:
                 claim(session, expire=False)
             check(carried.before)
-            record(carried.target, carried.before, carried.after)
-            session.flush()  # the unit of work's share: the edited label, new and deleted rows, the audit entry
-            keep = _write_derived_and_keep(session, system_id, plan)
+            entry = record(carried.target, carried.before, carried.after)
+            # the audit entry goes with the derived rows' updates (one round trip on PostgreSQL), where the database
+            # answers an INSERT's new id (RETURNING): else through the unit of work
+            with_writes = [audit.insert_call(session, entry)] if session.get_bind().dialect.insert_returning else []
+            session.flush()  # the unit of work's share: the edited label, new and deleted rows (the audit entry)
+            answers, keep = _write_derived_and_keep(session, system_id, plan, with_writes)
+            if with_writes:
+                audit.inserted(entry, answers[0])
         session.commit()
         if keep is not None:
             keep()
@@ -531,9 +539,9 @@ def guarded_write(session: Session, system_id: int, claim: Claim, subject: Calla
                                 f"(it is now {json.dumps(before)[:300]}); revert the newer entries first, or force it",
                                 current=before)
 
-    def record(target: Any, before: dict[str, Any], after: dict[str, Any]) -> None:
+    def record(target: Any, before: dict[str, Any], after: dict[str, Any]) -> AuditEntry:
         frame = target if isinstance(target, Frame) else None
-        audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
+        return audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
                      system=target if frame is None else None, before=before, after=after,
                      reverts_id=revert.entry_id if revert is not None else undo_of)
 
