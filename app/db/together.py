@@ -72,11 +72,14 @@ def driver_statement(stmt: sa.Executable, dialect: sa.Dialect) -> DriverStatemen
     edit path's are).
 
     Raises:
-        ValueError: the dialect compiles ``stmt`` with positional parameters (``send_together`` names them).
+        ValueError: the dialect compiles ``stmt`` with positional parameters (``send_together`` names them), or
+            ``stmt`` has an expanding parameter (compiled anew for each number of values).
     """
     compiled = stmt.compile(dialect=dialect)
     if compiled.positional:
         raise ValueError(f"driver_statement: {dialect.name} compiles positional parameters; named ones are sent")
+    if compiled.post_compile_params:
+        raise ValueError("driver_statement: expanding parameters (IN lists) are rendered per execution; send an array")
     binds = {name: bp.type.dialect_impl(dialect).bind_processor(dialect) for name, bp in compiled.binds.items()}
     columns = getattr(stmt, "exported_columns", None) or []  # a SELECT's columns, or an UPDATE's RETURNING
     results = tuple(c.type.dialect_impl(dialect).result_processor(dialect, None) for c in columns)

@@ -20,12 +20,15 @@ from sqlalchemy.orm import Session, joinedload
 
 from app.db.models import Frame, System
 from app.db.session import reads_on_their_own
+from app.db.together import send_together
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.core.errors import found
 from app.services.curation.assignment import Assignment, assignment_of
-from app.services.curation.presence import Presence, open_on
-from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
+from app.services.curation.presence import Presence, open_on, open_on_call, open_on_of
+from app.services.curation.queue import (
+    DEFAULT_SORT, SystemFilters, SystemSort, held_neighbours_call, queue_neighbours,
+)
 from app.services.derivation.loading import FRAME_ROWS, load_systems
 
 #: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
@@ -182,7 +185,8 @@ def system_page(session: Session, system_id: int, filters: SystemFilters = Syste
     (by default the whole queue in its default order; ``app.services.curation.queue.queue_neighbours``), its
     assignment (from the loaded system: ``assignment.assignment_of``) and its live presence claims (one indexed read).
     After an edit, whose session holds the system as it committed it, those reads run without a transaction of their
-    own (``app.db.session.reads_on_their_own``).
+    own (``app.db.session.reads_on_their_own``), both in one round trip on PostgreSQL when the queue's sort keys are
+    the system's own columns (``queue.held_neighbours_call``).
 
     Raises:
         NotFoundError: no system has this id.
@@ -190,6 +194,10 @@ def system_page(session: Session, system_id: int, filters: SystemFilters = Syste
     system = held = _loaded_system(session, system_id)
     if held is not None:  # an edit's answer: the system is held as committed, the reads left need no snapshot
         reads_on_their_own(session)
+        neighbours = held_neighbours_call(held, filters, sort)
+        if neighbours is not None:  # both reads in one round trip on PostgreSQL (app.db.together)
+            around, presence = send_together(session, [neighbours, open_on_call(system_id)])
+            return SystemPageData(system, *around[0], assignment_of(session, system), open_on_of(presence))
     else:
         system = load_system(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort, held=held)
