@@ -109,14 +109,21 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
     if box is not None and point is not None:
         raise InvalidInputError("give a box or a point, not both", field="box")
     facts = frame_facts(session, frame_id, snapshot=True)
-    try:
-        new_box = check_box(box, facts.width, facts.height) if box is not None else None
-        new_point = check_point(point, facts.width, facts.height) if point is not None else None
-    except LabelError as exc:
-        raise InvalidInputError(str(exc), field="box" if box is not None else "point") from None
+
+    def validated(width: int, height: int) -> tuple[Any, Any]:
+        try:
+            return (check_box(box, width, height) if box is not None else None,
+                    check_point(point, width, height) if point is not None else None)
+        except LabelError as exc:
+            raise InvalidInputError(str(exc), field="box" if box is not None else "point") from None
+
+    new_box, new_point = validated(facts.width, facts.height)
     new_provenance = check_provenance(provenance) if (new_box is not None or new_point is not None) else None
 
     def apply(frame: Frame) -> Frame:
+        nonlocal new_box, new_point
+        if (frame.width, frame.height) != (facts.width, facts.height):  # re-imported since its facts were read
+            new_box, new_point = validated(frame.width, frame.height)
         before = ball_state(frame)
         check_undo_state(undo, before)
         label = frame.ball_label
@@ -220,6 +227,9 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         undo_of = undo.entry_id
 
     def apply(frame: Frame) -> Frame:
+        nonlocal parsed
+        if (frame.width, frame.height) != (facts.width, facts.height):  # re-imported since its facts were read
+            parsed = parse_field_lines(lines, frame.width, frame.height, settings.max_line_points_per_frame)
         before = lines_state(frame), calibration_words(frame, settings)
         check_undo_state(undo, before[0])
         jac_before = jac_words(frame, settings)

@@ -61,7 +61,7 @@ class KeptSystems:
             raise ValueError(f"KeptSystems: max_systems must be at least 1, got {max_systems}")
         self.max_systems = max_systems
         self._kept: "OrderedDict[int, _Kept]" = OrderedDict()
-        self._frames: dict[int, int] = {}  # frame id -> id of its kept system
+        self._frames: dict[int, tuple[int, int, int]] = {}  # frame id -> (its kept system's id, width, height)
         self._doubted: set[int] = set()  # systems whose kept objects were last found stale
         self._lock = threading.Lock()
         self.taken = 0
@@ -78,7 +78,7 @@ class KeptSystems:
             trusted = system.id not in self._doubted
             self._doubted.discard(system.id)
             self._kept[system.id] = _Kept(rows_digest, system, tuple(objects), reads, trusted)
-            self._frames.update((f.id, system.id) for f in system.__dict__.get("frames", ()))
+            self._frames.update((f.id, (system.id, f.width, f.height)) for f in system.__dict__.get("frames", ()))
             while len(self._kept) > self.max_systems:
                 self._drop(next(iter(self._kept)))
 
@@ -87,7 +87,7 @@ class KeptSystems:
         kept = self._kept.pop(system_id, None)
         if kept is not None:
             for f in kept.system.__dict__.get("frames", ()):
-                if self._frames.get(f.id) == system_id:
+                if self._frames.get(f.id, (None,))[0] == system_id:
                     del self._frames[f.id]
         return kept
 
@@ -130,13 +130,15 @@ class KeptSystems:
             self._doubted.clear()
         self._doubted.add(system_id)
 
-    def trusts_frame(self, frame_id: int) -> bool:
-        """Whether frame ``frame_id`` belongs to a kept system whose objects are trusted (:meth:`take_trusted`): an
-        edit of it will read nothing before its lock, so its lookups need no read snapshot. A hint: the edit checks
-        everything it uses under its lock."""
+    def trusted_frame(self, frame_id: int) -> Optional[tuple[int, int, int]]:
+        """``(system id, width, height)`` (pixels) of frame ``frame_id`` when it belongs to a kept system whose objects
+        are trusted (:meth:`take_trusted`), else None: its edit reads nothing before its lock, its lookup included.
+        The edit's lock compares the kept digest, which covers the frame's row, with the stored one: equal, these
+        facts were the stored ones; different, the edit computes again from the stored rows."""
         with self._lock:
-            kept = self._kept.get(self._frames.get(frame_id, -1))
-            return kept is not None and kept.trusted
+            facts = self._frames.get(frame_id)
+            kept = self._kept.get(facts[0]) if facts is not None else None
+            return facts if kept is not None and kept.trusted else None
 
     def reads_of(self, system_id: int) -> Any:
         """The ``reads`` kept with system ``system_id`` (None when none is kept), without taking it: the next edit

@@ -73,9 +73,7 @@ from app.core.config import Settings
 from app.db.models import (
     AuditEntry, Frame, Game, System,
 )
-from app.db.session import (
-    begin_snapshot, begin_write, begin_write_keeping_objects, data_version, reads_on_their_own,
-)
+from app.db.session import begin_snapshot, begin_write, begin_write_keeping_objects, data_version
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
@@ -527,8 +525,8 @@ def guarded_write(session: Session, system_id: int, claim: Claim, subject: Calla
            actor: Optional[str], revert: Optional[Revert], undo_of: Optional[int] = None) -> T:
     """The guarded, audited write every edit goes through (module docstring), in one write transaction
     holding the lock of system ``system_id``: ``claim`` (the compare-and-set of ``versions.Claim``; an edit written
-    under the lock after computing before it keeps the session's objects), ``state`` of ``subject()`` before, ``apply`` (change and recompute), ``state`` after, one
-    audit entry (``undo_of``: the entry this edit undoes, recorded as its ``reverts_id`` under the edit's own
+    under the lock after computing before it keeps the session's objects), ``state`` of ``subject()`` before,
+    ``apply`` (change and recompute), ``state`` after, one audit entry (``undo_of``: the entry this edit undoes, recorded as its ``reverts_id`` under the edit's own
     action). An edit that recomputes is computed before the lock and written under it when nothing it read
     changed (:func:`_compute_before_lock`, :func:`_write_carried`); otherwise, and for every other write, it runs
     under the lock (:func:`_in_transaction`)."""
@@ -542,8 +540,8 @@ def guarded_write(session: Session, system_id: int, claim: Claim, subject: Calla
     def record(target: Any, before: dict[str, Any], after: dict[str, Any]) -> AuditEntry:
         frame = target if isinstance(target, Frame) else None
         return audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
-                     system=target if frame is None else None, before=before, after=after,
-                     reverts_id=revert.entry_id if revert is not None else undo_of)
+                            system=target if frame is None else None, before=before, after=after,
+                            reverts_id=revert.entry_id if revert is not None else undo_of)
 
     def work() -> T:
         claim(session)
@@ -608,13 +606,16 @@ def frame_facts(session: Session, frame_id: int, *, snapshot: bool = False) -> F
     with its system next, ``recompute.load_for_recompute``), sent with the ``BEGIN`` of its transaction in one round
     trip on PostgreSQL (``app.db.together``). ``snapshot``: read in the read snapshot the edit then
     computes in (``begin_snapshot``, begun here unless the session has written): on PostgreSQL the lookup would
-    otherwise be a transaction of its own, rolled back before the snapshot (a rollback and a connection more).
-    Raises :class:`NotFoundError`."""
+    otherwise be a transaction of its own, rolled back before the snapshot (a rollback and a connection more). On
+    PostgreSQL the facts of a frame of a system this process kept and trusts come from the kept objects
+    (``kept.KeptSystems.trusted_frame``): its edit reads nothing before its lock, which compares the kept digest
+    (covering the frame's row) with the stored one; an edit validates its input against the frame it writes again
+    when that frame's size is not the one of its facts (``editing``). Raises :class:`NotFoundError`."""
     kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
     if snapshot and kept is not None and session.get_bind().dialect.name == "postgresql" and \
-            kept.trusts_frame(frame_id):  # its edit will read nothing before its lock: no snapshot to begin and end
-        reads_on_their_own(session)
-    elif snapshot:
+            (trusted := kept.trusted_frame(frame_id)) is not None:
+        return FrameFacts(frame_id, *trusted)
+    if snapshot:
         with contextlib.suppress(RuntimeError):  # the session has written: its caller's transaction goes on
             begin_snapshot(session)
     rows = send_together(session, [Call(_frame_facts_statement(), {"id": frame_id})])[0]  # with its BEGIN on PostgreSQL

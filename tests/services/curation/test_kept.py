@@ -130,24 +130,24 @@ def test_kept_objects_found_stale_are_checked_before_use_until_found_current() -
 
     def system(ident: int) -> System:
         s = System(id=ident, name=f"{ident}.png")
-        s.frames = [Frame(id=10 * ident + k, name=f"f{k}") for k in range(2)]
+        s.frames = [Frame(id=10 * ident + k, name=f"f{k}", width=1920, height=1080) for k in range(2)]
         for o in (s, *s.frames):
             make_transient_to_detached(o)
         return s
 
     kept.keep(system(1), "d1", [])
-    assert kept.trusts_frame(10) and kept.trusts_frame(11) and not kept.trusts_frame(20)
+    assert kept.trusted_frame(10) == (1, 1920, 1080) and kept.trusted_frame(11) and kept.trusted_frame(20) is None
     taken = kept.take_trusted(1)
-    assert taken is not None and taken[1] == "d1" and not kept.holds(1) and not kept.trusts_frame(10)
+    assert taken is not None and taken[1] == "d1" and not kept.holds(1) and kept.trusted_frame(10) is None
     kept.doubt(1)  # its digest under the lock differed
     kept.keep(system(1), "d2", [])
-    assert kept.holds(1) and not kept.trusts_frame(10) and kept.take_trusted(1) is None and kept.holds(1)
+    assert kept.holds(1) and kept.trusted_frame(10) is None and kept.take_trusted(1) is None and kept.holds(1)
     assert kept.take(1, "d3") is None  # checked: stale again
     kept.keep(system(1), "d3", [])
     assert kept.take_trusted(1) is None
     assert kept.take(1, "d3") is not None  # checked: current
     kept.keep(system(1), "d4", [])
-    assert kept.trusts_frame(11) and kept.take_trusted(1) is not None
+    assert kept.trusted_frame(11) == (1, 1920, 1080) and kept.take_trusted(1) is not None
 
 
 def test_frames_of_a_taken_system_are_the_sessions_own(database) -> None:
@@ -233,8 +233,8 @@ def test_a_kept_system_reads_its_rig_rows_with_its_digest_once(database, monkeyp
 
 @pytest.mark.postgres
 def test_trusted_kept_objects_spare_every_read_before_the_lock_on_postgresql(database) -> None:
-    """PostgreSQL: an edit of a system whose objects this process kept and trusts sends one statement before its lock
-    (the frame's lookup, outside any transaction: no BEGIN, no COMMIT), where an edit that loads sends its snapshot's
+    """PostgreSQL: an edit of a system whose objects this process kept and trusts sends nothing before its lock (its
+    frame's facts are the kept frame's: no lookup, no BEGIN, no COMMIT), where an edit that loads sends its snapshot's
     reads."""
     import app.db.together as together
     from sqlalchemy import event
@@ -264,6 +264,33 @@ def test_trusted_kept_objects_spare_every_read_before_the_lock_on_postgresql(dat
         writing.computed_before_lock = orig_hook
         together.driver_statement = real
     assert len(before_lock[0]) > 1  # the first edit loads in its snapshot
-    assert before_lock[1:] == [["pipelined"], ["pipelined"]]  # the frame's lookup only
+    assert before_lock[1:] == [[], []]
     assert (kept.taken, kept.missed) == (2, 0)
     assert _recomputes_to_itself(factory, scene.system_id, settings)
+
+
+def test_an_edit_validates_its_box_against_the_frame_it_writes(database) -> None:
+    """A frame re-imported with another size after this process kept its system: an edit whose box fits the old size
+    only is refused (422, field "box") whether its facts came from the kept frame (PostgreSQL) or were read; nothing
+    is written, and the next edit works."""
+    import sqlalchemy as sa
+
+    from app.core.errors import InvalidInputError
+
+    factory, settings, scene, _ = database
+    kept_factory, kept = _kept_factory(factory)
+    fid = scene.frame_ids[0]
+    box = _box(factory, fid)
+    with kept_factory() as s:
+        update_ball_label(s, fid, box=_moved(box, 2.0), settings=settings)
+    with factory() as s:  # another process re-imports the frame smaller
+        s.execute(sa.update(Frame).where(Frame.id == fid).values(width=int(box[0]) - 50))
+        s.commit()
+    with kept_factory() as s, pytest.raises(InvalidInputError) as refused:
+        update_ball_label(s, fid, box=_moved(box, 3.0), settings=settings)
+    assert refused.value.field == "box"
+    assert _box(factory, fid) == _moved(box, 2.0)
+    inside = [10.0, 10.0, 30.0, 30.0]
+    with kept_factory() as s:
+        update_ball_label(s, fid, box=inside, settings=settings)
+    assert _box(factory, fid) == inside
