@@ -1,7 +1,9 @@
 """Database statements of one ball edit (issue 29, item 2): the service's ``update_ball_label`` on a 4-view system
 of a fresh demo database, counted with SQLAlchemy's ``before_cursor_execute`` event, grouped by kind and table.
 
-Deterministic (no timing): the figure item 2's work must bring down. On PostgreSQL the statements an edit sends
+Deterministic (no timing): the figure item 2's work must bring down. Three edits of sessions without kept systems,
+then three of sessions sharing one ``KeptSystems`` as a served process's do (on PostgreSQL the kept, trusted
+objects spare every read before the lock). On PostgreSQL the statements an edit sends
 together (``app.db.together``, psycopg's pipeline mode) do not pass SQLAlchemy's cursor events: they are counted
 apart, with the pipelines that carried them (one round trip each). Usage (from the checkout)::
 
@@ -16,6 +18,7 @@ from app.core.config import Settings
 from app.db.session import make_engine, make_session_factory
 from app.db.models import Frame
 from app.services.curation.editing import update_ball_label
+from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
 
 url_arg = sys.argv[1] if len(sys.argv) > 1 else None
 with fresh_database(url_arg) as url:
@@ -55,9 +58,12 @@ with fresh_database(url_arg) as url:
                  if fr.ball_label is not None and fr.ball_label.box is not None and len(fr.system.frames) == 4)
         fid = f.id; box = list(f.ball_label.box)
     settings = Settings(database_url=url)
-    for i in range(3):
+    kept_SF = make_session_factory(eng, info={KEPT_SYSTEMS: KeptSystems()})  # as a served process's sessions
+    for i in range(6):  # three edits without kept systems, then three of a process that keeps them
         counts.clear()
-        with SF() as s:
+        if i == 3:
+            print("-- a process that keeps its last systems (the first edit loads, the next take the kept objects):")
+        with (SF if i < 3 else kept_SF)() as s:
             b = [box[0] + 2 + i, box[1], box[2] + 2 + i, box[3]]
             update_ball_label(s, fid, box=b, settings=settings, actor="x")
         alone = sum(v for k, v in counts.items() if not k.startswith("("))
