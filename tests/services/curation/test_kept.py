@@ -27,6 +27,18 @@ def _kept_factory(factory: Callable[[], Session]) -> tuple[Callable[[], Session]
     return make_session_factory(engine, info={KEPT_SYSTEMS: kept}), kept
 
 
+def _after_one_kept_edit(database):  # noqa: ANN001, ANN202  (the fixture's tuple)
+    """``(factory, settings, kept_factory, kept, frame_id, box)`` once a process that keeps systems edited the first
+    view of the fixture's first system (its ball moved 2 px from ``box``, the original)."""
+    factory, settings, scene, _ = database
+    kept_factory, kept = _kept_factory(factory)
+    fid = scene.frame_ids[0]
+    box = _box(factory, fid)
+    with kept_factory() as s:
+        update_ball_label(s, fid, box=_moved(box, 2.0), settings=settings)
+    return factory, settings, kept_factory, kept, fid, box
+
+
 def _recomputes_to_itself(factory: Callable[[], Session], system_id: int, settings) -> bool:
     """True when recomputing the system's stored labels changes no stored row but the triangulation's time stamp."""
     from app.db.models import Triangulation
@@ -153,12 +165,7 @@ def test_kept_objects_found_stale_are_checked_before_use_until_found_current() -
 def test_frames_of_a_taken_system_are_the_sessions_own(database) -> None:
     """A taken system is attached to the edit's session: its frames are found there by id, and nothing is loaded
     twice (one object per row)."""
-    factory, settings, scene, _ = database
-    kept_factory, kept = _kept_factory(factory)
-    fid = scene.frame_ids[0]
-    box = _box(factory, fid)
-    with kept_factory() as s:
-        update_ball_label(s, fid, box=_moved(box, 2.0), settings=settings)
+    factory, settings, kept_factory, kept, fid, box = _after_one_kept_edit(database)
     with kept_factory() as s:
         frame = update_ball_label(s, fid, box=_moved(box, 3.0), settings=settings)
         assert kept.taken == 1
@@ -277,12 +284,7 @@ def test_an_edit_validates_its_box_against_the_frame_it_writes(database) -> None
 
     from app.core.errors import InvalidInputError
 
-    factory, settings, scene, _ = database
-    kept_factory, kept = _kept_factory(factory)
-    fid = scene.frame_ids[0]
-    box = _box(factory, fid)
-    with kept_factory() as s:
-        update_ball_label(s, fid, box=_moved(box, 2.0), settings=settings)
+    factory, settings, kept_factory, _, fid, box = _after_one_kept_edit(database)
     with factory() as s:  # another process re-imports the frame smaller
         s.execute(sa.update(Frame).where(Frame.id == fid).values(width=int(box[0]) - 50))
         s.commit()
