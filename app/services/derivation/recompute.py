@@ -345,15 +345,13 @@ def read_stored_state(session: Session, system_id: int, rig_game_id: int | None,
     digest_here = rows is None and postgresql
     if digest_here:
         calls.append(rows_digest_call(system_id))
-    if rows is None and not postgresql and after:  # SQLite's digest is read by its own statements, before ``after``
+    elif rows is None:  # SQLite: the digest by its own statements, in the same transaction, before ``after``
         rows = stored_rows_digest(session, system_id)
     answers = send_together(session, [*calls, *after])[len(before):]
     rig = rig_rows_of(answers.pop(0)) if rig_game_id is not None else None
     if digest_here:
         rows = rows_digest_of(answers.pop(0))
-    elif rows is None:
-        rows = stored_rows_digest(session, system_id)
-    return rows, rig, answers
+    return rows, rig, answers  # type: ignore[return-value]
 
 
 def stored_rows_digest(session: Session, system_id: int) -> str:
