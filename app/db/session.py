@@ -33,6 +33,7 @@ from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.paths import PROJECT_ROOT
+from app.db.together import end_of_transaction
 from app.db.types import json_dumps, json_loads
 
 #: The Alembic configuration of the project (``script_location = migrations``).
@@ -177,7 +178,15 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
         _ping_when_idle(engine, PING_AFTER_IDLE_S)
     if engine.dialect.driver == "psycopg":
         engine.dialect.do_rollback = _rollback_keeping_prepared  # type: ignore[method-assign]
+        engine.dialect.do_commit = _commit  # type: ignore[method-assign]
     return engine
+
+
+def _commit(dbapi_connection: Any) -> None:
+    """Commit a psycopg connection's transaction (``Connection.commit()``), then let its next transaction begin as
+    psycopg begins one (``app.db.together.end_of_transaction``: a transaction whose ``BEGIN`` went in a pipeline)."""
+    dbapi_connection.commit()
+    end_of_transaction(dbapi_connection)
 
 
 #: A pooled connection to a database server (PostgreSQL) is pinged before it is handed out when it has been idle in
@@ -240,7 +249,8 @@ def _rollback_keeping_prepared(dbapi_connection: Any) -> None:
     rollback (PostgreSQL's ``PREPARE`` is not transactional), so the rollback is sent through the libpq connection
     (``Connection.pgconn``, psycopg's public low-level interface), which leaves psycopg's cache as it is; the
     connection's transaction state is libpq's, read by psycopg from there. The engine's dialect uses it for every
-    rollback: a session's, the pool's reset on return.
+    rollback: a session's, the pool's reset on return. A transaction whose ``BEGIN`` went in a pipeline hands the
+    connection back to psycopg's implicit ``BEGIN`` once rolled back (``app.db.together.end_of_transaction``).
 
     Raises:
         psycopg.Error: PostgreSQL did not roll back: the class of the SQLSTATE it sent (``psycopg.errors.lookup``),
@@ -251,8 +261,10 @@ def _rollback_keeping_prepared(dbapi_connection: Any) -> None:
 
     pgconn = dbapi_connection.pgconn
     if pgconn.transaction_status == pq.TransactionStatus.IDLE:
+        end_of_transaction(dbapi_connection)
         return
     result = pgconn.exec_(b"ROLLBACK")
+    end_of_transaction(dbapi_connection)
     if result.status != pq.ExecStatus.COMMAND_OK:
         sqlstate = result.error_field(pq.DiagnosticField.SQLSTATE)
         try:
@@ -409,6 +421,7 @@ def begin_write_keeping_objects(session: Session) -> None:
         _TURNS[conn.engine].begin(conn)
     else:
         raw.commit()
+        end_of_transaction(raw)
         conn.dialect.set_isolation_level(raw, conn.dialect.default_isolation_level)
     session.info[_WRITE_TX] = tx
 

@@ -11,6 +11,10 @@ still runs them one after the other, each at READ COMMITTED with its own snapsho
 statement queued after a ``SELECT ... FOR UPDATE`` reads what the database holds once that lock is granted, as it
 would when sent after the lock's answer came back.
 
+A pipeline that opens its transaction carries the ``BEGIN`` itself (:func:`begin_in_pipeline`): psycopg's own
+implicit ``BEGIN`` in pipeline mode waits for its answer before the statements go (libpq tells the transaction's
+state only at a ``Sync``), one more round trip before every edit's lock.
+
 Each statement is compiled once (:func:`driver_statement`) and executed on the driver's own cursor, its parameters
 and result values converted by the statement's SQLAlchemy types as ``Connection.execute`` converts them. psycopg
 prepares a statement on the server after it ran a few times on a connection, pipelined or not. Other databases and
@@ -19,6 +23,7 @@ drivers (SQLite) execute the same calls one after the other through SQLAlchemy, 
 from __future__ import annotations
 
 import functools
+import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Optional, Union
@@ -106,7 +111,11 @@ def send_together(session: Session, calls: Sequence[Call]) -> list[Any]:
     cursors = []
     current = statements[0]
     try:
+        begin = begin_in_pipeline(raw)
         with raw.pipeline():
+            if begin is not None:
+                cursors.append(raw.cursor())
+                cursors[0].execute(begin)
             for current, call in zip(statements, calls):
                 cur = raw.cursor()
                 if isinstance(call.params, list):
@@ -115,7 +124,7 @@ def send_together(session: Session, calls: Sequence[Call]) -> list[Any]:
                     cur.execute(current.sql, current.params(call.params))
                 cursors.append(cur)
         return [[current.row(r) for r in cur.fetchall()] if cur.description is not None else cur.rowcount
-                for current, cur in zip(statements, cursors)]
+                for current, cur in zip(statements, cursors[len(cursors) - len(statements):])]
     except psycopg.Error as exc:
         invalidated = conn.dialect.is_disconnect(exc, raw, None)
         if invalidated:
@@ -133,3 +142,52 @@ def _executed(conn: sa.Connection, call: Call) -> Any:
     if result.returns_rows:
         return [tuple(r) for r in result.all()]
     return result.rowcount
+
+
+#: psycopg connections whose transaction :func:`begin_in_pipeline` began (their driver-level ``autocommit`` is on
+#: until :func:`end_of_transaction` sees the transaction end).
+_BEGUN_IN_PIPELINE: "weakref.WeakSet[Any]" = weakref.WeakSet()
+
+
+def begin_in_pipeline(raw: Any) -> Optional[bytes]:
+    """The ``BEGIN`` statement a pipeline about to run on the psycopg connection ``raw`` sends first, or None when
+    ``raw`` is in a transaction already or runs without one (``autocommit``, SQLAlchemy's ``AUTOCOMMIT``).
+
+    psycopg begins a transaction implicitly before a statement when the connection is idle; in pipeline mode it
+    sends that ``BEGIN`` alone and waits for its answer (libpq reports the transaction's state only after a
+    ``Sync``; psycopg/psycopg#401). To send it with the pipeline's statements instead, the connection's driver-level
+    ``autocommit`` is set (allowed while idle; psycopg then begins nothing) and this ``BEGIN``, built from the
+    connection's isolation level, read-only and deferrable settings as psycopg builds its own, is the pipeline's
+    first statement: the server holds one transaction from it to the ``COMMIT`` or ``ROLLBACK`` as before (psycopg's
+    ``commit()`` and ``rollback()`` act on the server's transaction state, not on ``autocommit``). The engine
+    (``app.db.session.make_engine``) calls :func:`end_of_transaction` when the transaction ends, which sets
+    ``autocommit`` back, so the connection's next transaction begins implicitly again."""
+    from psycopg import pq
+
+    end_of_transaction(raw)  # (a transaction of this kind that ended without passing the engine's hooks)
+    if raw.autocommit or raw.pgconn.transaction_status != pq.TransactionStatus.IDLE:
+        return None
+    parts = [b"BEGIN"]
+    if raw.isolation_level is not None:
+        parts.append(b"ISOLATION LEVEL " + raw.isolation_level.name.replace("_", " ").encode())
+    if raw.read_only is not None:
+        parts.append(b"READ ONLY" if raw.read_only else b"READ WRITE")
+    if raw.deferrable is not None:
+        parts.append(b"DEFERRABLE" if raw.deferrable else b"NOT DEFERRABLE")
+    raw.autocommit = True
+    _BEGUN_IN_PIPELINE.add(raw)
+    return b" ".join(parts)
+
+
+def end_of_transaction(raw: Any) -> None:
+    """Set the driver-level ``autocommit`` of the psycopg connection ``raw`` (or SQLAlchemy's pool proxy of one) back off once the transaction
+    :func:`begin_in_pipeline` began has ended (the connection is idle); does nothing for any other connection or
+    while the transaction goes on."""
+    import psycopg
+
+    if not isinstance(raw, psycopg.Connection):  # the pool's proxy (SQLAlchemy's dialect hooks get it)
+        raw = raw.dbapi_connection
+    if raw in _BEGUN_IN_PIPELINE:
+        if raw.pgconn.transaction_status == psycopg.pq.TransactionStatus.IDLE:
+            _BEGUN_IN_PIPELINE.discard(raw)
+            raw.autocommit = False

@@ -127,3 +127,53 @@ def test_a_lock_timeout_fails_as_connection_execute_fails_and_later_reads_see_th
         s.rollback()
         h.rollback()
     engine.dispose()
+
+
+def _round_trips(raw, run) -> tuple[int, list[str]]:
+    """The round trips ``run()`` makes on the psycopg connection ``raw`` (libpq's protocol trace: a ``Sync``, or a
+    simple ``Query``, waits for the server once) and the statements it parsed."""
+    import tempfile
+
+    with tempfile.TemporaryFile("w+") as f:
+        raw.pgconn.trace(f.fileno())
+        try:
+            run()
+        finally:
+            raw.pgconn.untrace()
+        f.seek(0)
+        lines = [line.split("\t") for line in f.read().splitlines()]
+    sent = [line for line in lines if len(line) > 3 and line[1] == "F"]
+    parsed = [line[4].split('"')[3] for line in sent if line[3] == "Parse"]
+    return sum(line[3] in ("Sync", "Query") for line in sent), parsed
+
+
+def test_a_pipeline_that_opens_its_transaction_sends_its_begin_with_it(pg_url: str) -> None:
+    """PostgreSQL: a pipeline on an idle connection sends the transaction's ``BEGIN`` (at the session's isolation
+    level) with its statements, one round trip in all, where psycopg's implicit ``BEGIN`` would wait for its own
+    answer first; the statements still form one transaction (a rollback undoes them, a commit keeps them), and the
+    connection's next transaction begins implicitly again, also after a rollback."""
+    upgrade_database(pg_url)
+    engine = make_engine(pg_url)
+    factory = make_session_factory(engine)
+    with factory() as s:
+        game_id, sid, fids = _game_with_frames(s)
+        s.commit()
+    with factory() as s:
+        raw = s.connection().connection.dbapi_connection
+        trips, parsed = _round_trips(raw, lambda: send_together(s, [Call(_WIDTH, {"fid": fids[0], "w": 800}),
+                                                                      Call(_ROWS, {"sid": sid})]))
+        assert trips == 1 and parsed[0] == "BEGIN" and len(parsed) == 3
+        s.rollback()
+        assert s.scalar(sa.select(Frame.width).where(Frame.id == fids[0])) == 1920  # the rollback undid the update
+        assert raw.autocommit is False  # this read began its transaction implicitly
+        s.rollback()
+        s.connection(execution_options={"isolation_level": "REPEATABLE READ"})
+        trips, parsed = _round_trips(raw, lambda: send_together(s, [Call(_WIDTH, {"fid": fids[0], "w": 800})]))
+        assert trips == 1 and parsed[0] == "BEGIN ISOLATION LEVEL REPEATABLE READ"
+        s.commit()
+        assert raw.autocommit is False
+        s.execute(sa.update(Frame).where(Frame.id == fids[1]).values(width=700))  # an implicit transaction again
+        s.rollback()
+    with factory() as s:
+        assert s.scalars(sa.select(Frame.width).where(Frame.id.in_(fids[:2])).order_by(Frame.id)).all() == [800, 1920]
+    engine.dispose()
