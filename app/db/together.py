@@ -25,7 +25,7 @@ from __future__ import annotations
 import functools
 import weakref
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Optional, Union
 
 import sqlalchemy as sa
@@ -191,3 +191,57 @@ def end_of_transaction(raw: Any) -> None:
         if raw.pgconn.transaction_status == psycopg.pq.TransactionStatus.IDLE:
             _BEGUN_IN_PIPELINE.discard(raw)
             raw.autocommit = False
+
+
+#: ``Session.info`` key of the :class:`ReadsAfterWrites` a session's next write sends.
+_READS_AFTER_WRITES = "v3d.together.reads_after_writes"
+
+
+@dataclass
+class ReadsAfterWrites:
+    """Reads a request makes once its write has committed (its answer's), sent instead in the write's own round
+    trip, after its writes and before its ``COMMIT`` (:func:`read_after_writes`): they see what the write wrote, as
+    they would after its commit, and whatever else was committed before them (READ COMMITTED: a snapshot per
+    statement), as they would a moment later."""
+
+    key: Any  # what the reads answer (the reader's own key: its page's queue, say)
+    build: Callable[[Any], Optional[Sequence[Call]]]  # the reads of the written subject (None: none)
+    subject_id: Optional[int] = None  # the subject the reads were built for
+    calls: list[Call] = field(default_factory=list)
+    answers: Optional[list[Any]] = None
+
+
+def read_after_writes(session: Session, key: Any, build: Callable[[Any], Optional[Sequence[Call]]]) -> None:
+    """Let the next write of ``session`` that sends its writes together (:func:`calls_after_writes`) send the reads
+    ``build(subject)`` after them in the same round trip (``subject``: what it wrote, its system as committed), for
+    :func:`answers_after_writes` to answer under ``key``. PostgreSQL only (elsewhere statements are calls in the
+    process: nothing to spare); a write that sends no such calls leaves the reader to read as before."""
+    if session.get_bind().dialect.driver == "psycopg":
+        session.info[_READS_AFTER_WRITES] = ReadsAfterWrites(key, build)
+
+
+def calls_after_writes(session: Session, subject: Any) -> list[Call]:
+    """The reads :func:`read_after_writes` asked for, built for ``subject`` (an object with an ``id``), to send
+    after the write's own calls; their answers go to :func:`keep_answers_after_writes`. [] when none were asked
+    for, or asked for already."""
+    reads: Optional[ReadsAfterWrites] = session.info.get(_READS_AFTER_WRITES)
+    if reads is None or reads.subject_id is not None or subject is None:
+        return []
+    reads.subject_id, reads.calls = subject.id, list(reads.build(subject) or [])
+    return reads.calls
+
+
+def keep_answers_after_writes(session: Session, answers: Sequence[Any]) -> None:
+    """Keep ``answers``, the last answers of the write's round trip, as those of :func:`calls_after_writes`'s."""
+    reads: Optional[ReadsAfterWrites] = session.info.get(_READS_AFTER_WRITES)
+    if reads is not None and reads.calls:
+        reads.answers = list(answers[len(answers) - len(reads.calls):])
+
+
+def answers_after_writes(session: Session, key: Any, subject_id: int) -> Optional[list[Any]]:
+    """The answers of the reads asked for under ``key`` (:func:`read_after_writes`), when the session's write sent
+    them for subject ``subject_id`` (and they are taken: asked once); else None (read them now)."""
+    reads: Optional[ReadsAfterWrites] = session.info.pop(_READS_AFTER_WRITES, None)
+    if reads is None or reads.key != key or reads.subject_id != subject_id or reads.answers is None:
+        return None
+    return reads.answers

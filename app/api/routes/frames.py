@@ -33,7 +33,7 @@ from app.services.curation import decisions, editing, writing
 from app.services.curation.calibration_preview import preview_calibration
 from app.services.images import serving as images
 from app.services.curation import queue
-from app.services.curation.system_page import load_frame, pitch_lines_key, system_page
+from app.services.curation.system_page import load_frame, pitch_lines_key, read_with_the_edit, system_page
 from app.services.curation.versions import expected_versions, frame_etag
 
 #: The header naming the audit entry of a write (what a later undo names).
@@ -121,8 +121,9 @@ def name_entry(session: Session, response: Response) -> None:
 
 def _edited(session: Session, frame: Frame, response: Response, query: QueueQuery, me: str) -> Response:
     """The recomputed system view after an edit of ``frame`` by ``me`` (whom ``assignee=me`` names; the frame the
-    edit answered, with its system as it committed it), its new ETag and its audit entry in the header (serialised
-    here: ``app.api.answers``)."""
+    edit answered, with its system as it committed it; the edit read the page's queue neighbours and presence with
+    its writes, ``read_with_the_edit``), its new ETag and its audit entry in the header (serialised here:
+    ``app.api.answers``)."""
     name_entry(session, response)
     with_etag(response, frame_etag(frame))
     return json_answer(SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort)), response)
@@ -163,6 +164,7 @@ def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDe
     the image, a point outside it; ``provenance`` of another shape; nothing is stored then. A label sent with
     a ``provenance`` (a doubt's suggestion) is stored as suggested: it makes no 3D ball until a person places it.
     """
+    read_with_the_edit(session, query.filters(me=principal.name), query.sort)  # its answer's reads
     frame = editing.update_ball_label(session, frame_id, box=body.box, point=body.point, provenance=body.provenance,
                                       settings=settings, actor=principal.name,
                                       expected=expected_versions(if_match, "frame", frame_id))
@@ -180,6 +182,7 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     infinity; naming ``undo_of``: not a field-line write of this frame whose lines before were ``lines``;
     nothing is stored then.
     """
+    read_with_the_edit(session, query.filters(me=principal.name), query.sort)  # its answer's reads
     frame = editing.replace_field_lines(session, frame_id, body.lines, settings=settings, actor=principal.name,
                                         expected=expected_versions(if_match, "frame", frame_id), undo_of=body.undo_of)
     return _edited(session, frame, response, query, principal.name)
@@ -236,6 +239,7 @@ def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: An
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines; 409 when the mirror
     guard refuses the mirrored calibration (nothing is stored then).
     """
+    read_with_the_edit(session, query.filters(me=principal.name), query.sort)  # its answer's reads
     frame = editing.apply_mirrored_labels(session, frame_id, settings=settings, actor=principal.name,
                                           expected=expected_versions(if_match, "frame", frame_id))
     return _edited(session, frame, response, query, principal.name)
@@ -248,6 +252,7 @@ def set_exclusion(session: SessionDep, settings: SettingsDep, principal: Annotat
     """Exclude the view from its system's triangulation (``{"excluded": true}``) or restore it
     (``false``), recompute the system, and answer the recomputed system view. The decision is stored
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
+    read_with_the_edit(session, query.filters(me=principal.name), query.sort)  # its answer's reads
     frame = editing.set_view_excluded(session, frame_id, body.excluded, settings=settings, actor=principal.name,
                                       expected=expected_versions(if_match, "frame", frame_id))
     return _edited(session, frame, response, query, principal.name)

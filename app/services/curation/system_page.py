@@ -20,7 +20,7 @@ from sqlalchemy.orm import Session, joinedload
 
 from app.db.models import Frame, System
 from app.db.session import reads_on_their_own
-from app.db.together import send_together
+from app.db.together import Call, answers_after_writes, read_after_writes, send_together
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.core.errors import found
@@ -179,6 +179,27 @@ def load_frame(session: Session, frame_id: int) -> Frame:
     return found(session.scalars(stmt).unique().first(), "frame", frame_id)
 
 
+#: The key of :func:`read_with_the_edit`'s reads (with the queue's filters and sort).
+_ANSWER_READS = "system_page"
+
+
+def read_with_the_edit(session: Session, filters: SystemFilters = SystemFilters(),
+                       sort: SystemSort = DEFAULT_SORT) -> None:
+    """Let the next edit written in ``session`` read, with its writes and in their round trip on PostgreSQL, what
+    :func:`system_page` reads for its answer besides the system the edit holds (its neighbours in the queue
+    ``filters`` + ``sort``, its presence claims; ``app.db.together.read_after_writes``): an edit's answer then
+    costs no round trip of its own after the ``COMMIT``. Does nothing elsewhere."""
+    read_after_writes(session, (_ANSWER_READS, filters, sort), lambda held: _answer_calls(held, filters, sort))
+
+
+def _answer_calls(held: System, filters: SystemFilters, sort: SystemSort) -> Optional[list[Call]]:
+    """The reads of :func:`system_page` besides the system ``held`` (held by the session as committed): both its
+    queue neighbours and its presence claims, or None when the queue's sort keys are not all the system's own
+    columns (``queue.held_neighbours_call``)."""
+    neighbours = held_neighbours_call(held, filters, sort)
+    return None if neighbours is None else [neighbours, open_on_call(held.id)]
+
+
 def system_page(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
                 sort: SystemSort = DEFAULT_SORT) -> SystemPageData:
     """The system for its page (:func:`load_system`), its neighbours in the queue ``filters`` + ``sort``
@@ -186,17 +207,21 @@ def system_page(session: Session, system_id: int, filters: SystemFilters = Syste
     assignment (from the loaded system: ``assignment.assignment_of``) and its live presence claims (one indexed read).
     After an edit, whose session holds the system as it committed it, those reads run without a transaction of their
     own (``app.db.session.reads_on_their_own``), both in one round trip on PostgreSQL when the queue's sort keys are
-    the system's own columns (``queue.held_neighbours_call``).
+    the system's own columns (``queue.held_neighbours_call``), or were read with the edit's writes already
+    (:func:`read_with_the_edit`).
 
     Raises:
         NotFoundError: no system has this id.
     """
     system = held = _loaded_system(session, system_id)
     if held is not None:  # an edit's answer: the system is held as committed, the reads left need no snapshot
-        reads_on_their_own(session)
-        neighbours = held_neighbours_call(held, filters, sort)
-        if neighbours is not None:  # both reads in one round trip on PostgreSQL (app.db.together)
-            around, presence = send_together(session, [neighbours, open_on_call(system_id)])
+        answered = answers_after_writes(session, (_ANSWER_READS, filters, sort), system_id)
+        if answered is None:
+            reads_on_their_own(session)
+            if (calls := _answer_calls(held, filters, sort)) is not None:  # one round trip on PostgreSQL
+                answered = send_together(session, calls)
+        if answered is not None:
+            around, presence = answered
             return SystemPageData(system, *around[0], assignment_of(session, system), open_on_of(presence))
     else:
         system = load_system(session, system_id)

@@ -77,7 +77,7 @@ from app.db.session import begin_snapshot, begin_write, begin_write_keeping_obje
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.services.kinds import kind_of, policy
-from app.db.together import Call, send_together
+from app.db.together import Call, calls_after_writes, keep_answers_after_writes, send_together
 from app.services.derivation.recompute import (
     load_for_recompute, read_stored_state, rig_game_of, rows_digest_call, rows_digest_of, state_digest,
     stored_rows_digest, system_rig_rows,
@@ -361,8 +361,9 @@ def _attached(session: Session, system: System) -> Optional[System]:
 def _write_derived_and_keep(session: Session, system_id: int, plan: _Plan, with_writes: Sequence[Call] = ()
                             ) -> tuple[list[Any], Optional[Callable[[], None]]]:
     """Under the lock, after the unit of work flushed the edit's share: the derived rows the recomputation changed
-    (``plan.direct``: one UPDATE per table and columns), the calls ``with_writes`` (the audit entry's insert) and, when
-    the session's process keeps systems, the digest of the rows as written, in one round trip on PostgreSQL; answers
+    (``plan.direct``: one UPDATE per table and columns), the calls ``with_writes`` (the audit entry's insert), when
+    the session's process keeps systems, the digest of the rows as written, and the reads the request's answer asked
+    to make after the writes (``app.db.together.read_after_writes``), in one round trip on PostgreSQL; answers
     the answers of ``with_writes`` and what keeps the edit's objects for the next edit of the system once the
     transaction committed (``kept.KeptSystems.keep``; None when the process keeps none)."""
     kept: Optional[KeptSystems] = session.info.get(KEPT_SYSTEMS)
@@ -374,7 +375,11 @@ def _write_derived_and_keep(session: Session, system_id: int, plan: _Plan, with_
     if keeping and postgresql:  # the rows' digest and the rig rows as written, for the next edit's trusted use
         after += [rows_digest_call(system_id), *([rig_call(rig_game_id, plan.settings)] if rig_game_id is not None
                                                  else [])]
-    answers = plan.direct.write(session, after) if plan.direct is not None else send_together(session, after)
+    answer_reads = calls_after_writes(session, plan.preloaded)  # the answer's own reads (its queue neighbours)
+    answers = plan.direct.write(session, after + answer_reads) if plan.direct is not None else \
+        send_together(session, after + answer_reads)
+    keep_answers_after_writes(session, answers)
+    answers = answers[:len(after)]
     written, answers = answers[:len(with_writes)], answers[len(with_writes):]
     if not keeping:
         return written, None

@@ -296,3 +296,51 @@ def test_an_edit_validates_its_box_against_the_frame_it_writes(database) -> None
     with kept_factory() as s:
         update_ball_label(s, fid, box=inside, settings=settings)
     assert _box(factory, fid) == inside
+
+
+def test_an_edits_answer_reads_its_neighbours_and_presence_with_the_edits_writes(database) -> None:
+    """The page an edit answers (``system_page`` after ``read_with_the_edit``) equals the page read afresh after the
+    edit committed: its queue neighbours and who has the system open; on PostgreSQL those reads went with the edit's
+    writes, so the page sends nothing after the ``COMMIT``, for an edit that loads and one that takes kept objects."""
+    from sqlalchemy import event
+
+    import app.db.together as together
+    from app.db.models import User, UserRole
+    from app.services.curation.presence import claim
+    from app.services.curation.system_page import read_with_the_edit, system_page
+
+    factory, settings, scene, second = database
+    engine = factory.kw["bind"]  # type: ignore[attr-defined]
+    kept_factory, kept = _kept_factory(factory)
+    with factory() as s:
+        other = User(name="other", role=UserRole.ANNOTATOR, password_hash="-")
+        s.add(other)
+        s.commit()
+        claim(s, scene.system_id, other.id)
+        s.commit()
+    fid = scene.frame_ids[0]
+    box = _box(factory, fid)
+    sent: list[str] = []
+    listener = lambda *a: sent.append(a[2].split()[0])  # noqa: E731
+    real = together.driver_statement
+    for i in range(2):  # the first edit loads, the second takes the kept objects
+        with kept_factory() as s:
+            read_with_the_edit(s)
+            update_ball_label(s, fid, box=_moved(box, 2.0 + i), settings=settings)
+            sent.clear()
+            event.listen(engine, "before_cursor_execute", listener)
+            together.driver_statement = lambda stmt, dialect: sent.append("pipelined") or real(stmt, dialect)
+            try:
+                page = system_page(s, scene.system_id)
+            finally:
+                event.remove(engine, "before_cursor_execute", listener)
+                together.driver_statement = real
+            answered = (page.prev_id, page.next_id, [p.name for p in page.open_by], page.system.worst_error_px)
+        with factory() as s:
+            fresh = system_page(s, scene.system_id)
+            assert answered == (fresh.prev_id, fresh.next_id, [p.name for p in fresh.open_by],
+                                fresh.system.worst_error_px)
+        assert answered[1] == second.system_id and answered[2] == ["other"]
+        if engine.dialect.name == "postgresql":
+            assert sent == []
+    assert kept.taken == 1
