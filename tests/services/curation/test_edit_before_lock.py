@@ -238,6 +238,42 @@ def test_direct_writes_refuse_a_row_gone_and_leave_new_rows_to_the_unit_of_work(
         s.rollback()
 
 
+def test_direct_writes_of_several_rows_store_each_value_as_a_single_write_would(database) -> None:
+    """The rows of one table and columns written together (one executemany UPDATE) store each row's own values: JSON
+    documents, numbers, time stamps, None; on PostgreSQL None as SQL NULL (``IS NULL`` finds it: the statements go
+    through the driver, ``app.db.together``; SQLite's, executed by SQLAlchemy, store JSON ``null``, which reads back
+    as None too)."""
+    from datetime import datetime, timezone
+
+    import sqlalchemy as sa
+
+    from app.db.models import Calibration
+    from app.services.derivation.rows import put_values, writing_directly
+
+    factory, settings, scene, _ = database
+    when = datetime(2026, 1, 2, 3, 4, 5, 678000, tzinfo=timezone.utc)
+    with factory() as s:
+        frames = [s.get(Frame, fid) for fid in scene.frame_ids]
+        with writing_directly(s) as direct:
+            for i, frame in enumerate(frames):
+                put_values(frame.calibration, {"mirror_evidence": None if i == 1 else {"i": i, "x": [0.5, i]},
+                                               "updated_at": when})
+                put_values(frame.reprojection, {"error_px": 0.25 + i, "point": [1.5 * i, 2.0]})
+        assert len(direct) == 2 * len(frames)
+        direct.write(s)
+        s.commit()
+    with factory() as s:
+        nulls = s.scalars(sa.select(Calibration.frame_id).where(Calibration.frame_id.in_(scene.frame_ids),
+                                                               Calibration.mirror_evidence.is_(None))).all()
+        if s.get_bind().dialect.name == "postgresql":  # as a single write through the driver stores None
+            assert nulls == [scene.frame_ids[1]]
+        for i, fid in enumerate(scene.frame_ids):
+            frame = s.get(Frame, fid)
+            assert frame.calibration.mirror_evidence == (None if i == 1 else {"i": i, "x": [0.5, i]})
+            assert frame.calibration.updated_at == when
+            assert (frame.reprojection.error_px, frame.reprojection.point) == (0.25 + i, [1.5 * i, 2.0])
+
+
 def test_an_edit_reads_its_games_rig_rows_once_per_digest(database, monkeypatch) -> None:
     """Issue 29: the rig rows the stored rows' digest reads are the ones the recomputation uses (the mirror evidence's
     rig, a line edit's rig retry): an edit reads them once before the lock and, on PostgreSQL, once more under it
