@@ -113,9 +113,10 @@ def send_together(session: Session, calls: Sequence[Call]) -> list[Any]:
     try:
         begin = begin_in_pipeline(raw)
         with raw.pipeline():
-            if begin is not None:
+            if begin is not None:  # its cursor answers nothing: closed with the others, left out of the answers
                 cursors.append(raw.cursor())
                 cursors[0].execute(begin)
+            answering = len(cursors)
             for current, call in zip(statements, calls):
                 cur = raw.cursor()
                 if isinstance(call.params, list):
@@ -124,7 +125,7 @@ def send_together(session: Session, calls: Sequence[Call]) -> list[Any]:
                     cur.execute(current.sql, current.params(call.params))
                 cursors.append(cur)
         return [[current.row(r) for r in cur.fetchall()] if cur.description is not None else cur.rowcount
-                for current, cur in zip(statements, cursors[len(cursors) - len(statements):])]
+                for current, cur in zip(statements, cursors[answering:])]
     except psycopg.Error as exc:
         invalidated = conn.dialect.is_disconnect(exc, raw, None)
         if invalidated:
@@ -180,9 +181,9 @@ def begin_in_pipeline(raw: Any) -> Optional[bytes]:
 
 
 def end_of_transaction(raw: Any) -> None:
-    """Set the driver-level ``autocommit`` of the psycopg connection ``raw`` (or SQLAlchemy's pool proxy of one) back off once the transaction
-    :func:`begin_in_pipeline` began has ended (the connection is idle); does nothing for any other connection or
-    while the transaction goes on."""
+    """Set the driver-level ``autocommit`` of the psycopg connection ``raw`` (or SQLAlchemy's pool proxy of one) back
+    off once the transaction :func:`begin_in_pipeline` began has ended (the connection is idle); does nothing for any
+    other connection or while the transaction goes on."""
     import psycopg
 
     if not isinstance(raw, psycopg.Connection):  # the pool's proxy (SQLAlchemy's dialect hooks get it)

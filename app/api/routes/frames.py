@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from typing import Annotated, Iterator
+from typing import Annotated, Callable, Iterator
 
 from fastapi import APIRouter, Depends, Header, HTTPException, Query, Response
 from fastapi.responses import StreamingResponse
@@ -119,14 +119,18 @@ def name_entry(session: Session, response: Response) -> None:
         response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
 
 
-def _edited(session: Session, frame: Frame, response: Response, query: QueueQuery, me: str) -> Response:
-    """The recomputed system view after an edit of ``frame`` by ``me`` (whom ``assignee=me`` names; the frame the
-    edit answered, with its system as it committed it; the edit read the page's queue neighbours and presence with
-    its writes, ``read_with_the_edit``), its new ETag and its audit entry in the header (serialised here:
+def _edited(session: Session, response: Response, query: QueueQuery, me: str,
+            edit: Callable[[], Frame]) -> Response:
+    """Run ``edit`` (an edit by ``me``, whom ``assignee=me`` names, answering the frame it edited) and answer the
+    recomputed system view: the frame's system as the edit committed it, whose queue neighbours and presence the edit
+    read with its writes (``read_with_the_edit``), its new ETag and its audit entry in the header (serialised here:
     ``app.api.answers``)."""
+    filters = query.filters(me=me)
+    read_with_the_edit(session, filters, query.sort)
+    frame = edit()
     name_entry(session, response)
     with_etag(response, frame_etag(frame))
-    return json_answer(SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort)), response)
+    return json_answer(SystemView.of(system_page(session, frame.system_id, filters, query.sort)), response)
 
 
 @router.get(
@@ -164,11 +168,9 @@ def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDe
     the image, a point outside it; ``provenance`` of another shape; nothing is stored then. A label sent with
     a ``provenance`` (a doubt's suggestion) is stored as suggested: it makes no 3D ball until a person places it.
     """
-    read_with_the_edit(session, query.filters(me=principal.name), query.sort)  # its answer's reads
-    frame = editing.update_ball_label(session, frame_id, box=body.box, point=body.point, provenance=body.provenance,
-                                      settings=settings, actor=principal.name,
-                                      expected=expected_versions(if_match, "frame", frame_id))
-    return _edited(session, frame, response, query, principal.name)
+    return _edited(session, response, query, principal.name, lambda: editing.update_ball_label(
+        session, frame_id, box=body.box, point=body.point, provenance=body.provenance, settings=settings,
+        actor=principal.name, expected=expected_versions(if_match, "frame", frame_id)))
 
 
 @router.put("/{frame_id}/field-lines", response_model=SystemView, responses=EDIT_RESPONSES)
@@ -182,10 +184,9 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     infinity; naming ``undo_of``: not a field-line write of this frame whose lines before were ``lines``;
     nothing is stored then.
     """
-    read_with_the_edit(session, query.filters(me=principal.name), query.sort)  # its answer's reads
-    frame = editing.replace_field_lines(session, frame_id, body.lines, settings=settings, actor=principal.name,
-                                        expected=expected_versions(if_match, "frame", frame_id), undo_of=body.undo_of)
-    return _edited(session, frame, response, query, principal.name)
+    return _edited(session, response, query, principal.name, lambda: editing.replace_field_lines(
+        session, frame_id, body.lines, settings=settings, actor=principal.name,
+        expected=expected_versions(if_match, "frame", frame_id), undo_of=body.undo_of))
 
 
 #: The calibration previews being computed in this process, by (user, frame): one at a time each.
@@ -239,10 +240,9 @@ def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: An
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines; 409 when the mirror
     guard refuses the mirrored calibration (nothing is stored then).
     """
-    read_with_the_edit(session, query.filters(me=principal.name), query.sort)  # its answer's reads
-    frame = editing.apply_mirrored_labels(session, frame_id, settings=settings, actor=principal.name,
-                                          expected=expected_versions(if_match, "frame", frame_id))
-    return _edited(session, frame, response, query, principal.name)
+    return _edited(session, response, query, principal.name, lambda: editing.apply_mirrored_labels(
+        session, frame_id, settings=settings, actor=principal.name,
+        expected=expected_versions(if_match, "frame", frame_id)))
 
 
 @router.post("/{frame_id}/exclusion", response_model=SystemView, responses=EDIT_RESPONSES)
@@ -252,10 +252,9 @@ def set_exclusion(session: SessionDep, settings: SettingsDep, principal: Annotat
     """Exclude the view from its system's triangulation (``{"excluded": true}``) or restore it
     (``false``), recompute the system, and answer the recomputed system view. The decision is stored
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
-    read_with_the_edit(session, query.filters(me=principal.name), query.sort)  # its answer's reads
-    frame = editing.set_view_excluded(session, frame_id, body.excluded, settings=settings, actor=principal.name,
-                                      expected=expected_versions(if_match, "frame", frame_id))
-    return _edited(session, frame, response, query, principal.name)
+    return _edited(session, response, query, principal.name, lambda: editing.set_view_excluded(
+        session, frame_id, body.excluded, settings=settings, actor=principal.name,
+        expected=expected_versions(if_match, "frame", frame_id)))
 
 
 @router.post("/{frame_id}/review", response_model=ReviewOut, responses=EDIT_RESPONSES)
