@@ -15,7 +15,7 @@ headers of ``app.api.security`` (a CSP allowing this server's own scripts only).
 imports, recomputes and exports; a job a killed process left running is resumed) and sets the garbage
 collector's young-generation threshold (``Settings.gc_young_threshold``). The factory sets how many recomputing edits
 compute at once in this process (``app.services.curation.writing.EditSlots``, ``Settings.edit_slots``), handed to
-every session of its factory.
+each edit in its context (``app.api.deps.edit_context``).
 
 Authentication (``app.api.authentication``): the session cookie middleware (its signing key read from
 ``V3D_SESSION_SECRET`` or the database when the middleware is built, at the first request or lifespan
@@ -51,8 +51,7 @@ from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
-from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
-from app.services.curation.writing import EDIT_SLOTS, EditSlots, get_system
+from app.services.curation.writing import EditSlots, get_system
 from app.core.errors import NotFoundError
 from app.services.jobs.runner import JobRunner
 from app.services.accounts.throttle import login_throttle
@@ -150,11 +149,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         docs_url=None,
     )
     app.state.settings = settings
-    # Every session carries this process's turns of the recomputing edits (Settings.edit_slots) and the systems its
-    # edits last committed (app.services.curation.kept).
-    app.state.session_factory = make_session_factory(
-        engine, info={EDIT_SLOTS: EditSlots(settings.edit_slots, settings.edit_slot_wait_s),
-                      KEPT_SYSTEMS: KeptSystems()})
+    app.state.session_factory = make_session_factory(engine)
+    # This process's turns of the recomputing edits (Settings.edit_slots), handed to each edit (app.api.deps)
+    app.state.edit_slots = EditSlots(settings.edit_slots, settings.edit_slot_wait_s)
     # Failed logins counted in the database, through the app's session factory of the moment (tests swap it).
     app.state.login_throttle = login_throttle(settings, lambda: app.state.session_factory())
 

@@ -1,71 +1,66 @@
-"""Database statements of one ball edit (issue 29, item 2): the service's ``update_ball_label`` on a 4-view system
-of a fresh demo database, counted with SQLAlchemy's ``before_cursor_execute`` event, grouped by kind and table.
-
-Deterministic (no timing): the figure item 2's work must bring down. Three edits of sessions without kept systems,
-then three of sessions sharing one ``KeptSystems`` as a served process's do (on PostgreSQL the kept, trusted
-objects spare every read before the lock). On PostgreSQL the statements an edit sends
-together (``app.db.together``, psycopg's pipeline mode) do not pass SQLAlchemy's cursor events: they are counted
-apart, with the pipelines that carried them (one round trip each). Usage (from the checkout)::
+"""Database statements of one ball edit: the service's ``update_ball_label`` on a 4-view system of a fresh demo
+database, counted with SQLAlchemy's ``before_cursor_execute`` event, grouped by kind and table, and split into the
+edit's reads (before its connection goes back to the pool), its computation (none: ``app.services.derivation.scope``)
+and its write (on PostgreSQL each statement is a round trip). Deterministic (no timing). Usage (from the checkout)::
 
     .venv/bin/python benchmarks/edit_statements.py
     .venv/bin/python benchmarks/edit_statements.py postgresql+psycopg://postgres@127.0.0.1:5432/test
 """
-import sys, collections
+import collections
+import sys
+
 sys.path.insert(0, ".")
-from sqlalchemy import event, select
-from benchmarks.load import fresh_database
-from app.core.config import Settings
-from app.db.session import make_engine, make_session_factory
-from app.db.models import Frame
-from app.services.curation.editing import update_ball_label
-from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
+from sqlalchemy import event, select  # noqa: E402  # after the checkout is on the path
 
-url_arg = sys.argv[1] if len(sys.argv) > 1 else None
-with fresh_database(url_arg) as url:
-    eng = make_engine(url)
-    SF = make_session_factory(eng)
-    counts = collections.Counter()
-    def before(conn, cursor, statement, params, context, executemany):
-        """Count ``statement`` under its verb and, for a SELECT, its first table."""
-        words = statement.split()
-        table = statement.split("FROM")[1].split()[0] if words[0].upper() == "SELECT" and "FROM" in statement else ""
-        counts[f"{words[0].upper()} {table}".strip()] += 1
-    event.listen(eng, "before_cursor_execute", before)
-    import app.db.together as together
-    real_statement = together.driver_statement
+from app.core.config import Settings  # noqa: E402
+from app.db.models import Frame  # noqa: E402
+from app.db.session import make_engine, make_session_factory  # noqa: E402
+from app.services.curation import writing  # noqa: E402
+from app.services.curation.editing import update_ball_label  # noqa: E402
+from benchmarks.load import fresh_database  # noqa: E402
 
-    def counted_statement(stmt, dialect):
-        """Count one statement sent in a pipeline (``send_together`` compiles each through this)."""
-        counts["(pipelined statements)"] += 1
-        return real_statement(stmt, dialect)
 
-    together.driver_statement = counted_statement
-    try:
-        import psycopg
+def main(url_arg: str | None) -> None:
+    """Print the statements of three ball edits, per phase, kind and table."""
+    with fresh_database(url_arg) as url:
+        engine = make_engine(url)
+        factory = make_session_factory(engine)
+        counts: collections.Counter[str] = collections.Counter()
+        phase = {"now": "read"}
 
-        real_pipeline = psycopg.Connection.pipeline
+        def before(conn, cursor, statement, params, context, executemany):  # noqa: ANN001  # SQLAlchemy's event
+            words = statement.split()
+            table = statement.split("FROM")[1].split()[0] if words[0].upper() == "SELECT" and "FROM" in statement \
+                else (words[2] if words[0].upper() in ("INSERT", "DELETE") else words[1] if len(words) > 1 else "")
+            counts[f"{phase['now']}: {words[0].upper()} {table}".strip()] += 1
 
-        def counted_pipeline(self):
-            """Count one pipeline: one round trip."""
-            counts["(pipelines)"] += 1
-            return real_pipeline(self)
+        event.listen(engine, "before_cursor_execute", before)
+        real_end, real_begin = writing.end_reads, writing.begin_write
 
-        psycopg.Connection.pipeline = counted_pipeline
-    except ImportError:
-        pass
-    with SF() as s:
-        f = next(fr for fr in s.scalars(select(Frame).order_by(Frame.id))
-                 if fr.ball_label is not None and fr.ball_label.box is not None and len(fr.system.frames) == 4)
-        fid = f.id; box = list(f.ball_label.box)
-    settings = Settings(database_url=url)
-    kept_SF = make_session_factory(eng, info={KEPT_SYSTEMS: KeptSystems()})  # as a served process's sessions
-    for i in range(6):  # three edits without kept systems, then three of a process that keeps them
-        counts.clear()
-        if i == 3:
-            print("-- a process that keeps its last systems (the first edit loads, the next take the kept objects):")
-        with (SF if i < 3 else kept_SF)() as s:
-            b = [box[0] + 2 + i, box[1], box[2] + 2 + i, box[3]]
-            update_ball_label(s, fid, box=b, settings=settings, actor="x")
-        alone = sum(v for k, v in counts.items() if not k.startswith("("))
-        print("edit", i, f"{alone} statements alone, {counts['(pipelined statements)']} pipelined in "
-              f"{counts['(pipelines)']} round trips;", dict(counts.most_common(14)))
+        def end_reads(session):  # noqa: ANN001, ANN202
+            real_end(session)
+            phase["now"] = "compute"
+
+        def begin_write(session):  # noqa: ANN001, ANN202
+            phase["now"] = "write"
+            real_begin(session)
+
+        writing.end_reads, writing.begin_write = end_reads, begin_write
+        with factory() as s:
+            f = next(fr for fr in s.scalars(select(Frame).order_by(Frame.id))
+                     if fr.ball_label is not None and fr.ball_label.box is not None and len(fr.system.frames) == 4)
+            fid, box = f.id, list(f.ball_label.box)
+        settings = Settings(database_url=url)
+        for i in range(3):
+            counts.clear()
+            phase["now"] = "read"
+            with factory() as s:
+                update_ball_label(s, fid, box=[box[0] + i + 1, box[1], box[2] + i + 1, box[3]], settings=settings)
+            print(f"edit {i + 1}: {sum(counts.values())} statements")
+            for key, n in sorted(counts.items()):
+                print(f"  {n:3d}  {key}")
+        engine.dispose()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1] if len(sys.argv) > 1 else None)

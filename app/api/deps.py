@@ -16,6 +16,7 @@ from sqlalchemy.orm import Session
 from app.api.schemas import DB_INT_MAX, DB_INT_MIN
 from app.core.config import Settings
 from app.db.models import Frame, System
+from app.services.curation.writing import EditContext
 from app.services.curation.writing import get_frame as _get_frame
 from app.services.curation.writing import get_system as _get_system
 
@@ -26,13 +27,23 @@ async def get_app_settings(request: Request) -> Settings:
 
 
 def get_session(request: Request) -> Iterator[Session]:
-    """One session per request, closed (uncommitted work rolled back) when the request ends."""
+    """One session per request, closed when the request ends: a read-only transaction left open is committed (it
+    wrote nothing; psycopg forgets the statements it prepared on a rollback only), anything else rolled back."""
     with request.app.state.session_factory() as session:
         yield session
+        if session.in_transaction() and not (session.new or session.dirty or session.deleted):
+            session.commit()
+
+
+def edit_context(request: Request) -> EditContext:
+    """A new context for the request's edit (``app.services.curation.writing.EditContext``) with the process's turns
+    of recomputing edits (``app.state.edit_slots``); the route reads its audit entry's id from it afterwards."""
+    return EditContext(slots=getattr(request.app.state, "edit_slots", None))
 
 
 SettingsDep = Annotated[Settings, Depends(get_app_settings)]
 SessionDep = Annotated[Session, Depends(get_session)]
+EditDep = Annotated[EditContext, Depends(edit_context)]
 
 
 #: The ``system_id`` path parameter of the system routes (bounded to the database's integers).

@@ -12,7 +12,7 @@ between: WAL cannot upgrade a stale snapshot, and no busy timeout helps). Reads 
 ``BEGIN`` and never wait for writers (WAL). On PostgreSQL the option changes nothing; the services lock
 the rows they read-modify-write (``SELECT ... FOR UPDATE``, ``app.services.curation.editing``).
 
-How long a write waits (issue 27): the served processes' engines are made with ``write_lock_timeout_s``
+How long a write waits: the served processes' engines are made with ``write_lock_timeout_s``
 (``V3D_WRITE_LOCK_TIMEOUT_S``, a few seconds: SQLite's turn and busy timeout, PostgreSQL's ``lock_timeout``);
 past it the wait fails with an ``OperationalError`` that :func:`is_lock_timeout` recognises and the API answers
 503 with ``Retry-After``. Edits hold the lock only to compare and write (they compute before it), so such a wait
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import sys
 import threading
-import weakref
 import time
 from pathlib import Path
 from typing import Any
@@ -33,7 +32,6 @@ from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.paths import PROJECT_ROOT
-from app.db.together import end_of_transaction
 from app.db.types import json_dumps, json_loads
 
 #: The Alembic configuration of the project (``script_location = migrations``).
@@ -44,9 +42,6 @@ WRITE_OPTION = "v3d_write"
 #: locked" (seconds): an import in the CLI may queue behind a server's import batch. Served engines wait
 #: ``Settings.write_lock_timeout_s`` instead (``make_engine(write_lock_timeout_s=)``).
 SQLITE_BUSY_TIMEOUT_S = 60.0
-#: ``Session.info`` keys: the transaction :func:`begin_write` began, the last transaction that flushed, the read
-#: snapshot :func:`begin_snapshot` began or kept.
-_WRITE_TX, _FLUSHED_TX, _SNAPSHOT_TX = "v3d_write_transaction", "v3d_flushed_transaction", "v3d_snapshot_transaction"
 #: ``Connection.info`` key (the pooled connection's): the :class:`_WriteTurns` whose turn it holds.
 _HOLDS_TURN = "v3d_write_turn"
 
@@ -100,10 +95,6 @@ class _WriteTurns:
             turns.lock.release()
 
 
-#: Each SQLite engine's :class:`_WriteTurns` (:func:`begin_write_keeping_objects` takes a turn as ``begin`` does).
-_TURNS: "weakref.WeakKeyDictionary[Engine, _WriteTurns]" = weakref.WeakKeyDictionary()
-
-
 def _prepare_sqlite(engine: Engine, url: sa.URL, busy_timeout_s: float) -> None:
     """Foreign keys ON, WAL journal for file databases, and SQLAlchemy's pysqlite recipe for working
     SAVEPOINTs: the driver's own implicit BEGIN is disabled and SQLAlchemy emits ``BEGIN`` itself, so
@@ -112,7 +103,6 @@ def _prepare_sqlite(engine: Engine, url: sa.URL, busy_timeout_s: float) -> None:
     (:class:`_WriteTurns`)."""
     in_memory = url.database in (None, "", ":memory:") or "mode=memory" in str(url)
     turns = _WriteTurns(busy_timeout_s)
-    _TURNS[engine] = turns
 
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_connection: Any, _record: Any) -> None:
@@ -148,8 +138,7 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
     wins) for the write lock, and begin the transactions of :func:`begin_write` with ``BEGIN IMMEDIATE``.
     PostgreSQL connections run with :data:`POSTGRES_OPTIONS` (JIT off; options in the URL's query or in
     ``connect_args`` win); engines given ``write_lock_timeout_s`` set the connections' ``lock_timeout`` to it (a row lock waited
-    for longer fails, :func:`is_lock_timeout`), and roll back without forgetting the statements psycopg prepared
-    (:func:`_rollback_keeping_prepared`).
+    for longer fails, :func:`is_lock_timeout`).
     Extra ``kwargs`` go to ``create_engine``.
     """
     u = make_url(url)
@@ -176,17 +165,7 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
     engine = sa.create_engine(u, **kwargs)
     if ping_when_idle:
         _ping_when_idle(engine, PING_AFTER_IDLE_S)
-    if engine.dialect.driver == "psycopg":
-        engine.dialect.do_rollback = _rollback_keeping_prepared  # type: ignore[method-assign]
-        engine.dialect.do_commit = _commit  # type: ignore[method-assign]
     return engine
-
-
-def _commit(dbapi_connection: Any) -> None:
-    """Commit a psycopg connection's transaction (``Connection.commit()``), then let its next transaction begin as
-    psycopg begins one (``app.db.together.end_of_transaction``: a transaction whose ``BEGIN`` went in a pipeline)."""
-    dbapi_connection.commit()
-    end_of_transaction(dbapi_connection)
 
 
 #: A pooled connection to a database server (PostgreSQL) is pinged before it is handed out when it has been idle in
@@ -199,9 +178,8 @@ _IDLE_SINCE = "v3d_idle_since"
 def _ping_when_idle(engine: Engine, idle_s: float) -> None:
     """Ping a pooled connection before handing it out only when it has been idle for more than ``idle_s`` seconds.
 
-    SQLAlchemy's ``pool_pre_ping`` pings at every checkout: a round trip before every transaction, three per served
-    edit (its authentication, its edit, its answer), where the connection was last used milliseconds before (issue
-    29). A server restart, a network cut or an idle timeout on the server's side strike connections that waited in
+    SQLAlchemy's ``pool_pre_ping`` pings at every checkout: a round trip before every transaction, several per
+    served edit (its authentication, its reads, its write), where the connection was last used milliseconds before. A server restart, a network cut or an idle timeout on the server's side strike connections that waited in
     the pool; those are still pinged. A connection that dies within ``idle_s`` of its last use fails the request
     using it, and SQLAlchemy then invalidates the pool's connections (``is_disconnect``), so later requests connect
     afresh. A failed ping raises ``DisconnectionError``: the pool discards the connection and checks out another
@@ -236,47 +214,9 @@ def reads_on_their_own(session: Session) -> None:
     session.connection(execution_options={"isolation_level": "AUTOCOMMIT"})
 
 
-def _rollback_keeping_prepared(dbapi_connection: Any) -> None:
-    """Roll a psycopg connection's transaction back, keeping the statements psycopg has prepared on it.
-
-    psycopg prepares a statement on the server after it ran ``prepare_threshold`` (5) times on a connection, so
-    PostgreSQL parses and plans it once instead of at every execution; but its ``Connection.rollback()`` forgets
-    every prepared statement (it cannot tell whether the transaction rolled back a DDL change they depend on).
-    v3d ends every read-only transaction by a rollback (a request's lookups, an edit's read snapshot, the pool's
-    reset when a session closes), so no statement ever stayed prepared: every statement of every edit was planned
-    anew (about 5 ms of PostgreSQL CPU per ball edit, issue 29). v3d changes no schema while it serves
-    (migrations run before, in their own connections), and a statement prepared in a transaction outlives its
-    rollback (PostgreSQL's ``PREPARE`` is not transactional), so the rollback is sent through the libpq connection
-    (``Connection.pgconn``, psycopg's public low-level interface), which leaves psycopg's cache as it is; the
-    connection's transaction state is libpq's, read by psycopg from there. The engine's dialect uses it for every
-    rollback: a session's, the pool's reset on return. A transaction whose ``BEGIN`` went in a pipeline hands the
-    connection back to psycopg's implicit ``BEGIN`` once rolled back (``app.db.together.end_of_transaction``).
-
-    Raises:
-        psycopg.Error: PostgreSQL did not roll back: the class of the SQLSTATE it sent (``psycopg.errors.lookup``),
-            else ``OperationalError`` (a connection the server closed: the pool discards it, as after psycopg's own
-            rollback).
-    """
-    from psycopg import OperationalError, errors, pq
-
-    pgconn = dbapi_connection.pgconn
-    if pgconn.transaction_status == pq.TransactionStatus.IDLE:
-        end_of_transaction(dbapi_connection)
-        return
-    result = pgconn.exec_(b"ROLLBACK")
-    end_of_transaction(dbapi_connection)
-    if result.status != pq.ExecStatus.COMMAND_OK:
-        sqlstate = result.error_field(pq.DiagnosticField.SQLSTATE)
-        try:
-            cls = errors.lookup(sqlstate.decode()) if sqlstate else OperationalError
-        except KeyError:
-            cls = OperationalError
-        raise cls(f"ROLLBACK failed: {pgconn.error_message.decode(errors='replace').strip()}")
-
-
 #: Options of v3d's PostgreSQL connections (an option named in the URL's or the caller's ``options`` wins). JIT off:
 #: v3d's queries read a few rows by key, yet on a database without statistics the planner's estimates passed the JIT
-#: threshold and one edit's frames query spent about 64 ms compiling, twice per edit (issue 29).
+#: threshold and one edit's frames query spent about 64 ms compiling, twice per edit.
 POSTGRES_OPTIONS = {"jit": "off"}
 
 
@@ -311,129 +251,56 @@ def is_lock_timeout(exc: BaseException) -> bool:
     return any(w in text for w in ("database is locked", "database is busy", "lock timeout"))
 
 
-def make_session_factory(engine: Engine, info: dict[str, Any] | None = None) -> sessionmaker[Session]:
+def make_session_factory(engine: Engine) -> sessionmaker[Session]:
     """Sessions bound to ``engine``; objects stay readable after commit (``expire_on_commit=False``)
-    so that services can return the ORM rows they just committed. Each session's ``info`` starts as a copy of
-    ``info`` (the app's: its edits' turns, ``app.services.curation.writing.EditSlots``)."""
-    return sessionmaker(bind=engine, expire_on_commit=False, info=dict(info or {}))
+    so that services can return the ORM rows they just committed, and an edit keeps the rows it read once its
+    read transaction has ended (``app.services.curation.writing``)."""
+    return sessionmaker(bind=engine, expire_on_commit=False)
 
 
-@event.listens_for(Session, "after_flush")
-def _note_flush(session: Session, _context: Any) -> None:
-    """Remember which transaction wrote (so :func:`begin_write` never discards flushed work)."""
-    session.info[_FLUSHED_TX] = session.get_transaction()
-
-
-def has_written(session: Session) -> bool:
-    """True when the session holds changes of its current transaction: pending objects or a flush."""
-    tx = session.get_transaction()
-    return bool(session.new or session.dirty or session.deleted
-                or (tx is not None and session.info.get(_FLUSHED_TX) is tx))
-
-
-def begin_snapshot(session: Session, *, fresh: bool = False) -> None:
-    """Begin a read transaction that sees one state of the database from its first read to its end, for work
-    done before a write lock (an edit's recomputation, ``app.services.curation.editing``), or keep the one the session
-    holds when it is such a snapshot already: on SQLite every read transaction (a deferred ``BEGIN`` under WAL reads
-    the snapshot of its first read and never waits for writers), on PostgreSQL one this function began
-    (``REPEATABLE READ``). So an edit's lookups before its computation (its frame, its validation) and the computation
-    read one snapshot, in one transaction. Any other transaction, or any with ``fresh`` (the caller waited and wants
-    what was committed meanwhile), is ended first (its objects expire). A session joined to its caller's transaction
-    is left alone (its caller rolls back what it reads).
+def end_reads(session: Session) -> None:
+    """End the session's read-only transaction, keeping its objects as they are, and give its connection back to
+    the pool (an edit computing after its reads, ``app.services.curation.writing``). A commit, not a rollback: the
+    transaction wrote nothing, a commit does not expire the objects (``expire_on_commit`` off) and psycopg forgets the
+    statements it prepared on a rollback only. Does nothing outside a transaction.
 
     Raises:
-        RuntimeError: the session's transaction has written (:func:`has_written`): ending it would lose that.
+        RuntimeError: the session holds changes not flushed yet (they would be written).
     """
-    if has_written(session):
-        raise RuntimeError("begin_snapshot: the session's transaction has written")
-    if isinstance(session.get_bind(), sa.Connection):
-        return
-    tx = session.get_transaction()
-    postgresql = session.get_bind().dialect.name == "postgresql"
-    if tx is not None:
-        if not fresh and session.info.get(_WRITE_TX) is not tx and (
-                session.info.get(_SNAPSHOT_TX) is tx or not postgresql):
-            session.info[_SNAPSHOT_TX] = tx
-            return
-        session.rollback()
-    if postgresql:
-        session.connection(execution_options={"isolation_level": "REPEATABLE READ"})
-    session.info[_SNAPSHOT_TX] = session.get_transaction()
+    if session.new or session.dirty or session.deleted:
+        raise RuntimeError("end_reads: the session holds changes; only a read-only transaction is ended here")
+    if session.in_transaction():
+        session.commit()
 
 
 def begin_write(session: Session) -> None:
-    """Make the session's transaction a write transaction, before the unit of work reads anything.
+    """Begin the session's write transaction, before the unit of work reads anything under the lock.
 
-    SQLite: the transaction starts with ``BEGIN IMMEDIATE`` (the write lock, waited for up to
-    :data:`SQLITE_BUSY_TIMEOUT_S`). A read-only transaction the session already holds (an API request's
-    lookups, say) is ended first: nothing was written in it, and the objects it loaded are expired, so
-    the unit of work reads them again under the lock. A session joined to a transaction its caller
-    began (a ``Connection`` bind: the tests' rolled-back transaction) is left alone: that caller owns
-    the transaction. PostgreSQL: the transaction is an ordinary one; lock the rows you read-modify-write.
-    Calling it again in the same write transaction does nothing. A thread holds one SQLite write
-    transaction at a time (a second one, on another connection of the same engine, would wait for the
+    SQLite: the transaction starts with ``BEGIN IMMEDIATE`` (the write lock, waited for in this process's turn up to
+    the engine's timeout, :class:`_WriteTurns`). PostgreSQL: an ordinary transaction; the caller locks the rows it
+    read-modify-writes (``SELECT ... FOR UPDATE``, or a compare of a version column). A transaction the session holds
+    with nothing left to flush (an API request's lookups, say) is ended first (:func:`end_reads`) and its objects
+    expired, so that what the caller reads next is read under the lock. Changes the session holds in memory without
+    having read since its last transaction ended (an edit computed after its reads) are kept, to be flushed in the
+    write transaction. A session joined to a transaction its caller began (a ``Connection`` bind: the tests'
+    rolled-back transaction, SQLAlchemy's recipe) is left alone: that caller owns the transaction. A thread holds one
+    SQLite write transaction at a time (a second one, on another connection of the same engine, would wait for the
     first: the turns are per process).
 
     Raises:
-        RuntimeError: the session's current transaction has written (flushed or pending changes):
-            a write unit of work must begin its transaction, not join a read-modify-write already begun.
+        RuntimeError: the session holds changes and read in its current transaction (its connection was taken
+            without the write lock): an edit's computation read a row it did not declare
+            (``app.services.derivation.scope``), or a caller changed objects before beginning its write.
     """
     if isinstance(session.get_bind(), sa.Connection):
         return
-    tx = session.get_transaction()
-    if tx is not None:
-        if session.info.get(_WRITE_TX) is tx:
-            return
-        if has_written(session):
-            raise RuntimeError("begin_write: the session's transaction has already written; "
-                               "begin the write transaction before the unit of work changes anything")
-        session.rollback()
-    session.connection(execution_options={WRITE_OPTION: True})
-    session.info[_WRITE_TX] = session.get_transaction()
-
-
-def begin_write_keeping_objects(session: Session) -> None:
-    """End the session's read snapshot (:func:`begin_snapshot`) and begin its write transaction (as
-    :func:`begin_write`) on the same connection, keeping every object the snapshot loaded, and every change made
-    to them in memory and not flushed, as they are. SQLAlchemy's own end of a transaction would not: its rollback
-    expires every object (and drops what was changed in memory), so an edit that computed before its lock
-    loaded its system a second time under it (issue 29: an edit loads what it recomputes once).
-
-    The snapshot has ended: rows it read may have changed since. The caller compares what it read with the
-    database under the lock it takes next, and rolls back (which expires everything, as usual) when they differ.
-    SQLite: the read transaction, which wrote nothing, ends at the driver and ``BEGIN IMMEDIATE`` is taken in this
-    process's turn (:class:`_WriteTurns`); PostgreSQL: the ``REPEATABLE READ`` transaction ends at the driver and
-    the next one begins at the connection's default level, as :func:`begin_write`'s does. A session joined to
-    its caller's transaction (a ``Connection`` bind: the tests') is left alone.
-
-    Raises:
-        RuntimeError: the session has no transaction, or its transaction has flushed (it is no read snapshot).
-    """
-    if isinstance(session.get_bind(), sa.Connection):
-        return
-    tx = session.get_transaction()
-    if tx is None or session.info.get(_FLUSHED_TX) is tx:
-        raise RuntimeError("begin_write_keeping_objects: the session holds no read snapshot")
-    conn = session.connection()
-    raw = conn.connection.dbapi_connection
-    if conn.dialect.name == "sqlite":
-        raw.execute("COMMIT")
-        _TURNS[conn.engine].begin(conn)
-    else:
-        raw.commit()
-        end_of_transaction(raw)
-        conn.dialect.set_isolation_level(raw, conn.dialect.default_isolation_level)
-    session.info[_WRITE_TX] = tx
-
-
-def data_version(session: Session) -> int | None:
-    """SQLite's ``PRAGMA data_version`` on the session's connection: it changes when another connection commits a
-    change to the database, and only then (https://sqlite.org/pragma.html#pragma_data_version); None on
-    PostgreSQL, where nothing says as cheaply that nobody wrote."""
-    conn = session.connection()
-    if conn.dialect.name != "sqlite":
-        return None
-    return int(conn.exec_driver_sql("PRAGMA data_version").scalar_one())
+    if session.in_transaction() and not (session.new or session.dirty or session.deleted):
+        end_reads(session)
+        session.expire_all()
+    conn = session.connection(execution_options={WRITE_OPTION: True})
+    if not conn.get_execution_options().get(WRITE_OPTION):
+        raise RuntimeError("begin_write: the session read in its transaction while holding changes, so its connection "
+                           "has no write lock; read before changing objects, then begin the write")
 
 
 def alembic_config(url: str | sa.URL | None = None, connection: sa.Connection | None = None) -> Any:

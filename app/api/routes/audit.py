@@ -9,7 +9,7 @@ from app.api.answers import json_answer
 from app.api.audit_schemas import AuditEntryOut, AuditPageOut, AuditQuery
 from app.api.auth import AnnotatorDep, PrincipalDep, ReviewerDep
 from app.api.conditional import with_etag
-from app.api.deps import SessionDep, SettingsDep
+from app.api.deps import EditDep, SessionDep, SettingsDep
 from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, QueueQuery
 from app.api.view_schemas import SystemView
 from app.services.audit import log as audit
@@ -48,14 +48,14 @@ def list_audit(session: SessionDep, principal: PrincipalDep, query: Annotated[Au
                                                        "revert anyway)."}},
 )
 def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, entry_id: DbInt,
-           query: Annotated[QueueQuery, Query()], response: Response,
+           query: Annotated[QueueQuery, Query()], response: Response, edit: EditDep,
            force: Annotated[bool, Query(description="Revert even when the resource changed since the entry.")] = False,
            ) -> Response:
     """Restore the entry's ``before`` state through the service of the original edit (the system is
     recomputed), audited as action ``revert``; answers the recomputed system view and the resource's new
     ``ETag``. 409 when the resource changed since the entry (unless ``force``); 422 for an import or a
     recompute, which cannot be reverted. The entry itself is the precondition: no If-Match is needed."""
-    done = revert_entry(session, entry_id, settings=settings, actor=principal.name, force=force)
+    done = revert_entry(session, entry_id, settings=settings, actor=principal.name, force=force, edit=edit)
     return _restored(session, done, query, response, principal.name)
 
 
@@ -68,17 +68,17 @@ def revert(session: SessionDep, settings: SettingsDep, principal: ReviewerDep, e
                                                        "only what nothing changed since (undo the newer first)."}},
 )
 def undo(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, entry_id: DbInt,
-         query: Annotated[QueueQuery, Query()], response: Response) -> Response:
+         query: Annotated[QueueQuery, Query()], response: Response, edit: EditDep) -> Response:
     """Undo the entry (the system page's Ctrl+Z; its redo, Ctrl+Shift+Z, is the undo of the undo's entry):
     its ``before`` state written back through the service of its edit (the system is recomputed), audited as
     that edit's action with ``reverts_id`` naming the entry; answers the recomputed system view, the resource's
     new ``ETag`` and the new entry's id in ``X-V3D-Audit-Entry``. Labels, camera and 3D ball come back exactly:
     409 when the edited part is no longer what the entry left. Reviewers undo any edit; an annotator their own,
     when no one else wrote the view since (403 otherwise, and for a system decision, a reviewer's edit)."""
-    done = undo_entry(session, entry_id, settings=settings, actor=principal.name, may_review=principal.may("reviewer"))
-    entry = audit.recorded_entry_id(session)
-    if entry is not None:
-        response.headers[AUDIT_ENTRY_HEADER] = str(entry)
+    done = undo_entry(session, entry_id, settings=settings, actor=principal.name, may_review=principal.may("reviewer"),
+                      edit=edit)
+    if edit.entry_id is not None:
+        response.headers[AUDIT_ENTRY_HEADER] = str(edit.entry_id)
     return _restored(session, done, query, response, principal.name)
 
 

@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 from app.api.answers import json_answer
 from app.api.auth import AnnotatorDep, PrincipalDep, require_role
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
-from app.api.deps import FrameDep, FrameIdPath, SessionDep, SettingsDep
+from app.api.deps import EditDep, FrameDep, FrameIdPath, SessionDep, SettingsDep
 from app.api.schemas import (
     INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FieldLinesIn, FrameListQuery, QueueQuery,
     ReviewIn,
@@ -33,7 +33,8 @@ from app.services.curation import decisions, editing, writing
 from app.services.curation.calibration_preview import preview_calibration
 from app.services.images import serving as images
 from app.services.curation import queue
-from app.services.curation.system_page import load_frame, pitch_lines_key, read_with_the_edit, system_page
+from app.services.curation.system_page import load_frame, pitch_lines_key, system_page
+from app.services.curation.writing import EditContext
 from app.services.curation.versions import expected_versions, frame_etag
 
 #: The header naming the audit entry of a write (what a later undo names).
@@ -111,26 +112,23 @@ def read_pitch_lines(session: SessionDep, frame: FrameDep, response: Response, _
     return PitchLinesOut(frame_id=loaded.id, camera=key, lines=projected_pitch_of(loaded))
 
 
-def name_entry(session: Session, response: Response) -> None:
-    """Answer the id of the audit entry the write just committed in ``X-V3D-Audit-Entry`` (what the page's undo
-    names, ``POST /api/audit/{id}/undo``)."""
-    entry_id = audit.recorded_entry_id(session)
-    if entry_id is not None:
-        response.headers[AUDIT_ENTRY_HEADER] = str(entry_id)
+def name_entry(edit: EditContext, response: Response) -> None:
+    """Answer the id of the audit entry the write just committed (``edit.entry_id``) in ``X-V3D-Audit-Entry`` (what
+    the page's undo names, ``POST /api/audit/{id}/undo``)."""
+    if edit.entry_id is not None:
+        response.headers[AUDIT_ENTRY_HEADER] = str(edit.entry_id)
 
 
-def _edited(session: Session, response: Response, query: QueueQuery, me: str,
-            edit: Callable[[], Frame]) -> Response:
-    """Run ``edit`` (an edit by ``me``, whom ``assignee=me`` names, answering the frame it edited) and answer the
-    recomputed system view: the frame's system as the edit committed it, whose queue neighbours and presence the edit
-    read with its writes (``read_with_the_edit``), its new ETag and its audit entry in the header (serialised here:
-    ``app.api.answers``)."""
-    filters = query.filters(me=me)
-    read_with_the_edit(session, filters, query.sort)
-    frame = edit()
-    name_entry(session, response)
+def _edited(session: Session, response: Response, query: QueueQuery, me: str, edit: EditContext,
+            write: Callable[[], Frame]) -> Response:
+    """Run ``write`` (an edit by ``me``, whom ``assignee=me`` names, in the context ``edit``, answering the frame it
+    edited) and answer the recomputed system view (the frame's system as the edit committed it), its new ETag and
+    its audit entry in the header (serialised here: ``app.api.answers``)."""
+    frame = write()
+    name_entry(edit, response)
     with_etag(response, frame_etag(frame))
-    return json_answer(SystemView.of(system_page(session, frame.system_id, filters, query.sort)), response)
+    return json_answer(SystemView.of(system_page(session, frame.system_id, query.filters(me=me), query.sort)),
+                       response)
 
 
 @router.get(
@@ -161,22 +159,22 @@ def frame_image(frame: FrameDep, settings: SettingsDep,
 @router.patch("/{frame_id}/ball", response_model=SystemView, responses=EDIT_RESPONSES)
 def edit_ball(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
               frame_id: FrameIdPath, body: BallEdit, query: Annotated[QueueQuery, Query()],
-              response: Response) -> Response:
+              response: Response, edit: EditDep) -> Response:
     """Set the frame's ball box or point (or remove it with null) and answer the recomputed system view.
 
     422 naming ``box`` or ``point``: non-finite numbers, x2 <= x1 or y2 <= y1, a box entirely outside
     the image, a point outside it; ``provenance`` of another shape; nothing is stored then. A label sent with
     a ``provenance`` (a doubt's suggestion) is stored as suggested: it makes no 3D ball until a person places it.
     """
-    return _edited(session, response, query, principal.name, lambda: editing.update_ball_label(
+    return _edited(session, response, query, principal.name, edit, lambda: editing.update_ball_label(
         session, frame_id, box=body.box, point=body.point, provenance=body.provenance, settings=settings,
-        actor=principal.name, expected=expected_versions(if_match, "frame", frame_id)))
+        actor=principal.name, expected=expected_versions(if_match, "frame", frame_id), edit=edit))
 
 
 @router.put("/{frame_id}/field-lines", response_model=SystemView, responses=EDIT_RESPONSES)
 def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
                         frame_id: FrameIdPath, body: FieldLinesEdit, query: Annotated[QueueQuery, Query()],
-                        response: Response) -> Response:
+                        response: Response, edit: EditDep) -> Response:
     """Replace the frame's field lines, recalibrate it, and answer the recomputed system view, with the
     id of the write's audit entry in ``X-V3D-Audit-Entry`` (what a later ``undo_of`` names).
 
@@ -184,9 +182,9 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
     infinity; naming ``undo_of``: not a field-line write of this frame whose lines before were ``lines``;
     nothing is stored then.
     """
-    return _edited(session, response, query, principal.name, lambda: editing.replace_field_lines(
+    return _edited(session, response, query, principal.name, edit, lambda: editing.replace_field_lines(
         session, frame_id, body.lines, settings=settings, actor=principal.name,
-        expected=expected_versions(if_match, "frame", frame_id), undo_of=body.undo_of))
+        expected=expected_versions(if_match, "frame", frame_id), undo_of=body.undo_of, edit=edit))
 
 
 #: The calibration previews being computed in this process, by (user, frame): one at a time each.
@@ -234,50 +232,52 @@ def calibration_preview(session: SessionDep, settings: SettingsDep, principal: A
 @router.post("/{frame_id}/field-lines/mirror", response_model=SystemView,
              responses={**EDIT_RESPONSES, **MIRROR_REFUSED})
 def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-                       frame_id: FrameIdPath, query: Annotated[QueueQuery, Query()], response: Response) -> Response:
+                       frame_id: FrameIdPath, query: Annotated[QueueQuery, Query()], response: Response, edit: EditDep) -> Response:
     """Replace the frame's field lines by their mirrored labelling (left <-> right, top <-> bottom),
     recalibrate it, and answer the recomputed system view: the fix offered for a view flagged
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines; 409 when the mirror
     guard refuses the mirrored calibration (nothing is stored then).
     """
-    return _edited(session, response, query, principal.name, lambda: editing.apply_mirrored_labels(
+    return _edited(session, response, query, principal.name, edit, lambda: editing.apply_mirrored_labels(
         session, frame_id, settings=settings, actor=principal.name,
-        expected=expected_versions(if_match, "frame", frame_id)))
+        expected=expected_versions(if_match, "frame", frame_id), edit=edit))
 
 
 @router.post("/{frame_id}/exclusion", response_model=SystemView, responses=EDIT_RESPONSES)
 def set_exclusion(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
                   frame_id: FrameIdPath, body: ExclusionIn, query: Annotated[QueueQuery, Query()],
-                  response: Response) -> Response:
+                  response: Response, edit: EditDep) -> Response:
     """Exclude the view from its system's triangulation (``{"excluded": true}``) or restore it
     (``false``), recompute the system, and answer the recomputed system view. The decision is stored
     on the view's review and shown there (``review.excluded``); labels and calibration are kept."""
-    return _edited(session, response, query, principal.name, lambda: editing.set_view_excluded(
+    return _edited(session, response, query, principal.name, edit, lambda: editing.set_view_excluded(
         session, frame_id, body.excluded, settings=settings, actor=principal.name,
-        expected=expected_versions(if_match, "frame", frame_id)))
+        expected=expected_versions(if_match, "frame", frame_id), edit=edit))
 
 
 @router.post("/{frame_id}/review", response_model=ReviewOut, responses=EDIT_RESPONSES)
 def review_frame(session: SessionDep, principal: AnnotatorDep, if_match: IfMatchDep, frame: FrameDep, body: ReviewIn,
-                 response: Response) -> ReviewOut:
+                 response: Response, edit: EditDep) -> ReviewOut:
     """Record the reviewer's decision on one view (for example a wrong calibration); the frame's new
     ETag in the header."""
     decision = decisions.decide_review(session, frame_id=frame.id, status=body.status, comment=body.comment,
-                                     actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
-    name_entry(session, response)
+                                       actor=principal.name, expected=expected_versions(if_match, "frame", frame.id),
+                                       edit=edit)
+    name_entry(edit, response)
     with_etag(response, frame_etag(writing.get_frame(session, frame.id)))
     return ReviewOut.of(decision)
 
 
 @router.post("/{frame_id}/calibration-review", response_model=ReviewOut, responses=EDIT_RESPONSES)
 def review_calibration(session: SessionDep, principal: AnnotatorDep, if_match: IfMatchDep, frame: FrameDep,
-                       body: ReviewIn, response: Response) -> ReviewOut:
+                       body: ReviewIn, response: Response, edit: EditDep) -> ReviewOut:
     """Record the reviewer's decision on the view's calibration (its field lines and the camera fitted to
     them), beside the decision on its ball (``POST /review``); answered as the view's decision, its
     ``calibration`` holding this one; the frame's new ETag in the header. An edit of the view's field lines
     sets a decided calibration (and its system's decision) back to pending with the reason."""
     decision = decisions.decide_calibration(session, frame.id, status=body.status, comment=body.comment,
-                                          actor=principal.name, expected=expected_versions(if_match, "frame", frame.id))
-    name_entry(session, response)
+                                            actor=principal.name,
+                                            expected=expected_versions(if_match, "frame", frame.id), edit=edit)
+    name_entry(edit, response)
     with_etag(response, frame_etag(writing.get_frame(session, frame.id)))
     return ReviewOut.of(decision)

@@ -13,7 +13,7 @@ from app.api.answers import json_answer
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.auth import PrincipalDep, ReviewerDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
-from app.api.deps import SessionDep, SystemDep, SystemIdPath
+from app.api.deps import EditDep, SessionDep, SystemDep, SystemIdPath
 from app.api.routes.frames import name_entry
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
@@ -56,7 +56,7 @@ def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemI
     """The system view (``docs/api.md``); ``prev_id`` / ``next_id`` follow the queue given by
     the query parameters (by default the whole queue, largest error first; ``assignee=me`` is the caller).
     ``assignment`` and ``open_by`` say who it is assigned to and who has it open. ``ETag``: the system's
-    review decision's. 404 naming the id when there is none (the page's own load finds it: no lookup before)."""
+    version (``etag``), what a decision's ``If-Match`` sends. 404 naming the id when there is none (the page's own load finds it: no lookup before)."""
     out = SystemView.of(system_page(session, system_id, query.filters(me=principal.name), query.sort))
     with_etag(response, out.etag)
     return json_answer(out, response)
@@ -64,11 +64,14 @@ def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemI
 
 @router.post("/{system_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID, **PRECONDITIONS})
 def review_system(session: SessionDep, principal: ReviewerDep, if_match: IfMatchDep, system: SystemDep,
-                  body: ReviewIn, response: Response) -> ReviewOut:
-    """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``);
-    the decision's new ETag in the header, its audit entry in ``X-V3D-Audit-Entry`` (what an undo names)."""
+                  body: ReviewIn, response: Response, edit: EditDep) -> ReviewOut:
+    """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``, which every
+    write of the system's labels, lines, exclusions, calibrations and decisions changes: 412 once anything the page
+    showed has changed); the system's new ETag in the header, its audit entry in ``X-V3D-Audit-Entry`` (what an undo
+    names)."""
     decision = decisions.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
-                                     actor=principal.name, expected=expected_versions(if_match, "system", system.id))
-    name_entry(session, response)
+                                       actor=principal.name, expected=expected_versions(if_match, "system", system.id),
+                                       edit=edit)
+    name_entry(edit, response)
     with_etag(response, system_etag(writing.get_system(session, system.id)))
     return ReviewOut.of(decision)

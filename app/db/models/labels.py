@@ -43,6 +43,10 @@ class Game(Base):
     #: A calibration dataset's learned camera prior (``CameraPrior.to_json``, issue 17): learned by its import
     #: from its own confident fits, used by every later recalibration of its frames; None when none was learned.
     camera_prior: Mapped[Optional[dict[str, Any]]] = mapped_column(default=None)
+    #: Bumped in the same transaction by every change of what an edit of one of the game's systems reads beyond
+    #: that system: a calibration that makes the game's camera rig (``apply_calibration``) or the camera prior.
+    #: An edit that read the rig compares it under its lock (``app.services.curation.writing``).
+    version: Mapped[int] = mapped_column(default=1, server_default="1")
 
     systems: Mapped[list[System]] = relationship(
         back_populates="game", cascade="all, delete-orphan", passive_deletes=True, order_by="System.id"
@@ -124,9 +128,12 @@ class System(Base):
     derived_settings: Mapped[Optional[str]] = mapped_column(sa.String(16))
     #: ISSIA systems: the frame index in the sequence (frame ``i`` at ``t = i / fps``); None otherwise.
     frame_index: Mapped[Optional[int]] = mapped_column(index=True)
-    #: Version of the system's review decision, bumped by every decision on the system (its strong ETag,
-    #: ``app.services.curation.versions``); recomputations never touch it.
-    review_version: Mapped[int] = mapped_column(default=1)
+    #: The system's version (its strong ETag, ``app.services.curation.versions``): bumped in the same transaction by
+    #: every write of the rows an edit of the system reads (``app.services.derivation.scope``: labels, lines,
+    #: exclusions, calibrations, decisions, derived rows). SQLAlchemy's version counter: every ORM ``UPDATE`` of the
+    #: row compares it (``WHERE version = <as loaded>``; ``StaleDataError`` when another transaction changed it),
+    #: which is the edit path's optimistic concurrency check.
+    version: Mapped[int] = mapped_column(default=1)
     #: ISSIA systems: the frame's place on the sequence's trajectory (``app.services.issia.sequences``).
     trajectory_point: Mapped[Optional[TrajectoryPoint]] = relationship(
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True
@@ -139,6 +146,10 @@ class System(Base):
     assigned_at: Mapped[Optional[datetime]]
     #: Who assigned it (the audit log's actor name, so that it outlives the user); None when never.
     assigned_by: Mapped[Optional[str]] = mapped_column(sa.String(200))
+
+    # the application bumps the version itself (``scope.changed``), only for writes of what an edit reads: an
+    # assignment leaves it as it is, yet every ORM UPDATE of the row still compares it
+    __mapper_args__ = {"version_id_col": version, "version_id_generator": False}
 
 
 class Frame(Base):

@@ -13,16 +13,14 @@ frame, system and game by id without foreign keys, so history outlives the rows 
 """
 from __future__ import annotations
 
-import functools
 import getpass
 from dataclasses import dataclass
 from typing import Any, Optional
 
 import sqlalchemy as sa
-from sqlalchemy.orm import Session, make_transient_to_detached
+from sqlalchemy.orm import Session
 
 from app.db.models import AuditEntry, Frame, System
-from app.db.together import Call
 from app.db.types import json_safe, utcnow
 from app.services.audit.summaries import summarize
 
@@ -60,20 +58,21 @@ def local_actor() -> str:
 
 def record(session: Session, *, actor: Optional[str], action: str, frame: Optional[Frame] = None,
            system: Optional[System] = None, before: Any = None, after: Any = None,
-           reverts_id: Optional[int] = None) -> AuditEntry:
-    """Add one entry to the session (the caller's transaction commits it with the write).
+           reverts_id: Optional[int] = None, facts: Optional[dict[str, Any]] = None) -> AuditEntry:
+    """Add one entry to the session (the caller's transaction commits it with the write) and return it.
 
     ``reverts_id``: the entry this write undoes: a revert (action ``revert``), or a page's undo of its own edit,
     audited as that edit's action (``app.services.curation.editing.replace_field_lines``' ``undo_of``).
     ``frame`` sets ``frame_id``, ``system_id`` and ``game_id``; ``system`` alone sets the last two.
-    ``actor`` None is :func:`local_actor`. Raises ``ValueError`` for an action outside :data:`ACTIONS`.
+    ``facts``: what only the running write knows, for the summary (``calibration=(before, after)`` in words,
+    ``app.services.audit.summaries.summarize``). ``actor`` None is :func:`local_actor`. Raises ``ValueError`` for an
+    action outside :data:`ACTIONS`.
     """
     if action not in ACTIONS:
         raise ValueError(f"unknown audit action {action!r}")
     system = frame.system if frame is not None else system
     before = json_safe(before) if before is not None else None
     after = json_safe(after) if after is not None else None
-    facts = session.info.pop(_FACTS, None)
     entry = AuditEntry(
         at=utcnow(), actor=actor or local_actor(), action=action, frame_id=frame.id if frame is not None else None,
         system_id=system.id if system is not None else None, game_id=system.game_id if system is not None else None,
@@ -83,46 +82,11 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
                           redo=action != "revert" and _is_undo(session, reverts_id))[:SUMMARY_MAX],
     )
     session.add(entry)
-    session.info[_RECORDED] = entry
     return entry
 
 
-def insert_call(session: Session, entry: AuditEntry) -> Call:
-    """Take ``entry`` (added by :func:`record`) out of the session's unit of work and answer its ``INSERT ...
-    RETURNING id`` as a call to send with the write's other statements (``app.db.together.send_together``: in the
-    round trip of the derived rows' updates on PostgreSQL, ``app.services.curation.writing``); its answer goes to
-    :func:`inserted`. Until then the entry is not stored: a write that fails before has recorded nothing."""
-    if entry in session:
-        session.expunge(entry)
-    table = AuditEntry.__table__
-    return Call(_insert_statement(), {c.key: getattr(entry, c.key) for c in table.c if c.key != "id"})
-
-
-def inserted(entry: AuditEntry, rows: list[tuple[Any, ...]]) -> None:
-    """Give ``entry`` the id its :func:`insert_call` answered (``rows``): it is then the stored entry, detached (what
-    :func:`recorded_entry_id` answers once the write committed)."""
-    entry.id = int(rows[0][0])
-    make_transient_to_detached(entry)
-
-
-@functools.cache
-def _insert_statement() -> sa.Insert:
-    """``INSERT INTO audit_entries (every column but id) ... RETURNING id``, built once."""
-    table = AuditEntry.__table__
-    return sa.insert(table).values({c.key: sa.bindparam(c.key, type_=c.type) for c in table.c if c.key != "id"}) \
-        .returning(table.c.id)
-
-
-#: ``session.info`` key of the facts :func:`note_facts` keeps for the next :func:`record` of the session.
-_FACTS = "v3d.audit.facts"
 #: The longest summary stored (characters; ``audit_entries.summary``).
 SUMMARY_MAX = 300
-
-
-def note_facts(session: Session, **facts: Any) -> None:
-    """Keep what only a running write knows (``calibration=(before, after)`` in words) for the summary of the
-    next entry :func:`record` adds in ``session`` (``app.services.audit.summaries.summarize``'s ``facts``)."""
-    session.info.setdefault(_FACTS, {}).update(facts)
 
 
 def _is_undo(session: Session, entry_id: Optional[int]) -> bool:
@@ -167,21 +131,6 @@ def view_names(session: Session, entries: list[AuditEntry]) -> dict[int, str]:
         place[system_id] = place.get(system_id, 0) + 1
         out[frame_id] = f"V{place[system_id]}"
     return out
-
-
-#: ``session.info`` key of the entry :func:`record` added last (read by :func:`recorded_entry_id`).
-_RECORDED = "v3d.audit.recorded"
-
-
-def recorded_entry_id(session: Session) -> Optional[int]:
-    """The id of the entry :func:`record` added last in ``session`` once its write committed, and forget
-    it (None when there is none, or when it was rolled back). The API answers it with the write
-    (``X-V3D-Audit-Entry``), so a page can name its own edit later (an undo's ``undo_of``)."""
-    entry = session.info.pop(_RECORDED, None)
-    if entry is None:
-        return None
-    identity = sa.inspect(entry).identity  # kept after the commit expired the row: no query
-    return int(identity[0]) if identity else None
 
 
 def record_summary(session: Session, action: str, counts: dict[str, Any], *, actor: Optional[str] = None,

@@ -39,8 +39,9 @@ class Reverted:
 
 
 def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: Optional[str] = None,
-                 force: bool = False) -> Reverted:
-    """Restore audit entry ``entry_id``'s ``before`` state and commit, with its own audit entry.
+                 force: bool = False, edit: Optional[writing.EditContext] = None) -> Reverted:
+    """Restore audit entry ``entry_id``'s ``before`` state and commit, with its own audit entry (its id in
+    ``edit.entry_id``).
 
     Raises:
         NotFoundError: no such entry, or its frame or system no longer exists.
@@ -50,12 +51,15 @@ def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: 
     """
     entry = _revertible_entry(session, entry_id)
     guard = writing.Revert(entry_id, expect=None if force else entry.after)
-    return _restore(session, entry, settings, {"actor": actor, "revert": guard})
+    return _restore(session, entry, settings, {"actor": actor, "revert": guard},
+                    edit if edit is not None else writing.EditContext())
 
 
-def _restore(session: Session, entry: AuditEntry, settings: Settings, common: dict[str, Any]) -> Reverted:
+def _restore(session: Session, entry: AuditEntry, settings: Settings, common: dict[str, Any],
+             edit: writing.EditContext) -> Reverted:
     """Write back ``entry``'s ``before`` state through the service of its edit (``common``: the actor and the
-    ``revert`` or ``undo`` guard)."""
+    ``revert`` or ``undo`` guard; ``edit``: the write's context, given its entry's id)."""
+    common = {**common, "edit": edit}
     before = entry.before
     entry_id = entry.id
     assert isinstance(before, dict)
@@ -79,9 +83,10 @@ def _restore(session: Session, entry: AuditEntry, settings: Settings, common: di
         editing.replace_field_lines(session, entry.frame_id, before["lines"], settings=settings, **common)  # type: ignore[arg-type]
     elif "assignee" in before:
         guard = common.get("revert")  # an undo (no revert guard) is never forced: the assignee must be what it left
-        assignment.revert_assignment(session, system_id=int(entry.system_id), before=before,  # type: ignore[arg-type]
-                                     after=entry.after or {}, entry_id=entry_id, actor=common.get("actor"),
-                                     force=guard is not None and guard.expect is None)
+        assigned = assignment.revert_assignment(session, system_id=int(entry.system_id), before=before,  # type: ignore[arg-type]
+                                                after=entry.after or {}, entry_id=entry_id, actor=common.get("actor"),
+                                                force=guard is not None and guard.expect is None)
+        edit.entry_id = assigned.entry_ids[-1] if assigned.entry_ids else None
         return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
     elif "excluded" in before:
         editing.set_view_excluded(session, entry.frame_id, bool(before["excluded"]), settings=settings, **common)  # type: ignore[arg-type]
@@ -91,7 +96,8 @@ def _restore(session: Session, entry: AuditEntry, settings: Settings, common: di
     return Reverted(frame.system_id, "frame", frame.id)
 
 
-def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: str, may_review: bool) -> Reverted:
+def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: str, may_review: bool,
+               edit: Optional[writing.EditContext] = None) -> Reverted:
     """Undo audit entry ``entry_id`` (issue 28, item 4): write back its ``before`` state through the service of
     its edit, audited as that edit (the same action; a mirroring's undo as ``field_lines.replace``) with
     ``reverts_id`` naming the entry, and committed. The redo of an undo is the undo of the undo's entry. The
@@ -122,7 +128,8 @@ def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: st
             raise ForbiddenError(f"audit entry {entry_id} cannot be undone by an annotator: {other} changed the view "
                                  "since (a reviewer may revert it from the history)")
     guard = writing.Revert(entry_id, expect=entry.after)
-    return _restore(session, entry, settings, {"actor": actor, "undo": guard})
+    return _restore(session, entry, settings, {"actor": actor, "undo": guard},
+                    edit if edit is not None else writing.EditContext())
 
 
 def _revertible_entry(session: Session, entry_id: int) -> AuditEntry:

@@ -26,6 +26,8 @@ from app.geometry.mirror import mirrored_fit_at_rig
 from app.services.curation.words import refusal_sentence
 from app.services.curation.doubt_words import with_sentence
 from app.datasets.records import CalibrationFields
+from app.services.derivation import scope
+from app.services.kinds import kind_of
 
 
 def expected_side(role: FrameRole) -> int | None:
@@ -160,10 +162,14 @@ def calibration_job(frame: Frame, rig: CameraRig | CameraPrior | None = None,
 
 
 def apply_calibration(frame: Frame, fields: CalibrationFields, source: CalibrationSource) -> Calibration:
-    """Write ``fields`` into the frame's calibration row (created if missing).
+    """Write ``fields`` into the frame's calibration row (created if missing), and, for a kind whose games have a
+    camera rig, bump its game's version: the calibration may feed the rig, which edits of the game's other systems
+    read (``app.services.derivation.scope``).
 
     ``admitted`` is reset to False: it is decided by :func:`recompute_system`.
     """
+    if frame.system is not None and kind_of(frame.system).uses_rig:
+        scope.game_changed(frame.system.game)
     cal = frame.calibration
     if cal is None:
         cal = Calibration(source=source, status=fields.status)

@@ -17,7 +17,6 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import Calibration, CalibrationStatus, Frame, FrameRole, System
-from app.db.together import Call, send_together
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, estimate_rig
 from app.geometry.jac import JAC_GAMMAS, jac_admitted
@@ -69,17 +68,7 @@ def rig_rows(session: Session, game_id: int, settings: Settings) -> list[tuple[i
     the game's rig: calibrated, JaC@gamma > ``admit_jac_min``, not rig-assisted. One query that reads
     only the centre out of each stored camera (the rig needs nothing else), so an edit does not decode
     every calibration of its game; its statement is built once per admission rule (:func:`_rig_statement`)."""
-    return rig_rows_of(send_together(session, [rig_call(game_id, settings)])[0])
-
-
-def rig_call(game_id: int, settings: Settings) -> Call:
-    """:func:`rig_rows`'s statement for ``game_id`` as a :class:`app.db.together.Call`, to be sent with others in one
-    round trip (an edit's lock and digest); :func:`rig_rows_of` reads its rows."""
-    return Call(_rig_statement(settings), {"game_id": game_id})
-
-
-def rig_rows_of(rows: Iterable[Sequence[Any]]) -> list[tuple[int, np.ndarray, bool]]:
-    """:func:`rig_rows` from the rows of :func:`rig_call` (frame id, role, centre as JSON)."""
+    rows = session.execute(_rig_statement(settings), {"game_id": game_id})
     return [(fid, np.array(centre, dtype=float), role is FrameRole.ACTION) for fid, role, centre in rows]
 
 

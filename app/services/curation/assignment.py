@@ -38,12 +38,14 @@ _CHUNK = 500
 @dataclass(frozen=True)
 class Assigned:
     """The outcome of :func:`assign`: ``matched`` systems were selected, ``changed`` of them (ids in
-    ``system_ids``, ascending) got the new assignee (``assignee``, a name or None) and an audit entry each."""
+    ``system_ids``, ascending) got the new assignee (``assignee``, a name or None) and an audit entry each
+    (``entry_ids``, in the same order)."""
 
     assignee: Optional[str]
     matched: int
     changed: int
     system_ids: list[int] = field(default_factory=list)
+    entry_ids: list[int] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -155,18 +157,20 @@ def assign(session: Session, *, assignee: Optional[str], system_ids: Optional[li
         changed = [i for i in ids if systems[i].assignee_id != new_id]
         names = _names(session, {v for i in changed if (v := systems[i].assignee_id) is not None})
         by = actor or audit.local_actor()
+        entries = []
         for i in changed:
             system = systems[i]
             old = system.assignee_id
             system.assignee_id, system.assigned_at, system.assigned_by = new_id, now, by
-            audit.record(session, actor=by, action="revert" if reverts_id is not None else ACTION, system=system,
+            entries.append(audit.record(session, actor=by, action="revert" if reverts_id is not None else ACTION, system=system,
                          before={"assignee": names.get(old) if old is not None else None},
-                         after={"assignee": assignee}, reverts_id=reverts_id)
+                         after={"assignee": assignee}, reverts_id=reverts_id))
         session.commit()
     except BaseException:
         session.rollback()
         raise
-    return Assigned(assignee=assignee, matched=len(ids), changed=len(changed), system_ids=changed)
+    return Assigned(assignee=assignee, matched=len(ids), changed=len(changed), system_ids=changed,
+                    entry_ids=[e.id for e in entries])
 
 
 def _names(session: Session, user_ids: set[int]) -> dict[int, str]:

@@ -13,28 +13,28 @@ from app.db.models import (
 )
 from app.db.types import utcnow
 from app.core.errors import InvalidInputError
-from app.services.curation.versions import Claim
 from app.services.curation.states import (
     calibration_review_state, review_state, system_review_state,
 )
 from app.services.curation.writing import (
-    Expected, Revert, check_undo_state, get_frame, get_system, guarded_frame_write, guarded_write,
+    EditContext, Expected, Guard, Revert, check_undo_state, guarded_frame_write, guarded_write,
 )
 
 
 def decide_review(session: Session, *, system_id: int | None = None, frame_id: int | None = None,
                   status: ReviewStatus | str, comment: str = "", actor: Optional[str] = None,
                   expected: Expected = None, revert: Optional[Revert] = None,
-                  undo: Optional[Revert] = None) -> ReviewDecision:
+                  undo: Optional[Revert] = None, edit: Optional[EditContext] = None) -> ReviewDecision:
     """Record a review decision on a system or on a frame (exactly one of the two ids).
 
     Args:
         status: pending, accepted, rejected or needs_fix (enum or its value).
         comment: free text (kept as given).
         actor, expected, revert: attribution and guard (module docstring; ``expected`` are versions of
-            the system's review, or of the frame); audited as ``system.review`` or ``view.review``. An
+            the system, which every write of its labels, lines, calibrations and decisions bumps, or of the frame); audited as ``system.review`` or ``view.review``. An
             accept of a system records the label doubts open at that moment (:func:`system_review_state`).
         undo: this write undoes audit entry ``undo.entry_id`` (:func:`check_undo_state`).
+        edit: the write's context (``writing.EditContext``), filled with its audit entry's id.
 
     Returns:
         The committed :class:`ReviewDecision` (``decided_at`` is now, UTC).
@@ -62,14 +62,13 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
             subject.review_status = status  # type: ignore[assignment]  # the queue's copy
         return review
 
+    undo_of = undo.entry_id if undo is not None else None
     if system_id is not None:
-        get_system(session, system_id)
-        return guarded_write(session, system_id, Claim.system_review(system_id, expected),
-                      lambda: get_system(session, system_id), system_review_state, apply, "system.review", actor,
-                      revert, undo.entry_id if undo is not None else None)
-    get_frame(session, frame_id)  # type: ignore[arg-type]
-    return guarded_frame_write(session, frame_id, expected, review_state, apply, "view.review", actor, revert,  # type: ignore[arg-type]
-                        undo.entry_id if undo is not None else None)
+        return guarded_write(session, system_id, Guard("system", expected), lambda system: system,
+                             system_review_state, apply, "system.review", actor, revert, undo_of, edit=edit)
+    assert frame_id is not None  # exactly one of the two ids, checked above
+    return guarded_frame_write(session, frame_id, expected, review_state, apply, "view.review", actor, revert,
+                               undo_of, edit=edit)
 
 
 def _check_decision(status: ReviewStatus | str, comment: Any) -> ReviewStatus:
@@ -86,7 +85,8 @@ def _check_decision(status: ReviewStatus | str, comment: Any) -> ReviewStatus:
 
 def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus | str, comment: str = "",
                        actor: Optional[str] = None, expected: Expected = None,
-                       revert: Optional[Revert] = None, undo: Optional[Revert] = None) -> ReviewDecision:
+                       revert: Optional[Revert] = None, undo: Optional[Revert] = None,
+                       edit: Optional[EditContext] = None) -> ReviewDecision:
     """Record the reviewer's decision on a view's calibration (its field lines and the camera fitted to
     them), beside the decision on its ball (:func:`decide_review`). Clears ``calibration_reset_reason``.
     Audited as ``view.calibration_review`` (``actor``, ``expected``: versions of the frame, ``revert``:
@@ -116,6 +116,5 @@ def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus 
         review.calibration_reset_reason = None
         return review
 
-    get_frame(session, frame_id)
     return guarded_frame_write(session, frame_id, expected, calibration_review_state, apply, "view.calibration_review",
-                        actor, revert, undo.entry_id if undo is not None else None)
+                               actor, revert, undo.entry_id if undo is not None else None, edit=edit)

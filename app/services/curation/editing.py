@@ -15,8 +15,10 @@ recomputation leaves the edit unstored too. Invalid input raises
 
 Every system-level recomputation also replaces the system's doubts (``app.services.curation.doubts``).
 
-Each goes through the guarded, audited write of ``app.services.curation.writing`` (compute before the lock,
-compare and write under it) and resets decisions by the one rule of ``app.services.curation.resets``.
+Each goes through the guarded, audited write of ``app.services.curation.writing`` (read, compute holding no
+connection, compare the versions and write under the lock), carrying an
+:class:`~app.services.curation.writing.EditContext` (``edit``: the route's, else one of its own), and resets
+decisions by the one rule of ``app.services.curation.resets``.
 
 Bounded work: a field-line edit gives a view at most ``V3D_MAX_LINE_POINTS_PER_FRAME`` points (2,000; 422 naming
 ``lines`` before any geometry); lines stored before the cap still calibrate, mirror and edit.
@@ -49,7 +51,7 @@ from app.services.curation.states import (
     ball_state, excluded_state, lines_state, same_json,
 )
 from app.services.curation.writing import (
-    Expected, Revert, check_undo_state, frame_facts, guarded_frame_write, recompute_planned,
+    EditContext, Expected, Revert, check_undo_state, frame_facts, guarded_frame_write,
 )
 from app.services.curation.resets import (
     calibration_words, jac_words, reset_after_change, reset_decisions_after_recalibration,
@@ -78,7 +80,7 @@ def check_provenance(provenance: Any) -> dict[str, Any] | None:
 def update_ball_label(session: Session, frame_id: int, box: Any = None, point: Any = None, *,
                       settings: Settings, provenance: Any = None, actor: Optional[str] = None,
                       expected: Expected = None, revert: Optional[Revert] = None,
-                      undo: Optional[Revert] = None) -> Frame:
+                      undo: Optional[Revert] = None, edit: Optional[EditContext] = None) -> Frame:
     """Set a frame's ball label to a box or a point, or remove it, then recompute its system.
 
     Args:
@@ -93,6 +95,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
         actor, expected, revert: attribution and guard (module docstring); audited as ``ball.edit``.
         undo: this write undoes audit entry ``undo.entry_id`` (:func:`check_undo_state`; audited as
             ``ball.edit`` with ``reverts_id``).
+        edit: the edit's context (``writing.EditContext``), filled with its audit entry's id.
 
     A label that changes sets the view's ball decision and the system's decision back to pending
     (:func:`reset_decisions_after_edit`).
@@ -108,7 +111,8 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
     """
     if box is not None and point is not None:
         raise InvalidInputError("give a box or a point, not both", field="box")
-    facts = frame_facts(session, frame_id, snapshot=True)
+    edit = edit if edit is not None else EditContext()
+    facts = frame_facts(session, frame_id)
 
     def validated(width: int, height: int) -> tuple[Any, Any]:
         try:
@@ -136,28 +140,33 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
             if label is None:
                 label = BallLabel()
                 frame.ball_label = label
-            # a stored label's new values go with the derived rows' (rows.writing_directly: one round trip on
-            # PostgreSQL), a new one through the unit of work
             put_values(label, {"kind": kind, "box": new_box, "point": new_point, "provenance": new_provenance,
                                "edited_at": utcnow()})
-        _recompute(session, frame.system, settings, actor)
+        _recompute(session, frame.system, settings, actor, edit)
         reset_after_change(session, frame, "ball.edit", before, ball_state(frame), actor, undo)
         return frame
 
     return guarded_frame_write(session, frame_id, expected, ball_state, apply, "ball.edit", actor, revert,
-                               undo.entry_id if undo is not None else None, system_id=facts.system_id)
+                               undo.entry_id if undo is not None else None, system_id=facts.system_id,
+                               settings=settings, edit=edit)
 
 
-def _recompute(session: Session, system: System, settings: Settings, actor: Optional[str]) -> None:
-    """The system-level recomputation of an edit by ``actor``; for an ISSIA system also the re-fit of the stretch
-    of its sequence's trajectory the edit touches, and the systems whose place on it changed (the kind's
-    ``refit_after_edit``), whose decisions go back to pending (:func:`reset_refitted_systems`), in the same
-    transaction."""
+def _recompute(session: Session, system: System, settings: Settings, actor: Optional[str],
+               edit: EditContext) -> None:
+    """The system-level recomputation of an edit by ``actor`` (from the rig rows it read, ``edit.rig``); for an
+    ISSIA system also the re-fit of the stretch of its sequence's trajectory the edit touches, and the systems whose
+    place on it changed (the kind's ``refit_after_edit``), whose decisions go back to pending
+    (:func:`reset_refitted_systems`), in the same transaction."""
     refitted = kind_of(system).refit_after_edit(session, system, settings)
     if not refitted:  # an ISSIA system is recomputed after its re-fit
-        recompute_planned(session, system, settings, lambda rig: recompute_system(
-            session, system, settings, None if rig is None else [(fid, c) for fid, c, _ in rig]))
+        recompute_system(session, system, settings, _rig_sources(edit))
     reset_refitted_systems(session, system, refitted, actor)
+
+
+def _rig_sources(edit: EditContext) -> Optional[list[tuple[int, np.ndarray]]]:
+    """``(frame id, camera centre)`` of the rig rows the edit read (``recompute_system``'s ``rig_sources``), None when
+    its kind reads none."""
+    return None if edit.rig is None else [(fid, c) for fid, c, _ in edit.rig]
 
 
 def parse_field_lines(lines: Mapping[str, Any], width: int, height: int, max_points: int) -> dict[str, Any]:
@@ -174,7 +183,7 @@ def parse_field_lines(lines: Mapping[str, Any], width: int, height: int, max_poi
 
 
 def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], settings: Settings,
-                 actor: Optional[str]) -> Frame:
+                 actor: Optional[str], edit: EditContext) -> Frame:
     """Store ``parsed`` as the frame's current lines, recalibrate the frame and recompute its system (an edit by
     ``actor``; the systems an ISSIA re-fit changed go back to pending: :func:`reset_refitted_systems`)."""
     fl = frame.field_lines
@@ -183,7 +192,7 @@ def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], setting
     else:
         fl.lines = parsed
         fl.edited_at = utcnow()
-    recompute_planned(session, frame.system, settings, lambda rig: recompute_frame(session, frame, settings, rig))
+    recompute_frame(session, frame, settings, edit.rig)
     refitted = kind_of(frame.system).refit_after_edit(session, frame.system, settings, recalibrated=frame)
     reset_refitted_systems(session, frame.system, refitted, actor)
     return frame
@@ -192,7 +201,7 @@ def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], setting
 def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any], *, settings: Settings,
                         actor: Optional[str] = None, expected: Expected = None,
                         revert: Optional[Revert] = None, undo_of: Optional[int] = None,
-                        undo: Optional[Revert] = None) -> Frame:
+                        undo: Optional[Revert] = None, edit: Optional[EditContext] = None) -> Frame:
     """Replace a frame's field lines, recalibrate the frame and recompute its system.
 
     Args:
@@ -209,6 +218,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
             when nothing else in the game changed meanwhile.
         undo: the same as ``undo_of = undo.entry_id``, and refused (409) unless the lines under the lock are
             ``undo.expect`` (:func:`check_undo_state`; the undo of ``POST /api/audit/{id}/undo``).
+        edit: the edit's context (``writing.EditContext``), filled with its audit entry's id.
 
     Returns:
         The frame with its new lines, calibration (source "computed") and derived rows, committed.
@@ -221,7 +231,8 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
             an ``undo_of`` that is no field-line write of this frame with ``lines`` before it (field "undo_of").
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
-    facts = frame_facts(session, frame_id, snapshot=True)
+    edit = edit if edit is not None else EditContext()
+    facts = frame_facts(session, frame_id)
     parsed = parse_field_lines(lines, facts.width, facts.height, settings.max_line_points_per_frame)
     if undo is not None:
         undo_of = undo.entry_id
@@ -233,16 +244,16 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         before = lines_state(frame), calibration_words(frame, settings)
         check_undo_state(undo, before[0])
         jac_before = jac_words(frame, settings)
-        _store_lines(session, frame, parsed, settings, actor)
+        _store_lines(session, frame, parsed, settings, actor, edit)
         verb = "replaced" if undo_of is None else f"put back (undo of audit entry {undo_of})"
         reset_decisions_after_recalibration(session, frame, before, verb, actor, settings)
-        audit.note_facts(session, calibration=(jac_before, jac_words(frame, settings)))
+        edit.facts["calibration"] = (jac_before, jac_words(frame, settings))
         return frame
 
     if undo_of is not None:
         check_undo(session, undo_of, frame_id, parsed)
     return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.replace", actor, revert,
-                               undo_of, system_id=facts.system_id)
+                               undo_of, system_id=facts.system_id, settings=settings, edit=edit)
 
 
 def check_undo(session: Session, entry_id: int, frame_id: int, parsed: dict[str, Any]) -> None:
@@ -270,7 +281,7 @@ def check_undo(session: Session, entry_id: int, frame_id: int, parsed: dict[str,
 
 
 def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings, actor: Optional[str] = None,
-                          expected: Expected = None) -> Frame:
+                          expected: Expected = None, edit: Optional[EditContext] = None) -> Frame:
     """Replace a frame's field lines by their mirrored labelling and recompute, in one transaction.
 
     The fix offered for a frame flagged ``probably_mirrored`` (``app.geometry.mirror``): every class
@@ -300,7 +311,7 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         lines_before = lines_state(frame), calibration_words(frame, settings)
         jac_before = jac_words(frame, settings)
         mirrored = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
-        out = _store_lines(session, frame, mirrored, settings, actor)
+        out = _store_lines(session, frame, mirrored, settings, actor, edit)
         after = ball_error_to_others(out, settings)
         if before is not None and before[0] is not None and (after is None or after[0] is None or after[0] >= before[0]):
             mi = "an unknown number of" if after is None or after[0] is None else f"{after[0]:.0f}"
@@ -309,12 +320,13 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
                 f"would be {mi} px (at 1920 width) from the ball {before[1]} agree on, against {before[0]:.0f} px as "
                 "labelled, so the mirrored calibration and the ball do not agree better")
         reset_decisions_after_recalibration(session, out, lines_before, "mirrored", actor, settings)
-        audit.note_facts(session, calibration=(jac_before, jac_words(out, settings)))
+        edit.facts["calibration"] = (jac_before, jac_words(out, settings))
         return out
 
-    facts = frame_facts(session, frame_id, snapshot=True)
+    edit = edit if edit is not None else EditContext()
+    facts = frame_facts(session, frame_id)
     return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.mirror", actor, None,
-                               system_id=facts.system_id)
+                               system_id=facts.system_id, settings=settings, edit=edit)
 
 
 def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None, str] | None:
@@ -345,7 +357,8 @@ def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None
 
 def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settings: Settings,
                       actor: Optional[str] = None, expected: Expected = None,
-                      revert: Optional[Revert] = None, undo: Optional[Revert] = None) -> Frame:
+                      revert: Optional[Revert] = None, undo: Optional[Revert] = None,
+                      edit: Optional[EditContext] = None) -> Frame:
     """Exclude a view from its system's triangulation, or restore it, then recompute the system, in
     one transaction.
 
@@ -363,7 +376,8 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
     """
     if not isinstance(excluded, bool):
         raise InvalidInputError("excluded must be true or false", field="excluded")
-    facts = frame_facts(session, frame_id, snapshot=True)
+    edit = edit if edit is not None else EditContext()
+    facts = frame_facts(session, frame_id)
 
     def apply(frame: Frame) -> Frame:
         before = excluded_state(frame)
@@ -373,9 +387,10 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
             review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
             frame.review = review
         review.excluded = excluded
-        _recompute(session, frame.system, settings, actor)
+        _recompute(session, frame.system, settings, actor, edit)
         reset_after_change(session, frame, "view.exclusion", before, excluded_state(frame), actor, undo)
         return frame
 
     return guarded_frame_write(session, frame_id, expected, excluded_state, apply, "view.exclusion", actor, revert,
-                               undo.entry_id if undo is not None else None, system_id=facts.system_id)
+                               undo.entry_id if undo is not None else None, system_id=facts.system_id,
+                               settings=settings, edit=edit)

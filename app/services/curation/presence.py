@@ -33,7 +33,6 @@ from sqlalchemy.orm import Session
 from app.core.errors import NotFoundError
 from app.db.models import System, SystemPresence, User
 from app.db.session import begin_write
-from app.db.together import Call
 from app.db.types import utcnow
 
 #: How long a claim lives without a refresh.
@@ -79,25 +78,6 @@ def _open_on_statement(excluding: bool) -> sa.Select:
             .where(SystemPresence.system_id.in_(sa.bindparam("ids", expanding=True)), _live(sa.bindparam("now")))
             .order_by(SystemPresence.since, User.name))
     return stmt.where(SystemPresence.user_id != sa.bindparam("user")) if excluding else stmt
-
-
-def open_on_call(system_id: int, now: Optional[datetime] = None) -> Call:
-    """:func:`open_on` of one system as a call to send with others (``app.db.together.send_together``); its rows go to
-    :func:`open_on_of`."""
-    return Call(_open_on_one_statement(), {"sid": system_id, "now": now or utcnow()})
-
-
-def open_on_of(rows: list[tuple[Any, ...]]) -> list[Presence]:
-    """The live claims, oldest first, that :func:`open_on_call` answered."""
-    return [Presence(sid, user_id, name, since, expires_at) for sid, user_id, since, expires_at, name in rows]
-
-
-@functools.cache
-def _open_on_one_statement() -> sa.Select:
-    """The read of :func:`open_on_call`, taking ``sid`` and ``now``: built once."""
-    P = SystemPresence
-    return (sa.select(P.system_id, P.user_id, P.since, P.expires_at, User.name).join(User, User.id == P.user_id)
-            .where(P.system_id == sa.bindparam("sid"), _live(sa.bindparam("now"))).order_by(P.since, User.name))
 
 
 def open_on(session: Session, system_ids: list[int], now: Optional[datetime] = None,

@@ -42,7 +42,6 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
 
 from app.core.errors import InvalidInputError
-from app.db.together import Call
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.db.models import (
     BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, ReviewStatus, System, User,
@@ -437,33 +436,25 @@ def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = 
     (:func:`_neighbour`), each found by index seeks from the system's place, never by scanning the
     queue up to it.
     """
-    call = held_neighbours_call(held, filters, sort) if held is not None and held.id == system_id else None
-    if call is None:
+    current = _held_keys(held, sort) if held is not None and held.id == system_id else None
+    if current is None:
         keys_stmt, _ = _neighbour_statements(sort, filters, None)
-        current = session.execute(keys_stmt, {"system_id": system_id}).first()
-        if current is None:
+        row = session.execute(keys_stmt, {"system_id": system_id}).first()
+        if row is None:
             return None, None
-        call = _neighbours_call(sort, filters, tuple(current))
-    prev_id, next_id = session.execute(call.stmt, call.params).one()
+        current = tuple(row)
+    _, stmt = _neighbour_statements(sort, filters, tuple(v is None for v in current))
+    prev_id, next_id = session.execute(stmt, {f"key{i}": v for i, v in enumerate(current) if v is not None}).one()
     return prev_id, next_id
 
 
-def held_neighbours_call(held: System, filters: SystemFilters = SystemFilters(),
-                         sort: SystemSort = DEFAULT_SORT) -> Optional[Call]:
-    """The read of both neighbours of ``held`` (a system as its session holds it committed) in the queue ``filters`` +
-    ``sort``, as a call to send with others (``app.db.together.send_together``; its one row is ``(prev_id, next_id)``),
-    when every sort key is a column of the system (taken from ``held``); None otherwise (:func:`queue_neighbours`
-    reads the keys first)."""
+def _held_keys(held: System, sort: SystemSort) -> Optional[tuple[Any, ...]]:
+    """The sort keys of ``held`` (a system as its session holds it committed) when every key is a column of the
+    system, else None (:func:`queue_neighbours` reads them)."""
     keys = _sort_keys(sort)
     if not all(getattr(k.expr, "class_", None) is System and hasattr(k.expr, "key") for k in keys):
         return None
-    return _neighbours_call(sort, filters, tuple(getattr(held, k.expr.key) for k in keys))
-
-
-def _neighbours_call(sort: SystemSort, filters: SystemFilters, current: tuple[Any, ...]) -> Call:
-    """The read of both neighbours of the row whose sort keys are ``current`` (:func:`_neighbour_statements`)."""
-    _, stmt = _neighbour_statements(sort, filters, tuple(v is None for v in current))
-    return Call(stmt, {f"key{i}": v for i, v in enumerate(current) if v is not None})
+    return tuple(getattr(held, k.expr.key) for k in keys)
 
 
 @functools.lru_cache(maxsize=256)

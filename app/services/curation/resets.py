@@ -49,8 +49,6 @@ def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[
         _system_back_to_pending(session, other, f"{other.name}: its 3D ball moved with the trajectory's re-fit after "
                                 f"an edit of {edited.name} by {who}; decide it again", actor, utcnow())
         done += 1
-    if done:
-        session.flush()
     return done
 
 
@@ -72,8 +70,7 @@ def reset_decisions_after_recalibration(session: Session, frame: Frame, before: 
     before the edit) and it was recalibrated, in the edit's transaction: a decided calibration decision of the view and a decided decision
     of its system go back to pending with the reason (``calibration_reset_reason``, ``reset_reason``), each
     with its own audit entry (``view.calibration_review``, ``system.review``: revertible) added before the
-    edit's own, so the edit stays the frame's newest entry. The system's ``review_version`` is bumped (a page
-    that drew the old decision gets 412 on deciding). Nothing changes when the lines did not.
+    edit's own, so the edit stays the frame's newest entry. Nothing changes when the lines did not.
 
     Returns:
         The reason (one sentence naming the view, the edit, who, and the calibration before and after), or
@@ -113,8 +110,8 @@ def reset_decisions_after_edit(session: Session, frame: Frame, reason: str, acto
     field-line edit; else its ball decision) and the system's decision, when decided, go back to pending with
     ``reason`` (``calibration_reset_reason`` / ``reset_reason``), each with its own audit entry
     (``view.calibration_review`` / ``view.review``, ``system.review``: revertible) added before the edit's own,
-    so the edit stays the frame's newest entry. The system's ``review_version`` is bumped (a page that drew the
-    old decision gets 412 on deciding).
+    so the edit stays the frame's newest entry (the edit bumps the system's version: a page that drew the old
+    decision gets 412 on deciding).
 
     Returns:
         Whether anything was reset.
@@ -144,20 +141,18 @@ def reset_decisions_after_edit(session: Session, frame: Frame, reason: str, acto
                      after=review_state(frame))
     if system_decided:
         _system_back_to_pending(session, system, reason, actor, now)
-    session.flush()
     return True
 
 
 def _system_back_to_pending(session: Session, system: System, reason: str, actor: Optional[str], now: Any) -> None:
-    """Set ``system``'s decided decision back to pending with ``reason``, bump its ``review_version`` (a page that
-    drew the old decision gets 412 on deciding) and record the change (``system.review``, revertible)."""
+    """Set ``system``'s decided decision back to pending with ``reason`` and record the change (``system.review``,
+    revertible)."""
     before = review_state(system)
     decision = system.review
     decision.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
     decision.reset_reason = reason  # type: ignore[union-attr]
     decision.decided_at = now  # type: ignore[union-attr]
     system.review_status = ReviewStatus.PENDING  # type: ignore[assignment]  # the queue's copy
-    system.review_version += 1
     audit.record(session, actor=actor, action="system.review", system=system, before=before,
                  after=review_state(system))
 

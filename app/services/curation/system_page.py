@@ -19,17 +19,14 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, joinedload
 
 from app.db.models import Frame, System
-from app.db.session import reads_on_their_own
-from app.db.together import Call, answers_after_writes, read_after_writes, send_together
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.core.errors import found
 from app.services.curation.assignment import Assignment, assignment_of
-from app.services.curation.presence import Presence, open_on, open_on_call, open_on_of
-from app.services.curation.queue import (
-    DEFAULT_SORT, SystemFilters, SystemSort, held_neighbours_call, queue_neighbours,
-)
-from app.services.derivation.loading import FRAME_ROWS, load_systems
+from app.services.curation.presence import Presence, open_on
+from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
+from app.services.derivation.loading import load_systems
+from app.services.derivation.scope import FRAME_ROWS
 
 #: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
 #: per view, smooth at 1920 px, a tenth of the JaC sampling.
@@ -119,7 +116,7 @@ def _projected_pitch(camera_key: str, width: int, height: int) -> tuple[tuple[st
 
 
 def _frame_loads(load: Any) -> list[Any]:
-    """The frame's one-to-one rows the view draws (``loading.FRAME_ROWS``), joined to their parent."""
+    """The frame's one-to-one rows the view draws (``scope.FRAME_ROWS``), joined to their parent."""
     return [load(r) for r in FRAME_ROWS]
 
 
@@ -149,8 +146,8 @@ _FRAME_PAGE_RELATIONS = frozenset(r.key for r in FRAME_ROWS)
 
 def _loaded_system(session: Session, system_id: int) -> Optional[System]:
     """The system as the session holds it already with everything its page draws loaded and nothing expired (an
-    edit's answer: the edit loaded and recomputed it under its lock and committed it, ``expire_on_commit`` off),
-    else None. Spares the answer of every edit a second round of queries for rows it has just written (issue 29)."""
+    edit's answer: the edit loaded and recomputed it and committed it, ``expire_on_commit`` off), else None. Spares
+    the answer of every edit a second round of queries for rows it has just written."""
     system = session.identity_map.get(session.identity_key(System, system_id))  # type: ignore[arg-type]
     if system is None:
         return None
@@ -179,52 +176,18 @@ def load_frame(session: Session, frame_id: int) -> Frame:
     return found(session.scalars(stmt).unique().first(), "frame", frame_id)
 
 
-#: The key of :func:`read_with_the_edit`'s reads (with the queue's filters and sort).
-_ANSWER_READS = "system_page"
-
-
-def read_with_the_edit(session: Session, filters: SystemFilters = SystemFilters(),
-                       sort: SystemSort = DEFAULT_SORT) -> None:
-    """Let the next edit written in ``session`` read, with its writes and in their round trip on PostgreSQL, what
-    :func:`system_page` reads for its answer besides the system the edit holds (its neighbours in the queue
-    ``filters`` + ``sort``, its presence claims; ``app.db.together.read_after_writes``): an edit's answer then
-    costs no round trip of its own after the ``COMMIT``. Does nothing elsewhere."""
-    read_after_writes(session, (_ANSWER_READS, filters, sort), lambda held: _answer_calls(held, filters, sort))
-
-
-def _answer_calls(held: System, filters: SystemFilters, sort: SystemSort) -> Optional[list[Call]]:
-    """The reads of :func:`system_page` besides the system ``held`` (held by the session as committed): both its
-    queue neighbours and its presence claims, or None when the queue's sort keys are not all the system's own
-    columns (``queue.held_neighbours_call``)."""
-    neighbours = held_neighbours_call(held, filters, sort)
-    return None if neighbours is None else [neighbours, open_on_call(held.id)]
-
-
 def system_page(session: Session, system_id: int, filters: SystemFilters = SystemFilters(),
                 sort: SystemSort = DEFAULT_SORT) -> SystemPageData:
-    """The system for its page (:func:`load_system`), its neighbours in the queue ``filters`` + ``sort``
-    (by default the whole queue in its default order; ``app.services.curation.queue.queue_neighbours``), its
-    assignment (from the loaded system: ``assignment.assignment_of``) and its live presence claims (one indexed read).
-    After an edit, whose session holds the system as it committed it, those reads run without a transaction of their
-    own (``app.db.session.reads_on_their_own``), both in one round trip on PostgreSQL when the queue's sort keys are
-    the system's own columns (``queue.held_neighbours_call``), or were read with the edit's writes already
-    (:func:`read_with_the_edit`).
+    """The system for its page (:func:`load_system`: the system as an edit just committed it when the session holds
+    it so), its neighbours in the queue ``filters`` + ``sort`` (by default the whole queue in its default order;
+    ``app.services.curation.queue.queue_neighbours``), its assignment (from the loaded system:
+    ``assignment.assignment_of``) and its live presence claims (one indexed read).
 
     Raises:
         NotFoundError: no system has this id.
     """
-    system = held = _loaded_system(session, system_id)
-    if held is not None:  # an edit's answer: the system is held as committed, the reads left need no snapshot
-        answered = answers_after_writes(session, (_ANSWER_READS, filters, sort), system_id)
-        if answered is None:
-            reads_on_their_own(session)
-            if (calls := _answer_calls(held, filters, sort)) is not None:  # one round trip on PostgreSQL
-                answered = send_together(session, calls)
-        if answered is not None:
-            around, presence = answered
-            return SystemPageData(system, *around[0], assignment_of(session, system), open_on_of(presence))
-    else:
-        system = load_system(session, system_id)
+    held = _loaded_system(session, system_id)
+    system = held if held is not None else load_system(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort, held=held)
     return SystemPageData(system, prev_id, next_id, assignment_of(session, system),
                           open_on(session, [system_id]).get(system_id, []))

@@ -1,11 +1,11 @@
 """Systems loaded with their views and derived rows in four queries, whatever the number of systems and views.
 
 What a recomputation (``recompute.load_for_recompute``) and the system page (``app.services.curation.system_page``)
-read of a system: the system with its one-to-one rows joined to it, its views (``System.frames``, in their order)
-with each view's one-to-one rows joined to it, its pairs (``Triangulation.pairs``) and doubts (``System.doubts``),
-in id order. Each list is one query for all the systems asked; its rows are handed to their parents as the loaded
+read of a system, as ``app.services.derivation.scope`` declares it: the system with its one-to-one rows joined to it,
+its views (``System.frames``, in their order) with each view's one-to-one rows joined to it, its pairs
+(``Triangulation.pairs``) and doubts (``System.doubts``), in id order. Each list is one query for all the systems asked; its rows are handed to their parents as the loaded
 value of the relationship (``set_committed_value``), as SQLAlchemy's ``selectinload`` would, without its per-call
-loader machinery: a 4-view system loads in about two thirds of the CPU (issue 29: an edit's load, the page's load).
+loader machinery: a 4-view system loads in about two thirds of the CPU (an edit's load, the page's load).
 
 Like ``selectinload``, a relationship the session holds loaded already is left as it is (a system already in the
 session gets only the relations it has not loaded; changed attributes are kept); the statements are built once.
@@ -20,10 +20,7 @@ from sqlalchemy.orm import Session, joinedload
 from sqlalchemy.orm.attributes import set_committed_value
 
 from app.db.models import Doubt, Frame, System, Triangulation, TriangulationPair
-
-#: A view's one-to-one rows, joined to it in the views' query.
-FRAME_ROWS = (Frame.calibration, Frame.ball_label, Frame.review, Frame.reprojection, Frame.optimised_box,
-              Frame.field_lines)
+from app.services.derivation.scope import FRAME_ROWS
 #: Systems loaded per round of four queries (bounded IN lists and memory).
 CHUNK = 500
 

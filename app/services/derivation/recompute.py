@@ -29,16 +29,11 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 """
 from __future__ import annotations
 
-import functools
-import hashlib
 from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
 import numpy as np
-import orjson
-import sqlalchemy as sa
 from sqlalchemy import func, select
-from sqlalchemy.dialects.postgresql import aggregate_order_by
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
@@ -48,7 +43,6 @@ from app.db.models import (
     TriangulationStatus,
 )
 from app.db.session import begin_write
-from app.db.together import Call, send_together
 from app.db.types import json_safe, utcnow
 from app.geometry.ball import optimise_box
 from app.geometry.calibration.result import MIRROR_FLAG
@@ -62,12 +56,12 @@ from app.services.audit.log import record_summary
 from app.datasets.records import CalibrationFields
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
-from app.services.calibration.rigs import (game_rig, rig_call, rig_centres, rig_rows, rig_rows_of, uses_rig,
-                                          wants_rig_retry, with_rig_retry)
+from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts, weighed_views
 from app.services.derivation import cameras as shared
+from app.services.derivation import scope
 from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.loading import load_systems
 from app.services.derivation.rows import put_values, replace_rows
@@ -86,8 +80,8 @@ def recompute_frame(session: Session, frame: Frame, settings: Settings,
     calibration (source "computed"), then recompute its system. The caller flushes or commits.
 
     Args:
-        rig: the game's rig rows (:func:`rig_rows`) as the session holds them now, when the caller has read them
-            (an edit's :func:`recompute_planned` in ``app.services.curation.writing``): not read again.
+        rig: the game's rig rows (:func:`rig_rows`) when the caller has read them (an edit reads them with its
+            system, ``app.services.curation.writing``): not read again.
 
     Raises:
         ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
@@ -223,6 +217,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
     update_doubts(system, settings, cameras, geometry, weighed)
     update_summary(system, tri)
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
+    scope.changed(system)  # its derived rows were written: what its next edit compares (``scope``)
     return tri
 
 
@@ -235,166 +230,6 @@ def system_rig_rows(session: Session, system: System, settings: Settings) -> lis
 def rig_game_of(system: System) -> int | None:
     """The game whose rig rows ``system``'s recomputation reads (:func:`system_rig_rows`), None when it reads none."""
     return system.game_id if uses_rig(system) and system.game_id is not None else None
-
-
-#: The stored rows an edit of a system loads and may write (:func:`load_for_recompute`, the edit's own rows): the
-#: system with its triangulation, review, trajectory point and its game's camera prior; its views with their
-#: one-to-one rows; its pairs and doubts. Read as rows (no ORM objects) by four statements built once
-#: (:func:`stored_state_digest`).
-_F = Frame.__table__
-_FRAME_ROWS = (FieldLineAnnotation, Calibration, BallLabel, ReviewDecision, BallReprojection, OptimisedBox)
-
-
-def _stored(*columns: Any) -> list[sa.ColumnElement[Any]]:
-    """``columns`` (tables or columns) as the driver returns them: no JSON decoding, no datetime or enum conversion
-    (the digest compares what is stored, and decoding a system's JSON documents cost more than its queries)."""
-    out: list[sa.ColumnElement[Any]] = []
-    for item in columns:
-        for c in (item.c if isinstance(item, sa.Table) else [item]):
-            out.append(sa.type_coerce(c, sa.types.NullType()).label(f"{c.table.name}_{c.name}"))
-    return out
-
-
-def _row_sets(pick: Any) -> tuple[sa.Select, ...]:
-    """The four sets of rows an edit of a system loads and may write (the system with its one-to-one rows and its
-    game; its views with theirs; its pairs; its doubts), each a statement taking the system's id as ``sid``;
-    ``pick(table, columns)`` gives the expressions selected of each table (``columns``: None for all of them)."""
-    sid = sa.bindparam("sid")
-    S, T, R, P, G = (m.__table__ for m in (System, Triangulation, ReviewDecision, TrajectoryPoint, Game))
-    frames = _F
-    for model in _FRAME_ROWS:
-        t = model.__table__
-        frames = frames.outerjoin(t, t.c.frame_id == _F.c.id)
-    return (
-        # the game's camera prior, not its release
-        sa.select(*pick(S), *pick(T), *pick(R), *pick(P), *pick(G, (G.c.id, G.c.camera_prior))).select_from(
-            S.outerjoin(T, T.c.system_id == S.c.id).outerjoin(R, R.c.system_id == S.c.id)
-            .outerjoin(P, P.c.system_id == S.c.id).outerjoin(G, G.c.id == S.c.game_id)).where(S.c.id == sid),
-        sa.select(*pick(_F), *(c for m in _FRAME_ROWS for c in pick(m.__table__))).select_from(frames)
-        .where(_F.c.system_id == sid).order_by(_F.c.id),
-        sa.select(*pick(TriangulationPair.__table__)).where(TriangulationPair.system_id == sid)
-        .order_by(TriangulationPair.id),
-        sa.select(*pick(Doubt.__table__)).where(Doubt.system_id == sid).order_by(Doubt.id),
-    )
-
-
-@functools.cache
-def _state_statements() -> tuple[sa.Select, ...]:
-    """The statements of :func:`stored_rows_digest` on SQLite: every column of every row as stored (built once)."""
-    return _row_sets(lambda table, columns=None: _stored(*(columns if columns is not None else [table])))
-
-
-@functools.cache
-def _state_statement_postgresql() -> sa.Select:
-    """:func:`stored_rows_digest` on PostgreSQL as one statement of four text columns, each the SHA-256 (hex) of one
-    row set (:func:`_row_sets`) as the key and ``xmin`` of each of its tables' rows (the game's camera prior by
-    value), joined in the set's order by its first table's id. ``xmin``, the transaction that wrote a row's version,
-    changes with every update and every new row (a row written again with the same values too: an edit never sends
-    those, ``rows.put_values``), so
-    equal digests mean that no row changed, as equal contents would: PostgreSQL reads no JSON document, casts no row
-    to text and hashes a few hundred bytes per system, and one round trip brings the four digests. Built once."""
-    def pick(table: sa.Table, columns: Any = None) -> list[sa.ColumnElement[Any]]:
-        if columns is not None:  # the game: its camera prior by value (not its release: large, and read by exports)
-            return [sa.cast(c, sa.Text).label(f"{table.name}_{c.name}") for c in columns]
-        return [*(c.label(f"{table.name}_{c.name}") for c in table.primary_key.columns),
-                sa.cast(sa.literal_column(f"{table.name}.xmin"), sa.Text).label(f"{table.name}_xmin")]
-
-    digests = []
-    for i, (stmt, table) in enumerate(zip(_row_sets(pick), (System, Frame, TriangulationPair, Doubt))):
-        rows = stmt.subquery(f"rows_{i}")
-        text = sa.cast(sa.tuple_(*rows.c), sa.Text)
-        ordered_sep = aggregate_order_by(sa.literal_column("'|'"), rows.c[f"{table.__tablename__}_id"])
-        agg = sa.func.string_agg(text, ordered_sep)
-        digests.append(sa.select(sa.func.encode(sa.func.sha256(sa.func.convert_to(agg, "UTF8")), "hex"))
-                       .select_from(rows).scalar_subquery().label(f"rows_{i}"))
-    return sa.select(*digests)
-
-
-def stored_state_digest(session: Session, system_id: int,
-                        rig: Sequence[tuple[int, np.ndarray, bool]] | None = None, *, rows: str | None = None) -> str:
-    """A digest (hex SHA-256) of every stored row an edit of system ``system_id`` loads and may write, as the
-    session's transaction sees the database (not the objects in memory): the system's own rows
-    (:func:`stored_rows_digest`; ``rows``: that digest when the caller read it in the same transaction) and the
-    game's rig rows ``rig`` (:func:`system_rig_rows`, read by the caller in the same transaction; None: the kind uses
-    no rig). Two equal digests read before and under an edit's write lock mean that nothing the edit read changed in
-    between: its objects in memory are the stored rows plus its own changes (``app.services.curation.writing``)."""
-    return state_digest(rows if rows is not None else stored_rows_digest(session, system_id), rig)
-
-
-def state_digest(rows: str, rig: Sequence[tuple[int, np.ndarray, bool]] | None) -> str:
-    """:func:`stored_state_digest` of a system's rows' digest ``rows`` (:func:`stored_rows_digest`) and its game's rig
-    rows ``rig`` (None: its kind uses no rig)."""
-    doc = [rows, sorted([fid, centre.tolist(), main] for fid, centre, main in rig) if rig is not None else None]
-    return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)).hexdigest()
-
-
-def read_stored_state(session: Session, system_id: int, rig_game_id: int | None, settings: Settings, *,
-                      rows: str | None = None, before: Sequence[Call] = (), after: Sequence[Call] = ()
-                      ) -> tuple[str, list[tuple[int, np.ndarray, bool]] | None, list[Any]]:
-    """``(rows digest, rig rows, answers of after)`` of system ``system_id`` as the session's transaction sees the
-    database: the digest of its stored rows (:func:`stored_rows_digest`; ``rows``: that digest, read in the same
-    transaction already) and the rig rows of game ``rig_game_id`` (``rigs.rig_rows``; None when it is None: the kind
-    uses no rig). ``before``: calls to run first in the same transaction, whose answers are dropped (an edit's lock,
-    ``writing.lock_calls``); ``after``: calls to run once these were read, whose answers come third (an edit's claim
-    of its version, ``versions.Claim.call``).
-    PostgreSQL: everything in one round trip (``app.db.together``); SQLite: one statement after the other."""
-    calls = [*before]
-    if rig_game_id is not None:
-        calls.append(rig_call(rig_game_id, settings))
-    postgresql = session.get_bind().dialect.name == "postgresql"
-    digest_here = rows is None and postgresql
-    if digest_here:
-        calls.append(rows_digest_call(system_id))
-    elif rows is None:  # SQLite: the digest by its own statements, in the same transaction, before ``after``
-        rows = stored_rows_digest(session, system_id)
-    answers = send_together(session, [*calls, *after])[len(before):]
-    rig = rig_rows_of(answers.pop(0)) if rig_game_id is not None else None
-    if digest_here:
-        rows = rows_digest_of(answers.pop(0))
-    return rows, rig, answers  # type: ignore[return-value]
-
-
-def stored_rows_digest(session: Session, system_id: int) -> str:
-    """A digest (hex SHA-256) of the stored rows of system ``system_id`` an edit loads and may write, as the
-    session's transaction sees the database: the system, its triangulation, review, trajectory point and its game's
-    camera prior; every view with its field lines, calibration, ball label, review, reprojection and optimised box;
-    the pairs and doubts. SQLite: four queries of rows as stored (no ORM objects, no decoding); PostgreSQL: one
-    statement in which the database hashes the same rows' keys and row versions (``xmin``,
-    :func:`_state_statement_postgresql`)."""
-    conn = session.connection()
-    if conn.dialect.name == "postgresql":
-        return rows_digest_of(send_together(session, [rows_digest_call(system_id)])[0])
-    raw = conn.connection.dbapi_connection  # the driver's own cursor: the rows as stored, without SQLAlchemy's work
-    return _rows_digest([raw.execute(sql, (system_id,)).fetchall() for sql in _state_sql_sqlite(conn.dialect)])
-
-
-def rows_digest_call(system_id: int) -> Call:
-    """PostgreSQL's :func:`stored_rows_digest` of system ``system_id`` as a call to send with others
-    (``app.db.together``); its one row read by :func:`rows_digest_of`."""
-    return Call(_state_statement_postgresql(), {"sid": system_id})
-
-
-def rows_digest_of(rows: Sequence[Sequence[Any]]) -> str:
-    """:func:`stored_rows_digest` from the answer of :func:`rows_digest_call`."""
-    return _rows_digest(list(rows[0]))
-
-
-def _rows_digest(doc: list[Any]) -> str:
-    """The hex SHA-256 of the rows (or the database's digests of them) ``doc`` read for :func:`stored_rows_digest`."""
-    return hashlib.sha256(orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
-                                       default=str)).hexdigest()
-
-
-@functools.cache
-def _state_sql_sqlite(dialect: Any) -> tuple[str, ...]:
-    """:func:`_state_statements` compiled once for SQLite's driver, each with its one parameter ``sid`` as ``?``."""
-    out = []
-    for stmt in _state_statements():
-        compiled = stmt.compile(dialect=dialect)
-        if list(compiled.positiontup or ()) != ["sid"]:
-            raise RuntimeError(f"the digest's statement takes {compiled.positiontup}, not (sid,)")
-        out.append(compiled.string)
-    return tuple(out)
 
 
 def update_summary(system: System, tri: Triangulation) -> None:
@@ -559,20 +394,18 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
     put_values(row, {"box": [float(v) for v in opt.box], "d_opt_px": float(opt.d_px), "error_m": float(opt.error_m)})
 
 
-#: What :func:`recompute_system` and ``update_doubts`` read of a system besides its views, pairs and doubts (an
-#: ISSIA system's trajectory point too): its one-to-one rows (``loading.load_systems``).
-RECOMPUTE_SYSTEM_ROWS = (System.triangulation, System.trajectory_point, System.review)
 #: Systems recomputed per transaction by :func:`refresh_stale_systems`.
 _REFRESH_BATCH = 500
 
 
 def load_for_recompute(session: Session, ids: Sequence[int], *, with_game: bool = False) -> dict[int, System]:
-    """The systems ``ids`` with what :func:`recompute_system` and ``update_doubts`` read, by id, in four queries per
+    """The systems ``ids`` with what :func:`recompute_system` and ``update_doubts`` read (``scope``), by id, in four
+    queries per
     500 systems (``app.services.derivation.loading.load_systems``) instead of one lazy load per attribute and frame
     (systems already in the session get the relations they have not loaded; changed attributes are kept).
     ``with_game``: the system's game joined too (an edit, whose answer names the game and whose recalibration may
     read its learned prior: one lazy load fewer)."""
-    return load_systems(session, ids, (*RECOMPUTE_SYSTEM_ROWS, System.game) if with_game else RECOMPUTE_SYSTEM_ROWS)
+    return load_systems(session, ids, (*scope.SYSTEM_ROWS, scope.GAME_ROW) if with_game else scope.SYSTEM_ROWS)
 
 
 def preload_systems(session: Session, systems: Sequence[System]) -> None:

@@ -65,6 +65,7 @@ from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.calibrating import apply_calibration
 from app.services.calibration.rigs import uses_rig
 from app.services.jobs.progress import Progress
+from app.services.derivation import scope
 from app.services.derivation.recompute import preload_systems, recompute_systems
 
 __all__ = [
@@ -283,6 +284,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     if learned_prior is not None:  # kept for every later recalibration of these datasets' frames
         for game in {id(f.system.game): f.system.game for f in to_calibrate if not uses_rig(f.system)}.values():
             game.camera_prior = learned_prior.to_json()
+            scope.game_changed(game)  # its frames' recalibrations read the prior (``scope``)
     for i, ms in prior_ms.items():
         rig_ms[i] = rig_ms.get(i, 0.0) + ms
     if after_calibration is not None:

@@ -121,26 +121,33 @@ def test_system_review_is_a_conditional_write_of_reviewers(client: TestClient, s
     sid = scene.system_id
     view = client.get(f"/api/systems/{sid}")
     etag = view.headers["etag"]
-    assert etag == view.json()["etag"] == f'"system-{sid}-1"'
+    version = int(etag.strip('"').rsplit("-", 1)[1])
+    assert etag == view.json()["etag"] == f'"system-{sid}-{version}"'
     act_as("ann", "annotator")
     assert client.post(f"/api/systems/{sid}/review", json={"status": "accepted"}, headers={"If-Match": etag}).status_code == 403
     act_as("rita", "reviewer")
     done = client.post(f"/api/systems/{sid}/review", json={"status": "accepted", "comment": "ok"}, headers={"If-Match": etag})
-    assert done.status_code == 200 and done.headers["etag"] == f'"system-{sid}-2"'
+    assert done.status_code == 200 and done.headers["etag"] == f'"system-{sid}-{version + 1}"'
     stale = client.post(f"/api/systems/{sid}/review", json={"status": "rejected"}, headers={"If-Match": etag})
     assert stale.status_code == 412
     assert stale.json()["current"]["review"]["status"] == "accepted" and stale.json()["last_change"]["actor"] == "rita"
     assert client.get(f"/api/systems/{sid}").json()["review"]["status"] == "accepted"
-    # a frame's edit of the accepted system sets its decision back to pending (issue 28): its ETag moves, so a
-    # page that drew "accepted" cannot decide over the edit unseen; a frame's edit of a pending system leaves it alone
+    # a frame's edit of the accepted system sets its decision back to pending: its ETag moves, so a page that drew
+    # "accepted" cannot decide over the edit unseen
     frame, fetag = _frame(client, scene.frame_ids[0])
     edit = client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", json={"box": _moved(frame["ball"]["box"], 2.0)},
                         headers={"If-Match": fetag})
     reset = client.get(f"/api/systems/{sid}")
-    assert reset.json()["review"]["status"] == "pending" and reset.headers["etag"] == f'"system-{sid}-3"'
-    client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", json={"box": _moved(frame["ball"]["box"], 4.0)},
-                 headers={"If-Match": edit.headers["etag"]})
-    assert client.get(f"/api/systems/{sid}").headers["etag"] == reset.headers["etag"]
+    assert reset.json()["review"]["status"] == "pending" and reset.headers["etag"] not in (etag, done.headers["etag"])
+    # the ETag covers the labels its reviewer saw: an accept sent with the ETag of a page drawn before a ball moved
+    # 40 px is refused, and nothing is decided
+    seen = reset.headers["etag"]
+    moved = client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", json={"box": _moved(frame["ball"]["box"], 40.0)},
+                         headers={"If-Match": edit.headers["etag"]})
+    assert moved.status_code == 200 and client.get(f"/api/systems/{sid}").headers["etag"] != seen
+    late = client.post(f"/api/systems/{sid}/review", json={"status": "accepted"}, headers={"If-Match": seen})
+    assert late.status_code == 412 and late.json()["current"]["review"]["status"] == "pending"
+    assert client.get(f"/api/systems/{sid}").json()["review"]["status"] == "pending"
 
 
 # ----- the audit log -------------------------------------------------------------------------------

@@ -135,10 +135,10 @@ def test_a_claim_reads_its_new_version_with_or_without_returning(db_session, set
 
 @pytest.mark.postgres
 def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_url, settings, v3_tree):
-    """Writer A claims the frame and holds its transaction open; writer B, with the same expected version,
-    waits on the row lock, then finds the version moved: 412 for B, A's edit stored, one entry."""
-    from app.db.session import make_engine, make_session_factory, upgrade_database
-    from app.services.curation.versions import claim_frame
+    """Writer A locks the system, bumps the frame's and the system's versions and holds its transaction open; writer
+    B, with the same expected version, waits on the row lock, then finds the version moved: 412 for B, A's edit
+    stored, one entry."""
+    from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
     from app.services.curation.writing import lock_system
 
     upgrade_database(pg_url)
@@ -149,8 +149,12 @@ def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_url, settings
             import_soccernet_v3(setup, v3_tree, settings)
             fid = setup.scalars(sa.select(Frame.id).where(Frame.name == "2_2.png")).one()
         a, b = factory(), factory()
-        lock_system(a, a.get(Frame, fid).system_id)
-        claim_frame(a, fid, {1})  # A holds the lock
+        begin_write(a)
+        lock_system(a, a.get(Frame, fid).system_id, game=True)  # A holds the lock, as an edit's write does
+        frame = a.get(Frame, fid)
+        frame.edit_version += 1
+        frame.system.version += 1
+        a.flush()
         outcome: dict[str, object] = {}
 
         def writer_b() -> None:

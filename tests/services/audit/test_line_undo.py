@@ -13,6 +13,7 @@ from app.db.models import AuditEntry, Frame
 from app.services.audit import log as audit
 from app.services.curation.editing import replace_field_lines
 from app.services.derivation.recompute import recompute_frame
+from app.services.curation.writing import EditContext
 
 
 def _frame(systems, system, name) -> Frame:
@@ -34,16 +35,17 @@ def test_undo_of_an_edit_of_integer_lines_brings_them_back_with_their_camera(db_
     edited = copy.deepcopy(ints)
     edited[cls][0][1] = [edited[cls][0][1][0] + 30, edited[cls][0][1][1] - 12]
 
-    replace_field_lines(db_session, fid, edited, settings=settings)
-    entry_id = audit.recorded_entry_id(db_session)
-    assert audit.recorded_entry_id(db_session) is None  # read once
+    edit = EditContext()
+    replace_field_lines(db_session, fid, edited, settings=settings, edit=edit)
+    entry_id = edit.entry_id
     entry = db_session.get(AuditEntry, entry_id)
     assert db_session.get(Frame, fid).calibration.camera != camera
     assert entry.before == {"lines": ints} and entry.action == "field_lines.replace" and entry.reverts_id is None
 
     as_the_page_sends = {c: [[[float(x), float(y)] for x, y in poly] for poly in polys] for c, polys in ints.items()}
-    replace_field_lines(db_session, fid, as_the_page_sends, settings=settings, undo_of=entry_id)
-    undo = db_session.get(AuditEntry, audit.recorded_entry_id(db_session))
+    undo_edit = EditContext()
+    replace_field_lines(db_session, fid, as_the_page_sends, settings=settings, undo_of=entry_id, edit=undo_edit)
+    undo = db_session.get(AuditEntry, undo_edit.entry_id)
     assert (undo.action, undo.reverts_id) == ("field_lines.replace", entry_id)
     db_session.expire_all()  # read back what was committed
     frame = db_session.get(Frame, fid)
@@ -58,8 +60,9 @@ def test_an_undo_of_other_lines_or_of_no_line_write_is_refused(db_session, setti
     cls = next(iter(lines))
     moved = copy.deepcopy(lines)
     moved[cls][0][0] = [moved[cls][0][0][0] + 9, moved[cls][0][0][1]]
-    replace_field_lines(db_session, frame.id, moved, settings=settings)
-    entry_id = audit.recorded_entry_id(db_session)
+    edit = EditContext()
+    replace_field_lines(db_session, frame.id, moved, settings=settings, edit=edit)
+    entry_id = edit.entry_id
     version = db_session.get(Frame, frame.id).edit_version
     with pytest.raises(InvalidInputError) as err:
         replace_field_lines(db_session, frame.id, moved, settings=settings, undo_of=entry_id)  # not the lines before

@@ -166,29 +166,6 @@ def test_a_claim_is_written_when_due_only_and_others_see_it(db_session, people, 
     assert [p.name for p in shown[sid]] == ["ana", "ben"] and two_games["a"][1] not in shown
 
 
-def test_an_edits_answer_reads_neighbours_and_presence_together_as_apart(db_session, people, two_games):
-    """An edit's answer sends the held system's neighbours and its live claims in one round trip on PostgreSQL
-    (``queue.held_neighbours_call``, ``presence.open_on_call``): the same as the reads apart, lapsed claims left out."""
-    from app.db.together import send_together
-
-    sid, ana, ben = two_games["a"][1], people["ana"].id, people["ben"].id
-    presence.claim(db_session, sid, ana, T0)
-    presence.claim(db_session, sid, ben, T0 + timedelta(seconds=30))
-    presence.claim(db_session, two_games["a"][0], ben, T0)
-    now = T0 + presence.TTL + timedelta(seconds=10)  # ana's claim lapsed, ben's live
-    held = db_session.get(System, sid)
-    for sort in ("name", "-doubts", "worst_error"):
-        call = queue.held_neighbours_call(held, SystemFilters(), sort)
-        if call is None:  # the name sort's keys include its game's: read apart
-            assert sort == "name"
-            continue
-        around, claims = send_together(db_session, [call, presence.open_on_call(sid, now)])
-        assert tuple(around[0]) == queue.queue_neighbours(db_session, sid, SystemFilters(), sort)
-        assert presence.open_on_of(claims) == presence.open_on(db_session, [sid], now)[sid]
-        assert [p.name for p in presence.open_on_of(claims)] == ["ben"]
-    assert presence.open_on_of(send_together(db_session, [presence.open_on_call(two_games["b"][0], now)])[0]) == []
-
-
 def test_a_claim_expires_without_a_cleanup_job(db_session, people, two_games):
     sid, other, ana, ben = two_games["a"][0], two_games["b"][0], people["ana"].id, people["ben"].id
     presence.claim(db_session, sid, ana, T0)

@@ -1,8 +1,8 @@
-"""The turns of the recomputing edits of one process (issue 29; ``writing.EditSlots``): with one slot, a second edit
-computes only once the first has committed, so it computes from the first's rows and never collides with it; an
-edit waits at most ``wait_s`` and then computes anyway; decisions take no turn; the app's sessions carry the
-settings' slots. A real SQLite file; threads, and the hook ``writing.computed_before_lock`` holding one edit
-after its geometry (inside its turn)."""
+"""The turns of the recomputing edits of one process (``writing.EditSlots``): with one slot, a second edit computes
+only once the first has committed, so it computes from the first's rows and never collides with it; an edit waits at
+most ``wait_s`` and then computes anyway; decisions take no turn; the app hands the settings' slots to each edit's
+context. A real SQLite file; threads, one edit held after its geometry (inside its turn) by a wrapped
+``writing.begin_write``."""
 from __future__ import annotations
 
 import threading
@@ -20,7 +20,7 @@ from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.services.curation import writing
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import update_ball_label
-from app.services.curation.writing import EDIT_SLOTS, LAST_RECOMPUTATION, EditSlots
+from app.services.curation.writing import EditContext, EditSlots
 
 from tests.api.factories import Scene, make_game, make_system
 
@@ -50,14 +50,18 @@ def _hold_edit_a(monkeypatch: pytest.MonkeyPatch) -> tuple[threading.Event, thre
     """Hold the thread named "edit-a" after its geometry until ``release`` is set; note when each thread computed."""
     computed, release = threading.Event(), threading.Event()
     at: dict[str, float] = {}
+    real = writing.begin_write
 
-    def hold(system_id: int) -> None:
-        at[threading.current_thread().name] = time.monotonic()
-        if threading.current_thread().name == "edit-a":
-            computed.set()
-            assert release.wait(30)
+    def hold(session: Session) -> None:
+        name = threading.current_thread().name
+        if name not in at:
+            at[name] = time.monotonic()
+            if name == "edit-a":
+                computed.set()
+                assert release.wait(30)
+        real(session)
 
-    monkeypatch.setattr(writing, "computed_before_lock", hold)
+    monkeypatch.setattr(writing, "begin_write", hold)
     return computed, release, at
 
 
@@ -72,25 +76,27 @@ def _in_thread(name: str, work: Callable[[], object], outcome: dict[str, object]
     return thread
 
 
-def _edit(factory: Callable[[], Session], frame_id: int, box: list[float], settings: Settings) -> Callable[[], str]:
+def _edit(factory: Callable[[], Session], frame_id: int, box: list[float], settings: Settings,
+          slots: EditSlots) -> Callable[[], str]:
     def work() -> str:
         with factory() as s:
-            update_ball_label(s, frame_id, box=box, settings=settings)
-            return s.info[LAST_RECOMPUTATION]
+            edit = EditContext(slots=slots)
+            update_ball_label(s, frame_id, box=box, settings=settings, edit=edit)
+            return str(edit.outcome)
     return work
 
 
 def test_with_one_slot_a_second_edit_computes_after_the_first_committed(database, monkeypatch) -> None:
     engine, settings, scene, _ = database
-    factory = make_session_factory(engine, info={EDIT_SLOTS: EditSlots(1, 30.0)})
+    factory, slots = make_session_factory(engine), EditSlots(1, 30.0)
     fa, fb = scene.frame_ids[0], scene.frame_ids[1]
     box_a, box_b = _moved_box(factory, fa, 6.0), _moved_box(factory, fb, -5.0)
     computed, release, at = _hold_edit_a(monkeypatch)
     outcome: dict[str, object] = {}
-    a = _in_thread("edit-a", _edit(factory, fa, box_a, settings), outcome)
+    a = _in_thread("edit-a", _edit(factory, fa, box_a, settings, slots), outcome)
     try:
         assert computed.wait(60), "edit A never computed"
-        b = _in_thread("edit-b", _edit(factory, fb, box_b, settings), outcome)
+        b = _in_thread("edit-b", _edit(factory, fb, box_b, settings, slots), outcome)
         b.join(0.5)
         assert "edit-b" not in at and "edit-b" not in outcome  # B waits for A's turn: it has not computed
         released = time.monotonic()
@@ -98,8 +104,8 @@ def test_with_one_slot_a_second_edit_computes_after_the_first_committed(database
         release.set()
         a.join(60)
     b.join(60)
-    # B computed after A committed, from A's label: no collision, both stored precomputed
-    assert outcome == {"edit-a": "precomputed", "edit-b": "precomputed"}, outcome
+    # B computed after A committed, from A's label: no collision, both stored as computed once
+    assert outcome == {"edit-a": "computed", "edit-b": "computed"}, outcome
     assert at["edit-b"] >= released
     with factory() as s:
         assert list(s.get(Frame, fa).ball_label.box) == box_a and list(s.get(Frame, fb).ball_label.box) == box_b
@@ -107,69 +113,72 @@ def test_with_one_slot_a_second_edit_computes_after_the_first_committed(database
 
 def test_an_edit_computes_anyway_once_its_wait_for_a_turn_ran_out(database, monkeypatch) -> None:
     engine, settings, scene, other = database
-    factory = make_session_factory(engine, info={EDIT_SLOTS: EditSlots(1, 0.2)})
+    factory, slots = make_session_factory(engine), EditSlots(1, 0.2)
     fa, fo = scene.frame_ids[0], other.frame_ids[0]
     box_a, box_o = _moved_box(factory, fa, 6.0), _moved_box(factory, fo, 4.0)
     computed, release, at = _hold_edit_a(monkeypatch)
     outcome: dict[str, object] = {}
-    a = _in_thread("edit-a", _edit(factory, fa, box_a, settings), outcome)
+    a = _in_thread("edit-a", _edit(factory, fa, box_a, settings, slots), outcome)
     try:
         assert computed.wait(60), "edit A never computed"
         t0 = time.monotonic()
-        b = _in_thread("edit-b", _edit(factory, fo, box_o, settings), outcome)
+        b = _in_thread("edit-b", _edit(factory, fo, box_o, settings, slots), outcome)
         b.join(30)
         waited = time.monotonic() - t0
-        assert outcome.get("edit-b") == "precomputed", outcome  # done while A still holds its turn
+        assert outcome.get("edit-b") == "computed", outcome  # done while A still holds its turn
         assert waited >= 0.2
     finally:
         release.set()
         a.join(60)
-    assert outcome["edit-a"] == "precomputed", outcome
+    assert outcome["edit-a"] == "computed", outcome
     with factory() as s:
         assert list(s.get(Frame, fo).ball_label.box) == box_o and list(s.get(Frame, fa).ball_label.box) == box_a
 
 
 def test_a_review_decision_takes_no_turn(database, monkeypatch) -> None:
     engine, settings, scene, other = database
-    factory = make_session_factory(engine, info={EDIT_SLOTS: EditSlots(1, 30.0)})
+    factory, slots = make_session_factory(engine), EditSlots(1, 30.0)
     fa = scene.frame_ids[0]
     computed, release, _ = _hold_edit_a(monkeypatch)
     outcome: dict[str, object] = {}
-    a = _in_thread("edit-a", _edit(factory, fa, _moved_box(factory, fa, 6.0), settings), outcome)
+    a = _in_thread("edit-a", _edit(factory, fa, _moved_box(factory, fa, 6.0), settings, slots), outcome)
     try:
         assert computed.wait(60), "edit A never computed"
         t0 = time.monotonic()
         with factory() as s:
-            decide_review(s, system_id=other.system_id, status=ReviewStatus.ACCEPTED)
+            decide_review(s, system_id=other.system_id, status=ReviewStatus.ACCEPTED,
+                          edit=EditContext(slots=slots))
         assert time.monotonic() - t0 < settings.write_lock_timeout_s
     finally:
         release.set()
         a.join(60)
-    assert outcome["edit-a"] == "precomputed", outcome
+    assert outcome["edit-a"] == "computed", outcome
 
 
 def test_edit_slots_count_turns_and_refuse_negative_figures() -> None:
     slots = EditSlots(2, 0.0)
     with slots.turn() as first, slots.turn() as second, slots.turn() as third:
-        assert (bool(first), bool(second), bool(third)) == (True, True, False)  # the third ran out of its (zero) wait
-        assert (first.waited, second.waited, third.waited) == (False, False, True)
+        assert (first, second, third) == (False, False, True)  # the third waited (and ran out of its zero wait)
     with slots.turn() as again:
-        assert again and not again.waited  # the turns were given back
+        assert not again  # the turns were given back: no wait
     with EditSlots(0, 10.0).turn() as unlimited:
-        assert not unlimited and not unlimited.waited
+        assert not unlimited
     for slots_, wait in ((-1, 0.5), (1, -0.1)):
         with pytest.raises(ValueError, match="slots >= 0 and wait_s >= 0"):
             EditSlots(slots_, wait)
 
 
-def test_the_apps_sessions_carry_the_settings_slots(tmp_path: Path) -> None:
+def test_the_apps_edits_carry_the_settings_slots(tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    from app.api.deps import edit_context
     from app.main import create_app
 
     settings = Settings(_env_file=None, database_url=f"sqlite:///{tmp_path / 'app.sqlite3'}", job_runner=False,
                         edit_slots=3, edit_slot_wait_s=0.25)
     app = create_app(settings)
-    with app.state.session_factory() as s, app.state.session_factory() as t:
-        slots = s.info[EDIT_SLOTS]
-        assert (slots.slots, slots.wait_s) == (3, 0.25)
-        assert t.info[EDIT_SLOTS] is slots  # one set of turns per app (process)
+    request = SimpleNamespace(app=app)
+    first, second = edit_context(request), edit_context(request)  # type: ignore[arg-type]  # what FastAPI passes
+    assert first.slots is not None and (first.slots.slots, first.slots.wait_s) == (3, 0.25)
+    assert second.slots is first.slots and second is not first  # one set of turns per app (process), a context per edit
     assert Settings(_env_file=None).edit_slots == 1
