@@ -138,12 +138,6 @@ class Settings(BaseSettings):
         description="ball_missing needs the agreed ball to project at least this far inside the image (px at 1920 "
         "width; negative: that far outside). -40 calls an out-of-frame view; 0 to 40 change nothing on the dev sets.",
     )
-    doubt_single_view_margin_px: float = Field(
-        40.0,
-        description="With a single other labelled view the ball's depth along its ray is uncertain: ball_missing "
-        "needs it at least this far inside the image (px at 1920 width). 0 calls an out-of-frame view whose ball "
-        "lies just past the border; 100 loses a missing ball near the border.",
-    )
     doubt_ground_box_tolerance: float = Field(
         0.35,
         description="With a single other labelled view, the ball goes on the grass along its ray when the box's "
