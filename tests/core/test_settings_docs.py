@@ -1,12 +1,16 @@
 """docs/configuration.md against ``Settings``: its table "Every setting" names every ``V3D_*`` variable once, with
-the default the code declares, and names nothing else."""
+the default the code declares, and names nothing else; and the settings a stored result is computed with (each
+marked ``DERIVED`` where it is declared) are all in ``Settings.derived_fingerprint``."""
 from __future__ import annotations
 
 import re
 from pathlib import Path
 
-from app.core.config import Settings
+import pytest
+
+from app.core.config import DERIVED_SETTINGS, Settings
 from app.core.paths import PROJECT_ROOT
+from app.services.curation.doubts import doubt_settings
 
 CONFIGURATION_MD = Path(__file__).resolve().parents[2] / "docs" / "configuration.md"
 #: Named in the page but no setting of the service: the tests' database (said so beside it).
@@ -69,3 +73,32 @@ def test_the_checker_catches_a_wrong_default() -> None:
     assert _reads_as("40", 40.0, "x") and not _reads_as("30", 40.0, "x")
     assert _reads_as("`exact_ray`", "exact_ray", "x") and not _reads_as("`paper`", "exact_ray", "x")
     assert _reads_as("true", True, "x") and not _reads_as("false", True, "x")
+
+
+def test_every_setting_the_doubts_read_is_in_the_fingerprint() -> None:
+    """The judge's settings come from the service's settings; changing any one of those the doubts read changes the
+    fingerprint stored with each system, so stored doubts computed otherwise are counted stale."""
+    base = Settings(_env_file=None)
+    judge = doubt_settings(base)
+    for name in Settings.model_fields:
+        value = getattr(base, name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            continue
+        changed = base.model_copy(update={name: value + 1})
+        if doubt_settings(changed) != judge:
+            assert name in DERIVED_SETTINGS, f"the doubts read {name}, which is not marked DERIVED"
+
+
+@pytest.mark.parametrize("name", DERIVED_SETTINGS)
+def test_changing_a_derived_setting_changes_the_fingerprint(name: str) -> None:
+    base = Settings(_env_file=None)
+    value = getattr(base, name)
+    other = {"pair_error_rule": "max_px", "optimised_box_method": "paper"}[name] if isinstance(value, str) else value + 1
+    assert base.model_copy(update={name: other}).derived_fingerprint() != base.derived_fingerprint()
+
+
+def test_the_doubt_thresholds_are_derived_settings() -> None:
+    assert {n for n in Settings.model_fields if n.startswith("doubt_")} <= set(DERIVED_SETTINGS)
+    assert {"export_ball_box", "database_url", "calibration_workers"}.isdisjoint(DERIVED_SETTINGS)
+    changed = Settings(_env_file=None, doubt_max_ball_height_m=30.0)
+    assert changed.derived_fingerprint() != Settings(_env_file=None).derived_fingerprint()
