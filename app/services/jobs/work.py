@@ -20,6 +20,9 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
 from app.services.jobs.progress import Progress
+from app.services.derivation.recompute import recompute_all_systems
+from app.services.transfer import data_root
+from app.services.transfer.data_root import dataset_name
 from app.services.transfer.export_files import prune_exports, write_export_zip
 from app.services.transfer.export_formats import export_format
 from app.services.transfer.import_formats import import_format
@@ -67,8 +70,6 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
 def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None) -> str:
     """How an import job's ``params["path"]`` is shown to annotators and reviewers (no server path:
     ``app.services.transfer.data_root.dataset_name``; an upload as ``upload <job id>/...``)."""
-    from app.services.transfer.data_root import dataset_name
-
     if params.get("upload") and job_id is not None:  # wherever its folder lies (the jobs folder may have moved since)
         return f"upload {job_id}"
     return dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
@@ -81,8 +82,6 @@ def without_server_paths(job_id: int, params: dict[str, Any], result: dict[str, 
     path (and any file named inside it) by its shown name (:func:`shown_source`); other jobs unchanged."""
     if "path" not in params:
         return params, result, message
-    from app.services.transfer import data_root
-
     path, name = str(params["path"]), shown_source(params, settings, job_id)
     params = {**params, "path": name}
     if result is not None and "source" in result:
@@ -119,8 +118,6 @@ def _import(session: Session, params: dict[str, Any], settings: Settings, progre
 def run_recompute(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
                   job_id: int) -> dict[str, Any]:
     """Recompute every system with the current settings (calibrations untouched)."""
-    from app.services.derivation.recompute import recompute_all_systems
-
     systems, triangulated = recompute_all_systems(session, settings, progress, actor=params.get("actor"))
     return {"systems": systems, "triangulated": triangulated}
 
