@@ -19,10 +19,9 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
-from app.services.jobs.progress import Progress
 from app.services.derivation.recompute import recompute_all_systems
+from app.services.jobs.progress import Progress
 from app.services.transfer import data_root
-from app.services.transfer.data_root import dataset_name
 from app.services.transfer.export_files import prune_exports, write_export_zip
 from app.services.transfer.export_formats import export_format
 from app.services.transfer.import_formats import import_format
@@ -72,7 +71,7 @@ def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None)
     ``app.services.transfer.data_root.dataset_name``; an upload as ``upload <job id>/...``)."""
     if params.get("upload") and job_id is not None:  # wherever its folder lies (the jobs folder may have moved since)
         return f"upload {job_id}"
-    return dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
+    return data_root.dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
                         job_id if params.get("upload") else None)
 
 
