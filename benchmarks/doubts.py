@@ -37,8 +37,7 @@ Chosen operating point (the defaults of :class:`DoubtSettings` and ``Settings.do
   replay whose two-view error is 30-40 px; 25 is above the triangulation's tau (20) with room for the
   larger calibration errors of real data. ``min_line_classes`` 4: 2 flags 9 clean systems (rig cameras
   fitted to 2 classes), 5 misses corrupted views. ``near_duplicate_max_deg`` 3: flat from 0.5 to 8, clean
-  systems flagged from 12. ``single_view_margin_px`` 40: 0 calls an out-of-frame view, 100 misses a
-  missing ball near the border. ``inside_margin_px`` 0: -40 calls an out-of-frame view.
+  systems flagged from 12. ``inside_margin_px`` 0: -40 calls an out-of-frame view.
 * ``judge_system``: median 0.26 ms, p99 about 5 ms, max 9 ms per system; the 256 systems in 0.13 s.
 
 Run: ``.venv/bin/python benchmarks/doubts.py [--db-dir /tmp/v3d-doubts] [--plots /tmp] [--json OUT]
@@ -249,7 +248,6 @@ SWEEPS: dict[str, list[float]] = {
     "near_duplicate_max_deg": [0.5, 1, 2, 3, 5, 8, 12, 20],
     "min_line_classes": [2, 3, 4, 5, 6],
     "inside_margin_px": [-40, -20, 0, 20, 40],
-    "single_view_margin_px": [0, 20, 40, 60, 100, 150],
 }
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Any, Iterator, Optional
+from typing import Annotated, Any, Callable, Iterator, Optional, TypeVar
 
 import typer
 from tqdm import tqdm
@@ -21,9 +21,11 @@ from app.cli._root import export_cli, import_cli
 from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
 from app.services.jobs.work import import_params
+from app.services.transfer.export_formats import export_format
 
 DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
+_Command = TypeVar("_Command", bound=Callable[..., Any])
 _STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating", "rig": "calibrating with game rigs",
            "triangulate": "triangulating", "recompute": "recomputing systems", "export": "exporting games"}
 
@@ -46,6 +48,16 @@ class _Bars:
     def close(self) -> None:
         for bar in self.bars.values():
             bar.close()
+
+
+def export_command(name: str) -> Callable[[_Command], _Command]:
+    """Register the decorated function as ``v3d export <name>``, its help the registry's description of the format
+    (``app.services.transfer.export_formats``: what each export writes is said once, for the CLI and the docs).
+
+    Raises:
+        ValueError: ``name`` is no registered export format.
+    """
+    return export_cli.command(name, help=export_format(name).describes)
 
 
 def cli_settings(database_url: str | None, workers: int | None) -> Settings:
@@ -218,13 +230,13 @@ def import_precise_boxes_cmd(
     typer.echo(f"stored {n} precise box(es)")
 
 
-@export_cli.command("issia-3d")
+@export_command("issia-3d")
 def export_issia3d_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: Annotated[bool, typer.Option("--all", help="Export every frame, not only accepted ones.")] = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test; calibration/cam<k>.json)."""
+    """``v3d export issia-3d`` into ``out_dir`` (its help: the registry's description of the format)."""
     from app.services.issia.export import export_issia3d
 
     settings = cli_settings(database_url, None)
@@ -234,7 +246,7 @@ def export_issia3d_cmd(
                f"(cameras 3-6 train, 1-2 test: split.json; {report.calibrations} camera calibration(s))")
 
 
-@export_cli.command("soccernet-v3d")
+@export_command("soccernet-v3d")
 def export_soccernet_v3d_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: Annotated[bool, typer.Option("--all", help="Export every system, not only accepted ones.")] = False,
@@ -242,7 +254,7 @@ def export_soccernet_v3d_cmd(
                                                                 "(the images).")] = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export reviewed labels as a SoccerNet-v3D tree (Labels-v3D.json and Frames-v3.zip per game, SNv3D.csv)."""
+    """``v3d export soccernet-v3d`` into ``out_dir`` (its help: the registry's description of the format)."""
     from app.services.transfer.exporting import export_soccernet_v3d
     from app.services.images.serving import ImageUnavailable
 
@@ -261,15 +273,13 @@ def export_soccernet_v3d_cmd(
                f"and {report.images} image(s) to {report.out_dir} ({report.csv_path.name})")
 
 
-@export_cli.command("cameras")
+@export_command("cameras")
 def export_cameras_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: Annotated[bool, typer.Option("--all", help="Export every system, not only accepted ones.")] = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export the admitted cameras of SoccerNet-v3 and single-view (SoccerNet-calibration) frames as SoccerNet's
-    calibration evaluator reads them: per image size <W>x<H>/ground_truth.zip (<split>/<name>.json field lines)
-    and <W>x<H>/predictions.zip (camera_<name>.json), and cameras.json (names back to games and frames)."""
+    """``v3d export cameras`` into ``out_dir`` (its help: the registry's description of the format)."""
     from app.services.transfer.cameras_export import export_cameras
 
     settings = cli_settings(database_url, None)

@@ -10,8 +10,8 @@ from typing import Annotated, Optional
 
 import typer
 
-from app.cli._root import cli, export_cli
-from app.cli.datasets import DatabaseOpt, cli_settings, database_session
+from app.cli._root import cli
+from app.cli.datasets import DatabaseOpt, cli_settings, database_session, export_command
 from app.core.errors import InvalidInputError
 
 evaluate_cli = typer.Typer(help="Evaluate detectors against the curated labels.", no_args_is_help=True)
@@ -38,23 +38,23 @@ def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None
         typer.echo(f"  skipped x{n} box(es) of unknown class {cls!r}")
 
 
-@export_cli.command("yolo")
+@export_command("yolo")
 def export_yolo_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: AllOpt = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export images and labels in the Ultralytics YOLO layout (ball = refined, else optimised box)."""
+    """``v3d export yolo`` into ``out_dir`` (its help: the registry's description of the format)."""
     _export("yolo", out_dir, include_all, database_url)
 
 
-@export_cli.command("coco")
+@export_command("coco")
 def export_coco_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: AllOpt = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export images and a COCO instances JSON per split (ball = refined, else optimised box)."""
+    """``v3d export coco`` into ``out_dir`` (its help: the registry's description of the format)."""
     _export("coco", out_dir, include_all, database_url)
 
 

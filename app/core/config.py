@@ -28,11 +28,11 @@ MIN_SESSION_SECRET_CHARS = 32
 PAPER_PROFILE: dict[str, Any] = {"optimised_box_method": "paper", "min_parallax_deg": 0.0, "export_ball_box": "optimised"}
 
 
-#: The settings a system's stored rows (admission, 3D ball, pairs, reprojections, optimised boxes) are computed with:
-#: their values' fingerprint is stored with each system (``Settings.derived_fingerprint``). The export's ball box is
-#: chosen when exporting, not stored.
-DERIVED_SETTINGS = ("admit_jac_gamma", "admit_jac_min", "triangulation_tau_px", "pair_error_rule", "min_baseline_m",
-                    "min_parallax_deg", "optimised_box_method", "ball_diameter_m")
+#: The mark of a setting a system's stored rows are computed with (admission, 3D ball, pairs, reprojections, optimised
+#: boxes, doubts), put in its ``Field``'s ``json_schema_extra`` where the setting is declared, so that a new such
+#: setting is marked where it is written: the marked settings are :data:`DERIVED_SETTINGS`. The export's ball box is
+#: chosen when exporting, not stored, and is not marked.
+DERIVED: dict[str, Any] = {"derived": True}
 
 
 class Settings(BaseSettings):
@@ -52,9 +52,9 @@ class Settings(BaseSettings):
     )
 
     def derived_fingerprint(self) -> str:
-        """16 hex digits naming the values of :data:`DERIVED_SETTINGS`: what a system's stored 3D ball, pairs and
-        boxes were computed with (``System.derived_settings``); a profile or setting changed since makes them stale
-        for ``v3d recompute`` (``app.services.derivation.recompute.systems_computed_otherwise``).
+        """16 hex digits naming the values of :data:`DERIVED_SETTINGS`: what a system's stored 3D ball, pairs,
+        boxes and doubts were computed with (``System.derived_settings``); a profile or setting changed since makes
+        them stale for ``v3d recompute`` (``app.services.derivation.recompute.systems_computed_otherwise``).
 
         >>> Settings(_env_file=None).derived_fingerprint() == Settings(_env_file=None, profile="paper").derived_fingerprint()
         False
@@ -79,8 +79,10 @@ class Settings(BaseSettings):
         description="SQLAlchemy URL; SQLite by default, postgresql+psycopg://... for teams.",
     )
     # --- multi-view system admission and triangulation (method.md sections 4 and 5) ---
-    admit_jac_gamma: float = Field(0.005, description="gamma of the admission JaC (fraction of the diagonal).")
-    admit_jac_min: float = Field(0.75, description="A frame joins triangulation when JaC@gamma > this.")
+    admit_jac_gamma: float = Field(0.005, description="gamma of the admission JaC (fraction of the diagonal).",
+                                   json_schema_extra=DERIVED)
+    admit_jac_min: float = Field(0.75, description="A frame joins triangulation when JaC@gamma > this.",
+                                 json_schema_extra=DERIVED)
     triangulation_tau_px: float = Field(
         20.0,
         description=(
@@ -91,17 +93,21 @@ class Settings(BaseSettings):
             "start at 22-23 px and mostly exceed 60 px; 20 keeps 80/81 good pairs and drops 12/12 bad ones "
             "at that calibration error."
         ),
+        json_schema_extra=DERIVED,
     )
     pair_error_rule: Literal["max_scaled_1920", "mean_scaled_1920", "max_px"] = Field(
         "max_scaled_1920",
         description="How a pair's two reprojection errors combine into e_ij (see app.geometry.triangulation).",
+        json_schema_extra=DERIVED,
     )
-    min_baseline_m: float = Field(1.0, description="Pairs whose camera centres are closer are dropped (metres).")
+    min_baseline_m: float = Field(1.0, description="Pairs whose camera centres are closer are dropped (metres).",
+                                  json_schema_extra=DERIVED)
     min_parallax_deg: float = Field(
         2.0,
         description="Pairs whose rays meet at a smaller angle are dropped (degrees). Beyond the paper: "
         "catches near-duplicate viewpoints whose calibrated centres drift more than 1 m apart. Replays "
         "of real broadcasts meet the main camera at 15 deg or more (5th percentile of the synthetic plan).",
+        json_schema_extra=DERIVED,
     )
     optimised_box_method: Literal["paper", "exact_ray", "exact_fused"] = Field(
         "exact_ray",
@@ -109,8 +115,10 @@ class Settings(BaseSettings):
         "min_diametre (square box of side d_opt on the annotated centre); 'exact_ray' is the exact image "
         "of the phi sphere at the same point of the annotated ray (an ellipse's box off-axis: size error "
         "0.08 % vs 1.4 % for 'paper' on the synthetic dev set with true cameras).",
+        json_schema_extra=DERIVED,
     )
-    ball_diameter_m: float = Field(BALL_DIAMETER_M, description="phi, the ball diameter in metres.")
+    ball_diameter_m: float = Field(BALL_DIAMETER_M, description="phi, the ball diameter in metres.",
+                                   json_schema_extra=DERIVED)
     export_ball_box: Literal["refined", "optimised"] = Field(
         "refined", description="The ball box of the detector exports (YOLO, COCO) and the monocular benchmark's "
         "reference: 'refined' (v3d: the refined box where the 3D ball is well constrained, else the optimised box, "
@@ -126,45 +134,46 @@ class Settings(BaseSettings):
         "observable corrupted systems of the dev sets with the same single clean false alarm; 40 and above miss a "
         "desynchronised replay whose two-view error is 30-40 px. 25 stays above the triangulation's tau (a view "
         "it keeps is never accused) with room for real calibration error.",
+        json_schema_extra=DERIVED,
     )
     doubt_near_duplicate_max_deg: float = Field(
         3.0,
         description="Two views that both show the ball are near duplicates when their camera centres subtend less "
         "than this angle at the ball (degrees). True near duplicates of the dev sets are within 0.6 deg, distinct "
         "viewpoints at least 10 deg apart; clean systems start to be flagged at 12 deg.",
+        json_schema_extra=DERIVED,
     )
     doubt_inside_margin_px: float = Field(
         0.0,
         description="ball_missing needs the agreed ball to project at least this far inside the image (px at 1920 "
         "width; negative: that far outside). -40 calls an out-of-frame view; 0 to 40 change nothing on the dev sets.",
-    )
-    doubt_single_view_margin_px: float = Field(
-        40.0,
-        description="With a single other labelled view the ball's depth along its ray is uncertain: ball_missing "
-        "needs it at least this far inside the image (px at 1920 width). 0 calls an out-of-frame view whose ball "
-        "lies just past the border; 100 loses a missing ball near the border.",
+        json_schema_extra=DERIVED,
     )
     doubt_ground_box_tolerance: float = Field(
         0.35,
         description="With a single other labelled view, the ball goes on the grass along its ray when the box's "
         "monocular depth is within this relative difference of the grass depth (boxes err by about 19 % in size).",
+        json_schema_extra=DERIVED,
     )
     doubt_max_ball_height_m: float = Field(
         PLAY_VOLUME.max_height_m, description="Highest ball the doubts count as agreement, metres above the grass "
-        "(the play volume's height, app.geometry.pitch.PLAY_VOLUME, unless set).")
+        "(the play volume's height, app.geometry.pitch.PLAY_VOLUME, unless set).", json_schema_extra=DERIVED)
     doubt_mirror_rig_near_m: float = Field(
         1.0,
         description="An unflagged view is suspected mirrored when its ball ray meets another view's only mirrored "
         "and its mirrored camera stands within this of a known camera position of the game (metres) ...",
+        json_schema_extra=DERIVED,
     )
     doubt_mirror_rig_gap_m: float = Field(
         2.0, description="... while as labelled it stands at least this much farther from every one (metres).",
+        json_schema_extra=DERIVED,
     )
     doubt_min_line_classes: int = Field(
         MIN_LINE_CLASSES,
         description="Views with fewer distinct field-line classes take no part in the doubt checks (info few_lines): "
         "rig cameras fitted to 2 classes reach JaC 1.0 yet turn the ball ray; 2 gives 9 clean false alarms of 233 "
         "on the dev sets, 3 and 4 one, 5 misses corrupted views.",
+        json_schema_extra=DERIVED,
     )
     calibration_workers: int = Field(0, description="Processes for bulk calibration; 0 = all cores.")
     data_root: Optional[Path] = Field(
@@ -306,6 +315,13 @@ class Settings(BaseSettings):
             raise ValueError(f"V3D_SESSION_SECRET must be at least {MIN_SESSION_SECRET_CHARS} characters (it signs "
                              "every browser session); unset it to use the key kept in the database")
         return value
+
+
+#: The settings a system's stored rows are computed with (every setting marked :data:`DERIVED` where it is declared),
+#: in declaration order: their values' fingerprint is stored with each system (``Settings.derived_fingerprint``).
+DERIVED_SETTINGS: tuple[str, ...] = tuple(
+    name for name, f in Settings.model_fields.items()
+    if isinstance(f.json_schema_extra, dict) and f.json_schema_extra.get("derived"))
 
 
 def var_dir(settings: Settings, name: str) -> Path:

@@ -19,6 +19,7 @@ import numpy as np
 
 from app.datasets.csv_cells import inert_cell, read_cell
 from app.datasets.issia import CAMERA_IDS, IssiaSequence
+from app.geometry.ball import optimise_box
 from app.geometry.camera import Camera
 from app.core.errors import DatasetError
 from app.geometry.pitch import BALL_DIAMETER_M
@@ -121,8 +122,6 @@ def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,
     ``ball_3D``, ``opt_d``/``opt_e`` the optimised box (method.md section 7,
     :func:`app.geometry.ball.optimise_box`) for that ball; all empty when the frame has no ``ball_3D``.
     """
-    from app.geometry.ball import optimise_box
-
     rows = []
     for i, frame in enumerate(seq.frames):
         ball = fit.ball_3d[frame]

@@ -408,29 +408,6 @@ def _depth(value: Any) -> int:
     return deepest
 
 
-def load_coco_results(path: str | Path, category_id: int | None = None, *, name: str | None = None,
-                      max_bytes: int = MAX_COCO_FILE_BYTES) -> Detections:
-    """Detections from a COCO results JSON (:func:`coco_results`: read as a stream, every entry checked).
-
-    Args:
-        path: the JSON file.
-        category_id: keep only this category (``None``: all).
-        name: how messages name the file (default: ``path``).
-        max_bytes: the most the file may hold.
-
-    Raises:
-        ValueError: as :func:`coco_results` (the message names the file and the entry).
-    """
-    ids, boxes, scores = [], [], []
-    for image_id, category, box, score in coco_results(path, name=name, max_bytes=max_bytes):
-        if category_id is not None and category != category_id:
-            continue
-        ids.append(image_id)
-        boxes.append(box)
-        scores.append(score)
-    return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
-
-
 @dataclass(frozen=True)
 class MonocularMetrics:
     """3D localisation metrics of monocular ball estimates (paper, section Metrics).

@@ -297,18 +297,6 @@ def sample_pitch_polylines(dist: float = 0.1, dist_circles: float = 0.2) -> Mapp
     return MappingProxyType(out)
 
 
-def mirror_class(line_class: str) -> str:
-    """The class a label becomes under the pitch's 180-degree rotation (SoccerNet ``symetric_classes``).
-
-    Raises:
-        KeyError: unknown class.
-
-    >>> mirror_class("Goal left post left ")
-    'Goal right post left'
-    """
-    return MIRROR_CLASSES[line_class]
-
-
 def mirror_world_points(points: np.ndarray) -> np.ndarray:
     """Rotate world points 180 degrees about the vertical axis through the centre spot.
 

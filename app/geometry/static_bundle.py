@@ -45,6 +45,7 @@ import numpy as np
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration.observations import build_observations
 from app.geometry.calibration.residuals import CameraParametrisation, residuals
+from app.geometry.calibration.solver import soft_l1_cost
 from app.geometry.camera import Camera
 
 #: Soft-L1 scale of every residual, in its standard deviations (about 2-3 px for 0.7-1 px of noise).
@@ -220,8 +221,6 @@ def _schur_lm(xs: dict, X: np.ndarray, active: list[int], slot: dict, n_cam: int
     differences, each camera parameter moving only that camera's residuals and each point coordinate (all
     points at once) only its labels'. Returns the solution and the residual evaluations made (each a full
     evaluation's worth)."""
-    from app.geometry.calibration.solver import soft_l1_cost
-
     n_lab = len(lab_f)
 
     def evaluate(xs, X):

@@ -7,22 +7,8 @@
 import { getMe, send } from "./api.js";
 import { jobProgressText } from "./jobs.js";
 import { el, showError } from "./format.js";
-
-/** The exports offered: test id, label, POST route, body, what it holds. */
-export const EXPORTS = [
-  { id: "soccernet-v3d", label: "SoccerNet-v3D", format: "soccernet-v3d", body: { images: true },
-    title: "Labels-v3D.json and Frames-v3.zip (the images) per game, and SNv3D.csv" },
-  { id: "soccernet-v3d-no-images", label: "SoccerNet-v3D without images", format: "soccernet-v3d", body: { images: false },
-    title: "Labels-v3D.json per game and SNv3D.csv, no images" },
-  { id: "issia-3d", label: "ISSIA-3D", format: "issia-3d", body: {},
-    title: "per ISSIA sequence: ISSIA-3D.csv, split.json and the cameras" },
-  { id: "cameras", label: "Cameras", format: "cameras", body: {},
-    title: "per image size: ground_truth.zip and predictions.zip as SoccerNet's calibration evaluator reads them" },
-  { id: "yolo", label: "YOLO", format: "yolo", body: {},
-    title: "Ultralytics layout: images/, labels/, data.yaml (relocatable: no path key)" },
-  { id: "coco", label: "COCO", format: "coco", body: {},
-    title: "per split: the images and instances.json" },
-];
+// the exports offered ({id, label, format, body, title}), written from the server's registry of export formats
+import { EXPORTS } from "./exportlist.js";
 
 const ACTIVE = new Set(["queued", "running"]);
 const POLL_MS = 1000;

@@ -3,13 +3,11 @@
 export const STATUSES = ["pending", "accepted", "rejected", "needs_fix"];
 export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected: "rejected", needs_fix: "needs fix" };
 
-import { WORDS } from "./words.js";
+import { LABEL_KINDS, WORDS } from "./words.js";
 
-/** Short names of the doubt kinds that accuse a label (app/geometry/doubts/contract.py LABEL_KINDS), from the one
- * table of words (words.js). */
-export const DOUBT_LABEL = Object.fromEntries(
-  ["mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view"]
-    .map((k) => [k, WORDS.doubt[k].chip]));
+/** Short names of the doubt kinds that accuse a label, in the contract's order: kinds and words both from
+ * words.js (written from app/geometry/doubts/contract.py and app/services/curation/words.py). */
+export const DOUBT_LABEL = Object.fromEntries(LABEL_KINDS.map((k) => [k, WORDS.doubt[k].chip]));
 
 export const isNum = (v) => typeof v === "number" && Number.isFinite(v);
 

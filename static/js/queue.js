@@ -58,6 +58,8 @@ class QueuePage {
 
   constructor() {
     const form = $("filters");
+    // the doubt filter's kinds and words come from the contract through words.js, before the form is filled
+    $("filter-doubt").append(...Object.entries(DOUBT_LABEL).map(([kind, label]) => el("option", { value: kind }, label)));
     form.addEventListener("submit", (e) => {
       e.preventDefault();
       this.applyForm();

@@ -255,6 +255,10 @@ export const WORDS = /*WORDS*/{
  }
 }/*END*/;
 
+/** The doubt kinds that accuse a label, in the contract's order (app/geometry/doubts/contract.py LABEL_KINDS): the
+ * queue counts, filters and sorts by them. */
+export const LABEL_KINDS = /*LABEL_KINDS*/["mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view"]/*END*/;
+
 const humanise = (code) => String(code).replaceAll("_", " ");
 
 /** The entry {chip, means} of `code` in `group` (a flag with a value: its prefix's entry, the value put in);

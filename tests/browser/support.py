@@ -3,7 +3,19 @@
 logging in through the login page."""
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 TESTID = "[data-testid={}]"
+#: The pages' module of words, written from app/services/curation/words.py and the doubts' contract.
+WORDS_JS = Path(__file__).resolve().parents[2] / "static" / "js" / "words.js"
+
+
+def words_js_literal(name: str):
+    """The JSON literal ``name`` of ``static/js/words.js`` (``WORDS``, ``LABEL_KINDS``: between ``/*<name>*/`` and
+    the next ``/*END*/``), as the pages read it."""
+    text = WORDS_JS.read_text(encoding="utf-8")
+    return json.loads(text.split(f"/*{name}*/", 1)[1].split("/*END*/", 1)[0])
 
 
 def import_into_new_database(settings, *datasets, then=None) -> None:

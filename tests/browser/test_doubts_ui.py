@@ -9,14 +9,13 @@ import re
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, tid
+from tests.browser.support import api_write, tid, words_js_literal
 
 pytestmark = pytest.mark.browser
 
-#: The queue's names of the label-accusing kinds (static/js/format.js DOUBT_LABEL).
-LABEL = {"mirrored_labels": "mirrored labels", "ball_off_consensus": "ball off consensus",
-         "ball_missing": "ball missing", "views_disagree": "views disagree",
-         "near_duplicate_view": "near-duplicate view"}
+#: The queue's names of the label-accusing kinds (static/js/format.js DOUBT_LABEL), read from the generated module
+#: the page reads them from (static/js/words.js).
+LABEL = {kind: words_js_literal("WORDS")["doubt"][kind]["chip"] for kind in words_js_literal("LABEL_KINDS")}
 
 
 def _system_with(page, kind: str) -> tuple[dict, dict]:

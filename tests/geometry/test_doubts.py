@@ -326,9 +326,9 @@ def test_the_judges_operating_point_is_the_settings_defaults():
     s = doubt_settings(Settings(_env_file=None))
     assert (s.triangulation_tau_px, s.pair_error_rule, s.min_baseline_m, s.min_parallax_deg) == (20.0, "max_scaled_1920",
                                                                                                    1.0, 2.0)
-    assert (s.consensus_tau_px, s.near_duplicate_max_deg, s.inside_margin_px, s.single_view_margin_px,
+    assert (s.consensus_tau_px, s.near_duplicate_max_deg, s.inside_margin_px,
             s.ground_box_tolerance, s.mirror_rig_near_m, s.mirror_rig_gap_m, s.min_line_classes) == (
-        25.0, 3.0, 0.0, 40.0, 0.35, 1.0, 2.0, 4)
+        25.0, 3.0, 0.0, 0.35, 1.0, 2.0, 4)
     assert s.play_volume == PLAY_VOLUME and s.ball_diameter_m == 0.22
 
 

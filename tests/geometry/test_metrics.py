@@ -11,7 +11,7 @@ from app.geometry.metrics import (
     average_precision,
     box_iou,
     box_size_error_pct,
-    load_coco_results,
+    coco_results,
     load_yolo_detections,
     monocular_metrics,
     precision_curve,
@@ -90,17 +90,17 @@ def test_yolo_loader_converts_normalised_centres_to_pixels(tmp_path):
         load_yolo_detections(f, 1920, 1080)
 
 
-def test_coco_loader(tmp_path):
+def test_coco_results_are_read_entry_by_entry_and_checked(tmp_path):
     f = tmp_path / "results.json"
     f.write_text(json.dumps([{"image_id": 1, "category_id": 1, "bbox": [10, 20, 5, 6], "score": 0.7},
                              {"image_id": 2, "category_id": 3, "bbox": [0, 0, 1, 1], "score": 0.1}]))
-    det = load_coco_results(f, category_id=1)
-    assert det.image_ids == (1,)
-    np.testing.assert_allclose(det.boxes, [[10.0, 20.0, 15.0, 26.0]])
-    assert len(load_coco_results(f).image_ids) == 2
+    entries = list(coco_results(f))
+    assert [(image_id, category) for image_id, category, _, _ in entries] == [(1, 1), (2, 3)]
+    np.testing.assert_allclose(entries[0][2], [10.0, 20.0, 15.0, 26.0])
+    assert entries[0][3] == pytest.approx(0.7)
     f.write_text(json.dumps([{"image_id": 1, "bbox": [0, 0, 1, 1]}]))
     with pytest.raises(ValueError, match="entry 0 lacks 'score'"):
-        load_coco_results(f)
+        list(coco_results(f))
 
 
 def test_monocular_metrics_count_only_detections_that_overlap():

@@ -18,6 +18,8 @@ from app.api.deps import SessionDep, SettingsDep
 from app.api.schemas import InvalidOut
 from app.services.transfer import detector_export
 from app.services.evaluation import monocular
+from app.services.evaluation.boxes import evaluate_boxes as boxes_report
+from app.services.evaluation.stats import dataset_stats
 from app.core.config import Settings
 from app.geometry.metrics import MAX_YOLO_FILE_BYTES
 from app.services.transfer.archives import MB, ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
@@ -175,9 +177,7 @@ def evaluate_boxes(session: SessionDep, settings: SettingsDep, include_all: AllQ
     """IoU and size error (% of the precise box's diagonal) of the original, optimised and refined ball boxes
     against the stored precise boxes (``v3d import precise-boxes``), over the views of accepted systems (every
     system with ``all=true``) that have one."""
-    from app.services.evaluation.boxes import evaluate_boxes as run
-
-    return BoxesReportOut.model_validate(run(session, include_all, settings.ball_diameter_m))
+    return BoxesReportOut.model_validate(boxes_report(session, include_all, settings.ball_diameter_m))
 
 
 class HistogramOut(BaseModel):
@@ -228,6 +228,4 @@ class StatsOut(BaseModel):
 def stats(session: SessionDep, settings: SettingsDep) -> StatsOut:
     """Systems and images (calibrated, admitted) per kind and split, systems kept against the JaC admission
     threshold (the paper's Fig. 3) and distributions of JaC, pair reprojection error, ball distance and box size."""
-    from app.services.evaluation.stats import dataset_stats
-
     return StatsOut.model_validate(dataset_stats(session, settings))

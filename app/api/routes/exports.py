@@ -1,8 +1,8 @@
 """``/api/exports``: download reviewed labels, streamed in the request (``GET``) or written to a file by
 a background job (``POST``, for large exports and the UI: the file is then read at ``/api/jobs/{id}/result``).
 
-``POST /api/exports/{format}`` queues any export (``soccernet-v3d``, ``issia-3d``, ``cameras``, ``yolo``,
-``coco``; ``app.services.transfer.export_files``); ``GET /api/exports/cameras`` (as ``GET`` of ``yolo``,
+``POST /api/exports/{format}`` queues any export of the registry (``app.services.transfer.export_formats``; written by
+``app.services.transfer.export_files``); ``GET /api/exports/cameras`` (as ``GET`` of ``yolo``,
 ``coco`` and ``issia-3d``, in ``detectors.py`` and ``issia.py``) answers the zip in the request. Every route
 needs the admin role."""
 from __future__ import annotations
@@ -23,6 +23,7 @@ from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
 from app.services.transfer import export_files, exporting
+from app.services.transfer.export_formats import tree_export_names
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
 
@@ -77,13 +78,16 @@ async def create_export_job(session: SessionDep,
                                             export_params("soccernet-v3d", body.all, body.images)))
 
 
-TreeFormat = Literal["issia-3d", "cameras", "yolo", "coco"]
+#: The path parameter's choices: the registry's tree exports (SoccerNet-v3D has its own route above, for its
+#: ``images``). A ``Literal`` of the registry's names, built when the module loads, so that the OpenAPI schema lists
+#: them and any other name is a 422 before the route runs.
+TreeFormat = Literal[tree_export_names()]  # type: ignore[valid-type]
 
 
 @router.post("/{export_format}", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
 async def create_tree_export_job(
     session: SessionDep,
-    export_format: Annotated[TreeFormat, Path(description="issia-3d, cameras, yolo or coco (soccernet-v3d: above).")],
+    export_format: Annotated[TreeFormat, Path(description=f"{', '.join(tree_export_names())} (soccernet-v3d: above).")],
     body: Annotated[TreeExportJobIn, Body(default_factory=TreeExportJobIn)],
 ) -> JSONResponse:
     """Queue an export as a background job: the same tree its ``GET`` answers, written to a file (progress per

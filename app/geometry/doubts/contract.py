@@ -150,8 +150,6 @@ class DoubtSettings:
             distinct broadcast viewpoints at least 10 deg apart.
         inside_margin_px: the ball of the other views must project at least this far inside the image
             for ``ball_missing`` (px at 1920 width; negative lets it lie that far outside).
-        single_view_margin_px: unused since the judge reasons on the whole epipolar segment (kept so that
-            a deployment's ``V3D_DOUBT_SINGLE_VIEW_MARGIN_PX`` stays valid).
         ground_box_tolerance: a labelled view places the ball on the grass when the monocular depth from
             its box is within this relative difference of the grass depth on its ray (fraction; SoccerNet-v3
             boxes err by about 19 % in size): the reference point of its calibration's pixel sigma and of the
@@ -176,7 +174,6 @@ class DoubtSettings:
     consensus_tau_px: float
     near_duplicate_max_deg: float
     inside_margin_px: float
-    single_view_margin_px: float
     ground_box_tolerance: float
     play_volume: PlayVolume
     mirror_rig_near_m: float

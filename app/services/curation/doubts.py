@@ -42,7 +42,6 @@ def doubt_settings(settings: Settings) -> DoubtSettings:
         min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
         ball_diameter_m=settings.ball_diameter_m, consensus_tau_px=settings.doubt_consensus_tau_px,
         near_duplicate_max_deg=settings.doubt_near_duplicate_max_deg, inside_margin_px=settings.doubt_inside_margin_px,
-        single_view_margin_px=settings.doubt_single_view_margin_px,
         ground_box_tolerance=settings.doubt_ground_box_tolerance,
         play_volume=dataclasses.replace(PLAY_VOLUME, max_height_m=settings.doubt_max_ball_height_m),
         mirror_rig_near_m=settings.doubt_mirror_rig_near_m, mirror_rig_gap_m=settings.doubt_mirror_rig_gap_m,

@@ -25,6 +25,7 @@ import json
 import sys
 from typing import Any
 
+from app.geometry.doubts.contract import LABEL_KINDS
 from app.geometry.pitch import MIN_LINE_CLASSES
 
 WORDS: dict[str, dict[str, dict[str, str]]] = {
@@ -171,9 +172,10 @@ def refusal_sentence(refusal: Any) -> str | None:
 
 def words_js() -> str:
     """The ES module ``static/js/words.js``: :data:`WORDS` as one JSON literal between the markers the test
-    reads, and the helpers the pages use."""
+    reads, the doubt kinds that accuse a label (``app.geometry.doubts.contract.LABEL_KINDS``, in its order, between
+    markers of their own) and the helpers the pages use."""
     table = json.dumps(WORDS, indent=1, ensure_ascii=False)
-    return JS_TEMPLATE.replace("__WORDS__", table)
+    return JS_TEMPLATE.replace("__WORDS__", table).replace("__LABEL_KINDS__", json.dumps(list(LABEL_KINDS)))
 
 
 JS_TEMPLATE = """// The words of the review pages (issue 28 item 7): what every machine code shown on a page reads as, one
@@ -181,6 +183,10 @@ JS_TEMPLATE = """// The words of the review pages (issue 28 item 7): what every 
 // tests/services/curation/test_words.py checks that the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/__WORDS__/*END*/;
+
+/** The doubt kinds that accuse a label, in the contract's order (app/geometry/doubts/contract.py LABEL_KINDS): the
+ * queue counts, filters and sorts by them. */
+export const LABEL_KINDS = /*LABEL_KINDS*/__LABEL_KINDS__/*END*/;
 
 const humanise = (code) => String(code).replaceAll("_", " ");
 

@@ -18,6 +18,7 @@ from typing import BinaryIO, Optional
 import numpy as np
 
 from app.core.errors import DatasetError
+from app.datasets.issia import IssiaSequence, read_frame_image
 from app.datasets.files import IMAGE_MEDIA_TYPES, MAX_IMAGE_PIXELS, image_header, is_safe_member
 from app.db.models import Frame
 from app.core.errors import ServiceError
@@ -174,8 +175,6 @@ def read_video_frame(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS) -> bytes:
         DatasetError: the video or folder is missing or the frame cannot be read.
     """
     import cv2
-
-    from app.datasets.issia import IssiaSequence, read_frame_image
 
     if frame.image_path is None or frame.media_frame is None:
         raise DatasetError(Path(f"frame {frame.id}"), None, "no video or frame folder")

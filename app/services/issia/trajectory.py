@@ -36,6 +36,8 @@ from app.geometry.doubts import Doubt as JudgedDoubt
 from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import BallObservation
+from app.services.calibration.admission import is_admitted
+from app.services.curation.doubts import is_excluded
 
 
 @dataclass
@@ -74,9 +76,6 @@ def load_sequence(session: Session, game_id: int) -> list[System]:
 
 def sequence_arrays(systems: Sequence[System], settings: Settings) -> SequenceArrays:
     """Current labels and admitted cameras of a stored sequence (see :class:`SequenceArrays`)."""
-    from app.services.curation.doubts import is_excluded
-    from app.services.calibration.admission import is_admitted
-
     by_index = {s.frame_index: s for s in systems if s.frame_index is not None}
     names: dict[str, int] = {}
     for s in by_index.values():

@@ -46,6 +46,7 @@ from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
 from app.core.errors import InvalidInputError, ServiceError, found
 from app.services.jobs.progress import Progress
+from app.services.jobs.work import WORK
 
 log = logging.getLogger(__name__)
 
@@ -306,8 +307,6 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
     Returns:
         The job as stored at the end (as last read when it was taken over: :class:`JobLost`).
     """
-    from app.services.jobs.work import WORK
-
     live = _Live()
     with session_factory() as session:
         job = get_job(session, job_id)

@@ -19,7 +19,11 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
+from app.services.derivation.recompute import recompute_all_systems
 from app.services.jobs.progress import Progress
+from app.services.transfer import data_root
+from app.services.transfer.export_files import prune_exports, write_export_zip
+from app.services.transfer.export_formats import export_format
 from app.services.transfer.import_formats import import_format
 
 
@@ -65,11 +69,9 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
 def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None) -> str:
     """How an import job's ``params["path"]`` is shown to annotators and reviewers (no server path:
     ``app.services.transfer.data_root.dataset_name``; an upload as ``upload <job id>/...``)."""
-    from app.services.transfer.data_root import dataset_name
-
     if params.get("upload") and job_id is not None:  # wherever its folder lies (the jobs folder may have moved since)
         return f"upload {job_id}"
-    return dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
+    return data_root.dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
                         job_id if params.get("upload") else None)
 
 
@@ -79,8 +81,6 @@ def without_server_paths(job_id: int, params: dict[str, Any], result: dict[str, 
     path (and any file named inside it) by its shown name (:func:`shown_source`); other jobs unchanged."""
     if "path" not in params:
         return params, result, message
-    from app.services.transfer import data_root
-
     path, name = str(params["path"]), shown_source(params, settings, job_id)
     params = {**params, "path": name}
     if result is not None and "source" in result:
@@ -117,8 +117,6 @@ def _import(session: Session, params: dict[str, Any], settings: Settings, progre
 def run_recompute(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
                   job_id: int) -> dict[str, Any]:
     """Recompute every system with the current settings (calibrations untouched)."""
-    from app.services.derivation.recompute import recompute_all_systems
-
     systems, triangulated = recompute_all_systems(session, settings, progress, actor=params.get("actor"))
     return {"systems": systems, "triangulated": triangulated}
 
@@ -129,18 +127,18 @@ def export_path(settings: Settings, name: str) -> Path:
 
 
 def export_params(fmt: str, include_all: bool = False, images: bool = True) -> dict[str, Any]:
-    """The ``params`` of an export job: ``format`` (``export_files.EXPORT_FORMATS``), ``all``, and for
-    SoccerNet-v3D ``images``.
+    """The ``params`` of an export job: ``format`` (a name of ``app.services.transfer.export_formats``), ``all``,
+    and the options the format takes (SoccerNet-v3D's ``images``).
 
     Raises:
         InvalidInputError: an unknown format (field ``format``).
     """
-    from app.services.transfer.export_files import EXPORT_FORMATS
-
-    if fmt not in EXPORT_FORMATS:
-        raise InvalidInputError(f"unknown export {fmt!r}; one of {', '.join(EXPORT_FORMATS)}", field="format")
+    try:
+        export = export_format(fmt)
+    except ValueError as exc:
+        raise InvalidInputError(str(exc), field="format") from None
     out: dict[str, Any] = {"format": fmt, "all": bool(include_all)}
-    if fmt == "soccernet-v3d":
+    if "images" in export.options:
         out["images"] = bool(images)
     return out
 
@@ -151,16 +149,15 @@ def run_export(session: Session, params: dict[str, Any], settings: Settings, pro
     the accepted ones; ``params["images"]``, SoccerNet-v3D only, default true: each game's ``Frames-v3.zip``)
     as a zip to the job's file ``job-<id>-<format>.zip`` (``export_files.write_export_zip``), after removing
     export files older than ``Settings.export_keep_hours`` (``export_files.prune_exports``); progress per game
-    (SoccerNet-v3D) or per file zipped."""
-    from app.services.transfer.export_files import DOWNLOAD_NAMES, prune_exports, write_export_zip
-
+    (SoccerNet-v3D) or per file zipped. Its download is named as the choice its options make
+    (``ExportFormat.download_name``)."""
     fmt = str(params.get("format", "soccernet-v3d"))
     target = export_path(settings, f"job-{job_id}-{fmt}.zip")
     target.parent.mkdir(parents=True, exist_ok=True)
     prune_exports(target.parent, settings.export_keep_hours)
     report = write_export_zip(session, fmt, target, bool(params.get("all", False)), settings, progress,
                               images=bool(params.get("images", True)))
-    filename = "soccernet-v3d-no-images.zip" if fmt == "soccernet-v3d" and params.get("images") is False else DOWNLOAD_NAMES[fmt]
+    filename = export_format(fmt).download_name(params)
     return {**report, "file": target.name, "media_type": "application/zip", "filename": filename}
 
 

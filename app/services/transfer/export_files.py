@@ -1,10 +1,8 @@
 """Every export as one zip file, written by a background job (``app.services.jobs.work.run_export``) or a
 request: the formats, the zip of an export tree, and how long the server keeps an export job's file.
 
-Formats (:data:`EXPORT_FORMATS`): ``soccernet-v3d`` (``app.services.transfer.exporting``, streamed into the
-zip), ``issia-3d`` (``app.services.issia.export``), ``cameras`` (``app.services.transfer.cameras_export``),
-``yolo`` and ``coco`` (``app.services.transfer.detector_export``). The tree exports are written to a work
-folder, zipped with paths relative to the tree's root (:func:`zip_tree`; folders, empty ones included, kept
+The formats and how each is written are the registry's (:mod:`app.services.transfer.export_formats`):
+SoccerNet-v3D is streamed into the zip, the others (the tree exports) are written to a work folder, zipped with paths relative to the tree's root (:func:`zip_tree`; folders, empty ones included, kept
 as entries: a YOLO split without images still exists once unpacked) and the folder removed. No file of any
 export names a server folder: every export is relocatable.
 
@@ -25,12 +23,10 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.services.jobs.progress import Progress
+from app.services.transfer.export_formats import export_format, export_names, tree_export_names
 
-#: What ``POST /api/exports/{format}`` and the export jobs write; the names of the ``GET /api/exports/...`` routes.
-EXPORT_FORMATS = ("soccernet-v3d", "issia-3d", "cameras", "yolo", "coco")
-#: The file name a download of each format gets.
-DOWNLOAD_NAMES = {"soccernet-v3d": "soccernet-v3d.zip", "issia-3d": "issia-3d.zip", "cameras": "cameras.zip",
-                  "yolo": "v3d-yolo.zip", "coco": "v3d-coco.zip"}
+#: What ``POST /api/exports/{format}`` and the export jobs write (the registry's names, in its order).
+EXPORT_FORMATS = export_names()
 
 
 def zip_tree(root: Path, target: Path, progress: Progress | None = None) -> int:
@@ -54,30 +50,17 @@ def zip_tree(root: Path, target: Path, progress: Progress | None = None) -> int:
 
 
 def write_tree(session: Session, fmt: str, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
-    """Write the export ``fmt`` (a tree format of :data:`EXPORT_FORMATS`, not ``soccernet-v3d``) under ``out``;
+    """Write the export ``fmt`` (a tree format of the registry, not the streamed ``soccernet-v3d``) under ``out``;
     its counts (no path).
 
     Raises:
         ValueError: an unknown or streamed format.
         InvalidInputError: names that cannot be files (nothing written), as each export raises.
     """
-    if fmt == "issia-3d":
-        from app.services.issia.export import export_issia3d
-
-        r = export_issia3d(session, out, include_all=include_all)
-        return {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations}
-    if fmt == "cameras":
-        from app.services.transfer.cameras_export import export_cameras
-
-        return export_cameras(session, out, include_all=include_all).as_dict()
-    if fmt in ("yolo", "coco"):
-        from app.services.transfer.detector_export import export_detector
-
-        report = export_detector(session, fmt, out, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]
-                                 settings.export_ball_box).as_dict()
-        report.pop("out_dir", None)
-        return report
-    raise ValueError(f"not a tree export: {fmt!r}; one of {', '.join(EXPORT_FORMATS[1:])}")
+    tree = export_format(fmt).tree
+    if tree is None:
+        raise ValueError(f"not a tree export: {fmt!r}; one of {', '.join(tree_export_names())}")
+    return tree(session, out, include_all, settings)
 
 
 def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool, settings: Settings,
@@ -89,20 +72,14 @@ def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool
     Raises:
         ValueError: an unknown format. As each export raises otherwise.
     """
-    if fmt not in EXPORT_FORMATS:
-        raise ValueError(f"unknown export {fmt!r}; one of {', '.join(EXPORT_FORMATS)}")
+    export = export_format(fmt)
     part = target.with_name(target.name + ".part")
     work = target.with_name(target.name + ".work")
     report: dict[str, Any]
     try:
-        if fmt == "soccernet-v3d":
-            from app.services.transfer.exporting import export_size, stream_soccernet_v3d_zip
-
-            systems, rows = export_size(session, include_all)
+        if export.stream is not None:
             with open(part, "wb") as out:
-                for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=images):
-                    out.write(chunk)
-            report = {"systems": systems, "rows": rows}
+                report = export.stream(session, out, include_all, {"images": images}, progress)
         else:
             shutil.rmtree(work, ignore_errors=True)
             work.mkdir(parents=True)

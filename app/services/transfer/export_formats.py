@@ -1,0 +1,211 @@
+"""The exports, as data: each format's name, what it holds, the name of its download, the choices the UI offers
+and the function that writes it. Every list of exports reads this one: the export job and its zip
+(:mod:`app.services.transfer.export_files`, :mod:`app.services.jobs.work`), the ``POST /api/exports/{format}``
+route's choices (``app.api.routes.exports``), the help of the ``v3d export`` commands (``app.cli``), the UI's
+exports panel (``static/js/exportlist.js``, written from :func:`exports_js`:
+``python -m app.services.transfer.export_formats > static/js/exportlist.js``) and the docs (``docs/exports.md`` and
+``docs/api.md`` name every format; ``tests/services/transfer/test_export_formats.py`` checks all of these).
+
+A format's ``name`` is the one word of every front end: ``v3d export <name>``, ``GET``/``POST /api/exports/<name>``
+and an export job's ``params["format"]``. Which system kinds an export writes is the kinds' policies' answer
+(:func:`app.services.kinds.kinds_exported_by`), not this registry's.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, BinaryIO, Callable, Mapping
+
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.services.issia.export import export_issia3d
+from app.services.jobs.progress import Progress
+from app.services.transfer.cameras_export import export_cameras
+from app.services.transfer.detector_export import export_detector
+from app.services.transfer.exporting import export_size, stream_soccernet_v3d_zip
+
+#: ``write(session, out, include_all, settings)``: the export written as a tree under the folder ``out`` (created);
+#: answers its counts (JSON-able, no server path).
+TreeWriter = Callable[[Session, Path, bool, Settings], dict[str, Any]]
+#: ``stream(session, out, include_all, options, progress)``: the export written as a zip into the open binary file
+#: ``out`` while the database is read; answers its counts.
+ZipStreamer = Callable[[Session, BinaryIO, bool, Mapping[str, Any], "Progress | None"], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class ExportChoice:
+    """One way of asking for a format: one button of the UI's exports panel.
+
+    Attributes:
+        id: the button's test id (``export-<id>``) and its row's ``data-export``; unique over every format.
+        label: the button's words.
+        holds: what the zip holds, in one line (the button's tooltip).
+        options: the job's options this choice sets (``{"images": False}``), beside ``all``.
+        download_name: the file name a download of this choice gets.
+    """
+
+    id: str
+    label: str
+    holds: str
+    download_name: str
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ExportFormat:
+    """One export format.
+
+    Attributes:
+        name: ``v3d export <name>``, ``/api/exports/<name>``, the job's ``params["format"]``.
+        describes: what the export writes, in a sentence or two (the command's help, the docs' table).
+        choices: the UI's buttons for it, the first one the default (its options are the job's defaults).
+        tree: writes it as a folder tree, zipped afterwards (``export_files.zip_tree``); None when streamed.
+        stream: writes it straight into a zip; None for a tree export. Exactly one of the two is set.
+    """
+
+    name: str
+    describes: str
+    choices: tuple[ExportChoice, ...]
+    tree: TreeWriter | None = None
+    stream: ZipStreamer | None = None
+
+    @property
+    def options(self) -> tuple[str, ...]:
+        """The names of the options its choices set (``("images",)`` for SoccerNet-v3D; none for the others)."""
+        return tuple(dict.fromkeys(k for c in self.choices for k in c.options))
+
+    def download_name(self, options: Mapping[str, Any]) -> str:
+        """The file name of a download of this format asked with ``options`` (an option not given takes the
+        first choice's value): the name of the choice those options make."""
+        defaults = self.choices[0].options
+        for choice in self.choices:
+            if all(options.get(k, defaults.get(k)) == v for k, v in choice.options.items()):
+                return choice.download_name
+        return self.choices[0].download_name
+
+
+_FORMATS: dict[str, ExportFormat] = {}
+
+
+def register_export_format(fmt: ExportFormat) -> None:
+    """Make ``fmt`` exportable by its name (once per format, below; the order is the UI's).
+
+    Raises:
+        ValueError: the format sets both or neither of ``tree`` and ``stream``, or a choice's id is taken.
+    """
+    if (fmt.tree is None) == (fmt.stream is None):
+        raise ValueError(f"export {fmt.name!r}: exactly one of tree and stream")
+    taken = {c.id for f in _FORMATS.values() if f.name != fmt.name for c in f.choices}
+    if taken & {c.id for c in fmt.choices}:
+        raise ValueError(f"export {fmt.name!r}: a choice id is taken: {sorted(taken & {c.id for c in fmt.choices})}")
+    _FORMATS[fmt.name] = fmt
+
+
+def export_format(name: str) -> ExportFormat:
+    """The registered format ``name``.
+
+    Raises:
+        ValueError: no such format.
+    """
+    try:
+        return _FORMATS[name]
+    except KeyError:
+        raise ValueError(f"unknown export {name!r}; one of {', '.join(_FORMATS)}") from None
+
+
+def export_names() -> tuple[str, ...]:
+    """Every registered format's name, in the UI's order."""
+    return tuple(_FORMATS)
+
+
+def tree_export_names() -> tuple[str, ...]:
+    """The names of the formats written as a tree and zipped (every one but the streamed ones)."""
+    return tuple(n for n, f in _FORMATS.items() if f.tree is not None)
+
+
+def exports_js() -> str:
+    """The ES module ``static/js/exportlist.js``: every choice of every format, in order, as the exports panel
+    offers them (``{id, label, format, body, title}``: ``body`` is the job's options, ``title`` the tooltip)."""
+    entries = [{"id": c.id, "label": c.label, "format": f.name, "body": dict(c.options), "title": c.holds}
+               for f in _FORMATS.values() for c in f.choices]
+    return JS_TEMPLATE.replace("__EXPORTS__", json.dumps(entries, indent=1, ensure_ascii=False))
+
+
+JS_TEMPLATE = """// The exports the exports panel offers: one entry per button, in order ({id, label, format, body, title}).
+// WRITTEN FROM app/services/transfer/export_formats.py
+// (python -m app.services.transfer.export_formats > static/js/exportlist.js);
+// tests/services/transfer/test_export_formats.py checks that the two agree. Do not edit the list here.
+
+export const EXPORTS = /*EXPORTS*/__EXPORTS__/*END*/;
+"""
+
+
+def _soccernet_v3d(session: Session, out: BinaryIO, include_all: bool, options: Mapping[str, Any],
+                   progress: Progress | None) -> dict[str, Any]:
+    systems, rows = export_size(session, include_all)
+    for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=bool(options.get("images", True))):
+        out.write(chunk)
+    return {"systems": systems, "rows": rows}
+
+
+def _issia_3d(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
+    r = export_issia3d(session, out, include_all=include_all)
+    return {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations}
+
+
+def _cameras(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
+    return export_cameras(session, out, include_all=include_all).as_dict()
+
+
+def _detector(fmt: str) -> TreeWriter:
+    def write(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
+        report = export_detector(session, fmt, out, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]
+                                 settings.export_ball_box).as_dict()
+        report.pop("out_dir", None)  # a server folder: no export names one
+        return report
+    return write
+
+
+register_export_format(ExportFormat(
+    "soccernet-v3d",
+    "Reviewed labels as a SoccerNet-v3D tree: Labels-v3D.json and Frames-v3.zip (the images, unless left out) per "
+    "game, and SNv3D.csv.",
+    (ExportChoice("soccernet-v3d", "SoccerNet-v3D",
+                  "Labels-v3D.json and Frames-v3.zip (the images) per game, and SNv3D.csv", "soccernet-v3d.zip",
+                  {"images": True}),
+     ExportChoice("soccernet-v3d-no-images", "SoccerNet-v3D without images",
+                  "Labels-v3D.json per game and SNv3D.csv, no images", "soccernet-v3d-no-images.zip",
+                  {"images": False})),
+    stream=_soccernet_v3d))
+register_export_format(ExportFormat(
+    "issia-3d",
+    "ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test; calibration/cam<k>.json).",
+    (ExportChoice("issia-3d", "ISSIA-3D", "per ISSIA sequence: ISSIA-3D.csv, split.json and the cameras",
+                  "issia-3d.zip"),),
+    tree=_issia_3d))
+register_export_format(ExportFormat(
+    "cameras",
+    "The admitted cameras of SoccerNet-v3 and single-view (SoccerNet-calibration) frames as SoccerNet's calibration "
+    "evaluator reads them: per image size <W>x<H>/ground_truth.zip (<split>/<name>.json field lines) and "
+    "<W>x<H>/predictions.zip (camera_<name>.json), and cameras.json (names back to games and frames).",
+    (ExportChoice("cameras", "Cameras", "per image size: ground_truth.zip and predictions.zip as SoccerNet's "
+                  "calibration evaluator reads them", "cameras.zip"),),
+    tree=_cameras))
+register_export_format(ExportFormat(
+    "yolo",
+    "Images and labels in the Ultralytics YOLO layout (ball = refined, else optimised box).",
+    (ExportChoice("yolo", "YOLO", "Ultralytics layout: images/, labels/, data.yaml (relocatable: no path key)",
+                  "v3d-yolo.zip"),),
+    tree=_detector("yolo")))
+register_export_format(ExportFormat(
+    "coco",
+    "Images and a COCO instances JSON per split (ball = refined, else optimised box).",
+    (ExportChoice("coco", "COCO", "per split: the images and instances.json", "v3d-coco.zip"),),
+    tree=_detector("coco")))
+
+
+if __name__ == "__main__":
+    sys.stdout.write(exports_js())

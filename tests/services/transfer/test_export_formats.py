@@ -1,0 +1,73 @@
+"""The registry of export formats (app.services.transfer.export_formats) is every list of exports: the export job's,
+the route's choices, the UI's panel (static/js/exportlist.js, written from it), the kinds' policies and the docs."""
+from __future__ import annotations
+
+import json
+import re
+import typing
+from pathlib import Path
+
+import pytest
+
+from app.api.routes.exports import TreeFormat
+from app.services.jobs.work import export_params
+from app.services.kinds import EXPORTS as KIND_EXPORTS, kinds_exported_by
+from app.services.transfer import export_files
+from app.services.transfer.export_formats import (
+    ExportChoice, ExportFormat, export_format, export_names, exports_js, register_export_format, tree_export_names,
+)
+
+ROOT = Path(__file__).resolve().parents[3]
+EXPORTLIST_JS = ROOT / "static" / "js" / "exportlist.js"
+
+
+def test_the_panels_module_is_the_registry() -> None:
+    text = EXPORTLIST_JS.read_text(encoding="utf-8")
+    assert text == exports_js(), ("static/js/exportlist.js is stale: "
+                                  "python -m app.services.transfer.export_formats > static/js/exportlist.js")
+    entries = json.loads(text.split("/*EXPORTS*/", 1)[1].split("/*END*/", 1)[0])
+    assert list(dict.fromkeys(e["format"] for e in entries)) == list(export_names())
+    assert len({e["id"] for e in entries}) == len(entries)
+
+
+def test_every_list_of_exports_is_the_registrys() -> None:
+    assert export_files.EXPORT_FORMATS == export_names() == ("soccernet-v3d", "issia-3d", "cameras", "yolo", "coco")
+    assert typing.get_args(TreeFormat) == tree_export_names() == ("issia-3d", "cameras", "yolo", "coco")
+    for name in export_names():  # each export writes the systems of at least one kind
+        assert name in KIND_EXPORTS and kinds_exported_by(name), name
+
+
+def test_a_jobs_options_and_download_name_come_from_its_format() -> None:
+    assert export_params("soccernet-v3d", True, False) == {"format": "soccernet-v3d", "all": True, "images": False}
+    assert export_params("cameras") == {"format": "cameras", "all": False}
+    v3d = export_format("soccernet-v3d")
+    assert v3d.options == ("images",)
+    assert v3d.download_name({"images": False}) == "soccernet-v3d-no-images.zip"
+    assert v3d.download_name({}) == v3d.download_name({"images": True}) == "soccernet-v3d.zip"
+    assert export_format("yolo").download_name({}) == "v3d-yolo.zip"
+    with pytest.raises(ValueError, match="unknown export 'nope'; one of soccernet-v3d, issia-3d"):
+        export_format("nope")
+
+
+def test_a_format_is_written_one_way_and_its_buttons_are_unique() -> None:
+    choice = ExportChoice("cameras", "Again", "the same id", "again.zip")
+    with pytest.raises(ValueError, match="exactly one of tree and stream"):
+        register_export_format(ExportFormat("neither", "writes nothing", (choice,)))
+    with pytest.raises(ValueError, match="a choice id is taken"):
+        register_export_format(ExportFormat("again", "a second cameras button", (choice,),
+                                            tree=export_format("cameras").tree))
+    assert "neither" not in export_names() and "again" not in export_names()
+
+
+def test_the_docs_name_every_format() -> None:
+    """docs/exports.md's table has one row per format (its downloads named), docs/api.md names each in a route."""
+    exports_md = (ROOT / "docs" / "exports.md").read_text(encoding="utf-8")
+    rows = re.findall(r"^\| `([a-z0-9-]+)` \| (.*)$", exports_md, flags=re.M)
+    assert [name for name, _ in rows] == list(export_names())
+    for name, rest in rows:
+        for choice in export_format(name).choices:
+            assert f"`{choice.download_name}`" in rest, (name, choice.download_name)
+    api_md = (ROOT / "docs" / "api.md").read_text(encoding="utf-8")
+    routes = " ".join(re.findall(r"`[A-Z]* ?/api/exports/[^`]*`", api_md))
+    for name in export_names():
+        assert re.search(rf"[/{{|]{re.escape(name)}[|}}?`]", routes), name
