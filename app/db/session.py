@@ -287,6 +287,9 @@ def begin_write(session: Session) -> None:
     SQLite write transaction at a time (a second one, on another connection of the same engine, would wait for the
     first: the turns are per process).
 
+    A transaction that flushed writes without this function is committed by it: begin the write before the unit
+    of work changes anything.
+
     Raises:
         RuntimeError: the session holds changes and read in its current transaction (its connection was taken
             without the write lock): an edit's computation read a row it did not declare
@@ -294,13 +297,24 @@ def begin_write(session: Session) -> None:
     """
     if isinstance(session.get_bind(), sa.Connection):
         return
-    if session.in_transaction() and not (session.new or session.dirty or session.deleted):
+    held = held_connection(session)
+    if held is not None:
+        if held.get_execution_options().get(WRITE_OPTION):
+            return
+        if session.new or session.dirty or session.deleted:
+            raise RuntimeError("begin_write: the session read in its transaction while holding changes, so its "
+                               "connection has no write lock; read before changing objects, then begin the write")
         end_reads(session)
         session.expire_all()
-    conn = session.connection(execution_options={WRITE_OPTION: True})
-    if not conn.get_execution_options().get(WRITE_OPTION):
-        raise RuntimeError("begin_write: the session read in its transaction while holding changes, so its connection "
-                           "has no write lock; read before changing objects, then begin the write")
+    session.connection(execution_options={WRITE_OPTION: True})
+
+
+def held_connection(session: Session) -> sa.Connection | None:
+    """The connection the session's transaction holds, None when it holds none (no transaction, or one begun by a
+    change of an object in memory that has not read yet): SQLAlchemy's ``SessionTransaction.connections``, which
+    never acquires one."""
+    tx = session.get_transaction()
+    return next(iter(tx.connections), None) if tx is not None else None
 
 
 def alembic_config(url: str | sa.URL | None = None, connection: sa.Connection | None = None) -> Any:

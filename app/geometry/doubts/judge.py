@@ -3,6 +3,7 @@ near duplicates, disagreement), each doubt with its code, evidence and fix (pack
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from itertools import combinations
 from typing import Any, Callable, Hashable, Mapping, Sequence
@@ -261,6 +262,84 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
                  {"action": "snap_box", "box": _box_list(box), "box_sigma_px": _r(length / 2 / rule_scale(v, s))})
 
 
+@dataclasses.dataclass(frozen=True)
+class _Votes:
+    """Who votes on a system's ball and how much (the judge's rules 2 and 3, :func:`judge_system`)."""
+
+    flagged: list[DoubtView]
+    mirrored: list[DoubtView]
+    helpers: list[DoubtView]
+    judged: list[DoubtView]
+    labelled: list[DoubtView]
+    unlabelled: list[DoubtView]
+    weight: dict[Hashable, float]
+    sigma: dict[Hashable, float]
+    tau: float
+    obs: list[BallObservation]
+
+
+def _votes(views: Sequence[DoubtView], s: DoubtSettings,
+           weighed: Mapping[Hashable, tuple[float, float]] | None) -> _Votes:
+    """The views that take part in the consensus and their votes (rules 2 and 3 of :func:`judge_system`)."""
+    lined = [v for v in views if not v.excluded and v.line_classes >= s.min_line_classes]
+    calibrated = [v for v in lined if v.camera is not None]
+    # the mirror flag is today's verdict whatever the view's admission (JaC is the same for labels and
+    # their mirror), also for a view refused as labelled; the ray-based suspicion needs a view that takes part
+    flagged = [v for v in lined if v.mirror_flagged]
+    suspected = [v for v in calibrated if v not in flagged and v.admitted and _mirror_suspected(v, s)]
+    mirrored = flagged + suspected
+    # views with few line classes are not judged (their camera is not fixed by their lines), but one whose
+    # calibration is sure (pixel sigma within tau, e.g. a rig camera whose few lines fix its rotation)
+    # lends its label half a vote to the consensus
+    helpers = [v for v in views if not v.excluded and v.camera is not None and v.line_classes < s.min_line_classes
+               and not v.mirror_flagged and not v.suggested and label_centre(v) is not None]
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    sigma: dict[Hashable, float] = {}
+    weight: dict[Hashable, float] = {}
+    for v in calibrated + helpers:
+        known = weighed.get(v.view_id) if weighed is not None else None
+        weight[v.view_id], sigma[v.view_id] = known if known is not None else calibration_weight(v, s)
+    helpers = [v for v in helpers if weight[v.view_id] > 0]
+    judged = [v for v in calibrated if v not in mirrored and weight[v.view_id] > 0 and not v.suggested]
+    labelled = [v for v in judged if label_centre(v) is not None]
+    unlabelled = [v for v in judged if label_centre(v) is None]
+    obs = [BallObservation(v.view_id, v.camera, label_centre(v), REFERENCE_WIDTH_PX / rule_scale(v, s))
+           for v in labelled + helpers]
+    return _Votes(flagged, mirrored, helpers, judged, labelled, unlabelled, weight, sigma, tau, obs)
+
+
+def _voters_consensus(vote: _Votes, s: DoubtSettings,
+                      geometry: Callable[[BallObservation, BallObservation], PairGeometry]) -> tuple[Consensus, bool]:
+    """The voters' robust consensus (rule 3 of :func:`judge_system`; helpers alone say nothing), and whether the lone
+    labelled view is contradicted by a helper's label (then nothing is placed from it)."""
+    cons = ball_consensus(vote.obs, tau_px=vote.tau, min_baseline_m=s.min_baseline_m,
+                          min_parallax_deg=s.min_parallax_deg, weights=vote.weight, tolerances_px=vote.sigma,
+                          plausible=lambda p: _plausible(p, s), geometry=geometry)
+    lone_contradicted = bool(vote.helpers) and len(vote.labelled) == 1 and (
+        vote.labelled[0].view_id not in cons.inliers
+        and (cons.point is not None or cons.best_pair_error_1920 is not None))
+    if not any(i in {v.view_id for v in vote.labelled} for i in cons.inliers):
+        # helpers alone say nothing
+        cons = ball_consensus([], tau_px=vote.tau, min_baseline_m=s.min_baseline_m,
+                              min_parallax_deg=s.min_parallax_deg)
+    return cons, lone_contradicted
+
+
+def consensus_without(views: Sequence[DoubtView], view_id: Hashable, settings: DoubtSettings,
+                      geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
+                      ) -> Consensus:
+    """The ball the views other than ``view_id`` agree on, exactly as :func:`judge_system` finds a system's
+    consensus (rules 2 and 3: who votes, with what weight and pixel tolerance, within the play volume), with that
+    view left out as if excluded: what a fix of that view's labels is measured against (the mirror guard,
+    ``app.services.curation.editing.ball_error_to_others``). Pure.
+
+    Returns:
+        The :class:`~app.geometry.consensus.Consensus` (its ``point`` None when the others agree on no ball).
+    """
+    others = [dataclasses.replace(v, excluded=True) if v.view_id == view_id else v for v in views]
+    return _voters_consensus(_votes(others, settings, None), settings, geometry)[0]
+
+
 def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
                  weighed: Mapping[Hashable, tuple[float, float]] | None = None) -> list[Doubt]:
@@ -313,37 +392,11 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
     if len(set(ids)) != len(ids):
         raise ValueError(f"views: view ids must be unique, got {ids!r}")
     doubts = _info_doubts(views, s)
-    lined = [v for v in views if not v.excluded and v.line_classes >= s.min_line_classes]
-    calibrated = [v for v in lined if v.camera is not None]
-    # the mirror flag is today's verdict whatever the view's admission (JaC is the same for labels and
-    # their mirror), also for a view refused as labelled; the ray-based suspicion needs a view that takes part
-    flagged = [v for v in lined if v.mirror_flagged]
-    suspected = [v for v in calibrated if v not in flagged and v.admitted and _mirror_suspected(v, s)]
-    mirrored = flagged + suspected
-    # views with few line classes are not judged (their camera is not fixed by their lines), but one whose
-    # calibration is sure (pixel sigma within tau, e.g. a rig camera whose few lines fix its rotation)
-    # lends its label half a vote to the consensus
-    helpers = [v for v in views if not v.excluded and v.camera is not None and v.line_classes < s.min_line_classes
-               and not v.mirror_flagged and not v.suggested and label_centre(v) is not None]
-    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
-    sigma: dict[Hashable, float] = {}
-    weight: dict[Hashable, float] = {}
-    for v in calibrated + helpers:
-        known = weighed.get(v.view_id) if weighed is not None else None
-        weight[v.view_id], sigma[v.view_id] = known if known is not None else calibration_weight(v, s)
-    helpers = [v for v in helpers if weight[v.view_id] > 0]
-    judged = [v for v in calibrated if v not in mirrored and weight[v.view_id] > 0 and not v.suggested]
-    labelled = [v for v in judged if label_centre(v) is not None]
-    unlabelled = [v for v in judged if label_centre(v) is None]
-    voters = labelled + helpers
-    obs = [BallObservation(v.view_id, v.camera, label_centre(v), REFERENCE_WIDTH_PX / rule_scale(v, s)) for v in voters]
-    cons = ball_consensus(obs, tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
-                          weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
-    lone_contradicted = bool(helpers) and len(labelled) == 1 and (
-        labelled[0].view_id not in cons.inliers and (cons.point is not None or cons.best_pair_error_1920 is not None))
-    if not any(i in {v.view_id for v in labelled} for i in cons.inliers):
-        # helpers alone say nothing
-        cons = ball_consensus([], tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg)
+    vote = _votes(views, s, weighed)
+    flagged, mirrored, helpers = vote.flagged, vote.mirrored, vote.helpers
+    weight, sigma, tau, obs = vote.weight, vote.sigma, vote.tau, vote.obs
+    judged, labelled, unlabelled = vote.judged, vote.labelled, vote.unlabelled
+    cons, lone_contradicted = _voters_consensus(vote, s, geometry)
     helper_ids = {v.view_id for v in helpers}
     doubts += [_mirror_doubt(v, "flagged" if v in flagged else "suspected", cons, s) for v in mirrored]
     by_id = {v.view_id: v for v in views}

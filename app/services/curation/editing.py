@@ -37,9 +37,10 @@ from app.db.models import (
 from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.datasets.labels import LabelError, check_box, check_line_point_count, check_line_points, check_point
-from app.geometry.consensus import ball_consensus
+from app.geometry.doubts.judge import consensus_without
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
-from app.geometry.triangulation import BallObservation, reprojection_error_px
+from app.geometry.triangulation import reprojection_error_px
+from app.geometry.weighting import label_centre
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, InvalidInputError
 from app.services.kinds import kind_of
@@ -47,6 +48,7 @@ from app.services.derivation.rows import put_values
 from app.services.derivation.recompute import (
     recompute_frame, recompute_system,
 )
+from app.services.curation.doubts import doubt_settings, doubt_views
 from app.services.curation.states import (
     ball_state, excluded_state, lines_state, same_json,
 )
@@ -330,28 +332,23 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
 
 
 def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None, str] | None:
-    """How far (px at 1920 width) ``frame``'s ball label lies from the ball the system's other views agree on
-    (``app.geometry.consensus.ball_consensus`` of their admitted, included, person-placed labels, the doubt
-    judge's tolerance), with the camera the frame has now, and those views' names; ``(None, names)`` when the
-    frame has no camera or the ball projects behind it; None without a label or without an agreed ball."""
-    from app.services.curation.doubts import doubt_settings, doubt_views  # the judge's adapter and tolerance
+    """How far (px at 1920 width) ``frame``'s ball label lies from the ball the system's other views agree on, as the
+    doubt judge finds it (``app.geometry.doubts.judge.consensus_without``: its voters, weights, pixel tolerances and
+    play volume, with this view left out), with the camera the frame has now, and those views' names; ``(None,
+    names)`` when the frame has no camera or the ball projects behind it; None without a label or without an agreed
+    ball."""
     s = doubt_settings(settings)
     views = doubt_views(frame.system)
     me = next((v for v in views if v.view_id == frame.id), None)
-    if me is None or (me.box is None and me.point is None) or me.suggested:
+    if me is None or label_centre(me) is None or me.suggested:
         return None
-    others = [v for v in views if v.view_id != frame.id and v.camera is not None and v.admitted and not v.excluded
-              and not v.suggested and (v.box is not None or v.point is not None)]
-    centre = lambda v: (np.asarray(v.box[:2]) + np.asarray(v.box[2:])) / 2 if v.box is not None else np.asarray(v.point)  # noqa: E731
-    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
-    cons = ball_consensus([BallObservation(v.view_id, v.camera, centre(v), v.width) for v in others], tau_px=tau,
-                          min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg)
+    cons = consensus_without(views, frame.id, s)
     if cons.point is None or cons.ambiguous:
         return None
-    names = ", ".join(v.name for v in others if v.view_id in cons.inliers)
+    names = ", ".join(v.name for v in views if v.view_id in cons.inliers)
     if me.camera is None:
         return None, names
-    e = reprojection_error_px(me.camera, cons.point, centre(me))
+    e = reprojection_error_px(me.camera, cons.point, label_centre(me))
     return (None if e is None else float(e) * REFERENCE_WIDTH_PX / me.width), names
 
 
