@@ -7,6 +7,9 @@ from fastapi.testclient import TestClient
 
 from ..factories import Scene
 
+#: The edit routes run on a real engine, as served (tests/api/conftest.py).
+pytestmark = pytest.mark.served
+
 
 def _view(client: TestClient, scene: Scene) -> dict:
     return client.get(f"/api/systems/{scene.system_id}").json()

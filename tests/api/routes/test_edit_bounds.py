@@ -26,6 +26,9 @@ from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene, make_game, make_system
 from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
 
+#: The edit routes run on a real engine, as served (tests/api/conftest.py).
+pytestmark = pytest.mark.served
+
 
 def _moved(box: list[float], dx: float) -> list[float]:
     return [box[0] + dx, box[1], box[2] + dx, box[3]]
@@ -89,16 +92,15 @@ def served(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Tes
 
 def test_a_write_waiting_past_the_lock_timeout_is_503_with_retry_after(served, monkeypatch) -> None:
     client, scene, backend, holder = served
-    stored: list[int] = []
-    write = writing._write_carried
+    stored: list[tuple[int, str | None]] = []
+    write = writing.guarded_write
 
-    def counted(session, system_id, *args):  # the real write, counted: an HTTP edit computes before its lock
-        done = write(session, system_id, *args)
-        if done:
-            stored.append(system_id)
+    def counted(session, system_id, *args, **kwargs):  # the real write, counted with how it was stored
+        done = write(session, system_id, *args, **kwargs)
+        stored.append((system_id, kwargs["edit"].outcome))
         return done
 
-    monkeypatch.setattr(writing, "_write_carried", counted)
+    monkeypatch.setattr(writing, "guarded_write", counted)
     fid = scene.frame_ids[0]
     got = client.get(f"/api/frames/{fid}")
     etag, box = got.headers["ETag"], got.json()["ball"]["box"]
@@ -116,4 +118,4 @@ def test_a_write_waiting_past_the_lock_timeout_is_503_with_retry_after(served, m
     assert after.headers["ETag"] == etag and after.json()["ball"]["box"] == box  # nothing changed
     again = client.patch(f"/api/frames/{fid}/ball", json={"box": _moved(box, 6.0)}, headers={"If-Match": etag})
     assert again.status_code == 200, again.text  # the same request, sent again once the lock is free
-    assert stored == [scene.system_id]  # its recomputation was computed before the lock, stored under it
+    assert stored == [(scene.system_id, "computed")]  # computed after its reads, stored under the lock

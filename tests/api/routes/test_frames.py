@@ -16,6 +16,9 @@ from tests.accounts import Account, as_session
 
 from ..factories import HEIGHT, WIDTH, Scene, png_bytes
 
+#: The edit routes run on a real engine, as served (tests/api/conftest.py).
+pytestmark = pytest.mark.served
+
 
 def _view(client: TestClient, scene: Scene) -> dict:
     answer = client.get(f"/api/systems/{scene.system_id}")

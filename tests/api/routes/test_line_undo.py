@@ -4,6 +4,8 @@ field-line write with the earlier lines, audited as ``field_lines.replace`` with
 entry it undoes, whose lines, camera and JaC come back exactly as they were (nothing else changed)."""
 from __future__ import annotations
 
+import pytest
+
 import copy
 from typing import Any
 
@@ -12,6 +14,9 @@ from fastapi.testclient import TestClient
 from app.geometry import pitch
 
 from ..factories import Scene
+
+#: The edit routes run on a real engine, as served (tests/api/conftest.py).
+pytestmark = pytest.mark.served
 
 
 def _view(client: TestClient, scene: Scene, k: int) -> tuple[dict[str, Any], str]:

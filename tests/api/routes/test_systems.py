@@ -12,6 +12,9 @@ from app.core.config import Settings
 
 from ..factories import BALL, HEIGHT, WIDTH, Scene, make_game, make_system
 
+#: The edit routes run on a real engine, as served (tests/api/conftest.py).
+pytestmark = pytest.mark.served
+
 
 @pytest.fixture
 def queue(db_session: Session, db_settings: Settings) -> dict[str, Scene]:
