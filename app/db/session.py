@@ -3,7 +3,7 @@
 Nothing here runs at import time: the API, the CLI and the tests each build their own engine from a
 URL (``Settings.database_url``), so a test can point the whole service at a throw-away database.
 
-Concurrency (several server processes on one database, issue 7): a unit of work that writes starts its
+Concurrency (several server processes on one database): a unit of work that writes starts its
 transaction with :func:`begin_write`. On SQLite that transaction is ``BEGIN IMMEDIATE``: it takes the
 database's write lock before its first read, waiting its turn up to :data:`SQLITE_BUSY_TIMEOUT_S`
 behind another writer, so no read-modify-write ever has to upgrade a read lock (a deferred ``BEGIN``

@@ -40,7 +40,7 @@ class Game(Base):
     #: replays no action links), written back by the SoccerNet-v3D export; None for formats without one.
     #: Deferred: read by the exports only.
     release: Mapped[Optional[dict[str, Any]]] = mapped_column(deferred=True)
-    #: A calibration dataset's learned camera prior (``CameraPrior.to_json``, issue 17): learned by its import
+    #: A calibration dataset's learned camera prior (``CameraPrior.to_json``): learned by its import
     #: from its own confident fits, used by every later recalibration of its frames; None when none was learned.
     camera_prior: Mapped[Optional[dict[str, Any]]] = mapped_column(default=None)
     #: Bumped in the same transaction by every change of what an edit of one of the game's systems reads beyond
@@ -138,7 +138,7 @@ class System(Base):
     trajectory_point: Mapped[Optional[TrajectoryPoint]] = relationship(
         back_populates="system", cascade="all, delete-orphan", passive_deletes=True
     )
-    # ----- work assignment (issue 28, ``app.services.curation.assignment``): who should review the system.
+    # ----- work assignment (``app.services.curation.assignment``): who should review the system.
     #: The id of the user the system is assigned to (None: nobody). A plain indexed id, as the audit log's: a
     #: foreign key would need SQLite to rebuild ``systems`` (migration 0020); users are disabled, never deleted.
     assignee_id: Mapped[Optional[int]] = mapped_column(index=True)

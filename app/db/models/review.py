@@ -73,7 +73,7 @@ class SystemPresence(Base):
 
 
 class ReviewPass(Base):
-    """A review pass (issue 28, ``app.services.curation.passes``): the frozen list of the systems of a review
+    """A review pass (``app.services.curation.passes``): the frozen list of the systems of a review
     queue (``filters`` as ``app.services.curation.queue.SystemFilters`` fields, ``sort``) in its order as it
     stood when ``user_name`` began it, across all its pages; ``position`` is the index in ``system_ids`` of
     the system the user last opened. Statuses are not copied: they are read from the systems."""

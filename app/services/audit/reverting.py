@@ -98,7 +98,7 @@ def _restore(session: Session, entry: AuditEntry, settings: Settings, common: di
 
 def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: str, may_review: bool,
                edit: Optional[writing.EditContext] = None) -> Reverted:
-    """Undo audit entry ``entry_id`` (issue 28, item 4): write back its ``before`` state through the service of
+    """Undo audit entry ``entry_id`` (the page's Ctrl+Z): write back its ``before`` state through the service of
     its edit, audited as that edit (the same action; a mirroring's undo as ``field_lines.replace``) with
     ``reverts_id`` naming the entry, and committed. The redo of an undo is the undo of the undo's entry. The
     state comes back exactly (labels, camera, 3D ball) because it is refused unless the edited part is, under

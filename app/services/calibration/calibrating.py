@@ -76,7 +76,7 @@ def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: i
 
 def _with_mirrored_refit(fields: CalibrationFields, lines: FieldLines, width: int, height: int,
                          prior: CalibrationPrior) -> CalibrationFields:
-    """The mirrored re-fit of a main-camera frame its labels cannot calibrate (issue 18).
+    """The mirrored re-fit of a main-camera frame its labels cannot calibrate.
 
     Labels and their mirror fit mirrored cameras equally well (``app.geometry.mirror``), except where a prior
     breaks the symmetry: a main camera is expected on the near side (``expected_side``), so mirrored labels,

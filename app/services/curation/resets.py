@@ -1,6 +1,6 @@
 """Decisions back to pending after an edit: the one rule.
 
-One rule for decisions after edits (issue 28): an edit that changes a system's labels or 3D result sets the
+One rule for decisions after edits: an edit that changes a system's labels or 3D result sets the
 system's decision and the touched view's decision (its ball decision; its calibration decision for field lines)
 back to pending with the reason, in the edit's transaction (:func:`reset_decisions_after_edit`); an edit that
 changes nothing resets nothing. ``undo`` (:func:`check_undo_state`) marks a write as the undo of an audit entry
@@ -32,7 +32,7 @@ from app.services.curation.writing import (
 
 
 def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[System], actor: Optional[str]) -> int:
-    """The one rule for decisions after edits (issue 28, item 3) for the systems an edit changed beside its own: an
+    """The one rule for decisions after edits for the systems an edit changed beside its own: an
     ISSIA edit re-fits its sequence's trajectory, which moves the 3D ball of neighbouring frames (``refitted``: the
     systems whose place on it changed); each of those, other than ``edited`` (whose decisions the edit itself
     resets), that was decided goes back to pending with the reason and its own ``system.review`` audit entry.
@@ -105,7 +105,7 @@ def reset_after_change(session: Session, frame: Frame, action: str, before: dict
 
 def reset_decisions_after_edit(session: Session, frame: Frame, reason: str, actor: Optional[str], *,
                                calibration: bool) -> bool:
-    """One rule for decisions after an edit that changed a system's labels or 3D result (issue 28, item 3), in
+    """One rule for decisions after an edit that changed a system's labels or 3D result, in
     the edit's transaction: the touched view's decision (its calibration decision when ``calibration``, i.e. a
     field-line edit; else its ball decision) and the system's decision, when decided, go back to pending with
     ``reason`` (``calibration_reset_reason`` / ``reset_reason``), each with its own audit entry

@@ -47,7 +47,7 @@ def review_state(subject: Frame | System) -> dict[str, Any]:
 
 
 def system_review_state(system: System) -> dict[str, Any]:
-    """:func:`review_state` of a system, plus, when it is accepted over open label doubts (issue 28's accept
+    """:func:`review_state` of a system, plus, when it is accepted over open label doubts (the accept
     guard), ``"overrode_doubts": [{"kind", "frame_id", "message"}]``: the doubts accusing a label that the
     accept stands over (whether the page's guard showed them or a script accepted), as the audit entry of
     the decision records them. A function of the stored state, so a revert's guard compares it as any other."""

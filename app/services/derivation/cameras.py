@@ -1,4 +1,4 @@
-"""What one recomputation of a system shares with the next, kept once per process (issue 29, item 1: only the pairs
+"""What one recomputation of a system shares with the next, kept once per process (only the pairs
 an edit touches are computed again).
 
 An edit changes one view of a system: its label (a ball edit, an exclusion) or its camera (a line edit). The other

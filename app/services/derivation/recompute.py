@@ -70,7 +70,7 @@ from app.services.kinds import kind_of
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 3  # 2: pairs outside the play volume dropped, suggested labels left out (issue 18); 3: pairs weighed
+DERIVED_VERSION = 3  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed
 # by what their calibrations are worth (weak_calibrations, outweighed)
 
 
@@ -118,7 +118,7 @@ def calibrate_frame_lines(session: Session, frame: Frame, settings: Settings,
     admission (:func:`wants_rig_retry`), is retried with the game's rig (:func:`game_rig`, the other
     frames' camera positions; :func:`with_rig_retry` keeps the better fit). A frame of a calibration
     dataset whose import learned a camera prior (:func:`stored_camera_prior`) is refitted with it where
-    its lines leave the camera open (:func:`wants_prior_retry`), as the import did (issue 17). The system's kind
+    its lines leave the camera open (:func:`wants_prior_retry`), as the import did. The system's kind
     may refine the result (``KindPolicy.refine_calibration``: an ISSIA camera refined with the ball's labels at
     import is refined so again) unless ``refine`` is False (``KindPolicy.calibration_refinement`` says what that
     leaves out). ``rig``: the game's rig rows (:func:`rig_rows`) when the caller has read them.

@@ -1,5 +1,5 @@
-"""The re-fit of an ISSIA sequence's trajectory after an edit (issue 9: "edits re-fit the affected
-stretch within the edit round-trip targets").
+"""The re-fit of an ISSIA sequence's trajectory after an edit: only the stretch the edit touches is fitted again,
+so that an edit's answer stays as quick as a SoccerNet edit's.
 
 An edit of a ball label or of a view's exclusion changes the labels of one frame. The re-fit
 (:func:`refit_sequence`) reads from the database only what the stretch it touches needs, with light

@@ -342,7 +342,7 @@ def audit_counts(report: ImportReport) -> dict[str, object]:
 
 
 def _within_view_cap(rec: GameRecord, settings: Settings, skipped: list[str] | None = None) -> GameRecord:
-    """The game ``rec`` without its systems of more than ``settings.max_views_per_system`` views (issue 27:
+    """The game ``rec`` without its systems of more than ``settings.max_views_per_system`` views (the
     pairwise work grows with the square of the views), each named with its count in ``skipped`` when given.
     A system stored before the cap is left as it is."""
     cap = settings.max_views_per_system

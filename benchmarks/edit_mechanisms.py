@@ -1,0 +1,133 @@
+"""What each shortcut left on the edit path is worth: a paired comparison, on and off in one process.
+
+Each mechanism is switched off by replacing it with the plain computation it stands for, and one annotator's ball
+edits (the service's ``update_ball_label`` and the system page its answer draws, as a served edit runs them, minus
+HTTP) are timed in blocks that alternate on and off, so that a slow phase of the machine falls on both. The figure is
+the median CPU time (``time.process_time``) per edit of each state and their difference; a mechanism stays only when
+that difference is at least a tenth of a served ball edit's server CPU (``benchmarks/request_cpu.py``).
+
+* ``cameras``: the process's camera objects and pair memo (``app.services.derivation.cameras``); off: every edit
+  builds its cameras and pairs anew.
+* ``only-changed``: ``rows.put_values`` leaves a value equal to the stored one unset, so the flush writes only what
+  changed; off: every derived value is set, every derived row written.
+* ``answer-from-edit``: the page an edit answers is drawn from the objects it committed
+  (``system_page._loaded_system``); off: the page loads the system again.
+
+Usage (from the checkout)::
+
+    .venv/bin/python benchmarks/edit_mechanisms.py --blocks 8 --edits 10
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import statistics
+import sys
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+sys.path.insert(0, ".")
+from sqlalchemy import select  # noqa: E402  # after the checkout is on the path
+
+from app.core.config import Settings  # noqa: E402
+from app.db.models import Frame  # noqa: E402
+from app.db.session import make_engine, make_session_factory  # noqa: E402
+from app.geometry.camera import Camera  # noqa: E402
+from app.geometry.triangulation import PairGeometryMemo  # noqa: E402
+from app.services.curation import editing, system_page  # noqa: E402
+from app.services.derivation import cameras, recompute, rows  # noqa: E402
+from benchmarks.load import fresh_database  # noqa: E402
+
+
+@contextlib.contextmanager
+def cameras_off() -> Iterator[None]:
+    """Every camera built from its JSON and every pair computed anew (a new memo per edit)."""
+    real = recompute.stored_camera
+    recompute.stored_camera = lambda camera_json: Camera.from_soccernet(camera_json)  # type: ignore[assignment]
+    real_memo = cameras.PAIR_GEOMETRY
+    try:
+        yield
+    finally:
+        recompute.stored_camera = real  # type: ignore[assignment]
+        cameras.PAIR_GEOMETRY = real_memo
+
+
+def _fresh_memo() -> None:
+    cameras.PAIR_GEOMETRY = PairGeometryMemo(max_entries=cameras.PAIRS)
+
+
+@contextlib.contextmanager
+def only_changed_off() -> Iterator[None]:
+    """Every derived value set, equal or not."""
+    def put_all(row: Any, values: dict[str, Any]) -> Any:
+        for key, value in values.items():
+            if value is None and not rows.sa.inspect(type(row)).columns[key].nullable:
+                continue
+            setattr(row, key, value)
+        return row
+    saved = rows.put_values, recompute.put_values, editing.put_values
+    rows.put_values = recompute.put_values = editing.put_values = put_all  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        rows.put_values, recompute.put_values, editing.put_values = saved  # type: ignore[assignment]
+
+
+@contextlib.contextmanager
+def answer_from_edit_off() -> Iterator[None]:
+    """The answer's page loaded again."""
+    real = system_page._loaded_system
+    system_page._loaded_system = lambda session, system_id: None  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        system_page._loaded_system = real  # type: ignore[assignment]
+
+
+MECHANISMS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
+    "cameras": cameras_off, "only-changed": only_changed_off, "answer-from-edit": answer_from_edit_off}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--blocks", type=int, default=8, help="blocks per state and mechanism")
+    ap.add_argument("--edits", type=int, default=10, help="edits per block")
+    args = ap.parse_args()
+    with fresh_database(None) as url:
+        settings = Settings(database_url=url)
+        engine = make_engine(url)
+        factory = make_session_factory(engine)
+        with factory() as s:
+            frame = next(f for f in s.scalars(select(Frame).order_by(Frame.id))
+                         if f.ball_label is not None and f.ball_label.box is not None and len(f.system.frames) == 4)
+            fid, sid, box = frame.id, frame.system_id, list(frame.ball_label.box)
+        step = [0]
+
+        def edit(off: bool) -> None:
+            step[0] += 1
+            dx = 2.0 + (step[0] % 2)
+            if off:
+                _fresh_memo() if current == "cameras" else None
+            with factory() as s:
+                editing.update_ball_label(s, fid, box=[box[0] + dx, box[1], box[2] + dx, box[3]], settings=settings)
+                system_page.system_page(s, sid)
+
+        for current, switch in MECHANISMS.items():
+            per: dict[bool, list[float]] = {False: [], True: []}
+            for _ in range(2):
+                edit(False)  # warm
+            for block in range(2 * args.blocks):
+                off = block % 2 == 1
+                with switch() if off else contextlib.nullcontext():
+                    t0 = time.process_time()
+                    for _ in range(args.edits):
+                        edit(off)
+                    per[off].append((time.process_time() - t0) * 1000 / args.edits)
+            on_ms, off_ms = statistics.median(per[False]), statistics.median(per[True])
+            print(f"{current:18s} on {on_ms:6.2f} ms/edit  off {off_ms:6.2f} ms/edit  gain {off_ms - on_ms:+6.2f} ms")
+        engine.dispose()
+
+
+if __name__ == "__main__":
+    main()
