@@ -34,9 +34,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from app.core.config import Settings  # noqa: E402
+from app.datasets.records import CalibrationFields  # noqa: E402
 from app.datasets.soccernet_v3 import read_soccernet_v3  # noqa: E402
 from app.db.models import SystemKind  # noqa: E402
-from app.datasets.records import CalibrationFields  # noqa: E402
 from app.services.calibration.calibrating import calibrate_lines  # noqa: E402
 from app.services.calibration.first_pass import new_frame_job  # noqa: E402
 from app.services.calibration.rigs import game_rig, wants_rig_retry  # noqa: E402

@@ -10,15 +10,18 @@ apart, with the pipelines that carried them (one round trip each). Usage (from t
     .venv/bin/python benchmarks/edit_statements.py
     .venv/bin/python benchmarks/edit_statements.py postgresql+psycopg://postgres@127.0.0.1:5432/test
 """
-import sys, collections
+import collections
+import sys
+
 sys.path.insert(0, ".")
 from sqlalchemy import event, select
-from benchmarks.load import fresh_database
+
 from app.core.config import Settings
-from app.db.session import make_engine, make_session_factory
 from app.db.models import Frame
+from app.db.session import make_engine, make_session_factory
 from app.services.curation.editing import update_ball_label
 from app.services.curation.kept import KEPT_SYSTEMS, KeptSystems
+from benchmarks.load import fresh_database
 
 url_arg = sys.argv[1] if len(sys.argv) > 1 else None
 with fresh_database(url_arg) as url:

@@ -41,7 +41,13 @@ sys.path.insert(0, str(ROOT))
 
 from app.core.paths import SHARED_DIR  # noqa: E402
 from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, lines_used, radial_corner  # noqa: E402
+from app.geometry.calibration import (  # noqa: E402
+    CalibrationPrior,
+    calibrate_frame,
+    calibration_uncertainty,
+    lines_used,
+    radial_corner,
+)
 from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class  # noqa: E402
 from app.geometry.calibration.learning import learn_camera_prior  # noqa: E402
 from app.geometry.calibration.priors import CameraPrior  # noqa: E402

@@ -122,10 +122,9 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
     from fastapi.testclient import TestClient
 
     from app.core.config import Settings
-    from app.db.models import System, SystemKind
     from app.main import create_app
-    from app.services.issia.trajectory import load_sequence
     from app.services.accounts.users import create_user
+    from app.services.issia.trajectory import load_sequence
 
     settings = Settings(database_url=url)
     app = create_app(settings)

@@ -406,12 +406,12 @@ def derived_state(view: dict[str, Any]) -> dict[str, Any]:
 def check_recomputations(database_url: str, system_ids: list[int], report: LoadReport) -> None:
     """Fill ``report.lost_recomputations``: each system's stored derived rows against a fresh
     recomputation from its stored labels (in a transaction that is rolled back)."""
+    from app.api.view_schemas import SystemView
     from app.core.config import Settings
     from app.db.models import System
     from app.db.session import make_engine, make_session_factory
-    from app.api.view_schemas import SystemView
-    from app.services.derivation.recompute import recompute_system
     from app.services.curation.system_page import system_page
+    from app.services.derivation.recompute import recompute_system
 
     def system_view(session, system_id):  # the system view's JSON, as GET /api/systems/{id} answers it
         return SystemView.of(system_page(session, system_id)).model_dump(mode="json", by_alias=True)

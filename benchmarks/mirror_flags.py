@@ -59,11 +59,11 @@ from app.db.models import Frame  # noqa: E402
 from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
 from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
 from app.geometry.calibration import CalibrationPrior, calibrate_frame  # noqa: E402
+from app.geometry.calibration.result import MIRROR_FLAG  # noqa: E402
 from app.geometry.mirror import MirrorView, mirror_evidence  # noqa: E402
 from app.geometry.pitch import MIRROR_CLASSES  # noqa: E402
 from app.services.curation.editing import apply_mirrored_labels
 from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
-from app.geometry.calibration.result import MIRROR_FLAG  # noqa: E402
 
 DEV = Path("data/synthetic/soccernet-v3-dev")
 DEV_TRUTH = Path("data/synthetic/soccernet-v3-dev.truth.json")

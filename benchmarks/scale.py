@@ -326,8 +326,8 @@ def _stage_seconds(log_text: str) -> dict[str, float]:
 def bench_token(db: Path, name: str = "bench-admin") -> str:
     """An API token of the admin ``name`` in the SQLite database ``db`` (made on first use): the
     benchmark's requests authenticate like a script's (``Authorization: Bearer``)."""
-    from app.db.session import make_engine, make_session_factory, upgrade_database
     from app.core.errors import InvalidInputError
+    from app.db.session import make_engine, make_session_factory, upgrade_database
     from app.services.accounts.users import create_user, issue_token
 
     url = sqlite_url(db)

@@ -55,17 +55,17 @@ from app.core.paths import SHARED_DIR  # noqa: E402
 from app.db.models import CalibrationStatus, Frame, FrameRole, Game, System, Triangulation  # noqa: E402
 from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
 from app.geometry.annotations import lines_from_json_lists  # noqa: E402
+from app.geometry.ball import OPTIMISED_BOX_METHODS, optimise_box  # noqa: E402
 from app.geometry.calibration import CalibrationPrior, CameraRig, RigPosition, calibrate_frame  # noqa: E402
 from app.geometry.calibration.observations import build_observations  # noqa: E402
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG  # noqa: E402
 from app.geometry.calibration.rig import calibrate_with_rig  # noqa: E402
-from app.geometry.ball import OPTIMISED_BOX_METHODS, optimise_box  # noqa: E402
 from app.geometry.camera import Camera  # noqa: E402
 from app.geometry.jac import jac_at_gammas  # noqa: E402
 from app.geometry.metrics import box_iou, box_size_error_pct  # noqa: E402
-from app.services.transfer.importing import ImportReport, import_soccernet_v3  # noqa: E402
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG  # noqa: E402
 from app.services.calibration.admission import admission_jac
 from app.services.calibration.calibrating import expected_side
+from app.services.transfer.importing import ImportReport, import_soccernet_v3  # noqa: E402
 
 #: Corruption kinds of the synthetic truth (``systems[].corruption``), None excepted.
 CORRUPTIONS = ("desync", "wrong_ball", "mirrored", "no_ball")

@@ -1,9 +1,8 @@
 """Fixtures shared by the whole suite."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import os
+from pathlib import Path
 
 import pytest
 
@@ -34,7 +33,6 @@ from sqlalchemy.orm import Session  # noqa: E402
 
 from app.core.config import Settings  # noqa: E402
 from app.db.session import make_engine, upgrade_database  # noqa: E402
-
 
 #: Environment variable naming a PostgreSQL server (any database of it, to connect): the database
 #: fixtures then use a fresh database made on that server for the test session (``.ci/run``).

@@ -33,24 +33,28 @@ from typing import Any
 
 from fastapi import FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
-from fastapi.exceptions import RequestValidationError
 from fastapi.exception_handlers import http_exception_handler
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.api.audit_schemas import AuditEntryOut
 from app.api.view_schemas import FrameView, StaleOut, SystemStateOut
+from app.core.errors import (
+    ConflictError,
+    DatasetError,
+    ForbiddenError,
+    InvalidInputError,
+    NotFoundError,
+    StaleVersionError,
+)
 from app.db.models import Frame
 from app.db.session import is_lock_timeout
 from app.geometry.annotations import AnnotationError
-from app.core.errors import (
-    ConflictError, DatasetError, ForbiddenError, InvalidInputError, NotFoundError, StaleVersionError,
-)
-from app.services.transfer.archives import UploadTooLarge
-from app.services.jobs.runner import JobNotReady
 from app.services.images.serving import ImageUnavailable
-
+from app.services.jobs.runner import JobNotReady
+from app.services.transfer.archives import UploadTooLarge
 
 #: Longest ``input`` (as JSON, characters) a validation error quotes back; a longer one is left out.
 MAX_ECHO_CHARS = 200

@@ -10,8 +10,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from app.api.schemas import _In
 from app.db.models import JobState
 from app.services.jobs.work import WORK
-from app.services.transfer.import_formats import refused_options
 from app.services.kinds import POLICIES
+from app.services.transfer.import_formats import refused_options
 
 #: The dataset formats an import takes: every kind's ``import_formats``, once each, in the kinds' order.
 ImportFormat = Literal[tuple(dict.fromkeys(f for p in POLICIES.values() for f in p.import_formats))]  # type: ignore[valid-type]

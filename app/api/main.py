@@ -11,11 +11,24 @@ from fastapi import APIRouter
 
 from app.api.authentication import PROTECTED
 from app.api.bodies import BODY_REFUSED
-from app.api.schemas import ErrorOut
 from app.api.routes import (
-    assignments, audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, passes, pitch, systems,
+    assignments,
+    audit,
+    auth,
+    detectors,
+    exports,
+    frames,
+    games,
+    health,
+    imports,
+    issia,
+    jobs,
+    passes,
+    pitch,
+    systems,
     users,
 )
+from app.api.schemas import ErrorOut
 
 api_router = APIRouter(responses=BODY_REFUSED)
 api_router.include_router(auth.public_router)

@@ -27,6 +27,7 @@ DoubtFilter = Literal[LABEL_KINDS + INFO_KINDS + ("any", "none")]  # type: ignor
 #: on PostgreSQL (SQLite's are 64-bit). A larger number would fail in the database or its driver (a 500:
 #: "integer out of range", OverflowError; found by ``benchmarks/fuzz.py``); it is a 422 naming the parameter.
 from app.db.types import DB_INT_MAX, DB_INT_MIN  # noqa: E402
+
 #: An id (or any integer compared with a stored one) in a path or query parameter.
 DbInt = Annotated[int, Field(ge=DB_INT_MIN, le=DB_INT_MAX)]
 #: Text in a path or query parameter compared with stored text: no NUL character (PostgreSQL's text cannot hold

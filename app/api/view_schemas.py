@@ -16,20 +16,33 @@ from pydantic import AliasChoices, BaseModel, ConfigDict, Field, computed_field
 
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.audit_schemas import AuditEntryOut
-from app.db.types import utcnow
 from app.db.models import (
-    BallKind, BallLabel, Calibration, CalibrationSource, CalibrationStatus, Doubt, Frame, FrameRole, OptimisedBox,
-    ReviewDecision, ReviewStatus, System, SystemKind, Triangulation, TriangulationStatus,
+    BallKind,
+    BallLabel,
+    Calibration,
+    CalibrationSource,
+    CalibrationStatus,
+    Doubt,
+    Frame,
+    FrameRole,
+    OptimisedBox,
+    ReviewDecision,
+    ReviewStatus,
+    System,
+    SystemKind,
+    Triangulation,
+    TriangulationStatus,
 )
+from app.db.types import utcnow
+from app.geometry import pitch
 from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
-from app.geometry import pitch
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.pair_error import error_above_tau, rule_reference_width_px, scaled_error_px
-from app.services.images.serving import frame_has_image
 from app.services.curation.doubts import doubt_provenance, suggestion_json
 from app.services.curation.system_page import SystemPageData, pitch_lines, pitch_lines_key, round_px
 from app.services.curation.versions import frame_etag, system_etag
+from app.services.images.serving import frame_has_image
 
 Box = tuple[float, float, float, float]
 Point2 = tuple[float, float]

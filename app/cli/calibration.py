@@ -21,12 +21,12 @@ import typer
 from tqdm import tqdm
 
 from app.cli._root import cli
-from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
 from app.core.errors import DatasetError
-from app.services.curation.words import refusal_sentence
+from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.services.calibration.pool import calibration_pool
+from app.services.curation.words import refusal_sentence
 
 SUMMARY_FILE = CALIBRATION_SUMMARY
 

@@ -243,8 +243,8 @@ def export_soccernet_v3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """Export reviewed labels as a SoccerNet-v3D tree (Labels-v3D.json and Frames-v3.zip per game, SNv3D.csv)."""
-    from app.services.transfer.exporting import export_soccernet_v3d
     from app.services.images.serving import ImageUnavailable
+    from app.services.transfer.exporting import export_soccernet_v3d
 
     settings = cli_settings(database_url, None)
     bars = _Bars()

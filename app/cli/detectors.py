@@ -179,10 +179,8 @@ def evaluate_sensitivity_cmd(
     """The paper's sensitivity study on the curated labels: box size +-10 %, centre up to 2 % of the diagonal."""
     import numpy as np
 
-    from app.services.evaluation.monocular import reference_views
+    from app.services.evaluation.monocular import default_estimator, reference_views
     from app.services.evaluation.plots import plot_sensitivity, sensitivity_curves
-
-    from app.services.evaluation.monocular import default_estimator
 
     settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)

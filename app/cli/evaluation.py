@@ -17,8 +17,8 @@ from typing import Any, Optional
 
 import typer
 
-from app.datasets.files import InputFileError, JsonFile, json_files
 from app.cli._root import cli
+from app.datasets.files import InputFileError, JsonFile, json_files
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.camera import Camera
 from app.geometry.jac import OFFICIAL_THRESHOLDS_PX, evaluate_jac, gamma_thresholds

@@ -15,7 +15,6 @@ from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 from app.core.paths import PROJECT_ROOT
 from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, PLAY_VOLUME
 
-
 #: Shortest ``V3D_SESSION_SECRET`` accepted (characters): 32 random URL-safe characters carry 192 bits.
 MIN_SESSION_SECRET_CHARS = 32
 

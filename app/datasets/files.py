@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any, BinaryIO, Callable, Iterator, Mapping
 
-
 from app.core.errors import DatasetError
 
 #: Image files a frame may come with.

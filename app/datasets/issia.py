@@ -32,10 +32,10 @@ from typing import Any, Callable, Iterable, Optional
 
 import numpy as np
 
+from app.core.errors import DatasetError
 from app.datasets.files import MAX_IMAGE_PIXELS, dataset_root, file_image_header, inside_dataset, read_text_file
 from app.geometry.annotations import AnnotationError, FieldLines, from_soccernet_calibration
 from app.geometry.camera import Camera
-from app.core.errors import DatasetError
 
 CAMERA_IDS = ("1", "2", "3", "4", "5", "6")
 CAMERA_SET = {"1": "test", "2": "test", "3": "train", "4": "train", "5": "train", "6": "train"}

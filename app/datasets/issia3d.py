@@ -17,10 +17,10 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from app.core.errors import DatasetError
 from app.datasets.csv_cells import inert_cell, read_cell
 from app.datasets.issia import CAMERA_IDS, IssiaSequence
 from app.geometry.camera import Camera
-from app.core.errors import DatasetError
 from app.geometry.pitch import BALL_DIAMETER_M
 
 _PER_CAMERA = ("x", "y", "err", "opt_d", "opt_e")

@@ -8,15 +8,24 @@ import zipfile
 from pathlib import Path, PurePosixPath
 from typing import Any, Iterator
 
+from app.core.errors import DatasetError
 from app.datasets.files import (
-    IMAGE_SUFFIXES, MAX_IMAGE_PIXELS, InputFileError, dataset_relative, dataset_root, file_image_header, inside_dataset,
+    IMAGE_SUFFIXES,
+    MAX_IMAGE_PIXELS,
+    InputFileError,
+    dataset_relative,
+    dataset_root,
+    file_image_header,
+    inside_dataset,
     json_files,
-    load_json_bytes, member_image_header, open_zip, safe_names,
+    load_json_bytes,
+    member_image_header,
+    open_zip,
+    safe_names,
 )
 from app.datasets.records import FrameRecord, GameRecord, SystemRecord
 from app.db.models import FrameRole, SystemKind
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration, lines_to_json_lists
-from app.core.errors import DatasetError
 
 #: League given to games made from a SoccerNet-calibration folder or zip.
 SN_CALIBRATION_LEAGUE = "sn-calibration"

@@ -15,15 +15,24 @@ import zipfile
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from app.core.errors import DatasetError
 from app.datasets.files import (
-    MAX_IMAGE_PIXELS, dataset_relative, dataset_root, file_image_header, image_size_field, inside_dataset,
-    load_json_file, mapping, member_image_header, open_zip, safe_names,
+    MAX_IMAGE_PIXELS,
+    dataset_relative,
+    dataset_root,
+    file_image_header,
+    image_size_field,
+    inside_dataset,
+    load_json_file,
+    mapping,
+    member_image_header,
+    open_zip,
+    safe_names,
 )
+from app.datasets.labels import LabelError, check_box
 from app.datasets.records import FrameRecord, GameRecord, SystemRecord
 from app.db.models import FrameRole, SystemKind
 from app.geometry.annotations import AnnotationError, from_soccernet_v3, lines_to_json_lists
-from app.datasets.labels import LabelError, check_box
-from app.core.errors import DatasetError
 
 V3_LABELS = "Labels-v3.json"
 V3_FRAMES_ZIP = "Frames-v3.zip"

@@ -20,23 +20,41 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Mapping
 
+from app.core.errors import DatasetError
 from app.datasets.csv_cells import read_cell
 from app.datasets.files import (
-    MAX_IMAGE_PIXELS, dataset_root, file_image_header, image_size_field, inside_dataset, is_safe_member, load_json_file,
-    mapping, member_image_header, open_zip, safe_names,
+    MAX_IMAGE_PIXELS,
+    dataset_root,
+    file_image_header,
+    image_size_field,
+    inside_dataset,
+    is_safe_member,
+    load_json_file,
+    mapping,
+    member_image_header,
+    open_zip,
+    safe_names,
 )
-from app.datasets.records import FrameRecord, GameRecord, ImportedCalibration, SystemRecord
+from app.datasets.labels import LabelError, check_box, check_point
+from app.datasets.records import CalibrationFields, FrameRecord, GameRecord, ImportedCalibration, SystemRecord
 from app.datasets.soccernet_v3 import (
-    BALL_CLASS, LINE_ORDER_KEY, FrameImages, ball_index, find_labels, flat_lines, game_key, game_release,
-    ordered_lines, release_entry, v3_lines, v3_systems,
+    BALL_CLASS,
+    LINE_ORDER_KEY,
+    FrameImages,
+    ball_index,
+    find_labels,
+    flat_lines,
+    game_key,
+    game_release,
+    ordered_lines,
+    release_entry,
+    v3_lines,
+    v3_systems,
 )
 from app.db.models import BallKind, CalibrationStatus, FrameRole, ReviewStatus, SystemKind
 from app.geometry.calibration.uncertainty import CalibrationUncertainty
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
-from app.datasets.labels import LabelError, check_box, check_point
-from app.core.errors import DatasetError
-from app.datasets.records import CalibrationFields
 
 V3D_LABELS = "Labels-v3D.json"
 V3D_CSV = "SNv3D.csv"

@@ -23,12 +23,18 @@ from typing import Callable, Sequence
 import cv2
 import numpy as np
 
+from app.demo.scene import BALL_RADIUS_M, PLAYER_HEIGHT_M, Person, precise_ball_box
 from app.geometry.camera import Camera
 from app.geometry.pitch import (
-    CIRCLES, GOAL_HEIGHT_M, GOAL_LENGTH_M, KEY_POINTS, LINE_EXTREMITY_KEYS,
-    PITCH_LENGTH_M, PITCH_WIDTH_M, circle_arc_angles,
+    CIRCLES,
+    GOAL_HEIGHT_M,
+    GOAL_LENGTH_M,
+    KEY_POINTS,
+    LINE_EXTREMITY_KEYS,
+    PITCH_LENGTH_M,
+    PITCH_WIDTH_M,
+    circle_arc_angles,
 )
-from app.demo.scene import BALL_RADIUS_M, PLAYER_HEIGHT_M, Person, precise_ball_box
 
 #: Near plane (metres of camera depth) against which 3D polygons are clipped before projection.
 NEAR_M = 0.5

@@ -29,7 +29,14 @@ from typing import Callable, Hashable, Mapping, Sequence
 import numpy as np
 
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
-from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px, triangulate_dlt, undistort_pixels
+from app.geometry.triangulation import (
+    BallObservation,
+    PairGeometry,
+    pair_geometry,
+    reprojection_error_px,
+    triangulate_dlt,
+    undistort_pixels,
+)
 
 
 @dataclass(frozen=True)

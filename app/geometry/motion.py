@@ -38,8 +38,8 @@ from typing import Sequence
 import numpy as np
 
 from app.geometry.camera import Camera
-from app.geometry.pitch import BALL_DIAMETER_M, within_play_volume
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.pitch import BALL_DIAMETER_M, within_play_volume
 
 GRAVITY_M_S2 = 9.81
 BALL_RADIUS_M = BALL_DIAMETER_M / 2.0

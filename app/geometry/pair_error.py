@@ -4,12 +4,7 @@ reference width so that views of different sizes compare (paper: the 1920-px con
 """
 from __future__ import annotations
 
-
-
 from typing import Callable
-
-
-
 
 #: Reference width of the scaled pair-error rules: errors are expressed as if every image were
 #: this many pixels wide, so that 960- and 1920-px views of one system compare.

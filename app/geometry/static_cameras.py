@@ -26,7 +26,6 @@ from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.geometry.camera import Camera
 from app.geometry.jac import jac_admitted, jac_at_gammas
 
-
 #: Focal lengths (as multiples of the image width) from which :func:`resect_from_ball` tries a RANSAC
 #: resection with the focal length held: 0.4 (a wide angle) to 5 (a long lens), geometric steps of 10 %.
 FOCAL_GRID_WIDTHS = np.geomspace(0.4, 5.0, 27)

@@ -44,9 +44,7 @@ from typing import Callable, Hashable, Mapping, Sequence
 import numpy as np
 
 from app.geometry.camera import MIN_DEPTH_M, Camera, as_points
-from app.geometry.pair_error import (pair_error,
-    _rule)
-
+from app.geometry.pair_error import _rule, pair_error
 
 #: Reasons a pair is dropped, in the order they are tested (a pair reports the first that applies).
 DROP_REASONS = ("degenerate", "point_at_infinity", "behind_camera", "baseline_below_min", "parallax_below_min",

@@ -11,7 +11,6 @@ World frame: SoccerNet (metres, origin at the centre spot, z down); pixels of ea
 """
 from __future__ import annotations
 
-
 import math
 from typing import Any, Protocol
 

@@ -171,8 +171,8 @@ def test_upload_routes_are_derived_from_the_routes_and_agree_with_openapi(app: F
     """The routes that may take ``V3D_MAX_UPLOAD_MB`` are read off the routes themselves (their body parameters,
     or the request body their OpenAPI operation declares), never from a list kept by hand: they are every route
     with a ``File`` / ``UploadFile`` / ``Form`` parameter and every operation whose OpenAPI body is multipart."""
-    from fastapi.routing import iter_route_contexts
     from fastapi.params import File, Form
+    from fastapi.routing import iter_route_contexts
 
     from app.api.bodies import route_media_types, upload_routes
 

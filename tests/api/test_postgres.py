@@ -8,10 +8,9 @@ from fastapi.testclient import TestClient
 from app.core.config import Settings
 from app.db.models import System
 from app.db.session import make_engine, make_session_factory, upgrade_database
-from app.main import create_app
 from app.geometry.calibration.result import MIRROR_FLAG
+from app.main import create_app
 from app.services.derivation.recompute import update_summary
-
 from tests.accounts import as_token, make_accounts
 
 from .factories import make_game, make_system

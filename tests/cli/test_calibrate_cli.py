@@ -16,8 +16,7 @@ import app.cli.evaluation  # noqa: F401  (registers ``v3d jac``)
 from app.cli._root import cli
 from app.geometry.annotations import to_soccernet_calibration
 from app.geometry.calibration import principal_point
-from app.geometry.camera import look_at_rotation
-from app.geometry.camera import Camera
+from app.geometry.camera import Camera, look_at_rotation
 from tests.geometry.test_calibration import synthetic_lines
 
 W, H = 960, 540

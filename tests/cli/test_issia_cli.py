@@ -2,8 +2,6 @@
 dev sequence without videos)."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import sqlalchemy as sa
 from typer.testing import CliRunner
 

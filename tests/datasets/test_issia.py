@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from app.core.config import Settings
-from app.services.issia.trajectory import fit_args
+from app.core.errors import DatasetError
 from app.datasets.issia import read_frame_image, read_issia
+from app.datasets.issia3d import ISSIA3D_COLUMNS, Issia3DRow, issia3d_rows, read_issia3d_csv, write_issia3d_csv
 from app.geometry.calibration import calibrate_frame
+from app.geometry.camera import Camera
 from app.services.calibration.admission import admission_args
 from app.services.issia.cameras import sequence_cameras
-from app.datasets.issia3d import ISSIA3D_COLUMNS, Issia3DRow, issia3d_rows, read_issia3d_csv, write_issia3d_csv
-from app.geometry.camera import Camera
-from app.core.errors import DatasetError
+from app.services.issia.trajectory import fit_args
 
 #: The admission's gamma and threshold in force (Settings, V3D_ADMIT_JAC_GAMMA and V3D_ADMIT_JAC_MIN), as the import
 #: passes them.

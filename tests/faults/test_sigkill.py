@@ -28,9 +28,8 @@ import httpx
 import pytest
 import sqlalchemy as sa
 
-from app.db.models import Base, BallLabel, Calibration, Doubt, Frame, Game, Job, JobState, System, Triangulation
+from app.db.models import BallLabel, Base, Calibration, Doubt, Frame, Game, Job, JobState, System, Triangulation
 from app.db.session import make_engine, upgrade_database
-
 from tests.services.datasets import DEV_GAME, write_v3_game
 
 V3D = str(Path(sys.executable).with_name("v3d"))

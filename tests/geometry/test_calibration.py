@@ -8,10 +8,9 @@ import pytest
 from app.geometry.annotations import AnnotationError, FieldLines, mirror_lines
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, principal_point
 from app.geometry.calibration.initialisation import camera_from_homography
-from app.geometry.camera import look_at_rotation
 from app.geometry.calibration.observations import build_observations
 from app.geometry.calibration.residuals import point_distances, projection_matrix
-from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
+from app.geometry.camera import Camera, look_at_rotation, pan_tilt_roll_from_rotation
 from app.geometry.pitch import CIRCLES, sample_pitch_polylines
 
 
@@ -282,7 +281,8 @@ def test_rig_computes_jac_once_for_the_chosen_position(monkeypatch: pytest.Monke
     """Work done twice: ``calibrate_with_rig`` computed JaC for the fit at every rig position and
     kept one; JaC never chooses, so it is now computed once, for the chosen fit, with the same
     values as before (those of ``calibrate_frame`` at that centre)."""
-    from app.geometry.calibration import CameraRig, CalibrationPrior, calibrate_with_rig, rig as rig_module
+    from app.geometry.calibration import CalibrationPrior, CameraRig, calibrate_with_rig
+    from app.geometry.calibration import rig as rig_module
     from app.geometry.calibration.rig import RigPosition
 
     main = (2.0, 64.0, -19.0)

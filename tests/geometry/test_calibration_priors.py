@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty
-from app.geometry.calibration.result import PRIOR_FLAG
 from app.geometry.calibration.learning import learn_camera_prior
 from app.geometry.calibration.priors import CameraPrior, anchor_order, prior_rows
+from app.geometry.calibration.result import PRIOR_FLAG
 from app.geometry.camera import Camera, look_at_rotation, pan_tilt_roll_from_rotation, rotation_from_pan_tilt_roll
 from tests.geometry.synthetic import visible_model_points
 

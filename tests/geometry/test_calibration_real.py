@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.geometry.calibration.result import REFUSAL_CODES
 from app.geometry.annotations import from_soccernet_calibration, from_soccernet_v3
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
+from app.geometry.calibration.result import REFUSAL_CODES
 from app.geometry.camera import Camera
 from app.geometry.jac import evaluate_jac
 

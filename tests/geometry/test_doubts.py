@@ -12,16 +12,23 @@ import pytest
 
 from app.core.config import Settings
 from app.geometry.ball import sphere_image_box
-from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
 from app.geometry.consensus import ball_consensus
+from app.geometry.doubts import (
+    CODES,
+    INFO_KINDS,
+    LABEL_KINDS,
+    SUGGESTION_ACTIONS,
+    DoubtView,
+    epipolar_pair_error,
+    judge_system,
+)
 from app.geometry.mirror import mirror_camera
-from app.geometry.doubts import (CODES, INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, DoubtView,
-                                 epipolar_pair_error, judge_system)
+from app.geometry.pitch import PLAY_VOLUME
+from app.geometry.triangulation import BallObservation
 from app.geometry.weighting import pixel_sigma
 from app.services.curation.doubt_words import doubt_message
 from app.services.curation.doubts import doubt_settings
-from app.geometry.triangulation import BallObservation
 
 BALL = np.array([10.0, 5.0, -0.11])  # on the grass
 R_BALL = 0.11

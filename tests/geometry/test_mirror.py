@@ -11,9 +11,21 @@ from app.geometry.calibration import calibrate_frame
 from app.geometry.calibration.rig import CameraRig, RigPosition, calibrate_with_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import (
-    AMBIGUOUS, DIFFERENT, MIRROR_ROTATION, NO_AGREEMENT, SAME, VERDICT_AS_LABELLED, VERDICT_MIRRORED,
-    VERDICT_UNDECIDED, MirrorSettings, MirrorView, mirror_camera, mirror_evidence, mirrored_fit_at_rig,
-    pair_relation, side_vote,
+    AMBIGUOUS,
+    DIFFERENT,
+    MIRROR_ROTATION,
+    NO_AGREEMENT,
+    SAME,
+    VERDICT_AS_LABELLED,
+    VERDICT_MIRRORED,
+    VERDICT_UNDECIDED,
+    MirrorSettings,
+    MirrorView,
+    mirror_camera,
+    mirror_evidence,
+    mirrored_fit_at_rig,
+    pair_relation,
+    side_vote,
 )
 
 from .test_calibration import _camera, synthetic_lines

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, radial_corner
-from app.geometry.calibration.result import RADIAL_PRIOR_FLAG
 from app.geometry.calibration.held_out import class_point_distances, without_class
 from app.geometry.calibration.learning import learn_camera_prior
 from app.geometry.calibration.priors import CameraPrior, prior_rows
+from app.geometry.calibration.result import RADIAL_PRIOR_FLAG
 from app.geometry.camera import Camera, look_at_rotation
 from tests.geometry.synthetic import visible_model_points
 

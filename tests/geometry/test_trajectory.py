@@ -9,12 +9,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.geometry.camera import Camera
 from app.geometry import trajectory as trajectory_module
-from app.geometry.trajectory import fit as fit_module, refit as refit_module, segmentation as segmentation_module
+from app.geometry.camera import Camera
+from app.geometry.trajectory import fit as fit_module
 from app.geometry.trajectory import (
-    fit_trajectory, local_span, refit_local, refit_span, refit_window, triangulate_frame,
+    fit_trajectory,
+    local_span,
+    refit_local,
+    refit_span,
+    refit_window,
+    triangulate_frame,
 )
+from app.geometry.trajectory import refit as refit_module
+from app.geometry.trajectory import segmentation as segmentation_module
 from app.geometry.triangulation import BallObservation
 
 FPS = 25.0

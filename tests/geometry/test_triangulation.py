@@ -1,14 +1,23 @@
 """Pairwise DLT triangulation, pair filtering and fusion (app.geometry.triangulation)."""
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
 import pytest
 
 from app.geometry.camera import Camera
-from app.geometry.triangulation import DROP_REASONS, STATUS_INSUFFICIENT_VIEWS, STATUS_NO_PAIR_KEPT, STATUS_TRIANGULATED, BallObservation, parallax_angle_deg, triangulate_ball, triangulate_dlt, undistort_pixels
 from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
+from app.geometry.triangulation import (
+    DROP_REASONS,
+    STATUS_INSUFFICIENT_VIEWS,
+    STATUS_NO_PAIR_KEPT,
+    STATUS_TRIANGULATED,
+    BallObservation,
+    parallax_angle_deg,
+    triangulate_ball,
+    triangulate_dlt,
+    undistort_pixels,
+)
 
 BALL = np.array([20.0, -10.0, -1.5])
 

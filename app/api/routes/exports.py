@@ -22,9 +22,9 @@ from app.api.auth import require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
-from app.services.transfer import export_files, exporting
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
+from app.services.transfer import export_files, exporting
 
 router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
 

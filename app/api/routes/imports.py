@@ -24,16 +24,16 @@ from starlette.formparsers import MultiPartException, MultiPartParser
 
 from app.api.auth import AdminDep, require_role
 from app.api.deps import SessionDep, SettingsDep
-from app.api.routes.jobs import accepted
 from app.api.job_schemas import ImportIn, ImportOptions, ImportUploadIn, JobOut
+from app.api.routes.jobs import accepted
 from app.api.schemas import ErrorOut
 from app.core.config import Settings, jobs_dir
-from app.services.jobs import runner as jobs
-from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
-from app.services.transfer.data_root import confined_path
 from app.core.errors import DatasetError, InvalidInputError
 from app.datasets.files import refuse_links_out
+from app.services.jobs import runner as jobs
 from app.services.jobs.work import import_params
+from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
+from app.services.transfer.data_root import confined_path
 
 router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
 

@@ -19,10 +19,10 @@ from app.api.auth import AdminDep, Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import JobKindName, JobOut, JobPageOut, JobStateName
 from app.api.schemas import DB_INT_MAX, DB_INT_MIN, NOT_FOUND, ErrorOut
+from app.core.config import Settings
+from app.core.errors import NotFoundError
 from app.db.models import Job, JobState
 from app.services.jobs import runner as jobs
-from app.core.errors import NotFoundError
-from app.core.config import Settings
 from app.services.jobs.work import export_path, without_server_paths
 from app.services.transfer.export_files import prune_exports
 

@@ -56,18 +56,28 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from app.geometry.annotations import AnnotationError, FieldLines, image_diagonal, mirror_lines
+from app.geometry.calibration.fallbacks import (
+    anchors_without_one_class,
+    with_camera_prior,
+    with_radial_prior,
+    without_one_class,
+)
 from app.geometry.calibration.observations import Observations, build_observations
+from app.geometry.calibration.result import (
+    MIRROR_FLAG,
+    PRIOR_FLAG,
+    RADIAL_PRIOR_FLAG,
+    RIG_FLAG,
+    CalibrationPrior,
+    CalibrationResult,
+    CalibrationSettings,
+    Refusal,
+    side_vote,
+)
+from app.geometry.calibration.starts import Budget, Candidate, class_residuals, search_starts, with_k1, worst_residual
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIN_LINE_CLASSES, MIRROR_CLASSES
-from app.geometry.calibration.result import (
-    MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG, CalibrationPrior, CalibrationResult, CalibrationSettings,
-    Refusal, side_vote,
-)
-from app.geometry.calibration.starts import Budget, Candidate, class_residuals, search_starts, with_k1, worst_residual
-from app.geometry.calibration.fallbacks import (
-    anchors_without_one_class, with_camera_prior, with_radial_prior, without_one_class,
-)
 
 
 def _refused(refusal: Refusal, t0: float, flags: tuple[str, ...] = (), residuals_px: Mapping[str, float] | None = None,

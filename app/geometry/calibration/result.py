@@ -6,7 +6,6 @@ World frame: SoccerNet (metres, centre spot origin, z down); image: continuous p
 """
 from __future__ import annotations
 
-
 from dataclasses import dataclass, field
 from typing import Any, Literal, Mapping
 
@@ -17,7 +16,6 @@ from app.geometry.calibration.priors import CameraPrior
 from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
 from app.geometry.pitch import PITCH_WIDTH_M
-
 
 #: Flag of a calibration made with its centre fixed by a prior (a position of the game's camera rig).
 RIG_FLAG = "rig_assisted"

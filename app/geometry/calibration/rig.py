@@ -21,9 +21,9 @@ import numpy as np
 from numba import njit
 
 from app.geometry.annotations import FieldLines
+from app.geometry.calibration.frame import calibrate_frames_together, frame_jac
 from app.geometry.calibration.residuals import JIT
 from app.geometry.calibration.result import RIG_FLAG, CalibrationPrior, CalibrationResult, CalibrationSettings, Refusal
-from app.geometry.calibration.frame import calibrate_frames_together, frame_jac
 
 
 @dataclass(frozen=True)

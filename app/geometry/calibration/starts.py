@@ -4,19 +4,18 @@ evaluation and the best refined (:func:`~.solver.robust_lm`) within a budget of 
 """
 from __future__ import annotations
 
-
 from dataclasses import dataclass
 
 import numpy as np
 
 from app.geometry.annotations import image_diagonal
+from app.geometry.calibration.held_out import distances_by_class
 from app.geometry.calibration.initialisation import (
     camera_from_homography,
     fixed_centre_rotations,
     ground_homographies,
     labelled_target,
 )
-from app.geometry.calibration.held_out import distances_by_class
 from app.geometry.calibration.observations import Observations
 from app.geometry.calibration.residuals import (
     CameraParametrisation,
@@ -24,10 +23,9 @@ from app.geometry.calibration.residuals import (
     projection_matrix,
     residual_rows,
 )
+from app.geometry.calibration.result import CalibrationPrior, CalibrationSettings, principal_point
 from app.geometry.calibration.solver import PriorRows, abs_percentile, robust_lm, soft_l1_cost
 from app.geometry.camera import Camera, look_at_rotation
-from app.geometry.calibration.result import (CalibrationPrior, CalibrationSettings, principal_point)
-
 
 #: Plausible camera centres (world, metres, z down) tried, in this order, when the lines do not fix
 #: a homography: main broadcast camera on either side, 18-yard cameras, high and low behind-goal

@@ -4,7 +4,6 @@ triangulate is judged so), and the single-view ball a box implies.
 """
 from __future__ import annotations
 
-
 import math
 
 import numpy as np

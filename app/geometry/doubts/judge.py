@@ -11,15 +11,25 @@ import numpy as np
 
 from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
+from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
+from app.geometry.doubts.epipolar import _mono, _sees, _segment, _single_view_ball, epipolar_pair_error
 from app.geometry.mirror import mirror_camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import (
-    BallObservation, PairGeometry, angle_between_deg, pair_geometry, reprojection_error_px,
+    BallObservation,
+    PairGeometry,
+    angle_between_deg,
+    pair_geometry,
+    reprojection_error_px,
 )
-from app.geometry.weighting import (axis_on_grass, calibration_weight, label_centre, pixel_sigma, project_point,
-                                   rule_scale)
-from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
-from app.geometry.doubts.epipolar import _mono, _sees, _segment, _single_view_ball, epipolar_pair_error
+from app.geometry.weighting import (
+    axis_on_grass,
+    calibration_weight,
+    label_centre,
+    pixel_sigma,
+    project_point,
+    rule_scale,
+)
 
 
 def _info_doubts(views: Sequence[DoubtView], s: DoubtSettings) -> list[Doubt]:

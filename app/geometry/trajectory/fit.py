@@ -14,10 +14,9 @@ from app.geometry.camera import Camera
 from app.geometry.motion import (
     LabelTable as _Labels,
 )
+from app.geometry.trajectory.frames import FrameTriangulation, triangulate_frame
+from app.geometry.trajectory.segmentation import DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece, _group, _segment
 from app.geometry.triangulation import BallObservation
-from app.geometry.trajectory.frames import (FrameTriangulation, triangulate_frame)
-from app.geometry.trajectory.segmentation import (DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece, _group, _segment)
-
 
 SOURCES = ("triangulated", "fitted", "interpolated")
 

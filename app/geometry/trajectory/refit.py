@@ -4,7 +4,6 @@ can have changed are answered, as a window of the fit.
 """
 from __future__ import annotations
 
-
 from typing import Sequence
 
 import numpy as np
@@ -13,9 +12,23 @@ from app.geometry.camera import Camera
 from app.geometry.motion import (
     LabelTable as _Labels,
 )
-from app.geometry.trajectory.segmentation import (DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece, _Best, _CONFIRM, _SHIFT, _acceptable, _anchored, _bad_frames, _bad_run, _best_piece, _group, _segment, _shift_bounds)
-from app.geometry.trajectory.fit import (TrajectoryFit, _assemble, _check_inputs)
-
+from app.geometry.trajectory.fit import TrajectoryFit, _assemble, _check_inputs
+from app.geometry.trajectory.segmentation import (
+    _CONFIRM,
+    _SHIFT,
+    DEFAULT_BREAK_PX,
+    DEFAULT_FLAG_PX,
+    Piece,
+    _acceptable,
+    _anchored,
+    _bad_frames,
+    _bad_run,
+    _Best,
+    _best_piece,
+    _group,
+    _segment,
+    _shift_bounds,
+)
 
 #: The fast path of :func:`refit_window` re-fits the pieces around an edit alone when the edit lies at least
 #: this many labelled frames inside them: beyond the frames a break may move by (``_SHIFT``) and the frames

@@ -14,17 +14,41 @@ neighbouring pieces, against which their labels are judged; there the frame's ow
 """
 from __future__ import annotations
 
-
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from app.geometry.motion import (
-    GRAVITY_M_S2, KINDS, LabelTable as _Labels, linear_fits, positions as _positions, refine as _refine,
-    determined as _determined, plausible as _plausible, position_prior as _position_prior, robust_cost, shifted as _shifted, stop_time as _stop_time,
+    GRAVITY_M_S2,
+    KINDS,
+    linear_fits,
+    robust_cost,
 )
-
+from app.geometry.motion import (
+    LabelTable as _Labels,
+)
+from app.geometry.motion import (
+    determined as _determined,
+)
+from app.geometry.motion import (
+    plausible as _plausible,
+)
+from app.geometry.motion import (
+    position_prior as _position_prior,
+)
+from app.geometry.motion import (
+    positions as _positions,
+)
+from app.geometry.motion import (
+    refine as _refine,
+)
+from app.geometry.motion import (
+    shifted as _shifted,
+)
+from app.geometry.motion import (
+    stop_time as _stop_time,
+)
 
 #: Defaults (pixels on a 1920-px-wide image). Label noise is about 1 px; a wrong label is tens to
 #: hundreds of px off. ``flag_px`` flags a label against the fitted trajectory; ``break_px`` ends a

@@ -12,7 +12,6 @@ from app.core.config import Settings
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
 from app.geometry.jac import JAC_GAMMAS, jac_admitted
 
-
 #: Calibration flag of a camera given by its dataset with no field lines to compute JaC on (an ISSIA
 #: ``issia_calibration.json`` camera without ``issia_lines.json``): admitted as given.
 GIVEN_CAMERA_FLAG = "given_camera"

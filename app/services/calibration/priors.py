@@ -4,22 +4,23 @@ systems have no rig (:func:`dataset_prior`), stored with the game, and the retry
 """
 from __future__ import annotations
 
-
 from typing import Sequence
 
 import numpy as np
 
+from app.datasets.records import CalibrationFields
 from app.db.models import CalibrationStatus, System
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration import (
-    CameraPrior, learn_camera_prior, lines_used, radial_corner,
+    CameraPrior,
+    learn_camera_prior,
+    lines_used,
+    radial_corner,
 )
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.priors import confident_mask
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.camera import Camera
-from app.datasets.records import CalibrationFields
 from app.services.calibration.rigs import uses_rig
-
 
 #: Fewest calibrated frames of an import's systems without a rig from which a dataset prior is learned
 #: (half of them confident: a handful of anchors at least).

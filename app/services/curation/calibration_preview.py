@@ -22,9 +22,9 @@ from app.datasets.records import CalibrationFields
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
 from app.services.calibration.admission import is_admitted
 from app.services.curation.editing import parse_field_lines
+from app.services.curation.system_page import pitch_lines
 from app.services.curation.writing import get_frame
 from app.services.derivation.recompute import calibrate_frame_lines
-from app.services.curation.system_page import pitch_lines
 from app.services.kinds import kind_of
 
 

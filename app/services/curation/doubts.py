@@ -21,11 +21,11 @@ from sqlalchemy.orm import Session, selectinload
 from app.core.config import Settings
 from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Game, System
 from app.db.types import json_safe
-from app.geometry.camera import Camera
-from app.geometry.pitch import PLAY_VOLUME
-from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
-from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
+from app.geometry.camera import Camera
+from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
+from app.geometry.pitch import PLAY_VOLUME
+from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
 from app.geometry.weighting import calibration_weight
 from app.services.curation.doubt_words import doubt_message
 from app.services.derivation.cameras import stored_camera

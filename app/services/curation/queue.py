@@ -31,8 +31,8 @@ sort's index (covering: the sort keys and the row id) and reads the rows of the 
 from __future__ import annotations
 
 import base64
-import functools
 import binascii
+import functools
 import json
 import math
 from dataclasses import dataclass
@@ -42,11 +42,19 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
 
 from app.core.errors import InvalidInputError
+from app.db.models import (
+    BallReprojection,
+    Calibration,
+    CalibrationStatus,
+    Doubt,
+    Frame,
+    Game,
+    ReviewStatus,
+    System,
+    User,
+)
 from app.db.together import Call
 from app.db.types import DB_INT_MAX, DB_INT_MIN
-from app.db.models import (
-    BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, ReviewStatus, System, User,
-)
 
 SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]

@@ -36,9 +36,9 @@ from app.datasets.csv_cells import read_cell
 from app.datasets.files import read_text_file
 from app.db.models import Frame, Game, ReviewDecision, ReviewStatus, System
 from app.geometry.metrics import box_iou, box_size_error_pct
+from app.geometry.pitch import BALL_DIAMETER_M
 from app.services.kinds import kind_of
 from app.services.transfer.detector_export import BALL_BOX_LOADS, refined_boxes
-from app.geometry.pitch import BALL_DIAMETER_M
 
 PRECISE_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y2")
 BOX_KINDS = ("original", "optimised", "refined")

@@ -31,16 +31,24 @@ from typing import Any, Hashable, Iterable
 import numpy as np
 from sqlalchemy.orm import Session
 
+from app.core.errors import DatasetError, InvalidInputError
 from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
-from app.geometry.metrics import (MAX_COCO_FILE_BYTES, Detections, average_precision, box_iou, coco_results,
-                                  load_yolo_detections, monocular_metrics, precision_curve)
-from app.services.kinds import kind_of
-from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes
-from app.core.errors import DatasetError, InvalidInputError
-from app.services.transfer.cameras_export import read_cameras
-from app.services.transfer.exporting import exported_systems
+from app.geometry.metrics import (
+    MAX_COCO_FILE_BYTES,
+    Detections,
+    average_precision,
+    box_iou,
+    coco_results,
+    load_yolo_detections,
+    monocular_metrics,
+    precision_curve,
+)
 from app.geometry.pitch import BALL_DIAMETER_M
+from app.services.kinds import kind_of
+from app.services.transfer.cameras_export import read_cameras
+from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes
+from app.services.transfer.exporting import exported_systems
 
 #: Thresholds (metres) of the precision-threshold curve.
 CURVE_THRESHOLDS_M = tuple(float(t) for t in np.round(np.arange(0.0, 10.0001, 0.25), 2))

@@ -17,10 +17,9 @@ from typing import BinaryIO, Optional
 
 import numpy as np
 
-from app.core.errors import DatasetError
+from app.core.errors import DatasetError, ServiceError
 from app.datasets.files import IMAGE_MEDIA_TYPES, MAX_IMAGE_PIXELS, image_header, is_safe_member
 from app.db.models import Frame
-from app.core.errors import ServiceError
 
 #: Bytes per streamed chunk.
 _CHUNK = 64 * 1024
@@ -159,7 +158,7 @@ def _media_frame_image(frame: Frame, where: str, max_pixels: int) -> FrameImage:
     try:
         st = path.stat()
         data = read_video_frame(frame, max_pixels)
-    except (OSError, DatasetError) as exc:
+    except (OSError, DatasetError):
         raise ImageUnavailable(f"{where}: cannot read frame {frame.media_frame} of {frame.image_path}") from None
     etag = f'"{st.st_mtime_ns:x}-{st.st_size:x}-{frame.media_frame:x}-{int(frame.media_flipped)}-{frame.width}x{frame.height}"'
     return FrameImage(media_type="image/png", etag=etag, size=len(data), data=data)

@@ -21,11 +21,11 @@ from app.geometry.calibration import calibrate_frame
 from app.geometry.calibration.result import Refusal
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS, jac_admitted, jac_at_gammas
-from app.services.curation.words import refusal_sentence
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.static_bundle import bundle_adjust
 from app.geometry.static_cameras import calibrate_with_ball
 from app.geometry.trajectory import DEFAULT_FLAG_PX, fit_trajectory
-from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.services.curation.words import refusal_sentence
 
 
 @dataclass(frozen=True)

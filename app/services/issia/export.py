@@ -24,11 +24,11 @@ import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from app.core.errors import NotFoundError, found
 from app.datasets.issia import ANNOTATION_SIZE, CAMERA_SET, IssiaSequence
 from app.datasets.issia3d import issia3d_rows, write_issia3d_csv
 from app.db.models import Calibration, Frame, Game, ReviewStatus, System, SystemKind
 from app.geometry.camera import Camera
-from app.core.errors import NotFoundError, found
 from app.services.issia.trajectory import load_sequence
 
 CSV_NAME, SPLIT_NAME, CALIBRATION_DIR = "ISSIA-3D.csv", "split.json", "calibration"

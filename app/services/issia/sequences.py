@@ -34,31 +34,38 @@ from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
 from app.datasets.issia import CAMERA_SET, FPS, IssiaSequence, read_issia
+from app.datasets.records import CalibrationFields
 from app.db.models import (
-    BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game,
-    ReviewStatus, System, SystemKind,
+    BallKind,
+    BallLabel,
+    CalibrationSource,
+    CalibrationStatus,
+    FieldLineAnnotation,
+    Frame,
+    FrameRole,
+    Game,
+    ReviewStatus,
+    System,
+    SystemKind,
 )
 from app.db.session import refresh_statistics
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists
 from app.geometry.calibration.held_out import class_point_distances
 from app.geometry.camera import Camera
-from app.geometry.jac import jac_at_gammas
+from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.trajectory import fit_trajectory
-from app.services.issia.cameras import CameraChoice, bundle_refined_cameras, sequence_cameras
-from app.services.curation.doubts import update_doubts
-from app.core.errors import DatasetError
 from app.services.audit.log import record_summary
-from app.services.transfer.importing import ImportReport, audit_counts
-from app.services.kinds.issia import BALL_BUNDLE_FLAG
-from app.services.issia.refit import refit_sequence, sequence_columns
-from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence, sequence_arrays
-from app.geometry.jac import JAC_GAMMAS
-from app.datasets.records import CalibrationFields
 from app.services.calibration.admission import GIVEN_CAMERA_FLAG, admission_args
 from app.services.calibration.calibrating import apply_calibration, fit_uncertainty
-from app.services.jobs.progress import Progress
+from app.services.curation.doubts import update_doubts
 from app.services.derivation.recompute import load_for_recompute, recompute_system, recompute_systems
+from app.services.issia.cameras import CameraChoice, bundle_refined_cameras, sequence_cameras
+from app.services.issia.refit import refit_sequence, sequence_columns
+from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence, sequence_arrays
+from app.services.jobs.progress import Progress
+from app.services.kinds.issia import BALL_BUNDLE_FLAG
+from app.services.transfer.importing import ImportReport, audit_counts
 
 LEAGUE, SEASON = "issia", "sequences"
 #: Calibration flag of a camera calibrated again from the ball's trajectory of the others.

@@ -28,13 +28,13 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.db.models import Frame, System, SystemKind, TrajectoryPoint
 from app.datasets.issia import FPS
+from app.db.models import Frame, System, SystemKind, TrajectoryPoint
 from app.db.types import json_safe, utcnow
 from app.geometry.camera import Camera
 from app.geometry.doubts import Doubt as JudgedDoubt
-from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
 from app.geometry.triangulation import BallObservation
 
 
@@ -74,8 +74,8 @@ def load_sequence(session: Session, game_id: int) -> list[System]:
 
 def sequence_arrays(systems: Sequence[System], settings: Settings) -> SequenceArrays:
     """Current labels and admitted cameras of a stored sequence (see :class:`SequenceArrays`)."""
-    from app.services.curation.doubts import is_excluded
     from app.services.calibration.admission import is_admitted
+    from app.services.curation.doubts import is_excluded
 
     by_index = {s.frame_index: s for s in systems if s.frame_index is not None}
     names: dict[str, int] = {}

@@ -42,9 +42,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.config import Settings
+from app.core.errors import InvalidInputError, ServiceError, found
 from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
-from app.core.errors import InvalidInputError, ServiceError, found
 from app.services.jobs.progress import Progress
 
 log = logging.getLogger(__name__)

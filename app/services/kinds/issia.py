@@ -17,7 +17,7 @@ in the paper, by camera (1-2 test, 3-6 train), and named ``<sequence slug>-<hash
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from app.datasets.issia import CAMERA_SET
 from app.db.models import Frame, Game, System, SystemKind

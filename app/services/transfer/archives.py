@@ -31,11 +31,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Callable, Iterable
 
-
 from app.core.config import Settings
-from app.datasets.files import (MAX_IMAGE_PIXELS, MAX_ZIP_RATIO, image_header, is_safe_member, member_chunks,
-                                ratio_cap)
 from app.core.errors import DatasetError, ServiceError
+from app.datasets.files import MAX_IMAGE_PIXELS, MAX_ZIP_RATIO, image_header, is_safe_member, member_chunks, ratio_cap
 
 #: File names decoded to check they are images.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")

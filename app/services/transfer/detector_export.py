@@ -54,11 +54,11 @@ from sqlalchemy.orm import Session, selectinload
 from app.db.models import Frame, Game, System, Triangulation
 from app.geometry.ball import box_centre_and_diameter
 from app.geometry.camera import Camera
+from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.refined_box import refine_box
+from app.services.images.serving import ImageUnavailable, frame_image
 from app.services.kinds import kind_of
 from app.services.transfer.exporting import exported_systems
-from app.services.images.serving import ImageUnavailable, frame_image
-from app.geometry.pitch import BALL_DIAMETER_M
 
 BALL_CLASS = "Ball"
 #: SoccerNet-v3 box classes other than the ball, in class-id order after it.

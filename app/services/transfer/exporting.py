@@ -54,17 +54,28 @@ import sqlalchemy as sa
 from sqlalchemy import Select, select
 from sqlalchemy.orm import Session, selectinload, undefer
 
-from app.db.models import (
-    JAC_COLUMNS, BallLabel, BallReprojection, Calibration, FieldLineAnnotation, Frame, FrameRole, Game, OptimisedBox,
-    ReviewDecision, ReviewStatus, System, Triangulation,
-)
+from app.core.errors import InvalidInputError
 from app.datasets.csv_cells import inert_row
 from app.datasets.soccernet_v3 import V3_FRAMES_ZIP
 from app.datasets.soccernet_v3d import JAC_KEYS, curated_entry
+from app.db.models import (
+    JAC_COLUMNS,
+    BallLabel,
+    BallReprojection,
+    Calibration,
+    FieldLineAnnotation,
+    Frame,
+    FrameRole,
+    Game,
+    OptimisedBox,
+    ReviewDecision,
+    ReviewStatus,
+    System,
+    Triangulation,
+)
 from app.db.types import json_loads
-from app.core.errors import InvalidInputError
-from app.services.kinds import kinds_exported_by, split_of
 from app.services.images.serving import frame_has_image, frame_image
+from app.services.kinds import kinds_exported_by, split_of
 
 #: Columns of ``SNv3D.csv``: method.md section 9, then v3d's own.
 CSV_COLUMNS = (

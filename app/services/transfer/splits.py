@@ -15,7 +15,7 @@ from pathlib import Path, PurePosixPath
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from app.core.errors import DatasetError, InvalidInputError
+from app.core.errors import InvalidInputError
 from app.datasets.files import read_text_file
 from app.db.models import Frame, Game, System
 

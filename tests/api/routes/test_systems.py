@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from app.geometry.doubts import LABEL_KINDS
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.geometry.doubts import LABEL_KINDS
 
 from ..factories import BALL, HEIGHT, WIDTH, Scene, make_game, make_system
 
@@ -324,8 +323,7 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
 
 def test_error_reference_widths_follow_the_pair_error_rules() -> None:
     """The reference width of each rule is the one ``app.geometry.pair_error.pair_error`` scales by."""
-    from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
-    from app.geometry.pair_error import RULE_REFERENCE_WIDTH_PX, rule_reference_width_px
+    from app.geometry.pair_error import PAIR_ERROR_RULES, RULE_REFERENCE_WIDTH_PX, pair_error, rule_reference_width_px
 
     assert set(RULE_REFERENCE_WIDTH_PX) <= set(PAIR_ERROR_RULES)
     for rule in PAIR_ERROR_RULES:

@@ -10,11 +10,11 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from app.core.errors import InvalidInputError, NotFoundError
 from app.db.models import ApiToken, ServerSecret, User
 from app.db.types import utcnow
 from app.services.accounts import users
 from app.services.audit import log as audit
-from app.core.errors import InvalidInputError, NotFoundError
 
 
 def test_passwords_are_stored_as_argon2id_hashes_that_verify(db_session: Session) -> None:

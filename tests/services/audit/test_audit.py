@@ -9,13 +9,13 @@ import threading
 import pytest
 import sqlalchemy as sa
 
+from app.core.errors import InvalidInputError, StaleVersionError
 from app.db.models import AuditEntry, Frame, System
 from app.services.audit import log as audit
-from app.services.curation import editing
-from app.core.errors import InvalidInputError, StaleVersionError
-from app.services.transfer.importing import import_soccernet_v3
-from app.services.derivation.recompute import refresh_stale_systems
 from app.services.audit.reverting import revert_entry
+from app.services.curation import editing
+from app.services.derivation.recompute import refresh_stale_systems
+from app.services.transfer.importing import import_soccernet_v3
 
 
 def _entries(session) -> list[AuditEntry]:

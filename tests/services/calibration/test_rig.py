@@ -6,11 +6,11 @@ import numpy as np
 import sqlalchemy as sa
 
 from app.db.models import CalibrationSource, CalibrationStatus, System, SystemKind
-from app.services.curation.editing import replace_field_lines
-from app.services.transfer.importing import import_sn_calibration
 from app.geometry.calibration.result import RIG_FLAG
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job
 from app.services.calibration.rigs import game_rig, uses_rig
+from app.services.curation.editing import replace_field_lines
+from app.services.transfer.importing import import_sn_calibration
 
 from ..datasets import true_cameras, write_calibration_zip
 

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from app.db.models import Calibration, CalibrationSource, CalibrationStatus, TriangulationStatus
-from app.services.transfer.importing import read_soccernet_v3
 from app.services.calibration.admission import admission_jac, is_admitted
-from app.services.calibration.pool import calibrate_many
 from app.services.calibration.calibrating import expected_side
+from app.services.calibration.pool import calibrate_many
 from app.services.derivation.recompute import recompute_system
+from app.services.transfer.importing import read_soccernet_v3
 
 from ..datasets import true_balls
 

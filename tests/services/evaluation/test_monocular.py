@@ -12,11 +12,11 @@ import json
 import numpy as np
 import pytest
 
+from app.core.errors import InvalidInputError
 from app.geometry.ball import optimise_box, sphere_image_box
 from app.geometry.camera import Camera
 from app.geometry.metrics import Detections
 from app.geometry.sensitivity import scale_boxes
-from app.core.errors import InvalidInputError
 from app.services.evaluation.monocular import ReferenceView, evaluate, load_predictions
 
 CAM = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0, tilt_deg=90.0,

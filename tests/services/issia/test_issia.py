@@ -10,19 +10,28 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from app.geometry.calibration.result import REFUSAL_CODES
 from app.datasets.issia3d import read_issia3d_csv
 from app.db.models import (
-    BallKind, CalibrationSource, CalibrationStatus, Doubt, Frame, FrameRole, Game, System, SystemKind, TrajectoryPoint,
+    BallKind,
+    CalibrationSource,
+    CalibrationStatus,
+    Doubt,
+    Frame,
+    FrameRole,
+    Game,
+    ReviewStatus,
+    System,
+    SystemKind,
+    TrajectoryPoint,
 )
+from app.geometry.calibration.result import REFUSAL_CODES
 from app.geometry.camera import Camera
-from app.services.issia import sequences as issia_service
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import set_view_excluded, update_ball_label
+from app.services.issia import sequences as issia_service
 from app.services.issia.cameras import STATIC_CAMERA_REFUSALS
-from app.services.issia.sequences import import_issia
 from app.services.issia.export import export_issia3d
-from app.db.models import ReviewStatus
+from app.services.issia.sequences import import_issia
 from tests.services.issia_data import dev_dir, dev_truth, write_issia_stretch
 
 
@@ -350,8 +359,8 @@ def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(
     """An edit in the piece of frame 13 (cam4's wrong label) moves frame 13 on the trajectory without changing
     its labels: its trajectory doubt is replaced from the new stored point without loading the system, and is
     what judging the whole system again stores (same doubts, order, counts; the evidence's new position)."""
-    from app.services.issia import refit as issia_refit
     from app.services.curation.doubts import update_doubts
+    from app.services.issia import refit as issia_refit
 
     import_issia(db_session, stretch, db_settings)
     s13 = _systems(db_session)[13]

@@ -11,8 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, receive, unpack_zip
 from app.core.errors import DatasetError
+from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, receive, unpack_zip
 
 LIMITS = ArchiveLimits(max_members=100, max_unpacked_bytes=10 << 20)
 
