@@ -152,8 +152,8 @@ def main(argv: list[str] | None = None) -> int:
         results = measure(args.code.resolve(), args.mb, args.kinds.split(","), Path(tmp))
     for r in results:
         print(f"{r['kind']:9s} {args.mb:g} MB anonymous to /api/auth/login: {r.get('status')!r} after "
-              f"{r.get('seconds', float('nan')):.2f} s, {r['sent_mb']:.0f} MB sent; server RSS {r['rss_before_mb']:.0f} MB "
-              f"+{r['rss_growth_mb']:.1f} MB")
+              f"{r.get('seconds', float('nan')):.2f} s, {r['sent_mb']:.0f} MB sent; server RSS "
+              f"{r['rss_before_mb']:.0f} MB +{r['rss_growth_mb']:.1f} MB")
     return 0
 
 

@@ -160,14 +160,18 @@ class Score:
         sugg = [x for x in self.suggestion_px]
         return {
             "caught_pct": pct(self.caught, self.observable), "caught": f"{self.caught}/{self.observable}",
-            "guilty_pct": pct(self.guilty_named, self.guilty_total), "guilty": f"{self.guilty_named}/{self.guilty_total}",
-            "clean_false_alarm_pct": pct(self.clean_flagged, self.clean), "clean_flagged": f"{self.clean_flagged}/{self.clean}",
-            "near_dup_named_pct": pct(self.near_dup_named, self.near_dup), "near_dup": f"{self.near_dup_named}/{self.near_dup}",
+            "guilty_pct": pct(self.guilty_named, self.guilty_total),
+            "guilty": f"{self.guilty_named}/{self.guilty_total}",
+            "clean_false_alarm_pct": pct(self.clean_flagged, self.clean),
+            "clean_flagged": f"{self.clean_flagged}/{self.clean}",
+            "near_dup_named_pct": pct(self.near_dup_named, self.near_dup),
+            "near_dup": f"{self.near_dup_named}/{self.near_dup}",
             "out_of_frame_called_missing": f"{self.out_of_frame_called}/{self.out_of_frame}",
             "suggestion_median_px_1920": None if not sugg else round(float(np.median(sugg)), 2),
             "suggestion_max_px_1920": None if not sugg else round(float(np.max(sugg)), 2),
             "suggestions": len(sugg),
-            "precision_pct": pct(self.flagged_with_problem, self.flagged), "recall_pct": pct(self.caught, self.observable),
+            "precision_pct": pct(self.flagged_with_problem, self.flagged),
+            "recall_pct": pct(self.caught, self.observable),
         }
 
 
@@ -311,7 +315,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         five = [m for (k, v), m in zip(inputs[name], ms) if len(v) >= 5]
         rates = {**sc.rates(), "judge_ms_median": round(float(np.median(ms)), 2),
                  "judge_ms_p99": round(float(np.percentile(ms, 99)), 2), "judge_ms_max": round(float(max(ms)), 2),
-                 "judge_s_total": round(sum(ms) / 1e3, 3), "judge_ms_max_5_views": round(max(five), 2) if five else None}
+                 "judge_s_total": round(sum(ms) / 1e3, 3),
+                 "judge_ms_max_5_views": round(max(five), 2) if five else None}
         report["sets"][name] = rates
         print(f"[{name}] systems {sc.systems}: " + ", ".join(f"{k} {v}" for k, v in rates.items()))
         if args.verbose:

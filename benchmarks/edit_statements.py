@@ -59,7 +59,7 @@ with fresh_database(url_arg) as url:
     with SF() as s:
         f = next(fr for fr in s.scalars(select(Frame).order_by(Frame.id))
                  if fr.ball_label is not None and fr.ball_label.box is not None and len(fr.system.frames) == 4)
-        fid = f.id; box = list(f.ball_label.box)
+        fid, box = f.id, list(f.ball_label.box)
     settings = Settings(database_url=url)
     kept_SF = make_session_factory(eng, info={KEPT_SYSTEMS: KeptSystems()})  # as a served process's sessions
     for i in range(6):  # three edits without kept systems, then three of a process that keeps them

@@ -194,8 +194,8 @@ def main() -> None:
                   f"{'ok' if r['within_5px'] >= TARGETS[key] and r['refused_share'] <= 0.01 else 'MISSED'}")
     print("<=5px*: refused frames' held-out points counted as misses; ms: CPU ms per frame, median")
     for r in rows:
-        print(f"{r['set']} seed {r['seed']}: per-frame share within 5 px {r['frame_within_low_std']:.3f} for fits whose "
-              f"camera-position std (without the class) is <= its median {r['median_position_std_m']:.2f} m, "
+        print(f"{r['set']} seed {r['seed']}: per-frame share within 5 px {r['frame_within_low_std']:.3f} for fits "
+              f"whose camera-position std (without the class) is <= its median {r['median_position_std_m']:.2f} m, "
               f"{r['frame_within_high_std']:.3f} above")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))

@@ -112,7 +112,8 @@ def main() -> None:
         for reason, n in report.refusal_kinds().most_common():
             print(f"  refused x{n:<4d} {reason}")
         print("mean JaC@5/10/20 px   " + " / ".join(f"{v:.4f}" for v in fig["jac_px"]) + "  (over calibrated frames)")
-        print("mean JaC@0.5/1/2 %    " + " / ".join(f"{v:.4f}" for v in fig["jac_gamma"]) + "  (stored, gamma x diagonal)")
+        print("mean JaC@0.5/1/2 %    " + " / ".join(f"{v:.4f}" for v in fig["jac_gamma"])
+              + "  (stored, gamma x diagonal)")
         print(f"calibrate_frame ms    median {statistics.median(ms):.1f}, p90 {ms[int(0.9 * (len(ms) - 1))]:.1f}, "
               f"max {ms[-1]:.1f}")
         print("PnLCalib (official)   " + " / ".join(f"{v:.4f}" for v in official)

@@ -35,7 +35,8 @@ def evaluate(seq, truth: dict, *, from_lines: bool) -> tuple[dict, object]:
     choice = sequence_cameras(seq, from_lines=from_lines, **admission_args(Settings()), pair_rules=fit_args(Settings()))
     t1 = time.perf_counter()
     cams = [choice[c].camera for c in seq.camera_ids]
-    fit = fit_trajectory(seq.dense_points(), cams, [seq.image_size[0]] * len(cams), float(truth.get("fps", FPS)), **fit_args(Settings()))
+    fit = fit_trajectory(seq.dense_points(), cams, [seq.image_size[0]] * len(cams), float(truth.get("fps", FPS)),
+                         **fit_args(Settings()))
     t2 = time.perf_counter()
     mid = len(fit.positions) // 2  # an edit in the middle: only the pieces it touches are fitted again
     refit_window(fit, seq.dense_points(), cams, [seq.image_size[0]] * len(cams), mid, mid, **fit_args(Settings()))

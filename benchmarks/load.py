@@ -494,7 +494,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         return 2
     figures = report.summary()
     print(json.dumps(figures, indent=1))
-    for kind, items in (("5xx/error", [f"{e.status} {e.error}" for e in report.edits if e.status in (0,) or e.status >= 500]),
+    for kind, items in (("5xx/error",
+                         [f"{e.status} {e.error}" for e in report.edits if e.status in (0,) or e.status >= 500]),
                         ("lost edit", report.lost_edits), ("lost recomputation", report.lost_recomputations),
                         ("audit", report.audit_mismatches)):
         for line in Counter(items).most_common(5):

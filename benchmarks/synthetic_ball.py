@@ -382,9 +382,10 @@ def main() -> None:
             c = sweep_counts(systems, r, mirror)
             e = fused_errors_m(systems, r)
             n_ok = sum(x.point is not None for x in r)
-            print(f"  {t:5g} {c['bad_pairs_dropped']:8d}/{c['bad_pairs']:<9d} {c['good_pairs_kept']:7d}/{c['good_pairs']:<8d} "
-                  f"{c['bad_views_out']:6d}/{c['bad_views']:<7d} {c['good_views_in']:6d}/{c['good_views']:<7d} "
-                  f"{n_ok:12d} {np.median(e):8.3f} {np.percentile(e, 90):8.3f}")
+            print(f"  {t:5g} {c['bad_pairs_dropped']:8d}/{c['bad_pairs']:<9d} "
+                  f"{c['good_pairs_kept']:7d}/{c['good_pairs']:<8d} {c['bad_views_out']:6d}/{c['bad_views']:<7d} "
+                  f"{c['good_views_in']:6d}/{c['good_views']:<7d} {n_ok:12d} {np.median(e):8.3f} "
+                  f"{np.percentile(e, 90):8.3f}")
 
 
 if __name__ == "__main__":

@@ -98,7 +98,8 @@ class Database:
             self.times[part].append(((b[0] - a[0]) * 1000.0, (b[1] - a[1]) * 1000.0))
         tri = system.triangulation
         self.sizes.append((self.statements - n0, len(view.views), len(view.doubts),
-                           len(tri.pairs) if tri is not None else 0, sum(v.pitch_lines_url is not None for v in view.views)))
+                           len(tri.pairs) if tri is not None else 0,
+                           sum(v.pitch_lines_url is not None for v in view.views)))
 
     def report(self) -> str:
         """The table of parts: CPU and wall p50 / p95 in ms, and the mean page size."""

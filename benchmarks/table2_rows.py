@@ -89,7 +89,8 @@ def rows(url: str, work: Path) -> dict:
         views = reference_views(session, include_all=True)
         pred = write_predictions(views, work / "predictions")
         sets = {"soccernet-v3 dev (all splits)": lambda v: not v.game_path.startswith(f"{LEAGUE}/"),
-                "issia dev (test split: cameras 1-2)": lambda v: v.game_path.startswith(f"{LEAGUE}/") and v.split == "test"}
+                "issia dev (test split: cameras 1-2)":
+                    lambda v: v.game_path.startswith(f"{LEAGUE}/") and v.split == "test"}
         for name, cams in (("oracle", None), ("truth cameras", write_truth_cameras(work / "truth")),
                            ("truth cameras, centres 2 m off", write_truth_cameras(work / "shifted", 2.0))):
             given, _ = with_cameras(views, cams) if cams is not None else (views, 0)

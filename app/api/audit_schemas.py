@@ -40,6 +40,7 @@ class AuditEntryOut(BaseModel):
             self.summary = summarize(self.action, self.before, self.after, reverts_id=self.reverts_id)
         return self
 
+    # mypy does not accept a decorator above @property; pydantic's computed_field is meant to sit there
     @computed_field(description="False for imports, recomputes and changes of users and tokens.")  # type: ignore[prop-decorator]
     @property
     def revertible(self) -> bool:
@@ -59,7 +60,8 @@ class AuditQuery(BaseModel):
     """Filters and page of ``GET /api/audit``."""
 
     frame_id: Optional[DbInt] = Field(None, description="Only this frame's entries.")
-    system_id: Optional[DbInt] = Field(None, description="Only this system's entries (its decisions and its views' edits).")
+    system_id: Optional[DbInt] = Field(None, description="Only this system's entries (its decisions and its views' "
+                                                         "edits).")
     user: Optional[QueryText] = Field(None, max_length=200, description="Only this user's entries (exact name).")
     limit: int = Field(50, ge=1, le=500)
     offset: int = Field(0, ge=0, le=DB_INT_MAX)

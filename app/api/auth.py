@@ -53,7 +53,8 @@ class Principal:
     def may(self, role: Role) -> bool:
         """True when this principal's role is ``role`` or a more trusted one.
 
-        >>> Principal(1, "ana", "reviewer", "token").may("annotator"), Principal(1, "ana", "reviewer", "token").may("admin")
+        >>> ana = Principal(1, "ana", "reviewer", "token")
+        >>> ana.may("annotator"), ana.may("admin")
         (True, False)
         """
         return role in held_roles(self.role)

@@ -78,8 +78,8 @@ class ReviewOut(BaseModel):
     decided_at: Optional[datetime] = None
     excluded: bool = Field(False, description="Views only: excluded from the system's triangulation by a reviewer.")
     reset_reason: Optional[str] = Field(None, description="Why the decision is pending again (an edit changed the "
-                                        "system's labels or 3D result after it was decided: a ball label, an exclusion, "
-                                        "field lines, an undo); null otherwise.")
+                                        "system's labels or 3D result after it was decided: a ball label, an "
+                                        "exclusion, field lines, an undo); null otherwise.")
     calibration: Optional["CalibrationReviewOut"] = Field(
         None, description="Views only: the decision on the view's calibration, beside the decision on its ball.")
 
@@ -128,7 +128,8 @@ class DoubtOut(BaseModel):
     frame: Optional[str] = Field(description="That view's image name.")
     accuses_label: bool
     message: str = Field(description="One sentence with its numbers.")
-    evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, degrees).")
+    evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, "
+                                                 "degrees).")
     suggestion: Optional[dict[str, Any]] = Field(
         description=f"The fix: {{'action': one of {', '.join(SUGGESTION_ACTIONS)}, 'box': [x1, y1, x2, y2] px for "
         "snap_box, 'box_sigma_px' (or 'point_sigma_px' for snap_point): the uncertainty of that box or point, px of "
@@ -286,7 +287,8 @@ class _FrameFields(BaseModel):
         rep = frame.reprojection
         return {"name": frame.name, "role": frame.role, "width": frame.width, "height": frame.height,
                 "image_url": image_url(frame), "calibration": CalibrationOut.of(frame.calibration),
-                "ball": BallOut.of(frame.ball_label), "reprojection_error_px": rep.error_px if rep is not None else None,
+                "ball": BallOut.of(frame.ball_label),
+                "reprojection_error_px": rep.error_px if rep is not None else None,
                 "review": ReviewOut.of_view(frame.review)}
 
 
@@ -380,7 +382,8 @@ class PitchClassOut(BaseModel):
 
     name: str
     mirror: str = Field(description="The class it becomes when the pitch is turned 180 degrees.")
-    modelled: bool = Field(description="False for 'Goal unknown' and 'Line unknown': valid labels the geometry ignores.")
+    modelled: bool = Field(
+        description="False for 'Goal unknown' and 'Line unknown': valid labels the geometry ignores.")
 
 
 class PitchModelOut(BaseModel):
@@ -393,7 +396,8 @@ class PitchModelOut(BaseModel):
 
     @classmethod
     def of_model(cls) -> "PitchModelOut":
-        return cls(classes=[PitchClassOut(name=c, mirror=pitch.MIRROR_CLASSES[c], modelled=c not in pitch.UNKNOWN_CLASSES)
+        return cls(classes=[PitchClassOut(name=c, mirror=pitch.MIRROR_CLASSES[c],
+                                          modelled=c not in pitch.UNKNOWN_CLASSES)
                             for c in pitch.LINE_CLASSES],
                    length_m=pitch.PITCH_LENGTH_M, width_m=pitch.PITCH_WIDTH_M)
 

@@ -72,7 +72,8 @@ def calibrate_one(job: tuple[str, bytes, int, int, Optional[int]]) -> FrameOutco
                             (time.perf_counter() - t0) * 1e3)
     prior = CalibrationPrior(expected_side=side) if side is not None else None
     r = calibrate_frame(lines, width, height, prior=prior, compute_jac=False)
-    return FrameOutcome(frame, r.status, refusal_sentence(r.refusal), r.camera.to_soccernet() if r.camera is not None else None,
+    return FrameOutcome(frame, r.status, refusal_sentence(r.refusal),
+                        r.camera.to_soccernet() if r.camera is not None else None,
                         r.flags, dict(r.residuals_px), r.rms_px, r.elapsed_ms)
 
 
@@ -91,7 +92,8 @@ def _side(value: str) -> Optional[int]:
 def calibrate_command(
     annotations: Path = typer.Argument(..., help="Folder or zip of SoccerNet-calibration frame JSON files."),
     out_dir: Path = typer.Argument(..., help="Folder for camera_<frame>.json files (created if needed)."),
-    width: int = typer.Option(960, "--width", min=2, help="Image width in pixels (normalised points are scaled by W - 1)."),
+    width: int = typer.Option(960, "--width", min=2,
+                              help="Image width in pixels (normalised points are scaled by W - 1)."),
     height: int = typer.Option(540, "--height", min=2, help="Image height in pixels."),
     workers: int = typer.Option(0, "--workers", min=0, help="Worker processes; 0 = one per core."),
     expected_side: str = typer.Option(

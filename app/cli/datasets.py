@@ -22,9 +22,11 @@ from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
 from app.services.jobs.work import import_params
 
-DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
+DatabaseOpt = Annotated[Optional[str],
+                        typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
-_STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating", "rig": "calibrating with game rigs",
+_STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating",
+           "rig": "calibrating with game rigs",
            "triangulate": "triangulating", "recompute": "recomputing systems", "export": "exporting games"}
 
 
@@ -162,7 +164,8 @@ def import_issia_cmd(
     path: Annotated[Path, typer.Argument(help="An ISSIA folder (ball_points.csv, issia_calibration.json and/or "
                                               "issia_lines.json, optional videos/ or frames/).")],
     from_lines: Annotated[bool, typer.Option("--from-lines", help="Calibrate each camera from issia_lines.json "
-                                                                  "even when issia_calibration.json is present.")] = False,
+                                                                  "even when issia_calibration.json is present."
+                                             )] = False,
     flip: Annotated[str, typer.Option(help="Comma-separated camera ids whose footage is mirrored, e.g. 1,2.")] = "",
     database_url: DatabaseOpt = None,
 ) -> None:
@@ -224,7 +227,8 @@ def export_issia3d_cmd(
     include_all: Annotated[bool, typer.Option("--all", help="Export every frame, not only accepted ones.")] = False,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Export ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test; calibration/cam<k>.json)."""
+    """Export ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test;
+    calibration/cam<k>.json)."""
     from app.services.issia.export import export_issia3d
 
     settings = cli_settings(database_url, None)

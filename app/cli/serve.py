@@ -9,8 +9,8 @@ how to log in. The demo account never faces a network: ``--demo`` with a host ot
 address is refused (exit 2), and so is ``--demo`` behind a declared reverse proxy (``V3D_TRUSTED_PROXIES``) and
 any non-loopback host while an enabled demo account exists in the database; the demo account's login (and the
 login page's hint) answers only requests made on this machine without a proxy
-(``app.services.accounts.throttle.from_this_machine``), which covers a proxy left undeclared. Systems stored by an older version of the derived rows (doubts, queue figures) are
-recomputed first.
+(``app.services.accounts.throttle.from_this_machine``), which covers a proxy left undeclared. Systems stored by an older
+version of the derived rows (doubts, queue figures) are recomputed first.
 
 ``--workers N`` (N > 1) serves with N uvicorn worker processes: the start-up work above runs once, in
 this process, before any worker starts; each worker then builds the app with the factory

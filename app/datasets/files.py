@@ -88,10 +88,11 @@ def inside_dataset(root: Path, path: str | Path, field: str | None = None) -> Pa
     >>> os.symlink("/etc/passwd", d / "0.png")
     >>> inside_dataset(d, d / "1.png") == d / "1.png"
     True
-    >>> inside_dataset(d, d / "0.png", "image")  # doctest: +ELLIPSIS
+    >>> inside_dataset(d, d / "0.png", "image")  # doctest: +ELLIPSIS, +NORMALIZE_WHITESPACE
     Traceback (most recent call last):
     ...
-    app.core.errors.DatasetError: ...0.png: image: resolves outside the dataset's folder (a link or '..' leading out of it); an import reads only inside its own folder
+    app.core.errors.DatasetError: ...0.png: image: resolves outside the dataset's folder (a link or '..' leading out
+    of it); an import reads only inside its own folder
     """
     root = Path(root).resolve()
     # ``path`` is what the reader built from its input (the folder or file given, joined with names from the
@@ -253,10 +254,11 @@ def image_header(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXEL
     ...     return buf.getvalue()
     >>> image_header(io.BytesIO(png(960, 540)), "0.png")
     ImageHeader(type='png', width=960, height=540)
-    >>> image_header(io.BytesIO(png(8000, 7000)), "big.png")
+    >>> image_header(io.BytesIO(png(8000, 7000)), "big.png")  # doctest: +NORMALIZE_WHITESPACE
     Traceback (most recent call last):
     ...
-    app.core.errors.DatasetError: big.png: image of 8000x7000 = 56,000,000 pixels, above V3D_MAX_IMAGE_PIXELS (50,000,000)
+    app.core.errors.DatasetError: big.png: image of 8000x7000 = 56,000,000 pixels, above V3D_MAX_IMAGE_PIXELS
+    (50,000,000)
     >>> image_header(io.BytesIO(b"<html><script>alert(1)</script>"), "0.html")
     Traceback (most recent call last):
     ...
@@ -276,7 +278,8 @@ def image_header(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXEL
             finally:
                 Image.MAX_IMAGE_PIXELS = saved
     except (OSError, SyntaxError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
-        raise DatasetError(where, None, "not a PNG or JPEG image (read from its header; the name does not count)") from None
+        raise DatasetError(where, None,
+                           "not a PNG or JPEG image (read from its header; the name does not count)") from None
     if width < 1 or height < 1:
         raise DatasetError(where, None, f"image of {width}x{height} pixels")
     if width * height > max_pixels:
@@ -294,7 +297,8 @@ def file_image_header(path: Path, where: str | Path, max_pixels: int = MAX_IMAGE
         raise DatasetError(where, None, f"cannot read: {exc.strerror}") from None
 
 
-def member_image_header(zf: zipfile.ZipFile, member: str, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
+def member_image_header(zf: zipfile.ZipFile, member: str, where: str,
+                        max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
     """:func:`image_header` of the zip member ``member`` (streamed out of the archive, never read whole)."""
     try:
         with zf.open(member) as fh:

@@ -260,7 +260,8 @@ def _label_rows(path: Path, rows: list[list[str]], ids: list[str], columns: list
             except ValueError:
                 raise DatasetError(path, f"row {n} frame", f"not an integer: {row[frame_col]!r}") from None
             if frame < 0 or (frames and frame <= frames[-1]):
-                raise DatasetError(path, f"row {n} frame", f"{frame} is negative or not after {frames[-1] if frames else ''}")
+                raise DatasetError(path, f"row {n} frame",
+                                   f"{frame} is negative or not after {frames[-1] if frames else ''}")
         p = np.full((len(ids), 2), np.nan)
         for k, (cid, (xi, yi)) in enumerate(zip(ids, columns)):
             x, y = row[xi].strip(), row[yi].strip()

@@ -112,7 +112,8 @@ def read_issia3d_csv(path: str | Path) -> list[Issia3DRow]:
     return out
 
 
-def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *, ball_diameter_m: float = BALL_DIAMETER_M,
+def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,
+                 ball_diameter_m: float = BALL_DIAMETER_M,
                  box_method: str = "paper") -> list[Issia3DRow]:
     """Build the ``ISSIA-3D.csv`` rows of ``seq`` from a :class:`app.geometry.trajectory.TrajectoryFit`.
 

@@ -95,10 +95,11 @@ def check_line_points(lines: dict[str, list[list[list[float]]]], width: int, hei
     Raises:
         LabelError: naming the class, the polyline and the point.
 
-    >>> check_line_points({"Middle line": [[[0, 0], [-60, 10]]]}, 960, 540)
+    >>> check_line_points({"Middle line": [[[0, 0], [-60, 10]]]}, 960, 540)  # doctest: +NORMALIZE_WHITESPACE
     Traceback (most recent call last):
     ...
-    app.datasets.labels.LabelError: class 'Middle line', polyline 0, point 1: [-60, 10] lies more than 5 % of the image's size outside the 960x540 image
+    app.datasets.labels.LabelError: class 'Middle line', polyline 0, point 1: [-60, 10] lies more than 5 % of the
+    image's size outside the 960x540 image
     """
     mx, my = LINE_MARGIN * width, LINE_MARGIN * height
     for name, polylines in lines.items():

@@ -48,8 +48,8 @@ def frame_entries(root: Path, max_pixels: int = MAX_IMAGE_PIXELS) -> Iterator[tu
     ``archive.zip!member`` in zips). A frame is named by its file's stem, as ``v3d jac`` pairs
     annotations with cameras; ``image`` is ``(reader of its header, image source fields, where)`` of
     the ``.jpg``/``.png`` of the same path, or None (the reader checks the type and the pixel limit,
-    :func:`app.datasets.files.image_header`, and answers an ``ImageHeader``). The import and ``v3d calibrate`` both read sets
-    through this function.
+    :func:`app.datasets.files.image_header`, and answers an ``ImageHeader``). The import and ``v3d calibrate`` both read
+    sets through this function.
 
     Raises:
         DatasetError: ``root`` is missing or neither a folder nor a zip; an unsafe zip entry name;
@@ -125,7 +125,8 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     named ``<stem>``. Image size: ``width`` and ``height`` when given, else read from the image
     ``<stem>.jpg``/``.png`` beside the JSON (in the folder or the zip), which also becomes the
     frame's image source; every such image is checked from its header (PNG or JPEG, at most
-    ``max_pixels`` pixels) whether or not the size is given. Normalised points become pixels as ``x (W - 1), y (H - 1)``.
+    ``max_pixels`` pixels) whether or not the size is given. Normalised points become pixels as
+    ``x (W - 1), y (H - 1)``.
 
     The game is ``sn-calibration / <parent folder name> / <folder or zip stem>``.
 

@@ -4,9 +4,9 @@ folder) -> validated records (:mod:`app.datasets.records`); no database.
 A multi-view system is an action and its ``linked_replays``; the ball is the box of class "Ball";
 field lines become pixels. What v3d does not edit but a release carries (``GameMetadata``, each frame's
 ``imageMetadata``, every ``bboxes`` entry, the links) is kept as it came (``release`` of the records,
-:func:`release_entry`, :func:`game_release`), so that exports never read the source files again. The SoccerNet-v3D reader (:mod:`app.datasets.soccernet_v3d`) reads the same
-layout with its own frame reader (:data:`FrameReader`). Images are located, never extracted: a record
-holds the zip path and member name or a file path. Every problem raises
+:func:`release_entry`, :func:`game_release`), so that exports never read the source files again. The SoccerNet-v3D
+reader (:mod:`app.datasets.soccernet_v3d`) reads the same layout with its own frame reader (:data:`FrameReader`). Images
+are located, never extracted: a record holds the zip path and member name or a file path. Every problem raises
 :class:`~app.core.errors.DatasetError` naming the file and the field.
 """
 from __future__ import annotations

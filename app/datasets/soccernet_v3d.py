@@ -158,7 +158,8 @@ def released_entry(item: Mapping[str, Any], extra: Mapping[str, Any], original_b
             raise DatasetError(file, field, "expected null or a bboxes entry of class 'Ball' with its points")
         points = None if original is None else [original["points"].get(k) for k in _BOX_KEYS]
         if points is not None and original_box is not None and points != list(original_box):
-            raise DatasetError(file, field, f"points {points} are not the CSV's original_ball_bbox {list(original_box)}")
+            raise DatasetError(file, field,
+                               f"points {points} are not the CSV's original_ball_bbox {list(original_box)}")
     else:
         original = ball_entry(original_box) if original_box is not None else None
     if isinstance(entry.get("bboxes"), list) or original is not None:
@@ -245,7 +246,8 @@ def _v3d_calibration(item: Mapping[str, Any], file: Path, where: str) -> Importe
     return ImportedCalibration(CalibrationFields(
         status=status, camera=dict(cam) if cam is not None else None, jac=tuple(jac),  # type: ignore[arg-type]
         residuals_px=dict(extra.get("residuals_px") or {}), flags=list(extra.get("flags") or []),
-        reason=reason if cam is None else None, uncertainty=dict(uncertainty) if cam is not None and uncertainty else None,
+        reason=reason if cam is None else None,
+        uncertainty=dict(uncertainty) if cam is not None and uncertainty else None,
     ))
 
 
@@ -385,7 +387,8 @@ def read_soccernet_v3d(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> 
             try:
                 review = ReviewStatus(status) if status is not None else None
             except ValueError:
-                raise DatasetError(labels, f"GameMetadata.v3d_reviews[{name!r}]", f"unknown status {status!r}") from None
+                raise DatasetError(labels, f"GameMetadata.v3d_reviews[{name!r}]",
+                                   f"unknown status {status!r}") from None
             out.append(SystemRecord(name, kind, s.frames, review))
         games.append(GameRecord(league, season, match, str(labels.parent.resolve()), out, release))
     return games

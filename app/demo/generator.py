@@ -305,7 +305,8 @@ def generate_demo_dataset(out_dir: Path, seed: int = 0) -> Path:
     (game_dir / LABELS_FILE).write_text(json.dumps(labels), encoding="utf-8")
     _write_zip(game_dir / FRAMES_FILE, images)
 
-    views_truth = [v for s in systems_truth for v in s["views"] if v["problem"] not in ("wrong_ball_box", "missing_ball")]
+    views_truth = [v for s in systems_truth
+                   for v in s["views"] if v["problem"] not in ("wrong_ball_box", "missing_ball")]
     truth = {
         "generator": "app.demo.generate_demo_dataset", "seed": seed,
         "conventions": {

@@ -199,7 +199,8 @@ def _points_by_class(lines: FieldLines) -> dict[str, np.ndarray]:
         arrays = [np.asarray(p, dtype=float) for p in polys]
         for i, a in enumerate(arrays):
             if a.size and a.shape != (2,) and (a.ndim != 2 or a.shape[1] != 2):
-                raise AnnotationError(f"lines, class {cls!r}, polyline {i}: expected (N, 2) pixels, got shape {a.shape}")
+                raise AnnotationError(f"lines, class {cls!r}, polyline {i}: expected (N, 2) pixels, "
+                                      f"got shape {a.shape}")
         arrays = [a.reshape(-1, 2) for a in arrays]
         pts = np.concatenate(arrays, axis=0) if arrays else np.zeros((0, 2))
         if not np.all(np.isfinite(pts)):

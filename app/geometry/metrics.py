@@ -249,7 +249,8 @@ def load_yolo_detections(path: str | Path, width: float, height: float, class_id
             if size > max_bytes:
                 raise ValueError(f"{label}: more than {max_bytes:,} bytes, more than a predictions file may hold")
             if len(raw) > MAX_YOLO_LINE_BYTES:
-                raise ValueError(f"{label}:{n}: a line longer than {MAX_YOLO_LINE_BYTES} bytes, starting {excerpt(raw)}")
+                raise ValueError(f"{label}:{n}: a line longer than {MAX_YOLO_LINE_BYTES} bytes, "
+                                 f"starting {excerpt(raw)}")
             try:
                 line = raw.decode("utf-8")
             except UnicodeDecodeError:
@@ -307,7 +308,8 @@ def _coco_entry(r: Any, label: str, n: int) -> tuple[Hashable, Any, list[float],
             raise ValueError(f"{label}: entry {n} lacks {key!r}")
     image_id = r["image_id"]
     if isinstance(image_id, bool) or not isinstance(image_id, (int, str)):
-        raise ValueError(f"{label}: entry {n}: image_id must be an integer or a string, got {excerpt(json.dumps(image_id))}")
+        raise ValueError(f"{label}: entry {n}: image_id must be an integer or a string, got "
+                         f"{excerpt(json.dumps(image_id))}")
     bbox = r["bbox"]
     values = [_finite(v) for v in bbox] if isinstance(bbox, list) and len(bbox) == 4 else [None]
     if any(v is None for v in values):

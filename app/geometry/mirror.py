@@ -331,7 +331,8 @@ def pair_relation(a: MirrorView, b: MirrorView, settings: MirrorSettings = Mirro
     if a.ball_px is None or b.ball_px is None:
         raise ValueError("pair_relation needs a ball label in both views")
     ob = BallObservation(b.view_id, b.camera, b.ball_px, b.image_width)
-    e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings, tau_px, rule, geometry)
+    e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings, tau_px, rule,
+                           geometry)
     mirrored = mirror_camera(a.camera) if mirrored is None else mirrored
     e_diff, p_diff = _meet(BallObservation(a.view_id, mirrored, a.ball_px, a.image_width), ob, settings,
                            tau_px, rule, geometry)
@@ -473,4 +474,5 @@ def mirrored_fit_at_rig(lines: FieldLines, width: int, height: int, rig: CameraR
     return MirrorVerdict(view_id=None, verdict=VERDICT_MIRRORED, margin=float(margin),
                          camera_y_m=float(as_labelled.C[1]), side_vote=side, rig_distance_m=d,
                          rig_distance_mirrored_m=d_mirror, rig_vote=1,
-                         refit={"position_m": [round(float(x), 2) for x in c], "rms_px": round(float(result.rms_px), 2)})
+                         refit={"position_m": [round(float(x), 2) for x in c],
+                                "rms_px": round(float(result.rms_px), 2)})

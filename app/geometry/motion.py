@@ -145,9 +145,10 @@ MAX_ROLL_DECELERATION_M_S2 = 20.0
 
 def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
     """A ball could move as model ``kind`` with parameters ``q`` (6,) does for ``duration_s`` seconds:
-    never faster than :data:`MAX_BALL_SPEED_M_S`, inside the play volume (:data:`app.geometry.pitch.PLAY_VOLUME`) at its ends and its highest point, a roll decelerating
-    by at most :data:`MAX_ROLL_DECELERATION_M_S2`. A fit of a few labels that one wrong label pulls, or of
-    one camera whose depth the labels barely fix, breaks these long before it looks wrong in the image.
+    never faster than :data:`MAX_BALL_SPEED_M_S`, inside the play volume (:data:`app.geometry.pitch.PLAY_VOLUME`) at its
+    ends and its highest point, a roll decelerating by at most :data:`MAX_ROLL_DECELERATION_M_S2`. A fit of a few labels
+    that one wrong label pulls, or of one camera whose depth the labels barely fix, breaks these long before it looks
+    wrong in the image.
     World: SoccerNet metres (pitch 105 x 68 m centred on the centre spot, z down)."""
     q = np.asarray(q, float)
     if not np.all(np.isfinite(q)) or duration_s < 0:
@@ -174,7 +175,8 @@ def robust_cost(residuals_px: np.ndarray) -> float:
     return float(np.sum(CAUCHY_PX ** 2 * np.log1p(e2 / CAUCHY_PX ** 2)))
 
 
-def linear_fits(L: LabelTable, jobs: Sequence[tuple[np.ndarray, str, int]], fps: float) -> list[tuple[np.ndarray, float]]:
+def linear_fits(L: LabelTable,
+                jobs: Sequence[tuple[np.ndarray, str, int]], fps: float) -> list[tuple[np.ndarray, float]]:
     """The reweighted linear fit (module docstring) of several label sets at once.
 
     Args:

@@ -58,7 +58,8 @@ def scaled_error_px(error_px: float | None, width_px: float, rule: str | None) -
     1920-px-wide image), raw pixels for a rule without one or a width that is not positive; None
     when the error is. The one home of the scaling (the UI shows this number, never rescales).
 
-    >>> scaled_error_px(12.0, 960, "max_scaled_1920"), scaled_error_px(12.0, 960, "max_px"), scaled_error_px(None, 960, "max_px")
+    >>> (scaled_error_px(12.0, 960, "max_scaled_1920"), scaled_error_px(12.0, 960, "max_px"),
+    ...  scaled_error_px(None, 960, "max_px"))
     (24.0, 12.0, None)
     """
     if error_px is None:

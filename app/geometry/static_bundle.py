@@ -287,7 +287,8 @@ def _schur_lm(xs: dict, X: np.ndarray, active: list[int], slot: dict, n_cam: int
             Vd = V + lam * dV[:, :, None] * np.eye(3)
             Vinv = np.linalg.inv(Vd)
             T = np.einsum("fai,fij->faj", W, Vinv)
-            S = U + lam * np.diag(dU) - T.transpose(1, 0, 2).reshape(n_cam, -1) @ W.transpose(1, 0, 2).reshape(n_cam, -1).T
+            S = (U + lam * np.diag(dU)
+                 - T.transpose(1, 0, 2).reshape(n_cam, -1) @ W.transpose(1, 0, 2).reshape(n_cam, -1).T)
             rhs = g_c - np.einsum("faj,fj->a", T, g_p)
             try:
                 dc = np.linalg.solve(S, rhs)

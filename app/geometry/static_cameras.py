@@ -2,12 +2,12 @@
 
 A static camera (ISSIA) that sees few field lines (the centre circle and two side lines, say) can
 be refused by :func:`app.geometry.calibration.calibrate_frame` or calibrated below admission
-(JaC at the admission's gamma not above its threshold: :func:`app.geometry.jac.jac_admitted`). Its ball labels still carry information: the other, admitted cameras give the
-ball's 3D position in many frames (:mod:`app.geometry.trajectory`), and a camera that does not
-move is fixed by those 2D-3D correspondences (camera resection: RANSAC over a grid of focal lengths,
-and the linear DLT of ``P`` split by RQ decomposition, Hartley and Zisserman section 7.1, as starts
-of a robust refinement of focal length, rotation and centre on the reprojection error with the
-principal point at the image centre). The camera's centre is then given to the line calibration as a prior
+(JaC at the admission's gamma not above its threshold: :func:`app.geometry.jac.jac_admitted`). Its ball labels still
+carry information: the other, admitted cameras give the ball's 3D position in many frames
+(:mod:`app.geometry.trajectory`), and a camera that does not move is fixed by those 2D-3D correspondences (camera
+resection: RANSAC over a grid of focal lengths, and the linear DLT of ``P`` split by RQ decomposition, Hartley and
+Zisserman section 7.1, as starts of a robust refinement of focal length, rotation and centre on the reprojection error
+with the principal point at the image centre). The camera's centre is then given to the line calibration as a prior
 (:class:`~app.geometry.calibration.CalibrationPrior`), which fits focal length and rotation to the
 lines; because focal length and distance trade off along the viewing direction, the centre is
 then moved to where the lines and the ball agree best. The result is admitted only when its JaC at the admission's

@@ -60,7 +60,8 @@ def test_the_pitch_jac_and_worst_lines_follow_a_dragged_point(page, artifacts):
     page.wait_for_function("([fid, before]) => { const g = document.querySelector("
                            "`[data-testid=view][data-frame-id=\"${fid}\"] [data-testid=overlay]`);"
                            " return g && g.querySelector('polyline.pitch') && before !== [...g.querySelectorAll("
-                           "'polyline.pitch')].map((p) => p.getAttribute('points')).join('|'); }", arg=[fid, stored_pitch])
+                           "'polyline.pitch')].map((p) => p.getAttribute('points')).join('|'); }",
+                           arg=[fid, stored_pitch])
 
 
 def test_a_preview_answer_after_the_release_is_dropped(page):

@@ -210,7 +210,8 @@ def test_fix_a_refused_view_by_drawing_the_line_it_shows(page, artifacts, shared
     assert view["calibration"]["status"] == "refused" and "Side line top" not in view["field_lines"]
     truth = json.loads(shared_dir.joinpath("data", "synthetic", "soccernet-v3-dev.truth.json").read_text())
     game = next(g for g in truth["games"] if g["match"] == system["game"]["match"])
-    camera = next(v["camera"] for s in game["systems"] if s["action"] == "13.png" for v in s["views"] if v["image"] == "13_2.png")
+    camera = next(v["camera"] for s in game["systems"] if s["action"] == "13.png"
+                  for v in s["views"] if v["image"] == "13_2.png")
     run = project_pitch_polylines(Camera.from_soccernet(camera), w, view["height"])["Side line top"][0]
 
     def on_line(x: float) -> tuple[float, float]:  # the visible side line at image column x
@@ -250,7 +251,8 @@ def test_fix_a_refused_view_by_drawing_the_line_it_shows(page, artifacts, shared
         assert answer.value.status == 200, answer.value.text()
         _saved(page, fid)
         state = _api(page, f"/api/frames/{fid}")
-    assert state["calibration"]["status"] == "calibrated" and state["calibration"]["admitted"] is True, state["calibration"]
+    assert state["calibration"]["status"] == "calibrated", state["calibration"]
+    assert state["calibration"]["admitted"] is True, state["calibration"]
     card = page.locator(tid("view")).nth(k)
     assert "· admitted" in card.locator(tid("view-calibration")).inner_text()
     sys_after = _api(page, f"/api/systems/{system['id']}")

@@ -52,7 +52,8 @@ def test_per_view_and_calibration_decisions(page, artifacts):
 
     # a click decides V1's ball; keys decide V2's ball and calibration (Shift+letters on the selected view)
     _bar(page, 0).locator("[data-part=view][data-status=accepted]").click()
-    page.wait_for_function("() => document.querySelectorAll('[data-testid=view-decision-status]')[0].textContent === 'accepted'")
+    page.wait_for_function("() => document.querySelectorAll('[data-testid=view-decision-status]')[0].textContent === "
+                           "'accepted'")
     page.keyboard.press("2")
     page.keyboard.press("Shift+F")
     page.keyboard.press("Shift+G")
@@ -83,7 +84,8 @@ def test_per_view_and_calibration_decisions(page, artifacts):
     assert edit.ok, edit.text()
     answer = edit.json()
     reason = answer["review"]["reset_reason"]
-    assert answer["review"]["status"] == "pending" and reason.startswith(f"{v2['name']}: field lines replaced by test-admin")
+    assert answer["review"]["status"] == "pending"
+    assert reason.startswith(f"{v2['name']}: field lines replaced by test-admin")
     assert answer["views"][1]["review"]["calibration"] == {**answer["views"][1]["review"]["calibration"],
                                                            "status": "pending", "reset_reason": reason}
     page.reload()

@@ -34,7 +34,8 @@ def synthetic_lines(camera: Camera, width: int, height: int, sigma_px: float, se
         uv, ok = camera.project(X)
         inside = ok & (uv[:, 0] >= 0) & (uv[:, 0] <= width - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= height - 1)
         pts = uv[inside]
-        if len(pts) < 2 or np.linalg.norm(pts[-1] - pts[0]) < min_extent_px and np.ptp(pts, axis=0).max() < min_extent_px:
+        if len(pts) < 2 or (np.linalg.norm(pts[-1] - pts[0]) < min_extent_px
+                            and np.ptp(pts, axis=0).max() < min_extent_px):
             continue
         n = 12 if cls in CIRCLES else 4
         pick = pts[np.linspace(0, len(pts) - 1, n).round().astype(int)]
@@ -324,7 +325,8 @@ def test_frames_calibrated_together_equal_one_call_each() -> None:
                (alone.status, alone.refusal, alone.flags, alone.rms_px, dict(alone.jac), dict(alone.residuals_px))
         if alone.camera is not None:
             assert np.array_equal(got.camera.K, alone.camera.K) and np.array_equal(got.camera.R, alone.camera.R)
-            assert np.array_equal(got.camera.C, alone.camera.C) and np.array_equal(got.camera.radial, alone.camera.radial)
+            assert np.array_equal(got.camera.C, alone.camera.C) and np.array_equal(got.camera.radial,
+                                                                                   alone.camera.radial)
 
 
 def test_rig_without_positions_refuses() -> None:

@@ -148,7 +148,8 @@ def test_the_service_stores_the_posterior_std_of_a_map_fit() -> None:
     prior = _prior_at(truth.C)
     result = calibrate_frame(lines, W, H, prior=prior, compute_jac=False)
     assert result.centre_prior is not None
-    stored = calibrate_lines(lines_to_json_lists(lines), W, H, rig=prior.camera_prior).uncertainty  # as an edit stores it
+    # as an edit stores it
+    stored = calibrate_lines(lines_to_json_lists(lines), W, H, rig=prior.camera_prior).uncertainty
     posterior = calibration_uncertainty(result.camera, lines, prior=result.centre_prior).to_json()
     assert stored == posterior
     lines_only = fit_uncertainty(result.camera, lines, result.flags)

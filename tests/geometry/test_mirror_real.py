@@ -29,7 +29,8 @@ def test_real_single_frames_are_rarely_flagged_and_only_by_the_side_prior(shared
         if result.camera is None:
             continue
         calibrated += 1
-        verdict = mirror_evidence([MirrorView(name, result.camera, expected_side=1)], tau_px=20.0, rule="max_scaled_1920")[name]
+        verdict = mirror_evidence([MirrorView(name, result.camera, expected_side=1)], tau_px=20.0,
+                                  rule="max_scaled_1920")[name]
         assert verdict.flagged == ("probably_mirrored" in result.flags), (name, verdict.sentence)
         assert verdict.flagged == (result.camera.C[1] < -34.0)
         flagged += verdict.flagged

@@ -65,7 +65,8 @@ _PASSWORD_CHECKS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="v3d-pas
 
 #: Why the demo account does not log in from elsewhere (403).
 DEMO_ONLY_HERE = ("the demo account (public password) logs in only on the machine that serves v3d (a loopback address "
-                  "such as http://127.0.0.1:8000), not over a network nor through a proxy: log in with your own account")
+                  "such as http://127.0.0.1:8000), not over a network nor through a proxy: "
+                  "log in with your own account")
 
 
 def _check_password(session_factory: Any, name: str, password: str) -> Optional[tuple[int, str, str, int, bool]]:

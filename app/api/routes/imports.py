@@ -103,7 +103,8 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
     try:
         body = ImportIn.model_validate_json((raw or b"null").decode("utf-8"))
     except UnicodeDecodeError as exc:
-        raise InvalidInputError(f"the body is not UTF-8 JSON ({exc.reason} at byte {exc.start})", field="body") from None
+        raise InvalidInputError(f"the body is not UTF-8 JSON ({exc.reason} at byte {exc.start})",
+                                field="body") from None
     except ValidationError as exc:
         raise _body_errors(exc) from None
     path = confined_path(body.path, settings.data_root)

@@ -4,8 +4,8 @@
 A job is created by ``POST /api/imports``, ``POST /api/recompute`` or ``POST /api/exports/{format}``
 (202, ``Location: /api/jobs/{id}``) and run by a server process's job runner; ``GET /api/jobs/{id}``
 shows its state and progress (``stage``, ``done`` of ``total``), then its result;
-``GET /api/jobs/{id}/result`` streams a finished export's file (kept ``V3D_EXPORT_KEEP_HOURS``). Every role may follow jobs; a full
-recompute and an export's file need the admin role (as imports and exports do).
+``GET /api/jobs/{id}/result`` streams a finished export's file (kept ``V3D_EXPORT_KEEP_HOURS``). Every role may follow
+jobs; a full recompute and an export's file need the admin role (as imports and exports do).
 """
 from __future__ import annotations
 

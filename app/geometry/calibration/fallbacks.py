@@ -155,7 +155,8 @@ def radial_corner(camera: Camera, lines: FieldLines, width: int, height: int,
     param = CameraParametrisation(principal_point=np.asarray(camera.K[:2, 2], dtype=float), R0=np.asarray(camera.R),
                                   fit_k1=True)
     cand = fit_start(param.vector(f, np.asarray(camera.C, dtype=float), float(camera.radial[0])), obs, param,
-                settings.loss_scale_gamma * image_diagonal(width, height), "radial", Budget(settings.prior_max_evaluations))
+                settings.loss_scale_gamma * image_diagonal(width, height), "radial",
+                     Budget(settings.prior_max_evaluations))
     if cand is None:
         return float("nan")
     corner = float(cand.x[-1] * (image_diagonal(width, height) / 2.0 / cand.x[0]) ** 2)

@@ -157,9 +157,10 @@ class CalibrationResult:
             the line that disagrees.
         flags: ``"probably_mirrored"`` (camera on the other side than ``prior.expected_side``, beyond
             the far side line: the labels are probably mirrored, :attr:`mirrored_lines` is the fix),
-            ``"few_lines"`` (fewer labelled classes than :data:`app.geometry.pitch.MIN_LINE_CLASSES`), ``"radial_distortion"`` (``k1`` fitted),
-            ``"ignored_class:<class>"`` (that class disagrees with every camera fitting the others;
-            its residual stays in :attr:`residuals_px`), ``"rig_assisted"`` (centre fixed by a prior).
+            ``"few_lines"`` (fewer labelled classes than :data:`app.geometry.pitch.MIN_LINE_CLASSES`),
+            ``"radial_distortion"`` (``k1`` fitted), ``"ignored_class:<class>"`` (that class disagrees with every camera
+            fitting the others; its residual stays in :attr:`residuals_px`), ``"rig_assisted"`` (centre fixed by a
+            prior).
         rms_px: root mean square point distance, px.
         elapsed_ms: wall time of the call, milliseconds.
         mirrored_lines: when ``"probably_mirrored"`` is flagged, the mirrored labelling offered as

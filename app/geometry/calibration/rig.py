@@ -183,8 +183,8 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
 
     Returns:
         The chosen :class:`CalibrationResult` (JaC computed for it alone), whose ``elapsed_ms`` is
-        the time spent on every position and on that JaC; a refusal (the best-fitting position's, or a rig without positions) when no
-        position fits.
+        the time spent on every position and on that JaC; a refusal (the best-fitting position's, or a rig without
+        positions) when no position fits.
     """
     if not rig.positions:
         return CalibrationResult(status="refused", camera=None, jac={}, residuals_px={}, flags=(RIG_FLAG,),

@@ -55,7 +55,8 @@ def _mono(v: DoubtView, s: DoubtSettings) -> np.ndarray | None:
 
 def ray_in_play_volume(camera: Camera, pixel: np.ndarray, s: DoubtSettings) -> tuple[float, float] | None:
     """The depths ``t`` (metres along the unit ray from the camera centre) at which the ball seen at
-    ``pixel`` would lie in the play volume (``s.play_volume``, :class:`app.geometry.pitch.PlayVolume`), at least 1 m in front of the
+    ``pixel`` would lie in the play volume (``s.play_volume``, :class:`app.geometry.pitch.PlayVolume`), at least 1 m in
+    front of the
     camera: ``(t_near, t_far)``, or None when the ray never enters it (slab intersection of the ray with
     the volume's box)."""
     ray = camera.rays(np.asarray(pixel, float).reshape(1, 2))[0]

@@ -86,7 +86,9 @@ def _mirror_fix_check(v: DoubtView, ev: dict[str, Any], others: Consensus | None
     camera to make worse.
     """
     if v.camera is None:
-        return (True, "", {}) if ev.get("refit") or ev.get("verdict") == "probably_mirrored" else (False, "no_ray_confirms", {})
+        if ev.get("refit") or ev.get("verdict") == "probably_mirrored":
+            return (True, "", {})
+        return (False, "no_ray_confirms", {})
     c = label_centre(v)
     if others is not None and others.point is not None and not others.ambiguous and c is not None:
         k = rule_scale(v, s)
@@ -172,8 +174,8 @@ def consensus_box_sigma_px(v: DoubtView, consensus: Consensus, s: DoubtSettings)
     """How far (px of ``v``'s own image, one standard deviation) the consensus ball's box in ``v`` may lie from
     where the ball is: the agreeing views' own spread (the RMS of their reprojection errors to the consensus
     ball, px at 1920 width: how well the rays that made it meet) and ``v``'s calibration's pixel sigma at that
-    ball (:func:`~app.geometry.weighting.pixel_sigma`: how far its camera may put the ball's projection), added in quadrature and
-    scaled to ``v``'s pixels. None when ``v``'s calibration leaves the pixel undetermined (``inf``)."""
+    ball (:func:`~app.geometry.weighting.pixel_sigma`: how far its camera may put the ball's projection), added in
+    quadrature and scaled to ``v``'s pixels. None when ``v``'s calibration leaves the pixel undetermined (``inf``)."""
     errs = [consensus.errors_1920.get(i) for i in consensus.inliers]
     errs = [e for e in errs if e is not None and math.isfinite(e)]
     spread = math.sqrt(sum(e * e for e in errs) / len(errs)) if errs else 0.0
@@ -258,7 +260,8 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     seen = uv[inside]
     length = float(np.sum(np.linalg.norm(np.diff(seen, axis=0), axis=1))) * rule_scale(v, s)
     evidence: dict[str, Any] = {"agreeing_views": [only.view_id], "epipolar_px": [[_r(x), _r(y)] for x, y in seen],
-                                "segment_length_px_1920": _r(length), "inside_fraction": _r(inside.mean(), 2), "inside_chance": _r(chance, 2),
+                                "segment_length_px_1920": _r(length), "inside_fraction": _r(inside.mean(), 2),
+                                "inside_chance": _r(chance, 2),
                                 "grass_px": [_r(uv0[0]), _r(uv0[1])], "placed": how, "depth_known": False}
     if length / 2 > s.consensus_tau_px or not inside.all():
         return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)

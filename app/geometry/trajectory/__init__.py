@@ -44,6 +44,7 @@ from app.geometry.trajectory.frames import FrameTriangulation, triangulate_frame
 from app.geometry.trajectory.refit import REFIT_REACH, local_span, refit_local, refit_span, refit_window
 from app.geometry.trajectory.segmentation import DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece
 
-__all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "REFIT_REACH", "FrameTriangulation", "triangulate_frame",
+__all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "REFIT_REACH", "FrameTriangulation",
+           "triangulate_frame",
            "Piece", "TrajectoryFit", "fit_trajectory", "local_span", "refit_local", "refit_span", "refit_window",
            "DEFAULT_BREAK_PX", "DEFAULT_FLAG_PX"]

@@ -121,7 +121,8 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
                      min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg)
 
 
-def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, a, b, *, rule: str, min_baseline_m: float,
+def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, a, b, *, rule: str,
+              min_baseline_m: float,
               min_parallax_deg: float, previous: TrajectoryFit | None = None,
               edited: tuple[int, int] | None = None) -> TrajectoryFit:
     """The per-frame rows of frames ``a..b`` (sequence indices; ``pts`` row 0 is frame ``pts_first``)

@@ -219,7 +219,8 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
             made with the same ``cameras`` (a camera change needs :func:`fit_trajectory`). Its pieces
             may be only those within :data:`REFIT_REACH` of the edit (a run of consecutive pieces).
         points: (len(fit.positions), K, 2) labels of the frames ``fit.frames`` with the edit applied.
-        cameras, widths, flag_px, break_px, tau_px, rule, min_baseline_m, min_parallax_deg: as in :func:`fit_trajectory`.
+        cameras, widths, flag_px, break_px, tau_px, rule, min_baseline_m, min_parallax_deg: as
+        in :func:`fit_trajectory`.
         fast_path: False when the caller knows the fast path does not apply (:func:`refit_local` answered
             ``None`` for the same edit): the pieces are segmented again without trying it a second time.
 

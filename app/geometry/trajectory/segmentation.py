@@ -318,7 +318,8 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
             break
         bounds = _shift_bounds(L, by_frame, frames, fps, split, best)
     bounds = [(a, b) for a, b in bounds if b > a]
-    pieces = [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=_overlapping(previous, frames[a], frames[b - 1]),
+    pieces = [_best_piece(L, by_frame, frames[a:b], fps, refine=True,
+                          start=_overlapping(previous, frames[a], frames[b - 1]),
                           linear=best.linear(frames[a:b])) for a, b in bounds]
     pieces = _anchored(L, by_frame, fps, pieces, range(len(pieces)))
     return _plausible_pieces(L, by_frame, frames, fps, bounds, pieces, ends)

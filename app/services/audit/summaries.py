@@ -29,7 +29,8 @@ def _num(v: float) -> str:
     return f"{v:.1f}"
 
 
-def _ball_geometry(ball: Mapping[str, Any] | None) -> tuple[Optional[tuple[float, float]], Optional[tuple[float, float]]]:
+def _ball_geometry(ball: Mapping[str, Any] | None) -> tuple[Optional[tuple[float, float]],
+                                                            Optional[tuple[float, float]]]:
     """(centre, size) of a ``{"box", "point"}`` state in px; size None for a point, both None without a ball."""
     if not isinstance(ball, Mapping):
         return None, None
@@ -80,7 +81,8 @@ def ball_words(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None
 
 
 def _polys(lines: Any) -> dict[str, list[list[list[float]]]]:
-    return {str(k): [list(p) for p in v] for k, v in lines.items() if isinstance(v, list)} if isinstance(lines, Mapping) else {}
+    return {str(k): [list(p) for p in v]
+            for k, v in lines.items() if isinstance(v, list)} if isinstance(lines, Mapping) else {}
 
 
 def _same_point(a: Any, b: Any) -> bool:
@@ -102,7 +104,8 @@ def _mirrored(before: dict[str, list], after: dict[str, list]) -> bool:
     except (AnnotationError, ValueError, TypeError):
         return False
     return set(mirrored) == set(after) and all(
-        len(mirrored[c]) == len(after[c]) and all(_same_poly(p, q) for p, q in zip(mirrored[c], after[c])) for c in after)
+        len(mirrored[c]) == len(after[c]) and all(_same_poly(p, q) for p, q in zip(mirrored[c], after[c]))
+        for c in after)
 
 
 def lines_words(before: Any, after: Any) -> str:

@@ -201,7 +201,8 @@ def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationField
     Writes nothing."""
     mine = [i for i, f in enumerate(frames) if not uses_rig(f.system)]
     learned = dataset_prior([results[i] for i in mine],
-                            [(lines_from_json_lists(frames[i].field_lines.lines) if frames[i].field_lines is not None else {},
+                            [(lines_from_json_lists(frames[i].field_lines.lines) if frames[i].field_lines is not None
+                              else {},
                               frames[i].width, frames[i].height) for i in mine])
     priors = {i: learned if learned is not None else stored_camera_prior(frames[i].system) for i in mine}
     retry = [i for i in mine if priors[i] is not None and wants_prior_retry(results[i], priors[i])]

@@ -37,7 +37,8 @@ def dataset_prior(results: Sequence[CalibrationFields],
     below :data:`MIN_PRIOR_FRAMES` such frames or when no anchor is found."""
     cams, stds, used = [], [], []
     for i, r in enumerate(results):
-        if r.status is not CalibrationStatus.CALIBRATED or r.camera is None or r.uncertainty is None or RIG_FLAG in r.flags:
+        if (r.status is not CalibrationStatus.CALIBRATED or r.camera is None or r.uncertainty is None
+                or RIG_FLAG in r.flags):
             continue
         p = r.uncertainty["position_m"]
         cams.append(Camera.from_soccernet(r.camera))

@@ -73,6 +73,7 @@ def preview_calibration(session: Session, frame_id: int, lines: Mapping[str, Any
                             **dict(zip(JAC_COLUMNS.values(), fields.jac)))  # transient: never added to the session
     camera = fields.camera if fields.status is CalibrationStatus.CALIBRATED else None
     drawn = pitch_lines(camera, frame.width, frame.height, keep=False)
-    return CalibrationPreview(frame_id=frame.id, fields=fields, jac=as_stored.jac(), admitted=is_admitted(as_stored, settings),
+    return CalibrationPreview(frame_id=frame.id, fields=fields, jac=as_stored.jac(),
+                              admitted=is_admitted(as_stored, settings),
                               retry=calibrated.retry, differs=kind_of(frame.system).calibration_refinement(frame),
                               pitch_lines=drawn, elapsed_ms=(time.perf_counter() - t0) * 1e3)

@@ -131,7 +131,8 @@ def _statuses(session: Session, ids: list[int]) -> dict[int, str]:
     systems = System.__table__
     exist = set(conn.execute(sa.select(systems.c.id).where(systems.c.id.between(lo, hi))).scalars())
     done = [st for st in ReviewStatus if st is not ReviewStatus.PENDING]  # IN: the status index answers it
-    decided = {i: ReviewStatus(st).value for i, st in conn.execute(sa.select(systems.c.id, systems.c.review_status).where(
+    decided = {i: ReviewStatus(st).value
+               for i, st in conn.execute(sa.select(systems.c.id, systems.c.review_status).where(
         systems.c.review_status.in_(done), systems.c.id.between(lo, hi)))}
     return {i: decided.get(i, _PENDING) for i in ids if i in exist}
 

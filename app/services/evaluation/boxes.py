@@ -124,7 +124,8 @@ def _summary(boxes: list[np.ndarray], precise: list[np.ndarray]) -> dict[str, An
             "size_error_pct": float(np.mean(box_size_error_pct(a, b)))}
 
 
-def evaluate_boxes(session: Session, include_all: bool = False, ball_diameter_m: float = BALL_DIAMETER_M) -> dict[str, Any]:
+def evaluate_boxes(session: Session, include_all: bool = False,
+                   ball_diameter_m: float = BALL_DIAMETER_M) -> dict[str, Any]:
     """``{"original": {"n", "iou", "size_error_pct"}, "optimised": {...}, "refined": {...}, "views": n}``
     over the views with a precise box of the chosen systems (module docstring); ``iou`` and
     ``size_error_pct`` are None where ``n`` is 0."""

@@ -3,7 +3,8 @@
 Ground truth: every view of the selected systems (accepted unless ``include_all``) that has a 3D ball
 (system triangulated, view calibrated, optimised box stored): its box as exported
 (:func:`app.services.transfer.detector_export.ball_boxes`: the refined box where the 3D ball is well
-constrained, else the optimised box), the system's 3D ball and the view's camera. Predictions in other images are ignored (counted).
+constrained, else the optimised box), the system's 3D ball and the view's camera. Predictions in other images are
+ignored (counted).
 
 Predictions: YOLO txt files (``class cx cy w h conf``, normalised; one file per image, matched to views
 by file stem as written by :mod:`app.services.transfer.detector_export`, searched recursively) or a COCO
@@ -358,7 +359,8 @@ def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 
         InvalidInputError: no reference view (nothing to evaluate against), unknown estimator.
     """
     if estimator not in ESTIMATORS:
-        raise InvalidInputError(f"unknown estimator {estimator!r}; choose one of {sorted(ESTIMATORS)}", field="estimator")
+        raise InvalidInputError(f"unknown estimator {estimator!r}; choose one of {sorted(ESTIMATORS)}",
+                                field="estimator")
     if not views:
         raise InvalidInputError("no view with a 3D ball among the selected systems (accept systems, or use --all)",
                                 field="systems")

@@ -17,10 +17,11 @@ against the JaC admission threshold) and distributions.
 * ``jac_sweep``: a multi-view system is kept at threshold t when at least two of its views have a camera with
   JaC at the admission gamma (``Settings.admit_jac_gamma``) above t (the paper's Fig. 3), for t in
   :data:`JAC_THRESHOLDS`, over every system and per kind (``jac_sweep_by_kind``: the paper's figure is SoccerNet-v3's;
-  ISSIA's static cameras have one calibration each); ``admission`` is the threshold in force (``Settings.admit_jac_gamma``, ``admit_jac_min``),
-  so that a plot can mark it; ``stale_systems`` counts the systems computed with other settings (a changed
-  ``V3D_PROFILE``, ``app.services.derivation.recompute.systems_computed_otherwise``): their figures here are stale
-  until ``v3d recompute``.
+  ISSIA's static cameras have one calibration each); ``admission`` is the threshold in force
+  (``Settings.admit_jac_gamma``, ``admit_jac_min``), so that a plot can mark it; ``stale_systems`` counts the systems
+  computed with other settings (a changed ``V3D_PROFILE``,
+  ``app.services.derivation.recompute.systems_computed_otherwise``): their figures here are stale until
+  ``v3d recompute``.
 * distributions (:data:`HISTOGRAM_BINS` equal bins between the smallest and largest value, a long tail counted
   apart, :func:`histogram`): ``jac`` (JaC at the
   admission gamma of every calibrated view), ``pair_reprojection_error_px`` (every triangulation pair's error),

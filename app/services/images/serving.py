@@ -160,7 +160,8 @@ def _media_frame_image(frame: Frame, where: str, max_pixels: int) -> FrameImage:
         data = read_video_frame(frame, max_pixels)
     except (OSError, DatasetError):
         raise ImageUnavailable(f"{where}: cannot read frame {frame.media_frame} of {frame.image_path}") from None
-    etag = f'"{st.st_mtime_ns:x}-{st.st_size:x}-{frame.media_frame:x}-{int(frame.media_flipped)}-{frame.width}x{frame.height}"'
+    etag = (f'"{st.st_mtime_ns:x}-{st.st_size:x}-{frame.media_frame:x}-{int(frame.media_flipped)}-'
+            f'{frame.width}x{frame.height}"')
     return FrameImage(media_type="image/png", etag=etag, size=len(data), data=data)
 
 

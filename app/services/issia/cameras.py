@@ -72,8 +72,8 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
     ``from_lines`` or it is absent; then each static camera is calibrated once from its field lines
     (:func:`app.geometry.calibration.calibrate_frame`) and admitted when its JaC at ``admit_jac_gamma`` is above
     ``admit_jac_min`` (the paper's admission rule, :func:`app.geometry.jac.jac_admitted`; the callers pass the
-    settings' ``admit_jac_gamma`` and ``admit_jac_min``); a refused or not admitted camera has ``camera=None`` and a reason.
-    With two or more admitted cameras, the ball's trajectory is fitted with them
+    settings' ``admit_jac_gamma`` and ``admit_jac_min``); a refused or not admitted camera has ``camera=None`` and a
+    reason. With two or more admitted cameras, the ball's trajectory is fitted with them
     (:func:`app.geometry.trajectory.fit_trajectory`, its per-frame triangulation's ``tau_px``, ``rule``,
     ``min_baseline_m`` and ``min_parallax_deg`` given as ``pair_rules``: ``app.services.issia.trajectory.fit_args``
     of the settings), then:
@@ -111,7 +111,8 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
         if res.camera is None:
             out[cid] = CameraChoice(None, "lines", None, f"refused: {refusal_sentence(res.refusal)}", res.refusal.code)
         elif not jac_admitted(jac, admit_jac_min):
-            below = Refusal("below_admission", {"jac": jac, "gamma_pct": 100 * admit_jac_gamma, "admit_jac_min": admit_jac_min})
+            below = Refusal("below_admission",
+                            {"jac": jac, "gamma_pct": 100 * admit_jac_gamma, "admit_jac_min": admit_jac_min})
             out[cid] = CameraChoice(None, "lines", jac, refusal_sentence(below), below.code)
         else:
             out[cid] = CameraChoice(res.camera, "lines", jac)

@@ -104,8 +104,8 @@ def sequence_calibrations(session: Session, game_id: int) -> dict[str, dict[str,
 
 def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> list:
     """The ``ISSIA-3D.csv`` rows (:class:`app.datasets.issia3d.Issia3DRow`) of a stored sequence:
-    current labels (a reviewer's edits included), the cameras admitted by the last recomputation, the stored ``ball_3D``,
-    ``cam_list``, ``ball_3D_smoothed`` and source; ``err``/``opt_d``/``opt_e`` computed from them.
+    current labels (a reviewer's edits included), the cameras admitted by the last recomputation, the stored
+    ``ball_3D``, ``cam_list``, ``ball_3D_smoothed`` and source; ``err``/``opt_d``/``opt_e`` computed from them.
     Accepted frames only unless ``include_all``."""
     systems = load_sequence(session, game_id)
     if not include_all:
@@ -160,8 +160,8 @@ class _StoredFit:
 
 
 def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = False) -> Issia3DExport:
-    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json`` and ``calibration/cam<k>.json`` for every stored ISSIA sequence
-    (module docstring). Accepted frames only unless ``include_all``; a sequence with no exported
+    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json`` and ``calibration/cam<k>.json`` for every stored ISSIA
+    sequence (module docstring). Accepted frames only unless ``include_all``; a sequence with no exported
     frame gets no folder."""
     out = Path(out_dir)
     report = Issia3DExport(out)

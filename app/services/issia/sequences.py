@@ -88,7 +88,8 @@ def _camera_fields(seq: IssiaSequence, cid: str, choice: CameraChoice) -> Calibr
         values = tuple(float(jac[g]) for g in JAC_GAMMAS)
     else:
         values, flags = (None, None, None), flags + [GIVEN_CAMERA_FLAG]
-    return CalibrationFields(CalibrationStatus.CALIBRATED, json_safe(choice.camera.to_soccernet()), values, flags=flags)  # type: ignore[arg-type]
+    return CalibrationFields(CalibrationStatus.CALIBRATED,
+                             json_safe(choice.camera.to_soccernet()), values, flags=flags)  # type: ignore[arg-type]
 
 
 def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:
@@ -214,8 +215,10 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
                         fl.lines = lines[cid]
                     fl.original_lines = lines[cid]
             cal, f = frame.calibration, fields[cid]
-            ours = [x for x in (cal.flags or []) if x in (BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
-            if cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags) or cal.source is not source:
+            ours = [x for x in (cal.flags or [])
+                    if x in (BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
+            if (cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags)
+                    or cal.source is not source):
                 apply_calibration(frame, f, source)
                 changed = True
             label_changed = _set_label(frame, seq.point(index, cid), now)
@@ -227,7 +230,8 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
     return game
 
 
-def refined_with_ball(session: Session, frame: Frame, fields: CalibrationFields, settings: Settings) -> CalibrationFields:
+def refined_with_ball(session: Session, frame: Frame,
+                      fields: CalibrationFields, settings: Settings) -> CalibrationFields:
     """The calibration of an ISSIA view recalibrated from its edited field lines (``fields``, from the lines
     alone), refined again from its lines and the sequence's ball labels when its stored calibration was so
     refined (flag :data:`BALL_BUNDLE_FLAG`: ``v3d import issia --from-lines``), as the import refined it
@@ -266,7 +270,8 @@ def refined_with_ball(session: Session, frame: Frame, fields: CalibrationFields,
     jac = jac_at_gammas(camera, lines[k], frame.width, frame.height, JAC_GAMMAS)
     flags = [f for f in fields.flags if f != BALL_BUNDLE_FLAG] + [BALL_BUNDLE_FLAG]
     residuals = {c: float(np.max(d)) for c, d in class_point_distances(camera, lines[k]).items() if len(d)}
-    return dataclasses.replace(fields, camera=json_safe(camera.to_soccernet()), jac=tuple(float(jac[g]) for g in JAC_GAMMAS),
+    return dataclasses.replace(fields, camera=json_safe(camera.to_soccernet()),
+                               jac=tuple(float(jac[g]) for g in JAC_GAMMAS),
                                flags=flags, residuals_px=residuals,
                                uncertainty=fit_uncertainty(camera, lines[k], tuple(flags)))
 

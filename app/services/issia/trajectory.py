@@ -6,8 +6,9 @@ and whose views are static cameras (``Frame.name`` "cam<k>"). This module
 * gathers the sequence's current ball labels and admitted cameras into the arrays of
   :func:`app.geometry.trajectory.fit_trajectory` (:func:`sequence_arrays`);
 * fits the whole sequence (:func:`fit_sequence`; after an edit only the stretch it touches is
-  re-fitted, ``app.services.issia.refit``) and stores each frame's place on the trajectory (:class:`~app.db.models.TrajectoryPoint`:
-  ``ball_3D``, ``ball_3D_smoothed`` and its source, the kept labels, the residuals, the flagged labels);
+  re-fitted, ``app.services.issia.refit``) and stores each frame's place on the trajectory
+  (:class:`~app.db.models.TrajectoryPoint`: ``ball_3D``, ``ball_3D_smoothed`` and its source, the kept labels, the
+  residuals, the flagged labels);
 * gives the per-frame triangulation of an ISSIA system its semantics (:func:`consensus_observations`:
   labels the trajectory flags are left out, then the labels that agree on one ball are chosen, as
   :func:`app.geometry.trajectory.triangulate_frame`), used by ``app.services.derivation.recompute``;
@@ -209,7 +210,8 @@ def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[Cha
     return store_fit(arrays, fit)
 
 
-def consensus_observations(system: System, observations: list[BallObservation], settings: Settings) -> list[BallObservation]:
+def consensus_observations(system: System,
+                           observations: list[BallObservation], settings: Settings) -> list[BallObservation]:
     """The labels of an ISSIA system that its 3D ball is made of: those the stored trajectory does not
     flag, then the ones that agree on one ball (:func:`app.geometry.trajectory.triangulate_frame`:
     robust to a wrong camera; none when two labels disagree or two camps agree equally)."""
@@ -252,7 +254,8 @@ def trajectory_doubts(system: System, cameras: dict[int, Camera] | None = None) 
 DOUBT_POINT_COLUMNS = ("flagged", "residuals_px", "ball3d_smoothed", "source")
 
 
-def flagged_label_doubts(frame_index: int | None, point: dict[str, Any], views: dict[int, DoubtFrame]) -> list[JudgedDoubt]:
+def flagged_label_doubts(frame_index: int | None, point: dict[str, Any],
+                         views: dict[int, DoubtFrame]) -> list[JudgedDoubt]:
     """The ``ball_off_consensus`` doubt of each flagged label of a frame: evidence the residual (px at
     1920 width), the fitted position (m) and the frame index; fix ``snap_point`` to where the trajectory
     projects when that is inside the image (with ``point_sigma_px``, :func:`_trajectory_sigma_px`, and
@@ -300,7 +303,8 @@ def _trajectory_sigma_px(point: dict[str, Any], width: int) -> float | None:
     return round(float(np.sqrt(np.mean(np.square(kept)))) * width / REFERENCE_WIDTH_PX, 2)
 
 
-def merge_doubts(system: System, judged: list[JudgedDoubt], cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
+def merge_doubts(system: System, judged: list[JudgedDoubt],
+                 cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
     """For an ISSIA system with a stored trajectory, the trajectory decides which labels are off:
     the single-frame ``ball_off_consensus`` doubts are replaced by :func:`trajectory_doubts`, and a
     single-frame ``views_disagree`` (two labels that miss, culprit unknown) is dropped when the

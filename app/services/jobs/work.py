@@ -160,7 +160,8 @@ def run_export(session: Session, params: dict[str, Any], settings: Settings, pro
     prune_exports(target.parent, settings.export_keep_hours)
     report = write_export_zip(session, fmt, target, bool(params.get("all", False)), settings, progress,
                               images=bool(params.get("images", True)))
-    filename = "soccernet-v3d-no-images.zip" if fmt == "soccernet-v3d" and params.get("images") is False else DOWNLOAD_NAMES[fmt]
+    no_images = fmt == "soccernet-v3d" and params.get("images") is False
+    filename = "soccernet-v3d-no-images.zip" if no_images else DOWNLOAD_NAMES[fmt]
     return {**report, "file": target.name, "media_type": "application/zip", "filename": filename}
 
 

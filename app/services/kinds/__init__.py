@@ -47,4 +47,5 @@ def kinds_exported_by(export: str) -> list[SystemKind]:
     return [k for k, p in POLICIES.items() if export in p.exports]
 
 
-__all__ = ["EXPORTS", "KindPolicy", "POLICIES", "game_stem", "image_stem", "kind_of", "kinds_exported_by", "policy", "split_of"]
+__all__ = ["EXPORTS", "KindPolicy", "POLICIES", "game_stem", "image_stem", "kind_of", "kinds_exported_by", "policy",
+           "split_of"]

@@ -149,7 +149,8 @@ def _checked_members(zf: zipfile.ZipFile, where: str, limits: ArchiveLimits, bud
                                                           "1 (V3D_MAX_ZIP_RATIO; a zip bomb); refusing the archive")
     if total > ratio_cap(packed_bytes, limits.max_ratio):
         raise DatasetError(where, None, f"unpacks to {total:,} bytes from {packed_bytes:,}, more than "
-                                        f"{limits.max_ratio:g} to 1 (V3D_MAX_ZIP_RATIO; a zip bomb); refusing the archive")
+                                        f"{limits.max_ratio:g} to 1 (V3D_MAX_ZIP_RATIO; a zip bomb); refusing the "
+                                        "archive")
     return infos
 
 
@@ -193,7 +194,8 @@ def _extract(zf: zipfile.ZipFile, info: zipfile.ZipInfo, target: Path, where: st
     cap = ratio_cap(info.compress_size, limits.max_ratio)
     if limits.max_member_bytes is not None:
         if info.file_size > limits.max_member_bytes:
-            raise DatasetError(where, f"member {info.filename!r}", f"unpacks to {info.file_size:,} bytes, more than the "
+            raise DatasetError(where, f"member {info.filename!r}",
+                               f"unpacks to {info.file_size:,} bytes, more than the "
                                                                    f"{limits.max_member_bytes:,} such a file may hold")
         cap = min(cap, limits.max_member_bytes)
     with open(target, "wb") as out:

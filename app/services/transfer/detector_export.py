@@ -187,7 +187,8 @@ BALL_BOX_LOADS = (
 def _other_boxes(frame: Frame) -> list[Any]:
     """The non-ball ``bboxes`` entries of the frame's release (``frames.release``, as imported; ``[]`` without)."""
     boxes = (frame.release or {}).get("bboxes")
-    return [b for b in boxes if not (isinstance(b, dict) and b.get("class") == BALL_CLASS)] if isinstance(boxes, list) else []
+    return [b for b in boxes
+            if not (isinstance(b, dict) and b.get("class") == BALL_CLASS)] if isinstance(boxes, list) else []
 
 
 def _clip(box: list[float], width: int, height: int) -> tuple[float, float, float, float] | None:

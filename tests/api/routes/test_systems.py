@@ -298,7 +298,8 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     expected = [e * 1920.0 / WIDTH > tri["tau_px"] for e in errors]
     assert expected == [True, False, True]
     # the page shows the error in the rule's scale, as the server computed it (the UI never rescales)
-    assert [v["reprojection_error_scaled_px"] for v in view["views"]] == pytest.approx([e * 1920.0 / WIDTH for e in errors])
+    scaled = [e * 1920.0 / WIDTH for e in errors]
+    assert [v["reprojection_error_scaled_px"] for v in view["views"]] == pytest.approx(scaled)
     assert page_verdicts() == expected
     assert rows()[wrong.system_id]["views_above_tau"] == 2
     assert {r["views_above_tau"] for sid, r in rows().items() if sid != wrong.system_id} == {0}

@@ -30,7 +30,8 @@ def test_admission_follows_the_jac_threshold(db_session, settings, imported):
     assert tri.status is TriangulationStatus.TRIANGULATED and len(tri.pairs) == 6
 
     frame = system.frames[0]
-    assert admission_jac(frame.calibration, settings.model_copy(update={"admit_jac_gamma": 0.02})) == frame.calibration.jac_002
+    assert admission_jac(frame.calibration,
+                         settings.model_copy(update={"admit_jac_gamma": 0.02})) == frame.calibration.jac_002
     with pytest.raises(ValueError, match="not a stored JaC gamma"):
         is_admitted(frame.calibration, settings.model_copy(update={"admit_jac_gamma": 0.004}))
     refused = Calibration(source=CalibrationSource.COMPUTED, status=CalibrationStatus.REFUSED, jac_0005=1.0)

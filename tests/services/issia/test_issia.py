@@ -367,7 +367,8 @@ def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(
     before = s13.trajectory_point.ball3d_smoothed
     loaded = []
     real = issia_refit.load_for_recompute
-    monkeypatch.setattr(issia_refit, "load_for_recompute", lambda session, ids: loaded.extend(ids) or real(session, ids))
+    monkeypatch.setattr(issia_refit, "load_for_recompute", lambda session,
+                        ids: loaded.extend(ids) or real(session, ids))
     view = next(f for f in _systems(db_session)[18].frames if f.ball_label is not None)
     update_ball_label(db_session, view.id, point=[view.ball_label.point[0] + 4.0, view.ball_label.point[1]],
                       settings=db_settings)
@@ -405,7 +406,8 @@ def test_the_pieces_an_edit_reads_are_those_within_reach(db_session, db_settings
     assert gaps, "the dev sequence's fit has a gap between pieces (a short piece left out)"
     for f in (0, 16, 70, 115, gaps[0], 199):
         hit = [i for i, p in enumerate(every) if p.first_frame <= f <= p.last_frame] or \
-            [i for i, p in enumerate(every) if p.last_frame < f][-1:] + [i for i, p in enumerate(every) if p.first_frame > f][:1]
+            [i for i, p in enumerate(every) if p.last_frame < f][-1:] + [i for i, p in enumerate(every)
+                                                                         if p.first_frame > f][:1]
         lo, hi = max(min(hit) - REFIT_REACH, 0), min(max(hit) + REFIT_REACH, len(every) - 1)
         got = _pieces_around(db_session, game.id, f, f)
         spans = [(p.first_frame, p.last_frame) for p in got]
@@ -507,7 +509,8 @@ def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and
         doc = json.loads((tmp_path / "coco" / split / "instances.json").read_text())
         names = [im["file_name"] for im in doc["images"]]
         assert len(names) == len(set(names)) == coco.images[split] == yolo.images[split]
-        assert sorted(p.name for p in (tmp_path / "coco" / split).iterdir() if p.name != "instances.json") == sorted(names)
+        assert sorted(p.name for p in (tmp_path / "coco" / split).iterdir()
+                      if p.name != "instances.json") == sorted(names)
 
 
 def test_an_edit_sets_back_to_pending_every_decided_system_whose_3d_ball_the_refit_moved(db_session, db_settings,

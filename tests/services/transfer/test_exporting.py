@@ -183,7 +183,8 @@ def test_export_then_import_reproduces_every_label_camera_and_number(
     try:
         back = import_soccernet_v3d(fresh, tmp_path / "export", settings)
         n_frames = sum(len(s.frames) for s in v3)
-        assert (back.games, back.systems, back.frames, back.calibrated + back.refused) == (1, len(v3), n_frames, n_frames)
+        assert (back.games, back.systems,
+                back.frames, back.calibrated + back.refused) == (1, len(v3), n_frames, n_frames)
         original, reimported = _snapshot(db_session, (SystemKind.SOCCERNET_V3,)), _snapshot(fresh)
         assert set(original) == set(reimported)
         for key in original:
