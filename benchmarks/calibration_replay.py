@@ -73,7 +73,7 @@ def replay(scale_dir: Path, games: int, skip: int = 0, profile_first: bool = Tru
         rig = game_rig(None, None, settings, extra=firsts, extra_roles=[f.role for _, f in frames])
         if not rig.positions:
             continue
-        for (srec, frec), fields in zip(frames, firsts):
+        for (srec, frec), fields in zip(frames, firsts, strict=False):
             if srec.kind is SystemKind.SOCCERNET_V3 and wants_rig_retry(fields, settings):
                 job = (*new_frame_job(frec)[:4], rig, new_frame_job(frec)[5])
                 retried, ms = _timed(job, profiler if profile_rig else None)
@@ -102,7 +102,7 @@ def _differences(a: Any, b: Any, path: str = "") -> list[tuple[str, float]]:
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
         if len(a) != len(b):
             return [(path + " length", math.inf)]
-        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _differences(x, y, f"{path}[{i}]")]
+        return [d for i, (x, y) in enumerate(zip(a, b, strict=False)) for d in _differences(x, y, f"{path}[{i}]")]
     if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
         return [] if a == b else [(path, abs(float(a) - float(b)))]
     return [] if a == b else [(path, math.inf)]

@@ -312,7 +312,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         truths[name] = load_truth(args.shared, name)
         judged, ms = judge_all(inputs[name], base)
         sc = score(judged, truths[name])
-        five = [m for (k, v), m in zip(inputs[name], ms) if len(v) >= 5]
+        five = [m for (k, v), m in zip(inputs[name], ms, strict=False) if len(v) >= 5]
         rates = {**sc.rates(), "judge_ms_median": round(float(np.median(ms)), 2),
                  "judge_ms_p99": round(float(np.percentile(ms, 99)), 2), "judge_ms_max": round(float(max(ms)), 2),
                  "judge_s_total": round(sum(ms) / 1e3, 3),

@@ -100,7 +100,7 @@ def plot(fit, truth: dict, out: Path) -> None:
     fr = np.arange(len(fit.positions))
     flagged = np.nonzero(fit.outliers.any(axis=1))[0]
     fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
-    for ax, i, name in zip(axes, range(3), ("x (m)", "y (m)", "height -z (m)")):
+    for ax, i, name in zip(axes, range(3), ("x (m)", "y (m)", "height -z (m)"), strict=False):
         sign = -1 if i == 2 else 1
         ax.plot(fr, sign * true[:, i], color="0.6", lw=3, label="truth")
         ax.plot(fr, sign * fit.ball_3d[:, i], ".", color="tab:blue", ms=4, label="ball_3D (per frame)")

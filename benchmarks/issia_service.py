@@ -184,7 +184,7 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
         gc.set_threshold(gc_threshold, 10, 10)
     try:
         with TestClient(app, base_url="http://127.0.0.1", headers={"Authorization": f"Bearer {token}"}) as client:
-            for fid, (x, y), w, h in picks:
+            for fid, (x, y), w, _h in picks:
                 x2 = x + 3.0 if x + 3.0 < w else x - 3.0
                 box = [x - 6.0, y - 6.0, x + 6.0, y + 6.0]
                 moved = [box[0] + 3.0, box[1], box[2] + 3.0, box[3]]

@@ -98,7 +98,8 @@ def main() -> None:
     print(f"v3d      median {1000 * float(np.median(v3d_batch)):8.3f} CPU ms per (frame, threshold), "
           f"three thresholds per call")
 
-    file_ok = sum(abs(v - w) <= 1e-6 for fr, _, _ in frames for v, w in zip(v3d_values[fr], official_file[fr]))
+    file_ok = sum(abs(v - w) <= 1e-6 for fr, _, _ in frames
+                  for v, w in zip(v3d_values[fr], official_file[fr], strict=False))
     print(f"agreement with official-jac-pnlcalib.json: {file_ok}/{3 * len(frames)} pairs within 1e-6")
 
     try:
@@ -112,7 +113,7 @@ def main() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # the evaluator divides by zero on parallel lines
         for fr, ann, cam in frames:
-            for t, mine in zip(THRESHOLDS, v3d_values[fr]):
+            for t, mine in zip(THRESHOLDS, v3d_values[fr], strict=False):
                 value, dt = timed(official_jac, sn, ann, cam, t)
                 official_times.append(dt)
                 agree += abs(value - mine) <= 1e-6

@@ -287,7 +287,7 @@ def same_box(a: Optional[list[float]], b: Optional[list[float]]) -> bool:
     """Boxes equal to 1e-6 px (both missing counts as equal)."""
     if a is None or b is None:
         return a is b
-    return all(abs(x - y) <= 1e-6 for x, y in zip(a, b))
+    return all(abs(x - y) <= 1e-6 for x, y in zip(a, b, strict=False))
 
 
 def run_clients(base: str, views: list[tuple[int, int, list[float], int, int]], report: LoadReport,

@@ -152,7 +152,7 @@ def triangulate_all(systems: list[DevSystem], tau_px: float, rule: str,
 
 def fused_errors_m(systems: list[DevSystem], results: list[TriangulationResult]) -> np.ndarray:
     """3D error (m) of the fused ball for uncorrupted, triangulated systems."""
-    return np.array([np.linalg.norm(r.point - s.ball_3d) for s, r in zip(systems, results)
+    return np.array([np.linalg.norm(r.point - s.ball_3d) for s, r in zip(systems, results, strict=False)
                      if s.corruption is None and r.point is not None])
 
 
@@ -170,7 +170,7 @@ def box_study(systems: list[DevSystem], results: list[TriangulationResult],
     cameras must have produced ``results``)."""
     kinds = ("annotated", *OPTIMISED_BOX_METHODS, "precise")
     rows: dict[str, list] = {k: [] for k in kinds}
-    for s, r in zip(systems, results):
+    for s, r in zip(systems, results, strict=False):
         if s.corruption is not None or r.point is None:
             continue
         for v in s.views:
@@ -209,7 +209,7 @@ def sweep_counts(systems: list[DevSystem], results: list[TriangulationResult],
     """Pairs and views with/without a deliberate error, dropped or kept (near-duplicate pairs excluded)."""
     c = dict(bad_pairs=0, bad_pairs_dropped=0, good_pairs=0, good_pairs_kept=0, bad_views=0, bad_views_out=0,
              good_views=0, good_views_in=0)
-    for s, r in zip(systems, results):
+    for s, r in zip(systems, results, strict=False):
         bad = bad_views(s, mirror_calibration)
         for p in r.pairs:
             if p.reason == "baseline_below_min":
@@ -237,7 +237,7 @@ def pair_errors(systems: list[DevSystem], results: list[TriangulationResult],
                 mirror_calibration: bool) -> tuple[np.ndarray, np.ndarray]:
     """e_ij (px) of good pairs and of pairs involving a corrupted view (behind-camera pairs as +inf)."""
     good, bad = [], []
-    for s, r in zip(systems, results):
+    for s, r in zip(systems, results, strict=False):
         badv = bad_views(s, mirror_calibration)
         for p in r.pairs:
             if p.reason in ("baseline_below_min", "degenerate", "point_at_infinity"):
@@ -328,7 +328,7 @@ def main() -> None:
     print(f"{len(systems)} systems, {sum(len(s.views) for s in systems)} views; tau = {tau} px ({rule}); true cameras")
     res = triangulate_all(systems, tau, rule)
     status: dict[str, list[str]] = {}
-    for s, r in zip(systems, res):
+    for s, r in zip(systems, res, strict=False):
         status.setdefault(r.status, []).append(s.corruption or "none")
     for k, v in status.items():
         print(f"  {k:20s} {len(v):3d}  corruptions: {', '.join(sorted(set(v)))}")

@@ -508,7 +508,8 @@ def run(shared: Path = SHARED_DIR, workdir: Path | None = None, workers: int = 0
             candidates[f"recomputed {method}"] = np.array(boxes)
         same = candidates.get(f"recomputed {result.boxes['stored_method']}")
         result.checks["optimised_box_mismatches"] = [] if same is None else [
-            _short(k) for k, a, b in zip(box_keys, candidates["optimised"], same) if not np.allclose(a, b, atol=1e-6)]
+            _short(k) for k, a, b in zip(box_keys, candidates["optimised"], same, strict=False)
+            if not np.allclose(a, b, atol=1e-6)]
         for name, b in candidates.items():
             ok = np.all(np.isfinite(b), axis=1)
             iou, size = box_iou(b[ok], ref[ok]), box_size_error_pct(b[ok], ref[ok])

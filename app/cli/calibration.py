@@ -15,7 +15,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Optional
+from typing import Annotated, Any, Iterator, Optional
 
 import typer
 from tqdm import tqdm
@@ -90,16 +90,16 @@ def _side(value: str) -> Optional[int]:
 
 @cli.command("calibrate")
 def calibrate_command(
-    annotations: Path = typer.Argument(..., help="Folder or zip of SoccerNet-calibration frame JSON files."),
-    out_dir: Path = typer.Argument(..., help="Folder for camera_<frame>.json files (created if needed)."),
-    width: int = typer.Option(960, "--width", min=2,
-                              help="Image width in pixels (normalised points are scaled by W - 1)."),
-    height: int = typer.Option(540, "--height", min=2, help="Image height in pixels."),
-    workers: int = typer.Option(0, "--workers", min=0, help="Worker processes; 0 = one per core."),
-    expected_side: str = typer.Option(
-        "none", "--expected-side",
+    annotations: Annotated[Path, typer.Argument(help="Folder or zip of SoccerNet-calibration frame JSON files.")],
+    out_dir: Annotated[Path, typer.Argument(help="Folder for camera_<frame>.json files (created if needed).")],
+    width: Annotated[int, typer.Option("--width", min=2,
+                                       help="Image width in pixels (normalised points are scaled by W - 1).")] = 960,
+    height: Annotated[int, typer.Option("--height", min=2, help="Image height in pixels.")] = 540,
+    workers: Annotated[int, typer.Option("--workers", min=0, help="Worker processes; 0 = one per core.")] = 0,
+    expected_side: Annotated[str, typer.Option(
+        "--expected-side",
         help="Side of the pitch the cameras are expected on, only to flag probably mirrored labels: "
-             "+1 (y > 0, broadcast main cameras), -1, or none."),
+             "+1 (y > 0, broadcast main cameras), -1, or none.")] = "none",
 ) -> None:
     """Calibrate every frame from its field lines; write SoccerNet camera files and a summary."""
     side = _side(expected_side)

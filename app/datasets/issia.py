@@ -132,7 +132,7 @@ def read_issia(root: str | Path, *, image_size: tuple[int, int] = ANNOTATION_SIZ
             lines[cid] = from_soccernet_calibration(data, w, h)
         except AnnotationError as exc:
             raise DatasetError(lines_path, cid, str(exc)) from exc
-    for name, table, path in (("calibration", cameras, cal_path), ("lines", lines, lines_path)):
+    for table, path in ((cameras, cal_path), (lines, lines_path)):
         unknown = sorted(set(table) - set(camera_ids))
         if unknown:
             raise DatasetError(path, unknown[0], f"camera id not among the {POINTS_FILE} columns {list(camera_ids)}")
@@ -263,7 +263,7 @@ def _label_rows(path: Path, rows: list[list[str]], ids: list[str], columns: list
                 raise DatasetError(path, f"row {n} frame",
                                    f"{frame} is negative or not after {frames[-1] if frames else ''}")
         p = np.full((len(ids), 2), np.nan)
-        for k, (cid, (xi, yi)) in enumerate(zip(ids, columns)):
+        for k, (cid, (xi, yi)) in enumerate(zip(ids, columns, strict=True)):
             x, y = row[xi].strip(), row[yi].strip()
             x, y = ("" if x.lower() == "nan" else x), ("" if y.lower() == "nan" else y)
             if bool(x) != bool(y):

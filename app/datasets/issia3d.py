@@ -9,6 +9,7 @@ written with Python's shortest round-trip repr, so export -> import is exact.
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import math
 from dataclasses import dataclass
@@ -55,7 +56,7 @@ def issia3d_row_cells(row: Issia3DRow) -> dict[str, str]:
     cells = {"frame": str(int(row.frame))}
     for k in CAMERA_IDS:
         vals = row.per_camera.get(int(k), (None,) * 5)
-        for c, v in zip(_PER_CAMERA, vals):
+        for c, v in zip(_PER_CAMERA, vals, strict=False):
             cells[f"{c}_cam{k}"] = _num(v)
     cells.update(num_cameras=str(int(row.num_cameras)), ball_3D=_vec(row.ball_3d),
                  cam_list="[" + ", ".join(str(int(c)) for c in row.cam_list) + "]",
@@ -87,29 +88,33 @@ def read_issia3d_csv(path: str | Path) -> list[Issia3DRow]:
             raise DatasetError(path, missing[0], "column missing")
         out = []
         for n, r in enumerate(reader, start=2):
-            def cell(col, parse):
-                text = read_cell(r[col] or "").strip()
-                try:
-                    return parse(text) if text else None
-                except (ValueError, TypeError, json.JSONDecodeError) as exc:
-                    raise DatasetError(path, f"row {n} {col}", f"cannot parse {text!r}: {exc}") from None
-
-            def vec(text):
-                v = json.loads(text)
-                if not (isinstance(v, list) and len(v) == 3):
-                    raise ValueError("expected [x, y, z]")
-                return tuple(float(x) for x in v)
-
+            cell = functools.partial(_cell, path, n, r)
             source = read_cell(r["ball_3D_source"] or "").strip() or None
             if source not in (None, "triangulated", "fitted", "interpolated"):
                 raise DatasetError(path, f"row {n} ball_3D_source", f"unknown source {source!r}")
             out.append(Issia3DRow(
                 frame=cell("frame", int),
                 per_camera={int(k): tuple(cell(f"{c}_cam{k}", float) for c in _PER_CAMERA) for k in CAMERA_IDS},
-                num_cameras=cell("num_cameras", int) or 0, ball_3d=cell("ball_3D", vec),
+                num_cameras=cell("num_cameras", int) or 0, ball_3d=cell("ball_3D", _vec),
                 cam_list=tuple(int(c) for c in (cell("cam_list", json.loads) or [])),
-                ball_3d_smoothed=cell("ball_3D_smoothed", vec), ball_3d_source=source))
+                ball_3d_smoothed=cell("ball_3D_smoothed", _vec), ball_3d_source=source))
     return out
+
+
+def _cell(path: Path, n: int, row: Mapping[str, Any], col: str, parse: Any) -> Any:
+    """Cell ``col`` of ``row`` (line ``n`` of ``path``) parsed by ``parse``; None when empty."""
+    text = read_cell(row[col] or "").strip()
+    try:
+        return parse(text) if text else None
+    except (ValueError, TypeError, json.JSONDecodeError) as exc:
+        raise DatasetError(path, f"row {n} {col}", f"cannot parse {text!r}: {exc}") from None
+
+
+def _vec(text: str) -> tuple[float, ...]:
+    v = json.loads(text)
+    if not (isinstance(v, list) and len(v) == 3):
+        raise ValueError("expected [x, y, z]")
+    return tuple(float(x) for x in v)
 
 
 def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,

@@ -79,7 +79,7 @@ def _named(root: Path, files: list[Any], keys: list[PurePosixPath], images: dict
            ) -> Iterator[tuple[str, str, bytes, Any]]:
     """The entries of :func:`frame_entries` from the set's frame files and their paths without suffix."""
     seen: set[str] = set()
-    for f, key in sorted(zip(files, keys), key=lambda fk: _natural(fk[0].name)):
+    for f, key in sorted(zip(files, keys, strict=True), key=lambda fk: _natural(fk[0].name)):
         name = key.name
         where = f.label if root.is_dir() else f"{root}!{f.name}"
         if name in seen:

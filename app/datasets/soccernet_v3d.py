@@ -74,7 +74,7 @@ def ball_entry(box: list[float], like: Mapping[str, Any] | None = None) -> dict[
     >>> ball_entry([1.0, 2.0, 3.0, 4.0])
     {'class': 'Ball', 'ID': None, 'points': {'x1': 1.0, 'y1': 2.0, 'x2': 3.0, 'y2': 4.0}}
     """
-    return {**(like or {"class": BALL_CLASS, "ID": None}), "points": dict(zip(_BOX_KEYS, box))}
+    return {**(like or {"class": BALL_CLASS, "ID": None}), "points": dict(zip(_BOX_KEYS, box, strict=False))}
 
 
 def _with_ball(bboxes: list[Any], entry: Mapping[str, Any] | None) -> list[Any]:

@@ -96,7 +96,7 @@ def visible_runs(uv: np.ndarray, in_front: np.ndarray, width: float, height: flo
     joined[1:] = (np.diff(idx) == 1) & (t1[idx[:-1]] == 1.0) & (t0[idx[1:]] == 0.0)
     starts = np.flatnonzero(~joined)
     ends = np.append(starts[1:], len(idx))
-    return [np.vstack([a[s:s + 1], b[s:e]]) for s, e in zip(starts, ends)]
+    return [np.vstack([a[s:s + 1], b[s:e]]) for s, e in zip(starts, ends, strict=True)]
 
 
 def polyline_length(points: np.ndarray) -> float:

@@ -182,7 +182,7 @@ def ball_from_box_exact(camera: Camera, boxes: np.ndarray, ball_diameter_m: floa
     r = ball_diameter_m / 2
     if camera.has_distortion:
         start = ball_from_box(camera, b, ball_diameter_m)
-        return np.array([_refine_on_silhouette(camera, box, x0, r) for box, x0 in zip(b, start)])
+        return np.array([_refine_on_silhouette(camera, box, x0, r) for box, x0 in zip(b, start, strict=True)])
     P = camera.projection_matrix
     lines = np.zeros((len(b), 4, 3))
     lines[:, 0] = np.stack([np.ones(len(b)), np.zeros(len(b)), -b[:, 0]], axis=1)
@@ -193,7 +193,7 @@ def ball_from_box_exact(camera: Camera, boxes: np.ndarray, ball_diameter_m: floa
     norms = np.linalg.norm(planes[..., :3], axis=2, keepdims=True)
     A = planes[..., :3] / norms
     rhs = r - planes[..., 3] / norms[..., 0]
-    return np.stack([np.linalg.lstsq(a, y, rcond=None)[0] for a, y in zip(A, rhs)])
+    return np.stack([np.linalg.lstsq(a, y, rcond=None)[0] for a, y in zip(A, rhs, strict=True)])
 
 
 def _refine_on_silhouette(camera: Camera, box: np.ndarray, start: np.ndarray, r: float) -> np.ndarray:

@@ -157,10 +157,11 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
         if abs(h[3]) > 1e-12:
             refit = h[:3] / h[3]
             errs = [_scaled_error(obs[k], refit) for k in members]
-            if all(e is not None and e < tol[k] for e, k in zip(errs, members)):
+            if all(e is not None and e < tol[k] for e, k in zip(errs, members, strict=True)):
                 point = refit
     errors = {o.view_id: _scaled_error(o, point) for o in obs}
-    inliers = tuple(o.view_id for o, t in zip(obs, tol) if errors[o.view_id] is not None and errors[o.view_id] < t)
+    inliers = tuple(o.view_id for o, t in zip(obs, tol, strict=True)
+                    if errors[o.view_id] is not None and errors[o.view_id] < t)
     outliers = tuple(v for v in ids if v not in inliers)
     point = np.asarray(point, float)
     point.setflags(write=False)

@@ -306,4 +306,4 @@ def jac_at_gammas(camera: Camera, lines: FieldLines, width: int, height: int,
     """
     gammas = tuple(gammas)
     result = evaluate_jac(camera, lines, width, height, gamma_thresholds(width, height, gammas))
-    return {float(g): t.jac for g, t in zip(gammas, result.per_threshold)}
+    return {float(g): t.jac for g, t in zip(gammas, result.per_threshold, strict=True)}

@@ -380,7 +380,8 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     dists = [rig_distances(v.camera, rig) for v in vs]
     rigs = [_rig_vote(d, dm, settings) for d, dm in dists]
     rig_w = {1: settings.rig_weight_mirrored, -1: settings.rig_weight_as_labelled, 0: 0.0}
-    unary = np.array([settings.side_weight * sv + rig_w[rv] * rv - settings.prior for sv, rv in zip(sides, rigs)])
+    unary = np.array([settings.side_weight * sv + rig_w[rv] * rv - settings.prior
+                      for sv, rv in zip(sides, rigs, strict=True)])
 
     pair_ev: dict[int, list[PairEvidence]] = {i: [] for i in range(n)}
     constraints: list[tuple[int, int, int]] = []  # (i, j, +1 same / -1 different)

@@ -79,7 +79,7 @@ class LabelTable:
         self.R = np.stack([cameras[k].R for k in cams]) if len(cams) else np.zeros((0, 3, 3))  # type: ignore[union-attr]
         self.C = np.stack([cameras[k].C for k in cams]) if len(cams) else np.zeros((0, 3))  # type: ignore[union-attr]
         scale = np.array([0.5 * (cam.K[0, 0] + cam.K[1, 1]) * REFERENCE_WIDTH_PX / w if cam is not None else 1.0
-                          for cam, w in zip(cameras, widths)])
+                          for cam, w in zip(cameras, widths, strict=False)])
         self.scale = scale[cams]
         self.rows = self.R[:, :2, :] - self.xy[:, :, None] * self.R[:, 2:3, :]
 
@@ -258,7 +258,7 @@ def _solve_sets(W: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarr
     """Least squares of each set's equations ``W[starts[i]:ends[i]]`` = ``[M | y]`` ((rows, 2, 7)):
     (m, 6) solutions from the equilibrated normal equations (each set's own product, so a set's
     solution does not depend on the others); ``lstsq`` for an ill-conditioned or rank-deficient set."""
-    G7 = np.stack([W[a:b].reshape(-1, 7).T @ W[a:b].reshape(-1, 7) for a, b in zip(starts, ends)])
+    G7 = np.stack([W[a:b].reshape(-1, 7).T @ W[a:b].reshape(-1, 7) for a, b in zip(starts, ends, strict=False)])
     G, h = G7[:, :6, :6], G7[:, :6, 6]
     d = np.sqrt(np.einsum("mii->mi", G))
     d = np.where(d > 0, d, 1.0)
@@ -324,7 +324,7 @@ def position_prior(times_s: Sequence[float], targets: np.ndarray, sigma_m: float
     ``p(t) = p0 + v0 t + (0, 0, g t^2 / 2)``."""
     rows, rhs = [], []
     w = CAUCHY_PX / sigma_m
-    for tau, target in zip(times_s, np.asarray(targets, float)):
+    for tau, target in zip(times_s, np.asarray(targets, float), strict=False):
         rows.append(np.hstack([np.eye(3), tau * np.eye(3)]) * w)
         rhs.append((target - np.array([0.0, 0.0, 0.5 * GRAVITY_M_S2 * tau ** 2])) * w)
     return np.vstack(rows), np.concatenate(rhs)

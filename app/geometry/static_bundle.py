@@ -37,6 +37,7 @@ World: SoccerNet metres, origin at the centre spot, z down. Image: continuous pi
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -192,11 +193,11 @@ def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines |
     rms0 = rms(xs, X, sigma_ball)
     for _ in range(max_rounds):
         xs, X, n = _schur_lm(xs, X, active, slot, n_cam, lab_f, by_cam, len(frames),
-                             lambda k, xk: line_res(k, xk, sigma_lines),
-                             lambda k, xk, Xk: ball_res(k, xk, Xk, sigma_ball), loss_scale_sigma, max_iterations)
+                             functools.partial(line_res, sigma_lines=sigma_lines),
+                             functools.partial(ball_res, sigma_ball=sigma_ball), loss_scale_sigma, max_iterations)
         nfev += n
         new = sigmas(xs, X)
-        settled = all(abs(a / b - 1) < SIGMA_SETTLED for a, b in zip(new, (sigma_lines, sigma_ball)))
+        settled = all(abs(a / b - 1) < SIGMA_SETTLED for a, b in zip(new, (sigma_lines, sigma_ball), strict=True))
         sigma_lines, sigma_ball = new
         if settled:
             break

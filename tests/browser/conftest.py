@@ -61,7 +61,7 @@ def _calibration_only_folder(dataset: Path, out: Path) -> Path:
     for line in action["lines"]:
         xy = line["points"]
         frame.setdefault(line["class"], []).extend(
-            {"x": x / (w - 1), "y": y / (h - 1)} for x, y in zip(xy[0::2], xy[1::2]))
+            {"x": x / (w - 1), "y": y / (h - 1)} for x, y in zip(xy[0::2], xy[1::2], strict=False))
     out.mkdir(parents=True)
     (out / f"{Path(name).stem}.json").write_text(json.dumps(frame))
     return out

@@ -35,7 +35,7 @@ def _triangulated_with_box(page) -> tuple[dict, int]:
 
 def test_nudge_undo_redo_exclusion_and_the_history_summaries(page, artifacts):
     system, k = _triangulated_with_box(page)
-    sid, fid = system["id"], system["views"][k]["frame_id"]
+    sid = system["id"]
     accepted = api_write(page, "POST", f"/api/systems/{sid}/review",
                          data={"status": "accepted", "comment": "looked fine"},
                          headers={"If-Match": system["etag"]})

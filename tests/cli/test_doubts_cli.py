@@ -85,7 +85,7 @@ def test_the_misplaced_ball_is_offered_the_true_box_with_its_uncertainty(demo_db
     centre_error = ((box[0] + box[2] - precise[0] - precise[2]) ** 2
                     + (box[1] + box[3] - precise[1] - precise[3]) ** 2) ** 0.5 / 2
     assert centre_error < 3.0, (box, precise)
-    assert max(abs(a - b) for a, b in zip(box, precise)) < 3.0
+    assert max(abs(a - b) for a, b in zip(box, precise, strict=False)) < 3.0
     assert 0.0 < fix["box_sigma_px"] < 5.0 and centre_error < 3 * fix["box_sigma_px"] + 1.0
     # the page's fix key sends the box as a suggestion (its provenance), not as a person's label
     assert fix["request"]["body"]["provenance"]["doubt"] == "ball_off_consensus"

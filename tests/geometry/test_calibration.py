@@ -319,7 +319,7 @@ def test_frames_calibrated_together_equal_one_call_each() -> None:
     jobs += [(lines, 960, 540, CalibrationPrior(expected_side=1)), (other, 960, 540, None)]
     together = calibrate_frames_together(jobs)
     assert [r.status for r in together][3:] == ["calibrated", "calibrated"] and together[0].calibrated
-    for (job_lines, w, h, prior), got in zip(jobs, together):
+    for (job_lines, w, h, prior), got in zip(jobs, together, strict=False):
         alone = calibrate_frame(job_lines, w, h, prior=prior)
         assert (got.status, got.refusal, got.flags, got.rms_px, dict(got.jac), dict(got.residuals_px)) == \
                (alone.status, alone.refusal, alone.flags, alone.rms_px, dict(alone.jac), dict(alone.residuals_px))

@@ -175,7 +175,7 @@ def test_with_one_other_view_the_missing_ball_is_a_segment_and_a_box_only_where_
 
 def _polyline_distance(poly: np.ndarray, p: np.ndarray) -> float:
     best = math.inf
-    for a, b in zip(poly[:-1], poly[1:]):
+    for a, b in zip(poly[:-1], poly[1:], strict=True):
         t = np.clip((p - a) @ (b - a) / max((b - a) @ (b - a), 1e-12), 0, 1)
         best = min(best, float(np.linalg.norm(a + t * (b - a) - p)))
     return best

@@ -224,7 +224,7 @@ def _official_comparison(folder: Path) -> tuple[int, list[str], list[str]]:
                 continue
             lines = from_soccernet_calibration(json.loads(za.read(name)), w, h)
             result = evaluate_jac(Camera.from_soccernet(json.loads(zc.read(cam_name))), lines, w, h, thresholds)
-            for t, got, want in zip(thresholds, (r.jac for r in result.per_threshold), expected):
+            for t, got, want in zip(thresholds, (r.jac for r in result.per_threshold), expected, strict=False):
                 pairs += 1
                 if abs(got - want) <= 1e-6:
                     continue

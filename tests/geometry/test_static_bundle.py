@@ -95,7 +95,7 @@ def test_bundle_recovers_the_rig_from_lines_and_ball(seed):
     res = bundle_adjust(start, lines, pts, np.isfinite(pts[..., 0]), X0)
     assert res.frames > 300 and res.labels > 800
     errors = []
-    for got, cam, s in zip(res.cameras, truth, start):
+    for got, cam, s in zip(res.cameras, truth, start, strict=False):
         assert np.linalg.norm(s.C - cam.C) > 0.149  # the start was off
         errors.append(np.linalg.norm(got.C - cam.C))
         assert errors[-1] < 0.1

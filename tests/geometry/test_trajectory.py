@@ -314,10 +314,25 @@ def test_linear_fits_of_many_sets_equal_those_of_each_alone(scene):
         idx = np.concatenate([by_frame[f] for f in frames if a <= f <= b])
         jobs += [(idx, kind, a) for kind in motion.KINDS]
     together = motion.linear_fits(L, jobs, FPS)
-    for job, (q, cost) in zip(jobs, together):
+    for job, (q, cost) in zip(jobs, together, strict=False):
         alone_q, alone_cost = motion.linear_fits(L, [job], FPS)[0]
         assert np.array_equal(q, alone_q) and cost == alone_cost
         assert np.all(np.isfinite(q)) and cost >= 0
+
+
+def _residuals(q, sub, kind, t):
+    from app.geometry import motion
+    return motion.residuals_and_jacobian(sub, kind, q, t, False)[0]
+
+
+def _jacobian(q, sub, kind, t):
+    from app.geometry import motion
+    return motion.residuals_and_jacobian(sub, kind, q, t)[1]
+
+
+def _cost(q, sub, kind, t):
+    from app.geometry import motion
+    return motion._loss(_residuals(q, sub, kind, t))
 
 
 def test_refinement_reaches_the_minimum_scipy_finds(scene):
@@ -338,14 +353,9 @@ def test_refinement_reaches_the_minimum_scipy_finds(scene):
         for kind in motion.KINDS:
             start = motion.linear_fits(sub, [(np.arange(len(t)), kind, piece.first_frame)], FPS)[0][0]
             ours = motion.refine(sub, kind, start, t)
-            theirs = least_squares(lambda q: motion.residuals_and_jacobian(sub, kind, q, t, False)[0], start,
-                                   jac=lambda q: motion.residuals_and_jacobian(sub, kind, q, t)[1], loss="cauchy",
+            theirs = least_squares(_residuals, start, jac=_jacobian, args=(sub, kind, t), loss="cauchy",
                                    f_scale=motion.CAUCHY_PX, x_scale="jac").x
-
-            def cost(q):
-                return motion._loss(motion.residuals_and_jacobian(sub, kind, q, t, False)[0])
-
-            assert cost(ours) <= cost(theirs) * (1 + 1e-8)
+            assert _cost(ours, sub, kind, t) <= _cost(theirs, sub, kind, t) * (1 + 1e-8)
             if kind == piece.kind:  # the model the piece has: one well-defined minimum
                 assert np.abs(motion.positions(kind, ours, t) - motion.positions(kind, theirs, t)).max() < 1e-4
 
@@ -411,7 +421,8 @@ def test_a_flight_seen_by_one_camera_is_tied_to_its_neighbours(scene, monkeypatc
     pts = pts.copy()
     one = slice(51, 97)  # the lofted kick acts between frames 50 and 51, the bounce between 96 and 97
     pts[one, [0, 2, 3]] = np.nan
-    err = lambda f: np.linalg.norm(f.positions[one] - truth[one], axis=1).max()  # noqa: E731
+    def err(f):
+        return np.linalg.norm(f.positions[one] - truth[one], axis=1).max()
     tied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0,
                           min_parallax_deg=0.0)
     for module in (segmentation_module, refit_module):

@@ -266,7 +266,7 @@ def test_dev_set_triangulation_with_true_cameras(shared_dir):
     counts = bench.sweep_counts(systems, results, mirror_calibration=True)
     assert counts["bad_pairs"] >= 10 and counts["bad_pairs_dropped"] == counts["bad_pairs"]
     assert counts["good_pairs_kept"] == counts["good_pairs"]
-    near_duplicate = [r for s, r in zip(systems, results)
+    near_duplicate = [r for s, r in zip(systems, results, strict=False)
                       if any(p.reason == "baseline_below_min" for p in r.pairs)]
     assert len(near_duplicate) == 2
 
@@ -411,7 +411,7 @@ def test_one_undistortion_per_view_gives_the_rays_pixels_and_errors_of_the_camer
             cams.append(cam)
         pa, pb = rng.uniform(0, 1920, 2), rng.uniform(0, 1080, 2)
         a, b = (BallObservation(view_id=k, camera=c, point_px=p, image_width=1920)
-                for k, (c, p) in enumerate(zip(cams, (pa, pb))))
+                for k, (c, p) in enumerate(zip(cams, (pa, pb), strict=False)))
         g = pair_geometry(a, b)
         ra, rb = cams[0].rays(pa.reshape(1, 2))[0], cams[1].rays(pb.reshape(1, 2))[0]
         assert g.parallax_deg == pytest.approx(np.degrees(np.arctan2(np.linalg.norm(np.cross(ra, rb)), ra @ rb)),
@@ -421,7 +421,7 @@ def test_one_undistortion_per_view_gives_the_rays_pixels_and_errors_of_the_camer
         assert np.allclose(np.abs(g.h), np.abs(h), atol=1e-12)
         assert g.baseline_m == pytest.approx(float(np.linalg.norm(cams[0].C - cams[1].C)), rel=1e-12)
         point = rng.uniform(-50, 50, 3) * [1.0, 1.0, 0.1]
-        for cam, p in zip(cams, (pa, pb)):
+        for cam, p in zip(cams, (pa, pb), strict=False):
             uv, in_front = cam.project(point.reshape(1, 3))
             expected = float(np.linalg.norm(uv[0] - p)) if in_front[0] else None
             assert reprojection_error_px(cam, point, p) == (pytest.approx(expected, rel=1e-12)

@@ -309,7 +309,7 @@ def labelled_target(obs: Observations) -> np.ndarray:
     none of those exists.
     """
     anchors: list[np.ndarray] = []
-    ground = [(a, b) for c, a, b in zip(obs.seg_classes, obs.seg_a, obs.seg_b) if c not in GOAL_CLASSES]
+    ground = [(a, b) for c, a, b in zip(obs.seg_classes, obs.seg_a, obs.seg_b, strict=True) if c not in GOAL_CLASSES]
     for i in range(len(ground)):
         for j in range(i + 1, len(ground)):
             (a1, b1), (a2, b2) = ground[i], ground[j]
@@ -323,11 +323,11 @@ def labelled_target(obs: Observations) -> np.ndarray:
                 anchors.append(np.array([a1[0], a2[1], 0.0]))
     for c in obs.circle_centre:
         anchors.append(np.array([c[0], c[1], 0.0]))
-    for c, a, b in zip(obs.seg_classes, obs.seg_a, obs.seg_b):
+    for c, a, _b in zip(obs.seg_classes, obs.seg_a, obs.seg_b, strict=True):
         if c in GOAL_CLASSES:
             anchors.append(np.array([a[0], 0.0, 0.0]))
     if not anchors:
-        anchors = [0.5 * (a + b) for a, b in zip(obs.seg_a, obs.seg_b)]
+        anchors = [0.5 * (a + b) for a, b in zip(obs.seg_a, obs.seg_b, strict=True)]
     if not anchors:
         return np.zeros(3)
     t = np.mean(anchors, axis=0)
@@ -354,7 +354,7 @@ def anchor_correspondences(obs: Observations, scale_px: float) -> list[tuple[np.
     """
     out: list[tuple[np.ndarray, np.ndarray]] = []
     ground: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (a, b, image line in pixels)
-    for i, (c, a, b) in enumerate(zip(obs.seg_classes, obs.seg_a, obs.seg_b)):
+    for i, (c, a, b) in enumerate(zip(obs.seg_classes, obs.seg_a, obs.seg_b, strict=True)):
         pts = obs.seg_points[obs.seg_index == i]
         if c in GOAL_CLASSES:
             out.append((pts.mean(axis=0), np.array([a[0], 0.0, 0.0])))

@@ -141,7 +141,7 @@ class Observations:
     def ground_line_directions(self) -> tuple[int, int]:
         """Number of annotated ground (z = 0) straight elements along world x and along world y."""
         nx = ny = 0
-        for c, a, b in zip(self.seg_classes, self.seg_a, self.seg_b):
+        for c, a, b in zip(self.seg_classes, self.seg_a, self.seg_b, strict=True):
             if c in GOAL_CLASSES:
                 continue
             if abs(b[0] - a[0]) > abs(b[1] - a[1]):

@@ -277,7 +277,7 @@ def undistort_radial_k1(uv: np.ndarray, f: np.ndarray | float, pp: np.ndarray, k
     out = np.empty(f.shape + uv.shape)
     flat_out = out.reshape((f.size,) + uv.shape)
     pp = np.asarray(pp, dtype=float)
-    for i, (fi, ki) in enumerate(zip(f.ravel().tolist(), k1.ravel().tolist())):
+    for i, (fi, ki) in enumerate(zip(f.ravel().tolist(), k1.ravel().tolist(), strict=True)):
         if ki == 0.0:
             flat_out[i] = uv
         else:

@@ -214,8 +214,8 @@ def _fixed_centre_starts(obs: Observations, centre: np.ndarray, pp: np.ndarray, 
     except ValueError:
         pass
     params = [CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=centre) for R0 in rotations]
-    x0s = [param.vector(float(f0), centre) for param, f0 in zip(params, f_all)]
-    starts = list(zip(start_costs(x0s, params, obs, scale), params, x0s))
+    x0s = [param.vector(float(f0), centre) for param, f0 in zip(params, f_all, strict=True)]
+    starts = list(zip(start_costs(x0s, params, obs, scale), params, x0s, strict=True))
     starts.sort(key=lambda t: t[0])
     return starts
 
@@ -233,7 +233,7 @@ def homography_starts(obs: Observations, pp: np.ndarray, scale: float
         param = CameraParametrisation(principal_point=pp, R0=R0)
         inits.append((name, param, param.vector(f0, C0)))
     costs = start_costs([x0 for _, _, x0 in inits], [param for _, param, _ in inits], obs, scale)
-    starts = [(cost, name, param, x0) for cost, (name, param, x0) in zip(costs, inits)]
+    starts = [(cost, name, param, x0) for cost, (name, param, x0) in zip(costs, inits, strict=True)]
     starts.sort(key=lambda t: t[0])
     return starts
 

@@ -125,12 +125,12 @@ def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int
              not (hi + 1 < len(pieces) and _gap_between(old[-1], pieces[hi + 1]))):
         return None
     cuts = [sum(f < p.first_frame for f in frames) for p in old] + [len(frames)]
-    bounds = list(zip(cuts[:-1], cuts[1:]))
+    bounds = list(zip(cuts[:-1], cuts[1:], strict=True))
     if any(b - a < 1 for a, b in bounds):
         return None
     best = _Best(L, by_frame, fps)
     bounds = _shift_bounds(L, by_frame, frames, fps, bounds, best)
-    for (a, b), p in zip(bounds, old):
+    for (a, b), p in zip(bounds, old, strict=True):
         check = best(frames[a:b])
         if check.kind != p.kind:
             return None
@@ -139,10 +139,10 @@ def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int
             return None
     # refined as :func:`_segment` does, each model's refinement started from the piece before the edit
     new = [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=p, linear=best.linear(frames[a:b]))
-           for (a, b), p in zip(bounds, old)]
+           for (a, b), p in zip(bounds, old, strict=True)]
     new = _anchored(L, by_frame, fps, list(pieces[:lo]) + new + list(pieces[hi + 1:]),
                     range(lo, lo + len(new)))[lo:lo + len(new)]
-    if not all(_acceptable(p, b - a, fps, len(pieces) == 1) for (a, b), p in zip(bounds, new)):
+    if not all(_acceptable(p, b - a, fps, len(pieces) == 1) for (a, b), p in zip(bounds, new, strict=True)):
         return None  # the segmentation would leave it out (:func:`_plausible_pieces`)
     return lo, hi, new
 

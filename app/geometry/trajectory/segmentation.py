@@ -187,7 +187,7 @@ def _model_fits(L: _Labels, by_frame, frames: Sequence[int], fps: float, refine:
             other = _other(start.kind)
             warm[other] = _shifted(other, start.alternative, dt) if dt else start.alternative
     missing = [kind for kind in kinds if kind not in lin and (not refine or kind not in warm)]
-    fits = dict(zip(missing, linear_fits(L, [(idx, kind, first) for kind in missing], fps)))
+    fits = dict(zip(missing, linear_fits(L, [(idx, kind, first) for kind in missing], fps), strict=True))
     if not refine:
         return fits
     lin.update({kind: q for kind, (q, _) in fits.items()})
@@ -236,7 +236,7 @@ class _Best:
                 jobs.append((idx, kind, int(key[0])))
                 owners.append((key, kind))
         fits: dict[tuple[int, ...], dict[str, tuple[np.ndarray, float]]] = {key: {} for key in todo}
-        for (key, kind), fit in zip(owners, linear_fits(self.L, jobs, self.fps)):
+        for (key, kind), fit in zip(owners, linear_fits(self.L, jobs, self.fps), strict=True):
             fits[key][kind] = fit
         for key in todo:
             self._done[key] = (_choose(key, fits[key], sum(len(self.by_frame[f]) for f in key)), fits[key])
@@ -313,7 +313,7 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
                 if costs:
                     cuts.add(min(costs)[1])
             cuts = sorted(cuts)
-            split += list(zip(cuts[:-1], cuts[1:]))
+            split += list(zip(cuts[:-1], cuts[1:], strict=True))
         if len(split) == len(bounds):
             break
         bounds = _shift_bounds(L, by_frame, frames, fps, split, best)
@@ -400,9 +400,9 @@ def _plausible_pieces(L: _Labels, by_frame, frames: Sequence[int], fps: float, b
     fitted together with its neighbour instead (kept when that is acceptable; the labels it does not
     explain are flagged), or dropped."""
     alone = len(pieces) == 1
-    ok = [_acceptable(p, b - a, fps, alone) for (a, b), p in zip(bounds, pieces)]
-    out: list[Piece | None] = [p if good else None for p, good in zip(pieces, ok)]
-    for end, (i, j) in zip(ends, ((0, 1), (len(pieces) - 1, len(pieces) - 2))):
+    ok = [_acceptable(p, b - a, fps, alone) for (a, b), p in zip(bounds, pieces, strict=False)]
+    out: list[Piece | None] = [p if good else None for p, good in zip(pieces, ok, strict=False)]
+    for end, (i, j) in zip(ends, ((0, 1), (len(pieces) - 1, len(pieces) - 2)), strict=True):
         if not end or len(pieces) < 2 or ok[i] or not ok[j]:
             continue
         (a, b) = (bounds[i][0], bounds[j][1]) if i < j else (bounds[j][0], bounds[i][1])

@@ -93,7 +93,7 @@ def _same_point(a: Any, b: Any) -> bool:
 
 
 def _same_poly(a: list, b: list) -> bool:
-    return len(a) == len(b) and all(_same_point(p, q) for p, q in zip(a, b))
+    return len(a) == len(b) and all(_same_point(p, q) for p, q in zip(a, b, strict=True))
 
 
 def _mirrored(before: dict[str, list], after: dict[str, list]) -> bool:
@@ -104,7 +104,7 @@ def _mirrored(before: dict[str, list], after: dict[str, list]) -> bool:
     except (AnnotationError, ValueError, TypeError):
         return False
     return set(mirrored) == set(after) and all(
-        len(mirrored[c]) == len(after[c]) and all(_same_poly(p, q) for p, q in zip(mirrored[c], after[c]))
+        len(mirrored[c]) == len(after[c]) and all(_same_poly(p, q) for p, q in zip(mirrored[c], after[c], strict=True))
         for c in after)
 
 
@@ -118,7 +118,7 @@ def lines_words(before: Any, after: Any) -> str:
     """
     b, a = _polys(before), _polys(after)
     changed = sorted(c for c in set(b) | set(a) if len(b.get(c, [])) != len(a.get(c, []))
-                     or not all(_same_poly(p, q) for p, q in zip(b.get(c, []), a.get(c, []))))
+                     or not all(_same_poly(p, q) for p, q in zip(b.get(c, []), a.get(c, []), strict=True)))
     if not changed:
         return "field lines unchanged"
     if len(changed) == 1:
@@ -126,11 +126,11 @@ def lines_words(before: Any, after: Any) -> str:
         pb, pa = b.get(cls, []), a.get(cls, [])
         name = cls.strip()
         if len(pb) == len(pa):
-            diffs = [(i, p, q) for i, (p, q) in enumerate(zip(pb, pa)) if not _same_poly(p, q)]
+            diffs = [(i, p, q) for i, (p, q) in enumerate(zip(pb, pa, strict=True)) if not _same_poly(p, q)]
             if len(diffs) == 1:
                 _, p, q = diffs[0]
                 if len(p) == len(q):
-                    moved = [j for j, (u, v) in enumerate(zip(p, q)) if not _same_point(u, v)]
+                    moved = [j for j, (u, v) in enumerate(zip(p, q, strict=True)) if not _same_point(u, v)]
                     return (f"moved point {moved[0] + 1} of {name}" if len(moved) == 1
                             else f"moved {len(moved)} points of {name}")
                 if len(q) == len(p) + 1:

@@ -135,12 +135,12 @@ def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings,
     if ahead is not None:
         index = {id(rec): i for i, rec in enumerate(recs)}
         done = 0
-        for game, calibrated in zip(ahead.games, ahead.results):  # waits for each game in turn
+        for game, calibrated in zip(ahead.games, ahead.results, strict=False):  # waits for each game in turn
             done += len(game)
             if progress:
                 progress("calibrate", min(done, len(jobs)), len(jobs))
             mine = [index.get(key) for key in game]
-            if any(i is None or ahead.jobs[key][0] != jobs[i] for i, key in zip(mine, game)):
+            if any(i is None or ahead.jobs[key][0] != jobs[i] for i, key in zip(mine, game, strict=True)):
                 continue  # a frame's job changed: the game is calibrated now, both passes
             for k, i in enumerate(mine):
                 results[i], first_ms[i] = calibrated.final[k], calibrated.first[k].elapsed_ms
@@ -150,7 +150,8 @@ def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings,
     rest = [i for i, r in enumerate(results) if r is None]
     done = len(jobs) - len(rest)
     step = (lambda stage, n, total: progress(stage, done + n, len(jobs))) if progress else None
-    for i, fields in zip(rest, calibrate_many([jobs[i] for i in rest], settings.calibration_workers, step, pool=pool)):
+    for i, fields in zip(rest, calibrate_many([jobs[i] for i in rest], settings.calibration_workers, step, pool=pool),
+                         strict=True):
         results[i], first_ms[i] = fields, fields.elapsed_ms
     return BatchCalibration(results, first_ms, finished, rig_ms)  # type: ignore[arg-type]
 
@@ -166,7 +167,7 @@ def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[Ca
     the rig's mirror flag) and the rig pass's time per retried frame index (ms). Frames in ``finished``
     (their game calibrated whole ahead, :func:`calibrate_game`) are left as they are."""
     done = set(finished)
-    retry = [i for i, (f, r) in enumerate(zip(frames, results))
+    retry = [i for i, (f, r) in enumerate(zip(frames, results, strict=False))
              if i not in done and wants_rig_retry(r, settings) and uses_rig(f.system)]
     if not retry:
         return results, {}
@@ -180,7 +181,8 @@ def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[Ca
     jobs = [calibration_job(frames[i], rigs[id(frames[i].system.game)]) for i in retry]
     out = list(results)
     rig_ms: dict[int, float] = {}
-    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig", pool=pool)):
+    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig", pool=pool),
+                         strict=True):
         out[i] = with_rig_retry(out[i], fields)
         rig_ms[i] = fields.elapsed_ms or 0.0
     return out, rig_ms
@@ -209,7 +211,8 @@ def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationField
     out = list(results)
     ms: dict[int, float] = {}
     jobs = [calibration_job(frames[i], priors[i]) for i in retry]
-    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="prior", pool=pool)):
+    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="prior", pool=pool),
+                         strict=True):
         out[i] = with_prior_refit(out[i], fields)
         ms[i] = fields.elapsed_ms or 0.0
     return out, ms, learned

@@ -50,7 +50,7 @@ def dataset_prior(results: Sequence[CalibrationFields],
     if lines is not None:
         confident, _ = confident_mask(stds)
         radial = []
-        for cam, sure, i in zip(cams, confident, used):
+        for cam, sure, i in zip(cams, confident, used, strict=True):
             if not sure:
                 radial.append(float("nan"))  # not among the confident fits the prior learns from
                 continue

@@ -69,8 +69,9 @@ def preview_calibration(session: Session, frame_id: int, lines: Mapping[str, Any
     with session.no_autoflush:
         calibrated = calibrate_frame_lines(session, frame, settings, lines=parsed, refine=False)
     fields = calibrated.fields
+    # transient: never added to the session
     as_stored = Calibration(status=fields.status, camera=fields.camera, flags=list(fields.flags),
-                            **dict(zip(JAC_COLUMNS.values(), fields.jac)))  # transient: never added to the session
+                            **dict(zip(JAC_COLUMNS.values(), fields.jac, strict=True)))
     camera = fields.camera if fields.status is CalibrationStatus.CALIBRATED else None
     drawn = pitch_lines(camera, frame.width, frame.height, keep=False)
     return CalibrationPreview(frame_id=frame.id, fields=fields, jac=as_stored.jac(),

@@ -31,6 +31,8 @@ from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort,
 
 #: The counts of a pass: decisions by status, and ``skipped``: systems still pending.
 COUNT_KEYS = ("accepted", "rejected", "needs_fix", "skipped")
+#: No filter: every system (the default queue of a pass; frozen, so one instance serves every call).
+ALL_SYSTEMS = SystemFilters()
 
 
 @dataclass(frozen=True)
@@ -66,7 +68,7 @@ def filters_json(filters: SystemFilters) -> dict[str, Any]:
     return out
 
 
-def start_pass(session: Session, user: str, filters: SystemFilters = SystemFilters(), sort: SystemSort = DEFAULT_SORT,
+def start_pass(session: Session, user: str, filters: SystemFilters = ALL_SYSTEMS, sort: SystemSort = DEFAULT_SORT,
                system_id: Optional[int] = None, fresh: bool = False) -> ReviewPass:
     """Begin a pass over the queue ``filters`` + ``sort`` for ``user``, or continue one, and commit.
 

@@ -250,7 +250,7 @@ def decode_cursor(cursor: str, sort: SystemSort, field: str = "after") -> tuple[
         raise InvalidInputError("not a queue cursor (use next_cursor / prev_cursor of a page)", field=field)
     if not isinstance(values[-1], int) or isinstance(values[-1], bool) or not 1 <= values[-1] <= DB_INT_MAX:
         raise InvalidInputError("not a queue cursor (its last value is a system id)", field=field)
-    for i, (key, value) in enumerate(zip(keys, values)):
+    for i, (key, value) in enumerate(zip(keys, values, strict=True)):
         if not _fits(key, value):
             raise InvalidInputError(f"not a queue cursor (its value {i + 1} cannot be a stored "
                                     f"{_kind(key)}: forged or damaged)", field=field)
@@ -307,7 +307,7 @@ def _slices(keys: list[_SortKey], current: Optional[tuple[Any, ...]],
     for i in reversed(range(len(keys))):
         order = [keys[i].clause(reverse, plain=True)] + [k.clause(reverse) for k in keys[i + 1:]]
         for beyond in keys[i].beyond(current[i], side):
-            out.append(([*(k.equal(v) for k, v in zip(keys[:i], current)), beyond], order))
+            out.append(([*(k.equal(v) for k, v in zip(keys[:i], current, strict=False)), beyond], order))
     return out
 
 
@@ -488,7 +488,7 @@ def _neighbour_statements(sort: SystemSort, filters: SystemFilters, nulls: Optio
     if nulls is None:
         return keys_stmt, None
     current = tuple(None if null else sa.bindparam(f"key{i}", type_=k.expr.type)
-                    for i, (k, null) in enumerate(zip(keys, nulls)))
+                    for i, (k, null) in enumerate(zip(keys, nulls, strict=False)))
     conds = _system_conditions(filters)
     return keys_stmt, sa.select(_neighbour(base, conds, keys, current, "before"),
                                 _neighbour(base, conds, keys, current, "after"))
@@ -511,7 +511,7 @@ def _neighbour(base: sa.Select[Any], conds: list[Any], keys: list[_SortKey], cur
     reverse = side == "before"
     order = [k.clause(reverse=reverse) for k in keys]
     nearest_first = [
-        base.where(*conds, *(k.equal(v) for k, v in zip(keys[:i], current)), beyond)
+        base.where(*conds, *(k.equal(v) for k, v in zip(keys[:i], current, strict=False)), beyond)
         .order_by(*order).limit(1).scalar_subquery()
         for i in reversed(range(len(keys))) for beyond in keys[i].beyond(current[i], side)
     ]

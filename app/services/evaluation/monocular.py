@@ -317,7 +317,7 @@ def _report(views: list[ReferenceView], dets: Detections, ball_diameter_m: float
         if not cand:
             continue
         iou = box_iou(d.boxes[cand], v.box[None, :])
-        ok = [c for c, o in zip(cand, iou) if o > 0]
+        ok = [c for c, o in zip(cand, iou, strict=True) if o > 0]
         if not ok:
             continue
         best = max(ok, key=lambda c: d.scores[c])

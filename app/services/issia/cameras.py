@@ -160,7 +160,7 @@ def _bundle_adjusted(seq: IssiaSequence, choice: dict[str, CameraChoice], fit,
                                      [choice[c].ball_assisted for c in ids], admit_jac_gamma=admit_jac_gamma,
                                      admit_jac_min=admit_jac_min)
     return {cid: CameraChoice(r[0], choice[cid].source + "+bundle", r[1])
-            for cid, r in zip(ids, refined) if r is not None}
+            for cid, r in zip(ids, refined, strict=True) if r is not None}
 
 
 def bundle_refined_cameras(cameras: Sequence[Camera | None], lines: Sequence[FieldLines | None], points: np.ndarray,

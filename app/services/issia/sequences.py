@@ -181,7 +181,7 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
     lines = {cid: lines_to_json_lists(seq.lines[cid]) for cid in seq.lines}
     now = utcnow()
     w, h = seq.image_size
-    for i, index in enumerate(seq.frames):
+    for index in seq.frames:
         system = systems.get(str(index))
         new = system is None
         if new:
@@ -304,7 +304,7 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
         touched = [system]
     else:
         columns = sequence_columns(session, system.game_id, settings)
-        first = dict(zip(columns.names, columns.first_admitted)).get(recalibrated.name)
+        first = dict(zip(columns.names, columns.first_admitted, strict=False)).get(recalibrated.name)
         if first is not None and system.frame_index > first:
             return []  # an earlier view of this camera gives the camera: the trajectory is unchanged
         changed = fit_sequence(session, system.game_id, settings)

@@ -135,7 +135,7 @@ def _frame_json(row: Any, admitted_replays: list[str] | None) -> dict[str, Any]:
     entry["imageMetadata"] = meta
     entry.update({
         "calibration": _camera(row),
-        "JaC": {key: getattr(row, column) for key, column in zip(JAC_KEYS, JAC_COLUMNS.values())},
+        "JaC": {key: getattr(row, column) for key, column in zip(JAC_KEYS, JAC_COLUMNS.values(), strict=True)},
         "v3d": {
             "source": row.cal_source.value if calibrated else None,
             "status": row.cal_status.value if calibrated else None,

@@ -402,7 +402,7 @@ def test_the_pieces_an_edit_reads_are_those_within_reach(db_session, db_settings
         piece_from_json(d) for d in db_session.scalars(sa.select(TrajectoryPoint.piece)) if d)}.values(),
         key=lambda p: p.first_frame)
     assert len(every) > REFIT_REACH + 1
-    gaps = [p.last_frame + 1 for p, q in zip(every, every[1:]) if q.first_frame > p.last_frame + 1]
+    gaps = [p.last_frame + 1 for p, q in zip(every, every[1:], strict=False) if q.first_frame > p.last_frame + 1]
     assert gaps, "the dev sequence's fit has a gap between pieces (a short piece left out)"
     for f in (0, 16, 70, 115, gaps[0], 199):
         hit = [i for i, p in enumerate(every) if p.first_frame <= f <= p.last_frame] or \
@@ -441,7 +441,7 @@ def test_the_cameras_an_edit_reads_are_those_of_the_whole_sequence(db_session, d
         assert (mine is None) == (whole is None), name
         if mine is not None:
             np.testing.assert_array_equal(mine.projection_matrix, whole.projection_matrix)
-    by_name = dict(zip(columns.names, columns.first_admitted))
+    by_name = dict(zip(columns.names, columns.first_admitted, strict=False))
     assert by_name["cam3"] == 3 and by_name["cam5"] is None and by_name["cam1"] == 0
     np.testing.assert_allclose(columns.cameras[columns.names.index("cam3")].C, later.camera["position_meters"])
 
