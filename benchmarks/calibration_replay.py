@@ -33,13 +33,13 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from app.core.config import Settings  # noqa: E402
-from app.datasets.records import CalibrationFields  # noqa: E402
-from app.datasets.soccernet_v3 import read_soccernet_v3  # noqa: E402
-from app.db.models import SystemKind  # noqa: E402
-from app.services.calibration.calibrating import calibrate_lines  # noqa: E402
-from app.services.calibration.first_pass import new_frame_job  # noqa: E402
-from app.services.calibration.rigs import game_rig, wants_rig_retry  # noqa: E402
+from app.core.config import Settings
+from app.datasets.records import CalibrationFields
+from app.datasets.soccernet_v3 import read_soccernet_v3
+from app.db.models import SystemKind
+from app.services.calibration.calibrating import calibrate_lines
+from app.services.calibration.first_pass import new_frame_job
+from app.services.calibration.rigs import game_rig, wants_rig_retry
 
 
 def _timed(job: tuple, profiler: cProfile.Profile | None) -> tuple[CalibrationFields, float]:

@@ -59,16 +59,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import selectinload  # noqa: E402
+from sqlalchemy import select
+from sqlalchemy.orm import selectinload
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import Frame, System  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.doubts import LABEL_KINDS, Doubt, DoubtSettings, DoubtView, judge_system  # noqa: E402
-from app.services.curation.doubts import doubt_settings, doubt_views  # noqa: E402
-from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.models import Frame, System
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.geometry.doubts import LABEL_KINDS, Doubt, DoubtSettings, DoubtView, judge_system
+from app.services.curation.doubts import doubt_settings, doubt_views
+from app.services.transfer.importing import import_soccernet_v3
 
 SETS = {"dev-large": "soccernet-v3-dev-large", "dev": "soccernet-v3-dev"}
 MIN_CLASSES = 4
@@ -156,7 +156,8 @@ class Score:
     false_alarms: list[str] = field(default_factory=list)
 
     def rates(self) -> dict[str, Any]:
-        pct = lambda a, b: round(100.0 * a / b, 1) if b else None  # noqa: E731
+        def pct(a, b):
+            return round(100.0 * a / b, 1) if b else None
         sugg = [x for x in self.suggestion_px]
         return {
             "caught_pct": pct(self.caught, self.observable), "caught": f"{self.caught}/{self.observable}",

@@ -43,7 +43,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks import load  # noqa: E402
+from benchmarks import load
 
 
 def dense_lines(lines: dict[str, Any], total: int, decimals: int = 3) -> dict[str, Any]:

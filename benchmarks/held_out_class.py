@@ -39,19 +39,19 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.calibration import (  # noqa: E402
+from app.core.paths import SHARED_DIR
+from app.geometry.annotations import from_soccernet_calibration
+from app.geometry.calibration import (
     CalibrationPrior,
     calibrate_frame,
     calibration_uncertainty,
     lines_used,
     radial_corner,
 )
-from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class  # noqa: E402
-from app.geometry.calibration.learning import learn_camera_prior  # noqa: E402
-from app.geometry.calibration.priors import CameraPrior  # noqa: E402
-from app.geometry.jac import evaluate_jac  # noqa: E402
+from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class
+from app.geometry.calibration.learning import learn_camera_prior
+from app.geometry.calibration.priors import CameraPrior
+from app.geometry.jac import evaluate_jac
 
 SETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
 TARGETS = {"sn22": 0.90, "wc14": 0.95}

@@ -32,17 +32,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import selectinload  # noqa: E402
+from sqlalchemy import select
+from sqlalchemy.orm import selectinload
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import CalibrationStatus, Frame, Game, System  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.annotations import lines_from_json_lists  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.jac import evaluate_jac  # noqa: E402
-from app.services.transfer.importing import import_sn_calibration  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.models import CalibrationStatus, Frame, Game, System
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.geometry.annotations import lines_from_json_lists
+from app.geometry.camera import Camera
+from app.geometry.jac import evaluate_jac
+from app.services.transfer.importing import import_sn_calibration
 
 DATASETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
 WIDTH, HEIGHT = 960, 540

@@ -34,10 +34,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.jac import evaluate_jac  # noqa: E402
+from app.core.paths import SHARED_DIR
+from app.geometry.annotations import from_soccernet_calibration
+from app.geometry.camera import Camera
+from app.geometry.jac import evaluate_jac
 
 W, H = 960, 540
 THRESHOLDS = (5.0, 10.0, 20.0)

@@ -30,7 +30,7 @@ from typing import Any, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.load import served  # noqa: E402
+from benchmarks.load import served
 
 DEV_SET = ROOT.parent / "shared" / "data" / "synthetic" / "soccernet-v3-dev"
 NAME, PASSWORD = "bench-lines", "bench-lines-password"

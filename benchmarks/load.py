@@ -66,7 +66,7 @@ from typing import Any, Iterator, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.scale import BenchError, free_port, percentile, v3d_command  # noqa: E402
+from benchmarks.scale import BenchError, free_port, percentile, v3d_command
 
 #: The demo server's PostgreSQL in the README and the CI (trust authentication).
 PG_DEFAULT = "postgresql+psycopg://postgres@127.0.0.1:5432/test"

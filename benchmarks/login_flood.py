@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.load import served  # noqa: E402
+from benchmarks.load import served
 
 NAME, PASSWORD = "flood-admin", "the right password"
 

@@ -21,7 +21,7 @@ from typing import Any, Iterator
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.geometry.pitch import LINE_CLASSES  # noqa: E402
+from app.geometry.pitch import LINE_CLASSES
 
 #: The classes SoccerNet-v3's devkit maps to ids (``FRAME_CLASS_DICTIONARY``): the ball, people, line classes.
 DEVKIT_CLASSES: dict[str, int] = {c: i for i, c in enumerate((

@@ -38,8 +38,8 @@ from typing import Any, Callable, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.load import fresh_database, served, user_tokens  # noqa: E402
-from benchmarks.scale import BenchError  # noqa: E402
+from benchmarks.load import fresh_database, served, user_tokens
+from benchmarks.scale import BenchError
 
 KINDS = ("health", "page", "ball", "line")
 

@@ -575,7 +575,8 @@ def format_report(result: dict[str, Any]) -> str:
                  f"{scale['requests']} requests per measure, {scale.get('ball_edits', 0)} ball edits")
     lines.append(f"{'measure':<24}{'demo':>10}{'scale':>10}{'ratio':>8}  {'target':<18}ok")
     for r in compare(demo, scale):
-        f = lambda x: "-" if x is None else f"{x:.1f}"  # noqa: E731
+        def f(x):
+            return "-" if x is None else f"{x:.1f}"
         ok = "-" if r["ok"] is None else ("ok" if r["ok"] else "MISSED")
         lines.append(f"{r['measure']:<24}{f(r['demo']):>10}{f(r['scale']):>10}{f(r['ratio']):>8}  "
                      f"{r['target']:<18}{ok}")

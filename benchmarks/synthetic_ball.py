@@ -33,17 +33,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.config import PAPER_PROFILE, Settings  # noqa: E402
-from app.geometry.ball import (  # noqa: E402
+from app.core.config import PAPER_PROFILE, Settings
+from app.geometry.ball import (
     OPTIMISED_BOX_METHODS,
     ball_from_box,
     ball_from_box_exact,
     box_centre_and_diameter,
     optimise_box,
 )
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.metrics import box_iou, box_size_error_pct, monocular_metrics  # noqa: E402
-from app.geometry.triangulation import BallObservation, TriangulationResult, triangulate_ball  # noqa: E402
+from app.geometry.camera import Camera
+from app.geometry.metrics import box_iou, box_size_error_pct, monocular_metrics
+from app.geometry.triangulation import BallObservation, TriangulationResult, triangulate_ball
 
 BALL_DIAMETER_M = 0.22
 #: Deliberate errors that make a view's ball inconsistent with the rest of its system, with true

@@ -47,25 +47,25 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import Session, selectinload  # noqa: E402
+from sqlalchemy import select
+from sqlalchemy.orm import Session, selectinload
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import CalibrationStatus, Frame, FrameRole, Game, System, Triangulation  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.annotations import lines_from_json_lists  # noqa: E402
-from app.geometry.ball import OPTIMISED_BOX_METHODS, optimise_box  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, CameraRig, RigPosition, calibrate_frame  # noqa: E402
-from app.geometry.calibration.observations import build_observations  # noqa: E402
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG  # noqa: E402
-from app.geometry.calibration.rig import calibrate_with_rig  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.jac import jac_at_gammas  # noqa: E402
-from app.geometry.metrics import box_iou, box_size_error_pct  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.models import CalibrationStatus, Frame, FrameRole, Game, System, Triangulation
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.geometry.annotations import lines_from_json_lists
+from app.geometry.ball import OPTIMISED_BOX_METHODS, optimise_box
+from app.geometry.calibration import CalibrationPrior, CameraRig, RigPosition, calibrate_frame
+from app.geometry.calibration.observations import build_observations
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
+from app.geometry.calibration.rig import calibrate_with_rig
+from app.geometry.camera import Camera
+from app.geometry.jac import jac_at_gammas
+from app.geometry.metrics import box_iou, box_size_error_pct
 from app.services.calibration.admission import admission_jac
 from app.services.calibration.calibrating import expected_side
-from app.services.transfer.importing import ImportReport, import_soccernet_v3  # noqa: E402
+from app.services.transfer.importing import ImportReport, import_soccernet_v3
 
 #: Corruption kinds of the synthetic truth (``systems[].corruption``), None excepted.
 CORRUPTIONS = ("desync", "wrong_ball", "mirrored", "no_ball")

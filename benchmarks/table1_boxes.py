@@ -19,12 +19,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.datasets.csv_cells import inert_row  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.services.evaluation.boxes import PRECISE_COLUMNS, evaluate_boxes, store_precise_boxes  # noqa: E402
-from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.datasets.csv_cells import inert_row
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.services.evaluation.boxes import PRECISE_COLUMNS, evaluate_boxes, store_precise_boxes
+from app.services.transfer.importing import import_soccernet_v3
 
 SETS = ("soccernet-v3-dev", "soccernet-v3-dev-large", "issia-dev")
 

@@ -24,12 +24,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.services.evaluation.monocular import reference_views  # noqa: E402
-from app.services.issia.sequences import LEAGUE, SEASON  # noqa: E402
-from app.services.transfer.cameras_export import camera_file  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.services.evaluation.monocular import reference_views
+from app.services.issia.sequences import LEAGUE, SEASON
+from app.services.transfer.cameras_export import camera_file
 
 SYNTHETIC = SHARED_DIR / "data" / "synthetic"
 

@@ -13,6 +13,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
 
 from app.db.models import ReviewStatus
+from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
 from app.services.curation.queue import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
 
@@ -26,8 +27,6 @@ DoubtFilter = Literal[LABEL_KINDS + INFO_KINDS + ("any", "none")]  # type: ignor
 #: Bounds of an integer compared with a stored one (ids, offsets): the id columns are ``INTEGER``, 32-bit signed
 #: on PostgreSQL (SQLite's are 64-bit). A larger number would fail in the database or its driver (a 500:
 #: "integer out of range", OverflowError; found by ``benchmarks/fuzz.py``); it is a 422 naming the parameter.
-from app.db.types import DB_INT_MAX, DB_INT_MIN  # noqa: E402
-
 #: An id (or any integer compared with a stored one) in a path or query parameter.
 DbInt = Annotated[int, Field(ge=DB_INT_MIN, le=DB_INT_MAX)]
 #: Text in a path or query parameter compared with stored text: no NUL character (PostgreSQL's text cannot hold

@@ -380,7 +380,8 @@ def _diameter_for_depth(camera: Camera, centre_px: np.ndarray, span: float) -> f
     if not camera.has_distortion:
         return d0
     c = centre_px[None, :]
-    f = lambda d: float(_edge_span(camera, c, np.array([d]))[0]) - span  # noqa: E731
+    def f(d):
+        return float(_edge_span(camera, c, np.array([d]))[0]) - span
     for k in (4.0, 32.0, 256.0):
         lo, hi = d0 / k, d0 * k
         if f(lo) <= 0 <= f(hi):

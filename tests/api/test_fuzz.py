@@ -16,7 +16,7 @@ from .factories import Scene
 pytest.importorskip("schemathesis", reason="schemathesis (the test extra) is needed by benchmarks/fuzz.py")
 
 
-from benchmarks import fuzz  # noqa: E402  (after the skip: it needs schemathesis)
+from benchmarks import fuzz  # after the skip: it needs schemathesis
 
 #: Cases per operation and mode (positive, negative): ~25 operations x 2 x 5 requests.
 EXAMPLES = 5

@@ -46,7 +46,8 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
     exact, shifted, lonely = _seed(pg_url, settings, build)
     admin = make_accounts(pg_url, login=False, roles=("admin",))["admin"]
     with as_token(TestClient(create_app(settings)), admin) as client:
-        ids = lambda **p: [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]  # noqa: E731
+        def ids(**p):
+            return [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]
         assert ids(sort="-worst_error") == [shifted, exact, lonely]
         rows = client.get("/api/systems").json()["items"]
         assert set(ids(doubt="any")) == {r["id"] for r in rows if r["label_doubts"]}

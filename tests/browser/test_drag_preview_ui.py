@@ -80,7 +80,8 @@ def test_a_preview_answer_after_the_release_is_dropped(page):
         x, y = inner_point(view)
         m = card.locator(tid("view-svg")).evaluate(
             "(s) => { const m = s.getScreenCTM(); return [m.a, m.b, m.c, m.d, m.e, m.f]; }")
-        screen = lambda px, py: (m[0] * px + m[2] * py + m[4], m[1] * px + m[3] * py + m[5])  # noqa: E731
+        def screen(px, py):
+            return (m[0] * px + m[2] * py + m[4], m[1] * px + m[3] * py + m[5])
         page.mouse.move(*screen(x, y))
         page.mouse.down()
         page.mouse.move(*screen(x + 8, y), steps=3)

@@ -94,7 +94,8 @@ def test_drag_add_delete_relabel_undo_redo(page, artifacts):
     assert f"{top[1]:.1f} px" in worst.first.inner_text()
 
     # drag: a point inside the image of the best-fitting line 40 px to the right; JaC changes
-    inside = lambda p: 100 < p[0] < view["width"] - 100 and 50 < p[1] < view["height"] - 50  # noqa: E731
+    def inside(p):
+        return 100 < p[0] < view["width"] - 100 and 50 < p[1] < view["height"] - 50
     residuals = view["calibration"]["residuals_px"]
     cls = min((c for c in lines0 if c in residuals and any(map(inside, lines0[c][0]))), key=residuals.get)
     i = next(i for i, p in enumerate(lines0[cls][0]) if inside(p))

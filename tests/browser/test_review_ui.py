@@ -306,7 +306,8 @@ def test_queue_range_filters_typed_in_the_page(page):
     page.wait_for_url(re.compile(r"error_min=.*jac_max=|jac_max=.*error_min="))
     page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n",
                            arg=len(expected))
-    ids = lambda: [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]  # noqa: E731
+    def ids():
+        return [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]
     assert ids() == [str(s["id"]) for s in expected]
     assert not page.locator(tid("error")).is_visible()
 
@@ -506,7 +507,8 @@ def test_queue_pager_turns_pages_by_cursor(page, artifacts):
     same rows as the pages by offset; its ends are disabled."""
     everything = [str(s["id"]) for s in _api(page, "/api/systems?sort=name&limit=500")["items"]]
     assert len(everything) > 6, "the demo should hold more than two pages of 3"
-    ids = lambda: [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]  # noqa: E731
+    def ids():
+        return [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]
 
     def shows(rows: list[str]) -> None:
         page.wait_for_function("(want) => [...document.querySelectorAll('[data-testid=queue-row]')]"

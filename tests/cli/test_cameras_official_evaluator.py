@@ -23,7 +23,7 @@ import pytest
 import sqlalchemy as sa
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the commands)
+import app.cli.datasets  # noqa: F401  # registers the commands
 from app.cli._root import cli
 from app.db.session import make_engine
 from app.geometry.annotations import image_diagonal, lines_from_json_lists

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the commands)
-import app.cli.detectors  # noqa: F401
+import app.cli.datasets  # registers the commands
+import app.cli.detectors  # noqa: F401  # registers its commands
 from app.cli._root import cli
 from app.db.models import Frame, Game
 from app.services.kinds import image_stem

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the import commands)
-import app.cli.doubts  # noqa: F401  (registers v3d doubts)
+import app.cli.datasets  # registers the import commands
+import app.cli.doubts  # noqa: F401  # registers v3d doubts
 from app.cli._root import cli
 from app.demo import generate_demo_dataset
 from app.geometry.doubts import LABEL_KINDS

@@ -190,7 +190,8 @@ def test_parallel_lines_only_are_refused_as_degenerate() -> None:
 
 def test_collinear_labels_are_refused_as_degenerate() -> None:
     # Four classes along both pitch directions, but every point lies on one image line.
-    line = lambda x0, x1: np.array([[x0, 200.0 + 0.1 * x0], [x1, 200.0 + 0.1 * x1]])  # noqa: E731
+    def line(x0, x1):
+        return np.array([[x0, 200.0 + 0.1 * x0], [x1, 200.0 + 0.1 * x1]])
     lines = {"Side line top": [line(0, 300)], "Middle line": [line(320, 500)],
              "Big rect. left main": [line(520, 700)], "Side line bottom": [line(720, 950)]}
     result = calibrate_frame(lines, 960, 540, compute_jac=False)

@@ -73,7 +73,8 @@ def ball_words(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None
     if moved > _STILL_PX:
         parts.append(f"moved {_num(moved)} px")
     if resized:
-        size = lambda s: "a point" if s is None else f"{_num(s[0])} x {_num(s[1])} px"  # noqa: E731
+        def size(s):
+            return "a point" if s is None else f"{_num(s[0])} x {_num(s[1])} px"
         parts.append(f"resized {size(s0)} -> {size(s1)}")
     if suggested_before:
         return f"suggested {of} confirmed" + (f" ({', '.join(parts)})" if parts else "")

@@ -334,7 +334,7 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
         values = {"state": JobState.DONE, "result": json_safe(result), "message": None}
     except JobLost:
         values = {}
-    except Exception as exc:  # noqa: BLE001 - a job's failure is recorded, whatever it is
+    except Exception as exc:  # any exception: a job's failure is recorded, whatever it is
         log.info("job %s (%s) failed: %s", job_id, kind, exc)
         values = {"state": JobState.FAILED, "message": str(exc) or type(exc).__name__,
                   "result": {"error": type(exc).__name__, "invalid_input": isinstance(exc, InvalidInputError)}}
@@ -384,6 +384,6 @@ class JobRunner:
                 if job_id is not None:
                     run_job(self.session_factory, job_id, self.settings, self.owner)
                     continue
-            except Exception:  # noqa: BLE001 - a runner outlives a failed poll (database restarting, locked)
+            except Exception:  # any exception: a runner outlives a failed poll (database restarting, locked)
                 log.exception("job runner: poll failed")
             self._stop.wait(self.settings.job_poll_seconds)

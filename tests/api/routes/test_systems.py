@@ -83,7 +83,8 @@ def test_sorts(client: TestClient, queue: dict[str, Scene], sort: str, expected:
 
 
 def test_filters_by_game_jac_and_error(client: TestClient, queue: dict[str, Scene]) -> None:
-    get = lambda **p: set(_ids(client.get("/api/systems", params=p).json()))  # noqa: E731
+    def get(**p):
+        return set(_ids(client.get("/api/systems", params=p).json()))
     assert get(game_id=queue["other"].game_id) == {queue["other"].system_id}
     assert get(jac_min=0.85, jac_max=0.9) == {queue["exact"].system_id, queue["other"].system_id}
     assert get(error_min=1.0) == {queue["shifted"].system_id}

@@ -344,7 +344,8 @@ def test_a_games_frames_zip_reads_its_frames_in_one_query(db_session, settings, 
     db_session.expire_all()
     statements: list[str] = []
     engine = db_session.get_bind()
-    count = lambda conn, cursor, statement, *rest: statements.append(statement)  # noqa: E731
+    def count(conn, cursor, statement, *rest):
+        return statements.append(statement)
     event.listen(engine, "before_cursor_execute", count)
     try:
         with (tmp_path / "Frames-v3.zip").open("wb") as target:
