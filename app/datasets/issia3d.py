@@ -95,9 +95,9 @@ def read_issia3d_csv(path: str | Path) -> list[Issia3DRow]:
             out.append(Issia3DRow(
                 frame=cell("frame", int),
                 per_camera={int(k): tuple(cell(f"{c}_cam{k}", float) for c in _PER_CAMERA) for k in CAMERA_IDS},
-                num_cameras=cell("num_cameras", int) or 0, ball_3d=cell("ball_3D", _vec),
+                num_cameras=cell("num_cameras", int) or 0, ball_3d=cell("ball_3D", _parsed_vec),
                 cam_list=tuple(int(c) for c in (cell("cam_list", json.loads) or [])),
-                ball_3d_smoothed=cell("ball_3D_smoothed", _vec), ball_3d_source=source))
+                ball_3d_smoothed=cell("ball_3D_smoothed", _parsed_vec), ball_3d_source=source))
     return out
 
 
@@ -110,11 +110,11 @@ def _cell(path: Path, n: int, row: Mapping[str, Any], col: str, parse: Any) -> A
         raise DatasetError(path, f"row {n} {col}", f"cannot parse {text!r}: {exc}") from None
 
 
-def _vec(text: str) -> tuple[float, ...]:
+def _parsed_vec(text: str) -> tuple[float, float, float]:
     v = json.loads(text)
     if not (isinstance(v, list) and len(v) == 3):
         raise ValueError("expected [x, y, z]")
-    return tuple(float(x) for x in v)
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,
