@@ -1,5 +1,5 @@
 """Request bodies are bounded by the route they are sent to, before they are parsed and while they
-stream (issue 15; issue 27, item 1: never by what the client's ``Content-Type`` says).
+stream (never by what the client's ``Content-Type`` says, which a client chooses).
 
 :class:`BodyLimitMiddleware` is a pure ASGI middleware in front of every route. It finds the route a
 request goes to and the media types that route takes (:func:`route_media_types`: what its OpenAPI request

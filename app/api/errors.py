@@ -21,7 +21,7 @@
 Request validation errors keep FastAPI's form (422, ``detail`` a list of ``{loc, msg, type}``), so a
 NaN box answers ``loc: ["body", "box", 0]``; an error quotes its ``input`` back only when it is short (at most
 :data:`MAX_ECHO_CHARS` as JSON) and holds no secret (:data:`SECRET_FIELDS`: a login without a name does not
-answer its password), so that no error answer echoes a body (issue 27, item 1). Every other error's
+answer its password), so that no error answer echoes a body. Every other error's
 ``detail`` text is cut at :data:`MAX_DETAIL_CHARS`. A body FastAPI cannot read at all (JSON that is not UTF-8, a
 broken multipart form), which FastAPI and Starlette answer with an undeclared 400, answers in that form
 too: 422, ``loc: ["body"]``, ``type: "body_unparsable"`` (found by ``benchmarks/fuzz.py``).

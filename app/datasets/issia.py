@@ -1,6 +1,6 @@
 """ISSIA-3D: a folder of six synchronised static cameras -> validated plain records; ISSIA-3D.csv rows.
 
-Folder (method.md section 9, issue 9):
+Folder (method.md section 9):
 
 * ``issia_calibration.json``: camera id -> SoccerNet camera (method.md section 2), and/or
   ``issia_lines.json``: camera id -> field lines in SoccerNet-calibration format (normalised);

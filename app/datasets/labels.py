@@ -73,7 +73,7 @@ LINE_MARGIN = 0.05
 def check_line_point_count(lines: dict[str, list[list[list[float]]]], max_points: int) -> int:
     """The number of points of a line set (every class and polyline; finite JSON lists, parsed already), or
     :class:`LabelError` when it exceeds ``max_points`` (``V3D_MAX_LINE_POINTS_PER_FRAME``: what one edit of a
-    view may ask the calibration to fit; issue 27).
+    view may ask the calibration to fit).
 
     >>> check_line_point_count({"Middle line": [[[0, 0], [1, 1]], [[2, 2]]]}, 3)
     3

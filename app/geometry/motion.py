@@ -1,5 +1,5 @@
 """The ball's motion models between kicks and bounces, and their robust fits to the labels of static
-cameras: the numerical core of :mod:`app.geometry.trajectory` (ISSIA-3D, issue 9).
+cameras: the numerical core of :mod:`app.geometry.trajectory` (ISSIA-3D).
 
 Models (6 parameters ``q``, ``t`` seconds after the piece's first frame; world: SoccerNet metres, z down):
 

@@ -307,7 +307,7 @@ def reprojection_error_px(camera: Camera, point_world: np.ndarray, point_px: np.
         The error in this image's pixels, or ``None`` when the point is behind the camera (camera
         depth below :data:`app.geometry.camera.MIN_DEPTH_M`).
     """
-    # Camera.project for one point, without its array handling (issue 29: a few per pair, many pairs per edit)
+    # Camera.project for one point, without its array handling (a few per pair, many pairs per edit)
     Xc = camera.R @ (np.asarray(point_world, float).reshape(3) - camera.C)
     z = float(Xc[2])
     if not z > MIN_DEPTH_M:
@@ -378,7 +378,7 @@ def pair_geometry_of_rays(a: BallObservation, b: BallObservation, ray_a: ViewRay
 
 
 class PairGeometryMemo:
-    """:func:`pair_geometry` computed once per pair of rays (issue 29, item 1): the triangulation, the mirror evidence
+    """:func:`pair_geometry` computed once per pair of rays: the triangulation, the mirror evidence
     and the doubts' consensus of one recomputation ask the same pairs of the same cameras and labels, and each
     applies its own rules to the one answer; one memo kept across recomputations (``max_entries``) also answers the
     pairs an edit did not touch (the views whose camera and label it left as they were). Keyed by the identity of

@@ -1,4 +1,4 @@
-"""``/api/passes``: review passes (issue 28, ``app.services.curation.passes``): the frozen list of a review
+"""``/api/passes``: review passes (``app.services.curation.passes``): the frozen list of a review
 queue's systems a user reviews once each, stored per user so that it resumes in another browser."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Learning a dataset's camera prior (:class:`.priors.CameraPrior`) from its own calibrations (issue 17).
+"""Learning a dataset's camera prior (:class:`.priors.CameraPrior`) from its own calibrations.
 
 The confident fits (position std at or below a quantile of the set's: :func:`.priors.confident_mask`) give the
 anchors, grouped as the game rig groups camera centres (:func:`.rig.estimate_rig`), the roll's std and the lens's

@@ -1,5 +1,5 @@
 """Learned calibration priors: where a dataset's cameras stand, so that a fit whose lines leave the
-camera under-determined settles where the dataset's other cameras are (issue 17).
+camera under-determined settles where the dataset's other cameras are.
 
 Why: with few or nearly parallel lines the fit slides the camera along its optical axis and trades
 distance for focal length (on failed held-out fits of the real sets the centre moved a median 3.7 m,

@@ -1,4 +1,4 @@
-"""Temporal 3D ball trajectory from synchronised static cameras (ISSIA-3D, issue 9): the package's map.
+"""Temporal 3D ball trajectory from synchronised static cameras (ISSIA-3D): the package's map.
 
 The paper triangulates each frame on its own and names temporal tracking as future work. Here the
 ball's physics is the check: between kicks and bounces the ball follows one of two models, fitted

@@ -1,4 +1,4 @@
-"""Failed logins are limited (issue 15), with the ``limits`` library and a store every server process shares.
+"""Failed logins are limited, with the ``limits`` library and a store every server process shares.
 
 Two fixed windows of ``V3D_LOGIN_WINDOW_S`` seconds (default 300) count failed logins: per name and client
 address (``V3D_LOGIN_MAX_FAILURES_PER_NAME``, default 10) and per client address

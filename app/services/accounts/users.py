@@ -1,4 +1,4 @@
-"""Users, passwords, API tokens and the session-signing key (issue 7).
+"""Users, passwords, API tokens and the session-signing key.
 
 * Passwords are hashed with argon2id through pwdlib (``PasswordHash.recommended()``); only the PHC
   string (``$argon2id$v=19$m=...``) is stored. A login for an unknown name still verifies a dummy hash,

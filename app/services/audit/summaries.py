@@ -1,4 +1,4 @@
-"""One line in words for every audit entry (issue 28, item 4): "ball of V2 moved 12.3 px", "V3 excluded from
+"""One line in words for every audit entry: "ball of V2 moved 12.3 px", "V3 excluded from
 the 3D ball", "moved point 9 of Circle right (V3): JaC 0.909 -> refused", "system accepted".
 
 :func:`summarize` is pure: it reads an entry's action, its self-describing ``before`` / ``after`` states

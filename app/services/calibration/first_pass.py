@@ -195,7 +195,7 @@ def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationField
     (calibration datasets: frames from many stadiums; ``priors.dataset_prior`` from their fresh
     calibrations and field lines), those of them ``priors.wants_prior_retry`` picks: refused,
     every calibrated one when the prior has a radial term, else those with a camera position the
-    lines leave open (issue 17). A refit is kept when it calibrates; frames
+    lines leave open. A refit is kept when it calibrates; frames
     whose lines fix the camera as the confident ones do are left as they are (the JaC guard). When the
     batch is too small to learn from (an import of a few changed frames), each frame's game's stored
     prior (``priors.stored_camera_prior``) is used instead. Returns the final result per frame, the

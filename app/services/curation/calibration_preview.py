@@ -1,4 +1,4 @@
-"""The dry run of a field-line edit (issue 29, item 5): while a person drags a line point, the view's camera,
+"""The dry run of a field-line edit: while a person drags a line point, the view's camera,
 JaC, worst-line residuals and projected pitch follow the pointer, computed from the lines as they would be
 sent on release, with the same calibration the commit runs (:func:`app.services.derivation.recompute.
 calibrate_frame_lines`: the rig retry and the learned prior's refit included). Nothing is written: no row, no

@@ -1,4 +1,4 @@
-"""Review passes (issue 28): every system of a review queue once, in the order it had when the pass began.
+"""Review passes: every system of a review queue once, in the order it had when the pass began.
 
 A pass freezes the ids of every system of a queue (its filters and sort, :func:`~app.services.curation.queue.queue_ids`:
 all its pages) when a user opens a system from it. The system page then moves within that frozen list: a fix

@@ -1,4 +1,4 @@
-"""Presence: who has a system open, as soft claims that expire (issue 28, item 10).
+"""Presence: who has a system open, as soft claims that expire.
 
 A page that opens a system claims it (:func:`claim`) and keeps claiming it while it stays open (the page's
 heartbeat, every :data:`HEARTBEAT` or so). Others see the live claims (:func:`open_on`): "ana has this system

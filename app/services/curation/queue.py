@@ -478,7 +478,7 @@ def _neighbours_call(sort: SystemSort, filters: SystemFilters, current: tuple[An
 def _neighbour_statements(sort: SystemSort, filters: SystemFilters, nulls: Optional[tuple[bool, ...]]
                           ) -> tuple[Any, Any]:
     """The two statements of :func:`queue_neighbours` for a queue, built once (building them cost about 0.5 ms
-    of CPU, most of a neighbour lookup's, on every system page; issue 29): the system's sort keys (parameter
+    of CPU, most of a neighbour lookup's, on every system page): the system's sort keys (parameter
     ``system_id``) and, for a current row whose keys are NULL where ``nulls`` says (the statement's shape
     depends on it), both neighbours, the current row's non-NULL keys as parameters ``key0``, ``key1``, ...
     (None for ``nulls`` None)."""

@@ -1,4 +1,4 @@
-"""The words of the review pages: one table of what every machine code shown on a page reads as (issue 28 item 7).
+"""The words of the review pages: one table of what every machine code shown on a page reads as.
 
 The geometry and the services speak in codes (``ball_off_consensus``, ``probably_mirrored``,
 ``ignored_class:<class>``, ``no_pair_kept``, ``error_above_tau``, ``max_scaled_1920``); a person reads

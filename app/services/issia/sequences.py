@@ -1,4 +1,4 @@
-"""ISSIA-3D sequences in the service (issue 9): import, edits' re-fit, frame images and the export.
+"""ISSIA-3D sequences in the service: import, edits' re-fit, frame images and the export.
 
 * :func:`import_issia`: a folder read by :func:`app.datasets.issia.read_issia` becomes one game
   (league :data:`LEAGUE`, season :data:`SEASON`, match the folder's name), one multi-view system of

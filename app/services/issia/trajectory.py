@@ -1,4 +1,4 @@
-"""The temporal 3D ball of an ISSIA sequence in the service (issue 9): stored rows <-> the pure fit.
+"""The temporal 3D ball of an ISSIA sequence in the service: stored rows <-> the pure fit.
 
 An ISSIA sequence is a game whose systems (kind ``issia``) are frame indices (``System.frame_index``)
 and whose views are static cameras (``Frame.name`` "cam<k>"). This module

@@ -107,7 +107,7 @@ class IssiaPolicy(KindPolicy):
 
     def judge_doubts(self, system: System, found: list[DoubtFinding],
                      cameras: dict[int, Camera] | None) -> list[DoubtFinding]:
-        """The multi-view doubts merged with the trajectory's judgement of the labels (issue 9)."""
+        """The multi-view doubts merged with the trajectory's judgement of the labels."""
         return _hooks().merge_doubts(system, found, cameras)
 
     def refine_calibration(self, session: Session, frame: Frame, fields: CalibrationFields,
