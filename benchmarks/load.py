@@ -230,7 +230,7 @@ def served(database_url: str, workers: int, launcher: str = "v3d", log: Optional
                 os.killpg(proc.pid, 9)
                 proc.wait()
         if log:
-            out.close()  # type: ignore[union-attr]
+            out.close()  # type: ignore[union-attr]  # out is the open log when log is set
 
 
 def user_tokens(database_url: str, clients: int) -> list[str]:
@@ -449,7 +449,7 @@ def run_load(database_url: Optional[str] = None, clients: int = 20, edits: int =
     backend = make_url(database_url).get_backend_name() if database_url else "sqlite"
     report = LoadReport(clients, edits, workers, backend)
     with fresh_database(database_url, keep=keep, template=template) as url:
-        tokens: list[Optional[str]] = user_tokens(url, clients) if users else [token] * clients  # type: ignore[list-item]
+        tokens: list[Optional[str]] = user_tokens(url, clients) if users else [token] * clients  # type: ignore[list-item]  # token is given when users is not
         with served(url, workers, launcher, log=log) as base:
             headers = {"Authorization": f"Bearer {tokens[0]}"} if tokens[0] else {}
             with httpx.Client(base_url=base, timeout=timeout_s, headers=headers) as http:

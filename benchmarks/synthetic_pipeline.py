@@ -244,7 +244,7 @@ def calibrate_without_rig(view: StoredView, gamma: float) -> Calib:
 def calibrate_with_true_rig(view: StoredView, positions: list[np.ndarray], gamma: float) -> Calib:
     """``calibrate_with_rig`` with the game's TRUE camera positions (an oracle rig: main camera first)."""
     rig = CameraRig(tuple(RigPosition(tuple(float(v) for v in p), 1,
-                                      0.0, main_frames=int(i == 0))  # type: ignore[arg-type]
+                                      0.0, main_frames=int(i == 0))  # type: ignore[arg-type]  # p is a 3-vector
                           for i, p in enumerate(positions)))
     return _from_result(calibrate_with_rig(lines_from_json_lists(view.lines), view.width, view.height, rig,
                                            expected_side=expected_side(FrameRole(view.role)),

@@ -40,8 +40,8 @@ class AuditEntryOut(BaseModel):
             self.summary = summarize(self.action, self.before, self.after, reverts_id=self.reverts_id)
         return self
 
-    # mypy does not accept a decorator above @property; pydantic's computed_field is meant to sit there
-    @computed_field(description="False for imports, recomputes and changes of users and tokens.")  # type: ignore[prop-decorator]
+    @computed_field(  # type: ignore[prop-decorator]  # pydantic: a decorator over @property
+        description="False for imports, recomputes and changes of users and tokens.")
     @property
     def revertible(self) -> bool:
         return audit.revertible(self.action)

@@ -35,7 +35,7 @@ from fastapi import FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
@@ -149,7 +149,7 @@ async def _stale(_: Request, exc: Exception) -> JSONResponse:
     body = StaleOut(
         detail=str(exc), etag=exc.etag,
         current=(FrameView.of_frame(current) if isinstance(current, Frame)
-                 else SystemStateOut.of(current) if current is not None else None),  # type: ignore[arg-type]
+                 else SystemStateOut.of(current) if current is not None else None),  # type: ignore[arg-type]  # current is a Frame or a System: a System here
         last_change=AuditEntryOut.model_validate(exc.last_change) if exc.last_change is not None else None,
     )
     return JSONResponse(body.model_dump(mode="json", by_alias=True), status_code=status.HTTP_412_PRECONDITION_FAILED,
@@ -175,7 +175,7 @@ async def _database_error(_: Request, exc: Exception) -> JSONResponse:
                         headers={"Retry-After": str(RETRY_AFTER_S), "Cache-Control": "no-store"})
 
 
-async def _http_error(request: Request, exc: Exception) -> JSONResponse:
+async def _http_error(request: Request, exc: Exception) -> Response:
     """FastAPI's answer to ``HTTPException``, except the 400 that FastAPI and Starlette raise when they
     cannot read a request body ("There was an error parsing the body", "Invalid multipart data."; v3d's
     own code raises no 400 ``HTTPException``): that one becomes the 422 of a malformed body, naming it."""
@@ -186,7 +186,7 @@ async def _http_error(request: Request, exc: Exception) -> JSONResponse:
         return JSONResponse({"detail": [{"type": "body_unparsable", "loc": ["body"],
                                          "msg": f"the body cannot be read: {reason}"}]},
                             status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
-    return await http_exception_handler(request, exc)  # type: ignore[arg-type]
+    return await http_exception_handler(request, exc)  # type: ignore[arg-type]  # registered for HTTPException only
 
 
 def install_error_handlers(app: FastAPI) -> None:

@@ -230,8 +230,8 @@ class CalibrationOut(BaseModel):
         "Position 0 for a rig-assisted fit (centre fixed). Null when not fitted from lines here (refused, "
         "imported, or calibrated before this was stored).")
 
-    @computed_field(description="The field-line labels are probably mirrored (the flag in flags): offer the "
-                                "mirrored labelling.")  # type: ignore[prop-decorator]
+    @computed_field(  # type: ignore[prop-decorator]  # pydantic: a decorator over @property
+        description="The field-line labels are probably mirrored (the flag in flags): offer the mirrored labelling.")
     @property
     def probably_mirrored(self) -> bool:
         return MIRROR_FLAG in self.flags
@@ -518,8 +518,8 @@ class TriangulationOut(BaseModel):
     min_baseline_m: float
     pairs: list[PairOut]
 
-    @computed_field(description="Width (px) the rule scales a view's error to before comparing it with tau; "
-                                "null: raw px.")  # type: ignore[prop-decorator]
+    @computed_field(  # type: ignore[prop-decorator]  # pydantic: a decorator over @property
+        description="Width (px) the rule scales a view's error to before comparing it with tau; null: raw px.")
     @property
     def reference_width_px(self) -> Optional[float]:
         return rule_reference_width_px(self.rule)

@@ -25,7 +25,7 @@ def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
-        report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]
+        report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]  # typer checked fmt against the two formats
                                  settings.export_ball_box)
     per_split = ", ".join(f"{s}: {report.images[s]} image(s), {report.ball_boxes[s]} ball box(es), "
                           f"{report.other_boxes[s]} other box(es)" for s in report.images)

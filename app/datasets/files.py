@@ -8,13 +8,14 @@ inside zips) and the field, except :func:`json_files`, the lister of the offline
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any, BinaryIO, Callable, Iterator, Mapping
+from typing import IO, Any, Callable, Iterator, Mapping
 
 from app.core.errors import DatasetError
 
@@ -237,7 +238,7 @@ class ImageHeader:
     height: int
 
 
-def image_header(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
+def image_header(stream: IO[bytes], where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
     """Type and size of the image in the open binary ``stream`` (a file, or a zip member opened with
     ``ZipFile.open``: streamed, never read whole), from its header only (Pillow's lazy ``Image.open``:
     the PNG chunks before the pixel data, the JPEG markers up to its frame header); nothing is decoded.
@@ -369,5 +370,5 @@ def json_files(path: Path, what: str) -> list[JsonFile]:
             cap = min(MAX_JSON_MEMBER_BYTES, ratio_cap(info.compress_size))
             return b"".join(member_chunks(archive, info, f"{path}!{n}", cap))
 
-        return [JsonFile(f"{path}:{n}", n, (lambda n=n: read(n))) for n in names]
+        return [JsonFile(f"{path}:{n}", n, functools.partial(read, n)) for n in names]
     raise InputFileError(f"{what}: {path} is neither a folder nor a zip archive")

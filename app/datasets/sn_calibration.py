@@ -136,7 +136,7 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     root = Path(path)
     if (width is None) != (height is None):
         raise DatasetError(root, "--width/--height", "give both or neither")
-    if width is not None and (width <= 1 or height <= 1):  # type: ignore[operator]
+    if width is not None and (width <= 1 or height <= 1):  # type: ignore[operator]  # height is given when width is (checked above)
         raise DatasetError(root, "--width/--height", f"must be > 1, got {width}x{height}")
     systems = []
     for stem, where, raw, image in frame_entries(root, max_pixels):
@@ -144,7 +144,7 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
         header = image[0]() if image is not None else None
         img_src = {**image[1], "image_type": header.type} if image is not None and header is not None else {}
         if width is not None:
-            w, h = int(width), int(height)  # type: ignore[arg-type]
+            w, h = int(width), int(height)  # type: ignore[arg-type]  # height is given when width is (checked above)
         elif header is not None:
             w, h = header.width, header.height
         else:

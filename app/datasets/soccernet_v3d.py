@@ -244,7 +244,7 @@ def _v3d_calibration(item: Mapping[str, Any], file: Path, where: str) -> Importe
         except (KeyError, TypeError, ValueError) as exc:
             raise DatasetError(file, f"{where}.v3d.uncertainty", f"malformed standard deviations ({exc})") from None
     return ImportedCalibration(CalibrationFields(
-        status=status, camera=dict(cam) if cam is not None else None, jac=tuple(jac),  # type: ignore[arg-type]
+        status=status, camera=dict(cam) if cam is not None else None, jac=tuple(jac),  # type: ignore[arg-type]  # one JaC per JAC_KEYS, three
         residuals_px=dict(extra.get("residuals_px") or {}), flags=list(extra.get("flags") or []),
         reason=reason if cam is None else None,
         uncertainty=dict(uncertainty) if cam is not None and uncertainty else None,

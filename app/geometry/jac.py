@@ -179,7 +179,7 @@ def gamma_thresholds(width: float, height: float, gammas: Iterable[float] = JAC_
     >>> [round(t, 2) for t in gamma_thresholds(960, 540)]
     [5.51, 11.01, 22.03]
     """
-    out = []
+    out: list[float] = []
     for g in gammas:
         if isinstance(g, bool) or not isinstance(g, numbers.Real) or not (math.isfinite(g) and g > 0):
             raise ValueError(f"gamma must be a positive fraction of the image diagonal, got {g!r}")
@@ -233,7 +233,7 @@ def _score(projected: frozenset[str], annotated: Iterable[str], worst: Mapping[s
 
 
 def _check_thresholds(thresholds_px: Sequence[float]) -> tuple[float, ...]:
-    out = []
+    out: list[float] = []
     for t in thresholds_px:
         if isinstance(t, bool) or not isinstance(t, numbers.Real) or not (math.isfinite(t) and t > 0):
             raise ValueError(f"thresholds_px must hold positive finite pixel distances, got {t!r}")

@@ -74,10 +74,11 @@ class LabelTable:
         for k, cam in enumerate(cameras):
             sel = cams == k
             if sel.any():
-                xy[sel] = cam.normalise_pixels(points[frames[sel], k], undistort=True)  # type: ignore[union-attr]
+                xy[sel] = cam.normalise_pixels(points[frames[sel], k], undistort=True)  # type: ignore[union-attr]  # a camera with a used label is set
         self.xy = xy
-        self.R = np.stack([cameras[k].R for k in cams]) if len(cams) else np.zeros((0, 3, 3))  # type: ignore[union-attr]
-        self.C = np.stack([cameras[k].C for k in cams]) if len(cams) else np.zeros((0, 3))  # type: ignore[union-attr]
+        # cams: the cameras of the used labels, each set (a label counts only with its camera)
+        self.R = np.stack([cameras[int(k)].R for k in cams]) if len(cams) else np.zeros((0, 3, 3))  # type: ignore[union-attr]  # see the comment above
+        self.C = np.stack([cameras[int(k)].C for k in cams]) if len(cams) else np.zeros((0, 3))  # type: ignore[union-attr]  # see the comment above
         scale = np.array([0.5 * (cam.K[0, 0] + cam.K[1, 1]) * REFERENCE_WIDTH_PX / w if cam is not None else 1.0
                           for cam, w in zip(cameras, widths, strict=False)])
         self.scale = scale[cams]

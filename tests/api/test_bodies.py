@@ -105,14 +105,14 @@ def _asgi_post(app: FastAPI, path: str, headers: dict[str, str], size: int, chun
         if message["type"] == "http.response.start":
             answer["status"] = message["status"]
         elif message["type"] == "http.response.body":
-            answer["body"] = answer["body"] + message.get("body", b"")  # type: ignore[operator]
+            answer["body"] = answer["body"] + message.get("body", b"")  # type: ignore[operator]  # answer["body"] holds bytes
 
     raw = [(k.lower().encode(), v.encode()) for k, v in {"host": "testserver", **headers}.items()]
     scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": method, "scheme": "http",
              "path": path, "raw_path": path.encode(), "root_path": "", "query_string": b"", "headers": raw,
              "client": ("127.0.0.1", 50000), "server": ("testserver", 80), "state": {}}
     asyncio.run(app(scope, receive, send))
-    return int(answer["status"]), bytes(answer["body"]), read  # type: ignore[arg-type]
+    return int(answer["status"]), bytes(answer["body"]), read  # type: ignore[arg-type]  # set by the answer
 
 
 @pytest.mark.parametrize("length", ["declared", "chunked"])

@@ -6,7 +6,7 @@ import shutil
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Annotated, Literal, Optional
+from typing import Annotated, Any, Literal, Optional
 
 from fastapi import APIRouter, Depends, File, Query, UploadFile
 from fastapi.responses import FileResponse
@@ -80,7 +80,8 @@ def _zip_export(fmt: Literal["yolo", "coco"], session: SessionDep, include_all: 
     )
 
 
-_ZIP = {200: {"content": {"application/zip": {}}, "description": "The export as a zip."}}
+_ZIP: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"application/zip": {}}, "description": "The export as a zip."}}
 
 
 @router.get("/exports/yolo", response_class=FileResponse, responses=_ZIP, dependencies=[ADMIN])

@@ -271,7 +271,7 @@ def _calibrate(
     fitted = {c: per_class[c] for c in fit_obs.classes}
     worst = max(fitted.values()) if fitted else 0.0
     if worst > limit:
-        bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]
+        bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]  # every key is in the dict: get never answers None
         return _refused(Refusal("residual_too_high", {"line": bad, "px": worst, "limit_px": limit}), t0, tuple(flags),
                         per_class, rms)
     if fixed and rms > settings.accept_gamma * diag:

@@ -384,12 +384,13 @@ def anchor_correspondences(obs: Observations, scale_px: float) -> list[tuple[np.
             centre = pts.mean(axis=0)
         else:
             try:
-                c = np.linalg.solve(conic[:2, :2], -conic[:2, 2]) * scale_px
+                fitted = np.linalg.solve(conic[:2, :2], -conic[:2, 2]) * scale_px
             except np.linalg.LinAlgError:
-                c = pts.mean(axis=0)
+                fitted = pts.mean(axis=0)
             # A partial arc can fit a wild ellipse: keep its centre only near the labelled points.
             spread = float(np.ptp(pts, axis=0).max())
-            centre = c if np.linalg.norm(c - pts.mean(axis=0)) <= 2.0 * spread + 1.0 else pts.mean(axis=0)
+            centre = (fitted if np.linalg.norm(fitted - pts.mean(axis=0)) <= 2.0 * spread + 1.0
+                      else pts.mean(axis=0))
         cx, cy = obs.circle_centre[j]
         out.append((centre, np.array([cx, cy, 0.0])))
     return out

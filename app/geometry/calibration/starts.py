@@ -157,7 +157,7 @@ def search_starts(obs: Observations, width: int, height: int, prior: Calibration
     budget.lookat_done = True
     centres = [np.asarray(c, dtype=float) for c in START_CENTRES_M]
     if stage == "anchors":
-        centres = [np.asarray(c, dtype=float) for c in prior.camera_prior.anchors_m]  # type: ignore[union-attr]
+        centres = [np.asarray(c, dtype=float) for c in prior.camera_prior.anchors_m]  # type: ignore[union-attr]  # the anchors stage runs only with a camera prior
     starts_ptz: list[tuple[str, CameraParametrisation, np.ndarray]] = []
     for c0 in centres:
         try:

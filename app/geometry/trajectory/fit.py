@@ -175,9 +175,9 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
     for r in range(n):
         keep = tuple(np.flatnonzero(keep_mask[r]).tolist())
         if same[r]:
-            old = a + r - previous.first_frame  # type: ignore[union-attr]
-            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None  # type: ignore[union-attr]
-            kept = tuple(previous.cam_lists[old])  # type: ignore[union-attr]
+            old = a + r - previous.first_frame  # type: ignore[union-attr]  # same[r] only with a previous fit
+            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None  # type: ignore[union-attr]  # same[r] only with a previous fit
+            kept = tuple(previous.cam_lists[old])  # type: ignore[union-attr]  # same[r] only with a previous fit
         else:
             row = a + r - pts_first
             tri = triangulate_frame([BallObservation(k, cameras[k], pts[row, k], widths[k]) for k in keep],

@@ -312,8 +312,8 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
                 costs = [(best(frames[a:c]).cost + best(frames[c:b]).cost, c) for c in options]
                 if costs:
                     cuts.add(min(costs)[1])
-            cuts = sorted(cuts)
-            split += list(zip(cuts[:-1], cuts[1:], strict=True))
+            ordered = sorted(cuts)
+            split += list(zip(ordered[:-1], ordered[1:], strict=True))
         if len(split) == len(bounds):
             break
         bounds = _shift_bounds(L, by_frame, frames, fps, split, best)

@@ -22,13 +22,14 @@ import ipaddress
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Optional
+from typing import Any, Callable, Iterable, Optional, cast
 
 import sqlalchemy as sa
 from limits import RateLimitItem, RateLimitItemPerSecond
 from limits.storage import Storage
 from limits.strategies import FixedWindowRateLimiter
 from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy.engine import CursorResult
 from sqlalchemy.orm import Session
 
 from app.db.models import RateLimitCounter
@@ -110,7 +111,7 @@ class DatabaseStorage(Storage):
     def reset(self) -> Optional[int]:
         """Forget every counter; returns how many there were."""
         with self.session_factory() as session:
-            count = session.execute(sa.delete(RateLimitCounter)).rowcount
+            count = cast(CursorResult, session.execute(sa.delete(RateLimitCounter))).rowcount
             session.commit()
         return count
 

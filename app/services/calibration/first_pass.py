@@ -153,7 +153,7 @@ def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings,
     for i, fields in zip(rest, calibrate_many([jobs[i] for i in rest], settings.calibration_workers, step, pool=pool),
                          strict=True):
         results[i], first_ms[i] = fields, fields.elapsed_ms
-    return BatchCalibration(results, first_ms, finished, rig_ms)  # type: ignore[arg-type]
+    return BatchCalibration(results, first_ms, finished, rig_ms)  # type: ignore[arg-type]  # every result is set by now
 
 
 def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],

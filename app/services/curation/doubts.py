@@ -60,7 +60,7 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
     cal = frame.calibration
     calibrated = cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None
     if camera is None and calibrated:
-        camera = stored_camera(cal.camera)  # type: ignore[union-attr]
+        camera = stored_camera(cal.camera)  # type: ignore[union-attr]  # calibrated: cal and its camera are set
     label = frame.ball_label
     box = np.asarray(label.box, float) if label is not None and label.box is not None else None
     point = np.asarray(label.point, float) if label is not None and label.point is not None else None
@@ -68,13 +68,13 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
     flags = list(cal.flags or []) if cal is not None else []
     return DoubtView(
         view_id=frame.id, name=frame.name, role=frame.role.value, width=frame.width, height=frame.height,
-        camera=camera if calibrated else None, admitted=bool(calibrated and cal.admitted),  # type: ignore[union-attr]
+        camera=camera if calibrated else None, admitted=bool(calibrated and cal.admitted),  # type: ignore[union-attr]  # calibrated: cal is set
         jac=cal.jac_0005 if cal is not None else None,
         line_classes=sum(1 for polys in lines.values() if polys), box=box, point=point,
         excluded=is_excluded(frame), mirror_flagged=MIRROR_FLAG in flags,
         mirror_evidence=cal.mirror_evidence if cal is not None else None,
         calibration_reason=cal.reason if cal is not None and cal.status is CalibrationStatus.REFUSED else None,
-        rig_assisted=RIG_FLAG in flags, uncertainty=cal.uncertainty if calibrated else None,  # type: ignore[union-attr]
+        rig_assisted=RIG_FLAG in flags, uncertainty=cal.uncertainty if calibrated else None,  # type: ignore[union-attr]  # calibrated: cal is set
         suggested=label is not None and label.suggested,
     )
 

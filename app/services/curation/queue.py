@@ -420,12 +420,12 @@ def _status_counts(session: Session, conds: list[Any]) -> dict[str, int]:
     status = _review_status()
     counts = {s.value: 0 for s in ReviewStatus}
     if conds:
-        rows = session.execute(sa.select(status, sa.func.count()).where(*conds).group_by(status)).all()
+        rows: list[Any] = list(session.execute(sa.select(status, sa.func.count()).where(*conds).group_by(status)))
     else:
         reviewed = [s.value for s in ReviewStatus if s is not ReviewStatus.PENDING]
-        rows = session.execute(sa.select(status, sa.func.count()).where(status.in_(reviewed)).group_by(status)).all()
-        everything = session.scalar(sa.select(sa.func.count()).select_from(System))
-        rows.append((ReviewStatus.PENDING.value, int(everything) - sum(int(n) for _, n in rows)))
+        rows = list(session.execute(sa.select(status, sa.func.count()).where(status.in_(reviewed)).group_by(status)))
+        everything = session.scalar(sa.select(sa.func.count()).select_from(System)) or 0
+        rows.append((ReviewStatus.PENDING.value, everything - sum(int(n) for _, n in rows)))
     for s, n in rows:
         counts[ReviewStatus(s).value] += int(n)
     return counts

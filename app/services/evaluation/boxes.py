@@ -81,8 +81,9 @@ def read_precise_boxes(path: str | Path) -> list[PreciseBox]:
             raise DatasetError(path, f"row {n} x1..y2", "not finite")
         if box[2] <= box[0] or box[3] <= box[1]:
             raise DatasetError(path, f"row {n} x1..y2", "the box has no area (needs x2 > x1 and y2 > y1)")
-        names = (read_cell(r[c] or "") for c in ("league", "season", "match", "image"))  # as a v3d CSV escaped them
-        out.append(PreciseBox(*names, box, n))  # type: ignore[arg-type]
+        # as a v3d CSV escaped them
+        league, season, match, image = (read_cell(r[c] or "") for c in ("league", "season", "match", "image"))
+        out.append(PreciseBox(league, season, match, image, box, n))
     return out
 
 
@@ -101,7 +102,7 @@ def store_precise_boxes(session: Session, path: str | Path) -> int:
     for f in session.scalars(sa.select(Frame).join(System).where(System.game_id.in_(wanted_games))
                              .options(selectinload(Frame.system))):
         frames.setdefault((f.system.game_id, kind_of(f.system).image_name(f)), []).append(f)
-    updates = []
+    updates: list[tuple[Any, list[float]]] = []
     for r in rows:
         gid = games.get((r.league, r.season, r.match))
         if gid is None:

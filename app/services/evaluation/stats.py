@@ -110,18 +110,18 @@ def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
                 seen_splits.add(split)
             cal = f.calibration
             calibrated = cal is not None and cal.camera is not None
-            admitted = calibrated and bool(cal.admitted)  # type: ignore[union-attr]
+            admitted = calibrated and bool(cal.admitted)  # type: ignore[union-attr]  # calibrated: cal is set
             for target in (k, sp):
                 target["images"] += 1
                 target["calibrated_images"] += int(calibrated)
                 target["admitted_images"] += int(admitted)
             if calibrated:
-                jac = admission_jac(cal, settings)  # type: ignore[arg-type]
+                jac = admission_jac(cal, settings)  # type: ignore[arg-type]  # calibrated: cal is set
                 if jac is not None:
                     jac_values.append(float(jac))
                     jacs.append(float(jac))
                 if admitted and ball is not None:
-                    centre = np.asarray(cal.camera["position_meters"], float)  # type: ignore[index,union-attr]
+                    centre = np.asarray(cal.camera["position_meters"], float)  # type: ignore[index,union-attr]  # calibrated: cal and its camera are set
                     distances.append(float(np.linalg.norm(np.asarray(ball, float) - centre)))
             label = f.ball_label
             if label is not None and label.box is not None:

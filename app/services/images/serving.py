@@ -13,7 +13,7 @@ import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Optional
+from typing import IO, Optional
 
 import numpy as np
 
@@ -82,7 +82,7 @@ def stored_image_file(frame: Frame, relative: str) -> Path:
     return resolved
 
 
-def _checked_media_type(frame: Frame, stream: BinaryIO, name: str, max_pixels: int) -> str:
+def _checked_media_type(frame: Frame, stream: IO[bytes], name: str, max_pixels: int) -> str:
     """``image/png`` or ``image/jpeg`` from the header of the open image ``stream``
     (``app.datasets.files.image_header``), when it is the type the import checked (``Frame.image_type``;
     rows imported before the check have none).

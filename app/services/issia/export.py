@@ -116,7 +116,7 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
     names = _names(systems)
     ids = tuple(_cam_id(n) for n in names)
     col = {n: k for k, n in enumerate(names)}
-    F = max(s.frame_index for s in systems) + 1  # type: ignore[type-var]
+    F = max(s.frame_index for s in systems) + 1  # type: ignore[type-var]  # an ISSIA system has a frame index
     points = np.full((len(systems), len(ids), 2), np.nan)
     ball, smooth = np.full((F, 3), np.nan), np.full((F, 3), np.nan)
     sources: list[str | None] = [None] * F
@@ -134,7 +134,7 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
             cid = ids[col[f.name]]
             cal = f.calibration
             if cid not in cameras and cal is not None and cal.admitted and cal.camera is not None:
-                cameras[cid] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]
+                cameras[cid] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]  # checked just above: set
         tp = s.trajectory_point
         if tp is not None:
             if tp.ball3d is not None:
@@ -144,7 +144,7 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
             sources[f_idx] = tp.source
             cam_lists[f_idx] = tuple(sorted(k_of[i] for i in tp.cam_list if i in k_of))
     seq = IssiaSequence(root=Path("."), camera_ids=ids, image_size=size, cameras={}, lines={},
-                        frames=tuple(s.frame_index for s in systems), points=points)  # type: ignore[arg-type]
+                        frames=tuple(s.frame_index for s in systems), points=points)  # type: ignore[arg-type]  # an ISSIA system has a frame index
     fit = _StoredFit(ball, smooth, tuple(sources), tuple(cam_lists))
     return issia3d_rows(seq, cameras, fit)
 

@@ -89,7 +89,7 @@ def _camera_fields(seq: IssiaSequence, cid: str, choice: CameraChoice) -> Calibr
     else:
         values, flags = (None, None, None), flags + [GIVEN_CAMERA_FLAG]
     return CalibrationFields(CalibrationStatus.CALIBRATED,
-                             json_safe(choice.camera.to_soccernet()), values, flags=flags)  # type: ignore[arg-type]
+                             json_safe(choice.camera.to_soccernet()), values, flags=flags)  # type: ignore[arg-type]  # three JaCs, or three Nones
 
 
 def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:

@@ -96,7 +96,7 @@ def sequence_arrays(systems: Sequence[System], settings: Settings) -> SequenceAr
             frame_ids[i, k] = f.id
             widths[k] = float(f.width)
             if cameras[k] is None and is_admitted(f.calibration, settings):
-                cameras[k] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]
+                cameras[k] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]  # admitted: a calibration with a camera
             c = f.ball_label.centre if f.ball_label is not None else None
             if c is not None and not is_excluded(f):
                 points[i, k] = c

@@ -35,10 +35,11 @@ import threading
 import time
 from dataclasses import dataclass
 from datetime import timedelta
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 import sqlalchemy as sa
 from sqlalchemy import select
+from sqlalchemy.engine import CursorResult
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.config import Settings
@@ -85,7 +86,7 @@ def _owner_gone(owner: str | None) -> bool:
 
 
 def _on_this_host(owner: str | None) -> bool:
-    return bool(owner) and owner.partition(":")[0] == socket.gethostname()
+    return owner is not None and bool(owner) and owner.partition(":")[0] == socket.gethostname()
 
 
 def is_sqlite(settings: Settings) -> bool:
@@ -146,11 +147,11 @@ def claim(session: Session, job: Job, owner: str) -> bool:
     # connection committed cannot write at all; the compare-and-set below is what makes the claim safe.
     session.rollback()
     now = utcnow()
-    result = session.execute(
+    result = cast(CursorResult, session.execute(
         sa.update(Job).where(Job.id == job_id, Job.attempts == attempts, Job.state == state)
         .values(state=JobState.RUNNING, owner=owner, attempts=attempts + 1, started_at=now, heartbeat_at=now,
                 message=None)
-        .execution_options(synchronize_session=False))
+        .execution_options(synchronize_session=False)))
     session.commit()
     return result.rowcount == 1
 
@@ -246,10 +247,10 @@ class _Heartbeat(threading.Thread):
         self.last = time.monotonic()
         try:
             with self.session_factory() as session:
-                result = session.execute(
+                result = cast(CursorResult, session.execute(
                     sa.update(Job).where(Job.id == self.job_id, Job.owner == self.owner)
                     .values(heartbeat_at=utcnow(), stage=self.live.stage, done=self.live.done, total=self.live.total)
-                    .execution_options(synchronize_session=False))
+                    .execution_options(synchronize_session=False)))
                 session.commit()
                 if result.rowcount == 0:
                     self.live.lost = True

@@ -29,7 +29,7 @@ import stat
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Callable, Iterable
+from typing import IO, BinaryIO, Callable, Iterable
 
 from app.core.config import Settings
 from app.core.errors import DatasetError, ServiceError
@@ -106,7 +106,7 @@ def is_image_name(name: str) -> bool:
     return name.lower().endswith(IMAGE_SUFFIXES)
 
 
-def check_image(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> None:
+def check_image(stream: IO[bytes], where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> None:
     """Check the image in the open binary ``stream`` from its header (``app.datasets.files.image_header``);
     raises :class:`DatasetError` naming ``where`` when it is not a PNG or JPEG within ``max_pixels``."""
     image_header(stream, where, max_pixels)

@@ -228,7 +228,7 @@ def iter_export_views(session: Session, export: Literal["yolo", "coco"], include
                 if cls not in CLASSES:
                     report.unknown_classes[str(cls)] += 1
                     continue
-                pts = raw.get("points") or {}  # type: ignore[union-attr]
+                pts = raw.get("points") or {}
                 try:
                     box = [float(pts[k]) for k in ("x1", "y1", "x2", "y2")]
                 except (KeyError, TypeError, ValueError):

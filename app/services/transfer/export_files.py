@@ -73,7 +73,7 @@ def write_tree(session: Session, fmt: str, out: Path, include_all: bool, setting
     if fmt in ("yolo", "coco"):
         from app.services.transfer.detector_export import export_detector
 
-        report = export_detector(session, fmt, out, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]
+        report = export_detector(session, fmt, out, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]  # fmt is one of the two detector formats here
                                  settings.export_ball_box).as_dict()
         report.pop("out_dir", None)
         return report

@@ -230,7 +230,7 @@ def _frame_rows(session: Session, game_ids: list[int], include_all: bool) -> lis
     return list(session.execute(query))
 
 
-def exported_systems(export: str, include_all: bool, *loads: Any) -> Select[tuple[System]]:
+def exported_systems(export: str, include_all: bool, *loads: Any) -> Select[System]:
     """The query of the systems ``export`` writes (a name of ``app.services.kinds.EXPORTS``; the kinds
     that take it, ``kinds_exported_by``): accepted ones unless ``include_all``, in (league, season,
     match, id) order, with their game and the relationship ``loads`` given loaded. The detector exports
