@@ -460,8 +460,8 @@ class ViewOut(_FrameFields):
             "optimised_box": OptimisedBoxOut.of(frame.optimised_box),
             "precise_box": frame.precise_box,
             "reprojected_ball": round_px(rep.point) if rep is not None else None,
-            "reprojection_error_scaled_px": scaled_error_px(error, frame.width, tri.rule) if judged else None,
-            "error_above_tau": judged and error_above_tau(error, frame.width, tri.tau_px, tri.rule),
+            "reprojection_error_scaled_px": scaled_error_px(error, frame.width, tri.rule) if tri and judged else None,
+            "error_above_tau": judged and tri is not None and error_above_tau(error, frame.width, tri.tau_px, tri.rule),
             "camera_position": camera["position_meters"] if camera is not None else None,
             "etag": frame_etag(frame),
         }

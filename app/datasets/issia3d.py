@@ -133,7 +133,7 @@ def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,
     for i, frame in enumerate(seq.frames):
         ball = fit.ball_3d[frame]
         has_ball = bool(np.all(np.isfinite(ball)))
-        per_camera = {}
+        per_camera: dict[int, tuple[float | None, ...]] = {}
         for k, cid in enumerate(seq.camera_ids):
             p = seq.points[i, k]
             if not np.all(np.isfinite(p)):
@@ -151,9 +151,10 @@ def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,
         rows.append(Issia3DRow(
             frame=int(frame), per_camera=per_camera,
             num_cameras=int(np.sum(np.all(np.isfinite(seq.points[i]), axis=1))),
-            ball_3d=tuple(float(v) for v in ball) if has_ball else None,
+            ball_3d=(float(ball[0]), float(ball[1]), float(ball[2])) if has_ball else None,
             cam_list=tuple(int(seq.camera_ids[k]) for k in fit.cam_lists[frame]),
-            ball_3d_smoothed=tuple(float(v) for v in smoothed) if np.all(np.isfinite(smoothed)) else None,
+            ball_3d_smoothed=((float(smoothed[0]), float(smoothed[1]), float(smoothed[2]))
+                              if np.all(np.isfinite(smoothed)) else None),
             ball_3d_source=fit.sources[frame]))
     return rows
 

@@ -191,7 +191,7 @@ class FrameImages:
             self._zf.close()
             self._zf = None
 
-    def locate(self, name: str) -> dict[str, str | None]:
+    def locate(self, name: str) -> dict[str, Any]:
         """The image source fields of the frame image ``name`` (zip member or file, relative to the
         dataset's folder, and its checked ``image_type``), ``{}`` when absent.
 

@@ -362,6 +362,7 @@ def optimise_box(camera: Camera, centre_px: np.ndarray, ball_world: np.ndarray, 
     error = float(np.linalg.norm(p - q))
     q.setflags(write=False)
 
+    box: np.ndarray | None
     if method == "paper":
         d = _diameter_for_depth(camera, c, ball_diameter_m / lam)
         box = np.array([c[0] - d / 2, c[1] - d / 2, c[0] + d / 2, c[1] + d / 2])

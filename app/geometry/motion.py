@@ -33,7 +33,7 @@ Pure: numpy only.
 """
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -156,7 +156,7 @@ def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
         return False
     T = float(duration_s)
     if kind == "flight":
-        speeds = [np.linalg.norm(q[3:6] + np.array([0.0, 0.0, GRAVITY_M_S2 * t])) for t in (0.0, T)]
+        speeds: list[Any] = [np.linalg.norm(q[3:6] + np.array([0.0, 0.0, GRAVITY_M_S2 * t])) for t in (0.0, T)]
         apex = min(max(-q[5] / GRAVITY_M_S2, 0.0), T)  # the highest point (z smallest) inside the piece
         ends = positions(kind, q, np.array([0.0, T, apex]))
     else:
@@ -337,6 +337,7 @@ def determined(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_co
     ``max_condition`` (a fit of too few labels, e.g. two frames of one camera, leaves directions free,
     and its minimum then depends on where the fit started)."""
     f, J = residuals_and_jacobian(L, kind, q, t)
+    assert J is not None  # asked for: jacobian defaults to True
     H = (J / (1.0 + (f / CAUCHY_PX) ** 2)[:, None]).T @ J
     d = np.sqrt(np.diag(H))
     if not np.all(d > 0):

@@ -107,7 +107,7 @@ def _border_crossings(ext: np.ndarray, prev: np.ndarray, width: int, height: int
     d = np.where(ok, d, np.inf)
     best = np.argmin(d, axis=1)
     rows = np.arange(len(ext))
-    return np.stack([ix[rows, best], iy[rows, best]], axis=1), ok.any(axis=1)
+    return np.stack([ix[rows, best], iy[rows, best]], axis=1), np.asarray(ok.any(axis=1))
 
 
 def _evaluator_polylines(uv: np.ndarray, valid: np.ndarray, class_ids: np.ndarray, width: int,

@@ -125,7 +125,7 @@ def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines |
             or np.shape(start_m) != (F, 3):
         raise ValueError("bundle_adjust: points (F, K, 2), inliers (F, K), start (F, 3), K cameras and lines")
     active = [k for k in range(K) if cameras[k] is not None]
-    obs = {k: build_observations(lines[k]) for k in active if lines[k]}
+    obs = {k: build_observations(labelled) for k in active if (labelled := lines[k])}
     obs = {k: o for k, o in obs.items() if o.n_points}
     if len(obs) < 2:
         raise ValueError("bundle_adjust: needs two or more adjusted cameras with field lines")
@@ -138,16 +138,17 @@ def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines |
     uv = pts[frames[lab_f], lab_k]
 
     params = {}
-    x0 = []
+    x0_parts = []
     for k in active:
         cam = cameras[k]
+        assert cam is not None  # active: the cameras that are set
         k1 = float(cam.radial[0]) if cam.radial is not None else 0.0
         params[k] = CameraParametrisation(principal_point=cam.K[:2, 2].copy(), R0=cam.R, fit_k1=k1 != 0.0)
-        x0.append(params[k].vector(float(cam.K[0, 0]), cam.C, k1))
+        x0_parts.append(params[k].vector(float(cam.K[0, 0]), cam.C, k1))
     offsets = np.cumsum([0] + [params[k].size for k in active])
     n_cam = int(offsets[-1])
     slot = {k: (int(offsets[i]), int(offsets[i + 1])) for i, k in enumerate(active)}
-    x0 = np.concatenate(x0 + [start[frames].reshape(-1)])
+    x0 = np.concatenate(x0_parts + [start[frames].reshape(-1)])
 
     cam_x = {k: x0[slice(*slot[k])] for k in active}
     X0 = start[frames].copy()

@@ -66,10 +66,10 @@ def resect_from_ball(world_m: np.ndarray, image_px: np.ndarray, width: int, heig
     if spread[1] < 0.5:  # metres: points on one line fix no camera
         return None
     pp = ((width - 1) / 2.0, (height - 1) / 2.0)
-    starts = [_pnp_start(X, u, f * width, pp, inlier_px) for f in FOCAL_GRID_WIDTHS]
+    found = [_pnp_start(X, u, f * width, pp, inlier_px) for f in FOCAL_GRID_WIDTHS]
     if spread[2] >= 0.05 * spread[0] and spread[2] >= 0.5:  # off one plane: the DLT fixes K and C together
-        starts.append(_dlt_start(X, u))
-    starts = sorted((s for s in starts if s is not None), key=lambda s: -s[0])[:3]  # the most inliers first
+        found.append(_dlt_start(X, u))
+    starts = sorted((s for s in found if s is not None), key=lambda s: -s[0])[:3]  # the most inliers first
 
     def residual(q, idx):
         xc = (X[idx] - q[4:7]) @ cv2.Rodrigues(q[1:4])[0].T
@@ -201,10 +201,11 @@ def calibrate_with_ball(lines: FieldLines | None, world_m: np.ndarray, image_px:
     def score(centre):
         if centre[2] >= 0:
             return 1e6, None
-        res = calibrate_frame(lines, width, height, prior=CalibrationPrior(centre_m=tuple(float(v) for v in centre)),
-                              compute_jac=False)
+        prior = CalibrationPrior(centre_m=(float(centre[0]), float(centre[1]), float(centre[2])))
+        res = calibrate_frame(lines, width, height, prior=prior, compute_jac=False)
         if res.camera is None:
             return 1e6, None
+        assert res.rms_px is not None  # a fitted camera has its rms
         uv, front = res.camera.project(X)
         ball_px = float(np.median(np.linalg.norm(uv[front] - u[front], axis=1))) if front.any() else 1e6
         return float(np.hypot(res.rms_px, ball_px)), res.camera

@@ -488,6 +488,8 @@ def _weigh_pairs(pairs: Sequence[PairResult], weights: Mapping[Hashable, float])
     out = [dataclasses.replace(p, kept=False, reason="weak_calibrations")
            if p.kept and total(p) < MIN_PAIR_WEIGHT else p for p in pairs]
     best = max((total(p) for p in out if p.kept), default=None)
+    if best is None:  # no pair kept: none to outweigh
+        return out
     return [dataclasses.replace(p, kept=False, reason="outweighed") if p.kept and total(p) < best else p
             for p in out]
 
@@ -583,13 +585,14 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
              for a, b in combinations(obs, 2)]
     if play_volume is not None:
         pairs = [dataclasses.replace(p, kept=False, reason="outside_play_volume")
-                 if p.kept and not play_volume(p.point) else p for p in pairs]
+                 if p.kept and p.point is not None and not play_volume(p.point) else p for p in pairs]
     if view_weights is not None:
         pairs = _weigh_pairs(pairs, view_weights)
-    kept = [p.point for p in pairs if p.kept]
+    kept = [p.point for p in pairs if p.kept and p.point is not None]
     if not kept:
         return result(STATUS_NO_PAIR_KEPT, pairs=pairs)
-    ball = np.average(kept, axis=0, weights=_pair_weights([p for p in pairs if p.kept], view_position_std_m))
+    ball: np.ndarray = np.average(kept, axis=0, weights=_pair_weights([p for p in pairs if p.kept],
+                                                                        view_position_std_m))
     ball.setflags(write=False)
     errors = {o.view_id: reprojection_error_px(o.camera, ball, o.point_px) for o in obs}
     return result(STATUS_TRIANGULATED, ball, pairs, errors)

@@ -110,7 +110,7 @@ class CameraPrior:
             ValueError: missing keys, or values :class:`CameraPrior` refuses.
         """
         try:
-            return cls(anchors_m=tuple(tuple(float(x) for x in a) for a in data["anchors_m"]),
+            return cls(anchors_m=tuple(tuple(float(x) for x in a) for a in data["anchors_m"]),  # type: ignore[misc]  # CameraPrior checks each anchor's three values
                        anchor_std_m=tuple(float(s) for s in data["anchor_std_m"]),
                        anchor_frames=tuple(int(n) for n in data["anchor_frames"]),
                        roll_std_deg=float("inf") if data["roll_std_deg"] is None else float(data["roll_std_deg"]),

@@ -135,8 +135,8 @@ def search_starts(obs: Observations, width: int, height: int, prior: Calibration
                 break
         return best
 
-    starts = homography_starts(obs, pp, scale) if stage == "homography" else []
-    for _, name, param, x0 in starts[:2]:
+    homography = homography_starts(obs, pp, scale) if stage == "homography" else []
+    for _, name, param, x0 in homography[:2]:
         cand = fit_start(x0, obs, param, scale, name, budget)
         if consider(cand):
             return best

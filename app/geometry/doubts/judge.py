@@ -25,6 +25,8 @@ from app.geometry.triangulation import (
 from app.geometry.weighting import (
     axis_on_grass,
     calibration_weight,
+    camera_of,
+    centre_of,
     label_centre,
     pixel_sigma,
     project_point,
@@ -155,7 +157,7 @@ def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtS
             ref = axis_on_grass(a, s)
         if ref is None:
             continue
-        u, w = ref - a.camera.C, ref - b.camera.C
+        u, w = ref - camera_of(a).C, ref - camera_of(b).C
         angle = angle_between_deg(u, w)
         if angle >= s.near_duplicate_max_deg or not (_sees(a, ref) and _sees(b, ref)):
             continue
@@ -164,7 +166,7 @@ def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtS
         named.add(drop.view_id)
         out.append(Doubt(
             "near_duplicate_view", drop.view_id, "near_duplicate",
-            {"other_view": keep.view_id, "angle_deg": _r(angle, 3), "baseline_m": _r(np.linalg.norm(u - w), 2),
+            {"other_view": keep.view_id, "angle_deg": _r(angle, 3), "baseline_m": _r(float(np.linalg.norm(u - w)), 2),
              "max_deg": s.near_duplicate_max_deg},
             {"action": "exclude_view"}))
     return out
@@ -176,9 +178,10 @@ def consensus_box_sigma_px(v: DoubtView, consensus: Consensus, s: DoubtSettings)
     ball, px at 1920 width: how well the rays that made it meet) and ``v``'s calibration's pixel sigma at that
     ball (:func:`~app.geometry.weighting.pixel_sigma`: how far its camera may put the ball's projection), added in
     quadrature and scaled to ``v``'s pixels. None when ``v``'s calibration leaves the pixel undetermined (``inf``)."""
-    errs = [consensus.errors_1920.get(i) for i in consensus.inliers]
-    errs = [e for e in errs if e is not None and math.isfinite(e)]
+    found = [consensus.errors_1920.get(i) for i in consensus.inliers]
+    errs = [e for e in found if e is not None and math.isfinite(e)]
     spread = math.sqrt(sum(e * e for e in errs) / len(errs)) if errs else 0.0
+    assert consensus.point is not None  # a consensus box is asked for only where there is a consensus ball
     own = pixel_sigma(v, consensus.point, s)
     if not math.isfinite(own):
         return None
@@ -209,11 +212,12 @@ def _missing_doubt(v: DoubtView, consensus: Consensus, s: DoubtSettings, code: s
     ``margin_px`` (px at 1920 width; default ``inside_margin_px``), else None; its fix is
     :func:`consensus_fix` (the sphere box with its uncertainty)."""
     ball = consensus.point
+    assert ball is not None  # asked only where the views agree on a ball
     uv = project_point(v, ball)
     margin = s.inside_margin_px if margin_px is None else margin_px
     if uv is None or not _inside(v, uv, margin / rule_scale(v, s)):
         return None
-    box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
+    box = sphere_image_box(camera_of(v), ball, s.ball_diameter_m / 2)
     if box is None:
         return None
     evidence = {"projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball], **extra}
@@ -250,7 +254,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     # so the segment spans two sigmas each side), weighed over the segment's samples
     mono = _mono(only, s)
     if mono is not None:
-        depth = np.linalg.norm(pts - only.camera.C, axis=1) / np.linalg.norm(mono - only.camera.C)
+        depth = np.linalg.norm(pts - camera_of(only).C, axis=1) / np.linalg.norm(mono - camera_of(only).C)
         w = np.exp(-0.5 * ((depth - 1.0) / (s.ground_box_tolerance / 2)) ** 2)
     else:
         w = np.ones(len(pts))
@@ -265,7 +269,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
                                 "grass_px": [_r(uv0[0]), _r(uv0[1])], "placed": how, "depth_known": False}
     if length / 2 > s.consensus_tau_px or not inside.all():
         return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
-    box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
+    box = sphere_image_box(camera_of(v), ball, s.ball_diameter_m / 2)
     if box is None:
         return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
     evidence.update(projected_px=[_r(uv0[0]), _r(uv0[1])], ball3d=[_r(x, 3) for x in ball])
@@ -276,7 +280,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
 
 def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
-                 weighed: Mapping[Hashable, tuple[float, float]] | None = None) -> list[Doubt]:
+                 weighed: Mapping[Any, tuple[float, float]] | None = None) -> list[Doubt]:
     """Every doubt of one multi-view system (pure, deterministic; see the module docstring for the kinds).
 
     Rules, in order:
@@ -349,7 +353,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
     labelled = [v for v in judged if label_centre(v) is not None]
     unlabelled = [v for v in judged if label_centre(v) is None]
     voters = labelled + helpers
-    obs = [BallObservation(v.view_id, v.camera, label_centre(v), REFERENCE_WIDTH_PX / rule_scale(v, s)) for v in voters]
+    obs = [BallObservation(v.view_id, camera_of(v), centre_of(v), REFERENCE_WIDTH_PX / rule_scale(v, s))
+           for v in voters]
     cons = ball_consensus(obs, tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
                           weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
     lone_contradicted = bool(helpers) and len(labelled) == 1 and (
@@ -368,7 +373,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
             v = by_id[vid]
             e = cons.errors_1920[vid]
             uv = project_point(v, cons.point)
-            box = sphere_image_box(v.camera, cons.point, s.ball_diameter_m / 2) if uv is not None and _inside(
+            box = sphere_image_box(camera_of(v), cons.point, s.ball_diameter_m / 2) if uv is not None and _inside(
                 v, uv, 0.0) else None
             suggestion = consensus_fix(v, cons, box, s)
             doubts.append(Doubt(
@@ -409,8 +414,8 @@ def _disagree_doubt(labelled: Sequence[DoubtView], cons: Consensus, tau: float, 
     if cons.point is not None and not cons.ambiguous:
         return None  # they agree, but no ball is agreed on by the helpers' votes: nothing to say
     if best is None:
-        errs = [epipolar_pair_error(a, b, s) for a, b in combinations(labelled, 2)]
-        errs = [e for e in errs if e is not None]
+        pair_errors = [epipolar_pair_error(a, b, s) for a, b in combinations(labelled, 2)]
+        errs = [e for e in pair_errors if e is not None]
         if not errs or min(errs) <= tau:
             return None
         best, code = min(errs), "epipolar"

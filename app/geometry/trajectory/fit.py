@@ -152,13 +152,13 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
     covered = np.zeros(n, bool)
     for p in pieces:
         covered[max(p.first_frame, a) - a:min(p.last_frame, b) - a + 1] = True
-    for r in np.flatnonzero(~covered & (np.isfinite(residuals).sum(axis=1) >= 2) & outliers.any(axis=1)):
-        row = a + r - pts_first
+    for g in np.flatnonzero(~covered & (np.isfinite(residuals).sum(axis=1) >= 2) & outliers.any(axis=1)):
+        row = a + g - pts_first
         tri = triangulate_frame([BallObservation(int(k), cameras[k], pts[row, k], widths[k])
-                                 for k in np.flatnonzero(np.isfinite(residuals[r]))], tau_px=tau_px, rule=rule,
+                                 for k in np.flatnonzero(np.isfinite(residuals[g]))], tau_px=tau_px, rule=rule,
                                 min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg)
-        if tri.point is not None and np.linalg.norm(tri.point - positions[r]) <= GAP_CONSENSUS_M:
-            outliers[r, list(tri.kept)] = False
+        if tri.point is not None and np.linalg.norm(tri.point - positions[g]) <= GAP_CONSENSUS_M:
+            outliers[g, list(tri.kept)] = False
     keep_mask = np.isfinite(residuals) & ~outliers
     # the frames whose kept labels are those of ``previous`` (outside the edit) keep its triangulation
     same = np.zeros(n, bool)
@@ -171,7 +171,7 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
     ball = np.full((n, 3), np.nan)
     cam_lists: list[tuple[int, ...]] = []
     sources: list[str | None] = []
-    placed = np.isfinite(positions).all(axis=1).tolist()
+    placed: list[bool] = np.all(np.isfinite(positions), axis=1).tolist()
     for r in range(n):
         keep = tuple(np.flatnonzero(keep_mask[r]).tolist())
         if same[r]:

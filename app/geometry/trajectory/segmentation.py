@@ -114,7 +114,7 @@ class Piece:
     cost: float
     alternative: np.ndarray | None = None
 
-    def position(self, frames: np.ndarray, fps: float) -> np.ndarray:
+    def position(self, frames: np.ndarray | Sequence[float], fps: float) -> np.ndarray:
         """(N,) frame indices (may lie outside the piece) -> (N, 3) world positions, metres."""
         t = (np.asarray(frames, float) - self.first_frame) / fps
         return _positions(self.kind, self.params, t)
@@ -151,7 +151,9 @@ def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine:
         linear = q
     sub = L.take(idx)
     t = (sub.frame - first) / fps
-    q = _refine(sub, kind, start if start is not None else linear, t)
+    x0 = start if start is not None else linear
+    assert x0 is not None  # without a start, linear is the linear fit (made above when not given)
+    q = _refine(sub, kind, x0, t)
     if start is not None and not _determined(sub, kind, q, t):
         if linear is None:
             linear = linear_fits(L, [(idx, kind, first)], fps)[0][0]

@@ -204,7 +204,7 @@ def from_this_machine(peer: Optional[str], headers: Any) -> bool:
     >>> from_this_machine("10.1.2.3", {}), from_this_machine(None, {})
     (False, False)
     """
-    return bool(peer) and is_loopback(peer) and not any(h in headers for h in PROXY_HEADERS)
+    return peer is not None and bool(peer) and is_loopback(peer) and not any(h in headers for h in PROXY_HEADERS)
 
 
 def client_group(address: str) -> str:
@@ -230,7 +230,7 @@ def client_group(address: str) -> str:
 class LoginThrottle:
     """The two limits of failed logins (module docstring) on one storage."""
 
-    storage: Storage
+    storage: DatabaseStorage
     per_name: RateLimitItem
     per_address: RateLimitItem
 

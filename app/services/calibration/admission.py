@@ -47,7 +47,7 @@ def admitted_jac_sql(settings: Settings) -> Any:
     return getattr(Calibration, JAC_COLUMNS[admission_gamma(settings)]) > settings.admit_jac_min
 
 
-def admission_args(settings: Settings) -> dict[str, float]:
+def admission_args(settings: Settings) -> dict[str, Any]:
     """The admission's ``admit_jac_gamma`` (checked: :func:`admission_gamma`) and ``admit_jac_min`` of ``settings``, as
     the keyword arguments of the geometry and services that judge a camera by the rule before it is stored
     (``app.geometry.static_cameras.calibrate_with_ball``, ``app.services.issia.cameras.sequence_cameras``).

@@ -143,6 +143,7 @@ def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings,
             if any(i is None or ahead.jobs[key][0] != jobs[i] for i, key in zip(mine, game, strict=True)):
                 continue  # a frame's job changed: the game is calibrated now, both passes
             for k, i in enumerate(mine):
+                assert i is not None  # every frame of the game is one of ours: checked above
                 results[i], first_ms[i] = calibrated.final[k], calibrated.first[k].elapsed_ms
                 finished.add(i)
                 if k in calibrated.rig_ms:
@@ -203,11 +204,10 @@ def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationField
     Writes nothing."""
     mine = [i for i, f in enumerate(frames) if not uses_rig(f.system)]
     learned = dataset_prior([results[i] for i in mine],
-                            [(lines_from_json_lists(frames[i].field_lines.lines) if frames[i].field_lines is not None
-                              else {},
+                            [(lines_from_json_lists(fl.lines) if (fl := frames[i].field_lines) is not None else {},
                               frames[i].width, frames[i].height) for i in mine])
     priors = {i: learned if learned is not None else stored_camera_prior(frames[i].system) for i in mine}
-    retry = [i for i in mine if priors[i] is not None and wants_prior_retry(results[i], priors[i])]
+    retry = [i for i in mine if (prior := priors[i]) is not None and wants_prior_retry(results[i], prior)]
     out = list(results)
     ms: dict[int, float] = {}
     jobs = [calibration_job(frames[i], priors[i]) for i in retry]

@@ -8,12 +8,12 @@ named by their image names (``names``: view id -> name).
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Hashable, Mapping
+from typing import Any, Callable, Mapping
 
 from app.geometry.doubts import Doubt as DoubtFinding
 from app.geometry.mirror import AMBIGUOUS, DIFFERENT, SAME, VERDICT_AS_LABELLED, VERDICT_MIRRORED
 
-Names = Mapping[Hashable, str]
+Names = Mapping[Any, str]
 
 
 def _num(x: Any, nd: int = 0, unknown: str = "an unknown number of") -> str:
@@ -225,12 +225,12 @@ def mirror_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | fro
     pro: list[str] = []  # evidence that this view's labels are mirrored
     con: list[str] = []  # evidence that they are right
     y = float(verdict.get("camera_y_m") or 0.0)
-    side, rig = verdict.get("side_vote"), verdict.get("rig_vote")
+    side_vote, rig = verdict.get("side_vote"), verdict.get("rig_vote")
     d, dm = verdict.get("rig_distance_m"), verdict.get("rig_distance_mirrored_m")
-    if side == 1:
+    if side_vote == 1:
         pro.append(f"the camera stands at y = {y:+.0f} m, beyond the far side line for a main camera "
                    f"(mirrored: y = {-y:+.0f} m)")
-    elif side == -1:
+    elif side_vote == -1:
         con.append(f"the camera stands at y = {y:+.0f} m, on the main camera's side")
     if rig == 1:
         pro.append(f"its mirror image is {_num(dm, 1)} m from a camera position of the game, the camera "
@@ -254,8 +254,9 @@ def mirror_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | fro
         elif rel == AMBIGUOUS:
             con.append(f"with view {other} the ball is too near the centre spot to tell")
     v = verdict.get("verdict")
-    head = {VERDICT_MIRRORED: "Labels probably mirrored", VERDICT_AS_LABELLED: "Labels as given agree with the evidence"
-            }.get(v, "Mirroring undecided")
+    heads: dict[Any, str] = {VERDICT_MIRRORED: "Labels probably mirrored",
+                             VERDICT_AS_LABELLED: "Labels as given agree with the evidence"}
+    head = heads.get(v, "Mirroring undecided")
     first, second = (con, pro) if v == VERDICT_AS_LABELLED else (pro, con)
     if not first and not second:
         return head + ": no evidence either way."

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import Counter
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 import numpy as np
 import sqlalchemy as sa
@@ -59,8 +59,8 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
     given)."""
     cal = frame.calibration
     calibrated = cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None
-    if camera is None and calibrated:
-        camera = stored_camera(cal.camera)  # type: ignore[union-attr]  # calibrated: cal and its camera are set
+    if camera is None and cal is not None and cal.camera is not None and calibrated:
+        camera = stored_camera(cal.camera)
     label = frame.ball_label
     box = np.asarray(label.box, float) if label is not None and label.box is not None else None
     point = np.asarray(label.point, float) if label is not None and label.point is not None else None
@@ -101,7 +101,8 @@ def weighed_views(system: System, settings: Settings, cameras: dict[int, Camera]
     """:class:`WeighedViews` of ``system`` as its rows are now (admission and mirror flags as set on them)."""
     s = doubt_settings(settings)
     views = doubt_views(system, cameras)
-    return WeighedViews(views, {v.view_id: calibration_weight(v, s) for v in views if v.camera is not None})
+    # a stored view's id is its frame's id
+    return WeighedViews(views, {cast(int, v.view_id): calibration_weight(v, s) for v in views if v.camera is not None})
 
 
 def calibration_weights(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,

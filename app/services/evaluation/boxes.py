@@ -74,7 +74,7 @@ def read_precise_boxes(path: str | Path) -> list[PreciseBox]:
     out = []
     for n, r in enumerate(reader, start=2):
         try:
-            box = tuple(float(r[c]) for c in ("x1", "y1", "x2", "y2"))
+            box = (float(r["x1"]), float(r["y1"]), float(r["x2"]), float(r["y2"]))
         except (TypeError, ValueError):
             raise DatasetError(path, f"row {n} x1..y2", "not numbers") from None
         if not all(math.isfinite(v) for v in box):

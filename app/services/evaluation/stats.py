@@ -109,19 +109,20 @@ def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
                 sp["systems"] += 1
                 seen_splits.add(split)
             cal = f.calibration
-            calibrated = cal is not None and cal.camera is not None
-            admitted = calibrated and bool(cal.admitted)  # type: ignore[union-attr]  # calibrated: cal is set
+            camera = cal.camera if cal is not None else None
+            calibrated = cal is not None and camera is not None
+            admitted = cal is not None and camera is not None and bool(cal.admitted)
             for target in (k, sp):
                 target["images"] += 1
                 target["calibrated_images"] += int(calibrated)
                 target["admitted_images"] += int(admitted)
-            if calibrated:
-                jac = admission_jac(cal, settings)  # type: ignore[arg-type]  # calibrated: cal is set
+            if cal is not None and camera is not None:
+                jac = admission_jac(cal, settings)
                 if jac is not None:
                     jac_values.append(float(jac))
                     jacs.append(float(jac))
                 if admitted and ball is not None:
-                    centre = np.asarray(cal.camera["position_meters"], float)  # type: ignore[index,union-attr]  # calibrated: cal and its camera are set
+                    centre = np.asarray(camera["position_meters"], dtype=float)
                     distances.append(float(np.linalg.norm(np.asarray(ball, float) - centre)))
             label = f.ball_label
             if label is not None and label.box is not None:
@@ -131,7 +132,7 @@ def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
     sweep = _sweep([jacs for _, jacs in per_system_jacs])
     by_kind = {kind: _sweep([jacs for k, jacs in per_system_jacs if k == kind]) for kind in kinds}
     errors = [e for (e,) in session.execute(sa.select(TriangulationPair.error_px)
-                                            .where(TriangulationPair.error_px.is_not(None)))]
+                                            .where(TriangulationPair.error_px.is_not(None))) if e is not None]
     return {
         "kinds": kinds,
         "jac_sweep": sweep,

@@ -109,6 +109,7 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
         res = calibrate_frame(seq.lines[cid], *seq.image_size)
         jac = res.jac.get(f"{admit_jac_gamma:g}") if res.jac else None  # calibrate_frame's keys: JAC_GAMMAS
         if res.camera is None:
+            assert res.refusal is not None  # calibrate_frame: no camera comes with its refusal
             out[cid] = CameraChoice(None, "lines", None, f"refused: {refusal_sentence(res.refusal)}", res.refusal.code)
         elif not jac_admitted(jac, admit_jac_min):
             below = Refusal("below_admission",
@@ -200,9 +201,10 @@ def bundle_refined_cameras(cameras: Sequence[Camera | None], lines: Sequence[Fie
     except ValueError:
         return out
     for k in range(len(cams)):
-        if res.cameras[k] is None or lines[k] is None:
+        camera, labelled = res.cameras[k], lines[k]
+        if camera is None or labelled is None:
             continue
-        jac = float(jac_at_gammas(res.cameras[k], lines[k], *image_size, (admit_jac_gamma,))[admit_jac_gamma])
+        jac = float(jac_at_gammas(camera, labelled, *image_size, (admit_jac_gamma,))[admit_jac_gamma])
         if jac_admitted(jac, admit_jac_min):
-            out[k] = (res.cameras[k], jac)
+            out[k] = (camera, jac)
     return out

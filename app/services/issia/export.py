@@ -116,15 +116,15 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
     names = _names(systems)
     ids = tuple(_cam_id(n) for n in names)
     col = {n: k for k, n in enumerate(names)}
-    F = max(s.frame_index for s in systems) + 1  # type: ignore[type-var]  # an ISSIA system has a frame index
+    indices = [s.frame_index for s in systems if s.frame_index is not None]  # all of them: kept above
+    F = max(indices) + 1
     points = np.full((len(systems), len(ids), 2), np.nan)
     ball, smooth = np.full((F, 3), np.nan), np.full((F, 3), np.nan)
     sources: list[str | None] = [None] * F
     cam_lists: list[tuple[int, ...]] = [()] * F
     cameras: dict[str, Camera] = {}
     size = ANNOTATION_SIZE
-    for i, s in enumerate(systems):
-        f_idx = s.frame_index
+    for i, (s, f_idx) in enumerate(zip(systems, indices, strict=True)):
         k_of = {f.id: col[f.name] for f in s.frames}
         for f in s.frames:
             size = (f.width, f.height)
@@ -144,7 +144,7 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
             sources[f_idx] = tp.source
             cam_lists[f_idx] = tuple(sorted(k_of[i] for i in tp.cam_list if i in k_of))
     seq = IssiaSequence(root=Path("."), camera_ids=ids, image_size=size, cameras={}, lines={},
-                        frames=tuple(s.frame_index for s in systems), points=points)  # type: ignore[arg-type]  # an ISSIA system has a frame index
+                        frames=tuple(indices), points=points)
     fit = _StoredFit(ball, smooth, tuple(sources), tuple(cam_lists))
     return issia3d_rows(seq, cameras, fit)
 

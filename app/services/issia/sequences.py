@@ -83,13 +83,13 @@ def _camera_fields(seq: IssiaSequence, cid: str, choice: CameraChoice) -> Calibr
                                  refusal=choice.refusal)
     w, h = seq.image_size
     flags = [BALL_ASSISTED_FLAG] * choice.ball_assisted + [BALL_BUNDLE_FLAG] * choice.bundle_adjusted
+    values: tuple[float | None, float | None, float | None]
     if cid in seq.lines:
         jac = jac_at_gammas(choice.camera, seq.lines[cid], w, h, JAC_GAMMAS)
-        values = tuple(float(jac[g]) for g in JAC_GAMMAS)
+        values = (float(jac[JAC_GAMMAS[0]]), float(jac[JAC_GAMMAS[1]]), float(jac[JAC_GAMMAS[2]]))
     else:
         values, flags = (None, None, None), flags + [GIVEN_CAMERA_FLAG]
-    return CalibrationFields(CalibrationStatus.CALIBRATED,
-                             json_safe(choice.camera.to_soccernet()), values, flags=flags)  # type: ignore[arg-type]  # three JaCs, or three Nones
+    return CalibrationFields(CalibrationStatus.CALIBRATED, json_safe(choice.camera.to_soccernet()), values, flags=flags)
 
 
 def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:
@@ -184,7 +184,7 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
     for index in seq.frames:
         system = systems.get(str(index))
         new = system is None
-        if new:
+        if system is None:
             system = System(name=str(index), kind=SystemKind.ISSIA, frame_index=index)
             game.systems.append(system)
             report.systems_new += 1
@@ -271,7 +271,7 @@ def refined_with_ball(session: Session, frame: Frame,
     flags = [f for f in fields.flags if f != BALL_BUNDLE_FLAG] + [BALL_BUNDLE_FLAG]
     residuals = {c: float(np.max(d)) for c, d in class_point_distances(camera, lines[k]).items() if len(d)}
     return dataclasses.replace(fields, camera=json_safe(camera.to_soccernet()),
-                               jac=tuple(float(jac[g]) for g in JAC_GAMMAS),
+                               jac=(float(jac[JAC_GAMMAS[0]]), float(jac[JAC_GAMMAS[1]]), float(jac[JAC_GAMMAS[2]])),
                                flags=flags, residuals_px=residuals,
                                uncertainty=fit_uncertainty(camera, lines[k], tuple(flags)))
 
@@ -311,7 +311,8 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
         touched = []
         # what the recomputations below read, for all of them in a few queries (not one per system and relation)
         load_for_recompute(session, [c.system.id for c in changed if c.system is not None and (
-            c.labels or c.system.trajectory_point.flagged or c.system.doubt_counts.get("ball_off_consensus"))])
+            c.labels or c.system.trajectory_point.flagged  # type: ignore[union-attr]  # a re-fitted system has its point
+            or c.system.doubt_counts.get("ball_off_consensus"))])
     # decided systems whose place on the trajectory moved but that the re-fit did not load: the edit sets their
     # decisions back to pending (one query for all of them)
     unloaded = [c.system_id for c in changed if c.system is None and c.system_id is not None]
@@ -324,7 +325,7 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
             continue
         if c.labels:
             recompute_system(session, s, settings)
-        elif s.trajectory_point.flagged or s.doubt_counts.get("ball_off_consensus"):
+        elif s.trajectory_point.flagged or s.doubt_counts.get("ball_off_consensus"):  # type: ignore[union-attr]  # a re-fitted system has its point
             update_doubts(s, settings)
         touched.append(s)  # its place on the trajectory (its 3D ball) changed, recomputed or not
     return touched

@@ -154,8 +154,8 @@ def row_values(fit: TrajectoryFit, frames: Sequence[int], ids: np.ndarray) -> di
     out = {}
     for j, frame in enumerate(frames):
         i = rows[j]
-        at = bisect.bisect_right(starts, frame) - 1  # the piece holding the frame, if one does
-        at = at if at >= 0 and fit.pieces[at].last_frame >= frame else None
+        before: int = bisect.bisect_right(starts, frame) - 1  # the piece holding the frame, if one does
+        at = before if before >= 0 and fit.pieces[before].last_frame >= frame else None
         if at is not None and at not in documents:
             documents[at] = piece_json(fit.pieces[at])
         fid = ids_l[j]
@@ -193,7 +193,7 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
     return changed
 
 
-def fit_args(settings: Settings) -> dict[str, float]:
+def fit_args(settings: Settings) -> dict[str, Any]:
     """The keyword arguments of the trajectory fit taken from the settings (its per-frame triangulation's)."""
     return {"tau_px": settings.triangulation_tau_px, "rule": settings.pair_error_rule,
             "min_baseline_m": settings.min_baseline_m, "min_parallax_deg": settings.min_parallax_deg}

@@ -147,7 +147,7 @@ def refined_boxes(system: System, ball_diameter_m: float = BALL_DIAMETER_M,
         others = [e for i, e in errors.items() if i != f.id]
         if not others:
             continue
-        centre, diameter = box_centre_and_diameter(label.box)
+        centre, diameter = box_centre_and_diameter(np.asarray(label.box, float))
         try:
             r = refine_box(Camera.from_soccernet(cal.camera), centre[0], ball,
                            max(sigma_fraction * float(diameter[0]), MIN_SIGMA_PX),

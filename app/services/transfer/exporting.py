@@ -381,8 +381,8 @@ def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], targ
     ids = [frame_id for frame_id, _ in frames]
     loaded: dict[int, Frame] = {}
     for start in range(0, len(ids), _FRAMES_PER_QUERY):  # one query per chunk, not one per frame
-        chunk = ids[start:start + _FRAMES_PER_QUERY]
-        loaded.update((f.id, f) for f in session.scalars(select(Frame).where(Frame.id.in_(chunk))))
+        some = ids[start:start + _FRAMES_PER_QUERY]
+        loaded.update((f.id, f) for f in session.scalars(select(Frame).where(Frame.id.in_(some))))
     with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_STORED) as zf:
         for frame_id, name in frames:
             frame = loaded.get(frame_id)

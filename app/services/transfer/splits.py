@@ -73,10 +73,10 @@ def import_split(session: Session, path: str | Path, set_name: str) -> SplitRepo
             .where(Game.league == league, Game.season == season, Game.match == match)
         ).all()
         for frame in frames:
-            line = images.get(frame.name) or images.get(PurePosixPath(frame.name).stem)
-            if line is None:
+            listed = images.get(frame.name) or images.get(PurePosixPath(frame.name).stem)
+            if listed is None:
                 continue
-            found.add(line)
+            found.add(listed)
             report.frames += 1
             if frame.split != set_name:
                 frame.split = set_name
