@@ -146,7 +146,7 @@ def search_starts(obs: Observations, width: int, height: int, prior: Calibration
             if best.p90 < accept:
                 return best
 
-    if starts:
+    if homography:
         # The lines fix a homography but its camera leaves some labels far off: a mislabelled line
         # is the likelier cause; the caller tries without each class before the look-at starts.
         return best
