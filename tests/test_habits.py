@@ -77,7 +77,7 @@ def test_every_suppression_names_its_reason() -> None:
     """``# type: ignore[code]`` and ``# noqa: CODE`` name the code they silence and, after them, why (``# type:
     ignore[union-attr]  # calibrated: cal is set``): a bare one hides whether it is still needed."""
     bare = []
-    for p in _files("app", "tests", "benchmarks", suffixes={".py"}):
+    for p in _files("app", "tests", "benchmarks", "migrations", suffixes={".py"}):
         with p.open(encoding="utf-8") as fh:
             comments = [t for t in tokenize.generate_tokens(fh.readline) if t.type == tokenize.COMMENT]
         for token in comments:
