@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.scale import free_port  # noqa: E402
+from benchmarks.scale import free_port
 
 MB = 2**20
 
@@ -124,12 +124,12 @@ def measure(code: Path, mb: float, kinds: list[str], workdir: Path) -> list[dict
             peak = [before]
             stop = threading.Event()
 
-            def sample() -> None:
+            def sample(stop: threading.Event, peak: list[float]) -> None:
                 while not stop.is_set():
                     peak[0] = max(peak[0], _rss(server))
                     time.sleep(0.01)
 
-            sampler = threading.Thread(target=sample)
+            sampler = threading.Thread(target=sample, args=(stop, peak))
             sampler.start()
             result = send_body(port, kind, int(mb * MB))
             time.sleep(0.5)
@@ -152,8 +152,8 @@ def main(argv: list[str] | None = None) -> int:
         results = measure(args.code.resolve(), args.mb, args.kinds.split(","), Path(tmp))
     for r in results:
         print(f"{r['kind']:9s} {args.mb:g} MB anonymous to /api/auth/login: {r.get('status')!r} after "
-              f"{r.get('seconds', float('nan')):.2f} s, {r['sent_mb']:.0f} MB sent; server RSS {r['rss_before_mb']:.0f} MB "
-              f"+{r['rss_growth_mb']:.1f} MB")
+              f"{r.get('seconds', float('nan')):.2f} s, {r['sent_mb']:.0f} MB sent; server RSS "
+              f"{r['rss_before_mb']:.0f} MB +{r['rss_growth_mb']:.1f} MB")
     return 0
 
 

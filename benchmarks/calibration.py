@@ -31,13 +31,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, calibrate_frame  # noqa: E402
-from app.services.curation.words import refusal_sentence  # noqa: E402
-from app.core.config import Settings  # noqa: E402
-from app.geometry.jac import evaluate_jac, gamma_thresholds, jac_admitted  # noqa: E402
-from app.services.calibration.admission import admission_args  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.geometry.annotations import from_soccernet_calibration
+from app.geometry.calibration import CalibrationPrior, calibrate_frame
+from app.geometry.jac import evaluate_jac, gamma_thresholds, jac_admitted
+from app.services.calibration.admission import admission_args
+from app.services.curation.words import refusal_sentence
 
 SETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
 TARGETS = {"sn22": (0.837, 0.985), "wc14": (0.902, 0.979)}

@@ -33,13 +33,13 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from app.core.config import Settings  # noqa: E402
-from app.datasets.soccernet_v3 import read_soccernet_v3  # noqa: E402
-from app.db.models import SystemKind  # noqa: E402
-from app.datasets.records import CalibrationFields  # noqa: E402
-from app.services.calibration.calibrating import calibrate_lines  # noqa: E402
-from app.services.calibration.first_pass import new_frame_job  # noqa: E402
-from app.services.calibration.rigs import game_rig, wants_rig_retry  # noqa: E402
+from app.core.config import Settings
+from app.datasets.records import CalibrationFields
+from app.datasets.soccernet_v3 import read_soccernet_v3
+from app.db.models import SystemKind
+from app.services.calibration.calibrating import calibrate_lines
+from app.services.calibration.first_pass import new_frame_job
+from app.services.calibration.rigs import game_rig, wants_rig_retry
 
 
 def _timed(job: tuple, profiler: cProfile.Profile | None) -> tuple[CalibrationFields, float]:
@@ -73,7 +73,7 @@ def replay(scale_dir: Path, games: int, skip: int = 0, profile_first: bool = Tru
         rig = game_rig(None, None, settings, extra=firsts, extra_roles=[f.role for _, f in frames])
         if not rig.positions:
             continue
-        for (srec, frec), fields in zip(frames, firsts):
+        for (srec, frec), fields in zip(frames, firsts, strict=False):
             if srec.kind is SystemKind.SOCCERNET_V3 and wants_rig_retry(fields, settings):
                 job = (*new_frame_job(frec)[:4], rig, new_frame_job(frec)[5])
                 retried, ms = _timed(job, profiler if profile_rig else None)
@@ -102,7 +102,7 @@ def _differences(a: Any, b: Any, path: str = "") -> list[tuple[str, float]]:
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
         if len(a) != len(b):
             return [(path + " length", math.inf)]
-        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _differences(x, y, f"{path}[{i}]")]
+        return [d for i, (x, y) in enumerate(zip(a, b, strict=False)) for d in _differences(x, y, f"{path}[{i}]")]
     if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
         return [] if a == b else [(path, abs(float(a) - float(b)))]
     return [] if a == b else [(path, math.inf)]

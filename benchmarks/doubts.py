@@ -58,16 +58,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import selectinload  # noqa: E402
+from sqlalchemy import select
+from sqlalchemy.orm import selectinload
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import Frame, System  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.doubts import LABEL_KINDS, Doubt, DoubtSettings, DoubtView, judge_system  # noqa: E402
-from app.services.curation.doubts import doubt_settings, doubt_views  # noqa: E402
-from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.models import Frame, System
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.geometry.doubts import LABEL_KINDS, Doubt, DoubtSettings, DoubtView, judge_system
+from app.services.curation.doubts import doubt_settings, doubt_views
+from app.services.transfer.importing import import_soccernet_v3
 
 SETS = {"dev-large": "soccernet-v3-dev-large", "dev": "soccernet-v3-dev"}
 MIN_CLASSES = 4
@@ -155,18 +155,23 @@ class Score:
     false_alarms: list[str] = field(default_factory=list)
 
     def rates(self) -> dict[str, Any]:
-        pct = lambda a, b: round(100.0 * a / b, 1) if b else None  # noqa: E731
+        def pct(a, b):
+            return round(100.0 * a / b, 1) if b else None
         sugg = [x for x in self.suggestion_px]
         return {
             "caught_pct": pct(self.caught, self.observable), "caught": f"{self.caught}/{self.observable}",
-            "guilty_pct": pct(self.guilty_named, self.guilty_total), "guilty": f"{self.guilty_named}/{self.guilty_total}",
-            "clean_false_alarm_pct": pct(self.clean_flagged, self.clean), "clean_flagged": f"{self.clean_flagged}/{self.clean}",
-            "near_dup_named_pct": pct(self.near_dup_named, self.near_dup), "near_dup": f"{self.near_dup_named}/{self.near_dup}",
+            "guilty_pct": pct(self.guilty_named, self.guilty_total),
+            "guilty": f"{self.guilty_named}/{self.guilty_total}",
+            "clean_false_alarm_pct": pct(self.clean_flagged, self.clean),
+            "clean_flagged": f"{self.clean_flagged}/{self.clean}",
+            "near_dup_named_pct": pct(self.near_dup_named, self.near_dup),
+            "near_dup": f"{self.near_dup_named}/{self.near_dup}",
             "out_of_frame_called_missing": f"{self.out_of_frame_called}/{self.out_of_frame}",
             "suggestion_median_px_1920": None if not sugg else round(float(np.median(sugg)), 2),
             "suggestion_max_px_1920": None if not sugg else round(float(np.max(sugg)), 2),
             "suggestions": len(sugg),
-            "precision_pct": pct(self.flagged_with_problem, self.flagged), "recall_pct": pct(self.caught, self.observable),
+            "precision_pct": pct(self.flagged_with_problem, self.flagged),
+            "recall_pct": pct(self.caught, self.observable),
         }
 
 
@@ -306,10 +311,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         truths[name] = load_truth(args.shared, name)
         judged, ms = judge_all(inputs[name], base)
         sc = score(judged, truths[name])
-        five = [m for (k, v), m in zip(inputs[name], ms) if len(v) >= 5]
+        five = [m for (k, v), m in zip(inputs[name], ms, strict=False) if len(v) >= 5]
         rates = {**sc.rates(), "judge_ms_median": round(float(np.median(ms)), 2),
                  "judge_ms_p99": round(float(np.percentile(ms, 99)), 2), "judge_ms_max": round(float(max(ms)), 2),
-                 "judge_s_total": round(sum(ms) / 1e3, 3), "judge_ms_max_5_views": round(max(five), 2) if five else None}
+                 "judge_s_total": round(sum(ms) / 1e3, 3),
+                 "judge_ms_max_5_views": round(max(five), 2) if five else None}
         report["sets"][name] = rates
         print(f"[{name}] systems {sc.systems}: " + ", ".join(f"{k} {v}" for k, v in rates.items()))
         if args.verbose:

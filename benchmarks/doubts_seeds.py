@@ -39,7 +39,7 @@ from typing import Any, Sequence
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from app.core.paths import SHARED_DIR  # noqa: E402
+from app.core.paths import SHARED_DIR
 
 SYNTH = SHARED_DIR / "data" / "synthetic"
 SETS: dict[str, Path] = {"dev-large": SYNTH / "soccernet-v3-dev-large",
@@ -124,7 +124,8 @@ def judge(name: str, db_dir: Path, out_dir: Path) -> dict[str, Any]:
 def suggestion_errors(truth: dict, out: dict) -> list[float]:
     """The per-case suggested-box centre errors as the evaluator measures them (for the pooled median)."""
     by = {(s["game"]["match"], s["system"]): s["doubts"] for s in out["systems"]}
-    ncal = lambda v: len(set(v["visible_line_classes"]) - set(v["dropped_line_classes"]))  # noqa: E731
+    def ncal(v):
+        return len(set(v["visible_line_classes"]) - set(v["dropped_line_classes"]))
     errs = []
     for g in truth["games"]:
         for s in g["systems"]:

@@ -12,7 +12,8 @@ server's time per preview (its ``elapsed_ms``) and the round trip seen by the pa
 :func:`main` builds the demo (``v3d serve --demo``'s data), serves it with ``v3d serve`` (``benchmarks.scale.Server``),
 logs a reviewer in through the login page and prints the figures of ``--runs`` drags (medians), e.g.::
 
-    .venv/bin/python benchmarks/drag_preview.py [--runs 5] [--seconds 4] [--moves-per-s 60] [--in-page] [--json out.json]
+    .venv/bin/python benchmarks/drag_preview.py [--runs 5] [--seconds 4] [--moves-per-s 60] [--in-page]
+        [--json out.json]
 
 Browser, server and their Python share this machine's two cores: a busy machine gives pessimistic figures.
 """
@@ -130,7 +131,8 @@ def drag_with_preview(page, view_index: int, point: tuple[float, float], *, seco
         page.mouse.down()
         drawn0 = _drawn(view)
         n = max(1, int(seconds * moves_per_s))
-        wave = [amplitude_px * (2 * ph if ph < 0.5 else 2 * (1 - ph))  # a triangle wave: out and back, 40 moves a period
+        # a triangle wave: out and back, 40 moves a period
+        wave = [amplitude_px * (2 * ph if ph < 0.5 else 2 * (1 - ph))
                 for ph in ((i % 40) / 40.0 for i in range(n))]
         if in_page:
             moving_s = view.locator("[data-testid=view-svg]").evaluate(_PAGE_MOVES, [
@@ -157,7 +159,8 @@ def drag_with_preview(page, view_index: int, point: tuple[float, float], *, seco
         with page.expect_response(lambda r: r.request.method == "PUT" and "/field-lines" in r.url) as answer:
             page.mouse.up()
         status = answer.value.status
-        stored = (answer.value.json()["views"][view_index]["calibration"] or {}).get("jac", {}) if answer.value.ok else {}
+        stored = ((answer.value.json()["views"][view_index]["calibration"] or {}).get("jac", {})
+                  if answer.value.ok else {})
     finally:
         page.remove_listener("request", on_request)
         page.remove_listener("requestfinished", on_done)
@@ -184,7 +187,9 @@ def open_for_editing(page, system_id: int, view_index: int) -> None:
 def inner_point(view: dict[str, Any], margin: float = 100.0) -> tuple[float, float]:
     """An annotated point of the view's best-fitting class well inside its image (px): the one a drag moves."""
     residuals = view["calibration"]["residuals_px"]
-    inside = lambda p: margin < p[0] < view["width"] - margin and margin / 2 < p[1] < view["height"] - margin / 2  # noqa: E731
+    def inside(p):
+        return margin < p[0] < view["width"] - margin and margin / 2 < p[1] < view["height"] - margin / 2
+
     lines = view["field_lines"]
     cls = min((c for c in lines if c in residuals and any(map(inside, lines[c][0]))), key=residuals.get)
     return tuple(next(p for p in lines[cls][0] if inside(p)))
@@ -230,9 +235,9 @@ def main(argv: Optional[list[str]] = None) -> int:
                                             moves_per_s=args.moves_per_s, screenshot=shot, in_page=args.in_page)
                     runs.append(run)
                     print(f"drag {r + 1} (view {k + 1}): {run.moves} moves and {run.drawn} previews drawn in "
-                          f"{run.moving_s:.2f} s = {run.rate_per_s:.1f}/s; {run.sent} sent, at most {run.max_in_flight} in flight; server "
-                          f"{run.server_ms} ms, round trip {run.round_trip_ms} ms; JaC last preview {run.last_jac} "
-                          f"stored {run.stored_jac}", flush=True)
+                          f"{run.moving_s:.2f} s = {run.rate_per_s:.1f}/s; {run.sent} sent, at most "
+                          f"{run.max_in_flight} in flight; server {run.server_ms} ms, round trip {run.round_trip_ms} "
+                          f"ms; JaC last preview {run.last_jac} stored {run.stored_jac}", flush=True)
             finally:
                 browser.close()
     rates = [r.rate_per_s for r in runs]

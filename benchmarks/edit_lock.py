@@ -43,7 +43,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks import load  # noqa: E402
+from benchmarks import load
 
 
 def dense_lines(lines: dict[str, Any], total: int, decimals: int = 3) -> dict[str, Any]:
@@ -53,7 +53,7 @@ def dense_lines(lines: dict[str, Any], total: int, decimals: int = 3) -> dict[st
     per = [total // len(polys)] * len(polys)
     per[0] += total - sum(per)
     out = copy.deepcopy(lines)
-    for (c, i, p), n in zip(polys, per):
+    for (c, i, p), n in zip(polys, per, strict=False):
         seg = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))]
         t = np.linspace(0.0, seg[-1], n)
         out[c][i] = np.c_[np.interp(t, seg, p[:, 0]), np.interp(t, seg, p[:, 1])].round(decimals).tolist()

@@ -30,6 +30,7 @@ failure. Run::
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import sys
 import tempfile
@@ -42,19 +43,23 @@ from typing import Any, Callable, Iterable, Optional
 
 import hypothesis
 import schemathesis
-from hypothesis import HealthCheck, Phase, strategies as st
+from hypothesis import HealthCheck, Phase
+from hypothesis import strategies as st
 from schemathesis import GenerationMode
 from schemathesis.checks import not_a_server_error
 from schemathesis.core.failures import FailureGroup
 from schemathesis.specs.openapi.checks import (
-    content_type_conformance, negative_data_rejection, response_schema_conformance, status_code_conformance,
+    content_type_conformance,
+    negative_data_rejection,
+    response_schema_conformance,
+    status_code_conformance,
 )
 
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from app.api.authentication import PUBLIC_API_PATHS  # noqa: E402
+from app.api.authentication import PUBLIC_API_PATHS
 
 #: Checks of every authenticated answer (schemathesis' own check functions).
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance]
@@ -135,7 +140,7 @@ def case_strategy(operation: Any, mode: GenerationMode, path_ids: dict[str, list
         for name in known for value in path_ids[name]
     ]
     if len(known) > 1:  # every known value at once (a user's name and one of its token ids): the handler's success
-        fixed += [operation.as_strategy(generation_mode=mode, path_parameters=dict(zip(known, values)))
+        fixed += [operation.as_strategy(generation_mode=mode, path_parameters=dict(zip(known, values, strict=False)))
                   for values in itertools.product(*(path_ids[name] for name in known))]
     return st.one_of(free, st.one_of(fixed))
 
@@ -143,8 +148,20 @@ def case_strategy(operation: Any, mode: GenerationMode, path_ids: dict[str, list
 def _curl(case: Any, headers: dict[str, str]) -> str:
     try:
         return case.as_curl_command(headers=headers, base_url="http://127.0.0.1:8000")
-    except Exception as exc:  # noqa: BLE001 - a reproduction line is best effort
+    except Exception as exc:  # any exception: a reproduction line is best effort
         return f"(no curl line: {exc})"
+
+
+def _hypothesis_run(strategy: Any, send: Callable[[Any], None], n: int, seed: Optional[int]) -> Callable[[], None]:
+    """A Hypothesis test sending ``n`` cases of ``strategy`` through ``send`` (a fixed seed when given)."""
+    @hypothesis.settings(max_examples=n, deadline=None, database=None, derandomize=seed is None,
+                         suppress_health_check=list(HealthCheck), phases=[Phase.explicit, Phase.generate],
+                         print_blob=False)
+    @hypothesis.given(case=strategy)
+    def run(case: Any) -> None:
+        send(case)
+
+    return hypothesis.seed(seed)(run) if seed is not None else run
 
 
 def _send(case: Any, headers: dict[str, str], report: FuzzReport, label: str,
@@ -159,7 +176,7 @@ def _send(case: Any, headers: dict[str, str], report: FuzzReport, label: str,
     counts = report.statuses.setdefault(label, Counter())
     try:
         response = case.call(headers=headers)
-    except Exception as exc:  # noqa: BLE001 - the app raised: a server error
+    except Exception as exc:  # any exception: the app raised: a server error
         counts[500] += 1
         tail = "".join(traceback.format_exception_only(type(exc), exc)).strip().splitlines()[0]
         report.add_failure(Failure(label, "not_a_server_error (exception)", 500, tail[:300], _curl(case, headers)))
@@ -212,7 +229,7 @@ def current_etags(app: Any, headers: dict[str, str]) -> Callable[[Any], Optional
             if value is not None:
                 try:
                     return client.get(path.format(value)).headers.get("etag")
-                except Exception:  # noqa: BLE001 - an id the GET cannot take is the case's own business
+                except Exception:  # any exception: an id the GET cannot take is the case's own business
                     return None
         return None
 
@@ -251,18 +268,11 @@ def fuzz(schema: Any, headers: dict[str, str], *, examples: int, path_ids: dict[
         op_start = time.monotonic()
         for mode in modes:
             checks = NEGATIVE_CHECKS if mode is GenerationMode.NEGATIVE else CHECKS
-            expect = 401 if anonymous else None
-
-            @hypothesis.settings(max_examples=n, deadline=None, database=None, derandomize=seed is None,
-                                 suppress_health_check=list(HealthCheck), phases=[Phase.explicit, Phase.generate],
-                                 print_blob=False)
-            @hypothesis.given(case=case_strategy(operation, mode, path_ids or {}))
-            def run(case: Any) -> None:
-                _send(case, headers, report, label, [not_a_server_error] if anonymous else checks, expect,
-                      None if anonymous else etag_of)
-
-            if seed is not None:
-                run = hypothesis.seed(seed)(run)
+            send = functools.partial(_send, headers=headers, report=report, label=label,
+                                     checks=[not_a_server_error] if anonymous else checks,
+                                     expect_status=401 if anonymous else None,
+                                     etag_of=None if anonymous else etag_of)
+            run = _hypothesis_run(case_strategy(operation, mode, path_ids or {}), send, n, seed)
             try:
                 run()
             except hypothesis.errors.Unsatisfiable:

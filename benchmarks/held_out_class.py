@@ -39,13 +39,19 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, lines_used, radial_corner  # noqa: E402
-from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class  # noqa: E402
-from app.geometry.calibration.learning import learn_camera_prior  # noqa: E402
-from app.geometry.calibration.priors import CameraPrior  # noqa: E402
-from app.geometry.jac import evaluate_jac  # noqa: E402
+from app.core.paths import SHARED_DIR
+from app.geometry.annotations import from_soccernet_calibration
+from app.geometry.calibration import (
+    CalibrationPrior,
+    calibrate_frame,
+    calibration_uncertainty,
+    lines_used,
+    radial_corner,
+)
+from app.geometry.calibration.held_out import class_point_distances, draw_held_out_class, without_class
+from app.geometry.calibration.learning import learn_camera_prior
+from app.geometry.calibration.priors import CameraPrior
+from app.geometry.jac import evaluate_jac
 
 SETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
 TARGETS = {"sn22": 0.90, "wc14": 0.95}
@@ -188,8 +194,8 @@ def main() -> None:
                   f"{'ok' if r['within_5px'] >= TARGETS[key] and r['refused_share'] <= 0.01 else 'MISSED'}")
     print("<=5px*: refused frames' held-out points counted as misses; ms: CPU ms per frame, median")
     for r in rows:
-        print(f"{r['set']} seed {r['seed']}: per-frame share within 5 px {r['frame_within_low_std']:.3f} for fits whose "
-              f"camera-position std (without the class) is <= its median {r['median_position_std_m']:.2f} m, "
+        print(f"{r['set']} seed {r['seed']}: per-frame share within 5 px {r['frame_within_low_std']:.3f} for fits "
+              f"whose camera-position std (without the class) is <= its median {r['median_position_std_m']:.2f} m, "
               f"{r['frame_within_high_std']:.3f} above")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))

@@ -32,17 +32,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import selectinload  # noqa: E402
+from sqlalchemy import select
+from sqlalchemy.orm import selectinload
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import CalibrationStatus, Frame, Game, System  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.annotations import lines_from_json_lists  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.jac import evaluate_jac  # noqa: E402
-from app.services.transfer.importing import import_sn_calibration  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.models import CalibrationStatus, Frame, Game, System
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.geometry.annotations import lines_from_json_lists
+from app.geometry.camera import Camera
+from app.geometry.jac import evaluate_jac
+from app.services.transfer.importing import import_sn_calibration
 
 DATASETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
 WIDTH, HEIGHT = 960, 540
@@ -112,7 +112,8 @@ def main() -> None:
         for reason, n in report.refusal_kinds().most_common():
             print(f"  refused x{n:<4d} {reason}")
         print("mean JaC@5/10/20 px   " + " / ".join(f"{v:.4f}" for v in fig["jac_px"]) + "  (over calibrated frames)")
-        print("mean JaC@0.5/1/2 %    " + " / ".join(f"{v:.4f}" for v in fig["jac_gamma"]) + "  (stored, gamma x diagonal)")
+        print("mean JaC@0.5/1/2 %    " + " / ".join(f"{v:.4f}" for v in fig["jac_gamma"])
+              + "  (stored, gamma x diagonal)")
         print(f"calibrate_frame ms    median {statistics.median(ms):.1f}, p90 {ms[int(0.9 * (len(ms) - 1))]:.1f}, "
               f"max {ms[-1]:.1f}")
         print("PnLCalib (official)   " + " / ".join(f"{v:.4f}" for v in official)

@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from app.core.config import Settings
-from app.services.issia.trajectory import fit_args
 from app.datasets.issia import FPS, read_issia
+from app.geometry.trajectory import fit_trajectory, refit_window
 from app.services.calibration.admission import admission_args
 from app.services.issia.cameras import sequence_cameras
-from app.geometry.trajectory import fit_trajectory, refit_window
+from app.services.issia.trajectory import fit_args
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic"
 
@@ -35,7 +35,8 @@ def evaluate(seq, truth: dict, *, from_lines: bool) -> tuple[dict, object]:
     choice = sequence_cameras(seq, from_lines=from_lines, **admission_args(Settings()), pair_rules=fit_args(Settings()))
     t1 = time.perf_counter()
     cams = [choice[c].camera for c in seq.camera_ids]
-    fit = fit_trajectory(seq.dense_points(), cams, [seq.image_size[0]] * len(cams), float(truth.get("fps", FPS)), **fit_args(Settings()))
+    fit = fit_trajectory(seq.dense_points(), cams, [seq.image_size[0]] * len(cams), float(truth.get("fps", FPS)),
+                         **fit_args(Settings()))
     t2 = time.perf_counter()
     mid = len(fit.positions) // 2  # an edit in the middle: only the pieces it touches are fitted again
     refit_window(fit, seq.dense_points(), cams, [seq.image_size[0]] * len(cams), mid, mid, **fit_args(Settings()))
@@ -99,7 +100,7 @@ def plot(fit, truth: dict, out: Path) -> None:
     fr = np.arange(len(fit.positions))
     flagged = np.nonzero(fit.outliers.any(axis=1))[0]
     fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
-    for ax, i, name in zip(axes, range(3), ("x (m)", "y (m)", "height -z (m)")):
+    for ax, i, name in zip(axes, range(3), ("x (m)", "y (m)", "height -z (m)"), strict=False):
         sign = -1 if i == 2 else 1
         ax.plot(fr, sign * true[:, i], color="0.6", lw=3, label="truth")
         ax.plot(fr, sign * fit.ball_3d[:, i], ".", color="tab:blue", ms=4, label="ball_3D (per frame)")

@@ -37,11 +37,11 @@ from pathlib import Path
 import numpy as np
 
 from app.core.config import Settings
-from app.services.issia.trajectory import fit_args
 from app.datasets.issia import FPS, read_issia
+from app.geometry.trajectory import fit_trajectory, refit_window
 from app.services.calibration.admission import admission_args
 from app.services.issia.cameras import sequence_cameras
-from app.geometry.trajectory import fit_trajectory, refit_window
+from app.services.issia.trajectory import fit_args
 from benchmarks.issia import evaluate
 from benchmarks.issia_synth import generate
 

@@ -114,18 +114,17 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
                gc_threshold: int | None = None) -> dict:
     """The HTTP edit round trip on the imported sequence (module docstring): p50/p95 ms per kind, all
     ball/exclusion edits together, and per stage the mean ms over the requests that ran it (and how
-    many did). ``after_ball_edits()`` is called between the ball/exclusion edits (each undone) and the field-line edits; its answer is
-    returned as ``"after_ball_edits"``; ``after_line_edits()`` after the field-line edits (each undone), returned as
-    ``"after_line_edits"``. ``gc_threshold``: the garbage collector's young-generation threshold during
+    many did). ``after_ball_edits()`` is called between the ball/exclusion edits (each undone) and the field-line edits;
+    its answer is returned as ``"after_ball_edits"``; ``after_line_edits()`` after the field-line edits (each undone),
+    returned as ``"after_line_edits"``. ``gc_threshold``: the garbage collector's young-generation threshold during
     the requests (``gc.set_threshold(gc_threshold, 10, 10)``, restored after; None: Python's default, 700), to
     measure what a server process configured so would answer."""
     from fastapi.testclient import TestClient
 
     from app.core.config import Settings
-    from app.db.models import System, SystemKind
     from app.main import create_app
-    from app.services.issia.trajectory import load_sequence
     from app.services.accounts.users import create_user
+    from app.services.issia.trajectory import load_sequence
 
     settings = Settings(database_url=url)
     app = create_app(settings)
@@ -139,7 +138,8 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
             if f is not None:
                 picks.append((f.id, list(f.ball_label.point), f.width, f.height))
         lines = {}
-        for label, s in (("field lines (a later view)", systems[n // 2]), ("field lines (the camera's view)", systems[0])):
+        for label, s in (("field lines (a later view)", systems[n // 2]),
+                         ("field lines (the camera's view)", systems[0])):
             f = next((f for f in s.frames if f.field_lines is not None and f.field_lines.lines), None)
             if f is not None:
                 lines[label] = (f.id, f.field_lines.lines)
@@ -184,7 +184,7 @@ def http_edits(url: str, game_id: int, edits: int, lines_edits: int = 1, after_b
         gc.set_threshold(gc_threshold, 10, 10)
     try:
         with TestClient(app, base_url="http://127.0.0.1", headers={"Authorization": f"Bearer {token}"}) as client:
-            for fid, (x, y), w, h in picks:
+            for fid, (x, y), w, _h in picks:
                 x2 = x + 3.0 if x + 3.0 < w else x - 3.0
                 box = [x - 6.0, y - 6.0, x + 6.0, y + 6.0]
                 moved = [box[0] + 3.0, box[1], box[2] + 3.0, box[3]]
@@ -249,7 +249,8 @@ def service_figures(session: Session, game_id: int, truth: dict) -> dict:
         kept = set(tp.cam_list or []) if tp is not None else set()
         if len(ok) >= 2:
             good2.append(fr["frame"])
-            e3.append(np.nan if tp is None or tp.ball3d is None else float(np.linalg.norm(np.asarray(tp.ball3d) - true)))
+            e3.append(np.nan if tp is None or tp.ball3d is None
+                      else float(np.linalg.norm(np.asarray(tp.ball3d) - true)))
         if any(v["in_image"] for v in fr["cams"].values()):
             seen.append(fr["frame"])
             es.append(np.nan if tp is None or tp.ball3d_smoothed is None
@@ -271,7 +272,8 @@ def service_figures(session: Session, game_id: int, truth: dict) -> dict:
     }
 
 
-def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0, gc_threshold: int | None = None) -> dict:
+def run(data: Path, truth: dict, from_lines: bool, workdir: Path, edits: int = 0,
+        gc_threshold: int | None = None) -> dict:
     """Import ``data`` into a fresh database in one mode; figures, import and edit timings."""
     from app.core.config import Settings
     from app.db.models import Game, System

@@ -34,10 +34,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.jac import evaluate_jac  # noqa: E402
+from app.core.paths import SHARED_DIR
+from app.geometry.annotations import from_soccernet_calibration
+from app.geometry.camera import Camera
+from app.geometry.jac import evaluate_jac
 
 W, H = 960, 540
 THRESHOLDS = (5.0, 10.0, 20.0)
@@ -98,7 +98,8 @@ def main() -> None:
     print(f"v3d      median {1000 * float(np.median(v3d_batch)):8.3f} CPU ms per (frame, threshold), "
           f"three thresholds per call")
 
-    file_ok = sum(abs(v - w) <= 1e-6 for fr, _, _ in frames for v, w in zip(v3d_values[fr], official_file[fr]))
+    file_ok = sum(abs(v - w) <= 1e-6 for fr, _, _ in frames
+                  for v, w in zip(v3d_values[fr], official_file[fr], strict=False))
     print(f"agreement with official-jac-pnlcalib.json: {file_ok}/{3 * len(frames)} pairs within 1e-6")
 
     try:
@@ -112,7 +113,7 @@ def main() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # the evaluator divides by zero on parallel lines
         for fr, ann, cam in frames:
-            for t, mine in zip(THRESHOLDS, v3d_values[fr]):
+            for t, mine in zip(THRESHOLDS, v3d_values[fr], strict=False):
                 value, dt = timed(official_jac, sn, ann, cam, t)
                 official_times.append(dt)
                 agree += abs(value - mine) <= 1e-6

@@ -30,7 +30,7 @@ from typing import Any, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.load import served  # noqa: E402
+from benchmarks.load import served
 
 DEV_SET = ROOT.parent / "shared" / "data" / "synthetic" / "soccernet-v3-dev"
 NAME, PASSWORD = "bench-lines", "bench-lines-password"
@@ -175,7 +175,8 @@ def browser_redraws(base: str, edits: int, seed: int) -> Optional[dict[str, Any]
                     wait_for_redraw(page, n)
                     m = page.evaluate("""() => { const last = (name) => performance.getEntriesByName(name).at(-1);
                         const e = last('v3d:redraw');
-                        return [e.duration, e.startTime + e.duration - window.__editStart, last('v3d:render').duration]; }""")
+                        return [e.duration, e.startTime + e.duration - window.__editStart,
+                                last('v3d:render').duration]; }""")
                     redraw.append(m[0])
                     whole.append(m[1])
                     script.append(m[2])

@@ -66,7 +66,7 @@ from typing import Any, Iterator, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.scale import BenchError, free_port, percentile, v3d_command  # noqa: E402
+from benchmarks.scale import BenchError, free_port, percentile, v3d_command
 
 #: The demo server's PostgreSQL in the README and the CI (trust authentication).
 PG_DEFAULT = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
@@ -230,7 +230,7 @@ def served(database_url: str, workers: int, launcher: str = "v3d", log: Optional
                 os.killpg(proc.pid, 9)
                 proc.wait()
         if log:
-            out.close()  # type: ignore[union-attr]
+            out.close()  # type: ignore[union-attr]  # out is the open log when log is set
 
 
 def user_tokens(database_url: str, clients: int) -> list[str]:
@@ -287,7 +287,7 @@ def same_box(a: Optional[list[float]], b: Optional[list[float]]) -> bool:
     """Boxes equal to 1e-6 px (both missing counts as equal)."""
     if a is None or b is None:
         return a is b
-    return all(abs(x - y) <= 1e-6 for x, y in zip(a, b))
+    return all(abs(x - y) <= 1e-6 for x, y in zip(a, b, strict=False))
 
 
 def run_clients(base: str, views: list[tuple[int, int, list[float], int, int]], report: LoadReport,
@@ -406,12 +406,12 @@ def derived_state(view: dict[str, Any]) -> dict[str, Any]:
 def check_recomputations(database_url: str, system_ids: list[int], report: LoadReport) -> None:
     """Fill ``report.lost_recomputations``: each system's stored derived rows against a fresh
     recomputation from its stored labels (in a transaction that is rolled back)."""
+    from app.api.view_schemas import SystemView
     from app.core.config import Settings
     from app.db.models import System
     from app.db.session import make_engine, make_session_factory
-    from app.api.view_schemas import SystemView
-    from app.services.derivation.recompute import recompute_system
     from app.services.curation.system_page import system_page
+    from app.services.derivation.recompute import recompute_system
 
     def system_view(session, system_id):  # the system view's JSON, as GET /api/systems/{id} answers it
         return SystemView.of(system_page(session, system_id)).model_dump(mode="json", by_alias=True)
@@ -449,7 +449,7 @@ def run_load(database_url: Optional[str] = None, clients: int = 20, edits: int =
     backend = make_url(database_url).get_backend_name() if database_url else "sqlite"
     report = LoadReport(clients, edits, workers, backend)
     with fresh_database(database_url, keep=keep, template=template) as url:
-        tokens: list[Optional[str]] = user_tokens(url, clients) if users else [token] * clients  # type: ignore[list-item]
+        tokens: list[Optional[str]] = user_tokens(url, clients) if users else [token] * clients  # type: ignore[list-item]  # token is given when users is not
         with served(url, workers, launcher, log=log) as base:
             headers = {"Authorization": f"Bearer {tokens[0]}"} if tokens[0] else {}
             with httpx.Client(base_url=base, timeout=timeout_s, headers=headers) as http:
@@ -494,7 +494,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         return 2
     figures = report.summary()
     print(json.dumps(figures, indent=1))
-    for kind, items in (("5xx/error", [f"{e.status} {e.error}" for e in report.edits if e.status in (0,) or e.status >= 500]),
+    for kind, items in (("5xx/error",
+                         [f"{e.status} {e.error}" for e in report.edits if e.status in (0,) or e.status >= 500]),
                         ("lost edit", report.lost_edits), ("lost recomputation", report.lost_recomputations),
                         ("audit", report.audit_mismatches)):
         for line in Counter(items).most_common(5):

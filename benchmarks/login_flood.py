@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.load import served  # noqa: E402
+from benchmarks.load import served
 
 NAME, PASSWORD = "flood-admin", "the right password"
 
@@ -129,9 +129,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"flood: {f['attempts']} wrong passwords, {f['concurrency']} at once, {f['seconds']:.1f} s: "
           f"statuses {f['statuses']}; the right password after: {f['right_password_after']} "
           f"(Retry-After {f['retry_after_s']} s)")
-    print(f"/api/health idle: median {f['health_idle_ms']['median']:.1f} ms, worst {f['health_idle_ms']['worst']:.1f} ms "
-          f"({f['health_idle_ms']['n']}); during the flood: median {f['health_during_ms']['median']:.1f} ms, "
-          f"worst {f['health_during_ms']['worst']:.1f} ms ({f['health_during_ms']['n']}, statuses {f['health_statuses']})")
+    print(f"/api/health idle: median {f['health_idle_ms']['median']:.1f} ms, worst {f['health_idle_ms']['worst']:.1f} "
+          f"ms ({f['health_idle_ms']['n']}); during the flood: median {f['health_during_ms']['median']:.1f} ms, "
+          f"worst {f['health_during_ms']['worst']:.1f} ms ({f['health_during_ms']['n']}, statuses "
+          f"{f['health_statuses']})")
     print(f"body: {b['megabytes']:g} MB JSON to /api/auth/login: {b['status']} in {b['seconds']:.2f} s")
     return 0
 

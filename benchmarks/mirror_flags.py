@@ -50,20 +50,20 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import Session  # noqa: E402
+from sqlalchemy import select
+from sqlalchemy.orm import Session
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import Frame  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.annotations import from_soccernet_calibration  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, calibrate_frame  # noqa: E402
-from app.geometry.mirror import MirrorView, mirror_evidence  # noqa: E402
-from app.geometry.pitch import MIRROR_CLASSES  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.models import Frame
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.geometry.annotations import from_soccernet_calibration
+from app.geometry.calibration import CalibrationPrior, calibrate_frame
+from app.geometry.calibration.result import MIRROR_FLAG
+from app.geometry.mirror import MirrorView, mirror_evidence
+from app.geometry.pitch import MIRROR_CLASSES
 from app.services.curation.editing import apply_mirrored_labels
-from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
-from app.geometry.calibration.result import MIRROR_FLAG  # noqa: E402
+from app.services.transfer.importing import import_soccernet_v3
 
 DEV = Path("data/synthetic/soccernet-v3-dev")
 DEV_TRUTH = Path("data/synthetic/soccernet-v3-dev.truth.json")

@@ -92,7 +92,7 @@ def measure(url: str, repeat: int, seed: int) -> dict[str, dict[str, dict[str, f
             session.expunge_all()
             steps[0] = 0
             t0 = time.perf_counter()
-            queue.list_systems(session, sort=sort, limit=LIMIT, **page)  # type: ignore[arg-type]
+            queue.list_systems(session, sort=sort, limit=LIMIT, **page)  # type: ignore[arg-type]  # page holds list_systems' keywords
             ms = (time.perf_counter() - t0) * 1e3
             if kind:
                 work.setdefault(sort, {}).setdefault(kind, []).append(steps[0] / 10.0)
@@ -102,7 +102,7 @@ def measure(url: str, repeat: int, seed: int) -> dict[str, dict[str, dict[str, f
             timed(sort)  # warm-up
             cursors = []
             for _ in range(8):
-                page = queue.list_systems(session, sort=sort, limit=LIMIT, offset=rng.randrange(total))  # type: ignore[arg-type]
+                page = queue.list_systems(session, sort=sort, limit=LIMIT, offset=rng.randrange(total))  # type: ignore[arg-type]  # total is a count here
                 if page.next_cursor and page.prev_cursor:
                     cursors.append((page.next_cursor, page.prev_cursor))
             kinds: dict[str, list[float]] = {"first": [], "last": [], "random": [], "cursor": [], "back": []}

@@ -26,18 +26,18 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import selectinload  # noqa: E402
+from sqlalchemy import select
+from sqlalchemy.orm import selectinload
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import Frame, System, Triangulation  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.ball import box_centre_and_diameter, optimise_box  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.metrics import box_iou  # noqa: E402
-from app.services.transfer.detector_export import refined_boxes  # noqa: E402
-from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.models import Frame, System, Triangulation
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.geometry.ball import box_centre_and_diameter, optimise_box
+from app.geometry.camera import Camera
+from app.geometry.metrics import box_iou
+from app.services.transfer.detector_export import refined_boxes
+from app.services.transfer.importing import import_soccernet_v3
 
 SETS = ("soccernet-v3-dev", "soccernet-v3-dev-large")
 KAPPAS = (0.05, 0.1, 0.2)

@@ -21,7 +21,7 @@ from typing import Any, Iterator
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.geometry.pitch import LINE_CLASSES  # noqa: E402
+from app.geometry.pitch import LINE_CLASSES
 
 #: The classes SoccerNet-v3's devkit maps to ids (``FRAME_CLASS_DICTIONARY``): the ball, people, line classes.
 DEVKIT_CLASSES: dict[str, int] = {c: i for i, c in enumerate((
@@ -154,14 +154,16 @@ def main() -> None:
     from app.core.paths import SHARED_DIR
 
     synthetic = SHARED_DIR / "data" / "synthetic"
-    default = [synthetic / "soccernet-v3-dev", synthetic / "soccernet-v3-dev-large", synthetic / "doubts-seeds" / "seed-201"]
+    default = [synthetic / "soccernet-v3-dev", synthetic / "soccernet-v3-dev-large",
+               synthetic / "doubts-seeds" / "seed-201"]
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("trees", nargs="*", type=Path, default=default)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         results = run([t.resolve() for t in args.trees if t.is_dir()], Path(tmp))
-    print(f"{'tree':<40} {'games':>5} {'frames':>6} {'fields':>8} {'missing':>7} {'changed':>7} {'boxes':>6} {'devkit':>6}")
+    print(f"{'tree':<40} {'games':>5} {'frames':>6} {'fields':>8} {'missing':>7} {'changed':>7} {'boxes':>6} "
+          f"{'devkit':>6}")
     for tree, r in results.items():
         print(f"{Path(tree).name:<40} {r['games']:>5} {r['frames']:>6} {r['fields']:>8} {r['missing']:>7} "
               f"{r['changed']:>7} {r['source_boxes']:>6} {r['devkit_boxes']:>6}")

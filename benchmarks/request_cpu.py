@@ -38,8 +38,8 @@ from typing import Any, Callable, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.load import fresh_database, served, user_tokens  # noqa: E402
-from benchmarks.scale import BenchError  # noqa: E402
+from benchmarks.load import fresh_database, served, user_tokens
+from benchmarks.scale import BenchError
 
 KINDS = ("health", "page", "ball", "line")
 
@@ -218,7 +218,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     print("|---|---|---|" + ("---|" if pg else ""))
     for k in KINDS:
         print(f"| {k} | {out['cpu_ms'][k]:.1f} | {out['ratio'][k]:.1f} |" + (f" {pg[k]:.1f} |" if pg else ""))
-    print(f"system page: {out['page_wire_bytes'] / 1024:.1f} KB on the wire, {out['page_json_bytes'] / 1024:.1f} KB JSON")
+    print(f"system page: {out['page_wire_bytes'] / 1024:.1f} KB on the wire, {out['page_json_bytes'] / 1024:.1f} KB "
+          "JSON")
     return 0
 
 

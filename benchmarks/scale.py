@@ -16,8 +16,8 @@ One run:
      random depths, by ``offset`` and by cursor (``after=`` / ``before=`` the page's ``next_cursor`` /
      ``prev_cursor``; p95, issue 16);
    * system page: ``GET /api/systems/{id}`` on random systems (p95);
-   * ball edit round trip: ``PATCH /api/frames/{id}/ball`` (with ``If-Match``, the view's ETag) moving an existing box by one pixel and
-     back, the answer parsed (p95 over both PATCHes; the database ends as it started, up to the
+   * ball edit round trip: ``PATCH /api/frames/{id}/ball`` (with ``If-Match``, the view's ETag) moving an existing box
+     by one pixel and back, the answer parsed (p95 over both PATCHes; the database ends as it started, up to the
      ``edited`` mark and the time stamps);
    * export: ``GET /api/exports/soccernet-v3d?all=true`` streamed to nowhere (time to the first
      byte and to the last);
@@ -28,14 +28,16 @@ One run:
 Usage (from the checkout, with the ``bench`` extra installed: ``pip install -e '.[bench]'``)::
 
     .venv/bin/python benchmarks/scale.py --scale-dir /work/scale-data/soccernet-v3-scale \\
-        [--games N] [--requests 200] [--db var/scale.sqlite3] [--skip-import | --import-only] [--with-images] [--json out.json]
+        [--games N] [--requests 200] [--db var/scale.sqlite3] [--skip-import | --import-only] [--with-images]
+        [--json out.json]
 
 ``--scale-dir`` is the unpacked ``shared/data/synthetic/soccernet-v3-scale.tar.gz`` (unpack it
 outside the checkout; never commit it). ``--games N`` imports only the first N games (sorted by
 path, as the importer walks them) for a quick run. ``--db`` keeps the scale database at that path
 (default: a temporary folder); with ``--skip-import`` that database is reused as it is and the
 import is not measured; with ``--import-only`` only the import is measured (its wall time, frames
-per second, peak memory and the CPU time of its process tree). ``--work-dir`` holds the demo database and the subset (default: temporary).
+per second, peak memory and the CPU time of its process tree). ``--work-dir`` holds the demo database and the subset
+(default: temporary).
 
 The full set (400 games, 12,800 systems, 35,550 views) takes about 10 minutes to import on 2 cores.
 Timings on a machine shared with other jobs are pessimistic: run it under ``nice`` only when you
@@ -326,8 +328,8 @@ def _stage_seconds(log_text: str) -> dict[str, float]:
 def bench_token(db: Path, name: str = "bench-admin") -> str:
     """An API token of the admin ``name`` in the SQLite database ``db`` (made on first use): the
     benchmark's requests authenticate like a script's (``Authorization: Bearer``)."""
-    from app.db.session import make_engine, make_session_factory, upgrade_database
     from app.core.errors import InvalidInputError
+    from app.db.session import make_engine, make_session_factory, upgrade_database
     from app.services.accounts.users import create_user, issue_token
 
     url = sqlite_url(db)
@@ -498,7 +500,8 @@ def measure_server(base_url: str, requests: int = 100, seed: int = 0, export: bo
                 ms, answer = _timed(client, "PATCH", f"/api/frames/{v['frame_id']}/ball", json={"box": b},
                                     headers={"If-Match": etag})
                 if answer["id"] != sid:
-                    raise BenchError(f"PATCH /api/frames/{v['frame_id']}/ball answered system {answer['id']}, not {sid}")
+                    raise BenchError(f"PATCH /api/frames/{v['frame_id']}/ball answered system {answer['id']}, "
+                                     f"not {sid}")
                 etag = next(x["etag"] for x in answer["views"] if x["frame_id"] == v["frame_id"])
                 edits.append(ms)
         out["ball_edits"] = len(edits)
@@ -554,15 +557,17 @@ def format_report(result: dict[str, Any]) -> str:
         lines.append(f"import: {imp['games']} games, {imp['systems']} systems, {imp['frames']} frames in "
                      f"{imp['seconds']:.1f} s = {imp['frames_per_s']:.1f} frames/s (target >= {IMPORT_MIN_FPS:g}: "
                      f"{'ok' if ok_fps else 'MISSED'}); peak RSS of the process tree {imp['peak_mb']:.0f} MB over "
-                     f"{imp['peak_processes']} processes (target <= {IMPORT_MAX_PEAK_MB:g}: {'ok' if ok_mem else 'MISSED'})")
+                     f"{imp['peak_processes']} processes (target <= {IMPORT_MAX_PEAK_MB:g}: "
+                     f"{'ok' if ok_mem else 'MISSED'})")
         if imp.get("cpu_s"):
-            lines.append(f"  CPU time of the process tree {imp['cpu_s']:.0f} s = {imp['cpu_ms_per_frame']:.1f} ms per frame "
-                         f"(main process {imp.get('main_cpu_ms_per_frame', 0.0):.1f}, calibration workers "
+            lines.append(f"  CPU time of the process tree {imp['cpu_s']:.0f} s = {imp['cpu_ms_per_frame']:.1f} ms per "
+                         f"frame (main process {imp.get('main_cpu_ms_per_frame', 0.0):.1f}, calibration workers "
                          f"{imp['cpu_ms_per_frame'] - imp.get('main_cpu_ms_per_frame', 0.0):.1f}; CPU-limited on "
-                         f"{os.cpu_count()} cores: {1e3 * (os.cpu_count() or 1) / imp['cpu_ms_per_frame']:.0f} frames/s; "
-                         f"load average at the end {', '.join(f'{v:.1f}' for v in imp['load_average'])})")
+                         f"{os.cpu_count()} cores: {1e3 * (os.cpu_count() or 1) / imp['cpu_ms_per_frame']:.0f} "
+                         f"frames/s; load average at the end {', '.join(f'{v:.1f}' for v in imp['load_average'])})")
         if imp.get("stage_seconds"):
-            lines.append("  stages (tqdm bars): " + ", ".join(f"{k} {v:.0f} s" for k, v in imp["stage_seconds"].items()))
+            lines.append("  stages (tqdm bars): " + ", ".join(f"{k} {v:.0f} s"
+                                                              for k, v in imp["stage_seconds"].items()))
     if "demo" not in result:
         return "\n".join(lines)
     demo, scale = result["demo"], result["scale"]
@@ -570,9 +575,11 @@ def format_report(result: dict[str, Any]) -> str:
                  f"{scale['requests']} requests per measure, {scale.get('ball_edits', 0)} ball edits")
     lines.append(f"{'measure':<24}{'demo':>10}{'scale':>10}{'ratio':>8}  {'target':<18}ok")
     for r in compare(demo, scale):
-        f = lambda x: "-" if x is None else f"{x:.1f}"  # noqa: E731
+        def f(x):
+            return "-" if x is None else f"{x:.1f}"
         ok = "-" if r["ok"] is None else ("ok" if r["ok"] else "MISSED")
-        lines.append(f"{r['measure']:<24}{f(r['demo']):>10}{f(r['scale']):>10}{f(r['ratio']):>8}  {r['target']:<18}{ok}")
+        lines.append(f"{r['measure']:<24}{f(r['demo']):>10}{f(r['scale']):>10}{f(r['ratio']):>8}  "
+                     f"{r['target']:<18}{ok}")
     if "export_first_byte_s" in scale:
         lines.append(f"export (scale): first byte after {scale['export_first_byte_s']:.1f} s, "
                      f"{scale['export_mb']:.1f} MB zip")
@@ -598,7 +605,8 @@ def run(scale_dir: Optional[Path], db: Optional[Path], games: Optional[int], ski
             raise BenchError("--scale-dir is required unless --skip-import is given")
         tree = Path(scale_dir)
         if games is not None or images:
-            tree = subset_tree(Path(scale_dir), games or len(game_dirs(tree)), work_dir / "subset" / Path(scale_dir).name,
+            tree = subset_tree(Path(scale_dir), games or len(game_dirs(tree)),
+                               work_dir / "subset" / Path(scale_dir).name,
                                images=images)
         else:
             game_dirs(tree)  # a clear error for a wrong folder

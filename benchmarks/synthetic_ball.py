@@ -33,17 +33,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.config import PAPER_PROFILE, Settings  # noqa: E402
-from app.geometry.ball import (  # noqa: E402
+from app.core.config import PAPER_PROFILE, Settings
+from app.geometry.ball import (
     OPTIMISED_BOX_METHODS,
     ball_from_box,
     ball_from_box_exact,
     box_centre_and_diameter,
     optimise_box,
 )
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.metrics import box_iou, box_size_error_pct, monocular_metrics  # noqa: E402
-from app.geometry.triangulation import BallObservation, TriangulationResult, triangulate_ball  # noqa: E402
+from app.geometry.camera import Camera
+from app.geometry.metrics import box_iou, box_size_error_pct, monocular_metrics
+from app.geometry.triangulation import BallObservation, TriangulationResult, triangulate_ball
 
 BALL_DIAMETER_M = 0.22
 #: Deliberate errors that make a view's ball inconsistent with the rest of its system, with true
@@ -152,7 +152,7 @@ def triangulate_all(systems: list[DevSystem], tau_px: float, rule: str,
 
 def fused_errors_m(systems: list[DevSystem], results: list[TriangulationResult]) -> np.ndarray:
     """3D error (m) of the fused ball for uncorrupted, triangulated systems."""
-    return np.array([np.linalg.norm(r.point - s.ball_3d) for s, r in zip(systems, results)
+    return np.array([np.linalg.norm(r.point - s.ball_3d) for s, r in zip(systems, results, strict=False)
                      if s.corruption is None and r.point is not None])
 
 
@@ -170,7 +170,7 @@ def box_study(systems: list[DevSystem], results: list[TriangulationResult],
     cameras must have produced ``results``)."""
     kinds = ("annotated", *OPTIMISED_BOX_METHODS, "precise")
     rows: dict[str, list] = {k: [] for k in kinds}
-    for s, r in zip(systems, results):
+    for s, r in zip(systems, results, strict=False):
         if s.corruption is not None or r.point is None:
             continue
         for v in s.views:
@@ -209,7 +209,7 @@ def sweep_counts(systems: list[DevSystem], results: list[TriangulationResult],
     """Pairs and views with/without a deliberate error, dropped or kept (near-duplicate pairs excluded)."""
     c = dict(bad_pairs=0, bad_pairs_dropped=0, good_pairs=0, good_pairs_kept=0, bad_views=0, bad_views_out=0,
              good_views=0, good_views_in=0)
-    for s, r in zip(systems, results):
+    for s, r in zip(systems, results, strict=False):
         bad = bad_views(s, mirror_calibration)
         for p in r.pairs:
             if p.reason == "baseline_below_min":
@@ -237,7 +237,7 @@ def pair_errors(systems: list[DevSystem], results: list[TriangulationResult],
                 mirror_calibration: bool) -> tuple[np.ndarray, np.ndarray]:
     """e_ij (px) of good pairs and of pairs involving a corrupted view (behind-camera pairs as +inf)."""
     good, bad = [], []
-    for s, r in zip(systems, results):
+    for s, r in zip(systems, results, strict=False):
         badv = bad_views(s, mirror_calibration)
         for p in r.pairs:
             if p.reason in ("baseline_below_min", "degenerate", "point_at_infinity"):
@@ -328,7 +328,7 @@ def main() -> None:
     print(f"{len(systems)} systems, {sum(len(s.views) for s in systems)} views; tau = {tau} px ({rule}); true cameras")
     res = triangulate_all(systems, tau, rule)
     status: dict[str, list[str]] = {}
-    for s, r in zip(systems, res):
+    for s, r in zip(systems, res, strict=False):
         status.setdefault(r.status, []).append(s.corruption or "none")
     for k, v in status.items():
         print(f"  {k:20s} {len(v):3d}  corruptions: {', '.join(sorted(set(v)))}")
@@ -382,9 +382,10 @@ def main() -> None:
             c = sweep_counts(systems, r, mirror)
             e = fused_errors_m(systems, r)
             n_ok = sum(x.point is not None for x in r)
-            print(f"  {t:5g} {c['bad_pairs_dropped']:8d}/{c['bad_pairs']:<9d} {c['good_pairs_kept']:7d}/{c['good_pairs']:<8d} "
-                  f"{c['bad_views_out']:6d}/{c['bad_views']:<7d} {c['good_views_in']:6d}/{c['good_views']:<7d} "
-                  f"{n_ok:12d} {np.median(e):8.3f} {np.percentile(e, 90):8.3f}")
+            print(f"  {t:5g} {c['bad_pairs_dropped']:8d}/{c['bad_pairs']:<9d} "
+                  f"{c['good_pairs_kept']:7d}/{c['good_pairs']:<8d} {c['bad_views_out']:6d}/{c['bad_views']:<7d} "
+                  f"{c['good_views_in']:6d}/{c['good_views']:<7d} {n_ok:12d} {np.median(e):8.3f} "
+                  f"{np.percentile(e, 90):8.3f}")
 
 
 if __name__ == "__main__":

@@ -8,8 +8,8 @@ optimised boxes), reads back what was stored and compares it with ``soccernet-v3
 1. **Calibration per view**, without and with the game rig. The service has no switch for the rig
    (``app.services.derivation.recompute``: a frame refused from its lines alone, or calibrated below admission,
    is always retried with the game's rig), so the *no-rig* row calls the pure ``calibrate_frame`` on
-   each stored view's lines with the prior the service gives it (``calibrating.expected_side``), which is the service's first pass;
-   the *with-rig* row is what the service stored. A third row retries the views the service retries
+   each stored view's lines with the prior the service gives it (``calibrating.expected_side``), which is the service's
+   first pass; the *with-rig* row is what the service stored. A third row retries the views the service retries
    (refused without the rig, or calibrated below admission) with the TRUE camera positions of the game
    (``truth.rig``), keeping the better fit by residual as the service does: the most any rig could give. Per row:
    views calibrated, views with JaC@gamma > admit (the admission rule), their mean JaC, and the camera
@@ -47,25 +47,25 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sqlalchemy import select  # noqa: E402
-from sqlalchemy.orm import Session, selectinload  # noqa: E402
+from sqlalchemy import select
+from sqlalchemy.orm import Session, selectinload
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import CalibrationStatus, Frame, FrameRole, Game, System, Triangulation  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.geometry.annotations import lines_from_json_lists  # noqa: E402
-from app.geometry.calibration import CalibrationPrior, CameraRig, RigPosition, calibrate_frame  # noqa: E402
-from app.geometry.calibration.observations import build_observations  # noqa: E402
-from app.geometry.calibration.rig import calibrate_with_rig  # noqa: E402
-from app.geometry.ball import OPTIMISED_BOX_METHODS, optimise_box  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.jac import jac_at_gammas  # noqa: E402
-from app.geometry.metrics import box_iou, box_size_error_pct  # noqa: E402
-from app.services.transfer.importing import ImportReport, import_soccernet_v3  # noqa: E402
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.models import CalibrationStatus, Frame, FrameRole, Game, System, Triangulation
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.geometry.annotations import lines_from_json_lists
+from app.geometry.ball import OPTIMISED_BOX_METHODS, optimise_box
+from app.geometry.calibration import CalibrationPrior, CameraRig, RigPosition, calibrate_frame
+from app.geometry.calibration.observations import build_observations
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
+from app.geometry.calibration.rig import calibrate_with_rig
+from app.geometry.camera import Camera
+from app.geometry.jac import jac_at_gammas
+from app.geometry.metrics import box_iou, box_size_error_pct
 from app.services.calibration.admission import admission_jac
 from app.services.calibration.calibrating import expected_side
+from app.services.transfer.importing import ImportReport, import_soccernet_v3
 
 #: Corruption kinds of the synthetic truth (``systems[].corruption``), None excepted.
 CORRUPTIONS = ("desync", "wrong_ball", "mirrored", "no_ball")
@@ -243,7 +243,8 @@ def calibrate_without_rig(view: StoredView, gamma: float) -> Calib:
 
 def calibrate_with_true_rig(view: StoredView, positions: list[np.ndarray], gamma: float) -> Calib:
     """``calibrate_with_rig`` with the game's TRUE camera positions (an oracle rig: main camera first)."""
-    rig = CameraRig(tuple(RigPosition(tuple(float(v) for v in p), 1, 0.0, main_frames=int(i == 0))  # type: ignore[arg-type]
+    rig = CameraRig(tuple(RigPosition(tuple(float(v) for v in p), 1,
+                                      0.0, main_frames=int(i == 0))  # type: ignore[arg-type]  # p is a 3-vector
                           for i, p in enumerate(positions)))
     return _from_result(calibrate_with_rig(lines_from_json_lists(view.lines), view.width, view.height, rig,
                                            expected_side=expected_side(FrameRole(view.role)),
@@ -381,6 +382,7 @@ def run(shared: Path = SHARED_DIR, workdir: Path | None = None, workers: int = 0
             "with_rig": calibration_row(with_rig, tviews, admit_min),
             "true_rig": calibration_row(true_rig, tviews, admit_min)}
     n0, n1 = rows["no_rig"]["admitted"], rows["with_rig"]["admitted"]
+    no_rig_keys, with_rig_keys = set(rows["no_rig"]["admitted_keys"]), set(rows["with_rig"]["admitted_keys"])
     refused_no_rig = [k for k, c in no_rig.items() if not c.calibrated]
     low_no_rig = [k for k, c in no_rig.items() if c.calibrated and not (c.jac is not None and c.jac > admit_min)]
     result.calibration = {
@@ -396,11 +398,12 @@ def run(shared: Path = SHARED_DIR, workdir: Path | None = None, workers: int = 0
                                 for k in refused_no_rig if not reachable[k]],
         "reachable_not_admitted_with_rig": [
             {"view": _short(k), "true_camera_jac": true_jac[k], "constraints": constraints[k],
-             "calibrated": with_rig[k].calibrated, "jac": with_rig[k].jac, "rig_assisted": RIG_FLAG in with_rig[k].flags}
+             "calibrated": with_rig[k].calibrated, "jac": with_rig[k].jac,
+             "rig_assisted": RIG_FLAG in with_rig[k].flags}
             for k in views if reachable[k] and not (with_rig[k].calibrated and (with_rig[k].jac or 0.0) > admit_min)],
         "best_possible_ratio": (sum(reachable.values()) / n0) if n0 else None,
-        "gained_by_rig": [_short(k) for k in sorted(set(rows["with_rig"]["admitted_keys"]) - set(rows["no_rig"]["admitted_keys"]))],
-        "lost_by_rig": [_short(k) for k in sorted(set(rows["no_rig"]["admitted_keys"]) - set(rows["with_rig"]["admitted_keys"]))],
+        "gained_by_rig": [_short(k) for k in sorted(with_rig_keys - no_rig_keys)],
+        "lost_by_rig": [_short(k) for k in sorted(no_rig_keys - with_rig_keys)],
         "rig_assisted_views": [{"view": _short(k), "jac": c.jac, "pose": pose_errors(c.camera, tviews[k].camera),
                                 "true_camera_jac": true_jac[k]}
                                for k, c in with_rig.items() if RIG_FLAG in c.flags and c.calibrated],
@@ -505,11 +508,13 @@ def run(shared: Path = SHARED_DIR, workdir: Path | None = None, workers: int = 0
             candidates[f"recomputed {method}"] = np.array(boxes)
         same = candidates.get(f"recomputed {result.boxes['stored_method']}")
         result.checks["optimised_box_mismatches"] = [] if same is None else [
-            _short(k) for k, a, b in zip(box_keys, candidates["optimised"], same) if not np.allclose(a, b, atol=1e-6)]
+            _short(k) for k, a, b in zip(box_keys, candidates["optimised"], same, strict=False)
+            if not np.allclose(a, b, atol=1e-6)]
         for name, b in candidates.items():
             ok = np.all(np.isfinite(b), axis=1)
             iou, size = box_iou(b[ok], ref[ok]), box_size_error_pct(b[ok], ref[ok])
-            result.boxes[name] = {"n": int(ok.sum()), "iou_mean": float(iou.mean()), "iou_median": float(np.median(iou)),
+            result.boxes[name] = {"n": int(ok.sum()), "iou_mean": float(iou.mean()),
+                                  "iou_median": float(np.median(iou)),
                                   "size_error_pct_mean": float(size.mean()),
                                   "size_error_pct_median": float(np.median(size))}
     # Stored admission follows the rule on the stored JaC.
@@ -541,8 +546,8 @@ def print_report(r: PipelineResult) -> None:
     s, rep = r.settings, r.import_report
     print(f"Synthetic SoccerNet-v3 dev set through v3d's pipeline: {rep['games']} games, {rep['systems']} systems, "
           f"{rep['frames']} views")
-    print(f"settings: admission JaC@{s['admit_jac_gamma']:g} > {s['admit_jac_min']}, tau {s['triangulation_tau_px']} px "
-          f"({s['pair_error_rule']}), baseline >= {s['min_baseline_m']} m, parallax >= {s['min_parallax_deg']} deg, "
+    print(f"settings: admission JaC@{s['admit_jac_gamma']:g} > {s['admit_jac_min']}, tau {s['triangulation_tau_px']} "
+          f"px ({s['pair_error_rule']}), baseline >= {s['min_baseline_m']} m, parallax >= {s['min_parallax_deg']} deg, "
           f"optimised boxes {s.get('optimised_box_method', 'paper')}")
     print(f"import report: calibrated {rep['calibrated']} (rig-assisted {rep['rig_assisted']}), refused "
           f"{rep['refused']}, triangulated {rep['triangulated']}; refusals: "
@@ -629,15 +634,16 @@ def print_report(r: PipelineResult) -> None:
     sc, pc = t["service_calibration_ms"], t["pure_calibration_ms"]
     print(f"\n5. Timing: import {t['import_wall_s']:.1f} s wall (read {t['read_s']:.1f}, calibration incl. rig "
           f"{t['calibration_s']:.1f}, store+triangulate {t['store_s']:.1f}); calibration per frame: service "
-          f"(pool, first pass + rig pass) median {_f(sc['median'], '.0f')} ms, p90 {_f(sc['p90'], '.0f')} ms; in this process "
-          f"median {_f(pc['median'], '.0f')} ms, p90 {_f(pc['p90'], '.0f')} ms (wall time on a shared machine)")
+          f"(pool, first pass + rig pass) median {_f(sc['median'], '.0f')} ms, p90 {_f(sc['p90'], '.0f')} ms; in this "
+          f"process median {_f(pc['median'], '.0f')} ms, p90 {_f(pc['p90'], '.0f')} ms (wall time on a shared machine)")
     ch = r.checks
     print(f"\nchecks: stored optimised boxes differ from optimise_box on the stored camera and ball for "
           f"{len(ch.get('optimised_box_mismatches', []))} views {ch.get('optimised_box_mismatches') or ''}")
-    print(f"checks: no-rig recomputation differs from the stored first pass for {len(ch['no_rig_recomputation_mismatches'])} "
-          f"views {ch['no_rig_recomputation_mismatches'] or ''}; stored annotated boxes differ from the labels for "
-          f"{len(ch['annotated_box_mismatches'])} views {ch['annotated_box_mismatches'] or ''}; stored admission "
-          f"disagrees with the rule for {len(ch['admission_mismatches'])} views {ch['admission_mismatches'] or ''}")
+    print("checks: no-rig recomputation differs from the stored first pass for "
+          f"{len(ch['no_rig_recomputation_mismatches'])} views {ch['no_rig_recomputation_mismatches'] or ''}; stored "
+          f"annotated boxes differ from the labels for {len(ch['annotated_box_mismatches'])} views "
+          f"{ch['annotated_box_mismatches'] or ''}; stored admission disagrees with the rule for "
+          f"{len(ch['admission_mismatches'])} views {ch['admission_mismatches'] or ''}")
 
 
 def main() -> None:

@@ -94,23 +94,24 @@ class Database:
             mark()
             view.__pydantic_serializer__.to_json(view, by_alias=True)
             mark()
-        for part, (a, b) in zip(PARTS, zip(marks, marks[1:])):
+        for part, (a, b) in zip(PARTS, zip(marks, marks[1:], strict=False), strict=False):
             self.times[part].append(((b[0] - a[0]) * 1000.0, (b[1] - a[1]) * 1000.0))
         tri = system.triangulation
         self.sizes.append((self.statements - n0, len(view.views), len(view.doubts),
-                           len(tri.pairs) if tri is not None else 0, sum(v.pitch_lines_url is not None for v in view.views)))
+                           len(tri.pairs) if tri is not None else 0,
+                           sum(v.pitch_lines_url is not None for v in view.views)))
 
     def report(self) -> str:
         """The table of parts: CPU and wall p50 / p95 in ms, and the mean page size."""
         n = len(self.sizes)
         lines = [f"{self.path} ({len(self.ids)} systems, {n} requests)",
                  f"  {'part':<11} {'cpu p50':>8} {'cpu p95':>8} {'wall p50':>9} {'wall p95':>9}"]
-        totals = [tuple(sum(x) for x in zip(*(self.times[p][i] for p in PARTS))) for i in range(n)]
+        totals = [tuple(sum(x) for x in zip(*(self.times[p][i] for p in PARTS), strict=False)) for i in range(n)]
         for part, xs in [*self.times.items(), ("total", totals)]:
             cpu, wall = [x[0] for x in xs], [x[1] for x in xs]
             lines.append(f"  {part:<11} {percentile(cpu, 50):8.2f} {percentile(cpu, 95):8.2f} "
                          f"{percentile(wall, 50):9.2f} {percentile(wall, 95):9.2f}")
-        means = [sum(col) / n for col in zip(*self.sizes)]
+        means = [sum(col) / n for col in zip(*self.sizes, strict=False)]
         lines.append("  per page: {:.1f} SQL statements, {:.2f} views, {:.2f} doubts, {:.2f} pairs, "
                      "{:.1f} pitch-line addresses (the lines are fetched once per camera)".format(*means))
         return "\n".join(lines)

@@ -19,12 +19,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.datasets.csv_cells import inert_row  # noqa: E402
-from app.services.evaluation.boxes import PRECISE_COLUMNS, evaluate_boxes, store_precise_boxes  # noqa: E402
-from app.services.transfer.importing import import_soccernet_v3  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.datasets.csv_cells import inert_row
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.services.evaluation.boxes import PRECISE_COLUMNS, evaluate_boxes, store_precise_boxes
+from app.services.transfer.importing import import_soccernet_v3
 
 SETS = ("soccernet-v3-dev", "soccernet-v3-dev-large", "issia-dev")
 
@@ -55,7 +55,8 @@ def issia_precise_csv(truth_path: Path, sequence: str, out: Path) -> Path:
         for f in raw["frames"]:
             for cam, v in f["cams"].items():
                 if v.get("precise_box"):
-                    w.writerow([*inert_row([LEAGUE, SEASON, sequence, f"cam{cam}_{f['frame']:06d}"]), *v["precise_box"]])
+                    w.writerow([*inert_row([LEAGUE, SEASON, sequence, f"cam{cam}_{f['frame']:06d}"]),
+                                *v["precise_box"]])
     return out
 
 
@@ -74,7 +75,8 @@ def truth_original(truth_path: Path) -> dict:
                 ih = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
                 union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - iw * ih
                 ious.append(iw * ih / union)
-                da, db = ((a[2] - a[0]) ** 2 + (a[3] - a[1]) ** 2) ** 0.5, ((b[2] - b[0]) ** 2 + (b[3] - b[1]) ** 2) ** 0.5
+                da = ((a[2] - a[0]) ** 2 + (a[3] - a[1]) ** 2) ** 0.5
+                db = ((b[2] - b[0]) ** 2 + (b[3] - b[1]) ** 2) ** 0.5
                 sizes.append(100.0 * abs(da - db) / db)
     if not ious:  # ISSIA labels are points: no original box
         return {"n": 0, "iou": None, "size_error_pct": None}

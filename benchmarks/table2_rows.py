@@ -24,12 +24,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.core.config import Settings  # noqa: E402
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.session import make_engine, make_session_factory, upgrade_database  # noqa: E402
-from app.services.evaluation.monocular import reference_views  # noqa: E402
-from app.services.issia.sequences import LEAGUE, SEASON  # noqa: E402
-from app.services.transfer.cameras_export import camera_file  # noqa: E402
+from app.core.config import Settings
+from app.core.paths import SHARED_DIR
+from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.services.evaluation.monocular import reference_views
+from app.services.issia.sequences import LEAGUE, SEASON
+from app.services.transfer.cameras_export import camera_file
 
 SYNTHETIC = SHARED_DIR / "data" / "synthetic"
 
@@ -89,7 +89,8 @@ def rows(url: str, work: Path) -> dict:
         views = reference_views(session, include_all=True)
         pred = write_predictions(views, work / "predictions")
         sets = {"soccernet-v3 dev (all splits)": lambda v: not v.game_path.startswith(f"{LEAGUE}/"),
-                "issia dev (test split: cameras 1-2)": lambda v: v.game_path.startswith(f"{LEAGUE}/") and v.split == "test"}
+                "issia dev (test split: cameras 1-2)":
+                    lambda v: v.game_path.startswith(f"{LEAGUE}/") and v.split == "test"}
         for name, cams in (("oracle", None), ("truth cameras", write_truth_cameras(work / "truth")),
                            ("truth cameras, centres 2 m off", write_truth_cameras(work / "shifted", 2.0))):
             given, _ = with_cameras(views, cams) if cams is not None else (views, 0)

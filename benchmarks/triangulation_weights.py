@@ -24,17 +24,17 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import sqlalchemy as sa  # noqa: E402
-from sqlalchemy.orm import Session, selectinload  # noqa: E402
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, selectinload
 
-from app.core.config import Settings  # noqa: E402
-from app.db.models import CalibrationStatus, Frame, System  # noqa: E402
-from app.geometry import triangulation as T  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.pitch import within_play_volume  # noqa: E402
-from app.services.curation.doubts import calibration_weights, is_excluded  # noqa: E402
-from app.services.derivation.recompute import _label_centre  # noqa: E402
-from benchmarks.doubts_seeds import SETS  # noqa: E402
+from app.core.config import Settings
+from app.db.models import CalibrationStatus, Frame, System
+from app.geometry import triangulation as T
+from app.geometry.camera import Camera
+from app.geometry.pitch import within_play_volume
+from app.services.curation.doubts import calibration_weights, is_excluded
+from app.services.derivation.recompute import _label_centre
+from benchmarks.doubts_seeds import SETS
 
 VARIANTS: dict[str, float | None] = {"paper": None, "tier only": 0.0, "min 1.0": 1.0, "min 1.5": 1.5}
 

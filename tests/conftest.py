@@ -1,13 +1,18 @@
 """Fixtures shared by the whole suite."""
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
-import os
-
 import pytest
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
 
+from app.core.config import Settings
 from app.core.paths import SHARED_DIR
+from app.db.session import make_engine, upgrade_database
 
 #: The Host of Starlette's test client (``http://testserver``) is no loopback name: the apps of the tests accept
 #: it because the tests' settings name it (``app.api.hosts``; a served v3d refuses it unless V3D_ALLOWED_HOSTS
@@ -26,15 +31,6 @@ def shared_dir() -> Path:
 
 # ----- database fixtures (app/db): a migrated SQLite database per test session, one rolled-back
 # transaction per test (SQLAlchemy's "join a session into an external transaction" recipe) ---------
-from collections.abc import Iterator  # noqa: E402
-from contextlib import contextmanager  # noqa: E402
-
-import sqlalchemy as sa  # noqa: E402
-from sqlalchemy.orm import Session  # noqa: E402
-
-from app.core.config import Settings  # noqa: E402
-from app.db.session import make_engine, upgrade_database  # noqa: E402
-
 
 #: Environment variable naming a PostgreSQL server (any database of it, to connect): the database
 #: fixtures then use a fresh database made on that server for the test session (``.ci/run``).

@@ -176,8 +176,8 @@ def test_the_ball_diameter_is_written_once():
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 a = node.args
                 pos = a.posonlyargs + a.args
-                pairs += list(zip([x.arg for x in pos[len(pos) - len(a.defaults):]], a.defaults))
-                pairs += [(x.arg, d) for x, d in zip(a.kwonlyargs, a.kw_defaults)]
+                pairs += list(zip([x.arg for x in pos[len(pos) - len(a.defaults):]], a.defaults, strict=True))
+                pairs += [(x.arg, d) for x, d in zip(a.kwonlyargs, a.kw_defaults, strict=True)]
             elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
                 value = node.value
                 if isinstance(value, ast.Call) and value.args:  # pydantic's Field(default, ...)

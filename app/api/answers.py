@@ -6,7 +6,7 @@ hop through the thread pool) and then serialised on the event loop, whose one th
 routes that answer the system view, the largest and most frequent answer, instead return the JSON bytes made in
 their own worker thread by the model's own serializer (the bytes FastAPI would send: the same serializer, by alias),
 with the headers the route set on its ``Response`` parameter (ETag, audit entry). The route keeps its
-``response_model``, so the OpenAPI schema and ``/docs`` are unchanged (issue 29: an edit's answer).
+``response_model``, so the OpenAPI schema and ``/docs`` are unchanged (an edit's answer).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Request and response models of work assignment and presence (issue 28, item 10):
+"""Request and response models of work assignment and presence:
 ``POST /api/assignments``, ``GET /api/assignees``, ``PUT`` / ``DELETE /api/systems/{id}/presence``, and the
 ``assignment`` / ``open_by`` fields of the queue rows and of the system view."""
 from __future__ import annotations

@@ -40,7 +40,8 @@ class AuditEntryOut(BaseModel):
             self.summary = summarize(self.action, self.before, self.after, reverts_id=self.reverts_id)
         return self
 
-    @computed_field(description="False for imports, recomputes and changes of users and tokens.")  # type: ignore[prop-decorator]
+    @computed_field(  # type: ignore[prop-decorator]  # pydantic: a decorator over @property
+        description="False for imports, recomputes and changes of users and tokens.")
     @property
     def revertible(self) -> bool:
         return audit.revertible(self.action)
@@ -59,7 +60,8 @@ class AuditQuery(BaseModel):
     """Filters and page of ``GET /api/audit``."""
 
     frame_id: Optional[DbInt] = Field(None, description="Only this frame's entries.")
-    system_id: Optional[DbInt] = Field(None, description="Only this system's entries (its decisions and its views' edits).")
+    system_id: Optional[DbInt] = Field(None, description="Only this system's entries (its decisions and its views' "
+                                                         "edits).")
     user: Optional[QueryText] = Field(None, max_length=200, description="Only this user's entries (exact name).")
     limit: int = Field(50, ge=1, le=500)
     offset: int = Field(0, ge=0, le=DB_INT_MAX)

@@ -33,8 +33,8 @@ from starlette.requests import HTTPConnection
 from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from app.db.session import reads_on_their_own
 from app.api.auth import Principal, current_principal
+from app.db.session import reads_on_their_own
 from app.services.accounts import users
 
 #: The session cookie's name.

@@ -1,5 +1,5 @@
 """Request bodies are bounded by the route they are sent to, before they are parsed and while they
-stream (issue 15; issue 27, item 1: never by what the client's ``Content-Type`` says).
+stream (never by what the client's ``Content-Type`` says, which a client chooses).
 
 :class:`BodyLimitMiddleware` is a pure ASGI middleware in front of every route. It finds the route a
 request goes to and the media types that route takes (:func:`route_media_types`: what its OpenAPI request
@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from typing import Any, Optional
 
 from fastapi import HTTPException
-from fastapi.routing import APIRoute, iter_route_contexts
+from fastapi.routing import APIRoute, RouteContext, iter_route_contexts
 from starlette.responses import JSONResponse
 from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -70,7 +70,7 @@ def is_json(media: str) -> bool:
     return media == JSON_TYPE or (media.startswith("application/") and media.endswith("+json"))
 
 
-def route_media_types(route: BaseRoute) -> frozenset[str]:
+def route_media_types(route: BaseRoute | RouteContext) -> frozenset[str]:
     """The media types of the bodies ``route`` takes, as its OpenAPI operation declares them: the
     ``requestBody`` of its ``openapi_extra`` when it states one (a route that reads its body itself, such as
     ``POST /api/imports``), else its body parameters' (FastAPI: a model or ``Body`` is JSON, ``Form``
@@ -95,7 +95,7 @@ def upload_routes(routes: Sequence[BaseRoute]) -> list[tuple[str, str]]:
                   for m in (c.methods or ()))
 
 
-def route_of(routes: Sequence[BaseRoute], scope: Scope) -> Optional[BaseRoute]:
+def route_of(routes: Sequence[BaseRoute], scope: Scope) -> Optional[RouteContext]:
     """The route of an app's ``routes`` (included routers walked) that will answer ``scope``, as the router
     matches: the first full match, else the first whose path matches with another method (405); None: a 404."""
     partial = None

@@ -1,4 +1,4 @@
-"""JSON answers gzip-compressed above a size, never the answers that carry a secret (issue 29).
+"""JSON answers gzip-compressed above a size, never the answers that carry a secret.
 
 :class:`CompressionMiddleware` is Starlette's ``GZipMiddleware`` (answers of at least :data:`MINIMUM_BYTES` to a
 client that accepts gzip; images and zips as they are) in front of every route but those whose answers carry a

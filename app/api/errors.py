@@ -21,7 +21,7 @@
 Request validation errors keep FastAPI's form (422, ``detail`` a list of ``{loc, msg, type}``), so a
 NaN box answers ``loc: ["body", "box", 0]``; an error quotes its ``input`` back only when it is short (at most
 :data:`MAX_ECHO_CHARS` as JSON) and holds no secret (:data:`SECRET_FIELDS`: a login without a name does not
-answer its password), so that no error answer echoes a body (issue 27, item 1). Every other error's
+answer its password), so that no error answer echoes a body. Every other error's
 ``detail`` text is cut at :data:`MAX_DETAIL_CHARS`. A body FastAPI cannot read at all (JSON that is not UTF-8, a
 broken multipart form), which FastAPI and Starlette answer with an undeclared 400, answers in that form
 too: 422, ``loc: ["body"]``, ``type: "body_unparsable"`` (found by ``benchmarks/fuzz.py``).
@@ -33,24 +33,28 @@ from typing import Any
 
 from fastapi import FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
-from fastapi.exceptions import RequestValidationError
 from fastapi.exception_handlers import http_exception_handler
-from fastapi.responses import JSONResponse
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse, Response
 from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.api.audit_schemas import AuditEntryOut
 from app.api.view_schemas import FrameView, StaleOut, SystemStateOut
+from app.core.errors import (
+    ConflictError,
+    DatasetError,
+    ForbiddenError,
+    InvalidInputError,
+    NotFoundError,
+    StaleVersionError,
+)
 from app.db.models import Frame
 from app.db.session import is_lock_timeout
 from app.geometry.annotations import AnnotationError
-from app.core.errors import (
-    ConflictError, DatasetError, ForbiddenError, InvalidInputError, NotFoundError, StaleVersionError,
-)
-from app.services.transfer.archives import UploadTooLarge
-from app.services.jobs.runner import JobNotReady
 from app.services.images.serving import ImageUnavailable
-
+from app.services.jobs.runner import JobNotReady
+from app.services.transfer.archives import UploadTooLarge
 
 #: Longest ``input`` (as JSON, characters) a validation error quotes back; a longer one is left out.
 MAX_ECHO_CHARS = 200
@@ -145,7 +149,7 @@ async def _stale(_: Request, exc: Exception) -> JSONResponse:
     body = StaleOut(
         detail=str(exc), etag=exc.etag,
         current=(FrameView.of_frame(current) if isinstance(current, Frame)
-                 else SystemStateOut.of(current) if current is not None else None),  # type: ignore[arg-type]
+                 else SystemStateOut.of(current) if current is not None else None),  # type: ignore[arg-type]  # current is a Frame or a System: a System here
         last_change=AuditEntryOut.model_validate(exc.last_change) if exc.last_change is not None else None,
     )
     return JSONResponse(body.model_dump(mode="json", by_alias=True), status_code=status.HTTP_412_PRECONDITION_FAILED,
@@ -171,7 +175,7 @@ async def _database_error(_: Request, exc: Exception) -> JSONResponse:
                         headers={"Retry-After": str(RETRY_AFTER_S), "Cache-Control": "no-store"})
 
 
-async def _http_error(request: Request, exc: Exception) -> JSONResponse:
+async def _http_error(request: Request, exc: Exception) -> Response:
     """FastAPI's answer to ``HTTPException``, except the 400 that FastAPI and Starlette raise when they
     cannot read a request body ("There was an error parsing the body", "Invalid multipart data."; v3d's
     own code raises no 400 ``HTTPException``): that one becomes the 422 of a malformed body, naming it."""
@@ -182,7 +186,7 @@ async def _http_error(request: Request, exc: Exception) -> JSONResponse:
         return JSONResponse({"detail": [{"type": "body_unparsable", "loc": ["body"],
                                          "msg": f"the body cannot be read: {reason}"}]},
                             status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
-    return await http_exception_handler(request, exc)  # type: ignore[arg-type]
+    return await http_exception_handler(request, exc)  # type: ignore[arg-type]  # registered for HTTPException only
 
 
 def install_error_handlers(app: FastAPI) -> None:

@@ -1,4 +1,4 @@
-"""Which ``Host`` a request may name (issue 27, item 3: DNS rebinding).
+"""Which ``Host`` a request may name (DNS rebinding).
 
 A web page on ``attacker.example`` can make its name resolve to 127.0.0.1 (or to the server's address) after
 the browser loaded it: its script then talks to v3d *as its own origin*, so the same-origin policy, the

@@ -3,21 +3,26 @@ jobs themselves (``app.services.jobs.runner``). Apart from ``app.api.schemas``: 
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal, Optional
+from typing import TYPE_CHECKING, Any, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.api.schemas import _In
 from app.db.models import JobState
 from app.services.jobs.work import WORK
-from app.services.transfer.import_formats import refused_options
 from app.services.kinds import POLICIES
+from app.services.transfer.import_formats import refused_options
 
 #: The dataset formats an import takes: every kind's ``import_formats``, once each, in the kinds' order.
-ImportFormat = Literal[tuple(dict.fromkeys(f for p in POLICIES.values() for f in p.import_formats))]  # type: ignore[valid-type]
 #: What a job runs (``app.services.jobs.work.WORK``) and where it is (``JobState``).
-JobKindName = Literal[tuple(WORK)]  # type: ignore[valid-type]
-JobStateName = Literal[tuple(s.value for s in JobState)]  # type: ignore[valid-type]
+if TYPE_CHECKING:  # mypy cannot build a Literal from values computed at import
+    ImportFormat = str
+    JobKindName = str
+    JobStateName = str
+else:
+    ImportFormat = Literal[tuple(dict.fromkeys(f for p in POLICIES.values() for f in p.import_formats))]
+    JobKindName = Literal[tuple(WORK)]
+    JobStateName = Literal[tuple(s.value for s in JobState)]
 
 
 class ImportOptions(_In):

@@ -1,7 +1,7 @@
 """All API routers, one per resource, gathered under one router (mounted at ``/api``).
 
-Every router but the public part of ``/api/auth`` (login, demo) and ``/api/health`` is included under the dependencies of
-``app.api.authentication.PROTECTED`` (a principal, the OpenAPI security schemes), so a new router or
+Every router but the public part of ``/api/auth`` (login, demo) and ``/api/health`` is included under the dependencies
+of ``app.api.authentication.PROTECTED`` (a principal, the OpenAPI security schemes), so a new router or
 route needs a logged-in user by default; the least role of a write is stated on its router or route
 with ``app.api.auth.require_role``.
 """
@@ -11,11 +11,24 @@ from fastapi import APIRouter
 
 from app.api.authentication import PROTECTED
 from app.api.bodies import BODY_REFUSED
-from app.api.schemas import ErrorOut
 from app.api.routes import (
-    assignments, audit, auth, detectors, exports, frames, games, health, imports, issia, jobs, passes, pitch, systems,
+    assignments,
+    audit,
+    auth,
+    detectors,
+    exports,
+    frames,
+    games,
+    health,
+    imports,
+    issia,
+    jobs,
+    passes,
+    pitch,
+    systems,
     users,
 )
+from app.api.schemas import ErrorOut
 
 api_router = APIRouter(responses=BODY_REFUSED)
 api_router.include_router(auth.public_router)

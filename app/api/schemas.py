@@ -8,11 +8,12 @@ as fractions in [0, 1]. The answers of the review views (the system view, the UI
 """
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
 
 from app.db.models import ReviewStatus
+from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
 from app.services.curation.queue import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
 
@@ -22,11 +23,13 @@ InCoord = Annotated[float, Strict()]
 InPoint2 = tuple[InCoord, InCoord]
 InBox = tuple[InCoord, InCoord, InCoord, InCoord]
 #: The ``doubt`` filter of the queue: a doubt kind, ``any`` label-accusing doubt, or ``none``.
-DoubtFilter = Literal[LABEL_KINDS + INFO_KINDS + ("any", "none")]  # type: ignore[valid-type]
+if TYPE_CHECKING:  # mypy cannot build a Literal from values computed at import
+    DoubtFilter = str
+else:
+    DoubtFilter = Literal[LABEL_KINDS + INFO_KINDS + ("any", "none")]
 #: Bounds of an integer compared with a stored one (ids, offsets): the id columns are ``INTEGER``, 32-bit signed
 #: on PostgreSQL (SQLite's are 64-bit). A larger number would fail in the database or its driver (a 500:
 #: "integer out of range", OverflowError; found by ``benchmarks/fuzz.py``); it is a 422 naming the parameter.
-from app.db.types import DB_INT_MAX, DB_INT_MIN  # noqa: E402
 #: An id (or any integer compared with a stored one) in a path or query parameter.
 DbInt = Annotated[int, Field(ge=DB_INT_MIN, le=DB_INT_MAX)]
 #: Text in a path or query parameter compared with stored text: no NUL character (PostgreSQL's text cannot hold
@@ -230,7 +233,9 @@ class InvalidOut(BaseModel):
 
 
 #: OpenAPI ``responses`` of routes that look a row up by id.
-NOT_FOUND = {404: {"model": ErrorOut, "description": "No row has this id (the message names it)."}}
+NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {"model": ErrorOut, "description": "No row has this id (the message names it)."}}
 #: OpenAPI ``responses`` of routes that store input the services validate.
-INVALID = {422: {"model": InvalidOut, "description": "Invalid input: `{detail, field}` from the services, or "
-                                                     "FastAPI's `{detail: [{loc, msg, type}]}` for a malformed body."}}
+INVALID: dict[int | str, dict[str, Any]] = {
+    422: {"model": InvalidOut, "description": "Invalid input: `{detail, field}` from the services, or "
+                                              "FastAPI's `{detail: [{loc, msg, type}]}` for a malformed body."}}

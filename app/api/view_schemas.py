@@ -16,20 +16,33 @@ from pydantic import AliasChoices, BaseModel, ConfigDict, Field, computed_field
 
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.audit_schemas import AuditEntryOut
-from app.db.types import utcnow
 from app.db.models import (
-    BallKind, BallLabel, Calibration, CalibrationSource, CalibrationStatus, Doubt, Frame, FrameRole, OptimisedBox,
-    ReviewDecision, ReviewStatus, System, SystemKind, Triangulation, TriangulationStatus,
+    BallKind,
+    BallLabel,
+    Calibration,
+    CalibrationSource,
+    CalibrationStatus,
+    Doubt,
+    Frame,
+    FrameRole,
+    OptimisedBox,
+    ReviewDecision,
+    ReviewStatus,
+    System,
+    SystemKind,
+    Triangulation,
+    TriangulationStatus,
 )
+from app.db.types import utcnow
+from app.geometry import pitch
 from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
-from app.geometry import pitch
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.pair_error import error_above_tau, rule_reference_width_px, scaled_error_px
-from app.services.images.serving import frame_has_image
 from app.services.curation.doubts import doubt_provenance, suggestion_json
 from app.services.curation.system_page import SystemPageData, pitch_lines, pitch_lines_key, round_px
 from app.services.curation.versions import frame_etag, system_etag
+from app.services.images.serving import frame_has_image
 
 Box = tuple[float, float, float, float]
 Point2 = tuple[float, float]
@@ -65,8 +78,8 @@ class ReviewOut(BaseModel):
     decided_at: Optional[datetime] = None
     excluded: bool = Field(False, description="Views only: excluded from the system's triangulation by a reviewer.")
     reset_reason: Optional[str] = Field(None, description="Why the decision is pending again (an edit changed the "
-                                        "system's labels or 3D result after it was decided: a ball label, an exclusion, "
-                                        "field lines, an undo); null otherwise.")
+                                        "system's labels or 3D result after it was decided: a ball label, an "
+                                        "exclusion, field lines, an undo); null otherwise.")
     calibration: Optional["CalibrationReviewOut"] = Field(
         None, description="Views only: the decision on the view's calibration, beside the decision on its ball.")
 
@@ -115,7 +128,8 @@ class DoubtOut(BaseModel):
     frame: Optional[str] = Field(description="That view's image name.")
     accuses_label: bool
     message: str = Field(description="One sentence with its numbers.")
-    evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, degrees).")
+    evidence: dict[str, Any] = Field(description="The numbers behind the sentence (pixels of the named view, metres, "
+                                                 "degrees).")
     suggestion: Optional[dict[str, Any]] = Field(
         description=f"The fix: {{'action': one of {', '.join(SUGGESTION_ACTIONS)}, 'box': [x1, y1, x2, y2] px for "
         "snap_box, 'box_sigma_px' (or 'point_sigma_px' for snap_point): the uncertainty of that box or point, px of "
@@ -216,8 +230,8 @@ class CalibrationOut(BaseModel):
         "Position 0 for a rig-assisted fit (centre fixed). Null when not fitted from lines here (refused, "
         "imported, or calibrated before this was stored).")
 
-    @computed_field(description="The field-line labels are probably mirrored (the flag in flags): offer the "
-                                "mirrored labelling.")  # type: ignore[prop-decorator]
+    @computed_field(  # type: ignore[prop-decorator]  # pydantic: a decorator over @property
+        description="The field-line labels are probably mirrored (the flag in flags): offer the mirrored labelling.")
     @property
     def probably_mirrored(self) -> bool:
         return MIRROR_FLAG in self.flags
@@ -273,7 +287,8 @@ class _FrameFields(BaseModel):
         rep = frame.reprojection
         return {"name": frame.name, "role": frame.role, "width": frame.width, "height": frame.height,
                 "image_url": image_url(frame), "calibration": CalibrationOut.of(frame.calibration),
-                "ball": BallOut.of(frame.ball_label), "reprojection_error_px": rep.error_px if rep is not None else None,
+                "ball": BallOut.of(frame.ball_label),
+                "reprojection_error_px": rep.error_px if rep is not None else None,
                 "review": ReviewOut.of_view(frame.review)}
 
 
@@ -367,7 +382,8 @@ class PitchClassOut(BaseModel):
 
     name: str
     mirror: str = Field(description="The class it becomes when the pitch is turned 180 degrees.")
-    modelled: bool = Field(description="False for 'Goal unknown' and 'Line unknown': valid labels the geometry ignores.")
+    modelled: bool = Field(
+        description="False for 'Goal unknown' and 'Line unknown': valid labels the geometry ignores.")
 
 
 class PitchModelOut(BaseModel):
@@ -380,7 +396,8 @@ class PitchModelOut(BaseModel):
 
     @classmethod
     def of_model(cls) -> "PitchModelOut":
-        return cls(classes=[PitchClassOut(name=c, mirror=pitch.MIRROR_CLASSES[c], modelled=c not in pitch.UNKNOWN_CLASSES)
+        return cls(classes=[PitchClassOut(name=c, mirror=pitch.MIRROR_CLASSES[c],
+                                          modelled=c not in pitch.UNKNOWN_CLASSES)
                             for c in pitch.LINE_CLASSES],
                    length_m=pitch.PITCH_LENGTH_M, width_m=pitch.PITCH_WIDTH_M)
 
@@ -443,8 +460,8 @@ class ViewOut(_FrameFields):
             "optimised_box": OptimisedBoxOut.of(frame.optimised_box),
             "precise_box": frame.precise_box,
             "reprojected_ball": round_px(rep.point) if rep is not None else None,
-            "reprojection_error_scaled_px": scaled_error_px(error, frame.width, tri.rule) if judged else None,
-            "error_above_tau": judged and error_above_tau(error, frame.width, tri.tau_px, tri.rule),
+            "reprojection_error_scaled_px": scaled_error_px(error, frame.width, tri.rule) if tri and judged else None,
+            "error_above_tau": judged and tri is not None and error_above_tau(error, frame.width, tri.tau_px, tri.rule),
             "camera_position": camera["position_meters"] if camera is not None else None,
             "etag": frame_etag(frame),
         }
@@ -501,8 +518,8 @@ class TriangulationOut(BaseModel):
     min_baseline_m: float
     pairs: list[PairOut]
 
-    @computed_field(description="Width (px) the rule scales a view's error to before comparing it with tau; "
-                                "null: raw px.")  # type: ignore[prop-decorator]
+    @computed_field(  # type: ignore[prop-decorator]  # pydantic: a decorator over @property
+        description="Width (px) the rule scales a view's error to before comparing it with tau; null: raw px.")
     @property
     def reference_width_px(self) -> Optional[float]:
         return rule_reference_width_px(self.rule)

@@ -15,18 +15,18 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Optional
+from typing import Annotated, Any, Iterator, Optional
 
 import typer
 from tqdm import tqdm
 
 from app.cli._root import cli
-from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
 from app.core.errors import DatasetError
-from app.services.curation.words import refusal_sentence
+from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.services.calibration.pool import calibration_pool
+from app.services.curation.words import refusal_sentence
 
 SUMMARY_FILE = CALIBRATION_SUMMARY
 
@@ -72,7 +72,8 @@ def calibrate_one(job: tuple[str, bytes, int, int, Optional[int]]) -> FrameOutco
                             (time.perf_counter() - t0) * 1e3)
     prior = CalibrationPrior(expected_side=side) if side is not None else None
     r = calibrate_frame(lines, width, height, prior=prior, compute_jac=False)
-    return FrameOutcome(frame, r.status, refusal_sentence(r.refusal), r.camera.to_soccernet() if r.camera is not None else None,
+    return FrameOutcome(frame, r.status, refusal_sentence(r.refusal),
+                        r.camera.to_soccernet() if r.camera is not None else None,
                         r.flags, dict(r.residuals_px), r.rms_px, r.elapsed_ms)
 
 
@@ -89,15 +90,16 @@ def _side(value: str) -> Optional[int]:
 
 @cli.command("calibrate")
 def calibrate_command(
-    annotations: Path = typer.Argument(..., help="Folder or zip of SoccerNet-calibration frame JSON files."),
-    out_dir: Path = typer.Argument(..., help="Folder for camera_<frame>.json files (created if needed)."),
-    width: int = typer.Option(960, "--width", min=2, help="Image width in pixels (normalised points are scaled by W - 1)."),
-    height: int = typer.Option(540, "--height", min=2, help="Image height in pixels."),
-    workers: int = typer.Option(0, "--workers", min=0, help="Worker processes; 0 = one per core."),
-    expected_side: str = typer.Option(
-        "none", "--expected-side",
+    annotations: Annotated[Path, typer.Argument(help="Folder or zip of SoccerNet-calibration frame JSON files.")],
+    out_dir: Annotated[Path, typer.Argument(help="Folder for camera_<frame>.json files (created if needed).")],
+    width: Annotated[int, typer.Option("--width", min=2,
+                                       help="Image width in pixels (normalised points are scaled by W - 1).")] = 960,
+    height: Annotated[int, typer.Option("--height", min=2, help="Image height in pixels.")] = 540,
+    workers: Annotated[int, typer.Option("--workers", min=0, help="Worker processes; 0 = one per core.")] = 0,
+    expected_side: Annotated[str, typer.Option(
+        "--expected-side",
         help="Side of the pitch the cameras are expected on, only to flag probably mirrored labels: "
-             "+1 (y > 0, broadcast main cameras), -1, or none."),
+             "+1 (y > 0, broadcast main cameras), -1, or none.")] = "none",
 ) -> None:
     """Calibrate every frame from its field lines; write SoccerNet camera files and a summary."""
     side = _side(expected_side)

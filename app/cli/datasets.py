@@ -23,7 +23,8 @@ from app.core.errors import InvalidInputError
 from app.services.jobs.work import import_params
 from app.services.transfer.export_formats import export_format
 
-DatabaseOpt = Annotated[Optional[str], typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
+DatabaseOpt = Annotated[Optional[str],
+                        typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
 _Command = TypeVar("_Command", bound=Callable[..., Any])
 _STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating", "rig": "calibrating with game rigs",
@@ -174,7 +175,8 @@ def import_issia_cmd(
     path: Annotated[Path, typer.Argument(help="An ISSIA folder (ball_points.csv, issia_calibration.json and/or "
                                               "issia_lines.json, optional videos/ or frames/).")],
     from_lines: Annotated[bool, typer.Option("--from-lines", help="Calibrate each camera from issia_lines.json "
-                                                                  "even when issia_calibration.json is present.")] = False,
+                                                                  "even when issia_calibration.json is present."
+                                             )] = False,
     flip: Annotated[str, typer.Option(help="Comma-separated camera ids whose footage is mirrored, e.g. 1,2.")] = "",
     database_url: DatabaseOpt = None,
 ) -> None:
@@ -257,6 +259,7 @@ def export_soccernet_v3d_cmd(
     """``v3d export soccernet-v3d`` into ``out_dir`` (its help: the registry's description of the format)."""
     from app.services.transfer.exporting import export_soccernet_v3d
     from app.services.images.serving import ImageUnavailable
+    from app.services.transfer.exporting import export_soccernet_v3d
 
     settings = cli_settings(database_url, None)
     bars = _Bars()

@@ -1,6 +1,6 @@
 """``v3d export yolo|coco`` and ``v3d evaluate monocular|sensitivity``: detector data and the monocular
-3D ball benchmark (thin wrappers over ``app.services.transfer.detector_export``, ``app.services.evaluation.monocular`` and
-``app.services.evaluation.plots``). A bad input prints ``error: ...`` and exits with status 2.
+3D ball benchmark (thin wrappers over ``app.services.transfer.detector_export``, ``app.services.evaluation.monocular``
+and ``app.services.evaluation.plots``). A bad input prints ``error: ...`` and exits with status 2.
 """
 from __future__ import annotations
 
@@ -25,13 +25,14 @@ def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
-        report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]
+        report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]  # typer checked fmt against the two formats
                                  settings.export_ball_box)
     per_split = ", ".join(f"{s}: {report.images[s]} image(s), {report.ball_boxes[s]} ball box(es), "
                           f"{report.other_boxes[s]} other box(es)" for s in report.images)
     typer.echo(f"exported {fmt} to {report.out_dir}: {per_split}")
-    typer.echo(f"ball boxes refined: {report.refined_ball_boxes}, optimised: {report.optimised_ball_boxes}; skipped {report.skipped_without_image} "
-               f"view(s) without an image, {report.skipped_point_only} with a point-only ball")
+    typer.echo(f"ball boxes refined: {report.refined_ball_boxes}, optimised: {report.optimised_ball_boxes}; skipped "
+               f"{report.skipped_without_image} view(s) without an image, {report.skipped_point_only} with a "
+               "point-only ball")
     for split in report.empty_splits:
         typer.echo(f"split {split!r} has no image (its folders exist, empty)")
     for cls, n in report.unknown_classes.items():
@@ -66,10 +67,13 @@ def _fmt(x: float | None, pattern: str) -> str:
 def evaluate_monocular_cmd(
     predictions: Annotated[Path, typer.Argument(help="A folder of YOLO txt files or a COCO results JSON.")],
     json_out: Annotated[Optional[Path], typer.Option("--json", help="Write the report as JSON here.")] = None,
-    plots: Annotated[Optional[Path], typer.Option("--plots", help="Write the precision curve and sensitivity plots here.")] = None,
-    ball_class: Annotated[Optional[int], typer.Option("--ball-class", help="Ball class (YOLO) or category id (COCO).")] = None,
+    plots: Annotated[Optional[Path],
+                     typer.Option("--plots", help="Write the precision curve and sensitivity plots here.")] = None,
+    ball_class: Annotated[Optional[int],
+                          typer.Option("--ball-class", help="Ball class (YOLO) or category id (COCO).")] = None,
     estimator: Annotated[Optional[str], typer.Option(help="'paper' (Eq. ball3Destimation) or 'exact' (sphere "
-                                                   "silhouette); default: the one matching V3D_OPTIMISED_BOX_METHOD.")] = None,
+                                                   "silhouette); default: the one matching "
+                                                   "V3D_OPTIMISED_BOX_METHOD.")] = None,
     cameras: Annotated[Optional[Path], typer.Option("--cameras", help="Score with these cameras instead of the stored "
                                                     "ones: a cameras export (v3d export cameras: cameras.json, "
                                                     "<W>x<H>/predictions.zip).")] = None,
@@ -179,10 +183,8 @@ def evaluate_sensitivity_cmd(
     """The paper's sensitivity study on the curated labels: box size +-10 %, centre up to 2 % of the diagonal."""
     import numpy as np
 
-    from app.services.evaluation.monocular import reference_views
+    from app.services.evaluation.monocular import default_estimator, reference_views
     from app.services.evaluation.plots import plot_sensitivity, sensitivity_curves
-
-    from app.services.evaluation.monocular import default_estimator
 
     settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)

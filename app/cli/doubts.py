@@ -22,7 +22,8 @@ from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
 
 @cli.command("doubts")
 def doubts_cmd(
-    json_out: Annotated[Optional[Path], typer.Option("--json", help="Write every system's doubts to this JSON file.")] = None,
+    json_out: Annotated[Optional[Path],
+                        typer.Option("--json", help="Write every system's doubts to this JSON file.")] = None,
     database_url: DatabaseOpt = None,
 ) -> None:
     """Report the doubts of every system: counts per kind, and optionally the whole list as JSON."""

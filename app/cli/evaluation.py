@@ -13,12 +13,12 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path, PurePosixPath
-from typing import Any, Optional
+from typing import Annotated, Any, Optional
 
 import typer
 
-from app.datasets.files import InputFileError, JsonFile, json_files
 from app.cli._root import cli
+from app.datasets.files import InputFileError, JsonFile, json_files
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.camera import Camera
 from app.geometry.jac import OFFICIAL_THRESHOLDS_PX, evaluate_jac, gamma_thresholds
@@ -108,14 +108,18 @@ def summarise(per_frame: dict[str, Optional[list[float]]], n_thresholds: int) ->
 
 @cli.command("jac")
 def jac_command(
-    annotations: Path = typer.Argument(..., help="Folder or zip of SoccerNet-calibration frame JSON (<frame>.json)."),
-    cameras: Path = typer.Argument(..., help="Folder or zip of camera_<frame>.json predictions."),
-    width: int = typer.Option(960, "--width", min=2, help="Evaluation width, pixels (cameras must be at this size)."),
-    height: int = typer.Option(540, "--height", min=2, help="Evaluation height, pixels."),
-    thresholds: Optional[str] = typer.Option(None, "--thresholds", help="Thresholds in pixels, e.g. 5,10,20 (default)."),
-    gammas: Optional[str] = typer.Option(None, "--gammas",
-                                         help="Thresholds as fractions of the image diagonal, e.g. 0.005,0.01,0.02."),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="Write per-frame JaC and the summary to this file."),
+    annotations: Annotated[Path, typer.Argument(
+        help="Folder or zip of SoccerNet-calibration frame JSON (<frame>.json).")],
+    cameras: Annotated[Path, typer.Argument(help="Folder or zip of camera_<frame>.json predictions.")],
+    width: Annotated[int, typer.Option(
+        "--width", min=2, help="Evaluation width, pixels (cameras must be at this size).")] = 960,
+    height: Annotated[int, typer.Option("--height", min=2, help="Evaluation height, pixels.")] = 540,
+    thresholds: Annotated[Optional[str], typer.Option(
+        "--thresholds", help="Thresholds in pixels, e.g. 5,10,20 (default).")] = None,
+    gammas: Annotated[Optional[str], typer.Option(
+        "--gammas", help="Thresholds as fractions of the image diagonal, e.g. 0.005,0.01,0.02.")] = None,
+    json_out: Annotated[Optional[Path], typer.Option(
+        "--json", help="Write per-frame JaC and the summary to this file.")] = None,
 ) -> None:
     """Official SoccerNet JaC (completeness, mean JaC, final score) of camera predictions."""
     try:
@@ -136,9 +140,9 @@ def jac_command(
     typer.echo(f"{summary['frames']} annotated frames, {summary['with_camera']} with a camera: "
                f"completeness {summary['completeness']:.4f} ({width}x{height})")
     typer.echo(f"{'threshold':>20}  {'mean JaC':>8}  {'final score':>11}")
-    labels = ([f"{g:g} diag ({t:.2f} px)" for g, t in zip(gamma_values, thresholds_px)] if gamma_values
+    labels = ([f"{g:g} diag ({t:.2f} px)" for g, t in zip(gamma_values, thresholds_px, strict=True)] if gamma_values
               else [f"{t:g} px" for t in thresholds_px])
-    for label, mean, final in zip(labels, summary["mean_jac"], summary["final_score"]):
+    for label, mean, final in zip(labels, summary["mean_jac"], summary["final_score"], strict=True):
         typer.echo(f"{label:>20}  {mean:8.4f}  {final:11.4f}")
     if json_out is not None:
         payload = {"width": width, "height": height, "thresholds_px": list(thresholds_px),

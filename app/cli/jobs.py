@@ -26,7 +26,8 @@ def _progress(stage: Optional[str], done: int, total: int) -> str:
 
 @jobs_cli.command("list")
 def list_cmd(
-    state: Annotated[Optional[str], typer.Option(help="Only jobs in this state: queued, running, done, failed.")] = None,
+    state: Annotated[Optional[str],
+                     typer.Option(help="Only jobs in this state: queued, running, done, failed.")] = None,
     limit: Annotated[int, typer.Option(min=1, max=500, help="How many (newest first).")] = 20,
     database_url: DatabaseOpt = None,
 ) -> None:
@@ -45,7 +46,8 @@ def list_cmd(
         for job in items:
             stale = " (stale: its process is gone)" if jobs.is_stale(job, settings) else ""
             what = job.params.get("path") or job.params.get("format") or ""
-            line = f"{job.id:>5}  {job.kind:<9} {job.state.value:<8}{stale} {_progress(job.stage, job.done, job.total):<22} {what}"
+            progress = _progress(job.stage, job.done, job.total)
+            line = f"{job.id:>5}  {job.kind:<9} {job.state.value:<8}{stale} {progress:<22} {what}"
             typer.echo(line.rstrip())
             if job.message:
                 typer.echo(f"       {job.message}")

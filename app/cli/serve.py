@@ -9,8 +9,8 @@ how to log in. The demo account never faces a network: ``--demo`` with a host ot
 address is refused (exit 2), and so is ``--demo`` behind a declared reverse proxy (``V3D_TRUSTED_PROXIES``) and
 any non-loopback host while an enabled demo account exists in the database; the demo account's login (and the
 login page's hint) answers only requests made on this machine without a proxy
-(``app.services.accounts.throttle.from_this_machine``), which covers a proxy left undeclared. Systems stored by an older version of the derived rows (doubts, queue figures) are
-recomputed first.
+(``app.services.accounts.throttle.from_this_machine``), which covers a proxy left undeclared. Systems stored by an older
+version of the derived rows (doubts, queue figures) are recomputed first.
 
 ``--workers N`` (N > 1) serves with N uvicorn worker processes: the start-up work above runs once, in
 this process, before any worker starts; each worker then builds the app with the factory
@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
 from app.cli._root import cli
 from app.core.config import Settings, get_settings, var_dir
 from app.services.accounts.throttle import is_loopback
@@ -44,8 +45,8 @@ def load_demo_if_empty(settings: Settings) -> str:
     """
     from app.db.session import make_engine, make_session_factory
     from app.demo import generate_demo_dataset
-    from app.services.transfer.importing import import_soccernet_v3
     from app.services.curation.queue import has_games
+    from app.services.transfer.importing import import_soccernet_v3
 
     engine = make_engine(settings.database_url)
     try:
@@ -66,9 +67,7 @@ def refresh_derived(settings: Settings) -> str | None:
     settings (a changed ``V3D_PROFILE``: stale until ``v3d recompute``, which may take long, so not done here).
     Returns lines for the console, None when nothing was stale."""
     from app.db.session import make_engine, make_session_factory
-    from app.services.derivation.recompute import refresh_stale_systems
-
-    from app.services.derivation.recompute import systems_computed_otherwise
+    from app.services.derivation.recompute import refresh_stale_systems, systems_computed_otherwise
 
     engine = make_engine(settings.database_url)
     try:

@@ -2,8 +2,9 @@
 
 Run by whoever owns the machine: no token needed, the database is ``V3D_DATABASE_URL`` (or
 ``--database-url``), migrated first. ``add`` and ``token`` print the new API token alone on the last
-line of standard output (``token`` prints its id on the line before) (``TOKEN=$(v3d users add ana --role annotator --password-stdin <pw | tail -n1)``);
-the token is shown only then. Errors print ``error: ...`` and exit with status 2, changing nothing.
+line of standard output (``token`` prints its id on the line before)
+(``TOKEN=$(v3d users add ana --role annotator --password-stdin <pw | tail -n1)``); the token is shown only then. Errors
+print ``error: ...`` and exit with status 2, changing nothing.
 """
 from __future__ import annotations
 
@@ -35,8 +36,8 @@ def _read_password(from_stdin: bool) -> str:
 def add_cmd(
     name: Annotated[str, typer.Argument(help="Login name (letters, digits, . _ @ -).")],
     role: Annotated[str, typer.Option("--role", help="annotator, reviewer or admin.")],
-    password_stdin: Annotated[bool, typer.Option("--password-stdin",
-                                                 help="Read the browser password from standard input's first line.")] = False,
+    password_stdin: Annotated[bool, typer.Option(
+        "--password-stdin", help="Read the browser password from standard input's first line.")] = False,
     database_url: DatabaseOpt = None,
 ) -> None:
     """Add a user; prints its first API token alone on the last line."""
@@ -76,7 +77,8 @@ def token_cmd(
 
 
 @users_cli.command("tokens")
-def tokens_cmd(name: Annotated[str, typer.Argument(help="An existing user.")], database_url: DatabaseOpt = None) -> None:
+def tokens_cmd(name: Annotated[str, typer.Argument(help="An existing user.")],
+               database_url: DatabaseOpt = None) -> None:
     """List a user's API tokens: id, label, created, last used, expiry (UTC), state. Never the tokens."""
     from app.services.accounts.users import list_tokens
 
@@ -146,11 +148,14 @@ def _set_disabled(name: str, disabled: bool, database_url: str | None) -> None:
             set_disabled(session, name, disabled)
         except NotFoundError as exc:
             raise _fail(exc) from None
-    typer.echo(f"{name}: {'disabled (sessions end; every API token revoked for good)' if disabled else 'enabled (log in again; issue a new token with v3d users token)'}")
+    done = ("disabled (sessions end; every API token revoked for good)" if disabled
+            else "enabled (log in again; issue a new token with v3d users token)")
+    typer.echo(f"{name}: {done}")
 
 
 @users_cli.command("disable")
-def disable_cmd(name: Annotated[str, typer.Argument(help="An existing user.")], database_url: DatabaseOpt = None) -> None:
+def disable_cmd(name: Annotated[str, typer.Argument(help="An existing user.")],
+                database_url: DatabaseOpt = None) -> None:
     """Disable a user: no login, its sessions end and every API token it holds is revoked for good."""
     _set_disabled(name, True, database_url)
 

@@ -15,7 +15,6 @@ from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 from app.core.paths import PROJECT_ROOT
 from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, PLAY_VOLUME
 
-
 #: Shortest ``V3D_SESSION_SECRET`` accepted (characters): 32 random URL-safe characters carry 192 bits.
 MIN_SESSION_SECRET_CHARS = 32
 
@@ -25,7 +24,8 @@ MIN_SESSION_SECRET_CHARS = 32
 #: default estimator follows it, ``app.services.evaluation.monocular.default_estimator``) and no parallax filter
 #: (v3d drops pairs whose rays meet below 2 degrees: near-duplicate viewpoints), and the optimised box as the detector
 #: exports' ball box (v3d: the refined box where the 3D ball is well constrained).
-PAPER_PROFILE: dict[str, Any] = {"optimised_box_method": "paper", "min_parallax_deg": 0.0, "export_ball_box": "optimised"}
+PAPER_PROFILE: dict[str, Any] = {"optimised_box_method": "paper", "min_parallax_deg": 0.0,
+                                 "export_ball_box": "optimised"}
 
 
 #: The mark of a setting a system's stored rows are computed with (admission, 3D ball, pairs, reprojections, optimised
@@ -48,7 +48,8 @@ class Settings(BaseSettings):
         description="'paper' sets every choice where v3d's default differs from the paper (PAPER_PROFILE: the "
         "optimised box of Eq. min_diametre, hence the paper's monocular estimator, no parallax filter, the optimised "
         "box as the exports' ball box); a "
-        "V3D_* setting given explicitly still wins. 'v3d': v3d's defaults (docs/configuration.md, 'The paper's settings in one switch').",
+        "V3D_* setting given explicitly still wins. 'v3d': v3d's defaults (docs/configuration.md, 'The paper's "
+        "settings in one switch').",
     )
 
     def derived_fingerprint(self) -> str:
@@ -56,7 +57,8 @@ class Settings(BaseSettings):
         boxes and doubts were computed with (``System.derived_settings``); a profile or setting changed since makes
         them stale for ``v3d recompute`` (``app.services.derivation.recompute.systems_computed_otherwise``).
 
-        >>> Settings(_env_file=None).derived_fingerprint() == Settings(_env_file=None, profile="paper").derived_fingerprint()
+        >>> v3d, paper = Settings(_env_file=None), Settings(_env_file=None, profile="paper")
+        >>> v3d.derived_fingerprint() == paper.derived_fingerprint()
         False
         """
         import hashlib
@@ -190,9 +192,11 @@ class Settings(BaseSettings):
         "generated once in the database (table server_secrets), shared by every worker and kept across restarts.",
     )
     login_max_failures_per_name: int = Field(10, gt=0, description="Failed logins of one name from one client "
-                                                                    "address per window before 429 (V3D_LOGIN_MAX_FAILURES_PER_NAME).")
+                                                                    "address per window before 429 "
+                                                                    "(V3D_LOGIN_MAX_FAILURES_PER_NAME).")
     login_max_failures_per_address: int = Field(50, gt=0, description="Failed logins from one client address per "
-                                                                       "window before 429 (V3D_LOGIN_MAX_FAILURES_PER_ADDRESS).")
+                                                                       "window before 429 "
+                                                                       "(V3D_LOGIN_MAX_FAILURES_PER_ADDRESS).")
     login_window_s: int = Field(300, gt=0, description="The window of the failed-login limits (seconds).")
     trusted_proxies: list[str] = Field(
         default_factory=list, description="Reverse proxies (addresses or networks, JSON list) whose X-Forwarded-For "
@@ -302,7 +306,8 @@ class Settings(BaseSettings):
             names = [str(v).strip().lower() for v in value if str(v).strip()]
             for name in names:
                 if "*" in name[1:] or (name.startswith("*") and name != "*" and not name.startswith("*.")):
-                    raise ValueError(f"V3D_ALLOWED_HOSTS: {name!r}: a wildcard names a domain's hosts, as '*.example.org'")
+                    raise ValueError(f"V3D_ALLOWED_HOSTS: {name!r}: a wildcard names a domain's hosts, as "
+                                     "'*.example.org'")
             # an IPv6 address is written in brackets in a Host header
             return [f"[{n}]" if ":" in n and not n.startswith("[") else n for n in names]
         return value

@@ -1,4 +1,4 @@
-"""CSV cells that a spreadsheet never runs (issue 27, item 5; OWASP "CSV Injection").
+"""CSV cells that a spreadsheet never runs (OWASP "CSV Injection").
 
 Every CSV v3d writes (``SNv3D.csv`` of the SoccerNet-v3D export, ``ISSIA-3D.csv``) carries names from datasets:
 a league, season or match folder, a frame or system name. A spreadsheet opening the file runs a cell starting with

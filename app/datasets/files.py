@@ -8,14 +8,14 @@ inside zips) and the field, except :func:`json_files`, the lister of the offline
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any, BinaryIO, Callable, Iterator, Mapping
-
+from typing import IO, Any, Callable, Iterator, Mapping
 
 from app.core.errors import DatasetError
 
@@ -89,10 +89,11 @@ def inside_dataset(root: Path, path: str | Path, field: str | None = None) -> Pa
     >>> os.symlink("/etc/passwd", d / "0.png")
     >>> inside_dataset(d, d / "1.png") == d / "1.png"
     True
-    >>> inside_dataset(d, d / "0.png", "image")  # doctest: +ELLIPSIS
+    >>> inside_dataset(d, d / "0.png", "image")  # doctest: +ELLIPSIS, +NORMALIZE_WHITESPACE
     Traceback (most recent call last):
     ...
-    app.core.errors.DatasetError: ...0.png: image: resolves outside the dataset's folder (a link or '..' leading out of it); an import reads only inside its own folder
+    app.core.errors.DatasetError: ...0.png: image: resolves outside the dataset's folder (a link or '..' leading out
+    of it); an import reads only inside its own folder
     """
     root = Path(root).resolve()
     # ``path`` is what the reader built from its input (the folder or file given, joined with names from the
@@ -237,7 +238,7 @@ class ImageHeader:
     height: int
 
 
-def image_header(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
+def image_header(stream: IO[bytes], where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
     """Type and size of the image in the open binary ``stream`` (a file, or a zip member opened with
     ``ZipFile.open``: streamed, never read whole), from its header only (Pillow's lazy ``Image.open``:
     the PNG chunks before the pixel data, the JPEG markers up to its frame header); nothing is decoded.
@@ -254,10 +255,11 @@ def image_header(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXEL
     ...     return buf.getvalue()
     >>> image_header(io.BytesIO(png(960, 540)), "0.png")
     ImageHeader(type='png', width=960, height=540)
-    >>> image_header(io.BytesIO(png(8000, 7000)), "big.png")
+    >>> image_header(io.BytesIO(png(8000, 7000)), "big.png")  # doctest: +NORMALIZE_WHITESPACE
     Traceback (most recent call last):
     ...
-    app.core.errors.DatasetError: big.png: image of 8000x7000 = 56,000,000 pixels, above V3D_MAX_IMAGE_PIXELS (50,000,000)
+    app.core.errors.DatasetError: big.png: image of 8000x7000 = 56,000,000 pixels, above V3D_MAX_IMAGE_PIXELS
+    (50,000,000)
     >>> image_header(io.BytesIO(b"<html><script>alert(1)</script>"), "0.html")
     Traceback (most recent call last):
     ...
@@ -277,7 +279,8 @@ def image_header(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXEL
             finally:
                 Image.MAX_IMAGE_PIXELS = saved
     except (OSError, SyntaxError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
-        raise DatasetError(where, None, "not a PNG or JPEG image (read from its header; the name does not count)") from None
+        raise DatasetError(where, None,
+                           "not a PNG or JPEG image (read from its header; the name does not count)") from None
     if width < 1 or height < 1:
         raise DatasetError(where, None, f"image of {width}x{height} pixels")
     if width * height > max_pixels:
@@ -295,7 +298,8 @@ def file_image_header(path: Path, where: str | Path, max_pixels: int = MAX_IMAGE
         raise DatasetError(where, None, f"cannot read: {exc.strerror}") from None
 
 
-def member_image_header(zf: zipfile.ZipFile, member: str, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
+def member_image_header(zf: zipfile.ZipFile, member: str, where: str,
+                        max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
     """:func:`image_header` of the zip member ``member`` (streamed out of the archive, never read whole)."""
     try:
         with zf.open(member) as fh:
@@ -366,5 +370,5 @@ def json_files(path: Path, what: str) -> list[JsonFile]:
             cap = min(MAX_JSON_MEMBER_BYTES, ratio_cap(info.compress_size))
             return b"".join(member_chunks(archive, info, f"{path}!{n}", cap))
 
-        return [JsonFile(f"{path}:{n}", n, (lambda n=n: read(n))) for n in names]
+        return [JsonFile(f"{path}:{n}", n, functools.partial(read, n)) for n in names]
     raise InputFileError(f"{what}: {path} is neither a folder nor a zip archive")

@@ -1,6 +1,6 @@
 """ISSIA-3D: a folder of six synchronised static cameras -> validated plain records; ISSIA-3D.csv rows.
 
-Folder (method.md section 9, issue 9):
+Folder (method.md section 9):
 
 * ``issia_calibration.json``: camera id -> SoccerNet camera (method.md section 2), and/or
   ``issia_lines.json``: camera id -> field lines in SoccerNet-calibration format (normalised);
@@ -32,10 +32,10 @@ from typing import Any, Callable, Iterable, Optional
 
 import numpy as np
 
+from app.core.errors import DatasetError
 from app.datasets.files import MAX_IMAGE_PIXELS, dataset_root, file_image_header, inside_dataset, read_text_file
 from app.geometry.annotations import AnnotationError, FieldLines, from_soccernet_calibration
 from app.geometry.camera import Camera
-from app.core.errors import DatasetError
 
 CAMERA_IDS = ("1", "2", "3", "4", "5", "6")
 CAMERA_SET = {"1": "test", "2": "test", "3": "train", "4": "train", "5": "train", "6": "train"}
@@ -132,7 +132,7 @@ def read_issia(root: str | Path, *, image_size: tuple[int, int] = ANNOTATION_SIZ
             lines[cid] = from_soccernet_calibration(data, w, h)
         except AnnotationError as exc:
             raise DatasetError(lines_path, cid, str(exc)) from exc
-    for name, table, path in (("calibration", cameras, cal_path), ("lines", lines, lines_path)):
+    for table, path in ((cameras, cal_path), (lines, lines_path)):
         unknown = sorted(set(table) - set(camera_ids))
         if unknown:
             raise DatasetError(path, unknown[0], f"camera id not among the {POINTS_FILE} columns {list(camera_ids)}")
@@ -260,9 +260,10 @@ def _label_rows(path: Path, rows: list[list[str]], ids: list[str], columns: list
             except ValueError:
                 raise DatasetError(path, f"row {n} frame", f"not an integer: {row[frame_col]!r}") from None
             if frame < 0 or (frames and frame <= frames[-1]):
-                raise DatasetError(path, f"row {n} frame", f"{frame} is negative or not after {frames[-1] if frames else ''}")
+                raise DatasetError(path, f"row {n} frame",
+                                   f"{frame} is negative or not after {frames[-1] if frames else ''}")
         p = np.full((len(ids), 2), np.nan)
-        for k, (cid, (xi, yi)) in enumerate(zip(ids, columns)):
+        for k, (cid, (xi, yi)) in enumerate(zip(ids, columns, strict=True)):
             x, y = row[xi].strip(), row[yi].strip()
             x, y = ("" if x.lower() == "nan" else x), ("" if y.lower() == "nan" else y)
             if bool(x) != bool(y):

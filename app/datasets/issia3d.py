@@ -9,6 +9,7 @@ written with Python's shortest round-trip repr, so export -> import is exact.
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import math
 from dataclasses import dataclass
@@ -17,11 +18,11 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from app.core.errors import DatasetError
 from app.datasets.csv_cells import inert_cell, read_cell
 from app.datasets.issia import CAMERA_IDS, IssiaSequence
 from app.geometry.ball import optimise_box
 from app.geometry.camera import Camera
-from app.core.errors import DatasetError
 from app.geometry.pitch import BALL_DIAMETER_M
 
 _PER_CAMERA = ("x", "y", "err", "opt_d", "opt_e")
@@ -56,7 +57,7 @@ def issia3d_row_cells(row: Issia3DRow) -> dict[str, str]:
     cells = {"frame": str(int(row.frame))}
     for k in CAMERA_IDS:
         vals = row.per_camera.get(int(k), (None,) * 5)
-        for c, v in zip(_PER_CAMERA, vals):
+        for c, v in zip(_PER_CAMERA, vals, strict=False):
             cells[f"{c}_cam{k}"] = _num(v)
     cells.update(num_cameras=str(int(row.num_cameras)), ball_3D=_vec(row.ball_3d),
                  cam_list="[" + ", ".join(str(int(c)) for c in row.cam_list) + "]",
@@ -88,32 +89,37 @@ def read_issia3d_csv(path: str | Path) -> list[Issia3DRow]:
             raise DatasetError(path, missing[0], "column missing")
         out = []
         for n, r in enumerate(reader, start=2):
-            def cell(col, parse):
-                text = read_cell(r[col] or "").strip()
-                try:
-                    return parse(text) if text else None
-                except (ValueError, TypeError, json.JSONDecodeError) as exc:
-                    raise DatasetError(path, f"row {n} {col}", f"cannot parse {text!r}: {exc}") from None
-
-            def vec(text):
-                v = json.loads(text)
-                if not (isinstance(v, list) and len(v) == 3):
-                    raise ValueError("expected [x, y, z]")
-                return tuple(float(x) for x in v)
-
+            cell = functools.partial(_cell, path, n, r)
             source = read_cell(r["ball_3D_source"] or "").strip() or None
             if source not in (None, "triangulated", "fitted", "interpolated"):
                 raise DatasetError(path, f"row {n} ball_3D_source", f"unknown source {source!r}")
             out.append(Issia3DRow(
                 frame=cell("frame", int),
                 per_camera={int(k): tuple(cell(f"{c}_cam{k}", float) for c in _PER_CAMERA) for k in CAMERA_IDS},
-                num_cameras=cell("num_cameras", int) or 0, ball_3d=cell("ball_3D", vec),
+                num_cameras=cell("num_cameras", int) or 0, ball_3d=cell("ball_3D", _parsed_vec),
                 cam_list=tuple(int(c) for c in (cell("cam_list", json.loads) or [])),
-                ball_3d_smoothed=cell("ball_3D_smoothed", vec), ball_3d_source=source))
+                ball_3d_smoothed=cell("ball_3D_smoothed", _parsed_vec), ball_3d_source=source))
     return out
 
 
-def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *, ball_diameter_m: float = BALL_DIAMETER_M,
+def _cell(path: Path, n: int, row: Mapping[str, Any], col: str, parse: Any) -> Any:
+    """Cell ``col`` of ``row`` (line ``n`` of ``path``) parsed by ``parse``; None when empty."""
+    text = read_cell(row[col] or "").strip()
+    try:
+        return parse(text) if text else None
+    except (ValueError, TypeError, json.JSONDecodeError) as exc:
+        raise DatasetError(path, f"row {n} {col}", f"cannot parse {text!r}: {exc}") from None
+
+
+def _parsed_vec(text: str) -> tuple[float, float, float]:
+    v = json.loads(text)
+    if not (isinstance(v, list) and len(v) == 3):
+        raise ValueError("expected [x, y, z]")
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,
+                 ball_diameter_m: float = BALL_DIAMETER_M,
                  box_method: str = "paper") -> list[Issia3DRow]:
     """Build the ``ISSIA-3D.csv`` rows of ``seq`` from a :class:`app.geometry.trajectory.TrajectoryFit`.
 
@@ -126,7 +132,7 @@ def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,
     for i, frame in enumerate(seq.frames):
         ball = fit.ball_3d[frame]
         has_ball = bool(np.all(np.isfinite(ball)))
-        per_camera = {}
+        per_camera: dict[int, tuple[float | None, ...]] = {}
         for k, cid in enumerate(seq.camera_ids):
             p = seq.points[i, k]
             if not np.all(np.isfinite(p)):
@@ -144,9 +150,10 @@ def issia3d_rows(seq: IssiaSequence, cameras: Mapping[str, Camera], fit: Any, *,
         rows.append(Issia3DRow(
             frame=int(frame), per_camera=per_camera,
             num_cameras=int(np.sum(np.all(np.isfinite(seq.points[i]), axis=1))),
-            ball_3d=tuple(float(v) for v in ball) if has_ball else None,
+            ball_3d=(float(ball[0]), float(ball[1]), float(ball[2])) if has_ball else None,
             cam_list=tuple(int(seq.camera_ids[k]) for k in fit.cam_lists[frame]),
-            ball_3d_smoothed=tuple(float(v) for v in smoothed) if np.all(np.isfinite(smoothed)) else None,
+            ball_3d_smoothed=((float(smoothed[0]), float(smoothed[1]), float(smoothed[2]))
+                              if np.all(np.isfinite(smoothed)) else None),
             ball_3d_source=fit.sources[frame]))
     return rows
 

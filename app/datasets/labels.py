@@ -73,7 +73,7 @@ LINE_MARGIN = 0.05
 def check_line_point_count(lines: dict[str, list[list[list[float]]]], max_points: int) -> int:
     """The number of points of a line set (every class and polyline; finite JSON lists, parsed already), or
     :class:`LabelError` when it exceeds ``max_points`` (``V3D_MAX_LINE_POINTS_PER_FRAME``: what one edit of a
-    view may ask the calibration to fit; issue 27).
+    view may ask the calibration to fit).
 
     >>> check_line_point_count({"Middle line": [[[0, 0], [1, 1]], [[2, 2]]]}, 3)
     3
@@ -95,10 +95,11 @@ def check_line_points(lines: dict[str, list[list[list[float]]]], width: int, hei
     Raises:
         LabelError: naming the class, the polyline and the point.
 
-    >>> check_line_points({"Middle line": [[[0, 0], [-60, 10]]]}, 960, 540)
+    >>> check_line_points({"Middle line": [[[0, 0], [-60, 10]]]}, 960, 540)  # doctest: +NORMALIZE_WHITESPACE
     Traceback (most recent call last):
     ...
-    app.datasets.labels.LabelError: class 'Middle line', polyline 0, point 1: [-60, 10] lies more than 5 % of the image's size outside the 960x540 image
+    app.datasets.labels.LabelError: class 'Middle line', polyline 0, point 1: [-60, 10] lies more than 5 % of the
+    image's size outside the 960x540 image
     """
     mx, my = LINE_MARGIN * width, LINE_MARGIN * height
     for name, polylines in lines.items():

@@ -8,15 +8,24 @@ import zipfile
 from pathlib import Path, PurePosixPath
 from typing import Any, Iterator
 
+from app.core.errors import DatasetError
 from app.datasets.files import (
-    IMAGE_SUFFIXES, MAX_IMAGE_PIXELS, InputFileError, dataset_relative, dataset_root, file_image_header, inside_dataset,
+    IMAGE_SUFFIXES,
+    MAX_IMAGE_PIXELS,
+    InputFileError,
+    dataset_relative,
+    dataset_root,
+    file_image_header,
+    inside_dataset,
     json_files,
-    load_json_bytes, member_image_header, open_zip, safe_names,
+    load_json_bytes,
+    member_image_header,
+    open_zip,
+    safe_names,
 )
 from app.datasets.records import FrameRecord, GameRecord, SystemRecord
 from app.db.models import FrameRole, SystemKind
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration, lines_to_json_lists
-from app.core.errors import DatasetError
 
 #: League given to games made from a SoccerNet-calibration folder or zip.
 SN_CALIBRATION_LEAGUE = "sn-calibration"
@@ -39,8 +48,8 @@ def frame_entries(root: Path, max_pixels: int = MAX_IMAGE_PIXELS) -> Iterator[tu
     ``archive.zip!member`` in zips). A frame is named by its file's stem, as ``v3d jac`` pairs
     annotations with cameras; ``image`` is ``(reader of its header, image source fields, where)`` of
     the ``.jpg``/``.png`` of the same path, or None (the reader checks the type and the pixel limit,
-    :func:`app.datasets.files.image_header`, and answers an ``ImageHeader``). The import and ``v3d calibrate`` both read sets
-    through this function.
+    :func:`app.datasets.files.image_header`, and answers an ``ImageHeader``). The import and ``v3d calibrate`` both read
+    sets through this function.
 
     Raises:
         DatasetError: ``root`` is missing or neither a folder nor a zip; an unsafe zip entry name;
@@ -70,7 +79,7 @@ def _named(root: Path, files: list[Any], keys: list[PurePosixPath], images: dict
            ) -> Iterator[tuple[str, str, bytes, Any]]:
     """The entries of :func:`frame_entries` from the set's frame files and their paths without suffix."""
     seen: set[str] = set()
-    for f, key in sorted(zip(files, keys), key=lambda fk: _natural(fk[0].name)):
+    for f, key in sorted(zip(files, keys, strict=True), key=lambda fk: _natural(fk[0].name)):
         name = key.name
         where = f.label if root.is_dir() else f"{root}!{f.name}"
         if name in seen:
@@ -116,7 +125,8 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     named ``<stem>``. Image size: ``width`` and ``height`` when given, else read from the image
     ``<stem>.jpg``/``.png`` beside the JSON (in the folder or the zip), which also becomes the
     frame's image source; every such image is checked from its header (PNG or JPEG, at most
-    ``max_pixels`` pixels) whether or not the size is given. Normalised points become pixels as ``x (W - 1), y (H - 1)``.
+    ``max_pixels`` pixels) whether or not the size is given. Normalised points become pixels as
+    ``x (W - 1), y (H - 1)``.
 
     The game is ``sn-calibration / <parent folder name> / <folder or zip stem>``.
 
@@ -126,7 +136,7 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     root = Path(path)
     if (width is None) != (height is None):
         raise DatasetError(root, "--width/--height", "give both or neither")
-    if width is not None and (width <= 1 or height <= 1):  # type: ignore[operator]
+    if width is not None and (width <= 1 or height <= 1):  # type: ignore[operator]  # height is given when width is (checked above)
         raise DatasetError(root, "--width/--height", f"must be > 1, got {width}x{height}")
     systems = []
     for stem, where, raw, image in frame_entries(root, max_pixels):
@@ -134,7 +144,7 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
         header = image[0]() if image is not None else None
         img_src = {**image[1], "image_type": header.type} if image is not None and header is not None else {}
         if width is not None:
-            w, h = int(width), int(height)  # type: ignore[arg-type]
+            w, h = int(width), int(height)  # type: ignore[arg-type]  # height is given when width is (checked above)
         elif header is not None:
             w, h = header.width, header.height
         else:

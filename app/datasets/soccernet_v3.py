@@ -4,9 +4,9 @@ folder) -> validated records (:mod:`app.datasets.records`); no database.
 A multi-view system is an action and its ``linked_replays``; the ball is the box of class "Ball";
 field lines become pixels. What v3d does not edit but a release carries (``GameMetadata``, each frame's
 ``imageMetadata``, every ``bboxes`` entry, the links) is kept as it came (``release`` of the records,
-:func:`release_entry`, :func:`game_release`), so that exports never read the source files again. The SoccerNet-v3D reader (:mod:`app.datasets.soccernet_v3d`) reads the same
-layout with its own frame reader (:data:`FrameReader`). Images are located, never extracted: a record
-holds the zip path and member name or a file path. Every problem raises
+:func:`release_entry`, :func:`game_release`), so that exports never read the source files again. The SoccerNet-v3D
+reader (:mod:`app.datasets.soccernet_v3d`) reads the same layout with its own frame reader (:data:`FrameReader`). Images
+are located, never extracted: a record holds the zip path and member name or a file path. Every problem raises
 :class:`~app.core.errors.DatasetError` naming the file and the field.
 """
 from __future__ import annotations
@@ -15,15 +15,24 @@ import zipfile
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from app.core.errors import DatasetError
 from app.datasets.files import (
-    MAX_IMAGE_PIXELS, dataset_relative, dataset_root, file_image_header, image_size_field, inside_dataset,
-    load_json_file, mapping, member_image_header, open_zip, safe_names,
+    MAX_IMAGE_PIXELS,
+    dataset_relative,
+    dataset_root,
+    file_image_header,
+    image_size_field,
+    inside_dataset,
+    load_json_file,
+    mapping,
+    member_image_header,
+    open_zip,
+    safe_names,
 )
+from app.datasets.labels import LabelError, check_box
 from app.datasets.records import FrameRecord, GameRecord, SystemRecord
 from app.db.models import FrameRole, SystemKind
 from app.geometry.annotations import AnnotationError, from_soccernet_v3, lines_to_json_lists
-from app.datasets.labels import LabelError, check_box
-from app.core.errors import DatasetError
 
 V3_LABELS = "Labels-v3.json"
 V3_FRAMES_ZIP = "Frames-v3.zip"
@@ -182,7 +191,7 @@ class FrameImages:
             self._zf.close()
             self._zf = None
 
-    def locate(self, name: str) -> dict[str, str | None]:
+    def locate(self, name: str) -> dict[str, Any]:
         """The image source fields of the frame image ``name`` (zip member or file, relative to the
         dataset's folder, and its checked ``image_type``), ``{}`` when absent.
 

@@ -20,23 +20,41 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Mapping
 
+from app.core.errors import DatasetError
 from app.datasets.csv_cells import read_cell
 from app.datasets.files import (
-    MAX_IMAGE_PIXELS, dataset_root, file_image_header, image_size_field, inside_dataset, is_safe_member, load_json_file,
-    mapping, member_image_header, open_zip, safe_names,
+    MAX_IMAGE_PIXELS,
+    dataset_root,
+    file_image_header,
+    image_size_field,
+    inside_dataset,
+    is_safe_member,
+    load_json_file,
+    mapping,
+    member_image_header,
+    open_zip,
+    safe_names,
 )
-from app.datasets.records import FrameRecord, GameRecord, ImportedCalibration, SystemRecord
+from app.datasets.labels import LabelError, check_box, check_point
+from app.datasets.records import CalibrationFields, FrameRecord, GameRecord, ImportedCalibration, SystemRecord
 from app.datasets.soccernet_v3 import (
-    BALL_CLASS, LINE_ORDER_KEY, FrameImages, ball_index, find_labels, flat_lines, game_key, game_release,
-    ordered_lines, release_entry, v3_lines, v3_systems,
+    BALL_CLASS,
+    LINE_ORDER_KEY,
+    FrameImages,
+    ball_index,
+    find_labels,
+    flat_lines,
+    game_key,
+    game_release,
+    ordered_lines,
+    release_entry,
+    v3_lines,
+    v3_systems,
 )
 from app.db.models import BallKind, CalibrationStatus, FrameRole, ReviewStatus, SystemKind
 from app.geometry.calibration.uncertainty import CalibrationUncertainty
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
-from app.datasets.labels import LabelError, check_box, check_point
-from app.core.errors import DatasetError
-from app.datasets.records import CalibrationFields
 
 V3D_LABELS = "Labels-v3D.json"
 V3D_CSV = "SNv3D.csv"
@@ -56,7 +74,7 @@ def ball_entry(box: list[float], like: Mapping[str, Any] | None = None) -> dict[
     >>> ball_entry([1.0, 2.0, 3.0, 4.0])
     {'class': 'Ball', 'ID': None, 'points': {'x1': 1.0, 'y1': 2.0, 'x2': 3.0, 'y2': 4.0}}
     """
-    return {**(like or {"class": BALL_CLASS, "ID": None}), "points": dict(zip(_BOX_KEYS, box))}
+    return {**(like or {"class": BALL_CLASS, "ID": None}), "points": dict(zip(_BOX_KEYS, box, strict=False))}
 
 
 def _with_ball(bboxes: list[Any], entry: Mapping[str, Any] | None) -> list[Any]:
@@ -140,7 +158,8 @@ def released_entry(item: Mapping[str, Any], extra: Mapping[str, Any], original_b
             raise DatasetError(file, field, "expected null or a bboxes entry of class 'Ball' with its points")
         points = None if original is None else [original["points"].get(k) for k in _BOX_KEYS]
         if points is not None and original_box is not None and points != list(original_box):
-            raise DatasetError(file, field, f"points {points} are not the CSV's original_ball_bbox {list(original_box)}")
+            raise DatasetError(file, field,
+                               f"points {points} are not the CSV's original_ball_bbox {list(original_box)}")
     else:
         original = ball_entry(original_box) if original_box is not None else None
     if isinstance(entry.get("bboxes"), list) or original is not None:
@@ -225,9 +244,10 @@ def _v3d_calibration(item: Mapping[str, Any], file: Path, where: str) -> Importe
         except (KeyError, TypeError, ValueError) as exc:
             raise DatasetError(file, f"{where}.v3d.uncertainty", f"malformed standard deviations ({exc})") from None
     return ImportedCalibration(CalibrationFields(
-        status=status, camera=dict(cam) if cam is not None else None, jac=tuple(jac),  # type: ignore[arg-type]
+        status=status, camera=dict(cam) if cam is not None else None, jac=tuple(jac),  # type: ignore[arg-type]  # one JaC per JAC_KEYS, three
         residuals_px=dict(extra.get("residuals_px") or {}), flags=list(extra.get("flags") or []),
-        reason=reason if cam is None else None, uncertainty=dict(uncertainty) if cam is not None and uncertainty else None,
+        reason=reason if cam is None else None,
+        uncertainty=dict(uncertainty) if cam is not None and uncertainty else None,
     ))
 
 
@@ -367,7 +387,8 @@ def read_soccernet_v3d(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> 
             try:
                 review = ReviewStatus(status) if status is not None else None
             except ValueError:
-                raise DatasetError(labels, f"GameMetadata.v3d_reviews[{name!r}]", f"unknown status {status!r}") from None
+                raise DatasetError(labels, f"GameMetadata.v3d_reviews[{name!r}]",
+                                   f"unknown status {status!r}") from None
             out.append(SystemRecord(name, kind, s.frames, review))
         games.append(GameRecord(league, season, match, str(labels.parent.resolve()), out, release))
     return games

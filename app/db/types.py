@@ -84,7 +84,7 @@ def utcnow() -> datetime:
 def enum_by_value(enum_cls: type[enum.Enum], name: str) -> sa.Enum:
     """A non-native ``Enum`` column storing each member's **value** (not its name), with a CHECK
     constraint named ``name`` so that both SQLite and PostgreSQL reject unknown strings."""
-    values = [m.value for m in enum_cls]  # type: ignore[var-annotated]
+    values = [m.value for m in enum_cls]
     return sa.Enum(
         enum_cls,
         name=name,

@@ -31,13 +31,27 @@ import cv2
 import numpy as np
 
 from app.demo.labels import (
-    BALL_BOX_NOISE, LINE_SIGMA_PX_AT_1920, annotate_field_lines, box_iou, box_size_error, jitter_box,
-    loose_ball_box, misplaced_ball_box, polyline_length, visible_runs,
+    BALL_BOX_NOISE,
+    LINE_SIGMA_PX_AT_1920,
+    annotate_field_lines,
+    box_iou,
+    box_size_error,
+    jitter_box,
+    loose_ball_box,
+    misplaced_ball_box,
+    polyline_length,
+    visible_runs,
 )
 from app.demo.render import person_box, render_frame
 from app.demo.rig import NEAR_DUPLICATE_OFFSET_M, RIG, framing_camera
 from app.demo.scene import (
-    BALL_RADIUS_M, PROBLEM_KINDS, SYSTEMS, Person, SystemSpec, precise_ball_box, sample_people,
+    BALL_RADIUS_M,
+    PROBLEM_KINDS,
+    SYSTEMS,
+    Person,
+    SystemSpec,
+    precise_ball_box,
+    sample_people,
 )
 from app.geometry.camera import Camera
 from app.geometry.pitch import GOAL_CLASSES, MIRROR_CLASSES, MODEL_CLASSES, sample_pitch_polylines
@@ -291,7 +305,8 @@ def generate_demo_dataset(out_dir: Path, seed: int = 0) -> Path:
     (game_dir / LABELS_FILE).write_text(json.dumps(labels), encoding="utf-8")
     _write_zip(game_dir / FRAMES_FILE, images)
 
-    views_truth = [v for s in systems_truth for v in s["views"] if v["problem"] not in ("wrong_ball_box", "missing_ball")]
+    views_truth = [v for s in systems_truth
+                   for v in s["views"] if v["problem"] not in ("wrong_ball_box", "missing_ball")]
     truth = {
         "generator": "app.demo.generate_demo_dataset", "seed": seed,
         "conventions": {

@@ -96,7 +96,7 @@ def visible_runs(uv: np.ndarray, in_front: np.ndarray, width: float, height: flo
     joined[1:] = (np.diff(idx) == 1) & (t1[idx[:-1]] == 1.0) & (t0[idx[1:]] == 0.0)
     starts = np.flatnonzero(~joined)
     ends = np.append(starts[1:], len(idx))
-    return [np.vstack([a[s:s + 1], b[s:e]]) for s, e in zip(starts, ends)]
+    return [np.vstack([a[s:s + 1], b[s:e]]) for s, e in zip(starts, ends, strict=True)]
 
 
 def polyline_length(points: np.ndarray) -> float:
@@ -227,4 +227,4 @@ def jitter_box(box: np.ndarray, width: int, height: int, rng: np.random.Generato
     c = np.array([max(b[0], 0), max(b[1], 0), min(b[2], width - 1), min(b[3], height - 1)])
     if c[2] <= c[0] or c[3] <= c[1] or (c[2] - c[0]) * (c[3] - c[1]) < 0.5 * area or c[3] - c[1] < 8:
         return None
-    return _int_box(*c, width, height)
+    return _int_box(c[0], c[1], c[2], c[3], width, height)

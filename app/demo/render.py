@@ -23,12 +23,18 @@ from typing import Callable, Sequence
 import cv2
 import numpy as np
 
+from app.demo.scene import BALL_RADIUS_M, PLAYER_HEIGHT_M, Person, precise_ball_box
 from app.geometry.camera import Camera
 from app.geometry.pitch import (
-    CIRCLES, GOAL_HEIGHT_M, GOAL_LENGTH_M, KEY_POINTS, LINE_EXTREMITY_KEYS,
-    PITCH_LENGTH_M, PITCH_WIDTH_M, circle_arc_angles,
+    CIRCLES,
+    GOAL_HEIGHT_M,
+    GOAL_LENGTH_M,
+    KEY_POINTS,
+    LINE_EXTREMITY_KEYS,
+    PITCH_LENGTH_M,
+    PITCH_WIDTH_M,
+    circle_arc_angles,
 )
-from app.demo.scene import BALL_RADIUS_M, PLAYER_HEIGHT_M, Person, precise_ball_box
 
 #: Near plane (metres of camera depth) against which 3D polygons are clipped before projection.
 NEAR_M = 0.5
@@ -237,6 +243,11 @@ def _draw_lines(img: np.ndarray, camera: Camera, ribbons: np.ndarray) -> None:
 
 
 # ----- objects painted far to near -------------------------------------------------------------
+def _polygon_drawer(camera: Camera, poly: np.ndarray, colour: tuple[int, int, int]) -> Callable[[np.ndarray], None]:
+    """``draw(img)`` of one world polygon, its camera, points and colour fixed now."""
+    return lambda img: fill_world_polygon(img, camera, poly, colour)
+
+
 @dataclass(frozen=True)
 class Drawable:
     """An object painted in depth order: ``depth`` metres along the optical axis, ``draw(img)``."""
@@ -315,7 +326,7 @@ def _boards(camera: Camera) -> list[Drawable]:
             mid = poly.mean(axis=0, keepdims=True)
             z = float(camera.points_in_camera(mid)[0, 2])
             if z > NEAR_M:
-                out.append(Drawable(z, lambda img, p=poly, c=colour: fill_world_polygon(img, camera, p, c)))
+                out.append(Drawable(z, _polygon_drawer(camera, poly, colour)))
     return out
 
 
@@ -374,7 +385,7 @@ def _person(camera: Camera, person: Person) -> Drawable | None:
     return Drawable(depth, draw)
 
 
-def _shadow(img: np.ndarray, camera: Camera, xy: Sequence[float], radius: float, alpha: float) -> None:
+def _shadow(img: np.ndarray, camera: Camera, xy: Sequence[float] | np.ndarray, radius: float, alpha: float) -> None:
     ang = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
     poly = np.stack([xy[0] + 0.25 * radius + radius * np.cos(ang), xy[1] - 0.15 * radius + radius * np.sin(ang),
                      np.zeros_like(ang)], axis=1)

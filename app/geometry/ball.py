@@ -182,7 +182,7 @@ def ball_from_box_exact(camera: Camera, boxes: np.ndarray, ball_diameter_m: floa
     r = ball_diameter_m / 2
     if camera.has_distortion:
         start = ball_from_box(camera, b, ball_diameter_m)
-        return np.array([_refine_on_silhouette(camera, box, x0, r) for box, x0 in zip(b, start)])
+        return np.array([_refine_on_silhouette(camera, box, x0, r) for box, x0 in zip(b, start, strict=True)])
     P = camera.projection_matrix
     lines = np.zeros((len(b), 4, 3))
     lines[:, 0] = np.stack([np.ones(len(b)), np.zeros(len(b)), -b[:, 0]], axis=1)
@@ -193,7 +193,7 @@ def ball_from_box_exact(camera: Camera, boxes: np.ndarray, ball_diameter_m: floa
     norms = np.linalg.norm(planes[..., :3], axis=2, keepdims=True)
     A = planes[..., :3] / norms
     rhs = r - planes[..., 3] / norms[..., 0]
-    return np.stack([np.linalg.lstsq(a, y, rcond=None)[0] for a, y in zip(A, rhs)])
+    return np.stack([np.linalg.lstsq(a, y, rcond=None)[0] for a, y in zip(A, rhs, strict=True)])
 
 
 def _refine_on_silhouette(camera: Camera, box: np.ndarray, start: np.ndarray, r: float) -> np.ndarray:
@@ -362,6 +362,7 @@ def optimise_box(camera: Camera, centre_px: np.ndarray, ball_world: np.ndarray, 
     error = float(np.linalg.norm(p - q))
     q.setflags(write=False)
 
+    box: np.ndarray | None
     if method == "paper":
         d = _diameter_for_depth(camera, c, ball_diameter_m / lam)
         box = np.array([c[0] - d / 2, c[1] - d / 2, c[0] + d / 2, c[1] + d / 2])
@@ -380,7 +381,8 @@ def _diameter_for_depth(camera: Camera, centre_px: np.ndarray, span: float) -> f
     if not camera.has_distortion:
         return d0
     c = centre_px[None, :]
-    f = lambda d: float(_edge_span(camera, c, np.array([d]))[0]) - span  # noqa: E731
+    def f(d):
+        return float(_edge_span(camera, c, np.array([d]))[0]) - span
     for k in (4.0, 32.0, 256.0):
         lo, hi = d0 / k, d0 * k
         if f(lo) <= 0 <= f(hi):

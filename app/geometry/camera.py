@@ -122,7 +122,7 @@ def pan_tilt_roll_from_rotation(rotation: np.ndarray) -> tuple[float, float, flo
         if best is None or abs(roll) < abs(best[2]):
             best = (pan, tilt, roll)
     assert best is not None
-    return tuple(float(np.degrees(a)) for a in best)  # type: ignore[return-value]
+    return tuple(float(np.degrees(a)) for a in best)  # type: ignore[return-value]  # best holds three angles
 
 
 @dataclass(frozen=True)
@@ -170,7 +170,7 @@ class Camera:
         Raises:
             ValueError: a non-positive focal length, or non-finite values.
         """
-        fx, fy = (focal_px, focal_px) if np.isscalar(focal_px) else focal_px  # type: ignore[misc]
+        fx, fy = (focal_px, focal_px) if np.isscalar(focal_px) else focal_px  # type: ignore[misc]  # a focal that is not a scalar is a pair
         K = np.array([[fx, 0.0, principal_point[0]], [0.0, fy, principal_point[1]], [0.0, 0.0, 1.0]])
         return cls(K=K, R=rotation_from_pan_tilt_roll(pan_deg, tilt_deg, roll_deg), C=np.asarray(position_m, float))
 

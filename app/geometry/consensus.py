@@ -29,7 +29,14 @@ from typing import Callable, Hashable, Mapping, Sequence
 import numpy as np
 
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
-from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px, triangulate_dlt, undistort_pixels
+from app.geometry.triangulation import (
+    BallObservation,
+    PairGeometry,
+    pair_geometry,
+    reprojection_error_px,
+    triangulate_dlt,
+    undistort_pixels,
+)
 
 
 @dataclass(frozen=True)
@@ -125,19 +132,21 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
         if abs(h[3]) < 1e-12:
             continue
         point = h[:3] / h[3]
-        errors = [_scaled_error(o, point) for o in obs]
-        if errors[i] is None or errors[j] is None:  # the rays diverge: the pair cannot agree
+        pair_errors = [_scaled_error(o, point) for o in obs]
+        e_i, e_j = pair_errors[i], pair_errors[j]
+        if e_i is None or e_j is None:  # the rays diverge: the pair cannot agree
             best_pair = math.inf if best_pair is None else best_pair
             continue
         if plausible is not None and not plausible(point):  # they meet where no ball can be
             best_pair = math.inf if best_pair is None else best_pair
             continue
-        pair_e = max(errors[i], errors[j])
+        pair_e = max(e_i, e_j)
         best_pair = pair_e if best_pair is None else min(best_pair, pair_e)
-        if not (errors[i] < tol[i] and errors[j] < tol[j]):
+        if not (e_i < tol[i] and e_j < tol[j]):
             continue
-        voters = frozenset(k for k, e in enumerate(errors) if e is not None and e < tol[k])
-        proposals.append((sum(w[k] for k in voters), sum(errors[k] for k in voters), voters, point))
+        agreeing = {k: e for k, e in enumerate(pair_errors) if e is not None and e < tol[k]}
+        voters = frozenset(agreeing)
+        proposals.append((sum(w[k] for k in voters), sum(agreeing[k] for k in voters), voters, point))
     if not proposals:
         return Consensus(None, (), tuple(ids), {v: None for v in ids}, False, best_pair, 0)
     proposals.sort(key=lambda p: (-p[0], p[1]))
@@ -150,10 +159,11 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
         if abs(h[3]) > 1e-12:
             refit = h[:3] / h[3]
             errs = [_scaled_error(obs[k], refit) for k in members]
-            if all(e is not None and e < tol[k] for e, k in zip(errs, members)):
+            if all(e is not None and e < tol[k] for e, k in zip(errs, members, strict=True)):
                 point = refit
     errors = {o.view_id: _scaled_error(o, point) for o in obs}
-    inliers = tuple(o.view_id for o, t in zip(obs, tol) if errors[o.view_id] is not None and errors[o.view_id] < t)
+    inliers = tuple(o.view_id for o, t in zip(obs, tol, strict=True)
+                    if (e := errors[o.view_id]) is not None and e < t)
     outliers = tuple(v for v in ids if v not in inliers)
     point = np.asarray(point, float)
     point.setflags(write=False)

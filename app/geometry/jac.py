@@ -179,7 +179,7 @@ def gamma_thresholds(width: float, height: float, gammas: Iterable[float] = JAC_
     >>> [round(t, 2) for t in gamma_thresholds(960, 540)]
     [5.51, 11.01, 22.03]
     """
-    out = []
+    out: list[float] = []
     for g in gammas:
         if isinstance(g, bool) or not isinstance(g, numbers.Real) or not (math.isfinite(g) and g > 0):
             raise ValueError(f"gamma must be a positive fraction of the image diagonal, got {g!r}")
@@ -199,7 +199,8 @@ def _points_by_class(lines: FieldLines) -> dict[str, np.ndarray]:
         arrays = [np.asarray(p, dtype=float) for p in polys]
         for i, a in enumerate(arrays):
             if a.size and a.shape != (2,) and (a.ndim != 2 or a.shape[1] != 2):
-                raise AnnotationError(f"lines, class {cls!r}, polyline {i}: expected (N, 2) pixels, got shape {a.shape}")
+                raise AnnotationError(f"lines, class {cls!r}, polyline {i}: expected (N, 2) pixels, "
+                                      f"got shape {a.shape}")
         arrays = [a.reshape(-1, 2) for a in arrays]
         pts = np.concatenate(arrays, axis=0) if arrays else np.zeros((0, 2))
         if not np.all(np.isfinite(pts)):
@@ -232,7 +233,7 @@ def _score(projected: frozenset[str], annotated: Iterable[str], worst: Mapping[s
 
 
 def _check_thresholds(thresholds_px: Sequence[float]) -> tuple[float, ...]:
-    out = []
+    out: list[float] = []
     for t in thresholds_px:
         if isinstance(t, bool) or not isinstance(t, numbers.Real) or not (math.isfinite(t) and t > 0):
             raise ValueError(f"thresholds_px must hold positive finite pixel distances, got {t!r}")
@@ -305,4 +306,4 @@ def jac_at_gammas(camera: Camera, lines: FieldLines, width: int, height: int,
     """
     gammas = tuple(gammas)
     result = evaluate_jac(camera, lines, width, height, gamma_thresholds(width, height, gammas))
-    return {float(g): t.jac for g, t in zip(gammas, result.per_threshold)}
+    return {float(g): t.jac for g, t in zip(gammas, result.per_threshold, strict=True)}

@@ -207,11 +207,11 @@ def _finite(value: object) -> float | None:
     """``value`` as a float when it is a finite number (a float or an int, not a boolean), else None."""
     kind = type(value)
     if kind is float:
-        return value if math.isfinite(value) else None  # type: ignore[arg-type,return-value]
+        return value if math.isfinite(value) else None  # type: ignore[arg-type,return-value]  # type(value) is float, checked above
     if kind is not int:
         return None
     try:
-        return float(value)  # type: ignore[arg-type]
+        return float(value)  # type: ignore[arg-type]  # type(value) is int, checked above
     except OverflowError:
         return None
 
@@ -249,7 +249,8 @@ def load_yolo_detections(path: str | Path, width: float, height: float, class_id
             if size > max_bytes:
                 raise ValueError(f"{label}: more than {max_bytes:,} bytes, more than a predictions file may hold")
             if len(raw) > MAX_YOLO_LINE_BYTES:
-                raise ValueError(f"{label}:{n}: a line longer than {MAX_YOLO_LINE_BYTES} bytes, starting {excerpt(raw)}")
+                raise ValueError(f"{label}:{n}: a line longer than {MAX_YOLO_LINE_BYTES} bytes, "
+                                 f"starting {excerpt(raw)}")
             try:
                 line = raw.decode("utf-8")
             except UnicodeDecodeError:
@@ -260,7 +261,7 @@ def load_yolo_detections(path: str | Path, width: float, height: float, class_id
             if len(values) != 6 or any(v is None for v in values):
                 raise ValueError(f"{label}:{n}: expected 'class cx cy w h conf' (6 finite numbers), "
                                  f"got {excerpt(line.strip())}")
-            cls, cx, cy, w, h, conf = values
+            cls, cx, cy, w, h, conf = [v for v in values if v is not None]  # all are: checked above
             if class_id is not None and int(cls) != class_id:
                 continue
             boxes.append([(cx - w / 2) * width, (cy - h / 2) * height, (cx + w / 2) * width, (cy + h / 2) * height])
@@ -307,7 +308,8 @@ def _coco_entry(r: Any, label: str, n: int) -> tuple[Hashable, Any, list[float],
             raise ValueError(f"{label}: entry {n} lacks {key!r}")
     image_id = r["image_id"]
     if isinstance(image_id, bool) or not isinstance(image_id, (int, str)):
-        raise ValueError(f"{label}: entry {n}: image_id must be an integer or a string, got {excerpt(json.dumps(image_id))}")
+        raise ValueError(f"{label}: entry {n}: image_id must be an integer or a string, got "
+                         f"{excerpt(json.dumps(image_id))}")
     bbox = r["bbox"]
     values = [_finite(v) for v in bbox] if isinstance(bbox, list) and len(bbox) == 4 else [None]
     if any(v is None for v in values):
@@ -316,7 +318,7 @@ def _coco_entry(r: Any, label: str, n: int) -> tuple[Hashable, Any, list[float],
     score = _finite(r["score"])
     if score is None:
         raise ValueError(f"{label}: entry {n}: score must be a finite number, got {excerpt(json.dumps(r['score']))}")
-    x, y, w, h = values  # type: ignore[misc]
+    x, y, w, h = [v for v in values if v is not None]  # all are: checked above
     return image_id, r.get("category_id"), [x, y, x + w, y + h], score
 
 
@@ -346,7 +348,7 @@ def _json_list(fh: BinaryIO, label: str, max_bytes: int) -> Iterator[tuple[int, 
         """The next character after whitespace ("" at the end of the file)."""
         nonlocal pos
         while True:
-            pos = _WHITESPACE.match(buf, pos).end()  # type: ignore[union-attr]
+            pos = _WHITESPACE.match(buf, pos).end()  # type: ignore[union-attr]  # the pattern matches the empty string: never None
             if pos < len(buf) or not more():
                 return buf[pos:pos + 1]
 

@@ -331,7 +331,8 @@ def pair_relation(a: MirrorView, b: MirrorView, settings: MirrorSettings = Mirro
     if a.ball_px is None or b.ball_px is None:
         raise ValueError("pair_relation needs a ball label in both views")
     ob = BallObservation(b.view_id, b.camera, b.ball_px, b.image_width)
-    e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings, tau_px, rule, geometry)
+    e_same, p_same = _meet(BallObservation(a.view_id, a.camera, a.ball_px, a.image_width), ob, settings, tau_px, rule,
+                           geometry)
     mirrored = mirror_camera(a.camera) if mirrored is None else mirrored
     e_diff, p_diff = _meet(BallObservation(a.view_id, mirrored, a.ball_px, a.image_width), ob, settings,
                            tau_px, rule, geometry)
@@ -379,7 +380,8 @@ def mirror_evidence(views: Sequence[MirrorView], rig_positions: np.ndarray | Non
     dists = [rig_distances(v.camera, rig) for v in vs]
     rigs = [_rig_vote(d, dm, settings) for d, dm in dists]
     rig_w = {1: settings.rig_weight_mirrored, -1: settings.rig_weight_as_labelled, 0: 0.0}
-    unary = np.array([settings.side_weight * sv + rig_w[rv] * rv - settings.prior for sv, rv in zip(sides, rigs)])
+    unary = np.array([settings.side_weight * sv + rig_w[rv] * rv - settings.prior
+                      for sv, rv in zip(sides, rigs, strict=True)])
 
     pair_ev: dict[int, list[PairEvidence]] = {i: [] for i in range(n)}
     constraints: list[tuple[int, int, int]] = []  # (i, j, +1 same / -1 different)
@@ -473,4 +475,5 @@ def mirrored_fit_at_rig(lines: FieldLines, width: int, height: int, rig: CameraR
     return MirrorVerdict(view_id=None, verdict=VERDICT_MIRRORED, margin=float(margin),
                          camera_y_m=float(as_labelled.C[1]), side_vote=side, rig_distance_m=d,
                          rig_distance_mirrored_m=d_mirror, rig_vote=1,
-                         refit={"position_m": [round(float(x), 2) for x in c], "rms_px": round(float(result.rms_px), 2)})
+                         refit={"position_m": [round(float(x), 2) for x in c],
+                                "rms_px": round(float(result.rms_px), 2)})

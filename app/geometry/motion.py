@@ -1,5 +1,5 @@
 """The ball's motion models between kicks and bounces, and their robust fits to the labels of static
-cameras: the numerical core of :mod:`app.geometry.trajectory` (ISSIA-3D, issue 9).
+cameras: the numerical core of :mod:`app.geometry.trajectory` (ISSIA-3D).
 
 Models (6 parameters ``q``, ``t`` seconds after the piece's first frame; world: SoccerNet metres, z down):
 
@@ -33,13 +33,13 @@ Pure: numpy only.
 """
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from app.geometry.camera import Camera
-from app.geometry.pitch import BALL_DIAMETER_M, within_play_volume
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.pitch import BALL_DIAMETER_M, within_play_volume
 
 GRAVITY_M_S2 = 9.81
 BALL_RADIUS_M = BALL_DIAMETER_M / 2.0
@@ -74,12 +74,13 @@ class LabelTable:
         for k, cam in enumerate(cameras):
             sel = cams == k
             if sel.any():
-                xy[sel] = cam.normalise_pixels(points[frames[sel], k], undistort=True)  # type: ignore[union-attr]
+                xy[sel] = cam.normalise_pixels(points[frames[sel], k], undistort=True)  # type: ignore[union-attr]  # a camera with a used label is set
         self.xy = xy
-        self.R = np.stack([cameras[k].R for k in cams]) if len(cams) else np.zeros((0, 3, 3))  # type: ignore[union-attr]
-        self.C = np.stack([cameras[k].C for k in cams]) if len(cams) else np.zeros((0, 3))  # type: ignore[union-attr]
+        # cams: the cameras of the used labels, each set (a label counts only with its camera)
+        self.R = np.stack([cameras[int(k)].R for k in cams]) if len(cams) else np.zeros((0, 3, 3))  # type: ignore[union-attr]  # see the comment above
+        self.C = np.stack([cameras[int(k)].C for k in cams]) if len(cams) else np.zeros((0, 3))  # type: ignore[union-attr]  # see the comment above
         scale = np.array([0.5 * (cam.K[0, 0] + cam.K[1, 1]) * REFERENCE_WIDTH_PX / w if cam is not None else 1.0
-                          for cam, w in zip(cameras, widths)])
+                          for cam, w in zip(cameras, widths, strict=False)])
         self.scale = scale[cams]
         self.rows = self.R[:, :2, :] - self.xy[:, :, None] * self.R[:, 2:3, :]
 
@@ -145,16 +146,17 @@ MAX_ROLL_DECELERATION_M_S2 = 20.0
 
 def plausible(kind: str, q: np.ndarray, duration_s: float) -> bool:
     """A ball could move as model ``kind`` with parameters ``q`` (6,) does for ``duration_s`` seconds:
-    never faster than :data:`MAX_BALL_SPEED_M_S`, inside the play volume (:data:`app.geometry.pitch.PLAY_VOLUME`) at its ends and its highest point, a roll decelerating
-    by at most :data:`MAX_ROLL_DECELERATION_M_S2`. A fit of a few labels that one wrong label pulls, or of
-    one camera whose depth the labels barely fix, breaks these long before it looks wrong in the image.
+    never faster than :data:`MAX_BALL_SPEED_M_S`, inside the play volume (:data:`app.geometry.pitch.PLAY_VOLUME`) at its
+    ends and its highest point, a roll decelerating by at most :data:`MAX_ROLL_DECELERATION_M_S2`. A fit of a few labels
+    that one wrong label pulls, or of one camera whose depth the labels barely fix, breaks these long before it looks
+    wrong in the image.
     World: SoccerNet metres (pitch 105 x 68 m centred on the centre spot, z down)."""
     q = np.asarray(q, float)
     if not np.all(np.isfinite(q)) or duration_s < 0:
         return False
     T = float(duration_s)
     if kind == "flight":
-        speeds = [np.linalg.norm(q[3:6] + np.array([0.0, 0.0, GRAVITY_M_S2 * t])) for t in (0.0, T)]
+        speeds: list[Any] = [np.linalg.norm(q[3:6] + np.array([0.0, 0.0, GRAVITY_M_S2 * t])) for t in (0.0, T)]
         apex = min(max(-q[5] / GRAVITY_M_S2, 0.0), T)  # the highest point (z smallest) inside the piece
         ends = positions(kind, q, np.array([0.0, T, apex]))
     else:
@@ -174,7 +176,8 @@ def robust_cost(residuals_px: np.ndarray) -> float:
     return float(np.sum(CAUCHY_PX ** 2 * np.log1p(e2 / CAUCHY_PX ** 2)))
 
 
-def linear_fits(L: LabelTable, jobs: Sequence[tuple[np.ndarray, str, int]], fps: float) -> list[tuple[np.ndarray, float]]:
+def linear_fits(L: LabelTable,
+                jobs: Sequence[tuple[np.ndarray, str, int]], fps: float) -> list[tuple[np.ndarray, float]]:
     """The reweighted linear fit (module docstring) of several label sets at once.
 
     Args:
@@ -256,7 +259,7 @@ def _solve_sets(W: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarr
     """Least squares of each set's equations ``W[starts[i]:ends[i]]`` = ``[M | y]`` ((rows, 2, 7)):
     (m, 6) solutions from the equilibrated normal equations (each set's own product, so a set's
     solution does not depend on the others); ``lstsq`` for an ill-conditioned or rank-deficient set."""
-    G7 = np.stack([W[a:b].reshape(-1, 7).T @ W[a:b].reshape(-1, 7) for a, b in zip(starts, ends)])
+    G7 = np.stack([W[a:b].reshape(-1, 7).T @ W[a:b].reshape(-1, 7) for a, b in zip(starts, ends, strict=False)])
     G, h = G7[:, :6, :6], G7[:, :6, 6]
     d = np.sqrt(np.einsum("mii->mi", G))
     d = np.where(d > 0, d, 1.0)
@@ -322,7 +325,7 @@ def position_prior(times_s: Sequence[float], targets: np.ndarray, sigma_m: float
     ``p(t) = p0 + v0 t + (0, 0, g t^2 / 2)``."""
     rows, rhs = [], []
     w = CAUCHY_PX / sigma_m
-    for tau, target in zip(times_s, np.asarray(targets, float)):
+    for tau, target in zip(times_s, np.asarray(targets, float), strict=False):
         rows.append(np.hstack([np.eye(3), tau * np.eye(3)]) * w)
         rhs.append((target - np.array([0.0, 0.0, 0.5 * GRAVITY_M_S2 * tau ** 2])) * w)
     return np.vstack(rows), np.concatenate(rhs)
@@ -334,6 +337,7 @@ def determined(L: LabelTable, kind: str, q: np.ndarray, t: np.ndarray, *, max_co
     ``max_condition`` (a fit of too few labels, e.g. two frames of one camera, leaves directions free,
     and its minimum then depends on where the fit started)."""
     f, J = residuals_and_jacobian(L, kind, q, t)
+    assert J is not None  # asked for: jacobian defaults to True
     H = (J / (1.0 + (f / CAUCHY_PX) ** 2)[:, None]).T @ J
     d = np.sqrt(np.diag(H))
     if not np.all(d > 0):

@@ -4,12 +4,7 @@ reference width so that views of different sizes compare (paper: the 1920-px con
 """
 from __future__ import annotations
 
-
-
 from typing import Callable
-
-
-
 
 #: Reference width of the scaled pair-error rules: errors are expressed as if every image were
 #: this many pixels wide, so that 960- and 1920-px views of one system compare.
@@ -63,7 +58,8 @@ def scaled_error_px(error_px: float | None, width_px: float, rule: str | None) -
     1920-px-wide image), raw pixels for a rule without one or a width that is not positive; None
     when the error is. The one home of the scaling (the UI shows this number, never rescales).
 
-    >>> scaled_error_px(12.0, 960, "max_scaled_1920"), scaled_error_px(12.0, 960, "max_px"), scaled_error_px(None, 960, "max_px")
+    >>> (scaled_error_px(12.0, 960, "max_scaled_1920"), scaled_error_px(12.0, 960, "max_px"),
+    ...  scaled_error_px(None, 960, "max_px"))
     (24.0, 12.0, None)
     """
     if error_px is None:

@@ -98,7 +98,7 @@ class PlayVolume:
         return lo, hi
 
 
-#: The one play volume (issue 30): the triangulation drops a pair whose point lies outside it, the mirror evidence
+#: The one play volume: the triangulation drops a pair whose point lies outside it, the mirror evidence
 #: and the doubts count no agreement outside it, the ISSIA trajectory fits no piece that leaves it. Chosen by
 #: measurement among the three it replaced (benchmarks/DOUBTS.md, "One play volume").
 PLAY_VOLUME = PlayVolume(margin_m=15.0, max_height_m=40.0, max_below_m=0.5)

@@ -107,7 +107,7 @@ def _border_crossings(ext: np.ndarray, prev: np.ndarray, width: int, height: int
     d = np.where(ok, d, np.inf)
     best = np.argmin(d, axis=1)
     rows = np.arange(len(ext))
-    return np.stack([ix[rows, best], iy[rows, best]], axis=1), ok.any(axis=1)
+    return np.stack([ix[rows, best], iy[rows, best]], axis=1), np.asarray(ok.any(axis=1))
 
 
 def _evaluator_polylines(uv: np.ndarray, valid: np.ndarray, class_ids: np.ndarray, width: int,
@@ -179,7 +179,7 @@ def _clip_runs(uv: np.ndarray, valid: np.ndarray, width: int, height: int,
     joined = (np.diff(idx) == 1) & (t1[idx[:-1]] == 1.0) & (t0[idx[1:]] == 0.0)
     firsts = np.concatenate([[0], np.flatnonzero(~joined) + 1])
     lasts = np.concatenate([firsts[1:], [len(idx)]])
-    runs = [np.concatenate([start[s:e], end[e - 1:e]], axis=0) for s, e in zip(firsts, lasts)]
+    runs = [np.concatenate([start[s:e], end[e - 1:e]], axis=0) for s, e in zip(firsts, lasts, strict=True)]
     return runs, np.searchsorted(np.asarray(starts), idx[firsts], side="right") - 1
 
 
@@ -259,6 +259,6 @@ def project_pitch_polylines(
                 out[cls] = [poly[bounds[k]:bounds[k + 1]]]
         return out
     runs, polyline = _clip_runs(uv, valid, width, height, tuple(s for _, s, _ in slices))
-    for run, k in zip(runs, polyline.tolist()):
+    for run, k in zip(runs, polyline.tolist(), strict=True):
         out.setdefault(slices[k][0], []).append(run)
     return out

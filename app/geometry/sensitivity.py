@@ -85,5 +85,5 @@ def centre_sensitivity(camera: Camera, box: np.ndarray, ball_ref: np.ndarray, sh
     return errs / 4.0
 
 
-def _estimate(exact: bool):  # noqa: ANN202 - box -> ball function
+def _estimate(exact: bool):  # returns a box -> ball function
     return ball_from_box_exact if exact else ball_from_box

@@ -37,6 +37,7 @@ World: SoccerNet metres, origin at the centre spot, z down. Image: continuous pi
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -125,7 +126,7 @@ def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines |
             or np.shape(start_m) != (F, 3):
         raise ValueError("bundle_adjust: points (F, K, 2), inliers (F, K), start (F, 3), K cameras and lines")
     active = [k for k in range(K) if cameras[k] is not None]
-    obs = {k: build_observations(lines[k]) for k in active if lines[k]}
+    obs = {k: build_observations(labelled) for k in active if (labelled := lines[k])}
     obs = {k: o for k, o in obs.items() if o.n_points}
     if len(obs) < 2:
         raise ValueError("bundle_adjust: needs two or more adjusted cameras with field lines")
@@ -138,16 +139,17 @@ def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines |
     uv = pts[frames[lab_f], lab_k]
 
     params = {}
-    x0 = []
+    x0_parts = []
     for k in active:
         cam = cameras[k]
+        assert cam is not None  # active: the cameras that are set
         k1 = float(cam.radial[0]) if cam.radial is not None else 0.0
         params[k] = CameraParametrisation(principal_point=cam.K[:2, 2].copy(), R0=cam.R, fit_k1=k1 != 0.0)
-        x0.append(params[k].vector(float(cam.K[0, 0]), cam.C, k1))
+        x0_parts.append(params[k].vector(float(cam.K[0, 0]), cam.C, k1))
     offsets = np.cumsum([0] + [params[k].size for k in active])
     n_cam = int(offsets[-1])
     slot = {k: (int(offsets[i]), int(offsets[i + 1])) for i, k in enumerate(active)}
-    x0 = np.concatenate(x0 + [start[frames].reshape(-1)])
+    x0 = np.concatenate(x0_parts + [start[frames].reshape(-1)])
 
     cam_x = {k: x0[slice(*slot[k])] for k in active}
     X0 = start[frames].copy()
@@ -193,11 +195,11 @@ def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines |
     rms0 = rms(xs, X, sigma_ball)
     for _ in range(max_rounds):
         xs, X, n = _schur_lm(xs, X, active, slot, n_cam, lab_f, by_cam, len(frames),
-                             lambda k, xk: line_res(k, xk, sigma_lines),
-                             lambda k, xk, Xk: ball_res(k, xk, Xk, sigma_ball), loss_scale_sigma, max_iterations)
+                             functools.partial(line_res, sigma_lines=sigma_lines),
+                             functools.partial(ball_res, sigma_ball=sigma_ball), loss_scale_sigma, max_iterations)
         nfev += n
         new = sigmas(xs, X)
-        settled = all(abs(a / b - 1) < SIGMA_SETTLED for a, b in zip(new, (sigma_lines, sigma_ball)))
+        settled = all(abs(a / b - 1) < SIGMA_SETTLED for a, b in zip(new, (sigma_lines, sigma_ball), strict=True))
         sigma_lines, sigma_ball = new
         if settled:
             break
@@ -286,7 +288,8 @@ def _schur_lm(xs: dict, X: np.ndarray, active: list[int], slot: dict, n_cam: int
             Vd = V + lam * dV[:, :, None] * np.eye(3)
             Vinv = np.linalg.inv(Vd)
             T = np.einsum("fai,fij->faj", W, Vinv)
-            S = U + lam * np.diag(dU) - T.transpose(1, 0, 2).reshape(n_cam, -1) @ W.transpose(1, 0, 2).reshape(n_cam, -1).T
+            S = (U + lam * np.diag(dU)
+                 - T.transpose(1, 0, 2).reshape(n_cam, -1) @ W.transpose(1, 0, 2).reshape(n_cam, -1).T)
             rhs = g_c - np.einsum("faj,fj->a", T, g_p)
             try:
                 dc = np.linalg.solve(S, rhs)

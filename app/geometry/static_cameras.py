@@ -2,12 +2,12 @@
 
 A static camera (ISSIA) that sees few field lines (the centre circle and two side lines, say) can
 be refused by :func:`app.geometry.calibration.calibrate_frame` or calibrated below admission
-(JaC at the admission's gamma not above its threshold: :func:`app.geometry.jac.jac_admitted`). Its ball labels still carry information: the other, admitted cameras give the
-ball's 3D position in many frames (:mod:`app.geometry.trajectory`), and a camera that does not
-move is fixed by those 2D-3D correspondences (camera resection: RANSAC over a grid of focal lengths,
-and the linear DLT of ``P`` split by RQ decomposition, Hartley and Zisserman section 7.1, as starts
-of a robust refinement of focal length, rotation and centre on the reprojection error with the
-principal point at the image centre). The camera's centre is then given to the line calibration as a prior
+(JaC at the admission's gamma not above its threshold: :func:`app.geometry.jac.jac_admitted`). Its ball labels still
+carry information: the other, admitted cameras give the ball's 3D position in many frames
+(:mod:`app.geometry.trajectory`), and a camera that does not move is fixed by those 2D-3D correspondences (camera
+resection: RANSAC over a grid of focal lengths, and the linear DLT of ``P`` split by RQ decomposition, Hartley and
+Zisserman section 7.1, as starts of a robust refinement of focal length, rotation and centre on the reprojection error
+with the principal point at the image centre). The camera's centre is then given to the line calibration as a prior
 (:class:`~app.geometry.calibration.CalibrationPrior`), which fits focal length and rotation to the
 lines; because focal length and distance trade off along the viewing direction, the centre is
 then moved to where the lines and the ball agree best. The result is admitted only when its JaC at the admission's
@@ -25,7 +25,6 @@ from app.geometry.annotations import FieldLines
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.geometry.camera import Camera
 from app.geometry.jac import jac_admitted, jac_at_gammas
-
 
 #: Focal lengths (as multiples of the image width) from which :func:`resect_from_ball` tries a RANSAC
 #: resection with the focal length held: 0.4 (a wide angle) to 5 (a long lens), geometric steps of 10 %.
@@ -67,10 +66,10 @@ def resect_from_ball(world_m: np.ndarray, image_px: np.ndarray, width: int, heig
     if spread[1] < 0.5:  # metres: points on one line fix no camera
         return None
     pp = ((width - 1) / 2.0, (height - 1) / 2.0)
-    starts = [_pnp_start(X, u, f * width, pp, inlier_px) for f in FOCAL_GRID_WIDTHS]
+    found = [_pnp_start(X, u, f * width, pp, inlier_px) for f in FOCAL_GRID_WIDTHS]
     if spread[2] >= 0.05 * spread[0] and spread[2] >= 0.5:  # off one plane: the DLT fixes K and C together
-        starts.append(_dlt_start(X, u))
-    starts = sorted((s for s in starts if s is not None), key=lambda s: -s[0])[:3]  # the most inliers first
+        found.append(_dlt_start(X, u))
+    starts = sorted((s for s in found if s is not None), key=lambda s: -s[0])[:3]  # the most inliers first
 
     def residual(q, idx):
         xc = (X[idx] - q[4:7]) @ cv2.Rodrigues(q[1:4])[0].T
@@ -202,10 +201,11 @@ def calibrate_with_ball(lines: FieldLines | None, world_m: np.ndarray, image_px:
     def score(centre):
         if centre[2] >= 0:
             return 1e6, None
-        res = calibrate_frame(lines, width, height, prior=CalibrationPrior(centre_m=tuple(float(v) for v in centre)),
-                              compute_jac=False)
+        prior = CalibrationPrior(centre_m=(float(centre[0]), float(centre[1]), float(centre[2])))
+        res = calibrate_frame(lines, width, height, prior=prior, compute_jac=False)
         if res.camera is None:
             return 1e6, None
+        assert res.rms_px is not None  # a fitted camera has its rms
         uv, front = res.camera.project(X)
         ball_px = float(np.median(np.linalg.norm(uv[front] - u[front], axis=1))) if front.any() else 1e6
         return float(np.hypot(res.rms_px, ball_px)), res.camera

@@ -44,9 +44,7 @@ from typing import Callable, Hashable, Mapping, Sequence
 import numpy as np
 
 from app.geometry.camera import MIN_DEPTH_M, Camera, as_points
-from app.geometry.pair_error import (pair_error,
-    _rule)
-
+from app.geometry.pair_error import _rule, pair_error
 
 #: Reasons a pair is dropped, in the order they are tested (a pair reports the first that applies).
 DROP_REASONS = ("degenerate", "point_at_infinity", "behind_camera", "baseline_below_min", "parallax_below_min",
@@ -309,7 +307,7 @@ def reprojection_error_px(camera: Camera, point_world: np.ndarray, point_px: np.
         The error in this image's pixels, or ``None`` when the point is behind the camera (camera
         depth below :data:`app.geometry.camera.MIN_DEPTH_M`).
     """
-    # Camera.project for one point, without its array handling (issue 29: a few per pair, many pairs per edit)
+    # Camera.project for one point, without its array handling (a few per pair, many pairs per edit)
     Xc = camera.R @ (np.asarray(point_world, float).reshape(3) - camera.C)
     z = float(Xc[2])
     if not z > MIN_DEPTH_M:
@@ -380,7 +378,7 @@ def pair_geometry_of_rays(a: BallObservation, b: BallObservation, ray_a: ViewRay
 
 
 class PairGeometryMemo:
-    """:func:`pair_geometry` computed once per pair of rays (issue 29, item 1): the triangulation, the mirror evidence
+    """:func:`pair_geometry` computed once per pair of rays: the triangulation, the mirror evidence
     and the doubts' consensus of one recomputation ask the same pairs of the same cameras and labels, and each
     applies its own rules to the one answer; one memo kept across recomputations (``max_entries``) also answers the
     pairs an edit did not touch (the views whose camera and label it left as they were). Keyed by the identity of
@@ -490,6 +488,8 @@ def _weigh_pairs(pairs: Sequence[PairResult], weights: Mapping[Hashable, float])
     out = [dataclasses.replace(p, kept=False, reason="weak_calibrations")
            if p.kept and total(p) < MIN_PAIR_WEIGHT else p for p in pairs]
     best = max((total(p) for p in out if p.kept), default=None)
+    if best is None:  # no pair kept: none to outweigh
+        return out
     return [dataclasses.replace(p, kept=False, reason="outweighed") if p.kept and total(p) < best else p
             for p in out]
 
@@ -585,13 +585,14 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
              for a, b in combinations(obs, 2)]
     if play_volume is not None:
         pairs = [dataclasses.replace(p, kept=False, reason="outside_play_volume")
-                 if p.kept and not play_volume(p.point) else p for p in pairs]
+                 if p.kept and p.point is not None and not play_volume(p.point) else p for p in pairs]
     if view_weights is not None:
         pairs = _weigh_pairs(pairs, view_weights)
-    kept = [p.point for p in pairs if p.kept]
+    kept = [p.point for p in pairs if p.kept and p.point is not None]
     if not kept:
         return result(STATUS_NO_PAIR_KEPT, pairs=pairs)
-    ball = np.average(kept, axis=0, weights=_pair_weights([p for p in pairs if p.kept], view_position_std_m))
+    ball: np.ndarray = np.average(kept, axis=0, weights=_pair_weights([p for p in pairs if p.kept],
+                                                                        view_position_std_m))
     ball.setflags(write=False)
     errors = {o.view_id: reprojection_error_px(o.camera, ball, o.point_px) for o in obs}
     return result(STATUS_TRIANGULATED, ball, pairs, errors)

@@ -11,7 +11,6 @@ World frame: SoccerNet (metres, origin at the centre spot, z down); pixels of ea
 """
 from __future__ import annotations
 
-
 import math
 from typing import Any, Protocol
 
@@ -69,9 +68,22 @@ def label_centre(view: WeighedView) -> np.ndarray | None:
     return None if view.point is None else np.asarray(view.point, float).reshape(2)
 
 
+def camera_of(view: WeighedView) -> Camera:
+    """The view's camera, where only calibrated views are judged (the callers keep those)."""
+    assert view.camera is not None, "a judged view has a camera"
+    return view.camera
+
+
+def centre_of(view: WeighedView) -> np.ndarray:
+    """:func:`label_centre` where only labelled views are judged (the callers keep those)."""
+    centre = label_centre(view)
+    assert centre is not None, "a judged view has a ball label"
+    return centre
+
+
 def project_point(view: WeighedView, point: np.ndarray) -> np.ndarray | None:
     """The pixel (2,) of world ``point`` (3,) in the view, None behind its camera."""
-    uv, ok = view.camera.project(np.asarray(point, float).reshape(1, 3))
+    uv, ok = camera_of(view).project(np.asarray(point, float).reshape(1, 3))
     return uv[0] if ok[0] else None
 
 
@@ -86,8 +98,9 @@ def ray_at_height(origin: np.ndarray, direction: np.ndarray, z: float) -> np.nda
 
 def axis_on_grass(view: WeighedView, s: Weighing) -> np.ndarray | None:
     """Where the view's optical axis meets the plane of ball centres on the grass, or None."""
-    d = view.camera.R[2]  # optical axis in the world frame
-    return ray_at_height(view.camera.C, d, -s.ball_diameter_m / 2)
+    camera = camera_of(view)
+    d = camera.R[2]  # optical axis in the world frame
+    return ray_at_height(camera.C, d, -s.ball_diameter_m / 2)
 
 
 def pixel_sigma(view: WeighedView, point: np.ndarray, s: Weighing) -> float:

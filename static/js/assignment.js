@@ -1,4 +1,4 @@
-// Work assignment on the queue page (issue 28, item 10): the "My systems" toggle (the queue of the systems
+// Work assignment on the queue page: the "My systems" toggle (the queue of the systems
 // assigned to me: GET /api/systems?assignee=me), each row's assignee and who has it open now, and, for
 // reviewers and admins, the bar that assigns systems (POST /api/assignments): the selected system, its game,
 // or every system the current filters match (all pages), to a person, or to nobody.

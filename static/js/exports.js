@@ -1,4 +1,4 @@
-// Exports panel of the queue and statistics pages (issue 28): every export one click away, for the roles that
+// Exports panel of the queue and statistics pages: every export one click away, for the roles that
 // may export (admins; the panel stays hidden for the others, whom the API refuses anyway). A click queues the
 // export as a background job (POST /api/exports/{format}); the panel follows that job (GET /api/jobs/{id}) with
 // its progress and, when it is done, a download link to the file the server keeps for a while

@@ -1,4 +1,4 @@
-// The accept guard (issue 28): accepting a system with open label doubts first lists them in words
+// The accept guard: accepting a system with open label doubts first lists them in words
 // (data-testid="accept-guard": each doubt's view, its name and the server's sentence), `Enter` accepts
 // anyway, `Esc` cancels. The server records the doubts an accept stood over in the decision's audit entry
 // whether or not this dialog was shown (a script's accept too).

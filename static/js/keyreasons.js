@@ -1,4 +1,4 @@
-// Every key of the system page answers (issue 28): a key that cannot act says why in a toast instead of
+// Every key of the system page answers: a key that cannot act says why in a toast instead of
 // doing nothing. The reasons live here, by key, apart from the key table (system.js keyTable and the
 // entries of viewdecisions.js, zoom.js and lineseditor.js): `explainKeys(table, page)` wraps the last entry
 // answering each key with its reason, checked before the entry runs (`before`: the entry would act on

@@ -1,4 +1,4 @@
-// The camera follows the drag (issue 29, item 5). While a field-line point is dragged, the view's lines as the
+// The camera follows the drag. While a field-line point is dragged, the view's lines as the
 // release would send them go to POST /api/frames/{id}/calibration-preview, which runs the edit's own calibration
 // and stores nothing; its answer (camera, JaC, admission, per-class residuals, projected pitch) is drawn in place of
 // the stored calibration until the release's own answer is drawn. At most one preview is in flight per view: the

@@ -1,4 +1,4 @@
-// Field-line editing of one view (issue 16): drag a point, add a point to a line (double-click on it),
+// Field-line editing of one view: drag a point, add a point to a line (double-click on it),
 // delete a point or a whole line, relabel a line (the class chosen from the pitch model's list, served by
 // GET /api/pitch-model, with the projected model line of that class highlighted), draw a new line of a
 // class. Every change is one "lines-change" event {frameId, lines (the view's complete new lines), what}

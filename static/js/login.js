@@ -43,7 +43,7 @@ form.addEventListener("submit", async (event) => {
   }
 });
 // The page's button is disabled until now: a person (or a test) quicker than this module would have sent the
-// form natively, a GET to /login with the password in the address (issue 29's CI run: a login that never left).
+// form natively, a GET to /login with the password in the address (seen in CI: a login that never left).
 $("login-submit").disabled = false;
 
 async function showDemoHint() {

@@ -1,4 +1,4 @@
-// The system page's review pass (issue 28): the frozen list of the queue's systems, in the order the queue
+// The system page's review pass: the frozen list of the queue's systems, in the order the queue
 // had when the pass began (every page), stored on the server per user (/api/passes) and named in the page's
 // address (`?pass=ID`, kept across a reload). A decision goes to the next system of the pass that is still
 // pending (its status read now, GET .../place); j / k step through the pass's order; a fix never reorders

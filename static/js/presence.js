@@ -1,4 +1,4 @@
-// Presence and assignment on the system page (issue 28, item 10): who the system is assigned to (a chip in the
+// Presence and assignment on the system page: who the system is assigned to (a chip in the
 // header) and who else has it open now ("ana has this system open (since 2 min)", a warning bar under the
 // header, shown before you edit), so that two people rarely edit one system at once.
 //

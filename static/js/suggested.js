@@ -1,4 +1,4 @@
-// A ball label made from a doubt's suggestion (issue 18): it keeps its provenance and makes no 3D ball until a
+// A ball label made from a doubt's suggestion: it keeps its provenance and makes no 3D ball until a
 // person places it. The view's zoom inset shows the image crop around it; this note says where the label came
 // from and offers "Confirm placement", which sends the same box as a person's label (an edit without
 // provenance). Dragging or resizing the box places it as well.

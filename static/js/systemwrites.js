@@ -1,4 +1,4 @@
-// The system page's writes to its views (issue 13, 22): each write to a view goes after the previous one to that
+// The system page's writes to its views: each write to a view goes after the previous one to that
 // view and sends If-Match with the newest ETag the page knows of it (answers may arrive out of order); its
 // answer, the recomputed system, is drawn unless the reviewer moved on; a 412 (someone else changed the view)
 // draws their state and the conflict notice (conflict.js) with a re-apply. The ball, field-line, mirror and

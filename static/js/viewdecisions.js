@@ -1,4 +1,4 @@
-// Per-view decisions on the system page (issue 16): under each view's header, its ball decision (accept /
+// Per-view decisions on the system page: under each view's header, its ball decision (accept /
 // reject / needs fix: POST /api/frames/{id}/review) and beside it the decision on its calibration (its field
 // lines and the camera fitted to them: POST /api/frames/{id}/calibration-review), with the reason when an
 // edit of the view's field lines set the calibration decision back to pending. Both are writes to the view:

@@ -1,6 +1,7 @@
-// The words of the review pages (issue 28 item 7): what every machine code shown on a page reads as, one
-// table. WRITTEN FROM app/services/curation/words.py (python -m app.services.curation.words > static/js/words.js);
-// tests/services/curation/test_words.py checks that the two agree. Do not edit the table here.
+// The words of the review pages: what every machine code shown on a page reads as, one table, so
+// that a page never shows a raw token. WRITTEN FROM app/services/curation/words.py
+// (python -m app.services.curation.words > static/js/words.js); tests/services/curation/test_words.py checks that
+// the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/{
  "doubt": {
@@ -286,7 +287,8 @@ export function heightText(z, digits = 1) {
 
 /** tau named where it is shown: "reprojection error limit τ = 20.0 px". */
 export function tauText(tau, digits = 1) {
-  return `reprojection error limit τ = ${typeof tau === "number" && Number.isFinite(tau) ? tau.toFixed(digits) : "?"} px`;
+  const shown = typeof tau === "number" && Number.isFinite(tau) ? tau.toFixed(digits) : "?";
+  return `reprojection error limit τ = ${shown} px`;
 }
 
 /** The legend's entries of the chips a page shows: [[chip, means], ...] of the given groups, each chip once. */

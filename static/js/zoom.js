@@ -1,4 +1,4 @@
-// Synchronised zoom and pan of the system page's views (issue 16). One state for the page: a zoom factor z
+// Synchronised zoom and pan of the system page's views. One state for the page: a zoom factor z
 // (1 = the whole frame) and a pan, the offset of the window's centre from the ball as fractions of the image's
 // width and height, so views of any resolution move alike. Every view shows the window of its own image
 // centred on its ball plus the pan: where a doubt accuses the view's ball label, the box the other views agree

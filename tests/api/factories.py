@@ -18,8 +18,17 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
-    BallKind, BallLabel, Calibration, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole,
-    Game, System, SystemKind,
+    BallKind,
+    BallLabel,
+    Calibration,
+    CalibrationSource,
+    CalibrationStatus,
+    FieldLineAnnotation,
+    Frame,
+    FrameRole,
+    Game,
+    System,
+    SystemKind,
 )
 from app.geometry.annotations import lines_to_json_lists
 from app.geometry.camera import Camera

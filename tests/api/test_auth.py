@@ -91,7 +91,8 @@ def test_a_wrong_token_or_a_forged_cookie_is_anonymous(anonymous: TestClient, ac
 
 def test_every_write_route_states_its_least_role(app: FastAPI) -> None:
     unstated = [(m, p) for m, p, _, route in _operations(app)
-                if m in WRITES and (m, p) not in PUBLIC and p not in ("/api/auth/logout",) and _least_role(route) is None]
+                if m in WRITES and (m, p) not in PUBLIC and p not in ("/api/auth/logout",)
+                and _least_role(route) is None]
     assert unstated == [], "write routes without require_role (app.api.auth)"
 
 
@@ -134,7 +135,8 @@ def test_the_roles_of_the_issue(app: FastAPI) -> None:
 @pytest.mark.parametrize("via", ["token", "session"])
 @pytest.mark.parametrize("role", ROLES)
 def test_each_role_gets_403_below_the_least_role_of_every_route(app: FastAPI, tokens: TestClient,
-                                                                accounts: dict[str, Account], role: str, via: str) -> None:
+                                                                accounts: dict[str, Account], role: str,
+                                                                via: str) -> None:
     """Per role: 403 naming the needed role on every route whose least role is above it, and past the
     role check (no 401 / 403) everywhere else; sessions send their CSRF token."""
     client = as_token(tokens, accounts[role]) if via == "token" else as_session(tokens, accounts[role])
@@ -181,7 +183,8 @@ def test_401_comes_before_any_csrf_check(anonymous: TestClient, scene: Scene) ->
 
 
 # ----- login, logout, me ----------------------------------------------------------------------------
-def test_login_answers_one_message_for_a_wrong_name_or_password(anonymous: TestClient, accounts: dict[str, Account]) -> None:
+def test_login_answers_one_message_for_a_wrong_name_or_password(anonymous: TestClient,
+                                                                accounts: dict[str, Account]) -> None:
     wrong_password = anonymous.post("/api/auth/login", json={"name": "test-admin", "password": "nope"})
     wrong_name = anonymous.post("/api/auth/login", json={"name": "nobody", "password": accounts["admin"].password})
     assert wrong_password.status_code == wrong_name.status_code == 401
@@ -191,10 +194,12 @@ def test_login_answers_one_message_for_a_wrong_name_or_password(anonymous: TestC
 
 def test_login_sets_a_strict_httponly_cookie_and_me_answers_the_csrf_token(anonymous: TestClient,
                                                                           accounts: dict[str, Account]) -> None:
-    answer = anonymous.post("/api/auth/login", json={"name": "test-annotator", "password": accounts["annotator"].password})
+    answer = anonymous.post("/api/auth/login",
+                            json={"name": "test-annotator", "password": accounts["annotator"].password})
     assert answer.status_code == 200
     body = answer.json()
-    assert (body["name"], body["role"], body["roles"], body["via"]) == ("test-annotator", "annotator", ["annotator"], "session")
+    assert (body["name"], body["role"], body["roles"], body["via"]) == ("test-annotator", "annotator", ["annotator"],
+                                                                        "session")
     cookie = answer.headers["set-cookie"].lower()
     assert cookie.startswith(f"{SESSION_COOKIE}=") and "httponly" in cookie and "samesite=strict" in cookie
     assert "max-age=43200" in cookie and "secure" not in cookie
@@ -216,7 +221,8 @@ def test_secure_cookies_setting_marks_the_cookie_secure(db_settings: Settings, a
 
 def test_logout_ends_the_session_and_copies_of_its_cookie(app: FastAPI, accounts: dict[str, Account]) -> None:
     with TestClient(app) as browser, TestClient(app) as thief:
-        login = browser.post("/api/auth/login", json={"name": "test-reviewer", "password": accounts["reviewer"].password})
+        login = browser.post("/api/auth/login",
+                             json={"name": "test-reviewer", "password": accounts["reviewer"].password})
         csrf = login.json()["csrf_token"]
         thief.cookies.set(SESSION_COOKIE, browser.cookies[SESSION_COOKIE])
         assert thief.get("/api/auth/me").status_code == 200
@@ -406,7 +412,8 @@ def test_a_session_ends_twelve_hours_after_the_login_however_busy(app: FastAPI, 
     clock = [1_900_000_000.0]
     monkeypatch.setattr(authentication.time, "time", lambda: clock[0])
     with TestClient(app) as browser:
-        login = browser.post("/api/auth/login", json={"name": "test-reviewer", "password": accounts["reviewer"].password})
+        login = browser.post("/api/auth/login",
+                             json={"name": "test-reviewer", "password": accounts["reviewer"].password})
         assert login.status_code == 200
         for hours in (1, 4, 8, 11.9):  # a request every few hours: each re-signs the cookie
             clock[0] = 1_900_000_000.0 + hours * 3600

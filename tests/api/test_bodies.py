@@ -105,14 +105,14 @@ def _asgi_post(app: FastAPI, path: str, headers: dict[str, str], size: int, chun
         if message["type"] == "http.response.start":
             answer["status"] = message["status"]
         elif message["type"] == "http.response.body":
-            answer["body"] = answer["body"] + message.get("body", b"")  # type: ignore[operator]
+            answer["body"] = answer["body"] + message.get("body", b"")  # type: ignore[operator]  # answer["body"] holds bytes
 
     raw = [(k.lower().encode(), v.encode()) for k, v in {"host": "testserver", **headers}.items()]
     scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": method, "scheme": "http",
              "path": path, "raw_path": path.encode(), "root_path": "", "query_string": b"", "headers": raw,
              "client": ("127.0.0.1", 50000), "server": ("testserver", 80), "state": {}}
     asyncio.run(app(scope, receive, send))
-    return int(answer["status"]), bytes(answer["body"]), read  # type: ignore[arg-type]
+    return int(answer["status"]), bytes(answer["body"]), read  # type: ignore[arg-type]  # set by the answer
 
 
 @pytest.mark.parametrize("length", ["declared", "chunked"])
@@ -171,8 +171,8 @@ def test_upload_routes_are_derived_from_the_routes_and_agree_with_openapi(app: F
     """The routes that may take ``V3D_MAX_UPLOAD_MB`` are read off the routes themselves (their body parameters,
     or the request body their OpenAPI operation declares), never from a list kept by hand: they are every route
     with a ``File`` / ``UploadFile`` / ``Form`` parameter and every operation whose OpenAPI body is multipart."""
-    from fastapi.routing import iter_route_contexts
     from fastapi.params import File, Form
+    from fastapi.routing import iter_route_contexts
 
     from app.api.bodies import route_media_types, upload_routes
 

@@ -4,11 +4,9 @@ token and as an anonymous client. Any 5xx, undeclared status, wrong content type
 fails, with the curl line that reproduces it. The test's writes are rolled back with its transaction."""
 from __future__ import annotations
 
-
 import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
-
 
 from app.services.accounts import users
 from tests.accounts import Account
@@ -18,7 +16,8 @@ from .factories import Scene
 pytest.importorskip("schemathesis", reason="schemathesis (the test extra) is needed by benchmarks/fuzz.py")
 
 
-from benchmarks import fuzz  # noqa: E402  (after the skip: it needs schemathesis)
+from benchmarks import fuzz  # after the skip: it needs schemathesis
+
 #: Cases per operation and mode (positive, negative): ~25 operations x 2 x 5 requests.
 EXAMPLES = 5
 

@@ -80,7 +80,8 @@ def test_every_app_on_the_database_counts_the_same_failures(app: FastAPI, db_set
     other.state.session_factory = app.state.session_factory
     other.state.login_throttle.storage.clock = lambda: clock[0]
     admin = accounts["admin"]
-    with TestClient(app, client=("198.51.100.10", 1)) as first, TestClient(other, client=("198.51.100.10", 2)) as second:
+    with (TestClient(app, client=("198.51.100.10", 1)) as first,
+          TestClient(other, client=("198.51.100.10", 2)) as second):
         for i in range(10):
             assert _login(first if i % 2 else second, admin.name, "x").status_code == 401
         assert _login(first, admin.name, admin.password).status_code == 429

@@ -8,10 +8,9 @@ from fastapi.testclient import TestClient
 from app.core.config import Settings
 from app.db.models import System
 from app.db.session import make_engine, make_session_factory, upgrade_database
-from app.main import create_app
 from app.geometry.calibration.result import MIRROR_FLAG
+from app.main import create_app
 from app.services.derivation.recompute import update_summary
-
 from tests.accounts import as_token, make_accounts
 
 from .factories import make_game, make_system
@@ -47,7 +46,8 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
     exact, shifted, lonely = _seed(pg_url, settings, build)
     admin = make_accounts(pg_url, login=False, roles=("admin",))["admin"]
     with as_token(TestClient(create_app(settings)), admin) as client:
-        ids = lambda **p: [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]  # noqa: E731
+        def ids(**p):
+            return [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]
         assert ids(sort="-worst_error") == [shifted, exact, lonely]
         rows = client.get("/api/systems").json()["items"]
         assert set(ids(doubt="any")) == {r["id"] for r in rows if r["label_doubts"]}

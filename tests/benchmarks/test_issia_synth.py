@@ -79,7 +79,8 @@ def test_motion_follows_the_stated_physics(sequence):
     assert np.all(P[:, 2] <= -PH.ball_radius_m + 1e-9)  # never below the grass
     kicks = {k["frame"] for k in truth["kicks"]}
     order = sorted(kicks)
-    assert order[0] == 0 and all(b - a >= PH.min_kick_interval_s * 25 - 1e-9 for a, b in zip(order, order[1:]))
+    assert order[0] == 0 and all(b - a >= PH.min_kick_interval_s * 25 - 1e-9
+                                 for a, b in zip(order, order[1:], strict=False))
     for k in truth["kicks"]:
         assert -k["position"][2] <= PH.receive_max_height_m + 1e-6
         assert PH.kick_speed_range[0] - 1e-3 <= k["speed"] <= PH.kick_speed_range[1] + 1e-3

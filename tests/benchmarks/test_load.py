@@ -51,7 +51,8 @@ def test_concurrent_edits_on_two_workers_are_all_accepted_and_kept(backend: str,
                            log=tmp_path / "serve.log", template=demo_sqlite, users=True, if_match=True, audit=True)
     figures = report.summary()
     assert figures["edits_sent"] == 60 and not report.stopped_by_deadline, figures
-    assert (figures["2xx"], figures["5xx"], figures["error"]) == (60, 0, 0), (figures, (tmp_path / "serve.log").read_text()[-2000:])
+    assert (figures["2xx"], figures["5xx"], figures["error"]) == (60, 0, 0), (
+        figures, (tmp_path / "serve.log").read_text()[-2000:])
     assert report.lost_edits == [] and report.lost_recomputations == [], figures
     assert figures["p95_ms"] > 0
 

@@ -1,5 +1,5 @@
-"""benchmarks/scale.py on one game of the scale set (a subset of two) and a few requests, so that the harness cannot rot:
-the import is measured (figures agree with the labels), both databases are served and measured, the
+"""benchmarks/scale.py on one game of the scale set (a subset of two) and a few requests, so that the harness cannot
+rot: the import is measured (figures agree with the labels), both databases are served and measured, the
 nudged ball boxes are restored, and the report compares the two."""
 from __future__ import annotations
 
@@ -71,10 +71,12 @@ def test_harness_on_one_game(two_games: Path, tmp_path: Path) -> None:
         measured = scale.measure_server(server.base_url, requests=3, seed=1, headers=server.headers)
         ids = [s["id"] for s in before["items"]]
         boxes_before = {v["frame_id"]: v["ball"]["box"] for i in ids
-                        for v in httpx.get(f"{server.base_url}/api/systems/{i}", headers=server.headers).json()["views"]}
+                        for v in httpx.get(f"{server.base_url}/api/systems/{i}",
+                                           headers=server.headers).json()["views"]}
     assert measured["systems"] == figures.systems
     assert 0 < measured["queue_p50_ms"] <= measured["queue_p95_ms"]
-    assert measured["queue_depth_p95_ms"] > 0 and any(k.endswith(" offset") for k in measured["queue_depth_variant_p95_ms"])
+    assert measured["queue_depth_p95_ms"] > 0 and any(k.endswith(" offset")
+                                                      for k in measured["queue_depth_variant_p95_ms"])
     assert measured["system_p95_ms"] > 0 and measured["export_s"] > 0 and measured["export_mb"] > 0
     assert measured["ball_edits"] >= 2 and measured["ball_edits"] % 2 == 0  # each nudge is undone
     with scale.Server(tmp_path / "scale.sqlite3") as server:
@@ -94,7 +96,8 @@ def test_main_names_a_missing_database(tmp_path: Path, capsys: pytest.CaptureFix
     assert "none.sqlite3" in capsys.readouterr().err
 
 
-def test_with_images_each_game_gets_a_frames_zip_whose_headers_the_import_checks(two_games: Path, tmp_path: Path) -> None:
+def test_with_images_each_game_gets_a_frames_zip_whose_headers_the_import_checks(
+        two_games: Path, tmp_path: Path) -> None:
     """``--with-images`` (issue 15: the scale import's frames/s with the image checks on): every action and replay
     image of the labels is a PNG member of the game's Frames-v3.zip, at the labelled size, as the reader finds it."""
     import zipfile

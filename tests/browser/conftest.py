@@ -61,7 +61,7 @@ def _calibration_only_folder(dataset: Path, out: Path) -> Path:
     for line in action["lines"]:
         xy = line["points"]
         frame.setdefault(line["class"], []).extend(
-            {"x": x / (w - 1), "y": y / (h - 1)} for x, y in zip(xy[0::2], xy[1::2]))
+            {"x": x / (w - 1), "y": y / (h - 1)} for x, y in zip(xy[0::2], xy[1::2], strict=False))
     out.mkdir(parents=True)
     (out / f"{Path(name).stem}.json").write_text(json.dumps(frame))
     return out
@@ -103,7 +103,8 @@ def admin_state(browser, server_url, accounts) -> dict:
 def browser() -> Iterator[object]:
     """Headless Debian Chromium; the test skips (with the reason) where it is not installed."""
     if not CHROMIUM.exists() or shutil.which(str(CHROMIUM)) is None:
-        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium (apt-get install -y chromium) to run browser tests")
+        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium (apt-get install -y chromium) to run browser "
+                    "tests")
     sync_api = pytest.importorskip("playwright.sync_api", reason="playwright (Python) is not installed")
     with sync_api.sync_playwright() as pw:
         b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, headless=True)

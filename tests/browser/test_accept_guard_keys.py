@@ -34,7 +34,8 @@ def _says(page, key: str, text: str) -> None:
 
 
 def _systems(page) -> list[dict]:
-    return [_api(page, f"/api/systems/{s['id']}?sort=name") for s in _api(page, "/api/systems?sort=name&limit=100")["items"]]
+    return [_api(page, f"/api/systems/{s['id']}?sort=name")
+            for s in _api(page, "/api/systems?sort=name&limit=100")["items"]]
 
 
 def test_a_on_a_doubtful_system_asks_first_esc_keeps_it_pending_enter_accepts(page, artifacts):
@@ -66,7 +67,8 @@ def test_a_on_a_doubtful_system_asks_first_esc_keeps_it_pending_enter_accepts(pa
     page.locator(tid("toast")).filter(has_text="not accepted").wait_for()
     assert page.url == url
     assert _api(page, f"/api/systems/{doubtful['id']}")["review"]["status"] == "pending"
-    assert not [e for e in _api(page, f"/api/audit?system_id={doubtful['id']}")["items"] if e["action"] == "system.review"]
+    assert not [e for e in _api(page, f"/api/audit?system_id={doubtful['id']}")["items"]
+                if e["action"] == "system.review"]
 
     # a, then Enter: accepted, the next pending system opens, the audit entry names the doubts overridden
     page.keyboard.press("a")
@@ -74,7 +76,8 @@ def test_a_on_a_doubtful_system_asks_first_esc_keeps_it_pending_enter_accepts(pa
     page.keyboard.press("Enter")
     page.wait_for_url(lambda u: f"/systems/{doubtful['id']}?" not in u)
     assert _api(page, f"/api/systems/{doubtful['id']}")["review"]["status"] == "accepted"
-    entry = next(e for e in _api(page, f"/api/audit?system_id={doubtful['id']}")["items"] if e["action"] == "system.review")
+    entry = next(e for e in _api(page, f"/api/audit?system_id={doubtful['id']}")["items"]
+                 if e["action"] == "system.review")
     assert [(d["kind"], d["frame_id"]) for d in entry["after"]["overrode_doubts"]] == \
         [(d["kind"], d["frame_id"]) for d in open_doubts]
 

@@ -81,7 +81,8 @@ def test_admin_assigns_a_sees_my_systems_b_sees_a_present(browser, server_url, p
         assert a.locator(tid("assign-bar")).count() == 0
         a.click(tid("my-systems"))
         a.wait_for_url("**assignee=me**")
-        a.wait_for_function("() => document.querySelector('[data-testid=my-systems]').getAttribute('aria-pressed') === 'true'")
+        a.wait_for_function("() => document.querySelector('[data-testid=my-systems]').getAttribute('aria-pressed') === "
+                            "'true'")
         a.wait_for_function(f"document.querySelectorAll('[data-testid=queue-row]').length === {len(assigned)}")
         rows = {int(r.get_attribute("data-id")) for r in a.locator(tid("queue-row")).all()}
         assert rows == assigned
@@ -89,7 +90,8 @@ def test_admin_assigns_a_sees_my_systems_b_sees_a_present(browser, server_url, p
         a.screenshot(path=str(shots / "2-ana-my-systems-1366.png"))
         # she opens the first of them: the page claims it (one write) and says it is hers
         target = int(a.locator(tid("queue-row")).first.get_attribute("data-id"))
-        with a.expect_response(lambda r: r.url.endswith(f"/api/systems/{target}/presence") and r.request.method == "PUT") as claim:
+        with a.expect_response(lambda r: r.url.endswith(f"/api/systems/{target}/presence")
+                               and r.request.method == "PUT") as claim:
             a.locator(tid("system-link")).first.click()
         assert claim.value.json()["wrote"] is True
         a.locator(tid("system-assignee")).filter(has_text="assigned to you").wait_for()

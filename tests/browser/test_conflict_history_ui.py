@@ -23,7 +23,8 @@ def test_conflict_notice_reapply_and_history_revert(page, artifacts):
     listing = _api(page, "/api/systems?sort=name&limit=500")["items"]
     # the middle of the queue: the other browser tests work at its start and its end
     candidates = [s["id"] for s in listing[len(listing) // 3:]]
-    system = next(sys for sys in (_api(page, f"/api/systems/{i}") for i in candidates) if _view_with_box(sys) is not None)
+    system = next(sys for sys in (_api(page, f"/api/systems/{i}") for i in candidates)
+                  if _view_with_box(sys) is not None)
     sid, k = system["id"], _view_with_box(system)
     view = system["views"][k]
     fid, box = view["frame_id"], view["ball"]["box"]
@@ -32,7 +33,8 @@ def test_conflict_notice_reapply_and_history_revert(page, artifacts):
 
     # someone else moves the box 6 px down while the page shows the old version
     theirs = [box[0], box[1] + 6, box[2], box[3] + 6]
-    other = api_write(page, "PATCH", f"/api/frames/{fid}/ball", data={"box": theirs}, headers={"If-Match": view["etag"]})
+    other = api_write(page, "PATCH", f"/api/frames/{fid}/ball", data={"box": theirs},
+                      headers={"If-Match": view["etag"]})
     assert other.ok, other.text()
 
     # the page's nudge (1 px right) is made against the old version: 412, nothing stored

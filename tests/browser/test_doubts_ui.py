@@ -98,7 +98,8 @@ def test_a_view_is_excluded_and_restored_with_its_key(page, artifacts):
     view = page.locator(tid("view")).nth(k)
     view.locator(tid("exclude-view")).wait_for()
     page.keyboard.press(str(k + 1))
-    with page.expect_response(lambda r: r.request.method == "POST" and r.url.split("?")[0].endswith("/exclusion")) as post:
+    with page.expect_response(lambda r: r.request.method == "POST"
+                              and r.url.split("?")[0].endswith("/exclusion")) as post:
         page.keyboard.press("x")
     assert post.value.ok and post.value.request.post_data_json == {"excluded": True}
     view.locator(tid("view-excluded")).wait_for()
@@ -110,7 +111,8 @@ def test_a_view_is_excluded_and_restored_with_its_key(page, artifacts):
     assert not [d for d in excluded["doubts"] if d["frame_id"] == doubt["frame_id"] and d["accuses_label"]]
     page.screenshot(path=str(artifacts / "doubts-excluded.png"), full_page=True)
 
-    with page.expect_response(lambda r: r.request.method == "POST" and r.url.split("?")[0].endswith("/exclusion")) as post:
+    with page.expect_response(lambda r: r.request.method == "POST"
+                              and r.url.split("?")[0].endswith("/exclusion")) as post:
         page.keyboard.press("x")
     assert post.value.ok and post.value.request.post_data_json == {"excluded": False}
     view.locator(tid("exclude-view")).wait_for()

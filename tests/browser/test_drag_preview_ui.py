@@ -60,7 +60,8 @@ def test_the_pitch_jac_and_worst_lines_follow_a_dragged_point(page, artifacts):
     page.wait_for_function("([fid, before]) => { const g = document.querySelector("
                            "`[data-testid=view][data-frame-id=\"${fid}\"] [data-testid=overlay]`);"
                            " return g && g.querySelector('polyline.pitch') && before !== [...g.querySelectorAll("
-                           "'polyline.pitch')].map((p) => p.getAttribute('points')).join('|'); }", arg=[fid, stored_pitch])
+                           "'polyline.pitch')].map((p) => p.getAttribute('points')).join('|'); }",
+                           arg=[fid, stored_pitch])
 
 
 def test_a_preview_answer_after_the_release_is_dropped(page):
@@ -79,7 +80,8 @@ def test_a_preview_answer_after_the_release_is_dropped(page):
         x, y = inner_point(view)
         m = card.locator(tid("view-svg")).evaluate(
             "(s) => { const m = s.getScreenCTM(); return [m.a, m.b, m.c, m.d, m.e, m.f]; }")
-        screen = lambda px, py: (m[0] * px + m[2] * py + m[4], m[1] * px + m[3] * py + m[5])  # noqa: E731
+        def screen(px, py):
+            return (m[0] * px + m[2] * py + m[4], m[1] * px + m[3] * py + m[5])
         page.mouse.move(*screen(x, y))
         page.mouse.down()
         page.mouse.move(*screen(x + 8, y), steps=3)

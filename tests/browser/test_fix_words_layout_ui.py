@@ -128,7 +128,8 @@ def _raw_codes(page) -> list[str]:
 
 
 def _legend(page, scope: str) -> set[str]:
-    return set(page.eval_on_selector_all(f"{scope} {tid('chip-legend-entry')} .chip", "(cs) => cs.map((c) => c.textContent)"))
+    return set(page.eval_on_selector_all(f"{scope} {tid('chip-legend-entry')} .chip",
+                                         "(cs) => cs.map((c) => c.textContent)"))
 
 
 def test_no_raw_code_on_the_review_pages_and_every_chip_has_its_legend(page, artifacts):

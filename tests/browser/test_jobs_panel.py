@@ -22,7 +22,7 @@ def test_jobs_panel_follows_jobs_queued_while_the_page_is_open(page, tmp_path_fa
     failing = api_write(page, "POST", "/api/imports", {"kind": "soccernet-v3", "path": str(missing)})
     assert failing.status == 202
     ids = [r.json()["id"] for r in (recompute, export, failing)]
-    for job_id, state in zip(ids, ("done", "done", "failed")):
+    for job_id, state in zip(ids, ("done", "done", "failed"), strict=False):
         page.wait_for_selector(f'{tid("job")}[data-id="{job_id}"][data-state="{state}"]', timeout=120_000)
     panel = page.locator(tid("jobs"))
     assert panel.is_visible()

@@ -16,8 +16,8 @@ pytestmark = pytest.mark.browser
 def _rows(page, selector: str) -> list[str]:
     """The (keys, what) rows of a key grid, as text."""
     return page.eval_on_selector(selector, "(g) => { const c = [...g.children].map((n) => n.textContent.trim());"
-                                           " const out = []; for (let i = 0; i < c.length; i += 2) out.push(c[i] + ' = ' + c[i + 1]);"
-                                           " return out; }")
+                                           " const out = []; for (let i = 0; i < c.length; i += 2)"
+                                           " out.push(c[i] + ' = ' + c[i + 1]); return out; }")
 
 
 def test_question_mark_lists_every_key_of_the_system_page(page, artifacts):
@@ -35,7 +35,8 @@ def test_question_mark_lists_every_key_of_the_system_page(page, artifacts):
     # issue 28: a decision goes to the pass's next pending system, j / k step through the pass
     for row in ("a = accept, next pending system (open doubts are listed first: Enter / Esc)",
                 "j = next system of the pass", "1…9 = select a view",
-                "Del = no ball in this view (remove its label)", "m = apply mirrored labels (selected flagged view, or the only one)"):
+                "Del = no ball in this view (remove its label)",
+                "m = apply mirrored labels (selected flagged view, or the only one)"):
         assert row in listed, row
     # the page's keys wait while the list is open; ? closes it, Esc too
     page.keyboard.press("j")
@@ -62,7 +63,8 @@ def test_question_mark_lists_the_queue_keys(page, artifacts):
     page.keyboard.press("j")  # the keys work again
     assert page.locator(tid("queue-row")).nth(1).get_attribute("class") == "selected"
     # Chromium may send the key after Esc to the closed dialog (focus goes back a moment later): the page takes it
-    page.eval_on_selector(tid("keys-help"), "(d) => d.dispatchEvent(new KeyboardEvent('keydown', {key: 'j', bubbles: true}))")
+    page.eval_on_selector(tid("keys-help"),
+                          "(d) => d.dispatchEvent(new KeyboardEvent('keydown', {key: 'j', bubbles: true}))")
     assert page.locator(tid("queue-row")).nth(2).get_attribute("class") == "selected"
 
 

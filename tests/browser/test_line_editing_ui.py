@@ -94,7 +94,8 @@ def test_drag_add_delete_relabel_undo_redo(page, artifacts):
     assert f"{top[1]:.1f} px" in worst.first.inner_text()
 
     # drag: a point inside the image of the best-fitting line 40 px to the right; JaC changes
-    inside = lambda p: 100 < p[0] < view["width"] - 100 and 50 < p[1] < view["height"] - 50  # noqa: E731
+    def inside(p):
+        return 100 < p[0] < view["width"] - 100 and 50 < p[1] < view["height"] - 50
     residuals = view["calibration"]["residuals_px"]
     cls = min((c for c in lines0 if c in residuals and any(map(inside, lines0[c][0]))), key=residuals.get)
     i = next(i for i, p in enumerate(lines0[cls][0]) if inside(p))
@@ -210,7 +211,8 @@ def test_fix_a_refused_view_by_drawing_the_line_it_shows(page, artifacts, shared
     assert view["calibration"]["status"] == "refused" and "Side line top" not in view["field_lines"]
     truth = json.loads(shared_dir.joinpath("data", "synthetic", "soccernet-v3-dev.truth.json").read_text())
     game = next(g for g in truth["games"] if g["match"] == system["game"]["match"])
-    camera = next(v["camera"] for s in game["systems"] if s["action"] == "13.png" for v in s["views"] if v["image"] == "13_2.png")
+    camera = next(v["camera"] for s in game["systems"] if s["action"] == "13.png"
+                  for v in s["views"] if v["image"] == "13_2.png")
     run = project_pitch_polylines(Camera.from_soccernet(camera), w, view["height"])["Side line top"][0]
 
     def on_line(x: float) -> tuple[float, float]:  # the visible side line at image column x
@@ -250,7 +252,8 @@ def test_fix_a_refused_view_by_drawing_the_line_it_shows(page, artifacts, shared
         assert answer.value.status == 200, answer.value.text()
         _saved(page, fid)
         state = _api(page, f"/api/frames/{fid}")
-    assert state["calibration"]["status"] == "calibrated" and state["calibration"]["admitted"] is True, state["calibration"]
+    assert state["calibration"]["status"] == "calibrated", state["calibration"]
+    assert state["calibration"]["admitted"] is True, state["calibration"]
     card = page.locator(tid("view")).nth(k)
     assert "· admitted" in card.locator(tid("view-calibration")).inner_text()
     sys_after = _api(page, f"/api/systems/{system['id']}")

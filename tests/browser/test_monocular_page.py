@@ -116,7 +116,8 @@ def test_table_1_on_the_benchmark_page_and_the_precise_box_on_the_system_page(pa
     x1, y1, x2, y2 = precise[frame_id]
     assert [float(rect.get_attribute(a)) for a in ("x", "y", "width", "height")] == pytest.approx(
         [x1, y1, x2 - x1, y2 - y1])
-    page.locator(f"[data-testid=view][data-frame-id='{frame_id}']").screenshot(path=str(artifacts / "precise-box-view.png"))
+    view = page.locator(f"[data-testid=view][data-frame-id='{frame_id}']")
+    view.screenshot(path=str(artifacts / "precise-box-view.png"))
 
 
 def test_the_statistics_page_draws_the_stats_of_the_api(page, artifacts):
@@ -132,7 +133,8 @@ def test_the_statistics_page_draws_the_stats_of_the_api(page, artifacts):
         assert row.locator(tid("systems")).text_content() == f"{k['systems']:,}"
         assert row.locator(tid("images")).text_content() == f"{k['images']:,}"
         for split, c in k["splits"].items():
-            assert page.locator(tid(f"count-{kind}-{split}")).locator(tid("images")).text_content() == f"{c['images']:,}"
+            images = page.locator(tid(f"count-{kind}-{split}")).locator(tid("images"))
+            assert images.text_content() == f"{c['images']:,}"
     # the counts plot: one segment per non-empty class of images of each kind and split
     segments = sum(1 for k in stats["kinds"].values() for c in k["splits"].values()
                    for n in (c["admitted_images"], c["calibrated_images"] - c["admitted_images"],
@@ -146,6 +148,7 @@ def test_the_statistics_page_draws_the_stats_of_the_api(page, artifacts):
     for name, hist in stats["distributions"].items():
         bars = page.locator(f"[data-testid=plot-{name}] [data-testid=bar]")
         assert bars.count() == len(hist["counts"]), name
-        assert sum(int(bars.nth(i).get_attribute("data-count")) for i in range(bars.count())) + hist["above"] == hist["n"]
+        assert sum(int(bars.nth(i).get_attribute("data-count"))
+                   for i in range(bars.count())) + hist["above"] == hist["n"]
         assert f"n = {hist['n']:,}" in page.locator(f"[data-testid=plot-{name}]").text_content()
     page.screenshot(path=str(artifacts / "stats-page.png"), full_page=True)

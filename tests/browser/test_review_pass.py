@@ -95,7 +95,8 @@ def test_a_keyboard_pass_after_a_mirror_fix_decides_every_system_once(page, arti
     assert guarded >= 1  # the demo has systems with open label doubts: each asked once
 
     finished = page.locator(tid("pass-finished"))
-    assert finished.locator(tid("pass-counts")).inner_text() == f"{len(order)} accepted · 0 rejected · 0 needs fix · 0 skipped"
+    counts = finished.locator(tid("pass-counts")).inner_text()
+    assert counts == f"{len(order)} accepted · 0 rejected · 0 needs fix · 0 skipped"
     assert page.locator(tid("toast")).inner_text().endswith("Nothing pending is left in this pass.")
     assert finished.locator(tid("pass-queue-link")).get_attribute("href").startswith(f"/#system-{order[-1]}")
     assert finished.is_visible() and finished.bounding_box()["y"] < 768  # said above the fold
@@ -116,5 +117,5 @@ def test_a_keyboard_pass_after_a_mirror_fix_decides_every_system_once(page, arti
 
     with capsys.disabled():
         ordered = sorted(seconds)
-        print(f"\nkeyboard pass (a, Enter on the guard) of {len(order)} systems: median {ordered[len(ordered) // 2]:.2f} s "
-              f"per system, total {sum(seconds):.1f} s, {guarded} accept guard(s)")
+        print(f"\nkeyboard pass (a, Enter on the guard) of {len(order)} systems: median "
+              f"{ordered[len(ordered) // 2]:.2f} s per system, total {sum(seconds):.1f} s, {guarded} accept guard(s)")

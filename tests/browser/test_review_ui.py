@@ -43,7 +43,8 @@ def test_queue_to_accept_walk(page, artifacts):
     rows.first.wait_for()
     listing = _api(page, "/api/systems?sort=-worst_error&limit=50")
     assert rows.count() == len(listing["items"]) > 0
-    counts = {s: int(page.locator(tid(f"count-{s}")).inner_text()) for s in ("pending", "accepted", "rejected", "needs_fix")}
+    counts = {s: int(page.locator(tid(f"count-{s}")).inner_text())
+              for s in ("pending", "accepted", "rejected", "needs_fix")}
     assert counts == listing["counts"] and sum(counts.values()) == listing["total"], counts
     page.screenshot(path=str(artifacts / "1-queue.png"))
 
@@ -97,7 +98,8 @@ def test_queue_to_accept_walk(page, artifacts):
     hit = view.locator(tid("ball-hit")).bounding_box()
     x0, y0 = hit["x"] + hit["width"] / 2, hit["y"] + hit["height"] / 2
     dx_screen, dy_screen = 12.0, -7.0
-    with page.expect_response(lambda r: r.request.method == "PATCH" and f"/api/frames/{v['frame_id']}/ball" in r.url) as patch:
+    with page.expect_response(lambda r: r.request.method == "PATCH"
+                              and f"/api/frames/{v['frame_id']}/ball" in r.url) as patch:
         page.mouse.move(x0, y0)
         page.mouse.down()
         page.mouse.move(x0 + dx_screen / 2, y0 + dy_screen / 2, steps=3)
@@ -114,7 +116,8 @@ def test_queue_to_accept_walk(page, artifacts):
 
     # the numbers on screen are redrawn from the recomputed system view
     page.wait_for_function(
-        "([sel, text]) => document.querySelectorAll(sel)[%d].querySelector('[data-testid=view-box]').innerText !== text" % k,
+        "([sel, text]) => document.querySelectorAll(sel)[%d]"
+        ".querySelector('[data-testid=view-box]').innerText !== text" % k,
         arg=[tid("view"), before["view-box"]])
     after = {name: view.locator(tid(name)).inner_text() for name in ("view-box", "view-opt-box", "view-reproj-error")}
     assert after["view-box"] != before["view-box"]
@@ -136,7 +139,8 @@ def test_queue_to_accept_walk(page, artifacts):
     zscale = zoom.bounding_box()["width"] / zside
     handle = view.locator(tid("zoom-ball-handle")).bounding_box()
     hx, hy = handle["x"] + handle["width"] / 2, handle["y"] + handle["height"] / 2
-    with page.expect_response(lambda r: r.request.method == "PATCH" and f"/api/frames/{v['frame_id']}/ball" in r.url) as patch:
+    with page.expect_response(lambda r: r.request.method == "PATCH"
+                              and f"/api/frames/{v['frame_id']}/ball" in r.url) as patch:
         page.mouse.move(hx, hy)
         page.mouse.down()
         page.mouse.move(hx + 9, hy + 9, steps=4)
@@ -147,7 +151,8 @@ def test_queue_to_accept_walk(page, artifacts):
     assert resized[2] - sent[2] == pytest.approx(9 / zscale, abs=1.0 / zscale + 0.1)
     assert resized[3] - sent[3] == pytest.approx(9 / zscale, abs=1.0 / zscale + 0.1)
     page.wait_for_function(
-        "([sel, text]) => document.querySelectorAll(sel)[%d].querySelector('[data-testid=view-box]').innerText !== text" % k,
+        "([sel, text]) => document.querySelectorAll(sel)[%d]"
+        ".querySelector('[data-testid=view-box]').innerText !== text" % k,
         arg=[tid("view"), after["view-box"]])
     edited = _api(page, f"/api/systems/{expected_id}?sort=name")
     assert edited["views"][k]["ball"]["box"] == pytest.approx(resized, abs=0.05)
@@ -165,7 +170,8 @@ def test_queue_to_accept_walk(page, artifacts):
     # ----- accept with the key: the decision is stored and the next system opens ---------------
     next_id = edited["next_id"]
     assert next_id is not None, "the walk needs a system after the first triangulated one"
-    with page.expect_response(lambda r: r.request.method == "POST" and r.url.endswith(f"/api/systems/{expected_id}/review")) as post:
+    with page.expect_response(lambda r: r.request.method == "POST"
+                              and r.url.endswith(f"/api/systems/{expected_id}/review")) as post:
         page.keyboard.press("a")
         if any(d["accuses_label"] for d in edited["doubts"]):  # issue 28: the accept guard lists them first
             page.locator(tid("accept-guard")).wait_for()
@@ -197,7 +203,8 @@ def test_queue_to_accept_walk(page, artifacts):
     assert page.locator(tid("filter-status")).input_value() == "accepted"
     accepted = _api(page, "/api/systems?status=accepted&sort=name")["items"]
     assert str(expected_id) in [str(s["id"]) for s in accepted]
-    assert [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()] == [str(s["id"]) for s in accepted]
+    assert [r.get_attribute("data-id")
+            for r in page.locator(tid("queue-row")).all()] == [str(s["id"]) for s in accepted]
     page.screenshot(path=str(artifacts / "5-queue-filtered.png"))
 
 
@@ -269,8 +276,8 @@ def test_frame_without_image_is_drawn_on_a_blank_canvas(page, artifacts):
     page.screenshot(path=str(artifacts / "6-calibration-only.png"), full_page=True)
     width_before = frame_svg.bounding_box()["width"]
     page.set_viewport_size({"width": 1000, "height": 800})
-    page.wait_for_function("(w) => document.querySelector('[data-testid=view-svg]').getBoundingClientRect().width !== w",
-                           arg=width_before)
+    page.wait_for_function("(w) => document.querySelector('[data-testid=view-svg]').getBoundingClientRect().width"
+                           " !== w", arg=width_before)
     page.wait_for_function(  # the ResizeObserver's redraw: dot radius = 2.2 screen px in image units
         """(w) => {
             const svg = document.querySelector('[data-testid=view-svg]');
@@ -297,18 +304,22 @@ def test_queue_range_filters_typed_in_the_page(page):
     page.fill(tid("filter-jac-max"), str(jac_max_pct))
     page.keyboard.press("Enter")
     page.wait_for_url(re.compile(r"error_min=.*jac_max=|jac_max=.*error_min="))
-    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n", arg=len(expected))
-    ids = lambda: [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]  # noqa: E731
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n",
+                           arg=len(expected))
+    def ids():
+        return [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]
     assert ids() == [str(s["id"]) for s in expected]
     assert not page.locator(tid("error")).is_visible()
 
     page.reload()
-    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n", arg=len(expected))
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n",
+                           arg=len(expected))
     assert page.locator(tid("filter-error-min")).input_value() == str(error_min)
     assert page.locator(tid("filter-jac-max")).input_value() == str(jac_max_pct)
 
     page.click(tid("reset"))
-    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n", arg=min(len(everything), 50))
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n",
+                           arg=min(len(everything), 50))
     assert page.locator(tid("filter-error-min")).input_value() == ""
 
 
@@ -357,7 +368,8 @@ def test_remove_and_restore_a_ball_label(page):
     with page.expect_response(lambda r: r.request.method == "PATCH") as patch:
         view.locator(tid("remove-ball")).click()
     assert patch.value.ok and patch.value.request.post_data_json == {"box": None}
-    page.wait_for_function("(k) => document.querySelectorAll('[data-testid=view]')[k].dataset.doubtful === 'true'", arg=k)
+    page.wait_for_function("(k) => document.querySelectorAll('[data-testid=view]')[k].dataset.doubtful === 'true'",
+                           arg=k)
     assert view.locator(tid("view-box")).inner_text().startswith("no ball label")
     assert view.locator(tid("ball-hit")).count() == 0
     # the other views still see the ball inside this one: the server names the missing label
@@ -495,7 +507,8 @@ def test_queue_pager_turns_pages_by_cursor(page, artifacts):
     same rows as the pages by offset; its ends are disabled."""
     everything = [str(s["id"]) for s in _api(page, "/api/systems?sort=name&limit=500")["items"]]
     assert len(everything) > 6, "the demo should hold more than two pages of 3"
-    ids = lambda: [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]  # noqa: E731
+    def ids():
+        return [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()]
 
     def shows(rows: list[str]) -> None:
         page.wait_for_function("(want) => [...document.querySelectorAll('[data-testid=queue-row]')]"
@@ -503,7 +516,8 @@ def test_queue_pager_turns_pages_by_cursor(page, artifacts):
 
     page.goto("/?sort=name&limit=3")
     shows(everything[:3])
-    assert page.locator(tid("page-prev")).is_disabled() and page.locator(tid("page-info")).inner_text().startswith("1–3")
+    assert page.locator(tid("page-prev")).is_disabled()
+    assert page.locator(tid("page-info")).inner_text().startswith("1–3")
     page.click(tid("page-next"))
     page.wait_for_url(re.compile(r"after="))
     shows(everything[3:6])

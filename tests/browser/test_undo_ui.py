@@ -35,8 +35,9 @@ def _triangulated_with_box(page) -> tuple[dict, int]:
 
 def test_nudge_undo_redo_exclusion_and_the_history_summaries(page, artifacts):
     system, k = _triangulated_with_box(page)
-    sid, fid = system["id"], system["views"][k]["frame_id"]
-    accepted = api_write(page, "POST", f"/api/systems/{sid}/review", data={"status": "accepted", "comment": "looked fine"},
+    sid = system["id"]
+    accepted = api_write(page, "POST", f"/api/systems/{sid}/review",
+                         data={"status": "accepted", "comment": "looked fine"},
                          headers={"If-Match": system["etag"]})
     assert accepted.ok, accepted.text()
     before = _api(page, f"/api/systems/{sid}")
@@ -54,8 +55,10 @@ def test_nudge_undo_redo_exclusion_and_the_history_summaries(page, artifacts):
     box = before["views"][k]["ball"]["box"]
     assert nudged["views"][k]["ball"]["box"] == pytest.approx([box[0] + 3, box[1], box[2] + 3, box[3]], abs=0.05)
     assert nudged["ball3d"] != before["ball3d"]
-    assert nudged["review"]["status"] == "pending" and f"ball of V{k + 1} moved 3.0 px" in nudged["review"]["reset_reason"]
-    page.wait_for_function("() => document.querySelector('[data-testid=system-status]').textContent.toLowerCase().includes('pending')")
+    assert nudged["review"]["status"] == "pending"
+    assert f"ball of V{k + 1} moved 3.0 px" in nudged["review"]["reset_reason"]
+    page.wait_for_function("() => document.querySelector('[data-testid=system-status]')"
+                           ".textContent.toLowerCase().includes('pending')")
 
     # Ctrl+Z: the undo of that entry; label, camera and 3D ball to the same numbers
     with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
@@ -87,7 +90,8 @@ def test_nudge_undo_redo_exclusion_and_the_history_summaries(page, artifacts):
     texts = page.locator(tid("history-entry")).all_inner_texts()
     joined = "\n".join(texts)
     for words in (f"ball of V{k + 1} moved 3.0 px", f"V{k + 1} excluded from the 3D ball",
-                  f"V{k + 1} restored to the 3D ball", "system set back to pending", "system accepted", "undo of entry"):
+                  f"V{k + 1} restored to the 3D ball", "system set back to pending", "system accepted",
+                  "undo of entry"):
         assert words in joined, (words, texts)
     page.locator(tid("history")).scroll_into_view_if_needed()
     page.screenshot(path=str(artifacts / "undo-history-summaries.png"))
@@ -98,7 +102,8 @@ def test_nudge_undo_redo_exclusion_and_the_history_summaries(page, artifacts):
     assert answer.value.status == 200
     assert _api(page, f"/api/systems/{sid}")["views"][k]["review"]["excluded"] is True
     page.keyboard.press("Control+Shift+Z")
-    page.wait_for_function("() => document.querySelector('[data-testid=toast]').textContent.includes('Nothing to redo')")
+    page.wait_for_function("() => document.querySelector('[data-testid=toast]')"
+                           ".textContent.includes('Nothing to redo')")
 
 
 def test_a_decision_is_undone_by_ctrl_z_on_its_system(page, artifacts):
@@ -126,7 +131,8 @@ def test_a_mirror_fix_is_undone_to_the_same_numbers(page, artifacts):
     found = None
     for s in listing:
         system = _api(page, f"/api/systems/{s['id']}")
-        k = next((i for i, v in enumerate(system["views"]) if (v.get("calibration") or {}).get("probably_mirrored")), None)
+        k = next((i for i, v in enumerate(system["views"]) if (v.get("calibration") or {}).get("probably_mirrored")),
+                 None)
         if k is not None:
             found = (system, k)
             break
@@ -148,5 +154,6 @@ def test_a_mirror_fix_is_undone_to_the_same_numbers(page, artifacts):
     undone = _api(page, f"/api/systems/{sid}")
     assert _numbers(undone) == _numbers(before)
     assert undone["views"][k]["field_lines"] == before["views"][k]["field_lines"]
-    page.wait_for_function("() => document.querySelector('[data-testid=toast]').textContent.startsWith('Undone: field lines of V')")
+    page.wait_for_function("() => document.querySelector('[data-testid=toast]').textContent.startsWith('Undone: field "
+                           "lines of V')")
     page.screenshot(path=str(artifacts / "undo-mirror.png"))

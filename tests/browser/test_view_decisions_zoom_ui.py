@@ -52,7 +52,8 @@ def test_per_view_and_calibration_decisions(page, artifacts):
 
     # a click decides V1's ball; keys decide V2's ball and calibration (Shift+letters on the selected view)
     _bar(page, 0).locator("[data-part=view][data-status=accepted]").click()
-    page.wait_for_function("() => document.querySelectorAll('[data-testid=view-decision-status]')[0].textContent === 'accepted'")
+    page.wait_for_function("() => document.querySelectorAll('[data-testid=view-decision-status]')[0].textContent === "
+                           "'accepted'")
     page.keyboard.press("2")
     page.keyboard.press("Shift+F")
     page.keyboard.press("Shift+G")
@@ -83,7 +84,8 @@ def test_per_view_and_calibration_decisions(page, artifacts):
     assert edit.ok, edit.text()
     answer = edit.json()
     reason = answer["review"]["reset_reason"]
-    assert answer["review"]["status"] == "pending" and reason.startswith(f"{v2['name']}: field lines replaced by test-admin")
+    assert answer["review"]["status"] == "pending"
+    assert reason.startswith(f"{v2['name']}: field lines replaced by test-admin")
     assert answer["views"][1]["review"]["calibration"] == {**answer["views"][1]["review"]["calibration"],
                                                            "status": "pending", "reset_reason": reason}
     page.reload()
@@ -120,14 +122,14 @@ def test_synchronised_zoom_and_pan_kept_across_systems(page, artifacts):
     page.evaluate("() => sessionStorage.clear()")
     _open(page, system)
     views = system["views"]
-    assert all(w == [0, 0, v["width"], v["height"]] for w, v in zip(_windows(page), views))
+    assert all(w == [0, 0, v["width"], v["height"]] for w, v in zip(_windows(page), views, strict=False))
     radius_whole = float(page.locator(tid("view-svg")).first.locator("circle.annot").first.get_attribute("r"))
 
     for _ in range(4):  # x1.5 four times: x5.0625
         page.keyboard.press(">")
     z = 1.5 ** 4
     assert page.locator(tid("zoom-level")).inner_text() == "×5.06"
-    for w, v in zip(_windows(page), views):
+    for w, v in zip(_windows(page), views, strict=False):
         assert w[2] == pytest.approx(v["width"] / z, abs=0.01) and w[3] == pytest.approx(v["height"] / z, abs=0.01)
         c = _centre(v)
         if c is not None:  # centred on its ball unless that would leave the image
@@ -147,7 +149,7 @@ def test_synchronised_zoom_and_pan_kept_across_systems(page, artifacts):
     before = _windows(page)
     page.keyboard.press("Shift+L")
     moved = _windows(page)
-    for b, m, v in zip(before, moved, views):
+    for b, m, v in zip(before, moved, views, strict=False):
         room = v["width"] - b[2] - b[0]  # how far the window could still go right
         assert m[0] - b[0] == pytest.approx(min(0.25 * v["width"] / z, room), abs=0.01)
 
@@ -162,11 +164,11 @@ def test_synchronised_zoom_and_pan_kept_across_systems(page, artifacts):
                            f"'{_api(page, f'/api/systems/{next_id}?sort=name')['views'][0]['frame_id']}'")
     nxt = _api(page, f"/api/systems/{next_id}?sort=name")
     assert page.locator(tid("zoom-level")).inner_text() == "×7.59"
-    for w, v in zip(_windows(page), nxt["views"]):
+    for w, v in zip(_windows(page), nxt["views"], strict=False):
         assert w[2] == pytest.approx(v["width"] / 1.5 ** 5, abs=0.01)
     _shot(page, artifacts, "zoom-next-system.png")
     page.keyboard.press("0")
-    assert all(w == [0, 0, v["width"], v["height"]] for w, v in zip(_windows(page), nxt["views"]))
+    assert all(w == [0, 0, v["width"], v["height"]] for w, v in zip(_windows(page), nxt["views"], strict=False))
     assert page.evaluate("() => JSON.parse(sessionStorage.getItem('v3d.zoom'))") == {"z": 1, "pan": [0, 0]}
 
 

@@ -11,13 +11,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-import app.cli.calibration  # noqa: F401  (registers ``v3d calibrate``)
-import app.cli.evaluation  # noqa: F401  (registers ``v3d jac``)
+import app.cli.calibration  # registers ``v3d calibrate``
+import app.cli.evaluation  # noqa: F401  # registers ``v3d jac``
 from app.cli._root import cli
 from app.geometry.annotations import to_soccernet_calibration
 from app.geometry.calibration import principal_point
-from app.geometry.camera import look_at_rotation
-from app.geometry.camera import Camera
+from app.geometry.camera import Camera, look_at_rotation
 from tests.geometry.test_calibration import synthetic_lines
 
 W, H = 960, 540
@@ -86,7 +85,9 @@ def test_output_is_scored_by_v3d_jac(annotations_zip: Path, tmp_path: Path) -> N
 def test_missing_input_is_a_clear_error(tmp_path: Path) -> None:
     result = runner.invoke(cli, ["calibrate", str(tmp_path / "nope.zip"), str(tmp_path / "out")])
     assert result.exit_code != 0
-    flat = lambda text: re.sub(r"[\s\u2502]+", " ", text)  # noqa: E731 (rich wraps long paths in a box)
+    # rich wraps long paths in a box
+    def flat(text):
+        return re.sub(r"[\s\u2502]+", " ", text)
     assert "no such file or folder" in flat(result.output)
     (tmp_path / "notes.txt").write_text("not a set")
     result = runner.invoke(cli, ["calibrate", str(tmp_path / "notes.txt"), str(tmp_path / "out")])

@@ -23,7 +23,7 @@ import pytest
 import sqlalchemy as sa
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the commands)
+import app.cli.datasets  # noqa: F401  # registers the commands
 from app.cli._root import cli
 from app.db.session import make_engine
 from app.geometry.annotations import image_diagonal, lines_from_json_lists
@@ -102,7 +102,8 @@ def test_the_official_evaluator_reads_the_cameras_export_and_gives_v3d_jac(offic
         assert at_gamma["meanAccuracies"] == pytest.approx(row.jac_0005, abs=1e-6), view
         lines = lines_from_json_lists(json.loads(row.lines) if isinstance(row.lines, str) else row.lines)
         ours = evaluate_jac(Camera.from_soccernet(camera), lines, W, H, [5.0, 2.0]).per_threshold
-        for threshold, v3d in zip((5, 2), ours):  # the official threshold, and a tight one where frames differ
+        # the official threshold, and a tight one where frames differ
+        for threshold, v3d in zip((5, 2), ours, strict=False):
             theirs = official(str(one), str(pred_zip), threshold=threshold, width=W, height=H)["meanAccuracies"]
             assert theirs == pytest.approx(v3d.jac, abs=1e-6), (view, threshold)
             tight.append(theirs)

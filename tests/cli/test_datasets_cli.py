@@ -9,7 +9,7 @@ import pytest
 import sqlalchemy as sa
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the commands)
+import app.cli.datasets  # noqa: F401  # registers the commands
 from app.cli._root import cli
 from app.db.session import make_engine
 from tests.services.datasets import write_calibration_zip, write_v3_game
@@ -97,7 +97,8 @@ def test_bad_input_exits_2_with_the_file_and_field_and_stores_nothing(shared_dir
         assert "../../escape.json" in zf.namelist()  # the archive was read, never extracted
     assert not (tmp_path.parent / "escape.json").exists()
 
-    missing = runner.invoke(cli, ["import", "sn-calibration", str(archive.with_name("absent.zip")), "--database-url", url])
+    missing = runner.invoke(cli, ["import", "sn-calibration", str(archive.with_name("absent.zip")), "--database-url",
+                                  url])
     assert missing.exit_code == 2 and "no such file or folder" in missing.output
 
 
@@ -156,5 +157,6 @@ def test_import_split_makes_the_listed_images_the_exports_split(shared_dir, tmp_
     assert "(0 changed)" in again.output
     bad = runner.invoke(cli, ["import", "split", str(listed), "--set", "val", "--database-url", url])
     assert bad.exit_code == 2 and "set" in bad.output
-    missing = runner.invoke(cli, ["import", "split", str(tmp_path / "none.txt"), "--set", "test", "--database-url", url])
+    missing = runner.invoke(cli, ["import", "split", str(tmp_path / "none.txt"), "--set", "test", "--database-url",
+                                  url])
     assert missing.exit_code == 2 and "none.txt" in missing.output

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the import commands)
-import app.cli.doubts  # noqa: F401  (registers v3d doubts)
+import app.cli.datasets  # registers the import commands
+import app.cli.doubts  # noqa: F401  # registers v3d doubts
 from app.cli._root import cli
 from app.demo import generate_demo_dataset
 from app.geometry.doubts import LABEL_KINDS
@@ -47,7 +47,8 @@ def test_doubts_json_names_systems_and_frames_by_image_name(demo_db, tmp_path: P
             assert isinstance(d["message"], str) and d["message"]
     (missing,) = truth["problems"]["missing_ball"]
     named = [d for s in systems for d in s["doubts"] if d["kind"] == "ball_missing" and d["frame"] == missing]
-    assert len(named) == 1 and named[0]["suggestion"]["action"] == "snap_box" and len(named[0]["suggestion"]["box"]) == 4
+    assert len(named) == 1
+    assert named[0]["suggestion"]["action"] == "snap_box" and len(named[0]["suggestion"]["box"]) == 4
     req = named[0]["suggestion"]["request"]
     # the label a fix makes keeps where it came from: not independent evidence until a person places it
     assert req == {"method": "PATCH", "path": f"/api/frames/{named[0]['frame_id']}/ball",
@@ -81,9 +82,10 @@ def test_the_misplaced_ball_is_offered_the_true_box_with_its_uncertainty(demo_db
     fix = doubt["suggestion"]
     assert fix["action"] == "snap_box" and fix["alternatives"] == ["exclude_view"]
     box, precise = fix["box"], true_view["precise_box"]
-    centre_error = ((box[0] + box[2] - precise[0] - precise[2]) ** 2 + (box[1] + box[3] - precise[1] - precise[3]) ** 2) ** 0.5 / 2
+    centre_error = ((box[0] + box[2] - precise[0] - precise[2]) ** 2
+                    + (box[1] + box[3] - precise[1] - precise[3]) ** 2) ** 0.5 / 2
     assert centre_error < 3.0, (box, precise)
-    assert max(abs(a - b) for a, b in zip(box, precise)) < 3.0
+    assert max(abs(a - b) for a, b in zip(box, precise, strict=False)) < 3.0
     assert 0.0 < fix["box_sigma_px"] < 5.0 and centre_error < 3 * fix["box_sigma_px"] + 1.0
     # the page's fix key sends the box as a suggestion (its provenance), not as a person's label
     assert fix["request"]["body"]["provenance"]["doubt"] == "ball_off_consensus"

@@ -2,12 +2,10 @@
 dev sequence without videos)."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import sqlalchemy as sa
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the commands)
+import app.cli.datasets  # noqa: F401  # registers the commands
 from app.cli._root import cli
 from app.datasets.issia3d import read_issia3d_csv
 from app.db.session import make_engine

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-import app.cli.evaluation  # noqa: F401  (registers ``v3d jac``)
+import app.cli.evaluation  # noqa: F401  # registers ``v3d jac``
 from app.cli._root import cli
 from app.geometry.annotations import from_soccernet_calibration
 from app.geometry.camera import Camera

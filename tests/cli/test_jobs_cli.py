@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the commands)
-import app.cli.jobs  # noqa: F401
+import app.cli.datasets  # registers the commands
+import app.cli.jobs  # noqa: F401  # registers its commands
 from app.cli._root import cli
 from app.db.session import make_engine, make_session_factory
 from app.services.jobs import runner as jobs

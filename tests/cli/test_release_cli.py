@@ -20,8 +20,8 @@ import pytest
 import sqlalchemy as sa
 from typer.testing import CliRunner
 
-import app.cli.datasets  # noqa: F401  (registers the commands)
-import app.cli.detectors  # noqa: F401
+import app.cli.datasets  # registers the commands
+import app.cli.detectors  # noqa: F401  # registers its commands
 from app.cli._root import cli
 from app.core.config import Settings
 from app.db.models import Frame, SystemKind

@@ -13,7 +13,7 @@ from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from typer.testing import CliRunner
 
-import app.cli.serve  # noqa: F401  (registers the command)
+import app.cli.serve  # noqa: F401  # registers the command
 from app.cli._root import cli
 from app.core.config import get_settings
 from app.db.models import Game, User

@@ -9,7 +9,7 @@ import pytest
 from fastapi.testclient import TestClient
 from typer.testing import CliRunner
 
-import app.cli.users  # noqa: F401  (registers v3d users)
+import app.cli.users  # noqa: F401  # registers v3d users
 from app.cli._root import cli
 from app.core.config import Settings
 from app.main import create_app

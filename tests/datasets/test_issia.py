@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from app.core.config import Settings
-from app.services.issia.trajectory import fit_args
+from app.core.errors import DatasetError
 from app.datasets.issia import read_frame_image, read_issia
+from app.datasets.issia3d import ISSIA3D_COLUMNS, Issia3DRow, issia3d_rows, read_issia3d_csv, write_issia3d_csv
 from app.geometry.calibration import calibrate_frame
+from app.geometry.camera import Camera
 from app.services.calibration.admission import admission_args
 from app.services.issia.cameras import sequence_cameras
-from app.datasets.issia3d import ISSIA3D_COLUMNS, Issia3DRow, issia3d_rows, read_issia3d_csv, write_issia3d_csv
-from app.geometry.camera import Camera
-from app.core.errors import DatasetError
+from app.services.issia.trajectory import fit_args
 
 #: The admission's gamma and threshold in force (Settings, V3D_ADMIT_JAC_GAMMA and V3D_ADMIT_JAC_MIN), as the import
 #: passes them.
@@ -184,7 +184,8 @@ def test_issue_figures_on_issia_dev(issia_dev, from_lines, tmp_path):
         assert all(c.bundle_adjusted and c.jac > 0.75 for c in choice.values())
         assert choice["4"].ball_assisted  # refused from its lines, resected from the ball, then adjusted
     # the CSV of the fitted sequence survives a round trip and agrees with the fit
-    cams = {c: ch.camera for c, ch in sequence_cameras(seq, from_lines=from_lines, **ADMIT, pair_rules=PAIR_RULES).items()}
+    cams = {c: ch.camera
+            for c, ch in sequence_cameras(seq, from_lines=from_lines, **ADMIT, pair_rules=PAIR_RULES).items()}
     rows = issia3d_rows(seq, cams, fit)
     write_issia3d_csv(tmp_path / "ISSIA-3D.csv", rows)
     back = read_issia3d_csv(tmp_path / "ISSIA-3D.csv")
@@ -210,7 +211,8 @@ def test_cameras_from_lines_are_judged_at_the_admissions_gamma(issia_dev):
                                   ball_assist=False, bundle=False)
         calibrated = {cid for cid, res in own.items() if res.camera is not None}
         assert calibrated and all(choice[cid].jac == own[cid].jac[key] for cid in calibrated)
-        refused = sequence_cameras(seq, from_lines=True, admit_jac_gamma=gamma, admit_jac_min=1.0, pair_rules=PAIR_RULES,
+        refused = sequence_cameras(seq, from_lines=True, admit_jac_gamma=gamma, admit_jac_min=1.0,
+                                   pair_rules=PAIR_RULES,
                                    ball_assist=False, bundle=False)
         assert all(refused[cid].refusal == "below_admission" and f"JaC@{100 * gamma:g}% " in refused[cid].reason
                    for cid in calibrated)

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from app.datasets.sn_calibration import frame_entries, read_sn_calibration
 from app.core.errors import DatasetError
+from app.datasets.sn_calibration import frame_entries, read_sn_calibration
 
 FRAME = {"Side line top": [{"x": 0.1, "y": 0.2}, {"x": 0.9, "y": 0.2}],
          "Middle line": [{"x": 0.5, "y": 0.2}, {"x": 0.5, "y": 0.9}]}

@@ -5,13 +5,18 @@ import numpy as np
 import pytest
 
 from app.demo.labels import (
-    box_iou, box_size_error, clip_segments_to_rect, jitter_box, loose_ball_box, misplaced_ball_box, visible_runs,
+    box_iou,
+    box_size_error,
+    clip_segments_to_rect,
+    jitter_box,
+    loose_ball_box,
+    misplaced_ball_box,
+    visible_runs,
 )
 from app.demo.render import clip_polygon_near, render_ball
 from app.demo.rig import RIG, framing_camera
-from app.geometry.camera import look_at_rotation
 from app.demo.scene import precise_ball_box, sphere_silhouette
-from app.geometry.camera import pan_tilt_roll_from_rotation
+from app.geometry.camera import look_at_rotation, pan_tilt_roll_from_rotation
 
 
 @pytest.mark.parametrize("name", sorted(RIG))

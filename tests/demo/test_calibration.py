@@ -8,7 +8,6 @@ from app.geometry import calibration, jac
 from app.geometry.annotations import from_soccernet_v3
 from app.geometry.camera import Camera
 from app.geometry.pitch import mirror_world_points
-
 from tests.demo.support import Demo
 
 

@@ -88,10 +88,9 @@ def test_healthchecks_query_an_api_route_that_exists(compose: dict) -> None:
     probe = " ".join(compose["services"]["app"]["healthcheck"]["test"])
     path = re.search(r"127\.0\.0\.1:8000(/[\w/]+)", probe).group(1)
     assert path in (DOCKER / "Dockerfile").read_text(encoding="utf-8")
+    from app.api.authentication import is_protected
     from app.core.config import Settings
     from app.main import create_app
-
-    from app.api.authentication import is_protected
 
     assert "get" in create_app(Settings(database_url="sqlite://")).openapi()["paths"][path]
     assert not is_protected(path)

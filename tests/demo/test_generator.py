@@ -17,7 +17,6 @@ from app.demo.rig import RIG
 from app.geometry.annotations import from_soccernet_v3, mirror_lines
 from app.geometry.camera import Camera
 from app.geometry.pitch import LINE_CLASSES, MIRROR_CLASSES, sample_pitch_polylines
-
 from tests.demo.support import Demo, load_demo
 
 

@@ -5,14 +5,12 @@ from __future__ import annotations
 import numpy as np
 from sqlalchemy.orm import Session
 
-from app.core.config import Settings
-
-from tests.demo.support import Demo
-
 from app.api.view_schemas import SystemView
-from app.services.transfer import importing
+from app.core.config import Settings
 from app.services.curation import queue
 from app.services.curation.system_page import system_page
+from app.services.transfer import importing
+from tests.demo.support import Demo
 
 
 def test_demo_imports_into_the_review_queue(demo: Demo, db_session: Session, db_settings: Settings) -> None:

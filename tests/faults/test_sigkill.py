@@ -28,9 +28,8 @@ import httpx
 import pytest
 import sqlalchemy as sa
 
-from app.db.models import Base, BallLabel, Calibration, Doubt, Frame, Game, Job, JobState, System, Triangulation
+from app.db.models import BallLabel, Base, Calibration, Doubt, Frame, Game, Job, JobState, System, Triangulation
 from app.db.session import make_engine, upgrade_database
-
 from tests.services.datasets import DEV_GAME, write_v3_game
 
 V3D = str(Path(sys.executable).with_name("v3d"))
@@ -66,7 +65,8 @@ def _snapshot(url: str) -> dict[str, Any]:
         with engine.connect() as conn:
             counts = {m.__tablename__: conn.scalar(sa.select(sa.func.count()).select_from(m))
                       for m in (Game, System, Frame, Calibration, BallLabel, Triangulation, Doubt)}
-            cals = sorted((g, s, f, st.value if hasattr(st, "value") else st, round(j or 0, 9)) for g, s, f, st, j in conn.execute(
+            cals = sorted((g, s, f, st.value if hasattr(st, "value") else st, round(j or 0, 9))
+                          for g, s, f, st, j in conn.execute(
                 sa.select(Game.league, System.name, Frame.name, Calibration.status, Calibration.jac_0005)
                 .join(System, System.game_id == Game.id).join(Frame, Frame.system_id == System.id)
                 .join(Calibration, Calibration.frame_id == Frame.id)))
@@ -168,7 +168,8 @@ def _resume_and_compare(url: str, tree: Path, clean: dict[str, Any]) -> None:
     _soundness(url)
     [resumed] = _job(url)
     assert (resumed.id, resumed.state, resumed.attempts) == (job.id, JobState.DONE, 2)
-    assert resumed.result["games"] == GAMES and resumed.result["systems_new"] == clean["counts"]["systems"] - partial["systems"]
+    assert resumed.result["games"] == GAMES
+    assert resumed.result["systems_new"] == clean["counts"]["systems"] - partial["systems"]
     assert _snapshot(url) == clean
 
 

@@ -8,10 +8,9 @@ import pytest
 from app.geometry.annotations import AnnotationError, FieldLines, mirror_lines
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, principal_point
 from app.geometry.calibration.initialisation import camera_from_homography
-from app.geometry.camera import look_at_rotation
 from app.geometry.calibration.observations import build_observations
 from app.geometry.calibration.residuals import point_distances, projection_matrix
-from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
+from app.geometry.camera import Camera, look_at_rotation, pan_tilt_roll_from_rotation
 from app.geometry.pitch import CIRCLES, sample_pitch_polylines
 
 
@@ -35,7 +34,8 @@ def synthetic_lines(camera: Camera, width: int, height: int, sigma_px: float, se
         uv, ok = camera.project(X)
         inside = ok & (uv[:, 0] >= 0) & (uv[:, 0] <= width - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= height - 1)
         pts = uv[inside]
-        if len(pts) < 2 or np.linalg.norm(pts[-1] - pts[0]) < min_extent_px and np.ptp(pts, axis=0).max() < min_extent_px:
+        if len(pts) < 2 or (np.linalg.norm(pts[-1] - pts[0]) < min_extent_px
+                            and np.ptp(pts, axis=0).max() < min_extent_px):
             continue
         n = 12 if cls in CIRCLES else 4
         pick = pts[np.linspace(0, len(pts) - 1, n).round().astype(int)]
@@ -190,7 +190,8 @@ def test_parallel_lines_only_are_refused_as_degenerate() -> None:
 
 def test_collinear_labels_are_refused_as_degenerate() -> None:
     # Four classes along both pitch directions, but every point lies on one image line.
-    line = lambda x0, x1: np.array([[x0, 200.0 + 0.1 * x0], [x1, 200.0 + 0.1 * x1]])  # noqa: E731
+    def line(x0, x1):
+        return np.array([[x0, 200.0 + 0.1 * x0], [x1, 200.0 + 0.1 * x1]])
     lines = {"Side line top": [line(0, 300)], "Middle line": [line(320, 500)],
              "Big rect. left main": [line(520, 700)], "Side line bottom": [line(720, 950)]}
     result = calibrate_frame(lines, 960, 540, compute_jac=False)
@@ -282,7 +283,8 @@ def test_rig_computes_jac_once_for_the_chosen_position(monkeypatch: pytest.Monke
     """Work done twice: ``calibrate_with_rig`` computed JaC for the fit at every rig position and
     kept one; JaC never chooses, so it is now computed once, for the chosen fit, with the same
     values as before (those of ``calibrate_frame`` at that centre)."""
-    from app.geometry.calibration import CameraRig, CalibrationPrior, calibrate_with_rig, rig as rig_module
+    from app.geometry.calibration import CalibrationPrior, CameraRig, calibrate_with_rig
+    from app.geometry.calibration import rig as rig_module
     from app.geometry.calibration.rig import RigPosition
 
     main = (2.0, 64.0, -19.0)
@@ -318,13 +320,14 @@ def test_frames_calibrated_together_equal_one_call_each() -> None:
     jobs += [(lines, 960, 540, CalibrationPrior(expected_side=1)), (other, 960, 540, None)]
     together = calibrate_frames_together(jobs)
     assert [r.status for r in together][3:] == ["calibrated", "calibrated"] and together[0].calibrated
-    for (job_lines, w, h, prior), got in zip(jobs, together):
+    for (job_lines, w, h, prior), got in zip(jobs, together, strict=False):
         alone = calibrate_frame(job_lines, w, h, prior=prior)
         assert (got.status, got.refusal, got.flags, got.rms_px, dict(got.jac), dict(got.residuals_px)) == \
                (alone.status, alone.refusal, alone.flags, alone.rms_px, dict(alone.jac), dict(alone.residuals_px))
         if alone.camera is not None:
             assert np.array_equal(got.camera.K, alone.camera.K) and np.array_equal(got.camera.R, alone.camera.R)
-            assert np.array_equal(got.camera.C, alone.camera.C) and np.array_equal(got.camera.radial, alone.camera.radial)
+            assert np.array_equal(got.camera.C, alone.camera.C) and np.array_equal(got.camera.radial,
+                                                                                   alone.camera.radial)
 
 
 def test_rig_without_positions_refuses() -> None:

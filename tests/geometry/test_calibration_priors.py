@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty
-from app.geometry.calibration.result import PRIOR_FLAG
 from app.geometry.calibration.learning import learn_camera_prior
 from app.geometry.calibration.priors import CameraPrior, anchor_order, prior_rows
+from app.geometry.calibration.result import PRIOR_FLAG
 from app.geometry.camera import Camera, look_at_rotation, pan_tilt_roll_from_rotation, rotation_from_pan_tilt_roll
 from tests.geometry.synthetic import visible_model_points
 
@@ -148,7 +148,8 @@ def test_the_service_stores_the_posterior_std_of_a_map_fit() -> None:
     prior = _prior_at(truth.C)
     result = calibrate_frame(lines, W, H, prior=prior, compute_jac=False)
     assert result.centre_prior is not None
-    stored = calibrate_lines(lines_to_json_lists(lines), W, H, rig=prior.camera_prior).uncertainty  # as an edit stores it
+    # as an edit stores it
+    stored = calibrate_lines(lines_to_json_lists(lines), W, H, rig=prior.camera_prior).uncertainty
     posterior = calibration_uncertainty(result.camera, lines, prior=result.centre_prior).to_json()
     assert stored == posterior
     lines_only = fit_uncertainty(result.camera, lines, result.flags)

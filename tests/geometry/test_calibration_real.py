@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.geometry.calibration.result import REFUSAL_CODES
 from app.geometry.annotations import from_soccernet_calibration, from_soccernet_v3
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
+from app.geometry.calibration.result import REFUSAL_CODES
 from app.geometry.camera import Camera
 from app.geometry.jac import evaluate_jac
 
@@ -28,7 +28,8 @@ def test_real_frames_calibrate_with_high_official_jac(shared_dir: Path, folder: 
         lines = from_soccernet_calibration(data, 960, 540)
         result = calibrate_frame(lines, 960, 540, prior=CalibrationPrior(expected_side=1), compute_jac=False)
         if result.camera is None:
-            assert result.refusal.code in REFUSAL_CODES  # e.g. sn22 frame 00020: its goal is labelled left, its box right
+            # e.g. sn22 frame 00020: its goal is labelled left, its box right
+            assert result.refusal.code in REFUSAL_CODES
             refused.append(result.refusal)
             continue
         assert "probably_mirrored" not in result.flags  # these main cameras stand on the y > 0 side

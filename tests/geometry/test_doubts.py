@@ -12,16 +12,23 @@ import pytest
 
 from app.core.config import Settings
 from app.geometry.ball import sphere_image_box
-from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.camera import Camera, pan_tilt_roll_from_rotation
 from app.geometry.consensus import ball_consensus
+from app.geometry.doubts import (
+    CODES,
+    INFO_KINDS,
+    LABEL_KINDS,
+    SUGGESTION_ACTIONS,
+    DoubtView,
+    epipolar_pair_error,
+    judge_system,
+)
 from app.geometry.mirror import mirror_camera
-from app.geometry.doubts import (CODES, INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, DoubtView,
-                                 epipolar_pair_error, judge_system)
+from app.geometry.pitch import PLAY_VOLUME
+from app.geometry.triangulation import BallObservation
 from app.geometry.weighting import pixel_sigma
 from app.services.curation.doubt_words import doubt_message
 from app.services.curation.doubts import doubt_settings
-from app.geometry.triangulation import BallObservation
 
 BALL = np.array([10.0, 5.0, -0.11])  # on the grass
 R_BALL = 0.11
@@ -129,7 +136,10 @@ def test_the_consensus_box_carries_the_uncertainty_of_the_agreeing_views_and_of_
     sigma = d.suggestion["box_sigma_px"]
     assert own <= sigma < 15.0  # at least the camera's own sigma, and no more than a few px of label noise
     truth = sphere_image_box(camera("opposite"), BALL, R_BALL)
-    centre = lambda b: np.array([(b[0] + b[2]) / 2, (b[1] + b[3]) / 2])
+
+    def centre(b):
+        return np.array([(b[0] + b[2]) / 2, (b[1] + b[3]) / 2])
+
     assert np.linalg.norm(centre(np.asarray(d.suggestion["box"])) - centre(truth)) < 3 * sigma
 
 
@@ -165,7 +175,7 @@ def test_with_one_other_view_the_missing_ball_is_a_segment_and_a_box_only_where_
 
 def _polyline_distance(poly: np.ndarray, p: np.ndarray) -> float:
     best = math.inf
-    for a, b in zip(poly[:-1], poly[1:]):
+    for a, b in zip(poly[:-1], poly[1:], strict=True):
         t = np.clip((p - a) @ (b - a) / max((b - a) @ (b - a), 1e-12), 0, 1)
         best = min(best, float(np.linalg.norm(a + t * (b - a) - p)))
     return best
@@ -207,7 +217,8 @@ def test_two_rays_that_meet_only_under_the_grass_do_not_agree():
 
 
 def test_votes_are_weighted_by_what_the_calibration_is_worth():
-    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0, "position_m": {"x": .1, "y": .1, "z": .1}}
+    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0,
+            "position_m": {"x": .1, "y": .1, "z": .1}}
     unsure = {**sure, "pan_deg": 2.0, "tilt_deg": 2.0}
     s = SETTINGS
     assert pixel_sigma(scene(main={"uncertainty": sure})[0], BALL, s) < 5.0
@@ -216,7 +227,8 @@ def test_votes_are_weighted_by_what_the_calibration_is_worth():
     wrong = {"box": sphere_image_box(camera("opposite"), BALL, R_BALL) + [200.0, 0.0, 200.0, 0.0]}
     views = [v for v in scene(opposite=wrong, goal={"admitted": False, "jac": 0.7, "uncertainty": sure})
              if v.view_id in ("main", "goal", "opposite")]
-    assert [(d.kind, d.view_id) for d in accusing(judge_system(views, settings=SETTINGS))] == [("ball_off_consensus", "opposite")]
+    assert [(d.kind, d.view_id)
+            for d in accusing(judge_system(views, settings=SETTINGS))] == [("ball_off_consensus", "opposite")]
     # unsure and below admission, it takes no part: one against one, the culprit cannot be told
     views = [v for v in scene(opposite=wrong, goal={"admitted": False, "jac": 0.7, "uncertainty": unsure})
              if v.view_id in ("main", "goal", "opposite")]
@@ -262,7 +274,8 @@ def test_excluded_mirrored_and_few_line_views_are_not_accused_of_their_ball():
     # label meets the ball the other views agree on, so the fix is offered, with both errors
     mirrored_cam = mirror_camera(camera("opposite"))
     true_box = sphere_image_box(camera("opposite"), BALL, R_BALL)
-    doubts = accusing(judge_system(scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True}), settings=SETTINGS))
+    doubts = accusing(judge_system(scene(opposite={"camera": mirrored_cam, "box": true_box, "mirror_flagged": True}),
+                                   settings=SETTINGS))
     assert [(d.kind, d.view_id, d.suggestion) for d in doubts] == [
         ("mirrored_labels", "opposite", {"action": "mirror_labels"})]
     assert doubts[0].evidence["error_mirrored_px_1920"] < 1.0 < doubts[0].evidence["error_as_labelled_px_1920"]
@@ -324,7 +337,8 @@ def test_the_judges_operating_point_is_the_settings_defaults():
     """The judge has no defaults of its own: its operating point (benchmarks/doubts.py) is the settings' defaults,
     read without an environment file."""
     s = doubt_settings(Settings(_env_file=None))
-    assert (s.triangulation_tau_px, s.pair_error_rule, s.min_baseline_m, s.min_parallax_deg) == (20.0, "max_scaled_1920",
+    assert (s.triangulation_tau_px, s.pair_error_rule,
+            s.min_baseline_m, s.min_parallax_deg) == (20.0, "max_scaled_1920",
                                                                                                    1.0, 2.0)
     assert (s.consensus_tau_px, s.near_duplicate_max_deg, s.inside_margin_px,
             s.ground_box_tolerance, s.mirror_rig_near_m, s.mirror_rig_gap_m, s.min_line_classes) == (

@@ -20,7 +20,7 @@ from app.geometry.pitch import CIRCLES, KEY_POINTS, LINE_EXTREMITY_KEYS
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from benchmarks.held_out_class import fold_priors, full_fit, held_out, load_set  # noqa: E402
+from benchmarks.held_out_class import fold_priors, full_fit, held_out, load_set  # needs sys.path above
 
 W, H = 960, 540
 

@@ -224,7 +224,7 @@ def _official_comparison(folder: Path) -> tuple[int, list[str], list[str]]:
                 continue
             lines = from_soccernet_calibration(json.loads(za.read(name)), w, h)
             result = evaluate_jac(Camera.from_soccernet(json.loads(zc.read(cam_name))), lines, w, h, thresholds)
-            for t, got, want in zip(thresholds, (r.jac for r in result.per_threshold), expected):
+            for t, got, want in zip(thresholds, (r.jac for r in result.per_threshold), expected, strict=False):
                 pairs += 1
                 if abs(got - want) <= 1e-6:
                     continue
@@ -232,7 +232,8 @@ def _official_comparison(folder: Path) -> tuple[int, list[str], list[str]]:
                                     *result.mirrored_distances_px.values()])
                 gap = float(np.min(np.abs(d - t))) if len(d) else np.inf
                 (explained if gap <= 0.01 else unexplained).append(
-                    f"{folder.name}/{frame}@{t}px: v3d {got:.7f} official {want:.7f}, nearest point {gap:.4f} px from t")
+                    f"{folder.name}/{frame}@{t}px: v3d {got:.7f} official {want:.7f}, "
+                    f"nearest point {gap:.4f} px from t")
     return pairs, unexplained, explained
 
 

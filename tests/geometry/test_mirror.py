@@ -11,9 +11,21 @@ from app.geometry.calibration import calibrate_frame
 from app.geometry.calibration.rig import CameraRig, RigPosition, calibrate_with_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import (
-    AMBIGUOUS, DIFFERENT, MIRROR_ROTATION, NO_AGREEMENT, SAME, VERDICT_AS_LABELLED, VERDICT_MIRRORED,
-    VERDICT_UNDECIDED, MirrorSettings, MirrorView, mirror_camera, mirror_evidence, mirrored_fit_at_rig,
-    pair_relation, side_vote,
+    AMBIGUOUS,
+    DIFFERENT,
+    MIRROR_ROTATION,
+    NO_AGREEMENT,
+    SAME,
+    VERDICT_AS_LABELLED,
+    VERDICT_MIRRORED,
+    VERDICT_UNDECIDED,
+    MirrorSettings,
+    MirrorView,
+    mirror_camera,
+    mirror_evidence,
+    mirrored_fit_at_rig,
+    pair_relation,
+    side_vote,
 )
 
 from .test_calibration import _camera, synthetic_lines
@@ -96,10 +108,12 @@ def test_two_views_are_decided_by_the_side_prior_or_not_at_all() -> None:
     # Mirroring either of two views makes their rays meet: only a prior can say which.
     with_main = mirror_evidence([view("main"), view("opposite", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")
     assert with_main["opposite"].flagged and with_main["main"].verdict == VERDICT_AS_LABELLED
-    two_replays = mirror_evidence([view("behind_goal"), view("opposite", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")
+    two_replays = mirror_evidence([view("behind_goal"), view("opposite", mirrored=True)], tau_px=20.0,
+                                  rule="max_scaled_1920")
     assert [v.verdict for v in two_replays.values()] == [VERDICT_UNDECIDED, VERDICT_UNDECIDED]
     # A main camera whose labels are mirrored stands beyond the far side line: it is the one.
-    mirrored_main = mirror_evidence([view("main", mirrored=True), view("opposite")], tau_px=20.0, rule="max_scaled_1920")
+    mirrored_main = mirror_evidence([view("main", mirrored=True), view("opposite")], tau_px=20.0,
+                                    rule="max_scaled_1920")
     assert mirrored_main["main"].flagged and not mirrored_main["opposite"].flagged
 
 
@@ -126,7 +140,8 @@ def test_a_doubtful_other_view_does_not_make_a_false_flag() -> None:
     verdicts = mirror_evidence(views, tau_px=20.0, rule="max_scaled_1920")
     assert [v.flagged for v in verdicts.values()] == [False, False, False, True]
     # The margins grow with the evidence: two other views agree when mirrored.
-    assert verdicts["opposite"].margin > mirror_evidence(views[:1] + views[3:], tau_px=20.0, rule="max_scaled_1920")["opposite"].margin
+    assert verdicts["opposite"].margin > mirror_evidence(views[:1] + views[3:], tau_px=20.0,
+                                                         rule="max_scaled_1920")["opposite"].margin
 
 
 def test_a_single_view_reduces_to_the_side_prior() -> None:
@@ -134,7 +149,8 @@ def test_a_single_view_reduces_to_the_side_prior() -> None:
     wrong = mirror_evidence([view("main", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")["main"]
     assert right.verdict == VERDICT_AS_LABELLED and wrong.flagged and wrong.side_vote == 1
     # A replay alone: no evidence.
-    assert mirror_evidence([view("opposite", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")["opposite"].verdict == VERDICT_UNDECIDED
+    evidence = mirror_evidence([view("opposite", mirrored=True)], tau_px=20.0, rule="max_scaled_1920")
+    assert evidence["opposite"].verdict == VERDICT_UNDECIDED
     # Between the side lines a main camera gives no vote (behind a goal, for example).
     assert side_vote(camera("behind_goal"), 1) == 0 and side_vote(camera("main"), 1) == -1
     assert side_vote(mirror_camera(camera("main")), 1) == 1 and side_vote(camera("main"), None) == 0
@@ -147,7 +163,8 @@ def test_rig_prior() -> None:
     assert at_rig.rig_vote == -1 and at_rig.rig_distance_m < 1e-9 and at_rig.verdict == VERDICT_AS_LABELLED
     # Its mirror image at a known position: the vote alone does not flag (a camera seen once is
     # common), but it decides where the rays leave a tie.
-    mirrored_alone = mirror_evidence([view("opposite", mirrored=True)], rig, tau_px=20.0, rule="max_scaled_1920")["opposite"]
+    mirrored_alone = mirror_evidence([view("opposite", mirrored=True)], rig, tau_px=20.0,
+                                     rule="max_scaled_1920")["opposite"]
     assert mirrored_alone.rig_vote == 1 and not mirrored_alone.flagged
     pair = mirror_evidence([view("corner"), view("opposite", mirrored=True)], rig, tau_px=20.0, rule="max_scaled_1920")
     assert pair["opposite"].flagged and not pair["corner"].flagged
@@ -173,7 +190,8 @@ def test_settings_and_inputs_are_checked() -> None:
     assert mirror_evidence([no_ball, view("opposite")], tau_px=20.0, rule="max_scaled_1920")["main"].flagged
     # A stricter decision margin turns the same evidence undecided.
     strict = MirrorSettings(decision_margin=100.0)
-    assert mirror_evidence([view("main", mirrored=True)], settings=strict, tau_px=20.0, rule="max_scaled_1920")["main"].verdict == VERDICT_UNDECIDED
+    assert mirror_evidence([view("main", mirrored=True)], settings=strict,
+                           tau_px=20.0, rule="max_scaled_1920")["main"].verdict == VERDICT_UNDECIDED
 
 
 def test_rig_positions_of_the_wrong_shape_are_refused() -> None:
@@ -182,8 +200,10 @@ def test_rig_positions_of_the_wrong_shape_are_refused() -> None:
     flat = np.array([CENTRES["main"][:2], CENTRES["behind_goal"][:2], CENTRES["opposite"][:2]])
     with pytest.raises(ValueError, match="rig_positions"):
         mirror_evidence([view("opposite")], flat, tau_px=20.0, rule="max_scaled_1920")
-    assert mirror_evidence([view("opposite")], np.zeros((0, 3)), tau_px=20.0, rule="max_scaled_1920")["opposite"].rig_vote == 0
-    one = mirror_evidence([view("opposite")], np.array(CENTRES["opposite"]), tau_px=20.0, rule="max_scaled_1920")["opposite"]
+    assert mirror_evidence([view("opposite")], np.zeros((0, 3)),
+                           tau_px=20.0, rule="max_scaled_1920")["opposite"].rig_vote == 0
+    one = mirror_evidence([view("opposite")], np.array(CENTRES["opposite"]), tau_px=20.0,
+                          rule="max_scaled_1920")["opposite"]
     assert one.rig_distance_m is not None and one.rig_distance_m < 1e-9
 
 

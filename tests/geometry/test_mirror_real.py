@@ -23,13 +23,14 @@ def test_real_single_frames_are_rarely_flagged_and_only_by_the_side_prior(shared
         names = sorted(n for n in z.namelist() if n.endswith(".json"))[::8]
         frames = [json.loads(z.read(n)) for n in names]
     flagged = calibrated = 0
-    for name, data in zip(names, frames):
+    for name, data in zip(names, frames, strict=False):
         result = calibrate_frame(from_soccernet_calibration(data, 960, 540), 960, 540,
                                  prior=CalibrationPrior(expected_side=1), compute_jac=False)
         if result.camera is None:
             continue
         calibrated += 1
-        verdict = mirror_evidence([MirrorView(name, result.camera, expected_side=1)], tau_px=20.0, rule="max_scaled_1920")[name]
+        verdict = mirror_evidence([MirrorView(name, result.camera, expected_side=1)], tau_px=20.0,
+                                  rule="max_scaled_1920")[name]
         assert verdict.flagged == ("probably_mirrored" in result.flags), (name, verdict.sentence)
         assert verdict.flagged == (result.camera.C[1] < -34.0)
         flagged += verdict.flagged

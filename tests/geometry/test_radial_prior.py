@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from app.geometry.calibration import CalibrationPrior, calibrate_frame, calibration_uncertainty, radial_corner
-from app.geometry.calibration.result import RADIAL_PRIOR_FLAG
 from app.geometry.calibration.held_out import class_point_distances, without_class
 from app.geometry.calibration.learning import learn_camera_prior
 from app.geometry.calibration.priors import CameraPrior, prior_rows
+from app.geometry.calibration.result import RADIAL_PRIOR_FLAG
 from app.geometry.camera import Camera, look_at_rotation
 from tests.geometry.synthetic import visible_model_points
 
@@ -42,7 +42,8 @@ def test_the_radial_term_is_learned_from_the_sets_own_fits() -> None:
         # Wide views of either penalty area from the main camera, focal 900-1500 px.
         side = -1.0 if i % 2 else 1.0
         truth = _camera((rng.normal(0.0, 1.0), 58.0 + rng.normal(0.0, 1.0), -16.0),
-                        (side * rng.uniform(30.0, 40.0), rng.uniform(-5.0, 5.0), 0.0), float(rng.uniform(900.0, 1500.0)))
+                        (side * rng.uniform(30.0, 40.0), rng.uniform(-5.0, 5.0), 0.0),
+                        float(rng.uniform(900.0, 1500.0)))
         lines = visible_model_points(truth, W, H, rng, per_class=12, noise_px=0.7)
         fit = calibrate_frame(lines, W, H, compute_jac=False)
         assert fit.camera is not None

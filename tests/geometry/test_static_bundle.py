@@ -62,8 +62,8 @@ def test_bundle_recovers_the_rig_from_lines_and_ball(seed):
     1 px noise, about 6 points a class; starting cameras 0.15 m / 0.5 % / 0.15 degree off, the points
     triangulated with them. Recovered: every centre within 0.1 m and on average within 6 cm, focal length
     within 0.25 %, rotation within 0.07 degree (started from the truth, seed 3 ends 0.09 m / 0.2 % / 0.034
-    degree off: what this scene's lines fix), the points within 8 cm (median; 0.7 px at 50 m is 1.3 cm across a ray, more along it) and closer than
-    the start's by 40 %, the label noise estimated within
+    degree off: what this scene's lines fix), the points within 8 cm (median; 0.7 px at 50 m is 1.3 cm across a ray,
+    more along it) and closer than the start's by 40 %, the label noise estimated within
     20 % (seeds 3, 5 here; 11 checked by hand)."""
     rng = np.random.default_rng(seed)
     truth = _rig()
@@ -88,13 +88,14 @@ def test_bundle_recovers_the_rig_from_lines_and_ball(seed):
     # the starting points as a sequence gives them: each frame triangulated with the starting cameras
     X0 = np.full_like(X, np.nan)
     for f in range(F):
-        tri = triangulate_frame([BallObservation(k, start[k], pts[f, k], W) for k in range(6) if np.isfinite(pts[f, k, 0])], tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+        obs = [BallObservation(k, start[k], pts[f, k], W) for k in range(6) if np.isfinite(pts[f, k, 0])]
+        tri = triangulate_frame(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
         if tri.point is not None:
             X0[f] = tri.point
     res = bundle_adjust(start, lines, pts, np.isfinite(pts[..., 0]), X0)
     assert res.frames > 300 and res.labels > 800
     errors = []
-    for got, cam, s in zip(res.cameras, truth, start):
+    for got, cam, s in zip(res.cameras, truth, start, strict=False):
         assert np.linalg.norm(s.C - cam.C) > 0.149  # the start was off
         errors.append(np.linalg.norm(got.C - cam.C))
         assert errors[-1] < 0.1

@@ -9,12 +9,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.geometry.camera import Camera
 from app.geometry import trajectory as trajectory_module
-from app.geometry.trajectory import fit as fit_module, refit as refit_module, segmentation as segmentation_module
+from app.geometry.camera import Camera
+from app.geometry.trajectory import fit as fit_module
 from app.geometry.trajectory import (
-    fit_trajectory, local_span, refit_local, refit_span, refit_window, triangulate_frame,
+    fit_trajectory,
+    local_span,
+    refit_local,
+    refit_span,
+    refit_window,
+    triangulate_frame,
 )
+from app.geometry.trajectory import refit as refit_module
+from app.geometry.trajectory import segmentation as segmentation_module
 from app.geometry.triangulation import BallObservation
 
 FPS = 25.0
@@ -86,7 +93,8 @@ def scene():
 
 
 def fit(pts):
-    return fit_trajectory(pts, CAMERAS, [1920] * len(CAMERAS), FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    return fit_trajectory(pts, CAMERAS, [1920] * len(CAMERAS), FPS, tau_px=20.0, rule="max_scaled_1920",
+                          min_baseline_m=1.0, min_parallax_deg=0.0)
 
 
 def test_roll_lob_bounce_kick_recovered(scene):
@@ -152,7 +160,8 @@ def test_refit_window_matches_full_fit_after_an_edit(scene):
     bad[100, 0] += (300.0, 0.0)
     first = fit(bad)
     assert first.outliers[100, 0]
-    fixed = refit_window(first, pts, CAMERAS, [1920] * 4, 100, 100, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    fixed = refit_window(first, pts, CAMERAS, [1920] * 4, 100, 100, tau_px=20.0, rule="max_scaled_1920",
+                         min_baseline_m=1.0, min_parallax_deg=0.0)
     full = fit(pts)
     assert fixed.first_frame <= 100 < fixed.first_frame + len(fixed.positions)
     assert not fixed.outliers.any()
@@ -182,7 +191,8 @@ def test_refit_of_a_window_equals_a_fit_from_scratch(scene, edit, monkeypatch):
     calls = []
     real = trajectory_module.triangulate_frame
     monkeypatch.setattr(fit_module, "triangulate_frame", lambda obs, **kw: calls.append(1) or real(obs, **kw))
-    part = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    part = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0,
+                        rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     monkeypatch.undo()
     scratch = fit(edited)
     assert [(p.kind, p.first_frame, p.last_frame) for p in part.pieces] == \
@@ -192,12 +202,14 @@ def test_refit_of_a_window_equals_a_fit_from_scratch(scene, edit, monkeypatch):
     assert len(calls) < len(part.positions) // 4  # most frames keep their own triangulation
     narrow = local_span(before.pieces, f, f)  # the fast path alone reads the piece's frames only
     assert narrow[1] - narrow[0] < b - a
-    alone = refit_local(before.window(*narrow), edited[narrow[0]:narrow[1] + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    alone = refit_local(before.window(*narrow), edited[narrow[0]:narrow[1] + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0,
+                        rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert alone is not None and [(p.kind, p.first_frame, p.last_frame) for p in alone.pieces] == \
         [(p.kind, p.first_frame, p.last_frame) for p in part.pieces]
     assert_same_rows(alone, scratch)
     with pytest.raises(ValueError, match="needs frames"):
-        refit_window(before.window(f, f), edited[f:f + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+        refit_window(before.window(f, f), edited[f:f + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0,
+                     rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
 
 
 @pytest.mark.parametrize("where", ["at a break", "at the first frame"])
@@ -212,11 +224,14 @@ def test_refit_near_a_break_or_the_sequence_start(scene, where):
     k = int(np.nonzero(np.isfinite(pts[f]).all(axis=1))[0][0])
     edited[f, k] += (2.0, 2.0)
     a, b = refit_span(before.pieces, f, f)
-    local = refit_local(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    local = refit_local(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0,
+                        rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     assert (local is None) == (where == "at the first frame")
-    part = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    part = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0,
+                        rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     scratch = fit(edited)
-    assert [(p.first_frame, p.last_frame) for p in part.pieces] == [(p.first_frame, p.last_frame) for p in scratch.pieces]
+    assert [(p.first_frame, p.last_frame) for p in part.pieces] == [(p.first_frame, p.last_frame)
+                                                                    for p in scratch.pieces]
     assert_same_rows(part, scratch)
     if local is not None:
         assert (local.first_frame, len(local.positions)) == (part.first_frame, len(part.positions))
@@ -233,17 +248,21 @@ def test_triangulate_frame_leaves_out_one_wrong_camera(scene):
     assert ks[1] not in res.kept and len(res.kept) == len(ks) - 1
     assert np.linalg.norm(res.point - truth[f]) < 0.1
     assert res.errors_px[ks[1]] > 50
-    two = triangulate_frame(obs[:2], tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)  # two labels that disagree: no point
+    two = triangulate_frame(obs[:2], tau_px=20.0, rule="max_scaled_1920",
+                            min_baseline_m=1.0, min_parallax_deg=0.0)  # two labels that disagree: no point
     assert two.point is None and two.kept == ()
 
 
 def test_bad_inputs_raise():
     with pytest.raises(ValueError, match="points"):
-        fit_trajectory(np.zeros((5, 4)), CAMERAS, [1920] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+        fit_trajectory(np.zeros((5, 4)), CAMERAS, [1920] * 4, FPS, tau_px=20.0, rule="max_scaled_1920",
+                       min_baseline_m=1.0, min_parallax_deg=0.0)
     with pytest.raises(ValueError, match="one per camera"):
-        fit_trajectory(np.zeros((5, 3, 2)), CAMERAS, [1920] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+        fit_trajectory(np.zeros((5, 3, 2)), CAMERAS, [1920] * 4, FPS, tau_px=20.0, rule="max_scaled_1920",
+                       min_baseline_m=1.0, min_parallax_deg=0.0)
     with pytest.raises(ValueError, match="fps"):
-        fit_trajectory(np.zeros((5, 4, 2)), CAMERAS, [1920] * 4, 0.0, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+        fit_trajectory(np.zeros((5, 4, 2)), CAMERAS, [1920] * 4, 0.0, tau_px=20.0, rule="max_scaled_1920",
+                       min_baseline_m=1.0, min_parallax_deg=0.0)
 
 
 def test_refit_given_only_the_pieces_within_reach_is_the_same(scene):
@@ -266,11 +285,13 @@ def test_refit_given_only_the_pieces_within_reach_is_the_same(scene):
         run = before.pieces[max(hit - reach, 0):hit + reach + 1]
         a, b = refit_span(before.pieces, f, f)
         assert refit_span(run, f, f) == (a, b) and local_span(run, f, f) == local_span(before.pieces, f, f)
-        whole = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+        whole = refit_window(before.window(a, b), edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0,
+                             rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
         part = before.window(a, b)
         part = trajectory_module.TrajectoryFit(part.fps, tuple(run), part.positions, part.sources, part.residuals_px,
                                                part.outliers, part.ball_3d, part.cam_lists, first_frame=a)
-        ran = refit_window(part, edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+        ran = refit_window(part, edited[a:b + 1], CAMERAS, [1920] * 4, f, f, tau_px=20.0, rule="max_scaled_1920",
+                           min_baseline_m=1.0, min_parallax_deg=0.0)
         assert [(p.kind, p.first_frame, p.last_frame) for p in ran.pieces] == \
             [(p.kind, p.first_frame, p.last_frame) for p in whole.pieces if p.last_frame >= run[0].first_frame
              and p.first_frame <= run[-1].last_frame]
@@ -293,10 +314,25 @@ def test_linear_fits_of_many_sets_equal_those_of_each_alone(scene):
         idx = np.concatenate([by_frame[f] for f in frames if a <= f <= b])
         jobs += [(idx, kind, a) for kind in motion.KINDS]
     together = motion.linear_fits(L, jobs, FPS)
-    for job, (q, cost) in zip(jobs, together):
+    for job, (q, cost) in zip(jobs, together, strict=False):
         alone_q, alone_cost = motion.linear_fits(L, [job], FPS)[0]
         assert np.array_equal(q, alone_q) and cost == alone_cost
         assert np.all(np.isfinite(q)) and cost >= 0
+
+
+def _residuals(q, sub, kind, t):
+    from app.geometry import motion
+    return motion.residuals_and_jacobian(sub, kind, q, t, False)[0]
+
+
+def _jacobian(q, sub, kind, t):
+    from app.geometry import motion
+    return motion.residuals_and_jacobian(sub, kind, q, t)[1]
+
+
+def _cost(q, sub, kind, t):
+    from app.geometry import motion
+    return motion._loss(_residuals(q, sub, kind, t))
 
 
 def test_refinement_reaches_the_minimum_scipy_finds(scene):
@@ -317,14 +353,9 @@ def test_refinement_reaches_the_minimum_scipy_finds(scene):
         for kind in motion.KINDS:
             start = motion.linear_fits(sub, [(np.arange(len(t)), kind, piece.first_frame)], FPS)[0][0]
             ours = motion.refine(sub, kind, start, t)
-            theirs = least_squares(lambda q: motion.residuals_and_jacobian(sub, kind, q, t, False)[0], start,
-                                   jac=lambda q: motion.residuals_and_jacobian(sub, kind, q, t)[1], loss="cauchy",
+            theirs = least_squares(_residuals, start, jac=_jacobian, args=(sub, kind, t), loss="cauchy",
                                    f_scale=motion.CAUCHY_PX, x_scale="jac").x
-
-            def cost(q):
-                return motion._loss(motion.residuals_and_jacobian(sub, kind, q, t, False)[0])
-
-            assert cost(ours) <= cost(theirs) * (1 + 1e-8)
+            assert _cost(ours, sub, kind, t) <= _cost(theirs, sub, kind, t) * (1 + 1e-8)
             if kind == piece.kind:  # the model the piece has: one well-defined minimum
                 assert np.abs(motion.positions(kind, ours, t) - motion.positions(kind, theirs, t)).max() < 1e-4
 
@@ -373,7 +404,8 @@ def test_a_wrong_label_at_a_kick_is_left_out_not_fitted_by_a_short_piece(scene):
     kick = int(np.ceil(2.02 * FPS))  # first frame after the lofted kick
     pts[kick, 1:] = np.nan
     pts[kick, 0] = pts[kick, 0] + np.array([400.0, -250.0])
-    fit = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    fit = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0,
+                         min_parallax_deg=0.0)
     assert fit.outliers[kick, 0] and 0 not in fit.cam_lists[kick]
     for p in fit.pieces:
         assert p.last_frame - p.first_frame + 1 >= 4 or len(fit.pieces) == 1
@@ -389,10 +421,13 @@ def test_a_flight_seen_by_one_camera_is_tied_to_its_neighbours(scene, monkeypatc
     pts = pts.copy()
     one = slice(51, 97)  # the lofted kick acts between frames 50 and 51, the bounce between 96 and 97
     pts[one, [0, 2, 3]] = np.nan
-    err = lambda f: np.linalg.norm(f.positions[one] - truth[one], axis=1).max()  # noqa: E731
-    tied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    def err(f):
+        return np.linalg.norm(f.positions[one] - truth[one], axis=1).max()
+    tied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0,
+                          min_parallax_deg=0.0)
     for module in (segmentation_module, refit_module):
         monkeypatch.setattr(module, "_anchored", lambda L, by_frame, fps, pieces, which: list(pieces))
-    untied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    untied = fit_trajectory(pts, CAMERAS, [1920.0] * 4, FPS, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0,
+                            min_parallax_deg=0.0)
     assert err(tied) < 0.15 and err(tied) < err(untied) / 2, (err(tied), err(untied))
     assert all(k == (1,) for k in tied.cam_lists[one])

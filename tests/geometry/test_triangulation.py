@@ -1,14 +1,23 @@
 """Pairwise DLT triangulation, pair filtering and fusion (app.geometry.triangulation)."""
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
 import pytest
 
 from app.geometry.camera import Camera
-from app.geometry.triangulation import DROP_REASONS, STATUS_INSUFFICIENT_VIEWS, STATUS_NO_PAIR_KEPT, STATUS_TRIANGULATED, BallObservation, parallax_angle_deg, triangulate_ball, triangulate_dlt, undistort_pixels
 from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
+from app.geometry.triangulation import (
+    DROP_REASONS,
+    STATUS_INSUFFICIENT_VIEWS,
+    STATUS_NO_PAIR_KEPT,
+    STATUS_TRIANGULATED,
+    BallObservation,
+    parallax_angle_deg,
+    triangulate_ball,
+    triangulate_dlt,
+    undistort_pixels,
+)
 
 BALL = np.array([20.0, -10.0, -1.5])
 
@@ -49,7 +58,8 @@ def observe(cameras, point=BALL, noise_px=0.0, seed=0) -> list[BallObservation]:
 
 
 def test_noise_free_rig_recovers_the_ball_exactly():
-    result = triangulate_ball(observe(rig()), tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    result = triangulate_ball(observe(rig()), tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0,
+                              min_parallax_deg=0.0)
     assert result.status == STATUS_TRIANGULATED
     assert result.point.shape == (3,)
     np.testing.assert_allclose(result.point, BALL, atol=1e-7)
@@ -111,7 +121,8 @@ def test_wrong_label_is_dropped_by_tau_and_does_not_move_the_ball():
 
 
 def test_pair_as_dict_has_the_system_view_keys():
-    result = triangulate_ball(observe(rig()), tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    result = triangulate_ball(observe(rig()), tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0,
+                              min_parallax_deg=0.0)
     d = result.pairs[0].as_dict()
     assert list(d) == ["view_a", "view_b", "point", "error_px", "parallax_deg", "baseline_m", "kept", "reason"]
     assert d["view_a"] == "v0" and d["kept"] is True and d["reason"] is None
@@ -132,10 +143,12 @@ def test_pair_error_rules_scale_to_1920_wide_images():
 
 def test_pair_error_uses_the_rule_on_real_reprojections():
     obs = observe(rig(), noise_px=2.0, seed=2)
-    pair = triangulate_ball(obs[:2], tau_px=1e6, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).pairs[0]
+    pair = triangulate_ball(obs[:2], tau_px=1e6, rule="max_scaled_1920", min_baseline_m=1.0,
+                            min_parallax_deg=0.0).pairs[0]
     e0, e1 = pair.errors_px
     assert pair.error == pytest.approx(max(e0 * 1920 / 1920, e1 * 1920 / 960))
-    mean = triangulate_ball(obs[:2], tau_px=1e6, rule="mean_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).pairs[0]
+    mean = triangulate_ball(obs[:2], tau_px=1e6, rule="mean_scaled_1920", min_baseline_m=1.0,
+                            min_parallax_deg=0.0).pairs[0]
     assert mean.error == pytest.approx((e0 + 2 * e1) / 2)
 
 
@@ -198,12 +211,14 @@ def test_fused_ball_behind_one_view_has_no_error_for_it():
 def test_short_baseline_is_dropped_whatever_the_error():
     a = rig()[0]
     b = look_at(a.C + [0.6, 0.0, 0.0], BALL, focal=3000.0)
-    result = triangulate_ball(observe([a, b]), tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=0.0, rule="max_scaled_1920")
+    result = triangulate_ball(observe([a, b]), tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=0.0,
+                              rule="max_scaled_1920")
     pair = result.pairs[0]
     assert pair.reason == "baseline_below_min" and pair.baseline_m == pytest.approx(0.6)
     assert pair.error < 1e-4  # a perfectly consistent pair, dropped only for its baseline
     assert result.status == STATUS_NO_PAIR_KEPT
-    assert triangulate_ball(observe([a, b]), tau_px=20.0, min_baseline_m=0.5, min_parallax_deg=0.0, rule="max_scaled_1920").status == STATUS_TRIANGULATED
+    assert triangulate_ball(observe([a, b]), tau_px=20.0, min_baseline_m=0.5,
+                            min_parallax_deg=0.0, rule="max_scaled_1920").status == STATUS_TRIANGULATED
 
 
 def test_parallax_of_perpendicular_rays_is_90_degrees():
@@ -223,7 +238,8 @@ def test_bad_input_names_the_field():
         BallObservation("a", "not a camera", [1.0, 2.0], 1920)
     obs = observe(rig())
     with pytest.raises(ValueError, match="view ids must be unique"):
-        triangulate_ball([obs[0], obs[0]], tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+        triangulate_ball([obs[0], obs[0]], tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0,
+                         min_parallax_deg=0.0)
     with pytest.raises(ValueError, match="tau_px"):
         triangulate_ball(obs, tau_px=0.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     with pytest.raises(ValueError, match=r"projections must have shape \(V, 3, 4\)"):
@@ -250,7 +266,7 @@ def test_dev_set_triangulation_with_true_cameras(shared_dir):
     counts = bench.sweep_counts(systems, results, mirror_calibration=True)
     assert counts["bad_pairs"] >= 10 and counts["bad_pairs_dropped"] == counts["bad_pairs"]
     assert counts["good_pairs_kept"] == counts["good_pairs"]
-    near_duplicate = [r for s, r in zip(systems, results)
+    near_duplicate = [r for s, r in zip(systems, results, strict=False)
                       if any(p.reason == "baseline_below_min" for p in r.pairs)]
     assert len(near_duplicate) == 2
 
@@ -269,7 +285,8 @@ def test_near_duplicate_viewpoint_is_dropped_by_parallax_even_past_the_baseline_
     guarded = triangulate_ball(obs, tau_px=20.0, min_baseline_m=1.0, min_parallax_deg=2.0, rule="max_scaled_1920")
     assert not guarded.pairs[0].kept and guarded.pairs[0].reason == "parallax_below_min"
     assert guarded.status == STATUS_NO_PAIR_KEPT
-    wide = triangulate_ball(observe(rig()), tau_px=20.0, min_parallax_deg=2.0, rule="max_scaled_1920", min_baseline_m=1.0)
+    wide = triangulate_ball(observe(rig()), tau_px=20.0, min_parallax_deg=2.0, rule="max_scaled_1920",
+                            min_baseline_m=1.0)
     assert all(p.kept for p in wide.pairs)  # wide-angle replays are untouched
     with pytest.raises(ValueError, match="min_parallax_deg"):
         triangulate_ball(obs, tau_px=20.0, min_parallax_deg=-1.0, rule="max_scaled_1920", min_baseline_m=1.0)
@@ -281,7 +298,8 @@ def test_parallax_drop_reason_is_one_of_the_documented_reasons():
     values from, did not list it."""
     main = look_at([0.0, 75.0, -22.0], BALL, focal=3000.0)
     near = look_at([0.0, 76.5, -22.0], BALL, focal=3000.0)
-    pair = triangulate_ball(observe([main, near], noise_px=0.3), tau_px=20.0, min_parallax_deg=2.0, rule="max_scaled_1920", min_baseline_m=1.0).pairs[0]
+    pair = triangulate_ball(observe([main, near], noise_px=0.3), tau_px=20.0, min_parallax_deg=2.0,
+                            rule="max_scaled_1920", min_baseline_m=1.0).pairs[0]
     assert pair.reason in DROP_REASONS
     assert DROP_REASONS.index("baseline_below_min") < DROP_REASONS.index(pair.reason) < DROP_REASONS.index(
         "error_above_tau")
@@ -310,7 +328,8 @@ def test_uncertainty_weighting_lets_a_weakly_calibrated_view_count_less():
                              obs[1].image_width)
     plain = triangulate_ball(obs, tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     std = {"v0": 0.05, "v1": 2.0, "v2": 0.08}
-    weighted = triangulate_ball(obs, tau_px=500.0, view_position_std_m=std, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    weighted = triangulate_ball(obs, tau_px=500.0, view_position_std_m=std, rule="max_scaled_1920", min_baseline_m=1.0,
+                                min_parallax_deg=0.0)
     assert all(p.kept for p in plain.pairs)
     pts = [p.point for p in weighted.pairs]
     w = [1.0 / (0.1**2 + std[p.view_a] ** 2 + std[p.view_b] ** 2) for p in weighted.pairs]
@@ -318,9 +337,11 @@ def test_uncertainty_weighting_lets_a_weakly_calibrated_view_count_less():
     err_plain, err_weighted = np.linalg.norm(plain.point - BALL), np.linalg.norm(weighted.point - BALL)
     assert err_weighted < 0.25 * err_plain and err_plain > 0.1
     # An undetermined camera (inf) gets no weight; every pair undetermined falls back to the mean.
-    inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={"v1": float("inf")}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={"v1": float("inf")}, rule="max_scaled_1920",
+                           min_baseline_m=1.0, min_parallax_deg=0.0)
     np.testing.assert_allclose(inf.point, plain.pairs[1].point)  # (v0, v2): the only pair without v1
-    all_inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={k: float("inf") for k in std}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    all_inf = triangulate_ball(obs, tau_px=500.0, view_position_std_m={k: float("inf") for k in std},
+                               rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
     np.testing.assert_allclose(all_inf.point, plain.point)
 
 
@@ -342,11 +363,13 @@ def test_weak_calibrations_neither_make_nor_move_a_ball():
     obs = [BallObservation(o.view_id, _turned(o.camera, 1.5), o.point_px, o.image_width) if o.view_id in weak else o
            for o in obs]
     weights = {"v0": 1.0, "v2": 1.0, "v1": 0.5, "v3": 0.5}
-    weak_pair = triangulate_ball([obs[1], obs[3]], tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    weak_pair = triangulate_ball([obs[1], obs[3]], tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0,
+                                 min_parallax_deg=0.0)
     assert weak_pair.status == STATUS_TRIANGULATED and np.linalg.norm(weak_pair.point - BALL) > 1.0
 
     plain = triangulate_ball(obs, tau_px=500.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
-    weighted = triangulate_ball(obs, tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    weighted = triangulate_ball(obs, tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0,
+                                min_parallax_deg=0.0)
     assert np.linalg.norm(plain.point - BALL) > 0.5
     np.testing.assert_allclose(weighted.point, BALL, atol=1e-6)  # the sure pair (v0, v2) alone
     reasons = {(p.view_a, p.view_b): p.reason for p in weighted.pairs}
@@ -355,12 +378,16 @@ def test_weak_calibrations_neither_make_nor_move_a_ball():
     assert set(reasons.values()) - {None} <= set(DROP_REASONS)
 
     # two half votes make no ball; a full vote and a half one do; a view worth nothing joins no pair
-    assert triangulate_ball([obs[1], obs[3]], tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).status == STATUS_NO_PAIR_KEPT
-    assert triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights=weights, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).status == STATUS_TRIANGULATED
-    none = triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights={"v1": 0.0}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+    assert triangulate_ball([obs[1], obs[3]], tau_px=500.0, view_weights=weights, rule="max_scaled_1920",
+                            min_baseline_m=1.0, min_parallax_deg=0.0).status == STATUS_NO_PAIR_KEPT
+    assert triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights=weights, rule="max_scaled_1920",
+                            min_baseline_m=1.0, min_parallax_deg=0.0).status == STATUS_TRIANGULATED
+    none = triangulate_ball([obs[0], obs[1]], tau_px=500.0, view_weights={"v1": 0.0}, rule="max_scaled_1920",
+                            min_baseline_m=1.0, min_parallax_deg=0.0)
     assert none.status == STATUS_NO_PAIR_KEPT and none.pairs[0].reason == "weak_calibrations"
     # without weights (or all full) nothing changes: the paper's mean
-    np.testing.assert_allclose(triangulate_ball(obs, tau_px=500.0, view_weights={}, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0).point, plain.point)
+    np.testing.assert_allclose(triangulate_ball(obs, tau_px=500.0, view_weights={}, rule="max_scaled_1920",
+                                                min_baseline_m=1.0, min_parallax_deg=0.0).point, plain.point)
 
 
 def test_one_undistortion_per_view_gives_the_rays_pixels_and_errors_of_the_camera_model():
@@ -384,7 +411,7 @@ def test_one_undistortion_per_view_gives_the_rays_pixels_and_errors_of_the_camer
             cams.append(cam)
         pa, pb = rng.uniform(0, 1920, 2), rng.uniform(0, 1080, 2)
         a, b = (BallObservation(view_id=k, camera=c, point_px=p, image_width=1920)
-                for k, (c, p) in enumerate(zip(cams, (pa, pb))))
+                for k, (c, p) in enumerate(zip(cams, (pa, pb), strict=False)))
         g = pair_geometry(a, b)
         ra, rb = cams[0].rays(pa.reshape(1, 2))[0], cams[1].rays(pb.reshape(1, 2))[0]
         assert g.parallax_deg == pytest.approx(np.degrees(np.arctan2(np.linalg.norm(np.cross(ra, rb)), ra @ rb)),
@@ -394,7 +421,7 @@ def test_one_undistortion_per_view_gives_the_rays_pixels_and_errors_of_the_camer
         assert np.allclose(np.abs(g.h), np.abs(h), atol=1e-12)
         assert g.baseline_m == pytest.approx(float(np.linalg.norm(cams[0].C - cams[1].C)), rel=1e-12)
         point = rng.uniform(-50, 50, 3) * [1.0, 1.0, 0.1]
-        for cam, p in zip(cams, (pa, pb)):
+        for cam, p in zip(cams, (pa, pb), strict=False):
             uv, in_front = cam.project(point.reshape(1, 3))
             expected = float(np.linalg.norm(uv[0] - p)) if in_front[0] else None
             assert reprojection_error_px(cam, point, p) == (pytest.approx(expected, rel=1e-12)

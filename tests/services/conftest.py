@@ -55,15 +55,14 @@ def imported(db_session: Session, settings: Settings, v3_tree: Path, shared_dir:
     """
     import sqlalchemy as sa
 
+    from app.datasets.records import CalibrationFields
     from app.db.models import CalibrationSource, CalibrationStatus, System
     from app.geometry.annotations import lines_from_json_lists
     from app.geometry.camera import Camera
-    from app.geometry.jac import jac_at_gammas
-    from app.services.transfer.importing import import_soccernet_v3
-    from app.geometry.jac import JAC_GAMMAS
-    from app.datasets.records import CalibrationFields
+    from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
     from app.services.calibration.calibrating import apply_calibration
     from app.services.derivation.recompute import recompute_systems
+    from app.services.transfer.importing import import_soccernet_v3
 
     from .datasets import true_cameras
 

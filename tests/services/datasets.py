@@ -8,7 +8,6 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-
 #: The synthetic dev game the tests cut systems from, and its path inside ../shared.
 DEV_GAME = ("synth_league_a", "2031-2032", "2031-08-01 - 14-00 Dunmore 0 - 3 Glenrock")
 #: Systems used by default: 0.png (two views), 2.png (four views, one refused by calibration, the

@@ -16,7 +16,8 @@ from .transfer.test_exporting import _snapshot
 
 
 @pytest.mark.postgres
-def test_import_recompute_edit_export_round_trip_on_postgres(pg_url, settings, v3_tree, tmp_path, fresh_session_factory):
+def test_import_recompute_edit_export_round_trip_on_postgres(pg_url, settings, v3_tree, tmp_path,
+                                                             fresh_session_factory):
     upgrade_database(pg_url)
     engine = make_engine(pg_url)
     try:

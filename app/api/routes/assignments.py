@@ -1,4 +1,4 @@
-"""Work assignment and presence (issue 28, item 10; ``app.services.curation.assignment`` and ``presence``).
+"""Work assignment and presence (``app.services.curation.assignment`` and ``presence``).
 
 * ``POST /api/assignments`` (reviewers and admins): assign systems (by id, a whole game, or a queue filter's
   result) to a user, or unassign them; one audit entry (``system.assign``) per system that changed.

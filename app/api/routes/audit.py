@@ -14,11 +14,11 @@ from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, QueueQuery
 from app.api.view_schemas import SystemView
 from app.services.audit import log as audit
 from app.services.audit.log import AUDIT_ENTRY_HEADER
-from app.services.transfer.data_root import shown_import_counts
+from app.services.audit.reverting import Reverted, revert_entry, undo_entry
 from app.services.curation import writing
 from app.services.curation.system_page import system_page
-from app.services.audit.reverting import Reverted, revert_entry, undo_entry
 from app.services.curation.versions import frame_etag, system_etag
+from app.services.transfer.data_root import shown_import_counts
 
 router = APIRouter(prefix="/audit", tags=["audit"])
 

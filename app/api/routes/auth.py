@@ -10,8 +10,8 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Literal, Optional
 
 from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
-from starlette.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
+from starlette.concurrency import run_in_threadpool
 
 from app.api.auth import PrincipalDep, Role, held_roles
 from app.api.authentication import start_session
@@ -19,8 +19,8 @@ from app.api.deps import SessionDep
 from app.api.hosts import loopback_host
 from app.api.schemas import ErrorOut, _In
 from app.api.security import no_store
-from app.services.accounts.throttle import client_address, from_this_machine
 from app.services.accounts import users
+from app.services.accounts.throttle import client_address, from_this_machine
 
 public_router = APIRouter(prefix="/auth", tags=["auth"], dependencies=[Depends(no_store)])
 router = APIRouter(prefix="/auth", tags=["auth"], dependencies=[Depends(no_store)])
@@ -65,7 +65,8 @@ _PASSWORD_CHECKS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="v3d-pas
 
 #: Why the demo account does not log in from elsewhere (403).
 DEMO_ONLY_HERE = ("the demo account (public password) logs in only on the machine that serves v3d (a loopback address "
-                  "such as http://127.0.0.1:8000), not over a network nor through a proxy: log in with your own account")
+                  "such as http://127.0.0.1:8000), not over a network nor through a proxy: "
+                  "log in with your own account")
 
 
 def _check_password(session_factory: Any, name: str, password: str) -> Optional[tuple[int, str, str, int, bool]]:

@@ -6,7 +6,7 @@ import shutil
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Annotated, Literal, Optional
+from typing import Annotated, Any, Literal, Optional
 
 from fastapi import APIRouter, Depends, File, Query, UploadFile
 from fastapi.responses import FileResponse
@@ -21,9 +21,11 @@ from app.services.evaluation import monocular
 from app.services.evaluation.boxes import evaluate_boxes as boxes_report
 from app.services.evaluation.stats import dataset_stats
 from app.core.config import Settings
-from app.geometry.metrics import MAX_YOLO_FILE_BYTES
-from app.services.transfer.archives import MB, ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
 from app.core.errors import DatasetError, InvalidInputError
+from app.geometry.metrics import MAX_YOLO_FILE_BYTES
+from app.services.evaluation import monocular
+from app.services.transfer import detector_export
+from app.services.transfer.archives import MB, ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
 
 router = APIRouter(tags=["detectors"])
 #: Every export needs the admin role; evaluating detections against the labels (it stores nothing) any role.
@@ -82,7 +84,8 @@ def _zip_export(fmt: Literal["yolo", "coco"], session: SessionDep, include_all: 
     )
 
 
-_ZIP = {200: {"content": {"application/zip": {}}, "description": "The export as a zip."}}
+_ZIP: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"application/zip": {}}, "description": "The export as a zip."}}
 
 
 @router.get("/exports/yolo", response_class=FileResponse, responses=_ZIP, dependencies=[ADMIN])

@@ -26,6 +26,7 @@ from app.services.transfer import export_files, exporting
 from app.services.transfer.export_formats import tree_export_names
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
+from app.services.transfer import export_files, exporting
 
 router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import secrets
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncGenerator, AsyncIterator
 from typing import Any
 
 from fastapi import APIRouter, Depends, Request, status
@@ -24,16 +24,16 @@ from starlette.formparsers import MultiPartException, MultiPartParser
 
 from app.api.auth import AdminDep, require_role
 from app.api.deps import SessionDep, SettingsDep
-from app.api.routes.jobs import accepted
 from app.api.job_schemas import ImportIn, ImportOptions, ImportUploadIn, JobOut
+from app.api.routes.jobs import accepted
 from app.api.schemas import ErrorOut
 from app.core.config import Settings, jobs_dir
-from app.services.jobs import runner as jobs
-from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
-from app.services.transfer.data_root import confined_path
 from app.core.errors import DatasetError, InvalidInputError
 from app.datasets.files import refuse_links_out
+from app.services.jobs import runner as jobs
 from app.services.jobs.work import import_params
+from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
+from app.services.transfer.data_root import confined_path
 
 router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
 
@@ -51,7 +51,7 @@ def _body_errors(exc: ValidationError, prefix: tuple[str, ...] = ("body",)) -> R
     return RequestValidationError([{**e, "loc": (*prefix, *e["loc"])} for e in exc.errors(include_url=False)])
 
 
-async def _limited(stream: AsyncIterator[bytes], limit: int) -> AsyncIterator[bytes]:
+async def _limited(stream: AsyncIterator[bytes], limit: int) -> AsyncGenerator[bytes, None]:
     size = 0
     async for chunk in stream:
         size += len(chunk)
@@ -103,7 +103,8 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
     try:
         body = ImportIn.model_validate_json((raw or b"null").decode("utf-8"))
     except UnicodeDecodeError as exc:
-        raise InvalidInputError(f"the body is not UTF-8 JSON ({exc.reason} at byte {exc.start})", field="body") from None
+        raise InvalidInputError(f"the body is not UTF-8 JSON ({exc.reason} at byte {exc.start})",
+                                field="body") from None
     except ValidationError as exc:
         raise _body_errors(exc) from None
     path = confined_path(body.path, settings.data_root)

@@ -4,8 +4,8 @@
 A job is created by ``POST /api/imports``, ``POST /api/recompute`` or ``POST /api/exports/{format}``
 (202, ``Location: /api/jobs/{id}``) and run by a server process's job runner; ``GET /api/jobs/{id}``
 shows its state and progress (``stage``, ``done`` of ``total``), then its result;
-``GET /api/jobs/{id}/result`` streams a finished export's file (kept ``V3D_EXPORT_KEEP_HOURS``). Every role may follow jobs; a full
-recompute and an export's file need the admin role (as imports and exports do).
+``GET /api/jobs/{id}/result`` streams a finished export's file (kept ``V3D_EXPORT_KEEP_HOURS``). Every role may follow
+jobs; a full recompute and an export's file need the admin role (as imports and exports do).
 """
 from __future__ import annotations
 
@@ -19,10 +19,10 @@ from app.api.auth import AdminDep, Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import JobKindName, JobOut, JobPageOut, JobStateName
 from app.api.schemas import DB_INT_MAX, DB_INT_MIN, NOT_FOUND, ErrorOut
+from app.core.config import Settings
+from app.core.errors import NotFoundError
 from app.db.models import Job, JobState
 from app.services.jobs import runner as jobs
-from app.core.errors import NotFoundError
-from app.core.config import Settings
 from app.services.jobs.work import export_path, without_server_paths
 from app.services.transfer.export_files import prune_exports
 

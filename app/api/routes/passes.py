@@ -1,4 +1,4 @@
-"""``/api/passes``: review passes (issue 28, ``app.services.curation.passes``): the frozen list of a review
+"""``/api/passes``: review passes (``app.services.curation.passes``): the frozen list of a review
 queue's systems a user reviews once each, stored per user so that it resumes in another browser."""
 from __future__ import annotations
 
@@ -27,7 +27,8 @@ def start_pass(session: SessionDep, principal: AnnotatorDep, body: PassIn) -> Pa
 
 @router.get("", response_model=list[PassOut])
 def list_passes(session: SessionDep, principal: PrincipalDep,
-                mine: Annotated[bool, Query(description="true (default): the caller's passes; false: everyone's.")] = True,
+                mine: Annotated[bool, Query(description="true (default): the caller's passes; "
+                                                        "false: everyone's.")] = True,
                 limit: Annotated[int, Query(ge=1, le=100)] = 20) -> list[PassOut]:
     """The newest passes (the caller's by default), each with its counts and position, without its
     ``systems`` list (GET /api/passes/{id} has it): what a person resumes."""

@@ -6,11 +6,11 @@ Public entry points: :func:`calibrate_frame` -> :class:`CalibrationResult`, with
 :func:`learn_camera_prior` -> :class:`CameraPrior` (given as ``CalibrationPrior(camera_prior=...)``), its
 lens learned from :func:`radial_corner` of the dataset's fits.
 """
-from app.geometry.calibration.frame import JAC_GAMMAS, calibrate_frame, frame_jac, lines_used
-from app.geometry.calibration.result import CalibrationPrior, CalibrationResult, CalibrationSettings, principal_point
 from app.geometry.calibration.fallbacks import radial_corner
+from app.geometry.calibration.frame import JAC_GAMMAS, calibrate_frame, frame_jac, lines_used
 from app.geometry.calibration.learning import learn_camera_prior
 from app.geometry.calibration.priors import CameraPrior
+from app.geometry.calibration.result import CalibrationPrior, CalibrationResult, CalibrationSettings, principal_point
 from app.geometry.calibration.rig import CameraRig, RigPosition, calibrate_with_rig, estimate_rig
 from app.geometry.calibration.uncertainty import CalibrationUncertainty, calibration_uncertainty
 

@@ -4,25 +4,35 @@ spoils a whole frame), a radial term ``k1`` when the pinhole fit leaves residual
 """
 from __future__ import annotations
 
-
-
 import numpy as np
 
 from app.geometry.annotations import FieldLines, image_diagonal
 from app.geometry.calibration.observations import Observations, build_observations
+from app.geometry.calibration.priors import CameraPrior, anchor_order, prior_rows
 from app.geometry.calibration.residuals import (
     CameraParametrisation,
     residual_rows,
 )
-from app.geometry.calibration.priors import CameraPrior, anchor_order, prior_rows
+from app.geometry.calibration.result import (
+    MAX_CORNER_DISTORTION,
+    CalibrationPrior,
+    CalibrationSettings,
+    principal_point,
+)
 from app.geometry.calibration.solver import PriorRows
-from app.geometry.calibration.uncertainty import line_noise, parameter_covariance
-from app.geometry.camera import Camera
-from app.geometry.calibration.result import MAX_CORNER_DISTORTION, CalibrationPrior, CalibrationSettings, principal_point
 from app.geometry.calibration.starts import (
-    Budget, Candidate, class_residuals, fit_start, homography_starts, search_starts, start_costs, with_free_k1,
+    Budget,
+    Candidate,
+    class_residuals,
+    fit_start,
+    homography_starts,
+    search_starts,
+    start_costs,
+    with_free_k1,
     worst_residual,
 )
+from app.geometry.calibration.uncertainty import line_noise, parameter_covariance
+from app.geometry.camera import Camera
 
 
 def without_one_class(lines: FieldLines, obs: Observations, best: Candidate | None, width: int, height: int,
@@ -145,7 +155,8 @@ def radial_corner(camera: Camera, lines: FieldLines, width: int, height: int,
     param = CameraParametrisation(principal_point=np.asarray(camera.K[:2, 2], dtype=float), R0=np.asarray(camera.R),
                                   fit_k1=True)
     cand = fit_start(param.vector(f, np.asarray(camera.C, dtype=float), float(camera.radial[0])), obs, param,
-                settings.loss_scale_gamma * image_diagonal(width, height), "radial", Budget(settings.prior_max_evaluations))
+                settings.loss_scale_gamma * image_diagonal(width, height), "radial",
+                     Budget(settings.prior_max_evaluations))
     if cand is None:
         return float("nan")
     corner = float(cand.x[-1] * (image_diagonal(width, height) / 2.0 / cand.x[0]) ** 2)

@@ -24,8 +24,8 @@ Method (every step pure numpy):
    mislabelled line, e.g. a left/right confusion, spoils a whole frame) and the look-at starts
    are tried; the class left out is flagged ``ignored_class:<class>``.
 5. The candidate with the smallest robust cost wins (the labels' JaC is never used to choose: it is
-   the evaluation). The result is refused, with a refusal code and its numbers (:class:`~.result.Refusal`), when the labels cannot fix a camera
-   (too few constraints, parallel or collinear labels) or no camera fits them within
+   the evaluation). The result is refused, with a refusal code and its numbers (:class:`~.result.Refusal`), when the
+   labels cannot fix a camera (too few constraints, parallel or collinear labels) or no camera fits them within
    ``refuse_gamma`` of the diagonal. A budget of residual evaluations bounds the time per frame.
 6. With a dataset's learned camera prior (``CalibrationPrior.camera_prior``, :mod:`.priors`): when no
    start fits the labels, the prior's anchors are look-at starts too; and a free fit less sure of
@@ -56,23 +56,34 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from app.geometry.annotations import AnnotationError, FieldLines, image_diagonal, mirror_lines
+from app.geometry.calibration.fallbacks import (
+    anchors_without_one_class,
+    with_camera_prior,
+    with_radial_prior,
+    without_one_class,
+)
 from app.geometry.calibration.observations import Observations, build_observations
+from app.geometry.calibration.result import (
+    MIRROR_FLAG,
+    PRIOR_FLAG,
+    RADIAL_PRIOR_FLAG,
+    RIG_FLAG,
+    CalibrationPrior,
+    CalibrationResult,
+    CalibrationSettings,
+    Refusal,
+    side_vote,
+)
+from app.geometry.calibration.starts import Budget, Candidate, class_residuals, search_starts, with_k1, worst_residual
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.pitch import MIN_LINE_CLASSES, MIRROR_CLASSES
-from app.geometry.calibration.result import (
-    MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG, CalibrationPrior, CalibrationResult, CalibrationSettings,
-    Refusal, side_vote,
-)
-from app.geometry.calibration.starts import Budget, Candidate, class_residuals, search_starts, with_k1, worst_residual
-from app.geometry.calibration.fallbacks import (
-    anchors_without_one_class, with_camera_prior, with_radial_prior, without_one_class,
-)
 
 
 def _refused(refusal: Refusal, t0: float, flags: tuple[str, ...] = (), residuals_px: Mapping[str, float] | None = None,
              rms: float | None = None) -> CalibrationResult:
-    return CalibrationResult(status="refused", camera=None, refusal=refusal, jac={}, residuals_px=dict(residuals_px or {}),
+    return CalibrationResult(status="refused", camera=None, refusal=refusal, jac={},
+                             residuals_px=dict(residuals_px or {}),
                              flags=flags, rms_px=rms, elapsed_ms=(time.perf_counter() - t0) * 1e3)
 
 
@@ -225,7 +236,8 @@ def _calibrate(
                 and worst_residual(best, fit_obs) > limit):
             # No start fitted the labels: the learned camera positions are starts too.
             anchor_budget = Budget(settings.max_evaluations)
-            other = polish(search_starts(obs, width, height, prior, settings, anchor_budget, stage="anchors"), anchor_budget)
+            other = polish(search_starts(obs, width, height, prior, settings, anchor_budget, stage="anchors"),
+                           anchor_budget)
             if other is not None and worst_residual(other, obs) <= limit:
                 best, fit_obs = other, obs
                 flags[:] = [f for f in flags if not f.startswith("ignored_class:")]
@@ -259,7 +271,7 @@ def _calibrate(
     fitted = {c: per_class[c] for c in fit_obs.classes}
     worst = max(fitted.values()) if fitted else 0.0
     if worst > limit:
-        bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]
+        bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]  # every key is in the dict: get never answers None
         return _refused(Refusal("residual_too_high", {"line": bad, "px": worst, "limit_px": limit}), t0, tuple(flags),
                         per_class, rms)
     if fixed and rms > settings.accept_gamma * diag:

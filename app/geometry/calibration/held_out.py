@@ -1,6 +1,6 @@
 """Held-out-class measure of a calibration: does the camera put the lines it has not seen where they are?
 
-JaC rewards fitting the very lines it scores. The held-out-class measure (issue 17) asks instead: with
+JaC rewards fitting the very lines it scores. The held-out-class measure asks instead: with
 one labelled class removed, does the camera fitted on the others project that class onto its
 annotated points? For every frame with at least :data:`MIN_CLASSES` eligible classes (model classes
 with two points or more, counted before removal, goal posts and crossbars included), one class is

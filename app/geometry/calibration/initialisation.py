@@ -309,7 +309,7 @@ def labelled_target(obs: Observations) -> np.ndarray:
     none of those exists.
     """
     anchors: list[np.ndarray] = []
-    ground = [(a, b) for c, a, b in zip(obs.seg_classes, obs.seg_a, obs.seg_b) if c not in GOAL_CLASSES]
+    ground = [(a, b) for c, a, b in zip(obs.seg_classes, obs.seg_a, obs.seg_b, strict=True) if c not in GOAL_CLASSES]
     for i in range(len(ground)):
         for j in range(i + 1, len(ground)):
             (a1, b1), (a2, b2) = ground[i], ground[j]
@@ -323,11 +323,11 @@ def labelled_target(obs: Observations) -> np.ndarray:
                 anchors.append(np.array([a1[0], a2[1], 0.0]))
     for c in obs.circle_centre:
         anchors.append(np.array([c[0], c[1], 0.0]))
-    for c, a, b in zip(obs.seg_classes, obs.seg_a, obs.seg_b):
+    for c, a, _b in zip(obs.seg_classes, obs.seg_a, obs.seg_b, strict=True):
         if c in GOAL_CLASSES:
             anchors.append(np.array([a[0], 0.0, 0.0]))
     if not anchors:
-        anchors = [0.5 * (a + b) for a, b in zip(obs.seg_a, obs.seg_b)]
+        anchors = [0.5 * (a + b) for a, b in zip(obs.seg_a, obs.seg_b, strict=True)]
     if not anchors:
         return np.zeros(3)
     t = np.mean(anchors, axis=0)
@@ -354,7 +354,7 @@ def anchor_correspondences(obs: Observations, scale_px: float) -> list[tuple[np.
     """
     out: list[tuple[np.ndarray, np.ndarray]] = []
     ground: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (a, b, image line in pixels)
-    for i, (c, a, b) in enumerate(zip(obs.seg_classes, obs.seg_a, obs.seg_b)):
+    for i, (c, a, b) in enumerate(zip(obs.seg_classes, obs.seg_a, obs.seg_b, strict=True)):
         pts = obs.seg_points[obs.seg_index == i]
         if c in GOAL_CLASSES:
             out.append((pts.mean(axis=0), np.array([a[0], 0.0, 0.0])))
@@ -384,12 +384,13 @@ def anchor_correspondences(obs: Observations, scale_px: float) -> list[tuple[np.
             centre = pts.mean(axis=0)
         else:
             try:
-                c = np.linalg.solve(conic[:2, :2], -conic[:2, 2]) * scale_px
+                fitted = np.linalg.solve(conic[:2, :2], -conic[:2, 2]) * scale_px
             except np.linalg.LinAlgError:
-                c = pts.mean(axis=0)
+                fitted = pts.mean(axis=0)
             # A partial arc can fit a wild ellipse: keep its centre only near the labelled points.
             spread = float(np.ptp(pts, axis=0).max())
-            centre = c if np.linalg.norm(c - pts.mean(axis=0)) <= 2.0 * spread + 1.0 else pts.mean(axis=0)
+            centre = (fitted if np.linalg.norm(fitted - pts.mean(axis=0)) <= 2.0 * spread + 1.0
+                      else pts.mean(axis=0))
         cx, cy = obs.circle_centre[j]
         out.append((centre, np.array([cx, cy, 0.0])))
     return out

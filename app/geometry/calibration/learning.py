@@ -1,4 +1,4 @@
-"""Learning a dataset's camera prior (:class:`.priors.CameraPrior`) from its own calibrations (issue 17).
+"""Learning a dataset's camera prior (:class:`.priors.CameraPrior`) from its own calibrations.
 
 The confident fits (position std at or below a quantile of the set's: :func:`.priors.confident_mask`) give the
 anchors, grouped as the game rig groups camera centres (:func:`.rig.estimate_rig`), the roll's std and the lens's
@@ -66,7 +66,7 @@ def learn_camera_prior(cameras: Sequence[Camera], position_std_m: Sequence[float
     confident, cut = confident_mask(position_std_m, confident_quantile)
     if not np.any(confident):
         return CameraPrior(anchors_m=(), anchor_std_m=(), anchor_frames=(), roll_std_deg=float("inf"), confident_fits=0)
-    chosen = [c for c, ok in zip(cameras, confident) if ok]
+    chosen = [c for c, ok in zip(cameras, confident, strict=True) if ok]
     rig = estimate_rig(np.array([c.C for c in chosen]).reshape(-1, 3), radius_m=radius_m, min_frames=min_frames)
     rolls = np.array([pan_tilt_roll_from_rotation(c.R)[2] for c in chosen])
     roll_std = max(_robust_std(rolls), MIN_ROLL_STD_DEG) if len(rolls) >= 3 else float("inf")

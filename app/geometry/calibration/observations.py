@@ -99,7 +99,8 @@ class Observations:
         """The arrays the compiled residuals read (:mod:`.residuals`), C-contiguous float64 (the index
         int64): ``(seg_a, seg_b, seg_index, seg_points, seg_weight, circle_point_cx, circle_point_cy,
         circle_point_k, circle_points, circle_weight)``."""
-        f = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+        def f(a):
+            return np.ascontiguousarray(a, dtype=np.float64)
         return (f(self.seg_a.reshape(-1, 3)), f(self.seg_b.reshape(-1, 3)),
                 np.ascontiguousarray(self.seg_index, dtype=np.int64), f(self.seg_points.reshape(-1, 2)),
                 f(self.seg_weight), f(self.circle_point_cx), f(self.circle_point_cy), f(self.circle_point_k),
@@ -141,7 +142,7 @@ class Observations:
     def ground_line_directions(self) -> tuple[int, int]:
         """Number of annotated ground (z = 0) straight elements along world x and along world y."""
         nx = ny = 0
-        for c, a, b in zip(self.seg_classes, self.seg_a, self.seg_b):
+        for c, a, b in zip(self.seg_classes, self.seg_a, self.seg_b, strict=True):
             if c in GOAL_CLASSES:
                 continue
             if abs(b[0] - a[0]) > abs(b[1] - a[1]):

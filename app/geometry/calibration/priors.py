@@ -1,5 +1,5 @@
 """Learned calibration priors: where a dataset's cameras stand, so that a fit whose lines leave the
-camera under-determined settles where the dataset's other cameras are (issue 17).
+camera under-determined settles where the dataset's other cameras are.
 
 Why: with few or nearly parallel lines the fit slides the camera along its optical axis and trades
 distance for focal length (on failed held-out fits of the real sets the centre moved a median 3.7 m,
@@ -110,7 +110,7 @@ class CameraPrior:
             ValueError: missing keys, or values :class:`CameraPrior` refuses.
         """
         try:
-            return cls(anchors_m=tuple(tuple(float(x) for x in a) for a in data["anchors_m"]),
+            return cls(anchors_m=tuple(tuple(float(x) for x in a) for a in data["anchors_m"]),  # type: ignore[misc]  # CameraPrior checks each anchor's three values
                        anchor_std_m=tuple(float(s) for s in data["anchor_std_m"]),
                        anchor_frames=tuple(int(n) for n in data["anchor_frames"]),
                        roll_std_deg=float("inf") if data["roll_std_deg"] is None else float(data["roll_std_deg"]),

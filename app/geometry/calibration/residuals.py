@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from numba import njit
@@ -36,7 +36,7 @@ from app.geometry.camera import Camera
 
 #: numba options of every kernel: cached on disk; float errors give inf/nan as numpy does (no
 #: ZeroDivisionError); the GIL released.
-JIT = {"cache": True, "error_model": "numpy", "nogil": True}
+JIT: dict[str, Any] = {"cache": True, "error_model": "numpy", "nogil": True}
 
 #: Replacement of a non-finite distance (degenerate camera), px.
 _HUGE_PX = 1e6
@@ -277,7 +277,7 @@ def undistort_radial_k1(uv: np.ndarray, f: np.ndarray | float, pp: np.ndarray, k
     out = np.empty(f.shape + uv.shape)
     flat_out = out.reshape((f.size,) + uv.shape)
     pp = np.asarray(pp, dtype=float)
-    for i, (fi, ki) in enumerate(zip(f.ravel().tolist(), k1.ravel().tolist())):
+    for i, (fi, ki) in enumerate(zip(f.ravel().tolist(), k1.ravel().tolist(), strict=True)):
         if ki == 0.0:
             flat_out[i] = uv
         else:
@@ -332,8 +332,8 @@ class CameraParametrisation:
 
     def camera(self, x: np.ndarray) -> Camera:
         """The :class:`~app.geometry.camera.Camera` of one vector ``x``."""
-        f, R, C, k1 = self.split(x)
-        f = float(f)
+        f_arr, R, C, k1 = self.split(x)
+        f = float(f_arr)
         K = np.array([[f, 0.0, self.principal_point[0]], [0.0, f, self.principal_point[1]], [0.0, 0.0, 1.0]])
         radial = np.zeros(6)
         radial[0] = float(k1)

@@ -6,7 +6,6 @@ World frame: SoccerNet (metres, centre spot origin, z down); image: continuous p
 """
 from __future__ import annotations
 
-
 from dataclasses import dataclass, field
 from typing import Any, Literal, Mapping
 
@@ -17,7 +16,6 @@ from app.geometry.calibration.priors import CameraPrior
 from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
 from app.geometry.pitch import PITCH_WIDTH_M
-
 
 #: Flag of a calibration made with its centre fixed by a prior (a position of the game's camera rig).
 RIG_FLAG = "rig_assisted"
@@ -159,9 +157,10 @@ class CalibrationResult:
             the line that disagrees.
         flags: ``"probably_mirrored"`` (camera on the other side than ``prior.expected_side``, beyond
             the far side line: the labels are probably mirrored, :attr:`mirrored_lines` is the fix),
-            ``"few_lines"`` (fewer labelled classes than :data:`app.geometry.pitch.MIN_LINE_CLASSES`), ``"radial_distortion"`` (``k1`` fitted),
-            ``"ignored_class:<class>"`` (that class disagrees with every camera fitting the others;
-            its residual stays in :attr:`residuals_px`), ``"rig_assisted"`` (centre fixed by a prior).
+            ``"few_lines"`` (fewer labelled classes than :data:`app.geometry.pitch.MIN_LINE_CLASSES`),
+            ``"radial_distortion"`` (``k1`` fitted), ``"ignored_class:<class>"`` (that class disagrees with every camera
+            fitting the others; its residual stays in :attr:`residuals_px`), ``"rig_assisted"`` (centre fixed by a
+            prior).
         rms_px: root mean square point distance, px.
         elapsed_ms: wall time of the call, milliseconds.
         mirrored_lines: when ``"probably_mirrored"`` is flagged, the mirrored labelling offered as

@@ -21,9 +21,9 @@ import numpy as np
 from numba import njit
 
 from app.geometry.annotations import FieldLines
+from app.geometry.calibration.frame import calibrate_frames_together, frame_jac
 from app.geometry.calibration.residuals import JIT
 from app.geometry.calibration.result import RIG_FLAG, CalibrationPrior, CalibrationResult, CalibrationSettings, Refusal
-from app.geometry.calibration.frame import calibrate_frames_together, frame_jac
 
 
 @dataclass(frozen=True)
@@ -151,7 +151,7 @@ def _rig_of(centres: bytes, main_camera: bytes, radius_m: float, min_frames: int
         members = np.flatnonzero(group == g)
         centre = np.median(C[members], axis=0)
         spread = float(np.median(np.linalg.norm(C[members] - centre, axis=1)))
-        positions.append(RigPosition(centre_m=tuple(float(v) for v in centre),  # type: ignore[arg-type]
+        positions.append(RigPosition(centre_m=tuple(float(v) for v in centre),  # type: ignore[arg-type]  # centre is a 3-vector
                                      frames=int(len(members)), spread_m=spread,
                                      main_frames=int(main[members].sum())))
     positions.sort(key=lambda p: -p.frames)
@@ -183,8 +183,8 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
 
     Returns:
         The chosen :class:`CalibrationResult` (JaC computed for it alone), whose ``elapsed_ms`` is
-        the time spent on every position and on that JaC; a refusal (the best-fitting position's, or a rig without positions) when no
-        position fits.
+        the time spent on every position and on that JaC; a refusal (the best-fitting position's, or a rig without
+        positions) when no position fits.
     """
     if not rig.positions:
         return CalibrationResult(status="refused", camera=None, jac={}, residuals_px={}, flags=(RIG_FLAG,),
@@ -202,10 +202,10 @@ def calibrate_with_rig(lines: FieldLines, width: int, height: int, rig: CameraRi
     if not fitted:
         # The refusal whose labels came closest (its residuals point at the disagreeing line).
         scored = [r for r in results if r.rms_px is not None]
-        refusal = min(scored, key=lambda r: r.rms_px) if scored else results[0]  # type: ignore[arg-type,return-value]
+        refusal = min(scored, key=lambda r: r.rms_px) if scored else results[0]  # type: ignore[arg-type,return-value]  # scored keeps only results with an rms
         return replace(refusal, elapsed_ms=elapsed)
-    best_rms = min(r.rms_px for _, r in fitted)  # type: ignore[type-var]
-    ties = [(i, r) for i, r in fitted if r.rms_px <= best_rms + tie_px]  # type: ignore[operator]
+    best_rms = min(r.rms_px for _, r in fitted)  # type: ignore[type-var]  # fitted keeps only results with an rms
+    ties = [(i, r) for i, r in fitted if r.rms_px <= best_rms + tie_px]  # type: ignore[operator]  # fitted keeps only results with an rms
     main = rig.main_index if main_camera else None
     chosen = min(ties, key=lambda t: (t[0] != main, t[0]))[1]  # role first, then support (sorted)
     if compute_jac and chosen.camera is not None:

@@ -210,7 +210,7 @@ def _robust_lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: float, max
     cost = _soft_l1(r, scale)
     lam = 1e-3
     it = 0
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007  # the last iteration's number is returned after the loop
         for i in range(n):
             w = 1.0 / math.sqrt(1.0 + (r[i] / scale) ** 2)  # rho'(s) of soft-L1
             for j in range(k):

@@ -4,19 +4,18 @@ evaluation and the best refined (:func:`~.solver.robust_lm`) within a budget of 
 """
 from __future__ import annotations
 
-
 from dataclasses import dataclass
 
 import numpy as np
 
 from app.geometry.annotations import image_diagonal
+from app.geometry.calibration.held_out import distances_by_class
 from app.geometry.calibration.initialisation import (
     camera_from_homography,
     fixed_centre_rotations,
     ground_homographies,
     labelled_target,
 )
-from app.geometry.calibration.held_out import distances_by_class
 from app.geometry.calibration.observations import Observations
 from app.geometry.calibration.residuals import (
     CameraParametrisation,
@@ -24,10 +23,9 @@ from app.geometry.calibration.residuals import (
     projection_matrix,
     residual_rows,
 )
+from app.geometry.calibration.result import CalibrationPrior, CalibrationSettings, principal_point
 from app.geometry.calibration.solver import PriorRows, abs_percentile, robust_lm, soft_l1_cost
 from app.geometry.camera import Camera, look_at_rotation
-from app.geometry.calibration.result import (CalibrationPrior, CalibrationSettings, principal_point)
-
 
 #: Plausible camera centres (world, metres, z down) tried, in this order, when the lines do not fix
 #: a homography: main broadcast camera on either side, 18-yard cameras, high and low behind-goal
@@ -137,8 +135,8 @@ def search_starts(obs: Observations, width: int, height: int, prior: Calibration
                 break
         return best
 
-    starts = homography_starts(obs, pp, scale) if stage == "homography" else []
-    for _, name, param, x0 in starts[:2]:
+    homography = homography_starts(obs, pp, scale) if stage == "homography" else []
+    for _, name, param, x0 in homography[:2]:
         cand = fit_start(x0, obs, param, scale, name, budget)
         if consider(cand):
             return best
@@ -148,7 +146,7 @@ def search_starts(obs: Observations, width: int, height: int, prior: Calibration
             if best.p90 < accept:
                 return best
 
-    if starts:
+    if homography:
         # The lines fix a homography but its camera leaves some labels far off: a mislabelled line
         # is the likelier cause; the caller tries without each class before the look-at starts.
         return best
@@ -159,7 +157,7 @@ def search_starts(obs: Observations, width: int, height: int, prior: Calibration
     budget.lookat_done = True
     centres = [np.asarray(c, dtype=float) for c in START_CENTRES_M]
     if stage == "anchors":
-        centres = [np.asarray(c, dtype=float) for c in prior.camera_prior.anchors_m]  # type: ignore[union-attr]
+        centres = [np.asarray(c, dtype=float) for c in prior.camera_prior.anchors_m]  # type: ignore[union-attr]  # the anchors stage runs only with a camera prior
     starts_ptz: list[tuple[str, CameraParametrisation, np.ndarray]] = []
     for c0 in centres:
         try:
@@ -216,8 +214,8 @@ def _fixed_centre_starts(obs: Observations, centre: np.ndarray, pp: np.ndarray, 
     except ValueError:
         pass
     params = [CameraParametrisation(principal_point=pp, R0=R0, fixed_centre=centre) for R0 in rotations]
-    x0s = [param.vector(float(f0), centre) for param, f0 in zip(params, f_all)]
-    starts = list(zip(start_costs(x0s, params, obs, scale), params, x0s))
+    x0s = [param.vector(float(f0), centre) for param, f0 in zip(params, f_all, strict=True)]
+    starts = list(zip(start_costs(x0s, params, obs, scale), params, x0s, strict=True))
     starts.sort(key=lambda t: t[0])
     return starts
 
@@ -235,7 +233,7 @@ def homography_starts(obs: Observations, pp: np.ndarray, scale: float
         param = CameraParametrisation(principal_point=pp, R0=R0)
         inits.append((name, param, param.vector(f0, C0)))
     costs = start_costs([x0 for _, _, x0 in inits], [param for _, param, _ in inits], obs, scale)
-    starts = [(cost, name, param, x0) for cost, (name, param, x0) in zip(costs, inits)]
+    starts = [(cost, name, param, x0) for cost, (name, param, x0) in zip(costs, inits, strict=True)]
     starts.sort(key=lambda t: t[0])
     return starts
 

@@ -203,6 +203,6 @@ def calibration_uncertainty(camera: Camera, lines: FieldLines, *, fixed_centre: 
         var_angles = np.where(np.any(np.abs(A[:, undetermined[1:4]]) > 1e-9, axis=1), np.inf, var_angles)
     position = (0.0, 0.0, 0.0) if fixed_centre else tuple(float(np.sqrt(max(v, 0.0))) for v in var[4:7])
     sd = np.sqrt(np.maximum(var_angles, 0.0))
-    return CalibrationUncertainty(position_m=position, pan_deg=float(sd[0]), tilt_deg=float(sd[1]),  # type: ignore[arg-type]
+    return CalibrationUncertainty(position_m=position, pan_deg=float(sd[0]), tilt_deg=float(sd[1]),  # type: ignore[arg-type]  # position holds three values (var[4:7])
                                   roll_deg=float(sd[2]), focal_px=float(np.sqrt(max(var[0], 0.0))),
                                   line_noise_px=sigma, points=int(obs.n_points))

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.geometry.calibration.result import CalibrationPrior
 from app.geometry.calibration.frame import calibrate_frame
+from app.geometry.calibration.result import CalibrationPrior
 from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.pitch import sample_pitch_polylines
 

@@ -40,7 +40,13 @@ thresholds), :mod:`~.epipolar` (one label against another view's ray across the 
 triangulation's service shares.
 """
 from app.geometry.doubts.contract import (
-    CODES, INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS, Doubt, DoubtSettings, DoubtView,
+    CODES,
+    INFO_KINDS,
+    LABEL_KINDS,
+    SUGGESTION_ACTIONS,
+    Doubt,
+    DoubtSettings,
+    DoubtView,
 )
 from app.geometry.doubts.epipolar import epipolar_pair_error, ray_in_play_volume
 from app.geometry.doubts.judge import consensus_box_sigma_px, consensus_fix, judge_system

@@ -7,7 +7,6 @@ World frame: SoccerNet (metres, origin at the centre spot, z down); pixels of ea
 """
 from __future__ import annotations
 
-
 from dataclasses import dataclass, field
 from typing import Any, Hashable
 
@@ -15,7 +14,6 @@ import numpy as np
 
 from app.geometry.camera import Camera
 from app.geometry.pitch import PlayVolume, within_play_volume
-
 
 #: Kinds that accuse a label (the review queue counts, filters and sorts by them).
 LABEL_KINDS: tuple[str, ...] = (

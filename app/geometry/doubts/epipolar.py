@@ -4,7 +4,6 @@ triangulate is judged so), and the single-view ball a box implies.
 """
 from __future__ import annotations
 
-
 import math
 
 import numpy as np
@@ -12,7 +11,7 @@ import numpy as np
 from app.geometry.ball import ball_from_box_exact
 from app.geometry.camera import Camera
 from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside
-from app.geometry.weighting import label_centre, project_point, ray_at_height, rule_scale
+from app.geometry.weighting import camera_of, centre_of, label_centre, project_point, ray_at_height, rule_scale
 
 
 def _sees(v: DoubtView, ball: np.ndarray) -> bool:
@@ -28,14 +27,14 @@ def _single_view_ball(v: DoubtView, s: DoubtSettings) -> tuple[np.ndarray | None
     """The ball one labelled view places: on the grass along its ray when the box size agrees (most
     balls are on the ground), else at the monocular estimate (method.md section 6, exact silhouette);
     a point label goes on the grass. Returns (point or None, how it was placed)."""
-    c = label_centre(v)
-    ray = v.camera.rays(c.reshape(1, 2))[0]
-    grass = ray_at_height(v.camera.C, ray, -s.ball_diameter_m / 2)
+    c = centre_of(v)
+    ray = camera_of(v).rays(c.reshape(1, 2))[0]
+    grass = ray_at_height(camera_of(v).C, ray, -s.ball_diameter_m / 2)
     mono = _mono(v, s)
     if mono is None:
         return grass, "grass"
     if grass is not None:
-        ratio = np.linalg.norm(mono - v.camera.C) / np.linalg.norm(grass - v.camera.C)
+        ratio = np.linalg.norm(mono - camera_of(v).C) / np.linalg.norm(grass - camera_of(v).C)
         if abs(ratio - 1.0) <= s.ground_box_tolerance:
             return grass, "grass"
     return mono, "box"
@@ -48,7 +47,7 @@ def _mono(v: DoubtView, s: DoubtSettings) -> np.ndarray | None:
         return None
     try:
         with np.errstate(all="ignore"):
-            mono = ball_from_box_exact(v.camera, np.asarray(v.box, float), s.ball_diameter_m)[0]
+            mono = ball_from_box_exact(camera_of(v), np.asarray(v.box, float), s.ball_diameter_m)[0]
     except (ValueError, np.linalg.LinAlgError):
         return None
     return mono if np.all(np.isfinite(mono)) else None
@@ -56,7 +55,8 @@ def _mono(v: DoubtView, s: DoubtSettings) -> np.ndarray | None:
 
 def ray_in_play_volume(camera: Camera, pixel: np.ndarray, s: DoubtSettings) -> tuple[float, float] | None:
     """The depths ``t`` (metres along the unit ray from the camera centre) at which the ball seen at
-    ``pixel`` would lie in the play volume (``s.play_volume``, :class:`app.geometry.pitch.PlayVolume`), at least 1 m in front of the
+    ``pixel`` would lie in the play volume (``s.play_volume``, :class:`app.geometry.pitch.PlayVolume`), at least 1 m in
+    front of the
     camera: ``(t_near, t_far)``, or None when the ray never enters it (slab intersection of the ray with
     the volume's box)."""
     ray = camera.rays(np.asarray(pixel, float).reshape(1, 2))[0]
@@ -80,19 +80,19 @@ def _segment(labelled: DoubtView, other: DoubtView, s: DoubtSettings, samples: i
     points evenly spread in depth; None when the ray misses the volume. ``by_box``: only the depths
     the view's box size allows (the monocular depth, method.md section 6, within ``ground_box_tolerance``
     of it), for a box label."""
-    span = ray_in_play_volume(labelled.camera, label_centre(labelled), s)
+    span = ray_in_play_volume(camera_of(labelled), centre_of(labelled), s)
     if span is None:
         return None
-    ray = labelled.camera.rays(label_centre(labelled).reshape(1, 2))[0]
+    ray = camera_of(labelled).rays(centre_of(labelled).reshape(1, 2))[0]
     mono = _mono(labelled, s) if by_box else None
     if mono is not None:  # the box's size bounds the depth (boxes err by ~20 % in size)
-        d = float(np.linalg.norm(mono - labelled.camera.C))
+        d = float(np.linalg.norm(mono - camera_of(labelled).C))
         span = (max(span[0], d * (1 - s.ground_box_tolerance)), min(span[1], d * (1 + s.ground_box_tolerance)))
         if span[0] >= span[1]:
             return None
     t = np.linspace(span[0], span[1], samples)
-    pts = labelled.camera.C + t[:, None] * ray
-    uv, ok = other.camera.project(pts)
+    pts = camera_of(labelled).C + t[:, None] * ray
+    uv, ok = camera_of(other).project(pts)
     uv = np.where(ok[:, None], uv, np.nan)
     return pts, uv
 
@@ -126,7 +126,7 @@ def epipolar_pair_error(a: DoubtView, b: DoubtView, s: DoubtSettings) -> float |
         seg = _segment(x, y, s)
         if seg is None:
             return math.inf
-        d, _ = _polyline_distance(seg[1], label_centre(y))
+        d, _ = _polyline_distance(seg[1], centre_of(y))
         if math.isfinite(d):
             d *= rule_scale(y, s)
             best = d if best is None else min(best, d)

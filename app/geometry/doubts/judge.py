@@ -12,15 +12,27 @@ import numpy as np
 
 from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
+from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
+from app.geometry.doubts.epipolar import _mono, _sees, _segment, _single_view_ball, epipolar_pair_error
 from app.geometry.mirror import mirror_camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import (
-    BallObservation, PairGeometry, angle_between_deg, pair_geometry, reprojection_error_px,
+    BallObservation,
+    PairGeometry,
+    angle_between_deg,
+    pair_geometry,
+    reprojection_error_px,
 )
-from app.geometry.weighting import (axis_on_grass, calibration_weight, label_centre, pixel_sigma, project_point,
-                                   rule_scale)
-from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
-from app.geometry.doubts.epipolar import _mono, _sees, _segment, _single_view_ball, epipolar_pair_error
+from app.geometry.weighting import (
+    axis_on_grass,
+    calibration_weight,
+    camera_of,
+    centre_of,
+    label_centre,
+    pixel_sigma,
+    project_point,
+    rule_scale,
+)
 
 
 def _info_doubts(views: Sequence[DoubtView], s: DoubtSettings) -> list[Doubt]:
@@ -77,7 +89,9 @@ def _mirror_fix_check(v: DoubtView, ev: dict[str, Any], others: Consensus | None
     camera to make worse.
     """
     if v.camera is None:
-        return (True, "", {}) if ev.get("refit") or ev.get("verdict") == "probably_mirrored" else (False, "no_ray_confirms", {})
+        if ev.get("refit") or ev.get("verdict") == "probably_mirrored":
+            return (True, "", {})
+        return (False, "no_ray_confirms", {})
     c = label_centre(v)
     if others is not None and others.point is not None and not others.ambiguous and c is not None:
         k = rule_scale(v, s)
@@ -144,7 +158,7 @@ def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtS
             ref = axis_on_grass(a, s)
         if ref is None:
             continue
-        u, w = ref - a.camera.C, ref - b.camera.C
+        u, w = ref - camera_of(a).C, ref - camera_of(b).C
         angle = angle_between_deg(u, w)
         if angle >= s.near_duplicate_max_deg or not (_sees(a, ref) and _sees(b, ref)):
             continue
@@ -153,7 +167,7 @@ def _near_duplicates(views: Sequence[DoubtView], consensus: Consensus, s: DoubtS
         named.add(drop.view_id)
         out.append(Doubt(
             "near_duplicate_view", drop.view_id, "near_duplicate",
-            {"other_view": keep.view_id, "angle_deg": _r(angle, 3), "baseline_m": _r(np.linalg.norm(u - w), 2),
+            {"other_view": keep.view_id, "angle_deg": _r(angle, 3), "baseline_m": _r(float(np.linalg.norm(u - w)), 2),
              "max_deg": s.near_duplicate_max_deg},
             {"action": "exclude_view"}))
     return out
@@ -163,11 +177,12 @@ def consensus_box_sigma_px(v: DoubtView, consensus: Consensus, s: DoubtSettings)
     """How far (px of ``v``'s own image, one standard deviation) the consensus ball's box in ``v`` may lie from
     where the ball is: the agreeing views' own spread (the RMS of their reprojection errors to the consensus
     ball, px at 1920 width: how well the rays that made it meet) and ``v``'s calibration's pixel sigma at that
-    ball (:func:`~app.geometry.weighting.pixel_sigma`: how far its camera may put the ball's projection), added in quadrature and
-    scaled to ``v``'s pixels. None when ``v``'s calibration leaves the pixel undetermined (``inf``)."""
-    errs = [consensus.errors_1920.get(i) for i in consensus.inliers]
-    errs = [e for e in errs if e is not None and math.isfinite(e)]
+    ball (:func:`~app.geometry.weighting.pixel_sigma`: how far its camera may put the ball's projection), added in
+    quadrature and scaled to ``v``'s pixels. None when ``v``'s calibration leaves the pixel undetermined (``inf``)."""
+    found = [consensus.errors_1920.get(i) for i in consensus.inliers]
+    errs = [e for e in found if e is not None and math.isfinite(e)]
     spread = math.sqrt(sum(e * e for e in errs) / len(errs)) if errs else 0.0
+    assert consensus.point is not None  # a consensus box is asked for only where there is a consensus ball
     own = pixel_sigma(v, consensus.point, s)
     if not math.isfinite(own):
         return None
@@ -198,11 +213,12 @@ def _missing_doubt(v: DoubtView, consensus: Consensus, s: DoubtSettings, code: s
     ``margin_px`` (px at 1920 width; default ``inside_margin_px``), else None; its fix is
     :func:`consensus_fix` (the sphere box with its uncertainty)."""
     ball = consensus.point
+    assert ball is not None  # asked only where the views agree on a ball
     uv = project_point(v, ball)
     margin = s.inside_margin_px if margin_px is None else margin_px
     if uv is None or not _inside(v, uv, margin / rule_scale(v, s)):
         return None
-    box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
+    box = sphere_image_box(camera_of(v), ball, s.ball_diameter_m / 2)
     if box is None:
         return None
     evidence = {"projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball], **extra}
@@ -239,7 +255,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     # so the segment spans two sigmas each side), weighed over the segment's samples
     mono = _mono(only, s)
     if mono is not None:
-        depth = np.linalg.norm(pts - only.camera.C, axis=1) / np.linalg.norm(mono - only.camera.C)
+        depth = np.linalg.norm(pts - camera_of(only).C, axis=1) / np.linalg.norm(mono - camera_of(only).C)
         w = np.exp(-0.5 * ((depth - 1.0) / (s.ground_box_tolerance / 2)) ** 2)
     else:
         w = np.ones(len(pts))
@@ -249,11 +265,12 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     seen = uv[inside]
     length = float(np.sum(np.linalg.norm(np.diff(seen, axis=0), axis=1))) * rule_scale(v, s)
     evidence: dict[str, Any] = {"agreeing_views": [only.view_id], "epipolar_px": [[_r(x), _r(y)] for x, y in seen],
-                                "segment_length_px_1920": _r(length), "inside_fraction": _r(inside.mean(), 2), "inside_chance": _r(chance, 2),
+                                "segment_length_px_1920": _r(length), "inside_fraction": _r(inside.mean(), 2),
+                                "inside_chance": _r(chance, 2),
                                 "grass_px": [_r(uv0[0]), _r(uv0[1])], "placed": how, "depth_known": False}
     if length / 2 > s.consensus_tau_px or not inside.all():
         return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
-    box = sphere_image_box(v.camera, ball, s.ball_diameter_m / 2)
+    box = sphere_image_box(camera_of(v), ball, s.ball_diameter_m / 2)
     if box is None:
         return Doubt("ball_missing", v.view_id, "epipolar", evidence, None)
     evidence.update(projected_px=[_r(uv0[0]), _r(uv0[1])], ball3d=[_r(x, 3) for x in ball])
@@ -303,7 +320,7 @@ def _votes(views: Sequence[DoubtView], s: DoubtSettings,
     judged = [v for v in calibrated if v not in mirrored and weight[v.view_id] > 0 and not v.suggested]
     labelled = [v for v in judged if label_centre(v) is not None]
     unlabelled = [v for v in judged if label_centre(v) is None]
-    obs = [BallObservation(v.view_id, v.camera, label_centre(v), REFERENCE_WIDTH_PX / rule_scale(v, s))
+    obs = [BallObservation(v.view_id, camera_of(v), centre_of(v), REFERENCE_WIDTH_PX / rule_scale(v, s))
            for v in labelled + helpers]
     return _Votes(flagged, mirrored, helpers, judged, labelled, unlabelled, weight, sigma, tau, obs)
 
@@ -342,7 +359,7 @@ def consensus_without(views: Sequence[DoubtView], view_id: Hashable, settings: D
 
 def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
                  geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
-                 weighed: Mapping[Hashable, tuple[float, float]] | None = None) -> list[Doubt]:
+                 weighed: Mapping[Any, tuple[float, float]] | None = None) -> list[Doubt]:
     """Every doubt of one multi-view system (pure, deterministic; see the module docstring for the kinds).
 
     Rules, in order:
@@ -408,7 +425,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
             v = by_id[vid]
             e = cons.errors_1920[vid]
             uv = project_point(v, cons.point)
-            box = sphere_image_box(v.camera, cons.point, s.ball_diameter_m / 2) if uv is not None and _inside(
+            box = sphere_image_box(camera_of(v), cons.point, s.ball_diameter_m / 2) if uv is not None and _inside(
                 v, uv, 0.0) else None
             suggestion = consensus_fix(v, cons, box, s)
             doubts.append(Doubt(
@@ -449,8 +466,8 @@ def _disagree_doubt(labelled: Sequence[DoubtView], cons: Consensus, tau: float, 
     if cons.point is not None and not cons.ambiguous:
         return None  # they agree, but no ball is agreed on by the helpers' votes: nothing to say
     if best is None:
-        errs = [epipolar_pair_error(a, b, s) for a, b in combinations(labelled, 2)]
-        errs = [e for e in errs if e is not None]
+        pair_errors = [epipolar_pair_error(a, b, s) for a, b in combinations(labelled, 2)]
+        errs = [e for e in pair_errors if e is not None]
         if not errs or min(errs) <= tau:
             return None
         best, code = min(errs), "epipolar"

@@ -1,4 +1,4 @@
-"""Temporal 3D ball trajectory from synchronised static cameras (ISSIA-3D, issue 9): the package's map.
+"""Temporal 3D ball trajectory from synchronised static cameras (ISSIA-3D): the package's map.
 
 The paper triangulates each frame on its own and names temporal tracking as future work. Here the
 ball's physics is the check: between kicks and bounces the ball follows one of two models, fitted
@@ -44,6 +44,7 @@ from app.geometry.trajectory.frames import FrameTriangulation, triangulate_frame
 from app.geometry.trajectory.refit import REFIT_REACH, local_span, refit_local, refit_span, refit_window
 from app.geometry.trajectory.segmentation import DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece
 
-__all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "REFIT_REACH", "FrameTriangulation", "triangulate_frame",
+__all__ = ["GRAVITY_M_S2", "BALL_RADIUS_M", "KINDS", "SOURCES", "REFIT_REACH", "FrameTriangulation",
+           "triangulate_frame",
            "Piece", "TrajectoryFit", "fit_trajectory", "local_span", "refit_local", "refit_span", "refit_window",
            "DEFAULT_BREAK_PX", "DEFAULT_FLAG_PX"]

@@ -14,10 +14,9 @@ from app.geometry.camera import Camera
 from app.geometry.motion import (
     LabelTable as _Labels,
 )
+from app.geometry.trajectory.frames import FrameTriangulation, triangulate_frame
+from app.geometry.trajectory.segmentation import DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece, _group, _segment
 from app.geometry.triangulation import BallObservation
-from app.geometry.trajectory.frames import (FrameTriangulation, triangulate_frame)
-from app.geometry.trajectory.segmentation import (DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece, _group, _segment)
-
 
 SOURCES = ("triangulated", "fitted", "interpolated")
 
@@ -122,7 +121,8 @@ def fit_trajectory(points: np.ndarray, cameras: Sequence[Camera | None], widths:
                      min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg)
 
 
-def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, a, b, *, rule: str, min_baseline_m: float,
+def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, a, b, *, rule: str,
+              min_baseline_m: float,
               min_parallax_deg: float, previous: TrajectoryFit | None = None,
               edited: tuple[int, int] | None = None) -> TrajectoryFit:
     """The per-frame rows of frames ``a..b`` (sequence indices; ``pts`` row 0 is frame ``pts_first``)
@@ -152,13 +152,13 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
     covered = np.zeros(n, bool)
     for p in pieces:
         covered[max(p.first_frame, a) - a:min(p.last_frame, b) - a + 1] = True
-    for r in np.flatnonzero(~covered & (np.isfinite(residuals).sum(axis=1) >= 2) & outliers.any(axis=1)):
-        row = a + r - pts_first
+    for g in np.flatnonzero(~covered & (np.isfinite(residuals).sum(axis=1) >= 2) & outliers.any(axis=1)):
+        row = a + g - pts_first
         tri = triangulate_frame([BallObservation(int(k), cameras[k], pts[row, k], widths[k])
-                                 for k in np.flatnonzero(np.isfinite(residuals[r]))], tau_px=tau_px, rule=rule,
+                                 for k in np.flatnonzero(np.isfinite(residuals[g]))], tau_px=tau_px, rule=rule,
                                 min_baseline_m=min_baseline_m, min_parallax_deg=min_parallax_deg)
-        if tri.point is not None and np.linalg.norm(tri.point - positions[r]) <= GAP_CONSENSUS_M:
-            outliers[r, list(tri.kept)] = False
+        if tri.point is not None and np.linalg.norm(tri.point - positions[g]) <= GAP_CONSENSUS_M:
+            outliers[g, list(tri.kept)] = False
     keep_mask = np.isfinite(residuals) & ~outliers
     # the frames whose kept labels are those of ``previous`` (outside the edit) keep its triangulation
     same = np.zeros(n, bool)
@@ -171,13 +171,13 @@ def _assemble(pts, pts_first, cameras, widths, fps, L, pieces, flag_px, tau_px, 
     ball = np.full((n, 3), np.nan)
     cam_lists: list[tuple[int, ...]] = []
     sources: list[str | None] = []
-    placed = np.isfinite(positions).all(axis=1).tolist()
+    placed: list[bool] = np.all(np.isfinite(positions), axis=1).tolist()
     for r in range(n):
         keep = tuple(np.flatnonzero(keep_mask[r]).tolist())
         if same[r]:
-            old = a + r - previous.first_frame  # type: ignore[union-attr]
-            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None  # type: ignore[union-attr]
-            kept = tuple(previous.cam_lists[old])  # type: ignore[union-attr]
+            old = a + r - previous.first_frame  # type: ignore[union-attr]  # same[r] only with a previous fit
+            point = previous.ball_3d[old] if np.all(np.isfinite(previous.ball_3d[old])) else None  # type: ignore[union-attr]  # same[r] only with a previous fit
+            kept = tuple(previous.cam_lists[old])  # type: ignore[union-attr]  # same[r] only with a previous fit
         else:
             row = a + r - pts_first
             tri = triangulate_frame([BallObservation(k, cameras[k], pts[row, k], widths[k]) for k in keep],

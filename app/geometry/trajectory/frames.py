@@ -3,7 +3,6 @@ camera (the views that agree on one ball, ``app.geometry.consensus.ball_consensu
 """
 from __future__ import annotations
 
-
 from dataclasses import dataclass
 from typing import Hashable, Sequence
 
@@ -11,8 +10,6 @@ import numpy as np
 
 from app.geometry.consensus import ball_consensus
 from app.geometry.triangulation import BallObservation, reprojection_error_px, triangulate_ball
-
-
 
 
 @dataclass(frozen=True)

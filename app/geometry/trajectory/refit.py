@@ -4,7 +4,6 @@ can have changed are answered, as a window of the fit.
 """
 from __future__ import annotations
 
-
 from typing import Sequence
 
 import numpy as np
@@ -13,9 +12,23 @@ from app.geometry.camera import Camera
 from app.geometry.motion import (
     LabelTable as _Labels,
 )
-from app.geometry.trajectory.segmentation import (DEFAULT_BREAK_PX, DEFAULT_FLAG_PX, Piece, _Best, _CONFIRM, _SHIFT, _acceptable, _anchored, _bad_frames, _bad_run, _best_piece, _group, _segment, _shift_bounds)
-from app.geometry.trajectory.fit import (TrajectoryFit, _assemble, _check_inputs)
-
+from app.geometry.trajectory.fit import TrajectoryFit, _assemble, _check_inputs
+from app.geometry.trajectory.segmentation import (
+    _CONFIRM,
+    _SHIFT,
+    DEFAULT_BREAK_PX,
+    DEFAULT_FLAG_PX,
+    Piece,
+    _acceptable,
+    _anchored,
+    _bad_frames,
+    _bad_run,
+    _Best,
+    _best_piece,
+    _group,
+    _segment,
+    _shift_bounds,
+)
 
 #: The fast path of :func:`refit_window` re-fits the pieces around an edit alone when the edit lies at least
 #: this many labelled frames inside them: beyond the frames a break may move by (``_SHIFT``) and the frames
@@ -112,12 +125,12 @@ def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int
              not (hi + 1 < len(pieces) and _gap_between(old[-1], pieces[hi + 1]))):
         return None
     cuts = [sum(f < p.first_frame for f in frames) for p in old] + [len(frames)]
-    bounds = list(zip(cuts[:-1], cuts[1:]))
+    bounds = list(zip(cuts[:-1], cuts[1:], strict=True))
     if any(b - a < 1 for a, b in bounds):
         return None
     best = _Best(L, by_frame, fps)
     bounds = _shift_bounds(L, by_frame, frames, fps, bounds, best)
-    for (a, b), p in zip(bounds, old):
+    for (a, b), p in zip(bounds, old, strict=True):
         check = best(frames[a:b])
         if check.kind != p.kind:
             return None
@@ -126,10 +139,10 @@ def _refit_local(L: _Labels, by_frame, pieces: Sequence[Piece], first_frame: int
             return None
     # refined as :func:`_segment` does, each model's refinement started from the piece before the edit
     new = [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=p, linear=best.linear(frames[a:b]))
-           for (a, b), p in zip(bounds, old)]
+           for (a, b), p in zip(bounds, old, strict=True)]
     new = _anchored(L, by_frame, fps, list(pieces[:lo]) + new + list(pieces[hi + 1:]),
                     range(lo, lo + len(new)))[lo:lo + len(new)]
-    if not all(_acceptable(p, b - a, fps, len(pieces) == 1) for (a, b), p in zip(bounds, new)):
+    if not all(_acceptable(p, b - a, fps, len(pieces) == 1) for (a, b), p in zip(bounds, new, strict=True)):
         return None  # the segmentation would leave it out (:func:`_plausible_pieces`)
     return lo, hi, new
 
@@ -206,7 +219,8 @@ def refit_window(fit: TrajectoryFit, points: np.ndarray, cameras: Sequence[Camer
             made with the same ``cameras`` (a camera change needs :func:`fit_trajectory`). Its pieces
             may be only those within :data:`REFIT_REACH` of the edit (a run of consecutive pieces).
         points: (len(fit.positions), K, 2) labels of the frames ``fit.frames`` with the edit applied.
-        cameras, widths, flag_px, break_px, tau_px, rule, min_baseline_m, min_parallax_deg: as in :func:`fit_trajectory`.
+        cameras, widths, flag_px, break_px, tau_px, rule, min_baseline_m, min_parallax_deg: as
+        in :func:`fit_trajectory`.
         fast_path: False when the caller knows the fast path does not apply (:func:`refit_local` answered
             ``None`` for the same edit): the pieces are segmented again without trying it a second time.
 

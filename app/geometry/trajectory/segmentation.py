@@ -14,17 +14,41 @@ neighbouring pieces, against which their labels are judged; there the frame's ow
 """
 from __future__ import annotations
 
-
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from app.geometry.motion import (
-    GRAVITY_M_S2, KINDS, LabelTable as _Labels, linear_fits, positions as _positions, refine as _refine,
-    determined as _determined, plausible as _plausible, position_prior as _position_prior, robust_cost, shifted as _shifted, stop_time as _stop_time,
+    GRAVITY_M_S2,
+    KINDS,
+    linear_fits,
+    robust_cost,
 )
-
+from app.geometry.motion import (
+    LabelTable as _Labels,
+)
+from app.geometry.motion import (
+    determined as _determined,
+)
+from app.geometry.motion import (
+    plausible as _plausible,
+)
+from app.geometry.motion import (
+    position_prior as _position_prior,
+)
+from app.geometry.motion import (
+    positions as _positions,
+)
+from app.geometry.motion import (
+    refine as _refine,
+)
+from app.geometry.motion import (
+    shifted as _shifted,
+)
+from app.geometry.motion import (
+    stop_time as _stop_time,
+)
 
 #: Defaults (pixels on a 1920-px-wide image). Label noise is about 1 px; a wrong label is tens to
 #: hundreds of px off. ``flag_px`` flags a label against the fitted trajectory; ``break_px`` ends a
@@ -90,7 +114,7 @@ class Piece:
     cost: float
     alternative: np.ndarray | None = None
 
-    def position(self, frames: np.ndarray, fps: float) -> np.ndarray:
+    def position(self, frames: np.ndarray | Sequence[float], fps: float) -> np.ndarray:
         """(N,) frame indices (may lie outside the piece) -> (N, 3) world positions, metres."""
         t = (np.asarray(frames, float) - self.first_frame) / fps
         return _positions(self.kind, self.params, t)
@@ -127,7 +151,9 @@ def _fit(L: _Labels, idx: np.ndarray, kind: str, first: int, fps: float, refine:
         linear = q
     sub = L.take(idx)
     t = (sub.frame - first) / fps
-    q = _refine(sub, kind, start if start is not None else linear, t)
+    x0 = start if start is not None else linear
+    assert x0 is not None  # without a start, linear is the linear fit (made above when not given)
+    q = _refine(sub, kind, x0, t)
     if start is not None and not _determined(sub, kind, q, t):
         if linear is None:
             linear = linear_fits(L, [(idx, kind, first)], fps)[0][0]
@@ -163,7 +189,7 @@ def _model_fits(L: _Labels, by_frame, frames: Sequence[int], fps: float, refine:
             other = _other(start.kind)
             warm[other] = _shifted(other, start.alternative, dt) if dt else start.alternative
     missing = [kind for kind in kinds if kind not in lin and (not refine or kind not in warm)]
-    fits = dict(zip(missing, linear_fits(L, [(idx, kind, first) for kind in missing], fps)))
+    fits = dict(zip(missing, linear_fits(L, [(idx, kind, first) for kind in missing], fps), strict=True))
     if not refine:
         return fits
     lin.update({kind: q for kind, (q, _) in fits.items()})
@@ -212,7 +238,7 @@ class _Best:
                 jobs.append((idx, kind, int(key[0])))
                 owners.append((key, kind))
         fits: dict[tuple[int, ...], dict[str, tuple[np.ndarray, float]]] = {key: {} for key in todo}
-        for (key, kind), fit in zip(owners, linear_fits(self.L, jobs, self.fps)):
+        for (key, kind), fit in zip(owners, linear_fits(self.L, jobs, self.fps), strict=True):
             fits[key][kind] = fit
         for key in todo:
             self._done[key] = (_choose(key, fits[key], sum(len(self.by_frame[f]) for f in key)), fits[key])
@@ -288,13 +314,14 @@ def _segment(L: _Labels, by_frame: dict[int, np.ndarray], frames: Sequence[int],
                 costs = [(best(frames[a:c]).cost + best(frames[c:b]).cost, c) for c in options]
                 if costs:
                     cuts.add(min(costs)[1])
-            cuts = sorted(cuts)
-            split += list(zip(cuts[:-1], cuts[1:]))
+            ordered = sorted(cuts)
+            split += list(zip(ordered[:-1], ordered[1:], strict=True))
         if len(split) == len(bounds):
             break
         bounds = _shift_bounds(L, by_frame, frames, fps, split, best)
     bounds = [(a, b) for a, b in bounds if b > a]
-    pieces = [_best_piece(L, by_frame, frames[a:b], fps, refine=True, start=_overlapping(previous, frames[a], frames[b - 1]),
+    pieces = [_best_piece(L, by_frame, frames[a:b], fps, refine=True,
+                          start=_overlapping(previous, frames[a], frames[b - 1]),
                           linear=best.linear(frames[a:b])) for a, b in bounds]
     pieces = _anchored(L, by_frame, fps, pieces, range(len(pieces)))
     return _plausible_pieces(L, by_frame, frames, fps, bounds, pieces, ends)
@@ -375,9 +402,9 @@ def _plausible_pieces(L: _Labels, by_frame, frames: Sequence[int], fps: float, b
     fitted together with its neighbour instead (kept when that is acceptable; the labels it does not
     explain are flagged), or dropped."""
     alone = len(pieces) == 1
-    ok = [_acceptable(p, b - a, fps, alone) for (a, b), p in zip(bounds, pieces)]
-    out: list[Piece | None] = [p if good else None for p, good in zip(pieces, ok)]
-    for end, (i, j) in zip(ends, ((0, 1), (len(pieces) - 1, len(pieces) - 2))):
+    ok = [_acceptable(p, b - a, fps, alone) for (a, b), p in zip(bounds, pieces, strict=False)]
+    out: list[Piece | None] = [p if good else None for p, good in zip(pieces, ok, strict=False)]
+    for end, (i, j) in zip(ends, ((0, 1), (len(pieces) - 1, len(pieces) - 2)), strict=True):
         if not end or len(pieces) < 2 or ok[i] or not ok[j]:
             continue
         (a, b) = (bounds[i][0], bounds[j][1]) if i < j else (bounds[j][0], bounds[i][1])

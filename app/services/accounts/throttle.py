@@ -1,4 +1,4 @@
-"""Failed logins are limited (issue 15), with the ``limits`` library and a store every server process shares.
+"""Failed logins are limited, with the ``limits`` library and a store every server process shares.
 
 Two fixed windows of ``V3D_LOGIN_WINDOW_S`` seconds (default 300) count failed logins: per name and client
 address (``V3D_LOGIN_MAX_FAILURES_PER_NAME``, default 10) and per client address
@@ -22,13 +22,14 @@ import ipaddress
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Optional
+from typing import Any, Callable, Iterable, Optional, cast
 
 import sqlalchemy as sa
 from limits import RateLimitItem, RateLimitItemPerSecond
 from limits.storage import Storage
 from limits.strategies import FixedWindowRateLimiter
 from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy.engine import CursorResult
 from sqlalchemy.orm import Session
 
 from app.db.models import RateLimitCounter
@@ -110,7 +111,7 @@ class DatabaseStorage(Storage):
     def reset(self) -> Optional[int]:
         """Forget every counter; returns how many there were."""
         with self.session_factory() as session:
-            count = session.execute(sa.delete(RateLimitCounter)).rowcount
+            count = cast(CursorResult, session.execute(sa.delete(RateLimitCounter))).rowcount
             session.commit()
         return count
 
@@ -203,7 +204,7 @@ def from_this_machine(peer: Optional[str], headers: Any) -> bool:
     >>> from_this_machine("10.1.2.3", {}), from_this_machine(None, {})
     (False, False)
     """
-    return bool(peer) and is_loopback(peer) and not any(h in headers for h in PROXY_HEADERS)
+    return peer is not None and bool(peer) and is_loopback(peer) and not any(h in headers for h in PROXY_HEADERS)
 
 
 def client_group(address: str) -> str:
@@ -229,7 +230,7 @@ def client_group(address: str) -> str:
 class LoginThrottle:
     """The two limits of failed logins (module docstring) on one storage."""
 
-    storage: Storage
+    storage: DatabaseStorage
     per_name: RateLimitItem
     per_address: RateLimitItem
 

@@ -1,4 +1,4 @@
-"""Users, passwords, API tokens and the session-signing key (issue 7).
+"""Users, passwords, API tokens and the session-signing key.
 
 * Passwords are hashed with argon2id through pwdlib (``PasswordHash.recommended()``); only the PHC
   string (``$argon2id$v=19$m=...``) is stored. A login for an unknown name still verifies a dummy hash,
@@ -26,10 +26,11 @@ import secrets
 import threading
 from dataclasses import dataclass
 from datetime import datetime, timedelta
-from typing import Optional
+from typing import Optional, cast
 
 import sqlalchemy as sa
 from pwdlib import PasswordHash
+from sqlalchemy.engine import CursorResult
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -271,10 +272,10 @@ def set_disabled(session: Session, name: str, disabled: bool = True, *, actor: O
     user = get_user(session, name)
     revoked = 0
     if disabled:
-        revoked = session.execute(
+        revoked = cast(CursorResult, session.execute(
             sa.update(ApiToken).where(ApiToken.user_id == user.id, ApiToken.revoked_at.is_(None))
             .values(revoked_at=utcnow())
-        ).rowcount or 0
+        )).rowcount or 0
     user.disabled = disabled
     user.session_generation += 1
     audit.record(session, actor=actor, action="user.disable" if disabled else "user.enable",
@@ -324,7 +325,7 @@ def resolve_token(session: Session, token: str) -> Optional[User]:
             # SQLite's write lock is another writer's (an edit of another worker): the request must not
             # fail for a timestamp, which the next request refreshes. Read the user again after the rollback.
             session.rollback()
-            user = session.get(User, user_id)
+            return session.get(User, user_id)
     return user
 
 
@@ -394,4 +395,4 @@ def session_secret(session: Session, override: Optional[str] = None) -> str:
         session.commit()
     except IntegrityError:
         session.rollback()
-    return session.get(ServerSecret, "session").value  # type: ignore[union-attr]
+    return session.get(ServerSecret, "session").value  # type: ignore[union-attr]  # inserted above, or by another process

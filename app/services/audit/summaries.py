@@ -1,4 +1,4 @@
-"""One line in words for every audit entry (issue 28, item 4): "ball of V2 moved 12.3 px", "V3 excluded from
+"""One line in words for every audit entry: "ball of V2 moved 12.3 px", "V3 excluded from
 the 3D ball", "moved point 9 of Circle right (V3): JaC 0.909 -> refused", "system accepted".
 
 :func:`summarize` is pure: it reads an entry's action, its self-describing ``before`` / ``after`` states
@@ -29,7 +29,8 @@ def _num(v: float) -> str:
     return f"{v:.1f}"
 
 
-def _ball_geometry(ball: Mapping[str, Any] | None) -> tuple[Optional[tuple[float, float]], Optional[tuple[float, float]]]:
+def _ball_geometry(ball: Mapping[str, Any] | None) -> tuple[Optional[tuple[float, float]],
+                                                            Optional[tuple[float, float]]]:
     """(centre, size) of a ``{"box", "point"}`` state in px; size None for a point, both None without a ball."""
     if not isinstance(ball, Mapping):
         return None, None
@@ -72,7 +73,8 @@ def ball_words(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None
     if moved > _STILL_PX:
         parts.append(f"moved {_num(moved)} px")
     if resized:
-        size = lambda s: "a point" if s is None else f"{_num(s[0])} x {_num(s[1])} px"  # noqa: E731
+        def size(s):
+            return "a point" if s is None else f"{_num(s[0])} x {_num(s[1])} px"
         parts.append(f"resized {size(s0)} -> {size(s1)}")
     if suggested_before:
         return f"suggested {of} confirmed" + (f" ({', '.join(parts)})" if parts else "")
@@ -80,7 +82,8 @@ def ball_words(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None
 
 
 def _polys(lines: Any) -> dict[str, list[list[list[float]]]]:
-    return {str(k): [list(p) for p in v] for k, v in lines.items() if isinstance(v, list)} if isinstance(lines, Mapping) else {}
+    return {str(k): [list(p) for p in v]
+            for k, v in lines.items() if isinstance(v, list)} if isinstance(lines, Mapping) else {}
 
 
 def _same_point(a: Any, b: Any) -> bool:
@@ -91,7 +94,7 @@ def _same_point(a: Any, b: Any) -> bool:
 
 
 def _same_poly(a: list, b: list) -> bool:
-    return len(a) == len(b) and all(_same_point(p, q) for p, q in zip(a, b))
+    return len(a) == len(b) and all(_same_point(p, q) for p, q in zip(a, b, strict=True))
 
 
 def _mirrored(before: dict[str, list], after: dict[str, list]) -> bool:
@@ -102,7 +105,8 @@ def _mirrored(before: dict[str, list], after: dict[str, list]) -> bool:
     except (AnnotationError, ValueError, TypeError):
         return False
     return set(mirrored) == set(after) and all(
-        len(mirrored[c]) == len(after[c]) and all(_same_poly(p, q) for p, q in zip(mirrored[c], after[c])) for c in after)
+        len(mirrored[c]) == len(after[c]) and all(_same_poly(p, q) for p, q in zip(mirrored[c], after[c], strict=True))
+        for c in after)
 
 
 def lines_words(before: Any, after: Any) -> str:
@@ -115,7 +119,7 @@ def lines_words(before: Any, after: Any) -> str:
     """
     b, a = _polys(before), _polys(after)
     changed = sorted(c for c in set(b) | set(a) if len(b.get(c, [])) != len(a.get(c, []))
-                     or not all(_same_poly(p, q) for p, q in zip(b.get(c, []), a.get(c, []))))
+                     or not all(_same_poly(p, q) for p, q in zip(b.get(c, []), a.get(c, []), strict=True)))
     if not changed:
         return "field lines unchanged"
     if len(changed) == 1:
@@ -123,11 +127,11 @@ def lines_words(before: Any, after: Any) -> str:
         pb, pa = b.get(cls, []), a.get(cls, [])
         name = cls.strip()
         if len(pb) == len(pa):
-            diffs = [(i, p, q) for i, (p, q) in enumerate(zip(pb, pa)) if not _same_poly(p, q)]
+            diffs = [(i, p, q) for i, (p, q) in enumerate(zip(pb, pa, strict=True)) if not _same_poly(p, q)]
             if len(diffs) == 1:
                 _, p, q = diffs[0]
                 if len(p) == len(q):
-                    moved = [j for j, (u, v) in enumerate(zip(p, q)) if not _same_point(u, v)]
+                    moved = [j for j, (u, v) in enumerate(zip(p, q, strict=True)) if not _same_point(u, v)]
                     return (f"moved point {moved[0] + 1} of {name}" if len(moved) == 1
                             else f"moved {len(moved)} points of {name}")
                 if len(q) == len(p) + 1:

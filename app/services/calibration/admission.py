@@ -12,7 +12,6 @@ from app.core.config import Settings
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
 from app.geometry.jac import JAC_GAMMAS, jac_admitted
 
-
 #: Calibration flag of a camera given by its dataset with no field lines to compute JaC on (an ISSIA
 #: ``issia_calibration.json`` camera without ``issia_lines.json``): admitted as given.
 GIVEN_CAMERA_FLAG = "given_camera"
@@ -48,7 +47,7 @@ def admitted_jac_sql(settings: Settings) -> Any:
     return getattr(Calibration, JAC_COLUMNS[admission_gamma(settings)]) > settings.admit_jac_min
 
 
-def admission_args(settings: Settings) -> dict[str, float]:
+def admission_args(settings: Settings) -> dict[str, Any]:
     """The admission's ``admit_jac_gamma`` (checked: :func:`admission_gamma`) and ``admit_jac_min`` of ``settings``, as
     the keyword arguments of the geometry and services that judge a camera by the rule before it is stored
     (``app.geometry.static_cameras.calibrate_with_ball``, ``app.services.issia.cameras.sequence_cameras``).

@@ -14,14 +14,14 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
-from app.db.models import Frame, FrameRole, Game
 from app.datasets.records import CalibrationFields, FrameRecord, GameRecord
+from app.db.models import Frame, FrameRole, Game
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import CameraPrior
 from app.services.calibration.calibrating import CalibrationJob, calibrate_lines, calibration_job, expected_side
+from app.services.calibration.pool import CalibrationPool, calibrate_many
 from app.services.calibration.priors import dataset_prior, stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, uses_rig, wants_rig_retry, with_rig_retry
-from app.services.calibration.pool import CalibrationPool, calibrate_many
 from app.services.jobs.progress import Progress
 from app.services.kinds import policy
 
@@ -135,14 +135,15 @@ def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings,
     if ahead is not None:
         index = {id(rec): i for i, rec in enumerate(recs)}
         done = 0
-        for game, calibrated in zip(ahead.games, ahead.results):  # waits for each game in turn
+        for game, calibrated in zip(ahead.games, ahead.results, strict=False):  # waits for each game in turn
             done += len(game)
             if progress:
                 progress("calibrate", min(done, len(jobs)), len(jobs))
             mine = [index.get(key) for key in game]
-            if any(i is None or ahead.jobs[key][0] != jobs[i] for i, key in zip(mine, game)):
+            if any(i is None or ahead.jobs[key][0] != jobs[i] for i, key in zip(mine, game, strict=True)):
                 continue  # a frame's job changed: the game is calibrated now, both passes
             for k, i in enumerate(mine):
+                assert i is not None  # every frame of the game is one of ours: checked above
                 results[i], first_ms[i] = calibrated.final[k], calibrated.first[k].elapsed_ms
                 finished.add(i)
                 if k in calibrated.rig_ms:
@@ -150,9 +151,10 @@ def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings,
     rest = [i for i, r in enumerate(results) if r is None]
     done = len(jobs) - len(rest)
     step = (lambda stage, n, total: progress(stage, done + n, len(jobs))) if progress else None
-    for i, fields in zip(rest, calibrate_many([jobs[i] for i in rest], settings.calibration_workers, step, pool=pool)):
+    for i, fields in zip(rest, calibrate_many([jobs[i] for i in rest], settings.calibration_workers, step, pool=pool),
+                         strict=True):
         results[i], first_ms[i] = fields, fields.elapsed_ms
-    return BatchCalibration(results, first_ms, finished, rig_ms)  # type: ignore[arg-type]
+    return BatchCalibration(results, first_ms, finished, rig_ms)  # type: ignore[arg-type]  # every result is set by now
 
 
 def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],
@@ -166,7 +168,7 @@ def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[Ca
     the rig's mirror flag) and the rig pass's time per retried frame index (ms). Frames in ``finished``
     (their game calibrated whole ahead, :func:`calibrate_game`) are left as they are."""
     done = set(finished)
-    retry = [i for i, (f, r) in enumerate(zip(frames, results))
+    retry = [i for i, (f, r) in enumerate(zip(frames, results, strict=False))
              if i not in done and wants_rig_retry(r, settings) and uses_rig(f.system)]
     if not retry:
         return results, {}
@@ -180,7 +182,8 @@ def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[Ca
     jobs = [calibration_job(frames[i], rigs[id(frames[i].system.game)]) for i in retry]
     out = list(results)
     rig_ms: dict[int, float] = {}
-    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig", pool=pool)):
+    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="rig", pool=pool),
+                         strict=True):
         out[i] = with_rig_retry(out[i], fields)
         rig_ms[i] = fields.elapsed_ms or 0.0
     return out, rig_ms
@@ -193,7 +196,7 @@ def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationField
     (calibration datasets: frames from many stadiums; ``priors.dataset_prior`` from their fresh
     calibrations and field lines), those of them ``priors.wants_prior_retry`` picks: refused,
     every calibrated one when the prior has a radial term, else those with a camera position the
-    lines leave open (issue 17). A refit is kept when it calibrates; frames
+    lines leave open. A refit is kept when it calibrates; frames
     whose lines fix the camera as the confident ones do are left as they are (the JaC guard). When the
     batch is too small to learn from (an import of a few changed frames), each frame's game's stored
     prior (``priors.stored_camera_prior``) is used instead. Returns the final result per frame, the
@@ -201,14 +204,15 @@ def retry_with_dataset_prior(frames: list[Frame], results: list[CalibrationField
     Writes nothing."""
     mine = [i for i, f in enumerate(frames) if not uses_rig(f.system)]
     learned = dataset_prior([results[i] for i in mine],
-                            [(lines_from_json_lists(frames[i].field_lines.lines) if frames[i].field_lines is not None else {},
+                            [(lines_from_json_lists(fl.lines) if (fl := frames[i].field_lines) is not None else {},
                               frames[i].width, frames[i].height) for i in mine])
     priors = {i: learned if learned is not None else stored_camera_prior(frames[i].system) for i in mine}
-    retry = [i for i in mine if priors[i] is not None and wants_prior_retry(results[i], priors[i])]
+    retry = [i for i in mine if (prior := priors[i]) is not None and wants_prior_retry(results[i], prior)]
     out = list(results)
     ms: dict[int, float] = {}
     jobs = [calibration_job(frames[i], priors[i]) for i in retry]
-    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="prior", pool=pool)):
+    for i, fields in zip(retry, calibrate_many(jobs, settings.calibration_workers, progress, stage="prior", pool=pool),
+                         strict=True):
         out[i] = with_prior_refit(out[i], fields)
         ms[i] = fields.elapsed_ms or 0.0
     return out, ms, learned

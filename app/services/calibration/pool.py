@@ -4,7 +4,6 @@ run their frames' calibrations through it; few jobs are calibrated in-process.
 """
 from __future__ import annotations
 
-
 import contextlib
 import multiprocessing
 import os
@@ -12,12 +11,10 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Iterable, Iterator, Sequence, TypeVar
 
-
-from app.geometry.calibration.rig import CameraRig
 from app.datasets.records import CalibrationFields
+from app.geometry.calibration.rig import CameraRig
+from app.services.calibration.calibrating import CalibrationJob, calibrate_lines
 from app.services.jobs.progress import Progress
-from app.services.calibration.calibrating import (CalibrationJob, calibrate_lines)
-
 
 _J = TypeVar("_J")
 

@@ -4,22 +4,23 @@ systems have no rig (:func:`dataset_prior`), stored with the game, and the retry
 """
 from __future__ import annotations
 
-
 from typing import Sequence
 
 import numpy as np
 
+from app.datasets.records import CalibrationFields
 from app.db.models import CalibrationStatus, System
 from app.geometry.annotations import FieldLines
 from app.geometry.calibration import (
-    CameraPrior, learn_camera_prior, lines_used, radial_corner,
+    CameraPrior,
+    learn_camera_prior,
+    lines_used,
+    radial_corner,
 )
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.priors import confident_mask
+from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.camera import Camera
-from app.datasets.records import CalibrationFields
 from app.services.calibration.rigs import uses_rig
-
 
 #: Fewest calibrated frames of an import's systems without a rig from which a dataset prior is learned
 #: (half of them confident: a handful of anchors at least).
@@ -36,7 +37,8 @@ def dataset_prior(results: Sequence[CalibrationFields],
     below :data:`MIN_PRIOR_FRAMES` such frames or when no anchor is found."""
     cams, stds, used = [], [], []
     for i, r in enumerate(results):
-        if r.status is not CalibrationStatus.CALIBRATED or r.camera is None or r.uncertainty is None or RIG_FLAG in r.flags:
+        if (r.status is not CalibrationStatus.CALIBRATED or r.camera is None or r.uncertainty is None
+                or RIG_FLAG in r.flags):
             continue
         p = r.uncertainty["position_m"]
         cams.append(Camera.from_soccernet(r.camera))
@@ -48,7 +50,7 @@ def dataset_prior(results: Sequence[CalibrationFields],
     if lines is not None:
         confident, _ = confident_mask(stds)
         radial = []
-        for cam, sure, i in zip(cams, confident, used):
+        for cam, sure, i in zip(cams, confident, used, strict=True):
             if not sure:
                 radial.append(float("nan"))  # not among the confident fits the prior learns from
                 continue

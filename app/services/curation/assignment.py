@@ -1,4 +1,4 @@
-"""Work assignment (issue 28, item 10): which person should review which systems.
+"""Work assignment: which person should review which systems.
 
 A system has at most one assignee (``System.assignee_id``, with ``assigned_at`` and ``assigned_by``). Reviewers
 and administrators assign (the API's role check); anyone may read assignments. One call assigns one or more

@@ -1,4 +1,4 @@
-"""The dry run of a field-line edit (issue 29, item 5): while a person drags a line point, the view's camera,
+"""The dry run of a field-line edit: while a person drags a line point, the view's camera,
 JaC, worst-line residuals and projected pitch follow the pointer, computed from the lines as they would be
 sent on release, with the same calibration the commit runs (:func:`app.services.derivation.recompute.
 calibrate_frame_lines`: the rig retry and the learned prior's refit included). Nothing is written: no row, no
@@ -22,9 +22,9 @@ from app.datasets.records import CalibrationFields
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
 from app.services.calibration.admission import is_admitted
 from app.services.curation.editing import parse_field_lines
+from app.services.curation.system_page import pitch_lines
 from app.services.curation.writing import get_frame
 from app.services.derivation.recompute import calibrate_frame_lines
-from app.services.curation.system_page import pitch_lines
 from app.services.kinds import kind_of
 
 
@@ -69,10 +69,12 @@ def preview_calibration(session: Session, frame_id: int, lines: Mapping[str, Any
     with session.no_autoflush:
         calibrated = calibrate_frame_lines(session, frame, settings, lines=parsed, refine=False)
     fields = calibrated.fields
+    # transient: never added to the session
     as_stored = Calibration(status=fields.status, camera=fields.camera, flags=list(fields.flags),
-                            **dict(zip(JAC_COLUMNS.values(), fields.jac)))  # transient: never added to the session
+                            **dict(zip(JAC_COLUMNS.values(), fields.jac, strict=True)))
     camera = fields.camera if fields.status is CalibrationStatus.CALIBRATED else None
     drawn = pitch_lines(camera, frame.width, frame.height, keep=False)
-    return CalibrationPreview(frame_id=frame.id, fields=fields, jac=as_stored.jac(), admitted=is_admitted(as_stored, settings),
+    return CalibrationPreview(frame_id=frame.id, fields=fields, jac=as_stored.jac(),
+                              admitted=is_admitted(as_stored, settings),
                               retry=calibrated.retry, differs=kind_of(frame.system).calibration_refinement(frame),
                               pitch_lines=drawn, elapsed_ms=(time.perf_counter() - t0) * 1e3)

@@ -8,12 +8,12 @@ named by their image names (``names``: view id -> name).
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Hashable, Mapping
+from typing import Any, Callable, Mapping
 
 from app.geometry.doubts import Doubt as DoubtFinding
 from app.geometry.mirror import AMBIGUOUS, DIFFERENT, SAME, VERDICT_AS_LABELLED, VERDICT_MIRRORED
 
-Names = Mapping[Hashable, str]
+Names = Mapping[Any, str]
 
 
 def _num(x: Any, nd: int = 0, unknown: str = "an unknown number of") -> str:
@@ -38,7 +38,8 @@ def doubt_message(d: DoubtFinding, names: Names) -> str:
 
 
 def _refused(ev, v, n):
-    return f"{v} has no camera ({ev.get('reason') or 'no calibration'}), so its labels cannot be checked against the other views."
+    return (f"{v} has no camera ({ev.get('reason') or 'no calibration'}), so its labels cannot be checked against "
+            "the other views.")
 
 
 def _below(ev, v, n):
@@ -62,8 +63,9 @@ _NO_FIX = {
     "one_view_cannot_tell": "a single other view's ray meets it only mirrored, but one other view cannot tell which "
                             "of the two is mirrored, and the game's rig does not place the mirrored camera at a known "
                             "camera; a third view of the ball would tell",
-    "as_labelled_fits": "as labelled its ball label is closer ({as_} px at 1920 width) to the ball the other views agree "
-                        "on than mirrored ({mi} px), so the mirrored calibration and the ball do not agree better",
+    "as_labelled_fits": "as labelled its ball label is closer ({as_} px at 1920 width) to the ball the other views "
+                        "agree on than mirrored ({mi} px), so the mirrored calibration and the ball do not agree "
+                        "better",
     "mirrored_misses": "mirrored, its ball label would still be {mi} px (at 1920 width) from the ball the other views "
                        "agree on",
 }
@@ -86,24 +88,27 @@ def _mirror(ev, v, n, suspected: bool = False):
         why = "the mirror evidence flags it" + (f" (margin {margin:.1f})" if isinstance(margin, (int, float)) else "")
     if ev.get("fix_agrees"):
         if ev.get("error_mirrored_px_1920") is not None:
-            why += (f"; mirrored, its ball label is {_num(ev['error_mirrored_px_1920'])} px (at 1920 width) from the ball "
-                    f"the other views agree on, against {_num(ev.get('error_as_labelled_px_1920'), 0, 'more')} px as labelled")
+            why += (f"; mirrored, its ball label is {_num(ev['error_mirrored_px_1920'])} px (at 1920 width) from the "
+                    f"ball the other views agree on, against {_num(ev.get('error_as_labelled_px_1920'), 0, 'more')} px "
+                    "as labelled")
         return f"{v}'s field lines look labelled left for right: {why}."
     no_fix = _NO_FIX.get(ev.get("no_fix"), "nothing confirms the mirrored camera").format(
-        as_=_num(ev.get("error_as_labelled_px_1920")), mi=_num(ev.get("error_mirrored_px_1920"), 0, "an unknown number of"))
+        as_=_num(ev.get("error_as_labelled_px_1920")),
+        mi=_num(ev.get("error_mirrored_px_1920"), 0, "an unknown number of"))
     return f"{v}'s field lines look labelled left for right: {why}; no fix is offered: {no_fix}."
 
 
 def _off(ev, v, n):
     sig = ev.get("calibration_sigma_px_1920") or 0
-    tol = f"tolerance {_num(ev.get('tau_px'))} px" + (f", its calibration's own uncertainty {_num(sig)} px" if sig > (ev.get("tau_px") or 0) - 1e-9 and sig else "")
+    tol = f"tolerance {_num(ev.get('tau_px'))} px" + (f", its calibration's own uncertainty {_num(sig)} px"
+                                                      if sig > (ev.get("tau_px") or 0) - 1e-9 and sig else "")
     return (f"{v}'s ball label is {_num(ev.get('error_px_1920'))} px (at 1920 width) away from the ball that "
             f"{_list(ev.get('agreeing_views'), n)} agree on ({tol}).")
 
 
 def _behind(ev, v, n):
-    return (f"{v}'s ball label is behind the camera seen from the ball that {_list(ev.get('agreeing_views'), n)} agree on "
-            f"(tolerance {_num(ev.get('tau_px'))} px).")
+    return (f"{v}'s ball label is behind the camera seen from the ball that {_list(ev.get('agreeing_views'), n)} agree "
+            f"on (tolerance {_num(ev.get('tau_px'))} px).")
 
 
 def _trajectory(ev, v, n):
@@ -123,28 +128,30 @@ def _missing_epipolar(ev, v, n):
     other = _list(ev.get("agreeing_views"), n)
     g = ev.get("grass_px") or [math.nan, math.nan]
     frac = ev.get("inside_fraction")
-    where = "if it is on the grass, as its box size says" if ev.get("placed") == "grass" else "at the depth its box size gives"
+    where = ("if it is on the grass, as its box size says" if ev.get("placed") == "grass"
+             else "at the depth its box size gives")
     return (f"{v} has no ball label, but the ball of {other} lies on that view's ray, inside {v} at ({_num(g[0])}, "
             f"{_num(g[1])}) px {where}, and "
             f"{'wholly' if frac == 1 else f'{_num(100 * frac if frac is not None else None)} % of it'} inside {v} over "
-            f"the depths its box size allows (a chance of {_num(100 * (ev.get('inside_chance') or 0))} % that the ball is inside) (the segment drawn, {_num(ev.get('segment_length_px_1920'))} px at 1920 "
-            f"width); its height is unknown with only {other} labelled, so no box is suggested: place the label on the "
-            f"segment.")
+            f"the depths its box size allows (a chance of {_num(100 * (ev.get('inside_chance') or 0))} % that the ball "
+            f"is inside) (the segment drawn, {_num(ev.get('segment_length_px_1920'))} px at 1920 width); its height is "
+            f"unknown with only {other} labelled, so no box is suggested: place the label on the segment.")
 
 
 def _missing_epipolar_box(ev, v, n):
     other = _list(ev.get("agreeing_views"), n)
     p = ev.get("projected_px") or [math.nan, math.nan]
-    return (f"{v} has no ball label, but the ball of {other} lies on that view's ray, whose stretch over the depths its box "
-            f"size allows lies inside {v} and is short ({_num(ev.get('segment_length_px_1920'))} px at 1920 width): the box "
-            f"suggested at ({_num(p[0])}, {_num(p[1])}) px, on the grass, is a guess along it, not evidence, until a "
-            f"person places it.")
+    return (f"{v} has no ball label, but the ball of {other} lies on that view's ray, whose stretch over the depths "
+            f"its box size allows lies inside {v} and is short ({_num(ev.get('segment_length_px_1920'))} px at 1920 "
+            f"width): the box suggested at ({_num(p[0])}, {_num(p[1])}) px, on the grass, is a guess along it, not "
+            "evidence, until a person places it.")
 
 
 def _disagree(ev, v, n):
     names = _list(ev.get("views"), n)
     best = ev.get("best_pair_error_px_1920")
-    miss = "their rays diverge or meet where no ball can be" if best is None else f"best pair misses by {best:.0f} px at 1920 width"
+    miss = ("their rays diverge or meet where no ball can be" if best is None
+            else f"best pair misses by {best:.0f} px at 1920 width")
     decide = ("a third view of the ball" if ev.get("third_view") else "another view of the ball") + \
         " or a check of the replays' timing would tell which label is wrong"
     return f"The ball labels of {names} cannot all be right ({miss}, tolerance {_num(ev.get('tau_px'))} px); {decide}."
@@ -160,9 +167,9 @@ def _disagree_epipolar(ev, v, n):
 
 
 def _near_dup(ev, v, n):
-    return (f"{v} sees the ball from nearly the same place as {n.get(ev.get('other_view'), ev.get('other_view'))} (their "
-            f"cameras are {ev.get('angle_deg', 0):.2f} deg apart seen from the ball, {ev.get('baseline_m', 0):.1f} m apart), "
-            "so it adds no depth.")
+    return (f"{v} sees the ball from nearly the same place as {n.get(ev.get('other_view'), ev.get('other_view'))} "
+            f"(their cameras are {ev.get('angle_deg', 0):.2f} deg apart seen from the ball, "
+            f"{ev.get('baseline_m', 0):.1f} m apart), so it adds no depth.")
 
 
 _WRITERS: dict[tuple[str, str], Callable[[dict, str, Names], str]] = {
@@ -213,17 +220,17 @@ def mirror_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | fro
         y = verdict.get("camera_y_m")
         side = (f"; as labelled the camera would stand at y = {y:+.0f} m, beyond the far side line for a main camera"
                 if verdict.get("side_vote") == 1 and isinstance(y, (int, float)) else "")
-        return (f"Labels probably mirrored: as labelled they fit no camera position of the game; mirrored, they fit the "
-                f"position ({pos}) m within {_num(refit.get('rms_px'), 1)} px RMS{side}.")
+        return ("Labels probably mirrored: as labelled they fit no camera position of the game; mirrored, they fit "
+                f"the position ({pos}) m within {_num(refit.get('rms_px'), 1)} px RMS{side}.")
     pro: list[str] = []  # evidence that this view's labels are mirrored
     con: list[str] = []  # evidence that they are right
     y = float(verdict.get("camera_y_m") or 0.0)
-    side, rig = verdict.get("side_vote"), verdict.get("rig_vote")
+    side_vote, rig = verdict.get("side_vote"), verdict.get("rig_vote")
     d, dm = verdict.get("rig_distance_m"), verdict.get("rig_distance_mirrored_m")
-    if side == 1:
+    if side_vote == 1:
         pro.append(f"the camera stands at y = {y:+.0f} m, beyond the far side line for a main camera "
                    f"(mirrored: y = {-y:+.0f} m)")
-    elif side == -1:
+    elif side_vote == -1:
         con.append(f"the camera stands at y = {y:+.0f} m, on the main camera's side")
     if rig == 1:
         pro.append(f"its mirror image is {_num(dm, 1)} m from a camera position of the game, the camera "
@@ -237,17 +244,19 @@ def mirror_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | fro
         rel = p.get("relation")
         if rel == DIFFERENT:
             (con if note else pro).append(
-                f"as labelled its ball ray {_miss(p.get('error_as_labelled_px'), f'the ray of view {other}')}, mirrored it "
-                f"meets it within {_fmt(p.get('error_mirrored_px'))} px{note}")
+                f"as labelled its ball ray {_miss(p.get('error_as_labelled_px'), f'the ray of view {other}')}, "
+                f"mirrored it meets it within {_fmt(p.get('error_mirrored_px'))} px{note}")
         elif rel == SAME:
             (pro if note else con).append(
                 f"as labelled its ball ray meets the ray of view {other} within "
-                f"{_fmt(p.get('error_as_labelled_px'))} px, mirrored it {_miss(p.get('error_mirrored_px'), 'it')}{note}")
+                f"{_fmt(p.get('error_as_labelled_px'))} px, "
+                f"mirrored it {_miss(p.get('error_mirrored_px'), 'it')}{note}")
         elif rel == AMBIGUOUS:
             con.append(f"with view {other} the ball is too near the centre spot to tell")
     v = verdict.get("verdict")
-    head = {VERDICT_MIRRORED: "Labels probably mirrored", VERDICT_AS_LABELLED: "Labels as given agree with the evidence"
-            }.get(v, "Mirroring undecided")
+    heads: dict[Any, str] = {VERDICT_MIRRORED: "Labels probably mirrored",
+                             VERDICT_AS_LABELLED: "Labels as given agree with the evidence"}
+    head = heads.get(v, "Mirroring undecided")
     first, second = (con, pro) if v == VERDICT_AS_LABELLED else (pro, con)
     if not first and not second:
         return head + ": no evidence either way."

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import Counter
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 import numpy as np
 import sqlalchemy as sa
@@ -21,11 +21,11 @@ from sqlalchemy.orm import Session, selectinload
 from app.core.config import Settings
 from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Game, System
 from app.db.types import json_safe
-from app.geometry.camera import Camera
-from app.geometry.pitch import PLAY_VOLUME
-from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
-from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
+from app.geometry.camera import Camera
+from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
+from app.geometry.pitch import PLAY_VOLUME
+from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
 from app.geometry.weighting import calibration_weight
 from app.services.curation.doubt_words import doubt_message
 from app.services.derivation.cameras import stored_camera
@@ -58,8 +58,8 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
     given)."""
     cal = frame.calibration
     calibrated = cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None
-    if camera is None and calibrated:
-        camera = stored_camera(cal.camera)  # type: ignore[union-attr]
+    if camera is None and cal is not None and cal.camera is not None and calibrated:
+        camera = stored_camera(cal.camera)
     label = frame.ball_label
     box = np.asarray(label.box, float) if label is not None and label.box is not None else None
     point = np.asarray(label.point, float) if label is not None and label.point is not None else None
@@ -67,13 +67,13 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
     flags = list(cal.flags or []) if cal is not None else []
     return DoubtView(
         view_id=frame.id, name=frame.name, role=frame.role.value, width=frame.width, height=frame.height,
-        camera=camera if calibrated else None, admitted=bool(calibrated and cal.admitted),  # type: ignore[union-attr]
+        camera=camera if calibrated else None, admitted=bool(calibrated and cal.admitted),  # type: ignore[union-attr]  # calibrated: cal is set
         jac=cal.jac_0005 if cal is not None else None,
         line_classes=sum(1 for polys in lines.values() if polys), box=box, point=point,
         excluded=is_excluded(frame), mirror_flagged=MIRROR_FLAG in flags,
         mirror_evidence=cal.mirror_evidence if cal is not None else None,
         calibration_reason=cal.reason if cal is not None and cal.status is CalibrationStatus.REFUSED else None,
-        rig_assisted=RIG_FLAG in flags, uncertainty=cal.uncertainty if calibrated else None,  # type: ignore[union-attr]
+        rig_assisted=RIG_FLAG in flags, uncertainty=cal.uncertainty if calibrated else None,  # type: ignore[union-attr]  # calibrated: cal is set
         suggested=label is not None and label.suggested,
     )
 
@@ -100,7 +100,8 @@ def weighed_views(system: System, settings: Settings, cameras: dict[int, Camera]
     """:class:`WeighedViews` of ``system`` as its rows are now (admission and mirror flags as set on them)."""
     s = doubt_settings(settings)
     views = doubt_views(system, cameras)
-    return WeighedViews(views, {v.view_id: calibration_weight(v, s) for v in views if v.camera is not None})
+    # a stored view's id is its frame's id
+    return WeighedViews(views, {cast(int, v.view_id): calibration_weight(v, s) for v in views if v.camera is not None})
 
 
 def calibration_weights(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,

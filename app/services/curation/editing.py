@@ -40,7 +40,7 @@ from app.datasets.labels import LabelError, check_box, check_line_point_count, c
 from app.geometry.doubts.judge import consensus_without
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import reprojection_error_px
-from app.geometry.weighting import label_centre
+from app.geometry.weighting import centre_of, label_centre
 from app.services.audit import log as audit
 from app.core.errors import ConflictError, InvalidInputError
 from app.services.kinds import kind_of
@@ -348,7 +348,7 @@ def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None
     names = ", ".join(v.name for v in views if v.view_id in cons.inliers)
     if me.camera is None:
         return None, names
-    e = reprojection_error_px(me.camera, cons.point, label_centre(me))
+    e = reprojection_error_px(me.camera, cons.point, centre_of(me))
     return (None if e is None else float(e) * REFERENCE_WIDTH_PX / me.width), names
 
 

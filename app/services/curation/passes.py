@@ -1,4 +1,4 @@
-"""Review passes (issue 28): every system of a review queue once, in the order it had when the pass began.
+"""Review passes: every system of a review queue once, in the order it had when the pass began.
 
 A pass freezes the ids of every system of a queue (its filters and sort, :func:`~app.services.curation.queue.queue_ids`:
 all its pages) when a user opens a system from it. The system page then moves within that frozen list: a fix
@@ -31,6 +31,8 @@ from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort,
 
 #: The counts of a pass: decisions by status, and ``skipped``: systems still pending.
 COUNT_KEYS = ("accepted", "rejected", "needs_fix", "skipped")
+#: No filter: every system (the default queue of a pass; frozen, so one instance serves every call).
+ALL_SYSTEMS = SystemFilters()
 
 
 @dataclass(frozen=True)
@@ -66,7 +68,7 @@ def filters_json(filters: SystemFilters) -> dict[str, Any]:
     return out
 
 
-def start_pass(session: Session, user: str, filters: SystemFilters = SystemFilters(), sort: SystemSort = DEFAULT_SORT,
+def start_pass(session: Session, user: str, filters: SystemFilters = ALL_SYSTEMS, sort: SystemSort = DEFAULT_SORT,
                system_id: Optional[int] = None, fresh: bool = False) -> ReviewPass:
     """Begin a pass over the queue ``filters`` + ``sort`` for ``user``, or continue one, and commit.
 
@@ -131,7 +133,8 @@ def _statuses(session: Session, ids: list[int]) -> dict[int, str]:
     systems = System.__table__
     exist = set(conn.execute(sa.select(systems.c.id).where(systems.c.id.between(lo, hi))).scalars())
     done = [st for st in ReviewStatus if st is not ReviewStatus.PENDING]  # IN: the status index answers it
-    decided = {i: ReviewStatus(st).value for i, st in conn.execute(sa.select(systems.c.id, systems.c.review_status).where(
+    decided = {i: ReviewStatus(st).value
+               for i, st in conn.execute(sa.select(systems.c.id, systems.c.review_status).where(
         systems.c.review_status.in_(done), systems.c.id.between(lo, hi)))}
     return {i: decided.get(i, _PENDING) for i in ids if i in exist}
 

@@ -1,4 +1,4 @@
-"""Presence: who has a system open, as soft claims that expire (issue 28, item 10).
+"""Presence: who has a system open, as soft claims that expire.
 
 A page that opens a system claims it (:func:`claim`) and keeps claiming it while it stays open (the page's
 heartbeat, every :data:`HEARTBEAT` or so). Others see the live claims (:func:`open_on`): "ana has this system
@@ -24,9 +24,10 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from datetime import datetime, timedelta
-from typing import Any, Optional
+from typing import Any, Optional, cast
 
 import sqlalchemy as sa
+from sqlalchemy.engine import CursorResult
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -67,7 +68,7 @@ class Claimed:
     wrote: bool
 
 
-def _live(now: datetime) -> sa.ColumnElement[bool]:
+def _live(now: datetime | sa.BindParameter[Any]) -> sa.ColumnElement[bool]:
     return SystemPresence.expires_at > now
 
 
@@ -165,7 +166,7 @@ def _write_claim(session: Session, system_id: int, user_id: int, now: datetime) 
 def release(session: Session, system_id: int, user_id: int) -> bool:
     """End ``user_id``'s claim on ``system_id`` (the page closed or moved on); commit. True when there was one."""
     begin_write(session)
-    done = session.execute(sa.delete(SystemPresence).where(SystemPresence.system_id == system_id,
-                                                           SystemPresence.user_id == user_id))
+    done = cast(CursorResult, session.execute(sa.delete(SystemPresence).where(SystemPresence.system_id == system_id,
+                                                                              SystemPresence.user_id == user_id)))
     session.commit()
     return bool(done.rowcount)

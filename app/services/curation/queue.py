@@ -31,8 +31,8 @@ sort's index (covering: the sort keys and the row id) and reads the rows of the 
 from __future__ import annotations
 
 import base64
-import functools
 import binascii
+import functools
 import json
 import math
 from dataclasses import dataclass
@@ -42,10 +42,18 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
 
 from app.core.errors import InvalidInputError
-from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.db.models import (
-    BallReprojection, Calibration, CalibrationStatus, Doubt, Frame, Game, ReviewStatus, System, User,
+    BallReprojection,
+    Calibration,
+    CalibrationStatus,
+    Doubt,
+    Frame,
+    Game,
+    ReviewStatus,
+    System,
+    User,
 )
+from app.db.types import DB_INT_MAX, DB_INT_MIN
 
 SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
@@ -241,7 +249,7 @@ def decode_cursor(cursor: str, sort: SystemSort, field: str = "after") -> tuple[
         raise InvalidInputError("not a queue cursor (use next_cursor / prev_cursor of a page)", field=field)
     if not isinstance(values[-1], int) or isinstance(values[-1], bool) or not 1 <= values[-1] <= DB_INT_MAX:
         raise InvalidInputError("not a queue cursor (its last value is a system id)", field=field)
-    for i, (key, value) in enumerate(zip(keys, values)):
+    for i, (key, value) in enumerate(zip(keys, values, strict=True)):
         if not _fits(key, value):
             raise InvalidInputError(f"not a queue cursor (its value {i + 1} cannot be a stored "
                                     f"{_kind(key)}: forged or damaged)", field=field)
@@ -298,7 +306,7 @@ def _slices(keys: list[_SortKey], current: Optional[tuple[Any, ...]],
     for i in reversed(range(len(keys))):
         order = [keys[i].clause(reverse, plain=True)] + [k.clause(reverse) for k in keys[i + 1:]]
         for beyond in keys[i].beyond(current[i], side):
-            out.append(([*(k.equal(v) for k, v in zip(keys[:i], current)), beyond], order))
+            out.append(([*(k.equal(v) for k, v in zip(keys[:i], current, strict=False)), beyond], order))
     return out
 
 
@@ -411,12 +419,12 @@ def _status_counts(session: Session, conds: list[Any]) -> dict[str, int]:
     status = _review_status()
     counts = {s.value: 0 for s in ReviewStatus}
     if conds:
-        rows = session.execute(sa.select(status, sa.func.count()).where(*conds).group_by(status)).all()
+        rows: list[Any] = list(session.execute(sa.select(status, sa.func.count()).where(*conds).group_by(status)))
     else:
         reviewed = [s.value for s in ReviewStatus if s is not ReviewStatus.PENDING]
-        rows = session.execute(sa.select(status, sa.func.count()).where(status.in_(reviewed)).group_by(status)).all()
-        everything = session.scalar(sa.select(sa.func.count()).select_from(System))
-        rows.append((ReviewStatus.PENDING.value, int(everything) - sum(int(n) for _, n in rows)))
+        rows = list(session.execute(sa.select(status, sa.func.count()).where(status.in_(reviewed)).group_by(status)))
+        everything = session.scalar(sa.select(sa.func.count()).select_from(System)) or 0
+        rows.append((ReviewStatus.PENDING.value, everything - sum(int(n) for _, n in rows)))
     for s, n in rows:
         counts[ReviewStatus(s).value] += int(n)
     return counts
@@ -461,7 +469,7 @@ def _held_keys(held: System, sort: SystemSort) -> Optional[tuple[Any, ...]]:
 def _neighbour_statements(sort: SystemSort, filters: SystemFilters, nulls: Optional[tuple[bool, ...]]
                           ) -> tuple[Any, Any]:
     """The two statements of :func:`queue_neighbours` for a queue, built once (building them cost about 0.5 ms
-    of CPU, most of a neighbour lookup's, on every system page; issue 29): the system's sort keys (parameter
+    of CPU, most of a neighbour lookup's, on every system page): the system's sort keys (parameter
     ``system_id``) and, for a current row whose keys are NULL where ``nulls`` says (the statement's shape
     depends on it), both neighbours, the current row's non-NULL keys as parameters ``key0``, ``key1``, ...
     (None for ``nulls`` None)."""
@@ -471,7 +479,7 @@ def _neighbour_statements(sort: SystemSort, filters: SystemFilters, nulls: Optio
     if nulls is None:
         return keys_stmt, None
     current = tuple(None if null else sa.bindparam(f"key{i}", type_=k.expr.type)
-                    for i, (k, null) in enumerate(zip(keys, nulls)))
+                    for i, (k, null) in enumerate(zip(keys, nulls, strict=False)))
     conds = _system_conditions(filters)
     return keys_stmt, sa.select(_neighbour(base, conds, keys, current, "before"),
                                 _neighbour(base, conds, keys, current, "after"))
@@ -494,7 +502,7 @@ def _neighbour(base: sa.Select[Any], conds: list[Any], keys: list[_SortKey], cur
     reverse = side == "before"
     order = [k.clause(reverse=reverse) for k in keys]
     nearest_first = [
-        base.where(*conds, *(k.equal(v) for k, v in zip(keys[:i], current)), beyond)
+        base.where(*conds, *(k.equal(v) for k, v in zip(keys[:i], current, strict=False)), beyond)
         .order_by(*order).limit(1).scalar_subquery()
         for i in reversed(range(len(keys))) for beyond in keys[i].beyond(current[i], side)
     ]

@@ -1,4 +1,4 @@
-"""The words of the review pages: one table of what every machine code shown on a page reads as (issue 28 item 7).
+"""The words of the review pages: one table of what every machine code shown on a page reads as.
 
 The geometry and the services speak in codes (``ball_off_consensus``, ``probably_mirrored``,
 ``ignored_class:<class>``, ``no_pair_kept``, ``error_above_tau``, ``max_scaled_1920``); a person reads
@@ -31,16 +31,19 @@ from app.geometry.pitch import MIN_LINE_CLASSES
 WORDS: dict[str, dict[str, dict[str, str]]] = {
     "doubt": {
         "mirrored_labels": {"chip": "mirrored labels",
-                            "means": "the view's field lines look labelled left for right; m applies the mirrored labels"},
+                            "means": "the view's field lines look labelled left for right; m applies the mirrored "
+                                     "labels"},
         "ball_off_consensus": {"chip": "ball off consensus",
-                               "means": "the view's ball label is far from the ball the other views agree on; s snaps it "
-                                        "to their box, x leaves the view out"},
+                               "means": "the view's ball label is far from the ball the other views agree on; s snaps "
+                                        "it to their box, x leaves the view out"},
         "ball_missing": {"chip": "ball missing",
-                         "means": "the view has no ball label but the other views' ball is inside it; s places their box"},
+                         "means": "the view has no ball label but the other views' ball is inside it; s places their "
+                                  "box"},
         "views_disagree": {"chip": "views disagree",
                            "means": "the ball labels cannot all be right and the wrong one cannot be told"},
         "near_duplicate_view": {"chip": "near-duplicate view",
-                                "means": "two views from nearly the same place: this one adds no depth; x leaves it out"},
+                                "means": "two views from nearly the same place: this one adds no depth; "
+                                         "x leaves it out"},
         "calibration_refused": {"chip": "no camera",
                                 "means": "the view's field lines fit no camera, so its labels cannot be checked"},
         "below_admission": {"chip": "below admission",
@@ -71,7 +74,8 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
     },
     "note": {
         "not_calibrated": {"chip": "no camera", "means": "the view has no calibrated camera"},
-        "not_admitted": {"chip": "not admitted", "means": "the camera fits its lines less well than the admission threshold"},
+        "not_admitted": {"chip": "not admitted",
+                         "means": "the camera fits its lines less well than the admission threshold"},
         "excluded": {"chip": "excluded", "means": "a reviewer left the view out of the 3D ball (x restores it)"},
         "error_above_tau": {"chip": "error > τ",
                             "means": "the 3D ball reprojects farther from the view's label than the reprojection error "
@@ -89,8 +93,10 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "degenerate": {"chip": "rays identical", "means": "the two rays are the same line"},
         "point_at_infinity": {"chip": "rays parallel", "means": "the two rays meet at infinity"},
         "behind_camera": {"chip": "behind a camera", "means": "the rays meet behind one of the cameras"},
-        "baseline_below_min": {"chip": "cameras too close", "means": "the camera centres are closer than the minimum baseline"},
-        "parallax_below_min": {"chip": "angle too small", "means": "the rays meet at too small an angle to fix the depth"},
+        "baseline_below_min": {"chip": "cameras too close",
+                               "means": "the camera centres are closer than the minimum baseline"},
+        "parallax_below_min": {"chip": "angle too small",
+                               "means": "the rays meet at too small an angle to fix the depth"},
         "error_above_tau": {"chip": "error > τ", "means": "the pair's reprojection error is above the limit τ"},
         "outside_play_volume": {"chip": "outside the pitch", "means": "the rays meet where no ball can be"},
         "weak_calibrations": {"chip": "weak cameras", "means": "neither camera is sure enough to make a ball"},
@@ -117,7 +123,8 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "few_constraints": {"chip": "too few lines",
                             "means": "fewer independent line constraints than a camera has unknowns"},
         "parallel_lines": {"chip": "parallel lines",
-                           "means": "every labelled line is parallel on the pitch and no circle or goal fixes the view"},
+                           "means": "every labelled line is parallel on the pitch and no circle or goal fixes the "
+                                    "view"},
         "collinear_points": {"chip": "collinear points", "means": "every labelled point lies on one image line"},
         "solver_failed": {"chip": "solver failed", "means": "the camera fit raised an error"},
         "no_camera_fits": {"chip": "no camera fits",
@@ -178,9 +185,10 @@ def words_js() -> str:
     return JS_TEMPLATE.replace("__WORDS__", table).replace("__LABEL_KINDS__", json.dumps(list(LABEL_KINDS)))
 
 
-JS_TEMPLATE = """// The words of the review pages (issue 28 item 7): what every machine code shown on a page reads as, one
-// table. WRITTEN FROM app/services/curation/words.py (python -m app.services.curation.words > static/js/words.js);
-// tests/services/curation/test_words.py checks that the two agree. Do not edit the table here.
+JS_TEMPLATE = """// The words of the review pages: what every machine code shown on a page reads as, one table, so
+// that a page never shows a raw token. WRITTEN FROM app/services/curation/words.py
+// (python -m app.services.curation.words > static/js/words.js); tests/services/curation/test_words.py checks that
+// the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/__WORDS__/*END*/;
 
@@ -215,7 +223,8 @@ export function heightText(z, digits = 1) {
 
 /** tau named where it is shown: "reprojection error limit τ = 20.0 px". */
 export function tauText(tau, digits = 1) {
-  return `reprojection error limit τ = ${typeof tau === "number" && Number.isFinite(tau) ? tau.toFixed(digits) : "?"} px`;
+  const shown = typeof tau === "number" && Number.isFinite(tau) ? tau.toFixed(digits) : "?";
+  return `reprojection error limit τ = ${shown} px`;
 }
 
 /** The legend's entries of the chips a page shows: [[chip, means], ...] of the given groups, each chip once. */

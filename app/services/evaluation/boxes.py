@@ -36,9 +36,9 @@ from app.datasets.csv_cells import read_cell
 from app.datasets.files import read_text_file
 from app.db.models import Frame, Game, ReviewDecision, ReviewStatus, System
 from app.geometry.metrics import box_iou, box_size_error_pct
+from app.geometry.pitch import BALL_DIAMETER_M
 from app.services.kinds import kind_of
 from app.services.transfer.detector_export import BALL_BOX_LOADS, refined_boxes
-from app.geometry.pitch import BALL_DIAMETER_M
 
 PRECISE_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y2")
 BOX_KINDS = ("original", "optimised", "refined")
@@ -74,15 +74,16 @@ def read_precise_boxes(path: str | Path) -> list[PreciseBox]:
     out = []
     for n, r in enumerate(reader, start=2):
         try:
-            box = tuple(float(r[c]) for c in ("x1", "y1", "x2", "y2"))
+            box = (float(r["x1"]), float(r["y1"]), float(r["x2"]), float(r["y2"]))
         except (TypeError, ValueError):
             raise DatasetError(path, f"row {n} x1..y2", "not numbers") from None
         if not all(math.isfinite(v) for v in box):
             raise DatasetError(path, f"row {n} x1..y2", "not finite")
         if box[2] <= box[0] or box[3] <= box[1]:
             raise DatasetError(path, f"row {n} x1..y2", "the box has no area (needs x2 > x1 and y2 > y1)")
-        names = (read_cell(r[c] or "") for c in ("league", "season", "match", "image"))  # as a v3d CSV escaped them
-        out.append(PreciseBox(*names, box, n))  # type: ignore[arg-type]
+        # as a v3d CSV escaped them
+        league, season, match, image = (read_cell(r[c] or "") for c in ("league", "season", "match", "image"))
+        out.append(PreciseBox(league, season, match, image, box, n))
     return out
 
 
@@ -101,7 +102,7 @@ def store_precise_boxes(session: Session, path: str | Path) -> int:
     for f in session.scalars(sa.select(Frame).join(System).where(System.game_id.in_(wanted_games))
                              .options(selectinload(Frame.system))):
         frames.setdefault((f.system.game_id, kind_of(f.system).image_name(f)), []).append(f)
-    updates = []
+    updates: list[tuple[Any, list[float]]] = []
     for r in rows:
         gid = games.get((r.league, r.season, r.match))
         if gid is None:
@@ -124,7 +125,8 @@ def _summary(boxes: list[np.ndarray], precise: list[np.ndarray]) -> dict[str, An
             "size_error_pct": float(np.mean(box_size_error_pct(a, b)))}
 
 
-def evaluate_boxes(session: Session, include_all: bool = False, ball_diameter_m: float = BALL_DIAMETER_M) -> dict[str, Any]:
+def evaluate_boxes(session: Session, include_all: bool = False,
+                   ball_diameter_m: float = BALL_DIAMETER_M) -> dict[str, Any]:
     """``{"original": {"n", "iou", "size_error_pct"}, "optimised": {...}, "refined": {...}, "views": n}``
     over the views with a precise box of the chosen systems (module docstring); ``iou`` and
     ``size_error_pct`` are None where ``n`` is 0."""

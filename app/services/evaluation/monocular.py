@@ -3,7 +3,8 @@
 Ground truth: every view of the selected systems (accepted unless ``include_all``) that has a 3D ball
 (system triangulated, view calibrated, optimised box stored): its box as exported
 (:func:`app.services.transfer.detector_export.ball_boxes`: the refined box where the 3D ball is well
-constrained, else the optimised box), the system's 3D ball and the view's camera. Predictions in other images are ignored (counted).
+constrained, else the optimised box), the system's 3D ball and the view's camera. Predictions in other images are
+ignored (counted).
 
 Predictions: YOLO txt files (``class cx cy w h conf``, normalised; one file per image, matched to views
 by file stem as written by :mod:`app.services.transfer.detector_export`, searched recursively) or a COCO
@@ -31,16 +32,24 @@ from typing import Any, Hashable, Iterable
 import numpy as np
 from sqlalchemy.orm import Session
 
+from app.core.errors import DatasetError, InvalidInputError
 from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
-from app.geometry.metrics import (MAX_COCO_FILE_BYTES, Detections, average_precision, box_iou, coco_results,
-                                  load_yolo_detections, monocular_metrics, precision_curve)
-from app.services.kinds import kind_of
-from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes
-from app.core.errors import DatasetError, InvalidInputError
-from app.services.transfer.cameras_export import read_cameras
-from app.services.transfer.exporting import exported_systems
+from app.geometry.metrics import (
+    MAX_COCO_FILE_BYTES,
+    Detections,
+    average_precision,
+    box_iou,
+    coco_results,
+    load_yolo_detections,
+    monocular_metrics,
+    precision_curve,
+)
 from app.geometry.pitch import BALL_DIAMETER_M
+from app.services.kinds import kind_of
+from app.services.transfer.cameras_export import read_cameras
+from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes
+from app.services.transfer.exporting import exported_systems
 
 #: Thresholds (metres) of the precision-threshold curve.
 CURVE_THRESHOLDS_M = tuple(float(t) for t in np.round(np.arange(0.0, 10.0001, 0.25), 2))
@@ -308,7 +317,7 @@ def _report(views: list[ReferenceView], dets: Detections, ball_diameter_m: float
         if not cand:
             continue
         iou = box_iou(d.boxes[cand], v.box[None, :])
-        ok = [c for c, o in zip(cand, iou) if o > 0]
+        ok = [c for c, o in zip(cand, iou, strict=True) if o > 0]
         if not ok:
             continue
         best = max(ok, key=lambda c: d.scores[c])
@@ -350,7 +359,8 @@ def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 
         InvalidInputError: no reference view (nothing to evaluate against), unknown estimator.
     """
     if estimator not in ESTIMATORS:
-        raise InvalidInputError(f"unknown estimator {estimator!r}; choose one of {sorted(ESTIMATORS)}", field="estimator")
+        raise InvalidInputError(f"unknown estimator {estimator!r}; choose one of {sorted(ESTIMATORS)}",
+                                field="estimator")
     if not views:
         raise InvalidInputError("no view with a 3D ball among the selected systems (accept systems, or use --all)",
                                 field="systems")

@@ -7,9 +7,9 @@ from typing import Any
 
 import numpy as np
 
+from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.sensitivity import centre_sensitivity, size_sensitivity
 from app.services.evaluation.monocular import ReferenceView
-from app.geometry.pitch import BALL_DIAMETER_M
 
 #: Variations of the sensitivity study (paper: box size +-10 %, centre up to 2 % of the diagonal).
 SIZE_PCT = tuple(float(v) for v in np.linspace(-10.0, 10.0, 41))

@@ -17,10 +17,11 @@ against the JaC admission threshold) and distributions.
 * ``jac_sweep``: a multi-view system is kept at threshold t when at least two of its views have a camera with
   JaC at the admission gamma (``Settings.admit_jac_gamma``) above t (the paper's Fig. 3), for t in
   :data:`JAC_THRESHOLDS`, over every system and per kind (``jac_sweep_by_kind``: the paper's figure is SoccerNet-v3's;
-  ISSIA's static cameras have one calibration each); ``admission`` is the threshold in force (``Settings.admit_jac_gamma``, ``admit_jac_min``),
-  so that a plot can mark it; ``stale_systems`` counts the systems computed with other settings (a changed
-  ``V3D_PROFILE``, ``app.services.derivation.recompute.systems_computed_otherwise``): their figures here are stale
-  until ``v3d recompute``.
+  ISSIA's static cameras have one calibration each); ``admission`` is the threshold in force
+  (``Settings.admit_jac_gamma``, ``admit_jac_min``), so that a plot can mark it; ``stale_systems`` counts the systems
+  computed with other settings (a changed ``V3D_PROFILE``,
+  ``app.services.derivation.recompute.systems_computed_otherwise``): their figures here are stale until
+  ``v3d recompute``.
 * distributions (:data:`HISTOGRAM_BINS` equal bins between the smallest and largest value, a long tail counted
   apart, :func:`histogram`): ``jac`` (JaC at the
   admission gamma of every calibrated view), ``pair_reprojection_error_px`` (every triangulation pair's error),
@@ -108,19 +109,20 @@ def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
                 sp["systems"] += 1
                 seen_splits.add(split)
             cal = f.calibration
-            calibrated = cal is not None and cal.camera is not None
-            admitted = calibrated and bool(cal.admitted)  # type: ignore[union-attr]
+            camera = cal.camera if cal is not None else None
+            calibrated = cal is not None and camera is not None
+            admitted = cal is not None and camera is not None and bool(cal.admitted)
             for target in (k, sp):
                 target["images"] += 1
                 target["calibrated_images"] += int(calibrated)
                 target["admitted_images"] += int(admitted)
-            if calibrated:
-                jac = admission_jac(cal, settings)  # type: ignore[arg-type]
+            if cal is not None and camera is not None:
+                jac = admission_jac(cal, settings)
                 if jac is not None:
                     jac_values.append(float(jac))
                     jacs.append(float(jac))
                 if admitted and ball is not None:
-                    centre = np.asarray(cal.camera["position_meters"], float)  # type: ignore[index,union-attr]
+                    centre = np.asarray(camera["position_meters"], dtype=float)
                     distances.append(float(np.linalg.norm(np.asarray(ball, float) - centre)))
             label = f.ball_label
             if label is not None and label.box is not None:
@@ -130,7 +132,7 @@ def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
     sweep = _sweep([jacs for _, jacs in per_system_jacs])
     by_kind = {kind: _sweep([jacs for k, jacs in per_system_jacs if k == kind]) for kind in kinds}
     errors = [e for (e,) in session.execute(sa.select(TriangulationPair.error_px)
-                                            .where(TriangulationPair.error_px.is_not(None)))]
+                                            .where(TriangulationPair.error_px.is_not(None))) if e is not None]
     return {
         "kinds": kinds,
         "jac_sweep": sweep,

@@ -13,15 +13,14 @@ import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Optional
+from typing import IO, Optional
 
 import numpy as np
 
-from app.core.errors import DatasetError
+from app.core.errors import DatasetError, ServiceError
 from app.datasets.issia import IssiaSequence, read_frame_image
 from app.datasets.files import IMAGE_MEDIA_TYPES, MAX_IMAGE_PIXELS, image_header, is_safe_member
 from app.db.models import Frame
-from app.core.errors import ServiceError
 
 #: Bytes per streamed chunk.
 _CHUNK = 64 * 1024
@@ -84,7 +83,7 @@ def stored_image_file(frame: Frame, relative: str) -> Path:
     return resolved
 
 
-def _checked_media_type(frame: Frame, stream: BinaryIO, name: str, max_pixels: int) -> str:
+def _checked_media_type(frame: Frame, stream: IO[bytes], name: str, max_pixels: int) -> str:
     """``image/png`` or ``image/jpeg`` from the header of the open image ``stream``
     (``app.datasets.files.image_header``), when it is the type the import checked (``Frame.image_type``;
     rows imported before the check have none).
@@ -160,9 +159,10 @@ def _media_frame_image(frame: Frame, where: str, max_pixels: int) -> FrameImage:
     try:
         st = path.stat()
         data = read_video_frame(frame, max_pixels)
-    except (OSError, DatasetError) as exc:
+    except (OSError, DatasetError):
         raise ImageUnavailable(f"{where}: cannot read frame {frame.media_frame} of {frame.image_path}") from None
-    etag = f'"{st.st_mtime_ns:x}-{st.st_size:x}-{frame.media_frame:x}-{int(frame.media_flipped)}-{frame.width}x{frame.height}"'
+    etag = (f'"{st.st_mtime_ns:x}-{st.st_size:x}-{frame.media_frame:x}-{int(frame.media_flipped)}-'
+            f'{frame.width}x{frame.height}"')
     return FrameImage(media_type="image/png", etag=etag, size=len(data), data=data)
 
 

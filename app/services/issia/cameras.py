@@ -21,11 +21,11 @@ from app.geometry.calibration import calibrate_frame
 from app.geometry.calibration.result import Refusal
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS, jac_admitted, jac_at_gammas
-from app.services.curation.words import refusal_sentence
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.static_bundle import bundle_adjust
 from app.geometry.static_cameras import calibrate_with_ball
 from app.geometry.trajectory import DEFAULT_FLAG_PX, fit_trajectory
-from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.services.curation.words import refusal_sentence
 
 
 @dataclass(frozen=True)
@@ -72,8 +72,8 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
     ``from_lines`` or it is absent; then each static camera is calibrated once from its field lines
     (:func:`app.geometry.calibration.calibrate_frame`) and admitted when its JaC at ``admit_jac_gamma`` is above
     ``admit_jac_min`` (the paper's admission rule, :func:`app.geometry.jac.jac_admitted`; the callers pass the
-    settings' ``admit_jac_gamma`` and ``admit_jac_min``); a refused or not admitted camera has ``camera=None`` and a reason.
-    With two or more admitted cameras, the ball's trajectory is fitted with them
+    settings' ``admit_jac_gamma`` and ``admit_jac_min``); a refused or not admitted camera has ``camera=None`` and a
+    reason. With two or more admitted cameras, the ball's trajectory is fitted with them
     (:func:`app.geometry.trajectory.fit_trajectory`, its per-frame triangulation's ``tau_px``, ``rule``,
     ``min_baseline_m`` and ``min_parallax_deg`` given as ``pair_rules``: ``app.services.issia.trajectory.fit_args``
     of the settings), then:
@@ -109,9 +109,11 @@ def sequence_cameras(seq: IssiaSequence, *, from_lines: bool = False, admit_jac_
         res = calibrate_frame(seq.lines[cid], *seq.image_size)
         jac = res.jac.get(f"{admit_jac_gamma:g}") if res.jac else None  # calibrate_frame's keys: JAC_GAMMAS
         if res.camera is None:
+            assert res.refusal is not None  # calibrate_frame: no camera comes with its refusal
             out[cid] = CameraChoice(None, "lines", None, f"refused: {refusal_sentence(res.refusal)}", res.refusal.code)
         elif not jac_admitted(jac, admit_jac_min):
-            below = Refusal("below_admission", {"jac": jac, "gamma_pct": 100 * admit_jac_gamma, "admit_jac_min": admit_jac_min})
+            below = Refusal("below_admission",
+                            {"jac": jac, "gamma_pct": 100 * admit_jac_gamma, "admit_jac_min": admit_jac_min})
             out[cid] = CameraChoice(None, "lines", jac, refusal_sentence(below), below.code)
         else:
             out[cid] = CameraChoice(res.camera, "lines", jac)
@@ -159,7 +161,7 @@ def _bundle_adjusted(seq: IssiaSequence, choice: dict[str, CameraChoice], fit,
                                      [choice[c].ball_assisted for c in ids], admit_jac_gamma=admit_jac_gamma,
                                      admit_jac_min=admit_jac_min)
     return {cid: CameraChoice(r[0], choice[cid].source + "+bundle", r[1])
-            for cid, r in zip(ids, refined) if r is not None}
+            for cid, r in zip(ids, refined, strict=True) if r is not None}
 
 
 def bundle_refined_cameras(cameras: Sequence[Camera | None], lines: Sequence[FieldLines | None], points: np.ndarray,
@@ -199,9 +201,10 @@ def bundle_refined_cameras(cameras: Sequence[Camera | None], lines: Sequence[Fie
     except ValueError:
         return out
     for k in range(len(cams)):
-        if res.cameras[k] is None or lines[k] is None:
+        camera, labelled = res.cameras[k], lines[k]
+        if camera is None or labelled is None:
             continue
-        jac = float(jac_at_gammas(res.cameras[k], lines[k], *image_size, (admit_jac_gamma,))[admit_jac_gamma])
+        jac = float(jac_at_gammas(camera, labelled, *image_size, (admit_jac_gamma,))[admit_jac_gamma])
         if jac_admitted(jac, admit_jac_min):
-            out[k] = (res.cameras[k], jac)
+            out[k] = (camera, jac)
     return out

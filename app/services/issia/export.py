@@ -24,11 +24,11 @@ import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from app.core.errors import NotFoundError, found
 from app.datasets.issia import ANNOTATION_SIZE, CAMERA_SET, IssiaSequence
 from app.datasets.issia3d import issia3d_rows, write_issia3d_csv
 from app.db.models import Calibration, Frame, Game, ReviewStatus, System, SystemKind
 from app.geometry.camera import Camera
-from app.core.errors import NotFoundError, found
 from app.services.issia.trajectory import load_sequence
 
 CSV_NAME, SPLIT_NAME, CALIBRATION_DIR = "ISSIA-3D.csv", "split.json", "calibration"
@@ -104,8 +104,8 @@ def sequence_calibrations(session: Session, game_id: int) -> dict[str, dict[str,
 
 def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> list:
     """The ``ISSIA-3D.csv`` rows (:class:`app.datasets.issia3d.Issia3DRow`) of a stored sequence:
-    current labels (a reviewer's edits included), the cameras admitted by the last recomputation, the stored ``ball_3D``,
-    ``cam_list``, ``ball_3D_smoothed`` and source; ``err``/``opt_d``/``opt_e`` computed from them.
+    current labels (a reviewer's edits included), the cameras admitted by the last recomputation, the stored
+    ``ball_3D``, ``cam_list``, ``ball_3D_smoothed`` and source; ``err``/``opt_d``/``opt_e`` computed from them.
     Accepted frames only unless ``include_all``."""
     systems = load_sequence(session, game_id)
     if not include_all:
@@ -116,15 +116,15 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
     names = _names(systems)
     ids = tuple(_cam_id(n) for n in names)
     col = {n: k for k, n in enumerate(names)}
-    F = max(s.frame_index for s in systems) + 1  # type: ignore[type-var]
+    indices = [s.frame_index for s in systems if s.frame_index is not None]  # all of them: kept above
+    F = max(indices) + 1
     points = np.full((len(systems), len(ids), 2), np.nan)
     ball, smooth = np.full((F, 3), np.nan), np.full((F, 3), np.nan)
     sources: list[str | None] = [None] * F
     cam_lists: list[tuple[int, ...]] = [()] * F
     cameras: dict[str, Camera] = {}
     size = ANNOTATION_SIZE
-    for i, s in enumerate(systems):
-        f_idx = s.frame_index
+    for i, (s, f_idx) in enumerate(zip(systems, indices, strict=True)):
         k_of = {f.id: col[f.name] for f in s.frames}
         for f in s.frames:
             size = (f.width, f.height)
@@ -134,7 +134,7 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
             cid = ids[col[f.name]]
             cal = f.calibration
             if cid not in cameras and cal is not None and cal.admitted and cal.camera is not None:
-                cameras[cid] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]
+                cameras[cid] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]  # checked just above: set
         tp = s.trajectory_point
         if tp is not None:
             if tp.ball3d is not None:
@@ -144,7 +144,7 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
             sources[f_idx] = tp.source
             cam_lists[f_idx] = tuple(sorted(k_of[i] for i in tp.cam_list if i in k_of))
     seq = IssiaSequence(root=Path("."), camera_ids=ids, image_size=size, cameras={}, lines={},
-                        frames=tuple(s.frame_index for s in systems), points=points)  # type: ignore[arg-type]
+                        frames=tuple(indices), points=points)
     fit = _StoredFit(ball, smooth, tuple(sources), tuple(cam_lists))
     return issia3d_rows(seq, cameras, fit)
 
@@ -160,8 +160,8 @@ class _StoredFit:
 
 
 def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = False) -> Issia3DExport:
-    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json`` and ``calibration/cam<k>.json`` for every stored ISSIA sequence
-    (module docstring). Accepted frames only unless ``include_all``; a sequence with no exported
+    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json`` and ``calibration/cam<k>.json`` for every stored ISSIA
+    sequence (module docstring). Accepted frames only unless ``include_all``; a sequence with no exported
     frame gets no folder."""
     out = Path(out_dir)
     report = Issia3DExport(out)

@@ -1,4 +1,4 @@
-"""ISSIA-3D sequences in the service (issue 9): import, edits' re-fit, frame images and the export.
+"""ISSIA-3D sequences in the service: import, edits' re-fit, frame images and the export.
 
 * :func:`import_issia`: a folder read by :func:`app.datasets.issia.read_issia` becomes one game
   (league :data:`LEAGUE`, season :data:`SEASON`, match the folder's name), one multi-view system of
@@ -34,31 +34,38 @@ from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
 from app.datasets.issia import CAMERA_SET, FPS, IssiaSequence, read_issia
+from app.datasets.records import CalibrationFields
 from app.db.models import (
-    BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole, Game,
-    ReviewStatus, System, SystemKind,
+    BallKind,
+    BallLabel,
+    CalibrationSource,
+    CalibrationStatus,
+    FieldLineAnnotation,
+    Frame,
+    FrameRole,
+    Game,
+    ReviewStatus,
+    System,
+    SystemKind,
 )
 from app.db.session import refresh_statistics
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists
 from app.geometry.calibration.held_out import class_point_distances
 from app.geometry.camera import Camera
-from app.geometry.jac import jac_at_gammas
+from app.geometry.jac import JAC_GAMMAS, jac_at_gammas
 from app.geometry.trajectory import fit_trajectory
-from app.services.issia.cameras import CameraChoice, bundle_refined_cameras, sequence_cameras
-from app.services.curation.doubts import update_doubts
-from app.core.errors import DatasetError
 from app.services.audit.log import record_summary
-from app.services.transfer.importing import ImportReport, audit_counts
-from app.services.kinds.issia import BALL_BUNDLE_FLAG
-from app.services.issia.refit import refit_sequence, sequence_columns
-from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence, sequence_arrays
-from app.geometry.jac import JAC_GAMMAS
-from app.datasets.records import CalibrationFields
 from app.services.calibration.admission import GIVEN_CAMERA_FLAG, admission_args
 from app.services.calibration.calibrating import apply_calibration, fit_uncertainty
-from app.services.jobs.progress import Progress
+from app.services.curation.doubts import update_doubts
 from app.services.derivation.recompute import load_for_recompute, recompute_system, recompute_systems
+from app.services.issia.cameras import CameraChoice, bundle_refined_cameras, sequence_cameras
+from app.services.issia.refit import refit_sequence, sequence_columns
+from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence, sequence_arrays
+from app.services.jobs.progress import Progress
+from app.services.kinds.issia import BALL_BUNDLE_FLAG
+from app.services.transfer.importing import ImportReport, audit_counts
 
 LEAGUE, SEASON = "issia", "sequences"
 #: Calibration flag of a camera calibrated again from the ball's trajectory of the others.
@@ -76,12 +83,13 @@ def _camera_fields(seq: IssiaSequence, cid: str, choice: CameraChoice) -> Calibr
                                  refusal=choice.refusal)
     w, h = seq.image_size
     flags = [BALL_ASSISTED_FLAG] * choice.ball_assisted + [BALL_BUNDLE_FLAG] * choice.bundle_adjusted
+    values: tuple[float | None, float | None, float | None]
     if cid in seq.lines:
         jac = jac_at_gammas(choice.camera, seq.lines[cid], w, h, JAC_GAMMAS)
-        values = tuple(float(jac[g]) for g in JAC_GAMMAS)
+        values = (float(jac[JAC_GAMMAS[0]]), float(jac[JAC_GAMMAS[1]]), float(jac[JAC_GAMMAS[2]]))
     else:
         values, flags = (None, None, None), flags + [GIVEN_CAMERA_FLAG]
-    return CalibrationFields(CalibrationStatus.CALIBRATED, json_safe(choice.camera.to_soccernet()), values, flags=flags)  # type: ignore[arg-type]
+    return CalibrationFields(CalibrationStatus.CALIBRATED, json_safe(choice.camera.to_soccernet()), values, flags=flags)
 
 
 def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:
@@ -173,10 +181,10 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
     lines = {cid: lines_to_json_lists(seq.lines[cid]) for cid in seq.lines}
     now = utcnow()
     w, h = seq.image_size
-    for i, index in enumerate(seq.frames):
+    for index in seq.frames:
         system = systems.get(str(index))
         new = system is None
-        if new:
+        if system is None:
             system = System(name=str(index), kind=SystemKind.ISSIA, frame_index=index)
             game.systems.append(system)
             report.systems_new += 1
@@ -207,8 +215,10 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
                         fl.lines = lines[cid]
                     fl.original_lines = lines[cid]
             cal, f = frame.calibration, fields[cid]
-            ours = [x for x in (cal.flags or []) if x in (BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
-            if cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags) or cal.source is not source:
+            ours = [x for x in (cal.flags or [])
+                    if x in (BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
+            if (cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags)
+                    or cal.source is not source):
                 apply_calibration(frame, f, source)
                 changed = True
             label_changed = _set_label(frame, seq.point(index, cid), now)
@@ -220,7 +230,8 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
     return game
 
 
-def refined_with_ball(session: Session, frame: Frame, fields: CalibrationFields, settings: Settings) -> CalibrationFields:
+def refined_with_ball(session: Session, frame: Frame,
+                      fields: CalibrationFields, settings: Settings) -> CalibrationFields:
     """The calibration of an ISSIA view recalibrated from its edited field lines (``fields``, from the lines
     alone), refined again from its lines and the sequence's ball labels when its stored calibration was so
     refined (flag :data:`BALL_BUNDLE_FLAG`: ``v3d import issia --from-lines``), as the import refined it
@@ -259,7 +270,8 @@ def refined_with_ball(session: Session, frame: Frame, fields: CalibrationFields,
     jac = jac_at_gammas(camera, lines[k], frame.width, frame.height, JAC_GAMMAS)
     flags = [f for f in fields.flags if f != BALL_BUNDLE_FLAG] + [BALL_BUNDLE_FLAG]
     residuals = {c: float(np.max(d)) for c, d in class_point_distances(camera, lines[k]).items() if len(d)}
-    return dataclasses.replace(fields, camera=json_safe(camera.to_soccernet()), jac=tuple(float(jac[g]) for g in JAC_GAMMAS),
+    return dataclasses.replace(fields, camera=json_safe(camera.to_soccernet()),
+                               jac=(float(jac[JAC_GAMMAS[0]]), float(jac[JAC_GAMMAS[1]]), float(jac[JAC_GAMMAS[2]])),
                                flags=flags, residuals_px=residuals,
                                uncertainty=fit_uncertainty(camera, lines[k], tuple(flags)))
 
@@ -292,14 +304,15 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
         touched = [system]
     else:
         columns = sequence_columns(session, system.game_id, settings)
-        first = dict(zip(columns.names, columns.first_admitted)).get(recalibrated.name)
+        first = dict(zip(columns.names, columns.first_admitted, strict=False)).get(recalibrated.name)
         if first is not None and system.frame_index > first:
             return []  # an earlier view of this camera gives the camera: the trajectory is unchanged
         changed = fit_sequence(session, system.game_id, settings)
         touched = []
         # what the recomputations below read, for all of them in a few queries (not one per system and relation)
         load_for_recompute(session, [c.system.id for c in changed if c.system is not None and (
-            c.labels or c.system.trajectory_point.flagged or c.system.doubt_counts.get("ball_off_consensus"))])
+            c.labels or c.system.trajectory_point.flagged  # type: ignore[union-attr]  # a re-fitted system has its point
+            or c.system.doubt_counts.get("ball_off_consensus"))])
     # decided systems whose place on the trajectory moved but that the re-fit did not load: the edit sets their
     # decisions back to pending (one query for all of them)
     unloaded = [c.system_id for c in changed if c.system is None and c.system_id is not None]
@@ -312,7 +325,7 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
             continue
         if c.labels:
             recompute_system(session, s, settings)
-        elif s.trajectory_point.flagged or s.doubt_counts.get("ball_off_consensus"):
+        elif s.trajectory_point.flagged or s.doubt_counts.get("ball_off_consensus"):  # type: ignore[union-attr]  # a re-fitted system has its point
             update_doubts(s, settings)
         touched.append(s)  # its place on the trajectory (its 3D ball) changed, recomputed or not
     return touched

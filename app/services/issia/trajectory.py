@@ -1,4 +1,4 @@
-"""The temporal 3D ball of an ISSIA sequence in the service (issue 9): stored rows <-> the pure fit.
+"""The temporal 3D ball of an ISSIA sequence in the service: stored rows <-> the pure fit.
 
 An ISSIA sequence is a game whose systems (kind ``issia``) are frame indices (``System.frame_index``)
 and whose views are static cameras (``Frame.name`` "cam<k>"). This module
@@ -6,8 +6,9 @@ and whose views are static cameras (``Frame.name`` "cam<k>"). This module
 * gathers the sequence's current ball labels and admitted cameras into the arrays of
   :func:`app.geometry.trajectory.fit_trajectory` (:func:`sequence_arrays`);
 * fits the whole sequence (:func:`fit_sequence`; after an edit only the stretch it touches is
-  re-fitted, ``app.services.issia.refit``) and stores each frame's place on the trajectory (:class:`~app.db.models.TrajectoryPoint`:
-  ``ball_3D``, ``ball_3D_smoothed`` and its source, the kept labels, the residuals, the flagged labels);
+  re-fitted, ``app.services.issia.refit``) and stores each frame's place on the trajectory
+  (:class:`~app.db.models.TrajectoryPoint`: ``ball_3D``, ``ball_3D_smoothed`` and its source, the kept labels, the
+  residuals, the flagged labels);
 * gives the per-frame triangulation of an ISSIA system its semantics (:func:`consensus_observations`:
   labels the trajectory flags are left out, then the labels that agree on one ball are chosen, as
   :func:`app.geometry.trajectory.triangulate_frame`), used by ``app.services.derivation.recompute``;
@@ -28,13 +29,13 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.db.models import Frame, System, SystemKind, TrajectoryPoint
 from app.datasets.issia import FPS
+from app.db.models import Frame, System, SystemKind, TrajectoryPoint
 from app.db.types import json_safe, utcnow
 from app.geometry.camera import Camera
 from app.geometry.doubts import Doubt as JudgedDoubt
-from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
 from app.geometry.triangulation import BallObservation
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubts import is_excluded
@@ -94,7 +95,7 @@ def sequence_arrays(systems: Sequence[System], settings: Settings) -> SequenceAr
             frame_ids[i, k] = f.id
             widths[k] = float(f.width)
             if cameras[k] is None and is_admitted(f.calibration, settings):
-                cameras[k] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]
+                cameras[k] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]  # admitted: a calibration with a camera
             c = f.ball_label.centre if f.ball_label is not None else None
             if c is not None and not is_excluded(f):
                 points[i, k] = c
@@ -152,8 +153,8 @@ def row_values(fit: TrajectoryFit, frames: Sequence[int], ids: np.ndarray) -> di
     out = {}
     for j, frame in enumerate(frames):
         i = rows[j]
-        at = bisect.bisect_right(starts, frame) - 1  # the piece holding the frame, if one does
-        at = at if at >= 0 and fit.pieces[at].last_frame >= frame else None
+        before: int = bisect.bisect_right(starts, frame) - 1  # the piece holding the frame, if one does
+        at = before if before >= 0 and fit.pieces[before].last_frame >= frame else None
         if at is not None and at not in documents:
             documents[at] = piece_json(fit.pieces[at])
         fid = ids_l[j]
@@ -191,7 +192,7 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
     return changed
 
 
-def fit_args(settings: Settings) -> dict[str, float]:
+def fit_args(settings: Settings) -> dict[str, Any]:
     """The keyword arguments of the trajectory fit taken from the settings (its per-frame triangulation's)."""
     return {"tau_px": settings.triangulation_tau_px, "rule": settings.pair_error_rule,
             "min_baseline_m": settings.min_baseline_m, "min_parallax_deg": settings.min_parallax_deg}
@@ -208,7 +209,8 @@ def fit_sequence(session: Session, game_id: int, settings: Settings) -> list[Cha
     return store_fit(arrays, fit)
 
 
-def consensus_observations(system: System, observations: list[BallObservation], settings: Settings) -> list[BallObservation]:
+def consensus_observations(system: System,
+                           observations: list[BallObservation], settings: Settings) -> list[BallObservation]:
     """The labels of an ISSIA system that its 3D ball is made of: those the stored trajectory does not
     flag, then the ones that agree on one ball (:func:`app.geometry.trajectory.triangulate_frame`:
     robust to a wrong camera; none when two labels disagree or two camps agree equally)."""
@@ -251,7 +253,8 @@ def trajectory_doubts(system: System, cameras: dict[int, Camera] | None = None) 
 DOUBT_POINT_COLUMNS = ("flagged", "residuals_px", "ball3d_smoothed", "source")
 
 
-def flagged_label_doubts(frame_index: int | None, point: dict[str, Any], views: dict[int, DoubtFrame]) -> list[JudgedDoubt]:
+def flagged_label_doubts(frame_index: int | None, point: dict[str, Any],
+                         views: dict[int, DoubtFrame]) -> list[JudgedDoubt]:
     """The ``ball_off_consensus`` doubt of each flagged label of a frame: evidence the residual (px at
     1920 width), the fitted position (m) and the frame index; fix ``snap_point`` to where the trajectory
     projects when that is inside the image (with ``point_sigma_px``, :func:`_trajectory_sigma_px`, and
@@ -299,7 +302,8 @@ def _trajectory_sigma_px(point: dict[str, Any], width: int) -> float | None:
     return round(float(np.sqrt(np.mean(np.square(kept)))) * width / REFERENCE_WIDTH_PX, 2)
 
 
-def merge_doubts(system: System, judged: list[JudgedDoubt], cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
+def merge_doubts(system: System, judged: list[JudgedDoubt],
+                 cameras: dict[int, Camera] | None = None) -> list[JudgedDoubt]:
     """For an ISSIA system with a stored trajectory, the trajectory decides which labels are off:
     the single-frame ``ball_off_consensus`` doubts are replaced by :func:`trajectory_doubts`, and a
     single-frame ``views_disagree`` (two labels that miss, culprit unknown) is dropped when the

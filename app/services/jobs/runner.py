@@ -35,16 +35,17 @@ import threading
 import time
 from dataclasses import dataclass
 from datetime import timedelta
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 import sqlalchemy as sa
 from sqlalchemy import select
+from sqlalchemy.engine import CursorResult
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.config import Settings
+from app.core.errors import InvalidInputError, ServiceError, found
 from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
-from app.core.errors import InvalidInputError, ServiceError, found
 from app.services.jobs.progress import Progress
 from app.services.jobs.work import WORK
 
@@ -86,7 +87,7 @@ def _owner_gone(owner: str | None) -> bool:
 
 
 def _on_this_host(owner: str | None) -> bool:
-    return bool(owner) and owner.partition(":")[0] == socket.gethostname()
+    return owner is not None and bool(owner) and owner.partition(":")[0] == socket.gethostname()
 
 
 def is_sqlite(settings: Settings) -> bool:
@@ -147,11 +148,11 @@ def claim(session: Session, job: Job, owner: str) -> bool:
     # connection committed cannot write at all; the compare-and-set below is what makes the claim safe.
     session.rollback()
     now = utcnow()
-    result = session.execute(
+    result = cast(CursorResult, session.execute(
         sa.update(Job).where(Job.id == job_id, Job.attempts == attempts, Job.state == state)
         .values(state=JobState.RUNNING, owner=owner, attempts=attempts + 1, started_at=now, heartbeat_at=now,
                 message=None)
-        .execution_options(synchronize_session=False))
+        .execution_options(synchronize_session=False)))
     session.commit()
     return result.rowcount == 1
 
@@ -247,10 +248,10 @@ class _Heartbeat(threading.Thread):
         self.last = time.monotonic()
         try:
             with self.session_factory() as session:
-                result = session.execute(
+                result = cast(CursorResult, session.execute(
                     sa.update(Job).where(Job.id == self.job_id, Job.owner == self.owner)
                     .values(heartbeat_at=utcnow(), stage=self.live.stage, done=self.live.done, total=self.live.total)
-                    .execution_options(synchronize_session=False))
+                    .execution_options(synchronize_session=False)))
                 session.commit()
                 if result.rowcount == 0:
                     self.live.lost = True
@@ -333,7 +334,7 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
         values = {"state": JobState.DONE, "result": json_safe(result), "message": None}
     except JobLost:
         values = {}
-    except Exception as exc:  # noqa: BLE001 - a job's failure is recorded, whatever it is
+    except Exception as exc:  # any exception: a job's failure is recorded, whatever it is
         log.info("job %s (%s) failed: %s", job_id, kind, exc)
         values = {"state": JobState.FAILED, "message": str(exc) or type(exc).__name__,
                   "result": {"error": type(exc).__name__, "invalid_input": isinstance(exc, InvalidInputError)}}
@@ -383,6 +384,6 @@ class JobRunner:
                 if job_id is not None:
                     run_job(self.session_factory, job_id, self.settings, self.owner)
                     continue
-            except Exception:  # noqa: BLE001 - a runner outlives a failed poll (database restarting, locked)
+            except Exception:  # any exception: a runner outlives a failed poll (database restarting, locked)
                 log.exception("job runner: poll failed")
             self._stop.wait(self.settings.job_poll_seconds)

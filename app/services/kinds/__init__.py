@@ -1,4 +1,4 @@
-"""One home per multi-view system kind (issue 19): what differs between SoccerNet-v3 action frames with
+"""One home per multi-view system kind: what differs between SoccerNet-v3 action frames with
 their replays, single SoccerNet-calibration frames and ISSIA frame indices is decided by the kind's
 module, and services ask it instead of branching on :class:`~app.db.models.SystemKind`.
 
@@ -47,4 +47,5 @@ def kinds_exported_by(export: str) -> list[SystemKind]:
     return [k for k, p in POLICIES.items() if export in p.exports]
 
 
-__all__ = ["EXPORTS", "KindPolicy", "POLICIES", "game_stem", "image_stem", "kind_of", "kinds_exported_by", "policy", "split_of"]
+__all__ = ["EXPORTS", "KindPolicy", "POLICIES", "game_stem", "image_stem", "kind_of", "kinds_exported_by", "policy",
+           "split_of"]

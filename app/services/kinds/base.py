@@ -75,8 +75,8 @@ class KindPolicy:
         edit_locks_game: an edit of one system may change other systems of its game (a sequence's
             trajectory), so the edit locks the game row before the system's.
         computes_before_lock: an edit's recomputation reads nothing beyond its system and game
-            (``app.services.derivation.recompute.stored_state_digest`` covers every row it reads), so the edit computes it
-            before it takes the write lock and only compares and writes under it (``app.services.curation.editing``);
+            (``app.services.derivation.recompute.stored_state_digest`` covers every row it reads), so the edit computes
+            it before it takes the write lock and only compares and writes under it (``app.services.curation.editing``);
             False where it re-fits beyond the system (ISSIA's trajectory): computed under the lock.
         weighs_calibrations: the triangulation weighs each view by what its calibration from field lines is
             worth (``app.geometry.weighting.calibration_weight``: a view whose few lines leave its camera unsure

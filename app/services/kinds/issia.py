@@ -17,7 +17,7 @@ in the paper, by camera (1-2 test, 3-6 train), and named ``<sequence slug>-<hash
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from app.datasets.issia import CAMERA_SET
 from app.db.models import Frame, Game, System, SystemKind
@@ -107,7 +107,7 @@ class IssiaPolicy(KindPolicy):
 
     def judge_doubts(self, system: System, found: list[DoubtFinding],
                      cameras: dict[int, Camera] | None) -> list[DoubtFinding]:
-        """The multi-view doubts merged with the trajectory's judgement of the labels (issue 9)."""
+        """The multi-view doubts merged with the trajectory's judgement of the labels."""
         return _hooks().merge_doubts(system, found, cameras)
 
     def refine_calibration(self, session: Session, frame: Frame, fields: CalibrationFields,

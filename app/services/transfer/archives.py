@@ -29,13 +29,11 @@ import stat
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Callable, Iterable
-
+from typing import IO, BinaryIO, Callable, Iterable
 
 from app.core.config import Settings
-from app.datasets.files import (MAX_IMAGE_PIXELS, MAX_ZIP_RATIO, image_header, is_safe_member, member_chunks,
-                                ratio_cap)
 from app.core.errors import DatasetError, ServiceError
+from app.datasets.files import MAX_IMAGE_PIXELS, MAX_ZIP_RATIO, image_header, is_safe_member, member_chunks, ratio_cap
 
 #: File names decoded to check they are images.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -108,7 +106,7 @@ def is_image_name(name: str) -> bool:
     return name.lower().endswith(IMAGE_SUFFIXES)
 
 
-def check_image(stream: BinaryIO, where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> None:
+def check_image(stream: IO[bytes], where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> None:
     """Check the image in the open binary ``stream`` from its header (``app.datasets.files.image_header``);
     raises :class:`DatasetError` naming ``where`` when it is not a PNG or JPEG within ``max_pixels``."""
     image_header(stream, where, max_pixels)
@@ -151,7 +149,8 @@ def _checked_members(zf: zipfile.ZipFile, where: str, limits: ArchiveLimits, bud
                                                           "1 (V3D_MAX_ZIP_RATIO; a zip bomb); refusing the archive")
     if total > ratio_cap(packed_bytes, limits.max_ratio):
         raise DatasetError(where, None, f"unpacks to {total:,} bytes from {packed_bytes:,}, more than "
-                                        f"{limits.max_ratio:g} to 1 (V3D_MAX_ZIP_RATIO; a zip bomb); refusing the archive")
+                                        f"{limits.max_ratio:g} to 1 (V3D_MAX_ZIP_RATIO; a zip bomb); refusing the "
+                                        "archive")
     return infos
 
 
@@ -195,7 +194,8 @@ def _extract(zf: zipfile.ZipFile, info: zipfile.ZipInfo, target: Path, where: st
     cap = ratio_cap(info.compress_size, limits.max_ratio)
     if limits.max_member_bytes is not None:
         if info.file_size > limits.max_member_bytes:
-            raise DatasetError(where, f"member {info.filename!r}", f"unpacks to {info.file_size:,} bytes, more than the "
+            raise DatasetError(where, f"member {info.filename!r}",
+                               f"unpacks to {info.file_size:,} bytes, more than the "
                                                                    f"{limits.max_member_bytes:,} such a file may hold")
         cap = min(cap, limits.max_member_bytes)
     with open(target, "wb") as out:

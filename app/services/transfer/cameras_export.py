@@ -39,7 +39,6 @@ from typing import Any
 
 import numpy as np
 import orjson
-import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.errors import DatasetError, InvalidInputError

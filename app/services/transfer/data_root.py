@@ -39,7 +39,7 @@ def confined_path(path: str | Path, data_root: Path | None) -> Path:
 
 
 def dataset_name(path: str | Path, data_root: Path | None, uploads_dir: Path, upload_job: int | None = None) -> str:
-    """How an imported path is shown to annotators and reviewers (issue 15, item 7: no server path):
+    """How an imported path is shown to annotators and reviewers (no server path):
     an upload's as ``upload <job id>/<path inside it>`` (``upload_job``; the upload's folder name when not
     given), a path under the data root relative to it, anything else by its last component alone.
 

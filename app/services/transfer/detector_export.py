@@ -54,11 +54,11 @@ from sqlalchemy.orm import Session, selectinload
 from app.db.models import Frame, Game, System, Triangulation
 from app.geometry.ball import box_centre_and_diameter
 from app.geometry.camera import Camera
+from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.refined_box import refine_box
+from app.services.images.serving import ImageUnavailable, frame_image
 from app.services.kinds import kind_of
 from app.services.transfer.exporting import exported_systems
-from app.services.images.serving import ImageUnavailable, frame_image
-from app.geometry.pitch import BALL_DIAMETER_M
 
 BALL_CLASS = "Ball"
 #: SoccerNet-v3 box classes other than the ball, in class-id order after it.
@@ -147,7 +147,7 @@ def refined_boxes(system: System, ball_diameter_m: float = BALL_DIAMETER_M,
         others = [e for i, e in errors.items() if i != f.id]
         if not others:
             continue
-        centre, diameter = box_centre_and_diameter(label.box)
+        centre, diameter = box_centre_and_diameter(np.asarray(label.box, float))
         try:
             r = refine_box(Camera.from_soccernet(cal.camera), centre[0], ball,
                            max(sigma_fraction * float(diameter[0]), MIN_SIGMA_PX),
@@ -187,7 +187,8 @@ BALL_BOX_LOADS = (
 def _other_boxes(frame: Frame) -> list[Any]:
     """The non-ball ``bboxes`` entries of the frame's release (``frames.release``, as imported; ``[]`` without)."""
     boxes = (frame.release or {}).get("bboxes")
-    return [b for b in boxes if not (isinstance(b, dict) and b.get("class") == BALL_CLASS)] if isinstance(boxes, list) else []
+    return [b for b in boxes
+            if not (isinstance(b, dict) and b.get("class") == BALL_CLASS)] if isinstance(boxes, list) else []
 
 
 def _clip(box: list[float], width: int, height: int) -> tuple[float, float, float, float] | None:
@@ -227,7 +228,7 @@ def iter_export_views(session: Session, export: Literal["yolo", "coco"], include
                 if cls not in CLASSES:
                     report.unknown_classes[str(cls)] += 1
                     continue
-                pts = raw.get("points") or {}  # type: ignore[union-attr]
+                pts = raw.get("points") or {}
                 try:
                     box = [float(pts[k]) for k in ("x1", "y1", "x2", "y2")]
                 except (KeyError, TypeError, ValueError):

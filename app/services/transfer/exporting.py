@@ -35,8 +35,8 @@ reads back the same numbers.
 
 Speed: the export reads each batch of games with one SQL query of plain rows (no ORM objects), takes
 JSON columns as their stored text and embeds them as they are (``orjson.Fragment`` in the documents,
-the text itself in CSV cells), and decodes only the field lines it must flatten and each frame's release: a 12,800-system
-export is CPU-bound at about 0.2 ms a frame (40 scale games: 0.7 s for 3,546 frames).
+the text itself in CSV cells), and decodes only the field lines it must flatten and each frame's release: a
+12,800-system export is CPU-bound at about 0.2 ms a frame (40 scale games: 0.7 s for 3,546 frames).
 """
 from __future__ import annotations
 
@@ -54,17 +54,28 @@ import sqlalchemy as sa
 from sqlalchemy import Select, select
 from sqlalchemy.orm import Session, selectinload, undefer
 
-from app.db.models import (
-    JAC_COLUMNS, BallLabel, BallReprojection, Calibration, FieldLineAnnotation, Frame, FrameRole, Game, OptimisedBox,
-    ReviewDecision, ReviewStatus, System, Triangulation,
-)
+from app.core.errors import InvalidInputError
 from app.datasets.csv_cells import inert_row
 from app.datasets.soccernet_v3 import V3_FRAMES_ZIP
 from app.datasets.soccernet_v3d import JAC_KEYS, curated_entry
+from app.db.models import (
+    JAC_COLUMNS,
+    BallLabel,
+    BallReprojection,
+    Calibration,
+    FieldLineAnnotation,
+    Frame,
+    FrameRole,
+    Game,
+    OptimisedBox,
+    ReviewDecision,
+    ReviewStatus,
+    System,
+    Triangulation,
+)
 from app.db.types import json_loads
-from app.core.errors import InvalidInputError
-from app.services.kinds import kinds_exported_by, split_of
 from app.services.images.serving import frame_has_image, frame_image
+from app.services.kinds import kinds_exported_by, split_of
 
 #: Columns of ``SNv3D.csv``: method.md section 9, then v3d's own.
 CSV_COLUMNS = (
@@ -124,7 +135,7 @@ def _frame_json(row: Any, admitted_replays: list[str] | None) -> dict[str, Any]:
     entry["imageMetadata"] = meta
     entry.update({
         "calibration": _camera(row),
-        "JaC": {key: getattr(row, column) for key, column in zip(JAC_KEYS, JAC_COLUMNS.values())},
+        "JaC": {key: getattr(row, column) for key, column in zip(JAC_KEYS, JAC_COLUMNS.values(), strict=True)},
         "v3d": {
             "source": row.cal_source.value if calibrated else None,
             "status": row.cal_status.value if calibrated else None,
@@ -190,7 +201,7 @@ def _frame_rows(session: Session, game_ids: list[int], include_all: bool) -> lis
     game, system and position: one SQL query read as plain rows, with none of the ORM's per-object
     cost (a SoccerNet-size export reads 35,000 frames)."""
     S, F, C, L, B = System, Frame, Calibration, FieldLineAnnotation, BallLabel
-    O, R, T, D = OptimisedBox, BallReprojection, Triangulation, ReviewDecision
+    OB, R, T, D = OptimisedBox, BallReprojection, Triangulation, ReviewDecision
     query = (
         select(
             S.game_id, S.id.label("system_id"), S.name.label("system_name"), _json_text(T.ball3d, "ball3d"),
@@ -202,14 +213,15 @@ def _frame_rows(session: Session, game_ids: list[int], include_all: bool) -> lis
             C.jac_0005, C.jac_001, C.jac_002,
             _json_text(L.lines, "lines_json"), _json_text(L.original_lines, "original_json"),
             B.frame_id.label("label_frame"), B.kind.label("ball_kind"), _json_text(B.box, "ball_box"),
-            _json_text(B.point, "ball_point"), _json_text(B.original_box, "original_box"), _json_text(B.original_point, "original_point"),
-            _json_text(O.box, "opt_box"), O.d_opt_px.label("opt_d_px"), O.error_m.label("opt_error_m"),
+            _json_text(B.point, "ball_point"), _json_text(B.original_box, "original_box"),
+            _json_text(B.original_point, "original_point"),
+            _json_text(OB.box, "opt_box"), OB.d_opt_px.label("opt_d_px"), OB.error_m.label("opt_error_m"),
             R.error_px.label("rep_error_px"), _json_text(F.release, "release_json"),
         )
         .select_from(F).join(S, S.id == F.system_id)
         .outerjoin(T, T.system_id == S.id).outerjoin(D, D.system_id == S.id)
         .outerjoin(C, C.frame_id == F.id).outerjoin(L, L.frame_id == F.id).outerjoin(B, B.frame_id == F.id)
-        .outerjoin(O, O.frame_id == F.id).outerjoin(R, R.frame_id == F.id)
+        .outerjoin(OB, OB.frame_id == F.id).outerjoin(R, R.frame_id == F.id)
         .where(S.game_id.in_(game_ids), S.kind.in_(kinds_exported_by("soccernet-v3d")))
         .order_by(S.game_id, S.id, F.position, F.id)
     )
@@ -218,7 +230,7 @@ def _frame_rows(session: Session, game_ids: list[int], include_all: bool) -> lis
     return list(session.execute(query))
 
 
-def exported_systems(export: str, include_all: bool, *loads: Any) -> Select[tuple[System]]:
+def exported_systems(export: str, include_all: bool, *loads: Any) -> Select[System]:
     """The query of the systems ``export`` writes (a name of ``app.services.kinds.EXPORTS``; the kinds
     that take it, ``kinds_exported_by``): accepted ones unless ``include_all``, in (league, season,
     match, id) order, with their game and the relationship ``loads`` given loaded. The detector exports
@@ -369,7 +381,8 @@ def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], targ
     ids = [frame_id for frame_id, _ in frames]
     loaded: dict[int, Frame] = {}
     for start in range(0, len(ids), _FRAMES_PER_QUERY):  # one query per chunk, not one per frame
-        loaded.update((f.id, f) for f in session.scalars(select(Frame).where(Frame.id.in_(ids[start:start + _FRAMES_PER_QUERY]))))
+        some = ids[start:start + _FRAMES_PER_QUERY]
+        loaded.update((f.id, f) for f in session.scalars(select(Frame).where(Frame.id.in_(some))))
     with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_STORED) as zf:
         for frame_id, name in frames:
             frame = loaded.get(frame_id)

@@ -16,7 +16,10 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.services.jobs.progress import Progress
 from app.services.transfer.importing import (
-    ImportReport, import_sn_calibration, import_soccernet_v3, import_soccernet_v3d,
+    ImportReport,
+    import_sn_calibration,
+    import_soccernet_v3,
+    import_soccernet_v3d,
 )
 
 #: ``run(session, path, settings, options, progress=, actor=, source_name=)`` -> the import's report.

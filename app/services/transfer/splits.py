@@ -15,7 +15,7 @@ from pathlib import Path, PurePosixPath
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from app.core.errors import DatasetError, InvalidInputError
+from app.core.errors import InvalidInputError
 from app.datasets.files import read_text_file
 from app.db.models import Frame, Game, System
 
@@ -73,10 +73,10 @@ def import_split(session: Session, path: str | Path, set_name: str) -> SplitRepo
             .where(Game.league == league, Game.season == season, Game.match == match)
         ).all()
         for frame in frames:
-            line = images.get(frame.name) or images.get(PurePosixPath(frame.name).stem)
-            if line is None:
+            listed = images.get(frame.name) or images.get(PurePosixPath(frame.name).stem)
+            if listed is None:
                 continue
-            found.add(line)
+            found.add(listed)
             report.frames += 1
             if frame.split != set_name:
                 frame.split = set_name

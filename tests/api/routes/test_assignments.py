@@ -16,7 +16,6 @@ from app.core.config import Settings
 from app.db.models import AuditEntry, Game, ReviewStatus, System, SystemKind, User
 from app.db.types import utcnow
 from app.services.curation import presence
-
 from tests.accounts import Account, as_session, as_token
 
 from ..factories import Scene, make_game, make_system

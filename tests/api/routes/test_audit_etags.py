@@ -45,7 +45,8 @@ def _geometry(view: dict[str, Any]) -> dict[str, Any]:
 def test_get_frame_answers_the_frame_with_its_ball_and_a_strong_etag(client: TestClient, scene: Scene) -> None:
     frame, etag = _frame(client, scene.frame_ids[2])
     system = client.get(f"/api/systems/{scene.system_id}").json()
-    pitch = frame.pop("pitch_lines")  # one frame's answer carries its projected pitch; the system view names its address
+    # one frame's answer carries its projected pitch; the system view names its address
+    pitch = frame.pop("pitch_lines")
     assert pitch == client.get(system["views"][2]["pitch_lines_url"]).json()["lines"]
     assert frame == {**system["views"][2], "system_id": scene.system_id}
     assert etag == frame["etag"] == f'"frame-{scene.frame_ids[2]}-1"' and not etag.startswith("W/")
@@ -96,7 +97,8 @@ def test_a_stale_if_match_gets_412_with_the_current_state_and_changes_nothing(
     for tag in (f'W/"frame-{fid}-2"', f'"frame-{scene.frame_ids[0]}-2"', "garbage"):
         assert client.post(f"/api/frames/{fid}/exclusion", json={"excluded": True},
                            headers={"If-Match": tag}).status_code == 412
-    assert client.post(f"/api/frames/{fid}/exclusion", json={"excluded": True}, headers={"If-Match": "*"}).status_code == 200
+    assert client.post(f"/api/frames/{fid}/exclusion", json={"excluded": True},
+                       headers={"If-Match": "*"}).status_code == 200
 
 
 def test_token_writes_need_if_match_and_session_writes_do_not(client: TestClient, scene: Scene, act_as) -> None:
@@ -127,7 +129,8 @@ def test_system_review_is_a_conditional_write_of_reviewers(client: TestClient, s
     version = int(etag.strip('"').rsplit("-", 1)[1])
     assert etag == view.json()["etag"] == f'"system-{sid}-{version}"'
     act_as("ann", "annotator")
-    assert client.post(f"/api/systems/{sid}/review", json={"status": "accepted"}, headers={"If-Match": etag}).status_code == 403
+    assert client.post(f"/api/systems/{sid}/review", json={"status": "accepted"},
+                       headers={"If-Match": etag}).status_code == 403
     act_as("rita", "reviewer")
     done = client.post(f"/api/systems/{sid}/review", json={"status": "accepted", "comment": "ok"}, headers={"If-Match": etag})
     assert done.status_code == 200 and done.headers["etag"] == f'"system-{sid}-{version + 1}"'
@@ -181,7 +184,8 @@ def test_every_write_is_one_entry_with_its_state_before_and_after(client: TestCl
     assert items[2]["after"] == {"review": {"status": "needs_fix", "comment": "lines"}}
     assert items[3]["before"] == {"lines": lines} and set(items[3]["after"]["lines"]) == set(sorted(lines)[:3])
     assert items[4]["before"] == items[3]["after"] and items[4]["after"]["lines"] != items[3]["after"]["lines"]
-    assert items[5]["before"]["review"]["status"] == "pending" and items[5]["after"]["review"] == {"status": "rejected", "comment": "no"}
+    assert items[5]["before"]["review"]["status"] == "pending"
+    assert items[5]["after"]["review"] == {"status": "rejected", "comment": "no"}
     assert all(e["frame_id"] == fid for e in items[:5]) and items[5]["frame_id"] is None
     assert all(e["system_id"] == sid and e["game_id"] == scene.game_id and e["revertible"] for e in items)
     ats = [e["at"] for e in items]
@@ -209,7 +213,8 @@ def test_audit_list_filters_by_frame_system_and_user_and_pages_newest_first(
     assert [e["frame_id"] for e in _audit(client, user="ana")["items"]] == [scene.frame_ids[0], other.frame_ids[0],
                                                                             scene.frame_ids[0]]
     assert _audit(client, frame_id=scene.frame_ids[0])["total"] == 2
-    assert {e["frame_id"] for e in _audit(client, system_id=other.system_id)["items"]} == {other.frame_ids[0], other.frame_ids[2]}
+    assert {e["frame_id"] for e in _audit(client, system_id=other.system_id)["items"]} == {other.frame_ids[0],
+                                                                                           other.frame_ids[2]}
     assert _audit(client, system_id=scene.system_id, user="bob")["total"] == 1
     page = _audit(client, limit=2, offset=2)
     assert page["total"] == 5 and [e["id"] for e in page["items"]] == ids[2:4]

@@ -104,7 +104,8 @@ def test_a_second_preview_of_the_same_view_in_flight_is_429(client: TestClient, 
     assert client.post(f"/api/frames/{fid}/calibration-preview", json={"lines": lines}).status_code == 200
 
 
-def test_the_annotator_role_and_the_csrf_token_are_needed_as_for_the_edit(app: FastAPI, scene: Scene, accounts: dict[str, Account]) -> None:
+def test_the_annotator_role_and_the_csrf_token_are_needed_as_for_the_edit(app: FastAPI, scene: Scene,
+                                                                          accounts: dict[str, Account]) -> None:
     """The preview needs what the edit needs (the annotator role) and, from a browser, the CSRF token."""
     with TestClient(app) as anonymous:
         assert anonymous.post(f"/api/frames/{scene.frame_ids[0]}/calibration-preview",

@@ -119,4 +119,5 @@ def test_stats_and_box_evaluation_routes(client, scene, db_session):
     assert boxes.json()["views"] == 3 and boxes.json()["original"] == pytest.approx(expected["original"])
     assert 0 < boxes.json()["original"]["iou"] < 1
     assert client.get("/api/evaluations/boxes").json()["views"] == 0  # nothing accepted
-    assert client.get("/api/stats").json() == json.loads(json.dumps(dataset_stats(db_session, client.app.state.settings)))
+    stats = dataset_stats(db_session, client.app.state.settings)
+    assert client.get("/api/stats").json() == json.loads(json.dumps(stats))

@@ -21,7 +21,6 @@ from app.main import create_app
 from app.services.accounts.users import create_user
 from app.services.curation import writing
 from app.services.curation.writing import lock_system
-
 from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene, make_game, make_system
 from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database

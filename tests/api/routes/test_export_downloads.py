@@ -21,7 +21,6 @@ import yaml
 from fastapi.testclient import TestClient
 
 from app.services.transfer.export_files import EXPORT_FORMATS, prune_exports
-
 from tests.services.datasets import zip_files
 
 from ..conftest import run_queued

@@ -11,7 +11,6 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Frame
 from app.services.curation import editing
-
 from tests.accounts import Account, as_session
 
 from ..factories import HEIGHT, WIDTH, Scene, png_bytes

@@ -118,12 +118,12 @@ def test_images_are_served_with_the_checked_type_nosniff_and_a_sandbox(client: T
 
 
 def _calibration_folder(root: Path) -> Path:
+    import numpy as np
+
     from app.geometry.annotations import to_soccernet_calibration
     from app.geometry.projection import project_pitch_polylines
 
     from ..factories import BALL, CENTRES, HEIGHT, WIDTH, look_at
-
-    import numpy as np
 
     root.mkdir(parents=True)
     cam = look_at(np.array(CENTRES[0]), BALL)

@@ -60,7 +60,8 @@ def test_an_uploaded_zip_is_imported_by_a_job_with_its_images(jobs_app, client: 
 
 def _multipart(fields: dict[str, str], file: bytes, boundary: str = "v3dboundary"):
     """A multipart body sent in 64 kB chunks without Content-Length (chunked transfer)."""
-    head = "".join(f'--{boundary}\r\nContent-Disposition: form-data; name="{k}"\r\n\r\n{v}\r\n' for k, v in fields.items())
+    head = "".join(f'--{boundary}\r\nContent-Disposition: form-data; name="{k}"\r\n\r\n{v}\r\n'
+                   for k, v in fields.items())
     head += f'--{boundary}\r\nContent-Disposition: form-data; name="file"; filename="big.zip"\r\n' \
             "Content-Type: application/zip\r\n\r\n"
     body = head.encode() + file + f"\r\n--{boundary}--\r\n".encode()
@@ -103,7 +104,8 @@ def test_hostile_or_broken_uploads_are_refused_naming_the_member(jobs_app, clien
     assert kind.status_code == 422 and kind.json()["detail"][0]["loc"] == ["body", "kind"]
     unknown = _upload(client, zipped({"a.json": b"{}"}), colour="red")
     assert unknown.status_code == 422 and unknown.json()["detail"][0]["loc"] == ["body", "colour"]
-    malformed = client.post("/api/imports", content=b'{"kind": "soccernet-v3", "path": ', headers={"Content-Type": "application/json"})
+    malformed = client.post("/api/imports", content=b'{"kind": "soccernet-v3", "path": ',
+                            headers={"Content-Type": "application/json"})
     assert malformed.status_code == 422 and malformed.json()["detail"][0]["type"] == "json_invalid"
     assert client.get("/api/jobs").json()["total"] == 0 and client.get("/api/games").json() == []
 

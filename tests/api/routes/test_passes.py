@@ -23,14 +23,16 @@ def test_a_pass_freezes_every_page_of_the_queue_and_moves_to_the_next_pending(cl
                                                                              three: list[Scene]) -> None:
     listing = [s["id"] for s in client.get("/api/systems", params={"sort": "name", "limit": 2}).json()["items"]]
     cursor = client.get("/api/systems", params={"sort": "name", "limit": 2}).json()["next_cursor"]
-    listing += [s["id"] for s in client.get("/api/systems", params={"sort": "name", "limit": 2, "after": cursor}).json()["items"]]
+    listing += [s["id"] for s in client.get("/api/systems",
+                                            params={"sort": "name", "limit": 2, "after": cursor}).json()["items"]]
 
     made = client.post("/api/passes", json={"filter": {}, "sort": "name", "system_id": listing[0]})
     assert made.status_code == 201, made.text
     rp = made.json()
     assert rp["systems"] == listing and rp["position"] == 0 and rp["filter"] == {} and rp["sort"] == "name"
     assert rp["counts"] == {"accepted": 0, "rejected": 0, "needs_fix": 0, "skipped": 3}
-    assert client.post("/api/passes", json={"filter": {}, "sort": "name", "system_id": listing[1]}).json()["id"] == rp["id"]
+    assert client.post("/api/passes",
+                       json={"filter": {}, "sort": "name", "system_id": listing[1]}).json()["id"] == rp["id"]
 
     etag = client.get(f"/api/systems/{listing[1]}").headers["ETag"]
     assert client.post(f"/api/systems/{listing[1]}/review", json={"status": "needs_fix"},

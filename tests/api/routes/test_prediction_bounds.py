@@ -41,7 +41,8 @@ def _zip(members: dict[str, bytes | tuple[bytes, int]]) -> bytes:
 
 
 def _post(client: TestClient, name: str, data: bytes):
-    return client.post(MONOCULAR, params={"all": "true"}, files={"predictions": (name, data, "application/octet-stream")})
+    return client.post(MONOCULAR, params={"all": "true"},
+                       files={"predictions": (name, data, "application/octet-stream")})
 
 
 def _no_server_path(detail: str) -> None:
@@ -98,7 +99,8 @@ def test_malformed_yolo_lines_are_422_naming_file_and_line(client: TestClient, s
      "results.json: entry 0: bbox must be [x, y, w, h] (4 finite numbers), got 'null'"),
     (b'[{"image_id": 1, "bbox": [1, 2, 3, 4], "score": 0.5}, {"image_id": 1, "bbox": [1, 2, 3], "score": 0.5}]',
      "results.json: entry 1: bbox must be [x, y, w, h]"),
-    (b'[{"image_id": 1, "bbox": [1, 2, 3, 4], "score": "high"}]', "results.json: entry 0: score must be a finite number"),
+    (b'[{"image_id": 1, "bbox": [1, 2, 3, 4], "score": "high"}]',
+     "results.json: entry 0: score must be a finite number"),
     (b'[{"image_id": {"a": 1}, "bbox": [1, 2, 3, 4], "score": 1}]', "results.json: entry 0: image_id must be"),
     (b'{"image_id": 1}', "results.json: a COCO results file is a JSON list"),
     (b'[{"image_id": 1, "bbox": [1, 2, 3, 4], "score": 1, "x": "' + b"a" * 100_000 + b'"}]',

@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from app.geometry.doubts import LABEL_KINDS
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.geometry.doubts import LABEL_KINDS
 
 from ..factories import BALL, HEIGHT, WIDTH, Scene, make_game, make_system
 
@@ -87,7 +86,8 @@ def test_sorts(client: TestClient, queue: dict[str, Scene], sort: str, expected:
 
 
 def test_filters_by_game_jac_and_error(client: TestClient, queue: dict[str, Scene]) -> None:
-    get = lambda **p: set(_ids(client.get("/api/systems", params=p).json()))  # noqa: E731
+    def get(**p):
+        return set(_ids(client.get("/api/systems", params=p).json()))
     assert get(game_id=queue["other"].game_id) == {queue["other"].system_id}
     assert get(jac_min=0.85, jac_max=0.9) == {queue["exact"].system_id, queue["other"].system_id}
     assert get(error_min=1.0) == {queue["shifted"].system_id}
@@ -302,7 +302,8 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     expected = [e * 1920.0 / WIDTH > tri["tau_px"] for e in errors]
     assert expected == [True, False, True]
     # the page shows the error in the rule's scale, as the server computed it (the UI never rescales)
-    assert [v["reprojection_error_scaled_px"] for v in view["views"]] == pytest.approx([e * 1920.0 / WIDTH for e in errors])
+    scaled = [e * 1920.0 / WIDTH for e in errors]
+    assert [v["reprojection_error_scaled_px"] for v in view["views"]] == pytest.approx(scaled)
     assert page_verdicts() == expected
     assert rows()[wrong.system_id]["views_above_tau"] == 2
     assert {r["views_above_tau"] for sid, r in rows().items() if sid != wrong.system_id} == {0}
@@ -327,8 +328,7 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
 
 def test_error_reference_widths_follow_the_pair_error_rules() -> None:
     """The reference width of each rule is the one ``app.geometry.pair_error.pair_error`` scales by."""
-    from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
-    from app.geometry.pair_error import RULE_REFERENCE_WIDTH_PX, rule_reference_width_px
+    from app.geometry.pair_error import PAIR_ERROR_RULES, RULE_REFERENCE_WIDTH_PX, pair_error, rule_reference_width_px
 
     assert set(RULE_REFERENCE_WIDTH_PX) <= set(PAIR_ERROR_RULES)
     for rule in PAIR_ERROR_RULES:

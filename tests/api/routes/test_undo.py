@@ -93,7 +93,8 @@ def test_undo_and_redo_of_a_ball_nudge_restore_label_camera_and_3d_ball(client: 
     assert again.status_code == 200 and _numbers(again.json()) == _numbers(before)
     log = {e["id"]: e for e in _audit(client)}
     assert log[redo_id]["summary"] == f"redo of entry {undo_id}: ball of V2 moved 13.0 px"
-    assert log[int(again.headers["x-v3d-audit-entry"])]["summary"] == f"undo of entry {redo_id}: ball of V2 moved 13.0 px"
+    summary = log[int(again.headers["x-v3d-audit-entry"])]["summary"]
+    assert summary == f"undo of entry {redo_id}: ball of V2 moved 13.0 px"
 
 
 def test_undo_of_an_exclusion_restores_the_3d_ball(client: TestClient, scene: Scene, act_as) -> None:
@@ -173,8 +174,10 @@ def _accept_all(client: TestClient, scene: Scene, k: int) -> None:
     """Accept the system, view ``k``'s ball and its calibration."""
     fid = scene.frame_ids[k]
     assert client.post(f"/api/frames/{fid}/review", json={"status": "accepted", "comment": ""}).status_code == 200
-    assert client.post(f"/api/frames/{fid}/calibration-review", json={"status": "accepted", "comment": ""}).status_code == 200
-    assert client.post(f"/api/systems/{scene.system_id}/review", json={"status": "accepted", "comment": "ok"}).status_code == 200
+    assert client.post(f"/api/frames/{fid}/calibration-review",
+                       json={"status": "accepted", "comment": ""}).status_code == 200
+    assert client.post(f"/api/systems/{scene.system_id}/review",
+                       json={"status": "accepted", "comment": "ok"}).status_code == 200
 
 
 def _ball_edit(change: Callable[[list[float]], dict[str, Any]]):

@@ -10,11 +10,11 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from app.core.errors import InvalidInputError, NotFoundError
 from app.db.models import ApiToken, ServerSecret, User
 from app.db.types import utcnow
 from app.services.accounts import users
 from app.services.audit import log as audit
-from app.core.errors import InvalidInputError, NotFoundError
 
 
 def test_passwords_are_stored_as_argon2id_hashes_that_verify(db_session: Session) -> None:
@@ -142,7 +142,8 @@ def test_role_changes_and_every_admin_action_are_audited_without_secrets(db_sess
     with pytest.raises(InvalidInputError) as role:
         users.set_role(db_session, "kim", "boss")
     assert role.value.field == "role"
-    entries = [e for e in reversed(audit.list_entries(db_session, limit=500).items) if (e.after or {}).get("user") == "kim"]
+    entries = [e for e in reversed(audit.list_entries(db_session, limit=500).items)
+               if (e.after or {}).get("user") == "kim"]
     assert [e.action for e in entries] == ["user.create", "token.issue", "user.role", "token.revoke",
                                            "user.disable", "user.enable"]
     assert [e.actor for e in entries][:5] == ["root"] * 5 and entries[5].actor.startswith("cli:")

@@ -9,13 +9,13 @@ import threading
 import pytest
 import sqlalchemy as sa
 
+from app.core.errors import InvalidInputError, StaleVersionError
 from app.db.models import AuditEntry, Frame, System
 from app.services.audit import log as audit
-from app.services.curation import editing
-from app.core.errors import InvalidInputError, StaleVersionError
-from app.services.transfer.importing import import_soccernet_v3
-from app.services.derivation.recompute import refresh_stale_systems
 from app.services.audit.reverting import revert_entry
+from app.services.curation import editing
+from app.services.derivation.recompute import refresh_stale_systems
+from app.services.transfer.importing import import_soccernet_v3
 
 
 def _entries(session) -> list[AuditEntry]:
@@ -29,7 +29,8 @@ def test_an_import_is_one_entry_with_its_counts_and_cannot_be_reverted(db_sessio
     report = import_soccernet_v3(db_session, v3_tree, settings, actor="admin-ada")
     (entry,) = _entries(db_session)
     assert (entry.action, entry.actor, entry.before, entry.frame_id) == ("import", "admin-ada", None, None)
-    assert entry.after == {"source": str(v3_tree), "source_name": "v3", "games": 1, "systems": 3, "frames": 8, "systems_new": 3,
+    assert entry.after == {"source": str(v3_tree), "source_name": "v3", "games": 1, "systems": 3, "frames": 8,
+                           "systems_new": 3,
                            "systems_changed": 0, "calibrated": report.calibrated, "refused": report.refused,
                            "triangulated": report.triangulated, "batch": 1, "batches": 1, "batch_games": 1}
     versions = dict(db_session.execute(sa.select(Frame.id, Frame.edit_version)).all())
@@ -52,7 +53,8 @@ def test_a_full_recompute_is_one_entry(db_session, settings, v3_tree):
     assert [e.action for e in entries] == ["import", "recompute"]
     assert entries[1].after["systems"] == 3 and entries[1].actor.startswith("cli:")
     assert (entries[1].after["batch"], entries[1].after["batches"], entries[1].after["batch_systems"]) == (1, 1, 3)
-    assert refresh_stale_systems(db_session, settings) == 0 and len(_entries(db_session)) == 2  # nothing to do: no entry
+    # nothing to do: no entry
+    assert refresh_stale_systems(db_session, settings) == 0 and len(_entries(db_session)) == 2
 
 
 def test_every_committed_batch_of_an_import_or_a_recompute_is_an_entry(db_session, settings, shared_dir, tmp_path,

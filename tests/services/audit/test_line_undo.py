@@ -29,7 +29,8 @@ def test_undo_of_an_edit_of_integer_lines_brings_them_back_with_their_camera(db_
     frame.field_lines.lines = ints
     recompute_frame(db_session, frame, settings)  # the camera and JaC these lines give
     db_session.flush()
-    camera, jac = frame.calibration.camera, (frame.calibration.jac_0005, frame.calibration.jac_001, frame.calibration.jac_002)
+    camera, jac = frame.calibration.camera, (frame.calibration.jac_0005, frame.calibration.jac_001,
+                                             frame.calibration.jac_002)
     assert camera is not None
     cls = next(c for c, polys in ints.items() if len(polys[0]) > 2)
     edited = copy.deepcopy(ints)

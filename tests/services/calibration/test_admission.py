@@ -23,7 +23,7 @@ def test_the_predicate_and_the_sql_expression_admit_the_same_calibrations(db_ses
     values = [None, edge - 1e-9, edge, edge + 1e-9, 1.0]
     column = JAC_COLUMNS[settings.admit_jac_gamma]
     calibrations = []
-    for fid, value in zip(scene.frame_ids, values):
+    for fid, value in zip(scene.frame_ids, values, strict=False):
         cal = db_session.execute(sa.select(Calibration).where(Calibration.frame_id == fid)).scalar_one()
         setattr(cal, column, value)
         cal.status, cal.source, cal.flags = CalibrationStatus.CALIBRATED, CalibrationSource.EDITED, []

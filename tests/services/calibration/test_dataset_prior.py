@@ -11,11 +11,10 @@ from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import CameraPrior
 from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG
 from app.geometry.camera import Camera, look_at_rotation
-from app.services.calibration.priors import MIN_PRIOR_FRAMES, dataset_prior, wants_prior_retry
 from app.services.calibration.calibrating import calibrate_lines
+from app.services.calibration.priors import MIN_PRIOR_FRAMES, dataset_prior, wants_prior_retry
 from app.services.curation.editing import replace_field_lines
 from app.services.transfer.importing import import_sn_calibration
-
 from tests.geometry.synthetic import visible_model_points
 
 from ..datasets import write_calibration_zip

@@ -6,11 +6,11 @@ import numpy as np
 import sqlalchemy as sa
 
 from app.db.models import CalibrationSource, CalibrationStatus, System, SystemKind
-from app.services.curation.editing import replace_field_lines
-from app.services.transfer.importing import import_sn_calibration
 from app.geometry.calibration.result import RIG_FLAG
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job
 from app.services.calibration.rigs import game_rig, uses_rig
+from app.services.curation.editing import replace_field_lines
+from app.services.transfer.importing import import_sn_calibration
 
 from ..datasets import true_cameras, write_calibration_zip
 
@@ -31,7 +31,8 @@ def test_a_frame_with_too_few_lines_is_calibrated_with_the_game_rig(db_session, 
     assert np.linalg.norm(np.subtract(cal.camera["position_meters"], true_centre)) < 1.0  # metres
     # The centre was fixed by the rig: its uncertainty holds angles and focal only (issue 17).
     u = cal.uncertainty
-    assert u["position_m"] == {"x": 0.0, "y": 0.0, "z": 0.0} and u["points"] == sum(len(p) for v in few.values() for p in v)
+    assert u["position_m"] == {"x": 0.0, "y": 0.0, "z": 0.0} and u["points"] == sum(len(p) for v in few.values()
+                                                                                    for p in v)
     assert u["focal_px"] is None or u["focal_px"] > 0
 
 
@@ -77,7 +78,8 @@ def test_a_rig_from_fresh_results_of_a_game_not_stored_yet(settings, shared_dir)
     rig = game_rig(None, None, settings, extra=good)  # no session needed without a stored game
     assert rig.positions and rig.positions[0].frames >= len(mains) // 2
     poor = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (0.5, 1.0, 1.0)) for cam in mains]
-    assisted = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (1.0, 1.0, 1.0), flags=[RIG_FLAG]) for cam in mains]
+    assisted = [CalibrationFields(CalibrationStatus.CALIBRATED, cam, (1.0, 1.0, 1.0), flags=[RIG_FLAG])
+                for cam in mains]
     assert not game_rig(None, None, settings, extra=poor + assisted).positions
 
 
@@ -113,7 +115,8 @@ def test_a_rig_position_the_labels_do_not_fit_is_refused_not_stored(shared_dir):
     from ..datasets import dev_game_dir
 
     game = ("synth_league_b", "2031-2032", "2031-09-08 - 16-00 Arden 1 - 0 Quarry")
-    item = json.loads((dev_game_dir(shared_dir).parents[2].joinpath(*game) / "Labels-v3.json").read_text())["actions"]["3.png"]
+    labels = dev_game_dir(shared_dir).parents[2].joinpath(*game) / "Labels-v3.json"
+    item = json.loads(labels.read_text())["actions"]["3.png"]
     width, height = item["imageMetadata"]["width"], item["imageMetadata"]["height"]
     lines = lines_to_json_lists(from_soccernet_v3(item["lines"], width, height))
     first = calibrate_lines(lines, width, height, 1)

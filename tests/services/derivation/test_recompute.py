@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from app.db.models import Calibration, CalibrationSource, CalibrationStatus, TriangulationStatus
-from app.services.transfer.importing import read_soccernet_v3
 from app.services.calibration.admission import admission_jac, is_admitted
-from app.services.calibration.pool import calibrate_many
 from app.services.calibration.calibrating import expected_side
+from app.services.calibration.pool import calibrate_many
 from app.services.derivation.recompute import recompute_system
+from app.services.transfer.importing import read_soccernet_v3
 
 from ..datasets import true_balls
 
@@ -30,7 +30,8 @@ def test_admission_follows_the_jac_threshold(db_session, settings, imported):
     assert tri.status is TriangulationStatus.TRIANGULATED and len(tri.pairs) == 6
 
     frame = system.frames[0]
-    assert admission_jac(frame.calibration, settings.model_copy(update={"admit_jac_gamma": 0.02})) == frame.calibration.jac_002
+    assert admission_jac(frame.calibration,
+                         settings.model_copy(update={"admit_jac_gamma": 0.02})) == frame.calibration.jac_002
     with pytest.raises(ValueError, match="not a stored JaC gamma"):
         is_admitted(frame.calibration, settings.model_copy(update={"admit_jac_gamma": 0.004}))
     refused = Calibration(source=CalibrationSource.COMPUTED, status=CalibrationStatus.REFUSED, jac_0005=1.0)

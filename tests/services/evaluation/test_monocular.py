@@ -12,11 +12,11 @@ import json
 import numpy as np
 import pytest
 
+from app.core.errors import InvalidInputError
 from app.geometry.ball import optimise_box, sphere_image_box
 from app.geometry.camera import Camera
 from app.geometry.metrics import Detections
 from app.geometry.sensitivity import scale_boxes
-from app.core.errors import InvalidInputError
 from app.services.evaluation.monocular import ReferenceView, evaluate, load_predictions
 
 CAM = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0, tilt_deg=90.0,
@@ -61,7 +61,7 @@ def test_boxes_scaled_by_1_1_give_mae_pct_9_09_and_ap_1(views):
     assert rep["MAE_m"] == pytest.approx((d_a + d_b) * SHRINK / 2, abs=1e-6)  # (15 + 50.36) * 0.0909 / 2
     # A: 15 * 0.0909 = 1.36 m < 2 m; B: 4.58 m > 2 m.
     assert rep["P_2m"] == 0.5
-    curve = dict(zip(rep["curve"]["thresholds_m"], rep["curve"]["precision"]))
+    curve = dict(zip(rep["curve"]["thresholds_m"], rep["curve"]["precision"], strict=False))
     assert (curve[1.25], curve[1.5], curve[4.5], curve[4.75]) == (0.0, 0.5, 0.5, 1.0)
     # Per split: A in train, B in test.
     assert rep["splits"]["train"]["MAE_m"] == pytest.approx(d_a * SHRINK, abs=1e-6)

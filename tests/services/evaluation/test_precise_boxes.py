@@ -13,8 +13,8 @@ import sqlalchemy as sa
 
 from app.core.errors import DatasetError
 from app.db.models import Frame
-from app.services.evaluation.boxes import PRECISE_COLUMNS, evaluate_boxes, store_precise_boxes
 from app.services.curation.decisions import decide_review
+from app.services.evaluation.boxes import PRECISE_COLUMNS, evaluate_boxes, store_precise_boxes
 
 from ..datasets import DEV_GAME
 

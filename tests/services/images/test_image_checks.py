@@ -7,6 +7,7 @@ from __future__ import annotations
 import io
 import os
 import zipfile
+
 import cv2
 import numpy as np
 import pytest
@@ -15,9 +16,9 @@ from PIL import Image
 
 from app.core.errors import DatasetError
 from app.db.models import Frame, Game
+from app.services.images.serving import ImageUnavailable, frame_image
 from app.services.issia.sequences import import_issia
 from app.services.transfer.archives import ArchiveLimits, unpack_zip
-from app.services.images.serving import ImageUnavailable, frame_image
 from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3
 
 from ..datasets import write_v3_game

@@ -10,19 +10,28 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from app.geometry.calibration.result import REFUSAL_CODES
 from app.datasets.issia3d import read_issia3d_csv
 from app.db.models import (
-    BallKind, CalibrationSource, CalibrationStatus, Doubt, Frame, FrameRole, Game, System, SystemKind, TrajectoryPoint,
+    BallKind,
+    CalibrationSource,
+    CalibrationStatus,
+    Doubt,
+    Frame,
+    FrameRole,
+    Game,
+    ReviewStatus,
+    System,
+    SystemKind,
+    TrajectoryPoint,
 )
+from app.geometry.calibration.result import REFUSAL_CODES
 from app.geometry.camera import Camera
-from app.services.issia import sequences as issia_service
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import set_view_excluded, update_ball_label
+from app.services.issia import sequences as issia_service
 from app.services.issia.cameras import STATIC_CAMERA_REFUSALS
-from app.services.issia.sequences import import_issia
 from app.services.issia.export import export_issia3d
-from app.db.models import ReviewStatus
+from app.services.issia.sequences import import_issia
 from tests.services.issia_data import dev_dir, dev_truth, write_issia_stretch
 
 
@@ -350,15 +359,16 @@ def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(
     """An edit in the piece of frame 13 (cam4's wrong label) moves frame 13 on the trajectory without changing
     its labels: its trajectory doubt is replaced from the new stored point without loading the system, and is
     what judging the whole system again stores (same doubts, order, counts; the evidence's new position)."""
-    from app.services.issia import refit as issia_refit
     from app.services.curation.doubts import update_doubts
+    from app.services.issia import refit as issia_refit
 
     import_issia(db_session, stretch, db_settings)
     s13 = _systems(db_session)[13]
     before = s13.trajectory_point.ball3d_smoothed
     loaded = []
     real = issia_refit.load_for_recompute
-    monkeypatch.setattr(issia_refit, "load_for_recompute", lambda session, ids: loaded.extend(ids) or real(session, ids))
+    monkeypatch.setattr(issia_refit, "load_for_recompute", lambda session,
+                        ids: loaded.extend(ids) or real(session, ids))
     view = next(f for f in _systems(db_session)[18].frames if f.ball_label is not None)
     update_ball_label(db_session, view.id, point=[view.ball_label.point[0] + 4.0, view.ball_label.point[1]],
                       settings=db_settings)
@@ -392,11 +402,12 @@ def test_the_pieces_an_edit_reads_are_those_within_reach(db_session, db_settings
         piece_from_json(d) for d in db_session.scalars(sa.select(TrajectoryPoint.piece)) if d)}.values(),
         key=lambda p: p.first_frame)
     assert len(every) > REFIT_REACH + 1
-    gaps = [p.last_frame + 1 for p, q in zip(every, every[1:]) if q.first_frame > p.last_frame + 1]
+    gaps = [p.last_frame + 1 for p, q in zip(every, every[1:], strict=False) if q.first_frame > p.last_frame + 1]
     assert gaps, "the dev sequence's fit has a gap between pieces (a short piece left out)"
     for f in (0, 16, 70, 115, gaps[0], 199):
         hit = [i for i, p in enumerate(every) if p.first_frame <= f <= p.last_frame] or \
-            [i for i, p in enumerate(every) if p.last_frame < f][-1:] + [i for i, p in enumerate(every) if p.first_frame > f][:1]
+            [i for i, p in enumerate(every) if p.last_frame < f][-1:] + [i for i, p in enumerate(every)
+                                                                         if p.first_frame > f][:1]
         lo, hi = max(min(hit) - REFIT_REACH, 0), min(max(hit) + REFIT_REACH, len(every) - 1)
         got = _pieces_around(db_session, game.id, f, f)
         spans = [(p.first_frame, p.last_frame) for p in got]
@@ -430,7 +441,7 @@ def test_the_cameras_an_edit_reads_are_those_of_the_whole_sequence(db_session, d
         assert (mine is None) == (whole is None), name
         if mine is not None:
             np.testing.assert_array_equal(mine.projection_matrix, whole.projection_matrix)
-    by_name = dict(zip(columns.names, columns.first_admitted))
+    by_name = dict(zip(columns.names, columns.first_admitted, strict=False))
     assert by_name["cam3"] == 3 and by_name["cam5"] is None and by_name["cam1"] == 0
     np.testing.assert_allclose(columns.cameras[columns.names.index("cam3")].C, later.camera["position_meters"])
 
@@ -498,7 +509,8 @@ def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and
         doc = json.loads((tmp_path / "coco" / split / "instances.json").read_text())
         names = [im["file_name"] for im in doc["images"]]
         assert len(names) == len(set(names)) == coco.images[split] == yolo.images[split]
-        assert sorted(p.name for p in (tmp_path / "coco" / split).iterdir() if p.name != "instances.json") == sorted(names)
+        assert sorted(p.name for p in (tmp_path / "coco" / split).iterdir()
+                      if p.name != "instances.json") == sorted(names)
 
 
 def test_an_edit_sets_back_to_pending_every_decided_system_whose_3d_ball_the_refit_moved(db_session, db_settings,

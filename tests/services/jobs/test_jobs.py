@@ -60,9 +60,11 @@ def test_staleness(factory) -> None:
         database_url="postgresql+psycopg://x@h/db", job_stale_seconds=60)
     old = utcnow() - timedelta(seconds=3600)
     gone = Job(kind="import", params={}, state=JobState.RUNNING, owner=f"{here}:{_dead_pid()}:t", heartbeat_at=utcnow())
-    alive_quiet = Job(kind="import", params={}, state=JobState.RUNNING, owner=f"{here}:{os.getpid()}:t", heartbeat_at=old)
+    alive_quiet = Job(kind="import", params={}, state=JobState.RUNNING, owner=f"{here}:{os.getpid()}:t",
+                      heartbeat_at=old)
     elsewhere = Job(kind="import", params={}, state=JobState.RUNNING, owner="other-host:1:t", heartbeat_at=old)
-    fresh_elsewhere = Job(kind="import", params={}, state=JobState.RUNNING, owner="other-host:1:t", heartbeat_at=utcnow())
+    fresh_elsewhere = Job(kind="import", params={}, state=JobState.RUNNING, owner="other-host:1:t",
+                          heartbeat_at=utcnow())
     assert jobs.is_stale(gone, sqlite) and jobs.is_stale(gone, pg)  # its process is gone: at once
     # a live local process beats only between its transactions on SQLite: never stale while it lives
     assert not jobs.is_stale(alive_quiet, sqlite) and jobs.is_stale(alive_quiet, pg)
@@ -81,7 +83,8 @@ def test_a_server_runner_resumes_a_killed_job_and_runs_a_queued_import(shared_di
     url, make = factory
     game = write_v3_game(shared_dir, tmp_path / "tree", with_images=False)
     with make() as session:
-        killed = Job(kind="recompute", params={}, state=JobState.RUNNING, owner=f"{socket.gethostname()}:{_dead_pid()}:x",
+        killed = Job(kind="recompute", params={}, state=JobState.RUNNING,
+                     owner=f"{socket.gethostname()}:{_dead_pid()}:x",
                      attempts=1, heartbeat_at=utcnow(), stage="recompute", done=0, total=0)
         session.add(killed)
         session.commit()
@@ -89,7 +92,8 @@ def test_a_server_runner_resumes_a_killed_job_and_runs_a_queued_import(shared_di
     settings = Settings(database_url=url, calibration_workers=2, data_root=tmp_path, job_poll_seconds=0.1,
                         job_heartbeat_seconds=0.2)
     with serve_app(create_app(settings)) as base:
-        queued = httpx.post(f"{base}/api/imports", json={"kind": "soccernet-v3", "path": str(game.parent.parent.parent)},
+        queued = httpx.post(f"{base}/api/imports",
+                            json={"kind": "soccernet-v3", "path": str(game.parent.parent.parent)},
                             headers=admin.bearer)
         assert queued.status_code == 202
         deadline = time.monotonic() + 300

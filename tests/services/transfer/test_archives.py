@@ -11,8 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, receive, unpack_zip
 from app.core.errors import DatasetError
+from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, receive, unpack_zip
 
 LIMITS = ArchiveLimits(max_members=100, max_unpacked_bytes=10 << 20)
 
@@ -71,7 +71,8 @@ def test_a_file_named_like_an_image_that_is_not_one_is_refused_naming_it(tmp_pat
     archive = _zip(tmp_path / "img.zip", {"g/1.png": _png(), "g/2.png": b"not a png at all"})
     with pytest.raises(DatasetError, match=r"img.zip!g/2.png: not a PNG or JPEG image"):
         unpack_zip(archive, tmp_path / "out", LIMITS)
-    nested = _zip(tmp_path / "nested.zip", {"g/Frames-v3.zip": _frames_zip({"1.png": _png(), "7.png": b"\x89PNG broken"})})
+    nested = _zip(tmp_path / "nested.zip",
+                  {"g/Frames-v3.zip": _frames_zip({"1.png": _png(), "7.png": b"\x89PNG broken"})})
     with pytest.raises(DatasetError, match=r"nested.zip!g/Frames-v3.zip!7.png: not a PNG or JPEG image"):
         unpack_zip(nested, tmp_path / "out2", LIMITS)
     assert not (tmp_path / "out").exists() and not (tmp_path / "out2").exists()

@@ -16,9 +16,9 @@ import sqlalchemy as sa
 
 from app.core.errors import DatasetError
 from app.db.models import Frame, Game
+from app.services.images.serving import ImageUnavailable, frame_image
 from app.services.issia.sequences import import_issia
 from app.services.transfer.exporting import export_soccernet_v3d
-from app.services.images.serving import ImageUnavailable, frame_image
 from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, import_soccernet_v3d
 
 from ..datasets import write_calibration_zip, write_v3_game

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from app.db.models import ReviewStatus
+from app.services.curation.decisions import decide_review
 from app.services.kinds import image_stem
 from app.services.transfer.detector_export import CLASSES, ball_boxes, export_coco, export_yolo
-from app.services.curation.decisions import decide_review
 
 from ..datasets import dev_game_dir
 

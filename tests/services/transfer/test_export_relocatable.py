@@ -4,12 +4,10 @@ decoded from the videos) holds no file that names the export's folder, the data 
 /tmp path; nested zips are opened too."""
 from __future__ import annotations
 
-
 from app.services.issia.sequences import import_issia
 from app.services.transfer.export_files import EXPORT_FORMATS, write_export_zip
 from tests.services.datasets import zip_files
 from tests.services.issia_data import write_issia_stretch
-
 
 
 def test_no_file_of_any_export_names_a_server_folder(db_session, db_settings, shared_dir, tmp_path):

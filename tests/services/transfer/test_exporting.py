@@ -183,7 +183,8 @@ def test_export_then_import_reproduces_every_label_camera_and_number(
     try:
         back = import_soccernet_v3d(fresh, tmp_path / "export", settings)
         n_frames = sum(len(s.frames) for s in v3)
-        assert (back.games, back.systems, back.frames, back.calibrated + back.refused) == (1, len(v3), n_frames, n_frames)
+        assert (back.games, back.systems,
+                back.frames, back.calibrated + back.refused) == (1, len(v3), n_frames, n_frames)
         original, reimported = _snapshot(db_session, (SystemKind.SOCCERNET_V3,)), _snapshot(fresh)
         assert set(original) == set(reimported)
         for key in original:
@@ -218,8 +219,8 @@ def test_the_export_carries_each_games_images_and_re_imports_with_them(db_sessio
     import io
     import zipfile
 
-    from app.services.transfer.exporting import stream_soccernet_v3d_zip
     from app.services.images.serving import frame_image
+    from app.services.transfer.exporting import stream_soccernet_v3d_zip
 
     import_soccernet_v3(db_session, v3_tree, settings)
     frames = db_session.scalars(sa.select(Frame).order_by(Frame.name)).all()
@@ -343,7 +344,8 @@ def test_a_games_frames_zip_reads_its_frames_in_one_query(db_session, settings, 
     db_session.expire_all()
     statements: list[str] = []
     engine = db_session.get_bind()
-    count = lambda conn, cursor, statement, *rest: statements.append(statement)  # noqa: E731
+    def count(conn, cursor, statement, *rest):
+        return statements.append(statement)
     event.listen(engine, "before_cursor_execute", count)
     try:
         with (tmp_path / "Frames-v3.zip").open("wb") as target:

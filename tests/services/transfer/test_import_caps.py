@@ -33,7 +33,8 @@ def _grow(action: str, views: int):
 
 def _tree(shared_dir: Path, root: Path, views: int) -> Path:
     """The dev game's 0.png and 2.png, 2.png with ``views`` views (images included)."""
-    game_dir = write_v3_game(shared_dir, root, actions=("0.png", "2.png"), edit=_grow("2.png", views), with_images=False)
+    game_dir = write_v3_game(shared_dir, root, actions=("0.png", "2.png"), edit=_grow("2.png", views),
+                             with_images=False)
     data = json.loads((game_dir / "Labels-v3.json").read_text())
     src = dev_game_dir(shared_dir) / "Frames-v3.zip"
     with zipfile.ZipFile(src) as zin, zipfile.ZipFile(game_dir / "Frames-v3.zip", "w") as zout:
@@ -67,6 +68,7 @@ def test_a_system_at_the_cap_imports_and_one_stored_before_the_cap_is_kept(db_se
     # the cap lowered afterwards: the stored system is left as it is, the import names it
     lower = settings.model_copy(update={"max_views_per_system": 8})
     again = import_soccernet_v3(db_session, root, lower)
-    assert [s.split(": ")[1] for s in again.skipped_systems] == ["16 views, more than 8 (V3D_MAX_VIEWS_PER_SYSTEM); not imported"]
+    assert [s.split(": ")[1] for s in again.skipped_systems] == ["16 views, more than 8 (V3D_MAX_VIEWS_PER_SYSTEM); "
+                                                                 "not imported"]
     db_session.expire_all()
     assert len(db_session.scalars(sa.select(System).where(System.name == "2.png")).one().frames) == 16

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-import app.services  # noqa: F401  (registers the ISSIA services' format)
+import app.services  # noqa: F401  # registers the ISSIA services' format
 from app.services.kinds import POLICIES
 from app.services.transfer.import_formats import import_format, refused_options, registered_formats
 

@@ -10,16 +10,24 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from app.services.curation.words import WORDS
+from app.core.errors import DatasetError
 from app.db.models import (
-    BallKind, CalibrationSource, CalibrationStatus, Frame, FrameRole, Game, ReviewStatus, System, SystemKind,
+    BallKind,
+    CalibrationSource,
+    CalibrationStatus,
+    Frame,
+    FrameRole,
+    Game,
+    ReviewStatus,
+    System,
+    SystemKind,
     TriangulationStatus,
 )
-from app.core.errors import DatasetError
-from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
 from app.geometry.calibration.result import RIG_FLAG
 from app.geometry.jac import jac_admitted
 from app.services.calibration.admission import admission_jac
+from app.services.curation.words import WORDS
+from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
 
 from ..datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
 
