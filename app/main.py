@@ -43,19 +43,19 @@ from starlette.types import Scope
 from app.api.authentication import AuthenticationMiddleware, SessionCookieMiddleware
 from app.api.bodies import BodyLimitMiddleware
 from app.api.compression import CompressionMiddleware
-from app.api.hosts import allowed_hosts
 from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
+from app.api.hosts import allowed_hosts
 from app.api.main import api_router
 from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
+from app.core.errors import NotFoundError
 from app.core.paths import STATIC_DIR
 from app.db.session import make_engine, make_session_factory
-from app.services.curation.writing import EditSlots, get_system
-from app.core.errors import NotFoundError
-from app.services.jobs.runner import JobRunner
 from app.services.accounts.throttle import login_throttle
 from app.services.accounts.users import session_secret
+from app.services.curation.writing import EditSlots, get_system
+from app.services.jobs.runner import JobRunner
 
 #: Where the local Swagger UI assets (from fastapi-offline) are mounted.
 DOCS_ASSETS_URL = "/docs-assets"

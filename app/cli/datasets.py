@@ -257,7 +257,6 @@ def export_soccernet_v3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export soccernet-v3d`` into ``out_dir`` (its help: the registry's description of the format)."""
-    from app.services.transfer.exporting import export_soccernet_v3d
     from app.services.images.serving import ImageUnavailable
     from app.services.transfer.exporting import export_soccernet_v3d
 

@@ -24,7 +24,6 @@ from app.api.auth import Principal, current_principal
 from app.core.config import Settings
 from app.db.session import make_engine
 from app.main import create_app
-
 from tests.accounts import Account, as_session, make_accounts
 
 from .factories import Scene, make_game, make_system

@@ -9,8 +9,19 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.db.models import (
-    BallKind, BallLabel, Calibration, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, FrameRole,
-    Game, ReviewDecision, ReviewStatus, System, SystemKind,
+    BallKind,
+    BallLabel,
+    Calibration,
+    CalibrationSource,
+    CalibrationStatus,
+    FieldLineAnnotation,
+    Frame,
+    FrameRole,
+    Game,
+    ReviewDecision,
+    ReviewStatus,
+    System,
+    SystemKind,
 )
 from app.db.types import json_safe
 

@@ -16,14 +16,12 @@ from starlette.background import BackgroundTask
 from app.api.auth import require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.schemas import InvalidOut
-from app.services.transfer import detector_export
-from app.services.evaluation import monocular
-from app.services.evaluation.boxes import evaluate_boxes as boxes_report
-from app.services.evaluation.stats import dataset_stats
 from app.core.config import Settings
 from app.core.errors import DatasetError, InvalidInputError
 from app.geometry.metrics import MAX_YOLO_FILE_BYTES
 from app.services.evaluation import monocular
+from app.services.evaluation.boxes import evaluate_boxes as boxes_report
+from app.services.evaluation.stats import dataset_stats
 from app.services.transfer import detector_export
 from app.services.transfer.archives import MB, ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
 

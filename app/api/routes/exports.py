@@ -22,11 +22,10 @@ from app.api.auth import require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
-from app.services.transfer import export_files, exporting
-from app.services.transfer.export_formats import tree_export_names
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
 from app.services.transfer import export_files, exporting
+from app.services.transfer.export_formats import tree_export_names
 
 router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
 

@@ -21,21 +21,36 @@ from app.api.auth import AnnotatorDep, PrincipalDep, require_role
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import EditDep, FrameDep, FrameIdPath, SessionDep, SettingsDep
 from app.api.schemas import (
-    INVALID, NOT_FOUND, BallEdit, ErrorOut, ExclusionIn, FieldLinesEdit, FieldLinesIn, FrameListQuery, QueueQuery,
+    INVALID,
+    NOT_FOUND,
+    BallEdit,
+    ErrorOut,
+    ExclusionIn,
+    FieldLinesEdit,
+    FieldLinesIn,
+    FrameListQuery,
+    QueueQuery,
     ReviewIn,
 )
 from app.api.view_schemas import (
-    CalibrationPreviewOut, FrameOut, FramePageOut, FrameView, PitchLinesOut, ReviewOut, SystemView, calibrated_camera, projected_pitch_of,
+    CalibrationPreviewOut,
+    FrameOut,
+    FramePageOut,
+    FrameView,
+    PitchLinesOut,
+    ReviewOut,
+    SystemView,
+    calibrated_camera,
+    projected_pitch_of,
 )
 from app.db.models import Frame
 from app.services.audit import log as audit
-from app.services.curation import decisions, editing, writing
+from app.services.curation import decisions, editing, queue, writing
 from app.services.curation.calibration_preview import preview_calibration
-from app.services.images import serving as images
-from app.services.curation import queue
 from app.services.curation.system_page import load_frame, pitch_lines_key, system_page
-from app.services.curation.writing import EditContext
 from app.services.curation.versions import expected_versions, frame_etag
+from app.services.curation.writing import EditContext
+from app.services.images import serving as images
 
 #: The header naming the audit entry of a write (what a later undo names).
 AUDIT_ENTRY_HEADER = audit.AUDIT_ENTRY_HEADER

@@ -18,8 +18,7 @@ from app.api.routes.frames import name_entry
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
 from app.db.types import utcnow
-from app.services.curation import assignment, decisions, presence, writing
-from app.services.curation import queue
+from app.services.curation import assignment, decisions, presence, queue, writing
 from app.services.curation.system_page import system_page
 from app.services.curation.versions import expected_versions, system_etag
 

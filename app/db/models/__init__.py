@@ -29,7 +29,9 @@ One module per domain: :mod:`~.base` (the registry), :mod:`~.enums`, :mod:`~.lab
 (audit log, jobs). Every model is importable from here; importing the package registers them all.
 """
 
-from app.db.models.base import Base, JAC_COLUMNS, NAMING_CONVENTION
+from app.db.models.accounts import ApiToken, RateLimitCounter, ServerSecret, User
+from app.db.models.base import JAC_COLUMNS, NAMING_CONVENTION, Base
+from app.db.models.derived import BallReprojection, Calibration, Doubt, OptimisedBox, Triangulation, TriangulationPair
 from app.db.models.enums import (
     BallKind,
     CalibrationSource,
@@ -42,10 +44,8 @@ from app.db.models.enums import (
     UserRole,
 )
 from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, System, TrajectoryPoint
-from app.db.models.derived import BallReprojection, Calibration, Doubt, OptimisedBox, Triangulation, TriangulationPair
-from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
-from app.db.models.accounts import ApiToken, RateLimitCounter, ServerSecret, User
 from app.db.models.operations import AuditEntry, Job
+from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
 
 __all__ = [
     "Base",

@@ -3,16 +3,15 @@ secret.
 """
 from __future__ import annotations
 
-
 from datetime import datetime
 from typing import Optional
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
-from app.db.types import enum_by_value, utcnow
 from app.db.models.base import Base
-from app.db.models.enums import (UserRole)
+from app.db.models.enums import UserRole
+from app.db.types import enum_by_value, utcnow
 
 
 # ----- people -----------------------------------------------------------------------------------------

@@ -12,7 +12,6 @@ from sqlalchemy.orm import DeclarativeBase
 from app.db.types import JSONDoc, UTCDateTime
 from app.geometry.jac import JAC_GAMMAS
 
-
 #: The column of each stored JaC gamma (``app.geometry.jac.JAC_GAMMAS``, fractions of the image diagonal).
 JAC_COLUMNS: dict[float, str] = dict(zip(JAC_GAMMAS, ("jac_0005", "jac_001", "jac_002"), strict=True))
 

@@ -5,16 +5,15 @@ Units: pixels of the frame's own image, world metres in SoccerNet's frame (z dow
 """
 from __future__ import annotations
 
-
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, Optional
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
-from app.db.types import enum_by_value, utcnow
 from app.db.models.base import JAC_COLUMNS, Base
-from app.db.models.enums import (CalibrationSource, CalibrationStatus, TriangulationStatus)
+from app.db.models.enums import CalibrationSource, CalibrationStatus, TriangulationStatus
+from app.db.types import enum_by_value, utcnow
 
 if TYPE_CHECKING:  # the relationships name these; the registry resolves them at run time
     from app.db.models.labels import Frame, System

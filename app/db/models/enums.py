@@ -4,10 +4,7 @@ kinds, triangulation statuses, job states, review statuses, user roles (the one 
 """
 from __future__ import annotations
 
-
 import enum
-
-
 
 
 # ----- enums ---------------------------------------------------------------------------------------

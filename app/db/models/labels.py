@@ -5,16 +5,15 @@ Units: pixels of the frame's own image (origin top-left), world metres in Soccer
 """
 from __future__ import annotations
 
-
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, Optional
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
-from app.db.types import enum_by_value, utcnow
 from app.db.models.base import Base
-from app.db.models.enums import (BallKind, FrameRole, ReviewStatus, SystemKind)
+from app.db.models.enums import BallKind, FrameRole, ReviewStatus, SystemKind
+from app.db.types import enum_by_value, utcnow
 
 if TYPE_CHECKING:  # the relationships name these; the registry resolves them at run time
     from app.db.models.derived import BallReprojection, Calibration, Doubt, OptimisedBox, Triangulation

@@ -2,16 +2,15 @@
 """
 from __future__ import annotations
 
-
 from datetime import datetime
 from typing import Any, Optional
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column
 
-from app.db.types import enum_by_value, utcnow
 from app.db.models.base import Base
-from app.db.models.enums import (JobState)
+from app.db.models.enums import JobState
+from app.db.types import enum_by_value, utcnow
 
 
 class AuditEntry(Base):

@@ -2,16 +2,15 @@
 """
 from __future__ import annotations
 
-
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, Optional
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
-from app.db.types import enum_by_value, utcnow
 from app.db.models.base import Base
-from app.db.models.enums import (ReviewStatus)
+from app.db.models.enums import ReviewStatus
+from app.db.types import enum_by_value, utcnow
 
 if TYPE_CHECKING:  # the relationships name these; the registry resolves them at run time
     from app.db.models.labels import Frame, System

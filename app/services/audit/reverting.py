@@ -22,10 +22,10 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
-from app.db.models import AuditEntry
-from app.services.curation import assignment, decisions, editing, writing
-from app.services.audit.log import revertible
 from app.core.errors import ForbiddenError, InvalidInputError, found
+from app.db.models import AuditEntry
+from app.services.audit.log import revertible
+from app.services.curation import assignment, decisions, editing, writing
 
 
 @dataclass(frozen=True)

@@ -11,11 +11,16 @@ from typing import Any
 
 import numpy as np
 
+from app.datasets.records import CalibrationFields
 from app.db.models import Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole
 from app.db.types import json_safe, utcnow
-from app.geometry.annotations import mirror_lines, FieldLines, lines_from_json_lists
+from app.geometry.annotations import FieldLines, lines_from_json_lists, mirror_lines
 from app.geometry.calibration import (
-    CalibrationPrior, CameraPrior, calibrate_frame, calibration_uncertainty, lines_used,
+    CalibrationPrior,
+    CameraPrior,
+    calibrate_frame,
+    calibration_uncertainty,
+    lines_used,
 )
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, calibrate_with_rig
@@ -23,9 +28,8 @@ from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.mirror import mirrored_fit_at_rig
-from app.services.curation.words import refusal_sentence
 from app.services.curation.doubt_words import with_sentence
-from app.datasets.records import CalibrationFields
+from app.services.curation.words import refusal_sentence
 from app.services.derivation import scope
 from app.services.kinds import kind_of
 

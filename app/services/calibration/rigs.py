@@ -6,7 +6,6 @@ datasets (frames from many stadiums) never use one.
 """
 from __future__ import annotations
 
-
 import dataclasses
 from typing import Any, Collection, Iterable, Sequence
 
@@ -16,13 +15,13 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.datasets.records import CalibrationFields
 from app.db.models import Calibration, CalibrationStatus, Frame, FrameRole, System
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, estimate_rig
 from app.geometry.jac import JAC_GAMMAS, jac_admitted
-from app.datasets.records import CalibrationFields
+from app.services.calibration.admission import admission_gamma, admitted_jac_sql
 from app.services.kinds import kind_of
-from app.services.calibration.admission import (admission_gamma, admitted_jac_sql)
 
 
 def game_rig(session: Session | None, game_id: int | None, settings: Settings, exclude_frame_ids: Collection[int] = (),

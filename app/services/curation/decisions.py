@@ -3,21 +3,31 @@
 """
 from __future__ import annotations
 
-
 from typing import Any, Optional
 
 from sqlalchemy.orm import Session
 
+from app.core.errors import InvalidInputError
 from app.db.models import (
-    Frame, ReviewDecision, ReviewStatus, System,
+    Frame,
+    ReviewDecision,
+    ReviewStatus,
+    System,
 )
 from app.db.types import utcnow
-from app.core.errors import InvalidInputError
 from app.services.curation.states import (
-    calibration_review_state, review_state, system_review_state,
+    calibration_review_state,
+    review_state,
+    system_review_state,
 )
 from app.services.curation.writing import (
-    EditContext, Expected, Guard, Revert, check_undo_state, guarded_frame_write, guarded_write,
+    EditContext,
+    Expected,
+    Guard,
+    Revert,
+    check_undo_state,
+    guarded_frame_write,
+    guarded_write,
 )
 
 

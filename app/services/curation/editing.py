@@ -31,34 +31,52 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.errors import ConflictError, InvalidInputError
+from app.datasets.labels import LabelError, check_box, check_line_point_count, check_line_points, check_point
 from app.db.models import (
-    AuditEntry, BallKind, BallLabel, FieldLineAnnotation, Frame, ReviewDecision, ReviewStatus, System,
+    AuditEntry,
+    BallKind,
+    BallLabel,
+    FieldLineAnnotation,
+    Frame,
+    ReviewDecision,
+    ReviewStatus,
+    System,
 )
 from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
-from app.datasets.labels import LabelError, check_box, check_line_point_count, check_line_points, check_point
 from app.geometry.doubts.judge import consensus_without
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import reprojection_error_px
 from app.geometry.weighting import centre_of, label_centre
-from app.services.audit import log as audit
-from app.core.errors import ConflictError, InvalidInputError
-from app.services.kinds import kind_of
-from app.services.derivation.rows import put_values
-from app.services.derivation.recompute import (
-    recompute_frame, recompute_system,
-)
 from app.services.curation.doubts import doubt_settings, doubt_views
-from app.services.curation.states import (
-    ball_state, excluded_state, lines_state, same_json,
-)
-from app.services.curation.writing import (
-    EditContext, Expected, Revert, check_undo_state, frame_facts, guarded_frame_write,
-)
 from app.services.curation.resets import (
-    calibration_words, jac_words, reset_after_change, reset_decisions_after_recalibration,
+    calibration_words,
+    jac_words,
+    reset_after_change,
+    reset_decisions_after_recalibration,
     reset_refitted_systems,
 )
+from app.services.curation.states import (
+    ball_state,
+    excluded_state,
+    lines_state,
+    same_json,
+)
+from app.services.curation.writing import (
+    EditContext,
+    Expected,
+    Revert,
+    check_undo_state,
+    frame_facts,
+    guarded_frame_write,
+)
+from app.services.derivation.recompute import (
+    recompute_frame,
+    recompute_system,
+)
+from app.services.derivation.rows import put_values
+from app.services.kinds import kind_of
 
 
 def check_provenance(provenance: Any) -> dict[str, Any] | None:

@@ -9,7 +9,6 @@ changes nothing resets nothing. ``undo`` (:func:`check_undo_state`) marks a writ
 """
 from __future__ import annotations
 
-
 from collections.abc import Sequence
 from typing import Any, Optional
 
@@ -17,14 +16,19 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
-    Frame, ReviewStatus, System,
+    Frame,
+    ReviewStatus,
+    System,
 )
 from app.db.types import utcnow
 from app.services.audit import log as audit
 from app.services.audit.summaries import summarize
 from app.services.calibration.admission import admission_jac, is_admitted
 from app.services.curation.states import (
-    calibration_review_state, lines_state, review_state, same_json,
+    calibration_review_state,
+    lines_state,
+    review_state,
+    same_json,
 )
 from app.services.curation.writing import (
     Revert,

@@ -3,13 +3,13 @@ the ball label, the field lines, the exclusion, the review decisions (plain JSON
 """
 from __future__ import annotations
 
-
 import json
 from typing import Any
 
-
 from app.db.models import (
-    Frame, ReviewStatus, System,
+    Frame,
+    ReviewStatus,
+    System,
 )
 
 

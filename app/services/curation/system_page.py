@@ -18,10 +18,10 @@ import orjson
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, joinedload
 
+from app.core.errors import found
 from app.db.models import Frame, System
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
-from app.core.errors import found
 from app.services.curation.assignment import Assignment, assignment_of
 from app.services.curation.presence import Presence, open_on
 from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours

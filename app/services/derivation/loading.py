@@ -21,6 +21,7 @@ from sqlalchemy.orm.attributes import set_committed_value
 
 from app.db.models import Doubt, Frame, System, Triangulation, TriangulationPair
 from app.services.derivation.scope import FRAME_ROWS
+
 #: Systems loaded per round of four queries (bounded IN lists and memory).
 CHUNK = 500
 

@@ -37,9 +37,17 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.datasets.records import CalibrationFields
 from app.db.models import (
-    BallLabel, BallReprojection, Calibration, CalibrationSource, CalibrationStatus, Doubt, FieldLineAnnotation, Frame,
-    Game, OptimisedBox, ReviewDecision, ReviewStatus, System, TrajectoryPoint, Triangulation, TriangulationPair,
+    BallReprojection,
+    CalibrationSource,
+    CalibrationStatus,
+    Frame,
+    OptimisedBox,
+    ReviewStatus,
+    System,
+    Triangulation,
+    TriangulationPair,
     TriangulationStatus,
 )
 from app.db.session import begin_write
@@ -49,15 +57,14 @@ from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorView, mirror_evidence
+from app.geometry.pair_error import error_above_tau
 from app.geometry.pitch import within_play_volume
 from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball
-from app.geometry.pair_error import error_above_tau
 from app.services.audit.log import record_summary
-from app.datasets.records import CalibrationFields
+from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
-from app.services.calibration.admission import is_admitted
 from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts, weighed_views
 from app.services.derivation import cameras as shared

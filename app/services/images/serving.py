@@ -18,8 +18,8 @@ from typing import IO, Optional
 import numpy as np
 
 from app.core.errors import DatasetError, ServiceError
-from app.datasets.issia import IssiaSequence, read_frame_image
 from app.datasets.files import IMAGE_MEDIA_TYPES, MAX_IMAGE_PIXELS, image_header, is_safe_member
+from app.datasets.issia import IssiaSequence, read_frame_image
 from app.db.models import Frame
 
 #: Bytes per streamed chunk.

@@ -46,19 +46,40 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
-    JAC_COLUMNS, BallLabel, Calibration, CalibrationStatus, Doubt, Frame, ReviewDecision, System, SystemKind, TrajectoryPoint,
-    Triangulation,
+    JAC_COLUMNS,
+    BallLabel,
+    Calibration,
+    CalibrationStatus,
+    Doubt,
+    Frame,
+    ReviewDecision,
+    System,
+    SystemKind,
+    TrajectoryPoint,
 )
 from app.db.types import json_loads, json_safe, utcnow
 from app.geometry.camera import Camera
 from app.geometry.trajectory import (
-    REFIT_REACH, Piece, TrajectoryFit, local_span, refit_local, refit_span, refit_window,
+    REFIT_REACH,
+    Piece,
+    TrajectoryFit,
+    local_span,
+    refit_local,
+    refit_span,
+    refit_window,
 )
 from app.services.calibration.admission import is_admitted
-from app.services.derivation.recompute import load_for_recompute
 from app.services.curation.doubt_words import doubt_message
+from app.services.derivation.recompute import load_for_recompute
 from app.services.issia.trajectory import (
-    FPS, TRIANGULATION_FIELDS, Changed, DoubtFrame, fit_args, fit_sequence, flagged_label_doubts, piece_from_json,
+    FPS,
+    TRIANGULATION_FIELDS,
+    Changed,
+    DoubtFrame,
+    fit_args,
+    fit_sequence,
+    flagged_label_doubts,
+    piece_from_json,
     row_values,
 )
 

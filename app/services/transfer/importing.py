@@ -43,30 +43,41 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload, undefer
 
 from app.core.config import Settings
-from app.db.models import (
-    BallKind, BallLabel, CalibrationSource, CalibrationStatus, FieldLineAnnotation, Frame, Game, ReviewDecision,
-    ReviewStatus, System,
-)
-from app.db.session import refresh_statistics
-from app.db.types import utcnow
 from app.datasets.files import dataset_root
-from app.datasets.records import FrameRecord, GameRecord
+from app.datasets.records import CalibrationFields, FrameRecord, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
 from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
 from app.datasets.soccernet_v3d import read_soccernet_v3d
-from app.services.curation.words import WORDS
-from app.services.audit.log import record_summary
-from app.services.calibration.first_pass import (
-    FirstPassAhead, first_pass, retry_with_dataset_prior, retry_with_game_rigs, start_first_pass,
+from app.db.models import (
+    BallKind,
+    BallLabel,
+    CalibrationSource,
+    CalibrationStatus,
+    FieldLineAnnotation,
+    Frame,
+    Game,
+    ReviewDecision,
+    ReviewStatus,
+    System,
 )
+from app.db.session import refresh_statistics
+from app.db.types import utcnow
 from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
-from app.datasets.records import CalibrationFields
-from app.services.calibration.pool import CalibrationPool, calibration_pool
+from app.services.audit.log import record_summary
 from app.services.calibration.calibrating import apply_calibration
+from app.services.calibration.first_pass import (
+    FirstPassAhead,
+    first_pass,
+    retry_with_dataset_prior,
+    retry_with_game_rigs,
+    start_first_pass,
+)
+from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
-from app.services.jobs.progress import Progress
+from app.services.curation.words import WORDS
 from app.services.derivation import scope
 from app.services.derivation.recompute import preload_systems, recompute_systems
+from app.services.jobs.progress import Progress
 
 __all__ = [
     "ImportReport", "audit_counts", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",

@@ -4,11 +4,10 @@ field-line write with the earlier lines, audited as ``field_lines.replace`` with
 entry it undoes, whose lines, camera and JaC come back exactly as they were (nothing else changed)."""
 from __future__ import annotations
 
-import pytest
-
 import copy
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
 from app.geometry import pitch

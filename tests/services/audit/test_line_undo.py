@@ -10,10 +10,9 @@ import pytest
 
 from app.core.errors import InvalidInputError
 from app.db.models import AuditEntry, Frame
-from app.services.audit import log as audit
 from app.services.curation.editing import replace_field_lines
-from app.services.derivation.recompute import recompute_frame
 from app.services.curation.writing import EditContext
+from app.services.derivation.recompute import recompute_frame
 
 
 def _frame(systems, system, name) -> Frame:

@@ -9,16 +9,15 @@ import numpy as np
 import pytest
 from sqlalchemy.orm import Session
 
-from app.geometry.calibration.result import Refusal
 from app.core.config import Settings
 from app.core.errors import InvalidInputError
 from app.db.models import System
 from app.geometry.ball import sphere_image_box
+from app.geometry.calibration.result import Refusal
 from app.geometry.doubts import LABEL_KINDS, DoubtSettings
 from app.services.curation import doubts as doubt_service
 from app.services.curation import editing, states
 from app.services.curation.doubts import doubt_settings
-
 from tests.api.factories import BALL, make_game, make_system
 
 
@@ -163,7 +162,7 @@ def test_a_refused_main_view_whose_mirrored_labels_calibrate_is_flagged_with_the
     """The mirrored re-fit (issue 18): a main-camera frame refused as labelled whose mirrored labelling
     calibrates under the same side prior is flagged probably mirrored, with the mirrored fit's camera in
     its evidence; the labels themselves are not changed."""
-    from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists, mirror_lines
+    from app.geometry.annotations import lines_to_json_lists, mirror_lines
     from app.geometry.calibration import calibrate_frame as real
     from app.geometry.projection import project_pitch_polylines
     from app.services.calibration import calibrating

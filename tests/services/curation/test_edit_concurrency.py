@@ -18,11 +18,10 @@ from app.core.config import Settings
 from app.db.models import Frame, ReviewStatus, System
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.services.curation import editing, writing
-from app.services.curation.writing import EditContext
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import replace_field_lines, update_ball_label
+from app.services.curation.writing import EditContext
 from app.services.derivation.recompute import load_for_recompute, recompute_system
-
 from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene, make_game, make_system
 from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database

@@ -9,10 +9,10 @@ from collections.abc import Callable, Iterator
 import pytest
 from sqlalchemy.orm import Session
 
+from app.core.errors import NotFoundError
 from app.db.models import Game, System, SystemKind
 from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
 from app.services.curation.writing import lock_system
-from app.core.errors import NotFoundError
 
 pytestmark = pytest.mark.postgres
 

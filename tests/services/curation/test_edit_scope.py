@@ -27,11 +27,15 @@ from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.services.audit.reverting import revert_entry, undo_entry
 from app.services.curation import writing
 from app.services.curation.decisions import decide_calibration, decide_review
-from app.services.curation.editing import apply_mirrored_labels, replace_field_lines, set_view_excluded, update_ball_label
+from app.services.curation.editing import (
+    apply_mirrored_labels,
+    replace_field_lines,
+    set_view_excluded,
+    update_ball_label,
+)
 from app.services.curation.writing import EditContext
 from app.services.derivation import scope
 from app.services.derivation.recompute import recompute_all_systems
-
 from tests.api.factories import Scene, make_game, make_system
 
 _TABLES = re.compile(r'\b(?:FROM|JOIN)\s+"?(\w+)"?', re.IGNORECASE)

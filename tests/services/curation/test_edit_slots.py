@@ -21,7 +21,6 @@ from app.services.curation import writing
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import update_ball_label
 from app.services.curation.writing import EditContext, EditSlots
-
 from tests.api.factories import Scene, make_game, make_system
 
 

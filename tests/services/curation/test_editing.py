@@ -5,11 +5,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.db.models import BallKind, CalibrationSource, CalibrationStatus, Frame, ReviewStatus, System, TriangulationStatus
+from app.core.errors import InvalidInputError, NotFoundError
+from app.db.models import (
+    BallKind,
+    CalibrationSource,
+    CalibrationStatus,
+    Frame,
+    ReviewStatus,
+    System,
+    TriangulationStatus,
+)
+from app.services.calibration.calibrating import calibrate_lines, expected_side
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import replace_field_lines, update_ball_label
-from app.core.errors import InvalidInputError, NotFoundError
-from app.services.calibration.calibrating import calibrate_lines, expected_side
 
 
 def _frame(systems, system, name) -> Frame:

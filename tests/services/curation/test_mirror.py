@@ -10,15 +10,15 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.errors import ConflictError, InvalidInputError, NotFoundError
 from app.db.models import Frame
 from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists, mirror_lines
+from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.camera import Camera
 from app.geometry.mirror import mirror_camera
 from app.services.curation.editing import apply_mirrored_labels
-from app.core.errors import ConflictError, InvalidInputError, NotFoundError
-from app.services.transfer.importing import import_soccernet_v3
-from app.geometry.calibration.result import MIRROR_FLAG
 from app.services.derivation.recompute import recompute_system
+from app.services.transfer.importing import import_soccernet_v3
 from tests.api.factories import make_game, make_system
 
 

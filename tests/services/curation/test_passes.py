@@ -12,7 +12,6 @@ from app.db.models import ReviewStatus
 from app.services.audit import log as audit
 from app.services.curation import decisions, editing, passes, queue, writing
 from app.services.curation.queue import SystemFilters
-
 from tests.api.factories import Scene, ball_box, make_game, make_system
 
 

@@ -9,8 +9,8 @@ from pathlib import Path
 from app.db.models import CalibrationSource, CalibrationStatus, TriangulationStatus
 from app.geometry.calibration.result import MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
-from app.geometry.triangulation import DROP_REASONS
 from app.geometry.pair_error import PAIR_ERROR_RULES
+from app.geometry.triangulation import DROP_REASONS
 from app.services.calibration.admission import GIVEN_CAMERA_FLAG
 from app.services.curation.words import WORDS, words_js
 from app.services.issia.sequences import BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG

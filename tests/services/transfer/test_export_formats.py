@@ -11,10 +11,17 @@ import pytest
 
 from app.api.routes.exports import TreeFormat
 from app.services.jobs.work import export_params
-from app.services.kinds import EXPORTS as KIND_EXPORTS, kinds_exported_by
+from app.services.kinds import EXPORTS as KIND_EXPORTS
+from app.services.kinds import kinds_exported_by
 from app.services.transfer import export_files
 from app.services.transfer.export_formats import (
-    ExportChoice, ExportFormat, export_format, export_names, exports_js, register_export_format, tree_export_names,
+    ExportChoice,
+    ExportFormat,
+    export_format,
+    export_names,
+    exports_js,
+    register_export_format,
+    tree_export_names,
 )
 
 ROOT = Path(__file__).resolve().parents[3]
