@@ -2,7 +2,7 @@
 optimised boxes and review decisions (see app/db/models/).
 
 Revision ID: 0001
-Revises: 
+Revises:
 Create Date: 2026-11-21 16:53:46.054127+00:00
 """
 from __future__ import annotations

@@ -26,7 +26,7 @@ def _table() -> dict[str, str]:
         variables = re.findall(r"`(V3D_[A-Z0-9_]+)`", names)
         parts = [d.strip() for d in defaults.split(",")] if len(variables) > 1 else [defaults.strip()]
         assert len(parts) == len(variables), (names, defaults)
-        for v, d in zip(variables, parts):
+        for v, d in zip(variables, parts, strict=True):
             assert v not in out, f"{v} documented twice"
             out[v] = d
     return out

@@ -73,7 +73,7 @@ def pitch_lines(camera_json: Optional[dict[str, Any]], width: int, height: int, 
     project = _projected_pitch if keep else _projected_pitch.__wrapped__
     classes, points, bounds = project(json.dumps(camera_json, sort_keys=True), int(width), int(height))
     xy = points.tolist()
-    return [(cls, xy[s:e]) for cls, s, e in zip(classes, bounds, bounds[1:])]
+    return [(cls, xy[s:e]) for cls, s, e in zip(classes, bounds, bounds[1:], strict=False)]  # bounds has one more
 
 
 def pitch_lines_key(camera_json: Optional[dict[str, Any]], width: int, height: int) -> Optional[str]:

@@ -302,7 +302,7 @@ def _describe_current(session: Session, exc: StaleVersionError) -> None:
         exc.last_change = audit.latest_entry(session, frame_id=exc.ident)
     else:
         system = get_system(session, exc.ident)
-        system.review  # loaded now: the answer is shaped after the session is gone
+        _ = system.review  # loaded now: the answer is shaped after the session is gone
         exc.current = system
         exc.last_change = audit.latest_entry(session, system_id=exc.ident)
 

@@ -144,7 +144,7 @@ def _admitted(admission: tuple[Any, ...], settings: Settings) -> bool:
     """``is_admitted`` of a calibration given by its :data:`_ADMISSION_NAMES` columns (None: no calibration)."""
     if admission[0] is None:
         return False
-    return is_admitted(Calibration(**dict(zip(_ADMISSION_NAMES, admission))), settings)  # not added to the session
+    return is_admitted(Calibration(**dict(zip(_ADMISSION_NAMES, admission, strict=True))), settings)  # not added to the session
 
 
 def _in_sequence(game_id: int) -> tuple[Any, ...]:
@@ -242,7 +242,7 @@ def _load_window(session: Session, game_id: int, first: int, last: int, columns:
         .join(TrajectoryPoint, TrajectoryPoint.system_id == System.id).where(*in_window)
     ):
         index, sid, doubts, *values = row
-        stored[index] = dict(zip(_POINT_COLUMNS, values))
+        stored[index] = dict(zip(_POINT_COLUMNS, values, strict=True))
         system_ids[index] = sid
         if (doubts or {}).get("ball_off_consensus"):
             doubting[index] = int(doubts["ball_off_consensus"])
@@ -379,7 +379,7 @@ def _refresh_trajectory_doubts(session: Session, rows: list[tuple[int, int, dict
              "message": doubt_message(d, {d.view_id: views[sid][d.view_id].name}),
              "evidence": json_safe({**d.evidence, "code": d.code}),
              "suggestion": json_safe(d.suggestion) if d.suggestion else None} for sid, d in found])
-    for doubt_id, sid in stale:  # objects already in the session: gone, and their systems' lists reloaded
+    for doubt_id, _sid in stale:  # objects already in the session: gone, and their systems' lists reloaded
         obj = session.identity_map.get(session.identity_key(Doubt, doubt_id))  # type: ignore[arg-type]
         if obj is not None:
             session.expunge(obj)

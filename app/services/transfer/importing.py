@@ -307,7 +307,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     # The first write of the import. Systems new in this batch hold every row a recomputation reads
     # already (their relationships were set when they were created): only stored ones are loaded.
     preload_systems(session, [s for s in touched if s.id is not None])
-    for frame, fields in zip(to_calibrate, results):
+    for frame, fields in zip(to_calibrate, results, strict=True):  # one result per frame
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
@@ -406,16 +406,18 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
         with calibration_pool(settings.calibration_workers) as pool:
             loaded = [read() for read in batches.pop(0)] if batches else None
             ahead = start_first_pass(session, loaded, pool, settings) if loaded else None
+            # the next batch and its calibration once ``start_next`` started them (reset for every batch)
+            following: list[list[GameRecord] | None] = [None]
+            started: list[FirstPassAhead | None] = [None]
+
+            def start_next() -> None:  # the next batch calibrates while this one is stored
+                if batches:
+                    following[0] = records = [read() for read in batches.pop(0)]
+                    started[0] = start_first_pass(session, records, pool, settings)
+
             while loaded is not None:
                 batch, last = loaded, not batches
-                following: list[list[GameRecord] | None] = [None]
-                started: list[FirstPassAhead | None] = [None]
-
-                def start_next() -> None:  # the next batch calibrates while this one is stored
-                    if batches:
-                        following[0] = [read() for read in batches.pop(0)]
-                        started[0] = start_first_pass(session, following[0], pool, settings)
-
+                following[0], started[0] = None, None
                 _store(session, batch, settings, report, progress if last and done == 0 else None, pool,
                        ahead, start_next)
                 ahead, loaded = started[0], following[0]

@@ -52,7 +52,7 @@ def test_a_pass_keeps_the_queue_order_of_its_start_through_a_decision_and_a_fix(
     decisions.decide_review(db_session, system_id=order[0], status="rejected", actor="ana")
     fixed = order[1]
     scene = next(s for s in six if s.system_id == fixed)
-    for frame_id, camera in zip(scene.frame_ids, scene.cameras):
+    for frame_id, camera in zip(scene.frame_ids, scene.cameras, strict=True):
         editing.update_ball_label(db_session, frame_id, box=ball_box(camera), settings=db_settings, actor="ana")
     assert writing.get_system(db_session, fixed).label_doubts == 0
     now, _ = _pages(db_session, "-doubts", limit=4)
