@@ -5,7 +5,8 @@ A write names the version it was made against with ``If-Match: <ETag>`` (the ETa
 stale one is answered 412 with the resource's current state (``app.api.errors``). A write without
 ``If-Match`` is refused with 428 when it comes with an API token (``Principal.via == "token"``), so
 no script overwrites someone's edit by accident; ``If-Match: *`` (any version) does not stand in for an
-ETag there. The browser's session writes stay accepted without it (the UI always sends it). The comparison happens in the write's transaction (``app.services.curation.versions``).
+ETag there. The browser's session writes stay accepted without it (the UI always sends it). The comparison happens in
+the write's transaction (``app.services.curation.versions``).
 """
 from __future__ import annotations
 

@@ -27,8 +27,9 @@ DatabaseOpt = Annotated[Optional[str],
                         typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
 _Command = TypeVar("_Command", bound=Callable[..., Any])
-_STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating", "rig": "calibrating with game rigs",
-           "triangulate": "triangulating", "recompute": "recomputing systems", "export": "exporting games"}
+_STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating",
+           "rig": "calibrating with game rigs", "triangulate": "triangulating", "recompute": "recomputing systems",
+           "export": "exporting games"}
 
 
 class _Bars:

@@ -137,8 +137,8 @@ def make_engine(url: str | sa.URL, write_lock_timeout_s: float | None = None, **
     ``write_lock_timeout_s`` (None: :data:`SQLITE_BUSY_TIMEOUT_S`; an explicit ``connect_args={"timeout": ...}``
     wins) for the write lock, and begin the transactions of :func:`begin_write` with ``BEGIN IMMEDIATE``.
     PostgreSQL connections run with :data:`POSTGRES_OPTIONS` (JIT off; options in the URL's query or in
-    ``connect_args`` win); engines given ``write_lock_timeout_s`` set the connections' ``lock_timeout`` to it (a row lock waited
-    for longer fails, :func:`is_lock_timeout`).
+    ``connect_args`` win); engines given ``write_lock_timeout_s`` set the connections' ``lock_timeout`` to it (a row
+    lock waited for longer fails, :func:`is_lock_timeout`).
     Extra ``kwargs`` go to ``create_engine``.
     """
     u = make_url(url)
@@ -179,11 +179,12 @@ def _ping_when_idle(engine: Engine, idle_s: float) -> None:
     """Ping a pooled connection before handing it out only when it has been idle for more than ``idle_s`` seconds.
 
     SQLAlchemy's ``pool_pre_ping`` pings at every checkout: a round trip before every transaction, several per
-    served edit (its authentication, its reads, its write), where the connection was last used milliseconds before. A server restart, a network cut or an idle timeout on the server's side strike connections that waited in
-    the pool; those are still pinged. A connection that dies within ``idle_s`` of its last use fails the request
-    using it, and SQLAlchemy then invalidates the pool's connections (``is_disconnect``), so later requests connect
-    afresh. A failed ping raises ``DisconnectionError``: the pool discards the connection and checks out another
-    (SQLAlchemy's recipe for custom pessimistic disconnect handling,
+    served edit (its authentication, its reads, its write), where the connection was last used milliseconds before. A
+    server restart, a network cut or an idle timeout on the server's side strike connections that waited in the pool;
+    those are still pinged. A connection that dies within ``idle_s`` of its last use fails the request using it, and
+    SQLAlchemy then invalidates the pool's connections (``is_disconnect``), so later requests connect afresh. A failed
+    ping raises ``DisconnectionError``: the pool discards the connection and checks out another (SQLAlchemy's recipe for
+    custom pessimistic disconnect handling,
     https://docs.sqlalchemy.org/en/20/core/pooling.html#disconnect-handling-pessimistic)."""
 
     @event.listens_for(engine, "checkin")
@@ -245,7 +246,7 @@ def is_lock_timeout(exc: BaseException) -> bool:
     if not isinstance(exc, sa.exc.OperationalError):
         return False
     orig = exc.orig
-    if getattr(orig, "sqlstate", None) == _PG_LOCK_NOT_AVAILABLE or getattr(orig, "pgcode", None) == _PG_LOCK_NOT_AVAILABLE:
+    if _PG_LOCK_NOT_AVAILABLE in (getattr(orig, "sqlstate", None), getattr(orig, "pgcode", None)):
         return True
     text = str(orig if orig is not None else exc).lower()
     return any(w in text for w in ("database is locked", "database is busy", "lock timeout"))

@@ -1,6 +1,6 @@
 """Doubts of a system (label problems the geometry sees, with fixes), the per-view exclusion decision,
-and the review queue's per-system figures and review status stored on the write path (app/db/models/: derived.py's Doubt,
-review.py's ReviewDecision.excluded, labels.py's System.doubt_counts ... derived_version). Existing systems get
+and the review queue's per-system figures and review status stored on the write path (app/db/models/: derived.py's
+Doubt, review.py's ReviewDecision.excluded, labels.py's System.doubt_counts ... derived_version). Existing systems get
 derived_version 0: the service recomputes them before serving (app.services.derivation.recompute.refresh_stale_systems).
 
 Revision ID: 0003
@@ -29,10 +29,13 @@ def upgrade() -> None:
     sa.Column('kind', sa.String(length=40), nullable=False),
     sa.Column('accuses_label', sa.Boolean(), nullable=False),
     sa.Column('message', sa.Text(), nullable=False),
-    sa.Column('evidence', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=False),
-    sa.Column('suggestion', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True),
+    sa.Column('evidence', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'),
+              nullable=False),
+    sa.Column('suggestion', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'),
+              nullable=True),
     sa.ForeignKeyConstraint(['frame_id'], ['frames.id'], name=op.f('fk_doubts_frame_id_frames'), ondelete='CASCADE'),
-    sa.ForeignKeyConstraint(['system_id'], ['systems.id'], name=op.f('fk_doubts_system_id_systems'), ondelete='CASCADE'),
+    sa.ForeignKeyConstraint(['system_id'], ['systems.id'], name=op.f('fk_doubts_system_id_systems'),
+                            ondelete='CASCADE'),
     sa.PrimaryKeyConstraint('id', name=op.f('pk_doubts'))
     )
     with op.batch_alter_table('doubts', schema=None) as batch_op:
@@ -43,7 +46,9 @@ def upgrade() -> None:
         batch_op.add_column(sa.Column('excluded', sa.Boolean(), nullable=False, server_default=sa.false()))
 
     with op.batch_alter_table('systems', schema=None) as batch_op:
-        batch_op.add_column(sa.Column('doubt_counts', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=False, server_default='{}'))
+        batch_op.add_column(sa.Column('doubt_counts',
+                                      sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'),
+                                      nullable=False, server_default='{}'))
         batch_op.add_column(sa.Column('label_doubts', sa.Integer(), nullable=False, server_default='0'))
         batch_op.add_column(sa.Column('views_total', sa.Integer(), nullable=False, server_default='0'))
         batch_op.add_column(sa.Column('views_calibrated', sa.Integer(), nullable=False, server_default='0'))
@@ -54,9 +59,13 @@ def upgrade() -> None:
         batch_op.add_column(sa.Column('views_flagged', sa.Integer(), nullable=False, server_default='0'))
         batch_op.add_column(sa.Column('views_above_tau', sa.Integer(), nullable=False, server_default='0'))
         batch_op.add_column(sa.Column('derived_version', sa.Integer(), nullable=False, server_default='0'))
-        batch_op.add_column(sa.Column('review_status', sa.Enum('pending', 'accepted', 'rejected', 'needs_fix', name='system_review_status', native_enum=False, create_constraint=True), nullable=False, server_default='pending'))
+        batch_op.add_column(sa.Column('review_status',
+                                      sa.Enum('pending', 'accepted', 'rejected', 'needs_fix',
+                                              name='system_review_status', native_enum=False, create_constraint=True),
+                                      nullable=False, server_default='pending'))
         batch_op.create_index(batch_op.f('ix_systems_review_status'), ['review_status'], unique=False)
-        batch_op.create_index('ix_systems_label_doubts_worst_error_px', ['label_doubts', 'worst_error_px'], unique=False)
+        batch_op.create_index('ix_systems_label_doubts_worst_error_px', ['label_doubts', 'worst_error_px'],
+                              unique=False)
         batch_op.create_index(batch_op.f('ix_systems_lowest_jac'), ['lowest_jac'], unique=False)
         batch_op.create_index(batch_op.f('ix_systems_worst_error_px'), ['worst_error_px'], unique=False)
 

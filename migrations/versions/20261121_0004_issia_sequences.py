@@ -45,14 +45,18 @@ def upgrade() -> None:
     op.create_table('trajectory_points',
     sa.Column('system_id', sa.Integer(), nullable=False),
     sa.Column('ball3d', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True),
-    sa.Column('ball3d_smoothed', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True),
+    sa.Column('ball3d_smoothed', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'),
+              nullable=True),
     sa.Column('source', sa.String(length=20), nullable=True),
     sa.Column('piece', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True),
-    sa.Column('cam_list', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=False),
-    sa.Column('residuals_px', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=False),
+    sa.Column('cam_list', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'),
+              nullable=False),
+    sa.Column('residuals_px', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'),
+              nullable=False),
     sa.Column('flagged', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=False),
     sa.Column('computed_at', app.db.types.UTCDateTime(timezone=True), nullable=False),
-    sa.ForeignKeyConstraint(['system_id'], ['systems.id'], name=op.f('fk_trajectory_points_system_id_systems'), ondelete='CASCADE'),
+    sa.ForeignKeyConstraint(['system_id'], ['systems.id'], name=op.f('fk_trajectory_points_system_id_systems'),
+                            ondelete='CASCADE'),
     sa.PrimaryKeyConstraint('system_id', name=op.f('pk_trajectory_points'))
     )
     with op.batch_alter_table('frames', schema=None) as batch_op:

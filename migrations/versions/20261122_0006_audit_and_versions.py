@@ -49,7 +49,8 @@ def upgrade() -> None:
     sa.Column('before', _JSON, nullable=True),
     sa.Column('after', _JSON, nullable=True),
     sa.Column('reverts_id', sa.Integer(), nullable=True),
-    sa.ForeignKeyConstraint(['reverts_id'], ['audit_entries.id'], name=op.f('fk_audit_entries_reverts_id_audit_entries')),
+    sa.ForeignKeyConstraint(['reverts_id'], ['audit_entries.id'],
+                            name=op.f('fk_audit_entries_reverts_id_audit_entries')),
     sa.PrimaryKeyConstraint('id', name=op.f('pk_audit_entries'))
     )
     with op.batch_alter_table('audit_entries', schema=None) as batch_op:

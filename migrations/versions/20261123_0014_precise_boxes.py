@@ -22,7 +22,8 @@ depends_on: Union[str, Sequence[str], None] = None
 def upgrade() -> None:
     with op.batch_alter_table('frames', schema=None) as batch_op:
         batch_op.add_column(sa.Column(
-            'precise_box', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()), 'postgresql'), nullable=True))
+            'precise_box', sa.JSON().with_variant(postgresql.JSONB(astext_type=sa.Text()),
+                                                  'postgresql'), nullable=True))
 
 
 def downgrade() -> None:

@@ -247,7 +247,8 @@ def calibration_preview(session: SessionDep, settings: SettingsDep, principal: A
 @router.post("/{frame_id}/field-lines/mirror", response_model=SystemView,
              responses={**EDIT_RESPONSES, **MIRROR_REFUSED})
 def mirror_field_lines(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, if_match: IfMatchDep,
-                       frame_id: FrameIdPath, query: Annotated[QueueQuery, Query()], response: Response, edit: EditDep) -> Response:
+                       frame_id: FrameIdPath, query: Annotated[QueueQuery, Query()], response: Response,
+                       edit: EditDep) -> Response:
     """Replace the frame's field lines by their mirrored labelling (left <-> right, top <-> bottom),
     recalibrate it, and answer the recomputed system view: the fix offered for a view flagged
     ``probably_mirrored``. 422 naming ``lines`` when the frame has no field lines; 409 when the mirror

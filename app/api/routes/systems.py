@@ -55,7 +55,8 @@ def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemI
     """The system view (``docs/api.md``); ``prev_id`` / ``next_id`` follow the queue given by
     the query parameters (by default the whole queue, largest error first; ``assignee=me`` is the caller).
     ``assignment`` and ``open_by`` say who it is assigned to and who has it open. ``ETag``: the system's
-    version (``etag``), what a decision's ``If-Match`` sends. 404 naming the id when there is none (the page's own load finds it: no lookup before)."""
+    version (``etag``), what a decision's ``If-Match`` sends. 404 naming the id when there is none (the page's own
+    load finds it: no lookup before)."""
     out = SystemView.of(system_page(session, system_id, query.filters(me=principal.name), query.sort))
     with_etag(response, out.etag)
     return json_answer(out, response)

@@ -16,8 +16,8 @@ from app.db.types import enum_by_value, utcnow
 class AuditEntry(Base):
     """One accepted write (``app.services.audit.log``): who (``actor``, the user's name as text, so the log
     outlives users), when (``at``, UTC), what (``action``: ``ball.edit``, ``field_lines.replace``,
-    ``field_lines.mirror``, ``view.exclusion``, ``view.review``, ``view.calibration_review``, ``system.review``, ``import``,
-    ``recompute``, ``revert``) and the state of the edited part before and after (JSON; an import or a
+    ``field_lines.mirror``, ``view.exclusion``, ``view.review``, ``view.calibration_review``, ``system.review``,
+    ``import``, ``recompute``, ``revert``) and the state of the edited part before and after (JSON; an import or a
     recompute stores its counts in ``after``). ``frame_id`` / ``system_id`` / ``game_id`` are plain indexed
     ids without foreign keys: deleting or re-importing data never deletes its history. Append-only: the
     migration adds triggers refusing UPDATE and DELETE.

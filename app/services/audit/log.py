@@ -94,7 +94,8 @@ def _is_undo(session: Session, entry_id: Optional[int]) -> bool:
     of it is then a redo. Follows the chain of undos (undo, redo, undo, ...) back to the edit."""
     depth = 0
     while entry_id is not None and depth < 1000:
-        row = session.execute(sa.select(AuditEntry.action, AuditEntry.reverts_id).where(AuditEntry.id == entry_id)).first()
+        row = session.execute(
+            sa.select(AuditEntry.action, AuditEntry.reverts_id).where(AuditEntry.id == entry_id)).first()
         if row is None or row.action == "revert" or row.reverts_id is None:
             break
         depth += 1

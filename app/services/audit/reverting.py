@@ -2,13 +2,14 @@
 edit (so the system is recomputed as after any edit), itself audited as action ``revert``.
 
 The edited part is read from the entry's self-describing state (``app.services.audit.log``): ``ball`` ->
-:func:`~app.services.curation.editing.update_ball_label`, ``lines`` -> :func:`~app.services.curation.editing.replace_field_lines`
-(also for a mirroring: the lines before it are restored as they were), ``excluded`` ->
-:func:`~app.services.curation.editing.set_view_excluded`, ``calibration_review`` ->
-:func:`~app.services.curation.decisions.decide_calibration`, ``review`` -> :func:`~app.services.curation.decisions.decide_review`
-(its ``decided_at`` becomes now). A revert is refused (409) when the resource changed since the entry
-(its current state, read under the write's lock, is not the entry's ``after``) unless ``force``.
-Restoring field lines recalibrates the frame: an imported camera (source "imported") becomes a computed one.
+:func:`~app.services.curation.editing.update_ball_label`, ``lines`` ->
+:func:`~app.services.curation.editing.replace_field_lines` (also for a mirroring: the lines before it are restored as
+they were), ``excluded`` -> :func:`~app.services.curation.editing.set_view_excluded`, ``calibration_review`` ->
+:func:`~app.services.curation.decisions.decide_calibration`, ``review`` ->
+:func:`~app.services.curation.decisions.decide_review` (its ``decided_at`` becomes now). A revert is refused (409) when
+the resource changed since the entry (its current state, read under the write's lock, is not the entry's ``after``)
+unless ``force``. Restoring field lines recalibrates the frame: an imported camera (source "imported") becomes a
+computed one.
 
 :func:`undo_entry` is the page's undo (and redo) of any edit, annotators' own included: the same restore, audited
 as the edit's own action with ``reverts_id``, never forced.
@@ -123,7 +124,8 @@ def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: st
         if entry.actor != actor:
             raise ForbiddenError(f"audit entry {entry_id} is {entry.actor}'s edit: an annotator undoes only their own")
         other = session.scalars(sa.select(AuditEntry.actor).where(
-            AuditEntry.id > entry.id, AuditEntry.frame_id == entry.frame_id, AuditEntry.actor != actor).limit(1)).first()
+            AuditEntry.id > entry.id, AuditEntry.frame_id == entry.frame_id, AuditEntry.actor != actor
+        ).limit(1)).first()
         if other is not None:
             raise ForbiddenError(f"audit entry {entry_id} cannot be undone by an annotator: {other} changed the view "
                                  "since (a reviewer may revert it from the history)")

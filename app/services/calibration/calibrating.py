@@ -116,7 +116,8 @@ def _fields_from_result(result: Any, lines: FieldLines | None = None) -> Calibra
     jac = tuple(_opt_float(result.jac.get(f"{g:g}")) for g in JAC_GAMMAS) if result.jac else (None, None, None)
     return CalibrationFields(
         status=status,
-        camera=json_safe(camera.to_soccernet()) if camera is not None and status is CalibrationStatus.CALIBRATED else None,
+        camera=(json_safe(camera.to_soccernet()) if camera is not None and status is CalibrationStatus.CALIBRATED
+                else None),
         jac=jac,  # type: ignore[arg-type]
         residuals_px=json_safe(dict(result.residuals_px or {})),
         flags=[str(f) for f in (result.flags or ())],

@@ -162,9 +162,10 @@ def assign(session: Session, *, assignee: Optional[str], system_ids: Optional[li
             system = systems[i]
             old = system.assignee_id
             system.assignee_id, system.assigned_at, system.assigned_by = new_id, now, by
-            entries.append(audit.record(session, actor=by, action="revert" if reverts_id is not None else ACTION, system=system,
-                         before={"assignee": names.get(old) if old is not None else None},
-                         after={"assignee": assignee}, reverts_id=reverts_id))
+            entries.append(audit.record(session, actor=by, action="revert" if reverts_id is not None else ACTION,
+                                        system=system,
+                                        before={"assignee": names.get(old) if old is not None else None},
+                                        after={"assignee": assignee}, reverts_id=reverts_id))
         session.commit()
     except BaseException:
         session.rollback()

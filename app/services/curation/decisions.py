@@ -41,8 +41,9 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         status: pending, accepted, rejected or needs_fix (enum or its value).
         comment: free text (kept as given).
         actor, expected, revert: attribution and guard (module docstring; ``expected`` are versions of
-            the system, which every write of its labels, lines, calibrations and decisions bumps, or of the frame); audited as ``system.review`` or ``view.review``. An
-            accept of a system records the label doubts open at that moment (:func:`system_review_state`).
+            the system, which every write of its labels, lines, calibrations and decisions bumps, or of the frame);
+            audited as ``system.review`` or ``view.review``. An accept of a system records the label doubts open at that
+            moment (:func:`system_review_state`).
         undo: this write undoes audit entry ``undo.entry_id`` (:func:`check_undo_state`).
         edit: the write's context (``writing.EditContext``), filled with its audit entry's id.
 
@@ -100,8 +101,8 @@ def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus 
     """Record the reviewer's decision on a view's calibration (its field lines and the camera fitted to
     them), beside the decision on its ball (:func:`decide_review`). Clears ``calibration_reset_reason``.
     Audited as ``view.calibration_review`` (``actor``, ``expected``: versions of the frame, ``revert``:
-    module docstring; ``undo``: :func:`check_undo_state`). An edit of the view's field lines sets a decided calibration back to pending
-    (:func:`reset_decisions_after_recalibration`).
+    module docstring; ``undo``: :func:`check_undo_state`). An edit of the view's field lines sets a decided calibration
+    back to pending (:func:`reset_decisions_after_recalibration`).
 
     Returns:
         The committed :class:`ReviewDecision` of the frame (created with a pending ball decision when the

@@ -88,7 +88,8 @@ def check_provenance(provenance: Any) -> dict[str, Any] | None:
         raise InvalidInputError("provenance must be an object", field="provenance")
     doubt, code, views = provenance.get("doubt"), provenance.get("code"), provenance.get("from_views", [])
     if not isinstance(doubt, str) or not doubt or len(doubt) > 64:
-        raise InvalidInputError("provenance.doubt must name the doubt kind the label was suggested by", field="provenance")
+        raise InvalidInputError("provenance.doubt must name the doubt kind the label was suggested by",
+                                field="provenance")
     if code is not None and (not isinstance(code, str) or len(code) > 64):
         raise InvalidInputError("provenance.code must be a short string", field="provenance")
     if not isinstance(views, list) or len(views) > 64 or not all(isinstance(v, int) and not isinstance(v, bool)
@@ -333,7 +334,8 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         mirrored = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
         out = _store_lines(session, frame, mirrored, settings, actor, edit)
         after = ball_error_to_others(out, settings)
-        if before is not None and before[0] is not None and (after is None or after[0] is None or after[0] >= before[0]):
+        if (before is not None and before[0] is not None
+                and (after is None or after[0] is None or after[0] >= before[0])):
             mi = "an unknown number of" if after is None or after[0] is None else f"{after[0]:.0f}"
             raise ConflictError(
                 f"mirroring {frame.name}'s field lines was not applied: with the mirrored calibration its ball label "

@@ -71,10 +71,10 @@ def calibration_words(frame: Frame, settings: Settings) -> str:
 def reset_decisions_after_recalibration(session: Session, frame: Frame, before: tuple[dict[str, Any], str],
                                         verb: str, actor: Optional[str], settings: Settings) -> Optional[str]:
     """After ``frame``'s field lines changed (``before``: :func:`lines_state` and :func:`calibration_words`
-    before the edit) and it was recalibrated, in the edit's transaction: a decided calibration decision of the view and a decided decision
-    of its system go back to pending with the reason (``calibration_reset_reason``, ``reset_reason``), each
-    with its own audit entry (``view.calibration_review``, ``system.review``: revertible) added before the
-    edit's own, so the edit stays the frame's newest entry. Nothing changes when the lines did not.
+    before the edit) and it was recalibrated, in the edit's transaction: a decided calibration decision of the view and
+    a decided decision of its system go back to pending with the reason (``calibration_reset_reason``,
+    ``reset_reason``), each with its own audit entry (``view.calibration_review``, ``system.review``: revertible) added
+    before the edit's own, so the edit stays the frame's newest entry. Nothing changes when the lines did not.
 
     Returns:
         The reason (one sentence naming the view, the edit, who, and the calibration before and after), or
@@ -94,7 +94,8 @@ def reset_after_change(session: Session, frame: Frame, action: str, before: dict
     """After an edit of ``frame``'s ball label or exclusion (``action``, its state ``before`` and ``after``, as
     :func:`ball_state` / :func:`excluded_state` give them): when the state changed, the view's ball decision and
     the system's decision go back to pending (:func:`reset_decisions_after_edit`) with the reason, the edit in
-    words (the audit log's, ``app.services.audit.summaries.summarize``), who made it and, for an undo, which entry it undid.
+    words (the audit log's, ``app.services.audit.summaries.summarize``), who made it and, for an undo, which entry it
+    undid.
 
     Returns:
         The reason, or None when the edit changed nothing or nothing was decided.

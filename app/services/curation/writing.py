@@ -176,9 +176,10 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
                   actor: Optional[str], revert: Optional[Revert], undo_of: Optional[int] = None, *,
                   settings: Optional[Settings] = None, edit: Optional[EditContext] = None) -> T:
     """The guarded, audited write of system ``system_id`` every edit and decision goes through (module docstring):
-    ``guard`` checks ``subject(system)`` (the system as read, or one of its views) (412), ``state`` of it before, ``revert``'s check (409), ``apply`` (the change and
-    the recomputation it asks for), ``state`` after, one audit entry (action ``action``, or ``revert``; ``undo_of``:
-    the entry this edit undoes, recorded as its ``reverts_id`` under the edit's own action), committed together.
+    ``guard`` checks ``subject(system)`` (the system as read, or one of its views) (412), ``state`` of it before,
+    ``revert``'s check (409), ``apply`` (the change and the recomputation it asks for), ``state`` after, one audit
+    entry (action ``action``, or ``revert``; ``undo_of``: the entry this edit undoes, recorded as its ``reverts_id``
+    under the edit's own action), committed together.
 
     ``settings`` given: the write recomputes its system, reading its game's rig rows with it (``edit.rig``), and,
     unless its kind re-fits beyond the system, computes after its reads and compares under the lock; else it runs

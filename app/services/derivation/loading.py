@@ -3,9 +3,10 @@
 What a recomputation (``recompute.load_for_recompute``) and the system page (``app.services.curation.system_page``)
 read of a system, as ``app.services.derivation.scope`` declares it: the system with its one-to-one rows joined to it,
 its views (``System.frames``, in their order) with each view's one-to-one rows joined to it, its pairs
-(``Triangulation.pairs``) and doubts (``System.doubts``), in id order. Each list is one query for all the systems asked; its rows are handed to their parents as the loaded
-value of the relationship (``set_committed_value``), as SQLAlchemy's ``selectinload`` would, without its per-call
-loader machinery: a 4-view system loads in about two thirds of the CPU (an edit's load, the page's load).
+(``Triangulation.pairs``) and doubts (``System.doubts``), in id order. Each list is one query for all the systems asked;
+its rows are handed to their parents as the loaded value of the relationship (``set_committed_value``), as SQLAlchemy's
+``selectinload`` would, without its per-call loader machinery: a 4-view system loads in about two thirds of the CPU (an
+edit's load, the page's load).
 
 Like ``selectinload``, a relationship the session holds loaded already is left as it is (a system already in the
 session gets only the relations it has not loaded; changed attributes are kept); the statements are built once.

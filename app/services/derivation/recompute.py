@@ -14,8 +14,8 @@ Derived rows:
   after recomputation, with the status of ``app.geometry.triangulation.triangulate_ball``;
 * ``BallReprojection`` for every frame with a camera when the system has a 3D ball (the error is
   against the frame's label, None without one);
-* ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a label
-  when the system has a 3D ball and the ball lies in front of the camera along the labelled ray;
+* ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a
+  label when the system has a 3D ball and the ball lies in front of the camera along the labelled ray;
 * ``Doubt`` rows and the system's doubt counts (``app.services.curation.doubts.update_doubts``, last).
 
 A view a reviewer excluded (``ReviewDecision.excluded``) keeps its calibration and labels but takes no

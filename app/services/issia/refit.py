@@ -144,7 +144,8 @@ def _admitted(admission: tuple[Any, ...], settings: Settings) -> bool:
     """``is_admitted`` of a calibration given by its :data:`_ADMISSION_NAMES` columns (None: no calibration)."""
     if admission[0] is None:
         return False
-    return is_admitted(Calibration(**dict(zip(_ADMISSION_NAMES, admission, strict=True))), settings)  # not added to the session
+    calibration = Calibration(**dict(zip(_ADMISSION_NAMES, admission, strict=True)))  # not added to the session
+    return is_admitted(calibration, settings)
 
 
 def _in_sequence(game_id: int) -> tuple[Any, ...]:
@@ -238,7 +239,8 @@ def _load_window(session: Session, game_id: int, first: int, last: int, columns:
             points[r, k] = c
     stored, system_ids, doubting = {}, {}, {}
     for row in session.execute(
-        sa.select(System.frame_index, System.id, System.doubt_counts, *(getattr(TrajectoryPoint, c) for c in _POINT_COLUMNS))
+        sa.select(System.frame_index, System.id, System.doubt_counts,
+                  *(getattr(TrajectoryPoint, c) for c in _POINT_COLUMNS))
         .join(TrajectoryPoint, TrajectoryPoint.system_id == System.id).where(*in_window)
     ):
         index, sid, doubts, *values = row
@@ -276,7 +278,8 @@ def _previous_fit(window: _Window, pieces: tuple[Piece, ...]) -> TrajectoryFit:
                          first_frame=window.first)
 
 
-def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame: int, settings: Settings) -> list[Changed]:
+def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame: int,
+                   settings: Settings) -> list[Changed]:
     """Re-fit the stretch of the sequence ``game_id`` that an edit of frames ``first_frame..last_frame``
     touches (module docstring) and store the rows that changed; the whole sequence when a frame was
     never fitted (:func:`~app.services.issia.trajectory.fit_sequence`).
@@ -330,7 +333,8 @@ def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: t
     return [Changed(systems.get(ids[i]), labels, ids[i]) for i, labels, _, _ in changed]
 
 
-def _changed_rows(window: _Window, fit: TrajectoryFit) -> tuple[list[dict[str, Any]], list[tuple[int, bool, bool, dict[str, Any]]]]:
+def _changed_rows(window: _Window, fit: TrajectoryFit
+                  ) -> tuple[list[dict[str, Any]], list[tuple[int, bool, bool, dict[str, Any]]]]:
     """The UPDATE parameters of the rows of ``fit`` that differ from the stored ones (changed columns only,
     with ``system_id`` and ``computed_at``) and, per such frame, (frame index, its kept labels changed,
     it has flagged labels or a stored ``ball_off_consensus`` doubt, its new column values)."""

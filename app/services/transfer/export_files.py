@@ -2,9 +2,10 @@
 request: the formats, the zip of an export tree, and how long the server keeps an export job's file.
 
 The formats and how each is written are the registry's (:mod:`app.services.transfer.export_formats`):
-SoccerNet-v3D is streamed into the zip, the others (the tree exports) are written to a work folder, zipped with paths relative to the tree's root (:func:`zip_tree`; folders, empty ones included, kept
-as entries: a YOLO split without images still exists once unpacked) and the folder removed. No file of any
-export names a server folder: every export is relocatable.
+SoccerNet-v3D is streamed into the zip, the others (the tree exports) are written to a work folder, zipped with paths
+relative to the tree's root (:func:`zip_tree`; folders, empty ones included, kept as entries: a YOLO split without
+images still exists once unpacked) and the folder removed. No file of any export names a server folder: every export is
+relocatable.
 
 An export job's file lies in ``<jobs dir>/exports/`` (``app.core.config.jobs_dir``, beside the database or
 under ``var/``) and is removed ``Settings.export_keep_hours`` after it was written (:func:`prune_exports`, run

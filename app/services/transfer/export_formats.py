@@ -134,7 +134,8 @@ def exports_js() -> str:
     return JS_TEMPLATE.replace("__EXPORTS__", json.dumps(entries, indent=1, ensure_ascii=False))
 
 
-JS_TEMPLATE = """// The exports the exports panel offers: one entry per button, in order ({id, label, format, body, title}).
+JS_TEMPLATE = """\
+// The exports the exports panel offers: one entry per button, in order ({id, label, format, body, title}).
 // WRITTEN FROM app/services/transfer/export_formats.py
 // (python -m app.services.transfer.export_formats > static/js/exportlist.js);
 // tests/services/transfer/test_export_formats.py checks that the two agree. Do not edit the list here.

@@ -140,7 +140,8 @@ class ImportReport:
         >>> ImportReport("x", refusal_reasons=Counter({"residual_too_high": 3})).refusal_kinds()
         Counter({'one labelled line stays too far from its pitch line under every camera': 3})
         """
-        return Counter({WORDS["refusal"].get(code, {}).get("means", code): n for code, n in self.refusal_reasons.items()})
+        return Counter({WORDS["refusal"].get(code, {}).get("means", code): n
+                        for code, n in self.refusal_reasons.items()})
 
 
 # ----- writing ------------------------------------------------------------------------------------
@@ -238,7 +239,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     game.systems.append(system)
                     system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                 system.kind = srec.kind
-                if srec.review is not None and system.review is not None and system.review.status is ReviewStatus.PENDING:
+                if (srec.review is not None and system.review is not None
+                        and system.review.status is ReviewStatus.PENDING):
                     system.review.status = srec.review
                     system.review.decided_at = now
                 changed = False
@@ -246,9 +248,9 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                 for pos, frec in enumerate(srec.frames):
                     frame = frames.get(frec.name)
                     if frame is None:
-                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width, height=frec.height,
-                                      calibration=None, ball_label=None, reprojection=None, optimised_box=None,
-                                      release=frec.release)
+                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width,
+                                      height=frec.height, calibration=None, ball_label=None, reprojection=None,
+                                      optimised_box=None, release=frec.release)
                         system.frames.append(frame)
                         frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                         changed = True
@@ -256,7 +258,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                         changed = True
                     frame.role, frame.position, frame.width, frame.height = frec.role, pos, frec.width, frec.height
                     frame.image_root, frame.image_type = frec.image_root, frec.image_type
-                    frame.image_zip, frame.image_member, frame.image_path = frec.image_zip, frec.image_member, frec.image_path
+                    frame.image_zip, frame.image_member = frec.image_zip, frec.image_member
+                    frame.image_path = frec.image_path
                     if frame.release != frec.release:  # what the release carries: kept as it came
                         frame.release = frec.release
                     lines_changed = _set_lines(frame, frec, now)
@@ -266,7 +269,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     if frec.calibration is not None:
                         cal = frame.calibration
                         fields = frec.calibration.fields
-                        if cal is None or cal.camera != fields.camera or (cal.jac_0005, cal.jac_001, cal.jac_002) != fields.jac:
+                        if (cal is None or cal.camera != fields.camera
+                                or (cal.jac_0005, cal.jac_001, cal.jac_002) != fields.jac):
                             imported.append((frame, fields))
                             changed = True
                     elif lines_changed or frame.calibration is None:
@@ -372,7 +376,8 @@ def _read_within_view_cap(read: GameReader, settings: Settings) -> GameRecord:
 
 
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
-         games: Callable[[], list[GameReader]], actor: str | None = None, source_name: str | None = None) -> ImportReport:
+         games: Callable[[], list[GameReader]], actor: str | None = None,
+         source_name: str | None = None) -> ImportReport:
     """Read and validate everything (nothing is stored when the input is bad), then store it in
     batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
     stored or not at all), each calibrated, recomputed and committed before the next is stored; the
@@ -481,8 +486,9 @@ def import_sn_calibration(session: Session, path: str | Path, settings: Settings
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: _held([read_sn_calibration(path, width, height, settings.max_image_pixels)]), actor,
-                source_name)
+    return _run(session, path, settings, progress,
+                lambda: _held([read_sn_calibration(path, width, height, settings.max_image_pixels)]),
+                actor, source_name)
 
 
 def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
@@ -498,5 +504,5 @@ def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path, settings.max_image_pixels)), actor,
-                source_name)
+    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path, settings.max_image_pixels)),
+                actor, source_name)

@@ -132,7 +132,8 @@ def test_system_review_is_a_conditional_write_of_reviewers(client: TestClient, s
     assert client.post(f"/api/systems/{sid}/review", json={"status": "accepted"},
                        headers={"If-Match": etag}).status_code == 403
     act_as("rita", "reviewer")
-    done = client.post(f"/api/systems/{sid}/review", json={"status": "accepted", "comment": "ok"}, headers={"If-Match": etag})
+    done = client.post(f"/api/systems/{sid}/review", json={"status": "accepted", "comment": "ok"},
+                       headers={"If-Match": etag})
     assert done.status_code == 200 and done.headers["etag"] == f'"system-{sid}-{version + 1}"'
     stale = client.post(f"/api/systems/{sid}/review", json={"status": "rejected"}, headers={"If-Match": etag})
     assert stale.status_code == 412

@@ -39,7 +39,8 @@ def two_games(db_session: Session) -> dict[str, list[int]]:
         db_session.flush()
         systems = [System(game_id=game.id, name=f"{i}.png", kind=SystemKind.SOCCERNET_V3,
                           label_doubts=1 if (match == "a" and i >= 3) else 0,
-                          review_status=ReviewStatus.ACCEPTED if (match == "a" and i % 2 == 0) else ReviewStatus.PENDING)
+                          review_status=(ReviewStatus.ACCEPTED if (match == "a" and i % 2 == 0)
+                                         else ReviewStatus.PENDING))
                    for i in range(1, n + 1)]
         db_session.add_all(systems)
         db_session.flush()

@@ -134,7 +134,8 @@ def test_a_label_made_from_a_suggestion_is_no_evidence_until_a_person_places_it(
     editing.update_ball_label(db_session, missing_id, settings=db_settings)
     system = _stored(db_session, scene.system_id)
     (doubt,) = [d for d in system.doubts if d.kind == "ball_missing"]
-    request = doubt_service.suggestion_json(doubt.frame_id, doubt.suggestion, doubt_service.doubt_provenance(doubt))["request"]
+    provenance_in = doubt_service.doubt_provenance(doubt)
+    request = doubt_service.suggestion_json(doubt.frame_id, doubt.suggestion, provenance_in)["request"]
     provenance = request["body"]["provenance"]
     assert provenance == {"doubt": "ball_missing", "code": "consensus", "from_views": doubt.evidence["agreeing_views"]}
     editing.update_ball_label(db_session, missing_id, box=request["body"]["box"], provenance=provenance,
@@ -237,4 +238,5 @@ def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: 
     recompute_system(db_session, system, db_settings)
     db_session.commit()
     system = _stored(db_session, scene.system_id)
-    assert system.triangulation.ball3d is not None and np.linalg.norm(np.subtract(system.triangulation.ball3d, BALL)) > 0.5
+    ball3d = system.triangulation.ball3d
+    assert ball3d is not None and np.linalg.norm(np.subtract(ball3d, BALL)) > 0.5

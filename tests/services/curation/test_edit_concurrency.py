@@ -28,7 +28,8 @@ from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
-def database(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Callable[[], Session], Settings, Scene, Scene]]:
+def database(request: pytest.FixtureRequest,
+             tmp_path: Path) -> Iterator[tuple[Callable[[], Session], Settings, Scene, Scene]]:
     """A migrated SQLite file or fresh PostgreSQL database holding one game with two three-view systems (exact
     cameras, every view labelled); yields a session factory whose engine waits at most 1 s for a lock (as a
     served process would, ``V3D_WRITE_LOCK_TIMEOUT_S``), the settings and the two scenes."""
@@ -137,7 +138,8 @@ def _pairs_and_doubts(factory: Callable[[], Session], system_id: int, settings: 
                 recompute_system(s, system, settings)
         pairs = [(p.id, p.frame_a_id, p.frame_b_id, p.point, p.error_px, p.parallax_deg, p.baseline_m, p.kept, p.reason)
                  for p in system.triangulation.pairs]
-        doubts = [(d.id, d.frame_id, d.kind, d.accuses_label, d.message, d.evidence, d.suggestion) for d in system.doubts]
+        doubts = [(d.id, d.frame_id, d.kind, d.accuses_label, d.message, d.evidence, d.suggestion)
+                  for d in system.doubts]
         s.rollback()
     return pairs, doubts
 
@@ -166,8 +168,8 @@ def test_an_edit_updates_its_pairs_and_doubts_in_place(database) -> None:
 def test_a_recomputation_leaves_rows_whose_values_it_keeps_out_of_the_flush(database) -> None:
     """A recomputation sets only the values that change, so the unit of work flushes only the rows
     it really writes (every dirty object has a changed attribute): recomputing the stored inputs again dirties
-    nothing but the triangulation's ``computed_at`` and the system's version; a moved label dirties its label and the derived rows it moves,
-    never a view row or a pair it leaves as it was."""
+    nothing but the triangulation's ``computed_at`` and the system's version; a moved label dirties its label and the
+    derived rows it moves, never a view row or a pair it leaves as it was."""
     import sqlalchemy as sa
 
     from app.db.models import BallLabel, Triangulation

@@ -26,7 +26,7 @@ def systems(pg_url: str) -> Iterator[tuple[Callable[[], Session], dict[str, int]
     factory = make_session_factory(engine)
     with factory() as s:
         v3 = Game(league="l", season="s", match="broadcast", source_path="/v3")
-        v3.systems += [System(name="1.png", kind=SystemKind.SOCCERNET_V3), System(name="2.png", kind=SystemKind.SOCCERNET_V3)]
+        v3.systems += [System(name=f"{i}.png", kind=SystemKind.SOCCERNET_V3) for i in (1, 2)]
         issia = Game(league="issia", season="sequences", match="filmA", source_path="/issia")
         issia.systems += [System(name=str(i), kind=SystemKind.ISSIA, frame_index=i) for i in (0, 1)]
         s.add_all([v3, issia])

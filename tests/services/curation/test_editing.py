@@ -50,7 +50,8 @@ def test_moving_a_ball_box_retriangulates_the_system(db_session, settings, impor
 def test_a_point_label_and_removal(db_session, settings, imported):
     frame = _frame(imported, "3.png", "3_1.png")
     update_ball_label(db_session, frame.id, point=[100.0, 200.0], settings=settings)
-    assert (frame.ball_label.kind, frame.ball_label.point, frame.ball_label.box) == (BallKind.POINT, [100.0, 200.0], None)
+    label = frame.ball_label
+    assert (label.kind, label.point, label.box) == (BallKind.POINT, [100.0, 200.0], None)
     update_ball_label(db_session, frame.id, settings=settings)  # neither: the ball is not visible
     assert frame.ball_label.kind is None and frame.ball_label.original_box is not None
     tri = imported["3.png"].triangulation
@@ -97,7 +98,8 @@ def test_replacing_field_lines_recalibrates_then_retriangulates(db_session, sett
     replace_field_lines(db_session, frame.id, one_line, settings=settings)
 
     assert frame.field_lines.lines == one_line and frame.field_lines.original_lines == original
-    assert frame.calibration.status is CalibrationStatus.REFUSED and frame.calibration.source is CalibrationSource.COMPUTED
+    assert frame.calibration.status is CalibrationStatus.REFUSED
+    assert frame.calibration.source is CalibrationSource.COMPUTED
     assert "fewer than" in frame.calibration.reason
     assert not frame.calibration.admitted and frame.calibration.camera is None
     assert len(system.triangulation.pairs) == 3  # the three other views

@@ -63,7 +63,8 @@ def test_every_refusal_code_of_the_calibration_has_words_and_a_sentence() -> Non
     numbers = {"need": 7, "constraints": 4, "lines": 2, "error": "singular matrix", "line": "Side line top",
                "px": 70.06, "limit_px": 27.5, "rms_px": 31.2, "jac": 0.61, "gamma_pct": 0.5, "admit_jac_min": 0.75}
     sentences = {code: refusal_sentence(Refusal(code, numbers)) for code in codes}
-    assert sentences["residual_too_high"] == "residual too high: 'Side line top' is 70.1 px from its model element (limit 27.5 px)"
+    assert sentences["residual_too_high"] == ("residual too high: 'Side line top' is 70.1 px from its model element "
+                                              "(limit 27.5 px)")
     assert sentences["below_admission"] == "JaC@0.5% 0.61 not above 0.75"
     assert all(s and "{" not in s for s in sentences.values()), sentences
 
