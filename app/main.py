@@ -69,7 +69,7 @@ class RevalidatedStaticFiles(StaticFiles):
     included, which a hash query in the HTML could not reach) is picked up at once.
     """
 
-    async def get_response(self, path: str, scope: Scope):  # type: ignore[override]
+    async def get_response(self, path: str, scope: Scope) -> Response:
         """Serve ``path`` like :class:`StaticFiles` and add the revalidation header."""
         response = await super().get_response(path, scope)
         response.headers.setdefault("Cache-Control", "no-cache")

@@ -74,6 +74,7 @@ class _WriteTurns:
                 "database is locked (no turn at the write lock in this process)"))
         conn.info[_HOLDS_TURN] = self
         raw = conn.connection.dbapi_connection
+        assert raw is not None  # the connection is checked out: its DBAPI connection is live
         raw.execute(f"PRAGMA busy_timeout = {self._TRY_MS}")
         try:
             while True:

@@ -39,7 +39,7 @@ import numbers
 import threading
 from dataclasses import dataclass
 from itertools import combinations, islice
-from typing import Callable, Hashable, Mapping, Sequence
+from typing import Any, Callable, Hashable, Mapping, Sequence
 
 import numpy as np
 
@@ -518,7 +518,7 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
                      min_baseline_m: float, min_parallax_deg: float,
                      view_position_std_m: Mapping[Hashable, float] | None = None,
                      play_volume: Callable[[np.ndarray], bool] | None = None,
-                     view_weights: Mapping[Hashable, float] | None = None,
+                     view_weights: Mapping[Any, float] | None = None,  # view id -> weight (Any: keys are invariant)
                      geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry
                      ) -> TriangulationResult:
     """The 3D ball of a multi-view system (paper Eq. triangulation, method.md section 5).

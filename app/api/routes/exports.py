@@ -11,7 +11,7 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path as FilePath
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from fastapi import APIRouter, Body, Depends, Path, Query, Request, status
 from fastapi.concurrency import run_in_threadpool
@@ -80,8 +80,12 @@ async def create_export_job(session: SessionDep,
 
 #: The path parameter's choices: the registry's tree exports (SoccerNet-v3D has its own route above, for its
 #: ``images``). A ``Literal`` of the registry's names, built when the module loads, so that the OpenAPI schema lists
-#: them and any other name is a 422 before the route runs.
-TreeFormat = Literal[tree_export_names()]  # type: ignore[valid-type]
+#: them and any other name is a 422 before the route runs. A type checker, which cannot read a Literal built at run
+#: time, sees the plain string it holds.
+if TYPE_CHECKING:
+    TreeFormat = str
+else:
+    TreeFormat = Literal[tree_export_names()]
 
 
 @router.post("/{export_format}", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)

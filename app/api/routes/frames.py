@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from typing import Annotated, Callable, Iterator
+from typing import Annotated, Any, Callable, Iterator
 
 from fastapi import APIRouter, Depends, Header, HTTPException, Query, Response
 from fastapi.responses import StreamingResponse
@@ -57,10 +57,10 @@ AUDIT_ENTRY_HEADER = audit.AUDIT_ENTRY_HEADER
 #: OpenAPI ``responses`` of the frame's edits.
 EDIT_RESPONSES = {**NOT_FOUND, **INVALID, **PRECONDITIONS}
 #: The mirror guard: the mirrored calibration would bring the view's ball label no closer to the others' 3D ball.
-MIRROR_REFUSED = {409: {"model": ErrorOut, "description": "Not applied: with the mirrored calibration the view's "
-                                                          "ball label comes no closer to the ball the other views "
-                                                          "agree on (the message gives both distances); nothing "
-                                                          "changed."}}
+MIRROR_REFUSED: dict[int | str, dict[str, Any]] = {
+    409: {"model": ErrorOut, "description": "Not applied: with the mirrored calibration the view's ball label comes no "
+                                            "closer to the ball the other views agree on (the message gives both "
+                                            "distances); nothing changed."}}
 
 #: Frame edits (ball, field lines, mirror, exclusion, per-view review) need the annotator role.
 router = APIRouter(prefix="/frames", tags=["frames"], dependencies=[Depends(require_role("annotator"))])
@@ -205,8 +205,9 @@ def replace_field_lines(session: SessionDep, settings: SettingsDep, principal: A
 #: The calibration previews being computed in this process, by (user, frame): one at a time each.
 _PREVIEWS: set[tuple[str, int]] = set()
 _PREVIEWS_LOCK = threading.Lock()
-PREVIEW_BUSY = {429: {"model": ErrorOut, "description": "A preview of this view is already being computed for "
-                                                        "you: send the next one when its answer comes."}}
+PREVIEW_BUSY: dict[int | str, dict[str, Any]] = {
+    429: {"model": ErrorOut, "description": "A preview of this view is already being computed for you: send the next "
+                                            "one when its answer comes."}}
 
 
 @contextlib.contextmanager

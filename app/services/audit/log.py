@@ -155,7 +155,7 @@ class AuditPage:
 
 def _conditions(frame_id: Optional[int], system_id: Optional[int], user: Optional[str],
                 include_admin: bool = True) -> list[Any]:
-    out = [] if include_admin else [AuditEntry.action.not_in(ADMIN_ACTIONS)]
+    out: list[sa.ColumnElement[bool]] = [] if include_admin else [AuditEntry.action.not_in(ADMIN_ACTIONS)]
     if frame_id is not None:
         out.append(AuditEntry.frame_id == frame_id)
     if system_id is not None:

@@ -56,6 +56,18 @@ def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: 
                     edit if edit is not None else writing.EditContext())
 
 
+def _frame_id(entry: AuditEntry) -> int:
+    """The view an entry of a view's edit names (``audit.record`` is given the frame of every such edit)."""
+    assert entry.frame_id is not None, f"audit entry {entry.id} names no view"
+    return entry.frame_id
+
+
+def _system_id(entry: AuditEntry) -> int:
+    """The system an entry of a system's edit names (``audit.record`` is given the system of every such edit)."""
+    assert entry.system_id is not None, f"audit entry {entry.id} names no system"
+    return int(entry.system_id)
+
+
 def _restore(session: Session, entry: AuditEntry, settings: Settings, common: dict[str, Any],
              edit: writing.EditContext) -> Reverted:
     """Write back ``entry``'s ``before`` state through the service of its edit (``common``: the actor and the
@@ -67,33 +79,35 @@ def _restore(session: Session, entry: AuditEntry, settings: Settings, common: di
     if "review" in before:
         review = before["review"]
         if entry.frame_id is None:
-            decisions.decide_review(session, system_id=entry.system_id, status=review["status"],
+            system_id = _system_id(entry)
+            decisions.decide_review(session, system_id=system_id, status=review["status"],
                                   comment=review["comment"], **common)
-            return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
+            return Reverted(system_id, "system", system_id)
         decisions.decide_review(session, frame_id=entry.frame_id, status=review["status"], comment=review["comment"],
                               **common)
     elif "calibration_review" in before:
         review = before["calibration_review"]
-        decisions.decide_calibration(session, entry.frame_id, status=review["status"], comment=review["comment"],  # type: ignore[arg-type]
+        decisions.decide_calibration(session, _frame_id(entry), status=review["status"], comment=review["comment"],
                                    **common)
     elif "ball" in before:
         ball = before["ball"]
-        editing.update_ball_label(session, entry.frame_id, box=ball["box"], point=ball["point"],  # type: ignore[arg-type]
+        editing.update_ball_label(session, _frame_id(entry), box=ball["box"], point=ball["point"],
                                   provenance=ball.get("provenance"), settings=settings, **common)
     elif "lines" in before:
-        editing.replace_field_lines(session, entry.frame_id, before["lines"], settings=settings, **common)  # type: ignore[arg-type]
+        editing.replace_field_lines(session, _frame_id(entry), before["lines"], settings=settings, **common)
     elif "assignee" in before:
         guard = common.get("revert")  # an undo (no revert guard) is never forced: the assignee must be what it left
-        assigned = assignment.revert_assignment(session, system_id=int(entry.system_id), before=before,  # type: ignore[arg-type]
+        system_id = _system_id(entry)
+        assigned = assignment.revert_assignment(session, system_id=system_id, before=before,
                                                 after=entry.after or {}, entry_id=entry_id, actor=common.get("actor"),
                                                 force=guard is not None and guard.expect is None)
         edit.entry_id = assigned.entry_ids[-1] if assigned.entry_ids else None
-        return Reverted(int(entry.system_id), "system", int(entry.system_id))  # type: ignore[arg-type]
+        return Reverted(system_id, "system", system_id)
     elif "excluded" in before:
-        editing.set_view_excluded(session, entry.frame_id, bool(before["excluded"]), settings=settings, **common)  # type: ignore[arg-type]
+        editing.set_view_excluded(session, _frame_id(entry), bool(before["excluded"]), settings=settings, **common)
     else:
         raise InvalidInputError(f"audit entry {entry_id} records no state this version can restore", field="id")
-    frame = writing.get_frame(session, entry.frame_id)  # type: ignore[arg-type]
+    frame = writing.get_frame(session, _frame_id(entry))
     return Reverted(frame.system_id, "frame", frame.id)
 
 

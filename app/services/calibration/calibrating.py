@@ -73,7 +73,7 @@ def calibrate_lines(lines_json: dict[str, Any], width: int, height: int, side: i
         return dataclasses.replace(fields, elapsed_ms=(time.perf_counter() - t0) * 1e3)
     prior = CalibrationPrior(expected_side=side) if side is not None else None
     fields = _fields_from_result(calibrate_frame(lines, width, height, prior=prior), lines)
-    if fields.status is CalibrationStatus.REFUSED and side is not None:
+    if fields.status is CalibrationStatus.REFUSED and prior is not None:  # a prior exactly when side is given
         fields = _with_mirrored_refit(fields, lines, width, height, prior)
     return dataclasses.replace(fields, elapsed_ms=(time.perf_counter() - t0) * 1e3)
 
@@ -95,7 +95,8 @@ def _with_mirrored_refit(fields: CalibrationFields, lines: FieldLines, width: in
     if MIRROR_FLAG in (mirrored.flags or ()):  # mirrored, it lands beyond the far side as well: no evidence
         return fields
     c = mirrored.camera.C
-    evidence = {"verdict": MIRROR_FLAG, "margin": None, "camera_y_m": None, "side_vote": 0, "rig_distance_m": None,
+    evidence: dict[str, Any] = {
+                "verdict": MIRROR_FLAG, "margin": None, "camera_y_m": None, "side_vote": 0, "rig_distance_m": None,
                 "rig_distance_mirrored_m": None, "rig_vote": 0, "pairs": [],
                 "refit": {"position_m": [round(float(x), 2) for x in c],
                           "rms_px": None if mirrored.rms_px is None else round(float(mirrored.rms_px), 2),
@@ -113,12 +114,13 @@ def _fields_from_result(result: Any, lines: FieldLines | None = None) -> Calibra
     uncertainty = None
     if lines is not None and camera is not None and status is CalibrationStatus.CALIBRATED:
         uncertainty = fit_uncertainty(camera, lines, tuple(result.flags or ()), getattr(result, "centre_prior", None))
-    jac = tuple(_opt_float(result.jac.get(f"{g:g}")) for g in JAC_GAMMAS) if result.jac else (None, None, None)
+    j0005, j001, j002 = ((_opt_float(result.jac.get(f"{g:g}")) for g in JAC_GAMMAS) if result.jac
+                         else (None, None, None))
     return CalibrationFields(
         status=status,
         camera=(json_safe(camera.to_soccernet()) if camera is not None and status is CalibrationStatus.CALIBRATED
                 else None),
-        jac=jac,  # type: ignore[arg-type]
+        jac=(j0005, j001, j002),
         residuals_px=json_safe(dict(result.residuals_px or {})),
         flags=[str(f) for f in (result.flags or ())],
         reason=refusal_sentence(result.refusal),

@@ -45,7 +45,8 @@ def game_rig(session: Session | None, game_id: int | None, settings: Settings, e
     if len(roles) != len(extra):
         raise ValueError(f"extra_roles must give one role per extra calibration ({len(extra)}), got {len(roles)}")
     gamma_index = JAC_GAMMAS.index(admission_gamma(settings))
-    rows = [(np.asarray(f.camera["position_meters"], float), role is FrameRole.ACTION)  # type: ignore[index]
+    rows = [(np.asarray(f.camera["position_meters"], dtype=np.float64),  # type: ignore[index]  # _feeds_rig: a camera
+             role is FrameRole.ACTION)
             for f, role in zip(extra, roles, strict=True)  # one role per calibration: checked above
             if _feeds_rig(f.status, f.camera, f.flags, f.jac[gamma_index], settings)]
     if stored is None and game_id is not None and session is not None:

@@ -65,12 +65,12 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         if review is None:
             review = ReviewDecision()
             subject.review = review
-        review.status = status  # type: ignore[assignment]
+        review.status = status
         review.comment = comment
         review.decided_at = utcnow()
         review.reset_reason = None
         if isinstance(subject, System):
-            subject.review_status = status  # type: ignore[assignment]  # the queue's copy
+            subject.review_status = status  # the queue's copy
         return review
 
     undo_of = undo.entry_id if undo is not None else None
@@ -121,7 +121,7 @@ def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus 
         if review is None:
             review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
             frame.review = review
-        review.calibration_status = status  # type: ignore[assignment]
+        review.calibration_status = status
         review.calibration_comment = comment
         review.calibration_decided_at = utcnow()
         review.calibration_reset_reason = None

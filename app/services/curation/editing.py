@@ -324,6 +324,7 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         ConflictError: the mirrored calibration brings the ball label no closer to the other views' ball.
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
+    context = edit if edit is not None else EditContext()
 
     def apply(frame: Frame) -> Frame:
         if frame.field_lines is None or not frame.field_lines.lines:
@@ -332,7 +333,7 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         lines_before = lines_state(frame), calibration_words(frame, settings)
         jac_before = jac_words(frame, settings)
         mirrored = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
-        out = _store_lines(session, frame, mirrored, settings, actor, edit)
+        out = _store_lines(session, frame, mirrored, settings, actor, context)
         after = ball_error_to_others(out, settings)
         if (before is not None and before[0] is not None
                 and (after is None or after[0] is None or after[0] >= before[0])):
@@ -342,13 +343,12 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
                 f"would be {mi} px (at 1920 width) from the ball {before[1]} agree on, against {before[0]:.0f} px as "
                 "labelled, so the mirrored calibration and the ball do not agree better")
         reset_decisions_after_recalibration(session, out, lines_before, "mirrored", actor, settings)
-        edit.facts["calibration"] = (jac_before, jac_words(out, settings))
+        context.facts["calibration"] = (jac_before, jac_words(out, settings))
         return out
 
-    edit = edit if edit is not None else EditContext()
     facts = frame_facts(session, frame_id)
     return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.mirror", actor, None,
-                               system_id=facts.system_id, settings=settings, edit=edit)
+                               system_id=facts.system_id, settings=settings, edit=context)
 
 
 def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None, str] | None:

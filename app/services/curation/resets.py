@@ -131,17 +131,19 @@ def reset_decisions_after_edit(session: Session, frame: Frame, reason: str, acto
         return False
     now = utcnow()
     if view_decided and calibration:
+        assert review is not None  # view_decided: the view has a decision
         before = calibration_review_state(frame)
-        review.calibration_status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
-        review.calibration_reset_reason = reason  # type: ignore[union-attr]
-        review.calibration_decided_at = now  # type: ignore[union-attr]
+        review.calibration_status = ReviewStatus.PENDING
+        review.calibration_reset_reason = reason
+        review.calibration_decided_at = now
         audit.record(session, actor=actor, action="view.calibration_review", frame=frame, before=before,
                      after=calibration_review_state(frame))
     elif view_decided:
+        assert review is not None  # view_decided: the view has a decision
         before = review_state(frame)
-        review.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
-        review.reset_reason = reason  # type: ignore[union-attr]
-        review.decided_at = now  # type: ignore[union-attr]
+        review.status = ReviewStatus.PENDING
+        review.reset_reason = reason
+        review.decided_at = now
         audit.record(session, actor=actor, action="view.review", frame=frame, before=before,
                      after=review_state(frame))
     if system_decided:
@@ -154,10 +156,11 @@ def _system_back_to_pending(session: Session, system: System, reason: str, actor
     revertible)."""
     before = review_state(system)
     decision = system.review
-    decision.status = ReviewStatus.PENDING  # type: ignore[assignment,union-attr]
-    decision.reset_reason = reason  # type: ignore[union-attr]
-    decision.decided_at = now  # type: ignore[union-attr]
-    system.review_status = ReviewStatus.PENDING  # type: ignore[assignment]  # the queue's copy
+    assert decision is not None  # the callers reset a decided decision only
+    decision.status = ReviewStatus.PENDING
+    decision.reset_reason = reason
+    decision.decided_at = now
+    system.review_status = ReviewStatus.PENDING  # the queue's copy
     audit.record(session, actor=actor, action="system.review", system=system, before=before,
                  after=review_state(system))
 

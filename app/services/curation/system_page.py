@@ -148,7 +148,7 @@ def _loaded_system(session: Session, system_id: int) -> Optional[System]:
     """The system as the session holds it already with everything its page draws loaded and nothing expired (an
     edit's answer: the edit loaded and recomputed it and committed it, ``expire_on_commit`` off), else None. Spares
     the answer of every edit a second round of queries for rows it has just written."""
-    system = session.identity_map.get(session.identity_key(System, system_id))  # type: ignore[arg-type]
+    system = session.identity_map.get(session.identity_key(System, system_id))
     if system is None:
         return None
     state = sa.inspect(system)

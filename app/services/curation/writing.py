@@ -221,8 +221,9 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
                 if _game_version(session, system.game_id, lock=True) != game_version:
                     raise _Collided()  # its game's rig or camera prior changed since it was read
         frame = target if isinstance(target, Frame) else None
+        owner = target if isinstance(target, System) else None  # the subject: a view or the system itself
         entry = audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
-                             system=None if frame is not None else target, before=before, after=after,
+                             system=owner, before=before, after=after,
                              reverts_id=revert.entry_id if revert is not None else undo_of, facts=edit.facts)
         try:
             session.flush()

@@ -32,7 +32,7 @@ def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.
     """The four statements of :func:`load_systems` (systems, views, pairs, doubts), each taking the systems' ids as
     ``ids`` (an expanding parameter); ``system_rows``: the names of the system's one-to-one relationships joined to it
     (the triangulation always). Built once per ``system_rows``."""
-    ids = sa.bindparam("ids", expanding=True)
+    ids: sa.BindParameter[list[int]] = sa.bindparam("ids", expanding=True)
     return (
         sa.select(System).where(System.id.in_(ids)).options(
             *(joinedload(getattr(System, key)) for key in dict.fromkeys(("triangulation", *system_rows)))),

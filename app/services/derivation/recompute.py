@@ -140,9 +140,9 @@ def calibrate_frame_lines(session: Session, frame: Frame, settings: Settings,
         # cameras, and the evidence leaves this system's frames out, so this frame's new row is moot
         stored = list(rig) if rig is not None else rig_rows(session, frame.system.game_id, settings)
         rig_sources = [(fid, c) for fid, c, _ in stored]
-        rig = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id], stored=stored)
-        if rig.positions:
-            retried = calibrate_lines(*calibration_job(frame, rig, lines=lines))
+        game_rig_now = game_rig(session, frame.system.game_id, settings, exclude_frame_ids=[frame.id], stored=stored)
+        if game_rig_now.positions:
+            retried = calibrate_lines(*calibration_job(frame, game_rig_now, lines=lines))
             fields = with_rig_retry(fields, retried)
             retry = "rig" if fields is retried else None
     elif (prior := stored_camera_prior(frame.system)) is not None and wants_prior_retry(fields, prior):
@@ -246,9 +246,9 @@ def update_summary(system: System, tri: Triangulation) -> None:
     frames = list(system.frames)
     cals = [f.calibration for f in frames]
     admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
-    jacs = [f.calibration.jac_0005 for f in admitted if f.calibration.jac_0005 is not None]
-    labelled = [f for f in admitted if f.ball_label is not None and f.ball_label.kind is not None
-                and f.reprojection is not None and f.reprojection.error_px is not None]
+    jacs = [c.jac_0005 for c in cals if c is not None and c.admitted and c.jac_0005 is not None]
+    labelled = [(f, rep.error_px) for f in admitted if f.ball_label is not None and f.ball_label.kind is not None
+                and (rep := f.reprojection) is not None and rep.error_px is not None]
     put_values(system, {
         "review_status": system.review.status if system.review is not None else ReviewStatus.PENDING,
         "views_total": len(frames),
@@ -256,10 +256,9 @@ def update_summary(system: System, tri: Triangulation) -> None:
         "views_admitted": len(admitted),
         "views_labelled": sum(f.ball_label is not None and f.ball_label.kind is not None for f in frames),
         "lowest_jac": min(jacs) if jacs else None,
-        "worst_error_px": max((f.reprojection.error_px for f in labelled), default=None),
+        "worst_error_px": max((error for _, error in labelled), default=None),
         "views_flagged": sum(c is not None and MIRROR_FLAG in (c.flags or []) for c in cals),
-        "views_above_tau": sum(error_above_tau(f.reprojection.error_px, f.width, tri.tau_px, tri.rule)
-                               for f in labelled),
+        "views_above_tau": sum(error_above_tau(error, f.width, tri.tau_px, tri.rule) for f, error in labelled),
     })
 
 
@@ -357,6 +356,7 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
     flagged = {fid for fid, v in verdicts.items() if v.flagged}
     for f in frames:
         cal, verdict = f.calibration, verdicts[f.id]
+        assert cal is not None  # a view with a camera has its calibration
         flags = [x for x in (cal.flags or []) if x != MIRROR_FLAG]
         put_values(cal, {"flags": [*flags, MIRROR_FLAG] if verdict.flagged else flags,
                          "mirror_evidence": json_safe(with_sentence(verdict.as_dict(), names, flagged))})
@@ -395,6 +395,7 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
         if frame.optimised_box is not None:
             frame.optimised_box = None
         return
+    assert opt.box is not None and opt.d_px is not None  # an "ok" result has its box and size
     row = frame.optimised_box
     if row is None:
         frame.optimised_box = row = OptimisedBox(box=[], d_opt_px=0.0, error_m=0.0)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 import sqlalchemy as sa
+from sqlalchemy.orm import Mapper
 
 
 def put_values(row: Any, values: dict[str, Any]) -> Any:
@@ -32,7 +33,8 @@ def replace_rows(rows: list[Any], row_type: type, values: list[dict[str, Any]]) 
     that an edit that leaves a pair or a doubt as it was costs no statement for it; rows beyond ``values`` are
     deleted (the relationship's delete-orphan), missing ones added. Nothing refers to these rows' ids (no foreign
     key, API or page names one), so a doubt kept in another place of the list is the same as a new one."""
-    columns = sa.inspect(row_type).columns
+    mapper: Mapper[Any] = sa.inspect(row_type)
+    columns = mapper.columns
     if any(v is None and not columns[k].nullable for item in values for k, v in item.items()):
         rows.clear()  # a pending row left a default unset: only an insert gives it its default
         rows.extend(row_type(**item) for item in values)

@@ -38,7 +38,7 @@ commits (the edit's transaction).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import sqlalchemy as sa
@@ -195,7 +195,8 @@ def _pieces_around(session: Session, game_id: int, first: int, last: int) -> tup
         if bounds is None:
             bounds = (session.scalar(sa.select(sa.func.min(System.frame_index)).where(*in_game)),
                       session.scalar(sa.select(sa.func.max(System.frame_index)).where(*in_game)))
-        if bounds[0] is None or ((enough_before or lo <= bounds[0]) and (enough_after or hi >= bounds[1])):
+        low, high = bounds  # both None or neither: the least and greatest index of the same systems
+        if low is None or high is None or ((enough_before or lo <= low) and (enough_after or hi >= high)):
             return pieces
         width *= 2
 
@@ -232,6 +233,7 @@ def _load_window(session: Session, game_id: int, first: int, last: int, columns:
         .outerjoin(BallLabel, BallLabel.frame_id == Frame.id)
         .outerjoin(ReviewDecision, ReviewDecision.frame_id == Frame.id).where(*in_window)
     ):
+        assert index is not None  # between() leaves out systems without a frame index
         r, k = index - first, col[name]
         frame_ids[r, k] = fid
         c = BallLabel.centre_of(box, point)
@@ -309,6 +311,7 @@ def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame:
             return fit_sequence(session, game_id, settings)
         fit = refit_window(_previous_fit(window, pieces), window.points, columns.cameras, columns.widths,
                            first_frame, last_frame, fast_path=not tried, **fit_args(settings))
+    assert window is not None  # whichever fit ran loaded its window
     return _store_rows(session, window, fit, (first_frame, last_frame))
 
 
@@ -372,6 +375,7 @@ def _refresh_trajectory_doubts(session: Session, rows: list[tuple[int, int, dict
         cam = Camera.from_soccernet(camera) if fid in flagged and camera is not None else None
         views[sid][fid] = DoubtFrame(name, width, height, cam)
     table = Doubt.__table__
+    assert isinstance(table, sa.Table)  # a mapped class's own table
     stale = session.execute(sa.select(table.c.id, table.c.system_id).where(
         table.c.system_id.in_(sids), table.c.kind == "ball_off_consensus")).all()
     found = [(sid, d) for sid, index, values in rows for d in flagged_label_doubts(index, values, views[sid])]
@@ -380,15 +384,15 @@ def _refresh_trajectory_doubts(session: Session, rows: list[tuple[int, int, dict
     if found:
         session.execute(sa.insert(table), [
             {"system_id": sid, "frame_id": d.view_id, "kind": d.kind, "accuses_label": d.accuses_label,
-             "message": doubt_message(d, {d.view_id: views[sid][d.view_id].name}),
+             "message": doubt_message(d, {d.view_id: views[sid][cast(int, d.view_id)].name}),  # a view of views[sid]
              "evidence": json_safe({**d.evidence, "code": d.code}),
              "suggestion": json_safe(d.suggestion) if d.suggestion else None} for sid, d in found])
     for doubt_id, _sid in stale:  # objects already in the session: gone, and their systems' lists reloaded
-        obj = session.identity_map.get(session.identity_key(Doubt, doubt_id))  # type: ignore[arg-type]
+        obj = session.identity_map.get(session.identity_key(Doubt, doubt_id))
         if obj is not None:
             session.expunge(obj)
     for sid in sids:
-        system = session.identity_map.get(session.identity_key(System, sid))  # type: ignore[arg-type]
+        system = session.identity_map.get(session.identity_key(System, sid))
         if system is not None:
             session.expire(system, ["doubts"])
 
@@ -397,12 +401,13 @@ def _write_rows(session: Session, updates: list[dict[str, Any]]) -> None:
     """One executemany UPDATE (by primary key) per set of changed columns; objects already in the session
     are expired so that they read the new values."""
     table = TrajectoryPoint.__table__
+    assert isinstance(table, sa.Table)  # a mapped class's own table
     for keys in {tuple(u) for u in updates}:
         stmt = sa.update(table).where(table.c.system_id == sa.bindparam("key_system_id")).values(
             {k: sa.bindparam(k) for k in keys if k != "system_id"})
         session.execute(stmt, [{**u, "key_system_id": u["system_id"]} for u in updates if tuple(u) == keys])
     for u in updates:
-        tp = session.identity_map.get(session.identity_key(TrajectoryPoint, u["system_id"]))  # type: ignore[arg-type]
+        tp = session.identity_map.get(session.identity_key(TrajectoryPoint, u["system_id"]))
         if tp is not None:
             session.expire(tp)
 

@@ -16,7 +16,7 @@ import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, Callable, Mapping
+from typing import Any, BinaryIO, Callable, Literal, Mapping
 
 from sqlalchemy.orm import Session
 
@@ -161,9 +161,9 @@ def _cameras(session: Session, out: Path, include_all: bool, settings: Settings)
     return export_cameras(session, out, include_all=include_all).as_dict()
 
 
-def _detector(fmt: str) -> TreeWriter:
+def _detector(fmt: Literal["yolo", "coco"]) -> TreeWriter:
     def write(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
-        report = export_detector(session, fmt, out, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]
+        report = export_detector(session, fmt, out, include_all, settings.ball_diameter_m,
                                  settings.export_ball_box).as_dict()
         report.pop("out_dir", None)  # a server folder: no export names one
         return report

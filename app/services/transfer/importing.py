@@ -330,7 +330,10 @@ GameReader = Callable[[], GameRecord]
 
 def _held(records: list[GameRecord]) -> list[GameReader]:
     """Readers of games already in memory (inputs read whole: a calibration set, a v3D export)."""
-    return [lambda rec=rec: rec for rec in records]
+    def reader(rec: GameRecord) -> GameReader:
+        return lambda: rec
+
+    return [reader(rec) for rec in records]
 
 
 def _batches(frames_per_game: list[int], max_frames: int) -> Iterator[list[int]]:
