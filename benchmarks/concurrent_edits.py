@@ -34,8 +34,8 @@ from typing import Any, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.load import fresh_database, served, user_tokens  # noqa: E402
-from benchmarks.scale import BenchError, v3d_command  # noqa: E402
+from benchmarks.load import fresh_database, served, user_tokens
+from benchmarks.scale import BenchError, v3d_command
 
 #: The derived tables compared and the columns left out of the comparison (when they were computed, row ids).
 DERIVED: dict[str, tuple[str, ...]] = {

@@ -28,28 +28,28 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 sys.path.insert(0, ".")
-from sqlalchemy import select  # noqa: E402  # after the checkout is on the path
+from sqlalchemy import select
 
-from app.core.config import Settings  # noqa: E402
-from app.db.models import Frame  # noqa: E402
-from app.db.session import make_engine, make_session_factory  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.triangulation import PairGeometryMemo  # noqa: E402
-from app.services.curation import editing, system_page  # noqa: E402
-from app.services.derivation import cameras, recompute, rows  # noqa: E402
-from benchmarks.load import fresh_database  # noqa: E402
+from app.core.config import Settings
+from app.db.models import Frame
+from app.db.session import make_engine, make_session_factory
+from app.geometry.camera import Camera
+from app.geometry.triangulation import PairGeometryMemo
+from app.services.curation import editing, system_page
+from app.services.derivation import cameras, recompute, rows
+from benchmarks.load import fresh_database
 
 
 @contextlib.contextmanager
 def cameras_off() -> Iterator[None]:
     """Every camera built from its JSON and every pair computed anew (a new memo per edit)."""
     real = recompute.stored_camera
-    recompute.stored_camera = lambda camera_json: Camera.from_soccernet(camera_json)  # type: ignore[assignment]
+    recompute.stored_camera = lambda camera_json: Camera.from_soccernet(camera_json)  # type: ignore[assignment]  # patched for the run
     real_memo = cameras.PAIR_GEOMETRY
     try:
         yield
     finally:
-        recompute.stored_camera = real  # type: ignore[assignment]
+        recompute.stored_camera = real  # type: ignore[assignment]  # the patch undone
         cameras.PAIR_GEOMETRY = real_memo
 
 
@@ -67,22 +67,22 @@ def only_changed_off() -> Iterator[None]:
             setattr(row, key, value)
         return row
     saved = rows.put_values, recompute.put_values, editing.put_values
-    rows.put_values = recompute.put_values = editing.put_values = put_all  # type: ignore[assignment]
+    rows.put_values = recompute.put_values = editing.put_values = put_all  # type: ignore[assignment]  # patched for the run
     try:
         yield
     finally:
-        rows.put_values, recompute.put_values, editing.put_values = saved  # type: ignore[assignment]
+        rows.put_values, recompute.put_values, editing.put_values = saved  # type: ignore[assignment]  # the patch undone
 
 
 @contextlib.contextmanager
 def answer_from_edit_off() -> Iterator[None]:
     """The answer's page loaded again."""
     real = system_page._loaded_system
-    system_page._loaded_system = lambda session, system_id: None  # type: ignore[assignment]
+    system_page._loaded_system = lambda session, system_id: None  # type: ignore[assignment]  # patched for the run
     try:
         yield
     finally:
-        system_page._loaded_system = real  # type: ignore[assignment]
+        system_page._loaded_system = real  # type: ignore[assignment]  # the patch undone
 
 
 MECHANISMS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {

@@ -10,14 +10,15 @@ import collections
 import sys
 
 sys.path.insert(0, ".")
-from sqlalchemy import event, select  # noqa: E402  # after the checkout is on the path
+from sqlalchemy import event, select
+from sqlalchemy.orm import Session
 
-from app.core.config import Settings  # noqa: E402
-from app.db.models import Frame  # noqa: E402
-from app.db.session import make_engine, make_session_factory  # noqa: E402
-from app.services.curation import writing  # noqa: E402
-from app.services.curation.editing import update_ball_label  # noqa: E402
-from benchmarks.load import fresh_database  # noqa: E402
+from app.core.config import Settings
+from app.db.models import Frame
+from app.db.session import make_engine, make_session_factory
+from app.services.curation import writing
+from app.services.curation.editing import update_ball_label
+from benchmarks.load import fresh_database
 
 
 def main(url_arg: str | None) -> None:
@@ -37,11 +38,11 @@ def main(url_arg: str | None) -> None:
         event.listen(engine, "before_cursor_execute", before)
         real_end, real_begin = writing.end_reads, writing.begin_write
 
-        def end_reads(session):  # noqa: ANN001, ANN202
+        def end_reads(session: Session) -> None:
             real_end(session)
             phase["now"] = "compute"
 
-        def begin_write(session):  # noqa: ANN001, ANN202
+        def begin_write(session: Session) -> None:
             phase["now"] = "write"
             real_begin(session)
 

@@ -11,37 +11,6 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: Files (or folders, ending with "/") being rewritten elsewhere: they join every check once they land.
-_BEING_REWRITTEN: tuple[str, ...] = (
-    "app/services/curation/writing.py",
-    "app/services/curation/kept.py",
-    "app/services/curation/versions.py",
-    "app/services/curation/editing.py",
-    "app/services/curation/decisions.py",
-    "app/services/curation/resets.py",
-    "app/services/curation/system_page.py",
-    "app/services/curation/states.py",
-    "app/services/derivation/",
-    "app/db/session.py",
-    "app/db/together.py",
-    "app/services/audit/log.py",
-    "app/services/audit/reverting.py",
-    "app/api/routes/frames.py",
-    "app/api/routes/systems.py",
-    "app/api/deps.py",
-    "app/api/conditional.py",
-    "app/main.py",
-    "app/services/calibration/rigs.py",
-    "app/services/calibration/calibrating.py",
-    "app/services/issia/refit.py",
-    "app/services/transfer/importing.py",
-    "app/db/models/",
-    "migrations/",
-    "tests/services/curation/",
-    "tests/db/",
-    "tests/api/conftest.py",
-)
-
 #: A reference to an issue tracker's entry: "issue 29", "(issue 7)", "issues 7, 27 and 29", "issue 28's".
 TRACKER_REFERENCE = re.compile(r"\bissues?\s+#?\d+", re.IGNORECASE)
 #: A suppression comment (mypy's type-ignore, with its codes, or ruff's noqa, with its codes), then the rest of it.
@@ -52,14 +21,9 @@ MAX_MODULE_LINES = 600
 TEXT_SUFFIXES = {".py", ".js", ".css", ".html", ".md", ".mako", ".ini", ".json", ".txt"}
 
 
-def _rewritten(relative: str) -> bool:
-    return any(relative == p or (p.endswith("/") and relative.startswith(p)) for p in _BEING_REWRITTEN)
-
-
 def _files(*folders: str, suffixes: set[str]) -> list[Path]:
     return sorted(p for folder in folders for p in (ROOT / folder).rglob("*")
-                  if p.is_file() and p.suffix in suffixes and "__pycache__" not in p.parts
-                  and not _rewritten(p.relative_to(ROOT).as_posix()))
+                  if p.is_file() and p.suffix in suffixes and "__pycache__" not in p.parts)
 
 
 @pytest.mark.parametrize("folder", ["app", "static", "docs"])
@@ -97,9 +61,3 @@ def test_no_module_of_app_is_over_600_lines() -> None:
             if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES]
     assert not long, f"modules over {MAX_MODULE_LINES} lines:\n" + "\n".join(long)
 
-
-def test_the_allow_list_names_only_what_exists() -> None:
-    """An entry of :data:`_BEING_REWRITTEN` that names nothing (a file moved or renamed) would hide nothing and
-    mislead: it goes once the rewrite lands."""
-    missing = [p for p in _BEING_REWRITTEN if not (ROOT / p).exists()]
-    assert not missing, f"_BEING_REWRITTEN names paths that do not exist: {missing}"

@@ -138,7 +138,7 @@ def act_as(app: FastAPI):
     which ``tests/api/test_auth.py`` tests with real sessions and tokens); returns it."""
 
     def choose(name: str, role: str = "annotator", via: str = "session") -> Principal:
-        principal = Principal(abs(hash(name)) % 10_000, name, role, via)  # type: ignore[arg-type]
+        principal = Principal(abs(hash(name)) % 10_000, name, role, via)  # type: ignore[arg-type]  # role and via as plain strings
         app.dependency_overrides[current_principal] = lambda: principal
         return principal
 

@@ -57,7 +57,7 @@ def test_every_variable_is_documented_with_its_default_and_nothing_else() -> Non
     wrong = []
     for variable, name in fields.items():
         f = Settings.model_fields[name]
-        default = f.default_factory() if f.default_factory is not None else f.default  # type: ignore[call-arg]
+        default = f.default_factory() if f.default_factory is not None else f.default  # type: ignore[call-arg]  # Settings' factories take no argument
         if not _reads_as(documented[variable], default, name):
             wrong.append(f"{variable}: docs {documented[variable]!r}, code {default!r}")
     assert not wrong, wrong

@@ -103,7 +103,7 @@ def test_exclusion_is_stored_reversible_and_leaves_the_view_out(db_session: Sess
     assert len(system.triangulation.pairs) == 3
     assert next(f for f in system.frames if f.id == fid).review.excluded is False
     with pytest.raises(InvalidInputError):
-        editing.set_view_excluded(db_session, fid, "yes", settings=db_settings)  # type: ignore[arg-type]
+        editing.set_view_excluded(db_session, fid, "yes", settings=db_settings)  # type: ignore[arg-type]  # a string on purpose: refused
 
 
 def test_systems_stored_by_an_older_version_are_recomputed_once(db_session: Session, db_settings: Settings) -> None:

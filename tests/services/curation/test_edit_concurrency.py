@@ -269,7 +269,7 @@ def test_an_unrelated_write_is_not_blocked_by_a_capped_size_line_edits_geometry(
                 edit = EditContext()
                 replace_field_lines(s, fid, lines, settings=settings, edit=edit)
                 outcome["lines"] = edit.outcome
-        except BaseException as exc:  # noqa: BLE001
+        except BaseException as exc:  # noqa: BLE001  # the thread hands any failure to the test
             outcome["lines"] = exc
 
     thread = threading.Thread(target=line_edit, name="line-edit")
