@@ -20,6 +20,7 @@ from sqlalchemy.orm import Session, joinedload
 
 from app.core.errors import found
 from app.db.models import Frame, System
+from app.db.session import reads_on_their_own
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
 from app.services.curation.assignment import Assignment, assignment_of
@@ -181,12 +182,15 @@ def system_page(session: Session, system_id: int, filters: SystemFilters = Syste
     """The system for its page (:func:`load_system`: the system as an edit just committed it when the session holds
     it so), its neighbours in the queue ``filters`` + ``sort`` (by default the whole queue in its default order;
     ``app.services.curation.queue.queue_neighbours``), its assignment (from the loaded system:
-    ``assignment.assignment_of``) and its live presence claims (one indexed read).
+    ``assignment.assignment_of``) and its live presence claims (one indexed read). After an edit the reads left run
+    without a transaction of their own on PostgreSQL (``app.db.session.reads_on_their_own``).
 
     Raises:
         NotFoundError: no system has this id.
     """
     held = _loaded_system(session, system_id)
+    if held is not None:  # an edit's answer: what is left to read needs no common snapshot
+        reads_on_their_own(session)
     system = held if held is not None else load_system(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort, held=held)
     return SystemPageData(system, prev_id, next_id, assignment_of(session, system),

@@ -55,7 +55,7 @@ from sqlalchemy.orm.exc import StaleDataError
 from app.core.config import Settings
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.db.models import Frame, Game, System
-from app.db.session import begin_write, end_reads
+from app.db.session import begin_write, end_reads, reads_on_their_own
 from app.services.audit import log as audit
 from app.services.curation.states import same_json
 from app.services.curation.system_page import load_frame
@@ -200,6 +200,8 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
         if locked:
             begin_write(session)
             lock_system(session, system_id, game=recomputes)
+        else:  # the version is read first, with the system's row: anything committed after it makes the compare fail
+            reads_on_their_own(session)
         system = found(load_for_recompute(session, [system_id], with_game=True).get(system_id), "system", system_id)
         if not locked and not kind_of(system).computes_before_lock:
             raise _MustLock()
@@ -217,8 +219,11 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
             scope.changed(system)
         if not locked:
             begin_write(session)  # refuses a session that read while computing (a row outside ``scope``)
+            # an edit that changes its game's rig (a recalibration bumped the game's version) locks the game's row
+            # alone; the others share it: they need only that nobody changes the rig until they commit
+            changes_rig = system.game is not None and system.game.version != game_version
             with session.no_autoflush:
-                if _game_version(session, system.game_id, lock=True) != game_version:
+                if _game_version(session, system.game_id, lock="update" if changes_rig else "share") != game_version:
                     raise _Collided()  # its game's rig or camera prior changed since it was read
         frame = target if isinstance(target, Frame) else None
         owner = target if isinstance(target, System) else None  # the subject: a view or the system itself
@@ -269,11 +274,13 @@ def _check_revert(revert: Optional[Revert], before: dict[str, Any]) -> None:
                             current=before)
 
 
-def _game_version(session: Session, game_id: int, *, lock: bool) -> Optional[int]:
-    """The stored version of game ``game_id``, its row locked until the transaction ends when ``lock`` (PostgreSQL's
-    ``FOR UPDATE``; SQLite's write transaction holds the database already)."""
+def _game_version(session: Session, game_id: int, *, lock: Literal["update", "share"]) -> Optional[int]:
+    """The stored version of game ``game_id``, its row locked until the transaction ends (PostgreSQL's ``FOR UPDATE``
+    for a write that changes the game, ``FOR SHARE`` for one that only needs it unchanged until it commits: such
+    writes of one game do not wait for each other; SQLite's write transaction holds the database already). Each
+    transaction takes one of the two once, before it writes the game, so none waits to upgrade its lock."""
     stmt = sa.select(Game.version).where(Game.id == game_id)
-    return session.scalar(stmt.with_for_update() if lock else stmt)
+    return session.scalar(stmt.with_for_update(read=lock == "share"))
 
 
 def lock_system(session: Session, system_id: int, *, game: bool = False) -> None:
@@ -293,7 +300,7 @@ def lock_system(session: Session, system_id: int, *, game: bool = False) -> None
     if row is None:
         raise NotFoundError("system", system_id)
     if game or policy(row.kind).edit_locks_game:
-        _game_version(session, row.game_id, lock=True)
+        _game_version(session, row.game_id, lock="update")
     session.execute(sa.select(System.id).where(System.id == system_id).with_for_update())
 
 
@@ -345,8 +352,10 @@ class FrameFacts:
 
 def frame_facts(session: Session, frame_id: int) -> FrameFacts:
     """The frame's :class:`FrameFacts`, read by one statement built once (no ORM object: the edit loads the frame
-    with its system next, ``recompute.load_for_recompute``), in the session's read transaction. Raises
-    :class:`NotFoundError`."""
+    with its system next, ``recompute.load_for_recompute``), without a transaction of its own on PostgreSQL
+    (``reads_on_their_own``: the edit compares the versions it reads next under its lock, and validates its input
+    against the frame it writes again). Raises :class:`NotFoundError`."""
+    reads_on_their_own(session)
     row = session.execute(_frame_facts_statement(), {"id": frame_id}).one_or_none()
     return FrameFacts(*found(row, "frame", frame_id))
 
