@@ -375,3 +375,25 @@ def test_a_decision_sent_with_the_system_version_of_a_page_drawn_before_an_edit_
         assert s.get(System, scene.system_id).review_status is ReviewStatus.ACCEPTED
 
 
+
+
+def test_the_page_an_edit_answers_from_its_objects_is_the_page_read_afresh(database) -> None:
+    """An edit's answer draws the system page from the objects the edit committed (``system_page._loaded_system``):
+    it equals the page read afresh by a new session, for a ball edit and an exclusion."""
+    from app.api.view_schemas import SystemView
+    from app.services.curation.editing import set_view_excluded
+    from app.services.curation.system_page import system_page
+
+    factory, settings, scene, _ = database
+
+    def page(s: Session) -> dict:
+        return SystemView.of(system_page(s, scene.system_id)).model_dump(mode="json")
+
+    fid = scene.frame_ids[1]
+    for edit in (lambda s: update_ball_label(s, fid, box=_moved(_box(factory, fid), 5.0), settings=settings),
+                 lambda s: set_view_excluded(s, scene.frame_ids[2], True, settings=settings)):
+        with factory() as s:
+            edit(s)
+            answered = page(s)
+        with factory() as s:
+            assert page(s) == answered
