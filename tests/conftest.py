@@ -104,14 +104,22 @@ def db_connection(db_engine: sa.Engine) -> Iterator[sa.Connection]:
                 outer.rollback()
 
 
-@pytest.fixture
-def db_session(db_connection: sa.Connection) -> Iterator[Session]:
-    """A session whose commits are savepoints of the per-test transaction: nothing outlives the test."""
-    session = Session(bind=db_connection, join_transaction_mode="create_savepoint", expire_on_commit=False)
+@contextmanager
+def joined_session(conn: sa.Connection) -> Iterator[Session]:
+    """A session whose commits are savepoints of ``conn``'s transaction (SQLAlchemy's "join a session into an
+    external transaction" recipe), closed at the end."""
+    session = Session(bind=conn, join_transaction_mode="create_savepoint", expire_on_commit=False)
     try:
         yield session
     finally:
         session.close()
+
+
+@pytest.fixture
+def db_session(db_connection: sa.Connection) -> Iterator[Session]:
+    """A session whose commits are savepoints of the per-test transaction: nothing outlives the test."""
+    with joined_session(db_connection) as session:
+        yield session
 
 
 @pytest.fixture

@@ -25,6 +25,7 @@ from app.core.config import Settings
 from app.db.session import make_engine
 from app.main import create_app
 from tests.accounts import Account, as_session, make_accounts
+from tests.conftest import joined_session
 
 from .factories import Scene, make_game, make_system
 
@@ -91,19 +92,10 @@ def db_session(request: pytest.FixtureRequest, served_engine: sa.Engine | None) 
     """The test's session: on the served engine's database (commits are real) for a ``served`` module, else the
     session of ``tests/conftest.py`` (commits are savepoints of the per-test transaction)."""
     if served_engine is None:
-        yield request.getfixturevalue("db_connection_session")
+        with joined_session(request.getfixturevalue("db_connection")) as joined:
+            yield joined
         return
     session = Session(served_engine, expire_on_commit=False)
-    try:
-        yield session
-    finally:
-        session.close()
-
-
-@pytest.fixture
-def db_connection_session(db_connection: sa.Connection) -> Iterator[Session]:
-    """A session whose commits are savepoints of the per-test transaction (``tests/conftest.py``'s ``db_session``)."""
-    session = Session(bind=db_connection, join_transaction_mode="create_savepoint", expire_on_commit=False)
     try:
         yield session
     finally:

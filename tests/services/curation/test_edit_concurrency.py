@@ -207,18 +207,7 @@ def test_edits_of_two_views_interleaved_store_the_ball_of_both(database, monkeyp
 
     _hold_before_write(monkeypatch, "edit-a", computed, committed)
     outcome: dict[str, object] = {}
-
-    def edit_a() -> None:
-        try:
-            with factory() as s:
-                edit = EditContext()
-                update_ball_label(s, fa, box=box_a, settings=settings, edit=edit)
-                outcome["a"] = edit.outcome
-        except BaseException as exc:  # noqa: BLE001  # reported below
-            outcome["a"] = exc
-
-    thread = threading.Thread(target=edit_a, name="edit-a")
-    thread.start()
+    thread = _ball_edit_in_thread(factory, settings, fa, box_a, outcome)
     try:
         assert computed.wait(60), "edit A never computed"
         t0 = time.monotonic()
@@ -293,6 +282,24 @@ def test_an_unrelated_write_is_not_blocked_by_a_capped_size_line_edits_geometry(
         assert s.get(Frame, fid).calibration.source.value == "computed"
 
 
+def _ball_edit_in_thread(factory: Callable[[], Session], settings: Settings, frame_id: int, box: list[float],
+                         outcome: dict[str, object]) -> threading.Thread:
+    """Start edit A (a ball edit of ``frame_id`` to ``box``) in a thread named "edit-a"; its outcome, or the exception
+    it raised, goes to ``outcome["a"]``."""
+    def edit_a() -> None:
+        try:
+            with factory() as s:
+                edit = EditContext()
+                update_ball_label(s, frame_id, box=box, settings=settings, edit=edit)
+                outcome["a"] = edit.outcome
+        except BaseException as exc:  # noqa: BLE001  # the test asserts the outcome, an exception included
+            outcome["a"] = exc
+
+    thread = threading.Thread(target=edit_a, name="edit-a")
+    thread.start()
+    return thread
+
+
 def _hold_before_write(monkeypatch: pytest.MonkeyPatch, thread_name: str, computed: threading.Event,
                        release: threading.Event) -> None:
     """Hold the first write of the edit running in thread ``thread_name`` (after its computation, before its lock)
@@ -319,18 +326,7 @@ def test_an_edit_whose_games_rig_changed_meanwhile_computes_again(database, monk
     computed, committed = threading.Event(), threading.Event()
     _hold_before_write(monkeypatch, "edit-a", computed, committed)
     outcome: dict[str, object] = {}
-
-    def edit_a() -> None:
-        try:
-            with factory() as s:
-                edit = EditContext()
-                update_ball_label(s, fa, box=_moved(_box(factory, fa), 6.0), settings=settings, edit=edit)
-                outcome["a"] = edit.outcome
-        except BaseException as exc:  # noqa: BLE001  # reported below
-            outcome["a"] = exc
-
-    thread = threading.Thread(target=edit_a, name="edit-a")
-    thread.start()
+    thread = _ball_edit_in_thread(factory, settings, fa, _moved(_box(factory, fa), 6.0), outcome)
     try:
         assert computed.wait(60), "edit A never computed"
         ob = other.frame_ids[0]
