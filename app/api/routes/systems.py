@@ -66,7 +66,7 @@ def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemI
 def review_system(session: SessionDep, principal: ReviewerDep, if_match: IfMatchDep, system: SystemDep,
                   body: ReviewIn, response: Response, edit: EditDep) -> ReviewOut:
     """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``, which every
-    write of the system's labels, lines, exclusions, calibrations and decisions changes: 412 once anything the page
+    write of the system's labels, lines, exclusions, calibrations and decision changes: 412 once anything the page
     showed has changed); the system's new ETag in the header, its audit entry in ``X-V3D-Audit-Entry`` (what an undo
     names)."""
     decision = decisions.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,

@@ -223,6 +223,11 @@ class Frame(Base):
         back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
     )
 
+    # the frame's version is SQLAlchemy's version counter too (bumped by the guarded write): a view decision changes
+    # the frame alone (not its system's version, which a system decision's If-Match compares), so an edit of the
+    # same view written meanwhile is caught by this compare (``WHERE edit_version = <as read>``)
+    __mapper_args__ = {"version_id_col": edit_version, "version_id_generator": False}
+
 
 class FieldLineAnnotation(Base):
     """A frame's field lines: ``{class: [[[x, y], ...], ...]}`` in pixels (repeated classes kept).

@@ -154,8 +154,9 @@ class Guard:
     expected: Expected = None
 
     def check_and_bump(self, subject: Frame | System) -> None:
-        """Raise :class:`StaleVersionError` when the subject's version is not expected; bump a frame's version (a
-        system's is bumped with every write of it, ``scope.changed``)."""
+        """Raise :class:`StaleVersionError` when the subject's version is not expected; bump a frame's version (its
+        flush compares the version it was read with; a system's is bumped by every write of its labels, lines,
+        exclusions, calibrations or decision, ``scope.changed``)."""
         if isinstance(subject, Frame):
             check_expected("frame", subject.id, subject.edit_version, self.expected)
             subject.edit_version += 1
@@ -216,7 +217,8 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
             _check_revert(revert, before)
             result = apply(target)
             after = state(target)
-            scope.changed(system)
+            if recomputes or isinstance(target, System):  # a view decision changes the view's version alone
+                scope.changed(system)
         if not locked:
             begin_write(session)  # refuses a session that read while computing (a row outside ``scope``)
             # an edit that changes its game's rig (a recalibration bumped the game's version) locks the game's row

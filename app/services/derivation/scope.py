@@ -12,8 +12,12 @@ An edit of one view recomputes its whole system (``recompute.recompute_system``)
 
 Optimistic concurrency with a version column: the first set is covered by ``System.version``, the second by
 ``Game.version``. Every write of a row of the first set bumps its system's version in the same transaction
-(:func:`changed`: every recomputation and every guarded write call it), every write of the rig or of the prior bumps
-the game's (:func:`game_changed`: ``apply_calibration`` and the import that learns a prior call it). An edit reads the
+(:func:`changed`: every recomputation and every system decision call it), every write of the rig or of the prior
+bumps the game's (:func:`game_changed`: ``apply_calibration`` and the import that learns a prior call it). A view's
+decision (its review row's status and comment, which no recomputation reads) changes its frame's version alone
+(``Frame.edit_version``, SQLAlchemy's version counter too), so a system decision's ETag covers what its reviewer
+saw of the labels, lines, exclusions and calibrations while the reviewer's own view decisions on the same page
+leave it valid, and an edit of that view written meanwhile fails the frame's compare. An edit reads the
 versions with the rows, computes without holding a connection, then compares the versions under its write lock
 (``app.services.curation.writing``): equal, nothing it read changed. ``tests/services/curation/test_edit_scope.py``
 records the tables a recomputation reads and the transactions that write them, and fails when one is not covered.
