@@ -166,8 +166,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # its route does not take, or too large, is refused before the route reads it. The compression of answers is
     # innermost (app.api.compression: never an answer carrying a secret).
     app.add_middleware(CompressionMiddleware)
-    app.add_middleware(BodyLimitMiddleware, routes=app.router.routes, max_json_bytes=int(settings.max_json_kb * 1024),
-                       max_upload_bytes=int(settings.max_upload_mb * 2**20))
+    app.add_middleware(BodyLimitMiddleware, routes=app.router.routes, settings=settings)
     app.add_middleware(AuthenticationMiddleware, max_age_s=settings.session_max_age_s)
     app.add_middleware(SessionCookieMiddleware, secret=secret, max_age=settings.session_max_age_s,
                        https_only=settings.secure_cookies)

@@ -15,19 +15,32 @@ server's RSS growth (peak during the request minus the RSS before it). ``--code 
 checkout (e.g. ``/work/main``, for the figure before the change). Run::
 
     .venv/bin/python benchmarks/body_flood.py --mb 64
+
+``--predictions-mb N`` instead uploads N MB of predictions to ``POST /api/evaluations/monocular`` as an annotator
+(one multipart file, its length declared and then chunked, over a socket) and prints the growth of the disk the
+server's files take while it runs (the peak, sampled every 10 ms, and what is left afterwards): its temporary and jobs
+folders and every regular file its processes hold open, each file once (the form parser's spool is an unnamed
+temporary file, seen only through its open descriptor). The predictions route was bounded by the 2 GB upload limit
+alone (its 1,000 MB was spooled, copied, then refused: +2,000 MB); it is now cut once ``V3D_MAX_PREDICTIONS_MB`` has
+arrived::
+
+    .venv/bin/python benchmarks/body_flood.py --predictions-mb 300
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import socket
+import stat
 import subprocess
 import sys
 import tempfile
 import threading
 import time
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Iterator
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -51,6 +64,21 @@ def _rss(proc: Any) -> int:
     return total
 
 
+def _read_status(sock: socket.socket, t0: float, answer: dict[str, Any]) -> None:
+    """Read the answer's status line from ``sock`` into ``answer`` (``status``, ``seconds`` since ``t0``)."""
+    data = b""
+    try:
+        while b"\r\n" not in data:
+            more = sock.recv(65536)
+            if not more:
+                break
+            data += more
+    except OSError:
+        pass
+    answer["status"] = data.split(b"\r\n", 1)[0].decode("latin-1")
+    answer["seconds"] = time.perf_counter() - t0
+
+
 def send_body(port: int, kind: str, size: int) -> dict[str, Any]:
     """Send one anonymous login of ``size`` bytes of body (``kind``: multipart, chunked, json) over a socket; the
     status line of the answer, seconds to it, and the bytes of body sent before the server answered or closed."""
@@ -61,21 +89,7 @@ def send_body(port: int, kind: str, size: int) -> dict[str, Any]:
     sock.sendall(f"POST /api/auth/login HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nContent-Type: {content_type}\r\n"
                  f"{framing}\r\n\r\n".encode())
     answer: dict[str, Any] = {}
-
-    def read() -> None:
-        data = b""
-        try:
-            while b"\r\n" not in data:
-                more = sock.recv(65536)
-                if not more:
-                    break
-                data += more
-        except OSError:
-            pass
-        answer["status"] = data.split(b"\r\n", 1)[0].decode("latin-1")
-        answer["seconds"] = time.perf_counter() - t0
-
-    reader = threading.Thread(target=read)
+    reader = threading.Thread(target=_read_status, args=(sock, t0, answer))
     reader.start()
     sent = 0
     block = b"a" * MB
@@ -92,21 +106,24 @@ def send_body(port: int, kind: str, size: int) -> dict[str, Any]:
     return {"kind": kind, **answer, "sent_mb": sent / MB}
 
 
-def measure(code: Path, mb: float, kinds: list[str], workdir: Path) -> list[dict[str, Any]]:
-    """Serve ``code`` on a fresh database and send each kind of body; the results with RSS growth (MB)."""
+@contextlib.contextmanager
+def served(code: Path, workdir: Path) -> Iterator[tuple[int, Any]]:
+    """``v3d serve`` of ``code`` (one worker) on a fresh SQLite database in ``workdir``, its temporary files in
+    ``workdir/tmp``; yields its port and its process (psutil), and stops it afterwards."""
     import psutil
 
     from app.db.session import upgrade_database
 
     url = f"sqlite:///{workdir / 'flood.sqlite3'}"
     upgrade_database(url)
+    (workdir / "tmp").mkdir(exist_ok=True)
     port = free_port()
-    env = {**os.environ, "V3D_DATABASE_URL": url, "V3D_CALIBRATION_WORKERS": "1", "PYTHONPATH": str(code)}
+    env = {**os.environ, "V3D_DATABASE_URL": url, "V3D_CALIBRATION_WORKERS": "1", "PYTHONPATH": str(code),
+           "TMPDIR": str(workdir / "tmp"), "V3D_JOBS_DIR": str(workdir / "jobs")}
     cmd = [sys.executable, "-c", "import sys; from app.cli import main; sys.argv[0] = 'v3d'; main()", "serve",
            "--host", "127.0.0.1", "--port", str(port), "--workers", "1"]
     proc = subprocess.Popen(cmd, cwd=code, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
                             start_new_session=True)
-    out = []
     try:
         deadline = time.monotonic() + 120
         while True:
@@ -118,27 +135,134 @@ def measure(code: Path, mb: float, kinds: list[str], workdir: Path) -> list[dict
                     raise RuntimeError("the server did not start") from None
                 time.sleep(0.2)
         time.sleep(2.0)  # let start-up settle
-        server = psutil.Process(proc.pid)
-        for kind in kinds:
-            before = _rss(server)
-            peak = [before]
-            stop = threading.Event()
-
-            def sample(stop: threading.Event, peak: list[float]) -> None:
-                while not stop.is_set():
-                    peak[0] = max(peak[0], _rss(server))
-                    time.sleep(0.01)
-
-            sampler = threading.Thread(target=sample, args=(stop, peak))
-            sampler.start()
-            result = send_body(port, kind, int(mb * MB))
-            time.sleep(0.5)
-            stop.set()
-            sampler.join()
-            out.append({**result, "rss_before_mb": before / MB, "rss_growth_mb": (peak[0] - before) / MB})
+        yield port, psutil.Process(proc.pid)
     finally:
         os.killpg(proc.pid, 15)
         proc.wait(timeout=20)
+
+
+def _peak_during(sample: Callable[[], float],
+                 work: Callable[[], dict[str, Any]]) -> tuple[dict[str, Any], float, float]:
+    """Run ``work`` while ``sample()`` is taken every 10 ms; its result, the sample before it and the peak."""
+    before = sample()
+    peak = [before]
+    stop = threading.Event()
+
+    def watch() -> None:
+        while not stop.is_set():
+            peak[0] = max(peak[0], sample())
+            time.sleep(0.01)
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    try:
+        result = work()
+        time.sleep(0.5)
+    finally:
+        stop.set()
+        watcher.join()
+    return result, before, peak[0]
+
+
+def measure(code: Path, mb: float, kinds: list[str], workdir: Path) -> list[dict[str, Any]]:
+    """Serve ``code`` on a fresh database and send each kind of body; the results with RSS growth (MB)."""
+    out = []
+    with served(code, workdir) as (port, server):
+        for kind in kinds:
+            result, before, peak = _peak_during(lambda: _rss(server), partial(send_body, port, kind, int(mb * MB)))
+            out.append({**result, "rss_before_mb": before / MB, "rss_growth_mb": (peak - before) / MB})
+    return out
+
+
+def disk_bytes(server: Any, folders: list[Path]) -> int:
+    """Disk blocks (bytes) of the files under ``folders`` and of every regular file the process tree of ``server``
+    holds open (an upload's spool is an unnamed file, unlinked at once: seen only through its open descriptor), each
+    file once."""
+    import psutil
+
+    files: dict[tuple[int, int], int] = {}
+    for folder in folders:
+        for path in folder.rglob("*"):
+            try:
+                st = path.lstat()
+            except OSError:
+                continue
+            if stat.S_ISREG(st.st_mode):
+                files[(st.st_dev, st.st_ino)] = st.st_blocks * 512
+    for proc in [server, *server.children(recursive=True)]:
+        try:
+            fds = os.listdir(f"/proc/{proc.pid}/fd")
+        except (OSError, psutil.Error):
+            continue
+        for fd in fds:
+            try:
+                st = os.stat(f"/proc/{proc.pid}/fd/{fd}")
+            except OSError:
+                continue
+            if stat.S_ISREG(st.st_mode):
+                files[(st.st_dev, st.st_ino)] = st.st_blocks * 512
+    return sum(files.values())
+
+
+def annotator_token(code: Path, workdir: Path) -> str:
+    """An annotator's API token in the benchmark's database (``v3d users add`` of ``code``)."""
+    env = {**os.environ, "V3D_DATABASE_URL": f"sqlite:///{workdir / 'flood.sqlite3'}", "PYTHONPATH": str(code)}
+    done = subprocess.run([sys.executable, "-c", "import sys; from app.cli import main; sys.argv[0] = 'v3d'; main()",
+                           "users", "add", "flood-annotator", "--role", "annotator", "--password-stdin"],
+                          input="flood-annotator-password\n", capture_output=True, text=True, cwd=code, env=env,
+                          check=True)
+    return done.stdout.strip().splitlines()[-1]
+
+
+def send_predictions(port: int, token: str, size: int, chunked: bool = False) -> dict[str, Any]:
+    """Upload ``size`` bytes of predictions (one multipart file of spaces; ``Content-Length`` declared, or
+    ``chunked``) to ``POST /api/evaluations/monocular`` over a socket, 1 MB at a time until it is sent or the server
+    answers; the status line, seconds to it and the MB sent."""
+    head = (b"--x\r\nContent-Disposition: form-data; name=\"predictions\"; filename=\"p.json\"\r\n"
+            b"Content-Type: application/json\r\n\r\n")
+    tail = b"\r\n--x--\r\n"
+
+    def framed(data: bytes) -> bytes:
+        return f"{len(data):x}\r\n".encode() + data + b"\r\n" if chunked else data
+
+    framing = "Transfer-Encoding: chunked" if chunked else f"Content-Length: {len(head) + size + len(tail)}"
+    sock = socket.create_connection(("127.0.0.1", port), timeout=300)
+    t0 = time.perf_counter()
+    sock.sendall(f"POST /api/evaluations/monocular HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n"
+                 f"Authorization: Bearer {token}\r\nContent-Type: multipart/form-data; boundary=x\r\n"
+                 f"{framing}\r\n\r\n".encode() + framed(head))
+    answer: dict[str, Any] = {}
+    reader = threading.Thread(target=_read_status, args=(sock, t0, answer))
+    reader.start()
+    sent = 0
+    block = b" " * MB
+    try:
+        while sent < size and reader.is_alive():
+            sock.sendall(framed(block[:size - sent]))
+            sent += min(MB, size - sent)
+        if reader.is_alive():
+            sock.sendall(framed(tail) + (b"0\r\n\r\n" if chunked else b""))
+    except OSError:
+        pass  # the server answered and closed the connection: the rest is never sent
+    reader.join(timeout=600)
+    sock.close()
+    return {**answer, "sent_mb": sent / MB}
+
+
+def measure_predictions(code: Path, mb: float, workdir: Path) -> list[dict[str, Any]]:
+    """Serve ``code`` on a fresh database and upload ``mb`` MB of predictions as an annotator, with its length
+    declared and chunked; for each the answer and the growth (MB) of the disk the server's files take (its temporary
+    and jobs folders, its open files)."""
+    token = annotator_token(code, workdir)
+    out = []
+    with served(code, workdir) as (port, server):
+        folders = [workdir / "tmp", workdir / "jobs"]
+        for chunked in (False, True):
+            result, before, peak = _peak_during(partial(disk_bytes, server, folders),
+                                                partial(send_predictions, port, token, int(mb * MB), chunked))
+            after = disk_bytes(server, folders)
+            out.append({**result, "kind": "chunked" if chunked else "declared", "disk_growth_mb": (peak - before) / MB,
+                        "disk_left_mb": (after - before) / MB})
     return out
 
 
@@ -147,8 +271,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mb", type=float, default=64.0, help="body size (MB)")
     parser.add_argument("--code", type=Path, default=ROOT, help="the checkout whose code is served")
     parser.add_argument("--kinds", default="multipart,chunked,json")
+    parser.add_argument("--predictions-mb", type=float, default=None,
+                        help="instead: upload this many MB of predictions to the monocular benchmark as an annotator "
+                             "and measure the server's disk")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="v3d-body-flood-") as tmp:
+        if args.predictions_mb is not None:
+            for r in measure_predictions(args.code.resolve(), args.predictions_mb, Path(tmp)):
+                print(f"{r['kind']:8s} {args.predictions_mb:g} MB of predictions to /api/evaluations/monocular: "
+                      f"{r.get('status')!r} after {r.get('seconds', float('nan')):.2f} s, {r['sent_mb']:.0f} MB sent; "
+                      f"server disk +{r['disk_growth_mb']:.1f} MB at the peak, +{r['disk_left_mb']:.1f} MB after")
+            return 0
         results = measure(args.code.resolve(), args.mb, args.kinds.split(","), Path(tmp))
     for r in results:
         print(f"{r['kind']:9s} {args.mb:g} MB anonymous to /api/auth/login: {r.get('status')!r} after "
