@@ -274,6 +274,10 @@ class Settings(BaseSettings):
         "left out of the import, which names it and the count in its report (skipped_systems); the rest of the "
         "dataset imports. Pairwise work grows with the square of the views. Systems stored before the cap still "
         "open and edit (V3D_MAX_VIEWS_PER_SYSTEM).")
+    max_passes_per_user: int = Field(
+        50, gt=0, description="Most review passes kept per user (each stores the ids of every system of its queue): "
+        "beginning one more drops that user's least recently visited passes beyond it, in the same transaction "
+        "(V3D_MAX_PASSES_PER_USER).")
     write_lock_timeout_s: float = Field(
         5.0, gt=0, description="How long a served request waits for the database's write lock (SQLite's busy "
         "timeout; PostgreSQL's lock_timeout on the row locks of an edit) before it is answered 503 with Retry-After "
