@@ -10,6 +10,11 @@ An import or a full recompute is one entry of its own (:func:`record_summary`: i
 ``after``, no ``before``); they cannot be reverted (``app.services.audit.reverting``), nor can an
 administrator's change of a user or a token (:data:`ADMIN_ACTIONS`, listed to admins only). Entries name their
 frame, system and game by id without foreign keys, so history outlives the rows it talks about.
+
+A state larger than :data:`LARGE_STATE_BYTES` as JSON (a field-line edit's polylines: about 70 KB at the point cap)
+is stored once, compressed, under the digest of its canonical JSON (``audit_states``, :func:`stored_state`): an
+edit's state after is the next edit's state before, an undo's are the edit's, so a series of edits of one view adds
+one compressed state per edit instead of two whole ones. Readers see ``entry.before`` / ``entry.after`` as before.
 """
 from __future__ import annotations
 
@@ -18,10 +23,11 @@ from dataclasses import dataclass
 from typing import Any, Optional
 
 import sqlalchemy as sa
+from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
-from app.db.models import AuditEntry, Frame, System
-from app.db.types import json_safe, utcnow
+from app.db.models import AuditEntry, AuditState, Frame, System
+from app.db.types import canonical_json, compressed_json, json_digest, json_safe, utcnow
 from app.services.audit.summaries import summarize
 
 #: The response header naming the audit entry of a write (what a later undo names).
@@ -76,13 +82,45 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
     entry = AuditEntry(
         at=utcnow(), actor=actor or local_actor(), action=action, frame_id=frame.id if frame is not None else None,
         system_id=system.id if system is not None else None, game_id=system.game_id if system is not None else None,
-        before=before, after=after, reverts_id=reverts_id,
+        reverts_id=reverts_id,
         summary=summarize(action, before, after, view=view_name(frame) if frame is not None else None,
                           reverts_id=reverts_id, facts=facts,
                           redo=action != "revert" and _is_undo(session, reverts_id))[:SUMMARY_MAX],
     )
+    entry.before_inline, entry.before_state = stored_state(session, before)
+    entry.after_inline, entry.after_state = stored_state(session, after)
     session.add(entry)
     return entry
+
+
+#: States (before / after) whose canonical JSON is at least this long (bytes) are stored once, compressed, in
+#: ``audit_states`` (a ball label or a decision stays inline; a frame's field lines, 61-71 points in the real sets,
+#: are about 2-3 KB).
+LARGE_STATE_BYTES = 1024
+
+
+def stored_state(session: Session, state: Optional[dict[str, Any]]) -> tuple[Optional[dict[str, Any]],
+                                                                           Optional[AuditState]]:
+    """Where an entry keeps ``state`` (JSON-safe already): ``(state, None)`` inline when it is small, else ``(None,
+    row)`` with the :class:`AuditState` row of its digest, inserted unless a row of that digest exists (``ON
+    CONFLICT DO NOTHING``: two writers storing the same state at once never collide). In the caller's write
+    transaction; the session is not flushed (the caller's changes are flushed, and compared, by the caller)."""
+    if state is None:
+        return None, None
+    canonical = canonical_json(state)
+    if len(canonical) < LARGE_STATE_BYTES:
+        return state, None
+    digest = json_digest(canonical)
+    with session.no_autoflush:
+        row = session.get(AuditState, digest)
+        if row is None:
+            dialect = session.get_bind().dialect.name
+            insert = (postgresql.insert if dialect == "postgresql" else sqlite.insert)(AuditState)
+            session.execute(insert.values(digest=digest, body=compressed_json(canonical))
+                            .on_conflict_do_nothing(index_elements=[AuditState.digest]))
+            row = session.get(AuditState, digest)
+    assert row is not None  # inserted or found above, in this transaction
+    return None, row
 
 
 #: The longest summary stored (characters; ``audit_entries.summary``).
