@@ -47,6 +47,7 @@ from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
 from app.api.hosts import allowed_hosts
 from app.api.main import api_router
+from app.api.schemas import db_id
 from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
 from app.core.errors import NotFoundError
@@ -201,9 +202,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if getattr(request.state, "principal", None) is None:
             return _page("system.html")
         try:
-            if not (system_id.isascii() and system_id.isdigit() and int(system_id) < 2**63):
+            wanted = db_id(system_id)  # the API's id type: no row has an id beyond the database's integers
+            if wanted is None:
                 raise NotFoundError("system", system_id)
-            get_system(session, int(system_id))
+            get_system(session, wanted)
         except NotFoundError:
             return _missing_system_page(system_id, request.url.query)
         return _page("system.html")

@@ -65,11 +65,13 @@ SECRET_FIELDS = frozenset({"password", "token", "secret"})
 
 
 def shortened(text: str, limit: int = MAX_DETAIL_CHARS) -> str:
-    """``text`` cut to ``limit`` characters, saying how much was left out.
+    """``text`` cut to ``limit`` characters, saying how much was left out; a lone surrogate a client sent (which no
+    UTF-8 answer can hold) written as its escape.
 
-    >>> shortened("abcdef", 3)
-    'abc... (3 more characters)'
+    >>> shortened("abcdef", 3), shortened("a\\ud800")
+    ('abc... (3 more characters)', 'a\\\\ud800')
     """
+    text = text.encode("utf-8", "backslashreplace").decode("utf-8")
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text) - limit} more characters)"
 
 
@@ -100,7 +102,8 @@ def shown_validation_error(error: dict[str, Any]) -> dict[str, Any]:
             continue
         try:
             value = jsonable_encoder(error[key])
-            text = json.dumps(value)
+            text = json.dumps(value, ensure_ascii=False)
+            text.encode("utf-8")  # a lone surrogate cannot be answered (UnicodeEncodeError, a ValueError)
         except (TypeError, ValueError):
             continue
         if len(text) <= MAX_ECHO_CHARS:

@@ -18,7 +18,7 @@ from fastapi.responses import FileResponse, JSONResponse
 from app.api.auth import AdminDep, Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import JobKindName, JobOut, JobPageOut, JobStateName
-from app.api.schemas import DB_INT_MAX, DB_INT_MIN, NOT_FOUND, ErrorOut
+from app.api.schemas import DB_INT_MAX, NOT_FOUND, DbInt, ErrorOut
 from app.core.config import Settings
 from app.core.errors import NotFoundError
 from app.db.models import Job, JobState
@@ -27,8 +27,8 @@ from app.services.jobs.work import export_path, without_server_paths
 from app.services.transfer.export_files import prune_exports
 
 router = APIRouter(tags=["jobs"])
-#: A job id within the database's integer column (beyond it PostgreSQL refused the query: a 500, found by fuzzing).
-JobId = Annotated[int, Path(description="Job id.", ge=DB_INT_MIN, le=DB_INT_MAX)]
+#: A job id (``DbInt``: beyond the database's integers PostgreSQL refused the query, a 500 found by fuzzing).
+JobId = Annotated[DbInt, Path(description="Job id.")]
 
 
 def job_out(job: Job, principal: Principal | None = None, settings: Settings | None = None) -> JobOut:
