@@ -146,14 +146,16 @@ async def _invalid(_: Request, exc: Exception) -> JSONResponse:
     return _answer(status.HTTP_422_UNPROCESSABLE_CONTENT, exc, getattr(exc, "field", None))
 
 
-async def _stale(_: Request, exc: Exception) -> JSONResponse:
+async def _stale(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StaleVersionError)
     current = exc.current
+    principal = getattr(request.state, "principal", None)
+    admin = principal is not None and principal.may("admin")
     body = StaleOut(
         detail=str(exc), etag=exc.etag,
         current=(FrameView.of_frame(current) if isinstance(current, Frame)
                  else SystemStateOut.of(current) if current is not None else None),  # type: ignore[arg-type]  # current is a Frame or a System: a System here
-        last_change=AuditEntryOut.model_validate(exc.last_change) if exc.last_change is not None else None,
+        last_change=AuditEntryOut.shown(exc.last_change, admin) if exc.last_change is not None else None,
     )
     return JSONResponse(body.model_dump(mode="json", by_alias=True), status_code=status.HTTP_412_PRECONDITION_FAILED,
                         headers={"ETag": exc.etag, "Cache-Control": "no-cache"})

@@ -16,7 +16,14 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
 from app.db.models import ReviewStatus
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
-from app.services.curation.queue import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
+from app.services.curation.queue import (
+    ASSIGNEE_ME,
+    DEFAULT_SORT,
+    FrameFilters,
+    FrameSort,
+    SystemFilters,
+    SystemSort,
+)
 
 #: A coordinate of a request body: a JSON number (``true`` or ``"1"`` are refused naming the field, not
 #: read as 1.0); NaN and infinity pass here so that the services refuse them with their message.
@@ -125,14 +132,14 @@ class QueueQuery(BaseModel):
     assignee: Optional[QueryText] = Field(
         None, min_length=1, max_length=100,
         description="Only systems assigned to this user (a name), 'me' (the caller's), or 'none' (unassigned ones); "
-        "422 for an unknown name.")
+        "an unknown name matches nothing, as a user with none assigned does.")
     sort: SystemSort = Field(DEFAULT_SORT, description="Order; a leading '-' means descending. Missing values last.")
 
     def filters(self, me: Optional[str] = None) -> SystemFilters:
         """The service-level filters; ``me``: the caller's name, which ``assignee=me`` stands for (without it,
         ``assignee=me`` filters nothing out)."""
         assignee = self.assignee
-        if assignee == "me":
+        if assignee == ASSIGNEE_ME:
             assignee = me
         return SystemFilters(game_id=self.game_id, status=self.status, jac_min=self.jac_min,
                              jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max,

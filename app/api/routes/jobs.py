@@ -33,16 +33,18 @@ JobId = Annotated[DbInt, Path(description="Job id.")]
 
 def job_out(job: Job, principal: Principal | None = None, settings: Settings | None = None) -> JobOut:
     """The API's view of a job row; for an annotator or reviewer (``principal`` below admin) an import's
-    path, source and message name the dataset, never a server path (``kinds.without_server_paths``)."""
+    path, source and message name the dataset, never a server path (``kinds.without_server_paths``), and the
+    process running it (``owner``: host name and process id) is not shown."""
     url = f"/api/jobs/{job.id}"
     has_file = job.kind == "export" and job.state is JobState.DONE
-    params, result, message = job.params, job.result, job.message
+    params, result, message, owner = job.params, job.result, job.message, job.owner
     if principal is not None and settings is not None and not principal.may("admin"):
         params, result, message = without_server_paths(job.id, params, result, message, settings)
+        owner = None
     return JobOut.model_validate({
-        **{k: getattr(job, k) for k in ("id", "kind", "stage", "done", "total", "owner", "attempts", "created_at",
+        **{k: getattr(job, k) for k in ("id", "kind", "stage", "done", "total", "attempts", "created_at",
                                         "started_at", "finished_at", "heartbeat_at")},
-        "params": params, "result": result, "message": message,
+        "owner": owner, "params": params, "result": result, "message": message,
         "state": job.state.value, "url": url, "result_url": f"{url}/result" if has_file else None,
     })
 

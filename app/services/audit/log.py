@@ -1,8 +1,9 @@
 """The audit log: one append-only entry per accepted write, recorded in the write's own transaction.
 
 An entry says who (``actor``: the user's name, or ``cli:<os user>`` for work run on the machine, see
-:func:`local_actor`), when (UTC), what (``action``, :data:`ACTIONS`) and the state of the edited part
-before and after the write, as self-describing JSON: ``{"ball": {"box", "point"}}``,
+:func:`local_actor`; the OS account is shown to admins only, the other roles read ``cli``: :func:`shown_actor`),
+when (UTC), what (``action``, :data:`ACTIONS`) and the state of the edited part before and after the write, as
+self-describing JSON: ``{"ball": {"box", "point"}}``,
 ``{"lines": {class: polylines}}``, ``{"excluded": bool}``, ``{"review": {"status", "comment"}}`` or
 ``{"calibration_review": {"status", "comment"}}`` (a view's calibration decision) or ``{"assignee": name}``
 (a system's assignee, ``app.services.curation.assignment``).
@@ -52,9 +53,32 @@ def revertible(action: str) -> bool:
     return action not in SUMMARY_ACTIONS and action not in ADMIN_ACTIONS
 
 
+#: How work run on the machine is named to every role but admins, and in the text every role reads (a reset
+#: reason, an assignment's ``assigned_by``): the OS account behind it is the machine's business, and to anyone else
+#: only the name of an account to try.
+MACHINE_ACTOR = "cli"
+
+
+def shown_actor(actor: str, admin: bool) -> str:
+    """An entry's ``actor`` as a reader sees it: the stored name for an admin; for the other roles
+    :data:`MACHINE_ACTOR` in place of ``cli:<os user>``.
+
+    >>> shown_actor("cli:root", admin=False), shown_actor("cli:root", admin=True), shown_actor("ana", admin=False)
+    ('cli', 'cli:root', 'ana')
+    """
+    return actor if admin or not actor.startswith(f"{MACHINE_ACTOR}:") else MACHINE_ACTOR
+
+
+def public_actor(actor: Optional[str]) -> str:
+    """Who made a write, as text every role reads (a decision's reset reason, an assignment's ``assigned_by``):
+    the user's name, or :data:`MACHINE_ACTOR` for work run on the machine (``actor`` None; its OS account stays in the
+    audit entry, for admins)."""
+    return actor or MACHINE_ACTOR
+
+
 def local_actor() -> str:
     """``cli:<os user>``: the actor of writes made on the machine (CLI, scripts calling the services),
-    whose owner needs no v3d account."""
+    whose owner needs no v3d account (shown to admins only: :func:`shown_actor`)."""
     try:
         user = getpass.getuser()
     except (KeyError, OSError):  # no user name in a bare container
@@ -193,12 +217,17 @@ class AuditPage:
 
 def _conditions(frame_id: Optional[int], system_id: Optional[int], user: Optional[str],
                 include_admin: bool = True) -> list[Any]:
+    """The filters of :func:`list_entries`; for a non-admin (``include_admin`` False) ``user`` matches actors as
+    :func:`shown_actor` shows them: ``cli`` every ``cli:<os user>``, a ``cli:<os user>`` nothing."""
     out: list[sa.ColumnElement[bool]] = [] if include_admin else [AuditEntry.action.not_in(ADMIN_ACTIONS)]
     if frame_id is not None:
         out.append(AuditEntry.frame_id == frame_id)
     if system_id is not None:
         out.append(AuditEntry.system_id == system_id)
-    if user is not None:
+    if user is not None and not include_admin and user.startswith(MACHINE_ACTOR):
+        out.append(AuditEntry.actor.startswith(f"{MACHINE_ACTOR}:", autoescape=True) if user == MACHINE_ACTOR
+                   else sa.false())
+    elif user is not None:
         out.append(AuditEntry.actor == user)
     return out
 
@@ -209,7 +238,8 @@ def list_entries(session: Session, *, frame_id: Optional[int] = None, system_id:
     """Entries matching every given filter, newest first (by id, the commit order of their writes).
 
     ``system_id`` matches the system's own decisions and every edit of its views; ``user`` is an
-    actor's exact name; ``include_admin`` False leaves out :data:`ADMIN_ACTIONS` (for non-admins).
+    actor's exact name; ``include_admin`` False leaves out :data:`ADMIN_ACTIONS` and reads ``user`` as a non-admin
+    sees the actors (:func:`shown_actor`: ``cli`` for work on the machine, never its OS account).
     """
     where = _conditions(frame_id, system_id, user, include_admin)
     total = session.scalar(sa.select(sa.func.count()).select_from(AuditEntry).where(*where))
