@@ -1,4 +1,5 @@
-"""Server memory while anonymous clients send large bodies (issue 27, item 1's closing figure).
+"""Server memory while anonymous clients send large bodies (issue 27, item 1's closing figure), the server's disk
+during a large predictions upload, and the review passes one annotator can store.
 
 A fresh SQLite database served by a real ``v3d serve`` (a subprocess, one worker, on a free loopback port; its
 process tree's RSS sampled every 10 ms with psutil). Anonymous requests to ``POST /api/auth/login``, each sending
@@ -25,6 +26,12 @@ alone (its 1,000 MB was spooled, copied, then refused: +2,000 MB); it is now cut
 arrived::
 
     .venv/bin/python benchmarks/body_flood.py --predictions-mb 300
+
+``--passes N`` instead serves the demo (``v3d serve --demo``) and begins N fresh review passes (``POST /api/passes
+{"fresh": true}``) as one annotator, then counts the passes stored for that annotator (each holds every system id of
+its queue; they were kept without bound, now at most ``V3D_MAX_PASSES_PER_USER``)::
+
+    .venv/bin/python benchmarks/body_flood.py --passes 300
 """
 from __future__ import annotations
 
@@ -107,25 +114,22 @@ def send_body(port: int, kind: str, size: int) -> dict[str, Any]:
 
 
 @contextlib.contextmanager
-def served(code: Path, workdir: Path) -> Iterator[tuple[int, Any]]:
-    """``v3d serve`` of ``code`` (one worker) on a fresh SQLite database in ``workdir``, its temporary files in
-    ``workdir/tmp``; yields its port and its process (psutil), and stops it afterwards."""
+def served(code: Path, workdir: Path, demo: bool = False) -> Iterator[tuple[int, Any]]:
+    """``v3d serve`` of ``code`` (one worker; ``--demo`` with ``demo``) on a fresh SQLite database in ``workdir``, its
+    temporary files in ``workdir/tmp``; yields its port and its process (psutil), and stops it afterwards."""
     import psutil
 
-    from app.db.session import upgrade_database
-
-    url = f"sqlite:///{workdir / 'flood.sqlite3'}"
-    upgrade_database(url)
+    url = f"sqlite:///{workdir / 'flood.sqlite3'}"  # migrated by the served code's own v3d serve
     (workdir / "tmp").mkdir(exist_ok=True)
     port = free_port()
     env = {**os.environ, "V3D_DATABASE_URL": url, "V3D_CALIBRATION_WORKERS": "1", "PYTHONPATH": str(code),
            "TMPDIR": str(workdir / "tmp"), "V3D_JOBS_DIR": str(workdir / "jobs")}
     cmd = [sys.executable, "-c", "import sys; from app.cli import main; sys.argv[0] = 'v3d'; main()", "serve",
-           "--host", "127.0.0.1", "--port", str(port), "--workers", "1"]
+           "--host", "127.0.0.1", "--port", str(port), "--workers", "1", *(["--demo"] if demo else [])]
     proc = subprocess.Popen(cmd, cwd=code, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
                             start_new_session=True)
     try:
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + (600 if demo else 120)
         while True:
             try:
                 with socket.create_connection(("127.0.0.1", port), timeout=1):
@@ -249,6 +253,30 @@ def send_predictions(port: int, token: str, size: int, chunked: bool = False) ->
     return {**answer, "sent_mb": sent / MB}
 
 
+def measure_passes(code: Path, n: int, workdir: Path) -> dict[str, Any]:
+    """Serve ``code`` with the demo and send ``n`` ``POST /api/passes {"fresh": true}`` as one annotator; the
+    answers, the seconds taken, and the passes stored for that annotator afterwards (rows, and the bytes of their
+    frozen system ids)."""
+    import sqlite3
+    import urllib.request
+
+    token = annotator_token(code, workdir)
+    with served(code, workdir, demo=True) as (port, _):
+        statuses: dict[int, int] = {}
+        t0 = time.perf_counter()
+        for _ in range(n):
+            request = urllib.request.Request(f"http://127.0.0.1:{port}/api/passes", data=b'{"fresh": true}',
+                                             method="POST", headers={"Authorization": f"Bearer {token}",
+                                                                     "Content-Type": "application/json"})
+            with urllib.request.urlopen(request, timeout=60) as answer:
+                statuses[answer.status] = statuses.get(answer.status, 0) + 1
+        seconds = time.perf_counter() - t0
+        with sqlite3.connect(workdir / "flood.sqlite3") as db:
+            rows, size = db.execute("SELECT count(*), coalesce(sum(length(system_ids)), 0) FROM review_passes "
+                                    "WHERE user_name = 'flood-annotator'").fetchone()
+    return {"statuses": statuses, "seconds": seconds, "stored": rows, "stored_kb": size / 1024}
+
+
 def measure_predictions(code: Path, mb: float, workdir: Path) -> list[dict[str, Any]]:
     """Serve ``code`` on a fresh database and upload ``mb`` MB of predictions as an annotator, with its length
     declared and chunked; for each the answer and the growth (MB) of the disk the server's files take (its temporary
@@ -274,8 +302,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--predictions-mb", type=float, default=None,
                         help="instead: upload this many MB of predictions to the monocular benchmark as an annotator "
                              "and measure the server's disk")
+    parser.add_argument("--passes", type=int, default=None,
+                        help="instead: begin this many fresh review passes as one annotator on a demo server and "
+                             "count those stored")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="v3d-body-flood-") as tmp:
+        if args.passes is not None:
+            r = measure_passes(args.code.resolve(), args.passes, Path(tmp))
+            print(f"{args.passes} POST /api/passes {{\"fresh\": true}} by one annotator (v3d serve --demo): "
+                  f"{r['statuses']} in {r['seconds']:.1f} s; stored {r['stored']} passes ({r['stored_kb']:.0f} KB of "
+                  "system ids)")
+            return 0
         if args.predictions_mb is not None:
             for r in measure_predictions(args.code.resolve(), args.predictions_mb, Path(tmp)):
                 print(f"{r['kind']:8s} {args.predictions_mb:g} MB of predictions to /api/evaluations/monocular: "
