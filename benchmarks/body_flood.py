@@ -32,6 +32,12 @@ arrived::
 its queue; they were kept without bound, now at most ``V3D_MAX_PASSES_PER_USER``)::
 
     .venv/bin/python benchmarks/body_flood.py --passes 300
+
+``--line-edits N`` makes N field-line edits of one demo view as one annotator, each of 2,000 points at full
+precision, and prints what the audit log stored per edit (the states were stored whole, before and after, in every
+entry; a large one is now stored once, compressed)::
+
+    .venv/bin/python benchmarks/body_flood.py --line-edits 10
 """
 from __future__ import annotations
 
@@ -86,31 +92,42 @@ def _read_status(sock: socket.socket, t0: float, answer: dict[str, Any]) -> None
     answer["seconds"] = time.perf_counter() - t0
 
 
-def send_body(port: int, kind: str, size: int) -> dict[str, Any]:
-    """Send one anonymous login of ``size`` bytes of body (``kind``: multipart, chunked, json) over a socket; the
-    status line of the answer, seconds to it, and the bytes of body sent before the server answered or closed."""
-    content_type = "application/json" if kind == "json" else "multipart/form-data; boundary=x"
-    framing = "Transfer-Encoding: chunked" if kind == "chunked" else f"Content-Length: {size}"
-    sock = socket.create_connection(("127.0.0.1", port), timeout=60)
+def send_over_socket(port: int, path: str, content_type: str, size: int, *, chunked: bool, extra_headers: str = "",
+                     head: bytes = b"", tail: bytes = b"", fill: bytes = b"a", timeout: float = 60) -> dict[str, Any]:
+    """POST ``head``, ``size`` bytes of ``fill`` and ``tail`` to ``path`` over a socket as an attacker would send them:
+    1 MB at a time (``Content-Length`` declared, or ``chunked``) until all is sent or the server answers; the status
+    line of the answer, seconds to it, and the MB of the ``size`` bytes sent before the server answered or closed."""
+    def framed(data: bytes) -> bytes:
+        return f"{len(data):x}\r\n".encode() + data + b"\r\n" if chunked and data else data
+
+    framing = "Transfer-Encoding: chunked" if chunked else f"Content-Length: {len(head) + size + len(tail)}"
+    sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
     t0 = time.perf_counter()
-    sock.sendall(f"POST /api/auth/login HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nContent-Type: {content_type}\r\n"
-                 f"{framing}\r\n\r\n".encode())
+    sock.sendall(f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n{extra_headers}Content-Type: {content_type}\r\n"
+                 f"{framing}\r\n\r\n".encode() + framed(head))
     answer: dict[str, Any] = {}
     reader = threading.Thread(target=_read_status, args=(sock, t0, answer))
     reader.start()
     sent = 0
-    block = b"a" * MB
+    block = fill * MB
     try:
         while sent < size and reader.is_alive():
-            sock.sendall(block if kind != "chunked" else f"{MB:x}\r\n".encode() + block + b"\r\n")
-            sent += MB
-        if kind == "chunked" and reader.is_alive():
-            sock.sendall(b"0\r\n\r\n")
+            sock.sendall(framed(block[:size - sent]))
+            sent += min(MB, size - sent)
+        if reader.is_alive():
+            sock.sendall(framed(tail) + (b"0\r\n\r\n" if chunked else b""))
     except OSError:
         pass  # the server answered and closed the connection: the rest is never sent
-    reader.join(timeout=120)
+    reader.join(timeout=timeout * 10)
     sock.close()
-    return {"kind": kind, **answer, "sent_mb": sent / MB}
+    return {**answer, "sent_mb": sent / MB}
+
+
+def send_body(port: int, kind: str, size: int) -> dict[str, Any]:
+    """Send one anonymous login of ``size`` bytes of body (``kind``: multipart, chunked, json) over a socket
+    (:func:`send_over_socket`)."""
+    content_type = "application/json" if kind == "json" else "multipart/form-data; boundary=x"
+    return {"kind": kind, **send_over_socket(port, "/api/auth/login", content_type, size, chunked=kind == "chunked")}
 
 
 @contextlib.contextmanager
@@ -220,37 +237,12 @@ def annotator_token(code: Path, workdir: Path) -> str:
 
 def send_predictions(port: int, token: str, size: int, chunked: bool = False) -> dict[str, Any]:
     """Upload ``size`` bytes of predictions (one multipart file of spaces; ``Content-Length`` declared, or
-    ``chunked``) to ``POST /api/evaluations/monocular`` over a socket, 1 MB at a time until it is sent or the server
-    answers; the status line, seconds to it and the MB sent."""
+    ``chunked``) to ``POST /api/evaluations/monocular`` as ``token``'s user over a socket (:func:`send_over_socket`)."""
     head = (b"--x\r\nContent-Disposition: form-data; name=\"predictions\"; filename=\"p.json\"\r\n"
             b"Content-Type: application/json\r\n\r\n")
-    tail = b"\r\n--x--\r\n"
-
-    def framed(data: bytes) -> bytes:
-        return f"{len(data):x}\r\n".encode() + data + b"\r\n" if chunked else data
-
-    framing = "Transfer-Encoding: chunked" if chunked else f"Content-Length: {len(head) + size + len(tail)}"
-    sock = socket.create_connection(("127.0.0.1", port), timeout=300)
-    t0 = time.perf_counter()
-    sock.sendall(f"POST /api/evaluations/monocular HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n"
-                 f"Authorization: Bearer {token}\r\nContent-Type: multipart/form-data; boundary=x\r\n"
-                 f"{framing}\r\n\r\n".encode() + framed(head))
-    answer: dict[str, Any] = {}
-    reader = threading.Thread(target=_read_status, args=(sock, t0, answer))
-    reader.start()
-    sent = 0
-    block = b" " * MB
-    try:
-        while sent < size and reader.is_alive():
-            sock.sendall(framed(block[:size - sent]))
-            sent += min(MB, size - sent)
-        if reader.is_alive():
-            sock.sendall(framed(tail) + (b"0\r\n\r\n" if chunked else b""))
-    except OSError:
-        pass  # the server answered and closed the connection: the rest is never sent
-    reader.join(timeout=600)
-    sock.close()
-    return {**answer, "sent_mb": sent / MB}
+    return send_over_socket(port, "/api/evaluations/monocular", "multipart/form-data; boundary=x", size,
+                            chunked=chunked, extra_headers=f"Authorization: Bearer {token}\r\n", head=head,
+                            tail=b"\r\n--x--\r\n", fill=b" ", timeout=300)
 
 
 def measure_passes(code: Path, n: int, workdir: Path) -> dict[str, Any]:
@@ -275,6 +267,55 @@ def measure_passes(code: Path, n: int, workdir: Path) -> dict[str, Any]:
             rows, size = db.execute("SELECT count(*), coalesce(sum(length(system_ids)), 0) FROM review_passes "
                                     "WHERE user_name = 'flood-annotator'").fetchone()
     return {"statuses": statuses, "seconds": seconds, "stored": rows, "stored_kb": size / 1024}
+
+
+def _api(port: int, token: str, method: str, path: str, body: Any = None,
+         headers: dict[str, str] | None = None) -> tuple[int, dict[str, str], Any]:
+    """One JSON request to the served API with an API token: the status, the headers and the decoded answer."""
+    import json
+    import urllib.request
+
+    request = urllib.request.Request(
+        f"http://127.0.0.1:{port}{path}", method=method, data=None if body is None else json.dumps(body).encode(),
+        headers={"Authorization": f"Bearer {token}", "Content-Type": "application/json", **(headers or {})})
+    with urllib.request.urlopen(request, timeout=120) as answer:
+        return answer.status, dict(answer.headers), json.loads(answer.read() or b"null")
+
+
+def measure_line_edits(code: Path, n: int, workdir: Path) -> dict[str, Any]:
+    """Serve ``code`` with the demo and make ``n`` field-line edits of one view as one annotator, each of 2,000
+    points at full precision (the view's own polylines cut finer, moved 0.25 px further by each edit, so that every
+    edit's lines are new and its lines before are the previous edit's after); the bytes the audit log stored for them
+    (its entries' states as text, and the distinct stored states they name where the schema has ``audit_states``) per
+    edit."""
+    import sqlite3
+
+    from benchmarks.edit_lock import dense_lines
+
+    token = annotator_token(code, workdir)
+    with served(code, workdir, demo=True) as (port, _):
+        system_id = _api(port, token, "GET", "/api/systems?limit=1")[2]["items"][0]["id"]
+        frame_id = _api(port, token, "GET", f"/api/systems/{system_id}")[2]["views"][0]["frame_id"]
+        lines = _api(port, token, "GET", f"/api/frames/{frame_id}")[2]["field_lines"]
+        dense = dense_lines(lines, 2000, decimals=17)
+        entries = []
+        for i in range(n):
+            moved = {c: [[[x + 0.25 * (i + 1), y] for x, y in poly] for poly in polys] for c, polys in dense.items()}
+            etag = _api(port, token, "GET", f"/api/frames/{frame_id}")[1]["etag"]
+            _, headers, _ = _api(port, token, "PUT", f"/api/frames/{frame_id}/field-lines", {"lines": moved},
+                                 {"If-Match": etag})
+            entries.append(int(headers["x-v3d-audit-entry"]))
+    with sqlite3.connect(workdir / "flood.sqlite3") as db:
+        ids = ",".join(map(str, entries))
+        inline = db.execute(f"SELECT coalesce(sum(length(before)), 0) + coalesce(sum(length(after)), 0) "
+                            f"FROM audit_entries WHERE id IN ({ids})").fetchone()[0]
+        shared = 0
+        if db.execute("SELECT count(*) FROM sqlite_master WHERE name = 'audit_states'").fetchone()[0]:
+            shared = db.execute(f"SELECT coalesce(sum(length(body)), 0) FROM audit_states WHERE digest IN "
+                                f"(SELECT before_digest FROM audit_entries WHERE id IN ({ids}) UNION "
+                                f"SELECT after_digest FROM audit_entries WHERE id IN ({ids}))").fetchone()[0]
+    return {"edits": n, "inline_kb": inline / 1024, "shared_kb": shared / 1024,
+            "per_edit_kb": (inline + shared) / 1024 / n}
 
 
 def measure_predictions(code: Path, mb: float, workdir: Path) -> list[dict[str, Any]]:
@@ -302,11 +343,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--predictions-mb", type=float, default=None,
                         help="instead: upload this many MB of predictions to the monocular benchmark as an annotator "
                              "and measure the server's disk")
+    parser.add_argument("--line-edits", type=int, default=None,
+                        help="instead: make this many 2,000-point field-line edits of one view on a demo server and "
+                             "measure what the audit log stores per edit")
     parser.add_argument("--passes", type=int, default=None,
                         help="instead: begin this many fresh review passes as one annotator on a demo server and "
                              "count those stored")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="v3d-body-flood-") as tmp:
+        if args.line_edits is not None:
+            r = measure_line_edits(args.code.resolve(), args.line_edits, Path(tmp))
+            print(f"{r['edits']} line edits of 2,000 points (v3d serve --demo): the audit log stored "
+                  f"{r['per_edit_kb']:.1f} KB per edit ({r['inline_kb']:.0f} KB in its entries, "
+                  f"{r['shared_kb']:.0f} KB of states stored once)")
+            return 0
         if args.passes is not None:
             r = measure_passes(args.code.resolve(), args.passes, Path(tmp))
             print(f"{args.passes} POST /api/passes {{\"fresh\": true}} by one annotator (v3d serve --demo): "

@@ -5,56 +5,30 @@ then refused by the 64 MB predictions limit (+2,000 MB of disk at the peak). Now
 ``V3D_MAX_PREDICTIONS_MB`` has arrived; ``benchmarks/body_flood.py --predictions-mb 300`` measures the disk."""
 from __future__ import annotations
 
-import asyncio
-
 import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
 from tests.accounts import Account, as_token
+from tests.api.test_bodies import _asgi_post
 
 MB = 2**20
 BOUNDARY = "v3d-boundary"
 
 
 def _stream_upload(app: FastAPI, path: str, token: str, field: str, size: int, *,
-                   chunk: int = 256 * 1024, chunked: bool = True) -> tuple[int, str, int]:
-    """Send a multipart upload of one file of ``size`` bytes (field ``field``) to ``app`` straight over ASGI, chunk
-    by chunk as a socket delivers it (the test client reads a whole body first); returns the status, the answer and
-    how many bytes of the body the app read before it answered."""
+                   chunked: bool = True) -> tuple[int, str, int]:
+    """A multipart upload of one file of ``size`` bytes (field ``field``) sent to ``app`` over ASGI in 256 KB chunks
+    as a socket delivers it (``tests/api/test_bodies._asgi_post``); the status, the answer and how many bytes of the
+    body the app read before it answered."""
     head = (f'--{BOUNDARY}\r\nContent-Disposition: form-data; name="{field}"; filename="p.json"\r\n'
             "Content-Type: application/json\r\n\r\n").encode()
     tail = f"\r\n--{BOUNDARY}--\r\n".encode()
-    total = len(head) + size + len(tail)
-    read = 0
-    answer: dict[str, object] = {"body": b""}
-
-    async def receive() -> dict:
-        nonlocal read
-        if read >= total:
-            return {"type": "http.disconnect"}
-        n = min(chunk, total - read)
-        body = (head if read == 0 else b"") + b" " * (n - (len(head) if read == 0 else 0))
-        if read + n == total:
-            body = body[:-len(tail)] + tail
-        read += n
-        return {"type": "http.request", "body": body, "more_body": read < total}
-
-    async def send(message: dict) -> None:
-        if message["type"] == "http.response.start":
-            answer["status"] = message["status"]
-        elif message["type"] == "http.response.body":
-            answer["body"] = answer["body"] + message.get("body", b"")  # type: ignore[operator]  # bytes so far
-
-    framing = {"transfer-encoding": "chunked"} if chunked else {"content-length": str(total)}
-    headers = {"host": "testserver", "authorization": f"Bearer {token}",
-               "content-type": f"multipart/form-data; boundary={BOUNDARY}", **framing}
-    scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": "POST", "scheme": "http",
-             "path": path, "raw_path": path.encode(), "root_path": "", "query_string": b"",
-             "headers": [(k.encode(), v.encode()) for k, v in headers.items()],
-             "client": ("127.0.0.1", 50000), "server": ("testserver", 80), "state": {}}
-    asyncio.run(app(scope, receive, send))
-    return int(answer["status"]), bytes(answer["body"]).decode(), read  # type: ignore[arg-type]  # set by the answer
+    framing = {"transfer-encoding": "chunked"} if chunked else {"content-length": str(len(head) + size + len(tail))}
+    headers = {"authorization": f"Bearer {token}", "content-type": f"multipart/form-data; boundary={BOUNDARY}",
+               **framing}
+    status, body, read = _asgi_post(app, path, headers, size, chunk=256 * 1024, head=head, tail=tail)
+    return status, body.decode(), read
 
 
 @pytest.fixture
@@ -84,7 +58,7 @@ def test_a_predictions_upload_is_cut_once_its_own_limit_has_arrived(predictions_
 
 def test_a_predictions_upload_under_its_limit_is_read(predictions_app: FastAPI,
                                                       accounts: dict[str, Account]) -> None:
-    """Below its limit the upload goes through to the benchmark (here a COCO file of spaces: 422, not 413)."""
+    """Below its limit the upload goes through to the benchmark (here no predictions file at all: 422, not 413)."""
     status, body, read = _stream_upload(predictions_app, "/api/evaluations/monocular",
                                         accounts["annotator"].token, "predictions", MB // 2)
     assert status == 422 and "413" not in body, body[:300]

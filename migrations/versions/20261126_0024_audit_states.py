@@ -12,7 +12,7 @@ SQLite file keeps its size until ``VACUUM``.
 
 Revision ID: 0024
 Revises: 0023
-Create Date: 2026-11-27 09:00:00+00:00
+Create Date: 2026-11-26 14:00:00+00:00
 """
 from __future__ import annotations
 
