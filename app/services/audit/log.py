@@ -127,8 +127,10 @@ def stored_state(session: Session, state: Optional[dict[str, Any]]) -> tuple[Opt
                                                                            Optional[AuditState]]:
     """Where an entry keeps ``state`` (JSON-safe already): ``(state, None)`` inline when it is small, else ``(None,
     row)`` with the :class:`AuditState` row of its digest, inserted unless a row of that digest exists (``ON
-    CONFLICT DO NOTHING``: two writers storing the same state at once never collide). In the caller's write
-    transaction; the session is not flushed (the caller's changes are flushed, and compared, by the caller)."""
+    CONFLICT DO NOTHING``: two writers storing the same state at once never collide; the second waits for the
+    first's commit and then reads its row, as PostgreSQL's read committed isolation and SQLite's single writer
+    allow). In the caller's write transaction; the session is not flushed (the caller's changes are flushed, and
+    compared, by the caller)."""
     if state is None:
         return None, None
     canonical = canonical_json(state)
