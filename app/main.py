@@ -47,6 +47,7 @@ from app.api.deps import SessionDep
 from app.api.errors import install_error_handlers
 from app.api.hosts import allowed_hosts
 from app.api.main import api_router
+from app.api.schemas import db_id
 from app.api.security import SecurityHeadersMiddleware
 from app.core.config import Settings, get_settings
 from app.core.errors import NotFoundError
@@ -166,8 +167,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # its route does not take, or too large, is refused before the route reads it. The compression of answers is
     # innermost (app.api.compression: never an answer carrying a secret).
     app.add_middleware(CompressionMiddleware)
-    app.add_middleware(BodyLimitMiddleware, routes=app.router.routes, max_json_bytes=int(settings.max_json_kb * 1024),
-                       max_upload_bytes=int(settings.max_upload_mb * 2**20))
+    app.add_middleware(BodyLimitMiddleware, routes=app.router.routes, settings=settings)
     app.add_middleware(AuthenticationMiddleware, max_age_s=settings.session_max_age_s)
     app.add_middleware(SessionCookieMiddleware, secret=secret, max_age=settings.session_max_age_s,
                        https_only=settings.secure_cookies)
@@ -202,9 +202,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if getattr(request.state, "principal", None) is None:
             return _page("system.html")
         try:
-            if not (system_id.isascii() and system_id.isdigit() and int(system_id) < 2**63):
+            wanted = db_id(system_id)  # the API's id type: no row has an id beyond the database's integers
+            if wanted is None:
                 raise NotFoundError("system", system_id)
-            get_system(session, int(system_id))
+            get_system(session, wanted)
         except NotFoundError:
             return _missing_system_page(system_id, request.url.query)
         return _page("system.html")

@@ -20,7 +20,8 @@ class AuditEntryOut(BaseModel):
 
     id: int
     at: datetime
-    actor: str = Field(description="The user's name (cli:<os user> for work run on the machine).")
+    actor: str = Field(description="The user's name (work run on the machine: cli:<os user> to admins, cli to the "
+                                   "other roles).")
     action: str
     frame_id: Optional[int]
     system_id: Optional[int]
@@ -33,6 +34,13 @@ class AuditEntryOut(BaseModel):
         "The change in one line of words (\"ball of V2 moved 12.3 px\", \"V3 excluded from the 3D ball\", "
         "\"moved point 9 of Circle right (V3): JaC 0.909 -> refused\", \"system accepted\"), written when the entry "
         "was recorded; for entries older than that, computed from `before` and `after` when read."))
+
+    @classmethod
+    def shown(cls, entry: Any, admin: bool) -> "AuditEntryOut":
+        """The entry as a reader sees it: its actor through ``app.services.audit.log.shown_actor`` (work run on the
+        machine is ``cli`` to every role but admins)."""
+        out = cls.model_validate(entry)
+        return out if admin else out.model_copy(update={"actor": audit.shown_actor(out.actor, admin=False)})
 
     @model_validator(mode="after")
     def _summarised(self) -> "AuditEntryOut":

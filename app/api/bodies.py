@@ -9,8 +9,11 @@ body declares, derived from the route itself, so that the table cannot drift fro
   ``Content-Type`` to a JSON route) is answered **415 before a byte of it is read** (a body: a
   ``Content-Length`` above 0, or chunked); a route that takes no body accepts a JSON one and ignores it;
 * a ``multipart/form-data`` body to an **upload route** (one that takes multipart: :func:`upload_routes`,
-  today ``POST /api/imports`` and ``POST /api/evaluations/monocular``) may carry up to ``V3D_MAX_UPLOAD_MB``;
-  every other body, whatever its declared type, up to ``V3D_MAX_JSON_KB``.
+  today ``POST /api/imports`` and ``POST /api/evaluations/monocular``) may carry up to the route's own limit: the
+  setting it declares (:data:`UPLOAD_LIMIT` in its ``openapi_extra``: the monocular benchmark's predictions
+  ``V3D_MAX_PREDICTIONS_MB``), never more than ``V3D_MAX_UPLOAD_MB``, which bounds a route that declares none
+  (``app.services.transfer.archives.upload_limit``); every other body, whatever its declared type, up to
+  ``V3D_MAX_JSON_KB``.
 
 A ``Content-Length`` above the limit is answered 413 at once; a body without one (chunked) or lying about it
 is counted as it streams and answered 413 as soon as it passes the limit, so that no route (FastAPI's JSON
@@ -29,14 +32,22 @@ from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.api.schemas import ErrorOut
+from app.core.config import Settings
+from app.services.transfer.archives import MAX_UPLOAD_SETTING, upload_limit
 
 #: The media type of JSON bodies, and of uploads (the only type that may use ``V3D_MAX_UPLOAD_MB``).
 JSON_TYPE, UPLOAD_TYPE = "application/json", "multipart/form-data"
 
+#: The OpenAPI extension by which an upload route declares the setting (MB) bounding its uploads below
+#: ``V3D_MAX_UPLOAD_MB``: ``openapi_extra={UPLOAD_LIMIT: "V3D_MAX_PREDICTIONS_MB"}`` (shown in ``/docs`` too).
+UPLOAD_LIMIT = "x-v3d-upload-limit"
+
 #: The OpenAPI ``responses`` entries of every route (``app.api.main``).
 BODY_REFUSED: dict[int | str, dict[str, Any]] = {
-    413: {"model": ErrorOut, "description": "The body is larger than V3D_MAX_JSON_KB (JSON) or V3D_MAX_UPLOAD_MB "
-                                            "(an upload): refused before it is parsed."},
+    413: {"model": ErrorOut, "description": "The body is larger than V3D_MAX_JSON_KB (JSON) or the upload route's "
+                                            "limit (V3D_MAX_UPLOAD_MB, or the setting named by the operation's "
+                                            "x-v3d-upload-limit): refused before it is parsed, or as soon as that "
+                                            "much has arrived."},
     415: {"model": ErrorOut, "description": "The body's Content-Type is not one this route takes (e.g. multipart to "
                                             "a JSON route): refused before it is read."},
 }
@@ -88,6 +99,14 @@ def route_media_types(route: BaseRoute | RouteContext) -> frozenset[str]:
     return frozenset({media_type(getattr(route.body_field.field_info, "media_type", JSON_TYPE))})
 
 
+def declared_upload_limit(route: BaseRoute | RouteContext) -> str:
+    """The setting (its environment name) that bounds the uploads of ``route``: the one its ``openapi_extra``
+    declares under :data:`UPLOAD_LIMIT`, else ``V3D_MAX_UPLOAD_MB``."""
+    route = getattr(route, "original_route", route)
+    declared = (getattr(route, "openapi_extra", None) or {}).get(UPLOAD_LIMIT)
+    return str(declared) if declared else MAX_UPLOAD_SETTING
+
+
 def upload_routes(routes: Sequence[BaseRoute]) -> list[tuple[str, str]]:
     """``(method, path)`` of every route of an app's ``routes`` (included routers walked) that takes an upload
     (multipart), sorted: those whose bodies may reach ``V3D_MAX_UPLOAD_MB``."""
@@ -109,20 +128,22 @@ def route_of(routes: Sequence[BaseRoute], scope: Scope) -> Optional[RouteContext
 
 
 def body_policy(takes: frozenset[str], content_type: str, max_json_bytes: int,
-                max_upload_bytes: int) -> Optional[tuple[int, str]]:
+                upload: tuple[int, str]) -> Optional[tuple[int, str]]:
     """The limit (bytes) and the setting naming it for a body of ``content_type`` sent to a route that takes
-    ``takes`` (:func:`route_media_types`), or None when the route does not take that type (415).
+    ``takes`` (:func:`route_media_types`) and whose uploads are bounded by ``upload`` (bytes, setting), or None
+    when the route does not take that type (415).
 
-    >>> body_policy(frozenset({"multipart/form-data"}), "multipart/form-data; boundary=x", 1024, 10)
+    >>> up = (10, "V3D_MAX_UPLOAD_MB")
+    >>> body_policy(frozenset({"multipart/form-data"}), "multipart/form-data; boundary=x", 1024, up)
     (10, 'V3D_MAX_UPLOAD_MB')
-    >>> body_policy(frozenset({"application/json"}), "multipart/form-data; boundary=x", 1024, 10) is None
+    >>> body_policy(frozenset({"application/json"}), "multipart/form-data; boundary=x", 1024, up) is None
     True
-    >>> body_policy(frozenset(), "application/json", 1024, 10), body_policy(frozenset(), "text/plain", 1024, 10)
+    >>> body_policy(frozenset(), "application/json", 1024, up), body_policy(frozenset(), "text/plain", 1024, up)
     ((1024, 'V3D_MAX_JSON_KB'), None)
     """
     media = media_type(content_type)
     if media == UPLOAD_TYPE and UPLOAD_TYPE in takes:
-        return max_upload_bytes, "V3D_MAX_UPLOAD_MB"
+        return upload
     if media in takes or (is_json(media) and (not takes or JSON_TYPE in takes)):
         return max_json_bytes, "V3D_MAX_JSON_KB"
     return None
@@ -135,14 +156,14 @@ def _refusal(status: int, detail: str) -> JSONResponse:
 class BodyLimitMiddleware:
     """415 for a body of a type its route does not take, 413 for one above its route's limit
     (:func:`body_policy`), declared or streamed. ``routes``: the app's route list (read at each request, so
-    routes added after the middleware count)."""
+    routes added after the middleware count); ``settings``: the limits (``V3D_MAX_JSON_KB``, ``V3D_MAX_UPLOAD_MB``
+    and those the upload routes declare)."""
 
-    def __init__(self, app: ASGIApp, *, routes: Sequence[BaseRoute], max_json_bytes: int,
-                 max_upload_bytes: int) -> None:
+    def __init__(self, app: ASGIApp, *, routes: Sequence[BaseRoute], settings: Settings) -> None:
         self.app = app
         self.routes = routes
-        self.max_json_bytes = max_json_bytes
-        self.max_upload_bytes = max_upload_bytes
+        self.settings = settings
+        self.max_json_bytes = int(settings.max_json_kb * 1024)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -154,7 +175,8 @@ class BodyLimitMiddleware:
         content_type = headers.get("content-type", "")
         route = route_of(self.routes, scope) if has_body else None  # no body: nothing to look up
         takes = route_media_types(route) if route is not None else frozenset()
-        policy = body_policy(takes, content_type, self.max_json_bytes, self.max_upload_bytes)
+        upload = upload_limit(self.settings, declared_upload_limit(route) if route is not None else MAX_UPLOAD_SETTING)
+        policy = body_policy(takes, content_type, self.max_json_bytes, upload)
         if policy is None:
             if has_body:
                 wanted = " or ".join(sorted(takes)) or "no body (or JSON, ignored)"

@@ -13,7 +13,7 @@ from typing import Annotated
 from fastapi import Depends, Path, Request
 from sqlalchemy.orm import Session
 
-from app.api.schemas import DB_INT_MAX, DB_INT_MIN
+from app.api.schemas import DbInt
 from app.core.config import Settings
 from app.db.models import Frame, System
 from app.services.curation.writing import EditContext
@@ -46,8 +46,8 @@ SessionDep = Annotated[Session, Depends(get_session)]
 EditDep = Annotated[EditContext, Depends(edit_context)]
 
 
-#: The ``system_id`` path parameter of the system routes (bounded to the database's integers).
-SystemIdPath = Annotated[int, Path(description="System id.", ge=DB_INT_MIN, le=DB_INT_MAX)]
+#: The ``system_id`` path parameter of the system routes (the API's one id type, ``DbInt``: the database's integers).
+SystemIdPath = Annotated[DbInt, Path(description="System id.")]
 
 
 def system_by_id(session: SessionDep, system_id: SystemIdPath) -> System:
@@ -55,8 +55,8 @@ def system_by_id(session: SessionDep, system_id: SystemIdPath) -> System:
     return _get_system(session, system_id)
 
 
-#: The ``frame_id`` path parameter of the frame routes (bounded to the database's integers).
-FrameIdPath = Annotated[int, Path(description="Frame id.", ge=DB_INT_MIN, le=DB_INT_MAX)]
+#: The ``frame_id`` path parameter of the frame routes (``DbInt``, as every id).
+FrameIdPath = Annotated[DbInt, Path(description="Frame id.")]
 
 
 def frame_by_id(session: SessionDep, frame_id: FrameIdPath) -> Frame:

@@ -65,11 +65,13 @@ SECRET_FIELDS = frozenset({"password", "token", "secret"})
 
 
 def shortened(text: str, limit: int = MAX_DETAIL_CHARS) -> str:
-    """``text`` cut to ``limit`` characters, saying how much was left out.
+    """``text`` cut to ``limit`` characters, saying how much was left out; a lone surrogate a client sent (which no
+    UTF-8 answer can hold) written as its escape.
 
-    >>> shortened("abcdef", 3)
-    'abc... (3 more characters)'
+    >>> shortened("abcdef", 3), shortened("a\\ud800")
+    ('abc... (3 more characters)', 'a\\\\ud800')
     """
+    text = text.encode("utf-8", "backslashreplace").decode("utf-8")
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text) - limit} more characters)"
 
 
@@ -100,7 +102,8 @@ def shown_validation_error(error: dict[str, Any]) -> dict[str, Any]:
             continue
         try:
             value = jsonable_encoder(error[key])
-            text = json.dumps(value)
+            text = json.dumps(value, ensure_ascii=False)
+            text.encode("utf-8")  # a lone surrogate cannot be answered (UnicodeEncodeError, a ValueError)
         except (TypeError, ValueError):
             continue
         if len(text) <= MAX_ECHO_CHARS:
@@ -143,14 +146,16 @@ async def _invalid(_: Request, exc: Exception) -> JSONResponse:
     return _answer(status.HTTP_422_UNPROCESSABLE_CONTENT, exc, getattr(exc, "field", None))
 
 
-async def _stale(_: Request, exc: Exception) -> JSONResponse:
+async def _stale(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StaleVersionError)
     current = exc.current
+    principal = getattr(request.state, "principal", None)
+    admin = principal is not None and principal.may("admin")
     body = StaleOut(
         detail=str(exc), etag=exc.etag,
         current=(FrameView.of_frame(current) if isinstance(current, Frame)
                  else SystemStateOut.of(current) if current is not None else None),  # type: ignore[arg-type]  # current is a Frame or a System: a System here
-        last_change=AuditEntryOut.model_validate(exc.last_change) if exc.last_change is not None else None,
+        last_change=AuditEntryOut.shown(exc.last_change, admin) if exc.last_change is not None else None,
     )
     return JSONResponse(body.model_dump(mode="json", by_alias=True), status_code=status.HTTP_412_PRECONDITION_FAILED,
                         headers={"ETag": exc.etag, "Cache-Control": "no-cache"})

@@ -8,6 +8,7 @@ as fractions in [0, 1]. The answers of the review views (the system view, the UI
 """
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING, Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
@@ -15,7 +16,14 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
 from app.db.models import ReviewStatus
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
-from app.services.curation.queue import DEFAULT_SORT, FrameFilters, FrameSort, SystemFilters, SystemSort
+from app.services.curation.queue import (
+    ASSIGNEE_ME,
+    DEFAULT_SORT,
+    FrameFilters,
+    FrameSort,
+    SystemFilters,
+    SystemSort,
+)
 
 #: A coordinate of a request body: a JSON number (``true`` or ``"1"`` are refused naming the field, not
 #: read as 1.0); NaN and infinity pass here so that the services refuse them with their message.
@@ -30,45 +38,75 @@ else:
 #: Bounds of an integer compared with a stored one (ids, offsets): the id columns are ``INTEGER``, 32-bit signed
 #: on PostgreSQL (SQLite's are 64-bit). A larger number would fail in the database or its driver (a 500:
 #: "integer out of range", OverflowError; found by ``benchmarks/fuzz.py``); it is a 422 naming the parameter.
-#: An id (or any integer compared with a stored one) in a path or query parameter.
+#: An id (or any integer compared with a stored one) in a path or query parameter or a body: the one id type of the
+#: API (``app.api.deps.SystemIdPath`` and the other path parameters add their description to it; the system page's
+#: address is read by :func:`db_id`).
 DbInt = Annotated[int, Field(ge=DB_INT_MIN, le=DB_INT_MAX)]
+
+
+def db_id(text: str) -> Optional[int]:
+    """The id a path segment names when :data:`DbInt` holds it (decimal digits within the database's integers),
+    else None (no row can have it).
+
+    >>> db_id("42"), db_id("2147483647"), db_id("2147483648"), db_id("9000000000"), db_id("-1"), db_id("4x")
+    (42, 2147483647, None, None, None, None)
+    """
+    if not (text.isascii() and text.isdigit()) or len(text) > len(str(DB_INT_MAX)):
+        return None
+    value = int(text)
+    return value if DB_INT_MIN <= value <= DB_INT_MAX else None
 #: Text in a path or query parameter compared with stored text: no NUL character (PostgreSQL's text cannot hold
 #: one: a 500 there, found by ``benchmarks/fuzz.py`` in the audit log's ``user`` filter).
 QueryText = Annotated[str, Field(pattern=r"^[^\x00]*$")]
 
 
-def nul_character_at(value: Any, where: str = "") -> Optional[str]:
-    """The path (``"lines.Goal left crossbar"``) of the first string in ``value`` (nested dicts, lists)
-    holding a NUL character, ``""`` for ``value`` itself; None when there is none.
+#: What text from a client may not hold, and why: NUL (PostgreSQL's text cannot hold it: a 500 there, found by
+#: ``benchmarks/fuzz.py``), and a lone UTF-16 surrogate (JSON's ``"\\ud800"`` escape parses to one; it is no Unicode
+#: text, so no database, log or UTF-8 answer can hold it: a 500 wherever it went).
+UNSTORABLE_TEXT = re.compile("[\x00\ud800-\udfff]")
 
-    >>> nul_character_at({"comment": "ok", "lines": {"a\\x00": []}}), nul_character_at(["ok"])
+
+def unstorable_text_at(value: Any, where: str = "") -> Optional[tuple[str, str]]:
+    """Where the first string in ``value`` (nested dicts, lists; keys included) holds a character of
+    :data:`UNSTORABLE_TEXT`, and what it is: ``(path, "NUL (\\x00) characters")`` or ``(path, "a lone surrogate
+    ...")``, the path like ``"lines.Goal left crossbar"`` (``""`` for ``value`` itself); None when there is none.
+
+    >>> unstorable_text_at({"comment": "ok", "lines": {"a\\x00": []}})[0], unstorable_text_at(["ok"])
     ('lines', None)
+    >>> unstorable_text_at({"filter": {"assignee": "x\\ud800"}})[0]
+    'filter.assignee'
     """
     if isinstance(value, str):
-        return where if "\x00" in value else None
+        found = UNSTORABLE_TEXT.search(value)
+        if found is None:
+            return None
+        what = "NUL (\\x00) characters" if found.group() == "\x00" else "a lone surrogate (\\ud800-\\udfff)"
+        return where, what
     items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
     for key, item in items:
         inner = f"{where}.{key}" if where else str(key)
-        if isinstance(key, str) and "\x00" in key:
-            return where
-        found = nul_character_at(item, inner)
-        if found is not None:
-            return found
+        bad_key = unstorable_text_at(key, where) if isinstance(key, str) else None
+        if bad_key is not None:
+            return bad_key
+        found_inner = unstorable_text_at(item, inner)
+        if found_inner is not None:
+            return found_inner
     return None
 
 
 class _In(BaseModel):
-    """Request bodies reject unknown fields, so a misspelt field is an error, not a no-op, and NUL
-    characters anywhere (PostgreSQL's text cannot hold them: a 500 there, found by ``benchmarks/fuzz.py``)."""
+    """Request bodies reject unknown fields, so a misspelt field is an error, not a no-op, and text that cannot be
+    stored anywhere (:data:`UNSTORABLE_TEXT`: NUL, lone surrogates), naming where it is."""
 
     model_config = ConfigDict(extra="forbid")
 
     @model_validator(mode="before")
     @classmethod
-    def _no_nul_characters(cls, data: Any) -> Any:
-        where = nul_character_at(data)
-        if where is not None:
-            raise ValueError(f"{where or 'body'}: text must not contain NUL (\\x00) characters")
+    def _only_storable_text(cls, data: Any) -> Any:
+        found = unstorable_text_at(data)
+        if found is not None:
+            where, what = found
+            raise ValueError(f"{where or 'body'}: text must not contain {what}")
         return data
 
 
@@ -94,14 +132,14 @@ class QueueQuery(BaseModel):
     assignee: Optional[QueryText] = Field(
         None, min_length=1, max_length=100,
         description="Only systems assigned to this user (a name), 'me' (the caller's), or 'none' (unassigned ones); "
-        "422 for an unknown name.")
+        "an unknown name matches nothing, as a user with none assigned does.")
     sort: SystemSort = Field(DEFAULT_SORT, description="Order; a leading '-' means descending. Missing values last.")
 
     def filters(self, me: Optional[str] = None) -> SystemFilters:
         """The service-level filters; ``me``: the caller's name, which ``assignee=me`` stands for (without it,
         ``assignee=me`` filters nothing out)."""
         assignee = self.assignee
-        if assignee == "me":
+        if assignee == ASSIGNEE_ME:
             assignee = me
         return SystemFilters(game_id=self.game_id, status=self.status, jac_min=self.jac_min,
                              jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max,

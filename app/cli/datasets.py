@@ -134,6 +134,8 @@ def _run_import(settings: Settings, params: dict[str, Any]) -> None:
         typer.echo(f"  refused x{n}: {reason}")
     for skipped in r.get("skipped_systems", []):
         typer.echo(f"  system left out: {skipped}")
+    for skipped in r.get("skipped_games", []):
+        typer.echo(f"  game left out: {skipped}")
 
 
 @import_cli.command("soccernet-v3")

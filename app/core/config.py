@@ -256,8 +256,9 @@ class Settings(BaseSettings):
         "to per byte it packs, beyond its first MiB: checked from the zip's directory and counted again while it "
         "unpacks; a zip bomb is refused (400; 422 for the monocular benchmark's predictions).")
     max_predictions_mb: float = Field(
-        64.0, gt=0, description="Largest COCO results JSON the monocular benchmark reads (MB), read as a stream: 422 "
-        "beyond it. Each YOLO .txt may hold 1 MiB (app.geometry.metrics) and data.yaml 64 KiB "
+        64.0, gt=0, description="Largest predictions upload of the monocular benchmark (a zip of YOLO files or a COCO "
+        "results JSON, MB): 413 as soon as that much of the body has arrived (never spooled beyond it); the COCO file "
+        "is read as a stream. Each YOLO .txt may hold 1 MiB (app.geometry.metrics) and data.yaml 64 KiB "
         "(app.services.evaluation.monocular).")
     max_image_pixels: int = Field(
         50_000_000, gt=0, description="Most pixels (width x height) an imported image or video frame may have, read "
@@ -273,6 +274,10 @@ class Settings(BaseSettings):
         "left out of the import, which names it and the count in its report (skipped_systems); the rest of the "
         "dataset imports. Pairwise work grows with the square of the views. Systems stored before the cap still "
         "open and edit (V3D_MAX_VIEWS_PER_SYSTEM).")
+    max_passes_per_user: int = Field(
+        50, gt=0, description="Most review passes kept per user (each stores the ids of every system of its queue): "
+        "beginning one more drops that user's least recently visited passes beyond it, in the same transaction "
+        "(V3D_MAX_PASSES_PER_USER).")
     write_lock_timeout_s: float = Field(
         5.0, gt=0, description="How long a served request waits for the database's write lock (SQLite's busy "
         "timeout; PostgreSQL's lock_timeout on the row locks of an edit) before it is answered 503 with Retry-After "

@@ -63,6 +63,17 @@ class DatasetError(InvalidInputError):
         self.field = field
 
 
+class EntryError(DatasetError):
+    """A value of one entry of a game's labels that cannot be stored (a ball label the shared check refuses:
+    ``app.datasets.labels``), as opposed to a file that is not of its format or reaches outside the dataset: an
+    import that reads its games one by one leaves that game out, naming the file, the entry and why
+    (``problem``), and imports the others."""
+
+    def __init__(self, file: str | Path, field: str | None, problem: str) -> None:
+        super().__init__(file, field, problem)
+        self.problem = problem
+
+
 class ForbiddenError(ServiceError, PermissionError):
     """A request the service refuses on principle (not for its content): HTTP 403."""
 

@@ -2,12 +2,18 @@
 
 Boxes are ``[x1, y1, x2, y2]`` and points ``[x, y]``, pixels of the frame (continuous coordinates,
 origin at the top-left corner). A box partly outside the image is legitimate (a ball at the border);
-a box entirely outside it, a degenerate box, or a non-finite coordinate is not.
+a box entirely outside it, a degenerate box, a non-finite coordinate, or a box reaching farther than
+:data:`BOX_REACH` image sizes beyond the image (no ball is seen so: ``[0, 0, 1e308, 1e308]`` made the 3D ball's
+computation fail) is not. One check for every label that enters: edits and every importer.
 """
 from __future__ import annotations
 
 import math
 from typing import Any, Sequence
+
+#: How far beyond the image a ball box may reach, in image sizes (its width for x, its height for y): a ball at the
+#: border is partly outside, a ball box is never larger than the image it is seen in.
+BOX_REACH = 1.0
 
 
 class LabelError(ValueError):
@@ -35,8 +41,8 @@ def check_box(box: Any, width: int, height: int) -> list[float]:
     """A validated ball box ``[x1, y1, x2, y2]`` (floats, pixels).
 
     Raises:
-        LabelError: not four finite numbers, ``x2 <= x1`` or ``y2 <= y1``, or entirely outside the
-            ``width`` x ``height`` image.
+        LabelError: not four finite numbers, ``x2 <= x1`` or ``y2 <= y1``, entirely outside the ``width`` x
+            ``height`` image, or reaching farther than :data:`BOX_REACH` image sizes beyond it.
 
     >>> check_box([950, 10, 970, 30], 960, 540)  # partly outside: kept
     [950.0, 10.0, 970.0, 30.0]
@@ -44,12 +50,21 @@ def check_box(box: Any, width: int, height: int) -> list[float]:
     Traceback (most recent call last):
     ...
     app.datasets.labels.LabelError: box [970.0, 10.0, 990.0, 30.0] lies entirely outside the 960x540 image
+    >>> check_box([0, 0, 1e308, 1e308], 960, 540)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    app.datasets.labels.LabelError: box [0.0, 0.0, 1e+308, 1e+308] reaches farther than ... no plausible ball label
     """
     x1, y1, x2, y2 = _numbers(box, 4, "box")
     if not (x2 > x1 and y2 > y1):
         raise LabelError(f"box {[x1, y1, x2, y2]} must have x2 > x1 and y2 > y1")
     if x2 <= 0 or y2 <= 0 or x1 >= width or y1 >= height:
         raise LabelError(f"box {[x1, y1, x2, y2]} lies entirely outside the {width}x{height} image")
+    mx, my = BOX_REACH * width, BOX_REACH * height
+    if x1 < -mx or y1 < -my or x2 > width + mx or y2 > height + my:
+        raise LabelError(f"box {[x1, y1, x2, y2]} reaches farther than {BOX_REACH:g} image size beyond the "
+                         f"{width}x{height} image (x in [{-mx:g}, {width + mx:g}], y in [{-my:g}, {height + my:g}]): "
+                         "no plausible ball label")
     return [x1, y1, x2, y2]
 
 

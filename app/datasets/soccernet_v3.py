@@ -15,7 +15,7 @@ import zipfile
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from app.core.errors import DatasetError
+from app.core.errors import DatasetError, EntryError
 from app.datasets.files import (
     MAX_IMAGE_PIXELS,
     dataset_relative,
@@ -151,7 +151,7 @@ def _v3_ball(item: Mapping[str, Any], width: int, height: int, file: str | Path,
     try:
         return check_box([pts.get(k) for k in ("x1", "y1", "x2", "y2")], width, height)
     except LabelError as exc:
-        raise DatasetError(file, f"{where}.bboxes[{i}] (Ball)", str(exc)) from None
+        raise EntryError(file, f"{where}.bboxes[{i}] (Ball)", str(exc)) from None
 
 
 class FrameImages:

@@ -20,7 +20,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Mapping
 
-from app.core.errors import DatasetError
+from app.core.errors import DatasetError, EntryError
 from app.datasets.csv_cells import read_cell
 from app.datasets.files import (
     MAX_IMAGE_PIXELS,
@@ -322,7 +322,7 @@ def _v3d_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, 
     try:
         box, point, original = _v3d_ball(entry["row"], csv_path, entry["where"], width, height)
     except LabelError as exc:
-        raise DatasetError(csv_path, f"{entry['where']} ({name})", str(exc)) from None
+        raise EntryError(csv_path, f"{entry['where']} ({name})", str(exc)) from None
     extra = mapping(item.get("v3d") or {}, file, f"{where}.v3d")
     lines = v3_lines(item, width, height, file, where)
     original_lines = None

@@ -85,21 +85,23 @@ MB = 2**20
 
 
 def _asgi_post(app: FastAPI, path: str, headers: dict[str, str], size: int, chunk: int = 64 * 1024,
-               method: str = "POST") -> tuple[int, bytes, int]:
-    """Send ``size`` bytes to ``app`` straight over ASGI, chunk by chunk as a socket would deliver them (the test
-    client reads a whole body first); returns the status, the answer's body and how many bytes the app read."""
+               method: str = "POST", head: bytes = b"", tail: bytes = b"") -> tuple[int, bytes, int]:
+    """Send ``head``, ``size`` bytes and ``tail`` to ``app`` straight over ASGI, chunk by chunk as a socket would
+    deliver them (the test client reads a whole body first); returns the status, the answer's body and how many bytes
+    the app read."""
     import asyncio
 
+    body = head + b"a" * size + tail
     read = 0
     answer: dict[str, object] = {"body": b""}
 
     async def receive() -> dict:
         nonlocal read
-        if read >= size:
+        if read >= len(body):
             return {"type": "http.disconnect"}
-        n = min(chunk, size - read)
+        n = min(chunk, len(body) - read)
         read += n
-        return {"type": "http.request", "body": b"a" * n, "more_body": read < size}
+        return {"type": "http.request", "body": body[read - n:read], "more_body": read < len(body)}
 
     async def send(message: dict) -> None:
         if message["type"] == "http.response.start":

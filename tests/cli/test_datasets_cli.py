@@ -102,7 +102,7 @@ def test_bad_input_exits_2_with_the_file_and_field_and_stores_nothing(shared_dir
     assert missing.exit_code == 2 and "no such file or folder" in missing.output
 
 
-@pytest.mark.parametrize("case", ["nan", "outside", "class", "replay", "size"])
+@pytest.mark.parametrize("case", ["class", "replay", "size"])
 def test_each_bad_label_exits_2_naming_file_and_field(shared_dir, tmp_path, url, case):
     from tests.services.transfer.test_importing import _damage
 
@@ -112,6 +112,21 @@ def test_each_bad_label_exits_2_naming_file_and_field(shared_dir, tmp_path, url,
     assert result.exit_code == 2
     assert "error:" in result.output and "Labels-v3.json" in result.output
     assert field in result.output and detail in result.output
+    assert _count(url, "games") == 0
+
+
+@pytest.mark.parametrize("case", ["nan", "outside", "implausible"])
+def test_a_refused_ball_box_leaves_its_game_out_and_says_so(shared_dir, tmp_path, url, case):
+    """A ball box the shared label check refuses leaves its game out of the import (the other games import): the
+    command says which game, file, entry and why."""
+    from tests.services.transfer.test_importing import _damage
+
+    edit, field, detail = _damage(case)
+    write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",), edit=edit)
+    result = runner.invoke(cli, ["import", "soccernet-v3", str(tmp_path / "v3"), "--database-url", url])
+    assert result.exit_code == 0, result.output
+    left_out = [line for line in result.output.splitlines() if "game left out:" in line]
+    assert len(left_out) == 1 and "Labels-v3.json" in left_out[0] and field in left_out[0] and detail in left_out[0]
     assert _count(url, "games") == 0
 
 

@@ -104,3 +104,16 @@ def test_tokens_are_labelled_listed_and_revoked_and_roles_change(url: str) -> No
     assert bad_id.exit_code == 2 and "token 99999 not found" in bad_id.stderr
     bad_days = runner.invoke(cli, ["users", "token", "gil", "--expires-days", "0", "--database-url", url])
     assert bad_days.exit_code == 2 and "expires_days" in bad_days.stderr
+
+
+def test_reserved_names_and_names_differing_only_by_case_or_dots_are_refused(url: str) -> None:
+    """Was: ``v3d users add none`` (or ``me``, or ``Eve`` beside ``eve``) made the user: the assignee filter's words
+    and look-alike names are no user's name; exit 2 naming why, nothing stored."""
+    assert _add(url, "eve", "annotator").exit_code == 0
+    for name, why in (("none", "'none' is reserved"), ("Me.", "'Me.' is reserved"),
+                      ("Eve", "a user named 'eve' exists: names that differ only by case or trailing dots"),
+                      ("eve..", "a user named 'eve' exists")):
+        refused = _add(url, name, "annotator")
+        assert refused.exit_code == 2 and f"error: name: {why}" in refused.stderr, (name, refused.stderr)
+    listed = runner.invoke(cli, ["users", "list", "--database-url", url]).stdout
+    assert [line.split()[0] for line in listed.splitlines()[1:]] == ["eve"]

@@ -159,3 +159,59 @@ def test_0009_turns_stored_image_paths_into_the_dataset_folder_and_a_relative_pa
     finally:
         engine.dispose()
     assert back == rows
+
+
+@pytest.mark.parametrize("backend", ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
+def test_0024_moves_large_audit_states_into_audit_states_and_back(tmp_path, request, backend):
+    """An audit entry stored before 0024 with a large state (field lines) keeps reading the same after the upgrade,
+    which stores the state once, compressed, and leaves a small one inline; the downgrade puts it back. The entries'
+    append-only triggers hold again afterwards."""
+    import json
+
+    url = f"sqlite:///{tmp_path / 'audit.sqlite3'}" if backend == "sqlite" else request.getfixturevalue("pg_url")
+    upgrade_database(url, "0023")
+    lines = {"lines": {"Middle line": [[[i + 0.123456789, 2 * i + 0.5] for i in range(200)]]}}
+    small = {"ball": {"box": [1.0, 2.0, 3.0, 4.0], "point": None}}
+    engine = make_engine(url)
+    try:
+        with engine.begin() as conn:
+            for i, (before, after) in enumerate(((lines, lines), (small, small), (lines, small)), start=1):
+                conn.execute(sa.text("INSERT INTO audit_entries (id, at, actor, action, before, after) VALUES "
+                                     "(:i, '2026-01-01 00:00:00+00', 'ana', 'field_lines.replace', "
+                                     + ("CAST(:b AS JSONB), CAST(:a AS JSONB))" if backend == "postgresql"
+                                        else ":b, :a)")),
+                             {"i": i, "b": json.dumps(before), "a": json.dumps(after)})
+    finally:
+        engine.dispose()
+    upgrade_database(url)
+    engine = make_engine(url)
+    try:
+        from app.db.models import AuditEntry
+        from app.db.session import make_session_factory
+
+        with make_session_factory(engine)() as session:
+            entries = {e.id: e for e in session.scalars(sa.select(AuditEntry))}
+            assert [(entries[i].before, entries[i].after) for i in (1, 2, 3)] == [(lines, lines), (small, small),
+                                                                                  (lines, small)]
+            assert entries[1].before_inline is None and entries[1].before_digest == entries[3].before_digest
+            assert entries[2].before_inline == small and entries[2].before_digest is None
+        with engine.connect() as conn:
+            assert conn.execute(sa.text("SELECT count(*) FROM audit_states")).scalar() == 1
+            with pytest.raises(sa.exc.DatabaseError, match="append-only"):
+                conn.execute(sa.text("UPDATE audit_entries SET actor = 'eve'"))
+            conn.rollback()
+            with pytest.raises(sa.exc.DatabaseError, match="append-only"):
+                conn.execute(sa.text("DELETE FROM audit_states"))
+    finally:
+        engine.dispose()
+    command.downgrade(alembic_config(url), "0023")
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            rows = conn.execute(sa.text("SELECT id, before, after FROM audit_entries ORDER BY id")).all()
+            as_json = [tuple(json.loads(v) if isinstance(v, str) else v for v in r[1:]) for r in rows]
+            assert as_json == [(lines, lines), (small, small), (lines, small)]
+            with pytest.raises(sa.exc.DatabaseError, match="append-only"):
+                conn.execute(sa.text("DELETE FROM audit_entries"))
+    finally:
+        engine.dispose()

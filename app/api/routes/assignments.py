@@ -21,6 +21,7 @@ from app.api.deps import SessionDep, SystemDep
 from app.api.schemas import INVALID, NOT_FOUND
 from app.db.types import utcnow
 from app.services.curation import assignment, presence
+from app.services.curation.queue import ASSIGNEE_NONE
 
 router = APIRouter(tags=["assignments"])
 
@@ -34,7 +35,7 @@ def assign(session: SessionDep, principal: ReviewerDep, body: AssignIn) -> Assig
     ``system.assign``, before / after ``{"assignee": name}``; revertible). 404 for an unknown system or game,
     422 naming ``assignee`` for an unknown or disabled user. Needs the reviewer role."""
     filters = body.filter.filters(me=principal.name) if body.filter is not None else None
-    if filters is not None and filters.assignee not in (None, "none"):
+    if filters is not None and filters.assignee not in (None, ASSIGNEE_NONE):
         assignment.known_user(session, filters.assignee, "filter.assignee")
     done = assignment.assign(session, assignee=body.assignee, system_ids=body.system_ids, game_id=body.game_id,
                              filters=filters, actor=principal.name)

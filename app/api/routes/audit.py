@@ -28,14 +28,16 @@ def list_audit(session: SessionDep, principal: PrincipalDep, query: Annotated[Au
     """One page of the audit log, newest first: who changed what, when, and the state before and after.
     ``system_id`` gives the system's decisions and every edit of its views; ``user`` an actor's exact name.
     Changes of users and tokens (``user.*``, ``token.*``) are listed to admins only. An import's ``source`` is
-    its server path for admins, the dataset's name for the other roles."""
+    its server path for admins, the dataset's name for the other roles; work run on the machine is ``cli:<os user>``
+    to admins, ``cli`` to the other roles (``user=cli`` lists it)."""
+    admin = principal.may("admin")
     page = audit.list_entries(session, frame_id=query.frame_id, system_id=query.system_id, user=query.user,
-                              limit=query.limit, offset=query.offset, include_admin=principal.role == "admin")
+                              limit=query.limit, offset=query.offset, include_admin=admin)
     names = audit.view_names(session, [e for e in page.items if not e.summary])  # entries older than summaries
-    items = [AuditEntryOut.model_validate(e).model_copy(
+    items = [AuditEntryOut.shown(e, admin).model_copy(
         update={"summary": audit.entry_summary(e, names.get(e.frame_id) if e.frame_id is not None else None)})
         for e in page.items]
-    if not principal.may("admin"):
+    if not admin:
         items = [i.model_copy(update={"after": shown_import_counts(i.after)}) if i.action == "import" else i
                  for i in items]
     return AuditPageOut(items=items, total=page.total, limit=query.limit, offset=query.offset)

@@ -14,6 +14,7 @@ from pydantic import BaseModel, Field
 from starlette.background import BackgroundTask
 
 from app.api.auth import require_role
+from app.api.bodies import UPLOAD_LIMIT
 from app.api.deps import SessionDep, SettingsDep
 from app.api.schemas import InvalidOut
 from app.core.config import Settings
@@ -23,13 +24,16 @@ from app.services.evaluation import monocular
 from app.services.evaluation.boxes import evaluate_boxes as boxes_report
 from app.services.evaluation.stats import dataset_stats
 from app.services.transfer import detector_export
-from app.services.transfer.archives import MB, ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit_bytes
+from app.services.transfer.archives import MB, ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit
 
 router = APIRouter(tags=["detectors"])
 #: Every export needs the admin role; evaluating detections against the labels (it stores nothing) any role.
 ADMIN = Depends(require_role("admin"))
 
 AllQuery = Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")]
+#: What bounds a predictions upload (a COCO results JSON or a zip of YOLO files), counted while its body streams:
+#: the largest results file the benchmark reads, so that nothing larger is ever spooled or copied to disk.
+PREDICTIONS_LIMIT = "V3D_MAX_PREDICTIONS_MB"
 
 
 class CurveOut(BaseModel):
@@ -100,13 +104,15 @@ def export_coco(session: SessionDep, settings: SettingsDep, include_all: AllQuer
 
 
 def _unpack(upload: UploadFile, dest: Path, settings: Settings) -> Path:
-    """The upload saved under ``dest`` (counted against ``V3D_MAX_UPLOAD_MB`` while it is written: 413
-    beyond): a zip is unpacked by the one safe unpacker (``app.services.transfer.archives.unpack_zip``: unsafe,
-    linked or repeated member names and zip bombs refused naming the member, 422 here; only its YOLO ``.txt``
-    and ``.yaml`` files kept, each at most ``app.geometry.metrics.MAX_YOLO_FILE_BYTES``, counted while they
-    unpack) and its folder returned; anything else is taken as a COCO results JSON."""
+    """The upload saved under ``dest`` (counted against :data:`PREDICTIONS_LIMIT` while it is written: 413
+    beyond, which the body's count answered already while it streamed): a zip is unpacked by the one safe
+    unpacker (``app.services.transfer.archives.unpack_zip``: unsafe, linked or repeated member names and zip bombs
+    refused naming the member, 422 here; only its YOLO ``.txt`` and ``.yaml`` files kept, each at most
+    ``app.geometry.metrics.MAX_YOLO_FILE_BYTES``, counted while they unpack) and its folder returned; anything else
+    is taken as a COCO results JSON."""
     path = dest / "upload"
-    if not receive(file_chunks(upload.file), path, upload_limit_bytes(settings), field="predictions"):
+    limit, setting = upload_limit(settings, PREDICTIONS_LIMIT)
+    if not receive(file_chunks(upload.file), path, limit, field="predictions", setting=setting):
         raise InvalidInputError("the upload is empty", field="predictions")
     if not zipfile.is_zipfile(path):
         return path
@@ -130,6 +136,7 @@ def _upload_name(upload: UploadFile, default: str) -> str:
 
 @router.post(
     "/evaluations/monocular", response_model=MonocularReportOut, dependencies=[Depends(require_role("annotator"))],
+    openapi_extra={UPLOAD_LIMIT: PREDICTIONS_LIMIT},
     responses={422: {"model": InvalidOut, "description": "Unreadable predictions (file and line named), or no "
                                                        "view with a 3D ball among the selected systems."}},
 )

@@ -32,8 +32,9 @@ from app.core.errors import DatasetError, InvalidInputError
 from app.datasets.files import refuse_links_out
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import import_params
-from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit_bytes
+from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit, upload_limit_bytes
 from app.services.transfer.data_root import confined_path
+from app.services.transfer.import_formats import import_format
 
 router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
 
@@ -66,8 +67,9 @@ def _upload_folder(settings: Settings) -> Any:
 
 async def _upload_params(request: Request, settings: Settings) -> dict[str, Any]:
     """Receive the multipart form (the body counted against ``V3D_MAX_UPLOAD_MB`` as it arrives; the file
-    part spooled to disk beyond 1 MB), check its fields, unpack the zip safely into a folder of its own
-    under the jobs folder, and return the import job's params."""
+    part spooled to disk beyond 1 MB), check its fields and the file against its format's own limit
+    (``ImportFormat.upload_limit``), unpack the zip safely into a folder of its own under the jobs folder, and
+    return the import job's params."""
     limit = upload_limit_bytes(settings)
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > limit:
@@ -88,6 +90,9 @@ async def _upload_params(request: Request, settings: Settings) -> dict[str, Any]
             options = ImportOptions.model_validate(fields)
         except ValidationError as exc:
             raise _body_errors(exc) from None
+        limit, setting = upload_limit(settings, import_format(options.kind).upload_limit)
+        if (upload.size or 0) > limit:  # a format bounded below the route's limit, which held while it streamed
+            raise UploadTooLarge(limit, "file", setting)
         folder = _upload_folder(settings)
         limits = ArchiveLimits.from_settings(settings)
         await run_in_threadpool(unpack_zip, upload.file, folder, limits, where=upload.filename or "upload.zip")

@@ -14,7 +14,7 @@ from starlette.background import BackgroundTask
 from app.api.auth import require_role
 from app.api.deps import SessionDep
 from app.api.issia_schemas import TrajectoryOut
-from app.api.schemas import DB_INT_MAX, DB_INT_MIN, ErrorOut
+from app.api.schemas import DbInt, ErrorOut
 from app.services.issia import export as issia_export
 
 router = APIRouter(tags=["issia"])
@@ -23,7 +23,7 @@ router = APIRouter(tags=["issia"])
 @router.get("/games/{game_id}/trajectory", response_model=TrajectoryOut,
             responses={404: {"model": ErrorOut, "description": "No such game, or it is not an ISSIA sequence."}})
 def game_trajectory(
-    session: SessionDep, game_id: Annotated[int, PathParam(description="Game id.", ge=DB_INT_MIN, le=DB_INT_MAX)],
+    session: SessionDep, game_id: Annotated[DbInt, PathParam(description="Game id.")],
 ) -> TrajectoryOut:
     """The ISSIA sequence's ball over time: per frame the observed ``ball3d``, the fitted
     ``ball3d_smoothed`` and its source, the kept and the flagged cameras; the motion pieces."""

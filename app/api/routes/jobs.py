@@ -18,7 +18,7 @@ from fastapi.responses import FileResponse, JSONResponse
 from app.api.auth import AdminDep, Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import JobKindName, JobOut, JobPageOut, JobStateName
-from app.api.schemas import DB_INT_MAX, DB_INT_MIN, NOT_FOUND, ErrorOut
+from app.api.schemas import DB_INT_MAX, NOT_FOUND, DbInt, ErrorOut
 from app.core.config import Settings
 from app.core.errors import NotFoundError
 from app.db.models import Job, JobState
@@ -27,22 +27,24 @@ from app.services.jobs.work import export_path, without_server_paths
 from app.services.transfer.export_files import prune_exports
 
 router = APIRouter(tags=["jobs"])
-#: A job id within the database's integer column (beyond it PostgreSQL refused the query: a 500, found by fuzzing).
-JobId = Annotated[int, Path(description="Job id.", ge=DB_INT_MIN, le=DB_INT_MAX)]
+#: A job id (``DbInt``: beyond the database's integers PostgreSQL refused the query, a 500 found by fuzzing).
+JobId = Annotated[DbInt, Path(description="Job id.")]
 
 
 def job_out(job: Job, principal: Principal | None = None, settings: Settings | None = None) -> JobOut:
     """The API's view of a job row; for an annotator or reviewer (``principal`` below admin) an import's
-    path, source and message name the dataset, never a server path (``kinds.without_server_paths``)."""
+    path, source and message name the dataset, never a server path (``kinds.without_server_paths``), and the
+    process running it (``owner``: host name and process id) is not shown."""
     url = f"/api/jobs/{job.id}"
     has_file = job.kind == "export" and job.state is JobState.DONE
-    params, result, message = job.params, job.result, job.message
+    params, result, message, owner = job.params, job.result, job.message, job.owner
     if principal is not None and settings is not None and not principal.may("admin"):
         params, result, message = without_server_paths(job.id, params, result, message, settings)
+        owner = None
     return JobOut.model_validate({
-        **{k: getattr(job, k) for k in ("id", "kind", "stage", "done", "total", "owner", "attempts", "created_at",
+        **{k: getattr(job, k) for k in ("id", "kind", "stage", "done", "total", "attempts", "created_at",
                                         "started_at", "finished_at", "heartbeat_at")},
-        "params": params, "result": result, "message": message,
+        "owner": owner, "params": params, "result": result, "message": message,
         "state": job.state.value, "url": url, "result_url": f"{url}/result" if has_file else None,
     })
 

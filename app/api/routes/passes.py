@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, status
 
 from app.api.auth import AnnotatorDep, PrincipalDep
-from app.api.deps import SessionDep
+from app.api.deps import SessionDep, SettingsDep
 from app.api.pass_schemas import PassIn, PassOut, PassPlaceOut, VisitIn
 from app.api.schemas import INVALID, NOT_FOUND, DbInt
 from app.services.curation import passes
@@ -16,12 +16,13 @@ router = APIRouter(prefix="/passes", tags=["passes"])
 
 
 @router.post("", response_model=PassOut, status_code=status.HTTP_201_CREATED, responses=INVALID)
-def start_pass(session: SessionDep, principal: AnnotatorDep, body: PassIn) -> PassOut:
+def start_pass(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, body: PassIn) -> PassOut:
     """Begin a pass over the queue ``filter`` + ``sort`` (every system of every page, frozen in the queue's
     order now), or continue the caller's newest open pass of that queue holding ``system_id``
-    (``fresh``: always a new one). Answers the pass with its ``systems``."""
+    (``fresh``: always a new one). Answers the pass with its ``systems``. A user keeps at most
+    ``V3D_MAX_PASSES_PER_USER`` passes (50): a new one drops the least recently visited beyond them."""
     rp = passes.start_pass(session, principal.name, body.filter.filters(), body.sort or body.filter.sort,
-                           body.system_id, fresh=body.fresh)
+                           body.system_id, fresh=body.fresh, keep=settings.max_passes_per_user)
     return PassOut.of(rp, passes.pass_counts(session, rp))
 
 

@@ -31,11 +31,10 @@ def list_systems(session: SessionDep, principal: PrincipalDep,
     """One page of the review queue, filtered and sorted, with the progress per review status; by
     ``offset`` or by cursor (``after`` / ``before``: a page's ``next_cursor`` / ``prev_cursor``; 422
     naming the field for a cursor of another sort or both at once). ``assignee=NAME|me|none``: the systems
-    assigned to that user, to the caller, or to nobody (422 naming ``assignee`` for an unknown name). Each row
-    carries its ``assignment`` and who has it open now (``open_by``)."""
+    assigned to that user, to the caller, or to nobody (an unknown name answers as a user with no system does: the
+    queue tells no one which accounts exist). Each row carries its ``assignment`` and who has it open now
+    (``open_by``)."""
     filters = query.filters(me=principal.name)
-    if filters.assignee not in (None, "none"):
-        assignment.known_user(session, filters.assignee)
     page = queue.list_systems(session, filters, query.sort, query.limit, query.offset, query.after,
                               query.before)
     cursor = query.after is not None or query.before is not None

@@ -17,6 +17,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
     System - User (assignee), SystemPresence           (work assignment; who has a system open, expiring)
     ServerSecret                                       (the session-signing key, shared by every worker)
     AuditEntry                                         (append-only log of accepted writes; ids, no FKs)
+        - AuditState                                   (a large before / after state, stored once by digest)
     Job                                                (a background import, full recompute or export)
 
 Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
@@ -44,7 +45,7 @@ from app.db.models.enums import (
     UserRole,
 )
 from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, System, TrajectoryPoint
-from app.db.models.operations import AuditEntry, Job
+from app.db.models.operations import AuditEntry, AuditState, Job
 from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
 
 __all__ = [
@@ -80,5 +81,6 @@ __all__ = [
     "ServerSecret",
     "User",
     "AuditEntry",
+    "AuditState",
     "Job",
 ]

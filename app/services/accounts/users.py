@@ -38,6 +38,7 @@ from app.core.errors import InvalidInputError, NotFoundError
 from app.db.models import ApiToken, ServerSecret, User, UserRole
 from app.db.types import utcnow
 from app.services.audit import log as audit
+from app.services.curation.queue import ASSIGNEE_ME, ASSIGNEE_NONE
 
 #: argon2id with pwdlib's recommended parameters.
 PASSWORDS = PasswordHash.recommended()
@@ -54,6 +55,10 @@ DEMO_PASSWORD = "demo"
 #: logins queues instead of exhausting the server's memory.
 _HASHING = threading.BoundedSemaphore(2)
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@-]{0,99}$")
+#: Names no user may have, nor one that differs from them only by case or trailing dots (:func:`name_key`): the
+#: assignee filter's words for the caller and for nobody (``GET /api/systems?assignee=me|none``), which a user so
+#: called could never be told apart from.
+RESERVED_NAMES = (ASSIGNEE_ME, ASSIGNEE_NONE)
 #: Longest expiry a token may be given (days).
 MAX_TOKEN_DAYS = 3650
 
@@ -118,9 +123,40 @@ def _role(role: str) -> UserRole:
                                 field="role") from None
 
 
-def _check_name(name: str) -> str:
+def name_key(name: str) -> str:
+    """What tells user names apart for people: ``name`` without trailing dots, in lower case (``Ana``, ``ana`` and
+    ``ana.`` read as one name on a page, in a log or a shell).
+
+    >>> name_key("Ana.."), name_key("NONE")
+    ('ana', 'none')
+    """
+    return name.rstrip(".").lower()
+
+
+def is_reserved_name(name: str) -> bool:
+    """Whether ``name`` is one of :data:`RESERVED_NAMES` but for case or trailing dots.
+
+    >>> is_reserved_name("None."), is_reserved_name("Me"), is_reserved_name("menon")
+    (True, True, False)
+    """
+    return name_key(name) in RESERVED_NAMES
+
+
+def _check_name(name: str, session: Optional[Session] = None) -> str:
+    """``name`` when a new user may have it; with ``session``, also unlike every stored name but for case or
+    trailing dots. Raises :class:`InvalidInputError` (field ``name``)."""
     if not _NAME.match(name or ""):
         raise InvalidInputError("1 to 100 characters: letters, digits and . _ @ - (not first)", field="name")
+    if is_reserved_name(name):
+        raise InvalidInputError(f"{name!r} is reserved (the assignee filter's word for "
+                                f"{'the caller' if name_key(name) == ASSIGNEE_ME else 'nobody'}); choose another name",
+                                field="name")
+    if session is not None:
+        like = session.scalar(sa.select(User.name).where(
+            sa.func.lower(sa.func.rtrim(User.name, ".")) == name_key(name), User.name != name).limit(1))
+        if like is not None:
+            raise InvalidInputError(f"a user named {like!r} exists: names that differ only by case or trailing dots "
+                                    "are refused", field="name")
     return name
 
 
@@ -141,9 +177,9 @@ def get_user(session: Session, name: str) -> User:
 
 
 def check_new_user(session: Session, name: str, role: str) -> None:
-    """Raise the :class:`InvalidInputError` :func:`create_user` would for ``name`` (malformed or taken)
+    """Raise the :class:`InvalidInputError` :func:`create_user` would for ``name`` (malformed, reserved or taken)
     or ``role``, before anyone types a password."""
-    _check_name(name)
+    _check_name(name, session)
     _role(role)
     if session.scalar(sa.select(User.id).where(User.name == name)) is not None:
         raise InvalidInputError(f"a user named {name!r} already exists", field="name")
@@ -158,10 +194,11 @@ def create_user(session: Session, name: str, role: str, password: str, *, demo: 
         The user and its API token (the only time the token is seen).
 
     Raises:
-        InvalidInputError: ``name`` malformed or taken (field ``name``), ``role`` not one of
-            annotator / reviewer / admin (field ``role``), an empty password (field ``password``).
+        InvalidInputError: ``name`` malformed, reserved (:data:`RESERVED_NAMES`) or taken, but for case or trailing
+            dots too (field ``name``), ``role`` not one of annotator / reviewer / admin (field ``role``), an empty
+            password (field ``password``).
     """
-    _check_name(name), _role(role), _check_password(password)
+    _check_name(name, session), _role(role), _check_password(password)
     with _HASHING:
         password_hash = PASSWORDS.hash(password)
     user = User(name=name, role=_role(role), password_hash=password_hash, demo=demo)

@@ -1,8 +1,9 @@
 """The audit log: one append-only entry per accepted write, recorded in the write's own transaction.
 
 An entry says who (``actor``: the user's name, or ``cli:<os user>`` for work run on the machine, see
-:func:`local_actor`), when (UTC), what (``action``, :data:`ACTIONS`) and the state of the edited part
-before and after the write, as self-describing JSON: ``{"ball": {"box", "point"}}``,
+:func:`local_actor`; the OS account is shown to admins only, the other roles read ``cli``: :func:`shown_actor`),
+when (UTC), what (``action``, :data:`ACTIONS`) and the state of the edited part before and after the write, as
+self-describing JSON: ``{"ball": {"box", "point"}}``,
 ``{"lines": {class: polylines}}``, ``{"excluded": bool}``, ``{"review": {"status", "comment"}}`` or
 ``{"calibration_review": {"status", "comment"}}`` (a view's calibration decision) or ``{"assignee": name}``
 (a system's assignee, ``app.services.curation.assignment``).
@@ -10,6 +11,11 @@ An import or a full recompute is one entry of its own (:func:`record_summary`: i
 ``after``, no ``before``); they cannot be reverted (``app.services.audit.reverting``), nor can an
 administrator's change of a user or a token (:data:`ADMIN_ACTIONS`, listed to admins only). Entries name their
 frame, system and game by id without foreign keys, so history outlives the rows it talks about.
+
+A state larger than :data:`LARGE_STATE_BYTES` as JSON (a field-line edit's polylines: about 70 KB at the point cap)
+is stored once, compressed, under the digest of its canonical JSON (``audit_states``, :func:`stored_state`): an
+edit's state after is the next edit's state before, an undo's are the edit's, so a series of edits of one view adds
+one compressed state per edit instead of two whole ones. Readers see ``entry.before`` / ``entry.after`` as before.
 """
 from __future__ import annotations
 
@@ -18,10 +24,11 @@ from dataclasses import dataclass
 from typing import Any, Optional
 
 import sqlalchemy as sa
+from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
-from app.db.models import AuditEntry, Frame, System
-from app.db.types import json_safe, utcnow
+from app.db.models import AuditEntry, AuditState, Frame, System
+from app.db.types import canonical_json, compressed_json, json_digest, json_safe, utcnow
 from app.services.audit.summaries import summarize
 
 #: The response header naming the audit entry of a write (what a later undo names).
@@ -46,9 +53,32 @@ def revertible(action: str) -> bool:
     return action not in SUMMARY_ACTIONS and action not in ADMIN_ACTIONS
 
 
+#: How work run on the machine is named to every role but admins, and in the text every role reads (a reset
+#: reason, an assignment's ``assigned_by``): the OS account behind it is the machine's business, and to anyone else
+#: only the name of an account to try.
+MACHINE_ACTOR = "cli"
+
+
+def shown_actor(actor: str, admin: bool) -> str:
+    """An entry's ``actor`` as a reader sees it: the stored name for an admin; for the other roles
+    :data:`MACHINE_ACTOR` in place of ``cli:<os user>``.
+
+    >>> shown_actor("cli:root", admin=False), shown_actor("cli:root", admin=True), shown_actor("ana", admin=False)
+    ('cli', 'cli:root', 'ana')
+    """
+    return actor if admin or not actor.startswith(f"{MACHINE_ACTOR}:") else MACHINE_ACTOR
+
+
+def public_actor(actor: Optional[str]) -> str:
+    """Who made a write, as text every role reads (a decision's reset reason, an assignment's ``assigned_by``):
+    the user's name, or :data:`MACHINE_ACTOR` for work run on the machine (``actor`` None; its OS account stays in the
+    audit entry, for admins)."""
+    return actor or MACHINE_ACTOR
+
+
 def local_actor() -> str:
     """``cli:<os user>``: the actor of writes made on the machine (CLI, scripts calling the services),
-    whose owner needs no v3d account."""
+    whose owner needs no v3d account (shown to admins only: :func:`shown_actor`)."""
     try:
         user = getpass.getuser()
     except (KeyError, OSError):  # no user name in a bare container
@@ -76,13 +106,47 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
     entry = AuditEntry(
         at=utcnow(), actor=actor or local_actor(), action=action, frame_id=frame.id if frame is not None else None,
         system_id=system.id if system is not None else None, game_id=system.game_id if system is not None else None,
-        before=before, after=after, reverts_id=reverts_id,
+        reverts_id=reverts_id,
         summary=summarize(action, before, after, view=view_name(frame) if frame is not None else None,
                           reverts_id=reverts_id, facts=facts,
                           redo=action != "revert" and _is_undo(session, reverts_id))[:SUMMARY_MAX],
     )
+    entry.before_inline, entry.before_state = stored_state(session, before)
+    entry.after_inline, entry.after_state = stored_state(session, after)
     session.add(entry)
     return entry
+
+
+#: States (before / after) whose canonical JSON is at least this long (bytes) are stored once, compressed, in
+#: ``audit_states`` (a ball label or a decision stays inline; a frame's field lines, 61-71 points in the real sets,
+#: are about 2-3 KB).
+LARGE_STATE_BYTES = 1024
+
+
+def stored_state(session: Session, state: Optional[dict[str, Any]]) -> tuple[Optional[dict[str, Any]],
+                                                                           Optional[AuditState]]:
+    """Where an entry keeps ``state`` (JSON-safe already): ``(state, None)`` inline when it is small, else ``(None,
+    row)`` with the :class:`AuditState` row of its digest, inserted unless a row of that digest exists (``ON
+    CONFLICT DO NOTHING``: two writers storing the same state at once never collide; the second waits for the
+    first's commit and then reads its row, as PostgreSQL's read committed isolation and SQLite's single writer
+    allow). In the caller's write transaction; the session is not flushed (the caller's changes are flushed, and
+    compared, by the caller)."""
+    if state is None:
+        return None, None
+    canonical = canonical_json(state)
+    if len(canonical) < LARGE_STATE_BYTES:
+        return state, None
+    digest = json_digest(canonical)
+    with session.no_autoflush:
+        row = session.get(AuditState, digest)
+        if row is None:
+            dialect = session.get_bind().dialect.name
+            insert = (postgresql.insert if dialect == "postgresql" else sqlite.insert)(AuditState)
+            session.execute(insert.values(digest=digest, body=compressed_json(canonical))
+                            .on_conflict_do_nothing(index_elements=[AuditState.digest]))
+            row = session.get(AuditState, digest)
+    assert row is not None  # inserted or found above, in this transaction
+    return None, row
 
 
 #: The longest summary stored (characters; ``audit_entries.summary``).
@@ -155,12 +219,17 @@ class AuditPage:
 
 def _conditions(frame_id: Optional[int], system_id: Optional[int], user: Optional[str],
                 include_admin: bool = True) -> list[Any]:
+    """The filters of :func:`list_entries`; for a non-admin (``include_admin`` False) ``user`` matches actors as
+    :func:`shown_actor` shows them: ``cli`` every ``cli:<os user>``, a ``cli:<os user>`` nothing."""
     out: list[sa.ColumnElement[bool]] = [] if include_admin else [AuditEntry.action.not_in(ADMIN_ACTIONS)]
     if frame_id is not None:
         out.append(AuditEntry.frame_id == frame_id)
     if system_id is not None:
         out.append(AuditEntry.system_id == system_id)
-    if user is not None:
+    if user is not None and not include_admin and user.startswith(MACHINE_ACTOR):
+        out.append(AuditEntry.actor.startswith(f"{MACHINE_ACTOR}:", autoescape=True) if user == MACHINE_ACTOR
+                   else sa.false())
+    elif user is not None:
         out.append(AuditEntry.actor == user)
     return out
 
@@ -171,7 +240,8 @@ def list_entries(session: Session, *, frame_id: Optional[int] = None, system_id:
     """Entries matching every given filter, newest first (by id, the commit order of their writes).
 
     ``system_id`` matches the system's own decisions and every edit of its views; ``user`` is an
-    actor's exact name; ``include_admin`` False leaves out :data:`ADMIN_ACTIONS` (for non-admins).
+    actor's exact name; ``include_admin`` False leaves out :data:`ADMIN_ACTIONS` and reads ``user`` as a non-admin
+    sees the actors (:func:`shown_actor`: ``cli`` for work on the machine, never its OS account).
     """
     where = _conditions(frame_id, system_id, user, include_admin)
     total = session.scalar(sa.select(sa.func.count()).select_from(AuditEntry).where(*where))

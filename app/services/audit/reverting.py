@@ -25,7 +25,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.errors import ForbiddenError, InvalidInputError, found
 from app.db.models import AuditEntry
-from app.services.audit.log import revertible
+from app.services.audit.log import revertible, shown_actor
 from app.services.curation import assignment, decisions, editing, writing
 
 
@@ -136,13 +136,15 @@ def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: st
             raise ForbiddenError(f"audit entry {entry_id} is a decision on the whole system: a reviewer's edit, "
                                  "so only a reviewer may undo it")
         if entry.actor != actor:
-            raise ForbiddenError(f"audit entry {entry_id} is {entry.actor}'s edit: an annotator undoes only their own")
+            raise ForbiddenError(f"audit entry {entry_id} is {shown_actor(entry.actor, admin=False)}'s edit: an "
+                                 "annotator undoes only their own")
         other = session.scalars(sa.select(AuditEntry.actor).where(
             AuditEntry.id > entry.id, AuditEntry.frame_id == entry.frame_id, AuditEntry.actor != actor
         ).limit(1)).first()
         if other is not None:
-            raise ForbiddenError(f"audit entry {entry_id} cannot be undone by an annotator: {other} changed the view "
-                                 "since (a reviewer may revert it from the history)")
+            raise ForbiddenError(f"audit entry {entry_id} cannot be undone by an annotator: "
+                                 f"{shown_actor(other, admin=False)} changed the view since (a reviewer may revert it "
+                                 "from the history)")
     guard = writing.Revert(entry_id, expect=entry.after)
     return _restore(session, entry, settings, {"actor": actor, "undo": guard},
                     edit if edit is not None else writing.EditContext())

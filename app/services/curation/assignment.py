@@ -26,6 +26,7 @@ from app.core.errors import ConflictError, InvalidInputError, NotFoundError
 from app.db.models import Game, System, User
 from app.db.session import begin_write
 from app.db.types import utcnow
+from app.services.accounts.users import is_reserved_name
 from app.services.audit import log as audit
 from app.services.curation.queue import SystemFilters, matching_system_ids
 
@@ -62,8 +63,12 @@ def assignable_user(session: Session, name: str, field_name: str = "assignee") -
     """The enabled user called ``name``, who may be given systems.
 
     Raises:
-        InvalidInputError (``field_name``): no user of that name, or a disabled one.
+        InvalidInputError (``field_name``): no user of that name, a disabled one, or a name the assignee filter
+            reads as a word (``me``, ``none``, but for case or trailing dots: a user so called, made before such
+            names were refused, is given no system, so that ``assignee=none`` always means the unassigned ones).
     """
+    if is_reserved_name(name):
+        raise InvalidInputError(f"{name!r} is the assignee filter's word, no user's name", field=field_name)
     user = session.scalar(sa.select(User).where(User.name == name))
     if user is None:
         raise InvalidInputError(f"no user is called {name!r}", field=field_name)
@@ -123,7 +128,7 @@ def assign(session: Session, *, assignee: Optional[str], system_ids: Optional[li
         assignee: an enabled user's name, or None to clear the assignee.
         system_ids, game_id, filters: exactly one: these systems, every system of this game, or every system
             these queue filters match (all pages).
-        actor: the audit entries' actor (None: ``audit.local_actor()``).
+        actor: the audit entries' actor (None: ``audit.local_actor()``; ``assigned_by`` then reads ``cli``).
         now: the time recorded as ``assigned_at`` (UTC; default now).
         expect, reverts_id: a revert's guard (``app.services.audit.reverting``): the assignee ids the
             systems must still have (else :class:`ConflictError`, nothing changed), and the entry reverted
@@ -156,13 +161,12 @@ def assign(session: Session, *, assignee: Optional[str], system_ids: Optional[li
             raise ConflictError("the system was assigned to someone else since this entry")
         changed = [i for i in ids if systems[i].assignee_id != new_id]
         names = _names(session, {v for i in changed if (v := systems[i].assignee_id) is not None})
-        by = actor or audit.local_actor()
         entries = []
         for i in changed:
             system = systems[i]
             old = system.assignee_id
-            system.assignee_id, system.assigned_at, system.assigned_by = new_id, now, by
-            entries.append(audit.record(session, actor=by, action="revert" if reverts_id is not None else ACTION,
+            system.assignee_id, system.assigned_at, system.assigned_by = new_id, now, audit.public_actor(actor)
+            entries.append(audit.record(session, actor=actor, action="revert" if reverts_id is not None else ACTION,
                                         system=system,
                                         before={"assignee": names.get(old) if old is not None else None},
                                         after={"assignee": assignee}, reverts_id=reverts_id))

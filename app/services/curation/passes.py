@@ -12,7 +12,10 @@ or stepped over without a decision).
 A pass belongs to the user who began it (``user_name``) and is stored on the server, so it resumes after a
 reload or in another browser (:func:`list_passes`); ``position`` is the index of the system the user last
 opened (:func:`visit`). Opening a system from the same queue again continues the user's newest unfinished
-pass of that queue which holds the system (:func:`start_pass`) instead of freezing a new one.
+pass of that queue which holds the system (:func:`start_pass`) instead of freezing a new one. A user keeps at
+most ``keep`` passes (``V3D_MAX_PASSES_PER_USER``): each stores every system id of its queue (about 77 KB at
+SoccerNet-v3's size), so beginning one more drops the user's least recently visited ones beyond it, in the same
+transaction; one user's passes cannot grow the database without bound.
 """
 from __future__ import annotations
 
@@ -69,13 +72,14 @@ def filters_json(filters: SystemFilters) -> dict[str, Any]:
 
 
 def start_pass(session: Session, user: str, filters: SystemFilters = ALL_SYSTEMS, sort: SystemSort = DEFAULT_SORT,
-               system_id: Optional[int] = None, fresh: bool = False) -> ReviewPass:
+               system_id: Optional[int] = None, fresh: bool = False, keep: int = 50) -> ReviewPass:
     """Begin a pass over the queue ``filters`` + ``sort`` for ``user``, or continue one, and commit.
 
     Continues (answers unchanged) the user's newest pass of the same filters and sort that holds
     ``system_id`` (any of its systems when None) and still has a pending system, unless ``fresh``.
     Otherwise freezes the queue's ids now (all pages, in order) into a new pass whose position is
-    ``system_id``'s index (0 when it is not in the queue).
+    ``system_id``'s index (0 when it is not in the queue), and deletes the user's least recently visited passes
+    beyond the newest ``keep`` (``V3D_MAX_PASSES_PER_USER``; the new one is kept).
 
     Raises:
         ValueError: an unknown ``sort`` (the API validates it first).
@@ -96,11 +100,23 @@ def start_pass(session: Session, user: str, filters: SystemFilters = ALL_SYSTEMS
         rp = ReviewPass(user_name=user, filters=stored, sort=sort, system_ids=ids,
                         position=ids.index(system_id) if system_id in ids else 0)
         session.add(rp)
+        session.flush()
+        _drop_beyond(session, user, keep, rp.id)
         session.commit()
     except BaseException:
         session.rollback()
         raise
     return rp
+
+
+def _drop_beyond(session: Session, user: str, keep: int, newest_id: int) -> None:
+    """Delete ``user``'s passes beyond the ``keep`` most recently visited (ties: the newer first), never the pass
+    ``newest_id`` just begun; under the caller's write lock."""
+    kept = sa.select(ReviewPass.id).where(ReviewPass.user_name == user).order_by(
+        (ReviewPass.id == newest_id).desc(), ReviewPass.visited_at.desc(), ReviewPass.id.desc()).limit(keep)
+    session.execute(sa.delete(ReviewPass)
+                    .where(ReviewPass.user_name == user, ReviewPass.id.not_in(kept.scalar_subquery()))
+                    .execution_options(synchronize_session=False))
 
 
 def get_pass(session: Session, pass_id: int) -> ReviewPass:

@@ -55,6 +55,11 @@ from app.db.models import (
 )
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 
+#: The assignee filter's two words: the caller (``assignee=me``, which the API resolves to the caller's name) and
+#: nobody (``assignee=none``: the unassigned systems). No user may be called either, nor a name that differs from one
+#: only by case or trailing dots (``app.services.accounts.users.RESERVED_NAMES``).
+ASSIGNEE_ME, ASSIGNEE_NONE = "me", "none"
+
 SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
 #: The review queue's default order: the most label doubts first (then the largest reprojection error).
@@ -74,8 +79,9 @@ class SystemFilters:
     #: Only systems with a doubt of this kind (``app.geometry.doubts``), or ``"any"``: with at least
     #: one label-accusing doubt; ``"none"``: with none.
     doubt: Optional[str] = None
-    #: Only systems assigned to the user of this name (``app.services.curation.assignment``), or ``"none"``:
-    #: the unassigned ones. An unknown name matches nothing (the API refuses it first).
+    #: Only systems assigned to the user of this name (``app.services.curation.assignment``), or
+    #: :data:`ASSIGNEE_NONE`: the unassigned ones. An unknown name matches nothing, as a known user with none does
+    #: (the answer tells no one which names exist).
     assignee: Optional[str] = None
 
 
@@ -153,7 +159,7 @@ def _system_conditions(filters: SystemFilters, with_status: bool = True) -> list
         conds.append(System.label_doubts == 0)
     elif filters.doubt is not None:
         conds.append(sa.exists().where(Doubt.system_id == System.id, Doubt.kind == filters.doubt))
-    if filters.assignee == "none":
+    if filters.assignee == ASSIGNEE_NONE:
         conds.append(System.assignee_id.is_(None))
     elif filters.assignee is not None:  # the index on assignee_id, the user's id looked up once
         conds.append(System.assignee_id == sa.select(User.id).where(User.name == filters.assignee).scalar_subquery())

@@ -44,7 +44,7 @@ def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[
     Returns:
         How many systems were set back to pending.
     """
-    who = actor or audit.local_actor()
+    who = audit.public_actor(actor)
     done = 0
     for other in refitted:
         decision = other.review
@@ -83,7 +83,7 @@ def reset_decisions_after_recalibration(session: Session, frame: Frame, before: 
     lines_before, words_before = before
     if same_json(lines_before, lines_state(frame)):
         return None
-    who = actor or audit.local_actor()
+    who = audit.public_actor(actor)
     reason = (f"{frame.name}: field lines {verb} by {who}, the view was recalibrated "
               f"({words_before} -> {calibration_words(frame, settings)}); decide it again")
     return reason if reset_decisions_after_edit(session, frame, reason, actor, calibration=True) else None
@@ -104,7 +104,7 @@ def reset_after_change(session: Session, frame: Frame, action: str, before: dict
         return None
     words = summarize(action, before, after, view=audit.view_name(frame))
     undone = f" (undo of audit entry {undo.entry_id})" if undo is not None else ""
-    reason = f"{frame.name}: {words}{undone} by {actor or audit.local_actor()}; decide it again"
+    reason = f"{frame.name}: {words}{undone} by {audit.public_actor(actor)}; decide it again"
     return reason if reset_decisions_after_edit(session, frame, reason, actor, calibration=False) else None
 
 

@@ -34,6 +34,7 @@ from sqlalchemy.orm import Session, selectinload
 from app.core.errors import DatasetError
 from app.datasets.csv_cells import read_cell
 from app.datasets.files import read_text_file
+from app.datasets.labels import LabelError, check_box
 from app.db.models import Frame, Game, ReviewDecision, ReviewStatus, System
 from app.geometry.metrics import box_iou, box_size_error_pct
 from app.geometry.pitch import BALL_DIAMETER_M
@@ -92,8 +93,9 @@ def store_precise_boxes(session: Session, path: str | Path) -> int:
     commits. Returns the number of frames set.
 
     Raises:
-        DatasetError: the file cannot be read (:func:`read_precise_boxes`) or a row names a game or image
-            that is not stored (nothing stored).
+        DatasetError: the file cannot be read (:func:`read_precise_boxes`), a row names a game or image
+            that is not stored, or its box is no ball box of that image (``app.datasets.labels.check_box``; nothing
+            stored).
     """
     rows = read_precise_boxes(path)
     games = {(g.league, g.season, g.match): g.id for g in session.scalars(sa.select(Game))}
@@ -110,7 +112,11 @@ def store_precise_boxes(session: Session, path: str | Path) -> int:
         found = frames.get((gid, r.image))
         if not found:
             raise DatasetError(path, f"row {r.row} image", f"no stored image {r.image!r} in {r.match}")
-        updates.extend((f, [float(v) for v in r.box]) for f in found)
+        for f in found:  # the one check of every ball box that enters (its image's plausible range included)
+            try:
+                updates.append((f, check_box(list(r.box), f.width, f.height)))
+            except LabelError as exc:
+                raise DatasetError(path, f"row {r.row} x1..y2", str(exc)) from None
     for f, box in updates:
         f.precise_box = box
     session.commit()

@@ -48,6 +48,7 @@ def import_result(report: Any) -> dict[str, Any]:
     out["refusal_reasons"] = dict(report.refusal_reasons)
     out["refusal_kinds"] = dict(report.refusal_kinds().most_common())
     out["skipped_systems"] = list(getattr(report, "skipped_systems", []))  # named, with why (the view cap)
+    out["skipped_games"] = list(getattr(report, "skipped_games", []))  # named, with the entry refused and why
     return out
 
 

@@ -3,6 +3,9 @@
 One home for the rules every upload follows (the dataset imports of ``POST /api/imports`` and the
 predictions of ``POST /api/evaluations/monocular``):
 
+* every upload is bounded by a setting in MB (:func:`upload_limit`): ``V3D_MAX_UPLOAD_MB`` for all, and below it the
+  setting an upload route or an import format declares as its own (the predictions of the monocular benchmark:
+  ``V3D_MAX_PREDICTIONS_MB``), enforced while the body streams (``app.api.bodies``);
 * :func:`receive` copies an upload to a file chunk by chunk, counting bytes, and stops at the limit
   (:class:`UploadTooLarge`, HTTP 413) without ever holding the upload in memory;
 * :func:`unpack_zip` checks the whole central directory before writing anything: every member name
@@ -41,11 +44,15 @@ _CHUNK = 1 << 20
 MB = 1 << 20
 
 
-class UploadTooLarge(ServiceError):
-    """An upload above the size limit (HTTP 413); nothing of it is kept."""
+#: The setting bounding every upload (MB); a route or an import format may declare a smaller one of its own.
+MAX_UPLOAD_SETTING = "V3D_MAX_UPLOAD_MB"
 
-    def __init__(self, limit_bytes: int, field: str) -> None:
-        super().__init__(f"{field}: the upload is larger than the limit of {limit_bytes / MB:g} MB (V3D_MAX_UPLOAD_MB)")
+
+class UploadTooLarge(ServiceError):
+    """An upload above the size limit (HTTP 413) named by ``setting``; nothing of it is kept."""
+
+    def __init__(self, limit_bytes: int, field: str, setting: str = MAX_UPLOAD_SETTING) -> None:
+        super().__init__(f"{field}: the upload is larger than the limit of {limit_bytes / MB:g} MB ({setting})")
         self.field = field
 
 
@@ -75,12 +82,31 @@ def upload_limit_bytes(settings: Settings) -> int:
     return int(settings.max_upload_mb * MB)
 
 
-def receive(chunks: Iterable[bytes], path: Path, limit_bytes: int, field: str = "file") -> int:
+def upload_limit(settings: Settings, setting: str = MAX_UPLOAD_SETTING) -> tuple[int, str]:
+    """The bytes an upload bounded by ``setting`` (the environment name of a setting in MB, e.g.
+    ``V3D_MAX_PREDICTIONS_MB``) may carry, and the setting that binds: the smaller of it and ``V3D_MAX_UPLOAD_MB``,
+    which bounds every upload.
+
+    >>> upload_limit(Settings(_env_file=None, max_upload_mb=2048), "V3D_MAX_PREDICTIONS_MB")
+    (67108864, 'V3D_MAX_PREDICTIONS_MB')
+    >>> upload_limit(Settings(_env_file=None, max_upload_mb=0.25), "V3D_MAX_PREDICTIONS_MB")
+    (262144, 'V3D_MAX_UPLOAD_MB')
+
+    Raises:
+        AttributeError: ``setting`` names no setting of :class:`~app.core.config.Settings`.
+    """
+    overall = upload_limit_bytes(settings)
+    own = int(getattr(settings, setting.removeprefix("V3D_").lower()) * MB)
+    return (own, setting) if own < overall else (overall, MAX_UPLOAD_SETTING)
+
+
+def receive(chunks: Iterable[bytes], path: Path, limit_bytes: int, field: str = "file",
+            setting: str = MAX_UPLOAD_SETTING) -> int:
     """Write ``chunks`` to ``path``, stopping as soon as more than ``limit_bytes`` arrived; returns the
     size written (bytes).
 
     Raises:
-        UploadTooLarge: the limit was passed (the partial file is removed).
+        UploadTooLarge: the limit (named ``setting``) was passed (the partial file is removed).
     """
     size = 0
     try:
@@ -88,7 +114,7 @@ def receive(chunks: Iterable[bytes], path: Path, limit_bytes: int, field: str = 
             for chunk in chunks:
                 size += len(chunk)
                 if size > limit_bytes:
-                    raise UploadTooLarge(limit_bytes, field)
+                    raise UploadTooLarge(limit_bytes, field, setting)
                 out.write(chunk)
     except BaseException:
         path.unlink(missing_ok=True)

@@ -15,6 +15,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.services.jobs.progress import Progress
+from app.services.transfer.archives import MAX_UPLOAD_SETTING
 from app.services.transfer.importing import (
     ImportReport,
     import_sn_calibration,
@@ -28,12 +29,17 @@ ImportRun = Callable[..., ImportReport]
 
 @dataclass(frozen=True)
 class ImportFormat:
-    """One dataset format: its name (``v3d import <name>``, the API's ``kind``), its reader, and the names of the
-    options it takes from a job's ``params`` (every other format-specific option is refused for it)."""
+    """One dataset format: its name (``v3d import <name>``, the API's ``kind``), its reader, the names of the
+    options it takes from a job's ``params`` (every other format-specific option is refused for it), and the setting
+    (its environment name, in MB) bounding an upload of it to ``POST /api/imports``
+    (``app.services.transfer.archives.upload_limit``: never above ``V3D_MAX_UPLOAD_MB``, which bounds the route's
+    body while it streams; a smaller one of a format's own is checked once the form is read, before the zip is
+    unpacked)."""
 
     name: str
     run: ImportRun
     options: tuple[str, ...] = ()
+    upload_limit: str = MAX_UPLOAD_SETTING
 
 
 _FORMATS: dict[str, ImportFormat] = {}

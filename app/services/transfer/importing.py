@@ -6,7 +6,10 @@ Every importer works in two phases so that bad input stores nothing:
    :func:`read_soccernet_v3`, :func:`read_sn_calibration`, :func:`read_soccernet_v3d`); any problem
    raises :class:`~app.core.errors.DatasetError` naming the file and the field. A SoccerNet-v3
    tree is validated game by game and its records dropped; each batch is read again when it is
-   stored, so memory holds two batches of records, not the whole tree;
+   stored, so memory holds two batches of records, not the whole tree. A game read alone whose labels hold an
+   entry the shared label check refuses (:class:`~app.core.errors.EntryError`: a ball box beyond its image's
+   plausible range, NaN, ...) is left out and named in the report (``skipped_games``: file, entry, why); the other
+   games import;
 2. **write** the records in transactions of whole games (``Settings.import_batch_frames`` frames or so
    each, so that memory stays bounded at SoccerNet size): games, systems and frames are matched by
    their natural keys (league/season/match, system name, frame name), so importing the same input
@@ -43,6 +46,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload, undefer
 
 from app.core.config import Settings
+from app.core.errors import EntryError
 from app.datasets.files import dataset_root
 from app.datasets.records import CalibrationFields, FrameRecord, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
@@ -132,6 +136,9 @@ class ImportReport:
     #: Systems of the input left out, each ``"<league>/<season>/<match>/<system>: <why>"`` (more views than
     #: ``V3D_MAX_VIEWS_PER_SYSTEM``); the rest of the dataset imports. Counted in ``systems``.
     skipped_systems: list[str] = field(default_factory=list)
+    #: Games of the input left out, each ``"<labels file, relative to the dataset>: <entry>: <why>"`` (an entry the
+    #: shared label check refuses); the other games import. Not counted in ``games``.
+    skipped_games: list[str] = field(default_factory=list)
 
     def refusal_kinds(self) -> Counter:
         """``refusal_reasons`` in words: each refusal code's meaning (``WORDS["refusal"]``, the review pages'
@@ -378,6 +385,16 @@ def _read_within_view_cap(read: GameReader, settings: Settings) -> GameRecord:
     return _within_view_cap(read(), settings)
 
 
+def _dataset_name(file: str | Path, path: str | Path) -> str:
+    """``file`` as the dataset names it: relative to the imported folder (``path``, or the folder of a file given),
+    never a server path (the report reaches every role through the job's result)."""
+    root = dataset_root(path)
+    try:
+        return Path(file).resolve().relative_to(root).as_posix()
+    except ValueError:
+        return Path(file).name
+
+
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
          games: Callable[[], list[GameReader]], actor: str | None = None,
          source_name: str | None = None) -> ImportReport:
@@ -393,15 +410,19 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     None: the local user) in its own transaction."""
     t0 = time.perf_counter()
     report = ImportReport(source=str(path), source_name=source_name or Path(path).name)
-    readers = games()
     frames_per_game: list[int] = []
-    for read in readers:  # validation: raises before anything is written
-        rec = read()
+    readers = []
+    for read in games():  # validation: raises before anything is written
+        try:
+            rec = read()
+        except EntryError as exc:  # one entry of this game's labels refused: the game is left out, named
+            report.skipped_games.append(f"{_dataset_name(exc.file, path)}: {exc.field}: {exc.problem}")
+            continue
         report.systems += len(rec.systems)
         rec = _within_view_cap(rec, settings, report.skipped_systems)
         frames_per_game.append(sum(len(s.frames) for s in rec.systems))
+        readers.append(partial(_read_within_view_cap, read, settings))
         del rec
-    readers = [partial(_read_within_view_cap, read, settings) for read in readers]
     report.read_seconds = time.perf_counter() - t0
     report.games = len(readers)
     report.frames = sum(frames_per_game)

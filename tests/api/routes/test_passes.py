@@ -75,3 +75,29 @@ def test_an_api_accept_of_a_doubtful_system_lists_its_doubts_in_the_audit_entry(
     assert entry["action"] == "system.review"
     assert [(d["kind"], d["frame_id"], d["message"]) for d in entry["after"]["overrode_doubts"]] == \
         [(d["kind"], d["frame_id"], d["message"]) for d in doubts]
+
+
+def test_three_hundred_fresh_passes_of_one_annotator_leave_at_most_fifty_stored(
+        app, db_session: Session, three: list[Scene], accounts) -> None:
+    """Was: 300 ``POST /api/passes {"fresh": true}`` by one annotator in 2.7 s stored 300 passes, each with every
+    system id of its queue (about 77 KB at SoccerNet-v3's size): one annotator grew the database without bound. A
+    user keeps at most V3D_MAX_PASSES_PER_USER (50) passes, the least recently visited dropped; another user's passes
+    and ``GET /api/passes`` (a JSON list) are as before."""
+    import sqlalchemy as sa
+
+    from app.db.models import ReviewPass
+    from tests.accounts import as_token
+
+    with TestClient(app) as c:
+        annotator = as_token(c, accounts["annotator"])
+        reviewer_pass = as_token(TestClient(app), accounts["reviewer"]).post("/api/passes", json={"fresh": True})
+        assert reviewer_pass.status_code == 201
+        made = [annotator.post("/api/passes", json={"fresh": True}) for _ in range(300)]
+        assert {m.status_code for m in made} == {201}
+        stored = db_session.scalars(sa.select(ReviewPass.id).where(
+            ReviewPass.user_name == accounts["annotator"].name).order_by(ReviewPass.id)).all()
+        assert len(stored) == 50
+        assert stored == [m.json()["id"] for m in made[-50:]]  # the newest kept, the oldest dropped
+        assert db_session.get(ReviewPass, reviewer_pass.json()["id"]) is not None  # another user's: untouched
+        listed = annotator.get("/api/passes", params={"limit": 100})
+        assert listed.status_code == 200 and isinstance(listed.json(), list) and len(listed.json()) == 50

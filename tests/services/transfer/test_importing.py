@@ -151,6 +151,9 @@ def _damage(path_field: str):
     def outside_box(d):
         d["actions"]["0.png"]["bboxes"][0]["points"].update(x1=2000, x2=2010)
 
+    def implausible_box(d):
+        d["actions"]["0.png"]["bboxes"][0]["points"].update(x1=0, y1=0, x2=1e308, y2=1e308)
+
     def unknown_class(d):
         d["replays"]["0_1.png"]["lines"][0]["class"] = "Penalty spot"
 
@@ -163,13 +166,14 @@ def _damage(path_field: str):
     return {
         "nan": (nan_box, "actions['0.png'].bboxes[0] (Ball)", "NaN"),
         "outside": (outside_box, "actions['0.png'].bboxes[0] (Ball)", "entirely outside the 1920x1080 image"),
+        "implausible": (implausible_box, "actions['0.png'].bboxes[0] (Ball)", "no plausible ball label"),
         "class": (unknown_class, "lines[0]: unknown line class 'Penalty spot'", "replays['0_1.png']"),
         "replay": (unknown_replay, "actions['0.png'].linked_replays", "'0_9.png' is not in 'replays'"),
         "size": (bad_size, "actions['0.png'].imageMetadata.width", "integer > 1"),
     }[path_field]
 
 
-@pytest.mark.parametrize("case", ["nan", "outside", "class", "replay", "size"])
+@pytest.mark.parametrize("case", ["class", "replay", "size"])
 def test_bad_labels_raise_naming_file_and_field_and_store_nothing(db_session, settings, shared_dir, tmp_path, case):
     edit, field, detail = _damage(case)
     root = tmp_path / "v3"
@@ -181,6 +185,26 @@ def test_bad_labels_raise_naming_file_and_field_and_store_nothing(db_session, se
     assert "zz bad game/Labels-v3.json" in msg and field in msg and detail in msg
     assert exc.value.file.endswith("Labels-v3.json")
     assert _counts(db_session)["games"] == 0 and _counts(db_session)["frames"] == 0
+
+
+@pytest.mark.parametrize("case", ["nan", "outside", "implausible"])
+def test_a_refused_ball_box_leaves_its_game_out_named_and_the_good_game_imports(db_session, settings, shared_dir,
+                                                                               tmp_path, case):
+    """A ball box the shared label check refuses (NaN, entirely outside the image, or beyond its plausible range:
+    ``[0, 0, 1e308, 1e308]`` passed before and aborted the whole import in the 3D ball's computation, "SVD did not
+    converge", naming no file and losing the good game beside it). The game holding it is left out, named by its
+    labels file relative to the dataset, the entry and why; the good game is stored."""
+    edit, field, detail = _damage(case)
+    root = tmp_path / "v3"
+    write_v3_game(shared_dir, root, actions=("1.png",), game=("lg", "s1", "good game"))
+    write_v3_game(shared_dir, root, actions=("0.png",), edit=edit, game=("lg", "s1", "zz bad game"))
+    report = import_soccernet_v3(db_session, root, settings)
+    assert len(report.skipped_games) == 1, report.skipped_games
+    skipped = report.skipped_games[0]
+    assert skipped.startswith("lg/s1/zz bad game/Labels-v3.json: ") and field in skipped and detail in skipped
+    assert str(tmp_path) not in skipped  # the dataset's own names, never a server path
+    assert report.games == 1 and _counts(db_session)["games"] == 1
+    assert db_session.scalars(sa.select(Game.match)).all() == ["good game"]
 
 
 def test_truncated_json_is_refused(db_session, settings, shared_dir, tmp_path):
