@@ -12,7 +12,9 @@ unless ``force``. Restoring field lines recalibrates the frame: an imported came
 computed one.
 
 :func:`undo_entry` is the page's undo (and redo) of any edit, annotators' own included: the same restore, audited
-as the edit's own action with ``reverts_id``, never forced.
+as the edit's own action with ``reverts_id``, never forced. The undo or revert of a label's edit that brings the
+system's labels back to those its decisions were made on also gives back the decisions that edit set back to pending,
+in its own write and entry (``app.services.curation.resets.restore_decisions``).
 """
 from __future__ import annotations
 
@@ -26,7 +28,7 @@ from app.core.config import Settings
 from app.core.errors import ForbiddenError, InvalidInputError, found
 from app.db.models import AuditEntry
 from app.services.audit.log import revertible
-from app.services.curation import assignment, decisions, editing, writing
+from app.services.curation import assignment, decisions, editing, resets, writing
 
 
 @dataclass(frozen=True)
@@ -51,7 +53,8 @@ def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: 
         ConflictError: the resource changed since the entry (not forced); nothing changed.
     """
     entry = _revertible_entry(session, entry_id)
-    guard = writing.Revert(entry_id, expect=None if force else entry.after)
+    guard = writing.Revert(entry_id, expect=None if force else entry.after,
+                           decisions=resets.restorable_decisions(session, entry))
     return _restore(session, entry, settings, {"actor": actor, "revert": guard},
                     edit if edit is not None else writing.EditContext())
 
@@ -143,7 +146,7 @@ def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: st
         if other is not None:
             raise ForbiddenError(f"audit entry {entry_id} cannot be undone by an annotator: {other} changed the view "
                                  "since (a reviewer may revert it from the history)")
-    guard = writing.Revert(entry_id, expect=entry.after)
+    guard = writing.Revert(entry_id, expect=entry.after, decisions=resets.restorable_decisions(session, entry))
     return _restore(session, entry, settings, {"actor": actor, "undo": guard},
                     edit if edit is not None else writing.EditContext())
 

@@ -176,7 +176,8 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         view: the edited view's name on the system page ("V2"), None for a system's own entry.
         reverts_id: the entry this one reverts (action ``revert``) or undoes (any other action).
         facts: what only the write knew: ``calibration`` = (before, after) in words ("JaC 0.909",
-            "refused") for a field-line write.
+            "refused") for a field-line write; ``restored``, for an undo or a revert, the decisions it gave back
+            in words (``app.services.curation.resets.restore_decisions``).
         redo: the entry undoes an undo (a page's redo): said "redo of entry N" instead of "undo of entry N".
 
     >>> summarize("view.exclusion", {"excluded": False}, {"excluded": True}, view="V3")
@@ -196,7 +197,9 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         else:
             inner = summarize(state_action if action == "revert" else action, before, after, view=view, facts=facts)
         what = "reverted" if action == "revert" else "redo of" if redo else "undo of"
-        return f"{what} entry {reverts_id}: {inner}" if reverts_id is not None else f"{what}: {inner}"
+        restored = (facts or {}).get("restored")
+        back = f"; decisions it reset restored: {', '.join(restored)}" if restored else ""
+        return (f"{what} entry {reverts_id}: {inner}" if reverts_id is not None else f"{what}: {inner}") + back
     if action == "ball.edit":
         return ball_words(before.get("ball"), after.get("ball"), v)
     if action in ("field_lines.replace", "field_lines.mirror"):

@@ -18,7 +18,8 @@ Every system-level recomputation also replaces the system's doubts (``app.servic
 Each goes through the guarded, audited write of ``app.services.curation.writing`` (read, compute holding no
 connection, compare the versions and write under the lock), carrying an
 :class:`~app.services.curation.writing.EditContext` (``edit``: the route's, else one of its own), and resets
-decisions by the one rule of ``app.services.curation.resets``.
+decisions by the one rule of ``app.services.curation.resets``; an undo or revert that brings the system's labels
+back to those its decisions were made on gives those decisions back by the same module.
 
 Bounded work: a field-line edit gives a view at most ``V3D_MAX_LINE_POINTS_PER_FRAME`` points (2,000; 422 naming
 ``lines`` before any geometry); lines stored before the cap still calibrate, mirror and edit.
@@ -56,6 +57,7 @@ from app.services.curation.resets import (
     reset_after_change,
     reset_decisions_after_recalibration,
     reset_refitted_systems,
+    restore_decisions,
 )
 from app.services.curation.states import (
     ball_state,
@@ -165,6 +167,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
                                "edited_at": utcnow()})
         _recompute(session, frame.system, settings, actor, edit)
         reset_after_change(session, frame, "ball.edit", before, ball_state(frame), actor, undo)
+        restore_decisions(frame, undo or revert, actor, edit)
         return frame
 
     return guarded_frame_write(session, frame_id, expected, ball_state, apply, "ball.edit", actor, revert,
@@ -268,6 +271,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         _store_lines(session, frame, parsed, settings, actor, edit)
         verb = "replaced" if undo_of is None else f"put back (undo of audit entry {undo_of})"
         reset_decisions_after_recalibration(session, frame, before, verb, actor, settings)
+        restore_decisions(frame, undo or revert, actor, edit)
         edit.facts["calibration"] = (jac_before, jac_words(frame, settings))
         return frame
 
@@ -406,6 +410,7 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
         review.excluded = excluded
         _recompute(session, frame.system, settings, actor, edit)
         reset_after_change(session, frame, "view.exclusion", before, excluded_state(frame), actor, undo)
+        restore_decisions(frame, undo or revert, actor, edit)
         return frame
 
     return guarded_frame_write(session, frame_id, expected, excluded_state, apply, "view.exclusion", actor, revert,
