@@ -5,7 +5,8 @@ An entry says who (``actor``: the user's name, or ``cli:<os user>`` for work run
 before and after the write, as self-describing JSON: ``{"ball": {"box", "point"}}``,
 ``{"lines": {class: polylines}}``, ``{"excluded": bool}``, ``{"review": {"status", "comment"}}`` or
 ``{"calibration_review": {"status", "comment"}}`` (a view's calibration decision) or ``{"assignee": name}``
-(a system's assignee, ``app.services.curation.assignment``).
+(a system's assignee, ``app.services.curation.assignment``), or ``{"system": {"review", "views"}}`` (what an import's
+merge changed of a stored system, action ``system.import``: ``app.services.curation.states.system_import_state``).
 An import or a full recompute is one entry of its own (:func:`record_summary`: its counts in
 ``after``, no ``before``); they cannot be reverted (``app.services.audit.reverting``), nor can an
 administrator's change of a user or a token (:data:`ADMIN_ACTIONS`, listed to admins only). Entries name their
@@ -33,7 +34,8 @@ SUMMARY_ACTIONS = ("import", "recompute")
 ADMIN_ACTIONS = ("user.create", "user.role", "user.disable", "user.enable", "token.issue", "token.revoke")
 #: Every action an entry may record.
 ACTIONS = ("ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",
-           "view.calibration_review", "system.review", "system.assign", *SUMMARY_ACTIONS, "revert", *ADMIN_ACTIONS)
+           "view.calibration_review", "system.review", "system.assign", "system.import", *SUMMARY_ACTIONS, "revert",
+           *ADMIN_ACTIONS)
 
 
 def revertible(action: str) -> bool:

@@ -13,7 +13,9 @@ Written under ``out_dir``:
   ``imageMetadata.calibrated_replays`` (actions: the admitted replays), ``calibration`` (SoccerNet camera JSON,
   section 2, or null) and ``JaC {"JaC@0.005", "JaC@0.01", "JaC@0.02"}``. v3d adds what a faithful re-import
   needs: the field lines at full precision (pixels), ``GameMetadata.v3d_reviews`` (system -> review status),
-  ``GameMetadata.v3d_systems`` (action frame -> system name, where they differ) and per frame
+  ``GameMetadata.v3d_systems`` (action frame -> system name, where they differ), ``GameMetadata.v3d_exported_at``
+  (when the export began reading, ISO 8601 UTC: a ``keep-newer`` merge of the file into a database keeps what was
+  changed there after it, ``app.services.transfer.merging``) and per frame
   ``v3d {source, status, reason, flags, residuals_px, uncertainty, admitted, original_lines, original_ball}`` (no server
   path: a re-import finds images in the tree itself). Replays no action links are written as they came. Only
   SoccerNet-v3 systems are written (the kinds that take the ``soccernet-v3d`` export, ``app.services.kinds``):
@@ -73,7 +75,7 @@ from app.db.models import (
     System,
     Triangulation,
 )
-from app.db.types import json_loads
+from app.db.types import json_loads, utcnow
 from app.services.images.serving import frame_has_image, frame_image
 from app.services.kinds import kinds_exported_by, split_of
 
@@ -284,6 +286,7 @@ def iter_soccernet_v3d(session: Session, include_all: bool = False,
         InvalidInputError: a league, season or match that cannot be a folder name; raised before the
             first game is yielded, so a writer writes nothing.
     """
+    started = utcnow().isoformat()  # before anything is read: a change after it may be missing from the file
     wanted = (select(System.game_id).outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
               .where(System.kind.in_(kinds_exported_by("soccernet-v3d"))))
     if not include_all:
@@ -305,14 +308,15 @@ def iter_soccernet_v3d(session: Session, include_all: bool = False,
             per_game[row.game_id].append(row)
         del rows
         for gid in batch:
-            yield _exported_game(by_id[gid], per_game.pop(gid))
+            yield _exported_game(by_id[gid], per_game.pop(gid), started)
             done += 1
             if progress:
                 progress("export", done, len(games))
 
 
-def _exported_game(game: Any, rows: list[Any]) -> ExportedGame:
-    """One game's ``Labels-v3D.json`` document and CSV rows from its frame rows (:func:`_frame_rows`)."""
+def _exported_game(game: Any, rows: list[Any], exported_at: str) -> ExportedGame:
+    """One game's ``Labels-v3D.json`` document and CSV rows from its frame rows (:func:`_frame_rows`), read by an
+    export that began at ``exported_at`` (ISO 8601, UTC)."""
     split = split_of(game.path)
     actions: dict[str, Any] = {}
     replays: dict[str, Any] = {}
@@ -352,6 +356,7 @@ def _exported_game(game: Any, rows: list[Any]) -> ExportedGame:
             "num_actions": len(actions), "num_replays": len(replays), "reconstructions": reconstructions,
             "v3d_reviews": reviews,
             "v3d_systems": renamed,
+            "v3d_exported_at": exported_at,
         },
         "actions": actions,
         "replays": replays,
