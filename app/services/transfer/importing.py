@@ -205,6 +205,7 @@ def _set_ball(frame: Frame, rec: FrameRecord, now: datetime, merge: Merge, chang
         if current[0] is None and original[0] is None:
             return False
         stored_current: tuple = (None, None, None)
+        stored_original: tuple = (None, None, None)
         differs = current != stored_current
         taken = merge.takes(False, None)
         label = BallLabel()
@@ -223,7 +224,7 @@ def _set_ball(frame: Frame, rec: FrameRecord, now: datetime, merge: Merge, chang
         label.edited_at = now if current != original else None
     if label.kind is None and label.original_kind is None:
         frame.ball_label = None
-    return True
+    return stored_original != original or (taken and differs)
 
 
 def _store(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
