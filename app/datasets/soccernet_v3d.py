@@ -64,7 +64,7 @@ JAC_KEYS: tuple[str, ...] = tuple(f"JaC@{g:g}" for g in JAC_GAMMAS)
 #: Keys v3d adds to a frame's entry, to its ``imageMetadata`` and to ``GameMetadata``: the rest is the release's.
 V3D_FRAME_KEYS = ("calibration", "JaC", "v3d")
 V3D_IMAGE_KEYS = ("calibrated_replays",)
-V3D_GAME_KEYS = ("reconstructions", "v3d_reviews", "v3d_systems", "v3d_exported_at")
+V3D_GAME_KEYS = ("reconstructions", "v3d_reviews", "v3d_systems", "v3d_as_of")
 _BOX_KEYS = ("x1", "y1", "x2", "y2")
 
 
@@ -392,13 +392,13 @@ def read_soccernet_v3d(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> 
                                    f"unknown status {status!r}") from None
             out.append(SystemRecord(name, kind, s.frames, review))
         games.append(GameRecord(league, season, match, str(labels.parent.resolve()), out, release,
-                                exported_at(meta.get("v3d_exported_at"), labels)))
+                                as_of(meta.get("v3d_as_of"), labels)))
     return games
 
 
-def exported_at(value: Any, file: Path) -> datetime | None:
-    """The export time of ``GameMetadata.v3d_exported_at`` (ISO 8601 with its offset, as the export writes it) as a
-    UTC time; None when absent.
+def as_of(value: Any, file: Path) -> datetime | None:
+    """The time of the game's newest change the export holds (``GameMetadata.v3d_as_of``, ISO 8601 with its offset,
+    as the export writes it) as a UTC time; None when absent.
 
     Raises:
         DatasetError: naming the field, for anything else (a time without its offset included).
@@ -410,6 +410,6 @@ def exported_at(value: Any, file: Path) -> datetime | None:
     except ValueError:
         when = None
     if when is None or when.tzinfo is None:
-        raise DatasetError(file, "GameMetadata.v3d_exported_at",
+        raise DatasetError(file, "GameMetadata.v3d_as_of",
                            f"expected an ISO 8601 time with its offset, got {str(value)[:40]!r}")
     return when.astimezone(timezone.utc)

@@ -161,9 +161,9 @@ async def create_import(request: Request, session: SessionDep, settings: Setting
       too many members or bytes uncompressed).
 
     A dataset whose games are stored already is refused (409 naming them) unless ``merge`` says how to merge them
-    (``keep-newer``: the stored labels and decisions changed after the file was exported are kept; ``overwrite``:
-    the file's replace them); a merge writes one audit entry per stored system it changes (revertible) and sets a
-    decision from the file only saying so (``app.services.transfer.merging``).
+    (``keep-newer``: the stored labels and decisions changed after the newest change the file holds are kept;
+    ``overwrite``: the file's replace them); a merge writes one audit entry per stored system it changes
+    (revertible) and sets a decision from the file only saying so (``app.services.transfer.merging``).
 
     The import is one audit entry, by the admin who queued it.
     """

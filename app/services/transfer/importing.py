@@ -13,7 +13,7 @@ Every importer works in two phases so that bad input stores nothing:
    twice gives the same rows, and an import cut short (a crash, a kill) leaves whole games stored and
    is completed by running it again. A re-import refreshes the imported originals and merges the
    current values and decisions of the stored games by its merge mode (``app.services.transfer.merging``:
-   ``keep-newer`` keeps what a person changed after the file was exported; one audit entry per system it
+   ``keep-newer`` keeps what a person changed after what the file holds; one audit entry per system it
    changes). In each batch the frames whose lines are new or changed are calibrated in the import's
    process pool before the batch's first write, then the batch is written, its touched systems
    recomputed (``app.services.derivation.recompute``) and committed, or rolled back. The pool does not
@@ -166,6 +166,8 @@ def _upsert_game(session: Session, rec: GameRecord) -> Game:
     game.source_path = rec.source_path
     if game.release != rec.release:
         game.release = rec.release
+    if rec.as_of is not None and (game.as_of is None or rec.as_of > game.as_of):
+        game.as_of = rec.as_of  # what the file held, as of when: its exports say it again
     return game
 
 
@@ -252,7 +254,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     with session.no_autoflush:  # nothing is written before calibration: the write lock is taken late
         for grec in records:
             game = _upsert_game(session, grec)
-            merge = Merge(mode, grec.exported_at, report.source_name or Path(report.source).name, actor)
+            merge = Merge(mode, grec.as_of, report.source_name or Path(report.source).name, actor)
             merges.append(merge)
             systems = {s.name: s for s in game.systems}
             if game.id is not None:  # what the merge compares, loaded at once (not one lazy load per frame)
@@ -534,7 +536,7 @@ def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
     recomputed from them and from the ball labels of ``SNv3D.csv``.
 
     ``actor``, ``source_name``, ``merge``: as :func:`import_soccernet_v3` (``keep-newer`` compares the stored
-    changes with the export's time, ``GameMetadata.v3d_exported_at``).
+    changes with the time of the newest change the export holds, ``GameMetadata.v3d_as_of``).
 
     Raises:
         DatasetError: invalid input (nothing is stored).

@@ -6,9 +6,9 @@ An import whose games already exist is refused unless it names a mode (``app.ser
 * compares each stored system's labels with the file's, part by part (each view's ball label, field lines and, for
   a SoccerNet-v3D export, its imported calibration), and takes the file's value or keeps the stored one
   (:meth:`Merge.takes`): ``overwrite`` always takes the file's; ``keep-newer`` keeps a stored value a person changed
-  after the file was exported (``GameMetadata.v3d_exported_at`` of a SoccerNet-v3D export: the time its export began
-  reading), and any stored change when the file carries no export time (a release, an ISSIA folder, an older
-  export: as old as anything stored);
+  after the newest change the file holds (``GameMetadata.v3d_as_of`` of a SoccerNet-v3D export: its game's newest
+  audit entry when it was exported), and any stored change when the file carries no such time (a release, an ISSIA
+  folder, an older export: as old as anything stored);
 * sets a decision from the file only where the file has one for exactly the labels the system now has (every part
   taken from the file), the file is newer than the stored decision (``keep-newer``) or the merge overwrites, and
   then says so: the decision's comment is "as the import of <source> says" and the system's entry and the
@@ -37,8 +37,8 @@ from app.services.derivation import scope
 #: The merge modes an import takes (``merge``: the API's form field and JSON key, ``v3d import ... --merge``), with
 #: what each does to a stored game.
 MERGE_MODES: dict[str, str] = {
-    "keep-newer": "the file's labels and decisions replace the stored ones, except those changed after the file was "
-                  "exported (every change, for a file without an export time)",
+    "keep-newer": "the file's labels and decisions replace the stored ones, except those changed after the newest "
+                  "change the file holds (every change, for a file that does not say when that was)",
     "overwrite": "the file's labels and decisions replace the stored ones, the edits made since included",
 }
 
@@ -59,11 +59,12 @@ class SystemChange:
 
 @dataclass
 class Merge:
-    """One import's merge (module docstring): ``mode`` (a key of :data:`MERGE_MODES`), the file's export time
-    (None: a file without one), and how the entries and comments name the import (``source``, ``actor``)."""
+    """One import's merge (module docstring): ``mode`` (a key of :data:`MERGE_MODES`), the time of the newest change
+    the file holds (``as_of``, UTC; None: a file that does not say), and how the entries and comments name the import
+    (``source``, ``actor``)."""
 
     mode: str
-    exported_at: Optional[datetime]
+    as_of: Optional[datetime]
     source: str
     actor: Optional[str] = None
     changes: list[SystemChange] = field(default_factory=list)
@@ -85,7 +86,7 @@ class Merge:
         at ``edited_at`` (UTC; None: unknown)."""
         if self.mode == "overwrite" or not edited:
             return True
-        return self.exported_at is not None and edited_at is not None and edited_at <= self.exported_at
+        return self.as_of is not None and edited_at is not None and edited_at <= self.as_of
 
     def part(self, change: Optional[SystemChange], frame: Frame, *, taken: bool, differs: bool, lines: bool) -> None:
         """Note one part of ``frame`` (its ball, or its lines or calibration when ``lines``) that differed from the
@@ -113,7 +114,7 @@ class Merge:
             return "file"
         decided_at = review.decided_at if review is not None else None
         file_newer = (self.mode == "overwrite" or decided_at is None
-                      or (self.exported_at is not None and decided_at <= self.exported_at))
+                      or (self.as_of is not None and decided_at <= self.as_of))
         if (file_newer and change.as_file and file_status is not None
                 and (file_status is not stored or change.labels_changed)):
             _decided(system, file_status, said, None, now)
@@ -137,12 +138,15 @@ class Merge:
             review = frame.review
             if review is None:
                 continue
-            if frame.id in change.ball_views and review.status is not ReviewStatus.PENDING:
+            ball = frame.id in change.ball_views and review.status is not ReviewStatus.PENDING
+            calibration = frame.id in change.line_views and review.calibration_status is not ReviewStatus.PENDING
+            if ball:
                 review.status, review.reset_reason, review.decided_at = ReviewStatus.PENDING, reason, now
-                done = True
-            if frame.id in change.line_views and review.calibration_status is not ReviewStatus.PENDING:
+            if calibration:
                 review.calibration_status, review.calibration_reset_reason = ReviewStatus.PENDING, reason
                 review.calibration_decided_at = now
+            if ball or calibration:
+                frame.edit_version += 1  # the view's decision is in what its ETag covers
                 done = True
         if done:
             scope.changed(change.system)

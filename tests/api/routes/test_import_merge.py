@@ -7,7 +7,7 @@ which cannot be reverted. Now:
 
 * an import whose games are stored already is refused (409 naming them, nothing stored) unless it says how to
   merge them (``merge=keep-newer|overwrite``, a form field);
-* ``keep-newer`` keeps what was changed after the file was exported (``GameMetadata.v3d_exported_at``);
+* ``keep-newer`` keeps what was changed after the newest change the file holds (``GameMetadata.v3d_as_of``);
 * a decision comes from the file only for exactly the file's labels, and says so; a decision whose labels the merge
   changed goes back to pending;
 * one audit entry per system the merge changed, revertible through the audit log's revert.
