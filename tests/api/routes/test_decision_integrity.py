@@ -55,6 +55,15 @@ def _accept(client: TestClient, scene: Scene, k: int) -> None:
                        headers={"If-Match": etag}).status_code == 200
 
 
+def _accepted_then_nudged(client: TestClient, scene: Scene, act_as) -> int:
+    """rita accepts the system and its second view's ball, then ana moves that ball 1 px: her entry's id (the
+    requests after come from ana)."""
+    act_as("rita", "reviewer")
+    _accept(client, scene, 1)
+    act_as("ana")
+    return _nudge(client, scene, 1, 1.0)
+
+
 def _entry(client: TestClient, entry_id: int) -> dict[str, Any]:
     items = client.get("/api/audit", params={"limit": 500}).json()["items"]
     return next(e for e in items if e["id"] == entry_id)
@@ -165,10 +174,7 @@ def test_two_moves_undone_in_turn_give_the_decisions_back(client: TestClient, sc
 def test_an_undo_leaving_another_views_later_edit_leaves_the_system_pending(client: TestClient, scene: Scene,
                                                                            act_as) -> None:
     """Restoring the undone view's label is not enough: every view's labels must be those the reviewer saw."""
-    act_as("rita", "reviewer")
-    _accept(client, scene, 1)
-    act_as("ana")
-    nudge = _nudge(client, scene, 1, 1.0)
+    nudge = _accepted_then_nudged(client, scene, act_as)
     act_as("bob")
     _nudge(client, scene, 0, 5.0)
     act_as("ana")
@@ -180,10 +186,7 @@ def test_an_undo_leaving_another_views_later_edit_leaves_the_system_pending(clie
 def test_an_undo_after_the_reviewer_decided_again_keeps_that_decision(client: TestClient, scene: Scene,
                                                                       act_as) -> None:
     """A decision taken after the edit is the reviewer's latest word: the undo never replaces it by the older one."""
-    act_as("rita", "reviewer")
-    _accept(client, scene, 1)
-    act_as("ana")
-    nudge = _nudge(client, scene, 1, 1.0)
+    nudge = _accepted_then_nudged(client, scene, act_as)
     act_as("rita", "reviewer")
     assert client.post(f"/api/frames/{scene.frame_ids[1]}/review",
                        json={"status": "rejected", "comment": ""}).status_code == 200

@@ -193,6 +193,21 @@ def test_overwrite_replaces_later_edits_and_each_system_reverts_on_its_own(
     assert _system(client, three["C"])["review"]["status"] == "pending"  # C's own entry is another revert
 
 
+def test_a_malformed_as_of_fails_the_import_naming_the_field(app, client: TestClient, scene: Scene,
+                                                             tmp_path: Path) -> None:
+    tree = _export(client, tmp_path / "export")
+    (labels,) = tree.rglob("Labels-v3D.json")
+    doc = json.loads(labels.read_text())
+    assert doc["GameMetadata"]["v3d_as_of"].endswith("+00:00")
+    doc["GameMetadata"]["v3d_as_of"] = "2026-11-27 09:00"  # no offset: which time is it?
+    labels.write_text(json.dumps(doc))
+    answer = _upload(client, _zipped(tree), merge="keep-newer")
+    assert answer.status_code == 202, answer.text
+    run_queued(app)
+    job = client.get(answer.json()["url"]).json()
+    assert job["state"] == "failed" and "GameMetadata.v3d_as_of: expected an ISO 8601 time" in job["message"]
+
+
 def test_an_import_of_the_same_export_again_changes_nothing_and_writes_no_entry(
         app, client: TestClient, three: dict[str, Scene], tmp_path: Path) -> None:
     tree = _export(client, tmp_path / "export")
