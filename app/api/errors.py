@@ -8,8 +8,9 @@
 * :class:`~app.core.errors.DatasetError`: 400, the server-side dataset cannot be imported (the
   message names the file and the field);
 * :class:`~app.core.errors.StaleVersionError`: 412 with the resource's current state, its ETag (also
-  in the ``ETag`` header) and its newest audit entry (``app.api.view_schemas.StaleOut``, shaped from the rows
-  the service read after rolling back);
+  in the ``ETag`` header) and its newest audit entry, and for a system the entries written since the version the
+  ``If-Match`` named, also in words in ``detail`` (``app.api.view_schemas.StaleOut``, shaped from the rows the
+  service read after rolling back);
 * :class:`~app.core.errors.ConflictError`: 409 with the message and, when known, ``current``;
 * :class:`~app.core.errors.InvalidInputError` and
   :class:`~app.geometry.annotations.AnnotationError`: 422 with the message and, when known, ``field``;
@@ -151,11 +152,17 @@ async def _stale(request: Request, exc: Exception) -> JSONResponse:
     current = exc.current
     principal = getattr(request.state, "principal", None)
     admin = principal is not None and principal.may("admin")
+    changes = [AuditEntryOut.shown(e, admin) for e in exc.changes]
+    detail = str(exc)
+    if changes:  # what the client did not see, in words: who changed what since the version it named
+        detail = shortened(f"{detail}. Since your version: "
+                           + "; ".join(f"{c.actor}: {c.summary}" for c in changes))
     body = StaleOut(
-        detail=str(exc), etag=exc.etag,
+        detail=detail, etag=exc.etag,
         current=(FrameView.of_frame(current) if isinstance(current, Frame)
                  else SystemStateOut.of(current) if current is not None else None),  # type: ignore[arg-type]  # current is a Frame or a System: a System here
         last_change=AuditEntryOut.shown(exc.last_change, admin) if exc.last_change is not None else None,
+        changes_since=changes,
     )
     return JSONResponse(body.model_dump(mode="json", by_alias=True), status_code=status.HTTP_412_PRECONDITION_FAILED,
                         headers={"ETag": exc.etag, "Cache-Control": "no-cache"})

@@ -12,17 +12,24 @@ from app.db.models import JobState
 from app.services.jobs.work import WORK
 from app.services.kinds import POLICIES
 from app.services.transfer.import_formats import refused_options
+from app.services.transfer.merging import MERGE_MODES
 
 #: The dataset formats an import takes: every kind's ``import_formats``, once each, in the kinds' order.
 #: What a job runs (``app.services.jobs.work.WORK``) and where it is (``JobState``).
+#: How an import merges games stored already (``app.services.transfer.merging.MERGE_MODES``).
 if TYPE_CHECKING:  # mypy cannot build a Literal from values computed at import
     ImportFormat = str
     JobKindName = str
     JobStateName = str
+    MergeMode = str
 else:
     ImportFormat = Literal[tuple(dict.fromkeys(f for p in POLICIES.values() for f in p.import_formats))]
     JobKindName = Literal[tuple(WORK)]
     JobStateName = Literal[tuple(s.value for s in JobState)]
+    MergeMode = Literal[tuple(MERGE_MODES)]
+
+_MERGE = ("Games stored already: how to merge them (without it an import of a stored game is refused with 409 "
+          "naming the games). " + "; ".join(f"{mode}: {what}" for mode, what in MERGE_MODES.items()) + ".")
 
 
 class ImportOptions(_In):
@@ -38,6 +45,7 @@ class ImportOptions(_In):
                                                 "even when issia_calibration.json is present.")
     flip: list[str] = Field(default_factory=list, description="issia only: camera ids ('1'..'6') whose footage is "
                                                               "mirrored horizontally (images only).")
+    merge: Optional[MergeMode] = Field(None, description=_MERGE)
 
     @model_validator(mode="after")
     def _size_for_calibration_only(self) -> "ImportOptions":
@@ -63,6 +71,7 @@ class ImportUploadIn(BaseModel):
     height: Optional[int] = Field(None, gt=1, le=65535)
     from_lines: bool = False
     flip: Optional[str] = Field(None, description="Comma-separated camera ids (issia only).")
+    merge: Optional[MergeMode] = Field(None, description=_MERGE)
 
 
 class ExportJobIn(_In):

@@ -579,9 +579,14 @@ class SystemStateOut(BaseModel):
 class StaleOut(BaseModel):
     """412: the write's ``If-Match`` is stale. ``current`` is the resource now (a frame as
     ``GET /api/frames/{id}`` answers it, or :class:`SystemStateOut` of a system), ``etag`` its ETag (also
-    in the ``ETag`` header) and ``last_change`` its newest audit entry (who changed it), when any."""
+    in the ``ETag`` header) and ``last_change`` its newest audit entry (who changed it), when any. For a system,
+    ``changes_since`` are the audit entries written after the version the ``If-Match`` named (its views' edits and
+    its decisions, oldest first; at most the 20 newest), also said in words in ``detail``."""
 
     detail: str
     etag: str
     current: Optional[FrameView | SystemStateOut]
     last_change: Optional[AuditEntryOut]
+    changes_since: list[AuditEntryOut] = Field(default_factory=list, description=(
+        "A system's changes after the version the If-Match named, oldest first: who changed what it covers (a "
+        "view's ball, field lines, exclusion, calibration; its decision) since that version was read."))

@@ -5,14 +5,15 @@ The database is ``V3D_DATABASE_URL`` (or ``--database-url``); it is migrated to 
 before use. An import is a background job (``app.services.jobs.runner``) that the command creates already
 claimed and runs in its own process, drawing its progress (tqdm bars per stage); killed, the same
 command run again resumes that job (imports are idempotent). A dataset error prints
-``error: <file>: <field>: <problem>`` and exits with status 2, leaving the database unchanged; any other
-failure of the job exits with status 1 and its message.
+``error: <file>: <field>: <problem>`` and exits with status 2, leaving the database unchanged, as does an import of
+games stored already without ``--merge keep-newer|overwrite`` (naming them); any other failure of the job exits
+with status 1 and its message.
 """
 from __future__ import annotations
 
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Any, Callable, Iterator, Optional, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, Callable, Iterator, Literal, Optional, TypeVar
 
 import typer
 from tqdm import tqdm
@@ -22,10 +23,19 @@ from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
 from app.services.jobs.work import import_params
 from app.services.transfer.export_formats import export_format
+from app.services.transfer.merging import MERGE_MODES
 
 DatabaseOpt = Annotated[Optional[str],
                         typer.Option("--database-url", help="SQLAlchemy URL (default: V3D_DATABASE_URL).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=0, help="Calibration processes (0 = all cores).")]
+if TYPE_CHECKING:  # mypy cannot build a Literal from values computed at import
+    MergeMode = str
+else:
+    MergeMode = Literal[tuple(MERGE_MODES)]
+MergeOpt = Annotated[Optional[MergeMode], typer.Option(
+    "--merge",
+    help="Games stored already: how to merge them (without it, an import of a stored game exits 2 naming them). "
+         + "; ".join(f"{mode}: {what}" for mode, what in MERGE_MODES.items()) + ".")]
 _Command = TypeVar("_Command", bound=Callable[..., Any])
 _STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating",
            "rig": "calibrating with game rigs", "triangulate": "triangulating", "recompute": "recomputing systems",
@@ -136,6 +146,10 @@ def _run_import(settings: Settings, params: dict[str, Any]) -> None:
         typer.echo(f"  system left out: {skipped}")
     for skipped in r.get("skipped_games", []):
         typer.echo(f"  game left out: {skipped}")
+    if r.get("systems_merged") or r.get("decisions_from_file") or r.get("decisions_reset"):
+        typer.echo(f"merged {r['systems_merged']} stored system(s) (one audit entry each); "
+                   f"{r['decisions_from_file']} decision(s) taken from the file, {r['decisions_reset']} system(s) "
+                   "set back to pending")
 
 
 @import_cli.command("soccernet-v3")
@@ -143,20 +157,22 @@ def import_soccernet_v3_cmd(
     path: Annotated[Path, typer.Argument(help="A SoccerNet-v3 tree (<league>/<season>/<game>/Labels-v3.json).")],
     database_url: DatabaseOpt = None,
     workers: WorkersOpt = None,
+    merge: MergeOpt = None,
 ) -> None:
     """Import a SoccerNet-v3 tree: calibrate every frame, triangulate every system."""
     settings = cli_settings(database_url, workers)
-    _run_import(settings, import_params("soccernet-v3", path, calibration_workers=workers))
+    _run_import(settings, import_params("soccernet-v3", path, calibration_workers=workers, merge=merge))
 
 
 @import_cli.command("soccernet-v3d")
 def import_soccernet_v3d_cmd(
     path: Annotated[Path, typer.Argument(help="A SoccerNet-v3D tree (SNv3D.csv at its root).")],
     database_url: DatabaseOpt = None,
+    merge: MergeOpt = None,
 ) -> None:
     """Import a SoccerNet-v3D export: cameras as given, balls from SNv3D.csv, systems re-triangulated."""
     settings = cli_settings(database_url, None)
-    _run_import(settings, import_params("soccernet-v3d", path))
+    _run_import(settings, import_params("soccernet-v3d", path, merge=merge))
 
 
 @import_cli.command("sn-calibration")
@@ -166,11 +182,12 @@ def import_sn_calibration_cmd(
     height: Annotated[Optional[int], typer.Option(help="Image height in pixels (else read from the images).")] = None,
     database_url: DatabaseOpt = None,
     workers: WorkersOpt = None,
+    merge: MergeOpt = None,
 ) -> None:
     """Import a SoccerNet-calibration set: each frame becomes a single-view system to review."""
     settings = cli_settings(database_url, workers)
     _run_import(settings, import_params("sn-calibration", path, width=width, height=height,
-                                        calibration_workers=workers))
+                                        calibration_workers=workers, merge=merge))
 
 
 @import_cli.command("issia")
@@ -182,12 +199,13 @@ def import_issia_cmd(
                                              )] = False,
     flip: Annotated[str, typer.Option(help="Comma-separated camera ids whose footage is mirrored, e.g. 1,2.")] = "",
     database_url: DatabaseOpt = None,
+    merge: MergeOpt = None,
 ) -> None:
     """Import an ISSIA sequence: one system per frame index, static cameras calibrated once, the
     ball's trajectory fitted over the sequence."""
     settings = cli_settings(database_url, None)
     flipped = [c.strip() for c in flip.split(",") if c.strip()]
-    _run_import(settings, import_params("issia", path, from_lines=from_lines, flip=flipped))
+    _run_import(settings, import_params("issia", path, from_lines=from_lines, flip=flipped, merge=merge))
 
 
 @import_cli.command("split")

@@ -83,14 +83,17 @@ class StaleVersionError(ServiceError):
     changed (HTTP 412). ``kind`` is "frame" or "system", ``etag`` the current strong ETag; the services
     fill ``current`` (the resource now: the ``Frame`` loaded for its view, or the ``System`` with its
     review) and ``last_change`` (its newest ``AuditEntry``, or None) after rolling back, so the client can
-    be shown who changed it and to what."""
+    be shown who changed it and to what. ``seen`` is the newest version the client named below the current one
+    (None: it named none); for a system the services also fill ``changes``, the entries after ``seen`` (oldest
+    first): what changed since the client read it."""
 
-    def __init__(self, kind: str, ident: int, etag: str) -> None:
+    def __init__(self, kind: str, ident: int, etag: str, seen: int | None = None) -> None:
         super().__init__(f"{kind} {ident} was changed by someone else (it is now {etag}): nothing was stored; "
                          "reload it, then apply your change again")
-        self.kind, self.ident, self.etag = kind, ident, etag
+        self.kind, self.ident, self.etag, self.seen = kind, ident, etag, seen
         self.current: object | None = None
         self.last_change: object | None = None
+        self.changes: list[object] = []
 
 
 class ConflictError(ServiceError):

@@ -4,6 +4,7 @@ lines in pixels, ball labels and, for exports, calibrations)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from datetime import datetime
 from typing import Any
 
 from app.db.models import BallKind, CalibrationStatus, FrameRole, ReviewStatus, SystemKind
@@ -108,3 +109,6 @@ class GameRecord:
     #: than ``actions`` and ``replays`` (``GameMetadata``, every key), and under ``replays`` the replays no
     #: action links (they belong to no system); None for formats without one.
     release: dict[str, Any] | None = None
+    #: The time of the game's newest change the file holds (UTC; a SoccerNet-v3D export's ``GameMetadata.v3d_as_of``),
+    #: None for a release or a file without one: what a ``keep-newer`` merge compares the stored changes with.
+    as_of: datetime | None = None

@@ -158,6 +158,11 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
         systems.append(SystemRecord(name=stem, kind=SystemKind.SINGLE_VIEW, frames=[frame]))
     if not systems:
         raise DatasetError(root, None, "no per-frame .json files found")
-    resolved = root.resolve()
-    match = resolved.stem if resolved.is_file() else resolved.name
-    return GameRecord(SN_CALIBRATION_LEAGUE, resolved.parent.name, match, str(resolved), systems)
+    return GameRecord(*sn_calibration_game(root), str(root.resolve()), systems)
+
+
+def sn_calibration_game(path: str | Path) -> tuple[str, str, str]:
+    """``(league, season, match)`` of the game a SoccerNet-calibration folder or zip becomes:
+    ``sn-calibration / <parent folder name> / <folder or zip stem>`` (nothing is read)."""
+    resolved = Path(path).resolve()
+    return SN_CALIBRATION_LEAGUE, resolved.parent.name, resolved.stem if resolved.is_file() else resolved.name

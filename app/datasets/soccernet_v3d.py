@@ -16,6 +16,7 @@ from __future__ import annotations
 import ast
 import csv
 import json
+from datetime import datetime, timezone
 from functools import partial
 from pathlib import Path
 from typing import Any, Mapping
@@ -63,7 +64,7 @@ JAC_KEYS: tuple[str, ...] = tuple(f"JaC@{g:g}" for g in JAC_GAMMAS)
 #: Keys v3d adds to a frame's entry, to its ``imageMetadata`` and to ``GameMetadata``: the rest is the release's.
 V3D_FRAME_KEYS = ("calibration", "JaC", "v3d")
 V3D_IMAGE_KEYS = ("calibrated_replays",)
-V3D_GAME_KEYS = ("reconstructions", "v3d_reviews", "v3d_systems")
+V3D_GAME_KEYS = ("reconstructions", "v3d_reviews", "v3d_systems", "v3d_as_of")
 _BOX_KEYS = ("x1", "y1", "x2", "y2")
 
 
@@ -390,5 +391,25 @@ def read_soccernet_v3d(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> 
                 raise DatasetError(labels, f"GameMetadata.v3d_reviews[{name!r}]",
                                    f"unknown status {status!r}") from None
             out.append(SystemRecord(name, kind, s.frames, review))
-        games.append(GameRecord(league, season, match, str(labels.parent.resolve()), out, release))
+        games.append(GameRecord(league, season, match, str(labels.parent.resolve()), out, release,
+                                as_of(meta.get("v3d_as_of"), labels)))
     return games
+
+
+def as_of(value: Any, file: Path) -> datetime | None:
+    """The time of the game's newest change the export holds (``GameMetadata.v3d_as_of``, ISO 8601 with its offset,
+    as the export writes it) as a UTC time; None when absent.
+
+    Raises:
+        DatasetError: naming the field, for anything else (a time without its offset included).
+    """
+    if value is None:
+        return None
+    try:
+        when = datetime.fromisoformat(value) if isinstance(value, str) and len(value) <= 64 else None
+    except ValueError:
+        when = None
+    if when is None or when.tzinfo is None:
+        raise DatasetError(file, "GameMetadata.v3d_as_of",
+                           f"expected an ISO 8601 time with its offset, got {str(value)[:40]!r}")
+    return when.astimezone(timezone.utc)

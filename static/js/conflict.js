@@ -1,12 +1,13 @@
 // The conflict notice of the system page: a write answered 412 (someone changed the resource since
 // the page read it). It says who changed it and to what (the 412's last audit entry and current
-// state), what was not stored, and offers "re-apply my change" (the same write against the current
-// version) or "keep theirs" (the page already shows their state).
+// state; for the system's decision every change since the page's version, in words), what was not
+// stored, and offers "re-apply my change" (the same write against the current version) or "keep
+// theirs" (the page already shows their state).
 
 import { el } from "./format.js";
 import { describeEntry } from "./history.js";
 
-/** Show the notice in `root` for a 412 `error` (ApiError; body {current, etag, last_change}).
+/** Show the notice in `root` for a 412 `error` (ApiError; body {current, etag, last_change, changes_since}).
  * `what`: the resource in words ("V2 (2_1.png)"); `mine`: the change not stored, in words;
  * `reapply(etag)`: send it again against version `etag`; both buttons close the notice. */
 export function showConflict(root, { error, what, mine, viewName, reapply }) {
@@ -17,9 +18,13 @@ export function showConflict(root, { error, what, mine, viewName, reapply }) {
     root.hidden = true;
     root.replaceChildren();
   };
+  // a decision's version covers every view of the system: what changed under the page, one line each
+  const since = (body.changes_since || []).map((e) => el("li", {}, `${e.actor}: ${e.summary}`));
   root.replaceChildren(
     el("strong", {}, `Conflict: ${what} was changed by someone else; your change was not stored.`),
     el("div", { "data-testid": "conflict-who" }, `Last change: ${who}`),
+    ...(since.length ? [el("div", {}, "Since your page:"), el("ul", { "data-testid": "conflict-since" }, ...since)]
+      : []),
     el("div", { "data-testid": "conflict-mine" }, `Your change: ${mine}`),
     el("div", { class: "actions" },
       el("button", { type: "button", "data-testid": "conflict-reapply",

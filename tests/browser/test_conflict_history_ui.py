@@ -71,3 +71,31 @@ def test_conflict_notice_reapply_and_history_revert(page, artifacts):
     assert _api(page, f"/api/frames/{fid}")["ball"]["box"] == pytest.approx(theirs)
     page.wait_for_function("() => document.querySelector('[data-testid=history-entry]')?.dataset.action === 'revert'")
     page.screenshot(path=str(artifacts / "history-revert.png"))
+
+
+def test_a_stale_decision_lists_what_changed_under_the_page(page, artifacts):
+    """The page's decision sent after someone moved a ball of the system: 412, and the notice lists the change
+    in words ("Since your page: ...") before the reviewer re-applies anything."""
+    listing = _api(page, "/api/systems?sort=name&limit=500")["items"]
+    candidates = [s["id"] for s in listing[len(listing) // 2:]]
+    system = next(sys for sys in (_api(page, f"/api/systems/{i}") for i in candidates)
+                  if _view_with_box(sys) is not None and sys["review"]["status"] == "pending")
+    sid, k = system["id"], _view_with_box(system)
+    view = system["views"][k]
+    page.goto(f"/systems/{sid}")
+    page.locator(tid("view")).nth(k).locator(tid("ball-hit")).wait_for()
+    box = view["ball"]["box"]
+    moved = api_write(page, "PATCH", f"/api/frames/{view['frame_id']}/ball",
+                      data={"box": [box[0] + 40, box[1], box[2] + 40, box[3]]}, headers={"If-Match": view["etag"]})
+    assert moved.ok, moved.text()
+    with page.expect_response(lambda r: r.url.endswith(f"/api/systems/{sid}/review")) as answer:
+        page.keyboard.press("r")  # reject: sent with the page's system ETag
+    assert answer.value.status == 412
+    since = page.locator(tid("conflict-since"))
+    since.wait_for()
+    assert f"ball of V{k + 1} moved 40.0 px" in since.inner_text()
+    assert _api(page, f"/api/systems/{sid}")["review"]["status"] == "pending"
+    for width, height in ((1366, 768), (1920, 1080)):
+        page.set_viewport_size({"width": width, "height": height})
+        page.screenshot(path=str(artifacts / f"conflict-since-{width}.png"))
+    page.locator(tid("conflict-keep")).click()

@@ -39,8 +39,13 @@ def test_import_sn_calibration_then_export_all(shared_dir, tmp_path, url):
     assert "1 game(s), 3 system(s), 3 frame(s) (3 new, 0 changed)" in result.output
     assert _count(url, "calibrations") == 3
 
+    # its game is stored now: an import of it again says how to merge it, else exits 2 naming the game
+    refused = runner.invoke(cli, ["import", "sn-calibration", str(archive), "--width", "960", "--height", "540",
+                                  "--database-url", url])
+    assert refused.exit_code == 2 and "sn-calibration/wc/annotations" in refused.output, refused.output
+    assert "--merge" in runner.invoke(cli, ["import", "sn-calibration", "--help"]).output
     again = runner.invoke(cli, ["import", "sn-calibration", str(archive), "--width", "960", "--height", "540",
-                                "--database-url", url])
+                                "--database-url", url, "--merge", "keep-newer"])
     assert again.exit_code == 0 and "(0 new, 0 changed)" in again.output
     assert _count(url, "frames") == 3
 

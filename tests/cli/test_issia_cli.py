@@ -20,7 +20,10 @@ def test_import_issia_then_export_all(shared_dir, tmp_path):
     result = runner.invoke(cli, ["import", "issia", str(root), "--from-lines", "--flip", "1,2", "--database-url", url])
     assert result.exit_code == 0, result.output
     assert "1 game(s), 20 system(s), 120 frame(s) (20 new, 0 changed)" in result.output
-    again = runner.invoke(cli, ["import", "issia", str(root), "--from-lines", "--flip", "1,2", "--database-url", url])
+    refused = runner.invoke(cli, ["import", "issia", str(root), "--from-lines", "--flip", "1,2", "--database-url", url])
+    assert refused.exit_code == 2 and "issia/sequences/issia-dev" in refused.output, refused.output
+    again = runner.invoke(cli, ["import", "issia", str(root), "--from-lines", "--flip", "1,2", "--database-url", url,
+                                "--merge", "keep-newer"])
     assert "(0 new, 0 changed)" in again.output, again.output
     engine = make_engine(url)
     with engine.connect() as conn:

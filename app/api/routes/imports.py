@@ -5,11 +5,13 @@ Both answer 202 with the queued job (``Location: /api/jobs/{id}``); the job's pr
 read at ``GET /api/jobs/{id}``. What can be checked at once is answered at once: a path outside the data
 root (403), a missing path (400), a too large upload (413, counted while it streams to disk), an unsafe
 or broken zip (400 naming the member: ``app.services.transfer.archives``). Errors inside the dataset's files fail
-the job with a message naming the file and the field.
+the job with a message naming the file and the field. A dataset whose games are stored already is refused
+(409 naming them) unless the import names how to merge them (``merge``).
 """
 from __future__ import annotations
 
 import secrets
+import shutil
 import time
 from collections.abc import AsyncGenerator, AsyncIterator
 from typing import Any
@@ -19,6 +21,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
+from sqlalchemy.orm import Session
 from starlette.datastructures import UploadFile
 from starlette.formparsers import MultiPartException, MultiPartParser
 
@@ -28,13 +31,13 @@ from app.api.job_schemas import ImportIn, ImportOptions, ImportUploadIn, JobOut
 from app.api.routes.jobs import accepted
 from app.api.schemas import ErrorOut
 from app.core.config import Settings, jobs_dir
-from app.core.errors import DatasetError, InvalidInputError
+from app.core.errors import ConflictError, DatasetError, InvalidInputError
 from app.datasets.files import refuse_links_out
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import import_params
 from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit, upload_limit_bytes
 from app.services.transfer.data_root import confined_path
-from app.services.transfer.import_formats import import_format
+from app.services.transfer.import_formats import import_format, stored_games_refusal
 
 router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
 
@@ -99,7 +102,7 @@ async def _upload_params(request: Request, settings: Settings) -> dict[str, Any]
     finally:
         await form.close()
     return import_params(options.kind, folder, width=options.width, height=options.height,
-                         from_lines=options.from_lines, flip=options.flip, upload=True)
+                         from_lines=options.from_lines, flip=options.flip, upload=True, merge=options.merge)
 
 
 async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
@@ -117,7 +120,23 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
         raise DatasetError(body.path, None, "no such file or folder under the data root")
     await run_in_threadpool(refuse_links_out, path)  # a link leading out of the dataset: 400 at once
     return import_params(body.kind, path, width=body.width, height=body.height, from_lines=body.from_lines,
-                         flip=body.flip)
+                         flip=body.flip, merge=body.merge)
+
+
+def _refuse_stored_games(session: Session, params: dict[str, Any], settings: Settings) -> None:
+    """409 naming the input's games that are stored already, when the import names no ``merge`` and the input is
+    valid (``import_formats.stored_games_refusal``; an upload's folder is removed: no job will read it). An input
+    that cannot be imported is left to the job, which fails naming the file and the field, as before."""
+    if params.get("merge") is not None:
+        return
+    try:
+        refusal = stored_games_refusal(session, params["kind"], params["path"], params, settings)
+    except DatasetError:
+        return
+    if refusal is not None:
+        if params.get("upload"):
+            shutil.rmtree(params["path"], ignore_errors=True)
+        raise ConflictError(refusal[0], current={"games": refusal[1]})
 
 
 @router.post(
@@ -125,6 +144,8 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
     responses={400: {"model": ErrorOut, "description": "A missing path, a symbolic link in the dataset leading out of "
                                                        "it, or an unsafe or broken zip (the member named)."},
                403: {"model": ErrorOut, "description": "The path is outside the data root (V3D_DATA_ROOT)."},
+               409: {"description": "The dataset's games are stored already and no merge was named: `detail` names "
+                                    "them, `current.games` lists them; nothing was stored."},
                413: {"model": ErrorOut, "description": "The upload is larger than V3D_MAX_UPLOAD_MB."},
                422: {"description": "Invalid fields (named)."}},
 )
@@ -143,12 +164,18 @@ async def create_import(request: Request, session: SessionDep, settings: Setting
       unsafe name, a link, a file named like an image that is not a PNG or JPEG within V3D_MAX_IMAGE_PIXELS;
       too many members or bytes uncompressed).
 
+    A dataset whose games are stored already is refused (409 naming them) unless ``merge`` says how to merge them
+    (``keep-newer``: the stored labels and decisions changed after the newest change the file holds are kept;
+    ``overwrite``: the file's replace them); a merge writes one audit entry per stored system it changes
+    (revertible) and sets a decision from the file only saying so (``app.services.transfer.merging``).
+
     The import is one audit entry, by the admin who queued it.
     """
     if request.headers.get("content-type", "").startswith("multipart/form-data"):
         params = await _upload_params(request, settings)
     else:
         params = await _path_params(request, settings)
+    await run_in_threadpool(_refuse_stored_games, session, params, settings)
     params["actor"] = principal.name
     job = await run_in_threadpool(jobs.submit, session, "import", params)
     return accepted(job)

@@ -46,6 +46,11 @@ class Game(Base):
     #: that system: a calibration that makes the game's camera rig (``apply_calibration``) or the camera prior.
     #: An edit that read the rig compares it under its lock (``app.services.curation.writing``).
     version: Mapped[int] = mapped_column(default=1, server_default="1")
+    #: The time of the newest change of the game a SoccerNet-v3D export it was imported from held
+    #: (``GameMetadata.v3d_as_of``), when later than the changes of its own; None when it came from no such file.
+    #: Its exports say it again (``app.services.transfer.exporting``): a database that imported the file holds
+    #: the game as of then.
+    as_of: Mapped[Optional[datetime]]
 
     systems: Mapped[list[System]] = relationship(
         back_populates="game", cascade="all, delete-orphan", passive_deletes=True, order_by="System.id"

@@ -67,6 +67,9 @@ class AuditEntry(Base):
     #: The change in one line of words ("ball of V2 moved 12.3 px"; ``app.services.audit.summaries``),
     #: written with the entry; None for entries recorded before the column (computed when read).
     summary: Mapped[Optional[str]] = mapped_column(sa.String(300))
+    #: The version the write gave its system (``System.version``: the system's ETag), shared by every entry of one
+    #: write; None for entries without a system and entries recorded before the column.
+    system_version: Mapped[Optional[int]]
 
     @property
     def before(self) -> Optional[dict[str, Any]]:

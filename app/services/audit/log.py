@@ -6,7 +6,8 @@ when (UTC), what (``action``, :data:`ACTIONS`) and the state of the edited part 
 self-describing JSON: ``{"ball": {"box", "point"}}``,
 ``{"lines": {class: polylines}}``, ``{"excluded": bool}``, ``{"review": {"status", "comment"}}`` or
 ``{"calibration_review": {"status", "comment"}}`` (a view's calibration decision) or ``{"assignee": name}``
-(a system's assignee, ``app.services.curation.assignment``).
+(a system's assignee, ``app.services.curation.assignment``), or ``{"system": {"review", "views"}}`` (what an import's
+merge changed of a stored system, action ``system.import``: ``app.services.curation.states.system_import_state``).
 An import or a full recompute is one entry of its own (:func:`record_summary`: its counts in
 ``after``, no ``before``); they cannot be reverted (``app.services.audit.reverting``), nor can an
 administrator's change of a user or a token (:data:`ADMIN_ACTIONS`, listed to admins only). Entries name their
@@ -40,7 +41,8 @@ SUMMARY_ACTIONS = ("import", "recompute")
 ADMIN_ACTIONS = ("user.create", "user.role", "user.disable", "user.enable", "token.issue", "token.revoke")
 #: Every action an entry may record.
 ACTIONS = ("ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",
-           "view.calibration_review", "system.review", "system.assign", *SUMMARY_ACTIONS, "revert", *ADMIN_ACTIONS)
+           "view.calibration_review", "system.review", "system.assign", "system.import", *SUMMARY_ACTIONS, "revert",
+           *ADMIN_ACTIONS)
 
 
 def revertible(action: str) -> bool:
@@ -93,7 +95,8 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
 
     ``reverts_id``: the entry this write undoes: a revert (action ``revert``), or a page's undo of its own edit,
     audited as that edit's action (``app.services.curation.editing.replace_field_lines``' ``undo_of``).
-    ``frame`` sets ``frame_id``, ``system_id`` and ``game_id``; ``system`` alone sets the last two.
+    ``frame`` sets ``frame_id``, ``system_id`` and ``game_id``; ``system`` alone sets the last two, and the system's
+    version as it is now (``system_version``; a write that bumps it after recording calls :func:`stamp_versions`).
     ``facts``: what only the running write knows, for the summary (``calibration=(before, after)`` in words,
     ``app.services.audit.summaries.summarize``). ``actor`` None is :func:`local_actor`. Raises ``ValueError`` for an
     action outside :data:`ACTIONS`.
@@ -107,6 +110,7 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
         at=utcnow(), actor=actor or local_actor(), action=action, frame_id=frame.id if frame is not None else None,
         system_id=system.id if system is not None else None, game_id=system.game_id if system is not None else None,
         reverts_id=reverts_id,
+        system_version=system.version if system is not None else None,
         summary=summarize(action, before, after, view=view_name(frame) if frame is not None else None,
                           reverts_id=reverts_id, facts=facts,
                           redo=action != "revert" and _is_undo(session, reverts_id))[:SUMMARY_MAX],
@@ -147,6 +151,14 @@ def stored_state(session: Session, state: Optional[dict[str, Any]]) -> tuple[Opt
             row = session.get(AuditState, digest)
     assert row is not None  # inserted or found above, in this transaction
     return None, row
+
+
+def stamp_versions(session: Session, system: System) -> None:
+    """Give every entry of ``system`` the write is adding (``session.new``) the version the write gives the system
+    (``System.version`` once it was bumped): one write's entries share it, whenever each was recorded."""
+    for entry in session.new:
+        if isinstance(entry, AuditEntry) and entry.system_id == system.id:
+            entry.system_version = system.version
 
 
 #: The longest summary stored (characters; ``audit_entries.summary``).
@@ -259,3 +271,35 @@ def latest_entry(session: Session, *, frame_id: Optional[int] = None,
         where.append(AuditEntry.frame_id.is_(None))
     entry = session.scalars(sa.select(AuditEntry).where(*where).order_by(AuditEntry.id.desc()).limit(1)).first()
     return entry
+
+
+#: The most entries :func:`entries_since` answers (the newest of them).
+SINCE_MAX = 20
+
+
+def entries_since(session: Session, system_id: int, version: int, limit: int = SINCE_MAX) -> list[AuditEntry]:
+    """The entries of system ``system_id`` (its views' edits, its decisions) written after its version ``version``
+    (``system_version`` above it), oldest first: at most the ``limit`` newest. Entries recorded before versions were
+    (``system_version`` NULL) are not among them."""
+    rows = session.scalars(sa.select(AuditEntry).where(AuditEntry.system_id == system_id,
+                                                       AuditEntry.system_version > version)
+                           .order_by(AuditEntry.id.desc()).limit(limit))
+    return list(rows)[::-1]
+
+
+def entries_of_write(session: Session, entry: AuditEntry) -> list[AuditEntry]:
+    """The entries the write that recorded ``entry`` recorded before it (the same system and ``system_version``, a
+    lower id: e.g. the decisions an edit set back to pending), in id order; none when ``entry`` has no version."""
+    if entry.system_id is None or entry.system_version is None:
+        return []
+    return list(session.scalars(sa.select(AuditEntry).where(
+        AuditEntry.system_id == entry.system_id, AuditEntry.system_version == entry.system_version,
+        AuditEntry.id < entry.id).order_by(AuditEntry.id)))
+
+
+def entries_after(session: Session, entry: AuditEntry, limit: int) -> Optional[list[AuditEntry]]:
+    """The entries of ``entry``'s system written after it (a higher id: the writes of one system commit in turn),
+    oldest first; None when there are more than ``limit``."""
+    rows = list(session.scalars(sa.select(AuditEntry).where(
+        AuditEntry.system_id == entry.system_id, AuditEntry.id > entry.id).order_by(AuditEntry.id).limit(limit + 1)))
+    return rows if len(rows) <= limit else None

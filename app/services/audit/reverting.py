@@ -4,7 +4,8 @@ edit (so the system is recomputed as after any edit), itself audited as action `
 The edited part is read from the entry's self-describing state (``app.services.audit.log``): ``ball`` ->
 :func:`~app.services.curation.editing.update_ball_label`, ``lines`` ->
 :func:`~app.services.curation.editing.replace_field_lines` (also for a mirroring: the lines before it are restored as
-they were), ``excluded`` -> :func:`~app.services.curation.editing.set_view_excluded`, ``calibration_review`` ->
+they were), ``excluded`` -> :func:`~app.services.curation.editing.set_view_excluded`, ``system`` (an import's
+merge of a stored system) -> :func:`~app.services.curation.editing.restore_imported_system`, ``calibration_review`` ->
 :func:`~app.services.curation.decisions.decide_calibration`, ``review`` ->
 :func:`~app.services.curation.decisions.decide_review` (its ``decided_at`` becomes now). A revert is refused (409) when
 the resource changed since the entry (its current state, read under the write's lock, is not the entry's ``after``)
@@ -12,7 +13,9 @@ unless ``force``. Restoring field lines recalibrates the frame: an imported came
 computed one.
 
 :func:`undo_entry` is the page's undo (and redo) of any edit, annotators' own included: the same restore, audited
-as the edit's own action with ``reverts_id``, never forced.
+as the edit's own action with ``reverts_id``, never forced. The undo or revert of a label's edit that brings the
+system's labels back to those its decisions were made on also gives back the decisions that edit set back to pending,
+in its own write and entry (``app.services.curation.resets.restore_decisions``).
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ from app.core.config import Settings
 from app.core.errors import ForbiddenError, InvalidInputError, found
 from app.db.models import AuditEntry
 from app.services.audit.log import revertible, shown_actor
-from app.services.curation import assignment, decisions, editing, writing
+from app.services.curation import assignment, decisions, editing, resets, writing
 
 
 @dataclass(frozen=True)
@@ -51,7 +54,8 @@ def revert_entry(session: Session, entry_id: int, *, settings: Settings, actor: 
         ConflictError: the resource changed since the entry (not forced); nothing changed.
     """
     entry = _revertible_entry(session, entry_id)
-    guard = writing.Revert(entry_id, expect=None if force else entry.after)
+    guard = writing.Revert(entry_id, expect=None if force else entry.after,
+                           decisions=resets.restorable_decisions(session, entry))
     return _restore(session, entry, settings, {"actor": actor, "revert": guard},
                     edit if edit is not None else writing.EditContext())
 
@@ -105,6 +109,10 @@ def _restore(session: Session, entry: AuditEntry, settings: Settings, common: di
         return Reverted(system_id, "system", system_id)
     elif "excluded" in before:
         editing.set_view_excluded(session, _frame_id(entry), bool(before["excluded"]), settings=settings, **common)
+    elif "system" in before:
+        system_id = _system_id(entry)
+        editing.restore_imported_system(session, system_id, before, settings=settings, **common)
+        return Reverted(system_id, "system", system_id)
     else:
         raise InvalidInputError(f"audit entry {entry_id} records no state this version can restore", field="id")
     frame = writing.get_frame(session, _frame_id(entry))
@@ -133,8 +141,8 @@ def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: st
     entry = _revertible_entry(session, entry_id)
     if not may_review:
         if entry.frame_id is None:
-            raise ForbiddenError(f"audit entry {entry_id} is a decision on the whole system: a reviewer's edit, "
-                                 "so only a reviewer may undo it")
+            raise ForbiddenError(f"audit entry {entry_id} is a change of the whole system (a decision or an import): "
+                                 "only a reviewer may undo it")
         if entry.actor != actor:
             raise ForbiddenError(f"audit entry {entry_id} is {shown_actor(entry.actor, admin=False)}'s edit: an "
                                  "annotator undoes only their own")
@@ -145,7 +153,7 @@ def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: st
             raise ForbiddenError(f"audit entry {entry_id} cannot be undone by an annotator: "
                                  f"{shown_actor(other, admin=False)} changed the view since (a reviewer may revert it "
                                  "from the history)")
-    guard = writing.Revert(entry_id, expect=entry.after)
+    guard = writing.Revert(entry_id, expect=entry.after, decisions=resets.restorable_decisions(session, entry))
     return _restore(session, entry, settings, {"actor": actor, "undo": guard},
                     edit if edit is not None else writing.EditContext())
 

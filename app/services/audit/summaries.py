@@ -18,8 +18,9 @@ from app.geometry.annotations import AnnotationError, lines_from_json_lists, lin
 STATUS_WORDS = {"accepted": "accepted", "rejected": "rejected", "needs_fix": "marked as needing a fix",
                 "pending": "set back to pending"}
 #: Which edit restored which state (a revert is audited as ``revert``: its state says what it restored).
-_ACTION_OF_STATE = (("ball", "ball.edit"), ("lines", "field_lines.replace"), ("excluded", "view.exclusion"),
-                    ("calibration_review", "view.calibration_review"), ("review", "review"))
+_ACTION_OF_STATE = (("system", "system.import"), ("ball", "ball.edit"), ("lines", "field_lines.replace"),
+                    ("excluded", "view.exclusion"), ("calibration_review", "view.calibration_review"),
+                    ("review", "review"))
 #: Below this a ball's centre or size did not move (px).
 _STILL_PX = 0.05
 
@@ -165,6 +166,41 @@ def _decision_words(state: Any, what: str) -> str:
     return f"{what} {STATUS_WORDS.get(status, status)}" + (f" ({comment[:80]})" if comment else "")
 
 
+def import_words(before: Any, after: Any) -> str:
+    """What an import's merge changed of a stored system (``{"system": {"review", "views"}}`` states, views in page
+    order, named "V<n>"): each view's ball, field lines, calibration and decisions, the system's decision; "nothing"
+    when they are equal.
+
+    >>> import_words({"system": {"review": {"status": "pending"},
+    ...                          "views": [{"frame_id": 4, "ball": {"box": [0, 0, 2, 2], "point": None}}]}},
+    ...              {"system": {"review": {"status": "accepted", "comment": "as the import of x says"},
+    ...                          "views": [{"frame_id": 4, "ball": {"box": [3, 4, 5, 6], "point": None}}]}})
+    'ball of V1 moved 5.0 px; system accepted (as the import of x says)'
+    """
+    b = before.get("system") if isinstance(before, Mapping) else None
+    a = after.get("system") if isinstance(after, Mapping) else None
+    b, a = (b if isinstance(b, Mapping) else {}), (a if isinstance(a, Mapping) else {})
+    old = {v.get("frame_id"): v for v in b.get("views", []) if isinstance(v, Mapping)}
+    parts = []
+    for i, new in enumerate(v for v in a.get("views", []) if isinstance(v, Mapping)):
+        name, was = f"V{i + 1}", old.get(new.get("frame_id"))
+        if was is None:
+            parts.append(f"{name} added")
+            continue
+        if was.get("ball") != new.get("ball"):
+            parts.append(ball_words(was.get("ball"), new.get("ball"), name))
+        if was.get("lines") != new.get("lines"):
+            parts.append(f"{lines_words(was.get('lines'), new.get('lines'))} ({name})")
+        if was.get("calibration") != new.get("calibration"):
+            parts.append(f"calibration of {name} replaced")
+        for key, what in (("review", f"ball of {name}"), ("calibration_review", f"calibration of {name}")):
+            if was.get(key) != new.get(key):
+                parts.append(_decision_words(new.get(key), what))
+    if b.get("review") != a.get("review"):
+        parts.append(_decision_words(a.get("review"), "system"))
+    return "; ".join(parts) if parts else "nothing"
+
+
 def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = None,
               reverts_id: Optional[int] = None, facts: Optional[Mapping[str, Any]] = None, redo: bool = False) -> str:
     """One line in words for an audit entry.
@@ -176,7 +212,9 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         view: the edited view's name on the system page ("V2"), None for a system's own entry.
         reverts_id: the entry this one reverts (action ``revert``) or undoes (any other action).
         facts: what only the write knew: ``calibration`` = (before, after) in words ("JaC 0.909",
-            "refused") for a field-line write.
+            "refused") for a field-line write; ``source``, the import's name, for ``system.import``;
+            ``restored``, for an undo or a revert, the decisions it gave back in words
+            (``app.services.curation.resets.restore_decisions``).
         redo: the entry undoes an undo (a page's redo): said "redo of entry N" instead of "undo of entry N".
 
     >>> summarize("view.exclusion", {"excluded": False}, {"excluded": True}, view="V3")
@@ -196,7 +234,9 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         else:
             inner = summarize(state_action if action == "revert" else action, before, after, view=view, facts=facts)
         what = "reverted" if action == "revert" else "redo of" if redo else "undo of"
-        return f"{what} entry {reverts_id}: {inner}" if reverts_id is not None else f"{what}: {inner}"
+        restored = (facts or {}).get("restored")
+        back = f"; decisions it reset restored: {', '.join(restored)}" if restored else ""
+        return (f"{what} entry {reverts_id}: {inner}" if reverts_id is not None else f"{what}: {inner}") + back
     if action == "ball.edit":
         return ball_words(before.get("ball"), after.get("ball"), v)
     if action in ("field_lines.replace", "field_lines.mirror"):
@@ -214,6 +254,9 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         return _decision_words(after.get("calibration_review"), f"calibration of {v}")
     if action == "system.review":
         return _decision_words(after.get("review"), "system")
+    if action == "system.import":
+        source = (facts or {}).get("source")
+        return f"import{f' of {source}' if source else ''} changed {import_words(before, after)}"
     if action in ("import", "recompute"):
         counts = ", ".join(f"{after[k]} {k}" for k in ("games", "systems", "frames") if isinstance(after.get(k), int))
         source = after.get("source_name") or ""

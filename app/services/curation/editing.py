@@ -18,7 +18,8 @@ Every system-level recomputation also replaces the system's doubts (``app.servic
 Each goes through the guarded, audited write of ``app.services.curation.writing`` (read, compute holding no
 connection, compare the versions and write under the lock), carrying an
 :class:`~app.services.curation.writing.EditContext` (``edit``: the route's, else one of its own), and resets
-decisions by the one rule of ``app.services.curation.resets``.
+decisions by the one rule of ``app.services.curation.resets``; an undo or revert that brings the system's labels
+back to those its decisions were made on gives those decisions back by the same module.
 
 Bounded work: a field-line edit gives a view at most ``V3D_MAX_LINE_POINTS_PER_FRAME`` points (2,000; 422 naming
 ``lines`` before any geometry); lines stored before the cap still calibrate, mirror and edit.
@@ -33,10 +34,13 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.errors import ConflictError, InvalidInputError
 from app.datasets.labels import LabelError, check_box, check_line_point_count, check_line_points, check_point
+from app.datasets.records import CalibrationFields
 from app.db.models import (
     AuditEntry,
     BallKind,
     BallLabel,
+    CalibrationSource,
+    CalibrationStatus,
     FieldLineAnnotation,
     Frame,
     ReviewDecision,
@@ -49,6 +53,7 @@ from app.geometry.doubts.judge import consensus_without
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import reprojection_error_px
 from app.geometry.weighting import centre_of, label_centre
+from app.services.calibration.calibrating import apply_calibration
 from app.services.curation.doubts import doubt_settings, doubt_views
 from app.services.curation.resets import (
     calibration_words,
@@ -56,20 +61,24 @@ from app.services.curation.resets import (
     reset_after_change,
     reset_decisions_after_recalibration,
     reset_refitted_systems,
+    restore_decisions,
 )
 from app.services.curation.states import (
     ball_state,
     excluded_state,
     lines_state,
     same_json,
+    system_import_state,
 )
 from app.services.curation.writing import (
     EditContext,
     Expected,
+    Guard,
     Revert,
     check_undo_state,
     frame_facts,
     guarded_frame_write,
+    guarded_write,
 )
 from app.services.derivation.recompute import (
     recompute_frame,
@@ -165,6 +174,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
                                "edited_at": utcnow()})
         _recompute(session, frame.system, settings, actor, edit)
         reset_after_change(session, frame, "ball.edit", before, ball_state(frame), actor, undo)
+        restore_decisions(frame, undo or revert, actor, edit)
         return frame
 
     return guarded_frame_write(session, frame_id, expected, ball_state, apply, "ball.edit", actor, revert,
@@ -268,6 +278,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         _store_lines(session, frame, parsed, settings, actor, edit)
         verb = "replaced" if undo_of is None else f"put back (undo of audit entry {undo_of})"
         reset_decisions_after_recalibration(session, frame, before, verb, actor, settings)
+        restore_decisions(frame, undo or revert, actor, edit)
         edit.facts["calibration"] = (jac_before, jac_words(frame, settings))
         return frame
 
@@ -406,8 +417,85 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
         review.excluded = excluded
         _recompute(session, frame.system, settings, actor, edit)
         reset_after_change(session, frame, "view.exclusion", before, excluded_state(frame), actor, undo)
+        restore_decisions(frame, undo or revert, actor, edit)
         return frame
 
     return guarded_frame_write(session, frame_id, expected, excluded_state, apply, "view.exclusion", actor, revert,
                                undo.entry_id if undo is not None else None, system_id=facts.system_id,
                                settings=settings, edit=edit)
+
+
+def restore_imported_system(session: Session, system_id: int, state: Mapping[str, Any], *, settings: Settings,
+                            actor: Optional[str] = None, revert: Optional[Revert] = None,
+                            undo: Optional[Revert] = None, edit: Optional[EditContext] = None) -> System:
+    """Give system ``system_id`` back a state an import's merge recorded (``state``:
+    :func:`~app.services.curation.states.system_import_state`, the ``before`` of a ``system.import`` entry): each
+    view's ball label, current field lines, calibration (as stored, source included) and decisions, and the system's
+    decision; then recompute the system (an ISSIA system re-fits its trajectory around it). Views the state does not
+    name (added since) are left as they are. A guarded write of the system, audited as ``system.import`` (``revert``:
+    as ``revert``; ``undo``: with ``reverts_id``, refused when the system is no longer the entry's ``after``).
+
+    Raises:
+        NotFoundError: no such system.
+        ConflictError: a revert or undo of a system changed since (not forced).
+    """
+    edit = edit if edit is not None else EditContext()
+    system_state = state["system"]
+
+    def apply(system: System) -> System:
+        check_undo_state(undo, system_import_state(system))
+        now = utcnow()
+        views = {f.id: f for f in system.frames}
+        for view in system_state["views"]:
+            frame = views.get(view["frame_id"])
+            if frame is not None:
+                _restore_view(frame, view, now)
+        _restore_review(system, "review", system_state["review"], now)
+        system.review_status = system.review.status if system.review is not None else ReviewStatus.PENDING
+        _recompute(session, system, settings, actor, edit)
+        return system
+
+    return guarded_write(session, system_id, Guard("system"), lambda system: system, system_import_state, apply,
+                         "system.import", actor, revert, undo.entry_id if undo is not None else None,
+                         settings=settings, edit=edit)
+
+
+def _restore_view(frame: Frame, view: Mapping[str, Any], now: Any) -> None:
+    """Put one view of a :func:`system_import_state` back: its ball label, lines, calibration and decisions."""
+    ball = view["ball"]
+    kind = BallKind.BOX if ball["box"] is not None else BallKind.POINT if ball["point"] is not None else None
+    label = frame.ball_label
+    if label is not None or kind is not None:
+        label = label if label is not None else BallLabel()
+        frame.ball_label = label
+        put_values(label, {"kind": kind, "box": ball["box"], "point": ball["point"],
+                           "provenance": ball.get("provenance")})
+        label.edited_at = now if label.edited else None
+    if frame.field_lines is not None and frame.field_lines.lines != view["lines"]:
+        frame.field_lines.lines = view["lines"]
+        frame.field_lines.edited_at = now if frame.field_lines.edited else None
+    cal = view["calibration"]
+    if cal is not None:
+        apply_calibration(frame, CalibrationFields(
+            CalibrationStatus(cal["status"]), cal["camera"], (cal["jac"][0], cal["jac"][1], cal["jac"][2]),
+            residuals_px=cal["residuals_px"], flags=list(cal["flags"]), reason=cal["reason"],
+            uncertainty=cal["uncertainty"]), CalibrationSource(cal["source"]))
+    _restore_review(frame, "review", view["review"], now)
+    _restore_review(frame, "calibration_review", view["calibration_review"], now)
+
+
+def _restore_review(subject: Frame | System, key: str, decision: Mapping[str, Any], now: Any) -> None:
+    """Give ``subject`` back a recorded decision (``key`` "review" or "calibration_review" of its states), unless it
+    is already that one."""
+    review = subject.review
+    status = ReviewStatus(decision["status"])
+    if key == "calibration_review":
+        if review is None or (review.calibration_status, review.calibration_comment) != (status, decision["comment"]):
+            review = review if review is not None else ReviewDecision(status=ReviewStatus.PENDING, comment="")
+            subject.review = review
+            review.calibration_status, review.calibration_comment = status, decision["comment"]
+            review.calibration_reset_reason, review.calibration_decided_at = None, now
+    elif review is None or (review.status, review.comment) != (status, decision["comment"]):
+        review = review if review is not None else ReviewDecision(status=ReviewStatus.PENDING, comment="")
+        subject.review = review
+        review.status, review.comment, review.reset_reason, review.decided_at = status, decision["comment"], None, now

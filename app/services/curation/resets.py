@@ -6,16 +6,23 @@ back to pending with the reason, in the edit's transaction (:func:`reset_decisio
 changes nothing resets nothing. ``undo`` (:func:`check_undo_state`) marks a write as the undo of an audit entry
 (``app.services.audit.reverting.undo_entry``): audited under the edit's own action with ``reverts_id``, refused
 (409) when the edited part is not the entry's ``after`` under the lock; an undo resets decisions as any edit.
+
+And back: the undo (or revert) of an edit gives back the decisions that edit reset (:func:`restore_decisions`) when,
+after it, the whole system's labels (every view's ball label, field lines and exclusion) are those the decisions
+were made on, the labels just before the edit (a decided system's labels never change without a reset), and nobody
+decided them since: a ball moved 1 px and moved back is accepted again, while an undo that leaves another view's
+later edit in place, or follows a recompute, leaves them pending. The undo's own entry says so in words.
 """
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import (
+    AuditEntry,
     Frame,
     ReviewStatus,
     System,
@@ -25,12 +32,16 @@ from app.services.audit import log as audit
 from app.services.audit.summaries import summarize
 from app.services.calibration.admission import admission_jac, is_admitted
 from app.services.curation.states import (
+    ball_state,
     calibration_review_state,
+    excluded_state,
     lines_state,
     review_state,
     same_json,
 )
 from app.services.curation.writing import (
+    EditContext,
+    Restorable,
     Revert,
 )
 
@@ -171,3 +182,102 @@ def jac_words(frame: Frame, settings: Settings) -> str:
     cal = frame.calibration
     jac = admission_jac(cal, settings) if cal is not None and cal.camera is not None else None
     return f"JaC {jac:.3f}" if jac is not None else "refused"
+
+
+#: The edited parts of a view an entry's state may hold (the labels a decision is made on), each with its state.
+LABEL_STATES: dict[str, Callable[[Frame], dict[str, Any]]] = {
+    "ball": ball_state, "lines": lines_state, "excluded": excluded_state}
+#: The decisions an entry's state may hold, each with its state.
+DECISION_STATES: dict[str, Callable[[Any], dict[str, Any]]] = {
+    "review": review_state, "calibration_review": calibration_review_state}
+#: The most entries after an edit :func:`restorable_decisions` reads; beyond, its undo restores no decision.
+RESTORE_HISTORY_MAX = 500
+
+
+def _part(state: Optional[dict[str, Any]], parts: Any) -> Optional[str]:
+    """Which of ``parts`` (a table's keys) an entry's ``state`` holds, or None."""
+    return next((k for k in parts if state is not None and k in state), None)
+
+
+def restorable_decisions(session: Session, entry: AuditEntry) -> Optional[Restorable]:
+    """What the undo or revert of ``entry`` (an edit of a view's label: its state holds ``ball``, ``lines`` or
+    ``excluded``) may give back (:class:`~app.services.curation.writing.Restorable`), read from the audit log before
+    the undo's write: the decisions its write set back to pending that nobody decided since, the system's version
+    after the entries written since, and the states the labels changed since had when the edit was made. None when
+    there is nothing to give back, or when something since cannot be read as such (an entry recorded before versions
+    were, a change of another shape, more than :data:`RESTORE_HISTORY_MAX` entries)."""
+    own = _part(entry.before, LABEL_STATES)
+    if own is None or entry.frame_id is None or entry.system_version is None:
+        return None
+    resets: list[tuple[str, Optional[int], dict[str, Any], dict[str, Any]]] = []
+    for e in audit.entries_of_write(session, entry):
+        decision = _part(e.before, DECISION_STATES)
+        if decision is not None and e.before is not None and e.after is not None and decision in e.after:
+            if (e.before[decision]["status"] != ReviewStatus.PENDING.value
+                    and e.after[decision]["status"] == ReviewStatus.PENDING.value):
+                resets.append((decision, e.frame_id, e.before, e.after))
+    later = audit.entries_after(session, entry, RESTORE_HISTORY_MAX) if resets else None
+    if later is None:
+        return None
+    labels: dict[tuple[int, str], Any] = {}
+    decided: set[tuple[str, Optional[int]]] = set()
+    version: int = entry.system_version
+    for e in later:
+        part, decision = _part(e.before, LABEL_STATES), _part(e.before, DECISION_STATES)
+        if e.system_version is None or e.before is None:
+            return None
+        version = max(version, e.system_version)
+        if part is not None and e.frame_id is not None:
+            if (e.frame_id, part) != (entry.frame_id, own):  # the undo writes the edit's own part back itself
+                labels.setdefault((e.frame_id, part), e.before[part])  # as it was when the edit was made
+        elif decision is not None:
+            decided.add((decision, e.frame_id))
+        elif "assignee" not in e.before:
+            return None  # a change this rule cannot read: the labels may differ from the decided ones
+    kept = tuple(r for r in resets if (r[0], r[1]) not in decided)
+    return Restorable(kept, version, labels) if kept else None
+
+
+def restore_decisions(frame: Frame, revert: Optional[Revert], actor: Optional[str], edit: EditContext) -> list[str]:
+    """In the write of an undo or revert (``revert``) of an edit of ``frame``'s system, after its change: give back
+    the decisions that edit reset (``revert.decisions``, :func:`restorable_decisions`) when nothing of the system
+    changed since they were read but decisions (``edit.version``, the system's version as the write read it, is
+    theirs), every label changed since is back to its state when the edit was made (the undo put the edit's own back),
+    and each decision is still the pending one its reset left. Each gets its status and comment back (decided now,
+    no reset reason); the write's audit entry names them (``edit.facts["restored"]``). ``actor`` is the undoer.
+
+    Returns:
+        The decisions given back, in words ("system accepted (ok)"); empty when none.
+    """
+    plan = revert.decisions if revert is not None else None
+    system = frame.system
+    if plan is None or edit.version != plan.version:
+        return []
+    views = {f.id: f for f in system.frames}
+    for (view_id, part), state in plan.labels.items():
+        view = views.get(view_id)
+        if view is None or not same_json(LABEL_STATES[part](view)[part], state):
+            return []
+    words = []
+    now = utcnow()
+    for decision, frame_id, before, after in plan.resets:
+        subject: Frame | System | None = system if frame_id is None else views.get(frame_id)
+        if subject is None or not same_json(DECISION_STATES[decision](subject), after):
+            continue
+        status, comment = ReviewStatus(before[decision]["status"]), before[decision]["comment"]
+        review = subject.review
+        assert review is not None  # its state is the reset's: a decision row exists
+        if decision == "calibration_review":
+            review.calibration_status, review.calibration_comment = status, comment
+            review.calibration_reset_reason, review.calibration_decided_at = None, now
+            action = "view.calibration_review"
+        else:
+            review.status, review.comment, review.reset_reason, review.decided_at = status, comment, None, now
+            action = "view.review" if frame_id is not None else "system.review"
+            if isinstance(subject, System):
+                subject.review_status = status  # the queue's copy
+        name = audit.view_name(subject) if isinstance(subject, Frame) else None
+        words.append(summarize(action, after, before, view=name))
+    if words:
+        edit.facts["restored"] = words
+    return words

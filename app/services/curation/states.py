@@ -1,5 +1,6 @@
 """The states the audit log records for each edited part, and a revert or an undo restores and compares:
-the ball label, the field lines, the exclusion, the review decisions (plain JSON-ready dicts).
+the ball label, the field lines, the exclusion, the review decisions, and what an import may change of a whole
+system (plain JSON-ready dicts).
 """
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from app.db.models import (
     ReviewStatus,
     System,
 )
+from app.geometry.calibration.result import MIRROR_FLAG
 
 
 def same_json(a: Any, b: Any) -> bool:
@@ -67,3 +69,25 @@ def calibration_review_state(frame: Frame) -> dict[str, Any]:
     return {"calibration_review": {
         "status": review.calibration_status.value if review else ReviewStatus.PENDING.value,
         "comment": review.calibration_comment if review else ""}}
+
+
+def calibration_state(frame: Frame) -> dict[str, Any] | None:
+    """The frame's stored calibration as its import or a recalibration left it (None without one): ``source``,
+    ``status``, ``camera`` (SoccerNet JSON), ``jac`` (the three gammas), ``residuals_px``, ``flags``, ``reason``,
+    ``uncertainty``; without what every recomputation derives again (admission, the mirror flag and its evidence)."""
+    cal = frame.calibration
+    if cal is None:
+        return None
+    return {"source": cal.source.value, "status": cal.status.value, "camera": cal.camera,
+            "jac": [cal.jac_0005, cal.jac_001, cal.jac_002], "residuals_px": cal.residuals_px,
+            "flags": [f for f in (cal.flags or []) if f != MIRROR_FLAG], "reason": cal.reason,
+            "uncertainty": cal.uncertainty}
+
+
+def system_import_state(system: System) -> dict[str, Any]:
+    """``{"system": {"review", "views"}}``: what an import may change of a stored system (its entry of action
+    ``system.import``): its decision (:func:`review_state`) and, per view in page order, ``frame_id``, ``ball``,
+    ``lines``, ``calibration`` (:func:`calibration_state`), ``review`` and ``calibration_review``."""
+    views = [{"frame_id": f.id, **ball_state(f), **lines_state(f), "calibration": calibration_state(f),
+              **review_state(f), **calibration_review_state(f)} for f in system.frames]
+    return {"system": {**review_state(system), "views": views}}

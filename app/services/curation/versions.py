@@ -76,4 +76,5 @@ def check_expected(kind: str, ident: int, current: int, expected: Optional[Colle
     (None, None)
     """
     if expected is not None and current not in expected:
-        raise StaleVersionError(kind, ident, etag(kind, ident, current))
+        seen = max((v for v in expected if v < current), default=None)  # the page's version: what it did not see
+        raise StaleVersionError(kind, ident, etag(kind, ident, current), seen)

@@ -78,12 +78,27 @@ OPTIMISTIC_ATTEMPTS = 2
 
 
 @dataclass(frozen=True)
+class Restorable:
+    """The decisions an edit set back to pending, which the undo or revert of that edit gives back when it brings the
+    whole system's labels back to those they were decided on (``app.services.curation.resets``): ``resets`` are the
+    edit's write's reset entries ``(action, frame id or None, before, after)``; ``version`` the system's version once
+    every entry after the edit was written; ``labels`` the state each view's label changed since must have again,
+    ``(frame id, part) -> state`` (part "ball", "lines" or "excluded"): the one it had when the edit was made."""
+
+    resets: tuple[tuple[str, Optional[int], dict[str, Any], dict[str, Any]], ...]
+    version: int
+    labels: dict[tuple[int, str], Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class Revert:
     """An edit that reverts audit entry ``entry_id``: recorded as action ``revert``; refused (409) when
-    the edited part's state it read is not ``expect`` (the entry's ``after``; None: forced)."""
+    the edited part's state it read is not ``expect`` (the entry's ``after``; None: forced). ``decisions``: what it
+    may restore of the decisions the entry's edit reset (:class:`Restorable`), None when nothing."""
 
     entry_id: int
     expect: Optional[dict[str, Any]] = None
+    decisions: Optional[Restorable] = None
 
 
 class EditSlots:
@@ -128,12 +143,13 @@ class EditContext:
 
     Down: ``slots``, the process's turns. While it runs: ``facts``, what its change notes for its audit entry's summary
     (``calibration=(before, after)`` in words); ``rig``, its game's rig rows (``rigs.rig_rows``) read with its system,
-    None when its kind reads none. Back: ``entry_id``, its audit entry's id; ``outcome`` (:data:`Outcome`);
-    ``attempts``, how many times it computed."""
+    None when its kind reads none; ``version``, its system's version as it read it. Back: ``entry_id``, its audit
+    entry's id; ``outcome`` (:data:`Outcome`); ``attempts``, how many times it computed."""
 
     slots: Optional[EditSlots] = None
     facts: dict[str, Any] = field(default_factory=dict)
     rig: Optional[list[tuple[int, np.ndarray, bool]]] = None
+    version: Optional[int] = None
     entry_id: Optional[int] = None
     outcome: Optional[Outcome] = None
     attempts: int = 0
@@ -207,6 +223,7 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
         if not locked and not kind_of(system).computes_before_lock:
             raise _MustLock()
         game_version = system.game.version if system.game is not None else None
+        edit.version = system.version
         edit.rig = system_rig_rows(session, system, settings) if settings is not None else None
         if not locked:
             end_reads(session)  # the connection goes back to the pool while the edit computes
@@ -219,6 +236,7 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
             after = state(target)
             if recomputes or isinstance(target, System):  # a view decision changes the view's version alone
                 scope.changed(system)
+            audit.stamp_versions(session, system)  # the resets it recorded while computing, before the bump
         if not locked:
             begin_write(session)  # refuses a session that read while computing (a row outside ``scope``)
             # an edit that changes its game's rig (a recalibration bumped the game's version) locks the game's row
@@ -307,7 +325,9 @@ def lock_system(session: Session, system_id: int, *, game: bool = False) -> None
 
 
 def _describe_current(session: Session, exc: StaleVersionError) -> None:
-    """Fill a stale write's current state: the frame loaded for its view, or the system and its review."""
+    """Fill a stale write's current state: the frame loaded for its view, or the system and its review with the
+    entries written since the version its client saw (``exc.changes``: its views' edits and its decisions, the newest
+    of them its last change)."""
     if exc.kind == "frame":
         exc.current = load_frame(session, exc.ident)
         exc.last_change = audit.latest_entry(session, frame_id=exc.ident)
@@ -315,7 +335,8 @@ def _describe_current(session: Session, exc: StaleVersionError) -> None:
         system = get_system(session, exc.ident)
         _ = system.review  # loaded now: the answer is shaped after the session is gone
         exc.current = system
-        exc.last_change = audit.latest_entry(session, system_id=exc.ident)
+        exc.changes = list(audit.entries_since(session, exc.ident, exc.seen)) if exc.seen is not None else []
+        exc.last_change = exc.changes[-1] if exc.changes else audit.latest_entry(session, system_id=exc.ident)
 
 
 def guarded_frame_write(session: Session, frame_id: int, expected: Expected, state: Callable[[Frame], dict[str, Any]],

@@ -5,9 +5,11 @@ policy delegates its trajectory work to these modules without importing them; an
 (``app.services.transfer.import_formats``), which the import job runs by name. ``app.services`` imports this package
 first, so every use of a service finds them registered.
 """
+from pathlib import Path
 from typing import Any, Mapping
 
-from app.services.issia.sequences import import_issia, refined_with_ball, refit_after_edit
+from app.datasets.issia import read_issia
+from app.services.issia.sequences import LEAGUE, SEASON, import_issia, refined_with_ball, refit_after_edit
 from app.services.issia.trajectory import consensus_observations, merge_doubts
 from app.services.kinds.issia import IssiaHooks, register_hooks
 from app.services.transfer.import_formats import ImportFormat, register_import_format
@@ -22,4 +24,12 @@ def _import(session: Any, path: Any, settings: Any, options: Mapping[str, Any], 
                         flipped_cameras=options.get("flip") or [], progress=progress, **named)
 
 
-register_import_format(ImportFormat("issia", _import, ("from_lines", "flip")))
+def _games(path: Path) -> list[tuple[str, str, str]]:
+    return [(LEAGUE, SEASON, path.resolve().name)]  # one game per folder, named by it (``import_issia``)
+
+
+def _read(path: Path, options: Mapping[str, Any], settings: Any) -> object:
+    return read_issia(path, flipped_cameras=options.get("flip") or [], max_pixels=settings.max_image_pixels)
+
+
+register_import_format(ImportFormat("issia", _import, ("from_lines", "flip"), games=_games, read=_read))

@@ -9,7 +9,9 @@
   there are lines). Point labels become :class:`~app.db.models.BallLabel` points. Then the sequence's
   trajectory is fitted (``app.services.issia.trajectory``) and every system recomputed (admission,
   triangulation of the labels the trajectory keeps, reprojections, optimised boxes, doubts), and the
-  transaction commits. Idempotent by natural keys; a reviewer's edited label is kept on re-import.
+  transaction commits. Idempotent by natural keys; a stored sequence is merged
+  (``app.services.transfer.merging``: ``keep-newer`` keeps every edited label and line, one audit entry per
+  system changed).
 * :func:`refined_with_ball`: a view's new calibration from its edited lines, refined again with the
   sequence's ball labels and the other cameras when the import had refined its camera so (flag
   :data:`BALL_BUNDLE_FLAG`): an edit keeps what the ball taught the camera.
@@ -66,6 +68,7 @@ from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence,
 from app.services.jobs.progress import Progress
 from app.services.kinds.issia import BALL_BUNDLE_FLAG
 from app.services.transfer.importing import ImportReport, audit_counts
+from app.services.transfer.merging import Merge, SystemChange
 
 LEAGUE, SEASON = "issia", "sequences"
 #: Calibration flag of a camera calibrated again from the ball's trajectory of the others.
@@ -92,8 +95,9 @@ def _camera_fields(seq: IssiaSequence, cid: str, choice: CameraChoice) -> Calibr
     return CalibrationFields(CalibrationStatus.CALIBRATED, json_safe(choice.camera.to_soccernet()), values, flags=flags)
 
 
-def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:
-    """Store the imported point (the original; the current follows unless a reviewer edited it)."""
+def _set_label(frame: Frame, point: tuple[float, float] | None, merge: Merge, change: SystemChange | None) -> bool:
+    """Store the imported point as the original; the current label becomes it where the merge takes the file's (a
+    label nobody edited always follows it: :meth:`Merge.takes`). Returns True when the stored label changed."""
     kind = BallKind.POINT if point is not None else None
     new = (kind, None, [float(point[0]), float(point[1])] if point is not None else None)
     label = frame.ball_label
@@ -102,23 +106,30 @@ def _set_label(frame: Frame, point: tuple[float, float] | None, now) -> bool:
             return False
         label = BallLabel()
         frame.ball_label = label
-        edited = False
+        current: tuple = (None, None, None)
+        same_original, edited, edited_at = False, False, None
     else:
-        if (label.original_kind, label.original_box, label.original_point) == new:
-            return False
-        edited = label.edited
+        current = (label.kind, label.box, label.point)
+        same_original = (label.original_kind, label.original_box, label.original_point) == new
+        edited, edited_at = label.edited, label.edited_at
+    differs = current != new
+    if same_original and not differs:
+        return False
+    taken = merge.takes(edited, edited_at)
+    merge.part(change, frame, taken=taken, differs=differs, lines=False)
     label.original_kind, label.original_box, label.original_point = new
-    if not edited:
-        label.kind, label.box, label.point = new
+    if taken and differs:
+        label.kind, label.box, label.point, label.provenance = (*new, None)
         label.edited_at = None
     if label.kind is None and label.original_kind is None:
         frame.ball_label = None
-    return True
+    return not same_original or (taken and differs)
 
 
 def import_issia(session: Session, path: str | Path, settings: Settings, *, from_lines: bool = False,
                  flipped_cameras: Iterable[str] = (), progress: Progress | None = None,
-                 actor: str | None = None, source_name: str | None = None) -> ImportReport:
+                 actor: str | None = None, source_name: str | None = None,
+                 merge: str = "keep-newer") -> ImportReport:
     """Import an ISSIA folder (module docstring) in one transaction.
 
     Args:
@@ -127,6 +138,8 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
         flipped_cameras: camera ids ("1".."6") whose footage is mirrored horizontally (images only).
         actor: who imports, for the import's one audit entry (None: the local user).
         source_name: how the entry names the folder to non-admins (default: its last component).
+        merge: how a stored sequence is merged (``app.services.transfer.merging``: an ISSIA folder has no export
+            time, so ``keep-newer`` keeps every edited label and line); one audit entry per system it changes.
 
     Raises:
         DatasetError: invalid folder, files or camera ids (nothing is stored).
@@ -147,12 +160,14 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
         else:
             report.refused += 1
             report.refusal_reasons[f.refusal or "unspecified"] += 1
+    merging = Merge(merge, None, report.source_name, actor)
     try:
-        game = _store(session, seq, fields, source, report)
+        game = _store(session, seq, fields, source, report, merging)
         session.flush()
         fit_sequence(session, game.id, settings)
         systems = [s for s in game.systems if s.kind is SystemKind.ISSIA]
         report.triangulated = recompute_systems(session, systems, settings, progress)
+        report.systems_merged = merging.record(session)
         record_summary(session, "import", audit_counts(report), actor=actor, game_id=game.id)
         session.commit()
     except BaseException:
@@ -165,7 +180,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
 
 
 def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFields], source: CalibrationSource,
-           report: ImportReport) -> Game:
+           report: ImportReport, merge: Merge) -> Game:
     root = seq.root.resolve()
     game = session.scalars(
         sa.select(Game).where(Game.league == LEAGUE, Game.season == SEASON, Game.match == root.name)
@@ -178,6 +193,8 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
         session.add(game)
     game.source_path = str(root)
     systems = {s.name: s for s in game.systems}
+    if systems:  # what the merge compares, loaded at once
+        load_for_recompute(session, [s.id for s in systems.values()])
     lines = {cid: lines_to_json_lists(seq.lines[cid]) for cid in seq.lines}
     now = utcnow()
     w, h = seq.image_size
@@ -188,6 +205,7 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
             system = System(name=str(index), kind=SystemKind.ISSIA, frame_index=index)
             game.systems.append(system)
             report.systems_new += 1
+        change = None if new else merge.track(system)
         system.frame_index = index
         frames = {f.name: f for f in system.frames}
         changed = False
@@ -204,29 +222,34 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
             frame.image_path = media.resolve().relative_to(root).as_posix() if media is not None else None
             frame.media_frame = index if media is not None else None
             frame.media_flipped = cid in seq.flipped
-            lines_changed = False
+            lines_changed = kept_lines = False
             if cid in lines:
                 fl = frame.field_lines
                 if fl is None:
                     frame.field_lines = FieldLineAnnotation(lines=lines[cid], original_lines=lines[cid])
-                elif fl.original_lines != lines[cid]:
-                    lines_changed = not fl.edited
-                    if not fl.edited:
-                        fl.lines = lines[cid]
+                elif fl.original_lines != lines[cid] or fl.lines != lines[cid]:
+                    taken = merge.takes(fl.edited, fl.edited_at)
+                    merge.part(change, frame, taken=taken, differs=fl.lines != lines[cid], lines=True)
+                    lines_changed = taken and fl.lines != lines[cid]
+                    kept_lines = not taken and fl.lines != lines[cid]
+                    if lines_changed:
+                        fl.lines, fl.edited_at = lines[cid], None
                     fl.original_lines = lines[cid]
             cal, f = frame.calibration, fields[cid]
             ours = [x for x in (cal.flags or [])
                     if x in (BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG, GIVEN_CAMERA_FLAG)] if cal else None
-            if (cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags)
-                    or cal.source is not source):
+            if not kept_lines and (cal is None or (cal.status, cal.camera, ours) != (f.status, f.camera, f.flags)
+                                   or cal.source is not source):  # a kept line edit keeps its camera
+                merge.part(change, frame, taken=True, differs=cal is not None, lines=True)
                 apply_calibration(frame, f, source)
                 changed = True
-            label_changed = _set_label(frame, seq.point(index, cid), now)
+            label_changed = _set_label(frame, seq.point(index, cid), merge, change)
             if (label_changed or lines_changed) and frame.id is not None:
                 frame.edit_version += 1  # what people edit changed under them: their ETag goes stale
             changed |= label_changed
         if changed and not new:
             report.systems_changed += 1
+        report.decisions_reset += merge.decide(system, None, change, now) == "reset"
     return game
 
 

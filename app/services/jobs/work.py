@@ -19,22 +19,26 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
+from app.db.models import Job
 from app.services.derivation.recompute import recompute_all_systems
 from app.services.jobs.progress import Progress
 from app.services.transfer import data_root
 from app.services.transfer.export_files import prune_exports, write_export_zip
 from app.services.transfer.export_formats import export_format
-from app.services.transfer.import_formats import import_format
+from app.services.transfer.import_formats import import_format, stored_games_refusal
 
 
 def import_params(kind: str, path: str | Path, *, width: int | None = None, height: int | None = None,
                   from_lines: bool = False, flip: list[str] | None = None,
-                  calibration_workers: int | None = None, upload: bool = False) -> dict[str, Any]:
+                  calibration_workers: int | None = None, upload: bool = False,
+                  merge: str | None = None) -> dict[str, Any]:
     """The ``params`` of an import job (one shape for the API and the CLI, so that a command run again
     finds the job it started: ``jobs.find_resumable``). ``path`` is stored resolved; ``upload``: it is an
-    unpacked upload of its own, removed when the dataset cannot be imported."""
+    unpacked upload of its own, removed when the dataset cannot be imported; ``merge``: how to merge games stored
+    already (``app.services.transfer.merging.MERGE_MODES``), None: refuse them."""
     out = {"kind": kind, "path": str(Path(path).expanduser().resolve()), "width": width, "height": height,
-           "from_lines": from_lines, "flip": list(flip or []), "calibration_workers": calibration_workers}
+           "from_lines": from_lines, "flip": list(flip or []), "calibration_workers": calibration_workers,
+           "merge": merge}
     if upload:
         out["upload"] = True
     return out
@@ -43,7 +47,8 @@ def import_params(kind: str, path: str | Path, *, width: int | None = None, heig
 def import_result(report: Any) -> dict[str, Any]:
     """The stored result of an import job: the counts of its ``ImportReport``."""
     keys = ("source", "games", "systems", "frames", "systems_new", "systems_changed", "calibrated", "refused",
-            "rig_assisted", "prior_fitted", "triangulated", "seconds")
+            "rig_assisted", "prior_fitted", "triangulated", "seconds", "systems_merged", "decisions_from_file",
+            "decisions_reset")
     out = {k: getattr(report, k) for k in keys}
     out["refusal_reasons"] = dict(report.refusal_reasons)
     out["refusal_kinds"] = dict(report.refusal_kinds().most_common())
@@ -54,10 +59,13 @@ def import_result(report: Any) -> dict[str, Any]:
 
 def run_import(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
                job_id: int) -> dict[str, Any]:
-    """Import ``params["path"]`` as ``params["kind"]`` (see :func:`import_params`).
+    """Import ``params["path"]`` as ``params["kind"]`` (see :func:`import_params`). Without ``params["merge"]``, a
+    valid input holding games stored before the job was queued is refused (``import_formats.stored_games_refusal``);
+    the games an earlier run of the same job stored are merged as ``keep-newer`` (the run completes it).
 
     Raises:
         DatasetError: the dataset cannot be imported (nothing of it stored; an upload's folder is removed).
+        InvalidInputError: games stored already and no ``merge`` (field ``merge``; nothing stored).
     """
     try:
         return _import(session, params, settings, progress, job_id)
@@ -110,8 +118,16 @@ def _import(session: Session, params: dict[str, Any], settings: Settings, progre
         settings = settings.model_copy(update={"calibration_workers": params["calibration_workers"]})
     fmt = import_format(params["kind"])
     actor = params.get("actor")  # who queued it (the import's audit entry); None: the local user (CLI)
+    merge = params.get("merge")
+    if merge is None:
+        job = session.get(Job, job_id) if job_id is not None else None
+        refusal = stored_games_refusal(session, fmt.name, params["path"], params, settings,
+                                       before=job.created_at if job else None)
+        session.rollback()  # the read's transaction ends before the import's long work
+        if refusal is not None:
+            raise InvalidInputError(refusal[0], field="merge")
     report = fmt.run(session, params["path"], settings, {o: params.get(o) for o in fmt.options}, progress=progress,
-                     actor=actor, source_name=shown_source(params, settings, job_id))
+                     actor=actor, source_name=shown_source(params, settings, job_id), merge=merge or "keep-newer")
     return import_result(report)
 
 

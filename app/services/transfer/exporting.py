@@ -13,7 +13,11 @@ Written under ``out_dir``:
   ``imageMetadata.calibrated_replays`` (actions: the admitted replays), ``calibration`` (SoccerNet camera JSON,
   section 2, or null) and ``JaC {"JaC@0.005", "JaC@0.01", "JaC@0.02"}``. v3d adds what a faithful re-import
   needs: the field lines at full precision (pixels), ``GameMetadata.v3d_reviews`` (system -> review status),
-  ``GameMetadata.v3d_systems`` (action frame -> system name, where they differ) and per frame
+  ``GameMetadata.v3d_systems`` (action frame -> system name, where they differ), ``GameMetadata.v3d_as_of``
+  (the time of the game's newest change the file holds: its newest audit entry, or the ``v3d_as_of`` of the export
+  it was imported from when later, ``games.as_of``, else its import; ISO 8601 UTC, the same for the same stored
+  game, so two exports of it are byte for byte equal: a ``keep-newer`` merge of the file into a database keeps what
+  was changed there after it, ``app.services.transfer.merging``) and per frame
   ``v3d {source, status, reason, flags, residuals_px, uncertainty, admitted, original_lines, original_ball}`` (no server
   path: a re-import finds images in the tree itself). Replays no action links are written as they came. Only
   SoccerNet-v3 systems are written (the kinds that take the ``soccernet-v3d`` export, ``app.services.kinds``):
@@ -60,6 +64,7 @@ from app.datasets.soccernet_v3 import V3_FRAMES_ZIP
 from app.datasets.soccernet_v3d import JAC_KEYS, curated_entry
 from app.db.models import (
     JAC_COLUMNS,
+    AuditEntry,
     BallLabel,
     BallReprojection,
     Calibration,
@@ -299,20 +304,39 @@ def iter_soccernet_v3d(session: Session, include_all: bool = False,
     done = 0
     for first in range(0, len(games), EXPORT_BATCH_GAMES):
         batch = [g.id for g in games[first:first + EXPORT_BATCH_GAMES]]
+        changed = _changed_at(session, batch)  # read first: a change after it may be missing from the file
         rows = _frame_rows(session, batch, include_all)
         per_game: dict[int, list[Any]] = {gid: [] for gid in batch}
         for row in rows:
             per_game[row.game_id].append(row)
         del rows
         for gid in batch:
-            yield _exported_game(by_id[gid], per_game.pop(gid))
+            game = by_id[gid]
+            yield _exported_game(game, per_game.pop(gid), _as_of(game, changed.get(gid)))
             done += 1
             if progress:
                 progress("export", done, len(games))
 
 
-def _exported_game(game: Any, rows: list[Any]) -> ExportedGame:
-    """One game's ``Labels-v3D.json`` document and CSV rows from its frame rows (:func:`_frame_rows`)."""
+def _changed_at(session: Session, game_ids: list[int]) -> dict[int, Any]:
+    """Game id -> the time of its newest audit entry (its newest change: every edit, decision and merge of its
+    systems is one), for the games that have one."""
+    rows = session.execute(select(AuditEntry.game_id, sa.func.max(AuditEntry.at))
+                           .where(AuditEntry.game_id.in_(game_ids)).group_by(AuditEntry.game_id))
+    return {int(game_id): at for game_id, at in rows if game_id is not None}
+
+
+def _as_of(game: Game, newest_entry: Any) -> str:
+    """The time of the game's newest change (ISO 8601, UTC): its newest audit entry or, when later, the time the
+    SoccerNet-v3D export it was imported from held it as of (``Game.as_of``); its import's time when neither is
+    known."""
+    known = [t for t in (newest_entry, game.as_of) if t is not None]
+    return (max(known) if known else game.created_at).isoformat()
+
+
+def _exported_game(game: Any, rows: list[Any], as_of: str) -> ExportedGame:
+    """One game's ``Labels-v3D.json`` document and CSV rows from its frame rows (:func:`_frame_rows`), the game as
+    of ``as_of`` (ISO 8601, UTC: its newest change the file holds)."""
     split = split_of(game.path)
     actions: dict[str, Any] = {}
     replays: dict[str, Any] = {}
@@ -352,6 +376,7 @@ def _exported_game(game: Any, rows: list[Any]) -> ExportedGame:
             "num_actions": len(actions), "num_replays": len(replays), "reconstructions": reconstructions,
             "v3d_reviews": reviews,
             "v3d_systems": renamed,
+            "v3d_as_of": as_of,
         },
         "actions": actions,
         "replays": replays,

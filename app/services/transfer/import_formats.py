@@ -1,19 +1,29 @@
-"""The dataset formats an import reads, as data: each format's name, the reader that imports it and the options it
+"""The dataset formats an import reads, as data: each format's name, the reader that imports it, the options it
 takes (``width``/``height`` for a SoccerNet-calibration set without images, ``from_lines``/``flip`` for an ISSIA
-folder). The import job (:mod:`app.services.jobs.work`) runs a format by its name and the API refuses an option the
-format does not take, without either branching on a format. The system kinds' policies name the formats that
-produce their systems (:attr:`app.services.kinds.base.KindPolicy.import_formats`); ISSIA's reader lives with the
-ISSIA services, which register it on import (:mod:`app.services.issia`) as they register the kind's hooks.
+folder) and the games an input of it holds, read without reading the input whole: a format whose games can already
+be stored takes the ``merge`` option (:data:`~app.services.transfer.merging.MERGE_MODES`), and an import of games
+that exist is refused unless it names one (:func:`stored_games_refusal`). The import job
+(:mod:`app.services.jobs.work`) runs a format by its name and the API refuses an option the format does not take,
+without either branching on a format. The system kinds' policies name the formats that produce their systems
+(:attr:`app.services.kinds.base.KindPolicy.import_formats`); ISSIA's reader lives with the ISSIA services, which
+register it on import (:mod:`app.services.issia`) as they register the kind's hooks.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, Optional
 
+import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.datasets.files import dataset_root
+from app.datasets.sn_calibration import read_sn_calibration, sn_calibration_game
+from app.datasets.soccernet_v3 import find_labels, game_key, read_soccernet_v3_game, soccernet_v3_labels
+from app.datasets.soccernet_v3d import V3D_LABELS, read_soccernet_v3d
+from app.db.models import Game
 from app.services.jobs.progress import Progress
 from app.services.transfer.archives import MAX_UPLOAD_SETTING
 from app.services.transfer.importing import (
@@ -22,24 +32,32 @@ from app.services.transfer.importing import (
     import_soccernet_v3,
     import_soccernet_v3d,
 )
+from app.services.transfer.merging import MERGE_MODES
 
-#: ``run(session, path, settings, options, progress=, actor=, source_name=)`` -> the import's report.
+#: ``run(session, path, settings, options, progress=, actor=, source_name=, merge=)`` -> the import's report.
 ImportRun = Callable[..., ImportReport]
+#: A game's natural key: ``(league, season, match)``.
+GameKey = tuple[str, str, str]
 
 
 @dataclass(frozen=True)
 class ImportFormat:
     """One dataset format: its name (``v3d import <name>``, the API's ``kind``), its reader, the names of the
-    options it takes from a job's ``params`` (every other format-specific option is refused for it), and the setting
+    options it takes from a job's ``params`` (every other format-specific option is refused for it), the setting
     (its environment name, in MB) bounding an upload of it to ``POST /api/imports``
     (``app.services.transfer.archives.upload_limit``: never above ``V3D_MAX_UPLOAD_MB``, which bounds the route's
     body while it streams; a smaller one of a format's own is checked once the form is read, before the zip is
-    unpacked)."""
+    unpacked), and for a format whose games can already be stored (it then takes ``merge``): ``games(path)``, the
+    keys of the games an input holds (reading only names: its folders and label files), and ``read(path, options,
+    settings)``, which reads and validates the whole input as its import does, storing nothing (raises
+    ``DatasetError``)."""
 
     name: str
     run: ImportRun
     options: tuple[str, ...] = ()
     upload_limit: str = MAX_UPLOAD_SETTING
+    games: Optional[Callable[[Path], list[GameKey]]] = None
+    read: Optional[Callable[[Path, Mapping[str, Any], Settings], object]] = None
 
 
 _FORMATS: dict[str, ImportFormat] = {}
@@ -78,6 +96,89 @@ def refused_options(name: str, given: Mapping[str, Any]) -> str | None:
     return None
 
 
+def existing_games(session: Session, name: str, path: str | Path, *, before: Optional[datetime] = None) -> list[str]:
+    """The games of the input ``path`` of format ``name`` that are stored already (created before ``before`` when
+    given: the games an interrupted run of the same import stored are its own), as ``league/season/match``, sorted.
+
+    Raises:
+        ValueError: an unknown format. DatasetError: the input's games cannot be listed (as its reader says).
+    """
+    fmt = import_format(name)
+    keys = sorted(set(fmt.games(Path(path)))) if fmt.games is not None else []
+    found: list[str] = []
+    for start in range(0, len(keys), 200):
+        chunk = keys[start:start + 200]
+        where: list[sa.ColumnElement[bool]] = [sa.tuple_(Game.league, Game.season, Game.match).in_(chunk)]
+        if before is not None:
+            where.append(Game.created_at < before)
+        found += [f"{g.league}/{g.season}/{g.match}" for g in
+                  session.execute(sa.select(Game.league, Game.season, Game.match).where(*where))]
+    return sorted(found)
+
+
+def stored_games_refusal(session: Session, name: str, path: str | Path, options: Mapping[str, Any],
+                         settings: Settings, *, before: Optional[datetime] = None) -> Optional[tuple[str, list[str]]]:
+    """Why an import of ``path`` (format ``name``, its ``options``) that names no merge is refused: its games stored
+    already (:func:`existing_games`, ``before`` as there), once the input was read and found valid (an invalid input
+    is refused for what is wrong in it first, naming the file and the field, as its import would); ``(message, the
+    games)`` (:func:`merge_refusal`), or None when none of its games is stored.
+
+    Raises:
+        DatasetError: the input cannot be imported.
+    """
+    stored = existing_games(session, name, path, before=before)
+    if not stored:
+        return None
+    fmt = import_format(name)
+    session.rollback()  # no transaction held while the input is read
+    if fmt.read is not None:
+        fmt.read(Path(path), options, settings)
+    return merge_refusal(stored), stored
+
+
+#: How many stored games a refusal names (the rest counted).
+NAMED_GAMES_MAX = 20
+
+
+def merge_refusal(games: list[str]) -> str:
+    """The refusal of an import without ``merge`` whose ``games`` are stored already: names them and the modes.
+
+    >>> merge_refusal(["a/b/c"])[:56]
+    'these games are stored already: a/b/c; nothing was impor'
+    """
+    named = ", ".join(games[:NAMED_GAMES_MAX]) + (f" and {len(games) - NAMED_GAMES_MAX} more"
+                                                  if len(games) > NAMED_GAMES_MAX else "")
+    modes = "; ".join(f"merge={mode}: {what}" for mode, what in MERGE_MODES.items())
+    return f"these games are stored already: {named}; nothing was imported. Say how to merge them ({modes})"
+
+
+def _v3_games(path: Path) -> list[GameKey]:
+    return [game_key(labels.parent) for labels in soccernet_v3_labels(path)]
+
+
+def _v3d_games(path: Path) -> list[GameKey]:
+    return [game_key(labels.parent) for labels in find_labels(path, V3D_LABELS)]
+
+
+def _calibration_games(path: Path) -> list[GameKey]:
+    return [sn_calibration_game(path)]
+
+
+def _v3_read(path: Path, options: Mapping[str, Any], settings: Settings) -> object:
+    root = dataset_root(path)
+    for labels in soccernet_v3_labels(path):  # one game at a time, dropped, as the import validates them
+        read_soccernet_v3_game(labels, root, settings.max_image_pixels)
+    return None
+
+
+def _v3d_read(path: Path, options: Mapping[str, Any], settings: Settings) -> object:
+    return read_soccernet_v3d(path, settings.max_image_pixels)
+
+
+def _calibration_read(path: Path, options: Mapping[str, Any], settings: Settings) -> object:
+    return read_sn_calibration(path, options.get("width"), options.get("height"), settings.max_image_pixels)
+
+
 def _v3(session: Session, path: str | Path, settings: Settings, options: Mapping[str, Any],
         progress: Progress | None = None, **named: Any) -> ImportReport:
     return import_soccernet_v3(session, path, settings, progress=progress, **named)
@@ -94,6 +195,7 @@ def _calibration(session: Session, path: str | Path, settings: Settings, options
                                  progress=progress, **named)
 
 
-register_import_format(ImportFormat("soccernet-v3", _v3))
-register_import_format(ImportFormat("soccernet-v3d", _v3d))
-register_import_format(ImportFormat("sn-calibration", _calibration, ("width", "height")))
+register_import_format(ImportFormat("soccernet-v3", _v3, games=_v3_games, read=_v3_read))
+register_import_format(ImportFormat("soccernet-v3d", _v3d, games=_v3d_games, read=_v3d_read))
+register_import_format(ImportFormat("sn-calibration", _calibration, ("width", "height"), games=_calibration_games,
+                                    read=_calibration_read))

@@ -14,11 +14,13 @@ Every importer works in two phases so that bad input stores nothing:
    each, so that memory stays bounded at SoccerNet size): games, systems and frames are matched by
    their natural keys (league/season/match, system name, frame name), so importing the same input
    twice gives the same rows, and an import cut short (a crash, a kill) leaves whole games stored and
-   is completed by running it again. A re-import refreshes the imported originals; a current value
-   that a reviewer edited is kept. In each batch the frames whose lines are new or changed are
-   calibrated in the import's process pool before the batch's first write, then the batch is written,
-   its touched systems recomputed (``app.services.derivation.recompute``) and committed, or rolled back. The
-   pool does not wait meanwhile: the first pass of the next batch's new games is calibrating
+   is completed by running it again. A re-import refreshes the imported originals and merges the
+   current values and decisions of the stored games by its merge mode (``app.services.transfer.merging``:
+   ``keep-newer`` keeps what a person changed after what the file holds; one audit entry per system it
+   changes). In each batch the frames whose lines are new or changed are calibrated in the import's
+   process pool before the batch's first write, then the batch is written, its touched systems
+   recomputed (``app.services.derivation.recompute``) and committed, or rolled back. The pool does not
+   wait meanwhile: the first pass of the next batch's new games is calibrating
    (``app.services.calibration.first_pass``) while this process stores the current batch.
 
 What a release carries that v3d does not edit (``GameMetadata``, each frame's ``imageMetadata`` and every
@@ -80,8 +82,9 @@ from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
 from app.services.curation.words import WORDS
 from app.services.derivation import scope
-from app.services.derivation.recompute import preload_systems, recompute_systems
+from app.services.derivation.recompute import load_for_recompute, preload_systems, recompute_systems
 from app.services.jobs.progress import Progress
+from app.services.transfer.merging import Merge, SystemChange
 
 __all__ = [
     "ImportReport", "audit_counts", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",
@@ -139,6 +142,12 @@ class ImportReport:
     #: Games of the input left out, each ``"<labels file, relative to the dataset>: <entry>: <why>"`` (an entry the
     #: shared label check refuses); the other games import. Not counted in ``games``.
     skipped_games: list[str] = field(default_factory=list)
+    #: The merge into stored games (``app.services.transfer.merging``): stored systems it changed (one audit entry
+    #: each), systems whose decision it took from the file (said in their decision's comment and entry), and systems
+    #: whose decisions it set back to pending because it changed their labels.
+    systems_merged: int = 0
+    decisions_from_file: int = 0
+    decisions_reset: int = 0
 
     def refusal_kinds(self) -> Counter:
         """``refusal_reasons`` in words: each refusal code's meaning (``WORDS["refusal"]``, the review pages'
@@ -164,30 +173,38 @@ def _upsert_game(session: Session, rec: GameRecord) -> Game:
     game.source_path = rec.source_path
     if game.release != rec.release:
         game.release = rec.release
+    if rec.as_of is not None and (game.as_of is None or rec.as_of > game.as_of):
+        game.as_of = rec.as_of  # what the file held, as of when: its exports say it again
     return game
 
 
-def _set_lines(frame: Frame, rec: FrameRecord, now: datetime) -> bool:
-    """Store the imported lines; returns True when the frame needs recalibration."""
+def _set_lines(frame: Frame, rec: FrameRecord, now: datetime, merge: Merge, change: SystemChange | None) -> bool:
+    """Store the imported lines: the originals as the file gives them, the current ones where the merge takes the
+    file's (:meth:`Merge.takes`); returns True when the current lines are new or changed (the frame needs
+    recalibration)."""
     original = rec.original_lines if rec.original_lines is not None else rec.lines
     fl = frame.field_lines
     if fl is None:
         frame.field_lines = FieldLineAnnotation(lines=rec.lines, original_lines=original,
                                                 edited_at=now if rec.lines != original else None)
         return True
-    if fl.original_lines == original and (rec.original_lines is None or fl.lines == rec.lines):
-        return False
-    if rec.original_lines is not None or not fl.edited:
+    differs = fl.lines != rec.lines
+    taken = merge.takes(fl.edited, fl.edited_at)
+    merge.part(change, frame, taken=taken, differs=differs, lines=True)
+    fl.original_lines = original  # the dataset's say, whatever the merge keeps
+    if taken and differs:
         fl.lines = rec.lines
-    fl.original_lines = original
-    return True
+        fl.edited_at = now if rec.lines != original else None
+        return True
+    return False
 
 
-def _set_ball(frame: Frame, rec: FrameRecord, now: datetime) -> bool:
+def _set_ball(frame: Frame, rec: FrameRecord, now: datetime, merge: Merge, change: SystemChange | None) -> bool:
     """Store the imported ball label; returns True when the stored label changed.
 
-    Without ``rec.original_ball`` (SoccerNet-v3) the record is the original; the current label
-    follows it unless a reviewer edited it. With it (a v3D export) both are taken as given.
+    Without ``rec.original_ball`` (SoccerNet-v3) the record is the original and the file's current label; with it
+    (a v3D export) both are as given. The current label becomes the file's where the merge takes it
+    (:meth:`Merge.takes`: a label nobody changed always follows the file).
     """
     kind = BallKind.BOX if rec.ball_box is not None else BallKind.POINT if rec.ball_point is not None else None
     current = (kind, rec.ball_box, rec.ball_point)
@@ -196,37 +213,45 @@ def _set_ball(frame: Frame, rec: FrameRecord, now: datetime) -> bool:
     if label is None:
         if current[0] is None and original[0] is None:
             return False
+        stored_current: tuple = (None, None, None)
+        stored_original: tuple = (None, None, None)
+        differs = current != stored_current
+        taken = merge.takes(False, None)
         label = BallLabel()
         frame.ball_label = label
-        stored_current = stored_original = None
-        edited = False
     else:
         stored_current = (label.kind, label.box, label.point)
         stored_original = (label.original_kind, label.original_box, label.original_point)
-        edited = label.edited
-    if stored_original == original and (rec.original_ball is None or stored_current == current):
-        return False
+        differs = stored_current != current or label.suggested
+        if stored_original == original and not differs:
+            return False
+        taken = merge.takes(label.edited, label.edited_at)
+    merge.part(change, frame, taken=taken, differs=differs, lines=False)
     label.original_kind, label.original_box, label.original_point = original
-    if rec.original_ball is not None or not edited:
-        label.kind, label.box, label.point = current
+    if taken and differs:
+        label.kind, label.box, label.point, label.provenance = (*current, None)
         label.edited_at = now if current != original else None
     if label.kind is None and label.original_kind is None:
         frame.ball_label = None
-    return True
+    return stored_original != original or (taken and differs)
 
 
 def _store(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
            progress: Progress | None, pool: CalibrationPool | None = None, ahead: FirstPassAhead | None = None,
-           after_calibration: Callable[[], None] | None = None) -> None:
+           after_calibration: Callable[[], None] | None = None, *, mode: str = "keep-newer",
+           actor: str | None = None) -> None:
     """Upsert ``records`` into the session (no autoflush), calibrate the frames whose lines are new or
     changed in a process pool (then the refused ones of SoccerNet-v3 games with their game's rig)
     while nothing is written yet, so that a long import does not hold SQLite's write lock; then
     flush, store the calibrations and recompute the touched systems.
 
-    ``ahead``: first-pass calibrations started before the merge (``import_calibration.start_first_pass``); a
-    frame whose job is the one started takes its result. ``after_calibration`` is called once every
-    calibration of the batch is done (the caller starts the next batch's first pass then)."""
+    Stored systems are merged by ``mode`` (``app.services.transfer.merging``): each one changed gets its audit entry
+    (by ``actor``) in the batch's transaction. ``ahead``: first-pass calibrations started before the merge
+    (``import_calibration.start_first_pass``); a frame whose job is the one started takes its result.
+    ``after_calibration`` is called once every calibration of the batch is done (the caller starts the next batch's
+    first pass then)."""
     now = utcnow()
+    merges: list[Merge] = []
     to_calibrate: list[Frame] = []
     to_calibrate_recs: list[FrameRecord] = []
     imported: list[tuple[Frame, CalibrationFields]] = []
@@ -236,7 +261,11 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     with session.no_autoflush:  # nothing is written before calibration: the write lock is taken late
         for grec in records:
             game = _upsert_game(session, grec)
+            merge = Merge(mode, grec.as_of, report.source_name or Path(report.source).name, actor)
+            merges.append(merge)
             systems = {s.name: s for s in game.systems}
+            if game.id is not None:  # what the merge compares, loaded at once (not one lazy load per frame)
+                load_for_recompute(session, [s.id for s in systems.values()])
             for srec in grec.systems:
                 system = systems.get(srec.name)
                 new = system is None
@@ -245,11 +274,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     system = System(name=srec.name, kind=srec.kind, triangulation=None, doubts=[])
                     game.systems.append(system)
                     system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
+                change = None if new else merge.track(system)
                 system.kind = srec.kind
-                if (srec.review is not None and system.review is not None
-                        and system.review.status is ReviewStatus.PENDING):
-                    system.review.status = srec.review
-                    system.review.decided_at = now
                 changed = False
                 frames = {f.name: f for f in system.frames}
                 for pos, frec in enumerate(srec.frames):
@@ -269,15 +295,17 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     frame.image_path = frec.image_path
                     if frame.release != frec.release:  # what the release carries: kept as it came
                         frame.release = frec.release
-                    lines_changed = _set_lines(frame, frec, now)
-                    ball_changed = _set_ball(frame, frec, now)
+                    lines_changed = _set_lines(frame, frec, now, merge, change)
+                    kept_lines = frame.field_lines is not None and frame.field_lines.lines != frec.lines
+                    ball_changed = _set_ball(frame, frec, now, merge, change)
                     if (lines_changed or ball_changed) and frame.id is not None:
                         frame.edit_version += 1  # what people edit changed under them: their ETag goes stale
-                    if frec.calibration is not None:
+                    if frec.calibration is not None and not kept_lines:  # a kept line edit keeps its camera
                         cal = frame.calibration
                         fields = frec.calibration.fields
                         if (cal is None or cal.camera != fields.camera
                                 or (cal.jac_0005, cal.jac_001, cal.jac_002) != fields.jac):
+                            merge.part(change, frame, taken=True, differs=True, lines=True)
                             imported.append((frame, fields))
                             changed = True
                     elif lines_changed or frame.calibration is None:
@@ -285,6 +313,9 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                         to_calibrate_recs.append(frec)
                         changed = True
                     changed = changed or ball_changed
+                decided = merge.decide(system, srec.review, change, now)
+                report.decisions_from_file += decided == "file"
+                report.decisions_reset += decided == "reset"
                 if new:
                     report.systems_new += 1
                 elif changed:
@@ -329,6 +360,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
             report.refused += 1
             report.refusal_reasons[fields.refusal or "unspecified"] += 1
     report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
+    report.systems_merged += sum(merge.record(session) for merge in merges)
 
 
 #: One game of an import's input: reads (and validates) it when called, as often as needed.
@@ -397,7 +429,7 @@ def _dataset_name(file: str | Path, path: str | Path) -> str:
 
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
          games: Callable[[], list[GameReader]], actor: str | None = None,
-         source_name: str | None = None) -> ImportReport:
+         source_name: str | None = None, merge: str = "keep-newer") -> ImportReport:
     """Read and validate everything (nothing is stored when the input is bad), then store it in
     batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
     stored or not at all), each calibrated, recomputed and committed before the next is stored; the
@@ -407,7 +439,8 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     meanwhile can still fail the import then, after whole games were stored; running it again
     completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
     total) instead of the inner stages of each batch. Each batch writes its audit entry (by ``actor``,
-    None: the local user) in its own transaction."""
+    None: the local user) in its own transaction, with one entry per stored system it merged by ``merge``
+    (``app.services.transfer.merging``)."""
     t0 = time.perf_counter()
     report = ImportReport(source=str(path), source_name=source_name or Path(path).name)
     frames_per_game: list[int] = []
@@ -448,7 +481,7 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
                 batch, last = loaded, not batches
                 following[0], started[0] = None, None
                 _store(session, batch, settings, report, progress if last and done == 0 else None, pool,
-                       ahead, start_next)
+                       ahead, start_next, mode=merge, actor=actor)
                 ahead, loaded = started[0], following[0]
                 if loaded is None and batches:  # not started ahead
                     loaded = [read() for read in batches.pop(0)]
@@ -478,7 +511,7 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
 
 def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
                         progress: Progress | None = None, *, actor: str | None = None,
-                        source_name: str | None = None) -> ImportReport:
+                        source_name: str | None = None, merge: str = "keep-newer") -> ImportReport:
     """Import a SoccerNet-v3 tree (see :func:`read_soccernet_v3`), calibrate its frames (process pool
     over ``calibrate_frame``), triangulate its systems, and commit game batch by game batch.
 
@@ -488,45 +521,46 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
     with the dataset's learned camera prior, when there are any) and "triangulate".
 
     ``actor`` is the import's audit entry's (None: the local user); ``source_name`` how it names the
-    input to non-admins (default: the path's last component).
+    input to non-admins (default: the path's last component); ``merge`` how it merges games already stored
+    (``app.services.transfer.merging.MERGE_MODES``).
 
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
     return _run(session, path, settings, progress,
                 lambda: [partial(read_soccernet_v3_game, labels, dataset_root(path), settings.max_image_pixels)
-                         for labels in soccernet_v3_labels(path)], actor, source_name)
+                         for labels in soccernet_v3_labels(path)], actor, source_name, merge)
 
 
 def import_sn_calibration(session: Session, path: str | Path, settings: Settings, width: int | None = None,
                           height: int | None = None, progress: Progress | None = None, *,
-                          actor: str | None = None, source_name: str | None = None) -> ImportReport:
+                          actor: str | None = None, source_name: str | None = None,
+                          merge: str = "keep-newer") -> ImportReport:
     """Import a SoccerNet-calibration folder or zip (see :func:`read_sn_calibration`): each frame
     becomes a single-view system, calibrated in a process pool, reviewed for its calibration.
 
-    ``actor`` is the import's audit entry's (None: the local user); ``source_name`` how it names the
-    input to non-admins (default: the path's last component).
+    ``actor``, ``source_name``, ``merge``: as :func:`import_soccernet_v3`.
 
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
     return _run(session, path, settings, progress,
                 lambda: _held([read_sn_calibration(path, width, height, settings.max_image_pixels)]),
-                actor, source_name)
+                actor, source_name, merge)
 
 
 def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
                          progress: Progress | None = None, *, actor: str | None = None,
-                         source_name: str | None = None) -> ImportReport:
+                         source_name: str | None = None, merge: str = "keep-newer") -> ImportReport:
     """Import a SoccerNet-v3D tree (see :func:`read_soccernet_v3d`). Calibrations are stored with
     source "imported" and not recomputed; admission, triangulation and optimised boxes are
     recomputed from them and from the ball labels of ``SNv3D.csv``.
 
-    ``actor`` is the import's audit entry's (None: the local user); ``source_name`` how it names the
-    input to non-admins (default: the path's last component).
+    ``actor``, ``source_name``, ``merge``: as :func:`import_soccernet_v3` (``keep-newer`` compares the stored
+    changes with the time of the newest change the export holds, ``GameMetadata.v3d_as_of``).
 
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
     return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path, settings.max_image_pixels)),
-                actor, source_name)
+                actor, source_name, merge)

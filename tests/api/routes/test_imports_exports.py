@@ -50,8 +50,10 @@ def test_import_sn_calibration_then_list_it(app, client: TestClient, tmp_path: P
     assert [(g["league"], g["match"], g["systems"]) for g in games] == [("sn-calibration", "valid", 2)]
     frames = client.get("/api/frames").json()["items"]
     assert [f["image_url"] for f in frames] == [None, None]
-    again = _import(app, client, body)["result"]  # idempotent
-    assert (again["systems_new"], again["systems_changed"]) == (0, 0)
+    refused = client.post("/api/imports", json=body)  # its game is stored now: say how to merge it
+    assert refused.status_code == 409 and "sn-calibration/test_import_sn_calibration_the0/valid" in refused.text
+    again = _import(app, client, {**body, "merge": "keep-newer"})["result"]  # idempotent
+    assert (again["systems_new"], again["systems_changed"], again["systems_merged"]) == (0, 0, 0)
 
 
 def test_bad_imports_are_rejected_and_store_nothing(app, client: TestClient, tmp_path: Path) -> None:

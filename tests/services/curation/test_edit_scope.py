@@ -6,7 +6,8 @@ tables ``Game.version`` covers (the game's rig and camera prior). Two records on
 * the tables of every statement an edit sends before its write (a ball edit, a line edit, an exclusion, a mirroring:
   each reads its system, its game's rig) are covered, and none is sent while it computes;
 * every committed transaction that writes a covered table, through every kind of writer (the edits, the decisions,
-  an undo and a revert, the full recompute, an import), also bumps the version that covers it.
+  an undo (one that gives decisions back too) and a revert, the full recompute, an import, a merge into stored games
+  and the revert of what it changed), also bumps the version that covers it.
 
 Removing a relation from the declaration (say the optimised box) makes an edit read it while computing (refused) and
 leaves its table uncovered: both records fail.
@@ -22,7 +23,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
-from app.db.models import Frame, ReviewStatus, System
+from app.db.models import AuditEntry, Frame, ReviewStatus, System
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.services.audit.reverting import revert_entry, undo_entry
 from app.services.curation import writing
@@ -184,6 +185,7 @@ def test_every_write_of_what_an_edit_reads_bumps_its_version(database) -> None:
         update_ball_label(s, fid, box=_moved(box, -3.0), settings=settings, actor="ana", edit=edit)
     with factory() as s:
         undo_entry(s, edit.entry_id, settings=settings, actor="ana", may_review=True)
+        assert s.get(System, scene.system_id).review_status is ReviewStatus.ACCEPTED  # it gave the decisions back
     with factory() as s:
         revert_entry(s, edit.entry_id, settings=settings, actor="rita", force=True)
     with factory() as s:
@@ -206,5 +208,22 @@ def test_an_import_bumps_the_versions_of_what_it_writes(tmp_path: Path, v3_tree:
         assert _check_covered(recorder.committed) >= 1
         with make_session_factory(engine)() as s:
             assert s.scalar(sa.select(sa.func.min(System.version))) >= 1
+        # a merge of stored games (a ball edited and a system accepted since, both replaced) and the revert of the
+        # entry it wrote for the system are writers too
+        with make_session_factory(engine)() as s:
+            frame = s.scalars(sa.select(Frame).join(Frame.ball_label).order_by(Frame.id)).first()
+            system_id = frame.system_id
+            update_ball_label(s, frame.id, box=_moved(list(frame.ball_label.box), 6.0), settings=settings)
+        with make_session_factory(engine)() as s:
+            decide_review(s, system_id=system_id, status=ReviewStatus.ACCEPTED)
+        recorder.committed = []
+        with make_session_factory(engine)() as s:
+            assert import_soccernet_v3(s, v3_tree, settings, merge="overwrite").systems_merged == 1
+        assert _check_covered(recorder.committed) >= 1
+        with make_session_factory(engine)() as s:
+            entry = s.scalars(sa.select(AuditEntry).where(AuditEntry.action == "system.import")).one()
+            recorder.committed = []
+            revert_entry(s, entry.id, settings=settings)
+        assert _check_covered(recorder.committed) >= 1
     finally:
         engine.dispose()

@@ -156,6 +156,27 @@ def test_reimport_is_idempotent_and_keeps_edits(db_session, db_settings, stretch
     assert db_session.get(Frame, cam3.id).ball_label.point == moved
 
 
+def test_an_overwrite_merge_puts_the_files_point_back_in_a_revertible_entry(db_session, db_settings, stretch):
+    from app.db.models import AuditEntry
+    from app.services.audit.reverting import revert_entry
+
+    import_issia(db_session, stretch, db_settings)
+    cam3 = _view(_systems(db_session)[20], "cam3")
+    point = list(cam3.ball_label.point)
+    moved = [point[0] + 2.0, point[1]]
+    update_ball_label(db_session, cam3.id, point=moved, settings=db_settings)
+    report = import_issia(db_session, stretch, db_settings, merge="overwrite")
+    assert report.systems_merged >= 1
+    db_session.expire_all()
+    assert db_session.get(Frame, cam3.id).ball_label.point == point
+    entry = db_session.scalars(sa.select(AuditEntry).where(AuditEntry.action == "system.import",
+                                                           AuditEntry.system_id == cam3.system_id)).one()
+    assert "ball of V3 moved 2.0 px" in entry.summary
+    revert_entry(db_session, entry.id, settings=db_settings)
+    db_session.expire_all()
+    assert db_session.get(Frame, cam3.id).ball_label.point == moved
+
+
 def test_an_edit_refits_the_trajectory_and_its_doubts_in_one_transaction(db_session, db_settings, stretch):
     import_issia(db_session, stretch, db_settings)
     s20 = _systems(db_session)[20]

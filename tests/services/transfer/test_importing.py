@@ -143,6 +143,40 @@ def test_reimport_refreshes_originals_but_keeps_a_reviewers_edit(db_session, set
     assert replay.ball_label.box == replay.ball_label.original_box  # unedited: follows the file
 
 
+def test_an_overwrite_merge_replaces_an_edit_in_one_revertible_entry_per_system(db_session, settings, shared_dir,
+                                                                                  tmp_path):
+    """``overwrite``: the release's box replaces the reviewer's, in an entry of the system that a revert undoes; the
+    system's accept of the reviewer's box goes back to pending."""
+    from app.db.models import AuditEntry, ReviewStatus
+    from app.services.audit.reverting import revert_entry
+    from app.services.curation.decisions import decide_review
+    from app.services.curation.editing import update_ball_label
+
+    root = tmp_path / "v3"
+    write_v3_game(shared_dir, root, actions=("0.png",))
+    import_soccernet_v3(db_session, root, settings)
+    f = _frame(db_session, "0.png", "0.png")
+    original, system_id = list(f.ball_label.box), f.system_id
+    update_ball_label(db_session, f.id, box=[600.0, 850.0, 622.0, 872.0], settings=settings, actor="ana")
+    decide_review(db_session, system_id=system_id, status=ReviewStatus.ACCEPTED, actor="rita")
+    kept = import_soccernet_v3(db_session, root, settings)  # keep-newer: a release is older than every edit
+    assert (kept.systems_merged, kept.systems_changed) == (0, 0)
+    report = import_soccernet_v3(db_session, root, settings, merge="overwrite", actor="adam")
+    assert (report.systems_merged, report.decisions_reset, report.decisions_from_file) == (1, 1, 0)
+    db_session.expire_all()
+    system = db_session.get(System, system_id)
+    assert _frame(db_session, "0.png", "0.png").ball_label.box == original
+    assert system.review_status is ReviewStatus.PENDING and "changed its labels" in system.review.reset_reason
+    entry = db_session.scalars(sa.select(AuditEntry).where(AuditEntry.action == "system.import")).one()
+    assert (entry.actor, entry.system_id, entry.frame_id) == ("adam", system_id, None)
+    assert entry.summary.startswith("import of v3 changed ball of V1 moved ")
+    assert "system set back to pending" in entry.summary
+    revert_entry(db_session, entry.id, settings=settings, actor="rita")
+    db_session.expire_all()
+    assert _frame(db_session, "0.png", "0.png").ball_label.box == [600.0, 850.0, 622.0, 872.0]
+    assert db_session.get(System, system_id).review_status is ReviewStatus.ACCEPTED
+
+
 def _damage(path_field: str):
     """An ``edit`` for :func:`write_v3_game` and the text the error must contain."""
     def nan_box(d):
