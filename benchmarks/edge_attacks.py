@@ -17,7 +17,8 @@ throughout each attack:
   reviewer's worst latency (target: 200 within 5 s).
 * ``unread``: the audit is first filled with line edits of such lines (``--edits``), then ``--sockets`` (40)
   connections each ask ``GET /api/audit?limit=500`` and never read the answer, for ``--hold-s`` seconds. Figures: the
-  size of one such answer read whole, the server's memory growth while they hold (< 150 MB) and after they close.
+  size of one such answer read whole (and of the 500 entries' pages when the answer is capped), the server's memory
+  growth while they hold (< 150 MB) and after they close.
 
 Run::
 
@@ -322,6 +323,10 @@ def unread_answers(base: str, pid: int, tokens: dict[str, str], sockets: int, ho
                                               "Accept-Encoding": "identity"}, timeout=120) as client:
         whole = client.get("/api/audit", params={"limit": 500})
         page = whole.json()
+        pages, all_bytes, offset = 1, len(whole.content), page.get("next_offset")
+        while offset is not None and offset < 500:  # the same 500 entries, page by page (a capped answer)
+            more = client.get("/api/audit", params={"limit": 500 - offset, "offset": offset})
+            pages, all_bytes, offset = pages + 1, all_bytes + len(more.content), more.json().get("next_offset")
     port = int(base.rsplit(":", 1)[1])
     request = (f"GET /api/audit?limit=500 HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nAuthorization: Bearer "
                f"{tokens['ana1']}\r\nAccept-Encoding: identity\r\n\r\n").encode()
@@ -344,7 +349,8 @@ def unread_answers(base: str, pid: int, tokens: dict[str, str], sockets: int, ho
         after = tree_rss(psutil.Process(pid))
     return {"attack": "unread", "audit_entries": stored, "answer_mb": round(len(whole.content) / MB, 2),
             "answer_items": len(page.get("items", [])), "answer_total": page.get("total"),
-            "next_offset": page.get("next_offset"), "sockets": sockets, "hold_s": hold_s,
+            "next_offset": page.get("next_offset"), "pages_of_500": pages, "all_500_mb": round(all_bytes / MB, 2),
+            "sockets": sockets, "hold_s": hold_s,
             "rss_growth_holding_mb": round((holding_peak - watch.before) / MB, 1),
             "rss_after_close_mb": round((after - watch.before) / MB, 1), **watch.figures()}
 
