@@ -38,7 +38,7 @@ from benchmarks.scale import free_port
 MB = 2**20
 
 
-def _rss(proc: Any) -> int:
+def tree_rss(proc: Any) -> int:
     """RSS (bytes) of ``proc`` and its children (uvicorn's workers)."""
     import psutil
 
@@ -51,6 +51,22 @@ def _rss(proc: Any) -> int:
     return total
 
 
+def read_status(sock: socket.socket, t0: float, answer: dict[str, Any]) -> None:
+    """Read the status line of the answer on ``sock`` into ``answer["status"]`` ("" when the server closed the
+    connection first) and the seconds since ``t0`` (``time.perf_counter``) into ``answer["seconds"]``."""
+    data = b""
+    try:
+        while b"\r\n" not in data:
+            more = sock.recv(65536)
+            if not more:
+                break
+            data += more
+    except OSError:
+        pass
+    answer["status"] = data.split(b"\r\n", 1)[0].decode("latin-1")
+    answer["seconds"] = time.perf_counter() - t0
+
+
 def send_body(port: int, kind: str, size: int) -> dict[str, Any]:
     """Send one anonymous login of ``size`` bytes of body (``kind``: multipart, chunked, json) over a socket; the
     status line of the answer, seconds to it, and the bytes of body sent before the server answered or closed."""
@@ -61,21 +77,7 @@ def send_body(port: int, kind: str, size: int) -> dict[str, Any]:
     sock.sendall(f"POST /api/auth/login HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nContent-Type: {content_type}\r\n"
                  f"{framing}\r\n\r\n".encode())
     answer: dict[str, Any] = {}
-
-    def read() -> None:
-        data = b""
-        try:
-            while b"\r\n" not in data:
-                more = sock.recv(65536)
-                if not more:
-                    break
-                data += more
-        except OSError:
-            pass
-        answer["status"] = data.split(b"\r\n", 1)[0].decode("latin-1")
-        answer["seconds"] = time.perf_counter() - t0
-
-    reader = threading.Thread(target=read)
+    reader = threading.Thread(target=read_status, args=(sock, t0, answer))
     reader.start()
     sent = 0
     block = b"a" * MB
@@ -120,13 +122,13 @@ def measure(code: Path, mb: float, kinds: list[str], workdir: Path) -> list[dict
         time.sleep(2.0)  # let start-up settle
         server = psutil.Process(proc.pid)
         for kind in kinds:
-            before = _rss(server)
+            before = tree_rss(server)
             peak = [before]
             stop = threading.Event()
 
             def sample(stop: threading.Event, peak: list[float]) -> None:
                 while not stop.is_set():
-                    peak[0] = max(peak[0], _rss(server))
+                    peak[0] = max(peak[0], tree_rss(server))
                     time.sleep(0.01)
 
             sampler = threading.Thread(target=sample, args=(stop, peak))

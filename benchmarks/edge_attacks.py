@@ -45,25 +45,13 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from benchmarks.body_flood import read_status, tree_rss
 from benchmarks.load import fresh_database
 from benchmarks.scale import free_port
 
 MB = 2**20
 ATTACKS = ("header", "previews", "unread")
 PASSWORD = "edge-attacks-password"
-
-
-def tree_rss(proc: Any) -> int:
-    """Resident memory (bytes) of ``proc`` (a psutil process) and its children (uvicorn's workers)."""
-    import psutil
-
-    total = 0
-    for p in [proc, *proc.children(recursive=True)]:
-        try:
-            total += p.memory_info().rss
-        except psutil.Error:
-            pass
-    return total
 
 
 class Watch:
@@ -170,20 +158,7 @@ def huge_header(base: str, pid: int, megabytes: int) -> dict[str, Any]:
         sock = socket.create_connection(("127.0.0.1", port), timeout=120)
         t0 = time.perf_counter()
 
-        def read() -> None:
-            data = b""
-            try:
-                while b"\r\n" not in data:
-                    more = sock.recv(65536)
-                    if not more:
-                        break
-                    data += more
-            except OSError:
-                pass
-            answer["status"] = data.split(b"\r\n", 1)[0].decode("latin-1") or "closed"
-            answer["seconds"] = round(time.perf_counter() - t0, 2)
-
-        reader = threading.Thread(target=read)
+        reader = threading.Thread(target=read_status, args=(sock, t0, answer))
         reader.start()
         sent = 0
         try:
@@ -198,6 +173,8 @@ def huge_header(base: str, pid: int, megabytes: int) -> dict[str, Any]:
         reader.join(timeout=120)
         sock.close()
         time.sleep(1.0)
+    answer["status"] = answer.get("status") or "closed"
+    answer["seconds"] = round(answer.get("seconds", float("nan")), 2)
     return {"attack": "header", "header_mb": megabytes, **answer, "sent_mb": sent // MB, **watch.figures()}
 
 
