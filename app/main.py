@@ -23,7 +23,9 @@ start), then the middleware that resolves the principal and answers 401 / CSRF 4
 pages (``/``, ``/login``, ``/systems/{id}``), static files and the docs are public. Before both: a request
 naming a ``Host`` that is neither a loopback name nor one of ``V3D_ALLOWED_HOSTS`` gets 400
 (``app.api.hosts``: DNS rebinding), and a body is bounded by its route (``app.api.bodies``: 415 for a type the
-route does not take, 413 beyond its limit).
+route does not take, 413 beyond its limit). Outermost of all (``app.api.edge``): a request of too many header lines
+gets 431, and every answer leaves in pieces, each within ``V3D_SEND_TIMEOUT_S`` (a client that stops reading is
+disconnected).
 """
 from __future__ import annotations
 
@@ -36,6 +38,7 @@ from pathlib import Path
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import FileResponse, HTMLResponse, Response
 from fastapi_offline import FastAPIOffline
+from sqlalchemy.pool import QueuePool
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.staticfiles import StaticFiles
 from starlette.types import Scope
@@ -44,11 +47,14 @@ from app.api.authentication import AuthenticationMiddleware, SessionCookieMiddle
 from app.api.bodies import BodyLimitMiddleware
 from app.api.compression import CompressionMiddleware
 from app.api.deps import SessionDep
+from app.api.edge import EdgeMiddleware
 from app.api.errors import install_error_handlers
 from app.api.hosts import allowed_hosts
 from app.api.main import api_router
+from app.api.routes.health import HealthProbe
 from app.api.schemas import db_id
 from app.api.security import SecurityHeadersMiddleware
+from app.api.share import ComputeShare
 from app.core.config import Settings, get_settings
 from app.core.errors import NotFoundError
 from app.core.paths import STATIC_DIR
@@ -123,6 +129,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """
     settings = settings or get_settings()
     engine = make_engine(settings.database_url, write_lock_timeout_s=settings.write_lock_timeout_s)
+    # the health probe's own connection: it never waits for the request pool (app.api.routes.health)
+    health_engine = make_engine(settings.database_url, poolclass=QueuePool, pool_size=1, max_overflow=0)
 
     @asynccontextmanager
     async def lifespan(application: FastAPI) -> AsyncIterator[None]:
@@ -137,6 +145,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if runner is not None:
             runner.stop()
         engine.dispose()
+        health_engine.dispose()
 
     app = FastAPIOffline(
         title="v3d",
@@ -151,8 +160,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.state.session_factory = make_session_factory(engine)
+    app.state.health_probe = HealthProbe(health_engine)
     # This process's turns of the recomputing edits (Settings.edit_slots), handed to each edit (app.api.deps)
     app.state.edit_slots = EditSlots(settings.edit_slots, settings.edit_slot_wait_s)
+    # Each user's share of the process's previews and evaluations (Settings.compute_share, app.api.share)
+    app.state.compute_share = ComputeShare(settings.compute_share)
     # Failed logins counted in the database, through the app's session factory of the moment (tests swap it).
     app.state.login_throttle = login_throttle(settings, lambda: app.state.session_factory())
 
@@ -173,6 +185,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                        https_only=settings.secure_cookies)
     app.add_middleware(TrustedHostMiddleware, allowed_hosts=allowed_hosts(settings), www_redirect=False)
     app.add_middleware(SecurityHeadersMiddleware)
+    # Outermost: too many header lines are refused first; every answer leaves in pieces, each within the send timeout
+    app.add_middleware(EdgeMiddleware, max_headers=settings.max_header_count, send_timeout_s=settings.send_timeout_s)
 
     install_error_handlers(app)
     app.include_router(api_router, prefix="/api")

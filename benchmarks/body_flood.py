@@ -64,7 +64,7 @@ from benchmarks.scale import free_port
 MB = 2**20
 
 
-def _rss(proc: Any) -> int:
+def tree_rss(proc: Any) -> int:
     """RSS (bytes) of ``proc`` and its children (uvicorn's workers)."""
     import psutil
 
@@ -77,8 +77,9 @@ def _rss(proc: Any) -> int:
     return total
 
 
-def _read_status(sock: socket.socket, t0: float, answer: dict[str, Any]) -> None:
-    """Read the answer's status line from ``sock`` into ``answer`` (``status``, ``seconds`` since ``t0``)."""
+def read_status(sock: socket.socket, t0: float, answer: dict[str, Any]) -> None:
+    """Read the status line of the answer on ``sock`` into ``answer["status"]`` ("" when the server closed the
+    connection first) and the seconds since ``t0`` (``time.perf_counter``) into ``answer["seconds"]``."""
     data = b""
     try:
         while b"\r\n" not in data:
@@ -106,7 +107,7 @@ def send_over_socket(port: int, path: str, content_type: str, size: int, *, chun
     sock.sendall(f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n{extra_headers}Content-Type: {content_type}\r\n"
                  f"{framing}\r\n\r\n".encode() + framed(head))
     answer: dict[str, Any] = {}
-    reader = threading.Thread(target=_read_status, args=(sock, t0, answer))
+    reader = threading.Thread(target=read_status, args=(sock, t0, answer))
     reader.start()
     sent = 0
     block = fill * MB
@@ -190,7 +191,7 @@ def measure(code: Path, mb: float, kinds: list[str], workdir: Path) -> list[dict
     out = []
     with served(code, workdir) as (port, server):
         for kind in kinds:
-            result, before, peak = _peak_during(lambda: _rss(server), partial(send_body, port, kind, int(mb * MB)))
+            result, before, peak = _peak_during(lambda: tree_rss(server), partial(send_body, port, kind, int(mb * MB)))
             out.append({**result, "rss_before_mb": before / MB, "rss_growth_mb": (peak - before) / MB})
     return out
 

@@ -18,8 +18,9 @@ def free_port() -> int:
 
 
 @contextmanager
-def serve_app(app: Any, timeout_s: float = 30.0) -> Iterator[str]:
-    """Serve ``app`` (with its lifespan) until the block ends; yields its base URL.
+def serve_app(app: Any, timeout_s: float = 30.0, **options: Any) -> Iterator[str]:
+    """Serve ``app`` (with its lifespan) until the block ends; yields its base URL. ``options``: more of uvicorn's
+    ``Config`` (``app.cli.serve.server_options``: the bounds ``v3d serve`` serves with).
 
     Raises:
         RuntimeError: the server did not start within ``timeout_s``.
@@ -27,7 +28,8 @@ def serve_app(app: Any, timeout_s: float = 30.0) -> Iterator[str]:
     import uvicorn
 
     port = free_port()
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning", lifespan="on"))
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning", lifespan="on",
+                                           **options))
     thread = threading.Thread(target=server.run, name="v3d-test-server", daemon=True)
     thread.start()
     deadline = time.monotonic() + timeout_s

@@ -10,6 +10,10 @@ with the headers the route set on its ``Response`` parameter (ETag, audit entry)
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import orjson
 from fastapi import Response
 from pydantic import BaseModel
 
@@ -22,3 +26,25 @@ def json_answer(model: BaseModel, response: Response) -> Response:
     if response.status_code:
         out.status_code = response.status_code
     return out
+
+
+def capped_json(batches: Iterable[Sequence[BaseModel]], max_bytes: float) -> list[bytes]:
+    """The JSON of each item of ``batches`` (serialised by alias), in order, until the next one would take the total
+    past ``max_bytes`` (the first is always kept): a list answer whose items are of any size stays within a byte cap.
+    The batches are read only as far as needed (the caller's iterator may read them from the database lazily)."""
+    out: list[bytes] = []
+    size = 0
+    for batch in batches:
+        for item in batch:
+            piece = item.__pydantic_serializer__.to_json(item, by_alias=True)
+            if out and size + len(piece) > max_bytes:
+                return out
+            out.append(piece)
+            size += len(piece) + 1
+    return out
+
+
+def json_items(items: list[bytes], fields: dict[str, Any]) -> Response:
+    """A JSON answer ``{"items": [...], **fields}`` of items serialised already (:func:`capped_json`)."""
+    head = b'{"items":[' + b",".join(items) + b"],"
+    return Response(content=head + orjson.dumps(fields)[1:], media_type="application/json")

@@ -62,6 +62,9 @@ class AuditPageOut(BaseModel):
     total: int
     limit: int
     offset: int
+    next_offset: Optional[int] = Field(None, description="The offset of the next page, null on the last one. A page "
+                                                         "stops before V3D_MAX_ANSWER_KB of JSON, so it may hold fewer "
+                                                         "than `limit` entries before the last page.")
 
 
 class AuditQuery(BaseModel):

@@ -14,6 +14,7 @@ from fastapi import Depends, Path, Request
 from sqlalchemy.orm import Session
 
 from app.api.schemas import DbInt
+from app.api.share import ComputeShare
 from app.core.config import Settings
 from app.db.models import Frame, System
 from app.services.curation.writing import EditContext
@@ -41,7 +42,13 @@ def edit_context(request: Request) -> EditContext:
     return EditContext(slots=getattr(request.app.state, "edit_slots", None))
 
 
+async def compute_share(request: Request) -> ComputeShare:
+    """The process's shares of previews and evaluations per user (``app.api.share``), made by the app factory."""
+    return request.app.state.compute_share
+
+
 SettingsDep = Annotated[Settings, Depends(get_app_settings)]
+ShareDep = Annotated[ComputeShare, Depends(compute_share)]
 SessionDep = Annotated[Session, Depends(get_session)]
 EditDep = Annotated[EditContext, Depends(edit_context)]
 

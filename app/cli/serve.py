@@ -15,12 +15,13 @@ version of the derived rows (doubts, queue figures) are recomputed first.
 ``--workers N`` (N > 1) serves with N uvicorn worker processes: the start-up work above runs once, in
 this process, before any worker starts; each worker then builds the app with the factory
 :data:`APP_FACTORY` from the same environment (``V3D_*``). The workers share the database: write
-transactions wait their turn (``app.db.session.begin_write``), so N workers behave like one process.
+transactions wait their turn (``app.db.session.begin_write``), so N workers behave like one process. Every process
+serves with :func:`server_options` (the bounds of a request's head and of idle connections).
 """
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated, Any, Optional
 
 import typer
 
@@ -30,6 +31,17 @@ from app.services.accounts.throttle import is_loopback
 
 #: What uvicorn's worker processes import and call to build the app (settings from the environment).
 APP_FACTORY = "app.main:create_app"
+
+
+def server_options(settings: Settings) -> dict[str, Any]:
+    """uvicorn's options that bound each connection at the server's edge, for every way v3d is served (one process,
+    ``--workers N``, the Docker image): the h11 implementation, whose parser refuses a request line and headers of
+    more than ``V3D_MAX_HEADER_KB`` together (400, the connection closed) as soon as that much has arrived (the
+    httptools parser has no such bound: one header of 80 MB sent in 1 MB pieces held the event loop for seconds), and
+    the keep-alive timeout (``V3D_KEEP_ALIVE_S``). The header count and the send timeout are the app's
+    (``app.api.edge``)."""
+    return {"http": "h11", "h11_max_incomplete_event_size": int(settings.max_header_kb * 1024),
+            "timeout_keep_alive": settings.keep_alive_s}
 
 
 def demo_dir(settings: Settings) -> Path:
@@ -164,6 +176,6 @@ def serve(
                    "requests naming another host get 400")
     if workers > 1:  # each worker process builds its own app (and engine) from the environment
         typer.echo(f"v3d: {workers} worker processes")
-        uvicorn.run(APP_FACTORY, factory=True, host=host, port=port, workers=workers)
+        uvicorn.run(APP_FACTORY, factory=True, host=host, port=port, workers=workers, **server_options(settings))
     else:
-        uvicorn.run(create_app(settings), host=host, port=port)
+        uvicorn.run(create_app(settings), host=host, port=port, **server_options(settings))

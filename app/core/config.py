@@ -220,6 +220,31 @@ class Settings(BaseSettings):
         "takes 0.2-0.4 s on the 2-core machine and, at the default, falls in about one edit in 20 (an edit's ORM "
         "objects outlive young collections); 20,000 makes full collections ~30x rarer "
         "(python -m benchmarks.issia_service --gc-threshold N shows the effect).")
+    # --- the server's edge (app.cli.serve.server_options, app.api.edge) ---
+    max_header_kb: float = Field(
+        32.0, gt=0, description="Largest request line and headers of one request together (KB, 2^10 bytes): a "
+        "larger head is answered 400 and its connection closed as soon as this much has arrived, before it is "
+        "parsed further (uvicorn's h11 parser, h11_max_incomplete_event_size; V3D_MAX_HEADER_KB).")
+    max_header_count: int = Field(
+        100, gt=0, description="Most header lines one request may carry: 431 beyond it, before any route "
+        "(V3D_MAX_HEADER_COUNT).")
+    keep_alive_s: int = Field(
+        5, gt=0, description="An idle connection between two requests is closed after this many seconds "
+        "(uvicorn's timeout_keep_alive; V3D_KEEP_ALIVE_S).")
+    send_timeout_s: float = Field(
+        30.0, gt=0, description="A client that takes no piece of an answer for this long (seconds) is disconnected: "
+        "answers leave in pieces of 64 KiB, each waiting for the client to read the one before, so a client that "
+        "never reads holds at most a piece or two of the server's memory, and not for longer than this "
+        "(V3D_SEND_TIMEOUT_S).")
+    max_answer_kb: int = Field(
+        1024, gt=0, description="Most JSON one page of the audit log may carry (KB): the page stops before the entry "
+        "that would pass it (one entry at least) and names the offset of the next page (next_offset), so that "
+        "entries of large before and after states never make an answer of megabytes (V3D_MAX_ANSWER_KB).")
+    compute_share: int = Field(
+        2, gt=0, description="How many calibration previews and evaluations one user may have computing at once in "
+        "one server process: one more is answered 429 with Retry-After at once, so that one user's parallel "
+        "requests take no more than their share of the process's threads and cores; edits are not counted "
+        "(V3D_COMPUTE_SHARE).")
 
     # --- background jobs and uploads (app.services.jobs.runner, app.services.transfer.archives) ---
     import_batch_frames: int = Field(

@@ -183,3 +183,16 @@ def test_serving_to_a_network_says_which_host_names_are_answered(database: str, 
     with TestClient(served[-1]["app"], base_url="http://192.0.2.7:8000") as by_address:
         assert by_address.get("/api/health").status_code == 400
     assert "reachable" not in CliRunner().invoke(cli, ["serve"]).output  # loopback: nothing to say
+
+
+def test_every_way_of_serving_bounds_a_requests_head_and_idle_connections(database: str, served: list) -> None:
+    """The third security review: an 80 MB header froze the server, whose httptools parser bounds nothing. One process
+    and N workers (and so ``scripts/serve.sh`` and the Docker image, which run ``v3d serve``) serve with uvicorn's h11
+    parser, bounded by ``V3D_MAX_HEADER_KB``, and close idle connections after ``V3D_KEEP_ALIVE_S``
+    (``tests/api/test_edge.py`` sends the attack to such a server)."""
+    for args in ([], ["--workers", "2"]):
+        result = CliRunner().invoke(cli, ["serve", *args])
+        assert result.exit_code == 0, result.output
+    assert len(served) == 2
+    for call in served:
+        assert (call["http"], call["h11_max_incomplete_event_size"], call["timeout_keep_alive"]) == ("h11", 32768, 5)

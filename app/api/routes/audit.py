@@ -5,13 +5,14 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from app.api.answers import json_answer
+from app.api.answers import capped_json, json_answer, json_items
 from app.api.audit_schemas import AuditEntryOut, AuditPageOut, AuditQuery
 from app.api.auth import AnnotatorDep, PrincipalDep, ReviewerDep
 from app.api.conditional import with_etag
 from app.api.deps import EditDep, SessionDep, SettingsDep
 from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, QueueQuery
 from app.api.view_schemas import SystemView
+from app.db.models import AuditEntry
 from app.services.audit import log as audit
 from app.services.audit.log import AUDIT_ENTRY_HEADER
 from app.services.audit.reverting import Reverted, revert_entry, undo_entry
@@ -24,23 +25,36 @@ router = APIRouter(prefix="/audit", tags=["audit"])
 
 
 @router.get("", response_model=AuditPageOut)
-def list_audit(session: SessionDep, principal: PrincipalDep, query: Annotated[AuditQuery, Query()]) -> AuditPageOut:
+def list_audit(session: SessionDep, settings: SettingsDep, principal: PrincipalDep,
+               query: Annotated[AuditQuery, Query()]) -> Response:
     """One page of the audit log, newest first: who changed what, when, and the state before and after.
     ``system_id`` gives the system's decisions and every edit of its views; ``user`` an actor's exact name.
     Changes of users and tokens (``user.*``, ``token.*``) are listed to admins only. An import's ``source`` is
     its server path for admins, the dataset's name for the other roles; work run on the machine is ``cli:<os user>``
-    to admins, ``cli`` to the other roles (``user=cli`` lists it)."""
+    to admins, ``cli`` to the other roles (``user=cli`` lists it). A page holds at most ``limit`` entries and
+    stops before the entry that would take it past ``V3D_MAX_ANSWER_KB`` of JSON (it holds one at least);
+    ``next_offset`` is where the next page starts (null on the last page)."""
+    which = audit.EntryFilter(query.frame_id, query.system_id, query.user, include_admin=principal.may("admin"))
+    total = audit.count_entries(session, which)
+    batches = audit.entry_batches(session, which, limit=query.limit, offset=query.offset)
+    items = capped_json((_shown(session, principal, batch) for batch in batches), settings.max_answer_kb * 1024)
+    taken = query.offset + len(items)
+    return json_items(items, {"total": total, "limit": query.limit, "offset": query.offset,
+                              "next_offset": taken if taken < total else None})
+
+
+def _shown(session: SessionDep, principal: PrincipalDep, entries: list[AuditEntry]) -> list[AuditEntryOut]:
+    """Entries as the caller is shown them: each with its summary (computed for entries older than summaries), an
+    import's counts without server paths for non-admins."""
+    names = audit.view_names(session, [e for e in entries if not e.summary])
     admin = principal.may("admin")
-    page = audit.list_entries(session, frame_id=query.frame_id, system_id=query.system_id, user=query.user,
-                              limit=query.limit, offset=query.offset, include_admin=admin)
-    names = audit.view_names(session, [e for e in page.items if not e.summary])  # entries older than summaries
     items = [AuditEntryOut.shown(e, admin).model_copy(
         update={"summary": audit.entry_summary(e, names.get(e.frame_id) if e.frame_id is not None else None)})
-        for e in page.items]
+        for e in entries]
     if not admin:
         items = [i.model_copy(update={"after": shown_import_counts(i.after)}) if i.action == "import" else i
                  for i in items]
-    return AuditPageOut(items=items, total=page.total, limit=query.limit, offset=query.offset)
+    return items
 
 
 @router.post(

@@ -13,10 +13,11 @@ from fastapi.responses import FileResponse
 from pydantic import BaseModel, Field
 from starlette.background import BackgroundTask
 
-from app.api.auth import require_role
+from app.api.auth import AnnotatorDep, require_role
 from app.api.bodies import UPLOAD_LIMIT
-from app.api.deps import SessionDep, SettingsDep
+from app.api.deps import SessionDep, SettingsDep, ShareDep
 from app.api.schemas import InvalidOut
+from app.api.share import SHARE_SPENT
 from app.core.config import Settings
 from app.core.errors import DatasetError, InvalidInputError
 from app.geometry.metrics import MAX_YOLO_FILE_BYTES
@@ -135,13 +136,13 @@ def _upload_name(upload: UploadFile, default: str) -> str:
 
 
 @router.post(
-    "/evaluations/monocular", response_model=MonocularReportOut, dependencies=[Depends(require_role("annotator"))],
-    openapi_extra={UPLOAD_LIMIT: PREDICTIONS_LIMIT},
+    "/evaluations/monocular", response_model=MonocularReportOut, openapi_extra={UPLOAD_LIMIT: PREDICTIONS_LIMIT},
     responses={422: {"model": InvalidOut, "description": "Unreadable predictions (file and line named), or no "
-                                                       "view with a 3D ball among the selected systems."}},
+                                                       "view with a 3D ball among the selected systems."},
+               **SHARE_SPENT},
 )
 def evaluate_monocular(
-    session: SessionDep, settings: SettingsDep,
+    session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, share: ShareDep,
     predictions: Annotated[UploadFile, File(description="A zip of YOLO txt files (`class cx cy w h conf`) "
                                                         "or a COCO results JSON.")],
     include_all: AllQuery = False,
@@ -151,9 +152,10 @@ def evaluate_monocular(
 ) -> MonocularReportOut:
     """The monocular 3D ball benchmark (``app.services.evaluation.monocular``) of the uploaded detections against
     the curated labels: AP50, MAE_m, MAE_pct, P_2m, the precision-threshold curve and counts, for the
-    whole set and per split."""
+    whole set and per split. 429 while the user's share of computations is in use (``app.api.share``); the
+    evaluation holds no database connection while it computes."""
     est = estimator or monocular.default_estimator(settings.optimised_box_method)
-    with tempfile.TemporaryDirectory(prefix="v3d-predictions-") as tmp:
+    with share.turn(principal.name, "evaluation"), tempfile.TemporaryDirectory(prefix="v3d-predictions-") as tmp:
         path = _unpack(predictions, Path(tmp), settings)
         default = "predictions.zip" if path.is_dir() else "predictions.json"
         report = monocular.evaluate_predictions(session, path, include_all, ball_class, settings.ball_diameter_m, est,

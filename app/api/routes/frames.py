@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 from app.api.answers import json_answer
 from app.api.auth import AnnotatorDep, PrincipalDep, require_role
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
-from app.api.deps import EditDep, FrameDep, FrameIdPath, SessionDep, SettingsDep
+from app.api.deps import EditDep, FrameDep, FrameIdPath, SessionDep, SettingsDep, ShareDep
 from app.api.schemas import (
     INVALID,
     NOT_FOUND,
@@ -32,6 +32,7 @@ from app.api.schemas import (
     QueueQuery,
     ReviewIn,
 )
+from app.api.share import SHARE_SPENT
 from app.api.view_schemas import (
     CalibrationPreviewOut,
     FrameOut,
@@ -229,18 +230,20 @@ def _one_preview(user: str, frame_id: int) -> Iterator[None]:
 
 
 @router.post("/{frame_id}/calibration-preview", response_model=CalibrationPreviewOut,
-             responses={**NOT_FOUND, **INVALID, **PREVIEW_BUSY})
-def calibration_preview(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, frame: FrameDep,
-                        body: FieldLinesIn, response: Response) -> CalibrationPreviewOut:
+             responses={**NOT_FOUND, **INVALID, **PREVIEW_BUSY, **SHARE_SPENT})
+def calibration_preview(session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, share: ShareDep,
+                        frame_id: FrameIdPath, body: FieldLinesIn, response: Response) -> CalibrationPreviewOut:
     """The calibration these field lines would give the frame, computed as ``PUT .../field-lines`` computes it
     (the game rig's retry and a learned prior's refit included) and stored nowhere: camera, JaC, admission,
     per-class residuals and the projected pitch, for a drag that shows the camera while a point moves. Nothing is
     written or audited; ``differs`` says when the commit computes more (an ISSIA camera refined with the ball).
 
-    422 naming ``lines``, as the edit; 429 while a preview of the same view is in flight for the same user.
+    422 naming ``lines``, as the edit; 429 while a preview of the same view is in flight for the same user, or while
+    the user's share of computations is in use (``app.api.share``), before anything is read. The preview holds no
+    database connection while it computes.
     """
-    with _one_preview(principal.name, frame.id):
-        preview = preview_calibration(session, frame.id, body.lines, settings=settings)
+    with _one_preview(principal.name, frame_id), share.turn(principal.name, "calibration preview"):
+        preview = preview_calibration(session, frame_id, body.lines, settings=settings)
     response.headers["Cache-Control"] = "no-store"
     return CalibrationPreviewOut.of(preview)
 

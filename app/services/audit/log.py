@@ -21,6 +21,7 @@ one compressed state per edit instead of two whole ones. Readers see ``entry.bef
 from __future__ import annotations
 
 import getpass
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any, Optional
 
@@ -246,20 +247,55 @@ def _conditions(frame_id: Optional[int], system_id: Optional[int], user: Optiona
     return out
 
 
+@dataclass(frozen=True)
+class EntryFilter:
+    """Which entries a listing takes: every given filter holds. ``system_id`` matches the system's own decisions and
+    every edit of its views; ``user`` is an actor's exact name; ``include_admin`` False leaves out
+    :data:`ADMIN_ACTIONS` and reads ``user`` as a non-admin sees the actors (:func:`shown_actor`: ``cli`` for work on
+    the machine, never its OS account)."""
+
+    frame_id: Optional[int] = None
+    system_id: Optional[int] = None
+    user: Optional[str] = None
+    include_admin: bool = True
+
+    def conditions(self) -> list[Any]:
+        """The filters as SQL conditions on ``AuditEntry``."""
+        return _conditions(self.frame_id, self.system_id, self.user, self.include_admin)
+
+
 def list_entries(session: Session, *, frame_id: Optional[int] = None, system_id: Optional[int] = None,
                  user: Optional[str] = None, limit: int = 50, offset: int = 0,
                  include_admin: bool = True) -> AuditPage:
-    """Entries matching every given filter, newest first (by id, the commit order of their writes).
+    """Entries matching every given filter (:class:`EntryFilter`), newest first (by id, the commit order of their
+    writes), and how many match."""
+    which = EntryFilter(frame_id, system_id, user, include_admin)
+    items = [e for batch in entry_batches(session, which, limit=limit, offset=offset) for e in batch]
+    return AuditPage(items=items, total=count_entries(session, which))
 
-    ``system_id`` matches the system's own decisions and every edit of its views; ``user`` is an
-    actor's exact name; ``include_admin`` False leaves out :data:`ADMIN_ACTIONS` and reads ``user`` as a non-admin
-    sees the actors (:func:`shown_actor`: ``cli`` for work on the machine, never its OS account).
-    """
-    where = _conditions(frame_id, system_id, user, include_admin)
-    total = session.scalar(sa.select(sa.func.count()).select_from(AuditEntry).where(*where))
-    rows = session.scalars(sa.select(AuditEntry).where(*where).order_by(AuditEntry.id.desc())
-                           .limit(limit).offset(offset))
-    return AuditPage(items=list(rows), total=int(total or 0))
+
+def count_entries(session: Session, which: EntryFilter) -> int:
+    """How many entries ``which`` takes."""
+    return int(session.scalar(sa.select(sa.func.count()).select_from(AuditEntry).where(*which.conditions())) or 0)
+
+
+#: Entries read from the database at a time by :func:`entry_batches`.
+ENTRY_BATCH = 8
+
+
+def entry_batches(session: Session, which: EntryFilter, *, limit: int = 50,
+                  offset: int = 0) -> Iterator[list[AuditEntry]]:
+    """The entries ``which`` takes, newest first, from the ``offset``-th, at most ``limit``, read :data:`ENTRY_BATCH`
+    at a time from the database (a server-side cursor on PostgreSQL): a caller that stops early (an answer full at
+    its byte cap) never loads the rest, and the entries it is done with can be freed while it reads on."""
+    stmt = (sa.select(AuditEntry).where(*which.conditions()).order_by(AuditEntry.id.desc()).limit(limit)
+            .offset(offset).execution_options(yield_per=ENTRY_BATCH))
+    result = session.scalars(stmt)
+    try:
+        for batch in result.partitions():
+            yield list(batch)
+    finally:
+        result.close()
 
 
 def latest_entry(session: Session, *, frame_id: Optional[int] = None,

@@ -8,6 +8,10 @@ audit entry, no recomputation of the system; the release commits as any field-li
 One refinement is left out on purpose: a view whose kind refines its camera beyond the lines on commit (an ISSIA
 camera refined with the sequence's ball labels, about a second) is previewed from its lines alone, and the
 preview says so (``differs``), so that a person never takes the preview for the stored result.
+
+Like an edit (``app.services.curation.writing``, "Read", then "Compute"), a preview reads everything its calibration
+needs first (the frame, its system and game, the game's rig rows), gives its connection back to the pool
+(``app.db.session.end_reads``) and only then computes: many previews at once never hold the pool's connections.
 """
 from __future__ import annotations
 
@@ -20,11 +24,12 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.datasets.records import CalibrationFields
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
+from app.db.session import end_reads
 from app.services.calibration.admission import is_admitted
 from app.services.curation.editing import parse_field_lines
 from app.services.curation.system_page import pitch_lines
 from app.services.curation.writing import get_frame
-from app.services.derivation.recompute import calibrate_frame_lines
+from app.services.derivation.recompute import calibrate_frame_lines, system_rig_rows
 from app.services.kinds import kind_of
 
 
@@ -66,8 +71,15 @@ def preview_calibration(session: Session, frame_id: int, lines: Mapping[str, Any
     t0 = time.perf_counter()
     frame = get_frame(session, frame_id)
     parsed = parse_field_lines(lines, frame.width, frame.height, settings.max_line_points_per_frame)
+    # everything the calibration reads, read now (its rig retry's rows, its learned prior on the game), then the
+    # connection goes back to the pool while it computes
+    system = frame.system
+    _ = system.game
+    rig = system_rig_rows(session, system, settings)
+    differs = kind_of(system).calibration_refinement(frame)
+    end_reads(session)
     with session.no_autoflush:
-        calibrated = calibrate_frame_lines(session, frame, settings, lines=parsed, refine=False)
+        calibrated = calibrate_frame_lines(session, frame, settings, lines=parsed, refine=False, rig=rig)
     fields = calibrated.fields
     # transient: never added to the session
     as_stored = Calibration(status=fields.status, camera=fields.camera, flags=list(fields.flags),
@@ -76,5 +88,5 @@ def preview_calibration(session: Session, frame_id: int, lines: Mapping[str, Any
     drawn = pitch_lines(camera, frame.width, frame.height, keep=False)
     return CalibrationPreview(frame_id=frame.id, fields=fields, jac=as_stored.jac(),
                               admitted=is_admitted(as_stored, settings),
-                              retry=calibrated.retry, differs=kind_of(frame.system).calibration_refinement(frame),
+                              retry=calibrated.retry, differs=differs,
                               pitch_lines=drawn, elapsed_ms=(time.perf_counter() - t0) * 1e3)

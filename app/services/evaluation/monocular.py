@@ -33,6 +33,7 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from app.core.errors import DatasetError, InvalidInputError
+from app.db.session import end_reads
 from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
 from app.geometry.metrics import (
@@ -382,6 +383,7 @@ def evaluate_predictions(session: Session, predictions: str | Path, include_all:
     the reference boxes are the exported ones (``ball_box``, :func:`reference_views`); ``name`` and
     ``max_coco_bytes`` as :func:`load_predictions`."""
     views = reference_views(session, include_all, ball_diameter_m, ball_box)
+    end_reads(session)  # the reference views are plain values: no connection is held while the predictions are scored
     missing = 0
     if cameras_dir is not None:
         views, missing = with_cameras(views, cameras_dir)

@@ -218,8 +218,9 @@ def test_audit_list_filters_by_frame_system_and_user_and_pages_newest_first(
                                                                                            other.frame_ids[2]}
     assert _audit(client, system_id=scene.system_id, user="bob")["total"] == 1
     page = _audit(client, limit=2, offset=2)
-    assert page["total"] == 5 and [e["id"] for e in page["items"]] == ids[2:4]
-    assert _audit(client, user="nobody") == {"items": [], "total": 0, "limit": 50, "offset": 0}
+    assert page["total"] == 5 and [e["id"] for e in page["items"]] == ids[2:4] and page["next_offset"] == 4
+    assert _audit(client, limit=2, offset=4)["next_offset"] is None
+    assert _audit(client, user="nobody") == {"items": [], "total": 0, "limit": 50, "offset": 0, "next_offset": None}
     assert client.get("/api/audit", params={"limit": 0}).status_code == 422
     act_as("ann", "annotator", "token")
     assert _audit(client)["total"] == 5  # every role reads it
