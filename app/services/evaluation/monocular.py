@@ -8,7 +8,7 @@ ignored (counted).
 
 Predictions: YOLO txt files (``class cx cy w h conf``, normalised; one file per image, matched to views
 by file stem as written by :mod:`app.services.transfer.detector_export`, searched recursively) or a COCO
-results JSON (``image_id`` = the COCO export's image id, i.e. the frame's database id).
+results JSON (``image_id`` = the COCO export's image id, ``detector_export.coco_image_id`` of the stem).
 
 Reported per split and for the whole set (:func:`evaluate`): ``AP50`` (Pascal VOC all-point AP at
 IoU 0.5, :func:`app.geometry.metrics.average_precision`), ``MAE_m``, ``MAE_pct`` (percent of the
@@ -49,7 +49,7 @@ from app.geometry.metrics import (
 from app.geometry.pitch import BALL_DIAMETER_M
 from app.services.kinds import kind_of
 from app.services.transfer.cameras_export import read_cameras
-from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes
+from app.services.transfer.detector_export import BALL_BOX_LOADS, BALL_CLASS, SPLITS, ball_boxes, coco_image_id
 from app.services.transfer.exporting import exported_systems
 
 #: Thresholds (metres) of the precision-threshold curve.
@@ -285,7 +285,7 @@ def load_predictions(path: str | Path, views: list[ReferenceView], ball_class: i
             return Detections.concat(parts), ignored
         if p.is_file():
             category = 1 if ball_class is None else ball_class
-            by_id = {v.frame_id: v.stem for v in views}
+            by_id = {coco_image_id(v.stem): v.stem for v in views}
             ids, boxes, scores, ignored = [], [], [], 0
             for image_id, cat, box, score in coco_results(p, name=label, max_bytes=max_coco_bytes):
                 if cat != category:

@@ -21,7 +21,8 @@ source class is skipped and counted. Image names are ``<game slug>-<hash>_<frame
 (ISSIA: ``<sequence slug>-<hash>_cam<k>_<frame index, 6 digits>``; the kind's ``view_stem``,
 ``app.services.kinds``), unique across games and views (a repeated name is an error, never an overwrite:
 the files written are those the report counts); evaluation (``app.services.evaluation.monocular``) matches
-predictions to views by this stem (YOLO) or by the COCO image id, which is the frame's database id.
+predictions to views by this stem (YOLO) or by the COCO image id, :func:`coco_image_id` of the stem (stable
+across databases and exports: a number derived from the name, never a database id).
 Splits are the kind's (``split``, ``app.services.kinds``): a SoccerNet game's hash split as in the SoccerNet-v3D
 export; ISSIA by camera as in the paper (cameras 1-2 test, 3-6 train).
 
@@ -42,6 +43,7 @@ written.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 from collections import Counter
 from dataclasses import dataclass, field
@@ -75,6 +77,17 @@ ANNOTATION_SIGMA_FRACTION = 0.1
 MIN_SIGMA_PX = 0.5
 #: Systems read from the database per batch while exporting (the export never holds them all).
 _CHUNK = 200
+
+
+def coco_image_id(stem: str) -> int:
+    """The COCO image id of the exported view named ``stem``: the first 12 hex digits (48 bits) of the SHA-256 of
+    the stem's UTF-8 bytes, read as an integer.
+
+    Stable across databases, re-imports and exports (a database id is not), and below 2**53 so that every JSON
+    reader keeps it exact. Stems are unique within an export; at 48 bits two of a million stems share an id with
+    probability about 2e-3, so :func:`export_coco` still refuses a repeated id rather than merging two images.
+    """
+    return int(hashlib.sha256(stem.encode("utf-8")).hexdigest()[:12], 16)
 
 
 @dataclass
@@ -304,24 +317,31 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
                 ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined") -> DetectorExportReport:
     """Write the COCO layout under ``out_dir``: per split the images and ``instances.json``.
 
-    COCO image ids are the frames' database ids; category ids are the class ids + 1.
+    COCO image ids are :func:`coco_image_id` of the view's stem; category ids are the class ids + 1.
+
+    Raises:
+        RuntimeError: two views' stems give one image id (never silently merged).
     """
     out = Path(out_dir)
     report = DetectorExportReport(out, "coco")
     docs: dict[str, dict[str, list]] = {s: {"images": [], "annotations": []} for s in SPLITS}
+    ids: dict[int, str] = {}
     for split in SPLITS:
         (out / split).mkdir(parents=True, exist_ok=True)
     for view in iter_export_views(session, "coco", include_all, report, ball_diameter_m, ball_box):
+        image_id = coco_image_id(view.stem)
+        if ids.setdefault(image_id, view.stem) != view.stem:
+            raise RuntimeError(f"views {ids[image_id]!r} and {view.stem!r} share the COCO image id {image_id}")
         dest = _copy_image(view.frame, out / view.split / view.stem)
         if dest is None:
             report.skipped_without_image += 1
             continue
         doc = docs[view.split]
-        doc["images"].append({"id": view.frame.id, "file_name": dest.name, "width": view.frame.width,
+        doc["images"].append({"id": image_id, "file_name": dest.name, "width": view.frame.width,
                               "height": view.frame.height})
         for c, b in view.boxes:
             w, h = b[2] - b[0], b[3] - b[1]
-            doc["annotations"].append({"id": len(doc["annotations"]) + 1, "image_id": view.frame.id,
+            doc["annotations"].append({"id": len(doc["annotations"]) + 1, "image_id": image_id,
                                        "category_id": c + 1, "bbox": [b[0], b[1], w, h], "area": w * h,
                                        "iscrowd": 0})
         _count(report, view)

@@ -11,6 +11,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Frame
 from app.services.kinds import image_stem
+from app.services.transfer.detector_export import coco_image_id
 
 from ..factories import zip_listing
 
@@ -27,13 +28,16 @@ def test_yolo_export_zip_skips_the_view_without_an_image(client, scene):
     assert client.get("/api/exports/yolo").headers["x-v3d-images"] == "0"
 
 
-def test_coco_export_zip(client, scene):
+def test_coco_export_zip(client, scene, db_session):
     r = client.get("/api/exports/coco", params={"all": "true"})
     assert r.status_code == 200
     with zipfile.ZipFile(io.BytesIO(r.content)) as zf:
         docs = [json.loads(zf.read(n)) for n in zf.namelist() if n.endswith("instances.json")]
     assert sum(len(d["images"]) for d in docs) == 2
-    assert {a["image_id"] for d in docs for a in d["annotations"] if a["category_id"] == 1} == set(scene.frame_ids[:2])
+    game = db_session.get(Frame, scene.frame_ids[0]).system.game
+    ids = {coco_image_id(image_stem(game, db_session.get(Frame, i))) for i in scene.frame_ids[:2]}
+    assert {a["image_id"] for d in docs for a in d["annotations"] if a["category_id"] == 1} == ids
+    assert {i["id"] for d in docs for i in d["images"]} == ids  # derived from the name, not the database id
 
 
 def _reference(db_session: Session, scene) -> list[Frame]:
@@ -62,11 +66,13 @@ def test_evaluation_of_a_yolo_zip_of_the_reference_boxes(client, scene, db_sessi
 
 def test_evaluation_of_a_coco_results_json_scaled_by_1_1(client, scene, db_session):
     frames = _reference(db_session, scene)
+    game = frames[0].system.game
     results = []
     for f in frames:
         x1, y1, x2, y2 = f.optimised_box.box
         cx, cy, w, h = (x1 + x2) / 2, (y1 + y2) / 2, (x2 - x1) * 1.1, (y2 - y1) * 1.1
-        results.append({"image_id": f.id, "category_id": 1, "bbox": [cx - w / 2, cy - h / 2, w, h], "score": 0.5})
+        results.append({"image_id": coco_image_id(image_stem(game, f)), "category_id": 1,
+                        "bbox": [cx - w / 2, cy - h / 2, w, h], "score": 0.5})
     r = client.post("/api/evaluations/monocular", params={"all": "true", "estimator": "exact"},
                     files={"predictions": ("results.json", json.dumps(results).encode(), "application/json")})
     assert r.status_code == 200, r.text

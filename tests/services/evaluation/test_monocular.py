@@ -18,6 +18,7 @@ from app.geometry.camera import Camera
 from app.geometry.metrics import Detections
 from app.geometry.sensitivity import scale_boxes
 from app.services.evaluation.monocular import ReferenceView, evaluate, load_predictions
+from app.services.transfer.detector_export import coco_image_id
 
 CAM = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0, tilt_deg=90.0,
                              roll_deg=0.0, position_m=[0.0, 50.0, -10.0])
@@ -112,9 +113,9 @@ def test_yolo_and_coco_predictions_are_matched_by_stem_and_image_id(views, tmp_p
 
     coco = tmp_path / "results.json"
     coco.write_text(json.dumps([
-        {"image_id": views[1].frame_id, "category_id": 1, "bbox": [1.0, 2.0, 3.0, 4.0], "score": 0.5},
+        {"image_id": coco_image_id("b"), "category_id": 1, "bbox": [1.0, 2.0, 3.0, 4.0], "score": 0.5},
         {"image_id": -5, "category_id": 1, "bbox": [1.0, 2.0, 3.0, 4.0], "score": 0.5},
-        {"image_id": views[1].frame_id, "category_id": 2, "bbox": [1.0, 2.0, 3.0, 4.0], "score": 0.5}]))
+        {"image_id": coco_image_id("b"), "category_id": 2, "bbox": [1.0, 2.0, 3.0, 4.0], "score": 0.5}]))
     dets, ignored = load_predictions(coco, views)
     assert dets.image_ids == ("b",) and dets.boxes.tolist() == [[1.0, 2.0, 4.0, 6.0]] and ignored == 1
 
