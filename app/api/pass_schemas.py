@@ -81,8 +81,9 @@ class PassOut(BaseModel):
 
 class PassPlaceOut(BaseModel):
     """Where a system stands in a pass (statuses read now): ``index`` (null: not in the pass), its
-    neighbours in the pass's order, the next system after it that is still pending, the first pending one
-    of the pass, the counts, and ``finished`` (no pending system after it)."""
+    neighbours in the pass's order, the next system after it that is still pending (wrapping round to the pass's
+    start) and its index, the first pending one of the pass, the counts, and ``finished`` (no other system of the
+    pass is pending)."""
 
     pass_id: int
     index: Optional[int]
@@ -90,6 +91,7 @@ class PassPlaceOut(BaseModel):
     prev_id: Optional[int]
     next_id: Optional[int]
     next_pending_id: Optional[int]
+    next_pending_index: Optional[int]
     first_pending_id: Optional[int]
     counts: PassCounts
     finished: bool
@@ -97,5 +99,6 @@ class PassPlaceOut(BaseModel):
     @classmethod
     def of(cls, p: PassPlace) -> "PassPlaceOut":
         return cls(pass_id=p.pass_id, index=p.index, total=p.total, prev_id=p.prev_id, next_id=p.next_id,
-                   next_pending_id=p.next_pending_id, first_pending_id=p.first_pending_id,
+                   next_pending_id=p.next_pending_id, next_pending_index=p.next_pending_index,
+                   first_pending_id=p.first_pending_id,
                    counts=PassCounts(**p.counts), finished=p.finished)

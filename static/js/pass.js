@@ -1,8 +1,8 @@
 // The system page's review pass: the frozen list of the queue's systems, in the order the queue
 // had when the pass began (every page), stored on the server per user (/api/passes) and named in the page's
 // address (`?pass=ID`, kept across a reload). A decision goes to the next system of the pass that is still
-// pending (its status read now, GET .../place); j / k step through the pass's order; a fix never reorders
-// it. When nothing pending is left after the system, the page says so with the pass's counts
+// pending (its status read now, GET .../place), wrapping round to the pass's start; j / k step through the
+// pass's order; a fix never reorders it. When nothing pending is left after the system, the page says so with the pass's counts
 // (data-testid="pass-finished") and a way back to the queue.
 
 import { ApiError, startPass, visitPass, passPlace, listPasses, getPass } from "./api.js";
@@ -78,6 +78,20 @@ export class ReviewPass {
     return withPass(search, this.id);
   }
 
+  /** The page shows `systemId` before the server answers its visit: its place in the bar at once, from what the
+   * last place said of its neighbours (the next pending one, next, previous), else no number at all rather than
+   * the previous system's. */
+  arrive(systemId) {
+    if (this.id === null || systemId === this.systemId || !this.place) return;
+    const p = this.place;
+    let index = null;
+    if (systemId === p.next_pending_id) index = p.next_pending_index ?? null;
+    else if (p.index !== null && systemId === p.next_id) index = p.index + 1;
+    else if (p.index !== null && systemId === p.prev_id) index = p.index - 1;
+    const where = index === null ? `… of ${p.total}` : `${index + 1} of ${p.total}`;
+    this.progress.textContent = `pass ${where} · ${p.counts.skipped} pending`;
+  }
+
   note(systemId, place) {
     this.systemId = systemId;
     this.place = place;
@@ -110,7 +124,7 @@ export class ReviewPass {
     const skipped = place.first_pending_id;
     this.panel.replaceChildren(
       el("strong", {}, "Pass finished: "),
-      el("span", {}, "no system of this pass is left pending after this one. "),
+      el("span", {}, "no other system of this pass is left pending. "),
       el("span", { "data-testid": "pass-counts" }, describeCounts(place.counts)),
       el("span", { class: "actions" },
         el("a", { href: queueUrl, class: "button", "data-testid": "pass-queue-link" }, "back to the queue (u)"),

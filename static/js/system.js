@@ -178,6 +178,7 @@ class SystemPage {
     $("system-name").textContent = sys.name;
     $("system-game").textContent = [game.league, game.season, game.match].filter(Boolean).join(" · ");
     renderStatus(sys.review);
+    this.pass.arrive(sys.id); // its place in the pass at once, before the visit answers
     this.presence.show(sys);
     $("prev").disabled = this.stepId(-1) == null; // in a pass: its neighbours (pass.js)
     $("next").disabled = this.stepId(1) == null;

@@ -5,7 +5,8 @@ all its pages) when a user opens a system from it. The system page then moves wi
 that moves a system in the queue's current order (a mirror fix changes its doubts, the doubts sort's key)
 never reorders the pass. After a decision the page goes to the **next pending** system of the pass: the
 first one after the current one whose *current* review status (read when asked, never copied into the pass)
-is pending, so a system decided meanwhile, by this user or another, is skipped. When none is left the pass
+is pending, wrapping round to the pass's start (a pass resumed in its middle still visits the systems left
+pending before), so a system decided meanwhile, by this user or another, is skipped. When none is left the pass
 is finished; its counts are the current statuses of its systems (``skipped``: still pending, i.e. visited
 or stepped over without a decision).
 
@@ -45,9 +46,10 @@ class PassPlace:
     ``index``: the system's index in the pass (None: not one of its systems; the neighbours are then those
     of the pass's stored position). ``prev_id`` / ``next_id``: the systems before / after it in the pass's
     order (None at either end). ``next_pending_id``: the first system after it whose current status is
-    pending (None: none left after it); ``first_pending_id``: the first pending one of the whole pass (a
-    system skipped earlier). ``counts``: :data:`COUNT_KEYS` over the pass. ``finished``: no pending system
-    after it."""
+    pending, wrapping round to the pass's start (None: no other system of the pass is pending), and
+    ``next_pending_index`` its index (the page shows its place before the visit answers); ``first_pending_id``: the
+    first pending one of the whole pass. ``counts``: :data:`COUNT_KEYS` over the pass. ``finished``: no other system
+    of the pass is pending."""
 
     pass_id: int
     index: Optional[int]
@@ -55,6 +57,7 @@ class PassPlace:
     prev_id: Optional[int]
     next_id: Optional[int]
     next_pending_id: Optional[int]
+    next_pending_index: Optional[int]
     first_pending_id: Optional[int]
     counts: dict[str, int]
     finished: bool
@@ -177,12 +180,16 @@ def place(session: Session, rp: ReviewPass, system_id: int) -> PassPlace:
         stored = rp.system_ids[rp.position] if 0 <= rp.position < len(rp.system_ids) else None
         anchor = ids.index(stored) if stored in ids else -1
     pending = [j for j, i in enumerate(ids) if statuses[i] == _PENDING]
-    next_pending = next((ids[j] for j in pending if j > anchor), None)
+    # after it first, then from the start of the pass: a pass resumed late still reaches the systems left pending
+    # before its resume point
+    wrapped = [j for j in pending if j > anchor] + [j for j in pending if j < anchor]
+    next_pending = wrapped[0] if wrapped else None
     return PassPlace(
         pass_id=rp.id, index=index, total=len(ids),
         prev_id=ids[anchor - 1] if anchor is not None and anchor > 0 else None,
         next_id=ids[anchor + 1] if anchor + 1 < len(ids) else None,
-        next_pending_id=next_pending, first_pending_id=ids[pending[0]] if pending else None,
+        next_pending_id=ids[next_pending] if next_pending is not None else None, next_pending_index=next_pending,
+        first_pending_id=ids[pending[0]] if pending else None,
         counts=_counts(statuses), finished=next_pending is None,
     )
 

@@ -41,7 +41,10 @@ def test_a_pass_freezes_every_page_of_the_queue_and_moves_to_the_next_pending(cl
     assert place["next_pending_id"] == listing[2] and place["next_id"] == listing[1] and place["index"] == 0
 
     visit = client.post(f"/api/passes/{rp['id']}/visits", json={"system_id": listing[2]})
-    assert visit.status_code == 200 and visit.json()["finished"] and visit.json()["first_pending_id"] == listing[0]
+    assert visit.status_code == 200 and visit.json()["first_pending_id"] == listing[0]
+    # nothing pending after the last: back to the first one left pending (the pass wraps round)
+    assert not visit.json()["finished"] and visit.json()["next_pending_id"] == listing[0]
+    assert visit.json()["next_pending_index"] == 0
     assert client.get(f"/api/passes/{rp['id']}").json()["position"] == 2
     mine = client.get("/api/passes").json()
     assert [p["id"] for p in mine] == [rp["id"]] and mine[0]["systems"] == [] and mine[0]["total"] == 3

@@ -72,9 +72,18 @@ def test_a_pass_keeps_the_queue_order_of_its_start_through_a_decision_and_a_fix(
     assert at_fixed.first_pending_id == order[1]  # the fixed one itself is still pending
     assert at_fixed.counts == {"accepted": 2, "rejected": 1, "needs_fix": 0, "skipped": 3}
 
-    # the last one: nothing pending after it; the pass is finished there
+    # the last one: the next pending wraps round to the pass's start (a pass resumed late reaches the systems left
+    # pending before its resume point); once every other system is decided the pass is finished there
     last = passes.place(db_session, rp, order[-1])
-    assert last.finished and last.next_pending_id is None and last.next_id is None
+    assert not last.finished and last.next_pending_id == order[1] and last.next_pending_index == 1
+    assert last.next_id is None
+    for sid in order[1:-1]:
+        if sid != order[4]:
+            decisions.decide_review(db_session, system_id=sid, status="accepted", actor="bob")
+    assert passes.place(db_session, rp, order[-1]).next_pending_id == order[4]
+    decisions.decide_review(db_session, system_id=order[4], status="accepted", actor="bob")
+    last = passes.place(db_session, rp, order[-1])
+    assert last.finished and last.next_pending_id is None and last.next_pending_index is None
 
     # opening a system of the same queue continues the pass; a fresh one freezes the queue's order now
     assert passes.start_pass(db_session, "ana", SystemFilters(), "-doubts", system_id=order[4]).id == rp.id

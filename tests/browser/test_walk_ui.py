@@ -1,0 +1,89 @@
+"""A new curator's walk through the pages (Playwright, Chromium, the real server over the demo dataset): each
+test is one thing the walk found wrong, named after what the user now sees. The database is shared by the
+module: a test that decides or edits systems uses its own, or puts back what it changed."""
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from tests.browser.support import api_json as _api
+from tests.browser.support import api_write, tid
+
+pytestmark = pytest.mark.browser
+
+#: Makes the page's pass visits (POST /api/passes/{id}/visits) answer 0.8 s late, so that whatever the top bar says
+#: before the server's answer stays long enough to be read; and records every text the bar shows with the address
+#: it was shown at.
+_SLOW_VISITS_AND_BAR_LOG = """
+  const realFetch = window.fetch.bind(window);
+  window.fetch = async (url, init) => {
+    if (String(url).includes('/visits')) await new Promise((r) => setTimeout(r, 800));
+    return realFetch(url, init);
+  };
+  window.__bar = [];
+  const look = () => {
+    const text = document.querySelector('[data-testid=pass-progress]')?.textContent || '';
+    const last = window.__bar[window.__bar.length - 1];
+    if (!last || last[0] !== location.pathname || last[1] !== text) window.__bar.push([location.pathname, text]);
+  };
+  setInterval(look, 5);
+"""
+
+
+def _system_id(page) -> int:
+    return int(re.search(r"/systems/(\d+)", page.url).group(1))
+
+
+def _arrive(page, system_id: int, bar: str) -> None:
+    """Wait until the page shows ``system_id`` with its views and the top bar reads ``bar``."""
+    page.wait_for_function(
+        """([id, bar]) => location.pathname === `/systems/${id}` && !document.body.classList.contains('loading')
+          && document.querySelectorAll('[data-testid=view]').length > 0
+          && document.querySelector('[data-testid=pass-progress]')?.textContent === bar""",
+        arg=[system_id, bar])
+
+
+def test_a_resumed_pass_comes_back_to_the_systems_left_pending_before_its_resume_point(page, artifacts):
+    order = [s["id"] for s in _api(page, "/api/systems?limit=100")["items"]]
+    n = len(order)
+    assert n >= 6
+    # an older pass, resumed late: everything but the first two and the last two already decided elsewhere
+    made = api_write(page, "POST", "/api/passes", data={"filter": {}, "sort": "-doubts", "system_id": order[-2],
+                                                         "fresh": True})
+    assert made.ok, made.text()
+    pass_id = made.json()["id"]
+    assert made.json()["systems"] == order
+    for sid in order[2:-2]:
+        etag = page.request.get(f"/api/systems/{sid}").headers["etag"]
+        assert api_write(page, "POST", f"/api/systems/{sid}/review", data={"status": "rejected"},
+                         headers={"If-Match": etag}).ok
+
+    page.add_init_script(_SLOW_VISITS_AND_BAR_LOG)
+    page.goto(f"/systems/{order[-2]}?pass={pass_id}")
+    _arrive(page, order[-2], f"pass {n - 1} of {n} · 4 pending")
+
+    # r on the second to last: the last, whose place reads right from the moment it is shown
+    page.keyboard.press("r")
+    _arrive(page, order[-1], f"pass {n} of {n} · 3 pending")
+    page.wait_for_timeout(900)  # the visit's late answer
+    shown = [text for path, text in page.evaluate("window.__bar") if path == f"/systems/{order[-1]}"]
+    assert shown and all(not re.match(r"pass \d+ of", t) or t.startswith(f"pass {n} of {n}") for t in shown), shown
+
+    # r on the last: not the end of the pass, the two pending systems before the resume point, in the pass's order
+    page.keyboard.press("r")
+    _arrive(page, order[0], f"pass 1 of {n} · 2 pending")
+    assert page.locator(tid("pass-finished")).is_hidden()
+    page.keyboard.press("r")
+    _arrive(page, order[1], f"pass 2 of {n} · 1 pending")
+    page.keyboard.press("r")
+    page.locator(tid("pass-finished")).wait_for()
+    assert page.locator(tid("toast")).inner_text().endswith("Nothing pending is left in this pass.")
+    assert page.locator(tid("pass-counts")).inner_text() == f"0 accepted · {n} rejected · 0 needs fix · 0 skipped"
+    statuses = {s["id"]: s["review"]["status"] for s in _api(page, "/api/systems?limit=100")["items"]}
+    assert set(statuses.values()) == {"rejected"}, statuses
+    # put the queue back for the module's other tests
+    for sid in order:
+        etag = page.request.get(f"/api/systems/{sid}").headers["etag"]
+        assert api_write(page, "POST", f"/api/systems/{sid}/review", data={"status": "pending"},
+                         headers={"If-Match": etag}).ok
