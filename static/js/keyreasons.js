@@ -6,7 +6,7 @@
 // the page the reason when no entry used the key. Undo and redo (Ctrl+Z, Ctrl+Shift+Z, Ctrl+Y) need no reason
 // here: the page's undo stack (system.js, EditHistory) says itself when it has nothing to undo or redo.
 
-import { isMirrorFlagged } from "./viewfacts.js";
+import { FIX_KEY, FIX_LABEL, isMirrorFlagged } from "./viewfacts.js";
 import { inASequence } from "./sequence.js";
 
 const SELECT_FIRST = "select a view first (1…9)";
@@ -66,10 +66,16 @@ function reasons(page) {
     [["s"], false, { before: () => {
       if (loading()) return loading();
       if (page.fixTarget()) return null;
-      if (page.selected >= 0) return `${name(view())} has no doubt with a suggested fix`;
-      const fixable = panels().filter((p) => p.fixableDoubt());
-      return fixable.length ? `${fixable.length} views have a suggested fix: select one (1…9)`
-        : "no doubt of this system has a suggested fix";
+      // s only snaps: a view whose fix is another key's is told which key
+      const other = (p) => {
+        const key = FIX_KEY[p?.fixableDoubt()?.suggestion?.action];
+        return key && key !== "s" ? `${name(p)}'s fix is “${FIX_LABEL[p.fixableDoubt().suggestion.action]}”: press ${key} (s only snaps a label)` : null;
+      };
+      if (page.selected >= 0) return other(view()) || `${name(view())} has no doubt with a suggested fix to snap to`;
+      const fixable = panels().filter((p) => p.fixableDoubt("s"));
+      if (fixable.length) return `${fixable.length} views have a suggested box: select one (1…9)`;
+      const others = panels().map(other).filter(Boolean);
+      return others.length ? others.join("; ") : "no doubt of this system has a suggested fix to snap to";
     }, after: saving }],
     [["x"], false, { before: () => loading() || (page.system.views.length === 1
       ? "a single view has no 3D ball to exclude it from" : view() ? null : `${SELECT_FIRST} to exclude it`),

@@ -15,7 +15,7 @@ import { LineEditor } from "./lineseditor.js";
 import { BallEditor } from "./balledit.js";
 import { ballWindow, drawView } from "./viewdrawing.js";
 import { getPitchLines } from "./api.js";
-import { FIX_LABEL, boxCentre, isMirrorFlagged, notes, validBox, validPoint, viewDoubtItems, viewFacts } from "./viewfacts.js";
+import { FIX_KEY, FIX_LABEL, boxCentre, isMirrorFlagged, notes, validBox, validPoint, viewDoubtItems, viewFacts } from "./viewfacts.js";
 
 const ZOOM_PX = 150; // displayed size of the zoom inset
 
@@ -276,10 +276,11 @@ export class ViewPanel extends HTMLElement {
     return true;
   }
 
-  /** The first doubt of this view whose fix can be applied (a label-accusing one first). */
-  fixableDoubt(action = null) {
+  /** The first doubt of this view whose fix can be applied (a label-accusing one first); with `key`, only a fix
+   * of that key (FIX_KEY: `s` snaps, `x` excludes, `m` mirrors). */
+  fixableDoubt(key = null) {
     const ds = (this.#ctx.doubts || []).filter((d) => d.suggestion && FIX_LABEL[d.suggestion.action]
-      && (!action || d.suggestion.action === action));
+      && (!key || FIX_KEY[d.suggestion.action] === key));
     return ds.find((d) => d.accuses_label) || ds[0] || null;
   }
 

@@ -280,15 +280,16 @@ class SystemPage {
     }
   }
 
-  /** The view `s` acts on and its doubt: the selected view's fixable doubt, else the only view with one. */
+  /** The view `s` acts on and its doubt: the selected view's snap (a label put on the suggested box or point),
+   * else the only view with one. `s` only snaps: a mirror is `m`'s, an exclusion `x`'s (FIX_KEY). */
   fixTarget() {
     const panels = [...$("views").children];
     if (this.selected >= 0) {
       const panel = panels[this.selected];
-      const doubt = panel?.fixableDoubt();
+      const doubt = panel?.fixableDoubt("s");
       return doubt ? [panel, doubt] : null;
     }
-    const fixable = panels.map((p) => [p, p.fixableDoubt()]).filter(([, d]) => d);
+    const fixable = panels.map((p) => [p, p.fixableDoubt("s")]).filter(([, d]) => d);
     return fixable.length === 1 ? fixable[0] : null;
   }
 
@@ -351,7 +352,7 @@ class SystemPage {
       { keys: ["z"], does: "restore its imported label", run: () => view()?.restoreLabel() ?? false },
       { keys: ["Enter"], does: "confirm the pending placement (selected view, or the only one with a suggested label)",
         run: () => Boolean(this.placementTarget()?.confirmPlacement()) },
-      { keys: ["s"], does: "apply the suggested fix of a doubt (selected view, or the only one with a fix)",
+      { keys: ["s"], does: "snap the ball label to a doubt's suggestion (selected view, or the only one with a snap)",
         run: () => {
           const target = this.fixTarget();
           return Boolean(target && target[0].applyFix(target[1]));

@@ -87,3 +87,25 @@ def test_a_resumed_pass_comes_back_to_the_systems_left_pending_before_its_resume
         etag = page.request.get(f"/api/systems/{sid}").headers["etag"]
         assert api_write(page, "POST", f"/api/systems/{sid}/review", data={"status": "pending"},
                          headers={"If-Match": etag}).ok
+
+
+def test_s_with_no_view_selected_snaps_and_never_mirrors(page):
+    """The README gives ``s`` to snap a label and ``m`` to mirror: ``s`` on a system whose only fix is a mirror
+    says which key mirrors, and writes nothing."""
+    system = next(s for s in (_api(page, f"/api/systems/{i['id']}") for i in
+                              _api(page, "/api/systems?doubt=mirrored_labels&limit=100")["items"])
+                  if {d["suggestion"]["action"] for d in s["doubts"] if d.get("suggestion")} == {"mirror_labels"})
+    writes: list[str] = []
+    page.on("request", lambda r: writes.append(f"{r.method} {r.url}") if r.method in ("PATCH", "POST", "PUT")
+            and "/api/frames" in r.url else None)
+    page.goto(f"/systems/{system['id']}")
+    page.locator(tid("view")).first.wait_for()
+    page.wait_for_function("() => !document.body.classList.contains('loading')")
+    page.keyboard.press("s")
+    toast = page.locator(tid("toast"))
+    toast.filter(has_text="m").wait_for()
+    assert "press m" in toast.inner_text() and "mirror" in toast.inner_text(), toast.inner_text()
+    page.wait_for_timeout(300)
+    assert writes == []
+    after = _api(page, f"/api/systems/{system['id']}")
+    assert [v["ball"] for v in after["views"]] == [v["ball"] for v in system["views"]]
