@@ -157,8 +157,10 @@ export async function resumeLink(container) {
     if (open.sort !== "-doubts") q.set("sort", open.sort);
     q.set(PASS_PARAM, String(id));
     container.replaceChildren(el("a", { href: `/systems/${at}?${q}`, "data-testid": "resume-pass",
-      title: `your review pass of ${new Date(open.created_at).toLocaleString()}: ${describeCounts(open.counts)}` },
-    `resume your pass (${position + 1} of ${open.total}, ${open.counts.skipped} pending)`));
+      title: `resume your review pass of ${new Date(open.created_at).toLocaleString()} at ${position + 1} of ${open.total}: `
+        + `${open.counts.skipped} pending; ${describeCounts(open.counts)}` },
+    // short: the header stays one line with the user's name and Log out at 1366 px
+    `resume pass ${position + 1}/${open.total}`));
     container.hidden = false;
   } catch {
     // only an offer: the queue works without it

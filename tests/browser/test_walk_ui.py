@@ -109,3 +109,45 @@ def test_s_with_no_view_selected_snaps_and_never_mirrors(page):
     assert writes == []
     after = _api(page, f"/api/systems/{system['id']}")
     assert [v["ball"] for v in after["views"]] == [v["ball"] for v in system["views"]]
+
+
+def _covered_or_cut(page, selector: str) -> list[str]:
+    """The texts of the elements of ``selector`` that are not wholly seen: cut by their container's edge (or the
+    window's), or with another element drawn over their left end, middle or right end."""
+    return page.evaluate("""(selector) => [...document.querySelectorAll(selector)].filter((e) => {
+      const r = e.getBoundingClientRect();
+      if (r.width === 0) return false;
+      if (r.left < 0 || r.top < 0 || r.right > innerWidth || r.bottom > innerHeight) return true;
+      for (let p = e.parentElement; p && p !== document.body; p = p.parentElement) {
+        const c = p.getBoundingClientRect(), style = getComputedStyle(p);
+        if (style.overflowX !== 'visible' && (r.left < c.left - 0.5 || r.right > c.right + 0.5)) return true;
+      }
+      const y = (r.top + r.bottom) / 2, ends = [[r.left + 4, y], [(r.left + r.right) / 2, y], [r.right - 4, y]];
+      return ends.some(([x, y]) => { const hit = document.elementFromPoint(x, y); return hit && !e.contains(hit); });
+    }).map((e) => e.textContent)""", selector)
+
+
+@pytest.mark.parametrize("size", [(1366, 768), (1920, 1080)])
+def test_the_doubt_chips_and_log_out_are_wholly_seen_at_common_screen_sizes(page, artifacts, size):
+    width, height = size
+    page.set_viewport_size({"width": width, "height": height})
+    doubtful = max(_api(page, "/api/systems?limit=100")["items"],
+                   key=lambda s: len(_api(page, f"/api/systems/{s['id']}")["doubts"]))
+    page.goto(f"/systems/{doubtful['id']}")
+    page.locator(f"{tid('system-doubts')} .chip").first.wait_for()
+    page.wait_for_function("() => !document.body.classList.contains('loading')")
+    page.screenshot(path=str(artifacts / f"walk/system-{width}x{height}.png"))
+    chips = page.locator(f"{tid('system-doubts')} .chip")
+    assert chips.count() >= 2
+    assert _covered_or_cut(page, f"{tid('system-doubts')} .chip") == []
+    assert _covered_or_cut(page, ".topbar button") == []
+
+    # the queue with a pass to resume: the link, the user's name and Log out all in the window
+    order = [s["id"] for s in _api(page, "/api/systems?limit=100")["items"]]
+    made = api_write(page, "POST", "/api/passes", data={"filter": {}, "sort": "-doubts", "system_id": order[3],
+                                                         "fresh": True})
+    assert made.ok
+    page.goto("/")
+    page.locator(tid("resume-pass")).wait_for()
+    page.screenshot(path=str(artifacts / f"walk/queue-{width}x{height}.png"))
+    assert _covered_or_cut(page, f".topbar a, .topbar button, {tid('resume-pass')}") == []
