@@ -255,6 +255,10 @@ class SystemPage {
         if (place) this.pass.showFinished(place, this.queueUrl());
         toast(`${sys.name}: ${STATUS_LABEL[status]}. ${place ? LAST_OF_PASS : "That was the last system of this queue."}`);
         if (this.system === current && etag) current.etag = etag; // the page stays: its next decision needs it
+        if (this.system === current) { // the views' parts with no decision of their own read the system's now
+          current.review = { ...(current.review || {}), ...(answer || { status }) };
+          for (const panel of $("views").children) if (panel.view) this.decisions.attach(panel, panel.view);
+        }
         this.history.load(current, this.params);
       }
     } catch (err) {

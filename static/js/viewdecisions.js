@@ -44,11 +44,19 @@ export class ViewDecisions {
     const article = panel.querySelector("article.view");
     if (!article) return;
     article.querySelector(".view-decisions")?.remove();
+    // a part of the view with no decision of its own reads the system's decision, which covers it
+    const system = this.page.system?.review?.status || "pending";
     const groups = Object.entries(PARTS).map(([part, p]) => {
       const current = p.current(view);
+      const inherited = current === "pending" && system !== "pending";
+      const badge = inherited
+        ? el("span", { class: `badge ${system} inherited`, "data-testid": `${part}-decision-status`,
+          title: `no decision on ${p.what} of its own: the system's (${STATUS_LABEL[system]}) covers it` },
+        `${STATUS_LABEL[system]} with the system`)
+        : el("span", { class: `badge ${current}`, "data-testid": `${part}-decision-status` }, STATUS_LABEL[current] || current);
       return el("span", { class: "decision-group", "data-part": part },
         el("span", { class: "muted" }, `${p.label} `),
-        el("span", { class: `badge ${current}`, "data-testid": `${part}-decision-status` }, STATUS_LABEL[current] || current),
+        badge,
         ...STATUSES.map((status, i) => el("button", {
           type: "button", class: `${status}${current === status ? " current" : ""}`,
           "data-testid": "view-decision", "data-part": part, "data-status": status,

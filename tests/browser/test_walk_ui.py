@@ -151,3 +151,30 @@ def test_the_doubt_chips_and_log_out_are_wholly_seen_at_common_screen_sizes(page
     page.locator(tid("resume-pass")).wait_for()
     page.screenshot(path=str(artifacts / f"walk/queue-{width}x{height}.png"))
     assert _covered_or_cut(page, f".topbar a, .topbar button, {tid('resume-pass')}") == []
+
+
+def test_the_views_of_an_accepted_system_read_accepted_with_the_system_not_pending(page):
+    system = next(s for s in (_api(page, f"/api/systems/{i['id']}")
+                              for i in _api(page, "/api/systems?sort=name&limit=100")["items"]) if len(s["views"]) >= 3)
+    etag = page.request.get(f"/api/systems/{system['id']}").headers["etag"]
+    assert api_write(page, "POST", f"/api/systems/{system['id']}/review", data={"status": "accepted"},
+                     headers={"If-Match": etag}).ok
+    try:
+        page.goto(f"/systems/{system['id']}")
+        page.locator(tid("view-decisions")).first.wait_for()
+        badges = page.locator(f"{tid('view-decision-status')}, {tid('calibration-decision-status')}")
+        texts = [badges.nth(i).inner_text() for i in range(badges.count())]
+        assert len(texts) == 2 * len(system["views"])
+        assert all(t == "accepted with the system" for t in texts), texts
+        # a view's own decision reads as its own; the system's stands for the parts not decided
+        page.keyboard.press("1")
+        with page.expect_response(lambda r: "/calibration-review" in r.url) as answer:
+            page.keyboard.press("Shift+N")
+        assert answer.value.ok
+        first = page.locator(tid("view-decisions")).first
+        first.locator(tid("calibration-decision-status")).filter(has_text=re.compile("^needs fix$")).wait_for()
+        assert first.locator(tid("view-decision-status")).inner_text() == "accepted with the system"
+    finally:
+        etag = page.request.get(f"/api/systems/{system['id']}").headers["etag"]
+        assert api_write(page, "POST", f"/api/systems/{system['id']}/review", data={"status": "pending"},
+                         headers={"If-Match": etag}).ok
