@@ -88,8 +88,8 @@ class StaleVersionError(ServiceError):
     first): what changed since the client read it."""
 
     def __init__(self, kind: str, ident: int, etag: str, seen: int | None = None) -> None:
-        super().__init__(f"{kind} {ident} was changed by someone else (it is now {etag}): nothing was stored; "
-                         "reload it, then apply your change again")
+        super().__init__(f"{kind} {ident} was changed since the version you sent, by another user or by you "
+                         f"elsewhere (it is now {etag}): nothing was stored; reload it, then apply your change again")
         self.kind, self.ident, self.etag, self.seen = kind, ident, etag, seen
         self.current: object | None = None
         self.last_change: object | None = None

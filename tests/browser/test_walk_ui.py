@@ -178,3 +178,53 @@ def test_the_views_of_an_accepted_system_read_accepted_with_the_system_not_pendi
         etag = page.request.get(f"/api/systems/{system['id']}").headers["etag"]
         assert api_write(page, "POST", f"/api/systems/{system['id']}/review", data={"status": "pending"},
                          headers={"If-Match": etag}).ok
+
+
+def _view_with_box(system: dict) -> int:
+    return next(k for k, v in enumerate(system["views"]) if v["ball"].get("box"))
+
+
+def test_a_conflict_with_the_users_own_change_says_it_was_theirs(page, browser, server_url, accounts):
+    """A 412 whose changes since the page read the view were all the same user's (another tab, a script with their
+    session) says so; another person's change names them."""
+    from tests.browser.support import log_in
+
+    listing = _api(page, "/api/systems?sort=name&limit=100")["items"]
+    system = next(s for s in (_api(page, f"/api/systems/{i['id']}") for i in listing[len(listing) // 2:])
+                  if any(v["ball"].get("box") for v in s["views"]))
+    k = _view_with_box(system)
+    view = system["views"][k]
+    fid, box = view["frame_id"], view["ball"]["box"]
+    page.goto(f"/systems/{system['id']}")
+    page.locator(tid("view")).nth(k).locator(tid("ball-hit")).wait_for()
+
+    # the same user moves the box from elsewhere (their other tab) while this page shows the old version
+    moved = api_write(page, "PATCH", f"/api/frames/{fid}/ball", data={"box": [box[0], box[1] + 4, box[2], box[3] + 4]},
+                      headers={"If-Match": view["etag"]})
+    assert moved.ok, moved.text()
+    page.keyboard.press(str(k + 1))
+    with page.expect_response(lambda r: r.request.method == "PATCH") as answer:
+        page.keyboard.press("ArrowRight")
+    assert answer.value.status == 412
+    notice = page.locator(tid("conflict"))
+    notice.locator("strong").filter(has_text="Conflict").wait_for()
+    heading = notice.locator("strong").inner_text()
+    assert "someone else" not in heading and "by you" in heading, heading
+    page.locator(tid("conflict-keep")).click()
+
+    # another person's change names them
+    other = browser.new_context(base_url=server_url)
+    try:
+        theirs = other.new_page()
+        theirs.goto("/login")
+        log_in(theirs, accounts["annotator"])
+        theirs.wait_for_url(f"{server_url}/")
+        etag = theirs.request.get(f"/api/frames/{fid}").headers["etag"]
+        assert api_write(theirs, "PATCH", f"/api/frames/{fid}/ball", data={"box": box}, headers={"If-Match": etag}).ok
+    finally:
+        other.close()
+    with page.expect_response(lambda r: r.request.method == "PATCH") as answer:
+        page.keyboard.press("ArrowLeft")
+    assert answer.value.status == 412
+    notice.locator("strong").filter(has_text=accounts["annotator"].name).wait_for()
+    assert "by you" not in notice.locator("strong").inner_text()

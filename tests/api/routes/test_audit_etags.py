@@ -90,7 +90,7 @@ def test_a_stale_if_match_gets_412_with_the_current_state_and_changes_nothing(
         assert out["etag"] == stale.headers["etag"] == f'"frame-{fid}-2"'
         assert out["current"]["ball"]["box"] == ana_box and out["current"]["etag"] == out["etag"]
         assert out["last_change"]["actor"] == "ana" and out["last_change"]["action"] == "ball.edit"
-        assert "changed by someone else" in out["detail"]
+        assert "was changed since the version you sent" in out["detail"]
     assert client.get(f"/api/systems/{scene.system_id}").json() == after_ana
     assert _audit(client)["total"] == entries
     # weak, foreign and malformed tags never match; * matches any version for a browser session
