@@ -68,6 +68,15 @@ export function describeEntry(entry, viewName) {
   return `${entry.actor}, ${when(entry.at)}: ${what}${where}${undo}: ${change}`;
 }
 
+/** The question a revert refused as stale (409) asks, in the history's words: what the part is now, what the revert
+ * would put back. */
+export function revertQuestion(entry, viewName, current) {
+  const what = `${ACTION_LABEL[entry.action] || entry.action}${viewName ? ` of ${viewName}` : ""}`;
+  const now = current && typeof current === "object" ? ` It is now ${describeState(current)}.` : "";
+  return `The ${what} changed after this entry (${summaryLine(entry)}).${now}\n\n`
+    + `Revert anyway, overwriting the newer change? It becomes ${describeState(entry.before)}.`;
+}
+
 export class HistoryPanel {
   /** `root`: the panel's list element; `onReverted(answer)`: draw a revert's {body, etag}; `onError(msg)`. */
   constructor(root, { onReverted, onError }) {
@@ -102,21 +111,21 @@ export class HistoryPanel {
     const text = summaryLine(entry);
     const button = entry.revertible && mayRevert
       ? el("button", { type: "button", class: "small", "data-testid": "history-revert", title: `Restore the state before entry ${entry.id}`,
-        onclick: () => this.revert(entry) }, "revert")
+        onclick: () => this.revert(entry, false, viewName) }, "revert")
       : null;
     return el("li", { "data-testid": "history-entry", "data-action": entry.action, "data-entry": entry.id,
       title: `entry ${entry.id}: ${describeEntry(entry, viewName)}` },
       el("span", { class: "history-text" }, text), button);
   }
 
-  async revert(entry, force = false) {
+  async revert(entry, force = false, viewName = null) {
     try {
       const answer = await revertEntry(entry.id, this.params, force);
       this.onReverted(answer);
     } catch (err) {
       if (err instanceof ApiError && err.status === 409 && !force) {
         // eslint-disable-next-line no-alert
-        if (window.confirm(`${err.message}\n\nRevert anyway, overwriting the newer change?`)) await this.revert(entry, true);
+        if (window.confirm(revertQuestion(entry, viewName, err.body?.current))) await this.revert(entry, true, viewName);
         return;
       }
       this.onError(err.message);

@@ -228,3 +228,35 @@ def test_a_conflict_with_the_users_own_change_says_it_was_theirs(page, browser, 
     assert answer.value.status == 412
     notice.locator("strong").filter(has_text=accounts["annotator"].name).wait_for()
     assert "by you" not in notice.locator("strong").inner_text()
+
+
+def test_reverting_an_older_entry_asks_in_words_not_json(page):
+    listing = _api(page, "/api/systems?sort=name&limit=100")["items"]
+    system = next(s for s in (_api(page, f"/api/systems/{i['id']}") for i in reversed(listing))
+                  if any(v["ball"].get("box") for v in s["views"]))
+    k = _view_with_box(system)
+    fid, box = system["views"][k]["frame_id"], system["views"][k]["ball"]["box"]
+    for dy in (3, 6):  # two edits: the older one cannot be reverted without overwriting the newer
+        etag = page.request.get(f"/api/frames/{fid}").headers["etag"]
+        assert api_write(page, "PATCH", f"/api/frames/{fid}/ball",
+                         data={"box": [box[0], box[1] + dy, box[2], box[3] + dy]}, headers={"If-Match": etag}).ok
+    page.goto(f"/systems/{system['id']}")
+    page.wait_for_function("() => document.querySelectorAll('[data-testid=history-entry]').length >= 2")
+    asked: list[str] = []
+
+    def answer(dialog):
+        asked.append(dialog.message)
+        dialog.dismiss()
+
+    page.on("dialog", answer)
+    older = page.locator(f"{tid('history-entry')}[data-action='ball.edit']").nth(1)
+    with page.expect_response(lambda r: "/revert" in r.url) as refused:
+        older.locator(tid("history-revert")).click()
+    assert refused.value.status == 409
+    page.wait_for_function("() => true")
+    page.wait_for_timeout(200)
+    assert len(asked) == 1, asked
+    assert "{" not in asked[0] and '"' not in asked[0], asked[0]
+    assert f"box [{box[0]:g}, {box[1] + 6:g}" in asked[0] and "Revert anyway" in asked[0], asked[0]
+    etag = page.request.get(f"/api/frames/{fid}").headers["etag"]
+    assert api_write(page, "PATCH", f"/api/frames/{fid}/ball", data={"box": box}, headers={"If-Match": etag}).ok
