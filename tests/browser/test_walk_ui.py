@@ -260,3 +260,19 @@ def test_reverting_an_older_entry_asks_in_words_not_json(page):
     assert f"box [{box[0]:g}, {box[1] + 6:g}" in asked[0] and "Revert anyway" in asked[0], asked[0]
     etag = page.request.get(f"/api/frames/{fid}").headers["etag"]
     assert api_write(page, "PATCH", f"/api/frames/{fid}/ball", data={"box": box}, headers={"If-Match": etag}).ok
+
+
+def test_the_sort_select_names_every_order_the_column_headers_give(page):
+    page.goto("/")
+    page.locator(tid("queue-row")).first.wait_for()
+    headers = page.locator("th.sortable")
+    for i in range(headers.count()):
+        for _ in range(2):  # each header's first click and its flip
+            before = page.url
+            headers.nth(i).click()
+            page.wait_for_function("(u) => location.href !== u", arg=before)
+            page.locator(tid("queue-row")).first.wait_for()
+            sort = re.search(r"[?&]sort=([^&]+)", page.url)
+            wanted = sort.group(1) if sort else "-doubts"
+            chosen = page.eval_on_selector(tid("sort"), "(s) => [s.value, s.selectedIndex, s.selectedOptions[0]?.text]")
+            assert chosen[0] == wanted and chosen[1] >= 0 and chosen[2], (headers.nth(i).inner_text(), wanted, chosen)
