@@ -11,6 +11,7 @@
 // size (pointer positions go through getScreenCTM()).
 
 import { el, svg, viewColour, STATUS_LABEL } from "./format.js";
+import { chipClass } from "./words.js";
 import { LineEditor } from "./lineseditor.js";
 import { BallEditor } from "./balledit.js";
 import { ballWindow, drawView } from "./viewdrawing.js";
@@ -189,7 +190,7 @@ export class ViewPanel extends HTMLElement {
         el("span", { class: "name", title: v.name }, v.name),
         el("span", { class: "role" }, v.role || ""),
         ball.edited ? el("span", { class: "chip info", "data-testid": "view-edited" }, "box edited") : null,
-        excluded ? el("span", { class: "chip bad", "data-testid": "view-excluded", title: "excluded from the triangulation by a reviewer (x to restore)" }, "excluded") : null,
+        excluded ? el("span", { class: chipClass("note", "excluded"), "data-testid": "view-excluded", title: "excluded from the triangulation by a reviewer (x to restore)" }, "excluded") : null,
         review,
         el("span", { class: "size" }, `${v.width}×${v.height}`),
       ),

@@ -10,7 +10,7 @@ import { QueueAssignment } from "./assignment.js";
 import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
 import { el, fmt, fmtJac, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL, toast } from "./format.js";
-import { WORDS, chipLegend, heightText } from "./words.js";
+import { WORDS, chip, chipClass, chipLegend, heightText } from "./words.js";
 import { resumeLink } from "./pass.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -33,17 +33,18 @@ function rowDoubts(s) {
   const chips = [];
   for (const [kind, label] of Object.entries(DOUBT_LABEL)) {
     const n = (s.doubt_counts || {})[kind] || 0;
-    if (n > 0) chips.push(el("span", { class: "chip bad", "data-testid": "row-doubt", "data-kind": kind, title: `${n} doubt(s): ${WORDS.doubt[kind].means}` }, `${n} ${label}`));
+    if (n > 0) chips.push(el("span", { class: chipClass("doubt", kind), "data-testid": "row-doubt", "data-kind": kind, title: `${n} doubt(s): ${WORDS.doubt[kind].means}` }, `${n} ${label}`));
   }
   const notAdmitted = (s.views_calibrated ?? 0) - (s.views_admitted ?? 0);
   const uncalibrated = (s.views_total ?? 0) - (s.views_calibrated ?? 0);
   const unlabelled = (s.views_total ?? 0) - (s.views_labelled ?? 0);
-  if (s.views_above_tau > 0) chips.push(el("span", { class: "chip bad", "data-testid": "row-above-tau", title: "admitted labelled views whose reprojection error is above tau (the system page's \"error > τ\")" }, `${s.views_above_tau} error > τ`));
-  if (uncalibrated > 0) chips.push(el("span", { class: "chip bad" }, `${uncalibrated} uncalibrated`));
-  if (notAdmitted > 0) chips.push(el("span", { class: "chip bad" }, `${notAdmitted} not admitted`));
+  // the same words and colours as the system page and the legend (words.js)
+  if (s.views_above_tau > 0) chips.push(el("span", { class: chipClass("note", "error_above_tau"), "data-testid": "row-above-tau", title: "admitted labelled views whose reprojection error is above tau (the system page's \"error > τ\")" }, `${s.views_above_tau} ${chip("note", "error_above_tau")}`));
+  if (uncalibrated > 0) chips.push(el("span", { class: chipClass("note", "not_calibrated"), title: WORDS.note.not_calibrated.means }, `${uncalibrated} ${chip("note", "not_calibrated")}`));
+  if (notAdmitted > 0) chips.push(el("span", { class: chipClass("note", "not_admitted"), title: WORDS.note.not_admitted.means }, `${notAdmitted} ${chip("note", "not_admitted")}`));
   if (s.views_total > 1) { // a single view (calibration data) has no 3D ball to make
-    if (unlabelled > 0) chips.push(el("span", { class: "chip" }, `${unlabelled} without ball`));
-    if (!Array.isArray(s.ball3d)) chips.push(el("span", { class: "chip" }, "no 3D ball"));
+    if (unlabelled > 0) chips.push(el("span", { class: chipClass("note", "without_ball") }, `${unlabelled} ${chip("note", "without_ball")}`));
+    if (!Array.isArray(s.ball3d)) chips.push(el("span", { class: chipClass("note", "no_ball3d") }, chip("note", "no_ball3d")));
   }
   return chips;
 }

@@ -5,7 +5,7 @@
 import { el, fmt, fmtXYZ, isNum, STATUS_LABEL } from "./format.js";
 import { notes } from "./viewfacts.js";
 import { decisionNote } from "./viewdecisions.js";
-import { WORDS, chip, heightText, tauText } from "./words.js";
+import { WORDS, chip, chipClass, heightText, tauText } from "./words.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 
@@ -18,7 +18,7 @@ export function renderDoubts(sys, select) {
   for (const d of sys.doubts || []) {
     if (!d.accuses_label) continue;
     const i = indexOf(d.frame_id);
-    chips.push(el("button", { type: "button", class: "chip bad", "data-testid": "doubt", "data-kind": d.kind, title: d.message,
+    chips.push(el("button", { type: "button", class: chipClass("doubt", d.kind), "data-testid": "doubt", "data-kind": d.kind, title: d.message,
       onclick: () => { if (i >= 0) { select(i); $("views").children[i]?.scrollIntoView({ behavior: "smooth", block: "center" }); } } },
     `${i >= 0 ? `V${i + 1} ` : ""}${chip("doubt", d.kind)}`));
   }
@@ -30,7 +30,7 @@ export function renderDoubts(sys, select) {
     `V${i + 1} ${shortDoubt(why[0])}${why.length > 1 ? ` +${why.length - 1}` : ""}`));
   });
   if (!Array.isArray(sys.ball3d) && sys.views.length > 1) {
-    chips.push(el("span", { class: "chip", "data-testid": "doubt", title: WORDS.note.no_ball3d.means },
+    chips.push(el("span", { class: chipClass("note", "no_ball3d"), "data-testid": "doubt", title: WORDS.note.no_ball3d.means },
       `${WORDS.note.no_ball3d.chip} (${sys.triangulation?.status ? chip("triangulation", sys.triangulation.status) : "not triangulated"})`));
   }
   $("system-doubts").replaceChildren(...chips);

@@ -6,7 +6,7 @@
 
 import { el, fmt, fmtJac, isNum, errorClass } from "./format.js";
 import { suggestedNote } from "./suggested.js";
-import { chip, word, tauText } from "./words.js";
+import { chip, chipClass, word, tauText } from "./words.js";
 
 /** The calibration's standard deviations as one line: "x/y/z m · pan/tilt/roll ° · f px". */
 function uncertaintyText(u) {
@@ -107,7 +107,7 @@ export function clamp(x, lo, hi) {
 export function viewDoubtItems(v, viewDoubts, excluded, panel) {
   const ball = v.ball || {};
 return viewDoubts.map((d) => el("div", { class: `doubt${d.accuses_label ? " bad" : ""}`, "data-testid": "view-doubt", "data-kind": d.kind },
-    el("span", { class: `chip${d.accuses_label ? " bad" : " info"}`, title: word("doubt", d.kind).means }, chip("doubt", d.kind)),
+    el("span", { class: chipClass("doubt", d.kind), title: word("doubt", d.kind).means }, chip("doubt", d.kind)),
     " ",
     el("span", { class: "msg", "data-testid": d.kind === "mirrored_labels" ? "view-mirror-evidence" : "view-doubt-message",
       title: evidenceTitle(d.evidence) }, d.kind === "mirrored_labels" ? ((v.calibration || {}).mirror_evidence || {}).sentence || d.message : d.message),
@@ -157,7 +157,7 @@ export function viewFacts(v, ctx, panel) {
     ? `d ${fmt(opt.d_px, 1)} px, ${fmt(opt.error_m, 2)} m off`
     : "—";
 
-  const flags = (cal.flags || []).map((f) => el("span", { class: "chip", "data-testid": "view-flag", "data-flag": f, title: word("flag", f).means }, chip("flag", f)));
+  const flags = (cal.flags || []).map((f) => el("span", { class: chipClass("flag", f), "data-testid": "view-flag", "data-flag": f, title: word("flag", f).means }, chip("flag", f)));
   return el(
     "dl",
     { class: "facts" },

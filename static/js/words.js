@@ -6,52 +6,64 @@
 export const WORDS = /*WORDS*/{
  "doubt": {
   "mirrored_labels": {
+   "tone": "bad",
    "chip": "mirrored labels",
    "means": "the view's field lines look labelled left for right; m applies the mirrored labels"
   },
   "ball_off_consensus": {
+   "tone": "bad",
    "chip": "ball off consensus",
    "means": "the view's ball label is far from the ball the other views agree on; s snaps it to their box, x leaves the view out"
   },
   "ball_missing": {
+   "tone": "bad",
    "chip": "ball missing",
    "means": "the view has no ball label but the other views' ball is inside it; s places their box"
   },
   "views_disagree": {
+   "tone": "bad",
    "chip": "views disagree",
    "means": "the ball labels cannot all be right and the wrong one cannot be told"
   },
   "near_duplicate_view": {
+   "tone": "bad",
    "chip": "near-duplicate view",
    "means": "two views from nearly the same place: this one adds no depth; x leaves it out"
   },
   "calibration_refused": {
+   "tone": "bad",
    "chip": "no camera",
    "means": "the view's field lines fit no camera, so its labels cannot be checked"
   },
   "below_admission": {
+   "tone": "bad",
    "chip": "below admission",
    "means": "the camera fits its lines less well than the admission threshold"
   },
   "rig_assisted": {
+   "tone": "info",
    "chip": "rig position",
    "means": "the camera was fitted at a known camera position of the game"
   },
   "few_lines": {
+   "tone": "info",
    "chip": "few lines",
    "means": "too few field-line classes to fix the camera reliably"
   },
   "suggested_label": {
+   "tone": "info",
    "chip": "placement to confirm",
    "means": "the ball label was placed from a doubt's fix; Enter confirms it"
   }
  },
  "flag": {
   "probably_mirrored": {
-   "chip": "labels mirrored?",
+   "tone": "bad",
+   "chip": "mirrored labels",
    "means": "the field lines are probably labelled left for right"
   },
   "rig_assisted": {
+   "tone": "info",
    "chip": "rig position",
    "means": "fitted at a known camera position of the game"
   },
@@ -68,6 +80,7 @@ export const WORDS = /*WORDS*/{
    "means": "the lens distortion was fitted"
   },
   "few_lines": {
+   "tone": "info",
    "chip": "few lines",
    "means": "fewer than 4 field-line classes"
   },
@@ -92,18 +105,22 @@ export const WORDS = /*WORDS*/{
  },
  "note": {
   "not_calibrated": {
+   "tone": "bad",
    "chip": "no camera",
    "means": "the view has no calibrated camera"
   },
   "not_admitted": {
-   "chip": "not admitted",
+   "tone": "bad",
+   "chip": "below admission",
    "means": "the camera fits its lines less well than the admission threshold"
   },
   "excluded": {
+   "tone": "bad",
    "chip": "excluded",
    "means": "a reviewer left the view out of the 3D ball (x restores it)"
   },
   "error_above_tau": {
+   "tone": "bad",
    "chip": "error > τ",
    "means": "the 3D ball reprojects farther from the view's label than the reprojection error limit τ"
   },
@@ -278,6 +295,13 @@ export function word(group, code) {
 /** The chip words of `code` in `group`. */
 export const chip = (group, code) => word(group, code).chip;
 
+/** The class of the chip of `code` in `group`: "chip" with its tone (bad: red, info: blue; none: amber), the same on
+ * every page and in the legend. */
+export function chipClass(group, code) {
+  const tone = word(group, code).tone;
+  return tone ? `chip ${tone}` : "chip";
+}
+
 /** A height above the grass in words: "height 9.0 m" (the SoccerNet world's z points down: a height is -z). */
 export function heightText(z, digits = 1) {
   if (typeof z !== "number" || !Number.isFinite(z)) return "height —";
@@ -291,10 +315,10 @@ export function tauText(tau, digits = 1) {
   return `reprojection error limit τ = ${shown} px`;
 }
 
-/** The legend's entries of the chips a page shows: [[chip, means], ...] of the given groups, each chip once. */
+/** The legend's entries of the chips a page shows: [[chip, means, tone], ...] of the given groups, each chip once. */
 export function legendEntries(groups = ["doubt", "note", "flag", "flag_prefix"]) {
   const seen = new Set();
-  return groups.flatMap((g) => Object.values(WORDS[g] || {}).map((e) => [e.chip.replace("{}", "…"), e.means]))
+  return groups.flatMap((g) => Object.values(WORDS[g] || {}).map((e) => [e.chip.replace("{}", "…"), e.means, e.tone]))
     .filter(([c]) => !seen.has(c) && seen.add(c));
 }
 
@@ -307,11 +331,11 @@ export function chipLegend(title = "Chips", groups = undefined) {
   h.textContent = title;
   const grid = document.createElement("div");
   grid.className = "chip-legend-grid";
-  for (const [c, means] of legendEntries(groups)) {
+  for (const [c, means, tone] of legendEntries(groups)) {
     const item = document.createElement("div");
     item.dataset.testid = "chip-legend-entry";
     const span = document.createElement("span");
-    span.className = "chip";
+    span.className = tone ? `chip ${tone}` : "chip";
     span.textContent = c;
     item.append(span, ` ${means}`);
     grid.append(item);

@@ -139,7 +139,7 @@ def test_no_raw_code_on_the_review_pages_and_every_chip_has_its_legend(page, art
     assert _raw_codes(page) == []
     legend = _legend(page, tid("queue-legend"))
     assert {"mirrored labels", "ball off consensus", "ball missing", "views disagree", "near-duplicate view",
-            "error > τ", "labels mirrored?", "ignores …"} <= legend
+            "error > τ", "below admission", "ignores …"} <= legend
     row_chips = page.eval_on_selector_all(f"{tid('row-doubts')} .chip", "(cs) => cs.map((c) => c.textContent)")
     assert row_chips and all(re.sub(r"^\d+ ", "", c) in legend for c in row_chips), row_chips
     assert "height" in page.locator(tid("queue-row")).first.inner_text()

@@ -276,3 +276,24 @@ def test_the_sort_select_names_every_order_the_column_headers_give(page):
             wanted = sort.group(1) if sort else "-doubts"
             chosen = page.eval_on_selector(tid("sort"), "(s) => [s.value, s.selectedIndex, s.selectedOptions[0]?.text]")
             assert chosen[0] == wanted and chosen[1] >= 0 and chosen[2], (headers.nth(i).inner_text(), wanted, chosen)
+
+
+def test_the_chip_legend_gives_each_fact_one_chip_in_the_tables_colour(page):
+    page.goto("/")
+    page.locator(tid("queue-row")).first.wait_for()
+    legend = page.eval_on_selector_all(f"{tid('queue-legend')} {tid('chip-legend-entry')}", """(entries) =>
+      entries.map((e) => { const c = e.querySelector('.chip'), s = getComputedStyle(c);
+        return [c.textContent, e.textContent.slice(c.textContent.length).trim(), s.color, s.backgroundColor]; })""")
+    assert len(legend) >= 10
+    meanings = [m for _, m, _, _ in legend]
+    assert len(set(meanings)) == len(meanings), [e for e in legend if meanings.count(e[1]) > 1]
+    chips = {c: (colour, background) for c, _, colour, background in legend}
+    assert not {"not admitted", "labels mirrored?"} & set(chips), sorted(chips)
+    shown = page.eval_on_selector_all(f"{tid('row-doubts')} .chip", """(cs) => cs.map((c) => {
+      const s = getComputedStyle(c); return [c.textContent.replace(/^\\d+ /, ''), s.color, s.backgroundColor]; })""")
+    assert shown
+    for words, colour, background in shown:
+        assert words in chips, (words, sorted(chips))
+        assert chips[words] == (colour, background), (words, chips[words], (colour, background))
+    reds = {c for c, (colour, _) in chips.items() if colour == "rgb(255, 155, 149)"}
+    assert {"mirrored labels", "error > τ"} <= reds

@@ -3,7 +3,10 @@
 The geometry and the services speak in codes (``ball_off_consensus``, ``probably_mirrored``,
 ``ignored_class:<class>``, ``no_pair_kept``, ``error_above_tau``, ``max_scaled_1920``); a person reads
 :data:`WORDS`: for each code its ``chip`` (the few words on a chip or a cell) and ``means`` (one sentence,
-the chip's legend and its tooltip). The pages import the same table from ``static/js/words.js``, written from
+the chip's legend and its tooltip), and for a chip drawn in a colour its ``tone`` (``bad``: red, a problem of the
+view's labels or calibration; ``info``: blue; none: amber), the same wherever the chip is drawn, its legend too. One
+fact has one chip: the note and the doubt of a view below the admission threshold read alike, as do the mirror
+flag and its doubt. The pages import the same table from ``static/js/words.js``, written from
 this one (:func:`words_js`; ``python -m app.services.curation.words > static/js/words.js``) and checked
 against it by ``tests/services/curation/test_words.py``, so the server's codes and the pages' words cannot drift.
 The sentences of doubts themselves (their numbers) are composed by ``app.services.curation.doubt_words``.
@@ -30,39 +33,41 @@ from app.geometry.pitch import MIN_LINE_CLASSES
 
 WORDS: dict[str, dict[str, dict[str, str]]] = {
     "doubt": {
-        "mirrored_labels": {"chip": "mirrored labels",
+        "mirrored_labels": {"tone": "bad", "chip": "mirrored labels",
                             "means": "the view's field lines look labelled left for right; m applies the mirrored "
                                      "labels"},
-        "ball_off_consensus": {"chip": "ball off consensus",
+        "ball_off_consensus": {"tone": "bad", "chip": "ball off consensus",
                                "means": "the view's ball label is far from the ball the other views agree on; s snaps "
                                         "it to their box, x leaves the view out"},
-        "ball_missing": {"chip": "ball missing",
+        "ball_missing": {"tone": "bad", "chip": "ball missing",
                          "means": "the view has no ball label but the other views' ball is inside it; s places their "
                                   "box"},
-        "views_disagree": {"chip": "views disagree",
+        "views_disagree": {"tone": "bad", "chip": "views disagree",
                            "means": "the ball labels cannot all be right and the wrong one cannot be told"},
-        "near_duplicate_view": {"chip": "near-duplicate view",
+        "near_duplicate_view": {"tone": "bad", "chip": "near-duplicate view",
                                 "means": "two views from nearly the same place: this one adds no depth; "
                                          "x leaves it out"},
-        "calibration_refused": {"chip": "no camera",
+        "calibration_refused": {"tone": "bad", "chip": "no camera",
                                 "means": "the view's field lines fit no camera, so its labels cannot be checked"},
-        "below_admission": {"chip": "below admission",
+        "below_admission": {"tone": "bad", "chip": "below admission",
                             "means": "the camera fits its lines less well than the admission threshold"},
-        "rig_assisted": {"chip": "rig position",
+        "rig_assisted": {"tone": "info", "chip": "rig position",
                          "means": "the camera was fitted at a known camera position of the game"},
-        "few_lines": {"chip": "few lines",
+        "few_lines": {"tone": "info", "chip": "few lines",
                       "means": "too few field-line classes to fix the camera reliably"},
-        "suggested_label": {"chip": "placement to confirm",
+        "suggested_label": {"tone": "info", "chip": "placement to confirm",
                             "means": "the ball label was placed from a doubt's fix; Enter confirms it"},
     },
     "flag": {
-        "probably_mirrored": {"chip": "labels mirrored?",
+        "probably_mirrored": {"tone": "bad", "chip": "mirrored labels",
                               "means": "the field lines are probably labelled left for right"},
-        "rig_assisted": {"chip": "rig position", "means": "fitted at a known camera position of the game"},
+        "rig_assisted": {"tone": "info", "chip": "rig position",
+                         "means": "fitted at a known camera position of the game"},
         "learned_prior": {"chip": "learned prior", "means": "fitted with the camera prior learned from the dataset"},
         "radial_prior": {"chip": "lens prior", "means": "the lens distortion was fitted under the learned prior"},
         "radial_distortion": {"chip": "lens distortion", "means": "the lens distortion was fitted"},
-        "few_lines": {"chip": "few lines", "means": f"fewer than {MIN_LINE_CLASSES} field-line classes"},
+        "few_lines": {"tone": "info", "chip": "few lines",
+                      "means": f"fewer than {MIN_LINE_CLASSES} field-line classes"},
         "given_camera": {"chip": "given camera", "means": "the camera came with the data, not from its lines"},
         "ball_assisted": {"chip": "ball-assisted", "means": "calibrated again from the ball seen by the other cameras"},
         "ball_bundle": {"chip": "ball bundle", "means": "refined with the other cameras from their lines and the ball"},
@@ -73,11 +78,12 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
                                    "leaves it out"},
     },
     "note": {
-        "not_calibrated": {"chip": "no camera", "means": "the view has no calibrated camera"},
-        "not_admitted": {"chip": "not admitted",
+        "not_calibrated": {"tone": "bad", "chip": "no camera", "means": "the view has no calibrated camera"},
+        "not_admitted": {"tone": "bad", "chip": "below admission",
                          "means": "the camera fits its lines less well than the admission threshold"},
-        "excluded": {"chip": "excluded", "means": "a reviewer left the view out of the 3D ball (x restores it)"},
-        "error_above_tau": {"chip": "error > τ",
+        "excluded": {"tone": "bad", "chip": "excluded",
+                     "means": "a reviewer left the view out of the 3D ball (x restores it)"},
+        "error_above_tau": {"tone": "bad", "chip": "error > τ",
                             "means": "the 3D ball reprojects farther from the view's label than the reprojection error "
                                      "limit τ"},
         "no_ball3d": {"chip": "no 3D ball", "means": "no pair of views agrees on a ball"},
@@ -214,6 +220,13 @@ export function word(group, code) {
 /** The chip words of `code` in `group`. */
 export const chip = (group, code) => word(group, code).chip;
 
+/** The class of the chip of `code` in `group`: "chip" with its tone (bad: red, info: blue; none: amber), the same on
+ * every page and in the legend. */
+export function chipClass(group, code) {
+  const tone = word(group, code).tone;
+  return tone ? `chip ${tone}` : "chip";
+}
+
 /** A height above the grass in words: "height 9.0 m" (the SoccerNet world's z points down: a height is -z). */
 export function heightText(z, digits = 1) {
   if (typeof z !== "number" || !Number.isFinite(z)) return "height —";
@@ -227,10 +240,10 @@ export function tauText(tau, digits = 1) {
   return `reprojection error limit τ = ${shown} px`;
 }
 
-/** The legend's entries of the chips a page shows: [[chip, means], ...] of the given groups, each chip once. */
+/** The legend's entries of the chips a page shows: [[chip, means, tone], ...] of the given groups, each chip once. */
 export function legendEntries(groups = ["doubt", "note", "flag", "flag_prefix"]) {
   const seen = new Set();
-  return groups.flatMap((g) => Object.values(WORDS[g] || {}).map((e) => [e.chip.replace("{}", "…"), e.means]))
+  return groups.flatMap((g) => Object.values(WORDS[g] || {}).map((e) => [e.chip.replace("{}", "…"), e.means, e.tone]))
     .filter(([c]) => !seen.has(c) && seen.add(c));
 }
 
@@ -243,11 +256,11 @@ export function chipLegend(title = "Chips", groups = undefined) {
   h.textContent = title;
   const grid = document.createElement("div");
   grid.className = "chip-legend-grid";
-  for (const [c, means] of legendEntries(groups)) {
+  for (const [c, means, tone] of legendEntries(groups)) {
     const item = document.createElement("div");
     item.dataset.testid = "chip-legend-entry";
     const span = document.createElement("span");
-    span.className = "chip";
+    span.className = tone ? `chip ${tone}` : "chip";
     span.textContent = c;
     item.append(span, ` ${means}`);
     grid.append(item);

@@ -37,9 +37,23 @@ def test_every_code_a_page_shows_has_words_and_no_chip_is_a_code() -> None:
     assert {s.value for s in CalibrationStatus} | {s.value for s in CalibrationSource} <= set(WORDS["calibration"])
     for group in WORDS.values():
         for code, entry in group.items():
-            assert set(entry) == {"chip", "means"}, code
-            for text in entry.values():
+            assert {"chip", "means"} <= set(entry) <= {"chip", "means", "tone"}, code
+            assert entry.get("tone", "bad") in ("bad", "info"), code
+            for text in (entry["chip"], entry["means"]):
                 assert text and not re.search(r"[a-z]_[a-z]", text), (code, text)  # words, not snake_case codes
+
+
+def test_the_legends_chips_are_one_per_fact_with_one_colour() -> None:
+    """Over the groups the chip legend shows, a chip's words have one tone wherever they are drawn, and two
+    different chips never mean the same thing (a fact has one chip)."""
+    chips: dict[str, str | None] = {}
+    means: dict[str, str] = {}
+    for group in ("doubt", "note", "flag", "flag_prefix"):
+        for code, entry in WORDS[group].items():
+            assert chips.setdefault(entry["chip"], entry.get("tone")) == entry.get("tone"), (group, code)
+            assert means.setdefault(entry["means"], entry["chip"]) == entry["chip"], (group, code)
+    assert WORDS["note"]["not_admitted"]["chip"] == WORDS["doubt"]["below_admission"]["chip"]
+    assert WORDS["flag"]["probably_mirrored"]["chip"] == WORDS["doubt"]["mirrored_labels"]["chip"]
 
 
 def test_the_flags_the_calibration_writes_are_all_in_the_table() -> None:
