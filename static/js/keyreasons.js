@@ -93,7 +93,8 @@ function reasons(page) {
     [["[", "]"], false, { after: notEditing("no class to choose") }],
     [["l"], false, { after: notEditing("nothing to relabel: select a line, then choose its class with [ ]") }],
     [["n"], false, { after: notEditing("no new line now: choose a class with [ ] first") }],
-    [["Enter"], false, { after: () => "nothing to confirm: no line is being drawn" }],
+    // Enter's main use is confirming a label placed from a doubt's fix; a line being drawn is its other
+    [["Enter"], false, { after: () => "nothing to confirm: no label placed from a doubt's fix waits for you (s places one), and no line is being drawn" }],
     [["Escape"], false, { after: () => "nothing to cancel" }],
     [[">", "<"], false, { before: (e) => {
       const z = page.zoom?.state?.z ?? 1;

@@ -297,3 +297,15 @@ def test_the_chip_legend_gives_each_fact_one_chip_in_the_tables_colour(page):
         assert chips[words] == (colour, background), (words, chips[words], (colour, background))
     reds = {c for c, (colour, _) in chips.items() if colour == "rgb(255, 155, 149)"}
     assert {"mirrored labels", "error > τ"} <= reds
+
+
+def test_enter_with_nothing_to_confirm_speaks_of_placements_first(page):
+    system = _api(page, "/api/systems?sort=name&limit=100")["items"][1]
+    page.goto(f"/systems/{system['id']}")
+    page.locator(tid("view")).first.wait_for()
+    page.wait_for_function("() => !document.body.classList.contains('loading')")
+    page.keyboard.press("Enter")
+    toast = page.locator(tid("toast"))
+    toast.filter(has_text="nothing to confirm").wait_for()
+    said = toast.inner_text()
+    assert said.startswith("nothing to confirm: no label placed from a doubt's fix"), said
