@@ -169,6 +169,7 @@ class SystemPage {
   }
 
   render(sys) {
+    const sameSystem = this.system?.id === sys.id; // a redraw after an edit: the cards keep their places
     this.system = sys;
     for (const v of sys.views) this.writes.noteEtag(v.frame_id, v.etag);
     this.history.load(sys, this.params);
@@ -197,6 +198,8 @@ class SystemPage {
       const viewDoubts = (sys.doubts || []).filter((d) => d.frame_id === view.frame_id);
       const names = Object.fromEntries(sys.views.map((x) => [x.frame_id, x.name]));
       panel.update(view, { ...ctx, index, viewCount: sys.views.length, doubts: viewDoubts, names });
+      // doubtful views first, as they were when the system was opened: a fix never makes a card jump column
+      if (!sameSystem || !panel.dataset.place) panel.dataset.place = panel.dataset.doubt;
       panel.selected = index === this.selected;
       this.decorate(panel, view);
     });

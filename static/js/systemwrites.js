@@ -40,7 +40,14 @@ export class ViewWrites {
     const sys = answer.body;
     if (this.#page.system.id === shown && sys && Array.isArray(sys.views)) {
       const start = performance.now();
+      // the written view's frame stays where it was in the window (under the pointer that just released a drag)
+      // when the redraw adds or removes something above it (a doubt's banner, a chip line)
+      const frameTop = () => [...$("views").children].find((p) => p.view?.frame_id === frameId)
+        ?.querySelector(".frame")?.getBoundingClientRect().top;
+      const before = frameId !== null ? frameTop() : undefined;
       this.#page.render(sys);
+      const after = before !== undefined ? frameTop() : undefined;
+      if (after !== undefined && Math.abs(after - before) >= 1) window.scrollBy(0, after - before);
       // the redraw's time: the script, then up to the painted frame (read by benchmarks/line_edit.py)
       performance.measure("v3d:render", { start });
       requestAnimationFrame(() => setTimeout(() => performance.measure("v3d:redraw", { start }), 0));

@@ -309,3 +309,62 @@ def test_enter_with_nothing_to_confirm_speaks_of_placements_first(page):
     toast.filter(has_text="nothing to confirm").wait_for()
     said = toast.inner_text()
     assert said.startswith("nothing to confirm: no label placed from a doubt's fix"), said
+
+
+def _frame_boxes(page) -> list[tuple[float, float]]:
+    """Where each view's frame is in the window (left, top), in the views' V order."""
+    return page.eval_on_selector_all(f"{tid('view')} .frame", "(fs) => fs.map((f) => { const r = "
+                                     "f.getBoundingClientRect(); return [Math.round(r.left), Math.round(r.top)]; })")
+
+
+def test_a_dragged_box_and_a_confirmed_snap_leave_the_views_where_they_were(page, artifacts):
+    """A drag released far from the other views' ball raises a doubt above that frame (and a chip in the line under
+    the header); the frame stays under the pointer and no card is re-sorted. Snapping it back and confirming clears
+    the doubt; no card changes column."""
+    page.set_viewport_size({"width": 1366, "height": 768})
+    items = _api(page, "/api/systems?sort=name&limit=100")["items"]
+    system = next(s for s in (_api(page, f"/api/systems/{i['id']}") for i in items if i["views_total"] == 4)
+                  if not s["doubts"] and all(v["ball"].get("box") for v in s["views"]))
+    k = 1
+    box = system["views"][k]["ball"]["box"]
+    page.goto(f"/systems/{system['id']}")
+    card = page.locator(tid("view")).nth(k)
+    card.locator(tid("ball-hit")).wait_for()
+    page.wait_for_function("() => !document.body.classList.contains('loading')")
+    card.scroll_into_view_if_needed()
+    before = _frame_boxes(page)
+    m = card.locator(tid("view-svg")).evaluate(
+        "(s) => { const m = s.getScreenCTM(); return [m.a, m.b, m.c, m.d, m.e, m.f]; }")
+
+    def screen(px, py):
+        return (m[0] * px + m[2] * py + m[4], m[1] * px + m[3] * py + m[5])
+
+    cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
+    page.mouse.move(*screen(cx, cy))
+    page.mouse.down()
+    page.mouse.move(*screen(cx + 90, cy + 40), steps=8)
+    with page.expect_response(lambda r: r.request.method == "PATCH" and "/ball" in r.url) as moved:
+        page.mouse.up()
+    assert moved.value.ok
+    card.locator(tid("view-doubts")).wait_for()  # the doubt the drag raised, above the frame
+    page.wait_for_timeout(100)
+    page.screenshot(path=str(artifacts / "walk/drag-released-1366x768.png"))
+    after = _frame_boxes(page)
+    assert after[k] == before[k], ("the frame moved under the pointer when the drag was released", before, after)
+    assert [x for x, _ in after] == [x for x, _ in before], ("a card changed column", before, after)
+
+    # snap it back to where the other views agree, confirm: the doubt clears, no card moves
+    page.keyboard.press(str(k + 1))
+    with page.expect_response(lambda r: r.request.method == "PATCH" and "/ball" in r.url) as snapped:
+        page.keyboard.press("s")
+    assert snapped.value.ok
+    with page.expect_response(lambda r: r.request.method == "PATCH" and "/ball" in r.url) as confirmed:
+        page.keyboard.press("Enter")
+    assert confirmed.value.ok
+    card.locator(tid("view-doubts")).wait_for(state="detached")
+    page.wait_for_timeout(100)
+    after = _frame_boxes(page)
+    assert [x for x, _ in after] == [x for x, _ in before], (before, after)
+    etag = page.request.get(f"/api/frames/{system['views'][k]['frame_id']}").headers["etag"]
+    assert api_write(page, "PATCH", f"/api/frames/{system['views'][k]['frame_id']}/ball", data={"box": box},
+                     headers={"If-Match": etag}).ok
