@@ -478,11 +478,14 @@ export class EditHistory {
 
   /** `write(item, state, undoOf, kind)`: the write of an undo or redo ("undo" / "redo"), answering its new
    * audit entry (null: failed, the stack is emptied); `settle()`: resolves when the page's writes on their way
-   * are answered (so that the stack holds them); `onEmpty(kind)`: nothing to undo or redo. */
-  constructor(write, settle = async () => {}, onEmpty = () => {}) {
+   * are answered (so that the stack holds them); `onEmpty(kind)`: nothing to undo or redo; `older()`: when the
+   * page has nothing of its own to undo (after a reload), the item of the user's last edit the server's history
+   * holds, or null. */
+  constructor(write, settle = async () => {}, onEmpty = () => {}, older = async () => null) {
     this.write = write;
     this.settle = settle;
     this.onEmpty = onEmpty;
+    this.older = older;
   }
 
   push(item) {
@@ -507,7 +510,7 @@ export class EditHistory {
   #step(from, to, side, kind) {
     this.#turn = this.#turn.then(async () => {
       await this.settle();
-      const item = from.pop();
+      const item = from.pop() || (kind === "undo" ? await this.older() : null);
       if (!item) {
         this.onEmpty(kind);
         return false;

@@ -11,7 +11,7 @@
 // holds the key table; the views (overlay.js), the summary cards (systemcards.js), the map, a sequence's
 // trajectory (sequence.js), the conflict notice and the history are their own modules. What differs between
 // kinds of system is read from the system's data (its views, its `frame_index`), never from its kind's name.
-import { ApiError, getSystem, postReview } from "./api.js";
+import { ApiError, getMe, getSystem, listAudit, postReview } from "./api.js";
 import { isTyping, viewColour, showError, clearError, STATUS_LABEL, toast } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
 import "./overlay.js"; // defines <v3d-view>
@@ -66,7 +66,8 @@ class SystemPage {
     this.undoStack = new EditHistory(
       (item, lines, undoOf, kind) => (item.kind === "lines" ? this.writes.undoLines(item, lines, undoOf, kind) : this.writes.undoWrite(item, undoOf, kind)),
       () => this.settle(),
-      (kind) => toast(kind === "undo" ? "Nothing to undo: no edit of this page yet (or the last undo failed)" : "Nothing to redo"));
+      (kind) => toast(kind === "undo" ? "Nothing to undo: no edit of yours on this system (or the last undo failed)" : "Nothing to redo"),
+      () => this.lastOwnEdit());
     $("views").addEventListener("mirror-request", (e) => this.writes.applyMirror(e.target, e.detail));
     $("views").addEventListener("exclusion-request", (e) => this.writes.setExclusion(e.target, e.detail));
     $("views").addEventListener("pointerdown", (e) => {
@@ -277,6 +278,28 @@ class SystemPage {
     }
   }
 
+  /** The undo item of the user's newest edit of the shown system that is not undone yet, read from the server's
+   * history (what Ctrl+Z undoes after a reload, when the page's own stack is empty), or null. An undo or a revert
+   * marks the entry it undid as undone (unless a newer entry undid it in turn: a redo); the server refuses (409) an edit someone changed since, said in the error bar. */
+  async lastOwnEdit() {
+    const sys = this.system;
+    if (!sys) return null;
+    const [me, page] = await Promise.all([getMe(), listAudit({ system_id: sys.id, limit: 50 })]).catch(() => [null, null]);
+    if (!me || !page || this.system !== sys) return null;
+    const undone = new Set();
+    for (const entry of page.items) { // newest first: an undo undone by a newer entry (a redo) cancels nothing
+      if (undone.has(entry.id)) continue;
+      if (entry.reverts_id) {
+        undone.add(entry.reverts_id);
+        continue;
+      }
+      if (entry.actor !== me.name || !UNDOABLE.has(entry.action)) continue;
+      return { kind: "entry", systemId: sys.id, frameId: entry.frame_id ?? null, entry: entry.id,
+        what: entry.summary || entry.action };
+    }
+    return null;
+  }
+
   /** Draw the current state of the shown system again (after a conflict, their state). */
   async reload() {
     if (!this.system) return;
@@ -378,6 +401,10 @@ class SystemPage {
     dispatchKey(this.keys, e, toast); // Ctrl / Cmd chords only reach entries marked `ctrl`; a key that cannot act says why
   }
 }
+
+/** The audit actions a person's Ctrl+Z undoes (the edits of the page's undo stack). */
+const UNDOABLE = new Set(["ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",
+  "view.calibration_review", "system.review"]);
 
 /** The toast of the last decision of a pass (nothing pending left after the system). */
 export const LAST_OF_PASS = "Nothing pending is left in this pass.";

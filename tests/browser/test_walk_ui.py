@@ -368,3 +368,37 @@ def test_a_dragged_box_and_a_confirmed_snap_leave_the_views_where_they_were(page
     etag = page.request.get(f"/api/frames/{system['views'][k]['frame_id']}").headers["etag"]
     assert api_write(page, "PATCH", f"/api/frames/{system['views'][k]['frame_id']}/ball", data={"box": box},
                      headers={"If-Match": etag}).ok
+
+
+def test_ctrl_z_after_a_reload_undoes_the_users_last_edit_from_the_history(page):
+    items = _api(page, "/api/systems?sort=-name&limit=100")["items"]
+    system = next(s for s in (_api(page, f"/api/systems/{i['id']}") for i in items if i["views_total"] >= 3)
+                  if s["views"][0]["ball"].get("box"))
+    fid, box = system["views"][0]["frame_id"], system["views"][0]["ball"]["box"]
+    page.goto(f"/systems/{system['id']}")
+    page.locator(tid("view")).first.locator(tid("ball-hit")).wait_for()
+    page.wait_for_function("() => !document.body.classList.contains('loading')")
+    page.keyboard.press("1")
+    with page.expect_response(lambda r: r.request.method == "PATCH" and "/ball" in r.url) as nudged:
+        page.keyboard.press("ArrowRight")
+    assert nudged.value.ok
+    assert _api(page, f"/api/frames/{fid}")["ball"]["box"] == pytest.approx([box[0] + 1, box[1], box[2] + 1, box[3]])
+
+    page.reload()
+    page.locator(tid("history-entry")).first.wait_for()
+    with page.expect_response(lambda r: r.request.method == "POST" and "/undo" in r.url) as undone:
+        page.keyboard.press("Control+z")
+    assert undone.value.ok, undone.value.text()
+    page.locator(tid("toast")).filter(has_text="Undone").wait_for()
+    assert _api(page, f"/api/frames/{fid}")["ball"]["box"] == pytest.approx(box)
+    with page.expect_response(lambda r: r.request.method == "POST" and "/undo" in r.url) as redone:
+        page.keyboard.press("Control+Shift+Z")
+    assert redone.value.ok
+    assert _api(page, f"/api/frames/{fid}")["ball"]["box"] == pytest.approx([box[0] + 1, box[1], box[2] + 1, box[3]])
+    # after the undo and its redo, another reload: the redone edit is the user's last one again
+    page.reload()
+    page.locator(tid("history-entry")).first.wait_for()
+    with page.expect_response(lambda r: r.request.method == "POST" and "/undo" in r.url) as again:
+        page.keyboard.press("Control+z")
+    assert again.value.ok, again.value.text()
+    assert _api(page, f"/api/frames/{fid}")["ball"]["box"] == pytest.approx(box)
