@@ -61,6 +61,13 @@ export async function writeHeaders() {
   return me.csrf_token ? { [CSRF_HEADER]: me.csrf_token } : {};
 }
 
+/** True for the API calls that need a session (not the login's own, not the health check) from a page that needs
+ * one (not the login page). */
+function needsSession(url) {
+  return url.startsWith("/api/") && !url.startsWith("/api/auth/") && !url.startsWith("/api/health")
+    && location.pathname !== LOGIN_PAGE;
+}
+
 /** A 401 means the session is gone (or never was): go and log in, then come back. */
 function toLogin() {
   if (location.pathname !== LOGIN_PAGE) location.assign(loginUrl());
@@ -71,6 +78,9 @@ function toLogin() {
  * answer's ETag header: a write's edited resource's new version), entry (X-V3D-Audit-Entry: the
  * audit entry of the write, else null)}, or throws ApiError. */
 async function fetchJson(method, url, { csrf = true, ...init } = {}) {
+  // the session is asked about once before any other call: a page opened logged out goes to the login after that
+  // one 401, not after a burst of its calls all refused
+  if (needsSession(url)) await getMe();
   const headers = { Accept: "application/json", ...(init.headers || {}) };
   if (csrf && UNSAFE.has(method)) Object.assign(headers, await writeHeaders());
   let response;

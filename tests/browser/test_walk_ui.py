@@ -402,3 +402,18 @@ def test_ctrl_z_after_a_reload_undoes_the_users_last_edit_from_the_history(page)
         page.keyboard.press("Control+z")
     assert again.value.ok, again.value.text()
     assert _api(page, f"/api/frames/{fid}")["ball"]["box"] == pytest.approx(box)
+
+
+def test_the_queue_opened_logged_out_goes_to_the_login_after_one_question(browser, server_url):
+    context = browser.new_context(base_url=server_url)
+    try:
+        p = context.new_page()
+        refused: list[str] = []
+        p.on("response", lambda r: refused.append(r.url) if r.status == 401 else None)
+        p.goto("/")
+        p.wait_for_url(f"{server_url}/login?next=%2F")
+        p.locator(tid("login-form")).wait_for()
+        p.wait_for_timeout(300)
+        assert refused == [f"{server_url}/api/auth/me"], refused
+    finally:
+        context.close()
