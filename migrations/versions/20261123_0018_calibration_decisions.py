@@ -31,8 +31,13 @@ branch_labels: Union[str, Sequence[str], None] = None
 depends_on: Union[str, Sequence[str], None] = None
 
 
+#: Reflect only the rebuilt table, not the tables its foreign keys name (the systems table): SQLite's reflection of
+#: the systems table's expression index warns at every fresh upgrade, and the rebuild never needs that table.
+_OWN_TABLE_ONLY = {"resolve_fks": False}
+
+
 def upgrade() -> None:
-    with op.batch_alter_table('review_decisions', schema=None) as batch_op:
+    with op.batch_alter_table('review_decisions', schema=None, reflect_kwargs=_OWN_TABLE_ONLY) as batch_op:
         batch_op.add_column(sa.Column('calibration_status',
                                       sa.Enum('pending', 'accepted', 'rejected', 'needs_fix',
                                               name='calibration_review_status', native_enum=False,
@@ -45,7 +50,7 @@ def upgrade() -> None:
 
 
 def downgrade() -> None:
-    with op.batch_alter_table('review_decisions', schema=None) as batch_op:
+    with op.batch_alter_table('review_decisions', schema=None, reflect_kwargs=_OWN_TABLE_ONLY) as batch_op:
         batch_op.drop_column('reset_reason')
         batch_op.drop_column('calibration_reset_reason')
         batch_op.drop_column('calibration_decided_at')
