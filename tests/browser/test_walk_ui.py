@@ -127,7 +127,7 @@ def _covered_or_cut(page, selector: str) -> list[str]:
     }).map((e) => e.textContent)""", selector)
 
 
-@pytest.mark.parametrize("size", [(1366, 768), (1920, 1080)])
+@pytest.mark.parametrize("size", [(1366, 768), (1920, 1080)], ids=["1366x768", "1920x1080"])
 def test_the_doubt_chips_and_log_out_are_wholly_seen_at_common_screen_sizes(page, artifacts, size):
     width, height = size
     page.set_viewport_size({"width": width, "height": height})
@@ -253,8 +253,7 @@ def test_reverting_an_older_entry_asks_in_words_not_json(page):
     with page.expect_response(lambda r: "/revert" in r.url) as refused:
         older.locator(tid("history-revert")).click()
     assert refused.value.status == 409
-    page.wait_for_function("() => true")
-    page.wait_for_timeout(200)
+    page.wait_for_timeout(200)  # the dialog, if any, is answered
     assert len(asked) == 1, asked
     assert "{" not in asked[0] and '"' not in asked[0], asked[0]
     assert f"box [{box[0]:g}, {box[1] + 6:g}" in asked[0] and "Revert anyway" in asked[0], asked[0]
