@@ -24,7 +24,7 @@ from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
-from app.services.transfer import export_files, exporting
+from app.services.transfer import export_files, export_zip, exporting
 from app.services.transfer.export_formats import tree_export_names
 
 router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
@@ -48,7 +48,7 @@ def export_soccernet_v3d(
     session = request.app.state.session_factory()
     try:
         systems, rows = exporting.export_size(session, include_all)
-        chunks = exporting.stream_soccernet_v3d_zip(session, include_all, images=images)
+        chunks = export_zip.stream_soccernet_v3d_zip(session, include_all, images=images)
         first = next(chunks)  # a game name that cannot be a folder fails here, before the answer starts
     except BaseException:
         session.close()

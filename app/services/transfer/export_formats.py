@@ -25,7 +25,8 @@ from app.services.issia.export import export_issia3d
 from app.services.jobs.progress import Progress
 from app.services.transfer.cameras_export import export_cameras
 from app.services.transfer.detector_export import export_detector
-from app.services.transfer.exporting import export_size, stream_soccernet_v3d_zip
+from app.services.transfer.export_zip import stream_soccernet_v3d_zip
+from app.services.transfer.exporting import export_size
 
 #: ``write(session, out, include_all, settings)``: the export written as a tree under the folder ``out`` (created);
 #: answers its counts (JSON-able, no server path).

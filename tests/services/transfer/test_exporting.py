@@ -220,7 +220,7 @@ def test_the_export_carries_each_games_images_and_re_imports_with_them(db_sessio
     import zipfile
 
     from app.services.images.serving import frame_image
-    from app.services.transfer.exporting import stream_soccernet_v3d_zip
+    from app.services.transfer.export_zip import stream_soccernet_v3d_zip
 
     import_soccernet_v3(db_session, v3_tree, settings)
     frames = db_session.scalars(sa.select(Frame).order_by(Frame.name)).all()
