@@ -24,6 +24,7 @@ from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
+from app.services.releases.content import get_release
 from app.services.transfer import export_files, export_zip, exporting
 from app.services.transfer.export_formats import tree_export_names
 
@@ -73,9 +74,13 @@ async def create_export_job(session: SessionDep,
                             body: Annotated[ExportJobIn, Body(default_factory=ExportJobIn)]) -> JSONResponse:
     """Queue the SoccerNet-v3D export as a background job: the zip (the same archive the ``GET`` streams)
     is written to a file while the database is read, with progress per game; when the job is done its
-    ``result_url`` (``/api/jobs/{id}/result``) streams the file."""
-    return accepted(await run_in_threadpool(jobs.submit, session, "export",
-                                            export_params("soccernet-v3d", body.all, body.images)))
+    ``result_url`` (``/api/jobs/{id}/result``) streams the file. ``{"release": name}`` exports that release
+    (byte for byte the same whenever asked; its ``Labels-v3D.json`` name it and its hash): 404 for no such release,
+    422 beside ``all``."""
+    params = export_params("soccernet-v3d", body.all, body.images, body.release)
+    if body.release is not None:
+        get_release(session, body.release)  # 404 now rather than a failed job
+    return accepted(await run_in_threadpool(jobs.submit, session, "export", params))
 
 
 #: The path parameter's choices: the registry's tree exports (SoccerNet-v3D has its own route above, for its
@@ -98,7 +103,10 @@ async def create_tree_export_job(
     file zipped) kept ``V3D_EXPORT_KEEP_HOURS`` for download at the job's ``result_url``
     (``/api/jobs/{id}/result``). The job's ``result`` holds the export's counts (a YOLO split without images
     in ``empty_splits``)."""
-    return accepted(await run_in_threadpool(jobs.submit, session, "export", export_params(export_format, body.all)))
+    params = export_params(export_format, body.all, release=body.release)
+    if body.release is not None:
+        get_release(session, body.release)  # 404 now rather than a failed job
+    return accepted(await run_in_threadpool(jobs.submit, session, "export", params))
 
 
 @router.get(

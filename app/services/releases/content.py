@@ -236,8 +236,8 @@ def get_release(session: Session, name: str) -> Release:
 
 def release_content(session: Session, release: Release) -> ReleaseContent:
     """The digests a release names (no document read)."""
-    games = dict(session.execute(select(ReleaseGame.game_id, ReleaseGame.digest)
-                                 .where(ReleaseGame.release_id == release.id)).tuples().all())
+    games: dict[int, str] = dict(session.execute(select(ReleaseGame.game_id, ReleaseGame.digest)
+                                 .where(ReleaseGame.release_id == release.id)).all())
     systems = {sid: (gid, name, digest) for sid, gid, name, digest in session.execute(
         select(ReleaseSystem.system_id, ReleaseSystem.game_id, ReleaseSystem.name, ReleaseSystem.digest)
         .where(ReleaseSystem.release_id == release.id))}
@@ -262,8 +262,8 @@ def canonical_documents(session: Session, digests: Iterable[str]) -> Iterator[tu
     wanted = sorted(set(digests))
     for start in range(0, len(wanted), _CHUNK):
         some = wanted[start:start + _CHUNK]
-        bodies = dict(session.execute(select(ReleaseDocument.digest, ReleaseDocument.body)
-                                      .where(ReleaseDocument.digest.in_(some))).tuples().all())
+        bodies: dict[str, bytes] = dict(session.execute(select(ReleaseDocument.digest, ReleaseDocument.body)
+                                      .where(ReleaseDocument.digest.in_(some))).all())
         for digest in some:
             yield digest, zlib.decompress(bodies[digest])
 

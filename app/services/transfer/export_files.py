@@ -23,8 +23,9 @@ from typing import Any, Callable
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.errors import InvalidInputError
 from app.services.jobs.progress import Progress
-from app.services.transfer.export_formats import export_format, export_names, tree_export_names
+from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format, export_names, tree_export_names
 
 #: What ``POST /api/exports/{format}`` and the export jobs write (the registry's names, in its order).
 EXPORT_FORMATS = export_names()
@@ -65,13 +66,16 @@ def write_tree(session: Session, fmt: str, out: Path, include_all: bool, setting
 
 
 def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool, settings: Settings,
-                     progress: Progress | None = None, images: bool = True) -> dict[str, Any]:
+                     progress: Progress | None = None, images: bool = True,
+                     release: str | None = None) -> dict[str, Any]:
     """The export ``fmt`` as the zip ``target`` (written as ``<target>.part`` and renamed when complete; a
     tree export's work folder ``<target>.work`` removed in every case); its counts, ``bytes`` and ``format``.
-    ``images``: SoccerNet-v3D only (each game's ``Frames-v3.zip``).
+    ``images``: SoccerNet-v3D only (each game's ``Frames-v3.zip``). ``release``: the name of the release to export
+    instead of the database now (``export_formats.RELEASE_EXPORTS``; the same release gives the same bytes).
 
     Raises:
-        ValueError: an unknown format. As each export raises otherwise.
+        ValueError: an unknown format. InvalidInputError: a release asked of a format not made from one (field
+            ``release``). NotFoundError: no release of that name. As each export raises otherwise.
     """
     export = export_format(fmt)
     part = target.with_name(target.name + ".part")
@@ -80,7 +84,11 @@ def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool
     try:
         if export.stream is not None:
             with open(part, "wb") as out:
-                report = export.stream(session, out, include_all, {"images": images}, progress)
+                report = export.stream(session, out, include_all, {"images": images, "release": release},
+                                       progress)
+        elif release is not None:
+            raise InvalidInputError(f"the {fmt} export is not made from a release yet; "
+                                    f"{', '.join(RELEASE_EXPORTS)} is", field="release")
         else:
             shutil.rmtree(work, ignore_errors=True)
             work.mkdir(parents=True)

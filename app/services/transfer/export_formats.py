@@ -23,6 +23,8 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.services.issia.export import export_issia3d
 from app.services.jobs.progress import Progress
+from app.services.releases.content import get_release
+from app.services.releases.export import ReleaseSource
 from app.services.transfer.cameras_export import export_cameras
 from app.services.transfer.detector_export import export_detector
 from app.services.transfer.export_zip import stream_soccernet_v3d_zip
@@ -147,10 +149,22 @@ export const EXPORTS = /*EXPORTS*/__EXPORTS__/*END*/;
 
 def _soccernet_v3d(session: Session, out: BinaryIO, include_all: bool, options: Mapping[str, Any],
                    progress: Progress | None) -> dict[str, Any]:
+    name = options.get("release")
+    if name:  # the release's documents, not the database now
+        release = get_release(session, str(name))
+        for chunk in stream_soccernet_v3d_zip(session, False, progress, images=bool(options.get("images", True)),
+                                              source=ReleaseSource(session, release)):
+            out.write(chunk)
+        return {"systems": release.systems, "views": release.views, "release": release.name, "hash": release.hash}
     systems, rows = export_size(session, include_all)
     for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=bool(options.get("images", True))):
         out.write(chunk)
     return {"systems": systems, "rows": rows}
+
+
+#: The formats an export job writes from a release (``{"release": name}``); the others answer 422 naming
+#: ``release`` until they read a release's documents too.
+RELEASE_EXPORTS = ("soccernet-v3d",)
 
 
 def _issia_3d(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:

@@ -101,7 +101,7 @@ class ExportReport:
     images: int = 0
 
 
-def _safe_component(value: str, what: str) -> str:
+def safe_component(value: str, what: str) -> str:
     if not value or value in (".", "..") or "/" in value or "\\" in value or "\0" in value:
         raise InvalidInputError(f"cannot be used as a folder name: {value!r}", field=what)
     return value
@@ -304,7 +304,7 @@ def iter_soccernet_v3d(session: Session, include_all: bool = False,
     ))
     for game in games:  # validate every folder name before writing anything
         for value, what in ((game.league, "league"), (game.season, "season"), (game.match, "match")):
-            _safe_component(value, f"game {game.id} {what}")
+            safe_component(value, f"game {game.id} {what}")
     by_id = {g.id: g for g in games}
     done = 0
     for first in range(0, len(games), EXPORT_BATCH_GAMES):
