@@ -212,13 +212,15 @@ register_export_format(ExportFormat(
     tree=_cameras))
 register_export_format(ExportFormat(
     "yolo",
-    "Images and labels in the Ultralytics YOLO layout (ball = refined, else optimised box).",
+    "Images and labels in the Ultralytics YOLO layout (the ball is class 0: refined, else optimised box; val drawn "
+    "from train, seeded), and manifest.csv/json joining each image back to its game, frame and 3D ball.",
     (ExportChoice("yolo", "YOLO", "Ultralytics layout: images/, labels/, data.yaml (relocatable: no path key)",
                   "v3d-yolo.zip"),),
     tree=_detector("yolo")))
 register_export_format(ExportFormat(
     "coco",
-    "Images and a COCO instances JSON per split (ball = refined, else optimised box).",
+    "Images and a COCO instances JSON per split (the ball is category 1: refined, else optimised box), and "
+    "manifest.csv/json joining each image back to its game, frame and 3D ball.",
     (ExportChoice("coco", "COCO", "per split: the images and instances.json", "v3d-coco.zip"),),
     tree=_detector("coco")))
 
