@@ -11,7 +11,10 @@
   (``{"train": [3, 4, 5, 6], "test": [1, 2], "by": "camera"}``): a detector trained on ISSIA-3D reads
   the ``camK`` columns of its split. Beside them ``calibration/cam<k>.json``: each camera's calibration in the
   SoccerNet-calibration camera format (:func:`sequence_calibrations`), so that a user of the CSV can project
-  the ``ball_3D`` columns into the views. Accepted frames only unless ``include_all``.
+  the ``ball_3D`` columns into the views, and the same cameras as ``issia_calibration.json`` (camera id -> camera),
+  the file ``v3d import issia`` reads: a sequence's folder of the export is an ISSIA folder that imports again as
+  it left (its labels from ``ISSIA-3D.csv``, its cameras from that file). Accepted frames only unless
+  ``include_all``.
 """
 from __future__ import annotations
 
@@ -25,7 +28,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError, found
-from app.datasets.issia import ANNOTATION_SIZE, CAMERA_SET, IssiaSequence
+from app.datasets.issia import ANNOTATION_SIZE, CALIBRATION_FILE, CAMERA_SET, IssiaSequence
 from app.datasets.issia3d import issia3d_rows, write_issia3d_csv
 from app.db.models import Calibration, Frame, Game, ReviewStatus, System, SystemKind
 from app.geometry.camera import Camera
@@ -160,7 +163,8 @@ class _StoredFit:
 
 
 def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = False) -> Issia3DExport:
-    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json`` and ``calibration/cam<k>.json`` for every stored ISSIA
+    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json``, ``calibration/cam<k>.json`` and
+    ``issia_calibration.json`` for every stored ISSIA
     sequence (module docstring). Accepted frames only unless ``include_all``; a sequence with no exported
     frame gets no folder."""
     out = Path(out_dir)
@@ -178,10 +182,14 @@ def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = Fa
                  "test": sorted(int(c) for c, v in CAMERA_SET.items() if v == "test"),
                  "columns": "x_camK, y_camK, err_camK, opt_d_camK, opt_e_camK of camera K"}
         (folder / SPLIT_NAME).write_text(json.dumps(split, indent=1) + "\n")
-        for name, camera in sequence_calibrations(session, game.id).items():
+        cameras = sequence_calibrations(session, game.id)
+        for name, camera in cameras.items():
             (folder / CALIBRATION_DIR).mkdir(exist_ok=True)
             (folder / CALIBRATION_DIR / f"{name}.json").write_text(json.dumps(camera, indent=1) + "\n")
             report.calibrations += 1
+        if cameras:  # what the importer reads (app.datasets.issia.CALIBRATION_FILE): the export imports again
+            (folder / CALIBRATION_FILE).write_text(json.dumps(
+                {_cam_id(name): camera for name, camera in cameras.items()}, indent=1, sort_keys=True) + "\n")
         report.sequences += 1
         report.rows += len(rows)
         report.csv_paths.append(folder / CSV_NAME)

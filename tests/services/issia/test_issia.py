@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 import sqlalchemy as sa
+from sqlalchemy.orm import Session
 
 from app.datasets.issia3d import read_issia3d_csv
 from app.db.models import (
@@ -492,6 +493,30 @@ def test_issia3d_export_writes_each_cameras_calibration(db_session, db_settings,
             assert np.hypot(u - x, v - y) == pytest.approx(err, abs=0.01)
             checked += 1
     assert checked >= 80  # 86 labelled views with a 3D ball in frames 0-39
+
+
+def test_the_issia3d_export_imports_into_a_fresh_database_as_it_left(db_session, db_settings, stretch, tmp_path):
+    """The export's sequence folder (ISSIA-3D.csv, issia_calibration.json) is an ISSIA folder: imported into an empty
+    database it gives the same frames, point labels and cameras."""
+    from app.db.session import make_engine, upgrade_database
+
+    import_issia(db_session, stretch, db_settings)
+    export_issia3d(db_session, tmp_path / "out", include_all=True)
+    folder = tmp_path / "out" / "issia-dev"
+    assert sorted(json.loads((folder / "issia_calibration.json").read_text())) == [str(k) for k in range(1, 7)]
+    url = f"sqlite:///{tmp_path / 'fresh.sqlite3'}"
+    upgrade_database(url)
+    settings = db_settings.model_copy(update={"database_url": url})
+    with Session(make_engine(url)) as fresh:
+        import_issia(fresh, folder, settings)
+
+        def state(session: Session) -> dict[tuple[int, str], tuple]:
+            return {(s.frame_index, f.name): (f.ball_label.point if f.ball_label else None,
+                                              np.round(Camera.from_soccernet(f.calibration.camera).projection_matrix,
+                                                       6).tolist() if f.calibration and f.calibration.camera else None)
+                    for s in _systems(session).values() for f in s.frames}
+
+        assert state(fresh) == state(db_session) and len(state(fresh)) == 240
 
 
 def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and_split_per_camera(
