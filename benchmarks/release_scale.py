@@ -119,7 +119,10 @@ def run(db: Path, changes: int, repeats: int, seed: int = 0) -> dict[str, Any]:
                        "changed": len(diff.changed),
                        "removed_as_rejected": sorted(s["system_id"] for s in diff.removed) == rejected,
                        "changed_as_moved": sorted(s["system_id"] for s in diff.changed) == moved,
-                       "all_moved_m_positive": all((s["ball3d_moved_m"] or 0) > 0 for s in diff.changed)}
+                       "moved_m_positive": sum(1 for s in diff.changed if (s["ball3d_moved_m"] or 0) > 0),
+                       "moved_m_null": sum(1 for s in diff.changed if s["ball3d_moved_m"] is None),
+                       "changed_views_label": sum(1 for s in diff.changed for v in s["views"]
+                                                  if "label" in v["changes"])}
         exports: dict[str, list[dict[str, float]]] = {"live": [], "release": []}
         blobs = []
         for k in range(repeats):
