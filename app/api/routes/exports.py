@@ -11,7 +11,7 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path as FilePath
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal, Optional
 
 from fastapi import APIRouter, Body, Depends, Path, Query, Request, status
 from fastapi.concurrency import run_in_threadpool
@@ -22,9 +22,11 @@ from app.api.auth import require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
+from app.core.errors import InvalidInputError
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
 from app.services.releases.content import get_release
+from app.services.releases.export import ReleaseSource
 from app.services.transfer import export_files, export_zip, exporting
 from app.services.transfer.export_formats import tree_export_names
 
@@ -41,15 +43,27 @@ def export_soccernet_v3d(
     request: Request,
     include_all: Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")] = False,
     images: Annotated[bool, Query(description="Each game's Frames-v3.zip (its images); false leaves them out.")] = True,
+    release: Annotated[Optional[str], Query(min_length=1, max_length=200, description="A release to export instead "
+                                            "of the database now (byte for byte the same each time; not with all)."
+                                            )] = None,
 ) -> StreamingResponse:
     """A zip of the SoccerNet-v3D export (``app.services.transfer.exporting``), streamed while the database is
     read, game by game (nothing of the size of the export is built in memory or on disk).
     ``X-V3D-Systems`` and ``X-V3D-Rows`` give its size. The stream reads through a session of its own,
     closed when the download ends (the request's session closes before a streamed body is sent)."""
+    if release is not None and include_all:
+        raise InvalidInputError("a release holds its accepted systems only: 'all' and 'release' exclude each other",
+                                field="all")
     session = request.app.state.session_factory()
     try:
-        systems, rows = exporting.export_size(session, include_all)
-        chunks = export_zip.stream_soccernet_v3d_zip(session, include_all, images=images)
+        source = None
+        if release is not None:
+            chosen = get_release(session, release)
+            systems, rows = chosen.systems, chosen.views
+            source = ReleaseSource(session, chosen)
+        else:
+            systems, rows = exporting.export_size(session, include_all)
+        chunks = export_zip.stream_soccernet_v3d_zip(session, include_all, images=images, source=source)
         first = next(chunks)  # a game name that cannot be a folder fails here, before the answer starts
     except BaseException:
         session.close()

@@ -105,6 +105,8 @@ def test_the_release_scenario_end_to_end(app, client: TestClient, six: list[Scen
 
     again = _export(app, client, {"release": "v1.0"})
     assert again == first
+    streamed = client.get("/api/exports/soccernet-v3d", params={"release": "v1.0"})
+    assert streamed.status_code == 200 and streamed.content == first and streamed.headers["x-v3d-systems"] == "5"
     listed = client.get("/api/releases").json()["items"]
     assert [r["name"] for r in listed] == ["v1.0", "v1.1"]
     assert client.get("/api/releases/v1.1").json() == v11
@@ -120,6 +122,8 @@ def test_release_exports_refuse_all_and_formats_not_made_from_one(client: TestCl
     both = client.post("/api/exports/soccernet-v3d", json={"release": "r", "all": True})
     assert both.status_code == 422 and "release" in both.text
     assert client.post("/api/exports/soccernet-v3d", json={"release": "nope"}).status_code == 404
+    assert client.get("/api/exports/soccernet-v3d", params={"release": "nope"}).status_code == 404
+    assert client.get("/api/exports/soccernet-v3d", params={"release": "r", "all": "true"}).status_code == 422
     other = client.post("/api/exports/yolo", json={"release": "r"})
     assert other.status_code == 422 and other.json()["field"] == "release"
     assert client.post("/api/releases", json={"name": " r "}).status_code == 422
