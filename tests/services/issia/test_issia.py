@@ -542,7 +542,7 @@ def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and
 
     yolo = export_yolo(db_session, tmp_path / "yolo", include_all=True)
     total = 0
-    for split in ("train", "test"):
+    for split in ("train", "val", "test"):  # val: YOLO's validation systems, drawn from train
         images = sorted(p.stem for p in (tmp_path / "yolo" / "images" / split).iterdir())
         labels = sorted(p.stem for p in (tmp_path / "yolo" / "labels" / split).iterdir())
         assert images == labels and len(images) == yolo.images[split]
@@ -554,7 +554,8 @@ def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and
     for split in ("train", "test"):
         doc = json.loads((tmp_path / "coco" / split / "instances.json").read_text())
         names = [im["file_name"] for im in doc["images"]]
-        assert len(names) == len(set(names)) == coco.images[split] == yolo.images[split]
+        in_yolo = yolo.images[split] + (yolo.images["val"] if split == "train" else 0)
+        assert len(names) == len(set(names)) == coco.images[split] == in_yolo
         assert sorted(p.name for p in (tmp_path / "coco" / split).iterdir()
                       if p.name != "instances.json") == sorted(names)
 
