@@ -65,3 +65,8 @@ def test_release_commands(tmp_path: Path) -> None:
     assert a == b and "v3d-release.json" in a and "SNv3D.csv" in a
     assert runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / "c"), "--release", "v1", "--all",
                                *db]).exit_code == 2
+    cams = runner.invoke(cli, ["export", "cameras", str(tmp_path / "cams"), "--release", "v1", *db])
+    assert cams.exit_code == 0 and "6 camera(s)" in cams.output, cams.output
+    index = json.loads((tmp_path / "cams" / "cameras.json").read_text())
+    assert sum(len(s["views"]) for s in index["sets"]) == 6
+    assert json.loads((tmp_path / "cams" / "v3d-release.json").read_text())["hash"] == v1["hash"]

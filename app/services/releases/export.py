@@ -9,20 +9,32 @@ release: name, note, created_at, created_by, systems, views, hash, and the diges
 companion file) and ``v3d-release/documents.jsonl`` (every document's canonical JSON, one a line, in increasing
 digest order), from which anyone recomputes the hash (docs/exports.md).
 
-Nothing in a release export depends on when it is written: the same release exports to the same bytes.
+The cameras export reads a release too (:func:`export_release_cameras`: the views, names and splits of the live
+export, from the documents, with the same two files at its root). Nothing in a release export depends on when it is
+written: the same release exports to the same bytes.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
 import orjson
 from sqlalchemy.orm import Session
 
-from app.db.models import CalibrationSource, CalibrationStatus, FrameRole, Release, ReviewStatus
-from app.services.kinds import kinds_exported_by
+from app.db.models import (
+    JAC_COLUMNS,
+    CalibrationSource,
+    CalibrationStatus,
+    FrameRole,
+    Release,
+    ReviewStatus,
+    SystemKind,
+)
+from app.db.types import json_loads
+from app.services.kinds import POLICIES, kinds_exported_by
 from app.services.releases.content import (
     ReleaseContent,
     canonical_documents,
@@ -30,6 +42,7 @@ from app.services.releases.content import (
     release_content,
     release_summary,
 )
+from app.services.transfer.cameras_export import CamerasExport, CameraView, pooled_lines, write_camera_sets
 from app.services.transfer.exporting import ExportedGame, exported_game, safe_component
 
 #: The release's description at the root of its export (the companion file of ``SNv3D.csv``).
@@ -109,9 +122,56 @@ class ReleaseSource:
                     progress("export", done, len(order))
 
     def members(self) -> Iterator[tuple[str, bytes]]:
-        """:data:`RELEASE_FILE` then :data:`DOCUMENTS_FILE`."""
-        content = release_content(self.session, self.release)
-        yield RELEASE_FILE, orjson.dumps(release_manifest(self.release, content),
-                                         option=orjson.OPT_SORT_KEYS | orjson.OPT_INDENT_2)
-        digests = [*content.games.values(), *(d for _, _, d in content.systems.values())]
-        yield DOCUMENTS_FILE, b"".join(body + b"\n" for _, body in canonical_documents(self.session, digests))
+        """:func:`release_files`."""
+        return release_files(self.session, self.release)
+
+
+def release_files(session: Session, release: Release) -> Iterator[tuple[str, bytes]]:
+    """The files naming a release in each of its exports: :data:`RELEASE_FILE` then :data:`DOCUMENTS_FILE`."""
+    content = release_content(session, release)
+    yield RELEASE_FILE, orjson.dumps(release_manifest(release, content),
+                                     option=orjson.OPT_SORT_KEYS | orjson.OPT_INDENT_2)
+    digests = [*content.games.values(), *(d for _, _, d in content.systems.values())]
+    yield DOCUMENTS_FILE, b"".join(body + b"\n" for _, body in canonical_documents(session, digests))
+
+
+def release_camera_views(session: Session, release: Release) -> list[CameraView]:
+    """The views of the cameras export (``app.services.transfer.cameras_export.camera_views``) read from a release's
+    documents: the released systems of the kinds that take the ``cameras`` export, in (league, season, match, system
+    id) order, each view with field lines or an admitted camera, named and split as the live export names them."""
+    content = release_content(session, release)
+    kinds = {k.value for k in kinds_exported_by("cameras")}
+    games = {g["game_id"]: SimpleNamespace(**g) for g in read_documents(session, content.games.values()).values()}
+    order = sorted(content.systems.items(), key=lambda kv: (
+        games[kv[1][0]].league, games[kv[1][0]].season, games[kv[1][0]].match, kv[0]))
+    docs = read_documents(session, (d for _, (_, _, d) in order))
+    out = []
+    for _, (gid, _, digest) in order:
+        system = docs[digest]
+        if system["kind"] not in kinds:
+            continue
+        game = games[gid]
+        policy = POLICIES[SystemKind(system["kind"])]
+        holder = SimpleNamespace(game=game)
+        for f in system["frames"]:
+            camera_text = f["camera_json"] if f["cal_source"] is not None and f["admitted"] else None
+            camera = json_loads(camera_text) if camera_text not in (None, "null") else None
+            stored = json_loads(f["lines_json"]) if f["lines_json"] not in (None, "null") else None
+            if camera is None and not stored:
+                continue
+            frame = SimpleNamespace(name=f["name"], split=f["frame_split"])
+            jac = {str(g): f[col] if f["cal_source"] is not None else None for g, col in JAC_COLUMNS.items()}
+            out.append(CameraView(policy.view_stem(game, frame), policy.split(holder, frame),  # type: ignore[arg-type]  # the documents' game and frame stand in for the rows
+                                  game.path, f["name"], system["kind"], f["width"], f["height"], camera,
+                                  pooled_lines(stored, f["width"], f["height"]) if stored else None, jac))
+    return out
+
+
+def export_release_cameras(session: Session, release: Release, out_dir: Path) -> CamerasExport:
+    """The cameras export of a release under ``out_dir`` (``cameras_export.write_camera_sets`` of
+    :func:`release_camera_views`) with the files naming the release (:func:`release_files`) at its root."""
+    report = write_camera_sets(out_dir, release_camera_views(session, release))
+    for name, data in release_files(session, release):
+        (out_dir / name).parent.mkdir(parents=True, exist_ok=True)
+        (out_dir / name).write_bytes(data)
+    return report

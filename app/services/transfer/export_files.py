@@ -26,6 +26,7 @@ from app.core.config import Settings
 from app.core.errors import InvalidInputError
 from app.services.jobs.progress import Progress
 from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format, export_names, tree_export_names
+from app.services.transfer.exporting import zip_member
 
 #: What ``POST /api/exports/{format}`` and the export jobs write (the registry's names, in its order).
 EXPORT_FORMATS = export_names()
@@ -33,18 +34,20 @@ EXPORT_FORMATS = export_names()
 
 def zip_tree(root: Path, target: Path, progress: Progress | None = None) -> int:
     """Zip every file and folder under ``root`` into ``target`` with paths relative to ``root`` (POSIX; folders as
-    entries, so that empty ones survive), ``progress("zip", files done, files)`` as it goes. Returns the zip's
-    size in bytes."""
-    entries = sorted(root.rglob("*"))
+    entries, so that empty ones survive), ``progress("zip", files done, files)`` as it goes. Members in the order of
+    their paths with the fixed time stamp and modes of ``exporting.zip_member`` (no file's time enters the zip: the
+    same tree zips to the same bytes). Returns the zip's size in bytes."""
+    entries = sorted(root.rglob("*"), key=lambda p: p.relative_to(root).as_posix())
     files = [p for p in entries if p.is_file()]
     done = 0
     with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
         for p in entries:
             rel = p.relative_to(root).as_posix()
             if p.is_dir():
-                zf.writestr(zipfile.ZipInfo(rel + "/"), b"")
+                zf.writestr(zip_member(rel + "/", folder=True), b"")
                 continue
-            zf.write(p, rel)
+            with p.open("rb") as src, zf.open(zip_member(rel, zipfile.ZIP_DEFLATED), "w", force_zip64=True) as dst:
+                shutil.copyfileobj(src, dst, 1 << 20)
             done += 1
             if progress is not None:
                 progress("zip", done, len(files))
@@ -87,8 +90,13 @@ def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool
                 report = export.stream(session, out, include_all, {"images": images, "release": release},
                                        progress)
         elif release is not None:
-            raise InvalidInputError(f"the {fmt} export is not made from a release yet; "
-                                    f"{', '.join(RELEASE_EXPORTS)} is", field="release")
+            if export.release_tree is None:
+                raise InvalidInputError(f"the {fmt} export is not made from a release yet; "
+                                        f"{', '.join(RELEASE_EXPORTS)} are", field="release")
+            shutil.rmtree(work, ignore_errors=True)
+            work.mkdir(parents=True)
+            report = export.release_tree(session, work, release)
+            zip_tree(work, part, progress)
         else:
             shutil.rmtree(work, ignore_errors=True)
             work.mkdir(parents=True)

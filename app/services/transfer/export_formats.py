@@ -24,7 +24,7 @@ from app.core.config import Settings
 from app.services.issia.export import export_issia3d
 from app.services.jobs.progress import Progress
 from app.services.releases.content import get_release
-from app.services.releases.export import ReleaseSource
+from app.services.releases.export import ReleaseSource, export_release_cameras
 from app.services.transfer.cameras_export import export_cameras
 from app.services.transfer.detector_export import export_detector
 from app.services.transfer.export_zip import stream_soccernet_v3d_zip
@@ -33,6 +33,8 @@ from app.services.transfer.exporting import export_size
 #: ``write(session, out, include_all, settings)``: the export written as a tree under the folder ``out`` (created);
 #: answers its counts (JSON-able, no server path).
 TreeWriter = Callable[[Session, Path, bool, Settings], dict[str, Any]]
+#: ``release_tree(session, out, release name)``: the export of a release written as a tree under ``out``; its counts.
+ReleaseTreeWriter = Callable[[Session, Path, str], dict[str, Any]]
 #: ``stream(session, out, include_all, options, progress)``: the export written as a zip into the open binary file
 #: ``out`` while the database is read; answers its counts.
 ZipStreamer = Callable[[Session, BinaryIO, bool, Mapping[str, Any], "Progress | None"], dict[str, Any]]
@@ -67,6 +69,8 @@ class ExportFormat:
         choices: the UI's buttons for it, the first one the default (its options are the job's defaults).
         tree: writes it as a folder tree, zipped afterwards (``export_files.zip_tree``); None when streamed.
         stream: writes it straight into a zip; None for a tree export. Exactly one of the two is set.
+        release_tree: writes a release's export as a tree (a streamed format takes ``options["release"]``); None
+            when the format is not made from a release.
     """
 
     name: str
@@ -74,6 +78,7 @@ class ExportFormat:
     choices: tuple[ExportChoice, ...]
     tree: TreeWriter | None = None
     stream: ZipStreamer | None = None
+    release_tree: ReleaseTreeWriter | None = None
 
     @property
     def options(self) -> tuple[str, ...]:
@@ -162,9 +167,10 @@ def _soccernet_v3d(session: Session, out: BinaryIO, include_all: bool, options: 
     return {"systems": systems, "rows": rows}
 
 
-#: The formats an export job writes from a release (``{"release": name}``); the others answer 422 naming
-#: ``release`` until they read a release's documents too.
-RELEASE_EXPORTS = ("soccernet-v3d",)
+def _release_cameras(session: Session, out: Path, name: str) -> dict[str, Any]:
+    release = get_release(session, name)
+    report = export_release_cameras(session, release, out).as_dict()
+    return {**report, "release": release.name, "hash": release.hash}
 
 
 def _issia_3d(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
@@ -209,7 +215,7 @@ register_export_format(ExportFormat(
     "<W>x<H>/predictions.zip (camera_<name>.json), and cameras.json (names back to games and frames).",
     (ExportChoice("cameras", "Cameras", "per image size: ground_truth.zip and predictions.zip as SoccerNet's "
                   "calibration evaluator reads them", "cameras.zip"),),
-    tree=_cameras))
+    tree=_cameras, release_tree=_release_cameras))
 register_export_format(ExportFormat(
     "yolo",
     "Images and labels in the Ultralytics YOLO layout (the ball is class 0: refined, else optimised box; val drawn "
@@ -223,6 +229,11 @@ register_export_format(ExportFormat(
     "manifest.csv/json joining each image back to its game, frame and 3D ball.",
     (ExportChoice("coco", "COCO", "per split: the images and instances.json", "v3d-coco.zip"),),
     tree=_detector("coco")))
+
+
+#: The formats an export job writes from a release (``{"release": name}``); the others answer 422 naming
+#: ``release`` until they read a release's documents too.
+RELEASE_EXPORTS = tuple(n for n, f in _FORMATS.items() if f.stream is not None or f.release_tree is not None)
 
 
 if __name__ == "__main__":

@@ -111,3 +111,37 @@ def test_later_edits_never_change_a_release_and_unchanged_systems_cost_no_docume
     assert [c["system_id"] for c in diff.changed] == [ids[0]] and not diff.added and not diff.removed
     assert diff.changed[0]["ball3d_moved_m"] > 0
     session.close()
+
+
+def _members(data: bytes) -> dict[str, bytes]:
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        return {n: zf.read(n) for n in zf.namelist()}
+
+
+def test_the_cameras_export_of_a_release_is_the_live_one_then_and_stays_the_same(tmp_path: Path) -> None:
+    url, settings, session, ids = _database(tmp_path)
+    release = create_release(session, "v1")
+    write_export_zip(session, "cameras", tmp_path / "live.zip", False, settings)
+    made = write_export_zip(session, "cameras", tmp_path / "r1.zip", False, settings, release="v1")
+    assert made["hash"] == release.hash and made["cameras"] == 9
+    live, ours = _members((tmp_path / "live.zip").read_bytes()), _members((tmp_path / "r1.zip").read_bytes())
+    named = {n: ours.pop(n) for n in ("v3d-release.json", "v3d-release/", "v3d-release/documents.jsonl")}
+    assert ours == live  # the same index, ground truth and predictions as the database had then
+    assert json.loads(named["v3d-release.json"])["hash"] == release.hash
+    # a later edit changes the live export, not the release's
+    label = session.scalars(sa.select(BallLabel).join(BallLabel.frame)
+                            .where(sa.text("frames.system_id = :s")).params(s=ids[1])).first()
+    assert label is not None and label.box is not None
+    label.box = [label.box[0] + 4, label.box[1], label.box[2] + 4, label.box[3]]
+    session.commit()
+    _decline(session, ids[2])
+    write_export_zip(session, "cameras", tmp_path / "r2.zip", False, settings, release="v1")
+    assert (tmp_path / "r2.zip").read_bytes() == (tmp_path / "r1.zip").read_bytes()
+    session.close()
+
+
+def _decline(session: Session, system_id: int) -> None:
+    system = session.get(System, system_id)
+    assert system is not None and system.review is not None
+    system.review.status = system.review_status = ReviewStatus.REJECTED
+    session.commit()
