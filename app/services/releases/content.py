@@ -10,8 +10,11 @@ UTF-8), each stored once in ``release_documents`` under its SHA-256 (``app.db.ty
   ``games.release``) and ``as_of`` (ISO 8601 UTC: its newest change, as the live export's ``v3d_as_of``);
 * a **system document** per accepted system (:func:`system_document`): ``system_id``, ``name``, ``kind``,
   ``game_id``, ``review_status``, ``ball3d`` (world metres ``[x, y, z]``, z down, as stored JSON text),
-  ``triangulation`` (its status and the settings it was computed with: ``tau_px``, ``rule``, ``min_baseline_m``),
-  ``derived_settings`` (``Settings.derived_fingerprint``), ``derived_version``, and ``frames``: per frame, in order,
+  ``triangulation`` (its status and the settings it was computed with: ``tau_px``, ``rule``, ``min_baseline_m``;
+  ``pairs``: per pair of admitted views ``[frame a id, frame b id, kept]``, what the detector exports' refined box
+  reads),
+  ``derived_settings`` (``Settings.derived_fingerprint``),
+  ``derived_version``, ``frame_index`` (ISSIA), and ``frames``: per frame, in order,
   the export row of ``app.services.transfer.exporting.frame_row_select`` (labels, field lines, calibration, JaC,
   optimised box, reprojection error; JSON values as their stored text, enums by value) with the view's decisions
   (``view_status``, ``view_calibration_status``, ``excluded``).
@@ -48,6 +51,7 @@ from app.db.models import (
     ReviewStatus,
     System,
     Triangulation,
+    TriangulationPair,
 )
 from app.db.types import canonical_json, compressed_json, decompressed_json, json_digest, utcnow
 from app.services.audit.log import local_actor, record
@@ -108,7 +112,7 @@ def system_document(rows: list[Any], triangulation: Optional[dict[str, Any]], sy
     return {"system_id": first.system_id, "name": first.system_name, "kind": _plain(system.kind),
             "game_id": first.game_id, "review_status": _plain(first.review_status), "ball3d": first.ball3d,
             "triangulation": triangulation, "derived_settings": system.derived_settings,
-            "derived_version": system.derived_version, "frames": frames}
+            "derived_version": system.derived_version, "frame_index": system.frame_index, "frames": frames}
 
 
 def _accepted_rows(session: Session) -> Iterator[list[Any]]:
@@ -173,14 +177,19 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     if session.scalar(select(Release.id).where(Release.name == name)) is not None:
         raise ConflictError(f"name: a release named {name!r} exists; releases are immutable, choose another name")
     settings = {t.system_id: {"status": _plain(t.status), "tau_px": t.tau_px, "rule": t.rule,
-                              "min_baseline_m": t.min_baseline_m}
+                              "min_baseline_m": t.min_baseline_m, "pairs": []}
                 for t in session.execute(select(Triangulation.system_id, Triangulation.status, Triangulation.tau_px,
                                                 Triangulation.rule, Triangulation.min_baseline_m))}
+    for p in session.execute(select(TriangulationPair.system_id, TriangulationPair.frame_a_id,
+                                    TriangulationPair.frame_b_id, TriangulationPair.kept)
+                             .order_by(TriangulationPair.system_id, TriangulationPair.id)):
+        if p.system_id in settings:
+            settings[p.system_id]["pairs"].append([p.frame_a_id, p.frame_b_id, bool(p.kept)])
     documents: dict[str, bytes] = {}
     systems: dict[int, tuple[int, str, str]] = {}
     views = 0
     system_rows = {s.id: s for s in session.execute(
-        select(System.id, System.kind, System.derived_settings, System.derived_version)
+        select(System.id, System.kind, System.derived_settings, System.derived_version, System.frame_index)
         .join(ReviewDecision, ReviewDecision.system_id == System.id)
         .where(ReviewDecision.status == ReviewStatus.ACCEPTED))}
     for rows in _accepted_rows(session):

@@ -22,12 +22,14 @@ from types import SimpleNamespace
 from typing import Any
 
 import orjson
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import (
     JAC_COLUMNS,
     CalibrationSource,
     CalibrationStatus,
+    Frame,
     FrameRole,
     Release,
     ReviewStatus,
@@ -51,6 +53,8 @@ RELEASE_FILE = "v3d-release.json"
 DOCUMENTS_FILE = "v3d-release/documents.jsonl"
 #: Games whose documents are read per query.
 _BATCH_GAMES = 25
+#: Systems whose documents (and stored frames, for their images) are read per query by the detector exports.
+_BATCH_SYSTEMS = 200
 
 
 def release_manifest(release: Release, content: ReleaseContent) -> dict[str, Any]:
@@ -167,11 +171,59 @@ def release_camera_views(session: Session, release: Release) -> list[CameraView]
     return out
 
 
+def _json(text: Any) -> Any:
+    """A document's stored JSON text as its value (None for SQL NULL or JSON null)."""
+    return None if text in (None, "null") else json_loads(text)
+
+
+def release_detector_systems(session: Session, release: Release, export: str) -> Iterator[SimpleNamespace]:
+    """The released systems the detector export ``export`` (``yolo``, ``coco``) writes, as stand-ins of stored
+    systems (what ``detector_export.views_of`` reads: game, kind, frames with their ball label, calibration,
+    optimised box, reprojection and release entry, the triangulation with its pairs), in (league, season, match,
+    system id) order. Each frame's ``image_source`` is the stored frame of that id (its image as imported), or an
+    empty stand-in when the frame is gone (the view is then counted without image)."""
+    content = release_content(session, release)
+    kinds = {k.value for k in kinds_exported_by(export)}
+    games = {g["game_id"]: SimpleNamespace(**g) for g in read_documents(session, content.games.values()).values()}
+    order = sorted(content.systems.items(), key=lambda kv: (
+        games[kv[1][0]].league, games[kv[1][0]].season, games[kv[1][0]].match, kv[0]))
+    no_image = SimpleNamespace(image_path=None, image_zip=None, image_member=None)
+    for start in range(0, len(order), _BATCH_SYSTEMS):
+        batch = order[start:start + _BATCH_SYSTEMS]
+        docs = read_documents(session, (d for _, (_, _, d) in batch))
+        wanted = [docs[d] for _, (_, _, d) in batch if docs[d]["kind"] in kinds]
+        ids = [f["frame_id"] for s in wanted for f in s["frames"]]
+        stored = {f.id: f for f in session.scalars(select(Frame).where(Frame.id.in_(ids)))} if ids else {}
+        for doc in wanted:
+            tri = doc["triangulation"]
+            system = SimpleNamespace(
+                id=doc["system_id"], name=doc["name"], kind=SystemKind(doc["kind"]), game=games[doc["game_id"]],
+                frame_index=doc.get("frame_index"),
+                triangulation=None if tri is None else SimpleNamespace(
+                    ball3d=_json(doc["ball3d"]),
+                    pairs=[SimpleNamespace(frame_a_id=a, frame_b_id=b, kept=k) for a, b, k in tri.get("pairs", [])]))
+            system.frames = [SimpleNamespace(
+                id=f["frame_id"], name=f["name"], width=f["width"], height=f["height"], split=f["frame_split"],
+                system=system, release=_json(f["release_json"]), image_source=stored.get(f["frame_id"], no_image),
+                ball_label=None if f["label_frame"] is None else SimpleNamespace(
+                    box=_json(f["ball_box"]), kind=f["ball_kind"]),
+                calibration=None if f["cal_source"] is None else SimpleNamespace(camera=_json(f["camera_json"])),
+                optimised_box=None if _json(f["opt_box"]) is None else SimpleNamespace(box=_json(f["opt_box"])),
+                reprojection=None if f["rep_error_px"] is None else SimpleNamespace(error_px=f["rep_error_px"]),
+            ) for f in doc["frames"]]
+            yield system
+
+
 def export_release_cameras(session: Session, release: Release, out_dir: Path) -> CamerasExport:
     """The cameras export of a release under ``out_dir`` (``cameras_export.write_camera_sets`` of
     :func:`release_camera_views`) with the files naming the release (:func:`release_files`) at its root."""
     report = write_camera_sets(out_dir, release_camera_views(session, release))
+    write_release_files(session, release, out_dir)
+    return report
+
+
+def write_release_files(session: Session, release: Release, out_dir: Path) -> None:
+    """:func:`release_files` written under ``out_dir`` (a tree export of the release)."""
     for name, data in release_files(session, release):
         (out_dir / name).parent.mkdir(parents=True, exist_ok=True)
         (out_dir / name).write_bytes(data)
-    return report

@@ -53,7 +53,7 @@ import json
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, Literal
+from typing import Any, Iterable, Iterator, Literal
 
 import numpy as np
 from sqlalchemy.orm import Session, selectinload
@@ -64,7 +64,7 @@ from app.geometry.ball import box_centre_and_diameter
 from app.geometry.camera import Camera
 from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.refined_box import refine_box
-from app.services.images.serving import ImageUnavailable, frame_image
+from app.services.images.serving import ImageUnavailable, frame_has_image, frame_image
 from app.services.kinds import kind_of
 from app.services.transfer.exporting import exported_systems
 
@@ -241,12 +241,25 @@ def iter_export_views(session: Session, export: Literal["yolo", "coco"], include
     Counts skipped views in ``report``.
     """
     query = exported_systems(export, include_all, *BALL_BOX_LOADS, selectinload(System.frames).undefer(Frame.release))
+    yield from views_of(session.scalars(query.execution_options(yield_per=_CHUNK)), report, ball_diameter_m, ball_box)
+
+
+def image_source(frame: Any) -> Frame:
+    """The stored frame whose image a view's file copies: the frame itself, or, for a view read from a release
+    (``app.services.releases.export``), the stored frame it names (``frame.image_source``)."""
+    return getattr(frame, "image_source", frame)
+
+
+def views_of(systems: Iterable[Any], report: DetectorExportReport, ball_diameter_m: float = BALL_DIAMETER_M,
+             ball_box: str = "refined") -> Iterator[ExportView]:
+    """The exported views of ``systems`` (stored systems with their game, frames, labels, calibrations and
+    triangulation loaded, or a release's stand-ins of them), in order (:func:`iter_export_views`)."""
     stems: set[str] = set()
-    for system in session.scalars(query.execution_options(yield_per=_CHUNK)):
+    for system in systems:
         game = system.game
         balls = ball_boxes(system, ball_diameter_m, ball_box)
         for frame in system.frames:
-            if not (frame.image_path or (frame.image_zip and frame.image_member)):
+            if not frame_has_image(image_source(frame)):
                 report.skipped_without_image += 1
                 continue
             ball, origin = balls.get(frame.id, (None, None))
@@ -282,7 +295,7 @@ def iter_export_views(session: Session, export: Literal["yolo", "coco"], include
 
 def _copy_image(frame: Frame, dest_without_ext: Path) -> Path | None:
     try:
-        img = frame_image(frame)
+        img = frame_image(image_source(frame))
     except ImageUnavailable:
         return None
     ext = ".jpg" if img.media_type == "image/jpeg" else ".png"  # the type checked from its header, not its name
@@ -326,23 +339,29 @@ def manifest_row(view: ExportView, file: str, split: str) -> dict[str, Any]:
             "reprojection_error_px": rep.error_px if rep is not None else None}
 
 
-def write_manifest(out: Path, rows: list[dict[str, Any]], fmt: str) -> None:
-    """``manifest.csv`` and ``manifest.json`` (``{"format", "columns", "images"}``) at the export's root, one row per
-    image written, by file name. CSV cells a spreadsheet would run as a formula are escaped."""
+def write_manifest(out: Path, rows: list[dict[str, Any]], fmt: str, release: dict[str, str] | None = None) -> None:
+    """``manifest.csv`` and ``manifest.json`` (``{"format", "columns", "images"}``, and ``release``: ``{"name",
+    "hash"}`` of the release exported, when one is) at the export's root, one row per image written, by file name.
+    CSV cells a spreadsheet would run as a formula are escaped."""
     rows = sorted(rows, key=lambda r: r["file"])
     with (out / "manifest.csv").open("w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(MANIFEST_COLUMNS)
         writer.writerows(inert_row("" if r[c] is None else repr(r[c]) if isinstance(r[c], float) else str(r[c])
                                    for c in MANIFEST_COLUMNS) for r in rows)
-    (out / "manifest.json").write_text(json.dumps({"format": fmt, "columns": list(MANIFEST_COLUMNS), "images": rows},
-                                                  sort_keys=True, indent=1))
+    doc: dict[str, Any] = {"format": fmt, "columns": list(MANIFEST_COLUMNS), "images": rows}
+    if release is not None:
+        doc["release"] = dict(release)
+    (out / "manifest.json").write_text(json.dumps(doc, sort_keys=True, indent=1))
 
 
 def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False,
-                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined") -> DetectorExportReport:
+                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined", *,
+                systems: Iterable[Any] | None = None, release: dict[str, str] | None = None) -> DetectorExportReport:
     """Write the Ultralytics YOLO layout under ``out_dir`` (module docstring); existing files of the
-    same names are overwritten.
+    same names are overwritten. ``systems``: the systems to write instead of the database's (a release's stand-ins,
+    ``app.services.releases.export.release_detector_systems``); ``release``: ``{"name", "hash"}`` of that release,
+    named in ``data.yaml`` and ``manifest.json``.
 
     Returns:
         A :class:`DetectorExportReport` (images and boxes per split, skipped views).
@@ -353,7 +372,9 @@ def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False
         (out / "images" / split).mkdir(parents=True, exist_ok=True)
         (out / "labels" / split).mkdir(parents=True, exist_ok=True)
     manifest = []
-    for view in iter_export_views(session, "yolo", include_all, report, ball_diameter_m, ball_box):
+    views = (views_of(systems, report, ball_diameter_m, ball_box) if systems is not None
+             else iter_export_views(session, "yolo", include_all, report, ball_diameter_m, ball_box))
+    for view in views:
         split = yolo_split(view)
         dest = _copy_image(view.frame, out / "images" / split / view.stem)
         if dest is None:
@@ -365,8 +386,9 @@ def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False
         (out / "labels" / split / f"{view.stem}.txt").write_text("".join(s + "\n" for s in lines))
         _count(report, view, split)
         manifest.append(manifest_row(view, dest.relative_to(out).as_posix(), split))
-    (out / "data.yaml").write_text(yolo_data_yaml(report))
-    write_manifest(out, manifest, "yolo")
+    named = f"# release {release['name']} (hash {release['hash']})\n" if release else ""
+    (out / "data.yaml").write_text(named + yolo_data_yaml(report))
+    write_manifest(out, manifest, "yolo", release)
     return report
 
 
@@ -390,8 +412,10 @@ def yolo_data_yaml(report: DetectorExportReport) -> str:
 
 
 def export_coco(session: Session, out_dir: str | Path, include_all: bool = False,
-                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined") -> DetectorExportReport:
-    """Write the COCO layout under ``out_dir``: per split the images and ``instances.json``.
+                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined", *,
+                systems: Iterable[Any] | None = None, release: dict[str, str] | None = None) -> DetectorExportReport:
+    """Write the COCO layout under ``out_dir``: per split the images and ``instances.json``. ``systems`` and
+    ``release`` as :func:`export_yolo` (the release named in each ``info`` and in ``manifest.json``).
 
     COCO image ids are :func:`coco_image_id` of the view's stem; category ids are the class ids + 1.
 
@@ -405,7 +429,9 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
     for split in SPLITS:
         (out / split).mkdir(parents=True, exist_ok=True)
     manifest = []
-    for view in iter_export_views(session, "coco", include_all, report, ball_diameter_m, ball_box):
+    views = (views_of(systems, report, ball_diameter_m, ball_box) if systems is not None
+             else iter_export_views(session, "coco", include_all, report, ball_diameter_m, ball_box))
+    for view in views:
         image_id = coco_image_id(view.stem)
         if ids.setdefault(image_id, view.stem) != view.stem:
             raise RuntimeError(f"views {ids[image_id]!r} and {view.stem!r} share the COCO image id {image_id}")
@@ -427,13 +453,24 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
                   for i, n in enumerate(CLASSES)]
     for split, doc in docs.items():
         (out / split / "instances.json").write_text(json.dumps(
-            {"info": {"description": f"v3d export ({split})"}, "licenses": [], "categories": categories, **doc}))
-    write_manifest(out, manifest, "coco")
+            {"info": _coco_info(split, release), "licenses": [], "categories": categories, **doc}))
+    write_manifest(out, manifest, "coco", release)
     return report
+
+
+def _coco_info(split: str, release: dict[str, str] | None) -> dict[str, Any]:
+    """A COCO file's ``info``: what it is and, from a release, the release (``version`` its name, ``v3d_release``
+    its name and hash)."""
+    if release is None:
+        return {"description": f"v3d export ({split})"}
+    return {"description": f"v3d export ({split}) of release {release['name']}", "version": release["name"],
+            "v3d_release": dict(release)}
 
 
 def export_detector(session: Session, fmt: Literal["yolo", "coco"], out_dir: str | Path,
                     include_all: bool = False, ball_diameter_m: float = BALL_DIAMETER_M,
-                    ball_box: str = "refined") -> DetectorExportReport:
+                    ball_box: str = "refined", *, systems: Iterable[Any] | None = None,
+                    release: dict[str, str] | None = None) -> DetectorExportReport:
     """:func:`export_yolo` or :func:`export_coco` by name (``ball_box``: ``Settings.export_ball_box``)."""
-    return (export_yolo if fmt == "yolo" else export_coco)(session, out_dir, include_all, ball_diameter_m, ball_box)
+    return (export_yolo if fmt == "yolo" else export_coco)(session, out_dir, include_all, ball_diameter_m, ball_box,
+                                                           systems=systems, release=release)

@@ -95,7 +95,7 @@ def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool
                                         f"{', '.join(RELEASE_EXPORTS)} are", field="release")
             shutil.rmtree(work, ignore_errors=True)
             work.mkdir(parents=True)
-            report = export.release_tree(session, work, release)
+            report = export.release_tree(session, work, release, settings)
             zip_tree(work, part, progress)
         else:
             shutil.rmtree(work, ignore_errors=True)

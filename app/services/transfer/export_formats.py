@@ -24,7 +24,12 @@ from app.core.config import Settings
 from app.services.issia.export import export_issia3d
 from app.services.jobs.progress import Progress
 from app.services.releases.content import get_release
-from app.services.releases.export import ReleaseSource, export_release_cameras
+from app.services.releases.export import (
+    ReleaseSource,
+    export_release_cameras,
+    release_detector_systems,
+    write_release_files,
+)
 from app.services.transfer.cameras_export import export_cameras
 from app.services.transfer.detector_export import export_detector
 from app.services.transfer.export_zip import stream_soccernet_v3d_zip
@@ -33,8 +38,9 @@ from app.services.transfer.exporting import export_size
 #: ``write(session, out, include_all, settings)``: the export written as a tree under the folder ``out`` (created);
 #: answers its counts (JSON-able, no server path).
 TreeWriter = Callable[[Session, Path, bool, Settings], dict[str, Any]]
-#: ``release_tree(session, out, release name)``: the export of a release written as a tree under ``out``; its counts.
-ReleaseTreeWriter = Callable[[Session, Path, str], dict[str, Any]]
+#: ``release_tree(session, out, release name, settings)``: the export of a release written as a tree under ``out``;
+#: its counts.
+ReleaseTreeWriter = Callable[[Session, Path, str, Settings], dict[str, Any]]
 #: ``stream(session, out, include_all, options, progress)``: the export written as a zip into the open binary file
 #: ``out`` while the database is read; answers its counts.
 ZipStreamer = Callable[[Session, BinaryIO, bool, Mapping[str, Any], "Progress | None"], dict[str, Any]]
@@ -167,7 +173,7 @@ def _soccernet_v3d(session: Session, out: BinaryIO, include_all: bool, options: 
     return {"systems": systems, "rows": rows}
 
 
-def _release_cameras(session: Session, out: Path, name: str) -> dict[str, Any]:
+def _release_cameras(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
     release = get_release(session, name)
     report = export_release_cameras(session, release, out).as_dict()
     return {**report, "release": release.name, "hash": release.hash}
@@ -180,6 +186,18 @@ def _issia_3d(session: Session, out: Path, include_all: bool, settings: Settings
 
 def _cameras(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
     return export_cameras(session, out, include_all=include_all).as_dict()
+
+
+def _release_detector(fmt: Literal["yolo", "coco"]) -> ReleaseTreeWriter:
+    def write(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
+        release = get_release(session, name)
+        marker = {"name": release.name, "hash": release.hash}
+        report = export_detector(session, fmt, out, False, settings.ball_diameter_m, settings.export_ball_box,
+                                 systems=release_detector_systems(session, release, fmt), release=marker).as_dict()
+        report.pop("out_dir", None)  # a server folder: no export names one
+        write_release_files(session, release, out)
+        return {**report, "release": release.name, "hash": release.hash}
+    return write
 
 
 def _detector(fmt: Literal["yolo", "coco"]) -> TreeWriter:
@@ -222,13 +240,13 @@ register_export_format(ExportFormat(
     "from train, seeded), and manifest.csv/json joining each image back to its game, frame and 3D ball.",
     (ExportChoice("yolo", "YOLO", "Ultralytics layout: images/, labels/, data.yaml (relocatable: no path key)",
                   "v3d-yolo.zip"),),
-    tree=_detector("yolo")))
+    tree=_detector("yolo"), release_tree=_release_detector("yolo")))
 register_export_format(ExportFormat(
     "coco",
     "Images and a COCO instances JSON per split (the ball is category 1: refined, else optimised box), and "
     "manifest.csv/json joining each image back to its game, frame and 3D ball.",
     (ExportChoice("coco", "COCO", "per split: the images and instances.json", "v3d-coco.zip"),),
-    tree=_detector("coco")))
+    tree=_detector("coco"), release_tree=_release_detector("coco")))
 
 
 #: The formats an export job writes from a release (``{"release": name}``); the others answer 422 naming

@@ -124,7 +124,7 @@ def test_release_exports_refuse_all_and_formats_not_made_from_one(client: TestCl
     assert client.post("/api/exports/soccernet-v3d", json={"release": "nope"}).status_code == 404
     assert client.get("/api/exports/soccernet-v3d", params={"release": "nope"}).status_code == 404
     assert client.get("/api/exports/soccernet-v3d", params={"release": "r", "all": "true"}).status_code == 422
-    other = client.post("/api/exports/yolo", json={"release": "r"})
+    other = client.post("/api/exports/issia-3d", json={"release": "r"})
     assert other.status_code == 422 and other.json()["field"] == "release"
     assert client.post("/api/releases", json={"name": " r "}).status_code == 422
 

@@ -145,3 +145,43 @@ def _decline(session: Session, system_id: int) -> None:
     assert system is not None and system.review is not None
     system.review.status = system.review_status = ReviewStatus.REJECTED
     session.commit()
+
+
+def test_yolo_and_coco_of_a_release_are_the_live_ones_then_naming_it_and_stay_the_same(tmp_path: Path) -> None:
+    url, settings, session, ids = _database(tmp_path)
+    release = create_release(session, "v1")
+    marker = {"name": "v1", "hash": release.hash}
+    for fmt in ("yolo", "coco"):
+        write_export_zip(session, fmt, tmp_path / f"{fmt}-live.zip", False, settings)
+        made = write_export_zip(session, fmt, tmp_path / f"{fmt}-r1.zip", False, settings, release="v1")
+        assert made["hash"] == release.hash and sum(made["images"].values()) == 6  # two views with an image each
+        live = _members((tmp_path / f"{fmt}-live.zip").read_bytes())
+        ours = _members((tmp_path / f"{fmt}-r1.zip").read_bytes())
+        for name in ("v3d-release.json", "v3d-release/", "v3d-release/documents.jsonl"):
+            ours.pop(name)
+        manifest = json.loads(ours.pop("manifest.json"))
+        assert manifest.pop("release") == marker and manifest == json.loads(live.pop("manifest.json"))
+        if fmt == "yolo":
+            named, rest = ours.pop("data.yaml").decode().split("\n", 1)
+            assert named == f"# release v1 (hash {release.hash})" and rest == live.pop("data.yaml").decode()
+        else:
+            for split in ("train", "test"):
+                a, b = json.loads(ours.pop(f"{split}/instances.json")), json.loads(live.pop(f"{split}/instances.json"))
+                assert a.pop("info")["v3d_release"] == marker
+                b.pop("info")
+                assert a == b
+        assert ours == live  # the same images and labels as the database had then
+    # a later move and a rejection change the database, not the release's exports
+    label = session.scalars(sa.select(BallLabel).join(BallLabel.frame)
+                            .where(sa.text("frames.system_id = :s")).params(s=ids[0])).first()
+    assert label is not None and label.box is not None
+    label.box = [label.box[0] + 4, label.box[1], label.box[2] + 4, label.box[3]]
+    system = session.get(System, ids[0])
+    assert system is not None
+    recompute_system(session, system, settings)
+    session.commit()
+    _decline(session, ids[1])
+    for fmt in ("yolo", "coco"):
+        write_export_zip(session, fmt, tmp_path / f"{fmt}-r2.zip", False, settings, release="v1")
+        assert (tmp_path / f"{fmt}-r2.zip").read_bytes() == (tmp_path / f"{fmt}-r1.zip").read_bytes()
+    session.close()
