@@ -293,7 +293,7 @@ def export_soccernet_v3d_cmd(
             raise typer.Exit(code=2)
         try:
             with database_session(settings) as session:
-                written = _release_tree(session, settings, out_dir, release, not no_images)
+                written = release_tree(session, settings, out_dir, release, not no_images)
         except (InvalidInputError, ImageUnavailable, NotFoundError) as exc:
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(code=2) from None
@@ -314,7 +314,7 @@ def export_soccernet_v3d_cmd(
                f"and {report.images} image(s) to {report.out_dir} ({report.csv_path.name})")
 
 
-def _release_tree(session: Any, settings: Settings, out_dir: Path, release: str, images: bool,
+def release_tree(session: Any, settings: Settings, out_dir: Path, release: str, images: bool,
                   fmt: str = "soccernet-v3d") -> dict[str, Any]:
     """The release's export ``fmt`` as a zip (as an export job writes it) unpacked under ``out_dir``; its counts."""
     import tempfile
@@ -351,7 +351,7 @@ def export_cameras_cmd(
             raise typer.Exit(code=2)
         try:
             with database_session(settings) as session:
-                written = _release_tree(session, settings, out_dir, release, False, "cameras")
+                written = release_tree(session, settings, out_dir, release, False, "cameras")
         except (InvalidInputError, NotFoundError) as exc:
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(code=2) from None

@@ -70,3 +70,8 @@ def test_release_commands(tmp_path: Path) -> None:
     index = json.loads((tmp_path / "cams" / "cameras.json").read_text())
     assert sum(len(s["views"]) for s in index["sets"]) == 6
     assert json.loads((tmp_path / "cams" / "v3d-release.json").read_text())["hash"] == v1["hash"]
+    import app.cli.detectors  # noqa: F401  # registers v3d export yolo|coco
+    yolo = runner.invoke(cli, ["export", "yolo", str(tmp_path / "yolo"), "--release", "v1", *db])
+    assert yolo.exit_code == 0 and "train: " in yolo.output, yolo.output
+    assert json.loads((tmp_path / "yolo" / "manifest.json").read_text())["release"] == {"name": "v1",
+                                                                                         "hash": v1["hash"]}
