@@ -113,6 +113,12 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
     systems = load_sequence(session, game_id)
     if not include_all:
         systems = [s for s in systems if s.review is not None and s.review.status is ReviewStatus.ACCEPTED]
+    return rows_of(systems)
+
+
+def rows_of(systems: list[Any]) -> list:
+    """The ``ISSIA-3D.csv`` rows of a sequence's systems in frame order (stored ones with their frames, labels,
+    calibrations and trajectory points, or a release's stand-ins of them: ``app.services.releases.export``)."""
     systems = [s for s in systems if s.frame_index is not None]
     if not systems:
         return []
@@ -137,7 +143,7 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
             cid = ids[col[f.name]]
             cal = f.calibration
             if cid not in cameras and cal is not None and cal.admitted and cal.camera is not None:
-                cameras[cid] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]  # checked just above: set
+                cameras[cid] = Camera.from_soccernet(cal.camera)
         tp = s.trajectory_point
         if tp is not None:
             if tp.ball3d is not None:
@@ -150,6 +156,25 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
                         frames=tuple(indices), points=points)
     fit = _StoredFit(ball, smooth, tuple(sources), tuple(cam_lists))
     return issia3d_rows(seq, cameras, fit)
+
+
+def write_sequence(folder: Path, rows: list, cameras: dict[str, dict[str, Any]], report: Issia3DExport) -> None:
+    """One sequence's folder of the export (module docstring): ``ISSIA-3D.csv`` of ``rows``, ``split.json``, and the
+    ``cameras`` (view name ``cam<k>`` -> SoccerNet camera) as ``calibration/cam<k>.json`` and
+    ``issia_calibration.json``; counts the calibrations in ``report``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    write_issia3d_csv(folder / CSV_NAME, rows)
+    split = {"by": "camera", "train": sorted(int(c) for c, v in CAMERA_SET.items() if v == "train"),
+             "test": sorted(int(c) for c, v in CAMERA_SET.items() if v == "test"),
+             "columns": "x_camK, y_camK, err_camK, opt_d_camK, opt_e_camK of camera K"}
+    (folder / SPLIT_NAME).write_text(json.dumps(split, indent=1) + "\n")
+    for name, camera in cameras.items():
+        (folder / CALIBRATION_DIR).mkdir(exist_ok=True)
+        (folder / CALIBRATION_DIR / f"{name}.json").write_text(json.dumps(camera, indent=1) + "\n")
+        report.calibrations += 1
+    if cameras:  # what the importer reads (app.datasets.issia.CALIBRATION_FILE): the export imports again
+        (folder / CALIBRATION_FILE).write_text(json.dumps(
+            {_cam_id(name): camera for name, camera in cameras.items()}, indent=1, sort_keys=True) + "\n")
 
 
 @dataclass(frozen=True)
@@ -175,22 +200,8 @@ def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = Fa
         rows = sequence_rows(session, game.id, include_all)
         if not rows:
             continue
-        folder = out / game.match
-        folder.mkdir(parents=True, exist_ok=True)
-        write_issia3d_csv(folder / CSV_NAME, rows)
-        split = {"by": "camera", "train": sorted(int(c) for c, v in CAMERA_SET.items() if v == "train"),
-                 "test": sorted(int(c) for c, v in CAMERA_SET.items() if v == "test"),
-                 "columns": "x_camK, y_camK, err_camK, opt_d_camK, opt_e_camK of camera K"}
-        (folder / SPLIT_NAME).write_text(json.dumps(split, indent=1) + "\n")
-        cameras = sequence_calibrations(session, game.id)
-        for name, camera in cameras.items():
-            (folder / CALIBRATION_DIR).mkdir(exist_ok=True)
-            (folder / CALIBRATION_DIR / f"{name}.json").write_text(json.dumps(camera, indent=1) + "\n")
-            report.calibrations += 1
-        if cameras:  # what the importer reads (app.datasets.issia.CALIBRATION_FILE): the export imports again
-            (folder / CALIBRATION_FILE).write_text(json.dumps(
-                {_cam_id(name): camera for name, camera in cameras.items()}, indent=1, sort_keys=True) + "\n")
+        write_sequence(out / game.match, rows, sequence_calibrations(session, game.id), report)
         report.sequences += 1
         report.rows += len(rows)
-        report.csv_paths.append(folder / CSV_NAME)
+        report.csv_paths.append(out / game.match / CSV_NAME)
     return report

@@ -17,7 +17,8 @@ UTF-8), each stored once in ``release_documents`` under its SHA-256 (``app.db.ty
   ``derived_version``, ``frame_index`` (ISSIA), and ``frames``: per frame, in order,
   the export row of ``app.services.transfer.exporting.frame_row_select`` (labels, field lines, calibration, JaC,
   optimised box, reprojection error; JSON values as their stored text, enums by value) with the view's decisions
-  (``view_status``, ``view_calibration_status``, ``excluded``).
+  (``view_status``, ``view_calibration_status``, ``excluded``); an ISSIA frame's ``trajectory`` (its point on the
+  sequence's fitted trajectory: ``ball3d``, ``ball3d_smoothed``, ``source``, ``cam_list``).
 
 The release's **hash** (:func:`release_hash`) is the SHA-256 (hex) of the UTF-8 text made of one line per document,
 ``game <game_id> <digest>\\n`` for every game in increasing id, then ``system <system_id> <digest>\\n`` for every
@@ -50,6 +51,7 @@ from app.db.models import (
     ReviewDecision,
     ReviewStatus,
     System,
+    TrajectoryPoint,
     Triangulation,
     TriangulationPair,
 )
@@ -180,6 +182,11 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
                               "min_baseline_m": t.min_baseline_m, "pairs": []}
                 for t in session.execute(select(Triangulation.system_id, Triangulation.status, Triangulation.tau_px,
                                                 Triangulation.rule, Triangulation.min_baseline_m))}
+    trajectory = {t.system_id: {"ball3d": t.ball3d, "ball3d_smoothed": t.ball3d_smoothed, "source": t.source,
+                                "cam_list": list(t.cam_list or [])}
+                  for t in session.execute(select(TrajectoryPoint.system_id, TrajectoryPoint.ball3d,
+                                                  TrajectoryPoint.ball3d_smoothed, TrajectoryPoint.source,
+                                                  TrajectoryPoint.cam_list))}
     for p in session.execute(select(TriangulationPair.system_id, TriangulationPair.frame_a_id,
                                     TriangulationPair.frame_b_id, TriangulationPair.kept)
                              .order_by(TriangulationPair.system_id, TriangulationPair.id)):
@@ -194,7 +201,10 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
         .where(ReviewDecision.status == ReviewStatus.ACCEPTED))}
     for rows in _accepted_rows(session):
         sid = rows[0].system_id
-        canonical = canonical_json(system_document(rows, settings.get(sid), system_rows[sid]))
+        document = system_document(rows, settings.get(sid), system_rows[sid])
+        if sid in trajectory:  # an ISSIA frame: its place on the sequence's fitted trajectory
+            document["trajectory"] = trajectory[sid]
+        canonical = canonical_json(document)
         digest = json_digest(canonical)
         documents[digest] = canonical
         systems[sid] = (rows[0].game_id, rows[0].system_name, digest)

@@ -27,6 +27,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import (
     JAC_COLUMNS,
+    BallLabel,
     CalibrationSource,
     CalibrationStatus,
     Frame,
@@ -36,6 +37,7 @@ from app.db.models import (
     SystemKind,
 )
 from app.db.types import json_loads
+from app.services.issia.export import Issia3DExport, rows_of, write_sequence
 from app.services.kinds import POLICIES, kinds_exported_by
 from app.services.releases.content import (
     ReleaseContent,
@@ -177,11 +179,12 @@ def _json(text: Any) -> Any:
 
 
 def release_detector_systems(session: Session, release: Release, export: str) -> Iterator[SimpleNamespace]:
-    """The released systems the detector export ``export`` (``yolo``, ``coco``) writes, as stand-ins of stored
-    systems (what ``detector_export.views_of`` reads: game, kind, frames with their ball label, calibration,
-    optimised box, reprojection and release entry, the triangulation with its pairs), in (league, season, match,
-    system id) order. Each frame's ``image_source`` is the stored frame of that id (its image as imported), or an
-    empty stand-in when the frame is gone (the view is then counted without image)."""
+    """The released systems the export ``export`` (``yolo``, ``coco``, ``issia-3d``) writes, as stand-ins of stored
+    systems (what ``detector_export.views_of`` and ``issia.export.rows_of`` read: game, kind, frame index, frames with
+    their ball label, calibration, optimised box, reprojection and release entry, the triangulation with its pairs,
+    the trajectory point), in (league, season, match, system id) order. Each frame's ``image_source`` is the stored
+    frame of that id (its image as imported), or an empty stand-in when the frame is gone (the view is then counted
+    without image)."""
     content = release_content(session, release)
     kinds = {k.value for k in kinds_exported_by(export)}
     games = {g["game_id"]: SimpleNamespace(**g) for g in read_documents(session, content.games.values()).values()}
@@ -206,12 +209,43 @@ def release_detector_systems(session: Session, release: Release, export: str) ->
                 id=f["frame_id"], name=f["name"], width=f["width"], height=f["height"], split=f["frame_split"],
                 system=system, release=_json(f["release_json"]), image_source=stored.get(f["frame_id"], no_image),
                 ball_label=None if f["label_frame"] is None else SimpleNamespace(
-                    box=_json(f["ball_box"]), kind=f["ball_kind"]),
-                calibration=None if f["cal_source"] is None else SimpleNamespace(camera=_json(f["camera_json"])),
+                    box=_json(f["ball_box"]), kind=f["ball_kind"],
+                    centre=BallLabel.centre_of(_json(f["ball_box"]), _json(f["ball_point"]))),
+                calibration=None if f["cal_source"] is None else SimpleNamespace(
+                    camera=_json(f["camera_json"]), admitted=bool(f["admitted"])),
                 optimised_box=None if _json(f["opt_box"]) is None else SimpleNamespace(box=_json(f["opt_box"])),
                 reprojection=None if f["rep_error_px"] is None else SimpleNamespace(error_px=f["rep_error_px"]),
-            ) for f in doc["frames"]]
+                position=position,
+            ) for position, f in enumerate(doc["frames"])]
+            trajectory = doc.get("trajectory")
+            system.trajectory_point = None if trajectory is None else SimpleNamespace(**trajectory)
             yield system
+
+
+def export_release_issia3d(session: Session, release: Release, out_dir: Path) -> Issia3DExport:
+    """The ISSIA-3D export of a release under ``out_dir`` (``app.services.issia.export``: per sequence
+    ``ISSIA-3D.csv`` of the released frames, ``split.json`` and the cameras, each camera the admitted one of its view
+    at the first released frame index that has one) with the files naming the release (:func:`release_files`)."""
+    report = Issia3DExport(out_dir)
+    per_game: dict[int, list[SimpleNamespace]] = {}
+    for system in release_detector_systems(session, release, "issia-3d"):
+        per_game.setdefault(system.game.game_id, []).append(system)
+    for systems in sorted(per_game.values(), key=lambda ss: (ss[0].game.match, ss[0].game.game_id)):
+        systems.sort(key=lambda s: (s.frame_index is None, s.frame_index or 0, s.id))
+        rows = rows_of(systems)
+        if not rows:
+            continue
+        cameras: dict[str, Any] = {}
+        for s in systems:
+            for f in s.frames:
+                if f.calibration is not None and f.calibration.admitted and f.calibration.camera is not None:
+                    cameras.setdefault(f.name, f.calibration.camera)
+        write_sequence(out_dir / safe_component(systems[0].game.match, "match"), rows, dict(sorted(cameras.items())),
+                       report)
+        report.sequences += 1
+        report.rows += len(rows)
+    write_release_files(session, release, out_dir)
+    return report
 
 
 def export_release_cameras(session: Session, release: Release, out_dir: Path) -> CamerasExport:

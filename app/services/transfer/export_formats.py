@@ -27,6 +27,7 @@ from app.services.releases.content import get_release
 from app.services.releases.export import (
     ReleaseSource,
     export_release_cameras,
+    export_release_issia3d,
     release_detector_systems,
     write_release_files,
 )
@@ -188,6 +189,13 @@ def _cameras(session: Session, out: Path, include_all: bool, settings: Settings)
     return export_cameras(session, out, include_all=include_all).as_dict()
 
 
+def _release_issia3d(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
+    release = get_release(session, name)
+    r = export_release_issia3d(session, release, out)
+    return {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations, "release": release.name,
+            "hash": release.hash}
+
+
 def _release_detector(fmt: Literal["yolo", "coco"]) -> ReleaseTreeWriter:
     def write(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
         release = get_release(session, name)
@@ -225,7 +233,7 @@ register_export_format(ExportFormat(
     "ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test; calibration/cam<k>.json).",
     (ExportChoice("issia-3d", "ISSIA-3D", "per ISSIA sequence: ISSIA-3D.csv, split.json and the cameras",
                   "issia-3d.zip"),),
-    tree=_issia_3d))
+    tree=_issia_3d, release_tree=_release_issia3d))
 register_export_format(ExportFormat(
     "cameras",
     "The admitted cameras of SoccerNet-v3 and single-view (SoccerNet-calibration) frames as SoccerNet's calibration "

@@ -2,7 +2,7 @@
 for an annotator, 409 for a taken name; ``v1.0`` exported as a job names the release and its hash; a ball moved and
 accepted again, one rejected, one more accepted, ``v1.1``; the diff names exactly the one added, the one removed
 and the moved one with how far its 3D ball moved; ``v1.0`` exported again is byte for byte the first export; both
-listed), the CSV diff, and the refusals of an export's ``release`` beside ``all`` or of a format not made from one.
+listed), the CSV diff, and the refusals of an export's ``release`` beside ``all`` or naming no release.
 """
 from __future__ import annotations
 
@@ -115,7 +115,7 @@ def test_the_release_scenario_end_to_end(app, client: TestClient, six: list[Scen
     assert any(s.startswith("release v1.0 made: 5 systems, 15 views") for s in summaries)
 
 
-def test_release_exports_refuse_all_and_formats_not_made_from_one(client: TestClient, scene: Scene, act_as) -> None:
+def test_release_exports_refuse_all_and_unknown_releases(client: TestClient, scene: Scene, act_as) -> None:
     act_as("adam", "admin")
     _accept(client, scene.system_id)
     assert client.post("/api/releases", json={"name": "r"}).status_code == 201
@@ -124,8 +124,9 @@ def test_release_exports_refuse_all_and_formats_not_made_from_one(client: TestCl
     assert client.post("/api/exports/soccernet-v3d", json={"release": "nope"}).status_code == 404
     assert client.get("/api/exports/soccernet-v3d", params={"release": "nope"}).status_code == 404
     assert client.get("/api/exports/soccernet-v3d", params={"release": "r", "all": "true"}).status_code == 422
-    other = client.post("/api/exports/issia-3d", json={"release": "r"})
-    assert other.status_code == 422 and other.json()["field"] == "release"
+    for fmt in ("issia-3d", "cameras", "yolo", "coco"):  # every format takes a release
+        assert client.post(f"/api/exports/{fmt}", json={"release": "r"}).status_code == 202
+        assert client.post(f"/api/exports/{fmt}", json={"release": "r", "all": True}).status_code == 422
     assert client.post("/api/releases", json={"name": " r "}).status_code == 422
 
 

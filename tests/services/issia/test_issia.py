@@ -519,6 +519,40 @@ def test_the_issia3d_export_imports_into_a_fresh_database_as_it_left(db_session,
         assert state(fresh) == state(db_session) and len(state(fresh)) == 240
 
 
+def test_the_issia3d_export_of_a_release_is_the_live_one_then_and_stays_the_same(db_session, db_settings, stretch,
+                                                                                 tmp_path):
+    import os
+    import zipfile
+
+    from app.services.releases.content import create_release
+    from app.services.transfer.export_files import write_export_zip
+
+    def members(path: "os.PathLike[str]") -> dict[str, bytes]:
+        with zipfile.ZipFile(os.fspath(path)) as zf:
+            return {n: zf.read(n) for n in zf.namelist()}
+
+    import_issia(db_session, stretch, db_settings)
+    systems = _systems(db_session)
+    for i in range(0, 12):
+        decide_review(db_session, system_id=systems[i].id, status=ReviewStatus.ACCEPTED)
+    db_session.commit()
+    release = create_release(db_session, "issia-1")
+    write_export_zip(db_session, "issia-3d", tmp_path / "live.zip", False, db_settings)
+    made = write_export_zip(db_session, "issia-3d", tmp_path / "r1.zip", False, db_settings, release="issia-1")
+    assert (made["sequences"], made["rows"], made["hash"]) == (1, 12, release.hash)
+    ours, live = members(tmp_path / "r1.zip"), members(tmp_path / "live.zip")
+    for name in ("v3d-release.json", "v3d-release/", "v3d-release/documents.jsonl"):
+        ours.pop(name)
+    assert ours == live  # the same CSV, split and cameras as the database had then
+    frame = _view(systems[5], "cam4")
+    x, y = frame.ball_label.point
+    update_ball_label(db_session, frame.id, point=[x + 6.0, y], settings=db_settings)
+    write_export_zip(db_session, "issia-3d", tmp_path / "r2.zip", False, db_settings, release="issia-1")
+    assert (tmp_path / "r2.zip").read_bytes() == (tmp_path / "r1.zip").read_bytes()
+    write_export_zip(db_session, "issia-3d", tmp_path / "live2.zip", False, db_settings)
+    assert members(tmp_path / "live2.zip") != live
+
+
 def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and_split_per_camera(
         db_session, db_settings, shared_dir, tmp_path):
     """Issue 19: the SoccerNet-v3D export holds no ISSIA row; in the detector exports every ISSIA view has a
