@@ -11,7 +11,7 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path as FilePath
-from typing import TYPE_CHECKING, Annotated, Literal, Optional
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Optional
 
 from fastapi import APIRouter, Body, Depends, Path, Query, Request, status
 from fastapi.concurrency import run_in_threadpool
@@ -22,6 +22,7 @@ from app.api.auth import require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
+from app.api.schemas import INVALID, ErrorOut
 from app.core.errors import InvalidInputError
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
@@ -30,6 +31,10 @@ from app.services.releases.export import ReleaseSource
 from app.services.transfer import export_files, export_zip, exporting
 from app.services.transfer.export_formats import tree_export_names
 
+#: OpenAPI ``responses`` of the routes that take a release by name.
+NO_RELEASE: dict[int | str, dict[str, Any]] = {
+    404: {"model": ErrorOut, "description": "No release has the name given as ``release``."}}
+
 router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(require_role("admin"))])
 
 
@@ -37,7 +42,8 @@ router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(re
     "/soccernet-v3d",
     response_class=StreamingResponse,
     responses={200: {"content": {"application/zip": {}},
-                     "description": "Labels-v3D.json and Frames-v3.zip per game, and SNv3D.csv."}},
+                     "description": "Labels-v3D.json and Frames-v3.zip per game, and SNv3D.csv."},
+               **NO_RELEASE, **INVALID},
 )
 def export_soccernet_v3d(
     request: Request,
@@ -83,7 +89,8 @@ def export_soccernet_v3d(
     )
 
 
-@router.post("/soccernet-v3d", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+@router.post("/soccernet-v3d", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED,
+             responses={**NO_RELEASE, **INVALID})
 async def create_export_job(session: SessionDep,
                             body: Annotated[ExportJobIn, Body(default_factory=ExportJobIn)]) -> JSONResponse:
     """Queue the SoccerNet-v3D export as a background job: the zip (the same archive the ``GET`` streams)
@@ -107,7 +114,8 @@ else:
     TreeFormat = Literal[tree_export_names()]
 
 
-@router.post("/{export_format}", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+@router.post("/{export_format}", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED,
+             responses={**NO_RELEASE, **INVALID})
 async def create_tree_export_job(
     session: SessionDep,
     export_format: Annotated[TreeFormat, Path(description=f"{', '.join(tree_export_names())} (soccernet-v3d: above).")],
