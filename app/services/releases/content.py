@@ -38,6 +38,7 @@ from typing import Any, Optional
 
 import sqlalchemy as sa
 from sqlalchemy import select
+from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session, aliased, undefer
 
 from app.core.errors import ConflictError, InvalidInputError, found
@@ -144,8 +145,10 @@ def _store(session: Session, documents: dict[str, bytes]) -> int:
         some = digests[start:start + _CHUNK]
         stored.update(session.scalars(select(ReleaseDocument.digest).where(ReleaseDocument.digest.in_(some))))
     new = [{"digest": d, "body": compressed_json(documents[d])} for d in digests if d not in stored]
-    if new:
-        session.execute(sa.insert(ReleaseDocument), new)
+    if new:  # a release made at the same time may store one of them first: equal digests, equal bodies
+        dialect = session.get_bind().dialect.name
+        insert = (postgresql.insert if dialect == "postgresql" else sqlite.insert)(ReleaseDocument)
+        session.execute(insert.on_conflict_do_nothing(index_elements=["digest"]), new)
     return len(new)
 
 
@@ -225,7 +228,12 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     release = Release(name=name, note=note or "", created_at=utcnow(), created_by=actor, systems=len(systems),
                       views=views, hash=content.hash)
     session.add(release)
-    session.flush()
+    try:
+        session.flush()
+    except sa.exc.IntegrityError:  # the same name made by another request since the check above
+        session.rollback()
+        raise ConflictError(f"name: a release named {name!r} exists; releases are immutable, choose another "
+                            "name") from None
     if games:
         session.execute(sa.insert(ReleaseGame), [{"release_id": release.id, "game_id": gid, "digest": d}
                                                  for gid, d in games.items()])
