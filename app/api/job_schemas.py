@@ -74,18 +74,30 @@ class ImportUploadIn(BaseModel):
     merge: Optional[MergeMode] = Field(None, description=_MERGE)
 
 
-class ExportJobIn(_In):
+_RELEASE = ("The release to export (its accepted systems as they were when it was made) instead of the database "
+            "now: the same release exports byte for byte the same. Not with 'all' (422).")
+
+
+class _ExportIn(_In):
+    all: bool = Field(False, strict=True, description="Every system, not only the accepted ones.")
+    release: Optional[str] = Field(None, min_length=1, max_length=200, description=_RELEASE)
+
+    @model_validator(mode="after")
+    def _release_alone(self) -> "_ExportIn":
+        if self.all and self.release is not None:
+            raise ValueError("a release holds its accepted systems only: 'all' and 'release' exclude each other")
+        return self
+
+
+class ExportJobIn(_ExportIn):
     """An export to run as a background job."""
 
-    all: bool = Field(False, strict=True, description="Every system, not only the accepted ones.")
     images: bool = Field(True, strict=True, description="Each game's Frames-v3.zip (its images) beside its "
                                                        "Labels-v3D.json; false leaves them out.")
 
 
-class TreeExportJobIn(_In):
+class TreeExportJobIn(_ExportIn):
     """An export other than SoccerNet-v3D to run as a background job."""
-
-    all: bool = Field(False, strict=True, description="Every system, not only the accepted ones.")
 
 
 class JobOut(BaseModel):

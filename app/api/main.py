@@ -25,6 +25,7 @@ from app.api.routes import (
     jobs,
     passes,
     pitch,
+    releases,
     systems,
     users,
 )
@@ -41,6 +42,6 @@ _protected = APIRouter(dependencies=PROTECTED, responses={
                                             "Retry-After header's seconds."},
 })
 for _module in (auth, users, games, systems, assignments, frames, imports, exports, jobs, detectors, issia, audit,
-                pitch, passes):
+                pitch, passes, releases):
     _protected.include_router(_module.router)
 api_router.include_router(_protected)

@@ -275,13 +275,31 @@ def export_soccernet_v3d_cmd(
     include_all: Annotated[bool, typer.Option("--all", help="Export every system, not only accepted ones.")] = False,
     no_images: Annotated[bool, typer.Option("--no-images", help="Leave out each game's Frames-v3.zip "
                                                                 "(the images).")] = False,
+    release: Annotated[Optional[str], typer.Option("--release", help="Export this release (its accepted systems as "
+                                                   "they were when it was made) instead of the database now; the "
+                                                   "folder then holds the zip's files: the same every time.")] = None,
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export soccernet-v3d`` into ``out_dir`` (its help: the registry's description of the format)."""
+    from app.core.errors import NotFoundError
     from app.services.images.serving import ImageUnavailable
     from app.services.transfer.exporting import export_soccernet_v3d
 
     settings = cli_settings(database_url, None)
+    if release is not None:
+        if include_all:
+            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)",
+                       err=True)
+            raise typer.Exit(code=2)
+        try:
+            with database_session(settings) as session:
+                written = release_tree(session, settings, out_dir, release, not no_images)
+        except (InvalidInputError, ImageUnavailable, NotFoundError) as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(code=2) from None
+        typer.echo(f"exported release {release} ({written['hash']}): {written['systems']} system(s), "
+                   f"{written['views']} view(s) to {out_dir}")
+        return
     bars = _Bars()
     try:
         with database_session(settings) as session:
@@ -296,16 +314,49 @@ def export_soccernet_v3d_cmd(
                f"and {report.images} image(s) to {report.out_dir} ({report.csv_path.name})")
 
 
+def release_tree(session: Any, settings: Settings, out_dir: Path, release: str, images: bool,
+                  fmt: str = "soccernet-v3d") -> dict[str, Any]:
+    """The release's export ``fmt`` as a zip (as an export job writes it) unpacked under ``out_dir``; its counts."""
+    import tempfile
+    import zipfile
+
+    from app.services.transfer.export_files import write_export_zip
+
+    with tempfile.TemporaryDirectory(prefix="v3d-release-") as tmp:
+        target = Path(tmp) / "release.zip"
+        report = write_export_zip(session, fmt, target, False, settings, images=images, release=release)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with zipfile.ZipFile(target) as zf:
+            zf.extractall(out_dir)  # member names are checked folder names (exporting.safe_component)
+    return report
+
+
 @export_command("cameras")
 def export_cameras_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: Annotated[bool, typer.Option("--all", help="Export every system, not only accepted ones.")] = False,
+    release: Annotated[Optional[str], typer.Option("--release", help="Export this release's cameras instead of the "
+                                                   "database now (the same files every time).")] = None,
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export cameras`` into ``out_dir`` (its help: the registry's description of the format)."""
+    from app.core.errors import NotFoundError
     from app.services.transfer.cameras_export import export_cameras
 
     settings = cli_settings(database_url, None)
+    if release is not None:
+        if include_all:
+            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)",
+                       err=True)
+            raise typer.Exit(code=2)
+        try:
+            with database_session(settings) as session:
+                written = release_tree(session, settings, out_dir, release, False, "cameras")
+        except (InvalidInputError, NotFoundError) as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(code=2) from None
+        typer.echo(f"exported release {release} ({written['hash']}): {written['cameras']} camera(s) to {out_dir}")
+        return
     try:
         with database_session(settings) as session:
             report = export_cameras(session, out_dir, include_all=include_all)

@@ -11,19 +11,36 @@ from typing import Annotated, Optional
 import typer
 
 from app.cli._root import cli
-from app.cli.datasets import DatabaseOpt, cli_settings, database_session, export_command
+from app.cli.datasets import DatabaseOpt, cli_settings, database_session, export_command, release_tree
 from app.core.errors import InvalidInputError
 
 evaluate_cli = typer.Typer(help="Evaluate detectors against the curated labels.", no_args_is_help=True)
 cli.add_typer(evaluate_cli, name="evaluate")
 
 AllOpt = Annotated[bool, typer.Option("--all", help="Every system, not only the accepted ones.")]
+ReleaseOpt = Annotated[Optional[str], typer.Option("--release", help="Export this release instead of the database now "
+                                                   "(the same files every time).")]
 
 
-def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None) -> None:
+def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None, release: str | None = None) -> None:
+    from app.core.errors import NotFoundError
     from app.services.transfer.detector_export import export_detector
 
     settings = cli_settings(database_url, None)
+    if release is not None:
+        if include_all:
+            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)",
+                       err=True)
+            raise typer.Exit(code=2)
+        try:
+            with database_session(settings) as session:
+                written = release_tree(session, settings, out_dir, release, False, fmt)
+        except (InvalidInputError, NotFoundError) as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(code=2) from None
+        typer.echo(f"exported {fmt} of release {release} ({written['hash']}) to {out_dir}: "
+                   + ", ".join(f"{s}: {n} image(s)" for s, n in written["images"].items()))
+        return
     with database_session(settings) as session:
         report = export_detector(session, fmt, out_dir, include_all, settings.ball_diameter_m,  # type: ignore[arg-type]  # typer checked fmt against the two formats
                                  settings.export_ball_box)
@@ -43,20 +60,22 @@ def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None
 def export_yolo_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: AllOpt = False,
+    release: ReleaseOpt = None,
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export yolo`` into ``out_dir`` (its help: the registry's description of the format)."""
-    _export("yolo", out_dir, include_all, database_url)
+    _export("yolo", out_dir, include_all, database_url, release)
 
 
 @export_command("coco")
 def export_coco_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Destination folder (created if missing).")],
     include_all: AllOpt = False,
+    release: ReleaseOpt = None,
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export coco`` into ``out_dir`` (its help: the registry's description of the format)."""
-    _export("coco", out_dir, include_all, database_url)
+    _export("coco", out_dir, include_all, database_url, release)
 
 
 def _fmt(x: float | None, pattern: str) -> str:

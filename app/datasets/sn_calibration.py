@@ -130,6 +130,10 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
 
     The game is ``sn-calibration / <parent folder name> / <folder or zip stem>``.
 
+    A folder holding ``cameras.json`` (v3d's cameras export, ``app.services.transfer.cameras_export``) is read as that
+    export: each image size's ``<W>x<H>/ground_truth.zip`` (``<split>/<name>.json``) at the size its index names, one
+    system per view named ``<name>`` (:func:`_cameras_export_systems`), so the export imports again as downloaded.
+
     Raises:
         DatasetError: naming the file (``archive.zip!member`` inside zips) and the field.
     """
@@ -139,7 +143,9 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     if width is not None and (width <= 1 or height <= 1):  # type: ignore[operator]  # height is given when width is (checked above)
         raise DatasetError(root, "--width/--height", f"must be > 1, got {width}x{height}")
     systems = []
-    for stem, where, raw, image in frame_entries(root, max_pixels):
+    if root.is_dir() and (root / CAMERAS_INDEX).is_file() and width is None:
+        systems = list(_cameras_export_systems(root))
+    for stem, where, raw, image in frame_entries(root, max_pixels) if not systems else ():
         data = load_json_bytes(raw, where)
         header = image[0]() if image is not None else None
         img_src = {**image[1], "image_type": header.type} if image is not None and header is not None else {}
@@ -159,6 +165,48 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     if not systems:
         raise DatasetError(root, None, "no per-frame .json files found")
     return GameRecord(*sn_calibration_game(root), str(root.resolve()), systems)
+
+
+#: The index of v3d's cameras export (``app.services.transfer.cameras_export.INDEX``).
+CAMERAS_INDEX = "cameras.json"
+
+
+def _cameras_export_systems(root: Path) -> Iterator[SystemRecord]:
+    """The views of v3d's cameras export at ``root`` as single-view systems: per set of ``cameras.json``
+    (``{"sets": [{"width", "height", "ground_truth", ...}]}``), the members ``<split>/<name>.json`` of its
+    ``ground_truth.zip`` (field lines, normalised) at the set's size, named ``<name>``; every file read resolves
+    inside ``root``.
+
+    Raises:
+        DatasetError: an index that is not one, a set without a size or zip, a zip leading out of ``root``, a name
+            twice, field lines that do not parse (naming the file and field).
+    """
+    top = dataset_root(root)
+    index_path = inside_dataset(top, root / CAMERAS_INDEX, "cameras")
+    index = load_json_bytes(index_path.read_bytes(), str(index_path))
+    sets = index.get("sets") if isinstance(index, dict) else None
+    if not isinstance(sets, list):
+        raise DatasetError(index_path, "sets", "expected {\"sets\": [...]} (v3d's cameras export)")
+    seen: set[str] = set()
+    for i, entry in enumerate(sets):
+        try:
+            w, h, zip_name = int(entry["width"]), int(entry["height"]), str(entry["ground_truth"])
+        except (TypeError, KeyError, ValueError) as exc:
+            raise DatasetError(index_path, f"sets[{i}]", f"expected width, height and ground_truth: {exc}") from None
+        if w <= 1 or h <= 1:
+            raise DatasetError(index_path, f"sets[{i}]", f"image size must be > 1, got {w}x{h}")
+        zpath = inside_dataset(top, root / zip_name, f"sets[{i}].ground_truth")
+        for _, where, raw, _image in frame_entries(zpath):
+            name = PurePosixPath(where.rsplit("!", 1)[-1]).stem
+            if name in seen:
+                raise DatasetError(where, None, f"two views named {name!r}")
+            seen.add(name)
+            try:
+                lines = lines_to_json_lists(from_soccernet_calibration(load_json_bytes(raw, where), w, h))
+            except AnnotationError as exc:
+                raise DatasetError(where, str(exc), "invalid field line") from None
+            frame = FrameRecord(name=f"{name}.json", role=FrameRole.CAMERA, width=w, height=h, lines=lines)
+            yield SystemRecord(name=name, kind=SystemKind.SINGLE_VIEW, frames=[frame])
 
 
 def sn_calibration_game(path: str | Path) -> tuple[str, str, str]:

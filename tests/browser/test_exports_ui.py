@@ -80,7 +80,7 @@ def test_an_admin_downloads_every_export_from_the_queue_page(browser, server_url
         third.mkdir()
         monkeypatch.chdir(third)
         data = ultralytics_check_det_dataset("../unpacked/yolo/data.yaml", tmp_path / "datasets")
-        pairs = [p for k in ("train", "val") for p in ultralytics_images_and_labels(data[k])]
+        pairs = [p for k in ("train", "val", "test") for p in ultralytics_images_and_labels(data[k])]
         images = sorted(root.resolve().glob("images/*/*.*"))
         assert images and sorted(img for img, _ in pairs) == images and all(lbl.is_file() for _, lbl in pairs)
 

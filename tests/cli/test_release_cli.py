@@ -114,11 +114,11 @@ def test_yolo_and_coco_write_what_they_report_and_split_issia_by_camera(one_db, 
     players = sum(1 for d in sources.values() for s in ("actions", "replays") for item in d[s].values()
                   for b in item["bboxes"] if b["class"] != "Ball")
     yolo, said = _export(one_db, "yolo")
-    reported = {s: int(n) for s, n in re.findall(r"(train|test): (\d+) image", said)}
+    reported = {s: int(n) for s, n in re.findall(r"(train|val|test): (\d+) image", said)}
     counted: dict[str, int] = {}
-    issia_cams: dict[str, set[str]] = {"train": set(), "test": set()}
+    issia_cams: dict[str, set[str]] = {"train": set(), "val": set(), "test": set()}
     boxes_read = 0
-    for split in ("train", "test"):
+    for split in ("train", "val", "test"):  # val: drawn from train, per system
         images = sorted(p.stem for p in (yolo / "images" / split).iterdir())
         labels = sorted(p.stem for p in (yolo / "labels" / split).iterdir())
         assert images == labels and len(images) == len(set(images))
@@ -136,20 +136,21 @@ def test_yolo_and_coco_write_what_they_report_and_split_issia_by_camera(one_db, 
     assert counted["test"] > 0 and skipped < 48  # ISSIA views with an optimised box are written
     reported_boxes = sum(int(n) for n in re.findall(r"(\d+) (?:ball|other) box\(es\)", said))
     assert boxes_read == reported_boxes
-    assert issia_cams == {"test": {"cam1", "cam2"}, "train": {"cam3", "cam4", "cam5", "cam6"}}
+    assert issia_cams["test"] == {"cam1", "cam2"} and counted["val"] > 0
+    assert issia_cams["train"] | issia_cams["val"] == {"cam3", "cam4", "cam5", "cam6"}
     other_yolo = sum(1 for p in (yolo / "labels").rglob("*.txt") for line in p.read_text().splitlines()
                      if not line.startswith("0 "))
     assert other_yolo == players  # the player boxes come from the database, as imported
 
     coco, said = _export(one_db, "coco")
     reported_coco = {s: int(n) for s, n in re.findall(r"(train|test): (\d+) image", said)}
-    assert reported_coco == reported
+    assert reported_coco == {"train": reported["train"] + reported["val"], "test": reported["test"]}
     anns = 0
     for split in ("train", "test"):
         api = coco_api.COCO(str(coco / split / "instances.json"))
         names = [im["file_name"] for im in api.dataset["images"]]
         on_disk = sorted(p.name for p in (coco / split).iterdir() if p.name != "instances.json")
-        assert len(names) == len(set(names)) == reported[split] and sorted(names) == on_disk
+        assert len(names) == len(set(names)) == reported_coco[split] and sorted(names) == on_disk
         anns += len(api.getAnnIds())
     assert anns == boxes_read
 

@@ -19,6 +19,8 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
     AuditEntry                                         (append-only log of accepted writes; ids, no FKs)
         - AuditState                                   (a large before / after state, stored once by digest)
     Job                                                (a background import, full recompute or export)
+    Release -> ReleaseGame, ReleaseSystem              (a named, immutable snapshot of the accepted systems)
+        - ReleaseDocument                              (their content as canonical JSON, stored once by digest)
 
 Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
 world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
@@ -27,7 +29,7 @@ The schema is created by the Alembic migrations (``migrations/``), never by ``cr
 
 One module per domain: :mod:`~.base` (the registry), :mod:`~.enums`, :mod:`~.labels` (what a dataset brings),
 :mod:`~.derived` (what the recomputation derives), :mod:`~.review`, :mod:`~.accounts`, :mod:`~.operations`
-(audit log, jobs). Every model is importable from here; importing the package registers them all.
+(audit log, jobs), :mod:`~.releases`. Every model is importable from here; importing the package registers them all.
 """
 
 from app.db.models.accounts import ApiToken, RateLimitCounter, ServerSecret, User
@@ -46,6 +48,7 @@ from app.db.models.enums import (
 )
 from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, System, TrajectoryPoint
 from app.db.models.operations import AuditEntry, AuditState, Job
+from app.db.models.releases import Release, ReleaseDocument, ReleaseGame, ReleaseSystem
 from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
 
 __all__ = [
@@ -73,6 +76,10 @@ __all__ = [
     "OptimisedBox",
     "Triangulation",
     "TriangulationPair",
+    "Release",
+    "ReleaseDocument",
+    "ReleaseGame",
+    "ReleaseSystem",
     "ReviewDecision",
     "ReviewPass",
     "SystemPresence",

@@ -261,5 +261,8 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         counts = ", ".join(f"{after[k]} {k}" for k in ("games", "systems", "frames") if isinstance(after.get(k), int))
         source = after.get("source_name") or ""
         return f"{action}{f' of {source}' if source else ''}" + (f": {counts}" if counts else "")
+    if action == "release.create":
+        return (f"release {after.get('name', '')} made: {after.get('systems', 0)} systems, {after.get('views', 0)} "
+                f"views, hash {str(after.get('hash', ''))[:12]}")
     named = after.get("name") or after.get("user") or ""
     return f"{action.replace('.', ' ')}{f' {named}' if named else ''}"

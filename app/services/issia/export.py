@@ -11,7 +11,10 @@
   (``{"train": [3, 4, 5, 6], "test": [1, 2], "by": "camera"}``): a detector trained on ISSIA-3D reads
   the ``camK`` columns of its split. Beside them ``calibration/cam<k>.json``: each camera's calibration in the
   SoccerNet-calibration camera format (:func:`sequence_calibrations`), so that a user of the CSV can project
-  the ``ball_3D`` columns into the views. Accepted frames only unless ``include_all``.
+  the ``ball_3D`` columns into the views, and the same cameras as ``issia_calibration.json`` (camera id -> camera),
+  the file ``v3d import issia`` reads: a sequence's folder of the export is an ISSIA folder that imports again as
+  it left (its labels from ``ISSIA-3D.csv``, its cameras from that file). Accepted frames only unless
+  ``include_all``.
 """
 from __future__ import annotations
 
@@ -25,7 +28,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError, found
-from app.datasets.issia import ANNOTATION_SIZE, CAMERA_SET, IssiaSequence
+from app.datasets.issia import ANNOTATION_SIZE, CALIBRATION_FILE, CAMERA_SET, IssiaSequence
 from app.datasets.issia3d import issia3d_rows, write_issia3d_csv
 from app.db.models import Calibration, Frame, Game, ReviewStatus, System, SystemKind
 from app.geometry.camera import Camera
@@ -110,6 +113,12 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
     systems = load_sequence(session, game_id)
     if not include_all:
         systems = [s for s in systems if s.review is not None and s.review.status is ReviewStatus.ACCEPTED]
+    return rows_of(systems)
+
+
+def rows_of(systems: list[Any]) -> list:
+    """The ``ISSIA-3D.csv`` rows of a sequence's systems in frame order (stored ones with their frames, labels,
+    calibrations and trajectory points, or a release's stand-ins of them: ``app.services.releases.export``)."""
     systems = [s for s in systems if s.frame_index is not None]
     if not systems:
         return []
@@ -134,7 +143,7 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
             cid = ids[col[f.name]]
             cal = f.calibration
             if cid not in cameras and cal is not None and cal.admitted and cal.camera is not None:
-                cameras[cid] = Camera.from_soccernet(f.calibration.camera)  # type: ignore[union-attr,arg-type]  # checked just above: set
+                cameras[cid] = Camera.from_soccernet(cal.camera)
         tp = s.trajectory_point
         if tp is not None:
             if tp.ball3d is not None:
@@ -149,6 +158,25 @@ def sequence_rows(session: Session, game_id: int, include_all: bool = False) -> 
     return issia3d_rows(seq, cameras, fit)
 
 
+def write_sequence(folder: Path, rows: list, cameras: dict[str, dict[str, Any]], report: Issia3DExport) -> None:
+    """One sequence's folder of the export (module docstring): ``ISSIA-3D.csv`` of ``rows``, ``split.json``, and the
+    ``cameras`` (view name ``cam<k>`` -> SoccerNet camera) as ``calibration/cam<k>.json`` and
+    ``issia_calibration.json``; counts the calibrations in ``report``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    write_issia3d_csv(folder / CSV_NAME, rows)
+    split = {"by": "camera", "train": sorted(int(c) for c, v in CAMERA_SET.items() if v == "train"),
+             "test": sorted(int(c) for c, v in CAMERA_SET.items() if v == "test"),
+             "columns": "x_camK, y_camK, err_camK, opt_d_camK, opt_e_camK of camera K"}
+    (folder / SPLIT_NAME).write_text(json.dumps(split, indent=1) + "\n")
+    for name, camera in cameras.items():
+        (folder / CALIBRATION_DIR).mkdir(exist_ok=True)
+        (folder / CALIBRATION_DIR / f"{name}.json").write_text(json.dumps(camera, indent=1) + "\n")
+        report.calibrations += 1
+    if cameras:  # what the importer reads (app.datasets.issia.CALIBRATION_FILE): the export imports again
+        (folder / CALIBRATION_FILE).write_text(json.dumps(
+            {_cam_id(name): camera for name, camera in cameras.items()}, indent=1, sort_keys=True) + "\n")
+
+
 @dataclass(frozen=True)
 class _StoredFit:
     """The stored trajectory in the shape :func:`issia3d_rows` reads (dense by frame index)."""
@@ -160,7 +188,8 @@ class _StoredFit:
 
 
 def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = False) -> Issia3DExport:
-    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json`` and ``calibration/cam<k>.json`` for every stored ISSIA
+    """Write ``<out_dir>/<match>/ISSIA-3D.csv``, ``split.json``, ``calibration/cam<k>.json`` and
+    ``issia_calibration.json`` for every stored ISSIA
     sequence (module docstring). Accepted frames only unless ``include_all``; a sequence with no exported
     frame gets no folder."""
     out = Path(out_dir)
@@ -171,18 +200,8 @@ def export_issia3d(session: Session, out_dir: str | Path, include_all: bool = Fa
         rows = sequence_rows(session, game.id, include_all)
         if not rows:
             continue
-        folder = out / game.match
-        folder.mkdir(parents=True, exist_ok=True)
-        write_issia3d_csv(folder / CSV_NAME, rows)
-        split = {"by": "camera", "train": sorted(int(c) for c, v in CAMERA_SET.items() if v == "train"),
-                 "test": sorted(int(c) for c, v in CAMERA_SET.items() if v == "test"),
-                 "columns": "x_camK, y_camK, err_camK, opt_d_camK, opt_e_camK of camera K"}
-        (folder / SPLIT_NAME).write_text(json.dumps(split, indent=1) + "\n")
-        for name, camera in sequence_calibrations(session, game.id).items():
-            (folder / CALIBRATION_DIR).mkdir(exist_ok=True)
-            (folder / CALIBRATION_DIR / f"{name}.json").write_text(json.dumps(camera, indent=1) + "\n")
-            report.calibrations += 1
+        write_sequence(out / game.match, rows, sequence_calibrations(session, game.id), report)
         report.sequences += 1
         report.rows += len(rows)
-        report.csv_paths.append(folder / CSV_NAME)
+        report.csv_paths.append(out / game.match / CSV_NAME)
     return report

@@ -24,7 +24,7 @@ from app.services.derivation.recompute import recompute_all_systems
 from app.services.jobs.progress import Progress
 from app.services.transfer import data_root
 from app.services.transfer.export_files import prune_exports, write_export_zip
-from app.services.transfer.export_formats import export_format
+from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format
 from app.services.transfer.import_formats import import_format, stored_games_refusal
 
 
@@ -143,12 +143,15 @@ def export_path(settings: Settings, name: str) -> Path:
     return jobs_dir(settings) / "exports" / Path(name).name
 
 
-def export_params(fmt: str, include_all: bool = False, images: bool = True) -> dict[str, Any]:
+def export_params(fmt: str, include_all: bool = False, images: bool = True,
+                  release: str | None = None) -> dict[str, Any]:
     """The ``params`` of an export job: ``format`` (a name of ``app.services.transfer.export_formats``), ``all``,
-    and the options the format takes (SoccerNet-v3D's ``images``).
+    the options the format takes (SoccerNet-v3D's ``images``) and ``release`` (the release it exports instead of the
+    database now), when given.
 
     Raises:
-        InvalidInputError: an unknown format (field ``format``).
+        InvalidInputError: an unknown format (field ``format``); ``all`` beside ``release`` (field ``all``); a
+            release asked of a format not made from one (field ``release``).
     """
     try:
         export = export_format(fmt)
@@ -157,6 +160,14 @@ def export_params(fmt: str, include_all: bool = False, images: bool = True) -> d
     out: dict[str, Any] = {"format": fmt, "all": bool(include_all)}
     if "images" in export.options:
         out["images"] = bool(images)
+    if release is not None:
+        if include_all:
+            raise InvalidInputError("a release holds its accepted systems only: 'all' and 'release' exclude each "
+                                    "other", field="all")
+        if fmt not in RELEASE_EXPORTS:
+            raise InvalidInputError(f"the {fmt} export is not made from a release yet; "
+                                    f"{', '.join(RELEASE_EXPORTS)} is", field="release")
+        out["release"] = release
     return out
 
 
@@ -173,7 +184,7 @@ def run_export(session: Session, params: dict[str, Any], settings: Settings, pro
     target.parent.mkdir(parents=True, exist_ok=True)
     prune_exports(target.parent, settings.export_keep_hours)
     report = write_export_zip(session, fmt, target, bool(params.get("all", False)), settings, progress,
-                              images=bool(params.get("images", True)))
+                              images=bool(params.get("images", True)), release=params.get("release"))
     filename = export_format(fmt).download_name(params)
     return {**report, "file": target.name, "media_type": "application/zip", "filename": filename}
 

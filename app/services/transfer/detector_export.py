@@ -31,11 +31,15 @@ Layouts:
 * YOLO: ``images/<split>/<stem>.<ext>``, ``labels/<split>/<stem>.txt`` (``class cx cy w h``, normalised
   by the image size), ``data.yaml`` (``train``, ``val``, ``test``, ``nc``, ``names``). ``data.yaml`` has no
   ``path:`` key and its split folders are relative: Ultralytics (``check_det_dataset``) then takes the folder
-  of ``data.yaml`` as the dataset root, so the export works wherever it is unpacked or moved. Both split
-  folders always exist; a split without images is said so in a comment of ``data.yaml`` and in the
-  report (``empty_splits``).
+  of ``data.yaml`` as the dataset root, so the export works wherever it is unpacked or moved. ``val`` is drawn from
+  the train split, per system, seeded (:func:`yolo_split`: :data:`YOLO_VAL_FRACTION` of the train systems). Every
+  split folder always exists; a split without images is said so in a comment of ``data.yaml`` and in the
+  report (``empty_splits``). Every class keeps its id (a comment names those no box uses).
 * COCO: ``<split>/<stem>.<ext>`` and ``<split>/instances.json`` beside them (boxes ``[x, y, w, h]``
-  pixels, category ids = class id + 1).
+  pixels, category ids = class id + 1: the ball is category 1).
+* both: ``manifest.csv`` and ``manifest.json`` at the root (:func:`write_manifest`), one row per image joining it
+  back to its league, season, game, image name, frame and system ids, COCO image id, split, 3D ball (world m) and
+  reprojection error (px).
 
 Systems are read in batches of :data:`_CHUNK` and images copied one at a time from their archive or
 file (never all in memory); the COCO metadata of a split (numbers only) is kept until its JSON is
@@ -43,22 +47,24 @@ written.
 """
 from __future__ import annotations
 
+import csv
 import hashlib
 import json
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, Literal
+from typing import Any, Iterable, Iterator, Literal
 
 import numpy as np
 from sqlalchemy.orm import Session, selectinload
 
+from app.datasets.csv_cells import inert_row
 from app.db.models import Frame, Game, System, Triangulation
 from app.geometry.ball import box_centre_and_diameter
 from app.geometry.camera import Camera
 from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.refined_box import refine_box
-from app.services.images.serving import ImageUnavailable, frame_image
+from app.services.images.serving import ImageUnavailable, frame_has_image, frame_image
 from app.services.kinds import kind_of
 from app.services.transfer.exporting import exported_systems
 
@@ -70,6 +76,14 @@ OTHER_CLASSES = (
 )
 CLASSES = (BALL_CLASS, *OTHER_CLASSES)
 SPLITS = ("train", "test")
+#: The YOLO export's splits: a validation split drawn from the train split (:func:`yolo_split`), then the kinds'.
+YOLO_SPLITS = ("train", "val", "test")
+#: The share of the train split's systems a YOLO export puts in its validation split, and the seed of the draw.
+YOLO_VAL_FRACTION = 0.1
+YOLO_VAL_SEED = 0
+#: The columns of a detector export's ``manifest.csv`` (the same keys in ``manifest.json``'s ``images``).
+MANIFEST_COLUMNS = ("file", "split", "league", "season", "game", "image", "frame_id", "system_id", "coco_image_id",
+                    "ball3d_x_m", "ball3d_y_m", "ball3d_z_m", "reprojection_error_px")
 #: Standard deviation of an annotated ball centre as a fraction of the annotated box's diameter
 #: (a prior: a hand-drawn box is off by a fraction of its size; not fitted to the dev truth).
 ANNOTATION_SIGMA_FRACTION = 0.1
@@ -96,22 +110,31 @@ class DetectorExportReport:
 
     out_dir: Path
     format: str
-    images: dict[str, int] = field(default_factory=lambda: {s: 0 for s in SPLITS})
-    ball_boxes: dict[str, int] = field(default_factory=lambda: {s: 0 for s in SPLITS})
-    other_boxes: dict[str, int] = field(default_factory=lambda: {s: 0 for s in SPLITS})
+    splits: tuple[str, ...] = SPLITS
+    images: dict[str, int] = field(default_factory=dict)
+    ball_boxes: dict[str, int] = field(default_factory=dict)
+    other_boxes: dict[str, int] = field(default_factory=dict)
     optimised_ball_boxes: int = 0
     refined_ball_boxes: int = 0
     skipped_without_image: int = 0
     skipped_point_only: int = 0
     unknown_classes: Counter = field(default_factory=Counter)
+    #: Class ids of the boxes written.
+    used_classes: set[int] = field(default_factory=set)
+
+    def __post_init__(self) -> None:
+        for counts in (self.images, self.ball_boxes, self.other_boxes):
+            for split in self.splits:
+                counts.setdefault(split, 0)
 
     @property
     def empty_splits(self) -> list[str]:
         """The splits that received no image (their folders exist, empty)."""
-        return [s for s in SPLITS if not self.images[s]]
+        return [s for s in self.splits if not self.images[s]]
 
     def as_dict(self) -> dict[str, Any]:
         return {"out_dir": str(self.out_dir), "format": self.format, "images": self.images,
+                "used_classes": [CLASSES[i] for i in sorted(self.used_classes)],
                 "ball_boxes": self.ball_boxes, "other_boxes": self.other_boxes,
                 "optimised_ball_boxes": self.optimised_ball_boxes,
                 "refined_ball_boxes": self.refined_ball_boxes,
@@ -218,12 +241,25 @@ def iter_export_views(session: Session, export: Literal["yolo", "coco"], include
     Counts skipped views in ``report``.
     """
     query = exported_systems(export, include_all, *BALL_BOX_LOADS, selectinload(System.frames).undefer(Frame.release))
+    yield from views_of(session.scalars(query.execution_options(yield_per=_CHUNK)), report, ball_diameter_m, ball_box)
+
+
+def image_source(frame: Any) -> Frame:
+    """The stored frame whose image a view's file copies: the frame itself, or, for a view read from a release
+    (``app.services.releases.export``), the stored frame it names (``frame.image_source``)."""
+    return getattr(frame, "image_source", frame)
+
+
+def views_of(systems: Iterable[Any], report: DetectorExportReport, ball_diameter_m: float = BALL_DIAMETER_M,
+             ball_box: str = "refined") -> Iterator[ExportView]:
+    """The exported views of ``systems`` (stored systems with their game, frames, labels, calibrations and
+    triangulation loaded, or a release's stand-ins of them), in order (:func:`iter_export_views`)."""
     stems: set[str] = set()
-    for system in session.scalars(query.execution_options(yield_per=_CHUNK)):
+    for system in systems:
         game = system.game
         balls = ball_boxes(system, ball_diameter_m, ball_box)
         for frame in system.frames:
-            if not (frame.image_path or (frame.image_zip and frame.image_member)):
+            if not frame_has_image(image_source(frame)):
                 report.skipped_without_image += 1
                 continue
             ball, origin = balls.get(frame.id, (None, None))
@@ -259,7 +295,7 @@ def iter_export_views(session: Session, export: Literal["yolo", "coco"], include
 
 def _copy_image(frame: Frame, dest_without_ext: Path) -> Path | None:
     try:
-        img = frame_image(frame)
+        img = frame_image(image_source(frame))
     except ImageUnavailable:
         return None
     ext = ".jpg" if img.media_type == "image/jpeg" else ".png"  # the type checked from its header, not its name
@@ -270,52 +306,116 @@ def _copy_image(frame: Frame, dest_without_ext: Path) -> Path | None:
     return dest
 
 
-def _count(report: DetectorExportReport, view: ExportView) -> None:
-    report.images[view.split] += 1
-    report.ball_boxes[view.split] += sum(1 for c, _ in view.boxes if c == 0)
-    report.other_boxes[view.split] += sum(1 for c, _ in view.boxes if c != 0)
+def _count(report: DetectorExportReport, view: ExportView, split: str | None = None) -> None:
+    split = split or view.split
+    report.images[split] += 1
+    report.ball_boxes[split] += sum(1 for c, _ in view.boxes if c == 0)
+    report.other_boxes[split] += sum(1 for c, _ in view.boxes if c != 0)
+    report.used_classes.update(c for c, _ in view.boxes)
+
+
+def yolo_split(view: ExportView, fraction: float = YOLO_VAL_FRACTION, seed: int = YOLO_VAL_SEED) -> str:
+    """The YOLO split of a view: ``val`` for the train split's systems whose draw falls below ``fraction`` (the first
+    8 bytes of the SHA-256 of ``"<seed>:<league/season/match>:<system name>"`` as a fraction of 2**64, so every view of
+    a system goes to one split and a game's other systems are unaffected by adding one), else the kind's split."""
+    if view.split != "train":
+        return view.split
+    key = f"{seed}:{view.game.path}:{view.system.name}".encode("utf-8")
+    return "val" if int.from_bytes(hashlib.sha256(key).digest()[:8], "big") < fraction * 2.0 ** 64 else "train"
+
+
+def manifest_row(view: ExportView, file: str, split: str) -> dict[str, Any]:
+    """One image of a detector export joined back to its data (:data:`MANIFEST_COLUMNS`): the file (relative to the
+    export's root), split, league, season, game (match), image (the frame's name in its dataset), ``frame_id`` and
+    ``system_id`` (this database's), ``coco_image_id`` (:func:`coco_image_id` of the stem), the system's 3D ball
+    (world metres, SoccerNet frame, z down; empty without one) and the view's reprojection error of it (px)."""
+    tri = view.system.triangulation
+    ball = list(tri.ball3d) if tri is not None and tri.ball3d is not None else [None, None, None]
+    rep = view.frame.reprojection
+    return {"file": file, "split": split, "league": view.game.league, "season": view.game.season,
+            "game": view.game.match, "image": view.frame.name, "frame_id": view.frame.id,
+            "system_id": view.system.id, "coco_image_id": coco_image_id(view.stem),
+            "ball3d_x_m": ball[0], "ball3d_y_m": ball[1], "ball3d_z_m": ball[2],
+            "reprojection_error_px": rep.error_px if rep is not None else None}
+
+
+def write_manifest(out: Path, rows: list[dict[str, Any]], fmt: str, release: dict[str, str] | None = None) -> None:
+    """``manifest.csv`` and ``manifest.json`` (``{"format", "columns", "images"}``, and ``release``: ``{"name",
+    "hash"}`` of the release exported, when one is) at the export's root, one row per image written, by file name.
+    CSV cells a spreadsheet would run as a formula are escaped."""
+    rows = sorted(rows, key=lambda r: r["file"])
+    with (out / "manifest.csv").open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(MANIFEST_COLUMNS)
+        writer.writerows(inert_row("" if r[c] is None else repr(r[c]) if isinstance(r[c], float) else str(r[c])
+                                   for c in MANIFEST_COLUMNS) for r in rows)
+    doc: dict[str, Any] = {"format": fmt, "columns": list(MANIFEST_COLUMNS), "images": rows}
+    if release is not None:
+        doc["release"] = dict(release)
+    (out / "manifest.json").write_text(json.dumps(doc, sort_keys=True, indent=1))
 
 
 def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False,
-                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined") -> DetectorExportReport:
+                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined", *,
+                systems: Iterable[Any] | None = None, release: dict[str, str] | None = None) -> DetectorExportReport:
     """Write the Ultralytics YOLO layout under ``out_dir`` (module docstring); existing files of the
-    same names are overwritten.
+    same names are overwritten. ``systems``: the systems to write instead of the database's (a release's stand-ins,
+    ``app.services.releases.export.release_detector_systems``); ``release``: ``{"name", "hash"}`` of that release,
+    named in ``data.yaml`` and ``manifest.json``.
 
     Returns:
         A :class:`DetectorExportReport` (images and boxes per split, skipped views).
     """
     out = Path(out_dir)
-    report = DetectorExportReport(out, "yolo")
-    for split in SPLITS:
+    report = DetectorExportReport(out, "yolo", splits=YOLO_SPLITS)
+    for split in YOLO_SPLITS:
         (out / "images" / split).mkdir(parents=True, exist_ok=True)
         (out / "labels" / split).mkdir(parents=True, exist_ok=True)
-    for view in iter_export_views(session, "yolo", include_all, report, ball_diameter_m, ball_box):
-        if _copy_image(view.frame, out / "images" / view.split / view.stem) is None:
+    manifest = []
+    views = (views_of(systems, report, ball_diameter_m, ball_box) if systems is not None
+             else iter_export_views(session, "yolo", include_all, report, ball_diameter_m, ball_box))
+    for view in views:
+        split = yolo_split(view)
+        dest = _copy_image(view.frame, out / "images" / split / view.stem)
+        if dest is None:
             report.skipped_without_image += 1
             continue
         w, h = view.frame.width, view.frame.height
         lines = [f"{c} {(b[0] + b[2]) / 2 / w:.8f} {(b[1] + b[3]) / 2 / h:.8f} {(b[2] - b[0]) / w:.8f} "
                  f"{(b[3] - b[1]) / h:.8f}" for c, b in view.boxes]
-        (out / "labels" / view.split / f"{view.stem}.txt").write_text("".join(s + "\n" for s in lines))
-        _count(report, view)
-    (out / "data.yaml").write_text(yolo_data_yaml(report))
+        (out / "labels" / split / f"{view.stem}.txt").write_text("".join(s + "\n" for s in lines))
+        _count(report, view, split)
+        manifest.append(manifest_row(view, dest.relative_to(out).as_posix(), split))
+    named = f"# release {release['name']} (hash {release['hash']})\n" if release else ""
+    (out / "data.yaml").write_text(named + yolo_data_yaml(report))
+    write_manifest(out, manifest, "yolo", release)
     return report
 
 
 def yolo_data_yaml(report: DetectorExportReport) -> str:
     """The ``data.yaml`` of a YOLO export: no ``path:`` key (Ultralytics resolves the relative ``train``,
-    ``val`` and ``test`` folders from the folder of ``data.yaml``: the export is relocatable), val = the test
-    split (v3d has no separate validation split), a comment naming any split without images."""
+    ``val`` and ``test`` folders from the folder of ``data.yaml``: the export is relocatable); ``val`` is the
+    validation split drawn from the train split (:func:`yolo_split`); a comment naming any split without images, and
+    one naming the classes no box uses (every SoccerNet-v3 class keeps its id, so that a detector trained on one
+    export reads another's labels and predictions)."""
     names = "\n".join(f"  {i}: {json.dumps(n)}" for i, n in enumerate(CLASSES))
     empty = "".join(f"# split {s!r} has no image: images/{s} and labels/{s} are empty\n" for s in report.empty_splits)
+    unused = [n for i, n in enumerate(CLASSES) if i not in report.used_classes]
+    unused_note = (f"# classes no box uses here: {', '.join(unused)} (listed so that every class keeps its id in "
+                   "every export)\n") if unused else ""
     return ("# v3d export: ball = class 0 (refined, else optimised, else annotated box)\n"
             "# no 'path:' key: the dataset root is the folder of this file (relocatable)\n"
-            f"{empty}train: images/train\nval: images/test\ntest: images/test\nnc: {len(CLASSES)}\nnames:\n{names}\n")
+            f"# val: {YOLO_VAL_FRACTION:.0%} of the train split's systems (seed {YOLO_VAL_SEED}, every view of a "
+            "system in one split); test: the kinds' test split\n"
+            f"{empty}{unused_note}train: images/train\nval: images/val\ntest: images/test\nnc: {len(CLASSES)}\n"
+            f"names:\n{names}\n")
 
 
 def export_coco(session: Session, out_dir: str | Path, include_all: bool = False,
-                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined") -> DetectorExportReport:
-    """Write the COCO layout under ``out_dir``: per split the images and ``instances.json``.
+                ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined", *,
+                systems: Iterable[Any] | None = None, release: dict[str, str] | None = None) -> DetectorExportReport:
+    """Write the COCO layout under ``out_dir``: per split the images and ``instances.json``. ``systems`` and
+    ``release`` as :func:`export_yolo` (the release named in each ``info`` and in ``manifest.json``).
 
     COCO image ids are :func:`coco_image_id` of the view's stem; category ids are the class ids + 1.
 
@@ -328,7 +428,10 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
     ids: dict[int, str] = {}
     for split in SPLITS:
         (out / split).mkdir(parents=True, exist_ok=True)
-    for view in iter_export_views(session, "coco", include_all, report, ball_diameter_m, ball_box):
+    manifest = []
+    views = (views_of(systems, report, ball_diameter_m, ball_box) if systems is not None
+             else iter_export_views(session, "coco", include_all, report, ball_diameter_m, ball_box))
+    for view in views:
         image_id = coco_image_id(view.stem)
         if ids.setdefault(image_id, view.stem) != view.stem:
             raise RuntimeError(f"views {ids[image_id]!r} and {view.stem!r} share the COCO image id {image_id}")
@@ -345,16 +448,29 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
                                        "category_id": c + 1, "bbox": [b[0], b[1], w, h], "area": w * h,
                                        "iscrowd": 0})
         _count(report, view)
+        manifest.append(manifest_row(view, dest.relative_to(out).as_posix(), view.split))
     categories = [{"id": i + 1, "name": n, "supercategory": "ball" if i == 0 else "person"}
                   for i, n in enumerate(CLASSES)]
     for split, doc in docs.items():
         (out / split / "instances.json").write_text(json.dumps(
-            {"info": {"description": f"v3d export ({split})"}, "licenses": [], "categories": categories, **doc}))
+            {"info": _coco_info(split, release), "licenses": [], "categories": categories, **doc}))
+    write_manifest(out, manifest, "coco", release)
     return report
+
+
+def _coco_info(split: str, release: dict[str, str] | None) -> dict[str, Any]:
+    """A COCO file's ``info``: what it is and, from a release, the release (``version`` its name, ``v3d_release``
+    its name and hash)."""
+    if release is None:
+        return {"description": f"v3d export ({split})"}
+    return {"description": f"v3d export ({split}) of release {release['name']}", "version": release["name"],
+            "v3d_release": dict(release)}
 
 
 def export_detector(session: Session, fmt: Literal["yolo", "coco"], out_dir: str | Path,
                     include_all: bool = False, ball_diameter_m: float = BALL_DIAMETER_M,
-                    ball_box: str = "refined") -> DetectorExportReport:
+                    ball_box: str = "refined", *, systems: Iterable[Any] | None = None,
+                    release: dict[str, str] | None = None) -> DetectorExportReport:
     """:func:`export_yolo` or :func:`export_coco` by name (``ball_box``: ``Settings.export_ball_box``)."""
-    return (export_yolo if fmt == "yolo" else export_coco)(session, out_dir, include_all, ball_diameter_m, ball_box)
+    return (export_yolo if fmt == "yolo" else export_coco)(session, out_dir, include_all, ball_diameter_m, ball_box,
+                                                           systems=systems, release=release)

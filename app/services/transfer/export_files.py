@@ -23,8 +23,10 @@ from typing import Any, Callable
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.errors import InvalidInputError
 from app.services.jobs.progress import Progress
-from app.services.transfer.export_formats import export_format, export_names, tree_export_names
+from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format, export_names, tree_export_names
+from app.services.transfer.exporting import zip_member
 
 #: What ``POST /api/exports/{format}`` and the export jobs write (the registry's names, in its order).
 EXPORT_FORMATS = export_names()
@@ -32,18 +34,20 @@ EXPORT_FORMATS = export_names()
 
 def zip_tree(root: Path, target: Path, progress: Progress | None = None) -> int:
     """Zip every file and folder under ``root`` into ``target`` with paths relative to ``root`` (POSIX; folders as
-    entries, so that empty ones survive), ``progress("zip", files done, files)`` as it goes. Returns the zip's
-    size in bytes."""
-    entries = sorted(root.rglob("*"))
+    entries, so that empty ones survive), ``progress("zip", files done, files)`` as it goes. Members in the order of
+    their paths with the fixed time stamp and modes of ``exporting.zip_member`` (no file's time enters the zip: the
+    same tree zips to the same bytes). Returns the zip's size in bytes."""
+    entries = sorted(root.rglob("*"), key=lambda p: p.relative_to(root).as_posix())
     files = [p for p in entries if p.is_file()]
     done = 0
     with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
         for p in entries:
             rel = p.relative_to(root).as_posix()
             if p.is_dir():
-                zf.writestr(zipfile.ZipInfo(rel + "/"), b"")
+                zf.writestr(zip_member(rel + "/", folder=True), b"")
                 continue
-            zf.write(p, rel)
+            with p.open("rb") as src, zf.open(zip_member(rel, zipfile.ZIP_DEFLATED), "w", force_zip64=True) as dst:
+                shutil.copyfileobj(src, dst, 1 << 20)
             done += 1
             if progress is not None:
                 progress("zip", done, len(files))
@@ -65,13 +69,16 @@ def write_tree(session: Session, fmt: str, out: Path, include_all: bool, setting
 
 
 def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool, settings: Settings,
-                     progress: Progress | None = None, images: bool = True) -> dict[str, Any]:
+                     progress: Progress | None = None, images: bool = True,
+                     release: str | None = None) -> dict[str, Any]:
     """The export ``fmt`` as the zip ``target`` (written as ``<target>.part`` and renamed when complete; a
     tree export's work folder ``<target>.work`` removed in every case); its counts, ``bytes`` and ``format``.
-    ``images``: SoccerNet-v3D only (each game's ``Frames-v3.zip``).
+    ``images``: SoccerNet-v3D only (each game's ``Frames-v3.zip``). ``release``: the name of the release to export
+    instead of the database now (``export_formats.RELEASE_EXPORTS``; the same release gives the same bytes).
 
     Raises:
-        ValueError: an unknown format. As each export raises otherwise.
+        ValueError: an unknown format. InvalidInputError: a release asked of a format not made from one (field
+            ``release``). NotFoundError: no release of that name. As each export raises otherwise.
     """
     export = export_format(fmt)
     part = target.with_name(target.name + ".part")
@@ -80,7 +87,16 @@ def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool
     try:
         if export.stream is not None:
             with open(part, "wb") as out:
-                report = export.stream(session, out, include_all, {"images": images}, progress)
+                report = export.stream(session, out, include_all, {"images": images, "release": release},
+                                       progress)
+        elif release is not None:
+            if export.release_tree is None:
+                raise InvalidInputError(f"the {fmt} export is not made from a release yet; "
+                                        f"{', '.join(RELEASE_EXPORTS)} are", field="release")
+            shutil.rmtree(work, ignore_errors=True)
+            work.mkdir(parents=True)
+            report = export.release_tree(session, work, release, settings)
+            zip_tree(work, part, progress)
         else:
             shutil.rmtree(work, ignore_errors=True)
             work.mkdir(parents=True)

@@ -23,13 +23,25 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.services.issia.export import export_issia3d
 from app.services.jobs.progress import Progress
+from app.services.releases.content import get_release
+from app.services.releases.export import (
+    ReleaseSource,
+    export_release_cameras,
+    export_release_issia3d,
+    release_detector_systems,
+    write_release_files,
+)
 from app.services.transfer.cameras_export import export_cameras
 from app.services.transfer.detector_export import export_detector
-from app.services.transfer.exporting import export_size, stream_soccernet_v3d_zip
+from app.services.transfer.export_zip import stream_soccernet_v3d_zip
+from app.services.transfer.exporting import export_size
 
 #: ``write(session, out, include_all, settings)``: the export written as a tree under the folder ``out`` (created);
 #: answers its counts (JSON-able, no server path).
 TreeWriter = Callable[[Session, Path, bool, Settings], dict[str, Any]]
+#: ``release_tree(session, out, release name, settings)``: the export of a release written as a tree under ``out``;
+#: its counts.
+ReleaseTreeWriter = Callable[[Session, Path, str, Settings], dict[str, Any]]
 #: ``stream(session, out, include_all, options, progress)``: the export written as a zip into the open binary file
 #: ``out`` while the database is read; answers its counts.
 ZipStreamer = Callable[[Session, BinaryIO, bool, Mapping[str, Any], "Progress | None"], dict[str, Any]]
@@ -64,6 +76,8 @@ class ExportFormat:
         choices: the UI's buttons for it, the first one the default (its options are the job's defaults).
         tree: writes it as a folder tree, zipped afterwards (``export_files.zip_tree``); None when streamed.
         stream: writes it straight into a zip; None for a tree export. Exactly one of the two is set.
+        release_tree: writes a release's export as a tree (a streamed format takes ``options["release"]``); None
+            when the format is not made from a release.
     """
 
     name: str
@@ -71,6 +85,7 @@ class ExportFormat:
     choices: tuple[ExportChoice, ...]
     tree: TreeWriter | None = None
     stream: ZipStreamer | None = None
+    release_tree: ReleaseTreeWriter | None = None
 
     @property
     def options(self) -> tuple[str, ...]:
@@ -146,10 +161,23 @@ export const EXPORTS = /*EXPORTS*/__EXPORTS__/*END*/;
 
 def _soccernet_v3d(session: Session, out: BinaryIO, include_all: bool, options: Mapping[str, Any],
                    progress: Progress | None) -> dict[str, Any]:
+    name = options.get("release")
+    if name:  # the release's documents, not the database now
+        release = get_release(session, str(name))
+        for chunk in stream_soccernet_v3d_zip(session, False, progress, images=bool(options.get("images", True)),
+                                              source=ReleaseSource(session, release)):
+            out.write(chunk)
+        return {"systems": release.systems, "views": release.views, "release": release.name, "hash": release.hash}
     systems, rows = export_size(session, include_all)
     for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=bool(options.get("images", True))):
         out.write(chunk)
     return {"systems": systems, "rows": rows}
+
+
+def _release_cameras(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
+    release = get_release(session, name)
+    report = export_release_cameras(session, release, out).as_dict()
+    return {**report, "release": release.name, "hash": release.hash}
 
 
 def _issia_3d(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
@@ -159,6 +187,25 @@ def _issia_3d(session: Session, out: Path, include_all: bool, settings: Settings
 
 def _cameras(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
     return export_cameras(session, out, include_all=include_all).as_dict()
+
+
+def _release_issia3d(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
+    release = get_release(session, name)
+    r = export_release_issia3d(session, release, out)
+    return {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations, "release": release.name,
+            "hash": release.hash}
+
+
+def _release_detector(fmt: Literal["yolo", "coco"]) -> ReleaseTreeWriter:
+    def write(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
+        release = get_release(session, name)
+        marker = {"name": release.name, "hash": release.hash}
+        report = export_detector(session, fmt, out, False, settings.ball_diameter_m, settings.export_ball_box,
+                                 systems=release_detector_systems(session, release, fmt), release=marker).as_dict()
+        report.pop("out_dir", None)  # a server folder: no export names one
+        write_release_files(session, release, out)
+        return {**report, "release": release.name, "hash": release.hash}
+    return write
 
 
 def _detector(fmt: Literal["yolo", "coco"]) -> TreeWriter:
@@ -186,7 +233,7 @@ register_export_format(ExportFormat(
     "ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test; calibration/cam<k>.json).",
     (ExportChoice("issia-3d", "ISSIA-3D", "per ISSIA sequence: ISSIA-3D.csv, split.json and the cameras",
                   "issia-3d.zip"),),
-    tree=_issia_3d))
+    tree=_issia_3d, release_tree=_release_issia3d))
 register_export_format(ExportFormat(
     "cameras",
     "The admitted cameras of SoccerNet-v3 and single-view (SoccerNet-calibration) frames as SoccerNet's calibration "
@@ -194,18 +241,25 @@ register_export_format(ExportFormat(
     "<W>x<H>/predictions.zip (camera_<name>.json), and cameras.json (names back to games and frames).",
     (ExportChoice("cameras", "Cameras", "per image size: ground_truth.zip and predictions.zip as SoccerNet's "
                   "calibration evaluator reads them", "cameras.zip"),),
-    tree=_cameras))
+    tree=_cameras, release_tree=_release_cameras))
 register_export_format(ExportFormat(
     "yolo",
-    "Images and labels in the Ultralytics YOLO layout (ball = refined, else optimised box).",
+    "Images and labels in the Ultralytics YOLO layout (the ball is class 0: refined, else optimised box; val drawn "
+    "from train, seeded), and manifest.csv/json joining each image back to its game, frame and 3D ball.",
     (ExportChoice("yolo", "YOLO", "Ultralytics layout: images/, labels/, data.yaml (relocatable: no path key)",
                   "v3d-yolo.zip"),),
-    tree=_detector("yolo")))
+    tree=_detector("yolo"), release_tree=_release_detector("yolo")))
 register_export_format(ExportFormat(
     "coco",
-    "Images and a COCO instances JSON per split (ball = refined, else optimised box).",
+    "Images and a COCO instances JSON per split (the ball is category 1: refined, else optimised box), and "
+    "manifest.csv/json joining each image back to its game, frame and 3D ball.",
     (ExportChoice("coco", "COCO", "per split: the images and instances.json", "v3d-coco.zip"),),
-    tree=_detector("coco")))
+    tree=_detector("coco"), release_tree=_release_detector("coco")))
+
+
+#: The formats an export job writes from a release (``{"release": name}``); the others answer 422 naming
+#: ``release`` until they read a release's documents too.
+RELEASE_EXPORTS = tuple(n for n, f in _FORMATS.items() if f.stream is not None or f.release_tree is not None)
 
 
 if __name__ == "__main__":

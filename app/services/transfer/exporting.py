@@ -45,9 +45,7 @@ the text itself in CSV cells), and decodes only the field lines it must flatten 
 from __future__ import annotations
 
 import csv
-import io
 import itertools
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -103,7 +101,7 @@ class ExportReport:
     images: int = 0
 
 
-def _safe_component(value: str, what: str) -> str:
+def safe_component(value: str, what: str) -> str:
     if not value or value in (".", "..") or "/" in value or "\\" in value or "\0" in value:
         raise InvalidInputError(f"cannot be used as a folder name: {value!r}", field=what)
     return value
@@ -200,14 +198,14 @@ def _json_text(column: Any, label: str) -> Any:
     return sa.cast(column, sa.Text).label(label)
 
 
-def _frame_rows(session: Session, game_ids: list[int], include_all: bool) -> list[Any]:
-    """Every exported frame of the games ``game_ids`` as one flat row (frame, calibration, field lines,
-    ball label, optimised box, reprojection, its system's name, 3D ball and review status), ordered by
-    game, system and position: one SQL query read as plain rows, with none of the ORM's per-object
-    cost (a SoccerNet-size export reads 35,000 frames)."""
+def frame_row_select() -> Select[Any]:
+    """The columns of an exported frame's row (frame, calibration, field lines, ball label, optimised box,
+    reprojection, its system's id, name, 3D ball and review status; JSON columns as their stored text), joined from
+    ``frames`` and ordered by game, system and position, without a ``WHERE``: :func:`_frame_rows` selects the
+    exported games' frames, a release (``app.services.releases.content``) the accepted systems' frames."""
     S, F, C, L, B = System, Frame, Calibration, FieldLineAnnotation, BallLabel
     OB, R, T, D = OptimisedBox, BallReprojection, Triangulation, ReviewDecision
-    query = (
+    return (
         select(
             S.game_id, S.id.label("system_id"), S.name.label("system_name"), _json_text(T.ball3d, "ball3d"),
             D.status.label("review_status"),
@@ -227,11 +225,18 @@ def _frame_rows(session: Session, game_ids: list[int], include_all: bool) -> lis
         .outerjoin(T, T.system_id == S.id).outerjoin(D, D.system_id == S.id)
         .outerjoin(C, C.frame_id == F.id).outerjoin(L, L.frame_id == F.id).outerjoin(B, B.frame_id == F.id)
         .outerjoin(OB, OB.frame_id == F.id).outerjoin(R, R.frame_id == F.id)
-        .where(S.game_id.in_(game_ids), S.kind.in_(kinds_exported_by("soccernet-v3d")))
         .order_by(S.game_id, S.id, F.position, F.id)
     )
+
+
+def _frame_rows(session: Session, game_ids: list[int], include_all: bool) -> list[Any]:
+    """Every exported frame of the games ``game_ids`` as one flat row (:func:`frame_row_select`), ordered by
+    game, system and position: one SQL query read as plain rows, with none of the ORM's per-object
+    cost (a SoccerNet-size export reads 35,000 frames)."""
+    query = frame_row_select().where(System.game_id.in_(game_ids),
+                                     System.kind.in_(kinds_exported_by("soccernet-v3d")))
     if not include_all:
-        query = query.where(D.status == ReviewStatus.ACCEPTED)
+        query = query.where(ReviewDecision.status == ReviewStatus.ACCEPTED)
     return list(session.execute(query))
 
 
@@ -299,12 +304,12 @@ def iter_soccernet_v3d(session: Session, include_all: bool = False,
     ))
     for game in games:  # validate every folder name before writing anything
         for value, what in ((game.league, "league"), (game.season, "season"), (game.match, "match")):
-            _safe_component(value, f"game {game.id} {what}")
+            safe_component(value, f"game {game.id} {what}")
     by_id = {g.id: g for g in games}
     done = 0
     for first in range(0, len(games), EXPORT_BATCH_GAMES):
         batch = [g.id for g in games[first:first + EXPORT_BATCH_GAMES]]
-        changed = _changed_at(session, batch)  # read first: a change after it may be missing from the file
+        changed = changed_at(session, batch)  # read first: a change after it may be missing from the file
         rows = _frame_rows(session, batch, include_all)
         per_game: dict[int, list[Any]] = {gid: [] for gid in batch}
         for row in rows:
@@ -312,13 +317,13 @@ def iter_soccernet_v3d(session: Session, include_all: bool = False,
         del rows
         for gid in batch:
             game = by_id[gid]
-            yield _exported_game(game, per_game.pop(gid), _as_of(game, changed.get(gid)))
+            yield exported_game(game, per_game.pop(gid), game_as_of(game, changed.get(gid)))
             done += 1
             if progress:
                 progress("export", done, len(games))
 
 
-def _changed_at(session: Session, game_ids: list[int]) -> dict[int, Any]:
+def changed_at(session: Session, game_ids: list[int]) -> dict[int, Any]:
     """Game id -> the time of its newest audit entry (its newest change: every edit, decision and merge of its
     systems is one), for the games that have one."""
     rows = session.execute(select(AuditEntry.game_id, sa.func.max(AuditEntry.at))
@@ -326,7 +331,7 @@ def _changed_at(session: Session, game_ids: list[int]) -> dict[int, Any]:
     return {int(game_id): at for game_id, at in rows if game_id is not None}
 
 
-def _as_of(game: Game, newest_entry: Any) -> str:
+def game_as_of(game: Game, newest_entry: Any) -> str:
     """The time of the game's newest change (ISO 8601, UTC): its newest audit entry or, when later, the time the
     SoccerNet-v3D export it was imported from held it as of (``Game.as_of``); its import's time when neither is
     known."""
@@ -334,7 +339,7 @@ def _as_of(game: Game, newest_entry: Any) -> str:
     return (max(known) if known else game.created_at).isoformat()
 
 
-def _exported_game(game: Any, rows: list[Any], as_of: str) -> ExportedGame:
+def exported_game(game: Any, rows: list[Any], as_of: str) -> ExportedGame:
     """One game's ``Labels-v3D.json`` document and CSV rows from its frame rows (:func:`_frame_rows`), the game as
     of ``as_of`` (ISO 8601, UTC: its newest change the file holds)."""
     split = split_of(game.path)
@@ -385,6 +390,21 @@ def _exported_game(game: Any, rows: list[Any], as_of: str) -> ExportedGame:
                         tuple((f.frame_id, f.name) for f in rows))
 
 
+#: The time stamp of every member of an export's zips (the earliest a zip holds): no wall-clock time enters an
+#: export, so the same content zips to the same bytes whenever it is written.
+ZIP_DATE_TIME = (1980, 1, 1, 0, 0, 0)
+
+
+def zip_member(name: str, compress_type: int = zipfile.ZIP_STORED, folder: bool = False) -> zipfile.ZipInfo:
+    """The entry of an export's zip member ``name`` (POSIX path): the fixed :data:`ZIP_DATE_TIME`, mode 0644
+    (0755 for a folder, ``name`` ending in ``/``), ``compress_type`` (``ZIP_DEFLATED`` members take zlib's default
+    level unless the writer names one)."""
+    info = zipfile.ZipInfo(name, date_time=ZIP_DATE_TIME)
+    info.compress_type = compress_type
+    info.external_attr = ((0o40755 << 16) | 0x10) if folder else (0o100644 << 16)
+    return info
+
+
 #: Frames read per query by :func:`write_frames_zip` (below every database's bound on an ``IN`` list).
 _FRAMES_PER_QUERY = 500
 
@@ -413,7 +433,7 @@ def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], targ
             frame = loaded.get(frame_id)
             if frame is None or not frame_has_image(frame):
                 continue
-            with zf.open(name, "w", force_zip64=True) as member:
+            with zf.open(zip_member(name), "w", force_zip64=True) as member:
                 for chunk in frame_image(frame).chunks():
                     member.write(chunk)
             written += 1
@@ -452,7 +472,7 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
     with csv_path.open("w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh)
         writer.writerow(CSV_COLUMNS)
-        for exported in _chain(first, games):
+        for exported in chain_games(first, games):
             path = out / exported.labels_path
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(exported.labels_json())
@@ -481,51 +501,10 @@ def _write_game_frames(session: Session, exported: ExportedGame, path: Path) -> 
     return written
 
 
-def _chain(first: ExportedGame | None, rest: Iterator[ExportedGame]) -> Iterator[ExportedGame]:
+def chain_games(first: ExportedGame | None, rest: Iterator[ExportedGame]) -> Iterator[ExportedGame]:
     if first is not None:
         yield first
         yield from rest
-
-
-class _ZipSink(io.RawIOBase):
-    """A write-only, unseekable stream whose written bytes are taken out in pieces (:meth:`drain`), so
-    that ``zipfile`` can write an archive while it is being sent."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self._parts: list[bytes] = []
-        self._pos = 0
-
-    def writable(self) -> bool:
-        return True
-
-    def write(self, b: Any) -> int:
-        data = bytes(b)
-        self._parts.append(data)
-        self._pos += len(data)
-        return len(data)
-
-    def tell(self) -> int:
-        return self._pos
-
-    def drain(self) -> bytes:
-        data = b"".join(self._parts)
-        self._parts.clear()
-        return data
-
-
-def _stream_game_frames(session: Session, exported: ExportedGame, zf: zipfile.ZipFile,
-                        sink: _ZipSink) -> Iterator[bytes]:
-    """Copy the game's ``Frames-v3.zip`` (built in a temporary file) into the streamed archive ``zf``,
-    stored, handing on its bytes as they are written."""
-    with tempfile.TemporaryFile() as tmp:
-        if not write_frames_zip(session, exported.frames, tmp):
-            return
-        tmp.seek(0)
-        with zf.open(zipfile.ZipInfo(exported.frames_path), "w", force_zip64=True) as member:
-            for chunk in iter(lambda: tmp.read(1 << 20), b""):
-                member.write(chunk)
-                yield sink.drain()
 
 
 def export_size(session: Session, include_all: bool = False) -> tuple[int, int]:
@@ -539,37 +518,3 @@ def export_size(session: Session, include_all: bool = False) -> tuple[int, int]:
     systems = session.scalar(select(sa.func.count()).select_from(ids)) or 0
     rows = session.scalar(select(sa.func.count(Frame.id)).where(Frame.system_id.in_(select(ids.c.id)))) or 0
     return int(systems), int(rows)
-
-
-def stream_soccernet_v3d_zip(session: Session, include_all: bool = False,
-                             progress: Callable[[str, int, int], None] | None = None,
-                             images: bool = True) -> Iterator[bytes]:
-    """The export as a zip archive, produced while the database is read: each game's
-    ``Labels-v3D.json`` is compressed and handed on before the next game is read, followed (``images``) by
-    its ``Frames-v3.zip`` (built in a temporary file, then copied in); ``SNv3D.csv`` is spooled (in memory
-    up to 8 MB, then a temporary file) and written last. Memory stays bounded by one game and the spool.
-    The archive is the same tree as :func:`export_soccernet_v3d` writes. ``progress`` as
-    :func:`iter_soccernet_v3d`.
-
-    Raises:
-        InvalidInputError: as :func:`iter_soccernet_v3d`, before the first byte.
-    """
-    games = iter_soccernet_v3d(session, include_all, progress)
-    first = next(games, None)
-    sink = _ZipSink()
-    with tempfile.SpooledTemporaryFile(max_size=8 << 20, mode="w+", newline="", encoding="utf-8") as spool:
-        writer = csv.writer(spool)
-        writer.writerow(CSV_COLUMNS)
-        with zipfile.ZipFile(sink, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
-            for exported in _chain(first, games):
-                zf.writestr(exported.labels_path, exported.labels_json())
-                writer.writerows(exported.rows)
-                yield sink.drain()
-                if images:
-                    yield from _stream_game_frames(session, exported, zf, sink)
-            spool.seek(0)
-            with zf.open("SNv3D.csv", "w", force_zip64=True) as member:
-                for chunk in iter(lambda: spool.read(1 << 20), ""):
-                    member.write(chunk.encode("utf-8"))
-                    yield sink.drain()
-        yield sink.drain()

@@ -144,7 +144,7 @@ def test_a_downloaded_yolo_zip_resolves_as_ultralytics_resolves_it(jobs_app, cli
         content = client.get("/api/exports/yolo", params={"all": "true"}).content
     else:
         job, content = _export_job(client, jobs_app, "yolo")
-        assert job["result"]["empty_splits"] == [s for s in ("train", "test") if not job["result"]["images"][s]]
+        assert job["result"]["empty_splits"] == [s for s in ("train", "val", "test") if not job["result"]["images"][s]]
     root = _unpack(content, tmp_path / "elsewhere" / "unpacked")
     text = (root / "data.yaml").read_text()
     assert "path:" not in text.replace("# no 'path:' key", "")
@@ -154,15 +154,15 @@ def test_a_downloaded_yolo_zip_resolves_as_ultralytics_resolves_it(jobs_app, cli
     for given in ("../../elsewhere/unpacked/data.yaml", str(root / "data.yaml")):
         data = ultralytics_check_det_dataset(given, tmp_path / "datasets")
         assert Path(data["path"]).resolve() == root.resolve()
-        pairs = [p for k in ("train", "val") for p in ultralytics_images_and_labels(data[k])]
+        pairs = [p for k in ("train", "val", "test") for p in ultralytics_images_and_labels(data[k])]
         assert Path(data["train"]) == root.resolve() / "images" / "train" and Path(data["train"]).is_dir()
-        assert Path(data["val"]) == root.resolve() / "images" / "test" and Path(data["val"]).is_dir()
+        assert Path(data["val"]) == root.resolve() / "images" / "val" and Path(data["val"]).is_dir()
         images = sorted(p.relative_to(root).as_posix() for p in root.glob("images/*/*.png"))
         assert len(images) == 2 and sorted(img.relative_to(root.resolve()).as_posix() for img, _ in pairs) == images
         assert all(label.is_file() for _, label in pairs)
         balls = [line for _, label in pairs for line in label.read_text().splitlines() if line.startswith("0 ")]
         assert len(balls) == 2
-    for split in ("train", "test"):
+    for split in ("train", "val", "test"):
         empty = not any((root / "images" / split).iterdir())
         assert (f"# split '{split}' has no image" in text) == empty and (root / "labels" / split).is_dir()
         if not empty:

@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 import sqlalchemy as sa
+from sqlalchemy.orm import Session
 
 from app.datasets.issia3d import read_issia3d_csv
 from app.db.models import (
@@ -494,6 +495,64 @@ def test_issia3d_export_writes_each_cameras_calibration(db_session, db_settings,
     assert checked >= 80  # 86 labelled views with a 3D ball in frames 0-39
 
 
+def test_the_issia3d_export_imports_into_a_fresh_database_as_it_left(db_session, db_settings, stretch, tmp_path):
+    """The export's sequence folder (ISSIA-3D.csv, issia_calibration.json) is an ISSIA folder: imported into an empty
+    database it gives the same frames, point labels and cameras."""
+    from app.db.session import make_engine, upgrade_database
+
+    import_issia(db_session, stretch, db_settings)
+    export_issia3d(db_session, tmp_path / "out", include_all=True)
+    folder = tmp_path / "out" / "issia-dev"
+    assert sorted(json.loads((folder / "issia_calibration.json").read_text())) == [str(k) for k in range(1, 7)]
+    url = f"sqlite:///{tmp_path / 'fresh.sqlite3'}"
+    upgrade_database(url)
+    settings = db_settings.model_copy(update={"database_url": url})
+    with Session(make_engine(url)) as fresh:
+        import_issia(fresh, folder, settings)
+
+        def state(session: Session) -> dict[tuple[int, str], tuple]:
+            return {(s.frame_index, f.name): (f.ball_label.point if f.ball_label else None,
+                                              np.round(Camera.from_soccernet(f.calibration.camera).projection_matrix,
+                                                       6).tolist() if f.calibration and f.calibration.camera else None)
+                    for s in _systems(session).values() for f in s.frames}
+
+        assert state(fresh) == state(db_session) and len(state(fresh)) == 240
+
+
+def test_the_issia3d_export_of_a_release_is_the_live_one_then_and_stays_the_same(db_session, db_settings, stretch,
+                                                                                 tmp_path):
+    import os
+    import zipfile
+
+    from app.services.releases.content import create_release
+    from app.services.transfer.export_files import write_export_zip
+
+    def members(path: "os.PathLike[str]") -> dict[str, bytes]:
+        with zipfile.ZipFile(os.fspath(path)) as zf:
+            return {n: zf.read(n) for n in zf.namelist()}
+
+    import_issia(db_session, stretch, db_settings)
+    systems = _systems(db_session)
+    for i in range(0, 12):
+        decide_review(db_session, system_id=systems[i].id, status=ReviewStatus.ACCEPTED)
+    db_session.commit()
+    release = create_release(db_session, "issia-1")
+    write_export_zip(db_session, "issia-3d", tmp_path / "live.zip", False, db_settings)
+    made = write_export_zip(db_session, "issia-3d", tmp_path / "r1.zip", False, db_settings, release="issia-1")
+    assert (made["sequences"], made["rows"], made["hash"]) == (1, 12, release.hash)
+    ours, live = members(tmp_path / "r1.zip"), members(tmp_path / "live.zip")
+    for name in ("v3d-release.json", "v3d-release/", "v3d-release/documents.jsonl"):
+        ours.pop(name)
+    assert ours == live  # the same CSV, split and cameras as the database had then
+    frame = _view(systems[5], "cam4")
+    x, y = frame.ball_label.point
+    update_ball_label(db_session, frame.id, point=[x + 6.0, y], settings=db_settings)
+    write_export_zip(db_session, "issia-3d", tmp_path / "r2.zip", False, db_settings, release="issia-1")
+    assert (tmp_path / "r2.zip").read_bytes() == (tmp_path / "r1.zip").read_bytes()
+    write_export_zip(db_session, "issia-3d", tmp_path / "live2.zip", False, db_settings)
+    assert members(tmp_path / "live2.zip") != live
+
+
 def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and_split_per_camera(
         db_session, db_settings, shared_dir, tmp_path):
     """Issue 19: the SoccerNet-v3D export holds no ISSIA row; in the detector exports every ISSIA view has a
@@ -517,7 +576,7 @@ def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and
 
     yolo = export_yolo(db_session, tmp_path / "yolo", include_all=True)
     total = 0
-    for split in ("train", "test"):
+    for split in ("train", "val", "test"):  # val: YOLO's validation systems, drawn from train
         images = sorted(p.stem for p in (tmp_path / "yolo" / "images" / split).iterdir())
         labels = sorted(p.stem for p in (tmp_path / "yolo" / "labels" / split).iterdir())
         assert images == labels and len(images) == yolo.images[split]
@@ -529,7 +588,8 @@ def test_issia_stays_out_of_the_soccernet_v3d_export_and_its_views_are_named_and
     for split in ("train", "test"):
         doc = json.loads((tmp_path / "coco" / split / "instances.json").read_text())
         names = [im["file_name"] for im in doc["images"]]
-        assert len(names) == len(set(names)) == coco.images[split] == yolo.images[split]
+        in_yolo = yolo.images[split] + (yolo.images["val"] if split == "train" else 0)
+        assert len(names) == len(set(names)) == coco.images[split] == in_yolo
         assert sorted(p.name for p in (tmp_path / "coco" / split).iterdir()
                       if p.name != "instances.json") == sorted(names)
 

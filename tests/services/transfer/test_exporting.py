@@ -6,6 +6,7 @@ import csv
 import json
 import zipfile
 
+import numpy as np
 import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import selectinload
@@ -220,7 +221,7 @@ def test_the_export_carries_each_games_images_and_re_imports_with_them(db_sessio
     import zipfile
 
     from app.services.images.serving import frame_image
-    from app.services.transfer.exporting import stream_soccernet_v3d_zip
+    from app.services.transfer.export_zip import stream_soccernet_v3d_zip
 
     import_soccernet_v3(db_session, v3_tree, settings)
     frames = db_session.scalars(sa.select(Frame).order_by(Frame.name)).all()
@@ -355,3 +356,41 @@ def test_a_games_frames_zip_reads_its_frames_in_one_query(db_session, settings, 
     assert sum(s.lstrip().upper().startswith("SELECT") and "FROM frames" in s for s in statements) == 1, statements
     with zipfile.ZipFile(tmp_path / "Frames-v3.zip") as zf:
         assert zf.namelist() == [name for _, name in frames]
+
+
+def test_the_cameras_export_imports_into_a_fresh_database_as_it_left(db_session, settings, v3_tree, shared_dir,
+                                                                    tmp_path, fresh_session_factory):
+    """v3d's cameras export, as downloaded (no image: the sizes are in its ``cameras.json``), imports into an empty
+    database as a SoccerNet-calibration set: one single-view system per view, named as in the export, at its image
+    size, with its field lines (to the export's normalised precision) and a camera fitted to them (10 exported
+    cameras, 9 fitted again: the one the game's camera rig gave a view with few lines is not, a set having no rig)."""
+    import_soccernet_v3(db_session, v3_tree, settings)
+    import_sn_calibration(db_session, write_calibration_zip(shared_dir, tmp_path / "wc" / "a.zip"), settings,
+                          width=960, height=540)
+    cams = export_cameras(db_session, tmp_path / "cameras", include_all=True)
+    index = json.loads((tmp_path / "cameras" / "cameras.json").read_text())
+    views = {v["name"]: (s["width"], s["height"], v["game"], v["frame"]) for s in index["sets"] for v in s["views"]}
+    assert len(index["sets"]) == 2  # 1920x1080 and 960x540
+    fresh = fresh_session_factory("fresh")
+    report = import_sn_calibration(fresh, tmp_path / "cameras", settings)
+    assert report.systems == len(views)
+    stored = {f.system.name: f for f in fresh.scalars(sa.select(Frame))}
+    assert sorted(stored) == sorted(views)
+    frames = {(s.game.path, f.name): f for s in _systems(db_session).values() for f in s.frames}
+    fitted = 0
+    for name, (w, h, game, frame_name) in views.items():
+        back, source = stored[name], frames[(game, frame_name)]
+        assert (back.width, back.height) == (w, h)
+        lines, original = back.field_lines.lines, source.field_lines.lines
+        assert sorted(lines) == sorted(original)
+        for cls in original:  # every point of a class, pooled, as the export writes them
+            ours = np.array([p for poly in original[cls] for p in poly])
+            theirs = np.array([p for poly in lines[cls] for p in poly])
+            assert np.allclose(np.sort(ours, axis=0), np.sort(theirs, axis=0), atol=1e-6)
+        got = back.calibration is not None and back.calibration.camera is not None
+        alone = source.calibration is not None and source.calibration.admitted and (
+            "rig_assisted" not in source.calibration.flags)
+        assert got or not alone  # a view admitted from its own lines is fitted again from them
+        fitted += got
+    # the views the game's camera rig helped may not calibrate alone: a single-view set has no rig
+    assert fitted >= cams.cameras - 1

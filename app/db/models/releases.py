@@ -1,0 +1,69 @@
+"""Releases: named, immutable snapshots of the accepted systems (``app.services.releases``), their content stored
+as canonical JSON documents once by digest. Append-only: the migration adds triggers refusing UPDATE and DELETE.
+"""
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Mapped, mapped_column
+
+from app.db.models.base import Base
+from app.db.types import decompressed_json, utcnow
+
+
+class Release(Base):
+    """One release: ``name`` (unique), ``note``, who made it and when, the counts ``systems`` (accepted systems
+    it holds) and ``views`` (their frames), and ``hash``: the SHA-256 (hex) of its canonical content
+    (``app.services.releases.content.release_hash``; the recipe in docs/exports.md)."""
+
+    __tablename__ = "releases"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(sa.String(200), unique=True)
+    note: Mapped[str] = mapped_column(sa.Text, default="")
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str] = mapped_column(sa.String(200))
+    systems: Mapped[int]
+    views: Mapped[int]
+    hash: Mapped[str] = mapped_column(sa.String(64))
+
+
+class ReleaseDocument(Base):
+    """One document of release content, stored once however many releases name it: ``digest`` is the SHA-256 of
+    its canonical JSON (``app.db.types.json_digest``), ``body`` that JSON compressed
+    (``app.db.types.compressed_json``)."""
+
+    __tablename__ = "release_documents"
+
+    digest: Mapped[str] = mapped_column(sa.String(64), primary_key=True)
+    body: Mapped[bytes] = mapped_column(sa.LargeBinary)
+
+    @property
+    def value(self) -> Any:
+        """The document (a fresh object at each read)."""
+        return decompressed_json(self.body)
+
+
+class ReleaseGame(Base):
+    """A game of a release and its document (folder names, what its labels file carries, as-of time)."""
+
+    __tablename__ = "release_games"
+
+    release_id: Mapped[int] = mapped_column(sa.ForeignKey("releases.id"), primary_key=True)
+    game_id: Mapped[int] = mapped_column(primary_key=True)
+    digest: Mapped[str] = mapped_column(sa.ForeignKey("release_documents.digest"))
+
+
+class ReleaseSystem(Base):
+    """An accepted system of a release, its name and game (for a diff without reading documents) and its document
+    (its frames' labels, lines, calibrations, decisions and its 3D result)."""
+
+    __tablename__ = "release_systems"
+
+    release_id: Mapped[int] = mapped_column(sa.ForeignKey("releases.id"), primary_key=True)
+    system_id: Mapped[int] = mapped_column(primary_key=True)
+    game_id: Mapped[int]
+    name: Mapped[str] = mapped_column(sa.String(400))
+    digest: Mapped[str] = mapped_column(sa.ForeignKey("release_documents.digest"))

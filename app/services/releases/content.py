@@ -1,0 +1,303 @@
+"""Make, list and read releases: the accepted systems as they are at one moment, kept immutably.
+
+A release's content is a set of canonical JSON documents (``app.db.types.canonical_json``: keys sorted, compact,
+UTF-8), each stored once in ``release_documents`` under its SHA-256 (``app.db.types.json_digest``) and compressed
+(zlib): a system unchanged since an earlier release names the document stored then, so a release costs one
+``release_systems`` row per system plus the documents of what changed.
+
+* a **game document** per game holding a released system (:func:`game_document`): ``game_id``, ``league``,
+  ``season``, ``match``, ``path``, ``release`` (what its imported labels file carried beside its systems,
+  ``games.release``) and ``as_of`` (ISO 8601 UTC: its newest change, as the live export's ``v3d_as_of``);
+* a **system document** per accepted system (:func:`system_document`): ``system_id``, ``name``, ``kind``,
+  ``game_id``, ``review_status``, ``ball3d`` (world metres ``[x, y, z]``, z down, as stored JSON text),
+  ``triangulation`` (its status and the settings it was computed with: ``tau_px``, ``rule``, ``min_baseline_m``;
+  ``pairs``: per pair of admitted views ``[frame a id, frame b id, kept]``, what the detector exports' refined box
+  reads),
+  ``derived_settings`` (``Settings.derived_fingerprint``),
+  ``derived_version``, ``frame_index`` (ISSIA), and ``frames``: per frame, in order,
+  the export row of ``app.services.transfer.exporting.frame_row_select`` (labels, field lines, calibration, JaC,
+  optimised box, reprojection error; JSON values as their stored text, enums by value) with the view's decisions
+  (``view_status``, ``view_calibration_status``, ``excluded``); an ISSIA frame's ``trajectory`` (its point on the
+  sequence's fitted trajectory: ``ball3d``, ``ball3d_smoothed``, ``source``, ``cam_list``).
+
+The release's **hash** (:func:`release_hash`) is the SHA-256 (hex) of the UTF-8 text made of one line per document,
+``game <game_id> <digest>\\n`` for every game in increasing id, then ``system <system_id> <digest>\\n`` for every
+system in increasing id. It depends on the content only (not on the name, note, time or author): two releases of the
+same content have the same hash. docs/exports.md shows how to recompute it from a release's export.
+
+Releases are append-only (database triggers refuse UPDATE and DELETE) and each is one audit entry
+(``release.create``) written in its own transaction.
+"""
+from __future__ import annotations
+
+import hashlib
+import zlib
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import sqlalchemy as sa
+from sqlalchemy import select
+from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy.orm import Session, aliased, undefer
+
+from app.core.errors import ConflictError, InvalidInputError, found
+from app.db.models import (
+    Frame,
+    Game,
+    Release,
+    ReleaseDocument,
+    ReleaseGame,
+    ReleaseSystem,
+    ReviewDecision,
+    ReviewStatus,
+    System,
+    TrajectoryPoint,
+    Triangulation,
+    TriangulationPair,
+)
+from app.db.types import canonical_json, compressed_json, decompressed_json, json_digest, utcnow
+from app.services.audit.log import local_actor, record
+from app.services.transfer.exporting import changed_at, frame_row_select, game_as_of
+
+#: The longest release name (the column's size).
+NAME_MAX = 200
+#: Digests read per query (below every database's bound on an ``IN`` list).
+_CHUNK = 500
+#: The system-level columns of an export row: written once in the system document, not per frame.
+_SYSTEM_COLUMNS = ("game_id", "system_id", "system_name", "ball3d", "review_status")
+
+
+@dataclass(frozen=True)
+class ReleaseContent:
+    """What a release names: game id -> game document digest, system id -> (game id, name, digest)."""
+
+    games: dict[int, str]
+    systems: dict[int, tuple[int, str, str]]
+
+    @property
+    def hash(self) -> str:
+        """:func:`release_hash` of this content."""
+        return release_hash(self.games, {sid: digest for sid, (_, _, digest) in self.systems.items()})
+
+
+def release_hash(games: dict[int, str], systems: dict[int, str]) -> str:
+    """The release hash: SHA-256 (64 hex digits) of one line per document, ``game <id> <digest>\\n`` in increasing
+    game id, then ``system <id> <digest>\\n`` in increasing system id (the module docstring; docs/exports.md).
+
+    >>> release_hash({}, {}) == hashlib.sha256(b"").hexdigest()
+    True
+    """
+    h = hashlib.sha256()
+    for gid in sorted(games):
+        h.update(f"game {gid} {games[gid]}\n".encode())
+    for sid in sorted(systems):
+        h.update(f"system {sid} {systems[sid]}\n".encode())
+    return h.hexdigest()
+
+
+def _plain(value: Any) -> Any:
+    """A row's value as JSON: enums by value, the rest as they are."""
+    return value.value if hasattr(value, "value") else value
+
+
+def game_document(game: Game, as_of: str) -> dict[str, Any]:
+    """The document of a released game (module docstring): its folder names, ``release`` and ``as_of``."""
+    return {"game_id": game.id, "league": game.league, "season": game.season, "match": game.match,
+            "path": game.path, "release": game.release, "as_of": as_of}
+
+
+def system_document(rows: list[Any], triangulation: Optional[dict[str, Any]], system: Any) -> dict[str, Any]:
+    """The document of a released system (module docstring) from its frames' rows (``frame_row_select`` with the
+    view decision columns), its triangulation's settings and its ``systems`` row (kind, derived settings)."""
+    first = rows[0]
+    frames = [{k: _plain(v) for k, v in row._mapping.items() if k not in _SYSTEM_COLUMNS} for row in rows]
+    return {"system_id": first.system_id, "name": first.system_name, "kind": _plain(system.kind),
+            "game_id": first.game_id, "review_status": _plain(first.review_status), "ball3d": first.ball3d,
+            "triangulation": triangulation, "derived_settings": system.derived_settings,
+            "derived_version": system.derived_version, "frame_index": system.frame_index, "frames": frames}
+
+
+def _accepted_rows(session: Session) -> Iterator[list[Any]]:
+    """The frame rows of every accepted system (every kind), one system's list at a time, in system id order."""
+    V = aliased(ReviewDecision)
+    query = (frame_row_select()
+             .add_columns(V.status.label("view_status"), V.calibration_status.label("view_calibration_status"),
+                          V.excluded)
+             .outerjoin(V, V.frame_id == Frame.id)
+             .where(ReviewDecision.status == ReviewStatus.ACCEPTED)
+             .order_by(None).order_by(System.id, Frame.position, Frame.id))
+    current: list[Any] = []
+    for row in session.execute(query):
+        if current and current[0].system_id != row.system_id:
+            yield current
+            current = []
+        current.append(row)
+    if current:
+        yield current
+
+
+def _store(session: Session, documents: dict[str, bytes]) -> int:
+    """Store the canonical documents (digest -> bytes) not stored yet; how many were new."""
+    digests = list(documents)
+    stored: set[str] = set()
+    for start in range(0, len(digests), _CHUNK):
+        some = digests[start:start + _CHUNK]
+        stored.update(session.scalars(select(ReleaseDocument.digest).where(ReleaseDocument.digest.in_(some))))
+    new = [{"digest": d, "body": compressed_json(documents[d])} for d in digests if d not in stored]
+    if new:  # a release made at the same time may store one of them first: equal digests, equal bodies
+        dialect = session.get_bind().dialect.name
+        insert = (postgresql.insert if dialect == "postgresql" else sqlite.insert)(ReleaseDocument)
+        session.execute(insert.on_conflict_do_nothing(index_elements=["digest"]), new)
+    return len(new)
+
+
+def _check_name(name: str) -> str:
+    if not isinstance(name, str) or not name.strip() or len(name) > NAME_MAX or name != name.strip():
+        raise InvalidInputError(f"a release name is 1 to {NAME_MAX} characters, no leading or trailing space",
+                                field="name")
+    if any(ord(c) < 32 or c in "/\\" for c in name):
+        raise InvalidInputError("a release name has no control character, '/' or '\\'", field="name")
+    return name
+
+
+def create_release(session: Session, name: str, note: str = "", actor: Optional[str] = None) -> Release:
+    """Make the release ``name`` of the accepted systems as they are now (module docstring), with its audit entry
+    (``release.create``), and commit.
+
+    Args:
+        session: database session; committed here (the release, its rows, new documents and the entry together).
+        name: the release's name (unique; 1-200 characters, no '/', '\\' or control character).
+        note: free text kept with it.
+        actor: who makes it (the audit's actor; None: the machine's account).
+
+    Returns:
+        The new :class:`Release`.
+
+    Raises:
+        InvalidInputError: a name that cannot be one (field ``name``).
+        ConflictError: the name is taken (HTTP 409); nothing is written.
+    """
+    _check_name(name)
+    if session.scalar(select(Release.id).where(Release.name == name)) is not None:
+        raise ConflictError(f"name: a release named {name!r} exists; releases are immutable, choose another name")
+    settings = {t.system_id: {"status": _plain(t.status), "tau_px": t.tau_px, "rule": t.rule,
+                              "min_baseline_m": t.min_baseline_m, "pairs": []}
+                for t in session.execute(select(Triangulation.system_id, Triangulation.status, Triangulation.tau_px,
+                                                Triangulation.rule, Triangulation.min_baseline_m))}
+    trajectory = {t.system_id: {"ball3d": t.ball3d, "ball3d_smoothed": t.ball3d_smoothed, "source": t.source,
+                                "cam_list": list(t.cam_list or [])}
+                  for t in session.execute(select(TrajectoryPoint.system_id, TrajectoryPoint.ball3d,
+                                                  TrajectoryPoint.ball3d_smoothed, TrajectoryPoint.source,
+                                                  TrajectoryPoint.cam_list))}
+    for p in session.execute(select(TriangulationPair.system_id, TriangulationPair.frame_a_id,
+                                    TriangulationPair.frame_b_id, TriangulationPair.kept)
+                             .order_by(TriangulationPair.system_id, TriangulationPair.id)):
+        if p.system_id in settings:
+            settings[p.system_id]["pairs"].append([p.frame_a_id, p.frame_b_id, bool(p.kept)])
+    documents: dict[str, bytes] = {}
+    systems: dict[int, tuple[int, str, str]] = {}
+    views = 0
+    system_rows = {s.id: s for s in session.execute(
+        select(System.id, System.kind, System.derived_settings, System.derived_version, System.frame_index)
+        .join(ReviewDecision, ReviewDecision.system_id == System.id)
+        .where(ReviewDecision.status == ReviewStatus.ACCEPTED))}
+    for rows in _accepted_rows(session):
+        sid = rows[0].system_id
+        document = system_document(rows, settings.get(sid), system_rows[sid])
+        if sid in trajectory:  # an ISSIA frame: its place on the sequence's fitted trajectory
+            document["trajectory"] = trajectory[sid]
+        canonical = canonical_json(document)
+        digest = json_digest(canonical)
+        documents[digest] = canonical
+        systems[sid] = (rows[0].game_id, rows[0].system_name, digest)
+        views += len(rows)
+    game_ids = sorted({gid for gid, _, _ in systems.values()})
+    games: dict[int, str] = {}
+    for start in range(0, len(game_ids), _CHUNK):
+        some = game_ids[start:start + _CHUNK]
+        changed = changed_at(session, some)
+        for game in session.scalars(select(Game).where(Game.id.in_(some)).options(undefer(Game.release))):
+            canonical = canonical_json(game_document(game, game_as_of(game, changed.get(game.id))))
+            digest = json_digest(canonical)
+            documents[digest] = canonical
+            games[game.id] = digest
+    content = ReleaseContent(games, systems)
+    _store(session, documents)
+    actor = actor or local_actor()
+    release = Release(name=name, note=note or "", created_at=utcnow(), created_by=actor, systems=len(systems),
+                      views=views, hash=content.hash)
+    session.add(release)
+    try:
+        session.flush()
+    except sa.exc.IntegrityError:  # the same name made by another request since the check above
+        session.rollback()
+        raise ConflictError(f"name: a release named {name!r} exists; releases are immutable, choose another "
+                            "name") from None
+    if games:
+        session.execute(sa.insert(ReleaseGame), [{"release_id": release.id, "game_id": gid, "digest": d}
+                                                 for gid, d in games.items()])
+    if systems:
+        session.execute(sa.insert(ReleaseSystem), [
+            {"release_id": release.id, "system_id": sid, "game_id": gid, "name": sname, "digest": d}
+            for sid, (gid, sname, d) in systems.items()])
+    record(session, actor=actor, action="release.create",
+           after={"name": name, "hash": release.hash, "systems": release.systems, "views": views})
+    session.commit()
+    return release
+
+
+def list_releases(session: Session) -> list[Release]:
+    """Every release, oldest first."""
+    return list(session.scalars(select(Release).order_by(Release.created_at, Release.id)))
+
+
+def get_release(session: Session, name: str) -> Release:
+    """The release ``name``.
+
+    Raises:
+        NotFoundError: no release has that name (HTTP 404).
+    """
+    return found(session.scalar(select(Release).where(Release.name == name)), "release", name)
+
+
+def release_content(session: Session, release: Release) -> ReleaseContent:
+    """The digests a release names (no document read)."""
+    games: dict[int, str] = dict(session.execute(select(ReleaseGame.game_id, ReleaseGame.digest)
+                                 .where(ReleaseGame.release_id == release.id)).all())
+    systems = {sid: (gid, name, digest) for sid, gid, name, digest in session.execute(
+        select(ReleaseSystem.system_id, ReleaseSystem.game_id, ReleaseSystem.name, ReleaseSystem.digest)
+        .where(ReleaseSystem.release_id == release.id))}
+    return ReleaseContent(games, systems)
+
+
+def read_documents(session: Session, digests: Iterable[str]) -> dict[str, Any]:
+    """digest -> document (decompressed and parsed) for ``digests``, read a chunk at a time."""
+    wanted = sorted(set(digests))
+    out: dict[str, Any] = {}
+    for start in range(0, len(wanted), _CHUNK):
+        some = wanted[start:start + _CHUNK]
+        for digest, body in session.execute(select(ReleaseDocument.digest, ReleaseDocument.body)
+                                            .where(ReleaseDocument.digest.in_(some))):
+            out[digest] = decompressed_json(body)
+    return out
+
+
+def canonical_documents(session: Session, digests: Iterable[str]) -> Iterator[tuple[str, bytes]]:
+    """(digest, canonical JSON bytes) of ``digests`` in increasing digest order: the bytes whose SHA-256 is the
+    digest (what a release's export carries in ``v3d-release/documents.jsonl``)."""
+    wanted = sorted(set(digests))
+    for start in range(0, len(wanted), _CHUNK):
+        some = wanted[start:start + _CHUNK]
+        bodies: dict[str, bytes] = dict(session.execute(select(ReleaseDocument.digest, ReleaseDocument.body)
+                                      .where(ReleaseDocument.digest.in_(some))).all())
+        for digest in some:
+            yield digest, zlib.decompress(bodies[digest])
+
+
+def release_summary(release: Release) -> dict[str, Any]:
+    """The release as the API and the exports name it: ``name, note, created_at`` (ISO 8601 UTC),
+    ``created_by, systems, views, hash``."""
+    return {"name": release.name, "note": release.note, "created_at": release.created_at.isoformat(),
+            "created_by": release.created_by, "systems": release.systems, "views": release.views,
+            "hash": release.hash}

@@ -1,0 +1,263 @@
+"""Exports read from a release instead of the live database (``app.services.transfer.export_zip.ExportSource``).
+
+:class:`ReleaseSource` rebuilds each game's ``Labels-v3D.json`` and ``SNv3D.csv`` rows from the release's documents
+(``app.services.releases.content``) with the live export's own functions (``exporting.exported_game``), so a
+release's export is the export of the database as it was when the release was made; the images are the frames'
+stored images (checked against what was imported: ``app.services.images.serving``). Each game's
+``GameMetadata.v3d_release`` names the release and its hash; the archive ends with ``v3d-release.json`` (the
+release: name, note, created_at, created_by, systems, views, hash, and the digest of every document, the CSV's
+companion file) and ``v3d-release/documents.jsonl`` (every document's canonical JSON, one a line, in increasing
+digest order), from which anyone recomputes the hash (docs/exports.md).
+
+The cameras export reads a release too (:func:`export_release_cameras`: the views, names and splits of the live
+export, from the documents, with the same two files at its root). Nothing in a release export depends on when it is
+written: the same release exports to the same bytes.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import orjson
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.db.models import (
+    JAC_COLUMNS,
+    BallLabel,
+    CalibrationSource,
+    CalibrationStatus,
+    Frame,
+    FrameRole,
+    Release,
+    ReviewStatus,
+    SystemKind,
+)
+from app.db.types import json_loads
+from app.services.issia.export import Issia3DExport, rows_of, write_sequence
+from app.services.kinds import POLICIES, kinds_exported_by
+from app.services.releases.content import (
+    ReleaseContent,
+    canonical_documents,
+    read_documents,
+    release_content,
+    release_summary,
+)
+from app.services.transfer.cameras_export import CamerasExport, CameraView, pooled_lines, write_camera_sets
+from app.services.transfer.exporting import ExportedGame, exported_game, safe_component
+
+#: The release's description at the root of its export (the companion file of ``SNv3D.csv``).
+RELEASE_FILE = "v3d-release.json"
+#: Every document of the release, one canonical JSON a line, in increasing digest order.
+DOCUMENTS_FILE = "v3d-release/documents.jsonl"
+#: Games whose documents are read per query.
+_BATCH_GAMES = 25
+#: Systems whose documents (and stored frames, for their images) are read per query by the detector exports.
+_BATCH_SYSTEMS = 200
+
+
+def release_manifest(release: Release, content: ReleaseContent) -> dict[str, Any]:
+    """The release as its exports name it (:data:`RELEASE_FILE`): its summary and the digest of every game and
+    system document (``games``: game id -> digest, ``systems``: system id -> digest; ids as text)."""
+    return {**release_summary(release),
+            "games": {str(gid): d for gid, d in sorted(content.games.items())},
+            "systems": {str(sid): d for sid, (_, _, d) in sorted(content.systems.items())}}
+
+
+def _enum(cls: Any, value: Any) -> Any:
+    return None if value is None else cls(value)
+
+
+def _row(system: dict[str, Any], frame: dict[str, Any]) -> SimpleNamespace:
+    """An export row (as ``exporting.frame_row_select`` reads it) from a system document and one of its frames."""
+    row = SimpleNamespace(**frame)
+    row.game_id, row.system_id, row.system_name = system["game_id"], system["system_id"], system["name"]
+    row.ball3d, row.review_status = system["ball3d"], _enum(ReviewStatus, system["review_status"])
+    row.role = FrameRole(frame["role"])
+    row.cal_source = _enum(CalibrationSource, frame["cal_source"])
+    row.cal_status = _enum(CalibrationStatus, frame["cal_status"])
+    return row
+
+
+@dataclass
+class ReleaseSource:
+    """A release as the source of a SoccerNet-v3D export (``export_zip.ExportSource``)."""
+
+    session: Session
+    release: Release
+
+    def games(self, progress: Callable[[str, int, int], None] | None) -> Iterator[ExportedGame]:
+        """The release's games holding SoccerNet-v3 systems, in (league, season, match, id) order, each game's
+        systems in id order; every folder name checked before the first game.
+
+        Raises:
+            InvalidInputError: a league, season or match that cannot be a folder name.
+        """
+        content = release_content(self.session, self.release)
+        exported_kinds = {k.value for k in kinds_exported_by("soccernet-v3d")}
+        games = read_documents(self.session, content.games.values())
+        per_game: dict[int, list[tuple[int, str]]] = {}
+        for sid, (gid, _, digest) in sorted(content.systems.items()):
+            per_game.setdefault(gid, []).append((sid, digest))
+        order = sorted((games[content.games[gid]] for gid in per_game),
+                       key=lambda g: (g["league"], g["season"], g["match"], g["game_id"]))
+        for game in order:
+            for what in ("league", "season", "match"):
+                safe_component(game[what], f"game {game['game_id']} {what}")
+        return self._games(order, per_game, exported_kinds, progress)
+
+    def _games(self, order: list[dict[str, Any]], per_game: dict[int, list[tuple[int, str]]],
+               exported_kinds: set[str], progress: Callable[[str, int, int], None] | None) -> Iterator[ExportedGame]:
+        marker = {"name": self.release.name, "hash": self.release.hash}
+        done = 0
+        for first in range(0, len(order), _BATCH_GAMES):
+            batch = order[first:first + _BATCH_GAMES]
+            docs = read_documents(self.session, (d for g in batch for _, d in per_game[g["game_id"]]))
+            for game in batch:
+                systems = [docs[d] for _, d in per_game[game["game_id"]]]
+                rows = [_row(s, f) for s in systems if s["kind"] in exported_kinds for f in s["frames"]]
+                done += 1
+                if rows:
+                    exported = exported_game(SimpleNamespace(**game), rows, game["as_of"])
+                    exported.doc["GameMetadata"]["v3d_release"] = marker
+                    yield exported
+                if progress:
+                    progress("export", done, len(order))
+
+    def members(self) -> Iterator[tuple[str, bytes]]:
+        """:func:`release_files`."""
+        return release_files(self.session, self.release)
+
+
+def release_files(session: Session, release: Release) -> Iterator[tuple[str, bytes]]:
+    """The files naming a release in each of its exports: :data:`RELEASE_FILE` then :data:`DOCUMENTS_FILE`."""
+    content = release_content(session, release)
+    yield RELEASE_FILE, orjson.dumps(release_manifest(release, content),
+                                     option=orjson.OPT_SORT_KEYS | orjson.OPT_INDENT_2)
+    digests = [*content.games.values(), *(d for _, _, d in content.systems.values())]
+    yield DOCUMENTS_FILE, b"".join(body + b"\n" for _, body in canonical_documents(session, digests))
+
+
+def release_camera_views(session: Session, release: Release) -> list[CameraView]:
+    """The views of the cameras export (``app.services.transfer.cameras_export.camera_views``) read from a release's
+    documents: the released systems of the kinds that take the ``cameras`` export, in (league, season, match, system
+    id) order, each view with field lines or an admitted camera, named and split as the live export names them."""
+    content = release_content(session, release)
+    kinds = {k.value for k in kinds_exported_by("cameras")}
+    games = {g["game_id"]: SimpleNamespace(**g) for g in read_documents(session, content.games.values()).values()}
+    order = sorted(content.systems.items(), key=lambda kv: (
+        games[kv[1][0]].league, games[kv[1][0]].season, games[kv[1][0]].match, kv[0]))
+    docs = read_documents(session, (d for _, (_, _, d) in order))
+    out = []
+    for _, (gid, _, digest) in order:
+        system = docs[digest]
+        if system["kind"] not in kinds:
+            continue
+        game = games[gid]
+        policy = POLICIES[SystemKind(system["kind"])]
+        holder = SimpleNamespace(game=game)
+        for f in system["frames"]:
+            camera_text = f["camera_json"] if f["cal_source"] is not None and f["admitted"] else None
+            camera = json_loads(camera_text) if camera_text not in (None, "null") else None
+            stored = json_loads(f["lines_json"]) if f["lines_json"] not in (None, "null") else None
+            if camera is None and not stored:
+                continue
+            frame = SimpleNamespace(name=f["name"], split=f["frame_split"])
+            jac = {str(g): f[col] if f["cal_source"] is not None else None for g, col in JAC_COLUMNS.items()}
+            out.append(CameraView(policy.view_stem(game, frame), policy.split(holder, frame),  # type: ignore[arg-type]  # the documents' game and frame stand in for the rows
+                                  game.path, f["name"], system["kind"], f["width"], f["height"], camera,
+                                  pooled_lines(stored, f["width"], f["height"]) if stored else None, jac))
+    return out
+
+
+def _json(text: Any) -> Any:
+    """A document's stored JSON text as its value (None for SQL NULL or JSON null)."""
+    return None if text in (None, "null") else json_loads(text)
+
+
+def release_detector_systems(session: Session, release: Release, export: str) -> Iterator[SimpleNamespace]:
+    """The released systems the export ``export`` (``yolo``, ``coco``, ``issia-3d``) writes, as stand-ins of stored
+    systems (what ``detector_export.views_of`` and ``issia.export.rows_of`` read: game, kind, frame index, frames with
+    their ball label, calibration, optimised box, reprojection and release entry, the triangulation with its pairs,
+    the trajectory point), in (league, season, match, system id) order. Each frame's ``image_source`` is the stored
+    frame of that id (its image as imported), or an empty stand-in when the frame is gone (the view is then counted
+    without image)."""
+    content = release_content(session, release)
+    kinds = {k.value for k in kinds_exported_by(export)}
+    games = {g["game_id"]: SimpleNamespace(**g) for g in read_documents(session, content.games.values()).values()}
+    order = sorted(content.systems.items(), key=lambda kv: (
+        games[kv[1][0]].league, games[kv[1][0]].season, games[kv[1][0]].match, kv[0]))
+    no_image = SimpleNamespace(image_path=None, image_zip=None, image_member=None)
+    for start in range(0, len(order), _BATCH_SYSTEMS):
+        batch = order[start:start + _BATCH_SYSTEMS]
+        docs = read_documents(session, (d for _, (_, _, d) in batch))
+        wanted = [docs[d] for _, (_, _, d) in batch if docs[d]["kind"] in kinds]
+        ids = [f["frame_id"] for s in wanted for f in s["frames"]]
+        stored = {f.id: f for f in session.scalars(select(Frame).where(Frame.id.in_(ids)))} if ids else {}
+        for doc in wanted:
+            tri = doc["triangulation"]
+            system = SimpleNamespace(
+                id=doc["system_id"], name=doc["name"], kind=SystemKind(doc["kind"]), game=games[doc["game_id"]],
+                frame_index=doc.get("frame_index"),
+                triangulation=None if tri is None else SimpleNamespace(
+                    ball3d=_json(doc["ball3d"]),
+                    pairs=[SimpleNamespace(frame_a_id=a, frame_b_id=b, kept=k) for a, b, k in tri.get("pairs", [])]))
+            system.frames = [SimpleNamespace(
+                id=f["frame_id"], name=f["name"], width=f["width"], height=f["height"], split=f["frame_split"],
+                system=system, release=_json(f["release_json"]), image_source=stored.get(f["frame_id"], no_image),
+                ball_label=None if f["label_frame"] is None else SimpleNamespace(
+                    box=_json(f["ball_box"]), kind=f["ball_kind"],
+                    centre=BallLabel.centre_of(_json(f["ball_box"]), _json(f["ball_point"]))),
+                calibration=None if f["cal_source"] is None else SimpleNamespace(
+                    camera=_json(f["camera_json"]), admitted=bool(f["admitted"])),
+                optimised_box=None if _json(f["opt_box"]) is None else SimpleNamespace(box=_json(f["opt_box"])),
+                reprojection=None if f["rep_error_px"] is None else SimpleNamespace(error_px=f["rep_error_px"]),
+                position=position,
+            ) for position, f in enumerate(doc["frames"])]
+            trajectory = doc.get("trajectory")
+            system.trajectory_point = None if trajectory is None else SimpleNamespace(**trajectory)
+            yield system
+
+
+def export_release_issia3d(session: Session, release: Release, out_dir: Path) -> Issia3DExport:
+    """The ISSIA-3D export of a release under ``out_dir`` (``app.services.issia.export``: per sequence
+    ``ISSIA-3D.csv`` of the released frames, ``split.json`` and the cameras, each camera the admitted one of its view
+    at the first released frame index that has one) with the files naming the release (:func:`release_files`)."""
+    report = Issia3DExport(out_dir)
+    per_game: dict[int, list[SimpleNamespace]] = {}
+    for system in release_detector_systems(session, release, "issia-3d"):
+        per_game.setdefault(system.game.game_id, []).append(system)
+    for systems in sorted(per_game.values(), key=lambda ss: (ss[0].game.match, ss[0].game.game_id)):
+        systems.sort(key=lambda s: (s.frame_index is None, s.frame_index or 0, s.id))
+        rows = rows_of(systems)
+        if not rows:
+            continue
+        cameras: dict[str, Any] = {}
+        for s in systems:
+            for f in s.frames:
+                if f.calibration is not None and f.calibration.admitted and f.calibration.camera is not None:
+                    cameras.setdefault(f.name, f.calibration.camera)
+        write_sequence(out_dir / safe_component(systems[0].game.match, "match"), rows, dict(sorted(cameras.items())),
+                       report)
+        report.sequences += 1
+        report.rows += len(rows)
+    write_release_files(session, release, out_dir)
+    return report
+
+
+def export_release_cameras(session: Session, release: Release, out_dir: Path) -> CamerasExport:
+    """The cameras export of a release under ``out_dir`` (``cameras_export.write_camera_sets`` of
+    :func:`release_camera_views`) with the files naming the release (:func:`release_files`) at its root."""
+    report = write_camera_sets(out_dir, release_camera_views(session, release))
+    write_release_files(session, release, out_dir)
+    return report
+
+
+def write_release_files(session: Session, release: Release, out_dir: Path) -> None:
+    """:func:`release_files` written under ``out_dir`` (a tree export of the release)."""
+    for name, data in release_files(session, release):
+        (out_dir / name).parent.mkdir(parents=True, exist_ok=True)
+        (out_dir / name).write_bytes(data)

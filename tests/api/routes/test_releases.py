@@ -1,0 +1,142 @@
+"""Releases over HTTP: the issue's whole scenario through the app (five accepted systems released as ``v1.0``; 403
+for an annotator, 409 for a taken name; ``v1.0`` exported as a job names the release and its hash; a ball moved and
+accepted again, one rejected, one more accepted, ``v1.1``; the diff names exactly the one added, the one removed
+and the moved one with how far its 3D ball moved; ``v1.0`` exported again is byte for byte the first export; both
+listed), the CSV diff, and the refusals of an export's ``release`` beside ``all`` or naming no release.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import pytest
+import sqlalchemy as sa
+from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+
+from ..conftest import run_queued
+from ..factories import Scene, make_game, make_system
+
+#: The edit routes run on a real engine, as served (tests/api/conftest.py).
+pytestmark = pytest.mark.served
+
+
+def _accept(client: TestClient, system_id: int, status: str = "accepted") -> None:
+    etag = client.get(f"/api/systems/{system_id}").headers["etag"]
+    answer = client.post(f"/api/systems/{system_id}/review", json={"status": status, "comment": ""},
+                         headers={"If-Match": etag})
+    assert answer.status_code == 200, answer.text
+
+
+def _export(app: Any, client: TestClient, body: dict[str, Any]) -> bytes:
+    job = client.post("/api/exports/soccernet-v3d", json=body)
+    assert job.status_code == 202, job.text
+    run_queued(app)
+    done = client.get(job.json()["url"]).json()
+    assert done["state"] == "done", done
+    return client.get(done["result_url"]).content
+
+
+def _labels(data: bytes) -> dict[str, Any]:
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        return {n: json.loads(zf.read(n)) for n in zf.namelist() if n.endswith("Labels-v3D.json")}
+
+
+@pytest.fixture
+def six(db_session: Session, db_settings: Settings, tmp_path: Path) -> list[Scene]:
+    game = make_game(db_session)
+    return [make_system(db_session, db_settings, game, f"{i}.png", image_dir=tmp_path) for i in range(1, 7)]
+
+
+def test_the_release_scenario_end_to_end(app, client: TestClient, six: list[Scene], act_as) -> None:
+    act_as("adam", "admin")
+    ids = [s.system_id for s in six]
+    for sid in ids[:5]:
+        _accept(client, sid)
+    made = client.post("/api/releases", json={"name": "v1.0", "note": "first"})
+    assert made.status_code == 201, made.text
+    v10 = made.json()
+    assert v10["systems"] == 5 and v10["views"] == 15 and v10["note"] == "first" and v10["created_by"] == "adam"
+    assert len(v10["hash"]) == 64 and int(v10["hash"], 16) >= 0
+    assert client.post("/api/releases", json={"name": "v1.0"}).status_code == 409
+    act_as("ana", "annotator")
+    assert client.post("/api/releases", json={"name": "v1.0-ana"}).status_code == 403
+    act_as("adam", "admin")
+
+    first = _export(app, client, {"release": "v1.0"})
+    labels = _labels(first)
+    assert [doc["GameMetadata"]["v3d_release"] for doc in labels.values()] == [{"name": "v1.0", "hash": v10["hash"]}]
+    with zipfile.ZipFile(io.BytesIO(first)) as zf:
+        manifest = json.loads(zf.read("v3d-release.json"))
+        assert manifest["hash"] == v10["hash"] and len(manifest["systems"]) == 5
+        assert all(info.date_time == (1980, 1, 1, 0, 0, 0) for info in zf.infolist())
+        assert sum(1 for n in zf.namelist() if n.endswith("Frames-v3.zip")) == 1  # the images, too
+
+    # one released system's ball moved 6 px and accepted again, one rejected, one more accepted
+    frame = six[0].frame_ids[1]
+    box = client.get(f"/api/systems/{ids[0]}").json()["views"][1]["ball"]["box"]
+    moved = client.patch(f"/api/frames/{frame}/ball", json={"box": [box[0] + 6, box[1], box[2] + 6, box[3]]})
+    assert moved.status_code == 200, moved.text
+    _accept(client, ids[0])
+    _accept(client, ids[1], "rejected")
+    _accept(client, ids[5])
+    v11 = client.post("/api/releases", json={"name": "v1.1"}).json()
+    assert v11["systems"] == 5 and v11["hash"] != v10["hash"]
+
+    diff = client.get("/api/releases/v1.0/diff/v1.1")
+    assert diff.status_code == 200, diff.text
+    d = diff.json()
+    assert [s["system_id"] for s in d["added"]] == [ids[5]]
+    assert [s["system_id"] for s in d["removed"]] == [ids[1]]
+    assert [s["system_id"] for s in d["changed"]] == [ids[0]]
+    assert d["changed"][0]["ball3d_moved_m"] > 0
+    assert {v["frame_id"]: v["changes"] for v in d["changed"][0]["views"]}[frame][0] == "label"
+    assert d["unchanged"] == 3 and d["from"] == {"name": "v1.0", "hash": v10["hash"]}
+    rows = list(csv.DictReader(io.StringIO(client.get("/api/releases/v1.0/diff/v1.1?format=csv").text)))
+    assert [(r["change"], int(r["system_id"])) for r in rows] == [("added", ids[5]), ("removed", ids[1]),
+                                                                   ("changed", ids[0])]
+    assert float(rows[2]["ball3d_moved_m"]) == d["changed"][0]["ball3d_moved_m"]
+
+    again = _export(app, client, {"release": "v1.0"})
+    assert again == first
+    streamed = client.get("/api/exports/soccernet-v3d", params={"release": "v1.0"})
+    assert streamed.status_code == 200 and streamed.content == first and streamed.headers["x-v3d-systems"] == "5"
+    listed = client.get("/api/releases").json()["items"]
+    assert [r["name"] for r in listed] == ["v1.0", "v1.1"]
+    assert client.get("/api/releases/v1.1").json() == v11
+    assert client.get("/api/releases/v9").status_code == 404
+    summaries = [e["summary"] for e in client.get("/api/audit", params={"limit": 500}).json()["items"]]
+    assert any(s.startswith("release v1.0 made: 5 systems, 15 views") for s in summaries)
+
+
+def test_release_exports_refuse_all_and_unknown_releases(client: TestClient, scene: Scene, act_as) -> None:
+    act_as("adam", "admin")
+    _accept(client, scene.system_id)
+    assert client.post("/api/releases", json={"name": "r"}).status_code == 201
+    both = client.post("/api/exports/soccernet-v3d", json={"release": "r", "all": True})
+    assert both.status_code == 422 and "release" in both.text
+    assert client.post("/api/exports/soccernet-v3d", json={"release": "nope"}).status_code == 404
+    assert client.get("/api/exports/soccernet-v3d", params={"release": "nope"}).status_code == 404
+    assert client.get("/api/exports/soccernet-v3d", params={"release": "r", "all": "true"}).status_code == 422
+    for fmt in ("issia-3d", "cameras", "yolo", "coco"):  # every format takes a release
+        assert client.post(f"/api/exports/{fmt}", json={"release": "r"}).status_code == 202
+        assert client.post(f"/api/exports/{fmt}", json={"release": "r", "all": True}).status_code == 422
+    assert client.post("/api/releases", json={"name": " r "}).status_code == 422
+
+
+def test_releases_are_append_only_in_the_database(client: TestClient, scene: Scene, act_as,
+                                                  db_session: Session) -> None:
+    act_as("adam", "admin")
+    _accept(client, scene.system_id)
+    assert client.post("/api/releases", json={"name": "fixed"}).status_code == 201
+    for statement in ("UPDATE releases SET note = 'x'", "DELETE FROM release_systems",
+                      "UPDATE release_documents SET digest = digest", "DELETE FROM release_games"):
+        with pytest.raises(sa.exc.DBAPIError, match="append-only"):
+            db_session.execute(sa.text(statement))
+        db_session.rollback()

@@ -1,0 +1,41 @@
+"""The releases page (static/releases.html) in Chromium against the real server and the demo dataset: two releases
+made through the API (one system accepted, then a second), listed with their hashes; the diff of the two shown as a
+table naming the added system, and the histogram of 3D moves (none moved: its empty note)."""
+from __future__ import annotations
+
+import pytest
+
+from tests.browser.support import api_json, api_write
+
+pytestmark = pytest.mark.browser
+
+
+def _accept(page, system_id: int) -> None:
+    answer = page.request.get(f"/api/systems/{system_id}")
+    done = api_write(page, "POST", f"/api/systems/{system_id}/review", data={"status": "accepted", "comment": ""},
+                     headers={"If-Match": answer.headers["etag"]})
+    assert done.ok, done.text()
+
+
+def test_the_releases_page_lists_releases_and_shows_their_diff(page, artifacts):
+    systems = api_json(page, "/api/systems?limit=5&sort=name&status=pending")["items"]
+    _accept(page, systems[0]["id"])
+    first = api_write(page, "POST", "/api/releases", data={"name": "ui-1", "note": "one"})
+    assert first.status == 201, first.text()
+    _accept(page, systems[1]["id"])
+    assert api_write(page, "POST", "/api/releases", data={"name": "ui-2"}).status == 201
+    page.goto("/static/releases.html")
+    page.wait_for_selector("[data-testid=releases] tr[data-release=ui-2]")
+    row = page.locator("[data-testid=releases] tr[data-release=ui-1]")
+    assert first.json()["hash"] in row.text_content()
+    page.select_option("[data-testid=diff-from]", "ui-1")
+    page.select_option("[data-testid=diff-to]", "ui-2")
+    page.click("[data-testid=diff-show]")
+    page.wait_for_selector("[data-testid=diff-table]:not([hidden])")
+    added = page.locator("[data-testid=diff-table] tr[data-change=added]")
+    assert added.count() == 1 and added.get_attribute("data-system") == str(systems[1]["id"])
+    unchanged = first.json()["systems"]
+    assert page.text_content("[data-testid=diff-counts]") == f"1 added, 0 removed, 0 changed, {unchanged} unchanged"
+    assert "no 3D ball moved" in page.text_content("[data-testid=diff-histogram]")
+    assert page.get_attribute("[data-testid=diff-csv]", "href").endswith("/diff/ui-2?format=csv")
+    page.screenshot(path=str(artifacts / "releases.png"), full_page=True)
