@@ -216,6 +216,24 @@ def reads_on_their_own(session: Session) -> None:
     session.connection(execution_options={"isolation_level": "AUTOCOMMIT"})
 
 
+def reads_as_one_snapshot(session: Session) -> None:
+    """Give the session's next transaction one snapshot for all its statements on PostgreSQL (``REPEATABLE READ``),
+    for work that reads the same database in several queries and must see it as of one moment (a release reads the
+    accepted systems, their 3D results and games in separate queries; under ``READ COMMITTED`` an edit committed in
+    between would be half in it). Ends a read-only transaction the session is in first (:func:`end_reads`). Does
+    nothing on SQLite (a transaction there reads one snapshot already) or for a session joined to its caller's
+    transaction.
+
+    Raises:
+        RuntimeError: the session holds changes not flushed yet (from :func:`end_reads`).
+    """
+    bind = session.get_bind()
+    if isinstance(bind, sa.Connection) or bind.dialect.name != "postgresql":
+        return
+    end_reads(session)
+    session.connection(execution_options={"isolation_level": "REPEATABLE READ"})
+
+
 #: Options of v3d's PostgreSQL connections (an option named in the URL's or the caller's ``options`` wins). JIT off:
 #: v3d's queries read a few rows by key, yet on a database without statistics the planner's estimates passed the JIT
 #: threshold and one edit's frames query spent about 64 ms compiling, twice per edit.

@@ -6,7 +6,13 @@ from __future__ import annotations
 import sqlalchemy as sa
 
 from app.db import session as db_session_module
-from app.db.session import PING_AFTER_IDLE_S, make_engine, make_session_factory, reads_on_their_own
+from app.db.session import (
+    PING_AFTER_IDLE_S,
+    make_engine,
+    make_session_factory,
+    reads_as_one_snapshot,
+    reads_on_their_own,
+)
 
 
 def test_a_pooled_connection_is_pinged_only_after_idling_and_replaced_when_dead(pg_url: str, monkeypatch) -> None:
@@ -53,4 +59,27 @@ def test_reads_on_their_own_run_without_a_transaction_on_postgresql_only(pg_url:
             assert not getattr(s.connection().connection.dbapi_connection, "autocommit", False)
         with factory() as s:  # the pool hands the connection back at its default level
             assert not getattr(s.connection().connection.dbapi_connection, "autocommit", False)
+        engine.dispose()
+
+
+def test_reads_as_one_snapshot_do_not_see_a_commit_made_between_them_on_postgresql(pg_url: str) -> None:
+    engine = make_engine(pg_url)
+    with engine.begin() as c:
+        c.exec_driver_sql("CREATE TABLE snapshot_probe (n integer)")
+    factory = make_session_factory(engine)
+    try:
+        with factory() as reader, factory() as writer:
+            reader.execute(sa.text("SELECT 1"))  # a read-only transaction begun already is ended first
+            reads_as_one_snapshot(reader)
+            count = "SELECT count(*) FROM snapshot_probe"
+            assert reader.execute(sa.text(count)).scalar() == 0
+            writer.execute(sa.text("INSERT INTO snapshot_probe VALUES (1)"))
+            writer.commit()
+            assert reader.execute(sa.text(count)).scalar() == 0  # READ COMMITTED would see 1 here
+            reader.commit()
+            assert reader.execute(sa.text(count)).scalar() == 1  # the next transaction is at the default level
+            assert reader.execute(sa.text("SHOW transaction_isolation")).scalar() == "read committed"
+    finally:
+        with engine.begin() as c:
+            c.exec_driver_sql("DROP TABLE snapshot_probe")
         engine.dispose()

@@ -56,6 +56,7 @@ from app.db.models import (
     Triangulation,
     TriangulationPair,
 )
+from app.db.session import reads_as_one_snapshot
 from app.db.types import canonical_json, compressed_json, decompressed_json, json_digest, utcnow
 from app.services.audit.log import local_actor, record
 from app.services.transfer.exporting import changed_at, frame_row_select, game_as_of
@@ -179,6 +180,7 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
         ConflictError: the name is taken (HTTP 409); nothing is written.
     """
     _check_name(name)
+    reads_as_one_snapshot(session)
     if session.scalar(select(Release.id).where(Release.name == name)) is not None:
         raise ConflictError(f"name: a release named {name!r} exists; releases are immutable, choose another name")
     settings = {t.system_id: {"status": _plain(t.status), "tau_px": t.tau_px, "rule": t.rule,
