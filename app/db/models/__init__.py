@@ -19,6 +19,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
     AuditEntry                                         (append-only log of accepted writes; ids, no FKs)
         - AuditState                                   (a large before / after state, stored once by digest)
     Job                                                (a background import, full recompute or export)
+    Frame -> Prediction                                (a ball detector's boxes, by source; never a label)
 
 Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
 world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
@@ -46,6 +47,7 @@ from app.db.models.enums import (
 )
 from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, System, TrajectoryPoint
 from app.db.models.operations import AuditEntry, AuditState, Job
+from app.db.models.predictions import Prediction
 from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
 
 __all__ = [
@@ -83,4 +85,5 @@ __all__ = [
     "AuditEntry",
     "AuditState",
     "Job",
+    "Prediction",
 ]
