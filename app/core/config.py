@@ -285,6 +285,10 @@ class Settings(BaseSettings):
         "results JSON, MB): 413 as soon as that much of the body has arrived (never spooled beyond it); the COCO file "
         "is read as a stream. Each YOLO .txt may hold 1 MiB (app.geometry.metrics) and data.yaml 64 KiB "
         "(app.services.evaluation.monocular).")
+    max_prediction_import_mb: float = Field(
+        256.0, gt=0, description="Largest upload of a detector's predictions to import (POST /api/imports kind "
+        "predictions: a zip holding one CSV, MB): 413 beyond it. The CSV is read as a stream, so its size bounds the "
+        "import's time, not its memory.")
     max_image_pixels: int = Field(
         50_000_000, gt=0, description="Most pixels (width x height) an imported image or video frame may have, read "
         "from its header before anything is decoded: a larger one refuses the import (400 / exit 2) naming it.")

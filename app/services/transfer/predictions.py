@@ -1,0 +1,299 @@
+"""A ball detector's predictions, imported as a named source (``v3d import predictions FILE [--source NAME]``,
+``POST /api/imports`` kind ``predictions``) and removed by source (``v3d predictions remove SOURCE``).
+
+The file is a CSV with the header ``league,season,match,image,x1,y1,x2,y2,score`` (pixels of that image, continuous,
+origin at the top-left corner; the image named as its kind names it, ``KindPolicy.image_name``: ``12_1.png``), one
+row per detection, or a folder (an unpacked upload) holding exactly one such ``.csv``. It is read as a stream
+(bounded memory: rows are checked and written :data:`BATCH_ROWS` at a time inside one transaction), so a 100 MB file
+needs no more memory than a small one. The file is all or nothing: a malformed row (a missing column, a value that is
+not a finite number, a score outside [0, 1], a box with no area or entirely outside its image) is an error naming the
+file and its line (``DatasetError``), and nothing of the file is stored, the source's earlier predictions included.
+Rows naming an image v3d does not hold are counted and named (the first :data:`NAMED_UNKNOWN`), not an error; a box
+crossing its image's edge is clipped to the image. Importing a source again replaces all its rows.
+
+After the rows are stored, the systems they touch are recomputed (their doubts check the predictions,
+``app.geometry.doubts.detections``) in the import's job, so that the CLI leaves the doubts stored when it exits.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator, cast
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.core.errors import DatasetError, InvalidInputError
+from app.datasets.csv_cells import read_cell
+from app.db.models import Frame, Game, Prediction, System
+from app.db.session import begin_write
+from app.services.audit.log import record_summary
+from app.services.derivation.recompute import recompute_systems_by_id
+from app.services.jobs.progress import Progress
+from app.services.kinds import kind_of
+
+#: The CSV's columns, in this order.
+PREDICTION_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y2", "score")
+#: Rows checked and written per batch (the memory an import holds, whatever the file's size).
+BATCH_ROWS = 5000
+#: How many unknown images a report names (the rest are counted).
+NAMED_UNKNOWN = 20
+#: A source's name: what ``--source`` takes (letters, digits, ``. _ -``; the file's stem by default).
+SOURCE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
+
+
+@dataclass
+class PredictionReport:
+    """What an import of predictions did: ``source`` (its name), ``rows`` read, ``stored`` predictions,
+    ``replaced`` (the source's earlier rows removed), ``clipped`` boxes, ``unknown`` rows naming an image v3d does not
+    hold and ``unknown_images`` (the first :data:`NAMED_UNKNOWN`, ``league/season/match/image``), ``frames`` and
+    ``systems`` touched, ``triangulated`` systems after their recomputation, ``seconds`` of the whole import."""
+
+    source: str
+    rows: int = 0
+    stored: int = 0
+    replaced: int = 0
+    clipped: int = 0
+    unknown: int = 0
+    unknown_images: list[str] = field(default_factory=list)
+    frames: int = 0
+    systems: int = 0
+    triangulated: int = 0
+    seconds: float = 0.0
+
+    def as_result(self) -> dict[str, Any]:
+        """The job's stored result (JSON)."""
+        return {"kind": "predictions", "source": self.source, "rows": self.rows, "stored": self.stored,
+                "replaced": self.replaced, "clipped": self.clipped, "unknown": self.unknown,
+                "unknown_images": list(self.unknown_images), "frames": self.frames, "systems": self.systems,
+                "triangulated": self.triangulated, "seconds": round(self.seconds, 2)}
+
+
+def check_source(name: str) -> str:
+    """``name`` as a source's name (:data:`SOURCE_PATTERN`).
+
+    Raises:
+        InvalidInputError: another name (field ``source``).
+
+    >>> check_source("yolo-sn-ball")
+    'yolo-sn-ball'
+    """
+    if not isinstance(name, str) or not SOURCE_PATTERN.fullmatch(name):
+        raise InvalidInputError("source must be 1-100 letters, digits, '.', '_' or '-', starting with a letter or "
+                                "digit", field="source")
+    return name
+
+
+def prediction_file(path: str | Path) -> Path:
+    """The CSV of an input: ``path`` itself, or the one ``.csv`` inside a folder (an unpacked upload).
+
+    Raises:
+        DatasetError: a folder without exactly one ``.csv``, or no such file.
+    """
+    path = Path(path)
+    if path.is_dir():
+        found = sorted(p for p in path.rglob("*.csv") if p.is_file() and not p.is_symlink())
+        if len(found) != 1:
+            raise DatasetError(path, None, f"a predictions folder must hold exactly one .csv file, found {len(found)}")
+        return found[0]
+    if not path.is_file():
+        raise DatasetError(path, None, "no such file")
+    return path
+
+
+@dataclass(frozen=True)
+class PredictionRow:
+    """One checked row: its ``line`` in the file, the image it names and its box ``(x1, y1, x2, y2)`` px, score."""
+
+    line: int
+    key: tuple[str, str, str, str]
+    box: tuple[float, float, float, float]
+    score: float
+
+
+def read_prediction_rows(path: Path) -> Iterator[tuple[PredictionRow, int]]:
+    """The rows of a predictions CSV, as a stream, each with the bytes of the file read so far (for progress).
+
+    Raises:
+        DatasetError: not UTF-8, a header other than :data:`PREDICTION_COLUMNS`, a row with another number of cells,
+            a coordinate or score that is not a finite number, a score outside [0, 1], a box with no area (the message
+            names the file and the line).
+    """
+    with open(path, "rb") as raw, io.TextIOWrapper(raw, encoding="utf-8-sig", newline="") as text:
+        reader = csv.reader(text)
+        try:
+            header = next(reader, None)
+            if header is None or tuple(c.strip() for c in header) != PREDICTION_COLUMNS:
+                raise DatasetError(path, "line 1", f"the header must be {','.join(PREDICTION_COLUMNS)}, got "
+                                                   f"{','.join(header or [])[:200]!r}")
+            for cells in reader:
+                line = reader.line_num
+                if not cells:
+                    continue
+                if len(cells) != len(PREDICTION_COLUMNS):
+                    raise DatasetError(path, f"line {line}", f"{len(cells)} cells, expected {len(PREDICTION_COLUMNS)} "
+                                                              f"({','.join(PREDICTION_COLUMNS)})")
+                try:
+                    values = [float(c) for c in cells[4:]]
+                except ValueError:
+                    raise DatasetError(path, f"line {line} x1..score", "not numbers") from None
+                if not all(math.isfinite(v) for v in values):
+                    raise DatasetError(path, f"line {line} x1..score", "NaN or infinite value")
+                x1, y1, x2, y2, score = values
+                if not 0.0 <= score <= 1.0:
+                    raise DatasetError(path, f"line {line} score", f"{score:g} is not in [0, 1]")
+                if not (x2 > x1 and y2 > y1):
+                    raise DatasetError(path, f"line {line} x1..y2", "the box has no area (needs x2 > x1 and y2 > y1)")
+                key = tuple(read_cell(c) for c in cells[:4])
+                yield PredictionRow(line, key, (x1, y1, x2, y2), score), raw.tell()  # type: ignore[arg-type]  # four cells
+        except UnicodeDecodeError as exc:
+            raise DatasetError(path, None, f"not UTF-8 text ({exc.reason})") from None
+        except csv.Error as exc:
+            raise DatasetError(path, f"line {reader.line_num}", f"malformed CSV ({exc})") from None
+
+
+Box = tuple[float, float, float, float]
+
+
+def clip_box(box: Box, width: int, height: int) -> Box | None:
+    """``box`` (px) clipped to a ``width`` x ``height`` image, or None when it lies entirely outside (no area left).
+
+    >>> clip_box((-5.0, 10.0, 20.0, 30.0), 960, 540)
+    (0.0, 10.0, 20.0, 30.0)
+    >>> clip_box((970.0, 10.0, 990.0, 30.0), 960, 540) is None
+    True
+    """
+    x1, y1 = max(box[0], 0.0), max(box[1], 0.0)
+    x2, y2 = min(box[2], float(width)), min(box[3], float(height))
+    if x2 <= x1 or y2 <= y1:
+        return None
+    return (x1, y1, x2, y2)
+
+
+class _Frames:
+    """Stored frames by ``(league, season, match, image)``, each game's read when a row first names it."""
+
+    def __init__(self, session: Session) -> None:
+        self.session = session
+        self.games = {(g.league, g.season, g.match): g.id for g in session.execute(
+            sa.select(Game.id, Game.league, Game.season, Game.match))}
+        self.by_game: dict[int, dict[str, list[tuple[int, int, int, int]]]] = {}
+
+    def find(self, key: tuple[str, str, str, str]) -> list[tuple[int, int, int, int]]:
+        """``(frame id, system id, width, height)`` of each frame the row names (empty: unknown)."""
+        gid = self.games.get(key[:3])
+        if gid is None:
+            return []
+        frames = self.by_game.get(gid)
+        if frames is None:
+            frames = self.by_game[gid] = {}
+            for f in self.session.scalars(sa.select(Frame).join(System).where(System.game_id == gid)):
+                frames.setdefault(kind_of(f.system).image_name(f), []).append((f.id, f.system_id, f.width, f.height))
+        return frames.get(key[3], [])
+
+
+def import_predictions(session: Session, path: str | Path, settings: Settings, source: str | None = None,
+                       progress: Progress | None = None, actor: str | None = None) -> PredictionReport:
+    """Store the predictions of the CSV ``path`` as source ``source`` (default: the file's stem), replacing the
+    source's earlier rows, in one write transaction; then recompute the systems they touch (their doubts). See the
+    module docstring for the file and what is refused. ``progress("predictions", bytes read, file size)``.
+
+    Raises:
+        DatasetError: a malformed file or row (file and line named; nothing stored).
+        InvalidInputError: a bad source name (field ``source``).
+    """
+    t0 = time.perf_counter()
+    csv_path = prediction_file(path)
+    report = PredictionReport(check_source(source or csv_path.stem))
+    size = csv_path.stat().st_size
+    begin_write(session)
+    try:
+        frames = _Frames(session)
+        report.replaced = _delete_source(session, report.source)
+        touched_frames: set[int] = set()
+        touched_systems: set[int] = set()
+        batch: list[dict[str, Any]] = []
+        for row, read in read_prediction_rows(csv_path):
+            report.rows += 1
+            found = frames.find(row.key)
+            if not found:
+                report.unknown += 1
+                if len(report.unknown_images) < NAMED_UNKNOWN:
+                    name = "/".join(row.key)
+                    if name not in report.unknown_images:
+                        report.unknown_images.append(name)
+                continue
+            for fid, sid, w, h in found:
+                box = clip_box(row.box, w, h)
+                if box is None:
+                    raise DatasetError(csv_path, f"line {row.line} x1..y2",
+                                       f"box {list(row.box)} lies entirely outside the {w}x{h} image {row.key[3]!r}")
+                report.clipped += box != row.box
+                batch.append({"source": report.source, "frame_id": fid, "score": row.score, "x1": box[0],
+                              "y1": box[1], "x2": box[2], "y2": box[3]})
+                touched_frames.add(fid)
+                touched_systems.add(sid)
+            if len(batch) >= BATCH_ROWS:
+                report.stored += _write(session, batch)
+                if progress:
+                    progress("predictions", read, size)
+        report.stored += _write(session, batch)
+        report.frames, report.systems = len(touched_frames), len(touched_systems)
+        record_summary(session, "import", {"kind": "predictions", "source": report.source, "stored": report.stored,
+                                           "replaced": report.replaced, "unknown": report.unknown}, actor=actor)
+        session.commit()
+    except BaseException:
+        session.rollback()
+        raise
+    if progress:
+        progress("predictions", size, size)
+    session.expunge_all()
+    report.triangulated = recompute_systems_by_id(session, sorted(touched_systems), settings, progress,
+                                                  {"reason": f"predictions {report.source}"}, actor)
+    report.seconds = time.perf_counter() - t0
+    return report
+
+
+def _delete_source(session: Session, source: str) -> int:
+    """Delete the source's rows in the open transaction; returns how many."""
+    result = session.execute(sa.delete(Prediction).where(Prediction.source == source))
+    return int(cast("sa.CursorResult[Any]", result).rowcount or 0)
+
+
+def _write(session: Session, batch: list[dict[str, Any]]) -> int:
+    """Insert ``batch`` (emptied) in the open transaction; returns how many rows."""
+    n = len(batch)
+    if batch:
+        session.execute(sa.insert(Prediction), batch)
+        batch.clear()
+    return n
+
+
+def remove_predictions(session: Session, settings: Settings, source: str, actor: str | None = None) -> int:
+    """Delete every prediction of ``source`` and recompute the systems they touched; returns how many were deleted
+    (0: no such source)."""
+    begin_write(session)
+    systems = sorted(set(session.scalars(sa.select(Frame.system_id).join(Prediction, Prediction.frame_id == Frame.id)
+                                         .where(Prediction.source == source))))
+    n = _delete_source(session, source)
+    if n:
+        record_summary(session, "import", {"kind": "predictions", "source": source, "removed": n}, actor=actor)
+    session.commit()
+    recompute_systems_by_id(session, systems, settings, None, {"reason": f"predictions {source} removed"}, actor)
+    return int(n or 0)
+
+
+def prediction_sources(session: Session) -> list[dict[str, Any]]:
+    """Every stored source: ``{"source", "predictions", "frames", "imported_at"}`` (ISO 8601 UTC), by name."""
+    rows = session.execute(sa.select(Prediction.source, sa.func.count(Prediction.id),
+                                     sa.func.count(sa.distinct(Prediction.frame_id)),
+                                     sa.func.max(Prediction.created_at))
+                           .group_by(Prediction.source).order_by(Prediction.source))
+    return [{"source": s, "predictions": int(n), "frames": int(f), "imported_at": t.isoformat() if t else None}
+            for s, n, f, t in rows]
