@@ -170,6 +170,12 @@ class Settings(BaseSettings):
         2.0, description="... while as labelled it stands at least this much farther from every one (metres).",
         json_schema_extra=DERIVED,
     )
+    doubt_detection_size_tolerance: float = Field(
+        0.5, gt=0, lt=1, description="A detector's box is the ball's only when its diameter is within this relative "
+        "difference of a 0.22 m ball's at the depth where the other views put it (app.geometry.doubts.detections). "
+        "Set a priori, not fitted: detectors' box sides err by up to about 20 % and the depth by about as much.",
+        json_schema_extra=DERIVED,
+    )
     doubt_min_line_classes: int = Field(
         MIN_LINE_CLASSES,
         description="Views with fewer distinct field-line classes take no part in the doubt checks (info few_lines): "
