@@ -36,9 +36,8 @@ from typing import Any, Sequence
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.doubts_seeds import V3D, _env, _run
-
 from app.core.paths import SHARED_DIR
+from benchmarks.doubts_seeds import V3D, _env, _run
 
 DETECTOR = SHARED_DIR / "data" / "synthetic" / "detector"
 TOOLS = SHARED_DIR / "tools"
@@ -84,8 +83,10 @@ def fill_eval(url: str, truth: Path, port: int, out: Path) -> dict[str, Any]:
     if add.returncode:
         raise RuntimeError(f"users add failed: {add.stderr}")
     token = add.stdout.strip().splitlines()[-1]
-    server = subprocess.Popen(V3D + ["serve", "--port", str(port)], cwd=ROOT, env=_env(url),
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    log = open(str(out) + ".server.log", "w")  # noqa: SIM115  # closed with the server, below
+    # the evaluator holds one connection for the whole pass: kept open between its requests
+    server = subprocess.Popen(V3D + ["serve", "--port", str(port)], cwd=ROOT,
+                              env={**_env(url), "V3D_KEEP_ALIVE_S": "600"}, stdout=subprocess.DEVNULL, stderr=log)
     try:
         import httpx
         for _ in range(600):
@@ -107,6 +108,7 @@ def fill_eval(url: str, truth: Path, port: int, out: Path) -> dict[str, Any]:
         except subprocess.TimeoutExpired:
             server.kill()
             server.wait(timeout=30)
+        log.close()
 
 
 def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
@@ -116,7 +118,7 @@ def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
     from sqlalchemy.orm import Session
 
     from app.core.config import Settings
-    from app.db.models import Doubt, Frame, Game, System
+    from app.db.models import Doubt, Game, System
     from app.services.curation.doubts import doubt_settings, doubt_views
     from app.services.derivation.recompute import load_for_recompute
 

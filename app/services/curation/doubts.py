@@ -16,10 +16,10 @@ from typing import Any, Callable, cast
 
 import numpy as np
 import sqlalchemy as sa
-from sqlalchemy.orm import Session, object_session, selectinload
+from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Game, Prediction, System
+from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Game, System
 from app.db.types import json_safe
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.camera import Camera
@@ -149,18 +149,13 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
 
 
 def stored_detections(system: System) -> dict[int, list[Detection]]:
-    """Frame id -> the stored predictions of every detector on that frame of ``system`` (``predictions`` rows, one
-    query; empty for a system outside a session or without any), highest score first."""
-    session = object_session(system)
-    ids = [f.id for f in system.frames if f.id is not None]
-    if session is None or not ids:
-        return {}
+    """Frame id -> the stored predictions of every detector on that frame of ``system`` (``Frame.predictions``,
+    loaded with the system by ``app.services.derivation.loading``), highest score first; frames without any left
+    out."""
     out: dict[int, list[Detection]] = {}
-    for p in session.execute(sa.select(Prediction.frame_id, Prediction.source, Prediction.score, Prediction.x1,
-                                       Prediction.y1, Prediction.x2, Prediction.y2)
-                             .where(Prediction.frame_id.in_(ids))
-                             .order_by(Prediction.frame_id, Prediction.score.desc(), Prediction.id)):
-        out.setdefault(p.frame_id, []).append(Detection(p.source, float(p.score), (p.x1, p.y1, p.x2, p.y2)))
+    for f in system.frames:
+        for p in sorted(f.predictions, key=lambda p: (-p.score, p.id)):
+            out.setdefault(f.id, []).append(Detection(p.source, float(p.score), (p.x1, p.y1, p.x2, p.y2)))
     return out
 
 

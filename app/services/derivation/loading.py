@@ -20,7 +20,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, joinedload
 from sqlalchemy.orm.attributes import set_committed_value
 
-from app.db.models import Doubt, Frame, System, Triangulation, TriangulationPair
+from app.db.models import Doubt, Frame, Prediction, System, Triangulation, TriangulationPair
 from app.services.derivation.scope import FRAME_ROWS
 
 #: Systems loaded per round of four queries (bounded IN lists and memory).
@@ -28,7 +28,7 @@ CHUNK = 500
 
 
 @functools.cache
-def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.Select, sa.Select]:
+def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.Select, sa.Select, sa.Select]:
     """The four statements of :func:`load_systems` (systems, views, pairs, doubts), each taking the systems' ids as
     ``ids`` (an expanding parameter); ``system_rows``: the names of the system's one-to-one relationships joined to it
     (the triangulation always). Built once per ``system_rows``."""
@@ -40,6 +40,8 @@ def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.
         .options(*(joinedload(r) for r in FRAME_ROWS)),
         sa.select(TriangulationPair).where(TriangulationPair.system_id.in_(ids)).order_by(TriangulationPair.id),
         sa.select(Doubt).where(Doubt.system_id.in_(ids)).order_by(Doubt.id),
+        sa.select(Prediction.frame_id, Prediction).join(Frame, Frame.id == Prediction.frame_id)
+        .where(Frame.system_id.in_(ids)).order_by(Prediction.id),
     )
 
 
@@ -49,7 +51,7 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
     four queries per :data:`CHUNK` systems (module docstring)."""
     out: dict[int, System] = {}
     ids = list(dict.fromkeys(ids))
-    systems_q, frames_q, pairs_q, doubts_q = _statements(tuple(r.key for r in system_rows))
+    systems_q, frames_q, pairs_q, doubts_q, predictions_q = _statements(tuple(r.key for r in system_rows))
     for start in range(0, len(ids), CHUNK):
         chunk = {"ids": ids[start:start + CHUNK]}
         systems = {s.id: s for s in session.scalars(systems_q, chunk).unique()}
@@ -62,6 +64,12 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
         doubts: dict[int, list[Doubt]] = {i: [] for i in systems}
         for d in session.scalars(doubts_q, chunk):
             doubts[d.system_id].append(d)
+        predictions: dict[int, list[Prediction]] = {f.id: [] for fs in frames.values() for f in fs}
+        for fid, p in session.execute(predictions_q, chunk):
+            predictions[fid].append(p)
+        for fs in frames.values():
+            for f in fs:
+                _hand_over(f, "predictions", predictions[f.id])
         for sid, system in systems.items():
             _hand_over(system, "frames", frames[sid])
             _hand_over(system, "doubts", doubts[sid])

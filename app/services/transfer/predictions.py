@@ -215,6 +215,7 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
     begin_write(session)
     try:
         frames = _Frames(session)
+        replaced_systems = _systems_of(session, report.source)
         report.replaced = _delete_source(session, report.source)
         touched_frames: set[int] = set()
         touched_systems: set[int] = set()
@@ -245,6 +246,8 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
                     progress("predictions", read, size)
         report.stored += _write(session, batch)
         report.frames, report.systems = len(touched_frames), len(touched_systems)
+        touched_systems |= replaced_systems
+        _bump_versions(session, touched_systems)
         record_summary(session, "import", {"kind": "predictions", "source": report.source, "stored": report.stored,
                                            "replaced": report.replaced, "unknown": report.unknown}, actor=actor)
         session.commit()
@@ -258,6 +261,21 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
                                                   {"reason": f"predictions {report.source}"}, actor)
     report.seconds = time.perf_counter() - t0
     return report
+
+
+def _systems_of(session: Session, source: str) -> set[int]:
+    """The systems whose views hold predictions of ``source``."""
+    return set(session.scalars(sa.select(Frame.system_id).join(Prediction, Prediction.frame_id == Frame.id)
+                               .where(Prediction.source == source).distinct()))
+
+
+def _bump_versions(session: Session, systems: set[int]) -> None:
+    """Bump the version of each system whose predictions change, in the transaction that changes them: the doubts of an
+    edit computed from the predictions as they were fail its compare (``app.services.derivation.scope``)."""
+    ids = sorted(systems)
+    for start in range(0, len(ids), 500):
+        session.execute(sa.update(System).where(System.id.in_(ids[start:start + 500]))
+                        .values(version=System.version + 1).execution_options(synchronize_session=False))
 
 
 def _delete_source(session: Session, source: str) -> int:
@@ -279,9 +297,9 @@ def remove_predictions(session: Session, settings: Settings, source: str, actor:
     """Delete every prediction of ``source`` and recompute the systems they touched; returns how many were deleted
     (0: no such source)."""
     begin_write(session)
-    systems = sorted(set(session.scalars(sa.select(Frame.system_id).join(Prediction, Prediction.frame_id == Frame.id)
-                                         .where(Prediction.source == source))))
+    systems = sorted(_systems_of(session, source))
     n = _delete_source(session, source)
+    _bump_versions(session, set(systems))
     if n:
         record_summary(session, "import", {"kind": "predictions", "source": source, "removed": n}, actor=actor)
     session.commit()
