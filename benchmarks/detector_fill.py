@@ -119,6 +119,8 @@ def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
 
     from app.core.config import Settings
     from app.db.models import Doubt, Game, System
+    from app.geometry.doubts.judge import _voters_consensus, _votes
+    from app.geometry.triangulation import pair_geometry
     from app.services.curation.doubts import doubt_settings, doubt_views
     from app.services.derivation.recompute import load_for_recompute
 
@@ -138,6 +140,7 @@ def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
         c, d = v["ball_center_px"], v.get("d_true") or 0.0
         return ((cx - c[0]) ** 2 + (cy - c[1]) ** 2) ** 0.5 <= max(3.0, d / 2)
 
+    calibrated_and_detected = 0
     raw = [near(k, cx, cy) for k, ps in preds.items() for cx, cy, _ in ps]
     raw_05 = [near(k, cx, cy) for k, ps in preds.items() for cx, cy, sc in ps if sc >= 0.5]
     s = doubt_settings(Settings())
@@ -161,30 +164,31 @@ def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
                 if key not in unl:
                     continue
                 v = views[f.id]
-                others = [o for o in views.values() if o.view_id != f.id]
-                labelled = [o for o in others if o.box is not None and o.camera is not None and o.admitted
-                            and o.line_classes >= s.min_line_classes]
                 has_pred = any(near(key, cx, cy) for cx, cy, _ in preds.get(key, []))
+                calibrated_and_detected += bool(v.camera is not None and has_pred)
+                vote = _votes(list(views.values()), s, None)
+                cons, _ = _voters_consensus(vote, s, pair_geometry)
                 if v.camera is None:
-                    why = "refused calibration"
-                elif v.line_classes < s.min_line_classes:
-                    why = "fewer line classes than the doubts need"
-                elif not v.admitted:
-                    why = "calibration below admission"
-                elif len(labelled) >= 2:
-                    why = "fillable (two or more checkable labelled views)" if has_pred else "no prediction near"
-                elif len(labelled) == 1:
-                    partners = [o for o in others if o.box is None and o.camera is not None and o.admitted
-                                and o.line_classes >= s.min_line_classes and any(
-                                    near((match, o.name), cx, cy) for cx, cy, _ in preds.get((match, o.name), []))]
-                    why = ("fillable (one labelled view and a second unlabelled view with a detection)"
-                           if has_pred and partners else "one labelled view, no second detected view to pair with"
-                           if has_pred else "no prediction near")
+                    why = "no camera (calibration refused)"
+                elif v.view_id not in {u.view_id for u in vote.unlabelled}:
+                    why = ("fewer line classes than the doubts need" if v.line_classes < s.min_line_classes
+                           else "its calibration carries no vote (unsure, or mirrored)")
+                elif cons.point is not None and not cons.ambiguous:
+                    why = "fillable (the labelled views agree on a ball)" if has_pred else "no prediction near"
+                elif len(vote.labelled) == 1:
+                    partners = [o for o in vote.unlabelled if o.view_id != f.id and any(
+                        near((match, o.name), cx, cy) for cx, cy, _ in preds.get((match, o.name), []))]
+                    why = ("fillable (one labelled view and a second detected view)" if has_pred and partners
+                           else "one labelled view, no second detected view to pair with" if has_pred
+                           else "no prediction near")
+                elif len(vote.labelled) >= 2:
+                    why = "the labelled views agree on no ball"
                 else:
-                    why = "no checkable labelled view"
+                    why = "no labelled view takes part (refused, few lines or unsure calibrations)"
                 reasons[why] = reasons.get(why, 0) + 1
     fillable = sum(n for k, n in reasons.items() if k.startswith("fillable"))
     return {"unlabelled": len(unl), "fillable": fillable, "reasons": dict(sorted(reasons.items(), key=lambda x: -x[1])),
+            "calibrated_and_detected": calibrated_and_detected,
             "with_prediction_near": sum(1 for k in unl if any(near(k, cx, cy) for cx, cy, _ in preds.get(k, []))),
             "raw_precision": [sum(raw), len(raw)], "raw_precision_score_05": [sum(raw_05), len(raw_05)],
             "checked_precision": [detected_right, detected]}
@@ -197,10 +201,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--made-dir", type=Path, default=Path("/tmp/v3d-detector-sets"))
     ap.add_argument("--port", type=int, default=8560)
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--bound-only", action="store_true", help="only step 4")
     args = ap.parse_args(argv)
     report: dict[str, Any] = {}
     for i, name in enumerate(args.sets):
         tree, truth, pred = paths(name, args.made_dir)
+        if args.bound_only:  # on a fresh copy: the evaluator's pass fills the views it measures
+            url = copy(template(name, tree, args.db_dir), "bound")
+            _run(V3D + ["import", "predictions", str(pred), "--source", "detector"], url)
+            report[name] = {"bound": upper_bound(url, truth, pred)}
+            print(f"[{name}] bound {json.dumps(report[name]['bound'])}", flush=True)
+            continue
         src = template(name, tree, args.db_dir)
         res: dict[str, Any] = {}
         url = copy(src, "without")

@@ -96,3 +96,12 @@ def test_a_detection_where_the_others_put_the_ball_is_evidence_against_an_outvot
     assert off.kind in INFO_KINDS and off.view_id == "opposite" and off.suggestion is None
     assert off.evidence["label_distance_px_1920"] > 150 and off.evidence["error_px_1920"] < 2
     assert [d.kind for d in doubts if d.view_id == "opposite" and d.kind in LABEL_KINDS] == ["ball_off_consensus"]
+
+
+def test_a_view_with_few_line_classes_but_a_sure_camera_is_checked_too():
+    """The judge lends the label of such a view half a vote; its detections are checked within its pixel sigma."""
+    views = scene(corner={"box": None, "line_classes": 2})
+    assert [d.kind for d in judge_system(views, SETTINGS) if d.view_id == "corner" and d.kind in LABEL_KINDS] == []
+    found = [d for d in checked(views, {"corner": [det("corner", 0.6), det("corner", 0.9, shift=(0.0, -70.0))]})
+             if d.kind == "ball_detected"]
+    assert [d.view_id for d in found] == ["corner"] and found[0].evidence["score"] == 0.6

@@ -18,7 +18,9 @@ Eq. ball3Destimation; method.md sections 5-6):
    silhouette of a 0.22 m sphere at the refitted ball (:func:`app.geometry.ball.sphere_image_box`).
 
 Where the labelled views agree on a ball (the doubt judge's consensus, :func:`app.geometry.doubts.judge.judge_system`
-rule 3), each unlabelled view's detections are checked against it. Where only one view is labelled its ray leaves the
+rule 3), each unlabelled view's detections are checked against it: the views the judge takes part, and those with
+fewer line classes whose calibration is still sure (a vote above 0: the judge lends such a view's label half a vote),
+each within its own calibration's pixel sigma. Where only one view is labelled its ray leaves the
 depth open, so two unlabelled views' detections are needed: a pair of detections (one per view) is checked when the
 three rays meet at one plausible ball (:func:`app.geometry.consensus.ball_consensus` of the three, every one an
 inlier, no ambiguity) and both sizes agree; the best such triple then stands as the consensus for the remaining
@@ -60,7 +62,7 @@ from app.geometry.triangulation import (
     triangulate_dlt,
     undistort_pixels,
 )
-from app.geometry.weighting import camera_of, rule_scale
+from app.geometry.weighting import calibration_weight, camera_of, rule_scale
 
 #: Candidates whose errors differ by less than this (px at 1920 width) are tied: the detector's score orders them.
 TIE_PX = 1.0
@@ -161,6 +163,23 @@ def _best(checked: list[CheckedDetection]) -> CheckedDetection | None:
                             margin)
 
 
+def _few_lined(views: Sequence[DoubtView], vote: Any, s: DoubtSettings,
+               weighed: Mapping[Any, tuple[float, float]] | None) -> list[tuple[DoubtView, float]]:
+    """Unlabelled views with fewer line classes than the judge needs whose calibration is still sure (a vote above 0,
+    :func:`app.geometry.weighting.calibration_weight`: the judge lends such a view's label half a vote), each with its
+    pixel sigma (px at 1920 width): their detections are checked too, within that sigma."""
+    out = []
+    for v in views:
+        if (v.camera is None or v.excluded or v.mirror_flagged or v.suggested or v.box is not None
+                or v.point is not None or v.line_classes >= s.min_line_classes):
+            continue
+        known = weighed.get(v.view_id) if weighed is not None else None
+        w, sig = known if known is not None else calibration_weight(v, s)
+        if w > 0:
+            out.append((v, float(sig)))
+    return out
+
+
 def _tolerances(views: Sequence[DoubtView], sigma: Mapping[Hashable, float], tau: float) -> dict[Hashable, float]:
     return {v.view_id: max(tau, float(sigma.get(v.view_id, 0.0))) for v in views}
 
@@ -192,20 +211,23 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     s = settings
     vote = _votes(views, s, weighed)
     cons, lone_contradicted = _voters_consensus(vote, s, geometry)
-    tol = _tolerances(vote.judged + vote.helpers, vote.sigma, vote.tau)
+    lined = _few_lined(views, vote, s, weighed)
+    sigma = {**vote.sigma, **{v.view_id: sig for v, sig in lined}}
+    unlabelled = [*vote.unlabelled, *(v for v, _ in lined)]
+    tol = _tolerances([*vote.judged, *vote.helpers, *(v for v, _ in lined)], sigma, vote.tau)
     by_id = {o.view_id: o for o in vote.obs}
     checked: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
     out_of_label: list[Doubt] = []
     if cons.point is not None and not cons.ambiguous:
         voters = [by_id[i] for i in cons.inliers]
-        for v in vote.unlabelled:
+        for v in unlabelled:
             best = _best([c for d in detections.get(v.view_id, ()) if (c := _check(v, d, voters, tol, s,
                                                                                    size_tolerance)) is not None])
             if best is not None:
                 checked[v.view_id] = (best, "consensus", tuple(cons.inliers))
         out_of_label = _off_label(vote.labelled, cons, by_id, detections, tol, s, size_tolerance)
     elif len(vote.labelled) == 1 and not lone_contradicted:
-        checked = _from_one_view(vote.labelled[0], vote.unlabelled, detections, by_id, tol, s, size_tolerance,
+        checked = _from_one_view(vote.labelled[0], unlabelled, detections, by_id, tol, s, size_tolerance,
                                  geometry)
     if not checked and not out_of_label:
         return list(doubts)
