@@ -100,8 +100,12 @@ def test_a_detection_where_the_others_put_the_ball_is_evidence_against_an_outvot
 
 def test_a_view_with_few_line_classes_but_a_sure_camera_is_checked_too():
     """The judge lends the label of such a view half a vote; its detections are checked within its pixel sigma."""
-    views = scene(corner={"box": None, "line_classes": 2})
+    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0,
+            "position_m": {"x": .1, "y": .1, "z": .1}}
+    views = scene(corner={"box": None, "line_classes": 2, "uncertainty": sure})
     assert [d.kind for d in judge_system(views, SETTINGS) if d.view_id == "corner" and d.kind in LABEL_KINDS] == []
     found = [d for d in checked(views, {"corner": [det("corner", 0.6), det("corner", 0.9, shift=(0.0, -70.0))]})
              if d.kind == "ball_detected"]
     assert [d.view_id for d in found] == ["corner"] and found[0].evidence["score"] == 0.6
+    unsure = scene(corner={"box": None, "line_classes": 2, "uncertainty": {**sure, "pan_deg": 2.0, "tilt_deg": 2.0}})
+    assert [d for d in checked(unsure, {"corner": [det("corner", 0.6)]}) if d.kind == "ball_detected"] == []
