@@ -52,6 +52,7 @@ import numpy as np
 from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _plausible, _r
+from app.geometry.doubts.epipolar import _polyline_distance, _segment
 from app.geometry.doubts.judge import _voters_consensus, _votes
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import (
@@ -62,8 +63,13 @@ from app.geometry.triangulation import (
     triangulate_dlt,
     undistort_pixels,
 )
-from app.geometry.weighting import calibration_weight, camera_of, rule_scale
+from app.geometry.weighting import calibration_weight, camera_of, project_point, rule_scale
 
+#: A detection is refitted only when its centre lies within this many tolerances of where the others put the ball
+#: (a cheap necessary test: the refit moves the ball by less than a tolerance in a view that agrees).
+PREFILTER = 3.0
+#: At most this many candidates of a view are refitted (the nearest): bounded time with hundreds of detections.
+MAX_CANDIDATES = 16
 #: Candidates whose errors differ by less than this (px at 1920 width) are tied: the detector's score orders them.
 TIE_PX = 1.0
 
@@ -163,6 +169,30 @@ def _best(checked: list[CheckedDetection]) -> CheckedDetection | None:
                             margin)
 
 
+def _near_point(view: DoubtView, detections: Sequence[Detection], ball: np.ndarray, within_1920: float,
+                s: DoubtSettings) -> list[Detection]:
+    """The detections whose centre lies within ``within_1920`` (px at 1920 width) of ``ball``'s projection in
+    ``view``, nearest first, at most :data:`MAX_CANDIDATES` (a cheap necessary test before the refit)."""
+    uv = project_point(view, ball)
+    if uv is None or not detections:
+        return []
+    d = np.array([np.linalg.norm(det.centre - uv) for det in detections]) * rule_scale(view, s)
+    order = [int(i) for i in np.argsort(d, kind="stable") if d[i] < within_1920]
+    return [detections[i] for i in order[:MAX_CANDIDATES]]
+
+
+def _near_ray(lone: DoubtView, view: DoubtView, detections: Sequence[Detection], within_1920: float,
+              s: DoubtSettings) -> list[Detection]:
+    """The detections whose centre lies within ``within_1920`` (px at 1920 width) of ``lone``'s ball ray across
+    the play volume seen in ``view`` (its epipolar segment), nearest first, at most :data:`MAX_CANDIDATES`."""
+    seg = _segment(lone, view, s) if detections else None
+    if seg is None:
+        return []
+    d = np.array([_polyline_distance(seg[1], det.centre)[0] for det in detections]) * rule_scale(view, s)
+    order = [int(i) for i in np.argsort(d, kind="stable") if d[i] < within_1920]
+    return [detections[i] for i in order[:MAX_CANDIDATES]]
+
+
 def _few_lined(views: Sequence[DoubtView], vote: Any, s: DoubtSettings,
                weighed: Mapping[Any, tuple[float, float]] | None) -> list[tuple[DoubtView, float]]:
     """Unlabelled views with fewer line classes than the judge needs whose calibration is still sure (a vote above 0,
@@ -221,14 +251,13 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     if cons.point is not None and not cons.ambiguous:
         voters = [by_id[i] for i in cons.inliers]
         for v in unlabelled:
-            best = _best([c for d in detections.get(v.view_id, ()) if (c := _check(v, d, voters, tol, s,
-                                                                                   size_tolerance)) is not None])
+            near = _near_point(v, detections.get(v.view_id, ()), cons.point, PREFILTER * tol[v.view_id], s)
+            best = _best([c for d in near if (c := _check(v, d, voters, tol, s, size_tolerance)) is not None])
             if best is not None:
                 checked[v.view_id] = (best, "consensus", tuple(cons.inliers))
         out_of_label = _off_label(vote.labelled, cons, by_id, detections, tol, s, size_tolerance)
     elif len(vote.labelled) == 1 and not lone_contradicted:
-        checked = _from_one_view(vote.labelled[0], unlabelled, detections, by_id, tol, s, size_tolerance,
-                                 geometry)
+        checked = _from_one_view(vote.labelled[0], unlabelled, detections, by_id, tol, s, size_tolerance)
     if not checked and not out_of_label:
         return list(doubts)
     kept = [d for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
@@ -241,19 +270,22 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
 
 def _from_one_view(lone: DoubtView, unlabelled: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
                    by_id: Mapping[Hashable, BallObservation], tol: Mapping[Hashable, float], s: DoubtSettings,
-                   size_tolerance: float, geometry: Callable[[BallObservation, BallObservation], PairGeometry],
-                   ) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+                   size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """With one labelled view: the best pair of detections in two unlabelled views whose rays meet the labelled
     view's at one plausible ball (all three inliers of their consensus, sizes agreeing); it then stands as the
     consensus for the other unlabelled views."""
     lone_obs = by_id[lone.view_id]
     triples: list[tuple[float, float, CheckedDetection, CheckedDetection]] = []
-    for a, b in combinations([v for v in unlabelled if detections.get(v.view_id)], 2):
-        for da, db in product(detections[a.view_id], detections[b.view_id]):
+    # only the detections near the labelled view's ray across the play volume can meet it (condition 1, necessary)
+    near = {v.view_id: _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * tol[v.view_id], s)
+            for v in unlabelled}
+    for a, b in combinations([v for v in unlabelled if near[v.view_id]], 2):
+        for da, db in product(near[a.view_id], near[b.view_id]):
             oa, ob = _observation(a, da, s), _observation(b, db, s)
+            # the plain pair geometry: a recomputation's memo would keep every candidate pair asked
             three = ball_consensus([lone_obs, oa, ob], tau_px=min(tol.values()), min_baseline_m=s.min_baseline_m,
                                    min_parallax_deg=s.min_parallax_deg, tolerances_px=tol,
-                                   plausible=lambda p: _plausible(p, s), geometry=geometry)
+                                   plausible=lambda p: _plausible(p, s))
             if three.point is None or three.ambiguous or len(three.inliers) != 3:
                 continue
             ca = _check(a, da, [lone_obs, ob], tol, s, size_tolerance)
@@ -277,8 +309,8 @@ def _from_one_view(lone: DoubtView, unlabelled: Sequence[DoubtView], detections:
     for v in unlabelled:
         if v.view_id in found:
             continue
-        best = _best([c for d in detections.get(v.view_id, ()) if (c := _check(v, d, voters, tol, s,
-                                                                               size_tolerance)) is not None])
+        near_ball = _near_point(v, detections.get(v.view_id, ()), ca.ball, PREFILTER * tol[v.view_id], s)
+        best = _best([c for d in near_ball if (c := _check(v, d, voters, tol, s, size_tolerance)) is not None])
         if best is not None:
             found[v.view_id] = (best, "one_view", agreeing)
     return found
