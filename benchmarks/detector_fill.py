@@ -119,6 +119,7 @@ def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
 
     from app.core.config import Settings
     from app.db.models import Doubt, Game, System
+    from app.geometry.doubts.detections import _few_lined
     from app.geometry.doubts.judge import _voters_consensus, _votes
     from app.geometry.triangulation import pair_geometry
     from app.services.curation.doubts import doubt_settings, doubt_views
@@ -170,13 +171,17 @@ def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
                 cons, _ = _voters_consensus(vote, s, pair_geometry)
                 if v.camera is None:
                     why = "no camera (calibration refused)"
-                elif v.view_id not in {u.view_id for u in vote.unlabelled}:
-                    why = ("fewer line classes than the doubts need" if v.line_classes < s.min_line_classes
+                elif v.view_id not in {u.view_id for u in [*vote.unlabelled, *(w for w, _ in _few_lined(
+                        list(views.values()), vote, s, None))]}:
+                    why = ("fewer line classes than the doubts need, and an unsure calibration"
+                           if v.line_classes < s.min_line_classes
                            else "its calibration carries no vote (unsure, or mirrored)")
                 elif cons.point is not None and not cons.ambiguous:
                     why = "fillable (the labelled views agree on a ball)" if has_pred else "no prediction near"
                 elif len(vote.labelled) == 1:
-                    partners = [o for o in vote.unlabelled if o.view_id != f.id and any(
+                    partners = [o for o in [*vote.unlabelled, *(w for w, _ in _few_lined(list(views.values()), vote, s,
+                                                                                           None))]
+                                if o.view_id != f.id and any(
                         near((match, o.name), cx, cy) for cx, cy, _ in preds.get((match, o.name), []))]
                     why = ("fillable (one labelled view and a second detected view)" if has_pred and partners
                            else "one labelled view, no second detected view to pair with" if has_pred
