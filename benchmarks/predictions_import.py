@@ -76,8 +76,8 @@ def run(db: Path, rows: int, mb: float, tag: str, trace: bool) -> None:
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"[{tag}] {size:.1f} MB, {n} rows ({report.stored} stored on {report.frames} frames of {report.systems} "
           f"systems, {report.unknown} naming unknown images): {seconds:.1f} s wall, of which "
-          f"{report.store_seconds:.1f} s reading and storing, the rest recomputing the systems touched; Python allocations peak "
-          f"{peak / (1 << 20):.1f} MB (traced: {trace}), process peak RSS {rss:.0f} MB", flush=True)
+          f"{report.store_seconds:.1f} s reading and storing, the rest recomputing the systems touched; Python "
+          f"allocations peak {peak / (1 << 20):.1f} MB (traced: {trace}), process peak RSS {rss:.0f} MB", flush=True)
     engine.dispose()
 
 
