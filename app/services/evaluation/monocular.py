@@ -372,6 +372,53 @@ def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 
     return out
 
 
+def source_detections(session: Session, source: str, views: list[ReferenceView]) -> tuple[Detections, int]:
+    """The stored predictions of ``source`` (``v3d import predictions``) keyed by view stem, as
+    :func:`load_predictions` reads a file, and the number on images that are not reference views (ignored).
+
+    Raises:
+        InvalidInputError: no predictions of that source are stored (field ``source``).
+    """
+    import sqlalchemy as sa
+
+    from app.db.models import Prediction
+
+    stems = {v.frame_id: v.stem for v in views}
+    ids, boxes, scores, ignored, seen = [], [], [], 0, 0
+    for fid, x1, y1, x2, y2, score in session.execute(
+            sa.select(Prediction.frame_id, Prediction.x1, Prediction.y1, Prediction.x2, Prediction.y2,
+                      Prediction.score).where(Prediction.source == source).order_by(Prediction.id)):
+        seen += 1
+        if fid not in stems:
+            ignored += 1
+            continue
+        ids.append(stems[fid])
+        boxes.append((x1, y1, x2, y2))
+        scores.append(score)
+    if not seen:
+        raise InvalidInputError(f"no predictions of source {source!r} are stored (v3d predictions list)",
+                                field="source")
+    return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float)), ignored
+
+
+def evaluate_source(session: Session, source: str, include_all: bool = False,
+                    ball_diameter_m: float = BALL_DIAMETER_M, estimator: str = "exact",
+                    ball_box: str = "refined") -> dict[str, Any]:
+    """:func:`evaluate` of an imported source's stored predictions (:func:`source_detections`) against the curated
+    labels with the stored cameras, as :func:`evaluate_predictions` scores a file: no second upload.
+
+    Raises:
+        InvalidInputError: no such source, or no reference view.
+    """
+    views = reference_views(session, include_all, ball_diameter_m, ball_box)
+    dets, ignored = source_detections(session, source, views)
+    end_reads(session)
+    out = evaluate(views, dets, ignored, ball_diameter_m, estimator)
+    out["counts"]["views_without_camera"] = 0
+    out["cameras"] = "stored"
+    return out
+
+
 def evaluate_predictions(session: Session, predictions: str | Path, include_all: bool = False,
                          ball_class: int | None = None, ball_diameter_m: float = BALL_DIAMETER_M,
                          estimator: str = "exact", cameras_dir: str | Path | None = None,

@@ -110,3 +110,24 @@ def test_the_cli_imports_lists_and_removes_a_source(tmp_path: Path, db_settings)
     gone = runner.invoke(cli, ["predictions", "remove", "yolo-sn-ball", "--database-url", url])
     assert gone.exit_code == 0 and "removed 1 prediction(s)" in gone.output
     assert runner.invoke(cli, ["predictions", "remove", "yolo-sn-ball", "--database-url", url]).exit_code == 2
+
+
+def test_the_monocular_benchmark_scores_an_imported_source_without_a_second_upload(
+        app, client: TestClient, scene: Scene, tmp_path: Path) -> None:
+    from app.geometry.ball import sphere_image_box
+
+    from ..factories import BALL
+
+    rows = [f"{name},{','.join(f'{v:.2f}' for v in sphere_image_box(cam, BALL, 0.11))},0.9"
+            for name, cam in zip(("1.png", "1_1.png", "1_2.png"), scene.cameras, strict=True)]
+    path = tmp_path / "exact.csv"
+    path.write_text(_csv(rows))
+    answer = client.post("/api/imports", json={"kind": "predictions", "path": str(path), "source": "exact"})
+    assert answer.status_code == 202 and run_queued(app) == [answer.json()["id"]]
+    report = client.get("/api/evaluations/monocular", params={"source": "exact", "all": "true"})
+    assert report.status_code == 200, report.text
+    r = report.json()
+    assert r["counts"]["reference_views"] == 3 and r["counts"]["localised"] == 3 and r["AP50"] == 1.0, r["counts"]
+    assert r["MAE_m"] < 0.5
+    missing = client.get("/api/evaluations/monocular", params={"source": "nope", "all": "true"})
+    assert missing.status_code == 422 and "no predictions of source 'nope'" in missing.text
