@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Hashable, Iterable
+from typing import Any, Hashable, Iterable, Protocol, Sequence
 
 import numpy as np
 from sqlalchemy.orm import Session
@@ -232,7 +232,18 @@ def _inner_name(name: str, root: Path, path: Path) -> str:
     return f"{name}!{inner}" if name.lower().endswith(".zip") else f"{name}/{inner}"
 
 
-def load_predictions(path: str | Path, views: list[ReferenceView], ball_class: int | None = None, *,
+class SizedView(Protocol):
+    """What :func:`load_predictions` reads of a view: its file stem and image size (px)."""
+
+    @property
+    def stem(self) -> str: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+
+
+def load_predictions(path: str | Path, views: Sequence[SizedView], ball_class: int | None = None, *,
                      name: str | None = None, max_coco_bytes: int = MAX_COCO_FILE_BYTES) -> tuple[Detections, int]:
     """Ball detections of ``path`` keyed by view stem, and the number of detections ignored (images
     that are not ground-truth views).
@@ -245,7 +256,8 @@ def load_predictions(path: str | Path, views: list[ReferenceView], ball_class: i
         path: a folder of YOLO txt files (searched recursively; the ball class from ``ball_class``,
             else from a ``data.yaml`` found there naming ``Ball``, else 0) or a COCO results JSON
             (category ``ball_class``, default 1 as in the COCO export).
-        views: :func:`reference_views`.
+        views: :func:`reference_views` (or any views with a stem and a size: an import of a detector's predictions
+            reads them for every stored view, ``app.services.transfer.predictions``).
         name: how messages name ``path`` (default: the path itself): an upload's file name, so that no
             message shows the server's folders; a file inside the folder is ``name!inner/path`` when ``name``
             ends in ``.zip``, else ``name/inner/path``.

@@ -3,7 +3,11 @@
 
 The file is a CSV with the header ``league,season,match,image,x1,y1,x2,y2,score`` (pixels of that image, continuous,
 origin at the top-left corner; the image named as its kind names it, ``KindPolicy.image_name``: ``12_1.png``), one
-row per detection, or a folder (an unpacked upload) holding exactly one such ``.csv``. It is read as a stream
+row per detection, or a folder (an unpacked upload) holding exactly one such ``.csv``; or a detector's own output in
+the layout of v3d's detector exports (:func:`prediction_input`): YOLO txt files (``class cx cy w h conf``,
+normalised, one per image named by its exported stem, ``KindPolicy.view_stem``) or a COCO results JSON keyed by the
+COCO export's image ids (``detector_export.coco_image_id``), both read by the monocular benchmark's readers
+(``app.services.evaluation.monocular.load_predictions``). It is read as a stream
 (bounded memory: rows are checked and written :data:`BATCH_ROWS` at a time inside one transaction), so a 100 MB file
 needs no more memory than a small one. The file is all or nothing: a malformed row (a missing column, a value that is
 not a finite number, a score outside [0, 1], a box with no area or entirely outside its image) is an error naming the
@@ -93,21 +97,31 @@ def check_source(name: str) -> str:
     return name
 
 
-def prediction_file(path: str | Path) -> Path:
-    """The CSV of an input: ``path`` itself, or the one ``.csv`` inside a folder (an unpacked upload).
+def prediction_input(path: str | Path) -> tuple[str, Path]:
+    """What an input holds and where: ``("csv", the CSV)`` for a ``.csv`` file or a folder (an unpacked upload) holding
+    exactly one; ``("coco", the JSON)`` for a ``.json`` file or a folder holding one and no CSV (COCO results keyed by
+    the COCO export's image ids); ``("yolo", the folder)`` for a folder of ``.txt`` files (YOLO ``class cx cy w h
+    conf``, one file per image named by its exported stem, anywhere in the folder).
 
     Raises:
-        DatasetError: a folder without exactly one ``.csv``, or no such file.
+        DatasetError: no such file, or a folder holding none of these (or several CSV or JSON files).
     """
     path = Path(path)
     if path.is_dir():
-        found = sorted(p for p in path.rglob("*.csv") if p.is_file() and not p.is_symlink())
-        if len(found) != 1:
-            raise DatasetError(path, None, f"a predictions folder must hold exactly one .csv file, found {len(found)}")
-        return found[0]
+        def files(ext: str) -> list[Path]:
+            return sorted(p for p in path.rglob(f"*.{ext}") if p.is_file() and not p.is_symlink())
+        csvs, jsons = files("csv"), files("json")
+        if len(csvs) == 1:
+            return "csv", csvs[0]
+        if not csvs and len(jsons) == 1:
+            return "coco", jsons[0]
+        if not csvs and not jsons and files("txt"):
+            return "yolo", path
+        raise DatasetError(path, None, f"a predictions folder holds one .csv, one COCO results .json or YOLO .txt "
+                                       f"files; found {len(csvs)} .csv and {len(jsons)} .json")
     if not path.is_file():
         raise DatasetError(path, None, "no such file")
-    return path
+    return ("coco" if path.suffix.lower() == ".json" else "csv"), path
 
 
 @dataclass(frozen=True)
@@ -203,7 +217,8 @@ class _Frames:
 
 def import_predictions(session: Session, path: str | Path, settings: Settings, source: str | None = None,
                        progress: Progress | None = None, actor: str | None = None) -> PredictionReport:
-    """Store the predictions of the CSV ``path`` as source ``source`` (default: the file's stem), replacing the
+    """Store the predictions of ``path`` (a CSV, YOLO files or COCO results, :func:`prediction_input`) as source
+    ``source`` (default: the file's stem, a YOLO folder's name), replacing the
     source's earlier rows, in one write transaction; then recompute the systems they touch (their doubts). See the
     module docstring for the file and what is refused. ``progress("predictions", bytes read, file size)``.
 
@@ -212,32 +227,29 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
         InvalidInputError: a bad source name (field ``source``).
     """
     t0 = time.perf_counter()
-    csv_path = prediction_file(path)
-    report = PredictionReport(check_source(source or csv_path.stem))
-    size = csv_path.stat().st_size
+    kind, found_path = prediction_input(path)
+    report = PredictionReport(check_source(source or (Path(path).name if kind == "yolo" else found_path.stem)))
+    size = found_path.stat().st_size if kind != "yolo" else 0
     begin_write(session)
     try:
-        frames = _Frames(session)
+        rows = _csv_rows(found_path, _Frames(session)) if kind == "csv" else _detector_rows(session, found_path)
         replaced_systems = _systems_of(session, report.source)
         report.replaced = _delete_source(session, report.source)
         touched_frames: set[int] = set()
         touched_systems: set[int] = set()
         batch: list[dict[str, Any]] = []
-        for row, read in read_prediction_rows(csv_path):
+        for row in rows:
             report.rows += 1
-            found = frames.find(row.key)
-            if not found:
+            if not row.frames:
                 report.unknown += 1
-                if len(report.unknown_images) < NAMED_UNKNOWN:
-                    name = "/".join(row.key)
-                    if name not in report.unknown_images:
-                        report.unknown_images.append(name)
+                if len(report.unknown_images) < NAMED_UNKNOWN and row.name not in report.unknown_images:
+                    report.unknown_images.append(row.name)
                 continue
-            for fid, sid, w, h in found:
+            for fid, sid, w, h in row.frames:
                 box = clip_box(row.box, w, h)
                 if box is None:
-                    raise DatasetError(csv_path, f"line {row.line} x1..y2",
-                                       f"box {list(row.box)} lies entirely outside the {w}x{h} image {row.key[3]!r}")
+                    raise DatasetError(found_path, row.where,
+                                       f"box {list(row.box)} lies entirely outside the {w}x{h} image {row.name!r}")
                 report.clipped += box != row.box
                 batch.append({"source": report.source, "frame_id": fid, "score": row.score, "x1": box[0],
                               "y1": box[1], "x2": box[2], "y2": box[3]})
@@ -245,8 +257,8 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
                 touched_systems.add(sid)
             if len(batch) >= BATCH_ROWS:
                 report.stored += _write(session, batch)
-                if progress:
-                    progress("predictions", read, size)
+                if progress and size:
+                    progress("predictions", row.read, size)
         report.stored += _write(session, batch)
         report.frames, report.systems = len(touched_frames), len(touched_systems)
         touched_systems |= replaced_systems
@@ -257,7 +269,7 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
     except BaseException:
         session.rollback()
         raise
-    if progress:
+    if progress and size:
         progress("predictions", size, size)
     report.store_seconds = time.perf_counter() - t0
     session.expunge_all()
@@ -286,6 +298,63 @@ def _delete_source(session: Session, source: str) -> int:
     """Delete the source's rows in the open transaction; returns how many."""
     result = session.execute(sa.delete(Prediction).where(Prediction.source == source))
     return int(cast("sa.CursorResult[Any]", result).rowcount or 0)
+
+
+@dataclass(frozen=True)
+class _Resolved:
+    """One prediction of an input with the stored frames it names (``(frame id, system id, width, height)``; empty:
+    an image v3d does not hold, ``name`` saying which), ``where`` it is in its file (for errors) and the bytes of the
+    file read so far (progress)."""
+
+    where: str
+    name: str
+    frames: list[tuple[int, int, int, int]]
+    box: Box
+    score: float
+    read: int = 0
+
+
+def _csv_rows(path: Path, frames: _Frames) -> Iterator[_Resolved]:
+    for row, read in read_prediction_rows(path):
+        yield _Resolved(f"line {row.line} x1..y2", "/".join(row.key), frames.find(row.key), row.box, row.score, read)
+
+
+@dataclass(frozen=True)
+class _StemView:
+    """A stored view as the detector readers match files to it: its exported stem and image size (px)."""
+
+    stem: str
+    width: int
+    height: int
+    frame_id: int
+    system_id: int
+
+
+def _detector_rows(session: Session, path: Path) -> Iterator[_Resolved]:
+    """The detections of YOLO txt files or a COCO results JSON (``app.services.evaluation.monocular.load_predictions``,
+    the monocular benchmark's readers: YOLO files matched by stem, COCO results by ``coco_image_id(stem)``, the ball
+    class from ``data.yaml`` or 0, category 1), on every stored view named as the YOLO and COCO exports name it
+    (``KindPolicy.view_stem``); a YOLO file of an image v3d does not hold is named by its stem, COCO results of one
+    are counted."""
+    from sqlalchemy.orm import selectinload
+
+    from app.services.evaluation.monocular import load_predictions
+
+    views = [_StemView(kind_of(f.system).view_stem(f.system.game, f), f.width, f.height, f.id, f.system_id)
+             for f in session.scalars(sa.select(Frame).options(selectinload(Frame.system).selectinload(System.game)))]
+    by_stem = {v.stem: v for v in views}
+    dets, ignored = load_predictions(path, views)
+    for stem, box, score in zip(dets.image_ids, dets.boxes, dets.scores, strict=True):
+        if not 0.0 <= float(score) <= 1.0:
+            raise DatasetError(path, f"{stem} score", f"{float(score):g} is not in [0, 1]")
+        v = by_stem[str(stem)]
+        b = (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
+        yield _Resolved(f"{stem} box", str(stem), [(v.frame_id, v.system_id, v.width, v.height)], b, float(score))
+    unknown = sorted({p.stem for p in path.rglob("*.txt") if p.stem not in by_stem}) if path.is_dir() else []
+    named = iter(unknown)
+    for _ in range(ignored):  # a YOLO file's stem, or a COCO result's (an image id v3d does not hold)
+        last = unknown[-1] if unknown else "a COCO image id v3d does not hold"
+        yield _Resolved("", next(named, last), [], (0.0, 0.0, 1.0, 1.0), 0.0)
 
 
 def _write(session: Session, batch: list[dict[str, Any]]) -> int:

@@ -131,3 +131,42 @@ def test_the_monocular_benchmark_scores_an_imported_source_without_a_second_uplo
     assert r["MAE_m"] < 0.5
     missing = client.get("/api/evaluations/monocular", params={"source": "nope", "all": "true"})
     assert missing.status_code == 422 and "no predictions of source 'nope'" in missing.text
+
+
+def test_yolo_files_and_coco_results_are_imported_by_the_exports_stems_and_ids(app, client: TestClient,
+                                                                               scene: Scene, tmp_path: Path) -> None:
+    """The layout of v3d's own detector exports: YOLO txt files named by the exported stem (anywhere in the folder),
+    COCO results by ``coco_image_id(stem)``; a YOLO file of an image v3d does not hold is counted and named."""
+    import json
+
+    from app.db.models import Frame, Game
+    from app.services.kinds.base import image_stem
+    from app.services.transfer.detector_export import coco_image_id
+
+    with app.state.session_factory() as s:
+        game = s.get(Game, scene.game_id)
+        stems = [image_stem(game, s.get(Frame, fid)) for fid in scene.frame_ids]
+    yolo = tmp_path / "yolo" / "labels" / "test"
+    yolo.mkdir(parents=True)
+    (yolo / f"{stems[1]}.txt").write_text("0 0.5 0.5 0.02 0.04 0.91\n0 0.1 0.9 0.02 0.04 0.2\n")
+    (yolo / "someone_else_3.txt").write_text("0 0.5 0.5 0.02 0.04 0.5\n")
+    answer = client.post("/api/imports", json={"kind": "predictions", "path": str(tmp_path / "yolo"),
+                                               "source": "yolo-sn-ball"})
+    assert answer.status_code == 202 and run_queued(app) == [answer.json()["id"]]
+    r = client.get(answer.json()["url"]).json()["result"]
+    assert (r["stored"], r["unknown"], r["unknown_images"]) == (2, 1, ["someone_else_3"]), r
+    coco = tmp_path / "results.json"
+    coco.write_text(json.dumps([{"image_id": coco_image_id(stems[2]), "category_id": 1,
+                                 "bbox": [470.0, 260.0, 12.0, 12.0], "score": 0.8},
+                                {"image_id": 12345, "category_id": 1, "bbox": [1, 1, 5, 5], "score": 0.5}]))
+    answer = client.post("/api/imports", json={"kind": "predictions", "path": str(coco), "source": "coco-det"})
+    assert answer.status_code == 202 and run_queued(app) == [answer.json()["id"]]
+    r = client.get(answer.json()["url"]).json()["result"]
+    assert (r["stored"], r["unknown"]) == (1, 1), r
+    from app.db.models import Prediction
+
+    with app.state.session_factory() as s:
+        p = s.scalars(sa.select(Prediction).where(Prediction.source == "coco-det")).one()
+        assert (p.frame_id, p.x1, p.y1, p.x2, p.y2, p.score) == (scene.frame_ids[2], 470.0, 260.0, 482.0, 272.0, 0.8)
+        y = s.scalars(sa.select(Prediction).where(Prediction.source == "yolo-sn-ball").order_by(Prediction.score)).all()
+        assert [q.frame_id for q in y] == [scene.frame_ids[1]] * 2 and abs(y[1].x1 - (0.49 * 960)) < 1e-6
