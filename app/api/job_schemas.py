@@ -104,7 +104,7 @@ class JobOut(BaseModel):
     params: dict[str, Any] = Field(description="What it runs (an import's kind and path, an export's 'all').")
     state: JobStateName
     stage: Optional[str] = Field(description="The step it is in: games, merge, calibrate, rig, triangulate, "
-                                             "recompute, export.")
+                                             "predictions, recompute, export.")
     done: int = Field(description="Items of the stage done.")
     total: int = Field(description="Items of the stage in all (0: unknown).")
     message: Optional[str] = Field(description="Why it failed (a dataset error names the file and field).")
