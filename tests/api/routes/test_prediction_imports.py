@@ -170,3 +170,43 @@ def test_yolo_files_and_coco_results_are_imported_by_the_exports_stems_and_ids(a
         assert (p.frame_id, p.x1, p.y1, p.x2, p.y2, p.score) == (scene.frame_ids[2], 470.0, 260.0, 482.0, 272.0, 0.8)
         y = s.scalars(sa.select(Prediction).where(Prediction.source == "yolo-sn-ball").order_by(Prediction.score)).all()
         assert [q.frame_id for q in y] == [scene.frame_ids[1]] * 2 and abs(y[1].x1 - (0.49 * 960)) < 1e-6
+
+
+def test_a_checked_detection_is_one_key_fix_kept_as_a_placement_until_confirmed(app, client: TestClient,
+                                                                                db_session, db_settings,
+                                                                                tmp_path: Path) -> None:
+    """The ball's detection in a view nobody labelled (a false one beside it scores higher): ``ball_detected`` with
+    its fix; applied, the label keeps the detector's provenance, makes no 3D ball and no export holds it; confirmed
+    (the same box without provenance), it is a label like any other."""
+    from app.geometry.ball import sphere_image_box
+
+    from ..factories import BALL, make_game, make_system
+    from .test_imports_exports import _export
+
+    scene = make_system(db_session, db_settings, make_game(db_session), "2.png", labelled=(True, True, False))
+    true = sphere_image_box(scene.cameras[2], BALL, 0.11)
+    fake = true + [0.0, -60.0, 0.0, -60.0]
+    path = tmp_path / "det.csv"
+    path.write_text(_csv([f"2_2.png,{','.join(f'{v:.2f}' for v in fake)},0.97",
+                          f"2_2.png,{','.join(f'{v:.2f}' for v in true)},0.64"]))
+    answer = client.post("/api/imports", json={"kind": "predictions", "path": str(path), "source": "det"})
+    assert answer.status_code == 202 and run_queued(app) == [answer.json()["id"]]
+    system = client.get(f"/api/systems/{scene.system_id}").json()
+    (d,) = [d for d in system["doubts"] if d["frame_id"] == scene.frame_ids[2] and d["accuses_label"]]
+    assert d["kind"] == "ball_detected" and "det, score 0.64" in d["message"]
+    req = d["suggestion"]["request"]
+    assert req["body"]["box"] == [round(v) for v in true] and req["body"]["provenance"]["detector"] == "det"
+    etag = client.get(f"/api/frames/{scene.frame_ids[2]}").headers["etag"]
+    placed = client.request(req["method"], req["path"], json=req["body"], headers={"If-Match": etag})
+    assert placed.status_code == 200, placed.text
+    frame = client.get(f"/api/frames/{scene.frame_ids[2]}")
+    ball = frame.json()["ball"]
+    assert ball["provenance"]["detector"] == "det" and ball["provenance"]["score"] == 0.64
+    rows = {r["replay"] or r["main_action"]: r for r in _export(client, all="true")[1] if r["main_action"] == "2.png"}
+    assert rows["2_2.png"]["is_ball"] == "False" and rows["2_2.png"]["ball_bbox"] == ""  # not before a person confirms
+    confirmed = client.patch(f"/api/frames/{scene.frame_ids[2]}/ball", json={"box": ball["box"]},
+                             headers={"If-Match": frame.headers["etag"]})
+    assert confirmed.status_code == 200, confirmed.text
+    assert client.get(f"/api/frames/{scene.frame_ids[2]}").json()["ball"].get("provenance") is None
+    rows = {r["replay"] or r["main_action"]: r for r in _export(client, all="true")[1] if r["main_action"] == "2.png"}
+    assert rows["2_2.png"]["is_ball"] == "True"
