@@ -18,11 +18,11 @@ Eq. ball3Destimation; method.md sections 5-6):
    silhouette of a 0.22 m sphere at the refitted ball (:func:`app.geometry.ball.sphere_image_box`).
 
 Where the labelled views agree on a ball (the doubt judge's consensus, :func:`app.geometry.doubts.judge.judge_system`
-rule 3), each unlabelled view's detections are checked against it: the views the judge takes part, and those with
-fewer line classes whose calibration is still sure (a vote above 0: the judge lends such a view's label half a vote),
-each within its own calibration's pixel sigma. Where only one view is labelled its ray leaves the
-depth open, so two unlabelled views' detections are needed: a pair of detections (one per view) is checked when the
-three rays meet at one plausible ball (:func:`app.geometry.consensus.ball_consensus` of the three, every one an
+rule 3), each unlabelled view's detections are checked against it: in the views that take part in the judge's
+checks, and in those with fewer line classes whose calibration is still sure (a vote above 0: the judge lends such a
+view's label half a vote), each within its own calibration's pixel sigma. Where only one view is labelled its ray
+leaves the depth open, so two unlabelled views' detections are needed: a pair of detections (one per view) is checked
+when the three rays meet at one plausible ball (:func:`app.geometry.consensus.ball_consensus` of the three, every one an
 inlier, no ambiguity) and both sizes agree; the best such triple then stands as the consensus for the remaining
 views. Among a view's candidates the one whose ray the others' ball meets best (the smallest reprojection error) is
 chosen, with its margin over the next candidate (px at 1920 width); the detector's score orders candidates whose
