@@ -194,6 +194,8 @@ def test_a_checked_detection_is_one_key_fix_kept_as_a_placement_until_confirmed(
     system = client.get(f"/api/systems/{scene.system_id}").json()
     (d,) = [d for d in system["doubts"] if d["frame_id"] == scene.frame_ids[2] and d["accuses_label"]]
     assert d["kind"] == "ball_detected" and "det, score 0.64" in d["message"]
+    queue = client.get("/api/systems", params={"doubt": "ball_detected"}).json()["items"]
+    assert [q["id"] for q in queue] == [scene.system_id]  # the queue's filter for detector suggestions
     req = d["suggestion"]["request"]
     assert req["body"]["box"] == [round(v) for v in true] and req["body"]["provenance"]["detector"] == "det"
     etag = client.get(f"/api/frames/{scene.frame_ids[2]}").headers["etag"]
