@@ -23,7 +23,8 @@ if TYPE_CHECKING:  # mypy cannot build a Literal from values computed at import
     JobStateName = str
     MergeMode = str
 else:
-    ImportFormat = Literal[tuple(dict.fromkeys(f for p in POLICIES.values() for f in p.import_formats))]
+    # the kinds' dataset formats, then a detector's predictions (rows on stored frames, no systems of a kind)
+    ImportFormat = Literal[(*dict.fromkeys(f for p in POLICIES.values() for f in p.import_formats), "predictions")]
     JobKindName = Literal[tuple(WORK)]
     JobStateName = Literal[tuple(s.value for s in JobState)]
     MergeMode = Literal[tuple(MERGE_MODES)]
@@ -36,7 +37,8 @@ class ImportOptions(_In):
     """How to read a dataset to import (the form fields of an upload; :class:`ImportIn` adds the path)."""
 
     kind: ImportFormat = Field(
-        description="Dataset layout: SoccerNet-v3 tree, SoccerNet-v3D export, SoccerNet-calibration set, ISSIA folder.")
+        description="Dataset layout: SoccerNet-v3 tree, SoccerNet-v3D export, SoccerNet-calibration set, ISSIA folder; "
+                    "or a ball detector's predictions (CSV league,season,match,image,x1,y1,x2,y2,score).")
     width: Optional[int] = Field(None, gt=1, le=65535, description="sn-calibration only: image width (px) when there "
                                                                   "are no images.")
     height: Optional[int] = Field(None, gt=1, le=65535, description="sn-calibration only: image height (px) when "
@@ -46,10 +48,13 @@ class ImportOptions(_In):
     flip: list[str] = Field(default_factory=list, description="issia only: camera ids ('1'..'6') whose footage is "
                                                               "mirrored horizontally (images only).")
     merge: Optional[MergeMode] = Field(None, description=_MERGE)
+    source: Optional[str] = Field(None, pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$",
+                                  description="predictions only: the detector's name (e.g. yolo-sn-ball; default: the "
+                                              "file's stem). Importing a source again replaces its predictions.")
 
     @model_validator(mode="after")
     def _size_for_calibration_only(self) -> "ImportOptions":
-        why = refused_options(self.kind, self.model_dump(include={"width", "height", "from_lines", "flip"}))
+        why = refused_options(self.kind, self.model_dump(include={"width", "height", "from_lines", "flip", "source"}))
         if why:
             raise ValueError(why)
         return self
@@ -72,6 +77,7 @@ class ImportUploadIn(BaseModel):
     from_lines: bool = False
     flip: Optional[str] = Field(None, description="Comma-separated camera ids (issia only).")
     merge: Optional[MergeMode] = Field(None, description=_MERGE)
+    source: Optional[str] = Field(None, description="predictions only: the detector's name.")
 
 
 _RELEASE = ("The release to export (its accepted systems as they were when it was made) instead of the database "
@@ -110,7 +116,7 @@ class JobOut(BaseModel):
     params: dict[str, Any] = Field(description="What it runs (an import's kind and path, an export's 'all').")
     state: JobStateName
     stage: Optional[str] = Field(description="The step it is in: games, merge, calibrate, rig, triangulate, "
-                                             "recompute, export.")
+                                             "predictions, recompute, export.")
     done: int = Field(description="Items of the stage done.")
     total: int = Field(description="Items of the stage in all (0: unknown).")
     message: Optional[str] = Field(description="Why it failed (a dataset error names the file and field).")

@@ -17,6 +17,7 @@ def main() -> None:
         doubts,  # v3d doubts
         evaluation,  # v3d jac
         jobs,  # v3d jobs list|run
+        predictions,  # v3d import predictions, v3d predictions list|remove
         releases,  # v3d release create|list|show|diff
         serve,  # v3d serve
         users,  # v3d users add|list|token|disable|enable

@@ -39,7 +39,7 @@ MergeOpt = Annotated[Optional[MergeMode], typer.Option(
 _Command = TypeVar("_Command", bound=Callable[..., Any])
 _STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating",
            "rig": "calibrating with game rigs", "triangulate": "triangulating", "recompute": "recomputing systems",
-           "export": "exporting games"}
+           "export": "exporting games", "predictions": "storing predictions"}
 
 
 class _Bars:

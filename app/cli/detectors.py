@@ -84,7 +84,10 @@ def _fmt(x: float | None, pattern: str) -> str:
 
 @evaluate_cli.command("monocular")
 def evaluate_monocular_cmd(
-    predictions: Annotated[Path, typer.Argument(help="A folder of YOLO txt files or a COCO results JSON.")],
+    predictions: Annotated[Optional[Path], typer.Argument(help="A folder of YOLO txt files or a COCO results JSON "
+                                                               "(or --source).")] = None,
+    source: Annotated[Optional[str], typer.Option(help="Score an imported source's stored predictions (v3d import "
+                                                       "predictions) instead of a file.")] = None,
     json_out: Annotated[Optional[Path], typer.Option("--json", help="Write the report as JSON here.")] = None,
     plots: Annotated[Optional[Path],
                      typer.Option("--plots", help="Write the precision curve and sensitivity plots here.")] = None,
@@ -100,15 +103,29 @@ def evaluate_monocular_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """AP@0.5, MAE (m, %), P@2m and the precision-threshold curve of ball detections, per split."""
-    from app.services.evaluation.monocular import default_estimator, evaluate_predictions, reference_views
+    from app.services.evaluation.monocular import (
+        default_estimator,
+        evaluate_predictions,
+        evaluate_source,
+        reference_views,
+    )
 
     settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)
+    if (predictions is None) == (source is None) or (source is not None and cameras is not None):
+        typer.echo("error: give a predictions file or --source NAME (not both; --cameras with a file only)", err=True)
+        raise typer.Exit(code=2)
     try:
         with database_session(settings) as session:
-            report = evaluate_predictions(session, predictions, include_all, ball_class, settings.ball_diameter_m,
-                                          estimator, cameras_dir=cameras, ball_box=settings.export_ball_box,
-                                          max_coco_bytes=int(settings.max_predictions_mb * (1 << 20)))
+            if source is not None:
+                report = evaluate_source(session, source, include_all, settings.ball_diameter_m, estimator,
+                                         settings.export_ball_box)
+            else:
+                assert predictions is not None  # checked above
+                report = evaluate_predictions(session, predictions, include_all, ball_class,
+                                              settings.ball_diameter_m, estimator, cameras_dir=cameras,
+                                              ball_box=settings.export_ball_box,
+                                              max_coco_bytes=int(settings.max_predictions_mb * (1 << 20)))
             views = (reference_views(session, include_all, settings.ball_diameter_m, settings.export_ball_box)
                      if plots else [])
     except InvalidInputError as exc:

@@ -170,6 +170,12 @@ class Settings(BaseSettings):
         2.0, description="... while as labelled it stands at least this much farther from every one (metres).",
         json_schema_extra=DERIVED,
     )
+    doubt_detection_size_tolerance: float = Field(
+        0.5, gt=0, lt=1, description="A detector's box is the ball's only when its diameter is within this relative "
+        "difference of a 0.22 m ball's at the depth where the other views put it (app.geometry.doubts.detections). "
+        "Set a priori, not fitted: detectors' box sides err by up to about 20 % and the depth by about as much.",
+        json_schema_extra=DERIVED,
+    )
     doubt_min_line_classes: int = Field(
         MIN_LINE_CLASSES,
         description="Views with fewer distinct field-line classes take no part in the doubt checks (info few_lines): "
@@ -285,6 +291,10 @@ class Settings(BaseSettings):
         "results JSON, MB): 413 as soon as that much of the body has arrived (never spooled beyond it); the COCO file "
         "is read as a stream. Each YOLO .txt may hold 1 MiB (app.geometry.metrics) and data.yaml 64 KiB "
         "(app.services.evaluation.monocular).")
+    max_prediction_import_mb: float = Field(
+        256.0, gt=0, description="Largest upload of a detector's predictions to import (POST /api/imports kind "
+        "predictions: a zip holding one CSV, MB): 413 beyond it. The CSV is read as a stream, so its size bounds the "
+        "import's time, not its memory.")
     max_image_pixels: int = Field(
         50_000_000, gt=0, description="Most pixels (width x height) an imported image or video frame may have, read "
         "from its header before anything is decoded: a larger one refuses the import (400 / exit 2) naming it.")

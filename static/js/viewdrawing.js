@@ -80,7 +80,14 @@ export function drawView(root, { view: v, scale, isMain, imageState, lines, doub
         g.append(svg("circle", { class: "sugg-sigma", cx, cy, r: Math.max(2 * sigma, 1.5 * s) },
           svg("title", { text: `where the ball may be (2 σ = ${(2 * sigma).toFixed(1)} px)` })));
       }
-      g.append(rect(sb, "box-sugg", `suggested box (${FIX_KEY.snap_box} snaps the ball label to it)`, isMain ? "suggested-box" : null));
+      const det = d.kind === "ball_detected" ? (d.evidence || {}) : null;
+      if (det) { // a detector's box, checked by the other views: its own colour, with its detector and score
+        g.append(rect(sb, "box-detected", `${det.detector} found the ball here, score ${fmt(det.score, 2)} (${FIX_KEY.snap_box} places its box)`,
+          isMain ? "detected-box" : null));
+        g.append(svg("text", { class: "det-score", x: sb[0], y: sb[1] - 4 * s, "font-size": 12 * s, text: `${det.detector} ${fmt(det.score, 2)}` }));
+      } else {
+        g.append(rect(sb, "box-sugg", `suggested box (${FIX_KEY.snap_box} snaps the ball label to it)`, isMain ? "suggested-box" : null));
+      }
     }
   }
   if (label && label.box) {

@@ -54,6 +54,14 @@ export const WORDS = /*WORDS*/{
    "tone": "info",
    "chip": "placement to confirm",
    "means": "the ball label was placed from a doubt's fix; Enter confirms it"
+  },
+  "ball_detected": {
+   "chip": "ball detected",
+   "means": "the view has no ball label but a detector found the ball where the other views put it, at a ball's size; s places the detector's box"
+  },
+  "detection_off_label": {
+   "chip": "detector disagrees",
+   "means": "a detector found the ball where the other views put it, away from this view's label"
   }
  },
  "flag": {
@@ -275,7 +283,7 @@ export const WORDS = /*WORDS*/{
 
 /** The doubt kinds that accuse a label, in the contract's order (app/geometry/doubts/contract.py LABEL_KINDS): the
  * queue counts, filters and sorts by them. */
-export const LABEL_KINDS = /*LABEL_KINDS*/["mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view"]/*END*/;
+export const LABEL_KINDS = /*LABEL_KINDS*/["mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view", "ball_detected"]/*END*/;
 
 const humanise = (code) => String(code).replaceAll("_", " ");
 

@@ -165,6 +165,28 @@ def evaluate_monocular(
     return MonocularReportOut.model_validate({**report, "estimator": est})
 
 
+@router.get(
+    "/evaluations/monocular", response_model=MonocularReportOut,
+    responses={422: {"model": InvalidOut, "description": "No predictions of that source are stored, or no view with "
+                                                       "a 3D ball among the selected systems."}, **SHARE_SPENT},
+)
+def evaluate_monocular_source(
+    session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, share: ShareDep,
+    source: Annotated[str, Query(min_length=1, max_length=100, description="An imported source's name (v3d import "
+                                                                           "predictions): its stored predictions.")],
+    include_all: AllQuery = False,
+    estimator: Annotated[Optional[Literal["paper", "exact"]], Query(
+        description="Monocular ball from a box; default: the one matching the optimised boxes.")] = None,
+) -> MonocularReportOut:
+    """The monocular 3D ball benchmark of an imported detector source's stored predictions (no upload): the same
+    report as ``POST /api/evaluations/monocular``."""
+    est = estimator or monocular.default_estimator(settings.optimised_box_method)
+    with share.turn(principal.name, "evaluation"):
+        report = monocular.evaluate_source(session, source, include_all, settings.ball_diameter_m, est,
+                                           settings.export_ball_box)
+    return MonocularReportOut.model_validate({**report, "estimator": est})
+
+
 class BoxFiguresOut(BaseModel):
     """Means over the ``n`` views with both boxes; null where ``n`` is 0."""
 

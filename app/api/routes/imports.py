@@ -102,7 +102,8 @@ async def _upload_params(request: Request, settings: Settings) -> dict[str, Any]
     finally:
         await form.close()
     return import_params(options.kind, folder, width=options.width, height=options.height,
-                         from_lines=options.from_lines, flip=options.flip, upload=True, merge=options.merge)
+                         from_lines=options.from_lines, flip=options.flip, upload=True, merge=options.merge,
+                         source=options.source)
 
 
 async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
@@ -120,7 +121,7 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
         raise DatasetError(body.path, None, "no such file or folder under the data root")
     await run_in_threadpool(refuse_links_out, path)  # a link leading out of the dataset: 400 at once
     return import_params(body.kind, path, width=body.width, height=body.height, from_lines=body.from_lines,
-                         flip=body.flip, merge=body.merge)
+                         flip=body.flip, merge=body.merge, source=body.source)
 
 
 def _refuse_stored_games(session: Session, params: dict[str, Any], settings: Settings) -> None:

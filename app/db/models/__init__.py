@@ -21,6 +21,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
     Job                                                (a background import, full recompute or export)
     Release -> ReleaseGame, ReleaseSystem              (a named, immutable snapshot of the accepted systems)
         - ReleaseDocument                              (their content as canonical JSON, stored once by digest)
+    Frame -> Prediction                                (a ball detector's boxes, by source; never a label)
 
 Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
 world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
@@ -48,6 +49,7 @@ from app.db.models.enums import (
 )
 from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, System, TrajectoryPoint
 from app.db.models.operations import AuditEntry, AuditState, Job
+from app.db.models.predictions import Prediction
 from app.db.models.releases import Release, ReleaseDocument, ReleaseGame, ReleaseSystem
 from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
 
@@ -90,4 +92,5 @@ __all__ = [
     "AuditEntry",
     "AuditState",
     "Job",
+    "Prediction",
 ]

@@ -17,6 +17,7 @@ from app.db.types import enum_by_value, utcnow
 
 if TYPE_CHECKING:  # the relationships name these; the registry resolves them at run time
     from app.db.models.derived import BallReprojection, Calibration, Doubt, OptimisedBox, Triangulation
+    from app.db.models.predictions import Prediction
     from app.db.models.review import ReviewDecision
 
 
@@ -227,6 +228,9 @@ class Frame(Base):
     review: Mapped[Optional[ReviewDecision]] = relationship(
         back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
     )
+    #: A ball detector's predictions on this view (read only here: written and removed by source,
+    #: ``app.services.transfer.predictions``; the doubts check them).
+    predictions: Mapped[list[Prediction]] = relationship(viewonly=True, order_by="Prediction.id")
 
     # the frame's version is SQLAlchemy's version counter too (bumped by the guarded write): a view decision changes
     # the frame alone (not its system's version, which a system decision's If-Match compares), so an edit of the

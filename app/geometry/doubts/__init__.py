@@ -12,8 +12,11 @@ is pure (numpy / OpenCV, no database, no settings object). Kinds that accuse lab
   reprojects inside the image;
 * ``views_disagree``: the labelled views cannot all be right and the culprit cannot be told;
 * ``near_duplicate_view``: two views from nearly the same viewpoint; names the one that adds nothing.
+* ``ball_detected``: a view without a ball label in which a detector's box lies where the other views put the ball,
+  at a ball's size there (:mod:`~.detections`, from stored predictions; its fix snaps the label to that box).
 
-Information kinds (:data:`INFO_KINDS`) say why a view does not take part, without accusing a label.
+Information kinds (:data:`INFO_KINDS`) say why a view does not take part, without accusing a label, or give evidence
+(``detection_off_label``: a detector agrees with the other views away from an outvoted label).
 
 Each doubt carries a ``code`` (which reasoning found it, :data:`CODES`) and its numbers; the sentence a
 person reads is composed above this module (``app.services.curation.doubt_words``).
@@ -36,8 +39,8 @@ on the sets that script names). The robust consensus lives in :mod:`app.geometry
 
 Modules, one idea each: :mod:`~.contract` (the kinds, codes, a view as the judge sees it, a doubt, the
 thresholds), :mod:`~.epipolar` (one label against another view's ray across the play volume), :mod:`~.judge`
-(the rules that find doubts); what a calibration is worth is :mod:`app.geometry.weighting`'s, which the
-triangulation's service shares.
+(the rules that find doubts), :mod:`~.detections` (a detector's predictions checked against the other views); what a
+calibration is worth is :mod:`app.geometry.weighting`'s, which the triangulation's service shares.
 """
 from app.geometry.doubts.contract import (
     CODES,

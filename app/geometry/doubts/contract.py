@@ -17,12 +17,13 @@ from app.geometry.pitch import PlayVolume, within_play_volume
 
 #: Kinds that accuse a label (the review queue counts, filters and sorts by them).
 LABEL_KINDS: tuple[str, ...] = (
-    "mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view",
+    "mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view", "ball_detected",
 )
 
 
 #: Kinds that inform without accusing a label.
-INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_assisted", "few_lines", "suggested_label")
+INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_assisted", "few_lines", "suggested_label",
+                               "detection_off_label")
 
 
 #: ``suggestion["action"]`` values: what the fix of a doubt does (one key on the system page).
@@ -46,6 +47,9 @@ CODES: dict[str, tuple[str, ...]] = {
     "ball_missing": ("consensus", "epipolar", "epipolar_box"),
     "views_disagree": ("no_agreement", "ambiguous", "epipolar"),
     "near_duplicate_view": ("near_duplicate",),
+    # a detector's prediction checked against the other views (app.geometry.doubts.detections)
+    "ball_detected": ("consensus", "one_view"),
+    "detection_off_label": ("agrees_with_others",),
 }
 
 

@@ -147,6 +147,26 @@ def _missing_epipolar_box(ev, v, n):
             "evidence, until a person places it.")
 
 
+def _detected(ev, v, n, one_view: bool = False):
+    others = _list(ev.get("agreeing_views"), n)
+    lone = " (with only one view labelled, two views' detections had to agree with it and each other)" \
+        if one_view else ""
+    rivals = ev.get("candidates_passed") or 1
+    margin = (f"; {rivals - 1} other detection(s) also fit, {_num(ev.get('margin_px_1920'), 1)} px worse"
+              if rivals > 1 else "")
+    return (f"A detector ({ev.get('detector')}, score {_num(ev.get('score'), 2)}) found the ball in {v} "
+            f"{_num(ev.get('error_px_1920'), 1)} px (at 1920 width) from where {others} put it, at "
+            f"{_num(100 * (ev.get('size_ratio') or math.nan))} % of a ball's size there{lone}{margin}; s places its "
+            "box, to be confirmed.")
+
+
+def _detection_off(ev, v, n):
+    return (f"A detector ({ev.get('detector')}, score {_num(ev.get('score'), 2)}) found a ball in {v} "
+            f"{_num(ev.get('error_px_1920'), 1)} px (at 1920 width) from where {_list(ev.get('agreeing_views'), n)} "
+            f"put it, {_num(ev.get('label_distance_px_1920'))} px from {v}'s label: evidence that the label is off, "
+            "not a verdict.")
+
+
 def _disagree(ev, v, n):
     names = _list(ev.get("views"), n)
     best = ev.get("best_pair_error_px_1920")
@@ -192,6 +212,9 @@ _WRITERS: dict[tuple[str, str], Callable[[dict, str, Names], str]] = {
     ("views_disagree", "ambiguous"): _disagree,
     ("views_disagree", "epipolar"): _disagree_epipolar,
     ("near_duplicate_view", "near_duplicate"): _near_dup,
+    ("ball_detected", "consensus"): _detected,
+    ("ball_detected", "one_view"): lambda ev, v, n: _detected(ev, v, n, one_view=True),
+    ("detection_off_label", "agrees_with_others"): _detection_off,
 }
 
 

@@ -24,6 +24,7 @@ from app.db.types import json_safe
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.camera import Camera
 from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
+from app.geometry.doubts.detections import Detection, check_detections
 from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
 from app.geometry.weighting import calibration_weight
@@ -128,8 +129,13 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     with its triangulation; ``weighed``: its :func:`weighed_views`, when made already) and replace its stored doubts
     and counts. Changes the session only; the caller commits (with the edit that caused it)."""
     weighed = weighed or weighed_views(system, settings, cameras)
-    found = judge_system(weighed.views, doubt_settings(settings), geometry, weighed.weighed)
+    judged = doubt_settings(settings)
+    found = judge_system(weighed.views, judged, geometry, weighed.weighed)
     found = kind_of(system).judge_doubts(system, found, cameras)
+    detections = stored_detections(system)
+    if detections:  # a detector's predictions, checked against the other views (none: the doubts as they were)
+        found = check_detections(weighed.views, found, detections, judged, settings.doubt_detection_size_tolerance,
+                                 geometry, weighed.weighed)
     names = {f.id: f.name for f in system.frames}
     replace_rows(system.doubts, Doubt, [  # in place: a doubt the edit leaves as it was writes nothing
         dict(frame_id=d.view_id, kind=d.kind, accuses_label=d.accuses_label, message=doubt_message(d, names),
@@ -140,6 +146,17 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     put_values(system, {"doubt_counts": dict(Counter(d.kind for d in found)),
                         "label_doubts": sum(1 for d in found if d.accuses_label)})
     return list(system.doubts)
+
+
+def stored_detections(system: System) -> dict[int, list[Detection]]:
+    """Frame id -> the stored predictions of every detector on that frame of ``system`` (``Frame.predictions``,
+    loaded with the system by ``app.services.derivation.loading``), highest score first; frames without any left
+    out."""
+    out: dict[int, list[Detection]] = {}
+    for f in system.frames:
+        for p in sorted(f.predictions, key=lambda p: (-p.score, p.id)):
+            out.setdefault(f.id, []).append(Detection(p.source, float(p.score), (p.x1, p.y1, p.x2, p.y2)))
+    return out
 
 
 def suggestion_request(frame_id: int | None, suggestion: dict[str, Any] | None,
@@ -173,10 +190,14 @@ def suggestion_request(frame_id: int | None, suggestion: dict[str, Any] | None,
 
 def doubt_provenance(doubt: Doubt) -> dict[str, Any]:
     """The provenance a label made from ``doubt``'s suggestion keeps: the doubt's kind and code (the code is
-    stored in its evidence, ``code``) and the views it came from (``agreeing_views``)."""
+    stored in its evidence, ``code``) and the views it came from (``agreeing_views``); for a detector's box
+    (``ball_detected``) also the detector's name and score (``detector``, ``score``)."""
     ev = doubt.evidence or {}
     views = [int(v) for v in ev.get("agreeing_views") or [] if isinstance(v, int)]
-    return {"doubt": doubt.kind, "code": ev.get("code"), "from_views": views}
+    out: dict[str, Any] = {"doubt": doubt.kind, "code": ev.get("code"), "from_views": views}
+    if isinstance(ev.get("detector"), str):  # a detector's box: which detector, and its score
+        out.update(detector=ev["detector"], score=ev.get("score"))
+    return out
 
 
 def suggestion_json(frame_id: int | None, suggestion: dict[str, Any] | None,

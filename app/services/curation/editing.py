@@ -90,7 +90,8 @@ from app.services.kinds import kind_of
 
 def check_provenance(provenance: Any) -> dict[str, Any] | None:
     """A suggested label's provenance as stored: ``{"source": "suggestion", "doubt": str, "code": str | None,
-    "from_views": [int]}``, or None. Raises :class:`InvalidInputError` (field ``provenance``) for another shape."""
+    "from_views": [int]}`` (with ``"detector": str, "score": float`` for a detector's box), or None. Raises
+    :class:`InvalidInputError` (field ``provenance``) for another shape."""
     if provenance is None:
         return None
     if not isinstance(provenance, Mapping):
@@ -104,7 +105,15 @@ def check_provenance(provenance: Any) -> dict[str, Any] | None:
     if not isinstance(views, list) or len(views) > 64 or not all(isinstance(v, int) and not isinstance(v, bool)
                                                                    for v in views):
         raise InvalidInputError("provenance.from_views must be a list of frame ids", field="provenance")
-    return {"source": "suggestion", "doubt": doubt, "code": code, "from_views": list(views)}
+    out: dict[str, Any] = {"source": "suggestion", "doubt": doubt, "code": code, "from_views": list(views)}
+    detector, score = provenance.get("detector"), provenance.get("score")
+    if detector is not None:  # a detector's box: which detector and its score stay with the placement
+        if not isinstance(detector, str) or not detector or len(detector) > 100:
+            raise InvalidInputError("provenance.detector must name the detector", field="provenance")
+        if isinstance(score, bool) or not isinstance(score, (int, float)) or not 0.0 <= float(score) <= 1.0:
+            raise InvalidInputError("provenance.score must be the detector's score in [0, 1]", field="provenance")
+        out.update(detector=detector, score=float(score))
+    return out
 
 
 def update_ball_label(session: Session, frame_id: int, box: Any = None, point: Any = None, *,

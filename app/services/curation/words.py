@@ -57,6 +57,12 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
                       "means": "too few field-line classes to fix the camera reliably"},
         "suggested_label": {"tone": "info", "chip": "placement to confirm",
                             "means": "the ball label was placed from a doubt's fix; Enter confirms it"},
+        "ball_detected": {"chip": "ball detected",
+                          "means": "the view has no ball label but a detector found the ball where the other views "
+                                   "put it, at a ball's size; s places the detector's box"},
+        "detection_off_label": {"chip": "detector disagrees",
+                                "means": "a detector found the ball where the other views put it, away from this "
+                                         "view's label"},
     },
     "flag": {
         "probably_mirrored": {"tone": "bad", "chip": "mirrored labels",

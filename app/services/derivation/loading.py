@@ -1,9 +1,10 @@
-"""Systems loaded with their views and derived rows in four queries, whatever the number of systems and views.
+"""Systems loaded with their views and derived rows in five queries, whatever the number of systems and views.
 
 What a recomputation (``recompute.load_for_recompute``) and the system page (``app.services.curation.system_page``)
 read of a system, as ``app.services.derivation.scope`` declares it: the system with its one-to-one rows joined to it,
 its views (``System.frames``, in their order) with each view's one-to-one rows joined to it, its pairs
-(``Triangulation.pairs``) and doubts (``System.doubts``), in id order. Each list is one query for all the systems asked;
+(``Triangulation.pairs``), doubts (``System.doubts``) and its views' detector predictions (``Frame.predictions``), in id
+order. Each list is one query for all the systems asked;
 its rows are handed to their parents as the loaded value of the relationship (``set_committed_value``), as SQLAlchemy's
 ``selectinload`` would, without its per-call loader machinery: a 4-view system loads in about two thirds of the CPU (an
 edit's load, the page's load).
@@ -20,18 +21,18 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, joinedload
 from sqlalchemy.orm.attributes import set_committed_value
 
-from app.db.models import Doubt, Frame, System, Triangulation, TriangulationPair
+from app.db.models import Doubt, Frame, Prediction, System, Triangulation, TriangulationPair
 from app.services.derivation.scope import FRAME_ROWS
 
-#: Systems loaded per round of four queries (bounded IN lists and memory).
+#: Systems loaded per round of five queries (bounded IN lists and memory).
 CHUNK = 500
 
 
 @functools.cache
-def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.Select, sa.Select]:
-    """The four statements of :func:`load_systems` (systems, views, pairs, doubts), each taking the systems' ids as
-    ``ids`` (an expanding parameter); ``system_rows``: the names of the system's one-to-one relationships joined to it
-    (the triangulation always). Built once per ``system_rows``."""
+def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.Select, sa.Select, sa.Select]:
+    """The five statements of :func:`load_systems` (systems, views, pairs, doubts, predictions), each taking the
+    systems' ids as ``ids`` (an expanding parameter); ``system_rows``: the names of the system's one-to-one
+    relationships joined to it (the triangulation always). Built once per ``system_rows``."""
     ids: sa.BindParameter[list[int]] = sa.bindparam("ids", expanding=True)
     return (
         sa.select(System).where(System.id.in_(ids)).options(
@@ -40,16 +41,18 @@ def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.
         .options(*(joinedload(r) for r in FRAME_ROWS)),
         sa.select(TriangulationPair).where(TriangulationPair.system_id.in_(ids)).order_by(TriangulationPair.id),
         sa.select(Doubt).where(Doubt.system_id.in_(ids)).order_by(Doubt.id),
+        sa.select(Prediction.frame_id, Prediction).join(Frame, Frame.id == Prediction.frame_id)
+        .where(Frame.system_id.in_(ids)).order_by(Prediction.id),
     )
 
 
 def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, ...] = ()) -> dict[int, System]:
     """The systems ``ids`` that exist, by id, each with its views (and their one-to-one rows), triangulation and
-    pairs, doubts and the one-to-one relationships ``system_rows`` (e.g. ``(System.review, System.game)``) loaded:
-    four queries per :data:`CHUNK` systems (module docstring)."""
+    pairs, doubts, predictions and the one-to-one relationships ``system_rows`` (e.g. ``(System.review, System.game)``)
+    loaded: five queries per :data:`CHUNK` systems (module docstring)."""
     out: dict[int, System] = {}
     ids = list(dict.fromkeys(ids))
-    systems_q, frames_q, pairs_q, doubts_q = _statements(tuple(r.key for r in system_rows))
+    systems_q, frames_q, pairs_q, doubts_q, predictions_q = _statements(tuple(r.key for r in system_rows))
     for start in range(0, len(ids), CHUNK):
         chunk = {"ids": ids[start:start + CHUNK]}
         systems = {s.id: s for s in session.scalars(systems_q, chunk).unique()}
@@ -62,6 +65,12 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
         doubts: dict[int, list[Doubt]] = {i: [] for i in systems}
         for d in session.scalars(doubts_q, chunk):
             doubts[d.system_id].append(d)
+        predictions: dict[int, list[Prediction]] = {f.id: [] for fs in frames.values() for f in fs}
+        for fid, p in session.execute(predictions_q, chunk):
+            predictions[fid].append(p)
+        for fs in frames.values():
+            for f in fs:
+                _hand_over(f, "predictions", predictions[f.id])
         for sid, system in systems.items():
             _hand_over(system, "frames", frames[sid])
             _hand_over(system, "doubts", doubts[sid])

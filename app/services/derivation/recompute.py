@@ -300,6 +300,14 @@ def recompute_all_systems(session: Session, settings: Settings, progress: Progre
     return len(ids), _recompute_in_batches(session, ids, settings, progress, {"reason": "full recompute"}, actor)
 
 
+def recompute_systems_by_id(session: Session, ids: list[int], settings: Settings, progress: Progress | None,
+                            audit_after: dict[str, Any], actor: str | None = None) -> int:
+    """Recompute the systems ``ids`` (e.g. those an import of a detector's predictions touched), committed in
+    batches as :func:`recompute_all_systems` does (one audit entry per batch with ``audit_after``); returns how many
+    were triangulated (0 for no ids)."""
+    return _recompute_in_batches(session, ids, settings, progress, audit_after, actor) if ids else 0
+
+
 def _recompute_in_batches(session: Session, ids: list[int], settings: Settings, progress: Progress | None,
                           audit_after: dict[str, Any], actor: str | None = None) -> int:
     """Recompute the systems ``ids``, committing and releasing :data:`_REFRESH_BATCH` at a time (bounded

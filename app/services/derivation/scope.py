@@ -6,7 +6,7 @@ An edit of one view recomputes its whole system (``recompute.recompute_system``)
 * the system's row and its one-to-one rows (:data:`SYSTEM_ROWS`: triangulation, trajectory point, review);
 * every view (``System.frames``) with the view's one-to-one rows (:data:`FRAME_ROWS`: field lines, calibration, ball
   label, review, reprojection, optimised box);
-* the system's lists (:data:`SYSTEM_LISTS`: its doubts, its triangulation's pairs);
+* the system's lists (:data:`SYSTEM_LISTS`: its doubts, its triangulation's pairs, its views' detector predictions);
 * beyond the system, its game (:data:`GAME_ROW`): the game's camera prior and the calibrations of the game's other
   frames that make its camera rig (``app.services.calibration.rigs.rig_rows``).
 
@@ -33,9 +33,10 @@ SYSTEM_ROWS: tuple[Any, ...] = (System.triangulation, System.trajectory_point, S
 #: Each view's one-to-one rows an edit reads (joined to the view's row when it is loaded).
 FRAME_ROWS: tuple[Any, ...] = (Frame.calibration, Frame.ball_label, Frame.review, Frame.reprojection,
                                Frame.optimised_box, Frame.field_lines)
-#: The system's lists an edit reads: its views, its doubts and its triangulation's pairs (each in id order but the
-#: views, in their place on the page).
-SYSTEM_LISTS: tuple[Any, ...] = (System.frames, System.doubts, Triangulation.pairs)
+#: The system's lists an edit reads: its views, its doubts, its triangulation's pairs and its views' detector
+#: predictions (each in id order but the views, in their place on the page). An import or removal of predictions
+#: bumps the version of each system it touches in its transaction.
+SYSTEM_LISTS: tuple[Any, ...] = (System.frames, System.doubts, Triangulation.pairs, Frame.predictions)
 #: The system's game: read by an edit for its camera prior and its version, which covers the game's rig.
 GAME_ROW: Any = System.game
 

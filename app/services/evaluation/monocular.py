@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Hashable, Iterable
+from typing import Any, Hashable, Iterable, Protocol, Sequence
 
 import numpy as np
 from sqlalchemy.orm import Session
@@ -232,7 +232,18 @@ def _inner_name(name: str, root: Path, path: Path) -> str:
     return f"{name}!{inner}" if name.lower().endswith(".zip") else f"{name}/{inner}"
 
 
-def load_predictions(path: str | Path, views: list[ReferenceView], ball_class: int | None = None, *,
+class SizedView(Protocol):
+    """What :func:`load_predictions` reads of a view: its file stem and image size (px)."""
+
+    @property
+    def stem(self) -> str: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+
+
+def load_predictions(path: str | Path, views: Sequence[SizedView], ball_class: int | None = None, *,
                      name: str | None = None, max_coco_bytes: int = MAX_COCO_FILE_BYTES) -> tuple[Detections, int]:
     """Ball detections of ``path`` keyed by view stem, and the number of detections ignored (images
     that are not ground-truth views).
@@ -245,7 +256,8 @@ def load_predictions(path: str | Path, views: list[ReferenceView], ball_class: i
         path: a folder of YOLO txt files (searched recursively; the ball class from ``ball_class``,
             else from a ``data.yaml`` found there naming ``Ball``, else 0) or a COCO results JSON
             (category ``ball_class``, default 1 as in the COCO export).
-        views: :func:`reference_views`.
+        views: :func:`reference_views` (or any views with a stem and a size: an import of a detector's predictions
+            reads them for every stored view, ``app.services.transfer.predictions``).
         name: how messages name ``path`` (default: the path itself): an upload's file name, so that no
             message shows the server's folders; a file inside the folder is ``name!inner/path`` when ``name``
             ends in ``.zip``, else ``name/inner/path``.
@@ -369,6 +381,53 @@ def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 
     out["counts"]["ignored_detections"] = ignored
     out["splits"] = {s: _report([v for v in views if v.split == s], detections, ball_diameter_m, estimator)
                      for s in SPLITS if any(v.split == s for v in views)}
+    return out
+
+
+def source_detections(session: Session, source: str, views: list[ReferenceView]) -> tuple[Detections, int]:
+    """The stored predictions of ``source`` (``v3d import predictions``) keyed by view stem, as
+    :func:`load_predictions` reads a file, and the number on images that are not reference views (ignored).
+
+    Raises:
+        InvalidInputError: no predictions of that source are stored (field ``source``).
+    """
+    import sqlalchemy as sa
+
+    from app.db.models import Prediction
+
+    stems = {v.frame_id: v.stem for v in views}
+    ids, boxes, scores, ignored, seen = [], [], [], 0, 0
+    for fid, x1, y1, x2, y2, score in session.execute(
+            sa.select(Prediction.frame_id, Prediction.x1, Prediction.y1, Prediction.x2, Prediction.y2,
+                      Prediction.score).where(Prediction.source == source).order_by(Prediction.id)):
+        seen += 1
+        if fid not in stems:
+            ignored += 1
+            continue
+        ids.append(stems[fid])
+        boxes.append((x1, y1, x2, y2))
+        scores.append(score)
+    if not seen:
+        raise InvalidInputError(f"no predictions of source {source!r} are stored (v3d predictions list)",
+                                field="source")
+    return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float)), ignored
+
+
+def evaluate_source(session: Session, source: str, include_all: bool = False,
+                    ball_diameter_m: float = BALL_DIAMETER_M, estimator: str = "exact",
+                    ball_box: str = "refined") -> dict[str, Any]:
+    """:func:`evaluate` of an imported source's stored predictions (:func:`source_detections`) against the curated
+    labels with the stored cameras, as :func:`evaluate_predictions` scores a file: no second upload.
+
+    Raises:
+        InvalidInputError: no such source, or no reference view.
+    """
+    views = reference_views(session, include_all, ball_diameter_m, ball_box)
+    dets, ignored = source_detections(session, source, views)
+    end_reads(session)
+    out = evaluate(views, dets, ignored, ball_diameter_m, estimator)
+    out["counts"]["views_without_camera"] = 0
+    out["cameras"] = "stored"
     return out
 
 

@@ -31,21 +31,26 @@ from app.services.transfer.import_formats import import_format, stored_games_ref
 def import_params(kind: str, path: str | Path, *, width: int | None = None, height: int | None = None,
                   from_lines: bool = False, flip: list[str] | None = None,
                   calibration_workers: int | None = None, upload: bool = False,
-                  merge: str | None = None) -> dict[str, Any]:
+                  merge: str | None = None, source: str | None = None) -> dict[str, Any]:
     """The ``params`` of an import job (one shape for the API and the CLI, so that a command run again
     finds the job it started: ``jobs.find_resumable``). ``path`` is stored resolved; ``upload``: it is an
     unpacked upload of its own, removed when the dataset cannot be imported; ``merge``: how to merge games stored
-    already (``app.services.transfer.merging.MERGE_MODES``), None: refuse them."""
+    already (``app.services.transfer.merging.MERGE_MODES``), None: refuse them; ``source``: the name of a detector's
+    predictions (kind ``predictions``)."""
     out = {"kind": kind, "path": str(Path(path).expanduser().resolve()), "width": width, "height": height,
            "from_lines": from_lines, "flip": list(flip or []), "calibration_workers": calibration_workers,
            "merge": merge}
+    if source is not None:
+        out["source"] = source
     if upload:
         out["upload"] = True
     return out
 
 
 def import_result(report: Any) -> dict[str, Any]:
-    """The stored result of an import job: the counts of its ``ImportReport``."""
+    """The stored result of an import job: the counts of its ``ImportReport`` (or its own ``as_result()``)."""
+    if hasattr(report, "as_result"):
+        return dict(report.as_result())
     keys = ("source", "games", "systems", "frames", "systems_new", "systems_changed", "calibrated", "refused",
             "rig_assisted", "prior_fitted", "triangulated", "seconds", "systems_merged", "decisions_from_file",
             "decisions_reset")

@@ -209,7 +209,8 @@ def release_detector_systems(session: Session, release: Release, export: str) ->
                 id=f["frame_id"], name=f["name"], width=f["width"], height=f["height"], split=f["frame_split"],
                 system=system, release=_json(f["release_json"]), image_source=stored.get(f["frame_id"], no_image),
                 ball_label=None if f["label_frame"] is None else SimpleNamespace(
-                    box=_json(f["ball_box"]), kind=f["ball_kind"],
+                    box=_json(f["ball_box"]), kind=f["ball_kind"], suggested=False,  # a document never holds
+                    # an unconfirmed placement: ``frame_row_select`` reads it as no label
                     centre=BallLabel.centre_of(_json(f["ball_box"]), _json(f["ball_point"]))),
                 calibration=None if f["cal_source"] is None else SimpleNamespace(
                     camera=_json(f["camera_json"]), admitted=bool(f["admitted"])),

@@ -199,10 +199,13 @@ def ball_boxes(system: System, ball_diameter_m: float = BALL_DIAMETER_M,
                ball_box: str = "refined") -> dict[int, tuple[list[float], str]]:
     """Frame id -> ``(box [x1, y1, x2, y2] px, source)`` of the views of ``system`` that have a ball box
     to export; source is ``"refined"``, ``"optimised"`` or ``"annotated"`` (module docstring). ``ball_box``
-    (``Settings.export_ball_box``) "optimised" leaves the refined boxes out (the paper's choice)."""
+    (``Settings.export_ball_box``) "optimised" leaves the refined boxes out (the paper's choice). A view whose
+    label is a placement no person has confirmed (``BallLabel.suggested``) has none."""
     refined = refined_boxes(system, ball_diameter_m) if ball_box == "refined" else {}
     out: dict[int, tuple[list[float], str]] = {}
     for f in system.frames:
+        if f.ball_label is not None and f.ball_label.suggested:
+            continue  # a placement no person has confirmed (a prediction's box, say) is exported by no format
         if f.id in refined:
             out[f.id] = ([float(v) for v in refined[f.id]], "refined")
         elif f.optimised_box is not None:
@@ -264,7 +267,7 @@ def views_of(systems: Iterable[Any], report: DetectorExportReport, ball_diameter
                 continue
             ball, origin = balls.get(frame.id, (None, None))
             label = frame.ball_label
-            if ball is None and label is not None and label.kind is not None:
+            if ball is None and label is not None and label.kind is not None and not label.suggested:
                 report.skipped_point_only += 1
                 continue
             boxes: list[tuple[int, tuple[float, float, float, float]]] = []

@@ -192,6 +192,14 @@ def _csv_row(game: Any, row: Any, split: str) -> list[str]:
 EXPORT_BATCH_GAMES = 25
 
 
+def _confirmed(value: Any) -> Any:
+    """``value`` (a current ball label's column) where a person placed the label, NULL where the label is a placement
+    from a doubt's fix (a detector's prediction or the other views' ball) that no person has confirmed yet
+    (``BallLabel.provenance`` set; JSON ``null`` counts as unset): an export holds only labels people placed."""
+    unconfirmed = sa.and_(BallLabel.provenance.is_not(None), sa.cast(BallLabel.provenance, sa.Text) != "null")
+    return sa.case((unconfirmed, sa.null()), else_=value)
+
+
 def _json_text(column: Any, label: str) -> Any:
     """``column`` (a JSON column) read as its JSON text, labelled ``label``: exported as it is stored,
     never decoded and encoded again."""
@@ -215,8 +223,9 @@ def frame_row_select() -> Select[Any]:
             _json_text(C.residuals_px, "residuals_json"), _json_text(C.uncertainty, "uncertainty_json"), C.admitted,
             C.jac_0005, C.jac_001, C.jac_002,
             _json_text(L.lines, "lines_json"), _json_text(L.original_lines, "original_json"),
-            B.frame_id.label("label_frame"), B.kind.label("ball_kind"), _json_text(B.box, "ball_box"),
-            _json_text(B.point, "ball_point"), _json_text(B.original_box, "original_box"),
+            B.frame_id.label("label_frame"), _confirmed(B.kind).label("ball_kind"),
+            _confirmed(sa.cast(B.box, sa.Text)).label("ball_box"),
+            _confirmed(sa.cast(B.point, sa.Text)).label("ball_point"), _json_text(B.original_box, "original_box"),
             _json_text(B.original_point, "original_point"),
             _json_text(OB.box, "opt_box"), OB.d_opt_px.label("opt_d_px"), OB.error_m.label("opt_error_m"),
             R.error_px.label("rep_error_px"), _json_text(F.release, "release_json"),

@@ -34,8 +34,9 @@ from app.services.transfer.importing import (
 )
 from app.services.transfer.merging import MERGE_MODES
 
-#: ``run(session, path, settings, options, progress=, actor=, source_name=, merge=)`` -> the import's report.
-ImportRun = Callable[..., ImportReport]
+#: ``run(session, path, settings, options, progress=, actor=, source_name=, merge=)`` -> the import's report (an
+#: ``ImportReport``, or a report with ``as_result()`` giving the job's result, e.g. a detector's predictions').
+ImportRun = Callable[..., Any]
 #: A game's natural key: ``(league, season, match)``.
 GameKey = tuple[str, str, str]
 
@@ -195,7 +196,18 @@ def _calibration(session: Session, path: str | Path, settings: Settings, options
                                  progress=progress, **named)
 
 
+def _predictions(session: Session, path: str | Path, settings: Settings, options: Mapping[str, Any],
+                 progress: Progress | None = None, **named: Any) -> Any:
+    from app.services.transfer.predictions import import_predictions  # it recomputes systems: imported when run
+
+    return import_predictions(session, path, settings, options.get("source"), progress=progress,
+                              actor=named.get("actor"))
+
+
 register_import_format(ImportFormat("soccernet-v3", _v3, games=_v3_games, read=_v3_read))
 register_import_format(ImportFormat("soccernet-v3d", _v3d, games=_v3d_games, read=_v3d_read))
 register_import_format(ImportFormat("sn-calibration", _calibration, ("width", "height"), games=_calibration_games,
                                     read=_calibration_read))
+# a ball detector's predictions (app.services.transfer.predictions): rows of their own on stored frames, no games
+register_import_format(ImportFormat("predictions", _predictions, ("source",),
+                                    upload_limit="V3D_MAX_PREDICTION_IMPORT_MB"))

@@ -11,7 +11,10 @@ from app.services.transfer.import_formats import import_format, refused_options,
 
 def test_every_kinds_format_has_its_reader_and_no_other_is_registered():
     named = {f for p in POLICIES.values() for f in p.import_formats}
-    assert set(registered_formats()) == named
+    # besides the kinds' datasets, a detector's predictions: rows on stored frames, producing no systems
+    assert set(registered_formats()) == named | {"predictions"}
+    assert import_format("predictions").options == ("source",)
+    assert import_format("predictions").upload_limit == "V3D_MAX_PREDICTION_IMPORT_MB"
     assert import_format("sn-calibration").options == ("width", "height")
     assert import_format("issia").options == ("from_lines", "flip")
 

@@ -1,0 +1,390 @@
+"""A ball detector's predictions, imported as a named source (``v3d import predictions FILE [--source NAME]``,
+``POST /api/imports`` kind ``predictions``) and removed by source (``v3d predictions remove SOURCE``).
+
+The file is a CSV with the header ``league,season,match,image,x1,y1,x2,y2,score`` (pixels of that image, continuous,
+origin at the top-left corner; the image named as its kind names it, ``KindPolicy.image_name``: ``12_1.png``), one
+row per detection, or a folder (an unpacked upload) holding exactly one such ``.csv``; or a detector's own output in
+the layout of v3d's detector exports (:func:`prediction_input`): YOLO txt files (``class cx cy w h conf``,
+normalised, one per image named by its exported stem, ``KindPolicy.view_stem``) or a COCO results JSON keyed by the
+COCO export's image ids (``detector_export.coco_image_id``), both read by the monocular benchmark's readers
+(``app.services.evaluation.monocular.load_predictions``). It is read as a stream
+(bounded memory: rows are checked and written :data:`BATCH_ROWS` at a time inside one transaction), so a 100 MB file
+needs no more memory than a small one. The file is all or nothing: a malformed row (a missing column, a value that is
+not a finite number, a score outside [0, 1], a box with no area or entirely outside its image) is an error naming the
+file and its line (``DatasetError``), and nothing of the file is stored, the source's earlier predictions included.
+Rows naming an image v3d does not hold are counted and named (the first :data:`NAMED_UNKNOWN`), not an error; a box
+crossing its image's edge is clipped to the image. Importing a source again replaces all its rows.
+
+After the rows are stored, the systems they touch are recomputed (their doubts check the predictions,
+``app.geometry.doubts.detections``) in the import's job, so that the CLI leaves the doubts stored when it exits.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator, cast
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.core.errors import DatasetError, InvalidInputError
+from app.datasets.csv_cells import read_cell
+from app.db.models import Frame, Game, Prediction, System
+from app.db.session import begin_write
+from app.services.audit.log import record_summary
+from app.services.derivation.recompute import recompute_systems_by_id
+from app.services.jobs.progress import Progress
+from app.services.kinds import kind_of
+
+#: The CSV's columns, in this order.
+PREDICTION_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y2", "score")
+#: Rows checked and written per batch (the memory an import holds, whatever the file's size).
+BATCH_ROWS = 5000
+#: How many unknown images a report names (the rest are counted).
+NAMED_UNKNOWN = 20
+#: A source's name: what ``--source`` takes (letters, digits, ``. _ -``; the file's stem by default).
+SOURCE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
+
+
+@dataclass
+class PredictionReport:
+    """What an import of predictions did: ``source`` (its name), ``rows`` read, ``stored`` predictions,
+    ``replaced`` (the source's earlier rows removed), ``clipped`` boxes, ``unknown`` rows naming an image v3d does not
+    hold and ``unknown_images`` (the first :data:`NAMED_UNKNOWN`, ``league/season/match/image``), ``frames`` and
+    ``systems`` touched, ``triangulated`` systems after their recomputation, ``store_seconds`` of reading and storing
+    the file, ``seconds`` of the whole import (the recomputation included)."""
+
+    source: str
+    rows: int = 0
+    stored: int = 0
+    replaced: int = 0
+    clipped: int = 0
+    unknown: int = 0
+    unknown_images: list[str] = field(default_factory=list)
+    frames: int = 0
+    systems: int = 0
+    triangulated: int = 0
+    store_seconds: float = 0.0
+    seconds: float = 0.0
+
+    def as_result(self) -> dict[str, Any]:
+        """The job's stored result (JSON)."""
+        return {"kind": "predictions", "source": self.source, "rows": self.rows, "stored": self.stored,
+                "replaced": self.replaced, "clipped": self.clipped, "unknown": self.unknown,
+                "unknown_images": list(self.unknown_images), "frames": self.frames, "systems": self.systems,
+                "triangulated": self.triangulated, "store_seconds": round(self.store_seconds, 2),
+                "seconds": round(self.seconds, 2)}
+
+
+def check_source(name: str) -> str:
+    """``name`` as a source's name (:data:`SOURCE_PATTERN`).
+
+    Raises:
+        InvalidInputError: another name (field ``source``).
+
+    >>> check_source("yolo-sn-ball")
+    'yolo-sn-ball'
+    """
+    if not isinstance(name, str) or not SOURCE_PATTERN.fullmatch(name):
+        raise InvalidInputError("source must be 1-100 letters, digits, '.', '_' or '-', starting with a letter or "
+                                "digit", field="source")
+    return name
+
+
+def prediction_input(path: str | Path) -> tuple[str, Path]:
+    """What an input holds and where: ``("csv", the CSV)`` for a ``.csv`` file or a folder (an unpacked upload) holding
+    exactly one; ``("coco", the JSON)`` for a ``.json`` file or a folder holding one and no CSV (COCO results keyed by
+    the COCO export's image ids); ``("yolo", the folder)`` for a folder of ``.txt`` files (YOLO ``class cx cy w h
+    conf``, one file per image named by its exported stem, anywhere in the folder).
+
+    Raises:
+        DatasetError: no such file, or a folder holding none of these (or several CSV or JSON files).
+    """
+    path = Path(path)
+    if path.is_dir():
+        def files(ext: str) -> list[Path]:
+            return sorted(p for p in path.rglob(f"*.{ext}") if p.is_file() and not p.is_symlink())
+        csvs, jsons = files("csv"), files("json")
+        if len(csvs) == 1:
+            return "csv", csvs[0]
+        if not csvs and len(jsons) == 1:
+            return "coco", jsons[0]
+        if not csvs and not jsons and files("txt"):
+            return "yolo", path
+        raise DatasetError(path, None, f"a predictions folder holds one .csv, one COCO results .json or YOLO .txt "
+                                       f"files; found {len(csvs)} .csv and {len(jsons)} .json")
+    if not path.is_file():
+        raise DatasetError(path, None, "no such file")
+    return ("coco" if path.suffix.lower() == ".json" else "csv"), path
+
+
+@dataclass(frozen=True)
+class PredictionRow:
+    """One checked row: its ``line`` in the file, the image it names and its box ``(x1, y1, x2, y2)`` px, score."""
+
+    line: int
+    key: tuple[str, str, str, str]
+    box: tuple[float, float, float, float]
+    score: float
+
+
+def read_prediction_rows(path: Path) -> Iterator[tuple[PredictionRow, int]]:
+    """The rows of a predictions CSV, as a stream, each with the bytes of the file read so far (for progress).
+
+    Raises:
+        DatasetError: not UTF-8, a header other than :data:`PREDICTION_COLUMNS`, a row with another number of cells,
+            a coordinate or score that is not a finite number, a score outside [0, 1], a box with no area (the message
+            names the file and the line).
+    """
+    with open(path, "rb") as raw, io.TextIOWrapper(raw, encoding="utf-8-sig", newline="") as text:
+        reader = csv.reader(text)
+        try:
+            header = next(reader, None)
+            if header is None or tuple(c.strip() for c in header) != PREDICTION_COLUMNS:
+                raise DatasetError(path, "line 1", f"the header must be {','.join(PREDICTION_COLUMNS)}, got "
+                                                   f"{','.join(header or [])[:200]!r}")
+            for cells in reader:
+                line = reader.line_num
+                if not cells:
+                    continue
+                if len(cells) != len(PREDICTION_COLUMNS):
+                    raise DatasetError(path, f"line {line}", f"{len(cells)} cells, expected {len(PREDICTION_COLUMNS)} "
+                                                              f"({','.join(PREDICTION_COLUMNS)})")
+                try:
+                    values = [float(c) for c in cells[4:]]
+                except ValueError:
+                    raise DatasetError(path, f"line {line} x1..score", "not numbers") from None
+                if not all(math.isfinite(v) for v in values):
+                    raise DatasetError(path, f"line {line} x1..score", "NaN or infinite value")
+                x1, y1, x2, y2, score = values
+                if not 0.0 <= score <= 1.0:
+                    raise DatasetError(path, f"line {line} score", f"{score:g} is not in [0, 1]")
+                if not (x2 > x1 and y2 > y1):
+                    raise DatasetError(path, f"line {line} x1..y2", "the box has no area (needs x2 > x1 and y2 > y1)")
+                key = tuple(read_cell(c) for c in cells[:4])
+                yield PredictionRow(line, key, (x1, y1, x2, y2), score), raw.tell()  # type: ignore[arg-type]  # four cells
+        except UnicodeDecodeError as exc:
+            raise DatasetError(path, None, f"not UTF-8 text ({exc.reason})") from None
+        except csv.Error as exc:
+            raise DatasetError(path, f"line {reader.line_num}", f"malformed CSV ({exc})") from None
+
+
+Box = tuple[float, float, float, float]
+
+
+def clip_box(box: Box, width: int, height: int) -> Box | None:
+    """``box`` (px) clipped to a ``width`` x ``height`` image, or None when it lies entirely outside (no area left).
+
+    >>> clip_box((-5.0, 10.0, 20.0, 30.0), 960, 540)
+    (0.0, 10.0, 20.0, 30.0)
+    >>> clip_box((970.0, 10.0, 990.0, 30.0), 960, 540) is None
+    True
+    """
+    x1, y1 = max(box[0], 0.0), max(box[1], 0.0)
+    x2, y2 = min(box[2], float(width)), min(box[3], float(height))
+    if x2 <= x1 or y2 <= y1:
+        return None
+    return (x1, y1, x2, y2)
+
+
+class _Frames:
+    """Stored frames by ``(league, season, match, image)``, each game's read when a row first names it."""
+
+    def __init__(self, session: Session) -> None:
+        self.session = session
+        self.games = {(g.league, g.season, g.match): g.id for g in session.execute(
+            sa.select(Game.id, Game.league, Game.season, Game.match))}
+        self.by_game: dict[int, dict[str, list[tuple[int, int, int, int]]]] = {}
+
+    def find(self, key: tuple[str, str, str, str]) -> list[tuple[int, int, int, int]]:
+        """``(frame id, system id, width, height)`` of each frame the row names (empty: unknown)."""
+        gid = self.games.get(key[:3])
+        if gid is None:
+            return []
+        frames = self.by_game.get(gid)
+        if frames is None:
+            frames = self.by_game[gid] = {}
+            for f in self.session.scalars(sa.select(Frame).join(System).where(System.game_id == gid)):
+                frames.setdefault(kind_of(f.system).image_name(f), []).append((f.id, f.system_id, f.width, f.height))
+        return frames.get(key[3], [])
+
+
+def import_predictions(session: Session, path: str | Path, settings: Settings, source: str | None = None,
+                       progress: Progress | None = None, actor: str | None = None) -> PredictionReport:
+    """Store the predictions of ``path`` (a CSV, YOLO files or COCO results, :func:`prediction_input`) as source
+    ``source`` (default: the file's stem, a YOLO folder's name), replacing the
+    source's earlier rows, in one write transaction; then recompute the systems they touch (their doubts). See the
+    module docstring for the file and what is refused. ``progress("predictions", bytes read, file size)``.
+
+    Raises:
+        DatasetError: a malformed file or row (file and line named; nothing stored).
+        InvalidInputError: a bad source name (field ``source``).
+    """
+    t0 = time.perf_counter()
+    kind, found_path = prediction_input(path)
+    report = PredictionReport(check_source(source or (Path(path).name if kind == "yolo" else found_path.stem)))
+    size = found_path.stat().st_size if kind != "yolo" else 0
+    begin_write(session)
+    try:
+        rows = _csv_rows(found_path, _Frames(session)) if kind == "csv" else _detector_rows(session, found_path)
+        replaced_systems = _systems_of(session, report.source)
+        report.replaced = _delete_source(session, report.source)
+        touched_frames: set[int] = set()
+        touched_systems: set[int] = set()
+        batch: list[dict[str, Any]] = []
+        for row in rows:
+            report.rows += 1
+            if not row.frames:
+                report.unknown += 1
+                if len(report.unknown_images) < NAMED_UNKNOWN and row.name not in report.unknown_images:
+                    report.unknown_images.append(row.name)
+                continue
+            for fid, sid, w, h in row.frames:
+                box = clip_box(row.box, w, h)
+                if box is None:
+                    raise DatasetError(found_path, row.where,
+                                       f"box {list(row.box)} lies entirely outside the {w}x{h} image {row.name!r}")
+                report.clipped += box != row.box
+                batch.append({"source": report.source, "frame_id": fid, "score": row.score, "x1": box[0],
+                              "y1": box[1], "x2": box[2], "y2": box[3]})
+                touched_frames.add(fid)
+                touched_systems.add(sid)
+            if len(batch) >= BATCH_ROWS:
+                report.stored += _write(session, batch)
+                if progress and size:
+                    progress("predictions", row.read, size)
+        report.stored += _write(session, batch)
+        report.frames, report.systems = len(touched_frames), len(touched_systems)
+        touched_systems |= replaced_systems
+        _bump_versions(session, touched_systems)
+        record_summary(session, "import", {"kind": "predictions", "source": report.source, "stored": report.stored,
+                                           "replaced": report.replaced, "unknown": report.unknown}, actor=actor)
+        session.commit()
+    except BaseException:
+        session.rollback()
+        raise
+    if progress and size:
+        progress("predictions", size, size)
+    report.store_seconds = time.perf_counter() - t0
+    session.expunge_all()
+    report.triangulated = recompute_systems_by_id(session, sorted(touched_systems), settings, progress,
+                                                  {"reason": f"predictions {report.source}"}, actor)
+    report.seconds = time.perf_counter() - t0
+    return report
+
+
+def _systems_of(session: Session, source: str) -> set[int]:
+    """The systems whose views hold predictions of ``source``."""
+    return set(session.scalars(sa.select(Frame.system_id).join(Prediction, Prediction.frame_id == Frame.id)
+                               .where(Prediction.source == source).distinct()))
+
+
+def _bump_versions(session: Session, systems: set[int]) -> None:
+    """Bump the version of each system whose predictions change, in the transaction that changes them: the doubts of an
+    edit computed from the predictions as they were fail its compare (``app.services.derivation.scope``)."""
+    ids = sorted(systems)
+    for start in range(0, len(ids), 500):
+        session.execute(sa.update(System).where(System.id.in_(ids[start:start + 500]))
+                        .values(version=System.version + 1).execution_options(synchronize_session=False))
+
+
+def _delete_source(session: Session, source: str) -> int:
+    """Delete the source's rows in the open transaction; returns how many."""
+    result = session.execute(sa.delete(Prediction).where(Prediction.source == source))
+    return int(cast("sa.CursorResult[Any]", result).rowcount or 0)
+
+
+@dataclass(frozen=True)
+class _Resolved:
+    """One prediction of an input with the stored frames it names (``(frame id, system id, width, height)``; empty:
+    an image v3d does not hold, ``name`` saying which), ``where`` it is in its file (for errors) and the bytes of the
+    file read so far (progress)."""
+
+    where: str
+    name: str
+    frames: list[tuple[int, int, int, int]]
+    box: Box
+    score: float
+    read: int = 0
+
+
+def _csv_rows(path: Path, frames: _Frames) -> Iterator[_Resolved]:
+    for row, read in read_prediction_rows(path):
+        yield _Resolved(f"line {row.line} x1..y2", "/".join(row.key), frames.find(row.key), row.box, row.score, read)
+
+
+@dataclass(frozen=True)
+class _StemView:
+    """A stored view as the detector readers match files to it: its exported stem and image size (px)."""
+
+    stem: str
+    width: int
+    height: int
+    frame_id: int
+    system_id: int
+
+
+def _detector_rows(session: Session, path: Path) -> Iterator[_Resolved]:
+    """The detections of YOLO txt files or a COCO results JSON (``app.services.evaluation.monocular.load_predictions``,
+    the monocular benchmark's readers: YOLO files matched by stem, COCO results by ``coco_image_id(stem)``, the ball
+    class from ``data.yaml`` or 0, category 1), on every stored view named as the YOLO and COCO exports name it
+    (``KindPolicy.view_stem``); a YOLO file of an image v3d does not hold is named by its stem, COCO results of one
+    are counted."""
+    from sqlalchemy.orm import selectinload
+
+    from app.services.evaluation.monocular import load_predictions
+
+    views = [_StemView(kind_of(f.system).view_stem(f.system.game, f), f.width, f.height, f.id, f.system_id)
+             for f in session.scalars(sa.select(Frame).options(selectinload(Frame.system).selectinload(System.game)))]
+    by_stem = {v.stem: v for v in views}
+    dets, ignored = load_predictions(path, views)
+    for stem, box, score in zip(dets.image_ids, dets.boxes, dets.scores, strict=True):
+        if not 0.0 <= float(score) <= 1.0:
+            raise DatasetError(path, f"{stem} score", f"{float(score):g} is not in [0, 1]")
+        v = by_stem[str(stem)]
+        b = (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
+        yield _Resolved(f"{stem} box", str(stem), [(v.frame_id, v.system_id, v.width, v.height)], b, float(score))
+    unknown = sorted({p.stem for p in path.rglob("*.txt") if p.stem not in by_stem}) if path.is_dir() else []
+    named = iter(unknown)
+    for _ in range(ignored):  # a YOLO file's stem, or a COCO result's (an image id v3d does not hold)
+        last = unknown[-1] if unknown else "a COCO image id v3d does not hold"
+        yield _Resolved("", next(named, last), [], (0.0, 0.0, 1.0, 1.0), 0.0)
+
+
+def _write(session: Session, batch: list[dict[str, Any]]) -> int:
+    """Insert ``batch`` (emptied) in the open transaction; returns how many rows."""
+    n = len(batch)
+    if batch:
+        session.execute(sa.insert(Prediction), batch)
+        batch.clear()
+    return n
+
+
+def remove_predictions(session: Session, settings: Settings, source: str, actor: str | None = None) -> int:
+    """Delete every prediction of ``source`` and recompute the systems they touched; returns how many were deleted
+    (0: no such source)."""
+    begin_write(session)
+    systems = sorted(_systems_of(session, source))
+    n = _delete_source(session, source)
+    _bump_versions(session, set(systems))
+    if n:
+        record_summary(session, "import", {"kind": "predictions", "source": source, "removed": n}, actor=actor)
+    session.commit()
+    recompute_systems_by_id(session, systems, settings, None, {"reason": f"predictions {source} removed"}, actor)
+    return int(n or 0)
+
+
+def prediction_sources(session: Session) -> list[dict[str, Any]]:
+    """Every stored source: ``{"source", "predictions", "frames", "imported_at"}`` (ISO 8601 UTC), by name."""
+    rows = session.execute(sa.select(Prediction.source, sa.func.count(Prediction.id),
+                                     sa.func.count(sa.distinct(Prediction.frame_id)),
+                                     sa.func.max(Prediction.created_at))
+                           .group_by(Prediction.source).order_by(Prediction.source))
+    return [{"source": s, "predictions": int(n), "frames": int(f), "imported_at": t.isoformat() if t else None}
+            for s, n, f, t in rows]

@@ -1,0 +1,111 @@
+"""A detector's predictions checked against the other views (app.geometry.doubts.detections.check_detections), on
+scenes with known truth: the ball's detection is chosen among false ones, a box of the wrong size or a high score
+alone suggests nothing, one labelled view needs two detected views, an outvoted label gets the evidence."""
+from __future__ import annotations
+
+import numpy as np
+
+from app.geometry.ball import sphere_image_box
+from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, judge_system
+from app.geometry.doubts.detections import Detection, check_detections
+from app.services.curation.doubt_words import doubt_message
+from tests.geometry.test_doubts import BALL, CAMERAS, R_BALL, SETTINGS, camera, scene
+
+SIZE = 0.5
+
+
+def true_box(name: str, shift=(0.0, 0.0), scale: float = 1.0) -> tuple[float, float, float, float]:
+    b = sphere_image_box(camera(name), BALL, R_BALL)
+    c = np.array([(b[0] + b[2]) / 2 + shift[0], (b[1] + b[3]) / 2 + shift[1]])
+    h = np.array([b[2] - b[0], b[3] - b[1]]) * scale / 2
+    return (float(c[0] - h[0]), float(c[1] - h[1]), float(c[0] + h[0]), float(c[1] + h[1]))
+
+
+def det(name, score=0.8, **kw) -> Detection:
+    return Detection("yolo-sn-ball", score, true_box(name, **kw))
+
+
+def checked(views, detections):
+    return check_detections(views, judge_system(views, SETTINGS), detections, SETTINGS, SIZE)
+
+
+def test_the_balls_detection_is_chosen_among_false_ones_and_replaces_ball_missing():
+    views = scene(corner={"box": None})
+    assert [d.kind for d in judge_system(views, SETTINGS) if d.view_id == "corner"] == ["ball_missing"]
+    head = det("corner", 0.97, shift=(0.0, -60.0))  # a player's head above the ball, a higher score
+    feet = det("corner", 0.9, shift=(45.0, 25.0))
+    ball = det("corner", 0.71, shift=(1.0, -0.5))
+    doubts = checked(views, {"corner": [head, feet, ball]})
+    found = [d for d in doubts if d.view_id == "corner" and d.kind in LABEL_KINDS]
+    assert [d.kind for d in found] == ["ball_detected"]  # one suggestion for the view: the detection's box
+    d = found[0]
+    assert d.code == "consensus" and d.suggestion["action"] == "snap_box"
+    assert np.allclose(d.suggestion["box"], ball.box, atol=0.01)
+    assert sorted(d.evidence["agreeing_views"]) == ["goal", "main", "opposite"]
+    assert d.evidence["candidates_passed"] == 1 and d.evidence["detector"] == "yolo-sn-ball"
+    assert abs(d.evidence["size_ratio"] - 1.0) < 0.02 and np.allclose(d.evidence["ball3d"], BALL, atol=0.05)
+    assert d.evidence["ball_missing_px"] < 1.5  # the geometry's own box was where the detection is
+    assert "yolo-sn-ball, score 0.71" in doubt_message(d, {"corner": "corner.png", "main": "main.png"})
+
+
+def test_a_box_of_the_wrong_size_or_a_high_score_alone_suggests_nothing():
+    views = scene(corner={"box": None})
+    for wrong in ([det("corner", 0.99, scale=3.0)],  # at the ball, three times a ball's size there
+                  [det("corner", 0.99, shift=(0.0, -80.0))]):  # the best score, where the ball is not
+        doubts = checked(views, {"corner": wrong})
+        assert [d.kind for d in doubts if d.view_id == "corner" and d.kind in LABEL_KINDS] == ["ball_missing"]
+
+
+def test_without_detections_the_doubts_are_the_judges():
+    views = scene(corner={"box": None})
+    judged = judge_system(views, SETTINGS)
+    assert check_detections(views, judged, {}, SETTINGS, SIZE) == judged
+    assert check_detections(views, judged, {"corner": []}, SETTINGS, SIZE) == judged
+
+
+def test_tied_candidates_are_ordered_by_score_and_the_margin_is_given():
+    views = scene(corner={"box": None})
+    low, high = det("corner", 0.4, shift=(0.2, 0.0)), det("corner", 0.9, shift=(0.0, 0.2))
+    (d,) = [d for d in checked(views, {"corner": [low, high]}) if d.kind == "ball_detected"]
+    assert d.evidence["score"] == 0.9 and d.evidence["candidates_passed"] == 2
+    assert d.evidence["margin_px_1920"] is not None and abs(d.evidence["margin_px_1920"]) < 1.0
+
+
+def test_one_labelled_view_needs_two_detected_views_that_agree():
+    only_main = {n: {"box": None} for n in CAMERAS if n != "main"}
+    views = scene(**only_main)
+    one = checked(views, {"goal": [det("goal"), det("goal", 0.95, shift=(40.0, 0.0))]})
+    assert [d for d in one if d.kind == "ball_detected"] == []  # one ray leaves the depth open
+    detections = {"goal": [det("goal", 0.6), det("goal", 0.95, shift=(40.0, 30.0))],
+                  "opposite": [det("opposite", 0.7, shift=(-1.0, 1.0)), det("opposite", 0.9, shift=(-50.0, 0.0))],
+                  "corner": [det("corner", 0.8, shift=(0.5, 0.5))]}
+    found = {d.view_id: d for d in checked(views, detections) if d.kind == "ball_detected"}
+    assert set(found) == {"goal", "opposite", "corner"}
+    for name, d in found.items():
+        assert d.code == "one_view" and "main" in d.evidence["agreeing_views"]
+        c = np.array(true_box(name))
+        b = np.asarray(d.suggestion["box"])
+        assert np.linalg.norm((b[:2] + b[2:]) / 2 - (c[:2] + c[2:]) / 2) < 2.0, name
+
+
+def test_a_detection_where_the_others_put_the_ball_is_evidence_against_an_outvoted_label():
+    wrong = sphere_image_box(camera("opposite"), BALL, R_BALL) + [160.0, -40.0, 160.0, -40.0]
+    views = scene(opposite={"box": wrong})
+    doubts = checked(views, {"opposite": [det("opposite", 0.88)]})
+    (off,) = [d for d in doubts if d.kind == "detection_off_label"]
+    assert off.kind in INFO_KINDS and off.view_id == "opposite" and off.suggestion is None
+    assert off.evidence["label_distance_px_1920"] > 150 and off.evidence["error_px_1920"] < 2
+    assert [d.kind for d in doubts if d.view_id == "opposite" and d.kind in LABEL_KINDS] == ["ball_off_consensus"]
+
+
+def test_a_view_with_few_line_classes_but_a_sure_camera_is_checked_too():
+    """The judge lends the label of such a view half a vote; its detections are checked within its pixel sigma."""
+    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0,
+            "position_m": {"x": .1, "y": .1, "z": .1}}
+    views = scene(corner={"box": None, "line_classes": 2, "uncertainty": sure})
+    assert [d.kind for d in judge_system(views, SETTINGS) if d.view_id == "corner" and d.kind in LABEL_KINDS] == []
+    found = [d for d in checked(views, {"corner": [det("corner", 0.6), det("corner", 0.9, shift=(0.0, -70.0))]})
+             if d.kind == "ball_detected"]
+    assert [d.view_id for d in found] == ["corner"] and found[0].evidence["score"] == 0.6
+    unsure = scene(corner={"box": None, "line_classes": 2, "uncertainty": {**sure, "pan_deg": 2.0, "tilt_deg": 2.0}})
+    assert [d for d in checked(unsure, {"corner": [det("corner", 0.6)]}) if d.kind == "ball_detected"] == []
