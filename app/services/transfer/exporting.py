@@ -195,7 +195,8 @@ EXPORT_BATCH_GAMES = 25
 def _confirmed(value: Any) -> Any:
     """``value`` (a current ball label's column) where a person placed the label, NULL where the label is a placement
     from a doubt's fix (a detector's prediction or the other views' ball) that no person has confirmed yet
-    (``BallLabel.provenance`` set; JSON ``null`` counts as unset): an export holds only labels people placed."""
+    (``BallLabel.provenance`` set; JSON ``null`` counts as unset): an export holds only labels people placed, and
+    nothing derived from such a label (the view's optimised box and reprojection error are read as NULL too)."""
     unconfirmed = sa.and_(BallLabel.provenance.is_not(None), sa.cast(BallLabel.provenance, sa.Text) != "null")
     return sa.case((unconfirmed, sa.null()), else_=value)
 
@@ -227,8 +228,9 @@ def frame_row_select() -> Select[Any]:
             _confirmed(sa.cast(B.box, sa.Text)).label("ball_box"),
             _confirmed(sa.cast(B.point, sa.Text)).label("ball_point"), _json_text(B.original_box, "original_box"),
             _json_text(B.original_point, "original_point"),
-            _json_text(OB.box, "opt_box"), OB.d_opt_px.label("opt_d_px"), OB.error_m.label("opt_error_m"),
-            R.error_px.label("rep_error_px"), _json_text(F.release, "release_json"),
+            _confirmed(sa.cast(OB.box, sa.Text)).label("opt_box"), _confirmed(OB.d_opt_px).label("opt_d_px"),
+            _confirmed(OB.error_m).label("opt_error_m"), _confirmed(R.error_px).label("rep_error_px"),
+            _json_text(F.release, "release_json"),
         )
         .select_from(F).join(S, S.id == F.system_id)
         .outerjoin(T, T.system_id == S.id).outerjoin(D, D.system_id == S.id)

@@ -185,3 +185,25 @@ def test_yolo_and_coco_of_a_release_are_the_live_ones_then_naming_it_and_stay_th
         write_export_zip(session, fmt, tmp_path / f"{fmt}-r2.zip", False, settings, release="v1")
         assert (tmp_path / f"{fmt}-r2.zip").read_bytes() == (tmp_path / f"{fmt}-r1.zip").read_bytes()
     session.close()
+
+
+def test_an_unconfirmed_placement_is_in_no_release_export_as_in_no_live_one(tmp_path: Path) -> None:
+    """A ball placed from a doubt's fix (a detector's box) that no person confirmed is released as no label: the
+    release's YOLO export draws no ball box there, exactly as the live export made at the same moment."""
+    url, settings, session, ids = _database(tmp_path)
+    label = session.scalars(sa.select(BallLabel).join(BallLabel.frame)
+                            .where(sa.text("frames.system_id = :s")).params(s=ids[0])
+                            .order_by(BallLabel.frame_id)).first()
+    assert label is not None and label.box is not None and not label.suggested
+    label.provenance = {"detector": "det", "score": 0.9}
+    session.commit()
+    assert label.suggested
+    write_export_zip(session, "yolo", tmp_path / "live.zip", False, settings)
+    create_release(session, "v1")
+    write_export_zip(session, "yolo", tmp_path / "r1.zip", False, settings, release="v1")
+    live, ours = _members((tmp_path / "live.zip").read_bytes()), _members((tmp_path / "r1.zip").read_bytes())
+    labels = {n: v for n, v in ours.items() if n.startswith("labels/") and n.endswith(".txt")}
+    assert labels == {n: v for n, v in live.items() if n.startswith("labels/") and n.endswith(".txt")}
+    balls = sum(line.startswith(b"0 ") for v in labels.values() for line in v.splitlines())
+    assert balls == 5  # six views with an image, one holding only the unconfirmed placement
+    session.close()
