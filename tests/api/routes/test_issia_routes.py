@@ -108,7 +108,7 @@ def test_point_edit_refits_and_export_zip(client, issia):
     with zipfile.ZipFile(io.BytesIO(r.content)) as zf:
         assert sorted(n for n in zf.namelist() if not n.endswith("/")) == [
             "issia-dev/ISSIA-3D.csv", *(f"issia-dev/calibration/cam{k}.json" for k in range(1, 7)),
-            "issia-dev/split.json"]
+            "issia-dev/issia_calibration.json", "issia-dev/split.json"]  # the importer's file: it imports again
         lines = zf.read("issia-dev/ISSIA-3D.csv").decode().splitlines()
     assert len(lines) == 26 and lines[0].startswith("frame,x_cam1,")
     assert client.get("/api/exports/issia-3d").headers["x-v3d-rows"] == "0"  # nothing accepted yet
