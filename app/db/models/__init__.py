@@ -10,6 +10,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
                  |          - ReviewDecision           (frame level)
                  - Triangulation -> TriangulationPair  (per pair e_ij, parallax, baseline, kept)
                  - ReviewDecision                      (system level)
+                 -> ReviewHandoff, ReviewComment       (needs fix returned to a person; comments pinned on views)
                  -> Doubt                              (label problems the geometry sees, with fixes)
                  - TrajectoryPoint                     (ISSIA: the frame on the sequence's trajectory)
 
@@ -46,7 +47,7 @@ from app.db.models.enums import (
 )
 from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, System, TrajectoryPoint
 from app.db.models.operations import AuditEntry, AuditState, Job
-from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
+from app.db.models.review import ReviewComment, ReviewDecision, ReviewHandoff, ReviewPass, SystemPresence
 
 __all__ = [
     "Base",
@@ -73,7 +74,9 @@ __all__ = [
     "OptimisedBox",
     "Triangulation",
     "TriangulationPair",
+    "ReviewComment",
     "ReviewDecision",
+    "ReviewHandoff",
     "ReviewPass",
     "SystemPresence",
     "ApiToken",
