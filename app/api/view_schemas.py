@@ -82,6 +82,11 @@ class ReviewOut(BaseModel):
                                         "exclusion, field lines, an undo); null otherwise.")
     calibration: Optional["CalibrationReviewOut"] = Field(
         None, description="Views only: the decision on the view's calibration, beside the decision on its ball.")
+    returned_to: Optional[str] = Field(None, description="A system's needs_fix or fixed decision only: the user the "
+                                       "system went to (the person who fixes it, or the reviewer who re-reviews it); "
+                                       "null when nobody (``handoff`` says why).")
+    handoff: Optional[str] = Field(None, description="That hand-off in words: \"returned to ana by rev: the box "
+                                   "sits on the shadow\".")
 
     @classmethod
     def of(cls, decision: Optional[ReviewDecision]) -> "ReviewOut":
