@@ -20,6 +20,7 @@ from app.api.routes import (
     exports,
     frames,
     games,
+    handoffs,
     health,
     imports,
     issia,
@@ -41,7 +42,7 @@ _protected = APIRouter(dependencies=PROTECTED, responses={
                                             "V3D_WRITE_LOCK_TIMEOUT_S: nothing was changed; send it again after the "
                                             "Retry-After header's seconds."},
 })
-for _module in (auth, users, games, systems, assignments, comments, frames, imports, exports, jobs, detectors, issia,
-                audit, pitch, passes):
+for _module in (auth, users, games, systems, assignments, comments, handoffs, frames, imports, exports, jobs,
+                detectors, issia, audit, pitch, passes):
     _protected.include_router(_module.router)
 api_router.include_router(_protected)

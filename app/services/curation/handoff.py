@@ -160,3 +160,21 @@ def after_decision(session: Session, system: System, status: ReviewStatus, *, ac
                      after={"assignee": _name(session, system.assignee_id), "handoff": state})
     elif current is not None:
         current.closed_at = now
+
+
+@dataclass(frozen=True)
+class MyWork:
+    """What waits for one user: ``to_fix``, the systems returned to them (open hand-offs, whatever the status their
+    edits left), and ``to_re_review``, the systems they returned that came back fixed and are assigned to them."""
+
+    to_fix: int
+    to_re_review: int
+
+
+def my_work(session: Session, user_id: int) -> MyWork:
+    """The counts of :class:`MyWork` for user ``user_id`` (two indexed counts)."""
+    to_fix = session.scalar(sa.select(sa.func.count()).select_from(ReviewHandoff).where(
+        ReviewHandoff.returned_to_id == user_id, ReviewHandoff.closed_at.is_(None)))
+    to_re_review = session.scalar(sa.select(sa.func.count()).select_from(System).where(
+        System.assignee_id == user_id, System.review_status == ReviewStatus.FIXED))
+    return MyWork(to_fix=int(to_fix or 0), to_re_review=int(to_re_review or 0))

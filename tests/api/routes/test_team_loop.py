@@ -92,14 +92,19 @@ def test_needs_fix_goes_to_the_last_editor_and_comes_back_fixed_to_the_reviewer(
     assert view["assignment"]["assignee"] == "ana"
     listed = client.get(f"/api/systems/{scene.system_id}/comments").json()["items"]
     assert [c["text"] for c in listed] == ["the box sits on the shadow"]
+    assert client.get("/api/handoffs/mine").json() == {"to_fix": 1, "to_re_review": 0}
+    assert client.get(f"/api/systems/{scene.system_id}/handoff").json()["may_send_fixed"] is True
 
     as_user("bob")
+    assert client.get(f"/api/systems/{scene.system_id}/handoff").json()["may_send_fixed"] is False
+    assert client.post(f"/api/comments/{comment['id']}/resolve").status_code == 403
     assert _decide(client, scene, "fixed").status_code == 403  # not returned to him
     as_user("ana")
     assert _decide(client, scene, "accepted").status_code == 403  # an annotator sends only fixed
     _nudge(client, scene, 1, -6.0)  # sets the decision back to pending: the hand-off stays hers
     assert _system(client, scene)[0]["review"]["status"] == "pending"
     assert _ids(client, assignee="me") == [scene.system_id]
+    assert client.get("/api/handoffs/mine").json()["to_fix"] == 1  # the record, not the status
     resolved = client.post(f"/api/comments/{comment['id']}/resolve")
     assert resolved.status_code == 200, resolved.text
     assert resolved.json()["resolved"] is True
@@ -110,6 +115,7 @@ def test_needs_fix_goes_to_the_last_editor_and_comes_back_fixed_to_the_reviewer(
 
     as_user("rev")
     assert _ids(client, assignee="me", status="fixed") == [scene.system_id]
+    assert client.get("/api/handoffs/mine").json() == {"to_fix": 0, "to_re_review": 1}
     words = [e.summary for e in db_session.scalars(
         sa.select(AuditEntry).where(AuditEntry.system_id == scene.system_id).order_by(AuditEntry.id))]
     assert "returned to ana by rev: the box sits on the shadow" in words
