@@ -123,6 +123,26 @@ def test_needs_fix_goes_to_the_last_editor_and_comes_back_fixed_to_the_reviewer(
     assert any(w.startswith("comment on V2 at (330, 210): the box sits on the shadow") for w in words)
     assert "comment on V2 resolved: the box sits on the shadow" in words
 
+    figures = client.get("/api/stats/annotators")
+    assert figures.status_code == 200, figures.text
+    ana = next(f for f in figures.json()["items"] if f["name"] == "ana")
+    assert (ana["edits"], ana["systems_touched"], ana["needs_fix_received"]) == (2, 1, 1)
+    assert ana["accepted_first_review"] == 0 and ana["systems_decided"] == 0  # fixed waits for the re-review
+    assert ana["median_edit_to_review_s"] is not None and ana["median_edit_to_review_s"] >= 0
+    # her label is back where the exact cameras put the ball: within a pixel of the other views' ball
+    assert ana["median_label_distance_px"] is not None and ana["median_label_distance_px"] < 1.0
+    assert ana["accused_share"] == 0.0
+    csv = client.get("/api/stats/annotators", params={"format": "csv"})
+    assert csv.status_code == 200 and csv.headers["content-type"].startswith("text/csv")
+    lines = csv.text.splitlines()
+    assert lines[0].split(",") == list(ana)
+    assert any(line.startswith("ana,2,1,0,1,0,") for line in lines[1:])
+    assert client.get("/api/stats/annotators", params={"since": "2999-01-01T00:00:00Z"}).json() == {"items": []}
+    assert client.get("/api/stats/annotators", params={"since": "2026-01-02", "until": "2026-01-01"}
+                      ).json()["field"] == "until"
+    as_user("bob")
+    assert client.get("/api/stats/annotators").status_code == 403  # reviewers and admins
+
 
 def test_needs_fix_without_an_editor_goes_to_the_assignee_or_to_nobody_with_the_reason(
         client: TestClient, scene: Scene, as_user) -> None:
@@ -146,3 +166,23 @@ def test_a_view_decision_refuses_fixed_naming_the_status(client: TestClient, sce
                          headers={"If-Match": etag})
     assert answer.status_code == 422
     assert answer.json()["field"] == "status"
+
+
+def test_who_may_comment_and_what_a_comment_may_say(client: TestClient, scene: Scene, as_user) -> None:
+    as_user("ana")
+    body = {"frame_id": scene.frame_ids[0], "point": [10, 10], "text": "here"}
+    assert client.post(f"/api/systems/{scene.system_id}/comments", json=body).status_code == 403  # not returned to her
+    as_user("rev")
+    outside = client.post(f"/api/systems/{scene.system_id}/comments", json={**body, "point": [5000, 10]})
+    assert outside.status_code == 422 and outside.json()["field"] == "point"
+    other = client.post(f"/api/systems/{scene.system_id}/comments", json={**body, "frame_id": 999_999})
+    assert other.status_code == 422 and other.json()["field"] == "frame_id"
+    whole = client.post(f"/api/systems/{scene.system_id}/comments", json={**body, "point": None})
+    assert whole.status_code == 201 and whole.json()["point"] is None
+    as_user("bob")
+    assert client.post(f"/api/comments/{whole.json()['id']}/resolve").status_code == 403
+    as_user("rev")
+    assert client.post(f"/api/comments/{whole.json()['id']}/resolve").json()["resolved"] is True
+    reopened = client.post(f"/api/comments/{whole.json()['id']}/reopen").json()
+    assert (reopened["resolved"], reopened["resolved_by"]) == (False, None)
+    assert client.post("/api/comments/999999/resolve").status_code == 404
