@@ -45,7 +45,7 @@ def work(db_session: Session, db_settings: Settings) -> dict:
     ana = db_session.scalar(sa.select(User).where(User.name == "ana"))
     # the times of the entries as the test wants them (the table is append-only: insert, never update)
     edits = db_session.scalars(sa.select(AuditEntry).where(AuditEntry.actor == "ana").order_by(AuditEntry.id)).all()
-    for entry, at in zip(edits, (T0, T0 + timedelta(seconds=30))):
+    for entry, at in zip(edits, (T0, T0 + timedelta(seconds=30)), strict=True):
         db_session.execute(sa.insert(AuditEntry).values(actor="ana", action="field_lines.replace", at=at,
                                                         frame_id=entry.frame_id, system_id=entry.system_id,
                                                         game_id=entry.game_id, summary="an edit at a known time"))
@@ -89,8 +89,10 @@ def test_the_distance_is_stored_by_the_recomputation(db_session: Session, worked
 
 
 def test_the_command_prints_and_writes_the_figures(fresh_session_factory, db_settings: Settings, tmp_path) -> None:
-    from app.cli import detectors  # noqa: F401  # registers `v3d stats`
-    from app.cli import cli
+    from app.cli import (
+        cli,
+        detectors,  # noqa: F401  # registers `v3d stats`
+    )
 
     session = fresh_session_factory("cli")
     url = session.get_bind().url.render_as_string(hide_password=False)
