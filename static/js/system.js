@@ -30,6 +30,7 @@ import { explainKeys } from "./keyreasons.js";
 import { SystemPresence } from "./presence.js";
 import { SequenceCard, inASequence } from "./sequence.js";
 import { ViewWrites } from "./systemwrites.js";
+import { CommentsCard } from "./comments.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -58,6 +59,7 @@ class SystemPage {
       $(id).addEventListener("click", (e) => this.review(e.currentTarget.dataset.status));
     }
     $("error-dismiss").addEventListener("click", clearError);
+    this.comments = new CommentsCard(this); // comments pinned on the views; the hand-off (comments.js)
     $("comment").addEventListener("keydown", (e) => {
       if (e.key === "Escape") e.currentTarget.blur();
     });
@@ -215,6 +217,7 @@ class SystemPage {
       cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
     };
     this.sequence.show(sys);
+    this.comments.load(sys);
   }
 
   /** What the page adds to a view's panel after each rebuild: its decision bar, the synchronised zoom. */
@@ -361,6 +364,7 @@ class SystemPage {
         run: () => Boolean(this.mirrorTarget()?.requestMirror()) },
       ...this.decisions.keyEntries(() => view() || (this.system?.views.length === 1 ? $("views").children[0] : null)),
       ...this.zoom.keyEntries(),
+      ...this.comments.keyEntries(),
     ];
   }
 
