@@ -22,7 +22,7 @@ const COLUMNS = [
 ];
 
 /** Horizontal bars of one figure per person (`key`), the largest full width. */
-function barsSvg(items, key, unit) {
+function barsSvg(items, key, unit, digits = 1) {
   const rows = items.filter((f) => f[key] != null);
   const width = 420;
   const left = 110;
@@ -33,10 +33,10 @@ function barsSvg(items, key, unit) {
   if (!rows.length) root.append(svg("text", { x: 8, y: 14, class: "nodata", text: "no figure yet" }));
   rows.forEach((f, i) => {
     const y = 4 + i * (h + 4);
-    const w = ((width - left - 60) * f[key]) / top;
+    const w = ((width - left - 90) * f[key]) / top;
     root.append(svg("text", { x: left - 6, y: y + 12, "text-anchor": "end", text: f.name }),
-      svg("rect", { class: "hist-bar", x: left, y, width: Math.max(1, w), height: h }, svg("title", { text: `${f.name}: ${f[key].toFixed(1)} ${unit}` })),
-      svg("text", { x: left + w + 4, y: y + 12, text: `${f[key].toFixed(1)} ${unit}` }));
+      svg("rect", { class: "hist-bar", x: left, y, width: Math.max(1, w), height: h }, svg("title", { text: `${f.name}: ${f[key].toFixed(digits)} ${unit}` })),
+      svg("text", { x: left + w + 4, y: y + 12, text: `${f[key].toFixed(digits)} ${unit}` }));
   });
   return root;
 }
@@ -47,7 +47,7 @@ function render(items, query) {
     ...COLUMNS.map(([key, , show], i) => el("td", { class: i ? "num" : "" }, show(f[key]))))));
   $("annotators-empty").hidden = items.length > 0;
   $("plot-label-distance").replaceChildren(barsSvg(items, "median_label_distance_px", "px"));
-  $("plot-edits").replaceChildren(barsSvg(items, "edits", "edits"));
+  $("plot-edits").replaceChildren(barsSvg(items, "edits", "edits", 0));
   $("annotators-csv").href = `/api/stats/annotators${toQuery({ ...query, format: "csv" })}`;
 }
 
