@@ -36,7 +36,7 @@ function row(job) {
   const bar = el("progress", { "data-testid": "job-progress", max: String(job.total || 1) });
   if (job.total) bar.value = job.done; // no value: an indeterminate bar
   const state = el("span", { class: `chip ${job.state === "failed" ? "bad" : job.state === "done" ? "ok" : ""}`, "data-testid": "job-state" }, job.state);
-  const parts = [state, el("span", { class: "mono" }, `#${job.id}`), el("span", {}, jobTitle(job))];
+  const parts = [state, el("span", { class: "mono" }, `#${job.id}`), el("span", { "data-testid": "job-title" }, jobTitle(job))];
   if (ACTIVE.has(job.state)) parts.push(bar, el("span", { class: "muted", "data-testid": "job-progress-text" }, jobProgressText(job)));
   if (job.state === "failed" && job.message) parts.push(el("span", { class: "bad", "data-testid": "job-message" }, job.message));
   if (job.result_url) parts.push(el("a", { href: job.result_url, "data-testid": "job-download" }, "download"));

@@ -146,3 +146,30 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
         assert rev.errors == []
     finally:
         rev_context.close()
+
+
+def test_an_admin_imports_a_zip_from_the_queue_page_and_its_job_is_titled_by_the_file(page, artifacts):
+    """The Import panel uploads the chosen zip (here one holding no dataset: the job fails naming why) and the Jobs
+    panel follows its job under the file's name, not the server's upload folder."""
+    import io
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        zf.writestr("notes/readme.txt", "no Labels-v3.json here")
+    page.goto("/")
+    panel = page.locator(tid("import"))
+    panel.wait_for()
+    sent: list[str] = []
+    page.on("request", lambda r: sent.append(r.method) if r.url.endswith("/api/imports") else None)
+    page.set_input_files(tid("import-file"), files=[{"name": "my games.zip", "mimeType": "application/zip",
+                                                     "buffer": buf.getvalue()}])
+    page.click(tid("import-start"))
+    page.locator(tid("import-upload-text")).filter(has_text="my games.zip uploaded: import job #").wait_for()
+    assert sent == ["POST"]
+    job = page.locator(tid("job")).filter(has_text="my games.zip")
+    job.wait_for(timeout=60_000)
+    assert job.locator(tid("job-title")).inner_text() == "import soccernet-v3 my games.zip"
+    shots = artifacts / "team-loop"
+    shots.mkdir(exist_ok=True)
+    _shoot(page, shots, "queue-admin-import")
