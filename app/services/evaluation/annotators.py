@@ -68,6 +68,14 @@ def _window(column: Any, since: Optional[datetime], until: Optional[datetime]) -
     return out
 
 
+def _epoch(at: Any, dialect: str) -> Any:
+    """SQL: the timestamp ``at`` as seconds (a float; only differences are read): SQLite's stored UTC text through
+    ``julianday`` (days), PostgreSQL's ``timestamptz`` through ``extract(epoch ...)``."""
+    if dialect == "sqlite":
+        return sa.func.julianday(at) * 86400.0
+    return sa.extract("epoch", at)
+
+
 def _person(actor: str) -> bool:
     return not (actor == MACHINE_ACTOR or actor.startswith(f"{MACHINE_ACTOR}:"))
 
@@ -76,56 +84,47 @@ def annotator_figures(session: Session, since: Optional[datetime] = None,
                       until: Optional[datetime] = None) -> list[AnnotatorFigures]:
     """Every person's figures over ``since <= at < until`` (UTC; None: open), by name (module docstring)."""
     people: dict[str, AnnotatorFigures] = {}
+    conn = session.connection()  # Core rows: tens of thousands of plain tuples, no ORM row processing
 
     def of(name: str) -> AnnotatorFigures:
         return people.setdefault(name, AnnotatorFigures(name=name))
 
-    # the person's label edits per system: how many, and the last one's time
-    last_edit: dict[str, dict[int, datetime]] = defaultdict(dict)
-    for actor, system_id, n, last in session.execute(
-            sa.select(AuditEntry.actor, AuditEntry.system_id, sa.func.count(), sa.func.max(AuditEntry.at))
-            .where(AuditEntry.action.in_(LABEL_ACTIONS), AuditEntry.system_id.is_not(None),
-                   *_window(AuditEntry.at, since, until))
-            .group_by(AuditEntry.actor, AuditEntry.system_id)):
-        if not _person(actor) or system_id is None:
+    # per person and system touched: the label edits, the last one's time, the system's status now and whether it
+    # was ever returned; the system decisions' times. Times cross as epoch seconds (SQL): no timestamp is converted.
+    dialect = session.get_bind().dialect.name
+    returned = sa.exists().where(ReviewHandoff.system_id == AuditEntry.system_id)
+    rows = conn.execute(
+        sa.select(AuditEntry.actor, AuditEntry.system_id, sa.func.count(), _epoch(sa.func.max(AuditEntry.at), dialect),
+                  sa.type_coerce(System.review_status, sa.String), returned)
+        .join(System, System.id == AuditEntry.system_id)
+        .where(AuditEntry.action.in_(LABEL_ACTIONS), *_window(AuditEntry.at, since, until))
+        .group_by(AuditEntry.actor, AuditEntry.system_id, System.review_status)).all()
+    decisions: dict[int, list[float]] = defaultdict(list)
+    for system_id, at in conn.execute(
+            sa.select(AuditEntry.system_id, _epoch(AuditEntry.at, dialect))
+            .where(AuditEntry.action == "system.review", AuditEntry.system_id.is_not(None),
+                   *_window(AuditEntry.at, since, None))
+            .order_by(AuditEntry.system_id, AuditEntry.at)):
+        decisions[system_id].append(float(at))
+    waits: dict[str, list[float]] = defaultdict(list)
+    for actor, system_id, n, last, status, was_returned in rows:
+        if not _person(actor):
             continue
         f = of(actor)
         f.edits += int(n)
-        last_edit[actor][int(system_id)] = last
-
-    touched = {sid for systems in last_edit.values() for sid in systems}
-    status: dict[int, ReviewStatus] = {}
-    returned: set[int] = set(session.scalars(sa.select(ReviewHandoff.system_id).distinct()))
-    decisions: dict[int, list[datetime]] = defaultdict(list)
-    if touched:
-        status = {int(i): s for i, s in session.execute(
-            sa.select(System.id, System.review_status).where(
-                System.review_status.in_((ReviewStatus.ACCEPTED, ReviewStatus.REJECTED))))}
-        for system_id, at in session.execute(
-                sa.select(AuditEntry.system_id, AuditEntry.at).where(
-                    AuditEntry.action == "system.review", *_window(AuditEntry.at, since, None))
-                .order_by(AuditEntry.system_id, AuditEntry.at)):
-            if system_id is not None:
-                decisions[system_id].append(at)
-
-    for actor, systems in last_edit.items():
-        f = of(actor)
-        f.systems_touched = len(systems)
-        waits = []
-        for sid, last in systems.items():
-            s = status.get(sid)
-            if s is not None:
-                f.systems_decided += 1
-                if s is ReviewStatus.ACCEPTED and sid not in returned:
-                    f.accepted_first_review += 1
-            times = decisions.get(sid)
-            if times:
-                i = bisect.bisect_right(times, last)
-                if i < len(times):
-                    waits.append((times[i] - last).total_seconds())
-        f.median_edit_to_review_s = float(statistics.median(waits)) if waits else None
-
-    for name, n in session.execute(
+        f.systems_touched += 1
+        if status in (ReviewStatus.ACCEPTED.value, ReviewStatus.REJECTED.value):
+            f.systems_decided += 1
+            if status == ReviewStatus.ACCEPTED.value and not was_returned:
+                f.accepted_first_review += 1
+        times = decisions.get(system_id)
+        if times:
+            i = bisect.bisect_right(times, float(last))
+            if i < len(times):
+                waits[actor].append(times[i] - float(last))
+    for actor, found in waits.items():
+        of(actor).median_edit_to_review_s = float(statistics.median(found))
+    for name, n in conn.execute(
             sa.select(User.name, sa.func.count()).select_from(ReviewHandoff)
             .join(User, User.id == ReviewHandoff.returned_to_id)
             .where(*_window(ReviewHandoff.returned_at, since, until)).group_by(User.name)):
@@ -143,7 +142,7 @@ def _label_figures(session: Session, since: Optional[datetime], until: Optional[
               .group_by(AuditEntry.frame_id).subquery())
     accused = (sa.select(Doubt.frame_id).where(Doubt.accuses_label.is_(True), Doubt.frame_id.is_not(None))
                .distinct().subquery())
-    rows = session.execute(
+    rows = session.connection().execute(
         sa.select(AuditEntry.actor, BallReprojection.others_distance_px, accused.c.frame_id.is_not(None))
         .join(newest, newest.c.id == AuditEntry.id)
         .outerjoin(BallReprojection, BallReprojection.frame_id == AuditEntry.frame_id)
