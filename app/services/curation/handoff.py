@@ -89,7 +89,8 @@ def check_fixed_allowed(session: Session, system_id: int, *, user_id: int, role:
         ForbiddenError: an annotator's other status, or ``fixed`` from someone the system is not returned to.
     """
     if role is UserRole.ANNOTATOR and status is not ReviewStatus.FIXED:
-        raise ForbiddenError("an annotator may send only 'fixed', on a system returned to them")
+        raise ForbiddenError(f"this needs the reviewer role; you are annotator: an annotator sends only 'fixed', on a "
+                             f"system returned to them (not {status.value!r})")
     if status is ReviewStatus.FIXED and not returned_to_user(session, system_id, user_id):
         raise ForbiddenError("only the person this system was returned to (marked needs fix) may send it back "
                              "as fixed")
