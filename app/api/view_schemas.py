@@ -82,12 +82,6 @@ class ReviewOut(BaseModel):
                                         "exclusion, field lines, an undo); null otherwise.")
     calibration: Optional["CalibrationReviewOut"] = Field(
         None, description="Views only: the decision on the view's calibration, beside the decision on its ball.")
-    returned_to: Optional[str] = Field(None, description="A system's needs_fix or fixed decision only: the user the "
-                                       "system went to (the person who fixes it, or the reviewer who re-reviews it); "
-                                       "null when nobody (``handoff`` says why).")
-    handoff: Optional[str] = Field(None, description="That hand-off in words: \"returned to ana by rev: the box "
-                                   "sits on the shadow\".")
-
     @classmethod
     def of(cls, decision: Optional[ReviewDecision]) -> "ReviewOut":
         """The decision, or pending when there is none (a view's with its calibration decision)."""
@@ -105,6 +99,17 @@ class ReviewOut(BaseModel):
         if out.calibration is None:
             out.calibration = CalibrationReviewOut()
         return out
+
+
+class DecisionOut(ReviewOut):
+    """A system decision's answer: the decision, and for needs_fix / fixed the hand-off it made
+    (``app.services.curation.handoff``)."""
+
+    returned_to: Optional[str] = Field(None, description="needs_fix / fixed only: the user the system went to (the "
+                                       "person who fixes it, or the reviewer who re-reviews it); null when nobody "
+                                       "(``handoff`` says why).")
+    handoff: Optional[str] = Field(None, description="That hand-off in words: \"returned to ana by rev: the box "
+                                   "sits on the shadow\".")
 
 
 class CalibrationReviewOut(BaseModel):

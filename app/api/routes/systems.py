@@ -16,7 +16,7 @@ from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import EditDep, SessionDep, SystemDep, SystemIdPath
 from app.api.routes.frames import name_entry
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
-from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
+from app.api.view_schemas import DecisionOut, ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
 from app.db.models import ReviewStatus, UserRole
 from app.db.types import utcnow
 from app.services.curation import assignment, decisions, handoff, presence, queue, writing
@@ -62,9 +62,9 @@ def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemI
     return json_answer(out, response)
 
 
-@router.post("/{system_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID, **PRECONDITIONS})
+@router.post("/{system_id}/review", response_model=DecisionOut, responses={**NOT_FOUND, **INVALID, **PRECONDITIONS})
 def review_system(session: SessionDep, principal: AnnotatorDep, if_match: IfMatchDep, system: SystemDep,
-                  body: ReviewIn, response: Response, edit: EditDep) -> ReviewOut:
+                  body: ReviewIn, response: Response, edit: EditDep) -> DecisionOut:
     """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``, which every
     write of the system's labels, lines, exclusions, calibrations and decision changes: 412 once anything the page
     showed has changed); the system's new ETag in the header, its audit entry in ``X-V3D-Audit-Entry`` (what an undo
@@ -79,7 +79,7 @@ def review_system(session: SessionDep, principal: AnnotatorDep, if_match: IfMatc
                                        edit=edit)
     name_entry(edit, response)
     with_etag(response, system_etag(writing.get_system(session, system.id)))
-    out = ReviewOut.of(decision)
+    out = DecisionOut.model_validate(ReviewOut.of(decision).model_dump())
     if body.status in (ReviewStatus.NEEDS_FIX, ReviewStatus.FIXED):
         made = handoff.latest_handoff(session, system.id)
         if made is not None:

@@ -109,7 +109,8 @@ def test_review_status_filter_and_progress_counts(client: TestClient, queue: dic
     rejected = queue["other"].system_id
     assert client.post(f"/api/systems/{rejected}/review", json={"status": "rejected"}).status_code == 200
     every = client.get("/api/systems").json()
-    assert every["counts"] == {"pending": 2, "accepted": 1, "rejected": 1, "needs_fix": 0, "fixed": 0} and every["total"] == 4
+    assert every["counts"] == {"pending": 2, "accepted": 1, "rejected": 1, "needs_fix": 0, "fixed": 0}
+    assert every["total"] == 4
     by_game = {}
     for game in {scene.game_id for scene in queue.values()}:
         for status, n in client.get("/api/systems", params={"game_id": game}).json()["counts"].items():
