@@ -251,7 +251,7 @@ class SystemPage {
       const next = place ? place.next_pending_id : current.next_id;
       this.busy = false;
       if (next !== null && next !== undefined) {
-        toast(`${sys.name}: ${STATUS_LABEL[status]}`);
+        toast(`${sys.name}: ${answer?.handoff || STATUS_LABEL[status]}`); // a needs fix says to whom it went
         await this.load(next, true);
       } else {
         if (place) this.pass.showFinished(place, this.queueUrl());

@@ -186,3 +186,16 @@ def test_who_may_comment_and_what_a_comment_may_say(client: TestClient, scene: S
     reopened = client.post(f"/api/comments/{whole.json()['id']}/reopen").json()
     assert (reopened["resolved"], reopened["resolved_by"]) == (False, None)
     assert client.post("/api/comments/999999/resolve").status_code == 404
+
+
+def test_the_import_panel_offers_the_servers_import_formats() -> None:
+    """The queue page's Import panel (static/js/team.js) lists exactly the kinds ``POST /api/imports`` takes."""
+    import re
+    import typing
+
+    from app.api.job_schemas import ImportFormat
+    from app.core.paths import PROJECT_ROOT
+
+    script = (PROJECT_ROOT / "static" / "js" / "team.js").read_text()
+    listed = re.findall(r'^  \["([a-z0-9-]+)", "', script, flags=re.M)
+    assert sorted(listed) == sorted(typing.get_args(ImportFormat))
