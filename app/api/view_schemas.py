@@ -101,17 +101,6 @@ class ReviewOut(BaseModel):
         return out
 
 
-class DecisionOut(ReviewOut):
-    """A system decision's answer: the decision, and for needs_fix / fixed the hand-off it made
-    (``app.services.curation.handoff``)."""
-
-    returned_to: Optional[str] = Field(None, description="needs_fix / fixed only: the user the system went to (the "
-                                       "person who fixes it, or the reviewer who re-reviews it); null when nobody "
-                                       "(``handoff`` says why).")
-    handoff: Optional[str] = Field(None, description="That hand-off in words: \"returned to ana by rev: the box "
-                                   "sits on the shadow\".")
-
-
 class CalibrationReviewOut(BaseModel):
     """The reviewer's decision on a view's calibration (its field lines and the camera fitted to them)."""
 

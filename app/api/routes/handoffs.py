@@ -15,9 +15,25 @@ from pydantic import BaseModel, Field
 from app.api.auth import PrincipalDep
 from app.api.deps import SessionDep, SystemDep
 from app.api.schemas import NOT_FOUND
+from app.api.view_schemas import CalibrationReviewOut, ReviewOut
 from app.services.curation import handoff
 
 router = APIRouter(tags=["assignments"])
+
+
+class DecisionOut(ReviewOut):
+    """A system decision's answer: the decision, and for needs_fix / fixed the hand-off it made
+    (``app.services.curation.handoff``)."""
+
+    returned_to: Optional[str] = Field(None, description="needs_fix / fixed only: the user the system went to (the "
+                                       "person who fixes it, or the reviewer who re-reviews it); null when nobody "
+                                       "(``handoff`` says why).")
+    handoff: Optional[str] = Field(None, description="That hand-off in words: \"returned to ana by rev: the box "
+                                   "sits on the shadow\".")
+
+
+# ReviewOut names its views' calibration decision by a forward reference: resolved here, where the subclass lives
+DecisionOut.model_rebuild(_types_namespace={"CalibrationReviewOut": CalibrationReviewOut})
 
 
 class MyWorkOut(BaseModel):
