@@ -12,13 +12,16 @@ from fastapi import APIRouter
 from app.api.authentication import PROTECTED
 from app.api.bodies import BODY_REFUSED
 from app.api.routes import (
+    annotators,
     assignments,
     audit,
     auth,
+    comments,
     detectors,
     exports,
     frames,
     games,
+    handoffs,
     health,
     imports,
     issia,
@@ -41,7 +44,7 @@ _protected = APIRouter(dependencies=PROTECTED, responses={
                                             "V3D_WRITE_LOCK_TIMEOUT_S: nothing was changed; send it again after the "
                                             "Retry-After header's seconds."},
 })
-for _module in (auth, users, games, systems, assignments, frames, imports, exports, jobs, detectors, issia, audit,
-                pitch, passes, releases):
+for _module in (auth, users, games, annotators, systems, assignments, comments, handoffs, frames, imports, exports,
+                jobs, detectors, issia, audit, pitch, passes, releases):
     _protected.include_router(_module.router)
 api_router.include_router(_protected)

@@ -82,7 +82,6 @@ class ReviewOut(BaseModel):
                                         "exclusion, field lines, an undo); null otherwise.")
     calibration: Optional["CalibrationReviewOut"] = Field(
         None, description="Views only: the decision on the view's calibration, beside the decision on its ball.")
-
     @classmethod
     def of(cls, decision: Optional[ReviewDecision]) -> "ReviewOut":
         """The decision, or pending when there is none (a view's with its calibration decision)."""

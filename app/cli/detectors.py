@@ -5,6 +5,7 @@ and ``app.services.evaluation.plots``). A bad input prints ``error: ...`` and ex
 from __future__ import annotations
 
 import json
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -13,6 +14,7 @@ import typer
 from app.cli._root import cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session, export_command, release_tree
 from app.core.errors import InvalidInputError
+from app.datasets.csv_cells import inert_cell
 
 evaluate_cli = typer.Typer(help="Evaluate detectors against the curated labels.", no_args_is_help=True)
 cli.add_typer(evaluate_cli, name="evaluate")
@@ -181,13 +183,21 @@ def evaluate_boxes_cmd(
         json_out.write_text(json.dumps(report, indent=1) + "\n")
 
 
-@cli.command("stats")
+stats_cli = typer.Typer(help="The dataset at a glance; `v3d stats annotators`: the per-annotator figures.",
+                        invoke_without_command=True)
+cli.add_typer(stats_cli, name="stats")
+
+
+@stats_cli.callback()
 def stats_cmd(
+    ctx: typer.Context,
     json_out: Annotated[Optional[Path], typer.Option("--json", help="Write the statistics as JSON here.")] = None,
     database_url: DatabaseOpt = None,
 ) -> None:
     """The dataset at a glance: systems and images (calibrated, admitted) per kind and split, systems kept against
     the JaC admission threshold (the paper's Fig. 3) and distributions (app.services.evaluation.stats)."""
+    if ctx.invoked_subcommand is not None:
+        return
     from app.services.evaluation.stats import dataset_stats
 
     settings = cli_settings(database_url, None)
@@ -206,6 +216,42 @@ def stats_cmd(
     if json_out is not None:
         json_out.write_text(json.dumps(stats, indent=1) + "\n")
         typer.echo(f"wrote {json_out}")
+
+
+@stats_cli.command("annotators")
+def stats_annotators_cmd(
+    since: Annotated[Optional[datetime], typer.Option(help="Only entries at or after this time (UTC).")] = None,
+    until: Annotated[Optional[datetime], typer.Option(help="Only entries before this time (UTC).")] = None,
+    csv_out: Annotated[Optional[Path], typer.Option("--csv", help="Write the figures as CSV here.")] = None,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Per-annotator figures: label edits, systems touched and decided, needs fix received, accepted at first review,
+    median time from edit to review, median distance of their ball labels from the ball the other views agree on (px
+    at 1920 width) and the share a doubt accuses (app.services.evaluation.annotators)."""
+    import csv
+
+    from app.services.evaluation.annotators import FIELDS, annotator_figures
+
+    utc = [None if t is None else t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t for t in (since, until)]
+    settings = cli_settings(database_url, None)
+    with database_session(settings) as session:
+        figures = [f.as_dict() for f in annotator_figures(session, utc[0], utc[1])]
+    if not figures:
+        typer.echo("no label edits and no hand-offs in this window")
+    for f in figures:
+        typer.echo(f"{f['name']}: {f['edits']} edit(s) on {f['systems_touched']} system(s), "
+                   f"{f['systems_decided']} decided, {f['accepted_first_review']} accepted at first review, "
+                   f"{f['needs_fix_received']} returned to them; median edit to review "
+                   f"{_fmt(f['median_edit_to_review_s'], '{:.0f} s')}, median label distance "
+                   f"{_fmt(f['median_label_distance_px'], '{:.1f} px')}, accused "
+                   f"{_fmt(None if f['accused_share'] is None else 100 * f['accused_share'], '{:.0f} %')}")
+    if csv_out is not None:
+        with csv_out.open("w", newline="") as out:
+            writer = csv.writer(out, lineterminator="\n")
+            writer.writerow(FIELDS)
+            writer.writerows([["" if f[k] is None else inert_cell(f[k]) if isinstance(f[k], str) else f[k]
+                               for k in FIELDS] for f in figures])
+        typer.echo(f"wrote {csv_out}")
 
 
 @evaluate_cli.command("sensitivity")

@@ -10,7 +10,7 @@ its documents and the documents of what changed. Every table is append-only: tri
 SQLite and PostgreSQL, as for the audit log (migrations 0006 and 0024).
 
 Revision ID: 0027
-Revises: 0025
+Revises: 0026
 Create Date: 2026-11-28 00:00:00+00:00
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ from alembic import op
 import app.db.types
 
 revision: str = '0027'
-down_revision: str | None = '0025'
+down_revision: str | None = '0026'
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

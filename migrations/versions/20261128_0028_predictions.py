@@ -7,7 +7,7 @@ never a label: one placed by a fix key is a ball label with its provenance (``ba
 system's) and by source (replace, remove, the monocular benchmark).
 
 Revision ID: 0028
-Revises: 0025
+Revises: 0027
 Create Date: 2026-11-28 09:00:00+00:00
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 // Number formatting and the colour rules shared by the queue and the system page.
 
-export const STATUSES = ["pending", "accepted", "rejected", "needs_fix"];
-export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected: "rejected", needs_fix: "needs fix" };
+export const STATUSES = ["pending", "accepted", "rejected", "needs_fix", "fixed"];
+export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected: "rejected", needs_fix: "needs fix", fixed: "fixed, to re-review" };
 
 import { LABEL_KINDS, WORDS } from "./words.js";
 

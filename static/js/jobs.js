@@ -11,7 +11,7 @@ const ACTIVE = new Set(["queued", "running"]);
 const FAST_MS = 2000;
 const SLOW_MS = 5000;
 const STAGE_LABEL = {
-  games: "games stored", merge: "merging", calibrate: "calibrating", rig: "calibrating with game rigs",
+  read: "reading", games: "games stored", merge: "merging", calibrate: "calibrating", rig: "calibrating with game rigs",
   prior: "calibrating with the learned prior",
   triangulate: "triangulating", recompute: "systems recomputed", export: "games exported", zip: "files zipped",
 };
@@ -19,7 +19,8 @@ const STAGE_LABEL = {
 /** One line saying what a job runs: an import's kind and folder, an export's selection. */
 export function jobTitle(job) {
   const p = job.params || {};
-  if (job.kind === "import") return `import ${p.kind || ""} ${String(p.path || "").split("/").slice(-2).join("/")}`;
+  // an upload by its file's name (the server's upload folder says nothing to the person who sent it)
+  if (job.kind === "import") return `import ${p.kind || ""} ${p.name || String(p.path || "").split("/").slice(-2).join("/")}`;
   if (job.kind === "export") return `export ${p.format || ""}${p.images === false ? " without images" : ""}${p.all ? " (all systems)" : " (accepted systems)"}`;
   return "full recompute";
 }
@@ -35,7 +36,7 @@ function row(job) {
   const bar = el("progress", { "data-testid": "job-progress", max: String(job.total || 1) });
   if (job.total) bar.value = job.done; // no value: an indeterminate bar
   const state = el("span", { class: `chip ${job.state === "failed" ? "bad" : job.state === "done" ? "ok" : ""}`, "data-testid": "job-state" }, job.state);
-  const parts = [state, el("span", { class: "mono" }, `#${job.id}`), el("span", {}, jobTitle(job))];
+  const parts = [state, el("span", { class: "mono" }, `#${job.id}`), el("span", { "data-testid": "job-title" }, jobTitle(job))];
   if (ACTIVE.has(job.state)) parts.push(bar, el("span", { class: "muted", "data-testid": "job-progress-text" }, jobProgressText(job)));
   if (job.state === "failed" && job.message) parts.push(el("span", { class: "bad", "data-testid": "job-message" }, job.message));
   if (job.result_url) parts.push(el("a", { href: job.result_url, "data-testid": "job-download" }, "download"));

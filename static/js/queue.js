@@ -6,6 +6,7 @@ import { listSystems, listGames } from "./api.js";
 import "./session.js";
 import { JobsPanel } from "./jobs.js";
 import { mountExports } from "./exports.js";
+import { mountImport, mountWorkCounts } from "./team.js";
 import { QueueAssignment } from "./assignment.js";
 import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
@@ -105,6 +106,8 @@ class QueuePage {
     resumeLink(resume);
     // an import or a recompute that ends while the page is open changes the queue: reload it
     mountExports($("exports")); // admins only: every export as a job with its download
+    mountImport($("import")); // admins only: a zip uploaded with its progress, then followed under Jobs
+    mountWorkCounts($("work-counts")); // To fix (and To re-review): what the team's loop sent to this person
     this.jobs = new JobsPanel($("jobs"), (job) => {
       if (job.state === "done" && job.kind !== "export") {
         this.loadGames();
@@ -254,7 +257,7 @@ class QueuePage {
     const all = STATUSES.reduce((a, s) => a + n[s], 0);
     for (const s of STATUSES) $(`count-${s}`).textContent = String(n[s]);
     const bar = $("progress-bar");
-    for (const s of ["accepted", "rejected", "needs_fix"]) {
+    for (const s of ["accepted", "rejected", "needs_fix", "fixed"]) {
       bar.querySelector(`.${s}`).style.width = all ? `${(100 * n[s]) / all}%` : "0";
     }
     const done = all - n.pending;

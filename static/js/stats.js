@@ -5,6 +5,7 @@
 import { ApiError, send } from "./api.js";
 import "./session.js";
 import { mountExports } from "./exports.js";
+import { mountAnnotators } from "./annotators.js";
 import { el, svg, showError, viewColour } from "./format.js";
 
 const W = 560; // SVG user units; the plots scale to their panel
@@ -196,3 +197,4 @@ send("GET", "/api/stats").then(render).catch((err) => {
 });
 
 mountExports(document.querySelector('[data-testid="exports"]')); // admins only: every export as a job
+mountAnnotators(); // reviewers and admins: the per-annotator table and plots

@@ -30,6 +30,7 @@ import { explainKeys } from "./keyreasons.js";
 import { SystemPresence } from "./presence.js";
 import { SequenceCard, inASequence } from "./sequence.js";
 import { ViewWrites } from "./systemwrites.js";
+import { CommentsCard } from "./comments.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -58,6 +59,7 @@ class SystemPage {
       $(id).addEventListener("click", (e) => this.review(e.currentTarget.dataset.status));
     }
     $("error-dismiss").addEventListener("click", clearError);
+    this.comments = new CommentsCard(this); // comments pinned on the views; the hand-off (comments.js)
     $("comment").addEventListener("keydown", (e) => {
       if (e.key === "Escape") e.currentTarget.blur();
     });
@@ -220,6 +222,7 @@ class SystemPage {
       cameras: sys.views.map((v, i) => ({ label: `V${i + 1}`, name: v.name, colour: viewColour(i), position: v.camera_position })),
     };
     this.sequence.show(sys);
+    this.comments.load(sys);
   }
 
   /** What the page adds to a view's panel after each rebuild: its decision bar, the synchronised zoom. */
@@ -253,7 +256,7 @@ class SystemPage {
       const next = place ? place.next_pending_id : current.next_id;
       this.busy = false;
       if (next !== null && next !== undefined) {
-        toast(`${sys.name}: ${STATUS_LABEL[status]}`);
+        toast(`${sys.name}: ${answer?.handoff || STATUS_LABEL[status]}`); // a needs fix says to whom it went
         await this.load(next, true);
       } else {
         if (place) this.pass.showFinished(place, this.queueUrl());
@@ -393,6 +396,7 @@ class SystemPage {
         run: () => Boolean(this.mirrorTarget()?.requestMirror()) },
       ...this.decisions.keyEntries(() => view() || (this.system?.views.length === 1 ? $("views").children[0] : null)),
       ...this.zoom.keyEntries(),
+      ...this.comments.keyEntries(),
     ];
   }
 

@@ -5,6 +5,7 @@
 // their screen size at any zoom (`scale`). Also where the zoomed inset around the ball looks (ballWindow).
 
 import { svg, fmt, isNum } from "./format.js";
+import { pinsOf } from "./comments.js";
 import { FIX_KEY, boxCentre, sameBox, validBox, validPoint } from "./viewfacts.js";
 
 /** The inset's window around the view's ball, [x, y, side] in image pixels (a square at least 72 px, six
@@ -125,6 +126,15 @@ export function drawView(root, { view: v, scale, isMain, imageState, lines, doub
     g.append(svg("path", { class: "halo", d }));
     g.append(svg("path", { class: "reproj", d, "data-testid": isMain ? "reprojected-ball" : null },
       svg("title", { text: `3D ball reprojected: (${x.toFixed(1)}, ${y.toFixed(1)})` })));
+  }
+  if (isMain) {
+    for (const c of pinsOf(v.frame_id)) { // the reviewers' comments at their points (comments.js)
+      if (!c.point) continue;
+      g.append(svg("g", { class: `comment-pin${c.resolved ? " resolved" : ""}`, "data-testid": "review-comment-pin", "data-id": String(c.id) },
+        svg("circle", { cx: c.point[0], cy: c.point[1], r: 9 * s }),
+        svg("text", { x: c.point[0], y: c.point[1] + 4 * s, "font-size": 11 * s, "text-anchor": "middle", text: String(c.number) }),
+        svg("title", { text: `${c.number}. ${c.author}: ${c.text}${c.resolved ? " (resolved)" : ""}` })));
+    }
   }
   if (isMain) lines.drawHandles(g, root, s); // above the ball's box, in edit mode
   nodes.push(g);

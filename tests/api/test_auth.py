@@ -102,7 +102,10 @@ EXPECTED_LEAST_ROLE = {
     ("POST", "/api/frames/{frame_id}/field-lines/mirror"): "annotator",
     ("POST", "/api/frames/{frame_id}/exclusion"): "annotator",
     ("POST", "/api/frames/{frame_id}/review"): "annotator",
-    ("POST", "/api/systems/{system_id}/review"): "reviewer",
+    # any role past the role check: an annotator may send "fixed" on a system returned to them, and nothing else (the
+    # route refuses the rest with 403: tests/api/routes/test_team_loop.py)
+    ("POST", "/api/systems/{system_id}/review"): "annotator",
+    ("GET", "/api/stats/annotators"): "reviewer",
     ("POST", "/api/imports"): "admin",
     ("GET", "/api/exports/soccernet-v3d"): "admin",
     ("GET", "/api/exports/issia-3d"): "admin",
@@ -127,7 +130,8 @@ EXPECTED_LEAST_ROLE = {
 
 
 def test_the_roles_of_the_issue(app: FastAPI) -> None:
-    """annotator: frame edits; reviewer: system decisions; admin: imports, every export, users; reads: any."""
+    """annotator: frame edits (and sending back a system returned to them); reviewer: system decisions and the
+    per-annotator figures; admin: imports, every export, users; reads: any."""
     found = {(m, p): _least_role(r) for m, p, _, r in _operations(app)}
     assert {k: found.get(k, "missing") for k in EXPECTED_LEAST_ROLE} == EXPECTED_LEAST_ROLE
 

@@ -62,7 +62,7 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
                            headers={"If-Match": etag}).status_code == 200
         pending = client.get("/api/systems", params={"status": "pending", "sort": "-worst_error"}).json()
         assert [s["id"] for s in pending["items"]] == [shifted, lonely]
-        assert pending["counts"] == {"pending": 2, "accepted": 1, "rejected": 0, "needs_fix": 0}
+        assert pending["counts"] == {"pending": 2, "accepted": 1, "rejected": 0, "needs_fix": 0, "fixed": 0}
         view = client.get(f"/api/systems/{exact}", params={"status": "pending", "sort": "-worst_error"}).json()
         assert (view["prev_id"], view["next_id"]) == (shifted, lonely)
         assert len(view["views"]) == 3 and client.get(view["views"][0]["pitch_lines_url"]).json()["lines"]

@@ -35,7 +35,7 @@ def test_the_40_dev_systems_reviewed_by_keyboard_only(page, artifacts, capsys):
     page.screenshot(path=str(artifacts / "keyboard-review-last.png"))
     assert [r.system_id for r in reviews] == [s["id"] for s in queue["items"]]  # the queue's order, every system
     after = _api(page, "/api/systems?limit=100")
-    assert after["counts"] == {"pending": 0, "accepted": 40, "rejected": 0, "needs_fix": 0}
+    assert after["counts"] == {"pending": 0, "accepted": 40, "rejected": 0, "needs_fix": 0, "fixed": 0}
     for r in reviews:
         system = _api(page, f"/api/systems/{r.system_id}")
         assert system["review"]["status"] == "accepted"

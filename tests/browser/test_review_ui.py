@@ -44,7 +44,7 @@ def test_queue_to_accept_walk(page, artifacts):
     listing = _api(page, "/api/systems?sort=-worst_error&limit=50")
     assert rows.count() == len(listing["items"]) > 0
     counts = {s: int(page.locator(tid(f"count-{s}")).inner_text())
-              for s in ("pending", "accepted", "rejected", "needs_fix")}
+              for s in ("pending", "accepted", "rejected", "needs_fix", "fixed")}
     assert counts == listing["counts"] and sum(counts.values()) == listing["total"], counts
     page.screenshot(path=str(artifacts / "1-queue.png"))
 

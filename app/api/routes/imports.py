@@ -103,7 +103,7 @@ async def _upload_params(request: Request, settings: Settings) -> dict[str, Any]
         await form.close()
     return import_params(options.kind, folder, width=options.width, height=options.height,
                          from_lines=options.from_lines, flip=options.flip, upload=True, merge=options.merge,
-                         source=options.source)
+                         source=options.source, name=upload.filename)
 
 
 async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:

@@ -19,10 +19,11 @@ from app.api.auth import AdminDep, Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import JobKindName, JobOut, JobPageOut, JobStateName
 from app.api.schemas import DB_INT_MAX, NOT_FOUND, DbInt, ErrorOut
-from app.core.config import Settings
+from app.core.config import Settings, jobs_dir
 from app.core.errors import NotFoundError
 from app.db.models import Job, JobState
 from app.services.jobs import runner as jobs
+from app.services.jobs.progress import read_live
 from app.services.jobs.work import export_path, without_server_paths
 from app.services.transfer.export_files import prune_exports
 
@@ -41,9 +42,14 @@ def job_out(job: Job, principal: Principal | None = None, settings: Settings | N
     if principal is not None and settings is not None and not principal.may("admin"):
         params, result, message = without_server_paths(job.id, params, result, message, settings)
         owner = None
+    progress = {"stage": job.stage, "done": job.done, "total": job.total}
+    if job.state is JobState.RUNNING and settings is not None:  # newer than the row's while a batch is open
+        now = read_live(jobs_dir(settings), job.id)
+        if now is not None:
+            progress = dict(zip(("stage", "done", "total"), now, strict=True))
     return JobOut.model_validate({
-        **{k: getattr(job, k) for k in ("id", "kind", "stage", "done", "total", "attempts", "created_at",
-                                        "started_at", "finished_at", "heartbeat_at")},
+        **{k: getattr(job, k) for k in ("id", "kind", "attempts", "created_at", "started_at", "finished_at",
+                                        "heartbeat_at")}, **progress,
         "owner": owner, "params": params, "result": result, "message": message,
         "state": job.state.value, "url": url, "result_url": f"{url}/result" if has_file else None,
     })

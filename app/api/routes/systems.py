@@ -11,14 +11,16 @@ from fastapi import APIRouter, Query, Response
 
 from app.api.answers import json_answer
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
-from app.api.auth import PrincipalDep, ReviewerDep
+from app.api.auth import AnnotatorDep, PrincipalDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import EditDep, SessionDep, SystemDep, SystemIdPath
 from app.api.routes.frames import name_entry
+from app.api.routes.handoffs import DecisionOut
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
+from app.db.models import ReviewStatus, UserRole
 from app.db.types import utcnow
-from app.services.curation import assignment, decisions, presence, queue, writing
+from app.services.curation import assignment, decisions, handoff, presence, queue, writing
 from app.services.curation.system_page import system_page
 from app.services.curation.versions import expected_versions, system_etag
 
@@ -61,16 +63,27 @@ def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemI
     return json_answer(out, response)
 
 
-@router.post("/{system_id}/review", response_model=ReviewOut, responses={**NOT_FOUND, **INVALID, **PRECONDITIONS})
-def review_system(session: SessionDep, principal: ReviewerDep, if_match: IfMatchDep, system: SystemDep,
-                  body: ReviewIn, response: Response, edit: EditDep) -> ReviewOut:
+@router.post("/{system_id}/review", response_model=DecisionOut, responses={**NOT_FOUND, **INVALID, **PRECONDITIONS})
+def review_system(session: SessionDep, principal: AnnotatorDep, if_match: IfMatchDep, system: SystemDep,
+                  body: ReviewIn, response: Response, edit: EditDep) -> DecisionOut:
     """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``, which every
     write of the system's labels, lines, exclusions, calibrations and decision changes: 412 once anything the page
     showed has changed); the system's new ETag in the header, its audit entry in ``X-V3D-Audit-Entry`` (what an undo
-    names)."""
+    names). ``needs_fix`` returns the system to the person who last edited its labels (else its assignee; the answer's
+    ``returned_to`` and ``handoff`` say to whom, or why to nobody); ``fixed`` is sent by that person alone (any role)
+    and gives it back to the reviewer who asked (``app.services.curation.handoff``). Reviewers send any status; an
+    annotator only ``fixed`` on a system returned to them (403 otherwise, before the ``If-Match`` is compared)."""
+    handoff.check_fixed_allowed(session, system.id, user_id=principal.user_id, role=UserRole(principal.role),
+                                status=body.status)
     decision = decisions.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
                                        actor=principal.name, expected=expected_versions(if_match, "system", system.id),
                                        edit=edit)
     name_entry(edit, response)
     with_etag(response, system_etag(writing.get_system(session, system.id)))
-    return ReviewOut.of(decision)
+    out = DecisionOut.model_validate(ReviewOut.of(decision).model_dump())
+    if body.status in (ReviewStatus.NEEDS_FIX, ReviewStatus.FIXED):
+        made = handoff.latest_handoff(session, system.id)
+        if made is not None:
+            out.returned_to = made.returned_to if not made.fixed else made.returned_by
+            out.handoff = made.words
+    return out

@@ -10,6 +10,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
                  |          - ReviewDecision           (frame level)
                  - Triangulation -> TriangulationPair  (per pair e_ij, parallax, baseline, kept)
                  - ReviewDecision                      (system level)
+                 -> ReviewHandoff, ReviewComment       (needs fix returned to a person; comments pinned on views)
                  -> Doubt                              (label problems the geometry sees, with fixes)
                  - TrajectoryPoint                     (ISSIA: the frame on the sequence's trajectory)
 
@@ -51,7 +52,7 @@ from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, Sy
 from app.db.models.operations import AuditEntry, AuditState, Job
 from app.db.models.predictions import Prediction
 from app.db.models.releases import Release, ReleaseDocument, ReleaseGame, ReleaseSystem
-from app.db.models.review import ReviewDecision, ReviewPass, SystemPresence
+from app.db.models.review import ReviewComment, ReviewDecision, ReviewHandoff, ReviewPass, SystemPresence
 
 __all__ = [
     "Base",
@@ -82,7 +83,9 @@ __all__ = [
     "ReleaseDocument",
     "ReleaseGame",
     "ReleaseSystem",
+    "ReviewComment",
     "ReviewDecision",
+    "ReviewHandoff",
     "ReviewPass",
     "SystemPresence",
     "ApiToken",

@@ -111,6 +111,10 @@ class BallReprojection(Base):
     frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"), primary_key=True)
     point: Mapped[list[float]]
     error_px: Mapped[Optional[float]]
+    #: How far the view's ball label lies from the ball the system's other views agree on (px of a 1920-wide image;
+    #: ``app.geometry.doubts.judge.consensus_without``), None without a label, a camera or an agreed ball: stored by
+    #: the recomputation so that the per-annotator figures read it (``app.services.evaluation.annotators``).
+    others_distance_px: Mapped[Optional[float]]
 
     frame: Mapped[Frame] = relationship(back_populates="reprojection")
 

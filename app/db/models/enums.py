@@ -71,6 +71,8 @@ class ReviewStatus(str, enum.Enum):
     ACCEPTED = "accepted"
     REJECTED = "rejected"
     NEEDS_FIX = "needs_fix"
+    #: Systems only: the annotator a needs-fix was returned to says it is fixed; back with the reviewer who asked.
+    FIXED = "fixed"
 
 
 class UserRole(str, enum.Enum):

@@ -45,6 +45,8 @@ class AuditEntry(Base):
     """
 
     __tablename__ = "audit_entries"
+    #: the per-annotator figures (``app.services.evaluation.annotators``) read the edits by action and time
+    __table_args__ = (sa.Index("ix_audit_entries_action_at", "action", "at"),)
 
     id: Mapped[int] = mapped_column(primary_key=True)
     at: Mapped[datetime] = mapped_column(default=utcnow)

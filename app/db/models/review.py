@@ -88,3 +88,44 @@ class ReviewPass(Base):
     position: Mapped[int] = mapped_column(default=0)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     visited_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class ReviewHandoff(Base):
+    """One hand-off of a system marked needs fix (``app.services.curation.handoff``): ``returned_by`` (the reviewer,
+    a user's name as the audit log names actors) returned it to the user ``returned_to_id`` (None: nobody could be
+    found, ``note`` says why) with the decision's comment (``note``) at ``returned_at``. The record, not the system's
+    current status, says the system is returned to that user: an edit meanwhile sets its decision back to pending and
+    the hand-off stays open. ``fixed_at``: when that user sent it back as fixed; ``closed_at``: when the hand-off
+    ended (sent back as fixed, or decided again by a reviewer); open while None."""
+
+    __tablename__ = "review_handoffs"
+    __table_args__ = (sa.Index("ix_review_handoffs_returned_to_id_returned_at", "returned_to_id", "returned_at"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), index=True)
+    #: A plain id, as ``System.assignee_id``: users are disabled, never deleted.
+    returned_to_id: Mapped[Optional[int]]
+    returned_by: Mapped[str] = mapped_column(sa.String(200))
+    note: Mapped[str] = mapped_column(sa.Text, default="")
+    returned_at: Mapped[datetime] = mapped_column(default=utcnow)
+    fixed_at: Mapped[Optional[datetime]]
+    closed_at: Mapped[Optional[datetime]]
+
+
+class ReviewComment(Base):
+    """A comment pinned on a view (``app.services.curation.comments``): ``point`` ``[x, y]`` in pixels of the frame's
+    own image (None: the view as a whole), its ``text``, its ``author`` (a user's name), and whether it is resolved
+    (``resolved_by`` / ``resolved_at`` of the last resolution; cleared when reopened)."""
+
+    __tablename__ = "review_comments"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    system_id: Mapped[int] = mapped_column(sa.ForeignKey("systems.id", ondelete="CASCADE"), index=True)
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"))
+    point: Mapped[Optional[list[float]]]
+    text: Mapped[str] = mapped_column(sa.Text)
+    author: Mapped[str] = mapped_column(sa.String(200))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    resolved: Mapped[bool] = mapped_column(default=False)
+    resolved_by: Mapped[Optional[str]] = mapped_column(sa.String(200))
+    resolved_at: Mapped[Optional[datetime]]

@@ -42,10 +42,14 @@ SUMMARY_ACTIONS = ("import", "recompute")
 ADMIN_ACTIONS = ("user.create", "user.role", "user.disable", "user.enable", "token.issue", "token.revoke")
 #: Releases made (``app.services.releases.content``): immutable, never reverted.
 RELEASE_ACTIONS = ("release.create",)
+#: The team's loop (``app.services.curation.handoff`` and ``comments``): a needs-fix system returned to a person or
+#: sent back as fixed, a comment pinned on a view, resolved or reopened. Recorded in words, never reverted (a hand-off
+#: follows a decision, which is reverted itself; a comment is resolved or reopened instead).
+TEAM_ACTIONS = ("system.handoff", "comment.add", "comment.resolve", "comment.reopen")
 #: Every action an entry may record.
 ACTIONS = ("ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",
            "view.calibration_review", "system.review", "system.assign", "system.import", *SUMMARY_ACTIONS, "revert",
-           *ADMIN_ACTIONS, *RELEASE_ACTIONS)
+           *ADMIN_ACTIONS, *RELEASE_ACTIONS, *TEAM_ACTIONS)
 
 
 def revertible(action: str) -> bool:
@@ -55,7 +59,8 @@ def revertible(action: str) -> bool:
     >>> revertible("ball.edit"), revertible("import"), revertible("token.revoke")
     (True, False, False)
     """
-    return action not in SUMMARY_ACTIONS and action not in ADMIN_ACTIONS and action not in RELEASE_ACTIONS
+    return (action not in SUMMARY_ACTIONS and action not in ADMIN_ACTIONS and action not in RELEASE_ACTIONS
+            and action not in TEAM_ACTIONS)
 
 
 #: How work run on the machine is named to every role but admins, and in the text every role reads (a reset

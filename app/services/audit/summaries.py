@@ -16,7 +16,7 @@ from app.geometry.annotations import AnnotationError, lines_from_json_lists, lin
 
 #: A review status in words.
 STATUS_WORDS = {"accepted": "accepted", "rejected": "rejected", "needs_fix": "marked as needing a fix",
-                "pending": "set back to pending"}
+                "fixed": "sent back as fixed", "pending": "set back to pending"}
 #: Which edit restored which state (a revert is audited as ``revert``: its state says what it restored).
 _ACTION_OF_STATE = (("system", "system.import"), ("ball", "ball.edit"), ("lines", "field_lines.replace"),
                     ("excluded", "view.exclusion"), ("calibration_review", "view.calibration_review"),
@@ -254,6 +254,10 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         return _decision_words(after.get("calibration_review"), f"calibration of {v}")
     if action == "system.review":
         return _decision_words(after.get("review"), "system")
+    if action == "system.handoff":
+        return handoff_words(after.get("handoff"))
+    if action.startswith("comment."):
+        return comment_words(action, after.get("comment"), v)
     if action == "system.import":
         source = (facts or {}).get("source")
         return f"import{f' of {source}' if source else ''} changed {import_words(before, after)}"
@@ -266,3 +270,42 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
                 f"views, hash {str(after.get('hash', ''))[:12]}")
     named = after.get("name") or after.get("user") or ""
     return f"{action.replace('.', ' ')}{f' {named}' if named else ''}"
+
+
+def handoff_words(handoff: Any) -> str:
+    """A hand-off in words (``app.services.curation.handoff``'s states: ``kind`` returned or fixed, ``to``, ``by``,
+    ``note``, ``reason`` when it went to nobody).
+
+    >>> handoff_words({"kind": "returned", "to": "ana", "by": "rev", "note": "the box sits on the shadow"})
+    'returned to ana by rev: the box sits on the shadow'
+    >>> handoff_words({"kind": "fixed", "to": "rev", "by": "ana", "note": ""})
+    'fixed by ana, back to rev for re-review'
+    """
+    if not isinstance(handoff, Mapping):
+        return "hand-off"
+    note = handoff.get("note") or ""
+    tail = f": {note}" if note else ""
+    if handoff.get("kind") == "fixed":
+        back = f", back to {handoff['to']} for re-review" if handoff.get("to") else ", back for re-review (no reviewer)"
+        return f"fixed by {handoff.get('by')}{back}{tail}"
+    if handoff.get("to") is None:
+        return f"returned to nobody by {handoff.get('by')} ({handoff.get('reason') or 'no one to return it to'}){tail}"
+    return f"returned to {handoff['to']} by {handoff.get('by')}{tail}"
+
+
+def comment_words(action: str, comment: Any, view: str) -> str:
+    """A comment pinned on a view, added, resolved or reopened, in words.
+
+    >>> comment_words("comment.add", {"text": "box on the shadow", "point": [10, 20]}, "V2")
+    'comment on V2 at (10, 20): box on the shadow'
+    >>> comment_words("comment.resolve", {"text": "box on the shadow", "point": None}, "V2")
+    'comment on V2 resolved: box on the shadow'
+    """
+    text = comment.get("text", "") if isinstance(comment, Mapping) else ""
+    point = comment.get("point") if isinstance(comment, Mapping) else None
+    at = f" at ({point[0]:.0f}, {point[1]:.0f})" if isinstance(point, (list, tuple)) and len(point) == 2 else ""
+    if action == "comment.resolve":
+        return f"comment on {view} resolved: {text}"
+    if action == "comment.reopen":
+        return f"comment on {view} reopened: {text}"
+    return f"comment on {view}{at}: {text}"

@@ -15,6 +15,7 @@ from app.db.models import (
     System,
 )
 from app.db.types import utcnow
+from app.services.curation import handoff
 from app.services.curation.states import (
     calibration_review_state,
     review_state,
@@ -38,7 +39,10 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
     """Record a review decision on a system or on a frame (exactly one of the two ids).
 
     Args:
-        status: pending, accepted, rejected or needs_fix (enum or its value).
+        status: pending, accepted, rejected or needs_fix (enum or its value); a system's also fixed. A system's
+            decision makes its hand-off (``app.services.curation.handoff.after_decision``: needs fix returns it to
+            a person, fixed gives it back to the reviewer who asked), in the same transaction; who may send which is
+            checked before (``handoff.check_fixed_allowed``).
         comment: free text (kept as given).
         actor, expected, revert: attribution and guard (module docstring; ``expected`` are versions of
             the system, which every write of its labels, lines, calibrations and decisions bumps, or of the frame);
@@ -58,6 +62,9 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
     if (system_id is None) == (frame_id is None):
         raise InvalidInputError("give exactly one of system_id and frame_id", field="system_id")
     status = _check_decision(status, comment)
+    if frame_id is not None and status is ReviewStatus.FIXED:
+        raise InvalidInputError("'fixed' is a system's status; a view's decision is pending, accepted, rejected or "
+                                "needs_fix", field="status")
 
     def apply(subject: System | Frame) -> ReviewDecision:
         check_undo_state(undo, review_state(subject))
@@ -71,6 +78,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         review.reset_reason = None
         if isinstance(subject, System):
             subject.review_status = status  # the queue's copy
+            handoff.after_decision(session, subject, status, actor=actor, note=comment)
         return review
 
     undo_of = undo.entry_id if undo is not None else None
@@ -114,6 +122,9 @@ def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus 
         StaleVersionError: the frame's version is not in ``expected``; nothing changed.
     """
     status = _check_decision(status, comment)
+    if status is ReviewStatus.FIXED:
+        raise InvalidInputError("'fixed' is a system's status; a calibration's decision is pending, accepted, "
+                                "rejected or needs_fix", field="status")
 
     def apply(frame: Frame) -> ReviewDecision:
         check_undo_state(undo, calibration_review_state(frame))

@@ -23,11 +23,14 @@ from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Ga
 from app.db.types import json_safe
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.camera import Camera
+from app.geometry.consensus import Consensus
 from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
 from app.geometry.doubts.detections import Detection, check_detections
+from app.geometry.doubts.judge import consensus_without
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.pitch import PLAY_VOLUME
-from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry
-from app.geometry.weighting import calibration_weight
+from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
+from app.geometry.weighting import calibration_weight, centre_of, label_centre
 from app.services.curation.doubt_words import doubt_message
 from app.services.derivation.cameras import stored_camera
 from app.services.derivation.rows import put_values, replace_rows
@@ -157,6 +160,46 @@ def stored_detections(system: System) -> dict[int, list[Detection]]:
         for p in sorted(f.predictions, key=lambda p: (-p.score, p.id)):
             out.setdefault(f.id, []).append(Detection(p.source, float(p.score), (p.x1, p.y1, p.x2, p.y2)))
     return out
+
+
+def distance_to_others(views: list[DoubtView], me: DoubtView, s: DoubtSettings,
+                       geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
+                       ) -> tuple[Consensus | None, float | None]:
+    """How far view ``me``'s ball label lies from the ball the other views agree on
+    (``app.geometry.doubts.judge.consensus_without``: the judge's voters, weights and play volume, ``me`` left out).
+
+    Returns:
+        ``(consensus, distance)``: the others' :class:`Consensus` (None without a label on ``me``, a suggested one, or
+        no agreed ball, or an ambiguous one) and the distance between ``me``'s labelled centre and that ball's
+        projection in px of a 1920-wide image (``REFERENCE_WIDTH_PX``; None without a camera on ``me`` or when the
+        ball lies behind it).
+    """
+    if label_centre(me) is None or me.suggested:
+        return None, None
+    cons = consensus_without(views, me.view_id, s, geometry)
+    if cons.point is None or cons.ambiguous:
+        return None, None
+    if me.camera is None:
+        return cons, None
+    e = reprojection_error_px(me.camera, cons.point, centre_of(me))
+    return cons, (None if e is None else float(e) * REFERENCE_WIDTH_PX / me.width)
+
+
+def update_label_distances(system: System, settings: Settings, weighed: WeighedViews,
+                           geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
+                           ) -> None:
+    """Store, on each view's reprojection row, how far its ball label lies from the ball the other views agree on
+    (:func:`distance_to_others`, px at 1920 width; None when there is none): what the per-annotator figures read
+    (``app.services.evaluation.annotators``) instead of judging every system per request. Changes the session only."""
+    s = doubt_settings(settings)
+    by_id = {v.view_id: v for v in weighed.views}
+    for frame in system.frames:
+        rep = frame.reprojection
+        if rep is None:
+            continue
+        me = by_id.get(frame.id)
+        distance = distance_to_others(weighed.views, me, s, geometry)[1] if me is not None else None
+        put_values(rep, {"others_distance_px": distance})
 
 
 def suggestion_request(frame_id: int | None, suggestion: dict[str, Any] | None,

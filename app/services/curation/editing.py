@@ -49,12 +49,8 @@ from app.db.models import (
 )
 from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
-from app.geometry.doubts.judge import consensus_without
-from app.geometry.pair_error import REFERENCE_WIDTH_PX
-from app.geometry.triangulation import reprojection_error_px
-from app.geometry.weighting import centre_of, label_centre
 from app.services.calibration.calibrating import apply_calibration
-from app.services.curation.doubts import doubt_settings, doubt_views
+from app.services.curation.doubts import distance_to_others, doubt_settings, doubt_views
 from app.services.curation.resets import (
     calibration_words,
     jac_words,
@@ -377,19 +373,14 @@ def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None
     play volume, with this view left out), with the camera the frame has now, and those views' names; ``(None,
     names)`` when the frame has no camera or the ball projects behind it; None without a label or without an agreed
     ball."""
-    s = doubt_settings(settings)
     views = doubt_views(frame.system)
     me = next((v for v in views if v.view_id == frame.id), None)
-    if me is None or label_centre(me) is None or me.suggested:
+    if me is None:
         return None
-    cons = consensus_without(views, frame.id, s)
-    if cons.point is None or cons.ambiguous:
+    cons, distance = distance_to_others(views, me, doubt_settings(settings))
+    if cons is None:
         return None
-    names = ", ".join(v.name for v in views if v.view_id in cons.inliers)
-    if me.camera is None:
-        return None, names
-    e = reprojection_error_px(me.camera, cons.point, centre_of(me))
-    return (None if e is None else float(e) * REFERENCE_WIDTH_PX / me.width), names
+    return distance, ", ".join(v.name for v in views if v.view_id in cons.inliers)
 
 
 def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settings: Settings,

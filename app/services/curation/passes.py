@@ -151,7 +151,9 @@ def _statuses(session: Session, ids: list[int]) -> dict[int, str]:
     conn = session.connection()
     systems = System.__table__
     exist = set(conn.execute(sa.select(systems.c.id).where(systems.c.id.between(lo, hi))).scalars())
-    done = [st for st in ReviewStatus if st is not ReviewStatus.PENDING]  # IN: the status index answers it
+    # IN: the status index answers it. A system sent back as fixed waits for a decision again: a pass visits it as it
+    # visits a pending one
+    done = [st for st in ReviewStatus if st not in (ReviewStatus.PENDING, ReviewStatus.FIXED)]
     decided = {i: ReviewStatus(st).value
                for i, st in conn.execute(sa.select(systems.c.id, systems.c.review_status).where(
         systems.c.review_status.in_(done), systems.c.id.between(lo, hi)))}

@@ -66,7 +66,13 @@ from app.services.calibration.calibrating import apply_calibration, calibrate_li
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
 from app.services.curation.doubt_words import with_sentence
-from app.services.curation.doubts import calibration_weights, is_excluded, update_doubts, weighed_views
+from app.services.curation.doubts import (
+    calibration_weights,
+    is_excluded,
+    update_doubts,
+    update_label_distances,
+    weighed_views,
+)
 from app.services.derivation import cameras as shared
 from app.services.derivation import scope
 from app.services.derivation.cameras import mirrored_camera, stored_camera
@@ -77,7 +83,8 @@ from app.services.kinds import kind_of
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 3  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed
+DERIVED_VERSION = 4  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
+# 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed)
 
 
@@ -222,6 +229,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
     update_doubts(system, settings, cameras, geometry, weighed)
+    update_label_distances(system, settings, weighed, geometry)
     update_summary(system, tri)
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
     scope.changed(system)  # its derived rows were written: what its next edit compares (``scope``)

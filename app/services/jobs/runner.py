@@ -42,11 +42,11 @@ from sqlalchemy import select
 from sqlalchemy.engine import CursorResult
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.core.config import Settings
+from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError, ServiceError, found
 from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
-from app.services.jobs.progress import Progress
+from app.services.jobs.progress import LIVE_EVERY_S, Progress, remove_live, write_live
 from app.services.jobs.work import WORK
 
 log = logging.getLogger(__name__)
@@ -316,11 +316,17 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
     gate = _Gate() if is_sqlite(settings) else None
     heartbeat = _Heartbeat(session_factory, job_id, owner, live, settings.job_heartbeat_seconds, gate)
 
+    folder = jobs_dir(settings)
+    written = [0.0]  # when the live progress file was last written (``progress.write_live``)
+
     def report(stage: str, done: int, total: int) -> None:
         if live.lost:
             raise JobLost(f"job {job_id} was taken over by another runner")
         changed = stage != live.stage
         live.stage, live.done, live.total = stage, done, total
+        if changed or done >= total or time.monotonic() - written[0] >= LIVE_EVERY_S:
+            written[0] = time.monotonic()
+            write_live(folder, job_id, stage, done, total)
         if gate is not None and not gate.busy and (changed or heartbeat.due()):
             heartbeat.beat()  # SQLite: between the job's transactions (e.g. after each batch of games)
         if progress is not None:
@@ -341,6 +347,7 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
     finally:
         heartbeat.stopped.set()
         heartbeat.join()
+        remove_live(folder, job_id)
     with session_factory() as session:
         if values and not live.lost:
             session.execute(

@@ -12,7 +12,7 @@ when complete, removed ``Settings.export_keep_hours`` later).
 from __future__ import annotations
 
 import shutil
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 from sqlalchemy.orm import Session
@@ -31,12 +31,15 @@ from app.services.transfer.import_formats import import_format, stored_games_ref
 def import_params(kind: str, path: str | Path, *, width: int | None = None, height: int | None = None,
                   from_lines: bool = False, flip: list[str] | None = None,
                   calibration_workers: int | None = None, upload: bool = False,
-                  merge: str | None = None, source: str | None = None) -> dict[str, Any]:
+                  merge: str | None = None, source: str | None = None,
+                  name: str | None = None) -> dict[str, Any]:
     """The ``params`` of an import job (one shape for the API and the CLI, so that a command run again
     finds the job it started: ``jobs.find_resumable``). ``path`` is stored resolved; ``upload``: it is an
     unpacked upload of its own, removed when the dataset cannot be imported; ``merge``: how to merge games stored
     already (``app.services.transfer.merging.MERGE_MODES``), None: refuse them; ``source``: the name of a detector's
-    predictions (kind ``predictions``)."""
+    predictions (kind ``predictions``); ``name``: an upload's file name as the browser sent it (its last path
+    component, at most 200 characters): what the job is titled by and its import named as, instead of the server's
+    upload folder."""
     out = {"kind": kind, "path": str(Path(path).expanduser().resolve()), "width": width, "height": height,
            "from_lines": from_lines, "flip": list(flip or []), "calibration_workers": calibration_workers,
            "merge": merge}
@@ -44,6 +47,9 @@ def import_params(kind: str, path: str | Path, *, width: int | None = None, heig
         out["source"] = source
     if upload:
         out["upload"] = True
+        shown = PurePosixPath(str(name or "").replace("\\", "/")).name[:200]
+        if shown:
+            out["name"] = shown
     return out
 
 
@@ -84,7 +90,7 @@ def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None)
     """How an import job's ``params["path"]`` is shown to annotators and reviewers (no server path:
     ``app.services.transfer.data_root.dataset_name``; an upload as ``upload <job id>/...``)."""
     if params.get("upload") and job_id is not None:  # wherever its folder lies (the jobs folder may have moved since)
-        return f"upload {job_id}"
+        return f"{params['name']} (upload {job_id})" if params.get("name") else f"upload {job_id}"
     return data_root.dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
                         job_id if params.get("upload") else None)
 

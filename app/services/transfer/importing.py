@@ -440,12 +440,16 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
     total) instead of the inner stages of each batch. Each batch writes its audit entry (by ``actor``,
     None: the local user) in its own transaction, with one entry per stored system it merged by ``merge``
-    (``app.services.transfer.merging``)."""
+    (``app.services.transfer.merging``). Before all that, ``progress("read", games read, games)`` while the input is
+    read and validated."""
     t0 = time.perf_counter()
     report = ImportReport(source=str(path), source_name=source_name or Path(path).name)
     frames_per_game: list[int] = []
     readers = []
-    for read in games():  # validation: raises before anything is written
+    listed = list(games())
+    for n_read, read in enumerate(listed):  # validation: raises before anything is written
+        if progress:  # "reading": the first stage a job shows, from its first second
+            progress("read", n_read, len(listed))
         try:
             rec = read()
         except EntryError as exc:  # one entry of this game's labels refused: the game is left out, named

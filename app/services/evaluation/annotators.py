@@ -1,0 +1,162 @@
+"""Per-annotator figures: how much each person labelled, what came back to them, and the geometry's word on their
+labels (``GET /api/stats/annotators``, ``v3d stats annotators``, the statistics page's table).
+
+Everything is read from what is stored, in a few indexed aggregate reads (no system is judged per request):
+
+* ``edits``: the person's label edits in the window (audit entries of ``app.services.curation.handoff.LABEL_ACTIONS``:
+  ball, field lines, mirror, exclusion; an undo is recorded under the edit's action and counts as one);
+  ``systems_touched``: the systems those edits were on.
+* ``systems_decided``: of those systems, the ones accepted or rejected now; ``accepted_first_review``: the ones
+  accepted now that were never returned (marked needs fix) to anyone.
+* ``needs_fix_received``: the hand-offs of needs-fix systems to the person in the window (``review_handoffs``).
+* ``median_edit_to_review_s``: per system touched, from the person's last edit in the window to the next system
+  decision (``system.review``) after it, the median in seconds (None without one).
+* ``median_label_distance_px``: over the ball labels whose newest edit is theirs (edited in the window), the median
+  distance from the ball the system's other views agree on, px of a 1920-wide image, as the recomputation stored it
+  (``ball_reprojections.others_distance_px``; None without one); ``accused_share``: the share of those labels a
+  label-accusing doubt names (None without a label).
+
+The window is ``since <= at < until`` on the entries' times (UTC; either open). People are the actors of label edits
+and the receivers of hand-offs; work run on the machine (``cli:...``) is no one's.
+"""
+from __future__ import annotations
+
+import bisect
+import statistics
+from collections import defaultdict
+from dataclasses import asdict, dataclass
+from datetime import datetime
+from typing import Any, Optional
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.db.models import AuditEntry, BallReprojection, Doubt, ReviewHandoff, ReviewStatus, System, User
+from app.services.audit.log import MACHINE_ACTOR
+from app.services.curation.handoff import LABEL_ACTIONS
+
+#: The figures of one person, in the order of the CSV's columns (one home: the API's model and the CSV read it).
+FIELDS = ("name", "edits", "systems_touched", "systems_decided", "needs_fix_received", "accepted_first_review",
+          "median_edit_to_review_s", "median_label_distance_px", "accused_share")
+
+
+@dataclass
+class AnnotatorFigures:
+    """One person's figures (module docstring)."""
+
+    name: str
+    edits: int = 0
+    systems_touched: int = 0
+    systems_decided: int = 0
+    needs_fix_received: int = 0
+    accepted_first_review: int = 0
+    median_edit_to_review_s: Optional[float] = None
+    median_label_distance_px: Optional[float] = None
+    accused_share: Optional[float] = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """The figures keyed by :data:`FIELDS`."""
+        return asdict(self)
+
+
+def _window(column: Any, since: Optional[datetime], until: Optional[datetime]) -> list[Any]:
+    out = []
+    if since is not None:
+        out.append(column >= since)
+    if until is not None:
+        out.append(column < until)
+    return out
+
+
+def _epoch(at: Any, dialect: str) -> Any:
+    """SQL: the timestamp ``at`` as seconds (a float; only differences are read): SQLite's stored UTC text through
+    ``julianday`` (days), PostgreSQL's ``timestamptz`` through ``extract(epoch ...)``."""
+    if dialect == "sqlite":
+        return sa.func.julianday(at) * 86400.0
+    return sa.extract("epoch", at)
+
+
+def _person(actor: str) -> bool:
+    return not (actor == MACHINE_ACTOR or actor.startswith(f"{MACHINE_ACTOR}:"))
+
+
+def annotator_figures(session: Session, since: Optional[datetime] = None,
+                      until: Optional[datetime] = None) -> list[AnnotatorFigures]:
+    """Every person's figures over ``since <= at < until`` (UTC; None: open), by name (module docstring)."""
+    people: dict[str, AnnotatorFigures] = {}
+    conn = session.connection()  # Core rows: tens of thousands of plain tuples, no ORM row processing
+
+    def of(name: str) -> AnnotatorFigures:
+        return people.setdefault(name, AnnotatorFigures(name=name))
+
+    # per person and system touched: the label edits, the last one's time, the system's status now and whether it
+    # was ever returned; the system decisions' times. Times cross as epoch seconds (SQL): no timestamp is converted.
+    dialect = session.get_bind().dialect.name
+    returned = sa.exists().where(ReviewHandoff.system_id == AuditEntry.system_id)
+    rows = conn.execute(
+        sa.select(AuditEntry.actor, AuditEntry.system_id, sa.func.count(), _epoch(sa.func.max(AuditEntry.at), dialect),
+                  sa.type_coerce(System.review_status, sa.String), returned)
+        .join(System, System.id == AuditEntry.system_id)
+        .where(AuditEntry.action.in_(LABEL_ACTIONS), *_window(AuditEntry.at, since, until))
+        .group_by(AuditEntry.actor, AuditEntry.system_id, System.review_status)).all()
+    decisions: dict[int, list[float]] = defaultdict(list)
+    for system_id, at in conn.execute(
+            sa.select(AuditEntry.system_id, _epoch(AuditEntry.at, dialect))
+            .where(AuditEntry.action == "system.review", AuditEntry.system_id.is_not(None),
+                   *_window(AuditEntry.at, since, None))
+            .order_by(AuditEntry.system_id, AuditEntry.at)):
+        decisions[system_id].append(float(at))
+    waits: dict[str, list[float]] = defaultdict(list)
+    for actor, system_id, n, last, status, was_returned in rows:
+        if not _person(actor):
+            continue
+        f = of(actor)
+        f.edits += int(n)
+        f.systems_touched += 1
+        if status in (ReviewStatus.ACCEPTED.value, ReviewStatus.REJECTED.value):
+            f.systems_decided += 1
+            if status == ReviewStatus.ACCEPTED.value and not was_returned:
+                f.accepted_first_review += 1
+        times = decisions.get(system_id)
+        if times:
+            i = bisect.bisect_right(times, float(last))
+            if i < len(times):
+                waits[actor].append(times[i] - float(last))
+    for actor, found in waits.items():
+        of(actor).median_edit_to_review_s = float(statistics.median(found))
+    for name, n in conn.execute(
+            sa.select(User.name, sa.func.count()).select_from(ReviewHandoff)
+            .join(User, User.id == ReviewHandoff.returned_to_id)
+            .where(*_window(ReviewHandoff.returned_at, since, until)).group_by(User.name)):
+        of(name).needs_fix_received = int(n)
+
+    _label_figures(session, since, until, of)
+    return [people[n] for n in sorted(people)]
+
+
+def _label_figures(session: Session, since: Optional[datetime], until: Optional[datetime], of: Any) -> None:
+    """The geometry's figures (``median_label_distance_px``, ``accused_share``) over each frame's newest ball edit."""
+    newest = (sa.select(sa.func.max(AuditEntry.id).label("id"))
+              .where(AuditEntry.action == "ball.edit", AuditEntry.frame_id.is_not(None),
+                     *_window(AuditEntry.at, since, until))
+              .group_by(AuditEntry.frame_id).subquery())
+    accused = (sa.select(Doubt.frame_id).where(Doubt.accuses_label.is_(True), Doubt.frame_id.is_not(None))
+               .distinct().subquery())
+    rows = session.connection().execute(
+        sa.select(AuditEntry.actor, BallReprojection.others_distance_px, accused.c.frame_id.is_not(None))
+        .join(newest, newest.c.id == AuditEntry.id)
+        .outerjoin(BallReprojection, BallReprojection.frame_id == AuditEntry.frame_id)
+        .outerjoin(accused, accused.c.frame_id == AuditEntry.frame_id))
+    distances: dict[str, list[float]] = defaultdict(list)
+    labels: dict[str, list[bool]] = defaultdict(list)
+    for actor, distance, is_accused in rows:
+        if not _person(actor):
+            continue
+        labels[actor].append(bool(is_accused))
+        if distance is not None:
+            distances[actor].append(float(distance))
+    for actor, flags in labels.items():
+        f = of(actor)
+        f.accused_share = sum(flags) / len(flags)
+        found = distances.get(actor)
+        f.median_label_distance_px = float(statistics.median(found)) if found else None

@@ -1,0 +1,217 @@
+// Comments pinned on a view, and the system's hand-off (needs fix returned to a person, sent back as fixed).
+// GET /api/systems/{id}/comments lists them; each is drawn at its point on its view (viewdrawing.js reads
+// pinsOf(frameId): numbered marks, grey once resolved) and listed with its thread in the Comments card
+// (data-testid="review-comment"), where it is resolved or reopened. "Pin a comment" (reviewers, and the person the
+// system is returned to) takes the next click on a view as the point; Shift+C jumps to the next unresolved
+// comment. GET /api/systems/{id}/handoff says to whom the system is returned; the person it is returned to gets the
+// "Send back as fixed" button (POST .../review {"status": "fixed"}). Text from the server is set as text only.
+
+import { getMe, send } from "./api.js";
+import { el, showError, toast } from "./format.js";
+
+const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
+
+/** frame id -> its comments (the shown system's), as the views draw them. */
+const PINS = new Map();
+
+/** The comments pinned on view `frameId` of the shown system (with their number on the page). */
+export function pinsOf(frameId) {
+  return PINS.get(frameId) || [];
+}
+
+/** "12 Nov 17:03" in the reader's time. */
+function when(iso) {
+  const d = new Date(iso);
+  return d.toLocaleString(undefined, { day: "numeric", month: "short", hour: "2-digit", minute: "2-digit" });
+}
+
+export class CommentsCard {
+  comments = [];
+  handoff = null;
+  me = null;
+  pinning = false;
+  draft = null;
+  current = -1;
+
+  /** @param page the system page (system.js): its views, its selection, its review */
+  constructor(page) {
+    this.page = page;
+    $("comment-pin-start").addEventListener("click", () => this.startPin());
+    $("comment-cancel").addEventListener("click", () => this.cancel());
+    $("comment-save").addEventListener("click", () => this.save());
+    $("comment-text").addEventListener("keydown", (e) => {
+      if (e.key === "Escape") this.cancel();
+      else if (e.key === "Enter" && !e.shiftKey) {
+        e.preventDefault();
+        this.save();
+      }
+    });
+    $("send-fixed").addEventListener("click", () => this.page.review("fixed"));
+    // the point of a new comment: the next press on a view while pinning (before the ball editor sees it)
+    document.addEventListener("pointerdown", (e) => this.pickPoint(e), true);
+  }
+
+  /** Read the comments and the hand-off of `sys` and draw them. */
+  async load(sys) {
+    const id = sys.id;
+    try {
+      const [me, list, handoff] = await Promise.all([
+        getMe(), send("GET", `/api/systems/${id}/comments`), send("GET", `/api/systems/${id}/handoff`)]);
+      if (this.page.system?.id !== id) return; // moved on meanwhile
+      this.me = me;
+      this.comments = list.items;
+      this.handoff = handoff;
+    } catch (err) {
+      showError(`comments: ${err.message}`);
+      return;
+    }
+    this.draw();
+  }
+
+  /** May the caller pin a comment (reviewers and admins, or the person the system is returned to)? */
+  mayPin() {
+    return Boolean(this.me && (this.me.role !== "annotator" || this.handoff?.may_send_fixed));
+  }
+
+  mayResolve(c) {
+    return Boolean(this.me && (c.author === this.me.name || this.me.role !== "annotator" || this.handoff?.may_send_fixed));
+  }
+
+  viewIndex(frameId) {
+    return (this.page.system?.views || []).findIndex((v) => v.frame_id === frameId);
+  }
+
+  draw() {
+    PINS.clear();
+    this.comments.forEach((c, i) => {
+      c.number = i + 1;
+      if (!PINS.has(c.frame_id)) PINS.set(c.frame_id, []);
+      PINS.get(c.frame_id).push(c);
+    });
+    for (const panel of $("views").children) panel.redraw?.();
+    const open = this.comments.filter((c) => !c.resolved).length;
+    $("comments-count").textContent = this.comments.length ? `${open} open of ${this.comments.length}` : "none";
+    $("comments").replaceChildren(...this.comments.map((c, i) => this.item(c, i)));
+    $("comment-pin-start").hidden = !this.mayPin();
+    const h = this.handoff;
+    $("handoff").textContent = h ? (h.open || h.fixed ? h.words : `${h.words} (closed: decided again)`) : "";
+    $("handoff").hidden = !h;
+    $("send-fixed").hidden = !h?.may_send_fixed;
+  }
+
+  item(c, i) {
+    const index = this.viewIndex(c.frame_id);
+    const where = `V${index + 1}${c.point ? ` (${Math.round(c.point[0])}, ${Math.round(c.point[1])})` : " (whole view)"}`;
+    const li = el("li", { class: `review-comment${c.resolved ? " resolved" : ""}${i === this.current ? " current" : ""}`,
+      "data-testid": "review-comment", "data-id": String(c.id), "data-frame-id": String(c.frame_id), "data-resolved": String(c.resolved) },
+    el("span", { class: "pin-no" }, String(c.number)),
+    el("span", { class: "where mono" }, where),
+    el("span", { class: "text", "data-testid": "review-comment-text" }, c.text),
+    el("span", { class: "muted by" }, `${c.author} · ${when(c.created_at)}${c.resolved ? ` · resolved by ${c.resolved_by}` : ""}`));
+    if (this.mayResolve(c)) {
+      const button = el("button", { type: "button", "data-testid": c.resolved ? "comment-reopen" : "comment-resolve" }, c.resolved ? "Reopen" : "Resolve");
+      button.addEventListener("click", (e) => {
+        e.stopPropagation();
+        this.setResolved(c, !c.resolved);
+      });
+      li.append(button);
+    }
+    li.addEventListener("click", () => this.show(i));
+    return li;
+  }
+
+  /** Select comment `i`'s view and bring it and the comment into sight. */
+  show(i) {
+    const c = this.comments[i];
+    if (!c) return;
+    this.current = i;
+    const index = this.viewIndex(c.frame_id);
+    if (index >= 0) {
+      this.page.select(index);
+      $("views").children[index]?.scrollIntoView({ block: "nearest" });
+    }
+    for (const li of $("comments").children) li.classList.toggle("current", li.dataset.id === String(c.id));
+  }
+
+  /** Shift+C: the next unresolved comment after the current one (wrapping around); a reason when there is none. */
+  next() {
+    const n = this.comments.length;
+    for (let k = 1; k <= n; k++) {
+      const i = (this.current + k + n) % n;
+      if (!this.comments[i].resolved) {
+        this.show(i);
+        toast(`comment ${this.comments[i].number}: ${this.comments[i].text}`);
+        return true;
+      }
+    }
+    return n ? "every comment is resolved" : "no comment on this system";
+  }
+
+  async setResolved(c, resolved) {
+    try {
+      await send("POST", `/api/comments/${c.id}/${resolved ? "resolve" : "reopen"}`);
+      await this.load(this.page.system);
+    } catch (err) {
+      showError(`comment ${c.number}: ${err.message}`);
+    }
+  }
+
+  startPin() {
+    if (!this.mayPin()) return;
+    this.pinning = true;
+    document.body.classList.add("pinning");
+    toast("Click the point the comment is about on a view (Esc cancels)");
+  }
+
+  pickPoint(e) {
+    if (!this.pinning) return;
+    const frameSvg = e.target.closest?.("[data-testid=view-svg]");
+    if (!frameSvg) return;
+    const panel = frameSvg.closest("v3d-view");
+    const ctm = frameSvg.getScreenCTM();
+    if (!panel?.view || !ctm) return;
+    e.preventDefault();
+    e.stopPropagation();
+    const p = new DOMPoint(e.clientX, e.clientY).matrixTransform(ctm.inverse());
+    const v = panel.view;
+    this.draft = { frame_id: v.frame_id, point: [Math.min(Math.max(p.x, 0), v.width), Math.min(Math.max(p.y, 0), v.height)] };
+    this.pinning = false;
+    document.body.classList.remove("pinning");
+    const index = this.viewIndex(v.frame_id);
+    $("comment-where").textContent = `on V${index + 1} at (${Math.round(this.draft.point[0])}, ${Math.round(this.draft.point[1])})`;
+    $("comment-form").hidden = false;
+    $("comment-text").focus();
+  }
+
+  cancel() {
+    this.pinning = false;
+    this.draft = null;
+    document.body.classList.remove("pinning");
+    $("comment-form").hidden = true;
+    $("comment-text").value = "";
+  }
+
+  async save() {
+    const text = $("comment-text").value.trim();
+    if (!this.draft || !text || !this.page.system) return;
+    try {
+      await send("POST", `/api/systems/${this.page.system.id}/comments`, {
+        headers: { "Content-Type": "application/json" },
+        body: JSON.stringify({ ...this.draft, text }),
+      });
+      this.cancel();
+      await this.load(this.page.system);
+      toast("comment pinned");
+    } catch (err) {
+      showError(`comment: ${err.message}`);
+    }
+  }
+
+  /** The page's key table entries. */
+  keyEntries() {
+    return [
+      { keys: ["C"], show: ["⇧C"], does: "next unresolved comment (its view selected)", run: () => this.next() },
+      { keys: ["Escape"], show: ["Esc"], does: "cancel pinning a comment", run: () => (this.pinning ? (this.cancel(), true) : false) },
+    ];
+  }
+}

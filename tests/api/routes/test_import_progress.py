@@ -1,0 +1,54 @@
+"""An uploaded import is titled by its file's name (not the server's upload folder) and shows its stage and count
+from its first second: the runner keeps them in the live progress file the API reads while the job's own transaction
+holds its row back (SQLite), reading -> calibrating -> triangulating, each with done / total."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app.core.config import jobs_dir
+from app.services.jobs import runner as jobs
+from app.services.jobs.progress import live_file, read_live
+
+from .test_jobs import _dev_game_zip, _upload
+
+
+@pytest.fixture
+def jobs_app(app, tmp_path: Path):
+    """The app with its uploads and live progress under this test's folder."""
+    app.state.settings = app.state.settings.model_copy(update={"jobs_dir": tmp_path / "jobs"})
+    return app
+
+
+def test_an_upload_is_titled_by_its_file_and_its_progress_is_live(jobs_app, client: TestClient,
+                                                                  shared_dir: Path) -> None:
+    data, _ = _dev_game_zip(shared_dir)
+    answer = _upload(client, data, name="C:\\Users\\ana\\Season 2015.zip")
+    assert answer.status_code == 202, answer.text
+    job = answer.json()
+    assert job["params"]["name"] == "Season 2015.zip"  # its last path component, as the browser named it
+    settings = jobs_app.state.settings
+    seen: list[tuple[str, int, int]] = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        # what GET /api/jobs/{id} answers for the running job at this moment: this stage, its count as last written
+        # (at most every 0.25 s: never ahead, the last of a stage always)
+        live = read_live(jobs_dir(settings), job["id"])
+        assert live is not None and live[0] == stage and live[2] == total and live[1] <= done
+        assert done < total or live[1] == done
+        seen.append((stage, done, total))
+
+    owner = jobs.owner_name()
+    assert jobs.claim_next(jobs_app.state.session_factory, owner, settings) == job["id"]
+    ran = jobs.run_job(jobs_app.state.session_factory, job["id"], settings, owner, progress=progress)
+    assert ran.state.value == "done", ran.message
+    assert seen[0] == ("read", 0, 1)  # the first thing the job says: reading its one game
+    stages = [s for s, _, _ in seen]
+    assert stages.index("read") < stages.index("calibrate") < stages.index("triangulate")
+    assert all(total > 0 and 0 <= done <= total for _, done, total in seen)
+    assert not live_file(jobs_dir(settings), job["id"]).exists()  # gone with the job; the row keeps the last
+    done = client.get(job["url"]).json()
+    assert done["state"] == "done" and done["params"]["name"] == "Season 2015.zip"
+    assert done["result"]["games"] == 1

@@ -1,0 +1,175 @@
+"""The team's loop in Chromium, a reviewer (rev) and two annotators (ana, ben) on the demo dataset: ana moves a ball
+label; rev pins a comment on that view from the system page (a click on the frame) and marks it needs fix (`f`); ana's
+queue shows **To fix 1**, her system page the comment at its point and in its thread; `Shift+C` selects its view; she
+resolves it and sends the system back as fixed; rev's queue shows **To re-review 1** and the statistics page her row.
+Screenshots of the queue, the system page with its pinned comment and the annotator table at 1366x768 and 1920x1080
+go to ``test-artifacts/team-loop/``."""
+from __future__ import annotations
+
+import pytest
+
+from tests.accounts import PASSWORD, Account
+from tests.browser.support import log_in, tid
+
+pytestmark = pytest.mark.browser
+
+SIZES = {"1366x768": {"width": 1366, "height": 768}, "1920x1080": {"width": 1920, "height": 1080}}
+
+
+@pytest.fixture(scope="module")
+def team(seeded_settings) -> dict:
+    """rev (reviewer), ana and ben (annotators); ana's 3 px move of the second view's ball in the first system with
+    two labelled views (through the service, as her edit from the page would be)."""
+    import sqlalchemy as sa
+
+    from app.db.models import System
+    from app.db.session import make_engine, make_session_factory
+    from app.services.accounts.users import create_user
+    from app.services.curation.editing import update_ball_label
+
+    engine = make_engine(seeded_settings.database_url)
+    out: dict = {}
+    try:
+        with make_session_factory(engine)() as session:
+            for name, role in (("rev", "reviewer"), ("ana", "annotator"), ("ben", "annotator")):
+                _, token = create_user(session, name, role, PASSWORD)
+                out[name] = Account(name, role, PASSWORD, token)
+            system = next(s for s in session.scalars(sa.select(System).order_by(System.id))
+                          if sum(1 for f in s.frames if f.ball_label is not None and f.ball_label.box) >= 2)
+            frame = [f for f in system.frames if f.ball_label is not None and f.ball_label.box][1]
+            box = list(frame.ball_label.box)
+            out["system_id"], out["frame_id"] = system.id, frame.id
+            update_ball_label(session, frame.id, box=[box[0] + 3, box[1], box[2] + 3, box[3]],
+                              settings=seeded_settings, actor="ana")
+    finally:
+        engine.dispose()
+    return out
+
+
+def _page_of(browser, server_url, account: Account, size: str = "1366x768"):
+    context = browser.new_context(viewport=SIZES[size], base_url=server_url)
+    p = context.new_page()
+    p.errors = []
+    p.on("pageerror", lambda exc: p.errors.append(str(exc)))
+    p.goto("/")
+    log_in(p, account)
+    p.wait_for_url(f"{server_url}/")
+    return context, p
+
+
+def _shoot(p, shots, what: str) -> None:
+    for size, viewport in SIZES.items():
+        p.set_viewport_size(viewport)
+        p.wait_for_timeout(300)
+        p.screenshot(path=str(shots / f"{what}-{size}.png"))
+    p.set_viewport_size(SIZES["1366x768"])
+
+
+def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, server_url, team, artifacts):
+    shots = artifacts / "team-loop"
+    shots.mkdir(exist_ok=True)
+    sid = team["system_id"]
+    # ----- rev pins a comment on ana's view (a click on its frame) and marks the system needs fix
+    rev_context, rev = _page_of(browser, server_url, team["rev"])
+    try:
+        rev.goto(f"/systems/{sid}")
+        view = rev.locator(f'{tid("view")}[data-frame-id="{team["frame_id"]}"]')
+        view.wait_for()
+        rev.click(tid("comment-pin-start"))
+        frame = view.locator(tid("view-svg"))
+        box = frame.bounding_box()
+        rev.mouse.click(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
+        rev.locator(tid("comment-form")).wait_for()
+        rev.fill(tid("comment-text"), "the box sits on the shadow")
+        rev.press(tid("comment-text"), "Enter")
+        rev.locator(tid("review-comment")).first.wait_for()
+        assert rev.locator(tid("review-comment-pin")).count() == 1
+        rev.fill(tid("comment"), "the box sits on the shadow")
+        rev.locator("body").click(position={"x": 5, "y": 5})
+        rev.keyboard.press("f")
+        rev.wait_for_function(f"() => !location.pathname.endsWith('/systems/{sid}')"
+                              " || document.querySelector('[data-testid=system-status]').textContent !== 'pending'")
+        assert rev.errors == []
+    finally:
+        rev_context.close()
+
+    # ----- ana: To fix 1 on her queue; the comment on the system page, at its point and in its thread
+    ana_context, ana = _page_of(browser, server_url, team["ana"])
+    try:
+        count = ana.locator(tid("to-fix-count"))
+        count.wait_for()
+        assert count.inner_text().split() == ["To", "fix", "1"]
+        assert ana.locator(tid("to-re-review-count")).count() == 0  # annotators re-review nothing
+        ana.locator(tid("queue-row")).first.wait_for()
+        _shoot(ana, shots, "queue-to-fix")
+        ana.goto(f"/systems/{sid}")
+        comment = ana.locator(tid("review-comment"))
+        comment.wait_for()
+        assert "the box sits on the shadow" in comment.inner_text()
+        assert ana.locator(tid("review-comment-pin")).count() == 1
+        assert ana.locator(tid("handoff")).inner_text() == "returned to ana by rev: the box sits on the shadow"
+        ana.locator("body").click(position={"x": 5, "y": 5})
+        ana.keyboard.press("Shift+C")
+        selected = ana.locator(f'{tid("view")}.selected')
+        selected.wait_for()
+        assert selected.get_attribute("data-frame-id") == str(team["frame_id"])
+        _shoot(ana, shots, "system-comment")
+        ana.click(tid("comment-resolve"))
+        ana.locator(f'{tid("review-comment")}[data-resolved="true"]').wait_for()
+        ana.click(tid("send-fixed"))
+        ana.wait_for_function("() => !document.querySelector('[data-testid=send-fixed]') ||"
+                              " document.querySelector('[data-testid=send-fixed]').hidden ||"
+                              " document.querySelector('[data-testid=system-status]').textContent.startsWith('fixed')")
+        assert ana.errors == []
+    finally:
+        ana_context.close()
+
+    # ----- ben's queue: nothing to fix (shown, 0)
+    ben_context, ben = _page_of(browser, server_url, team["ben"])
+    try:
+        ben.locator(tid("to-fix-count")).wait_for()
+        assert ben.locator(tid("to-fix-count")).inner_text().split() == ["To", "fix", "0"]
+    finally:
+        ben_context.close()
+
+    # ----- rev: To re-review 1; the statistics page's annotator table has ana's row
+    rev_context, rev = _page_of(browser, server_url, team["rev"])
+    try:
+        rev.locator(tid("to-re-review-count")).wait_for()
+        assert rev.locator(tid("to-re-review-count")).inner_text().split() == ["To", "re-review", "1"]
+        rev.goto("/static/stats.html")
+        row = rev.locator(f'{tid("annotator-row")}[data-name="ana"]')
+        row.wait_for()
+        cells = row.locator("td").all_inner_texts()
+        assert cells[:2] == ["ana", "1"] and cells[4] == "1"  # one edit, one needs fix received
+        _shoot(rev, shots, "stats-annotators")
+        assert rev.errors == []
+    finally:
+        rev_context.close()
+
+
+def test_an_admin_imports_a_zip_from_the_queue_page_and_its_job_is_titled_by_the_file(page, artifacts):
+    """The Import panel uploads the chosen zip (here one holding no dataset: the job fails naming why) and the Jobs
+    panel follows its job under the file's name, not the server's upload folder."""
+    import io
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        zf.writestr("notes/readme.txt", "no Labels-v3.json here")
+    page.goto("/")
+    panel = page.locator(tid("import"))
+    panel.wait_for()
+    sent: list[str] = []
+    page.on("request", lambda r: sent.append(r.method) if r.url.endswith("/api/imports") else None)
+    page.set_input_files(tid("import-file"), files=[{"name": "my games.zip", "mimeType": "application/zip",
+                                                     "buffer": buf.getvalue()}])
+    page.click(tid("import-start"))
+    page.locator(tid("import-upload-text")).filter(has_text="my games.zip uploaded: import job #").wait_for()
+    assert sent == ["POST"]
+    job = page.locator(tid("job")).filter(has_text="my games.zip")
+    job.wait_for(timeout=60_000)
+    assert job.locator(tid("job-title")).inner_text() == "import soccernet-v3 my games.zip"
+    shots = artifacts / "team-loop"
+    shots.mkdir(exist_ok=True)
+    _shoot(page, shots, "queue-admin-import")
