@@ -40,6 +40,7 @@ const KINDS = [
   ["soccernet-v3d", "SoccerNet-v3D (Labels-v3D.json)"],
   ["sn-calibration", "SoccerNet-calibration"],
   ["issia", "ISSIA"],
+  ["predictions", "A ball detector's predictions (CSV, YOLO txt or COCO results, zipped)"],
 ];
 
 /** Upload `file` as an import of `kind` with XMLHttpRequest (fetch reports no upload progress): `onProgress(sent,
