@@ -2,7 +2,8 @@
 // may export (admins; the panel stays hidden for the others, whom the API refuses anyway). A click queues the
 // export as a background job (POST /api/exports/{format}); the panel follows that job (GET /api/jobs/{id}) with
 // its progress and, when it is done, a download link to the file the server keeps for a while
-// (/api/jobs/{id}/result). "Accepted systems only" or "all systems" applies to every button.
+// (/api/jobs/{id}/result). "Accepted systems only", "all systems" or a release (its accepted systems as they were
+// when it was made, byte for byte the same file whenever asked) applies to every button.
 
 import { getMe, send } from "./api.js";
 import { jobProgressText } from "./jobs.js";
@@ -37,6 +38,7 @@ class ExportsPanel {
     this.root = root;
     this.scope = el("select", { "data-testid": "export-scope", title: "Which systems every export holds" },
       el("option", { value: "accepted" }, "accepted systems only"), el("option", { value: "all" }, "all systems"));
+    this.addReleases();
     this.list = el("ul");
     for (const x of EXPORTS) {
       const button = el("button", { type: "button", "data-testid": `export-${x.id}`, title: x.title }, x.label);
@@ -49,13 +51,35 @@ class ExportsPanel {
       el("label", { class: "muted" }, "Systems ", this.scope), this.list);
   }
 
+  /** Offer each release (newest first) in the scope select; a page without releases keeps the two scopes. */
+  async addReleases() {
+    let releases = [];
+    try {
+      releases = (await send("GET", "/api/releases")).items || [];
+    } catch {
+      return; // the exports of the database now stay offered
+    }
+    const group = el("optgroup", { label: "a release (the same bytes whenever asked)" });
+    for (const r of [...releases].reverse()) {
+      group.append(el("option", { value: `release:${r.name}`, title: `hash ${r.hash}` },
+        `release ${r.name} (${r.systems} systems)`));
+    }
+    if (releases.length) this.scope.append(group);
+  }
+
+  /** The body of an export job for the chosen scope: a release by name, or all / accepted systems now. */
+  scopeBody() {
+    const v = this.scope.value;
+    return v.startsWith("release:") ? { release: v.slice("release:".length) } : { all: v === "all" };
+  }
+
   async start(x, button) {
     const cell = this.root.querySelector(`[data-testid="export-status-${x.id}"]`);
     button.disabled = true;
     try {
       const job = await send("POST", `/api/exports/${x.format}`, {
         headers: { "Content-Type": "application/json" },
-        body: JSON.stringify({ ...x.body, all: this.scope.value === "all" }),
+        body: JSON.stringify({ ...x.body, ...this.scopeBody() }),
       });
       await this.follow(job, cell);
     } catch (err) {

@@ -39,3 +39,29 @@ def test_the_releases_page_lists_releases_and_shows_their_diff(page, artifacts):
     assert "no 3D ball moved" in page.text_content("[data-testid=diff-histogram]")
     assert page.get_attribute("[data-testid=diff-csv]", "href").endswith("/diff/ui-2?format=csv")
     page.screenshot(path=str(artifacts / "releases.png"), full_page=True)
+
+
+def test_the_exports_panel_exports_a_release_naming_it(page, tmp_path):
+    """The queue page's Exports panel offers each release as a scope; the SoccerNet-v3D zip it downloads names the
+    release and its hash in every game's ``Labels-v3D.json``."""
+    import io
+    import json
+    import zipfile
+
+    systems = api_json(page, "/api/systems?limit=5&sort=name&status=pending")["items"]
+    _accept(page, systems[0]["id"])
+    made = api_write(page, "POST", "/api/releases", data={"name": "panel-1"})
+    assert made.status == 201, made.text()
+    page.goto("/")
+    page.wait_for_selector("[data-testid=exports] [data-testid=export-scope] option[value='release:panel-1']",
+                           state="attached")
+    page.select_option("[data-testid=export-scope]", "release:panel-1")
+    page.click("[data-testid=export-soccernet-v3d-no-images]")
+    link = page.locator("[data-testid=export-status-soccernet-v3d-no-images] [data-testid=export-download]")
+    link.wait_for(timeout=120_000)
+    with page.expect_download() as info:
+        link.click()
+    with zipfile.ZipFile(io.BytesIO(open(info.value.path(), "rb").read())) as zf:
+        labels = [json.loads(zf.read(n)) for n in zf.namelist() if n.endswith("Labels-v3D.json")]
+    assert len(labels) == 1  # the one game of the one released system
+    assert labels[0]["GameMetadata"]["v3d_release"] == {"name": "panel-1", "hash": made.json()["hash"]}
