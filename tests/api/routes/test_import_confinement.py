@@ -167,7 +167,7 @@ def test_annotators_and_reviewers_see_dataset_names_admins_the_server_paths(root
         assert jobs[ids[0]]["params"]["path"] == "sets/calib" and jobs[ids[0]]["result"]["source"] == "sets/calib"
         assert jobs[ids[1]]["state"] == "failed" and jobs[ids[1]]["message"].startswith("sets/broken/00000.json: ")
         upload_name = jobs[ids[2]]["params"]["path"]
-        assert upload_name == f"upload {ids[2]}"
+        assert upload_name == f"set.zip (upload {ids[2]})"  # the file's name as the browser sent it, never a path
         assert client.get(f"/api/jobs/{ids[2]}").json()["result"]["source"] == upload_name
         sources = [e["after"]["source"] for e in client.get("/api/audit").json()["items"] if e["action"] == "import"]
         assert sorted(sources) == sorted(["sets/calib", upload_name])
@@ -179,8 +179,8 @@ def test_a_failed_upload_names_its_files_from_the_upload_whatever_the_jobs_folde
     """Issue 27, item 7. Was: once the server ran with another ``V3D_JOBS_DIR`` than the one the upload was
     unpacked under (a restart, another worker), a failed upload's message (``GET /api/jobs``, the job's detail)
     named the upload's server folder (``.../real-jobs/uploads/20261123-...``, here under the server's temporary
-    folder) to annotators, as did its params. An upload is now ``upload <job id>`` whatever the jobs folder, in
-    every form the message may write it (relative, through a link)."""
+    folder) to annotators, as did its params. An upload is now ``<file name> (upload <job id>)`` whatever the jobs
+    folder, in every form the message may write it (relative, through a link)."""
     real = tmp_path / "real-jobs"
     real.mkdir()
     if jobs_folder == "relative":
@@ -204,8 +204,8 @@ def test_a_failed_upload_names_its_files_from_the_upload_whatever_the_jobs_folde
     run_queued(app)
     if jobs_folder == "moved":  # the server restarted with its jobs elsewhere
         app.state.settings = app.state.settings.model_copy(update={"jobs_dir": tmp_path / "new-jobs"})
-    expected = {ids[0]: f"upload {ids[0]}/league/season/game/Labels-v3.json: invalid or truncated JSON",
-                ids[1]: f"upload {ids[1]}/set/00000.json: invalid or truncated JSON"}
+    expected = {ids[0]: f"broken.zip (upload {ids[0]})/league/season/game/Labels-v3.json: invalid or truncated JSON",
+                ids[1]: f"broken.zip (upload {ids[1]})/set/00000.json: invalid or truncated JSON"}
     for role in ("annotator", "reviewer"):
         act_as("ana", role)
         listed = {j["id"]: j for j in client.get("/api/jobs").json()["items"]}
@@ -215,4 +215,4 @@ def test_a_failed_upload_names_its_files_from_the_upload_whatever_the_jobs_folde
                 assert job["state"] == "failed" and job["message"].startswith(start), job["message"]
                 text = json.dumps(job)
                 assert str(tmp_path) not in text and "/tmp" not in text and "real-jobs" not in text, text
-                assert job["params"]["path"] == f"upload {job_id}"
+                assert job["params"]["path"] == f"broken.zip (upload {job_id})"
