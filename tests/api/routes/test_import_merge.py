@@ -153,7 +153,8 @@ def test_keep_newer_keeps_later_edits_and_decisions_and_says_what_it_took_from_t
     assert (result["systems_merged"], result["decisions_from_file"], result["decisions_reset"]) == (2, 1, 1)
     a, b, c = (_system(client, three[k]) for k in "ABC")
     # A: untouched since the export, exactly the file's labels: the file's decision, said
-    assert a["review"]["status"] == "accepted" and a["review"]["comment"].startswith("as the import of export.zip (upload ")
+    assert a["review"]["status"] == "accepted"
+    assert a["review"]["comment"].startswith("as the import of export.zip (upload ")
     # B: the ball moved after the export stays, and the file's accept (of the older ball) is not taken
     assert b["views"][1]["ball"]["box"] == b_moved and b["review"]["status"] == "pending"
     # C: its label took the file's (nobody changed it since the export); the rejection of the label it had no
