@@ -281,22 +281,12 @@ def export_soccernet_v3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export soccernet-v3d`` into ``out_dir`` (its help: the registry's description of the format)."""
-    from app.core.errors import NotFoundError
     from app.services.images.serving import ImageUnavailable
     from app.services.transfer.exporting import export_soccernet_v3d
 
     settings = cli_settings(database_url, None)
     if release is not None:
-        if include_all:
-            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)",
-                       err=True)
-            raise typer.Exit(code=2)
-        try:
-            with database_session(settings) as session:
-                written = release_tree(session, settings, out_dir, release, not no_images)
-        except (InvalidInputError, ImageUnavailable, NotFoundError) as exc:
-            typer.echo(f"error: {exc}", err=True)
-            raise typer.Exit(code=2) from None
+        written = release_tree(settings, out_dir, release, include_all, not no_images)
         typer.echo(f"exported release {release} ({written['hash']}): {written['systems']} system(s), "
                    f"{written['views']} view(s) to {out_dir}")
         return
@@ -314,20 +304,32 @@ def export_soccernet_v3d_cmd(
                f"and {report.images} image(s) to {report.out_dir} ({report.csv_path.name})")
 
 
-def release_tree(session: Any, settings: Settings, out_dir: Path, release: str, images: bool,
-                  fmt: str = "soccernet-v3d") -> dict[str, Any]:
-    """The release's export ``fmt`` as a zip (as an export job writes it) unpacked under ``out_dir``; its counts."""
+def release_tree(settings: Settings, out_dir: Path, release: str, include_all: bool, images: bool,
+                 fmt: str = "soccernet-v3d") -> dict[str, Any]:
+    """``v3d export FORMAT OUT_DIR --release NAME``: the release's export ``fmt`` as a zip (as an export job writes
+    it) unpacked under ``out_dir``; its counts. ``--all`` beside ``--release``, an unknown release, or an image that
+    cannot be read end the command with the error and exit status 2."""
+    # imported here, as the other commands' services: ``v3d --help`` loads none of them
     import tempfile
     import zipfile
 
+    from app.core.errors import NotFoundError
+    from app.services.images.serving import ImageUnavailable
     from app.services.transfer.export_files import write_export_zip
 
-    with tempfile.TemporaryDirectory(prefix="v3d-release-") as tmp:
-        target = Path(tmp) / "release.zip"
-        report = write_export_zip(session, fmt, target, False, settings, images=images, release=release)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        with zipfile.ZipFile(target) as zf:
-            zf.extractall(out_dir)  # member names are checked folder names (exporting.safe_component)
+    if include_all:
+        typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)", err=True)
+        raise typer.Exit(code=2)
+    try:
+        with database_session(settings) as session, tempfile.TemporaryDirectory(prefix="v3d-release-") as tmp:
+            target = Path(tmp) / "release.zip"
+            report = write_export_zip(session, fmt, target, False, settings, images=images, release=release)
+            out_dir.mkdir(parents=True, exist_ok=True)
+            with zipfile.ZipFile(target) as zf:
+                zf.extractall(out_dir)  # member names are checked folder names (exporting.safe_component)
+    except (InvalidInputError, ImageUnavailable, NotFoundError) as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
     return report
 
 
@@ -340,21 +342,11 @@ def export_cameras_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export cameras`` into ``out_dir`` (its help: the registry's description of the format)."""
-    from app.core.errors import NotFoundError
     from app.services.transfer.cameras_export import export_cameras
 
     settings = cli_settings(database_url, None)
     if release is not None:
-        if include_all:
-            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)",
-                       err=True)
-            raise typer.Exit(code=2)
-        try:
-            with database_session(settings) as session:
-                written = release_tree(session, settings, out_dir, release, False, "cameras")
-        except (InvalidInputError, NotFoundError) as exc:
-            typer.echo(f"error: {exc}", err=True)
-            raise typer.Exit(code=2) from None
+        written = release_tree(settings, out_dir, release, include_all, False, "cameras")
         typer.echo(f"exported release {release} ({written['hash']}): {written['cameras']} camera(s) to {out_dir}")
         return
     try:

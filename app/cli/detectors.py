@@ -25,21 +25,11 @@ ReleaseOpt = Annotated[Optional[str], typer.Option("--release", help="Export thi
 
 
 def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None, release: str | None = None) -> None:
-    from app.core.errors import NotFoundError
     from app.services.transfer.detector_export import export_detector
 
     settings = cli_settings(database_url, None)
     if release is not None:
-        if include_all:
-            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)",
-                       err=True)
-            raise typer.Exit(code=2)
-        try:
-            with database_session(settings) as session:
-                written = release_tree(session, settings, out_dir, release, False, fmt)
-        except (InvalidInputError, NotFoundError) as exc:
-            typer.echo(f"error: {exc}", err=True)
-            raise typer.Exit(code=2) from None
+        written = release_tree(settings, out_dir, release, include_all, False, fmt)
         typer.echo(f"exported {fmt} of release {release} ({written['hash']}) to {out_dir}: "
                    + ", ".join(f"{s}: {n} image(s)" for s, n in written["images"].items()))
         return
