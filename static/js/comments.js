@@ -97,6 +97,8 @@ export class CommentsCard {
     $("handoff").textContent = h ? (h.open || h.fixed ? h.words : `${h.words} (closed: decided again)`) : "";
     $("handoff").hidden = !h;
     $("send-fixed").hidden = !h?.may_send_fixed;
+    // an annotator decides nothing but "fixed" (the API answers 403): the reviewer's buttons are not offered
+    for (const id of ["accept", "reject", "needs-fix"]) $(id).hidden = this.me?.role === "annotator";
   }
 
   item(c, i) {

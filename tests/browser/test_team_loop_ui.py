@@ -117,6 +117,8 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
         selected.wait_for()
         assert selected.get_attribute("data-frame-id") == str(team["frame_id"])
         _shoot(ana, shots, "system-comment")
+        assert ana.locator(tid("accept")).is_hidden() and ana.locator(tid("needs-fix")).is_hidden()  # a reviewer's
+        assert ana.locator(tid("send-fixed")).is_visible()  # ... hers: it was returned to her
         ana.click(tid("comment-resolve"))
         ana.locator(f'{tid("review-comment")}[data-resolved="true"]').wait_for()
         ana.click(tid("send-fixed"))
@@ -132,6 +134,10 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
     try:
         ben.locator(tid("to-fix-count")).wait_for()
         assert ben.locator(tid("to-fix-count")).inner_text().split() == ["To", "fix", "0"]
+        ben.goto(f"/systems/{sid}")
+        ben.locator(tid("review-comment")).first.wait_for()
+        # not returned to him: neither the hand-back nor a pin is offered (hidden, whatever a button's display)
+        assert ben.locator(tid("send-fixed")).is_hidden() and ben.locator(tid("comment-pin-start")).is_hidden()
     finally:
         ben_context.close()
 
@@ -140,6 +146,9 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
     try:
         rev.locator(tid("to-re-review-count")).wait_for()
         assert rev.locator(tid("to-re-review-count")).inner_text().split() == ["To", "re-review", "1"]
+        rev.goto(f"/systems/{sid}")
+        rev.locator(tid("review-comment")).first.wait_for()
+        assert rev.locator(tid("accept")).is_visible() and rev.locator(tid("send-fixed")).is_hidden()
         rev.goto("/static/stats.html")
         row = rev.locator(f'{tid("annotator-row")}[data-name="ana"]')
         row.wait_for()
