@@ -29,7 +29,7 @@ function histogramSvg(values) {
   const y = (c) => M.top + (H - M.top - M.bottom) * (1 - c / yMax);
   const x = (v) => M.left + ((W - M.left - M.right) * v) / edges[edges.length - 1];
   counts.forEach((c, i) => {
-    const bar = svg("rect", { class: "bar", x: x(edges[i]) + 1, width: Math.max(1, x(edges[i + 1]) - x(edges[i]) - 2),
+    const bar = svg("rect", { class: "hist-bar", x: x(edges[i]) + 1, width: Math.max(1, x(edges[i + 1]) - x(edges[i]) - 2),
       y: y(c), height: y(0) - y(c), "data-count": c });
     bar.append(svg("title", { text: `${edges[i].toFixed(3)}-${edges[i + 1].toFixed(3)} m: ${c}` }));
     root.append(bar);
