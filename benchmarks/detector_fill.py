@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from app.core.paths import SHARED_DIR
-from benchmarks.doubts_seeds import V3D, _env, _run
+from benchmarks.doubts_seeds import V3D, _run, served_with_admin
 
 DETECTOR = SHARED_DIR / "data" / "synthetic" / "detector"
 TOOLS = SHARED_DIR / "tools"
@@ -78,37 +78,14 @@ def copy(src: Path, tag: str) -> str:
 
 def fill_eval(url: str, truth: Path, port: int, out: Path) -> dict[str, Any]:
     """Serve ``url`` and run the shared detector_fill_eval.py against it."""
-    add = subprocess.run(V3D + ["users", "add", "bench", "--role", "admin", "--password-stdin"], cwd=ROOT,
-                         env=_env(url), input="bench-password-long-enough\n", capture_output=True, text=True)
-    if add.returncode:
-        raise RuntimeError(f"users add failed: {add.stderr}")
-    token = add.stdout.strip().splitlines()[-1]
-    log = open(str(out) + ".server.log", "w")  # noqa: SIM115  # closed with the server, below
-    # the evaluator holds one connection for the whole pass: kept open between its requests
-    server = subprocess.Popen(V3D + ["serve", "--port", str(port)], cwd=ROOT,
-                              env={**_env(url), "V3D_KEEP_ALIVE_S": "600"}, stdout=subprocess.DEVNULL, stderr=log)
-    try:
-        import httpx
-        for _ in range(600):
-            try:
-                if httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=2).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            time.sleep(0.5)
+    with open(str(out) + ".server.log", "w") as log, \
+            served_with_admin(url, port, {"V3D_KEEP_ALIVE_S": "600"}, log) as token:
+        # the evaluator holds one connection for the whole pass: kept open between its requests (V3D_KEEP_ALIVE_S)
         r = subprocess.run([sys.executable, str(TOOLS / "detector_fill_eval.py"), f"http://127.0.0.1:{port}", token,
                             str(truth), str(out)], cwd=ROOT, capture_output=True, text=True)
         if r.returncode:
             raise RuntimeError(f"detector_fill_eval.py failed: {r.stderr[-2000:]}")
         return {**json.loads(out.read_text()), "line": r.stdout.strip()}
-    finally:
-        server.terminate()
-        try:
-            server.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait(timeout=30)
-        log.close()
 
 
 def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:

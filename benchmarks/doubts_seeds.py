@@ -25,6 +25,7 @@ seed-201 ...] [--no-yield] [--json OUT]``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import re
@@ -34,7 +35,7 @@ import sys
 import time
 from pathlib import Path
 from statistics import median
-from typing import Any, Sequence
+from typing import Any, Iterator, Sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -173,18 +174,21 @@ def judge_times(url: str) -> dict[str, float]:
             "systems": len(a)}
 
 
-def curation_yield(name: str, db_dir: Path, port: int) -> dict[str, Any]:
-    """Serve a fresh recomputed copy and run the shared curation-yield tool against it."""
-    url = working_copy(name, db_dir, "yield")
+@contextlib.contextmanager
+def served_with_admin(url: str, port: int, env: dict[str, str] | None = None,
+                      stderr: Any = subprocess.DEVNULL) -> Iterator[str]:
+    """Serve the database ``url`` on loopback ``port`` (``v3d serve``, ``env`` added to its environment) with an admin
+    ``bench`` made first; yields that admin's API token once ``/api/health`` answers, and stops the server after."""
+    import httpx
+
     add = subprocess.run(V3D + ["users", "add", "bench", "--role", "admin", "--password-stdin"], cwd=ROOT,
                          env=_env(url), input="bench-password-long-enough\n", capture_output=True, text=True)
     if add.returncode:
         raise RuntimeError(f"users add failed: {add.stderr}")
     token = add.stdout.strip().splitlines()[-1]
-    server = subprocess.Popen(V3D + ["serve", "--port", str(port)], cwd=ROOT, env=_env(url),
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    server = subprocess.Popen(V3D + ["serve", "--port", str(port)], cwd=ROOT, env={**_env(url), **(env or {})},
+                              stdout=subprocess.DEVNULL, stderr=stderr)
     try:
-        import httpx
         for _ in range(600):
             try:
                 if httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=2).status_code == 200:
@@ -192,12 +196,7 @@ def curation_yield(name: str, db_dir: Path, port: int) -> dict[str, Any]:
             except httpx.HTTPError:
                 pass
             time.sleep(0.5)
-        truth = SETS[name].with_name(SETS[name].name + ".truth.json")
-        r = _run([sys.executable, str(TOOLS / "curation_yield.py"), f"http://127.0.0.1:{port}", token, str(truth)], url)
-        lines = r.stdout.strip().splitlines()
-        if not lines:
-            raise RuntimeError(f"curation_yield.py printed nothing: {r.stderr[-2000:]}")
-        return json.loads(lines[0])
+        yield token
     finally:
         server.terminate()
         try:
@@ -205,6 +204,18 @@ def curation_yield(name: str, db_dir: Path, port: int) -> dict[str, Any]:
         except subprocess.TimeoutExpired:
             server.kill()
             server.wait(timeout=30)
+
+
+def curation_yield(name: str, db_dir: Path, port: int) -> dict[str, Any]:
+    """Serve a fresh recomputed copy and run the shared curation-yield tool against it."""
+    url = working_copy(name, db_dir, "yield")
+    with served_with_admin(url, port) as token:
+        truth = SETS[name].with_name(SETS[name].name + ".truth.json")
+        r = _run([sys.executable, str(TOOLS / "curation_yield.py"), f"http://127.0.0.1:{port}", token, str(truth)], url)
+        lines = r.stdout.strip().splitlines()
+        if not lines:
+            raise RuntimeError(f"curation_yield.py printed nothing: {r.stderr[-2000:]}")
+        return json.loads(lines[0])
 
 
 def main(argv: Sequence[str] | None = None) -> int:
