@@ -89,19 +89,27 @@ def json_digest(canonical: bytes) -> str:
     return hashlib.sha256(canonical).hexdigest()
 
 
+#: zlib's window bits for a gzip member (16 + 15), and for reading either a gzip member or a zlib stream (32 + 15:
+#: the audit's states stored before documents were gzip members are zlib streams).
+_GZIP_WBITS, _ANY_HEADER_WBITS = 31, 47
+
+
 def compressed_json(canonical: bytes) -> bytes:
-    """A document's :func:`canonical_json` compressed (zlib, level 6: field-line polylines of 2,000 points shrink
-    about threefold), as a binary column stores it; :func:`decompressed_json` reads it back.
+    """A document's :func:`canonical_json` compressed as one gzip member (RFC 1952: deflate level 6, no file name,
+    time stamp 0; field-line polylines of 2,000 points shrink about threefold), as a binary column stores it;
+    :func:`decompressed_json` reads it back. A gzip member, not a bare zlib stream, so that stored documents laid one
+    after another are a gzip file as they are (a release's ``documents.jsonl.gz``: members concatenate, RFC 1952
+    section 2.2) and no export decompresses and compresses them again.
 
     >>> decompressed_json(compressed_json(canonical_json({"b": [1.5, 2], "a": None})))
     {'a': None, 'b': [1.5, 2]}
     """
-    return zlib.compress(canonical, 6)
+    return zlib.compress(canonical, 6, wbits=_GZIP_WBITS)
 
 
 def decompressed_json(body: bytes) -> Any:
-    """The document :func:`compressed_json` stored."""
-    return json_loads(zlib.decompress(body))
+    """The document :func:`compressed_json` stored (a gzip member, or a zlib stream stored before)."""
+    return json_loads(zlib.decompress(body, wbits=_ANY_HEADER_WBITS))
 
 
 def utcnow() -> datetime:

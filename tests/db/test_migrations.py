@@ -233,3 +233,43 @@ def test_0024_moves_large_audit_states_into_audit_states_and_back(tmp_path, requ
                 conn.execute(sa.text("DELETE FROM audit_entries"))
     finally:
         engine.dispose()
+
+
+@pytest.mark.parametrize("backend", ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
+def test_0029_stores_release_documents_as_gzip_members_and_back(tmp_path, request, backend):
+    """A release document stored before 0029 (a zlib stream) is a gzip member of the same canonical JSON after the
+    upgrade (what a release's export lays one after another as its documents.jsonl.gz), a zlib stream again after the
+    downgrade; the append-only triggers refuse an UPDATE again after each."""
+    import gzip
+    import zlib
+
+    url = f"sqlite:///{tmp_path / 'release.sqlite3'}" if backend == "sqlite" else request.getfixturevalue("pg_url")
+    upgrade_database(url, "0028")
+    documents = [b'{"game_id":1,"league":"a"}', b'{"frames":[],"system_id":7}']
+    engine = make_engine(url)
+    try:
+        with engine.begin() as conn:
+            for k, doc in enumerate(documents):
+                conn.execute(sa.text("INSERT INTO release_documents (digest, body) VALUES (:d, :b)"),
+                             {"d": f"{k:064x}", "b": zlib.compress(doc, 6)})
+    finally:
+        engine.dispose()
+
+    def bodies() -> list[bytes]:
+        eng = make_engine(url)
+        try:
+            with eng.connect() as conn:
+                rows = conn.execute(sa.text("SELECT body FROM release_documents ORDER BY digest"))
+                found = [bytes(b) for (b,) in rows]
+                with pytest.raises(sa.exc.DatabaseError, match="append-only"):
+                    conn.execute(sa.text("UPDATE release_documents SET body = body"))
+                return found
+        finally:
+            eng.dispose()
+
+    upgrade_database(url)
+    stored = bodies()
+    assert all(b.startswith(b"\x1f\x8b") for b in stored)
+    assert gzip.decompress(b"".join(stored)) == b"".join(documents)  # members laid one after another: one gzip file
+    command.downgrade(alembic_config(url), "0028")
+    assert [zlib.decompress(b) for b in bodies()] == documents

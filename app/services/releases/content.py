@@ -1,9 +1,9 @@
 """Make, list and read releases: the accepted systems as they are at one moment, kept immutably.
 
 A release's content is a set of canonical JSON documents (``app.db.types.canonical_json``: keys sorted, compact,
-UTF-8), each stored once in ``release_documents`` under its SHA-256 (``app.db.types.json_digest``) and compressed
-(zlib): a system unchanged since an earlier release names the document stored then, so a release costs one
-``release_systems`` row per system plus the documents of what changed.
+UTF-8), each stored once in ``release_documents`` under its SHA-256 (``app.db.types.json_digest``) as one gzip
+member (``app.db.types.compressed_json``): a system unchanged since an earlier release names the document stored
+then, so a release costs one ``release_systems`` row per system plus the documents of what changed.
 
 * a **game document** per game holding a released system (:func:`game_document`): ``game_id``, ``league``,
   ``season``, ``match``, ``path``, ``release`` (what its imported labels file carried beside its systems,
@@ -31,7 +31,6 @@ Releases are append-only (database triggers refuse UPDATE and DELETE) and each i
 from __future__ import annotations
 
 import hashlib
-import zlib
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, Optional
@@ -285,16 +284,16 @@ def read_documents(session: Session, digests: Iterable[str]) -> dict[str, Any]:
     return out
 
 
-def canonical_documents(session: Session, digests: Iterable[str]) -> Iterator[tuple[str, bytes]]:
-    """(digest, canonical JSON bytes) of ``digests`` in increasing digest order: the bytes whose SHA-256 is the
-    digest (what a release's export carries in ``v3d-release/documents.jsonl``)."""
+def stored_documents(session: Session, digests: Iterable[str]) -> Iterator[tuple[str, bytes]]:
+    """(digest, stored body) of ``digests`` in increasing digest order, as stored: each body one gzip member of the
+    document's canonical JSON, the bytes whose SHA-256 is the digest (``app.db.types.compressed_json``)."""
     wanted = sorted(set(digests))
     for start in range(0, len(wanted), _CHUNK):
         some = wanted[start:start + _CHUNK]
         bodies: dict[str, bytes] = dict(session.execute(select(ReleaseDocument.digest, ReleaseDocument.body)
                                       .where(ReleaseDocument.digest.in_(some))).all())
         for digest in some:
-            yield digest, zlib.decompress(bodies[digest])
+            yield digest, bodies[digest]
 
 
 def release_summary(release: Release) -> dict[str, Any]:

@@ -6,8 +6,10 @@ release's export is the export of the database as it was when the release was ma
 stored images (checked against what was imported: ``app.services.images.serving``). Each game's
 ``GameMetadata.v3d_release`` names the release and its hash; the archive ends with ``v3d-release.json`` (the
 release: name, note, created_at, created_by, systems, views, hash, and the digest of every document, the CSV's
-companion file) and ``v3d-release/documents.jsonl`` (every document's canonical JSON, one a line, in increasing
-digest order), from which anyone recomputes the hash (docs/exports.md).
+companion file) and ``v3d-release/documents.jsonl.gz`` (every document's canonical JSON, one a line, in increasing
+digest order, gzip), from which anyone recomputes the hash (docs/exports.md). That file is the stored documents laid
+one after another (each a gzip member, a newline member after each): an export copies them, it neither decompresses
+nor compresses them, and the zip stores it as it is.
 
 The cameras export reads a release too (:func:`export_release_cameras`: the views, names and splits of the live
 export, from the documents, with the same two files at its root). Nothing in a release export depends on when it is
@@ -36,23 +38,25 @@ from app.db.models import (
     ReviewStatus,
     SystemKind,
 )
-from app.db.types import json_loads
+from app.db.types import compressed_json, json_loads
 from app.services.issia.export import Issia3DExport, rows_of, write_sequence
 from app.services.kinds import POLICIES, kinds_exported_by
 from app.services.releases.content import (
     ReleaseContent,
-    canonical_documents,
     read_documents,
     release_content,
     release_summary,
+    stored_documents,
 )
 from app.services.transfer.cameras_export import CamerasExport, CameraView, pooled_lines, write_camera_sets
 from app.services.transfer.exporting import ExportedGame, exported_game, safe_component
 
 #: The release's description at the root of its export (the companion file of ``SNv3D.csv``).
 RELEASE_FILE = "v3d-release.json"
-#: Every document of the release, one canonical JSON a line, in increasing digest order.
-DOCUMENTS_FILE = "v3d-release/documents.jsonl"
+#: Every document of the release, one canonical JSON a line, in increasing digest order, gzip (multi-member).
+DOCUMENTS_FILE = "v3d-release/documents.jsonl.gz"
+#: The line end after each document of :data:`DOCUMENTS_FILE`, a gzip member of its own as the documents are.
+_LINE_END = compressed_json(b"\n")
 #: Games whose documents are read per query.
 _BATCH_GAMES = 25
 #: Systems whose documents (and stored frames, for their images) are read per query by the detector exports.
@@ -138,7 +142,7 @@ def release_files(session: Session, release: Release) -> Iterator[tuple[str, byt
     yield RELEASE_FILE, orjson.dumps(release_manifest(release, content),
                                      option=orjson.OPT_SORT_KEYS | orjson.OPT_INDENT_2)
     digests = [*content.games.values(), *(d for _, _, d in content.systems.values())]
-    yield DOCUMENTS_FILE, b"".join(body + b"\n" for _, body in canonical_documents(session, digests))
+    yield DOCUMENTS_FILE, b"".join(body + _LINE_END for _, body in stored_documents(session, digests))
 
 
 def release_camera_views(session: Session, release: Release) -> list[CameraView]:

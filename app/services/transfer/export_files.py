@@ -26,7 +26,7 @@ from app.core.config import Settings
 from app.core.errors import InvalidInputError
 from app.services.jobs.progress import Progress
 from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format, export_names, tree_export_names
-from app.services.transfer.exporting import zip_member
+from app.services.transfer.exporting import member_compression, zip_member
 
 #: What ``POST /api/exports/{format}`` and the export jobs write (the registry's names, in its order).
 EXPORT_FORMATS = export_names()
@@ -36,7 +36,8 @@ def zip_tree(root: Path, target: Path, progress: Progress | None = None) -> int:
     """Zip every file and folder under ``root`` into ``target`` with paths relative to ``root`` (POSIX; folders as
     entries, so that empty ones survive), ``progress("zip", files done, files)`` as it goes. Members in the order of
     their paths with the fixed time stamp and modes of ``exporting.zip_member`` (no file's time enters the zip: the
-    same tree zips to the same bytes). Returns the zip's size in bytes."""
+    same tree zips to the same bytes), data compressed already stored as it is (``exporting.member_compression``).
+    Returns the zip's size in bytes."""
     entries = sorted(root.rglob("*"), key=lambda p: p.relative_to(root).as_posix())
     files = [p for p in entries if p.is_file()]
     done = 0
@@ -46,7 +47,7 @@ def zip_tree(root: Path, target: Path, progress: Progress | None = None) -> int:
             if p.is_dir():
                 zf.writestr(zip_member(rel + "/", folder=True), b"")
                 continue
-            with p.open("rb") as src, zf.open(zip_member(rel, zipfile.ZIP_DEFLATED), "w", force_zip64=True) as dst:
+            with p.open("rb") as src, zf.open(zip_member(rel, member_compression(rel)), "w", force_zip64=True) as dst:
                 shutil.copyfileobj(src, dst, 1 << 20)
             done += 1
             if progress is not None:

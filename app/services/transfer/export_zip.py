@@ -18,6 +18,7 @@ from app.services.transfer.exporting import (
     ExportedGame,
     chain_games,
     iter_soccernet_v3d,
+    member_compression,
     write_frames_zip,
     zip_member,
 )
@@ -128,6 +129,6 @@ def stream_soccernet_v3d_zip(session: Session, include_all: bool = False,
                     member.write(chunk.encode("utf-8"))
                     yield sink.drain()
             for name, data in source.members():
-                zf.writestr(zip_member(name, zipfile.ZIP_DEFLATED), data, compresslevel=1)
+                zf.writestr(zip_member(name, member_compression(name)), data, compresslevel=1)
                 yield sink.drain()
         yield sink.drain()

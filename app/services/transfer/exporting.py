@@ -416,6 +416,17 @@ def zip_member(name: str, compress_type: int = zipfile.ZIP_STORED, folder: bool 
     return info
 
 
+#: Endings of file names whose data is compressed already (gzip, zip, PNG, JPEG): a zip stores them as they are,
+#: since deflating them again costs time and saves next to nothing.
+_COMPRESSED_SUFFIXES = (".gz", ".zip", ".png", ".jpg", ".jpeg")
+
+
+def member_compression(name: str) -> int:
+    """How an export's zip holds the member ``name``: ``ZIP_STORED`` for data compressed already (its name ends in
+    one of :data:`_COMPRESSED_SUFFIXES`, any case), else ``ZIP_DEFLATED``."""
+    return zipfile.ZIP_STORED if name.lower().endswith(_COMPRESSED_SUFFIXES) else zipfile.ZIP_DEFLATED
+
+
 #: Frames read per query by :func:`write_frames_zip` (below every database's bound on an ``IN`` list).
 _FRAMES_PER_QUERY = 500
 

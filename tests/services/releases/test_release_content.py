@@ -3,6 +3,7 @@ from a release's export by the recipe of docs/exports.md, immutability against l
 by two separate processes (nothing shared, nothing cached) to the same bytes."""
 from __future__ import annotations
 
+import gzip
 import hashlib
 import io
 import json
@@ -72,7 +73,9 @@ def test_a_release_exports_to_the_same_bytes_from_two_processes_and_its_hash_is_
     # the recipe of docs/exports.md, from the download alone
     with zipfile.ZipFile(io.BytesIO(first)) as zf:
         manifest = json.loads(zf.read("v3d-release.json"))
-        lines = zf.read("v3d-release/documents.jsonl").splitlines()
+        stored = zf.getinfo("v3d-release/documents.jsonl.gz")
+        assert stored.compress_type == zipfile.ZIP_STORED  # gzip already: the zip holds it as it is
+        lines = gzip.decompress(zf.read(stored)).splitlines()
     digests = {hashlib.sha256(line).hexdigest() for line in lines}
     assert digests == set(manifest["games"].values()) | set(manifest["systems"].values())
     text = "".join(f"game {g} {d}\n" for g, d in sorted(manifest["games"].items(), key=lambda kv: int(kv[0])))
@@ -125,7 +128,7 @@ def test_the_cameras_export_of_a_release_is_the_live_one_then_and_stays_the_same
     made = write_export_zip(session, "cameras", tmp_path / "r1.zip", False, settings, release="v1")
     assert made["hash"] == release.hash and made["cameras"] == 9
     live, ours = _members((tmp_path / "live.zip").read_bytes()), _members((tmp_path / "r1.zip").read_bytes())
-    named = {n: ours.pop(n) for n in ("v3d-release.json", "v3d-release/", "v3d-release/documents.jsonl")}
+    named = {n: ours.pop(n) for n in ("v3d-release.json", "v3d-release/", "v3d-release/documents.jsonl.gz")}
     assert ours == live  # the same index, ground truth and predictions as the database had then
     assert json.loads(named["v3d-release.json"])["hash"] == release.hash
     # a later edit changes the live export, not the release's
@@ -157,7 +160,7 @@ def test_yolo_and_coco_of_a_release_are_the_live_ones_then_naming_it_and_stay_th
         assert made["hash"] == release.hash and sum(made["images"].values()) == 6  # two views with an image each
         live = _members((tmp_path / f"{fmt}-live.zip").read_bytes())
         ours = _members((tmp_path / f"{fmt}-r1.zip").read_bytes())
-        for name in ("v3d-release.json", "v3d-release/", "v3d-release/documents.jsonl"):
+        for name in ("v3d-release.json", "v3d-release/", "v3d-release/documents.jsonl.gz"):
             ours.pop(name)
         manifest = json.loads(ours.pop("manifest.json"))
         assert manifest.pop("release") == marker and manifest == json.loads(live.pop("manifest.json"))

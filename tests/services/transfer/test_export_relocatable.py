@@ -31,3 +31,31 @@ def test_no_file_of_any_export_names_a_server_folder(db_session, db_settings, sh
         assert report["format"] == fmt and "out_dir" not in report
     assert sizes["issia-3d"] >= 8  # ISSIA-3D.csv, split.json, six camera files (and their folders)
     assert sizes["yolo"] > 8 and sizes["coco"] > 4
+
+
+def test_a_tree_zips_compressed_files_as_they_are_and_deflates_the_rest_the_same_way_twice(tmp_path) -> None:
+    """Images and gzip files are stored (deflating them again costs time and saves nothing), text is deflated; the
+    same tree zips to the same bytes, and every member reads back as written."""
+    import gzip
+    import zipfile
+
+    from app.services.transfer.export_files import zip_tree
+
+    root = tmp_path / "tree"
+    (root / "images" / "train").mkdir(parents=True)
+    (root / "images" / "val").mkdir()
+    files = {"images/train/a.PNG": b"\x89PNG\r\n\x1a\n" + bytes(range(256)) * 40,
+             "images/train/b.jpg": b"\xff\xd8\xff" + bytes(range(256)) * 40,
+             "v3d-release/documents.jsonl.gz": gzip.compress(b'{"a":1}\n' * 500, mtime=0),
+             "labels.json": b'{"images": []}' * 300}
+    for name, data in files.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_bytes(data)
+    zips = [zip_tree(root, tmp_path / f"{k}.zip") and (tmp_path / f"{k}.zip").read_bytes() for k in range(2)]
+    assert zips[0] == zips[1]
+    with zipfile.ZipFile(tmp_path / "0.zip") as zf:
+        kinds = {i.filename: i.compress_type for i in zf.infolist() if not i.is_dir()}
+        assert kinds == {"images/train/a.PNG": zipfile.ZIP_STORED, "images/train/b.jpg": zipfile.ZIP_STORED,
+                         "v3d-release/documents.jsonl.gz": zipfile.ZIP_STORED, "labels.json": zipfile.ZIP_DEFLATED}
+        assert {n: zf.read(n) for n in kinds} == files
+        assert "images/val/" in zf.namelist()  # an empty folder survives
