@@ -372,3 +372,33 @@ def test_the_judge_meets_the_issue_figures_on_the_dev_set_and_one_dev_large_game
     assert sc.near_dup >= 1 and sc.near_dup_named == sc.near_dup
     assert sc.out_of_frame >= 3 and sc.out_of_frame_called == 0
     assert sc.suggestion_px and float(np.median(sc.suggestion_px)) < 15.0
+
+
+def test_each_views_consensus_without_it_is_the_judges_with_that_view_excluded():
+    """The consensuses of the per-annotator distances are decided once for all the views (``consensuses_without``);
+    each is what the judge finds when that view is marked excluded and everything is decided again, also with the
+    recomputation's calibration weights given, over scenes where views are off, mirrored, helpers or suggested."""
+    from app.geometry.doubts.judge import _voters_consensus, _votes, consensuses_without
+    from app.geometry.triangulation import pair_geometry
+    from app.geometry.weighting import calibration_weight
+
+    off = {"ball": BALL + [5.0, 5.0, 0.0]}
+    mirrored_cam = mirror_camera(camera("opposite"))
+    scenes = [scene(), scene(goal=off), scene(opposite={"camera": mirrored_cam, "mirror_flagged": True}),
+              scene(corner={"line_classes": 2}), scene(goal={"suggested": True}, main={"admitted": False}),
+              scene(corner={"excluded": True}, goal=off)]
+    compared = 0
+    for views in scenes:
+        weighed = {v.view_id: calibration_weight(v, SETTINGS) for v in views if v.camera is not None}
+        for given in (None, weighed):
+            found = consensuses_without(views, [v.view_id for v in views], SETTINGS, pair_geometry, given)
+            for v in views:
+                others = [dataclasses.replace(w, excluded=True) if w.view_id == v.view_id else w for w in views]
+                want = _voters_consensus(_votes(others, SETTINGS, None), SETTINGS, pair_geometry)[0]
+                got = found[v.view_id]
+                assert (got.point is None) == (want.point is None)
+                if want.point is not None:
+                    np.testing.assert_allclose(got.point, want.point, atol=1e-9)
+                assert (sorted(got.inliers), got.ambiguous) == (sorted(want.inliers), want.ambiguous)
+                compared += want.point is not None
+    assert compared >= 20  # most leave-one-out consensuses place a ball

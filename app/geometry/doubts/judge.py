@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from itertools import combinations
-from typing import Any, Callable, Hashable, Mapping, Sequence
+from typing import Any, Callable, Hashable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -344,17 +344,37 @@ def _voters_consensus(vote: _Votes, s: DoubtSettings,
 
 def consensus_without(views: Sequence[DoubtView], view_id: Hashable, settings: DoubtSettings,
                       geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
-                      ) -> Consensus:
+                      weighed: Mapping[Any, tuple[float, float]] | None = None) -> Consensus:
     """The ball the views other than ``view_id`` agree on, exactly as :func:`judge_system` finds a system's
     consensus (rules 2 and 3: who votes, with what weight and pixel tolerance, within the play volume), with that
     view left out as if excluded: what a fix of that view's labels is measured against (the mirror guard,
-    ``app.services.curation.editing.ball_error_to_others``). Pure.
+    ``app.services.curation.editing.ball_error_to_others``). Pure. ``weighed`` as :func:`judge_system`'s.
 
     Returns:
         The :class:`~app.geometry.consensus.Consensus` (its ``point`` None when the others agree on no ball).
     """
-    others = [dataclasses.replace(v, excluded=True) if v.view_id == view_id else v for v in views]
-    return _voters_consensus(_votes(others, settings, None), settings, geometry)[0]
+    return consensuses_without(views, [view_id], settings, geometry, weighed)[view_id]
+
+
+def consensuses_without(views: Sequence[DoubtView], view_ids: Iterable[Hashable], settings: DoubtSettings,
+                        geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
+                        weighed: Mapping[Any, tuple[float, float]] | None = None) -> dict[Hashable, Consensus]:
+    """:func:`consensus_without` of each view of ``view_ids``: view id -> the ball the other views agree on. Who
+    votes and how much is decided once for all the views (every rule of :func:`_votes` is a test of one view alone, so
+    leaving a view out is taking it off every list: the same as marking it excluded and deciding again). Pure.
+    ``weighed`` as :func:`judge_system`'s."""
+    vote = _votes(views, settings, weighed)
+    return {vid: _voters_consensus(_left_out(vote, vid), settings, geometry)[0] for vid in view_ids}
+
+
+def _left_out(vote: _Votes, view_id: Hashable) -> _Votes:
+    """``vote`` with view ``view_id`` taking no part (what :func:`_votes` gives with that view excluded)."""
+    def keep(views: list[DoubtView]) -> list[DoubtView]:
+        return [v for v in views if v.view_id != view_id]
+
+    return dataclasses.replace(vote, flagged=keep(vote.flagged), mirrored=keep(vote.mirrored),
+                               helpers=keep(vote.helpers), judged=keep(vote.judged), labelled=keep(vote.labelled),
+                               unlabelled=keep(vote.unlabelled), obs=[o for o in vote.obs if o.view_id != view_id])
 
 
 def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,

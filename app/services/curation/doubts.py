@@ -26,7 +26,7 @@ from app.geometry.camera import Camera
 from app.geometry.consensus import Consensus
 from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
 from app.geometry.doubts.detections import Detection, check_detections
-from app.geometry.doubts.judge import consensus_without
+from app.geometry.doubts.judge import consensus_without, consensuses_without
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
@@ -174,9 +174,18 @@ def distance_to_others(views: list[DoubtView], me: DoubtView, s: DoubtSettings,
         projection in px of a 1920-wide image (``REFERENCE_WIDTH_PX``; None without a camera on ``me`` or when the
         ball lies behind it).
     """
-    if label_centre(me) is None or me.suggested:
+    if not _measured(me):
         return None, None
-    cons = consensus_without(views, me.view_id, s, geometry)
+    return _distance(me, consensus_without(views, me.view_id, s, geometry))
+
+
+def _measured(me: DoubtView) -> bool:
+    """Whether ``me``'s label is measured against the others: it has one and nobody's suggestion placed it."""
+    return label_centre(me) is not None and not me.suggested
+
+
+def _distance(me: DoubtView, cons: Consensus) -> tuple[Consensus | None, float | None]:
+    """:func:`distance_to_others` given the others' consensus ``cons``."""
     if cons.point is None or cons.ambiguous:
         return None, None
     if me.camera is None:
@@ -190,16 +199,20 @@ def update_label_distances(system: System, settings: Settings, weighed: WeighedV
                            ) -> None:
     """Store, on each view's reprojection row, how far its ball label lies from the ball the other views agree on
     (:func:`distance_to_others`, px at 1920 width; None when there is none): what the per-annotator figures read
-    (``app.services.evaluation.annotators``) instead of judging every system per request. Changes the session only."""
+    (``app.services.evaluation.annotators``) instead of judging every system per request. The consensuses come from
+    one decision of who votes, with the recomputation's calibration weights (``judge.consensuses_without``). Changes
+    the session only."""
     s = doubt_settings(settings)
     by_id = {v.view_id: v for v in weighed.views}
+    measured = [v.view_id for v in weighed.views if _measured(v)]
+    others = consensuses_without(weighed.views, measured, s, geometry, weighed.weighed)
     for frame in system.frames:
         rep = frame.reprojection
         if rep is None:
             continue
         me = by_id.get(frame.id)
-        distance = distance_to_others(weighed.views, me, s, geometry)[1] if me is not None else None
-        put_values(rep, {"others_distance_px": distance})
+        cons = others.get(frame.id) if me is not None else None
+        put_values(rep, {"others_distance_px": None if cons is None or me is None else _distance(me, cons)[1]})
 
 
 def suggestion_request(frame_id: int | None, suggestion: dict[str, Any] | None,
