@@ -210,9 +210,8 @@ def update_label_distances(system: System, settings: Settings, weighed: WeighedV
         rep = frame.reprojection
         if rep is None:
             continue
-        me = by_id.get(frame.id)
-        cons = others.get(frame.id) if me is not None else None
-        put_values(rep, {"others_distance_px": None if cons is None or me is None else _distance(me, cons)[1]})
+        me, cons = by_id.get(frame.id), others.get(frame.id)
+        put_values(rep, {"others_distance_px": _distance(me, cons)[1] if me is not None and cons is not None else None})
 
 
 def suggestion_request(frame_id: int | None, suggestion: dict[str, Any] | None,

@@ -273,15 +273,9 @@ def release_content(session: Session, release: Release) -> ReleaseContent:
 
 
 def read_documents(session: Session, digests: Iterable[str]) -> dict[str, Any]:
-    """digest -> document (decompressed and parsed) for ``digests``, read a chunk at a time."""
-    wanted = sorted(set(digests))
-    out: dict[str, Any] = {}
-    for start in range(0, len(wanted), _CHUNK):
-        some = wanted[start:start + _CHUNK]
-        for digest, body in session.execute(select(ReleaseDocument.digest, ReleaseDocument.body)
-                                            .where(ReleaseDocument.digest.in_(some))):
-            out[digest] = decompressed_json(body)
-    return out
+    """digest -> document (decompressed and parsed) for ``digests``, read a chunk at a time
+    (:func:`stored_documents`)."""
+    return {digest: decompressed_json(body) for digest, body in stored_documents(session, digests)}
 
 
 def stored_documents(session: Session, digests: Iterable[str]) -> Iterator[tuple[str, bytes]]:
