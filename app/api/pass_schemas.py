@@ -4,7 +4,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Optional
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field
 
 from app.api.schemas import DbInt, QueueQuery, _In
 from app.db.models import ReviewPass
@@ -14,18 +14,10 @@ from app.services.curation.queue import SystemSort
 
 class PassFilterIn(QueueQuery):
     """:class:`QueueQuery` as a field of a JSON body: unknown fields are refused (the query string's are ignored, as
-    a page may forward its own state), and a number is a JSON number (a boolean is no JaC, no game id)."""
+    a page may forward its own state); a boolean for a number is refused by the body holding it (``_In``)."""
 
     model_config = ConfigDict(allow_inf_nan=False, extra="forbid")
 
-    @model_validator(mode="before")
-    @classmethod
-    def _numbers_not_booleans(cls, data: Any) -> Any:
-        if isinstance(data, dict):
-            for key in ("game_id", "jac_min", "jac_max", "error_min", "error_max"):
-                if isinstance(data.get(key), bool):
-                    raise ValueError(f"filter.{key} must be a number, not a boolean")
-        return data
 
 
 class PassIn(_In):

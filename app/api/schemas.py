@@ -8,11 +8,14 @@ as fractions in [0, 1]. The answers of the review views (the system view, the UI
 """
 from __future__ import annotations
 
+import functools
 import re
 from typing import TYPE_CHECKING, Annotated, Any, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, ValidationError, model_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
+from app.core.names import check_name
 from app.db.models import ReviewStatus
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
@@ -94,9 +97,85 @@ def unstorable_text_at(value: Any, where: str = "") -> Optional[tuple[str, str]]
     return None
 
 
+Loc = tuple[Union[str, int], ...]
+
+
+def boolean_for_number_at(value: Any, schema: dict[str, Any], defs: dict[str, Any], where: Loc = ()) -> Optional[Loc]:
+    """Where in ``value`` (a request body as parsed from JSON) a boolean stands where ``schema`` (its JSON schema;
+    ``defs``: the schema's ``$defs``) expects a number and no boolean, as a location (``("point", 0)``); None when
+    nowhere.
+
+    Pydantic's lax mode reads ``true`` as 1 (``point: [true, 1]`` was stored as ``[1.0, 1.0]``): every body
+    refuses it before any coercion (:class:`_In`), naming where.
+
+    >>> schema = {"properties": {"point": {"anyOf": [{"type": "array", "items": {"type": "number"}},
+    ...                                              {"type": "null"}]}, "ok": {"type": "boolean"}}}
+    >>> boolean_for_number_at({"point": [True, 1], "ok": True}, schema, {}), boolean_for_number_at({"ok": True},
+    ...                                                                                            schema, {})
+    (('point', 0), None)
+    """
+    ref = schema.get("$ref")
+    if isinstance(ref, str):
+        schema = defs.get(ref.rsplit("/", 1)[-1], {})
+    options = schema.get("anyOf") or schema.get("oneOf") or [schema]
+    if isinstance(value, bool):
+        types = {o.get("type") for o in options}
+        return where if types & {"number", "integer"} and "boolean" not in types else None
+    for option in options:
+        if "$ref" in option:
+            option = defs.get(str(option["$ref"]).rsplit("/", 1)[-1], {})
+        inner: Optional[dict[str, Any]]
+        if isinstance(value, list):
+            prefix, items = option.get("prefixItems") or [], option.get("items")
+            for i, item in enumerate(value):
+                inner = prefix[i] if i < len(prefix) else items if isinstance(items, dict) else None
+                found = boolean_for_number_at(item, inner, defs, (*where, i)) if inner else None
+                if found is not None:
+                    return found
+        elif isinstance(value, dict):
+            properties, rest = option.get("properties") or {}, option.get("additionalProperties")
+            for key, item in value.items():
+                inner = properties.get(key) if key in properties else rest if isinstance(rest, dict) else None
+                found = boolean_for_number_at(item, inner, defs, (*where, key)) if inner else None
+                if found is not None:
+                    return found
+    return None
+
+
+@functools.cache
+def _body_schema(model: type[BaseModel]) -> dict[str, Any]:
+    return model.model_json_schema()
+
+
+def refuse_booleans_for_numbers(model: type[BaseModel], data: Any) -> None:
+    """Refuse ``data`` when it holds a boolean in a place of ``model`` that expects a number
+    (:func:`boolean_for_number_at`): the one rule for the numbers of every request body, before any coercion.
+
+    Raises:
+        pydantic.ValidationError: located where the boolean is (the API's 422 names ``["body", "point", 0]``).
+    """
+    schema = _body_schema(model)
+    found = boolean_for_number_at(data, schema, schema.get("$defs", {}))
+    if found is not None:
+        error = PydanticCustomError("bool_for_number", "a number is expected, not a boolean")
+        raise ValidationError.from_exception_data(model.__name__, [InitErrorDetails(type=error, loc=found,
+                                                                                    input=True)])
+
+
+def readable_name(max_length: int, what: str = "a name") -> AfterValidator:
+    """The validator of a body's name people read (a release's, a user's): ``app.core.names.check_name`` (no
+    control or format character, not dots alone; the NFC form is what the route receives), a 422 naming the field."""
+    return AfterValidator(functools.partial(_readable, max_length=max_length, what=what))
+
+
+def _readable(value: str, *, max_length: int, what: str) -> str:
+    return check_name(value, "name", max_length=max_length, what=what)  # an InvalidInputError is a ValueError
+
+
 class _In(BaseModel):
-    """Request bodies reject unknown fields, so a misspelt field is an error, not a no-op, and text that cannot be
-    stored anywhere (:data:`UNSTORABLE_TEXT`: NUL, lone surrogates), naming where it is."""
+    """Request bodies reject unknown fields, so a misspelt field is an error, not a no-op, text that cannot be
+    stored anywhere (:data:`UNSTORABLE_TEXT`: NUL, lone surrogates), and a boolean where a number is expected
+    (:func:`refuse_booleans_for_numbers`), naming where it is, before any coercion."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -107,6 +186,7 @@ class _In(BaseModel):
         if found is not None:
             where, what = found
             raise ValueError(f"{where or 'body'}: text must not contain {what}")
+        refuse_booleans_for_numbers(cls, data)
         return data
 
 

@@ -120,6 +120,13 @@ async function exchange(method, url, body, ifMatch, options = {}) {
   });
 }
 
+/** A decision: always conditional on the version its page showed, so that it never overrides a decision made
+ * meanwhile that its page did not show (a decision without the ETag is not sent). */
+function decision(url, body, ifMatch) {
+  if (!ifMatch) return Promise.reject(new Error("this page has no version of the system to decide on: reload it"));
+  return exchange("POST", url, body, ifMatch);
+}
+
 function request(method, url, body, options = {}) {
   return exchange(method, url, body, undefined, options).then((answer) => answer.body);
 }
@@ -175,19 +182,19 @@ export function getSystem(id, params = {}) {
 
 /** POST /api/systems/{id}/review {status, comment}, If-Match: the system view's etag; {body: the decision, etag}. */
 export function postReview(id, status, comment, ifMatch) {
-  return exchange("POST", `/api/systems/${encodeURIComponent(id)}/review`, { status, comment }, ifMatch);
+  return decision(`/api/systems/${encodeURIComponent(id)}/review`, { status, comment }, ifMatch);
 }
 
 /** POST /api/frames/{id}/review {status, comment}, If-Match: the view's etag: the decision on one view (its
  * ball); {body: the view's decision, etag}. */
 export function postViewReview(frameId, status, comment, ifMatch) {
-  return exchange("POST", `/api/frames/${encodeURIComponent(frameId)}/review`, { status, comment }, ifMatch);
+  return decision(`/api/frames/${encodeURIComponent(frameId)}/review`, { status, comment }, ifMatch);
 }
 
 /** POST /api/frames/{id}/calibration-review {status, comment}, If-Match: the view's etag: the decision on the
  * view's calibration; {body: the view's decision (its `calibration` holds this one), etag}. */
 export function postCalibrationReview(frameId, status, comment, ifMatch) {
-  return exchange("POST", `/api/frames/${encodeURIComponent(frameId)}/calibration-review`, { status, comment }, ifMatch);
+  return decision(`/api/frames/${encodeURIComponent(frameId)}/calibration-review`, { status, comment }, ifMatch);
 }
 
 /** PATCH /api/frames/{id}/ball with {box} or {point}, If-Match: the view's etag; {body: the recomputed

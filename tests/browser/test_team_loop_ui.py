@@ -6,6 +6,8 @@ Screenshots of the queue, the system page with its pinned comment and the annota
 go to ``test-artifacts/team-loop/``."""
 from __future__ import annotations
 
+from typing import Optional
+
 import pytest
 
 from tests.accounts import PASSWORD, Account
@@ -121,10 +123,14 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
         assert ana.locator(tid("send-fixed")).is_visible()  # ... hers: it was returned to her
         ana.click(tid("comment-resolve"))
         ana.locator(f'{tid("review-comment")}[data-resolved="true"]').wait_for()
+        decided: list[Optional[str]] = []  # each decision's If-Match: a fixed never overrides what it did not see
+        ana.on("request", lambda r: decided.append(r.headers.get("if-match"))
+               if r.method == "POST" and r.url.endswith("/review") else None)
         ana.click(tid("send-fixed"))
         ana.wait_for_function("() => !document.querySelector('[data-testid=send-fixed]') ||"
                               " document.querySelector('[data-testid=send-fixed]').hidden ||"
                               " document.querySelector('[data-testid=system-status]').textContent.startsWith('fixed')")
+        assert len(decided) == 1 and (decided[0] or "").startswith('"system-'), decided
         assert ana.errors == []
     finally:
         ana_context.close()

@@ -273,3 +273,51 @@ def test_0029_stores_release_documents_as_gzip_members_and_back(tmp_path, reques
     assert gzip.decompress(b"".join(stored)) == b"".join(documents)  # members laid one after another: one gzip file
     command.downgrade(alembic_config(url), "0028")
     assert [zlib.decompress(b) for b in bodies()] == documents
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+def test_0031_keys_existing_names_keeping_them_and_both_of_a_colliding_pair(tmp_path, request, backend):
+    """Names stored before 0031 keep their names and get their key; two that read as one (made before the rule) both
+    stay, the later one's key suffixed with its id; the key's unique index then refuses a third; releases stay
+    append-only; the downgrade drops the keys."""
+    url = f"sqlite:///{tmp_path / 'names.sqlite3'}" if backend == "sqlite" else request.getfixturevalue("pg_url")
+    upgrade_database(url, "0029")
+    engine = make_engine(url)
+    release = ("INSERT INTO releases (name, note, created_at, created_by, systems, views, hash) "
+               "VALUES (:n, '', CURRENT_TIMESTAMP, 'x', 0, 0, '')")
+    user = "INSERT INTO users (name, role, password_hash, created_at, disabled, demo, session_generation) " \
+           "VALUES (:n, 'annotator', 'x', CURRENT_TIMESTAMP, false, false, 0)"
+    try:
+        with engine.begin() as conn:
+            for name in ("v1", "Cafe\u0301", "V1", "caf\u00e9"):
+                conn.execute(sa.text(release), {"n": name})
+            for name in ("ana", "Ana", "bob"):
+                conn.execute(sa.text(user), {"n": name})
+    finally:
+        engine.dispose()
+    upgrade_database(url)
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            releases = conn.execute(sa.text("SELECT id, name, name_key FROM releases ORDER BY id")).all()
+            assert [(r.name, r.name_key) for r in releases] == [
+                ("v1", "v1"), ("Cafe\u0301", "caf\u00e9"), ("V1", f"v1#{releases[2].id}"),
+                ("caf\u00e9", f"caf\u00e9#{releases[3].id}")]
+            users = conn.execute(sa.text("SELECT id, name, name_key FROM users ORDER BY id")).all()
+            assert [(u.name, u.name_key) for u in users] == [("ana", "ana"), ("Ana", f"ana#{users[1].id}"),
+                                                             ("bob", "bob")]
+            with pytest.raises(sa.exc.DatabaseError, match="append-only"):
+                conn.execute(sa.text("UPDATE releases SET note = 'changed'"))
+            conn.rollback()
+            with pytest.raises(sa.exc.IntegrityError):
+                conn.execute(sa.text("INSERT INTO users (name, name_key, role, password_hash, created_at, disabled, "
+                                     "demo, session_generation) VALUES ('BOB', 'bob', 'annotator', 'x', "
+                                     "CURRENT_TIMESTAMP, false, false, 0)"))
+    finally:
+        engine.dispose()
+    command.downgrade(alembic_config(url), "0029")
+    engine = make_engine(url)
+    try:
+        assert "name_key" not in {c["name"] for c in sa.inspect(engine).get_columns("releases")}
+    finally:
+        engine.dispose()

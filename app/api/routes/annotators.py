@@ -44,13 +44,20 @@ class AnnotatorsOut(BaseModel):
 
 
 def _utc(value: Optional[datetime], field: str) -> Optional[datetime]:
+    """``value`` in UTC (UTC when it has no offset). Raises :class:`InvalidInputError` naming ``field`` when it has
+    no valid offset, or falls outside years 1-9999 once converted (``0001-01-01T00:00:00+05:00`` is a time of year
+    0 in UTC, which no date holds)."""
     if value is None:
         return None
     if value.tzinfo is None:
         return value.replace(tzinfo=timezone.utc)
     if value.utcoffset() is None:
         raise InvalidInputError("give a time with a valid offset", field=field)
-    return value.astimezone(timezone.utc)
+    try:
+        return value.astimezone(timezone.utc)
+    except OverflowError:
+        raise InvalidInputError(f"{value.isoformat()} is outside the years 1-9999 once converted to UTC",
+                                field=field) from None
 
 
 @router.get("/stats/annotators", response_model=AnnotatorsOut, responses={**INVALID, 200: {

@@ -16,7 +16,7 @@ from starlette.background import BackgroundTask
 from app.api.auth import AnnotatorDep, require_role
 from app.api.bodies import UPLOAD_LIMIT
 from app.api.deps import SessionDep, SettingsDep, ShareDep
-from app.api.schemas import InvalidOut
+from app.api.schemas import InvalidOut, QueryText
 from app.api.share import SHARE_SPENT
 from app.core.config import Settings
 from app.core.errors import DatasetError, InvalidInputError
@@ -172,8 +172,8 @@ def evaluate_monocular(
 )
 def evaluate_monocular_source(
     session: SessionDep, settings: SettingsDep, principal: AnnotatorDep, share: ShareDep,
-    source: Annotated[str, Query(min_length=1, max_length=100, description="An imported source's name (v3d import "
-                                                                           "predictions): its stored predictions.")],
+    source: Annotated[QueryText, Query(min_length=1, max_length=100, description=(
+        "An imported source's name (v3d import predictions): its stored predictions."))],
     include_all: AllQuery = False,
     estimator: Annotated[Optional[Literal["paper", "exact"]], Query(
         description="Monocular ball from a box; default: the one matching the optimised boxes.")] = None,

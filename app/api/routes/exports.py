@@ -22,7 +22,7 @@ from app.api.auth import require_role
 from app.api.deps import SessionDep, SettingsDep
 from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
-from app.api.schemas import INVALID, ErrorOut
+from app.api.schemas import INVALID, ErrorOut, QueryText
 from app.core.errors import InvalidInputError
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
@@ -49,9 +49,8 @@ def export_soccernet_v3d(
     request: Request,
     include_all: Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")] = False,
     images: Annotated[bool, Query(description="Each game's Frames-v3.zip (its images); false leaves them out.")] = True,
-    release: Annotated[Optional[str], Query(min_length=1, max_length=200, description="A release to export instead "
-                                            "of the database now (byte for byte the same each time; not with all)."
-                                            )] = None,
+    release: Annotated[Optional[QueryText], Query(min_length=1, max_length=200, description=(
+        "A release to export instead of the database now (byte for byte the same each time; not with all)."))] = None,
 ) -> StreamingResponse:
     """A zip of the SoccerNet-v3D export (``app.services.transfer.exporting``), streamed while the database is
     read, game by game (nothing of the size of the export is built in memory or on disk).

@@ -12,7 +12,7 @@ from pydantic import BaseModel, Field
 
 from app.api.auth import Principal, require_role
 from app.api.deps import SessionDep
-from app.api.schemas import INVALID, NOT_FOUND, ErrorOut, _In
+from app.api.schemas import INVALID, NOT_FOUND, ErrorOut, _In, readable_name
 from app.services.releases import content, diff
 
 router = APIRouter(prefix="/releases", tags=["releases"])
@@ -21,8 +21,10 @@ ReleaseName = Annotated[str, Path(min_length=1, max_length=content.NAME_MAX, des
 
 
 class ReleaseIn(_In):
-    name: str = Field(min_length=1, max_length=content.NAME_MAX,
-                      description="Unique; no leading or trailing space, '/', '\\' or control character.")
+    name: Annotated[str, readable_name(content.NAME_MAX, "a release name")] = Field(
+        min_length=1, max_length=content.NAME_MAX,
+        description="Unique, also by its NFKC case-folded form (409); no leading or trailing space, '/', '\\', "
+                    "control or format character (Unicode Cc, Cf), not dots alone; stored in NFC.")
     note: str = Field("", max_length=10_000, description="Free text kept with the release.")
 
 

@@ -72,12 +72,14 @@ def review_system(session: SessionDep, principal: AnnotatorDep, if_match: IfMatc
     names). ``needs_fix`` returns the system to the person who last edited its labels (else its assignee; the answer's
     ``returned_to`` and ``handoff`` say to whom, or why to nobody); ``fixed`` is sent by that person alone (any role)
     and gives it back to the reviewer who asked (``app.services.curation.handoff``). Reviewers send any status; an
-    annotator only ``fixed`` on a system returned to them (403 otherwise, before the ``If-Match`` is compared)."""
+    annotator only ``fixed`` on a system returned to them (403 otherwise, before the ``If-Match`` is compared). A
+    ``fixed`` whose hand-off another decision closed after that check is refused 409 (checked again in the write,
+    under the lock): it never undoes a decision it did not see, ``If-Match`` or not."""
     handoff.check_fixed_allowed(session, system.id, user_id=principal.user_id, role=UserRole(principal.role),
                                 status=body.status)
     decision = decisions.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
                                        actor=principal.name, expected=expected_versions(if_match, "system", system.id),
-                                       edit=edit)
+                                       edit=edit, fixed_by=principal.user_id)
     name_entry(edit, response)
     with_etag(response, system_etag(writing.get_system(session, system.id)))
     out = DecisionOut.model_validate(ReviewOut.of(decision).model_dump())

@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app.api.auth import PrincipalDep, Role, require_role
 from app.api.deps import SessionDep
-from app.api.schemas import INVALID, NOT_FOUND, DbInt, _In
+from app.api.schemas import INVALID, NOT_FOUND, DbInt, _In, readable_name
 from app.api.security import no_store
 from app.services.accounts import users
 
@@ -29,7 +29,7 @@ class UserOut(BaseModel):
 
 
 class UserIn(_In):
-    name: str = Field(max_length=100)
+    name: Annotated[str, readable_name(100, "a user name")] = Field(max_length=100)
     role: Role
     password: str = Field(min_length=1, max_length=1024)
 

@@ -7,8 +7,9 @@ from datetime import datetime
 from typing import Optional
 
 import sqlalchemy as sa
-from sqlalchemy.orm import Mapped, mapped_column, relationship
+from sqlalchemy.orm import Mapped, mapped_column, relationship, validates
 
+from app.core.names import name_key
 from app.db.models.base import Base
 from app.db.models.enums import UserRole
 from app.db.types import enum_by_value, utcnow
@@ -29,6 +30,9 @@ class User(Base):
 
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(sa.String(100), unique=True)
+    #: ``app.core.names.name_key`` of the name, set with it: names that differ only by case or trailing dots cannot
+    #: both be stored (nullable as ``Release.name_key``; every row the model writes has one).
+    name_key: Mapped[Optional[str]] = mapped_column(sa.String(120), unique=True, index=True)
     role: Mapped[UserRole] = mapped_column(enum_by_value(UserRole, "user_role"))
     password_hash: Mapped[str] = mapped_column(sa.Text)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -39,6 +43,11 @@ class User(Base):
     tokens: Mapped[list[ApiToken]] = relationship(
         back_populates="user", cascade="all, delete-orphan", passive_deletes=True, order_by="ApiToken.id"
     )
+
+    @validates("name")
+    def _keyed(self, _: str, name: str) -> str:
+        self.name_key = name_key(name)
+        return name
 
 
 class ApiToken(Base):

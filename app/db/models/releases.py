@@ -4,11 +4,12 @@ as canonical JSON documents once by digest. Append-only: the migration adds trig
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
+from typing import Any, Optional
 
 import sqlalchemy as sa
-from sqlalchemy.orm import Mapped, mapped_column
+from sqlalchemy.orm import Mapped, mapped_column, validates
 
+from app.core.names import name_key
 from app.db.models.base import Base
 from app.db.types import decompressed_json, utcnow
 
@@ -22,12 +23,21 @@ class Release(Base):
 
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(sa.String(200), unique=True)
+    #: ``app.core.names.name_key`` of the name, set with it: two names people read as one cannot both be stored.
+    #: Nullable only because SQLite cannot add a NOT NULL column to a filled table without rebuilding it (and its
+    #: append-only triggers); every row the model writes has one.
+    name_key: Mapped[Optional[str]] = mapped_column(sa.String(220), unique=True, index=True)
     note: Mapped[str] = mapped_column(sa.Text, default="")
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(sa.String(200))
     systems: Mapped[int]
     views: Mapped[int]
     hash: Mapped[str] = mapped_column(sa.String(64))
+
+    @validates("name")
+    def _keyed(self, _: str, name: str) -> str:
+        self.name_key = name_key(name)
+        return name
 
 
 class ReleaseDocument(Base):

@@ -35,6 +35,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.core.errors import InvalidInputError, NotFoundError
+from app.core.names import check_name, name_key
 from app.db.models import ApiToken, ServerSecret, User, UserRole
 from app.db.types import utcnow
 from app.services.audit import log as audit
@@ -123,16 +124,6 @@ def _role(role: str) -> UserRole:
                                 field="role") from None
 
 
-def name_key(name: str) -> str:
-    """What tells user names apart for people: ``name`` without trailing dots, in lower case (``Ana``, ``ana`` and
-    ``ana.`` read as one name on a page, in a log or a shell).
-
-    >>> name_key("Ana.."), name_key("NONE")
-    ('ana', 'none')
-    """
-    return name.rstrip(".").lower()
-
-
 def is_reserved_name(name: str) -> bool:
     """Whether ``name`` is one of :data:`RESERVED_NAMES` but for case or trailing dots.
 
@@ -145,6 +136,7 @@ def is_reserved_name(name: str) -> bool:
 def _check_name(name: str, session: Optional[Session] = None) -> str:
     """``name`` when a new user may have it; with ``session``, also unlike every stored name but for case or
     trailing dots. Raises :class:`InvalidInputError` (field ``name``)."""
+    check_name(name, "name", max_length=100, what="a user name")  # the rule of every name people read
     if not _NAME.match(name or ""):
         raise InvalidInputError("1 to 100 characters: letters, digits and . _ @ - (not first)", field="name")
     if is_reserved_name(name):
@@ -152,8 +144,7 @@ def _check_name(name: str, session: Optional[Session] = None) -> str:
                                 f"{'the caller' if name_key(name) == ASSIGNEE_ME else 'nobody'}); choose another name",
                                 field="name")
     if session is not None:
-        like = session.scalar(sa.select(User.name).where(
-            sa.func.lower(sa.func.rtrim(User.name, ".")) == name_key(name), User.name != name).limit(1))
+        like = session.scalar(sa.select(User.name).where(User.name_key == name_key(name), User.name != name).limit(1))
         if like is not None:
             raise InvalidInputError(f"a user named {like!r} exists: names that differ only by case or trailing dots "
                                     "are refused", field="name")

@@ -35,7 +35,8 @@ from app.services.curation.writing import (
 def decide_review(session: Session, *, system_id: int | None = None, frame_id: int | None = None,
                   status: ReviewStatus | str, comment: str = "", actor: Optional[str] = None,
                   expected: Expected = None, revert: Optional[Revert] = None,
-                  undo: Optional[Revert] = None, edit: Optional[EditContext] = None) -> ReviewDecision:
+                  undo: Optional[Revert] = None, edit: Optional[EditContext] = None,
+                  fixed_by: Optional[int] = None) -> ReviewDecision:
     """Record a review decision on a system or on a frame (exactly one of the two ids).
 
     Args:
@@ -50,6 +51,10 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
             moment (:func:`system_review_state`).
         undo: this write undoes audit entry ``undo.entry_id`` (:func:`check_undo_state`).
         edit: the write's context (``writing.EditContext``), filled with its audit entry's id.
+        fixed_by: the id of the user sending a system's ``fixed``: it is applied only while the system is still
+            returned to them, checked inside the write transaction under the lock
+            (``handoff.check_fixed_in_write``), so that it never undoes a decision committed after the caller's own
+            check; None (a revert, the machine) checks nothing.
 
     Returns:
         The committed :class:`ReviewDecision` (``decided_at`` is now, UTC).
@@ -58,6 +63,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         InvalidInputError: both or neither id, or an unknown status.
         NotFoundError: no such system or frame.
         StaleVersionError: the version is not in ``expected``; nothing changed.
+        ConflictError: a ``fixed`` of ``fixed_by`` on a system no longer returned to them; nothing changed.
     """
     if (system_id is None) == (frame_id is None):
         raise InvalidInputError("give exactly one of system_id and frame_id", field="system_id")
@@ -68,6 +74,8 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
 
     def apply(subject: System | Frame) -> ReviewDecision:
         check_undo_state(undo, review_state(subject))
+        if isinstance(subject, System) and status is ReviewStatus.FIXED and fixed_by is not None:
+            handoff.check_fixed_in_write(session, subject, fixed_by)
         review = subject.review
         if review is None:
             review = ReviewDecision()

@@ -24,7 +24,7 @@ from typing import Optional
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from app.core.errors import ForbiddenError
+from app.core.errors import ConflictError, ForbiddenError
 from app.db.models import AuditEntry, ReviewHandoff, ReviewStatus, System, User, UserRole
 from app.db.types import utcnow
 from app.services.audit import log as audit
@@ -94,6 +94,23 @@ def check_fixed_allowed(session: Session, system_id: int, *, user_id: int, role:
     if status is ReviewStatus.FIXED and not returned_to_user(session, system_id, user_id):
         raise ForbiddenError("only the person this system was returned to (marked needs fix) may send it back "
                              "as fixed")
+
+
+def check_fixed_in_write(session: Session, system: System, user_id: int) -> None:
+    """Refuse a ``fixed`` of user ``user_id`` on ``system`` unless the system is still returned to them, read inside
+    the decision's write transaction under the write lock (``writing.guarded_write``), so that no decision committed
+    between :func:`check_fixed_allowed` and the write is undone by a ``fixed`` that never saw it (a session's
+    decision needs no ``If-Match``).
+
+    Raises:
+        ConflictError: the hand-off closed since (another decision of the system committed first); nothing is
+            written, the message names the system's current status.
+    """
+    if returned_to_user(session, system.id, user_id):
+        return
+    current = system.review_status.value if system.review_status is not None else "pending"
+    raise ConflictError(f"'fixed' was not applied: the system is no longer returned to you (it was decided since: "
+                        f"it is now {current!r}); reload it to see the newest decision", current={"status": current})
 
 
 def last_label_editor(session: Session, system_id: int, *, other_than: Optional[str]) -> Optional[User]:

@@ -19,6 +19,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
+from app.core.names import clean_title
 from app.db.models import Job
 from app.services.derivation.recompute import recompute_all_systems
 from app.services.jobs.progress import Progress
@@ -38,8 +39,8 @@ def import_params(kind: str, path: str | Path, *, width: int | None = None, heig
     unpacked upload of its own, removed when the dataset cannot be imported; ``merge``: how to merge games stored
     already (``app.services.transfer.merging.MERGE_MODES``), None: refuse them; ``source``: the name of a detector's
     predictions (kind ``predictions``); ``name``: an upload's file name as the browser sent it (its last path
-    component, at most 200 characters): what the job is titled by and its import named as, instead of the server's
-    upload folder."""
+    component, cleaned: ``app.core.names.clean_title``): what the job is titled by and its import named as, instead
+    of the server's upload folder."""
     out = {"kind": kind, "path": str(Path(path).expanduser().resolve()), "width": width, "height": height,
            "from_lines": from_lines, "flip": list(flip or []), "calibration_workers": calibration_workers,
            "merge": merge}
@@ -47,7 +48,8 @@ def import_params(kind: str, path: str | Path, *, width: int | None = None, heig
         out["source"] = source
     if upload:
         out["upload"] = True
-        shown = PurePosixPath(str(name or "").replace("\\", "/")).name[:200]
+        # cleaned before anyone sees it (app.core.names.clean_title): no character that reorders, hides or escapes
+        shown = clean_title(PurePosixPath(str(name or "").replace("\\", "/")).name)
         if shown:
             out["name"] = shown
     return out
@@ -90,7 +92,8 @@ def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None)
     """How an import job's ``params["path"]`` is shown to annotators and reviewers (no server path:
     ``app.services.transfer.data_root.dataset_name``; an upload as ``upload <job id>/...``)."""
     if params.get("upload") and job_id is not None:  # wherever its folder lies (the jobs folder may have moved since)
-        return f"{params['name']} (upload {job_id})" if params.get("name") else f"upload {job_id}"
+        title = clean_title(str(params.get("name") or ""))  # a job stored before titles were cleaned, too
+        return f"{title} (upload {job_id})" if title else f"upload {job_id}"
     return data_root.dataset_name(params["path"], settings.data_root, jobs_dir(settings) / "uploads",
                         job_id if params.get("upload") else None)
 
@@ -103,6 +106,8 @@ def without_server_paths(job_id: int, params: dict[str, Any], result: dict[str, 
         return params, result, message
     path, name = str(params["path"]), shown_source(params, settings, job_id)
     params = {**params, "path": name}
+    if "name" in params:  # an upload's file name as the browser sent it: shown cleaned, whenever it was stored
+        params["name"] = clean_title(str(params["name"]))
     if result is not None and "source" in result:
         result = {**result, "source": name}
     if message:

@@ -31,6 +31,7 @@ Releases are append-only (database triggers refuse UPDATE and DELETE) and each i
 from __future__ import annotations
 
 import hashlib
+import unicodedata
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, Optional
@@ -41,6 +42,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session, aliased, undefer
 
 from app.core.errors import ConflictError, InvalidInputError, found
+from app.core.names import check_name, name_key
 from app.db.models import (
     Frame,
     Game,
@@ -152,13 +154,23 @@ def _store(session: Session, documents: dict[str, bytes]) -> int:
     return len(new)
 
 
-def _check_name(name: str) -> str:
-    if not isinstance(name, str) or not name.strip() or len(name) > NAME_MAX or name != name.strip():
-        raise InvalidInputError(f"a release name is 1 to {NAME_MAX} characters, no leading or trailing space",
-                                field="name")
-    if any(ord(c) < 32 or c in "/\\" for c in name):
-        raise InvalidInputError("a release name has no control character, '/' or '\\'", field="name")
+def check_release_name(name: str) -> str:
+    """``name`` as a release stores it (NFC): a name people read (``app.core.names.check_name``: no control or format
+    character, not dots alone, 1 to :data:`NAME_MAX` characters, no space around it), and no ``/`` or ``\\`` (its
+    page's address and an export's folder hold it). Raises :class:`InvalidInputError` naming ``name``."""
+    name = check_name(name, "name", max_length=NAME_MAX, what="a release name")
+    if any(c in "/\\" for c in name):
+        raise InvalidInputError("a release name has no '/' or '\\'", field="name")
     return name
+
+
+def _taken(session: Session, name: str) -> ConflictError:
+    like = session.scalar(select(Release.name).where(Release.name_key == name_key(name)))
+    same = like is None or like == name
+    return ConflictError(f"name: a release named {like or name!r} exists"
+                         + ("" if same else f" (it reads as {name!r}: names that differ only by case, accents' "
+                                            "composition or compatibility forms are one name)")
+                         + "; releases are immutable, choose another name")
 
 
 def create_release(session: Session, name: str, note: str = "", actor: Optional[str] = None) -> Release:
@@ -167,7 +179,8 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
 
     Args:
         session: database session; committed here (the release, its rows, new documents and the entry together).
-        name: the release's name (unique; 1-200 characters, no '/', '\\' or control character).
+        name: the release's name (:func:`check_release_name`; stored in NFC; unique by its key,
+            ``app.core.names.name_key``, which the database's unique index holds).
         note: free text kept with it.
         actor: who makes it (the audit's actor; None: the machine's account).
 
@@ -176,12 +189,12 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
 
     Raises:
         InvalidInputError: a name that cannot be one (field ``name``).
-        ConflictError: the name is taken (HTTP 409); nothing is written.
+        ConflictError: the name, or one that reads as it (its key), is taken (HTTP 409); nothing is written.
     """
-    _check_name(name)
+    name = check_release_name(name)
     reads_as_one_snapshot(session)
-    if session.scalar(select(Release.id).where(Release.name == name)) is not None:
-        raise ConflictError(f"name: a release named {name!r} exists; releases are immutable, choose another name")
+    if session.scalar(select(Release.id).where(Release.name_key == name_key(name))) is not None:
+        raise _taken(session, name)
     settings = {t.system_id: {"status": _plain(t.status), "tau_px": t.tau_px, "rule": t.rule,
                               "min_baseline_m": t.min_baseline_m, "pairs": []}
                 for t in session.execute(select(Triangulation.system_id, Triangulation.status, Triangulation.tau_px,
@@ -231,10 +244,9 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     session.add(release)
     try:
         session.flush()
-    except sa.exc.IntegrityError:  # the same name made by another request since the check above
+    except sa.exc.IntegrityError:  # the same name (by its key) made by another request since the check above
         session.rollback()
-        raise ConflictError(f"name: a release named {name!r} exists; releases are immutable, choose another "
-                            "name") from None
+        raise _taken(session, name) from None
     if games:
         session.execute(sa.insert(ReleaseGame), [{"release_id": release.id, "game_id": gid, "digest": d}
                                                  for gid, d in games.items()])
@@ -259,7 +271,8 @@ def get_release(session: Session, name: str) -> Release:
     Raises:
         NotFoundError: no release has that name (HTTP 404).
     """
-    return found(session.scalar(select(Release).where(Release.name == name)), "release", name)
+    stored = unicodedata.normalize("NFC", name)  # a name is stored in NFC: found however it was typed
+    return found(session.scalar(select(Release).where(Release.name == stored)), "release", name)
 
 
 def release_content(session: Session, release: Release) -> ReleaseContent:

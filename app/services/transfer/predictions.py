@@ -34,6 +34,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.core.errors import DatasetError, InvalidInputError
+from app.core.names import check_name
 from app.datasets.csv_cells import read_cell
 from app.db.models import Frame, Game, Prediction, System
 from app.db.session import begin_write
@@ -91,6 +92,7 @@ def check_source(name: str) -> str:
     >>> check_source("yolo-sn-ball")
     'yolo-sn-ball'
     """
+    check_name(name, "source", max_length=100, what="a source's name")  # the rule of every name people read
     if not isinstance(name, str) or not SOURCE_PATTERN.fullmatch(name):
         raise InvalidInputError("source must be 1-100 letters, digits, '.', '_' or '-', starting with a letter or "
                                 "digit", field="source")

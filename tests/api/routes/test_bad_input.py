@@ -81,3 +81,68 @@ def test_list_filters_refuse_nul_characters_and_ids_beyond_the_columns(client: T
         answer = client.get(f"{path}?{query}")
         assert answer.status_code == 422, (path, answer.text)
         assert answer.json()["detail"][0]["loc"][-1] == query.split("=")[0]
+
+
+def test_a_boolean_in_a_comments_point_is_refused_naming_it(client: TestClient, scene: Scene) -> None:
+    """Was: ``point: [true, 1]`` stored as ``[1.0, 1.0]`` (the body's float read ``true`` as 1 before the service's
+    check for booleans)."""
+    answer = client.post(f"/api/systems/{scene.system_id}/comments",
+                         json={"frame_id": scene.frame_ids[0], "point": [True, 1], "text": "here"})
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["detail"][0]["loc"] == ["body", "point", 0]
+    assert answer.json()["detail"][0]["msg"] == "a number is expected, not a boolean"
+    assert client.get(f"/api/systems/{scene.system_id}/comments").json()["items"] == []
+
+
+def _bodies() -> list[type]:
+    from app.api import main  # noqa: F401  (every router, and so every body model, is imported)
+    from app.api.schemas import _In
+
+    out, todo = [], [_In]
+    while todo:
+        for sub in todo.pop().__subclasses__():
+            out.append(sub)
+            todo.append(sub)
+    return out
+
+
+def _numeric_leaves(schema: dict, defs: dict, at: tuple = ()) -> list[tuple[tuple, object]]:
+    """(location, a value putting a boolean there) of each number a body schema holds at its top or in a list."""
+    ref = schema.get("$ref")
+    if ref:
+        schema = defs[ref.rsplit("/", 1)[-1]]
+    out = []
+    for option in schema.get("anyOf") or [schema]:
+        kind = option.get("type")
+        if kind in ("number", "integer"):
+            out.append((at, True))
+        elif kind == "array":
+            first = (option.get("prefixItems") or [option.get("items") or {}])[0]
+            n = max(option.get("minItems", 1), 1)
+            for loc, value in _numeric_leaves(first, defs):
+                out.append(((*at, 0, *loc), [value] + [1] * (n - 1)))
+    return out
+
+
+def test_every_number_of_every_request_body_refuses_a_boolean_before_coercion() -> None:
+    """One rule for every body (``app.api.schemas.refuse_booleans_for_numbers``): each number field of each request
+    body model, given ``true``, answers an error located at it, never 1."""
+    from pydantic import ValidationError
+
+    checked = []
+    for model in _bodies():
+        schema = model.model_json_schema()
+        for name, prop in schema.get("properties", {}).items():
+            for loc, value in _numeric_leaves(prop, schema.get("$defs", {}), (name,)):
+                with pytest.raises(ValidationError) as refused:
+                    model.model_validate({name: value})
+                errors = [e for e in refused.value.errors() if e["type"] == "bool_for_number"]
+                assert errors and errors[0]["loc"] == loc, (model.__name__, name, refused.value.errors())
+                checked.append(f"{model.__name__}.{name}")
+    from app.api.pass_schemas import PassIn
+
+    with pytest.raises(ValidationError) as nested:  # the queue's filters inside a body
+        PassIn.model_validate({"filter": {"game_id": True}})
+    assert nested.value.errors()[0]["loc"] == ("filter", "game_id")
+    assert {"CommentIn.point", "CommentIn.frame_id", "BallEdit.box", "TokenIn.expires_days", "AssignIn.system_ids",
+            "PassIn.system_id"} <= set(checked), checked

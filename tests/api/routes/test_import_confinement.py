@@ -216,3 +216,21 @@ def test_a_failed_upload_names_its_files_from_the_upload_whatever_the_jobs_folde
                 text = json.dumps(job)
                 assert str(tmp_path) not in text and "/tmp" not in text and "real-jobs" not in text, text
                 assert job["params"]["path"] == f"broken.zip (upload {job_id})"
+
+
+def test_an_uploads_file_name_reaches_other_users_cleaned(app, client: TestClient, act_as) -> None:
+    """Was: an upload's file name reached other users' job listings with right-to-left overrides and terminal
+    escapes. Control and format characters are replaced (U+FFFD) and the title kept short before anyone sees it."""
+    act_as("adam", "admin")
+    name = "\x1b[31mevil\u202egpj.zip" + "x" * 300
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        zf.writestr("set/00000.json", "{}")
+    uploaded = client.post("/api/imports", data={"kind": "sn-calibration", "width": "960", "height": "540"},
+                           files={"file": (name, buf.getvalue(), "application/zip")})
+    assert uploaded.status_code == 202, uploaded.text
+    act_as("ana", "annotator")
+    job = client.get(f"/api/jobs/{uploaded.json()['id']}").json()
+    shown = job["params"]["path"]
+    assert "\x1b" not in json.dumps(job, ensure_ascii=False) and "\u202e" not in json.dumps(job, ensure_ascii=False)
+    assert shown.startswith("\ufffd[31mevil\ufffdgpj.zip") and len(shown) <= 120 + len(f" (upload {job['id']})")

@@ -140,3 +140,46 @@ def test_releases_are_append_only_in_the_database(client: TestClient, scene: Sce
         with pytest.raises(sa.exc.DBAPIError, match="append-only"):
             db_session.execute(sa.text(statement))
         db_session.rollback()
+
+
+@pytest.mark.parametrize(("name", "why"), [
+    ("v1\u202egpj", "U+202E"),  # a right-to-left override: the name reads backwards after it
+    ("v1\u200b", "U+200B"),  # a zero-width space: two names that look one
+    ("\ufeffv1", "U+FEFF"),  # a byte order mark
+    ("v1\x1b[2J", "U+001B"),  # a terminal's escape
+    ("v1\x85", "U+0085"),  # a C1 control (next line)
+    (".", "dots alone"), ("..", "dots alone"), ("...", "dots alone"),
+])
+def test_a_release_name_people_cannot_read_as_it_is_is_422_naming_it(client: TestClient, scene: Scene, act_as,
+                                                                     name: str, why: str) -> None:
+    """Was: all accepted (201), and ``.`` / ``..`` made releases whose page cannot be opened."""
+    act_as("adam", "admin")
+    answer = client.post("/api/releases", json={"name": name})
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["detail"][0]["loc"] == ["body", "name"] and why in answer.json()["detail"][0]["msg"]
+    assert client.get("/api/releases").json()["items"] == []
+
+
+def test_release_names_are_stored_composed_and_unique_as_people_read_them(client: TestClient, scene: Scene,
+                                                                          act_as, db_session: Session) -> None:
+    """Was: the decomposed and the composed form of one name (two releases that look identical), and names that
+    differ only by case, all accepted. A name is stored in NFC; a second name with the same NFKC case-folded key is
+    409, whichever form it came in; the key is the database's unique index, not a read."""
+    from app.db.models import Release
+
+    act_as("adam", "admin")
+    made = client.post("/api/releases", json={"name": "Cafe\u0301 v1"})  # e + combining acute accent
+    assert made.status_code == 201, made.text
+    assert made.json()["name"] == "Caf\u00e9 v1"
+    assert client.get("/api/releases/Cafe\u0301 v1").json()["name"] == "Caf\u00e9 v1"  # found however typed
+    for twin in ("Caf\u00e9 v1", "caf\u00e9 V1", "CAFE\u0301 V1", "\uff23af\u00e9 v1", "Caf\u00e9 v1."):
+        again = client.post("/api/releases", json={"name": twin})
+        assert again.status_code == 409, (twin, again.text)
+        assert "'Café v1' exists" in again.json()["detail"]
+    assert [r["name"] for r in client.get("/api/releases").json()["items"]] == ["Caf\u00e9 v1"]
+    assert client.post("/api/releases", json={"name": "Caf\u00e9 v2"}).status_code == 201
+    # the database holds the rule, whoever writes: a second row with the same key is refused by its unique index
+    db_session.add(Release(name="CAF\u00c9 V2", note="", created_by="x", systems=0, views=0, hash=""))
+    with pytest.raises(sa.exc.IntegrityError):
+        db_session.flush()
+    db_session.rollback()

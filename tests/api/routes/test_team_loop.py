@@ -199,3 +199,40 @@ def test_the_import_panel_offers_the_servers_import_formats() -> None:
     script = (PROJECT_ROOT / "static" / "js" / "team.js").read_text()
     listed = re.findall(r'^  \["([a-z0-9-]+)", "', script, flags=re.M)
     assert sorted(listed) == sorted(typing.get_args(ImportFormat))
+
+
+def test_a_fixed_never_undoes_an_accept_that_landed_after_its_check(app: FastAPI, client: TestClient, scene: Scene,
+                                                                    as_user, team: dict[str, User],
+                                                                    db_session: Session, monkeypatch) -> None:
+    """Was: an annotator's ``fixed`` (a browser session, no ``If-Match``) racing the reviewer's accept overrode it:
+    the route checked the hand-off before the write's transaction, the accept committed in between and closed it, the
+    ``fixed`` then wrote over the accept (both 200). Here the accept lands exactly there, every time: the ``fixed`` is
+    now refused 409 (checked again in the write, under the lock) and the system stays accepted, in nobody's
+    To fix."""
+    from app.services.curation import decisions
+    from app.services.curation import handoff as handoff_service
+
+    as_user("ana")
+    _nudge(client, scene, 1, 6.0)
+    as_user("rev")
+    assert _decide(client, scene, "needs_fix", "the box sits on the shadow").status_code == 200
+    checked = handoff_service.check_fixed_allowed
+
+    def check_then_accept(session: Session, system_id: int, **kw: Any) -> None:
+        checked(session, system_id, **kw)  # ana's fixed passes its check: the system is returned to her
+        with app.state.session_factory() as other:  # the reviewer's accept commits right after it
+            decisions.decide_review(other, system_id=system_id, status="accepted", actor="rev")
+
+    monkeypatch.setattr(handoff_service, "check_fixed_allowed", check_then_accept)
+    ana = team["ana"]  # her browser's session: no If-Match needed
+    app.dependency_overrides[current_principal] = lambda: Principal(ana.id, ana.name, ana.role.value, "session")
+    fixed = client.post(f"/api/systems/{scene.system_id}/review", json={"status": "fixed", "comment": ""})
+    monkeypatch.setattr(handoff_service, "check_fixed_allowed", checked)
+    assert fixed.status_code == 409, fixed.text
+    assert "'fixed' was not applied" in fixed.json()["detail"] and "'accepted'" in fixed.json()["detail"]
+    view, _ = _system(client, scene)
+    assert view["review"]["status"] == "accepted"
+    assert client.get("/api/handoffs/mine").json()["to_fix"] == 0
+    actions = [e.action for e in db_session.scalars(
+        sa.select(AuditEntry).where(AuditEntry.system_id == scene.system_id).order_by(AuditEntry.id))]
+    assert actions[-1] == "system.review"  # the accept, nothing after it

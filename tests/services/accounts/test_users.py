@@ -193,3 +193,19 @@ def test_the_session_key_is_made_by_the_migration_and_again_when_lost(db_session
     db_session.commit()
     again = users.session_secret(db_session)
     assert again != stored and users.session_secret(db_session) == again
+
+
+def test_names_that_read_as_one_are_refused_by_the_database_too(db_session: Session) -> None:
+    """Two users whose names differ only by case or trailing dots were kept apart by a read before the insert only:
+    two requests at once could both pass it. The name's key (``app.core.names.name_key``) is a column with a unique
+    index, filled by the model, so the database refuses the second whoever writes it."""
+    users.create_user(db_session, "Zoe", "annotator", "pw")
+    assert db_session.scalar(sa.select(User.name_key).where(User.name == "Zoe")) == "zoe"
+    for twin in ("zoe", "ZOE.."):
+        db_session.add(User(name=twin, role="annotator", password_hash="x"))
+        with pytest.raises(sa.exc.IntegrityError):
+            db_session.flush()
+        db_session.rollback()
+    with pytest.raises(InvalidInputError) as refused:
+        users.create_user(db_session, "zoe.", "annotator", "pw")
+    assert refused.value.field == "name" and "'Zoe' exists" in str(refused.value)
