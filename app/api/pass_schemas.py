@@ -35,7 +35,7 @@ class PassIn(_In):
         "The queue's filters, as GET /api/systems takes them (game_id, status, jac_min, jac_max, error_min, "
         "error_max, doubt); a `sort` here is overridden by the body's `sort`."))
     sort: Optional[SystemSort] = Field(None, description="The queue's order (GET /api/systems' `sort`); default: the "
-                                "filter's sort, else the most doubts first.")
+                                "filter's sort, else the work to do first, the most severe doubt first.")
     system_id: Optional[DbInt] = Field(None, description="The system opened: the pass starts there, and an open "
                                        "pass of the same queue holding it is continued.")
     fresh: bool = Field(False, description="true: freeze a new pass even when one of this queue is open.")

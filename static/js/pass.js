@@ -7,7 +7,7 @@
 
 import { ApiError, startPass, visitPass, passPlace, listPasses, getPass } from "./api.js";
 import { el } from "./format.js";
-import { readState, apiFilters } from "./queuestate.js";
+import { readState, apiFilters, DEFAULT_SORT } from "./queuestate.js";
 
 export const PASS_PARAM = "pass";
 
@@ -154,7 +154,7 @@ export async function resumeLink(container) {
     const at = full.systems[Math.min(position, full.systems.length - 1)];
     const q = new URLSearchParams(Object.entries(open.filter).map(([k, v]) => [k === "game_id" ? "game" : k, String(v)]));
     for (const k of ["jac_min", "jac_max"]) if (q.has(k)) q.set(k, String(Number(q.get(k)) * 100));
-    if (open.sort !== "-doubts") q.set("sort", open.sort);
+    if (open.sort !== DEFAULT_SORT) q.set("sort", open.sort);
     q.set(PASS_PARAM, String(id));
     container.replaceChildren(el("a", { href: `/systems/${at}?${q}`, "data-testid": "resume-pass",
       title: `resume your review pass of ${new Date(open.created_at).toLocaleString()} at ${position + 1} of ${open.total}: `

@@ -140,8 +140,8 @@ class QueuePage {
 
   toggleSort(key) {
     const current = this.state.sort;
-    // first click: the most doubtful first (most doubts, largest error, lowest JaC) or A-Z for names
-    const first = key === "worst_error" || key === "doubts" ? `-${key}` : key;
+    // first click: the most doubtful first (most severe, largest error, lowest JaC) or A-Z for names
+    const first = key === "worst_error" || key === "doubts" || key === "severity" ? `-${key}` : key;
     const flipped = first.startsWith("-") ? key : `-${key}`;
     this.state.sort = current === first ? flipped : first;
     this.firstPage();
