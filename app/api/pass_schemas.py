@@ -48,12 +48,15 @@ class VisitIn(_In):
 
 
 class PassCounts(BaseModel):
-    """The pass's systems by their current status; ``skipped``: still pending."""
+    """The pass's systems (``app.services.curation.passes.COUNT_KEYS``): the owner's own decisions in this pass, then
+    the rest by their current status."""
 
-    accepted: int
-    rejected: int
-    needs_fix: int
-    skipped: int
+    accepted: int = Field(description="Accepted by the pass's owner in this pass (and still so).")
+    rejected: int = Field(description="Rejected by the pass's owner in this pass.")
+    needs_fix: int = Field(description="Returned for a fix by the pass's owner in this pass.")
+    sent_back: int = Field(description="Sent back as fixed by the annotator it was returned to: to decide again.")
+    by_others: int = Field(description="Decided, not by the pass's owner in this pass (another reviewer, or before).")
+    skipped: int = Field(description="Still pending: visited or stepped over without a decision.")
 
 
 class PassOut(BaseModel):

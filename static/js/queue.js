@@ -65,6 +65,8 @@ class QueuePage {
     form.addEventListener("submit", (e) => {
       e.preventDefault();
       this.applyForm();
+      // the filter is applied: the next Enter opens the highlighted row, as j / k and Enter do, not Apply again
+      if (form.contains(document.activeElement)) document.activeElement.blur();
     });
     form.addEventListener("change", (e) => {
       if (e.target.tagName === "SELECT") this.applyForm();
