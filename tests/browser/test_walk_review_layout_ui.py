@@ -1,6 +1,8 @@
 """The queue page fits the window (Playwright, Chromium, the real server) over the demo and one game of the
 labels-only ``soccernet-v3-dev-large`` set (../shared): its views without images, many without a camera, give the
-rows with the most chips (up to eight), which ran the queue 83 px past a 1366-px window. Skips without ../shared.
+rows with the most chips; and one row made to carry every chip the queue draws (its stored figures set so: every
+doubt kind, views above tau, without a camera, below admission, without a ball, no 3D ball), the widest row the
+page can be asked to draw. Skips without ../shared.
 Screenshots in ``test-artifacts/walk-review/``."""
 from __future__ import annotations
 
@@ -35,8 +37,23 @@ def seeded_settings(tmp_path_factory: pytest.TempPathFactory):
     tree = root / "labels-only"
     (tree / GAME).mkdir(parents=True)
     shutil.copyfile(labels, tree / GAME / "Labels-v3.json")  # a copy in the test's temporary folder only
-    import_into_new_database(settings, generate_demo_dataset(root / "demo"), tree)
+    import_into_new_database(settings, generate_demo_dataset(root / "demo"), tree, then=_every_chip)
     return settings
+
+
+def _every_chip(session) -> None:
+    """The first system of the labels-only game shows every chip of a queue row (its stored queue figures)."""
+    import sqlalchemy as sa
+
+    from app.db.models import Game, System
+    from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
+
+    system = session.scalars(sa.select(System).join(Game).where(Game.league == GAME.parts[0])
+                             .order_by(System.id)).first()
+    system.doubt_counts = {kind: 2 for kind in (*LABEL_KINDS, *INFO_KINDS)}
+    system.label_doubts = 2 * len(LABEL_KINDS)
+    system.views_total, system.views_calibrated, system.views_admitted, system.views_labelled = 6, 4, 2, 3
+    system.views_above_tau = 2
 
 
 def _chips(row: dict) -> int:
@@ -47,7 +64,7 @@ def _chips(row: dict) -> int:
 def test_the_queue_is_no_wider_than_the_window_and_every_chip_is_seen(page, artifacts, size):
     page.set_viewport_size({"width": size[0], "height": size[1]})
     rows = _api(page, "/api/systems?limit=500")["items"]
-    assert max(_chips(r) for r in rows) >= 4
+    assert max(_chips(r) for r in rows) >= 10
     page.goto("/?limit=500")
     page.locator(tid("queue-row")).first.wait_for()
     page.wait_for_timeout(300)
