@@ -388,7 +388,7 @@ class SystemPage {
       { keys: ["u"], does: "back to the queue", run: () => this.settle().then(() => location.assign(this.queueUrl())) },
       { keys: ["o"], does: "hide / show the overlays",
         run: () => { document.body.classList.toggle("overlays-hidden"); } }, // look at the bare frames
-      { keys: ["1", "2", "3", "4", "5", "6", "7", "8", "9"], show: ["1…9"], does: "select a view (scrolled into sight)",
+      { keys: ["1", "2", "3", "4", "5", "6", "7", "8", "9"], show: ["1…9"], does: "select a view",
         run: (e) => this.select(Number(e.key) - 1, true) },
       { keys: ["ArrowLeft", "ArrowUp", "ArrowRight", "ArrowDown"], show: ["←↑→↓"],
         does: "move the selected view's ball box 1 px (Shift 5 px)",
