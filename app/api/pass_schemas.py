@@ -27,7 +27,7 @@ class PassIn(_In):
         "The queue's filters, as GET /api/systems takes them (game_id, status, jac_min, jac_max, error_min, "
         "error_max, doubt); a `sort` here is overridden by the body's `sort`."))
     sort: Optional[SystemSort] = Field(None, description="The queue's order (GET /api/systems' `sort`); default: the "
-                                "filter's sort, else the most doubts first.")
+                                "filter's sort, else the work to do first, the most severe doubt first.")
     system_id: Optional[DbInt] = Field(None, description="The system opened: the pass starts there, and an open "
                                        "pass of the same queue holding it is continued.")
     fresh: bool = Field(False, description="true: freeze a new pass even when one of this queue is open.")
@@ -40,12 +40,15 @@ class VisitIn(_In):
 
 
 class PassCounts(BaseModel):
-    """The pass's systems by their current status; ``skipped``: still pending."""
+    """The pass's systems (``app.services.curation.passes.COUNT_KEYS``): the owner's own decisions in this pass, then
+    the rest by their current status."""
 
-    accepted: int
-    rejected: int
-    needs_fix: int
-    skipped: int
+    accepted: int = Field(description="Accepted by the pass's owner in this pass (and still so).")
+    rejected: int = Field(description="Rejected by the pass's owner in this pass.")
+    needs_fix: int = Field(description="Returned for a fix by the pass's owner in this pass.")
+    sent_back: int = Field(description="Sent back as fixed by the annotator it was returned to: to decide again.")
+    by_others: int = Field(description="Decided, not by the pass's owner in this pass (another reviewer, or before).")
+    skipped: int = Field(description="Still pending: visited or stepped over without a decision.")
 
 
 class PassOut(BaseModel):

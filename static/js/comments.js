@@ -8,6 +8,7 @@
 
 import { getMe, send } from "./api.js";
 import { el, showError, toast } from "./format.js";
+import { word } from "./words.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 
@@ -98,16 +99,18 @@ export class CommentsCard {
     $("handoff").hidden = !h;
     $("send-fixed").hidden = !h?.may_send_fixed;
     // an annotator decides nothing but "fixed" (the API answers 403): the reviewer's buttons are not offered
-    for (const id of ["accept", "reject", "needs-fix"]) $(id).hidden = this.me?.role === "annotator";
+    for (const id of ["accept", "reject", "needs-fix", "review-card"]) $(id).hidden = this.me?.role === "annotator";
   }
 
   item(c, i) {
     const index = this.viewIndex(c.frame_id);
-    const where = `V${index + 1}${c.point ? ` (${Math.round(c.point[0])}, ${Math.round(c.point[1])})` : " (whole view)"}`;
+    // "on V2" for a person; the pixel (x from the frame's left, y from its top) on hover
+    const where = `on V${index + 1}${c.point ? "" : ", the whole view"}`;
+    const pixel = c.point ? `V${index + 1} (${Math.round(c.point[0])}, ${Math.round(c.point[1])}): ${word("term", "pin").means}` : null;
     const li = el("li", { class: `review-comment${c.resolved ? " resolved" : ""}${i === this.current ? " current" : ""}`,
       "data-testid": "review-comment", "data-id": String(c.id), "data-frame-id": String(c.frame_id), "data-resolved": String(c.resolved) },
     el("span", { class: "pin-no" }, String(c.number)),
-    el("span", { class: "where mono" }, where),
+    el("span", { class: "where", "data-testid": "review-comment-where", title: pixel }, where),
     el("span", { class: "text", "data-testid": "review-comment-text" }, c.text),
     el("span", { class: "muted by" }, `${c.author} · ${when(c.created_at)}${c.resolved ? ` · resolved by ${c.resolved_by}` : ""}`));
     if (this.mayResolve(c)) {
@@ -180,7 +183,8 @@ export class CommentsCard {
     this.pinning = false;
     document.body.classList.remove("pinning");
     const index = this.viewIndex(v.frame_id);
-    $("comment-where").textContent = `on V${index + 1} at (${Math.round(this.draft.point[0])}, ${Math.round(this.draft.point[1])})`;
+    $("comment-where").textContent = `on V${index + 1}, where you clicked`;
+    $("comment-where").title = `V${index + 1} (${Math.round(this.draft.point[0])}, ${Math.round(this.draft.point[1])}): ${word("term", "pin").means}`;
     $("comment-form").hidden = false;
     $("comment-text").focus();
   }

@@ -295,13 +295,14 @@ export class ViewPanel extends HTMLElement {
       const round = (x) => Math.round(x * 10) / 10;
       this.saving = true;
       const provenance = ((doubt.suggestion.request || {}).body || {}).provenance; // the label keeps where it came from
-      this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: doubt.suggestion.box.map(round), provenance }, bubbles: true }));
+      this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, box: doubt.suggestion.box.map(round), provenance,
+        said: provenance ? "ball snapped to the suggested box: Enter confirms it" : "ball snapped to the suggested box" }, bubbles: true }));
       return true;
     }
     if (action === "snap_point" && Array.isArray(doubt.suggestion.point) && doubt.suggestion.point.length === 2) {
       const round = (x) => Math.round(x * 10) / 10;
       this.saving = true;
-      this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, point: doubt.suggestion.point.map(round) }, bubbles: true }));
+      this.dispatchEvent(new CustomEvent("ball-change", { detail: { frameId: this.#view.frame_id, point: doubt.suggestion.point.map(round), said: "ball snapped to the suggested point" }, bubbles: true }));
       return true;
     }
     return false;
@@ -329,8 +330,9 @@ export class ViewPanel extends HTMLElement {
     const ball = this.#view?.ball || {};
     if (this.#saving || this.ball.dragging || !this.pendingPlacement) return false;
     this.saving = true;
+    const said = "suggested ball confirmed: it counts for the 3D ball now";
     this.dispatchEvent(new CustomEvent("ball-change", {
-      detail: ball.kind === "box" ? { frameId: this.#view.frame_id, box: ball.box } : { frameId: this.#view.frame_id, point: ball.point },
+      detail: ball.kind === "box" ? { frameId: this.#view.frame_id, box: ball.box, said } : { frameId: this.#view.frame_id, point: ball.point, said },
       bubbles: true }));
     return true;
   }
@@ -354,6 +356,7 @@ export class ViewPanel extends HTMLElement {
     if (validBox(ball.original_box)) detail.box = ball.original_box;
     else if (validPoint(ball.original_point)) detail.point = ball.original_point;
     else return false;
+    detail.said = "ball restored to the imported label";
     this.saving = true;
     this.dispatchEvent(new CustomEvent("ball-change", { detail, bubbles: true }));
     return true;

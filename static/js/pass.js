@@ -7,7 +7,7 @@
 
 import { ApiError, startPass, visitPass, passPlace, listPasses, getPass } from "./api.js";
 import { el } from "./format.js";
-import { readState, apiFilters } from "./queuestate.js";
+import { readState, apiFilters, DEFAULT_SORT } from "./queuestate.js";
 
 export const PASS_PARAM = "pass";
 
@@ -32,9 +32,20 @@ function queueOf(search) {
   return { filter: Object.fromEntries(Object.entries(filters).filter(([, v]) => v !== "" && v !== undefined)), sort };
 }
 
-/** "7 accepted · 1 rejected · 1 needs fix · 0 skipped". */
+/** "7 accepted · 1 rejected · 1 needs fix · 0 skipped": the person's own decisions in this pass, then the systems sent
+ * back as fixed and those decided by others (or before the pass) when there are any, then those still pending. */
 export function describeCounts(c = {}) {
-  return `${c.accepted ?? 0} accepted · ${c.rejected ?? 0} rejected · ${c.needs_fix ?? 0} needs fix · ${c.skipped ?? 0} skipped`;
+  const others = [
+    c.sent_back ? `${c.sent_back} sent back as fixed (to decide again)` : null,
+    c.by_others ? `${c.by_others} decided by others or before this pass` : null,
+  ].filter(Boolean);
+  return [`${c.accepted ?? 0} accepted`, `${c.rejected ?? 0} rejected`, `${c.needs_fix ?? 0} needs fix`, ...others,
+    `${c.skipped ?? 0} skipped`].join(" · ");
+}
+
+/** Systems of the pass still to decide: pending, or sent back as fixed. */
+export function toDecide(c = {}) {
+  return (c.skipped ?? 0) + (c.sent_back ?? 0);
 }
 
 /** True when a query string asks for a new pass (`?pass=new`: begin one even if an open pass of the same queue
@@ -89,15 +100,15 @@ export class ReviewPass {
     else if (p.index !== null && systemId === p.next_id) index = p.index + 1;
     else if (p.index !== null && systemId === p.prev_id) index = p.index - 1;
     const where = index === null ? `… of ${p.total}` : `${index + 1} of ${p.total}`;
-    this.progress.textContent = `pass ${where} · ${p.counts.skipped} pending`;
+    this.progress.textContent = `pass ${where} · ${toDecide(p.counts)} pending`;
   }
 
   note(systemId, place) {
     this.systemId = systemId;
     this.place = place;
     const where = place.index === null ? "outside the pass" : `${place.index + 1} of ${place.total}`;
-    this.progress.textContent = `pass ${where} · ${place.counts.skipped} pending`;
-    this.progress.title = `review pass ${place.pass_id}: ${describeCounts(place.counts)} (skipped: still pending)`;
+    this.progress.textContent = `pass ${where} · ${toDecide(place.counts)} pending`;
+    this.progress.title = `review pass ${place.pass_id}: your decisions in it: ${describeCounts(place.counts)} (skipped: still pending)`;
     if (!place.finished || place.index === null) this.hideFinished();
   }
 
@@ -125,12 +136,12 @@ export class ReviewPass {
     this.panel.replaceChildren(
       el("strong", {}, "Pass finished: "),
       el("span", {}, "no other system of this pass is left pending. "),
-      el("span", { "data-testid": "pass-counts" }, describeCounts(place.counts)),
+      el("span", { "data-testid": "pass-counts", title: "your own decisions in this pass, then the rest" }, describeCounts(place.counts)),
       el("span", { class: "actions" },
         el("a", { href: queueUrl, class: "button", "data-testid": "pass-queue-link" }, "back to the queue (u)"),
         skipped !== null && skipped !== undefined
           ? el("button", { type: "button", "data-testid": "pass-skipped", onclick: () => this.go(skipped) },
-            `review the ${place.counts.skipped} skipped`)
+            place.counts.sent_back ? `review the ${toDecide(place.counts)} left` : `review the ${place.counts.skipped} skipped`)
           : null),
     );
     this.panel.hidden = false;
@@ -147,14 +158,14 @@ export async function resumeLink(container) {
   if (!container) return;
   try {
     const mine = await listPasses({ limit: 5 });
-    const open = mine.find((p) => p.counts.skipped > 0 && p.total > 0);
+    const open = mine.find((p) => toDecide(p.counts) > 0 && p.total > 0);
     if (!open) return;
     const { id, position } = open;
     const full = await getPass(id);
     const at = full.systems[Math.min(position, full.systems.length - 1)];
     const q = new URLSearchParams(Object.entries(open.filter).map(([k, v]) => [k === "game_id" ? "game" : k, String(v)]));
     for (const k of ["jac_min", "jac_max"]) if (q.has(k)) q.set(k, String(Number(q.get(k)) * 100));
-    if (open.sort !== "-doubts") q.set("sort", open.sort);
+    if (open.sort !== DEFAULT_SORT) q.set("sort", open.sort);
     q.set(PASS_PARAM, String(id));
     container.replaceChildren(el("a", { href: `/systems/${at}?${q}`, "data-testid": "resume-pass",
       title: `resume your review pass of ${new Date(open.created_at).toLocaleString()} at ${position + 1} of ${open.total}: `

@@ -3,10 +3,12 @@
 // header, shown before you edit), so that two people rarely edit one system at once.
 //
 // While the page shows a system it sends a heartbeat, PUT /api/systems/{id}/presence, every
-// `heartbeat_seconds` (20 s): a soft claim that lapses 2 minutes after its last refresh. The server writes the
-// claim only when it is due (at most once per 80 s), so an open page costs under one database write a minute;
+// `heartbeat_seconds` (10 s): a soft claim that lapses 50 s after its last refresh. The server writes the
+// claim only when it is due (at most once per 30 s), so an open page costs two database writes a minute;
 // the other heartbeats only read who else is there. Leaving the system (another system, the queue, closing the
-// tab) ends the claim at once (DELETE, sent with keepalive); a page that vanishes lapses by itself.
+// tab: `pagehide`) ends the claim at once (DELETE, sent with keepalive); a page that vanishes lapses by itself.
+// The others' "since N s" counts on every second between heartbeats; a claim that ended leaves the bar at the
+// next heartbeat.
 
 import { getMe, send, CSRF_HEADER } from "./api.js";
 import { el } from "./format.js";
@@ -72,15 +74,26 @@ export class SystemPresence {
     this.chip.title = `assigned to ${who}${a.assigned_by ? ` by ${a.assigned_by}` : ""}${a.assigned_at ? ` on ${new Date(a.assigned_at).toLocaleString()}` : ""}`;
   }
 
+  /** Show who else has the system open (their `seconds_open` as of now); the seconds then count on locally. */
   drawOthers(others) {
     this.others = others;
+    this.seenAt = performance.now();
+    clearInterval(this.ticker);
+    this.ticker = null;
     this.bar.hidden = !others.length;
     if (!others.length) return;
+    this.drawWords();
+    this.bar.dataset.names = others.map((p) => p.name).join(",");
+    this.ticker = setInterval(() => this.drawWords(), 1000);
+  }
+
+  drawWords() {
+    const elapsed = (performance.now() - this.seenAt) / 1000;
+    const now = this.others.map((p) => ({ ...p, seconds_open: (p.seconds_open || 0) + elapsed }));
     this.bar.replaceChildren(
-      el("b", {}, presenceWords(others)),
+      el("b", {}, presenceWords(now)),
       el("span", {}, ": your edits may cross theirs. Agree who goes on, or pick another system."),
     );
-    this.bar.dataset.names = others.map((p) => p.name).join(",");
   }
 
   /** One heartbeat now, then every `heartbeat_seconds` while the system stays shown. */

@@ -65,6 +65,8 @@ class QueuePage {
     form.addEventListener("submit", (e) => {
       e.preventDefault();
       this.applyForm();
+      // the filter is applied: the next Enter opens the highlighted row, as j / k and Enter do, not Apply again
+      if (form.contains(document.activeElement)) document.activeElement.blur();
     });
     form.addEventListener("change", (e) => {
       if (e.target.tagName === "SELECT") this.applyForm();
@@ -140,8 +142,8 @@ class QueuePage {
 
   toggleSort(key) {
     const current = this.state.sort;
-    // first click: the most doubtful first (most doubts, largest error, lowest JaC) or A-Z for names
-    const first = key === "worst_error" || key === "doubts" ? `-${key}` : key;
+    // first click: the most doubtful first (most severe, largest error, lowest JaC) or A-Z for names
+    const first = key === "worst_error" || key === "doubts" || key === "severity" ? `-${key}` : key;
     const flipped = first.startsWith("-") ? key : `-${key}`;
     this.state.sort = current === first ? flipped : first;
     this.firstPage();

@@ -3,8 +3,8 @@
 // a filtered queue moves (prev / next, after a decision) within that same queue.
 
 export const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "doubt", "assignee", "sort"];
-/** The API's default order: the most label doubts first. */
-export const DEFAULT_SORT = "-doubts";
+/** The API's default order: the work to do first (pending, fixed), the most severe doubt first. */
+export const DEFAULT_SORT = "-severity";
 
 /** Queue state from a query string; JaC bounds are in percent, as the reviewer types them. */
 export function readState(search = location.search) {

@@ -235,9 +235,20 @@ class SystemPage {
    * server, and move on to the next system still pending (a 412: their decision drawn, the conflict notice). */
   async review(status, comment = null, ifMatch = null) {
     if (!this.system || this.busy) return;
+    const me = await getMe().catch(() => null);
+    if (me?.role === "annotator" && status !== "fixed") { // the API would answer 403: say what an annotator does instead
+      toast(ANNOTATOR_DECIDES_NOT);
+      return;
+    }
     this.busy = true;
     const sys = this.system;
     const text = comment ?? $("comment").value.trim();
+    const was = sys.review || {};
+    if (ifMatch === null && was.status === status && (was.comment || "") === text) { // `a` again: nothing new to write
+      this.busy = false;
+      toast(`${sys.name} is already ${STATUS_LABEL[status].toLowerCase()}: nothing written.`);
+      return;
+    }
     try {
       await this.settle();
       // the accept guard (guard.js): open label doubts are listed first; Esc leaves the system pending
@@ -255,12 +266,13 @@ class SystemPage {
       const place = await this.pass.fresh(sys.id).catch(() => null);
       const next = place ? place.next_pending_id : current.next_id;
       this.busy = false;
+      const said = decisionWords(status, answer); // a needs fix says to whom it went
       if (next !== null && next !== undefined) {
-        toast(`${sys.name}: ${answer?.handoff || STATUS_LABEL[status]}`); // a needs fix says to whom it went
+        toast(`${sys.name}: ${said}`);
         await this.load(next, true);
       } else {
         if (place) this.pass.showFinished(place, this.queueUrl());
-        toast(`${sys.name}: ${STATUS_LABEL[status]}. ${place ? LAST_OF_PASS : "That was the last system of this queue."}`);
+        toast(`${sys.name}: ${said}. ${place ? LAST_OF_PASS : "That was the last system of this queue."}`);
         if (this.system === current && etag) current.etag = etag; // the page stays: its next decision needs it
         if (this.system === current) { // the views' parts with no decision of their own read the system's now
           current.review = { ...(current.review || {}), ...(answer || { status }) };
@@ -344,11 +356,14 @@ class SystemPage {
     return flagged.length === 1 ? flagged[0] : null;
   }
 
-  select(index) {
+  /** Select view `index`; `reveal`: scroll it into sight (a key chose it, maybe below the fold: the arrow keys then
+   * move a box the reviewer sees). */
+  select(index, reveal = false) {
     const panels = [...$("views").children];
     if (index < 0 || index >= panels.length) return;
     this.selected = index;
     panels.forEach((p, i) => (p.selected = i === index));
+    if (reveal) revealBelowBar(panels[index]);
   }
 
   /** The page's keys: the one table the handler reads and the key card and `?` overlay show (keys.js). */
@@ -368,12 +383,13 @@ class SystemPage {
       { keys: ["k"], does: "previous system of the pass", run: () => this.go(this.stepId(-1)) },
       { keys: [",", "."], does: "previous / next frame of a sequence (ISSIA)",
         run: (e) => (inASequence(this.system) ? this.go(this.sequence.neighbour(e.key === "." ? 1 : -1)) : false) },
-      { keys: ["c"], does: "comment (Esc to leave)", run: () => $("comment").focus() },
+      { keys: ["c"], does: "comment (Esc to leave)",
+        run: () => ($("review-card").hidden ? "the decision's comment is a reviewer's (an annotator's page has none)" : $("comment").focus()) },
       { keys: ["u"], does: "back to the queue", run: () => this.settle().then(() => location.assign(this.queueUrl())) },
       { keys: ["o"], does: "hide / show the overlays",
         run: () => { document.body.classList.toggle("overlays-hidden"); } }, // look at the bare frames
       { keys: ["1", "2", "3", "4", "5", "6", "7", "8", "9"], show: ["1…9"], does: "select a view",
-        run: (e) => this.select(Number(e.key) - 1) },
+        run: (e) => this.select(Number(e.key) - 1, true) },
       { keys: ["ArrowLeft", "ArrowUp", "ArrowRight", "ArrowDown"], show: ["←↑→↓"],
         does: "move the selected view's ball box 1 px (Shift 5 px)",
         run: (e) => nudge(...{ ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, -1], ArrowDown: [0, 1] }[e.key], 0)(e) },
@@ -410,8 +426,30 @@ class SystemPage {
 const UNDOABLE = new Set(["ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",
   "view.calibration_review", "system.review"]);
 
+/** What `a`, `r` or `f` say on an annotator's page (deciding is a reviewer's; the API would refuse it). */
+export const ANNOTATOR_DECIDES_NOT = "Accepting, rejecting and returning systems is for reviewers: as an annotator you "
+  + "fix labels, and send back as fixed a system returned to you.";
+
+/** A decision in words: a needs fix names the person it went to ("returned to ana by rev: ..."). */
+function decisionWords(status, answer) {
+  if (answer?.handoff) return answer.handoff;
+  if (status === "needs_fix" && answer?.returned_to) return `needs fix, returned to ${answer.returned_to}`;
+  return STATUS_LABEL[status];
+}
+
 /** The toast of the last decision of a pass (nothing pending left after the system). */
 export const LAST_OF_PASS = "Nothing pending is left in this pass.";
+
+/** Scroll the window so that `card` is wholly seen below the sticky top bar, or, taller than the room there, its top
+ * just under the bar; a card already wholly seen stays where it is. */
+function revealBelowBar(card) {
+  const barBottom = Math.max(0, document.querySelector(".topbar")?.getBoundingClientRect().bottom ?? 0);
+  const r = card.getBoundingClientRect();
+  if (r.top >= barBottom && r.bottom <= innerHeight) return;
+  const gap = 8;
+  const dy = r.top < barBottom || r.height > innerHeight - barBottom - 2 * gap ? r.top - barBottom - gap : r.bottom - innerHeight + gap;
+  window.scrollBy({ top: dy, behavior: "instant" });
+}
 
 function idFromPath() {
   const m = location.pathname.match(/\/systems\/([^/]+)\/?$/);

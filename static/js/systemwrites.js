@@ -96,8 +96,10 @@ export class ViewWrites {
   saveBall(panel, detail) {
     const change = "box" in detail ? { box: detail.box } : { point: detail.point };
     if (detail.provenance) change.provenance = detail.provenance; // a doubt's suggestion: not evidence until placed
+    const name = `${viewLabel(this.#page.system, detail.frameId)} (${panel.view?.name || "view"})`;
     this.frameWrite(panel, detail.frameId, `${viewLabel(this.#page.system, detail.frameId)} ball: ${describeState({ ball: change })}`,
-      (etag) => patchBall(detail.frameId, change, this.#page.params, etag));
+      (etag) => patchBall(detail.frameId, change, this.#page.params, etag),
+      detail.said ? () => toast(`${name}: ${detail.said}`) : null); // a key's fix says what it did, as m and x do
   }
 
   /** Send a view's edited field lines (lineseditor.js "lines-change"), draw the recalibrated system and

@@ -11,7 +11,7 @@ import { chip, chipClass, word, tauText } from "./words.js";
 /** The calibration's standard deviations as one line: "x/y/z m · pan/tilt/roll ° · f px". */
 function uncertaintyText(u) {
   const p = u.position_m || {};
-  return `${fmt(p.x, 2)}/${fmt(p.y, 2)}/${fmt(p.z, 2)} m · ${fmt(u.pan_deg, 2)}/${fmt(u.tilt_deg, 2)}/${fmt(u.roll_deg, 2)}° · f ${fmt(u.focal_px, 0)} px`;
+  return `where ${fmt(p.x, 2)}/${fmt(p.y, 2)}/${fmt(p.z, 2)} m · aim ${fmt(u.pan_deg, 2)}/${fmt(u.tilt_deg, 2)}/${fmt(u.roll_deg, 2)}° · zoom ${fmt(u.focal_px, 0)} px`;
 }
 
 export function boxCentre(b) {
@@ -174,8 +174,8 @@ export function viewFacts(v, ctx, panel) {
       flags,
       cal.reason ? el("div", { class: "reason", "data-testid": "view-reason" }, cal.reason) : null,
     ),
-    el("dt", { title: gammas.length ? `JaC at ${gammas.map((g) => `${pct(g)} %`).join(", ")} of the image diagonal` : "JaC: not calibrated" },
-      gammas.length ? `JaC ${gammas.map(pct).join("/")}%` : "JaC"),
+    el("dt", { "data-testid": "term-jac", title: `${gammas.length ? `JaC@${gammas.map(pct).join("/")} %` : "JaC (not calibrated)"}; ${word("term", "jac").means}` },
+      word("term", "jac").chip),
     el(
       "dd",
       { class: "mono", "data-testid": "view-jac" },
@@ -187,9 +187,10 @@ export function viewFacts(v, ctx, panel) {
         i ? fmtJac(jac[g]) : el("span", { class: cal.admitted === true ? "ok" : cal.admitted === false ? "bad" : "" }, fmtJac(jac[g])),
       ]),
     ),
-    cal.uncertainty ? el("dt", { title: "Standard deviations of the camera from the line fit (its Jacobian times the line noise): position x/y/z (m), pan/tilt/roll (degrees), focal (px); — where the lines leave it undetermined" }, "Camera ±") : null,
+    cal.uncertainty ? el("dt", { "data-testid": "term-camera-sigma", title: word("term", "camera_sigma").means }, word("term", "camera_sigma").chip) : null,
     cal.uncertainty ? el("dd", { class: "mono", "data-testid": "view-uncertainty" }, uncertaintyText(cal.uncertainty)) : null,
-    el("dt", { title: `Reprojection error of the 3D ball in this view; ${tauText(tau)} (${rule ? word("rule", rule).means : "rule unknown"})` }, "Reproj. error"),
+    el("dt", { "data-testid": "term-reprojection-error", title: `${word("term", "reprojection_error").means}; ${tauText(tau)}, ${word("term", "tau").means} (${rule ? word("rule", rule).means : "rule unknown"})` },
+      word("term", "reprojection_error").chip),
     el("dd", { class: `mono ${errorClass(v.reprojection_error_scaled_px, tau)}`, "data-testid": "view-reproj-error" }, errText),
     el("dt", { title: "The annotated ball box: size and centre, image pixels" }, "Ball (red)"),
     el("dd", { class: "mono", "data-testid": "view-box" }, boxText),

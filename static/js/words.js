@@ -42,8 +42,8 @@ export const WORDS = /*WORDS*/{
   },
   "rig_assisted": {
    "tone": "info",
-   "chip": "rig position",
-   "means": "the camera was fitted at a known camera position of the game"
+   "chip": "at the game's camera spot",
+   "means": "rig position: the camera was fitted where a camera of the game is known to stand"
   },
   "few_lines": {
    "tone": "info",
@@ -72,12 +72,12 @@ export const WORDS = /*WORDS*/{
   },
   "rig_assisted": {
    "tone": "info",
-   "chip": "rig position",
-   "means": "fitted at a known camera position of the game"
+   "chip": "at the game's camera spot",
+   "means": "rig position: fitted where a camera of the game is known to stand"
   },
   "learned_prior": {
-   "chip": "learned prior",
-   "means": "fitted with the camera prior learned from the dataset"
+   "chip": "helped by the usual cameras",
+   "means": "learned prior: fitted with what the dataset's cameras usually are (where they stand, how they zoom)"
   },
   "radial_prior": {
    "chip": "lens prior",
@@ -101,8 +101,8 @@ export const WORDS = /*WORDS*/{
    "means": "calibrated again from the ball seen by the other cameras"
   },
   "ball_bundle": {
-   "chip": "ball bundle",
-   "means": "refined with the other cameras from their lines and the ball"
+   "chip": "refined with the ball",
+   "means": "ball bundle: refined together with the other cameras from their lines and the ball they all see"
   }
  },
  "flag_prefix": {
@@ -130,7 +130,7 @@ export const WORDS = /*WORDS*/{
   "error_above_tau": {
    "tone": "bad",
    "chip": "error > τ",
-   "means": "the 3D ball reprojects farther from the view's label than the reprojection error limit τ"
+   "means": "the 3D ball, drawn into the view, lies farther from its ball label than the limit (reprojection error above τ)"
   },
   "no_ball3d": {
    "chip": "no 3D ball",
@@ -139,6 +139,28 @@ export const WORDS = /*WORDS*/{
   "without_ball": {
    "chip": "without ball",
    "means": "views without a ball label"
+  }
+ },
+ "term": {
+  "jac": {
+   "chip": "Lines fit",
+   "means": "JaC@γ %: the share of the pitch model the camera draws onto the annotated field lines (Jaccard index within γ % of the image diagonal; 100 % is a perfect fit)"
+  },
+  "camera_sigma": {
+   "chip": "Camera unsure by",
+   "means": "Camera ±: the camera's standard deviations from the line fit: where it stands x/y/z (m), pan/tilt/roll (degrees), zoom as focal length (px); — where the lines leave it open"
+  },
+  "reprojection_error": {
+   "chip": "Ball off by",
+   "means": "reprojection error: how far the 3D ball, drawn into this view, lies from its ball label (px of the frame)"
+  },
+  "tau": {
+   "chip": "allowed",
+   "means": "τ (tau): the reprojection error limit, the farthest a view's label may lie from the 3D ball and still agree"
+  },
+  "pin": {
+   "chip": "pinned at",
+   "means": "V<n> (x, y): the view and the pixel the comment is pinned to (x from the frame's left edge, y from its top)"
   }
  },
  "triangulation": {

@@ -29,9 +29,9 @@ def _system_with(page, kind: str) -> tuple[dict, dict]:
 
 
 def test_queue_counts_filters_and_sorts_by_doubt_kind(page, artifacts):
-    everything = _api(page, "/api/systems?limit=500")["items"]
+    everything = _api(page, "/api/systems?sort=-doubts&limit=500")["items"]
     counts = [s["label_doubts"] for s in everything]
-    assert counts == sorted(counts, reverse=True), "the default order puts the most doubts first"
+    assert counts == sorted(counts, reverse=True), "the count order puts the most doubts first"
     page.goto("/")
     page.locator(tid("queue-row")).first.wait_for()
     for s in everything:

@@ -53,8 +53,8 @@ def list_assignees(session: SessionDep, principal: ReviewerDep) -> list[Assignee
 def claim_presence(session: SessionDep, principal: AnnotatorDep, system: SystemDep) -> PresenceStateOut:
     """The page's heartbeat while the caller has the system open (send it every ``heartbeat_seconds``): a soft
     claim that lapses ``ttl_seconds`` after its last refresh, and the others who have the system open now.
-    Writes only when the claim is missing or older than 80 s (``wrote``); any role. Not a lock: edits by
-    others are never refused because of it."""
+    Writes only when the claim is missing or older than ``presence.REFRESH_AFTER`` (30 s; ``wrote``); any role.
+    Not a lock: edits by others are never refused because of it."""
     now = utcnow()
     return PresenceStateOut.of(presence.claim(session, system.id, principal.user_id, now), now)
 

@@ -45,6 +45,7 @@ calibration is worth is :mod:`app.geometry.weighting`'s, which the triangulation
 from app.geometry.doubts.contract import (
     CODES,
     INFO_KINDS,
+    LABEL_KIND_SEVERITY,
     LABEL_KINDS,
     SUGGESTION_ACTIONS,
     Doubt,
@@ -54,5 +55,6 @@ from app.geometry.doubts.contract import (
 from app.geometry.doubts.epipolar import epipolar_pair_error, ray_in_play_volume
 from app.geometry.doubts.judge import consensus_box_sigma_px, consensus_fix, judge_system
 
-__all__ = ["CODES", "INFO_KINDS", "LABEL_KINDS", "SUGGESTION_ACTIONS", "Doubt", "DoubtSettings", "DoubtView",
-           "epipolar_pair_error", "ray_in_play_volume", "consensus_box_sigma_px", "consensus_fix", "judge_system"]
+__all__ = ["CODES", "INFO_KINDS", "LABEL_KINDS", "LABEL_KIND_SEVERITY", "SUGGESTION_ACTIONS", "Doubt",
+           "DoubtSettings", "DoubtView", "epipolar_pair_error", "ray_in_play_volume",
+           "consensus_box_sigma_px", "consensus_fix", "judge_system"]

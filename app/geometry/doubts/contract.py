@@ -21,6 +21,17 @@ LABEL_KINDS: tuple[str, ...] = (
 )
 
 
+#: How much of a system each label-accusing kind says is wrong, the review queue's severity (larger is worse;
+#: ``app.services.curation.queue``): 3, a view's field lines are mirrored (its camera, and so every figure of that
+#: view, is wrong); 2, a ball label contradicts the other views by more than tau (an error measured in px); 1, a
+#: label may be missing or redundant, or a detector saw a ball that no label holds (nothing measured against it).
+#: Within one severity the queue puts the largest reprojection error first: the size of the error.
+LABEL_KIND_SEVERITY: dict[str, int] = {
+    "mirrored_labels": 3, "ball_off_consensus": 2, "views_disagree": 2, "ball_missing": 1, "near_duplicate_view": 1,
+    "ball_detected": 1,
+}
+
+
 #: Kinds that inform without accusing a label.
 INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_assisted", "few_lines", "suggested_label",
                                "detection_off_label")

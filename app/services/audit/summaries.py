@@ -214,7 +214,8 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         facts: what only the write knew: ``calibration`` = (before, after) in words ("JaC 0.909",
             "refused") for a field-line write; ``source``, the import's name, for ``system.import``;
             ``restored``, for an undo or a revert, the decisions it gave back in words
-            (``app.services.curation.resets.restore_decisions``).
+            (``app.services.curation.resets.restore_decisions``); ``ball`` = ``"imported"`` for a ball edit that put
+            back the label the dataset brought (``app.services.curation.editing.update_ball_label``).
         redo: the entry undoes an undo (a page's redo): said "redo of entry N" instead of "undo of entry N".
 
     >>> summarize("view.exclusion", {"excluded": False}, {"excluded": True}, view="V3")
@@ -238,6 +239,8 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         back = f"; decisions it reset restored: {', '.join(restored)}" if restored else ""
         return (f"{what} entry {reverts_id}: {inner}" if reverts_id is not None else f"{what}: {inner}") + back
     if action == "ball.edit":
+        if (facts or {}).get("ball") == "imported":
+            return f"ball of {v} restored to the imported label"
         return ball_words(before.get("ball"), after.get("ball"), v)
     if action in ("field_lines.replace", "field_lines.mirror"):
         words = (f"field lines of {v} mirrored" if action == "field_lines.mirror"

@@ -219,9 +219,10 @@ _WRITERS: dict[tuple[str, str], Callable[[dict, str, Names], str]] = {
 
 
 def _miss(error: float | None, other: str) -> str:
-    """How a ray misses another (``other`` names it): by how many px, or behind a camera."""
+    """How a line of sight to the ball misses another (``other`` names it): by how many px, or crossing it only
+    behind a camera (where no ball can be; the geometry's "rays meet only behind a camera")."""
     if error is None:
-        return f"meets {other} only behind a camera"
+        return f"crosses {other} only behind a camera, where no ball can be"
     return f"misses {other} by {error:.0f} px"
 
 
@@ -267,11 +268,12 @@ def mirror_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | fro
         rel = p.get("relation")
         if rel == DIFFERENT:
             (con if note else pro).append(
-                f"as labelled its ball ray {_miss(p.get('error_as_labelled_px'), f'the ray of view {other}')}, "
+                f"as labelled its line of sight to the ball "
+                f"{_miss(p.get('error_as_labelled_px'), f'that of view {other}')}, "
                 f"mirrored it meets it within {_fmt(p.get('error_mirrored_px'))} px{note}")
         elif rel == SAME:
             (pro if note else con).append(
-                f"as labelled its ball ray meets the ray of view {other} within "
+                f"as labelled its line of sight to the ball meets that of view {other} within "
                 f"{_fmt(p.get('error_as_labelled_px'))} px, "
                 f"mirrored it {_miss(p.get('error_mirrored_px'), 'it')}{note}")
         elif rel == AMBIGUOUS:

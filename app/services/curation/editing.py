@@ -177,6 +177,9 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
                 frame.ball_label = label
             put_values(label, {"kind": kind, "box": new_box, "point": new_point, "provenance": new_provenance,
                                "edited_at": utcnow()})
+            if (undo is None and revert is None and label.original_kind is not None and not label.edited
+                    and before["ball"] != ball_state(frame)["ball"]):
+                edit.facts["ball"] = "imported"  # back to the dataset's own label (the page's z), said as such
         _recompute(session, frame.system, settings, actor, edit)
         reset_after_change(session, frame, "ball.edit", before, ball_state(frame), actor, undo)
         restore_decisions(frame, undo or revert, actor, edit)

@@ -7,8 +7,10 @@ never reorders the pass. After a decision the page goes to the **next pending** 
 first one after the current one whose *current* review status (read when asked, never copied into the pass)
 is pending, wrapping round to the pass's start (a pass resumed in its middle still visits the systems left
 pending before), so a system decided meanwhile, by this user or another, is skipped. When none is left the pass
-is finished; its counts are the current statuses of its systems (``skipped``: still pending, i.e. visited
-or stepped over without a decision).
+is finished. Its counts are the pass owner's own decisions in it (the newest system decision they made on each
+system since the pass began, read from the audit log: another reviewer's decisions, or older ones, are not theirs),
+then the systems sent back as fixed (to re-review), those decided by others or before the pass, and ``skipped``:
+still pending, visited or stepped over without a decision.
 
 A pass belongs to the user who began it (``user_name``) and is stored on the server, so it resumes after a
 reload or in another browser (:func:`list_passes`); ``position`` is the index of the system the user last
@@ -28,13 +30,17 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.errors import ForbiddenError, InvalidInputError, found
-from app.db.models import ReviewPass, ReviewStatus, System
+from app.db.models import AuditEntry, ReviewPass, ReviewStatus, System
 from app.db.session import begin_write
 from app.db.types import utcnow
 from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_ids
 
-#: The counts of a pass: decisions by status, and ``skipped``: systems still pending.
-COUNT_KEYS = ("accepted", "rejected", "needs_fix", "skipped")
+#: The counts of a pass: its owner's decisions in it by status; ``sent_back``: systems their annotator sent back as
+#: fixed (waiting for a decision again), ``by_others``: decided, not by the owner in this pass (another reviewer, or
+#: before it began); ``skipped``: still pending.
+COUNT_KEYS = ("accepted", "rejected", "needs_fix", "sent_back", "by_others", "skipped")
+#: The owner's decisions a pass counts.
+_DECISIONS = ("accepted", "rejected", "needs_fix")
 #: No filter: every system (the default queue of a pass; frozen, so one instance serves every call).
 ALL_SYSTEMS = SystemFilters()
 
@@ -95,7 +101,7 @@ def start_pass(session: Session, user: str, filters: SystemFilters = ALL_SYSTEMS
             if rp.filters != stored or (system_id is not None and system_id not in rp.system_ids):
                 continue
             statuses = _statuses(session, rp.system_ids)
-            if _PENDING in statuses.values():
+            if any(s in _TO_DO for s in statuses.values()):
                 return rp
     ids = queue_ids(session, filters, sort)
     begin_write(session)
@@ -136,6 +142,8 @@ def list_passes(session: Session, user: Optional[str] = None, limit: int = 20) -
 
 
 _PENDING = ReviewStatus.PENDING.value
+#: The statuses a pass still visits: pending, and sent back as fixed (a decision is wanted again).
+_TO_DO = (_PENDING, ReviewStatus.FIXED.value)
 
 
 def _statuses(session: Session, ids: list[int]) -> dict[int, str]:
@@ -152,8 +160,8 @@ def _statuses(session: Session, ids: list[int]) -> dict[int, str]:
     systems = System.__table__
     exist = set(conn.execute(sa.select(systems.c.id).where(systems.c.id.between(lo, hi))).scalars())
     # IN: the status index answers it. A system sent back as fixed waits for a decision again: a pass visits it as it
-    # visits a pending one
-    done = [st for st in ReviewStatus if st not in (ReviewStatus.PENDING, ReviewStatus.FIXED)]
+    # visits a pending one (:data:`_TO_DO`)
+    done = [st for st in ReviewStatus if st is not ReviewStatus.PENDING]
     decided = {i: ReviewStatus(st).value
                for i, st in conn.execute(sa.select(systems.c.id, systems.c.review_status).where(
         systems.c.review_status.in_(done), systems.c.id.between(lo, hi)))}
@@ -161,14 +169,40 @@ def _statuses(session: Session, ids: list[int]) -> dict[int, str]:
 
 
 def pass_counts(session: Session, rp: ReviewPass) -> dict[str, int]:
-    """:data:`COUNT_KEYS` of the pass's systems by their current status (``skipped``: pending)."""
-    return _counts(_statuses(session, rp.system_ids))
+    """:data:`COUNT_KEYS` of the pass's systems (module docstring)."""
+    return _counts(_statuses(session, rp.system_ids), _own_decisions(session, rp))
 
 
-def _counts(statuses: dict[int, str]) -> dict[str, int]:
+def _own_decisions(session: Session, rp: ReviewPass) -> dict[int, str]:
+    """The status of the newest system decision the pass's owner made on each of its systems since the pass began
+    (audit action ``system.review``; an undo of one is such an entry too, back to pending): one range read of the
+    audit log's index on (action, time)."""
+    if not rp.system_ids:
+        return {}
+    ids = set(rp.system_ids)
+    entries = session.scalars(sa.select(AuditEntry).where(
+        AuditEntry.action == "system.review", AuditEntry.at >= rp.created_at, AuditEntry.actor == rp.user_name,
+        AuditEntry.system_id.between(min(ids), max(ids))).order_by(AuditEntry.id))
+    own: dict[int, str] = {}
+    for entry in entries:
+        review = (entry.after or {}).get("review") if entry.system_id in ids else None
+        if isinstance(review, dict) and isinstance(review.get("status"), str):
+            own[int(entry.system_id)] = review["status"]  # type: ignore[arg-type]  # in ids: not None
+    return own
+
+
+def _counts(statuses: dict[int, str], own: dict[int, str]) -> dict[str, int]:
     counts = dict.fromkeys(COUNT_KEYS, 0)
-    for status in statuses.values():
-        counts["skipped" if status == _PENDING else status] += 1
+    for system_id, status in statuses.items():
+        mine = own.get(system_id)
+        if mine in _DECISIONS and mine == status:  # still the decision it made (not undone, not decided again since)
+            counts[mine] += 1
+        elif status == ReviewStatus.FIXED.value:
+            counts["sent_back"] += 1
+        elif status == _PENDING:
+            counts["skipped"] += 1
+        else:
+            counts["by_others"] += 1
     return counts
 
 
@@ -181,7 +215,7 @@ def place(session: Session, rp: ReviewPass, system_id: int) -> PassPlace:
     if anchor is None:  # a system outside the pass (an ISSIA neighbour frame): from the stored position
         stored = rp.system_ids[rp.position] if 0 <= rp.position < len(rp.system_ids) else None
         anchor = ids.index(stored) if stored in ids else -1
-    pending = [j for j, i in enumerate(ids) if statuses[i] == _PENDING]
+    pending = [j for j, i in enumerate(ids) if statuses[i] in _TO_DO]
     # after it first, then from the start of the pass: a pass resumed late still reaches the systems left pending
     # before its resume point
     wrapped = [j for j in pending if j > anchor] + [j for j in pending if j < anchor]
@@ -192,7 +226,7 @@ def place(session: Session, rp: ReviewPass, system_id: int) -> PassPlace:
         next_id=ids[anchor + 1] if anchor + 1 < len(ids) else None,
         next_pending_id=ids[next_pending] if next_pending is not None else None, next_pending_index=next_pending,
         first_pending_id=ids[pending[0]] if pending else None,
-        counts=_counts(statuses), finished=next_pending is None,
+        counts=_counts(statuses, _own_decisions(session, rp)), finished=next_pending is None,
     )
 
 

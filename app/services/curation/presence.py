@@ -7,10 +7,11 @@ open (since 2 min)" on the system page and in the queue, so that two people rare
 an edit because someone else has the system open.
 
 Writes, for several workers on one SQLite file: a heartbeat reads the claim and writes only when it is due,
-i.e. when the claim is missing, lapsed or older than :data:`REFRESH_AFTER` (80 s of its :data:`TTL` of 120 s).
-An open page therefore writes once when it opens, then once every 80 s (0.75 writes a minute), whatever its
+i.e. when the claim is missing, lapsed or older than :data:`REFRESH_AFTER` (30 s of its :data:`TTL` of 50 s).
+An open page therefore writes once when it opens, then once every 30 s (2 writes a minute), whatever its
 heartbeat; the heartbeat's other calls are one indexed read each. A page that goes away without releasing
-(a closed laptop) lapses after at most :data:`TTL`.
+(a closed laptop, a killed browser) lapses after at most :data:`TTL`: short, so that "ana has this system open"
+does not outlive ana's page by more than the time of a glance.
 
 Expired claims need no cleanup job: every read filters on ``expires_at > now``, and every claim written
 deletes the lapsed rows of every system in the same transaction (an index range on ``expires_at``), so the
@@ -37,12 +38,12 @@ from app.db.session import begin_write
 from app.db.types import utcnow
 
 #: How long a claim lives without a refresh.
-TTL = timedelta(seconds=120)
+TTL = timedelta(seconds=50)
 #: A claim older than this is refreshed by the next heartbeat (the only heartbeat that writes).
-REFRESH_AFTER = timedelta(seconds=80)
+REFRESH_AFTER = timedelta(seconds=30)
 #: How often a page should call :func:`claim` while it has the system open (the UI's heartbeat): three
 #: heartbeats fit in the slack ``TTL - REFRESH_AFTER`` + one, so two lost ones lose no claim.
-HEARTBEAT = timedelta(seconds=20)
+HEARTBEAT = timedelta(seconds=10)
 
 
 @dataclass(frozen=True)

@@ -10,11 +10,14 @@ per-view ``error_above_tau`` uses too: queue and system page cannot disagree), a
 Rows come back as ORM objects with what their answer shows loaded; the API's response models
 (``app.api.view_schemas``) shape them.
 
-Queue order (``sort``): ``doubts`` (the stored count of label-accusing doubts, ties by the largest
+Queue order (``sort``): ``severity`` (the work still to do first: pending systems and those returned as fixed, then
+the decided ones; within each the most severe doubt first, :func:`severity_sql`, then the largest reprojection error,
+then the count of label doubts), ``doubts`` (the stored count of label-accusing doubts, ties by the largest
 reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
 systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id (in the
 sort's direction, so a descending sort is its index scanned backwards). The default, :data:`DEFAULT_SORT`,
-puts the systems with the most doubts first: the labels the geometry accuses are reviewed first. ``name``
+is ``-severity``: the work still to do, worst first, as a review tool's queue puts pending work on top (a decided
+system on top would be reopened and decided again). ``name``
 orders by game, then system name with numeric names in numeric order (2.png before 10.png). The ``doubt``
 filter keeps systems with a doubt of one kind (or any label-accusing one); doubts and their counts are
 stored by the recomputation (``app.services.curation.doubts``), never computed here.
@@ -54,16 +57,37 @@ from app.db.models import (
     User,
 )
 from app.db.types import DB_INT_MAX, DB_INT_MIN
+from app.geometry.doubts import LABEL_KIND_SEVERITY
 
 #: The assignee filter's two words: the caller (``assignee=me``, which the API resolves to the caller's name) and
 #: nobody (``assignee=none``: the unassigned systems). No user may be called either, nor a name that differs from one
 #: only by case or trailing dots (``app.services.accounts.users.RESERVED_NAMES``).
 ASSIGNEE_ME, ASSIGNEE_NONE = "me", "none"
 
-SystemSort = Literal["doubts", "-doubts", "worst_error", "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
+SystemSort = Literal["severity", "-severity", "doubts", "-doubts", "worst_error",
+                      "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
-#: The review queue's default order: the most label doubts first (then the largest reprojection error).
-DEFAULT_SORT: SystemSort = "-doubts"
+#: The review queue's default order: pending (and fixed, to re-review) systems first, the most severe first.
+DEFAULT_SORT: SystemSort = "-severity"
+#: The statuses that are work still to do (the ``severity`` order puts them first): nobody decided yet, or the
+#: annotator a needs-fix went to says it is fixed.
+TO_REVIEW: tuple[ReviewStatus, ...] = (ReviewStatus.PENDING, ReviewStatus.FIXED)
+
+
+def severity_sql() -> Any:
+    """SQL (an integer per system row): how much the system's doubts say is wrong, the largest
+    ``app.geometry.doubts.LABEL_KIND_SEVERITY`` of its stored doubts (3 mirrored field lines, 2 a ball label off the
+    other views by more than tau, 1 a label missing or redundant or a detector's ball unlabelled), 0 without a label
+    doubt. The one definition the queue's ``severity`` order reads; the doubts' index on ``system_id`` answers it."""
+    weight = sa.case(LABEL_KIND_SEVERITY, value=Doubt.kind, else_=0)
+    return sa.type_coerce(
+        sa.select(sa.func.coalesce(sa.func.max(weight), 0)).where(Doubt.system_id == System.id)
+        .correlate(System).scalar_subquery(), sa.Integer)
+
+
+def _to_review_first() -> Any:
+    """SQL: 0 for a system of :data:`TO_REVIEW`, 1 for a decided one (the ``severity`` order's first key)."""
+    return sa.type_coerce(sa.case((System.review_status.in_(TO_REVIEW), 0), else_=1), sa.Integer)
 
 
 @dataclass(frozen=True)
@@ -217,6 +241,9 @@ def _sort_keys(sort: SystemSort) -> list[_SortKey]:
     if key == "name":
         cols = [Game.league, Game.season, Game.match, *_natural_name(System.name)]
         return [_SortKey(c, desc) for c in cols] + [tie]
+    if key == "severity":  # the work to do first in either direction, then severity, the error, the doubts' count
+        return [_SortKey(_to_review_first()), _SortKey(severity_sql(), desc),
+                _SortKey(System.worst_error_px, desc, True), _SortKey(System.label_doubts, desc), tie]
     if key == "doubts":  # ties by the largest reprojection error
         return [_SortKey(System.label_doubts, desc), _SortKey(System.worst_error_px, True, True), tie]
     column = {"worst_error": System.worst_error_px, "lowest_jac": System.lowest_jac}.get(key)

@@ -51,8 +51,8 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
                                 "means": "the view's field lines fit no camera, so its labels cannot be checked"},
         "below_admission": {"tone": "bad", "chip": "below admission",
                             "means": "the camera fits its lines less well than the admission threshold"},
-        "rig_assisted": {"tone": "info", "chip": "rig position",
-                         "means": "the camera was fitted at a known camera position of the game"},
+        "rig_assisted": {"tone": "info", "chip": "at the game's camera spot",
+                         "means": "rig position: the camera was fitted where a camera of the game is known to stand"},
         "few_lines": {"tone": "info", "chip": "few lines",
                       "means": "too few field-line classes to fix the camera reliably"},
         "suggested_label": {"tone": "info", "chip": "placement to confirm",
@@ -67,16 +67,20 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
     "flag": {
         "probably_mirrored": {"tone": "bad", "chip": "mirrored labels",
                               "means": "the field lines are probably labelled left for right"},
-        "rig_assisted": {"tone": "info", "chip": "rig position",
-                         "means": "fitted at a known camera position of the game"},
-        "learned_prior": {"chip": "learned prior", "means": "fitted with the camera prior learned from the dataset"},
+        "rig_assisted": {"tone": "info", "chip": "at the game's camera spot",
+                         "means": "rig position: fitted where a camera of the game is known to stand"},
+        "learned_prior": {"chip": "helped by the usual cameras",
+                          "means": "learned prior: fitted with what the dataset's cameras usually are (where they "
+                                   "stand, how they zoom)"},
         "radial_prior": {"chip": "lens prior", "means": "the lens distortion was fitted under the learned prior"},
         "radial_distortion": {"chip": "lens distortion", "means": "the lens distortion was fitted"},
         "few_lines": {"tone": "info", "chip": "few lines",
                       "means": f"fewer than {MIN_LINE_CLASSES} field-line classes"},
         "given_camera": {"chip": "given camera", "means": "the camera came with the data, not from its lines"},
         "ball_assisted": {"chip": "ball-assisted", "means": "calibrated again from the ball seen by the other cameras"},
-        "ball_bundle": {"chip": "ball bundle", "means": "refined with the other cameras from their lines and the ball"},
+        "ball_bundle": {"chip": "refined with the ball",
+                        "means": "ball bundle: refined together with the other cameras from their lines and the ball "
+                                 "they all see"},
     },
     "flag_prefix": {
         "ignored_class": {"chip": "ignores {}",
@@ -90,10 +94,29 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "excluded": {"tone": "bad", "chip": "excluded",
                      "means": "a reviewer left the view out of the 3D ball (x restores it)"},
         "error_above_tau": {"tone": "bad", "chip": "error > τ",
-                            "means": "the 3D ball reprojects farther from the view's label than the reprojection error "
-                                     "limit τ"},
+                            "means": "the 3D ball, drawn into the view, lies farther from its ball label than the "
+                                     "limit (reprojection error above τ)"},
         "no_ball3d": {"chip": "no 3D ball", "means": "no pair of views agrees on a ball"},
         "without_ball": {"chip": "without ball", "means": "views without a ball label"},
+    },
+    # the system page's headings in a curator's words; ``means`` names the technical term first (the title on hover)
+    "term": {
+        "jac": {"chip": "Lines fit",
+                "means": "JaC@γ %: the share of the pitch model the camera draws onto the annotated field lines "
+                         "(Jaccard index within γ % of the image diagonal; 100 % is a perfect fit)"},
+        "camera_sigma": {"chip": "Camera unsure by",
+                         "means": "Camera ±: the camera's standard deviations from the line fit: where it stands x/y/z "
+                                  "(m), pan/tilt/roll (degrees), zoom as focal length (px); — where the lines leave it "
+                                  "open"},
+        "reprojection_error": {"chip": "Ball off by",
+                               "means": "reprojection error: how far the 3D ball, drawn into this view, lies from its "
+                                        "ball label (px of the frame)"},
+        "tau": {"chip": "allowed",
+                "means": "τ (tau): the reprojection error limit, the farthest a view's label may lie from the 3D ball "
+                         "and still agree"},
+        "pin": {"chip": "pinned at",
+                "means": "V<n> (x, y): the view and the pixel the comment is pinned to (x from the frame's left "
+                         "edge, y from its top)"},
     },
     "triangulation": {
         "triangulated": {"chip": "triangulated", "means": "at least one pair of views agrees on the ball"},

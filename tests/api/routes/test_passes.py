@@ -30,7 +30,7 @@ def test_a_pass_freezes_every_page_of_the_queue_and_moves_to_the_next_pending(cl
     assert made.status_code == 201, made.text
     rp = made.json()
     assert rp["systems"] == listing and rp["position"] == 0 and rp["filter"] == {} and rp["sort"] == "name"
-    assert rp["counts"] == {"accepted": 0, "rejected": 0, "needs_fix": 0, "skipped": 3}
+    assert rp["counts"] == {"accepted": 0, "rejected": 0, "needs_fix": 0, "sent_back": 0, "by_others": 0, "skipped": 3}
     assert client.post("/api/passes",
                        json={"filter": {}, "sort": "name", "system_id": listing[1]}).json()["id"] == rp["id"]
 

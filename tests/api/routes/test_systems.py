@@ -61,11 +61,26 @@ def test_worst_error_order_puts_the_largest_error_first_and_systems_without_ball
 
 
 def test_default_order_puts_the_most_label_doubts_first(client: TestClient, queue: dict[str, Scene]) -> None:
-    items = client.get("/api/systems").json()["items"]
+    items = client.get("/api/systems?sort=-doubts").json()["items"]
     doubts = [r["label_doubts"] for r in items]
     assert doubts == sorted(doubts, reverse=True)
     for r in items:
         assert r["label_doubts"] == sum(n for k, n in r["doubt_counts"].items() if k in LABEL_KINDS)
+
+
+def test_default_order_puts_the_work_to_do_first_and_a_decided_system_after(
+        client: TestClient, queue: dict[str, Scene]) -> None:
+    """A rejected system leaves the top of the default queue: the pending ones come first (the worst error first, none
+    has a label doubt), decided systems after them, and a fixed one (back to re-review) is work to do again."""
+    first = _ids(client.get("/api/systems").json())
+    assert first[0] == queue["shifted"].system_id and first[-1] == queue["lonely"].system_id  # no 3D ball last
+    etag = client.get(f"/api/systems/{first[0]}").headers["etag"]
+    assert client.post(f"/api/systems/{first[0]}/review", json={"status": "rejected"},
+                       headers={"If-Match": etag}).status_code == 200
+    after = client.get("/api/systems").json()["items"]
+    assert [r["id"] for r in after] == first[1:] + first[:1]
+    assert [r["review"]["status"] if r["review"] else "pending" for r in after][:3] == ["pending"] * 3
+    assert _ids(client.get("/api/systems?sort=severity").json())[-1] == first[0]  # both directions: work first
 
 
 @pytest.mark.parametrize(

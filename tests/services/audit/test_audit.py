@@ -91,6 +91,22 @@ def test_service_edits_are_attributed_to_the_local_user_by_default(db_session, s
     assert db_session.get(Frame, frame.id).edit_version == 2
 
 
+def test_a_label_put_back_to_the_imported_one_is_said_restored_not_moved(db_session, settings, v3_tree):
+    """The page's ``z`` writes the imported box back: its entry says so; a move that only comes near it, and the undo
+    of the restore, read as what they are."""
+    import_soccernet_v3(db_session, v3_tree, settings)
+    frame = db_session.scalars(sa.select(Frame).where(Frame.name == "2_1.png")).one()
+    box = list(frame.ball_label.box)
+    editing.update_ball_label(db_session, frame.id, box=[box[0] + 6, box[1] + 8, box[2] + 6, box[3] + 8],
+                              settings=settings)
+    assert _entries(db_session)[-1].summary == "ball of V2 moved 10.0 px"
+    editing.update_ball_label(db_session, frame.id, box=box, settings=settings)
+    restore = _entries(db_session)[-1]
+    assert restore.summary == "ball of V2 restored to the imported label", restore.summary
+    editing.update_ball_label(db_session, frame.id, box=[box[0] + 1, box[1], box[2] + 1, box[3]], settings=settings)
+    assert _entries(db_session)[-1].summary == "ball of V2 moved 1.0 px"
+
+
 def test_audit_entries_are_append_only(db_session, settings, v3_tree):
     import_soccernet_v3(db_session, v3_tree, settings)
     for statement in ("UPDATE audit_entries SET actor = 'mallory'", "DELETE FROM audit_entries"):

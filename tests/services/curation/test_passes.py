@@ -70,7 +70,9 @@ def test_a_pass_keeps_the_queue_order_of_its_start_through_a_decision_and_a_fix(
     at_fixed = passes.place(db_session, rp, fixed)
     assert at_fixed.next_pending_id == order[4] and not at_fixed.finished
     assert at_fixed.first_pending_id == order[1]  # the fixed one itself is still pending
-    assert at_fixed.counts == {"accepted": 2, "rejected": 1, "needs_fix": 0, "skipped": 3}
+    # ana's pass counts ana's decision, not bob's two
+    assert at_fixed.counts == {"accepted": 0, "rejected": 1, "needs_fix": 0, "sent_back": 0, "by_others": 2,
+                               "skipped": 3}
 
     # the last one: the next pending wraps round to the pass's start (a pass resumed late reaches the systems left
     # pending before its resume point); once every other system is decided the pass is finished there
@@ -127,3 +129,22 @@ def test_an_accept_over_open_label_doubts_records_them(db_session: Session, six:
     clean = next(s.system_id for s in six if writing.get_system(db_session, s.system_id).label_doubts == 0)
     decisions.decide_review(db_session, system_id=clean, status="accepted", actor="script")
     assert "overrode_doubts" not in audit.latest_entry(db_session, system_id=clean).after
+
+
+def test_a_pass_counts_its_owners_decisions_and_names_what_was_sent_back_or_decided_by_others(
+        db_session: Session, six: list[Scene]) -> None:
+    """The counts of a pass are its owner's decisions in it (an earlier decision, another reviewer's, a decision
+    undone by a later one are not), then the systems sent back as fixed, then those decided by others."""
+    ids = [s.system_id for s in six]
+    decisions.decide_review(db_session, system_id=ids[0], status="accepted", actor="ana")  # before the pass
+    rp = passes.start_pass(db_session, "ana", SystemFilters(), "name", system_id=ids[1], fresh=True)
+    decisions.decide_review(db_session, system_id=ids[1], status="accepted", actor="ana")
+    decisions.decide_review(db_session, system_id=ids[2], status="needs_fix", actor="ana")
+    decisions.decide_review(db_session, system_id=ids[3], status="rejected", actor="ana")
+    decisions.decide_review(db_session, system_id=ids[3], status="accepted", actor="bob")  # decided again by bob
+    decisions.decide_review(db_session, system_id=ids[4], status="needs_fix", actor="bob")
+    decisions.decide_review(db_session, system_id=ids[4], status="fixed", actor="ben")  # back to decide again
+    counts = passes.pass_counts(db_session, passes.get_pass(db_session, rp.id))
+    assert counts == {"accepted": 1, "rejected": 0, "needs_fix": 1, "sent_back": 1, "by_others": 2, "skipped": 1}
+    place = passes.place(db_session, rp, ids[1])
+    assert place.counts == counts and place.next_pending_id == ids[4]  # a system sent back is visited again

@@ -11,10 +11,12 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import InvalidInputError
 from app.db.models import Doubt, Game, ReviewStatus, System, SystemKind
+from app.geometry.doubts import LABEL_KIND_SEVERITY, LABEL_KINDS
 from app.services.curation import queue
 from app.services.curation.queue import SystemFilters
 
-SORTS = ["-doubts", "doubts", "-worst_error", "worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
+SORTS = ["-severity", "severity", "-doubts", "doubts", "-worst_error",
+          "worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FILTERS = {
     "none": SystemFilters(),
     "pending": SystemFilters(status=ReviewStatus.PENDING),
@@ -40,12 +42,16 @@ def many(db_session: Session) -> list[System]:
                    label_doubts=rng.choice([0, 0, 1, 2]),
                    worst_error_px=rng.choice([None, 0.5, 1.25, 2.0, 3.5, 3.5, 9.0]),
                    lowest_jac=rng.choice([None, 0.6, 0.8, 0.8, 0.95]),
-                   review_status=rng.choice([ReviewStatus.PENDING] * 3 + [ReviewStatus.ACCEPTED]))
+                   review_status=rng.choice([ReviewStatus.PENDING] * 3 + [ReviewStatus.ACCEPTED, ReviewStatus.FIXED]))
         systems.append(s)
     db_session.add_all(systems)
     db_session.flush()
     for s in systems[::4]:
         db_session.add(Doubt(system_id=s.id, kind="ball_off_consensus", accuses_label=True, message="test"))
+    for s in systems[1::6]:  # severities 3 and 1, some beside a 2: the largest counts
+        db_session.add(Doubt(system_id=s.id, kind="mirrored_labels", accuses_label=True, message="test"))
+    for s in systems[2::5]:
+        db_session.add(Doubt(system_id=s.id, kind="ball_detected", accuses_label=True, message="test"))
     db_session.flush()
     return systems
 
@@ -53,6 +59,9 @@ def many(db_session: Session) -> list[System]:
 def _expected(db_session: Session, systems: list[System], sort: str, filters: SystemFilters) -> list[int]:
     """The queue's order computed in Python from the rows."""
     doubted = {d.system_id for d in db_session.query(Doubt).filter(Doubt.kind == "ball_off_consensus")}
+    severity: dict[int, int] = {}
+    for d in db_session.query(Doubt):
+        severity[d.system_id] = max(severity.get(d.system_id, 0), LABEL_KIND_SEVERITY.get(d.kind, 0))
     rows = [s for s in systems if (filters.status is None or s.review_status == filters.status)
             and (filters.error_min is None or (s.worst_error_px is not None and s.worst_error_px >= filters.error_min))
             and (filters.doubt != "any" or s.label_doubts > 0)
@@ -66,6 +75,9 @@ def _expected(db_session: Session, systems: list[System], sort: str, filters: Sy
 
     def sort_key(s: System) -> Any:
         sign = -1 if desc else 1
+        if key == "severity":  # the work to do first in either direction
+            return (s.review_status not in (ReviewStatus.PENDING, ReviewStatus.FIXED), sign * severity.get(s.id, 0),
+                    nulls_last(s.worst_error_px, desc), sign * s.label_doubts, sign * s.id)
         if key == "doubts":
             return (sign * s.label_doubts, nulls_last(s.worst_error_px, True), sign * s.id)
         col = s.worst_error_px if key == "worst_error" else s.lowest_jac
@@ -178,3 +190,7 @@ def test_a_held_system_spares_reading_its_sort_keys(db_session: Session, many: l
             assert len([s for s in seen if not s.startswith(("SAVEPOINT", "RELEASE"))]) == statements, sort
     finally:
         sa.event.remove(engine, "before_cursor_execute", listener)
+
+
+def test_every_label_kind_has_a_severity() -> None:
+    assert set(LABEL_KIND_SEVERITY) == set(LABEL_KINDS) and min(LABEL_KIND_SEVERITY.values()) >= 1
