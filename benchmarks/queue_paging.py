@@ -28,7 +28,8 @@ from typing import Any, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-SORTS = ("-doubts", "doubts", "-worst_error", "worst_error", "lowest_jac", "-lowest_jac", "name", "-name")
+SORTS = ("-severity", "severity", "-doubts", "doubts", "-worst_error", "worst_error", "lowest_jac", "-lowest_jac",
+         "name", "-name")
 LIMIT = 50
 
 

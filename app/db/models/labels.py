@@ -74,6 +74,8 @@ class System(Base):
         sa.Index("ix_systems_review_status_label_doubts_worst_error_px", "review_status", "label_doubts",
                  "worst_error_px"),
         sa.Index("ix_systems_review_status_worst_error_px", "review_status", "worst_error_px"),
+        sa.Index("ix_systems_review_status_label_severity_worst_error_px", "review_status", "label_severity",
+                 "worst_error_px"),
         sa.Index("ix_systems_review_status_lowest_jac", "review_status", "lowest_jac"),
         # keyset pages of the queue (app.services.curation.queue._slices, migration 0013): the numeric name
         # order within a game as an index walk
@@ -107,6 +109,9 @@ class System(Base):
     doubt_counts: Mapped[dict[str, Any]] = mapped_column(default=dict)
     #: How many doubts accuse a label (``app.geometry.doubts.LABEL_KINDS``): the queue sorts by it.
     label_doubts: Mapped[int] = mapped_column(default=0)
+    #: The largest ``app.geometry.doubts.LABEL_KIND_SEVERITY`` of its doubts (0 without a label doubt), written with
+    #: them: the queue's default order reads it from the row instead of aggregating every system's doubts per page.
+    label_severity: Mapped[int] = mapped_column(default=0, server_default="0")
     views_total: Mapped[int] = mapped_column(default=0)
     views_calibrated: Mapped[int] = mapped_column(default=0)
     views_admitted: Mapped[int] = mapped_column(default=0)

@@ -51,10 +51,11 @@ from app.geometry.doubts.contract import (
     Doubt,
     DoubtSettings,
     DoubtView,
+    label_severity,
 )
 from app.geometry.doubts.epipolar import epipolar_pair_error, ray_in_play_volume
 from app.geometry.doubts.judge import consensus_box_sigma_px, consensus_fix, judge_system
 
 __all__ = ["CODES", "INFO_KINDS", "LABEL_KINDS", "LABEL_KIND_SEVERITY", "SUGGESTION_ACTIONS", "Doubt",
-           "DoubtSettings", "DoubtView", "epipolar_pair_error", "ray_in_play_volume",
+           "DoubtSettings", "DoubtView", "label_severity", "epipolar_pair_error", "ray_in_play_volume",
            "consensus_box_sigma_px", "consensus_fix", "judge_system"]

@@ -8,7 +8,7 @@ World frame: SoccerNet (metres, origin at the centre spot, z down); pixels of ea
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Hashable
+from typing import Any, Hashable, Iterable
 
 import numpy as np
 
@@ -30,6 +30,12 @@ LABEL_KIND_SEVERITY: dict[str, int] = {
     "mirrored_labels": 3, "ball_off_consensus": 2, "views_disagree": 2, "ball_missing": 1, "near_duplicate_view": 1,
     "ball_detected": 1,
 }
+
+
+def label_severity(kinds: Iterable[str]) -> int:
+    """The largest :data:`LABEL_KIND_SEVERITY` among doubt ``kinds`` (0 when none accuses a label): a system's
+    severity, stored with its doubts (``System.label_severity``) for the review queue's default order."""
+    return max((LABEL_KIND_SEVERITY.get(k, 0) for k in kinds), default=0)
 
 
 #: Kinds that inform without accusing a label.

@@ -24,7 +24,7 @@ from app.db.types import json_safe
 from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
 from app.geometry.camera import Camera
 from app.geometry.consensus import Consensus
-from app.geometry.doubts import DoubtSettings, DoubtView, judge_system
+from app.geometry.doubts import DoubtSettings, DoubtView, judge_system, label_severity
 from app.geometry.doubts.detections import Detection, check_detections
 from app.geometry.doubts.judge import consensus_without, consensuses_without
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
@@ -147,7 +147,8 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
         for d in found
     ])
     put_values(system, {"doubt_counts": dict(Counter(d.kind for d in found)),
-                        "label_doubts": sum(1 for d in found if d.accuses_label)})
+                        "label_doubts": sum(1 for d in found if d.accuses_label),
+                        "label_severity": label_severity(d.kind for d in found)})
     return list(system.doubts)
 
 

@@ -11,9 +11,9 @@ Rows come back as ORM objects with what their answer shows loaded; the API's res
 (``app.api.view_schemas``) shape them.
 
 Queue order (``sort``): ``severity`` (the work still to do first: pending systems and those returned as fixed, then
-the decided ones; within each the most severe doubt first, :func:`severity_sql`, then the largest reprojection error,
-then the count of label doubts), ``doubts`` (the stored count of label-accusing doubts, ties by the largest
-reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
+the decided ones; within each the most severe doubt first, the stored ``System.label_severity``, then the largest
+reprojection error, then the count of label doubts), ``doubts`` (the stored count of label-accusing doubts, ties by
+the largest reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
 systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id (in the
 sort's direction, so a descending sort is its index scanned backwards). The default, :data:`DEFAULT_SORT`,
 is ``-severity``: the work still to do, worst first, as a review tool's queue puts pending work on top (a decided
@@ -57,7 +57,6 @@ from app.db.models import (
     User,
 )
 from app.db.types import DB_INT_MAX, DB_INT_MIN
-from app.geometry.doubts import LABEL_KIND_SEVERITY
 
 #: The assignee filter's two words: the caller (``assignee=me``, which the API resolves to the caller's name) and
 #: nobody (``assignee=none``: the unassigned systems). No user may be called either, nor a name that differs from one
@@ -72,17 +71,6 @@ DEFAULT_SORT: SystemSort = "-severity"
 #: The statuses that are work still to do (the ``severity`` order puts them first): nobody decided yet, or the
 #: annotator a needs-fix went to says it is fixed.
 TO_REVIEW: tuple[ReviewStatus, ...] = (ReviewStatus.PENDING, ReviewStatus.FIXED)
-
-
-def severity_sql() -> Any:
-    """SQL (an integer per system row): how much the system's doubts say is wrong, the largest
-    ``app.geometry.doubts.LABEL_KIND_SEVERITY`` of its stored doubts (3 mirrored field lines, 2 a ball label off the
-    other views by more than tau, 1 a label missing or redundant or a detector's ball unlabelled), 0 without a label
-    doubt. The one definition the queue's ``severity`` order reads; the doubts' index on ``system_id`` answers it."""
-    weight = sa.case(LABEL_KIND_SEVERITY, value=Doubt.kind, else_=0)
-    return sa.type_coerce(
-        sa.select(sa.func.coalesce(sa.func.max(weight), 0)).where(Doubt.system_id == System.id)
-        .correlate(System).scalar_subquery(), sa.Integer)
 
 
 def _to_review_first() -> Any:
@@ -242,7 +230,7 @@ def _sort_keys(sort: SystemSort) -> list[_SortKey]:
         cols = [Game.league, Game.season, Game.match, *_natural_name(System.name)]
         return [_SortKey(c, desc) for c in cols] + [tie]
     if key == "severity":  # the work to do first in either direction, then severity, the error, the doubts' count
-        return [_SortKey(_to_review_first()), _SortKey(severity_sql(), desc),
+        return [_SortKey(_to_review_first()), _SortKey(System.label_severity, desc),
                 _SortKey(System.worst_error_px, desc, True), _SortKey(System.label_doubts, desc), tie]
     if key == "doubts":  # ties by the largest reprojection error
         return [_SortKey(System.label_doubts, desc), _SortKey(System.worst_error_px, True, True), tie]

@@ -9,6 +9,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.errors import ForbiddenError
 from app.db.models import ReviewStatus
+from app.geometry.doubts import label_severity
 from app.services.audit import log as audit
 from app.services.curation import decisions, editing, passes, queue, writing
 from app.services.curation.queue import SystemFilters
@@ -55,6 +56,11 @@ def test_a_pass_keeps_the_queue_order_of_its_start_through_a_decision_and_a_fix(
     for frame_id, camera in zip(scene.frame_ids, scene.cameras, strict=True):
         editing.update_ball_label(db_session, frame_id, box=ball_box(camera), settings=db_settings, actor="ana")
     assert writing.get_system(db_session, fixed).label_doubts == 0
+    for scene in six:  # the stored severity is the one its stored doubts give (the queue's default order reads it)
+        system = writing.get_system(db_session, scene.system_id)
+        assert system.label_severity == label_severity(d.kind for d in system.doubts)
+    assert writing.get_system(db_session, fixed).label_severity == 0
+    assert any(writing.get_system(db_session, i).label_severity > 0 for i in doubtful if i != fixed)
     now, _ = _pages(db_session, "-doubts", limit=4)
     assert now != order and now.index(fixed) > 1  # the fix moved it in the queue's current order ...
     assert passes.get_pass(db_session, rp.id).system_ids == order  # ... not in the pass

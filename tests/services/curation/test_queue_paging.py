@@ -11,7 +11,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import InvalidInputError
 from app.db.models import Doubt, Game, ReviewStatus, System, SystemKind
-from app.geometry.doubts import LABEL_KIND_SEVERITY, LABEL_KINDS
+from app.geometry.doubts import LABEL_KIND_SEVERITY, LABEL_KINDS, label_severity
 from app.services.curation import queue
 from app.services.curation.queue import SystemFilters
 
@@ -52,6 +52,12 @@ def many(db_session: Session) -> list[System]:
         db_session.add(Doubt(system_id=s.id, kind="mirrored_labels", accuses_label=True, message="test"))
     for s in systems[2::5]:
         db_session.add(Doubt(system_id=s.id, kind="ball_detected", accuses_label=True, message="test"))
+    db_session.flush()
+    kinds: dict[int, list[str]] = {}
+    for d in db_session.query(Doubt):
+        kinds.setdefault(d.system_id, []).append(d.kind)
+    for s in systems:  # the summary the recomputation stores with the doubts
+        s.label_severity = label_severity(kinds.get(s.id, ()))
     db_session.flush()
     return systems
 
