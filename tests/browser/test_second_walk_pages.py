@@ -1,0 +1,225 @@
+"""The curator's second walk through the queue's jobs, the imports, the releases, the detectors and the statistics
+(Playwright, Chromium, the real server): each test is one thing the walk found wrong, named after what the user now
+sees. The database is the demo and a labels-only copy of its game, both imported as ``v3d import soccernet-v3``
+imports (a job row run by this process, ``app.cli.datasets.run_job_here``) before the server starts; the pages are
+used at 1366x768 (the layout ones at 1920x1080 too), logged in through the login page as an admin."""
+from __future__ import annotations
+
+import io
+import json
+import shutil
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from tests.browser.support import api_json, api_write, log_in, tid
+
+pytestmark = pytest.mark.browser
+
+SIZES = [(1366, 768), (1920, 1080)]
+SIZE_IDS = ["1366x768", "1920x1080"]
+#: The labels-only copy's game (the demo's labels under another match name: a game of its own, no image).
+LABELS_ONLY_MATCH = "2025-03-22 - 15-00 Northbridge 0 - 0 Westfield"
+
+
+def labels_only_tree(demo: Path, out: Path, match: str = LABELS_ONLY_MATCH) -> Path:
+    """A SoccerNet-v3 tree holding the demo's ``Labels-v3.json`` under the game ``match``, without its
+    ``Frames-v3.zip``: a labels-only dataset."""
+    labels = next(demo.rglob("Labels-v3.json"))
+    game = out / labels.parent.parent.parent.name / labels.parent.parent.name / match
+    game.mkdir(parents=True)
+    shutil.copy(labels, game / "Labels-v3.json")
+    return out
+
+
+@pytest.fixture(scope="module")
+def seeded_settings(tmp_path_factory: pytest.TempPathFactory):
+    """The demo and a labels-only game, each imported as ``v3d import soccernet-v3`` does: a job row claimed and
+    run by this process (``run_job_here``), finished before the server starts."""
+    from app.cli.datasets import run_job_here
+    from app.core.config import Settings
+    from app.db.session import upgrade_database
+    from app.demo import generate_demo_dataset
+    from app.services.jobs.work import import_params
+
+    root = tmp_path_factory.mktemp("walk2")
+    settings = Settings(database_url=f"sqlite:///{root / 'walk2.sqlite3'}", calibration_workers=1,
+                        data_root=tmp_path_factory.getbasetemp())
+    upgrade_database(settings.database_url)
+    dataset = generate_demo_dataset(root / "demo")
+    for path in (dataset, labels_only_tree(dataset, root / "labels-only")):
+        job_id, result = run_job_here(settings, "import", import_params("soccernet-v3", path))
+        assert result["systems"] > 0, (job_id, result)
+    return settings
+
+
+@pytest.fixture
+def small_page(browser, server_url, accounts):
+    """A 1366x768 page logged in through the login page as the admin; a dialog or a JavaScript error fails it."""
+    context = browser.new_context(viewport={"width": 1366, "height": 768}, base_url=server_url)
+    p = context.new_page()
+    errors: list[str] = []
+    p.on("pageerror", lambda exc: errors.append(str(exc)))
+    p.on("dialog", lambda d: errors.append(f"a dialog: {d.message}"))
+    p.goto("/")
+    p.wait_for_url(f"{server_url}/login?next=%2F")
+    log_in(p, accounts["admin"])
+    p.wait_for_url(f"{server_url}/")
+    try:
+        yield p
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors or dialogs on the page: {errors}"
+
+
+def _cut_off(page, selector: str) -> list[str]:
+    """Texts of the elements of ``selector`` that are cut by the window's right edge or covered."""
+    return page.evaluate("""(selector) => [...document.querySelectorAll(selector)].filter((e) => {
+      const r = e.getBoundingClientRect();
+      if (r.width === 0) return false;
+      if (r.right > window.innerWidth + 0.5) return true;
+      const y = (r.top + r.bottom) / 2;
+      return [[r.left + 2, y], [r.right - 2, y]].some(([x, y]) => {
+        const hit = document.elementFromPoint(x, y); return hit && !e.contains(hit) && !hit.contains(e); });
+    }).map((e) => e.textContent)""", selector)
+
+
+# ----- 4: a finished job's result in words; command-line jobs listed -------------------------------------------
+def test_the_jobs_panel_lists_the_command_line_imports_with_what_they_gave_in_numbers(small_page, artifacts):
+    page = small_page
+    jobs = {j["id"]: j for j in api_json(page, "/api/jobs?kind=import")["items"]}
+    assert len(jobs) == 2 and all(j["state"] == "done" for j in jobs.values())
+    page.wait_for_selector(f"{tid('jobs')}:not([hidden]) {tid('job')}")
+    rows = page.locator(f"{tid('jobs')} {tid('job')}")
+    assert rows.count() == 2
+    for job_id, job in jobs.items():
+        row = page.locator(f'{tid("job")}[data-id="{job_id}"]')
+        r = job["result"]
+        assert row.get_attribute("data-state") == "done"
+        text = row.locator(tid("job-summary")).inner_text()
+        # its systems, how many got a 3D ball, how many views no camera: the stored counts, in words
+        assert text.startswith(f"{r['systems']} systems: {r['triangulated']} with a 3D ball")
+        if r["refused"]:
+            assert f"{r['refused']} views without a camera" in text
+        assert "command line" in row.inner_text()
+    labels_only = max(jobs)  # imported second
+    assert "no images" in page.locator(f'{tid("job")}[data-id="{labels_only}"] {tid("job-summary")}').inner_text()
+    assert "no images" not in page.locator(f'{tid("job")}[data-id="{min(jobs)}"] {tid("job-summary")}').inner_text()
+    page.screenshot(path=str(artifacts / "walk2/queue-jobs-1366x768.png"))
+
+
+def test_a_finished_job_shows_no_running_state_and_a_full_bar_never(small_page):
+    page = small_page
+    bar = page.evaluate("""async () => {
+      const { progressBar, jobProgressText } = await import('/static/js/jobs.js');
+      const full = progressBar({ state: 'running', stage: 'calibrate', done: 30, total: 30 });
+      const half = progressBar({ state: 'running', stage: 'calibrate', done: 15, total: 30 });
+      return { fullHasValue: full.hasAttribute('value') && full.position === 1, half: half.value,
+               bytes: jobProgressText({ state: 'running', stage: 'predictions', done: 77250, total: 154500 }) };
+    }""")
+    assert bar == {"fullHasValue": False, "half": 15, "bytes": "reading the predictions 50 %"}
+
+
+def test_one_size_function_says_50_kb_not_0_0_mb(small_page):
+    sizes = small_page.evaluate("""async () => {
+      const { fmtBytes } = await import('/static/js/format.js');
+      return [812, 50 * 1024, 3.4 * 1048576, 1.5 * 1073741824].map(fmtBytes);
+    }""")
+    assert sizes == ["812 B", "50 KB", "3.4 MB", "1.5 GB"]
+
+
+# ----- 7 and 11: a labels-only upload says so, and the message points where the Jobs panel is ------------------
+def test_a_labels_only_upload_says_it_has_no_images_and_where_its_job_is(small_page, tmp_path, seeded_settings):
+    page = small_page
+    tree = labels_only_tree(next(Path(seeded_settings.database_url.removeprefix("sqlite:///")).parent
+                                 .glob("demo")), tmp_path / "tree", match="2025-04-01 - 20-00 Upload 1 - 1 Zip")
+    archive = tmp_path / "labels-only.zip"
+    with zipfile.ZipFile(archive, "w") as zf:
+        for f in tree.rglob("*"):
+            if f.is_file():
+                zf.write(f, f.relative_to(tree).as_posix())
+    page.wait_for_selector(f"{tid('import')}:not([hidden])")
+    page.set_input_files(tid("import-file"), str(archive))
+    page.click(tid("import-start"))
+    text = page.locator(tid("import-upload-text"))
+    said_now = "(re) => new RegExp(re).test(document.querySelector('[data-testid=import-upload-text]').textContent)"
+    page.wait_for_function(said_now, arg="queued")
+    said = text.inner_text()
+    jobs_y = page.locator(tid("jobs")).bounding_box()["y"]
+    import_y = page.locator(tid("import")).bounding_box()["y"]
+    assert ("above" in said) == (jobs_y < import_y) and ("below" in said) == (jobs_y > import_y), said
+    page.wait_for_function(said_now, arg="imported", timeout=180_000)
+    assert "no images" in text.inner_text()
+
+
+# ----- 5 and 13: releases made, exported and compared on the Releases page ---------------------------------------
+def _decide(page, system_id: int, status: str) -> None:
+    answer = page.request.get(f"/api/systems/{system_id}")
+    done = api_write(page, "POST", f"/api/systems/{system_id}/review", data={"status": status, "comment": ""},
+                     headers={"If-Match": answer.headers["etag"]})
+    assert done.ok, done.text()
+
+
+def _create_on_page(page, name: str) -> None:
+    page.fill(tid("release-name"), name)
+    page.click(tid("release-create"))
+    page.wait_for_selector(f"{tid('releases')} tr[data-release='{name}']")
+
+
+def test_an_admin_types_a_name_and_presses_create_release_and_it_exists(small_page, artifacts):
+    page = small_page
+    systems = api_json(page, "/api/systems?limit=5&sort=name&status=pending")["items"]
+    _decide(page, systems[0]["id"], "accepted")
+    _decide(page, systems[1]["id"], "accepted")
+    page.goto("/static/releases.html")
+    page.get_by_role("button", name="Create release").wait_for()
+    _create_on_page(page, "walk-1")
+    made = {r["name"]: r for r in api_json(page, "/api/releases")["items"]}
+    assert made["walk-1"]["systems"] >= 2
+    row = page.locator(f"{tid('releases')} tr[data-release='walk-1']")
+    # made: in the reader's words, the full time on hover; by: the person, never "cli:..."
+    assert row.locator(tid("release-when")).inner_text() in ("just now", "now") or "second" in row.inner_text()
+    assert made["walk-1"]["created_at"][:4] in row.locator(tid("release-when")).get_attribute("title")
+    assert row.locator(tid("release-by")).inner_text() == "test-admin"
+    audit = api_json(page, "/api/audit?user=test-admin&limit=20")["items"]
+    assert any(e["action"] == "release.create" and (e.get("after") or {}).get("name") == "walk-1" for e in audit)
+
+    # the second release after one released system was rejected: the diff names it removed, rejected, linked
+    _decide(page, systems[0]["id"], "rejected")
+    _create_on_page(page, "walk-2")
+    page.select_option(tid("diff-from"), "walk-1")
+    page.select_option(tid("diff-to"), "walk-2")
+    page.click(tid("diff-show"))
+    removed = page.locator(f"{tid('diff-table')} tr[data-change=removed]")
+    removed.wait_for()
+    assert removed.get_attribute("data-system") == str(systems[0]["id"])
+    assert "rejected" in removed.inner_text()
+    assert removed.locator(tid("diff-system-link")).get_attribute("href") == f"/systems/{systems[0]['id']}"
+    for w, h in SIZES:
+        page.set_viewport_size({"width": w, "height": h})
+        page.screenshot(path=str(artifacts / f"walk2/releases-{w}x{h}.png"), full_page=True)
+        assert page.evaluate("() => document.documentElement.scrollWidth <= window.innerWidth")
+
+    # the Exports panel on the page itself, its scope the releases (the newest chosen)
+    scope = page.locator(f"{tid('exports')} {tid('export-scope')}")
+    assert scope.input_value() == "release:walk-2"
+    scope.select_option("release:walk-1")
+    page.click(tid("export-soccernet-v3d-no-images"))
+    link = page.locator(f"{tid('export-status-soccernet-v3d-no-images')} {tid('export-download')}")
+    link.wait_for(timeout=120_000)
+    with page.expect_download() as info:
+        link.click()
+    with zipfile.ZipFile(io.BytesIO(open(info.value.path(), "rb").read())) as zf:
+        labels = [json.loads(zf.read(n)) for n in zf.namelist() if n.endswith("Labels-v3D.json")]
+    assert labels and all(x["GameMetadata"]["v3d_release"]["name"] == "walk-1" for x in labels)
+
+
+def test_one_moved_ball_is_a_dot_on_a_short_axis_not_a_full_height_bar(small_page):
+    page = small_page
+    page.goto("/static/releases.html")
+    out = page.evaluate("""async () => {
+      const { niceCeiling } = await import('/static/js/releases.js');
+      return [niceCeiling(0.0123), niceCeiling(0.3), niceCeiling(2), niceCeiling(0)];
+    }""")
+    assert out == [0.02, 0.5, 2, 1]
