@@ -223,3 +223,37 @@ def test_one_moved_ball_is_a_dot_on_a_short_axis_not_a_full_height_bar(small_pag
       return [niceCeiling(0.0123), niceCeiling(0.3), niceCeiling(2), niceCeiling(0)];
     }""")
     assert out == [0.02, 0.5, 2, 1]
+
+
+# ----- 14: one top bar on every page -----------------------------------------------------------------------------
+PAGES = {"queue": "/", "system": None, "statistics": "/static/stats.html", "detectors": "/static/monocular.html",
+         "releases": "/static/releases.html"}
+
+
+@pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)
+def test_every_page_has_the_same_top_bar_links_and_log_out_whole(small_page, artifacts, size):
+    page = small_page
+    w, h = size
+    page.set_viewport_size({"width": w, "height": h})
+    system = api_json(page, "/api/systems?limit=1&sort=name")["items"][0]["id"]
+    seen = {}
+    for name, address in PAGES.items():
+        page.goto(address or f"/systems/{system}?sort=name")
+        page.locator(tid("logout")).wait_for()
+        links = page.locator(f".topbar {tid('site-nav')} a")
+        seen[name] = [(a.get_attribute("data-testid"), a.inner_text()) for a in links.all()]
+        assert page.locator(".topbar a[aria-current=page]").count() == (0 if name == "system" else 1)
+        page.screenshot(path=str(artifacts / f"walk2/topbar-{name}-{w}x{h}.png"))
+        whole = f".topbar {tid('site-nav')} a, .topbar {tid('logout')}, .topbar {tid('user')}"
+        assert _cut_off(page, whole) == [], name
+        if name == "system":  # the links leave the system's name room to be read
+            page.wait_for_function("() => !document.body.classList.contains('loading')")
+            assert page.locator(tid("system-name")).bounding_box()["width"] >= 40
+        logout = page.locator(tid("logout")).bounding_box()
+        assert logout["x"] + logout["width"] <= w and page.locator(tid("logout")).inner_text() == "Log out"
+    assert seen["queue"] == [("link-queue", "Review queue"), ("link-stats", "Statistics"),
+                             ("link-monocular", "Detectors"), ("link-releases", "Releases")]
+    assert all(links == seen["queue"] for links in seen.values()), seen
+    # from a system page the queue link keeps the queue's order
+    page.goto(f"/systems/{system}?sort=name")
+    assert page.locator(f"{tid('site-nav')} {tid('link-queue')}").get_attribute("href") == "/?sort=name"
