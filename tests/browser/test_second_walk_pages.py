@@ -257,3 +257,34 @@ def test_every_page_has_the_same_top_bar_links_and_log_out_whole(small_page, art
     # from a system page the queue link keeps the queue's order
     page.goto(f"/systems/{system}?sort=name")
     assert page.locator(f"{tid('site-nav')} {tid('link-queue')}").get_attribute("href") == "/?sort=name"
+
+
+# ----- 15: reviewer figures beside annotators' --------------------------------------------------------------------
+@pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)
+def test_the_statistics_page_shows_each_reviewers_decisions_beside_the_annotators_figures(small_page, artifacts, size):
+    page = small_page
+    w, h = size
+    page.set_viewport_size({"width": w, "height": h})
+    pending = api_json(page, "/api/systems?limit=50&sort=-name&status=pending")["items"]
+    before = {f["name"]: f for f in api_json(page, "/api/stats/annotators")["items"]}.get("test-admin", {})
+    _decide(page, pending[0]["id"], "accepted")
+    _decide(page, pending[1]["id"], "rejected")
+    figures = {f["name"]: f for f in api_json(page, "/api/stats/annotators")["items"]}["test-admin"]
+    assert figures["decisions"] == before.get("decisions", 0) + 2
+    assert figures["accepted"] == before.get("accepted", 0) + 1
+    assert figures["rejected"] == before.get("rejected", 0) + 1
+    page.goto("/static/stats.html")
+    row = page.locator(f"{tid('annotator-row')}[data-name='test-admin']")
+    row.wait_for()
+    for key in ("decisions", "accepted", "rejected", "needs_fix", "re_reviews"):
+        assert row.locator(f"td[data-key={key}]").inner_text() == str(figures[key]), key
+    heading = page.locator(tid("annotators-heading")).inner_text()
+    assert "reviewing" in heading.lower() and "(reviewers and admins)" not in heading
+    assert "reviewer" in page.locator(tid("group-reviewing")).inner_text().lower()
+    page.locator(tid("annotators")).scroll_into_view_if_needed()
+    page.screenshot(path=str(artifacts / f"walk2/stats-{w}x{h}.png"), full_page=True)
+    assert page.evaluate("() => document.documentElement.scrollWidth <= window.innerWidth")
+    last = row.locator("td[data-key=re_reviews]").bounding_box()  # beside the annotator's figures, in the window
+    assert last["x"] + last["width"] <= w
+    csv_text = page.request.get("/api/stats/annotators?format=csv").text()
+    assert csv_text.splitlines()[0].endswith("decisions,accepted,rejected,needs_fix,re_reviews")
