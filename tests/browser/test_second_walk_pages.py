@@ -384,3 +384,49 @@ def test_the_detectors_page_lists_the_imported_sources_and_removes_one_in_words(
     page.wait_for_selector(f"{tid('source-row')}[data-source='{source}']", state="detached")
     assert f"{n} ball boxes of {source} removed" in page.locator(tid("sources-empty")).inner_text()
     assert source not in {s["source"] for s in api_json(page, "/api/predictions")["items"]}
+
+
+# ----- 7: a view without an image says so; placing and confirming a detector's box there says so too --------------
+def test_a_view_without_an_image_says_no_image_and_a_detectors_box_there_says_nobody_can_look(
+        small_page, seeded_settings, artifacts):
+    import time
+
+    page = small_page
+    found = None
+    for item in api_json(page, "/api/systems?doubt=ball_missing&limit=500")["items"]:
+        system = api_json(page, f"/api/systems/{item['id']}")
+        if system["game"]["match"] != LABELS_ONLY_MATCH:
+            continue
+        for d in system["doubts"]:
+            if d["kind"] == "ball_missing" and (d["evidence"] or {}).get("code") == "consensus":
+                found = system, d
+    assert found, "the labels-only copy of the demo has a ball_missing doubt from the other views' consensus"
+    system, doubt = found
+    k = next(i for i, v in enumerate(system["views"]) if v["frame_id"] == doubt["frame_id"])
+    view, box, g = system["views"][k], doubt["suggestion"]["box"], system["game"]
+    assert view["image_url"] is None
+    path = Path(seeded_settings.data_root) / "labels-only-detector.csv"
+    path.write_text("league,season,match,image,x1,y1,x2,y2,score\n"
+                    f'{g["league"]},{g["season"]},"{g["match"]}",{view["name"]},{box[0]},{box[1]},{box[2]},{box[3]},0.8\n')
+    job = api_write(page, "POST", "/api/imports", data={"kind": "predictions", "path": str(path),
+                                                        "source": "blind-yolo"}).json()
+    for _ in range(240):
+        job = api_json(page, job["url"])
+        if job["state"] in ("done", "failed"):
+            break
+        time.sleep(0.25)
+    assert job["state"] == "done", job
+
+    page.goto(f"/systems/{system['id']}")
+    shown = page.locator(tid("view")).nth(k)
+    shown.locator(tid("no-image")).wait_for()
+    assert shown.locator(tid("no-image")).text_content() == "no image"
+    assert "labels only" in shown.inner_text() or "labels only" in shown.locator("svg").first.text_content()
+    card = shown.locator(f"{tid('view-doubt')}[data-kind=ball_detected]")
+    assert "no image here" in card.inner_text()
+    page.screenshot(path=str(artifacts / "walk2/no-image-1366x768.png"))
+    card.locator(tid("apply-fix")).click()
+    confirm = shown.locator(tid("confirm-placement"))
+    confirm.wait_for()
+    assert "no image here" in shown.locator(tid("confirm-no-image")).inner_text()
+    page.screenshot(path=str(artifacts / "walk2/no-image-placed-1366x768.png"))
