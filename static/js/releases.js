@@ -36,7 +36,7 @@ function dotsSvg(moves) {
   const hi = niceCeiling(Math.max(...moves.map((m) => m.moved)));
   const x = (v) => M.left + ((W - M.left - M.right) * v) / hi;
   const axisY = 50;
-  const root = svg("svg", { viewBox: `0 0 ${W} ${h}`, role: "img", "data-testid": "moves-svg", "data-kind": "dots" });
+  const root = svg("svg", { viewBox: `0 0 ${W} ${h}`, role: "img", class: "dots-plot", "data-testid": "moves-svg", "data-kind": "dots" });
   root.append(svg("line", { class: "axis", x1: M.left, x2: W - M.right, y1: axisY, y2: axisY }));
   moves.forEach((m, i) => {
     const dot = svg("circle", { class: "move-dot", cx: x(m.moved), cy: axisY, r: 5, "data-system": m.system });
@@ -44,7 +44,7 @@ function dotsSvg(moves) {
     root.append(dot, svg("text", { x: x(m.moved), y: axisY - 10 - (i % 2) * 12, "text-anchor": "middle", text: m.name }));
   });
   root.append(svg("text", { x: M.left, y: axisY + 16, "text-anchor": "middle", text: "0" }));
-  root.append(svg("text", { x: W - M.right, y: axisY + 16, "text-anchor": "end", text: `${hi} m` }));
+  root.append(svg("text", { x: W - M.right, y: axisY + 16, "text-anchor": "end", text: `${Number(hi.toPrecision(3))} m` }));
   root.append(svg("text", { x: (M.left + W - M.right) / 2, y: h - 4, "text-anchor": "middle",
     text: "how far each changed system's 3D ball moved (m)" }));
   return root;

@@ -216,14 +216,47 @@ def test_an_admin_types_a_name_and_presses_create_release_and_it_exists(small_pa
     assert labels and all(x["GameMetadata"]["v3d_release"]["name"] == "walk-1" for x in labels)
 
 
-def test_one_moved_ball_is_a_dot_on_a_short_axis_not_a_full_height_bar(small_page):
+def test_one_moved_ball_is_a_dot_named_on_a_sensible_axis_not_a_full_height_bar(small_page, artifacts):
+    """Two releases around one edit of a released system (a view's ball box moved 40 px, the system accepted again):
+    the diff's one change is one dot named by its system on an axis ending at a round distance above its move."""
     page = small_page
+    system = next(s for s in (api_json(page, f"/api/systems/{i['id']}") for i in
+                              api_json(page, "/api/systems?limit=50&sort=name&status=pending")["items"])
+                  if s["game"]["match"] != LABELS_ONLY_MATCH
+                  and sum(1 for v in s["views"] if (v["ball"] or {}).get("box")) >= 3)
+    _decide(page, system["id"], "accepted")
+    assert api_write(page, "POST", "/api/releases", data={"name": "one-1"}).status == 201
+    view = next(v for v in system["views"] if (v["ball"] or {}).get("box"))
+    box = view["ball"]["box"]
+    moved = api_write(page, "PATCH", f"/api/frames/{view['frame_id']}/ball",
+                      data={"box": [box[0] + 40, box[1], box[2] + 40, box[3]]}, headers={"If-Match": view["etag"]})
+    assert moved.ok, moved.text()
+    _decide(page, system["id"], "accepted")
+    assert api_write(page, "POST", "/api/releases", data={"name": "one-2"}).status == 201
+    diff = api_json(page, "/api/releases/one-1/diff/one-2")
+    changed = [c for c in diff["changed"] if c["system_id"] == system["id"]]
+    assert changed and changed[0]["ball3d_moved_m"] > 0
     page.goto("/static/releases.html")
-    out = page.evaluate("""async () => {
-      const { niceCeiling } = await import('/static/js/releases.js');
-      return [niceCeiling(0.0123), niceCeiling(0.3), niceCeiling(2), niceCeiling(0)];
-    }""")
-    assert out == [0.02, 0.5, 2, 1]
+    page.wait_for_selector(f"{tid('releases')} tr[data-release='one-2']")
+    page.select_option(tid("diff-from"), "one-1")
+    page.select_option(tid("diff-to"), "one-2")
+    page.click(tid("diff-show"))
+    plot = page.locator(f"{tid('diff-histogram')} svg")
+    plot.wait_for()
+    assert plot.get_attribute("data-kind") == "dots"
+    assert page.locator(f"{tid('diff-histogram')} rect.hist-bar").count() == 0  # no full-height bar
+    dots = page.locator(f"{tid('diff-histogram')} circle.move-dot")
+    assert dots.count() == len(diff["changed"])
+    assert dots.first.get_attribute("data-system") == str(diff["changed"][0]["system_id"])
+    assert system["name"] in plot.text_content()
+    height = plot.bounding_box()["height"]
+    assert height < 140, height  # a short strip, not a 220-px chart for one value
+    end = float(plot.locator("text").nth(-2).text_content().removesuffix(" m"))
+    moved_m = max(c["ball3d_moved_m"] for c in diff["changed"])
+    assert moved_m <= end <= 5 * moved_m  # a round end above the move: 1, 2 or 5 times a power of ten
+    row = page.locator(f"{tid('diff-table')} tr[data-change=changed][data-system='{system['id']}']")
+    assert row.locator(tid("diff-system-link")).get_attribute("href") == f"/systems/{system['id']}"
+    page.screenshot(path=str(artifacts / "walk2/releases-one-change-1366x768.png"), full_page=True)
 
 
 # ----- 14: one top bar on every page -----------------------------------------------------------------------------
