@@ -72,6 +72,7 @@ async function loadSources(said = "") {
       el("td", { "data-testid": "source-when", title: when.title, text: when.text }),
       el("td", { "data-testid": "source-by", text: s.imported_by || "unknown" }), action);
   }));
+  document.querySelector("[data-testid=sources-table]").hidden = items.length === 0;
   const empty = document.querySelector("[data-testid=sources-empty]");
   empty.hidden = items.length > 0 && !said;
   empty.textContent = said ? `${said}.${items.length ? "" : " No detector's boxes are imported now."}` : "No detector's boxes are imported yet.";

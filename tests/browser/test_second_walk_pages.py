@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import io
 import json
-import shutil
 import zipfile
 from pathlib import Path
 
@@ -23,13 +22,19 @@ SIZE_IDS = ["1366x768", "1920x1080"]
 LABELS_ONLY_MATCH = "2025-03-22 - 15-00 Northbridge 0 - 0 Westfield"
 
 
+#: The labels-only copy's view left with one field line: its calibration is refused (a view without a camera).
+NO_CAMERA_VIEW = "1_3.png"
+
+
 def labels_only_tree(demo: Path, out: Path, match: str = LABELS_ONLY_MATCH) -> Path:
     """A SoccerNet-v3 tree holding the demo's ``Labels-v3.json`` under the game ``match``, without its
-    ``Frames-v3.zip``: a labels-only dataset."""
+    ``Frames-v3.zip``: a labels-only dataset; its view :data:`NO_CAMERA_VIEW` keeps one field line only."""
     labels = next(demo.rglob("Labels-v3.json"))
     game = out / labels.parent.parent.parent.name / labels.parent.parent.name / match
     game.mkdir(parents=True)
-    shutil.copy(labels, game / "Labels-v3.json")
+    data = json.loads(labels.read_text())
+    data["replays"][NO_CAMERA_VIEW]["lines"] = data["replays"][NO_CAMERA_VIEW]["lines"][:1]
+    (game / "Labels-v3.json").write_text(json.dumps(data))
     return out
 
 
@@ -102,12 +107,22 @@ def test_the_jobs_panel_lists_the_command_line_imports_with_what_they_gave_in_nu
         # its systems, how many got a 3D ball, how many views no camera: the stored counts, in words
         assert text.startswith(f"{r['systems']} systems: {r['triangulated']} with a 3D ball")
         if r["refused"]:
-            assert f"{r['refused']} views without a camera" in text
+            assert f"{r['refused']} view{'s' if r['refused'] > 1 else ''} without a camera" in text
         assert "command line" in row.inner_text()
     labels_only = max(jobs)  # imported second
     assert "no images" in page.locator(f'{tid("job")}[data-id="{labels_only}"] {tid("job-summary")}').inner_text()
     assert "no images" not in page.locator(f'{tid("job")}[data-id="{min(jobs)}"] {tid("job-summary")}').inner_text()
+    assert jobs[labels_only]["result"]["refused"] >= 1  # the view left with one line
     page.screenshot(path=str(artifacts / "walk2/queue-jobs-1366x768.png"))
+    # the words link to the systems they speak of: the queue filtered to the systems with a view without a camera
+    link = page.locator(f'{tid("job")}[data-id="{labels_only}"] {tid("job-summary-link")}')
+    assert link.inner_text() == f"{jobs[labels_only]['result']['refused']} view without a camera"
+    link.click()
+    page.wait_for_url("**/?doubt=calibration_refused")
+    page.locator(f"{tid('queue')} tbody tr").first.wait_for()
+    assert page.locator(tid("filter-doubt")).input_value() == "calibration_refused"
+    listed = api_json(page, "/api/systems?doubt=calibration_refused")["items"]
+    assert page.locator(f"{tid('queue')} tbody tr").count() == len(listed) >= 1
 
 
 def test_a_finished_job_shows_no_running_state_and_a_full_bar_never(small_page):
