@@ -23,6 +23,8 @@ def _n(count: int, one: str, many: str | None = None) -> str:
 
 def _predictions(result: dict[str, Any]) -> dict[str, Any]:
     parts = [_n(int(result.get("stored", 0)), "prediction")]
+    if result.get("frames"):
+        parts[0] += f" on {_n(int(result['frames']), 'view')} of {_n(int(result.get('systems', 0)), 'system')}"
     if result.get("clipped"):
         parts.append(f"{int(result['clipped']):,} clipped to their image")
     # read from the report when it counts them (a per-frame cap on a detector's boxes)
@@ -31,10 +33,7 @@ def _predictions(result: dict[str, Any]) -> dict[str, Any]:
         parts.append(f"{dropped:,} dropped over the cap")
     if result.get("unknown"):
         parts.append(f"{_n(int(result['unknown']), 'row')} naming an image v3d does not hold")
-    words = ", ".join(parts)
-    if result.get("frames"):
-        words += f" on {_n(int(result['frames']), 'view')} of {_n(int(result.get('systems', 0)), 'system')}"
-    return {"words": words, "links": []}
+    return {"words": ", ".join(parts), "links": []}
 
 
 def _dataset(result: dict[str, Any]) -> dict[str, Any]:

@@ -27,7 +27,7 @@ def test_a_labels_only_import_says_it_has_no_images_and_a_partial_one_counts_the
 def test_a_predictions_import_counts_predictions_not_bytes():
     s = summary("import", {"kind": "predictions", "rows": 1464, "stored": 1420, "clipped": 44, "unknown": 0,
                            "frames": 300, "systems": 90})
-    assert s["words"] == "1,420 predictions, 44 clipped to their image on 300 views of 90 systems"
+    assert s["words"] == "1,420 predictions on 300 views of 90 systems, 44 clipped to their image"
     assert "dropped" in summary("import", {"kind": "predictions", "stored": 10, "dropped_over_cap": 3})["words"]
 
 
