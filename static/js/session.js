@@ -24,8 +24,8 @@ async function showUser() {
     }
     location.assign(LOGIN_PAGE);
   });
-  bar.append(el("span", { class: "user", "data-testid": "user", title: `logged in (${me.via})` },
-    el("b", { "data-testid": "user-name" }, me.name), ` · ${me.role}`), button);
+  bar.append(el("span", { class: "user", "data-testid": "user", title: `logged in as ${me.role} (${me.via})` },
+    el("b", { "data-testid": "user-name" }, me.name), el("span", { class: "user-role" }, ` · ${me.role}`)), button);
 }
 
 mountTopbar();
