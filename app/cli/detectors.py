@@ -215,9 +215,10 @@ def stats_annotators_cmd(
     csv_out: Annotated[Optional[Path], typer.Option("--csv", help="Write the figures as CSV here.")] = None,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Per-annotator figures: label edits, systems touched and decided, needs fix received, accepted at first review,
+    """Per-person figures: label edits, systems touched and decided, needs fix received, accepted at first review,
     median time from edit to review, median distance of their ball labels from the ball the other views agree on (px
-    at 1920 width) and the share a doubt accuses (app.services.evaluation.annotators)."""
+    at 1920 width) and the share a doubt accuses; as a reviewer, the decisions made (accepted, rejected, needs fix)
+    and the re-reviews (app.services.evaluation.annotators)."""
     import csv
 
     from app.services.evaluation.annotators import FIELDS, annotator_figures
@@ -227,14 +228,16 @@ def stats_annotators_cmd(
     with database_session(settings) as session:
         figures = [f.as_dict() for f in annotator_figures(session, utc[0], utc[1])]
     if not figures:
-        typer.echo("no label edits and no hand-offs in this window")
+        typer.echo("no label edits, decisions or hand-offs in this window")
     for f in figures:
         typer.echo(f"{f['name']}: {f['edits']} edit(s) on {f['systems_touched']} system(s), "
                    f"{f['systems_decided']} decided, {f['accepted_first_review']} accepted at first review, "
                    f"{f['needs_fix_received']} returned to them; median edit to review "
                    f"{_fmt(f['median_edit_to_review_s'], '{:.0f} s')}, median label distance "
                    f"{_fmt(f['median_label_distance_px'], '{:.1f} px')}, accused "
-                   f"{_fmt(None if f['accused_share'] is None else 100 * f['accused_share'], '{:.0f} %')}")
+                   f"{_fmt(None if f['accused_share'] is None else 100 * f['accused_share'], '{:.0f} %')}; "
+                   f"reviewed: {f['decisions']} decision(s), {f['accepted']} accepted, {f['rejected']} rejected, "
+                   f"{f['needs_fix']} needs fix, {f['re_reviews']} re-review(s)")
     if csv_out is not None:
         with csv_out.open("w", newline="") as out:
             writer = csv.writer(out, lineterminator="\n")

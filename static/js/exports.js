@@ -3,11 +3,12 @@
 // export as a background job (POST /api/exports/{format}); the panel follows that job (GET /api/jobs/{id}) with
 // its progress and, when it is done, a download link to the file the server keeps for a while
 // (/api/jobs/{id}/result). "Accepted systems only", "all systems" or a release (its accepted systems as they were
-// when it was made, byte for byte the same file whenever asked) applies to every button.
+// when it was made, byte for byte the same file whenever asked) applies to every button. On the Releases page the
+// panel offers the releases alone (`mountExports(root, { releasesOnly: true })`), the newest chosen.
 
 import { getMe, send } from "./api.js";
-import { jobProgressText } from "./jobs.js";
-import { el, showError } from "./format.js";
+import { jobProgressText, progressBar } from "./jobs.js";
+import { el, fmtBytes, showError } from "./format.js";
 // the exports offered ({id, label, format, body, title}), written from the server's registry of export formats
 import { EXPORTS } from "./exportlist.js";
 
@@ -18,15 +19,13 @@ const POLL_MS = 1000;
 function status(job) {
   const parts = [el("span", { class: `chip ${job.state === "failed" ? "bad" : job.state === "done" ? "ok" : ""}` }, job.state)];
   if (ACTIVE.has(job.state)) {
-    const bar = el("progress", { max: String(job.total || 1) });
-    if (job.total) bar.value = job.done;
-    parts.push(bar, el("span", { class: "muted" }, jobProgressText(job)));
+    parts.push(progressBar(job), el("span", { class: "muted" }, jobProgressText(job)));
   }
   if (job.state === "failed") parts.push(el("span", { class: "bad" }, job.message || "failed"));
   if (job.result_url) {
     const name = (job.result && job.result.filename) || "export.zip";
-    const mb = job.result && job.result.bytes ? ` (${(job.result.bytes / 1048576).toFixed(1)} MB)` : "";
-    parts.push(el("a", { href: job.result_url, download: name, "data-testid": "export-download" }, `download ${name}${mb}`));
+    const size = job.result && job.result.bytes ? ` (${fmtBytes(job.result.bytes)})` : "";
+    parts.push(el("a", { href: job.result_url, download: name, "data-testid": "export-download" }, `download ${name}${size}`));
     const empty = (job.result && job.result.empty_splits) || [];
     if (empty.length) parts.push(el("span", { class: "warn" }, `no image in split ${empty.join(", ")}`));
   }
@@ -34,11 +33,11 @@ function status(job) {
 }
 
 class ExportsPanel {
-  constructor(root) {
+  constructor(root, { releasesOnly = false } = {}) {
     this.root = root;
-    this.scope = el("select", { "data-testid": "export-scope", title: "Which systems every export holds" },
-      el("option", { value: "accepted" }, "accepted systems only"), el("option", { value: "all" }, "all systems"));
-    this.addReleases();
+    this.releasesOnly = releasesOnly;
+    this.scope = el("select", { "data-testid": "export-scope", title: "Which systems every export holds" });
+    this.ready = this.addReleases();
     this.list = el("ul");
     for (const x of EXPORTS) {
       const button = el("button", { type: "button", "data-testid": `export-${x.id}`, title: x.title }, x.label);
@@ -51,20 +50,28 @@ class ExportsPanel {
       el("label", { class: "muted" }, "Systems ", this.scope), this.list);
   }
 
-  /** Offer each release (newest first) in the scope select; a page without releases keeps the two scopes. */
+  /** Offer each release (newest first) in the scope select, after the two scopes of the database now (on the
+   * Releases page the releases alone, the newest chosen); called again when a release is made. */
   async addReleases() {
     let releases = [];
     try {
       releases = (await send("GET", "/api/releases")).items || [];
     } catch {
-      return; // the exports of the database now stay offered
+      releases = []; // the exports of the database now stay offered
     }
+    const chosen = this.scope.value;
+    const options = this.releasesOnly ? [] : [el("option", { value: "accepted" }, "accepted systems only"),
+      el("option", { value: "all" }, "all systems")];
     const group = el("optgroup", { label: "a release (the same bytes whenever asked)" });
     for (const r of [...releases].reverse()) {
       group.append(el("option", { value: `release:${r.name}`, title: `hash ${r.hash}` },
-        `release ${r.name} (${r.systems} systems)`));
+        `release ${r.name} (${r.systems} system${r.systems === 1 ? "" : "s"})`));
     }
-    if (releases.length) this.scope.append(group);
+    this.scope.replaceChildren(...options, ...(releases.length ? [group] : []));
+    if (this.releasesOnly) {
+      this.scope.value = releases.length ? `release:${releases[releases.length - 1].name}` : "";
+      for (const b of this.list.querySelectorAll("button")) b.disabled = !releases.length;
+    } else if (chosen) this.scope.value = chosen;
   }
 
   /** The body of an export job for the chosen scope: a release by name, or all / accepted systems now. */
@@ -100,8 +107,9 @@ class ExportsPanel {
   }
 }
 
-/** Show the exports panel in `root` (a hidden element) when the person may export. */
-export async function mountExports(root) {
+/** Show the exports panel in `root` (a hidden element) when the person may export; `options.releasesOnly`: the
+ * releases alone as scopes (the Releases page). */
+export async function mountExports(root, options = {}) {
   if (!root) return null;
   let me;
   try {
@@ -110,7 +118,7 @@ export async function mountExports(root) {
     return null;
   }
   if (me.role !== "admin") return null;
-  const panel = new ExportsPanel(root);
+  const panel = new ExportsPanel(root, options);
   root.hidden = false;
   return panel;
 }

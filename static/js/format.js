@@ -105,3 +105,37 @@ export function toast(message) {
   clearTimeout(toastTimer);
   toastTimer = setTimeout(() => t.classList.remove("visible"), 2500);
 }
+
+/** A byte count in a reader's unit: "812 B", "50 KB", "3.4 MB", "1.2 GB" (1024-based, as file managers show). */
+export function fmtBytes(bytes) {
+  if (!isNum(bytes) || bytes < 0) return "—";
+  if (bytes < 1024) return `${bytes} B`;
+  const units = ["KB", "MB", "GB", "TB"];
+  let v = bytes / 1024;
+  let i = 0;
+  while (v >= 1024 && i < units.length - 1) {
+    v /= 1024;
+    i += 1;
+  }
+  return `${v < 10 ? v.toFixed(1).replace(/\.0$/, "") : Math.round(v)} ${units[i]}`;
+}
+
+/** A whole number with the reader's thousands separator ("1,420"). */
+export function fmtCount(n) {
+  return isNum(n) ? Math.round(n).toLocaleString() : "—";
+}
+
+const RELATIVE_STEPS = [["year", 31536000], ["month", 2592000], ["week", 604800], ["day", 86400], ["hour", 3600], ["minute", 60]];
+/** A moment (ISO 8601 text, or a Date) in the reader's words: `{text, title}`, the text relative to now ("3 minutes
+ * ago", "yesterday") and the title the full date and time in the reader's locale and time zone (shown on hover). */
+export function fmtWhen(when, now = Date.now()) {
+  const d = when instanceof Date ? when : new Date(typeof when === "string" && !/[zZ]|[+-]\d\d:?\d\d$/.test(when) ? `${when}Z` : when);
+  if (Number.isNaN(d.getTime())) return { text: "unknown", title: "" };
+  const title = d.toLocaleString(undefined, { dateStyle: "full", timeStyle: "long" });
+  const seconds = (d.getTime() - now) / 1000;
+  const rtf = new Intl.RelativeTimeFormat(undefined, { numeric: "auto" });
+  for (const [unit, size] of RELATIVE_STEPS) {
+    if (Math.abs(seconds) >= size) return { text: rtf.format(Math.round(seconds / size), unit), title };
+  }
+  return { text: Math.abs(seconds) < 10 ? "just now" : rtf.format(Math.round(seconds), "second"), title };
+}

@@ -1,9 +1,12 @@
-// Monocular 3D ball benchmark page: uploads predictions to POST /api/evaluations/monocular and shows
-// the report (figures per split, precision-threshold curve as SVG); and the paper's Table 1 from
-// GET /api/evaluations/boxes (original, optimised and refined ball boxes against the stored precise boxes).
+// Detectors page: the ball detectors' boxes imported, one row per source (GET /api/predictions: how many, on which
+// views, the spread of their confidence, when and by whom imported), which an admin removes after a confirmation in
+// words (DELETE /api/predictions/{source}); the benchmark of a detector's file against the curated balls (POST
+// /api/evaluations/monocular: figures per split, the share of views within each distance as SVG); and how close the
+// ball boxes are to precise hand-drawn boxes (GET /api/evaluations/boxes, the paper's Table 1). Texts from the server
+// are set as text only.
 import { ApiError, getMe, send, toQuery } from "./api.js";
 import "./session.js";
-import { el, svg, fmt, viewColour } from "./format.js";
+import { el, svg, fmt, fmtCount, fmtWhen, viewColour } from "./format.js";
 
 const form = document.querySelector("[data-testid=upload-form]");
 const errorBar = document.querySelector("[data-testid=error]");
@@ -13,10 +16,68 @@ function showError(message) {
   errorBar.classList.add("visible");
 }
 errorBar.querySelector("button").addEventListener("click", () => errorBar.classList.remove("visible"));
-// the export links only for the role that may export (admins; the API refuses the others)
-getMe().then((me) => {
-  document.querySelector("[data-testid=monocular-exports]").hidden = me.role !== "admin";
-}).catch(() => {});
+// the export links and the removal of a source only for the role that may (admins; the API refuses the others)
+const mePromise = getMe().catch(() => null);
+mePromise.then((me) => {
+  document.querySelector("[data-testid=monocular-exports]").hidden = !me || me.role !== "admin";
+});
+
+// ----- the detectors' boxes imported ------------------------------------------------------------------------------
+const score = (v) => (v === null || v === undefined ? "–" : v.toFixed(2));
+
+/** "0.81 (0.62–0.90; 0.05 – 0.99)": the median, the middle half, the lowest and highest. */
+function spreadText(s) {
+  if (!s || s.median === null) return "–";
+  return `${score(s.median)} (${score(s.q1)}–${score(s.q3)}; ${score(s.min)} – ${score(s.max)})`;
+}
+
+/** The inline confirmation of a removal, in words, in place of the row's button. */
+function confirmRemoval(cell, source, onDone) {
+  const yes = el("button", { type: "button", class: "reject", "data-testid": "source-remove-confirm" }, "Remove them");
+  const no = el("button", { type: "button", "data-testid": "source-remove-cancel" }, "Keep");
+  const words = el("span", { "data-testid": "source-remove-words" },
+    `Remove the ${fmtCount(source.predictions)} ball boxes of ${source.source}? The labels placed from them stay; the ` +
+    `${fmtCount(source.systems)} systems they lie on are computed again. `);
+  const before = [...cell.childNodes];
+  no.addEventListener("click", () => cell.replaceChildren(...before));
+  yes.addEventListener("click", async () => {
+    yes.disabled = no.disabled = true;
+    try {
+      const done = await send("DELETE", `/api/predictions/${encodeURIComponent(source.source)}`);
+      onDone(`${fmtCount(done.removed)} ball boxes of ${done.source} removed`);
+    } catch (err) {
+      showError(err instanceof ApiError ? err.message : String(err));
+      cell.replaceChildren(...before);
+    }
+  });
+  cell.replaceChildren(words, yes, " ", no);
+}
+
+async function loadSources(said = "") {
+  const [{ items }, me] = await Promise.all([send("GET", "/api/predictions"), mePromise]);
+  const admin = me && me.role === "admin";
+  const tbody = document.querySelector("[data-testid=sources-table] tbody");
+  tbody.replaceChildren(...items.map((s) => {
+    const when = s.imported_at ? fmtWhen(s.imported_at) : { text: "unknown", title: "" };
+    const action = el("td", { class: "source-action" });
+    if (admin) {
+      const remove = el("button", { type: "button", "data-testid": "source-remove", title: "Delete this detector's boxes (asks first)" }, "Remove…");
+      remove.addEventListener("click", () => confirmRemoval(action, s, (text) => loadSources(text)));
+      action.append(remove);
+    }
+    return el("tr", { "data-testid": "source-row", "data-source": s.source },
+      el("td", { text: s.source }), el("td", { class: "num", text: fmtCount(s.predictions) }),
+      el("td", { class: "num", text: fmtCount(s.frames) }), el("td", { class: "num", text: fmtCount(s.systems) }),
+      el("td", { class: "mono", "data-testid": "source-scores", text: spreadText(s.scores) }),
+      el("td", { "data-testid": "source-when", title: when.title, text: when.text }),
+      el("td", { "data-testid": "source-by", text: s.imported_by || "unknown" }), action);
+  }));
+  document.querySelector("[data-testid=sources-table]").hidden = items.length === 0;
+  const empty = document.querySelector("[data-testid=sources-empty]");
+  empty.hidden = items.length > 0 && !said;
+  empty.textContent = said ? `${said}.${items.length ? "" : " No detector's boxes are imported now."}` : "No detector's boxes are imported yet.";
+}
+loadSources().catch((err) => showError(err instanceof ApiError ? err.message : String(err)));
 
 async function evaluate(formData) {
   const params = {
@@ -77,13 +138,16 @@ function curveSvg(series) {
   return root;
 }
 
+/** How each way of placing the ball from one view reads (the server's names: app.services.evaluation.monocular). */
+const ESTIMATOR_WORDS = { exact: "from the ball's exact outline", paper: "from the box's size (the paper's formula)" };
+
 function render(report) {
   const series = [["all", report], ...Object.entries(report.splits)];
   const tbody = document.querySelector("[data-testid=figures] tbody");
   tbody.replaceChildren(...series.map(([name, rep]) => figuresRow(name, rep)));
   document.querySelector("[data-testid=report-note]").textContent =
-    `Monocular ball: ${report.estimator}; ${report.counts.ignored_detections} detection(s) ignored in images without a 3D ball. ` +
-    "AP@0.5: Pascal VOC all-point; MAE and P@2 m over views with a detection overlapping the reference box.";
+    `3D ball from one view: ${ESTIMATOR_WORDS[report.estimator] || report.estimator}; ${report.counts.ignored_detections} box(es) left aside in images without a curated 3D ball. ` +
+    "Method: AP@0.5 as Pascal VOC (all points); the distances over the views whose box overlaps the curated one.";
   document.querySelector("[data-testid=curve]").replaceChildren(curveSvg(series));
   document.querySelector("[data-testid=report]").hidden = false;
   document.querySelector("[data-testid=report-empty]").hidden = true;
@@ -105,8 +169,8 @@ form.addEventListener("submit", async (event) => {
 
 // ----- Table 1: the ball boxes against the stored precise boxes ------------------------------------------------------
 const BOX_ROWS = [
-  ["original", "original (as imported)"],
-  ["optimised", "optimised (consistent with the 3D ball)"],
+  ["original", "as imported"],
+  ["optimised", "optimised (agreeing with the 3D ball)"],
   ["refined", "refined (the export's ball box)"],
 ];
 
@@ -121,7 +185,7 @@ function renderBoxes(report) {
       el("td", { class: "num", dataset: { testid: `boxes-size-${key}` }, text: r.size_error_pct === null ? "–" : r.size_error_pct.toFixed(1) }));
   }));
   document.querySelector("[data-testid=boxes-note]").textContent = report.views
-    ? `${report.views} view(s) with a precise box. IoU and size error (|diagonal − precise diagonal| / precise diagonal) are means over the views that have each box.`
+    ? `${report.views} view(s) with a precise box. Overlap (IoU) and how far the size is off (|diagonal − precise diagonal| / precise diagonal) are means over the views that have each box.`
     : "No view of the chosen systems has a precise box: store them with v3d import precise-boxes PRECISE.csv (league,season,match,image,x1,y1,x2,y2).";
 }
 

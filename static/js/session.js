@@ -1,7 +1,9 @@
-// Who is logged in, in the page header: "name · role" and a "Log out" button. Imported by every page
-// module; a page opened without a session is sent to the login page by api.js (on the first 401).
+// Who is logged in, in the page header: "name · role" and a "Log out" button, after the sections' links every
+// page shares (topbar.js). Imported by every page module; a page opened without a session is sent to the login
+// page by api.js (on the first 401).
 import { getMe, logout, LOGIN_PAGE } from "./api.js";
 import { el } from "./format.js";
+import { mountTopbar } from "./topbar.js";
 
 async function showUser() {
   const bar = document.querySelector(".topbar");
@@ -22,8 +24,9 @@ async function showUser() {
     }
     location.assign(LOGIN_PAGE);
   });
-  bar.append(el("span", { class: "user", "data-testid": "user", title: `logged in (${me.via})` },
-    el("b", { "data-testid": "user-name" }, me.name), ` · ${me.role}`), button);
+  bar.append(el("span", { class: "user", "data-testid": "user", title: `logged in as ${me.role} (${me.via})` },
+    el("b", { "data-testid": "user-name" }, me.name), el("span", { class: "user-role" }, ` · ${me.role}`)), button);
 }
 
+mountTopbar();
 showUser();

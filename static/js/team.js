@@ -4,7 +4,7 @@
 // (XMLHttpRequest's upload progress), then followed as a job by the Jobs panel (jobs.js), titled by the file's name.
 
 import { getMe, send, writeHeaders } from "./api.js";
-import { el, showError } from "./format.js";
+import { el, fmtBytes, showError } from "./format.js";
 import { stateQuery } from "./queuestate.js";
 
 /** The link to a part of the queue assigned to the caller (`status`: the review status, "" for any). */
@@ -74,6 +74,35 @@ export async function uploadImport(file, kind, onProgress) {
   });
 }
 
+/** Where the Jobs panel is from the Import panel `root`: "above" or "below" as the page lays them out. */
+function jobsPlace(root) {
+  const jobs = document.querySelector("[data-testid=jobs]");
+  if (!jobs) return "on the queue page";
+  return jobs.compareDocumentPosition(root) & Node.DOCUMENT_POSITION_FOLLOWING ? "above" : "below";
+}
+
+/** Follow the queued import `job` until it ends, then say in `text` what it gave (the server's words: a
+ * labels-only dataset says it has no images) or why it failed. */
+async function followImport(job, name, text) {
+  for (;;) {
+    await new Promise((resolve) => setTimeout(resolve, 1500));
+    try {
+      job = await send("GET", job.url);
+    } catch {
+      continue; // the server restarting: ask again
+    }
+    if (job.state === "done") {
+      const words = job.result && job.result.summary && job.result.summary.words;
+      text.textContent = `${name} imported (job #${job.id}): ${words || "done"}`;
+      return;
+    }
+    if (job.state === "failed") {
+      text.textContent = `${name} not imported (job #${job.id}): ${job.message || "failed"}`;
+      return;
+    }
+  }
+}
+
 /** The Import panel in `root` (hidden unless the caller is an admin); `onQueued(job)` once a job is queued. */
 export async function mountImport(root, onQueued = () => {}) {
   if (!root) return;
@@ -104,10 +133,11 @@ export async function mountImport(root, onQueued = () => {}) {
       const job = await uploadImport(chosen, kind.value, (sent, total) => {
         bar.max = total || 1;
         bar.value = sent;
-        text.textContent = `uploading ${chosen.name}: ${(sent / 1048576).toFixed(1)} / ${(total / 1048576).toFixed(1)} MB`;
+        text.textContent = `uploading ${chosen.name}: ${fmtBytes(sent)} of ${fmtBytes(total)}`;
       });
-      text.textContent = `${chosen.name} uploaded: import job #${job.id} queued (its progress below, under Jobs)`;
+      text.textContent = `${chosen.name} uploaded: import job #${job.id} queued (its progress and then what it gave: in the Jobs panel, ${jobsPlace(root)})`;
       onQueued(job);
+      followImport(job, chosen.name, text);
     } catch (err) {
       text.textContent = "";
       showError(`import of ${chosen.name}: ${err.message}`);

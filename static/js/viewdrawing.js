@@ -41,11 +41,16 @@ export function drawView(root, { view: v, scale, isMain, imageState, lines, doub
     nodes.push(svg("image", { href: v.image_url, x: 0, y: 0, width: v.width, height: v.height, preserveAspectRatio: "none" }));
   } else {
     nodes.push(svg("rect", { x: 0, y: 0, width: v.width, height: v.height, fill: "#101317" }));
-    if (isMain) {
-      nodes.push(svg("text", {
-        x: 8 * s, y: 18 * s, class: "nodata", "font-size": 11 * s,
-        text: imageState === "loading" ? "loading image…" : `no image: blank ${v.width}×${v.height} canvas`,
-      }));
+    if (imageState === "loading" && isMain) {
+      nodes.push(svg("text", { x: 8 * s, y: 18 * s, class: "nodata", "font-size": 11 * s, text: "loading image…" }));
+    } else if (imageState !== "loading" && isMain) {
+      // said plainly in the middle of the canvas: the labels and lines are drawn on nothing
+      const size = Math.min(v.width / 8, 26 * s);
+      nodes.push(svg("text", { x: v.width / 2, y: v.height / 2, class: "no-image", "text-anchor": "middle",
+        "font-size": size, "data-testid": "no-image", text: v.image_url ? "no image (it could not be read)" : "no image" }));
+      const note = v.image_url ? "its labels, drawn without their picture" : "labels only: this dataset has no pictures";
+      nodes.push(svg("text", { x: v.width / 2, y: v.height / 2 + 1.5 * size, class: "no-image-note", "text-anchor": "middle",
+        "font-size": Math.min(size * 0.5, v.width / (0.62 * note.length)), text: note }));
     }
   }
   const g = svg("g", { "data-testid": isMain ? "overlay" : "zoom-overlay" });

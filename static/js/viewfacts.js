@@ -65,12 +65,15 @@ function sigmaText(suggestion) {
   return isNum(s) ? `± ${s.toFixed(1)} px` : "";
 }
 
-/** A fix's button text: a detector's box says whose, a box or point the other views agree on says so, with its
- * uncertainty. */
-function fixLabel(suggestion, doubt) {
+/** What placing or confirming a label on a view without an image adds: nobody can look at the ball there. */
+export const NO_IMAGE_CHECK = "no image here: the other views alone vouch for it";
+
+/** A fix's button text: a detector's box says whose (and, on a view without an image, that nobody can look at it),
+ * a box or point the other views agree on says so, with its uncertainty. */
+function fixLabel(suggestion, doubt, v = {}) {
   const sigma = sigmaText(suggestion);
   const ev = (doubt && doubt.kind === "ball_detected" && doubt.evidence) || null;
-  if (ev) return `Place ${ev.detector}'s box (score ${isNum(ev.score) ? ev.score.toFixed(2) : "?"})`;
+  if (ev) return `Place ${ev.detector}'s box (score ${isNum(ev.score) ? ev.score.toFixed(2) : "?"}${v.image_url ? "" : `; ${NO_IMAGE_CHECK}`})`;
   if (suggestion.action === "snap_box" && sigma) return `Snap to the box the other views agree on (${sigma})`;
   if (suggestion.action === "snap_point" && sigma) return `Snap to the trajectory (${sigma})`;
   return FIX_LABEL[suggestion.action];
@@ -117,12 +120,15 @@ return viewDoubts.map((d) => el("div", { class: `doubt${d.accuses_label ? " bad"
     d.suggestion && FIX_LABEL[d.suggestion.action] && !(d.suggestion.action === "exclude_view" && excluded)
       ? el("button", { type: "button", "data-testid": d.kind === "mirrored_labels" ? "apply-mirror" : "apply-fix", "data-action": d.suggestion.action,
         title: `${fixTitle(d.suggestion)} and recompute (${FIX_KEY[d.suggestion.action]} on the selected view)`,
-        onclick: () => panel.applyFix(d) }, `${fixLabel(d.suggestion, d)} `, el("kbd", {}, FIX_KEY[d.suggestion.action]))
+        onclick: () => panel.applyFix(d) }, `${fixLabel(d.suggestion, d, v)} `, el("kbd", {}, FIX_KEY[d.suggestion.action]))
       : null,
     ...alternativeFixes(d, excluded, (action) => panel.applyFix({ ...d, suggestion: { action } })),
     d.kind === "suggested_label" && ball.kind && ball.provenance
       ? el("button", { type: "button", "data-testid": "confirm-placement", title: "Keep this label as yours: it then counts as evidence (Enter)",
         onclick: () => panel.confirmPlacement() }, "Confirm placement ", el("kbd", {}, "Enter"))
+      : null,
+    d.kind === "suggested_label" && ball.kind && ball.provenance && !v.image_url
+      ? el("span", { class: "warn", "data-testid": "confirm-no-image" }, ` (${NO_IMAGE_CHECK})`)
       : null));
 }
 

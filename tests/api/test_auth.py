@@ -126,6 +126,9 @@ EXPECTED_LEAST_ROLE = {
     ("POST", "/api/passes"): "annotator",  # issue 28: a review pass is a user's own, any role begins one
     ("POST", "/api/passes/{pass_id}/visits"): "annotator",
     ("GET", "/api/passes"): None,
+    ("GET", "/api/predictions"): None,
+    ("DELETE", "/api/predictions/{source}"): "admin",
+    ("POST", "/api/releases"): "admin",
 }
 
 

@@ -9,8 +9,8 @@ from datetime import datetime, timezone
 from typing import Annotated, Literal, Optional
 
 from fastapi import APIRouter, Query, Response
-from pydantic import BaseModel, Field
 
+from app.api.annotator_schemas import AnnotatorOut, AnnotatorsOut
 from app.api.auth import ReviewerDep
 from app.api.deps import SessionDep
 from app.api.schemas import INVALID
@@ -19,28 +19,6 @@ from app.datasets.csv_cells import inert_cell
 from app.services.evaluation.annotators import FIELDS, annotator_figures
 
 router = APIRouter(tags=["stats"])
-
-
-class AnnotatorOut(BaseModel):
-    """One person's figures (``docs/teams.md``)."""
-
-    name: str
-    edits: int = Field(description="Label edits (ball, field lines, mirror, exclusion) in the window.")
-    systems_touched: int = Field(description="Systems those edits were on.")
-    systems_decided: int = Field(description="Of those, the systems accepted or rejected now.")
-    needs_fix_received: int = Field(description="Systems marked needs fix and returned to this person.")
-    accepted_first_review: int = Field(description="Systems touched, accepted now and never returned to anyone.")
-    median_edit_to_review_s: Optional[float] = Field(description="Median seconds from their last edit of a system to "
-                                                     "the next system decision.")
-    median_label_distance_px: Optional[float] = Field(description="Median distance of their ball labels from the ball "
-                                                      "the other views agree on (px of a 1920-wide image).")
-    accused_share: Optional[float] = Field(description="Share of their ball labels a label-accusing doubt names.")
-
-
-class AnnotatorsOut(BaseModel):
-    """Every person's figures, by name."""
-
-    items: list[AnnotatorOut]
 
 
 def _utc(value: Optional[datetime], field: str) -> Optional[datetime]:
@@ -68,10 +46,11 @@ def annotators(session: SessionDep, principal: ReviewerDep,
                until: Annotated[Optional[datetime], Query(description="Only entries before this time (UTC).")] = None,
                format: Annotated[Literal["json", "csv"], Query(description="csv: text/csv, header row = the keys.")]
                = "json") -> AnnotatorsOut | Response:
-    """Per-annotator figures: edits, systems touched and decided, needs fix received, accepted at first review, the
-    median time from edit to review, and the geometry's word on their ball labels (median distance from the ball the
-    other views agree on, share accused by a doubt). Reviewers and admins. 422 naming ``until`` when it is not after
-    ``since``."""
+    """Per-person figures: as an annotator, edits, systems touched and decided, needs fix received, accepted at first
+    review, the median time from edit to review, and the geometry's word on their ball labels (median distance from
+    the ball the other views agree on, share accused by a doubt); as a reviewer, the system decisions made (accepted,
+    rejected, needs fix) and the re-reviews of systems that came back fixed. Reviewers and admins. 422 naming
+    ``until`` when it is not after ``since``."""
     start, end = _utc(since, "since"), _utc(until, "until")
     if start is not None and end is not None and end <= start:
         raise InvalidInputError("until must be after since", field="until")

@@ -86,6 +86,20 @@ def public_actor(actor: Optional[str]) -> str:
     return actor or MACHINE_ACTOR
 
 
+def actor_words(actor: Optional[str], admin: bool) -> str:
+    """Who made something, in a reader's words: the user's name, or ``command line`` for work run on the machine
+    (``command line (<os user>)`` to an admin, as :func:`shown_actor` shows the OS account to admins only).
+
+    >>> actor_words("cli:root", admin=True), actor_words("cli:root", admin=False), actor_words("ana", admin=False)
+    ('command line (root)', 'command line', 'ana')
+    """
+    if not actor or actor == MACHINE_ACTOR:
+        return "command line"
+    if actor.startswith(f"{MACHINE_ACTOR}:"):
+        return f"command line ({actor.split(':', 1)[1]})" if admin else "command line"
+    return actor
+
+
 def local_actor() -> str:
     """``cli:<os user>``: the actor of writes made on the machine (CLI, scripts calling the services),
     whose owner needs no v3d account (shown to admins only: :func:`shown_actor`)."""

@@ -16,8 +16,15 @@ Everything is read from what is stored, in a few indexed aggregate reads (no sys
   (``ball_reprojections.others_distance_px``; None without one); ``accused_share``: the share of those labels a
   label-accusing doubt names (None without a label).
 
+Beside them, each person's figures as a reviewer, from their system decisions (audit entries ``system.review``; an
+undo or a revert is not a decision made):
+
+* ``decisions``: the system decisions they made in the window; ``accepted``, ``rejected``, ``needs_fix``: of those,
+  the ones that set that status (``pending`` back is counted in ``decisions`` only);
+* ``re_reviews``: of those, decisions on a system that came back fixed (its status before the decision ``fixed``).
+
 The window is ``since <= at < until`` on the entries' times (UTC; either open). People are the actors of label edits
-and the receivers of hand-offs; work run on the machine (``cli:...``) is no one's.
+and of decisions, and the receivers of hand-offs; work run on the machine (``cli:...``) is no one's.
 """
 from __future__ import annotations
 
@@ -29,7 +36,7 @@ from datetime import datetime
 from typing import Any, Optional
 
 import sqlalchemy as sa
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, selectinload
 
 from app.db.models import AuditEntry, BallReprojection, Doubt, ReviewHandoff, ReviewStatus, System, User
 from app.services.audit.log import MACHINE_ACTOR
@@ -37,7 +44,8 @@ from app.services.curation.handoff import LABEL_ACTIONS
 
 #: The figures of one person, in the order of the CSV's columns (one home: the API's model and the CSV read it).
 FIELDS = ("name", "edits", "systems_touched", "systems_decided", "needs_fix_received", "accepted_first_review",
-          "median_edit_to_review_s", "median_label_distance_px", "accused_share")
+          "median_edit_to_review_s", "median_label_distance_px", "accused_share",
+          "decisions", "accepted", "rejected", "needs_fix", "re_reviews")
 
 
 @dataclass
@@ -53,6 +61,11 @@ class AnnotatorFigures:
     median_edit_to_review_s: Optional[float] = None
     median_label_distance_px: Optional[float] = None
     accused_share: Optional[float] = None
+    decisions: int = 0
+    accepted: int = 0
+    rejected: int = 0
+    needs_fix: int = 0
+    re_reviews: int = 0
 
     def as_dict(self) -> dict[str, Any]:
         """The figures keyed by :data:`FIELDS`."""
@@ -131,7 +144,36 @@ def annotator_figures(session: Session, since: Optional[datetime] = None,
         of(name).needs_fix_received = int(n)
 
     _label_figures(session, since, until, of)
+    _review_figures(session, since, until, of)
     return [people[n] for n in sorted(people)]
+
+
+def _status(state: Any) -> Optional[str]:
+    """The review status a ``system.review`` entry's state holds (``{"review": {"status": ...}}``), or None."""
+    review = state.get("review") if isinstance(state, dict) else None
+    return review.get("status") if isinstance(review, dict) else None
+
+
+def _review_figures(session: Session, since: Optional[datetime], until: Optional[datetime], of: Any) -> None:
+    """The reviewer figures (module docstring) from the system decisions in the window: the entries' before and after
+    states (inline, or their stored rows)."""
+    entries = session.scalars(
+        sa.select(AuditEntry)
+        .where(AuditEntry.action == "system.review", AuditEntry.reverts_id.is_(None),
+               *_window(AuditEntry.at, since, until))
+        .options(selectinload(AuditEntry.before_state), selectinload(AuditEntry.after_state)))
+    counted = {ReviewStatus.ACCEPTED.value: "accepted", ReviewStatus.REJECTED.value: "rejected",
+               ReviewStatus.NEEDS_FIX.value: "needs_fix"}
+    for entry in entries:
+        if not _person(entry.actor):
+            continue
+        f = of(entry.actor)
+        f.decisions += 1
+        field = counted.get(_status(entry.after) or "")
+        if field:
+            setattr(f, field, getattr(f, field) + 1)
+        if _status(entry.before) == ReviewStatus.FIXED.value:
+            f.re_reviews += 1
 
 
 def _label_figures(session: Session, since: Optional[datetime], until: Optional[datetime], of: Any) -> None:

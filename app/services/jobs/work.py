@@ -23,6 +23,7 @@ from app.core.names import clean_title
 from app.db.models import Job
 from app.services.derivation.recompute import recompute_all_systems
 from app.services.jobs.progress import Progress
+from app.services.jobs.summary import summary
 from app.services.transfer import data_root
 from app.services.transfer.export_files import prune_exports, write_export_zip
 from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format
@@ -56,9 +57,12 @@ def import_params(kind: str, path: str | Path, *, width: int | None = None, heig
 
 
 def import_result(report: Any) -> dict[str, Any]:
-    """The stored result of an import job: the counts of its ``ImportReport`` (or its own ``as_result()``)."""
+    """The stored result of an import job: the counts of its ``ImportReport`` (or its own ``as_result()``), and
+    ``summary``: them in words with the queue's links (``app.services.jobs.summary``)."""
     if hasattr(report, "as_result"):
-        return dict(report.as_result())
+        out = dict(report.as_result())
+        out["summary"] = summary("import", out)
+        return out
     keys = ("source", "games", "systems", "frames", "systems_new", "systems_changed", "calibrated", "refused",
             "rig_assisted", "prior_fitted", "triangulated", "seconds", "systems_merged", "decisions_from_file",
             "decisions_reset")
@@ -67,6 +71,8 @@ def import_result(report: Any) -> dict[str, Any]:
     out["refusal_kinds"] = dict(report.refusal_kinds().most_common())
     out["skipped_systems"] = list(getattr(report, "skipped_systems", []))  # named, with why (the view cap)
     out["skipped_games"] = list(getattr(report, "skipped_games", []))  # named, with the entry refused and why
+    out["frames_without_image"] = int(getattr(report, "frames_without_image", 0))
+    out["summary"] = summary("import", out)
     return out
 
 
@@ -151,7 +157,8 @@ def run_recompute(session: Session, params: dict[str, Any], settings: Settings, 
                   job_id: int) -> dict[str, Any]:
     """Recompute every system with the current settings (calibrations untouched)."""
     systems, triangulated = recompute_all_systems(session, settings, progress, actor=params.get("actor"))
-    return {"systems": systems, "triangulated": triangulated}
+    out: dict[str, Any] = {"systems": systems, "triangulated": triangulated}
+    return {**out, "summary": summary("recompute", out)}
 
 
 def export_path(settings: Settings, name: str) -> Path:

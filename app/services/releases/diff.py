@@ -7,6 +7,8 @@ null when either has none) and, per view (frame) that differs, what: ``label`` (
 ``lines`` (field lines), ``calibration`` (camera, its source, status or admission), ``decision`` (the view's ball
 or calibration decision, or its exclusion), ``added`` / ``removed`` (a view the other release's system lacks).
 Only changed documents are read: a diff costs reading the two releases' rows plus the documents that differ.
+A removed system says why it left (``why``, :func:`why_removed`): ``rejected`` (its decision now), ``no longer
+accepted`` (pending, needs fix or fixed now) or ``deleted`` (no such system now).
 """
 from __future__ import annotations
 
@@ -16,9 +18,11 @@ import math
 from dataclasses import dataclass
 from typing import Any, Optional
 
+import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.datasets.csv_cells import inert_row
+from app.db.models import ReviewDecision, ReviewStatus, System
 from app.db.types import json_loads
 from app.services.releases.content import get_release, read_documents, release_content
 
@@ -30,7 +34,24 @@ VIEW_CHANGES: dict[str, tuple[str, ...]] = {
     "decision": ("view_status", "view_calibration_status", "excluded"),
 }
 #: The columns of the diff as CSV (:func:`diff_csv`).
-DIFF_CSV_COLUMNS = ("change", "system_id", "name", "game", "ball3d_moved_m", "views")
+DIFF_CSV_COLUMNS = ("change", "system_id", "name", "game", "ball3d_moved_m", "views", "why")
+#: Why a system left a release (:func:`why_removed`): the words of each case.
+WHY_REMOVED = ("rejected", "no longer accepted", "deleted")
+
+
+def why_removed(session: Session, system_ids: list[int]) -> dict[int, str]:
+    """system id -> why it is in no newer release (:data:`WHY_REMOVED`), from its decision now: ``rejected``,
+    ``no longer accepted`` (any other status but accepted: pending, needs fix, fixed; or accepted again since) or
+    ``deleted`` (the system is gone)."""
+    if not system_ids:
+        return {}
+    out = dict.fromkeys(system_ids, "deleted")
+    rows = session.execute(sa.select(System.id, ReviewDecision.status)
+                           .outerjoin(ReviewDecision, ReviewDecision.system_id == System.id)
+                           .where(System.id.in_(system_ids)))
+    for sid, status in rows:
+        out[sid] = "rejected" if status is ReviewStatus.REJECTED else "no longer accepted"
+    return out
 
 
 def _value(text: Any) -> Any:
@@ -109,6 +130,9 @@ def diff_releases(session: Session, a: str, b: str) -> ReleaseDiff:
 
     added = [named(sid, e) for sid, e in sorted(cb.systems.items()) if sid not in ca.systems]
     removed = [named(sid, e) for sid, e in sorted(ca.systems.items()) if sid not in cb.systems]
+    why = why_removed(session, [r["system_id"] for r in removed])
+    for r in removed:
+        r["why"] = why[r["system_id"]]
     differ = [sid for sid in sorted(set(ca.systems) & set(cb.systems)) if ca.systems[sid][2] != cb.systems[sid][2]]
     docs = read_documents(session, [d for sid in differ for d in (ca.systems[sid][2], cb.systems[sid][2])])
     changed = []
@@ -123,7 +147,8 @@ def diff_releases(session: Session, a: str, b: str) -> ReleaseDiff:
 
 def diff_csv(diff: ReleaseDiff) -> str:
     """The diff as CSV (:data:`DIFF_CSV_COLUMNS`): one row per added, removed or changed system; ``views`` lists
-    ``<view>: <change>,<change>`` separated by ``; `` and ``ball3d_moved_m`` is empty when unknown. A cell a
+    ``<view>: <change>,<change>`` separated by ``; ``, ``ball3d_moved_m`` is empty when unknown and ``why`` says why a
+removed system left (empty otherwise). A cell a
     spreadsheet would run as a formula is escaped (``app.datasets.csv_cells``)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
@@ -133,5 +158,5 @@ def diff_csv(diff: ReleaseDiff) -> str:
             moved = item.get("ball3d_moved_m")
             views = "; ".join(f"{v['view']}: {','.join(v['changes'])}" for v in item.get("views", []))
             writer.writerow(inert_row([change, str(item["system_id"]), item["name"], item["game"],
-                                       "" if moved is None else repr(moved), views]))
+                                       "" if moved is None else repr(moved), views, item.get("why", "")]))
     return out.getvalue()

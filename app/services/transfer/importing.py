@@ -148,6 +148,8 @@ class ImportReport:
     systems_merged: int = 0
     decisions_from_file: int = 0
     decisions_reset: int = 0
+    #: Frames of the input that come without an image (a labels-only dataset: every frame), counted in ``frames``.
+    frames_without_image: int = 0
 
     def refusal_kinds(self) -> Counter:
         """``refusal_reasons`` in words: each refusal code's meaning (``WORDS["refusal"]``, the review pages'
@@ -458,6 +460,8 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
         report.systems += len(rec.systems)
         rec = _within_view_cap(rec, settings, report.skipped_systems)
         frames_per_game.append(sum(len(s.frames) for s in rec.systems))
+        report.frames_without_image += sum(1 for s in rec.systems for f in s.frames
+                                           if not (f.image_zip or f.image_path))
         readers.append(partial(_read_within_view_cap, read, settings))
         del rec
     report.read_seconds = time.perf_counter() - t0

@@ -212,3 +212,36 @@ def test_a_checked_detection_is_one_key_fix_kept_as_a_placement_until_confirmed(
     assert client.get(f"/api/frames/{scene.frame_ids[2]}").json()["ball"].get("provenance") is None
     rows = {r["replay"] or r["main_action"]: r for r in _export(client, all="true")[1] if r["main_action"] == "2.png"}
     assert rows["2_2.png"]["is_ball"] == "True"
+
+
+def test_the_sources_are_listed_with_who_imported_them_and_an_admin_removes_one(app, client: TestClient, scene: Scene,
+                                                                                 tmp_path: Path, act_as) -> None:
+    act_as("adam", "admin")
+    path = tmp_path / "dets.csv"
+    path.write_text(_csv(["1.png,400,200,412,212,0.9", "1_1.png,100,100,112,112,0.5", "1_2.png,10,10,22,22,0.7"]))
+    answer = client.post("/api/imports", json={"kind": "predictions", "path": str(path), "source": "yolo-a"})
+    assert answer.status_code == 202, answer.text
+    run_queued(app)
+    words = client.get(answer.json()["url"]).json()["result"]["summary"]["words"]
+    assert words == "3 predictions on 3 views of 1 system"
+    with app.state.session_factory() as s:  # a source stored before its import was recorded: who is unknown
+        from app.db.models import Prediction
+
+        s.add(Prediction(source="old", frame_id=scene.frame_ids[0], score=0.3, x1=1, y1=1, x2=9, y2=9))
+        s.commit()
+    act_as("ana", "annotator")
+    listed = {x["source"]: x for x in client.get("/api/predictions").json()["items"]}
+    a = listed["yolo-a"]
+    assert (a["predictions"], a["frames"], a["systems"], a["imported_by"]) == (3, 3, 1, "adam")
+    assert a["scores"] == {"min": 0.5, "q1": 0.6, "median": 0.7, "q3": 0.8, "max": 0.9}
+    assert a["imported_at"] is not None
+    assert listed["old"]["imported_by"] is None and listed["old"]["predictions"] == 1
+    assert client.delete("/api/predictions/yolo-a").status_code == 403
+    act_as("adam", "admin")
+    removed = client.delete("/api/predictions/yolo-a")
+    assert removed.status_code == 200 and removed.json() == {"source": "yolo-a", "removed": 3}
+    assert _count(app, "yolo-a") == 0
+    assert client.delete("/api/predictions/yolo-a").status_code == 404
+    assert [x["source"] for x in client.get("/api/predictions").json()["items"]] == ["old"]
+    entries = client.get("/api/audit", params={"user": "adam", "limit": 50}).json()["items"]
+    assert any(e["action"] == "import" and (e.get("after") or {}).get("removed") == 3 for e in entries)

@@ -63,6 +63,7 @@ def test_the_release_scenario_end_to_end(app, client: TestClient, six: list[Scen
     assert made.status_code == 201, made.text
     v10 = made.json()
     assert v10["systems"] == 5 and v10["views"] == 15 and v10["note"] == "first" and v10["created_by"] == "adam"
+    assert v10["made_by"] == "adam"
     assert len(v10["hash"]) == 64 and int(v10["hash"], 16) >= 0
     assert client.post("/api/releases", json={"name": "v1.0"}).status_code == 409
     act_as("ana", "annotator")
@@ -93,7 +94,7 @@ def test_the_release_scenario_end_to_end(app, client: TestClient, six: list[Scen
     assert diff.status_code == 200, diff.text
     d = diff.json()
     assert [s["system_id"] for s in d["added"]] == [ids[5]]
-    assert [s["system_id"] for s in d["removed"]] == [ids[1]]
+    assert [(s["system_id"], s["why"]) for s in d["removed"]] == [(ids[1], "rejected")]
     assert [s["system_id"] for s in d["changed"]] == [ids[0]]
     assert d["changed"][0]["ball3d_moved_m"] > 0
     assert {v["frame_id"]: v["changes"] for v in d["changed"][0]["views"]}[frame][0] == "label"
@@ -102,6 +103,7 @@ def test_the_release_scenario_end_to_end(app, client: TestClient, six: list[Scen
     assert [(r["change"], int(r["system_id"])) for r in rows] == [("added", ids[5]), ("removed", ids[1]),
                                                                    ("changed", ids[0])]
     assert float(rows[2]["ball3d_moved_m"]) == d["changed"][0]["ball3d_moved_m"]
+    assert [r["why"] for r in rows] == ["", "rejected", ""]
 
     again = _export(app, client, {"release": "v1.0"})
     assert again == first

@@ -30,7 +30,8 @@ def worked(db_session: Session, db_settings: Settings) -> dict:
 
 def work(db_session: Session, db_settings: Settings) -> dict:
     """Two three-view systems. ana moves V2's ball of system 1 by 8 px (off the others' ball) and V3's ball of system 2
-    by 0 px (a confirm: on it); rev returns system 1 to her; system 2 is accepted 90 s after her edit."""
+    by 0 px (a confirm: on it); rev marks system 1 needs fix and returns it to her; system 2, back fixed, is accepted
+    by rev 90 s after her edit."""
     game = make_game(db_session)
     one = make_system(db_session, db_settings, game, "1.png")
     two = make_system(db_session, db_settings, game, "2.png")
@@ -50,7 +51,13 @@ def work(db_session: Session, db_settings: Settings) -> dict:
                                                         frame_id=entry.frame_id, system_id=entry.system_id,
                                                         game_id=entry.game_id, summary="an edit at a known time"))
     db_session.execute(sa.insert(AuditEntry).values(actor="rev", action="system.review", system_id=two.system_id,
-                                                    at=T0 + timedelta(seconds=120), summary="system accepted"))
+                                                    at=T0 + timedelta(seconds=120), summary="system accepted",
+                                                    before={"review": {"status": "fixed", "comment": ""}},
+                                                    after={"review": {"status": "accepted", "comment": ""}}))
+    db_session.execute(sa.insert(AuditEntry).values(actor="rev", action="system.review", system_id=one.system_id,
+                                                    at=T0 - timedelta(seconds=10), summary="system needs fix",
+                                                    before={"review": {"status": "pending", "comment": ""}},
+                                                    after={"review": {"status": "needs_fix", "comment": "off"}}))
     db_session.add(ReviewHandoff(system_id=one.system_id, returned_to_id=ana.id, returned_by="rev", note="off",
                                  returned_at=T0 + timedelta(seconds=60)))
     db_session.get(System, two.system_id).review_status = ReviewStatus.ACCEPTED
@@ -60,8 +67,12 @@ def work(db_session: Session, db_settings: Settings) -> dict:
 
 def test_the_figures_of_a_known_day(db_session: Session, worked: dict) -> None:
     figures = {f.name: f for f in annotator_figures(db_session)}
-    assert list(figures) == ["ana"]  # rev only decided: no label edits, nothing returned to him
+    assert list(figures) == ["ana", "rev"]  # rev only decided: a reviewer's figures, no label edit
+    rev = figures["rev"]
+    assert (rev.decisions, rev.accepted, rev.rejected, rev.needs_fix, rev.re_reviews) == (2, 1, 0, 1, 1)
+    assert (rev.edits, rev.systems_touched, rev.median_label_distance_px) == (0, 0, None)
     ana = figures["ana"]
+    assert (ana.decisions, ana.accepted) == (0, 0)
     # two ball edits (now) and two line edits (at T0 and T0 + 30 s)
     assert (ana.edits, ana.systems_touched, ana.systems_decided, ana.accepted_first_review) == (4, 2, 1, 1)
     assert ana.needs_fix_received == 1
@@ -78,6 +89,9 @@ def test_the_figures_of_a_known_day(db_session: Session, worked: dict) -> None:
     assert early.median_edit_to_review_s == pytest.approx(90.0)  # system 2: edit at T0 + 30 s, decision at T0 + 120 s
     assert early.median_label_distance_px is None and early.accused_share is None  # no ball edit in the window
     assert annotator_figures(db_session, T0 + timedelta(days=400)) == []
+    # a window holding the accept alone: one decision, a re-review of a system that came back fixed
+    late = {f.name: f for f in annotator_figures(db_session, T0 + timedelta(seconds=100), T0 + timedelta(seconds=130))}
+    assert (late["rev"].decisions, late["rev"].accepted, late["rev"].re_reviews) == (1, 1, 1)
 
 
 def test_the_distance_is_stored_by_the_recomputation(db_session: Session, worked: dict) -> None:
@@ -104,3 +118,7 @@ def test_the_command_prints_and_writes_the_figures(fresh_session_factory, db_set
     assert "ana: 4 edit(s) on 2 system(s), 1 decided, 1 accepted at first review, 1 returned to them" in res.output
     rows = list(csv.reader(out.open()))
     assert rows[0] == list(FIELDS) and rows[1][:7] == ["ana", "4", "2", "1", "1", "1", ""]
+    assert "rev: 0 edit(s)" in res.output
+    assert "reviewed: 2 decision(s), 1 accepted, 0 rejected, 1 needs fix" in res.output
+    rev = dict(zip(rows[0], rows[2], strict=True))
+    assert (rev["name"], rev["decisions"], rev["needs_fix"], rev["re_reviews"]) == ("rev", "2", "1", "1")

@@ -104,7 +104,9 @@ def test_a_server_runner_resumes_a_killed_job_and_runs_a_queued_import(shared_di
             assert time.monotonic() < deadline, states
             time.sleep(0.2)
     resumed, imported = states[killed.id], states[queued.json()["id"]]
-    assert (resumed["state"], resumed["attempts"], resumed["result"]) == ("done", 2, {"systems": 0, "triangulated": 0})
+    assert (resumed["state"], resumed["attempts"], resumed["result"]) == (
+        "done", 2, {"systems": 0, "triangulated": 0,
+                    "summary": {"words": "0 systems recomputed, 0 with a 3D ball", "links": []}})
     assert imported["state"] == "done" and imported["result"]["systems"] == 3 and imported["attempts"] == 1
     assert resumed["owner"] == imported["owner"] and resumed["owner"].startswith(f"{socket.gethostname()}:")
     with make() as session:
