@@ -184,6 +184,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--port", type=int, default=8560)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--bound-only", action="store_true", help="only step 4")
+    ap.add_argument("--with-only", action="store_true",
+                    help="skip the copy without predictions (its doubts are main's: measured once, in DETECTOR.md)")
     args = ap.parse_args(argv)
     report: dict[str, Any] = {}
     for i, name in enumerate(args.sets):
@@ -196,9 +198,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             continue
         src = template(name, tree, args.db_dir)
         res: dict[str, Any] = {}
-        url = copy(src, "without")
-        res["without"] = fill_eval(url, truth, args.port + 2 * i, args.db_dir / f"{name}.without.json")
-        print(f"[{name}] without predictions (main): {res['without']['line']}", flush=True)
+        if not args.with_only:
+            url = copy(src, "without")
+            res["without"] = fill_eval(url, truth, args.port + 2 * i, args.db_dir / f"{name}.without.json")
+            print(f"[{name}] without predictions (main): {res['without']['line']}", flush=True)
         url = copy(src, "with")
         t0 = time.perf_counter()
         _run(V3D + ["import", "predictions", str(pred), "--source", "detector"], url)
