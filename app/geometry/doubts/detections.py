@@ -43,6 +43,8 @@ origin at the centre spot, z down); pixels of each view's own image, origin at i
 """
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 from itertools import combinations, product
 from typing import Any, Callable, Hashable, Mapping, Sequence
@@ -260,10 +262,10 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     elif (lone := _lone_ray(vote)) is not None and not lone_contradicted:
         checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
         if not checked:  # no second detected view: each detection is checked against the one labelled ray
-            checked = _one_ray(lone, unlabelled, [*unlabelled, *vote.helpers], detections, by_id, tol, s,
+            checked = _one_ray(lone, unlabelled, [*unlabelled, *vote.helpers], detections, by_id, tol, sigma, s,
                                size_tolerance)
     elif not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
-        checked = _among_detections(unlabelled, vote.helpers, detections, tol, s, size_tolerance)
+        checked = _among_detections(unlabelled, vote.helpers, detections, tol, sigma, s, size_tolerance)
     if not checked and not out_of_label:
         return list(doubts)
     kept = [d for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
@@ -395,6 +397,32 @@ def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSet
     return _Pairing(tuple(members), ball, errors, ratios, max(errors.values()))
 
 
+def _epipolar_distance(ray_view: DoubtView, centre: np.ndarray, view: DoubtView, s: DoubtSettings) -> float:
+    """How far (px at 1920 width) ``centre`` (2,) px of ``view`` lies from the ball ray of ``ray_view``'s label (or
+    detection, given as its box) across the play volume, seen in ``view`` (its epipolar segment,
+    :func:`app.geometry.doubts.epipolar._segment`); ``inf`` when that ray misses the volume or is not seen."""
+    seg = _segment(ray_view, view, s)
+    if seg is None:
+        return math.inf
+    return _polyline_distance(seg[1], centre)[0] * rule_scale(view, s)
+
+
+def _on_epipolar(a: DoubtView, b: DoubtView, det_b: Detection, sigma: Mapping[Hashable, float],
+                 s: DoubtSettings) -> bool:
+    """Condition 1 for a pair: ``det_b``'s centre lies within tau of ``a``'s ball ray seen in ``b`` (px at 1920 width),
+    tau widened by both cameras' pixel sigmas (:func:`app.geometry.weighting.pixel_sigma`, added in quadrature):
+    measured in the detection's own image, not split between the two views as the refit's errors are (a view that
+    sees the ball small would take most of the distance at a small cost in its pixels)."""
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    return _epipolar_distance(a, det_b.centre, b, s) <= max(tau, math.hypot(sigma.get(a.view_id, 0.0),
+                                                                             sigma.get(b.view_id, 0.0)))
+
+
+def _as_labelled(view: DoubtView, det: Detection) -> DoubtView:
+    """``view`` with ``det``'s box as its ball label (so that its ray is the detection's)."""
+    return dataclasses.replace(view, box=np.asarray(det.box, float), point=None)
+
+
 def _third_views(p: _Pairing, thirds: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
                  tol: Mapping[Hashable, float], s: DoubtSettings,
                  size_tolerance: float) -> tuple[dict[Hashable, Detection | None], tuple[Hashable, ...]]:
@@ -503,23 +531,25 @@ def _found(p: _Pairing, passed: int, margin: float | None, code: str,
 
 def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[DoubtView],
              detections: Mapping[Hashable, Sequence[Detection]], by_id: Mapping[Hashable, BallObservation],
-             tol: Mapping[Hashable, float], s: DoubtSettings,
+             tol: Mapping[Hashable, float], sigma: Mapping[Hashable, float], s: DoubtSettings,
              size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """One labelled ray and one detection: for each unlabelled view, its detections near the labelled view's ray
-    across the play volume (its epipolar segment) are paired with it (:func:`_meet`: the rays meet within both
-    views' tolerances in the play volume, the detection's box is a ball's size at that depth and the label's box
-    too, within ``ground_box_tolerance``: a label's box errs by about a fifth in size); a pairing a third view
+    across the play volume (its epipolar segment), within tau widened by both cameras' pixel sigmas
+    (:func:`_on_epipolar`), are paired with it (:func:`_meet`: the rays meet within both views' tolerances in the
+    play volume, the detection's box is a ball's size at that depth); a pairing a third view
     clearly misses is dropped (:func:`_third_views`), and the view's best-supported one is kept with its margin
     (:func:`_chosen`). Views whose chosen balls disagree with each other (one's ball misses the other's detection
     by more than its tolerance) are all left alone."""
-    lone_box = None if lone.box is None else (float(lone.box[0]), float(lone.box[1]), float(lone.box[2]),
-                                              float(lone.box[3]))
-    ray = _Member(lone, by_id[lone.view_id], lone_box, s.ground_box_tolerance)
+    # the labelled ray's own box is not read for its size: annotated boxes are loose (on the shared detector sets
+    # the true balls' labelled boxes measure 1.45 to 1.57 times the sphere's), and a player's head on that ray
+    # lies at about nine tenths of the ball's depth, which no tolerance on a label's size tells apart
+    ray = _Member(lone, by_id[lone.view_id], None, size_tolerance)
     chosen: dict[Hashable, tuple[_Pairing, int, float | None]] = {}
     for v in unlabelled:
         near = _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * tol[v.view_id], s)
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
-                    if (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
+                    if _on_epipolar(lone, v, d, sigma, s)
+                    and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
         c = _chosen([p for p in pairings if not p.missed], s)
         if c is not None:
             chosen[v.view_id] = c
@@ -538,7 +568,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
 
 def _among_detections(usable: Sequence[DoubtView], helpers: Sequence[DoubtView],
                       detections: Mapping[Hashable, Sequence[Detection]], tol: Mapping[Hashable, float],
-                      s: DoubtSettings,
+                      sigma: Mapping[Hashable, float], s: DoubtSettings,
                       size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """Detections that agree among themselves, where no labelled view takes part: every pair of detections in two
     calibrated views (``usable``: those that take part, and those with few lines whose calibration is sure) that
@@ -553,6 +583,9 @@ def _among_detections(usable: Sequence[DoubtView], helpers: Sequence[DoubtView],
     pairings: list[_Pairing] = []
     for a, b in combinations([v for v in usable if cands[v.view_id]], 2):
         for da, db in product(cands[a.view_id], cands[b.view_id]):
+            if not (_on_epipolar(_as_labelled(a, da), b, db, sigma, s)
+                    and _on_epipolar(_as_labelled(b, db), a, da, sigma, s)):
+                continue
             p = _meet([_member(a, da, s, size_tolerance), _member(b, db, s, size_tolerance)], tol, s)
             if p is None:
                 continue
