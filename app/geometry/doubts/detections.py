@@ -507,6 +507,14 @@ def _chosen(pairings: Sequence[_Pairing], s: DoubtSettings) -> tuple[_Pairing, i
     return best, len(pairings), margin
 
 
+def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """A view whose camera may make a ball with one other ray: its pixel sigma (px at 1920 width) within tau. A camera
+    that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the judge
+    lends such a view half a vote; with a single other ray nothing outvotes its error: on a shared detector set a
+    labelled view of sigma 193 px and a right detection made a ball 2.9 m off)."""
+    return float(sigma.get(view.view_id, 0.0)) <= max(s.consensus_tau_px, s.triangulation_tau_px)
+
+
 def _lone_ray(vote: Any) -> DoubtView | None:
     """The one labelled view whose ray detections are checked against: the only labelled view that takes part, else
     (none taking part) the only labelled view with few line classes whose calibration is sure (a helper)."""
@@ -545,7 +553,11 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     # lies at about nine tenths of the ball's depth, which no tolerance on a label's size tells apart
     ray = _Member(lone, by_id[lone.view_id], None, size_tolerance)
     chosen: dict[Hashable, tuple[_Pairing, int, float | None]] = {}
+    if not _sure(lone, sigma, s):
+        return {}
     for v in unlabelled:
+        if not _sure(v, sigma, s):
+            continue
         near = _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * tol[v.view_id], s)
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
                     if _on_epipolar(lone, v, d, sigma, s)
@@ -578,7 +590,8 @@ def _among_detections(usable: Sequence[DoubtView], helpers: Sequence[DoubtView],
     meet outweigh one miss); the best supported is chosen with its margin over every other pairing
     (:func:`_chosen`), and fills its views."""
     thirds = [*usable, *helpers]
-    cands = {v.view_id: list((detections.get(v.view_id) or ())[:MAX_CANDIDATES]) for v in usable}
+    cands = {v.view_id: list((detections.get(v.view_id) or ())[:MAX_CANDIDATES]) if _sure(v, sigma, s) else []
+             for v in usable}
     seen: set[frozenset[tuple[Hashable, tuple[float, ...]]]] = set()
     pairings: list[_Pairing] = []
     for a, b in combinations([v for v in usable if cands[v.view_id]], 2):
