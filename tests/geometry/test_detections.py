@@ -217,3 +217,13 @@ def test_two_views_detections_of_one_false_ball_are_rejected_by_a_third_view_tha
     dets = {"main": [box_at("main", fake)], "goal": [box_at("goal", fake)]}
     assert set(detected(checked(views, dets))) == {"main", "goal"}
     assert detected(checked(views, {**dets, "opposite": [det("opposite")]})) == {}
+
+
+def test_a_labelled_ray_whose_camera_is_unsure_beyond_tau_pairs_with_no_detection():
+    """One ray and one detection fix a ball only as well as the cameras: a labelled view whose pixel sigma exceeds
+    tau (half a vote) would make a 3D ball metres off with a right detection, so nothing is placed from it."""
+    unsure = {"pan_deg": 1.5, "tilt_deg": 1.5, "roll_deg": 0.5, "focal_px": 30.0,
+              "position_m": {"x": .5, "y": .5, "z": .5}}
+    views = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
+    assert detected(checked(views, {"goal": [det("goal")]})) == {}
+    assert set(detected(checked(only_main_labelled(), {"goal": [det("goal")]}))) == {"goal"}
