@@ -516,13 +516,11 @@ def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) ->
 
 
 def _lone_ray(vote: Any) -> DoubtView | None:
-    """The one labelled view whose ray detections are checked against: the only labelled view that takes part, else
-    (none taking part) the only labelled view with few line classes whose calibration is sure (a helper)."""
-    if len(vote.labelled) == 1:
-        return vote.labelled[0]
-    if not vote.labelled and len(vote.helpers) == 1:
-        return vote.helpers[0]
-    return None
+    """The one labelled view whose ray detections are checked against: the only labelled view that takes part. A
+    few-lined view's label (a helper's half vote) is never the only ray: as in the judge, helpers alone say nothing
+    (their cameras fit their few lines yet may turn the ray by degrees; on the detector sets such a ray paired a false
+    detection with a right-looking geometry twice, each time making a 3D ball metres off)."""
+    return vote.labelled[0] if len(vote.labelled) == 1 else None
 
 
 def _found(p: _Pairing, passed: int, margin: float | None, code: str,
