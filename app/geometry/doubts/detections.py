@@ -213,6 +213,28 @@ def _few_lined(views: Sequence[DoubtView], vote: Any, s: DoubtSettings,
     return out
 
 
+def _witnesses(views: Sequence[DoubtView], sigma: Mapping[Hashable, float], tol: Mapping[Hashable, float],
+               s: DoubtSettings, weighed: Mapping[Any, tuple[float, float]] | None,
+               ) -> tuple[list[DoubtView], dict[Hashable, float]]:
+    """The third views a pairing of detections is asked about (:func:`_third_views`): every calibrated view not
+    excluded, not flagged mirrored and without an unconfirmed label whose pixel sigma is finite, also those that
+    take no part in the votes (a camera too unsure to make a ball can still show that the ball is not where a pairing
+    puts it, within its own widened tolerance), with the tolerances: ``tol``'s, else tau widened to the view's sigma."""
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    out: list[DoubtView] = []
+    wtol = dict(tol)
+    for v in views:
+        if v.camera is None or v.excluded or v.mirror_flagged or v.suggested:
+            continue
+        known = weighed.get(v.view_id) if weighed is not None else None
+        sig = sigma.get(v.view_id, (known if known is not None else calibration_weight(v, s))[1])
+        if not math.isfinite(sig):
+            continue
+        wtol.setdefault(v.view_id, max(tau, float(sig)))
+        out.append(v)
+    return out, wtol
+
+
 def _tolerances(views: Sequence[DoubtView], sigma: Mapping[Hashable, float], tau: float) -> dict[Hashable, float]:
     return {v.view_id: max(tau, float(sigma.get(v.view_id, 0.0))) for v in views}
 
@@ -248,6 +270,7 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     sigma = {**vote.sigma, **{v.view_id: sig for v, sig in lined}}
     unlabelled = [*vote.unlabelled, *(v for v, _ in lined)]
     tol = _tolerances([*vote.judged, *vote.helpers, *(v for v, _ in lined)], sigma, vote.tau)
+    witnesses, wtol = _witnesses(views, sigma, tol, s, weighed)
     by_id = {o.view_id: o for o in vote.obs}
     checked: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
     out_of_label: list[Doubt] = []
@@ -262,10 +285,9 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     elif (lone := _lone_ray(vote)) is not None and not lone_contradicted:
         checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
         if not checked:  # no second detected view: each detection is checked against the one labelled ray
-            checked = _one_ray(lone, unlabelled, [*unlabelled, *vote.helpers], detections, by_id, tol, sigma, s,
-                               size_tolerance)
+            checked = _one_ray(lone, unlabelled, witnesses, detections, by_id, wtol, sigma, s, size_tolerance)
     elif not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
-        checked = _among_detections(unlabelled, vote.helpers, detections, tol, sigma, s, size_tolerance)
+        checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance)
     if not checked and not out_of_label:
         return list(doubts)
     kept = [d for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
@@ -576,7 +598,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     return found
 
 
-def _among_detections(usable: Sequence[DoubtView], helpers: Sequence[DoubtView],
+def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView],
                       detections: Mapping[Hashable, Sequence[Detection]], tol: Mapping[Hashable, float],
                       sigma: Mapping[Hashable, float], s: DoubtSettings,
                       size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
@@ -587,7 +609,7 @@ def _among_detections(usable: Sequence[DoubtView], helpers: Sequence[DoubtView],
     that clearly miss it (none for two: a detector misses about one ball in seven, so three or more views that
     meet outweigh one miss); the best supported is chosen with its margin over every other pairing
     (:func:`_chosen`), and fills its views."""
-    thirds = [*usable, *helpers]
+    thirds = witnesses
     cands = {v.view_id: list((detections.get(v.view_id) or ())[:MAX_CANDIDATES]) if _sure(v, sigma, s) else []
              for v in usable}
     seen: set[frozenset[tuple[Hashable, tuple[float, ...]]]] = set()
