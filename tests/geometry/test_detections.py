@@ -227,3 +227,15 @@ def test_a_labelled_ray_whose_camera_is_unsure_beyond_tau_pairs_with_no_detectio
     views = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
     assert detected(checked(views, {"goal": [det("goal")]})) == {}
     assert set(detected(checked(only_main_labelled(), {"goal": [det("goal")]}))) == {"goal"}
+
+
+def test_a_third_view_too_unsure_to_vote_still_contradicts_a_pairing_its_label_misses():
+    """A labelled view that takes no part in the votes (few lines, a poor fit) still shows where the ball is not."""
+    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0,
+            "position_m": {"x": .1, "y": .1, "z": .1}}
+    head = box_at("goal", head_on_main_ray(), score=0.95)
+    views = scene(goal={"box": None}, corner={"box": None},
+                  opposite={"line_classes": 2, "jac": 0.3, "uncertainty": sure})  # its label at the ball
+    assert detected(checked(views, {"goal": [head]})) == {}
+    alone = scene(goal={"box": None}, corner={"box": None}, opposite={"box": None})
+    assert set(detected(checked(alone, {"goal": [head]}))) == {"goal"}  # without it, the head passes
