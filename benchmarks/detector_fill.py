@@ -10,7 +10,9 @@ For each set (``../shared/data/synthetic/detector/<set>-unlabelled`` with ``<set
 3. serve each copy (``v3d serve``), add an admin, and run ``../shared/tools/detector_fill_eval.py`` (one pass of every
    label doubt's one-key fix, each placement confirmed; filled right / wrong, invented, systems with a right 3D ball
    before and after, made wrong);
-4. measure, in process, the upper bound (:func:`upper_bound`): of the unlabelled views, how many have an admitted v3d
+4. ``v3d stats yield`` (in process, :func:`yield_figures`) on the copy without predictions before and after its pass
+   and on the copy with predictions after its pass: systems with a 3D ball under the paper's rules and v3d's;
+5. measure, in process, the upper bound (:func:`upper_bound`): of the unlabelled views, how many have an admitted v3d
    calibration with enough line classes, how many lie in a system whose other views agree on a ball (or have one
    labelled view and another unlabelled one to pair with), and how many have a prediction within the evaluator's
    tolerance; and the detector's raw precision (a prediction within tolerance of the ball of its image, over all,
@@ -86,6 +88,20 @@ def fill_eval(url: str, truth: Path, port: int, out: Path) -> dict[str, Any]:
         if r.returncode:
             raise RuntimeError(f"detector_fill_eval.py failed: {r.stderr[-2000:]}")
         return {**json.loads(out.read_text()), "line": r.stdout.strip()}
+
+
+def yield_figures(url: str, truth: Path) -> dict[str, Any]:
+    """``v3d stats yield`` of the database at ``url`` against the truth (in process: the same service function,
+    :func:`app.services.evaluation.ball_yield.ball_yield`): systems with a 3D ball under the paper's rules and v3d's,
+    and how many are right."""
+    import sqlalchemy as sa
+    from sqlalchemy.orm import Session
+
+    from app.core.config import Settings
+    from app.services.evaluation.ball_yield import ball_yield
+
+    with Session(sa.create_engine(url)) as session:
+        return ball_yield(session, Settings(), json.loads(truth.read_text()))
 
 
 def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
@@ -184,6 +200,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--port", type=int, default=8560)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--bound-only", action="store_true", help="only step 4")
+    ap.add_argument("--with-only", action="store_true",
+                    help="skip the copy without predictions (its doubts are main's: measured once, in DETECTOR.md)")
     args = ap.parse_args(argv)
     report: dict[str, Any] = {}
     for i, name in enumerate(args.sets):
@@ -196,16 +214,24 @@ def main(argv: Sequence[str] | None = None) -> int:
             continue
         src = template(name, tree, args.db_dir)
         res: dict[str, Any] = {}
-        url = copy(src, "without")
-        res["without"] = fill_eval(url, truth, args.port + 2 * i, args.db_dir / f"{name}.without.json")
-        print(f"[{name}] without predictions (main): {res['without']['line']}", flush=True)
+        if not args.with_only:
+            url = copy(src, "without")
+            res["yield_labels_only"] = yield_figures(url, truth)
+            res["without"] = fill_eval(url, truth, args.port + 2 * i, args.db_dir / f"{name}.without.json")
+            res["yield_without_after_pass"] = yield_figures(url, truth)
+            print(f"[{name}] without predictions (main): {res['without']['line']}", flush=True)
+            print(f"[{name}] yield, labels only: {json.dumps(res['yield_labels_only'])}; after the pass without "
+                  f"predictions: {json.dumps(res['yield_without_after_pass'])}", flush=True)
         url = copy(src, "with")
         t0 = time.perf_counter()
         _run(V3D + ["import", "predictions", str(pred), "--source", "detector"], url)
         res["import_seconds"] = time.perf_counter() - t0
         res["bound"] = upper_bound(url, truth, pred)
         res["with"] = fill_eval(url, truth, args.port + 2 * i + 1, args.db_dir / f"{name}.with.json")
+        res["yield_with_after_pass"] = yield_figures(url, truth)
         print(f"[{name}] with predictions: {res['with']['line']}", flush=True)
+        print(f"[{name}] yield with predictions after the pass: {json.dumps(res['yield_with_after_pass'])}",
+              flush=True)
         print(f"[{name}] predictions imported and systems recomputed in {res['import_seconds']:.1f} s; "
               f"bound {json.dumps(res['bound'])}", flush=True)
         report[name] = res

@@ -247,6 +247,43 @@ def stats_annotators_cmd(
         typer.echo(f"wrote {csv_out}")
 
 
+@stats_cli.command("yield")
+def stats_yield_cmd(
+    truth: Annotated[Optional[Path], typer.Option("--truth", help="A synthetic set's truth JSON: count the right 3D "
+                                                  "balls (within 0.5 m) too.")] = None,
+    json_out: Annotated[Optional[Path], typer.Option("--json", help="Write the figures as JSON here.")] = None,
+    database_url: DatabaseOpt = None,
+) -> None:
+    """Systems with a 3D ball under the paper's rules (JaC@0.5 % > 0.75 views only, tau, 1 m, labelled views only)
+    and under v3d's (the stored 3D ball, from the labels as they are now), side by side
+    (app.services.evaluation.ball_yield)."""
+    from app.services.evaluation.ball_yield import ball_yield
+
+    try:
+        given = None if truth is None else json.loads(truth.read_text())
+    except (OSError, ValueError) as exc:
+        typer.echo(f"error: --truth {truth}: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    settings = cli_settings(database_url, None)
+    try:
+        with database_session(settings) as session:
+            report = ball_yield(session, settings, given)
+    except ValueError as exc:
+        typer.echo(f"error: --truth {truth}: {exc}", err=True)
+        raise typer.Exit(code=2) from None
+    n = report["systems"]
+    for rule, words in (("paper", "paper's rules (admitted views, labels only)"), ("v3d", "v3d (stored 3D ball)")):
+        r = report[rule]
+        right = "" if r["right"] is None else (f", {r['right']} right within {report['right_m']:g} m, {r['wrong']} "
+                                               f"more than {report['wrong_m']:g} m off")
+        typer.echo(f"{words}: {r['with_ball']} of {n} system(s) with a 3D ball{right}")
+    if report["truth_systems"] is not None and report["truth_systems"] < n:
+        typer.echo(f"{n - report['truth_systems']} system(s) not in the truth file")
+    if json_out is not None:
+        json_out.write_text(json.dumps(report, indent=1) + "\n")
+        typer.echo(f"wrote {json_out}")
+
+
 @evaluate_cli.command("sensitivity")
 def evaluate_sensitivity_cmd(
     out_dir: Annotated[Path, typer.Argument(help="Folder for sensitivity.png/.svg and sensitivity.json.")],

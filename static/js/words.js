@@ -105,6 +105,36 @@ export const WORDS = /*WORDS*/{
    "means": "ball bundle: refined together with the other cameras from their lines and the ball they all see"
   }
  },
+ "placement": {
+  "ball_off_consensus:off_consensus": {
+   "chip": "the other views' ball",
+   "means": "moved to where the other labelled views agree on the ball"
+  },
+  "ball_missing:consensus": {
+   "chip": "the other views' ball",
+   "means": "placed where the labelled views agree on the ball"
+  },
+  "ball_missing:epipolar_box": {
+   "chip": "a guess on one ray",
+   "means": "a guess along the one labelled view's ray, on the grass"
+  },
+  "ball_detected:consensus": {
+   "chip": "detector, views agree",
+   "means": "a detector's box where the labelled views agree on the ball"
+  },
+  "ball_detected:one_view": {
+   "chip": "detector, two detected views",
+   "means": "a detector's box whose ray meets the one labelled view's and a second detected view's at one ball"
+  },
+  "ball_detected:one_ray": {
+   "chip": "detector, one labelled ray",
+   "means": "a detector's box whose ray meets the one labelled view's in the play volume at a ball's size, with no third view missing it"
+  },
+  "ball_detected:detections_agree": {
+   "chip": "detectors agree",
+   "means": "detectors' boxes in two or more views that meet at one ball of a ball's size, no labelled view taking part"
+  }
+ },
  "flag_prefix": {
   "ignored_class": {
    "chip": "ignores {}",

@@ -78,6 +78,7 @@ def test_missing_ball_is_fixed_with_its_key(page, artifacts):
     note = view.locator(tid("view-suggested"))
     note.wait_for()
     assert "no 3D ball until you check it" in note.inner_text()
+    assert "placed where the labelled views agree on the ball" in note.inner_text()  # which rule placed it
     page.screenshot(path=str(artifacts / "doubts-missing-after.png"), full_page=True)
     with page.expect_response(lambda r: r.request.method == "PATCH" and "/ball" in r.url) as confirm:
         view.locator(tid("confirm-suggested")).click()

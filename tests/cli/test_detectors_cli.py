@@ -217,3 +217,28 @@ def test_stats_of_the_dev_set(dev):
         assert len(d[name]["edges"]) == 21
     assert stats["jac_sweep_by_kind"] == {"soccernet-v3": sweep}
     assert stats["admission"] == {"gamma": 0.005, "jac_min": 0.75}
+
+
+def test_stats_yield_counts_the_3d_balls_under_both_rules_against_the_truth(dev, shared_dir: Path):
+    """``v3d stats yield``: systems with a 3D ball under the paper's rules and under v3d's, and how many are right
+    (within 0.5 m of the truth); every dev system is in the truth file; a truth file that is not one is exit 2."""
+    truth = shared_dir / "data" / "synthetic" / "soccernet-v3-dev.truth.json"
+    out = dev["tmp"] / "yield.json"
+    res = runner.invoke(cli, ["stats", "yield", "--truth", str(truth), "--json", str(out),
+                              "--database-url", dev["url"]])
+    assert res.exit_code == 0, res.output
+    rep = json.loads(out.read_text())
+    systems = sum(len(g["systems"]) for g in json.loads(truth.read_text())["games"])
+    assert rep["systems"] == rep["truth_systems"] == systems
+    for rule in ("paper", "v3d"):
+        r = rep[rule]
+        assert 0 < r["right"] <= r["with_ball"] <= systems and r["right"] + r["wrong"] <= r["with_ball"]
+    # v3d's stored balls: the export's 3D balls (the 64 reference views above lie in them)
+    assert rep["v3d"]["right"] >= 0.8 * rep["v3d"]["with_ball"]
+    assert f"of {systems} system(s) with a 3D ball" in res.output
+    without = runner.invoke(cli, ["stats", "yield", "--database-url", dev["url"]])
+    assert without.exit_code == 0 and "right within" not in without.output
+    bad = dev["tmp"] / "bad.json"
+    bad.write_text('{"systems": []}')
+    res = runner.invoke(cli, ["stats", "yield", "--truth", str(bad), "--database-url", dev["url"]])
+    assert res.exit_code == 2 and "games" in res.output

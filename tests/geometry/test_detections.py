@@ -109,3 +109,133 @@ def test_a_view_with_few_line_classes_but_a_sure_camera_is_checked_too():
     assert [d.view_id for d in found] == ["corner"] and found[0].evidence["score"] == 0.6
     unsure = scene(corner={"box": None, "line_classes": 2, "uncertainty": {**sure, "pan_deg": 2.0, "tilt_deg": 2.0}})
     assert [d for d in checked(unsure, {"corner": [det("corner", 0.6)]}) if d.kind == "ball_detected"] == []
+
+
+# --- one labelled ray and one detection; detections that agree among themselves (known truth: BALL, CAMERAS) ---
+
+def box_at(name: str, point, scale: float = 1.0, score: float = 0.8) -> Detection:
+    """A detection in view ``name`` at the exact silhouette of a ball centred at ``point`` (world), ``scale`` times
+    its size."""
+    b = sphere_image_box(camera(name), np.asarray(point, float), R_BALL)
+    c, h = (b[:2] + b[2:]) / 2, (b[2:] - b[:2]) * scale / 2
+    return Detection("yolo-sn-ball", score, (float(c[0] - h[0]), float(c[1] - h[1]), float(c[0] + h[0]),
+                                             float(c[1] + h[1])))
+
+
+def on_main_ray(t: float) -> np.ndarray:
+    """The point at ``t`` times the way from the main camera to the ball, on main's ball ray."""
+    c = np.asarray(CAMERAS["main"][0], float)
+    return c + t * (BALL - c)
+
+
+def head_on_main_ray(height_m: float = 1.8) -> np.ndarray:
+    """Where main's ball ray passes ``height_m`` above the grass: a player's head there lies on main's epipolar line
+    in every other view, at about the ball's depth (the distractor the rays alone cannot reject)."""
+    c = np.asarray(CAMERAS["main"][0], float)
+    return on_main_ray((-height_m - c[2]) / (BALL[2] - c[2]))
+
+
+def detected(doubts):
+    return {d.view_id: d for d in doubts if d.kind == "ball_detected"}
+
+
+def near_truth(name: str, d) -> float:
+    c = np.array(true_box(name))
+    b = np.asarray(d.suggestion["box"])
+    return float(np.linalg.norm((b[:2] + b[2:]) / 2 - (c[:2] + c[2:]) / 2))
+
+
+def only_main_labelled():
+    return scene(**{n: {"box": None} for n in CAMERAS if n != "main"})
+
+
+def test_one_labelled_ray_and_one_detection_fill_the_view():
+    views = only_main_labelled()
+    far = box_at("goal", [-20.0, 10.0, -0.11], score=0.97)  # a confident false detection off main's ray
+    found = detected(checked(views, {"goal": [far, det("goal", 0.7, shift=(1.0, -0.5))]}))
+    assert set(found) == {"goal"}
+    d = found["goal"]
+    assert d.code == "one_ray" and d.evidence["agreeing_views"] == ["main"] and near_truth("goal", d) < 2.0
+    assert np.allclose(d.evidence["ball3d"], BALL, atol=0.1) and d.evidence["candidates_passed"] == 1
+    assert "one labelled view and this detection" in doubt_message(d, {"goal": "goal.png", "main": "main.png"})
+
+
+def test_a_detection_whose_rays_meet_outside_the_play_volume_or_at_another_size_is_rejected():
+    views = only_main_labelled()
+    under = on_main_ray(1.06)  # on main's ray, 0.7 m under the grass (the play volume allows 0.5 m)
+    assert under[2] > 0.5
+    for wrong in (box_at("goal", under), det("goal", scale=3.0)):
+        assert detected(checked(views, {"goal": [wrong]})) == {}
+
+
+def test_a_head_on_the_labelled_ray_is_rejected_where_a_third_view_clearly_misses_it():
+    views = only_main_labelled()
+    head = box_at("goal", head_on_main_ray(), score=0.95)  # the ball itself missed by the detector in goal
+    # alone, the rays and the sizes cannot reject it: it is on main's ray at about the ball's depth
+    alone = detected(checked(views, {"goal": [head]}))
+    assert set(alone) == {"goal"} and near_truth("goal", alone["goal"]) > 10.0
+    # the opposite view shows the spot and its detection is elsewhere (at the ball): a clear miss; and goal, whose
+    # detector saw the head only, clearly misses opposite's ball in turn: neither is filled
+    assert detected(checked(views, {"goal": [head], "opposite": [det("opposite", 0.8)]})) == {}
+    # with the ball's own detection in goal beside the head, opposite's ball is confirmed and the head rejected
+    found = detected(checked(views, {"goal": [head, det("goal", 0.6)], "opposite": [det("opposite", 0.8)]}))
+    assert set(found) == {"goal", "opposite"} and max(near_truth(n, d) for n, d in found.items()) < 2.0
+    # a third view whose detection lies at the head's ball confirms it instead
+    confirmed = detected(checked(views, {"goal": [head], "corner": [box_at("corner", head_on_main_ray())]}))
+    assert "goal" in confirmed
+
+
+def test_two_candidates_the_rays_cannot_tell_apart_fill_nothing_and_duplicates_are_no_rivals():
+    views = only_main_labelled()
+    ball, rival = det("goal", 0.6), box_at("goal", on_main_ray(0.97), score=0.9)  # both on main's ray, ball-sized
+    assert detected(checked(views, {"goal": [ball, rival]})) == {}
+    # two boxes on the same ball: the score breaks the tie
+    found = detected(checked(views, {"goal": [det("goal", 0.6), det("goal", 0.9, shift=(0.3, 0.2))]}))
+    assert found["goal"].evidence["score"] == 0.9 and found["goal"].evidence["candidates_passed"] == 2
+
+
+def test_detections_agree_among_themselves_where_no_labelled_view_takes_part():
+    views = scene(**{n: {"box": None} for n in CAMERAS})
+    assert [d for d in judge_system(views, SETTINGS) if d.kind in LABEL_KINDS] == []
+    false = {n: box_at(n, [-30.0, 20.0, -0.11], score=0.95) for n in CAMERAS}
+    dets = {"main": [false["main"], det("main", 0.7, shift=(1.0, 0.5))], "goal": [det("goal", 0.8, shift=(-0.5, 1.0))],
+            "opposite": [det("opposite", 0.75)], "corner": [false["corner"]]}
+    found = detected(checked(views, dets))
+    assert set(found) == {"main", "goal", "opposite"}  # corner's detector missed the ball: its false box stays
+    for name, d in found.items():
+        assert d.code == "detections_agree" and near_truth(name, d) < 2.0, name
+    # exactly two views: the same checks, and a margin over every other pairing
+    two = detected(checked(views, {"main": [det("main")], "goal": [det("goal")]}))
+    assert set(two) == {"main", "goal"}
+    rival = box_at("goal", on_main_ray(0.97))
+    assert detected(checked(views, {"main": [det("main")], "goal": [det("goal"), rival]})) == {}
+
+
+def test_two_views_detections_of_one_false_ball_are_rejected_by_a_third_view_that_misses_it():
+    views = scene(**{n: {"box": None} for n in CAMERAS})
+    fake = [0.0, 0.0, -1.0]  # ball-sized boxes on two players, consistent by chance
+    dets = {"main": [box_at("main", fake)], "goal": [box_at("goal", fake)]}
+    assert set(detected(checked(views, dets))) == {"main", "goal"}
+    assert detected(checked(views, {**dets, "opposite": [det("opposite")]})) == {}
+
+
+def test_a_labelled_ray_whose_camera_is_unsure_beyond_tau_pairs_with_no_detection():
+    """One ray and one detection fix a ball only as well as the cameras: a labelled view whose pixel sigma exceeds
+    tau (half a vote) would make a 3D ball metres off with a right detection, so nothing is placed from it."""
+    unsure = {"pan_deg": 1.5, "tilt_deg": 1.5, "roll_deg": 0.5, "focal_px": 30.0,
+              "position_m": {"x": .5, "y": .5, "z": .5}}
+    views = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
+    assert detected(checked(views, {"goal": [det("goal")]})) == {}
+    assert set(detected(checked(only_main_labelled(), {"goal": [det("goal")]}))) == {"goal"}
+
+
+def test_a_third_view_too_unsure_to_vote_still_contradicts_a_pairing_its_label_misses():
+    """A labelled view that takes no part in the votes (few lines, a poor fit) still shows where the ball is not."""
+    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0,
+            "position_m": {"x": .1, "y": .1, "z": .1}}
+    head = box_at("goal", head_on_main_ray(), score=0.95)
+    views = scene(goal={"box": None}, corner={"box": None},
+                  opposite={"line_classes": 2, "jac": 0.3, "uncertainty": sure})  # its label at the ball
+    assert detected(checked(views, {"goal": [head]})) == {}
+    alone = scene(goal={"box": None}, corner={"box": None}, opposite={"box": None})
+    assert set(detected(checked(alone, {"goal": [head]}))) == {"goal"}  # without it, the head passes

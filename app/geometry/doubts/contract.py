@@ -65,7 +65,9 @@ CODES: dict[str, tuple[str, ...]] = {
     "views_disagree": ("no_agreement", "ambiguous", "epipolar"),
     "near_duplicate_view": ("near_duplicate",),
     # a detector's prediction checked against the other views (app.geometry.doubts.detections)
-    "ball_detected": ("consensus", "one_view"),
+    # (consensus: the labelled views agree; one_view: one labelled view and two detected views; one_ray: one
+    # labelled view and one detection; detections_agree: no labelled view takes part, detections meet)
+    "ball_detected": ("consensus", "one_view", "one_ray", "detections_agree"),
     "detection_off_label": ("agrees_with_others",),
 }
 

@@ -147,17 +147,27 @@ def _missing_epipolar_box(ev, v, n):
             "evidence, until a person places it.")
 
 
-def _detected(ev, v, n, one_view: bool = False):
+#: Which rule placed a detector's box (``ball_detected`` code), in the words of its sentence.
+_DETECTED_RULE = {
+    "consensus": "",
+    "one_view": " (with only one view labelled, two views' detections had to agree with it and each other)",
+    "one_ray": " (one labelled view and this detection: their rays meet in the play volume, at a ball's size in "
+               "both boxes, and no third view misses it)",
+    "detections_agree": " (no labelled view takes part: the detections of these views meet at one ball of a ball's "
+                        "size, and no third view misses it)",
+}
+
+
+def _detected(ev, v, n, code: str = "consensus"):
     others = _list(ev.get("agreeing_views"), n)
-    lone = " (with only one view labelled, two views' detections had to agree with it and each other)" \
-        if one_view else ""
     rivals = ev.get("candidates_passed") or 1
-    margin = (f"; {rivals - 1} other detection(s) also fit, {_num(ev.get('margin_px_1920'), 1)} px worse"
-              if rivals > 1 else "")
+    margin = (f"; {rivals - 1} other candidate(s) also fit, {_num(ev.get('margin_px_1920'), 1)} px worse"
+              if rivals > 1 and ev.get("margin_px_1920") is not None else "")
+    where = "where the detections of" if code == "detections_agree" else "where"
     return (f"A detector ({ev.get('detector')}, score {_num(ev.get('score'), 2)}) found the ball in {v} "
-            f"{_num(ev.get('error_px_1920'), 1)} px (at 1920 width) from where {others} put it, at "
-            f"{_num(100 * (ev.get('size_ratio') or math.nan))} % of a ball's size there{lone}{margin}; s places its "
-            "box, to be confirmed.")
+            f"{_num(ev.get('error_px_1920'), 1)} px (at 1920 width) from {where} {others} put it, at "
+            f"{_num(100 * (ev.get('size_ratio') or math.nan))} % of a ball's size there{_DETECTED_RULE[code]}{margin}; "
+            "s places its box, to be confirmed.")
 
 
 def _detection_off(ev, v, n):
@@ -212,8 +222,7 @@ _WRITERS: dict[tuple[str, str], Callable[[dict, str, Names], str]] = {
     ("views_disagree", "ambiguous"): _disagree,
     ("views_disagree", "epipolar"): _disagree_epipolar,
     ("near_duplicate_view", "near_duplicate"): _near_dup,
-    ("ball_detected", "consensus"): _detected,
-    ("ball_detected", "one_view"): lambda ev, v, n: _detected(ev, v, n, one_view=True),
+    **{("ball_detected", code): (lambda c: lambda ev, v, n: _detected(ev, v, n, c))(code) for code in _DETECTED_RULE},
     ("detection_off_label", "agrees_with_others"): _detection_off,
 }
 

@@ -14,6 +14,7 @@ The sentences of doubts themselves (their numbers) are composed by ``app.service
 Groups:
 
 * ``doubt``: every doubt kind (``app.geometry.doubts.LABEL_KINDS`` and ``INFO_KINDS``);
+* ``placement``: which rule placed a suggested label (``"<doubt kind>:<code>"`` of its provenance);
 * ``flag``: every calibration flag; ``flag_prefix``: flags that carry a value after ``:`` (``{}`` in the
   chip stands for it);
 * ``note``: what the system page says of a view's state besides the doubts (``notes()`` of viewfacts.js);
@@ -81,6 +82,26 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "ball_bundle": {"chip": "refined with the ball",
                         "means": "ball bundle: refined together with the other cameras from their lines and the ball "
                                  "they all see"},
+    },
+    # which rule placed a suggested label (its provenance's ``doubt`` and ``code``): "<doubt kind>:<code>"
+    "placement": {
+        "ball_off_consensus:off_consensus": {"chip": "the other views' ball",
+                                             "means": "moved to where the other labelled views agree on the ball"},
+        "ball_missing:consensus": {"chip": "the other views' ball",
+                                   "means": "placed where the labelled views agree on the ball"},
+        "ball_missing:epipolar_box": {"chip": "a guess on one ray",
+                                      "means": "a guess along the one labelled view's ray, on the grass"},
+        "ball_detected:consensus": {"chip": "detector, views agree",
+                                    "means": "a detector's box where the labelled views agree on the ball"},
+        "ball_detected:one_view": {"chip": "detector, two detected views",
+                                   "means": "a detector's box whose ray meets the one labelled view's and a second "
+                                            "detected view's at one ball"},
+        "ball_detected:one_ray": {"chip": "detector, one labelled ray",
+                                  "means": "a detector's box whose ray meets the one labelled view's in the play "
+                                           "volume at a ball's size, with no third view missing it"},
+        "ball_detected:detections_agree": {"chip": "detectors agree",
+                                           "means": "detectors' boxes in two or more views that meet at one ball of a "
+                                                    "ball's size, no labelled view taking part"},
     },
     "flag_prefix": {
         "ignored_class": {"chip": "ignores {}",

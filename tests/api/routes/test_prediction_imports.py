@@ -245,3 +245,46 @@ def test_the_sources_are_listed_with_who_imported_them_and_an_admin_removes_one(
     assert [x["source"] for x in client.get("/api/predictions").json()["items"]] == ["old"]
     entries = client.get("/api/audit", params={"user": "adam", "limit": 50}).json()["items"]
     assert any(e["action"] == "import" and (e.get("after") or {}).get("removed") == 3 for e in entries)
+
+
+def test_one_labelled_ray_and_one_detection_place_a_ball_that_enters_the_3d_ball_only_once_confirmed(
+        app, client: TestClient, db_session, db_settings, tmp_path: Path) -> None:
+    """One labelled view and one detected view (the third view's detector saw nothing): ``ball_detected`` code
+    ``one_ray``; its placement keeps that provenance and makes no 3D ball until a person confirms it."""
+    from app.geometry.ball import sphere_image_box
+
+    from ..factories import BALL, make_game, make_system
+
+    scene = make_system(db_session, db_settings, make_game(db_session), "3.png", labelled=(True, False, False))
+    # the labelled view's box as a careful annotator draws it (the factory's is twice the ball's size: its depth
+    # would be read wrong by half)
+    label = [round(float(v), 1) for v in sphere_image_box(scene.cameras[0], BALL, 0.11)]
+    etag = client.get(f"/api/frames/{scene.frame_ids[0]}").headers["etag"]
+    assert client.patch(f"/api/frames/{scene.frame_ids[0]}/ball", json={"box": label},
+                        headers={"If-Match": etag}).status_code == 200
+    assert client.get(f"/api/systems/{scene.system_id}").json()["ball3d"] is None  # one labelled view
+    true = sphere_image_box(scene.cameras[2], BALL, 0.11)
+    far = true + [-400.0, 150.0, -400.0, 150.0]  # off the labelled view's ray
+    path = tmp_path / "det.csv"
+    path.write_text(_csv([f"3_2.png,{','.join(f'{v:.2f}' for v in far)},0.95",
+                          f"3_2.png,{','.join(f'{v:.2f}' for v in true + 1.0)},0.7"]))
+    answer = client.post("/api/imports", json={"kind": "predictions", "path": str(path), "source": "det"})
+    assert answer.status_code == 202 and run_queued(app) == [answer.json()["id"]]
+    system = client.get(f"/api/systems/{scene.system_id}").json()
+    (d,) = [d for d in system["doubts"] if d["frame_id"] == scene.frame_ids[2] and d["accuses_label"]]
+    assert d["kind"] == "ball_detected" and d["evidence"]["code"] == "one_ray"
+    assert "one labelled view and this detection" in d["message"]
+    req = d["suggestion"]["request"]
+    assert req["body"]["provenance"]["code"] == "one_ray" and req["body"]["provenance"]["from_views"] == [
+        scene.frame_ids[0]]
+    etag = client.get(f"/api/frames/{scene.frame_ids[2]}").headers["etag"]
+    assert client.request(req["method"], req["path"], json=req["body"], headers={"If-Match": etag}).status_code == 200
+    assert client.get(f"/api/systems/{scene.system_id}").json()["ball3d"] is None  # an unconfirmed prediction
+    frame = client.get(f"/api/frames/{scene.frame_ids[2]}")
+    ball = frame.json()["ball"]
+    confirmed = client.patch(f"/api/frames/{scene.frame_ids[2]}/ball", json={"box": ball["box"]},
+                             headers={"If-Match": frame.headers["etag"]})
+    assert confirmed.status_code == 200, confirmed.text
+    import numpy as np
+    ball3d = client.get(f"/api/systems/{scene.system_id}").json()["ball3d"]
+    assert ball3d is not None and np.linalg.norm(np.asarray(ball3d) - BALL) < 0.3
