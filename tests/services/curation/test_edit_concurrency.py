@@ -68,7 +68,7 @@ def _stored_and_fresh_ball(factory: Callable[[], Session], system_id: int, setti
     """The stored 3D ball of the system and the one a recomputation from its stored labels gives (after
     ``change`` of them in memory; nothing is written)."""
     with factory() as s:
-        system = load_for_recompute(s, [system_id])[system_id]
+        system = load_for_recompute(s, [system_id], predictions=settings.max_predictions_per_frame)[system_id]
         stored = list(system.triangulation.ball3d)
         if change is not None:
             change(system)
@@ -132,7 +132,7 @@ def _pairs_and_doubts(factory: Callable[[], Session], system_id: int, settings: 
     """The system's stored pair and doubt rows (id first), or, given ``settings``, the ones a recomputation from its
     stored labels gives (ids None; nothing is written)."""
     with factory() as s:
-        system = load_for_recompute(s, [system_id])[system_id]
+        system = load_for_recompute(s, [system_id], predictions=settings.max_predictions_per_frame)[system_id]
         if settings is not None:
             with s.no_autoflush:
                 recompute_system(s, system, settings)
