@@ -80,3 +80,52 @@ def test_a_reviewers_comment_on_a_view_leaves_the_annotators_undo_of_her_edit_he
     as_user("ana")
     refused = client.post(f"/api/audit/{int(again.headers['x-v3d-audit-entry'])}/undo")
     assert refused.status_code == 403 and "rev changed the view since" in refused.json()["detail"]
+
+
+def _limited(app: FastAPI, **values: Any) -> None:
+    app.state.settings = app.state.settings.model_copy(update=values)
+
+
+def test_a_system_holds_at_most_the_cap_of_comments_resolved_ones_included(
+        app: FastAPI, client: TestClient, scene: Scene, as_user) -> None:
+    _limited(app, max_comments_per_system=5)
+    as_user("rev")
+    made = [_comment(client, scene, f"look at this, {i}") for i in range(5)]
+    assert [m.status_code for m in made] == [201] * 5
+    for m in made[:3]:  # resolved comments still count
+        assert client.post(f"/api/comments/{m.json()['id']}/resolve").status_code == 200
+    refused = _comment(client, scene, "one more")
+    assert refused.status_code == 409, refused.text
+    assert "V3D_MAX_COMMENTS_PER_SYSTEM" in refused.json()["detail"] and "holds 5 comments" in refused.json()["detail"]
+    listed = client.get(f"/api/systems/{scene.system_id}/comments").json()
+    assert listed["total"] == 5 and [c["text"] for c in listed["items"]] == [f"look at this, {i}" for i in range(5)]
+    adds = client.get("/api/audit", params={"system_id": scene.system_id, "limit": 500}).json()["items"]
+    assert sum(e["action"] == "comment.add" for e in adds) == 5  # the refused one left no entry
+
+
+def test_the_comments_are_listed_a_page_at_a_time_as_the_audit_log(
+        app: FastAPI, client: TestClient, scene: Scene, as_user) -> None:
+    as_user("rev")
+    for i in range(12):
+        assert _comment(client, scene, f"comment {i}", k=i % 3).status_code == 201
+    url = f"/api/systems/{scene.system_id}/comments"
+    first = client.get(url, params={"limit": 5}).json()
+    assert (len(first["items"]), first["total"], first["limit"], first["offset"], first["next_offset"]) == (
+        5, 12, 5, 0, 5)
+    last = client.get(url, params={"limit": 5, "offset": 10}).json()
+    assert [c["text"] for c in last["items"]] == ["comment 10", "comment 11"] and last["next_offset"] is None
+    texts, offset = [], 0
+    while offset is not None:
+        page = client.get(url, params={"limit": 5, "offset": offset}).json()
+        texts += [c["text"] for c in page["items"]]
+        offset = page["next_offset"]
+    assert texts == [f"comment {i}" for i in range(12)]  # oldest first, each once
+    assert client.get(url, params={"limit": 0}).status_code == 422
+    assert client.get(url, params={"limit": 501}).status_code == 422
+    assert client.get(url, params={"offset": -1}).status_code == 422
+    # a page stops before V3D_MAX_ANSWER_KB of JSON (one comment at least), next_offset naming the rest
+    _limited(app, max_answer_kb=2)
+    for i in range(3):
+        assert _comment(client, scene, f"{i} " + "long " * 300).status_code == 201
+    capped = client.get(url, params={"limit": 500, "offset": 12}).json()
+    assert len(capped["items"]) == 1 and capped["next_offset"] == 13 and capped["total"] == 15
