@@ -136,14 +136,17 @@ class BestDetections:
     def add(self, image_id: Hashable, box: Sequence[float], score: float) -> None:
         """Offer one detection (``box`` ``[x1, y1, x2, y2]`` px, its score): kept while it is among the image's best."""
         self._read += 1
-        item = (float(score), -self._read, (float(box[0]), float(box[1]), float(box[2]), float(box[3])))
-        heap = self._heaps.setdefault(image_id, [])
-        if len(heap) < self.per_image:
-            heapq.heappush(heap, item)
+        score = float(score)
+        heap = self._heaps.get(image_id)
+        if heap is None:
+            heap = self._heaps[image_id] = []
+        elif len(heap) >= self.per_image:
+            self.dropped += 1
+            if score <= heap[0][0]:  # no better than the worst kept (of equal scores the earlier stays)
+                return
+            heapq.heapreplace(heap, (score, -self._read, (float(box[0]), float(box[1]), float(box[2]), float(box[3]))))
             return
-        self.dropped += 1
-        if item[:2] > heap[0][:2]:  # better than the worst kept (a later one of an equal score is not)
-            heapq.heapreplace(heap, item)
+        heapq.heappush(heap, (score, -self._read, (float(box[0]), float(box[1]), float(box[2]), float(box[3]))))
 
     def images(self) -> list[Hashable]:
         """The images holding a kept detection, in the order they were first offered one."""

@@ -62,6 +62,8 @@ PREDICTION_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y
 BATCH_ROWS = 5000
 #: Most frames one write transaction replaces (its ``IN`` lists stay short).
 BATCH_FRAMES = 500
+#: Most images' keys the CSV reader keeps as read (rows repeat them; a file naming more reads the rest each time).
+KEYS_KEPT = 10_000
 #: How many unknown images a report names (the rest are counted).
 NAMED_UNKNOWN = 20
 #: A source's name: what ``--source`` takes (letters, digits, ``. _ -``; the file's stem by default).
@@ -181,6 +183,8 @@ def read_prediction_rows(path: Path) -> Iterator[tuple[PredictionRow, int]]:
             if header is None or tuple(c.strip() for c in header) != PREDICTION_COLUMNS:
                 raise DatasetError(path, "line 1", f"the header must be {','.join(PREDICTION_COLUMNS)}, got "
                                                    f"{','.join(header or [])[:200]!r}")
+            keys: dict[tuple[str, ...], tuple[str, ...]] = {}  # the images' keys as read, each once (rows repeat them)
+            read = 0
             for cells in reader:
                 line = reader.line_num
                 if not cells:
@@ -189,18 +193,25 @@ def read_prediction_rows(path: Path) -> Iterator[tuple[PredictionRow, int]]:
                     raise DatasetError(path, f"line {line}", f"{len(cells)} cells, expected {len(PREDICTION_COLUMNS)} "
                                                               f"({','.join(PREDICTION_COLUMNS)})")
                 try:
-                    values = [float(c) for c in cells[4:]]
+                    values = list(map(float, cells[4:]))
                 except ValueError:
                     raise DatasetError(path, f"line {line} x1..score", "not numbers") from None
-                if not all(math.isfinite(v) for v in values):
+                if not all(map(math.isfinite, values)):
                     raise DatasetError(path, f"line {line} x1..score", "NaN or infinite value")
                 x1, y1, x2, y2, score = values
                 if not 0.0 <= score <= 1.0:
                     raise DatasetError(path, f"line {line} score", f"{score:g} is not in [0, 1]")
                 if not (x2 > x1 and y2 > y1):
                     raise DatasetError(path, f"line {line} x1..y2", "the box has no area (needs x2 > x1 and y2 > y1)")
-                key = tuple(read_cell(c) for c in cells[:4])
-                yield PredictionRow(line, key, (x1, y1, x2, y2), score), raw.tell()  # type: ignore[arg-type]  # four cells
+                cut = tuple(cells[:4])
+                key = keys.get(cut)
+                if key is None:
+                    key = tuple(map(read_cell, cut))
+                    if len(keys) < KEYS_KEPT:
+                        keys[cut] = key
+                if line % 1024 == 0:  # the bytes read so far, for progress: asked now and then (a system call)
+                    read = raw.tell()
+                yield PredictionRow(line, key, (x1, y1, x2, y2), score), read  # type: ignore[arg-type]  # four cells
         except UnicodeDecodeError as exc:
             raise DatasetError(path, None, f"not UTF-8 text ({exc.reason})") from None
         except csv.Error as exc:
