@@ -8,8 +8,9 @@ subprocess on a free loopback port, one worker; ``--code DIR`` serves another ch
 figures before a change). Its memory is sampled and ``GET /api/health`` polled (``edge_attacks.Watch``) throughout.
 
 * **during the import**: ``ana2`` edits the ball of a view of another system (a nudge of 2 px, back and forth, each
-  with the view's ``If-Match``) until the import's job has ended; every answer's status and seconds. Targets: never
-  a 503, each within 3 s.
+  with the view's ``If-Match``) until the import's job has ended; every answer's status and seconds, and the three
+  slowest with the job's stage when they began. Targets: never a 503, each within 3 s. Two edits are made before the
+  upload (reported as ``warm_up_edits``): a served process's first ball edit loads and compiles what edits run.
 * **afterwards**: three parallel ``GET /api/systems/{id}`` of the flooded system (target: each within 3 s), then one
   ball edit of its flooded view (within 5 s).
 
@@ -96,15 +97,24 @@ def flood(base: str, pid: int, tokens: dict[str, str], rows: int, timeout_s: flo
     view = target["views"][k_target]
     data = flood_zip(target["game"], view["name"], view["width"], view["height"], rows)
     edits: list[tuple[str, float]] = []
+    started: list[float] = []
+    stages: list[tuple[float, str]] = []  # the import job's stage as polled: (seconds since the upload, stage)
     done = threading.Event()
 
     def edit_meanwhile() -> None:
         dx = 2.0
         while not done.is_set():
+            started.append(time.perf_counter() - t0)
             edits.append(_nudge(editor, other["id"], k_other, dx))
             dx = -dx
             time.sleep(0.2)
 
+    def stage_at(t: float) -> str:
+        return next((st for at, st in reversed(stages) if at <= t), "upload")
+
+    # a served process's first ball edit loads and compiles what edits run (seconds): made before the flood, as a
+    # server that has been editing all day is warm, and reported apart
+    cold = [_nudge(editor, other["id"], k_other, d) for d in (2.0, -2.0)]
     with Watch(base, pid) as watch:
         t0 = time.perf_counter()
         answer = admin.post("/api/imports", data={"kind": "predictions", "source": "flood"},
@@ -119,6 +129,7 @@ def flood(base: str, pid: int, tokens: dict[str, str], rows: int, timeout_s: flo
         try:
             while time.perf_counter() - t0 < timeout_s:
                 job = admin.get(job_url).json()
+                stages.append((time.perf_counter() - t0, f"{job['state']} {job.get('stage') or ''}".strip()))
                 if job["state"] in ("done", "failed"):
                     break
                 time.sleep(0.5)
@@ -135,14 +146,17 @@ def flood(base: str, pid: int, tokens: dict[str, str], rows: int, timeout_s: flo
         pages = list(pool.map(load_page, range(3)))
     after_edit = _nudge(editor, target["id"], k_target, 2.0)
     seconds = [s for _, s in edits if s == s]
+    slowest = sorted(((d, at) for (_, d), at in zip(edits, started, strict=True) if d == d), reverse=True)[:3]
     result = job.get("result") or {}
     return {
+        "warm_up_edits": [(status, round(sec, 3)) for status, sec in cold],
         "rows": rows, "zip_mb": round(len(data) / 2**20, 2), "upload_s": round(upload_s, 2),
         "job": job.get("state"), "job_message": job.get("message"), "import_s": round(import_s, 1),
         "stored": result.get("stored"), "dropped": result.get("dropped"), "batches": result.get("batches"),
         "edits_meanwhile": dict(Counter(status for status, _ in edits)),
         "edit_worst_s": round(max(seconds, default=float("nan")), 3),
         "edit_median_s": round(sorted(seconds)[len(seconds) // 2], 3) if seconds else None,
+        "slowest_edits": [{"s": round(d, 2), "at_s": round(at, 1), "job": stage_at(at)} for d, at in slowest],
         "pages_after": [(status, round(s, 3)) for status, s in pages],
         "edit_after": (after_edit[0], round(after_edit[1], 3)),
         **figures,
