@@ -14,6 +14,7 @@ const STAGE_LABEL = {
   read: "reading", games: "games stored", merge: "merging", calibrate: "calibrating", rig: "calibrating with game rigs",
   prior: "calibrating with the learned prior",
   triangulate: "triangulating", recompute: "systems recomputed", export: "games exported", zip: "files zipped",
+  predictions: "predictions read (bytes)", store: "frames stored",
 };
 
 /** One line saying what a job runs: an import's kind and folder, an export's selection. */
