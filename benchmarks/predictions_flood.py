@@ -39,8 +39,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.edge_attacks import PASSWORD, Watch, demo_server, v3d  # noqa: E402
-from benchmarks.load import fresh_database  # noqa: E402
+from benchmarks.edge_attacks import PASSWORD, Watch, demo_server, v3d
+from benchmarks.load import fresh_database
 
 HEADER = "league,season,match,image,x1,y1,x2,y2,score\n"
 
