@@ -142,7 +142,7 @@ def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
     detected = detected_right = 0
     with Session(sa.create_engine(url)) as session:
         ids = list(session.scalars(sa.select(System.id)))
-        systems = load_for_recompute(session, ids)
+        systems = load_for_recompute(session, ids, predictions=Settings().max_predictions_per_frame)
         games = {g.id: g for g in session.scalars(sa.select(Game))}
         doubts = {(d.frame_id, d.kind): d for d in session.scalars(sa.select(Doubt))}
         for system in systems.values():

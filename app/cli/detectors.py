@@ -111,13 +111,14 @@ def evaluate_monocular_cmd(
         with database_session(settings) as session:
             if source is not None:
                 report = evaluate_source(session, source, include_all, settings.ball_diameter_m, estimator,
-                                         settings.export_ball_box)
+                                         settings.export_ball_box, per_frame=settings.max_predictions_per_frame)
             else:
                 assert predictions is not None  # checked above
                 report = evaluate_predictions(session, predictions, include_all, ball_class,
                                               settings.ball_diameter_m, estimator, cameras_dir=cameras,
                                               ball_box=settings.export_ball_box,
-                                              max_coco_bytes=int(settings.max_predictions_mb * (1 << 20)))
+                                              max_coco_bytes=int(settings.max_predictions_mb * (1 << 20)),
+                                              per_frame=settings.max_predictions_per_frame)
             views = (reference_views(session, include_all, settings.ball_diameter_m, settings.export_ball_box)
                      if plots else [])
     except InvalidInputError as exc:

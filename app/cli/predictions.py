@@ -32,6 +32,9 @@ def import_predictions_cmd(
     typer.echo(f"imported {r['stored']} prediction(s) of source {r['source']!r} from {r['rows']} row(s) on "
                f"{r['frames']} frame(s) of {r['systems']} system(s) ({r['replaced']} earlier one(s) replaced, "
                f"{r['clipped']} box(es) clipped to their image) in {r['seconds']:.1f} s (job {job_id})")
+    if r.get("dropped"):
+        typer.echo(f"{r['dropped']} prediction(s) left out: beyond {r['cap']} a frame (V3D_MAX_PREDICTIONS_PER_FRAME, "
+                   "all sources together; the best by score are kept)")
     if r["unknown"]:
         typer.echo(f"{r['unknown']} row(s) name an image v3d does not hold, e.g.:")
         for name in r["unknown_images"]:

@@ -313,6 +313,19 @@ class Settings(BaseSettings):
         50, gt=0, description="Most review passes kept per user (each stores the ids of every system of its queue): "
         "beginning one more drops that user's least recently visited passes beyond it, in the same transaction "
         "(V3D_MAX_PASSES_PER_USER).")
+    # ----- bounds on what one user's input may make the others read: a detector's predictions, comments -----
+    max_predictions_per_frame: int = Field(
+        16, gt=0, description="Most detector predictions a frame keeps, all sources together, the best by score (what "
+        "the doubts' check of detections considers per view): an import keeps, on each frame, its best predictions in "
+        "the room the other sources leave and counts the rest in its report (dropped); every read (a system's "
+        "recomputation, its doubts, the monocular benchmark, a YOLO or COCO file read) takes at most this many per "
+        "frame or image, the best by score, also from a database written before the cap "
+        "(V3D_MAX_PREDICTIONS_PER_FRAME). A lower cap reaches the stored doubts at their system's next "
+        "recomputation (v3d recompute).")
+    max_comments_per_system: int = Field(
+        300, gt=0, description="Most comments one system may hold, resolved ones included: one more is refused with "
+        "409 naming the cap (V3D_MAX_COMMENTS_PER_SYSTEM).")
+    # ----- end of the bounds on predictions and comments -----
     write_lock_timeout_s: float = Field(
         5.0, gt=0, description="How long a served request waits for the database's write lock (SQLite's busy "
         "timeout; PostgreSQL's lock_timeout on the row locks of an edit) before it is answered 503 with Retry-After "

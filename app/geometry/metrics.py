@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import codecs
+import heapq
 import json
 import math
 import os
@@ -107,6 +108,69 @@ class Detections:
         return cls(tuple(i for p in parts for i in p.image_ids),
                    np.concatenate([p.boxes for p in parts]) if parts else np.zeros((0, 4)),
                    np.concatenate([p.scores for p in parts]) if parts else np.zeros(0))
+
+
+class BestDetections:
+    """The ``per_image`` highest-scored detections of each image, kept while they stream in, and how many were
+    dropped: a min-heap per image (``heapq``: the worst kept on top, replaced by a better one), so the memory is
+    O(images x ``per_image``) whatever the number read (a detector run without non-maximum suppression writes a
+    million boxes on one image). Of equal scores the one read first is kept. What an import of a detector's
+    predictions stores per frame and what a YOLO or COCO file is read as (``V3D_MAX_PREDICTIONS_PER_FRAME``).
+
+    >>> best = BestDetections(2)
+    >>> for score in (0.2, 0.9, 0.5, 0.9):
+    ...     best.add("a", (0.0, 0.0, 1.0, 1.0), score)
+    >>> [s for _, s in best.best("a")], best.dropped
+    ([0.9, 0.9], 2)
+    """
+
+    def __init__(self, per_image: int) -> None:
+        """Raises ValueError: ``per_image`` below 1."""
+        if per_image < 1:
+            raise ValueError(f"BestDetections: per_image must be at least 1, got {per_image}")
+        self.per_image = per_image
+        self.dropped = 0
+        self._heaps: dict[Hashable, list[tuple[float, int, tuple[float, float, float, float]]]] = {}
+        self._read = 0
+
+    def add(self, image_id: Hashable, box: Sequence[float], score: float) -> None:
+        """Offer one detection (``box`` ``[x1, y1, x2, y2]`` px, its score): kept while it is among the image's best."""
+        self._read += 1
+        score = float(score)
+        heap = self._heaps.get(image_id)
+        if heap is None:
+            heap = self._heaps[image_id] = []
+        elif len(heap) >= self.per_image:
+            self.dropped += 1
+            if score <= heap[0][0]:  # no better than the worst kept (of equal scores the earlier stays)
+                return
+            heapq.heapreplace(heap, (score, -self._read, (float(box[0]), float(box[1]), float(box[2]), float(box[3]))))
+            return
+        heapq.heappush(heap, (score, -self._read, (float(box[0]), float(box[1]), float(box[2]), float(box[3]))))
+
+    def images(self) -> list[Hashable]:
+        """The images holding a kept detection, in the order they were first offered one."""
+        return list(self._heaps)
+
+    def best(self, image_id: Hashable) -> list[tuple[tuple[float, float, float, float], float]]:
+        """The kept ``(box, score)`` of ``image_id``, best first (none: an empty list)."""
+        return [(box, score) for score, _, box in sorted(self._heaps.get(image_id, ()), reverse=True)]
+
+    def kept(self) -> int:
+        """How many detections are kept, all images together."""
+        return sum(len(h) for h in self._heaps.values())
+
+    def detections(self) -> "Detections":
+        """Every kept detection, image by image (:meth:`images`' order), best first."""
+        ids: list[Hashable] = []
+        boxes: list[tuple[float, float, float, float]] = []
+        scores: list[float] = []
+        for image in self._heaps:
+            for box, score in self.best(image):
+                ids.append(image)
+                boxes.append(box)
+                scores.append(score)
+        return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
 
 
 def average_precision(detections: Detections, ground_truth: Mapping[Hashable, np.ndarray],
@@ -238,9 +302,22 @@ def load_yolo_detections(path: str | Path, width: float, height: float, class_id
             :data:`EXCERPT_CHARS` of it), too long or not UTF-8, or ``name: problem`` for a file above ``max_bytes``.
     """
     path = Path(path)
-    label = str(path) if name is None else name
     ident = path.stem if image_id is None else image_id
     boxes, scores = [], []
+    for box, conf in yolo_detections(path, width, height, class_id, name=name, max_bytes=max_bytes):
+        boxes.append(box)
+        scores.append(conf)
+    return Detections((ident,) * len(boxes), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
+
+
+def yolo_detections(path: str | Path, width: float, height: float, class_id: int | None = None, *,
+                    name: str | None = None, max_bytes: int = MAX_YOLO_FILE_BYTES
+                    ) -> Iterator[tuple[list[float], float]]:
+    """The detections of a YOLO txt file one at a time, ``([x1, y1, x2, y2] px, conf)``, as
+    :func:`load_yolo_detections` reads them (same arguments, same errors), holding none of them: a caller that keeps
+    only the best (:class:`BestDetections`) reads a file of any length in bounded memory."""
+    path = Path(path)
+    label = str(path) if name is None else name
     size = n = 0
     with open(path, "rb") as fh:
         while raw := fh.readline(MAX_YOLO_LINE_BYTES + 1):
@@ -264,9 +341,7 @@ def load_yolo_detections(path: str | Path, width: float, height: float, class_id
             cls, cx, cy, w, h, conf = [v for v in values if v is not None]  # all are: checked above
             if class_id is not None and int(cls) != class_id:
                 continue
-            boxes.append([(cx - w / 2) * width, (cy - h / 2) * height, (cx + w / 2) * width, (cy + h / 2) * height])
-            scores.append(conf)
-    return Detections((ident,) * len(boxes), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
+            yield [(cx - w / 2) * width, (cy - h / 2) * height, (cx + w / 2) * width, (cy + h / 2) * height], conf
 
 
 def _floats(words: list[str]) -> list[float | None]:

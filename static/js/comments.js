@@ -1,5 +1,6 @@
 // Comments pinned on a view, and the system's hand-off (needs fix returned to a person, sent back as fixed).
-// GET /api/systems/{id}/comments lists them; each is drawn at its point on its view (viewdrawing.js reads
+// GET /api/systems/{id}/comments lists them a page at a time (read here page after page, following next_offset: a
+// system holds at most V3D_MAX_COMMENTS_PER_SYSTEM); each is drawn at its point on its view (viewdrawing.js reads
 // pinsOf(frameId): numbered marks, grey once resolved) and listed with its thread in the Comments card
 // (data-testid="review-comment"), where it is resolved or reopened. "Pin a comment" (reviewers, and the person the
 // system is returned to) takes the next click on a view as the point; Shift+C jumps to the next unresolved
@@ -24,6 +25,21 @@ export function pinsOf(frameId) {
 function when(iso) {
   const d = new Date(iso);
   return d.toLocaleString(undefined, { day: "numeric", month: "short", hour: "2-digit", minute: "2-digit" });
+}
+
+/** Most pages of comments read for one system (a system holds at most a few hundred: one or two pages). */
+const MAX_PAGES = 50;
+
+/** Every comment of system `id`, oldest first, page after page (each answer names its next_offset, null at the end). */
+async function allComments(id) {
+  const items = [];
+  let offset = 0;
+  for (let pages = 0; offset !== null && offset !== undefined && pages < MAX_PAGES; pages++) {
+    const page = await send("GET", `/api/systems/${id}/comments?limit=500&offset=${offset}`);
+    items.push(...page.items);
+    offset = page.items.length ? page.next_offset : null;
+  }
+  return items;
 }
 
 export class CommentsCard {
@@ -57,10 +73,10 @@ export class CommentsCard {
     const id = sys.id;
     try {
       const [me, list, handoff] = await Promise.all([
-        getMe(), send("GET", `/api/systems/${id}/comments`), send("GET", `/api/systems/${id}/handoff`)]);
+        getMe(), allComments(id), send("GET", `/api/systems/${id}/handoff`)]);
       if (this.page.system?.id !== id) return; // moved on meanwhile
       this.me = me;
-      this.comments = list.items;
+      this.comments = list;
       this.handoff = handoff;
     } catch (err) {
       showError(`comments: ${err.message}`);

@@ -48,6 +48,9 @@ class CountsOut(BaseModel):
     views_with_detection: int
     localised: int
     ignored_detections: Optional[int] = None
+    capped_detections: Optional[int] = Field(None, description="Detections of an uploaded file beyond "
+                                                               "V3D_MAX_PREDICTIONS_PER_FRAME on their image, "
+                                                               "left out (the best by score are kept).")
 
 
 class MonocularFiguresOut(BaseModel):
@@ -161,7 +164,8 @@ def evaluate_monocular(
         report = monocular.evaluate_predictions(session, path, include_all, ball_class, settings.ball_diameter_m, est,
                                                 ball_box=settings.export_ball_box,
                                                 name=_upload_name(predictions, default),
-                                                max_coco_bytes=int(settings.max_predictions_mb * MB))
+                                                max_coco_bytes=int(settings.max_predictions_mb * MB),
+                                                per_frame=settings.max_predictions_per_frame)
     return MonocularReportOut.model_validate({**report, "estimator": est})
 
 
@@ -183,7 +187,7 @@ def evaluate_monocular_source(
     est = estimator or monocular.default_estimator(settings.optimised_box_method)
     with share.turn(principal.name, "evaluation"):
         report = monocular.evaluate_source(session, source, include_all, settings.ball_diameter_m, est,
-                                           settings.export_ball_box)
+                                           settings.export_ball_box, per_frame=settings.max_predictions_per_frame)
     return MonocularReportOut.model_validate({**report, "estimator": est})
 
 

@@ -234,8 +234,10 @@ class Frame(Base):
         back_populates="frame", cascade="all, delete-orphan", passive_deletes=True
     )
     #: A ball detector's predictions on this view (read only here: written and removed by source,
-    #: ``app.services.transfer.predictions``; the doubts check them).
-    predictions: Mapped[list[Prediction]] = relationship(viewonly=True, order_by="Prediction.id")
+    #: ``app.services.transfer.predictions``; the doubts check them). Loaded only by
+    #: ``app.services.derivation.loading``, which takes at most ``V3D_MAX_PREDICTIONS_PER_FRAME`` of them, the best:
+    #: a lazy load would take them all, so it raises instead.
+    predictions: Mapped[list[Prediction]] = relationship(viewonly=True, order_by="Prediction.id", lazy="raise_on_sql")
 
     # the frame's version is SQLAlchemy's version counter too (bumped by the guarded write): a view decision changes
     # the frame alone (not its system's version, which a system decision's If-Match compares), so an edit of the

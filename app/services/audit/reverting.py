@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.errors import ForbiddenError, InvalidInputError, found
 from app.db.models import AuditEntry
-from app.services.audit.log import revertible, shown_actor
+from app.services.audit.log import TEAM_ACTIONS, revertible, shown_actor
 from app.services.curation import assignment, decisions, editing, resets, writing
 
 
@@ -128,7 +128,8 @@ def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: st
     the write's lock, still what the entry left (``after``): an undo never overwrites a newer change.
 
     Who may: a reviewer (``may_review``) any edit's entry; an annotator only their own (``actor`` is the entry's)
-    when no one else wrote that resource (the frame, or the system's own decisions) since, and never a system
+    when no one else wrote that resource (the frame, or the system's own decisions) since (a comment pinned on the
+    view, or its resolution, is no write of it), and never a system
     decision (a reviewer's edit, so its undo is a reviewer's).
 
     Raises:
@@ -146,8 +147,11 @@ def undo_entry(session: Session, entry_id: int, *, settings: Settings, actor: st
         if entry.actor != actor:
             raise ForbiddenError(f"audit entry {entry_id} is {shown_actor(entry.actor, admin=False)}'s edit: an "
                                  "annotator undoes only their own")
+        # what counts is another person's write of the view (its labels, lines, exclusion or a decision on it); a
+        # comment pinned on the view or its resolution writes none of them and does not take the undo away
         other = session.scalars(sa.select(AuditEntry.actor).where(
-            AuditEntry.id > entry.id, AuditEntry.frame_id == entry.frame_id, AuditEntry.actor != actor
+            AuditEntry.id > entry.id, AuditEntry.frame_id == entry.frame_id, AuditEntry.actor != actor,
+            AuditEntry.action.not_in(TEAM_ACTIONS)
         ).limit(1)).first()
         if other is not None:
             raise ForbiddenError(f"audit entry {entry_id} cannot be undone by an annotator: "

@@ -264,6 +264,8 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
     if action == "system.import":
         source = (facts or {}).get("source")
         return f"import{f' of {source}' if source else ''} changed {import_words(before, after)}"
+    if action == "import" and after.get("kind") == "predictions":
+        return prediction_import_words(after)
     if action in ("import", "recompute"):
         counts = ", ".join(f"{after[k]} {k}" for k in ("games", "systems", "frames") if isinstance(after.get(k), int))
         source = after.get("source_name") or ""
@@ -273,6 +275,29 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
                 f"views, hash {str(after.get('hash', ''))[:12]}")
     named = after.get("name") or after.get("user") or ""
     return f"{action.replace('.', ' ')}{f' {named}' if named else ''}"
+
+
+def prediction_import_words(after: Mapping[str, Any]) -> str:
+    """An import (or removal) of a detector's predictions in words, from its counts (``source``, ``stored``,
+    ``dropped`` beyond ``cap`` a frame, ``replaced``, ``unknown``; ``removed``).
+
+    >>> prediction_import_words({"source": "yolo", "stored": 16, "dropped": 199984, "cap": 16, "replaced": 0,
+    ...                          "unknown": 0})
+    'predictions of yolo imported: 16 stored, 199,984 beyond the cap of 16 a frame'
+    >>> prediction_import_words({"source": "yolo", "removed": 16})
+    'predictions of yolo removed: 16'
+    """
+    source = after.get("source") or "?"
+    if "removed" in after:
+        return f"predictions of {source} removed: {after['removed']:,}"
+    parts = [f"{after.get('stored', 0):,} stored"]
+    if after.get("dropped"):
+        parts.append(f"{after['dropped']:,} beyond the cap of {after.get('cap', '?')} a frame")
+    if after.get("replaced"):
+        parts.append(f"{after['replaced']:,} earlier ones replaced")
+    if after.get("unknown"):
+        parts.append(f"{after['unknown']:,} on images v3d does not hold")
+    return f"predictions of {source} imported: {', '.join(parts)}"
 
 
 def handoff_words(handoff: Any) -> str:

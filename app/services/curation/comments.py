@@ -5,6 +5,9 @@ hand-off, ``app.services.curation.handoff``); it is resolved or reopened by its 
 Anyone logged in reads them. Each write is audited in the write's transaction (``comment.add``, ``comment.resolve``,
 ``comment.reopen``; the entry names the view, the point and the text in words) and touches no label: the system's
 version, and so its ETag, stays as it was (a comment never makes someone else's decision stale).
+
+Bounded: a system holds at most ``V3D_MAX_COMMENTS_PER_SYSTEM`` comments, resolved ones included (one more is refused,
+409, naming the cap), and they are read a page at a time (:func:`list_comments`), as the audit log is.
 """
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ from typing import Any, Optional
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from app.core.errors import ForbiddenError, InvalidInputError, NotFoundError
+from app.core.errors import ConflictError, ForbiddenError, InvalidInputError, NotFoundError
 from app.db.models import Frame, ReviewComment, System, UserRole
 from app.db.session import begin_write
 from app.db.types import utcnow
@@ -52,8 +55,15 @@ def _check_point(point: Any, frame: Frame) -> Optional[list[float]]:
     return [x, y]
 
 
-def list_comments(session: Session, system_id: int) -> list[ReviewComment]:
-    """Every comment of the system (resolved ones too), oldest first.
+def count_comments(session: Session, system_id: int) -> int:
+    """How many comments the system holds, resolved ones included."""
+    return int(session.scalar(sa.select(sa.func.count(ReviewComment.id))
+                              .where(ReviewComment.system_id == system_id)) or 0)
+
+
+def list_comments(session: Session, system_id: int, *, limit: int, offset: int = 0) -> list[ReviewComment]:
+    """The system's comments (resolved ones too), oldest first: at most ``limit`` from the ``offset``-th
+    (:func:`count_comments` counts them all).
 
     Raises:
         NotFoundError: no such system.
@@ -61,27 +71,35 @@ def list_comments(session: Session, system_id: int) -> list[ReviewComment]:
     if session.get(System, system_id) is None:
         raise NotFoundError("system", system_id)
     return list(session.scalars(sa.select(ReviewComment).where(ReviewComment.system_id == system_id)
-                                .order_by(ReviewComment.id)))
+                                .order_by(ReviewComment.id).limit(limit).offset(offset)))
 
 
 def add_comment(session: Session, system_id: int, *, frame_id: Any, point: Any, text: Any, author: str,
-                user_id: int, role: UserRole) -> ReviewComment:
+                user_id: int, role: UserRole, max_comments: int) -> ReviewComment:
     """Pin a comment on view ``frame_id`` of the system at ``point`` (``[x, y]`` px of the frame's image, None: the
-    view as a whole) and commit it with its audit entry.
+    view as a whole) and commit it with its audit entry; a system holds at most ``max_comments``
+    (``V3D_MAX_COMMENTS_PER_SYSTEM``), resolved ones included, counted under the write's lock (on PostgreSQL the
+    system's row is locked, so two comments racing for the last place do not both get it).
 
     Raises:
         ForbiddenError: an annotator on a system not returned to them.
+        ConflictError: the system holds ``max_comments`` already (409 naming the cap); nothing stored.
         NotFoundError: no such system.
         InvalidInputError: ``frame_id`` not a view of the system, ``point`` not in its image, ``text`` empty or
             longer than :data:`MAX_TEXT` (each naming its field); nothing stored.
     """
     try:
         begin_write(session)
-        system = session.get(System, system_id)
+        system = session.scalar(sa.select(System).where(System.id == system_id).with_for_update())
         if system is None:
             raise NotFoundError("system", system_id)
         if not _may_review(role) and not returned_to_user(session, system_id, user_id):
             raise ForbiddenError("annotators comment only on a system returned to them (marked needs fix)")
+        held = count_comments(session, system_id)
+        if held >= max_comments:
+            raise ConflictError(f"system {system_id} holds {held} comments, the most a system may hold "
+                                f"(V3D_MAX_COMMENTS_PER_SYSTEM = {max_comments}, resolved ones included): say it in "
+                                "one of them, or ask an administrator to raise the cap")
         frame = session.get(Frame, frame_id) if isinstance(frame_id, int) and not isinstance(frame_id, bool) else None
         if frame is None or frame.system_id != system_id:
             raise InvalidInputError(f"frame {frame_id!r} is not a view of system {system_id}", field="frame_id")

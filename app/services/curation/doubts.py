@@ -16,7 +16,7 @@ from typing import Any, Callable, cast
 
 import numpy as np
 import sqlalchemy as sa
-from sqlalchemy.orm import Session, selectinload
+from sqlalchemy.orm import Session, object_session, selectinload
 
 from app.core.config import Settings
 from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Game, System
@@ -33,6 +33,7 @@ from app.geometry.triangulation import BallObservation, PairGeometry, pair_geome
 from app.geometry.weighting import calibration_weight, centre_of, label_centre
 from app.services.curation.doubt_words import doubt_message
 from app.services.derivation.cameras import stored_camera
+from app.services.derivation.loading import load_view_predictions
 from app.services.derivation.rows import put_values, replace_rows
 from app.services.kinds import kind_of
 
@@ -135,7 +136,7 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     judged = doubt_settings(settings)
     found = judge_system(weighed.views, judged, geometry, weighed.weighed)
     found = kind_of(system).judge_doubts(system, found, cameras)
-    detections = stored_detections(system)
+    detections = stored_detections(system, settings.max_predictions_per_frame)
     if detections:  # a detector's predictions, checked against the other views (none: the doubts as they were)
         found = check_detections(weighed.views, found, detections, judged, settings.doubt_detection_size_tolerance,
                                  geometry, weighed.weighed)
@@ -152,10 +153,14 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     return list(system.doubts)
 
 
-def stored_detections(system: System) -> dict[int, list[Detection]]:
+def stored_detections(system: System, per_frame: int) -> dict[int, list[Detection]]:
     """Frame id -> the stored predictions of every detector on that frame of ``system`` (``Frame.predictions``,
-    loaded with the system by ``app.services.derivation.loading``), highest score first; frames without any left
-    out."""
+    loaded with the system by ``app.services.derivation.loading``: at most ``per_frame``,
+    ``V3D_MAX_PREDICTIONS_PER_FRAME``, the best by score; a view the session holds without them has them read so,
+    ``loading.load_view_predictions``), highest score first; frames without any left out."""
+    session = object_session(system)
+    if session is not None:
+        load_view_predictions(session, system.frames, per_frame)
     out: dict[int, list[Detection]] = {}
     for f in system.frames:
         for p in sorted(f.predictions, key=lambda p: (-p.score, p.id)):

@@ -219,7 +219,9 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
             lock_system(session, system_id, game=recomputes)
         else:  # the version is read first, with the system's row: anything committed after it makes the compare fail
             reads_on_their_own(session)
-        system = found(load_for_recompute(session, [system_id], with_game=True).get(system_id), "system", system_id)
+        per_frame = settings.max_predictions_per_frame if settings is not None else None  # a decision reads none
+        system = found(load_for_recompute(session, [system_id], predictions=per_frame, with_game=True).get(system_id),
+                       "system", system_id)
         if not locked and not kind_of(system).computes_before_lock:
             raise _MustLock()
         game_version = system.game.version if system.game is not None else None

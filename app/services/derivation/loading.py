@@ -3,8 +3,10 @@
 What a recomputation (``recompute.load_for_recompute``) and the system page (``app.services.curation.system_page``)
 read of a system, as ``app.services.derivation.scope`` declares it: the system with its one-to-one rows joined to it,
 its views (``System.frames``, in their order) with each view's one-to-one rows joined to it, its pairs
-(``Triangulation.pairs``), doubts (``System.doubts``) and its views' detector predictions (``Frame.predictions``), in id
-order. Each list is one query for all the systems asked;
+(``Triangulation.pairs``), doubts (``System.doubts``) and its views' detector predictions (``Frame.predictions``, at
+most ``V3D_MAX_PREDICTIONS_PER_FRAME`` a view, the best by score: ``app.db.models.predictions.ranked_predictions``,
+so that a view flooded before the import's cap never reaches memory whole; none for the page, which draws none), in
+id order. Each list is one query for all the systems asked;
 its rows are handed to their parents as the loaded value of the relationship (``set_committed_value``), as SQLAlchemy's
 ``selectinload`` would, without its per-call loader machinery: a 4-view system loads in about two thirds of the CPU (an
 edit's load, the page's load).
@@ -18,10 +20,11 @@ import functools
 from typing import Any, Sequence
 
 import sqlalchemy as sa
-from sqlalchemy.orm import Session, joinedload
+from sqlalchemy.orm import Session, aliased, joinedload
 from sqlalchemy.orm.attributes import set_committed_value
 
 from app.db.models import Doubt, Frame, Prediction, System, Triangulation, TriangulationPair
+from app.db.models.predictions import ranked_predictions
 from app.services.derivation.scope import FRAME_ROWS
 
 #: Systems loaded per round of five queries (bounded IN lists and memory).
@@ -31,9 +34,12 @@ CHUNK = 500
 @functools.cache
 def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.Select, sa.Select, sa.Select]:
     """The five statements of :func:`load_systems` (systems, views, pairs, doubts, predictions), each taking the
-    systems' ids as ``ids`` (an expanding parameter); ``system_rows``: the names of the system's one-to-one
-    relationships joined to it (the triangulation always). Built once per ``system_rows``."""
+    systems' ids as ``ids`` (an expanding parameter), the predictions' also ``per_frame`` (the most a view);
+    ``system_rows``: the names of the system's one-to-one relationships joined to it (the triangulation always).
+    Built once per ``system_rows``."""
     ids: sa.BindParameter[list[int]] = sa.bindparam("ids", expanding=True)
+    ranked = ranked_predictions(Prediction.frame_id.in_(sa.select(Frame.id).where(Frame.system_id.in_(ids))))
+    best = aliased(Prediction, ranked)
     return (
         sa.select(System).where(System.id.in_(ids)).options(
             *(joinedload(getattr(System, key)) for key in dict.fromkeys(("triangulation", *system_rows)))),
@@ -41,15 +47,16 @@ def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.
         .options(*(joinedload(r) for r in FRAME_ROWS)),
         sa.select(TriangulationPair).where(TriangulationPair.system_id.in_(ids)).order_by(TriangulationPair.id),
         sa.select(Doubt).where(Doubt.system_id.in_(ids)).order_by(Doubt.id),
-        sa.select(Prediction.frame_id, Prediction).join(Frame, Frame.id == Prediction.frame_id)
-        .where(Frame.system_id.in_(ids)).order_by(Prediction.id),
+        sa.select(best.frame_id, best).where(ranked.c.rank <= sa.bindparam("per_frame")).order_by(best.id),
     )
 
 
-def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, ...] = ()) -> dict[int, System]:
+def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, ...] = (), *,
+                 predictions: int | None) -> dict[int, System]:
     """The systems ``ids`` that exist, by id, each with its views (and their one-to-one rows), triangulation and
-    pairs, doubts, predictions and the one-to-one relationships ``system_rows`` (e.g. ``(System.review, System.game)``)
-    loaded: five queries per :data:`CHUNK` systems (module docstring)."""
+    pairs, doubts, at most ``predictions`` predictions a view (the best by score; None: none loaded, the relationship
+    left unloaded) and the one-to-one relationships ``system_rows`` (e.g. ``(System.review, System.game)``)
+    loaded: five queries per :data:`CHUNK` systems (four without predictions; module docstring)."""
     out: dict[int, System] = {}
     ids = list(dict.fromkeys(ids))
     systems_q, frames_q, pairs_q, doubts_q, predictions_q = _statements(tuple(r.key for r in system_rows))
@@ -65,12 +72,13 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
         doubts: dict[int, list[Doubt]] = {i: [] for i in systems}
         for d in session.scalars(doubts_q, chunk):
             doubts[d.system_id].append(d)
-        predictions: dict[int, list[Prediction]] = {f.id: [] for fs in frames.values() for f in fs}
-        for fid, p in session.execute(predictions_q, chunk):
-            predictions[fid].append(p)
-        for fs in frames.values():
-            for f in fs:
-                _hand_over(f, "predictions", predictions[f.id])
+        if predictions is not None:
+            best: dict[int, list[Prediction]] = {f.id: [] for fs in frames.values() for f in fs}
+            for fid, p in session.execute(predictions_q, {**chunk, "per_frame": predictions}):
+                best[fid].append(p)
+            for fs in frames.values():
+                for f in fs:
+                    _hand_over(f, "predictions", best[f.id])
         for sid, system in systems.items():
             _hand_over(system, "frames", frames[sid])
             _hand_over(system, "doubts", doubts[sid])
@@ -79,6 +87,23 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
                 _hand_over(tri, "pairs", pairs[sid])
         out.update(systems)
     return out
+
+
+def load_view_predictions(session: Session, frames: Sequence[Frame], per_frame: int) -> None:
+    """Hand each of ``frames`` whose predictions the session has not loaded (a view made by a script or a test's
+    factory and flushed, never loaded by :func:`load_systems`) its best ``per_frame`` predictions, in one query, as
+    :func:`load_systems` does; frames with theirs loaded are left as they are."""
+    wanted = [f for f in frames if sa.inspect(f).persistent and "predictions" in sa.inspect(f).unloaded]
+    if not wanted:
+        return
+    ranked = ranked_predictions(Prediction.frame_id.in_([f.id for f in wanted]))
+    best = aliased(Prediction, ranked)
+    found: dict[int, list[Prediction]] = {f.id: [] for f in wanted}
+    for fid, p in session.execute(sa.select(best.frame_id, best).where(ranked.c.rank <= per_frame)
+                                  .order_by(best.id)):
+        found[fid].append(p)
+    for f in wanted:
+        _hand_over(f, "predictions", found[f.id])
 
 
 def _hand_over(parent: Any, key: str, rows: list[Any]) -> None:

@@ -422,20 +422,23 @@ def _update_optimised_box(frame: Frame, camera: Camera | None, ball: np.ndarray 
 _REFRESH_BATCH = 500
 
 
-def load_for_recompute(session: Session, ids: Sequence[int], *, with_game: bool = False) -> dict[int, System]:
+def load_for_recompute(session: Session, ids: Sequence[int], *, predictions: int | None,
+                       with_game: bool = False) -> dict[int, System]:
     """The systems ``ids`` with what :func:`recompute_system` and ``update_doubts`` read (``scope``), by id, in four
     queries per
     500 systems (``app.services.derivation.loading.load_systems``) instead of one lazy load per attribute and frame
     (systems already in the session get the relations they have not loaded; changed attributes are kept).
     ``with_game``: the system's game joined too (an edit, whose answer names the game and whose recalibration may
-    read its learned prior: one lazy load fewer)."""
-    return load_systems(session, ids, (*scope.SYSTEM_ROWS, scope.GAME_ROW) if with_game else scope.SYSTEM_ROWS)
+    read its learned prior: one lazy load fewer). ``predictions``: the most a view's predictions loaded, the best by
+    score (``V3D_MAX_PREDICTIONS_PER_FRAME``; None: none, for a write that recomputes nothing)."""
+    return load_systems(session, ids, (*scope.SYSTEM_ROWS, scope.GAME_ROW) if with_game else scope.SYSTEM_ROWS,
+                        predictions=predictions)
 
 
-def preload_systems(session: Session, systems: Sequence[System]) -> None:
-    """Flush, then load what recomputing ``systems`` reads (:func:`load_for_recompute`)."""
+def preload_systems(session: Session, systems: Sequence[System], settings: Settings) -> None:
+    """Flush, then load what recomputing ``systems`` with ``settings`` reads (:func:`load_for_recompute`)."""
     session.flush()
-    load_for_recompute(session, [s.id for s in systems])
+    load_for_recompute(session, [s.id for s in systems], predictions=settings.max_predictions_per_frame)
 
 
 def recompute_systems(session: Session, systems: Iterable[System], settings: Settings,
@@ -450,7 +453,7 @@ def recompute_systems(session: Session, systems: Iterable[System], settings: Set
     if preloaded:
         session.flush()
     else:
-        preload_systems(session, systems)
+        preload_systems(session, systems, settings)
     sources = {gid: rig_centres(session, gid, settings)
                for gid in {s.game_id for s in systems if uses_rig(s) and s.game_id is not None}}
     n = 0

@@ -38,13 +38,14 @@ from app.geometry.ball import ball_from_box, ball_from_box_exact
 from app.geometry.camera import Camera
 from app.geometry.metrics import (
     MAX_COCO_FILE_BYTES,
+    BestDetections,
     Detections,
     average_precision,
     box_iou,
     coco_results,
-    load_yolo_detections,
     monocular_metrics,
     precision_curve,
+    yolo_detections,
 )
 from app.geometry.pitch import BALL_DIAMETER_M
 from app.services.kinds import kind_of
@@ -244,13 +245,15 @@ class SizedView(Protocol):
 
 
 def load_predictions(path: str | Path, views: Sequence[SizedView], ball_class: int | None = None, *,
-                     name: str | None = None, max_coco_bytes: int = MAX_COCO_FILE_BYTES) -> tuple[Detections, int]:
+                     name: str | None = None, max_coco_bytes: int = MAX_COCO_FILE_BYTES,
+                     keep: BestDetections | None = None) -> tuple[Detections, int]:
     """Ball detections of ``path`` keyed by view stem, and the number of detections ignored (images
     that are not ground-truth views).
 
-    Every file is read with bounds, as a stream (:func:`app.geometry.metrics.load_yolo_detections`: 1 MiB a
+    Every file is read with bounds, as a stream (:func:`app.geometry.metrics.yolo_detections`: 1 MiB a
     ``.txt``; :func:`app.geometry.metrics.coco_results`: ``max_coco_bytes``; ``data.yaml``:
-    :data:`MAX_DATA_YAML_BYTES`), and at most :data:`MAX_DETECTIONS` detections are kept.
+    :data:`MAX_DATA_YAML_BYTES`), and at most :data:`MAX_DETECTIONS` detections are kept, or with ``keep`` the best
+    ``keep.per_image`` of each view by score, chosen while reading (``keep.dropped`` counts the others).
 
     Args:
         path: a folder of YOLO txt files (searched recursively; the ball class from ``ball_class``,
@@ -262,6 +265,7 @@ def load_predictions(path: str | Path, views: Sequence[SizedView], ball_class: i
             message shows the server's folders; a file inside the folder is ``name!inner/path`` when ``name``
             ends in ``.zip``, else ``name/inner/path``.
         max_coco_bytes: the largest COCO results file read (``V3D_MAX_PREDICTIONS_MB`` over HTTP).
+        keep: the per-view bound (``V3D_MAX_PREDICTIONS_PER_FRAME``): memory O(views x bound) whatever the file holds.
 
     Raises:
         InvalidInputError: no such file or folder, or a malformed or too large file (field ``predictions``; the
@@ -270,46 +274,53 @@ def load_predictions(path: str | Path, views: Sequence[SizedView], ball_class: i
     p = Path(path)
     label = str(p) if name is None else name
     by_stem = {v.stem: v for v in views}
-    kept = 0
+    ids: list[str] = []
+    boxes: list[Sequence[float]] = []
+    scores: list[float] = []
 
-    def count(n: int) -> None:
-        nonlocal kept
-        kept += n
-        if kept > MAX_DETECTIONS:
+    def take(stem: str, box: Sequence[float], score: float) -> None:
+        if keep is not None:
+            keep.add(stem, box, score)
+            return
+        if len(scores) >= MAX_DETECTIONS:
             raise ValueError(f"{label}: more than {MAX_DETECTIONS:,} detections of the ball in reference views")
+        ids.append(stem)
+        boxes.append(box)
+        scores.append(score)
+
+    def taken() -> Detections:
+        if keep is not None:
+            return keep.detections()
+        return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float))
 
     try:
         if p.is_dir():
             cls = ball_class if ball_class is not None else _ball_class_from_yaml(p, label)
             cls = 0 if cls is None else cls
-            parts, ignored = [], 0
+            ignored = 0
             for txt in sorted(p.rglob("*.txt")):
                 if not txt.is_file():
                     continue
                 view = by_stem.get(txt.stem)
-                dets = load_yolo_detections(txt, view.width if view else 1.0, view.height if view else 1.0, cls,
-                                            name=_inner_name(label, p, txt))
-                if view is None:
-                    ignored += len(dets.scores)
-                else:
-                    count(len(dets.scores))
-                    parts.append(dets)
-            return Detections.concat(parts), ignored
+                for box, conf in yolo_detections(txt, view.width if view else 1.0, view.height if view else 1.0, cls,
+                                                 name=_inner_name(label, p, txt)):
+                    if view is None:
+                        ignored += 1
+                    else:
+                        take(view.stem, box, conf)
+            return taken(), ignored
         if p.is_file():
             category = 1 if ball_class is None else ball_class
             by_id = {coco_image_id(v.stem): v.stem for v in views}
-            ids, boxes, scores, ignored = [], [], [], 0
+            ignored = 0
             for image_id, cat, box, score in coco_results(p, name=label, max_bytes=max_coco_bytes):
                 if cat != category:
                     continue
                 if image_id not in by_id:
                     ignored += 1
                     continue
-                count(1)
-                ids.append(by_id[image_id])
-                boxes.append(box)
-                scores.append(score)
-            return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float)), ignored
+                take(by_id[image_id], box, score)
+            return taken(), ignored
     except (ValueError, OSError) as exc:
         raise InvalidInputError(str(exc) if isinstance(exc, ValueError) else f"{label}: cannot read ({exc.strerror})",
                                 field="predictions") from None
@@ -384,9 +395,13 @@ def evaluate(views: list[ReferenceView], detections: Detections, ignored: int = 
     return out
 
 
-def source_detections(session: Session, source: str, views: list[ReferenceView]) -> tuple[Detections, int]:
+def source_detections(session: Session, source: str, views: list[ReferenceView],
+                      per_frame: int) -> tuple[Detections, int]:
     """The stored predictions of ``source`` (``v3d import predictions``) keyed by view stem, as
-    :func:`load_predictions` reads a file, and the number on images that are not reference views (ignored).
+    :func:`load_predictions` reads a file, and the number on images that are not reference views (ignored):
+    at most ``per_frame`` (``V3D_MAX_PREDICTIONS_PER_FRAME``) of a frame, the best by score, chosen by the query
+    (``app.db.models.predictions.ranked_predictions``), so that a frame flooded before the cap never reaches memory
+    whole.
 
     Raises:
         InvalidInputError: no predictions of that source are stored (field ``source``).
@@ -394,36 +409,38 @@ def source_detections(session: Session, source: str, views: list[ReferenceView])
     import sqlalchemy as sa
 
     from app.db.models import Prediction
+    from app.db.models.predictions import ranked_predictions
 
     stems = {v.frame_id: v.stem for v in views}
-    ids, boxes, scores, ignored, seen = [], [], [], 0, 0
+    ids, boxes, scores, ignored = [], [], [], 0
+    if session.scalar(sa.select(Prediction.id).where(Prediction.source == source).limit(1)) is None:
+        raise InvalidInputError(f"no predictions of source {source!r} are stored (v3d predictions list)",
+                                field="source")
+    r = ranked_predictions(Prediction.source == source)
     for fid, x1, y1, x2, y2, score in session.execute(
-            sa.select(Prediction.frame_id, Prediction.x1, Prediction.y1, Prediction.x2, Prediction.y2,
-                      Prediction.score).where(Prediction.source == source).order_by(Prediction.id)):
-        seen += 1
+            sa.select(r.c.frame_id, r.c.x1, r.c.y1, r.c.x2, r.c.y2, r.c.score).where(r.c.rank <= per_frame)
+            .order_by(r.c.id)):
         if fid not in stems:
             ignored += 1
             continue
         ids.append(stems[fid])
         boxes.append((x1, y1, x2, y2))
         scores.append(score)
-    if not seen:
-        raise InvalidInputError(f"no predictions of source {source!r} are stored (v3d predictions list)",
-                                field="source")
     return Detections(tuple(ids), np.array(boxes, float).reshape(-1, 4), np.array(scores, float)), ignored
 
 
 def evaluate_source(session: Session, source: str, include_all: bool = False,
                     ball_diameter_m: float = BALL_DIAMETER_M, estimator: str = "exact",
-                    ball_box: str = "refined") -> dict[str, Any]:
-    """:func:`evaluate` of an imported source's stored predictions (:func:`source_detections`) against the curated
-    labels with the stored cameras, as :func:`evaluate_predictions` scores a file: no second upload.
+                    ball_box: str = "refined", *, per_frame: int) -> dict[str, Any]:
+    """:func:`evaluate` of an imported source's stored predictions (:func:`source_detections`: at most ``per_frame``
+    a frame, ``V3D_MAX_PREDICTIONS_PER_FRAME``) against the curated labels with the stored cameras, as
+    :func:`evaluate_predictions` scores a file: no second upload.
 
     Raises:
         InvalidInputError: no such source, or no reference view.
     """
     views = reference_views(session, include_all, ball_diameter_m, ball_box)
-    dets, ignored = source_detections(session, source, views)
+    dets, ignored = source_detections(session, source, views, per_frame)
     end_reads(session)
     out = evaluate(views, dets, ignored, ball_diameter_m, estimator)
     out["counts"]["views_without_camera"] = 0
@@ -435,12 +452,13 @@ def evaluate_predictions(session: Session, predictions: str | Path, include_all:
                          ball_class: int | None = None, ball_diameter_m: float = BALL_DIAMETER_M,
                          estimator: str = "exact", cameras_dir: str | Path | None = None,
                          ball_box: str = "refined", *, name: str | None = None,
-                         max_coco_bytes: int = MAX_COCO_FILE_BYTES) -> dict[str, Any]:
+                         max_coco_bytes: int = MAX_COCO_FILE_BYTES, per_frame: int) -> dict[str, Any]:
     """:func:`evaluate` of the predictions at ``predictions`` against the database's curated labels, with the
     stored cameras (the "oracle" row: cameras fitted on the annotated lines) or, with ``cameras_dir``, the
     cameras given there (:func:`with_cameras`; ``counts.views_without_camera`` says how many views had none);
     the reference boxes are the exported ones (``ball_box``, :func:`reference_views`); ``name`` and
-    ``max_coco_bytes`` as :func:`load_predictions`."""
+    ``max_coco_bytes`` as :func:`load_predictions`; at most ``per_frame`` detections of an image, the best by score
+    (``V3D_MAX_PREDICTIONS_PER_FRAME``, as COCO's ``maxDets``), the others counted in ``counts.capped_detections``."""
     views = reference_views(session, include_all, ball_diameter_m, ball_box)
     end_reads(session)  # the reference views are plain values: no connection is held while the predictions are scored
     missing = 0
@@ -448,8 +466,11 @@ def evaluate_predictions(session: Session, predictions: str | Path, include_all:
         views, missing = with_cameras(views, cameras_dir)
     if not views:
         return evaluate(views, Detections((), np.zeros((0, 4)), np.zeros(0)))  # raises, naming the cause
-    dets, ignored = load_predictions(predictions, views, ball_class, name=name, max_coco_bytes=max_coco_bytes)
+    keep = BestDetections(per_frame)
+    dets, ignored = load_predictions(predictions, views, ball_class, name=name, max_coco_bytes=max_coco_bytes,
+                                     keep=keep)
     out = evaluate(views, dets, ignored, ball_diameter_m, estimator)
+    out["counts"]["capped_detections"] = keep.dropped
     out["counts"]["views_without_camera"] = missing
     out["cameras"] = "given" if cameras_dir is not None else "stored"
     return out

@@ -312,12 +312,13 @@ def refit_sequence(session: Session, game_id: int, first_frame: int, last_frame:
         fit = refit_window(_previous_fit(window, pieces), window.points, columns.cameras, columns.widths,
                            first_frame, last_frame, fast_path=not tried, **fit_args(settings))
     assert window is not None  # whichever fit ran loaded its window
-    return _store_rows(session, window, fit, (first_frame, last_frame))
+    return _store_rows(session, window, fit, (first_frame, last_frame), settings)
 
 
 #: What ``recompute_system`` and ``update_doubts`` read of a system, loaded in a few queries instead of
 #: one lazy load per view and relation.
-def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: tuple[int, int]) -> list[Changed]:
+def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: tuple[int, int],
+                settings: Settings) -> list[Changed]:
     """Write the columns of the rows of ``fit`` whose values differ from the stored ones (executemany
     UPDATEs by primary key); load the systems of the ``edited`` frames and of the rows whose kept labels
     changed (``recompute.load_for_recompute``: the caller recomputes them); replace the trajectory doubts of the
@@ -331,7 +332,8 @@ def _store_rows(session: Session, window: _Window, fit: TrajectoryFit, edited: t
     light = {i for i, labels, doubts, values in changed if doubts and not labels and i not in edits
              and window.doubting.get(i, 0) == len(values["flagged"])}
     wanted = [ids[i] for i, labels, doubts, _ in changed if (labels or doubts) and i not in edits | light]
-    systems = load_for_recompute(session, wanted + [ids[i] for i in sorted(edits)])
+    systems = load_for_recompute(session, wanted + [ids[i] for i in sorted(edits)],
+                                 predictions=settings.max_predictions_per_frame)
     _refresh_trajectory_doubts(session, [(ids[i], i, values) for i, _, _, values in changed if i in light])
     return [Changed(systems.get(ids[i]), labels, ids[i]) for i, labels, _, _ in changed]
 

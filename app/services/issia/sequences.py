@@ -162,7 +162,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
             report.refusal_reasons[f.refusal or "unspecified"] += 1
     merging = Merge(merge, None, report.source_name, actor)
     try:
-        game = _store(session, seq, fields, source, report, merging)
+        game = _store(session, seq, fields, source, report, merging, settings)
         session.flush()
         fit_sequence(session, game.id, settings)
         systems = [s for s in game.systems if s.kind is SystemKind.ISSIA]
@@ -180,7 +180,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
 
 
 def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFields], source: CalibrationSource,
-           report: ImportReport, merge: Merge) -> Game:
+           report: ImportReport, merge: Merge, settings: Settings) -> Game:
     root = seq.root.resolve()
     game = session.scalars(
         sa.select(Game).where(Game.league == LEAGUE, Game.season == SEASON, Game.match == root.name)
@@ -194,7 +194,7 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
     game.source_path = str(root)
     systems = {s.name: s for s in game.systems}
     if systems:  # what the merge compares, loaded at once
-        load_for_recompute(session, [s.id for s in systems.values()])
+        load_for_recompute(session, [s.id for s in systems.values()], predictions=settings.max_predictions_per_frame)
     lines = {cid: lines_to_json_lists(seq.lines[cid]) for cid in seq.lines}
     now = utcnow()
     w, h = seq.image_size
@@ -213,7 +213,8 @@ def _store(session: Session, seq: IssiaSequence, fields: dict[str, CalibrationFi
             name = view_name(cid)
             frame = frames.get(name)
             if frame is None:
-                frame = Frame(name=name, role=FrameRole.STATIC, position=k, width=w, height=h)
+                frame = Frame(name=name, role=FrameRole.STATIC, position=k, width=w, height=h,
+                              predictions=[])  # a new view holds none: no lazy load (it would raise)
                 system.frames.append(frame)
                 changed = True
             media = seq.media.get(cid)
@@ -335,7 +336,7 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
         # what the recomputations below read, for all of them in a few queries (not one per system and relation)
         load_for_recompute(session, [c.system.id for c in changed if c.system is not None and (
             c.labels or c.system.trajectory_point.flagged  # type: ignore[union-attr]  # a re-fitted system has its point
-            or c.system.doubt_counts.get("ball_off_consensus"))])
+            or c.system.doubt_counts.get("ball_off_consensus"))], predictions=settings.max_predictions_per_frame)
     # decided systems whose place on the trajectory moved but that the re-fit did not load: the edit sets their
     # decisions back to pending (one query for all of them)
     unloaded = [c.system_id for c in changed if c.system is None and c.system_id is not None]

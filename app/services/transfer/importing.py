@@ -267,7 +267,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
             merges.append(merge)
             systems = {s.name: s for s in game.systems}
             if game.id is not None:  # what the merge compares, loaded at once (not one lazy load per frame)
-                load_for_recompute(session, [s.id for s in systems.values()])
+                load_for_recompute(session, [s.id for s in systems.values()],
+                                   predictions=settings.max_predictions_per_frame)
             for srec in grec.systems:
                 system = systems.get(srec.name)
                 new = system is None
@@ -285,7 +286,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     if frame is None:
                         frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width,
                                       height=frec.height, calibration=None, ball_label=None, reprojection=None,
-                                      optimised_box=None, release=frec.release)
+                                      optimised_box=None, release=frec.release,
+                                      predictions=[])  # a new view holds none: no lazy load (it would raise)
                         system.frames.append(frame)
                         frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
                         changed = True
@@ -350,7 +352,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     report.prior_fitted += sum(PRIOR_FLAG in r.flags or RADIAL_PRIOR_FLAG in r.flags for r in results)
     # The first write of the import. Systems new in this batch hold every row a recomputation reads
     # already (their relationships were set when they were created): only stored ones are loaded.
-    preload_systems(session, [s for s in touched if s.id is not None])
+    preload_systems(session, [s for s in touched if s.id is not None], settings)
     for frame, fields in zip(to_calibrate, results, strict=True):  # one result per frame
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:

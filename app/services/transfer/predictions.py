@@ -7,13 +7,25 @@ row per detection, or a folder (an unpacked upload) holding exactly one such ``.
 the layout of v3d's detector exports (:func:`prediction_input`): YOLO txt files (``class cx cy w h conf``,
 normalised, one per image named by its exported stem, ``KindPolicy.view_stem``) or a COCO results JSON keyed by the
 COCO export's image ids (``detector_export.coco_image_id``), both read by the monocular benchmark's readers
-(``app.services.evaluation.monocular.load_predictions``). It is read as a stream
-(bounded memory: rows are checked and written :data:`BATCH_ROWS` at a time inside one transaction), so a 100 MB file
-needs no more memory than a small one. The file is all or nothing: a malformed row (a missing column, a value that is
-not a finite number, a score outside [0, 1], a box with no area or entirely outside its image) is an error naming the
-file and its line (``DatasetError``), and nothing of the file is stored, the source's earlier predictions included.
-Rows naming an image v3d does not hold are counted and named (the first :data:`NAMED_UNKNOWN`), not an error; a box
-crossing its image's edge is clipped to the image. Importing a source again replaces all its rows.
+(``app.services.evaluation.monocular.load_predictions``).
+
+A frame keeps at most ``V3D_MAX_PREDICTIONS_PER_FRAME`` predictions, all sources together (what the doubts' check of
+detections considers per view; a detector run without non-maximum suppression writes thousands on one image): the
+file is read as a stream keeping only the best of each frame by score (``app.geometry.metrics.BestDetections``: the
+memory is bounded by the frames, never by the rows), and each frame then takes its best in the room the other sources'
+predictions leave on it; the rest are counted in the report (``dropped``), never stored. An import never removes
+another source's predictions.
+
+The whole file is read and checked before anything is written, without the write lock: a malformed row (a missing
+column, a value that is not a finite number, a score outside [0, 1], a box with no area or entirely outside its image)
+is an error naming the file and its line (``DatasetError``), and nothing of the file is stored, the source's earlier
+predictions included. Rows naming an image v3d does not hold are counted and named (the first
+:data:`NAMED_UNKNOWN`), not an error; a box crossing its image's edge is clipped to the image. Importing a source
+again replaces all its rows. The rows are then written a few hundred frames at a time (:func:`frames_per_batch`),
+each batch its own short write transaction (it replaces the source's rows on its frames, bumps their systems'
+versions and commits), so that another writer waits for one batch at most, never for the whole file (SQLite has one
+write lock); a frame goes from the source's earlier predictions to its new ones in one transaction. An import
+stopped while writing leaves the source partly replaced: import it again.
 
 After the rows are stored, the systems they touch are recomputed (their doubts check the predictions,
 ``app.geometry.doubts.detections``) in the import's job, so that the CLI leaves the doubts stored when it exits.
@@ -27,7 +39,7 @@ import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, cast
+from typing import Any, Hashable, Iterator, Sequence, cast
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
@@ -37,7 +49,8 @@ from app.core.errors import DatasetError, InvalidInputError
 from app.core.names import check_name
 from app.datasets.csv_cells import read_cell
 from app.db.models import Frame, Game, Prediction, System
-from app.db.session import begin_write
+from app.db.session import begin_write, end_reads
+from app.geometry.metrics import BestDetections
 from app.services.audit.log import record_summary
 from app.services.derivation.recompute import recompute_systems_by_id
 from app.services.jobs.progress import Progress
@@ -45,31 +58,51 @@ from app.services.kinds import kind_of
 
 #: The CSV's columns, in this order.
 PREDICTION_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y2", "score")
-#: Rows checked and written per batch (the memory an import holds, whatever the file's size).
+#: Most prediction rows one write transaction holds (:func:`frames_per_batch`): a batch holds the write lock for a
+#: few tens of milliseconds.
 BATCH_ROWS = 5000
+#: Most frames one write transaction replaces (its ``IN`` lists stay short).
+BATCH_FRAMES = 500
+#: Most images' keys the CSV reader keeps as read (rows repeat them; a file naming more reads the rest each time).
+KEYS_KEPT = 10_000
 #: How many unknown images a report names (the rest are counted).
 NAMED_UNKNOWN = 20
 #: A source's name: what ``--source`` takes (letters, digits, ``. _ -``; the file's stem by default).
 SOURCE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
 
+def frames_per_batch(per_frame: int) -> int:
+    """Frames written per transaction when a frame keeps at most ``per_frame`` predictions: at most
+    :data:`BATCH_ROWS` rows and :data:`BATCH_FRAMES` frames.
+
+    >>> frames_per_batch(16), frames_per_batch(1000)
+    (312, 5)
+    """
+    return max(1, min(BATCH_FRAMES, BATCH_ROWS // per_frame))
+
+
 @dataclass
 class PredictionReport:
     """What an import of predictions did: ``source`` (its name), ``rows`` read, ``stored`` predictions,
     ``replaced`` (the source's earlier rows removed), ``clipped`` boxes, ``unknown`` rows naming an image v3d does not
-    hold and ``unknown_images`` (the first :data:`NAMED_UNKNOWN`, ``league/season/match/image``), ``frames`` and
-    ``systems`` touched, ``triangulated`` systems after their recomputation, ``store_seconds`` of reading and storing
-    the file, ``seconds`` of the whole import (the recomputation included)."""
+    hold and ``unknown_images`` (the first :data:`NAMED_UNKNOWN`, ``league/season/match/image``), ``dropped``
+    predictions beyond ``cap`` (``V3D_MAX_PREDICTIONS_PER_FRAME``) on their frame, all sources together (the best by
+    score are kept), ``frames`` and ``systems`` the file names, ``batches`` (write transactions), ``triangulated``
+    systems after their recomputation, ``store_seconds`` of reading and storing the file, ``seconds`` of the whole
+    import (the recomputation included)."""
 
     source: str
+    cap: int = 0
     rows: int = 0
     stored: int = 0
     replaced: int = 0
     clipped: int = 0
     unknown: int = 0
     unknown_images: list[str] = field(default_factory=list)
+    dropped: int = 0
     frames: int = 0
     systems: int = 0
+    batches: int = 0
     triangulated: int = 0
     store_seconds: float = 0.0
     seconds: float = 0.0
@@ -78,7 +111,8 @@ class PredictionReport:
         """The job's stored result (JSON)."""
         return {"kind": "predictions", "source": self.source, "rows": self.rows, "stored": self.stored,
                 "replaced": self.replaced, "clipped": self.clipped, "unknown": self.unknown,
-                "unknown_images": list(self.unknown_images), "frames": self.frames, "systems": self.systems,
+                "unknown_images": list(self.unknown_images), "dropped": self.dropped, "cap": self.cap,
+                "frames": self.frames, "systems": self.systems, "batches": self.batches,
                 "triangulated": self.triangulated, "store_seconds": round(self.store_seconds, 2),
                 "seconds": round(self.seconds, 2)}
 
@@ -151,6 +185,8 @@ def read_prediction_rows(path: Path) -> Iterator[tuple[PredictionRow, int]]:
             if header is None or tuple(c.strip() for c in header) != PREDICTION_COLUMNS:
                 raise DatasetError(path, "line 1", f"the header must be {','.join(PREDICTION_COLUMNS)}, got "
                                                    f"{','.join(header or [])[:200]!r}")
+            keys: dict[tuple[str, ...], tuple[str, ...]] = {}  # the images' keys as read, each once (rows repeat them)
+            read = 0
             for cells in reader:
                 line = reader.line_num
                 if not cells:
@@ -159,18 +195,25 @@ def read_prediction_rows(path: Path) -> Iterator[tuple[PredictionRow, int]]:
                     raise DatasetError(path, f"line {line}", f"{len(cells)} cells, expected {len(PREDICTION_COLUMNS)} "
                                                               f"({','.join(PREDICTION_COLUMNS)})")
                 try:
-                    values = [float(c) for c in cells[4:]]
+                    values = list(map(float, cells[4:]))
                 except ValueError:
                     raise DatasetError(path, f"line {line} x1..score", "not numbers") from None
-                if not all(math.isfinite(v) for v in values):
+                if not all(map(math.isfinite, values)):
                     raise DatasetError(path, f"line {line} x1..score", "NaN or infinite value")
                 x1, y1, x2, y2, score = values
                 if not 0.0 <= score <= 1.0:
                     raise DatasetError(path, f"line {line} score", f"{score:g} is not in [0, 1]")
                 if not (x2 > x1 and y2 > y1):
                     raise DatasetError(path, f"line {line} x1..y2", "the box has no area (needs x2 > x1 and y2 > y1)")
-                key = tuple(read_cell(c) for c in cells[:4])
-                yield PredictionRow(line, key, (x1, y1, x2, y2), score), raw.tell()  # type: ignore[arg-type]  # four cells
+                cut = tuple(cells[:4])
+                key = keys.get(cut)
+                if key is None:
+                    key = tuple(map(read_cell, cut))
+                    if len(keys) < KEYS_KEPT:
+                        keys[cut] = key
+                if line % 1024 == 0:  # the bytes read so far, for progress: asked now and then (a system call)
+                    read = raw.tell()
+                yield PredictionRow(line, key, (x1, y1, x2, y2), score), read  # type: ignore[arg-type]  # four cells
         except UnicodeDecodeError as exc:
             raise DatasetError(path, None, f"not UTF-8 text ({exc.reason})") from None
         except csv.Error as exc:
@@ -220,9 +263,11 @@ class _Frames:
 def import_predictions(session: Session, path: str | Path, settings: Settings, source: str | None = None,
                        progress: Progress | None = None, actor: str | None = None) -> PredictionReport:
     """Store the predictions of ``path`` (a CSV, YOLO files or COCO results, :func:`prediction_input`) as source
-    ``source`` (default: the file's stem, a YOLO folder's name), replacing the
-    source's earlier rows, in one write transaction; then recompute the systems they touch (their doubts). See the
-    module docstring for the file and what is refused. ``progress("predictions", bytes read, file size)``.
+    ``source`` (default: the file's stem, a YOLO folder's name), replacing the source's earlier rows: at most
+    ``settings.max_predictions_per_frame`` a frame, all sources together, the best by score. The file is read and
+    checked whole first, without the write lock; then written in batches of :func:`frames_per_batch` frames, each its
+    own write transaction; then the systems they touch are recomputed (their doubts). See the module docstring.
+    ``progress("predictions", bytes read, file size)`` while reading, ``progress("store", frames written, frames)``.
 
     Raises:
         DatasetError: a malformed file or row (file and line named; nothing stored).
@@ -230,61 +275,113 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
     """
     t0 = time.perf_counter()
     kind, found_path = prediction_input(path)
-    report = PredictionReport(check_source(source or (Path(path).name if kind == "yolo" else found_path.stem)))
+    cap = settings.max_predictions_per_frame
+    report = PredictionReport(check_source(source or (Path(path).name if kind == "yolo" else found_path.stem)), cap)
     size = found_path.stat().st_size if kind != "yolo" else 0
+    best, system_of = _read_best(session, kind, found_path, report, progress, size)
+    earlier = _frames_of(session, report.source)
+    end_reads(session)  # what was read is plain values now: the writes below take the lock batch by batch
+    frames = sorted(set(system_of) | set(earlier))
+    touched: set[int] = set()
+    step = frames_per_batch(cap)
+    for start in range(0, len(frames), step):
+        chunk = frames[start:start + step]
+        systems = {system_of[f] if f in system_of else earlier[f] for f in chunk}
+        _write_batch(session, report, best, chunk, systems)
+        touched |= systems
+        if progress:
+            progress("store", start + len(chunk), len(frames))
     begin_write(session)
     try:
-        rows = _csv_rows(found_path, _Frames(session)) if kind == "csv" else _detector_rows(session, found_path)
-        replaced_systems = _systems_of(session, report.source)
-        report.replaced = _delete_source(session, report.source)
-        touched_frames: set[int] = set()
-        touched_systems: set[int] = set()
-        batch: list[dict[str, Any]] = []
-        for row in rows:
-            report.rows += 1
-            if not row.frames:
-                report.unknown += 1
-                if len(report.unknown_images) < NAMED_UNKNOWN and row.name not in report.unknown_images:
-                    report.unknown_images.append(row.name)
-                continue
-            for fid, sid, w, h in row.frames:
-                box = clip_box(row.box, w, h)
-                if box is None:
-                    raise DatasetError(found_path, row.where,
-                                       f"box {list(row.box)} lies entirely outside the {w}x{h} image {row.name!r}")
-                report.clipped += box != row.box
-                batch.append({"source": report.source, "frame_id": fid, "score": row.score, "x1": box[0],
-                              "y1": box[1], "x2": box[2], "y2": box[3]})
-                touched_frames.add(fid)
-                touched_systems.add(sid)
-            if len(batch) >= BATCH_ROWS:
-                report.stored += _write(session, batch)
-                if progress and size:
-                    progress("predictions", row.read, size)
-        report.stored += _write(session, batch)
-        report.frames, report.systems = len(touched_frames), len(touched_systems)
-        touched_systems |= replaced_systems
-        _bump_versions(session, touched_systems)
         record_summary(session, "import", {"kind": "predictions", "source": report.source, "stored": report.stored,
-                                           "replaced": report.replaced, "unknown": report.unknown}, actor=actor)
+                                           "replaced": report.replaced, "unknown": report.unknown,
+                                           "dropped": report.dropped, "cap": cap}, actor=actor)
         session.commit()
     except BaseException:
         session.rollback()
         raise
-    if progress and size:
-        progress("predictions", size, size)
     report.store_seconds = time.perf_counter() - t0
     session.expunge_all()
-    report.triangulated = recompute_systems_by_id(session, sorted(touched_systems), settings, progress,
+    report.triangulated = recompute_systems_by_id(session, sorted(touched), settings, progress,
                                                   {"reason": f"predictions {report.source}"}, actor)
     report.seconds = time.perf_counter() - t0
     return report
 
 
-def _systems_of(session: Session, source: str) -> set[int]:
-    """The systems whose views hold predictions of ``source``."""
-    return set(session.scalars(sa.select(Frame.system_id).join(Prediction, Prediction.frame_id == Frame.id)
-                               .where(Prediction.source == source).distinct()))
+def _read_best(session: Session, kind: str, path: Path, report: PredictionReport, progress: Progress | None,
+               size: int) -> tuple[BestDetections, dict[int, int]]:
+    """Read and check the whole input (in a read-only transaction: the stored frames it names), keeping the best
+    ``report.cap`` predictions of each frame (keyed by frame id); counts ``rows``, ``unknown``, ``clipped``,
+    ``dropped``, ``frames`` and ``systems`` in ``report``. Returns the kept predictions and each named frame's system.
+
+    Raises:
+        DatasetError: a malformed row, or a box entirely outside its image (nothing is written).
+    """
+    best = BestDetections(report.cap)
+    system_of: dict[int, int] = {}
+    detector = _CheckedBest(report.cap, path) if kind != "csv" else None
+    rows = _csv_rows(path, _Frames(session)) if detector is None else _detector_rows(session, path, detector)
+    for row in rows:
+        report.rows += 1
+        if not row.frames:
+            report.unknown += 1
+            if len(report.unknown_images) < NAMED_UNKNOWN and row.name not in report.unknown_images:
+                report.unknown_images.append(row.name)
+            continue
+        for fid, sid, w, h in row.frames:
+            box = clip_box(row.box, w, h)
+            if box is None:
+                raise DatasetError(path, row.where,
+                                   f"box {list(row.box)} lies entirely outside the {w}x{h} image {row.name!r}")
+            report.clipped += box != row.box
+            best.add(fid, box, row.score)
+            system_of[fid] = sid
+        if progress and size and report.rows % BATCH_ROWS == 0:
+            progress("predictions", row.read, size)
+    if progress and size:
+        progress("predictions", size, size)
+    if detector is not None:  # the detector readers keep the best of each image as they read: the rest were rows too
+        report.rows += detector.dropped
+        report.dropped += detector.dropped
+    report.dropped += best.dropped
+    report.frames, report.systems = len(system_of), len(set(system_of.values()))
+    return best, system_of
+
+
+def _write_batch(session: Session, report: PredictionReport, best: BestDetections, frames: list[int],
+                 systems: set[int]) -> None:
+    """One write transaction: bump the versions of ``systems`` (first: on PostgreSQL their row locks make a concurrent
+    import of the same frames wait, so that the room counted below holds), replace the source's predictions on
+    ``frames`` by its best in the room the other sources leave (``report.cap`` a frame), commit. Adds to ``report``'s
+    ``stored``, ``replaced``, ``dropped`` and ``batches``."""
+    begin_write(session)
+    try:
+        _bump_versions(session, systems)
+        report.replaced += _delete_source(session, report.source, frames)
+        others = {fid: n for fid, n in session.execute(sa.select(Prediction.frame_id, sa.func.count())
+                                                       .where(Prediction.frame_id.in_(frames))
+                                                       .group_by(Prediction.frame_id))}
+        batch: list[dict[str, Any]] = []
+        for fid in frames:
+            kept = best.best(fid)
+            room = max(0, report.cap - others.get(fid, 0))
+            report.dropped += max(0, len(kept) - room)
+            batch.extend({"source": report.source, "frame_id": fid, "score": score, "x1": box[0], "y1": box[1],
+                          "x2": box[2], "y2": box[3]} for box, score in kept[:room])
+        if batch:
+            session.execute(sa.insert(Prediction), batch)
+        session.commit()
+    except BaseException:
+        session.rollback()
+        raise
+    report.stored += len(batch)
+    report.batches += 1
+
+
+def _frames_of(session: Session, source: str) -> dict[int, int]:
+    """The frames holding predictions of ``source``, each with its system."""
+    return {fid: sid for fid, sid in session.execute(sa.select(Frame.id, Frame.system_id).where(
+        Frame.id.in_(sa.select(Prediction.frame_id).where(Prediction.source == source))))}
 
 
 def _bump_versions(session: Session, systems: set[int]) -> None:
@@ -296,10 +393,29 @@ def _bump_versions(session: Session, systems: set[int]) -> None:
                         .values(version=System.version + 1).execution_options(synchronize_session=False))
 
 
-def _delete_source(session: Session, source: str) -> int:
-    """Delete the source's rows in the open transaction; returns how many."""
-    result = session.execute(sa.delete(Prediction).where(Prediction.source == source))
+def _delete_source(session: Session, source: str, frames: list[int]) -> int:
+    """Delete the source's rows on ``frames`` in the open transaction; returns how many."""
+    result = session.execute(sa.delete(Prediction).where(Prediction.source == source, Prediction.frame_id.in_(frames)))
     return int(cast("sa.CursorResult[Any]", result).rowcount or 0)
+
+
+class _CheckedBest(BestDetections):
+    """:class:`BestDetections` of a detector's file (keyed by view stem) that refuses a score outside [0, 1] as it is
+    read, kept or not: every detection of the file is checked."""
+
+    def __init__(self, per_image: int, path: Path) -> None:
+        super().__init__(per_image)
+        self.path = path
+
+    def add(self, image_id: Hashable, box: Sequence[float], score: float) -> None:
+        """:meth:`BestDetections.add` of a checked score.
+
+        Raises:
+            DatasetError: a score outside [0, 1] (the view's stem named).
+        """
+        if not 0.0 <= float(score) <= 1.0:
+            raise DatasetError(self.path, f"{image_id} score", f"{float(score):g} is not in [0, 1]")
+        super().add(image_id, box, score)
 
 
 @dataclass(frozen=True)
@@ -332,12 +448,13 @@ class _StemView:
     system_id: int
 
 
-def _detector_rows(session: Session, path: Path) -> Iterator[_Resolved]:
+def _detector_rows(session: Session, path: Path, keep: BestDetections) -> Iterator[_Resolved]:
     """The detections of YOLO txt files or a COCO results JSON (``app.services.evaluation.monocular.load_predictions``,
     the monocular benchmark's readers: YOLO files matched by stem, COCO results by ``coco_image_id(stem)``, the ball
     class from ``data.yaml`` or 0, category 1), on every stored view named as the YOLO and COCO exports name it
-    (``KindPolicy.view_stem``); a YOLO file of an image v3d does not hold is named by its stem, COCO results of one
-    are counted."""
+    (``KindPolicy.view_stem``): the best ``keep.per_image`` of each view, chosen as the file is read
+    (``keep.dropped`` counts the others); a YOLO file of an image v3d does not hold is named by its stem, COCO results
+    of one are counted."""
     from sqlalchemy.orm import selectinload
 
     from app.services.evaluation.monocular import load_predictions
@@ -345,10 +462,8 @@ def _detector_rows(session: Session, path: Path) -> Iterator[_Resolved]:
     views = [_StemView(kind_of(f.system).view_stem(f.system.game, f), f.width, f.height, f.id, f.system_id)
              for f in session.scalars(sa.select(Frame).options(selectinload(Frame.system).selectinload(System.game)))]
     by_stem = {v.stem: v for v in views}
-    dets, ignored = load_predictions(path, views)
+    dets, ignored = load_predictions(path, views, keep=keep)
     for stem, box, score in zip(dets.image_ids, dets.boxes, dets.scores, strict=True):
-        if not 0.0 <= float(score) <= 1.0:
-            raise DatasetError(path, f"{stem} score", f"{float(score):g} is not in [0, 1]")
         v = by_stem[str(stem)]
         b = (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
         yield _Resolved(f"{stem} box", str(stem), [(v.frame_id, v.system_id, v.width, v.height)], b, float(score))
@@ -359,27 +474,30 @@ def _detector_rows(session: Session, path: Path) -> Iterator[_Resolved]:
         yield _Resolved("", next(named, last), [], (0.0, 0.0, 1.0, 1.0), 0.0)
 
 
-def _write(session: Session, batch: list[dict[str, Any]]) -> int:
-    """Insert ``batch`` (emptied) in the open transaction; returns how many rows."""
-    n = len(batch)
-    if batch:
-        session.execute(sa.insert(Prediction), batch)
-        batch.clear()
-    return n
-
-
 def remove_predictions(session: Session, settings: Settings, source: str, actor: str | None = None) -> int:
     """Delete every prediction of ``source`` and recompute the systems they touched; returns how many were deleted
-    (0: no such source)."""
-    begin_write(session)
-    systems = sorted(_systems_of(session, source))
-    n = _delete_source(session, source)
-    _bump_versions(session, set(systems))
+    (0: no such source). Written in batches of :data:`BATCH_FRAMES` frames, each its own short write transaction
+    (the frame's predictions and its system's version together), as an import writes."""
+    earlier = _frames_of(session, source)
+    end_reads(session)
+    frames, n = sorted(earlier), 0
+    for start in range(0, len(frames), BATCH_FRAMES):
+        chunk = frames[start:start + BATCH_FRAMES]
+        begin_write(session)
+        try:
+            _bump_versions(session, {earlier[f] for f in chunk})
+            n += _delete_source(session, source, chunk)
+            session.commit()
+        except BaseException:
+            session.rollback()
+            raise
     if n:
+        begin_write(session)
         record_summary(session, "import", {"kind": "predictions", "source": source, "removed": n}, actor=actor)
-    session.commit()
-    recompute_systems_by_id(session, systems, settings, None, {"reason": f"predictions {source} removed"}, actor)
-    return int(n or 0)
+        session.commit()
+    recompute_systems_by_id(session, sorted(set(earlier.values())), settings, None,
+                            {"reason": f"predictions {source} removed"}, actor)
+    return n
 
 
 def prediction_sources(session: Session) -> list[dict[str, Any]]:

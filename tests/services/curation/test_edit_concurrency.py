@@ -68,7 +68,7 @@ def _stored_and_fresh_ball(factory: Callable[[], Session], system_id: int, setti
     """The stored 3D ball of the system and the one a recomputation from its stored labels gives (after
     ``change`` of them in memory; nothing is written)."""
     with factory() as s:
-        system = load_for_recompute(s, [system_id])[system_id]
+        system = load_for_recompute(s, [system_id], predictions=settings.max_predictions_per_frame)[system_id]
         stored = list(system.triangulation.ball3d)
         if change is not None:
             change(system)
@@ -132,7 +132,8 @@ def _pairs_and_doubts(factory: Callable[[], Session], system_id: int, settings: 
     """The system's stored pair and doubt rows (id first), or, given ``settings``, the ones a recomputation from its
     stored labels gives (ids None; nothing is written)."""
     with factory() as s:
-        system = load_for_recompute(s, [system_id])[system_id]
+        per_frame = None if settings is None else settings.max_predictions_per_frame
+        system = load_for_recompute(s, [system_id], predictions=per_frame)[system_id]
         if settings is not None:
             with s.no_autoflush:
                 recompute_system(s, system, settings)
@@ -180,7 +181,8 @@ def test_a_recomputation_leaves_rows_whose_values_it_keeps_out_of_the_flush(data
         return {a.key for a in sa.inspect(obj).attrs if a.history.has_changes()}
 
     with factory() as s:
-        system = load_for_recompute(s, [scene.system_id])[scene.system_id]
+        system = load_for_recompute(s, [scene.system_id],
+                                    predictions=settings.max_predictions_per_frame)[scene.system_id]
         with s.no_autoflush:
             recompute_system(s, system, settings)
             assert {type(o) for o in s.dirty} == {Triangulation, System}

@@ -41,7 +41,7 @@ def test_load_systems_reads_what_the_lazy_loads_read_in_five_queries(shared_dir:
     engine = session.get_bind()
     sa.event.listen(engine, "before_cursor_execute", count)
     try:
-        loaded = load_systems(session, [*reversed(ids), 999_999], (System.review, System.game))
+        loaded = load_systems(session, [*reversed(ids), 999_999], (System.review, System.game), predictions=16)
         assert [s.split()[0] for s in statements] == ["SELECT"] * 5  # one per list (predictions too), any count
         statements.clear()
         assert {sid: _shape(s) for sid, s in loaded.items()} == lazy
@@ -56,6 +56,6 @@ def test_load_systems_reads_what_the_lazy_loads_read_in_five_queries(shared_dir:
     pending = Doubt(kind="test", accuses_label=False, message="pending", evidence={})
     system.doubts.append(pending)
     with session.no_autoflush:
-        again = load_systems(session, [ids[0]])[ids[0]]
+        again = load_systems(session, [ids[0]], predictions=16)[ids[0]]
     assert again is system and pending in again.doubts and len(again.doubts) == len(lazy[ids[0]][5]) + 1
     session.rollback()

@@ -60,7 +60,7 @@ def test_shared_pair_geometry_changes_no_derived_row_of_the_dev_set(shared_dir: 
         monkeypatch.setattr(cameras, "PAIR_GEOMETRY", memo)
         out = {}
         with session.no_autoflush:
-            systems = load_for_recompute(session, ids)
+            systems = load_for_recompute(session, ids, predictions=settings.max_predictions_per_frame)
             for sid in ids:
                 recompute_system(session, systems[sid], settings)
                 out[sid] = _derived(systems[sid])
@@ -89,7 +89,8 @@ def test_an_edit_computes_only_the_pairs_of_the_view_it_changed(shared_dir: Path
     session = fresh_session_factory("dev")
     settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
     import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
-    systems = load_for_recompute(session, session.scalars(sa.select(System.id).order_by(System.id)).all())
+    systems = load_for_recompute(session, session.scalars(sa.select(System.id).order_by(System.id)).all(),
+                                 predictions=settings.max_predictions_per_frame)
     system = next(s for s in systems.values() if len(s.frames) == 4 and all(
         f.ball_label is not None and f.ball_label.box is not None and f.calibration is not None
         and f.calibration.admitted for f in s.frames))

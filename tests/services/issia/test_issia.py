@@ -389,8 +389,8 @@ def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(
     before = s13.trajectory_point.ball3d_smoothed
     loaded = []
     real = issia_refit.load_for_recompute
-    monkeypatch.setattr(issia_refit, "load_for_recompute", lambda session,
-                        ids: loaded.extend(ids) or real(session, ids))
+    monkeypatch.setattr(issia_refit, "load_for_recompute", lambda session, ids, **options:
+                        loaded.extend(ids) or real(session, ids, **options))
     view = next(f for f in _systems(db_session)[18].frames if f.ball_label is not None)
     update_ball_label(db_session, view.id, point=[view.ball_label.point[0] + 4.0, view.ball_label.point[1]],
                       settings=db_settings)

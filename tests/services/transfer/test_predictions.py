@@ -89,7 +89,7 @@ def test_a_malformed_file_names_its_line_and_stores_nothing(db_session, settings
 
 def test_a_large_file_streams_and_a_bad_last_line_stores_nothing(db_session, settings, imported, tmp_path):
     """Many megabytes of rows (half on stored frames), the last one broken: refused naming that line, nothing
-    stored (the rows before it were written in batches inside the one transaction, then rolled back)."""
+    stored (the whole file is checked before anything is written)."""
     game, f0 = _frames(db_session)[0]
     good = _row(game, f0.name, (100, 100, 120, 120))
     unknown = _row(game, "x.png", (1, 1, 5, 5))
