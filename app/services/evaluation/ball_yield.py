@@ -84,13 +84,14 @@ def truth_balls(truth: Mapping[str, Any]) -> dict[tuple[str, str], np.ndarray]:
     return out
 
 
-def _systems(session: Session, batch: int) -> Iterator[tuple[str, System]]:
-    """Every multi-view system with its game's match, ``batch`` at a time (what the recomputation loads)."""
+def _systems(session: Session, batch: int, predictions: int) -> Iterator[tuple[str, System]]:
+    """Every multi-view system with its game's match, ``batch`` at a time (what the recomputation loads, at most
+    ``predictions`` a view)."""
     rows = session.execute(sa.select(System.id, Game.match).join(Game, Game.id == System.game_id)
                            .order_by(System.id)).all()
     for start in range(0, len(rows), batch):
         chunk = rows[start:start + batch]
-        loaded = load_for_recompute(session, [r.id for r in chunk])
+        loaded = load_for_recompute(session, [r.id for r in chunk], predictions=predictions)
         for r in chunk:
             yield r.match, loaded[r.id]
         session.expunge_all()
@@ -103,7 +104,7 @@ def ball_yield(session: Session, settings: Settings, truth: Mapping[str, Any] | 
     true = truth_balls(truth) if truth is not None else None
     counts = {rule: {"with_ball": 0, "right": 0, "wrong": 0} for rule in ("paper", "v3d")}
     n = matched = 0
-    for match, system in _systems(session, batch):
+    for match, system in _systems(session, batch, settings.max_predictions_per_frame):
         n += 1
         t = None if true is None else true.get((match, system.name))
         matched += t is not None
