@@ -75,6 +75,11 @@ export const WORDS = /*WORDS*/{
    "chip": "rig position",
    "means": "fitted at a known camera position of the game"
   },
+  "player_assisted": {
+   "tone": "info",
+   "chip": "placed by players",
+   "means": "fitted to where the players it shares with the well-lined views stand (their foot points, drawn as small markers), with whatever lines it has"
+  },
   "learned_prior": {
    "chip": "learned prior",
    "means": "fitted with the camera prior learned from the dataset"

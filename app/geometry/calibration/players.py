@@ -399,8 +399,14 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
             else:
                 chosen = best
     if chosen is None and len(keys) >= s.min_players_free:
-        start = _free_start(problem)
-        cand = _best(problem, [start], loss_px, None) if start is not None else None
+        # A full pose from the ground homography, and from the best rig fits with their centre freed (a camera
+        # near, not at, a rig position).
+        starts = [start] if (start := _free_start(problem)) is not None else []
+        for fitted in fits[:2]:
+            f, R, C, _ = fitted.param.split(fitted.x)
+            free = CameraParametrisation(principal_point=problem.pp, R0=np.asarray(R))
+            starts.append((free, free.vector(float(f), np.asarray(C, float))))
+        cand = _best(problem, starts, loss_px, None) if starts else None
         if cand is not None:
             verdict = _judge(problem, cand, s)
             if isinstance(verdict, PlayerRefusal):
