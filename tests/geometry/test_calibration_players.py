@@ -45,8 +45,10 @@ def feet_in(camera: Camera, grass: dict, noise_px: float = 0.0, rng: np.random.G
 
 
 def as_grass(points: dict) -> dict:
-    anchor = camera_at(np.array([0.0, 60.0, -14.0]), (-35.0, 0.0, 0.0), 1400.0)
-    return players_on_grass([(anchor, feet_in(anchor, points))])
+    """Where the players stand as two well-lined views of their system see them (the main camera, a replay)."""
+    anchors = [camera_at(np.array([0.0, 60.0, -14.0]), (-35.0, 0.0, 0.0), 1800.0),
+               camera_at(np.array([-20.0, 45.0, -10.0]), (-35.0, 0.0, 0.0), 2400.0)]
+    return players_on_grass([(a, feet_in(a, points)) for a in anchors])
 
 
 def ball_error(fit: PlayerFit, truth: Camera) -> float:
@@ -55,8 +57,9 @@ def ball_error(fit: PlayerFit, truth: Camera) -> float:
 
 
 def test_foot_point_is_the_bottom_centre_and_a_cut_box_has_none() -> None:
-    assert foot_pixel((10, 20, 30, 80), H).tolist() == [20.0, 80.0]
-    assert foot_pixel((10, 20, 30, H - 1), H) is None
+    assert foot_pixel((10, 20, 30, 80), W, H).tolist() == [20.0, 80.0]
+    assert foot_pixel((10, 20, 30, H - 1), W, H) is None  # feet cut off
+    assert foot_pixel((0, 20, 30, 80), W, H) is None  # half a player: its centre moved
 
 
 def test_a_foot_point_goes_back_to_where_the_player_stands() -> None:

@@ -30,7 +30,6 @@ from typing import Mapping, Sequence
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
 from app.geometry.annotations import FieldLines, image_diagonal
 from app.geometry.calibration.initialisation import camera_from_homography, wahba_rotation
@@ -58,16 +57,19 @@ class PlayerFitSettings:
     Attributes:
         min_players_rig: fewest players matched for a fit at a rig position (4 unknowns; two players fix them).
         min_players_free: fewest players for a full pose (7 unknowns) without a rig position that fits.
-        loss_scale_px: soft-L1 loss scale of a foot point's residual (box noise and the foot point's offset
-            from where the player stands, px@1920).
-        max_rms_px: largest RMS residual of the inlying foot points of an accepted fit (px@1920).
-        inlier_px: a foot point farther than this from its player's projection is an outlier (px@1920).
+        loss_scale: soft-L1 loss scale of a foot point's residual, in its standard deviations (each foot point's
+            residual is whitened by what its own box and where the other views put the player allow,
+            :func:`players_on_grass`).
+        max_rms: largest RMS whitened residual of the inlying foot points of an accepted fit.
+        inlier_sigma: a foot point farther than this many standard deviations from its player's projection is an
+            outlier.
         min_inlier_share: smallest share of the matched players that must be inliers.
         rig_margin: a rig position is chosen only when every other position more than ``rig_same_m`` away fits
             with a robust cost at least this many times the best's.
         rig_same_m: positions closer than this (m) count as the same place.
-        max_sigma_px: largest pixel uncertainty (px@1920) accepted of a point where the players stand
-            (:func:`projection_sigma_px`).
+        rig_refined: the rig positions whose starts come closest that are refined (the others cannot win).
+        max_sigma_px: largest pixel uncertainty (px@1920) accepted of a point where the play is (the players'
+            centre on the grass and 3 m up, :func:`projection_sigma_px`), the players' own uncertainty included.
         min_spread_px: the foot points must spread at least this far (px@1920, the smaller singular value of
             their centred pixels over sqrt(n)) off one image line.
         line_limit_gamma: every fitted line class within this fraction of the image diagonal of its model
@@ -77,14 +79,15 @@ class PlayerFitSettings:
 
     min_players_rig: int = 3
     min_players_free: int = 6
-    loss_scale_px: float = 3.0
-    max_rms_px: float = 6.0
-    inlier_px: float = 12.0
+    loss_scale: float = 2.0
+    max_rms: float = 2.5
+    inlier_sigma: float = 4.0
     min_inlier_share: float = 0.7
     rig_margin: float = 3.0
+    rig_refined: int = 3
     rig_same_m: float = 5.0
-    max_sigma_px: float = 8.0
-    min_spread_px: float = 15.0
+    max_sigma_px: float = 10.0
+    min_spread_px: float = 4.0
     line_limit_gamma: float = 0.03
     border_px: float = 2.0
 
@@ -97,6 +100,9 @@ class GrassPlayer:
     point_m: tuple[float, float]
     views: int
     spread_m: float
+    #: (2, 2) covariance of ``point_m`` (m^2): each view's foot-pixel noise (:data:`FOOT_SIGMA_PX`) carried to the
+    #: ground through its camera, with the footprint's own (:data:`FOOT_OFFSET_SIGMA_M`), fused by information.
+    cov_m2: tuple[tuple[float, float], tuple[float, float]] = ((0.01, 0.0), (0.0, 0.01))
 
 
 @dataclass(frozen=True)
@@ -139,11 +145,14 @@ class PlayerRefusal:
     numbers: Mapping[str, float] = field(default_factory=dict)
 
 
-def foot_pixel(box: Sequence[float], height: int, border_px: float = 2.0) -> np.ndarray | None:
+def foot_pixel(box: Sequence[float], width: int, height: int, border_px: float = 2.0) -> np.ndarray | None:
     """The foot point of a player's box ``(x1, y1, x2, y2)`` (px): the bottom centre, or None when the box reaches
-    within ``border_px`` of the bottom edge of an image ``height`` px high (the feet are cut off)."""
+    within ``border_px`` of the bottom, left or right edge of a ``width`` x ``height`` image (the player is cut off:
+    its feet, or half of it, which moves the centre)."""
     x1, y1, x2, y2 = (float(v) for v in box)
-    if not all(math.isfinite(v) for v in (x1, y1, x2, y2)) or y2 >= height - 1 - border_px or y2 <= y1:
+    if not all(math.isfinite(v) for v in (x1, y1, x2, y2)) or y2 <= y1:
+        return None
+    if y2 >= height - 1 - border_px or x1 <= border_px or x2 >= width - 1 - border_px:
         return None
     return np.array([(x1 + x2) / 2.0, y2])
 
@@ -153,6 +162,12 @@ def foot_pixel(box: Sequence[float], height: int, border_px: float = 2.0) -> np.
 #: footprint. The median over the views of ``soccernet-v3-dev-large`` against its true players (0.39-0.42 m at every
 #: distance from the camera, 899 boxes of 3 games); without it a foot point is 5-10 px@1920 off below the player.
 FOOT_OFFSET_M = 0.4
+
+
+#: Standard deviation of a foot pixel (px@1920): the box's noise and the bottom edge's wobble with the pose.
+FOOT_SIGMA_PX = 2.0
+#: Standard deviation (m) of where a player stands beyond :data:`FOOT_OFFSET_M` (stance, footprint).
+FOOT_OFFSET_SIGMA_M = 0.1
 
 
 def grass_point(camera: Camera, pixel: np.ndarray, offset_m: float = FOOT_OFFSET_M) -> np.ndarray | None:
@@ -192,25 +207,35 @@ def players_on_grass(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray
             ID or a box on two players).
 
     Returns:
-        key -> :class:`GrassPlayer` (the median of the views' ground points), players inside the pitch and a
-        margin of 5 m only.
+        key -> :class:`GrassPlayer` (the views' ground points weighted by their inverse covariances, and that
+        covariance), players inside the pitch and a margin of 5 m only.
     """
-    seen: dict[PlayerKey, list[np.ndarray]] = {}
+    seen: dict[PlayerKey, list[tuple[np.ndarray, np.ndarray]]] = {}
     for camera, feet in views:
+        sigma = FOOT_SIGMA_PX * float(camera.K[0, 2] * 2 + 1) / REFERENCE_WIDTH_PX  # px of this view
         for key, uv in feet.items():
             p = grass_point(camera, uv)
-            if p is not None:
-                seen.setdefault(key, []).append(p)
+            if p is None:
+                continue
+            px, py = grass_point(camera, uv + [0.5, 0.0]), grass_point(camera, uv + [0.0, 0.5])
+            if px is None or py is None:
+                continue
+            J = np.column_stack([(px - p) / 0.5, (py - p) / 0.5])  # metres per pixel
+            cov = sigma**2 * J @ J.T + FOOT_OFFSET_SIGMA_M**2 * np.eye(2)
+            seen.setdefault(key, []).append((p, cov))
     out: dict[PlayerKey, GrassPlayer] = {}
     for key, points in seen.items():
-        P = np.array(points)
-        centre = np.median(P, axis=0)
+        P = np.array([p for p, _ in points])
+        info = [np.linalg.inv(c) for _, c in points]
+        cov = np.linalg.inv(sum(info))
+        centre = cov @ sum(i @ p for i, (p, _) in zip(info, points, strict=True))
         spread = float(np.max(np.linalg.norm(P - centre, axis=1)))
-        if spread > max_spread_m:
+        if len(points) > 1 and spread > max_spread_m:
             continue
         if abs(centre[0]) > PITCH_LENGTH_M / 2 + 5.0 or abs(centre[1]) > PITCH_WIDTH_M / 2 + 5.0:
             continue
-        out[key] = GrassPlayer(point_m=(float(centre[0]), float(centre[1])), views=len(points), spread_m=spread)
+        out[key] = GrassPlayer(point_m=(float(centre[0]), float(centre[1])), views=len(points), spread_m=spread,
+                               cov_m2=((float(cov[0, 0]), float(cov[0, 1])), (float(cov[1, 0]), float(cov[1, 1]))))
     return out
 
 
@@ -264,36 +289,120 @@ class _Problem:
     width: int
     height: int
     scale: float            # px of the view per px@1920
+    cov_g: np.ndarray       # (n, 2, 2) covariance of each grass point, m^2
 
     def __post_init__(self) -> None:
         self.obs = build_observations(self.lines) if self.lines else None
         if self.obs is not None and self.obs.n_points == 0:
             self.obs = None
+        self.sigma_px = FOOT_SIGMA_PX * self.scale
+        self.line_sigma = max(1.0, self.scale)  # annotation clicks (:data:`.uncertainty.MIN_LINE_NOISE_PX` at 1920)
+        self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
 
-    def rows(self, x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
-        """Every residual (px): the foot points' (x, y) then the lines'."""
+    def rewhiten(self, x: np.ndarray, param: CameraParametrisation) -> None:
+        """Whiten each foot point's residual by its covariance under the camera ``x``: its own pixel noise and its
+        grass point's covariance carried into this view (``J cov_g J^T + sigma^2 I``, ``J`` the projection's
+        Jacobian with respect to the ground point)."""
         f, R, C, _ = param.split(x)
         C = np.asarray(C, float)
-        r = (_project(float(f), R, C, self.pp, foot_world(self.world[:, :2], C)) - self.uv).ravel()
+        base = _project(float(f), R, C, self.pp, foot_world(self.world[:, :2], C))
+        J = np.empty((len(self.uv), 2, 2))
+        for j in range(2):
+            moved = self.world[:, :2].copy()
+            moved[:, j] += 0.01
+            J[:, :, j] = (_project(float(f), R, C, self.pp, foot_world(moved, C)) - base) / 0.01
+        cov = np.einsum("nij,njk,nlk->nil", J, self.cov_g, J) + self.sigma_px**2 * np.eye(2)
+        try:
+            self.L = np.linalg.inv(np.linalg.cholesky(cov))
+        except np.linalg.LinAlgError:
+            self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
+
+    def pixel_errors(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
+        """Each foot point's distance (px) from its player's projection, and in its standard deviations."""
+        r = self.rows_batch(np.asarray(x, float)[None], param, whiten=False)[0][:2 * len(self.uv)].reshape(-1, 2)
+        return np.linalg.norm(r, axis=1), np.linalg.norm(np.einsum("nij,nj->ni", self.L, r), axis=1)
+
+    def rows(self, x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
+        """Every residual (px) of one vector ``x``: the foot points' (x, y) then the lines'."""
+        return self.rows_batch(np.asarray(x, float)[None], param)[0]
+
+    def rows_batch(self, X: np.ndarray, param: CameraParametrisation, whiten: bool = True) -> np.ndarray:
+        """:meth:`rows` of the vectors ``X`` (b, k) at once -> (b, 2 n + m) (the lines' in one compiled call):
+        whitened (the foot points' by :meth:`rewhiten`, the lines' by their click noise), or in px."""
+        f, R, C, _ = param.split(X)
+        f = np.asarray(f, float).reshape(-1)
+        R = np.asarray(R, float).reshape(-1, 3, 3)
+        C = np.asarray(C, float).reshape(-1, 3)
+        g = self.world[:, :2]
+        towards = C[:, None, :2] - g[None]
+        norm = np.linalg.norm(towards, axis=2, keepdims=True)
+        P = np.concatenate([g[None] + FOOT_OFFSET_M * towards / np.where(norm > 1e-9, norm, 1.0),
+                            np.zeros(towards.shape[:2] + (1,))], axis=2)
+        Xc = np.einsum("bij,bnj->bni", R, P - C[:, None, :])
+        z = Xc[..., 2]
+        bad = z <= 1e-6
+        uv = f[:, None, None] * Xc[..., :2] / np.where(bad, 1.0, z)[..., None] + self.pp
+        uv[bad] = 1e6
+        d = uv - self.uv[None]
+        if whiten:
+            d = np.einsum("nij,bnj->bni", self.L, d)
+        r = d.reshape(len(X), -1)
         if self.obs is not None:
-            r = np.concatenate([r, residuals(x, self.obs, param)])
+            lr = residuals(np.ascontiguousarray(X), self.obs, param).reshape(len(X), -1)
+            r = np.concatenate([r, lr / self.line_sigma if whiten else lr], axis=1)
         return r
 
-    def fit(self, param: CameraParametrisation, x0: np.ndarray, loss_px: float) -> tuple[np.ndarray, float]:
-        """Robust least squares from ``x0``: the vector and its robust cost."""
-        res = least_squares(self.rows, x0, args=(param,), loss="soft_l1", f_scale=loss_px, method="trf",
-                            x_scale="jac", max_nfev=200)
-        return res.x, float(res.cost)
+    def jacobian(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals (m,) at ``x`` and their forward-difference Jacobian (m, k), in one batched evaluation."""
+        steps = _steps(x, param)
+        X = np.vstack([x, x + np.diag(steps)])
+        rr = self.rows_batch(X, param)
+        return rr[0], ((rr[1:] - rr[0]) / steps[:, None]).T
+
+    def fit(self, param: CameraParametrisation, x0: np.ndarray, loss_px: float,
+            iterations: int = 30) -> tuple[np.ndarray, float]:
+        """Robust Levenberg-Marquardt from ``x0`` (iteratively reweighted, soft-L1 loss of scale ``loss_px``, as
+        ``scipy.optimize.least_squares(loss="soft_l1")`` defines it): the vector and its robust cost."""
+        def cost_of(r: np.ndarray) -> float:
+            z = (r / loss_px) ** 2
+            return float(0.5 * loss_px**2 * np.sum(2.0 * (np.sqrt(1.0 + z) - 1.0)))
+
+        x = np.asarray(x0, float).copy()
+        r, J = self.jacobian(x, param)
+        cost, lam = cost_of(r), 1e-3
+        for _ in range(iterations):
+            w = 1.0 / np.sqrt(1.0 + (r / loss_px) ** 2)  # the soft-L1 loss's weights (IRLS)
+            A = (J * w[:, None]).T @ J
+            gvec = (J * w[:, None]).T @ r
+            try:
+                dx = -np.linalg.solve(A + lam * np.diag(np.maximum(np.diag(A), 1e-12)), gvec)
+            except np.linalg.LinAlgError:
+                break
+            r_new = self.rows(x + dx, param)
+            new = cost_of(r_new)
+            if np.isfinite(new) and new < cost:
+                small = cost - new < 1e-9 * max(cost, 1e-12) or np.linalg.norm(dx) < 1e-10 * (np.linalg.norm(x) + 1e-10)
+                x, cost, lam = x + dx, new, max(lam / 3.0, 1e-9)
+                if small:
+                    break
+                r, J = self.jacobian(x, param)
+            else:
+                lam *= 4.0
+                if lam > 1e8:
+                    break
+        return x, cost
 
 
-def _rig_starts(problem: _Problem, centre: np.ndarray) -> list[tuple[CameraParametrisation, np.ndarray]]:
+def _rig_starts(problem: _Problem, centre: np.ndarray
+                ) -> tuple[float, list[tuple[CameraParametrisation, np.ndarray]]]:
     """Starting rotations and focal lengths at a fixed ``centre``: for a series of focal lengths, the Wahba rotation
-    of the foot points' image rays onto their world directions; the two with the smallest reprojection error."""
+    of the foot points' image rays onto their world directions; the two with the smallest median reprojection error
+    (px), and that error."""
     world = foot_world(problem.world[:, :2], centre)
     world_dirs = world - centre
     world_dirs /= np.linalg.norm(world_dirs, axis=1, keepdims=True)
     scored = []
-    for f in np.geomspace(0.4, 12.0, 28) * problem.width:
+    for f in np.geomspace(0.4, 12.0, 20) * problem.width:
         cam = np.column_stack([(problem.uv - problem.pp) / f, np.ones(len(problem.uv))])
         cam /= np.linalg.norm(cam, axis=1, keepdims=True)
         R = wahba_rotation(cam, world_dirs)
@@ -304,7 +413,7 @@ def _rig_starts(problem: _Problem, centre: np.ndarray) -> list[tuple[CameraParam
     for _, f, R in scored[:2]:
         param = CameraParametrisation(principal_point=problem.pp, R0=R, fixed_centre=np.asarray(centre, float))
         out.append((param, param.vector(f, centre)))
-    return out
+    return scored[0][0], out
 
 
 def _free_start(problem: _Problem) -> tuple[CameraParametrisation, np.ndarray] | None:
@@ -329,12 +438,17 @@ class _Candidate:
     rig_index: int | None
 
 
-def _best(problem: _Problem, starts: list[tuple[CameraParametrisation, np.ndarray]], loss_px: float,
+def _best(problem: _Problem, starts: list[tuple[CameraParametrisation, np.ndarray]], loss: float,
           rig_index: int | None) -> _Candidate | None:
+    """The best of the robust fits from ``starts``: each fitted with the foot points whitened at its start, then
+    again whitened at its solution (the whitening depends on the camera)."""
     best = None
     for param, x0 in starts:
         try:
-            x, cost = problem.fit(param, x0, loss_px)
+            problem.rewhiten(x0, param)
+            x, cost = problem.fit(param, x0, loss)
+            problem.rewhiten(x, param)
+            x, cost = problem.fit(param, x, loss)
         except (ValueError, np.linalg.LinAlgError, FloatingPointError):
             continue
         if not np.all(np.isfinite(x)) or x[0] <= 0:
@@ -372,14 +486,21 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
     if spread < s.min_spread_px * scale:
         return PlayerRefusal("collinear_players", {"spread_px": spread, "limit_px": s.min_spread_px * scale})
     problem = _Problem(uv=uv, world=world, lines=dict(lines), pp=principal_point(width, height), width=width,
-                       height=height, scale=scale)
-    loss_px = s.loss_scale_px * scale
-    fits = []
+                       height=height, scale=scale, cov_g=np.array([grass[k].cov_m2 for k in keys], float))
+    loss_px = s.loss_scale
+    # Every position's starts are cheap (a Wahba rotation per focal length); only the positions whose starts come
+    # closest are refined (the best and its nearest rivals, which the margin compares).
+    ranked = []
     for i, c in enumerate(rig_centres):
         centre = np.asarray(c, float)
         if centre.shape != (3,) or not np.all(np.isfinite(centre)) or centre[2] >= 0:
             continue
-        cand = _best(problem, _rig_starts(problem, centre), loss_px, i)
+        error, starts = _rig_starts(problem, centre)
+        ranked.append((error, i, starts))
+    ranked.sort(key=lambda t: t[0])
+    fits = []
+    for k, (_, i, starts) in enumerate(ranked[:s.rig_refined]):
+        cand = _best(problem, starts if k == 0 else starts[:1], loss_px, i)
         if cand is not None:
             fits.append(cand)
     fits.sort(key=lambda c: c.cost)
@@ -401,12 +522,12 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
     if chosen is None and len(keys) >= s.min_players_free:
         # A full pose from the ground homography, and from the best rig fits with their centre freed (a camera
         # near, not at, a rig position).
-        starts = [start] if (start := _free_start(problem)) is not None else []
+        free_starts = [start] if (start := _free_start(problem)) is not None else []
         for fitted in fits[:2]:
             f, R, C, _ = fitted.param.split(fitted.x)
             free = CameraParametrisation(principal_point=problem.pp, R0=np.asarray(R))
-            starts.append((free, free.vector(float(f), np.asarray(C, float))))
-        cand = _best(problem, starts, loss_px, None) if starts else None
+            free_starts.append((free, free.vector(float(f), np.asarray(C, float))))
+        cand = _best(problem, free_starts, loss_px, None) if free_starts else None
         if cand is not None:
             verdict = _judge(problem, cand, s)
             if isinstance(verdict, PlayerRefusal):
@@ -422,14 +543,14 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
 def _judge(problem: _Problem, cand: _Candidate, s: PlayerFitSettings) -> PlayerRefusal | None:
     """Refuse a fit whose foot points or lines are far from it."""
     n = len(problem.uv)
-    r = problem.rows(cand.x, cand.param)
-    d = np.hypot(r[0:2 * n:2], r[1:2 * n:2])
-    inl = d <= s.inlier_px * problem.scale
+    problem.rewhiten(cand.x, cand.param)
+    _, d = problem.pixel_errors(cand.x, cand.param)
+    inl = d <= s.inlier_sigma
     if inl.sum() < max(s.min_players_rig, math.ceil(s.min_inlier_share * n)):
         return PlayerRefusal("players_misfit", {"inliers": int(inl.sum()), "players": n})
     rms = float(np.sqrt(np.mean(d[inl] ** 2)))
-    if rms > s.max_rms_px * problem.scale:
-        return PlayerRefusal("players_misfit", {"rms_px": rms, "limit_px": s.max_rms_px * problem.scale})
+    if rms > s.max_rms:
+        return PlayerRefusal("players_misfit", {"rms_sigma": rms, "limit": s.max_rms})
     if problem.obs is not None:
         camera = cand.param.camera(cand.x)
         limit = s.line_limit_gamma * image_diagonal(problem.width, problem.height)
@@ -456,13 +577,12 @@ def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: Pla
     f, R, C, _ = param.split(x)
     param = CameraParametrisation(principal_point=problem.pp, R0=np.asarray(R), fixed_centre=param.fixed_centre)
     x = param.vector(float(f), np.asarray(C, float))
+    problem.rewhiten(x, param)
     r0 = problem.rows(x, param)
-    d = np.hypot(r0[0:2 * n:2], r0[1:2 * n:2])
-    inl = d <= s.inlier_px * problem.scale
+    d_px, d = problem.pixel_errors(x, param)
+    inl = d <= s.inlier_sigma
     keep = np.concatenate([np.repeat(inl, 2), np.ones(len(r0) - 2 * n, dtype=bool)])
-    steps = _steps(x, param)
-    J = np.stack([(problem.rows(x + np.eye(len(x))[j] * steps[j], param) - r0) / steps[j] for j in range(len(x))],
-                 axis=1)[keep]
+    J = problem.jacobian(x, param)[1][keep]
     sigma = line_noise(r0[keep], len(x))
     uncertainty = uncertainty_from_jacobian(param, J, sigma, int(keep.sum()))
     camera = param.camera(x)
@@ -471,7 +591,7 @@ def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: Pla
     cov, undetermined = parameter_covariance(J, sigma)
     if np.any(undetermined):
         return PlayerRefusal("camera_unsure", {"sigma_px": math.inf, "limit_px": s.max_sigma_px})
-    here = problem.world[inl]
+    here = problem.world[inl].mean(axis=0, keepdims=True)  # where the play is: the players' centre
     probe = np.vstack([here, here + [0.0, 0.0, -3.0]])
     sigma_px = projection_sigma_px(problem, param, x, cov, probe) / problem.scale
     if not sigma_px <= s.max_sigma_px:
@@ -480,10 +600,10 @@ def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: Pla
     residuals_px: dict[str, float] = {}
     if problem.obs is not None:
         residuals_px = _class_worst(camera, problem)
-        lr = r0[2 * n:]
+        lr = r0[2 * n:] * problem.line_sigma
         line_rms = float(np.sqrt(np.mean(lr ** 2))) if len(lr) else None
     used = tuple((keys[i], (float(problem.uv[i, 0]), float(problem.uv[i, 1])),
                   (float(problem.world[i, 0]), float(problem.world[i, 1]))) for i in range(n) if inl[i])
     return PlayerFit(camera=camera, uncertainty=uncertainty, rig_index=cand.rig_index, players=used,
-                     rms_px=float(np.sqrt(np.mean(d[inl] ** 2))), residuals_px=residuals_px, line_rms_px=line_rms,
+                     rms_px=float(np.sqrt(np.mean(d_px[inl] ** 2))), residuals_px=residuals_px, line_rms_px=line_rms,
                      sigma_px=sigma_px)

@@ -48,15 +48,15 @@ def frame_players(frame: Frame) -> list[PlayerRow]:
     return [(p.cls, p.ident, (p.x1, p.y1, p.x2, p.y2)) for p in frame.players]
 
 
-def feet_of(rows: Iterable[PlayerRow], height: int) -> dict[PlayerKey, np.ndarray]:
-    """Foot pixels (2,) by player (class, ID) of a view ``height`` px high; boxes without an ID, boxes cut by the
-    image's bottom edge and a (class, ID) boxed twice in the view are left out."""
+def feet_of(rows: Iterable[PlayerRow], width: int, height: int) -> dict[PlayerKey, np.ndarray]:
+    """Foot pixels (2,) by player (class, ID) of a ``width`` x ``height`` view; boxes without an ID, boxes cut by the
+    image's edges (``foot_pixel``) and a (class, ID) boxed twice in the view are left out."""
     out: dict[PlayerKey, np.ndarray] = {}
     twice: set[PlayerKey] = set()
     for cls, ident, box in rows:
         if ident is None:
             continue
-        uv = foot_pixel(box, height)
+        uv = foot_pixel(box, width, height)
         if uv is None:
             continue
         key = (cls, ident)
@@ -166,7 +166,7 @@ def place_by_players(system: System, settings: Settings, rig: CameraRig,
     anchors = [f for f in frames if is_anchor(f, settings)]
     if not anchors:
         return {}
-    feet = {id(f): feet_of(rows(f), f.height) for f in [*weak, *anchors]}
+    feet = {id(f): feet_of(rows(f), f.width, f.height) for f in [*weak, *anchors]}
     cameras = {id(f): Camera.from_soccernet(f.calibration.camera) for f in anchors}  # type: ignore[union-attr,arg-type]  # anchors are calibrated
     centres = [p.centre_m for p in rig.positions]
     out: dict[int, CalibrationFields | PlayerRefusal] = {}
