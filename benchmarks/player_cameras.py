@@ -75,48 +75,56 @@ def _players(frame: Frame) -> set[tuple[str, str]]:
 def score(name: str, db: Path) -> dict[str, Any]:
     """The counts of set ``name`` imported in ``db``."""
     truth = json.loads(SETS[name].with_name(SETS[name].name + ".truth.json").read_text())
+    with Session(sa.create_engine(f"sqlite:///{db}")) as session:
+        return score_session(session, truth)
+
+
+def score_session(session: Session, truth: dict[str, Any]) -> dict[str, int]:
+    """The counts of every stored system against ``truth`` (a synthetic set's truth file, parsed): ``weak`` /
+    ``strong`` views (module docstring) and how many of them have a camera within :data:`WITHIN_PX` of the true
+    ball (``*_right``), the weak views placed by players (``weak_by_players``, ``weak_by_players_right``), the weak
+    views without a camera, and the cameras placed by players anywhere that miss (``by_players_wrong``)."""
     views = {(g["match"], s["action"], v["image"]): (s["ball_3d"], v["camera"])
              for g in truth["games"] for s in g["systems"] for v in s["views"]}
     out = {k: 0 for k in ("weak", "weak_right", "weak_by_players", "weak_by_players_right", "weak_no_camera",
                           "strong", "strong_right", "by_players_wrong")}
-    with Session(sa.create_engine(f"sqlite:///{db}")) as session:
-        frames = selectinload(System.frames)
-        systems = session.scalars(sa.select(System).options(
-            selectinload(System.game), frames.selectinload(Frame.calibration), frames.selectinload(Frame.field_lines),
-            frames.selectinload(Frame.players))).all()
-        for system in systems:
-            strong_players: dict[int, set[tuple[str, str]]] = {
-                f.id: _players(f) for f in system.frames if _classes(f) >= 4}
-            for f in system.frames:
-                ball, true_cam = views[(system.game.match, system.name, f.name)]
-                true = Camera.from_soccernet(true_cam)
-                uv_true, ok = true.project(np.array([ball], float))
-                if not ok[0] or not (0 <= uv_true[0, 0] < f.width and 0 <= uv_true[0, 1] < f.height):
-                    continue
-                n = _classes(f)
-                shared = set().union(*[p for fid, p in strong_players.items() if fid != f.id]) & _players(f)
-                if n >= 4:
-                    kind = "strong"
-                elif len(shared) >= 4:
-                    kind = "weak"
-                else:
-                    continue
-                cal = f.calibration
-                right = False
-                if cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
-                    uv, good = Camera.from_soccernet(cal.camera).project(np.array([ball], float))
-                    right = bool(good[0]) and float(np.linalg.norm(uv[0] - uv_true[0])) * (
-                        REFERENCE_WIDTH_PX / f.width) <= WITHIN_PX
-                    by_players = PLAYERS_FLAG in (cal.flags or [])
-                    if kind == "weak" and by_players:
-                        out["weak_by_players"] += 1
-                        out["weak_by_players_right"] += right
-                    if by_players and not right:
-                        out["by_players_wrong"] += 1
-                elif kind == "weak":
-                    out["weak_no_camera"] += 1
-                out[kind] += 1
-                out[f"{kind}_right"] += right
+    frames = selectinload(System.frames)
+    systems = session.scalars(sa.select(System).options(
+        selectinload(System.game), frames.selectinload(Frame.calibration), frames.selectinload(Frame.field_lines),
+        frames.selectinload(Frame.players))).all()
+    for system in systems:
+        strong_players: dict[int, set[tuple[str, str]]] = {
+            f.id: _players(f) for f in system.frames if _classes(f) >= 4}
+        for f in system.frames:
+            ball, true_cam = views[(system.game.match, system.name, f.name)]
+            true = Camera.from_soccernet(true_cam)
+            uv_true, ok = true.project(np.array([ball], float))
+            if not ok[0] or not (0 <= uv_true[0, 0] < f.width and 0 <= uv_true[0, 1] < f.height):
+                continue
+            n = _classes(f)
+            shared = set().union(*[p for fid, p in strong_players.items() if fid != f.id]) & _players(f)
+            if n >= 4:
+                kind = "strong"
+            elif len(shared) >= 4:
+                kind = "weak"
+            else:
+                continue
+            cal = f.calibration
+            right = False
+            if cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
+                uv, good = Camera.from_soccernet(cal.camera).project(np.array([ball], float))
+                right = bool(good[0]) and float(np.linalg.norm(uv[0] - uv_true[0])) * (
+                    REFERENCE_WIDTH_PX / f.width) <= WITHIN_PX
+                by_players = PLAYERS_FLAG in (cal.flags or [])
+                if kind == "weak" and by_players:
+                    out["weak_by_players"] += 1
+                    out["weak_by_players_right"] += right
+                if by_players and not right:
+                    out["by_players_wrong"] += 1
+            elif kind == "weak":
+                out["weak_no_camera"] += 1
+            out[kind] += 1
+            out[f"{kind}_right"] += right
     return out
 
 
