@@ -74,8 +74,11 @@ def line_classes(frame: Frame) -> int:
 
 def is_weak(frame: Frame) -> bool:
     """Whether the players may place ``frame``'s camera: its lines give none (refused, no calibration) or an unsure
-    one (fewer than :data:`MIN_LINE_CLASSES` classes), or the players placed it before (placed again)."""
+    one (fewer than :data:`MIN_LINE_CLASSES` classes), or the players placed it before (placed again). A camera an
+    export brought or a person set (source ``imported``, ``edited``) stays as it is."""
     cal = frame.calibration
+    if cal is not None and cal.source is not CalibrationSource.COMPUTED:
+        return False
     if cal is None or cal.status is not CalibrationStatus.CALIBRATED or cal.camera is None:
         return True
     return line_classes(frame) < MIN_LINE_CLASSES or PLAYERS_FLAG in (cal.flags or [])
