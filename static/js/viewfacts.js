@@ -173,7 +173,7 @@ export function viewFacts(v, ctx, panel) {
       flags.length ? " " : null,
       flags,
       cal.reason ? el("div", { class: "reason", "data-testid": "view-reason" }, cal.reason) : null,
-      cal.players && cal.players.note ? el("div", { class: "reason", "data-testid": "view-players-note",
+      cal.players && cal.players.note ? el("div", { class: "players-note", "data-testid": "view-players-note",
         title: "the players' foot points it was fitted to are the yellow diamonds" }, cal.players.note) : null,
     ),
     el("dt", { title: gammas.length ? `JaC at ${gammas.map((g) => `${pct(g)} %`).join(", ")} of the image diagonal` : "JaC: not calibrated" },
