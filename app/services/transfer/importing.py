@@ -368,16 +368,17 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
-    for fields in [*results, *(f for _, f in imported)]:
-        if fields.status is CalibrationStatus.CALIBRATED:
-            report.calibrated += 1
-        else:
-            report.refused += 1
-            report.refusal_reasons[fields.refusal or "unspecified"] += 1
     _store_players(session, new_players)
     report.player_assisted += place_cameras_by_players(
         touched, settings, {id(f): rows for f, rows, _ in new_players},
         relined=lambda f: calibrate_frame_lines(session, f, settings, refine=False).fields)
+    for frame, fields in [*zip(to_calibrate, results, strict=True), *imported]:
+        placed = frame.calibration is not None and frame.calibration.status is CalibrationStatus.CALIBRATED
+        if fields.status is CalibrationStatus.CALIBRATED or placed:  # the players may place a camera lines refused
+            report.calibrated += 1
+        else:
+            report.refused += 1
+            report.refusal_reasons[fields.refusal or "unspecified"] += 1
     report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
     report.systems_merged += sum(merge.record(session) for merge in merges)
 
