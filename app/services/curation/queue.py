@@ -163,8 +163,9 @@ def _system_conditions(filters: SystemFilters, with_status: bool = True) -> list
     elif filters.doubt is not None:
         conds.append(sa.exists().where(Doubt.system_id == System.id, Doubt.kind == filters.doubt))
     if filters.camera is not None:
-        conds.append(sa.exists().where(Frame.system_id == System.id, Calibration.frame_id == Frame.id,
-                                       sa.cast(Calibration.flags, sa.Text).like(f'%"{filters.camera}"%')))
+        view = sa.orm.aliased(Frame)  # its own name: the queue's statement may join the frames already
+        conds.append(sa.exists(sa.select(Calibration.frame_id).join(view, view.id == Calibration.frame_id).where(
+            view.system_id == System.id, sa.cast(Calibration.flags, sa.Text).like(f'%"{filters.camera}"%'))))
     if filters.assignee == ASSIGNEE_NONE:
         conds.append(System.assignee_id.is_(None))
     elif filters.assignee is not None:  # the index on assignee_id, the user's id looked up once
