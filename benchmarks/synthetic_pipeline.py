@@ -58,7 +58,7 @@ from app.geometry.annotations import lines_from_json_lists
 from app.geometry.ball import OPTIMISED_BOX_METHODS, optimise_box
 from app.geometry.calibration import CalibrationPrior, CameraRig, RigPosition, calibrate_frame
 from app.geometry.calibration.observations import build_observations
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import calibrate_with_rig
 from app.geometry.camera import Camera
 from app.geometry.jac import jac_at_gammas
@@ -406,12 +406,15 @@ def run(shared: Path = SHARED_DIR, workdir: Path | None = None, workers: int = 0
         "lost_by_rig": [_short(k) for k in sorted(no_rig_keys - with_rig_keys)],
         "rig_assisted_views": [{"view": _short(k), "jac": c.jac, "pose": pose_errors(c.camera, tviews[k].camera),
                                 "true_camera_jac": true_jac[k]}
-                               for k, c in with_rig.items() if RIG_FLAG in c.flags and c.calibrated],
+                               for k, c in with_rig.items()
+                               if RIG_FLAG in c.flags and PLAYERS_FLAG not in c.flags and c.calibrated],
     }
     # The service's first pass must be the pure call: unassisted stored results equal the recomputation,
     # and the rig only replaced first passes that were refused or below admission.
     mismatch = []
     for k, c in with_rig.items():
+        if PLAYERS_FLAG in c.flags:  # placed by its players (benchmarks/player_cameras.py measures those)
+            continue
         if RIG_FLAG in c.flags:
             if no_rig[k].calibrated and no_rig[k].jac is not None and no_rig[k].jac > admit_min:
                 mismatch.append(_short(k))

@@ -213,6 +213,9 @@ class QueueQuery(BaseModel):
         None, min_length=1, max_length=100,
         description="Only systems assigned to this user (a name), 'me' (the caller's), or 'none' (unassigned ones); "
         "an unknown name matches nothing, as a user with none assigned does.")
+    camera: Optional[Literal["rig_assisted", "player_assisted"]] = Field(
+        None, description="Only systems with a view whose camera was placed so (a calibration flag: at a rig "
+        "position, by its players).")
     sort: SystemSort = Field(DEFAULT_SORT, description="Order; a leading '-' means descending. Missing values last.")
 
     def filters(self, me: Optional[str] = None) -> SystemFilters:
@@ -223,7 +226,7 @@ class QueueQuery(BaseModel):
             assignee = me
         return SystemFilters(game_id=self.game_id, status=self.status, jac_min=self.jac_min,
                              jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max,
-                             doubt=self.doubt, assignee=assignee)
+                             doubt=self.doubt, assignee=assignee, camera=self.camera)
 
     @model_validator(mode="after")
     def _ranges(self) -> "QueueQuery":

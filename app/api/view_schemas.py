@@ -229,6 +229,11 @@ class CalibrationOut(BaseModel):
         "Position 0 for a rig-assisted fit (centre fixed). Null when not fitted from lines here (refused, "
         "imported, or calibrated before this was stored).")
 
+    players: Optional[dict[str, Any]] = Field(
+        None, description="A camera the players placed (flag player_assisted): feet (class, id, px [x, y] in the "
+        "view, grass_m [x, y] where the player stands, metres), rig (index, centre_m, frames; null for a full pose), "
+        "rms_px, sigma_px (px at 1920 width), players. Null for a camera from lines.")
+
     @computed_field(  # type: ignore[prop-decorator]  # pydantic: a decorator over @property
         description="The field-line labels are probably mirrored (the flag in flags): offer the mirrored labelling.")
     @property
@@ -243,7 +248,7 @@ class CalibrationOut(BaseModel):
         return cls.model_validate({"status": cal.status, "source": cal.source, "camera": cal.camera, "jac": cal.jac(),
                                    "admitted": cal.admitted, "reason": cal.reason, "flags": cal.flags or [],
                                    "residuals_px": cal.residuals_px or {}, "mirror_evidence": cal.mirror_evidence,
-                                   "uncertainty": cal.uncertainty})
+                                   "uncertainty": cal.uncertainty, "players": cal.players})
 
 
 class BallOut(BaseModel):

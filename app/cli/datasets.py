@@ -138,7 +138,8 @@ def _run_import(settings: Settings, params: dict[str, Any]) -> None:
     typer.echo(f"imported {r['source']}: {r['games']} game(s), {r['systems']} system(s), {r['frames']} frame(s) "
                f"({r['systems_new']} new, {r['systems_changed']} changed) in {r['seconds']:.1f} s (job {job_id})")
     typer.echo(f"calibrated {r['calibrated']} ({r['rig_assisted']} with the game's camera rig, "
-               f"{r.get('prior_fitted', 0)} with the dataset's learned camera prior), refused "
+               f"{r.get('prior_fitted', 0)} with the dataset's learned camera prior, {r.get('player_assisted', 0)} "
+               f"placed by their players), refused "
                f"{r['refused']}; triangulated {r['triangulated']} system(s)")
     for reason, n in r["refusal_kinds"].items():
         typer.echo(f"  refused x{n}: {reason}")

@@ -45,6 +45,8 @@ class CalibrationFields:
     mirror_evidence: dict[str, Any] | None = None
     uncertainty: dict[str, Any] | None = None
     rms_px: float | None = None
+    #: A camera the players placed: what it was fitted to (``Calibration.players``); None for a camera from lines.
+    players: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -84,6 +86,9 @@ class FrameRecord:
     #: imported ball's, ``linked_replays`` / ``linked_action``, ...), without ``lines`` when the stored field
     #: lines give them back (``app.datasets.soccernet_v3.release_entry``); None for formats without one.
     release: dict[str, Any] | None = None
+    #: The people the dataset boxed besides the ball (``app.datasets.soccernet_v3.v3_players``): ``(class, ID or
+    #: None, [x1, y1, x2, y2] px)`` each, in the file's order.
+    players: tuple[tuple[str, str | None, tuple[float, float, float, float]], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ are located, never extracted: a record holds the zip path and member name or a f
 """
 from __future__ import annotations
 
+import math
 import zipfile
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -138,6 +139,33 @@ def v3_lines(item: Mapping[str, Any], width: int, height: int, file: str | Path,
         raise DatasetError(file, f"{where}.{exc}", "invalid field line") from None
 
 
+def v3_players(item: Mapping[str, Any]) -> tuple[tuple[str, str | None, tuple[float, float, float, float]], ...]:
+    """The people boxed in a SoccerNet-v3 frame entry besides the ball: ``(class, ID as text or None, (x1, y1, x2,
+    y2) px)`` for every ``bboxes`` entry of another class with four finite coordinates and a box of positive size, in
+    order. An entry that is not one is left out, never an error: the release keeps every entry as it came, and these
+    only help place the cameras the lines cannot (``app.services.calibration.players``).
+
+    >>> v3_players({"bboxes": [{"class": "Ball", "ID": None, "points": {"x1": 1, "y1": 1, "x2": 3, "y2": 3}},
+    ...     {"class": "Player team left", "ID": 7, "points": {"x1": 10, "y1": 20, "x2": 30, "y2": 80}}]})
+    (('Player team left', '7', (10.0, 20.0, 30.0, 80.0)),)
+    """
+    boxes = item.get("bboxes")
+    out: list[tuple[str, str | None, tuple[float, float, float, float]]] = []
+    for b in boxes if isinstance(boxes, list) else ():
+        if not isinstance(b, Mapping) or not isinstance(b.get("class"), str) or b["class"] == BALL_CLASS:
+            continue
+        pts, ident = b.get("points"), b.get("ID")
+        if not isinstance(pts, Mapping) or not isinstance(ident, (str, int, type(None))) or isinstance(ident, bool):
+            continue
+        try:
+            x1, y1, x2, y2 = (float(pts[k]) for k in ("x1", "y1", "x2", "y2"))
+        except (KeyError, TypeError, ValueError):
+            continue
+        if all(math.isfinite(v) for v in (x1, y1, x2, y2)) and x2 > x1 and y2 > y1:
+            out.append((b["class"][:200], None if ident is None else str(ident)[:200], (x1, y1, x2, y2)))
+    return tuple(out)
+
+
 def _v3_ball(item: Mapping[str, Any], width: int, height: int, file: str | Path, where: str) -> list[float] | None:
     boxes = item.get("bboxes", [])
     if not isinstance(boxes, list):
@@ -243,6 +271,7 @@ def _v3_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, i
     return FrameRecord(
         name=name, role=role, width=width, height=height, lines=lines,
         ball_box=_v3_ball(item, width, height, file, where), release=release_entry(item, lines),
+        players=v3_players(item),
         **images.locate(name),
     )
 

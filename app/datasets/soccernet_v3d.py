@@ -50,6 +50,7 @@ from app.datasets.soccernet_v3 import (
     ordered_lines,
     release_entry,
     v3_lines,
+    v3_players,
     v3_systems,
 )
 from app.db.models import BallKind, CalibrationStatus, FrameRole, ReviewStatus, SystemKind
@@ -337,7 +338,7 @@ def _v3d_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, 
     return FrameRecord(
         name=name, role=role, width=width, height=height, lines=lines,
         ball_box=box, ball_point=point, calibration=_v3d_calibration(item, file, where),
-        original_lines=original_lines, original_ball=original, release=release,
+        original_lines=original_lines, original_ball=original, release=release, players=v3_players(item),
         **(images.locate(name) or exported),
     )
 

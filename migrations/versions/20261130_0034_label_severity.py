@@ -8,7 +8,7 @@ revision fills it for the systems stored before from their stored doubts (``LABE
 mirrored field lines 3; a ball off the others or views that disagree 2; a missing, redundant or detected ball 1).
 
 Revision ID: 0034
-Revises: 0031
+Revises: 0032
 Create Date: 2026-11-30 12:00:00+00:00
 """
 from __future__ import annotations
@@ -19,7 +19,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = '0034'
-down_revision: str | None = '0031'
+down_revision: str | None = '0032'
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -1,6 +1,6 @@
 // Drawing one view into an SVG whose viewBox is the image's pixel frame: the frame (or a blank canvas of its
 // size while the image loads or when it is missing), the projected pitch lines, the annotated field lines
-// (drawn by the view's line editor), the imported, optimised, precise and suggested boxes, the epipolar
+// (drawn by the view's line editor), the players' foot points a camera placed by its players was fitted to, the imported, optimised, precise and suggested boxes, the epipolar
 // segments of the view's doubts, the ball label with its grab areas, and the reprojected 3D ball. Marks keep
 // their screen size at any zoom (`scale`). Also where the zoomed inset around the ball looks (ballWindow).
 
@@ -60,6 +60,16 @@ export function drawView(root, { view: v, scale, isMain, imageState, lines, doub
       svg("title", { text: `projected: ${line.class}` })));
   }
   lines.drawLines(g, s, isMain);
+  const feet = ((v.calibration || {}).players || {}).feet;
+  if (Array.isArray(feet)) { // a camera the players placed: the foot points it was fitted to, small diamonds
+    for (const p of feet) {
+      if (!validPoint(p.px)) continue;
+      const [x, y] = p.px, r = 4 * s;
+      g.append(svg("path", { class: "player-foot", d: `M${x} ${y - r} L${x + r} ${y} L${x} ${y + r} L${x - r} ${y} Z`,
+        "data-testid": isMain ? "player-foot" : null },
+        svg("title", { text: `${p.class} ${p.id}: foot point the camera was fitted to` })));
+    }
+  }
   const ball = v.ball || {};
   if (ball.edited && validBox(ball.original_box) && !(ball.kind === "box" && sameBox(ball.original_box, ball.box))) {
     g.append(rect(ball.original_box, "box-prev", "imported box (before edits)"));

@@ -75,6 +75,11 @@ export const WORDS = /*WORDS*/{
    "chip": "at the game's camera spot",
    "means": "rig position: fitted where a camera of the game is known to stand"
   },
+  "player_assisted": {
+   "tone": "info",
+   "chip": "placed by players",
+   "means": "fitted to where the players it shares with the well-lined views stand (their foot points, drawn as small markers), with whatever lines it has"
+  },
   "learned_prior": {
    "chip": "helped by the usual cameras",
    "means": "learned prior: fitted with what the dataset's cameras usually are (where they stand, how they zoom)"

@@ -23,6 +23,7 @@ Entity graph (``->`` is "has many", ``-`` is "has one")::
     Release -> ReleaseGame, ReleaseSystem              (a named, immutable snapshot of the accepted systems)
         - ReleaseDocument                              (their content as canonical JSON, stored once by digest)
     Frame -> Prediction                                (a ball detector's boxes, by source; never a label)
+    Frame -> PlayerBox                                 (the players a dataset boxed, class and ID, as imported)
 
 Units: pixels of the frame's own image (continuous coordinates, origin at the top-left corner),
 world metres in SoccerNet's frame (z down), timestamps timezone-aware UTC. Boxes are
@@ -48,7 +49,7 @@ from app.db.models.enums import (
     TriangulationStatus,
     UserRole,
 )
-from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, System, TrajectoryPoint
+from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, PlayerBox, System, TrajectoryPoint
 from app.db.models.operations import AuditEntry, AuditState, Job
 from app.db.models.predictions import Prediction
 from app.db.models.releases import Release, ReleaseDocument, ReleaseGame, ReleaseSystem
@@ -96,4 +97,5 @@ __all__ = [
     "AuditState",
     "Job",
     "Prediction",
+    "PlayerBox",
 ]

@@ -47,6 +47,11 @@ class Calibration(Base):
     admitted: Mapped[bool] = mapped_column(default=False)
     mirror_evidence: Mapped[Optional[dict[str, Any]]]
     uncertainty: Mapped[Optional[dict[str, Any]]]
+    #: A camera the players placed (flag ``"player_assisted"``, ``app.services.calibration.players``): the players'
+    #: foot points it was fitted to (``feet``: class, ID, pixel, where the player stands in metres), the rig position
+    #: its centre was fixed at (``rig``: index and centre, None for a full pose), its residual and pixel uncertainty;
+    #: None for a camera from lines alone.
+    players: Mapped[Optional[dict[str, Any]]] = mapped_column(default=None)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow, onupdate=utcnow)
 
     frame: Mapped[Frame] = relationship(back_populates="calibration")

@@ -238,11 +238,37 @@ class Frame(Base):
     #: ``app.services.derivation.loading``, which takes at most ``V3D_MAX_PREDICTIONS_PER_FRAME`` of them, the best:
     #: a lazy load would take them all, so it raises instead.
     predictions: Mapped[list[Prediction]] = relationship(viewonly=True, order_by="Prediction.id", lazy="raise_on_sql")
+    #: The players its dataset boxed (class and ID across the views of the system), as imported.
+    players: Mapped[list[PlayerBox]] = relationship(
+        back_populates="frame", cascade="all, delete-orphan", passive_deletes=True, order_by="PlayerBox.id"
+    )
 
     # the frame's version is SQLAlchemy's version counter too (bumped by the guarded write): a view decision changes
     # the frame alone (not its system's version, which a system decision's If-Match compares), so an edit of the
     # same view written meanwhile is caught by this compare (``WHERE edit_version = <as read>``)
     __mapper_args__ = {"version_id_col": edit_version, "version_id_generator": False}
+
+
+class PlayerBox(Base):
+    """A person a dataset boxed in a frame besides the ball (SoccerNet-v3 ``bboxes``: a player, a goalkeeper, a
+    referee), with its class and ID, which name the same person across the views of a system. Written by the import
+    as they came (the release keeps the file's ``bboxes`` themselves, ``Frame.release``); read by the calibration of
+    the views the lines cannot calibrate (``app.services.calibration.players``). Box ``x1, y1, x2, y2`` in pixels of
+    the frame's image; ``ident`` None when the file gave no ID."""
+
+    __tablename__ = "player_boxes"
+    __table_args__ = (sa.Index("ix_player_boxes_frame_id", "frame_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    frame_id: Mapped[int] = mapped_column(sa.ForeignKey("frames.id", ondelete="CASCADE"))
+    cls: Mapped[str] = mapped_column(sa.String(200))
+    ident: Mapped[Optional[str]] = mapped_column(sa.String(200))
+    x1: Mapped[float]
+    y1: Mapped[float]
+    x2: Mapped[float]
+    y2: Mapped[float]
+
+    frame: Mapped[Frame] = relationship(back_populates="players")
 
 
 class FieldLineAnnotation(Base):

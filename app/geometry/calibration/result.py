@@ -21,6 +21,11 @@ from app.geometry.pitch import PITCH_WIDTH_M
 RIG_FLAG = "rig_assisted"
 
 
+#: Flag of a calibration fitted to the foot points of the players its view shares with the well-calibrated views of
+#: its system (:mod:`.players`), with its lines; ``"rig_assisted"`` too when its centre was fixed at a rig position.
+PLAYERS_FLAG = "player_assisted"
+
+
 #: Flag of a calibration fitted with a learned camera prior (a MAP fit, :mod:`.priors`).
 PRIOR_FLAG = "learned_prior"
 
@@ -37,6 +42,11 @@ MAX_CORNER_DISTORTION = 0.2
 #: Flag of a frame whose field-line labels are probably mirrored (camera-side prior here; the
 #: multi-view verdict of ``app.geometry.mirror`` sets the same flag in the service).
 MIRROR_FLAG = "probably_mirrored"
+
+
+#: The flags that say where a camera came from besides its lines, which the review queue filters by (a system with a
+#: view so calibrated): a rig position, the players.
+SOURCE_FLAGS: tuple[str, ...] = (RIG_FLAG, PLAYERS_FLAG)
 
 
 Status = Literal["calibrated", "refused"]

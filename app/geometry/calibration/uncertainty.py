@@ -188,7 +188,19 @@ def calibration_uncertainty(camera: Camera, lines: FieldLines, *, fixed_centre: 
         p0 = _prior_residuals(prior, param, x0)
         Jp = np.stack([(_prior_residuals(prior, param, X[j]) - p0) / steps[j] for j in range(k)], axis=1)
         J = np.vstack([J, Jp])
-    cov, undetermined = parameter_covariance(J, sigma)
+    return uncertainty_from_jacobian(param, J, sigma, int(obs.n_points))
+
+
+def uncertainty_from_jacobian(param: CameraParametrisation, jacobian: np.ndarray, sigma_px: float,
+                              points: int) -> CalibrationUncertainty:
+    """:class:`CalibrationUncertainty` of a fit whose parameter vector is ``param``'s (``[f, w (3) (, C (3))
+    (, k1)]``, the rotation vector at ``w = 0`` of ``param.R0``), from the (n, k) Jacobian of its pixel residuals
+    (every row a residual in px: lines, foot points of players, prior rows) and the residual noise ``sigma_px``
+    (Hartley and Zisserman, result 5.11, :func:`parameter_covariance`); ``points``: the observations fitted.
+    The angles' std come through the numerical Jacobian of SoccerNet's (pan, tilt, roll) at ``w = 0``; a fixed
+    centre (``param.fixed_centre``) has position std 0."""
+    fixed_centre = param.fixed_centre is not None
+    cov, undetermined = parameter_covariance(jacobian, sigma_px)
     var = np.where(undetermined, np.inf, np.diag(cov))
     # Angles: Jacobian of (pan, tilt, roll) with respect to the rotation vector at w = 0.
     a0 = _angles(param.R0, np.zeros(3))
@@ -205,4 +217,4 @@ def calibration_uncertainty(camera: Camera, lines: FieldLines, *, fixed_centre: 
     sd = np.sqrt(np.maximum(var_angles, 0.0))
     return CalibrationUncertainty(position_m=position, pan_deg=float(sd[0]), tilt_deg=float(sd[1]),  # type: ignore[arg-type]  # position holds three values (var[4:7])
                                   roll_deg=float(sd[2]), focal_px=float(np.sqrt(max(var[0], 0.0))),
-                                  line_noise_px=sigma, points=int(obs.n_points))
+                                  line_noise_px=float(sigma_px), points=int(points))

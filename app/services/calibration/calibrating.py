@@ -190,6 +190,7 @@ def apply_calibration(frame: Frame, fields: CalibrationFields, source: Calibrati
     cal.reason = fields.reason
     cal.mirror_evidence = fields.mirror_evidence
     cal.uncertainty = fields.uncertainty
+    cal.players = fields.players
     cal.admitted = False
     cal.updated_at = utcnow()
     return cal

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.datasets.records import CalibrationFields
 from app.db.models import Calibration, CalibrationStatus, Frame, FrameRole, System
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig, estimate_rig
 from app.geometry.jac import JAC_GAMMAS, jac_admitted
 from app.services.calibration.admission import admission_gamma, admitted_jac_sql
@@ -88,7 +88,8 @@ def _rig_statement(settings: Settings) -> sa.Select:
             .join(System, System.id == Frame.system_id)
             .where(System.game_id == sa.bindparam("game_id"), Calibration.status == CalibrationStatus.CALIBRATED,
                    Calibration.camera.is_not(None), admitted_jac_sql(settings),
-                   sa.cast(Calibration.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%')))
+                   sa.cast(Calibration.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%'),
+                   sa.cast(Calibration.flags, sa.Text).not_like(f'%"{PLAYERS_FLAG}"%')))
     return stmt
 
 
@@ -129,6 +130,7 @@ def with_rig_retry(first: CalibrationFields, retried: CalibrationFields) -> Cali
 def _feeds_rig(status: CalibrationStatus, camera: dict[str, Any] | None, flags: Sequence[str] | None,
                jac: float | None, settings: Settings) -> bool:
     return (status is CalibrationStatus.CALIBRATED and camera is not None and RIG_FLAG not in (flags or ())
+            and PLAYERS_FLAG not in (flags or ())
             and jac_admitted(jac, settings.admit_jac_min))
 
 

@@ -482,7 +482,7 @@ def _restore_view(frame: Frame, view: Mapping[str, Any], now: Any) -> None:
         apply_calibration(frame, CalibrationFields(
             CalibrationStatus(cal["status"]), cal["camera"], (cal["jac"][0], cal["jac"][1], cal["jac"][2]),
             residuals_px=cal["residuals_px"], flags=list(cal["flags"]), reason=cal["reason"],
-            uncertainty=cal["uncertainty"]), CalibrationSource(cal["source"]))
+            uncertainty=cal["uncertainty"], players=cal.get("players")), CalibrationSource(cal["source"]))
     _restore_review(frame, "review", view["review"], now)
     _restore_review(frame, "calibration_review", view["calibration_review"], now)
 

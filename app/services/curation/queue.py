@@ -95,6 +95,9 @@ class SystemFilters:
     #: :data:`ASSIGNEE_NONE`: the unassigned ones. An unknown name matches nothing, as a known user with none does
     #: (the answer tells no one which names exist).
     assignee: Optional[str] = None
+    #: Only systems with a view whose camera carries this flag (one of
+    #: ``app.geometry.calibration.result.SOURCE_FLAGS``: placed at a rig position, placed by its players).
+    camera: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -171,6 +174,10 @@ def _system_conditions(filters: SystemFilters, with_status: bool = True) -> list
         conds.append(System.label_doubts == 0)
     elif filters.doubt is not None:
         conds.append(sa.exists().where(Doubt.system_id == System.id, Doubt.kind == filters.doubt))
+    if filters.camera is not None:
+        view = sa.orm.aliased(Frame)  # its own name: the queue's statement may join the frames already
+        conds.append(sa.exists(sa.select(Calibration.frame_id).join(view, view.id == Calibration.frame_id).where(
+            view.system_id == System.id, sa.cast(Calibration.flags, sa.Text).like(f'%"{filters.camera}"%'))))
     if filters.assignee == ASSIGNEE_NONE:
         conds.append(System.assignee_id.is_(None))
     elif filters.assignee is not None:  # the index on assignee_id, the user's id looked up once

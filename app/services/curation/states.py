@@ -74,14 +74,15 @@ def calibration_review_state(frame: Frame) -> dict[str, Any]:
 def calibration_state(frame: Frame) -> dict[str, Any] | None:
     """The frame's stored calibration as its import or a recalibration left it (None without one): ``source``,
     ``status``, ``camera`` (SoccerNet JSON), ``jac`` (the three gammas), ``residuals_px``, ``flags``, ``reason``,
-    ``uncertainty``; without what every recomputation derives again (admission, the mirror flag and its evidence)."""
+    ``uncertainty`` (and ``players`` for a camera the players placed); without what every recomputation derives
+    again (admission, the mirror flag and its evidence)."""
     cal = frame.calibration
     if cal is None:
         return None
     return {"source": cal.source.value, "status": cal.status.value, "camera": cal.camera,
             "jac": [cal.jac_0005, cal.jac_001, cal.jac_002], "residuals_px": cal.residuals_px,
             "flags": [f for f in (cal.flags or []) if f != MIRROR_FLAG], "reason": cal.reason,
-            "uncertainty": cal.uncertainty}
+            "uncertainty": cal.uncertainty, **({"players": cal.players} if cal.players is not None else {})}
 
 
 def system_import_state(system: System) -> dict[str, Any]:

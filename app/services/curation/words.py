@@ -70,6 +70,9 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
                               "means": "the field lines are probably labelled left for right"},
         "rig_assisted": {"tone": "info", "chip": "at the game's camera spot",
                          "means": "rig position: fitted where a camera of the game is known to stand"},
+        "player_assisted": {"tone": "info", "chip": "placed by players",
+                            "means": "fitted to where the players it shares with the well-lined views stand (their "
+                                     "foot points, drawn as small markers), with whatever lines it has"},
         "learned_prior": {"chip": "helped by the usual cameras",
                           "means": "learned prior: fitted with what the dataset's cameras usually are (where they "
                                    "stand, how they zoom)"},
@@ -217,6 +220,36 @@ REFUSAL_SENTENCES: dict[str, str] = {
     "below_admission": "JaC@{gamma_pct:g}% {jac} not above {admit_jac_min}",
     "not_in_calibration_json": "not in issia_calibration.json",
 }
+
+
+def rig_position_words(centre_m: Any) -> str:
+    """Where a camera stands, in a few words, from its centre ``(x, y, z)`` (SoccerNet world, metres, z down; the
+    main camera's side is y > 0): "high behind goal left", "main side, halfway", "far side, right".
+
+    >>> rig_position_words((-70.0, 5.0, -24.0)), rig_position_words((1.0, 61.0, -13.0))
+    ('high behind goal left', 'main side, halfway')
+    """
+    x, y, z = (float(v) for v in centre_m)
+    high = "high " if z < -20.0 else ""
+    if abs(x) > 52.5:
+        return f"{high}behind goal {'left' if x < 0 else 'right'}"
+    side = "main side" if y > 0 else "far side"
+    along = "halfway" if abs(x) <= 17.5 else "left" if x < 0 else "right"
+    return f"{high}{side}, {along}"
+
+
+def player_camera_sentence(players: Any) -> str:
+    """The note of a camera the players placed (``Calibration.players``): "camera from 6 players and the rig position
+    high behind goal left", or "camera from 9 players (a full pose)".
+
+    >>> player_camera_sentence({"players": 6, "rig": {"centre_m": [-70.0, 5.0, -24.0]}})
+    'camera from 6 players and the rig position high behind goal left'
+    """
+    n = int(players.get("players") or 0)
+    rig = players.get("rig")
+    if rig:
+        return f"camera from {n} players and the rig position {rig_position_words(rig['centre_m'])}"
+    return f"camera from {n} players (a full pose)"
 
 
 def refusal_sentence(refusal: Any) -> str | None:

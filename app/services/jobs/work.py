@@ -64,8 +64,8 @@ def import_result(report: Any) -> dict[str, Any]:
         out["summary"] = summary("import", out)
         return out
     keys = ("source", "games", "systems", "frames", "systems_new", "systems_changed", "calibrated", "refused",
-            "rig_assisted", "prior_fitted", "triangulated", "seconds", "systems_merged", "decisions_from_file",
-            "decisions_reset")
+            "rig_assisted", "player_assisted", "prior_fitted", "triangulated", "seconds", "systems_merged",
+            "decisions_from_file", "decisions_reset")
     out = {k: getattr(report, k) for k in keys}
     out["refusal_reasons"] = dict(report.refusal_reasons)
     out["refusal_kinds"] = dict(report.refusal_kinds().most_common())

@@ -44,6 +44,7 @@ from functools import partial
 from pathlib import Path
 from typing import Callable, Iterator
 
+import sqlalchemy as sa
 from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload, undefer
 
@@ -62,6 +63,7 @@ from app.db.models import (
     FieldLineAnnotation,
     Frame,
     Game,
+    PlayerBox,
     ReviewDecision,
     ReviewStatus,
     System,
@@ -78,11 +80,17 @@ from app.services.calibration.first_pass import (
     retry_with_game_rigs,
     start_first_pass,
 )
+from app.services.calibration.players import PlayerRow, frame_players, place_cameras_by_players
 from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
 from app.services.curation.words import WORDS
 from app.services.derivation import scope
-from app.services.derivation.recompute import load_for_recompute, preload_systems, recompute_systems
+from app.services.derivation.recompute import (
+    calibrate_frame_lines,
+    load_for_recompute,
+    preload_systems,
+    recompute_systems,
+)
 from app.services.jobs.progress import Progress
 from app.services.transfer.merging import Merge, SystemChange
 
@@ -106,6 +114,8 @@ class ImportReport:
         rig_assisted: frames of SoccerNet-v3 games refused from their lines alone, or calibrated
             below admission, whose stored calibration is their game's camera rig's (counted in
             ``calibrated``).
+        player_assisted: frames whose stored calibration the players placed (``calibration.players``: the views
+            the lines cannot calibrate, fitted to the players they share with their system's well-lined views).
         prior_fitted: frames of calibration datasets whose stored calibration is a MAP fit with the
             dataset's learned camera prior (flag ``learned_prior``: its centre, or ``radial_prior``: its
             lens; counted in ``calibrated``).
@@ -128,6 +138,7 @@ class ImportReport:
     calibrated: int = 0
     refused: int = 0
     rig_assisted: int = 0
+    player_assisted: int = 0
     prior_fitted: int = 0
     refusal_reasons: Counter = field(default_factory=Counter)
     triangulated: int = 0
@@ -258,6 +269,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     to_calibrate_recs: list[FrameRecord] = []
     imported: list[tuple[Frame, CalibrationFields]] = []
     touched: list[System] = []
+    # each frame's player boxes, stored or new: written in one statement once the frames have ids
+    new_players: list[tuple[Frame, tuple[PlayerRow, ...], bool]] = []
     n_systems = sum(len(g.systems) for g in records)
     done = 0
     with session.no_autoflush:  # nothing is written before calibration: the write lock is taken late
@@ -299,6 +312,8 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
                     frame.image_path = frec.image_path
                     if frame.release != frec.release:  # what the release carries: kept as it came
                         frame.release = frec.release
+                    if frame.id is None or frame_players(frame) != list(frec.players):
+                        new_players.append((frame, frec.players, frame.id is not None))
                     lines_changed = _set_lines(frame, frec, now, merge, change)
                     kept_lines = frame.field_lines is not None and frame.field_lines.lines != frec.lines
                     ball_changed = _set_ball(frame, frec, now, merge, change)
@@ -357,14 +372,36 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
-    for fields in [*results, *(f for _, f in imported)]:
-        if fields.status is CalibrationStatus.CALIBRATED:
+    _store_players(session, new_players)
+    report.player_assisted += place_cameras_by_players(
+        touched, settings, {id(f): rows for f, rows, _ in new_players},
+        relined=lambda f: calibrate_frame_lines(session, f, settings, refine=False).fields)
+    for frame, fields in [*zip(to_calibrate, results, strict=True), *imported]:
+        placed = frame.calibration is not None and frame.calibration.status is CalibrationStatus.CALIBRATED
+        if fields.status is CalibrationStatus.CALIBRATED or placed:  # the players may place a camera lines refused
             report.calibrated += 1
         else:
             report.refused += 1
             report.refusal_reasons[fields.refusal or "unspecified"] += 1
     report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
     report.systems_merged += sum(merge.record(session) for merge in merges)
+
+
+def _store_players(session: Session, frames: list[tuple[Frame, tuple[PlayerRow, ...], bool]]) -> None:
+    """Write the player boxes of ``frames`` (new frames, and stored ones whose boxes the file changed: their old rows
+    replaced) in one statement each way, after a flush gives the new frames their ids."""
+    if not frames:
+        return
+    session.flush()
+    stored = [f.id for f, _, was_stored in frames if was_stored]
+    if stored:
+        session.execute(sa.delete(PlayerBox).where(PlayerBox.frame_id.in_(stored)))
+    rows = [{"frame_id": f.id, "cls": cls, "ident": ident, "x1": b[0], "y1": b[1], "x2": b[2], "y2": b[3]}
+            for f, players, _ in frames for cls, ident, b in players]
+    if rows:
+        session.execute(sa.insert(PlayerBox), rows)
+    for f, _, _ in frames:  # written past the ORM: read again when next asked for
+        session.expire(f, ["players"])
 
 
 #: One game of an import's input: reads (and validates) it when called, as often as needed.

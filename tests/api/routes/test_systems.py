@@ -7,6 +7,7 @@ from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.db.models import Calibration
 from app.geometry.doubts import LABEL_KINDS
 
 from ..factories import BALL, HEIGHT, WIDTH, Scene, make_game, make_system
@@ -463,3 +464,15 @@ def test_ids_beyond_any_integer_are_422_naming_the_parameter(client: TestClient,
     assert checked >= 20
     page = client.get("/systems/99999999999999999999")  # the UI page of a system
     assert page.status_code == 404 and "System not found" in page.text
+
+
+def test_the_queue_filters_by_the_camera_source_and_refuses_an_unknown_one(client: TestClient, db_session: Session,
+                                                                           queue: dict[str, Scene]) -> None:
+    cal = db_session.get(Calibration, queue["shifted"].frame_ids[1])
+    cal.flags = [*cal.flags, "few_lines", "player_assisted", "rig_assisted"]  # as the players place a camera
+    db_session.commit()
+    assert _ids(client.get("/api/systems", params={"camera": "player_assisted"}).json()) == [queue["shifted"].system_id]
+    assert _ids(client.get("/api/systems", params={"camera": "rig_assisted"}).json()) == [queue["shifted"].system_id]
+    assert len(_ids(client.get("/api/systems").json())) == 4
+    r = client.get("/api/systems", params={"camera": "lines"})
+    assert r.status_code == 422 and "camera" in r.text

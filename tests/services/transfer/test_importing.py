@@ -23,7 +23,7 @@ from app.db.models import (
     SystemKind,
     TriangulationStatus,
 )
-from app.geometry.calibration.result import RIG_FLAG
+from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
 from app.geometry.jac import jac_admitted
 from app.services.calibration.admission import admission_jac
 from app.services.curation.words import WORDS
@@ -77,7 +77,8 @@ def test_import_soccernet_v3_stores_systems_frames_labels_and_derived_rows(db_se
 
     # every frame was calibrated or refused with a reason; admission and pairs follow from them
     frames = [f for system in game.systems for f in system.frames]
-    assert report.rig_assisted == sum(RIG_FLAG in f.calibration.flags for f in frames)
+    assert report.rig_assisted >= sum(RIG_FLAG in f.calibration.flags and PLAYERS_FLAG not in f.calibration.flags
+                                      for f in frames)
     assert report.calibrated == sum(f.calibration.status is CalibrationStatus.CALIBRATED for f in frames)
     balls = true_balls(shared_dir)
     for system in game.systems:
@@ -403,3 +404,23 @@ def test_an_import_reads_each_game_twice_and_holds_two_batches_at_most(shared_di
     assert report.games == len(games) == 2 and reads == games + games  # validation, then batch by batch
     # Nothing is held after the validation; the second game is read while the first is being stored.
     assert alive_at_read == [0, 0, 0, 1]
+
+
+def test_the_player_boxes_are_stored_as_they_came_and_an_import_again_changes_none(db_session, settings, v3_tree,
+                                                                                   shared_dir):
+    import_soccernet_v3(db_session, v3_tree, settings)
+    src = json.loads((dev_game_dir(shared_dir) / "Labels-v3.json").read_text())
+    items = {**src["actions"], **src["replays"]}
+    frames = db_session.scalars(sa.select(Frame)).all()
+    assert frames
+    for f in frames:
+        want = [(b["class"], None if b["ID"] is None else str(b["ID"]),
+                 (b["points"]["x1"], b["points"]["y1"], b["points"]["x2"], b["points"]["y2"]))
+                for b in items[f.name]["bboxes"] if b["class"] != "Ball"]
+        assert [(p.cls, p.ident, (p.x1, p.y1, p.x2, p.y2)) for p in f.players] == want
+    n = db_session.execute(sa.text("SELECT count(*) FROM player_boxes")).scalar()
+    assert n == sum(len([b for b in it["bboxes"] if b["class"] != "Ball"]) for name, it in items.items()
+                    if name in {f.name for f in frames})
+    ids = db_session.execute(sa.text("SELECT id FROM player_boxes ORDER BY id")).scalars().all()
+    import_soccernet_v3(db_session, v3_tree, settings)
+    assert db_session.execute(sa.text("SELECT id FROM player_boxes ORDER BY id")).scalars().all() == ids

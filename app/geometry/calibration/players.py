@@ -1,0 +1,609 @@
+"""Players place the cameras the lines cannot: a camera fitted to the foot points of the players its view shares
+with the well-calibrated views of its system, at a position of the game's camera rig where one fits.
+
+SoccerNet-v3 annotates the players of a multi-view system with a class and an ID across its views (one instant
+seen by several cameras). A player stands on the grass: the bottom centre of its box (the foot point) back-projected
+to the ground plane ``z = 0`` in a calibrated view is where it stands (:func:`grass_point`); fused over the
+well-calibrated views that see it (:func:`players_on_grass`, the median, a player whose views disagree by more
+than ``max_spread_m`` left out: a wrong ID). A view whose lines give no camera, or an unsure one, is then fitted to
+its own foot points of those players (:func:`fit_camera_to_players`, robust least squares, soft-L1 loss): with its
+centre at one of the game's rig positions (broadcast cameras stay put during a game) only rotation and focal length
+are unknown, which two foot points fix and more over-determine; every position is tried and the best by residual
+kept only with a margin over any other position elsewhere; without a position that fits, a full pose (7 unknowns)
+when enough players are seen. Whatever field lines the view has join the same least squares with their own
+residuals (:func:`app.geometry.calibration.residuals.residuals`). The ball is never an input.
+
+The camera carries its uncertainty from the fit (:func:`~.uncertainty.uncertainty_from_jacobian`: the
+Gauss-Newton covariance of the parameters from the Jacobian of every residual, Hartley and Zisserman result 5.11),
+the same :class:`~.uncertainty.CalibrationUncertainty` a line fit carries. The fit is refused (:class:`PlayerRefusal`)
+when too few players are matched, their foot points lie on one image line, the residuals are large, a second rig
+position fits nearly as well, or the propagated pixel uncertainty is large: a wrong camera is worse than none.
+
+World frame: SoccerNet (metres, origin at the centre spot, z down); image: continuous pixels of the view, origin at
+the top-left corner, principal point ``((W - 1) / 2, (H - 1) / 2)`` (:func:`~.result.principal_point`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import cv2
+import numpy as np
+
+from app.geometry.annotations import FieldLines, image_diagonal
+from app.geometry.calibration.initialisation import camera_from_homography, wahba_rotation
+from app.geometry.calibration.observations import build_observations
+from app.geometry.calibration.residuals import CameraParametrisation, residuals
+from app.geometry.calibration.result import principal_point
+from app.geometry.calibration.uncertainty import (
+    CalibrationUncertainty,
+    line_noise,
+    parameter_covariance,
+    uncertainty_from_jacobian,
+)
+from app.geometry.camera import Camera
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.pitch import PITCH_LENGTH_M, PITCH_WIDTH_M
+
+#: A player's identity across the views of a system: its box's class and its ID (SoccerNet-v3 ``bboxes``).
+PlayerKey = tuple[str, str]
+
+
+@dataclass(frozen=True)
+class PlayerFitSettings:
+    """Thresholds of :func:`fit_camera_to_players`; pixels at a 1920-px-wide image (scaled to the view's width).
+
+    Attributes:
+        min_players_rig: fewest players matched for a fit at a rig position (4 unknowns; two players fix them).
+        min_players_free: fewest players for a full pose (7 unknowns) without a rig position that fits.
+        loss_scale: soft-L1 loss scale of a foot point's residual, in its standard deviations (each foot point's
+            residual is whitened by what its own box and where the other views put the player allow,
+            :func:`players_on_grass`).
+        max_rms: largest RMS whitened residual of the inlying foot points of an accepted fit.
+        inlier_sigma: a foot point farther than this many standard deviations from its player's projection is an
+            outlier.
+        min_inlier_share: smallest share of the matched players that must be inliers.
+        rig_margin: a rig position is chosen only when every other position more than ``rig_same_m`` away fits
+            with a robust cost at least this many times the best's.
+        rig_same_m: positions closer than this (m) count as the same place.
+        rig_refined: the rig positions whose starts come closest that are refined (the others cannot win).
+        max_sigma_px: largest pixel uncertainty (px@1920) accepted of a point where the play is (the players'
+            centre on the grass and 3 m up, :func:`projection_sigma_px`), the players' own uncertainty included.
+        min_spread_px: the foot points must spread at least this far (px@1920, the smaller singular value of
+            their centred pixels over sqrt(n)) off one image line.
+        line_limit_gamma: every fitted line class within this fraction of the image diagonal of its model
+            element (as a line fit's ``refuse_gamma``).
+        border_px: a box reaching within this many pixels of the image's bottom edge is cut: no foot point.
+    """
+
+    min_players_rig: int = 3
+    min_players_free: int = 6
+    loss_scale: float = 2.0
+    max_rms: float = 2.5
+    inlier_sigma: float = 4.0
+    min_inlier_share: float = 0.7
+    rig_margin: float = 3.0
+    rig_refined: int = 3
+    rig_same_m: float = 5.0
+    max_sigma_px: float = 10.0
+    min_spread_px: float = 4.0
+    line_limit_gamma: float = 0.03
+    border_px: float = 2.0
+
+
+@dataclass(frozen=True)
+class GrassPlayer:
+    """Where one player stands, from the well-calibrated views: ``point_m`` (x, y) on the ground ``z = 0``
+    (metres), the number of views that saw it and the largest distance (m) of a view's point from it."""
+
+    point_m: tuple[float, float]
+    views: int
+    spread_m: float
+    #: (2, 2) covariance of ``point_m`` (m^2): each view's foot-pixel noise (:data:`FOOT_SIGMA_PX`) carried to the
+    #: ground through its camera, with the footprint's own (:data:`FOOT_OFFSET_SIGMA_M`), fused by information.
+    cov_m2: tuple[tuple[float, float], tuple[float, float]] = ((0.01, 0.0), (0.0, 0.01))
+
+
+@dataclass(frozen=True)
+class PlayerFit:
+    """An accepted camera from players.
+
+    Attributes:
+        camera: the camera (pixels of the view, SoccerNet world).
+        uncertainty: std of its parameters from the fit (a rig position's centre: position std 0).
+        rig_index: the index of the rig position its centre is fixed at (``None``: a full pose).
+        players: ``(key, foot pixel (2,), grass point (2,) m)`` of every player the fit used (inliers).
+        rms_px: RMS residual of those foot points (px of the view).
+        residuals_px: per fitted line class, its largest point distance (px of the view).
+        line_rms_px: RMS of the line residuals (px), None without lines.
+        sigma_px: the largest pixel uncertainty (px@1920) of a point where the players stand, on the grass or 3 m
+            up (:func:`projection_sigma_px`).
+    """
+
+    camera: Camera
+    uncertainty: CalibrationUncertainty
+    rig_index: int | None
+    players: tuple[tuple[PlayerKey, tuple[float, float], tuple[float, float]], ...]
+    rms_px: float
+    residuals_px: Mapping[str, float] = field(default_factory=dict)
+    line_rms_px: float | None = None
+    sigma_px: float = 0.0
+
+
+#: Why :func:`fit_camera_to_players` refused: too few players matched, their foot points on one image line, no
+#: fit within the residual limits, two rig positions fitting alike, a camera too unsure.
+PLAYER_REFUSALS: tuple[str, ...] = ("few_players", "collinear_players", "players_misfit", "rig_ambiguous",
+                                    "camera_unsure")
+
+
+@dataclass(frozen=True)
+class PlayerRefusal:
+    """Why :func:`fit_camera_to_players` gave no camera: ``code`` (one of :data:`PLAYER_REFUSALS`), its numbers."""
+
+    code: str
+    numbers: Mapping[str, float] = field(default_factory=dict)
+
+
+def foot_pixel(box: Sequence[float], width: int, height: int, border_px: float = 2.0) -> np.ndarray | None:
+    """The foot point of a player's box ``(x1, y1, x2, y2)`` (px): the bottom centre, or None when the box reaches
+    within ``border_px`` of the bottom, left or right edge of a ``width`` x ``height`` image (the player is cut off:
+    its feet, or half of it, which moves the centre)."""
+    x1, y1, x2, y2 = (float(v) for v in box)
+    if not all(math.isfinite(v) for v in (x1, y1, x2, y2)) or y2 <= y1:
+        return None
+    if y2 >= height - 1 - border_px or x1 <= border_px or x2 >= width - 1 - border_px:
+        return None
+    return np.array([(x1 + x2) / 2.0, y2])
+
+
+#: How far (m) the lowest point of a player's box lies in front of where the player stands, towards the camera: a
+#: standing body is no line but a solid about 0.8 m across, and its box's bottom edge is the near edge of its
+#: footprint. The median over the views of ``soccernet-v3-dev-large`` against its true players (0.39-0.42 m at every
+#: distance from the camera, 899 boxes of 3 games); without it a foot point is 5-10 px@1920 off below the player.
+FOOT_OFFSET_M = 0.4
+
+
+#: Standard deviation of a foot pixel (px@1920): the box's noise and the bottom edge's wobble with the pose.
+FOOT_SIGMA_PX = 2.0
+#: Standard deviation (m) of where a player stands beyond :data:`FOOT_OFFSET_M` (stance, footprint).
+FOOT_OFFSET_SIGMA_M = 0.1
+
+
+def grass_point(camera: Camera, pixel: np.ndarray, offset_m: float = FOOT_OFFSET_M) -> np.ndarray | None:
+    """Where a player stands whose foot point is ``pixel`` (2,): the ray's point on the ground ``z = 0``, moved
+    ``offset_m`` away from the camera along the ground (:data:`FOOT_OFFSET_M`); world metres, (2,) x, y. None when
+    the ray never meets the ground ahead of the camera."""
+    d = camera.rays(np.asarray(pixel, float).reshape(1, 2))[0]
+    if abs(d[2]) < 1e-9:
+        return None
+    t = -camera.C[2] / d[2]
+    if t <= 0:
+        return None
+    p = (camera.C + t * d)[:2]
+    away = p - camera.C[:2]
+    norm = float(np.linalg.norm(away))
+    return p + offset_m * away / norm if norm > 1e-9 else p
+
+
+def foot_world(grass_m: np.ndarray, centre: np.ndarray, offset_m: float = FOOT_OFFSET_M) -> np.ndarray:
+    """The world points (n, 3), on the ground, whose projections are the foot points of players standing at
+    ``grass_m`` (n, 2) seen from a camera at ``centre`` (3,): each moved ``offset_m`` towards the camera along the
+    ground (the inverse of :func:`grass_point`'s offset)."""
+    g = np.asarray(grass_m, float)
+    towards = np.asarray(centre, float)[:2] - g
+    norm = np.linalg.norm(towards, axis=1, keepdims=True)
+    p = g + offset_m * towards / np.where(norm > 1e-9, norm, 1.0)
+    return np.column_stack([p, np.zeros(len(g))])
+
+
+def players_on_grass(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray]]], max_spread_m: float = 1.5
+                     ) -> dict[PlayerKey, GrassPlayer]:
+    """Where each player stands, fused over well-calibrated views.
+
+    Args:
+        views: per view its camera and its players' foot pixels (key -> (2,) px, :func:`foot_pixel`).
+        max_spread_m: a player whose views put it farther than this (m) from their median is left out (a wrong
+            ID or a box on two players).
+
+    Returns:
+        key -> :class:`GrassPlayer` (the views' ground points weighted by their inverse covariances, and that
+        covariance), players inside the pitch and a margin of 5 m only.
+    """
+    seen: dict[PlayerKey, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for camera, feet in views:
+        sigma = FOOT_SIGMA_PX * float(camera.K[0, 2] * 2 + 1) / REFERENCE_WIDTH_PX  # px of this view
+        for key, uv in feet.items():
+            p = grass_point(camera, uv)
+            if p is None:
+                continue
+            px, py = grass_point(camera, uv + [0.5, 0.0]), grass_point(camera, uv + [0.0, 0.5])
+            if px is None or py is None:
+                continue
+            J = np.column_stack([(px - p) / 0.5, (py - p) / 0.5])  # metres per pixel
+            cov = sigma**2 * J @ J.T + FOOT_OFFSET_SIGMA_M**2 * np.eye(2)
+            seen.setdefault(key, []).append((p, cov))
+    out: dict[PlayerKey, GrassPlayer] = {}
+    for key, points in seen.items():
+        P = np.array([p for p, _ in points])
+        info = [np.linalg.inv(c) for _, c in points]
+        cov = np.linalg.inv(sum(info))
+        centre = cov @ sum(i @ p for i, (p, _) in zip(info, points, strict=True))
+        spread = float(np.max(np.linalg.norm(P - centre, axis=1)))
+        if len(points) > 1 and spread > max_spread_m:
+            continue
+        if abs(centre[0]) > PITCH_LENGTH_M / 2 + 5.0 or abs(centre[1]) > PITCH_WIDTH_M / 2 + 5.0:
+            continue
+        out[key] = GrassPlayer(point_m=(float(centre[0]), float(centre[1])), views=len(points), spread_m=spread,
+                               cov_m2=((float(cov[0, 0]), float(cov[0, 1])), (float(cov[1, 0]), float(cov[1, 1]))))
+    return out
+
+
+def projection_sigma_px(problem_rows: "_Problem", param: CameraParametrisation, x: np.ndarray, cov: np.ndarray,
+                        world: np.ndarray) -> float:
+    """The largest pixel uncertainty (px of the view) of the world points ``world`` (n, 3) under a fit's parameter
+    covariance ``cov`` (k, k): ``sqrt(trace(J cov J^T))`` per point with ``J`` the (2, k) Jacobian of its projection
+    (first-order propagation, Hartley and Zisserman result 5.6); ``inf`` when ``cov`` is not finite."""
+    if not np.all(np.isfinite(cov)):
+        return math.inf
+    steps = _steps(x, param)
+    f, R, C, _ = param.split(x)
+    uv0 = _project(float(f), R, np.asarray(C, float), problem_rows.pp, world)
+    cols = []
+    for j in range(len(x)):
+        fj, Rj, Cj, _ = param.split(x + np.eye(len(x))[j] * steps[j])
+        cols.append((_project(float(fj), Rj, np.asarray(Cj, float), problem_rows.pp, world) - uv0) / steps[j])
+    J = np.stack(cols, axis=-1)  # (n, 2, k)
+    var = np.einsum("nik,kl,nil->n", J, cov, J)
+    return float(np.sqrt(np.max(var))) if len(var) else math.inf
+
+
+def _steps(x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
+    """Forward-difference steps of a parameter vector: focal (relative), rotation vector (rad), centre (m)."""
+    steps = np.full(len(x), 1e-7)
+    steps[0] = 1e-6 * x[0]
+    if param.fixed_centre is None:
+        steps[4:7] = 1e-5
+    return steps
+
+
+def _project(f: float, R: np.ndarray, C: np.ndarray, pp: np.ndarray, world: np.ndarray) -> np.ndarray:
+    """(n, 2) pixels of the ground points ``world`` (n, 3); a point behind the camera lands far away."""
+    Xc = (world - C) @ R.T
+    z = Xc[:, 2]
+    bad = z <= 1e-6
+    z = np.where(bad, 1.0, z)
+    uv = f * Xc[:, :2] / z[:, None] + pp
+    uv[bad] = 1e6
+    return uv
+
+
+@dataclass
+class _Problem:
+    """One view's fit: its foot pixels and grass points, its line observations, the scales."""
+
+    uv: np.ndarray          # (n, 2) foot pixels
+    world: np.ndarray       # (n, 3) grass points, z = 0
+    lines: FieldLines
+    pp: np.ndarray
+    width: int
+    height: int
+    scale: float            # px of the view per px@1920
+    cov_g: np.ndarray       # (n, 2, 2) covariance of each grass point, m^2
+
+    def __post_init__(self) -> None:
+        self.obs = build_observations(self.lines) if self.lines else None
+        if self.obs is not None and self.obs.n_points == 0:
+            self.obs = None
+        self.sigma_px = FOOT_SIGMA_PX * self.scale
+        self.line_sigma = max(1.0, self.scale)  # annotation clicks (:data:`.uncertainty.MIN_LINE_NOISE_PX` at 1920)
+        self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
+
+    def rewhiten(self, x: np.ndarray, param: CameraParametrisation) -> None:
+        """Whiten each foot point's residual by its covariance under the camera ``x``: its own pixel noise and its
+        grass point's covariance carried into this view (``J cov_g J^T + sigma^2 I``, ``J`` the projection's
+        Jacobian with respect to the ground point)."""
+        f, R, C, _ = param.split(x)
+        C = np.asarray(C, float)
+        base = _project(float(f), R, C, self.pp, foot_world(self.world[:, :2], C))
+        J = np.empty((len(self.uv), 2, 2))
+        for j in range(2):
+            moved = self.world[:, :2].copy()
+            moved[:, j] += 0.01
+            J[:, :, j] = (_project(float(f), R, C, self.pp, foot_world(moved, C)) - base) / 0.01
+        cov = np.einsum("nij,njk,nlk->nil", J, self.cov_g, J) + self.sigma_px**2 * np.eye(2)
+        try:
+            self.L = np.linalg.inv(np.linalg.cholesky(cov))
+        except np.linalg.LinAlgError:
+            self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
+
+    def pixel_errors(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
+        """Each foot point's distance (px) from its player's projection, and in its standard deviations."""
+        r = self.rows_batch(np.asarray(x, float)[None], param, whiten=False)[0][:2 * len(self.uv)].reshape(-1, 2)
+        return np.linalg.norm(r, axis=1), np.linalg.norm(np.einsum("nij,nj->ni", self.L, r), axis=1)
+
+    def rows(self, x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
+        """Every residual (px) of one vector ``x``: the foot points' (x, y) then the lines'."""
+        return self.rows_batch(np.asarray(x, float)[None], param)[0]
+
+    def rows_batch(self, X: np.ndarray, param: CameraParametrisation, whiten: bool = True) -> np.ndarray:
+        """:meth:`rows` of the vectors ``X`` (b, k) at once -> (b, 2 n + m) (the lines' in one compiled call):
+        whitened (the foot points' by :meth:`rewhiten`, the lines' by their click noise), or in px."""
+        f, R, C, _ = param.split(X)
+        f = np.asarray(f, float).reshape(-1)
+        R = np.asarray(R, float).reshape(-1, 3, 3)
+        C = np.asarray(C, float).reshape(-1, 3)
+        g = self.world[:, :2]
+        towards = C[:, None, :2] - g[None]
+        norm = np.linalg.norm(towards, axis=2, keepdims=True)
+        P = np.concatenate([g[None] + FOOT_OFFSET_M * towards / np.where(norm > 1e-9, norm, 1.0),
+                            np.zeros(towards.shape[:2] + (1,))], axis=2)
+        Xc = np.einsum("bij,bnj->bni", R, P - C[:, None, :])
+        z = Xc[..., 2]
+        bad = z <= 1e-6
+        uv = f[:, None, None] * Xc[..., :2] / np.where(bad, 1.0, z)[..., None] + self.pp
+        uv[bad] = 1e6
+        d = uv - self.uv[None]
+        if whiten:
+            d = np.einsum("nij,bnj->bni", self.L, d)
+        r = d.reshape(len(X), -1)
+        if self.obs is not None:
+            lr = residuals(np.ascontiguousarray(X), self.obs, param).reshape(len(X), -1)
+            r = np.concatenate([r, lr / self.line_sigma if whiten else lr], axis=1)
+        return r
+
+    def jacobian(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals (m,) at ``x`` and their forward-difference Jacobian (m, k), in one batched evaluation."""
+        steps = _steps(x, param)
+        X = np.vstack([x, x + np.diag(steps)])
+        rr = self.rows_batch(X, param)
+        return rr[0], ((rr[1:] - rr[0]) / steps[:, None]).T
+
+    def fit(self, param: CameraParametrisation, x0: np.ndarray, loss_px: float,
+            iterations: int = 30) -> tuple[np.ndarray, float]:
+        """Robust Levenberg-Marquardt from ``x0`` (iteratively reweighted, soft-L1 loss of scale ``loss_px``, as
+        ``scipy.optimize.least_squares(loss="soft_l1")`` defines it): the vector and its robust cost."""
+        def cost_of(r: np.ndarray) -> float:
+            z = (r / loss_px) ** 2
+            return float(0.5 * loss_px**2 * np.sum(2.0 * (np.sqrt(1.0 + z) - 1.0)))
+
+        x = np.asarray(x0, float).copy()
+        r, J = self.jacobian(x, param)
+        cost, lam = cost_of(r), 1e-3
+        for _ in range(iterations):
+            w = 1.0 / np.sqrt(1.0 + (r / loss_px) ** 2)  # the soft-L1 loss's weights (IRLS)
+            A = (J * w[:, None]).T @ J
+            gvec = (J * w[:, None]).T @ r
+            try:
+                dx = -np.linalg.solve(A + lam * np.diag(np.maximum(np.diag(A), 1e-12)), gvec)
+            except np.linalg.LinAlgError:
+                break
+            r_new = self.rows(x + dx, param)
+            new = cost_of(r_new)
+            if np.isfinite(new) and new < cost:
+                small = cost - new < 1e-9 * max(cost, 1e-12) or np.linalg.norm(dx) < 1e-10 * (np.linalg.norm(x) + 1e-10)
+                x, cost, lam = x + dx, new, max(lam / 3.0, 1e-9)
+                if small:
+                    break
+                r, J = self.jacobian(x, param)
+            else:
+                lam *= 4.0
+                if lam > 1e8:
+                    break
+        return x, cost
+
+
+def _rig_starts(problem: _Problem, centre: np.ndarray
+                ) -> tuple[float, list[tuple[CameraParametrisation, np.ndarray]]]:
+    """Starting rotations and focal lengths at a fixed ``centre``: for a series of focal lengths, the Wahba rotation
+    of the foot points' image rays onto their world directions; the two with the smallest median reprojection error
+    (px), and that error."""
+    world = foot_world(problem.world[:, :2], centre)
+    world_dirs = world - centre
+    world_dirs /= np.linalg.norm(world_dirs, axis=1, keepdims=True)
+    scored = []
+    for f in np.geomspace(0.4, 12.0, 20) * problem.width:
+        cam = np.column_stack([(problem.uv - problem.pp) / f, np.ones(len(problem.uv))])
+        cam /= np.linalg.norm(cam, axis=1, keepdims=True)
+        R = wahba_rotation(cam, world_dirs)
+        err = np.linalg.norm(_project(f, R, centre, problem.pp, world) - problem.uv, axis=1)
+        scored.append((float(np.median(err)), f, R))
+    scored.sort(key=lambda t: t[0])
+    out = []
+    for _, f, R in scored[:2]:
+        param = CameraParametrisation(principal_point=problem.pp, R0=R, fixed_centre=np.asarray(centre, float))
+        out.append((param, param.vector(f, centre)))
+    return scored[0][0], out
+
+
+def _free_start(problem: _Problem) -> tuple[CameraParametrisation, np.ndarray] | None:
+    """A full pose from the ground homography of the foot points (Zhang's constraints,
+    :func:`~.initialisation.camera_from_homography`), None when it gives none."""
+    H, _ = cv2.findHomography(problem.world[:, :2], problem.uv, 0)
+    if H is None or not np.all(np.isfinite(H)):
+        return None
+    got = camera_from_homography(np.asarray(H, float), problem.pp)
+    if got is None:
+        return None
+    f, R, C = got
+    param = CameraParametrisation(principal_point=problem.pp, R0=R)
+    return param, param.vector(f, C)
+
+
+@dataclass
+class _Candidate:
+    param: CameraParametrisation
+    x: np.ndarray
+    cost: float
+    rig_index: int | None
+
+
+def _best(problem: _Problem, starts: list[tuple[CameraParametrisation, np.ndarray]], loss: float,
+          rig_index: int | None) -> _Candidate | None:
+    """The best of the robust fits from ``starts``: each fitted with the foot points whitened at its start, then
+    again whitened at its solution (the whitening depends on the camera)."""
+    best = None
+    for param, x0 in starts:
+        try:
+            problem.rewhiten(x0, param)
+            x, cost = problem.fit(param, x0, loss)
+            problem.rewhiten(x, param)
+            x, cost = problem.fit(param, x, loss)
+        except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+            continue
+        if not np.all(np.isfinite(x)) or x[0] <= 0:
+            continue
+        if best is None or cost < best.cost:
+            best = _Candidate(param, x, cost, rig_index)
+    return best
+
+
+def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[PlayerKey, GrassPlayer],
+                          lines: FieldLines, width: int, height: int, rig_centres: Sequence[Sequence[float]] = (),
+                          settings: PlayerFitSettings | None = None) -> PlayerFit | PlayerRefusal:
+    """Fit a view's camera to its players' foot points (and its field lines), at a rig position where one fits.
+
+    Args:
+        feet: the view's players: key -> foot pixel (2,) px (:func:`foot_pixel`). Never the ball.
+        grass: where the players stand (:func:`players_on_grass`, from the other, well-calibrated views).
+        lines: the view's field lines (:data:`~app.geometry.annotations.FieldLines`, px; may be empty): their
+            residuals join the fit's.
+        width, height: the image size, px.
+        rig_centres: the game's camera positions, (3,) metres each (world, z down), most supported first.
+        settings: :class:`PlayerFitSettings`; defaults when None.
+
+    Returns:
+        :class:`PlayerFit`, or :class:`PlayerRefusal` with its code and numbers.
+    """
+    s = settings or PlayerFitSettings()
+    keys = [k for k in feet if k in grass]
+    if len(keys) < s.min_players_rig:
+        return PlayerRefusal("few_players", {"players": len(keys), "need": s.min_players_rig})
+    scale = width / REFERENCE_WIDTH_PX
+    uv = np.array([np.asarray(feet[k], float) for k in keys])
+    world = np.array([[grass[k].point_m[0], grass[k].point_m[1], 0.0] for k in keys])
+    spread = float(np.linalg.svd(uv - uv.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(len(keys))
+    if spread < s.min_spread_px * scale:
+        return PlayerRefusal("collinear_players", {"spread_px": spread, "limit_px": s.min_spread_px * scale})
+    problem = _Problem(uv=uv, world=world, lines=dict(lines), pp=principal_point(width, height), width=width,
+                       height=height, scale=scale, cov_g=np.array([grass[k].cov_m2 for k in keys], float))
+    loss_px = s.loss_scale
+    # Every position's starts are cheap (a Wahba rotation per focal length); only the positions whose starts come
+    # closest are refined (the best and its nearest rivals, which the margin compares).
+    ranked = []
+    for i, c in enumerate(rig_centres):
+        centre = np.asarray(c, float)
+        if centre.shape != (3,) or not np.all(np.isfinite(centre)) or centre[2] >= 0:
+            continue
+        error, starts = _rig_starts(problem, centre)
+        ranked.append((error, i, starts))
+    ranked.sort(key=lambda t: t[0])
+    fits = []
+    for k, (_, i, starts) in enumerate(ranked[:s.rig_refined]):
+        cand = _best(problem, starts if k == 0 else starts[:1], loss_px, i)
+        if cand is not None:
+            fits.append(cand)
+    fits.sort(key=lambda c: c.cost)
+    chosen: _Candidate | None = None
+    refusal: PlayerRefusal | None = None
+    if fits:
+        best = fits[0]
+        verdict = _judge(problem, best, s)
+        if isinstance(verdict, PlayerRefusal):
+            refusal = verdict
+        else:
+            centres = {c.rig_index: np.asarray(rig_centres[c.rig_index or 0], dtype=np.float64) for c in fits}
+            here = centres[best.rig_index]
+            rivals = [c for c in fits[1:] if float(np.linalg.norm(centres[c.rig_index] - here)) > s.rig_same_m]
+            if rivals and rivals[0].cost < s.rig_margin * best.cost:
+                refusal = PlayerRefusal("rig_ambiguous", {"cost": best.cost, "second_cost": rivals[0].cost})
+            else:
+                chosen = best
+    if chosen is None and len(keys) >= s.min_players_free:
+        # A full pose from the ground homography, and from the best rig fits with their centre freed (a camera
+        # near, not at, a rig position).
+        free_starts = [start] if (start := _free_start(problem)) is not None else []
+        for fitted in fits[:2]:
+            f, R, C, _ = fitted.param.split(fitted.x)
+            free = CameraParametrisation(principal_point=problem.pp, R0=np.asarray(R))
+            free_starts.append((free, free.vector(float(f), np.asarray(C, float))))
+        cand = _best(problem, free_starts, loss_px, None) if free_starts else None
+        if cand is not None:
+            verdict = _judge(problem, cand, s)
+            if isinstance(verdict, PlayerRefusal):
+                refusal = refusal or verdict
+            else:
+                chosen, refusal = cand, None
+    if chosen is None:
+        return refusal or PlayerRefusal("players_misfit" if fits else "few_players",
+                                        {"players": len(keys), "need": s.min_players_free})
+    return _accepted(problem, chosen, keys, s)
+
+
+def _judge(problem: _Problem, cand: _Candidate, s: PlayerFitSettings) -> PlayerRefusal | None:
+    """Refuse a fit whose foot points or lines are far from it."""
+    n = len(problem.uv)
+    problem.rewhiten(cand.x, cand.param)
+    _, d = problem.pixel_errors(cand.x, cand.param)
+    inl = d <= s.inlier_sigma
+    if inl.sum() < max(s.min_players_rig, math.ceil(s.min_inlier_share * n)):
+        return PlayerRefusal("players_misfit", {"inliers": int(inl.sum()), "players": n})
+    rms = float(np.sqrt(np.mean(d[inl] ** 2)))
+    if rms > s.max_rms:
+        return PlayerRefusal("players_misfit", {"rms_sigma": rms, "limit": s.max_rms})
+    if problem.obs is not None:
+        camera = cand.param.camera(cand.x)
+        limit = s.line_limit_gamma * image_diagonal(problem.width, problem.height)
+        worst = _class_worst(camera, problem)
+        if worst and max(worst.values()) > limit:
+            return PlayerRefusal("players_misfit", {"line_px": max(worst.values()), "limit_px": limit})
+    return None
+
+
+def _class_worst(camera: Camera, problem: _Problem) -> dict[str, float]:
+    from app.geometry.calibration.starts import class_residuals  # the line fit's own per-class residuals
+
+    assert problem.obs is not None
+    per_class, _ = class_residuals(camera, problem.obs)
+    return {c: float(v) for c, v in per_class.items()}
+
+
+def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: PlayerFitSettings
+              ) -> PlayerFit | PlayerRefusal:
+    """The fit's camera, its uncertainty from the Jacobian of every residual at the solution, and its checks."""
+    n = len(problem.uv)
+    param, x = cand.param, cand.x
+    # Re-centre the rotation vector at the solution (the uncertainty's angles are taken at w = 0).
+    f, R, C, _ = param.split(x)
+    param = CameraParametrisation(principal_point=problem.pp, R0=np.asarray(R), fixed_centre=param.fixed_centre)
+    x = param.vector(float(f), np.asarray(C, float))
+    problem.rewhiten(x, param)
+    r0 = problem.rows(x, param)
+    d_px, d = problem.pixel_errors(x, param)
+    inl = d <= s.inlier_sigma
+    keep = np.concatenate([np.repeat(inl, 2), np.ones(len(r0) - 2 * n, dtype=bool)])
+    J = problem.jacobian(x, param)[1][keep]
+    sigma = line_noise(r0[keep], len(x))
+    uncertainty = uncertainty_from_jacobian(param, J, sigma, int(keep.sum()))
+    camera = param.camera(x)
+    # How far the camera may put a ball where the players are (on the grass and 3 m up), from the full covariance
+    # of the fit (the centre's terms included: a full pose trades its centre against its angles).
+    cov, undetermined = parameter_covariance(J, sigma)
+    if np.any(undetermined):
+        return PlayerRefusal("camera_unsure", {"sigma_px": math.inf, "limit_px": s.max_sigma_px})
+    here = problem.world[inl].mean(axis=0, keepdims=True)  # where the play is: the players' centre
+    probe = np.vstack([here, here + [0.0, 0.0, -3.0]])
+    sigma_px = projection_sigma_px(problem, param, x, cov, probe) / problem.scale
+    if not sigma_px <= s.max_sigma_px:
+        return PlayerRefusal("camera_unsure", {"sigma_px": sigma_px, "limit_px": s.max_sigma_px})
+    line_rms = None
+    residuals_px: dict[str, float] = {}
+    if problem.obs is not None:
+        residuals_px = _class_worst(camera, problem)
+        lr = r0[2 * n:] * problem.line_sigma
+        line_rms = float(np.sqrt(np.mean(lr ** 2))) if len(lr) else None
+    used = tuple((keys[i], (float(problem.uv[i, 0]), float(problem.uv[i, 1])),
+                  (float(problem.world[i, 0]), float(problem.world[i, 1]))) for i in range(n) if inl[i])
+    return PlayerFit(camera=camera, uncertainty=uncertainty, rig_index=cand.rig_index, players=used,
+                     rms_px=float(np.sqrt(np.mean(d_px[inl] ** 2))), residuals_px=residuals_px, line_rms_px=line_rms,
+                     sigma_px=sigma_px)

@@ -1,0 +1,151 @@
+"""Cameras from players' foot points (``app.geometry.calibration.players``): synthetic cameras of known truth."""
+from __future__ import annotations
+
+import numpy as np
+
+from app.geometry.calibration.players import (
+    PlayerFit,
+    PlayerRefusal,
+    fit_camera_to_players,
+    foot_pixel,
+    foot_world,
+    grass_point,
+    players_on_grass,
+)
+from app.geometry.camera import Camera, look_at_rotation
+from tests.geometry.synthetic import visible_model_points
+
+W, H = 1920, 1080
+PP = ((W - 1) / 2, (H - 1) / 2)
+#: Where the truth's camera stands (high behind the left goal) and a rig with two other positions.
+CENTRE = np.array([-70.0, 5.0, -18.0])
+RIG = [(0.0, 60.0, -14.0), (-70.0, 5.0, -18.0), (70.0, -5.0, -18.0)]
+
+
+def camera_at(centre: np.ndarray, target: tuple[float, float, float], focal: float) -> Camera:
+    R = look_at_rotation(np.asarray(centre, float), np.asarray(target, float))
+    K = np.array([[focal, 0, PP[0]], [0, focal, PP[1]], [0, 0, 1.0]])
+    return Camera(K=K, R=R, C=np.asarray(centre, float), radial=np.zeros(6))
+
+
+def players(n: int, rng: np.random.Generator, centre=(-35.0, 0.0), spread=12.0) -> dict[tuple[str, str], np.ndarray]:
+    pts = np.asarray(centre) + rng.uniform(-spread, spread, size=(n, 2))
+    return {("Player team left", str(i)): p for i, p in enumerate(pts)}
+
+
+def feet_in(camera: Camera, grass: dict, noise_px: float = 0.0, rng: np.random.Generator | None = None) -> dict:
+    keys = list(grass)
+    world = foot_world(np.array([grass[k] for k in keys]), camera.C)  # the boxes' bottom edges: their near side
+    uv, ok = camera.project(world)
+    assert ok.all()
+    if noise_px:
+        assert rng is not None
+        uv = uv + rng.normal(0, noise_px, uv.shape)
+    return {k: uv[i] for i, k in enumerate(keys)}
+
+
+def as_grass(points: dict) -> dict:
+    """Where the players stand as two well-lined views of their system see them (the main camera, a replay)."""
+    anchors = [camera_at(np.array([0.0, 60.0, -14.0]), (-35.0, 0.0, 0.0), 1800.0),
+               camera_at(np.array([-20.0, 45.0, -10.0]), (-35.0, 0.0, 0.0), 2400.0)]
+    return players_on_grass([(a, feet_in(a, points)) for a in anchors])
+
+
+def ball_error(fit: PlayerFit, truth: Camera) -> float:
+    ball = np.array([[-33.0, 3.0, -1.5]])
+    return float(np.linalg.norm(fit.camera.project(ball)[0][0] - truth.project(ball)[0][0]))
+
+
+def test_foot_point_is_the_bottom_centre_and_a_cut_box_has_none() -> None:
+    assert foot_pixel((10, 20, 30, 80), W, H).tolist() == [20.0, 80.0]
+    assert foot_pixel((10, 20, 30, H - 1), W, H) is None  # feet cut off
+    assert foot_pixel((0, 20, 30, 80), W, H) is None  # half a player: its centre moved
+
+
+def test_a_foot_point_goes_back_to_where_the_player_stands() -> None:
+    cam = camera_at(CENTRE, (-35.0, 0.0, 0.0), 2500.0)
+    uv, _ = cam.project(foot_world(np.array([[-30.0, 4.0]]), cam.C))
+    assert np.allclose(grass_point(cam, uv[0]), [-30.0, 4.0], atol=1e-6)
+
+
+def test_a_rig_position_camera_is_recovered_to_sub_pixel_from_noise_free_players() -> None:
+    rng = np.random.default_rng(1)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(6, rng)
+    fit = fit_camera_to_players(feet_in(truth, pts), as_grass(pts), {}, W, H, RIG)
+    assert isinstance(fit, PlayerFit), fit
+    assert fit.rig_index == 1
+    assert ball_error(fit, truth) < 0.5
+    assert abs(fit.camera.K[0, 0] - 2600.0) < 2.0
+    assert fit.uncertainty.position_m == (0.0, 0.0, 0.0)  # the centre was the rig's
+    assert len(fit.players) == 6
+
+
+def test_one_pixel_of_noise_keeps_the_camera_within_a_few_pixels_and_its_uncertainty_says_so() -> None:
+    errors, sigmas = [], []
+    for seed in range(10):
+        rng = np.random.default_rng(100 + seed)
+        truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+        pts = players(6, rng)
+        fit = fit_camera_to_players(feet_in(truth, pts, 1.0, rng), as_grass(pts), {}, W, H, RIG)
+        assert isinstance(fit, PlayerFit), fit
+        errors.append(ball_error(fit, truth))
+        sigmas.append(fit.sigma_px)
+    assert max(errors) < 5.0
+    assert 0.1 < np.median(sigmas) < 8.0  # the fit knows it is not exact
+
+
+def test_a_camera_away_from_every_rig_position_gets_a_full_pose_from_enough_players() -> None:
+    rng = np.random.default_rng(7)
+    truth = camera_at(np.array([-40.0, -45.0, -9.0]), (-35.0, 0.0, 0.0), 1800.0)
+    pts = players(10, rng)
+    fit = fit_camera_to_players(feet_in(truth, pts), as_grass(pts), {}, W, H, [RIG[0], RIG[2]])
+    assert isinstance(fit, PlayerFit), fit
+    assert fit.rig_index is None
+    assert ball_error(fit, truth) < 1.0
+
+
+def test_too_few_or_collinear_players_are_refused() -> None:
+    rng = np.random.default_rng(3)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(2, rng)
+    got = fit_camera_to_players(feet_in(truth, pts), as_grass(pts), {}, W, H, RIG)
+    assert isinstance(got, PlayerRefusal) and got.code == "few_players"
+    line = {("Player team left", str(i)): np.array([-40.0 + 3 * i, -0.5 + 0.0 * i]) for i in range(6)}
+    # on one image row: players on a line through the camera's foot along its view... any collinear set
+    feet = {k: np.array([300.0 + 200 * i, 600.0]) for i, k in enumerate(line)}
+    got = fit_camera_to_players(feet, as_grass(line), {}, W, H, RIG)
+    assert isinstance(got, PlayerRefusal) and got.code == "collinear_players"
+
+
+def test_foot_points_no_camera_fits_are_refused() -> None:
+    rng = np.random.default_rng(5)
+    pts = players(6, rng)
+    feet = {k: rng.uniform([0, 0], [W, H]) for k in pts}  # boxes that are nobody's
+    got = fit_camera_to_players(feet, as_grass(pts), {}, W, H, RIG)
+    assert isinstance(got, PlayerRefusal)
+
+
+def test_a_wrong_id_is_left_out_of_where_players_stand() -> None:
+    a = camera_at(np.array([0.0, 60.0, -14.0]), (-35.0, 0.0, 0.0), 1400.0)
+    b = camera_at(np.array([-70.0, 5.0, -18.0]), (-35.0, 0.0, 0.0), 2000.0)
+    pts = {("p", "1"): np.array([-30.0, 2.0]), ("p", "2"): np.array([-36.0, -4.0])}
+    fa, fb = feet_in(a, pts), feet_in(b, pts)
+    fb[("p", "2")] = fb[("p", "1")] + 40.0  # the second box in view b is someone else's
+    grass = players_on_grass([(a, fa), (b, fb)])
+    assert set(grass) == {("p", "1")}
+    assert grass[("p", "1")].views == 2
+    assert np.allclose(grass[("p", "1")].point_m, [-30.0, 2.0], atol=1e-6)
+
+
+def test_lines_join_the_fit_with_their_residuals() -> None:
+    rng = np.random.default_rng(11)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    lines = visible_model_points(truth, W, H, rng, noise_px=1.0)
+    assert lines
+    pts = players(4, rng)
+    fit = fit_camera_to_players(feet_in(truth, pts, 1.0, rng), as_grass(pts), lines, W, H, RIG)
+    assert isinstance(fit, PlayerFit), fit
+    assert set(fit.residuals_px) == set(lines)
+    assert max(fit.residuals_px.values()) < 6.0
+    assert ball_error(fit, truth) < 3.0
