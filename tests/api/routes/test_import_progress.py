@@ -9,6 +9,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.core.config import jobs_dir
+from app.core.names import TITLE_MAX, clean_title
 from app.services.jobs import runner as jobs
 from app.services.jobs.progress import live_file, read_live
 
@@ -56,14 +57,15 @@ def test_an_upload_is_titled_by_its_file_and_its_progress_is_live(jobs_app, clie
 
 def test_a_crafted_upload_name_is_only_a_title(jobs_app, client: TestClient, shared_dir: Path, tmp_path: Path) -> None:
     """A file name sent with an upload is shown, never used as a path: a name leading out of the jobs folder, with
-    markup in it, becomes its last component (at most 200 characters), and nothing is written outside the jobs
-    folder under any part of it (the pages set it as text)."""
+    markup in it, becomes its last component as a title (``clean_title``: at most ``TITLE_MAX`` characters), and
+    nothing is written outside the jobs folder under any part of it (the pages set it as text)."""
     data, _ = _dev_game_zip(shared_dir)
     crafted = "../../../outside/" + "x" * 300 + "<img src=x onerror=alert(1)>.zip"
     answer = _upload(client, data, name=crafted)
     assert answer.status_code == 202, answer.text
     name = answer.json()["params"]["name"]
-    assert name == ("x" * 300 + "<img src=x onerror=alert(1)>.zip")[:200] and "/" not in name
+    assert name == clean_title("x" * 300 + "<img src=x onerror=alert(1)>.zip") and "/" not in name
+    assert len(name) <= TITLE_MAX
     assert not (tmp_path / "outside").exists() and not (tmp_path.parent / "outside").exists()
     written = [p for p in tmp_path.rglob("*") if p.is_file()]
     assert written and all(p.is_relative_to(tmp_path / "jobs") or p.suffix == ".sqlite3" for p in written), written

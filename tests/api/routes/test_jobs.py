@@ -121,7 +121,8 @@ def test_full_recompute_and_export_jobs(jobs_app, client: TestClient, scene: Sce
     assert run_queued(jobs_app) == [recompute.json()["id"], export.json()["id"]]
     done = client.get(recompute.json()["url"]).json()
     assert (done["state"], done["result"], done["stage"], done["done"], done["total"]) == (
-        "done", {"systems": 1, "triangulated": 1}, "recompute", 1, 1)
+        "done", {"systems": 1, "triangulated": 1,
+                 "summary": {"words": "1 system recomputed, 1 with a 3D ball", "links": []}}, "recompute", 1, 1)
     job = client.get(export.json()["url"]).json()
     assert job["state"] == "done" and job["result"]["systems"] == 1 and job["result"]["rows"] == 3
     assert (job["stage"], job["done"], job["total"]) == ("export", 1, 1)
