@@ -6,12 +6,15 @@ import numpy as np
 from app.geometry.calibration.players import (
     PlayerFit,
     PlayerRefusal,
+    _Problem,
     fit_camera_to_players,
     foot_pixel,
     foot_world,
     grass_point,
+    grass_points,
     players_on_grass,
 )
+from app.geometry.calibration.residuals import CameraParametrisation
 from app.geometry.camera import Camera, look_at_rotation
 from tests.geometry.synthetic import visible_model_points
 
@@ -66,6 +69,37 @@ def test_a_foot_point_goes_back_to_where_the_player_stands() -> None:
     cam = camera_at(CENTRE, (-35.0, 0.0, 0.0), 2500.0)
     uv, _ = cam.project(foot_world(np.array([[-30.0, 4.0]]), cam.C))
     assert np.allclose(grass_point(cam, uv[0]), [-30.0, 4.0], atol=1e-6)
+
+
+def test_a_view_s_foot_points_go_back_together_as_one_by_one() -> None:
+    """The batched back-projection (one per view, as ``players_on_grass`` does it) is the single one's, a pixel above
+    the horizon (no ground ahead) NaN where the single one says None."""
+    cam = camera_at(CENTRE, (-35.0, 0.0, 0.0), 2500.0)
+    pixels = np.array([[900.0, 700.0], [100.0, 1000.0], [1800.0, 600.0], [960.0, -4000.0]])
+    together = grass_points(cam, pixels)
+    for uv, got in zip(pixels[:3], together[:3], strict=True):
+        assert np.array_equal(got, grass_point(cam, uv))
+    assert grass_point(cam, pixels[3]) is None and np.isnan(together[3]).all()
+
+
+def test_a_rig_position_s_residuals_are_the_free_pose_s_at_that_centre() -> None:
+    """At a rig position the foot points' world points are made once per centre: the residuals equal those of the
+    full pose (which makes them anew at every vector) at the same camera."""
+    rng = np.random.default_rng(3)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(6, rng)
+    feet = feet_in(truth, pts, 1.5, rng)
+    keys = list(pts)
+    problem = _Problem(uv=np.array([feet[k] for k in keys]), world=np.array([[*pts[k], 0.0] for k in keys]), lines={},
+                       pp=np.asarray(PP), width=W, height=H, scale=1.0, cov_g=np.repeat(np.eye(2)[None] * 0.01, 6, 0))
+    rig = CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R, fixed_centre=CENTRE)
+    free = CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R)
+    X = np.array([[2600.0, 0.0, 0.0, 0.0], [2500.0, 0.01, -0.02, 0.005]])
+    for _ in range(2):  # the second time from the centre's stored points
+        at_rig = problem.rows_batch(X, rig)
+        assert np.allclose(at_rig, problem.rows_batch(np.column_stack([X, np.tile(CENTRE, (2, 1))]), free),
+                           rtol=1e-9, atol=1e-9)
+    assert np.allclose(problem.jacobian(X[1], rig)[0], at_rig[1], rtol=0, atol=0)
 
 
 def test_a_rig_position_camera_is_recovered_to_sub_pixel_from_noise_free_players() -> None:

@@ -174,16 +174,23 @@ def grass_point(camera: Camera, pixel: np.ndarray, offset_m: float = FOOT_OFFSET
     """Where a player stands whose foot point is ``pixel`` (2,): the ray's point on the ground ``z = 0``, moved
     ``offset_m`` away from the camera along the ground (:data:`FOOT_OFFSET_M`); world metres, (2,) x, y. None when
     the ray never meets the ground ahead of the camera."""
-    d = camera.rays(np.asarray(pixel, float).reshape(1, 2))[0]
-    if abs(d[2]) < 1e-9:
-        return None
-    t = -camera.C[2] / d[2]
-    if t <= 0:
-        return None
-    p = (camera.C + t * d)[:2]
+    p = grass_points(camera, np.asarray(pixel, float).reshape(1, 2), offset_m)[0]
+    return None if np.isnan(p[0]) else p
+
+
+def grass_points(camera: Camera, pixels: np.ndarray, offset_m: float = FOOT_OFFSET_M) -> np.ndarray:
+    """:func:`grass_point` of the foot points ``pixels`` (n, 2) at once: world metres (n, 2), a row of NaN where the
+    ray never meets the ground ahead of the camera."""
+    d = camera.rays(np.asarray(pixels, float).reshape(-1, 2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -camera.C[2] / d[:, 2]
+    ok = (np.abs(d[:, 2]) >= 1e-9) & (t > 0)
+    p = camera.C[:2] + np.where(ok, t, 0.0)[:, None] * d[:, :2]
     away = p - camera.C[:2]
-    norm = float(np.linalg.norm(away))
-    return p + offset_m * away / norm if norm > 1e-9 else p
+    norm = np.linalg.norm(away, axis=1, keepdims=True)
+    p = np.where(norm > 1e-9, p + offset_m * away / np.where(norm > 1e-9, norm, 1.0), p)
+    p[~ok] = np.nan
+    return p
 
 
 def foot_world(grass_m: np.ndarray, centre: np.ndarray, offset_m: float = FOOT_OFFSET_M) -> np.ndarray:
@@ -213,12 +220,14 @@ def players_on_grass(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray
     seen: dict[PlayerKey, list[tuple[np.ndarray, np.ndarray]]] = {}
     for camera, feet in views:
         sigma = FOOT_SIGMA_PX * float(camera.K[0, 2] * 2 + 1) / REFERENCE_WIDTH_PX  # px of this view
-        for key, uv in feet.items():
-            p = grass_point(camera, uv)
-            if p is None:
-                continue
-            px, py = grass_point(camera, uv + [0.5, 0.0]), grass_point(camera, uv + [0.0, 0.5])
-            if px is None or py is None:
+        if not feet:
+            continue
+        keys = list(feet)
+        uv = np.array([np.asarray(feet[k], float) for k in keys])
+        # Each foot point and its two half-pixel neighbours (the ground Jacobian), one back-projection per view.
+        g = grass_points(camera, np.concatenate([uv, uv + [0.5, 0.0], uv + [0.0, 0.5]])).reshape(3, len(keys), 2)
+        for key, p, px, py in zip(keys, g[0], g[1], g[2], strict=True):
+            if np.isnan(p[0]) or np.isnan(px[0]) or np.isnan(py[0]):
                 continue
             J = np.column_stack([(px - p) / 0.5, (py - p) / 0.5])  # metres per pixel
             cov = sigma**2 * J @ J.T + FOOT_OFFSET_SIGMA_M**2 * np.eye(2)
@@ -298,6 +307,7 @@ class _Problem:
         self.sigma_px = FOOT_SIGMA_PX * self.scale
         self.line_sigma = max(1.0, self.scale)  # annotation clicks (:data:`.uncertainty.MIN_LINE_NOISE_PX` at 1920)
         self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
+        self._feet_cache: dict[bytes, np.ndarray] = {}
 
     def rewhiten(self, x: np.ndarray, param: CameraParametrisation) -> None:
         """Whiten each foot point's residual by its covariance under the camera ``x``: its own pixel noise and its
@@ -326,6 +336,15 @@ class _Problem:
         """Every residual (px) of one vector ``x``: the foot points' (x, y) then the lines'."""
         return self.rows_batch(np.asarray(x, float)[None], param)[0]
 
+    def _feet_from(self, centre: np.ndarray) -> np.ndarray:
+        """The foot points' world points (:func:`foot_world`) less a fixed ``centre`` (3,), (n, 3) m: at a rig
+        position they do not move with the parameters, so each position's are made once."""
+        key = np.asarray(centre, float).tobytes()
+        got = self._feet_cache.get(key)
+        if got is None:
+            got = self._feet_cache[key] = foot_world(self.world[:, :2], centre) - np.asarray(centre, float)
+        return got
+
     def rows_batch(self, X: np.ndarray, param: CameraParametrisation, whiten: bool = True) -> np.ndarray:
         """:meth:`rows` of the vectors ``X`` (b, k) at once -> (b, 2 n + m) (the lines' in one compiled call):
         whitened (the foot points' by :meth:`rewhiten`, the lines' by their click noise), or in px."""
@@ -333,12 +352,15 @@ class _Problem:
         f = np.asarray(f, float).reshape(-1)
         R = np.asarray(R, float).reshape(-1, 3, 3)
         C = np.asarray(C, float).reshape(-1, 3)
-        g = self.world[:, :2]
-        towards = C[:, None, :2] - g[None]
-        norm = np.linalg.norm(towards, axis=2, keepdims=True)
-        P = np.concatenate([g[None] + FOOT_OFFSET_M * towards / np.where(norm > 1e-9, norm, 1.0),
-                            np.zeros(towards.shape[:2] + (1,))], axis=2)
-        Xc = np.einsum("bij,bnj->bni", R, P - C[:, None, :])
+        if param.fixed_centre is not None:
+            Xc = np.einsum("bij,nj->bni", R, self._feet_from(param.fixed_centre))
+        else:
+            g = self.world[:, :2]
+            towards = C[:, None, :2] - g[None]
+            norm = np.linalg.norm(towards, axis=2, keepdims=True)
+            P = np.concatenate([g[None] + FOOT_OFFSET_M * towards / np.where(norm > 1e-9, norm, 1.0),
+                                np.zeros(towards.shape[:2] + (1,))], axis=2)
+            Xc = np.einsum("bij,bnj->bni", R, P - C[:, None, :])
         z = Xc[..., 2]
         bad = z <= 1e-6
         uv = f[:, None, None] * Xc[..., :2] / np.where(bad, 1.0, z)[..., None] + self.pp
@@ -378,14 +400,16 @@ class _Problem:
                 dx = -np.linalg.solve(A + lam * np.diag(np.maximum(np.diag(A), 1e-12)), gvec)
             except np.linalg.LinAlgError:
                 break
-            r_new = self.rows(x + dx, param)
+            # The trial step and its Jacobian in one batched evaluation: nearly every step is taken, and one call
+            # of k + 1 rows costs about what one row does (the time is the call, not the rows).
+            r_new, J_new = self.jacobian(x + dx, param)
             new = cost_of(r_new)
             if np.isfinite(new) and new < cost:
                 small = cost - new < 1e-9 * max(cost, 1e-12) or np.linalg.norm(dx) < 1e-10 * (np.linalg.norm(x) + 1e-10)
                 x, cost, lam = x + dx, new, max(lam / 3.0, 1e-9)
                 if small:
                     break
-                r, J = self.jacobian(x, param)
+                r, J = r_new, J_new
             else:
                 lam *= 4.0
                 if lam > 1e8:
@@ -401,19 +425,24 @@ def _rig_starts(problem: _Problem, centre: np.ndarray
     world = foot_world(problem.world[:, :2], centre)
     world_dirs = world - centre
     world_dirs /= np.linalg.norm(world_dirs, axis=1, keepdims=True)
-    scored = []
-    for f in np.geomspace(0.4, 12.0, 20) * problem.width:
-        cam = np.column_stack([(problem.uv - problem.pp) / f, np.ones(len(problem.uv))])
-        cam /= np.linalg.norm(cam, axis=1, keepdims=True)
-        R = wahba_rotation(cam, world_dirs)
-        err = np.linalg.norm(_project(f, R, centre, problem.pp, world) - problem.uv, axis=1)
-        scored.append((float(np.median(err)), f, R))
-    scored.sort(key=lambda t: t[0])
+    focals = np.geomspace(0.4, 12.0, 20) * problem.width
+    # Every focal length at once (the rays, the projections, the medians); only the small SVDs go one by one.
+    cam = np.concatenate([(problem.uv - problem.pp)[None] / focals[:, None, None],
+                          np.ones((len(focals), len(problem.uv), 1))], axis=2)
+    cam /= np.linalg.norm(cam, axis=2, keepdims=True)
+    Rs = np.array([wahba_rotation(c, world_dirs) for c in cam])
+    Xc = np.einsum("fij,nj->fni", Rs, world - centre)
+    z = Xc[..., 2]
+    bad = z <= 1e-6
+    uv = focals[:, None, None] * Xc[..., :2] / np.where(bad, 1.0, z)[..., None] + problem.pp
+    uv[bad] = 1e6
+    errors = np.median(np.linalg.norm(uv - problem.uv, axis=2), axis=1)
+    order = np.argsort(errors, kind="stable")
     out = []
-    for _, f, R in scored[:2]:
-        param = CameraParametrisation(principal_point=problem.pp, R0=R, fixed_centre=np.asarray(centre, float))
-        out.append((param, param.vector(f, centre)))
-    return scored[0][0], out
+    for j in order[:2]:
+        param = CameraParametrisation(principal_point=problem.pp, R0=Rs[j], fixed_centre=np.asarray(centre, float))
+        out.append((param, param.vector(float(focals[j]), centre)))
+    return float(errors[order[0]]), out
 
 
 def _free_start(problem: _Problem) -> tuple[CameraParametrisation, np.ndarray] | None:

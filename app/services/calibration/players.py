@@ -173,9 +173,11 @@ def place_by_players(system: System, settings: Settings, rig: CameraRig,
     cameras = {id(f): Camera.from_soccernet(f.calibration.camera) for f in anchors}  # type: ignore[union-attr,arg-type]  # anchors are calibrated
     centres = [p.centre_m for p in rig.positions]
     out: dict[int, CalibrationFields | PlayerRefusal] = {}
+    # A weak view is never an anchor (fewer line classes, or placed by the players): where the players stand is the
+    # same for every weak view of the system, fused once.
+    grass = players_on_grass([(cameras[id(a)], feet[id(a)]) for a in anchors])
     for f in weak:
         t0 = time.perf_counter()
-        grass = players_on_grass([(cameras[id(a)], feet[id(a)]) for a in anchors if a is not f])
         lines = lines_from_json_lists(f.field_lines.lines) if f.field_lines is not None else {}
         got = fit_camera_to_players(feet[id(f)], grass, {c: v for c, v in lines.items() if v}, f.width, f.height,
                                     centres)
