@@ -19,7 +19,7 @@ const STAGE_LABEL = {
   read: "reading", games: "games stored", merge: "merging", calibrate: "calibrating", rig: "calibrating with game rigs",
   prior: "calibrating with the learned prior", predictions: "reading the predictions",
   triangulate: "triangulating", recompute: "systems recomputed", export: "games exported", zip: "files zipped",
-  predictions: "predictions read (bytes)", store: "frames stored",
+  store: "frames stored",
 };
 /** Stages whose count is bytes of a file, not items: shown as the share read. */
 const BYTE_STAGES = new Set(["predictions"]);

@@ -22,18 +22,22 @@ SIZE_IDS = ["1366x768", "1920x1080"]
 LABELS_ONLY_MATCH = "2025-03-22 - 15-00 Northbridge 0 - 0 Westfield"
 
 
-#: The labels-only copy's view left with one field line: its calibration is refused (a view without a camera).
+#: The labels-only copy's view left with one field line and no player: its calibration is refused (a view without a
+#: camera: neither its lines nor its players place one).
 NO_CAMERA_VIEW = "1_3.png"
 
 
 def labels_only_tree(demo: Path, out: Path, match: str = LABELS_ONLY_MATCH) -> Path:
     """A SoccerNet-v3 tree holding the demo's ``Labels-v3.json`` under the game ``match``, without its
-    ``Frames-v3.zip``: a labels-only dataset; its view :data:`NO_CAMERA_VIEW` keeps one field line only."""
+    ``Frames-v3.zip``: a labels-only dataset; its view :data:`NO_CAMERA_VIEW` keeps one field line and its ball box
+    only."""
     labels = next(demo.rglob("Labels-v3.json"))
     game = out / labels.parent.parent.parent.name / labels.parent.parent.name / match
     game.mkdir(parents=True)
     data = json.loads(labels.read_text())
-    data["replays"][NO_CAMERA_VIEW]["lines"] = data["replays"][NO_CAMERA_VIEW]["lines"][:1]
+    view = data["replays"][NO_CAMERA_VIEW]
+    view["lines"] = view["lines"][:1]
+    view["bboxes"] = [b for b in view.get("bboxes", []) if b.get("class") == "Ball"]
     (game / "Labels-v3.json").write_text(json.dumps(data))
     return out
 
