@@ -57,7 +57,8 @@ def test_release_commands(tmp_path: Path) -> None:
     diff = json.loads(runner.invoke(cli, ["release", "diff", "v1", "v2", *db]).output)
     assert [s["system_id"] for s in diff["removed"]] == [ids[1]] and diff["added"] == diff["changed"] == []
     rows = runner.invoke(cli, ["release", "diff", "v1", "v2", "--csv", *db]).output.splitlines()
-    assert rows[0] == "change,system_id,name,game,ball3d_moved_m,views" and rows[1].startswith(f"removed,{ids[1]},")
+    assert rows[0] == "change,system_id,name,game,ball3d_moved_m,views,why" and rows[1].startswith(f"removed,{ids[1]},")
+    assert rows[1].endswith(",rejected")  # why it left the release: rejected since
     for out in ("a", "b"):
         done = runner.invoke(cli, ["export", "soccernet-v3d", str(tmp_path / out), "--release", "v1", *db])
         assert done.exit_code == 0, done.output
