@@ -26,14 +26,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import sqlalchemy as sa  # noqa: E402
-from sqlalchemy.orm import Session, selectinload  # noqa: E402
+import sqlalchemy as sa  # noqa: E402  # after the path set-up above that makes app importable
+from sqlalchemy.orm import Session, selectinload  # noqa: E402  # after the path set-up above that makes app importable
 
-from app.core.paths import SHARED_DIR  # noqa: E402
-from app.db.models import CalibrationStatus, Frame, System  # noqa: E402
-from app.geometry.calibration.result import PLAYERS_FLAG  # noqa: E402
-from app.geometry.camera import Camera  # noqa: E402
-from app.geometry.pair_error import REFERENCE_WIDTH_PX  # noqa: E402
+from app.core.paths import SHARED_DIR  # noqa: E402  # after the path set-up above that makes app importable
+from app.db.models import CalibrationStatus, Frame, System  # noqa: E402  # after the path set-up above that makes app importable
+from app.geometry.calibration.result import PLAYERS_FLAG  # noqa: E402  # after the path set-up above that makes app importable
+from app.geometry.camera import Camera  # noqa: E402  # after the path set-up above that makes app importable
+from app.geometry.pair_error import REFERENCE_WIDTH_PX  # noqa: E402  # after the path set-up above that makes app importable
 
 SYNTH = SHARED_DIR / "data" / "synthetic"
 SETS: dict[str, Path] = {
@@ -138,7 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in args.sets:
         r = score(name, imported(name, args.db_dir))
         results[name] = r
-        pct = lambda a, b: 100.0 * a / b if b else float("nan")  # noqa: E731
+        pct = lambda a, b: 100.0 * a / b if b else float("nan")  # noqa: E731  # a one-line helper local to the table it formats
         print(f"{name:20s} weak {r['weak_right']}/{r['weak']} ({pct(r['weak_right'], r['weak']):.1f} %) within "
               f"{WITHIN_PX:g} px, {r['weak_by_players']} placed by players ({r['weak_by_players_right']} right), "
               f"{r['weak_no_camera']} without camera; strong {r['strong_right']}/{r['strong']} "

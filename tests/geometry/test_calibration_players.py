@@ -1,19 +1,11 @@
-"""Cameras from players' foot points (``app.geometry.calibration.players``): synthetic cameras of known truth."""
+"""Cameras from players' foot points (``app.geometry.calibration.grass``, ``players``): synthetic cameras of known
+truth."""
 from __future__ import annotations
 
 import numpy as np
 
-from app.geometry.calibration.players import (
-    PlayerFit,
-    PlayerRefusal,
-    _Problem,
-    fit_camera_to_players,
-    foot_pixel,
-    foot_world,
-    grass_point,
-    grass_points,
-    players_on_grass,
-)
+from app.geometry.calibration.grass import foot_pixel, foot_world, grass_point, grass_points, players_on_grass
+from app.geometry.calibration.players import PlayerFit, PlayerRefusal, _Problem, fit_camera_to_players
 from app.geometry.calibration.residuals import CameraParametrisation
 from app.geometry.camera import Camera, look_at_rotation
 from tests.geometry.synthetic import visible_model_points

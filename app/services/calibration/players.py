@@ -15,21 +15,17 @@ import time
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.datasets.records import CalibrationFields
-from app.db.models import Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, System
+from app.db.models import Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, PlayerBox, System
 from app.db.types import json_safe
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import frame_jac
-from app.geometry.calibration.players import (
-    PlayerFit,
-    PlayerKey,
-    PlayerRefusal,
-    fit_camera_to_players,
-    foot_pixel,
-    players_on_grass,
-)
+from app.geometry.calibration.grass import PlayerKey, foot_pixel, players_on_grass
+from app.geometry.calibration.players import PlayerFit, PlayerRefusal, fit_camera_to_players
 from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig
 from app.geometry.camera import Camera
@@ -229,3 +225,20 @@ def place_cameras_by_players(systems: Sequence[System], settings: Settings,
         for s in group:
             n += apply_player_cameras(s, settings, rig, players, relined)
     return n
+
+
+def store_players(session: Session, frames: list[tuple[Frame, tuple[PlayerRow, ...], bool]]) -> None:
+    """Write the player boxes of ``frames`` (new frames, and stored ones whose boxes the file changed: their old rows
+    replaced) in one statement each way, after a flush gives the new frames their ids."""
+    if not frames:
+        return
+    session.flush()
+    stored = [f.id for f, _, was_stored in frames if was_stored]
+    if stored:
+        session.execute(sa.delete(PlayerBox).where(PlayerBox.frame_id.in_(stored)))
+    rows = [{"frame_id": f.id, "cls": cls, "ident": ident, "x1": b[0], "y1": b[1], "x2": b[2], "y2": b[3]}
+            for f, players, _ in frames for cls, ident, b in players]
+    if rows:
+        session.execute(sa.insert(PlayerBox), rows)
+    for f, _, _ in frames:  # written past the ORM: read again when next asked for
+        session.expire(f, ["players"])

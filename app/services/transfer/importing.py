@@ -44,7 +44,6 @@ from functools import partial
 from pathlib import Path
 from typing import Callable, Iterator
 
-import sqlalchemy as sa
 from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload, undefer
 
@@ -63,7 +62,6 @@ from app.db.models import (
     FieldLineAnnotation,
     Frame,
     Game,
-    PlayerBox,
     ReviewDecision,
     ReviewStatus,
     System,
@@ -80,7 +78,7 @@ from app.services.calibration.first_pass import (
     retry_with_game_rigs,
     start_first_pass,
 )
-from app.services.calibration.players import PlayerRow, frame_players, place_cameras_by_players
+from app.services.calibration.players import PlayerRow, frame_players, place_cameras_by_players, store_players
 from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
 from app.services.curation.words import WORDS
@@ -372,7 +370,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
-    _store_players(session, new_players)
+    store_players(session, new_players)
     report.player_assisted += place_cameras_by_players(
         touched, settings, {id(f): rows for f, rows, _ in new_players},
         relined=lambda f: calibrate_frame_lines(session, f, settings, refine=False).fields)
@@ -385,23 +383,6 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
             report.refusal_reasons[fields.refusal or "unspecified"] += 1
     report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
     report.systems_merged += sum(merge.record(session) for merge in merges)
-
-
-def _store_players(session: Session, frames: list[tuple[Frame, tuple[PlayerRow, ...], bool]]) -> None:
-    """Write the player boxes of ``frames`` (new frames, and stored ones whose boxes the file changed: their old rows
-    replaced) in one statement each way, after a flush gives the new frames their ids."""
-    if not frames:
-        return
-    session.flush()
-    stored = [f.id for f, _, was_stored in frames if was_stored]
-    if stored:
-        session.execute(sa.delete(PlayerBox).where(PlayerBox.frame_id.in_(stored)))
-    rows = [{"frame_id": f.id, "cls": cls, "ident": ident, "x1": b[0], "y1": b[1], "x2": b[2], "y2": b[3]}
-            for f, players, _ in frames for cls, ident, b in players]
-    if rows:
-        session.execute(sa.insert(PlayerBox), rows)
-    for f, _, _ in frames:  # written past the ORM: read again when next asked for
-        session.expire(f, ["players"])
 
 
 #: One game of an import's input: reads (and validates) it when called, as often as needed.

@@ -1,0 +1,148 @@
+"""A detector's box as the doubts read it: the detection, a checked one, and the measures on it (its size against
+a ball at a depth, the ball a set of rays meets, a view's error against it, the detections near a point or along a
+ray) that :mod:`~app.geometry.doubts.detections` and :mod:`~app.geometry.doubts.pairings` share."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Hashable, Mapping, Sequence
+
+import numpy as np
+
+from app.geometry.ball import sphere_image_box
+from app.geometry.doubts.contract import DoubtSettings, DoubtView, _plausible
+from app.geometry.doubts.epipolar import _polyline_distance, _segment
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.triangulation import (
+    BallObservation,
+    reprojection_error_px,
+    triangulate_dlt,
+    undistort_pixels,
+)
+from app.geometry.weighting import camera_of, project_point, rule_scale
+
+#: A detection is refitted only when its centre lies within this many tolerances of where the others put the ball
+#: (a cheap necessary test: the refit moves the ball by less than a tolerance in a view that agrees).
+PREFILTER = 3.0
+#: At most this many candidates of a view are refitted (the nearest): bounded time with hundreds of detections.
+MAX_CANDIDATES = 16
+#: Candidates whose errors differ by less than this (px at 1920 width) are tied: the detector's score orders them.
+TIE_PX = 1.0
+
+
+@dataclass(frozen=True)
+class Detection:
+    """One prediction of a detector on one view: ``source`` (the detector's name), ``score`` in [0, 1] and ``box``
+    (4,) ``[x1, y1, x2, y2]`` px of the view's image (clipped to it)."""
+
+    source: str
+    score: float
+    box: tuple[float, float, float, float]
+
+    @property
+    def centre(self) -> np.ndarray:
+        """(2,) the box's centre, px."""
+        return np.array([(self.box[0] + self.box[2]) / 2, (self.box[1] + self.box[3]) / 2])
+
+
+@dataclass(frozen=True)
+class CheckedDetection:
+    """A detection that passed the three conditions in its view: ``error_1920`` (px at 1920 width) of its centre
+    to the refitted ball, ``ball`` (3,) that ball (world metres), ``size_ratio`` (its diameter over the sphere's
+    there), and how many candidates of the view passed (``passed``) with the ``margin_1920`` of the chosen one over
+    the next (None with one)."""
+
+    view_id: Hashable
+    detection: Detection
+    error_1920: float
+    ball: np.ndarray
+    size_ratio: float
+    passed: int = 1
+    margin_1920: float | None = None
+
+
+def _diameter(box: Sequence[float], view: DoubtView) -> float:
+    """A box's ball diameter (px): the mean side, the larger side where the box touches the image's edge."""
+    w, h = box[2] - box[0], box[3] - box[1]
+    clipped = box[0] <= 0.5 or box[1] <= 0.5 or box[2] >= view.width - 0.5 or box[3] >= view.height - 0.5
+    return float(max(w, h) if clipped else (w + h) / 2)
+
+
+def size_ratio(view: DoubtView, box: Sequence[float], ball: np.ndarray, ball_diameter_m: float) -> float | None:
+    """The box's diameter over that of the exact silhouette of a ball of ``ball_diameter_m`` (m) centred at
+    ``ball`` (3,) world metres in ``view`` (None where the sphere is not wholly in front of the camera)."""
+    expected = sphere_image_box(camera_of(view), ball, ball_diameter_m / 2)
+    if expected is None:
+        return None
+    d = ((expected[2] - expected[0]) + (expected[3] - expected[1])) / 2
+    return _diameter(box, view) / float(d) if d > 0 else None
+
+
+def _refit(obs: Sequence[BallObservation]) -> np.ndarray | None:
+    """The DLT ball (3,) world metres of the observations' undistorted pixels, None at infinity."""
+    h = triangulate_dlt(np.stack([o.camera.projection_matrix for o in obs]),
+                        np.stack([undistort_pixels(o.camera, o.point_px)[0] for o in obs]))
+    return None if abs(h[3]) < 1e-12 else h[:3] / h[3]
+
+
+def _scaled(o: BallObservation, point: np.ndarray) -> float | None:
+    e = reprojection_error_px(o.camera, point, o.point_px)
+    return None if e is None else e * REFERENCE_WIDTH_PX / o.image_width
+
+
+def _observation(view: DoubtView, det: Detection, s: DoubtSettings) -> BallObservation:
+    return BallObservation(view.view_id, camera_of(view), det.centre, REFERENCE_WIDTH_PX / rule_scale(view, s))
+
+
+def _check(view: DoubtView, det: Detection, voters: Sequence[BallObservation], tol: Mapping[Hashable, float],
+           s: DoubtSettings, size_tolerance: float) -> CheckedDetection | None:
+    """The three conditions (module docstring) for ``det`` in ``view`` against the agreeing ``voters``."""
+    cand = _observation(view, det, s)
+    ball = _refit([*voters, cand])
+    if ball is None or not _plausible(ball, s):
+        return None
+    errors = {o.view_id: _scaled(o, ball) for o in [*voters, cand]}
+    if any(e is None or e >= tol[i] for i, e in errors.items()):
+        return None
+    ratio = size_ratio(view, det.box, ball, s.ball_diameter_m)
+    if ratio is None or abs(ratio - 1.0) > size_tolerance:
+        return None
+    e = errors[view.view_id]
+    assert e is not None  # checked above
+    return CheckedDetection(view.view_id, det, float(e), ball, float(ratio))
+
+
+def _best(checked: list[CheckedDetection]) -> CheckedDetection | None:
+    """The best-supported candidate (smallest error; within :data:`TIE_PX` the higher score), with the count and
+    its margin over the next."""
+    if not checked:
+        return None
+    low = min(c.error_1920 for c in checked)
+    ranked = sorted(checked, key=lambda c: (c.error_1920 - low >= TIE_PX, -c.detection.score, c.error_1920))
+    best, rest = ranked[0], ranked[1:]
+    margin = min(c.error_1920 for c in rest) - best.error_1920 if rest else None
+    return CheckedDetection(best.view_id, best.detection, best.error_1920, best.ball, best.size_ratio, len(checked),
+                            margin)
+
+
+def _near_point(view: DoubtView, detections: Sequence[Detection], ball: np.ndarray, within_1920: float,
+                s: DoubtSettings) -> list[Detection]:
+    """The detections whose centre lies within ``within_1920`` (px at 1920 width) of ``ball``'s projection in
+    ``view``, nearest first, at most :data:`MAX_CANDIDATES` (a cheap necessary test before the refit)."""
+    uv = project_point(view, ball)
+    if uv is None or not detections:
+        return []
+    d = np.array([np.linalg.norm(det.centre - uv) for det in detections]) * rule_scale(view, s)
+    order = [int(i) for i in np.argsort(d, kind="stable") if d[i] < within_1920]
+    return [detections[i] for i in order[:MAX_CANDIDATES]]
+
+
+def _near_ray(lone: DoubtView, view: DoubtView, detections: Sequence[Detection], within_1920: float,
+              s: DoubtSettings) -> list[Detection]:
+    """The detections whose centre lies within ``within_1920`` (px at 1920 width) of ``lone``'s ball ray across
+    the play volume seen in ``view`` (its epipolar segment), nearest first, at most :data:`MAX_CANDIDATES`."""
+    seg = _segment(lone, view, s) if detections else None
+    if seg is None:
+        return []
+    d = np.array([_polyline_distance(seg[1], det.centre)[0] for det in detections]) * rule_scale(view, s)
+    order = [int(i) for i in np.argsort(d, kind="stable") if d[i] < within_1920]
+    return [detections[i] for i in order[:MAX_CANDIDATES]]

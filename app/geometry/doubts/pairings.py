@@ -1,0 +1,329 @@
+"""Detections paired where the labelled views do not agree on a ball: one labelled ray and one detection
+(``one_ray``), and detections that agree among themselves (``detections_agree``), each with the third views' word
+and a margin over the runner-up (docs/detectors.md, "The check")."""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from itertools import combinations, product
+from typing import Any, Hashable, Mapping, Sequence
+
+import numpy as np
+
+from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside, _plausible
+from app.geometry.doubts.detected import (
+    MAX_CANDIDATES,
+    PREFILTER,
+    TIE_PX,
+    CheckedDetection,
+    Detection,
+    _near_ray,
+    _observation,
+    _refit,
+    _scaled,
+    size_ratio,
+)
+from app.geometry.doubts.epipolar import _polyline_distance, _segment
+from app.geometry.triangulation import (
+    BallObservation,
+    angle_between_deg,
+)
+from app.geometry.weighting import label_centre, project_point, rule_scale
+
+#: A third calibrated view confirms a ball two views place when one of its detections (or its label) lies within its
+#: tolerance of where that ball projects, at a ball's size; it contradicts it (a clear miss) when the ball projects
+#: inside its image by that tolerance and nothing of it lies within :data:`MISS` tolerances.
+MISS = 2.0
+#: A candidate is chosen only when the runner-up (a candidate elsewhere, as well supported) is worse by at least this
+#: fraction of the doubts' tau (px at 1920 width): two spots that meet the rays about as well cannot be told apart.
+MARGIN = 0.5
+
+
+@dataclass(frozen=True)
+class _Member:
+    """One view of a pairing: its camera's observation, its box (a detection's, or the labelled view's own label;
+    None for a point label) with the relative size tolerance that box is read with, and the detection (None for
+    the labelled ray)."""
+
+    view: DoubtView
+    obs: BallObservation
+    box: tuple[float, float, float, float] | None
+    size_tolerance: float
+    detection: Detection | None = None
+
+
+@dataclass(frozen=True)
+class _Pairing:
+    """Views whose rays meet at one ball (:func:`_meet`): the members, the ball (3,) world metres, each member's
+    error (px at 1920 width) and size ratio, the worst error, and the third views that confirm it or miss it."""
+
+    members: tuple[_Member, ...]
+    ball: np.ndarray
+    errors: dict[Hashable, float]
+    ratios: dict[Hashable, float]
+    error_1920: float
+    confirmed: tuple[Hashable, ...] = ()
+    missed: tuple[Hashable, ...] = ()
+
+    def detections(self) -> dict[Hashable, Detection]:
+        return {m.view.view_id: m.detection for m in self.members if m.detection is not None}
+
+
+def _member(view: DoubtView, det: Detection, s: DoubtSettings, size_tolerance: float) -> _Member:
+    return _Member(view, _observation(view, det, s), det.box, size_tolerance, det)
+
+
+def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSettings) -> _Pairing | None:
+    """Whether the members' rays meet at one ball of ``s.ball_diameter_m`` (the checks of one labelled ray and one
+    detection, and of detections among themselves): the DLT ball of their centres lies in the play volume, every
+    member's reprojection error is within its tolerance (``tol``: tau widened to its calibration's pixel sigma, so
+    the distance between a detection and the other view's epipolar line may reach both views' tolerances), some
+    pair of them sees it from cameras at least ``min_baseline_m`` apart under at least ``min_parallax_deg`` (else
+    the rays meet anywhere along their common direction), and each box is a ball's size at that depth (within its
+    member's relative tolerance). None otherwise."""
+    ball = _refit([m.obs for m in members])
+    if ball is None or not _plausible(ball, s):
+        return None
+    errors: dict[Hashable, float] = {}
+    ratios: dict[Hashable, float] = {}
+    for m in members:
+        e = _scaled(m.obs, ball)
+        if e is None or e >= tol[m.view.view_id]:
+            return None
+        errors[m.view.view_id] = e
+        if m.box is not None:
+            r = size_ratio(m.view, m.box, ball, s.ball_diameter_m)
+            if r is None or abs(r - 1.0) > m.size_tolerance:
+                return None
+            ratios[m.view.view_id] = r
+    if not any(float(np.linalg.norm(a.obs.camera.C - b.obs.camera.C)) >= s.min_baseline_m
+               and angle_between_deg(ball - a.obs.camera.C, ball - b.obs.camera.C) >= s.min_parallax_deg
+               for a, b in combinations(members, 2)):
+        return None
+    return _Pairing(tuple(members), ball, errors, ratios, max(errors.values()))
+
+
+def _epipolar_distance(ray_view: DoubtView, centre: np.ndarray, view: DoubtView, s: DoubtSettings) -> float:
+    """How far (px at 1920 width) ``centre`` (2,) px of ``view`` lies from the ball ray of ``ray_view``'s label (or
+    detection, given as its box) across the play volume, seen in ``view`` (its epipolar segment,
+    :func:`app.geometry.doubts.epipolar._segment`); ``inf`` when that ray misses the volume or is not seen."""
+    seg = _segment(ray_view, view, s)
+    if seg is None:
+        return math.inf
+    return _polyline_distance(seg[1], centre)[0] * rule_scale(view, s)
+
+
+def _on_epipolar(a: DoubtView, b: DoubtView, det_b: Detection, sigma: Mapping[Hashable, float],
+                 s: DoubtSettings) -> bool:
+    """Condition 1 for a pair: ``det_b``'s centre lies within tau of ``a``'s ball ray seen in ``b`` (px at 1920 width),
+    tau widened by both cameras' pixel sigmas (:func:`app.geometry.weighting.pixel_sigma`, added in quadrature):
+    measured in the detection's own image, not split between the two views as the refit's errors are (a view that
+    sees the ball small would take most of the distance at a small cost in its pixels)."""
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    return _epipolar_distance(a, det_b.centre, b, s) <= max(tau, math.hypot(sigma.get(a.view_id, 0.0),
+                                                                             sigma.get(b.view_id, 0.0)))
+
+
+def _as_labelled(view: DoubtView, det: Detection) -> DoubtView:
+    """``view`` with ``det``'s box as its ball label (so that its ray is the detection's)."""
+    return dataclasses.replace(view, box=np.asarray(det.box, float), point=None)
+
+
+def _third_views(p: _Pairing, thirds: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
+                 tol: Mapping[Hashable, float], s: DoubtSettings,
+                 size_tolerance: float) -> tuple[dict[Hashable, Detection | None], tuple[Hashable, ...]]:
+    """What the calibrated views outside the pairing say of its ball: view id -> the detection there (None: its
+    label is there) for those that confirm it, and the ids of those that clearly miss it (the ball projects inside
+    the image by the view's tolerance, and neither its label nor any of its detections lies within :data:`MISS`
+    tolerances). A view the ball projects outside of, or without a label and without any detection (the detector
+    may not have run on it), says nothing."""
+    inside = {m.view.view_id for m in p.members}
+    confirmed: dict[Hashable, Detection | None] = {}
+    missed: list[Hashable] = []
+    for c in thirds:
+        if c.view_id in inside or c.camera is None or c.view_id not in tol:
+            continue
+        uv = project_point(c, p.ball)
+        k, t = rule_scale(c, s), tol[c.view_id]
+        if uv is None or not _inside(c, uv, t / k):
+            continue
+        label = label_centre(c)
+        if label is not None:
+            d = float(np.linalg.norm(label - uv)) * k
+            if d < t:
+                confirmed[c.view_id] = None
+            elif d > MISS * t:
+                missed.append(c.view_id)
+            continue
+        dets = detections.get(c.view_id) or ()
+        if not dets:
+            continue
+        dist = [float(np.linalg.norm(det.centre - uv)) * k for det in dets]
+        near = [(dd, det) for dd, det in zip(dist, dets, strict=True) if dd < t
+                and (r := size_ratio(c, det.box, p.ball, s.ball_diameter_m)) is not None
+                and abs(r - 1.0) <= size_tolerance]
+        if near:
+            confirmed[c.view_id] = min(near, key=lambda x: x[0])[1]
+        elif min(dist) > MISS * t:
+            missed.append(c.view_id)
+    return confirmed, tuple(missed)
+
+
+def _judged(p: _Pairing, thirds: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
+            tol: Mapping[Hashable, float], s: DoubtSettings, size_tolerance: float) -> _Pairing:
+    """The pairing with its third views' word (:func:`_third_views`)."""
+    confirmed, missed = _third_views(p, thirds, detections, tol, s, size_tolerance)
+    return _Pairing(p.members, p.ball, p.errors, p.ratios, p.error_1920, tuple(confirmed), missed)
+
+
+def _same_spot(a: _Pairing, b: _Pairing) -> bool:
+    """Two pairings name the same ball: in every view where both have a detection, the two detections' centres lie
+    within half a ball's box of each other (a detector's duplicate boxes of one ball are no rivals)."""
+    da, db = a.detections(), b.detections()
+    for vid in set(da) & set(db):
+        x, y = da[vid], db[vid]
+        half = max(x.box[2] - x.box[0], x.box[3] - x.box[1], y.box[2] - y.box[0], y.box[3] - y.box[1]) / 2
+        if float(np.linalg.norm(x.centre - y.centre)) > half:
+            return False
+    return True
+
+
+def _chosen(pairings: Sequence[_Pairing], s: DoubtSettings) -> tuple[_Pairing, int, float | None] | None:
+    """The best-supported pairing (most views: members and third views that confirm it; then the smallest worst
+    error; the detectors' summed score only orders pairings whose errors are within :data:`TIE_PX`), with how many
+    passed and its margin over the runner-up (px at 1920 width; None without one). None when the runner-up, a
+    pairing elsewhere as well supported, is not worse by :data:`MARGIN` of tau: the rays cannot tell them apart."""
+    if not pairings:
+        return None
+
+    def support(p: _Pairing) -> int:
+        return len(p.members) + len(p.confirmed)
+
+    top = max(support(p) for p in pairings)
+    low = min(p.error_1920 for p in pairings if support(p) == top)
+    ranked = sorted(pairings, key=lambda p: (-support(p), p.error_1920 - low >= TIE_PX,
+                                             -sum(d.score for d in p.detections().values()), p.error_1920))
+    best = ranked[0]
+    rivals = [p for p in ranked[1:] if not _same_spot(p, best)]
+    level = [p for p in rivals if support(p) >= support(best)]
+    if level and min(p.error_1920 for p in level) - best.error_1920 < MARGIN * max(s.consensus_tau_px,
+                                                                                     s.triangulation_tau_px):
+        return None
+    margin = min(p.error_1920 for p in rivals) - best.error_1920 if rivals else None
+    return best, len(pairings), margin
+
+
+def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """A view whose camera may make a ball with one other ray: its pixel sigma (px at 1920 width) within tau. A camera
+    that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the judge
+    lends such a view half a vote; with a single other ray nothing outvotes its error: on a shared detector set a
+    labelled view of sigma 193 px and a right detection made a ball 2.9 m off)."""
+    return float(sigma.get(view.view_id, 0.0)) <= max(s.consensus_tau_px, s.triangulation_tau_px)
+
+
+def _lone_ray(vote: Any) -> DoubtView | None:
+    """The one labelled view whose ray detections are checked against: the only labelled view that takes part. A
+    few-lined view's label (a helper's half vote) is never the only ray: as in the judge, helpers alone say nothing
+    (their cameras fit their few lines yet may turn the ray by degrees; on the detector sets such a ray paired a false
+    detection with a right-looking geometry twice, each time making a 3D ball metres off)."""
+    return vote.labelled[0] if len(vote.labelled) == 1 else None
+
+
+def _found(p: _Pairing, passed: int, margin: float | None, code: str,
+           ) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+    """The pairing's detections as checked ones, each naming the other views that agree (members and confirming
+    third views)."""
+    ids = [m.view.view_id for m in p.members] + list(p.confirmed)
+    out: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
+    for vid, det in p.detections().items():
+        out[vid] = (CheckedDetection(vid, det, float(p.errors[vid]), p.ball, float(p.ratios[vid]), passed, margin),
+                    code, tuple(ids))
+    return out
+
+
+def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[DoubtView],
+             detections: Mapping[Hashable, Sequence[Detection]], by_id: Mapping[Hashable, BallObservation],
+             tol: Mapping[Hashable, float], sigma: Mapping[Hashable, float], s: DoubtSettings,
+             size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+    """One labelled ray and one detection: for each unlabelled view, its detections near the labelled view's ray
+    across the play volume (its epipolar segment), within tau widened by both cameras' pixel sigmas
+    (:func:`_on_epipolar`), are paired with it (:func:`_meet`: the rays meet within both views' tolerances in the
+    play volume, the detection's box is a ball's size at that depth); a pairing a third view
+    clearly misses is dropped (:func:`_third_views`), and the view's best-supported one is kept with its margin
+    (:func:`_chosen`). Views whose chosen balls disagree with each other (one's ball misses the other's detection
+    by more than its tolerance) are all left alone."""
+    # the labelled ray's own box is not read for its size: annotated boxes are loose (on the shared detector sets
+    # the true balls' labelled boxes measure 1.45 to 1.57 times the sphere's), and a player's head on that ray
+    # lies at about nine tenths of the ball's depth, which no tolerance on a label's size tells apart
+    ray = _Member(lone, by_id[lone.view_id], None, size_tolerance)
+    chosen: dict[Hashable, tuple[_Pairing, int, float | None]] = {}
+    if not _sure(lone, sigma, s):
+        return {}
+    for v in unlabelled:
+        if not _sure(v, sigma, s):
+            continue
+        near = _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * tol[v.view_id], s)
+        pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
+                    if _on_epipolar(lone, v, d, sigma, s)
+                    and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
+        c = _chosen([p for p in pairings if not p.missed], s)
+        if c is not None:
+            chosen[v.view_id] = c
+    # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
+    for (a, ca), (b, cb) in product(chosen.items(), chosen.items()):
+        if a != b:
+            (det,) = cb[0].detections().values()
+            e = _scaled(_observation(_view(unlabelled, b), det, s), ca[0].ball)
+            if e is None or e > MISS * tol[b]:
+                return {}
+    found: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
+    for p, passed, margin in chosen.values():
+        found.update(_found(p, passed, margin, "one_ray"))
+    return found
+
+
+def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView],
+                      detections: Mapping[Hashable, Sequence[Detection]], tol: Mapping[Hashable, float],
+                      sigma: Mapping[Hashable, float], s: DoubtSettings,
+                      size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+    """Detections that agree among themselves, where no labelled view takes part: every pair of detections in two
+    calibrated views (``usable``: those that take part, and those with few lines whose calibration is sure) that
+    meet at one ball (:func:`_meet`) collects the other views' word (:func:`_third_views`; a detection there joins
+    the pairing when the rays of all still meet); a pairing of ``n`` views may have at most ``n - 2`` third views
+    that clearly miss it (none for two: a detector misses about one ball in seven, so three or more views that
+    meet outweigh one miss); the best supported is chosen with its margin over every other pairing
+    (:func:`_chosen`), and fills its views."""
+    thirds = witnesses
+    cands = {v.view_id: list((detections.get(v.view_id) or ())[:MAX_CANDIDATES]) if _sure(v, sigma, s) else []
+             for v in usable}
+    seen: set[frozenset[tuple[Hashable, tuple[float, ...]]]] = set()
+    pairings: list[_Pairing] = []
+    for a, b in combinations([v for v in usable if cands[v.view_id]], 2):
+        for da, db in product(cands[a.view_id], cands[b.view_id]):
+            if not (_on_epipolar(_as_labelled(a, da), b, db, sigma, s)
+                    and _on_epipolar(_as_labelled(b, db), a, da, sigma, s)):
+                continue
+            p = _meet([_member(a, da, s, size_tolerance), _member(b, db, s, size_tolerance)], tol, s)
+            if p is None:
+                continue
+            p = _judged(p, thirds, detections, tol, s, size_tolerance)
+            extra = {vid: det for vid, det in _third_views(p, usable, detections, tol, s, size_tolerance)[0].items()
+                     if det is not None}
+            if extra:  # the third views' detections join when every ray still meets the refitted ball
+                grown = _meet([*p.members, *(_member(_view(usable, vid), det, s, size_tolerance)
+                                             for vid, det in extra.items())], tol, s)
+                if grown is not None:
+                    p = _judged(grown, thirds, detections, tol, s, size_tolerance)
+            key = frozenset((vid, det.box) for vid, det in p.detections().items())
+            if key in seen:
+                continue
+            seen.add(key)
+            pairings.append(p)
+    kept = [p for p in pairings if len(p.missed) <= max(0, len(p.members) - 2)]
+    c = _chosen(kept, s)
+    return {} if c is None else _found(*c, "detections_agree")
+
+
+def _view(views: Sequence[DoubtView], view_id: Hashable) -> DoubtView:
+    return next(v for v in views if v.view_id == view_id)
