@@ -1,9 +1,11 @@
 """Make, list and read releases: the accepted systems as they are at one moment, kept immutably.
 
 A release's content is a set of canonical JSON documents (``app.db.types.canonical_json``: keys sorted, compact,
-UTF-8), each stored once in ``release_documents`` under its SHA-256 (``app.db.types.json_digest``) as one gzip
-member (``app.db.types.compressed_json``): a system unchanged since an earlier release names the document stored
-then, so a release costs one ``release_systems`` row per system plus the documents of what changed.
+UTF-8; their typed shape per version: ``app.services.releases.document``, this module writing
+:data:`~app.services.releases.document.DOCUMENT_VERSION`), each stored once in ``release_documents`` under its
+SHA-256 (``app.db.types.json_digest``) as one gzip member (``app.db.types.compressed_json``): a system unchanged
+since an earlier release names the document stored then, so a release costs one ``release_systems`` row per system
+plus the documents of what changed.
 
 * a **game document** per game holding a released system (:func:`game_document`): ``game_id``, ``league``,
   ``season``, ``match``, ``path``, ``release`` (what its imported labels file carried beside its systems,
@@ -60,14 +62,22 @@ from app.db.models import (
 from app.db.session import reads_as_one_snapshot
 from app.db.types import canonical_json, compressed_json, decompressed_json, json_digest, utcnow
 from app.services.audit.log import local_actor, record
+from app.services.releases.document import (
+    FRAME_KEYS,
+    FrameDocument,
+    GameDocument,
+    SystemDocument,
+    TrajectoryDocument,
+    TriangulationDocument,
+    read_game,
+    read_system,
+)
 from app.services.transfer.exporting import changed_at, frame_row_select, game_as_of
 
 #: The longest release name (the column's size).
 NAME_MAX = 200
 #: Digests read per query (below every database's bound on an ``IN`` list).
 _CHUNK = 500
-#: The system-level columns of an export row: written once in the system document, not per frame.
-_SYSTEM_COLUMNS = ("game_id", "system_id", "system_name", "ball3d", "review_status")
 
 
 @dataclass(frozen=True)
@@ -103,21 +113,25 @@ def _plain(value: Any) -> Any:
     return value.value if hasattr(value, "value") else value
 
 
-def game_document(game: Game, as_of: str) -> dict[str, Any]:
+def game_document(game: Game, as_of: str) -> GameDocument:
     """The document of a released game (module docstring): its folder names, ``release`` and ``as_of``."""
-    return {"game_id": game.id, "league": game.league, "season": game.season, "match": game.match,
-            "path": game.path, "release": game.release, "as_of": as_of}
+    return GameDocument(game_id=game.id, league=game.league, season=game.season, match=game.match, path=game.path,
+                        release=game.release, as_of=as_of)
 
 
-def system_document(rows: list[Any], triangulation: Optional[dict[str, Any]], system: Any) -> dict[str, Any]:
-    """The document of a released system (module docstring) from its frames' rows (``frame_row_select`` with the
-    view decision columns), its triangulation's settings and its ``systems`` row (kind, derived settings)."""
+def system_document(rows: list[Any], triangulation: Optional[TriangulationDocument], system: Any,
+                    trajectory: Optional[TrajectoryDocument] = None) -> SystemDocument:
+    """The document of a released system (module docstring; :data:`~app.services.releases.document.DOCUMENT_VERSION`)
+    from its frames' rows (``frame_row_select`` with the view decision columns; a column the document does not name
+    is not written), its triangulation, its ``systems`` row (kind, derived settings, frame index) and, for an ISSIA
+    frame, its trajectory point."""
     first = rows[0]
-    frames = [{k: _plain(v) for k, v in row._mapping.items() if k not in _SYSTEM_COLUMNS} for row in rows]
-    return {"system_id": first.system_id, "name": first.system_name, "kind": _plain(system.kind),
-            "game_id": first.game_id, "review_status": _plain(first.review_status), "ball3d": first.ball3d,
-            "triangulation": triangulation, "derived_settings": system.derived_settings,
-            "derived_version": system.derived_version, "frame_index": system.frame_index, "frames": frames}
+    frames = tuple(FrameDocument(**{k: _plain(row._mapping[k]) for k in FRAME_KEYS}) for row in rows)
+    return SystemDocument(system_id=first.system_id, name=first.system_name, kind=_plain(system.kind),
+                          game_id=first.game_id, review_status=_plain(first.review_status), ball3d=first.ball3d,
+                          triangulation=triangulation, derived_settings=system.derived_settings,
+                          derived_version=system.derived_version, frame_index=system.frame_index, frames=frames,
+                          trajectory=trajectory)
 
 
 def _accepted_rows(session: Session) -> Iterator[list[Any]]:
@@ -195,20 +209,21 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     reads_as_one_snapshot(session)
     if session.scalar(select(Release.id).where(Release.name_key == name_key(name))) is not None:
         raise _taken(session, name)
-    settings = {t.system_id: {"status": _plain(t.status), "tau_px": t.tau_px, "rule": t.rule,
-                              "min_baseline_m": t.min_baseline_m, "pairs": []}
-                for t in session.execute(select(Triangulation.system_id, Triangulation.status, Triangulation.tau_px,
-                                                Triangulation.rule, Triangulation.min_baseline_m))}
-    trajectory = {t.system_id: {"ball3d": t.ball3d, "ball3d_smoothed": t.ball3d_smoothed, "source": t.source,
-                                "cam_list": list(t.cam_list or [])}
-                  for t in session.execute(select(TrajectoryPoint.system_id, TrajectoryPoint.ball3d,
-                                                  TrajectoryPoint.ball3d_smoothed, TrajectoryPoint.source,
-                                                  TrajectoryPoint.cam_list))}
+    pairs: dict[int, list[tuple[int, int, bool]]] = {}
     for p in session.execute(select(TriangulationPair.system_id, TriangulationPair.frame_a_id,
                                     TriangulationPair.frame_b_id, TriangulationPair.kept)
                              .order_by(TriangulationPair.system_id, TriangulationPair.id)):
-        if p.system_id in settings:
-            settings[p.system_id]["pairs"].append([p.frame_a_id, p.frame_b_id, bool(p.kept)])
+        pairs.setdefault(p.system_id, []).append((p.frame_a_id, p.frame_b_id, bool(p.kept)))
+    settings = {t.system_id: TriangulationDocument(status=_plain(t.status), tau_px=t.tau_px, rule=t.rule,
+                                                   min_baseline_m=t.min_baseline_m,
+                                                   pairs=tuple(pairs.get(t.system_id, ())))
+                for t in session.execute(select(Triangulation.system_id, Triangulation.status, Triangulation.tau_px,
+                                                Triangulation.rule, Triangulation.min_baseline_m))}
+    trajectory = {t.system_id: TrajectoryDocument(ball3d=t.ball3d, ball3d_smoothed=t.ball3d_smoothed, source=t.source,
+                                                  cam_list=list(t.cam_list or []))
+                  for t in session.execute(select(TrajectoryPoint.system_id, TrajectoryPoint.ball3d,
+                                                  TrajectoryPoint.ball3d_smoothed, TrajectoryPoint.source,
+                                                  TrajectoryPoint.cam_list))}
     documents: dict[str, bytes] = {}
     systems: dict[int, tuple[int, str, str]] = {}
     views = 0
@@ -218,10 +233,9 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
         .where(ReviewDecision.status == ReviewStatus.ACCEPTED))}
     for rows in _accepted_rows(session):
         sid = rows[0].system_id
-        document = system_document(rows, settings.get(sid), system_rows[sid])
-        if sid in trajectory:  # an ISSIA frame: its place on the sequence's fitted trajectory
-            document["trajectory"] = trajectory[sid]
-        canonical = canonical_json(document)
+        # an ISSIA frame has its place on the sequence's fitted trajectory
+        canonical = canonical_json(system_document(rows, settings.get(sid), system_rows[sid],
+                                                   trajectory.get(sid)).as_json())
         digest = json_digest(canonical)
         documents[digest] = canonical
         systems[sid] = (rows[0].game_id, rows[0].system_name, digest)
@@ -232,7 +246,7 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
         some = game_ids[start:start + _CHUNK]
         changed = changed_at(session, some)
         for game in session.scalars(select(Game).where(Game.id.in_(some)).options(undefer(Game.release))):
-            canonical = canonical_json(game_document(game, game_as_of(game, changed.get(game.id))))
+            canonical = canonical_json(game_document(game, game_as_of(game, changed.get(game.id))).as_json())
             digest = json_digest(canonical)
             documents[digest] = canonical
             games[game.id] = digest
@@ -289,6 +303,16 @@ def read_documents(session: Session, digests: Iterable[str]) -> dict[str, Any]:
     """digest -> document (decompressed and parsed) for ``digests``, read a chunk at a time
     (:func:`stored_documents`)."""
     return {digest: decompressed_json(body) for digest, body in stored_documents(session, digests)}
+
+
+def read_games(session: Session, digests: Iterable[str]) -> dict[str, GameDocument]:
+    """digest -> game document (``document.read_game``: any version written) for ``digests``."""
+    return {digest: read_game(data) for digest, data in read_documents(session, digests).items()}
+
+
+def read_systems(session: Session, digests: Iterable[str]) -> dict[str, SystemDocument]:
+    """digest -> system document (``document.read_system``: any version written) for ``digests``."""
+    return {digest: read_system(data) for digest, data in read_documents(session, digests).items()}
 
 
 def stored_documents(session: Session, digests: Iterable[str]) -> Iterator[tuple[str, bytes]]:

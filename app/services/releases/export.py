@@ -1,7 +1,8 @@
 """Exports read from a release instead of the live database (``app.services.transfer.export_zip.ExportSource``).
 
 :class:`ReleaseSource` rebuilds each game's ``Labels-v3D.json`` and ``SNv3D.csv`` rows from the release's documents
-(``app.services.releases.content``) with the live export's own functions (``exporting.exported_game``), so a
+(``app.services.releases.content``, read as typed documents of their version: ``app.services.releases.document``, as
+typed rows: ``app.services.releases.rows``) with the live export's own functions (``exporting.exported_game``), so a
 release's export is the export of the database as it was when the release was made; the images are the frames'
 stored images (checked against what was imported: ``app.services.images.serving``). Each game's
 ``GameMetadata.v3d_release`` names the release and its hash; the archive ends with ``v3d-release.json`` (the
@@ -20,34 +21,26 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from types import SimpleNamespace
-from typing import Any
+from typing import Any, Optional
 
 import orjson
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.db.models import (
-    JAC_COLUMNS,
-    BallLabel,
-    CalibrationSource,
-    CalibrationStatus,
-    Frame,
-    FrameRole,
-    Release,
-    ReviewStatus,
-    SystemKind,
-)
-from app.db.types import compressed_json, json_loads
+from app.db.models import JAC_COLUMNS, Frame, Release, SystemKind
+from app.db.types import compressed_json
 from app.services.issia.export import Issia3DExport, rows_of, write_sequence
 from app.services.kinds import POLICIES, kinds_exported_by
 from app.services.releases.content import (
     ReleaseContent,
-    read_documents,
+    read_games,
+    read_systems,
     release_content,
     release_summary,
     stored_documents,
 )
+from app.services.releases.document import GameDocument
+from app.services.releases.rows import ReleasedSystem, released_row, released_system, stored_json
 from app.services.transfer.cameras_export import CamerasExport, CameraView, pooled_lines, write_camera_sets
 from app.services.transfer.exporting import ExportedGame, exported_game, safe_component
 
@@ -71,21 +64,6 @@ def release_manifest(release: Release, content: ReleaseContent) -> dict[str, Any
             "systems": {str(sid): d for sid, (_, _, d) in sorted(content.systems.items())}}
 
 
-def _enum(cls: Any, value: Any) -> Any:
-    return None if value is None else cls(value)
-
-
-def _row(system: dict[str, Any], frame: dict[str, Any]) -> SimpleNamespace:
-    """An export row (as ``exporting.frame_row_select`` reads it) from a system document and one of its frames."""
-    row = SimpleNamespace(**frame)
-    row.game_id, row.system_id, row.system_name = system["game_id"], system["system_id"], system["name"]
-    row.ball3d, row.review_status = system["ball3d"], _enum(ReviewStatus, system["review_status"])
-    row.role = FrameRole(frame["role"])
-    row.cal_source = _enum(CalibrationSource, frame["cal_source"])
-    row.cal_status = _enum(CalibrationStatus, frame["cal_status"])
-    return row
-
-
 @dataclass
 class ReleaseSource:
     """A release as the source of a SoccerNet-v3D export (``export_zip.ExportSource``)."""
@@ -102,30 +80,30 @@ class ReleaseSource:
         """
         content = release_content(self.session, self.release)
         exported_kinds = {k.value for k in kinds_exported_by("soccernet-v3d")}
-        games = read_documents(self.session, content.games.values())
+        games = read_games(self.session, content.games.values())
         per_game: dict[int, list[tuple[int, str]]] = {}
         for sid, (gid, _, digest) in sorted(content.systems.items()):
             per_game.setdefault(gid, []).append((sid, digest))
         order = sorted((games[content.games[gid]] for gid in per_game),
-                       key=lambda g: (g["league"], g["season"], g["match"], g["game_id"]))
+                       key=lambda g: (g.league, g.season, g.match, g.game_id))
         for game in order:
-            for what in ("league", "season", "match"):
-                safe_component(game[what], f"game {game['game_id']} {what}")
+            for what, value in (("league", game.league), ("season", game.season), ("match", game.match)):
+                safe_component(value, f"game {game.game_id} {what}")
         return self._games(order, per_game, exported_kinds, progress)
 
-    def _games(self, order: list[dict[str, Any]], per_game: dict[int, list[tuple[int, str]]],
+    def _games(self, order: list[GameDocument], per_game: dict[int, list[tuple[int, str]]],
                exported_kinds: set[str], progress: Callable[[str, int, int], None] | None) -> Iterator[ExportedGame]:
         marker = {"name": self.release.name, "hash": self.release.hash}
         done = 0
         for first in range(0, len(order), _BATCH_GAMES):
             batch = order[first:first + _BATCH_GAMES]
-            docs = read_documents(self.session, (d for g in batch for _, d in per_game[g["game_id"]]))
+            docs = read_systems(self.session, (d for g in batch for _, d in per_game[g.game_id]))
             for game in batch:
-                systems = [docs[d] for _, d in per_game[game["game_id"]]]
-                rows = [_row(s, f) for s in systems if s["kind"] in exported_kinds for f in s["frames"]]
+                systems = [docs[d] for _, d in per_game[game.game_id]]
+                rows = [released_row(s, f) for s in systems if s.kind in exported_kinds for f in s.frames]
                 done += 1
                 if rows:
-                    exported = exported_game(SimpleNamespace(**game), rows, game["as_of"])
+                    exported = exported_game(game, rows, game.as_of)
                     exported.doc["GameMetadata"]["v3d_release"] = marker
                     yield exported
                 if progress:
@@ -145,86 +123,75 @@ def release_files(session: Session, release: Release) -> Iterator[tuple[str, byt
     yield DOCUMENTS_FILE, b"".join(body + _LINE_END for _, body in stored_documents(session, digests))
 
 
+def _in_game_order(session: Session, content: ReleaseContent) -> tuple[dict[int, GameDocument],
+                                                                        list[tuple[int, tuple[int, str, str]]]]:
+    """The release's games (game id -> document) and its systems (id, (game id, name, digest)) in (league, season,
+    match, system id) order."""
+    games = {g.game_id: g for g in read_games(session, content.games.values()).values()}
+    order = sorted(content.systems.items(), key=lambda kv: (
+        games[kv[1][0]].league, games[kv[1][0]].season, games[kv[1][0]].match, kv[0]))
+    return games, order
+
+
+@dataclass(frozen=True)
+class _CameraFrame:
+    """What a kind's view name and split read of a view of the cameras export."""
+
+    name: str
+    split: Optional[str]
+
+
+@dataclass(frozen=True)
+class _CameraSystem:
+    """What a kind's split reads of a view's system: its game."""
+
+    game: GameDocument
+
+
 def release_camera_views(session: Session, release: Release) -> list[CameraView]:
     """The views of the cameras export (``app.services.transfer.cameras_export.camera_views``) read from a release's
     documents: the released systems of the kinds that take the ``cameras`` export, in (league, season, match, system
     id) order, each view with field lines or an admitted camera, named and split as the live export names them."""
-    content = release_content(session, release)
     kinds = {k.value for k in kinds_exported_by("cameras")}
-    games = {g["game_id"]: SimpleNamespace(**g) for g in read_documents(session, content.games.values()).values()}
-    order = sorted(content.systems.items(), key=lambda kv: (
-        games[kv[1][0]].league, games[kv[1][0]].season, games[kv[1][0]].match, kv[0]))
-    docs = read_documents(session, (d for _, (_, _, d) in order))
+    games, order = _in_game_order(session, release_content(session, release))
+    docs = read_systems(session, (d for _, (_, _, d) in order))
     out = []
     for _, (gid, _, digest) in order:
         system = docs[digest]
-        if system["kind"] not in kinds:
+        if system.kind not in kinds:
             continue
         game = games[gid]
-        policy = POLICIES[SystemKind(system["kind"])]
-        holder = SimpleNamespace(game=game)
-        for f in system["frames"]:
-            camera_text = f["camera_json"] if f["cal_source"] is not None and f["admitted"] else None
-            camera = json_loads(camera_text) if camera_text not in (None, "null") else None
-            stored = json_loads(f["lines_json"]) if f["lines_json"] not in (None, "null") else None
+        policy = POLICIES[SystemKind(system.kind)]
+        holder = _CameraSystem(game)
+        for f in system.frames:
+            camera = stored_json(f.camera_json) if f.cal_source is not None and f.admitted else None
+            stored = stored_json(f.lines_json)
             if camera is None and not stored:
                 continue
-            frame = SimpleNamespace(name=f["name"], split=f["frame_split"])
-            jac = {str(g): f[col] if f["cal_source"] is not None else None for g, col in JAC_COLUMNS.items()}
+            frame = _CameraFrame(f.name, f.frame_split)
+            jac = {str(g): getattr(f, col) if f.cal_source is not None else None for g, col in JAC_COLUMNS.items()}
             out.append(CameraView(policy.view_stem(game, frame), policy.split(holder, frame),  # type: ignore[arg-type]  # the documents' game and frame stand in for the rows
-                                  game.path, f["name"], system["kind"], f["width"], f["height"], camera,
-                                  pooled_lines(stored, f["width"], f["height"]) if stored else None, jac))
+                                  game.path, f.name, system.kind, f.width, f.height, camera,
+                                  pooled_lines(stored, f.width, f.height) if stored else None, jac))
     return out
 
 
-def _json(text: Any) -> Any:
-    """A document's stored JSON text as its value (None for SQL NULL or JSON null)."""
-    return None if text in (None, "null") else json_loads(text)
-
-
-def release_detector_systems(session: Session, release: Release, export: str) -> Iterator[SimpleNamespace]:
-    """The released systems the export ``export`` (``yolo``, ``coco``, ``issia-3d``) writes, as stand-ins of stored
-    systems (what ``detector_export.views_of`` and ``issia.export.rows_of`` read: game, kind, frame index, frames with
-    their ball label, calibration, optimised box, reprojection and release entry, the triangulation with its pairs,
-    the trajectory point), in (league, season, match, system id) order. Each frame's ``image_source`` is the stored
-    frame of that id (its image as imported), or an empty stand-in when the frame is gone (the view is then counted
-    without image)."""
-    content = release_content(session, release)
+def release_detector_systems(session: Session, release: Release, export: str) -> Iterator[ReleasedSystem]:
+    """The released systems the export ``export`` (``yolo``, ``coco``, ``issia-3d``) writes, as the detector and
+    ISSIA-3D exports read stored systems (``rows.ReleasedSystem``: game, kind, frame index, frames with their ball
+    label, calibration, optimised box, reprojection and release entry, the triangulation with its pairs, the
+    trajectory point), in (league, season, match, system id) order. Each frame's image is the stored frame of that
+    id (its image as imported), or none when the frame is gone (the view is then counted without image)."""
     kinds = {k.value for k in kinds_exported_by(export)}
-    games = {g["game_id"]: SimpleNamespace(**g) for g in read_documents(session, content.games.values()).values()}
-    order = sorted(content.systems.items(), key=lambda kv: (
-        games[kv[1][0]].league, games[kv[1][0]].season, games[kv[1][0]].match, kv[0]))
-    no_image = SimpleNamespace(image_path=None, image_zip=None, image_member=None)
+    games, order = _in_game_order(session, release_content(session, release))
     for start in range(0, len(order), _BATCH_SYSTEMS):
         batch = order[start:start + _BATCH_SYSTEMS]
-        docs = read_documents(session, (d for _, (_, _, d) in batch))
-        wanted = [docs[d] for _, (_, _, d) in batch if docs[d]["kind"] in kinds]
-        ids = [f["frame_id"] for s in wanted for f in s["frames"]]
+        docs = read_systems(session, (d for _, (_, _, d) in batch))
+        wanted = [docs[d] for _, (_, _, d) in batch if docs[d].kind in kinds]
+        ids = [f.frame_id for s in wanted for f in s.frames]
         stored = {f.id: f for f in session.scalars(select(Frame).where(Frame.id.in_(ids)))} if ids else {}
         for doc in wanted:
-            tri = doc["triangulation"]
-            system = SimpleNamespace(
-                id=doc["system_id"], name=doc["name"], kind=SystemKind(doc["kind"]), game=games[doc["game_id"]],
-                frame_index=doc.get("frame_index"),
-                triangulation=None if tri is None else SimpleNamespace(
-                    ball3d=_json(doc["ball3d"]),
-                    pairs=[SimpleNamespace(frame_a_id=a, frame_b_id=b, kept=k) for a, b, k in tri.get("pairs", [])]))
-            system.frames = [SimpleNamespace(
-                id=f["frame_id"], name=f["name"], width=f["width"], height=f["height"], split=f["frame_split"],
-                system=system, release=_json(f["release_json"]), image_source=stored.get(f["frame_id"], no_image),
-                ball_label=None if f["label_frame"] is None else SimpleNamespace(
-                    box=_json(f["ball_box"]), kind=f["ball_kind"], suggested=False,  # a document never holds
-                    # an unconfirmed placement: ``frame_row_select`` reads it as no label
-                    centre=BallLabel.centre_of(_json(f["ball_box"]), _json(f["ball_point"]))),
-                calibration=None if f["cal_source"] is None else SimpleNamespace(
-                    camera=_json(f["camera_json"]), admitted=bool(f["admitted"])),
-                optimised_box=None if _json(f["opt_box"]) is None else SimpleNamespace(box=_json(f["opt_box"])),
-                reprojection=None if f["rep_error_px"] is None else SimpleNamespace(error_px=f["rep_error_px"]),
-                position=position,
-            ) for position, f in enumerate(doc["frames"])]
-            trajectory = doc.get("trajectory")
-            system.trajectory_point = None if trajectory is None else SimpleNamespace(**trajectory)
-            yield system
+            yield released_system(doc, games[doc.game_id], stored)
 
 
 def export_release_issia3d(session: Session, release: Release, out_dir: Path) -> Issia3DExport:
@@ -232,7 +199,7 @@ def export_release_issia3d(session: Session, release: Release, out_dir: Path) ->
     ``ISSIA-3D.csv`` of the released frames, ``split.json`` and the cameras, each camera the admitted one of its view
     at the first released frame index that has one) with the files naming the release (:func:`release_files`)."""
     report = Issia3DExport(out_dir)
-    per_game: dict[int, list[SimpleNamespace]] = {}
+    per_game: dict[int, list[ReleasedSystem]] = {}
     for system in release_detector_systems(session, release, "issia-3d"):
         per_game.setdefault(system.game.game_id, []).append(system)
     for systems in sorted(per_game.values(), key=lambda ss: (ss[0].game.match, ss[0].game.game_id)):
