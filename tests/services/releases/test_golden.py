@@ -1,0 +1,137 @@
+"""Golden files: a release as stored (``golden/v<N>/``, one folder per release document version ever written, made
+once by ``make_golden``) exports in every format to the exact bytes committed beside it, whatever the live export
+does now. A change of the live export (a column, a writer, a geometry step of the refined boxes) that would change
+what an old release exports fails here: render the older documents with the code as it was instead."""
+from __future__ import annotations
+
+import gzip
+import hashlib
+import io
+import json
+import zipfile
+from datetime import datetime
+from pathlib import Path
+
+import pytest
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings
+from app.db.models import (
+    Frame,
+    FrameRole,
+    Game,
+    Release,
+    ReleaseDocument,
+    ReleaseGame,
+    ReleaseSystem,
+    System,
+    SystemKind,
+)
+from app.db.session import make_engine, upgrade_database
+from app.db.types import canonical_json, decompressed_json, json_digest
+from app.services.releases.content import release_hash
+from app.services.releases.document import DOCUMENT_VERSION, READERS, read_game, read_system
+from app.services.transfer.export_files import write_export_zip
+from app.services.transfer.export_formats import RELEASE_EXPORTS
+
+GOLDEN = Path(__file__).resolve().parent / "golden"
+#: The formats whose release exports have golden files: every one a release exports to.
+FORMATS = ("soccernet-v3d", "yolo", "coco", "cameras", "issia-3d")
+
+
+def _folders() -> list[Path]:
+    return sorted(GOLDEN.glob("v*"))
+
+
+def _stored(folder: Path) -> dict:
+    return json.loads((folder / "release.json").read_text())
+
+
+def _load(folder: Path, work: Path) -> tuple[Session, Settings]:
+    """A fresh SQLite database holding the golden release as stored, and the stored frames whose images its exports
+    copy (rows holding only what an export reads of them: their ids, names and images)."""
+    url = f"sqlite:///{work / 'golden.sqlite3'}"
+    upgrade_database(url)
+    session = Session(make_engine(url))
+    stored = _stored(folder)
+    frames = json.loads((folder / "frames.json").read_text())
+    images = str((folder / "images").resolve())
+    for gid in sorted({f["game_id"] for f in frames}):
+        session.add(Game(id=gid, league="l", season="s", match=f"m{gid}", source_path="/golden"))
+    for sid, gid in sorted({(f["system_id"], f["game_id"]) for f in frames}):
+        session.add(System(id=sid, game_id=gid, name=f"s{sid}", kind=SystemKind.SOCCERNET_V3))
+    for position, f in enumerate(frames):
+        session.add(Frame(id=f["id"], system_id=f["system_id"], name=f["name"], role=FrameRole.ACTION,
+                          position=position, width=f["width"], height=f["height"], image_root=images,
+                          image_zip=f["image_zip"], image_member=f["image_member"], image_path=f["image_path"],
+                          image_type=f["image_type"]))
+    for doc in sorted((folder / "documents").iterdir()):
+        session.add(ReleaseDocument(digest=doc.name.removesuffix(".json.gz"), body=doc.read_bytes()))
+    r = stored["release"]
+    release = Release(name=r["name"], note=r["note"], created_at=datetime.fromisoformat(r["created_at"]),
+                      created_by=r["created_by"], systems=r["systems"], views=r["views"], hash=r["hash"])
+    session.add(release)
+    session.flush()
+    session.execute(sa.insert(ReleaseGame), [{"release_id": release.id, "game_id": int(g), "digest": d}
+                                             for g, d in stored["games"].items()])
+    session.execute(sa.insert(ReleaseSystem), [{"release_id": release.id, "system_id": int(s), "game_id": g,
+                                                "name": n, "digest": d} for s, (g, n, d) in stored["systems"].items()])
+    session.commit()
+    return session, Settings(database_url=url, calibration_workers=1)
+
+
+def _members(data: bytes) -> dict[str, bytes]:
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        return {n: zf.read(n) for n in zf.namelist()}
+
+
+def test_every_document_version_ever_read_has_its_golden_files() -> None:
+    assert [f.name for f in _folders()] == [f"v{n}" for n in sorted(READERS)]
+    assert DOCUMENT_VERSION == max(READERS)
+    assert set(FORMATS) == set(RELEASE_EXPORTS)
+
+
+@pytest.mark.parametrize("folder", _folders(), ids=lambda f: f.name)
+def test_the_stored_documents_read_as_written_and_name_the_release_hash(folder: Path) -> None:
+    stored = _stored(folder)
+    documents = {}
+    for doc in (folder / "documents").iterdir():
+        body = doc.read_bytes()
+        assert body[:2] == b"\x1f\x8b"  # each stored as one gzip member
+        text = gzip.decompress(body)
+        assert hashlib.sha256(text).hexdigest() == doc.name.removesuffix(".json.gz")
+        documents[doc.name.removesuffix(".json.gz")] = decompressed_json(body)
+    games = {int(g): d for g, d in stored["games"].items()}
+    systems = {int(s): d for s, (_, _, d) in stored["systems"].items()}
+    assert release_hash(games, systems) == stored["release"]["hash"]
+    for d in games.values():
+        game = read_game(documents[d])
+        # the typed document is the stored one: read then written again, the same canonical bytes
+        assert json_digest(canonical_json(game.as_json())) == d
+    kinds = set()
+    for s, d in systems.items():
+        system = read_system(documents[d])
+        assert system.system_id == s and json_digest(canonical_json(system.as_json())) == d
+        kinds.add(system.kind)
+    assert kinds == {"soccernet-v3", "issia"}
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("folder", _folders(), ids=lambda f: f.name)
+def test_a_stored_release_exports_to_its_golden_bytes(folder: Path, fmt: str, tmp_path: Path) -> None:
+    session, settings = _load(folder, tmp_path)
+    try:
+        made = write_export_zip(session, fmt, tmp_path / f"{fmt}.zip", False, settings,
+                                release=_stored(folder)["release"]["name"])
+    finally:
+        session.close()
+    assert made["hash"] == _stored(folder)["release"]["hash"]
+    got, expected = (tmp_path / f"{fmt}.zip").read_bytes(), (folder / "exports" / f"{fmt}.zip").read_bytes()
+    assert _members(got) == _members(expected)  # names and contents first: the clearer failure
+    assert got == expected
+
+
+def test_a_document_of_a_later_version_is_refused_by_name() -> None:
+    with pytest.raises(ValueError, match="version 99"):
+        read_system({"document_version": 99})
