@@ -24,7 +24,8 @@ from sqlalchemy.orm import Session
 from app.datasets.csv_cells import inert_row
 from app.db.models import ReviewDecision, ReviewStatus, System
 from app.db.types import json_loads
-from app.services.releases.content import get_release, read_documents, release_content
+from app.services.releases.content import get_release, read_games, read_systems, release_content
+from app.services.releases.document import SystemDocument
 
 #: The view fields each kind of change compares (a view's row in a system document).
 VIEW_CHANGES: dict[str, tuple[str, ...]] = {
@@ -78,22 +79,22 @@ def ball_moved_m(a: Optional[str], b: Optional[str]) -> Optional[float]:
     return math.dist(pa, pb)
 
 
-def view_changes(a: dict[str, Any], b: dict[str, Any]) -> list[dict[str, Any]]:
+def view_changes(a: SystemDocument, b: SystemDocument) -> list[dict[str, Any]]:
     """Per view (frame, by id) of two documents of one system: ``{"frame_id", "view", "changes"}`` for each view that
     differs (:data:`VIEW_CHANGES`, or ``added`` / ``removed``), in the newer document's order."""
-    old = {f["frame_id"]: f for f in a["frames"]}
-    new = {f["frame_id"]: f for f in b["frames"]}
+    old = {f.frame_id: f for f in a.frames}
+    new = {f.frame_id: f for f in b.frames}
     out = []
     for fid, frame in new.items():
         before = old.get(fid)
         if before is None:
-            out.append({"frame_id": fid, "view": frame["name"], "changes": ["added"]})
+            out.append({"frame_id": fid, "view": frame.name, "changes": ["added"]})
             continue
         kinds = [kind for kind, fields in VIEW_CHANGES.items()
-                 if any(_value(before.get(f)) != _value(frame.get(f)) for f in fields)]
+                 if any(_value(getattr(before, f)) != _value(getattr(frame, f)) for f in fields)]
         if kinds:
-            out.append({"frame_id": fid, "view": frame["name"], "changes": kinds})
-    out.extend({"frame_id": fid, "view": f["name"], "changes": ["removed"]} for fid, f in old.items() if fid not in new)
+            out.append({"frame_id": fid, "view": frame.name, "changes": kinds})
+    out.extend({"frame_id": fid, "view": f.name, "changes": ["removed"]} for fid, f in old.items() if fid not in new)
     return out
 
 
@@ -122,8 +123,8 @@ def diff_releases(session: Session, a: str, b: str) -> ReleaseDiff:
     """
     ra, rb = get_release(session, a), get_release(session, b)
     ca, cb = release_content(session, ra), release_content(session, rb)
-    game_docs = read_documents(session, [*ca.games.values(), *cb.games.values()])
-    games = {g["game_id"]: f"{g['league']}/{g['season']}/{g['match']}" for g in game_docs.values()}
+    game_docs = read_games(session, [*ca.games.values(), *cb.games.values()])
+    games = {g.game_id: f"{g.league}/{g.season}/{g.match}" for g in game_docs.values()}
 
     def named(sid: int, entry: tuple[int, str, str]) -> dict[str, Any]:
         return {"system_id": sid, "name": entry[1], "game": games.get(entry[0], "")}
@@ -134,11 +135,11 @@ def diff_releases(session: Session, a: str, b: str) -> ReleaseDiff:
     for r in removed:
         r["why"] = why[r["system_id"]]
     differ = [sid for sid in sorted(set(ca.systems) & set(cb.systems)) if ca.systems[sid][2] != cb.systems[sid][2]]
-    docs = read_documents(session, [d for sid in differ for d in (ca.systems[sid][2], cb.systems[sid][2])])
+    docs = read_systems(session, [d for sid in differ for d in (ca.systems[sid][2], cb.systems[sid][2])])
     changed = []
     for sid in differ:
         da, db = docs[ca.systems[sid][2]], docs[cb.systems[sid][2]]
-        changed.append({**named(sid, cb.systems[sid]), "ball3d_moved_m": ball_moved_m(da["ball3d"], db["ball3d"]),
+        changed.append({**named(sid, cb.systems[sid]), "ball3d_moved_m": ball_moved_m(da.ball3d, db.ball3d),
                         "views": view_changes(da, db)})
     unchanged = len(set(ca.systems) & set(cb.systems)) - len(differ)
     return ReleaseDiff({"name": ra.name, "hash": ra.hash}, {"name": rb.name, "hash": rb.hash},

@@ -31,7 +31,8 @@ from app.db.models import (
 from app.db.session import make_engine, upgrade_database
 from app.db.types import canonical_json, decompressed_json, json_digest
 from app.services.releases.content import release_hash
-from app.services.releases.document import DOCUMENT_VERSION, READERS, read_game, read_system
+from app.services.releases.diff import VIEW_CHANGES
+from app.services.releases.document import DOCUMENT_VERSION, FRAME_KEYS, READERS, read_game, read_system
 from app.services.transfer.export_files import write_export_zip
 from app.services.transfer.export_formats import RELEASE_EXPORTS
 
@@ -135,3 +136,7 @@ def test_a_stored_release_exports_to_its_golden_bytes(folder: Path, fmt: str, tm
 def test_a_document_of_a_later_version_is_refused_by_name() -> None:
     with pytest.raises(ValueError, match="version 99"):
         read_system({"document_version": 99})
+
+
+def test_the_diff_compares_fields_a_view_document_has() -> None:
+    assert {f for fields in VIEW_CHANGES.values() for f in fields} <= set(FRAME_KEYS)
