@@ -239,3 +239,66 @@ def test_a_third_view_too_unsure_to_vote_still_contradicts_a_pairing_its_label_m
     assert detected(checked(views, {"goal": [head]})) == {}
     alone = scene(goal={"box": None}, corner={"box": None}, opposite={"box": None})
     assert set(detected(checked(alone, {"goal": [head]}))) == {"goal"}  # without it, the head passes
+
+
+# --- a camera the players placed as the lone labelled ray (known truth: BALL, CAMERAS) ---
+
+SURE = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0, "position_m": {"x": .1, "y": .1, "z": .1}}
+
+
+def main_helper(players: bool):
+    """Only main labelled, with 3 line classes and a sure camera (a helper's half vote): placed by its players or
+    fitted to its few lines alone."""
+    return scene(main={"line_classes": 3, "uncertainty": SURE, "player_assisted": players},
+                 **{n: {"box": None} for n in CAMERAS if n != "main"})
+
+
+def beside_main_ray(name: str, px: float) -> Detection:
+    """A ball-sized detection in view ``name`` ``px`` pixels across main's epipolar line from the ball (not along
+    it): a false box near the ray that no pairing with it can place."""
+    a, b = camera(name).project(np.stack([on_main_ray(0.95), on_main_ray(1.05)]))[0]
+    along = (b - a) / np.linalg.norm(b - a)
+    box = np.asarray(true_box(name))
+    return Detection("yolo-sn-ball", 0.9, tuple(float(x) for x in box + px * np.array([-along[1], along[0]] * 2)))
+
+
+def test_a_camera_the_players_placed_is_the_lone_ray_one_its_few_lines_alone_fitted_is_not():
+    placed = detected(checked(main_helper(True), {"goal": [det("goal", 0.7, shift=(1.0, -0.5))]}))
+    assert set(placed) == {"goal"}
+    d = placed["goal"]
+    assert d.code == "one_ray" and d.evidence["agreeing_views"] == ["main"] and near_truth("goal", d) < 2.0
+    assert np.allclose(d.evidence["ball3d"], BALL, atol=0.1)
+    # the same label, its camera fitted to its three lines alone: helpers alone say nothing
+    assert detected(checked(main_helper(False), {"goal": [det("goal", 0.7, shift=(1.0, -0.5))]})) == {}
+
+
+def test_a_half_vote_ray_pairs_only_with_a_detection_alone_near_it():
+    off = beside_main_ray("goal", 50.0)  # 2 tau across the ray: it fails the epipolar check, yet lies near the ray
+    ball = det("goal", 0.7, shift=(1.0, -0.5))
+    # a labelled view's full vote: the false box fails the checks and the ball's detection is chosen
+    assert near_truth("goal", detected(checked(only_main_labelled(), {"goal": [off, ball]}))["goal"]) < 2.0
+    # a helper's half vote cannot choose between two boxes near its ray: nothing is placed from it
+    assert detected(checked(main_helper(True), {"goal": [off, ball]})) == {}
+    # a box far from the ray is no rival
+    far = box_at("goal", [-20.0, 10.0, -0.11], score=0.97)
+    assert set(detected(checked(main_helper(True), {"goal": [far, ball]}))) == {"goal"}
+
+
+def test_a_helpers_ray_places_two_detections_that_meet_it_and_its_label_still_contradicts_them_elsewhere():
+    views = main_helper(True)
+    # two views' detections of the ball meet the helper's ray: the triple rule places them from main
+    found = detected(checked(views, {"goal": [det("goal")], "opposite": [det("opposite")]}))
+    assert set(found) == {"goal", "opposite"} and all(d.code == "one_view" for d in found.values())
+    # the helper's label far from the ball: its ray meets neither detection; the two detections still agree among
+    # themselves, but the helper's label, a third view, clearly misses their ball: nothing is placed
+    wrong = sphere_image_box(camera("main"), BALL, R_BALL) + [300.0, -150.0, 300.0, -150.0]
+    views = scene(main={"line_classes": 3, "uncertainty": SURE, "player_assisted": True, "box": wrong},
+                  **{n: {"box": None} for n in CAMERAS if n != "main"})
+    assert detected(checked(views, {"goal": [det("goal")], "opposite": [det("opposite")]})) == {}
+    # without any label there, they agree among themselves
+    found = detected(checked(only_unlabelled(), {"goal": [det("goal")], "opposite": [det("opposite")]}))
+    assert set(found) == {"goal", "opposite"} and all(d.code == "detections_agree" for d in found.values())
+
+
+def only_unlabelled():
+    return scene(**{n: {"box": None} for n in CAMERAS})

@@ -92,6 +92,8 @@ class DoubtView:
         mirror_evidence: ``MirrorVerdict.as_dict()`` of the view, or None.
         calibration_reason: why calibration was refused, None otherwise.
         rig_assisted: the camera was fitted at a position of the game's camera rig.
+        player_assisted: the camera was fitted to its players' foot points (``app.geometry.calibration.players``):
+            its pose is over-determined by the players it shares with the well-lined views, not by its few lines.
         uncertainty: the calibration's standard deviations as stored
             (``CalibrationUncertainty.to_json()``), or None (then the camera is taken as exact).
         suggested: the ball label was made from a doubt's suggestion and no person has placed it: it lies
@@ -115,6 +117,7 @@ class DoubtView:
     mirror_evidence: dict[str, Any] | None = None
     calibration_reason: str | None = None
     rig_assisted: bool = False
+    player_assisted: bool = False
     uncertainty: dict[str, Any] | None = None
     suggested: bool = False
 

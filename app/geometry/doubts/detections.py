@@ -162,12 +162,14 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
             if best is not None:
                 checked[v.view_id] = (best, "consensus", tuple(cons.inliers))
         out_of_label = _off_label(vote.labelled, cons, by_id, detections, tol, s, size_tolerance)
-    elif (lone := _lone_ray(vote)) is not None and not lone_contradicted:
-        checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
-        if not checked:  # no second detected view: each detection is checked against the one labelled ray
-            checked = _one_ray(lone, unlabelled, witnesses, detections, by_id, wtol, sigma, s, size_tolerance)
-    elif not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
-        checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance)
+    else:
+        if (lone := _lone_ray(vote)) is not None and not lone_contradicted:
+            checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
+            if not checked:  # no second detected view: each detection is checked against the one labelled ray
+                checked = _one_ray(lone, unlabelled, witnesses, detections, by_id, wtol, sigma, s, size_tolerance,
+                                   half_vote=lone not in vote.labelled)
+        if not checked and not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
+            checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance)
     if not checked and not out_of_label:
         return list(doubts)
     kept = [d for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]

@@ -223,11 +223,21 @@ def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) ->
 
 
 def _lone_ray(vote: Any) -> DoubtView | None:
-    """The one labelled view whose ray detections are checked against: the only labelled view that takes part. A
-    few-lined view's label (a helper's half vote) is never the only ray: as in the judge, helpers alone say nothing
-    (their cameras fit their few lines yet may turn the ray by degrees; on the detector sets such a ray paired a false
-    detection with a right-looking geometry twice, each time making a 3D ball metres off)."""
-    return vote.labelled[0] if len(vote.labelled) == 1 else None
+    """The one labelled view whose ray detections are checked against: the only labelled view that takes part, or,
+    where none does, the only helper (a few-lined view lending half a vote) whose camera its players placed. A
+    camera fitted to a few lines alone is never the only ray: as in the judge, such helpers alone say nothing (they
+    fit their few lines yet may turn the ray by degrees; on the detector sets such a ray paired a false detection
+    with a right-looking geometry twice, each time making a 3D ball metres off). A camera the players placed is
+    over-determined by the foot points it shares with the well-lined views (at least 3 players, 70 % of them
+    inliers, its pixel sigma where the play is within 10 px at 1920 width, ``app.geometry.calibration.players``)
+    and its stored uncertainty says how far its ray may turn: it is checked within that uncertainty like a lined
+    view's (on dev-large and the five doubts seeds 829 of 837 such cameras put the true ball within 20 px), and its
+    half vote pairs only with a detection that is alone near its ray (:func:`_one_ray`)."""
+    if len(vote.labelled) == 1:
+        return vote.labelled[0]
+    if not vote.labelled and len(vote.helpers) == 1 and vote.helpers[0].player_assisted:
+        return vote.helpers[0]
+    return None
 
 
 def _found(p: _Pairing, passed: int, margin: float | None, code: str,
@@ -245,14 +255,22 @@ def _found(p: _Pairing, passed: int, margin: float | None, code: str,
 def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[DoubtView],
              detections: Mapping[Hashable, Sequence[Detection]], by_id: Mapping[Hashable, BallObservation],
              tol: Mapping[Hashable, float], sigma: Mapping[Hashable, float], s: DoubtSettings,
-             size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+             size_tolerance: float, half_vote: bool = False,
+             ) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """One labelled ray and one detection: for each unlabelled view, its detections near the labelled view's ray
     across the play volume (its epipolar segment), within tau widened by both cameras' pixel sigmas
     (:func:`_on_epipolar`), are paired with it (:func:`_meet`: the rays meet within both views' tolerances in the
     play volume, the detection's box is a ball's size at that depth); a pairing a third view
     clearly misses is dropped (:func:`_third_views`), and the view's best-supported one is kept with its margin
     (:func:`_chosen`). Views whose chosen balls disagree with each other (one's ball misses the other's detection
-    by more than its tolerance) are all left alone."""
+    by more than its tolerance) are all left alone.
+
+    ``half_vote``: the ray is a helper's (:func:`_lone_ray`, a camera the players placed). Its view is filled only
+    when the detection is the only one of that view near the ray (within :data:`PREFILTER` tolerances of its
+    epipolar segment, before any size or depth check): where the detector missed the ball, its false boxes cluster
+    on the players around it, and two of them near the ray mean one may lie on it at a ball's size by chance (on a
+    shared detector set such a box, with a second false box near the same segment, made a 3D ball 3.9 m off); a
+    half vote has no margin of its own to tell them apart. A labelled view's full vote keeps the margin rule alone."""
     # the labelled ray's own box is not read for its size: annotated boxes are loose (on the shared detector sets
     # the true balls' labelled boxes measure 1.45 to 1.57 times the sphere's), and a player's head on that ray
     # lies at about nine tenths of the ball's depth, which no tolerance on a label's size tells apart
@@ -264,6 +282,8 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
         if not _sure(v, sigma, s):
             continue
         near = _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * tol[v.view_id], s)
+        if half_vote and len(near) > 1:  # a half vote's ray arbitrates between no two candidates
+            continue
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]

@@ -21,7 +21,7 @@ from sqlalchemy.orm import Session, object_session, selectinload
 from app.core.config import Settings
 from app.db.models import CalibrationSource, CalibrationStatus, Doubt, Frame, Game, System
 from app.db.types import json_safe
-from app.geometry.calibration.result import MIRROR_FLAG, RIG_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG, RIG_FLAG
 from app.geometry.camera import Camera
 from app.geometry.consensus import Consensus
 from app.geometry.doubts import DoubtSettings, DoubtView, judge_system, label_severity
@@ -78,7 +78,8 @@ def doubt_view(frame: Frame, camera: Camera | None = None) -> DoubtView:
         excluded=is_excluded(frame), mirror_flagged=MIRROR_FLAG in flags,
         mirror_evidence=cal.mirror_evidence if cal is not None else None,
         calibration_reason=cal.reason if cal is not None and cal.status is CalibrationStatus.REFUSED else None,
-        rig_assisted=RIG_FLAG in flags, uncertainty=cal.uncertainty if calibrated else None,  # type: ignore[union-attr]  # calibrated: cal is set
+        rig_assisted=RIG_FLAG in flags, player_assisted=PLAYERS_FLAG in flags,
+        uncertainty=cal.uncertainty if calibrated else None,  # type: ignore[union-attr]  # calibrated: cal is set
         suggested=label is not None and label.suggested,
     )
 
