@@ -52,6 +52,7 @@ from app.services.curation.system_page import load_frame, pitch_lines_key, syste
 from app.services.curation.versions import expected_versions, frame_etag
 from app.services.curation.writing import EditContext
 from app.services.images import serving as images
+from app.services.storage.datasets import DatasetFiles
 
 #: The header naming the audit entry of a write (what a later undo names).
 AUDIT_ENTRY_HEADER = audit.AUDIT_ENTRY_HEADER
@@ -164,7 +165,7 @@ def frame_image(frame: FrameDep, settings: SettingsDep,
     Its media type is ``image/png`` or ``image/jpeg`` as read from the image's header (never from its
     name; anything else is a 404), with ``X-Content-Type-Options: nosniff`` and
     ``Content-Security-Policy: sandbox``, so that no imported file can run in this origin."""
-    image = images.frame_image(frame, settings.max_image_pixels)
+    image = images.frame_image(frame, settings.max_image_pixels, DatasetFiles.from_settings(settings))
     headers = {"ETag": image.etag, "Cache-Control": IMAGE_CACHE_CONTROL, **IMAGE_SECURITY_HEADERS}
     if etag_matches(if_none_match, image.etag):
         return Response(status_code=304, headers=headers)
