@@ -6,8 +6,10 @@ tests), ``config.attributes["url"]`` (``app.db.session.upgrade_database``), or
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from logging.config import fileConfig
 
+import sqlalchemy as sa
 from alembic import context
 
 from app.db.models import Base
@@ -59,13 +61,41 @@ def run_migrations_online() -> None:
             sqlite = conn.dialect.name == "sqlite"
             if sqlite:
                 _sqlite_foreign_keys(conn, on=False)
-            _configure(connection=conn)
-            with context.begin_transaction():
-                context.run_migrations()
+            with _migration_lock(conn):
+                _configure(connection=conn)
+                with context.begin_transaction():
+                    context.run_migrations()
             if sqlite:
                 _sqlite_foreign_keys(conn, on=True)
     finally:
         engine.dispose()
+
+
+#: Key of the PostgreSQL advisory lock held while migrating (any fixed 64-bit number; these are the bytes "v3d-migr").
+MIGRATION_LOCK_KEY = 0x7633642D6D696772
+
+
+@contextmanager
+def _migration_lock(conn):
+    """On PostgreSQL, hold a session-level advisory lock on :data:`MIGRATION_LOCK_KEY` around the migrations, on
+    the connection that runs them: nodes started at once (or a rolling upgrade) migrate one after another, and each
+    later one finds the schema at head and does nothing. Without it two fresh nodes both created
+    ``alembic_version`` and one failed with a unique violation. SQLite needs none: its write lock orders them.
+
+    The lock is taken and released in transactions of their own (committed at once), so that Alembic begins its
+    transaction on a connection that holds none."""
+    if conn.dialect.name != "postgresql":
+        yield
+        return
+    conn.execute(sa.text("SELECT pg_advisory_lock(:key)"), {"key": MIGRATION_LOCK_KEY})
+    conn.commit()
+    try:
+        yield
+    finally:
+        if conn.in_transaction():  # a failed migration: end its transaction so that the unlock can run
+            conn.rollback()
+        conn.execute(sa.text("SELECT pg_advisory_unlock(:key)"), {"key": MIGRATION_LOCK_KEY})
+        conn.commit()
 
 
 def _sqlite_foreign_keys(conn, on: bool) -> None:

@@ -122,8 +122,8 @@ class JobOut(BaseModel):
     message: Optional[str] = Field(description="Why it failed (a dataset error names the file and field).")
     result: Optional[dict[str, Any]] = Field(description="An import's counts, a recompute's, an export's file size "
                                                          "and counts.")
-    owner: Optional[str] = Field(description="host:pid:token of the process running it (admins only; null for the "
-                                             "other roles).")
+    owner: Optional[str] = Field(description="node:pid:token of the process running it, node being V3D_NODE_NAME "
+                                             "(admins only; null for the other roles).")
     attempts: int = Field(description="How many times a runner claimed it (more than 1: resumed).")
     created_at: datetime
     started_at: Optional[datetime]

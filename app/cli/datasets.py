@@ -113,7 +113,7 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
     from app.services.jobs import runner as jobs
 
     bars = _Bars()
-    owner = jobs.owner_name()
+    owner = jobs.owner_name(settings)
     with session_factory(settings) as factory:
         with factory() as session:
             job = jobs.find_resumable(session, kind, params, settings)

@@ -60,7 +60,7 @@ def run_cmd(database_url: DatabaseOpt = None) -> None:
     from app.services.jobs import runner as jobs
 
     settings = cli_settings(database_url, None)
-    owner = jobs.owner_name()
+    owner = jobs.owner_name(settings)
     with session_factory(settings) as factory:
         while (job_id := jobs.claim_next(factory, owner, settings)) is not None:
             job = jobs.run_job(factory, job_id, settings, owner)

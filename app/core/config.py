@@ -5,6 +5,7 @@ One pydantic-settings class; the API, the CLI, Alembic and the services all read
 """
 from __future__ import annotations
 
+import socket
 from functools import lru_cache
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional
@@ -266,6 +267,13 @@ class Settings(BaseSettings):
         120.0, gt=0, description="A running job whose heartbeat is older than this is taken over and resumed by "
         "another runner (s); on the same host a job whose process is gone is taken over at once. Above the "
         "longest write transaction of an import batch, during which SQLite holds the heartbeat back.")
+    node_name: Optional[str] = Field(
+        None, min_length=1, max_length=120, pattern=r"^[^:\s]+$",
+        description="This node's name in the owner of the jobs it runs (``node:pid:token``); None: the host name "
+        "(:func:`node_name`). "
+        "Nodes sharing one database need distinct names: a node checks whether a job's process is gone only for its "
+        "own jobs; another node's job is taken over when its heartbeat is older than V3D_JOB_STALE_SECONDS, and its "
+        "live progress is read from the job's row. No colon or space.")
     jobs_dir: Optional[Path] = Field(
         None, description="Where uploads are unpacked (uploads/) and export jobs write their files (exports/); "
         "default: jobs/ beside a SQLite database file, else var/jobs in the checkout.")
@@ -406,6 +414,12 @@ def var_dir(settings: Settings, name: str) -> Path:
     if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
         return Path(url.database).expanduser().resolve().parent / name
     return PROJECT_ROOT / "var" / name
+
+
+def node_name(settings: Settings) -> str:
+    """``settings.node_name``, else this machine's host name: the node part of the jobs' owners
+    (``app.services.jobs.runner.owner_name``)."""
+    return settings.node_name if settings.node_name is not None else socket.gethostname()
 
 
 def jobs_dir(settings: Settings) -> Path:

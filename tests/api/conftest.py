@@ -164,7 +164,7 @@ def run_queued(app: FastAPI) -> list[int]:
     ``app.services.jobs.runner`` claim and run); returns their ids."""
     from app.services.jobs import runner as jobs
 
-    owner = jobs.owner_name()
+    owner = jobs.owner_name(app.state.settings)
     ran = []
     while (job_id := jobs.claim_next(app.state.session_factory, owner, app.state.settings)) is not None:
         jobs.run_job(app.state.session_factory, job_id, app.state.settings, owner)

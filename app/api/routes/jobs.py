@@ -39,7 +39,7 @@ JobId = Annotated[DbInt, Path(description="Job id.")]
 def job_out(job: Job, principal: Principal | None = None, settings: Settings | None = None) -> JobOut:
     """The API's view of a job row; for an annotator or reviewer (``principal`` below admin) an import's
     path, source and message name the dataset, never a server path (``kinds.without_server_paths``), and the
-    process running it (``owner``: host name and process id) is not shown."""
+    process running it (``owner``: node name and process id) is not shown."""
     url = f"/api/jobs/{job.id}"
     has_file = job.kind == "export" and job.state is JobState.DONE
     params, result, message, owner = job.params, job.result, job.message, job.owner
@@ -47,7 +47,9 @@ def job_out(job: Job, principal: Principal | None = None, settings: Settings | N
         params, result, message = without_server_paths(job.id, params, result, message, settings)
         owner = None
     progress = {"stage": job.stage, "done": job.done, "total": job.total}
-    if job.state is JobState.RUNNING and settings is not None:  # newer than the row's while a batch is open
+    # the live file is newer than the row's while a batch is open; it is kept on the node running the job (another
+    # node's is not here, and one left here by an earlier attempt is stale): the row's progress for those
+    if job.state is JobState.RUNNING and settings is not None and jobs.on_this_node(job.owner, settings):
         now = read_live(jobs_dir(settings), job.id)
         if now is not None:
             progress = dict(zip(("stage", "done", "total"), now, strict=True))

@@ -99,7 +99,7 @@ class Job(Base):
 
     ``params`` is what the job needs to run again from the start (a job interrupted by a killed process
     is resumed by running it again: imports are idempotent); ``stage``, ``done`` and ``total`` are its
-    progress (``total`` 0: unknown); ``owner`` names the process running it (``host:pid:token``) and
+    progress (``total`` 0: unknown); ``owner`` names the process running it (``node:pid:token``) and
     ``heartbeat_at`` when that process last showed it was alive; ``attempts`` counts claims (a claim is
     a compare-and-set on it). ``result`` is the job's report (an import's counts, an export's file).
     """

@@ -3,8 +3,8 @@ process.
 
 A job is a row (``app.db.models.Job``): its kind and ``params`` (enough to run it again from the
 start), its state (queued -> running -> done | failed), its progress (``stage``, ``done``,
-``total``) and the process running it (``owner`` = ``host:pid:token``) with that process's
-``heartbeat_at``. Any process may run jobs:
+``total``) and the process running it (``owner`` = ``node:pid:token``, ``node`` being ``V3D_NODE_NAME``) with
+that process's ``heartbeat_at``. Any process may run jobs:
 
 * a server process runs queued jobs in a thread (:class:`JobRunner`, started by ``create_app`` when
   ``Settings.job_runner``); every uvicorn worker has one, and a claim is a compare-and-set on
@@ -17,7 +17,8 @@ While a job runs, a heartbeat thread stores its progress and ``heartbeat_at`` ev
 ``Settings.job_heartbeat_seconds`` on a connection of its own (the job's thread never writes progress
 itself: on SQLite that would wait for its own write transaction). A running job is *stale*
 (:func:`is_stale`) when its heartbeat is older than ``Settings.job_stale_seconds``, or at once when its
-owner ran on this host and that process is gone (SIGKILL, a crash); a stale job is claimed again and
+owner ran on this node and that process is gone (SIGKILL, a crash); so a job whose node stopped is taken over by
+any other node sharing the database once its heartbeat is stale. A stale job is claimed again and
 run from the start: imports are idempotent (whole games already stored are matched by their natural
 keys and left as they are), a recompute recomputes every system again, an export rewrites its file.
 A runner whose job was taken over (its heartbeat found another owner) stops at its next progress
@@ -30,7 +31,6 @@ from __future__ import annotations
 import logging
 import os
 import secrets
-import socket
 import threading
 import time
 from dataclasses import dataclass
@@ -42,7 +42,7 @@ from sqlalchemy import select
 from sqlalchemy.engine import CursorResult
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.core.config import Settings, jobs_dir
+from app.core.config import Settings, jobs_dir, node_name
 from app.core.errors import InvalidInputError, ServiceError, found
 from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
@@ -64,18 +64,24 @@ class JobLost(Exception):
     """The job was taken over by another runner (this one's heartbeat was found stale)."""
 
 
-def owner_name() -> str:
-    """A name for this runner: ``host:pid:token`` (the token tells two runners of one process apart)."""
-    return f"{socket.gethostname()}:{os.getpid()}:{secrets.token_hex(4)}"
+def owner_name(settings: Settings) -> str:
+    """A name for this runner: ``node:pid:token`` with ``app.core.config.node_name`` (the token tells two runners of one
+    process apart)."""
+    return f"{node_name(settings)}:{os.getpid()}:{secrets.token_hex(4)}"
 
 
-def _owner_gone(owner: str | None) -> bool:
-    """True when ``owner`` ran on this host and its process no longer exists."""
-    if not owner:
+def on_this_node(owner: str | None, settings: Settings) -> bool:
+    """True when the runner named ``owner`` (:func:`owner_name`) runs on this node (``app.core.config.node_name``): only
+    then are its process and its live progress file (``app.services.jobs.progress``) visible here."""
+    return bool(owner) and cast(str, owner).partition(":")[0] == node_name(settings)
+
+
+def _owner_gone(owner: str | None, settings: Settings) -> bool:
+    """True when ``owner`` ran on this node and its process no longer exists."""
+    if not owner or not on_this_node(owner, settings):
         return False
-    host, _, rest = owner.partition(":")
-    pid = rest.partition(":")[0]
-    if host != socket.gethostname() or not pid.isdigit():
+    pid = owner.partition(":")[2].partition(":")[0]
+    if not pid.isdigit():
         return False
     try:
         os.kill(int(pid), 0)
@@ -86,24 +92,21 @@ def _owner_gone(owner: str | None) -> bool:
     return False
 
 
-def _on_this_host(owner: str | None) -> bool:
-    return owner is not None and bool(owner) and owner.partition(":")[0] == socket.gethostname()
-
-
 def is_sqlite(settings: Settings) -> bool:
     """True when the database is SQLite (one host; heartbeats only between the job's transactions)."""
     return sa.engine.make_url(settings.database_url).get_backend_name() == "sqlite"
 
 
 def is_stale(job: Job, settings: Settings) -> bool:
-    """True for a running job whose runner is gone: its process (on this host) no longer exists, or
+    """True for a running job whose runner is gone: its process (on this node) no longer exists, or
     its heartbeat is older than ``settings.job_stale_seconds`` (on SQLite, whose jobs all run on this
-    host and beat only between their transactions, the process alone decides)."""
+    node and beat only between their transactions, the process alone decides). Another node's processes cannot be
+    seen from here: its jobs are judged by their heartbeat alone."""
     if job.state is not JobState.RUNNING:
         return False
-    if _on_this_host(job.owner) and _owner_gone(job.owner):
+    if _owner_gone(job.owner, settings):
         return True
-    if _on_this_host(job.owner) and is_sqlite(settings):
+    if on_this_node(job.owner, settings) and is_sqlite(settings):
         return False
     return job.heartbeat_at is None or utcnow() - job.heartbeat_at > timedelta(seconds=settings.job_stale_seconds)
 
@@ -369,7 +372,7 @@ class JobRunner:
 
     def __init__(self, session_factory: sessionmaker[Session], settings: Settings) -> None:
         self.session_factory, self.settings = session_factory, settings
-        self.owner = owner_name()
+        self.owner = owner_name(settings)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 

@@ -41,7 +41,7 @@ def test_an_upload_is_titled_by_its_file_and_its_progress_is_live(jobs_app, clie
         assert done < total or live[1] == done
         seen.append((stage, done, total))
 
-    owner = jobs.owner_name()
+    owner = jobs.owner_name(settings)
     assert jobs.claim_next(jobs_app.state.session_factory, owner, settings) == job["id"]
     ran = jobs.run_job(jobs_app.state.session_factory, job["id"], settings, owner, progress=progress)
     assert ran.state.value == "done", ran.message

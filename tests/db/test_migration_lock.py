@@ -1,0 +1,48 @@
+"""Nodes started at once on a fresh PostgreSQL database all come up: ``v3d serve`` migrates under an advisory lock
+(``migrations/env.py``), so one node migrates while the others wait, then find the schema at head."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+import sqlalchemy as sa
+
+from app.core.paths import PROJECT_ROOT
+from app.db.session import make_engine
+
+#: Each process waits for the start file, then runs the start-up migration of ``v3d serve``.
+_MIGRATE = """
+import os, sys, time
+from app.db.session import upgrade_database
+while not os.path.exists(sys.argv[2]):
+    time.sleep(0.005)
+upgrade_database(sys.argv[1])
+"""
+
+
+@pytest.mark.postgres
+def test_nodes_started_at_once_on_a_fresh_database_all_migrate(pg_url, tmp_path):
+    start = tmp_path / "go"
+    env = {**os.environ, "PYTHONPATH": str(PROJECT_ROOT)}
+    procs = [subprocess.Popen([sys.executable, "-c", _MIGRATE, pg_url, str(start)], env=env, cwd=PROJECT_ROOT,
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) for _ in range(4)]
+    time.sleep(3.0)  # every process has imported the app and waits at the start line
+    start.touch()
+    outputs = [p.communicate(timeout=300)[0] for p in procs]
+    assert [p.returncode for p in procs] == [0] * 4, "\n".join(outputs)
+    engine = make_engine(pg_url)
+    try:
+        with engine.connect() as conn:
+            versions = conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalars().all()
+            held = conn.execute(sa.text("SELECT count(*) FROM pg_locks WHERE locktype = 'advisory'")).scalar()
+    finally:
+        engine.dispose()
+    from alembic.script import ScriptDirectory
+
+    from app.db.session import alembic_config
+
+    assert versions == [ScriptDirectory.from_config(alembic_config()).get_current_head()]
+    assert held == 0  # every process let the lock go
