@@ -60,18 +60,32 @@ class FrameImage:
     storage: Optional[Storage] = None
     key: Optional[str] = None
 
-    def chunks(self) -> Iterator[bytes]:
-        """The image bytes in 64 KiB chunks, read from the file or straight out of the archive."""
+    def chunks(self, start: int = 0, end: Optional[int] = None) -> Iterator[bytes]:
+        """The image bytes ``start`` to ``end`` (exclusive; default: to the last) in 64 KiB chunks, read from the
+        file (from ``start`` on) or straight out of the archive (the member's bytes before ``start`` read and
+        dropped: a member is a stream)."""
+        end = self.size if end is None else min(end, self.size)
         if self.data is not None:
-            yield from (self.data[i:i + _CHUNK] for i in range(0, len(self.data), _CHUNK))
+            yield from (self.data[i:min(i + _CHUNK, end)] for i in range(start, end, _CHUNK))
             return
         if self.member is None:
             with _open(Located(self.path, self.storage, self.key)) as fh:
-                yield from iter(lambda: fh.read(_CHUNK), b"")
+                fh.seek(start)
+                yield from _limited(fh, end - start)
             return
         with _open(Located(self.zip_path, self.storage, self.key)) as raw, zipfile.ZipFile(raw) as zf, \
                 zf.open(self.member) as fh:
-            yield from iter(lambda: fh.read(_CHUNK), b"")
+            skip = start
+            while skip > 0 and (piece := fh.read(min(_CHUNK, skip))):
+                skip -= len(piece)
+            yield from _limited(fh, end - start)
+
+
+def _limited(stream: IO[bytes], count: int) -> Iterator[bytes]:
+    """At most ``count`` bytes of ``stream`` in 64 KiB chunks."""
+    while count > 0 and (chunk := stream.read(min(_CHUNK, count))):
+        count -= len(chunk)
+        yield chunk
 
 
 def _open(located: Located) -> BinaryIO:

@@ -11,6 +11,7 @@ when complete, removed ``Settings.export_keep_hours`` later).
 """
 from __future__ import annotations
 
+import contextlib
 import shutil
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -110,6 +111,12 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
             if key:
                 files.storage.delete_tree(str(key))
         raise
+    except BaseException:
+        # the games stored before the failure are named so that every node reads them; the import's own error is
+        # the job's, whatever this meets
+        with contextlib.suppress(Exception):
+            _rekey(session, params, files)
+        raise
     _rekey(session, params, files)
     return result
 
@@ -117,6 +124,7 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
 def _rekey(session: Session, params: dict[str, Any], files: DatasetFiles) -> None:
     """Frames of the import read from this node's folder named by their key in the store (an upload) or under the
     data root (every frame recorded under it, whichever import stored it), committed."""
+    session.rollback()  # after the import's own transactions (or its failure): a transaction of its own
     if params.get("upload_key"):
         folder = Path(params["path"])
         changed = rekey_frames(session, folder, files.reference(folder))

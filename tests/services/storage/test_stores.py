@@ -129,8 +129,10 @@ def test_a_frame_image_is_read_from_its_archive_in_the_store(store: Storage, tmp
     member = frame_image(_frame("storage:uploads/u2", zip_name="league/game/Frames-v3.zip", member="0.png"),
                          files=files)
     assert member.media_type == "image/png" and b"".join(member.chunks()) == PNG
+    assert b"".join(member.chunks(10, 30)) == PNG[10:30]  # a range of a member: the bytes before it dropped
     single = frame_image(_frame("storage:uploads/u2/league", path="game/1.png"), files=files)
     assert b"".join(single.chunks()) == PNG and single.size == len(PNG)
+    assert b"".join(single.chunks(len(PNG) - 5)) == PNG[-5:]  # a range of a file: read from its start
     for escape in ("../u1/x.png", "/etc/passwd"):
         with pytest.raises(ImageUnavailable):
             frame_image(_frame("storage:uploads/u2", path=escape), files=files)
