@@ -102,7 +102,7 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
     files = DatasetFiles.from_settings(settings)
     key = params.get("upload_key")
     if key:
-        params = {**params, "path": str(files.upload_folder(str(key)))}
+        params = {**params, "path": str(files.upload_folder(str(key)).resolve())}  # as the import records it
     try:
         result = _import(session, params, settings, progress, job_id)
     except InvalidInputError:
@@ -126,7 +126,7 @@ def _rekey(session: Session, params: dict[str, Any], files: DatasetFiles) -> Non
     data root (every frame recorded under it, whichever import stored it), committed."""
     session.rollback()  # after the import's own transactions (or its failure): a transaction of its own
     if params.get("upload_key"):
-        folder = Path(params["path"])
+        folder = Path(params["path"]).resolve()
         changed = rekey_frames(session, folder, files.reference(folder))
     elif files.data_root is not None:
         root = Path(files.data_root).expanduser().resolve()
