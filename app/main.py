@@ -25,7 +25,8 @@ naming a ``Host`` that is neither a loopback name nor one of ``V3D_ALLOWED_HOSTS
 (``app.api.hosts``: DNS rebinding), and a body is bounded by its route (``app.api.bodies``: 415 for a type the
 route does not take, 413 beyond its limit). Outermost of all (``app.api.edge``): a request of too many header lines
 gets 431, and every answer leaves in pieces, each within ``V3D_SEND_TIMEOUT_S`` (a client that stops reading is
-disconnected).
+disconnected). Around all of them, each request is timed for the metrics (``app.api.request_metrics``), served to
+admins at ``/metrics`` in Prometheus' text format (``app.api.routes.metrics``).
 """
 from __future__ import annotations
 
@@ -51,6 +52,8 @@ from app.api.edge import EdgeMiddleware
 from app.api.errors import install_error_handlers
 from app.api.hosts import allowed_hosts
 from app.api.main import api_router
+from app.api.request_metrics import RequestMetricsMiddleware
+from app.api.routes import metrics
 from app.api.routes.health import HealthProbe
 from app.api.schemas import db_id
 from app.api.security import SecurityHeadersMiddleware
@@ -187,9 +190,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(SecurityHeadersMiddleware)
     # Outermost: too many header lines are refused first; every answer leaves in pieces, each within the send timeout
     app.add_middleware(EdgeMiddleware, max_headers=settings.max_header_count, send_timeout_s=settings.send_timeout_s)
+    # Around everything: each request's time to its last byte, by route template and status (app.core.metrics)
+    app.add_middleware(RequestMetricsMiddleware, routes=app.router.routes)
 
     install_error_handlers(app)
     app.include_router(api_router, prefix="/api")
+    app.include_router(metrics.router)  # GET /metrics: beside /api, as Prometheus expects it
     app.mount("/static", RevalidatedStaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
 
     @app.api_route("/docs", methods=["GET", "HEAD"], include_in_schema=False)

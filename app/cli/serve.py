@@ -15,8 +15,9 @@ version of the derived rows (doubts, queue figures) are recomputed first.
 ``--workers N`` (N > 1) serves with N uvicorn worker processes: the start-up work above runs once, in
 this process, before any worker starts; each worker then builds the app with the factory
 :data:`APP_FACTORY` from the same environment (``V3D_*``). The workers share the database: write
-transactions wait their turn (``app.db.session.begin_write``), so N workers behave like one process. Every process
-serves with :func:`server_options` (the bounds of a request's head and of idle connections).
+transactions wait their turn (``app.db.session.begin_write``), so N workers behave like one process. Their metrics
+are kept in the files of ``PROMETHEUS_MULTIPROC_DIR`` (a temporary folder unless set; ``app.core.metrics``). Every
+process serves with :func:`server_options` (the bounds of a request's head and of idle connections).
 """
 from __future__ import annotations
 
@@ -141,6 +142,7 @@ def serve(
     ``--workers N``, N processes built by :data:`APP_FACTORY` from the same ``V3D_*`` environment)."""
     import uvicorn
 
+    from app.core.metrics import prepare_multiprocess_dir
     from app.db.session import upgrade_database
     from app.main import create_app
 
@@ -176,6 +178,8 @@ def serve(
                    "requests naming another host get 400")
     if workers > 1:  # each worker process builds its own app (and engine) from the environment
         typer.echo(f"v3d: {workers} worker processes")
+        # the workers count in files of one folder, summed by whichever answers GET /metrics (app.core.metrics)
+        prepare_multiprocess_dir()
         uvicorn.run(APP_FACTORY, factory=True, host=host, port=port, workers=workers, **server_options(settings))
     else:
         uvicorn.run(create_app(settings), host=host, port=port, **server_options(settings))

@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 import app.cli.serve  # noqa: F401  # registers the command
 from app.cli._root import cli
 from app.core.config import get_settings
+from app.core.metrics import MULTIPROC_ENV
 from app.db.models import Game, User
 from app.db.session import make_engine, make_session_factory, upgrade_database
 
@@ -33,8 +34,10 @@ def database(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
 
 @pytest.fixture
 def served(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
-    """The calls ``serve`` makes to ``uvicorn.run``."""
+    """The calls ``serve`` makes to ``uvicorn.run`` (the metrics' folder it sets for workers is unset afterwards)."""
     calls: list[dict[str, Any]] = []
+    monkeypatch.setenv(MULTIPROC_ENV, "")
+    monkeypatch.delenv(MULTIPROC_ENV)
     monkeypatch.setattr(uvicorn, "run", lambda app, **kw: calls.append({"app": app, **kw}))
     return calls
 

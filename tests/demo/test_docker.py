@@ -3,6 +3,7 @@ to PostgreSQL 16, and the Dockerfile copies paths that exist and starts the serv
 (whose account's password is public), since both listen on every interface."""
 from __future__ import annotations
 
+import json
 import re
 import shlex
 import tomllib
@@ -114,3 +115,35 @@ def test_compose_and_the_readme_show_how_to_name_the_served_host(compose: dict) 
     readme = (DOCKER.parent / "README.md").read_text(encoding="utf-8")
     assert "V3D_ALLOWED_HOSTS=v3d.example.org docker compose -f docker/compose.yaml up -d" in readme
     assert "DNS rebinding" in readme
+
+
+def test_the_two_node_compose_shares_only_the_database_and_the_object_store() -> None:
+    """docker/compose.nodes.yaml (docs/deploy.md): two nodes of distinct names, each with a volume of its own, the
+    same PostgreSQL database and S3 bucket (SeaweedFS serving S3), behind nginx passing requests to both."""
+    nodes_compose = yaml.safe_load((DOCKER / "compose.nodes.yaml").read_text(encoding="utf-8"))
+    services = nodes_compose["services"]
+    nodes = [services["node-a"], services["node-b"]]
+    envs = [n["environment"] for n in nodes]
+    assert [e["V3D_NODE_NAME"] for e in envs] == ["node-a", "node-b"]
+    shared = ("V3D_DATABASE_URL", "V3D_STORAGE_URL", "AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY", "AWS_ENDPOINT_URL",
+              "AWS_DEFAULT_REGION")
+    assert all(envs[0][k] == envs[1][k] for k in shared)
+    assert envs[0]["V3D_DATABASE_URL"] == "postgresql+psycopg://v3d:v3d@db:5432/v3d"
+    assert envs[0]["V3D_STORAGE_URL"].startswith("s3://") and envs[0]["AWS_ENDPOINT_URL"] == "http://s3:8333"
+    assert services["db"]["image"] == "postgres:16"
+    assert services["s3"]["image"] == "chrislusf/seaweedfs" and services["s3"]["command"][:1] == ["server"]
+    assert "-s3" in services["s3"]["command"]
+    bucket = envs[0]["V3D_STORAGE_URL"].removeprefix("s3://").split("/", 1)[0]
+    assert f"s3.bucket.create -name {bucket}" in " ".join(services["s3-bucket"]["entrypoint"])
+    keys = json.loads((DOCKER / "seaweedfs-s3.json").read_text(encoding="utf-8"))["identities"][0]["credentials"][0]
+    assert (keys["accessKey"], keys["secretKey"]) == (envs[0]["AWS_ACCESS_KEY_ID"], envs[0]["AWS_SECRET_ACCESS_KEY"])
+    volumes = [n["volumes"] for n in nodes]
+    assert volumes[0] != volumes[1]
+    assert all(v.split(":", 1)[0] in nodes_compose["volumes"] for vs in volumes for v in vs)
+    assert all(n["command"] == ["v3d", "serve", "--host", "0.0.0.0"] for n in nodes)
+    lb_address = services["lb"]["networks"]["v3d"]["ipv4_address"]
+    assert json.loads(envs[0]["V3D_TRUSTED_PROXIES"]) == [lb_address]
+    conf = (DOCKER / "nginx.nodes.conf").read_text(encoding="utf-8")
+    assert "server node-a:8000" in conf and "server node-b:8000" in conf
+    mounted = {v.split(":")[1] for v in services["lb"]["volumes"]}
+    assert "/etc/nginx/conf.d/default.conf" in mounted

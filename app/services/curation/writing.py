@@ -54,6 +54,7 @@ from sqlalchemy.orm.exc import StaleDataError
 
 from app.core.config import Settings
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
+from app.core.metrics import count_edit
 from app.db.models import Frame, Game, System
 from app.db.session import begin_write, end_reads, reads_on_their_own
 from app.services.audit import log as audit
@@ -270,6 +271,7 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
                 try:
                     result = run(locked=False)
                     edit.outcome = "computed" if attempt == 0 else "recomputed"
+                    count_edit(action, edit.outcome)
                     return result
                 except _Collided:
                     session.rollback()
@@ -280,6 +282,7 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
                     break
             result = run(locked=True)
             edit.outcome = "under_lock" if edit.attempts == 1 else "recomputed"
+            count_edit(action, edit.outcome if recomputes else "decided")
             return result
         except BaseException as exc:
             session.rollback()

@@ -37,6 +37,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.metrics import count_recomputation
 from app.datasets.records import CalibrationFields
 from app.db.models import (
     BallReprojection,
@@ -179,6 +180,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
     Returns:
         The system's :class:`Triangulation` row.
     """
+    count_recomputation()
     frames = list(system.frames)
     cameras: dict[int, Camera] = {}
     observations: list[BallObservation] = []

@@ -143,6 +143,13 @@ def list_jobs(session: Session, state: JobState | None = None, kind: str | None 
     return list(items), total
 
 
+def count_jobs(session: Session) -> dict[tuple[str, str], int]:
+    """How many jobs of each ``(kind, state)`` the database holds (the pairs with none left out): what the
+    metrics' job gauges show (``app.core.metrics.job_families``)."""
+    rows = session.execute(select(Job.kind, Job.state, sa.func.count(Job.id)).group_by(Job.kind, Job.state))
+    return {(kind, state.value): n for kind, state, n in rows}
+
+
 def claim(session: Session, job: Job, owner: str) -> bool:
     """Take ``job`` (as read: queued, or running and stale) for ``owner`` and commit; False when another
     runner claimed it meanwhile (the update is a compare-and-set on ``attempts``)."""
