@@ -12,8 +12,11 @@ from app.demo.generator import generate_demo_dataset
 
 def small_v3_upload(work: Path, systems: int = 2, leagues: int = 1, league: str = "league") -> bytes:
     """A zip of ``leagues`` copies of the demo game cut to its first ``systems`` systems (each action with its
-    replays, and their images in ``Frames-v3.zip``), each copy under a league of its own (``<league>-<k>``)."""
-    root = generate_demo_dataset(work / "demo")
+    replays, and their images in ``Frames-v3.zip``), each copy under a league of its own (``<league>-<k>``). The demo
+    game is generated in ``work/demo`` unless it is there already."""
+    root = work / "demo"
+    if not any(root.rglob("Labels-v3.json")):  # made once per folder: the same bytes every time (seed 0)
+        root = generate_demo_dataset(root)
     labels_path = next(root.rglob("Labels-v3.json"))
     game = labels_path.parent
     labels = json.loads(labels_path.read_text(encoding="utf-8"))
