@@ -9,6 +9,7 @@ a token sends none) and answers the frame's new ETag in its ``ETag`` header.
 from __future__ import annotations
 
 import contextlib
+import re
 import threading
 from typing import Annotated, Any, Callable, Iterator, Literal
 
@@ -94,16 +95,20 @@ def byte_range(header: str, size: int) -> tuple[int, int] | Literal["unsatisfiab
     ((0, 100), (900, 1000), (990, 1000))
     >>> byte_range("bytes=1000-", 1000), byte_range("bytes=0-1,5-9", 1000), byte_range("items=0-1", 1000)
     ('unsatisfiable', None, None)
+    >>> byte_range("bytes=\u00b2-", 1000), byte_range("bytes=9-2", 1000), byte_range("bytes=-", 1000)
+    (None, None, None)
     """
     unit, _, spec = header.partition("=")
     first, dash, last = spec.strip().partition("-")
-    if unit.strip().lower() != "bytes" or not dash or "," in spec or not (first.isdigit() or last.isdigit()):
+    digits = re.compile(r"[0-9]{1,19}")  # ASCII digits only (str.isdigit takes a superscript, int refuses it)
+    if (unit.strip().lower() != "bytes" or not dash or (first and not digits.fullmatch(first))
+            or (last and not digits.fullmatch(last)) or not (first or last)):
         return None
     if not first:  # the last N bytes
         n = int(last)
         return (max(0, size - n), size) if n > 0 else "unsatisfiable"
     start = int(first)
-    if (last and not last.isdigit()) or (last and int(last) < start):
+    if last and int(last) < start:
         return None  # not a valid range: ignored
     if start >= size:
         return "unsatisfiable"
