@@ -212,7 +212,9 @@ def test_two_nodes_share_only_the_database_and_the_store(cluster: dict[str, Any]
     job = _wait_job(a, job_id, admin, 300)
     assert job["state"] == "done", job
     assert job["owner"].startswith("node-b:"), job["owner"]
-    assert list(b.jobs.glob("uploads/*/league-0/*/*/Frames-v3.zip")), "B read the upload from its own copy of it"
+    stored = seaweed.client().list_objects_v2(Bucket=seaweed.bucket, Prefix="two-nodes/uploads/")["Contents"]
+    assert any("/league-0/" in o["Key"] and o["Key"].endswith("/Frames-v3.zip") for o in stored), stored
+    assert not any(any((n.jobs / "uploads").glob("*/*")) for n in (a, b)), "the jobs folders are only scratch"
     listed = httpx.get(f"{a.url}/api/systems", headers=admin, timeout=30).json()
     assert listed["total"] == 2, listed
 

@@ -128,6 +128,15 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
                          flip=body.flip, merge=body.merge, source=body.source)
 
 
+def _store_upload(settings: Settings, key: str, folder: Path) -> None:
+    """Keep the unpacked upload ``folder`` in the store as ``key``; a remote store's upload leaves this node's jobs
+    folder (only scratch then): the node that runs the import fetches it."""
+    storage = storage_for(settings)
+    storage.put_tree(key, folder)
+    if storage.local_path(key) is None:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _refuse_stored_games(session: Session, params: dict[str, Any], settings: Settings) -> None:
     """409 naming the input's games that are stored already, when the import names no ``merge`` and the input is
     valid (``import_formats.stored_games_refusal``; an upload's folder is removed: no job will read it). An input
@@ -183,7 +192,7 @@ async def create_import(request: Request, session: SessionDep, settings: Setting
         params = await _path_params(request, settings)
     await run_in_threadpool(_refuse_stored_games, session, params, settings)
     if params.get("upload_key"):  # kept in the store, where the node that runs the job reads it
-        await run_in_threadpool(storage_for(settings).put_tree, params["upload_key"], Path(params["path"]))
+        await run_in_threadpool(_store_upload, settings, params["upload_key"], Path(params["path"]))
     params["actor"] = principal.name
     job = await run_in_threadpool(jobs.submit, session, "import", params)
     return accepted(job)

@@ -90,9 +90,9 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
     the games an earlier run of the same job stored are merged as ``keep-newer`` (the run completes it).
 
     An upload is read from this node's copy of it (fetched from the store when another node received it:
-    ``DatasetFiles.upload_folder``); when the import ends, its frames name their images by the upload's key in the
-    store, or by their path under the data root (``app.services.storage.datasets.rekey_frames``), so that every
-    node finds them.
+    ``DatasetFiles.upload_folder``; removed again at the end when the store is remote); when the import ends, its
+    frames name their images by the upload's key in the store, or by their path under the data root
+    (``app.services.storage.datasets.rekey_frames``), so that every node finds them.
 
     Raises:
         DatasetError: the dataset cannot be imported (nothing of it stored; an upload's folder is removed).
@@ -103,6 +103,18 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
     key = params.get("upload_key")
     if key:
         params = {**params, "path": str(files.upload_folder(str(key)).resolve())}  # as the import records it
+    try:
+        return _import_and_rekey(session, params, settings, progress, job_id, files)
+    finally:
+        if key and files.storage.local_path(str(key)) is None:  # this node's copy of an upload kept elsewhere
+            shutil.rmtree(params["path"], ignore_errors=True)
+
+
+def _import_and_rekey(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
+                      job_id: int, files: DatasetFiles) -> dict[str, Any]:
+    """:func:`_import`, then the frames named by their key or path under the data root (:func:`_rekey`); an upload
+    refused for its stored games removed (here and from the store)."""
+    key = params.get("upload_key")
     try:
         result = _import(session, params, settings, progress, job_id)
     except InvalidInputError:
