@@ -148,3 +148,23 @@ def test_a_frame_under_the_data_root_is_read_there(tmp_path: Path):
     assert b"".join(frame_image(_frame("data-root:sn", path="0.png"), files=files).chunks()) == PNG
     with pytest.raises(ImageUnavailable):  # a node without the data root cannot read it
         frame_image(_frame("data-root:sn", path="0.png"), files=DatasetFiles(files.storage, None, files.scratch))
+
+
+def test_a_remote_video_or_frame_folder_is_read_from_this_nodes_copy(seaweed: Seaweed, tmp_path: Path):
+    """OpenCV reads a video (or a folder of numbered frames) from a local file: a remote one is fetched once into
+    ``<jobs dir>/cache/<key>``, whole; an upload's keys are never written again (each upload has a folder of its own),
+    so the copy stays the object as stored."""
+    store = S3Storage(seaweed.bucket, "cache", client=seaweed.client())
+    store.put_stream("uploads/u3/videos/cam1.mp4", io.BytesIO(b"video bytes"))
+    store.put_stream("uploads/u3/frames/cam2/000001.png", io.BytesIO(PNG))
+    store.put_stream("uploads/u3/frames/cam2/000002.png", io.BytesIO(PNG))
+    files = DatasetFiles(store, None, tmp_path / "jobs")
+    video = files.local_copy(files.locate("storage:uploads/u3", "videos/cam1.mp4"))
+    assert video == tmp_path / "jobs" / "cache" / "uploads" / "u3" / "videos" / "cam1.mp4"
+    assert video.read_bytes() == b"video bytes"
+    folder = files.local_copy(files.locate("storage:uploads/u3", "frames/cam2"))
+    assert sorted(p.name for p in folder.iterdir()) == ["000001.png", "000002.png"]
+    store.delete_tree("uploads/u3")  # the copy is read, not the store, from now on
+    assert files.local_copy(files.locate("storage:uploads/u3", "videos/cam1.mp4")).read_bytes() == b"video bytes"
+    with pytest.raises(FileNotFoundError):
+        files.local_copy(files.locate("storage:uploads/u3", "videos/gone.mp4"))
