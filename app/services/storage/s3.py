@@ -26,6 +26,9 @@ MULTIPART_BYTES = 16 << 20
 #: Bytes read per range request when a stored file is read in pieces (``zipfile`` reads small headers: a larger
 #: buffer fetches a member's bytes with its header in one request).
 READ_BUFFER_BYTES = 256 << 10
+#: Bytes read from the end of a file when it is opened: its size comes with them (no HEAD request), and so does a zip
+#: archive's directory of up to about 700 members, which ``zipfile`` reads first.
+TAIL_BYTES = 64 << 10
 
 _MISSING = ("404", "NoSuchKey", "NotFound", "NoSuchBucket")
 
@@ -47,10 +50,12 @@ def _errors() -> tuple[type[Exception], ...]:
 class RangeReader(io.RawIOBase):
     """A stored object read as a seekable file, each read one ranged GET (wrap it in ``io.BufferedReader``)."""
 
-    def __init__(self, client: "S3Client", bucket: str, name: str, size: int, key: str) -> None:
+    def __init__(self, client: "S3Client", bucket: str, name: str, size: int, key: str, tail: bytes = b"") -> None:
         super().__init__()
         self._client, self._bucket, self._name, self._size, self._key = client, bucket, name, size, key
         self._pos = 0
+        #: The file's last bytes, read when it was opened (``S3Storage.open``).
+        self._tail, self._tail_start = tail, size - len(tail)
 
     def readable(self) -> bool:
         return True
@@ -71,6 +76,12 @@ class RangeReader(io.RawIOBase):
         end = min(self._size, self._pos + len(view))
         if end <= self._pos:
             return 0
+        if self._pos >= self._tail_start:  # read with the file's size when it was opened
+            data = self._tail[self._pos - self._tail_start:end - self._tail_start]
+            view[:len(data)] = data
+            self._pos += len(data)
+            return len(data)
+        end = min(end, self._tail_start)
         try:
             body = self._client.get_object(Bucket=self._bucket, Key=self._name,
                                            Range=f"bytes={self._pos}-{end - 1}")["Body"]
@@ -135,9 +146,19 @@ class S3Storage(Storage):
         return target
 
     def open(self, key: str) -> BinaryIO:
-        """The object read in ranges of at least :data:`READ_BUFFER_BYTES` as it is read."""
-        size = self.stat(key).size
-        raw = RangeReader(self.client, self.bucket, self._name(key), size, key)
+        """The object read in ranges of at least :data:`READ_BUFFER_BYTES` as it is read; its last
+        :data:`TAIL_BYTES` (and its size) read at once, in one request."""
+        name = self._name(key)
+        try:
+            answer = self.client.get_object(Bucket=self.bucket, Key=name, Range=f"bytes=-{TAIL_BYTES}")
+            tail = answer["Body"].read()
+        except _errors() as exc:
+            if str(getattr(exc, "response", {}).get("Error", {}).get("Code", "")) != "InvalidRange":
+                _raise(exc, key)
+            tail = b""  # an empty object has no last bytes
+        content_range = str(answer.get("ContentRange", "")) if tail else ""
+        size = int(content_range.rpartition("/")[2]) if content_range else len(tail)
+        raw = RangeReader(self.client, self.bucket, name, size, key, tail)
         return io.BufferedReader(raw, buffer_size=READ_BUFFER_BYTES)
 
     def stat(self, key: str) -> StoredObject:

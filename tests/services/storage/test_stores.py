@@ -58,6 +58,10 @@ def test_files_and_streams_go_in_and_come_back(store: Storage, tmp_path: Path):
         assert fh.read() == b"56789"
         fh.seek(3)
         assert fh.read(4) == b"3456"
+    store.put_stream("uploads/u1/empty", io.BytesIO(b""))
+    with store.open("uploads/u1/empty") as fh:
+        assert fh.read() == b"" and store.stat("uploads/u1/empty").size == 0
+    store.delete("uploads/u1/empty")
     tree = store.get_tree("uploads/u1", tmp_path / "tree")
     assert (tree / "sub" / "b.txt").read_bytes() == b"hello" and not (tmp_path / "tree.part").exists()
     store.delete("uploads/u1/a.bin")
@@ -92,6 +96,8 @@ def test_a_big_file_goes_in_parts_and_comes_back_whole(seaweed: Seaweed, tmp_pat
     with store.open("exports/big.zip") as fh:
         fh.seek(MULTIPART_BYTES - 3)
         assert fh.read(6) == big.read_bytes()[MULTIPART_BYTES - 3:MULTIPART_BYTES + 3]
+        fh.seek(0)  # read whole: the ranges before the last bytes read when it was opened, then those
+        assert hashlib.sha256(fh.read()).digest() == hashlib.sha256(big.read_bytes()).digest()
 
 
 def test_a_presigned_url_reads_the_object(seaweed: Seaweed):
