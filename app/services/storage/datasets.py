@@ -107,7 +107,7 @@ class DatasetFiles:
         if root.startswith(IN_DATA_ROOT):
             if self.data_root is None:
                 raise FileNotFoundError("the dataset lies under the data root, and V3D_DATA_ROOT is not set here")
-            base = Path(self.data_root).expanduser() / root[len(IN_DATA_ROOT):]
+            base = _inside(Path(self.data_root).expanduser(), root[len(IN_DATA_ROOT):])  # the folder itself, too
             return Located(path=_inside(base, relative))
         return Located(path=_inside(Path(root), relative))
 

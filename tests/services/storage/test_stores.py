@@ -152,6 +152,8 @@ def test_a_frame_under_the_data_root_is_read_there(tmp_path: Path):
     files = DatasetFiles(FileStorage(tmp_path / "jobs"), tmp_path / "data", tmp_path / "jobs")
     assert files.reference(tmp_path / "data" / "sn") == "data-root:sn"
     assert b"".join(frame_image(_frame("data-root:sn", path="0.png"), files=files).chunks()) == PNG
+    with pytest.raises(ImageUnavailable):  # a folder outside the data root is none of its datasets
+        frame_image(_frame("data-root:../elsewhere", path="0.png"), files=files)
     with pytest.raises(ImageUnavailable):  # a node without the data root cannot read it
         frame_image(_frame("data-root:sn", path="0.png"), files=DatasetFiles(files.storage, None, files.scratch))
 
