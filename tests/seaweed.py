@@ -59,10 +59,11 @@ class Seaweed:
                             config=Config(s3={"addressing_style": "path"}))
 
     def stop(self) -> None:
+        """SIGTERM, then SIGKILL after 3 s (weed takes its time to stop, and its data is the test's, thrown away)."""
         if self.process.poll() is None:
             os.killpg(self.process.pid, signal.SIGTERM)
             try:
-                self.process.wait(10)
+                self.process.wait(3)
             except subprocess.TimeoutExpired:
                 os.killpg(self.process.pid, signal.SIGKILL)
                 self.process.wait(10)
