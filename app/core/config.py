@@ -265,7 +265,8 @@ class Settings(BaseSettings):
                                                                 "stores its progress (s).")
     job_stale_seconds: float = Field(
         120.0, gt=0, description="A running job whose heartbeat is older than this is taken over and resumed by "
-        "another runner (s); on the same host a job whose process is gone is taken over at once. Above the "
+        "another runner, of any node (s); on its own node (V3D_NODE_NAME) a job whose process is gone is taken over "
+        "at once. Above the "
         "longest write transaction of an import batch, during which SQLite holds the heartbeat back.")
     node_name: Optional[str] = Field(
         None, min_length=1, max_length=120, pattern=r"^[^:\s]+$",

@@ -73,7 +73,7 @@ def owner_name(settings: Settings) -> str:
 def on_this_node(owner: str | None, settings: Settings) -> bool:
     """True when the runner named ``owner`` (:func:`owner_name`) runs on this node (``app.core.config.node_name``): only
     then are its process and its live progress file (``app.services.jobs.progress``) visible here."""
-    return bool(owner) and cast(str, owner).partition(":")[0] == node_name(settings)
+    return owner is not None and owner.partition(":")[0] == node_name(settings)
 
 
 def _owner_gone(owner: str | None, settings: Settings) -> bool:
