@@ -278,6 +278,12 @@ class Settings(BaseSettings):
     jobs_dir: Optional[Path] = Field(
         None, description="Where uploads are unpacked (uploads/) and export jobs write their files (exports/); "
         "default: jobs/ beside a SQLite database file, else var/jobs in the checkout.")
+    storage_url: Optional[str] = Field(
+        None, description="Where every file v3d keeps lies (uploads, frame images and archives, export results): "
+        "file:///FOLDER, or s3://BUCKET/PREFIX through boto3 with the standard AWS variables (AWS_ACCESS_KEY_ID, "
+        "AWS_SECRET_ACCESS_KEY, AWS_DEFAULT_REGION, and AWS_ENDPOINT_URL for an S3-compatible store; the bucket "
+        "must exist). Nodes that share it and the database share everything; the jobs folder is then only each "
+        "node's scratch. None: the jobs folder itself (file://<jobs dir>, one machine) (V3D_STORAGE_URL).")
     export_keep_hours: float = Field(
         24.0, gt=0, description="How long the file an export job wrote is kept for download (hours, from when it was "
         "written): older export files under <jobs dir>/exports are removed when an export job starts or a file is "
@@ -373,6 +379,15 @@ class Settings(BaseSettings):
             # an IPv6 address is written in brackets in a Host header
             return [f"[{n}]" if ":" in n and not n.startswith("[") else n for n in names]
         return value
+
+    @field_validator("storage_url")
+    @classmethod
+    def _storage_url_scheme(cls, value: Optional[str]) -> Optional[str]:
+        """``file://`` or ``s3://BUCKET``, refused at start-up otherwise, naming the variable."""
+        if value is not None and not (value.startswith("file://") or
+                                      (value.startswith("s3://") and value[5:].strip("/"))):
+            raise ValueError("V3D_STORAGE_URL must be file://FOLDER or s3://BUCKET/PREFIX")
+        return value or None
 
     @field_validator("session_secret")
     @classmethod

@@ -24,6 +24,7 @@ from app.geometry.metrics import MAX_YOLO_FILE_BYTES
 from app.services.evaluation import monocular
 from app.services.evaluation.boxes import evaluate_boxes as boxes_report
 from app.services.evaluation.stats import dataset_stats
+from app.services.storage.datasets import DatasetFiles
 from app.services.transfer import detector_export
 from app.services.transfer.archives import MB, ArchiveLimits, file_chunks, receive, unpack_zip, upload_limit
 
@@ -77,7 +78,8 @@ def _zip_export(fmt: Literal["yolo", "coco"], session: SessionDep, include_all: 
     tmp = Path(tempfile.mkdtemp(prefix=f"v3d-{fmt}-"))
     try:
         report = detector_export.export_detector(session, fmt, tmp / fmt, include_all, settings.ball_diameter_m,
-                                                 settings.export_ball_box)
+                                                 settings.export_ball_box,
+                                                 files=DatasetFiles.from_settings(settings))
         archive = shutil.make_archive(str(tmp / f"v3d-{fmt}"), "zip", root_dir=tmp / fmt)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -28,6 +28,7 @@ from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
 from app.services.releases.content import get_release
 from app.services.releases.export import ReleaseSource
+from app.services.storage.datasets import DatasetFiles
 from app.services.transfer import export_files, export_zip, exporting
 from app.services.transfer.export_formats import tree_export_names
 
@@ -47,6 +48,7 @@ router = APIRouter(prefix="/exports", tags=["exports"], dependencies=[Depends(re
 )
 def export_soccernet_v3d(
     request: Request,
+    settings: SettingsDep,
     include_all: Annotated[bool, Query(alias="all", description="Every system, not only the accepted ones.")] = False,
     images: Annotated[bool, Query(description="Each game's Frames-v3.zip (its images); false leaves them out.")] = True,
     release: Annotated[Optional[QueryText], Query(min_length=1, max_length=200, description=(
@@ -68,7 +70,8 @@ def export_soccernet_v3d(
             source = ReleaseSource(session, chosen)
         else:
             systems, rows = exporting.export_size(session, include_all)
-        chunks = export_zip.stream_soccernet_v3d_zip(session, include_all, images=images, source=source)
+        chunks = export_zip.stream_soccernet_v3d_zip(session, include_all, images=images, source=source,
+                                                     files=DatasetFiles.from_settings(settings))
         first = next(chunks)  # a game name that cannot be a folder fails here, before the answer starts
     except BaseException:
         session.close()

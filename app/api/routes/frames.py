@@ -9,8 +9,9 @@ a token sends none) and answers the frame's new ETag in its ``ETag`` header.
 from __future__ import annotations
 
 import contextlib
+import re
 import threading
-from typing import Annotated, Any, Callable, Iterator
+from typing import Annotated, Any, Callable, Iterator, Literal
 
 from fastapi import APIRouter, Depends, Header, HTTPException, Query, Response
 from fastapi.responses import StreamingResponse
@@ -52,6 +53,7 @@ from app.services.curation.system_page import load_frame, pitch_lines_key, syste
 from app.services.curation.versions import expected_versions, frame_etag
 from app.services.curation.writing import EditContext
 from app.services.images import serving as images
+from app.services.storage.datasets import DatasetFiles
 
 #: The header naming the audit entry of a write (what a later undo names).
 AUDIT_ENTRY_HEADER = audit.AUDIT_ENTRY_HEADER
@@ -82,6 +84,35 @@ def etag_matches(if_none_match: str | None, etag: str) -> bool:
         return False
     tags = {t.strip().removeprefix("W/") for t in if_none_match.split(",")}
     return "*" in tags or etag.removeprefix("W/") in tags
+
+
+def byte_range(header: str, size: int) -> tuple[int, int] | Literal["unsatisfiable"] | None:
+    """The one byte range a ``Range`` header asks of ``size`` bytes, as (start, end exclusive); ``"unsatisfiable"``
+    when it starts beyond the end; None when the header is not one ``bytes`` range (then the whole is sent, as RFC 9110
+    allows).
+
+    >>> byte_range("bytes=0-99", 1000), byte_range("bytes=900-", 1000), byte_range("bytes=-10", 1000)
+    ((0, 100), (900, 1000), (990, 1000))
+    >>> byte_range("bytes=1000-", 1000), byte_range("bytes=0-1,5-9", 1000), byte_range("items=0-1", 1000)
+    ('unsatisfiable', None, None)
+    >>> byte_range("bytes=\u00b2-", 1000), byte_range("bytes=9-2", 1000), byte_range("bytes=-", 1000)
+    (None, None, None)
+    """
+    unit, _, spec = header.partition("=")
+    first, dash, last = spec.strip().partition("-")
+    digits = re.compile(r"[0-9]{1,19}")  # ASCII digits only (str.isdigit takes a superscript, int refuses it)
+    if (unit.strip().lower() != "bytes" or not dash or (first and not digits.fullmatch(first))
+            or (last and not digits.fullmatch(last)) or not (first or last)):
+        return None
+    if not first:  # the last N bytes
+        n = int(last)
+        return (max(0, size - n), size) if n > 0 else "unsatisfiable"
+    start = int(first)
+    if last and int(last) < start:
+        return None  # not a valid range: ignored
+    if start >= size:
+        return "unsatisfiable"
+    return start, min(size, int(last) + 1) if last else size
 
 
 @router.get("", response_model=FramePageOut)
@@ -152,22 +183,37 @@ def _edited(session: Session, response: Response, query: QueueQuery, me: str, ed
     response_class=StreamingResponse,
     responses={
         200: {"content": {"image/png": {}, "image/jpeg": {}}, "description": "The image bytes."},
+        206: {"description": "The byte range asked (Range: bytes=a-b), with Content-Range."},
         304: {"description": "Not modified (If-None-Match names the current ETag)."},
+        416: {"description": "The range starts beyond the image's end (Content-Range: bytes */size)."},
         404: {"model": ErrorOut, "description": "No such frame, or it has no image (or none that is a PNG or JPEG "
                                                 "inside its dataset's folder): draw a blank canvas of its size."},
     },
 )
 def frame_image(frame: FrameDep, settings: SettingsDep,
-                if_none_match: Annotated[str | None, Header()] = None) -> Response:
-    """The frame's image, streamed from its zip member (never extracted) or file, with an ``ETag``.
+                if_none_match: Annotated[str | None, Header()] = None,
+                range_: Annotated[str | None, Header(alias="range")] = None,
+                if_range: Annotated[str | None, Header()] = None) -> Response:
+    """The frame's image, streamed from its zip member (never extracted) or file, wherever the store keeps it, with an
+    ``ETag``; one byte range of it (``Range: bytes=a-b``, 206 with ``Content-Range``; 416 beyond its end) unless
+    ``If-Range`` names another version.
 
     Its media type is ``image/png`` or ``image/jpeg`` as read from the image's header (never from its
     name; anything else is a 404), with ``X-Content-Type-Options: nosniff`` and
     ``Content-Security-Policy: sandbox``, so that no imported file can run in this origin."""
-    image = images.frame_image(frame, settings.max_image_pixels)
+    image = images.frame_image(frame, settings.max_image_pixels, DatasetFiles.from_settings(settings))
     headers = {"ETag": image.etag, "Cache-Control": IMAGE_CACHE_CONTROL, **IMAGE_SECURITY_HEADERS}
     if etag_matches(if_none_match, image.etag):
         return Response(status_code=304, headers=headers)
+    headers["Accept-Ranges"] = "bytes"
+    wanted = byte_range(range_, image.size) if range_ and (if_range is None or if_range == image.etag) else None
+    if wanted == "unsatisfiable":
+        return Response(status_code=416, headers={**headers, "Content-Range": f"bytes */{image.size}"})
+    if isinstance(wanted, tuple):
+        start, end = wanted
+        headers.update({"Content-Length": str(end - start), "Content-Range": f"bytes {start}-{end - 1}/{image.size}"})
+        return StreamingResponse(image.chunks(start, end), status_code=206, media_type=image.media_type,
+                                 headers=headers)
     headers["Content-Length"] = str(image.size)
     return StreamingResponse(image.chunks(), media_type=image.media_type, headers=headers)
 

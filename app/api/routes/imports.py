@@ -14,6 +14,7 @@ import secrets
 import shutil
 import time
 from collections.abc import AsyncGenerator, AsyncIterator
+from pathlib import Path
 from typing import Any
 
 from fastapi import APIRouter, Depends, Request, status
@@ -35,6 +36,8 @@ from app.core.errors import ConflictError, DatasetError, InvalidInputError
 from app.datasets.files import refuse_links_out
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import import_params
+from app.services.storage import storage_for
+from app.services.storage.datasets import DatasetFiles
 from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit, upload_limit_bytes
 from app.services.transfer.data_root import confined_path
 from app.services.transfer.import_formats import import_format, stored_games_refusal
@@ -103,7 +106,8 @@ async def _upload_params(request: Request, settings: Settings) -> dict[str, Any]
         await form.close()
     return import_params(options.kind, folder, width=options.width, height=options.height,
                          from_lines=options.from_lines, flip=options.flip, upload=True, merge=options.merge,
-                         source=options.source, name=upload.filename)
+                         source=options.source, name=upload.filename,
+                         upload_key=DatasetFiles.from_settings(settings).upload_key(folder))
 
 
 async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
@@ -122,6 +126,15 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
     await run_in_threadpool(refuse_links_out, path)  # a link leading out of the dataset: 400 at once
     return import_params(body.kind, path, width=body.width, height=body.height, from_lines=body.from_lines,
                          flip=body.flip, merge=body.merge, source=body.source)
+
+
+def _store_upload(settings: Settings, key: str, folder: Path) -> None:
+    """Keep the unpacked upload ``folder`` in the store as ``key``; a remote store's upload leaves this node's jobs
+    folder (only scratch then): the node that runs the import fetches it."""
+    storage = storage_for(settings)
+    storage.put_tree(key, folder)
+    if storage.local_path(key) is None:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _refuse_stored_games(session: Session, params: dict[str, Any], settings: Settings) -> None:
@@ -163,7 +176,8 @@ async def create_import(request: Request, session: SessionDep, settings: Setting
     * ``multipart/form-data`` with ``file`` (a zip of the dataset) and ``kind`` (and the options): at
       most ``V3D_MAX_UPLOAD_MB`` (413), unpacked after checking every member (400 naming a member with an
       unsafe name, a link, a file named like an image that is not a PNG or JPEG within V3D_MAX_IMAGE_PIXELS;
-      too many members or bytes uncompressed).
+      too many members or bytes uncompressed), then kept in the store (``V3D_STORAGE_URL``), from which any
+      node's runner reads it.
 
     A dataset whose games are stored already is refused (409 naming them) unless ``merge`` says how to merge them
     (``keep-newer``: the stored labels and decisions changed after the newest change the file holds are kept;
@@ -177,6 +191,8 @@ async def create_import(request: Request, session: SessionDep, settings: Setting
     else:
         params = await _path_params(request, settings)
     await run_in_threadpool(_refuse_stored_games, session, params, settings)
+    if params.get("upload_key"):  # kept in the store, where the node that runs the job reads it
+        await run_in_threadpool(_store_upload, settings, params["upload_key"], Path(params["path"]))
     params["actor"] = principal.name
     job = await run_in_threadpool(jobs.submit, session, "import", params)
     return accepted(job)

@@ -9,11 +9,13 @@ jobs; a full recompute and an export's file need the admin role (as imports and 
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Annotated, Optional
+from urllib.parse import quote
 
 from fastapi import APIRouter, Depends, Path, Query, status
 from fastapi.concurrency import run_in_threadpool
-from fastapi.responses import FileResponse, JSONResponse
+from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
 
 from app.api.auth import AdminDep, Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
@@ -24,8 +26,10 @@ from app.core.errors import NotFoundError
 from app.db.models import Job, JobState
 from app.services.jobs import runner as jobs
 from app.services.jobs.progress import read_live
-from app.services.jobs.work import export_path, without_server_paths
-from app.services.transfer.export_files import prune_exports
+from app.services.jobs.work import export_key, without_server_paths
+from app.services.storage import storage_for
+from app.services.storage.stores import Storage
+from app.services.transfer.export_files import prune_stored_exports
 
 router = APIRouter(tags=["jobs"])
 #: A job id (``DbInt``: beyond the database's integers PostgreSQL refused the query, a 500 found by fuzzing).
@@ -93,18 +97,41 @@ def get_job(session: SessionDep, settings: SettingsDep, principal: PrincipalDep,
                404: {"model": ErrorOut, "description": "No such job, or its file is gone."},
                409: {"model": ErrorOut, "description": "Not an export, or not done yet."}},
 )
-def job_result(session: SessionDep, settings: SettingsDep, job_id: JobId) -> FileResponse:
-    """The file a finished export job wrote (streamed from disk; only the server's own file of that job, kept
-    ``V3D_EXPORT_KEEP_HOURS`` after it was written: older export files are removed here, then 404)."""
+def job_result(session: SessionDep, settings: SettingsDep, job_id: JobId) -> Response:
+    """The file a finished export job wrote, from the store whichever node wrote it (streamed from disk, or from a
+    remote store as it is read; only that job's file, kept ``V3D_EXPORT_KEEP_HOURS`` after it was written: older
+    export files are removed here, then 404)."""
     job = jobs.get_job(session, job_id)
     if job.kind != "export" or job.state is not JobState.DONE or not job.result:
         raise jobs.JobNotReady(f"job {job_id} is a {job.kind} job in state {job.state.value}: no file to download")
-    path = export_path(settings, job.result["file"])
-    prune_exports(path.parent, settings.export_keep_hours)
-    if not path.is_file():
-        raise NotFoundError("export file of job", job_id)
-    return FileResponse(path, media_type=job.result.get("media_type", "application/octet-stream"),
-                        filename=job.result.get("filename", path.name))
+    storage = storage_for(settings)
+    prune_stored_exports(storage, settings.export_keep_hours)
+    key = export_key(job.result["file"])
+    media_type = job.result.get("media_type", "application/octet-stream")
+    filename = job.result.get("filename", key.rpartition("/")[2])
+    path = storage.local_path(key)
+    if path is not None:
+        if not path.is_file():
+            raise NotFoundError("export file of job", job_id)
+        return FileResponse(path, media_type=media_type, filename=filename)
+    try:
+        size = storage.stat(key).size
+    except FileNotFoundError:
+        raise NotFoundError("export file of job", job_id) from None
+    return StreamingResponse(_stored_chunks(storage, key), media_type=media_type,
+                             headers={"Content-Length": str(size), "Content-Disposition": _attachment(filename)})
+
+
+def _stored_chunks(storage: Storage, key: str) -> Iterator[bytes]:
+    """The stored file ``key`` in pieces of 1 MiB."""
+    with storage.open(key) as stream:
+        yield from iter(lambda: stream.read(1 << 20), b"")
+
+
+def _attachment(filename: str) -> str:
+    """``Content-Disposition`` of a download named ``filename`` (as Starlette's ``FileResponse`` writes it)."""
+    quoted = quote(filename)
+    return f"attachment; filename*=utf-8''{quoted}" if quoted != filename else f'attachment; filename="{filename}"'
 
 
 @router.post("/recompute", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)

@@ -11,6 +11,7 @@ when complete, removed ``Settings.export_keep_hours`` later).
 """
 from __future__ import annotations
 
+import contextlib
 import shutil
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -24,8 +25,11 @@ from app.db.models import Job
 from app.services.derivation.recompute import recompute_all_systems
 from app.services.jobs.progress import Progress
 from app.services.jobs.summary import summary
+from app.services.storage import storage_for
+from app.services.storage.datasets import DatasetFiles, rekey_frames
+from app.services.storage.stores import checked_key
 from app.services.transfer import data_root
-from app.services.transfer.export_files import prune_exports, write_export_zip
+from app.services.transfer.export_files import EXPORTS, prune_exports, prune_stored_exports, write_export_zip
 from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format
 from app.services.transfer.import_formats import import_format, stored_games_refusal
 
@@ -34,14 +38,15 @@ def import_params(kind: str, path: str | Path, *, width: int | None = None, heig
                   from_lines: bool = False, flip: list[str] | None = None,
                   calibration_workers: int | None = None, upload: bool = False,
                   merge: str | None = None, source: str | None = None,
-                  name: str | None = None) -> dict[str, Any]:
+                  name: str | None = None, upload_key: str | None = None) -> dict[str, Any]:
     """The ``params`` of an import job (one shape for the API and the CLI, so that a command run again
     finds the job it started: ``jobs.find_resumable``). ``path`` is stored resolved; ``upload``: it is an
     unpacked upload of its own, removed when the dataset cannot be imported; ``merge``: how to merge games stored
     already (``app.services.transfer.merging.MERGE_MODES``), None: refuse them; ``source``: the name of a detector's
     predictions (kind ``predictions``); ``name``: an upload's file name as the browser sent it (its last path
     component, cleaned: ``app.core.names.clean_title``): what the job is titled by and its import named as, instead
-    of the server's upload folder."""
+    of the server's upload folder; ``upload_key``: the upload's folder in the store (``V3D_STORAGE_URL``), which
+    the node running the job reads (:func:`run_import`)."""
     out = {"kind": kind, "path": str(Path(path).expanduser().resolve()), "width": width, "height": height,
            "from_lines": from_lines, "flip": list(flip or []), "calibration_workers": calibration_workers,
            "merge": merge}
@@ -53,6 +58,8 @@ def import_params(kind: str, path: str | Path, *, width: int | None = None, heig
         shown = clean_title(PurePosixPath(str(name or "").replace("\\", "/")).name)
         if shown:
             out["name"] = shown
+        if upload_key is not None:
+            out["upload_key"] = upload_key
     return out
 
 
@@ -82,16 +89,64 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
     valid input holding games stored before the job was queued is refused (``import_formats.stored_games_refusal``);
     the games an earlier run of the same job stored are merged as ``keep-newer`` (the run completes it).
 
+    An upload is read from this node's copy of it (fetched from the store when another node received it:
+    ``DatasetFiles.upload_folder``; removed again at the end when the store is remote); when the import ends, its
+    frames name their images by the upload's key in the store, or by their path under the data root
+    (``app.services.storage.datasets.rekey_frames``), so that every node finds them.
+
     Raises:
         DatasetError: the dataset cannot be imported (nothing of it stored; an upload's folder is removed).
         InvalidInputError: games stored already and no ``merge`` (field ``merge``; nothing stored).
+        FileNotFoundError: the upload is no longer in the store.
     """
+    files = DatasetFiles.from_settings(settings)
+    key = params.get("upload_key")
+    if key:
+        params = {**params, "path": str(files.upload_folder(str(key)).resolve())}  # as the import records it
     try:
-        return _import(session, params, settings, progress, job_id)
+        return _import_and_rekey(session, params, settings, progress, job_id, files)
+    finally:
+        if key and files.storage.local_path(str(key)) is None:  # this node's copy of an upload kept elsewhere
+            shutil.rmtree(params["path"], ignore_errors=True)
+
+
+def _import_and_rekey(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
+                      job_id: int, files: DatasetFiles) -> dict[str, Any]:
+    """:func:`_import`, then the frames named by their key or path under the data root (:func:`_rekey`); an upload
+    refused for its stored games removed (here and from the store)."""
+    key = params.get("upload_key")
+    try:
+        result = _import(session, params, settings, progress, job_id)
     except InvalidInputError:
         if params.get("upload"):
             shutil.rmtree(params["path"], ignore_errors=True)
+            if key:
+                files.storage.delete_tree(str(key))
         raise
+    except BaseException:
+        # the games stored before the failure are named so that every node reads them; the import's own error is
+        # the job's, whatever this meets
+        with contextlib.suppress(Exception):
+            _rekey(session, params, files)
+        raise
+    _rekey(session, params, files)
+    return result
+
+
+def _rekey(session: Session, params: dict[str, Any], files: DatasetFiles) -> None:
+    """Frames of the import read from this node's folder named by their key in the store (an upload) or under the
+    data root (every frame recorded under it, whichever import stored it), committed."""
+    session.rollback()  # after the import's own transactions (or its failure): a transaction of its own
+    if params.get("upload_key"):
+        folder = Path(params["path"]).resolve()
+        changed = rekey_frames(session, folder, files.reference(folder))
+    elif files.data_root is not None:
+        root = Path(files.data_root).expanduser().resolve()
+        changed = rekey_frames(session, root, files.reference(root))
+    else:
+        return
+    if changed:
+        session.commit()
 
 
 def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None) -> str:
@@ -162,8 +217,14 @@ def run_recompute(session: Session, params: dict[str, Any], settings: Settings, 
 
 
 def export_path(settings: Settings, name: str) -> Path:
-    """Where an export job's file ``name`` lies (``<jobs dir>/exports/<name>``; only the last part of ``name``)."""
+    """Where an export job writes its file ``name`` (``<jobs dir>/exports/<name>``; only the last part of ``name``)
+    before it is stored (:func:`export_key`)."""
     return jobs_dir(settings) / "exports" / Path(name).name
+
+
+def export_key(name: str) -> str:
+    """The key of an export job's file ``name`` in the store (``exports/<name>``; only the last part of ``name``)."""
+    return f"{EXPORTS}/{checked_key(PurePosixPath(name.replace(chr(92), '/')).name)}"
 
 
 def export_params(fmt: str, include_all: bool = False, images: bool = True,
@@ -198,16 +259,23 @@ def run_export(session: Session, params: dict[str, Any], settings: Settings, pro
                job_id: int) -> dict[str, Any]:
     """Write the export ``params["format"]`` (default ``soccernet-v3d``; ``params["all"]``: every system, else
     the accepted ones; ``params["images"]``, SoccerNet-v3D only, default true: each game's ``Frames-v3.zip``)
-    as a zip to the job's file ``job-<id>-<format>.zip`` (``export_files.write_export_zip``), after removing
-    export files older than ``Settings.export_keep_hours`` (``export_files.prune_exports``); progress per game
+    as a zip to the job's file ``job-<id>-<format>.zip`` (``export_files.write_export_zip``), kept in the store as
+    ``exports/<file>`` (any node serves it), after removing export files older than ``Settings.export_keep_hours``
+    (``export_files.prune_exports``, ``export_files.prune_stored_exports``); progress per game
     (SoccerNet-v3D) or per file zipped. Its download is named as the choice its options make
     (``ExportFormat.download_name``)."""
     fmt = str(params.get("format", "soccernet-v3d"))
     target = export_path(settings, f"job-{job_id}-{fmt}.zip")
     target.parent.mkdir(parents=True, exist_ok=True)
     prune_exports(target.parent, settings.export_keep_hours)
+    storage = storage_for(settings)
+    prune_stored_exports(storage, settings.export_keep_hours)
     report = write_export_zip(session, fmt, target, bool(params.get("all", False)), settings, progress,
                               images=bool(params.get("images", True)), release=params.get("release"))
+    key = export_key(target.name)
+    if storage.local_path(key) != target:  # a store of its own: the file goes there (in parts), the scratch copy away
+        storage.put_file(key, target)
+        target.unlink(missing_ok=True)
     filename = export_format(fmt).download_name(params)
     return {**report, "file": target.name, "media_type": "application/zip", "filename": filename}
 

@@ -66,6 +66,7 @@ from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.refined_box import refine_box
 from app.services.images.serving import ImageUnavailable, frame_has_image, frame_image
 from app.services.kinds import kind_of
+from app.services.storage.datasets import DatasetFiles
 from app.services.transfer.exporting import exported_systems
 
 BALL_CLASS = "Ball"
@@ -296,9 +297,9 @@ def views_of(systems: Iterable[Any], report: DetectorExportReport, ball_diameter
             yield ExportView(frame, game, system, kind.split(system, frame), stem, tuple(boxes))
 
 
-def _copy_image(frame: Frame, dest_without_ext: Path) -> Path | None:
+def _copy_image(frame: Frame, dest_without_ext: Path, files: DatasetFiles | None = None) -> Path | None:
     try:
-        img = frame_image(image_source(frame))
+        img = frame_image(image_source(frame), files=files)
     except ImageUnavailable:
         return None
     ext = ".jpg" if img.media_type == "image/jpeg" else ".png"  # the type checked from its header, not its name
@@ -360,11 +361,13 @@ def write_manifest(out: Path, rows: list[dict[str, Any]], fmt: str, release: dic
 
 def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False,
                 ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined", *,
-                systems: Iterable[Any] | None = None, release: dict[str, str] | None = None) -> DetectorExportReport:
+                systems: Iterable[Any] | None = None, release: dict[str, str] | None = None,
+                files: DatasetFiles | None = None) -> DetectorExportReport:
     """Write the Ultralytics YOLO layout under ``out_dir`` (module docstring); existing files of the
     same names are overwritten. ``systems``: the systems to write instead of the database's (a release's stand-ins,
     ``app.services.releases.export.release_detector_systems``); ``release``: ``{"name", "hash"}`` of that release,
-    named in ``data.yaml`` and ``manifest.json``.
+    named in ``data.yaml`` and ``manifest.json``; ``files``: where the images' references lead (default: the
+    process's settings').
 
     Returns:
         A :class:`DetectorExportReport` (images and boxes per split, skipped views).
@@ -379,7 +382,7 @@ def export_yolo(session: Session, out_dir: str | Path, include_all: bool = False
              else iter_export_views(session, "yolo", include_all, report, ball_diameter_m, ball_box))
     for view in views:
         split = yolo_split(view)
-        dest = _copy_image(view.frame, out / "images" / split / view.stem)
+        dest = _copy_image(view.frame, out / "images" / split / view.stem, files)
         if dest is None:
             report.skipped_without_image += 1
             continue
@@ -416,7 +419,8 @@ def yolo_data_yaml(report: DetectorExportReport) -> str:
 
 def export_coco(session: Session, out_dir: str | Path, include_all: bool = False,
                 ball_diameter_m: float = BALL_DIAMETER_M, ball_box: str = "refined", *,
-                systems: Iterable[Any] | None = None, release: dict[str, str] | None = None) -> DetectorExportReport:
+                systems: Iterable[Any] | None = None, release: dict[str, str] | None = None,
+                files: DatasetFiles | None = None) -> DetectorExportReport:
     """Write the COCO layout under ``out_dir``: per split the images and ``instances.json``. ``systems`` and
     ``release`` as :func:`export_yolo` (the release named in each ``info`` and in ``manifest.json``).
 
@@ -438,7 +442,7 @@ def export_coco(session: Session, out_dir: str | Path, include_all: bool = False
         image_id = coco_image_id(view.stem)
         if ids.setdefault(image_id, view.stem) != view.stem:
             raise RuntimeError(f"views {ids[image_id]!r} and {view.stem!r} share the COCO image id {image_id}")
-        dest = _copy_image(view.frame, out / view.split / view.stem)
+        dest = _copy_image(view.frame, out / view.split / view.stem, files)
         if dest is None:
             report.skipped_without_image += 1
             continue
@@ -473,7 +477,8 @@ def _coco_info(split: str, release: dict[str, str] | None) -> dict[str, Any]:
 def export_detector(session: Session, fmt: Literal["yolo", "coco"], out_dir: str | Path,
                     include_all: bool = False, ball_diameter_m: float = BALL_DIAMETER_M,
                     ball_box: str = "refined", *, systems: Iterable[Any] | None = None,
-                    release: dict[str, str] | None = None) -> DetectorExportReport:
-    """:func:`export_yolo` or :func:`export_coco` by name (``ball_box``: ``Settings.export_ball_box``)."""
+                    release: dict[str, str] | None = None, files: DatasetFiles | None = None) -> DetectorExportReport:
+    """:func:`export_yolo` or :func:`export_coco` by name (``ball_box``: ``Settings.export_ball_box``; ``files``:
+    where the images' references lead, default the process's settings')."""
     return (export_yolo if fmt == "yolo" else export_coco)(session, out_dir, include_all, ball_diameter_m, ball_box,
-                                                           systems=systems, release=release)
+                                                           systems=systems, release=release, files=files)

@@ -7,9 +7,11 @@ relative to the tree's root (:func:`zip_tree`; folders, empty ones included, kep
 images still exists once unpacked) and the folder removed. No file of any export names a server folder: every export is
 relocatable.
 
-An export job's file lies in ``<jobs dir>/exports/`` (``app.core.config.jobs_dir``, beside the database or
-under ``var/``) and is removed ``Settings.export_keep_hours`` after it was written (:func:`prune_exports`, run
-whenever an export job starts and whenever a file is asked for), or with its job.
+An export job's file is written in ``<jobs dir>/exports/`` (``app.core.config.jobs_dir``, beside the database or
+under ``var/``) and kept in the store as ``exports/<file>`` (``V3D_STORAGE_URL``; by default the jobs folder itself,
+so it stays where it was written); it is removed ``Settings.export_keep_hours`` after it was written
+(:func:`prune_exports`, :func:`prune_stored_exports`, run whenever an export job starts and whenever a file is asked
+for), or with its job.
 """
 from __future__ import annotations
 
@@ -25,11 +27,14 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.errors import InvalidInputError
 from app.services.jobs.progress import Progress
+from app.services.storage.stores import Storage
 from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format, export_names, tree_export_names
 from app.services.transfer.exporting import member_compression, zip_member
 
 #: What ``POST /api/exports/{format}`` and the export jobs write (the registry's names, in its order).
 EXPORT_FORMATS = export_names()
+#: The store's folder of export jobs' files (``exports/job-<id>-<format>.zip``).
+EXPORTS = "exports"
 
 
 def zip_tree(root: Path, target: Path, progress: Progress | None = None) -> int:
@@ -89,7 +94,7 @@ def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool
         if export.stream is not None:
             with open(part, "wb") as out:
                 report = export.stream(session, out, include_all, {"images": images, "release": release},
-                                       progress)
+                                       progress, settings)
         elif release is not None:
             if export.release_tree is None:
                 raise InvalidInputError(f"the {fmt} export is not made from a release yet; "
@@ -110,6 +115,19 @@ def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool
         shutil.rmtree(work, ignore_errors=True)
         part.unlink(missing_ok=True)
     return {**report, "format": fmt, "bytes": target.stat().st_size}
+
+
+def prune_stored_exports(storage: Storage, keep_hours: float, now: Callable[[], float] = time.time) -> list[str]:
+    """Remove the export files of ``storage`` (under :data:`EXPORTS`) written more than ``keep_hours`` ago; the keys
+    removed. A folder store's are pruned as :func:`prune_exports` prunes its folder (left-over work folders too)."""
+    folder = storage.local_path(EXPORTS)
+    if folder is not None:
+        return [f"{EXPORTS}/{name}" for name in prune_exports(folder, keep_hours, now)]
+    limit = now() - keep_hours * 3600.0
+    old = [obj.key for obj in storage.list(EXPORTS) if obj.modified < limit]
+    for key in old:
+        storage.delete(key)
+    return old
 
 
 def prune_exports(folder: Path, keep_hours: float, now: Callable[[], float] = time.time) -> list[str]:

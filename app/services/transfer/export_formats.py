@@ -31,6 +31,7 @@ from app.services.releases.export import (
     release_detector_systems,
     write_release_files,
 )
+from app.services.storage.datasets import DatasetFiles
 from app.services.transfer.cameras_export import export_cameras
 from app.services.transfer.detector_export import export_detector
 from app.services.transfer.export_zip import stream_soccernet_v3d_zip
@@ -42,9 +43,9 @@ TreeWriter = Callable[[Session, Path, bool, Settings], dict[str, Any]]
 #: ``release_tree(session, out, release name, settings)``: the export of a release written as a tree under ``out``;
 #: its counts.
 ReleaseTreeWriter = Callable[[Session, Path, str, Settings], dict[str, Any]]
-#: ``stream(session, out, include_all, options, progress)``: the export written as a zip into the open binary file
-#: ``out`` while the database is read; answers its counts.
-ZipStreamer = Callable[[Session, BinaryIO, bool, Mapping[str, Any], "Progress | None"], dict[str, Any]]
+#: ``stream(session, out, include_all, options, progress, settings)``: the export written as a zip into the open binary
+#: file ``out`` while the database is read; answers its counts.
+ZipStreamer = Callable[[Session, BinaryIO, bool, Mapping[str, Any], "Progress | None", Settings], dict[str, Any]]
 
 
 @dataclass(frozen=True)
@@ -160,16 +161,18 @@ export const EXPORTS = /*EXPORTS*/__EXPORTS__/*END*/;
 
 
 def _soccernet_v3d(session: Session, out: BinaryIO, include_all: bool, options: Mapping[str, Any],
-                   progress: Progress | None) -> dict[str, Any]:
+                   progress: Progress | None, settings: Settings) -> dict[str, Any]:
+    files = DatasetFiles.from_settings(settings)
     name = options.get("release")
     if name:  # the release's documents, not the database now
         release = get_release(session, str(name))
         for chunk in stream_soccernet_v3d_zip(session, False, progress, images=bool(options.get("images", True)),
-                                              source=ReleaseSource(session, release)):
+                                              source=ReleaseSource(session, release), files=files):
             out.write(chunk)
         return {"systems": release.systems, "views": release.views, "release": release.name, "hash": release.hash}
     systems, rows = export_size(session, include_all)
-    for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=bool(options.get("images", True))):
+    for chunk in stream_soccernet_v3d_zip(session, include_all, progress, images=bool(options.get("images", True)),
+                                          files=files):
         out.write(chunk)
     return {"systems": systems, "rows": rows}
 
@@ -201,7 +204,8 @@ def _release_detector(fmt: Literal["yolo", "coco"]) -> ReleaseTreeWriter:
         release = get_release(session, name)
         marker = {"name": release.name, "hash": release.hash}
         report = export_detector(session, fmt, out, False, settings.ball_diameter_m, settings.export_ball_box,
-                                 systems=release_detector_systems(session, release, fmt), release=marker).as_dict()
+                                 systems=release_detector_systems(session, release, fmt), release=marker,
+                                 files=DatasetFiles.from_settings(settings)).as_dict()
         report.pop("out_dir", None)  # a server folder: no export names one
         write_release_files(session, release, out)
         return {**report, "release": release.name, "hash": release.hash}
@@ -211,7 +215,7 @@ def _release_detector(fmt: Literal["yolo", "coco"]) -> ReleaseTreeWriter:
 def _detector(fmt: Literal["yolo", "coco"]) -> TreeWriter:
     def write(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
         report = export_detector(session, fmt, out, include_all, settings.ball_diameter_m,
-                                 settings.export_ball_box).as_dict()
+                                 settings.export_ball_box, files=DatasetFiles.from_settings(settings)).as_dict()
         report.pop("out_dir", None)  # a server folder: no export names one
         return report
     return write

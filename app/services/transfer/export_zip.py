@@ -13,6 +13,7 @@ from typing import Any, Protocol
 
 from sqlalchemy.orm import Session
 
+from app.services.storage.datasets import DatasetFiles
 from app.services.transfer.exporting import (
     CSV_COLUMNS,
     ExportedGame,
@@ -52,11 +53,11 @@ class _ZipSink(io.RawIOBase):
 
 
 def _stream_game_frames(session: Session, exported: ExportedGame, zf: zipfile.ZipFile,
-                        sink: _ZipSink) -> Iterator[bytes]:
+                        sink: _ZipSink, files: DatasetFiles | None) -> Iterator[bytes]:
     """Copy the game's ``Frames-v3.zip`` (built in a temporary file) into the streamed archive ``zf``,
     stored, handing on its bytes as they are written."""
     with tempfile.TemporaryFile() as tmp:
-        if not write_frames_zip(session, exported.frames, tmp):
+        if not write_frames_zip(session, exported.frames, tmp, files):
             return
         tmp.seek(0)
         with zf.open(zip_member(exported.frames_path), "w", force_zip64=True) as member:
@@ -95,14 +96,16 @@ class LiveSource:
 
 def stream_soccernet_v3d_zip(session: Session, include_all: bool = False,
                              progress: Callable[[str, int, int], None] | None = None,
-                             images: bool = True, source: ExportSource | None = None) -> Iterator[bytes]:
+                             images: bool = True, source: ExportSource | None = None,
+                             files: DatasetFiles | None = None) -> Iterator[bytes]:
     """The export as a zip archive, produced while the database is read: each game's
     ``Labels-v3D.json`` is compressed and handed on before the next game is read, followed (``images``) by
     its ``Frames-v3.zip`` (built in a temporary file, then copied in); ``SNv3D.csv`` is spooled (in memory
     up to 8 MB, then a temporary file) and written after the games, then the source's own members (a release's
     ``v3d-release.json``). Memory stays bounded by one game and the spool. The archive is the same tree as
     :func:`export_soccernet_v3d` writes. ``progress`` as :func:`iter_soccernet_v3d`. ``source``: where the games
-    are read (default: the database now, :class:`LiveSource`). Every member has the fixed time stamp
+    are read (default: the database now, :class:`LiveSource`); ``files``: where the images' references lead
+    (default: the process's settings'). Every member has the fixed time stamp
     :data:`ZIP_DATE_TIME` and members come in the games' order, so the same content gives the same bytes.
 
     Raises:
@@ -122,7 +125,7 @@ def stream_soccernet_v3d_zip(session: Session, include_all: bool = False,
                 writer.writerows(exported.rows)
                 yield sink.drain()
                 if images:
-                    yield from _stream_game_frames(session, exported, zf, sink)
+                    yield from _stream_game_frames(session, exported, zf, sink, files)
             spool.seek(0)
             with zf.open(zip_member("SNv3D.csv", zipfile.ZIP_DEFLATED), "w", force_zip64=True) as member:
                 for chunk in iter(lambda: spool.read(1 << 20), ""):

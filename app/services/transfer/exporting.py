@@ -79,6 +79,7 @@ from app.db.models import (
 from app.db.types import json_loads
 from app.services.images.serving import frame_has_image, frame_image
 from app.services.kinds import kinds_exported_by, split_of
+from app.services.storage.datasets import DatasetFiles
 
 #: Columns of ``SNv3D.csv``: method.md section 9, then v3d's own.
 CSV_COLUMNS = (
@@ -431,12 +432,14 @@ def member_compression(name: str) -> int:
 _FRAMES_PER_QUERY = 500
 
 
-def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], target: BinaryIO) -> int:
+def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], target: BinaryIO,
+                     files: DatasetFiles | None = None) -> int:
     """Write the images of ``frames`` ((frame id, frame name) pairs) into a new zip on ``target`` as the
     SoccerNet-v3 ``Frames-v3.zip`` holds them: one member per frame, named by the frame, its bytes copied from
     the stored image as they are (PNG or JPEG, read through ``app.services.images.serving.frame_image``, which
     checks the header and that the file lies inside its dataset), stored without recompression. Frames
-    without an image (their dataset shipped none) are left out.
+    without an image (their dataset shipped none) are left out. ``files``: where the images' references lead
+    (default: the process's settings').
 
     Returns:
         The number of images written (0: the zip is empty).
@@ -456,14 +459,15 @@ def write_frames_zip(session: Session, frames: tuple[tuple[int, str], ...], targ
             if frame is None or not frame_has_image(frame):
                 continue
             with zf.open(zip_member(name), "w", force_zip64=True) as member:
-                for chunk in frame_image(frame).chunks():
+                for chunk in frame_image(frame, files=files).chunks():
                     member.write(chunk)
             written += 1
     return written
 
 
 def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: bool = False,
-                         progress: Callable[[str, int, int], None] | None = None, images: bool = True) -> ExportReport:
+                         progress: Callable[[str, int, int], None] | None = None, images: bool = True,
+                         dataset_files: DatasetFiles | None = None) -> ExportReport:
     """Write the SoccerNet-v3D tree of the database under ``out_dir`` (see the module docstring), game
     by game (:func:`iter_soccernet_v3d`), the CSV written as the games come.
 
@@ -476,6 +480,7 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
         images: write each game's images as ``Frames-v3.zip`` beside its ``Labels-v3D.json``
             (:func:`write_frames_zip`; a game whose frames have no image gets none), so that the export
             re-imports with its images; False leaves them out.
+        dataset_files: where the images' references lead (default: the process's settings).
 
     Returns:
         An :class:`ExportReport`.
@@ -500,19 +505,20 @@ def export_soccernet_v3d(session: Session, out_dir: str | Path, include_all: boo
             path.write_bytes(exported.labels_json())
             files.append(path)
             if images:
-                n_images += _write_game_frames(session, exported, out / exported.frames_path)
+                n_images += _write_game_frames(session, exported, out / exported.frames_path,
+                                               dataset_files)
             writer.writerows(exported.rows)
             n_games, n_systems, n_rows = n_games + 1, n_systems + exported.systems, n_rows + len(exported.rows)
     return ExportReport(out, n_games, n_systems, n_rows, csv_path, tuple(files), n_images)
 
 
-def _write_game_frames(session: Session, exported: ExportedGame, path: Path) -> int:
+def _write_game_frames(session: Session, exported: ExportedGame, path: Path, files: DatasetFiles | None) -> int:
     """The game's ``Frames-v3.zip`` at ``path`` (written as ``.part`` and renamed); none when no frame of it
     has an image. Returns the images written."""
     part = path.with_name(path.name + ".part")
     try:
         with part.open("wb") as fh:
-            written = write_frames_zip(session, exported.frames, fh)
+            written = write_frames_zip(session, exported.frames, fh, files)
         if written:
             part.replace(path)
         else:

@@ -1,0 +1,209 @@
+"""An S3 bucket (or any S3-compatible store: SeaweedFS, MinIO, Ceph) as v3d's store, through boto3.
+
+``s3://BUCKET/PREFIX``: every key is stored as ``PREFIX/key`` in ``BUCKET`` (which must exist). The client is boto3's
+with its standard configuration from the environment: ``AWS_ACCESS_KEY_ID``, ``AWS_SECRET_ACCESS_KEY``,
+``AWS_DEFAULT_REGION`` and ``AWS_ENDPOINT_URL`` (an S3-compatible store's address, then reached with path-style
+requests, which every such store understands). Files are written with boto3's managed transfers (multipart above
+:data:`MULTIPART_BYTES`) and read as ranges (:class:`RangeReader`): a frame's image is read out of its zip archive
+stored whole, as ``zipfile`` seeks to the archive's directory and then to the member, never downloading the archive.
+"""
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, BinaryIO, NoReturn, Optional
+
+from app.services.storage.stores import Storage, StorageError, StoredObject, checked_key
+
+if TYPE_CHECKING:
+    from mypy_boto3_s3 import S3Client
+
+#: Files above this size are uploaded in parts of this size (boto3's TransferConfig; S3 takes parts of 5 MiB to
+#: 5 GiB, at most 10,000 of them: 16 MiB parts carry files up to 156 GiB).
+MULTIPART_BYTES = 16 << 20
+#: Bytes read per range request when a stored file is read in pieces (``zipfile`` reads small headers: a larger
+#: buffer fetches a member's bytes with its header in one request).
+READ_BUFFER_BYTES = 256 << 10
+#: Bytes read from the end of a file when it is opened: its size comes with them (no HEAD request), and so does a zip
+#: archive's directory of up to about 700 members, which ``zipfile`` reads first.
+TAIL_BYTES = 64 << 10
+
+_MISSING = ("404", "NoSuchKey", "NotFound", "NoSuchBucket")
+
+
+def _raise(exc: Exception, key: str) -> NoReturn:
+    """A boto3 error as :class:`FileNotFoundError` (no such key) or :class:`StorageError` (anything else)."""
+    code = str(getattr(exc, "response", {}).get("Error", {}).get("Code", ""))
+    if code in _MISSING:
+        raise FileNotFoundError(f"{key!r}: not stored ({code})") from None
+    raise StorageError(f"{key!r}: the S3 store failed ({type(exc).__name__}: {exc})") from None
+
+
+def _errors() -> tuple[type[Exception], ...]:
+    from botocore.exceptions import BotoCoreError, ClientError
+
+    return (BotoCoreError, ClientError)
+
+
+class RangeReader(io.RawIOBase):
+    """A stored object read as a seekable file, each read one ranged GET (wrap it in ``io.BufferedReader``)."""
+
+    def __init__(self, client: "S3Client", bucket: str, name: str, size: int, key: str, tail: bytes = b"") -> None:
+        super().__init__()
+        self._client, self._bucket, self._name, self._size, self._key = client, bucket, name, size, key
+        self._pos = 0
+        #: The file's last bytes, read when it was opened (``S3Storage.open``).
+        self._tail, self._tail_start = tail, size - len(tail)
+
+    def readable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def tell(self) -> int:
+        return self._pos
+
+    def seek(self, offset: int, whence: int = io.SEEK_SET) -> int:
+        base = {io.SEEK_SET: 0, io.SEEK_CUR: self._pos, io.SEEK_END: self._size}[whence]
+        self._pos = max(0, base + offset)
+        return self._pos
+
+    def readinto(self, buffer: Any) -> int:
+        view = memoryview(buffer).cast("B")
+        end = min(self._size, self._pos + len(view))
+        if end <= self._pos:
+            return 0
+        if self._pos >= self._tail_start:  # read with the file's size when it was opened
+            data = self._tail[self._pos - self._tail_start:end - self._tail_start]
+            view[:len(data)] = data
+            self._pos += len(data)
+            return len(data)
+        end = min(end, self._tail_start)
+        try:
+            body = self._client.get_object(Bucket=self._bucket, Key=self._name,
+                                           Range=f"bytes={self._pos}-{end - 1}")["Body"]
+            data = body.read()
+        except _errors() as exc:
+            _raise(exc, self._key)
+        n = len(data)
+        view[:n] = data
+        self._pos += n
+        return n
+
+
+class S3Storage(Storage):
+    """``s3://bucket/prefix`` through boto3 (see the module docstring)."""
+
+    def __init__(self, bucket: str, prefix: str = "", client: Optional["S3Client"] = None) -> None:
+        self.bucket, self.prefix = bucket, prefix.strip("/")
+        self.url = f"s3://{bucket}/{self.prefix}" if self.prefix else f"s3://{bucket}"
+        self.client = client if client is not None else default_client()
+
+    def _name(self, key: str) -> str:
+        checked_key(key)
+        return f"{self.prefix}/{key}" if self.prefix else key
+
+    def _key(self, name: str) -> str:
+        return name[len(self.prefix) + 1:] if self.prefix else name
+
+    def local_path(self, key: str) -> Optional[Path]:
+        """None: a remote store."""
+        return None
+
+    def _transfer(self) -> Any:
+        from boto3.s3.transfer import TransferConfig
+
+        return TransferConfig(multipart_threshold=MULTIPART_BYTES, multipart_chunksize=MULTIPART_BYTES,
+                              max_concurrency=4)
+
+    def put_file(self, key: str, source: Path) -> None:
+        """boto3's managed upload of ``source`` (multipart above :data:`MULTIPART_BYTES`)."""
+        try:
+            self.client.upload_file(str(source), self.bucket, self._name(key), Config=self._transfer())
+        except _errors() as exc:
+            _raise(exc, key)
+
+    def put_stream(self, key: str, stream: BinaryIO) -> None:
+        """boto3's managed upload of the stream (multipart above :data:`MULTIPART_BYTES`)."""
+        try:
+            self.client.upload_fileobj(stream, self.bucket, self._name(key), Config=self._transfer())
+        except _errors() as exc:
+            _raise(exc, key)
+
+    def get_file(self, key: str, target: Path) -> Path:
+        """boto3's managed download into ``target`` (written beside it, renamed when complete)."""
+        target.parent.mkdir(parents=True, exist_ok=True)
+        part = target.with_name(target.name + ".part")
+        try:
+            self.client.download_file(self.bucket, self._name(key), str(part), Config=self._transfer())
+            os.replace(part, target)
+        except _errors() as exc:
+            part.unlink(missing_ok=True)
+            _raise(exc, key)
+        return target
+
+    def open(self, key: str) -> BinaryIO:
+        """The object read in ranges of at least :data:`READ_BUFFER_BYTES` as it is read; its last
+        :data:`TAIL_BYTES` (and its size) read at once, in one request."""
+        name = self._name(key)
+        try:
+            answer = self.client.get_object(Bucket=self.bucket, Key=name, Range=f"bytes=-{TAIL_BYTES}")
+            tail = answer["Body"].read()
+        except _errors() as exc:
+            if str(getattr(exc, "response", {}).get("Error", {}).get("Code", "")) != "InvalidRange":
+                _raise(exc, key)
+            tail = b""  # an empty object has no last bytes
+        content_range = str(answer.get("ContentRange", "")) if tail else ""
+        size = int(content_range.rpartition("/")[2]) if content_range else len(tail)
+        raw = RangeReader(self.client, self.bucket, name, size, key, tail)
+        return io.BufferedReader(raw, buffer_size=READ_BUFFER_BYTES)
+
+    def stat(self, key: str) -> StoredObject:
+        """The object's head: size, last modification, ETag."""
+        try:
+            head = self.client.head_object(Bucket=self.bucket, Key=self._name(key))
+        except _errors() as exc:
+            _raise(exc, key)
+        return StoredObject(key, int(head["ContentLength"]), head["LastModified"].timestamp(),
+                            str(head.get("ETag", "")).strip('"'))
+
+    def list(self, prefix: str) -> Iterator[StoredObject]:
+        """The objects under ``prefix/`` (pages of 1,000)."""
+        start = self._name(checked_key(prefix.rstrip("/"))) + "/"
+        try:
+            for page in self.client.get_paginator("list_objects_v2").paginate(Bucket=self.bucket, Prefix=start):
+                for obj in page.get("Contents", []):
+                    yield StoredObject(self._key(obj["Key"]), int(obj["Size"]), obj["LastModified"].timestamp(),
+                                       str(obj.get("ETag", "")).strip('"'))
+        except _errors() as exc:
+            _raise(exc, prefix)
+
+    def delete(self, key: str) -> None:
+        """Remove the object (S3 answers a missing one as removed)."""
+        try:
+            self.client.delete_object(Bucket=self.bucket, Key=self._name(key))
+        except _errors() as exc:
+            _raise(exc, key)
+
+    def url_for(self, key: str, expires_s: int = 300) -> Optional[str]:
+        """A presigned GET of the object, valid ``expires_s`` seconds."""
+        try:
+            return str(self.client.generate_presigned_url(
+                "get_object", Params={"Bucket": self.bucket, "Key": self._name(key)}, ExpiresIn=expires_s))
+        except _errors() as exc:
+            _raise(exc, key)
+
+
+def default_client() -> "S3Client":
+    """boto3's S3 client configured from the standard AWS variables; path-style requests when
+    ``AWS_ENDPOINT_URL`` names an S3-compatible store (virtual-host names need DNS such stores seldom have)."""
+    import boto3
+    from botocore.config import Config
+
+    path_style = bool(os.environ.get("AWS_ENDPOINT_URL_S3") or os.environ.get("AWS_ENDPOINT_URL"))
+    config = Config(s3={"addressing_style": "path" if path_style else "auto"},
+                    retries={"mode": "standard", "max_attempts": 5}, connect_timeout=10, read_timeout=60)
+    return boto3.session.Session().client("s3", config=config)
