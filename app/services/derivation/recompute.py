@@ -37,6 +37,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.progress import Progress
 from app.datasets.records import CalibrationFields
 from app.db.models import (
     BallReprojection,
@@ -78,7 +79,6 @@ from app.services.derivation import scope
 from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.loading import load_systems
 from app.services.derivation.rows import put_values, replace_rows
-from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that

@@ -20,9 +20,9 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
 from app.core.names import clean_title
+from app.core.progress import Progress
 from app.db.models import Job
 from app.services.derivation.recompute import recompute_all_systems
-from app.services.jobs.progress import Progress
 from app.services.jobs.summary import summary
 from app.services.transfer import data_root
 from app.services.transfer.export_files import prune_exports, write_export_zip

@@ -24,7 +24,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.core.errors import InvalidInputError
-from app.services.jobs.progress import Progress
+from app.core.progress import Progress
 from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format, export_names, tree_export_names
 from app.services.transfer.exporting import member_compression, zip_member
 

@@ -21,8 +21,8 @@ from typing import Any, BinaryIO, Callable, Literal, Mapping
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.progress import Progress
 from app.services.issia.export import export_issia3d
-from app.services.jobs.progress import Progress
 from app.services.releases.content import get_release
 from app.services.releases.export import (
     ReleaseSource,

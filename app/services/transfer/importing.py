@@ -49,6 +49,7 @@ from sqlalchemy.orm import Session, selectinload, undefer
 
 from app.core.config import Settings
 from app.core.errors import EntryError
+from app.core.progress import Progress
 from app.datasets.files import dataset_root
 from app.datasets.records import CalibrationFields, FrameRecord, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
@@ -89,7 +90,6 @@ from app.services.derivation.recompute import (
     preload_systems,
     recompute_systems,
 )
-from app.services.jobs.progress import Progress
 from app.services.transfer.merging import Merge, SystemChange
 
 __all__ = [

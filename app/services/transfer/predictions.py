@@ -47,13 +47,13 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.errors import DatasetError, InvalidInputError
 from app.core.names import check_name
+from app.core.progress import Progress
 from app.datasets.csv_cells import read_cell
 from app.db.models import Frame, Game, Prediction, System
 from app.db.session import begin_write, end_reads
 from app.geometry.metrics import BestDetections
 from app.services.audit.log import record_summary
 from app.services.derivation.recompute import recompute_systems_by_id
-from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
 
 #: The CSV's columns, in this order.
