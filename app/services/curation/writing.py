@@ -4,7 +4,7 @@ Every write is attributed and guarded, in one transaction: it checks the version
 ``If-Match`` of the frame or of the system, ``app.services.curation.versions``; 412 when stale), applies the change,
 recomputes what it implies, and records one audit entry (``app.services.audit.log``, by ``actor``, None meaning
 :func:`~app.services.audit.log.local_actor`) with the edited part's state before and after. ``revert`` marks the
-write as the revert of an audit entry (``app.services.audit.reverting``): it is recorded as action ``revert``, and
+write as the revert of an audit entry (``app.services.curation.reverting``): it is recorded as action ``revert``, and
 refused with :class:`~app.core.errors.ConflictError` when the state it read is not ``revert.expect``.
 
 Concurrency: optimistic, with a version column (:func:`guarded_write`). What an edit of a system reads is declared in

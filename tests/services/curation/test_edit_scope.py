@@ -25,7 +25,6 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.models import AuditEntry, Frame, ReviewStatus, System
 from app.db.session import make_engine, make_session_factory, upgrade_database
-from app.services.audit.reverting import revert_entry, undo_entry
 from app.services.curation import writing
 from app.services.curation.decisions import decide_calibration, decide_review
 from app.services.curation.editing import (
@@ -34,6 +33,7 @@ from app.services.curation.editing import (
     set_view_excluded,
     update_ball_label,
 )
+from app.services.curation.reverting import revert_entry, undo_entry
 from app.services.curation.writing import EditContext
 from app.services.derivation import scope
 from app.services.derivation.recompute import recompute_all_systems

@@ -159,7 +159,7 @@ def test_reimport_is_idempotent_and_keeps_edits(db_session, db_settings, stretch
 
 def test_an_overwrite_merge_puts_the_files_point_back_in_a_revertible_entry(db_session, db_settings, stretch):
     from app.db.models import AuditEntry
-    from app.services.audit.reverting import revert_entry
+    from app.services.curation.reverting import revert_entry
 
     import_issia(db_session, stretch, db_settings)
     cam3 = _view(_systems(db_session)[20], "cam3")
