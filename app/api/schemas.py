@@ -19,8 +19,8 @@ from app.core.names import check_name
 from app.db.models import ReviewStatus
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
+from app.services.accounts.users import ASSIGNEE_ME
 from app.services.curation.queue import (
-    ASSIGNEE_ME,
     DEFAULT_SORT,
     FrameFilters,
     FrameSort,

@@ -57,11 +57,7 @@ from app.db.models import (
     User,
 )
 from app.db.types import DB_INT_MAX, DB_INT_MIN
-
-#: The assignee filter's two words: the caller (``assignee=me``, which the API resolves to the caller's name) and
-#: nobody (``assignee=none``: the unassigned systems). No user may be called either, nor a name that differs from one
-#: only by case or trailing dots (``app.services.accounts.users.RESERVED_NAMES``).
-ASSIGNEE_ME, ASSIGNEE_NONE = "me", "none"
+from app.services.accounts.users import ASSIGNEE_NONE
 
 SystemSort = Literal["severity", "-severity", "doubts", "-doubts", "worst_error",
                       "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
