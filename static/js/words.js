@@ -1,6 +1,6 @@
 // The words of the review pages: what every machine code shown on a page reads as, one table, so
-// that a page never shows a raw token. WRITTEN FROM app/services/curation/words.py
-// (python -m app.services.curation.words > static/js/words.js); tests/services/curation/test_words.py checks that
+// that a page never shows a raw token. WRITTEN FROM app/services/wording/words.py
+// (python -m app.services.wording.words > static/js/words.js); tests/services/wording/test_words.py checks that
 // the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/{

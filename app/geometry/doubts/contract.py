@@ -127,7 +127,7 @@ class Doubt:
         kind: one of :data:`LABEL_KINDS` or :data:`INFO_KINDS`.
         view_id: the view it names (None: the system as a whole).
         code: which reasoning found it (one of :data:`CODES` of its kind); the words are composed from
-            ``kind``, ``code`` and ``evidence`` by ``app.services.curation.doubt_words``.
+            ``kind``, ``code`` and ``evidence`` by ``app.services.wording.doubt_words``.
         evidence: the numbers behind it (JSON-ready: floats, ints, strings, lists, dicts).
         suggestion: the fix, ``{"action": one of SUGGESTION_ACTIONS, ...}`` (``"box"``:
             ``[x1, y1, x2, y2]`` in the named view's own pixels for ``snap_box``), or None.

@@ -408,7 +408,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
        adds nothing (an unlabelled one, else a replay, else the lower JaC).
 
     Words are not written here: each doubt carries a ``code`` and its numbers, and
-    ``app.services.curation.doubt_words`` composes the sentence.
+    ``app.services.wording.doubt_words`` composes the sentence.
 
     Args:
         views: the system's views (ids unique).

@@ -28,10 +28,10 @@ from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.mirror import mirrored_fit_at_rig
-from app.services.curation.doubt_words import with_sentence
-from app.services.curation.words import refusal_sentence
 from app.services.derivation import scope
 from app.services.kinds import kind_of
+from app.services.wording.doubt_words import with_sentence
+from app.services.wording.words import refusal_sentence
 
 
 def expected_side(role: FrameRole) -> int | None:

@@ -66,7 +66,6 @@ from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
-from app.services.curation.doubt_words import with_sentence
 from app.services.curation.doubts import (
     calibration_weights,
     is_excluded,
@@ -80,6 +79,7 @@ from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.loading import load_systems
 from app.services.derivation.rows import put_values, replace_rows
 from app.services.kinds import kind_of
+from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).

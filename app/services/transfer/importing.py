@@ -82,7 +82,6 @@ from app.services.calibration.first_pass import (
 from app.services.calibration.players import PlayerRow, frame_players, place_cameras_by_players, store_players
 from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
-from app.services.curation.words import WORDS
 from app.services.derivation import scope
 from app.services.derivation.recompute import (
     calibrate_frame_lines,
@@ -91,6 +90,7 @@ from app.services.derivation.recompute import (
     recompute_systems,
 )
 from app.services.transfer.merging import Merge, SystemChange
+from app.services.wording.words import WORDS
 
 __all__ = [
     "ImportReport", "audit_counts", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",

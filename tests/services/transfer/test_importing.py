@@ -26,8 +26,8 @@ from app.db.models import (
 from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
 from app.geometry.jac import jac_admitted
 from app.services.calibration.admission import admission_jac
-from app.services.curation.words import WORDS
 from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
+from app.services.wording.words import WORDS
 
 from ..datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
 

@@ -7,9 +7,9 @@ the chip's legend and its tooltip), and for a chip drawn in a colour its ``tone`
 view's labels or calibration; ``info``: blue; none: amber), the same wherever the chip is drawn, its legend too. One
 fact has one chip: the note and the doubt of a view below the admission threshold read alike, as do the mirror
 flag and its doubt. The pages import the same table from ``static/js/words.js``, written from
-this one (:func:`words_js`; ``python -m app.services.curation.words > static/js/words.js``) and checked
-against it by ``tests/services/curation/test_words.py``, so the server's codes and the pages' words cannot drift.
-The sentences of doubts themselves (their numbers) are composed by ``app.services.curation.doubt_words``.
+this one (:func:`words_js`; ``python -m app.services.wording.words > static/js/words.js``) and checked
+against it by ``tests/services/wording/test_words.py``, so the server's codes and the pages' words cannot drift.
+The sentences of doubts themselves (their numbers) are composed by ``app.services.wording.doubt_words``.
 
 Groups:
 
@@ -275,8 +275,8 @@ def words_js() -> str:
 
 
 JS_TEMPLATE = """// The words of the review pages: what every machine code shown on a page reads as, one table, so
-// that a page never shows a raw token. WRITTEN FROM app/services/curation/words.py
-// (python -m app.services.curation.words > static/js/words.js); tests/services/curation/test_words.py checks that
+// that a page never shows a raw token. WRITTEN FROM app/services/wording/words.py
+// (python -m app.services.wording.words > static/js/words.js); tests/services/wording/test_words.py checks that
 // the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/__WORDS__/*END*/;
