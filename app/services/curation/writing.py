@@ -8,7 +8,7 @@ write as the revert of an audit entry (``app.services.curation.reverting``): it 
 refused with :class:`~app.core.errors.ConflictError` when the state it read is not ``revert.expect``.
 
 Concurrency: optimistic, with a version column (:func:`guarded_write`). What an edit of a system reads is declared in
-``app.services.derivation.scope``; ``System.version`` covers the system's rows and ``Game.version`` its game's rig and
+``app.db.scope``; ``System.version`` covers the system's rows and ``Game.version`` its game's rig and
 camera prior, each bumped in the transaction of every write of what it covers.
 
 1. **Read.** The edit loads its system (``recompute.load_for_recompute``: the system with its version, its views,
@@ -54,13 +54,13 @@ from sqlalchemy.orm.exc import StaleDataError
 
 from app.core.config import Settings
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
+from app.db import scope
 from app.db.models import Frame, Game, System
 from app.db.session import begin_write, end_reads, reads_on_their_own
 from app.services.audit import log as audit
 from app.services.curation.states import same_json
 from app.services.curation.system_page import load_frame
 from app.services.curation.versions import check_expected
-from app.services.derivation import scope
 from app.services.derivation.recompute import load_for_recompute, system_rig_rows
 from app.services.kinds import kind_of, policy
 

@@ -39,6 +39,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.progress import Progress
 from app.datasets.records import CalibrationFields
+from app.db import scope
 from app.db.models import (
     BallReprojection,
     CalibrationSource,
@@ -74,7 +75,6 @@ from app.services.curation.doubts import (
     weighed_views,
 )
 from app.services.derivation import cameras as shared
-from app.services.derivation import scope
 from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.loading import load_systems
 from app.services.derivation.rows import put_values, replace_rows

@@ -55,6 +55,7 @@ from app.datasets.records import CalibrationFields, FrameRecord, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
 from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
 from app.datasets.soccernet_v3d import read_soccernet_v3d
+from app.db import scope
 from app.db.models import (
     BallKind,
     BallLabel,
@@ -82,7 +83,6 @@ from app.services.calibration.first_pass import (
 from app.services.calibration.players import PlayerRow, frame_players, place_cameras_by_players, store_players
 from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
-from app.services.derivation import scope
 from app.services.derivation.recompute import (
     calibrate_frame_lines,
     load_for_recompute,

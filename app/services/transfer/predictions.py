@@ -386,7 +386,7 @@ def _frames_of(session: Session, source: str) -> dict[int, int]:
 
 def _bump_versions(session: Session, systems: set[int]) -> None:
     """Bump the version of each system whose predictions change, in the transaction that changes them: the doubts of an
-    edit computed from the predictions as they were fail its compare (``app.services.derivation.scope``)."""
+    edit computed from the predictions as they were fail its compare (``app.db.scope``)."""
     ids = sorted(systems)
     for start in range(0, len(ids), 500):
         session.execute(sa.update(System).where(System.id.in_(ids[start:start + 500]))
