@@ -150,7 +150,7 @@ class DoubtSettings:
     """Thresholds of :func:`judge_system`.
 
     No defaults of its own: the service builds it from ``app.core.config.Settings``
-    (``app.services.curation.doubts.doubt_settings``: the triangulation's settings for the first five fields,
+    (``app.services.derivation.doubts.doubt_settings``: the triangulation's settings for the first five fields,
     ``Settings.doubt_*`` for the others), whose defaults are the operating point chosen with
     ``benchmarks/doubts.py`` (precision against recall on the synthetic SoccerNet-v3 dev sets, v3d's own
     calibration); see that script's docstring.

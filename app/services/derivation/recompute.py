@@ -16,7 +16,7 @@ Derived rows:
   against the frame's label, None without one);
 * ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a
   label when the system has a 3D ball and the ball lies in front of the camera along the labelled ray;
-* ``Doubt`` rows and the system's doubt counts (``app.services.curation.doubts.update_doubts``, last).
+* ``Doubt`` rows and the system's doubt counts (``app.services.derivation.doubts.update_doubts``, last).
 
 A view a reviewer excluded (``ReviewDecision.excluded``) keeps its calibration and labels but takes no
 part in the triangulation.
@@ -67,15 +67,15 @@ from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
-from app.services.curation.doubts import (
+from app.services.derivation import cameras as shared
+from app.services.derivation.cameras import mirrored_camera, stored_camera
+from app.services.derivation.doubts import (
     calibration_weights,
     is_excluded,
     update_doubts,
     update_label_distances,
     weighed_views,
 )
-from app.services.derivation import cameras as shared
-from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.loading import load_systems
 from app.services.derivation.rows import put_values, replace_rows
 from app.services.kinds import kind_of

@@ -61,7 +61,7 @@ from app.geometry.trajectory import fit_trajectory
 from app.services.audit.log import record_summary
 from app.services.calibration.admission import GIVEN_CAMERA_FLAG, admission_args
 from app.services.calibration.calibrating import apply_calibration, fit_uncertainty
-from app.services.curation.doubts import update_doubts
+from app.services.derivation.doubts import update_doubts
 from app.services.derivation.recompute import load_for_recompute, recompute_system, recompute_systems
 from app.services.issia.cameras import CameraChoice, bundle_refined_cameras, sequence_cameras
 from app.services.issia.refit import refit_sequence, sequence_columns

@@ -381,7 +381,7 @@ def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(
     """An edit in the piece of frame 13 (cam4's wrong label) moves frame 13 on the trajectory without changing
     its labels: its trajectory doubt is replaced from the new stored point without loading the system, and is
     what judging the whole system again stores (same doubts, order, counts; the evidence's new position)."""
-    from app.services.curation.doubts import update_doubts
+    from app.services.derivation.doubts import update_doubts
     from app.services.issia import refit as issia_refit
 
     import_issia(db_session, stretch, db_settings)

@@ -16,7 +16,7 @@ from app.core.errors import DatasetError
 from app.db.models import AuditEntry, Frame, Game, Prediction
 from app.geometry.metrics import BestDetections
 from app.services.audit.log import entry_summary
-from app.services.curation.doubts import stored_detections
+from app.services.derivation.doubts import stored_detections
 from app.services.derivation.recompute import load_for_recompute
 from app.services.evaluation.monocular import load_predictions, source_detections
 from app.services.transfer import predictions as module
