@@ -7,7 +7,7 @@ row per detection, or a folder (an unpacked upload) holding exactly one such ``.
 the layout of v3d's detector exports (:func:`prediction_input`): YOLO txt files (``class cx cy w h conf``,
 normalised, one per image named by its exported stem, ``KindPolicy.view_stem``) or a COCO results JSON keyed by the
 COCO export's image ids (``detector_export.coco_image_id``), both read by the monocular benchmark's readers
-(``app.services.evaluation.monocular.load_predictions``).
+(``app.services.transfer.detector_files.load_predictions``).
 
 A frame keeps at most ``V3D_MAX_PREDICTIONS_PER_FRAME`` predictions, all sources together (what the doubts' check of
 detections considers per view; a detector run without non-maximum suppression writes thousands on one image): the
@@ -55,6 +55,7 @@ from app.geometry.metrics import BestDetections
 from app.services.audit.log import record_summary
 from app.services.derivation.recompute import recompute_systems_by_id
 from app.services.kinds import kind_of
+from app.services.transfer.detector_files import load_predictions
 
 #: The CSV's columns, in this order.
 PREDICTION_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y2", "score")
@@ -449,15 +450,13 @@ class _StemView:
 
 
 def _detector_rows(session: Session, path: Path, keep: BestDetections) -> Iterator[_Resolved]:
-    """The detections of YOLO txt files or a COCO results JSON (``app.services.evaluation.monocular.load_predictions``,
-    the monocular benchmark's readers: YOLO files matched by stem, COCO results by ``coco_image_id(stem)``, the ball
+    """The detections of YOLO txt files or a COCO results JSON (:func:`load_predictions`,
+    the monocular benchmark's readers too: YOLO files matched by stem, COCO results by ``coco_image_id(stem)``, the ball
     class from ``data.yaml`` or 0, category 1), on every stored view named as the YOLO and COCO exports name it
     (``KindPolicy.view_stem``): the best ``keep.per_image`` of each view, chosen as the file is read
     (``keep.dropped`` counts the others); a YOLO file of an image v3d does not hold is named by its stem, COCO results
     of one are counted."""
     from sqlalchemy.orm import selectinload
-
-    from app.services.evaluation.monocular import load_predictions
 
     views = [_StemView(kind_of(f.system).view_stem(f.system.game, f), f.width, f.height, f.id, f.system_id)
              for f in session.scalars(sa.select(Frame).options(selectinload(Frame.system).selectinload(System.game)))]
