@@ -21,8 +21,8 @@ from tqdm import tqdm
 from app.cli._root import export_cli, import_cli
 from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
+from app.services.exports.formats import export_format
 from app.services.jobs.work import import_params
-from app.services.transfer.export_formats import export_format
 from app.services.transfer.merging import MERGE_MODES
 
 DatabaseOpt = Annotated[Optional[str],
@@ -64,7 +64,7 @@ class _Bars:
 
 def export_command(name: str) -> Callable[[_Command], _Command]:
     """Register the decorated function as ``v3d export <name>``, its help the registry's description of the format
-    (``app.services.transfer.export_formats``: what each export writes is said once, for the CLI and the docs).
+    (``app.services.exports.formats``: what each export writes is said once, for the CLI and the docs).
 
     Raises:
         ValueError: ``name`` is no registered export format.
@@ -315,8 +315,8 @@ def release_tree(settings: Settings, out_dir: Path, release: str, include_all: b
     import zipfile
 
     from app.core.errors import NotFoundError
+    from app.services.exports.files import write_export_zip
     from app.services.images.serving import ImageUnavailable
-    from app.services.transfer.export_files import write_export_zip
 
     if include_all:
         typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)", err=True)

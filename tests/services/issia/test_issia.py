@@ -524,8 +524,8 @@ def test_the_issia3d_export_of_a_release_is_the_live_one_then_and_stays_the_same
     import os
     import zipfile
 
+    from app.services.exports.files import write_export_zip
     from app.services.releases.content import create_release
-    from app.services.transfer.export_files import write_export_zip
 
     def members(path: "os.PathLike[str]") -> dict[str, bytes]:
         with zipfile.ZipFile(os.fspath(path)) as zf:
