@@ -51,7 +51,7 @@ from app.api.edge import EdgeMiddleware
 from app.api.errors import install_error_handlers
 from app.api.hosts import allowed_hosts
 from app.api.main import api_router
-from app.api.routes.health import HealthProbe
+from app.api.probe import HealthProbe
 from app.api.schemas import db_id
 from app.api.security import SecurityHeadersMiddleware
 from app.api.share import ComputeShare

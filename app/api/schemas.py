@@ -360,3 +360,7 @@ NOT_FOUND: dict[int | str, dict[str, Any]] = {
 INVALID: dict[int | str, dict[str, Any]] = {
     422: {"model": InvalidOut, "description": "Invalid input: `{detail, field}` from the services, or "
                                               "FastAPI's `{detail: [{loc, msg, type}]}` for a malformed body."}}
+
+
+class HealthOut(BaseModel):
+    status: str
