@@ -8,7 +8,7 @@ and by the monocular benchmark (``app.services.evaluation.monocular``) above it.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Iterable, Protocol, Sequence
+from typing import Hashable, Iterable, Iterator, Protocol, Sequence
 
 import numpy as np
 
@@ -166,32 +166,43 @@ def load_predictions(path: str | Path, views: Sequence[SizedView], ball_class: i
     try:
         if p.is_dir():
             cls = ball_class if ball_class is not None else _ball_class_from_yaml(p, label)
-            cls = 0 if cls is None else cls
+            found = _yolo_files(p, label, by_stem, 0 if cls is None else cls)
+        elif p.is_file():
+            found = _coco_file(p, label, views, 1 if ball_class is None else ball_class, max_coco_bytes)
+        else:
+            found = None
+        if found is not None:
             ignored = 0
-            for txt in sorted(p.rglob("*.txt")):
-                if not txt.is_file():
-                    continue
-                view = by_stem.get(txt.stem)
-                for box, conf in yolo_detections(txt, view.width if view else 1.0, view.height if view else 1.0, cls,
-                                                 name=_inner_name(label, p, txt)):
-                    if view is None:
-                        ignored += 1
-                    else:
-                        take(view.stem, box, conf)
-            return taken(), ignored
-        if p.is_file():
-            category = 1 if ball_class is None else ball_class
-            by_id = {coco_image_id(v.stem): v.stem for v in views}
-            ignored = 0
-            for image_id, cat, box, score in coco_results(p, name=label, max_bytes=max_coco_bytes):
-                if cat != category:
-                    continue
-                if image_id not in by_id:
+            for stem, box, score in found:
+                if stem is None:
                     ignored += 1
-                    continue
-                take(by_id[image_id], box, score)
+                else:
+                    take(stem, box, score)
             return taken(), ignored
     except (ValueError, OSError) as exc:
         raise InvalidInputError(str(exc) if isinstance(exc, ValueError) else f"{label}: cannot read ({exc.strerror})",
                                 field="predictions") from None
     raise InvalidInputError(f"no such file or folder: {p}", field="predictions")
+
+
+def _yolo_files(root: Path, label: str, by_stem: dict[str, SizedView], cls: int
+                ) -> Iterator[tuple[str | None, Sequence[float], float]]:
+    """Every detection of class ``cls`` in the YOLO txt files under ``root`` as ``(view stem, box px, confidence)``, in
+    file order; the stem is None for a file of an image that is no view of ``by_stem`` (its boxes read at size 1)."""
+    for txt in sorted(root.rglob("*.txt")):
+        if not txt.is_file():
+            continue
+        view = by_stem.get(txt.stem)
+        for box, conf in yolo_detections(txt, view.width if view else 1.0, view.height if view else 1.0, cls,
+                                         name=_inner_name(label, root, txt)):
+            yield (None if view is None else view.stem), box, conf
+
+
+def _coco_file(path: Path, label: str, views: Sequence[SizedView], category: int, max_coco_bytes: int
+               ) -> Iterator[tuple[str | None, Sequence[float], float]]:
+    """Every result of ``category`` in the COCO results JSON ``path`` as ``(view stem, box px, score)``, in file order;
+    the stem is None for an image id of none of ``views`` (their stems' ``coco_image_id``)."""
+    by_id: dict[Hashable, str] = {coco_image_id(v.stem): v.stem for v in views}
+    for image_id, cat, box, score in coco_results(path, name=label, max_bytes=max_coco_bytes):
+        if cat == category:
+            yield by_id.get(image_id), box, score
