@@ -168,6 +168,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # Failed logins counted in the database, through the app's session factory of the moment (tests swap it).
     app.state.login_throttle = login_throttle(settings, lambda: app.state.session_factory())
 
+    _add_middleware(app, settings)
+
+    install_error_handlers(app)
+    app.include_router(api_router, prefix="/api")
+    app.mount("/static", RevalidatedStaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
+
+    _add_pages(app)
+    return app
+
+
+def _add_middleware(app: FastAPI, settings: Settings) -> None:
+    """The app's middleware, from the edge inwards: header count and send timeout, security headers, the Host check,
+    the session cookie, the authentication, the body limits, the compression of answers."""
+
     def secret() -> str:
         override = settings.session_secret.get_secret_value() if settings.session_secret else None
         with app.state.session_factory() as session:
@@ -188,10 +202,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # Outermost: too many header lines are refused first; every answer leaves in pieces, each within the send timeout
     app.add_middleware(EdgeMiddleware, max_headers=settings.max_header_count, send_timeout_s=settings.send_timeout_s)
 
-    install_error_handlers(app)
-    app.include_router(api_router, prefix="/api")
-    app.mount("/static", RevalidatedStaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
 
+def _add_pages(app: FastAPI) -> None:
+    """The HTML pages beside the API (``static/``): the docs, the queue, the login and a system's page."""
     @app.api_route("/docs", methods=["GET", "HEAD"], include_in_schema=False)
     def docs_page() -> FileResponse:
         """The offline API docs (Swagger UI from fastapi-offline's assets, started by static/js/docs.js)."""
@@ -223,5 +236,3 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         except NotFoundError:
             return _missing_system_page(system_id, request.url.query)
         return _page("system.html")
-
-    return app
