@@ -134,31 +134,62 @@ def check_source(name: str) -> str:
     return name
 
 
+@dataclass(frozen=True)
+class PredictionFormat:
+    """One format of a detector's predictions that an import reads (:data:`PREDICTION_FORMATS`).
+
+    Attributes:
+        name: the format's word (``csv``, ``coco``, ``yolo``), as :func:`prediction_input` answers it.
+        suffix: its files' extension, without the dot.
+        whole_folder: the input is a folder of such files, named by the folder (the default source) and read without
+            one file's size for the progress; else one file, named by its stem (a folder holds exactly one).
+        detector_output: a detector's own output in the layout of v3d's detector exports, matched by exported stems
+            and bounded per frame as it is read (:func:`_detector_rows`); else v3d's CSV, rows naming their images
+            (:func:`_csv_rows`).
+    """
+
+    name: str
+    suffix: str
+    whole_folder: bool
+    detector_output: bool
+
+
+#: The prediction formats, in the order a folder is tried: one ``.csv`` file (whatever else it holds); else one COCO
+#: results ``.json`` file; else, with neither, its YOLO ``.txt`` files. A single file is the format of its extension
+#: among the single-file ones, else a CSV.
+PREDICTION_FORMATS: dict[str, PredictionFormat] = {f.name: f for f in (
+    PredictionFormat("csv", "csv", whole_folder=False, detector_output=False),
+    PredictionFormat("coco", "json", whole_folder=False, detector_output=True),
+    PredictionFormat("yolo", "txt", whole_folder=True, detector_output=True),
+)}
+
+
 def prediction_input(path: str | Path) -> tuple[str, Path]:
     """What an input holds and where: ``("csv", the CSV)`` for a ``.csv`` file or a folder (an unpacked upload) holding
     exactly one; ``("coco", the JSON)`` for a ``.json`` file or a folder holding one and no CSV (COCO results keyed by
     the COCO export's image ids); ``("yolo", the folder)`` for a folder of ``.txt`` files (YOLO ``class cx cy w h
-    conf``, one file per image named by its exported stem, anywhere in the folder).
+    conf``, one file per image named by its exported stem, anywhere in the folder). The formats and their order are
+    :data:`PREDICTION_FORMATS`'.
 
     Raises:
         DatasetError: no such file, or a folder holding none of these (or several CSV or JSON files).
     """
     path = Path(path)
     if path.is_dir():
-        def files(ext: str) -> list[Path]:
-            return sorted(p for p in path.rglob(f"*.{ext}") if p.is_file() and not p.is_symlink())
-        csvs, jsons = files("csv"), files("json")
-        if len(csvs) == 1:
-            return "csv", csvs[0]
-        if not csvs and len(jsons) == 1:
-            return "coco", jsons[0]
-        if not csvs and not jsons and files("txt"):
-            return "yolo", path
+        found = {f.suffix: sorted(p for p in path.rglob(f"*.{f.suffix}") if p.is_file() and not p.is_symlink())
+                 for f in PREDICTION_FORMATS.values()}
+        earlier: list[str] = []  # a folder holding files of a format tried before is not of a later one
+        for fmt in PREDICTION_FORMATS.values():
+            files = found[fmt.suffix]
+            if not any(found[e] for e in earlier) and (len(files) >= 1 if fmt.whole_folder else len(files) == 1):
+                return fmt.name, path if fmt.whole_folder else files[0]
+            earlier.append(fmt.suffix)
         raise DatasetError(path, None, f"a predictions folder holds one .csv, one COCO results .json or YOLO .txt "
-                                       f"files; found {len(csvs)} .csv and {len(jsons)} .json")
+                                       f"files; found {len(found['csv'])} .csv and {len(found['json'])} .json")
     if not path.is_file():
         raise DatasetError(path, None, "no such file")
-    return ("coco" if path.suffix.lower() == ".json" else "csv"), path
+    single = [f for f in PREDICTION_FORMATS.values() if not f.whole_folder]
+    return next((f.name for f in single if path.suffix.lower() == f".{f.suffix}"), single[0].name), path
 
 
 @dataclass(frozen=True)
@@ -276,10 +307,11 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
     """
     t0 = time.perf_counter()
     kind, found_path = prediction_input(path)
+    fmt = PREDICTION_FORMATS[kind]
     cap = settings.max_predictions_per_frame
-    report = PredictionReport(check_source(source or (Path(path).name if kind == "yolo" else found_path.stem)), cap)
-    size = found_path.stat().st_size if kind != "yolo" else 0
-    best, system_of = _read_best(session, kind, found_path, report, progress, size)
+    report = PredictionReport(check_source(source or (Path(path).name if fmt.whole_folder else found_path.stem)), cap)
+    size = found_path.stat().st_size if not fmt.whole_folder else 0
+    best, system_of = _read_best(session, fmt, found_path, report, progress, size)
     earlier = _frames_of(session, report.source)
     end_reads(session)  # what was read is plain values now: the writes below take the lock batch by batch
     frames = sorted(set(system_of) | set(earlier))
@@ -309,7 +341,7 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
     return report
 
 
-def _read_best(session: Session, kind: str, path: Path, report: PredictionReport, progress: Progress | None,
+def _read_best(session: Session, fmt: PredictionFormat, path: Path, report: PredictionReport, progress: Progress | None,
                size: int) -> tuple[BestDetections, dict[int, int]]:
     """Read and check the whole input (in a read-only transaction: the stored frames it names), keeping the best
     ``report.cap`` predictions of each frame (keyed by frame id); counts ``rows``, ``unknown``, ``clipped``,
@@ -320,7 +352,7 @@ def _read_best(session: Session, kind: str, path: Path, report: PredictionReport
     """
     best = BestDetections(report.cap)
     system_of: dict[int, int] = {}
-    detector = _CheckedBest(report.cap, path) if kind != "csv" else None
+    detector = _CheckedBest(report.cap, path) if fmt.detector_output else None
     rows = _csv_rows(path, _Frames(session)) if detector is None else _detector_rows(session, path, detector)
     for row in rows:
         report.rows += 1
