@@ -342,6 +342,11 @@ export const WORDS = /*WORDS*/{
  * queue counts, filters and sorts by them. */
 export const LABEL_KINDS = /*LABEL_KINDS*/["mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view", "ball_detected"]/*END*/;
 
+/** The doubt kinds whose suggested box is a detector's, their evidence naming the detector and its score
+ * (app/geometry/doubts/contract.py DETECTOR_KINDS): the view draws that box in the detections' colour, and the fix
+ * says whose box it places. */
+export const DETECTOR_KINDS = /*DETECTOR_KINDS*/["ball_detected"]/*END*/;
+
 const humanise = (code) => String(code).replaceAll("_", " ");
 
 /** The entry {chip, means} of `code` in `group` (a flag with a value: its prefix's entry, the value put in);

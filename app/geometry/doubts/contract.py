@@ -38,6 +38,12 @@ def label_severity(kinds: Iterable[str]) -> int:
     return max((LABEL_KIND_SEVERITY.get(k, 0) for k in kinds), default=0)
 
 
+#: Kinds whose suggested box is a detector's (their ``evidence`` names the ``detector`` and its ``score``): the page
+#: draws that box in the detections' own colour with its detector and score, and the fix's button says whose box it
+#: places (``static/js/words.js`` ``DETECTOR_KINDS``, written from this).
+DETECTOR_KINDS: tuple[str, ...] = ("ball_detected",)
+
+
 #: Kinds that inform without accusing a label.
 INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_assisted", "few_lines", "suggested_label",
                                "detection_off_label")

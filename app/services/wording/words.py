@@ -29,7 +29,7 @@ import json
 import sys
 from typing import Any
 
-from app.geometry.doubts.contract import LABEL_KINDS
+from app.geometry.doubts.contract import DETECTOR_KINDS, LABEL_KINDS
 from app.geometry.pitch import MIN_LINE_CLASSES
 
 WORDS: dict[str, dict[str, dict[str, str]]] = {
@@ -269,9 +269,11 @@ def refusal_sentence(refusal: Any) -> str | None:
 def words_js() -> str:
     """The ES module ``static/js/words.js``: :data:`WORDS` as one JSON literal between the markers the test
     reads, the doubt kinds that accuse a label (``app.geometry.doubts.contract.LABEL_KINDS``, in its order, between
-    markers of their own) and the helpers the pages use."""
+    markers of their own), the kinds whose suggested box is a detector's (``DETECTOR_KINDS``) and the helpers the
+    pages use."""
     table = json.dumps(WORDS, indent=1, ensure_ascii=False)
-    return JS_TEMPLATE.replace("__WORDS__", table).replace("__LABEL_KINDS__", json.dumps(list(LABEL_KINDS)))
+    return (JS_TEMPLATE.replace("__WORDS__", table).replace("__LABEL_KINDS__", json.dumps(list(LABEL_KINDS)))
+            .replace("__DETECTOR_KINDS__", json.dumps(list(DETECTOR_KINDS))))
 
 
 JS_TEMPLATE = """// The words of the review pages: what every machine code shown on a page reads as, one table, so
@@ -284,6 +286,11 @@ export const WORDS = /*WORDS*/__WORDS__/*END*/;
 /** The doubt kinds that accuse a label, in the contract's order (app/geometry/doubts/contract.py LABEL_KINDS): the
  * queue counts, filters and sorts by them. */
 export const LABEL_KINDS = /*LABEL_KINDS*/__LABEL_KINDS__/*END*/;
+
+/** The doubt kinds whose suggested box is a detector's, their evidence naming the detector and its score
+ * (app/geometry/doubts/contract.py DETECTOR_KINDS): the view draws that box in the detections' colour, and the fix
+ * says whose box it places. */
+export const DETECTOR_KINDS = /*DETECTOR_KINDS*/__DETECTOR_KINDS__/*END*/;
 
 const humanise = (code) => String(code).replaceAll("_", " ");
 

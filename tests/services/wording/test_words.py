@@ -9,6 +9,7 @@ from pathlib import Path
 from app.db.models import CalibrationSource, CalibrationStatus, TriangulationStatus
 from app.geometry.calibration.result import MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
+from app.geometry.doubts.contract import DETECTOR_KINDS
 from app.geometry.pair_error import PAIR_ERROR_RULES
 from app.geometry.triangulation import DROP_REASONS
 from app.services.calibration.admission import GIVEN_CAMERA_FLAG
@@ -23,6 +24,17 @@ def test_the_pages_module_is_the_servers_table() -> None:
     assert text == words_js(), "static/js/words.js is stale: python -m app.services.wording.words > static/js/words.js"
     literal = text.split("/*WORDS*/", 1)[1].split("/*END*/", 1)[0]
     assert json.loads(literal) == WORDS
+
+
+def test_the_pages_draw_a_detectors_box_from_the_contracts_list() -> None:
+    """Which doubt kinds carry a detector's box is the contract's data (``DETECTOR_KINDS``, in words.js): no other
+    page module names such a kind, so a new one is drawn and offered as a detector's box by its contract entry."""
+    text = WORDS_JS.read_text(encoding="utf-8")
+    assert json.loads(text.split("/*DETECTOR_KINDS*/", 1)[1].split("/*END*/", 1)[0]) == list(DETECTOR_KINDS)
+    assert set(DETECTOR_KINDS) <= set(LABEL_KINDS) | set(INFO_KINDS)
+    named = [f"{p.name}: {kind}" for p in sorted(WORDS_JS.parent.glob("*.js")) if p != WORDS_JS
+             for kind in DETECTOR_KINDS if re.search(rf"[\"'`]{kind}[\"'`]", p.read_text(encoding="utf-8"))]
+    assert not named, named
 
 
 def test_every_code_a_page_shows_has_words_and_no_chip_is_a_code() -> None:
