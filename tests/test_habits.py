@@ -30,9 +30,6 @@ LONG_FUNCTIONS = {
     "app/geometry/static_bundle.py:_schur_lm":
         "one Levenberg-Marquardt loop over cameras and ball points, the points eliminated by their Schur complement "
         "at every trial step: the same shared iteration state",
-    "app/geometry/static_bundle.py:bundle_adjust":
-        "the bundle's residual functions are closures over the labels and cameras it selects, shared by the noise "
-        "estimates and every round of the solver",
     "app/geometry/calibration/frame.py:_calibrate":
         "the calibration's fallbacks in the order the procedure tries them (starts, one class left out, look-at "
         "starts, the learned anchors, the priors), each reading what the one before left",
