@@ -30,9 +30,6 @@ LONG_FUNCTIONS = {
     "app/geometry/static_bundle.py:_schur_lm":
         "one Levenberg-Marquardt loop over cameras and ball points, the points eliminated by their Schur complement "
         "at every trial step: the same shared iteration state",
-    "app/geometry/calibration/frame.py:_calibrate":
-        "the calibration's fallbacks in the order the procedure tries them (starts, one class left out, look-at "
-        "starts, the learned anchors, the priors), each reading what the one before left",
 }
 #: Long functions whose rewrite is under way elsewhere (the guarded edit as a plain sequence in the write unit; the
 #: release as a frozen document): they leave this list with it, and then the long ones are at most four.
