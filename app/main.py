@@ -52,9 +52,9 @@ from app.api.edge import EdgeMiddleware
 from app.api.errors import install_error_handlers
 from app.api.hosts import allowed_hosts
 from app.api.main import api_router
+from app.api.probe import HealthProbe
 from app.api.request_metrics import RequestMetricsMiddleware
 from app.api.routes import metrics
-from app.api.routes.health import HealthProbe
 from app.api.schemas import db_id
 from app.api.security import SecurityHeadersMiddleware
 from app.api.share import ComputeShare
@@ -171,6 +171,21 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # Failed logins counted in the database, through the app's session factory of the moment (tests swap it).
     app.state.login_throttle = login_throttle(settings, lambda: app.state.session_factory())
 
+    _add_middleware(app, settings)
+
+    install_error_handlers(app)
+    app.include_router(api_router, prefix="/api")
+    app.include_router(metrics.router)  # GET /metrics: beside /api, as Prometheus expects it
+    app.mount("/static", RevalidatedStaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
+
+    _add_pages(app)
+    return app
+
+
+def _add_middleware(app: FastAPI, settings: Settings) -> None:
+    """The app's middleware, from the edge inwards: header count and send timeout, security headers, the Host check,
+    the session cookie, the authentication, the body limits, the compression of answers."""
+
     def secret() -> str:
         override = settings.session_secret.get_secret_value() if settings.session_secret else None
         with app.state.session_factory() as session:
@@ -193,11 +208,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # Around everything: each request's time to its last byte, by route template and status (app.core.metrics)
     app.add_middleware(RequestMetricsMiddleware, routes=app.router.routes)
 
-    install_error_handlers(app)
-    app.include_router(api_router, prefix="/api")
-    app.include_router(metrics.router)  # GET /metrics: beside /api, as Prometheus expects it
-    app.mount("/static", RevalidatedStaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
 
+def _add_pages(app: FastAPI) -> None:
+    """The HTML pages beside the API (``static/``): the docs, the queue, the login and a system's page."""
     @app.api_route("/docs", methods=["GET", "HEAD"], include_in_schema=False)
     def docs_page() -> FileResponse:
         """The offline API docs (Swagger UI from fastapi-offline's assets, started by static/js/docs.js)."""
@@ -229,5 +242,3 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         except NotFoundError:
             return _missing_system_page(system_id, request.url.query)
         return _page("system.html")
-
-    return app

@@ -37,7 +37,7 @@ from app.geometry.annotations import from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.geometry.jac import evaluate_jac, gamma_thresholds, jac_admitted
 from app.services.calibration.admission import admission_args
-from app.services.curation.words import refusal_sentence
+from app.services.wording.words import refusal_sentence
 
 SETS = {"sn22": "sn-calib-2022-test-main", "wc14": "wc14-test"}
 TARGETS = {"sn22": (0.837, 0.985), "wc14": (0.902, 0.979)}

@@ -18,7 +18,7 @@ For each set (``../shared/data/synthetic/detector/<set>-unlabelled`` with ``<set
    tolerance; and the detector's raw precision (a prediction within tolerance of the ball of its image, over all,
    and over those scoring at least 0.5) against the precision of the ``ball_detected`` suggestions.
 
-Without predictions the doubts are those of main by construction (``app.services.curation.doubts.update_doubts``
+Without predictions the doubts are those of main by construction (``app.services.derivation.doubts.update_doubts``
 checks detections only when a view has one), so the "without" column is today's main.
 
 Run: ``.venv/bin/python benchmarks/detector_fill.py [--sets dev-large seed-204 ...] [--json OUT]``.
@@ -115,7 +115,7 @@ def upper_bound(url: str, truth_path: Path, pred_path: Path) -> dict[str, Any]:
     from app.geometry.doubts.detections import _few_lined
     from app.geometry.doubts.judge import _voters_consensus, _votes
     from app.geometry.triangulation import pair_geometry
-    from app.services.curation.doubts import doubt_settings, doubt_views
+    from app.services.derivation.doubts import doubt_settings, doubt_views
     from app.services.derivation.recompute import load_for_recompute
 
     truth = json.loads(truth_path.read_text())

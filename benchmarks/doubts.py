@@ -3,7 +3,7 @@
 Each set is imported exactly as the service does (``import_soccernet_v3`` into a fresh, Alembic-migrated
 SQLite database with ``Settings()``: v3d's own calibration, game rig, mirror flags), once: ``--db-dir``
 keeps the databases between runs so that a sweep does not re-import. Every stored system becomes
-:class:`DoubtView` s through ``app.services.curation.doubts.doubt_views`` (the adapter the service uses), is
+:class:`DoubtView` s through ``app.services.derivation.doubts.doubt_views`` (the adapter the service uses), is
 judged, and the doubts are scored against the truth file beside the set, exactly as issue 6 scores them:
 
 * a corrupted system is *observable* when its corrupted view has at least 4 line classes (visible minus
@@ -66,7 +66,7 @@ from app.core.paths import SHARED_DIR
 from app.db.models import Frame, System
 from app.db.session import make_engine, make_session_factory, upgrade_database
 from app.geometry.doubts import LABEL_KINDS, Doubt, DoubtSettings, DoubtView, judge_system
-from app.services.curation.doubts import doubt_settings, doubt_views
+from app.services.derivation.doubts import doubt_settings, doubt_views
 from app.services.transfer.importing import import_soccernet_v3
 
 SETS = {"dev-large": "soccernet-v3-dev-large", "dev": "soccernet-v3-dev"}

@@ -156,7 +156,7 @@ def judge_times(url: str) -> dict[str, float]:
     from app.core.config import Settings
     from app.db.models import Frame, System
     from app.geometry.doubts import judge_system
-    from app.services.curation.doubts import doubt_settings, doubt_views
+    from app.services.derivation.doubts import doubt_settings, doubt_views
     settings = doubt_settings(Settings())
     times = []
     with Session(sa.create_engine(url)) as session:

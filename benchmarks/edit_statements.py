@@ -1,6 +1,6 @@
 """Database statements of one ball edit: the service's ``update_ball_label`` on a 4-view system of a fresh demo
 database, counted with SQLAlchemy's ``before_cursor_execute`` event, grouped by kind and table, and split into the
-edit's reads (before its connection goes back to the pool), its computation (none: ``app.services.derivation.scope``)
+edit's reads (before its connection goes back to the pool), its computation (none: ``app.db.scope``)
 and its write (on PostgreSQL each statement is a round trip). Deterministic (no timing). Usage (from the checkout)::
 
     .venv/bin/python benchmarks/edit_statements.py

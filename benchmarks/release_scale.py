@@ -11,7 +11,7 @@ it was):
 4. the diff ``r1`` -> ``r2`` (``app.services.releases.diff.diff_releases``): time, and its counts checked against
    what was changed;
 5. the SoccerNet-v3D export without images, of the database now (accepted systems) and of ``r2``, each written
-   to a zip (``export_files.write_export_zip``) ``--repeats`` times, interleaved: wall and CPU time (CPU is robust to
+   to a zip (``exports.files.write_export_zip``) ``--repeats`` times, interleaved: wall and CPU time (CPU is robust to
    the other jobs of a shared machine), and the release's zip written twice compared byte for byte.
 
 Usage::
@@ -38,9 +38,9 @@ from app.core.config import Settings
 from app.db.models import BallLabel, Frame, ReleaseDocument, ReleaseSystem, ReviewDecision, ReviewStatus, System
 from app.db.session import make_engine, upgrade_database
 from app.services.derivation.recompute import recompute_system
+from app.services.exports.files import write_export_zip
 from app.services.releases.content import create_release
 from app.services.releases.diff import diff_releases
-from app.services.transfer.export_files import write_export_zip
 
 
 def timed(fn: Callable[[], Any]) -> tuple[Any, float, float]:

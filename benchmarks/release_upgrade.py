@@ -41,7 +41,7 @@ import httpx
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-#: Every format a release exports to, in the registry's names (``app.services.transfer.export_formats``).
+#: Every format a release exports to, in the registry's names (``app.services.exports.formats``).
 FORMATS = ("soccernet-v3d", "yolo", "coco", "cameras", "issia-3d")
 RELEASE = "upgrade-1"
 #: Frames of the synthetic ISSIA dev sequence imported (none without ``../shared``).

@@ -80,7 +80,8 @@ def build(url: str) -> None:
 
 def rows(url: str, work: Path) -> dict:
     """``{set: {row: report}}`` for the sets "soccernet-v3 dev (all splits)" and "issia dev (test split)"."""
-    from app.services.evaluation.monocular import evaluate, load_predictions, with_cameras
+    from app.services.evaluation.monocular import evaluate, with_cameras
+    from app.services.transfer.detector_files import load_predictions
 
     upgrade_database(url)
     engine = make_engine(url)

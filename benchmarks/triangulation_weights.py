@@ -4,7 +4,7 @@ against the truth under the paper's rule and under variants of ``triangulate_bal
 For each set recomputed by ``benchmarks/doubts_seeds.py`` (its copy ``<set>.<tree>-judge.sqlite3`` under
 ``--db-dir``), every system's triangulation is redone in process from the stored cameras and labels (the views
 ``recompute_system`` uses: admitted, labelled, included, not suggested), with the weights the service gives
-(``app.services.curation.doubts.calibration_weights``), and each ball compared with the true one: right (within
+(``app.services.derivation.doubts.calibration_weights``), and each ball compared with the true one: right (within
 0.5 m), wrong (more than 1 m), none. Variants: ``paper`` (no weights), ``tier only`` (no least pair weight: only the
 pairs of the highest weight sum averaged), ``min 1.0`` (two half votes make a ball) and ``min 1.5`` (today's
 :data:`app.geometry.triangulation.MIN_PAIR_WEIGHT`: a full vote and at least a half one).
@@ -32,7 +32,7 @@ from app.db.models import CalibrationStatus, Frame, System
 from app.geometry import triangulation as T
 from app.geometry.camera import Camera
 from app.geometry.pitch import within_play_volume
-from app.services.curation.doubts import calibration_weights, is_excluded
+from app.services.derivation.doubts import calibration_weights, is_excluded
 from app.services.derivation.recompute import _label_centre
 from benchmarks.doubts_seeds import SETS
 

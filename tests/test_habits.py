@@ -1,8 +1,10 @@
 """The habits the tools do not check: the code and the docs give reasons in words, not tracker numbers (a reader
 has the code, not the tracker); every ``# type: ignore`` and ``# noqa`` says why it is there; no module of app
-grows past 600 lines. ruff and mypy (pyproject.toml, run by .ci/run) check the rest."""
+grows past 600 lines, no function past 80 but the few listed with why; the API's schemas are declared in its schema
+modules, never in a route module. ruff and mypy (pyproject.toml, run by .ci/run) check the rest."""
 from __future__ import annotations
 
+import ast
 import re
 import tokenize
 from pathlib import Path
@@ -17,6 +19,22 @@ TRACKER_REFERENCE = re.compile(r"\bissues?\s+#?\d+", re.IGNORECASE)
 SUPPRESSION = re.compile(r"#\s*(?:type:\s*ignore(?:\[[^\]]*\])?|noqa(?::\s*[A-Z]+[0-9]+(?:\s*,\s*[A-Z]+[0-9]+)*)?)"
                          r"(.*)$")
 MAX_MODULE_LINES = 600
+MAX_FUNCTION_LINES = 80
+
+#: The functions of app longer than :data:`MAX_FUNCTION_LINES` lines (``module path:name``), each with why it reads
+#: best whole. The list only shrinks: a function split below the bound leaves it (the test says so).
+LONG_FUNCTIONS = {
+    "app/geometry/calibration/solver.py:_robust_lm":
+        "one Levenberg-Marquardt loop: the damping, the trial step, its acceptance and the stopping tests share the "
+        "iteration's state, which pieces would each take and hand back whole",
+    "app/geometry/static_bundle.py:_schur_lm":
+        "one Levenberg-Marquardt loop over cameras and ball points, the points eliminated by their Schur complement "
+        "at every trial step: the same shared iteration state",
+}
+#: Long functions whose rewrite is under way elsewhere (the guarded edit as a plain sequence in the write unit; the
+#: release as a frozen document): they leave this list with it, and then the long ones are at most four.
+LONG_FUNCTIONS_BEING_REWRITTEN = ("app/services/curation/writing.py:guarded_write",
+                                  "app/services/releases/content.py:create_release")
 
 TEXT_SUFFIXES = {".py", ".js", ".css", ".html", ".md", ".mako", ".ini", ".json", ".txt"}
 
@@ -61,3 +79,30 @@ def test_no_module_of_app_is_over_600_lines() -> None:
             if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES]
     assert not long, f"modules over {MAX_MODULE_LINES} lines:\n" + "\n".join(long)
 
+
+def _functions(path: Path) -> list[tuple[str, int]]:
+    """Every function (methods and nested ones included) of the module at ``path``: its name and its length in lines,
+    decorators left out, docstring included."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    return [(node.name, (node.end_lineno or node.lineno) - node.lineno + 1) for node in ast.walk(tree)
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))]
+
+
+def test_no_function_of_app_is_over_80_lines_but_those_that_say_why() -> None:
+    """A function past 80 lines does more than one thing; split it by idea, or say here why it reads best whole."""
+    long = {f"{p.relative_to(ROOT)}:{name}": n for p in _files("app", suffixes={".py"})
+            for name, n in _functions(p) if n > MAX_FUNCTION_LINES}
+    listed = {*LONG_FUNCTIONS, *LONG_FUNCTIONS_BEING_REWRITTEN}
+    assert not long.keys() - listed, "functions over 80 lines, neither split nor listed with why:\n" + "\n".join(
+        f"{k}: {long[k]} lines" for k in sorted(long.keys() - listed))
+    assert not listed - long.keys(), f"no longer over 80 lines, to leave the list: {sorted(listed - long.keys())}"
+    assert len(LONG_FUNCTIONS) <= 4 and all(why.strip() for why in LONG_FUNCTIONS.values())
+
+
+def test_the_route_modules_declare_no_class() -> None:
+    """A route module holds routes: its request and answer models live in the schema modules (``app/api/schemas.py``,
+    ``app/api/*_schemas.py``), where the OpenAPI document's names are read from, and any helper class beside them."""
+    declared = [f"{p.relative_to(ROOT)}:{node.lineno}: {node.name}"
+                for p in _files("app/api/routes", suffixes={".py"})
+                for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))) if isinstance(node, ast.ClassDef)]
+    assert not declared, "classes declared in route modules:\n" + "\n".join(declared)

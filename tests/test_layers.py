@@ -1,6 +1,7 @@
 """The layering the tree tells (issue 19): geometry is pure; datasets read files into records and sit below
 the services; services sit below the API and the CLI; every system kind has its module; the modules' imports
-(those inside functions included) form no circle (issue 30)."""
+(those inside functions included) form no circle (issue 30); the service packages stand in layers
+(:data:`SERVICE_LAYERS`)."""
 from __future__ import annotations
 
 import ast
@@ -133,6 +134,76 @@ def test_the_imports_form_no_circle():
     (a video frame is decoded by ``images.serving`` itself)."""
     circles = _circles(_module_graph())
     assert not circles, [sorted(c) for c in circles]
+
+
+#: The service packages in layers, the lowest first: a package imports only packages of the layers below its own (at
+#: any depth, inside functions and under ``TYPE_CHECKING`` too), never one of its own layer nor above. A new package
+#: takes its place here.
+#:
+#: * the kinds' policies, the frame images, the audit log and the words the pages say read no other service;
+#: * the accounts (which audit) and the calibration of stored frames (which asks the kinds and words its reasons);
+#: * the derivation: everything recomputed from the labels, the doubts included;
+#: * the review loop (curation), which edits, decides, reverts through the derivation;
+#: * the transfers: datasets and a detector's predictions in, each export's writer out;
+#: * the monocular benchmark (evaluation), which reads the exports, and the ISSIA sequences, whose import registers
+#:   with the transfers' import formats;
+#: * the releases, whose documents the exports' writers render;
+#: * the exports as a whole (the registry binding every writer, from the database or a release, and the jobs' zips);
+#: * the jobs, which run imports, recomputations and exports.
+SERVICE_LAYERS: tuple[tuple[str, ...], ...] = (
+    ("storage",),
+    ("kinds", "images", "audit", "wording"),
+    ("accounts", "calibration"),
+    ("derivation",),
+    ("curation",),
+    ("transfer",),
+    ("evaluation", "issia"),
+    ("releases",),
+    ("exports",),
+    ("jobs",),
+)
+
+
+def _service_imports() -> dict[str, list[tuple[str, str]]]:
+    """Each package of ``app/services`` -> ``(where, package imported)`` for every import of another service package
+    by one of its modules, at any depth (``from app.services.x.y import z`` and ``import app.services.x``)."""
+    out: dict[str, list[tuple[str, str]]] = {p.name: [] for p in (APP / "services").iterdir() if p.is_dir()
+                                             and (p / "__init__.py").exists()}
+    for package in out:
+        for path in sorted((APP / "services" / package).rglob("*.py")):
+            for line, name in _imports(path):
+                parts = name.split(".")
+                if parts[:2] == ["app", "services"] and len(parts) > 2 and parts[2] != package:
+                    out[package].append((f"{path.relative_to(APP.parent)}:{line}: {name}", parts[2]))
+    return out
+
+
+def _upward(imports: dict[str, list[tuple[str, str]]], layers: tuple[tuple[str, ...], ...]) -> list[str]:
+    """The imports of ``imports`` that reach a package of the same layer or one above (an unplaced package is above
+    every layer)."""
+    level = {p: i for i, layer in enumerate(layers) for p in layer}
+    return [f"{where} ({package} imports {other})" for package, found in sorted(imports.items())
+            for where, other in found if level.get(other, len(layers)) >= level.get(package, len(layers))]
+
+
+def test_the_layer_check_finds_an_import_upward_or_sideways():
+    layers = (("low",), ("mid", "side"), ("top",))
+    assert _upward({"mid": [("m.py:1", "low")], "top": [("t.py:1", "mid")]}, layers) == []
+    assert _upward({"low": [("l.py:2", "top")]}, layers) == ["l.py:2 (low imports top)"]
+    assert _upward({"mid": [("m.py:3", "side")]}, layers) == ["m.py:3 (mid imports side)"]
+
+
+def test_every_service_package_has_its_layer():
+    placed = [p for layer in SERVICE_LAYERS for p in layer]
+    assert len(placed) == len(set(placed)), placed
+    assert sorted(placed) == sorted(_service_imports())
+
+
+def test_the_service_packages_import_only_layers_below_theirs():
+    """So no two packages of ``app/services`` import each other, however deep or lazy the import: a piece both need
+    lives in the lower one (or in ``app/core``, ``app/db``), not behind an import inside a function."""
+    upward = _upward(_service_imports(), SERVICE_LAYERS)
+    assert not upward, "imports of a service package of the same layer or above:\n" + "\n".join(upward)
 
 
 def test_no_module_of_app_is_imported_by_a_string():

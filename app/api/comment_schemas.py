@@ -1,5 +1,6 @@
-"""Schemas of the comments pinned on a view (``app.api.routes.comments``): a comment as answered, a page of a system's
-comments and the page's query (``limit``, ``offset``; ``next_offset`` names the next page, as ``GET /api/audit``)."""
+"""Schemas of the comments pinned on a view (``app.api.routes.comments``): a comment to pin, a comment as answered, a
+page of a system's comments and the page's query (``limit``, ``offset``; ``next_offset`` names the next page, as
+``GET /api/audit``)."""
 from __future__ import annotations
 
 from datetime import datetime
@@ -7,7 +8,8 @@ from typing import Optional
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.api.schemas import DB_INT_MAX
+from app.api.schemas import DB_INT_MAX, DbInt, _In
+from app.services.curation import comments
 
 
 class CommentOut(BaseModel):
@@ -44,3 +46,12 @@ class CommentsQuery(BaseModel):
 
     limit: int = Field(100, ge=1, le=500, description="Most comments on the page.")
     offset: int = Field(0, ge=0, le=DB_INT_MAX, description="How many comments, oldest first, come before the page.")
+
+
+class CommentIn(_In):
+    """A comment to pin on a view."""
+
+    frame_id: DbInt = Field(description="The view (a frame of the system) the comment is on.")
+    point: Optional[list[float]] = Field(None, min_length=2, max_length=2,
+                                         description="[x, y] in pixels of the frame's image; null: the whole view.")
+    text: str = Field(min_length=1, max_length=comments.MAX_TEXT, description="What the reviewer says.")

@@ -19,8 +19,8 @@ from app.core.names import check_name
 from app.db.models import ReviewStatus
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
+from app.services.accounts.users import ASSIGNEE_ME
 from app.services.curation.queue import (
-    ASSIGNEE_ME,
     DEFAULT_SORT,
     FrameFilters,
     FrameSort,
@@ -360,3 +360,7 @@ NOT_FOUND: dict[int | str, dict[str, Any]] = {
 INVALID: dict[int | str, dict[str, Any]] = {
     422: {"model": InvalidOut, "description": "Invalid input: `{detail, field}` from the services, or "
                                               "FastAPI's `{detail: [{loc, msg, type}]}` for a malformed body."}}
+
+
+class HealthOut(BaseModel):
+    status: str

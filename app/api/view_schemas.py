@@ -39,9 +39,9 @@ from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.pair_error import error_above_tau, rule_reference_width_px, scaled_error_px
-from app.services.curation.doubts import doubt_provenance, suggestion_json
 from app.services.curation.system_page import SystemPageData, pitch_lines, pitch_lines_key, round_px
 from app.services.curation.versions import frame_etag, system_etag
+from app.services.derivation.doubts import doubt_provenance, suggestion_json
 from app.services.images.serving import frame_has_image
 
 Box = tuple[float, float, float, float]

@@ -22,5 +22,7 @@ def main() -> None:
         serve,  # v3d serve
         users,  # v3d users add|list|token|disable|enable
     )
+    from app.cli.exports import register_remaining_exports
 
+    register_remaining_exports()  # a format no module writes a command for: the registry's generic one
     cli()

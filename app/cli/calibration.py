@@ -26,7 +26,7 @@ from app.datasets.sn_calibration import CALIBRATION_SUMMARY, frame_entries
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.calibration import CalibrationPrior, calibrate_frame
 from app.services.calibration.pool import calibration_pool
-from app.services.curation.words import refusal_sentence
+from app.services.wording.words import refusal_sentence
 
 SUMMARY_FILE = CALIBRATION_SUMMARY
 

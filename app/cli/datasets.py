@@ -21,8 +21,8 @@ from tqdm import tqdm
 from app.cli._root import export_cli, import_cli
 from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
+from app.services.exports.formats import export_format
 from app.services.jobs.work import import_params
-from app.services.transfer.export_formats import export_format
 from app.services.transfer.merging import MERGE_MODES
 
 DatabaseOpt = Annotated[Optional[str],
@@ -64,7 +64,7 @@ class _Bars:
 
 def export_command(name: str) -> Callable[[_Command], _Command]:
     """Register the decorated function as ``v3d export <name>``, its help the registry's description of the format
-    (``app.services.transfer.export_formats``: what each export writes is said once, for the CLI and the docs).
+    (``app.services.exports.formats``: what each export writes is said once, for the CLI and the docs).
 
     Raises:
         ValueError: ``name`` is no registered export format.
@@ -310,21 +310,29 @@ def release_tree(settings: Settings, out_dir: Path, release: str, include_all: b
     """``v3d export FORMAT OUT_DIR --release NAME``: the release's export ``fmt`` as a zip (as an export job writes
     it) unpacked under ``out_dir``; its counts. ``--all`` beside ``--release``, an unknown release, or an image that
     cannot be read end the command with the error and exit status 2."""
+    if include_all:
+        typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)", err=True)
+        raise typer.Exit(code=2)
+    return zip_tree(settings, out_dir, fmt, False, images, release)
+
+
+def zip_tree(settings: Settings, out_dir: Path, fmt: str, include_all: bool, images: bool,
+             release: str | None) -> dict[str, Any]:
+    """The export ``fmt`` as a zip, as an export job writes it (of the database now, every system with
+    ``include_all``, or of ``release``), unpacked under ``out_dir``; its counts. An unknown release, a bad input or an
+    image that cannot be read end the command with the error and exit status 2."""
     # imported here, as the other commands' services: ``v3d --help`` loads none of them
     import tempfile
     import zipfile
 
     from app.core.errors import NotFoundError
+    from app.services.exports.files import write_export_zip
     from app.services.images.serving import ImageUnavailable
-    from app.services.transfer.export_files import write_export_zip
 
-    if include_all:
-        typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)", err=True)
-        raise typer.Exit(code=2)
     try:
         with database_session(settings) as session, tempfile.TemporaryDirectory(prefix="v3d-release-") as tmp:
             target = Path(tmp) / "release.zip"
-            report = write_export_zip(session, fmt, target, False, settings, images=images, release=release)
+            report = write_export_zip(session, fmt, target, include_all, settings, images=images, release=release)
             out_dir.mkdir(parents=True, exist_ok=True)
             with zipfile.ZipFile(target) as zf:
                 zf.extractall(out_dir)  # member names are checked folder names (exporting.safe_component)

@@ -1,4 +1,4 @@
-"""``v3d doubts``: the stored doubts of every system in the database (``app.services.curation.doubts``).
+"""``v3d doubts``: the stored doubts of every system in the database (``app.services.derivation.doubts``).
 
 Without ``--json`` it prints a table: per doubt kind, how many doubts and how many systems carry one.
 With ``--json OUT`` it also writes ``{"systems": [{"game": {"league", "season", "match"}, "system":
@@ -27,7 +27,7 @@ def doubts_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """Report the doubts of every system: counts per kind, and optionally the whole list as JSON."""
-    from app.services.curation.doubts import doubts_report
+    from app.services.derivation.doubts import doubts_report
     from app.services.derivation.recompute import refresh_stale_systems
 
     settings = cli_settings(database_url, None)

@@ -128,7 +128,7 @@ class Settings(BaseSettings):
         "else the annotated one; app.services.transfer.detector_export.ball_boxes) or 'optimised' (the paper: the "
         "optimised box, else the annotated one).")
     # --- doubts (app.geometry.doubts.DoubtSettings, built field by field by
-    # app.services.curation.doubts.doubt_settings: these doubt_* and the triangulation's settings above) ---
+    # app.services.derivation.doubts.doubt_settings: these doubt_* and the triangulation's settings above) ---
     # Chosen with benchmarks/doubts.py (synthetic dev + dev-large, v3d's own calibrations, PR plot).
     doubt_consensus_tau_px: float = Field(
         25.0,

@@ -313,7 +313,7 @@ def begin_write(session: Session) -> None:
     Raises:
         RuntimeError: the session holds changes and read in its current transaction (its connection was taken
             without the write lock): an edit's computation read a row it did not declare
-            (``app.services.derivation.scope``), or a caller changed objects before beginning its write.
+            (``app.db.scope``), or a caller changed objects before beginning its write.
     """
     if isinstance(session.get_bind(), sa.Connection):
         return

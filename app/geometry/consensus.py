@@ -71,6 +71,63 @@ def _scaled_error(o: BallObservation, point: np.ndarray) -> float | None:
     return None if e is None else e * REFERENCE_WIDTH_PX / o.image_width
 
 
+#: A ball one pair proposes: its voters' summed weight, their summed scaled errors (px), the voters (indices of the
+#: observations agreeing with it) and the point (world metres).
+_Proposal = tuple[float, float, frozenset[int], np.ndarray]
+
+
+def _proposals(obs: list[BallObservation], w: list[float], tol: list[float], min_baseline_m: float,
+               min_parallax_deg: float, plausible: Callable[[np.ndarray], bool] | None,
+               geometry: Callable[[BallObservation, BallObservation], PairGeometry]
+               ) -> tuple[list[_Proposal], float | None]:
+    """Every ball a pair of views proposes that both its views agree with, with its votes (module docstring), and
+    the smallest pair error (px at 1920 width; ``inf`` when the only pairs diverge or meet where no ball can be, None
+    when no pair is wide enough)."""
+    proposals: list[_Proposal] = []
+    best_pair: float | None = None
+    for i, j in combinations(range(len(obs)), 2):
+        g = geometry(obs[i], obs[j])
+        if g.baseline_m < min_baseline_m:
+            continue
+        if g.parallax_deg < min_parallax_deg:
+            continue
+        h = g.h  # the DLT of the two undistorted pixels
+        if abs(h[3]) < 1e-12:
+            continue
+        point = h[:3] / h[3]
+        pair_errors = [_scaled_error(o, point) for o in obs]
+        e_i, e_j = pair_errors[i], pair_errors[j]
+        if e_i is None or e_j is None:  # the rays diverge: the pair cannot agree
+            best_pair = math.inf if best_pair is None else best_pair
+            continue
+        if plausible is not None and not plausible(point):  # they meet where no ball can be
+            best_pair = math.inf if best_pair is None else best_pair
+            continue
+        pair_e = max(e_i, e_j)
+        best_pair = pair_e if best_pair is None else min(best_pair, pair_e)
+        if not (e_i < tol[i] and e_j < tol[j]):
+            continue
+        agreeing = {k: e for k, e in enumerate(pair_errors) if e is not None and e < tol[k]}
+        voters = frozenset(agreeing)
+        proposals.append((sum(w[k] for k in voters), sum(agreeing[k] for k in voters), voters, point))
+    return proposals, best_pair
+
+
+def _refit(obs: list[BallObservation], undist: list[np.ndarray], tol: list[float], voters: frozenset[int],
+           point: np.ndarray) -> np.ndarray:
+    """The ball of more than two ``voters`` refitted by the DLT of all their rays when every voter still agrees with
+    it (within its tolerance ``tol``), else ``point`` as the pair proposed it."""
+    members = sorted(voters)
+    h = triangulate_dlt(np.stack([obs[k].camera.projection_matrix for k in members]),
+                        np.stack([undist[k] for k in members]))
+    if abs(h[3]) > 1e-12:
+        refit = h[:3] / h[3]
+        errs = [_scaled_error(obs[k], refit) for k in members]
+        if all(e is not None and e < tol[k] for e, k in zip(errs, members, strict=True)):
+            return refit
+    return point
+
+
 def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, min_baseline_m: float,
                    min_parallax_deg: float, weights: Mapping[Hashable, float] | None = None,
                    tolerances_px: Mapping[Hashable, float] | None = None,
@@ -120,47 +177,14 @@ def ball_consensus(observations: Sequence[BallObservation], *, tau_px: float, mi
     undist = [undistort_pixels(o.camera, o.point_px)[0] for o in obs]
     w = [1.0 if weights is None else float(weights.get(o.view_id, 1.0)) for o in obs]
     tol = [tau_px if tolerances_px is None else max(tau_px, float(tolerances_px.get(o.view_id, tau_px))) for o in obs]
-    proposals: list[tuple[float, float, frozenset[int], np.ndarray]] = []
-    best_pair: float | None = None
-    for i, j in combinations(range(len(obs)), 2):
-        g = geometry(obs[i], obs[j])
-        if g.baseline_m < min_baseline_m:
-            continue
-        if g.parallax_deg < min_parallax_deg:
-            continue
-        h = g.h  # the DLT of the two undistorted pixels
-        if abs(h[3]) < 1e-12:
-            continue
-        point = h[:3] / h[3]
-        pair_errors = [_scaled_error(o, point) for o in obs]
-        e_i, e_j = pair_errors[i], pair_errors[j]
-        if e_i is None or e_j is None:  # the rays diverge: the pair cannot agree
-            best_pair = math.inf if best_pair is None else best_pair
-            continue
-        if plausible is not None and not plausible(point):  # they meet where no ball can be
-            best_pair = math.inf if best_pair is None else best_pair
-            continue
-        pair_e = max(e_i, e_j)
-        best_pair = pair_e if best_pair is None else min(best_pair, pair_e)
-        if not (e_i < tol[i] and e_j < tol[j]):
-            continue
-        agreeing = {k: e for k, e in enumerate(pair_errors) if e is not None and e < tol[k]}
-        voters = frozenset(agreeing)
-        proposals.append((sum(w[k] for k in voters), sum(agreeing[k] for k in voters), voters, point))
+    proposals, best_pair = _proposals(obs, w, tol, min_baseline_m, min_parallax_deg, plausible, geometry)
     if not proposals:
         return Consensus(None, (), tuple(ids), {v: None for v in ids}, False, best_pair, 0)
     proposals.sort(key=lambda p: (-p[0], p[1]))
     n_best, _, voters, point = proposals[0]
     ambiguous = any(abs(n - n_best) < 1e-9 and not (v & voters) for n, _, v, _ in proposals[1:])
     if len(voters) > 2:
-        members = sorted(voters)
-        h = triangulate_dlt(np.stack([obs[k].camera.projection_matrix for k in members]),
-                            np.stack([undist[k] for k in members]))
-        if abs(h[3]) > 1e-12:
-            refit = h[:3] / h[3]
-            errs = [_scaled_error(obs[k], refit) for k in members]
-            if all(e is not None and e < tol[k] for e, k in zip(errs, members, strict=True)):
-                point = refit
+        point = _refit(obs, undist, tol, voters, point)
     errors = {o.view_id: _scaled_error(o, point) for o in obs}
     inliers = tuple(o.view_id for o, t in zip(obs, tol, strict=True)
                     if (e := errors[o.view_id]) is not None and e < t)

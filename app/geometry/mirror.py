@@ -50,7 +50,7 @@ against false flags:
   jointly, so a view is judged against the most probable state of the others.
 
 Verdicts are numbers and codes; the sentence a person reads is composed above the geometry
-(``app.services.curation.doubt_words.mirror_sentence``).
+(``app.services.wording.doubt_words.mirror_sentence``).
 
 A frame that calibration refuses has no camera, hence no ray: :func:`mirrored_fit_at_rig` gives it
 the rig and side priors by calibrating its mirrored labels at the game's camera positions.
@@ -232,7 +232,7 @@ class MirrorVerdict:
             (``position_m``: the rig position they fit, ``rms_px``); None otherwise.
 
     The sentence a person reads is composed from these numbers above the geometry
-    (``app.services.curation.doubt_words.mirror_sentence``).
+    (``app.services.wording.doubt_words.mirror_sentence``).
     """
 
     view_id: Hashable

@@ -95,6 +95,77 @@ def _distances(camera: Camera, obs) -> np.ndarray:
     return np.concatenate([np.hypot(r[:n], r[n:2 * n]) / obs.seg_weight, r[2 * n:] / obs.circle_weight])
 
 
+def _parametrise(cameras: Sequence[Camera | None], active: list[int], start: np.ndarray
+                 ) -> tuple[dict[int, CameraParametrisation], dict[int, tuple[int, int]], int, dict[int, np.ndarray]]:
+    """The adjusted cameras' parametrisation (focal length, centre, rotation about their own, k1 where they have
+    one), their slots in the solver's vector, its number of camera parameters, and each camera's start vector (a
+    slice of the whole start: the cameras', then ``start``, the (N, 3) ball centres)."""
+    params = {}
+    x0_parts = []
+    for k in active:
+        cam = cameras[k]
+        assert cam is not None  # active: the cameras that are set
+        k1 = float(cam.radial[0]) if cam.radial is not None else 0.0
+        params[k] = CameraParametrisation(principal_point=cam.K[:2, 2].copy(), R0=cam.R, fit_k1=k1 != 0.0)
+        x0_parts.append(params[k].vector(float(cam.K[0, 0]), cam.C, k1))
+    offsets = np.cumsum([0] + [params[k].size for k in active])
+    n_cam = int(offsets[-1])
+    slot = {k: (int(offsets[i]), int(offsets[i + 1])) for i, k in enumerate(active)}
+    x0 = np.concatenate(x0_parts + [start.reshape(-1)])
+    return params, slot, n_cam, {k: x0[slice(*slot[k])] for k in active}
+
+
+def _noise_sigma(r: np.ndarray, dof: int) -> float:
+    """The residuals' standard deviation, px: ``sqrt(sum r^2 / (n - dof))`` over those within
+    :data:`TRIM_SIGMA` times a first, robust guess (1.4826 median |r|), ``dof`` the parameters the fit
+    absorbs (unbiased for least squares; the guess alone is not, as a frame seen twice keeps 1 of its 4)."""
+    guess = 1.4826 * float(np.median(np.abs(r))) * np.sqrt(len(r) / max(len(r) - dof, 1))
+    kept = r[np.abs(r) <= TRIM_SIGMA * guess]
+    return max(float(np.sqrt(np.sum(kept**2) / max(len(kept) - dof, 1))), 1e-3)
+
+
+@dataclass(frozen=True)
+class _Residuals:
+    """The bundle's residuals, whitened: each camera's field lines and the ball labels' reprojections, over the
+    selected labels (``lab_f``: frame position of each label; ``by_cam``: each camera's label rows; ``uv``: (labels,
+    2) px)."""
+
+    params: dict[int, CameraParametrisation]
+    obs: dict
+    uv: np.ndarray
+    lab_f: np.ndarray
+    by_cam: dict[int, np.ndarray]
+    n_frames: int
+    n_cam: int
+
+    def line_res(self, k, xk, sigma_lines):
+        return residuals(xk, self.obs[k], self.params[k]) / sigma_lines if k in self.obs else np.zeros(0)
+
+    def ball_res(self, k, xk, X, sigma_ball):
+        """(labels of camera k, 2) whitened reprojection residuals of the points ``X`` (one per label)."""
+        p, front = self.params[k].camera(xk).project(X)
+        r = (p - self.uv[self.by_cam[k]]) / sigma_ball
+        r[~front] = _BEHIND
+        return r
+
+    def all_ball(self, xs, X, sigma_ball) -> np.ndarray:
+        r = np.empty((len(self.lab_f), 2))
+        for k in self.by_cam:
+            if len(self.by_cam[k]):
+                r[self.by_cam[k]] = self.ball_res(k, xs[k], X[self.lab_f[self.by_cam[k]]], sigma_ball)
+        return r
+
+    def sigmas(self, xs, X) -> tuple[float, float]:
+        d = np.concatenate([_distances(self.params[k].camera(xs[k]), o) for k, o in self.obs.items()])
+        return (_noise_sigma(d, _CAMERA_DOF * len(self.obs)),
+                _noise_sigma(self.all_ball(xs, X, 1.0).reshape(-1), 3 * self.n_frames + self.n_cam))
+
+    def rms(self, xs, X, sigma, loss_scale_sigma) -> float:
+        r = np.linalg.norm(self.all_ball(xs, X, 1.0), axis=1)
+        r = r[r <= loss_scale_sigma * sigma]
+        return float(np.sqrt(np.mean(r**2))) if len(r) else float("nan")
+
+
 def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines | None], points_px: np.ndarray,
                   inliers: np.ndarray, start_m: np.ndarray, *, loss_scale_sigma: float = LOSS_SCALE_SIGMA,
                   max_iterations: int = 50, max_rounds: int = 4) -> BundleResult:
@@ -138,61 +209,15 @@ def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines |
     lab_f, lab_k = np.nonzero(use)  # label rows: frame position in ``frames``, camera index
     uv = pts[frames[lab_f], lab_k]
 
-    params = {}
-    x0_parts = []
-    for k in active:
-        cam = cameras[k]
-        assert cam is not None  # active: the cameras that are set
-        k1 = float(cam.radial[0]) if cam.radial is not None else 0.0
-        params[k] = CameraParametrisation(principal_point=cam.K[:2, 2].copy(), R0=cam.R, fit_k1=k1 != 0.0)
-        x0_parts.append(params[k].vector(float(cam.K[0, 0]), cam.C, k1))
-    offsets = np.cumsum([0] + [params[k].size for k in active])
-    n_cam = int(offsets[-1])
-    slot = {k: (int(offsets[i]), int(offsets[i + 1])) for i, k in enumerate(active)}
-    x0 = np.concatenate(x0_parts + [start[frames].reshape(-1)])
-
-    cam_x = {k: x0[slice(*slot[k])] for k in active}
+    params, slot, n_cam, cam_x = _parametrise(cameras, active, start[frames])
     X0 = start[frames].copy()
-    by_cam = {k: np.flatnonzero(lab_k == k) for k in active}
-
-    def line_res(k, xk, sigma_lines):
-        return residuals(xk, obs[k], params[k]) / sigma_lines if k in obs else np.zeros(0)
-
-    def ball_res(k, xk, X, sigma_ball):
-        """(labels of camera k, 2) whitened reprojection residuals of the points ``X`` (one per label)."""
-        p, front = params[k].camera(xk).project(X)
-        r = (p - uv[by_cam[k]]) / sigma_ball
-        r[~front] = _BEHIND
-        return r
-
-    def all_ball(xs, X, sigma_ball) -> np.ndarray:
-        r = np.empty((len(lab_f), 2))
-        for k in active:
-            if len(by_cam[k]):
-                r[by_cam[k]] = ball_res(k, xs[k], X[lab_f[by_cam[k]]], sigma_ball)
-        return r
-
-    def noise_sigma(r: np.ndarray, dof: int) -> float:
-        """The residuals' standard deviation, px: ``sqrt(sum r^2 / (n - dof))`` over those within
-        :data:`TRIM_SIGMA` times a first, robust guess (1.4826 median |r|), ``dof`` the parameters the fit
-        absorbs (unbiased for least squares; the guess alone is not, as a frame seen twice keeps 1 of its 4)."""
-        guess = 1.4826 * float(np.median(np.abs(r))) * np.sqrt(len(r) / max(len(r) - dof, 1))
-        kept = r[np.abs(r) <= TRIM_SIGMA * guess]
-        return max(float(np.sqrt(np.sum(kept**2) / max(len(kept) - dof, 1))), 1e-3)
-
-    def sigmas(xs, X) -> tuple[float, float]:
-        d = np.concatenate([_distances(params[k].camera(xs[k]), o) for k, o in obs.items()])
-        return (noise_sigma(d, _CAMERA_DOF * len(obs)),
-                noise_sigma(all_ball(xs, X, 1.0).reshape(-1), 3 * len(frames) + n_cam))
-
-    def rms(xs, X, sigma) -> float:
-        r = np.linalg.norm(all_ball(xs, X, 1.0), axis=1)
-        r = r[r <= loss_scale_sigma * sigma]
-        return float(np.sqrt(np.mean(r**2))) if len(r) else float("nan")
+    res = _Residuals(params, obs, uv, lab_f, {k: np.flatnonzero(lab_k == k) for k in active}, len(frames), n_cam)
+    by_cam = res.by_cam
+    line_res, ball_res, sigmas, rms = res.line_res, res.ball_res, res.sigmas, res.rms
 
     xs, X, nfev = cam_x, X0, 0
     sigma_lines, sigma_ball = sigmas(xs, X)
-    rms0 = rms(xs, X, sigma_ball)
+    rms0 = rms(xs, X, sigma_ball, loss_scale_sigma)
     for _ in range(max_rounds):
         xs, X, n = _schur_lm(xs, X, active, slot, n_cam, lab_f, by_cam, len(frames),
                              functools.partial(line_res, sigma_lines=sigma_lines),
@@ -207,7 +232,7 @@ def bundle_adjust(cameras: Sequence[Camera | None], lines: Sequence[FieldLines |
     out_pts = np.full((F, 3), np.nan)
     out_pts[frames] = X
     return BundleResult([cams.get(k) for k in range(K)], out_pts, sigma_lines, sigma_ball,
-                        (rms0, rms(xs, X, sigma_ball)), len(frames), len(lab_f), int(nfev))
+                        (rms0, rms(xs, X, sigma_ball, loss_scale_sigma)), len(frames), len(lab_f), int(nfev))
 
 
 def _schur_lm(xs: dict, X: np.ndarray, active: list[int], slot: dict, n_cam: int, lab_f: np.ndarray,

@@ -527,18 +527,16 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
     the kept ``p_ij``; each view gets the reprojection error of the fused ball.
 
     Args:
-        observations: the labelled, calibrated views (order is kept in ``pairs``); view ids must be
-            unique.
+        observations: the labelled, calibrated views (order is kept in ``pairs``); view ids must be unique.
         tau_px: pair error threshold ``tau`` in pixels (units of ``rule``); positive.
         rule: a key of :data:`PAIR_ERROR_RULES`.
         min_baseline_m: minimum camera-centre distance of a kept pair, metres (paper: 1 m).
         min_parallax_deg: minimum angle between the rays of a kept pair, degrees (0: the paper's rule).
         view_position_std_m: optional view id -> standard deviation of its camera position, metres
-            (``app.geometry.calibration.CalibrationUncertainty.position_std_m``; ``inf`` for an
-            undetermined one). Given, the kept ``p_ij`` are averaged with weights
-            ``1 / (s0^2 + s_i^2 + s_j^2)`` (inverse-variance, :data:`POSITION_STD_FLOOR_M` = ``s0``; a
-            view without a value counts as ``s0``) instead of the paper's plain mean, so that weakly
-            calibrated views count less. ``None`` (default): the paper's mean.
+            (``app.geometry.calibration.CalibrationUncertainty.position_std_m``; ``inf`` for an undetermined one).
+            Given, the kept ``p_ij`` are averaged with weights ``1 / (s0^2 + s_i^2 + s_j^2)`` (inverse-variance,
+            :data:`POSITION_STD_FLOOR_M` = ``s0``; a view without a value counts as ``s0``) instead of the paper's
+            plain mean, so that weakly calibrated views count less. ``None`` (default): the paper's mean.
         play_volume: optional test of a ball position (world metres -> bool, e.g.
             ``app.geometry.pitch.within_play_volume``): a pair kept by the paper's rules whose ``p_ij`` fails it
             (two rays that meet metres under the grass, or far outside the stadium, agree by coincidence) is
@@ -555,8 +553,8 @@ def triangulate_ball(observations: Sequence[BallObservation], *, tau_px: float, 
             :class:`PairGeometryMemo` the recomputation shares with the mirror evidence and the doubts).
 
     Returns:
-        A :class:`TriangulationResult`. Fewer than two observations give status
-        ``insufficient_views`` (no exception); all pairs dropped give ``no_pair_kept``.
+        A :class:`TriangulationResult`. Fewer than two observations give status ``insufficient_views`` (no
+        exception); all pairs dropped give ``no_pair_kept``.
 
     Raises:
         ValueError: unknown rule, non-positive ``tau_px``, negative ``min_baseline_m``,

@@ -1,7 +1,7 @@
 // The exports the exports panel offers: one entry per button, in order ({id, label, format, body, title}).
-// WRITTEN FROM app/services/transfer/export_formats.py
-// (python -m app.services.transfer.export_formats > static/js/exportlist.js);
-// tests/services/transfer/test_export_formats.py checks that the two agree. Do not edit the list here.
+// WRITTEN FROM app/services/exports/formats.py
+// (python -m app.services.exports.formats > static/js/exportlist.js);
+// tests/services/exports/test_export_formats.py checks that the two agree. Do not edit the list here.
 
 export const EXPORTS = /*EXPORTS*/[
  {

@@ -6,7 +6,7 @@ export const STATUS_LABEL = { pending: "pending", accepted: "accepted", rejected
 import { LABEL_KINDS, WORDS } from "./words.js";
 
 /** Short names of the doubt kinds that accuse a label, in the contract's order: kinds and words both from
- * words.js (written from app/geometry/doubts/contract.py and app/services/curation/words.py). */
+ * words.js (written from app/geometry/doubts/contract.py and app/services/wording/words.py). */
 export const DOUBT_LABEL = Object.fromEntries(LABEL_KINDS.map((k) => [k, WORDS.doubt[k].chip]));
 
 export const isNum = (v) => typeof v === "number" && Number.isFinite(v);

@@ -7,6 +7,7 @@
 import { svg, fmt, isNum } from "./format.js";
 import { pinsOf } from "./comments.js";
 import { FIX_KEY, boxCentre, sameBox, validBox, validPoint } from "./viewfacts.js";
+import { DETECTOR_KINDS } from "./words.js";
 
 /** The inset's window around the view's ball, [x, y, side] in image pixels (a square at least 72 px, six
  * times the ball's size, within the frame): centred on the ball label, else the reprojected 3D ball, else
@@ -96,7 +97,7 @@ export function drawView(root, { view: v, scale, isMain, imageState, lines, doub
         g.append(svg("circle", { class: "sugg-sigma", cx, cy, r: Math.max(2 * sigma, 1.5 * s) },
           svg("title", { text: `where the ball may be (2 σ = ${(2 * sigma).toFixed(1)} px)` })));
       }
-      const det = d.kind === "ball_detected" ? (d.evidence || {}) : null;
+      const det = DETECTOR_KINDS.includes(d.kind) ? (d.evidence || {}) : null;
       if (det) { // a detector's box, checked by the other views: its own colour, with its detector and score
         g.append(rect(sb, "box-detected", `${det.detector} found the ball here, score ${fmt(det.score, 2)} (${FIX_KEY.snap_box} places its box)`,
           isMain ? "detected-box" : null));

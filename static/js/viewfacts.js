@@ -6,7 +6,7 @@
 
 import { el, fmt, fmtJac, isNum, errorClass } from "./format.js";
 import { suggestedNote } from "./suggested.js";
-import { chip, chipClass, word, tauText } from "./words.js";
+import { DETECTOR_KINDS, chip, chipClass, word, tauText } from "./words.js";
 
 /** The calibration's standard deviations as one line: "x/y/z m · pan/tilt/roll ° · f px". */
 function uncertaintyText(u) {
@@ -72,7 +72,7 @@ export const NO_IMAGE_CHECK = "no image here: the other views alone vouch for it
  * a box or point the other views agree on says so, with its uncertainty. */
 function fixLabel(suggestion, doubt, v = {}) {
   const sigma = sigmaText(suggestion);
-  const ev = (doubt && doubt.kind === "ball_detected" && doubt.evidence) || null;
+  const ev = (doubt && DETECTOR_KINDS.includes(doubt.kind) && doubt.evidence) || null;
   if (ev) return `Place ${ev.detector}'s box (score ${isNum(ev.score) ? ev.score.toFixed(2) : "?"}${v.image_url ? "" : `; ${NO_IMAGE_CHECK}`})`;
   if (suggestion.action === "snap_box" && sigma) return `Snap to the box the other views agree on (${sigma})`;
   if (suggestion.action === "snap_point" && sigma) return `Snap to the trajectory (${sigma})`;

@@ -1,6 +1,6 @@
 // The words of the review pages: what every machine code shown on a page reads as, one table, so
-// that a page never shows a raw token. WRITTEN FROM app/services/curation/words.py
-// (python -m app.services.curation.words > static/js/words.js); tests/services/curation/test_words.py checks that
+// that a page never shows a raw token. WRITTEN FROM app/services/wording/words.py
+// (python -m app.services.wording.words > static/js/words.js); tests/services/wording/test_words.py checks that
 // the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/{
@@ -341,6 +341,11 @@ export const WORDS = /*WORDS*/{
 /** The doubt kinds that accuse a label, in the contract's order (app/geometry/doubts/contract.py LABEL_KINDS): the
  * queue counts, filters and sorts by them. */
 export const LABEL_KINDS = /*LABEL_KINDS*/["mirrored_labels", "ball_off_consensus", "ball_missing", "views_disagree", "near_duplicate_view", "ball_detected"]/*END*/;
+
+/** The doubt kinds whose suggested box is a detector's, their evidence naming the detector and its score
+ * (app/geometry/doubts/contract.py DETECTOR_KINDS): the view draws that box in the detections' colour, and the fix
+ * says whose box it places. */
+export const DETECTOR_KINDS = /*DETECTOR_KINDS*/["ball_detected"]/*END*/;
 
 const humanise = (code) => String(code).replaceAll("_", " ");
 

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 TESTID = "[data-testid={}]"
-#: The pages' module of words, written from app/services/curation/words.py and the doubts' contract.
+#: The pages' module of words, written from app/services/wording/words.py and the doubts' contract.
 WORDS_JS = Path(__file__).resolve().parents[2] / "static" / "js" / "words.js"
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from app.core.config import DERIVED_SETTINGS, Settings
 from app.core.paths import PROJECT_ROOT
-from app.services.curation.doubts import doubt_settings
+from app.services.derivation.doubts import doubt_settings
 
 CONFIGURATION_MD = Path(__file__).resolve().parents[2] / "docs" / "configuration.md"
 #: Named in the page but no setting of the service: the tests' database (said so beside it).

@@ -13,8 +13,8 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings, get_settings, jobs_dir
 from app.db.models import Frame, ReviewDecision, ReviewStatus, System
 from app.db.session import alembic_config, make_engine
+from app.services.exports.files import write_export_zip
 from app.services.releases.content import create_release
-from app.services.transfer.export_files import write_export_zip
 from tests.api.factories import make_game, make_system
 
 

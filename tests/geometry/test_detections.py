@@ -8,7 +8,7 @@ import numpy as np
 from app.geometry.ball import sphere_image_box
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, judge_system
 from app.geometry.doubts.detections import Detection, check_detections
-from app.services.curation.doubt_words import doubt_message
+from app.services.wording.doubt_words import doubt_message
 from tests.geometry.test_doubts import BALL, CAMERAS, R_BALL, SETTINGS, camera, scene
 
 SIZE = 0.5

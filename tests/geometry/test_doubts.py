@@ -27,8 +27,8 @@ from app.geometry.mirror import mirror_camera
 from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.triangulation import BallObservation
 from app.geometry.weighting import pixel_sigma
-from app.services.curation.doubt_words import doubt_message
-from app.services.curation.doubts import doubt_settings
+from app.services.derivation.doubts import doubt_settings
+from app.services.wording.doubt_words import doubt_message
 
 BALL = np.array([10.0, 5.0, -0.11])  # on the grass
 R_BALL = 0.11

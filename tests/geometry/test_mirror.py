@@ -90,7 +90,7 @@ def test_a_mirrored_replay_among_three_views_is_flagged_and_only_it() -> None:
     for p in flagged.pairs:  # the ray misses as labelled and meets once mirrored
         assert p.error_mirrored_px < 5.0 and (p.error_as_labelled_px is None or p.error_as_labelled_px > 100.0)
     # the geometry returns numbers; the words are composed above it
-    from app.services.curation.doubt_words import mirror_sentence
+    from app.services.wording.doubt_words import mirror_sentence
     sentence = mirror_sentence(flagged.as_dict(), {v.view_id: f"{v.view_id}.png" for v in views})
     assert "probably mirrored" in sentence and "main.png" in sentence and "sentence" not in flagged.as_dict()
     assert flagged.as_dict()["mirrored_camera_y_m"] == pytest.approx(-flagged.camera_y_m)

@@ -20,8 +20,8 @@ from app.api.auth import AnnotatorDep, ReviewerDep
 from app.api.deps import SessionDep, SystemDep
 from app.api.schemas import INVALID, NOT_FOUND
 from app.db.types import utcnow
+from app.services.accounts.users import ASSIGNEE_NONE
 from app.services.curation import assignment, presence
-from app.services.curation.queue import ASSIGNEE_NONE
 
 router = APIRouter(tags=["assignments"])
 

@@ -15,8 +15,8 @@ from app.api.view_schemas import SystemView
 from app.db.models import AuditEntry
 from app.services.audit import log as audit
 from app.services.audit.log import AUDIT_ENTRY_HEADER
-from app.services.audit.reverting import Reverted, revert_entry, undo_entry
 from app.services.curation import writing
+from app.services.curation.reverting import Reverted, revert_entry, undo_entry
 from app.services.curation.system_page import system_page
 from app.services.curation.versions import frame_etag, system_etag
 from app.services.transfer.data_root import shown_import_counts

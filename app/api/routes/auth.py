@@ -7,17 +7,17 @@ from __future__ import annotations
 
 import asyncio
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Literal, Optional
+from typing import Any, Optional
 
 from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
-from pydantic import BaseModel, Field
 from starlette.concurrency import run_in_threadpool
 
-from app.api.auth import PrincipalDep, Role, held_roles
+from app.api.account_schemas import DemoAccountOut, DemoOut, LoginIn, MeOut
+from app.api.auth import PrincipalDep, held_roles
 from app.api.authentication import start_session
 from app.api.deps import SessionDep
 from app.api.hosts import loopback_host
-from app.api.schemas import ErrorOut, _In
+from app.api.schemas import ErrorOut
 from app.api.security import no_store
 from app.services.accounts import users
 from app.services.accounts.throttle import client_address, from_this_machine
@@ -27,35 +27,6 @@ router = APIRouter(prefix="/auth", tags=["auth"], dependencies=[Depends(no_store
 
 #: One answer for a wrong name and a wrong password alike (it must not tell which).
 WRONG_CREDENTIALS = "wrong name or password"
-
-
-class LoginIn(_In):
-    name: str = Field(max_length=100)
-    password: str = Field(max_length=1024)
-
-
-class MeOut(BaseModel):
-    """Who is logged in. ``csrf_token`` is the value of the ``X-CSRF-Token`` header every write of
-    this browser session must carry (null for an API token, whose writes need none)."""
-
-    name: str
-    role: Role
-    roles: list[Role] = Field(
-        description="Every role whose routes this user may call: its own and the less trusted ones (the ranking "
-        "of app.api.auth.ROLES; the UI offers only what the user may do).")
-    via: Literal["session", "token"]
-    csrf_token: Optional[str]
-
-
-class DemoAccountOut(BaseModel):
-    name: str
-    password: str
-
-
-class DemoOut(BaseModel):
-    """The demo account of ``v3d serve --demo`` (its password is public), or null when there is none."""
-
-    account: Optional[DemoAccountOut]
 
 
 #: Password checks run here, two at a time (each argon2 verification takes 64 MiB and ~0.1-1 s of CPU): a flood

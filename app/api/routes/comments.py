@@ -12,29 +12,19 @@ system's ETag.
 """
 from __future__ import annotations
 
-from typing import Annotated, Optional
+from typing import Annotated
 
 from fastapi import APIRouter, Path, Query, Response
-from pydantic import Field
 
 from app.api.answers import capped_json, json_items
 from app.api.auth import AnnotatorDep, PrincipalDep
-from app.api.comment_schemas import CommentOut, CommentsPageOut, CommentsQuery
+from app.api.comment_schemas import CommentIn, CommentOut, CommentsPageOut, CommentsQuery
 from app.api.deps import SessionDep, SettingsDep, SystemIdPath
-from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut, _In
+from app.api.schemas import INVALID, NOT_FOUND, DbInt, ErrorOut
 from app.db.models import UserRole
 from app.services.curation import comments
 
 router = APIRouter(tags=["comments"])
-
-
-class CommentIn(_In):
-    """A comment to pin on a view."""
-
-    frame_id: DbInt = Field(description="The view (a frame of the system) the comment is on.")
-    point: Optional[list[float]] = Field(None, min_length=2, max_length=2,
-                                         description="[x, y] in pixels of the frame's image; null: the whole view.")
-    text: str = Field(min_length=1, max_length=comments.MAX_TEXT, description="What the reviewer says.")
 
 
 CommentIdPath = Annotated[DbInt, Path(description="Comment id.")]

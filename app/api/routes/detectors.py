@@ -10,12 +10,12 @@ from typing import Annotated, Any, Literal, Optional
 
 from fastapi import APIRouter, Depends, File, Query, UploadFile
 from fastapi.responses import FileResponse
-from pydantic import BaseModel, Field
 from starlette.background import BackgroundTask
 
 from app.api.auth import AnnotatorDep, require_role
 from app.api.bodies import UPLOAD_LIMIT
 from app.api.deps import SessionDep, SettingsDep, ShareDep
+from app.api.detector_schemas import BoxesReportOut, MonocularReportOut, StatsOut
 from app.api.schemas import InvalidOut, QueryText
 from app.api.share import SHARE_SPENT
 from app.core.config import Settings
@@ -36,41 +36,6 @@ AllQuery = Annotated[bool, Query(alias="all", description="Every system, not onl
 #: What bounds a predictions upload (a COCO results JSON or a zip of YOLO files), counted while its body streams:
 #: the largest results file the benchmark reads, so that nothing larger is ever spooled or copied to disk.
 PREDICTIONS_LIMIT = "V3D_MAX_PREDICTIONS_MB"
-
-
-class CurveOut(BaseModel):
-    thresholds_m: list[float]
-    precision: list[Optional[float]]
-
-
-class CountsOut(BaseModel):
-    reference_views: int
-    detections: int
-    views_with_detection: int
-    localised: int
-    ignored_detections: Optional[int] = None
-    capped_detections: Optional[int] = Field(None, description="Detections of an uploaded file beyond "
-                                                               "V3D_MAX_PREDICTIONS_PER_FRAME on their image, "
-                                                               "left out (the best by score are kept).")
-
-
-class MonocularFiguresOut(BaseModel):
-    """AP@0.5 (VOC all-point), MAE in metres and percent of the camera-to-ball distance, P@2m
-    (fraction), the precision-threshold curve; null where nothing was localised."""
-
-    AP50: Optional[float]
-    MAE_m: Optional[float]
-    MAE_pct: Optional[float]
-    P_2m: Optional[float]
-    curve: CurveOut
-    counts: CountsOut
-
-
-class MonocularReportOut(MonocularFiguresOut):
-    """The whole set's figures and ``splits`` (train / test as in the exports)."""
-
-    splits: dict[str, MonocularFiguresOut]
-    estimator: str
 
 
 def _zip_export(fmt: Literal["yolo", "coco"], session: SessionDep, include_all: bool,
@@ -193,73 +158,12 @@ def evaluate_monocular_source(
     return MonocularReportOut.model_validate({**report, "estimator": est})
 
 
-class BoxFiguresOut(BaseModel):
-    """Means over the ``n`` views with both boxes; null where ``n`` is 0."""
-
-    n: int
-    iou: Optional[float]
-    size_error_pct: Optional[float]
-
-
-class BoxesReportOut(BaseModel):
-    """The paper's Table 1 against the stored precise boxes (``app.services.evaluation.boxes``)."""
-
-    views: int
-    original: BoxFiguresOut
-    optimised: BoxFiguresOut
-    refined: BoxFiguresOut
-
-
 @router.get("/evaluations/boxes", response_model=BoxesReportOut, dependencies=[Depends(require_role("annotator"))])
 def evaluate_boxes(session: SessionDep, settings: SettingsDep, include_all: AllQuery = False) -> BoxesReportOut:
     """IoU and size error (% of the precise box's diagonal) of the original, optimised and refined ball boxes
     against the stored precise boxes (``v3d import precise-boxes``), over the views of accepted systems (every
     system with ``all=true``) that have one."""
     return BoxesReportOut.model_validate(boxes_report(session, include_all, settings.ball_diameter_m))
-
-
-class HistogramOut(BaseModel):
-    """Equal bins (``edges``, ``counts``); ``n`` values in all, ``above`` of them beyond the last edge (a long tail)."""
-
-    edges: list[float]
-    counts: list[int]
-    n: int
-    above: int = 0
-
-
-class CountsPerSplitOut(BaseModel):
-    systems: int
-    images: int
-    calibrated_images: int
-    admitted_images: int
-
-
-class KindStatsOut(CountsPerSplitOut):
-    splits: dict[str, CountsPerSplitOut]
-
-
-class SweepPointOut(BaseModel):
-    threshold: float
-    systems_kept: int
-
-
-class AdmissionOut(BaseModel):
-    """The admission threshold in force: JaC at ``gamma`` (fraction of the image diagonal) above ``jac_min``."""
-
-    gamma: float
-    jac_min: float
-
-
-class StatsOut(BaseModel):
-    """The dataset at a glance (``app.services.evaluation.stats``)."""
-
-    kinds: dict[str, KindStatsOut]
-    jac_sweep: list[SweepPointOut]
-    jac_sweep_by_kind: dict[str, list[SweepPointOut]]
-    admission: AdmissionOut
-    stale_systems: int = Field(description="Systems computed with other settings (a changed V3D_PROFILE): stale "
-                                           "until `v3d recompute`.")
-    distributions: dict[str, HistogramOut]
 
 
 @router.get("/stats", response_model=StatsOut, dependencies=[Depends(require_role("annotator"))])

@@ -1,8 +1,8 @@
 """``/api/exports``: download reviewed labels, streamed in the request (``GET``) or written to a file by
 a background job (``POST``, for large exports and the UI: the file is then read at ``/api/jobs/{id}/result``).
 
-``POST /api/exports/{format}`` queues any export of the registry (``app.services.transfer.export_formats``; written by
-``app.services.transfer.export_files``); ``GET /api/exports/cameras`` (as ``GET`` of ``yolo``,
+``POST /api/exports/{format}`` queues any export of the registry (``app.services.exports.formats``; written by
+``app.services.exports.files``); ``GET /api/exports/cameras`` (as ``GET`` of ``yolo``,
 ``coco`` and ``issia-3d``, in ``detectors.py`` and ``issia.py``) answers the zip in the request. Every route
 needs the admin role."""
 from __future__ import annotations
@@ -24,13 +24,14 @@ from app.api.job_schemas import ExportJobIn, JobOut, TreeExportJobIn
 from app.api.routes.jobs import accepted
 from app.api.schemas import INVALID, ErrorOut, QueryText
 from app.core.errors import InvalidInputError
+from app.services.exports import files as export_files
+from app.services.exports.formats import tree_export_names
 from app.services.jobs import runner as jobs
 from app.services.jobs.work import export_params
 from app.services.releases.content import get_release
 from app.services.releases.export import ReleaseSource
 from app.services.storage.datasets import DatasetFiles
-from app.services.transfer import export_files, export_zip, exporting
-from app.services.transfer.export_formats import tree_export_names
+from app.services.transfer import export_zip, exporting
 
 #: OpenAPI ``responses`` of the routes that take a release by name.
 NO_RELEASE: dict[int | str, dict[str, Any]] = {

@@ -24,12 +24,12 @@ from app.api.schemas import DB_INT_MAX, NOT_FOUND, DbInt, ErrorOut
 from app.core.config import Settings, jobs_dir
 from app.core.errors import NotFoundError
 from app.db.models import Job, JobState
+from app.services.exports.files import prune_stored_exports
 from app.services.jobs import runner as jobs
 from app.services.jobs.progress import read_live
 from app.services.jobs.work import export_key, without_server_paths
 from app.services.storage import storage_for
 from app.services.storage.stores import Storage
-from app.services.transfer.export_files import prune_stored_exports
 
 router = APIRouter(tags=["jobs"])
 #: A job id (``DbInt``: beyond the database's integers PostgreSQL refused the query, a 500 found by fuzzing).

@@ -14,8 +14,8 @@ from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.auth import AnnotatorDep, PrincipalDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import EditDep, SessionDep, SystemDep, SystemIdPath
+from app.api.handoff_schemas import DecisionOut
 from app.api.routes.frames import name_entry
-from app.api.routes.handoffs import DecisionOut
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
 from app.db.models import ReviewStatus, UserRole

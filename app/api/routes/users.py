@@ -3,72 +3,19 @@ enabling, and each user's API tokens (list, issue with a label and an expiry, re
 audited (``app.services.accounts.users``); no answer is cached (``Cache-Control: no-store``)."""
 from __future__ import annotations
 
-from datetime import datetime
-from typing import Annotated, Literal, Optional
+from typing import Annotated, Optional
 
 from fastapi import APIRouter, Depends, Path, status
-from pydantic import BaseModel, ConfigDict, Field
 
-from app.api.auth import PrincipalDep, Role, require_role
+from app.api.account_schemas import TokenIn, TokenOut, TokenSummaryOut, UserIn, UserOut, UserPatch
+from app.api.auth import PrincipalDep, require_role
 from app.api.deps import SessionDep
-from app.api.schemas import INVALID, NOT_FOUND, DbInt, _In, readable_name
+from app.api.schemas import INVALID, NOT_FOUND, DbInt
 from app.api.security import no_store
 from app.services.accounts import users
 
 router = APIRouter(prefix="/users", tags=["users"],
                    dependencies=[Depends(require_role("admin")), Depends(no_store)])
-
-
-class UserOut(BaseModel):
-    name: str
-    role: Role
-    created_at: datetime
-    tokens: int
-    disabled: bool
-    demo: bool
-
-
-class UserIn(_In):
-    name: Annotated[str, readable_name(100, "a user name")] = Field(max_length=100)
-    role: Role
-    password: str = Field(min_length=1, max_length=1024)
-
-
-class TokenOut(BaseModel):
-    """An API token, shown this once (only its SHA-256 is stored), with the id that lists and revokes it."""
-
-    name: str
-    token: str
-    id: int
-    label: Optional[str]
-    expires_at: Optional[datetime]
-
-
-class TokenIn(_In):
-    label: Optional[str] = Field(None, min_length=1, max_length=100, description="What the token is for.")
-    expires_days: Optional[float] = Field(None, gt=0, le=users.MAX_TOKEN_DAYS,
-                                          description="The token stops working this many days from now "
-                                                      "(none: until revoked).")
-
-
-class TokenSummaryOut(BaseModel):
-    """An API token as listed (never the token itself)."""
-
-    model_config = ConfigDict(from_attributes=True)
-
-    id: int
-    label: Optional[str]
-    created_at: datetime
-    last_used_at: Optional[datetime]
-    expires_at: Optional[datetime]
-    revoked_at: Optional[datetime]
-    state: Literal["active", "expired", "revoked"]
-
-
-class UserPatch(_In):
-    role: Optional[Role] = Field(None, description="The user's new role.")
-    disabled: Optional[bool] = Field(None, description="true: no login, sessions end, every token revoked for "
-                                                       "good; false: may log in again (no token comes back).")
 
 
 UserName = Annotated[str, Path(description="The user's name.", max_length=100, pattern=r"^[^\x00]+$")]

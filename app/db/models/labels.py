@@ -139,7 +139,7 @@ class System(Base):
     #: ISSIA systems: the frame index in the sequence (frame ``i`` at ``t = i / fps``); None otherwise.
     frame_index: Mapped[Optional[int]] = mapped_column(index=True)
     #: The system's version (its strong ETag, ``app.services.curation.versions``): bumped in the same transaction by
-    #: every write of the rows an edit of the system reads (``app.services.derivation.scope``: labels, lines,
+    #: every write of the rows an edit of the system reads (``app.db.scope``: labels, lines,
     #: exclusions, calibrations, decisions, derived rows). SQLAlchemy's version counter: every ORM ``UPDATE`` of the
     #: row compares it (``WHERE version = <as loaded>``; ``StaleDataError`` when another transaction changed it),
     #: which is the edit path's optimistic concurrency check.

@@ -49,6 +49,7 @@ same convention is PnLCalib's. World frame: SoccerNet (metres, centre spot origi
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import replace
 from typing import Any, Callable, Mapping, Sequence
@@ -170,6 +171,98 @@ def calibrate_frames_together(jobs: list[tuple[FieldLines, int, int, Calibration
     return [replace(r, elapsed_ms=elapsed) for r in results]
 
 
+#: ``polish(candidate, budget)``: the candidate with radial distortion tried where its residuals ask for it.
+_Polish = Callable[[Candidate | None, Budget], Candidate | None]
+
+
+def _polished(c: Candidate | None, b: Budget, obs: Observations, scale: float, settings: CalibrationSettings
+              ) -> Candidate | None:
+    """``c`` refitted with radial distortion (:func:`with_k1`, within budget ``b``) where it has not been tried, its
+    90th-percentile residual is above half the loss scale ``scale`` (px) and the lines have enough points; else
+    ``c``."""
+    if c is not None and not c.k1_tried and c.p90 > 0.5 * scale and obs.n_points >= settings.k1_min_points:
+        return with_k1(c, obs, scale, settings, b)
+    return c
+
+
+def _refusal_before_search(obs: Observations, settings: CalibrationSettings, diag: float, need: int) -> Refusal | None:
+    """Why the lines cannot fix a camera, said before any start is tried: fewer constraints than ``need``, ground
+    lines of one direction only (no circle), or every point on one line (within the loss scale, px, of ``diag`` the
+    image diagonal); None when the search may start."""
+    n_constraints = obs.constraint_count()
+    if n_constraints < need:
+        return Refusal("few_constraints", {"need": need, "constraints": n_constraints, "lines": len(obs.classes)})
+    nx, ny = obs.ground_line_directions()
+    if not obs.circle_classes and (nx == 0 or ny == 0) and len(obs.classes) - nx - ny == 0:
+        return Refusal("parallel_lines")
+    pts = obs.all_points
+    centred = pts - pts.mean(axis=0)
+    normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
+    if np.max(np.abs(centred @ normal)) < settings.loss_scale_gamma * diag:
+        return Refusal("collinear_points")
+    return None
+
+
+def _second_tries(lines: FieldLines, obs: Observations, best: Candidate | None, width: int, height: int,
+                  prior: CalibrationPrior | None, settings: CalibrationSettings, budget: Budget, limit: float,
+                  polish: _Polish, flags: list[str]) -> tuple[Candidate | None, Observations]:
+    """When the best start leaves a line beyond ``limit`` (px) and the centre is free: the fit without one line class
+    (four classes or more; flagged ``ignored_class:<class>``), else the look-at starts with the budget left. The best
+    candidate and the observations it was fitted to."""
+    fit_obs = obs
+    if len(obs.classes) >= 4:
+        # One mislabelled line (left/right confusion, a wrong goal post) spoils a frame.
+        alt = without_one_class(lines, obs, best, width, height, settings,
+                                 Budget(settings.max_evaluations // 2))
+        if alt is not None and worst_residual(alt[1], alt[2]) <= limit:
+            dropped, best, fit_obs = alt
+            flags.append(f"ignored_class:{dropped}")
+    if fit_obs is obs and budget.evaluations > 0 and not budget.lookat_done:
+        other = search_starts(obs, width, height, prior, settings, budget, stage="look-at")
+        other = polish(other, budget)
+        if other is not None and (best is None or other.cost < best.cost):
+            best = other
+    return best, fit_obs
+
+
+def _anchor_tries(lines: FieldLines, obs: Observations, best: Candidate | None, fit_obs: Observations, width: int,
+                  height: int, prior: CalibrationPrior, settings: CalibrationSettings, limit: float, polish: _Polish,
+                  flags: list[str]) -> tuple[Candidate | None, Observations]:
+    """The learned camera positions (``prior.camera_prior.anchors_m``) as starts, with every class, else without one
+    (four classes or more; flags updated); the best candidate and the observations it was fitted to (unchanged when
+    neither fits)."""
+    anchor_budget = Budget(settings.max_evaluations)
+    other = polish(search_starts(obs, width, height, prior, settings, anchor_budget, stage="anchors"),
+                   anchor_budget)
+    if other is not None and worst_residual(other, obs) <= limit:
+        best, fit_obs = other, obs
+        flags[:] = [f for f in flags if not f.startswith("ignored_class:")]
+    elif len(obs.classes) >= 4:
+        alt = anchors_without_one_class(lines, obs, other if other is not None else best, width, height,
+                                         prior, settings, limit)
+        if alt is not None:
+            dropped, best, fit_obs = alt
+            flags[:] = [f for f in flags if not f.startswith("ignored_class:")] + [f"ignored_class:{dropped}"]
+    return best, fit_obs
+
+
+def _refusal_after_fit(per_class: Mapping[str, float], rms: float, fit_obs: Observations, limit: float, fixed: bool,
+                       centre_limit: float) -> Refusal | None:
+    """Why the fitted camera is refused: a line it was fitted to beyond ``limit`` (px), or, with its centre fixed, an
+    RMS beyond ``centre_limit`` (px); None when it stands."""
+    fitted = {c: per_class[c] for c in fit_obs.classes}
+    worst = max(fitted.values()) if fitted else 0.0
+    if worst > limit:
+        bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]  # every key is in the dict: get never answers None
+        return Refusal("residual_too_high", {"line": bad, "px": worst, "limit_px": limit})
+    if fixed and rms > centre_limit:
+        # With the centre known only focal length and rotation are free and few lines are labelled:
+        # the fit absorbs little, so labels it cannot bring within the tolerance of a good
+        # single-frame fit (accept_gamma, the admission threshold's scale) disagree with the centre.
+        return Refusal("centre_misfit", {"rms_px": rms, "limit_px": centre_limit})
+    return None
+
+
 def _calibrate(
     lines: FieldLines,
     width: int,
@@ -190,63 +283,29 @@ def _calibrate(
     obs = observations if observations is not None else build_observations(lines)
     fixed = prior is not None and prior.centre_m is not None
     need = 4 if fixed else settings.min_constraints
-    n_constraints = obs.constraint_count()
     flags: list[str] = []
     if len(obs.classes) < MIN_LINE_CLASSES:
         flags.append("few_lines")
-    if n_constraints < need:
-        return _refused(Refusal("few_constraints", {"need": need, "constraints": n_constraints,
-                                                    "lines": len(obs.classes)}), t0, tuple(flags))
-    nx, ny = obs.ground_line_directions()
-    if not obs.circle_classes and (nx == 0 or ny == 0) and len(obs.classes) - nx - ny == 0:
-        return _refused(Refusal("parallel_lines"), t0, tuple(flags))
-    pts = obs.all_points
-    centred = pts - pts.mean(axis=0)
-    normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
-    if np.max(np.abs(centred @ normal)) < settings.loss_scale_gamma * diag:
-        return _refused(Refusal("collinear_points"), t0, tuple(flags))
+    refusal = _refusal_before_search(obs, settings, diag, need)
+    if refusal is not None:
+        return _refused(refusal, t0, tuple(flags))
     try:
         budget = Budget(settings.max_evaluations)
         best = search_starts(obs, width, height, prior, settings, budget)
         fit_obs = obs
         scale = settings.loss_scale_gamma * diag
         limit = settings.refuse_gamma * diag
-
-        def polish(c: Candidate | None, b: Budget) -> Candidate | None:
-            if c is not None and not c.k1_tried and c.p90 > 0.5 * scale and obs.n_points >= settings.k1_min_points:
-                return with_k1(c, obs, scale, settings, b)
-            return c
-
+        polish: _Polish = functools.partial(_polished, obs=obs, scale=scale, settings=settings)
         best = polish(best, budget)
         if worst_residual(best, obs) > limit and not fixed:
-            if len(obs.classes) >= 4:
-                # One mislabelled line (left/right confusion, a wrong goal post) spoils a frame.
-                alt = without_one_class(lines, obs, best, width, height, settings,
-                                         Budget(settings.max_evaluations // 2))
-                if alt is not None and worst_residual(alt[1], alt[2]) <= limit:
-                    dropped, best, fit_obs = alt
-                    flags.append(f"ignored_class:{dropped}")
-            if fit_obs is obs and budget.evaluations > 0 and not budget.lookat_done:
-                other = search_starts(obs, width, height, prior, settings, budget, stage="look-at")
-                other = polish(other, budget)
-                if other is not None and (best is None or other.cost < best.cost):
-                    best = other
+            best, fit_obs = _second_tries(lines, obs, best, width, height, prior, settings, budget, limit, polish,
+                                          flags)
         centre_prior = None
         if (not fixed and prior is not None and prior.camera_prior is not None and prior.camera_prior.anchors_m
                 and worst_residual(best, fit_obs) > limit):
             # No start fitted the labels: the learned camera positions are starts too.
-            anchor_budget = Budget(settings.max_evaluations)
-            other = polish(search_starts(obs, width, height, prior, settings, anchor_budget, stage="anchors"),
-                           anchor_budget)
-            if other is not None and worst_residual(other, obs) <= limit:
-                best, fit_obs = other, obs
-                flags[:] = [f for f in flags if not f.startswith("ignored_class:")]
-            elif len(obs.classes) >= 4:
-                alt = anchors_without_one_class(lines, obs, other if other is not None else best, width, height,
-                                                 prior, settings, limit)
-                if alt is not None:
-                    dropped, best, fit_obs = alt
-                    flags[:] = [f for f in flags if not f.startswith("ignored_class:")] + [f"ignored_class:{dropped}"]
+            best, fit_obs = _anchor_tries(lines, obs, best, fit_obs, width, height, prior, settings, limit, polish,
+                                          flags)
         radial_prior = None
         if best is not None and prior is not None and prior.camera_prior is not None and prior.camera_prior.has_radial:
             best, radial_prior = with_radial_prior(best, fit_obs, prior.camera_prior, scale, limit, diag / 2.0,
@@ -268,18 +327,9 @@ def _calibrate(
         flags.append(RADIAL_PRIOR_FLAG)
     if camera.radial[0] != 0.0:
         flags.append("radial_distortion")
-    fitted = {c: per_class[c] for c in fit_obs.classes}
-    worst = max(fitted.values()) if fitted else 0.0
-    if worst > limit:
-        bad = max(fitted, key=fitted.get)  # type: ignore[arg-type]  # every key is in the dict: get never answers None
-        return _refused(Refusal("residual_too_high", {"line": bad, "px": worst, "limit_px": limit}), t0, tuple(flags),
-                        per_class, rms)
-    if fixed and rms > settings.accept_gamma * diag:
-        # With the centre known only focal length and rotation are free and few lines are labelled:
-        # the fit absorbs little, so labels it cannot bring within the tolerance of a good
-        # single-frame fit (accept_gamma, the admission threshold's scale) disagree with the centre.
-        return _refused(Refusal("centre_misfit", {"rms_px": rms, "limit_px": settings.accept_gamma * diag}), t0,
-                        tuple(flags), per_class, rms)
+    refusal = _refusal_after_fit(per_class, rms, fit_obs, limit, fixed, settings.accept_gamma * diag)
+    if refusal is not None:
+        return _refused(refusal, t0, tuple(flags), per_class, rms)
     mirrored = None
     if prior is not None and side_vote(camera, prior.expected_side) == 1:
         flags.append(MIRROR_FLAG)

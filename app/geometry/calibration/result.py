@@ -126,7 +126,7 @@ class CalibrationSettings:
 
 
 #: Why a calibration was refused, as codes (their numbers in :attr:`Refusal.numbers`); the words a person reads are
-#: the services' (``app.services.curation.words``: ``WORDS["refusal"]`` and ``refusal_sentence``).
+#: the services' (``app.services.wording.words``: ``WORDS["refusal"]`` and ``refusal_sentence``).
 REFUSAL_CODES: tuple[str, ...] = (
     "few_constraints",   # fewer independent line constraints than the camera has unknowns: need, constraints, lines
     "parallel_lines",    # every labelled line parallel on the pitch, and no circle or goal fixes the view

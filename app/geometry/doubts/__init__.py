@@ -19,7 +19,7 @@ Information kinds (:data:`INFO_KINDS`) say why a view does not take part, withou
 (``detection_off_label``: a detector agrees with the other views away from an outvoted label).
 
 Each doubt carries a ``code`` (which reasoning found it, :data:`CODES`) and its numbers; the sentence a
-person reads is composed above this module (``app.services.curation.doubt_words``).
+person reads is composed above this module (``app.services.wording.doubt_words``).
 
 Evidence is weighed by what each calibration is worth (:mod:`app.geometry.weighting`: the pixel sigma from
 the stored calibration uncertainty): a view below admission whose calibration is sure still votes (half a

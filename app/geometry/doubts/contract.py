@@ -38,6 +38,12 @@ def label_severity(kinds: Iterable[str]) -> int:
     return max((LABEL_KIND_SEVERITY.get(k, 0) for k in kinds), default=0)
 
 
+#: Kinds whose suggested box is a detector's (their ``evidence`` names the ``detector`` and its ``score``): the page
+#: draws that box in the detections' own colour with its detector and score, and the fix's button says whose box it
+#: places (``static/js/words.js`` ``DETECTOR_KINDS``, written from this).
+DETECTOR_KINDS: tuple[str, ...] = ("ball_detected",)
+
+
 #: Kinds that inform without accusing a label.
 INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_assisted", "few_lines", "suggested_label",
                                "detection_off_label")
@@ -130,7 +136,7 @@ class Doubt:
         kind: one of :data:`LABEL_KINDS` or :data:`INFO_KINDS`.
         view_id: the view it names (None: the system as a whole).
         code: which reasoning found it (one of :data:`CODES` of its kind); the words are composed from
-            ``kind``, ``code`` and ``evidence`` by ``app.services.curation.doubt_words``.
+            ``kind``, ``code`` and ``evidence`` by ``app.services.wording.doubt_words``.
         evidence: the numbers behind it (JSON-ready: floats, ints, strings, lists, dicts).
         suggestion: the fix, ``{"action": one of SUGGESTION_ACTIONS, ...}`` (``"box"``:
             ``[x1, y1, x2, y2]`` in the named view's own pixels for ``snap_box``), or None.
@@ -153,7 +159,7 @@ class DoubtSettings:
     """Thresholds of :func:`judge_system`.
 
     No defaults of its own: the service builds it from ``app.core.config.Settings``
-    (``app.services.curation.doubts.doubt_settings``: the triangulation's settings for the first five fields,
+    (``app.services.derivation.doubts.doubt_settings``: the triangulation's settings for the first five fields,
     ``Settings.doubt_*`` for the others), whose defaults are the operating point chosen with
     ``benchmarks/doubts.py`` (precision against recall on the synthetic SoccerNet-v3 dev sets, v3d's own
     calibration); see that script's docstring.

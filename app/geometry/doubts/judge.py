@@ -408,7 +408,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
        adds nothing (an unlabelled one, else a replay, else the lower JaC).
 
     Words are not written here: each doubt carries a ``code`` and its numbers, and
-    ``app.services.curation.doubt_words`` composes the sentence.
+    ``app.services.wording.doubt_words`` composes the sentence.
 
     Args:
         views: the system's views (ids unique).
@@ -431,7 +431,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
     doubts = _info_doubts(views, s)
     vote = _votes(views, s, weighed)
     flagged, mirrored, helpers = vote.flagged, vote.mirrored, vote.helpers
-    weight, sigma, tau, obs = vote.weight, vote.sigma, vote.tau, vote.obs
+    weight, sigma, tau = vote.weight, vote.sigma, vote.tau
     judged, labelled, unlabelled = vote.judged, vote.labelled, vote.unlabelled
     cons, lone_contradicted = _voters_consensus(vote, s, geometry)
     helper_ids = {v.view_id for v in helpers}
@@ -439,33 +439,14 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
     by_id = {v.view_id: v for v in views}
     if cons.point is not None and not cons.ambiguous:
         accusing = sum(weight[i] for i in cons.inliers) >= 1.5  # a full vote and at least a half one
-        for vid in cons.outliers if accusing else ():
-            if vid in helper_ids:
-                continue
-            v = by_id[vid]
-            e = cons.errors_1920[vid]
-            uv = project_point(v, cons.point)
-            box = sphere_image_box(camera_of(v), cons.point, s.ball_diameter_m / 2) if uv is not None and _inside(
-                v, uv, 0.0) else None
-            suggestion = consensus_fix(v, cons, box, s)
-            doubts.append(Doubt(
-                "ball_off_consensus", vid, "off_consensus" if e is not None else "behind_camera",
-                {"error_px_1920": None if e is None else _r(e), "tau_px": _r(max(tau, sigma.get(vid, 0.0))),
-                 "calibration_sigma_px_1920": _r(sigma.get(vid, 0.0)), "agreeing_views": list(cons.inliers),
-                 "ball3d": [_r(x, 3) for x in cons.point],
-                 "projected_px": None if uv is None else [_r(uv[0]), _r(uv[1])]},
-                suggestion))
+        doubts += _off_consensus_doubts([by_id[vid] for vid in cons.outliers if accusing and vid not in helper_ids],
+                                        cons, cons.point, sigma, tau, s)
         for v in unlabelled:
             d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
             if d is not None:
                 doubts.append(d)
     elif len(labelled) >= 2:
-        own = cons if not helpers else ball_consensus(  # the labelled views' own agreement, without the helpers
-            obs[:len(labelled)], tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
-            weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
-        d = _disagree_doubt(labelled, own, tau, s)
-        if d is not None:
-            doubts.append(d)
+        doubts += _disagreement(vote, cons, s, geometry)
     elif len(labelled) == 1 and not lone_contradicted:
         # (a helper's label that misses the lone label contradicts it: nothing is placed from it)
         for v in unlabelled:
@@ -473,6 +454,41 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
             if d is not None:
                 doubts.append(d)
     doubts += _near_duplicates(judged, cons, s)
+    return doubts
+
+
+def _disagreement(vote: _Votes, cons: Consensus, s: DoubtSettings,
+                  geometry: Callable[[BallObservation, BallObservation], PairGeometry]) -> list[Doubt]:
+    """``views_disagree`` of two or more labelled views with no consensus or an ambiguous one (rule 3 of
+    :func:`judge_system`), judged on the labelled views' own agreement (without the helpers, when there are any)."""
+    labelled, weight, sigma, tau = vote.labelled, vote.weight, vote.sigma, vote.tau
+    own = cons if not vote.helpers else ball_consensus(  # the labelled views' own agreement, without the helpers
+        vote.obs[:len(labelled)], tau_px=tau, min_baseline_m=s.min_baseline_m, min_parallax_deg=s.min_parallax_deg,
+        weights=weight, tolerances_px=sigma, plausible=lambda p: _plausible(p, s), geometry=geometry)
+    d = _disagree_doubt(labelled, own, tau, s)
+    return [] if d is None else [d]
+
+
+def _off_consensus_doubts(outliers: Sequence[DoubtView], cons: Consensus, point: np.ndarray,
+                         sigma: Mapping[Any, float], tau: float, s: DoubtSettings) -> list[Doubt]:
+    """``ball_off_consensus`` of each of ``outliers``, labelled views off the non-ambiguous consensus ``cons`` of ball
+    ``point`` (rule 3 of :func:`judge_system`): its error and tolerance, the agreeing views, and the fix
+    (:func:`consensus_fix`) with the consensus ball's box where the ball projects inside the view."""
+    doubts = []
+    for v in outliers:
+        vid = v.view_id
+        e = cons.errors_1920[vid]
+        uv = project_point(v, point)
+        box = sphere_image_box(camera_of(v), point, s.ball_diameter_m / 2) if uv is not None and _inside(
+            v, uv, 0.0) else None
+        suggestion = consensus_fix(v, cons, box, s)
+        doubts.append(Doubt(
+            "ball_off_consensus", vid, "off_consensus" if e is not None else "behind_camera",
+            {"error_px_1920": None if e is None else _r(e), "tau_px": _r(max(tau, sigma.get(vid, 0.0))),
+             "calibration_sigma_px_1920": _r(sigma.get(vid, 0.0)), "agreeing_views": list(cons.inliers),
+             "ball3d": [_r(x, 3) for x in point],
+             "projected_px": None if uv is None else [_r(uv[0]), _r(uv[1])]},
+            suggestion))
     return doubts
 
 

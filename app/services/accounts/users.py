@@ -39,7 +39,6 @@ from app.core.names import check_name, name_key
 from app.db.models import ApiToken, ServerSecret, User, UserRole
 from app.db.types import utcnow
 from app.services.audit import log as audit
-from app.services.curation.queue import ASSIGNEE_ME, ASSIGNEE_NONE
 
 #: argon2id with pwdlib's recommended parameters.
 PASSWORDS = PasswordHash.recommended()
@@ -56,6 +55,12 @@ DEMO_PASSWORD = "demo"
 #: logins queues instead of exhausting the server's memory.
 _HASHING = threading.BoundedSemaphore(2)
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@-]{0,99}$")
+#: The assignee filter's two words: the caller (``assignee=me``, which the API resolves to the caller's name) and
+#: nobody (``assignee=none``: the unassigned systems). No user may be called either, nor a name that differs from one
+#: only by case or trailing dots (:data:`RESERVED_NAMES`); the queue's filter reads them here
+#: (``app.services.curation.queue``).
+ASSIGNEE_ME, ASSIGNEE_NONE = "me", "none"
+
 #: Names no user may have, nor one that differs from them only by case or trailing dots (:func:`name_key`): the
 #: assignee filter's words for the caller and for nobody (``GET /api/systems?assignee=me|none``), which a user so
 #: called could never be told apart from.

@@ -9,7 +9,7 @@ self-describing JSON: ``{"ball": {"box", "point"}}``,
 (a system's assignee, ``app.services.curation.assignment``), or ``{"system": {"review", "views"}}`` (what an import's
 merge changed of a stored system, action ``system.import``: ``app.services.curation.states.system_import_state``).
 An import or a full recompute is one entry of its own (:func:`record_summary`: its counts in
-``after``, no ``before``); they cannot be reverted (``app.services.audit.reverting``), nor can an
+``after``, no ``before``); they cannot be reverted (``app.services.curation.reverting``), nor can an
 administrator's change of a user or a token (:data:`ADMIN_ACTIONS`, listed to admins only). Entries name their
 frame, system and game by id without foreign keys, so history outlives the rows it talks about.
 

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from app.datasets.records import CalibrationFields
+from app.db import scope
 from app.db.models import Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole
 from app.db.types import json_safe, utcnow
 from app.geometry.annotations import FieldLines, lines_from_json_lists, mirror_lines
@@ -28,10 +29,9 @@ from app.geometry.calibration.solver import PriorRows
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.mirror import mirrored_fit_at_rig
-from app.services.curation.doubt_words import with_sentence
-from app.services.curation.words import refusal_sentence
-from app.services.derivation import scope
 from app.services.kinds import kind_of
+from app.services.wording.doubt_words import with_sentence
+from app.services.wording.words import refusal_sentence
 
 
 def expected_side(role: FrameRole) -> int | None:
@@ -171,7 +171,7 @@ def calibration_job(frame: Frame, rig: CameraRig | CameraPrior | None = None,
 def apply_calibration(frame: Frame, fields: CalibrationFields, source: CalibrationSource) -> Calibration:
     """Write ``fields`` into the frame's calibration row (created if missing), and, for a kind whose games have a
     camera rig, bump its game's version: the calibration may feed the rig, which edits of the game's other systems
-    read (``app.services.derivation.scope``).
+    read (``app.db.scope``).
 
     ``admitted`` is reset to False: it is decided by :func:`recompute_system`.
     """

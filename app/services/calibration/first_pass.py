@@ -14,6 +14,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.progress import Progress
 from app.datasets.records import CalibrationFields, FrameRecord, GameRecord
 from app.db.models import Frame, FrameRole, Game
 from app.geometry.annotations import lines_from_json_lists
@@ -22,7 +23,6 @@ from app.services.calibration.calibrating import CalibrationJob, calibrate_lines
 from app.services.calibration.pool import CalibrationPool, calibrate_many
 from app.services.calibration.priors import dataset_prior, stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, uses_rig, wants_rig_retry, with_rig_retry
-from app.services.jobs.progress import Progress
 from app.services.kinds import policy
 
 

@@ -33,7 +33,7 @@ from app.geometry.jac import JAC_GAMMAS
 from app.geometry.pitch import MIN_LINE_CLASSES
 from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration
-from app.services.curation.words import player_camera_sentence
+from app.services.wording.words import player_camera_sentence
 
 #: ``(class, ID or None, (x1, y1, x2, y2) px)``: a player box as the records and the rows give it.
 PlayerRow = tuple[str, "str | None", tuple[float, float, float, float]]
@@ -106,7 +106,7 @@ def players_json(fit: PlayerFit, rig: CameraRig) -> dict[str, Any]:
     """What ``Calibration.players`` keeps of an accepted fit: ``feet`` (``class``, ``id``, ``px`` [x, y], ``grass_m``
     [x, y]) of every player used, ``rig`` (``index``, ``centre_m``, ``frames``) or None for a full pose, ``rms_px``,
     ``sigma_px`` (px@1920), ``players`` (their count), ``note`` (its words,
-    ``app.services.curation.words.player_camera_sentence``)."""
+    ``app.services.wording.words.player_camera_sentence``)."""
     rig_part = None
     if fit.rig_index is not None:
         p = rig.positions[fit.rig_index]

@@ -11,10 +11,10 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Iterable, Iterator, Sequence, TypeVar
 
+from app.core.progress import Progress
 from app.datasets.records import CalibrationFields
 from app.geometry.calibration.rig import CameraRig
 from app.services.calibration.calibrating import CalibrationJob, calibrate_lines
-from app.services.jobs.progress import Progress
 
 _J = TypeVar("_J")
 

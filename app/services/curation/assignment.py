@@ -8,7 +8,7 @@ of ``GET /api/systems``, across all its pages), to a user, or clears their assig
 Every system whose assignee changes gets its own audit entry (action ``system.assign``, ``before`` /
 ``after`` ``{"assignee": name or None}``), in the write's transaction, so a system's history says who gave it
 to whom; systems already assigned to that person are left as they are and not audited. An entry is reverted
-like any other (``app.services.audit.reverting``): the system goes back to its previous assignee.
+like any other (``app.services.curation.reverting``): the system goes back to its previous assignee.
 
 Assignment is a hint for people, not a permission: anyone with the role may still edit any system.
 """
@@ -130,7 +130,7 @@ def assign(session: Session, *, assignee: Optional[str], system_ids: Optional[li
             these queue filters match (all pages).
         actor: the audit entries' actor (None: ``audit.local_actor()``; ``assigned_by`` then reads ``cli``).
         now: the time recorded as ``assigned_at`` (UTC; default now).
-        expect, reverts_id: a revert's guard (``app.services.audit.reverting``): the assignee ids the
+        expect, reverts_id: a revert's guard (``app.services.curation.reverting``): the assignee ids the
             systems must still have (else :class:`ConflictError`, nothing changed), and the entry reverted
             (the entries are then recorded as ``revert``).
 

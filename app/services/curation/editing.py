@@ -13,7 +13,7 @@ recomputation leaves the edit unstored too. Invalid input raises
 * a view's exclusion from the triangulation (:func:`set_view_excluded`, the fix of a doubt that
   names a view that adds nothing or disagrees) -> the system-level recomputation.
 
-Every system-level recomputation also replaces the system's doubts (``app.services.curation.doubts``).
+Every system-level recomputation also replaces the system's doubts (``app.services.derivation.doubts``).
 
 Each goes through the guarded, audited write of ``app.services.curation.writing`` (read, compute holding no
 connection, compare the versions and write under the lock), carrying an
@@ -50,7 +50,6 @@ from app.db.models import (
 from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
 from app.services.calibration.calibrating import apply_calibration
-from app.services.curation.doubts import distance_to_others, doubt_settings, doubt_views
 from app.services.curation.resets import (
     calibration_words,
     jac_words,
@@ -76,6 +75,7 @@ from app.services.curation.writing import (
     guarded_frame_write,
     guarded_write,
 )
+from app.services.derivation.doubts import distance_to_others, doubt_settings, doubt_views
 from app.services.derivation.recompute import (
     recompute_frame,
     recompute_system,

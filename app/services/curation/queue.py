@@ -20,7 +20,7 @@ is ``-severity``: the work still to do, worst first, as a review tool's queue pu
 system on top would be reopened and decided again). ``name``
 orders by game, then system name with numeric names in numeric order (2.png before 10.png). The ``doubt``
 filter keeps systems with a doubt of one kind (or any label-accusing one); doubts and their counts are
-stored by the recomputation (``app.services.curation.doubts``), never computed here.
+stored by the recomputation (``app.services.derivation.doubts``), never computed here.
 
 Pages: by ``offset`` (links and scripts that jump to page N) or by cursor (``after`` / ``before``: the
 sort key values of a page's last / first row, :func:`encode_cursor`). Either way the page is read as
@@ -57,11 +57,7 @@ from app.db.models import (
     User,
 )
 from app.db.types import DB_INT_MAX, DB_INT_MIN
-
-#: The assignee filter's two words: the caller (``assignee=me``, which the API resolves to the caller's name) and
-#: nobody (``assignee=none``: the unassigned systems). No user may be called either, nor a name that differs from one
-#: only by case or trailing dots (``app.services.accounts.users.RESERVED_NAMES``).
-ASSIGNEE_ME, ASSIGNEE_NONE = "me", "none"
+from app.services.accounts.users import ASSIGNEE_NONE
 
 SystemSort = Literal["severity", "-severity", "doubts", "-doubts", "worst_error",
                       "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]

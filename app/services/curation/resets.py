@@ -4,7 +4,7 @@ One rule for decisions after edits: an edit that changes a system's labels or 3D
 system's decision and the touched view's decision (its ball decision; its calibration decision for field lines)
 back to pending with the reason, in the edit's transaction (:func:`reset_decisions_after_edit`); an edit that
 changes nothing resets nothing. ``undo`` (:func:`check_undo_state`) marks a write as the undo of an audit entry
-(``app.services.audit.reverting.undo_entry``): audited under the edit's own action with ``reverts_id``, refused
+(``app.services.curation.reverting.undo_entry``): audited under the edit's own action with ``reverts_id``, refused
 (409) when the edited part is not the entry's ``after`` under the lock; an undo resets decisions as any edit.
 
 And back: the undo (or revert) of an edit gives back the decisions that edit reset (:func:`restore_decisions`) when,

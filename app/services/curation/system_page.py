@@ -20,6 +20,7 @@ from sqlalchemy.orm import Session, joinedload
 
 from app.core.errors import found
 from app.db.models import Frame, System
+from app.db.scope import FRAME_ROWS
 from app.db.session import reads_on_their_own
 from app.geometry.camera import Camera
 from app.geometry.projection import project_pitch_polylines
@@ -27,7 +28,6 @@ from app.services.curation.assignment import Assignment, assignment_of
 from app.services.curation.presence import Presence, open_on
 from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_neighbours
 from app.services.derivation.loading import load_systems
-from app.services.derivation.scope import FRAME_ROWS
 
 #: Pitch sampling for drawing (metres between samples on lines and on circles): about 1,500 points
 #: per view, smooth at 1920 px, a tenth of the JaC sampling.

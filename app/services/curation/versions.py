@@ -4,7 +4,7 @@ Two resources are edited: a frame (its ball label, field lines, review and exclu
 bumped by the writes of that frame only, so a frame's ETag does not change when a sibling view's edit recomputes
 it and two annotators on different views of one system do not refuse each other) and a system
 (``System.version``, bumped by every write of the rows its edits read: its labels, lines, exclusions,
-calibrations, decisions and derived rows; ``app.services.derivation.scope``), so a decision sent with the ETag
+calibrations, decisions and derived rows; ``app.db.scope``), so a decision sent with the ETag
 of a page is refused once anything that page showed has changed. Their ETags are strong and opaque to clients:
 ``"frame-<id>-<version>"`` and ``"system-<id>-<version>"`` (quotes included, as HTTP writes them).
 

@@ -4,11 +4,11 @@ Every write is attributed and guarded, in one transaction: it checks the version
 ``If-Match`` of the frame or of the system, ``app.services.curation.versions``; 412 when stale), applies the change,
 recomputes what it implies, and records one audit entry (``app.services.audit.log``, by ``actor``, None meaning
 :func:`~app.services.audit.log.local_actor`) with the edited part's state before and after. ``revert`` marks the
-write as the revert of an audit entry (``app.services.audit.reverting``): it is recorded as action ``revert``, and
+write as the revert of an audit entry (``app.services.curation.reverting``): it is recorded as action ``revert``, and
 refused with :class:`~app.core.errors.ConflictError` when the state it read is not ``revert.expect``.
 
 Concurrency: optimistic, with a version column (:func:`guarded_write`). What an edit of a system reads is declared in
-``app.services.derivation.scope``; ``System.version`` covers the system's rows and ``Game.version`` its game's rig and
+``app.db.scope``; ``System.version`` covers the system's rows and ``Game.version`` its game's rig and
 camera prior, each bumped in the transaction of every write of what it covers.
 
 1. **Read.** The edit loads its system (``recompute.load_for_recompute``: the system with its version, its views,
@@ -55,13 +55,13 @@ from sqlalchemy.orm.exc import StaleDataError
 from app.core.config import Settings
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.core.metrics import count_edit
+from app.db import scope
 from app.db.models import Frame, Game, System
 from app.db.session import begin_write, end_reads, reads_on_their_own
 from app.services.audit import log as audit
 from app.services.curation.states import same_json
 from app.services.curation.system_page import load_frame
 from app.services.curation.versions import check_expected
-from app.services.derivation import scope
 from app.services.derivation.recompute import load_for_recompute, system_rig_rows
 from app.services.kinds import kind_of, policy
 

@@ -1,7 +1,7 @@
 """Systems loaded with their views and derived rows in five queries, whatever the number of systems and views.
 
 What a recomputation (``recompute.load_for_recompute``) and the system page (``app.services.curation.system_page``)
-read of a system, as ``app.services.derivation.scope`` declares it: the system with its one-to-one rows joined to it,
+read of a system, as ``app.db.scope`` declares it: the system with its one-to-one rows joined to it,
 its views (``System.frames``, in their order) with each view's one-to-one rows joined to it, its pairs
 (``Triangulation.pairs``), doubts (``System.doubts``) and its views' detector predictions (``Frame.predictions``, at
 most ``V3D_MAX_PREDICTIONS_PER_FRAME`` a view, the best by score: ``app.db.models.predictions.ranked_predictions``,
@@ -25,7 +25,7 @@ from sqlalchemy.orm.attributes import set_committed_value
 
 from app.db.models import Doubt, Frame, Prediction, System, Triangulation, TriangulationPair
 from app.db.models.predictions import ranked_predictions
-from app.services.derivation.scope import FRAME_ROWS
+from app.db.scope import FRAME_ROWS
 
 #: Systems loaded per round of five queries (bounded IN lists and memory).
 CHUNK = 500

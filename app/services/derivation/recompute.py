@@ -16,7 +16,7 @@ Derived rows:
   against the frame's label, None without one);
 * ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a
   label when the system has a 3D ball and the ball lies in front of the camera along the labelled ray;
-* ``Doubt`` rows and the system's doubt counts (``app.services.curation.doubts.update_doubts``, last).
+* ``Doubt`` rows and the system's doubt counts (``app.services.derivation.doubts.update_doubts``, last).
 
 A view a reviewer excluded (``ReviewDecision.excluded``) keeps its calibration and labels but takes no
 part in the triangulation.
@@ -38,7 +38,9 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.core.metrics import count_recomputation
+from app.core.progress import Progress
 from app.datasets.records import CalibrationFields
+from app.db import scope
 from app.db.models import (
     BallReprojection,
     CalibrationSource,
@@ -66,21 +68,19 @@ from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
-from app.services.curation.doubt_words import with_sentence
-from app.services.curation.doubts import (
+from app.services.derivation import cameras as shared
+from app.services.derivation.cameras import mirrored_camera, stored_camera
+from app.services.derivation.doubts import (
     calibration_weights,
     is_excluded,
     update_doubts,
     update_label_distances,
     weighed_views,
 )
-from app.services.derivation import cameras as shared
-from app.services.derivation import scope
-from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.loading import load_systems
 from app.services.derivation.rows import put_values, replace_rows
-from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
+from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).

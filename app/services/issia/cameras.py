@@ -25,7 +25,7 @@ from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.static_bundle import bundle_adjust
 from app.geometry.static_cameras import calibrate_with_ball
 from app.geometry.trajectory import DEFAULT_FLAG_PX, fit_trajectory
-from app.services.curation.words import refusal_sentence
+from app.services.wording.words import refusal_sentence
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ class CameraChoice:
     jac: float | None = None
     reason: str | None = None
     #: The refusal's code (``WORDS["refusal"]``: the calibration's or one of :data:`STATIC_CAMERA_REFUSALS`;
-    #: ``reason`` is its sentence, ``app.services.curation.words.refusal_sentence``).
+    #: ``reason`` is its sentence, ``app.services.wording.words.refusal_sentence``).
     refusal: str | None = None
 
     @property
@@ -55,7 +55,7 @@ class CameraChoice:
 
 #: Why a static camera is not used besides the calibration's own refusals (:data:`~app.geometry.calibration.result.
 #: REFUSAL_CODES`): no field lines to calibrate from, JaC@0.5 % not above the admission threshold, or absent from
-#: ``issia_calibration.json``; their words and sentences are in ``app.services.curation.words``.
+#: ``issia_calibration.json``; their words and sentences are in ``app.services.wording.words``.
 STATIC_CAMERA_REFUSALS = ("no_lines", "below_admission", "not_in_calibration_json")
 
 

@@ -69,7 +69,6 @@ from app.geometry.trajectory import (
     refit_window,
 )
 from app.services.calibration.admission import is_admitted
-from app.services.curation.doubt_words import doubt_message
 from app.services.derivation.recompute import load_for_recompute
 from app.services.issia.trajectory import (
     FPS,
@@ -82,6 +81,7 @@ from app.services.issia.trajectory import (
     piece_from_json,
     row_values,
 )
+from app.services.wording.doubt_words import doubt_message
 
 _POINT_COLUMNS = ("ball3d", "ball3d_smoothed", "source", "piece", "cam_list", "residuals_px", "flagged")
 

@@ -35,6 +35,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
+from app.core.progress import Progress
 from app.datasets.issia import CAMERA_SET, FPS, IssiaSequence, read_issia
 from app.datasets.records import CalibrationFields
 from app.db.models import (
@@ -60,12 +61,11 @@ from app.geometry.trajectory import fit_trajectory
 from app.services.audit.log import record_summary
 from app.services.calibration.admission import GIVEN_CAMERA_FLAG, admission_args
 from app.services.calibration.calibrating import apply_calibration, fit_uncertainty
-from app.services.curation.doubts import update_doubts
+from app.services.derivation.doubts import update_doubts
 from app.services.derivation.recompute import load_for_recompute, recompute_system, recompute_systems
 from app.services.issia.cameras import CameraChoice, bundle_refined_cameras, sequence_cameras
 from app.services.issia.refit import refit_sequence, sequence_columns
 from app.services.issia.trajectory import fit_args, fit_sequence, load_sequence, sequence_arrays
-from app.services.jobs.progress import Progress
 from app.services.kinds.issia import BALL_BUNDLE_FLAG
 from app.services.transfer.importing import ImportReport, audit_counts
 from app.services.transfer.merging import Merge, SystemChange

@@ -13,7 +13,7 @@ and whose views are static cameras (``Frame.name`` "cam<k>"). This module
   labels the trajectory flags are left out, then the labels that agree on one ball are chosen, as
   :func:`app.geometry.trajectory.triangulate_frame`), used by ``app.services.derivation.recompute``;
 * turns flagged labels into ``ball_off_consensus`` doubts naming the camera, with the residual, the
-  fitted position and the fix (:func:`trajectory_doubts`, used by ``app.services.curation.doubts``).
+  fitted position and the fix (:func:`trajectory_doubts`, used by ``app.services.derivation.doubts``).
 
 World: SoccerNet metres, z down. Residuals: px at 1920 width. Writes go to the session only; the
 caller commits (the importer, or the edit's transaction).
@@ -38,7 +38,7 @@ from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triangulate_frame
 from app.geometry.triangulation import BallObservation
 from app.services.calibration.admission import is_admitted
-from app.services.curation.doubts import is_excluded
+from app.services.derivation.doubts import is_excluded
 
 
 @dataclass

@@ -1,5 +1,5 @@
-"""The progress callback of long work (imports, recomputes, exports): ``progress(stage, done, total)``; and a running
-job's live progress, kept in a small file beside the jobs' files so that any process serving the API reads it at once.
+"""A running job's live progress, kept in a small file beside the jobs' files so that any process serving the API
+reads it at once (the callback the job listens to, ``app.core.progress.Progress``, is below the services).
 
 A job's row holds its progress as its heartbeat last stored it. On SQLite the heartbeat may write only between the
 job's transactions (``app.services.jobs.runner``), and an import calibrates and triangulates a batch of games inside
@@ -13,10 +13,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Callable, Optional
-
-#: ``progress(stage, done, total)``: called as work advances (the CLI draws a tqdm bar from it, a job stores it).
-Progress = Callable[[str, int, int], None]
+from typing import Optional
 
 #: Least seconds between two writes of the same stage's count.
 LIVE_EVERY_S = 0.25

@@ -44,9 +44,10 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.config import Settings, jobs_dir, node_name
 from app.core.errors import InvalidInputError, ServiceError, found
+from app.core.progress import Progress
 from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
-from app.services.jobs.progress import LIVE_EVERY_S, Progress, remove_live, write_live
+from app.services.jobs.progress import LIVE_EVERY_S, remove_live, write_live
 from app.services.jobs.work import WORK
 
 log = logging.getLogger(__name__)

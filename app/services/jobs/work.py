@@ -1,7 +1,7 @@
 """What each kind of background job does (``app.services.jobs.runner`` runs them): ``import`` (a dataset
 through ``app.services.transfer.importing`` or ``app.services.issia.sequences``), ``recompute`` (every system,
 ``recompute.recompute_all_systems``) and ``export`` (any export as a zip file,
-``app.services.transfer.export_files``: SoccerNet-v3D streamed while the database is read, the others written
+``app.services.exports.files``: SoccerNet-v3D streamed while the database is read, the others written
 as a tree and zipped).
 
 Each is ``work(session, params, settings, progress, job_id) -> result`` (a JSON-able dict) and may be run
@@ -21,16 +21,16 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings, jobs_dir
 from app.core.errors import InvalidInputError
 from app.core.names import clean_title
+from app.core.progress import Progress
 from app.db.models import Job
 from app.services.derivation.recompute import recompute_all_systems
-from app.services.jobs.progress import Progress
+from app.services.exports.files import EXPORTS, prune_exports, prune_stored_exports, write_export_zip
+from app.services.exports.formats import RELEASE_EXPORTS, export_format
 from app.services.jobs.summary import summary
 from app.services.storage import storage_for
 from app.services.storage.datasets import DatasetFiles, rekey_frames
 from app.services.storage.stores import checked_key
 from app.services.transfer import data_root
-from app.services.transfer.export_files import EXPORTS, prune_exports, prune_stored_exports, write_export_zip
-from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format
 from app.services.transfer.import_formats import import_format, stored_games_refusal
 
 
@@ -229,7 +229,7 @@ def export_key(name: str) -> str:
 
 def export_params(fmt: str, include_all: bool = False, images: bool = True,
                   release: str | None = None) -> dict[str, Any]:
-    """The ``params`` of an export job: ``format`` (a name of ``app.services.transfer.export_formats``), ``all``,
+    """The ``params`` of an export job: ``format`` (a name of ``app.services.exports.formats``), ``all``,
     the options the format takes (SoccerNet-v3D's ``images``) and ``release`` (the release it exports instead of the
     database now), when given.
 
@@ -259,9 +259,9 @@ def run_export(session: Session, params: dict[str, Any], settings: Settings, pro
                job_id: int) -> dict[str, Any]:
     """Write the export ``params["format"]`` (default ``soccernet-v3d``; ``params["all"]``: every system, else
     the accepted ones; ``params["images"]``, SoccerNet-v3D only, default true: each game's ``Frames-v3.zip``)
-    as a zip to the job's file ``job-<id>-<format>.zip`` (``export_files.write_export_zip``), kept in the store as
+    as a zip to the job's file ``job-<id>-<format>.zip`` (``files.write_export_zip``), kept in the store as
     ``exports/<file>`` (any node serves it), after removing export files older than ``Settings.export_keep_hours``
-    (``export_files.prune_exports``, ``export_files.prune_stored_exports``); progress per game
+    (``files.prune_exports``, ``files.prune_stored_exports``); progress per game
     (SoccerNet-v3D) or per file zipped. Its download is named as the choice its options make
     (``ExportFormat.download_name``)."""
     fmt = str(params.get("format", "soccernet-v3d"))

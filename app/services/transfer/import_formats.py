@@ -19,12 +19,12 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.progress import Progress
 from app.datasets.files import dataset_root
 from app.datasets.sn_calibration import read_sn_calibration, sn_calibration_game
 from app.datasets.soccernet_v3 import find_labels, game_key, read_soccernet_v3_game, soccernet_v3_labels
 from app.datasets.soccernet_v3d import V3D_LABELS, read_soccernet_v3d
 from app.db.models import Game
-from app.services.jobs.progress import Progress
 from app.services.transfer.archives import MAX_UPLOAD_SETTING
 from app.services.transfer.importing import (
     ImportReport,

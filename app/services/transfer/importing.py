@@ -39,32 +39,24 @@ import dataclasses
 import time
 from collections import Counter
 from dataclasses import dataclass, field
-from datetime import datetime
 from functools import partial
 from pathlib import Path
 from typing import Callable, Iterator
 
-from sqlalchemy import select
-from sqlalchemy.orm import Session, selectinload, undefer
+from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.core.errors import EntryError
+from app.core.progress import Progress
 from app.datasets.files import dataset_root
-from app.datasets.records import CalibrationFields, FrameRecord, GameRecord
+from app.datasets.records import CalibrationFields, GameRecord
 from app.datasets.sn_calibration import read_sn_calibration
 from app.datasets.soccernet_v3 import read_soccernet_v3, read_soccernet_v3_game, soccernet_v3_labels
 from app.datasets.soccernet_v3d import read_soccernet_v3d
+from app.db import scope
 from app.db.models import (
-    BallKind,
-    BallLabel,
     CalibrationSource,
     CalibrationStatus,
-    FieldLineAnnotation,
-    Frame,
-    Game,
-    ReviewDecision,
-    ReviewStatus,
-    System,
 )
 from app.db.session import refresh_statistics
 from app.db.types import utcnow
@@ -78,19 +70,16 @@ from app.services.calibration.first_pass import (
     retry_with_game_rigs,
     start_first_pass,
 )
-from app.services.calibration.players import PlayerRow, frame_players, place_cameras_by_players, store_players
+from app.services.calibration.players import place_cameras_by_players, store_players
 from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
-from app.services.curation.words import WORDS
-from app.services.derivation import scope
 from app.services.derivation.recompute import (
     calibrate_frame_lines,
-    load_for_recompute,
     preload_systems,
     recompute_systems,
 )
-from app.services.jobs.progress import Progress
-from app.services.transfer.merging import Merge, SystemChange
+from app.services.transfer.storing import MergedBatch, merge_batch
+from app.services.wording.words import WORDS
 
 __all__ = [
     "ImportReport", "audit_counts", "import_soccernet_v3", "import_sn_calibration", "import_soccernet_v3d",
@@ -172,81 +161,6 @@ class ImportReport:
 
 
 # ----- writing ------------------------------------------------------------------------------------
-def _upsert_game(session: Session, rec: GameRecord) -> Game:
-    game = session.scalars(
-        select(Game).where(Game.league == rec.league, Game.season == rec.season, Game.match == rec.match)
-        .options(undefer(Game.release), selectinload(Game.systems).selectinload(System.frames).undefer(Frame.release))
-    ).one_or_none()
-    if game is None:
-        game = Game(league=rec.league, season=rec.season, match=rec.match, source_path=rec.source_path,
-                    release=rec.release)
-        session.add(game)
-    game.source_path = rec.source_path
-    if game.release != rec.release:
-        game.release = rec.release
-    if rec.as_of is not None and (game.as_of is None or rec.as_of > game.as_of):
-        game.as_of = rec.as_of  # what the file held, as of when: its exports say it again
-    return game
-
-
-def _set_lines(frame: Frame, rec: FrameRecord, now: datetime, merge: Merge, change: SystemChange | None) -> bool:
-    """Store the imported lines: the originals as the file gives them, the current ones where the merge takes the
-    file's (:meth:`Merge.takes`); returns True when the current lines are new or changed (the frame needs
-    recalibration)."""
-    original = rec.original_lines if rec.original_lines is not None else rec.lines
-    fl = frame.field_lines
-    if fl is None:
-        frame.field_lines = FieldLineAnnotation(lines=rec.lines, original_lines=original,
-                                                edited_at=now if rec.lines != original else None)
-        return True
-    differs = fl.lines != rec.lines
-    taken = merge.takes(fl.edited, fl.edited_at)
-    merge.part(change, frame, taken=taken, differs=differs, lines=True)
-    fl.original_lines = original  # the dataset's say, whatever the merge keeps
-    if taken and differs:
-        fl.lines = rec.lines
-        fl.edited_at = now if rec.lines != original else None
-        return True
-    return False
-
-
-def _set_ball(frame: Frame, rec: FrameRecord, now: datetime, merge: Merge, change: SystemChange | None) -> bool:
-    """Store the imported ball label; returns True when the stored label changed.
-
-    Without ``rec.original_ball`` (SoccerNet-v3) the record is the original and the file's current label; with it
-    (a v3D export) both are as given. The current label becomes the file's where the merge takes it
-    (:meth:`Merge.takes`: a label nobody changed always follows the file).
-    """
-    kind = BallKind.BOX if rec.ball_box is not None else BallKind.POINT if rec.ball_point is not None else None
-    current = (kind, rec.ball_box, rec.ball_point)
-    original = rec.original_ball if rec.original_ball is not None else current
-    label = frame.ball_label
-    if label is None:
-        if current[0] is None and original[0] is None:
-            return False
-        stored_current: tuple = (None, None, None)
-        stored_original: tuple = (None, None, None)
-        differs = current != stored_current
-        taken = merge.takes(False, None)
-        label = BallLabel()
-        frame.ball_label = label
-    else:
-        stored_current = (label.kind, label.box, label.point)
-        stored_original = (label.original_kind, label.original_box, label.original_point)
-        differs = stored_current != current or label.suggested
-        if stored_original == original and not differs:
-            return False
-        taken = merge.takes(label.edited, label.edited_at)
-    merge.part(change, frame, taken=taken, differs=differs, lines=False)
-    label.original_kind, label.original_box, label.original_point = original
-    if taken and differs:
-        label.kind, label.box, label.point, label.provenance = (*current, None)
-        label.edited_at = now if current != original else None
-    if label.kind is None and label.original_kind is None:
-        frame.ball_label = None
-    return stored_original != original or (taken and differs)
-
-
 def _store(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
            progress: Progress | None, pool: CalibrationPool | None = None, ahead: FirstPassAhead | None = None,
            after_calibration: Callable[[], None] | None = None, *, mode: str = "keep-newer",
@@ -262,89 +176,25 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     ``after_calibration`` is called once every calibration of the batch is done (the caller starts the next batch's
     first pass then)."""
     now = utcnow()
-    merges: list[Merge] = []
-    to_calibrate: list[Frame] = []
-    to_calibrate_recs: list[FrameRecord] = []
-    imported: list[tuple[Frame, CalibrationFields]] = []
-    touched: list[System] = []
-    # each frame's player boxes, stored or new: written in one statement once the frames have ids
-    new_players: list[tuple[Frame, tuple[PlayerRow, ...], bool]] = []
-    n_systems = sum(len(g.systems) for g in records)
-    done = 0
-    with session.no_autoflush:  # nothing is written before calibration: the write lock is taken late
-        for grec in records:
-            game = _upsert_game(session, grec)
-            merge = Merge(mode, grec.as_of, report.source_name or Path(report.source).name, actor)
-            merges.append(merge)
-            systems = {s.name: s for s in game.systems}
-            if game.id is not None:  # what the merge compares, loaded at once (not one lazy load per frame)
-                load_for_recompute(session, [s.id for s in systems.values()],
-                                   predictions=settings.max_predictions_per_frame)
-            for srec in grec.systems:
-                system = systems.get(srec.name)
-                new = system is None
-                if system is None:
-                    # Relationships a recomputation reads are set now, so none is lazily loaded after the flush.
-                    system = System(name=srec.name, kind=srec.kind, triangulation=None, doubts=[])
-                    game.systems.append(system)
-                    system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
-                change = None if new else merge.track(system)
-                system.kind = srec.kind
-                changed = False
-                frames = {f.name: f for f in system.frames}
-                for pos, frec in enumerate(srec.frames):
-                    frame = frames.get(frec.name)
-                    if frame is None:
-                        frame = Frame(name=frec.name, role=frec.role, position=pos, width=frec.width,
-                                      height=frec.height, calibration=None, ball_label=None, reprojection=None,
-                                      optimised_box=None, release=frec.release,
-                                      predictions=[])  # a new view holds none: no lazy load (it would raise)
-                        system.frames.append(frame)
-                        frame.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
-                        changed = True
-                    elif (frame.width, frame.height) != (frec.width, frec.height):
-                        changed = True
-                    frame.role, frame.position, frame.width, frame.height = frec.role, pos, frec.width, frec.height
-                    frame.image_root, frame.image_type = frec.image_root, frec.image_type
-                    frame.image_zip, frame.image_member = frec.image_zip, frec.image_member
-                    frame.image_path = frec.image_path
-                    if frame.release != frec.release:  # what the release carries: kept as it came
-                        frame.release = frec.release
-                    if frame.id is None or frame_players(frame) != list(frec.players):
-                        new_players.append((frame, frec.players, frame.id is not None))
-                    lines_changed = _set_lines(frame, frec, now, merge, change)
-                    kept_lines = frame.field_lines is not None and frame.field_lines.lines != frec.lines
-                    ball_changed = _set_ball(frame, frec, now, merge, change)
-                    if (lines_changed or ball_changed) and frame.id is not None:
-                        frame.edit_version += 1  # what people edit changed under them: their ETag goes stale
-                    if frec.calibration is not None and not kept_lines:  # a kept line edit keeps its camera
-                        cal = frame.calibration
-                        fields = frec.calibration.fields
-                        if (cal is None or cal.camera != fields.camera
-                                or (cal.jac_0005, cal.jac_001, cal.jac_002) != fields.jac):
-                            merge.part(change, frame, taken=True, differs=True, lines=True)
-                            imported.append((frame, fields))
-                            changed = True
-                    elif lines_changed or frame.calibration is None:
-                        to_calibrate.append(frame)
-                        to_calibrate_recs.append(frec)
-                        changed = True
-                    changed = changed or ball_changed
-                decided = merge.decide(system, srec.review, change, now)
-                report.decisions_from_file += decided == "file"
-                report.decisions_reset += decided == "reset"
-                if new:
-                    report.systems_new += 1
-                elif changed:
-                    report.systems_changed += 1
-                if changed or system.triangulation is None:
-                    touched.append(system)
-                done += 1
-                if progress:
-                    progress("merge", done, n_systems)
+    merged = merge_batch(session, records, settings, progress, now, mode=mode,
+                         source=report.source_name or Path(report.source).name, actor=actor)
+    report.decisions_from_file += merged.decisions_from_file
+    report.decisions_reset += merged.decisions_reset
+    report.systems_new += merged.systems_new
+    report.systems_changed += merged.systems_changed
+    results = _calibrate_batch(session, merged, settings, report, progress, pool, ahead, after_calibration)
+    _write_batch(session, merged, results, settings, report, progress)
 
+
+def _calibrate_batch(session: Session, merged: MergedBatch, settings: Settings, report: ImportReport,
+                     progress: Progress | None, pool: CalibrationPool | None, ahead: FirstPassAhead | None,
+                     after_calibration: Callable[[], None] | None) -> list[CalibrationFields]:
+    """Calibrate the batch's frames to calibrate, before anything is written: the first pass, then the refused ones of
+    games with a rig with their game's rig, then with the dataset's learned prior (kept on the games); one result per
+    frame, timed into ``report``."""
+    to_calibrate = merged.to_calibrate
     t0 = time.perf_counter()
-    batch = first_pass(to_calibrate, to_calibrate_recs, settings, progress, pool, ahead)
+    batch = first_pass(to_calibrate, merged.to_calibrate_recs, settings, progress, pool, ahead)
     first_ms, rig_ms = batch.first_ms, dict(batch.rig_ms)
     with session.no_autoflush:
         results, retried_ms = retry_with_game_rigs(session, to_calibrate, batch.results, settings, progress, pool,
@@ -363,6 +213,14 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     report.calibration_seconds = time.perf_counter() - t0
     report.rig_assisted += sum(RIG_FLAG in r.flags for r in results)
     report.prior_fitted += sum(PRIOR_FLAG in r.flags or RADIAL_PRIOR_FLAG in r.flags for r in results)
+    return results
+
+
+def _write_batch(session: Session, merged: MergedBatch, results: list[CalibrationFields], settings: Settings,
+                 report: ImportReport, progress: Progress | None) -> None:
+    """The batch's writes: the calibrations (computed, then imported), the player boxes and the cameras they place,
+    the counts of calibrated and refused views, the recomputation of the touched systems and the merges' audit."""
+    to_calibrate, imported, touched = merged.to_calibrate, merged.imported, merged.touched
     # The first write of the import. Systems new in this batch hold every row a recomputation reads
     # already (their relationships were set when they were created): only stored ones are loaded.
     preload_systems(session, [s for s in touched if s.id is not None], settings)
@@ -370,9 +228,9 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
         apply_calibration(frame, fields, CalibrationSource.COMPUTED)
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
-    store_players(session, new_players)
+    store_players(session, merged.new_players)
     report.player_assisted += place_cameras_by_players(
-        touched, settings, {id(f): rows for f, rows, _ in new_players},
+        touched, settings, {id(f): rows for f, rows, _ in merged.new_players},
         relined=lambda f: calibrate_frame_lines(session, f, settings, refine=False).fields)
     for frame, fields in [*zip(to_calibrate, results, strict=True), *imported]:
         placed = frame.calibration is not None and frame.calibration.status is CalibrationStatus.CALIBRATED
@@ -382,7 +240,7 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
             report.refused += 1
             report.refusal_reasons[fields.refusal or "unspecified"] += 1
     report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
-    report.systems_merged += sum(merge.record(session) for merge in merges)
+    report.systems_merged += sum(merge.record(session) for merge in merged.merges)
 
 
 #: One game of an import's input: reads (and validates) it when called, as often as needed.
@@ -449,25 +307,14 @@ def _dataset_name(file: str | Path, path: str | Path) -> str:
         return Path(file).name
 
 
-def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
-         games: Callable[[], list[GameReader]], actor: str | None = None,
-         source_name: str | None = None, merge: str = "keep-newer") -> ImportReport:
-    """Read and validate everything (nothing is stored when the input is bad), then store it in
-    batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
-    stored or not at all), each calibrated, recomputed and committed before the next is stored; the
-    calibration processes serve every batch. ``games`` lists the input's games as readers: the
-    validation reads each once and drops it, and each batch is read again when its calibration
-    starts, so memory holds two batches of records, not the whole input (an input file changed
-    meanwhile can still fail the import then, after whole games were stored; running it again
-    completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
-    total) instead of the inner stages of each batch. Each batch writes its audit entry (by ``actor``,
-    None: the local user) in its own transaction, with one entry per stored system it merged by ``merge``
-    (``app.services.transfer.merging``). Before all that, ``progress("read", games read, games)`` while the input is
-    read and validated."""
-    t0 = time.perf_counter()
+def _read_all(path: str | Path, settings: Settings, progress: Progress | None, games: Callable[[], list[GameReader]],
+              source_name: str | None, t0: float) -> tuple[ImportReport, list[GameReader], list[int]]:
+    """The validation of an import, before anything is written: every game read once (``progress("read", ...)``) and
+    dropped, a game with a refused entry left out and named; the report so far, a reader of each game kept (within
+    the view cap) and its number of frames."""
     report = ImportReport(source=str(path), source_name=source_name or Path(path).name)
     frames_per_game: list[int] = []
-    readers = []
+    readers: list[GameReader] = []
     listed = list(games())
     for n_read, read in enumerate(listed):  # validation: raises before anything is written
         if progress:  # "reading": the first stage a job shows, from its first second
@@ -487,6 +334,26 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     report.read_seconds = time.perf_counter() - t0
     report.games = len(readers)
     report.frames = sum(frames_per_game)
+    return report, readers, frames_per_game
+
+
+def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
+         games: Callable[[], list[GameReader]], actor: str | None = None,
+         source_name: str | None = None, merge: str = "keep-newer") -> ImportReport:
+    """Read and validate everything (nothing is stored when the input is bad), then store it in
+    batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
+    stored or not at all), each calibrated, recomputed and committed before the next is stored; the
+    calibration processes serve every batch. ``games`` lists the input's games as readers: the
+    validation reads each once and drops it, and each batch is read again when its calibration
+    starts, so memory holds two batches of records, not the whole input (an input file changed
+    meanwhile can still fail the import then, after whole games were stored; running it again
+    completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
+    total) instead of the inner stages of each batch. Each batch writes its audit entry (by ``actor``,
+    None: the local user) in its own transaction, with one entry per stored system it merged by ``merge``
+    (``app.services.transfer.merging``). Before all that, ``progress("read", games read, games)`` while the input is
+    read and validated."""
+    t0 = time.perf_counter()
+    report, readers, frames_per_game = _read_all(path, settings, progress, games, source_name, t0)
     batches = [[readers[i] for i in group] for group in _batches(frames_per_game, settings.import_batch_frames)]
     total_batches, batch_number = len(batches), 1
     calibration_ms: list[float] = []

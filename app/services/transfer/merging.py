@@ -29,10 +29,10 @@ from typing import Any, Optional
 
 from sqlalchemy.orm import Session
 
+from app.db import scope
 from app.db.models import Frame, ReviewDecision, ReviewStatus, System
 from app.services.audit import log as audit
 from app.services.curation.states import same_json, system_import_state
-from app.services.derivation import scope
 
 #: The merge modes an import takes (``merge``: the API's form field and JSON key, ``v3d import ... --merge``), with
 #: what each does to a stored game.

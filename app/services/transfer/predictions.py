@@ -7,7 +7,7 @@ row per detection, or a folder (an unpacked upload) holding exactly one such ``.
 the layout of v3d's detector exports (:func:`prediction_input`): YOLO txt files (``class cx cy w h conf``,
 normalised, one per image named by its exported stem, ``KindPolicy.view_stem``) or a COCO results JSON keyed by the
 COCO export's image ids (``detector_export.coco_image_id``), both read by the monocular benchmark's readers
-(``app.services.evaluation.monocular.load_predictions``).
+(``app.services.transfer.detector_files.load_predictions``).
 
 A frame keeps at most ``V3D_MAX_PREDICTIONS_PER_FRAME`` predictions, all sources together (what the doubts' check of
 detections considers per view; a detector run without non-maximum suppression writes thousands on one image): the
@@ -47,14 +47,15 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.errors import DatasetError, InvalidInputError
 from app.core.names import check_name
+from app.core.progress import Progress
 from app.datasets.csv_cells import read_cell
 from app.db.models import Frame, Game, Prediction, System
 from app.db.session import begin_write, end_reads
 from app.geometry.metrics import BestDetections
 from app.services.audit.log import record_summary
 from app.services.derivation.recompute import recompute_systems_by_id
-from app.services.jobs.progress import Progress
 from app.services.kinds import kind_of
+from app.services.transfer.detector_files import load_predictions
 
 #: The CSV's columns, in this order.
 PREDICTION_COLUMNS = ("league", "season", "match", "image", "x1", "y1", "x2", "y2", "score")
@@ -133,31 +134,62 @@ def check_source(name: str) -> str:
     return name
 
 
+@dataclass(frozen=True)
+class PredictionFormat:
+    """One format of a detector's predictions that an import reads (:data:`PREDICTION_FORMATS`).
+
+    Attributes:
+        name: the format's word (``csv``, ``coco``, ``yolo``), as :func:`prediction_input` answers it.
+        suffix: its files' extension, without the dot.
+        whole_folder: the input is a folder of such files, named by the folder (the default source) and read without
+            one file's size for the progress; else one file, named by its stem (a folder holds exactly one).
+        detector_output: a detector's own output in the layout of v3d's detector exports, matched by exported stems
+            and bounded per frame as it is read (:func:`_detector_rows`); else v3d's CSV, rows naming their images
+            (:func:`_csv_rows`).
+    """
+
+    name: str
+    suffix: str
+    whole_folder: bool
+    detector_output: bool
+
+
+#: The prediction formats, in the order a folder is tried: one ``.csv`` file (whatever else it holds); else one COCO
+#: results ``.json`` file; else, with neither, its YOLO ``.txt`` files. A single file is the format of its extension
+#: among the single-file ones, else a CSV.
+PREDICTION_FORMATS: dict[str, PredictionFormat] = {f.name: f for f in (
+    PredictionFormat("csv", "csv", whole_folder=False, detector_output=False),
+    PredictionFormat("coco", "json", whole_folder=False, detector_output=True),
+    PredictionFormat("yolo", "txt", whole_folder=True, detector_output=True),
+)}
+
+
 def prediction_input(path: str | Path) -> tuple[str, Path]:
     """What an input holds and where: ``("csv", the CSV)`` for a ``.csv`` file or a folder (an unpacked upload) holding
     exactly one; ``("coco", the JSON)`` for a ``.json`` file or a folder holding one and no CSV (COCO results keyed by
     the COCO export's image ids); ``("yolo", the folder)`` for a folder of ``.txt`` files (YOLO ``class cx cy w h
-    conf``, one file per image named by its exported stem, anywhere in the folder).
+    conf``, one file per image named by its exported stem, anywhere in the folder). The formats and their order are
+    :data:`PREDICTION_FORMATS`'.
 
     Raises:
         DatasetError: no such file, or a folder holding none of these (or several CSV or JSON files).
     """
     path = Path(path)
     if path.is_dir():
-        def files(ext: str) -> list[Path]:
-            return sorted(p for p in path.rglob(f"*.{ext}") if p.is_file() and not p.is_symlink())
-        csvs, jsons = files("csv"), files("json")
-        if len(csvs) == 1:
-            return "csv", csvs[0]
-        if not csvs and len(jsons) == 1:
-            return "coco", jsons[0]
-        if not csvs and not jsons and files("txt"):
-            return "yolo", path
+        found = {f.suffix: sorted(p for p in path.rglob(f"*.{f.suffix}") if p.is_file() and not p.is_symlink())
+                 for f in PREDICTION_FORMATS.values()}
+        earlier: list[str] = []  # a folder holding files of a format tried before is not of a later one
+        for fmt in PREDICTION_FORMATS.values():
+            files = found[fmt.suffix]
+            if not any(found[e] for e in earlier) and (len(files) >= 1 if fmt.whole_folder else len(files) == 1):
+                return fmt.name, path if fmt.whole_folder else files[0]
+            earlier.append(fmt.suffix)
         raise DatasetError(path, None, f"a predictions folder holds one .csv, one COCO results .json or YOLO .txt "
-                                       f"files; found {len(csvs)} .csv and {len(jsons)} .json")
+                                       f"files; found {len(found['csv'])} .csv and {len(found['json'])} .json")
     if not path.is_file():
         raise DatasetError(path, None, "no such file")
-    return ("coco" if path.suffix.lower() == ".json" else "csv"), path
+    single = [f for f in PREDICTION_FORMATS.values() if not f.whole_folder]
+    return next((f.name for f in single if path.suffix.lower() == f".{f.suffix}"), single[0].name), path
 
 
 @dataclass(frozen=True)
@@ -275,10 +307,11 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
     """
     t0 = time.perf_counter()
     kind, found_path = prediction_input(path)
+    fmt = PREDICTION_FORMATS[kind]
     cap = settings.max_predictions_per_frame
-    report = PredictionReport(check_source(source or (Path(path).name if kind == "yolo" else found_path.stem)), cap)
-    size = found_path.stat().st_size if kind != "yolo" else 0
-    best, system_of = _read_best(session, kind, found_path, report, progress, size)
+    report = PredictionReport(check_source(source or (Path(path).name if fmt.whole_folder else found_path.stem)), cap)
+    size = found_path.stat().st_size if not fmt.whole_folder else 0
+    best, system_of = _read_best(session, fmt, found_path, report, progress, size)
     earlier = _frames_of(session, report.source)
     end_reads(session)  # what was read is plain values now: the writes below take the lock batch by batch
     frames = sorted(set(system_of) | set(earlier))
@@ -308,7 +341,7 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
     return report
 
 
-def _read_best(session: Session, kind: str, path: Path, report: PredictionReport, progress: Progress | None,
+def _read_best(session: Session, fmt: PredictionFormat, path: Path, report: PredictionReport, progress: Progress | None,
                size: int) -> tuple[BestDetections, dict[int, int]]:
     """Read and check the whole input (in a read-only transaction: the stored frames it names), keeping the best
     ``report.cap`` predictions of each frame (keyed by frame id); counts ``rows``, ``unknown``, ``clipped``,
@@ -319,7 +352,7 @@ def _read_best(session: Session, kind: str, path: Path, report: PredictionReport
     """
     best = BestDetections(report.cap)
     system_of: dict[int, int] = {}
-    detector = _CheckedBest(report.cap, path) if kind != "csv" else None
+    detector = _CheckedBest(report.cap, path) if fmt.detector_output else None
     rows = _csv_rows(path, _Frames(session)) if detector is None else _detector_rows(session, path, detector)
     for row in rows:
         report.rows += 1
@@ -386,7 +419,7 @@ def _frames_of(session: Session, source: str) -> dict[int, int]:
 
 def _bump_versions(session: Session, systems: set[int]) -> None:
     """Bump the version of each system whose predictions change, in the transaction that changes them: the doubts of an
-    edit computed from the predictions as they were fail its compare (``app.services.derivation.scope``)."""
+    edit computed from the predictions as they were fail its compare (``app.db.scope``)."""
     ids = sorted(systems)
     for start in range(0, len(ids), 500):
         session.execute(sa.update(System).where(System.id.in_(ids[start:start + 500]))
@@ -449,15 +482,13 @@ class _StemView:
 
 
 def _detector_rows(session: Session, path: Path, keep: BestDetections) -> Iterator[_Resolved]:
-    """The detections of YOLO txt files or a COCO results JSON (``app.services.evaluation.monocular.load_predictions``,
-    the monocular benchmark's readers: YOLO files matched by stem, COCO results by ``coco_image_id(stem)``, the ball
+    """The detections of YOLO txt files or a COCO results JSON (:func:`load_predictions`,
+    the monocular benchmark's readers too: YOLO files matched by stem, COCO results by ``coco_image_id(stem)``, the ball
     class from ``data.yaml`` or 0, category 1), on every stored view named as the YOLO and COCO exports name it
     (``KindPolicy.view_stem``): the best ``keep.per_image`` of each view, chosen as the file is read
     (``keep.dropped`` counts the others); a YOLO file of an image v3d does not hold is named by its stem, COCO results
     of one are counted."""
     from sqlalchemy.orm import selectinload
-
-    from app.services.evaluation.monocular import load_predictions
 
     views = [_StemView(kind_of(f.system).view_stem(f.system.game, f), f.width, f.height, f.id, f.system_id)
              for f in session.scalars(sa.select(Frame).options(selectinload(Frame.system).selectinload(System.game)))]

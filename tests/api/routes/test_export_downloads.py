@@ -20,7 +20,7 @@ import supervision as sv
 import yaml
 from fastapi.testclient import TestClient
 
-from app.services.transfer.export_files import EXPORT_FORMATS, prune_exports
+from app.services.exports.files import EXPORT_FORMATS, prune_exports
 from tests.services.datasets import zip_files
 
 from ..conftest import run_queued

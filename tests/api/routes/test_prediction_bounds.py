@@ -14,8 +14,9 @@ from fastapi.testclient import TestClient
 
 from app.core.errors import DatasetError, InvalidInputError
 from app.datasets.files import member_chunks
-from app.services.evaluation.monocular import MAX_DATA_YAML_BYTES, ReferenceView, load_predictions
+from app.services.evaluation.monocular import ReferenceView
 from app.services.transfer.archives import ArchiveLimits, unpack_zip
+from app.services.transfer.detector_files import MAX_DATA_YAML_BYTES, load_predictions
 
 from ..factories import Scene
 

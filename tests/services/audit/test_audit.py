@@ -12,8 +12,8 @@ import sqlalchemy as sa
 from app.core.errors import InvalidInputError, StaleVersionError
 from app.db.models import AuditEntry, Frame, System
 from app.services.audit import log as audit
-from app.services.audit.reverting import revert_entry
 from app.services.curation import editing
+from app.services.curation.reverting import revert_entry
 from app.services.derivation.recompute import refresh_stale_systems
 from app.services.transfer.importing import import_soccernet_v3
 

@@ -12,8 +12,8 @@ import sqlalchemy as sa
 from app.core.config import Settings
 from app.db.models import Calibration, Frame, System
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG, RIG_FLAG
-from app.services.curation.words import player_camera_sentence
 from app.services.transfer.importing import import_soccernet_v3
+from app.services.wording.words import player_camera_sentence
 from benchmarks.player_cameras import score_session
 
 #: The game of ``soccernet-v3-dev-large`` with the most views its lines leave unsure (29 of them share 4 players

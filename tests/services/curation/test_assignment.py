@@ -11,9 +11,9 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError
 from app.db.models import AuditEntry, Doubt, Game, ReviewStatus, System, SystemKind, SystemPresence, User, UserRole
-from app.services.audit.reverting import revert_entry
 from app.services.curation import assignment, presence, queue
 from app.services.curation.queue import SystemFilters
+from app.services.curation.reverting import revert_entry
 
 T0 = datetime(2026, 11, 23, 20, 0, tzinfo=timezone.utc)
 

@@ -8,9 +8,9 @@ from sqlalchemy import select
 
 from app.core.errors import InvalidInputError, StaleVersionError
 from app.db.models import AuditEntry, Frame, ReviewStatus, System
-from app.services.audit.reverting import revert_entry
 from app.services.curation.decisions import decide_calibration, decide_review
 from app.services.curation.editing import replace_field_lines, update_ball_label
+from app.services.curation.reverting import revert_entry
 
 
 def _frame(systems, system, name) -> Frame:

@@ -14,7 +14,7 @@ import sqlalchemy as sa
 from app.core.config import Settings
 from app.db.models import Doubt, Frame, Game, System
 from app.geometry.calibration.result import PLAYERS_FLAG
-from app.services.curation.doubts import doubt_view
+from app.services.derivation.doubts import doubt_view
 from app.services.transfer.importing import import_soccernet_v3
 from app.services.transfer.predictions import import_predictions
 

@@ -1,6 +1,6 @@
 """The concurrency check covers what an edit reads, and every write of it bumps the version that covers it.
 
-``app.services.derivation.scope`` declares what an edit of a system reads: the tables ``System.version`` covers and the
+``app.db.scope`` declares what an edit of a system reads: the tables ``System.version`` covers and the
 tables ``Game.version`` covers (the game's rig and camera prior). Two records on a real SQLite file pin it:
 
 * the tables of every statement an edit sends before its write (a ball edit, a line edit, an exclusion, a mirroring:
@@ -23,9 +23,9 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.db import scope
 from app.db.models import AuditEntry, Frame, ReviewStatus, System
 from app.db.session import make_engine, make_session_factory, upgrade_database
-from app.services.audit.reverting import revert_entry, undo_entry
 from app.services.curation import writing
 from app.services.curation.decisions import decide_calibration, decide_review
 from app.services.curation.editing import (
@@ -34,8 +34,8 @@ from app.services.curation.editing import (
     set_view_excluded,
     update_ball_label,
 )
+from app.services.curation.reverting import revert_entry, undo_entry
 from app.services.curation.writing import EditContext
-from app.services.derivation import scope
 from app.services.derivation.recompute import recompute_all_systems
 from tests.api.factories import Scene, make_game, make_system
 

@@ -17,8 +17,9 @@ from app.geometry.ball import optimise_box, sphere_image_box
 from app.geometry.camera import Camera
 from app.geometry.metrics import Detections
 from app.geometry.sensitivity import scale_boxes
-from app.services.evaluation.monocular import ReferenceView, evaluate, load_predictions
+from app.services.evaluation.monocular import ReferenceView, evaluate
 from app.services.transfer.detector_export import coco_image_id
+from app.services.transfer.detector_files import load_predictions
 
 CAM = Camera.from_parameters(focal_px=1000.0, principal_point=(960.0, 540.0), pan_deg=0.0, tilt_deg=90.0,
                              roll_deg=0.0, position_m=[0.0, 50.0, -10.0])

@@ -159,7 +159,7 @@ def test_reimport_is_idempotent_and_keeps_edits(db_session, db_settings, stretch
 
 def test_an_overwrite_merge_puts_the_files_point_back_in_a_revertible_entry(db_session, db_settings, stretch):
     from app.db.models import AuditEntry
-    from app.services.audit.reverting import revert_entry
+    from app.services.curation.reverting import revert_entry
 
     import_issia(db_session, stretch, db_settings)
     cam3 = _view(_systems(db_session)[20], "cam3")
@@ -381,7 +381,7 @@ def test_an_edit_replaces_the_moved_trajectory_doubts_as_a_full_judgement_would(
     """An edit in the piece of frame 13 (cam4's wrong label) moves frame 13 on the trajectory without changing
     its labels: its trajectory doubt is replaced from the new stored point without loading the system, and is
     what judging the whole system again stores (same doubts, order, counts; the evidence's new position)."""
-    from app.services.curation.doubts import update_doubts
+    from app.services.derivation.doubts import update_doubts
     from app.services.issia import refit as issia_refit
 
     import_issia(db_session, stretch, db_settings)
@@ -524,8 +524,8 @@ def test_the_issia3d_export_of_a_release_is_the_live_one_then_and_stays_the_same
     import os
     import zipfile
 
+    from app.services.exports.files import write_export_zip
     from app.services.releases.content import create_release
-    from app.services.transfer.export_files import write_export_zip
 
     def members(path: "os.PathLike[str]") -> dict[str, bytes]:
         with zipfile.ZipFile(os.fspath(path)) as zf:

@@ -34,11 +34,11 @@ from app.db.models import Frame, Release, ReleaseDocument, ReleaseGame, ReleaseS
 from app.db.session import make_engine, upgrade_database
 from app.geometry.camera import Camera
 from app.services.curation.decisions import decide_review
+from app.services.exports.files import write_export_zip
+from app.services.exports.formats import RELEASE_EXPORTS
 from app.services.issia.sequences import import_issia
 from app.services.releases.content import create_release
 from app.services.releases.document import DOCUMENT_VERSION
-from app.services.transfer.export_files import write_export_zip
-from app.services.transfer.export_formats import RELEASE_EXPORTS
 from tests.api.factories import make_game, make_system
 
 HERE = Path(__file__).resolve().parent

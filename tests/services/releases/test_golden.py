@@ -30,11 +30,11 @@ from app.db.models import (
 )
 from app.db.session import make_engine, upgrade_database
 from app.db.types import canonical_json, decompressed_json, json_digest
+from app.services.exports.files import write_export_zip
+from app.services.exports.formats import RELEASE_EXPORTS
 from app.services.releases.content import release_hash
 from app.services.releases.diff import VIEW_CHANGES
 from app.services.releases.document import DOCUMENT_VERSION, FRAME_KEYS, READERS, read_game, read_system
-from app.services.transfer.export_files import write_export_zip
-from app.services.transfer.export_formats import RELEASE_EXPORTS
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
 #: The formats whose release exports have golden files: every one a release exports to.

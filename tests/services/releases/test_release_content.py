@@ -19,9 +19,9 @@ from app.core.config import Settings
 from app.db.models import BallLabel, ReleaseDocument, ReviewDecision, ReviewStatus, System
 from app.db.session import make_engine, upgrade_database
 from app.services.derivation.recompute import recompute_system
+from app.services.exports.files import write_export_zip
 from app.services.releases.content import create_release, get_release, release_content
 from app.services.releases.diff import diff_releases
-from app.services.transfer.export_files import write_export_zip
 from tests.api.factories import make_game, make_system
 
 _EXPORT = """
@@ -30,7 +30,7 @@ from pathlib import Path
 from app.core.config import Settings
 from app.db.session import make_engine
 from sqlalchemy.orm import Session
-from app.services.transfer.export_files import write_export_zip
+from app.services.exports.files import write_export_zip
 settings = Settings(database_url=sys.argv[1], calibration_workers=1)
 with Session(make_engine(sys.argv[1])) as session:
     write_export_zip(session, "soccernet-v3d", Path(sys.argv[2]), False, settings, release=sys.argv[3])

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.session import make_engine, upgrade_database
 from app.main import create_app
-from app.services.transfer.export_files import write_export_zip
+from app.services.exports.files import write_export_zip
 from tests.services.releases.make_golden import write_issia
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -1,11 +1,11 @@
 """Issue 28 item 9: every export is relocatable. Each format written as the zip a job or the UI downloads
-(``export_files.write_export_zip``) from an ISSIA stretch (ISSIA-3D rows, its cameras, YOLO and COCO images
+(``exports.files.write_export_zip``) from an ISSIA stretch (ISSIA-3D rows, its cameras, YOLO and COCO images
 decoded from the videos) holds no file that names the export's folder, the data root, the dataset's folder or a
 /tmp path; nested zips are opened too."""
 from __future__ import annotations
 
+from app.services.exports.files import EXPORT_FORMATS, write_export_zip
 from app.services.issia.sequences import import_issia
-from app.services.transfer.export_files import EXPORT_FORMATS, write_export_zip
 from tests.services.datasets import zip_files
 from tests.services.issia_data import write_issia_stretch
 
@@ -39,7 +39,7 @@ def test_a_tree_zips_compressed_files_as_they_are_and_deflates_the_rest_the_same
     import gzip
     import zipfile
 
-    from app.services.transfer.export_files import zip_tree
+    from app.services.exports.files import zip_tree
 
     root = tmp_path / "tree"
     (root / "images" / "train").mkdir(parents=True)

@@ -26,8 +26,8 @@ from app.db.models import (
 from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
 from app.geometry.jac import jac_admitted
 from app.services.calibration.admission import admission_jac
-from app.services.curation.words import WORDS
 from app.services.transfer.importing import import_sn_calibration, import_soccernet_v3, read_sn_calibration
+from app.services.wording.words import WORDS
 
 from ..datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
 
@@ -149,9 +149,9 @@ def test_an_overwrite_merge_replaces_an_edit_in_one_revertible_entry_per_system(
     """``overwrite``: the release's box replaces the reviewer's, in an entry of the system that a revert undoes; the
     system's accept of the reviewer's box goes back to pending."""
     from app.db.models import AuditEntry, ReviewStatus
-    from app.services.audit.reverting import revert_entry
     from app.services.curation.decisions import decide_review
     from app.services.curation.editing import update_ball_label
+    from app.services.curation.reverting import revert_entry
 
     root = tmp_path / "v3"
     write_v3_game(shared_dir, root, actions=("0.png",))

@@ -16,10 +16,11 @@ from app.core.errors import DatasetError
 from app.db.models import AuditEntry, Frame, Game, Prediction
 from app.geometry.metrics import BestDetections
 from app.services.audit.log import entry_summary
-from app.services.curation.doubts import stored_detections
+from app.services.derivation.doubts import stored_detections
 from app.services.derivation.recompute import load_for_recompute
-from app.services.evaluation.monocular import load_predictions, source_detections
+from app.services.evaluation.monocular import source_detections
 from app.services.transfer import predictions as module
+from app.services.transfer.detector_files import load_predictions
 from app.services.transfer.predictions import import_predictions
 
 HEADER = "league,season,match,image,x1,y1,x2,y2,score\n"

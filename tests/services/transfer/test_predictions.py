@@ -10,7 +10,13 @@ import sqlalchemy as sa
 
 from app.core.errors import DatasetError, InvalidInputError
 from app.db.models import Frame, Game, Prediction
-from app.services.transfer.predictions import import_predictions, prediction_sources, remove_predictions
+from app.services.transfer.predictions import (
+    PREDICTION_FORMATS,
+    import_predictions,
+    prediction_input,
+    prediction_sources,
+    remove_predictions,
+)
 
 HEADER = "league,season,match,image,x1,y1,x2,y2,score\n"
 
@@ -109,3 +115,27 @@ def test_a_large_file_streams_and_a_bad_last_line_stores_nothing(db_session, set
 def test_a_bad_source_name_is_refused(db_session, settings, imported, tmp_path):
     with pytest.raises(InvalidInputError, match="source must be"):
         import_predictions(db_session, _write(tmp_path / "a.csv", []), settings, source="../x")
+
+
+def test_an_input_is_the_first_registered_format_it_holds(tmp_path) -> None:
+    """The prediction formats' one list (``PREDICTION_FORMATS``) decides what an input holds: a folder's one CSV
+    before anything else, then its one COCO results JSON, then its YOLO files; a single file by its extension."""
+    assert list(PREDICTION_FORMATS) == ["csv", "coco", "yolo"]
+    mixed = tmp_path / "mixed"
+    (mixed / "labels").mkdir(parents=True)
+    for name in ("rows.csv", "a.json", "b.json", "labels/12_1.txt"):
+        (mixed / name).write_text("")
+    assert prediction_input(mixed) == ("csv", mixed / "rows.csv")
+    (mixed / "rows.csv").unlink()
+    with pytest.raises(DatasetError, match="found 0 .csv and 2 .json"):
+        prediction_input(mixed)
+    (mixed / "b.json").unlink()
+    assert prediction_input(mixed) == ("coco", mixed / "a.json")
+    (mixed / "a.json").unlink()
+    assert prediction_input(mixed) == ("yolo", mixed)
+    (mixed / "labels" / "12_1.txt").unlink()
+    with pytest.raises(DatasetError, match="found 0 .csv and 0 .json"):
+        prediction_input(mixed)
+    for name, kind in (("r.JSON", "coco"), ("r.csv", "csv"), ("r.txt", "csv")):
+        (tmp_path / name).write_text("")
+        assert prediction_input(tmp_path / name) == (kind, tmp_path / name)

@@ -1,4 +1,4 @@
-"""The registry of export formats (app.services.transfer.export_formats) is every list of exports: the export job's,
+"""The registry of export formats (app.services.exports.formats) is every list of exports: the export job's,
 the route's choices, the UI's panel (static/js/exportlist.js, written from it), the kinds' policies and the docs."""
 from __future__ import annotations
 
@@ -10,11 +10,8 @@ from pathlib import Path
 import pytest
 
 from app.api.routes.exports import TreeFormat
-from app.services.jobs.work import export_params
-from app.services.kinds import EXPORTS as KIND_EXPORTS
-from app.services.kinds import kinds_exported_by
-from app.services.transfer import export_files
-from app.services.transfer.export_formats import (
+from app.services.exports import files as export_files
+from app.services.exports.formats import (
     ExportChoice,
     ExportFormat,
     export_format,
@@ -23,6 +20,9 @@ from app.services.transfer.export_formats import (
     register_export_format,
     tree_export_names,
 )
+from app.services.jobs.work import export_params
+from app.services.kinds import EXPORTS as KIND_EXPORTS
+from app.services.kinds import kinds_exported_by
 
 ROOT = Path(__file__).resolve().parents[3]
 EXPORTLIST_JS = ROOT / "static" / "js" / "exportlist.js"
@@ -31,7 +31,7 @@ EXPORTLIST_JS = ROOT / "static" / "js" / "exportlist.js"
 def test_the_panels_module_is_the_registry() -> None:
     text = EXPORTLIST_JS.read_text(encoding="utf-8")
     assert text == exports_js(), ("static/js/exportlist.js is stale: "
-                                  "python -m app.services.transfer.export_formats > static/js/exportlist.js")
+                                  "python -m app.services.exports.formats > static/js/exportlist.js")
     entries = json.loads(text.split("/*EXPORTS*/", 1)[1].split("/*END*/", 1)[0])
     assert list(dict.fromkeys(e["format"] for e in entries)) == list(export_names())
     assert len({e["id"] for e in entries}) == len(entries)

@@ -1,4 +1,4 @@
-"""Doubts in the service (``app.services.curation.doubts``): stored with every recomputation in the edit's
+"""Doubts in the service (``app.services.derivation.doubts``): stored with every recomputation in the edit's
 transaction, counted per system, mapped from the settings, and left untouched by an edit that fails."""
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ from app.db.models import System
 from app.geometry.ball import sphere_image_box
 from app.geometry.calibration.result import Refusal
 from app.geometry.doubts import LABEL_KINDS, DoubtSettings
-from app.services.curation import doubts as doubt_service
 from app.services.curation import editing, states
-from app.services.curation.doubts import doubt_settings
+from app.services.derivation import doubts as doubt_service
+from app.services.derivation.doubts import doubt_settings
 from tests.api.factories import BALL, make_game, make_system
 
 

@@ -1,7 +1,7 @@
 """Every export as one zip file, written by a background job (``app.services.jobs.work.run_export``) or a
 request: the formats, the zip of an export tree, and how long the server keeps an export job's file.
 
-The formats and how each is written are the registry's (:mod:`app.services.transfer.export_formats`):
+The formats and how each is written are the registry's (:mod:`app.services.exports.formats`):
 SoccerNet-v3D is streamed into the zip, the others (the tree exports) are written to a work folder, zipped with paths
 relative to the tree's root (:func:`zip_tree`; folders, empty ones included, kept as entries: a YOLO split without
 images still exists once unpacked) and the folder removed. No file of any export names a server folder: every export is
@@ -26,9 +26,9 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.core.errors import InvalidInputError
-from app.services.jobs.progress import Progress
+from app.core.progress import Progress
+from app.services.exports.formats import RELEASE_EXPORTS, export_format, export_names, tree_export_names
 from app.services.storage.stores import Storage
-from app.services.transfer.export_formats import RELEASE_EXPORTS, export_format, export_names, tree_export_names
 from app.services.transfer.exporting import member_compression, zip_member
 
 #: What ``POST /api/exports/{format}`` and the export jobs write (the registry's names, in its order).
@@ -80,7 +80,7 @@ def write_export_zip(session: Session, fmt: str, target: Path, include_all: bool
     """The export ``fmt`` as the zip ``target`` (written as ``<target>.part`` and renamed when complete; a
     tree export's work folder ``<target>.work`` removed in every case); its counts, ``bytes`` and ``format``.
     ``images``: SoccerNet-v3D only (each game's ``Frames-v3.zip``). ``release``: the name of the release to export
-    instead of the database now (``export_formats.RELEASE_EXPORTS``; the same release gives the same bytes).
+    instead of the database now (``formats.RELEASE_EXPORTS``; the same release gives the same bytes).
 
     Raises:
         ValueError: an unknown format. InvalidInputError: a release asked of a format not made from one (field

@@ -1,4 +1,4 @@
-"""The one table of words (app.services.curation.words): every code a page shows has its words, and the pages'
+"""The one table of words (app.services.wording.words): every code a page shows has its words, and the pages'
 module (static/js/words.js) is exactly the table the server holds."""
 from __future__ import annotations
 
@@ -9,20 +9,32 @@ from pathlib import Path
 from app.db.models import CalibrationSource, CalibrationStatus, TriangulationStatus
 from app.geometry.calibration.result import MIRROR_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
+from app.geometry.doubts.contract import DETECTOR_KINDS
 from app.geometry.pair_error import PAIR_ERROR_RULES
 from app.geometry.triangulation import DROP_REASONS
 from app.services.calibration.admission import GIVEN_CAMERA_FLAG
-from app.services.curation.words import WORDS, words_js
 from app.services.issia.sequences import BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG
+from app.services.wording.words import WORDS, words_js
 
 WORDS_JS = Path(__file__).resolve().parents[3] / "static" / "js" / "words.js"
 
 
 def test_the_pages_module_is_the_servers_table() -> None:
     text = WORDS_JS.read_text(encoding="utf-8")
-    assert text == words_js(), "static/js/words.js is stale: python -m app.services.curation.words > static/js/words.js"
+    assert text == words_js(), "static/js/words.js is stale: python -m app.services.wording.words > static/js/words.js"
     literal = text.split("/*WORDS*/", 1)[1].split("/*END*/", 1)[0]
     assert json.loads(literal) == WORDS
+
+
+def test_the_pages_draw_a_detectors_box_from_the_contracts_list() -> None:
+    """Which doubt kinds carry a detector's box is the contract's data (``DETECTOR_KINDS``, in words.js): no other
+    page module names such a kind, so a new one is drawn and offered as a detector's box by its contract entry."""
+    text = WORDS_JS.read_text(encoding="utf-8")
+    assert json.loads(text.split("/*DETECTOR_KINDS*/", 1)[1].split("/*END*/", 1)[0]) == list(DETECTOR_KINDS)
+    assert set(DETECTOR_KINDS) <= set(LABEL_KINDS) | set(INFO_KINDS)
+    named = [f"{p.name}: {kind}" for p in sorted(WORDS_JS.parent.glob("*.js")) if p != WORDS_JS
+             for kind in DETECTOR_KINDS if re.search(rf"[\"'`]{kind}[\"'`]", p.read_text(encoding="utf-8"))]
+    assert not named, named
 
 
 def test_every_code_a_page_shows_has_words_and_no_chip_is_a_code() -> None:
@@ -68,8 +80,8 @@ def test_every_refusal_code_of_the_calibration_has_words_and_a_sentence() -> Non
     """The calibration refuses with codes and numbers (``REFUSAL_CODES``); the words table names each and writes
     its stored sentence with the numbers, so the import counts codes and a person reads words."""
     from app.geometry.calibration.result import REFUSAL_CODES, Refusal
-    from app.services.curation.words import REFUSAL_SENTENCES, refusal_sentence
     from app.services.issia.cameras import STATIC_CAMERA_REFUSALS
+    from app.services.wording.words import REFUSAL_SENTENCES, refusal_sentence
 
     codes = (*REFUSAL_CODES, *STATIC_CAMERA_REFUSALS)
     assert set(codes) <= set(WORDS["refusal"]) and set(codes) == set(REFUSAL_SENTENCES)
@@ -87,7 +99,7 @@ def test_a_dataset_class_name_reaches_a_refusal_sentence_as_text() -> None:
     """A refusal's numbers may carry a name from the dataset (the line class of ``residual_too_high``): it is
     inserted as text, never read as a format field or markup, whatever braces or tags it holds."""
     from app.geometry.calibration.result import Refusal
-    from app.services.curation.words import refusal_sentence
+    from app.services.wording.words import refusal_sentence
 
     hostile = "{need}{0}<img src=x onerror=alert(1)>"
     sentence = refusal_sentence(Refusal("residual_too_high", {"line": hostile, "px": 70.06, "limit_px": 27.5}))

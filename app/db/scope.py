@@ -1,7 +1,8 @@
 """What an edit of a multi-view system reads and writes: the one declaration the loader, the concurrency check and
 its tests derive from.
 
-An edit of one view recomputes its whole system (``recompute.recompute_system``), so it reads and may write:
+An edit of one view recomputes its whole system (``app.services.derivation.recompute.recompute_system``), so it
+reads and may write:
 
 * the system's row and its one-to-one rows (:data:`SYSTEM_ROWS`: triangulation, trajectory point, review);
 * every view (``System.frames``) with the view's one-to-one rows (:data:`FRAME_ROWS`: field lines, calibration, ball

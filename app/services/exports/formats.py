@@ -1,10 +1,10 @@
 """The exports, as data: each format's name, what it holds, the name of its download, the choices the UI offers
 and the function that writes it. Every list of exports reads this one: the export job and its zip
-(:mod:`app.services.transfer.export_files`, :mod:`app.services.jobs.work`), the ``POST /api/exports/{format}``
+(:mod:`app.services.exports.files`, :mod:`app.services.jobs.work`), the ``POST /api/exports/{format}``
 route's choices (``app.api.routes.exports``), the help of the ``v3d export`` commands (``app.cli``), the UI's
 exports panel (``static/js/exportlist.js``, written from :func:`exports_js`:
-``python -m app.services.transfer.export_formats > static/js/exportlist.js``) and the docs (``docs/exports.md`` and
-``docs/api.md`` name every format; ``tests/services/transfer/test_export_formats.py`` checks all of these).
+``python -m app.services.exports.formats > static/js/exportlist.js``) and the docs (``docs/exports.md`` and
+``docs/api.md`` name every format; ``tests/services/exports/test_export_formats.py`` checks all of these).
 
 A format's ``name`` is the one word of every front end: ``v3d export <name>``, ``GET``/``POST /api/exports/<name>``
 and an export job's ``params["format"]``. Which system kinds an export writes is the kinds' policies' answer
@@ -21,8 +21,8 @@ from typing import Any, BinaryIO, Callable, Literal, Mapping
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.progress import Progress
 from app.services.issia.export import export_issia3d
-from app.services.jobs.progress import Progress
 from app.services.releases.content import get_release
 from app.services.releases.export import (
     ReleaseSource,
@@ -75,7 +75,7 @@ class ExportFormat:
         name: ``v3d export <name>``, ``/api/exports/<name>``, the job's ``params["format"]``.
         describes: what the export writes, in a sentence or two (the command's help, the docs' table).
         choices: the UI's buttons for it, the first one the default (its options are the job's defaults).
-        tree: writes it as a folder tree, zipped afterwards (``export_files.zip_tree``); None when streamed.
+        tree: writes it as a folder tree, zipped afterwards (``files.zip_tree``); None when streamed.
         stream: writes it straight into a zip; None for a tree export. Exactly one of the two is set.
         release_tree: writes a release's export as a tree (a streamed format takes ``options["release"]``); None
             when the format is not made from a release.
@@ -152,9 +152,9 @@ def exports_js() -> str:
 
 JS_TEMPLATE = """\
 // The exports the exports panel offers: one entry per button, in order ({id, label, format, body, title}).
-// WRITTEN FROM app/services/transfer/export_formats.py
-// (python -m app.services.transfer.export_formats > static/js/exportlist.js);
-// tests/services/transfer/test_export_formats.py checks that the two agree. Do not edit the list here.
+// WRITTEN FROM app/services/exports/formats.py
+// (python -m app.services.exports.formats > static/js/exportlist.js);
+// tests/services/exports/test_export_formats.py checks that the two agree. Do not edit the list here.
 
 export const EXPORTS = /*EXPORTS*/__EXPORTS__/*END*/;
 """

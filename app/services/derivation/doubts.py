@@ -1,5 +1,5 @@
 """Doubts of a multi-view system: what the service stores of ``app.geometry.doubts`` (its codes and numbers,
-with the sentence ``app.services.curation.doubt_words`` composes).
+with the sentence ``app.services.wording.doubt_words`` composes).
 
 :func:`update_doubts` runs at the end of every system recomputation (``app.services.derivation.recompute``), so
 a system's doubts change in the transaction of the edit that changed them and the queue never
@@ -31,11 +31,11 @@ from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
 from app.geometry.weighting import calibration_weight, centre_of, label_centre
-from app.services.curation.doubt_words import doubt_message
 from app.services.derivation.cameras import stored_camera
 from app.services.derivation.loading import load_view_predictions
 from app.services.derivation.rows import put_values, replace_rows
 from app.services.kinds import kind_of
+from app.services.wording.doubt_words import doubt_message
 
 
 def doubt_settings(settings: Settings) -> DoubtSettings:

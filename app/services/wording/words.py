@@ -7,9 +7,9 @@ the chip's legend and its tooltip), and for a chip drawn in a colour its ``tone`
 view's labels or calibration; ``info``: blue; none: amber), the same wherever the chip is drawn, its legend too. One
 fact has one chip: the note and the doubt of a view below the admission threshold read alike, as do the mirror
 flag and its doubt. The pages import the same table from ``static/js/words.js``, written from
-this one (:func:`words_js`; ``python -m app.services.curation.words > static/js/words.js``) and checked
-against it by ``tests/services/curation/test_words.py``, so the server's codes and the pages' words cannot drift.
-The sentences of doubts themselves (their numbers) are composed by ``app.services.curation.doubt_words``.
+this one (:func:`words_js`; ``python -m app.services.wording.words > static/js/words.js``) and checked
+against it by ``tests/services/wording/test_words.py``, so the server's codes and the pages' words cannot drift.
+The sentences of doubts themselves (their numbers) are composed by ``app.services.wording.doubt_words``.
 
 Groups:
 
@@ -29,7 +29,7 @@ import json
 import sys
 from typing import Any
 
-from app.geometry.doubts.contract import LABEL_KINDS
+from app.geometry.doubts.contract import DETECTOR_KINDS, LABEL_KINDS
 from app.geometry.pitch import MIN_LINE_CLASSES
 
 WORDS: dict[str, dict[str, dict[str, str]]] = {
@@ -269,14 +269,16 @@ def refusal_sentence(refusal: Any) -> str | None:
 def words_js() -> str:
     """The ES module ``static/js/words.js``: :data:`WORDS` as one JSON literal between the markers the test
     reads, the doubt kinds that accuse a label (``app.geometry.doubts.contract.LABEL_KINDS``, in its order, between
-    markers of their own) and the helpers the pages use."""
+    markers of their own), the kinds whose suggested box is a detector's (``DETECTOR_KINDS``) and the helpers the
+    pages use."""
     table = json.dumps(WORDS, indent=1, ensure_ascii=False)
-    return JS_TEMPLATE.replace("__WORDS__", table).replace("__LABEL_KINDS__", json.dumps(list(LABEL_KINDS)))
+    return (JS_TEMPLATE.replace("__WORDS__", table).replace("__LABEL_KINDS__", json.dumps(list(LABEL_KINDS)))
+            .replace("__DETECTOR_KINDS__", json.dumps(list(DETECTOR_KINDS))))
 
 
 JS_TEMPLATE = """// The words of the review pages: what every machine code shown on a page reads as, one table, so
-// that a page never shows a raw token. WRITTEN FROM app/services/curation/words.py
-// (python -m app.services.curation.words > static/js/words.js); tests/services/curation/test_words.py checks that
+// that a page never shows a raw token. WRITTEN FROM app/services/wording/words.py
+// (python -m app.services.wording.words > static/js/words.js); tests/services/wording/test_words.py checks that
 // the two agree. Do not edit the table here.
 
 export const WORDS = /*WORDS*/__WORDS__/*END*/;
@@ -284,6 +286,11 @@ export const WORDS = /*WORDS*/__WORDS__/*END*/;
 /** The doubt kinds that accuse a label, in the contract's order (app/geometry/doubts/contract.py LABEL_KINDS): the
  * queue counts, filters and sorts by them. */
 export const LABEL_KINDS = /*LABEL_KINDS*/__LABEL_KINDS__/*END*/;
+
+/** The doubt kinds whose suggested box is a detector's, their evidence naming the detector and its score
+ * (app/geometry/doubts/contract.py DETECTOR_KINDS): the view draws that box in the detections' colour, and the fix
+ * says whose box it places. */
+export const DETECTOR_KINDS = /*DETECTOR_KINDS*/__DETECTOR_KINDS__/*END*/;
 
 const humanise = (code) => String(code).replaceAll("_", " ");
 

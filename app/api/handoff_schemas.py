@@ -1,0 +1,42 @@
+"""Schemas of the hand-off of systems marked needs fix (``app.api.routes.handoffs``): a system decision's answer with
+the hand-off it made, what waits for the caller, and a system's newest hand-off."""
+from __future__ import annotations
+
+from typing import Optional
+
+from pydantic import BaseModel, Field
+
+from app.api.view_schemas import CalibrationReviewOut, ReviewOut
+
+
+class DecisionOut(ReviewOut):
+    """A system decision's answer: the decision, and for needs_fix / fixed the hand-off it made
+    (``app.services.curation.handoff``)."""
+
+    returned_to: Optional[str] = Field(None, description="needs_fix / fixed only: the user the system went to (the "
+                                       "person who fixes it, or the reviewer who re-reviews it); null when nobody "
+                                       "(``handoff`` says why).")
+    handoff: Optional[str] = Field(None, description="That hand-off in words: \"returned to ana by rev: the box "
+                                   "sits on the shadow\".")
+
+
+# ReviewOut names its views' calibration decision by a forward reference: resolved here, where the subclass lives
+DecisionOut.model_rebuild(_types_namespace={"CalibrationReviewOut": CalibrationReviewOut})
+
+
+class MyWorkOut(BaseModel):
+    """What waits for the caller."""
+
+    to_fix: int = Field(description="Systems returned to you (marked needs fix), still open.")
+    to_re_review: int = Field(description="Systems you returned that came back fixed (status fixed, assigned to you).")
+
+
+class HandOffOut(BaseModel):
+    """A system's newest hand-off."""
+
+    returned_to: Optional[str] = Field(description="Who it was returned to (null: nobody could be found).")
+    returned_by: str = Field(description="The reviewer who marked it needs fix.")
+    fixed: bool = Field(description="Sent back as fixed (then assigned to the reviewer again).")
+    open: bool = Field(description="Still returned to that person (an edit meanwhile does not close it).")
+    words: str = Field(description="The hand-off in words.")
+    may_send_fixed: bool = Field(description="The caller is the person it is returned to, and may send fixed.")
