@@ -44,6 +44,7 @@ from app.services.curation.writing import (
     Restorable,
     Revert,
 )
+from app.services.derivation import scope
 
 
 def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[System], actor: Optional[str]) -> int:
@@ -63,6 +64,7 @@ def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[
             continue
         _system_back_to_pending(session, other, f"{other.name}: its 3D ball moved with the trajectory's re-fit after "
                                 f"an edit of {edited.name} by {who}; decide it again", actor, utcnow())
+        scope.changed(other)  # its decision is in what its version covers (the edited system's own is bumped once)
         done += 1
     return done
 

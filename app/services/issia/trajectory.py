@@ -39,6 +39,7 @@ from app.geometry.trajectory import Piece, TrajectoryFit, fit_trajectory, triang
 from app.geometry.triangulation import BallObservation
 from app.services.calibration.admission import is_admitted
 from app.services.curation.doubts import is_excluded
+from app.services.derivation import scope
 
 
 @dataclass
@@ -188,6 +189,7 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
         for k, v in values.items():
             setattr(tp, k, v)
         tp.computed_at = utcnow()
+        scope.changed(s)  # its trajectory point is in what its version covers: a page that showed the old one is stale
         changed.append(Changed(s, labels, s.id))
     return changed
 
