@@ -454,7 +454,6 @@ def restore_imported_system(session: Session, system_id: int, state: Mapping[str
             if frame is not None:
                 _restore_view(frame, view, now)
         _restore_review(system, "review", system_state["review"], now)
-        system.review_status = system.review.status if system.review is not None else ReviewStatus.PENDING
         _recompute(session, system, settings, actor, edit)
         return system
 

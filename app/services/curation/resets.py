@@ -173,7 +173,6 @@ def _system_back_to_pending(session: Session, system: System, reason: str, actor
     decision.status = ReviewStatus.PENDING
     decision.reset_reason = reason
     decision.decided_at = now
-    system.review_status = ReviewStatus.PENDING  # the queue's copy
     audit.record(session, actor=actor, action="system.review", system=system, before=before,
                  after=review_state(system))
 
@@ -276,8 +275,6 @@ def restore_decisions(frame: Frame, revert: Optional[Revert], actor: Optional[st
         else:
             review.status, review.comment, review.reset_reason, review.decided_at = status, comment, None, now
             action = "view.review" if frame_id is not None else "system.review"
-            if isinstance(subject, System):
-                subject.review_status = status  # the queue's copy
         name = audit.view_name(subject) if isinstance(subject, Frame) else None
         words.append(summarize(action, after, before, view=name))
     if words:

@@ -56,6 +56,7 @@ from app.core.config import Settings
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.db.models import Frame, Game, System
 from app.db.session import begin_write, end_reads, reads_on_their_own
+from app.db.unit import write_unit
 from app.services.audit import log as audit
 from app.services.curation.states import same_json
 from app.services.curation.system_page import load_frame
@@ -214,51 +215,52 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
     def run(locked: bool) -> T:
         edit.attempts += 1
         edit.facts, edit.rig = {}, None
-        if locked:
-            begin_write(session)
-            lock_system(session, system_id, game=recomputes)
-        else:  # the version is read first, with the system's row: anything committed after it makes the compare fail
-            reads_on_their_own(session)
-        per_frame = settings.max_predictions_per_frame if settings is not None else None  # a decision reads none
-        system = found(load_for_recompute(session, [system_id], predictions=per_frame, with_game=True).get(system_id),
-                       "system", system_id)
-        if not locked and not kind_of(system).computes_before_lock:
-            raise _MustLock()
-        game_version = system.game.version if system.game is not None else None
-        edit.version = system.version
-        edit.rig = system_rig_rows(session, system, settings) if settings is not None else None
-        if not locked:
-            end_reads(session)  # the connection goes back to the pool while the edit computes
-        target = subject(system)
-        with session.no_autoflush:
-            guard.check_and_bump(target)
-            before = state(target)
-            _check_revert(revert, before)
-            result = apply(target)
-            after = state(target)
-            if recomputes or isinstance(target, System):  # a view decision changes the view's version alone
-                scope.changed(system)
-            audit.stamp_versions(session, system)  # the resets it recorded while computing, before the bump
-        if not locked:
-            begin_write(session)  # refuses a session that read while computing (a row outside ``scope``)
-            # an edit that changes its game's rig (a recalibration bumped the game's version) locks the game's row
-            # alone; the others share it: they need only that nobody changes the rig until they commit
-            changes_rig = system.game is not None and system.game.version != game_version
-            with session.no_autoflush:
-                if _game_version(session, system.game_id, lock="update" if changes_rig else "share") != game_version:
-                    raise _Collided()  # its game's rig or camera prior changed since it was read
-        frame = target if isinstance(target, Frame) else None
-        owner = target if isinstance(target, System) else None  # the subject: a view or the system itself
-        entry = audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
-                             system=owner, before=before, after=after,
-                             reverts_id=revert.entry_id if revert is not None else undo_of, facts=edit.facts)
-        try:
-            session.flush()
-        except StaleDataError:
+        with write_unit(session, lock=False):  # rolled back when it raises: a collision, a refusal, a failure
             if locked:
-                raise
-            raise _Collided() from None
-        session.commit()
+                begin_write(session)
+                lock_system(session, system_id, game=recomputes)
+            else:  # the version is read first, with the system row: anything committed after it makes the compare fail
+                reads_on_their_own(session)
+            per_frame = settings.max_predictions_per_frame if settings is not None else None  # a decision reads none
+            system = found(load_for_recompute(session, [system_id], predictions=per_frame, with_game=True).get(
+                system_id), "system", system_id)
+            if not locked and not kind_of(system).computes_before_lock:
+                raise _MustLock()
+            game_version = system.game.version if system.game is not None else None
+            edit.version = system.version
+            edit.rig = system_rig_rows(session, system, settings) if settings is not None else None
+            if not locked:
+                end_reads(session)  # the connection goes back to the pool while the edit computes
+            target = subject(system)
+            with session.no_autoflush:
+                guard.check_and_bump(target)
+                before = state(target)
+                _check_revert(revert, before)
+                result = apply(target)
+                after = state(target)
+                if recomputes or isinstance(target, System):  # a view decision changes the view's version alone
+                    scope.changed(system)
+                audit.stamp_versions(session, system)  # the resets it recorded while computing, before the bump
+            if not locked:
+                begin_write(session)  # refuses a session that read while computing (a row outside ``scope``)
+                # an edit that changes its game's rig (a recalibration bumped the game's version) locks the game's row
+                # alone; the others share it: they need only that nobody changes the rig until they commit
+                changes_rig = system.game is not None and system.game.version != game_version
+                with session.no_autoflush:
+                    if _game_version(session, system.game_id,
+                                     lock="update" if changes_rig else "share") != game_version:
+                        raise _Collided()  # its game's rig or camera prior changed since it was read
+            frame = target if isinstance(target, Frame) else None
+            owner = target if isinstance(target, System) else None  # the subject: a view or the system itself
+            entry = audit.record(session, actor=actor, action="revert" if revert is not None else action,
+                                 frame=frame, system=owner, before=before, after=after,
+                                 reverts_id=revert.entry_id if revert is not None else undo_of, facts=edit.facts)
+            try:
+                session.flush()
+            except StaleDataError:
+                if locked:
+                    raise
+                raise _Collided() from None
         edit.entry_id = entry.id
         return result
 
@@ -272,19 +274,15 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
                     edit.outcome = "computed" if attempt == 0 else "recomputed"
                     return result
                 except _Collided:
-                    session.rollback()
                     log.info("an edit of system %s met another write of what it read; computing again", system_id)
                 except _MustLock:
-                    session.rollback()
                     edit.attempts -= 1  # it read, it did not compute
                     break
             result = run(locked=True)
             edit.outcome = "under_lock" if edit.attempts == 1 else "recomputed"
             return result
-        except BaseException as exc:
-            session.rollback()
-            if isinstance(exc, StaleVersionError):
-                _describe_current(session, exc)
+        except StaleVersionError as exc:  # rolled back by its write unit
+            _describe_current(session, exc)
             raise
 
 

@@ -24,35 +24,11 @@ records the tables a recomputation reads and the transactions that write them, a
 """
 from __future__ import annotations
 
-from typing import Any
+from app.db.models import Game, System
+from app.db.scope import FRAME_ROWS, GAME_ROW, SYSTEM_LISTS, SYSTEM_ROWS, game_tables, system_tables
 
-from app.db.models import Frame, Game, System, Triangulation
-
-#: The system's one-to-one rows an edit reads (joined to the system's row when it is loaded).
-SYSTEM_ROWS: tuple[Any, ...] = (System.triangulation, System.trajectory_point, System.review)
-#: Each view's one-to-one rows an edit reads (joined to the view's row when it is loaded).
-FRAME_ROWS: tuple[Any, ...] = (Frame.calibration, Frame.ball_label, Frame.review, Frame.reprojection,
-                               Frame.optimised_box, Frame.field_lines)
-#: The system's lists an edit reads: its views, its doubts, its triangulation's pairs and its views' detector
-#: predictions (each in id order but the views, in their place on the page). An import or removal of predictions
-#: bumps the version of each system it touches in its transaction.
-SYSTEM_LISTS: tuple[Any, ...] = (System.frames, System.doubts, Triangulation.pairs, Frame.predictions)
-#: The system's game: read by an edit for its camera prior and its version, which covers the game's rig.
-GAME_ROW: Any = System.game
-
-
-def system_tables() -> frozenset[str]:
-    """The names of the tables whose rows of a system ``System.version`` covers: the system's own, its views', their
-    one-to-one rows' and its lists' (module docstring)."""
-    relations = (*SYSTEM_ROWS, *FRAME_ROWS, *SYSTEM_LISTS)
-    return frozenset({System.__tablename__, *(r.property.mapper.local_table.name for r in relations)})
-
-
-def game_tables() -> frozenset[str]:
-    """The names of the tables ``Game.version`` covers for an edit: the game's row (its camera prior) and the rows its
-    rig is read from (calibrations of its frames: ``rigs.rig_rows`` joins them to their frames and systems)."""
-    return frozenset({Game.__tablename__, Frame.__tablename__, System.__tablename__,
-                      Frame.calibration.property.mapper.local_table.name})
+__all__ = ["FRAME_ROWS", "GAME_ROW", "SYSTEM_LISTS", "SYSTEM_ROWS", "changed", "game_changed", "game_tables",
+           "system_tables"]
 
 
 def changed(system: System) -> None:
