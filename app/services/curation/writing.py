@@ -192,25 +192,31 @@ class _MustLock(Exception):
 def guarded_write(session: Session, system_id: int, guard: Guard, subject: Callable[[System], Frame | System],
                   state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], T], action: str,
                   actor: Optional[str], revert: Optional[Revert], undo_of: Optional[int] = None, *,
-                  settings: Optional[Settings] = None, edit: Optional[EditContext] = None) -> T:
+                  recompute: bool = False, settings: Optional[Settings] = None,
+                  edit: Optional[EditContext] = None) -> T:
     """The guarded, audited write of system ``system_id`` every edit and decision goes through (module docstring):
     ``guard`` checks ``subject(system)`` (the system as read, or one of its views) (412), ``state`` of it before,
     ``revert``'s check (409), ``apply`` (the change and the recomputation it asks for), ``state`` after, one audit
     entry (action ``action``, or ``revert``; ``undo_of``: the entry this edit undoes, recorded as its ``reverts_id``
     under the edit's own action), committed together.
 
-    ``settings`` given: the write recomputes its system, reading its game's rig rows with it (``edit.rig``), and,
-    unless its kind re-fits beyond the system, computes after its reads and compares under the lock; else it runs
-    under the lock. ``edit``: the edit's context (:class:`EditContext`), filled with its entry's id and outcome.
+    ``recompute`` (with ``settings``): the write recomputes its system, reading its game's rig rows with it
+    (``edit.rig``), and, unless its kind re-fits beyond the system, computes after its reads and compares under the
+    lock; else (a decision) it runs under the lock. ``edit``: the edit's context (:class:`EditContext`), filled with
+    its entry's id and outcome.
 
     Raises:
         NotFoundError: no such system (or subject).
         StaleVersionError: the subject's version is not expected (rolled back; its current state described).
         ConflictError: a revert of a state that changed since.
         What ``apply`` raises (rolled back).
+        ValueError: ``recompute`` without ``settings``.
     """
     edit = edit if edit is not None else EditContext()
-    recomputes = settings is not None
+    recomputes = recompute
+    if recompute and settings is None:
+        raise ValueError("a write that recomputes needs the settings it recomputes with")
+    settings = settings if recompute else None  # a decision reads neither predictions nor rig
 
     def run(locked: bool) -> T:
         edit.attempts += 1
@@ -221,7 +227,7 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
                 lock_system(session, system_id, game=recomputes)
             else:  # the version is read first, with the system row: anything committed after it makes the compare fail
                 reads_on_their_own(session)
-            per_frame = settings.max_predictions_per_frame if settings is not None else None  # a decision reads none
+            per_frame = settings.max_predictions_per_frame if settings is not None else None
             system = found(load_for_recompute(session, [system_id], predictions=per_frame, with_game=True).get(
                 system_id), "system", system_id)
             if not locked and not kind_of(system).computes_before_lock:
@@ -342,14 +348,16 @@ def _describe_current(session: Session, exc: StaleVersionError) -> None:
 def guarded_frame_write(session: Session, frame_id: int, expected: Expected, state: Callable[[Frame], dict[str, Any]],
                         apply: Callable[[Frame], T], action: str, actor: Optional[str], revert: Optional[Revert],
                         undo_of: Optional[int] = None, *, system_id: Optional[int] = None,
-                        settings: Optional[Settings] = None, edit: Optional[EditContext] = None) -> T:
+                        recompute: bool = False, settings: Optional[Settings] = None,
+                        edit: Optional[EditContext] = None) -> T:
     """:func:`guarded_write` of frame ``frame_id`` (its system ``system_id``, looked up when None: :func:`frame_facts`),
     guarding the frame's version. Raises :class:`NotFoundError` for an unknown frame, and what ``guarded_write``
     raises."""
     if system_id is None:
         system_id = frame_facts(session, frame_id).system_id
     return guarded_write(session, system_id, Guard("frame", expected), lambda system: view_of(system, frame_id),
-                         state, apply, action, actor, revert, undo_of, settings=settings, edit=edit)
+                         state, apply, action, actor, revert, undo_of, recompute=recompute, settings=settings,
+                         edit=edit)
 
 
 def view_of(system: System, frame_id: int) -> Frame:
