@@ -17,8 +17,11 @@ the unit ends):
   and pays nothing for it): a transaction that adds, changes or deletes a row a system's version covers
   (``app.db.scope.system_tables``) bumps that system's version (``System.version``), except a view's decision (its
   review row and its frame's row) which bumps its frame's version (``Frame.edit_version``) instead; and the columns
-  that no edit reads (a system's assignment) need no bump. A commit that breaks it raises :class:`VersionNotBumped`
-  and rolls back, so a writer added later cannot forget the bump the edits' optimistic concurrency relies on.
+  no version covers (``app.db.scope.UNVERSIONED_COLUMNS``: a system's assignment, a view's split...) need no bump. It
+  sees the ORM's changes (the session's new, dirty and deleted objects), not bulk statements sent with
+  ``Session.execute``, whose writers bump the versions themselves (``app.services.transfer.predictions``). A commit
+  that breaks it raises :class:`VersionNotBumped` and rolls back, so a writer added later cannot forget the bump the
+  edits' optimistic concurrency relies on.
 """
 from __future__ import annotations
 
