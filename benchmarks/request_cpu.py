@@ -23,6 +23,7 @@ Usage (from the checkout)::
 
     .venv/bin/python benchmarks/request_cpu.py --rounds 7 --batch 10
     .venv/bin/python benchmarks/request_cpu.py --database-url postgresql+psycopg://postgres@127.0.0.1:5432/test
+    git archive 158795d | tar -x -C /tmp/old && .venv/bin/python benchmarks/request_cpu.py --against /tmp/old
 """
 from __future__ import annotations
 
@@ -193,6 +194,45 @@ def measure(base: str, token: str, rounds: int, batch: int, seed: int,
             "page_wire_bytes": wire, "page_json_bytes": size, "rounds": rounds, "batch": batch}
 
 
+def measure_against(bases: dict[str, str], tokens: dict[str, str], rounds: int, batch: int,
+                    seed: int) -> dict[str, Any]:
+    """:func:`measure` of two servers in one run (``bases``: label -> base URL, each over its own database holding the
+    demo; ``tokens``: label -> an annotator's API token there): every round runs each (server, kind) batch once, in a
+    shuffled order, so a slow phase of the machine falls on both alike. Returns per server its medians (ms) and ratios
+    to its health, and the ratio of each kind's median to the first server's (``ratio_to``: the second label's over the
+    first's)."""
+    import httpx
+
+    rng = random.Random(seed)
+    procs = {label: server_process(int(base.rsplit(":", 1)[1])) for label, base in bases.items()}
+    clients = {label: httpx.Client(base_url=base, headers={"Authorization": f"Bearer {tokens[label]}"},
+                                   timeout=60.0) for label, base in bases.items()}
+    try:
+        send = {}
+        for label, client in clients.items():
+            send[label] = requests_of(client, four_view_system(client))
+            for kind in KINDS:  # warm every path once
+                send[label][kind](0)
+        per: dict[str, dict[str, list[float]]] = {label: {k: [] for k in KINDS} for label in bases}
+        seq = 1
+        for _ in range(rounds):
+            order = [(label, kind) for label in bases for kind in KINDS]
+            rng.shuffle(order)
+            for label, kind in order:
+                before = cpu_seconds(procs[label])
+                for _ in range(batch):
+                    send[label][kind](seq)
+                    seq += 1
+                per[label][kind].append((cpu_seconds(procs[label]) - before) / batch * 1000.0)
+    finally:
+        for client in clients.values():
+            client.close()
+    med = {label: {k: statistics.median(v) for k, v in kinds.items()} for label, kinds in per.items()}
+    first, second = list(bases)
+    return {"cpu_ms": med, "ratio": {label: {k: m[k] / m["health"] for k in KINDS} for label, m in med.items()},
+            "ratio_to": {k: med[second][k] / med[first][k] for k in KINDS}, "rounds": rounds, "batch": batch}
+
+
 def main(argv: Optional[list[str]] = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--database-url", default=None, help="PostgreSQL server URL (default: a SQLite file)")
@@ -200,7 +240,13 @@ def main(argv: Optional[list[str]] = None) -> int:
     ap.add_argument("--batch", type=int, default=10)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", action="store_true", help="print the result as JSON")
+    ap.add_argument("--against", type=Path, default=None,
+                    help="a checkout of other code (``git archive REV | tar -x -C DIR``): both servers measured in "
+                         "the same interleaved rounds, each over a demo database of its own (SQLite), and this "
+                         "code's medians given as ratios to its")
     args = ap.parse_args(argv)
+    if args.against is not None:
+        return _main_against(args)
     with fresh_database(args.database_url) as url:
         token = user_tokens(url, 1)[0]
         with served(url, workers=1) as base:
@@ -220,6 +266,59 @@ def main(argv: Optional[list[str]] = None) -> int:
         print(f"| {k} | {out['cpu_ms'][k]:.1f} | {out['ratio'][k]:.1f} |" + (f" {pg[k]:.1f} |" if pg else ""))
     print(f"system page: {out['page_wire_bytes'] / 1024:.1f} KB on the wire, {out['page_json_bytes'] / 1024:.1f} KB "
           "JSON")
+    return 0
+
+
+
+def _main_against(args: argparse.Namespace) -> int:
+    """``--against DIR``: this checkout's server and DIR's, each on a fresh demo database (SQLite) that its own code
+    migrated and filled (their migrations may differ), one annotator's token each."""
+    import subprocess
+    import tempfile
+    from contextlib import ExitStack, contextmanager
+    from typing import Iterator
+
+    from benchmarks import load
+
+    @contextmanager
+    def code_of(root: Path) -> Iterator[None]:  # the CLI and the server started in the block run ``root``'s code
+        old_root, old_path = load.ROOT, os.environ.get("PYTHONPATH")
+        load.ROOT, os.environ["PYTHONPATH"] = root, str(root)
+        try:
+            yield
+        finally:
+            load.ROOT = old_root
+            if old_path is None:
+                os.environ.pop("PYTHONPATH", None)
+            else:
+                os.environ["PYTHONPATH"] = old_path
+
+    if args.database_url is not None:
+        raise BenchError("--against measures two servers on SQLite files of their own: leave --database-url out")
+    root = args.against.resolve()
+    prepare = ("import sys; from app.cli.serve import load_demo_if_empty; from app.core.config import Settings; "
+               "from app.db.session import upgrade_database; upgrade_database(sys.argv[1]); "
+               "print(load_demo_if_empty(Settings(database_url=sys.argv[1], calibration_workers=1)))")
+    with fresh_database(None) as url, tempfile.TemporaryDirectory(prefix="v3d-against-") as tmp, ExitStack() as stack:
+        tokens = {"this": user_tokens(url, 1)[0]}
+        theirs_url = f"sqlite:///{Path(tmp) / 'against.sqlite3'}"
+        with code_of(root):
+            subprocess.run([sys.executable, "-c", prepare, theirs_url], cwd=root, env=dict(os.environ), check=True)
+            tokens["against"] = user_tokens(theirs_url, 1)[0]
+            theirs = stack.enter_context(served(theirs_url, workers=1))
+        ours = stack.enter_context(served(url, workers=1))
+        out = measure_against({"against": theirs, "this": ours}, tokens, args.rounds, args.batch, args.seed)
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"server CPU per request, medians of {out['rounds']} interleaved rounds of {out['batch']}, this checkout "
+          f"against {args.against}:")
+    print("| request | against: CPU ms | x health | this: CPU ms | x health | this / against |")
+    print("|---|---|---|---|---|---|")
+    for k in KINDS:
+        a, t = out["cpu_ms"]["against"][k], out["cpu_ms"]["this"][k]
+        print(f"| {k} | {a:.2f} | {out['ratio']['against'][k]:.1f} | {t:.2f} | {out['ratio']['this'][k]:.1f} | "
+              f"{out['ratio_to'][k]:.2f} |")
     return 0
 
 

@@ -12,6 +12,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.core.paths import SHARED_DIR
+from app.db import unit as write_units
 from app.db.session import make_engine, upgrade_database
 
 #: The Host of Starlette's test client (``http://testserver``) is no loopback name: the apps of the tests accept
@@ -19,6 +20,8 @@ from app.db.session import make_engine, upgrade_database
 #: does). ``tests/api/test_hosts.py`` builds apps without it to see the refusal.
 TEST_CLIENT_HOST = "testserver"
 os.environ["V3D_ALLOWED_HOSTS"] = ",".join(filter(None, [os.environ.get("V3D_ALLOWED_HOSTS"), TEST_CLIENT_HOST]))
+#: Every write unit of the suite checks that what it changes of a system bumps the system's version (``app.db.unit``).
+write_units.CHECK_VERSIONS = True
 
 
 @pytest.fixture(scope="session")

@@ -106,3 +106,20 @@ def test_the_route_modules_declare_no_class() -> None:
                 for p in _files("app/api/routes", suffixes={".py"})
                 for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))) if isinstance(node, ast.ClassDef)]
     assert not declared, "classes declared in route modules:\n" + "\n".join(declared)
+
+
+def test_every_writer_commits_through_the_write_unit() -> None:
+    """One way to write: a transaction is begun, committed or rolled back by ``app.db.unit.write_unit`` (where the
+    queue's copy of a decision is written and the versions are checked), never by a ``.commit()`` of its own."""
+    calls = [f"{p.relative_to(ROOT)}:{node.lineno}" for p in _files("app", suffixes={".py"})
+             if p.relative_to(ROOT).parts[:2] != ("app", "db")
+             for node in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
+             if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "commit"]
+    assert not calls, "commits outside the write unit:\n" + "\n".join(calls)
+
+
+def test_no_stand_ins_for_rows() -> None:
+    """Typed rows (dataclasses) where an ORM row is stood in for: mypy checks their fields, ``SimpleNamespace`` not."""
+    found = [f"{p.relative_to(ROOT)}" for p in _files("app", suffixes={".py"})
+             if "SimpleNamespace" in p.read_text(encoding="utf-8")]
+    assert not found, "SimpleNamespace in:\n" + "\n".join(found)

@@ -17,6 +17,7 @@ from app.api.schemas import DbInt
 from app.api.share import ComputeShare
 from app.core.config import Settings
 from app.db.models import Frame, System
+from app.db.session import end_reads
 from app.services.curation.writing import EditContext
 from app.services.curation.writing import get_frame as _get_frame
 from app.services.curation.writing import get_system as _get_system
@@ -32,8 +33,8 @@ def get_session(request: Request) -> Iterator[Session]:
     wrote nothing; psycopg forgets the statements it prepared on a rollback only), anything else rolled back."""
     with request.app.state.session_factory() as session:
         yield session
-        if session.in_transaction() and not (session.new or session.dirty or session.deleted):
-            session.commit()
+        if not (session.new or session.dirty or session.deleted):
+            end_reads(session)
 
 
 def edit_context(request: Request) -> EditContext:

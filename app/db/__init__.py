@@ -1,2 +1,3 @@
 """Persistence: typed SQLAlchemy models (``models``), column types (``types``), engine and session
-factories and the Alembic upgrade (``session``). The schema lives in ``migrations/``."""
+factories and the Alembic upgrade (``session``), the write unit every writer commits through (``unit``) and the rows
+each version covers (``scope``). The schema lives in ``migrations/``."""

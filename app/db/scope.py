@@ -56,6 +56,20 @@ def game_tables() -> frozenset[str]:
                       Frame.calibration.property.mapper.local_table.name})
 
 
+#: Columns of the covered tables that no edit reads for its recomputation nor shows as what a version's ETag vouches
+#: for: a write of them alone needs no version bump (the write unit's check, ``app.db.unit``, skips them). A system's
+#: assignment (who works on it); the queue's copy of its decision (written from the decision, which is covered
+#: itself); a view's split (which set an export files it in), its precise ball box (an evaluation's reference,
+#: ``app.services.evaluation.boxes``) and what its dataset carries that v3d does not edit (``Frame.release``,
+#: deferred: an edit never loads it), and where its image file is found (its pixels are the same wherever they are:
+#: an import may find them in another folder or archive).
+UNVERSIONED_COLUMNS: dict[str, frozenset[str]] = {
+    System.__tablename__: frozenset({"assignee_id", "assigned_at", "assigned_by", "review_status"}),
+    Frame.__tablename__: frozenset({"split", "precise_box", "release", "image_path", "image_root", "image_zip",
+                                     "image_member", "image_type"}),
+}
+
+
 def changed(system: System) -> None:
     """Bump ``system``'s version in memory (flushed with the transaction's other writes): call it in every transaction
     that writes a row of the system's scope (module docstring). The flush's ``UPDATE`` of the system compares the

@@ -33,6 +33,7 @@ from sqlalchemy.engine import CursorResult
 from sqlalchemy.orm import Session
 
 from app.db.models import RateLimitCounter
+from app.db.unit import write_unit
 
 
 class DatabaseStorage(Storage):
@@ -56,16 +57,16 @@ class DatabaseStorage(Storage):
         or its window ended) and return the new count, atomically."""
         now = self.clock()
         with self.session_factory() as session:
-            insert = (postgresql.insert if session.get_bind().dialect.name == "postgresql" else sqlite.insert)(
-                RateLimitCounter)
-            expired = RateLimitCounter.expires_at <= now
-            statement = insert.values(key=key, hits=amount, expires_at=now + expiry).on_conflict_do_update(
-                index_elements=[RateLimitCounter.key],
-                set_={"hits": sa.case((expired, amount), else_=RateLimitCounter.hits + amount),
-                      "expires_at": sa.case((expired, now + expiry), else_=RateLimitCounter.expires_at)},
-            ).returning(RateLimitCounter.hits)
-            hits = session.execute(statement).scalar_one()
-            session.commit()
+            with write_unit(session, lock=False):
+                insert = (postgresql.insert if session.get_bind().dialect.name == "postgresql" else sqlite.insert)(
+                    RateLimitCounter)
+                expired = RateLimitCounter.expires_at <= now
+                statement = insert.values(key=key, hits=amount, expires_at=now + expiry).on_conflict_do_update(
+                    index_elements=[RateLimitCounter.key],
+                    set_={"hits": sa.case((expired, amount), else_=RateLimitCounter.hits + amount),
+                          "expires_at": sa.case((expired, now + expiry), else_=RateLimitCounter.expires_at)},
+                ).returning(RateLimitCounter.hits)
+                hits = session.execute(statement).scalar_one()
             self._prune(session, now)
         return int(hits)
 
@@ -81,8 +82,8 @@ class DatabaseStorage(Storage):
         ended = (sa.select(RateLimitCounter.key).where(RateLimitCounter.expires_at <= now)
                  .order_by(RateLimitCounter.expires_at).limit(self.PRUNE_BATCH)
                  .with_for_update(skip_locked=True))
-        session.execute(sa.delete(RateLimitCounter).where(RateLimitCounter.key.in_(ended)))
-        session.commit()
+        with write_unit(session, lock=False):
+            session.execute(sa.delete(RateLimitCounter).where(RateLimitCounter.key.in_(ended)))
 
     def _row(self, key: str) -> Optional[RateLimitCounter]:
         with self.session_factory() as session:
@@ -111,26 +112,26 @@ class DatabaseStorage(Storage):
     def reset(self) -> Optional[int]:
         """Forget every counter; returns how many there were."""
         with self.session_factory() as session:
-            count = cast(CursorResult, session.execute(sa.delete(RateLimitCounter))).rowcount
-            session.commit()
+            with write_unit(session, lock=False):
+                count = cast(CursorResult, session.execute(sa.delete(RateLimitCounter))).rowcount
         return count
 
     def decr(self, key: str, amount: int = 1) -> None:
         """Take ``amount`` back from the counter ``key`` within its current window (never below 0; an ended
         window is left alone)."""
         with self.session_factory() as session:
-            session.execute(sa.update(RateLimitCounter)
-                            .where(RateLimitCounter.key == key, RateLimitCounter.expires_at > self.clock())
-                            .values(hits=sa.func.max(RateLimitCounter.hits - amount, 0)
-                                    if session.get_bind().dialect.name == "sqlite"
-                                    else sa.func.greatest(RateLimitCounter.hits - amount, 0)))
-            session.commit()
+            with write_unit(session, lock=False):
+                session.execute(sa.update(RateLimitCounter)
+                                .where(RateLimitCounter.key == key, RateLimitCounter.expires_at > self.clock())
+                                .values(hits=sa.func.max(RateLimitCounter.hits - amount, 0)
+                                        if session.get_bind().dialect.name == "sqlite"
+                                        else sa.func.greatest(RateLimitCounter.hits - amount, 0)))
 
     def clear(self, key: str) -> None:
         """Forget the counter ``key``."""
         with self.session_factory() as session:
-            session.execute(sa.delete(RateLimitCounter).where(RateLimitCounter.key == key))
-            session.commit()
+            with write_unit(session, lock=False):
+                session.execute(sa.delete(RateLimitCounter).where(RateLimitCounter.key == key))
 
 
 def client_address(peer: Optional[str], forwarded_for: Optional[str], trusted_proxies: Iterable[str]) -> str:

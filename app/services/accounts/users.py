@@ -20,6 +20,7 @@ them with a session of their own).
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import re
 import secrets
@@ -38,6 +39,7 @@ from app.core.errors import InvalidInputError, NotFoundError
 from app.core.names import check_name, name_key
 from app.db.models import ApiToken, ServerSecret, User, UserRole
 from app.db.types import utcnow
+from app.db.unit import write_unit
 from app.services.audit import log as audit
 
 #: argon2id with pwdlib's recommended parameters.
@@ -197,17 +199,16 @@ def create_user(session: Session, name: str, role: str, password: str, *, demo: 
     _check_name(name, session), _role(role), _check_password(password)
     with _HASHING:
         password_hash = PASSWORDS.hash(password)
-    user = User(name=name, role=_role(role), password_hash=password_hash, demo=demo)
-    session.add(user)
-    try:
-        session.flush()
-    except IntegrityError:
-        session.rollback()
-        raise InvalidInputError(f"a user named {name!r} already exists", field="name") from None
-    row, token = _add_token(session, user, "first token", None)
-    audit.record(session, actor=actor, action="user.create",
-                 after={"user": name, "role": user.role.value, "demo": demo, "token_id": row.id})
-    session.commit()
+    with write_unit(session, lock=False):
+        user = User(name=name, role=_role(role), password_hash=password_hash, demo=demo)
+        session.add(user)
+        try:
+            session.flush()
+        except IntegrityError:  # rolled back by the write unit
+            raise InvalidInputError(f"a user named {name!r} already exists", field="name") from None
+        row, token = _add_token(session, user, "first token", None)
+        audit.record(session, actor=actor, action="user.create",
+                     after={"user": name, "role": user.role.value, "demo": demo, "token_id": row.id})
     return user, token
 
 
@@ -240,11 +241,11 @@ def issue_token(session: Session, name: str, *, label: Optional[str] = None, exp
     user = get_user(session, name)
     if user.disabled:
         raise InvalidInputError(f"{name!r} is disabled: enable it before issuing a token", field="name")
-    row, token = _add_token(session, user, label, expires_days)
-    audit.record(session, actor=actor, action="token.issue",
-                 after={"user": name, "token_id": row.id, "label": label,
-                        "expires_at": row.expires_at.isoformat() if row.expires_at else None})
-    session.commit()
+    with write_unit(session, lock=False):
+        row, token = _add_token(session, user, label, expires_days)
+        audit.record(session, actor=actor, action="token.issue",
+                     after={"user": name, "token_id": row.id, "label": label,
+                            "expires_at": row.expires_at.isoformat() if row.expires_at else None})
     return IssuedToken(row.id, token, label, row.expires_at)
 
 
@@ -269,10 +270,10 @@ def revoke_token(session: Session, name: str, token_id: int, *, actor: Optional[
     if row is None:
         raise NotFoundError("token", token_id)
     if row.revoked_at is None:
-        row.revoked_at = utcnow()
-        audit.record(session, actor=actor, action="token.revoke",
-                     after={"user": name, "token_id": row.id, "label": row.label})
-        session.commit()
+        with write_unit(session, lock=False):
+            row.revoked_at = utcnow()
+            audit.record(session, actor=actor, action="token.revoke",
+                         after={"user": name, "token_id": row.id, "label": row.label})
     return TokenSummary.of(row)
 
 
@@ -287,11 +288,11 @@ def set_role(session: Session, name: str, role: str, *, actor: Optional[str] = N
     user = get_user(session, name)
     new = _role(role)
     if user.role != new:
-        before = user.role.value
-        user.role = new
-        audit.record(session, actor=actor, action="user.role", before={"user": name, "role": before},
-                     after={"user": name, "role": new.value})
-        session.commit()
+        with write_unit(session, lock=False):
+            before = user.role.value
+            user.role = new
+            audit.record(session, actor=actor, action="user.role", before={"user": name, "role": before},
+                         after={"user": name, "role": new.value})
     return user
 
 
@@ -303,17 +304,17 @@ def set_disabled(session: Session, name: str, disabled: bool = True, *, actor: O
     Raises :class:`NotFoundError`.
     """
     user = get_user(session, name)
-    revoked = 0
-    if disabled:
-        revoked = cast(CursorResult, session.execute(
-            sa.update(ApiToken).where(ApiToken.user_id == user.id, ApiToken.revoked_at.is_(None))
-            .values(revoked_at=utcnow())
-        )).rowcount or 0
-    user.disabled = disabled
-    user.session_generation += 1
-    audit.record(session, actor=actor, action="user.disable" if disabled else "user.enable",
-                 after={"user": name, **({"tokens_revoked": revoked} if disabled else {})})
-    session.commit()
+    with write_unit(session, lock=False):
+        revoked = 0
+        if disabled:
+            revoked = cast(CursorResult, session.execute(
+                sa.update(ApiToken).where(ApiToken.user_id == user.id, ApiToken.revoked_at.is_(None))
+                .values(revoked_at=utcnow())
+            )).rowcount or 0
+        user.disabled = disabled
+        user.session_generation += 1
+        audit.record(session, actor=actor, action="user.disable" if disabled else "user.enable",
+                     after={"user": name, **({"tokens_revoked": revoked} if disabled else {})})
     return user
 
 
@@ -329,8 +330,8 @@ def authenticate_password(session: Session, name: str, password: str) -> Optiona
     if not valid or user.disabled:
         return None
     if new_hash is not None:
-        user.password_hash = new_hash
-        session.commit()
+        with write_unit(session, lock=False):
+            user.password_hash = new_hash
     return user
 
 
@@ -350,14 +351,13 @@ def resolve_token(session: Session, token: str) -> Optional[User]:
         return None
     api_token, user = row
     if api_token.last_used_at is None or now - api_token.last_used_at > TOKEN_USE_RESOLUTION:
-        api_token.last_used_at = now
         user_id = user.id
         try:
-            session.commit()
+            with write_unit(session, lock=False):
+                api_token.last_used_at = now
         except sa.exc.OperationalError:
             # SQLite's write lock is another writer's (an edit of another worker): the request must not
             # fail for a timestamp, which the next request refreshes. Read the user again after the rollback.
-            session.rollback()
             return session.get(User, user_id)
     return user
 
@@ -373,9 +373,9 @@ def resolve_session_user(session: Session, user_id: int, generation: int) -> Opt
 
 def end_sessions(session: Session, user_id: int) -> None:
     """End every browser session of the user (logout); commits."""
-    session.execute(sa.update(User).where(User.id == user_id)
-                    .values(session_generation=User.session_generation + 1))
-    session.commit()
+    with write_unit(session, lock=False):
+        session.execute(sa.update(User).where(User.id == user_id)
+                        .values(session_generation=User.session_generation + 1))
 
 
 def list_users(session: Session) -> list[UserSummary]:
@@ -423,9 +423,6 @@ def session_secret(session: Session, override: Optional[str] = None) -> str:
     row = session.get(ServerSecret, "session")
     if row is not None:
         return row.value
-    session.add(ServerSecret(name="session", value=secrets.token_urlsafe(48)))
-    try:
-        session.commit()
-    except IntegrityError:
-        session.rollback()
+    with contextlib.suppress(IntegrityError), write_unit(session, lock=False):  # rolled back: another process won
+        session.add(ServerSecret(name="session", value=secrets.token_urlsafe(48)))
     return session.get(ServerSecret, "session").value  # type: ignore[union-attr]  # inserted above, or by another process

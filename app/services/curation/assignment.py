@@ -24,8 +24,8 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError
 from app.db.models import Game, System, User
-from app.db.session import begin_write
 from app.db.types import utcnow
+from app.db.unit import write_unit
 from app.services.accounts.users import is_reserved_name
 from app.services.audit import log as audit
 from app.services.curation.queue import SystemFilters, matching_system_ids
@@ -147,8 +147,7 @@ def assign(session: Session, *, assignee: Optional[str], system_ids: Optional[li
     if len(given) != 1:
         raise InvalidInputError("give exactly one of system_ids, game_id and filter", field="system_ids")
     now = now or utcnow()
-    try:
-        begin_write(session)
+    with write_unit(session):
         user = assignable_user(session, assignee) if assignee is not None else None
         new_id = user.id if user is not None else None
         ids = _selected_ids(session, system_ids, game_id, filters)
@@ -170,10 +169,6 @@ def assign(session: Session, *, assignee: Optional[str], system_ids: Optional[li
                                         system=system,
                                         before={"assignee": names.get(old) if old is not None else None},
                                         after={"assignee": assignee}, reverts_id=reverts_id))
-        session.commit()
-    except BaseException:
-        session.rollback()
-        raise
     return Assigned(assignee=assignee, matched=len(ids), changed=len(changed), system_ids=changed,
                     entry_ids=[e.id for e in entries])
 

@@ -19,8 +19,8 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, ForbiddenError, InvalidInputError, NotFoundError
 from app.db.models import Frame, ReviewComment, System, UserRole
-from app.db.session import begin_write
 from app.db.types import utcnow
+from app.db.unit import write_unit
 from app.services.audit import log as audit
 from app.services.curation.handoff import returned_to_user
 
@@ -88,8 +88,7 @@ def add_comment(session: Session, system_id: int, *, frame_id: Any, point: Any, 
         InvalidInputError: ``frame_id`` not a view of the system, ``point`` not in its image, ``text`` empty or
             longer than :data:`MAX_TEXT` (each naming its field); nothing stored.
     """
-    try:
-        begin_write(session)
+    with write_unit(session):
         system = session.scalar(sa.select(System).where(System.id == system_id).with_for_update())
         if system is None:
             raise NotFoundError("system", system_id)
@@ -112,10 +111,6 @@ def add_comment(session: Session, system_id: int, *, frame_id: Any, point: Any, 
         session.add(comment)
         session.flush()
         audit.record(session, actor=author, action="comment.add", frame=frame, before=None, after=_state(comment))
-        session.commit()
-    except BaseException:
-        session.rollback()
-        raise
     return comment
 
 
@@ -128,8 +123,7 @@ def set_resolved(session: Session, comment_id: int, resolved: bool, *, actor: st
         NotFoundError: no such comment.
         ForbiddenError: neither its author, a reviewer, nor the user its system is returned to.
     """
-    try:
-        begin_write(session)
+    with write_unit(session):
         comment = session.get(ReviewComment, comment_id)
         if comment is None:
             raise NotFoundError("comment", comment_id)
@@ -143,8 +137,4 @@ def set_resolved(session: Session, comment_id: int, resolved: bool, *, actor: st
             frame = session.get(Frame, comment.frame_id)
             audit.record(session, actor=actor, action="comment.resolve" if resolved else "comment.reopen",
                          frame=frame, before=before, after=_state(comment))
-        session.commit()
-    except BaseException:
-        session.rollback()
-        raise
     return comment

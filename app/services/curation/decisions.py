@@ -85,7 +85,6 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         review.decided_at = utcnow()
         review.reset_reason = None
         if isinstance(subject, System):
-            subject.review_status = status  # the queue's copy
             handoff.after_decision(session, subject, status, actor=actor, note=comment)
         return review
 

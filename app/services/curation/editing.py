@@ -187,7 +187,7 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
 
     return guarded_frame_write(session, frame_id, expected, ball_state, apply, "ball.edit", actor, revert,
                                undo.entry_id if undo is not None else None, system_id=facts.system_id,
-                               settings=settings, edit=edit)
+                               recompute=True, settings=settings, edit=edit)
 
 
 def _recompute(session: Session, system: System, settings: Settings, actor: Optional[str],
@@ -293,7 +293,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
     if undo_of is not None:
         check_undo(session, undo_of, frame_id, parsed)
     return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.replace", actor, revert,
-                               undo_of, system_id=facts.system_id, settings=settings, edit=edit)
+                               undo_of, system_id=facts.system_id, recompute=True, settings=settings, edit=edit)
 
 
 def check_undo(session: Session, entry_id: int, frame_id: int, parsed: dict[str, Any]) -> None:
@@ -367,7 +367,7 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
 
     facts = frame_facts(session, frame_id)
     return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.mirror", actor, None,
-                               system_id=facts.system_id, settings=settings, edit=context)
+                               system_id=facts.system_id, recompute=True, settings=settings, edit=context)
 
 
 def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None, str] | None:
@@ -425,7 +425,7 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
 
     return guarded_frame_write(session, frame_id, expected, excluded_state, apply, "view.exclusion", actor, revert,
                                undo.entry_id if undo is not None else None, system_id=facts.system_id,
-                               settings=settings, edit=edit)
+                               recompute=True, settings=settings, edit=edit)
 
 
 def restore_imported_system(session: Session, system_id: int, state: Mapping[str, Any], *, settings: Settings,
@@ -454,13 +454,12 @@ def restore_imported_system(session: Session, system_id: int, state: Mapping[str
             if frame is not None:
                 _restore_view(frame, view, now)
         _restore_review(system, "review", system_state["review"], now)
-        system.review_status = system.review.status if system.review is not None else ReviewStatus.PENDING
         _recompute(session, system, settings, actor, edit)
         return system
 
     return guarded_write(session, system_id, Guard("system"), lambda system: system, system_import_state, apply,
                          "system.import", actor, revert, undo.entry_id if undo is not None else None,
-                         settings=settings, edit=edit)
+                         recompute=True, settings=settings, edit=edit)
 
 
 def _restore_view(frame: Frame, view: Mapping[str, Any], now: Any) -> None:

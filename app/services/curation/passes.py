@@ -31,8 +31,8 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ForbiddenError, InvalidInputError, found
 from app.db.models import AuditEntry, ReviewPass, ReviewStatus, System
-from app.db.session import begin_write
 from app.db.types import utcnow
+from app.db.unit import write_unit
 from app.services.curation.queue import DEFAULT_SORT, SystemFilters, SystemSort, queue_ids
 
 #: The counts of a pass: its owner's decisions in it by status; ``sent_back``: systems their annotator sent back as
@@ -104,17 +104,12 @@ def start_pass(session: Session, user: str, filters: SystemFilters = ALL_SYSTEMS
             if any(s in _TO_DO for s in statuses.values()):
                 return rp
     ids = queue_ids(session, filters, sort)
-    begin_write(session)
-    try:
+    with write_unit(session):
         rp = ReviewPass(user_name=user, filters=stored, sort=sort, system_ids=ids,
                         position=ids.index(system_id) if system_id in ids else 0)
         session.add(rp)
         session.flush()
         _drop_beyond(session, user, keep, rp.id)
-        session.commit()
-    except BaseException:
-        session.rollback()
-        raise
     return rp
 
 
@@ -244,13 +239,8 @@ def visit(session: Session, rp: ReviewPass, system_id: int, user: str) -> PassPl
         raise InvalidInputError("system_id must be a system id", field="system_id")
     if system_id in rp.system_ids:
         pass_id = rp.id
-        begin_write(session)
-        try:
+        with write_unit(session):
             rp = get_pass(session, pass_id)
             rp.position = rp.system_ids.index(system_id)
             rp.visited_at = utcnow()
-            session.commit()
-        except BaseException:
-            session.rollback()
-            raise
     return place(session, rp, system_id)

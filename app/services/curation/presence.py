@@ -36,6 +36,7 @@ from app.core.errors import NotFoundError
 from app.db.models import System, SystemPresence, User
 from app.db.session import begin_write
 from app.db.types import utcnow
+from app.db.unit import write_unit
 
 #: How long a claim lives without a refresh.
 TTL = timedelta(seconds=50)
@@ -125,15 +126,11 @@ def claim(session: Session, system_id: int, user_id: int, now: Optional[datetime
     wrote = _due(row, now)
     if wrote:
         try:
-            row = _write_claim(session, system_id, user_id, now)
-            session.commit()
-        except IntegrityError:  # the same user's other tab wrote this claim a moment ago (PostgreSQL)
-            session.rollback()
+            with write_unit(session):
+                row = _write_claim(session, system_id, user_id, now)
+        except IntegrityError:  # the same user's other tab wrote this claim a moment ago (PostgreSQL); rolled back
             wrote = False
             row = session.get(SystemPresence, (system_id, user_id))
-        except BaseException:
-            session.rollback()
-            raise
     if row is None:  # only after a lost race with the user's own release
         raise NotFoundError("presence of user on system", f"{user_id}/{system_id}")
     name = session.scalar(sa.select(User.name).where(User.id == user_id)) or ""
@@ -166,8 +163,7 @@ def _write_claim(session: Session, system_id: int, user_id: int, now: datetime) 
 
 def release(session: Session, system_id: int, user_id: int) -> bool:
     """End ``user_id``'s claim on ``system_id`` (the page closed or moved on); commit. True when there was one."""
-    begin_write(session)
-    done = cast(CursorResult, session.execute(sa.delete(SystemPresence).where(SystemPresence.system_id == system_id,
-                                                                              SystemPresence.user_id == user_id)))
-    session.commit()
+    with write_unit(session):
+        done = cast(CursorResult, session.execute(sa.delete(SystemPresence).where(
+            SystemPresence.system_id == system_id, SystemPresence.user_id == user_id)))
     return bool(done.rowcount)

@@ -21,6 +21,7 @@ from typing import Any, Callable, Optional
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.db import scope
 from app.db.models import (
     AuditEntry,
     Frame,
@@ -63,6 +64,7 @@ def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[
             continue
         _system_back_to_pending(session, other, f"{other.name}: its 3D ball moved with the trajectory's re-fit after "
                                 f"an edit of {edited.name} by {who}; decide it again", actor, utcnow())
+        scope.changed(other)  # its decision is in what its version covers (the edited system's own is bumped once)
         done += 1
     return done
 
@@ -171,7 +173,6 @@ def _system_back_to_pending(session: Session, system: System, reason: str, actor
     decision.status = ReviewStatus.PENDING
     decision.reset_reason = reason
     decision.decided_at = now
-    system.review_status = ReviewStatus.PENDING  # the queue's copy
     audit.record(session, actor=actor, action="system.review", system=system, before=before,
                  after=review_state(system))
 
@@ -274,8 +275,6 @@ def restore_decisions(frame: Frame, revert: Optional[Revert], actor: Optional[st
         else:
             review.status, review.comment, review.reset_reason, review.decided_at = status, comment, None, now
             action = "view.review" if frame_id is not None else "system.review"
-            if isinstance(subject, System):
-                subject.review_status = status  # the queue's copy
         name = audit.view_name(subject) if isinstance(subject, Frame) else None
         words.append(summarize(action, after, before, view=name))
     if words:

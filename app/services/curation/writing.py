@@ -58,6 +58,7 @@ from app.core.metrics import count_edit
 from app.db import scope
 from app.db.models import Frame, Game, System
 from app.db.session import begin_write, end_reads, reads_on_their_own
+from app.db.unit import write_unit
 from app.services.audit import log as audit
 from app.services.curation.states import same_json
 from app.services.curation.system_page import load_frame
@@ -192,74 +193,81 @@ class _MustLock(Exception):
 def guarded_write(session: Session, system_id: int, guard: Guard, subject: Callable[[System], Frame | System],
                   state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], T], action: str,
                   actor: Optional[str], revert: Optional[Revert], undo_of: Optional[int] = None, *,
-                  settings: Optional[Settings] = None, edit: Optional[EditContext] = None) -> T:
+                  recompute: bool = False, settings: Optional[Settings] = None,
+                  edit: Optional[EditContext] = None) -> T:
     """The guarded, audited write of system ``system_id`` every edit and decision goes through (module docstring):
     ``guard`` checks ``subject(system)`` (the system as read, or one of its views) (412), ``state`` of it before,
     ``revert``'s check (409), ``apply`` (the change and the recomputation it asks for), ``state`` after, one audit
     entry (action ``action``, or ``revert``; ``undo_of``: the entry this edit undoes, recorded as its ``reverts_id``
     under the edit's own action), committed together.
 
-    ``settings`` given: the write recomputes its system, reading its game's rig rows with it (``edit.rig``), and,
-    unless its kind re-fits beyond the system, computes after its reads and compares under the lock; else it runs
-    under the lock. ``edit``: the edit's context (:class:`EditContext`), filled with its entry's id and outcome.
+    ``recompute`` (with ``settings``): the write recomputes its system, reading its game's rig rows with it
+    (``edit.rig``), and, unless its kind re-fits beyond the system, computes after its reads and compares under the
+    lock; else (a decision) it runs under the lock. ``edit``: the edit's context (:class:`EditContext`), filled with
+    its entry's id and outcome.
 
     Raises:
         NotFoundError: no such system (or subject).
         StaleVersionError: the subject's version is not expected (rolled back; its current state described).
         ConflictError: a revert of a state that changed since.
         What ``apply`` raises (rolled back).
+        ValueError: ``recompute`` without ``settings``.
     """
     edit = edit if edit is not None else EditContext()
-    recomputes = settings is not None
+    recomputes = recompute
+    if recompute and settings is None:
+        raise ValueError("a write that recomputes needs the settings it recomputes with")
+    settings = settings if recompute else None  # a decision reads neither predictions nor rig
 
     def run(locked: bool) -> T:
         edit.attempts += 1
         edit.facts, edit.rig = {}, None
-        if locked:
-            begin_write(session)
-            lock_system(session, system_id, game=recomputes)
-        else:  # the version is read first, with the system's row: anything committed after it makes the compare fail
-            reads_on_their_own(session)
-        per_frame = settings.max_predictions_per_frame if settings is not None else None  # a decision reads none
-        system = found(load_for_recompute(session, [system_id], predictions=per_frame, with_game=True).get(system_id),
-                       "system", system_id)
-        if not locked and not kind_of(system).computes_before_lock:
-            raise _MustLock()
-        game_version = system.game.version if system.game is not None else None
-        edit.version = system.version
-        edit.rig = system_rig_rows(session, system, settings) if settings is not None else None
-        if not locked:
-            end_reads(session)  # the connection goes back to the pool while the edit computes
-        target = subject(system)
-        with session.no_autoflush:
-            guard.check_and_bump(target)
-            before = state(target)
-            _check_revert(revert, before)
-            result = apply(target)
-            after = state(target)
-            if recomputes or isinstance(target, System):  # a view decision changes the view's version alone
-                scope.changed(system)
-            audit.stamp_versions(session, system)  # the resets it recorded while computing, before the bump
-        if not locked:
-            begin_write(session)  # refuses a session that read while computing (a row outside ``scope``)
-            # an edit that changes its game's rig (a recalibration bumped the game's version) locks the game's row
-            # alone; the others share it: they need only that nobody changes the rig until they commit
-            changes_rig = system.game is not None and system.game.version != game_version
-            with session.no_autoflush:
-                if _game_version(session, system.game_id, lock="update" if changes_rig else "share") != game_version:
-                    raise _Collided()  # its game's rig or camera prior changed since it was read
-        frame = target if isinstance(target, Frame) else None
-        owner = target if isinstance(target, System) else None  # the subject: a view or the system itself
-        entry = audit.record(session, actor=actor, action="revert" if revert is not None else action, frame=frame,
-                             system=owner, before=before, after=after,
-                             reverts_id=revert.entry_id if revert is not None else undo_of, facts=edit.facts)
-        try:
-            session.flush()
-        except StaleDataError:
+        with write_unit(session, lock=False):  # rolled back when it raises: a collision, a refusal, a failure
             if locked:
-                raise
-            raise _Collided() from None
-        session.commit()
+                begin_write(session)
+                lock_system(session, system_id, game=recomputes)
+            else:  # the version is read first, with the system row: anything committed after it makes the compare fail
+                reads_on_their_own(session)
+            per_frame = settings.max_predictions_per_frame if settings is not None else None
+            system = found(load_for_recompute(session, [system_id], predictions=per_frame, with_game=True).get(
+                system_id), "system", system_id)
+            if not locked and not kind_of(system).computes_before_lock:
+                raise _MustLock()
+            game_version = system.game.version if system.game is not None else None
+            edit.version = system.version
+            edit.rig = system_rig_rows(session, system, settings) if settings is not None else None
+            if not locked:
+                end_reads(session)  # the connection goes back to the pool while the edit computes
+            target = subject(system)
+            with session.no_autoflush:
+                guard.check_and_bump(target)
+                before = state(target)
+                _check_revert(revert, before)
+                result = apply(target)
+                after = state(target)
+                if recomputes or isinstance(target, System):  # a view decision changes the view's version alone
+                    scope.changed(system)
+                audit.stamp_versions(session, system)  # the resets it recorded while computing, before the bump
+            if not locked:
+                begin_write(session)  # refuses a session that read while computing (a row outside ``scope``)
+                # an edit that changes its game's rig (a recalibration bumped the game's version) locks the game's row
+                # alone; the others share it: they need only that nobody changes the rig until they commit
+                changes_rig = system.game is not None and system.game.version != game_version
+                with session.no_autoflush:
+                    if _game_version(session, system.game_id,
+                                     lock="update" if changes_rig else "share") != game_version:
+                        raise _Collided()  # its game's rig or camera prior changed since it was read
+            frame = target if isinstance(target, Frame) else None
+            owner = target if isinstance(target, System) else None  # the subject: a view or the system itself
+            entry = audit.record(session, actor=actor, action="revert" if revert is not None else action,
+                                 frame=frame, system=owner, before=before, after=after,
+                                 reverts_id=revert.entry_id if revert is not None else undo_of, facts=edit.facts)
+            try:
+                session.flush()
+            except StaleDataError:
+                if locked:
+                    raise
+                raise _Collided() from None
         edit.entry_id = entry.id
         return result
 
@@ -274,20 +282,16 @@ def guarded_write(session: Session, system_id: int, guard: Guard, subject: Calla
                     count_edit(action, edit.outcome)
                     return result
                 except _Collided:
-                    session.rollback()
                     log.info("an edit of system %s met another write of what it read; computing again", system_id)
                 except _MustLock:
-                    session.rollback()
                     edit.attempts -= 1  # it read, it did not compute
                     break
             result = run(locked=True)
             edit.outcome = "under_lock" if edit.attempts == 1 else "recomputed"
             count_edit(action, edit.outcome if recomputes else "decided")
             return result
-        except BaseException as exc:
-            session.rollback()
-            if isinstance(exc, StaleVersionError):
-                _describe_current(session, exc)
+        except StaleVersionError as exc:  # rolled back by its write unit
+            _describe_current(session, exc)
             raise
 
 
@@ -347,14 +351,16 @@ def _describe_current(session: Session, exc: StaleVersionError) -> None:
 def guarded_frame_write(session: Session, frame_id: int, expected: Expected, state: Callable[[Frame], dict[str, Any]],
                         apply: Callable[[Frame], T], action: str, actor: Optional[str], revert: Optional[Revert],
                         undo_of: Optional[int] = None, *, system_id: Optional[int] = None,
-                        settings: Optional[Settings] = None, edit: Optional[EditContext] = None) -> T:
+                        recompute: bool = False, settings: Optional[Settings] = None,
+                        edit: Optional[EditContext] = None) -> T:
     """:func:`guarded_write` of frame ``frame_id`` (its system ``system_id``, looked up when None: :func:`frame_facts`),
     guarding the frame's version. Raises :class:`NotFoundError` for an unknown frame, and what ``guarded_write``
     raises."""
     if system_id is None:
         system_id = frame_facts(session, frame_id).system_id
     return guarded_write(session, system_id, Guard("frame", expected), lambda system: view_of(system, frame_id),
-                         state, apply, action, actor, revert, undo_of, settings=settings, edit=edit)
+                         state, apply, action, actor, revert, undo_of, recompute=recompute, settings=settings,
+                         edit=edit)
 
 
 def view_of(system: System, frame_id: int) -> Frame:

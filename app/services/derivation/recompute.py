@@ -47,14 +47,13 @@ from app.db.models import (
     CalibrationStatus,
     Frame,
     OptimisedBox,
-    ReviewStatus,
     System,
     Triangulation,
     TriangulationPair,
     TriangulationStatus,
 )
-from app.db.session import begin_write
 from app.db.types import json_safe, utcnow
+from app.db.unit import write_unit
 from app.geometry.ball import optimise_box
 from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.calibration.rig import estimate_rig
@@ -260,7 +259,6 @@ def update_summary(system: System, tri: Triangulation) -> None:
     labelled = [(f, rep.error_px) for f in admitted if f.ball_label is not None and f.ball_label.kind is not None
                 and (rep := f.reprojection) is not None and rep.error_px is not None]
     put_values(system, {
-        "review_status": system.review.status if system.review is not None else ReviewStatus.PENDING,
         "views_total": len(frames),
         "views_calibrated": sum(c is not None and c.status is CalibrationStatus.CALIBRATED for c in cals),
         "views_admitted": len(admitted),
@@ -327,13 +325,13 @@ def _recompute_in_batches(session: Session, ids: list[int], settings: Settings, 
     triangulated."""
     triangulated = 0
     for start in range(0, len(ids), _REFRESH_BATCH):
-        begin_write(session)  # each batch read and written under the write lock (SQLite: BEGIN IMMEDIATE)
-        batch = session.scalars(select(System).where(System.id.in_(ids[start:start + _REFRESH_BATCH]))).all()
-        triangulated += recompute_systems(session, batch, settings)
-        record_summary(session, "recompute", {"systems": len(ids), **audit_after, "batch": start // _REFRESH_BATCH + 1,
-                                              "batches": -(-len(ids) // _REFRESH_BATCH), "batch_systems": len(batch)},
-                       actor=actor)
-        session.commit()
+        with write_unit(session):  # each batch read and written under the write lock (SQLite: BEGIN IMMEDIATE)
+            batch = session.scalars(select(System).where(System.id.in_(ids[start:start + _REFRESH_BATCH]))).all()
+            triangulated += recompute_systems(session, batch, settings)
+            record_summary(session, "recompute", {"systems": len(ids), **audit_after,
+                                                  "batch": start // _REFRESH_BATCH + 1,
+                                                  "batches": -(-len(ids) // _REFRESH_BATCH),
+                                                  "batch_systems": len(batch)}, actor=actor)
         session.expunge_all()
         if progress:
             progress("recompute", min(start + _REFRESH_BATCH, len(ids)), len(ids))

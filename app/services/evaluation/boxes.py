@@ -36,6 +36,7 @@ from app.datasets.csv_cells import read_cell
 from app.datasets.files import read_text_file
 from app.datasets.labels import LabelError, check_box
 from app.db.models import Frame, Game, ReviewDecision, ReviewStatus, System
+from app.db.unit import write_unit
 from app.geometry.metrics import box_iou, box_size_error_pct
 from app.geometry.pitch import BALL_DIAMETER_M
 from app.services.kinds import kind_of
@@ -117,9 +118,9 @@ def store_precise_boxes(session: Session, path: str | Path) -> int:
                 updates.append((f, check_box(list(r.box), f.width, f.height)))
             except LabelError as exc:
                 raise DatasetError(path, f"row {r.row} x1..y2", str(exc)) from None
-    for f, box in updates:
-        f.precise_box = box
-    session.commit()
+    with write_unit(session, lock=False):
+        for f, box in updates:
+            f.precise_box = box
     return len(updates)
 
 

@@ -53,6 +53,7 @@ from app.db.models import (
 )
 from app.db.session import refresh_statistics
 from app.db.types import json_safe, utcnow
+from app.db.unit import write_unit
 from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists
 from app.geometry.calibration.held_out import class_point_distances
 from app.geometry.camera import Camera
@@ -161,7 +162,7 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
             report.refused += 1
             report.refusal_reasons[f.refusal or "unspecified"] += 1
     merging = Merge(merge, None, report.source_name, actor)
-    try:
+    with write_unit(session, lock=False):
         game = _store(session, seq, fields, source, report, merging, settings)
         session.flush()
         fit_sequence(session, game.id, settings)
@@ -169,10 +170,6 @@ def import_issia(session: Session, path: str | Path, settings: Settings, *, from
         report.triangulated = recompute_systems(session, systems, settings, progress)
         report.systems_merged = merging.record(session)
         record_summary(session, "import", audit_counts(report), actor=actor, game_id=game.id)
-        session.commit()
-    except BaseException:
-        session.rollback()
-        raise
     refresh_statistics(session)  # the edits that follow are planned on the imported rows
     report.seconds = time.perf_counter() - t0
     report.store_seconds = report.seconds - report.read_seconds - report.calibration_seconds

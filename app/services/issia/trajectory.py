@@ -30,6 +30,7 @@ from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
 from app.datasets.issia import FPS
+from app.db import scope
 from app.db.models import Frame, System, SystemKind, TrajectoryPoint
 from app.db.types import json_safe, utcnow
 from app.geometry.camera import Camera
@@ -188,6 +189,7 @@ def store_fit(arrays: SequenceArrays, fit: TrajectoryFit) -> list[Changed]:
         for k, v in values.items():
             setattr(tp, k, v)
         tp.computed_at = utcnow()
+        scope.changed(s)  # its trajectory point is in what its version covers: a page that showed the old one is stale
         changed.append(Changed(s, labels, s.id))
     return changed
 

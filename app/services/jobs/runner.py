@@ -47,6 +47,7 @@ from app.core.errors import InvalidInputError, ServiceError, found
 from app.core.progress import Progress
 from app.db.models import Job, JobState
 from app.db.types import json_safe, utcnow
+from app.db.unit import write_unit
 from app.services.jobs.progress import LIVE_EVERY_S, remove_live, write_live
 from app.services.jobs.work import WORK
 
@@ -125,8 +126,8 @@ def submit(session: Session, kind: str, params: dict[str, Any], *, owner: str | 
     if owner is not None:
         now = utcnow()
         job.state, job.owner, job.attempts, job.started_at, job.heartbeat_at = JobState.RUNNING, owner, 1, now, now
-    session.add(job)
-    session.commit()
+    with write_unit(session, lock=False):
+        session.add(job)
     return job
 
 
@@ -159,12 +160,12 @@ def claim(session: Session, job: Job, owner: str) -> bool:
     # connection committed cannot write at all; the compare-and-set below is what makes the claim safe.
     session.rollback()
     now = utcnow()
-    result = cast(CursorResult, session.execute(
-        sa.update(Job).where(Job.id == job_id, Job.attempts == attempts, Job.state == state)
-        .values(state=JobState.RUNNING, owner=owner, attempts=attempts + 1, started_at=now, heartbeat_at=now,
-                message=None)
-        .execution_options(synchronize_session=False)))
-    session.commit()
+    with write_unit(session, lock=False):
+        result = cast(CursorResult, session.execute(
+            sa.update(Job).where(Job.id == job_id, Job.attempts == attempts, Job.state == state)
+            .values(state=JobState.RUNNING, owner=owner, attempts=attempts + 1, started_at=now, heartbeat_at=now,
+                    message=None)
+            .execution_options(synchronize_session=False)))
     return result.rowcount == 1
 
 
@@ -258,12 +259,11 @@ class _Heartbeat(threading.Thread):
     def _write(self) -> None:
         self.last = time.monotonic()
         try:
-            with self.session_factory() as session:
+            with self.session_factory() as session, write_unit(session, lock=False):
                 result = cast(CursorResult, session.execute(
                     sa.update(Job).where(Job.id == self.job_id, Job.owner == self.owner)
                     .values(heartbeat_at=utcnow(), stage=self.live.stage, done=self.live.done, total=self.live.total)
                     .execution_options(synchronize_session=False)))
-                session.commit()
                 if result.rowcount == 0:
                     self.live.lost = True
         except sa.exc.OperationalError as exc:  # SQLite busy past its timeout: the next beat tries again
@@ -361,12 +361,12 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
         remove_live(folder, job_id)
     with session_factory() as session:
         if values and not live.lost:
-            session.execute(
-                sa.update(Job).where(Job.id == job_id, Job.owner == owner)
-                .values(finished_at=utcnow(), heartbeat_at=utcnow(), stage=live.stage, done=live.done,
-                        total=live.total, **values)
-                .execution_options(synchronize_session=False))
-            session.commit()
+            with write_unit(session, lock=False):
+                session.execute(
+                    sa.update(Job).where(Job.id == job_id, Job.owner == owner)
+                    .values(finished_at=utcnow(), heartbeat_at=utcnow(), stage=live.stage, done=live.done,
+                            total=live.total, **values)
+                    .execution_options(synchronize_session=False))
         return get_job(session, job_id)
 
 

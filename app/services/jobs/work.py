@@ -23,6 +23,7 @@ from app.core.errors import InvalidInputError
 from app.core.names import clean_title
 from app.core.progress import Progress
 from app.db.models import Job
+from app.db.unit import write_unit
 from app.services.derivation.recompute import recompute_all_systems
 from app.services.exports.files import EXPORTS, prune_exports, prune_stored_exports, write_export_zip
 from app.services.exports.formats import RELEASE_EXPORTS, export_format
@@ -139,14 +140,13 @@ def _rekey(session: Session, params: dict[str, Any], files: DatasetFiles) -> Non
     session.rollback()  # after the import's own transactions (or its failure): a transaction of its own
     if params.get("upload_key"):
         folder = Path(params["path"]).resolve()
-        changed = rekey_frames(session, folder, files.reference(folder))
     elif files.data_root is not None:
-        root = Path(files.data_root).expanduser().resolve()
-        changed = rekey_frames(session, root, files.reference(root))
+        folder = Path(files.data_root).expanduser().resolve()
     else:
         return
-    if changed:
-        session.commit()
+    # where an image lies is no version's concern (``app.db.scope.UNVERSIONED_COLUMNS``): no write lock either
+    with write_unit(session, lock=False):
+        rekey_frames(session, folder, files.reference(folder))
 
 
 def shown_source(params: dict[str, Any], settings: Settings, job_id: int | None) -> str:

@@ -61,6 +61,7 @@ from app.db.models import (
 )
 from app.db.session import reads_as_one_snapshot
 from app.db.types import canonical_json, compressed_json, decompressed_json, json_digest, utcnow
+from app.db.unit import write_unit
 from app.services.audit.log import local_actor, record
 from app.services.releases.document import (
     FRAME_KEYS,
@@ -251,27 +252,33 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
             documents[digest] = canonical
             games[game.id] = digest
     content = ReleaseContent(games, systems)
-    _store(session, documents)
     actor = actor or local_actor()
     release = Release(name=name, note=note or "", created_at=utcnow(), created_by=actor, systems=len(systems),
                       views=views, hash=content.hash)
-    session.add(release)
     try:
-        session.flush()
-    except sa.exc.IntegrityError:  # the same name (by its key) made by another request since the check above
-        session.rollback()
+        with write_unit(session, lock=False):  # in the snapshot the release read (``reads_as_one_snapshot``)
+            _store(session, documents)
+            session.add(release)
+            try:
+                session.flush()
+            except sa.exc.IntegrityError as exc:  # the same name (by its key) made by another request since the check
+                raise _NameTaken() from exc
+            if games:
+                session.execute(sa.insert(ReleaseGame), [{"release_id": release.id, "game_id": gid, "digest": d}
+                                                         for gid, d in games.items()])
+            if systems:
+                session.execute(sa.insert(ReleaseSystem), [
+                    {"release_id": release.id, "system_id": sid, "game_id": gid, "name": sname, "digest": d}
+                    for sid, (gid, sname, d) in systems.items()])
+            record(session, actor=actor, action="release.create",
+                   after={"name": name, "hash": release.hash, "systems": release.systems, "views": views})
+    except _NameTaken:  # rolled back
         raise _taken(session, name) from None
-    if games:
-        session.execute(sa.insert(ReleaseGame), [{"release_id": release.id, "game_id": gid, "digest": d}
-                                                 for gid, d in games.items()])
-    if systems:
-        session.execute(sa.insert(ReleaseSystem), [
-            {"release_id": release.id, "system_id": sid, "game_id": gid, "name": sname, "digest": d}
-            for sid, (gid, sname, d) in systems.items()])
-    record(session, actor=actor, action="release.create",
-           after={"name": name, "hash": release.hash, "systems": release.systems, "views": views})
-    session.commit()
     return release
+
+
+class _NameTaken(Exception):
+    """A release's name was taken by another request between its check and its write."""
 
 
 def list_releases(session: Session) -> list[Release]:

@@ -60,6 +60,7 @@ from app.db.models import (
 )
 from app.db.session import refresh_statistics
 from app.db.types import utcnow
+from app.db.unit import write_unit
 from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.services.audit.log import record_summary
 from app.services.calibration.calibrating import apply_calibration
@@ -359,22 +360,22 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     calibration_ms: list[float] = []
     calibration_seconds = 0.0
     done = 0
-    try:
-        with calibration_pool(settings.calibration_workers) as pool:
-            loaded = [read() for read in batches.pop(0)] if batches else None
-            ahead = start_first_pass(session, loaded, pool, settings) if loaded else None
-            # the next batch and its calibration once ``start_next`` started them (reset for every batch)
-            following: list[list[GameRecord] | None] = [None]
-            started: list[FirstPassAhead | None] = [None]
+    with calibration_pool(settings.calibration_workers) as pool:
+        loaded = [read() for read in batches.pop(0)] if batches else None
+        ahead = start_first_pass(session, loaded, pool, settings) if loaded else None
+        # the next batch and its calibration once ``start_next`` started them (reset for every batch)
+        following: list[list[GameRecord] | None] = [None]
+        started: list[FirstPassAhead | None] = [None]
 
-            def start_next() -> None:  # the next batch calibrates while this one is stored
-                if batches:
-                    following[0] = records = [read() for read in batches.pop(0)]
-                    started[0] = start_first_pass(session, records, pool, settings)
+        def start_next() -> None:  # the next batch calibrates while this one is stored
+            if batches:
+                following[0] = records = [read() for read in batches.pop(0)]
+                started[0] = start_first_pass(session, records, pool, settings)
 
-            while loaded is not None:
-                batch, last = loaded, not batches
-                following[0], started[0] = None, None
+        while loaded is not None:
+            batch, last = loaded, not batches
+            following[0], started[0] = None, None
+            with write_unit(session, lock=False):
                 _store(session, batch, settings, report, progress if last and done == 0 else None, pool,
                        ahead, start_next, mode=merge, actor=actor)
                 ahead, loaded = started[0], following[0]
@@ -385,18 +386,14 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
                 record_summary(session, "import", {**audit_counts(report), "batch": batch_number,
                                                    "batches": total_batches, "batch_games": len(batch)},
                                actor=actor)
-                batch_number += 1
-                session.commit()
-                session.expunge_all()
-                calibration_ms += report.calibration_ms
-                calibration_seconds += report.calibration_seconds
-                done += len(batch)
-                if progress and (not last or done > len(batch)):  # more than one batch
-                    progress("games", done, report.games)
-                del batch
-    except BaseException:
-        session.rollback()
-        raise
+            batch_number += 1
+            session.expunge_all()
+            calibration_ms += report.calibration_ms
+            calibration_seconds += report.calibration_seconds
+            done += len(batch)
+            if progress and (not last or done > len(batch)):  # more than one batch
+                progress("games", done, report.games)
+            del batch
     refresh_statistics(session)  # the edits that follow are planned on the imported rows
     report.calibration_ms, report.calibration_seconds = calibration_ms, calibration_seconds
     report.seconds = time.perf_counter() - t0

@@ -172,5 +172,4 @@ def _decided(system: System, status: ReviewStatus, comment: str, reason: Optiona
     if review is None:
         review = system.review = ReviewDecision(status=ReviewStatus.PENDING, comment="")
     review.status, review.comment, review.reset_reason, review.decided_at = status, comment, reason, now
-    system.review_status = status  # the queue's copy
     scope.changed(system)  # a decision is in what the system's version covers

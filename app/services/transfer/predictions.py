@@ -50,7 +50,8 @@ from app.core.names import check_name
 from app.core.progress import Progress
 from app.datasets.csv_cells import read_cell
 from app.db.models import Frame, Game, Prediction, System
-from app.db.session import begin_write, end_reads
+from app.db.session import end_reads
+from app.db.unit import write_unit
 from app.geometry.metrics import BestDetections
 from app.services.audit.log import record_summary
 from app.services.derivation.recompute import recompute_systems_by_id
@@ -324,15 +325,10 @@ def import_predictions(session: Session, path: str | Path, settings: Settings, s
         touched |= systems
         if progress:
             progress("store", start + len(chunk), len(frames))
-    begin_write(session)
-    try:
+    with write_unit(session):
         record_summary(session, "import", {"kind": "predictions", "source": report.source, "stored": report.stored,
                                            "replaced": report.replaced, "unknown": report.unknown,
                                            "dropped": report.dropped, "cap": cap}, actor=actor)
-        session.commit()
-    except BaseException:
-        session.rollback()
-        raise
     report.store_seconds = time.perf_counter() - t0
     session.expunge_all()
     report.triangulated = recompute_systems_by_id(session, sorted(touched), settings, progress,
@@ -387,8 +383,7 @@ def _write_batch(session: Session, report: PredictionReport, best: BestDetection
     import of the same frames wait, so that the room counted below holds), replace the source's predictions on
     ``frames`` by its best in the room the other sources leave (``report.cap`` a frame), commit. Adds to ``report``'s
     ``stored``, ``replaced``, ``dropped`` and ``batches``."""
-    begin_write(session)
-    try:
+    with write_unit(session):
         _bump_versions(session, systems)
         report.replaced += _delete_source(session, report.source, frames)
         others = {fid: n for fid, n in session.execute(sa.select(Prediction.frame_id, sa.func.count())
@@ -403,10 +398,6 @@ def _write_batch(session: Session, report: PredictionReport, best: BestDetection
                           "x2": box[2], "y2": box[3]} for box, score in kept[:room])
         if batch:
             session.execute(sa.insert(Prediction), batch)
-        session.commit()
-    except BaseException:
-        session.rollback()
-        raise
     report.stored += len(batch)
     report.batches += 1
 
@@ -514,18 +505,12 @@ def remove_predictions(session: Session, settings: Settings, source: str, actor:
     frames, n = sorted(earlier), 0
     for start in range(0, len(frames), BATCH_FRAMES):
         chunk = frames[start:start + BATCH_FRAMES]
-        begin_write(session)
-        try:
+        with write_unit(session):
             _bump_versions(session, {earlier[f] for f in chunk})
             n += _delete_source(session, source, chunk)
-            session.commit()
-        except BaseException:
-            session.rollback()
-            raise
     if n:
-        begin_write(session)
-        record_summary(session, "import", {"kind": "predictions", "source": source, "removed": n}, actor=actor)
-        session.commit()
+        with write_unit(session):
+            record_summary(session, "import", {"kind": "predictions", "source": source, "removed": n}, actor=actor)
     recompute_systems_by_id(session, sorted(set(earlier.values())), settings, None,
                             {"reason": f"predictions {source} removed"}, actor)
     return n

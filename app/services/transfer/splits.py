@@ -18,6 +18,7 @@ from sqlalchemy.orm import Session
 from app.core.errors import InvalidInputError
 from app.datasets.files import read_text_file
 from app.db.models import Frame, Game, System
+from app.db.unit import write_unit
 
 SPLIT_SETS = ("train", "test")
 #: Size of a split file read at most (a released list of 30,000 images is about 3 MB).
@@ -67,20 +68,20 @@ def import_split(session: Session, path: str | Path, set_name: str) -> SplitRepo
             continue
         wanted.setdefault(parts[:3], {})[parts[3]] = line
     found: set[str] = set()
-    for (league, season, match), images in wanted.items():
-        frames = session.scalars(
-            sa.select(Frame).join(System, System.id == Frame.system_id).join(Game, Game.id == System.game_id)
-            .where(Game.league == league, Game.season == season, Game.match == match)
-        ).all()
-        for frame in frames:
-            listed = images.get(frame.name) or images.get(PurePosixPath(frame.name).stem)
-            if listed is None:
-                continue
-            found.add(listed)
-            report.frames += 1
-            if frame.split != set_name:
-                frame.split = set_name
-                report.changed += 1
+    with write_unit(session, lock=False):
+        for (league, season, match), images in wanted.items():
+            frames = session.scalars(
+                sa.select(Frame).join(System, System.id == Frame.system_id).join(Game, Game.id == System.game_id)
+                .where(Game.league == league, Game.season == season, Game.match == match)
+            ).all()
+            for frame in frames:
+                listed = images.get(frame.name) or images.get(PurePosixPath(frame.name).stem)
+                if listed is None:
+                    continue
+                found.add(listed)
+                report.frames += 1
+                if frame.split != set_name:
+                    frame.split = set_name
+                    report.changed += 1
     report.unknown.extend(line for images in wanted.values() for line in images.values() if line not in found)
-    session.commit()
     return report
