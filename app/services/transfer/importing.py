@@ -371,8 +371,15 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
     store_players(session, new_players)
+    # The games new to the database had their players place their cameras in the pool, with their calibration;
+    # the other systems' are placed here, on what was just stored.
+    for i, fields in batch.placed.items():
+        apply_calibration(to_calibrate[i], fields, CalibrationSource.COMPUTED)
+    report.player_assisted += len(batch.placed)
+    ahead_frames = {id(to_calibrate[i]) for i in batch.placed_ahead}
     report.player_assisted += place_cameras_by_players(
-        touched, settings, {id(f): rows for f, rows, _ in new_players},
+        [s for s in touched if not s.frames or any(id(f) not in ahead_frames for f in s.frames)], settings,
+        {id(f): rows for f, rows, _ in new_players},
         relined=lambda f: calibrate_frame_lines(session, f, settings, refine=False).fields)
     for frame, fields in [*zip(to_calibrate, results, strict=True), *imported]:
         placed = frame.calibration is not None and frame.calibration.status is CalibrationStatus.CALIBRATED
