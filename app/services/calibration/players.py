@@ -25,7 +25,7 @@ from app.db.models import CalibrationSource, CalibrationStatus, Frame, FrameRole
 from app.db.types import json_safe
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import frame_jac
-from app.geometry.calibration.grass import PlayerKey, foot_pixel, players_on_grass
+from app.geometry.calibration.grass import PlayerKey, foot_pixel, head_pixel, players_on_grass
 from app.geometry.calibration.players import PlayerFit, PlayerRefusal, fit_camera_to_players
 from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig
@@ -90,15 +90,16 @@ def view_of_fields(fields: CalibrationFields, lines: Mapping[str, Any], width: i
                          admitted=fields_admitted(fields, settings), players=players)
 
 
-def feet_of(rows: Iterable[PlayerRow], width: int, height: int) -> dict[PlayerKey, np.ndarray]:
+def feet_of(rows: Iterable[PlayerRow], width: int, height: int, point: Any = foot_pixel) -> dict[PlayerKey, np.ndarray]:
     """Foot pixels (2,) by player (class, ID) of a ``width`` x ``height`` view; boxes without an ID, boxes cut by the
-    image's edges (``foot_pixel``) and a (class, ID) boxed twice in the view are left out."""
+    image's edges (``foot_pixel``) and a (class, ID) boxed twice in the view are left out. ``point``: the box's point
+    taken (``grass.head_pixel``: the head points, by the same rules)."""
     out: dict[PlayerKey, np.ndarray] = {}
     twice: set[PlayerKey] = set()
     for cls, ident, box in rows:
         if ident is None:
             continue
-        uv = foot_pixel(box, width, height)
+        uv = point(box, width, height)
         if uv is None:
             continue
         key = (cls, ident)
@@ -203,7 +204,7 @@ def place_in_system(views: Sequence[PlacementView], rig: CameraRig) -> dict[int,
         t0 = time.perf_counter()
         lines = lines_from_json_lists(dict(v.lines))
         got = fit_camera_to_players(feet[i], grass, {c: x for c, x in lines.items() if x}, v.width, v.height,
-                                    centres)
+                                    centres, heads=feet_of(v.players, v.width, v.height, head_pixel))
         out[i] = (fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3) if isinstance(got, PlayerFit)
                   else got)
     return out
