@@ -10,8 +10,11 @@ its own foot points of those players (:func:`fit_camera_to_players`, robust leas
 centre at one of the game's rig positions (broadcast cameras stay put during a game) only rotation and focal length
 are unknown, which two foot points fix and more over-determine; every position is tried and the best by residual
 kept only with a margin over any other position elsewhere; without a position that fits, a full pose (7 unknowns)
-when enough players are seen. Whatever field lines the view has join the same least squares with their own
-residuals (:func:`app.geometry.calibration.residuals.residuals`). The ball is never an input.
+when enough players are seen. The top of each whole box (the head point, :func:`~.grass.head_world`: a standing
+player's height above where it stands) joins the fit too: players standing close together fix the camera's direction
+but leave its zoom loose, which their boxes' heights in the image pin. Whatever field lines the view has join the same
+least squares with their own residuals (:func:`app.geometry.calibration.residuals.residuals`). The ball is never an
+input.
 
 The camera carries its uncertainty from the fit (:func:`~.uncertainty.uncertainty_from_jacobian`: the
 Gauss-Newton covariance of the parameters from the Jacobian of every residual, Hartley and Zisserman result 5.11),
