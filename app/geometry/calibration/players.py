@@ -10,8 +10,11 @@ its own foot points of those players (:func:`fit_camera_to_players`, robust leas
 centre at one of the game's rig positions (broadcast cameras stay put during a game) only rotation and focal length
 are unknown, which two foot points fix and more over-determine; every position is tried and the best by residual
 kept only with a margin over any other position elsewhere; without a position that fits, a full pose (7 unknowns)
-when enough players are seen. Whatever field lines the view has join the same least squares with their own
-residuals (:func:`app.geometry.calibration.residuals.residuals`). The ball is never an input.
+when enough players are seen. The top of each whole box (the head point, :func:`~.grass.head_world`: a standing
+player's height above where it stands) joins the fit too: players standing close together fix the camera's direction
+but leave its zoom loose, which their boxes' heights in the image pin. Whatever field lines the view has join the same
+least squares with their own residuals (:func:`app.geometry.calibration.residuals.residuals`). The ball is never an
+input.
 
 The camera carries its uncertainty from the fit (:func:`~.uncertainty.uncertainty_from_jacobian`: the
 Gauss-Newton covariance of the parameters from the Jacobian of every residual, Hartley and Zisserman result 5.11),
@@ -35,9 +38,13 @@ from app.geometry.annotations import FieldLines, image_diagonal
 from app.geometry.calibration.grass import (
     FOOT_OFFSET_M,
     FOOT_SIGMA_PX,
+    HEAD_HEIGHT_M,
+    HEAD_OFFSET_M,
+    HEAD_SIGMA_M,
     GrassPlayer,
     PlayerKey,
     foot_world,
+    head_world,
 )
 from app.geometry.calibration.initialisation import camera_from_homography, wahba_rotation
 from app.geometry.calibration.observations import build_observations
@@ -176,7 +183,8 @@ def _project(f: float, R: np.ndarray, C: np.ndarray, pp: np.ndarray, world: np.n
 
 @dataclass
 class _Problem:
-    """One view's fit: its foot pixels and grass points, its line observations, the scales."""
+    """One view's fit: its foot pixels and grass points, its line observations, the scales, and the head pixels of
+    the players whose box top is in the image. Residual rows: the foot points' (x, y), the lines', the heads'."""
 
     uv: np.ndarray          # (n, 2) foot pixels
     world: np.ndarray       # (n, 3) grass points, z = 0
@@ -186,6 +194,8 @@ class _Problem:
     height: int
     scale: float            # px of the view per px@1920
     cov_g: np.ndarray       # (n, 2, 2) covariance of each grass point, m^2
+    uv_head: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (h, 2) head pixels
+    head_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # (h,) their players' indices
 
     def __post_init__(self) -> None:
         self.obs = build_observations(self.lines) if self.lines else None
@@ -194,7 +204,9 @@ class _Problem:
         self.sigma_px = FOOT_SIGMA_PX * self.scale
         self.line_sigma = max(1.0, self.scale)  # annotation clicks (:data:`.uncertainty.MIN_LINE_NOISE_PX` at 1920)
         self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
+        self.L_head = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv_head), axis=0)
         self._feet_cache: dict[bytes, np.ndarray] = {}
+        self._heads_cache: dict[bytes, np.ndarray] = {}
 
     def rewhiten(self, x: np.ndarray, param: CameraParametrisation) -> None:
         """Whiten each foot point's residual by its covariance under the camera ``x``: its own pixel noise and its
@@ -213,6 +225,28 @@ class _Problem:
             self.L = np.linalg.inv(np.linalg.cholesky(cov))
         except np.linalg.LinAlgError:
             self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
+        if len(self.uv_head):
+            self.L_head = self._head_whitening(float(f), R, C)
+
+    def _head_whitening(self, f: float, R: np.ndarray, C: np.ndarray) -> np.ndarray:
+        """(h, 2, 2) whitening of the head points: their pixel noise, their grass point's covariance and the box
+        top's height (:data:`HEAD_SIGMA_M`) carried into this view."""
+        g = self.world[self.head_of, :2]
+        base = _project(f, R, C, self.pp, head_world(g, C))
+        J = np.empty((len(g), 2, 3))
+        for j in range(2):
+            moved = g.copy()
+            moved[:, j] += 0.01
+            J[:, :, j] = (_project(f, R, C, self.pp, head_world(moved, C)) - base) / 0.01
+        J[:, :, 2] = (_project(f, R, C, self.pp, head_world(g, C, HEAD_HEIGHT_M + 0.01)) - base) / 0.01
+        cov_p = np.zeros((len(g), 3, 3))
+        cov_p[:, :2, :2] = self.cov_g[self.head_of]
+        cov_p[:, 2, 2] = HEAD_SIGMA_M**2
+        cov = np.einsum("nij,njk,nlk->nil", J, cov_p, J) + self.sigma_px**2 * np.eye(2)
+        try:
+            return np.asarray(np.linalg.inv(np.linalg.cholesky(cov)))
+        except np.linalg.LinAlgError:
+            return np.repeat(np.eye(2)[None] / self.sigma_px, len(g), axis=0)
 
     def pixel_errors(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
         """Each foot point's distance (px) from its player's projection, and in its standard deviations."""
@@ -230,6 +264,16 @@ class _Problem:
         got = self._feet_cache.get(key)
         if got is None:
             got = self._feet_cache[key] = foot_world(self.world[:, :2], centre) - np.asarray(centre, float)
+        return got
+
+    def _heads_from(self, centre: np.ndarray) -> np.ndarray:
+        """The head points' world points (:func:`head_world`) less a fixed ``centre`` (3,), (h, 3) m, made once per
+        rig position as :meth:`_feet_from`."""
+        key = np.asarray(centre, float).tobytes()
+        got = self._heads_cache.get(key)
+        if got is None:
+            got = self._heads_cache[key] = (head_world(self.world[self.head_of, :2], centre)
+                                            - np.asarray(centre, float))
         return got
 
     def rows_batch(self, X: np.ndarray, param: CameraParametrisation, whiten: bool = True) -> np.ndarray:
@@ -259,6 +303,24 @@ class _Problem:
         if self.obs is not None:
             lr = residuals(np.ascontiguousarray(X), self.obs, param).reshape(len(X), -1)
             r = np.concatenate([r, lr / self.line_sigma if whiten else lr], axis=1)
+        if len(self.uv_head):
+            if param.fixed_centre is not None:
+                Hc = np.einsum("bij,nj->bni", R, self._heads_from(param.fixed_centre))
+            else:
+                g = self.world[self.head_of, :2]
+                away = g[None] - C[:, None, :2]
+                norm = np.linalg.norm(away, axis=2, keepdims=True)
+                P = np.concatenate([g[None] + HEAD_OFFSET_M * away / np.where(norm > 1e-9, norm, 1.0),
+                                    np.full(away.shape[:2] + (1,), -HEAD_HEIGHT_M)], axis=2)
+                Hc = np.einsum("bij,bnj->bni", R, P - C[:, None, :])
+            zh = Hc[..., 2]
+            bad_h = zh <= 1e-6  # a head behind the camera lands far away, as a foot point does
+            uvh = f[:, None, None] * Hc[..., :2] / np.where(bad_h, 1.0, zh)[..., None] + self.pp
+            uvh[bad_h] = 1e6
+            dh = uvh - self.uv_head[None]
+            if whiten:
+                dh = np.einsum("nij,bnj->bni", self.L_head, dh)
+            r = np.concatenate([r, dh.reshape(len(X), -1)], axis=1)
         return r
 
     def jacobian(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
@@ -376,7 +438,8 @@ def _best(problem: _Problem, starts: list[tuple[CameraParametrisation, np.ndarra
 
 def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[PlayerKey, GrassPlayer],
                           lines: FieldLines, width: int, height: int, rig_centres: Sequence[Sequence[float]] = (),
-                          settings: PlayerFitSettings | None = None) -> PlayerFit | PlayerRefusal:
+                          settings: PlayerFitSettings | None = None,
+                          heads: Mapping[PlayerKey, np.ndarray] | None = None) -> PlayerFit | PlayerRefusal:
     """Fit a view's camera to its players' foot points (and its field lines), at a rig position where one fits.
 
     Args:
@@ -387,6 +450,10 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
         width, height: the image size, px.
         rig_centres: the game's camera positions, (3,) metres each (world, z down), most supported first.
         settings: :class:`PlayerFitSettings`; defaults when None.
+        heads: the view's players' head points (key -> the box's top centre (2,) px, :func:`~.grass.head_pixel`),
+            None for none: each joins the fit as the point :data:`~.grass.HEAD_HEIGHT_M` above its player
+            (:func:`~.grass.head_world`), whitened by the height's spread too; a box's height in the image is the
+            player's distance, which the foot points of players standing close together leave loose.
 
     Returns:
         :class:`PlayerFit`, or :class:`PlayerRefusal` with its code and numbers.
@@ -401,25 +468,13 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
     spread = float(np.linalg.svd(uv - uv.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(len(keys))
     if spread < s.min_spread_px * scale:
         return PlayerRefusal("collinear_players", {"spread_px": spread, "limit_px": s.min_spread_px * scale})
+    head_of = np.array([i for i, k in enumerate(keys) if heads is not None and k in heads], dtype=int)
+    uv_head = np.array([np.asarray(heads[keys[i]], float) for i in head_of]).reshape(-1, 2) if heads else None
     problem = _Problem(uv=uv, world=world, lines=dict(lines), pp=principal_point(width, height), width=width,
-                       height=height, scale=scale, cov_g=np.array([grass[k].cov_m2 for k in keys], float))
+                       height=height, scale=scale, cov_g=np.array([grass[k].cov_m2 for k in keys], float),
+                       uv_head=uv_head if uv_head is not None else np.zeros((0, 2)), head_of=head_of)
     loss_px = s.loss_scale
-    # Every position's starts are cheap (a Wahba rotation per focal length); only the positions whose starts come
-    # closest are refined (the best and its nearest rivals, which the margin compares).
-    ranked = []
-    for i, c in enumerate(rig_centres):
-        centre = np.asarray(c, float)
-        if centre.shape != (3,) or not np.all(np.isfinite(centre)) or centre[2] >= 0:
-            continue
-        error, starts = _rig_starts(problem, centre)
-        ranked.append((error, i, starts))
-    ranked.sort(key=lambda t: t[0])
-    fits = []
-    for k, (_, i, starts) in enumerate(ranked[:s.rig_refined]):
-        cand = _best(problem, starts if k == 0 else starts[:1], loss_px, i)
-        if cand is not None:
-            fits.append(cand)
-    fits.sort(key=lambda c: c.cost)
+    fits = _rig_fits(problem, rig_centres, s)
     chosen: _Candidate | None = None
     refusal: PlayerRefusal | None = None
     if fits:
@@ -455,6 +510,25 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
                                         {"players": len(keys), "need": s.min_players_free})
     return _accepted(problem, chosen, keys, s)
 
+
+def _rig_fits(problem: _Problem, rig_centres: Sequence[Sequence[float]], s: PlayerFitSettings) -> list[_Candidate]:
+    """The view's camera fitted at the game's rig positions (m, world, z down), lowest cost first: every position's
+    starts are cheap (a Wahba rotation per focal length); only the closest are refined (the best and its rivals)."""
+    ranked = []
+    for i, c in enumerate(rig_centres):
+        centre = np.asarray(c, float)
+        if centre.shape != (3,) or not np.all(np.isfinite(centre)) or centre[2] >= 0:
+            continue
+        error, starts = _rig_starts(problem, centre)
+        ranked.append((error, i, starts))
+    ranked.sort(key=lambda t: t[0])
+    fits = []
+    for k, (_, i, starts) in enumerate(ranked[:s.rig_refined]):
+        cand = _best(problem, starts if k == 0 else starts[:1], s.loss_scale, i)
+        if cand is not None:
+            fits.append(cand)
+    fits.sort(key=lambda c: c.cost)
+    return fits
 
 def _judge(problem: _Problem, cand: _Candidate, s: PlayerFitSettings) -> PlayerRefusal | None:
     """Refuse a fit whose foot points or lines are far from it."""
@@ -497,7 +571,8 @@ def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: Pla
     r0 = problem.rows(x, param)
     d_px, d = problem.pixel_errors(x, param)
     inl = d <= s.inlier_sigma
-    keep = np.concatenate([np.repeat(inl, 2), np.ones(len(r0) - 2 * n, dtype=bool)])
+    n_lines = len(r0) - 2 * n - 2 * len(problem.head_of)  # the rows: feet, lines, heads
+    keep = np.concatenate([np.repeat(inl, 2), np.ones(n_lines, dtype=bool), np.repeat(inl[problem.head_of], 2)])
     J = problem.jacobian(x, param)[1][keep]
     sigma = line_noise(r0[keep], len(x))
     uncertainty = uncertainty_from_jacobian(param, J, sigma, int(keep.sum()))
@@ -516,7 +591,7 @@ def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: Pla
     residuals_px: dict[str, float] = {}
     if problem.obs is not None:
         residuals_px = _class_worst(camera, problem)
-        lr = r0[2 * n:] * problem.line_sigma
+        lr = r0[2 * n:2 * n + n_lines] * problem.line_sigma
         line_rms = float(np.sqrt(np.mean(lr ** 2))) if len(lr) else None
     used = tuple((keys[i], (float(problem.uv[i, 0]), float(problem.uv[i, 1])),
                   (float(problem.world[i, 0]), float(problem.world[i, 1]))) for i in range(n) if inl[i])

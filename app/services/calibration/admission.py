@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from app.core.config import Settings
+from app.datasets.records import CalibrationFields
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
 from app.geometry.jac import JAC_GAMMAS, jac_admitted
 
@@ -28,11 +29,24 @@ def admission_jac(calibration: Calibration, settings: Settings) -> float | None:
 
 def is_admitted(calibration: Calibration | None, settings: Settings) -> bool:
     """True when the frame joins triangulation: calibrated with JaC@gamma > ``admit_jac_min``."""
-    if calibration is None or calibration.status is not CalibrationStatus.CALIBRATED or calibration.camera is None:
+    if calibration is None:
         return False
-    if GIVEN_CAMERA_FLAG in (calibration.flags or []):
+    return _admitted(calibration.status, calibration.camera, calibration.flags, admission_jac(calibration, settings),
+                     settings)
+
+
+def fields_admitted(fields: CalibrationFields, settings: Settings) -> bool:
+    """:func:`is_admitted` of a calibration not stored yet (what ``apply_calibration`` would store of ``fields``)."""
+    jac = fields.jac[JAC_GAMMAS.index(admission_gamma(settings))]
+    return _admitted(fields.status, fields.camera, fields.flags, jac, settings)
+
+
+def _admitted(status: CalibrationStatus, camera: Any, flags: Any, jac: float | None, settings: Settings) -> bool:
+    if status is not CalibrationStatus.CALIBRATED or camera is None:
+        return False
+    if GIVEN_CAMERA_FLAG in (flags or []):
         return True  # a static camera given by its dataset (ISSIA) without field lines to judge it
-    return jac_admitted(admission_jac(calibration, settings), settings.admit_jac_min)
+    return jac_admitted(jac, settings.admit_jac_min)
 
 
 def admitted_jac_sql(settings: Settings) -> Any:

@@ -3,8 +3,10 @@ from its lines alone, and the retry with the game's camera rig of the frames of 
 that their lines alone refuse or calibrate below admission. A game new to the database needs
 nothing stored (its rig comes from its own first pass), so it is calibrated whole, both passes, in
 one task on the pool's processes, started ahead: the next batch's games calibrate while this
-process stores the current batch. Frames of stored games are calibrated when their batch is
-stored (their rig reads the stored calibrations). Reads the session, never writes it.
+process stores the current batch. The same task then places the cameras its players place
+(``players.place_in_game``) on those fresh results, so that the fits run in parallel too. Frames of
+stored games are calibrated when their batch is stored (their rig reads the stored calibrations).
+Reads the session, never writes it.
 """
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from app.db.models import Frame, FrameRole, Game
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import CameraPrior
 from app.services.calibration.calibrating import CalibrationJob, calibrate_lines, calibration_job, expected_side
+from app.services.calibration.players import PlacementView, PlayerRow, place_in_game, view_of_fields
 from app.services.calibration.pool import CalibrationPool, calibrate_many
 from app.services.calibration.priors import dataset_prior, stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, uses_rig, wants_rig_retry, with_rig_retry
@@ -30,22 +33,29 @@ class GameJob(NamedTuple):
     """The calibration of a game new to the database, both passes, as one task (:func:`calibrate_game`):
     per frame (in the game's order: systems, then their frames) its job (``calibrating.calibration_job``
     of the frame to be created), its role, and whether its system uses the game's rig
-    (``rigs.uses_rig``); ``settings`` decide the retry and the rig."""
+    (``rigs.uses_rig``); ``settings`` decide the retry and the rig. ``place``: the players place the cameras
+    too (every frame of the game is here and every system uses the rig), from each frame's ``players`` and its
+    system's index ``systems`` (the game's order)."""
 
     jobs: list[CalibrationJob]
     roles: list[FrameRole]
     rig_ok: list[bool]
     settings: Settings
+    place: bool = False
+    systems: Sequence[int] = ()
+    players: Sequence[Sequence[PlayerRow]] = ()
 
 
 class GameCalibration(NamedTuple):
     """What :func:`calibrate_game` gives per frame: the result from its lines alone (``first``), the one
     stored (``final``: ``rigs.with_rig_retry`` of the rig retry, or ``first``), and the rig pass's
-    time (ms) of each retried frame, by index."""
+    time (ms) of each retried frame, by index; ``placed``: the cameras the players placed on ``final``
+    (:func:`place_game`) by index, None when the task did not place them."""
 
     first: list[CalibrationFields]
     final: list[CalibrationFields]
     rig_ms: dict[int, float]
+    placed: dict[int, CalibrationFields] | None = None
 
 
 def calibrate_game(job: GameJob) -> GameCalibration:
@@ -64,7 +74,21 @@ def calibrate_game(job: GameJob) -> GameCalibration:
             fields = calibrate_lines(lines, width, height, side, rig, main)
             final[i] = with_rig_retry(first[i], fields)
             rig_ms[i] = fields.elapsed_ms or 0.0
-    return GameCalibration(first, final, rig_ms)
+    return GameCalibration(first, final, rig_ms, place_game(job, final) if job.place else None)
+
+
+def place_game(job: GameJob, final: Sequence[CalibrationFields]) -> dict[int, CalibrationFields]:
+    """The cameras the players place in a game whose every frame is in ``job`` (``players.place_in_game`` on its
+    frames' ``final`` calibrations, what the import stores of them before it places the players' cameras itself),
+    by frame index: the accepted fits only (a new game holds no camera the players placed before). Pure."""
+    views: dict[int, list[tuple[int, PlacementView]]] = {}
+    for i, (fields, (lines, width, height, *_), role) in enumerate(zip(final, job.jobs, job.roles, strict=True)):
+        views.setdefault(job.systems[i], []).append(
+            (i, view_of_fields(fields, lines, width, height, role is FrameRole.ACTION, job.players[i], job.settings)))
+    systems = list(views.values())
+    placed = place_in_game([[v for _, v in system] for system in systems])
+    return {system[k][0]: got for system, got_of in zip(systems, placed, strict=True)
+            for k, got in got_of.items() if isinstance(got, CalibrationFields)}
 
 
 class FirstPassAhead(NamedTuple):
@@ -80,12 +104,15 @@ class FirstPassAhead(NamedTuple):
 class BatchCalibration(NamedTuple):
     """:func:`first_pass` of a batch: per frame its result so far and its first pass's time (ms), the
     indices already retried with their game's rig (their ``results`` are final) and those retries'
-    times (ms)."""
+    times (ms); the indices whose game's player cameras were placed ahead (``placed_ahead``) and those
+    cameras (``placed``, by index: the accepted fits)."""
 
     results: list[CalibrationFields]
     first_ms: list[float | None]
     finished: set[int]
     rig_ms: dict[int, float]
+    placed_ahead: set[int]
+    placed: dict[int, CalibrationFields]
 
 
 def new_frame_job(rec: FrameRecord) -> CalibrationJob:
@@ -93,13 +120,31 @@ def new_frame_job(rec: FrameRecord) -> CalibrationJob:
     return (rec.lines, rec.width, rec.height, expected_side(rec.role), None, rec.role is FrameRole.ACTION)
 
 
+def game_job(grec: GameRecord, settings: Settings) -> tuple[GameJob, list[FrameRecord]] | None:
+    """The task of :func:`calibrate_game` for a game not stored yet: its frames to calibrate (those without an
+    imported calibration, in the game's order) and their jobs; the players place the game's cameras in the task when
+    it holds the whole game and every system uses the rig (else the rig or the views the placement reads would
+    differ from what the import stores). None when no frame needs calibrating."""
+    frames = [(srec, frec) for srec in grec.systems for frec in srec.frames if frec.calibration is None]
+    if not frames:
+        return None
+    rig_ok = [policy(srec.kind).uses_rig for srec, _ in frames]
+    place = all(rig_ok) and len(frames) == sum(len(srec.frames) for srec in grec.systems)
+    system_of = {id(srec): k for k, srec in enumerate(grec.systems)}
+    return GameJob(jobs=[new_frame_job(frec) for _, frec in frames], roles=[frec.role for _, frec in frames],
+                   rig_ok=rig_ok, settings=settings, place=place,
+                   systems=[system_of[id(srec)] for srec, _ in frames] if place else (),
+                   players=[frec.players for _, frec in frames] if place else ()), [frec for _, frec in frames]
+
+
 def start_first_pass(session: Session, records: list[GameRecord], pool: CalibrationPool, settings: Settings
                      ) -> FirstPassAhead | None:
     """Start the calibration of ``records``' games that are not stored yet (:func:`calibrate_game`, one
-    task each: every frame of such a game is calibrated from its imported lines, then retried with the
-    game's rig) on the pool's processes, and return at once, so that they calibrate while this process
-    stores the previous batch. Games already stored are left to ``importing._store`` (most of their
-    frames may need no calibration). None when the pool runs in this process. Reads only."""
+    task each, :func:`game_job`: every frame of such a game is calibrated from its imported lines, then
+    retried with the game's rig, then the players place the cameras the lines cannot) on the pool's
+    processes, and return at once, so that they calibrate while this process stores the previous batch.
+    Games already stored are left to ``importing._store`` (most of their frames may need no calibration).
+    None when the pool runs in this process. Reads only."""
     if pool.executor is None:
         return None
     jobs: dict[int, tuple[CalibrationJob, int, int]] = {}
@@ -109,14 +154,14 @@ def start_first_pass(session: Session, records: list[GameRecord], pool: Calibrat
         if session.scalar(select(Game.id).where(Game.league == grec.league, Game.season == grec.season,
                                                 Game.match == grec.match)) is not None:
             continue
-        frames = [(srec, frec) for srec in grec.systems for frec in srec.frames if frec.calibration is None]
-        if not frames:
+        got = game_job(grec, settings)
+        if got is None:
             continue
-        for k, (_, frec) in enumerate(frames):
-            jobs[id(frec)] = (new_frame_job(frec), len(tasks), k)
-        games.append([id(frec) for _, frec in frames])
-        tasks.append(GameJob(jobs=[jobs[id(frec)][0] for _, frec in frames], roles=[frec.role for _, frec in frames],
-                             rig_ok=[policy(srec.kind).uses_rig for srec, _ in frames], settings=settings))
+        task, frecs = got
+        for k, (frec, job) in enumerate(zip(frecs, task.jobs, strict=True)):
+            jobs[id(frec)] = (job, len(tasks), k)
+        games.append([id(frec) for frec in frecs])
+        tasks.append(task)
     if not tasks:
         return None
     return FirstPassAhead(jobs, games, pool.map(calibrate_game, tasks))
@@ -132,6 +177,8 @@ def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings,
     first_ms: list[float | None] = [None] * len(jobs)
     finished: set[int] = set()
     rig_ms: dict[int, float] = {}
+    placed_ahead: set[int] = set()
+    placed: dict[int, CalibrationFields] = {}
     if ahead is not None:
         index = {id(rec): i for i, rec in enumerate(recs)}
         done = 0
@@ -148,13 +195,18 @@ def first_pass(frames: list[Frame], recs: list[FrameRecord], settings: Settings,
                 finished.add(i)
                 if k in calibrated.rig_ms:
                     rig_ms[i] = calibrated.rig_ms[k]
+                if calibrated.placed is not None:
+                    placed_ahead.add(i)
+                    if k in calibrated.placed:
+                        placed[i] = calibrated.placed[k]
     rest = [i for i, r in enumerate(results) if r is None]
     done = len(jobs) - len(rest)
     step = (lambda stage, n, total: progress(stage, done + n, len(jobs))) if progress else None
     for i, fields in zip(rest, calibrate_many([jobs[i] for i in rest], settings.calibration_workers, step, pool=pool),
                          strict=True):
         results[i], first_ms[i] = fields, fields.elapsed_ms
-    return BatchCalibration(results, first_ms, finished, rig_ms)  # type: ignore[arg-type]  # every result is set by now
+    return BatchCalibration(results, first_ms, finished, rig_ms,  # type: ignore[arg-type]  # every result is set by now
+                            placed_ahead, placed)
 
 
 def retry_with_game_rigs(session: Session, frames: list[Frame], results: list[CalibrationFields],

@@ -1,4 +1,5 @@
-"""Players place the cameras the lines cannot (``app.geometry.calibration.players``), on stored frames.
+"""Players place the cameras the lines cannot (``app.geometry.calibration.players``), on stored frames and on an
+import's fresh calibrations of a game new to the database (in its pool task, ``first_pass.calibrate_game``).
 
 After a system's frames are calibrated from their lines (and the game's rig), each view whose lines give no camera
 or an unsure one (refused, or fewer than :data:`~app.geometry.pitch.MIN_LINE_CLASSES` line classes) is fitted to the
@@ -12,7 +13,7 @@ never feeds the game's rig (``rigs``) nor places another view.
 from __future__ import annotations
 
 import time
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 import sqlalchemy as sa
@@ -20,18 +21,18 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.datasets.records import CalibrationFields
-from app.db.models import Calibration, CalibrationSource, CalibrationStatus, Frame, FrameRole, PlayerBox, System
+from app.db.models import CalibrationSource, CalibrationStatus, Frame, FrameRole, PlayerBox, System
 from app.db.types import json_safe
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import frame_jac
-from app.geometry.calibration.grass import PlayerKey, foot_pixel, players_on_grass
+from app.geometry.calibration.grass import PlayerKey, foot_pixel, head_pixel, players_on_grass
 from app.geometry.calibration.players import PlayerFit, PlayerRefusal, fit_camera_to_players
 from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.pitch import MIN_LINE_CLASSES
-from app.services.calibration.admission import is_admitted
+from app.services.calibration.admission import fields_admitted, is_admitted
 from app.services.calibration.calibrating import apply_calibration
 from app.services.wording.words import player_camera_sentence
 
@@ -44,15 +45,61 @@ def frame_players(frame: Frame) -> list[PlayerRow]:
     return [(p.cls, p.ident, (p.x1, p.y1, p.x2, p.y2)) for p in frame.players]
 
 
-def feet_of(rows: Iterable[PlayerRow], width: int, height: int) -> dict[PlayerKey, np.ndarray]:
+class PlacementView(NamedTuple):
+    """One view as the players' placement reads it: plain values, picklable, so that the placement runs the same
+    on stored frames (:func:`view_of_frame`) and in a pool task on an import's fresh results
+    (:func:`view_of_fields`, ``first_pass.calibrate_game``).
+
+    Attributes:
+        lines: the view's field lines, JSON lists (px), as ``FieldLineAnnotation.lines`` holds them.
+        width, height: the image size, px.
+        main: filmed by the main camera (an action frame): marks the rig's main position.
+        status, source, camera, flags: its calibration's (``status`` None: no calibration).
+        admitted: its calibration clears admission (``admission.is_admitted``).
+        players: its player boxes.
+    """
+
+    lines: Mapping[str, Any]
+    width: int
+    height: int
+    main: bool
+    status: CalibrationStatus | None
+    source: CalibrationSource | None
+    camera: Mapping[str, Any] | None
+    flags: tuple[str, ...]
+    admitted: bool
+    players: Sequence[PlayerRow]
+
+
+def view_of_frame(frame: Frame, settings: Settings, players: Sequence[PlayerRow] | None = None) -> PlacementView:
+    """``frame`` as a :class:`PlacementView`: its stored calibration, and ``players`` (None: ``Frame.players``)."""
+    cal = frame.calibration
+    return PlacementView(
+        lines=frame.field_lines.lines if frame.field_lines is not None else {}, width=frame.width,
+        height=frame.height, main=frame.role is FrameRole.ACTION, status=cal.status if cal is not None else None,
+        source=cal.source if cal is not None else None, camera=cal.camera if cal is not None else None,
+        flags=tuple(cal.flags or ()) if cal is not None else (), admitted=is_admitted(cal, settings),
+        players=frame_players(frame) if players is None else players)
+
+
+def view_of_fields(fields: CalibrationFields, lines: Mapping[str, Any], width: int, height: int, main: bool,
+                   players: Sequence[PlayerRow], settings: Settings) -> PlacementView:
+    """A view whose calibration ``fields`` (source "computed") are not stored yet, as a :class:`PlacementView`."""
+    return PlacementView(lines=lines, width=width, height=height, main=main, status=fields.status,
+                         source=CalibrationSource.COMPUTED, camera=fields.camera, flags=tuple(fields.flags),
+                         admitted=fields_admitted(fields, settings), players=players)
+
+
+def feet_of(rows: Iterable[PlayerRow], width: int, height: int, point: Any = foot_pixel) -> dict[PlayerKey, np.ndarray]:
     """Foot pixels (2,) by player (class, ID) of a ``width`` x ``height`` view; boxes without an ID, boxes cut by the
-    image's edges (``foot_pixel``) and a (class, ID) boxed twice in the view are left out."""
+    image's edges (``foot_pixel``) and a (class, ID) boxed twice in the view are left out. ``point``: the box's point
+    taken (``grass.head_pixel``: the head points, by the same rules)."""
     out: dict[PlayerKey, np.ndarray] = {}
     twice: set[PlayerKey] = set()
     for cls, ident, box in rows:
         if ident is None:
             continue
-        uv = foot_pixel(box, width, height)
+        uv = point(box, width, height)
         if uv is None:
             continue
         key = (cls, ident)
@@ -62,43 +109,37 @@ def feet_of(rows: Iterable[PlayerRow], width: int, height: int) -> dict[PlayerKe
     return {k: v for k, v in out.items() if k not in twice}
 
 
-def line_classes(frame: Frame) -> int:
-    """The classes of field lines labelled in ``frame`` (with at least one polyline)."""
-    lines = frame.field_lines.lines if frame.field_lines is not None else {}
+def line_classes(lines: Mapping[str, Any]) -> int:
+    """The classes of field lines labelled in ``lines`` (JSON lists; with at least one polyline)."""
     return sum(1 for polys in lines.values() if polys)
 
 
-def is_weak(frame: Frame) -> bool:
-    """Whether the players may place ``frame``'s camera: its lines give none (refused, no calibration) or an unsure
+def is_weak(view: PlacementView) -> bool:
+    """Whether the players may place ``view``'s camera: its lines give none (refused, no calibration) or an unsure
     one (fewer than :data:`MIN_LINE_CLASSES` classes), or the players placed it before (placed again). A camera an
     export brought or a person set (source ``imported``, ``edited``) stays as it is."""
-    cal = frame.calibration
-    if cal is not None and cal.source is not CalibrationSource.COMPUTED:
+    if view.status is not None and view.source is not CalibrationSource.COMPUTED:
         return False
-    if cal is None or cal.status is not CalibrationStatus.CALIBRATED or cal.camera is None:
+    if view.status is not CalibrationStatus.CALIBRATED or view.camera is None:
         return True
-    return line_classes(frame) < MIN_LINE_CLASSES or PLAYERS_FLAG in (cal.flags or [])
+    return line_classes(view.lines) < MIN_LINE_CLASSES or PLAYERS_FLAG in view.flags
 
 
-def is_anchor(frame: Frame, settings: Settings) -> bool:
-    """Whether ``frame``'s camera tells where its players stand: calibrated from its lines (not by the players),
+def is_anchor(view: PlacementView) -> bool:
+    """Whether ``view``'s camera tells where its players stand: calibrated from its lines (not by the players),
     admitted, and with at least :data:`MIN_LINE_CLASSES` line classes."""
-    cal = frame.calibration
-    return (cal is not None and cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None
-            and PLAYERS_FLAG not in (cal.flags or []) and line_classes(frame) >= MIN_LINE_CLASSES
-            and is_admitted(cal, settings))
+    return (view.status is CalibrationStatus.CALIBRATED and view.camera is not None
+            and PLAYERS_FLAG not in view.flags and line_classes(view.lines) >= MIN_LINE_CLASSES and view.admitted)
 
 
-def rig_of_calibrations(calibrations: Sequence[Calibration | None], roles_main: Sequence[bool],
-                        settings: Settings) -> CameraRig:
-    """The game's camera rig (``app.geometry.calibration.rig.estimate_rig``) from its frames' stored calibrations
-    in memory, as ``rigs.game_rig`` makes it from the stored rows: admitted, neither rig- nor player-assisted."""
+def rig_of_views(views: Iterable[PlacementView]) -> CameraRig:
+    """The game's camera rig (``app.geometry.calibration.rig.estimate_rig``) from the calibrations of every view of
+    the game, as ``rigs.game_rig`` makes it from the stored rows: admitted, neither rig- nor player-assisted."""
     from app.geometry.calibration.rig import estimate_rig
 
-    rows = [(np.asarray(c.camera["position_meters"], float), main) for c, main in zip(calibrations, roles_main,
-                                                                                       strict=True)
-            if c is not None and c.status is CalibrationStatus.CALIBRATED and c.camera is not None
-            and RIG_FLAG not in (c.flags or []) and PLAYERS_FLAG not in (c.flags or []) and is_admitted(c, settings)]
+    rows = [(np.asarray(v.camera["position_meters"], float), v.main) for v in views
+            if v.status is CalibrationStatus.CALIBRATED and v.camera is not None and RIG_FLAG not in v.flags
+            and PLAYERS_FLAG not in v.flags and v.admitted]
     return estimate_rig(np.array([c for c, _ in rows]).reshape(-1, 3), main_camera=[m for _, m in rows])
 
 
@@ -119,15 +160,14 @@ def players_json(fit: PlayerFit, rig: CameraRig) -> dict[str, Any]:
     return json_safe(out)
 
 
-def fields_of_fit(fit: PlayerFit, frame: Frame, rig: CameraRig, elapsed_ms: float) -> CalibrationFields:
+def fields_of_fit(fit: PlayerFit, view: PlacementView, rig: CameraRig, elapsed_ms: float) -> CalibrationFields:
     """The calibration stored for an accepted fit: the camera, JaC against the view's own lines (None without
     lines), per-class residuals, flags (``few_lines`` as a line fit flags it, ``player_assisted``, ``rig_assisted``
     at a rig position), the fit's uncertainty and :func:`players_json`."""
-    lines = lines_from_json_lists(frame.field_lines.lines) if frame.field_lines is not None else {}
-    lines = {c: v for c, v in lines.items() if v}
+    lines = {c: v for c, v in lines_from_json_lists(dict(view.lines)).items() if v}
     jac: tuple[float | None, float | None, float | None] = (None, None, None)
     if lines:
-        values = frame_jac(fit.camera, lines, frame.width, frame.height)
+        values = frame_jac(fit.camera, lines, view.width, view.height)
         jac = tuple(values.get(f"{g:g}") for g in JAC_GAMMAS)  # type: ignore[assignment]  # three gammas
     flags = [*(["few_lines"] if len(lines) < MIN_LINE_CLASSES else []), PLAYERS_FLAG,
              *([RIG_FLAG] if fit.rig_index is not None else [])]
@@ -138,61 +178,76 @@ def fields_of_fit(fit: PlayerFit, frame: Frame, rig: CameraRig, elapsed_ms: floa
         players=players_json(fit, rig))
 
 
+def place_in_system(views: Sequence[PlacementView], rig: CameraRig) -> dict[int, CalibrationFields | PlayerRefusal]:
+    """Fit each weak view of a system (:func:`is_weak`) to the players it shares with the system's anchors
+    (:func:`is_anchor`), with the game's ``rig``. Pure on plain values: the one placement, for stored frames and
+    for an import's pool task alike.
+
+    Returns:
+        per weak view's index in ``views``, the calibration to store or why the players place none.
+    """
+    weak = [i for i, v in enumerate(views) if is_weak(v)]
+    if not weak:
+        return {}
+    anchors = [i for i, v in enumerate(views) if is_anchor(v)]
+    if not anchors:
+        return {}
+    feet = {i: feet_of(views[i].players, views[i].width, views[i].height) for i in [*weak, *anchors]}
+    cameras = {i: Camera.from_soccernet(dict(views[i].camera or {})) for i in anchors}
+    centres = [p.centre_m for p in rig.positions]
+    out: dict[int, CalibrationFields | PlayerRefusal] = {}
+    # A weak view is never an anchor (fewer line classes, or placed by the players): where the players stand is the
+    # same for every weak view of the system, fused once.
+    grass = players_on_grass([(cameras[a], feet[a]) for a in anchors])
+    for i in weak:
+        v = views[i]
+        t0 = time.perf_counter()
+        lines = lines_from_json_lists(dict(v.lines))
+        got = fit_camera_to_players(feet[i], grass, {c: x for c, x in lines.items() if x}, v.width, v.height,
+                                    centres, heads=feet_of(v.players, v.width, v.height, head_pixel))
+        out[i] = (fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3) if isinstance(got, PlayerFit)
+                  else got)
+    return out
+
+
+def place_in_game(game: Sequence[Sequence[PlacementView]], placed: Sequence[bool] | None = None
+                  ) -> list[dict[int, CalibrationFields | PlayerRefusal]]:
+    """:func:`place_in_system` for each system of a game (its views, every system of the game), the rig made from
+    every view of the game (:func:`rig_of_views`) when a system to place has a weak view. ``placed``: per system,
+    whether to place it (None: all). Pure. Returns per system what :func:`place_in_system` gives ({} unplaced)."""
+    mine = [placed is None or placed[k] for k in range(len(game))]
+    if not any(m and any(is_weak(v) for v in views) for m, views in zip(mine, game, strict=True)):
+        return [{} for _ in game]
+    rig = rig_of_views([v for views in game for v in views])
+    return [place_in_system(views, rig) if m else {} for m, views in zip(mine, game, strict=True)]
+
+
 def place_by_players(system: System, settings: Settings, rig: CameraRig,
                      players: Mapping[int, Sequence[PlayerRow]] | None = None
                      ) -> dict[int, CalibrationFields | PlayerRefusal]:
-    """Fit each weak view of ``system`` (:func:`is_weak`) to the players it shares with the system's anchors
-    (:func:`is_anchor`), with the game's ``rig``. Pure on the loaded rows: writes nothing.
+    """:func:`place_in_system` on a system's loaded rows. Writes nothing.
 
     Args:
         players: per frame (by ``id(frame)``), its player boxes when the caller has them (an import's records);
             otherwise read from ``Frame.players``.
 
     Returns:
-        per weak view's frame id (``id(frame)`` key for a frame not flushed yet: the caller's key), the calibration
-        to store or why the players place none.
+        per weak view's ``id(frame)``, the calibration to store or why the players place none.
     """
     frames = list(system.frames)
-
-    def rows(f: Frame) -> Sequence[PlayerRow]:
-        if players is not None and id(f) in players:
-            return players[id(f)]
-        return frame_players(f)
-
-    weak = [f for f in frames if is_weak(f)]
-    if not weak:
-        return {}
-    anchors = [f for f in frames if is_anchor(f, settings)]
-    if not anchors:
-        return {}
-    feet = {id(f): feet_of(rows(f), f.width, f.height) for f in [*weak, *anchors]}
-    cameras = {id(f): Camera.from_soccernet(f.calibration.camera) for f in anchors}  # type: ignore[union-attr,arg-type]  # anchors are calibrated
-    centres = [p.centre_m for p in rig.positions]
-    out: dict[int, CalibrationFields | PlayerRefusal] = {}
-    # A weak view is never an anchor (fewer line classes, or placed by the players): where the players stand is the
-    # same for every weak view of the system, fused once.
-    grass = players_on_grass([(cameras[id(a)], feet[id(a)]) for a in anchors])
-    for f in weak:
-        t0 = time.perf_counter()
-        lines = lines_from_json_lists(f.field_lines.lines) if f.field_lines is not None else {}
-        got = fit_camera_to_players(feet[id(f)], grass, {c: v for c, v in lines.items() if v}, f.width, f.height,
-                                    centres)
-        out[id(f)] = (fields_of_fit(got, f, rig, (time.perf_counter() - t0) * 1e3) if isinstance(got, PlayerFit)
-                      else got)
-    return out
+    got = place_in_system([view_of_frame(f, settings, (players or {}).get(id(f))) for f in frames], rig)
+    return {id(frames[i]): v for i, v in got.items()}
 
 
-def apply_player_cameras(system: System, settings: Settings, rig: CameraRig,
-                         players: Mapping[int, Sequence[PlayerRow]] | None = None,
-                         relined: Any = None) -> int:
-    """:func:`place_by_players` stored: each accepted fit becomes the view's calibration (source "computed"); a
-    view the players placed before and place no more gets its calibration from lines again (``relined(frame)``:
-    the :class:`CalibrationFields` of its lines, given by the caller; left as it is without one). Returns how many
-    views the players placed."""
-    placed = place_by_players(system, settings, rig, players)
+def apply_placed(frames: Sequence[Frame], placed: Mapping[int, CalibrationFields | PlayerRefusal],
+                 relined: Any = None) -> int:
+    """Store what the players placed (by index in ``frames``): each accepted fit becomes the view's calibration
+    (source "computed"); a view the players placed before and place no more gets its calibration from lines again
+    (``relined(frame)``: the :class:`CalibrationFields` of its lines, given by the caller; left as it is without
+    one). Returns how many views the players placed."""
     n = 0
-    for f in system.frames:
-        got = placed.get(id(f))
+    for i, f in enumerate(frames):
+        got = placed.get(i)
         if isinstance(got, CalibrationFields):
             apply_calibration(f, got, CalibrationSource.COMPUTED)
             n += 1
@@ -203,27 +258,34 @@ def apply_player_cameras(system: System, settings: Settings, rig: CameraRig,
     return n
 
 
-
 def place_cameras_by_players(systems: Sequence[System], settings: Settings,
                              players: Mapping[int, Sequence[PlayerRow]] | None = None, relined: Any = None) -> int:
-    """:func:`apply_player_cameras` for each of ``systems`` of a kind with a game rig (``rigs.uses_rig``), the rig of
-    each game made from its frames' calibrations in memory (:func:`rig_of_calibrations`). Returns how many views
-    the players placed."""
+    """:func:`place_in_game` on ``systems`` of a kind with a game rig (``rigs.uses_rig``), the rig of each game made
+    from its frames' calibrations in memory, stored (:func:`apply_placed`). Returns how many views the players
+    placed."""
     from app.services.calibration.rigs import uses_rig
 
-    mine = [s for s in systems if uses_rig(s)]
     games: dict[int, list[System]] = {}
-    for s in mine:
-        games.setdefault(id(s.game), []).append(s)
+    for s in systems:
+        if uses_rig(s):
+            games.setdefault(id(s.game), []).append(s)
     n = 0
     for group in games.values():
-        if not any(is_weak(f) for s in group for f in s.frames):
+        if not any(is_weak(view_of_frame(f, settings, ())) for s in group for f in s.frames):
             continue
-        frames = [f for s in group[0].game.systems for f in s.frames]
-        rig = rig_of_calibrations([f.calibration for f in frames], [f.role is FrameRole.ACTION for f in frames],
-                                  settings)
-        for s in group:
-            n += apply_player_cameras(s, settings, rig, players, relined)
+        everyone = list(group[0].game.systems)
+        wanted = {id(s) for s in group}
+        # The players of the views the fits read (weak views and anchors of the systems placed), no other's:
+        # a stored frame's boxes are one query each.
+        views = [[view_of_frame(f, settings, ()) for f in s.frames] for s in everyone]
+        for s, row in zip(everyone, views, strict=True):
+            for k, (f, v) in enumerate(zip(s.frames, row, strict=True)):
+                if id(s) in wanted and (is_weak(v) or is_anchor(v)):
+                    got = (players or {}).get(id(f))
+                    row[k] = v._replace(players=frame_players(f) if got is None else got)
+        placed = place_in_game(views, [id(s) in wanted for s in everyone])
+        for s, fits in zip(everyone, placed, strict=True):
+            n += apply_placed(list(s.frames), fits, relined)
     return n
 
 

@@ -65,6 +65,7 @@ from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_F
 from app.services.audit.log import record_summary
 from app.services.calibration.calibrating import apply_calibration
 from app.services.calibration.first_pass import (
+    BatchCalibration,
     FirstPassAhead,
     first_pass,
     retry_with_dataset_prior,
@@ -183,16 +184,16 @@ def _store(session: Session, records: list[GameRecord], settings: Settings, repo
     report.decisions_reset += merged.decisions_reset
     report.systems_new += merged.systems_new
     report.systems_changed += merged.systems_changed
-    results = _calibrate_batch(session, merged, settings, report, progress, pool, ahead, after_calibration)
-    _write_batch(session, merged, results, settings, report, progress)
+    results, first = _calibrate_batch(session, merged, settings, report, progress, pool, ahead, after_calibration)
+    _write_batch(session, merged, results, first, settings, report, progress)
 
 
 def _calibrate_batch(session: Session, merged: MergedBatch, settings: Settings, report: ImportReport,
                      progress: Progress | None, pool: CalibrationPool | None, ahead: FirstPassAhead | None,
-                     after_calibration: Callable[[], None] | None) -> list[CalibrationFields]:
+                     after_calibration: Callable[[], None] | None) -> tuple[list[CalibrationFields], BatchCalibration]:
     """Calibrate the batch's frames to calibrate, before anything is written: the first pass, then the refused ones of
     games with a rig with their game's rig, then with the dataset's learned prior (kept on the games); one result per
-    frame, timed into ``report``."""
+    frame, timed into ``report``, and the first pass itself (the cameras its pool tasks placed by players)."""
     to_calibrate = merged.to_calibrate
     t0 = time.perf_counter()
     batch = first_pass(to_calibrate, merged.to_calibrate_recs, settings, progress, pool, ahead)
@@ -214,11 +215,11 @@ def _calibrate_batch(session: Session, merged: MergedBatch, settings: Settings, 
     report.calibration_seconds = time.perf_counter() - t0
     report.rig_assisted += sum(RIG_FLAG in r.flags for r in results)
     report.prior_fitted += sum(PRIOR_FLAG in r.flags or RADIAL_PRIOR_FLAG in r.flags for r in results)
-    return results
+    return results, batch
 
 
-def _write_batch(session: Session, merged: MergedBatch, results: list[CalibrationFields], settings: Settings,
-                 report: ImportReport, progress: Progress | None) -> None:
+def _write_batch(session: Session, merged: MergedBatch, results: list[CalibrationFields], first: BatchCalibration,
+                 settings: Settings, report: ImportReport, progress: Progress | None) -> None:
     """The batch's writes: the calibrations (computed, then imported), the player boxes and the cameras they place,
     the counts of calibrated and refused views, the recomputation of the touched systems and the merges' audit."""
     to_calibrate, imported, touched = merged.to_calibrate, merged.imported, merged.touched
@@ -230,8 +231,15 @@ def _write_batch(session: Session, merged: MergedBatch, results: list[Calibratio
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
     store_players(session, merged.new_players)
+    # The games new to the database had their players place their cameras in the pool, with their calibration;
+    # the other systems' are placed here, on what was just stored.
+    for i, fields in first.placed.items():
+        apply_calibration(to_calibrate[i], fields, CalibrationSource.COMPUTED)
+    report.player_assisted += len(first.placed)
+    ahead_frames = {id(to_calibrate[i]) for i in first.placed_ahead}
     report.player_assisted += place_cameras_by_players(
-        touched, settings, {id(f): rows for f, rows, _ in merged.new_players},
+        [s for s in touched if not s.frames or any(id(f) not in ahead_frames for f in s.frames)], settings,
+        {id(f): rows for f, rows, _ in merged.new_players},
         relined=lambda f: calibrate_frame_lines(session, f, settings, refine=False).fields)
     for frame, fields in [*zip(to_calibrate, results, strict=True), *imported]:
         placed = frame.calibration is not None and frame.calibration.status is CalibrationStatus.CALIBRATED

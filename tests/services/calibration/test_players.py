@@ -10,8 +10,11 @@ from pathlib import Path
 import sqlalchemy as sa
 
 from app.core.config import Settings
+from app.datasets.files import dataset_root
+from app.datasets.soccernet_v3 import read_soccernet_v3_game
 from app.db.models import Calibration, Frame, System
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG, RIG_FLAG
+from app.services.calibration.first_pass import calibrate_game, game_job
 from app.services.transfer.importing import import_soccernet_v3
 from app.services.wording.words import player_camera_sentence
 from benchmarks.player_cameras import score_session
@@ -71,3 +74,34 @@ def test_players_place_the_cameras_the_lines_cannot_and_never_read_the_ball(shar
         session.commit()
         assert _cameras(session) == with_ball  # no camera read a ball label
     shutil.rmtree(tmp_path / "a")
+
+
+def test_the_pool_task_places_the_same_cameras_as_the_main_process(shared_dir, tmp_path, fresh_session_factory):
+    """A game new to the database has its players' cameras placed in its pool task with its calibration
+    (``first_pass.calibrate_game``): the same cameras as the import's main process places on the stored frames
+    (one worker: no pool), and an import through the pool stores them."""
+    root = _tree(shared_dir, tmp_path / "a", False)
+    with fresh_session_factory("main-process") as session:
+        report = import_soccernet_v3(session, root, Settings(calibration_workers=1))
+        session.commit()
+        main_process = _cameras(session)
+    assert report.player_assisted > 0
+    settings = Settings(calibration_workers=2)
+    grec = read_soccernet_v3_game(root / GAME / "Labels-v3.json", dataset_root(root), settings.max_image_pixels)
+    got = game_job(grec, settings)
+    assert got is not None
+    task, frecs = got
+    assert task.place and len(frecs) == sum(len(s.frames) for s in grec.systems)
+    done = calibrate_game(task)  # in this process: the task a pool worker runs
+    assert done.placed is not None and len(done.placed) == report.player_assisted
+    names = [(s.name, f.name) for s in grec.systems for f in s.frames]
+    for k, name in enumerate(names):
+        fields = done.placed.get(k, done.final[k])
+        status, camera, flags, players = main_process[name]
+        assert (fields.status.value, fields.camera, [x for x in fields.flags if x != MIRROR_FLAG],
+                fields.players) == (status, camera, flags, players), name
+    with fresh_session_factory("pool") as session:  # the import through the pool stores what the task placed
+        pooled = import_soccernet_v3(session, root, settings)
+        session.commit()
+        assert _cameras(session) == main_process
+    assert pooled.player_assisted == report.player_assisted
