@@ -6,7 +6,7 @@
 
 import { el, fmt, fmtJac, isNum, errorClass } from "./format.js";
 import { suggestedNote } from "./suggested.js";
-import { DETECTOR_KINDS, chip, chipClass, word, tauText } from "./words.js";
+import { DETECTOR_KINDS, chip, chipClass, doubtDrawing, word, tauText } from "./words.js";
 
 /** The calibration's standard deviations as one line: "x/y/z m · pan/tilt/roll ° · f px". */
 function uncertaintyText(u) {
@@ -112,24 +112,28 @@ export function clamp(x, lo, hi) {
  * `panel.confirmPlacement`). */
 export function viewDoubtItems(v, viewDoubts, excluded, panel) {
   const ball = v.ball || {};
-return viewDoubts.map((d) => el("div", { class: `doubt${d.accuses_label ? " bad" : ""}`, "data-testid": "view-doubt", "data-kind": d.kind },
+  return viewDoubts.map((d) => {
+    const draw = doubtDrawing(d.kind); // the kind's test ids, whose sentence it shows, whether it confirms a placement
+    const sentence = draw.sentence_from ? ((v.calibration || {})[draw.sentence_from] || {}).sentence : null;
+    const confirms = draw.confirms_placement && ball.kind && ball.provenance;
+    return el("div", { class: `doubt${d.accuses_label ? " bad" : ""}`, "data-testid": "view-doubt", "data-kind": d.kind },
     el("span", { class: chipClass("doubt", d.kind), title: word("doubt", d.kind).means }, chip("doubt", d.kind)),
     " ",
-    el("span", { class: "msg", "data-testid": d.kind === "mirrored_labels" ? "view-mirror-evidence" : "view-doubt-message",
-      title: evidenceTitle(d.evidence) }, d.kind === "mirrored_labels" ? ((v.calibration || {}).mirror_evidence || {}).sentence || d.message : d.message),
+    el("span", { class: "msg", "data-testid": draw.message_id, title: evidenceTitle(d.evidence) }, sentence || d.message),
     d.suggestion && FIX_LABEL[d.suggestion.action] && !(d.suggestion.action === "exclude_view" && excluded)
-      ? el("button", { type: "button", "data-testid": d.kind === "mirrored_labels" ? "apply-mirror" : "apply-fix", "data-action": d.suggestion.action,
+      ? el("button", { type: "button", "data-testid": draw.fix_id, "data-action": d.suggestion.action,
         title: `${fixTitle(d.suggestion)} and recompute (${FIX_KEY[d.suggestion.action]} on the selected view)`,
         onclick: () => panel.applyFix(d) }, `${fixLabel(d.suggestion, d, v)} `, el("kbd", {}, FIX_KEY[d.suggestion.action]))
       : null,
     ...alternativeFixes(d, excluded, (action) => panel.applyFix({ ...d, suggestion: { action } })),
-    d.kind === "suggested_label" && ball.kind && ball.provenance
+    confirms
       ? el("button", { type: "button", "data-testid": "confirm-placement", title: "Keep this label as yours: it then counts as evidence (Enter)",
         onclick: () => panel.confirmPlacement() }, "Confirm placement ", el("kbd", {}, "Enter"))
       : null,
-    d.kind === "suggested_label" && ball.kind && ball.provenance && !v.image_url
+    confirms && !v.image_url
       ? el("span", { class: "warn", "data-testid": "confirm-no-image" }, ` (${NO_IMAGE_CHECK})`)
-      : null));
+      : null);
+  });
 }
 
 /** The facts list (`<dl class="facts">`) of view `v` in its context {tau, rule, referenceWidth, viewCount, names}. */

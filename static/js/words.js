@@ -347,6 +347,30 @@ export const LABEL_KINDS = /*LABEL_KINDS*/["mirrored_labels", "ball_off_consensu
  * says whose box it places. */
 export const DETECTOR_KINDS = /*DETECTOR_KINDS*/["ball_detected"]/*END*/;
 
+/** How the system page draws a doubt of each kind (app/services/wording/words.py DOUBT_DRAWING): the test ids of its
+ * message and fix button, the field of the view's calibration whose sentence its message shows (null: the doubt's
+ * own), whether it offers to confirm a suggested placement. */
+export const DOUBT_DRAWING = /*DOUBT_DRAWING*/{
+ "mirrored_labels": {"message_id": "view-mirror-evidence", "sentence_from": "mirror_evidence", "fix_id": "apply-mirror", "confirms_placement": false},
+ "ball_off_consensus": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "ball_missing": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "views_disagree": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "near_duplicate_view": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "ball_detected": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "calibration_refused": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "below_admission": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "rig_assisted": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "few_lines": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false},
+ "suggested_label": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": true},
+ "detection_off_label": {"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false}
+}/*END*/;
+
+/** How a doubt of a kind the table does not know is drawn. */
+export const DOUBT_DRAWING_DEFAULT = /*DOUBT_DRAWING_DEFAULT*/{"message_id": "view-doubt-message", "sentence_from": null, "fix_id": "apply-fix", "confirms_placement": false}/*END*/;
+
+/** How a doubt of `kind` is drawn: its entry of DOUBT_DRAWING, else the default. */
+export const doubtDrawing = (kind) => DOUBT_DRAWING[kind] || DOUBT_DRAWING_DEFAULT;
+
 const humanise = (code) => String(code).replaceAll("_", " ");
 
 /** The entry {chip, means} of `code` in `group` (a flag with a value: its prefix's entry, the value put in);

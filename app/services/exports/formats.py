@@ -1,20 +1,21 @@
-"""The exports, as data: each format's name, what it holds, the name of its download, the choices the UI offers
-and the function that writes it. Every list of exports reads this one: the export job and its zip
-(:mod:`app.services.exports.files`, :mod:`app.services.jobs.work`), the ``POST /api/exports/{format}``
+"""The exports' registry: each format of the exports' data (:data:`app.services.kinds.exports.EXPORT_SPECS`: its
+name, what it holds, the choices the UI offers and the names of their downloads, the kinds it writes) bound to the
+functions that write it (:func:`bind_writers`, once per entry). Every list of exports reads this one: the export
+job and its zip (:mod:`app.services.exports.files`, :mod:`app.services.jobs.work`), the ``POST /api/exports/{format}``
 route's choices (``app.api.routes.exports``), the help of the ``v3d export`` commands (``app.cli``), the UI's
 exports panel (``static/js/exportlist.js``, written from :func:`exports_js`:
 ``python -m app.services.exports.formats > static/js/exportlist.js``) and the docs (``docs/exports.md`` and
 ``docs/api.md`` name every format; ``tests/services/exports/test_export_formats.py`` checks all of these).
 
 A format's ``name`` is the one word of every front end: ``v3d export <name>``, ``GET``/``POST /api/exports/<name>``
-and an export job's ``params["format"]``. Which system kinds an export writes is the kinds' policies' answer
-(:func:`app.services.kinds.kinds_exported_by`), not this registry's.
+and an export job's ``params["format"]``. Which system kinds an export writes is the data's
+(:func:`app.services.kinds.kinds_exported_by` reads it, as the kinds' policies do), not the writers'.
 """
 from __future__ import annotations
 
 import json
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO, Callable, Literal, Mapping
 
@@ -23,6 +24,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.progress import Progress
 from app.services.issia.export import export_issia3d
+from app.services.kinds.exports import ExportChoice, export_spec
 from app.services.releases.content import get_release
 from app.services.releases.export import (
     ReleaseSource,
@@ -49,27 +51,8 @@ ZipStreamer = Callable[[Session, BinaryIO, bool, Mapping[str, Any], "Progress | 
 
 
 @dataclass(frozen=True)
-class ExportChoice:
-    """One way of asking for a format: one button of the UI's exports panel.
-
-    Attributes:
-        id: the button's test id (``export-<id>``) and its row's ``data-export``; unique over every format.
-        label: the button's words.
-        holds: what the zip holds, in one line (the button's tooltip).
-        options: the job's options this choice sets (``{"images": False}``), beside ``all``.
-        download_name: the file name a download of this choice gets.
-    """
-
-    id: str
-    label: str
-    holds: str
-    download_name: str
-    options: Mapping[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
 class ExportFormat:
-    """One export format.
+    """One export format: its entry of the exports' data and its writers (made by :func:`bind_writers`).
 
     Attributes:
         name: ``v3d export <name>``, ``/api/exports/<name>``, the job's ``params["format"]``.
@@ -118,6 +101,22 @@ def register_export_format(fmt: ExportFormat) -> None:
     if taken & {c.id for c in fmt.choices}:
         raise ValueError(f"export {fmt.name!r}: a choice id is taken: {sorted(taken & {c.id for c in fmt.choices})}")
     _FORMATS[fmt.name] = fmt
+
+
+def bind_writers(name: str, *, tree: TreeWriter | None = None, stream: ZipStreamer | None = None,
+                 release_tree: ReleaseTreeWriter | None = None) -> None:
+    """Register the export format ``name`` of the exports' data (:func:`app.services.kinds.exports.export_spec`)
+    with the functions that write it (as :class:`ExportFormat`'s); once per entry of the data.
+
+    Raises:
+        ValueError: ``name`` has no entry in the data, its writers are bound already, or
+            :func:`register_export_format`'s errors.
+    """
+    spec = export_spec(name)
+    if name in _FORMATS:
+        raise ValueError(f"export {name!r}: its writers are bound already")
+    register_export_format(ExportFormat(spec.name, spec.describes, spec.choices, tree=tree, stream=stream,
+                                        release_tree=release_tree))
 
 
 def export_format(name: str) -> ExportFormat:
@@ -221,44 +220,12 @@ def _detector(fmt: Literal["yolo", "coco"]) -> TreeWriter:
     return write
 
 
-register_export_format(ExportFormat(
-    "soccernet-v3d",
-    "Reviewed labels as a SoccerNet-v3D tree: Labels-v3D.json and Frames-v3.zip (the images, unless left out) per "
-    "game, and SNv3D.csv.",
-    (ExportChoice("soccernet-v3d", "SoccerNet-v3D",
-                  "Labels-v3D.json and Frames-v3.zip (the images) per game, and SNv3D.csv", "soccernet-v3d.zip",
-                  {"images": True}),
-     ExportChoice("soccernet-v3d-no-images", "SoccerNet-v3D without images",
-                  "Labels-v3D.json per game and SNv3D.csv, no images", "soccernet-v3d-no-images.zip",
-                  {"images": False})),
-    stream=_soccernet_v3d))
-register_export_format(ExportFormat(
-    "issia-3d",
-    "ISSIA sequences as <sequence>/ISSIA-3D.csv (+ split.json: cameras 3-6 train, 1-2 test; calibration/cam<k>.json).",
-    (ExportChoice("issia-3d", "ISSIA-3D", "per ISSIA sequence: ISSIA-3D.csv, split.json and the cameras",
-                  "issia-3d.zip"),),
-    tree=_issia_3d, release_tree=_release_issia3d))
-register_export_format(ExportFormat(
-    "cameras",
-    "The admitted cameras of SoccerNet-v3 and single-view (SoccerNet-calibration) frames as SoccerNet's calibration "
-    "evaluator reads them: per image size <W>x<H>/ground_truth.zip (<split>/<name>.json field lines) and "
-    "<W>x<H>/predictions.zip (camera_<name>.json), and cameras.json (names back to games and frames).",
-    (ExportChoice("cameras", "Cameras", "per image size: ground_truth.zip and predictions.zip as SoccerNet's "
-                  "calibration evaluator reads them", "cameras.zip"),),
-    tree=_cameras, release_tree=_release_cameras))
-register_export_format(ExportFormat(
-    "yolo",
-    "Images and labels in the Ultralytics YOLO layout (the ball is class 0: refined, else optimised box; val drawn "
-    "from train, seeded), and manifest.csv/json joining each image back to its game, frame and 3D ball.",
-    (ExportChoice("yolo", "YOLO", "Ultralytics layout: images/, labels/, data.yaml (relocatable: no path key)",
-                  "v3d-yolo.zip"),),
-    tree=_detector("yolo"), release_tree=_release_detector("yolo")))
-register_export_format(ExportFormat(
-    "coco",
-    "Images and a COCO instances JSON per split (the ball is category 1: refined, else optimised box), and "
-    "manifest.csv/json joining each image back to its game, frame and 3D ball.",
-    (ExportChoice("coco", "COCO", "per split: the images and instances.json", "v3d-coco.zip"),),
-    tree=_detector("coco"), release_tree=_release_detector("coco")))
+#: The writers of every format of the exports' data, in its order (the UI's).
+bind_writers("soccernet-v3d", stream=_soccernet_v3d)
+bind_writers("issia-3d", tree=_issia_3d, release_tree=_release_issia3d)
+bind_writers("cameras", tree=_cameras, release_tree=_release_cameras)
+bind_writers("yolo", tree=_detector("yolo"), release_tree=_release_detector("yolo"))
+bind_writers("coco", tree=_detector("coco"), release_tree=_release_detector("coco"))
 
 
 #: The formats an export job writes from a release (``{"release": name}``); the others answer 422 naming

@@ -37,7 +37,8 @@ def kind_of(system: System) -> KindPolicy:
 
 
 def kinds_exported_by(export: str) -> list[SystemKind]:
-    """The system kinds whose systems an export writes (``export``: one of :data:`EXPORTS`).
+    """The system kinds whose systems an export writes (``export``: one of :data:`EXPORTS`; the exports' data,
+    :data:`app.services.kinds.exports.SELECTIONS`, says which).
 
     Raises:
         ValueError: an unknown export name.

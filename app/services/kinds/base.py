@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
 from app.db.models import Frame, Game, System, SystemKind
+from app.services.kinds.exports import EXPORTS, exports_of
 
 if TYPE_CHECKING:
     from sqlalchemy.orm import Session
@@ -18,10 +19,7 @@ if TYPE_CHECKING:
     from app.geometry.doubts import Doubt as DoubtFinding
     from app.geometry.triangulation import BallObservation
 
-#: Exports and benchmarks that select systems by kind: the SoccerNet-v3D dataset (``Labels-v3D.json`` and
-#: CSV), the detector-training exports (YOLO, COCO), the monocular benchmark's reference, the ISSIA-3D
-#: export and the cameras export (SoccerNet-calibration JSON per view).
-EXPORTS = frozenset({"soccernet-v3d", "yolo", "coco", "monocular", "issia-3d", "cameras"})
+__all__ = ["EXPORTS", "KindPolicy", "game_stem", "image_stem", "split_of"]
 
 #: Share of SoccerNet games in the train split (:func:`split_of`).
 TRAIN_FRACTION = 0.8
@@ -67,7 +65,8 @@ class KindPolicy:
     Attributes:
         kind: the stored :class:`SystemKind`.
         import_formats: dataset formats whose readers produce systems of this kind (``v3d import ...``).
-        exports: the names of :data:`EXPORTS` that write its systems.
+        exports: the names of :data:`EXPORTS` that write its systems (read from the exports' data,
+            :data:`app.services.kinds.exports.SELECTIONS`).
         uses_rig: calibration may fix the camera centre at one of the game's positions (cameras fixed
             during a broadcast game; ``app.services.calibration.rigs.game_rig``).
         broadcast_priors: the broadcast camera-side priors hold (main camera on the y > 0 side), so the
@@ -86,12 +85,16 @@ class KindPolicy:
 
     kind: SystemKind
     import_formats: tuple[str, ...]
-    exports: frozenset[str]
     uses_rig: bool = False
     broadcast_priors: bool = True
     edit_locks_game: bool = False
     computes_before_lock: bool = True
     weighs_calibrations: bool = True
+
+    @property
+    def exports(self) -> frozenset[str]:
+        """The names of :data:`EXPORTS` that write its systems: the exports' data says which kinds each writes."""
+        return exports_of(self.kind)
 
     def split(self, system: System, frame: Frame) -> str:
         """"train" or "test" of one view in the exports and benchmarks: the split a release gave the image

@@ -135,7 +135,6 @@ class IssiaPolicy(KindPolicy):
 ISSIA = IssiaPolicy(
     kind=SystemKind.ISSIA,
     import_formats=("issia",),
-    exports=frozenset({"yolo", "coco", "monocular", "issia-3d"}),
     broadcast_priors=False,
     edit_locks_game=True,
     computes_before_lock=False,

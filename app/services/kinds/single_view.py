@@ -10,5 +10,4 @@ from app.services.kinds.base import KindPolicy
 SINGLE_VIEW = KindPolicy(
     kind=SystemKind.SINGLE_VIEW,
     import_formats=("sn-calibration", "soccernet-v3d"),
-    exports=frozenset({"cameras", "yolo", "coco", "monocular"}),
 )

@@ -9,6 +9,5 @@ from app.services.kinds.base import KindPolicy
 SOCCERNET_V3 = KindPolicy(
     kind=SystemKind.SOCCERNET_V3,
     import_formats=("soccernet-v3", "soccernet-v3d"),
-    exports=frozenset({"soccernet-v3d", "cameras", "yolo", "coco", "monocular"}),
     uses_rig=True,
 )

@@ -29,7 +29,7 @@ import json
 import sys
 from typing import Any
 
-from app.geometry.doubts.contract import DETECTOR_KINDS, LABEL_KINDS
+from app.geometry.doubts.contract import DETECTOR_KINDS, INFO_KINDS, LABEL_KINDS
 from app.geometry.pitch import MIN_LINE_CLASSES
 
 WORDS: dict[str, dict[str, dict[str, str]]] = {
@@ -266,14 +266,39 @@ def refusal_sentence(refusal: Any) -> str | None:
     return template.format(**refusal.numbers) if template is not None else refusal.code
 
 
+#: How the system page draws a doubt of a kind where nothing else says (``static/js/words.js`` ``DOUBT_DRAWING``,
+#: written from this, so that no page module names a doubt kind and a new kind is drawn by its entry here):
+#:
+#: * ``message_id``: the test id of the doubt's message;
+#: * ``sentence_from``: a field of the view's calibration (as the API answers it) whose ``sentence`` the message shows
+#:   in place of the doubt's own message when there is one, or None. The mirrored labels' message is the view's mirror
+#:   verdict in words (``mirror_evidence``: the fits of the labels as given and mirrored), the same the facts list
+#:   reads;
+#: * ``fix_id``: the test id of the button of the doubt's suggested fix;
+#: * ``confirms_placement``: the doubt stands for a ball label placed from a suggestion, so while the view's ball keeps
+#:   its provenance the doubt offers "Confirm placement" (and says when no image lets it be checked).
+DOUBT_DRAWING_DEFAULT: dict[str, Any] = {"message_id": "view-doubt-message", "sentence_from": None,
+                                         "fix_id": "apply-fix", "confirms_placement": False}
+_DOUBT_DRAWING_DIFFERS: dict[str, dict[str, Any]] = {
+    "mirrored_labels": {"message_id": "view-mirror-evidence", "sentence_from": "mirror_evidence",
+                        "fix_id": "apply-mirror"},
+    "suggested_label": {"confirms_placement": True},
+}
+DOUBT_DRAWING: dict[str, dict[str, Any]] = {kind: {**DOUBT_DRAWING_DEFAULT, **_DOUBT_DRAWING_DIFFERS.get(kind, {})}
+                                            for kind in (*LABEL_KINDS, *INFO_KINDS)}
+
+
 def words_js() -> str:
     """The ES module ``static/js/words.js``: :data:`WORDS` as one JSON literal between the markers the test
     reads, the doubt kinds that accuse a label (``app.geometry.doubts.contract.LABEL_KINDS``, in its order, between
-    markers of their own), the kinds whose suggested box is a detector's (``DETECTOR_KINDS``) and the helpers the
-    pages use."""
+    markers of their own), the kinds whose suggested box is a detector's (``DETECTOR_KINDS``), how each doubt kind
+    is drawn (:data:`DOUBT_DRAWING`) and the helpers the pages use."""
     table = json.dumps(WORDS, indent=1, ensure_ascii=False)
     return (JS_TEMPLATE.replace("__WORDS__", table).replace("__LABEL_KINDS__", json.dumps(list(LABEL_KINDS)))
-            .replace("__DETECTOR_KINDS__", json.dumps(list(DETECTOR_KINDS))))
+            .replace("__DETECTOR_KINDS__", json.dumps(list(DETECTOR_KINDS)))
+            .replace("__DOUBT_DRAWING__", "{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(e)}"  # a kind a line
+                                                          for k, e in DOUBT_DRAWING.items()) + "\n}")
+            .replace("__DOUBT_DRAWING_DEFAULT__", json.dumps(DOUBT_DRAWING_DEFAULT)))
 
 
 JS_TEMPLATE = """// The words of the review pages: what every machine code shown on a page reads as, one table, so
@@ -291,6 +316,17 @@ export const LABEL_KINDS = /*LABEL_KINDS*/__LABEL_KINDS__/*END*/;
  * (app/geometry/doubts/contract.py DETECTOR_KINDS): the view draws that box in the detections' colour, and the fix
  * says whose box it places. */
 export const DETECTOR_KINDS = /*DETECTOR_KINDS*/__DETECTOR_KINDS__/*END*/;
+
+/** How the system page draws a doubt of each kind (app/services/wording/words.py DOUBT_DRAWING): the test ids of its
+ * message and fix button, the field of the view's calibration whose sentence its message shows (null: the doubt's
+ * own), whether it offers to confirm a suggested placement. */
+export const DOUBT_DRAWING = /*DOUBT_DRAWING*/__DOUBT_DRAWING__/*END*/;
+
+/** How a doubt of a kind the table does not know is drawn. */
+export const DOUBT_DRAWING_DEFAULT = /*DOUBT_DRAWING_DEFAULT*/__DOUBT_DRAWING_DEFAULT__/*END*/;
+
+/** How a doubt of `kind` is drawn: its entry of DOUBT_DRAWING, else the default. */
+export const doubtDrawing = (kind) => DOUBT_DRAWING[kind] || DOUBT_DRAWING_DEFAULT;
 
 const humanise = (code) => String(code).replaceAll("_", " ");
 

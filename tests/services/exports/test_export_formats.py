@@ -10,10 +10,12 @@ from pathlib import Path
 import pytest
 
 from app.api.routes.exports import TreeFormat
+from app.db.models import SystemKind
 from app.services.exports import files as export_files
 from app.services.exports.formats import (
     ExportChoice,
     ExportFormat,
+    bind_writers,
     export_format,
     export_names,
     exports_js,
@@ -22,7 +24,8 @@ from app.services.exports.formats import (
 )
 from app.services.jobs.work import export_params
 from app.services.kinds import EXPORTS as KIND_EXPORTS
-from app.services.kinds import kinds_exported_by
+from app.services.kinds import POLICIES, kinds_exported_by, policy
+from app.services.kinds.exports import EXPORT_SPECS, SELECTIONS
 
 ROOT = Path(__file__).resolve().parents[3]
 EXPORTLIST_JS = ROOT / "static" / "js" / "exportlist.js"
@@ -78,3 +81,34 @@ def test_the_docs_name_every_format() -> None:
     routes = " ".join(re.findall(r"`[A-Z]* ?/api/exports/[^`]*`", api_md))
     for name in export_names():
         assert re.search(rf"[/{{|]{re.escape(name)}[|}}?`]", routes), name
+
+
+def test_each_entry_of_the_exports_data_has_its_writers_bound_once() -> None:
+    """The registry is the exports' data (``app.services.kinds.exports``) with writers: one binding per entry, none
+    without an entry, in the data's order, the words the data's."""
+    source = (ROOT / "app" / "services" / "exports" / "formats.py").read_text(encoding="utf-8")
+    bound = re.findall(r'^bind_writers\("([a-z0-9-]+)"', source, flags=re.M)
+    assert bound == [spec.name for spec in EXPORT_SPECS] == list(export_names())
+    for spec in EXPORT_SPECS:
+        fmt = export_format(spec.name)
+        assert (fmt.describes, fmt.choices) == (spec.describes, spec.choices)
+    with pytest.raises(ValueError, match="its writers are bound already"):
+        bind_writers("yolo", tree=export_format("yolo").tree)
+    with pytest.raises(ValueError, match="unknown export 'nope'"):
+        bind_writers("nope", tree=export_format("yolo").tree)
+    assert export_format("yolo").tree is not None and list(export_names()) == bound
+
+
+def test_the_kinds_exports_are_the_datas() -> None:
+    """Each kind's exports (``KindPolicy.exports``) and each export's kinds are read from the one list."""
+    assert kinds_exported_by("soccernet-v3d") == [SystemKind.SOCCERNET_V3]
+    assert kinds_exported_by("issia-3d") == [SystemKind.ISSIA]
+    assert kinds_exported_by("cameras") == [SystemKind.SOCCERNET_V3, SystemKind.SINGLE_VIEW]
+    for name in ("yolo", "coco", "monocular"):
+        assert kinds_exported_by(name) == [SystemKind.SOCCERNET_V3, SystemKind.SINGLE_VIEW, SystemKind.ISSIA]
+    assert KIND_EXPORTS == set(SELECTIONS) == set(export_names()) | {"monocular"}
+    for kind, p in POLICIES.items():
+        assert p.exports == {name for name, kinds in SELECTIONS.items() if kind in kinds}
+    assert policy(SystemKind.SINGLE_VIEW).exports == {"cameras", "yolo", "coco", "monocular"}
+    with pytest.raises(ValueError, match="unknown export 'nope'"):
+        kinds_exported_by("nope")

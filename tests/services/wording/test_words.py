@@ -14,7 +14,7 @@ from app.geometry.pair_error import PAIR_ERROR_RULES
 from app.geometry.triangulation import DROP_REASONS
 from app.services.calibration.admission import GIVEN_CAMERA_FLAG
 from app.services.issia.sequences import BALL_ASSISTED_FLAG, BALL_BUNDLE_FLAG
-from app.services.wording.words import WORDS, words_js
+from app.services.wording.words import DOUBT_DRAWING, DOUBT_DRAWING_DEFAULT, WORDS, words_js
 
 WORDS_JS = Path(__file__).resolve().parents[3] / "static" / "js" / "words.js"
 
@@ -104,3 +104,22 @@ def test_a_dataset_class_name_reaches_a_refusal_sentence_as_text() -> None:
     hostile = "{need}{0}<img src=x onerror=alert(1)>"
     sentence = refusal_sentence(Refusal("residual_too_high", {"line": hostile, "px": 70.06, "limit_px": 27.5}))
     assert sentence == f"residual too high: {hostile!r} is 70.1 px from its model element (limit 27.5 px)"
+
+
+def test_the_pages_draw_every_doubt_kind_from_the_table() -> None:
+    """How a doubt of each kind is drawn (its test ids, the sentence it shows, whether it confirms a placement) is the
+    table's ``DOUBT_DRAWING``, in words.js: no other page module names any doubt kind, so a new kind is drawn by its
+    entries, and the two kinds drawn apart from the rest keep their test ids and sources."""
+    text = WORDS_JS.read_text(encoding="utf-8")
+    drawing = json.loads(text.split("/*DOUBT_DRAWING*/", 1)[1].split("/*END*/", 1)[0])
+    assert drawing == DOUBT_DRAWING and set(drawing) == set(LABEL_KINDS) | set(INFO_KINDS)
+    assert all(entry.keys() == DOUBT_DRAWING_DEFAULT.keys() for entry in drawing.values())
+    assert drawing["mirrored_labels"] == {"message_id": "view-mirror-evidence", "sentence_from": "mirror_evidence",
+                                          "fix_id": "apply-mirror", "confirms_placement": False}
+    assert [k for k, e in drawing.items() if e["confirms_placement"]] == ["suggested_label"]
+    assert drawing["ball_off_consensus"] == DOUBT_DRAWING_DEFAULT == {
+        "message_id": "view-doubt-message", "sentence_from": None, "fix_id": "apply-fix", "confirms_placement": False}
+    kinds = (*LABEL_KINDS, *INFO_KINDS)
+    named = [f"{p.name}: {kind}" for p in sorted(WORDS_JS.parent.glob("*.js")) if p != WORDS_JS
+             for kind in kinds if re.search(rf"[\"'`]{kind}[\"'`]", p.read_text(encoding="utf-8"))]
+    assert not named, named
