@@ -17,7 +17,11 @@ The older tree (default: 158795d) is unpacked with ``git archive`` and run with 
 
 Usage::
 
-    .venv/bin/python benchmarks/release_upgrade.py [--old 158795d] [--work /tmp/release-upgrade] [--port 18410]
+    .venv/bin/python benchmarks/release_upgrade.py [--old 158795d] [--work /tmp/release-upgrade] [--port 18410] \
+        [--new-setting V3D_EXPORT_BALL_BOX=optimised ...]
+
+``--new-setting`` gives the upgraded server settings the older one did not have: a release's exports keep the
+settings it was made with (a release made before they were recorded: its document version's values).
 
 Prints one JSON document (per format: sizes, SHA-256 before and after, equal) and exits 1 when anything differs.
 """
@@ -49,9 +53,10 @@ ISSIA_FRAMES = (0, 11)
 _RUN = "import sys; from app.cli import main; sys.argv[0] = 'v3d'; sys.exit(main())"
 
 
-def _env(tree: Path, db: Path) -> dict[str, str]:
+def _env(tree: Path, db: Path, settings: Optional[dict[str, str]] = None) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith("V3D_")}
     env.update(PYTHONPATH=str(tree), V3D_DATABASE_URL=f"sqlite:///{db}", V3D_CALIBRATION_WORKERS="1")
+    env.update(settings or {})
     return env
 
 
@@ -66,11 +71,12 @@ def _v3d(tree: Path, db: Path, *args: str, timeout: float = 900) -> str:
 class Server:
     """``v3d serve`` of ``tree`` on ``db``, started and waited for, stopped by its process id."""
 
-    def __init__(self, tree: Path, db: Path, port: int, log: Path, demo: bool) -> None:
+    def __init__(self, tree: Path, db: Path, port: int, log: Path, demo: bool,
+                 settings: Optional[dict[str, str]] = None) -> None:
         self.url = f"http://127.0.0.1:{port}"
         self.log = log.open("w")
         args = ["serve", "--port", str(port), *(["--demo"] if demo else [])]
-        self.proc = subprocess.Popen([sys.executable, "-c", _RUN, *args], cwd=tree, env=_env(tree, db),
+        self.proc = subprocess.Popen([sys.executable, "-c", _RUN, *args], cwd=tree, env=_env(tree, db, settings),
                                      stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
         deadline = time.monotonic() + 900
         while time.monotonic() < deadline:
@@ -147,8 +153,9 @@ def _issia_stretch(old: Path, work: Path) -> Optional[Path]:
     return dest
 
 
-def run(old_commit: str, work: Path, port: int) -> dict[str, Any]:
-    """The check (module docstring); what it saw."""
+def run(old_commit: str, work: Path, port: int, new_settings: Optional[dict[str, str]] = None) -> dict[str, Any]:
+    """The check (module docstring); what it saw. ``new_settings``: environment settings (``V3D_*``) of the upgraded
+    server only (a setting changed with the upgrade must not change the release's exports)."""
     if work.exists():
         shutil.rmtree(work)
     old = work / "old"
@@ -191,7 +198,8 @@ def run(old_commit: str, work: Path, port: int) -> dict[str, Any]:
     exports_before = sorted(p.name for p in (jobs / "exports").iterdir()) if (jobs / "exports").is_dir() else []
     shutil.rmtree(jobs, ignore_errors=True)  # the export files made before the upgrade are gone
     out["export_files_deleted"] = len(exports_before)
-    server = Server(ROOT, db, port, work / "new-serve.log", demo=False)  # migrates at start-up
+    out["new_settings"] = dict(new_settings or {})
+    server = Server(ROOT, db, port, work / "new-serve.log", demo=False, settings=new_settings)  # migrates at start
     try:
         c = httpx.Client(base_url=server.url, timeout=600, headers={"Authorization": f"Bearer {token}"})
         shown = c.get(f"/api/releases/{RELEASE}")
@@ -220,8 +228,13 @@ def main() -> int:
     parser.add_argument("--old", default="158795d", help="The commit that makes the release (default 158795d).")
     parser.add_argument("--work", type=Path, default=Path("/tmp/release-upgrade"), help="Scratch folder (emptied).")
     parser.add_argument("--port", type=int, default=18410)
+    parser.add_argument("--new-setting", action="append", default=[], metavar="V3D_NAME=VALUE",
+                        help="A setting of the upgraded server only (repeatable), e.g. V3D_EXPORT_BALL_BOX=optimised.")
     args = parser.parse_args()
-    result = run(args.old, args.work, args.port)
+    new_settings = dict(s.split("=", 1) for s in args.new_setting)
+    if any(not k.startswith("V3D_") for k in new_settings):
+        parser.error("--new-setting takes V3D_NAME=VALUE")
+    result = run(args.old, args.work, args.port, new_settings)
     print(json.dumps(result, indent=1))
     return 0 if result["ok"] else 1
 

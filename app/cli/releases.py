@@ -29,9 +29,10 @@ def create_cmd(name: Annotated[str, typer.Argument(help="The release's name (uni
     """Make a release of the accepted systems as they are now; prints it as JSON (its hash included)."""
     from app.services.releases.content import create_release, release_summary
 
-    with database_session(cli_settings(database_url, None)) as session:
+    settings = cli_settings(database_url, None)
+    with database_session(settings) as session:
         try:
-            release = create_release(session, name, note)
+            release = create_release(session, name, note, settings=settings)
         except (ConflictError, InvalidInputError) as exc:
             raise _fail(exc) from None
         typer.echo(json.dumps(release_summary(release), indent=2))

@@ -9,7 +9,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
 from app.api.auth import Principal, PrincipalDep, require_role
-from app.api.deps import SessionDep
+from app.api.deps import SessionDep, SettingsDep
 from app.api.release_schemas import DiffOut, ReleaseIn, ReleaseOut, ReleasesOut
 from app.api.schemas import INVALID, NOT_FOUND, ErrorOut
 from app.services.audit.log import actor_words
@@ -27,12 +27,13 @@ def _out(release: Any, principal: Principal) -> ReleaseOut:
 
 @router.post("", response_model=ReleaseOut, status_code=status.HTTP_201_CREATED,
              responses={409: {"model": ErrorOut, "description": "The name is taken."}, **INVALID})
-async def create_release(session: SessionDep, body: ReleaseIn,
+async def create_release(session: SessionDep, settings: SettingsDep, body: ReleaseIn,
                          principal: Annotated[Principal, Depends(require_role("admin"))]) -> ReleaseOut:
     """Make a release of the accepted systems as they are now (their labels, lines, calibrations, decisions, 3D
     results and the settings those were computed with); audited (``release.create``). Later edits, recomputes and
     imports never change it."""
-    release = await run_in_threadpool(content.create_release, session, body.name, body.note, principal.name)
+    release = await run_in_threadpool(content.create_release, session, body.name, body.note, principal.name,
+                                      settings)
     return _out(release, principal)
 
 

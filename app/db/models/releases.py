@@ -33,6 +33,10 @@ class Release(Base):
     systems: Mapped[int]
     views: Mapped[int]
     hash: Mapped[str] = mapped_column(sa.String(64))
+    #: The settings its exports are rendered with, recorded when it was made (``{"ball_diameter_m",
+    #: "export_ball_box"}``: ``app.services.releases.render``); not part of its documents or hash. NULL for the
+    #: releases made before they were recorded, which render with their document version's values then.
+    export_settings: Mapped[Optional[dict[str, Any]]]
 
     @validates("name")
     def _keyed(self, _: str, name: str) -> str:

@@ -29,9 +29,8 @@ from app.services.releases.content import get_release
 from app.services.releases.export import (
     ReleaseSource,
     export_release_cameras,
+    export_release_detector,
     export_release_issia3d,
-    release_detector_systems,
-    write_release_files,
 )
 from app.services.storage.datasets import DatasetFiles
 from app.services.transfer.cameras_export import export_cameras
@@ -200,13 +199,9 @@ def _release_issia3d(session: Session, out: Path, name: str, settings: Settings)
 
 def _release_detector(fmt: Literal["yolo", "coco"]) -> ReleaseTreeWriter:
     def write(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
-        release = get_release(session, name)
-        marker = {"name": release.name, "hash": release.hash}
-        report = export_detector(session, fmt, out, False, settings.ball_diameter_m, settings.export_ball_box,
-                                 systems=release_detector_systems(session, release, fmt), release=marker,
-                                 files=DatasetFiles.from_settings(settings)).as_dict()
+        release = get_release(session, name)  # its boxes chosen with the settings it recorded, not these
+        report = export_release_detector(session, release, fmt, out, DatasetFiles.from_settings(settings)).as_dict()
         report.pop("out_dir", None)  # a server folder: no export names one
-        write_release_files(session, release, out)
         return {**report, "release": release.name, "hash": release.hash}
     return write
 

@@ -43,6 +43,7 @@ from sqlalchemy import select
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session, aliased, undefer
 
+from app.core.config import Settings, get_settings
 from app.core.errors import ConflictError, InvalidInputError, found
 from app.core.names import check_name, name_key
 from app.db.models import (
@@ -73,6 +74,7 @@ from app.services.releases.document import (
     read_game,
     read_system,
 )
+from app.services.releases.render import ExportSettings
 from app.services.transfer.exporting import changed_at, frame_row_select, game_as_of
 
 #: The longest release name (the column's size).
@@ -188,9 +190,12 @@ def _taken(session: Session, name: str) -> ConflictError:
                          + "; releases are immutable, choose another name")
 
 
-def create_release(session: Session, name: str, note: str = "", actor: Optional[str] = None) -> Release:
+def create_release(session: Session, name: str, note: str = "", actor: Optional[str] = None,
+                   settings: Optional[Settings] = None) -> Release:
     """Make the release ``name`` of the accepted systems as they are now (module docstring), with its audit entry
-    (``release.create``), and commit.
+    (``release.create``), and commit. The release records the settings its exports are rendered with
+    (``render.ExportSettings`` of ``settings``, the process's when None: ``releases.export_settings``), so that a
+    later change of them leaves its exports as they are.
 
     Args:
         session: database session; committed here (the release, its rows, new documents and the entry together).
@@ -198,6 +203,7 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
             ``app.core.names.name_key``, which the database's unique index holds).
         note: free text kept with it.
         actor: who makes it (the audit's actor; None: the machine's account).
+        settings: the settings its exports are rendered with (None: ``get_settings()``).
 
     Returns:
         The new :class:`Release`.
@@ -215,11 +221,12 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
                                     TriangulationPair.frame_b_id, TriangulationPair.kept)
                              .order_by(TriangulationPair.system_id, TriangulationPair.id)):
         pairs.setdefault(p.system_id, []).append((p.frame_a_id, p.frame_b_id, bool(p.kept)))
-    settings = {t.system_id: TriangulationDocument(status=_plain(t.status), tau_px=t.tau_px, rule=t.rule,
-                                                   min_baseline_m=t.min_baseline_m,
-                                                   pairs=tuple(pairs.get(t.system_id, ())))
-                for t in session.execute(select(Triangulation.system_id, Triangulation.status, Triangulation.tau_px,
-                                                Triangulation.rule, Triangulation.min_baseline_m))}
+    triangulations = {t.system_id: TriangulationDocument(status=_plain(t.status), tau_px=t.tau_px, rule=t.rule,
+                                                         min_baseline_m=t.min_baseline_m,
+                                                         pairs=tuple(pairs.get(t.system_id, ())))
+                      for t in session.execute(select(Triangulation.system_id, Triangulation.status,
+                                                      Triangulation.tau_px, Triangulation.rule,
+                                                      Triangulation.min_baseline_m))}
     trajectory = {t.system_id: TrajectoryDocument(ball3d=t.ball3d, ball3d_smoothed=t.ball3d_smoothed, source=t.source,
                                                   cam_list=list(t.cam_list or []))
                   for t in session.execute(select(TrajectoryPoint.system_id, TrajectoryPoint.ball3d,
@@ -235,7 +242,7 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     for rows in _accepted_rows(session):
         sid = rows[0].system_id
         # an ISSIA frame has its place on the sequence's fitted trajectory
-        canonical = canonical_json(system_document(rows, settings.get(sid), system_rows[sid],
+        canonical = canonical_json(system_document(rows, triangulations.get(sid), system_rows[sid],
                                                    trajectory.get(sid)).as_json())
         digest = json_digest(canonical)
         documents[digest] = canonical
@@ -254,7 +261,8 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     content = ReleaseContent(games, systems)
     actor = actor or local_actor()
     release = Release(name=name, note=note or "", created_at=utcnow(), created_by=actor, systems=len(systems),
-                      views=views, hash=content.hash)
+                      views=views, hash=content.hash,
+                      export_settings=ExportSettings.of(settings or get_settings()).as_json())
     try:
         with write_unit(session, lock=False):  # in the snapshot the release read (``reads_as_one_snapshot``)
             _store(session, documents)

@@ -1,36 +1,38 @@
 """Exports read from a release instead of the live database (``app.services.transfer.export_zip.ExportSource``).
 
-:class:`ReleaseSource` rebuilds each game's ``Labels-v3D.json`` and ``SNv3D.csv`` rows from the release's documents
-(``app.services.releases.content``, read as typed documents of their version: ``app.services.releases.document``, as
-typed rows: ``app.services.releases.rows``) with the live export's own functions (``exporting.exported_game``), so a
-release's export is the export of the database as it was when the release was made; the images are the frames'
-stored images (checked against what was imported: ``app.services.images.serving``). Each game's
+This module reads a release: its documents (``app.services.releases.content``, typed by their version:
+``app.services.releases.document``) in a fixed order, the stored frames whose images the exports copy (checked
+against what was imported: ``app.services.images.serving``), and the settings it recorded. What a document becomes
+in each format is its version's renderer's (``app.services.releases.render.v1``: the rows, the kinds each format
+takes, the settings of releases made before they were recorded, and the live writers it renders through), so that a
+release's export is the export of the database as it was when the release was made, whatever the live export does
+later. Every stored document is version 1 today (``document.READERS``); a later version adds its renderer and the
+choice of it here, by the documents' type.
+
+:class:`ReleaseSource` yields each game's ``Labels-v3D.json`` and ``SNv3D.csv`` rows; each game's
 ``GameMetadata.v3d_release`` names the release and its hash; the archive ends with ``v3d-release.json`` (the
 release: name, note, created_at, created_by, systems, views, hash, and the digest of every document, the CSV's
 companion file) and ``v3d-release/documents.jsonl.gz`` (every document's canonical JSON, one a line, in increasing
 digest order, gzip), from which anyone recomputes the hash (docs/exports.md). That file is the stored documents laid
 one after another (each a gzip member, a newline member after each): an export copies them, it neither decompresses
-nor compresses them, and the zip stores it as it is.
-
-The cameras export reads a release too (:func:`export_release_cameras`: the views, names and splits of the live
-export, from the documents, with the same two files at its root). Nothing in a release export depends on when it is
-written: the same release exports to the same bytes.
+nor compresses them, and the zip stores it as it is. The cameras, ISSIA-3D, YOLO and COCO exports read a release too,
+with the same two files at their root. Nothing in a release export depends on when it is written or on the
+process's settings: the same release exports to the same bytes.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Literal
 
 import orjson
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.db.models import JAC_COLUMNS, Frame, Release, SystemKind
+from app.db.models import Frame, Release
 from app.db.types import compressed_json
-from app.services.issia.export import Issia3DExport, rows_of, write_sequence
-from app.services.kinds import POLICIES, kinds_exported_by
+from app.services.issia.export import Issia3DExport
 from app.services.releases.content import (
     ReleaseContent,
     read_games,
@@ -40,9 +42,12 @@ from app.services.releases.content import (
     stored_documents,
 )
 from app.services.releases.document import GameDocument
-from app.services.releases.rows import ReleasedSystem, released_row, released_system, stored_json
-from app.services.transfer.cameras_export import CamerasExport, CameraView, pooled_lines, write_camera_sets
-from app.services.transfer.exporting import ExportedGame, exported_game, safe_component
+from app.services.releases.render import v1
+from app.services.releases.render.v1 import ReleasedSystem, released_system
+from app.services.storage.datasets import DatasetFiles
+from app.services.transfer.cameras_export import CamerasExport, CameraView
+from app.services.transfer.detector_export import DetectorExportReport
+from app.services.transfer.exporting import ExportedGame, safe_component
 
 #: The release's description at the root of its export (the companion file of ``SNv3D.csv``).
 RELEASE_FILE = "v3d-release.json"
@@ -79,7 +84,6 @@ class ReleaseSource:
             InvalidInputError: a league, season or match that cannot be a folder name.
         """
         content = release_content(self.session, self.release)
-        exported_kinds = {k.value for k in kinds_exported_by("soccernet-v3d")}
         games = read_games(self.session, content.games.values())
         per_game: dict[int, list[tuple[int, str]]] = {}
         for sid, (gid, _, digest) in sorted(content.systems.items()):
@@ -89,22 +93,19 @@ class ReleaseSource:
         for game in order:
             for what, value in (("league", game.league), ("season", game.season), ("match", game.match)):
                 safe_component(value, f"game {game.game_id} {what}")
-        return self._games(order, per_game, exported_kinds, progress)
+        return self._games(order, per_game, progress)
 
     def _games(self, order: list[GameDocument], per_game: dict[int, list[tuple[int, str]]],
-               exported_kinds: set[str], progress: Callable[[str, int, int], None] | None) -> Iterator[ExportedGame]:
+               progress: Callable[[str, int, int], None] | None) -> Iterator[ExportedGame]:
         marker = {"name": self.release.name, "hash": self.release.hash}
         done = 0
         for first in range(0, len(order), _BATCH_GAMES):
             batch = order[first:first + _BATCH_GAMES]
             docs = read_systems(self.session, (d for g in batch for _, d in per_game[g.game_id]))
             for game in batch:
-                systems = [docs[d] for _, d in per_game[game.game_id]]
-                rows = [released_row(s, f) for s in systems if s.kind in exported_kinds for f in s.frames]
+                exported = v1.soccernet_game(game, [docs[d] for _, d in per_game[game.game_id]], marker)
                 done += 1
-                if rows:
-                    exported = exported_game(game, rows, game.as_of)
-                    exported.doc["GameMetadata"]["v3d_release"] = marker
+                if exported is not None:
                     yield exported
                 if progress:
                     progress("export", done, len(order))
@@ -133,56 +134,22 @@ def _in_game_order(session: Session, content: ReleaseContent) -> tuple[dict[int,
     return games, order
 
 
-@dataclass(frozen=True)
-class _CameraFrame:
-    """What a kind's view name and split read of a view of the cameras export."""
-
-    name: str
-    split: Optional[str]
-
-
-@dataclass(frozen=True)
-class _CameraSystem:
-    """What a kind's split reads of a view's system: its game."""
-
-    game: GameDocument
-
-
 def release_camera_views(session: Session, release: Release) -> list[CameraView]:
     """The views of the cameras export (``app.services.transfer.cameras_export.camera_views``) read from a release's
     documents: the released systems of the kinds that take the ``cameras`` export, in (league, season, match, system
     id) order, each view with field lines or an admitted camera, named and split as the live export names them."""
-    kinds = {k.value for k in kinds_exported_by("cameras")}
     games, order = _in_game_order(session, release_content(session, release))
     docs = read_systems(session, (d for _, (_, _, d) in order))
-    out = []
-    for _, (gid, _, digest) in order:
-        system = docs[digest]
-        if system.kind not in kinds:
-            continue
-        game = games[gid]
-        policy = POLICIES[SystemKind(system.kind)]
-        holder = _CameraSystem(game)
-        for f in system.frames:
-            camera = stored_json(f.camera_json) if f.cal_source is not None and f.admitted else None
-            stored = stored_json(f.lines_json)
-            if camera is None and not stored:
-                continue
-            frame = _CameraFrame(f.name, f.frame_split)
-            jac = {str(g): getattr(f, col) if f.cal_source is not None else None for g, col in JAC_COLUMNS.items()}
-            out.append(CameraView(policy.view_stem(game, frame), policy.split(holder, frame),  # type: ignore[arg-type]  # the documents' game and frame stand in for the rows
-                                  game.path, f.name, system.kind, f.width, f.height, camera,
-                                  pooled_lines(stored, f.width, f.height) if stored else None, jac))
-    return out
+    return [view for _, (gid, _, digest) in order for view in v1.camera_views(games[gid], docs[digest])]
 
 
 def release_detector_systems(session: Session, release: Release, export: str) -> Iterator[ReleasedSystem]:
     """The released systems the export ``export`` (``yolo``, ``coco``, ``issia-3d``) writes, as the detector and
-    ISSIA-3D exports read stored systems (``rows.ReleasedSystem``: game, kind, frame index, frames with their ball
+    ISSIA-3D exports read stored systems (``render.v1.ReleasedSystem``: game, kind, frame index, frames with their ball
     label, calibration, optimised box, reprojection and release entry, the triangulation with its pairs, the
     trajectory point), in (league, season, match, system id) order. Each frame's image is the stored frame of that
     id (its image as imported), or none when the frame is gone (the view is then counted without image)."""
-    kinds = {k.value for k in kinds_exported_by(export)}
+    kinds = v1.KINDS[export]
     games, order = _in_game_order(session, release_content(session, release))
     for start in range(0, len(order), _BATCH_SYSTEMS):
         batch = order[start:start + _BATCH_SYSTEMS]
@@ -195,35 +162,29 @@ def release_detector_systems(session: Session, release: Release, export: str) ->
 
 
 def export_release_issia3d(session: Session, release: Release, out_dir: Path) -> Issia3DExport:
-    """The ISSIA-3D export of a release under ``out_dir`` (``app.services.issia.export``: per sequence
-    ``ISSIA-3D.csv`` of the released frames, ``split.json`` and the cameras, each camera the admitted one of its view
-    at the first released frame index that has one) with the files naming the release (:func:`release_files`)."""
-    report = Issia3DExport(out_dir)
-    per_game: dict[int, list[ReleasedSystem]] = {}
-    for system in release_detector_systems(session, release, "issia-3d"):
-        per_game.setdefault(system.game.game_id, []).append(system)
-    for systems in sorted(per_game.values(), key=lambda ss: (ss[0].game.match, ss[0].game.game_id)):
-        systems.sort(key=lambda s: (s.frame_index is None, s.frame_index or 0, s.id))
-        rows = rows_of(systems)
-        if not rows:
-            continue
-        cameras: dict[str, Any] = {}
-        for s in systems:
-            for f in s.frames:
-                if f.calibration is not None and f.calibration.admitted and f.calibration.camera is not None:
-                    cameras.setdefault(f.name, f.calibration.camera)
-        write_sequence(out_dir / safe_component(systems[0].game.match, "match"), rows, dict(sorted(cameras.items())),
-                       report)
-        report.sequences += 1
-        report.rows += len(rows)
+    """The ISSIA-3D export of a release under ``out_dir`` (``render.v1.issia_3d`` of its ISSIA systems) with the
+    files naming the release (:func:`release_files`)."""
+    report = v1.issia_3d(out_dir, release_detector_systems(session, release, "issia-3d"))
     write_release_files(session, release, out_dir)
     return report
 
 
 def export_release_cameras(session: Session, release: Release, out_dir: Path) -> CamerasExport:
-    """The cameras export of a release under ``out_dir`` (``cameras_export.write_camera_sets`` of
+    """The cameras export of a release under ``out_dir`` (``render.v1.cameras`` of
     :func:`release_camera_views`) with the files naming the release (:func:`release_files`) at its root."""
-    report = write_camera_sets(out_dir, release_camera_views(session, release))
+    report = v1.cameras(out_dir, release_camera_views(session, release))
+    write_release_files(session, release, out_dir)
+    return report
+
+
+def export_release_detector(session: Session, release: Release, fmt: Literal["yolo", "coco"], out_dir: Path,
+                            files: DatasetFiles) -> DetectorExportReport:
+    """The YOLO or COCO export of a release under ``out_dir`` (``render.v1.detector``), its ball boxes chosen with
+    the settings the release recorded (``render.v1.export_settings``), with the files naming the release
+    (:func:`release_files`); ``files``: where the stored frames' images are read."""
+    marker = {"name": release.name, "hash": release.hash}
+    report = v1.detector(session, fmt, out_dir, release_detector_systems(session, release, fmt), marker,
+                         v1.export_settings(release), files)
     write_release_files(session, release, out_dir)
     return report
 

@@ -19,6 +19,7 @@ from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.db.models import Release
 
 from ..conftest import run_queued
 from ..factories import Scene, make_game, make_system
@@ -130,6 +131,20 @@ def test_release_exports_refuse_all_and_unknown_releases(client: TestClient, sce
         assert client.post(f"/api/exports/{fmt}", json={"release": "r"}).status_code == 202
         assert client.post(f"/api/exports/{fmt}", json={"release": "r", "all": True}).status_code == 422
     assert client.post("/api/releases", json={"name": " r "}).status_code == 422
+
+
+def test_a_release_made_over_http_records_the_export_settings_of_the_app(app, client: TestClient, scene: Scene,
+                                                                           act_as, db_session: Session) -> None:
+    act_as("adam", "admin")
+    _accept(client, scene.system_id)
+    served = app.state.settings
+    app.state.settings = served.model_copy(update={"export_ball_box": "optimised", "ball_diameter_m": 0.3})
+    try:
+        assert client.post("/api/releases", json={"name": "boxes"}).status_code == 201
+    finally:
+        app.state.settings = served
+    recorded = db_session.scalars(sa.select(Release.export_settings).where(Release.name == "boxes")).one()
+    assert recorded == {"ball_diameter_m": 0.3, "export_ball_box": "optimised"}
 
 
 def test_releases_are_append_only_in_the_database(client: TestClient, scene: Scene, act_as,
