@@ -28,6 +28,7 @@ from app.geometry.doubts.epipolar import _polyline_distance, _segment
 from app.geometry.triangulation import (
     BallObservation,
     angle_between_deg,
+    position_sigma_m,
 )
 from app.geometry.weighting import label_centre, project_point, rule_scale
 
@@ -38,6 +39,14 @@ MISS = 2.0
 #: A candidate is chosen only when the runner-up (a candidate elsewhere, as well supported) is worse by at least this
 #: fraction of the doubts' tau (px at 1920 width): two spots that meet the rays about as well cannot be told apart.
 MARGIN = 0.5
+#: The most (m, one standard deviation along the worst direction) the ball of a pairing may move with its cameras'
+#: pixel sigmas: twice it stays within the metre beyond which a 3D ball is wrong. Two rays from cameras sure to a
+#: few pixels can still fix the depth badly (a small parallax, a far view): on a made set two right detections
+#: with cameras 3-4 px from the truth put a ball 1.2 m off, their ball's sigma 9.6 m.
+MAX_SPREAD_M = 0.5
+#: The least pixel sigma (px at 1920 width) a view is read with for that spread: a fit's sigma below a pixel still
+#: leaves the label's or the box's own pixel.
+MIN_SIGMA_PX = 1.0
 
 
 @dataclass(frozen=True)
@@ -74,14 +83,17 @@ def _member(view: DoubtView, det: Detection, s: DoubtSettings, size_tolerance: f
     return _Member(view, _observation(view, det, s), det.box, size_tolerance, det)
 
 
-def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSettings) -> _Pairing | None:
+def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSettings,
+          sigma: Mapping[Hashable, float]) -> _Pairing | None:
     """Whether the members' rays meet at one ball of ``s.ball_diameter_m`` (the checks of one labelled ray and one
     detection, and of detections among themselves): the DLT ball of their centres lies in the play volume, every
     member's reprojection error is within its tolerance (``tol``: tau widened to its calibration's pixel sigma, so
     the distance between a detection and the other view's epipolar line may reach both views' tolerances), some
     pair of them sees it from cameras at least ``min_baseline_m`` apart under at least ``min_parallax_deg`` (else
     the rays meet anywhere along their common direction), and each box is a ball's size at that depth (within its
-    member's relative tolerance). None otherwise."""
+    member's relative tolerance), and the ball is placed within :data:`MAX_SPREAD_M` by the members' cameras
+    (``sigma``: view id -> pixel sigma, px at 1920 width; :func:`app.geometry.triangulation.position_sigma_m`).
+    None otherwise."""
     ball = _refit([m.obs for m in members])
     if ball is None or not _plausible(ball, s):
         return None
@@ -100,6 +112,11 @@ def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSet
     if not any(float(np.linalg.norm(a.obs.camera.C - b.obs.camera.C)) >= s.min_baseline_m
                and angle_between_deg(ball - a.obs.camera.C, ball - b.obs.camera.C) >= s.min_parallax_deg
                for a, b in combinations(members, 2)):
+        return None
+    spread = position_sigma_m([m.obs for m in members], ball,
+                              {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0)))
+                               for m in members})
+    if spread is None or spread > MAX_SPREAD_M:
         return None
     return _Pairing(tuple(members), ball, errors, ratios, max(errors.values()))
 
@@ -134,10 +151,12 @@ def _third_views(p: _Pairing, thirds: Sequence[DoubtView], detections: Mapping[H
                  tol: Mapping[Hashable, float], s: DoubtSettings,
                  size_tolerance: float) -> tuple[dict[Hashable, Detection | None], tuple[Hashable, ...]]:
     """What the calibrated views outside the pairing say of its ball: view id -> the detection there (None: its
-    label is there) for those that confirm it, and the ids of those that clearly miss it (the ball projects inside
-    the image by the view's tolerance, and neither its label nor any of its detections lies within :data:`MISS`
-    tolerances). A view the ball projects outside of, or without a label and without any detection (the detector
-    may not have run on it), says nothing."""
+    label is there) for those that confirm it, and the ids of those that clearly miss it: a labelled view whose
+    label lies more than :data:`MISS` tolerances from where the ball projects, wherever it projects (a person saw
+    the one ball of the system at the label: a ball outside that view's image is elsewhere), and an unlabelled view
+    the ball projects inside of by its tolerance where none of its detections lies within :data:`MISS` tolerances.
+    An unlabelled view the ball projects outside of, or one without any detection (the detector may not have run
+    on it), and a view the ball lies behind, say nothing."""
     inside = {m.view.view_id for m in p.members}
     confirmed: dict[Hashable, Detection | None] = {}
     missed: list[Hashable] = []
@@ -146,9 +165,13 @@ def _third_views(p: _Pairing, thirds: Sequence[DoubtView], detections: Mapping[H
             continue
         uv = project_point(c, p.ball)
         k, t = rule_scale(c, s), tol[c.view_id]
-        if uv is None or not _inside(c, uv, t / k):
+        if uv is None:
             continue
         label = label_centre(c)
+        # a label is read wherever the ball projects: on a made set two false boxes met at a ball 28 m off, above
+        # the image of the one labelled view (a camera the players placed, its label at the true ball)
+        if label is None and not _inside(c, uv, t / k):
+            continue
         if label is not None:
             d = float(np.linalg.norm(label - uv)) * k
             if d < t:
@@ -286,7 +309,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
             continue
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
                     if _on_epipolar(lone, v, d, sigma, s)
-                    and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
+                    and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s, sigma)) is not None]
         c = _chosen([p for p in pairings if not p.missed], s)
         if c is not None:
             chosen[v.view_id] = c
@@ -324,7 +347,7 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
             if not (_on_epipolar(_as_labelled(a, da), b, db, sigma, s)
                     and _on_epipolar(_as_labelled(b, db), a, da, sigma, s)):
                 continue
-            p = _meet([_member(a, da, s, size_tolerance), _member(b, db, s, size_tolerance)], tol, s)
+            p = _meet([_member(a, da, s, size_tolerance), _member(b, db, s, size_tolerance)], tol, s, sigma)
             if p is None:
                 continue
             p = _judged(p, thirds, detections, tol, s, size_tolerance)
@@ -332,7 +355,7 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
                      if det is not None}
             if extra:  # the third views' detections join when every ray still meets the refitted ball
                 grown = _meet([*p.members, *(_member(_view(usable, vid), det, s, size_tolerance)
-                                             for vid, det in extra.items())], tol, s)
+                                             for vid, det in extra.items())], tol, s, sigma)
                 if grown is not None:
                     p = _judged(grown, thirds, detections, tol, s, size_tolerance)
             key = frozenset((vid, det.box) for vid, det in p.detections().items())
