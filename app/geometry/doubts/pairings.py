@@ -83,17 +83,14 @@ def _member(view: DoubtView, det: Detection, s: DoubtSettings, size_tolerance: f
     return _Member(view, _observation(view, det, s), det.box, size_tolerance, det)
 
 
-def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSettings,
-          sigma: Mapping[Hashable, float]) -> _Pairing | None:
+def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSettings) -> _Pairing | None:
     """Whether the members' rays meet at one ball of ``s.ball_diameter_m`` (the checks of one labelled ray and one
     detection, and of detections among themselves): the DLT ball of their centres lies in the play volume, every
     member's reprojection error is within its tolerance (``tol``: tau widened to its calibration's pixel sigma, so
     the distance between a detection and the other view's epipolar line may reach both views' tolerances), some
     pair of them sees it from cameras at least ``min_baseline_m`` apart under at least ``min_parallax_deg`` (else
     the rays meet anywhere along their common direction), and each box is a ball's size at that depth (within its
-    member's relative tolerance), and the ball is placed within :data:`MAX_SPREAD_M` by the members' cameras
-    (``sigma``: view id -> pixel sigma, px at 1920 width; :func:`app.geometry.triangulation.position_sigma_m`).
-    None otherwise."""
+    member's relative tolerance). None otherwise."""
     ball = _refit([m.obs for m in members])
     if ball is None or not _plausible(ball, s):
         return None
@@ -112,11 +109,6 @@ def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSet
     if not any(float(np.linalg.norm(a.obs.camera.C - b.obs.camera.C)) >= s.min_baseline_m
                and angle_between_deg(ball - a.obs.camera.C, ball - b.obs.camera.C) >= s.min_parallax_deg
                for a, b in combinations(members, 2)):
-        return None
-    spread = position_sigma_m([m.obs for m in members], ball,
-                              {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0)))
-                               for m in members})
-    if spread is None or spread > MAX_SPREAD_M:
         return None
     return _Pairing(tuple(members), ball, errors, ratios, max(errors.values()))
 
@@ -237,6 +229,18 @@ def _chosen(pairings: Sequence[_Pairing], s: DoubtSettings) -> tuple[_Pairing, i
     return best, len(pairings), margin
 
 
+def _placed(p: _Pairing, sigma: Mapping[Hashable, float]) -> bool:
+    """Whether the pairing's cameras place its ball within :data:`MAX_SPREAD_M` (one standard deviation along the
+    worst direction, each member's pixel sigma ``sigma`` (px at 1920 width) at least :data:`MIN_SIGMA_PX`;
+    :func:`app.geometry.triangulation.position_sigma_m`). Asked of the chosen pairing only: a candidate placed
+    badly is still a rival the rays cannot tell from it (dropping it first would let a false box at a better
+    fixed depth win alone)."""
+    spread = position_sigma_m([m.obs for m in p.members], p.ball,
+                              {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0)))
+                               for m in p.members})
+    return spread is not None and spread <= MAX_SPREAD_M
+
+
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
     """A view whose camera may make a ball with one other ray: its pixel sigma (px at 1920 width) within tau. A camera
     that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the judge
@@ -309,9 +313,9 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
             continue
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
                     if _on_epipolar(lone, v, d, sigma, s)
-                    and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s, sigma)) is not None]
+                    and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
         c = _chosen([p for p in pairings if not p.missed], s)
-        if c is not None:
+        if c is not None and _placed(c[0], sigma):
             chosen[v.view_id] = c
     # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
     for (a, ca), (b, cb) in product(chosen.items(), chosen.items()):
@@ -347,7 +351,7 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
             if not (_on_epipolar(_as_labelled(a, da), b, db, sigma, s)
                     and _on_epipolar(_as_labelled(b, db), a, da, sigma, s)):
                 continue
-            p = _meet([_member(a, da, s, size_tolerance), _member(b, db, s, size_tolerance)], tol, s, sigma)
+            p = _meet([_member(a, da, s, size_tolerance), _member(b, db, s, size_tolerance)], tol, s)
             if p is None:
                 continue
             p = _judged(p, thirds, detections, tol, s, size_tolerance)
@@ -355,7 +359,7 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
                      if det is not None}
             if extra:  # the third views' detections join when every ray still meets the refitted ball
                 grown = _meet([*p.members, *(_member(_view(usable, vid), det, s, size_tolerance)
-                                             for vid, det in extra.items())], tol, s, sigma)
+                                             for vid, det in extra.items())], tol, s)
                 if grown is not None:
                     p = _judged(grown, thirds, detections, tol, s, size_tolerance)
             key = frozenset((vid, det.box) for vid, det in p.detections().items())
@@ -365,7 +369,7 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
             pairings.append(p)
     kept = [p for p in pairings if len(p.missed) <= max(0, len(p.members) - 2)]
     c = _chosen(kept, s)
-    return {} if c is None else _found(*c, "detections_agree")
+    return {} if c is None or not _placed(c[0], sigma) else _found(*c, "detections_agree")
 
 
 def _view(views: Sequence[DoubtView], view_id: Hashable) -> DoubtView:
