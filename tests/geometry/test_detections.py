@@ -347,3 +347,17 @@ def test_one_ray_and_a_detection_that_fix_the_balls_depth_badly_place_nothing():
     sure = scene(main={"uncertainty": {**unsure, "pan_deg": 0.05, "tilt_deg": 0.05}},
                  **{n: {"box": None} for n in CAMERAS if n != "main"})
     assert set(detected(checked(sure, {"corner": [det("corner")]}))) == {"corner"}
+
+
+def test_a_box_off_the_labelled_ray_by_more_than_the_cameras_and_the_detector_explain_is_not_the_ball():
+    """Between two sure cameras (a pixel each) and a box of about 13 px (the detector's centre error 0.17 d), a box
+    20 px across main's epipolar line is inside tau (25 px) yet four standard deviations off: nothing is placed;
+    one 3 px across is the ball. A camera unsure to 15 px explains the 20 px."""
+    views = only_main_labelled()
+    assert detected(checked(views, {"goal": [beside_main_ray("goal", 20.0)]})) == {}
+    near = detected(checked(views, {"goal": [beside_main_ray("goal", 3.0)]}))
+    assert set(near) == {"goal"} and near_truth("goal", near["goal"]) < 4.0
+    unsure = {"pan_deg": 0.25, "tilt_deg": 0.25, "roll_deg": 0.02, "focal_px": 3.0,
+              "position_m": {"x": .1, "y": .1, "z": .1}}
+    wide = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
+    assert set(detected(checked(wide, {"goal": [beside_main_ray("goal", 20.0)]}))) == {"goal"}

@@ -18,6 +18,7 @@ from app.geometry.doubts.detected import (
     TIE_PX,
     CheckedDetection,
     Detection,
+    _diameter,
     _near_ray,
     _observation,
     _refit,
@@ -47,6 +48,13 @@ MAX_SPREAD_M = 0.5
 #: The least pixel sigma (px at 1920 width) a view is read with for that spread: a fit's sigma below a pixel still
 #: leaves the label's or the box's own pixel.
 MIN_SIGMA_PX = 1.0
+#: A chosen pairing's detection lies within this many standard deviations of where the labelled ray puts the ball:
+#: both cameras' pixel sigmas and the detector's own centre error in quadrature (at 1920 width). Two standard
+#: deviations: a box farther off is not explained by the cameras and the detector, however wide tau is.
+SIGMAS = 2.0
+#: The detector's centre error as a fraction of the box's diameter (0.12 d per axis, so 0.17 d across: the
+#: detector's documented error, the shared detector sets' README).
+CENTRE_NOISE = 0.17
 
 
 @dataclass(frozen=True)
@@ -241,6 +249,22 @@ def _placed(p: _Pairing, sigma: Mapping[Hashable, float]) -> bool:
     return spread is not None and spread <= MAX_SPREAD_M
 
 
+def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether each detection of the pairing lies from the ball within :data:`SIGMAS` standard deviations: the
+    members' pixel sigmas (px at 1920 width) and :data:`CENTRE_NOISE` of the box's diameter in quadrature, at least
+    :data:`MIN_SIGMA_PX`. The epipolar check's tau is the doubts' wide tolerance for labels; between two cameras sure
+    to a few pixels a box ten pixels off the ray is not the ball they see (on a made set such a box, the only one of
+    a view whose detector missed the ball, made a 3D ball 10 m off)."""
+    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0))) ** 2 for m in p.members)
+    for m in p.members:
+        if m.detection is None or m.box is None:
+            continue
+        d = _diameter(m.box, m.view) * rule_scale(m.view, s)
+        if p.errors[m.view.view_id] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
+            return False
+    return True
+
+
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
     """A view whose camera may make a ball with one other ray: its pixel sigma (px at 1920 width) within tau. A camera
     that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the judge
@@ -315,7 +339,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
         c = _chosen([p for p in pairings if not p.missed], s)
-        if c is not None and _placed(c[0], sigma):
+        if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s):
             chosen[v.view_id] = c
     # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
     for (a, ca), (b, cb) in product(chosen.items(), chosen.items()):
