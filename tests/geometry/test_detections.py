@@ -330,7 +330,8 @@ def test_one_ray_and_a_detection_that_fix_the_balls_depth_badly_place_nothing():
     ray about 30 degrees from main's leave the ball's depth more than half a metre uncertain (the metre beyond
     which a 3D ball is wrong is then within two sigma no more); goal's ray, nearly perpendicular, fixes it."""
     from app.geometry.doubts.judge import _votes
-    from app.geometry.triangulation import BallObservation, position_sigma_m
+    from app.geometry.spread import position_sigma_m
+    from app.geometry.triangulation import BallObservation
 
     unsure = {"pan_deg": 0.3, "tilt_deg": 0.3, "roll_deg": 0.02, "focal_px": 3.0,
               "position_m": {"x": .1, "y": .1, "z": .1}}

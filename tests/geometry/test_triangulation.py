@@ -7,6 +7,7 @@ import pytest
 
 from app.geometry.camera import Camera
 from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
+from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
     DROP_REASONS,
     STATUS_INSUFFICIENT_VIEWS,
@@ -14,7 +15,6 @@ from app.geometry.triangulation import (
     STATUS_TRIANGULATED,
     BallObservation,
     parallax_angle_deg,
-    position_sigma_m,
     triangulate_ball,
     triangulate_dlt,
     undistort_pixels,

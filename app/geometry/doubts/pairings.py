@@ -26,10 +26,10 @@ from app.geometry.doubts.detected import (
     size_ratio,
 )
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
+from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
     BallObservation,
     angle_between_deg,
-    position_sigma_m,
 )
 from app.geometry.weighting import label_centre, project_point, rule_scale
 
@@ -240,7 +240,7 @@ def _chosen(pairings: Sequence[_Pairing], s: DoubtSettings) -> tuple[_Pairing, i
 def _placed(p: _Pairing, sigma: Mapping[Hashable, float]) -> bool:
     """Whether the pairing's cameras place its ball within :data:`MAX_SPREAD_M` (one standard deviation along the
     worst direction, each member's pixel sigma ``sigma`` (px at 1920 width) at least :data:`MIN_SIGMA_PX`;
-    :func:`app.geometry.triangulation.position_sigma_m`). Asked of the chosen pairing only: a candidate placed
+    :func:`app.geometry.spread.position_sigma_m`). Asked of the chosen pairing only: a candidate placed
     badly is still a rival the rays cannot tell from it (dropping it first would let a false box at a better
     fixed depth win alone)."""
     spread = position_sigma_m([m.obs for m in p.members], p.ball,
