@@ -302,3 +302,63 @@ def test_a_helpers_ray_places_two_detections_that_meet_it_and_its_label_still_co
 
 def only_unlabelled():
     return scene(**{n: {"box": None} for n in CAMERAS})
+
+
+def test_a_labelled_view_contradicts_a_pairing_whose_ball_falls_outside_its_image():
+    """A label is a person's word that the system's one ball is there: two false boxes that meet at a ball outside
+    a labelled view's image are contradicted by that label, wherever their ball projects."""
+    from tests.geometry.test_doubts import look_at
+
+    narrow = look_at(CAMERAS["main"][0], BALL, 8000.0)  # main zoomed on the ball: the fake ball is outside its image
+    fake = [0.0, 0.0, -1.0]
+    uv = narrow.project(np.asarray([fake], float))[0][0]
+    assert not (0 <= uv[0] < 1920 and 0 <= uv[1] < 1080)
+    dets = {"goal": [box_at("goal", fake)], "opposite": [box_at("opposite", fake)]}
+    labelled = scene(main={"camera": narrow, "line_classes": 3, "uncertainty": SURE, "player_assisted": True},
+                     **{n: {"box": None} for n in CAMERAS if n != "main"})
+    assert detected(checked(labelled, dets)) == {}
+    # without main's label nothing contradicts the two boxes: they agree among themselves
+    unlabelled = scene(main={"camera": narrow, "box": None}, **{n: {"box": None} for n in CAMERAS if n != "main"})
+    assert set(detected(checked(unlabelled, dets))) == {"goal", "opposite"}
+    # the ball's own detections there still fill the views, main's label confirming them
+    found = detected(checked(labelled, {"goal": [det("goal")], "opposite": [det("opposite")]}))
+    assert set(found) == {"goal", "opposite"} and max(near_truth(n, d) for n, d in found.items()) < 2.0
+
+
+def test_one_ray_and_a_detection_that_fix_the_balls_depth_badly_place_nothing():
+    """Two rays fix the ball only as well as their cameras: main's camera sure to 18.5 px (within tau) and corner's
+    ray about 30 degrees from main's leave the ball's depth more than half a metre uncertain (the metre beyond
+    which a 3D ball is wrong is then within two sigma no more); goal's ray, nearly perpendicular, fixes it."""
+    from app.geometry.doubts.judge import _votes
+    from app.geometry.spread import position_sigma_m
+    from app.geometry.triangulation import BallObservation
+
+    unsure = {"pan_deg": 0.3, "tilt_deg": 0.3, "roll_deg": 0.02, "focal_px": 3.0,
+              "position_m": {"x": .1, "y": .1, "z": .1}}
+    views = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
+    sigma = _votes(views, SETTINGS, None).sigma
+    assert 15.0 < sigma["main"] < 25.0
+    obs = {n: BallObservation(n, camera(n), np.zeros(2), 1920) for n in CAMERAS}
+    assert position_sigma_m([obs["main"], obs["corner"]], BALL, {"main": sigma["main"], "corner": 1.0}) > 0.5
+    assert position_sigma_m([obs["main"], obs["goal"]], BALL, {"main": sigma["main"], "goal": 1.0}) < 0.5
+    assert detected(checked(views, {"corner": [det("corner")]})) == {}
+    found = detected(checked(views, {"goal": [det("goal")]}))
+    assert set(found) == {"goal"} and near_truth("goal", found["goal"]) < 2.0
+    # the same pair with main sure to 3 px fills corner
+    sure = scene(main={"uncertainty": {**unsure, "pan_deg": 0.05, "tilt_deg": 0.05}},
+                 **{n: {"box": None} for n in CAMERAS if n != "main"})
+    assert set(detected(checked(sure, {"corner": [det("corner")]}))) == {"corner"}
+
+
+def test_a_box_off_the_labelled_ray_by_more_than_the_cameras_and_the_detector_explain_is_not_the_ball():
+    """Between two sure cameras (a pixel each) and a box of about 13 px (the detector's centre error 0.17 d), a box
+    20 px across main's epipolar line is inside tau (25 px) yet four standard deviations off: nothing is placed;
+    one 3 px across is the ball. A camera unsure to 15 px explains the 20 px."""
+    views = only_main_labelled()
+    assert detected(checked(views, {"goal": [beside_main_ray("goal", 20.0)]})) == {}
+    near = detected(checked(views, {"goal": [beside_main_ray("goal", 3.0)]}))
+    assert set(near) == {"goal"} and near_truth("goal", near["goal"]) < 4.0
+    unsure = {"pan_deg": 0.25, "tilt_deg": 0.25, "roll_deg": 0.02, "focal_px": 3.0,
+              "position_m": {"x": .1, "y": .1, "z": .1}}
+    wide = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
+    assert set(detected(checked(wide, {"goal": [beside_main_ray("goal", 20.0)]}))) == {"goal"}

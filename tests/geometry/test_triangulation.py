@@ -7,6 +7,7 @@ import pytest
 
 from app.geometry.camera import Camera
 from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
+from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
     DROP_REASONS,
     STATUS_INSUFFICIENT_VIEWS,
@@ -428,3 +429,20 @@ def test_one_undistortion_per_view_gives_the_rays_pixels_and_errors_of_the_camer
                                                             if expected is not None else None)
         shared = PairGeometryMemo()(a, b)
         assert shared.parallax_deg == g.parallax_deg and np.array_equal(shared.h, g.h)
+
+
+def test_the_balls_sigma_from_two_perpendicular_views_is_the_pixel_sigma_at_its_distance():
+    """Two cameras 50 m from the ball, looking along x and along y with focal 1000 px at 1920 width: a metre across
+    either ray moves the ball's image by 20 px, so 10 px of sigma leave 0.5 m along x and y (each seen by one
+    view) and 0.5 / sqrt(2) m along z (seen by both); the spread is the worst, 0.5 m. Half the width reads the
+    sigma in px at 1920: the same spread. Rays along one line fix nothing."""
+    ball = np.array([0.0, 0.0, -10.0])
+    a = BallObservation("a", look_at([-50.0, 0.0, -10.0], ball, focal=1000.0), np.zeros(2), 1920)
+    b = BallObservation("b", look_at([0.0, -50.0, -10.0], ball, focal=1000.0), np.zeros(2), 1920)
+    assert position_sigma_m([a, b], ball, {"a": 10.0, "b": 10.0}) == pytest.approx(0.5, rel=1e-3)
+    assert position_sigma_m([a, b], ball, {"a": 10.0, "b": 5.0}) == pytest.approx(0.5, rel=1e-3)  # x: a alone
+    assert position_sigma_m([a], ball, {"a": 10.0}) is None
+    half = BallObservation("h", look_at([0.0, -50.0, -10.0], ball, focal=500.0, size=(960, 540)), np.zeros(2), 960)
+    assert position_sigma_m([a, half], ball, {"a": 10.0, "h": 10.0}) == pytest.approx(0.5, rel=1e-3)
+    behind = BallObservation("c", look_at([0.0, -50.0, -10.0], ball + [0.0, -100.0, 0.0]), np.zeros(2), 1920)
+    assert position_sigma_m([a, behind], ball, {"a": 10.0, "c": 10.0}) is None

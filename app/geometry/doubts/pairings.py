@@ -18,6 +18,7 @@ from app.geometry.doubts.detected import (
     TIE_PX,
     CheckedDetection,
     Detection,
+    _diameter,
     _near_ray,
     _observation,
     _refit,
@@ -25,6 +26,7 @@ from app.geometry.doubts.detected import (
     size_ratio,
 )
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
+from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
     BallObservation,
     angle_between_deg,
@@ -38,6 +40,21 @@ MISS = 2.0
 #: A candidate is chosen only when the runner-up (a candidate elsewhere, as well supported) is worse by at least this
 #: fraction of the doubts' tau (px at 1920 width): two spots that meet the rays about as well cannot be told apart.
 MARGIN = 0.5
+#: The most (m, one standard deviation along the worst direction) the ball of a pairing may move with its cameras'
+#: pixel sigmas: twice it stays within the metre beyond which a 3D ball is wrong. Two rays from cameras sure to a
+#: few pixels can still fix the depth badly (a small parallax, a far view): on a made set two right detections
+#: with cameras 3-4 px from the truth put a ball 1.2 m off, their ball's sigma 9.6 m.
+MAX_SPREAD_M = 0.5
+#: The least pixel sigma (px at 1920 width) a view is read with for that spread: a fit's sigma below a pixel still
+#: leaves the label's or the box's own pixel.
+MIN_SIGMA_PX = 1.0
+#: A chosen pairing's detection lies within this many standard deviations of where the labelled ray puts the ball:
+#: both cameras' pixel sigmas and the detector's own centre error in quadrature (at 1920 width). Two standard
+#: deviations: a box farther off is not explained by the cameras and the detector, however wide tau is.
+SIGMAS = 2.0
+#: The detector's centre error as a fraction of the box's diameter (0.12 d per axis, so 0.17 d across: the
+#: detector's documented error, the shared detector sets' README).
+CENTRE_NOISE = 0.17
 
 
 @dataclass(frozen=True)
@@ -134,10 +151,12 @@ def _third_views(p: _Pairing, thirds: Sequence[DoubtView], detections: Mapping[H
                  tol: Mapping[Hashable, float], s: DoubtSettings,
                  size_tolerance: float) -> tuple[dict[Hashable, Detection | None], tuple[Hashable, ...]]:
     """What the calibrated views outside the pairing say of its ball: view id -> the detection there (None: its
-    label is there) for those that confirm it, and the ids of those that clearly miss it (the ball projects inside
-    the image by the view's tolerance, and neither its label nor any of its detections lies within :data:`MISS`
-    tolerances). A view the ball projects outside of, or without a label and without any detection (the detector
-    may not have run on it), says nothing."""
+    label is there) for those that confirm it, and the ids of those that clearly miss it: a labelled view whose
+    label lies more than :data:`MISS` tolerances from where the ball projects, wherever it projects (a person saw
+    the one ball of the system at the label: a ball outside that view's image is elsewhere), and an unlabelled view
+    the ball projects inside of by its tolerance where none of its detections lies within :data:`MISS` tolerances.
+    An unlabelled view the ball projects outside of, or one without any detection (the detector may not have run
+    on it), and a view the ball lies behind, say nothing."""
     inside = {m.view.view_id for m in p.members}
     confirmed: dict[Hashable, Detection | None] = {}
     missed: list[Hashable] = []
@@ -146,9 +165,13 @@ def _third_views(p: _Pairing, thirds: Sequence[DoubtView], detections: Mapping[H
             continue
         uv = project_point(c, p.ball)
         k, t = rule_scale(c, s), tol[c.view_id]
-        if uv is None or not _inside(c, uv, t / k):
+        if uv is None:
             continue
         label = label_centre(c)
+        # a label is read wherever the ball projects: on a made set two false boxes met at a ball 28 m off, above
+        # the image of the one labelled view (a camera the players placed, its label at the true ball)
+        if label is None and not _inside(c, uv, t / k):
+            continue
         if label is not None:
             d = float(np.linalg.norm(label - uv)) * k
             if d < t:
@@ -212,6 +235,34 @@ def _chosen(pairings: Sequence[_Pairing], s: DoubtSettings) -> tuple[_Pairing, i
         return None
     margin = min(p.error_1920 for p in rivals) - best.error_1920 if rivals else None
     return best, len(pairings), margin
+
+
+def _placed(p: _Pairing, sigma: Mapping[Hashable, float]) -> bool:
+    """Whether the pairing's cameras place its ball within :data:`MAX_SPREAD_M` (one standard deviation along the
+    worst direction, each member's pixel sigma ``sigma`` (px at 1920 width) at least :data:`MIN_SIGMA_PX`;
+    :func:`app.geometry.spread.position_sigma_m`). Asked of the chosen pairing only: a candidate placed
+    badly is still a rival the rays cannot tell from it (dropping it first would let a false box at a better
+    fixed depth win alone)."""
+    spread = position_sigma_m([m.obs for m in p.members], p.ball,
+                              {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0)))
+                               for m in p.members})
+    return spread is not None and spread <= MAX_SPREAD_M
+
+
+def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether each detection of the pairing lies from the ball within :data:`SIGMAS` standard deviations: the
+    members' pixel sigmas (px at 1920 width) and :data:`CENTRE_NOISE` of the box's diameter in quadrature, at least
+    :data:`MIN_SIGMA_PX`. The epipolar check's tau is the doubts' wide tolerance for labels; between two cameras sure
+    to a few pixels a box ten pixels off the ray is not the ball they see (on a made set such a box, the only one of
+    a view whose detector missed the ball, made a 3D ball 10 m off)."""
+    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0))) ** 2 for m in p.members)
+    for m in p.members:
+        if m.detection is None or m.box is None:
+            continue
+        d = _diameter(m.box, m.view) * rule_scale(m.view, s)
+        if p.errors[m.view.view_id] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
+            return False
+    return True
 
 
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
@@ -288,7 +339,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
         c = _chosen([p for p in pairings if not p.missed], s)
-        if c is not None:
+        if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s):
             chosen[v.view_id] = c
     # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
     for (a, ca), (b, cb) in product(chosen.items(), chosen.items()):
@@ -342,7 +393,7 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
             pairings.append(p)
     kept = [p for p in pairings if len(p.missed) <= max(0, len(p.members) - 2)]
     c = _chosen(kept, s)
-    return {} if c is None else _found(*c, "detections_agree")
+    return {} if c is None or not _placed(c[0], sigma) else _found(*c, "detections_agree")
 
 
 def _view(views: Sequence[DoubtView], view_id: Hashable) -> DoubtView:
