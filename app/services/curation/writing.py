@@ -1,8 +1,9 @@
 """The guarded, audited write every edit and decision goes through, and its one locking design.
 
-Every write is attributed and guarded, in one transaction: it checks the version its client expected (the
-``If-Match`` of the frame or of the system, ``app.services.curation.versions``; 412 when stale), applies the change,
-recomputes what it implies, and records one audit entry (``app.services.audit.log``, by ``actor``, None meaning
+Every write is described by an :class:`EditPlan` and is attributed and guarded, in one transaction: it checks the
+version its client expected (the ``If-Match`` of the frame or of the system, ``app.services.curation.versions``; 412
+when stale), applies the change, recomputes what it implies (the plan's explicit ``recompute`` flag), and records one
+audit entry (``app.services.audit.log``, by the plan's ``actor``, None meaning
 :func:`~app.services.audit.log.local_actor`) with the edited part's state before and after. ``revert`` marks the
 write as the revert of an audit entry (``app.services.curation.reverting``): it is recorded as action ``revert``, and
 refused with :class:`~app.core.errors.ConflictError` when the state it read is not ``revert.expect``.
