@@ -23,8 +23,8 @@ from app.services.curation.states import (
 )
 from app.services.curation.writing import (
     EditContext,
+    EditPlan,
     Expected,
-    Guard,
     Revert,
     check_undo_state,
     guarded_frame_write,
@@ -90,11 +90,10 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
 
     undo_of = undo.entry_id if undo is not None else None
     if system_id is not None:
-        return guarded_write(session, system_id, Guard("system", expected), lambda system: system,
-                             system_review_state, apply, "system.review", actor, revert, undo_of, edit=edit)
-    assert frame_id is not None  # exactly one of the two ids, checked above
-    return guarded_frame_write(session, frame_id, expected, review_state, apply, "view.review", actor, revert,
-                               undo_of, edit=edit)
+        plan = EditPlan("system.review", system_review_state, apply, actor, None, expected, revert, undo_of)
+        return guarded_write(session, system_id, plan, edit=edit)
+    view_plan = EditPlan("view.review", review_state, apply, actor, frame_id, expected, revert, undo_of)
+    return guarded_frame_write(session, view_plan, edit=edit)
 
 
 def _check_decision(status: ReviewStatus | str, comment: Any) -> ReviewStatus:
@@ -145,5 +144,6 @@ def decide_calibration(session: Session, frame_id: int, *, status: ReviewStatus 
         review.calibration_reset_reason = None
         return review
 
-    return guarded_frame_write(session, frame_id, expected, calibration_review_state, apply, "view.calibration_review",
-                               actor, revert, undo.entry_id if undo is not None else None, edit=edit)
+    plan = EditPlan("view.calibration_review", calibration_review_state, apply, actor, frame_id, expected, revert,
+                    undo.entry_id if undo is not None else None)
+    return guarded_frame_write(session, plan, edit=edit)

@@ -67,8 +67,8 @@ from app.services.curation.states import (
 )
 from app.services.curation.writing import (
     EditContext,
+    EditPlan,
     Expected,
-    Guard,
     Revert,
     check_undo_state,
     frame_facts,
@@ -185,9 +185,9 @@ def update_ball_label(session: Session, frame_id: int, box: Any = None, point: A
         restore_decisions(frame, undo or revert, actor, edit)
         return frame
 
-    return guarded_frame_write(session, frame_id, expected, ball_state, apply, "ball.edit", actor, revert,
-                               undo.entry_id if undo is not None else None, system_id=facts.system_id,
-                               recompute=True, settings=settings, edit=edit)
+    plan = EditPlan("ball.edit", ball_state, apply, actor, frame_id, expected, revert,
+                    undo.entry_id if undo is not None else None, recompute=True, settings=settings)
+    return guarded_frame_write(session, plan, system_id=facts.system_id, edit=edit)
 
 
 def _recompute(session: Session, system: System, settings: Settings, actor: Optional[str],
@@ -292,8 +292,9 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
 
     if undo_of is not None:
         check_undo(session, undo_of, frame_id, parsed)
-    return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.replace", actor, revert,
-                               undo_of, system_id=facts.system_id, recompute=True, settings=settings, edit=edit)
+    plan = EditPlan("field_lines.replace", lines_state, apply, actor, frame_id, expected, revert, undo_of,
+                    recompute=True, settings=settings)
+    return guarded_frame_write(session, plan, system_id=facts.system_id, edit=edit)
 
 
 def check_undo(session: Session, entry_id: int, frame_id: int, parsed: dict[str, Any]) -> None:
@@ -366,8 +367,9 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         return out
 
     facts = frame_facts(session, frame_id)
-    return guarded_frame_write(session, frame_id, expected, lines_state, apply, "field_lines.mirror", actor, None,
-                               system_id=facts.system_id, recompute=True, settings=settings, edit=context)
+    plan = EditPlan("field_lines.mirror", lines_state, apply, actor, frame_id, expected, recompute=True,
+                    settings=settings)
+    return guarded_frame_write(session, plan, system_id=facts.system_id, edit=context)
 
 
 def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None, str] | None:
@@ -423,9 +425,9 @@ def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settin
         restore_decisions(frame, undo or revert, actor, edit)
         return frame
 
-    return guarded_frame_write(session, frame_id, expected, excluded_state, apply, "view.exclusion", actor, revert,
-                               undo.entry_id if undo is not None else None, system_id=facts.system_id,
-                               recompute=True, settings=settings, edit=edit)
+    plan = EditPlan("view.exclusion", excluded_state, apply, actor, frame_id, expected, revert,
+                    undo.entry_id if undo is not None else None, recompute=True, settings=settings)
+    return guarded_frame_write(session, plan, system_id=facts.system_id, edit=edit)
 
 
 def restore_imported_system(session: Session, system_id: int, state: Mapping[str, Any], *, settings: Settings,
@@ -457,9 +459,9 @@ def restore_imported_system(session: Session, system_id: int, state: Mapping[str
         _recompute(session, system, settings, actor, edit)
         return system
 
-    return guarded_write(session, system_id, Guard("system"), lambda system: system, system_import_state, apply,
-                         "system.import", actor, revert, undo.entry_id if undo is not None else None,
-                         recompute=True, settings=settings, edit=edit)
+    plan = EditPlan("system.import", system_import_state, apply, actor, revert=revert,
+                    undo_of=undo.entry_id if undo is not None else None, recompute=True, settings=settings)
+    return guarded_write(session, system_id, plan, edit=edit)
 
 
 def _restore_view(frame: Frame, view: Mapping[str, Any], now: Any) -> None:

@@ -1,8 +1,9 @@
 """The guarded, audited write every edit and decision goes through, and its one locking design.
 
-Every write is attributed and guarded, in one transaction: it checks the version its client expected (the
-``If-Match`` of the frame or of the system, ``app.services.curation.versions``; 412 when stale), applies the change,
-recomputes what it implies, and records one audit entry (``app.services.audit.log``, by ``actor``, None meaning
+Every write is described by an :class:`EditPlan` and is attributed and guarded, in one transaction: it checks the
+version its client expected (the ``If-Match`` of the frame or of the system, ``app.services.curation.versions``; 412
+when stale), applies the change, recomputes what it implies (the plan's explicit ``recompute`` flag), and records one
+audit entry (``app.services.audit.log``, by the plan's ``actor``, None meaning
 :func:`~app.services.audit.log.local_actor`) with the edited part's state before and after. ``revert`` marks the
 write as the revert of an audit entry (``app.services.curation.reverting``): it is recorded as action ``revert``, and
 refused with :class:`~app.core.errors.ConflictError` when the state it read is not ``revert.expect``.
@@ -45,7 +46,7 @@ import logging
 import threading
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass, field
-from typing import Any, Callable, Literal, Optional, TypeVar
+from typing import Any, Callable, Generic, Literal, Optional, TypeVar
 
 import numpy as np
 import sqlalchemy as sa
@@ -56,7 +57,7 @@ from app.core.config import Settings
 from app.core.errors import ConflictError, NotFoundError, StaleVersionError, found
 from app.core.metrics import count_edit
 from app.db import scope
-from app.db.models import Frame, Game, System
+from app.db.models import AuditEntry, Frame, Game, System
 from app.db.session import begin_write, end_reads, reads_on_their_own
 from app.db.unit import write_unit
 from app.services.audit import log as audit
@@ -163,23 +164,58 @@ class EditContext:
 
 
 @dataclass(frozen=True)
-class Guard:
-    """What a write checks of its subject before it changes anything: the client's expected versions (``expected``,
-    :func:`~app.services.curation.versions.expected_versions`; None accepts any) of the frame's ``edit_version`` or
-    the system's ``version`` (``kind``)."""
+class EditPlan(Generic[T]):
+    """What one guarded write does (:func:`guarded_write`), described before it runs.
 
-    kind: Literal["frame", "system"]
+    ``frame_id``: the write's subject, that view of the system (its version ``Frame.edit_version`` guarded), or None:
+    the system itself (``System.version``); ``expected``: the versions the client expected of it (``If-Match``,
+    :func:`~app.services.curation.versions.expected_versions`; None accepts any). ``state``: the edited part's state
+    of the subject, recorded before and after; ``apply``: the change of the subject and the recomputation it asks for
+    (its answer is the write's). ``action``: the audit entry's action (``revert`` when ``revert``), by ``actor``
+    (None: the local actor); ``undo_of``: the entry this write undoes (its ``reverts_id``, under its own action).
+
+    ``recompute``: the explicit flag of a write that recomputes its system with ``settings`` (an edit: it reads its
+    game's rig rows with it, takes a turn of :class:`EditSlots`, computes before the lock and compares under it);
+    False: it recomputes nothing and runs under the lock at once (a decision; ``settings`` unused).
+
+    Raises:
+        ValueError: ``recompute`` without ``settings``.
+    """
+
+    action: str
+    state: Callable[[Any], dict[str, Any]]
+    apply: Callable[[Any], T]
+    actor: Optional[str] = None
+    frame_id: Optional[int] = None
     expected: Expected = None
+    revert: Optional[Revert] = None
+    undo_of: Optional[int] = None
+    recompute: bool = False
+    settings: Optional[Settings] = None
 
-    def check_and_bump(self, subject: Frame | System) -> None:
-        """Raise :class:`StaleVersionError` when the subject's version is not expected; bump a frame's version (its
-        flush compares the version it was read with; a system's is bumped by every write of its labels, lines,
-        exclusions, calibrations or decision, ``scope.changed``)."""
-        if isinstance(subject, Frame):
-            check_expected("frame", subject.id, subject.edit_version, self.expected)
-            subject.edit_version += 1
-        else:
-            check_expected("system", subject.id, subject.version, self.expected)
+    def __post_init__(self) -> None:
+        if self.recompute and self.settings is None:
+            raise ValueError("a write that recomputes needs the settings it recomputes with")
+
+    @property
+    def reads_with(self) -> Optional[Settings]:
+        """The settings its reads and recomputation use: None for a write that recomputes nothing (a decision reads
+        neither predictions nor rig)."""
+        return self.settings if self.recompute else None
+
+    def subject(self, system: System) -> Frame | System:
+        """The subject in the loaded ``system``: its view ``frame_id`` (:func:`view_of`) or the system."""
+        return view_of(system, self.frame_id) if self.frame_id is not None else system
+
+
+@dataclass(frozen=True)
+class _Computed(Generic[T]):
+    """What an attempt computed holding no connection: the subject, its state before and after, ``apply``'s answer."""
+
+    subject: Frame | System
+    before: dict[str, Any]
+    after: dict[str, Any]
+    result: T
 
 
 class _Collided(Exception):
@@ -190,109 +226,155 @@ class _MustLock(Exception):
     """The edit's kind re-fits beyond its system (``KindPolicy.computes_before_lock`` False): it runs under the lock."""
 
 
-def guarded_write(session: Session, system_id: int, guard: Guard, subject: Callable[[System], Frame | System],
-                  state: Callable[[Any], dict[str, Any]], apply: Callable[[Any], T], action: str,
-                  actor: Optional[str], revert: Optional[Revert], undo_of: Optional[int] = None, *,
-                  recompute: bool = False, settings: Optional[Settings] = None,
-                  edit: Optional[EditContext] = None) -> T:
-    """The guarded, audited write of system ``system_id`` every edit and decision goes through (module docstring):
-    ``guard`` checks ``subject(system)`` (the system as read, or one of its views) (412), ``state`` of it before,
-    ``revert``'s check (409), ``apply`` (the change and the recomputation it asks for), ``state`` after, one audit
-    entry (action ``action``, or ``revert``; ``undo_of``: the entry this edit undoes, recorded as its ``reverts_id``
-    under the edit's own action), committed together.
+def guarded_write(session: Session, system_id: int, plan: EditPlan[T], *, edit: Optional[EditContext] = None) -> T:
+    """The guarded, audited write of system ``system_id`` every edit and decision goes through (module docstring),
+    doing what ``plan`` describes (:class:`EditPlan`). ``edit``: the edit's context (:class:`EditContext`), filled
+    with its entry's id and outcome.
 
-    ``recompute`` (with ``settings``): the write recomputes its system, reading its game's rig rows with it
-    (``edit.rig``), and, unless its kind re-fits beyond the system, computes after its reads and compares under the
-    lock; else (a decision) it runs under the lock. ``edit``: the edit's context (:class:`EditContext`), filled with
-    its entry's id and outcome.
+    A recomputing write takes a turn of its process's edits, then makes its attempts (:func:`_attempts`), each the
+    plain sequence of :func:`_attempt`: read, compute holding no connection, lock, compare, write, commit.
 
     Raises:
         NotFoundError: no such system (or subject).
         StaleVersionError: the subject's version is not expected (rolled back; its current state described).
         ConflictError: a revert of a state that changed since.
-        What ``apply`` raises (rolled back).
-        ValueError: ``recompute`` without ``settings``.
+        What ``plan.apply`` raises (rolled back).
     """
     edit = edit if edit is not None else EditContext()
-    recomputes = recompute
-    if recompute and settings is None:
-        raise ValueError("a write that recomputes needs the settings it recomputes with")
-    settings = settings if recompute else None  # a decision reads neither predictions nor rig
-
-    def run(locked: bool) -> T:
-        edit.attempts += 1
-        edit.facts, edit.rig = {}, None
-        with write_unit(session, lock=False):  # rolled back when it raises: a collision, a refusal, a failure
-            if locked:
-                begin_write(session)
-                lock_system(session, system_id, game=recomputes)
-            else:  # the version is read first, with the system row: anything committed after it makes the compare fail
-                reads_on_their_own(session)
-            per_frame = settings.max_predictions_per_frame if settings is not None else None
-            system = found(load_for_recompute(session, [system_id], predictions=per_frame, with_game=True).get(
-                system_id), "system", system_id)
-            if not locked and not kind_of(system).computes_before_lock:
-                raise _MustLock()
-            game_version = system.game.version if system.game is not None else None
-            edit.version = system.version
-            edit.rig = system_rig_rows(session, system, settings) if settings is not None else None
-            if not locked:
-                end_reads(session)  # the connection goes back to the pool while the edit computes
-            target = subject(system)
-            with session.no_autoflush:
-                guard.check_and_bump(target)
-                before = state(target)
-                _check_revert(revert, before)
-                result = apply(target)
-                after = state(target)
-                if recomputes or isinstance(target, System):  # a view decision changes the view's version alone
-                    scope.changed(system)
-                audit.stamp_versions(session, system)  # the resets it recorded while computing, before the bump
-            if not locked:
-                begin_write(session)  # refuses a session that read while computing (a row outside ``scope``)
-                # an edit that changes its game's rig (a recalibration bumped the game's version) locks the game's row
-                # alone; the others share it: they need only that nobody changes the rig until they commit
-                changes_rig = system.game is not None and system.game.version != game_version
-                with session.no_autoflush:
-                    if _game_version(session, system.game_id,
-                                     lock="update" if changes_rig else "share") != game_version:
-                        raise _Collided()  # its game's rig or camera prior changed since it was read
-            frame = target if isinstance(target, Frame) else None
-            owner = target if isinstance(target, System) else None  # the subject: a view or the system itself
-            entry = audit.record(session, actor=actor, action="revert" if revert is not None else action,
-                                 frame=frame, system=owner, before=before, after=after,
-                                 reverts_id=revert.entry_id if revert is not None else undo_of, facts=edit.facts)
-            try:
-                session.flush()
-            except StaleDataError:
-                if locked:
-                    raise
-                raise _Collided() from None
-        edit.entry_id = entry.id
-        return result
-
-    with edit.turn() if recomputes else contextlib.nullcontext(False) as waited:
+    with edit.turn() if plan.recompute else contextlib.nullcontext(False) as waited:
         if waited:  # another edit of the process may have committed meanwhile: what was read before is read again
             end_reads(session)
         try:
-            for attempt in range(OPTIMISTIC_ATTEMPTS if recomputes else 0):
-                try:
-                    result = run(locked=False)
-                    edit.outcome = "computed" if attempt == 0 else "recomputed"
-                    count_edit(action, edit.outcome)
-                    return result
-                except _Collided:
-                    log.info("an edit of system %s met another write of what it read; computing again", system_id)
-                except _MustLock:
-                    edit.attempts -= 1  # it read, it did not compute
-                    break
-            result = run(locked=True)
-            edit.outcome = "under_lock" if edit.attempts == 1 else "recomputed"
-            count_edit(action, edit.outcome if recomputes else "decided")
-            return result
+            return _attempts(session, system_id, plan, edit)
         except StaleVersionError as exc:  # rolled back by its write unit
             _describe_current(session, exc)
             raise
+
+
+def _attempts(session: Session, system_id: int, plan: EditPlan[T], edit: EditContext) -> T:
+    """The retry rule: a recomputing write computes before the lock up to :data:`OPTIMISTIC_ATTEMPTS` times, again
+    each time it met another write of what it read, then once more under the lock (at once for a write that
+    recomputes nothing, or whose kind re-fits beyond its system); each stored write counted (``count_edit``)."""
+    for attempt in range(OPTIMISTIC_ATTEMPTS if plan.recompute else 0):
+        try:
+            result = _attempt(session, system_id, plan, edit, locked=False)
+        except _Collided:
+            log.info("an edit of system %s met another write of what it read; computing again", system_id)
+            continue
+        except _MustLock:
+            edit.attempts -= 1  # it read, it did not compute
+            break
+        edit.outcome = "computed" if attempt == 0 else "recomputed"
+        count_edit(plan.action, edit.outcome)
+        return result
+    result = _attempt(session, system_id, plan, edit, locked=True)
+    edit.outcome = "under_lock" if edit.attempts == 1 else "recomputed"
+    count_edit(plan.action, edit.outcome if plan.recompute else "decided")
+    return result
+
+
+def _attempt(session: Session, system_id: int, plan: EditPlan[T], edit: EditContext, *, locked: bool) -> T:
+    """One attempt, in one write unit (rolled back when it raises: a collision, a refusal, a failure): read the inputs
+    and the versions, compute holding no connection, take the write lock and compare the versions, write the change
+    and its audit entry, commit. ``locked``: the lock is taken first (the last attempt), so nothing is compared."""
+    edit.attempts += 1
+    edit.facts, edit.rig = {}, None
+    with write_unit(session, lock=False):
+        system, game_version = _read(session, system_id, plan, edit, locked=locked)
+        computed = _compute(session, system, plan)
+        if not locked:
+            _lock_and_compare(session, system, game_version)
+        entry = _write(session, plan, computed, edit, locked=locked)
+    edit.entry_id = entry.id
+    return computed.result
+
+
+def _read(session: Session, system_id: int, plan: EditPlan[Any], edit: EditContext, *,
+          locked: bool) -> tuple[System, Optional[int]]:
+    """Step 1: the system with its version, its views, their rows and its game (``load_for_recompute``), and, for a
+    recomputing write, its game's rig rows (``edit.rig``); then the read-only transaction ends (its connection back
+    to the pool) unless ``locked``, when the write lock (game first, then system) is taken before anything is read.
+    Returns the system and its game's version as read. Raises :class:`_MustLock` for a kind that computes under the
+    lock only, :class:`NotFoundError` for no such system."""
+    if locked:
+        begin_write(session)
+        lock_system(session, system_id, game=plan.recompute)
+    else:  # the version is read first, with the system row: anything committed after it makes the compare fail
+        reads_on_their_own(session)
+    settings = plan.reads_with
+    per_frame = settings.max_predictions_per_frame if settings is not None else None
+    system = found(load_for_recompute(session, [system_id], predictions=per_frame, with_game=True).get(system_id),
+                   "system", system_id)
+    if not locked and not kind_of(system).computes_before_lock:
+        raise _MustLock()
+    game_version = system.game.version if system.game is not None else None
+    edit.version = system.version
+    edit.rig = system_rig_rows(session, system, settings) if settings is not None else None
+    if not locked:
+        end_reads(session)  # the connection goes back to the pool while the edit computes
+    return system, game_version
+
+
+def _compute(session: Session, system: System, plan: EditPlan[T]) -> _Computed[T]:
+    """Step 2, holding no connection (no autoflush): check the subject's version (412) and bump a view's, its state
+    before, a revert's check (409), the change and its recomputation, its state after, the new versions
+    (``scope.changed``: not for a view's decision, which changes the view's version alone) and the resets' stamps."""
+    subject = plan.subject(system)
+    with session.no_autoflush:
+        _check_and_bump(plan, subject)
+        before = plan.state(subject)
+        _check_revert(plan.revert, before)
+        result = plan.apply(subject)
+        after = plan.state(subject)
+        if plan.recompute or isinstance(subject, System):
+            scope.changed(system)
+        audit.stamp_versions(session, system)  # the resets it recorded while computing, before the bump
+    return _Computed(subject, before, after, result)
+
+
+def _check_and_bump(plan: EditPlan[Any], subject: Frame | System) -> None:
+    """Raise :class:`StaleVersionError` when the subject's version is not expected; bump a view's version (its flush
+    compares the version it was read with; a system's is bumped by every write of its labels, lines, exclusions,
+    calibrations or decision, ``scope.changed``)."""
+    if isinstance(subject, Frame):
+        check_expected("frame", subject.id, subject.edit_version, plan.expected)
+        subject.edit_version += 1
+    else:
+        check_expected("system", subject.id, subject.version, plan.expected)
+
+
+def _lock_and_compare(session: Session, system: System, game_version: Optional[int]) -> None:
+    """Step 3: begin the write transaction (``begin_write``: refuses a session that read while computing, a row
+    outside ``scope``) and compare the game's version under its row lock; raise :class:`_Collided` when it changed
+    (the system's version is compared by the flush of :func:`_write`). An edit that changes its game's rig (a
+    recalibration bumped the game's version) locks the game's row alone; the others share it: they need only that
+    nobody changes the rig until they commit."""
+    begin_write(session)
+    changes_rig = system.game is not None and system.game.version != game_version
+    with session.no_autoflush:
+        if _game_version(session, system.game_id, lock="update" if changes_rig else "share") != game_version:
+            raise _Collided()  # its game's rig or camera prior changed since it was read
+
+
+def _write(session: Session, plan: EditPlan[Any], computed: _Computed[Any], edit: EditContext, *,
+           locked: bool) -> AuditEntry:
+    """Step 4: the audit entry, and the flush writing the changed rows, its ``UPDATE`` of the system comparing the
+    version it was read with (:class:`_Collided` when another write committed since, unless ``locked``: then
+    nothing else could). Returns the entry."""
+    subject = computed.subject
+    entry = audit.record(session, actor=plan.actor, action="revert" if plan.revert is not None else plan.action,
+                         frame=subject if isinstance(subject, Frame) else None,
+                         system=subject if isinstance(subject, System) else None,
+                         before=computed.before, after=computed.after,
+                         reverts_id=plan.revert.entry_id if plan.revert is not None else plan.undo_of,
+                         facts=edit.facts)
+    try:
+        session.flush()
+    except StaleDataError:
+        if locked:
+            raise
+        raise _Collided() from None
+    return entry
 
 
 def _check_revert(revert: Optional[Revert], before: dict[str, Any]) -> None:
@@ -348,19 +430,16 @@ def _describe_current(session: Session, exc: StaleVersionError) -> None:
         exc.last_change = exc.changes[-1] if exc.changes else audit.latest_entry(session, system_id=exc.ident)
 
 
-def guarded_frame_write(session: Session, frame_id: int, expected: Expected, state: Callable[[Frame], dict[str, Any]],
-                        apply: Callable[[Frame], T], action: str, actor: Optional[str], revert: Optional[Revert],
-                        undo_of: Optional[int] = None, *, system_id: Optional[int] = None,
-                        recompute: bool = False, settings: Optional[Settings] = None,
+def guarded_frame_write(session: Session, plan: EditPlan[T], *, system_id: Optional[int] = None,
                         edit: Optional[EditContext] = None) -> T:
-    """:func:`guarded_write` of frame ``frame_id`` (its system ``system_id``, looked up when None: :func:`frame_facts`),
-    guarding the frame's version. Raises :class:`NotFoundError` for an unknown frame, and what ``guarded_write``
-    raises."""
+    """:func:`guarded_write` of the view ``plan.frame_id`` (its system ``system_id``, looked up when None:
+    :func:`frame_facts`). Raises :class:`NotFoundError` for an unknown frame, ``ValueError`` for a plan without
+    ``frame_id``, and what ``guarded_write`` raises."""
+    if plan.frame_id is None:
+        raise ValueError("a view's write names its view (plan.frame_id)")
     if system_id is None:
-        system_id = frame_facts(session, frame_id).system_id
-    return guarded_write(session, system_id, Guard("frame", expected), lambda system: view_of(system, frame_id),
-                         state, apply, action, actor, revert, undo_of, recompute=recompute, settings=settings,
-                         edit=edit)
+        system_id = frame_facts(session, plan.frame_id).system_id
+    return guarded_write(session, system_id, plan, edit=edit)
 
 
 def view_of(system: System, frame_id: int) -> Frame:
