@@ -216,22 +216,7 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     reads_as_one_snapshot(session)
     if session.scalar(select(Release.id).where(Release.name_key == name_key(name))) is not None:
         raise _taken(session, name)
-    pairs: dict[int, list[tuple[int, int, bool]]] = {}
-    for p in session.execute(select(TriangulationPair.system_id, TriangulationPair.frame_a_id,
-                                    TriangulationPair.frame_b_id, TriangulationPair.kept)
-                             .order_by(TriangulationPair.system_id, TriangulationPair.id)):
-        pairs.setdefault(p.system_id, []).append((p.frame_a_id, p.frame_b_id, bool(p.kept)))
-    triangulations = {t.system_id: TriangulationDocument(status=_plain(t.status), tau_px=t.tau_px, rule=t.rule,
-                                                         min_baseline_m=t.min_baseline_m,
-                                                         pairs=tuple(pairs.get(t.system_id, ())))
-                      for t in session.execute(select(Triangulation.system_id, Triangulation.status,
-                                                      Triangulation.tau_px, Triangulation.rule,
-                                                      Triangulation.min_baseline_m))}
-    trajectory = {t.system_id: TrajectoryDocument(ball3d=t.ball3d, ball3d_smoothed=t.ball3d_smoothed, source=t.source,
-                                                  cam_list=list(t.cam_list or []))
-                  for t in session.execute(select(TrajectoryPoint.system_id, TrajectoryPoint.ball3d,
-                                                  TrajectoryPoint.ball3d_smoothed, TrajectoryPoint.source,
-                                                  TrajectoryPoint.cam_list))}
+    triangulations, trajectory = _triangulations_and_trajectory(session)
     documents: dict[str, bytes] = {}
     systems: dict[int, tuple[int, str, str]] = {}
     views = 0
@@ -249,15 +234,7 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
         systems[sid] = (rows[0].game_id, rows[0].system_name, digest)
         views += len(rows)
     game_ids = sorted({gid for gid, _, _ in systems.values()})
-    games: dict[int, str] = {}
-    for start in range(0, len(game_ids), _CHUNK):
-        some = game_ids[start:start + _CHUNK]
-        changed = changed_at(session, some)
-        for game in session.scalars(select(Game).where(Game.id.in_(some)).options(undefer(Game.release))):
-            canonical = canonical_json(game_document(game, game_as_of(game, changed.get(game.id))).as_json())
-            digest = json_digest(canonical)
-            documents[digest] = canonical
-            games[game.id] = digest
+    games = _game_documents(session, game_ids, documents)
     content = ReleaseContent(games, systems)
     actor = actor or local_actor()
     release = Release(name=name, note=note or "", created_at=utcnow(), created_by=actor, systems=len(systems),
@@ -283,6 +260,44 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     except _NameTaken:  # rolled back
         raise _taken(session, name) from None
     return release
+
+
+def _triangulations_and_trajectory(session: Session) -> tuple[dict[int, TriangulationDocument],
+                                                                dict[int, TrajectoryDocument]]:
+    """Every system's triangulation (its rule and pairs, id -> document) and trajectory point (an ISSIA frame's place
+    on its sequence's fitted trajectory), as the release's system documents hold them."""
+    pairs: dict[int, list[tuple[int, int, bool]]] = {}
+    for p in session.execute(select(TriangulationPair.system_id, TriangulationPair.frame_a_id,
+                                    TriangulationPair.frame_b_id, TriangulationPair.kept)
+                             .order_by(TriangulationPair.system_id, TriangulationPair.id)):
+        pairs.setdefault(p.system_id, []).append((p.frame_a_id, p.frame_b_id, bool(p.kept)))
+    triangulations = {t.system_id: TriangulationDocument(status=_plain(t.status), tau_px=t.tau_px, rule=t.rule,
+                                                         min_baseline_m=t.min_baseline_m,
+                                                         pairs=tuple(pairs.get(t.system_id, ())))
+                      for t in session.execute(select(Triangulation.system_id, Triangulation.status,
+                                                      Triangulation.tau_px, Triangulation.rule,
+                                                      Triangulation.min_baseline_m))}
+    trajectory = {t.system_id: TrajectoryDocument(ball3d=t.ball3d, ball3d_smoothed=t.ball3d_smoothed, source=t.source,
+                                                  cam_list=list(t.cam_list or []))
+                  for t in session.execute(select(TrajectoryPoint.system_id, TrajectoryPoint.ball3d,
+                                                  TrajectoryPoint.ball3d_smoothed, TrajectoryPoint.source,
+                                                  TrajectoryPoint.cam_list))}
+    return triangulations, trajectory
+
+
+def _game_documents(session: Session, game_ids: list[int], documents: dict[str, bytes]) -> dict[int, str]:
+    """Each game's document as of its systems' last change (game id -> digest), added to ``documents`` (digest ->
+    canonical JSON); read a chunk of games at a time."""
+    games: dict[int, str] = {}
+    for start in range(0, len(game_ids), _CHUNK):
+        some = game_ids[start:start + _CHUNK]
+        changed = changed_at(session, some)
+        for game in session.scalars(select(Game).where(Game.id.in_(some)).options(undefer(Game.release))):
+            canonical = canonical_json(game_document(game, game_as_of(game, changed.get(game.id))).as_json())
+            digest = json_digest(canonical)
+            documents[digest] = canonical
+            games[game.id] = digest
+    return games
 
 
 class _NameTaken(Exception):
