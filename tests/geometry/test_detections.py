@@ -362,3 +362,24 @@ def test_a_box_off_the_labelled_ray_by_more_than_the_cameras_and_the_detector_ex
               "position_m": {"x": .1, "y": .1, "z": .1}}
     wide = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
     assert set(detected(checked(wide, {"goal": [beside_main_ray("goal", 20.0)]}))) == {"goal"}
+
+
+def test_a_detection_that_drags_the_labelled_views_ball_farther_than_they_can_place_it_wrong_fills_nothing():
+    """Two sure labelled views (a pixel each) with wide framings (1200 px focal, about 20 px a metre at their
+    distance) place the ball to a few centimetres; a box in corner at the silhouette of a ball 2 m off keeps both
+    their rays within tau (25 px) when the ball is refitted with it, and moves that ball about a metre: more than
+    twice what the labelled views leave uncertain and more than the half metre within which a 3D ball is right.
+    Nothing is suggested from it; the geometry's own box (where the labelled views' ball projects) stays the fix.
+    The ball's own box still fills the view."""
+    from tests.geometry.test_doubts import look_at
+
+    wide = {n: {"camera": look_at(CAMERAS[n][0], BALL, 1200.0)} for n in ("goal", "opposite")}
+    views = scene(main={"box": None}, corner={"box": None}, **wide)
+    off = box_at("corner", BALL + np.array([0.0, 2.0, 0.0]))
+    doubts = checked(views, {"corner": [off]})
+    assert detected(doubts) == {}
+    missing = [d for d in doubts if d.view_id == "corner" and d.kind in LABEL_KINDS]
+    assert [d.kind for d in missing] == ["ball_missing"] and near_truth("corner", missing[0]) < 1.0
+    right = detected(checked(views, {"corner": [box_at("corner", BALL)]}))
+    assert set(right) == {"corner"} and near_truth("corner", right["corner"]) < 0.5
+    assert np.allclose(right["corner"].evidence["ball3d"], BALL, atol=0.05)

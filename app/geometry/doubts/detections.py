@@ -18,15 +18,17 @@ Eq. ball3Destimation; method.md sections 5-6):
    silhouette of a 0.22 m sphere at the refitted ball (:func:`app.geometry.ball.sphere_image_box`).
 
 Where the labelled views agree on a ball (the doubt judge's consensus, :func:`app.geometry.doubts.judge.judge_system`
-rule 3), each unlabelled view's detections are checked against it: in the views that take part in the judge's
-checks, and in those with fewer line classes whose calibration is still sure (a vote above 0: the judge lends such a
-view's label half a vote), each within its own calibration's pixel sigma. Where only one view is labelled its ray
-leaves the depth open, so two unlabelled views' detections are needed: a pair of detections (one per view) is checked
-when the three rays meet at one plausible ball (:func:`app.geometry.consensus.ball_consensus` of the three, every one an
-inlier, no ambiguity) and both sizes agree; the best such triple then stands as the consensus for the remaining
-views. Among a view's candidates the one whose ray the others' ball meets best (the smallest reprojection error) is
-chosen, with its margin over the next candidate (px at 1920 width); the detector's score orders candidates whose
-errors are within :data:`TIE_PX` of each other (a tie) and never makes a suggestion alone.
+rule 3), each unlabelled view's detections are checked against it: in the views that take part in the judge's checks,
+and in those with fewer line classes whose calibration is still sure (a vote above 0: the judge lends such a view's
+label half a vote), each within its own calibration's pixel sigma; the chosen one must also leave that ball where the
+labelled views place it (:func:`_keeps_ball`), else the judge's own ``ball_missing`` stays the view's fix. Where only
+one view is labelled its ray leaves the depth open, so two unlabelled views' detections are needed: a pair of
+detections (one per view) is checked when the three rays meet at one plausible ball
+(:func:`app.geometry.consensus.ball_consensus` of the three, every one an inlier, no ambiguity) and both sizes agree;
+the best such triple then stands as the consensus for the remaining views. Among a view's candidates the one whose ray
+the others' ball meets best (the smallest reprojection error) is chosen, with its margin over the next candidate (px at
+1920 width); the detector's score orders candidates whose errors are within :data:`TIE_PX` of each other (a tie) and
+never makes a suggestion alone.
 
 Doubts made here (:func:`check_detections`):
 
@@ -63,11 +65,15 @@ from app.geometry.doubts.detected import (
 )
 from app.geometry.doubts.judge import _voters_consensus, _votes
 from app.geometry.doubts.pairings import (
+    MAX_SPREAD_M,
+    MIN_SIGMA_PX,
+    SIGMAS,
     _among_detections,
     _lone_ray,
     _one_ray,
     _view,
 )
+from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
     BallObservation,
     PairGeometry,
@@ -159,7 +165,7 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
         for v in unlabelled:
             near = _near_point(v, detections.get(v.view_id, ()), cons.point, PREFILTER * tol[v.view_id], s)
             best = _best([c for d in near if (c := _check(v, d, voters, tol, s, size_tolerance)) is not None])
-            if best is not None:
+            if best is not None and _keeps_ball(best, cons.point, voters, sigma):
                 checked[v.view_id] = (best, "consensus", tuple(cons.inliers))
         out_of_label = _off_label(vote.labelled, cons, by_id, detections, tol, s, size_tolerance)
     else:
@@ -178,6 +184,25 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     new = [_detected_doubt(c, by_view[vid], code, agreeing, missing.get(vid), s)
            for vid, (c, code, agreeing) in checked.items()]
     return [*kept, *new, *out_of_label]
+
+
+def _keeps_ball(best: CheckedDetection, ball: np.ndarray, voters: Sequence[BallObservation],
+                sigma: Mapping[Hashable, float]) -> bool:
+    """Whether filling the view with ``best`` leaves the ball the labelled views agree on (``ball``, (3,) world
+    metres, z down) where their own evidence puts it: the refitted ball (``best.ball``) within :data:`SIGMAS`
+    standard deviations of ``ball`` along the voters' worst direction (the triangulation's linearised covariance
+    with each voter's pixel sigma ``sigma``, px at 1920 width, at least :data:`MIN_SIGMA_PX`;
+    :func:`app.geometry.spread.position_sigma_m`, Hartley & Zisserman 5.2.3), or within :data:`MAX_SPREAD_M`,
+    whichever is larger. Condition 1 asks each ray to stay within the doubts' wide tau (a label tolerance); between
+    cameras sure to a few pixels a box that drags their ball farther than they can place it wrong is not the ball
+    they see (on a made set such a box, 45 px off in a view whose detector missed the ball, moved a ball the labels
+    placed 0.04 m from the truth by 1.3 m, and the pass left it 3.3 m off). Voters that fix no point say nothing."""
+    spread = position_sigma_m(voters, ball, {o.view_id: max(MIN_SIGMA_PX, float(sigma.get(o.view_id, 0.0)))
+                                             for o in voters})
+    if spread is None:
+        return True
+    return float(np.linalg.norm(np.asarray(best.ball, float) - np.asarray(ball, float))) <= max(SIGMAS * spread,
+                                                                                                MAX_SPREAD_M)
 
 
 def _from_one_view(lone: DoubtView, unlabelled: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
