@@ -131,7 +131,7 @@ class PlayerFit:
 #: Why :func:`fit_camera_to_players` refused: too few players matched, their foot points on one image line, no
 #: fit within the residual limits, two rig positions fitting alike, a camera too unsure.
 PLAYER_REFUSALS: tuple[str, ...] = ("few_players", "collinear_players", "players_misfit", "rig_ambiguous",
-                                    "camera_unsure")
+                                    "camera_unsure", "lines_admitted")
 
 
 @dataclass(frozen=True)

@@ -30,9 +30,9 @@ from app.geometry.calibration.players import PlayerFit, PlayerRefusal, fit_camer
 from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig
 from app.geometry.camera import Camera
-from app.geometry.jac import JAC_GAMMAS
+from app.geometry.jac import JAC_GAMMAS, jac_admitted
 from app.geometry.pitch import MIN_LINE_CLASSES
-from app.services.calibration.admission import fields_admitted, is_admitted
+from app.services.calibration.admission import admission_args, fields_admitted, is_admitted
 from app.services.calibration.calibrating import apply_calibration
 from app.services.wording.words import player_camera_sentence
 
@@ -57,6 +57,8 @@ class PlacementView(NamedTuple):
         status, source, camera, flags: its calibration's (``status`` None: no calibration).
         admitted: its calibration clears admission (``admission.is_admitted``).
         players: its player boxes.
+        admission: the admission rule's gamma and JaC minimum (``admission.admission_args``): a camera the players
+            place for a view its lines already admit must clear it too, or the lines' camera stays.
     """
 
     lines: Mapping[str, Any]
@@ -69,6 +71,7 @@ class PlacementView(NamedTuple):
     flags: tuple[str, ...]
     admitted: bool
     players: Sequence[PlayerRow]
+    admission: tuple[float, float]
 
 
 def view_of_frame(frame: Frame, settings: Settings, players: Sequence[PlayerRow] | None = None) -> PlacementView:
@@ -79,7 +82,7 @@ def view_of_frame(frame: Frame, settings: Settings, players: Sequence[PlayerRow]
         height=frame.height, main=frame.role is FrameRole.ACTION, status=cal.status if cal is not None else None,
         source=cal.source if cal is not None else None, camera=cal.camera if cal is not None else None,
         flags=tuple(cal.flags or ()) if cal is not None else (), admitted=is_admitted(cal, settings),
-        players=frame_players(frame) if players is None else players)
+        players=frame_players(frame) if players is None else players, admission=_admission(settings))
 
 
 def view_of_fields(fields: CalibrationFields, lines: Mapping[str, Any], width: int, height: int, main: bool,
@@ -87,7 +90,12 @@ def view_of_fields(fields: CalibrationFields, lines: Mapping[str, Any], width: i
     """A view whose calibration ``fields`` (source "computed") are not stored yet, as a :class:`PlacementView`."""
     return PlacementView(lines=lines, width=width, height=height, main=main, status=fields.status,
                          source=CalibrationSource.COMPUTED, camera=fields.camera, flags=tuple(fields.flags),
-                         admitted=fields_admitted(fields, settings), players=players)
+                         admitted=fields_admitted(fields, settings), players=players, admission=_admission(settings))
+
+
+def _admission(settings: Settings) -> tuple[float, float]:
+    args = admission_args(settings)
+    return args["admit_jac_gamma"], args["admit_jac_min"]
 
 
 def feet_of(rows: Iterable[PlayerRow], width: int, height: int, point: Any = foot_pixel) -> dict[PlayerKey, np.ndarray]:
@@ -205,9 +213,20 @@ def place_in_system(views: Sequence[PlacementView], rig: CameraRig) -> dict[int,
         lines = lines_from_json_lists(dict(v.lines))
         got = fit_camera_to_players(feet[i], grass, {c: x for c, x in lines.items() if x}, v.width, v.height,
                                     centres, heads=feet_of(v.players, v.width, v.height, head_pixel))
-        out[i] = (fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3) if isinstance(got, PlayerFit)
-                  else got)
+        out[i] = (_kept_admitted(fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3), v)
+                  if isinstance(got, PlayerFit) else got)
     return out
+
+
+def _kept_admitted(fields: CalibrationFields, view: PlacementView) -> CalibrationFields | PlayerRefusal:
+    """``fields`` of a player fit, or a refusal (``lines_admitted``) where the view's lines already give a camera that
+    clears admission and the fit's camera does not: a placement never takes a view out of the triangulation its
+    lines let it join (the players' fit also weighs head points and foot points the lines do not see)."""
+    gamma, minimum = view.admission
+    if view.admitted and not jac_admitted(fields.jac[JAC_GAMMAS.index(gamma)], minimum):
+        return PlayerRefusal("lines_admitted", {"jac": fields.jac[JAC_GAMMAS.index(gamma)] or 0.0,
+                                                "admit_jac_min": minimum})
+    return fields
 
 
 def place_in_game(game: Sequence[Sequence[PlacementView]], placed: Sequence[bool] | None = None

@@ -1,0 +1,35 @@
+"""A camera the players place never takes a view out of the triangulation its own lines let it join: where the
+view's lines already give an admitted camera, the players' camera replaces it only when it clears admission too."""
+from __future__ import annotations
+
+from app.core.config import Settings
+from app.datasets.records import CalibrationFields
+from app.db.models import CalibrationSource, CalibrationStatus
+from app.geometry.calibration.players import PLAYER_REFUSALS, PlayerRefusal
+from app.geometry.jac import JAC_GAMMAS
+from app.services.calibration.players import _kept_admitted, view_of_fields
+
+
+def _fields(jac_at_admission: float | None, settings: Settings) -> CalibrationFields:
+    jac = [0.5, 0.5, 0.5]
+    jac[JAC_GAMMAS.index(settings.admit_jac_gamma)] = jac_at_admission  # type: ignore[call-overload]  # a JaC or None
+    return CalibrationFields(status=CalibrationStatus.CALIBRATED, camera={"position_meters": [0.0, 60.0, -14.0]},
+                             jac=tuple(jac), residuals_px={}, flags=[], reason=None)  # type: ignore[arg-type]  # 3
+
+
+def test_a_view_its_lines_admit_keeps_their_camera_unless_the_players_camera_is_admitted_too():
+    settings = Settings(_env_file=None)
+    edge = settings.admit_jac_min
+    admitted_by_lines = view_of_fields(_fields(edge + 0.1, settings), {"Side line top": [[[0, 0], [10, 0]]]},
+                                       1920, 1080, True, (), settings)
+    assert admitted_by_lines.admitted and admitted_by_lines.source is CalibrationSource.COMPUTED
+    refused = _kept_admitted(_fields(edge - 0.05, settings), admitted_by_lines)
+    assert isinstance(refused, PlayerRefusal) and refused.code == "lines_admitted" and refused.code in PLAYER_REFUSALS
+    assert refused.numbers["jac"] == edge - 0.05
+    kept = _fields(edge + 0.02, settings)
+    assert _kept_admitted(kept, admitted_by_lines) is kept
+    # a view its lines do not admit takes the players' camera whatever its JaC (the players are all it has)
+    unsure = view_of_fields(_fields(edge - 0.2, settings), {}, 1920, 1080, False, (), settings)
+    assert not unsure.admitted
+    low = _fields(None, settings)
+    assert _kept_admitted(low, unsure) is low
