@@ -39,9 +39,11 @@ def test_two_workers_count_into_one_scrape(tmp_path: Path) -> None:
     base = f"http://127.0.0.1:{port}"
     try:
         deadline = time.monotonic() + 120
+        healthy = 0  # the start-up polls answered 200: each is counted too
         while True:
             try:
                 if httpx.get(f"{base}/api/health", timeout=5).status_code == 200:
+                    healthy += 1
                     break
             except httpx.TransportError:
                 pass
@@ -55,10 +57,16 @@ def test_two_workers_count_into_one_scrape(tmp_path: Path) -> None:
             assert httpx.get(f"{base}/api/health", timeout=10).status_code == 200
         # each worker counts in files of its own (its counters made at import, its histograms at its first request)
         assert len(list(folders[0].glob("counter_*.db"))) == 2 and list(folders[0].glob("histogram_*.db"))
-        # whichever worker answers, the scrape adds up every worker's files
+        # whichever worker answers, the scrape adds up every worker's files. A request is observed once its last byte
+        # has left, which may be just after its client read the answer: wait for the last one to be counted first.
+        expected = healthy + 40
+        settle = time.monotonic() + 10
+        while (_health_count(httpx.get(f"{base}/metrics", headers=admin.bearer, timeout=30).text) < expected
+               and time.monotonic() < settle):
+            time.sleep(0.1)
         counts = [_health_count(httpx.get(f"{base}/metrics", headers=admin.bearer, timeout=30).text)
                   for _ in range(4)]
-        assert counts == [_health_count(first.text) + 40] * 4, counts
+        assert counts == [expected] * 4, counts
     finally:
         os.killpg(server.pid, signal.SIGINT)
         server.wait(timeout=60)
