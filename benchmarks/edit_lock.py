@@ -61,8 +61,9 @@ def dense_lines(lines: dict[str, Any], total: int, decimals: int = 3) -> dict[st
 
 
 @contextmanager
-def _root(root: Optional[Path]) -> Iterator[None]:
-    """Serve from ``root`` (its ``app`` package first on the path) for the block."""
+def code_of(root: Optional[Path]) -> Iterator[None]:
+    """Serve from ``root`` (its ``app`` package first on the path) for the block: the CLI and the servers started in
+    it run ``root``'s code (None: this checkout's)."""
     if root is None:
         yield
         return
@@ -112,7 +113,7 @@ def run(database_url: Optional[str], rounds: int, points: int, refused_points: i
     result: dict[str, Any] = {"points": points, "workers": workers, "root": str(root or load.ROOT), "rounds": []}
     with load.fresh_database(database_url) as url:
         tokens = load.user_tokens(url, 2)
-        with _root(root), load.served(url, workers) as base:
+        with code_of(root), load.served(url, workers) as base:
             a = {"Authorization": f"Bearer {tokens[0]}"}
             systems = httpx.get(f"{base}/api/systems", params={"sort": "name", "limit": 50}, headers=a,
                                 timeout=30).json()["items"]

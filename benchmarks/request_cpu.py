@@ -275,23 +275,9 @@ def _main_against(args: argparse.Namespace) -> int:
     migrated and filled (their migrations may differ), one annotator's token each."""
     import subprocess
     import tempfile
-    from contextlib import ExitStack, contextmanager
-    from typing import Iterator
+    from contextlib import ExitStack
 
-    from benchmarks import load
-
-    @contextmanager
-    def code_of(root: Path) -> Iterator[None]:  # the CLI and the server started in the block run ``root``'s code
-        old_root, old_path = load.ROOT, os.environ.get("PYTHONPATH")
-        load.ROOT, os.environ["PYTHONPATH"] = root, str(root)
-        try:
-            yield
-        finally:
-            load.ROOT = old_root
-            if old_path is None:
-                os.environ.pop("PYTHONPATH", None)
-            else:
-                os.environ["PYTHONPATH"] = old_path
+    from benchmarks.edit_lock import code_of
 
     if args.database_url is not None:
         raise BenchError("--against measures two servers on SQLite files of their own: leave --database-url out")
