@@ -32,10 +32,12 @@ never makes a suggestion alone.
 
 Doubts made here (:func:`check_detections`):
 
-* ``ball_detected`` (accuses the missing label; code ``consensus`` or ``one_view``): its fix snaps the view's label
-  to the detection's box (image evidence, drawn by the detector), with the detector's ``source`` and ``score`` in
-  its evidence; where the judge's own ``ball_missing`` names the same view, that doubt is replaced (one suggestion
-  per view: the detection's box; ``evidence.ball_missing_px`` says how far the geometry's own box lay from it);
+* ``ball_detected`` (accuses the missing label; code ``consensus`` or ``one_view``, and the pairings' codes of
+  :mod:`app.geometry.doubts.pairings`: ``one_ray``, ``detections_agree``, ``weak_ray``, ``weak_view``): its fix
+  snaps the view's label to the detection's box (image evidence, drawn by the detector), with the detector's
+  ``source`` and ``score`` in its evidence; where the judge's own ``ball_missing`` names the same view, that doubt
+  is replaced (one suggestion per view: the detection's box; ``evidence.ball_missing_px`` says how far the
+  geometry's own box lay from it);
 * ``detection_off_label`` (information, code ``agrees_with_others``): a labelled view the others outvote
   (``ball_off_consensus``) has a detection that satisfies the three conditions: the numbers (its distance from the
   label, its error to the others' ball) are evidence for that doubt, not a verdict.

@@ -1,6 +1,9 @@
 """Detections paired where the labelled views do not agree on a ball: one labelled ray and one detection
-(``one_ray``), and detections that agree among themselves (``detections_agree``), each with the third views' word
-and a margin over the runner-up (docs/detectors.md, "The check")."""
+(``one_ray``), and detections that agree among themselves (``detections_agree``, weak labels joining them where a
+third view confirms), each with the third views' word and a margin over the runner-up; and where cameras take no
+part in the votes, a weak label's ray and the one detection near it (``weak_ray``) or a weak view's one detection
+where the others' ball projects (``weak_view``), only for boxes that cannot make a 3D ball (docs/detectors.md,
+"The check")."""
 from __future__ import annotations
 
 import dataclasses
