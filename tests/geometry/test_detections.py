@@ -383,3 +383,70 @@ def test_a_detection_that_drags_the_labelled_views_ball_farther_than_they_can_pl
     right = detected(checked(views, {"corner": [box_at("corner", BALL)]}))
     assert set(right) == {"corner"} and near_truth("corner", right["corner"]) < 0.5
     assert np.allclose(right["corner"].evidence["ball3d"], BALL, atol=0.05)
+
+
+# --- labels and views whose cameras take no part in the votes (known truth: BALL, CAMERAS) ---
+
+#: A camera unsure to about 37 px at main's focal length (44 px at corner's): beyond tau, within what still tells
+#: where the ball lies in a 1920 x 1080 image (pairings.MAX_WINDOW_SHARE).
+UNSURE = {"pan_deg": 0.6, "tilt_deg": 0.6, "roll_deg": 0.02, "focal_px": 3.0, "position_m": {"x": .1, "y": .1, "z": .1}}
+
+
+def test_two_labels_whose_cameras_few_lines_alone_fitted_place_a_detection_they_both_confirm():
+    """Two helpers fitted to their few lines (half a vote each, never the only ray): one's label and goal's detection
+    meet, and the other's label, a third view, confirms their ball: three views, goal is filled. A head on main's ray
+    meets main's label too, but opposite's label clearly misses that ball: nothing."""
+    helpers = {n: {"line_classes": 3, "uncertainty": SURE} for n in ("main", "opposite")}
+    views = scene(goal={"box": None}, corner={"box": None}, **helpers)
+    found = detected(checked(views, {"goal": [det("goal", 0.7, shift=(1.0, -0.5))]}))
+    assert set(found) == {"goal"} and found["goal"].code == "detections_agree"
+    assert near_truth("goal", found["goal"]) < 2.0 and set(found["goal"].evidence["agreeing_views"]) == {
+        "main", "opposite"}
+    assert detected(checked(views, {"goal": [box_at("goal", head_on_main_ray(), score=0.95)]})) == {}
+    # one such label alone and a full view's detection would make a 3D ball from that label: nothing
+    alone = scene(goal={"box": None}, corner={"box": None}, opposite={"box": None}, main=helpers["main"])
+    assert detected(checked(alone, {"goal": [det("goal", 0.7, shift=(1.0, -0.5))]})) == {}
+
+
+def test_a_weak_labels_ray_fills_the_one_detection_near_it_only_where_the_box_cannot_make_a_3d_ball():
+    """Main's label, its camera fitted to three lines and below admission (the triangulation leaves it out), and one
+    detection in goal near its ray: filled (code weak_ray), since goal's box cannot make a ball with that label. The
+    same label admitted would make one (a full vote and a half): nothing. Two boxes near the ray: nothing."""
+    out = scene(main={"line_classes": 3, "uncertainty": SURE, "admitted": False},
+                **{n: {"box": None} for n in CAMERAS if n != "main"})
+    ball = det("goal", 0.7, shift=(1.0, -0.5))
+    found = detected(checked(out, {"goal": [ball]}))
+    assert set(found) == {"goal"} and found["goal"].code == "weak_ray" and near_truth("goal", found["goal"]) < 2.0
+    assert np.allclose(found["goal"].evidence["ball3d"], BALL, atol=0.3)
+    assert "cannot make a 3D ball" in doubt_message(found["goal"], {"goal": "goal.png", "main": "main.png"})
+    assert detected(checked(main_helper(False), {"goal": [ball]})) == {}
+    assert detected(checked(out, {"goal": [ball, beside_main_ray("goal", 40.0)]})) == {}
+
+
+def test_a_weak_labels_ray_and_a_view_as_unsure_fill_nothing_a_sure_view_is_filled():
+    """Main's label with a camera unsure to about 37 px (below admission: no vote) and corner's detection, its own
+    camera unsure to about 44 px: nothing sure sees the ball where they put it. Goal's sure camera is filled."""
+    views = scene(main={"uncertainty": UNSURE, "admitted": False},
+                  corner={"box": None, "line_classes": 2, "jac": 1.0, "uncertainty": UNSURE},
+                  goal={"box": None}, opposite={"box": None})
+    assert detected(checked(views, {"corner": [det("corner")]})) == {}
+    found = detected(checked(views, {"goal": [det("goal")]}))
+    assert set(found) == {"goal"} and found["goal"].code == "weak_ray" and near_truth("goal", found["goal"]) < 2.0
+
+
+def test_a_view_whose_camera_is_too_unsure_to_vote_is_filled_where_the_others_ball_projects_alone_in_its_window():
+    """Corner (two line classes, a camera unsure to about 44 px: no vote, its detections not checked by the votes):
+    the labelled views agree on the ball, which projects within corner's sigma of one detection at a ball's size,
+    the only one within twice that: filled (code weak_view), the ball left where the labelled views put it. A second
+    box 60 px away could be the ball as well: nothing; one 200 px away is no rival. A camera unsure by degrees tells
+    nothing."""
+    views = scene(corner={"box": None, "line_classes": 2, "jac": 1.0, "uncertainty": UNSURE})
+    ball = det("corner", 0.6, shift=(6.0, -4.0))
+    found = detected(checked(views, {"corner": [ball]}))
+    assert set(found) == {"corner"} and found["corner"].code == "weak_view"
+    assert near_truth("corner", found["corner"]) < 8.0 and np.allclose(found["corner"].evidence["ball3d"], BALL,
+                                                                          atol=0.05)
+    assert detected(checked(views, {"corner": [ball, det("corner", 0.9, shift=(60.0, 0.0))]})) == {}
+    assert set(detected(checked(views, {"corner": [ball, det("corner", 0.9, shift=(200.0, 0.0))]}))) == {"corner"}
+    lost = scene(corner={"box": None, "line_classes": 2, "jac": 1.0, "uncertainty": {**UNSURE, "pan_deg": 3.0}})
+    assert detected(checked(lost, {"corner": [ball]})) == {}

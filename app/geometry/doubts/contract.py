@@ -72,8 +72,10 @@ CODES: dict[str, tuple[str, ...]] = {
     "near_duplicate_view": ("near_duplicate",),
     # a detector's prediction checked against the other views (app.geometry.doubts.detections)
     # (consensus: the labelled views agree; one_view: one labelled view and two detected views; one_ray: one
-    # labelled view and one detection; detections_agree: no labelled view takes part, detections meet)
-    "ball_detected": ("consensus", "one_view", "one_ray", "detections_agree"),
+    # labelled view and one detection; detections_agree: no labelled view takes part, detections meet; weak_ray: a
+    # label whose camera takes no part and the one detection near its ray, a box that cannot make a 3D ball;
+    # weak_view: a view whose own camera takes no part, the one detection where the others' ball projects)
+    "ball_detected": ("consensus", "one_view", "one_ray", "detections_agree", "weak_ray", "weak_view"),
     "detection_off_label": ("agrees_with_others",),
 }
 

@@ -32,10 +32,12 @@ never makes a suggestion alone.
 
 Doubts made here (:func:`check_detections`):
 
-* ``ball_detected`` (accuses the missing label; code ``consensus`` or ``one_view``): its fix snaps the view's label
-  to the detection's box (image evidence, drawn by the detector), with the detector's ``source`` and ``score`` in
-  its evidence; where the judge's own ``ball_missing`` names the same view, that doubt is replaced (one suggestion
-  per view: the detection's box; ``evidence.ball_missing_px`` says how far the geometry's own box lay from it);
+* ``ball_detected`` (accuses the missing label; code ``consensus`` or ``one_view``, and the pairings' codes of
+  :mod:`app.geometry.doubts.pairings`: ``one_ray``, ``detections_agree``, ``weak_ray``, ``weak_view``): its fix
+  snaps the view's label to the detection's box (image evidence, drawn by the detector), with the detector's
+  ``source`` and ``score`` in its evidence; where the judge's own ``ball_missing`` names the same view, that doubt
+  is replaced (one suggestion per view: the detection's box; ``evidence.ball_missing_px`` says how far the
+  geometry's own box lay from it);
 * ``detection_off_label`` (information, code ``agrees_with_others``): a labelled view the others outvote
   (``ball_off_consensus``) has a detection that satisfies the three conditions: the numbers (its distance from the
   label, its error to the others' ball) are evidence for that doubt, not a verdict.
@@ -71,15 +73,20 @@ from app.geometry.doubts.pairings import (
     _among_detections,
     _lone_ray,
     _one_ray,
+    _sure,
+    _telling,
     _view,
+    _weak_ray,
+    _weak_views,
 )
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
     BallObservation,
     PairGeometry,
     pair_geometry,
 )
-from app.geometry.weighting import calibration_weight, rule_scale
+from app.geometry.weighting import calibration_weight, camera_of, centre_of, label_centre, rule_scale
 
 
 def _few_lined(views: Sequence[DoubtView], vote: Any, s: DoubtSettings,
@@ -119,6 +126,59 @@ def _witnesses(views: Sequence[DoubtView], sigma: Mapping[Hashable, float], tol:
         wtol.setdefault(v.view_id, max(tau, float(sig)))
         out.append(v)
     return out, wtol
+
+
+def _weak(views: Sequence[DoubtView], vote: Any, checked: Sequence[DoubtView], s: DoubtSettings,
+          weighed: Mapping[Any, tuple[float, float]] | None) -> tuple[dict[Hashable, float], dict[Hashable, float]]:
+    """The views whose camera takes no full part in the checks yet still tells where the ball lies: labelled ones
+    outside the votes' labelled views (a helper's half vote, or none) and unlabelled ones outside ``checked`` (the
+    views whose detections are checked) or with a sigma beyond tau, each with its pixel sigma (px at 1920 width).
+    Kept only a camera whose fit's uncertainty is stored (else its sigma says nothing), which fits at least half of
+    its own lines (JaC@0.5 % >= 0.5: a camera that fits fewer is a failed fit, whatever its sigma; on the shared
+    detector sets such cameras put the ball hundreds of px off) and whose sigma still tells (:func:`_telling`).
+    Returns ``(labelled, unlabelled)``: view id -> sigma."""
+    labelled: dict[Hashable, float] = {}
+    unlabelled: dict[Hashable, float] = {}
+    judged = {v.view_id for v in vote.labelled}
+    sure = {v.view_id for v in checked}
+    for v in views:
+        if v.camera is None or v.excluded or v.mirror_flagged or v.suggested or not v.uncertainty \
+                or (v.jac or 0.0) < 0.5:
+            continue
+        known = weighed.get(v.view_id) if weighed is not None else None
+        sig = float((known if known is not None else calibration_weight(v, s))[1])
+        if not _telling(v, sig, s):
+            continue
+        if label_centre(v) is not None:
+            if v.view_id not in judged:
+                labelled[v.view_id] = sig
+        elif v.view_id not in sure or sig > max(s.consensus_tau_px, s.triangulation_tau_px):
+            unlabelled[v.view_id] = sig
+    return labelled, unlabelled
+
+
+def _in_weak_views(views: Sequence[DoubtView], vote: Any, unlabelled: Sequence[DoubtView], cons: Consensus,
+                   checked: Mapping[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]],
+                   detections: Mapping[Any, Sequence[Detection]], sigma: Mapping[Hashable, float],
+                   s: DoubtSettings, size_tolerance: float, weighed: Mapping[Any, tuple[float, float]] | None,
+                   ) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+    """The views whose own camera takes no part in the checks, where the others place the ball: the labelled views'
+    consensus, else the ball of a checked pairing with the most views (never a weak ray's: an unsure camera's word
+    is not relayed to another), each within its own sigma (:func:`app.geometry.doubts.pairings._weak_views`)."""
+    _, weak = _weak(views, vote, unlabelled, s, weighed)
+    targets = [v for v in views if v.view_id in weak and v.view_id not in checked]
+    if not targets:
+        return {}
+    if cons.point is not None and not cons.ambiguous:
+        ball, agreeing = cons.point, tuple(cons.inliers)
+    else:
+        placed = [(c, a) for c, code, a in checked.values() if code != "weak_ray"]
+        if not placed:
+            return {}
+        c, agreeing = max(placed, key=lambda x: len(x[1]))
+        ball = c.ball
+    filled = {vid: c.detection for vid, (c, _, _) in checked.items()}
+    return _weak_views(targets, ball, views, detections, {**sigma, **weak}, agreeing, filled, s, size_tolerance)
 
 
 def _tolerances(views: Sequence[DoubtView], sigma: Mapping[Hashable, float], tau: float) -> dict[Hashable, float]:
@@ -175,7 +235,19 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
                 checked = _one_ray(lone, unlabelled, witnesses, detections, by_id, wtol, sigma, s, size_tolerance,
                                    half_vote=lone not in vote.labelled)
         if not checked and not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
-            checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance)
+            rays, weak = _weak(views, vote, unlabelled, s, weighed)
+            sigma = {**sigma, **rays, **weak}
+            ray_views = [v for v in views if v.view_id in rays]
+            obs = {v.view_id: BallObservation(v.view_id, camera_of(v), centre_of(v),
+                                              REFERENCE_WIDTH_PX / rule_scale(v, s)) for v in ray_views}
+            checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance,
+                                        rays=ray_views, by_id=obs)
+            if not checked:  # a weak label's ray and one detection, where the box cannot make a 3D ball
+                targets = [*(v for v in unlabelled if _sure(v, sigma, s)), *(v for v in views if v.view_id in weak)]
+                checked = _weak_ray(ray_views, targets, views, witnesses, detections, obs, wtol, sigma, s,
+                                    size_tolerance)
+    checked.update(_in_weak_views(views, vote, unlabelled, cons, checked, detections, sigma, s, size_tolerance,
+                                  weighed))
     if not checked and not out_of_label:
         return list(doubts)
     kept = [d for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]

@@ -1,6 +1,9 @@
 """Detections paired where the labelled views do not agree on a ball: one labelled ray and one detection
-(``one_ray``), and detections that agree among themselves (``detections_agree``), each with the third views' word
-and a margin over the runner-up (docs/detectors.md, "The check")."""
+(``one_ray``), and detections that agree among themselves (``detections_agree``, weak labels joining them where a
+third view confirms), each with the third views' word and a margin over the runner-up; and where cameras take no
+part in the votes, a weak label's ray and the one detection near it (``weak_ray``) or a weak view's one detection
+where the others' ball projects (``weak_view``), only for boxes that cannot make a 3D ball (docs/detectors.md,
+"The check")."""
 from __future__ import annotations
 
 import dataclasses
@@ -28,10 +31,11 @@ from app.geometry.doubts.detected import (
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
 from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
+    MIN_PAIR_WEIGHT,
     BallObservation,
     angle_between_deg,
 )
-from app.geometry.weighting import label_centre, project_point, rule_scale
+from app.geometry.weighting import calibration_weight, label_centre, project_point, rule_scale
 
 #: A third calibrated view confirms a ball two views place when one of its detections (or its label) lies within its
 #: tolerance of where that ball projects, at a ball's size; it contradicts it (a clear miss) when the ball projects
@@ -55,6 +59,13 @@ SIGMAS = 2.0
 #: The detector's centre error as a fraction of the box's diameter (0.12 d per axis, so 0.17 d across: the
 #: detector's documented error, the shared detector sets' README).
 CENTRE_NOISE = 0.17
+#: A camera whose pixel sigma lets the ball's pixel wander over more than this share of its image tells no box from
+#: another: the window where a second detection would make the choice ambiguous (:data:`MISS` tolerances around
+#: the ball, the tolerance the view's sigma, at least tau) must cover at most a tenth of the image. The detector's
+#: documented 1.2 false detections an image then put one in that window about one time in eight, and it misses the
+#: ball about one time in seven (recall 0.85): a lone false box passes for the ball about 2 % of the time, the
+#: issue's budget of wrong fills (at 1920 x 1080 a sigma of up to about 128 px).
+MAX_WINDOW_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -356,26 +367,58 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
 
 def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView],
                       detections: Mapping[Hashable, Sequence[Detection]], tol: Mapping[Hashable, float],
-                      sigma: Mapping[Hashable, float], s: DoubtSettings,
-                      size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+                      sigma: Mapping[Hashable, float], s: DoubtSettings, size_tolerance: float,
+                      rays: Sequence[DoubtView] = (), by_id: Mapping[Hashable, BallObservation] | None = None,
+                      ) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """Detections that agree among themselves, where no labelled view takes part: every pair of detections in two
     calibrated views (``usable``: those that take part, and those with few lines whose calibration is sure) that
     meet at one ball (:func:`_meet`) collects the other views' word (:func:`_third_views`; a detection there joins
     the pairing when the rays of all still meet); a pairing of ``n`` views may have at most ``n - 2`` third views
     that clearly miss it (none for two: a detector misses about one ball in seven, so three or more views that
     meet outweigh one miss); the best supported is chosen with its margin over every other pairing
-    (:func:`_chosen`), and fills its views."""
+    (:func:`_chosen`), and fills its views.
+
+    ``rays``: labelled views whose camera takes no full part in the votes (a helper's half vote, or an unsure camera
+    that still tells where the ball lies, :func:`_telling`; ``by_id`` their label's observations): their labels pair
+    like detections (a person saw the ball there; the box is not read for its size: labelled boxes are loose), but
+    a pairing holding one must be confirmed by a third view (three views in all, at least one of them a detection):
+    such a camera may turn its ray by degrees, and one detection on a turned ray is two views that cannot tell
+    (:func:`_weak_ray` fills from one only where the box cannot make a 3D ball)."""
     thirds = witnesses
-    cands = {v.view_id: list((detections.get(v.view_id) or ())[:MAX_CANDIDATES]) if _sure(v, sigma, s) else []
-             for v in usable}
-    seen: set[frozenset[tuple[Hashable, tuple[float, ...]]]] = set()
+    items: dict[Hashable, list[Detection | None]] = {
+        v.view_id: list((detections.get(v.view_id) or ())[:MAX_CANDIDATES]) if _sure(v, sigma, s) else []
+        for v in usable}
+    items.update({r.view_id: [None] for r in rays if by_id is not None and r.view_id in by_id})
+    pool = [v for v in [*usable, *rays] if items.get(v.view_id)]
+
+    def member(v: DoubtView, d: Detection | None) -> _Member:
+        if d is None:
+            assert by_id is not None  # a label's item exists only with its observation
+            return _Member(v, by_id[v.view_id], None, size_tolerance)
+        return _member(v, d, s, size_tolerance)
+
+    def ray(v: DoubtView, d: Detection | None) -> tuple[DoubtView, np.ndarray]:
+        if d is None:
+            centre = label_centre(v)
+            assert centre is not None  # a ray's view is labelled
+            return v, centre
+        return _as_labelled(v, d), d.centre
+
+    def near(a: tuple[DoubtView, np.ndarray], b: tuple[DoubtView, np.ndarray], va: DoubtView, vb: DoubtView) -> bool:
+        band = max(max(s.consensus_tau_px, s.triangulation_tau_px),
+                   math.hypot(sigma.get(va.view_id, 0.0), sigma.get(vb.view_id, 0.0)))
+        return _epipolar_distance(a[0], b[1], vb, s) <= band
+
+    seen: set[frozenset[tuple[Hashable, tuple[float, ...] | None]]] = set()
     pairings: list[_Pairing] = []
-    for a, b in combinations([v for v in usable if cands[v.view_id]], 2):
-        for da, db in product(cands[a.view_id], cands[b.view_id]):
-            if not (_on_epipolar(_as_labelled(a, da), b, db, sigma, s)
-                    and _on_epipolar(_as_labelled(b, db), a, da, sigma, s)):
+    for a, b in combinations(pool, 2):
+        for da, db in product(items[a.view_id], items[b.view_id]):
+            if da is None and db is None:
+                continue  # two labels fill nothing; they may still be the third views of a pairing
+            ra, rb = ray(a, da), ray(b, db)
+            if not (near(ra, rb, a, b) and near(rb, ra, b, a)):
                 continue
-            p = _meet([_member(a, da, s, size_tolerance), _member(b, db, s, size_tolerance)], tol, s)
+            p = _meet([member(a, da), member(b, db)], tol, s)
             if p is None:
                 continue
             p = _judged(p, thirds, detections, tol, s, size_tolerance)
@@ -386,15 +429,136 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
                                              for vid, det in extra.items())], tol, s)
                 if grown is not None:
                     p = _judged(grown, thirds, detections, tol, s, size_tolerance)
-            key = frozenset((vid, det.box) for vid, det in p.detections().items())
+            key = frozenset((m.view.view_id, None if m.detection is None else m.detection.box) for m in p.members)
             if key in seen:
                 continue
             seen.add(key)
             pairings.append(p)
-    kept = [p for p in pairings if len(p.missed) <= max(0, len(p.members) - 2)]
+    telling = {v.view_id for v in thirds if _telling(v, tol.get(v.view_id, math.inf), s)}
+    kept = [p for p in pairings if len(p.missed) <= max(0, len(p.members) - 2)
+            and (all(m.detection is not None for m in p.members)
+                 or len(p.members) + sum(1 for c in p.confirmed if c in telling) >= 3)]
     c = _chosen(kept, s)
     return {} if c is None or not _placed(c[0], sigma) else _found(*c, "detections_agree")
 
 
 def _view(views: Sequence[DoubtView], view_id: Hashable) -> DoubtView:
     return next(v for v in views if v.view_id == view_id)
+
+
+def _telling(view: DoubtView, sig: float, s: DoubtSettings) -> bool:
+    """Whether a camera of pixel sigma ``sig`` (px at 1920 width) still tells where the ball lies in ``view``'s
+    image (:data:`MAX_WINDOW_SHARE`): the disc of :data:`MISS` tolerances (its sigma, at least tau) around the ball's
+    pixel covers at most that share of the image."""
+    if not math.isfinite(sig):
+        return False
+    r = MISS * max(max(s.consensus_tau_px, s.triangulation_tau_px), sig) / rule_scale(view, s)
+    return math.pi * r * r <= MAX_WINDOW_SHARE * view.width * view.height
+
+
+def _triangulation_weight(view: DoubtView, s: DoubtSettings) -> float:
+    """What the view's label weighs in the triangulation (``app.geometry.triangulation.triangulate_ball``
+    ``view_weights``): its calibration's weight (:func:`app.geometry.weighting.calibration_weight`, read where its
+    label's ray meets the grass) for a camera with its fit's uncertainty, a full vote for one without (a camera a
+    person set or a release's: the recomputation counts it whole); none for a view below admission, which the
+    triangulation leaves out."""
+    if view.camera is None or not view.admitted:
+        return 0.0
+    return calibration_weight(view, s)[0] if view.uncertainty else 1.0
+
+
+def _uncounted(fills: Mapping[Hashable, Detection], views: Sequence[DoubtView], s: DoubtSettings) -> bool:
+    """Whether placing the boxes ``fills`` (view id -> detection) leaves every filled view out of the 3D ball: no pair
+    of a filled view and another labelled or filled view weighs :data:`MIN_PAIR_WEIGHT` in the triangulation (a full
+    vote and at least a half one). Then a wrong box costs a label, never a system's ball."""
+    weights: dict[Hashable, float] = {}
+    for v in views:
+        if v.excluded or v.suggested:
+            continue
+        if v.view_id in fills:
+            weights[v.view_id] = _triangulation_weight(_as_labelled(v, fills[v.view_id]), s)
+        elif label_centre(v) is not None:
+            weights[v.view_id] = _triangulation_weight(v, s)
+    return not any(weights[f] + w >= MIN_PAIR_WEIGHT for f in fills if f in weights
+                   for o, w in weights.items() if o != f)
+
+
+def _weak_ray(rays: Sequence[DoubtView], targets: Sequence[DoubtView], views: Sequence[DoubtView],
+              thirds: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
+              by_id: Mapping[Hashable, BallObservation], tol: Mapping[Hashable, float],
+              sigma: Mapping[Hashable, float], s: DoubtSettings,
+              size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+    """A label whose camera takes no full part in the votes and one detection, where the box cannot make a 3D ball:
+    for each target view, the one detection within :data:`MISS` tolerances of a weak ray's epipolar segment (the
+    tolerance tau widened by both cameras' pixel sigmas in quadrature, :func:`_on_epipolar`) that meets it
+    (:func:`_meet`: in the play volume, within both views' tolerances, a ball's size at that depth) and that no third
+    view misses (:func:`_third_views`). Filled only when the boxes placed stay out of the triangulation
+    (:func:`_uncounted`): a camera fitted to a few lines may turn its ray by degrees (one such ray in nine projects
+    the ball more than tau off on the shared detector sets), so its ray and one detection may fill a label but never
+    make a ball; a pairing that would make one needs a third view (:func:`_among_detections`). One of the two
+    cameras must be sure (pixel sigma within tau, :func:`_sure`): where both are unsure their band is wide and
+    nothing sure sees the ball where they put it (on a made set a label's unsure camera and a view of sigma 52 px
+    whose image does not hold the ball met at a false box 20 m from it). Two boxes near the ray, or rays choosing
+    different boxes in one view, leave the view alone: an unsure ray has no margin of its own to choose between
+    them."""
+    chosen: dict[Hashable, _Pairing] = {}
+    for v in targets:
+        picks: dict[tuple[float, ...], _Pairing] = {}
+        for r in rays:
+            if not (_sure(r, sigma, s) or _sure(v, sigma, s)):
+                continue  # two unsure cameras: nothing sure sees the ball where they put it
+            band = max(max(s.consensus_tau_px, s.triangulation_tau_px), math.hypot(sigma.get(r.view_id, 0.0),
+                                                                                     sigma.get(v.view_id, 0.0)))
+            near = _near_ray(r, v, detections.get(v.view_id, ()), MISS * band, s)
+            if len(near) != 1 or not _on_epipolar(r, v, near[0], sigma, s):
+                continue
+            p = _meet([_Member(r, by_id[r.view_id], None, size_tolerance), _member(v, near[0], s, size_tolerance)],
+                      tol, s)
+            if p is None:
+                continue
+            p = _judged(p, thirds, detections, tol, s, size_tolerance)
+            if not p.missed:
+                picks[near[0].box] = p
+        if len(picks) == 1:
+            chosen[v.view_id] = next(iter(picks.values()))
+    fills = {vid: next(iter(p.detections().values())) for vid, p in chosen.items()}
+    if not fills or not _uncounted(fills, views, s):
+        return {}
+    found: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
+    for p in chosen.values():
+        found.update(_found(p, 1, None, "weak_ray"))
+    return found
+
+
+def _weak_views(targets: Sequence[DoubtView], ball: np.ndarray, views: Sequence[DoubtView],
+                detections: Mapping[Hashable, Sequence[Detection]], sigma: Mapping[Hashable, float],
+                agreeing: tuple[Hashable, ...], filled: Mapping[Hashable, Detection], s: DoubtSettings,
+                size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+    """Views whose own camera takes no part in the checks (few lines and an unsure fit, or a sigma beyond tau), where
+    the other views place the ball (``ball`` (3,) world metres, z down): the one detection whose centre lies within
+    the view's tolerance (its pixel sigma ``sigma``, px at 1920 width, at least tau) of where that ball projects, at a
+    ball's size there, with no other detection within :data:`MISS` tolerances (a camera this unsure cannot choose
+    between two boxes), fills the view, only where its box stays out of the triangulation (:func:`_uncounted`, with
+    the boxes ``filled`` already placed): the detection never moves the ball, which the others placed. A camera
+    whose sigma spreads that window over more than :data:`MAX_WINDOW_SHARE` of its image tells nothing
+    (:func:`_telling`; the caller keeps those out)."""
+    found: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    for v in targets:
+        uv = project_point(v, ball)
+        dets = detections.get(v.view_id) or ()
+        if uv is None or not dets:
+            continue
+        k, t = rule_scale(v, s), max(tau, float(sigma.get(v.view_id, math.inf)))
+        dist = [float(np.linalg.norm(d.centre - uv)) * k for d in dets]
+        if sum(dd < MISS * t for dd in dist) != 1:
+            continue
+        i = int(np.argmin(dist))
+        ratio = size_ratio(v, dets[i].box, ball, s.ball_diameter_m)
+        if dist[i] >= t or ratio is None or abs(ratio - 1.0) > size_tolerance:
+            continue
+        if not _uncounted({**filled, v.view_id: dets[i]}, views, s):
+            continue
+        found[v.view_id] = (CheckedDetection(v.view_id, dets[i], dist[i], np.asarray(ball, float), float(ratio)),
+                            "weak_view", agreeing)
+    return found

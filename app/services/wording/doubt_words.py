@@ -155,6 +155,11 @@ _DETECTED_RULE = {
                "both boxes, and no third view misses it)",
     "detections_agree": " (no labelled view takes part: the detections of these views meet at one ball of a ball's "
                         "size, and no third view misses it)",
+    "weak_ray": " (a label whose camera takes no part in the votes and this detection, the only one near its ray: "
+                "they meet in the play volume at a ball's size, no third view misses it, and the box cannot make a 3D "
+                "ball with that ray)",
+    "weak_view": " (this view's camera takes no part in the votes: the ball projects here within its uncertainty, "
+                 "and no other detection lies near; the box cannot make a 3D ball)",
 }
 
 

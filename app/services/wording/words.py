@@ -105,6 +105,12 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "ball_detected:detections_agree": {"chip": "detectors agree",
                                            "means": "detectors' boxes in two or more views that meet at one ball of a "
                                                     "ball's size, no labelled view taking part"},
+        "ball_detected:weak_ray": {"chip": "detector, unsure labelled ray",
+                                   "means": "the only detector's box near the ray of a label whose camera takes no "
+                                            "part, meeting it at a ball's size; the box cannot make a 3D ball"},
+        "ball_detected:weak_view": {"chip": "detector, unsure camera",
+                                    "means": "the only detector's box where the ball the other views place projects "
+                                             "in a view whose camera takes no part, within that camera's uncertainty"},
     },
     "flag_prefix": {
         "ignored_class": {"chip": "ignores {}",
