@@ -383,3 +383,15 @@ def test_a_detection_that_drags_the_labelled_views_ball_farther_than_they_can_pl
     right = detected(checked(views, {"corner": [box_at("corner", BALL)]}))
     assert set(right) == {"corner"} and near_truth("corner", right["corner"]) < 0.5
     assert np.allclose(right["corner"].evidence["ball3d"], BALL, atol=0.05)
+
+
+def test_a_third_view_whose_detector_missed_the_ball_anywhere_on_the_labelled_ray_contradicts_nothing():
+    views = only_main_labelled()
+    # opposite's detector missed the ball: its only box is a player far from main's ray across the play volume
+    elsewhere = box_at("opposite", [-30.0, 20.0, -0.11], score=0.9)
+    found = detected(checked(views, {"goal": [det("goal", 0.7)], "opposite": [elsewhere]}))
+    # wherever the ball lies on main's ray, opposite shows nothing of it: its silence is no miss of goal's pairing
+    assert set(found) == {"goal"} and found["goal"].code == "one_ray" and near_truth("goal", found["goal"]) < 2.0
+    # a box of opposite on main's ray elsewhere (a head at about the ball's depth) is a miss: nothing is filled
+    head = box_at("opposite", head_on_main_ray(), score=0.9)
+    assert detected(checked(views, {"goal": [det("goal", 0.7)], "opposite": [head]})) == {}

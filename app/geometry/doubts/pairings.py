@@ -98,26 +98,34 @@ def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSet
     the distance between a detection and the other view's epipolar line may reach both views' tolerances), some
     pair of them sees it from cameras at least ``min_baseline_m`` apart under at least ``min_parallax_deg`` (else
     the rays meet anywhere along their common direction), and each box is a ball's size at that depth (within its
-    member's relative tolerance). None otherwise."""
+    member's relative tolerance). None otherwise (:func:`meet_or_why` says which check refused)."""
+    p = meet_or_why(members, tol, s)
+    return p if isinstance(p, _Pairing) else None
+
+
+def meet_or_why(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSettings) -> _Pairing | str:
+    """:func:`_meet`'s pairing, or the name of the check that refused it: ``"play_volume"`` (no ball, or one outside
+    the play volume), ``"rays_meet"`` (a member's error at or beyond its tolerance), ``"size"`` (a box not a ball's
+    size there), ``"baseline_parallax"`` (no pair of cameras far enough apart under enough parallax)."""
     ball = _refit([m.obs for m in members])
     if ball is None or not _plausible(ball, s):
-        return None
+        return "play_volume"
     errors: dict[Hashable, float] = {}
     ratios: dict[Hashable, float] = {}
     for m in members:
         e = _scaled(m.obs, ball)
         if e is None or e >= tol[m.view.view_id]:
-            return None
+            return "rays_meet"
         errors[m.view.view_id] = e
         if m.box is not None:
             r = size_ratio(m.view, m.box, ball, s.ball_diameter_m)
             if r is None or abs(r - 1.0) > m.size_tolerance:
-                return None
+                return "size"
             ratios[m.view.view_id] = r
     if not any(float(np.linalg.norm(a.obs.camera.C - b.obs.camera.C)) >= s.min_baseline_m
                and angle_between_deg(ball - a.obs.camera.C, ball - b.obs.camera.C) >= s.min_parallax_deg
                for a, b in combinations(members, 2)):
-        return None
+        return "baseline_parallax"
     return _Pairing(tuple(members), ball, errors, ratios, max(errors.values()))
 
 
@@ -273,6 +281,25 @@ def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) ->
     return float(sigma.get(view.view_id, 0.0)) <= max(s.consensus_tau_px, s.triangulation_tau_px)
 
 
+def _ray_missed(lone: DoubtView, p: _Pairing, thirds: Sequence[DoubtView],
+                detections: Mapping[Hashable, Sequence[Detection]], tol: Mapping[Hashable, float],
+                s: DoubtSettings) -> bool:
+    """Whether a third view clearly misses the ball a labelled ray and a detection place (:func:`_third_views`), read
+    knowing that the system's ball lies on that ray: a labelled view's miss always counts (a person saw the ball
+    at the label); an unlabelled view's miss counts only when one of its detections lies near the labelled ray
+    (within :data:`MISS` tolerances of its epipolar segment across the play volume), i.e. where that view's detector
+    shows a ball elsewhere on the ray. A view with no detection near the ray at all missed the ball wherever on the
+    ray it lies (the detector misses about one ball in seven, the shared detector sets' README): its silence cannot
+    tell this spot from any other, so it contradicts nothing (on the shared sets, ten right pairings 0.02-0.24 m
+    from the true ball were dropped so, each by a view whose detector had missed a ball projecting within a few
+    pixels of the pairing's)."""
+    for vid in p.missed:
+        c = _view(thirds, vid)
+        if label_centre(c) is not None or _near_ray(lone, c, detections.get(vid) or (), MISS * tol[vid], s):
+            return True
+    return False
+
+
 def _lone_ray(vote: Any) -> DoubtView | None:
     """The one labelled view whose ray detections are checked against: the only labelled view that takes part, or,
     where none does, the only helper (a few-lined view lending half a vote) whose camera its players placed. A
@@ -338,7 +365,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
-        c = _chosen([p for p in pairings if not p.missed], s)
+        c = _chosen([p for p in pairings if not _ray_missed(lone, p, thirds, detections, tol, s)], s)
         if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s):
             chosen[v.view_id] = c
     # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
