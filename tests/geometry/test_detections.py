@@ -8,6 +8,7 @@ import numpy as np
 from app.geometry.ball import sphere_image_box
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, judge_system
 from app.geometry.doubts.detections import Detection, check_detections
+from app.geometry.weighting import calibration_weight
 from app.services.wording.doubt_words import doubt_message
 from tests.geometry.test_doubts import BALL, CAMERAS, R_BALL, SETTINGS, camera, scene
 
@@ -395,3 +396,23 @@ def test_a_third_view_whose_detector_missed_the_ball_anywhere_on_the_labelled_ra
     # a box of opposite on main's ray elsewhere (a head at about the ball's depth) is a miss: nothing is filled
     head = box_at("opposite", head_on_main_ray(), score=0.9)
     assert detected(checked(views, {"goal": [det("goal", 0.7)], "opposite": [head]})) == {}
+
+
+def test_a_few_lined_sure_view_whose_detector_shows_nothing_near_the_agreed_ball_gets_its_projected_box():
+    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0,
+            "position_m": {"x": .1, "y": .1, "z": .1}}
+    views = scene(corner={"box": None, "line_classes": 2, "uncertainty": sure})
+    # the detector ran on corner and missed the ball: its only box is far from where the labelled views' ball projects
+    far = det("corner", 0.9, shift=(0.0, -400.0))
+    missing = [d for d in checked(views, {"corner": [far]}) if d.view_id == "corner" and d.kind in LABEL_KINDS]
+    assert [(d.kind, d.code) for d in missing] == [("ball_missing", "consensus")]
+    b, t = np.asarray(missing[0].suggestion["box"]), np.asarray(true_box("corner"))
+    assert np.linalg.norm((b[:2] + b[2:]) / 2 - (t[:2] + t[2:]) / 2) < 1.0
+    # a box near the projection that is not the ball (40 px off: the rays do not meet): the camera or the box is off,
+    # nothing is placed
+    near = det("corner", 0.9, shift=(0.0, 40.0))
+    assert [d for d in checked(views, {"corner": [near]}) if d.view_id == "corner" and d.kind in LABEL_KINDS] == []
+    # a camera sure enough to vote, but whose box may lie farther than the ball's radius (about 7 px here): nothing
+    loose = scene(corner={"box": None, "line_classes": 2, "uncertainty": {**sure, "pan_deg": 0.12, "tilt_deg": 0.12}})
+    assert calibration_weight(loose[3], SETTINGS)[0] > 0 and loose[3].view_id == "corner"
+    assert [d for d in checked(loose, {"corner": [far]}) if d.view_id == "corner" and d.kind in LABEL_KINDS] == []

@@ -63,7 +63,7 @@ from app.geometry.doubts.detected import (
     _near_ray,
     _observation,
 )
-from app.geometry.doubts.judge import _voters_consensus, _votes
+from app.geometry.doubts.judge import _missing_doubt, _voters_consensus, _votes
 from app.geometry.doubts.pairings import (
     MAX_SPREAD_M,
     MIN_SIGMA_PX,
@@ -160,6 +160,7 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     by_id = {o.view_id: o for o in vote.obs}
     checked: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
     out_of_label: list[Doubt] = []
+    few_missing: list[Doubt] = []
     if cons.point is not None and not cons.ambiguous:
         voters = [by_id[i] for i in cons.inliers]
         for v in unlabelled:
@@ -168,6 +169,10 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
             if best is not None and _keeps_ball(best, cons.point, voters, sigma):
                 checked[v.view_id] = (best, "consensus", tuple(cons.inliers))
         out_of_label = _off_label(vote.labelled, cons, by_id, detections, tol, s, size_tolerance)
+        few_missing = [d for v, _ in lined if v.view_id not in checked
+                       and not _near_point(v, detections.get(v.view_id, ()), cons.point,
+                                           PREFILTER * tol[v.view_id], s)
+                       and (d := _sure_box_missing(v, cons, s)) is not None]
     else:
         if (lone := _lone_ray(vote)) is not None and not lone_contradicted:
             checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
@@ -176,14 +181,33 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
                                    half_vote=lone not in vote.labelled)
         if not checked and not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
             checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance)
-    if not checked and not out_of_label:
+    if not checked and not out_of_label and not few_missing:
         return list(doubts)
     kept = [d for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
     missing = {d.view_id: d for d in doubts if d.kind == "ball_missing" and d.view_id in checked}
     by_view = {v.view_id: v for v in views}
     new = [_detected_doubt(c, by_view[vid], code, agreeing, missing.get(vid), s)
            for vid, (c, code, agreeing) in checked.items()]
-    return [*kept, *new, *out_of_label]
+    return [*kept, *new, *few_missing, *out_of_label]
+
+
+def _sure_box_missing(v: DoubtView, cons: Consensus, s: DoubtSettings) -> Doubt | None:
+    """The judge's ``ball_missing`` (code ``consensus``: the sphere box where the labelled views' ball projects,
+    :func:`app.geometry.doubts.judge._missing_doubt`) for an unlabelled view with fewer line classes than the judge
+    needs whose calibration is sure (:func:`_few_lined`) and none of whose detections is the ball: the judge leaves
+    such views alone (their lines do not fix their camera), but its pixel sigma says how far the box may lie. It is
+    offered only where that box's uncertainty (:func:`app.geometry.doubts.judge.consensus_box_sigma_px`: the agreeing
+    views' spread and the view's pixel sigma in quadrature, px of the view) keeps the box's centre within the ball's
+    own silhouette at :data:`SIGMAS` standard deviations (``SIGMAS * sigma`` at most the box's radius): a box that may
+    lie farther than the ball's radius from it does not label that ball."""
+    d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
+    if d is None or not d.suggestion:
+        return None
+    box, sigma = d.suggestion.get("box"), d.suggestion.get("box_sigma_px")
+    if box is None or sigma is None:
+        return None
+    radius = ((box[2] - box[0]) + (box[3] - box[1])) / 4
+    return d if SIGMAS * float(sigma) <= radius else None
 
 
 def _keeps_ball(best: CheckedDetection, ball: np.ndarray, voters: Sequence[BallObservation],
