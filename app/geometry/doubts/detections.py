@@ -21,7 +21,9 @@ Where the labelled views agree on a ball (the doubt judge's consensus, :func:`ap
 rule 3), each unlabelled view's detections are checked against it: in the views that take part in the judge's checks,
 and in those with fewer line classes whose calibration is still sure (a vote above 0: the judge lends such a view's
 label half a vote), each within its own calibration's pixel sigma; the chosen one must also leave that ball where the
-labelled views place it (:func:`_keeps_ball`), else the judge's own ``ball_missing`` stays the view's fix. Where only
+labelled views place it (:func:`_keeps_ball`), else the judge's own ``ball_missing`` stays the view's fix. A view
+with fewer line classes whose calibration is sure, none of whose detections lies near where that ball projects, gets
+the judge's projected box when its uncertainty keeps it within the ball's radius (:func:`_sure_box_missing`). Where only
 one view is labelled its ray leaves the depth open, so two unlabelled views' detections are needed: a pair of
 detections (one per view) is checked when the three rays meet at one plausible ball
 (:func:`app.geometry.consensus.ball_consensus` of the three, every one an inlier, no ambiguity) and both sizes agree;

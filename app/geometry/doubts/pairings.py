@@ -339,7 +339,8 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     across the play volume (its epipolar segment), within tau widened by both cameras' pixel sigmas
     (:func:`_on_epipolar`), are paired with it (:func:`_meet`: the rays meet within both views' tolerances in the
     play volume, the detection's box is a ball's size at that depth); a pairing a third view
-    clearly misses is dropped (:func:`_third_views`), and the view's best-supported one is kept with its margin
+    clearly misses is dropped (:func:`_third_views`, read knowing the ball is on the labelled ray: :func:`_ray_missed`),
+    and the view's best-supported one is kept with its margin
     (:func:`_chosen`). Views whose chosen balls disagree with each other (one's ball misses the other's detection
     by more than its tolerance) are all left alone.
 
