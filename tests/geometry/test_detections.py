@@ -8,7 +8,7 @@ import numpy as np
 from app.geometry.ball import sphere_image_box
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, judge_system
 from app.geometry.doubts.detections import Detection, check_detections
-from app.geometry.weighting import calibration_weight
+from app.geometry.weighting import calibration_weight, project_point
 from app.services.wording.doubt_words import doubt_message
 from tests.geometry.test_doubts import BALL, CAMERAS, R_BALL, SETTINGS, camera, scene
 
@@ -416,3 +416,17 @@ def test_a_few_lined_sure_view_whose_detector_shows_nothing_near_the_agreed_ball
     loose = scene(corner={"box": None, "line_classes": 2, "uncertainty": {**sure, "pan_deg": 0.12, "tilt_deg": 0.12}})
     assert calibration_weight(loose[3], SETTINGS)[0] > 0 and loose[3].view_id == "corner"
     assert [d for d in checked(loose, {"corner": [far]}) if d.view_id == "corner" and d.kind in LABEL_KINDS] == []
+
+
+def test_a_pairing_another_views_detection_on_the_labelled_ray_disputes_fills_nothing():
+    views = only_main_labelled()
+    # opposite's detector missed the ball and saw something on main's ray 6 m up, 23 m from the ball: that spot
+    # projects outside goal's image, so goal says nothing of it, while goal's own detection (the ball) lies on
+    # main's ray too; opposite in turn misses goal's pairing (its box on the ray is elsewhere)
+    high = on_main_ray(0.6)
+    assert high[2] < -6.0 and project_point(views[1], high)[0] < 0 and views[1].view_id == "goal"
+    boxes = {"goal": [det("goal", 0.7)], "opposite": [box_at("opposite", high, score=0.9)]}
+    # two views each with a ball-sized box on the ray, at spots 23 m apart: neither pairing is filled
+    assert detected(checked(views, boxes)) == {}
+    # without goal's detection opposite's pairing stands alone (nothing disputes it)
+    assert set(detected(checked(views, {"opposite": boxes["opposite"]}))) == {"opposite"}

@@ -300,6 +300,14 @@ def _ray_missed(lone: DoubtView, p: _Pairing, thirds: Sequence[DoubtView],
     return False
 
 
+def _agrees(p: _Pairing, ball: np.ndarray, view: DoubtView, tol: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether the detection of a labelled ray's pairing in ``view`` lies within :data:`MISS` tolerances (px at 1920
+    width) of where ``ball`` (3,) world metres projects in ``view``: the two name one ball."""
+    (det,) = p.detections().values()
+    e = _scaled(_observation(view, det, s), ball)
+    return e is not None and e <= MISS * tol[view.view_id]
+
+
 def _lone_ray(vote: Any) -> DoubtView | None:
     """The one labelled view whose ray detections are checked against: the only labelled view that takes part, or,
     where none does, the only helper (a few-lined view lending half a vote) whose camera its players placed. A
@@ -342,7 +350,8 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     clearly misses is dropped (:func:`_third_views`, read knowing the ball is on the labelled ray: :func:`_ray_missed`),
     and the view's best-supported one is kept with its margin
     (:func:`_chosen`). Views whose chosen balls disagree with each other (one's ball misses the other's detection
-    by more than its tolerance) are all left alone.
+    by more than its tolerance) are all left alone, and a chosen view is left alone where another view's every box
+    on the ray (paired with it, whatever refused that pairing) lies elsewhere than its ball.
 
     ``half_vote``: the ray is a helper's (:func:`_lone_ray`, a camera the players placed). Its view is filled only
     when the detection is the only one of that view near the ray (within :data:`PREFILTER` tolerances of its
@@ -355,6 +364,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     # lies at about nine tenths of the ball's depth, which no tolerance on a label's size tells apart
     ray = _Member(lone, by_id[lone.view_id], None, size_tolerance)
     chosen: dict[Hashable, tuple[_Pairing, int, float | None]] = {}
+    met: dict[Hashable, list[_Pairing]] = {}
     if not _sure(lone, sigma, s):
         return {}
     for v in unlabelled:
@@ -366,9 +376,17 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
+        met[v.view_id] = pairings
         c = _chosen([p for p in pairings if not _ray_missed(lone, p, thirds, detections, tol, s)], s)
         if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s):
             chosen[v.view_id] = c
+    # a view whose every box on the labelled ray (at a ball's size where the rays meet) lies elsewhere than a chosen
+    # ball disputes it, whatever refused its own pairings: each is as much evidence of where on the ray the ball is
+    # (on a made set a false box chosen so made a 3D ball 33 m off, while the other view's detection of the ball,
+    # refused by that very box as a third view, could not answer back: the false ball projected outside its image)
+    chosen = {b: cb for b, cb in chosen.items() if not any(
+        a != b and ps and not any(_agrees(p, cb[0].ball, _view(unlabelled, a), tol, s) for p in ps)
+        for a, ps in met.items())}
     # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
     for (a, ca), (b, cb) in product(chosen.items(), chosen.items()):
         if a != b:
