@@ -430,3 +430,17 @@ def test_a_pairing_another_views_detection_on_the_labelled_ray_disputes_fills_no
     assert detected(checked(views, boxes)) == {}
     # without goal's detection opposite's pairing stands alone (nothing disputes it)
     assert set(detected(checked(views, {"opposite": boxes["opposite"]}))) == {"opposite"}
+
+
+def test_a_box_at_the_agreed_balls_spot_but_of_another_size_withdraws_the_geometrys_box():
+    views = scene(corner={"box": None})
+    # the detector shows something where the labelled views' ball projects, three times a ball's size there: the
+    # camera's scale there or the box is off, so the sphere box the camera projects is left to a person
+    doubts = [d for d in checked(views, {"corner": [det("corner", 0.99, scale=3.0)]}) if d.view_id == "corner"]
+    (missing,) = [d for d in doubts if d.kind in LABEL_KINDS]
+    assert missing.kind == "ball_missing" and missing.suggestion is None
+    assert missing.evidence["detection_size_disagrees"] is True
+    # a box far from that spot says nothing of the camera there: the judge's box stays the fix
+    far = [d for d in checked(views, {"corner": [det("corner", 0.99, shift=(0.0, -80.0))]})
+           if d.view_id == "corner" and d.kind in LABEL_KINDS]
+    assert [d.suggestion["action"] for d in far] == ["snap_box"]

@@ -64,6 +64,7 @@ from app.geometry.doubts.detected import (
     _near_point,
     _near_ray,
     _observation,
+    check_or_why,
 )
 from app.geometry.doubts.judge import _missing_doubt, _voters_consensus, _votes
 from app.geometry.doubts.pairings import (
@@ -163,6 +164,7 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     checked: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
     out_of_label: list[Doubt] = []
     few_missing: list[Doubt] = []
+    contested: set[Hashable] = set()
     if cons.point is not None and not cons.ambiguous:
         voters = [by_id[i] for i in cons.inliers]
         for v in unlabelled:
@@ -171,6 +173,9 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
             if best is not None and _keeps_ball(best, cons.point, voters, sigma):
                 checked[v.view_id] = (best, "consensus", tuple(cons.inliers))
         out_of_label = _off_label(vote.labelled, cons, by_id, detections, tol, s, size_tolerance)
+        contested = {v.view_id for v in vote.unlabelled if v.view_id not in checked and any(
+            check_or_why(v, det, voters, tol, s, size_tolerance) == "size"
+            for det in _near_point(v, detections.get(v.view_id, ()), cons.point, PREFILTER * tol[v.view_id], s))}
         few_missing = [d for v, _ in lined if v.view_id not in checked
                        and not _near_point(v, detections.get(v.view_id, ()), cons.point,
                                            PREFILTER * tol[v.view_id], s)
@@ -183,14 +188,23 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
                                    half_vote=lone not in vote.labelled)
         if not checked and not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
             checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance)
-    if not checked and not out_of_label and not few_missing:
+    if not checked and not out_of_label and not few_missing and not contested:
         return list(doubts)
-    kept = [d for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
+    kept = [_unsnapped(d) if d.kind == "ball_missing" and d.view_id in contested else d
+            for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
     missing = {d.view_id: d for d in doubts if d.kind == "ball_missing" and d.view_id in checked}
     by_view = {v.view_id: v for v in views}
     new = [_detected_doubt(c, by_view[vid], code, agreeing, missing.get(vid), s)
            for vid, (c, code, agreeing) in checked.items()]
     return [*kept, *new, *few_missing, *out_of_label]
+
+
+def _unsnapped(d: Doubt) -> Doubt:
+    """The judge's ``ball_missing`` without its box: a detection near where the labelled views' ball projects whose
+    rays meet theirs in the play volume but whose size is not a ball's there (condition 3) says that the camera's
+    scale there, or the box, is off; the sphere box the camera projects is then no label (the doubt stays, with
+    ``evidence.detection_size_disagrees``)."""
+    return Doubt(d.kind, d.view_id, d.code, {**d.evidence, "detection_size_disagrees": True}, None)
 
 
 def _sure_box_missing(v: DoubtView, cons: Consensus, s: DoubtSettings) -> Doubt | None:
