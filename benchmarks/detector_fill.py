@@ -16,7 +16,9 @@ For each set (``../shared/data/synthetic/detector/<set>-unlabelled`` with ``<set
    calibration with enough line classes, how many lie in a system whose other views agree on a ball (or have one
    labelled view and another unlabelled one to pair with), and how many have a prediction within the evaluator's
    tolerance; and the detector's raw precision (a prediction within tolerance of the ball of its image, over all,
-   and over those scoring at least 0.5) against the precision of the ``ball_detected`` suggestions.
+   and over those scoring at least 0.5) against the precision of the ``ball_detected`` suggestions; and, under the
+   current rules, why each unlabelled view was or was not filled (:func:`benchmarks.fill_diagnosis.diagnose`: the
+   check of the real code path that refused its true detection).
 
 Without predictions the doubts are those of main by construction (``app.services.derivation.doubts.update_doubts``
 checks detections only when a view has one), so the "without" column is today's main.
@@ -40,6 +42,7 @@ sys.path.insert(0, str(ROOT))
 
 from app.core.paths import SHARED_DIR
 from benchmarks.doubts_seeds import V3D, _run, served_with_admin
+from benchmarks.fill_diagnosis import diagnose
 
 DETECTOR = SHARED_DIR / "data" / "synthetic" / "detector"
 TOOLS = SHARED_DIR / "tools"
@@ -227,13 +230,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         _run(V3D + ["import", "predictions", str(pred), "--source", "detector"], url)
         res["import_seconds"] = time.perf_counter() - t0
         res["bound"] = upper_bound(url, truth, pred)
+        res["diagnosis"] = {k: v for k, v in diagnose(url, truth, pred).items() if k != "cases"}
         res["with"] = fill_eval(url, truth, args.port + 2 * i + 1, args.db_dir / f"{name}.with.json")
         res["yield_with_after_pass"] = yield_figures(url, truth)
         print(f"[{name}] with predictions: {res['with']['line']}", flush=True)
         print(f"[{name}] yield with predictions after the pass: {json.dumps(res['yield_with_after_pass'])}",
               flush=True)
         print(f"[{name}] predictions imported and systems recomputed in {res['import_seconds']:.1f} s; "
-              f"bound {json.dumps(res['bound'])}", flush=True)
+              f"bound {json.dumps(res['bound'])}; why each unlabelled view was or was not filled, under the "
+              f"current rules (benchmarks/fill_diagnosis.py, in process): {json.dumps(res['diagnosis'])}", flush=True)
         report[name] = res
     if args.json:
         args.json.write_text(json.dumps(report, indent=1))

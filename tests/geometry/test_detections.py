@@ -8,6 +8,7 @@ import numpy as np
 from app.geometry.ball import sphere_image_box
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, judge_system
 from app.geometry.doubts.detections import Detection, check_detections
+from app.geometry.weighting import calibration_weight, project_point
 from app.services.wording.doubt_words import doubt_message
 from tests.geometry.test_doubts import BALL, CAMERAS, R_BALL, SETTINGS, camera, scene
 
@@ -450,3 +451,63 @@ def test_a_view_whose_camera_is_too_unsure_to_vote_is_filled_where_the_others_ba
     assert set(detected(checked(views, {"corner": [ball, det("corner", 0.9, shift=(200.0, 0.0))]}))) == {"corner"}
     lost = scene(corner={"box": None, "line_classes": 2, "jac": 1.0, "uncertainty": {**UNSURE, "pan_deg": 3.0}})
     assert detected(checked(lost, {"corner": [ball]})) == {}
+
+
+def test_a_third_view_whose_detector_missed_the_ball_anywhere_on_the_labelled_ray_contradicts_nothing():
+    views = only_main_labelled()
+    # opposite's detector missed the ball: its only box is a player far from main's ray across the play volume
+    elsewhere = box_at("opposite", [-30.0, 20.0, -0.11], score=0.9)
+    found = detected(checked(views, {"goal": [det("goal", 0.7)], "opposite": [elsewhere]}))
+    # wherever the ball lies on main's ray, opposite shows nothing of it: its silence is no miss of goal's pairing
+    assert set(found) == {"goal"} and found["goal"].code == "one_ray" and near_truth("goal", found["goal"]) < 2.0
+    # a box of opposite on main's ray elsewhere (a head at about the ball's depth) is a miss: nothing is filled
+    head = box_at("opposite", head_on_main_ray(), score=0.9)
+    assert detected(checked(views, {"goal": [det("goal", 0.7)], "opposite": [head]})) == {}
+
+
+def test_a_few_lined_sure_view_whose_detector_shows_nothing_near_the_agreed_ball_gets_its_projected_box():
+    sure = {"pan_deg": 0.02, "tilt_deg": 0.02, "roll_deg": 0.02, "focal_px": 3.0,
+            "position_m": {"x": .1, "y": .1, "z": .1}}
+    views = scene(corner={"box": None, "line_classes": 2, "uncertainty": sure})
+    # the detector ran on corner and missed the ball: its only box is far from where the labelled views' ball projects
+    far = det("corner", 0.9, shift=(0.0, -400.0))
+    missing = [d for d in checked(views, {"corner": [far]}) if d.view_id == "corner" and d.kind in LABEL_KINDS]
+    assert [(d.kind, d.code) for d in missing] == [("ball_missing", "consensus")]
+    b, t = np.asarray(missing[0].suggestion["box"]), np.asarray(true_box("corner"))
+    assert np.linalg.norm((b[:2] + b[2:]) / 2 - (t[:2] + t[2:]) / 2) < 1.0
+    # a box near the projection that is not the ball (40 px off: the rays do not meet): the camera or the box is off,
+    # nothing is placed
+    near = det("corner", 0.9, shift=(0.0, 40.0))
+    assert [d for d in checked(views, {"corner": [near]}) if d.view_id == "corner" and d.kind in LABEL_KINDS] == []
+    # a camera sure enough to vote, but whose box may lie farther than the ball's radius (about 7 px here): nothing
+    loose = scene(corner={"box": None, "line_classes": 2, "uncertainty": {**sure, "pan_deg": 0.12, "tilt_deg": 0.12}})
+    assert calibration_weight(loose[3], SETTINGS)[0] > 0 and loose[3].view_id == "corner"
+    assert [d for d in checked(loose, {"corner": [far]}) if d.view_id == "corner" and d.kind in LABEL_KINDS] == []
+
+
+def test_a_pairing_another_views_detection_on_the_labelled_ray_disputes_fills_nothing():
+    views = only_main_labelled()
+    # opposite's detector missed the ball and saw something on main's ray 6 m up, 23 m from the ball: that spot
+    # projects outside goal's image, so goal says nothing of it, while goal's own detection (the ball) lies on
+    # main's ray too; opposite in turn misses goal's pairing (its box on the ray is elsewhere)
+    high = on_main_ray(0.6)
+    assert high[2] < -6.0 and project_point(views[1], high)[0] < 0 and views[1].view_id == "goal"
+    boxes = {"goal": [det("goal", 0.7)], "opposite": [box_at("opposite", high, score=0.9)]}
+    # two views each with a ball-sized box on the ray, at spots 23 m apart: neither pairing is filled
+    assert detected(checked(views, boxes)) == {}
+    # without goal's detection opposite's pairing stands alone (nothing disputes it)
+    assert set(detected(checked(views, {"opposite": boxes["opposite"]}))) == {"opposite"}
+
+
+def test_a_box_at_the_agreed_balls_spot_but_of_another_size_withdraws_the_geometrys_box():
+    views = scene(corner={"box": None})
+    # the detector shows something where the labelled views' ball projects, three times a ball's size there: the
+    # camera's scale there or the box is off, so the sphere box the camera projects is left to a person
+    doubts = [d for d in checked(views, {"corner": [det("corner", 0.99, scale=3.0)]}) if d.view_id == "corner"]
+    (missing,) = [d for d in doubts if d.kind in LABEL_KINDS]
+    assert missing.kind == "ball_missing" and missing.suggestion is None
+    assert missing.evidence["detection_size_disagrees"] is True
+    # a box far from that spot says nothing of the camera there: the judge's box stays the fix
+    far = [d for d in checked(views, {"corner": [det("corner", 0.99, shift=(0.0, -80.0))]})
+           if d.view_id == "corner" and d.kind in LABEL_KINDS]
+    assert [d.suggestion["action"] for d in far] == ["snap_box"]

@@ -95,17 +95,26 @@ def _observation(view: DoubtView, det: Detection, s: DoubtSettings) -> BallObser
 
 def _check(view: DoubtView, det: Detection, voters: Sequence[BallObservation], tol: Mapping[Hashable, float],
            s: DoubtSettings, size_tolerance: float) -> CheckedDetection | None:
-    """The three conditions (module docstring) for ``det`` in ``view`` against the agreeing ``voters``."""
+    """The three conditions (module docstring) for ``det`` in ``view`` against the agreeing ``voters``
+    (:func:`check_or_why` says which refused)."""
+    c = check_or_why(view, det, voters, tol, s, size_tolerance)
+    return c if isinstance(c, CheckedDetection) else None
+
+
+def check_or_why(view: DoubtView, det: Detection, voters: Sequence[BallObservation], tol: Mapping[Hashable, float],
+                 s: DoubtSettings, size_tolerance: float) -> CheckedDetection | str:
+    """:func:`_check`'s checked detection, or the name of the condition that refused it: ``"play_volume"``,
+    ``"rays_meet"`` (a ray beyond its tolerance of the refitted ball) or ``"size"``."""
     cand = _observation(view, det, s)
     ball = _refit([*voters, cand])
     if ball is None or not _plausible(ball, s):
-        return None
+        return "play_volume"
     errors = {o.view_id: _scaled(o, ball) for o in [*voters, cand]}
     if any(e is None or e >= tol[i] for i, e in errors.items()):
-        return None
+        return "rays_meet"
     ratio = size_ratio(view, det.box, ball, s.ball_diameter_m)
     if ratio is None or abs(ratio - 1.0) > size_tolerance:
-        return None
+        return "size"
     e = errors[view.view_id]
     assert e is not None  # checked above
     return CheckedDetection(view.view_id, det, float(e), ball, float(ratio))

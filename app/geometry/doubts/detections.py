@@ -21,7 +21,9 @@ Where the labelled views agree on a ball (the doubt judge's consensus, :func:`ap
 rule 3), each unlabelled view's detections are checked against it: in the views that take part in the judge's checks,
 and in those with fewer line classes whose calibration is still sure (a vote above 0: the judge lends such a view's
 label half a vote), each within its own calibration's pixel sigma; the chosen one must also leave that ball where the
-labelled views place it (:func:`_keeps_ball`), else the judge's own ``ball_missing`` stays the view's fix. Where only
+labelled views place it (:func:`_keeps_ball`), else the judge's own ``ball_missing`` stays the view's fix. A view
+with fewer line classes whose calibration is sure, none of whose detections lies near where that ball projects, gets
+the judge's projected box when its uncertainty keeps it within the ball's radius (:func:`_sure_box_missing`). Where only
 one view is labelled its ray leaves the depth open, so two unlabelled views' detections are needed: a pair of
 detections (one per view) is checked when the three rays meet at one plausible ball
 (:func:`app.geometry.consensus.ball_consensus` of the three, every one an inlier, no ambiguity) and both sizes agree;
@@ -64,8 +66,9 @@ from app.geometry.doubts.detected import (
     _near_point,
     _near_ray,
     _observation,
+    check_or_why,
 )
-from app.geometry.doubts.judge import _voters_consensus, _votes
+from app.geometry.doubts.judge import _missing_doubt, _voters_consensus, _votes
 from app.geometry.doubts.pairings import (
     MAX_SPREAD_M,
     MIN_SIGMA_PX,
@@ -76,9 +79,8 @@ from app.geometry.doubts.pairings import (
     _sure,
     _telling,
     _view,
-    _weak_ray,
-    _weak_views,
 )
+from app.geometry.doubts.weak import _weak_ray, _weak_views
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
@@ -164,7 +166,7 @@ def _in_weak_views(views: Sequence[DoubtView], vote: Any, unlabelled: Sequence[D
                    ) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """The views whose own camera takes no part in the checks, where the others place the ball: the labelled views'
     consensus, else the ball of a checked pairing with the most views (never a weak ray's: an unsure camera's word
-    is not relayed to another), each within its own sigma (:func:`app.geometry.doubts.pairings._weak_views`)."""
+    is not relayed to another), each within its own sigma (:func:`app.geometry.doubts.weak._weak_views`)."""
     _, weak = _weak(views, vote, unlabelled, s, weighed)
     targets = [v for v in views if v.view_id in weak and v.view_id not in checked]
     if not targets:
@@ -183,6 +185,29 @@ def _in_weak_views(views: Sequence[DoubtView], vote: Any, unlabelled: Sequence[D
 
 def _tolerances(views: Sequence[DoubtView], sigma: Mapping[Hashable, float], tau: float) -> dict[Hashable, float]:
     return {v.view_id: max(tau, float(sigma.get(v.view_id, 0.0))) for v in views}
+
+
+def _without_labels(views: Sequence[DoubtView], vote: Any, unlabelled: Sequence[DoubtView],
+                    witnesses: Sequence[DoubtView], detections: Mapping[Any, Sequence[Detection]],
+                    wtol: Mapping[Hashable, float], sigma: Mapping[Hashable, float], s: DoubtSettings,
+                    size_tolerance: float, weighed: Mapping[Any, tuple[float, float]] | None,
+                    ) -> tuple[dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]],
+                               dict[Hashable, float]]:
+    """Where no labelled view takes part: the detections that agree among themselves, weak labels joining them where
+    a third view confirms (:func:`app.geometry.doubts.pairings._among_detections`), else a weak label's ray and the
+    one detection near it (:func:`app.geometry.doubts.weak._weak_ray`); with the pixel sigmas (px at 1920 width)
+    widened by the weak cameras' own, which the weak views' check reads next."""
+    rays, weak = _weak(views, vote, unlabelled, s, weighed)
+    sigma = {**sigma, **rays, **weak}
+    ray_views = [v for v in views if v.view_id in rays]
+    obs = {v.view_id: BallObservation(v.view_id, camera_of(v), centre_of(v), REFERENCE_WIDTH_PX / rule_scale(v, s))
+           for v in ray_views}
+    checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance,
+                                rays=ray_views, by_id=obs)
+    if not checked:  # a weak label's ray and one detection, where the box cannot make a 3D ball
+        targets = [*(v for v in unlabelled if _sure(v, sigma, s)), *(v for v in views if v.view_id in weak)]
+        checked = _weak_ray(ray_views, targets, views, witnesses, detections, obs, wtol, sigma, s, size_tolerance)
+    return checked, sigma
 
 
 def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
@@ -220,6 +245,8 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     by_id = {o.view_id: o for o in vote.obs}
     checked: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
     out_of_label: list[Doubt] = []
+    few_missing: list[Doubt] = []
+    contested: set[Hashable] = set()
     if cons.point is not None and not cons.ambiguous:
         voters = [by_id[i] for i in cons.inliers]
         for v in unlabelled:
@@ -228,6 +255,13 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
             if best is not None and _keeps_ball(best, cons.point, voters, sigma):
                 checked[v.view_id] = (best, "consensus", tuple(cons.inliers))
         out_of_label = _off_label(vote.labelled, cons, by_id, detections, tol, s, size_tolerance)
+        contested = {v.view_id for v in vote.unlabelled if v.view_id not in checked and any(
+            check_or_why(v, det, voters, tol, s, size_tolerance) == "size"
+            for det in _near_point(v, detections.get(v.view_id, ()), cons.point, PREFILTER * tol[v.view_id], s))}
+        few_missing = [d for v, _ in lined if v.view_id not in checked
+                       and not _near_point(v, detections.get(v.view_id, ()), cons.point,
+                                           PREFILTER * tol[v.view_id], s)
+                       and (d := _sure_box_missing(v, cons, s)) is not None]
     else:
         if (lone := _lone_ray(vote)) is not None and not lone_contradicted:
             checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
@@ -235,27 +269,47 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
                 checked = _one_ray(lone, unlabelled, witnesses, detections, by_id, wtol, sigma, s, size_tolerance,
                                    half_vote=lone not in vote.labelled)
         if not checked and not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
-            rays, weak = _weak(views, vote, unlabelled, s, weighed)
-            sigma = {**sigma, **rays, **weak}
-            ray_views = [v for v in views if v.view_id in rays]
-            obs = {v.view_id: BallObservation(v.view_id, camera_of(v), centre_of(v),
-                                              REFERENCE_WIDTH_PX / rule_scale(v, s)) for v in ray_views}
-            checked = _among_detections(unlabelled, witnesses, detections, wtol, sigma, s, size_tolerance,
-                                        rays=ray_views, by_id=obs)
-            if not checked:  # a weak label's ray and one detection, where the box cannot make a 3D ball
-                targets = [*(v for v in unlabelled if _sure(v, sigma, s)), *(v for v in views if v.view_id in weak)]
-                checked = _weak_ray(ray_views, targets, views, witnesses, detections, obs, wtol, sigma, s,
-                                    size_tolerance)
+            checked, sigma = _without_labels(views, vote, unlabelled, witnesses, detections, wtol, sigma, s,
+                                             size_tolerance, weighed)
     checked.update(_in_weak_views(views, vote, unlabelled, cons, checked, detections, sigma, s, size_tolerance,
                                   weighed))
-    if not checked and not out_of_label:
+    few_missing = [d for d in few_missing if d.view_id not in checked]
+    if not checked and not out_of_label and not few_missing and not contested:
         return list(doubts)
-    kept = [d for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
+    kept = [_unsnapped(d) if d.kind == "ball_missing" and d.view_id in contested else d
+            for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
     missing = {d.view_id: d for d in doubts if d.kind == "ball_missing" and d.view_id in checked}
     by_view = {v.view_id: v for v in views}
     new = [_detected_doubt(c, by_view[vid], code, agreeing, missing.get(vid), s)
            for vid, (c, code, agreeing) in checked.items()]
-    return [*kept, *new, *out_of_label]
+    return [*kept, *new, *few_missing, *out_of_label]
+
+
+def _unsnapped(d: Doubt) -> Doubt:
+    """The judge's ``ball_missing`` without its box: a detection near where the labelled views' ball projects whose
+    rays meet theirs in the play volume but whose size is not a ball's there (condition 3) says that the camera's
+    scale there, or the box, is off; the sphere box the camera projects is then no label (the doubt stays, with
+    ``evidence.detection_size_disagrees``)."""
+    return Doubt(d.kind, d.view_id, d.code, {**d.evidence, "detection_size_disagrees": True}, None)
+
+
+def _sure_box_missing(v: DoubtView, cons: Consensus, s: DoubtSettings) -> Doubt | None:
+    """The judge's ``ball_missing`` (code ``consensus``: the sphere box where the labelled views' ball projects,
+    :func:`app.geometry.doubts.judge._missing_doubt`) for an unlabelled view with fewer line classes than the judge
+    needs whose calibration is sure (:func:`_few_lined`) and none of whose detections is the ball: the judge leaves
+    such views alone (their lines do not fix their camera), but its pixel sigma says how far the box may lie. It is
+    offered only where that box's uncertainty (:func:`app.geometry.doubts.judge.consensus_box_sigma_px`: the agreeing
+    views' spread and the view's pixel sigma in quadrature, px of the view) keeps the box's centre within the ball's
+    own silhouette at :data:`SIGMAS` standard deviations (``SIGMAS * sigma`` at most the box's radius): a box that may
+    lie farther than the ball's radius from it does not label that ball."""
+    d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
+    if d is None or not d.suggestion:
+        return None
+    box, sigma = d.suggestion.get("box"), d.suggestion.get("box_sigma_px")
+    if box is None or sigma is None:
+        return None
+    radius = ((box[2] - box[0]) + (box[3] - box[1])) / 4
+    return d if SIGMAS * float(sigma) <= radius else None
 
 
 def _keeps_ball(best: CheckedDetection, ball: np.ndarray, voters: Sequence[BallObservation],

@@ -1,9 +1,7 @@
 """Detections paired where the labelled views do not agree on a ball: one labelled ray and one detection
 (``one_ray``), and detections that agree among themselves (``detections_agree``, weak labels joining them where a
-third view confirms), each with the third views' word and a margin over the runner-up; and where cameras take no
-part in the votes, a weak label's ray and the one detection near it (``weak_ray``) or a weak view's one detection
-where the others' ball projects (``weak_view``), only for boxes that cannot make a 3D ball (docs/detectors.md,
-"The check")."""
+third view confirms), each with the third views' word and a margin over the runner-up (docs/detectors.md, "The
+check"). Where cameras take no part in the votes: :mod:`app.geometry.doubts.weak`."""
 from __future__ import annotations
 
 import dataclasses
@@ -31,11 +29,10 @@ from app.geometry.doubts.detected import (
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
 from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
-    MIN_PAIR_WEIGHT,
     BallObservation,
     angle_between_deg,
 )
-from app.geometry.weighting import calibration_weight, label_centre, project_point, rule_scale
+from app.geometry.weighting import label_centre, project_point, rule_scale
 
 #: A third calibrated view confirms a ball two views place when one of its detections (or its label) lies within its
 #: tolerance of where that ball projects, at a ball's size; it contradicts it (a clear miss) when the ball projects
@@ -109,26 +106,34 @@ def _meet(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSet
     the distance between a detection and the other view's epipolar line may reach both views' tolerances), some
     pair of them sees it from cameras at least ``min_baseline_m`` apart under at least ``min_parallax_deg`` (else
     the rays meet anywhere along their common direction), and each box is a ball's size at that depth (within its
-    member's relative tolerance). None otherwise."""
+    member's relative tolerance). None otherwise (:func:`meet_or_why` says which check refused)."""
+    p = meet_or_why(members, tol, s)
+    return p if isinstance(p, _Pairing) else None
+
+
+def meet_or_why(members: Sequence[_Member], tol: Mapping[Hashable, float], s: DoubtSettings) -> _Pairing | str:
+    """:func:`_meet`'s pairing, or the name of the check that refused it: ``"play_volume"`` (no ball, or one outside
+    the play volume), ``"rays_meet"`` (a member's error at or beyond its tolerance), ``"size"`` (a box not a ball's
+    size there), ``"baseline_parallax"`` (no pair of cameras far enough apart under enough parallax)."""
     ball = _refit([m.obs for m in members])
     if ball is None or not _plausible(ball, s):
-        return None
+        return "play_volume"
     errors: dict[Hashable, float] = {}
     ratios: dict[Hashable, float] = {}
     for m in members:
         e = _scaled(m.obs, ball)
         if e is None or e >= tol[m.view.view_id]:
-            return None
+            return "rays_meet"
         errors[m.view.view_id] = e
         if m.box is not None:
             r = size_ratio(m.view, m.box, ball, s.ball_diameter_m)
             if r is None or abs(r - 1.0) > m.size_tolerance:
-                return None
+                return "size"
             ratios[m.view.view_id] = r
     if not any(float(np.linalg.norm(a.obs.camera.C - b.obs.camera.C)) >= s.min_baseline_m
                and angle_between_deg(ball - a.obs.camera.C, ball - b.obs.camera.C) >= s.min_parallax_deg
                for a, b in combinations(members, 2)):
-        return None
+        return "baseline_parallax"
     return _Pairing(tuple(members), ball, errors, ratios, max(errors.values()))
 
 
@@ -284,6 +289,33 @@ def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) ->
     return float(sigma.get(view.view_id, 0.0)) <= max(s.consensus_tau_px, s.triangulation_tau_px)
 
 
+def _ray_missed(lone: DoubtView, p: _Pairing, thirds: Sequence[DoubtView],
+                detections: Mapping[Hashable, Sequence[Detection]], tol: Mapping[Hashable, float],
+                s: DoubtSettings) -> bool:
+    """Whether a third view clearly misses the ball a labelled ray and a detection place (:func:`_third_views`), read
+    knowing that the system's ball lies on that ray: a labelled view's miss always counts (a person saw the ball
+    at the label); an unlabelled view's miss counts only when one of its detections lies near the labelled ray
+    (within :data:`MISS` tolerances of its epipolar segment across the play volume), i.e. where that view's detector
+    shows a ball elsewhere on the ray. A view with no detection near the ray at all missed the ball wherever on the
+    ray it lies (the detector misses about one ball in seven, the shared detector sets' README): its silence cannot
+    tell this spot from any other, so it contradicts nothing (on the shared sets, ten right pairings 0.02-0.24 m
+    from the true ball were dropped so, each by a view whose detector had missed a ball projecting within a few
+    pixels of the pairing's)."""
+    for vid in p.missed:
+        c = _view(thirds, vid)
+        if label_centre(c) is not None or _near_ray(lone, c, detections.get(vid) or (), MISS * tol[vid], s):
+            return True
+    return False
+
+
+def _agrees(p: _Pairing, ball: np.ndarray, view: DoubtView, tol: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether the detection of a labelled ray's pairing in ``view`` lies within :data:`MISS` tolerances (px at 1920
+    width) of where ``ball`` (3,) world metres projects in ``view``: the two name one ball."""
+    (det,) = p.detections().values()
+    e = _scaled(_observation(view, det, s), ball)
+    return e is not None and e <= MISS * tol[view.view_id]
+
+
 def _lone_ray(vote: Any) -> DoubtView | None:
     """The one labelled view whose ray detections are checked against: the only labelled view that takes part, or,
     where none does, the only helper (a few-lined view lending half a vote) whose camera its players placed. A
@@ -323,9 +355,11 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     across the play volume (its epipolar segment), within tau widened by both cameras' pixel sigmas
     (:func:`_on_epipolar`), are paired with it (:func:`_meet`: the rays meet within both views' tolerances in the
     play volume, the detection's box is a ball's size at that depth); a pairing a third view
-    clearly misses is dropped (:func:`_third_views`), and the view's best-supported one is kept with its margin
+    clearly misses is dropped (:func:`_third_views`, read knowing the ball is on the labelled ray: :func:`_ray_missed`),
+    and the view's best-supported one is kept with its margin
     (:func:`_chosen`). Views whose chosen balls disagree with each other (one's ball misses the other's detection
-    by more than its tolerance) are all left alone.
+    by more than its tolerance) are all left alone, and a chosen view is left alone where another view's every box
+    on the ray (paired with it, whatever refused that pairing) lies elsewhere than its ball.
 
     ``half_vote``: the ray is a helper's (:func:`_lone_ray`, a camera the players placed). Its view is filled only
     when the detection is the only one of that view near the ray (within :data:`PREFILTER` tolerances of its
@@ -338,6 +372,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     # lies at about nine tenths of the ball's depth, which no tolerance on a label's size tells apart
     ray = _Member(lone, by_id[lone.view_id], None, size_tolerance)
     chosen: dict[Hashable, tuple[_Pairing, int, float | None]] = {}
+    met: dict[Hashable, list[_Pairing]] = {}
     if not _sure(lone, sigma, s):
         return {}
     for v in unlabelled:
@@ -349,9 +384,17 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
-        c = _chosen([p for p in pairings if not p.missed], s)
+        met[v.view_id] = pairings
+        c = _chosen([p for p in pairings if not _ray_missed(lone, p, thirds, detections, tol, s)], s)
         if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s):
             chosen[v.view_id] = c
+    # a view whose every box on the labelled ray (at a ball's size where the rays meet) lies elsewhere than a chosen
+    # ball disputes it, whatever refused its own pairings: each is as much evidence of where on the ray the ball is
+    # (on a made set a false box chosen so made a 3D ball 33 m off, while the other view's detection of the ball,
+    # refused by that very box as a third view, could not answer back: the false ball projected outside its image)
+    chosen = {b: cb for b, cb in chosen.items() if not any(
+        a != b and ps and not any(_agrees(p, cb[0].ball, _view(unlabelled, a), tol, s) for p in ps)
+        for a, ps in met.items())}
     # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
     for (a, ca), (b, cb) in product(chosen.items(), chosen.items()):
         if a != b:
@@ -454,111 +497,3 @@ def _telling(view: DoubtView, sig: float, s: DoubtSettings) -> bool:
         return False
     r = MISS * max(max(s.consensus_tau_px, s.triangulation_tau_px), sig) / rule_scale(view, s)
     return math.pi * r * r <= MAX_WINDOW_SHARE * view.width * view.height
-
-
-def _triangulation_weight(view: DoubtView, s: DoubtSettings) -> float:
-    """What the view's label weighs in the triangulation (``app.geometry.triangulation.triangulate_ball``
-    ``view_weights``): its calibration's weight (:func:`app.geometry.weighting.calibration_weight`, read where its
-    label's ray meets the grass) for a camera with its fit's uncertainty, a full vote for one without (a camera a
-    person set or a release's: the recomputation counts it whole); none for a view below admission, which the
-    triangulation leaves out."""
-    if view.camera is None or not view.admitted:
-        return 0.0
-    return calibration_weight(view, s)[0] if view.uncertainty else 1.0
-
-
-def _uncounted(fills: Mapping[Hashable, Detection], views: Sequence[DoubtView], s: DoubtSettings) -> bool:
-    """Whether placing the boxes ``fills`` (view id -> detection) leaves every filled view out of the 3D ball: no pair
-    of a filled view and another labelled or filled view weighs :data:`MIN_PAIR_WEIGHT` in the triangulation (a full
-    vote and at least a half one). Then a wrong box costs a label, never a system's ball."""
-    weights: dict[Hashable, float] = {}
-    for v in views:
-        if v.excluded or v.suggested:
-            continue
-        if v.view_id in fills:
-            weights[v.view_id] = _triangulation_weight(_as_labelled(v, fills[v.view_id]), s)
-        elif label_centre(v) is not None:
-            weights[v.view_id] = _triangulation_weight(v, s)
-    return not any(weights[f] + w >= MIN_PAIR_WEIGHT for f in fills if f in weights
-                   for o, w in weights.items() if o != f)
-
-
-def _weak_ray(rays: Sequence[DoubtView], targets: Sequence[DoubtView], views: Sequence[DoubtView],
-              thirds: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
-              by_id: Mapping[Hashable, BallObservation], tol: Mapping[Hashable, float],
-              sigma: Mapping[Hashable, float], s: DoubtSettings,
-              size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
-    """A label whose camera takes no full part in the votes and one detection, where the box cannot make a 3D ball:
-    for each target view, the one detection within :data:`MISS` tolerances of a weak ray's epipolar segment (the
-    tolerance tau widened by both cameras' pixel sigmas in quadrature, :func:`_on_epipolar`) that meets it
-    (:func:`_meet`: in the play volume, within both views' tolerances, a ball's size at that depth) and that no third
-    view misses (:func:`_third_views`). Filled only when the boxes placed stay out of the triangulation
-    (:func:`_uncounted`): a camera fitted to a few lines may turn its ray by degrees (one such ray in nine projects
-    the ball more than tau off on the shared detector sets), so its ray and one detection may fill a label but never
-    make a ball; a pairing that would make one needs a third view (:func:`_among_detections`). One of the two
-    cameras must be sure (pixel sigma within tau, :func:`_sure`): where both are unsure their band is wide and
-    nothing sure sees the ball where they put it (on a made set a label's unsure camera and a view of sigma 52 px
-    whose image does not hold the ball met at a false box 20 m from it). Two boxes near the ray, or rays choosing
-    different boxes in one view, leave the view alone: an unsure ray has no margin of its own to choose between
-    them."""
-    chosen: dict[Hashable, _Pairing] = {}
-    for v in targets:
-        picks: dict[tuple[float, ...], _Pairing] = {}
-        for r in rays:
-            if not (_sure(r, sigma, s) or _sure(v, sigma, s)):
-                continue  # two unsure cameras: nothing sure sees the ball where they put it
-            band = max(max(s.consensus_tau_px, s.triangulation_tau_px), math.hypot(sigma.get(r.view_id, 0.0),
-                                                                                     sigma.get(v.view_id, 0.0)))
-            near = _near_ray(r, v, detections.get(v.view_id, ()), MISS * band, s)
-            if len(near) != 1 or not _on_epipolar(r, v, near[0], sigma, s):
-                continue
-            p = _meet([_Member(r, by_id[r.view_id], None, size_tolerance), _member(v, near[0], s, size_tolerance)],
-                      tol, s)
-            if p is None:
-                continue
-            p = _judged(p, thirds, detections, tol, s, size_tolerance)
-            if not p.missed:
-                picks[near[0].box] = p
-        if len(picks) == 1:
-            chosen[v.view_id] = next(iter(picks.values()))
-    fills = {vid: next(iter(p.detections().values())) for vid, p in chosen.items()}
-    if not fills or not _uncounted(fills, views, s):
-        return {}
-    found: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
-    for p in chosen.values():
-        found.update(_found(p, 1, None, "weak_ray"))
-    return found
-
-
-def _weak_views(targets: Sequence[DoubtView], ball: np.ndarray, views: Sequence[DoubtView],
-                detections: Mapping[Hashable, Sequence[Detection]], sigma: Mapping[Hashable, float],
-                agreeing: tuple[Hashable, ...], filled: Mapping[Hashable, Detection], s: DoubtSettings,
-                size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
-    """Views whose own camera takes no part in the checks (few lines and an unsure fit, or a sigma beyond tau), where
-    the other views place the ball (``ball`` (3,) world metres, z down): the one detection whose centre lies within
-    the view's tolerance (its pixel sigma ``sigma``, px at 1920 width, at least tau) of where that ball projects, at a
-    ball's size there, with no other detection within :data:`MISS` tolerances (a camera this unsure cannot choose
-    between two boxes), fills the view, only where its box stays out of the triangulation (:func:`_uncounted`, with
-    the boxes ``filled`` already placed): the detection never moves the ball, which the others placed. A camera
-    whose sigma spreads that window over more than :data:`MAX_WINDOW_SHARE` of its image tells nothing
-    (:func:`_telling`; the caller keeps those out)."""
-    found: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
-    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
-    for v in targets:
-        uv = project_point(v, ball)
-        dets = detections.get(v.view_id) or ()
-        if uv is None or not dets:
-            continue
-        k, t = rule_scale(v, s), max(tau, float(sigma.get(v.view_id, math.inf)))
-        dist = [float(np.linalg.norm(d.centre - uv)) * k for d in dets]
-        if sum(dd < MISS * t for dd in dist) != 1:
-            continue
-        i = int(np.argmin(dist))
-        ratio = size_ratio(v, dets[i].box, ball, s.ball_diameter_m)
-        if dist[i] >= t or ratio is None or abs(ratio - 1.0) > size_tolerance:
-            continue
-        if not _uncounted({**filled, v.view_id: dets[i]}, views, s):
-            continue
-        found[v.view_id] = (CheckedDetection(v.view_id, dets[i], dist[i], np.asarray(ball, float), float(ratio)),
-                            "weak_view", agreeing)
-    return found

@@ -1,0 +1,134 @@
+"""Where cameras take no full part in the votes: a weak label's ray and the one detection near it (``weak_ray``), or a
+weak view's one detection where the others' ball projects (``weak_view``), only for boxes that cannot make a 3D ball
+(docs/detectors.md, "The check")."""
+from __future__ import annotations
+
+import math
+from typing import Hashable, Mapping, Sequence
+
+import numpy as np
+
+from app.geometry.doubts.contract import DoubtSettings, DoubtView
+from app.geometry.doubts.detected import CheckedDetection, Detection, _near_ray, size_ratio
+from app.geometry.doubts.pairings import (
+    MISS,
+    _as_labelled,
+    _found,
+    _judged,
+    _meet,
+    _Member,
+    _member,
+    _on_epipolar,
+    _Pairing,
+    _sure,
+)
+from app.geometry.triangulation import MIN_PAIR_WEIGHT, BallObservation
+from app.geometry.weighting import calibration_weight, label_centre, project_point, rule_scale
+
+
+def _triangulation_weight(view: DoubtView, s: DoubtSettings) -> float:
+    """What the view's label weighs in the triangulation (``app.geometry.triangulation.triangulate_ball``
+    ``view_weights``): its calibration's weight (:func:`app.geometry.weighting.calibration_weight`, read where its
+    label's ray meets the grass) for a camera with its fit's uncertainty, a full vote for one without (a camera a
+    person set or a release's: the recomputation counts it whole); none for a view below admission, which the
+    triangulation leaves out."""
+    if view.camera is None or not view.admitted:
+        return 0.0
+    return calibration_weight(view, s)[0] if view.uncertainty else 1.0
+
+
+def _uncounted(fills: Mapping[Hashable, Detection], views: Sequence[DoubtView], s: DoubtSettings) -> bool:
+    """Whether placing the boxes ``fills`` (view id -> detection) leaves every filled view out of the 3D ball: no pair
+    of a filled view and another labelled or filled view weighs :data:`MIN_PAIR_WEIGHT` in the triangulation (a full
+    vote and at least a half one). Then a wrong box costs a label, never a system's ball."""
+    weights: dict[Hashable, float] = {}
+    for v in views:
+        if v.excluded or v.suggested:
+            continue
+        if v.view_id in fills:
+            weights[v.view_id] = _triangulation_weight(_as_labelled(v, fills[v.view_id]), s)
+        elif label_centre(v) is not None:
+            weights[v.view_id] = _triangulation_weight(v, s)
+    return not any(weights[f] + w >= MIN_PAIR_WEIGHT for f in fills if f in weights
+                   for o, w in weights.items() if o != f)
+
+
+def _weak_ray(rays: Sequence[DoubtView], targets: Sequence[DoubtView], views: Sequence[DoubtView],
+              thirds: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
+              by_id: Mapping[Hashable, BallObservation], tol: Mapping[Hashable, float],
+              sigma: Mapping[Hashable, float], s: DoubtSettings,
+              size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+    """A label whose camera takes no full part in the votes and one detection, where the box cannot make a 3D ball:
+    for each target view, the one detection within :data:`MISS` tolerances of a weak ray's epipolar segment (the
+    tolerance tau widened by both cameras' pixel sigmas in quadrature, :func:`_on_epipolar`) that meets it
+    (:func:`_meet`: in the play volume, within both views' tolerances, a ball's size at that depth) and that no third
+    view misses (:func:`_third_views`). Filled only when the boxes placed stay out of the triangulation
+    (:func:`_uncounted`): a camera fitted to a few lines may turn its ray by degrees (one such ray in nine projects
+    the ball more than tau off on the shared detector sets), so its ray and one detection may fill a label but never
+    make a ball; a pairing that would make one needs a third view (:func:`_among_detections`). One of the two
+    cameras must be sure (pixel sigma within tau, :func:`_sure`): where both are unsure their band is wide and
+    nothing sure sees the ball where they put it (on a made set a label's unsure camera and a view of sigma 52 px
+    whose image does not hold the ball met at a false box 20 m from it). Two boxes near the ray, or rays choosing
+    different boxes in one view, leave the view alone: an unsure ray has no margin of its own to choose between
+    them."""
+    chosen: dict[Hashable, _Pairing] = {}
+    for v in targets:
+        picks: dict[tuple[float, ...], _Pairing] = {}
+        for r in rays:
+            if not (_sure(r, sigma, s) or _sure(v, sigma, s)):
+                continue  # two unsure cameras: nothing sure sees the ball where they put it
+            band = max(max(s.consensus_tau_px, s.triangulation_tau_px), math.hypot(sigma.get(r.view_id, 0.0),
+                                                                                     sigma.get(v.view_id, 0.0)))
+            near = _near_ray(r, v, detections.get(v.view_id, ()), MISS * band, s)
+            if len(near) != 1 or not _on_epipolar(r, v, near[0], sigma, s):
+                continue
+            p = _meet([_Member(r, by_id[r.view_id], None, size_tolerance), _member(v, near[0], s, size_tolerance)],
+                      tol, s)
+            if p is None:
+                continue
+            p = _judged(p, thirds, detections, tol, s, size_tolerance)
+            if not p.missed:
+                picks[near[0].box] = p
+        if len(picks) == 1:
+            chosen[v.view_id] = next(iter(picks.values()))
+    fills = {vid: next(iter(p.detections().values())) for vid, p in chosen.items()}
+    if not fills or not _uncounted(fills, views, s):
+        return {}
+    found: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
+    for p in chosen.values():
+        found.update(_found(p, 1, None, "weak_ray"))
+    return found
+
+
+def _weak_views(targets: Sequence[DoubtView], ball: np.ndarray, views: Sequence[DoubtView],
+                detections: Mapping[Hashable, Sequence[Detection]], sigma: Mapping[Hashable, float],
+                agreeing: tuple[Hashable, ...], filled: Mapping[Hashable, Detection], s: DoubtSettings,
+                size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
+    """Views whose own camera takes no part in the checks (few lines and an unsure fit, or a sigma beyond tau), where
+    the other views place the ball (``ball`` (3,) world metres, z down): the one detection whose centre lies within
+    the view's tolerance (its pixel sigma ``sigma``, px at 1920 width, at least tau) of where that ball projects, at a
+    ball's size there, with no other detection within :data:`MISS` tolerances (a camera this unsure cannot choose
+    between two boxes), fills the view, only where its box stays out of the triangulation (:func:`_uncounted`, with
+    the boxes ``filled`` already placed): the detection never moves the ball, which the others placed. A camera
+    whose sigma spreads that window over more than :data:`MAX_WINDOW_SHARE` of its image tells nothing
+    (:func:`_telling`; the caller keeps those out)."""
+    found: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
+    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
+    for v in targets:
+        uv = project_point(v, ball)
+        dets = detections.get(v.view_id) or ()
+        if uv is None or not dets:
+            continue
+        k, t = rule_scale(v, s), max(tau, float(sigma.get(v.view_id, math.inf)))
+        dist = [float(np.linalg.norm(d.centre - uv)) * k for d in dets]
+        if sum(dd < MISS * t for dd in dist) != 1:
+            continue
+        i = int(np.argmin(dist))
+        ratio = size_ratio(v, dets[i].box, ball, s.ball_diameter_m)
+        if dist[i] >= t or ratio is None or abs(ratio - 1.0) > size_tolerance:
+            continue
+        if not _uncounted({**filled, v.view_id: dets[i]}, views, s):
+            continue
+        found[v.view_id] = (CheckedDetection(v.view_id, dets[i], dist[i], np.asarray(ball, float), float(ratio)),
+                            "weak_view", agreeing)
+    return found
