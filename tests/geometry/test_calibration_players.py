@@ -203,10 +203,11 @@ def heads_in(camera: Camera, grass: dict, noise_px: float = 0.0, rng: np.random.
     return {k: uv[i] for i, k in enumerate(keys)}
 
 
-def test_head_point_is_the_top_centre_of_a_box_whose_player_is_whole() -> None:
+def test_head_point_is_the_top_centre_of_a_box_whose_top_and_sides_are_in_the_image() -> None:
     assert head_pixel((10, 20, 30, 80), W, H).tolist() == [20.0, 20.0]
     assert head_pixel((10, 0, 30, 80), W, H) is None  # head cut off
-    assert head_pixel((10, 20, 30, H - 1), W, H) is None  # feet cut off: no foot point to pair it with
+    assert head_pixel((10, 20, 30, H - 1), W, H).tolist() == [20.0, 20.0]  # feet cut off: the head is still seen
+    assert head_pixel((0, 20, 30, 80), W, H) is None  # half of the player cut off: the centre moves
     up = head_world(np.array([[10.0, 0.0]]), np.array([-50.0, 0.0, -10.0]))[0]
     assert np.allclose(up, [10.0 + HEAD_OFFSET_M, 0.0, -HEAD_HEIGHT_M])  # beyond the player, away from the camera
 
@@ -234,3 +235,23 @@ def test_heads_pin_the_zoom_that_players_close_together_leave_loose() -> None:
         without.append((b.sigma_px, ball_error(b, truth)))
     assert np.median([s for s, _ in with_heads]) < 0.7 * np.median([s for s, _ in without])
     assert max(e for _, e in with_heads) < 6.0
+
+
+def test_players_whose_feet_the_image_cuts_place_a_close_view_by_their_heads() -> None:
+    """A close view shows players without their feet (every box cut by the bottom edge): no foot point, but their head
+    points, the players' grass points from the well-lined views and a rig position fix the camera. 1 px of noise."""
+    for seed in range(4):
+        rng = np.random.default_rng(500 + seed)
+        truth = camera_at(CENTRE, (-35.0, 2.0, -1.0), 3500.0)
+        pts = players(6, rng, spread=6.0)
+        grass = as_grass(pts)
+        heads = heads_in(truth, pts, 1.0, rng)
+        boxes = [("Player team left", k[1], (uv[0] - 20, uv[1], uv[0] + 20, H - 1)) for k, uv in heads.items()]
+        assert all(foot_pixel(b, W, H) is None for _, _, b in boxes)
+        seen = {("Player team left", i): head_pixel(b, W, H) for _, i, b in boxes}
+        fit = fit_camera_to_players({}, grass, {}, W, H, RIG, heads=seen)
+        assert isinstance(fit, PlayerFit), fit
+        assert fit.rig_index == 1 and len(fit.players) == 6
+        assert ball_error(fit, truth) < 6.0
+        assert fit_camera_to_players({}, grass, {}, W, H, RIG) == PlayerRefusal("few_players",
+                                                                               {"players": 0, "need": 3})
