@@ -16,11 +16,13 @@ from app.geometry.calibration.grass import (
     players_on_grass,
 )
 from app.geometry.calibration.players import (
+    LINES_CONTRADICTED_SIGMA,
     PlayerFit,
     PlayerFitSettings,
     PlayerRefusal,
     _Problem,
     fit_camera_to_players,
+    players_disagreement,
 )
 from app.geometry.calibration.residuals import CameraParametrisation
 from app.geometry.camera import Camera, look_at_rotation
@@ -255,3 +257,34 @@ def test_players_whose_feet_the_image_cuts_place_a_close_view_by_their_heads() -
         assert ball_error(fit, truth) < 6.0
         assert fit_camera_to_players({}, grass, {}, W, H, RIG) == PlayerRefusal("few_players",
                                                                                {"players": 0, "need": 3})
+
+
+def test_players_at_a_rig_position_leave_out_lines_they_cannot_be_fitted_with() -> None:
+    """A view whose few lines are labelled on the wrong side (left for right) cannot be fitted with its players: the
+    players alone, at the rig position, give the camera (no line residuals: the lines are left out)."""
+    for seed in range(3):
+        rng = np.random.default_rng(20 + seed)
+        truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+        lines = visible_model_points(truth, W, H, rng, classes=("Big rect. left main", "Small rect. left main"),
+                                     noise_px=1.0)
+        mirrored = {c.replace("left", "right"): v for c, v in lines.items()}
+        pts = players(6, rng)
+        feet = feet_in(truth, pts, 1.0, rng)
+        fit = fit_camera_to_players(feet, as_grass(pts), mirrored, W, H, RIG)
+        assert isinstance(fit, PlayerFit), fit
+        assert fit.rig_index == 1 and fit.residuals_px == {} and fit.line_rms_px is None
+        assert ball_error(fit, truth) < 3.0
+        right = fit_camera_to_players(feet, as_grass(pts), lines, W, H, RIG)
+        assert isinstance(right, PlayerFit) and set(right.residuals_px) == set(lines)  # right lines stay in the fit
+
+
+def test_players_disagree_with_a_wrong_camera_not_with_the_true_one() -> None:
+    rng = np.random.default_rng(41)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(8, rng)
+    grass = as_grass(pts)
+    feet = feet_in(truth, pts, 1.0, rng)
+    assert players_disagreement(truth, feet, grass, W, H) < 2.0
+    off = camera_at(CENTRE, (-30.0, 6.0, 0.0), 2600.0)  # looks 6 m aside: its lines' wrong solution
+    assert players_disagreement(off, feet, grass, W, H) > LINES_CONTRADICTED_SIGMA
+    assert players_disagreement(truth, dict(list(feet.items())[:2]), grass, W, H) is None
