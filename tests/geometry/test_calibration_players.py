@@ -288,3 +288,19 @@ def test_players_disagree_with_a_wrong_camera_not_with_the_true_one() -> None:
     off = camera_at(CENTRE, (-30.0, 6.0, 0.0), 2600.0)  # looks 6 m aside: its lines' wrong solution
     assert players_disagreement(off, feet, grass, W, H) > LINES_CONTRADICTED_SIGMA
     assert players_disagreement(truth, dict(list(feet.items())[:2]), grass, W, H) is None
+
+
+def test_players_in_a_row_are_placed_by_their_heads_not_refused_as_collinear() -> None:
+    """Players standing in one row on the grass have their foot points on one image line, which alone fixes no
+    camera; their head points stand above that line, and with them the rig position's camera is found."""
+    rng = np.random.default_rng(77)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    row = {("Player team left", str(i)): np.array([-42.0 + 3.5 * i, -3.0 + 1.5 * i]) for i in range(5)}
+    grass = as_grass(row)
+    feet = feet_in(truth, row, 0.3, rng)
+    heads = heads_in(truth, row, 0.3, rng)
+    alone = fit_camera_to_players(feet, grass, {}, W, H, RIG)
+    assert isinstance(alone, PlayerRefusal) and alone.code == "collinear_players"
+    fit = fit_camera_to_players(feet, grass, {}, W, H, RIG, heads=heads)
+    assert isinstance(fit, PlayerFit), fit
+    assert fit.rig_index == 1 and ball_error(fit, truth) < 3.0

@@ -80,8 +80,9 @@ class PlayerFitSettings:
         rig_refined: the rig positions whose starts come closest that are refined (the others cannot win).
         max_sigma_px: largest pixel uncertainty (px@1920) accepted of a point where the play is (the players'
             centre on the grass and 3 m up, :func:`projection_sigma_px`), the players' own uncertainty included.
-        min_spread_px: the foot points must spread at least this far (px@1920, the smaller singular value of
-            their centred pixels over sqrt(n)) off one image line.
+        min_spread_px: the points the fit reads (foot and head points) must spread at least this far (px@1920, the
+            smaller singular value of their centred pixels over sqrt(n)) off one image line: players standing in
+            a row have their feet on one line, but their heads stand above it.
         line_limit_gamma: every fitted line class within this fraction of the image diagonal of its model
             element (as a line fit's ``refuse_gamma``).
         border_px: a box reaching within this many pixels of the image's bottom edge is cut: no foot point.
@@ -498,8 +499,8 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
     world = np.array([[grass[k].point_m[0], grass[k].point_m[1], 0.0] for k in keys])
     head_of = np.array([i for i, k in enumerate(keys) if k in heads], dtype=int)
     uv_head = np.array([np.asarray(heads[keys[i]], float) for i in head_of]).reshape(-1, 2)
-    seen = np.vstack([uv, uv_head[head_of >= len(footed)]])  # each player's point: its foot, else its head
-    spread = float(np.linalg.svd(seen - seen.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(len(keys))
+    seen = np.vstack([uv, uv_head])  # every point the fit reads: the feet and the heads
+    spread = float(np.linalg.svd(seen - seen.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(len(seen))
     if spread < s.min_spread_px * scale:
         return PlayerRefusal("collinear_players", {"spread_px": spread, "limit_px": s.min_spread_px * scale})
     problem = _Problem(uv=uv, world=world, lines=dict(lines), pp=principal_point(width, height), width=width,
