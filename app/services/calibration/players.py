@@ -222,9 +222,21 @@ def place_in_system(views: Sequence[PlacementView], rig: CameraRig) -> dict[int,
         if not isinstance(got, PlayerFit):
             out[i] = got
             continue
-        fields = fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3)
-        out[i] = _kept_admitted(fields, v, got.rig_index is not None and _lines_contradicted(v, feet[i], grass))
+        out[i] = _kept(fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3), v, got.rig_index is not None,
+                       feet[i], grass)
     return out
+
+
+def _kept(fields: CalibrationFields, view: PlacementView, at_rig: bool, feet: Mapping[PlayerKey, np.ndarray],
+          grass: Mapping[PlayerKey, GrassPlayer]) -> CalibrationFields | PlayerRefusal:
+    """``fields`` of a player fit as :func:`_kept_admitted` keeps or refuses them, except that a fit at a rig position
+    (``at_rig``) replaces an admitted camera from the view's lines that the players tell wrong
+    (:func:`_lines_contradicted`): then the view leaves the triangulation with a right camera rather than join it
+    with a wrong one. The players' disagreement is measured only when the admission rule refuses."""
+    kept = _kept_admitted(fields, view)
+    if isinstance(kept, PlayerRefusal) and at_rig and _lines_contradicted(view, feet, grass):
+        return fields
+    return kept
 
 
 def _lines_contradicted(view: PlacementView, feet: Mapping[PlayerKey, np.ndarray],
@@ -238,15 +250,13 @@ def _lines_contradicted(view: PlacementView, feet: Mapping[PlayerKey, np.ndarray
     return got is not None and got > LINES_CONTRADICTED_SIGMA
 
 
-def _kept_admitted(fields: CalibrationFields, view: PlacementView, contradicted: bool = False
-                   ) -> CalibrationFields | PlayerRefusal:
+def _kept_admitted(fields: CalibrationFields, view: PlacementView) -> CalibrationFields | PlayerRefusal:
     """``fields`` of a player fit, or a refusal (``lines_admitted``) where the view's lines already give a camera that
     clears admission and the fit's camera does not: a placement never takes a view out of the triangulation its
     lines let it join (the players' fit also weighs head points and foot points the lines do not see), unless the
-    players, at a position of the game's rig, tell those lines wrong (``contradicted``, :func:`_lines_contradicted`):
-    then the view leaves the triangulation with a right camera rather than join it with a wrong one."""
+    players tell those lines wrong (:func:`_kept`)."""
     gamma, minimum = view.admission
-    if view.admitted and not contradicted and not jac_admitted(fields.jac[JAC_GAMMAS.index(gamma)], minimum):
+    if view.admitted and not jac_admitted(fields.jac[JAC_GAMMAS.index(gamma)], minimum):
         return PlayerRefusal("lines_admitted", {"jac": fields.jac[JAC_GAMMAS.index(gamma)] or 0.0,
                                                 "admit_jac_min": minimum})
     return fields

@@ -12,7 +12,7 @@ from app.datasets.records import CalibrationFields
 from app.db.models import CalibrationSource, CalibrationStatus
 from app.geometry.calibration.players import PLAYER_REFUSALS, PlayerRefusal
 from app.geometry.jac import JAC_GAMMAS
-from app.services.calibration.players import _kept_admitted, _lines_contradicted, view_of_fields
+from app.services.calibration.players import _kept, _kept_admitted, _lines_contradicted, view_of_fields
 from tests.geometry.test_calibration_players import CENTRE, H, W, as_grass, camera_at, feet_in, players
 
 
@@ -59,5 +59,8 @@ def test_players_at_a_rig_position_overrule_admitted_lines_that_put_them_elsewhe
         assert view.admitted
         assert _lines_contradicted(view, feet, grass) is contradicted
         low = _fields(settings.admit_jac_min - 0.05, settings)
-        got = _kept_admitted(low, view, _lines_contradicted(view, feet, grass))
+        got = _kept(low, view, True, feet, grass)
         assert (got is low) if contradicted else (isinstance(got, PlayerRefusal) and got.code == "lines_admitted")
+        assert isinstance(_kept(low, view, False, feet, grass), PlayerRefusal)  # a full pose never overrules lines
+        admitted_too = _fields(settings.admit_jac_min + 0.02, settings)
+        assert _kept(admitted_too, view, True, feet, grass) is admitted_too
