@@ -260,8 +260,9 @@ def test_players_whose_feet_the_image_cuts_place_a_close_view_by_their_heads() -
 
 
 def test_players_at_a_rig_position_leave_out_lines_they_cannot_be_fitted_with() -> None:
-    """A view whose few lines are labelled on the wrong side (left for right) cannot be fitted with its players: the
-    players alone, at the rig position, give the camera (no line residuals: the lines are left out)."""
+    """A view whose few lines (at most 3 classes) are labelled on the wrong side (left for right) cannot be fitted with
+    its players: the players alone, at the rig position, give the camera (no line residuals: the lines are left
+    out)."""
     for seed in range(3):
         rng = np.random.default_rng(20 + seed)
         truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
@@ -276,6 +277,12 @@ def test_players_at_a_rig_position_leave_out_lines_they_cannot_be_fitted_with() 
         assert ball_error(fit, truth) < 3.0
         right = fit_camera_to_players(feet, as_grass(pts), lines, W, H, RIG)
         assert isinstance(right, PlayerFit) and set(right.residuals_px) == set(lines)  # right lines stay in the fit
+    # A view with 4 or more classes keeps its refusal: its lines alone tell they are mirrored (the doubts' own check).
+    every = visible_model_points(truth, W, H, rng, noise_px=1.0)
+    assert len(every) >= 4
+    mirrored = {c.replace("left", "right"): v for c, v in every.items()}
+    got = fit_camera_to_players(feet, as_grass(pts), mirrored, W, H, RIG)
+    assert isinstance(got, PlayerRefusal) and got.code == "players_misfit"
 
 
 def test_players_disagree_with_a_wrong_camera_not_with_the_true_one() -> None:

@@ -58,6 +58,7 @@ from app.geometry.calibration.uncertainty import (
 )
 from app.geometry.camera import Camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.pitch import MIN_LINE_CLASSES
 
 
 @dataclass(frozen=True)
@@ -541,10 +542,11 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
     if chosen is None:
         refusal = refusal or PlayerRefusal("players_misfit" if fits else "few_players",
                                            {"players": len(keys), "need": s.min_players_free})
-        if lines and refusal.code == "players_misfit":
+        if 0 < len(lines) < MIN_LINE_CLASSES and refusal.code == "players_misfit":
             # The view's few lines and its players cannot be fitted together: the lines may be wrong (a mirrored or
             # mislabelled class), which the players and the game's rig, two sources the view's labels do not touch,
-            # can tell. Their camera without the lines is taken only at a rig position.
+            # can tell. Their camera without the lines is taken only at a rig position. A view with more classes
+            # keeps its refusal: its lines alone say whether they are mirrored (the doubts' mirrored_labels).
             alone = fit_camera_to_players(feet, grass, {}, width, height, rig_centres, s, heads)
             if isinstance(alone, PlayerFit) and alone.rig_index is not None:
                 return alone
