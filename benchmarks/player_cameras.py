@@ -38,6 +38,7 @@ from app.geometry.pair_error import REFERENCE_WIDTH_PX  # noqa: E402  # after th
 SYNTH = SHARED_DIR / "data" / "synthetic"
 SETS: dict[str, Path] = {
     "dev-large": SYNTH / "soccernet-v3-dev-large",
+    "v3-dev": SYNTH / "soccernet-v3-dev",
     **{f"seed-{n}": SYNTH / "doubts-seeds" / f"seed-{n}" for n in range(201, 206)},
     "detector-dev-large": SYNTH / "detector" / "dev-large-unlabelled",
     "detector-seed-204": SYNTH / "detector" / "seed-204-unlabelled",

@@ -16,11 +16,13 @@ from app.geometry.calibration.grass import (
     players_on_grass,
 )
 from app.geometry.calibration.players import (
+    LINES_CONTRADICTED_SIGMA,
     PlayerFit,
     PlayerFitSettings,
     PlayerRefusal,
     _Problem,
     fit_camera_to_players,
+    players_disagreement,
 )
 from app.geometry.calibration.residuals import CameraParametrisation
 from app.geometry.camera import Camera, look_at_rotation
@@ -203,10 +205,11 @@ def heads_in(camera: Camera, grass: dict, noise_px: float = 0.0, rng: np.random.
     return {k: uv[i] for i, k in enumerate(keys)}
 
 
-def test_head_point_is_the_top_centre_of_a_box_whose_player_is_whole() -> None:
+def test_head_point_is_the_top_centre_of_a_box_whose_top_and_sides_are_in_the_image() -> None:
     assert head_pixel((10, 20, 30, 80), W, H).tolist() == [20.0, 20.0]
     assert head_pixel((10, 0, 30, 80), W, H) is None  # head cut off
-    assert head_pixel((10, 20, 30, H - 1), W, H) is None  # feet cut off: no foot point to pair it with
+    assert head_pixel((10, 20, 30, H - 1), W, H).tolist() == [20.0, 20.0]  # feet cut off: the head is still seen
+    assert head_pixel((0, 20, 30, 80), W, H) is None  # half of the player cut off: the centre moves
     up = head_world(np.array([[10.0, 0.0]]), np.array([-50.0, 0.0, -10.0]))[0]
     assert np.allclose(up, [10.0 + HEAD_OFFSET_M, 0.0, -HEAD_HEIGHT_M])  # beyond the player, away from the camera
 
@@ -234,3 +237,77 @@ def test_heads_pin_the_zoom_that_players_close_together_leave_loose() -> None:
         without.append((b.sigma_px, ball_error(b, truth)))
     assert np.median([s for s, _ in with_heads]) < 0.7 * np.median([s for s, _ in without])
     assert max(e for _, e in with_heads) < 6.0
+
+
+def test_players_whose_feet_the_image_cuts_place_a_close_view_by_their_heads() -> None:
+    """A close view shows players without their feet (every box cut by the bottom edge): no foot point, but their head
+    points, the players' grass points from the well-lined views and a rig position fix the camera. 1 px of noise."""
+    for seed in range(4):
+        rng = np.random.default_rng(500 + seed)
+        truth = camera_at(CENTRE, (-35.0, 2.0, -1.0), 3500.0)
+        pts = players(6, rng, spread=6.0)
+        grass = as_grass(pts)
+        heads = heads_in(truth, pts, 1.0, rng)
+        boxes = [("Player team left", k[1], (uv[0] - 20, uv[1], uv[0] + 20, H - 1)) for k, uv in heads.items()]
+        assert all(foot_pixel(b, W, H) is None for _, _, b in boxes)
+        seen = {("Player team left", i): head_pixel(b, W, H) for _, i, b in boxes}
+        fit = fit_camera_to_players({}, grass, {}, W, H, RIG, heads=seen)
+        assert isinstance(fit, PlayerFit), fit
+        assert fit.rig_index == 1 and len(fit.players) == 6
+        assert ball_error(fit, truth) < 6.0
+        assert fit_camera_to_players({}, grass, {}, W, H, RIG) == PlayerRefusal("few_players",
+                                                                               {"players": 0, "need": 3})
+
+
+def test_players_at_a_rig_position_leave_out_lines_they_cannot_be_fitted_with() -> None:
+    """A view whose few lines (at most 3 classes) are labelled on the wrong side (left for right) cannot be fitted with
+    its players: the players alone, at the rig position, give the camera (no line residuals: the lines are left
+    out)."""
+    for seed in range(3):
+        rng = np.random.default_rng(20 + seed)
+        truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+        lines = visible_model_points(truth, W, H, rng, classes=("Big rect. left main", "Small rect. left main"),
+                                     noise_px=1.0)
+        mirrored = {c.replace("left", "right"): v for c, v in lines.items()}
+        pts = players(6, rng)
+        feet = feet_in(truth, pts, 1.0, rng)
+        fit = fit_camera_to_players(feet, as_grass(pts), mirrored, W, H, RIG)
+        assert isinstance(fit, PlayerFit), fit
+        assert fit.rig_index == 1 and fit.residuals_px == {} and fit.line_rms_px is None
+        assert ball_error(fit, truth) < 3.0
+        right = fit_camera_to_players(feet, as_grass(pts), lines, W, H, RIG)
+        assert isinstance(right, PlayerFit) and set(right.residuals_px) == set(lines)  # right lines stay in the fit
+    # A view with 4 or more classes keeps its refusal: its lines alone tell they are mirrored (the doubts' own check).
+    every = visible_model_points(truth, W, H, rng, noise_px=1.0)
+    assert len(every) >= 4
+    mirrored = {c.replace("left", "right"): v for c, v in every.items()}
+    got = fit_camera_to_players(feet, as_grass(pts), mirrored, W, H, RIG)
+    assert isinstance(got, PlayerRefusal) and got.code == "players_misfit"
+
+
+def test_players_disagree_with_a_wrong_camera_not_with_the_true_one() -> None:
+    rng = np.random.default_rng(41)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(8, rng)
+    grass = as_grass(pts)
+    feet = feet_in(truth, pts, 1.0, rng)
+    assert players_disagreement(truth, feet, grass, W, H) < 2.0
+    off = camera_at(CENTRE, (-30.0, 6.0, 0.0), 2600.0)  # looks 6 m aside: its lines' wrong solution
+    assert players_disagreement(off, feet, grass, W, H) > LINES_CONTRADICTED_SIGMA
+    assert players_disagreement(truth, dict(list(feet.items())[:2]), grass, W, H) is None
+
+
+def test_players_in_a_row_are_placed_by_their_heads_not_refused_as_collinear() -> None:
+    """Players standing in one row on the grass have their foot points on one image line, which alone fixes no
+    camera; their head points stand above that line, and with them the rig position's camera is found."""
+    rng = np.random.default_rng(77)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    row = {("Player team left", str(i)): np.array([-42.0 + 3.5 * i, -3.0 + 1.5 * i]) for i in range(5)}
+    grass = as_grass(row)
+    feet = feet_in(truth, row, 0.3, rng)
+    heads = heads_in(truth, row, 0.3, rng)
+    alone = fit_camera_to_players(feet, grass, {}, W, H, RIG)
+    assert isinstance(alone, PlayerRefusal) and alone.code == "collinear_players"
+    fit = fit_camera_to_players(feet, grass, {}, W, H, RIG, heads=heads)
+    assert isinstance(fit, PlayerFit), fit
+    assert fit.rig_index == 1 and ball_error(fit, truth) < 3.0

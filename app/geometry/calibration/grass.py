@@ -44,12 +44,13 @@ def foot_pixel(box: Sequence[float], width: int, height: int, border_px: float =
 
 def head_pixel(box: Sequence[float], width: int, height: int, border_px: float = 2.0) -> np.ndarray | None:
     """The head point of a player's box ``(x1, y1, x2, y2)`` (px): the top centre, or None when the box reaches
-    within ``border_px`` of any edge of a ``width`` x ``height`` image (the player is cut off: its head, or half of it,
-    or its feet, whose point the head is paired with)."""
-    if foot_pixel(box, width, height, border_px) is None:
+    within ``border_px`` of the top, left or right edge of a ``width`` x ``height`` image (the player is cut off: its
+    head, or half of it, which moves the centre). A box the bottom edge cuts keeps its head point: a close view that
+    shows players without their feet still shows where their heads are."""
+    x1, y1, x2, y2 = (float(v) for v in box)
+    if not all(math.isfinite(v) for v in (x1, y1, x2, y2)) or y2 <= y1:
         return None
-    x1, y1, x2, _ = (float(v) for v in box)
-    if y1 <= border_px:
+    if y1 <= border_px or x1 <= border_px or x2 >= width - 1 - border_px:
         return None
     return np.array([(x1 + x2) / 2.0, y1])
 

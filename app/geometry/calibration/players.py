@@ -58,6 +58,7 @@ from app.geometry.calibration.uncertainty import (
 )
 from app.geometry.camera import Camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.pitch import MIN_LINE_CLASSES
 
 
 @dataclass(frozen=True)
@@ -80,8 +81,9 @@ class PlayerFitSettings:
         rig_refined: the rig positions whose starts come closest that are refined (the others cannot win).
         max_sigma_px: largest pixel uncertainty (px@1920) accepted of a point where the play is (the players'
             centre on the grass and 3 m up, :func:`projection_sigma_px`), the players' own uncertainty included.
-        min_spread_px: the foot points must spread at least this far (px@1920, the smaller singular value of
-            their centred pixels over sqrt(n)) off one image line.
+        min_spread_px: the points the fit reads (foot and head points) must spread at least this far (px@1920, the
+            smaller singular value of their centred pixels over sqrt(n)) off one image line: players standing in
+            a row have their feet on one line, but their heads stand above it.
         line_limit_gamma: every fitted line class within this fraction of the image diagonal of its model
             element (as a line fit's ``refuse_gamma``).
         border_px: a box reaching within this many pixels of the image's bottom edge is cut: no foot point.
@@ -183,11 +185,13 @@ def _project(f: float, R: np.ndarray, C: np.ndarray, pp: np.ndarray, world: np.n
 
 @dataclass
 class _Problem:
-    """One view's fit: its foot pixels and grass points, its line observations, the scales, and the head pixels of
-    the players whose box top is in the image. Residual rows: the foot points' (x, y), the lines', the heads'."""
+    """One view's fit: its players' grass points, the foot pixels of those whose feet are in the image, its line
+    observations, the scales, and the head pixels of the players whose box top is in the image (a player whose feet
+    the image's bottom edge cuts is fitted by its head alone). Residual rows: the foot points' (x, y), the lines', the
+    heads'."""
 
-    uv: np.ndarray          # (n, 2) foot pixels
-    world: np.ndarray       # (n, 3) grass points, z = 0
+    uv: np.ndarray          # (f, 2) foot pixels, of the players ``foot_of``
+    world: np.ndarray       # (n, 3) grass points, z = 0, of every player
     lines: FieldLines
     pp: np.ndarray
     width: int
@@ -196,8 +200,12 @@ class _Problem:
     cov_g: np.ndarray       # (n, 2, 2) covariance of each grass point, m^2
     uv_head: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (h, 2) head pixels
     head_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # (h,) their players' indices
+    foot_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # (f,) the foot points' players
 
     def __post_init__(self) -> None:
+        if len(self.foot_of) != len(self.uv):  # not given: every player has its foot point, in order
+            self.foot_of = np.arange(len(self.uv))
+        self.feet_m = self.world[self.foot_of]  # (f, 3) the grass points of the players with a foot point
         self.obs = build_observations(self.lines) if self.lines else None
         if self.obs is not None and self.obs.n_points == 0:
             self.obs = None
@@ -214,13 +222,13 @@ class _Problem:
         Jacobian with respect to the ground point)."""
         f, R, C, _ = param.split(x)
         C = np.asarray(C, float)
-        base = _project(float(f), R, C, self.pp, foot_world(self.world[:, :2], C))
+        base = _project(float(f), R, C, self.pp, foot_world(self.feet_m[:, :2], C))
         J = np.empty((len(self.uv), 2, 2))
         for j in range(2):
-            moved = self.world[:, :2].copy()
+            moved = self.feet_m[:, :2].copy()
             moved[:, j] += 0.01
             J[:, :, j] = (_project(float(f), R, C, self.pp, foot_world(moved, C)) - base) / 0.01
-        cov = np.einsum("nij,njk,nlk->nil", J, self.cov_g, J) + self.sigma_px**2 * np.eye(2)
+        cov = np.einsum("nij,njk,nlk->nil", J, self.cov_g[self.foot_of], J) + self.sigma_px**2 * np.eye(2)
         try:
             self.L = np.linalg.inv(np.linalg.cholesky(cov))
         except np.linalg.LinAlgError:
@@ -253,6 +261,23 @@ class _Problem:
         r = self.rows_batch(np.asarray(x, float)[None], param, whiten=False)[0][:2 * len(self.uv)].reshape(-1, 2)
         return np.linalg.norm(r, axis=1), np.linalg.norm(np.einsum("nij,nj->ni", self.L, r), axis=1)
 
+    def player_errors(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
+        """Each player's distance (px) from its projection, and in its standard deviations (n,): its foot point's
+        (:meth:`pixel_errors`), or its head point's for a player seen without its feet."""
+        px, d = np.full(len(self.world), np.inf), np.full(len(self.world), np.inf)
+        px[self.foot_of], d[self.foot_of] = self.pixel_errors(x, param)
+        alone = self.head_alone()
+        if alone.any():
+            raw = self.rows_batch(np.asarray(x, float)[None], param, whiten=False)[0][-2 * len(self.uv_head):]
+            raw = raw.reshape(-1, 2)[alone]
+            px[self.head_of[alone]] = np.linalg.norm(raw, axis=1)
+            d[self.head_of[alone]] = np.linalg.norm(np.einsum("nij,nj->ni", self.L_head[alone], raw), axis=1)
+        return px, d
+
+    def head_alone(self) -> np.ndarray:
+        """(h,) whether each head point's player has no foot point (its feet cut by the image's bottom edge)."""
+        return ~np.isin(self.head_of, self.foot_of)
+
     def rows(self, x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
         """Every residual (px) of one vector ``x``: the foot points' (x, y) then the lines'."""
         return self.rows_batch(np.asarray(x, float)[None], param)[0]
@@ -263,7 +288,7 @@ class _Problem:
         key = np.asarray(centre, float).tobytes()
         got = self._feet_cache.get(key)
         if got is None:
-            got = self._feet_cache[key] = foot_world(self.world[:, :2], centre) - np.asarray(centre, float)
+            got = self._feet_cache[key] = foot_world(self.feet_m[:, :2], centre) - np.asarray(centre, float)
         return got
 
     def _heads_from(self, centre: np.ndarray) -> np.ndarray:
@@ -286,7 +311,7 @@ class _Problem:
         if param.fixed_centre is not None:
             Xc = np.einsum("bij,nj->bni", R, self._feet_from(param.fixed_centre))
         else:
-            g = self.world[:, :2]
+            g = self.feet_m[:, :2]
             towards = C[:, None, :2] - g[None]
             norm = np.linalg.norm(towards, axis=2, keepdims=True)
             P = np.concatenate([g[None] + FOOT_OFFSET_M * towards / np.where(norm > 1e-9, norm, 1.0),
@@ -371,13 +396,16 @@ def _rig_starts(problem: _Problem, centre: np.ndarray
     """Starting rotations and focal lengths at a fixed ``centre``: for a series of focal lengths, the Wahba rotation
     of the foot points' image rays onto their world directions; the two with the smallest median reprojection error
     (px), and that error."""
-    world = foot_world(problem.world[:, :2], centre)
+    alone = problem.head_alone()
+    world = np.vstack([foot_world(problem.feet_m[:, :2], centre),
+                       head_world(problem.world[problem.head_of[alone], :2], centre)])
+    seen = np.vstack([problem.uv, problem.uv_head[alone]])
     world_dirs = world - centre
     world_dirs /= np.linalg.norm(world_dirs, axis=1, keepdims=True)
     focals = np.geomspace(0.4, 12.0, 20) * problem.width
     # Every focal length at once (the rays, the projections, the medians); only the small SVDs go one by one.
-    cam = np.concatenate([(problem.uv - problem.pp)[None] / focals[:, None, None],
-                          np.ones((len(focals), len(problem.uv), 1))], axis=2)
+    cam = np.concatenate([(seen - problem.pp)[None] / focals[:, None, None],
+                          np.ones((len(focals), len(seen), 1))], axis=2)
     cam /= np.linalg.norm(cam, axis=2, keepdims=True)
     Rs = np.array([wahba_rotation(c, world_dirs) for c in cam])
     Xc = np.einsum("fij,nj->fni", Rs, world - centre)
@@ -385,7 +413,7 @@ def _rig_starts(problem: _Problem, centre: np.ndarray
     bad = z <= 1e-6
     uv = focals[:, None, None] * Xc[..., :2] / np.where(bad, 1.0, z)[..., None] + problem.pp
     uv[bad] = 1e6
-    errors = np.median(np.linalg.norm(uv - problem.uv, axis=2), axis=1)
+    errors = np.median(np.linalg.norm(uv - seen, axis=2), axis=1)
     order = np.argsort(errors, kind="stable")
     out = []
     for j in order[:2]:
@@ -397,7 +425,9 @@ def _rig_starts(problem: _Problem, centre: np.ndarray
 def _free_start(problem: _Problem) -> tuple[CameraParametrisation, np.ndarray] | None:
     """A full pose from the ground homography of the foot points (Zhang's constraints,
     :func:`~.initialisation.camera_from_homography`), None when it gives none."""
-    H, _ = cv2.findHomography(problem.world[:, :2], problem.uv, 0)
+    if len(problem.uv) < 4:
+        return None
+    H, _ = cv2.findHomography(problem.feet_m[:, :2], problem.uv, 0)
     if H is None or not np.all(np.isfinite(H)):
         return None
     got = camera_from_homography(np.asarray(H, float), problem.pp)
@@ -459,20 +489,24 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
         :class:`PlayerFit`, or :class:`PlayerRefusal` with its code and numbers.
     """
     s = settings or PlayerFitSettings()
-    keys = [k for k in feet if k in grass]
+    heads = heads or {}
+    footed = [k for k in feet if k in grass]
+    # A player whose feet the image's bottom edge cuts is still seen: its head point alone places it.
+    keys = footed + [k for k in heads if k in grass and k not in feet]
     if len(keys) < s.min_players_rig:
         return PlayerRefusal("few_players", {"players": len(keys), "need": s.min_players_rig})
     scale = width / REFERENCE_WIDTH_PX
-    uv = np.array([np.asarray(feet[k], float) for k in keys])
+    uv = np.array([np.asarray(feet[k], float) for k in footed]).reshape(-1, 2)
     world = np.array([[grass[k].point_m[0], grass[k].point_m[1], 0.0] for k in keys])
-    spread = float(np.linalg.svd(uv - uv.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(len(keys))
+    head_of = np.array([i for i, k in enumerate(keys) if k in heads], dtype=int)
+    uv_head = np.array([np.asarray(heads[keys[i]], float) for i in head_of]).reshape(-1, 2)
+    seen = np.vstack([uv, uv_head])  # every point the fit reads: the feet and the heads
+    spread = float(np.linalg.svd(seen - seen.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(len(seen))
     if spread < s.min_spread_px * scale:
         return PlayerRefusal("collinear_players", {"spread_px": spread, "limit_px": s.min_spread_px * scale})
-    head_of = np.array([i for i, k in enumerate(keys) if heads is not None and k in heads], dtype=int)
-    uv_head = np.array([np.asarray(heads[keys[i]], float) for i in head_of]).reshape(-1, 2) if heads else None
     problem = _Problem(uv=uv, world=world, lines=dict(lines), pp=principal_point(width, height), width=width,
                        height=height, scale=scale, cov_g=np.array([grass[k].cov_m2 for k in keys], float),
-                       uv_head=uv_head if uv_head is not None else np.zeros((0, 2)), head_of=head_of)
+                       uv_head=uv_head, head_of=head_of, foot_of=np.arange(len(footed)))
     loss_px = s.loss_scale
     fits = _rig_fits(problem, rig_centres, s)
     chosen: _Candidate | None = None
@@ -506,9 +540,47 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
             else:
                 chosen, refusal = cand, None
     if chosen is None:
-        return refusal or PlayerRefusal("players_misfit" if fits else "few_players",
-                                        {"players": len(keys), "need": s.min_players_free})
+        refusal = refusal or PlayerRefusal("players_misfit" if fits else "few_players",
+                                           {"players": len(keys), "need": s.min_players_free})
+        if 0 < len(lines) < MIN_LINE_CLASSES and refusal.code == "players_misfit":
+            # The view's few lines and its players cannot be fitted together: the lines may be wrong (a mirrored or
+            # mislabelled class), which the players and the game's rig, two sources the view's labels do not touch,
+            # can tell. Their camera without the lines is taken only at a rig position. A view with more classes
+            # keeps its refusal: its lines alone say whether they are mirrored (the doubts' mirrored_labels).
+            alone = fit_camera_to_players(feet, grass, {}, width, height, rig_centres, s, heads)
+            if isinstance(alone, PlayerFit) and alone.rig_index is not None:
+                return alone
+        return refusal
     return _accepted(problem, chosen, keys, s)
+
+
+#: Where the players tell a view's own lines wrong: the median, over the players it shares with the well-lined views,
+#: of each foot point's distance from where those views put the player, in its standard deviations
+#: (:func:`players_disagreement`). Chosen on ``soccernet-v3-dev-large`` and ``seed-202``: admitted lines cameras that
+#: place the ball right disagree with their players by at most 10.2 sigma; the wrong ones (50-1,400 px@1920 off the
+#: ball) by 15-120.
+LINES_CONTRADICTED_SIGMA = 15.0
+
+
+def players_disagreement(camera: Camera, feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[PlayerKey, GrassPlayer],
+                         width: int, height: int, min_players: int = 3) -> float | None:
+    """How far a view's ``camera`` puts its players from where the well-calibrated views put them: the median, over
+    the players with a foot point (``feet``, px) in ``grass`` (:func:`~.grass.players_on_grass`), of the foot point's
+    distance from the projection of the player's :func:`~.grass.foot_world` point, in its standard deviations (its
+    pixel noise and its grass point's covariance carried into the view, as the fit whitens it); the camera's lens
+    distortion is left out. None with fewer than ``min_players`` such players."""
+    keys = [k for k in feet if k in grass]
+    if len(keys) < min_players:
+        return None
+    pp = np.array([camera.K[0, 2], camera.K[1, 2]])
+    problem = _Problem(uv=np.array([np.asarray(feet[k], float) for k in keys]),
+                       world=np.array([[grass[k].point_m[0], grass[k].point_m[1], 0.0] for k in keys]), lines={},
+                       pp=pp, width=width, height=height, scale=width / REFERENCE_WIDTH_PX,
+                       cov_g=np.array([grass[k].cov_m2 for k in keys], float))
+    param = CameraParametrisation(principal_point=pp, R0=np.asarray(camera.R, float), fixed_centre=camera.C)
+    x = param.vector(float(camera.K[0, 0]), np.asarray(camera.C, float))
+    problem.rewhiten(x, param)
+    return float(np.median(problem.pixel_errors(x, param)[1]))
 
 
 def _rig_fits(problem: _Problem, rig_centres: Sequence[Sequence[float]], s: PlayerFitSettings) -> list[_Candidate]:
@@ -532,9 +604,9 @@ def _rig_fits(problem: _Problem, rig_centres: Sequence[Sequence[float]], s: Play
 
 def _judge(problem: _Problem, cand: _Candidate, s: PlayerFitSettings) -> PlayerRefusal | None:
     """Refuse a fit whose foot points or lines are far from it."""
-    n = len(problem.uv)
+    n = len(problem.world)
     problem.rewhiten(cand.x, cand.param)
-    _, d = problem.pixel_errors(cand.x, cand.param)
+    _, d = problem.player_errors(cand.x, cand.param)
     inl = d <= s.inlier_sigma
     if inl.sum() < max(s.min_players_rig, math.ceil(s.min_inlier_share * n)):
         return PlayerRefusal("players_misfit", {"inliers": int(inl.sum()), "players": n})
@@ -561,7 +633,7 @@ def _class_worst(camera: Camera, problem: _Problem) -> dict[str, float]:
 def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: PlayerFitSettings
               ) -> PlayerFit | PlayerRefusal:
     """The fit's camera, its uncertainty from the Jacobian of every residual at the solution, and its checks."""
-    n = len(problem.uv)
+    n = len(problem.world)
     param, x = cand.param, cand.x
     # Re-centre the rotation vector at the solution (the uncertainty's angles are taken at w = 0).
     f, R, C, _ = param.split(x)
@@ -569,10 +641,12 @@ def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: Pla
     x = param.vector(float(f), np.asarray(C, float))
     problem.rewhiten(x, param)
     r0 = problem.rows(x, param)
-    d_px, d = problem.pixel_errors(x, param)
+    d_px, d = problem.player_errors(x, param)
     inl = d <= s.inlier_sigma
-    n_lines = len(r0) - 2 * n - 2 * len(problem.head_of)  # the rows: feet, lines, heads
-    keep = np.concatenate([np.repeat(inl, 2), np.ones(n_lines, dtype=bool), np.repeat(inl[problem.head_of], 2)])
+    n_feet = len(problem.uv)
+    n_lines = len(r0) - 2 * n_feet - 2 * len(problem.head_of)  # the rows: feet, lines, heads
+    keep = np.concatenate([np.repeat(inl[problem.foot_of], 2), np.ones(n_lines, dtype=bool),
+                           np.repeat(inl[problem.head_of], 2)])
     J = problem.jacobian(x, param)[1][keep]
     sigma = line_noise(r0[keep], len(x))
     uncertainty = uncertainty_from_jacobian(param, J, sigma, int(keep.sum()))
@@ -591,9 +665,12 @@ def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: Pla
     residuals_px: dict[str, float] = {}
     if problem.obs is not None:
         residuals_px = _class_worst(camera, problem)
-        lr = r0[2 * n:2 * n + n_lines] * problem.line_sigma
+        lr = r0[2 * n_feet:2 * n_feet + n_lines] * problem.line_sigma
         line_rms = float(np.sqrt(np.mean(lr ** 2))) if len(lr) else None
-    used = tuple((keys[i], (float(problem.uv[i, 0]), float(problem.uv[i, 1])),
+    pixel = {int(i): problem.uv[k] for k, i in enumerate(problem.foot_of)}
+    for k, i in enumerate(problem.head_of):
+        pixel.setdefault(int(i), problem.uv_head[k])  # a player seen without its feet: its head point
+    used = tuple((keys[i], (float(pixel[i][0]), float(pixel[i][1])),
                   (float(problem.world[i, 0]), float(problem.world[i, 1]))) for i in range(n) if inl[i])
     return PlayerFit(camera=camera, uncertainty=uncertainty, rig_index=cand.rig_index, players=used,
                      rms_px=float(np.sqrt(np.mean(d_px[inl] ** 2))), residuals_px=residuals_px, line_rms_px=line_rms,

@@ -25,8 +25,14 @@ from app.db.models import CalibrationSource, CalibrationStatus, Frame, FrameRole
 from app.db.types import json_safe
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import frame_jac
-from app.geometry.calibration.grass import PlayerKey, foot_pixel, head_pixel, players_on_grass
-from app.geometry.calibration.players import PlayerFit, PlayerRefusal, fit_camera_to_players
+from app.geometry.calibration.grass import GrassPlayer, PlayerKey, foot_pixel, head_pixel, players_on_grass
+from app.geometry.calibration.players import (
+    LINES_CONTRADICTED_SIGMA,
+    PlayerFit,
+    PlayerRefusal,
+    fit_camera_to_players,
+    players_disagreement,
+)
 from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig
 from app.geometry.camera import Camera
@@ -213,15 +219,42 @@ def place_in_system(views: Sequence[PlacementView], rig: CameraRig) -> dict[int,
         lines = lines_from_json_lists(dict(v.lines))
         got = fit_camera_to_players(feet[i], grass, {c: x for c, x in lines.items() if x}, v.width, v.height,
                                     centres, heads=feet_of(v.players, v.width, v.height, head_pixel))
-        out[i] = (_kept_admitted(fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3), v)
-                  if isinstance(got, PlayerFit) else got)
+        if not isinstance(got, PlayerFit):
+            out[i] = got
+            continue
+        out[i] = _kept(fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3), v, got.rig_index is not None,
+                       feet[i], grass)
     return out
+
+
+def _kept(fields: CalibrationFields, view: PlacementView, at_rig: bool, feet: Mapping[PlayerKey, np.ndarray],
+          grass: Mapping[PlayerKey, GrassPlayer]) -> CalibrationFields | PlayerRefusal:
+    """``fields`` of a player fit as :func:`_kept_admitted` keeps or refuses them, except that a fit at a rig position
+    (``at_rig``) replaces an admitted camera from the view's lines that the players tell wrong
+    (:func:`_lines_contradicted`): then the view leaves the triangulation with a right camera rather than join it
+    with a wrong one. The players' disagreement is measured only when the admission rule refuses."""
+    kept = _kept_admitted(fields, view)
+    if isinstance(kept, PlayerRefusal) and at_rig and _lines_contradicted(view, feet, grass):
+        return fields
+    return kept
+
+
+def _lines_contradicted(view: PlacementView, feet: Mapping[PlayerKey, np.ndarray],
+                        grass: Mapping[PlayerKey, GrassPlayer]) -> bool:
+    """Whether ``view``'s admitted camera from its own lines puts the players it shares with the well-lined views
+    farther from where those views put them than :data:`LINES_CONTRADICTED_SIGMA` (median, in their standard
+    deviations, ``players.players_disagreement``): its few lines are wrong, whatever their JaC."""
+    if not view.admitted or view.camera is None:
+        return False
+    got = players_disagreement(Camera.from_soccernet(dict(view.camera)), feet, grass, view.width, view.height)
+    return got is not None and got > LINES_CONTRADICTED_SIGMA
 
 
 def _kept_admitted(fields: CalibrationFields, view: PlacementView) -> CalibrationFields | PlayerRefusal:
     """``fields`` of a player fit, or a refusal (``lines_admitted``) where the view's lines already give a camera that
     clears admission and the fit's camera does not: a placement never takes a view out of the triangulation its
-    lines let it join (the players' fit also weighs head points and foot points the lines do not see)."""
+    lines let it join (the players' fit also weighs head points and foot points the lines do not see), unless the
+    players tell those lines wrong (:func:`_kept`)."""
     gamma, minimum = view.admission
     if view.admitted and not jac_admitted(fields.jac[JAC_GAMMAS.index(gamma)], minimum):
         return PlayerRefusal("lines_admitted", {"jac": fields.jac[JAC_GAMMAS.index(gamma)] or 0.0,
