@@ -23,7 +23,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, aliased, joinedload
 from sqlalchemy.orm.attributes import set_committed_value
 
-from app.db.models import Doubt, Frame, Prediction, System, Triangulation, TriangulationPair
+from app.db.models import Doubt, Frame, PlayerBox, Prediction, System, Triangulation, TriangulationPair
 from app.db.models.predictions import ranked_predictions
 from app.db.scope import FRAME_ROWS
 
@@ -104,6 +104,20 @@ def load_view_predictions(session: Session, frames: Sequence[Frame], per_frame: 
         found[fid].append(p)
     for f in wanted:
         _hand_over(f, "predictions", found[f.id])
+
+
+def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
+    """Hand each of ``frames`` whose person boxes (``Frame.players``) the session has not loaded its boxes, in one
+    query (the detector's check reads them only on views with predictions: a recomputation without predictions
+    loads none); frames with theirs loaded are left as they are."""
+    wanted = [f for f in frames if sa.inspect(f).persistent and "players" in sa.inspect(f).unloaded]
+    if not wanted:
+        return
+    found: dict[int, list[PlayerBox]] = {f.id: [] for f in wanted}
+    for p in session.scalars(sa.select(PlayerBox).where(PlayerBox.frame_id.in_(found)).order_by(PlayerBox.id)):
+        found[p.frame_id].append(p)
+    for f in wanted:
+        _hand_over(f, "players", found[f.id])
 
 
 def _hand_over(parent: Any, key: str, rows: list[Any]) -> None:
