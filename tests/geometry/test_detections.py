@@ -458,7 +458,7 @@ def player_under(view, head_point, height_m: float = 1.85, width_m: float = 0.5)
     return (float(xc - half), float(top[1]), float(xc + half), float(bottom[1]))
 
 
-def test_a_lone_rays_detection_on_a_players_head_fills_nothing_unless_a_third_view_confirms_it():
+def test_a_lone_rays_detection_on_a_players_head_with_the_ball_in_the_air_fills_nothing_unless_confirmed():
     import dataclasses
 
     plain = only_main_labelled()
@@ -474,6 +474,13 @@ def test_a_lone_rays_detection_on_a_players_head_fills_nothing_unless_a_third_vi
     assert detected(checked(views, {"goal": [head]})) == {}
     # the ball's own detection, away from that person's head and feet, still fills it
     (right,) = detected(checked(views, {"goal": [det("goal", 0.7)]})).values()
+    assert near_truth("goal", right) < 2.0
+    # and so does the ball on the grass over the head of a person farther off: a box that puts the ball on the grass
+    # puts it where main's ray meets the grass
+    ball = det("goal", 0.7)
+    far_person = (ball.centre[0] - 6.0, ball.centre[1] - 2.0, ball.centre[0] + 6.0, ball.centre[1] + 60.0)
+    behind = [dataclasses.replace(v, players=(far_person,)) if v.view_id == "goal" else v for v in plain]
+    (right,) = detected(checked(behind, {"goal": [ball]})).values()
     assert near_truth("goal", right) < 2.0
     # a third view's detection at the head's ball is the second witness: goal is filled (as the head says)
     confirmed = detected(checked(views, {"goal": [head], "corner": [box_at("corner", spot)]}))
