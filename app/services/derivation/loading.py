@@ -56,7 +56,8 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
     """The systems ``ids`` that exist, by id, each with its views (and their one-to-one rows), triangulation and
     pairs, doubts, at most ``predictions`` predictions a view (the best by score; None: none loaded, the relationship
     left unloaded) and the one-to-one relationships ``system_rows`` (e.g. ``(System.review, System.game)``)
-    loaded: five queries per :data:`CHUNK` systems (four without predictions; module docstring)."""
+    loaded: five queries per :data:`CHUNK` systems (four without predictions; module docstring), and a sixth for the
+    person boxes of the views with predictions (:func:`load_view_players`)."""
     out: dict[int, System] = {}
     ids = list(dict.fromkeys(ids))
     systems_q, frames_q, pairs_q, doubts_q, predictions_q = _statements(tuple(r.key for r in system_rows))
@@ -79,6 +80,8 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
             for fs in frames.values():
                 for f in fs:
                     _hand_over(f, "predictions", best[f.id])
+            # the detector's check reads the person boxes of the views with predictions (none at an import)
+            load_view_players(session, [f for fs in frames.values() for f in fs if best[f.id]])
         for sid, system in systems.items():
             _hand_over(system, "frames", frames[sid])
             _hand_over(system, "doubts", doubts[sid])
