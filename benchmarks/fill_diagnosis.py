@@ -72,7 +72,7 @@ def _why_consensus(v: Any, true_dets: Sequence[Any], cons: Any, voters: Sequence
 
 
 _ORDER = ["prefilter", "unsure ray", "unsure view", "play_volume", "epipolar", "rays_meet", "baseline_parallax", "size",
-          "half vote", "third view", "margin", "placed", "explained", "keeps_ball", "views disagree",
+          "half vote", "third view", "margin", "placed", "explained", "head or feet", "keeps_ball", "views disagree",
           "another chosen"]
 
 
@@ -89,6 +89,7 @@ def _why_one_ray(lone: Any, v: Any, true_dets: Sequence[Any], detections: Any, b
         _on_epipolar,
         _placed,
         _sure,
+        _told_from_players,
         meet_or_why,
     )
 
@@ -123,6 +124,8 @@ def _why_one_ray(lone: Any, v: Any, true_dets: Sequence[Any], detections: Any, b
                 whys.append("placed")
             elif not _explained(c[0], sigma, s):
                 whys.append("explained")
+            elif not _told_from_players(c[0], v):
+                whys.append("head or feet")
             else:
                 whys.append("views disagree")
     return "one ray: " + (sorted(whys, key=_ORDER.index)[-1] if whys else "?")
@@ -147,6 +150,7 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
         doubt_settings,
         stored_detections,
         weighed_views,
+        with_players,
     )
     from app.services.derivation.recompute import load_for_recompute
     from app.services.kinds import kind_of
@@ -171,6 +175,7 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
             found = judge_system(views, s, pair_geometry, weighed.weighed)
             found = kind_of(system).judge_doubts(system, found, cams)
             detections = stored_detections(system, settings.max_predictions_per_frame)
+            views = with_players(system, views, detections)
             if detections:
                 found = check_detections(views, found, detections, s, size_tol, pair_geometry, weighed.weighed)
             boxes: dict[Hashable, tuple[np.ndarray, str]] = {}

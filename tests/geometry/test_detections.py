@@ -511,3 +511,44 @@ def test_a_box_at_the_agreed_balls_spot_but_of_another_size_withdraws_the_geomet
     far = [d for d in checked(views, {"corner": [det("corner", 0.99, shift=(0.0, -80.0))]})
            if d.view_id == "corner" and d.kind in LABEL_KINDS]
     assert [d.suggestion["action"] for d in far] == ["snap_box"]
+
+
+def player_under(view, head_point, height_m: float = 1.85, width_m: float = 0.5):
+    """The box (px of ``view``) of a person standing under ``head_point`` (world): from the grass below it to
+    ``height_m`` up, ``width_m`` wide at that depth."""
+    foot = np.array([head_point[0], head_point[1], 0.0])
+    top = project_point(view, np.array([head_point[0], head_point[1], -height_m]))
+    bottom = project_point(view, foot)
+    side = project_point(view, foot + np.array([width_m, 0.0, 0.0]))
+    half = max(abs(float(side[0] - bottom[0])), 4.0) / 2 + abs(float(top[0] - bottom[0])) / 2
+    xc = (top[0] + bottom[0]) / 2
+    return (float(xc - half), float(top[1]), float(xc + half), float(bottom[1]))
+
+
+def test_a_lone_rays_detection_on_a_players_head_with_the_ball_in_the_air_fills_nothing_unless_confirmed():
+    import dataclasses
+
+    plain = only_main_labelled()
+    goal = next(v for v in plain if v.view_id == "goal")
+    spot = head_on_main_ray()
+    head = box_at("goal", spot, score=0.95)  # the detector missed the ball in goal and boxed the head on main's ray
+    person = player_under(goal, spot)
+    assert person[1] < head.centre[1] < person[1] + 0.15 * (person[3] - person[1])  # the head, near the box's top
+    views = [dataclasses.replace(v, players=(person,)) if v.view_id == "goal" else v for v in plain]
+    # without the person's box the rays and the sizes cannot reject it: a fill 10 px and more off the ball
+    assert near_truth("goal", detected(checked(plain, {"goal": [head]}))["goal"]) > 10.0
+    # on a person's head it is what a ball detector's false boxes look like: nothing fills goal
+    assert detected(checked(views, {"goal": [head]})) == {}
+    # the ball's own detection, away from that person's head and feet, still fills it
+    (right,) = detected(checked(views, {"goal": [det("goal", 0.7)]})).values()
+    assert near_truth("goal", right) < 2.0
+    # and so does the ball on the grass over the head of a person farther off: a box that puts the ball on the grass
+    # puts it where main's ray meets the grass
+    ball = det("goal", 0.7)
+    far_person = (ball.centre[0] - 6.0, ball.centre[1] - 2.0, ball.centre[0] + 6.0, ball.centre[1] + 60.0)
+    behind = [dataclasses.replace(v, players=(far_person,)) if v.view_id == "goal" else v for v in plain]
+    (right,) = detected(checked(behind, {"goal": [ball]})).values()
+    assert near_truth("goal", right) < 2.0
+    # a third view's detection at the head's ball is the second witness: goal is filled (as the head says)
+    confirmed = detected(checked(views, {"goal": [head], "corner": [box_at("corner", spot)]}))
+    assert "goal" in confirmed

@@ -253,8 +253,9 @@ class PlayerBox(Base):
     """A person a dataset boxed in a frame besides the ball (SoccerNet-v3 ``bboxes``: a player, a goalkeeper, a
     referee), with its class and ID, which name the same person across the views of a system. Written by the import
     as they came (the release keeps the file's ``bboxes`` themselves, ``Frame.release``); read by the calibration of
-    the views the lines cannot calibrate (``app.services.calibration.players``). Box ``x1, y1, x2, y2`` in pixels of
-    the frame's image; ``ident`` None when the file gave no ID."""
+    the views the lines cannot calibrate (``app.services.calibration.players``) and, on views with predictions, by the
+    detector's check (a lone ray's box on a head or feet, ``app.geometry.doubts.pairings._told_from_players``). Box
+    ``x1, y1, x2, y2`` in pixels of the frame's image; ``ident`` None when the file gave no ID."""
 
     __tablename__ = "player_boxes"
     __table_args__ = (sa.Index("ix_player_boxes_frame_id", "frame_id"),)

@@ -107,6 +107,8 @@ class DoubtView:
         suggested: the ball label was made from a doubt's suggestion and no person has placed it: it lies
             where the other views put the ball by construction, so it votes for nothing (info doubt
             ``suggested_label``) and the view is not called missing either.
+        players: the people the dataset boxed in the view (players, goalkeepers, referees), each ``(x1, y1, x2, y2)``
+            px of its image; given where a detector's predictions are checked (empty otherwise).
     """
 
     view_id: Hashable
@@ -128,6 +130,7 @@ class DoubtView:
     player_assisted: bool = False
     uncertainty: dict[str, Any] | None = None
     suggested: bool = False
+    players: tuple[tuple[float, float, float, float], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -281,6 +281,47 @@ def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -
     return True
 
 
+#: The share of a person's box height, at its top and at its bottom, where a ball detector's false boxes sit: a head
+#: (about an eighth of a standing person's height) and the feet. A detection whose centre lies there, within the box's
+#: width (and a ball's radius beyond its top or bottom edge), is "on a person's head or feet".
+HEAD_FEET = 0.15
+#: The most (m) a ball's centre lies above the grass for it to be "on the grass": the allowance the play volume gives
+#: below it (``app.geometry.pitch.PLAY_VOLUME``) and the spread a one-ray ball may have (:data:`MAX_SPREAD_M`).
+ON_GRASS_M = 0.5
+
+
+def _on_head_or_feet(view: DoubtView, det: Detection) -> bool:
+    """Whether ``det``'s centre lies on a head or the feet of a person boxed in ``view`` (``view.players``, px): within
+    the person's box across, and within :data:`HEAD_FEET` of its height below its top or above its bottom edge (or a
+    ball's radius, half the detection's box, beyond that edge)."""
+    (cx, cy), r = det.centre, max(det.box[2] - det.box[0], det.box[3] - det.box[1]) / 2
+    for x1, y1, x2, y2 in view.players:
+        h = y2 - y1
+        if h > 0 and x1 <= cx <= x2 and (y1 - r <= cy <= y1 + HEAD_FEET * h or y2 - HEAD_FEET * h <= cy <= y2 + r):
+            return True
+    return False
+
+
+def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
+    """Whether a lone labelled ray's pairing can be told from a false box on a person: its detection in ``view`` lies
+    elsewhere than a person's head or feet (:func:`_on_head_or_feet`), or the ball it makes lies on the grass (its
+    centre at most :data:`ON_GRASS_M` above it; SoccerNet world, z down), or a third view confirms that ball.
+
+    With one labelled ray the detection alone fixes the depth along it, and nothing of the two views tells the ball
+    from a false box that happens to lie on the ray's band at a ball's size. Such boxes are not spread evenly: a ball
+    detector's false boxes sit mostly on players' heads and feet (60 % of them, the shared detector sets' README),
+    and the players crowd where the ball is, which is where the ray's band crosses the view. A box there that puts the
+    ball on the grass puts it where the labelled ray meets the grass, where a ball in play on the ground is, whatever
+    the box shows (a ball at a player's feet; a near ball over a far player's head); one that puts it in the air rests
+    its height on that box alone, which a head or feet on the band explain as well. On eleven detector sets
+    (``benchmarks/DETECTOR.md``, 2026-11-27, branch safety) the one-ray pairings chosen on a head or feet with the
+    ball in the air were four false boxes (balls 2-12 m off; three filled, each making a system's 3D ball wrong) to
+    three balls; with the ball on the grass, about thirty balls and two false boxes (0.7 and 1.0 m off).
+    A third view's label or detection at the ball (:func:`_third_views`) is the second witness such a box lacks."""
+    (det,) = p.detections().values()
+    return bool(p.confirmed) or -float(p.ball[2]) <= ON_GRASS_M or not _on_head_or_feet(view, det)
+
+
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
     """A view whose camera may make a ball with one other ray: its pixel sigma (px at 1920 width) within tau. A camera
     that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the judge
@@ -386,7 +427,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
         met[v.view_id] = pairings
         c = _chosen([p for p in pairings if not _ray_missed(lone, p, thirds, detections, tol, s)], s)
-        if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s):
+        if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s) and _told_from_players(c[0], v):
             chosen[v.view_id] = c
     # a view whose every box on the labelled ray (at a ball's size where the rays meet) lies elsewhere than a chosen
     # ball disputes it, whatever refused its own pairings: each is as much evidence of where on the ray the ball is

@@ -32,7 +32,7 @@ from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
 from app.geometry.weighting import calibration_weight, centre_of, label_centre
 from app.services.derivation.cameras import stored_camera
-from app.services.derivation.loading import load_view_predictions
+from app.services.derivation.loading import load_view_players, load_view_predictions
 from app.services.derivation.rows import put_values, replace_rows
 from app.services.kinds import kind_of
 from app.services.wording.doubt_words import doubt_message
@@ -139,8 +139,8 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     found = kind_of(system).judge_doubts(system, found, cameras)
     detections = stored_detections(system, settings.max_predictions_per_frame)
     if detections:  # a detector's predictions, checked against the other views (none: the doubts as they were)
-        found = check_detections(weighed.views, found, detections, judged, settings.doubt_detection_size_tolerance,
-                                 geometry, weighed.weighed)
+        found = check_detections(with_players(system, weighed.views, detections), found, detections, judged,
+                                 settings.doubt_detection_size_tolerance, geometry, weighed.weighed)
     names = {f.id: f.name for f in system.frames}
     replace_rows(system.doubts, Doubt, [  # in place: a doubt the edit leaves as it was writes nothing
         dict(frame_id=d.view_id, kind=d.kind, accuses_label=d.accuses_label, message=doubt_message(d, names),
@@ -167,6 +167,18 @@ def stored_detections(system: System, per_frame: int) -> dict[int, list[Detectio
         for p in sorted(f.predictions, key=lambda p: (-p.score, p.id)):
             out.setdefault(f.id, []).append(Detection(p.source, float(p.score), (p.x1, p.y1, p.x2, p.y2)))
     return out
+
+
+def with_players(system: System, views: list[DoubtView], detections: dict[int, list[Detection]]) -> list[DoubtView]:
+    """``views`` (of ``system``), each view with predictions given its person boxes (``Frame.players``, read in one
+    query where the session has not loaded them): the detector's check reads them there (a lone ray's detection on a
+    player's head or feet, ``app.geometry.doubts.pairings._told_from_players``)."""
+    frames = {f.id: f for f in system.frames if f.id in detections}
+    session = object_session(system)
+    if session is not None:
+        load_view_players(session, list(frames.values()))
+    return [dataclasses.replace(v, players=tuple((p.x1, p.y1, p.x2, p.y2) for p in frames[v.view_id].players))
+            if v.view_id in frames else v for v in views]
 
 
 def distance_to_others(views: list[DoubtView], me: DoubtView, s: DoubtSettings,

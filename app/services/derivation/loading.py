@@ -23,7 +23,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, aliased, joinedload
 from sqlalchemy.orm.attributes import set_committed_value
 
-from app.db.models import Doubt, Frame, Prediction, System, Triangulation, TriangulationPair
+from app.db.models import Doubt, Frame, PlayerBox, Prediction, System, Triangulation, TriangulationPair
 from app.db.models.predictions import ranked_predictions
 from app.db.scope import FRAME_ROWS
 
@@ -56,7 +56,8 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
     """The systems ``ids`` that exist, by id, each with its views (and their one-to-one rows), triangulation and
     pairs, doubts, at most ``predictions`` predictions a view (the best by score; None: none loaded, the relationship
     left unloaded) and the one-to-one relationships ``system_rows`` (e.g. ``(System.review, System.game)``)
-    loaded: five queries per :data:`CHUNK` systems (four without predictions; module docstring)."""
+    loaded: five queries per :data:`CHUNK` systems (four without predictions; module docstring), and a sixth for the
+    person boxes of the views with predictions (:func:`load_view_players`)."""
     out: dict[int, System] = {}
     ids = list(dict.fromkeys(ids))
     systems_q, frames_q, pairs_q, doubts_q, predictions_q = _statements(tuple(r.key for r in system_rows))
@@ -79,6 +80,8 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
             for fs in frames.values():
                 for f in fs:
                     _hand_over(f, "predictions", best[f.id])
+            # the detector's check reads the person boxes of the views with predictions (none at an import)
+            load_view_players(session, [f for fs in frames.values() for f in fs if best[f.id]])
         for sid, system in systems.items():
             _hand_over(system, "frames", frames[sid])
             _hand_over(system, "doubts", doubts[sid])
@@ -104,6 +107,20 @@ def load_view_predictions(session: Session, frames: Sequence[Frame], per_frame: 
         found[fid].append(p)
     for f in wanted:
         _hand_over(f, "predictions", found[f.id])
+
+
+def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
+    """Hand each of ``frames`` whose person boxes (``Frame.players``) the session has not loaded its boxes, in one
+    query (the detector's check reads them only on views with predictions: a recomputation without predictions
+    loads none); frames with theirs loaded are left as they are."""
+    wanted = [f for f in frames if sa.inspect(f).persistent and "players" in sa.inspect(f).unloaded]
+    if not wanted:
+        return
+    found: dict[int, list[PlayerBox]] = {f.id: [] for f in wanted}
+    for p in session.scalars(sa.select(PlayerBox).where(PlayerBox.frame_id.in_(found)).order_by(PlayerBox.id)):
+        found[p.frame_id].append(p)
+    for f in wanted:
+        _hand_over(f, "players", found[f.id])
 
 
 def _hand_over(parent: Any, key: str, rows: list[Any]) -> None:

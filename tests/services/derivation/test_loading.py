@@ -59,3 +59,36 @@ def test_load_systems_reads_what_the_lazy_loads_read_in_five_queries(shared_dir:
         again = load_systems(session, [ids[0]], predictions=16)[ids[0]]
     assert again is system and pending in again.doubts and len(again.doubts) == len(lazy[ids[0]][5]) + 1
     session.rollback()
+
+
+def test_the_person_boxes_of_views_with_predictions_are_loaded_with_them(shared_dir: Path,
+                                                                         fresh_session_factory) -> None:
+    from app.db.models import Frame, Prediction
+
+    session = fresh_session_factory("dev")
+    settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
+    import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
+    frame = session.scalars(sa.select(Frame).where(Frame.players.any()).order_by(Frame.id)).first()
+    assert frame is not None
+    sid, fid, boxes = frame.system_id, frame.id, sorted((p.x1, p.y1, p.x2, p.y2) for p in frame.players)
+    session.add(Prediction(frame_id=fid, source="det", score=0.5, x1=10.0, y1=10.0, x2=20.0, y2=20.0))
+    session.commit()
+    session.expunge_all()
+
+    statements: list[str] = []
+
+    def count(_conn, _cursor, statement, *_rest) -> None:
+        statements.append(statement)
+
+    engine = session.get_bind()
+    sa.event.listen(engine, "before_cursor_execute", count)
+    try:
+        system = load_systems(session, [sid], predictions=16)[sid]
+        # the five lists, and the person boxes of the one view with predictions
+        assert [s.split()[0] for s in statements if s != "BEGIN"] == ["SELECT"] * 6
+        statements.clear()
+        (with_predictions,) = [f for f in system.frames if f.predictions]
+        # an edit's recomputation reads them after changing objects: they must be there without a query
+        assert sorted((p.x1, p.y1, p.x2, p.y2) for p in with_predictions.players) == boxes and statements == []
+    finally:
+        sa.event.remove(engine, "before_cursor_execute", count)
