@@ -33,7 +33,7 @@ from app.geometry.calibration.players import (
     fit_camera_to_players,
     players_disagreement,
 )
-from app.geometry.calibration.result import PLAYERS_FLAG, RIG_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG, RIG_FLAG
 from app.geometry.calibration.rig import CameraRig
 from app.geometry.camera import Camera
 from app.geometry.jac import JAC_GAMMAS, jac_admitted
@@ -200,7 +200,9 @@ def place_in_system(views: Sequence[PlacementView], rig: CameraRig) -> dict[int,
     Returns:
         per weak view's index in ``views``, the calibration to store or why the players place none.
     """
-    weak = [i for i, v in enumerate(views) if is_weak(v)]
+    # a view whose lines are flagged mirrored is left to the mirror check's one-key fix, which recalibrates it from
+    # its own lines: a camera the players placed would drop the flag and hide the slip from the reviewer
+    weak = [i for i, v in enumerate(views) if is_weak(v) and MIRROR_FLAG not in v.flags]
     if not weak:
         return {}
     anchors = [i for i, v in enumerate(views) if is_anchor(v)]
