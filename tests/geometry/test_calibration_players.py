@@ -1,5 +1,5 @@
-"""Cameras from players' foot points (``app.geometry.calibration.grass``, ``players``): synthetic cameras of known
-truth."""
+"""Cameras from players' foot points (``app.geometry.calibration.grass``, ``players``, ``player_problem``): synthetic
+cameras of known truth."""
 from __future__ import annotations
 
 import numpy as np
@@ -15,12 +15,12 @@ from app.geometry.calibration.grass import (
     head_world,
     players_on_grass,
 )
+from app.geometry.calibration.player_problem import PlayerProblem
 from app.geometry.calibration.players import (
     LINES_CONTRADICTED_SIGMA,
     PlayerFit,
     PlayerFitSettings,
     PlayerRefusal,
-    _Problem,
     fit_camera_to_players,
     players_disagreement,
 )
@@ -100,8 +100,9 @@ def test_a_rig_position_s_residuals_are_the_free_pose_s_at_that_centre() -> None
     pts = players(6, rng)
     feet = feet_in(truth, pts, 1.5, rng)
     keys = list(pts)
-    problem = _Problem(uv=np.array([feet[k] for k in keys]), world=np.array([[*pts[k], 0.0] for k in keys]), lines={},
-                       pp=np.asarray(PP), width=W, height=H, scale=1.0, cov_g=np.repeat(np.eye(2)[None] * 0.01, 6, 0))
+    problem = PlayerProblem(uv=np.array([feet[k] for k in keys]), world=np.array([[*pts[k], 0.0] for k in keys]),
+                            lines={}, pp=np.asarray(PP), width=W, height=H, scale=1.0,
+                            cov_g=np.repeat(np.eye(2)[None] * 0.01, 6, 0))
     rig = CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R, fixed_centre=CENTRE)
     free = CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R)
     X = np.array([[2600.0, 0.0, 0.0, 0.0], [2500.0, 0.01, -0.02, 0.005]])
@@ -126,10 +127,10 @@ def test_the_compiled_rows_are_the_camera_s_projections_of_the_feet_and_heads_wh
     foot_of, head_of = np.arange(5), np.array([0, 2, 3, 6])
     uv_head = truth.project(head_world(g[head_of], truth.C))[0] + rng.normal(0, 1.5, (4, 2))
     lines = visible_model_points(truth, W, H, rng, per_class=6)
-    problem = _Problem(uv=np.array([feet[keys[i]] for i in foot_of]), world=np.column_stack([g, np.zeros(7)]),
-                       lines=lines, pp=np.asarray(PP), width=W, height=H, scale=1.0,
-                       cov_g=np.repeat(np.eye(2)[None] * 0.02, 7, 0) * np.arange(1, 8)[:, None, None],
-                       uv_head=uv_head, head_of=head_of, foot_of=foot_of)
+    problem = PlayerProblem(uv=np.array([feet[keys[i]] for i in foot_of]), world=np.column_stack([g, np.zeros(7)]),
+                            lines=lines, pp=np.asarray(PP), width=W, height=H, scale=1.0,
+                            cov_g=np.repeat(np.eye(2)[None] * 0.02, 7, 0) * np.arange(1, 8)[:, None, None],
+                            uv_head=uv_head, head_of=head_of, foot_of=foot_of)
     assert problem.obs is not None  # the lines' rows sit between the feet's and the heads'
     assert problem.head_alone().tolist() == [False, False, False, True]
     for param, X in ((CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R, fixed_centre=CENTRE),
