@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from scale import ImportFigures, run_import, subset_tree  # noqa: E402  # benchmarks/ on the path above
+import scale  # noqa: E402  # benchmarks/ on the path above
+from scale import ImportFigures, run_import, subset_tree  # noqa: E402
 
 
 def order(pairs: int) -> list[str]:
@@ -44,12 +45,14 @@ def main_cpu(fig: ImportFigures) -> float:
 
 
 def run_in(checkout: Path, tree: Path, db: Path, workers: int | None) -> ImportFigures:
-    """:func:`scale.run_import` with ``checkout``'s code (its ``PYTHONPATH``)."""
-    before = os.environ.get("PYTHONPATH")
+    """:func:`scale.run_import` with ``checkout``'s code (its ``PYTHONPATH``, run from its folder)."""
+    before, root = os.environ.get("PYTHONPATH"), scale.ROOT
     os.environ["PYTHONPATH"] = str(checkout)
+    scale.ROOT = Path(checkout)
     try:
         return run_import(tree, db, workers)
     finally:
+        scale.ROOT = root
         if before is None:
             os.environ.pop("PYTHONPATH", None)
         else:
