@@ -224,7 +224,7 @@ class PlayerProblem:
         return ~np.isin(self.head_of, self.foot_of)
 
     def rows(self, x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
-        """Every residual (px) of one vector ``x``: the foot points' (x, y) then the lines'."""
+        """Every whitened residual of one vector ``x``: the foot points' (x, y), the lines', the head points'."""
         return self.rows_batch(np.asarray(x, float)[None], param)[0]
 
     def _feet_from(self, centre: np.ndarray) -> np.ndarray:
@@ -247,9 +247,10 @@ class PlayerProblem:
         return got
 
     def rows_batch(self, X: np.ndarray, param: CameraParametrisation, whiten: bool = True) -> np.ndarray:
-        """:meth:`rows` of the vectors ``X`` (b, k) at once -> (b, 2 n + m + 2 h): whitened (the foot and head points'
-        by :meth:`rewhiten`, the lines' by their click noise), or in px. The players' rows in one compiled call
-        (:func:`_player_rows`), the lines' in another: a fit's time was the calls, not their arithmetic."""
+        """:meth:`rows` of the vectors ``X`` (b, k) at once -> (b, 2 f + m + 2 h) (f foot points, m line rows, h head
+        points): whitened (the foot and head points' by :meth:`rewhiten`, the lines' by their click noise), or in px.
+        The players' rows in one compiled call (:func:`_player_rows`), the lines' in another: a fit's time was the
+        calls, not their arithmetic."""
         X = np.ascontiguousarray(X, dtype=float)
         n, h = len(self.uv), len(self.uv_head)
         fixed = param.fixed_centre is not None
