@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import scale  # noqa: E402  # benchmarks/ on the path above
-from scale import ImportFigures, run_import, subset_tree  # noqa: E402
+from scale import ImportFigures, run_import, subset_tree  # noqa: E402  # benchmarks/ on the path above
 
 
 def order(pairs: int) -> list[str]:
