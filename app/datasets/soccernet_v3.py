@@ -151,18 +151,23 @@ def v3_players(item: Mapping[str, Any]) -> tuple[tuple[str, str | None, tuple[fl
     """
     boxes = item.get("bboxes")
     out: list[tuple[str, str | None, tuple[float, float, float, float]]] = []
+    isfinite = math.isfinite
+    # Plain statements, no generator per box: a game has thousands of boxes, read in the import's main process.
     for b in boxes if isinstance(boxes, list) else ():
-        if not isinstance(b, Mapping) or not isinstance(b.get("class"), str) or b["class"] == BALL_CLASS:
+        if not isinstance(b, Mapping):
+            continue
+        cls = b.get("class")
+        if not isinstance(cls, str) or cls == BALL_CLASS:
             continue
         pts, ident = b.get("points"), b.get("ID")
         if not isinstance(pts, Mapping) or not isinstance(ident, (str, int, type(None))) or isinstance(ident, bool):
             continue
         try:
-            x1, y1, x2, y2 = (float(pts[k]) for k in ("x1", "y1", "x2", "y2"))
+            x1, y1, x2, y2 = float(pts["x1"]), float(pts["y1"]), float(pts["x2"]), float(pts["y2"])
         except (KeyError, TypeError, ValueError):
             continue
-        if all(math.isfinite(v) for v in (x1, y1, x2, y2)) and x2 > x1 and y2 > y1:
-            out.append((b["class"][:200], None if ident is None else str(ident)[:200], (x1, y1, x2, y2)))
+        if isfinite(x1) and isfinite(y1) and isfinite(x2) and isfinite(y2) and x2 > x1 and y2 > y1:
+            out.append((cls[:200], None if ident is None else str(ident)[:200], (x1, y1, x2, y2)))
     return tuple(out)
 
 

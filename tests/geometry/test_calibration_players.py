@@ -1,5 +1,5 @@
-"""Cameras from players' foot points (``app.geometry.calibration.grass``, ``players``): synthetic cameras of known
-truth."""
+"""Cameras from players' foot points (``app.geometry.calibration.grass``, ``players``, ``player_problem``): synthetic
+cameras of known truth."""
 from __future__ import annotations
 
 import numpy as np
@@ -15,12 +15,12 @@ from app.geometry.calibration.grass import (
     head_world,
     players_on_grass,
 )
+from app.geometry.calibration.player_problem import PlayerProblem
 from app.geometry.calibration.players import (
     LINES_CONTRADICTED_SIGMA,
     PlayerFit,
     PlayerFitSettings,
     PlayerRefusal,
-    _Problem,
     fit_camera_to_players,
     players_disagreement,
 )
@@ -100,8 +100,9 @@ def test_a_rig_position_s_residuals_are_the_free_pose_s_at_that_centre() -> None
     pts = players(6, rng)
     feet = feet_in(truth, pts, 1.5, rng)
     keys = list(pts)
-    problem = _Problem(uv=np.array([feet[k] for k in keys]), world=np.array([[*pts[k], 0.0] for k in keys]), lines={},
-                       pp=np.asarray(PP), width=W, height=H, scale=1.0, cov_g=np.repeat(np.eye(2)[None] * 0.01, 6, 0))
+    problem = PlayerProblem(uv=np.array([feet[k] for k in keys]), world=np.array([[*pts[k], 0.0] for k in keys]),
+                            lines={}, pp=np.asarray(PP), width=W, height=H, scale=1.0,
+                            cov_g=np.repeat(np.eye(2)[None] * 0.01, 6, 0))
     rig = CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R, fixed_centre=CENTRE)
     free = CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R)
     X = np.array([[2600.0, 0.0, 0.0, 0.0], [2500.0, 0.01, -0.02, 0.005]])
@@ -110,6 +111,44 @@ def test_a_rig_position_s_residuals_are_the_free_pose_s_at_that_centre() -> None
         assert np.allclose(at_rig, problem.rows_batch(np.column_stack([X, np.tile(CENTRE, (2, 1))]), free),
                            rtol=1e-9, atol=1e-9)
     assert np.allclose(problem.jacobian(X[1], rig)[0], at_rig[1], rtol=0, atol=0)
+
+
+def test_the_compiled_rows_are_the_camera_s_projections_of_the_feet_and_heads_whitened() -> None:
+    """The players' rows (one compiled call for a batch of vectors) are, per vector, the camera's projections of the
+    foot and head points' world points (``foot_world``, ``head_world`` from its centre) less their pixels, whitened
+    by each point's 2x2 whitening, in the order feet, lines, heads: at a rig position and for a full pose; a player
+    whose feet are cut has a head row only (here the last two players: one with its head, one without)."""
+    rng = np.random.default_rng(5)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(7, rng)
+    feet = feet_in(truth, pts, 1.5, rng)
+    keys = list(pts)
+    g = np.array([pts[k] for k in keys])
+    foot_of, head_of = np.arange(5), np.array([0, 2, 3, 6])
+    uv_head = truth.project(head_world(g[head_of], truth.C))[0] + rng.normal(0, 1.5, (4, 2))
+    lines = visible_model_points(truth, W, H, rng, per_class=6)
+    problem = PlayerProblem(uv=np.array([feet[keys[i]] for i in foot_of]), world=np.column_stack([g, np.zeros(7)]),
+                            lines=lines, pp=np.asarray(PP), width=W, height=H, scale=1.0,
+                            cov_g=np.repeat(np.eye(2)[None] * 0.02, 7, 0) * np.arange(1, 8)[:, None, None],
+                            uv_head=uv_head, head_of=head_of, foot_of=foot_of)
+    assert problem.obs is not None  # the lines' rows sit between the feet's and the heads'
+    assert problem.head_alone().tolist() == [False, False, False, True]
+    for param, X in ((CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R, fixed_centre=CENTRE),
+                      np.array([[2600.0, 0.0, 0.0, 0.0], [2500.0, 0.01, -0.02, 0.005]])),
+                     (CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R),
+                      np.array([[2600.0, 0.0, 0.0, 0.0, *CENTRE], [2500.0, 0.01, -0.02, 0.005, -68.0, 6.0, -17.0]]))):
+        problem.rewhiten(X[1], param)
+        L = np.concatenate([problem.L, problem.L_head])
+        assert L.shape == (9, 2, 2) and not np.allclose(L, L[:1])  # each point's own whitening
+        for whiten in (True, False):
+            rows = problem.rows_batch(X, param, whiten)
+            for b in range(2):
+                cam = param.camera(X[b])
+                world = np.vstack([foot_world(g[foot_of], cam.C), head_world(g[head_of], cam.C)])
+                d = cam.project(world)[0] - np.vstack([problem.uv, uv_head])
+                want = np.einsum("nij,nj->ni", L, d) if whiten else d
+                got = np.vstack([rows[b, :10].reshape(-1, 2), rows[b, -8:].reshape(-1, 2)])
+                assert np.allclose(got, want, rtol=1e-9, atol=1e-7)
 
 
 def test_a_rig_position_camera_is_recovered_to_sub_pixel_from_noise_free_players() -> None:

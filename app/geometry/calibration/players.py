@@ -14,7 +14,8 @@ when enough players are seen. The top of each whole box (the head point, :func:`
 player's height above where it stands) joins the fit too: players standing close together fix the camera's direction
 but leave its zoom loose, which their boxes' heights in the image pin. Whatever field lines the view has join the same
 least squares with their own residuals (:func:`app.geometry.calibration.residuals.residuals`). The ball is never an
-input.
+input. The least squares itself (the rows, each point's whitening, the compiled robust fit) is
+:class:`~.player_problem.PlayerProblem`'s; this module chooses the starts, the rig position and what is accepted.
 
 The camera carries its uncertainty from the fit (:func:`~.uncertainty.uncertainty_from_jacobian`: the
 Gauss-Newton covariance of the parameters from the Jacobian of every residual, Hartley and Zisserman result 5.11),
@@ -35,20 +36,10 @@ import cv2
 import numpy as np
 
 from app.geometry.annotations import FieldLines, image_diagonal
-from app.geometry.calibration.grass import (
-    FOOT_OFFSET_M,
-    FOOT_SIGMA_PX,
-    HEAD_HEIGHT_M,
-    HEAD_OFFSET_M,
-    HEAD_SIGMA_M,
-    GrassPlayer,
-    PlayerKey,
-    foot_world,
-    head_world,
-)
+from app.geometry.calibration.grass import GrassPlayer, PlayerKey, foot_world, head_world
 from app.geometry.calibration.initialisation import camera_from_homography, wahba_rotation
-from app.geometry.calibration.observations import build_observations
-from app.geometry.calibration.residuals import CameraParametrisation, residuals
+from app.geometry.calibration.player_problem import PlayerProblem, projection_sigma_px
+from app.geometry.calibration.residuals import CameraParametrisation
 from app.geometry.calibration.result import principal_point
 from app.geometry.calibration.uncertainty import (
     CalibrationUncertainty,
@@ -144,254 +135,7 @@ class PlayerRefusal:
     numbers: Mapping[str, float] = field(default_factory=dict)
 
 
-def projection_sigma_px(problem_rows: "_Problem", param: CameraParametrisation, x: np.ndarray, cov: np.ndarray,
-                        world: np.ndarray) -> float:
-    """The largest pixel uncertainty (px of the view) of the world points ``world`` (n, 3) under a fit's parameter
-    covariance ``cov`` (k, k): ``sqrt(trace(J cov J^T))`` per point with ``J`` the (2, k) Jacobian of its projection
-    (first-order propagation, Hartley and Zisserman result 5.6); ``inf`` when ``cov`` is not finite."""
-    if not np.all(np.isfinite(cov)):
-        return math.inf
-    steps = _steps(x, param)
-    f, R, C, _ = param.split(x)
-    uv0 = _project(float(f), R, np.asarray(C, float), problem_rows.pp, world)
-    cols = []
-    for j in range(len(x)):
-        fj, Rj, Cj, _ = param.split(x + np.eye(len(x))[j] * steps[j])
-        cols.append((_project(float(fj), Rj, np.asarray(Cj, float), problem_rows.pp, world) - uv0) / steps[j])
-    J = np.stack(cols, axis=-1)  # (n, 2, k)
-    var = np.einsum("nik,kl,nil->n", J, cov, J)
-    return float(np.sqrt(np.max(var))) if len(var) else math.inf
-
-
-def _steps(x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
-    """Forward-difference steps of a parameter vector: focal (relative), rotation vector (rad), centre (m)."""
-    steps = np.full(len(x), 1e-7)
-    steps[0] = 1e-6 * x[0]
-    if param.fixed_centre is None:
-        steps[4:7] = 1e-5
-    return steps
-
-
-def _project(f: float, R: np.ndarray, C: np.ndarray, pp: np.ndarray, world: np.ndarray) -> np.ndarray:
-    """(n, 2) pixels of the ground points ``world`` (n, 3); a point behind the camera lands far away."""
-    Xc = (world - C) @ R.T
-    z = Xc[:, 2]
-    bad = z <= 1e-6
-    z = np.where(bad, 1.0, z)
-    uv = f * Xc[:, :2] / z[:, None] + pp
-    uv[bad] = 1e6
-    return uv
-
-
-@dataclass
-class _Problem:
-    """One view's fit: its players' grass points, the foot pixels of those whose feet are in the image, its line
-    observations, the scales, and the head pixels of the players whose box top is in the image (a player whose feet
-    the image's bottom edge cuts is fitted by its head alone). Residual rows: the foot points' (x, y), the lines', the
-    heads'."""
-
-    uv: np.ndarray          # (f, 2) foot pixels, of the players ``foot_of``
-    world: np.ndarray       # (n, 3) grass points, z = 0, of every player
-    lines: FieldLines
-    pp: np.ndarray
-    width: int
-    height: int
-    scale: float            # px of the view per px@1920
-    cov_g: np.ndarray       # (n, 2, 2) covariance of each grass point, m^2
-    uv_head: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (h, 2) head pixels
-    head_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # (h,) their players' indices
-    foot_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # (f,) the foot points' players
-
-    def __post_init__(self) -> None:
-        if len(self.foot_of) != len(self.uv):  # not given: every player has its foot point, in order
-            self.foot_of = np.arange(len(self.uv))
-        self.feet_m = self.world[self.foot_of]  # (f, 3) the grass points of the players with a foot point
-        self.obs = build_observations(self.lines) if self.lines else None
-        if self.obs is not None and self.obs.n_points == 0:
-            self.obs = None
-        self.sigma_px = FOOT_SIGMA_PX * self.scale
-        self.line_sigma = max(1.0, self.scale)  # annotation clicks (:data:`.uncertainty.MIN_LINE_NOISE_PX` at 1920)
-        self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
-        self.L_head = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv_head), axis=0)
-        self._feet_cache: dict[bytes, np.ndarray] = {}
-        self._heads_cache: dict[bytes, np.ndarray] = {}
-
-    def rewhiten(self, x: np.ndarray, param: CameraParametrisation) -> None:
-        """Whiten each foot point's residual by its covariance under the camera ``x``: its own pixel noise and its
-        grass point's covariance carried into this view (``J cov_g J^T + sigma^2 I``, ``J`` the projection's
-        Jacobian with respect to the ground point)."""
-        f, R, C, _ = param.split(x)
-        C = np.asarray(C, float)
-        base = _project(float(f), R, C, self.pp, foot_world(self.feet_m[:, :2], C))
-        J = np.empty((len(self.uv), 2, 2))
-        for j in range(2):
-            moved = self.feet_m[:, :2].copy()
-            moved[:, j] += 0.01
-            J[:, :, j] = (_project(float(f), R, C, self.pp, foot_world(moved, C)) - base) / 0.01
-        cov = np.einsum("nij,njk,nlk->nil", J, self.cov_g[self.foot_of], J) + self.sigma_px**2 * np.eye(2)
-        try:
-            self.L = np.linalg.inv(np.linalg.cholesky(cov))
-        except np.linalg.LinAlgError:
-            self.L = np.repeat(np.eye(2)[None] / self.sigma_px, len(self.uv), axis=0)
-        if len(self.uv_head):
-            self.L_head = self._head_whitening(float(f), R, C)
-
-    def _head_whitening(self, f: float, R: np.ndarray, C: np.ndarray) -> np.ndarray:
-        """(h, 2, 2) whitening of the head points: their pixel noise, their grass point's covariance and the box
-        top's height (:data:`HEAD_SIGMA_M`) carried into this view."""
-        g = self.world[self.head_of, :2]
-        base = _project(f, R, C, self.pp, head_world(g, C))
-        J = np.empty((len(g), 2, 3))
-        for j in range(2):
-            moved = g.copy()
-            moved[:, j] += 0.01
-            J[:, :, j] = (_project(f, R, C, self.pp, head_world(moved, C)) - base) / 0.01
-        J[:, :, 2] = (_project(f, R, C, self.pp, head_world(g, C, HEAD_HEIGHT_M + 0.01)) - base) / 0.01
-        cov_p = np.zeros((len(g), 3, 3))
-        cov_p[:, :2, :2] = self.cov_g[self.head_of]
-        cov_p[:, 2, 2] = HEAD_SIGMA_M**2
-        cov = np.einsum("nij,njk,nlk->nil", J, cov_p, J) + self.sigma_px**2 * np.eye(2)
-        try:
-            return np.asarray(np.linalg.inv(np.linalg.cholesky(cov)))
-        except np.linalg.LinAlgError:
-            return np.repeat(np.eye(2)[None] / self.sigma_px, len(g), axis=0)
-
-    def pixel_errors(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
-        """Each foot point's distance (px) from its player's projection, and in its standard deviations."""
-        r = self.rows_batch(np.asarray(x, float)[None], param, whiten=False)[0][:2 * len(self.uv)].reshape(-1, 2)
-        return np.linalg.norm(r, axis=1), np.linalg.norm(np.einsum("nij,nj->ni", self.L, r), axis=1)
-
-    def player_errors(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
-        """Each player's distance (px) from its projection, and in its standard deviations (n,): its foot point's
-        (:meth:`pixel_errors`), or its head point's for a player seen without its feet."""
-        px, d = np.full(len(self.world), np.inf), np.full(len(self.world), np.inf)
-        px[self.foot_of], d[self.foot_of] = self.pixel_errors(x, param)
-        alone = self.head_alone()
-        if alone.any():
-            raw = self.rows_batch(np.asarray(x, float)[None], param, whiten=False)[0][-2 * len(self.uv_head):]
-            raw = raw.reshape(-1, 2)[alone]
-            px[self.head_of[alone]] = np.linalg.norm(raw, axis=1)
-            d[self.head_of[alone]] = np.linalg.norm(np.einsum("nij,nj->ni", self.L_head[alone], raw), axis=1)
-        return px, d
-
-    def head_alone(self) -> np.ndarray:
-        """(h,) whether each head point's player has no foot point (its feet cut by the image's bottom edge)."""
-        return ~np.isin(self.head_of, self.foot_of)
-
-    def rows(self, x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
-        """Every residual (px) of one vector ``x``: the foot points' (x, y) then the lines'."""
-        return self.rows_batch(np.asarray(x, float)[None], param)[0]
-
-    def _feet_from(self, centre: np.ndarray) -> np.ndarray:
-        """The foot points' world points (:func:`foot_world`) less a fixed ``centre`` (3,), (n, 3) m: at a rig
-        position they do not move with the parameters, so each position's are made once."""
-        key = np.asarray(centre, float).tobytes()
-        got = self._feet_cache.get(key)
-        if got is None:
-            got = self._feet_cache[key] = foot_world(self.feet_m[:, :2], centre) - np.asarray(centre, float)
-        return got
-
-    def _heads_from(self, centre: np.ndarray) -> np.ndarray:
-        """The head points' world points (:func:`head_world`) less a fixed ``centre`` (3,), (h, 3) m, made once per
-        rig position as :meth:`_feet_from`."""
-        key = np.asarray(centre, float).tobytes()
-        got = self._heads_cache.get(key)
-        if got is None:
-            got = self._heads_cache[key] = (head_world(self.world[self.head_of, :2], centre)
-                                            - np.asarray(centre, float))
-        return got
-
-    def rows_batch(self, X: np.ndarray, param: CameraParametrisation, whiten: bool = True) -> np.ndarray:
-        """:meth:`rows` of the vectors ``X`` (b, k) at once -> (b, 2 n + m) (the lines' in one compiled call):
-        whitened (the foot points' by :meth:`rewhiten`, the lines' by their click noise), or in px."""
-        f, R, C, _ = param.split(X)
-        f = np.asarray(f, float).reshape(-1)
-        R = np.asarray(R, float).reshape(-1, 3, 3)
-        C = np.asarray(C, float).reshape(-1, 3)
-        if param.fixed_centre is not None:
-            Xc = np.einsum("bij,nj->bni", R, self._feet_from(param.fixed_centre))
-        else:
-            g = self.feet_m[:, :2]
-            towards = C[:, None, :2] - g[None]
-            norm = np.linalg.norm(towards, axis=2, keepdims=True)
-            P = np.concatenate([g[None] + FOOT_OFFSET_M * towards / np.where(norm > 1e-9, norm, 1.0),
-                                np.zeros(towards.shape[:2] + (1,))], axis=2)
-            Xc = np.einsum("bij,bnj->bni", R, P - C[:, None, :])
-        z = Xc[..., 2]
-        bad = z <= 1e-6
-        uv = f[:, None, None] * Xc[..., :2] / np.where(bad, 1.0, z)[..., None] + self.pp
-        uv[bad] = 1e6
-        d = uv - self.uv[None]
-        if whiten:
-            d = np.einsum("nij,bnj->bni", self.L, d)
-        r = d.reshape(len(X), -1)
-        if self.obs is not None:
-            lr = residuals(np.ascontiguousarray(X), self.obs, param).reshape(len(X), -1)
-            r = np.concatenate([r, lr / self.line_sigma if whiten else lr], axis=1)
-        if len(self.uv_head):
-            if param.fixed_centre is not None:
-                Hc = np.einsum("bij,nj->bni", R, self._heads_from(param.fixed_centre))
-            else:
-                g = self.world[self.head_of, :2]
-                away = g[None] - C[:, None, :2]
-                norm = np.linalg.norm(away, axis=2, keepdims=True)
-                P = np.concatenate([g[None] + HEAD_OFFSET_M * away / np.where(norm > 1e-9, norm, 1.0),
-                                    np.full(away.shape[:2] + (1,), -HEAD_HEIGHT_M)], axis=2)
-                Hc = np.einsum("bij,bnj->bni", R, P - C[:, None, :])
-            zh = Hc[..., 2]
-            bad_h = zh <= 1e-6  # a head behind the camera lands far away, as a foot point does
-            uvh = f[:, None, None] * Hc[..., :2] / np.where(bad_h, 1.0, zh)[..., None] + self.pp
-            uvh[bad_h] = 1e6
-            dh = uvh - self.uv_head[None]
-            if whiten:
-                dh = np.einsum("nij,bnj->bni", self.L_head, dh)
-            r = np.concatenate([r, dh.reshape(len(X), -1)], axis=1)
-        return r
-
-    def jacobian(self, x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
-        """The residuals (m,) at ``x`` and their forward-difference Jacobian (m, k), in one batched evaluation."""
-        steps = _steps(x, param)
-        X = np.vstack([x, x + np.diag(steps)])
-        rr = self.rows_batch(X, param)
-        return rr[0], ((rr[1:] - rr[0]) / steps[:, None]).T
-
-    def fit(self, param: CameraParametrisation, x0: np.ndarray, loss_px: float,
-            iterations: int = 30) -> tuple[np.ndarray, float]:
-        """Robust Levenberg-Marquardt from ``x0`` (iteratively reweighted, soft-L1 loss of scale ``loss_px``, as
-        ``scipy.optimize.least_squares(loss="soft_l1")`` defines it): the vector and its robust cost."""
-        def cost_of(r: np.ndarray) -> float:
-            z = (r / loss_px) ** 2
-            return float(0.5 * loss_px**2 * np.sum(2.0 * (np.sqrt(1.0 + z) - 1.0)))
-
-        x = np.asarray(x0, float).copy()
-        r, J = self.jacobian(x, param)
-        cost, lam = cost_of(r), 1e-3
-        for _ in range(iterations):
-            w = 1.0 / np.sqrt(1.0 + (r / loss_px) ** 2)  # the soft-L1 loss's weights (IRLS)
-            A = (J * w[:, None]).T @ J
-            gvec = (J * w[:, None]).T @ r
-            try:
-                dx = -np.linalg.solve(A + lam * np.diag(np.maximum(np.diag(A), 1e-12)), gvec)
-            except np.linalg.LinAlgError:
-                break
-            # The trial step and its Jacobian in one batched evaluation: nearly every step is taken, and one call
-            # of k + 1 rows costs about what one row does (the time is the call, not the rows).
-            r_new, J_new = self.jacobian(x + dx, param)
-            new = cost_of(r_new)
-            if np.isfinite(new) and new < cost:
-                small = cost - new < 1e-9 * max(cost, 1e-12) or np.linalg.norm(dx) < 1e-10 * (np.linalg.norm(x) + 1e-10)
-                x, cost, lam = x + dx, new, max(lam / 3.0, 1e-9)
-                if small:
-                    break
-                r, J = r_new, J_new
-            else:
-                lam *= 4.0
-                if lam > 1e8:
-                    break
-        return x, cost
-
-
-def _rig_starts(problem: _Problem, centre: np.ndarray
+def _rig_starts(problem: PlayerProblem, centre: np.ndarray
                 ) -> tuple[float, list[tuple[CameraParametrisation, np.ndarray]]]:
     """Starting rotations and focal lengths at a fixed ``centre``: for a series of focal lengths, the Wahba rotation
     of the foot points' image rays onto their world directions; the two with the smallest median reprojection error
@@ -422,7 +166,7 @@ def _rig_starts(problem: _Problem, centre: np.ndarray
     return float(errors[order[0]]), out
 
 
-def _free_start(problem: _Problem) -> tuple[CameraParametrisation, np.ndarray] | None:
+def _free_start(problem: PlayerProblem) -> tuple[CameraParametrisation, np.ndarray] | None:
     """A full pose from the ground homography of the foot points (Zhang's constraints,
     :func:`~.initialisation.camera_from_homography`), None when it gives none."""
     if len(problem.uv) < 4:
@@ -446,7 +190,7 @@ class _Candidate:
     rig_index: int | None
 
 
-def _best(problem: _Problem, starts: list[tuple[CameraParametrisation, np.ndarray]], loss: float,
+def _best(problem: PlayerProblem, starts: list[tuple[CameraParametrisation, np.ndarray]], loss: float,
           rig_index: int | None) -> _Candidate | None:
     """The best of the robust fits from ``starts``: each fitted with the foot points whitened at its start, then
     again whitened at its solution (the whitening depends on the camera)."""
@@ -464,6 +208,39 @@ def _best(problem: _Problem, starts: list[tuple[CameraParametrisation, np.ndarra
         if best is None or cost < best.cost:
             best = _Candidate(param, x, cost, rig_index)
     return best
+
+
+def _at_rig(problem: PlayerProblem, fits: list[_Candidate], rig_centres: Sequence[Sequence[float]],
+            s: PlayerFitSettings) -> _Candidate | PlayerRefusal:
+    """The best rig fit (``fits``, lowest cost first, :func:`_rig_fits`) when it passes :func:`_judge` and every
+    position elsewhere (beyond ``rig_same_m``) costs at least ``rig_margin`` times as much; else why not."""
+    best = fits[0]
+    verdict = _judge(problem, best, s)
+    if isinstance(verdict, PlayerRefusal):
+        return verdict
+    centres = {c.rig_index: np.asarray(rig_centres[c.rig_index or 0], dtype=np.float64) for c in fits}
+    here = centres[best.rig_index]
+    rivals = [c for c in fits[1:] if float(np.linalg.norm(centres[c.rig_index] - here)) > s.rig_same_m]
+    if rivals and rivals[0].cost < s.rig_margin * best.cost:
+        return PlayerRefusal("rig_ambiguous", {"cost": best.cost, "second_cost": rivals[0].cost})
+    return best
+
+
+def _free_pose(problem: PlayerProblem, fits: list[_Candidate], s: PlayerFitSettings
+               ) -> _Candidate | PlayerRefusal | None:
+    """A full pose (7 unknowns): the best robust fit from the ground homography's start (:func:`_free_start`) and from
+    the two best rig fits with their centre freed (a camera near, not at, a rig position), if it passes
+    :func:`_judge` (else why not); None without a start or a fit."""
+    free_starts = [start] if (start := _free_start(problem)) is not None else []
+    for fitted in fits[:2]:
+        f, R, C, _ = fitted.param.split(fitted.x)
+        free = CameraParametrisation(principal_point=problem.pp, R0=np.asarray(R))
+        free_starts.append((free, free.vector(float(f), np.asarray(C, float))))
+    cand = _best(problem, free_starts, s.loss_scale, None) if free_starts else None
+    if cand is None:
+        return None
+    verdict = _judge(problem, cand, s)
+    return verdict if isinstance(verdict, PlayerRefusal) else cand
 
 
 def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[PlayerKey, GrassPlayer],
@@ -504,41 +281,19 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
     spread = float(np.linalg.svd(seen - seen.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(len(seen))
     if spread < s.min_spread_px * scale:
         return PlayerRefusal("collinear_players", {"spread_px": spread, "limit_px": s.min_spread_px * scale})
-    problem = _Problem(uv=uv, world=world, lines=dict(lines), pp=principal_point(width, height), width=width,
-                       height=height, scale=scale, cov_g=np.array([grass[k].cov_m2 for k in keys], float),
-                       uv_head=uv_head, head_of=head_of, foot_of=np.arange(len(footed)))
-    loss_px = s.loss_scale
+    problem = PlayerProblem(uv=uv, world=world, lines=dict(lines), pp=principal_point(width, height), width=width,
+                            height=height, scale=scale, cov_g=np.array([grass[k].cov_m2 for k in keys], float),
+                            uv_head=uv_head, head_of=head_of, foot_of=np.arange(len(footed)))
     fits = _rig_fits(problem, rig_centres, s)
-    chosen: _Candidate | None = None
-    refusal: PlayerRefusal | None = None
-    if fits:
-        best = fits[0]
-        verdict = _judge(problem, best, s)
-        if isinstance(verdict, PlayerRefusal):
-            refusal = verdict
-        else:
-            centres = {c.rig_index: np.asarray(rig_centres[c.rig_index or 0], dtype=np.float64) for c in fits}
-            here = centres[best.rig_index]
-            rivals = [c for c in fits[1:] if float(np.linalg.norm(centres[c.rig_index] - here)) > s.rig_same_m]
-            if rivals and rivals[0].cost < s.rig_margin * best.cost:
-                refusal = PlayerRefusal("rig_ambiguous", {"cost": best.cost, "second_cost": rivals[0].cost})
-            else:
-                chosen = best
+    at_rig = _at_rig(problem, fits, rig_centres, s) if fits else None
+    chosen = at_rig if isinstance(at_rig, _Candidate) else None
+    refusal = at_rig if isinstance(at_rig, PlayerRefusal) else None
     if chosen is None and len(keys) >= s.min_players_free:
-        # A full pose from the ground homography, and from the best rig fits with their centre freed (a camera
-        # near, not at, a rig position).
-        free_starts = [start] if (start := _free_start(problem)) is not None else []
-        for fitted in fits[:2]:
-            f, R, C, _ = fitted.param.split(fitted.x)
-            free = CameraParametrisation(principal_point=problem.pp, R0=np.asarray(R))
-            free_starts.append((free, free.vector(float(f), np.asarray(C, float))))
-        cand = _best(problem, free_starts, loss_px, None) if free_starts else None
-        if cand is not None:
-            verdict = _judge(problem, cand, s)
-            if isinstance(verdict, PlayerRefusal):
-                refusal = refusal or verdict
-            else:
-                chosen, refusal = cand, None
+        free = _free_pose(problem, fits, s)
+        if isinstance(free, _Candidate):
+            chosen, refusal = free, None
+        elif free is not None:
+            refusal = refusal or free
     if chosen is None:
         refusal = refusal or PlayerRefusal("players_misfit" if fits else "few_players",
                                            {"players": len(keys), "need": s.min_players_free})
@@ -573,17 +328,17 @@ def players_disagreement(camera: Camera, feet: Mapping[PlayerKey, np.ndarray], g
     if len(keys) < min_players:
         return None
     pp = np.array([camera.K[0, 2], camera.K[1, 2]])
-    problem = _Problem(uv=np.array([np.asarray(feet[k], float) for k in keys]),
-                       world=np.array([[grass[k].point_m[0], grass[k].point_m[1], 0.0] for k in keys]), lines={},
-                       pp=pp, width=width, height=height, scale=width / REFERENCE_WIDTH_PX,
-                       cov_g=np.array([grass[k].cov_m2 for k in keys], float))
+    problem = PlayerProblem(uv=np.array([np.asarray(feet[k], float) for k in keys]),
+                            world=np.array([[grass[k].point_m[0], grass[k].point_m[1], 0.0] for k in keys]), lines={},
+                            pp=pp, width=width, height=height, scale=width / REFERENCE_WIDTH_PX,
+                            cov_g=np.array([grass[k].cov_m2 for k in keys], float))
     param = CameraParametrisation(principal_point=pp, R0=np.asarray(camera.R, float), fixed_centre=camera.C)
     x = param.vector(float(camera.K[0, 0]), np.asarray(camera.C, float))
     problem.rewhiten(x, param)
     return float(np.median(problem.pixel_errors(x, param)[1]))
 
 
-def _rig_fits(problem: _Problem, rig_centres: Sequence[Sequence[float]], s: PlayerFitSettings) -> list[_Candidate]:
+def _rig_fits(problem: PlayerProblem, rig_centres: Sequence[Sequence[float]], s: PlayerFitSettings) -> list[_Candidate]:
     """The view's camera fitted at the game's rig positions (m, world, z down), lowest cost first: every position's
     starts are cheap (a Wahba rotation per focal length); only the closest are refined (the best and its rivals)."""
     ranked = []
@@ -602,7 +357,7 @@ def _rig_fits(problem: _Problem, rig_centres: Sequence[Sequence[float]], s: Play
     fits.sort(key=lambda c: c.cost)
     return fits
 
-def _judge(problem: _Problem, cand: _Candidate, s: PlayerFitSettings) -> PlayerRefusal | None:
+def _judge(problem: PlayerProblem, cand: _Candidate, s: PlayerFitSettings) -> PlayerRefusal | None:
     """Refuse a fit whose foot points or lines are far from it."""
     n = len(problem.world)
     problem.rewhiten(cand.x, cand.param)
@@ -622,7 +377,7 @@ def _judge(problem: _Problem, cand: _Candidate, s: PlayerFitSettings) -> PlayerR
     return None
 
 
-def _class_worst(camera: Camera, problem: _Problem) -> dict[str, float]:
+def _class_worst(camera: Camera, problem: PlayerProblem) -> dict[str, float]:
     from app.geometry.calibration.starts import class_residuals  # the line fit's own per-class residuals
 
     assert problem.obs is not None
@@ -630,7 +385,7 @@ def _class_worst(camera: Camera, problem: _Problem) -> dict[str, float]:
     return {c: float(v) for c, v in per_class.items()}
 
 
-def _accepted(problem: _Problem, cand: _Candidate, keys: list[PlayerKey], s: PlayerFitSettings
+def _accepted(problem: PlayerProblem, cand: _Candidate, keys: list[PlayerKey], s: PlayerFitSettings
               ) -> PlayerFit | PlayerRefusal:
     """The fit's camera, its uncertainty from the Jacobian of every residual at the solution, and its checks."""
     n = len(problem.world)

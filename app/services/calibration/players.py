@@ -352,8 +352,8 @@ def store_players(session: Session, frames: list[tuple[Frame, tuple[PlayerRow, .
     stored = [f.id for f, _, was_stored in frames if was_stored]
     if stored:
         session.execute(sa.delete(PlayerBox).where(PlayerBox.frame_id.in_(stored)))
-    rows = [{"frame_id": f.id, "cls": cls, "ident": ident, "x1": b[0], "y1": b[1], "x2": b[2], "y2": b[3]}
-            for f, players, _ in frames for cls, ident, b in players]
+    rows = [{"frame_id": frame_id, "cls": cls, "ident": ident, "x1": b[0], "y1": b[1], "x2": b[2], "y2": b[3]}
+            for frame_id, players in [(f.id, players) for f, players, _ in frames] for cls, ident, b in players]
     if rows:
         session.execute(sa.insert(PlayerBox), rows)
     for f, _, _ in frames:  # written past the ORM: read again when next asked for
