@@ -1,13 +1,16 @@
 """Compiling the calibration's numba kernels ahead of use (an image build, a fresh checkout's set-up): by
 calibrating a synthetic frame, so that every kernel the solver (:mod:`.solver`) runs for a frame's fit
-(:mod:`.frame`) is compiled or loaded from numba's on-disk cache. Sits above both: the solver never imports its
-callers.
+(:mod:`.frame`) is compiled or loaded from numba's on-disk cache, and by fitting a synthetic view to its players
+(:mod:`.players`, whose least squares run compiled in :mod:`.player_problem`). Sits above them: the solvers never
+import their callers.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from app.geometry.calibration.frame import calibrate_frame
+from app.geometry.calibration.grass import foot_world, players_on_grass
+from app.geometry.calibration.players import fit_camera_to_players
 from app.geometry.calibration.result import CalibrationPrior
 from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.pitch import sample_pitch_polylines
@@ -29,3 +32,22 @@ def compile_kernels() -> None:
             lines[cls] = [uv[inside][:: max(1, int(inside.sum()) // 12)]]
     calibrate_frame(lines, 960, 540)
     calibrate_frame(lines, 960, 540, prior=CalibrationPrior(centre_m=(0.0, 62.0, -18.0)))
+    _fit_players(camera)
+
+
+def _fit_players(anchor: Camera) -> None:
+    """One players' fit of a synthetic view (eight players seen by ``anchor`` and by a second view high behind the
+    left goal), at a rig position and free: the kernels of :mod:`.player_problem` compiled or loaded."""
+    grass = {("Player", str(i)): np.array([-30.0 + 3.0 * i, -10.0 + 2.5 * (i % 4)]) for i in range(8)}
+    view = Camera(K=np.array([[1500.0, 0.0, 959.5], [0.0, 1500.0, 539.5], [0.0, 0.0, 1.0]]),
+                  R=look_at_rotation(np.array([-70.0, 5.0, -18.0]), np.array([-20.0, -5.0, 0.0])),
+                  C=np.array([-70.0, 5.0, -18.0]), radial=np.zeros(6))
+
+    def feet(camera: Camera) -> dict[tuple[str, str], np.ndarray]:
+        keys = list(grass)
+        uv, _ = camera.project(foot_world(np.array([grass[k] for k in keys]), camera.C))
+        return {k: uv[i] for i, k in enumerate(keys)}
+
+    on_grass = players_on_grass([(anchor, feet(anchor))])
+    fit_camera_to_players(feet(view), on_grass, {}, 1920, 1080, [tuple(view.C)])
+    fit_camera_to_players(feet(view), on_grass, {}, 1920, 1080)
