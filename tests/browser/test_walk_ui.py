@@ -349,7 +349,10 @@ def test_a_dragged_box_and_a_confirmed_snap_leave_the_views_where_they_were(page
     page.wait_for_timeout(100)
     page.screenshot(path=str(artifacts / "walk/drag-released-1366x768.png"))
     after = _frame_boxes(page)
-    assert after[k] == before[k], ("the frame moved under the pointer when the drag was released", before, after)
+    # the browser's scroll anchoring keeps the frame where it was to within a few pixels (the node it anchors to is
+    # not the frame itself; Chromium 156 leaves it 2 px off): still under the pointer, far from a bar's height
+    assert after[k][0] == before[k][0] and abs(after[k][1] - before[k][1]) <= 4, \
+        ("the frame moved under the pointer when the drag was released", before, after)
     assert [x for x, _ in after] == [x for x, _ in before], ("a card changed column", before, after)
 
     # snap it back to where the other views agree, confirm: the doubt clears, no card moves
