@@ -3,9 +3,12 @@ pairs and doubts in four queries, the same rows in the same order as the relatio
 relation the session holds loaded left as it is. The synthetic SoccerNet-v3 dev set (40 systems)."""
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 import sqlalchemy as sa
+from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import Doubt, System
@@ -22,17 +25,17 @@ def _shape(system: System) -> tuple:
             [d.id for d in system.doubts])
 
 
-def test_load_systems_reads_what_the_lazy_loads_read_in_five_queries(shared_dir: Path, fresh_session_factory) -> None:
+def _dev_set(shared_dir: Path, fresh_session_factory) -> Session:
+    """A fresh database holding the synthetic SoccerNet-v3 dev set as imported."""
     session = fresh_session_factory("dev")
     settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
     import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
-    ids = session.scalars(sa.select(System.id).order_by(System.id)).all()
-    assert len(ids) == 40
-    session.expunge_all()
-    lazy = {sid: _shape(session.get(System, sid)) for sid in ids}  # one lazy load per relation
-    assert sum(len(s[5]) for s in lazy.values()) > 0 and all(s[4] is not None for s in lazy.values())
-    session.expunge_all()
+    return session
 
+
+@contextmanager
+def _statements(session: Session) -> Iterator[list[str]]:
+    """The SQL statements the session's engine runs inside the block, in order."""
     statements: list[str] = []
 
     def count(_conn, _cursor, statement, *_rest) -> None:
@@ -41,13 +44,26 @@ def test_load_systems_reads_what_the_lazy_loads_read_in_five_queries(shared_dir:
     engine = session.get_bind()
     sa.event.listen(engine, "before_cursor_execute", count)
     try:
+        yield statements
+    finally:
+        sa.event.remove(engine, "before_cursor_execute", count)
+
+
+def test_load_systems_reads_what_the_lazy_loads_read_in_five_queries(shared_dir: Path, fresh_session_factory) -> None:
+    session = _dev_set(shared_dir, fresh_session_factory)
+    ids = session.scalars(sa.select(System.id).order_by(System.id)).all()
+    assert len(ids) == 40
+    session.expunge_all()
+    lazy = {sid: _shape(session.get(System, sid)) for sid in ids}  # one lazy load per relation
+    assert sum(len(s[5]) for s in lazy.values()) > 0 and all(s[4] is not None for s in lazy.values())
+    session.expunge_all()
+
+    with _statements(session) as statements:
         loaded = load_systems(session, [*reversed(ids), 999_999], (System.review, System.game), predictions=16)
         assert [s.split()[0] for s in statements] == ["SELECT"] * 5  # one per list (predictions too), any count
         statements.clear()
         assert {sid: _shape(s) for sid, s in loaded.items()} == lazy
         assert statements == []  # everything read above was loaded
-    finally:
-        sa.event.remove(engine, "before_cursor_execute", count)
     assert set(loaded) == set(ids)  # an id that names no system is left out
 
     # a list the session holds loaded is left as it is (a pending doubt stays in it)
@@ -65,9 +81,7 @@ def test_the_person_boxes_of_views_with_predictions_are_loaded_with_them(shared_
                                                                          fresh_session_factory) -> None:
     from app.db.models import Frame, Prediction
 
-    session = fresh_session_factory("dev")
-    settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1)
-    import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
+    session = _dev_set(shared_dir, fresh_session_factory)
     frame = session.scalars(sa.select(Frame).where(Frame.players.any()).order_by(Frame.id)).first()
     assert frame is not None
     sid, fid, boxes = frame.system_id, frame.id, sorted((p.x1, p.y1, p.x2, p.y2) for p in frame.players)
@@ -75,14 +89,7 @@ def test_the_person_boxes_of_views_with_predictions_are_loaded_with_them(shared_
     session.commit()
     session.expunge_all()
 
-    statements: list[str] = []
-
-    def count(_conn, _cursor, statement, *_rest) -> None:
-        statements.append(statement)
-
-    engine = session.get_bind()
-    sa.event.listen(engine, "before_cursor_execute", count)
-    try:
+    with _statements(session) as statements:
         system = load_systems(session, [sid], predictions=16)[sid]
         # the five lists, and the person boxes of the one view with predictions
         assert [s.split()[0] for s in statements if s != "BEGIN"] == ["SELECT"] * 6
@@ -90,5 +97,3 @@ def test_the_person_boxes_of_views_with_predictions_are_loaded_with_them(shared_
         (with_predictions,) = [f for f in system.frames if f.predictions]
         # an edit's recomputation reads them after changing objects: they must be there without a query
         assert sorted((p.x1, p.y1, p.x2, p.y2) for p in with_predictions.players) == boxes and statements == []
-    finally:
-        sa.event.remove(engine, "before_cursor_execute", count)
