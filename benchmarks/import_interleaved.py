@@ -17,7 +17,6 @@ N games (copied under ``--work-dir``, as ``scale.py --games`` does).
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import sys
 import tempfile
@@ -27,7 +26,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-import scale  # noqa: E402  # benchmarks/ on the path above
 from scale import ImportFigures, run_import, subset_tree  # noqa: E402  # benchmarks/ on the path above
 
 
@@ -46,17 +44,7 @@ def main_cpu(fig: ImportFigures) -> float:
 
 def run_in(checkout: Path, tree: Path, db: Path, workers: int | None) -> ImportFigures:
     """:func:`scale.run_import` with ``checkout``'s code (its ``PYTHONPATH``, run from its folder)."""
-    before, root = os.environ.get("PYTHONPATH"), scale.ROOT
-    os.environ["PYTHONPATH"] = str(checkout)
-    scale.ROOT = Path(checkout)
-    try:
-        return run_import(tree, db, workers)
-    finally:
-        scale.ROOT = root
-        if before is None:
-            os.environ.pop("PYTHONPATH", None)
-        else:
-            os.environ["PYTHONPATH"] = before
+    return run_import(tree, db, workers, checkout=Path(checkout))
 
 
 def main(argv: list[str] | None = None) -> int:

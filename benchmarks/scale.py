@@ -276,10 +276,11 @@ class ImportFigures:
 _IMPORTED = re.compile(r"imported .*?: (\d+) game\(s\), (\d+) system\(s\), (\d+) frame\(s\)")
 
 
-def run_import(tree: Path, db: Path, workers: Optional[int] = None) -> ImportFigures:
+def run_import(tree: Path, db: Path, workers: Optional[int] = None, checkout: Optional[Path] = None) -> ImportFigures:
     """Run ``v3d import soccernet-v3 TREE --database-url sqlite:///DB`` as a subprocess (a fresh
     database: ``db`` is removed first), timing it end to end (migration included) and sampling the
-    RSS of its process tree. Raises :class:`BenchError` with the CLI's last lines when it fails."""
+    RSS of its process tree; with ``checkout``, that checkout's code (run from its folder, on its ``PYTHONPATH``)
+    instead of this one's. Raises :class:`BenchError` with the CLI's last lines when it fails."""
     db = Path(db)
     db.parent.mkdir(parents=True, exist_ok=True)
     for suffix in ("", "-wal", "-shm"):
@@ -290,7 +291,8 @@ def run_import(tree: Path, db: Path, workers: Optional[int] = None) -> ImportFig
     log = db.with_suffix(".import.log")
     t0 = time.perf_counter()
     with open(log, "w") as out:
-        proc = subprocess.Popen(cmd, cwd=ROOT, stdout=out, stderr=subprocess.STDOUT)
+        env = None if checkout is None else {**os.environ, "PYTHONPATH": str(checkout)}
+        proc = subprocess.Popen(cmd, cwd=checkout or ROOT, env=env, stdout=out, stderr=subprocess.STDOUT)
         with TreeMemorySampler(proc.pid) as mem:
             rc = proc.wait()
     seconds = time.perf_counter() - t0
