@@ -147,15 +147,19 @@ def _epipolar_distance(ray_view: DoubtView, centre: np.ndarray, view: DoubtView,
     return _polyline_distance(seg[1], centre)[0] * rule_scale(view, s)
 
 
+def _band(a: DoubtView, b: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> float:
+    """How far (px at 1920 width) a point may lie from ``a``'s ball ray seen in ``b``: tau, widened to both cameras'
+    pixel sigmas (:func:`app.geometry.weighting.pixel_sigma`) added in quadrature where they exceed it."""
+    return max(max(s.consensus_tau_px, s.triangulation_tau_px),
+               math.hypot(sigma.get(a.view_id, 0.0), sigma.get(b.view_id, 0.0)))
+
+
 def _on_epipolar(a: DoubtView, b: DoubtView, det_b: Detection, sigma: Mapping[Hashable, float],
                  s: DoubtSettings) -> bool:
-    """Condition 1 for a pair: ``det_b``'s centre lies within tau of ``a``'s ball ray seen in ``b`` (px at 1920 width),
-    tau widened by both cameras' pixel sigmas (:func:`app.geometry.weighting.pixel_sigma`, added in quadrature):
+    """Condition 1 for a pair: ``det_b``'s centre lies within :func:`_band` of ``a``'s ball ray seen in ``b``:
     measured in the detection's own image, not split between the two views as the refit's errors are (a view that
     sees the ball small would take most of the distance at a small cost in its pixels)."""
-    tau = max(s.consensus_tau_px, s.triangulation_tau_px)
-    return _epipolar_distance(a, det_b.centre, b, s) <= max(tau, math.hypot(sigma.get(a.view_id, 0.0),
-                                                                             sigma.get(b.view_id, 0.0)))
+    return _epipolar_distance(a, det_b.centre, b, s) <= _band(a, b, sigma, s)
 
 
 def _as_labelled(view: DoubtView, det: Detection) -> DoubtView:
@@ -489,9 +493,7 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
         return _as_labelled(v, d), d.centre
 
     def near(a: tuple[DoubtView, np.ndarray], b: tuple[DoubtView, np.ndarray], va: DoubtView, vb: DoubtView) -> bool:
-        band = max(max(s.consensus_tau_px, s.triangulation_tau_px),
-                   math.hypot(sigma.get(va.view_id, 0.0), sigma.get(vb.view_id, 0.0)))
-        return _epipolar_distance(a[0], b[1], vb, s) <= band
+        return _epipolar_distance(a[0], b[1], vb, s) <= _band(va, vb, sigma, s)
 
     seen: set[frozenset[tuple[Hashable, tuple[float, ...] | None]]] = set()
     pairings: list[_Pairing] = []

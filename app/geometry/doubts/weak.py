@@ -13,6 +13,7 @@ from app.geometry.doubts.detected import CheckedDetection, Detection, _near_ray,
 from app.geometry.doubts.pairings import (
     MISS,
     _as_labelled,
+    _band,
     _found,
     _judged,
     _meet,
@@ -77,9 +78,7 @@ def _weak_ray(rays: Sequence[DoubtView], targets: Sequence[DoubtView], views: Se
         for r in rays:
             if not (_sure(r, sigma, s) or _sure(v, sigma, s)):
                 continue  # two unsure cameras: nothing sure sees the ball where they put it
-            band = max(max(s.consensus_tau_px, s.triangulation_tau_px), math.hypot(sigma.get(r.view_id, 0.0),
-                                                                                     sigma.get(v.view_id, 0.0)))
-            near = _near_ray(r, v, detections.get(v.view_id, ()), MISS * band, s)
+            near = _near_ray(r, v, detections.get(v.view_id, ()), MISS * _band(r, v, sigma, s), s)
             if len(near) != 1 or not _on_epipolar(r, v, near[0], sigma, s):
                 continue
             p = _meet([_Member(r, by_id[r.view_id], None, size_tolerance), _member(v, near[0], s, size_tolerance)],
