@@ -4,6 +4,7 @@ logging in through the login page."""
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 TESTID = "[data-testid={}]"
@@ -52,12 +53,27 @@ def api_json(page, path: str):
     return response.json()
 
 
+#: How many times :func:`api_write` sends a write the server answered 503 (``Retry-After``) before it gives up.
+WRITE_TRIES = 4
+
+
 def api_write(page, method: str, path: str, data=None, headers: dict | None = None):
     """``method`` ``path`` with the JSON ``data`` on the page's server as its logged-in session: the
     CSRF token of ``GET /api/auth/me`` in ``X-CSRF-Token``, and ``headers`` (e.g. ``If-Match``). Answers
-    Playwright's response."""
-    csrf = api_json(page, "/api/auth/me")["csrf_token"]
-    return page.request.fetch(path, method=method, data=data, headers={"X-CSRF-Token": csrf, **(headers or {})})
+    Playwright's response.
+
+    A 503 with ``Retry-After`` (the write lock was busy past ``V3D_WRITE_LOCK_TIMEOUT_S``: nothing was changed) is
+    sent again after the time it names, up to :data:`WRITE_TRIES` times, as the API asks of every script client:
+    the browser tests share two cores with the rest of the suite, where a write can wait past the timeout."""
+    for _ in range(WRITE_TRIES):
+        csrf = api_json(page, "/api/auth/me")["csrf_token"]
+        response = page.request.fetch(path, method=method, data=data,
+                                      headers={"X-CSRF-Token": csrf, **(headers or {})})
+        wait = response.headers.get("retry-after")
+        if response.status != 503 or wait is None:
+            return response
+        time.sleep(float(wait))
+    return response
 
 
 def log_in(page, account) -> None:
