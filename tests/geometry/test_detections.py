@@ -594,3 +594,27 @@ def test_a_view_whose_detector_missed_the_ball_a_pairing_places_gets_its_project
     assert "pairing" not in [d.code for d in refused if d.view_id == "corner"]
     alone = checked(views, {"corner": [far]})  # no detection places the ball: main's ray alone leaves its depth open
     assert "pairing" not in [d.code for d in alone]
+
+
+def test_the_grass_places_a_pairings_ball_only_where_each_of_its_rays_meets_the_grass_near_it():
+    """Main's label and corner's detection of the ball on the grass: both rays meet the plane of a ball's centre on the
+    grass at the ball. The same members with the ball put 1.2 m along main's ray (a shallow ray: 0.3 m lower,
+    below the grass, as a pairing of little parallax placed one on a made set, 1.2 m off): main's ray meets the grass
+    1.2 m from it, so the grass does not place it."""
+    from app.geometry.doubts.judge import _votes
+    from app.geometry.doubts.pairings import _grass_placed, _Member, _member, _Pairing
+
+    views = scene(corner={"box": None})
+    main, corner = views[0], views[3]
+    ray = _Member(main, _votes(views, SETTINGS, None).obs[0], None, SIZE)
+    members = (ray, _member(corner, det("corner"), SETTINGS, SIZE))
+    assert ray.view.view_id == "main" and corner.view_id == "corner"
+
+    def pairing(ball):
+        return _Pairing(members, np.asarray(ball, float), {}, {}, 0.0)
+
+    assert _grass_placed(pairing(BALL))
+    along = (BALL - np.asarray(CAMERAS["main"][0])) / np.linalg.norm(BALL - np.asarray(CAMERAS["main"][0]))
+    low = BALL + 1.2 * along
+    assert 0.25 < low[2] - BALL[2] < 0.35
+    assert not _grass_placed(pairing(low))
