@@ -268,6 +268,8 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
                     cases.append({"system": f"{match} {system.name}", "view": v.name, "why": why,
                                   "line_classes": v.line_classes, "sigma": round(float(sigma.get(v.view_id, -1)), 1),
                                   "labelled": len(vote.labelled), "helpers": len(vote.helpers),
+                                  "system_fills": sorted(w for _, w in boxes.values()),
+                                  "views": len(views),
                                   "path": ("consensus" if cons.point is not None and not cons.ambiguous
                                            else "lone ray" if _lone_ray(vote) is not None else
                                            "disagree" if len(vote.labelled) >= 2 else "none")})

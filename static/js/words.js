@@ -123,6 +123,10 @@ export const WORDS = /*WORDS*/{
    "chip": "a guess on one ray",
    "means": "a guess along the one labelled view's ray, on the grass"
   },
+  "ball_missing:pairing": {
+   "chip": "where detections put the ball",
+   "means": "placed where a label and detectors' boxes in other views put the ball"
+  },
   "ball_detected:consensus": {
    "chip": "detector, views agree",
    "means": "a detector's box where the labelled views agree on the ball"

@@ -326,29 +326,41 @@ def test_a_labelled_view_contradicts_a_pairing_whose_ball_falls_outside_its_imag
     assert set(found) == {"goal", "opposite"} and max(near_truth(n, d) for n, d in found.items()) < 2.0
 
 
-def test_one_ray_and_a_detection_that_fix_the_balls_depth_badly_place_nothing():
+def test_one_ray_and_a_detection_that_fix_the_balls_depth_badly_place_nothing_in_the_air(monkeypatch):
     """Two rays fix the ball only as well as their cameras: main's camera sure to 18.5 px (within tau) and corner's
-    ray about 30 degrees from main's leave the ball's depth more than half a metre uncertain (the metre beyond
-    which a 3D ball is wrong is then within two sigma no more); goal's ray, nearly perpendicular, fixes it."""
+    ray about 30 degrees from main's leave the ball's depth 0.6 m uncertain (one sigma). In the air (3 m up) that is
+    more than half a metre: nothing is placed; goal's ray, nearly perpendicular, fixes it. On the grass the ball
+    lies where main's ray meets the grass, and a spread up to a metre places it; beyond that bound, nothing."""
+    from app.geometry.doubts import pairings
     from app.geometry.doubts.judge import _votes
     from app.geometry.spread import position_sigma_m
     from app.geometry.triangulation import BallObservation
 
     unsure = {"pan_deg": 0.3, "tilt_deg": 0.3, "roll_deg": 0.02, "focal_px": 3.0,
               "position_m": {"x": .1, "y": .1, "z": .1}}
-    views = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
+    air = BALL + np.array([0.0, 0.0, -3.0])
+    views = scene(main={"uncertainty": unsure, "ball": air}, **{n: {"box": None} for n in CAMERAS if n != "main"})
     sigma = _votes(views, SETTINGS, None).sigma
     assert 15.0 < sigma["main"] < 25.0
     obs = {n: BallObservation(n, camera(n), np.zeros(2), 1920) for n in CAMERAS}
-    assert position_sigma_m([obs["main"], obs["corner"]], BALL, {"main": sigma["main"], "corner": 1.0}) > 0.5
-    assert position_sigma_m([obs["main"], obs["goal"]], BALL, {"main": sigma["main"], "goal": 1.0}) < 0.5
-    assert detected(checked(views, {"corner": [det("corner")]})) == {}
-    found = detected(checked(views, {"goal": [det("goal")]}))
-    assert set(found) == {"goal"} and near_truth("goal", found["goal"]) < 2.0
-    # the same pair with main sure to 3 px fills corner
-    sure = scene(main={"uncertainty": {**unsure, "pan_deg": 0.05, "tilt_deg": 0.05}},
+    for ball in (air, BALL):
+        assert 0.5 < position_sigma_m([obs["main"], obs["corner"]], ball, {"main": sigma["main"], "corner": 1.0}) < 1.0
+        assert position_sigma_m([obs["main"], obs["goal"]], ball, {"main": sigma["main"], "goal": 1.0}) < 0.5
+    assert detected(checked(views, {"corner": [box_at("corner", air)]})) == {}
+    found = detected(checked(views, {"goal": [box_at("goal", air)]}))
+    assert set(found) == {"goal"} and np.allclose(found["goal"].evidence["ball3d"], air, atol=0.1)
+    # on the grass the same pair fills corner, at the ball
+    grass = scene(main={"uncertainty": unsure}, **{n: {"box": None} for n in CAMERAS if n != "main"})
+    found = detected(checked(grass, {"corner": [det("corner")]}))
+    assert set(found) == {"corner"} and near_truth("corner", found["corner"]) < 2.0
+    # a spread beyond the bound on the grass places nothing either
+    monkeypatch.setattr(pairings, "GRASS_SPREAD_M", 0.5)
+    assert detected(checked(grass, {"corner": [det("corner")]})) == {}
+    monkeypatch.undo()
+    # the same pair in the air with main sure to 3 px fills corner
+    sure = scene(main={"uncertainty": {**unsure, "pan_deg": 0.05, "tilt_deg": 0.05}, "ball": air},
                  **{n: {"box": None} for n in CAMERAS if n != "main"})
-    assert set(detected(checked(sure, {"corner": [det("corner")]}))) == {"corner"}
+    assert set(detected(checked(sure, {"corner": [box_at("corner", air)]}))) == {"corner"}
 
 
 def test_a_box_off_the_labelled_ray_by_more_than_the_cameras_and_the_detector_explain_is_not_the_ball():
@@ -552,3 +564,57 @@ def test_a_lone_rays_detection_on_a_players_head_with_the_ball_in_the_air_fills_
     # a third view's detection at the head's ball is the second witness: goal is filled (as the head says)
     confirmed = detected(checked(views, {"goal": [head], "corner": [box_at("corner", spot)]}))
     assert "goal" in confirmed
+
+
+def test_a_view_whose_detector_missed_the_ball_a_pairing_places_gets_its_projected_box_when_sure_enough():
+    """Only main is labelled; goal's detection and main's ray place the ball (one_ray). Corner's detector missed it
+    (its one box is a player far off): corner gets the sphere box where that ball projects (ball_missing, code
+    pairing), its centre within a pixel of the ball's, since the box's uncertainty (the pairing's ball spread into
+    corner and corner's camera) keeps it within the ball's radius. A corner camera unsure to about 7 px, a box of
+    corner's near that spot (which the checks refused), or no ball placed: nothing."""
+    far = box_at("corner", [-20.0, 10.0, -0.11], score=0.9)
+    views = only_main_labelled()
+    doubts = checked(views, {"goal": [det("goal", 0.7)], "corner": [far]})
+    assert set(detected(doubts)) == {"goal"}
+    (placed,) = [d for d in doubts if d.view_id == "corner" and d.kind in LABEL_KINDS]
+    assert (placed.kind, placed.code, placed.suggestion["action"]) == ("ball_missing", "pairing", "snap_box")
+    assert near_truth("corner", placed) < 1.0 and placed.evidence["agreeing_views"][:2] == ["main", "goal"]
+    radius = (placed.suggestion["box"][2] - placed.suggestion["box"][0]) / 2
+    assert 0 < 2 * placed.suggestion["box_sigma_px"] <= radius
+    assert "detector shows nothing there" in doubt_message(placed, {"corner": "corner.png", "main": "main.png",
+                                                                    "goal": "goal.png"})
+    # the judge's own ball_missing of corner (one labelled ray: no box) is replaced, one suggestion a view
+    assert [d.kind for d in doubts if d.view_id == "corner"].count("ball_missing") == 1
+    loose = scene(corner={"box": None, "uncertainty": {"pan_deg": 0.12, "tilt_deg": 0.12, "roll_deg": 0.02,
+                                                       "focal_px": 3.0, "position_m": {"x": .1, "y": .1, "z": .1}}},
+                  **{n: {"box": None} for n in ("goal", "opposite")})
+    assert [d.code for d in checked(loose, {"goal": [det("goal", 0.7)], "corner": [far]})
+            if d.view_id == "corner" and d.kind in LABEL_KINDS] != ["pairing"]
+    refused = checked(views, {"goal": [det("goal", 0.7)], "corner": [det("corner", 0.9, shift=(0.0, 40.0))]})
+    assert "pairing" not in [d.code for d in refused if d.view_id == "corner"]
+    alone = checked(views, {"corner": [far]})  # no detection places the ball: main's ray alone leaves its depth open
+    assert "pairing" not in [d.code for d in alone]
+
+
+def test_the_grass_places_a_pairings_ball_only_where_each_of_its_rays_meets_the_grass_near_it():
+    """Main's label and corner's detection of the ball on the grass: both rays meet the plane of a ball's centre on the
+    grass at the ball. The same members with the ball put 1.2 m along main's ray (a shallow ray: 0.3 m lower,
+    below the grass, as a pairing of little parallax placed one on a made set, 1.2 m off): main's ray meets the grass
+    1.2 m from it, so the grass does not place it."""
+    from app.geometry.doubts.judge import _votes
+    from app.geometry.doubts.pairings import _grass_placed, _Member, _member, _Pairing
+
+    views = scene(corner={"box": None})
+    main, corner = views[0], views[3]
+    ray = _Member(main, _votes(views, SETTINGS, None).obs[0], None, SIZE)
+    members = (ray, _member(corner, det("corner"), SETTINGS, SIZE))
+    assert ray.view.view_id == "main" and corner.view_id == "corner"
+
+    def pairing(ball):
+        return _Pairing(members, np.asarray(ball, float), {}, {}, 0.0)
+
+    assert _grass_placed(pairing(BALL))
+    along = (BALL - np.asarray(CAMERAS["main"][0])) / np.linalg.norm(BALL - np.asarray(CAMERAS["main"][0]))
+    low = BALL + 1.2 * along
+    assert 0.25 < low[2] - BALL[2] < 0.35
+    assert not _grass_placed(pairing(low))

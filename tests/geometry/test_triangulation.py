@@ -7,7 +7,7 @@ import pytest
 
 from app.geometry.camera import Camera
 from app.geometry.pair_error import PAIR_ERROR_RULES, pair_error
-from app.geometry.spread import position_sigma_m
+from app.geometry.spread import position_covariance, position_sigma_m, projected_sigma_px
 from app.geometry.triangulation import (
     DROP_REASONS,
     STATUS_INSUFFICIENT_VIEWS,
@@ -446,3 +446,22 @@ def test_the_balls_sigma_from_two_perpendicular_views_is_the_pixel_sigma_at_its_
     assert position_sigma_m([a, half], ball, {"a": 10.0, "h": 10.0}) == pytest.approx(0.5, rel=1e-3)
     behind = BallObservation("c", look_at([0.0, -50.0, -10.0], ball + [0.0, -100.0, 0.0]), np.zeros(2), 1920)
     assert position_sigma_m([a, behind], ball, {"a": 10.0, "c": 10.0}) is None
+
+
+def test_the_balls_covariance_projected_into_a_third_view_is_its_pixel_spread_there():
+    """Two orthogonal cameras 50 m from the ball (focal 1000 px at 1920 width), 10 px each: the ball's covariance is
+    0.5 m along x and along y (each fixed by one camera alone), and z is fixed by both (0.5 / sqrt 2). A third camera
+    100 m up the y axis, focal 2000 px, sees x across its image: 0.5 m at 100 m is 10 px there; one looking down
+    the x axis sees y and z, the larger 0.5 m: 10 px too; one behind the ball: None."""
+    ball = np.array([0.0, 0.0, -10.0])
+    a = BallObservation("a", look_at([-50.0, 0.0, -10.0], ball, focal=1000.0), np.zeros(2), 1920)
+    b = BallObservation("b", look_at([0.0, -50.0, -10.0], ball, focal=1000.0), np.zeros(2), 1920)
+    cov = position_covariance([a, b], ball, {"a": 10.0, "b": 10.0})
+    assert np.allclose(np.sqrt(np.diag(cov)), [0.5, 0.5, 0.5 / np.sqrt(2)], rtol=1e-3)
+    assert position_covariance([a], ball, {"a": 10.0}) is None
+    third = BallObservation("t", look_at([0.0, 100.0, -10.0], ball, focal=2000.0), np.zeros(2), 1920)
+    assert projected_sigma_px(third, ball, cov) == pytest.approx(10.0, rel=1e-2)
+    along_x = BallObservation("x", look_at([100.0, 0.0, -10.0], ball, focal=2000.0), np.zeros(2), 1920)
+    assert projected_sigma_px(along_x, ball, cov) == pytest.approx(10.0, rel=1e-2)
+    behind = BallObservation("c", look_at([0.0, -50.0, -10.0], ball + [0.0, -100.0, 0.0]), np.zeros(2), 1920)
+    assert projected_sigma_px(behind, ball, cov) is None

@@ -67,7 +67,7 @@ CODES: dict[str, tuple[str, ...]] = {
     "rig_assisted": ("rig_assisted",), "few_lines": ("few_lines",), "suggested_label": ("unconfirmed",),
     "mirrored_labels": ("flagged", "suspected"),
     "ball_off_consensus": ("off_consensus", "behind_camera", "trajectory"),
-    "ball_missing": ("consensus", "epipolar", "epipolar_box"),
+    "ball_missing": ("consensus", "epipolar", "epipolar_box", "pairing"),
     "views_disagree": ("no_agreement", "ambiguous", "epipolar"),
     "near_duplicate_view": ("near_duplicate",),
     # a detector's prediction checked against the other views (app.geometry.doubts.detections)

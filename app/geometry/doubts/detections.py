@@ -55,14 +55,16 @@ from typing import Any, Callable, Hashable, Mapping, Sequence
 
 import numpy as np
 
+from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
-from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _plausible, _r
+from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
 from app.geometry.doubts.detected import (
     PREFILTER,
     CheckedDetection,
     Detection,
     _best,
     _check,
+    _diameter,
     _near_point,
     _near_ray,
     _observation,
@@ -70,6 +72,7 @@ from app.geometry.doubts.detected import (
 )
 from app.geometry.doubts.judge import _missing_doubt, _voters_consensus, _votes
 from app.geometry.doubts.pairings import (
+    CENTRE_NOISE,
     MAX_SPREAD_M,
     MIN_SIGMA_PX,
     SIGMAS,
@@ -82,13 +85,21 @@ from app.geometry.doubts.pairings import (
 )
 from app.geometry.doubts.weak import _weak_ray, _weak_views
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
-from app.geometry.spread import position_sigma_m
+from app.geometry.spread import position_covariance, position_sigma_m, projected_sigma_px
 from app.geometry.triangulation import (
     BallObservation,
     PairGeometry,
     pair_geometry,
 )
-from app.geometry.weighting import calibration_weight, camera_of, centre_of, label_centre, rule_scale
+from app.geometry.weighting import (
+    calibration_weight,
+    camera_of,
+    centre_of,
+    label_centre,
+    pixel_sigma,
+    project_point,
+    rule_scale,
+)
 
 
 def _few_lined(views: Sequence[DoubtView], vote: Any, s: DoubtSettings,
@@ -274,15 +285,19 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     checked.update(_in_weak_views(views, vote, unlabelled, cons, checked, detections, sigma, s, size_tolerance,
                                   weighed))
     few_missing = [d for d in few_missing if d.view_id not in checked]
-    if not checked and not out_of_label and not few_missing and not contested:
+    # where no labelled views agree on a ball (theirs has the judge's own boxes), the ball a pairing places
+    placed = [] if cons.point is not None and not cons.ambiguous else _placed_missing(
+        unlabelled, checked, detections, by_id, vote.tau, tol, sigma, s)
+    if not checked and not out_of_label and not few_missing and not contested and not placed:
         return list(doubts)
+    replaced = {*checked, *(d.view_id for d in placed)}
     kept = [_unsnapped(d) if d.kind == "ball_missing" and d.view_id in contested else d
-            for d in doubts if not (d.kind == "ball_missing" and d.view_id in checked)]
+            for d in doubts if not (d.kind == "ball_missing" and d.view_id in replaced)]
     missing = {d.view_id: d for d in doubts if d.kind == "ball_missing" and d.view_id in checked}
     by_view = {v.view_id: v for v in views}
     new = [_detected_doubt(c, by_view[vid], code, agreeing, missing.get(vid), s)
            for vid, (c, code, agreeing) in checked.items()]
-    return [*kept, *new, *few_missing, *out_of_label]
+    return [*kept, *new, *few_missing, *placed, *out_of_label]
 
 
 def _unsnapped(d: Doubt) -> Doubt:
@@ -310,6 +325,73 @@ def _sure_box_missing(v: DoubtView, cons: Consensus, s: DoubtSettings) -> Doubt 
         return None
     radius = ((box[2] - box[0]) + (box[3] - box[1])) / 4
     return d if SIGMAS * float(sigma) <= radius else None
+
+
+def _placed_missing(unlabelled: Sequence[DoubtView],
+                    checked: Mapping[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]],
+                    detections: Mapping[Any, Sequence[Detection]], by_id: Mapping[Hashable, BallObservation],
+                    tau: float, tol: Mapping[Hashable, float], sigma: Mapping[Hashable, float],
+                    s: DoubtSettings) -> list[Doubt]:
+    """``ball_missing`` (code ``pairing``) for the views whose detector shows nothing where a checked pairing places
+    the ball, where no labelled views agree on one: the sphere box of that ball (the pairing with the most views:
+    one labelled ray and detections, or detections among themselves; never a weak ray's or a weak view's, whose box
+    makes no ball), for each view whose detections are checked (``unlabelled``) that is not filled, has none of its
+    detections within :data:`PREFILTER` tolerances of where the ball projects (a box there that the checks refused
+    says the camera or the ball is off there) and inside which it projects by ``inside_margin_px``, offered only
+    where the box's uncertainty keeps its centre within the ball's own silhouette at :data:`SIGMAS` standard
+    deviations, as :func:`_sure_box_missing` asks of a consensus box: the ball's position covariance from the
+    pairing's views (:func:`app.geometry.spread.position_covariance`: each view's pixel sigma, at least
+    :data:`MIN_SIGMA_PX`, and for a detection :data:`CENTRE_NOISE` of its diameter, in quadrature) projected into the
+    view (:func:`app.geometry.spread.projected_sigma_px`), and the view's own pixel sigma at the ball, in quadrature.
+
+    The detector misses about one ball in seven (the shared detector sets' README); in one pass the views whose
+    detector missed the ball would be left empty while the pairing's other views are filled, although the ball the
+    pass places there projects into them as surely as a consensus ball does into the judge's views (a label and a
+    detection from cameras sure to a few pixels place it within tens of centimetres, :func:`_placed`). The box
+    agrees with that ball by construction: it adds no evidence of where the ball is, only the label a person would
+    place there; the code says so. Unlike a view's own detection it cannot move the pass's 3D ball."""
+    placed = [(c, a) for c, code, a in checked.values() if code not in ("weak_ray", "weak_view")]
+    if not placed:
+        return []
+    best, agreeing = max(placed, key=lambda x: len(x[1]))
+    ball = np.asarray(best.ball, float)
+    views_by_id = {v.view_id: v for v in unlabelled}
+    obs: list[BallObservation] = []
+    obs_sigma: dict[Hashable, float] = {}
+    for vid in agreeing:
+        cam = max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0)))
+        if vid in checked and vid in views_by_id:
+            v, det = views_by_id[vid], checked[vid][0].detection
+            obs.append(_observation(v, det, s))
+            obs_sigma[vid] = math.hypot(cam, CENTRE_NOISE * _diameter(det.box, v) * rule_scale(v, s))
+        elif vid in by_id:
+            obs.append(by_id[vid])
+            obs_sigma[vid] = cam
+    cov = position_covariance(obs, ball, obs_sigma) if len(obs) >= 2 else None
+    if cov is None:
+        return []
+    out: list[Doubt] = []
+    for v in unlabelled:
+        if v.view_id in checked or v.camera is None or _near_point(v, detections.get(v.view_id, ()), ball,
+                                                                   PREFILTER * tol.get(v.view_id, tau), s):
+            continue
+        uv = project_point(v, ball)
+        if uv is None or not _inside(v, uv, s.inside_margin_px / rule_scale(v, s)):
+            continue
+        box = sphere_image_box(camera_of(v), ball, s.ball_diameter_m / 2)
+        own = pixel_sigma(v, ball, s)
+        spread = projected_sigma_px(BallObservation(v.view_id, camera_of(v), uv, v.width), ball, cov)
+        if box is None or spread is None or not math.isfinite(own):
+            continue
+        box_sigma = math.hypot(own, spread) / rule_scale(v, s)
+        radius = ((box[2] - box[0]) + (box[3] - box[1])) / 4
+        if SIGMAS * box_sigma > radius:
+            continue
+        out.append(Doubt("ball_missing", v.view_id, "pairing", {
+            "projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball],
+            "agreeing_views": list(agreeing), "filled_views": [a for a in agreeing if a in checked]},
+            {"action": "snap_box", "box": _box_list(box), "box_sigma_px": _r(box_sigma, 2)}))
+    return out
 
 
 def _keeps_ball(best: CheckedDetection, ball: np.ndarray, voters: Sequence[BallObservation],

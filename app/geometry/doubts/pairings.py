@@ -27,12 +27,13 @@ from app.geometry.doubts.detected import (
     size_ratio,
 )
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
+from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.spread import position_sigma_m
 from app.geometry.triangulation import (
     BallObservation,
     angle_between_deg,
 )
-from app.geometry.weighting import label_centre, project_point, rule_scale
+from app.geometry.weighting import label_centre, project_point, ray_at_height, rule_scale
 
 #: A third calibrated view confirms a ball two views place when one of its detections (or its label) lies within its
 #: tolerance of where that ball projects, at a ball's size; it contradicts it (a clear miss) when the ball projects
@@ -41,10 +42,11 @@ MISS = 2.0
 #: A candidate is chosen only when the runner-up (a candidate elsewhere, as well supported) is worse by at least this
 #: fraction of the doubts' tau (px at 1920 width): two spots that meet the rays about as well cannot be told apart.
 MARGIN = 0.5
-#: The most (m, one standard deviation along the worst direction) the ball of a pairing may move with its cameras'
-#: pixel sigmas: twice it stays within the metre beyond which a 3D ball is wrong. Two rays from cameras sure to a
-#: few pixels can still fix the depth badly (a small parallax, a far view): on a made set two right detections
-#: with cameras 3-4 px from the truth put a ball 1.2 m off, their ball's sigma 9.6 m.
+#: Half a metre: twice it stays within the metre beyond which a 3D ball is wrong. How far a checked detection may
+#: always move the ball the labelled views agree on (``app.geometry.doubts.detections._keeps_ball``), and the height
+#: a ball "on the grass" may have (:data:`ON_GRASS_M`). Two rays from cameras sure to a few pixels can still fix the
+#: depth badly (a small parallax, a far view): on a made set two right detections with cameras 3-4 px from the truth
+#: put a ball 1.2 m off, their ball's sigma 9.6 m: the bound of a pairing's ball in the air (:func:`_placed`).
 MAX_SPREAD_M = 0.5
 #: The least pixel sigma (px at 1920 width) a view is read with for that spread: a fit's sigma below a pixel still
 #: leaves the label's or the box's own pixel.
@@ -258,15 +260,29 @@ def _chosen(pairings: Sequence[_Pairing], s: DoubtSettings) -> tuple[_Pairing, i
 
 
 def _placed(p: _Pairing, sigma: Mapping[Hashable, float]) -> bool:
-    """Whether the pairing's cameras place its ball within :data:`MAX_SPREAD_M` (one standard deviation along the
-    worst direction, each member's pixel sigma ``sigma`` (px at 1920 width) at least :data:`MIN_SIGMA_PX`;
-    :func:`app.geometry.spread.position_sigma_m`). Asked of the chosen pairing only: a candidate placed
-    badly is still a rival the rays cannot tell from it (dropping it first would let a false box at a better
-    fixed depth win alone)."""
+    """Whether the pairing's cameras place its ball within :data:`MAX_SPREAD_M`, or :data:`GRASS_SPREAD_M` where
+    the grass places it (:func:`_grass_placed`): one standard deviation along the worst direction, each member's
+    pixel sigma ``sigma`` (px at 1920 width) at least :data:`MIN_SIGMA_PX`
+    (:func:`app.geometry.spread.position_sigma_m`). Asked of the chosen pairing only: a
+    candidate placed badly is still a rival the rays cannot tell from it (dropping it first would let a false box
+    at a better fixed depth win alone)."""
     spread = position_sigma_m([m.obs for m in p.members], p.ball,
                               {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0)))
                                for m in p.members})
-    return spread is not None and spread <= MAX_SPREAD_M
+    return spread is not None and spread <= (GRASS_SPREAD_M if _grass_placed(p) else MAX_SPREAD_M)
+
+
+def _grass_placed(p: _Pairing) -> bool:
+    """Whether every member's ray (its label's or its detection's centre) meets the plane of a ball's centre on the
+    grass (:data:`app.geometry.pitch.BALL_DIAMETER_M` / 2 up; SoccerNet world, z down) within :data:`MAX_SPREAD_M` of
+    the pairing's ball: the grass then places that ball where each ray meets it, whatever the rays' parallax fixes
+    of its depth (:data:`GRASS_SPREAD_M`)."""
+    for m in p.members:
+        ray = m.obs.camera.rays(np.asarray(m.obs.point_px, float).reshape(1, 2))[0]
+        grass = ray_at_height(m.obs.camera.C, ray, -BALL_DIAMETER_M / 2)
+        if grass is None or float(np.linalg.norm(grass - p.ball)) > MAX_SPREAD_M:
+            return False
+    return True
 
 
 def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
@@ -292,6 +308,20 @@ HEAD_FEET = 0.15
 #: The most (m) a ball's centre lies above the grass for it to be "on the grass": the allowance the play volume gives
 #: below it (``app.geometry.pitch.PLAY_VOLUME``) and the spread a one-ray ball may have (:data:`MAX_SPREAD_M`).
 ON_GRASS_M = 0.5
+#: The most (m, one standard deviation along the worst direction) the ball of a chosen pairing may move with its
+#: cameras' pixel sigmas where the grass places it (:func:`_grass_placed`: every member's ray meets the plane of a
+#: ball's centre on the grass within :data:`MAX_SPREAD_M` of it), against :data:`MAX_SPREAD_M` elsewhere
+#: (:func:`_placed`): one metre, beyond which a 3D ball is wrong. Such a ball lies where each ray meets the grass, a
+#: place the rays' parallax does not fix (a ball truly in the air that a badly fixed depth brought down to the grass
+#: would leave the rays' grass points apart); and the spread, read from pixel sigmas that overstate the cameras'
+#: errors (about five times at the median on the synthetic sets, ``app.geometry.weighting.pixel_sigma``),
+#: overstates the ball's. On the shared detector sets and four made sets (``benchmarks/DETECTOR.md``, 2026-11-27,
+#: branch fill4) the chosen pairings on the grass with a spread of 0.5-1 m placed their balls 0.03-0.47 m from the
+#: truth, their labelled rays' grass points within 0.45 m; in the air two of thirteen were 1.2 m off (6.7 and 11.9 m
+#: up). A first version that asked only for the ball's height (within :data:`ON_GRASS_M`) let through, on a set made
+#: to check it, a pairing 3.5 degrees of parallax wide whose ball lay 0.26 m below the grass and 1.2 m off, its
+#: labelled ray meeting the grass 1.15 m from it.
+GRASS_SPREAD_M = 1.0
 
 
 def _on_head_or_feet(view: DoubtView, det: Detection) -> bool:

@@ -147,6 +147,15 @@ def _missing_epipolar_box(ev, v, n):
             "evidence, until a person places it.")
 
 
+def _missing_pairing(ev, v, n):
+    p = ev.get("projected_px") or [math.nan, math.nan]
+    filled = _list(ev.get("filled_views"), n)
+    return (f"{v} has no ball label and its detector shows nothing there, but the ball that "
+            f"{_list(ev.get('agreeing_views'), n)} place (with the detections suggested in {filled}) projects inside "
+            f"it at ({_num(p[0])}, {_num(p[1])}) px, surely enough that its box lies on the ball: the box agrees with "
+            "that ball by construction, no evidence of its own, until a person places it.")
+
+
 #: Which rule placed a detector's box (``ball_detected`` code), in the words of its sentence.
 _DETECTED_RULE = {
     "consensus": "",
@@ -223,6 +232,7 @@ _WRITERS: dict[tuple[str, str], Callable[[dict, str, Names], str]] = {
     ("ball_missing", "consensus"): _missing,
     ("ball_missing", "epipolar"): _missing_epipolar,
     ("ball_missing", "epipolar_box"): _missing_epipolar_box,
+    ("ball_missing", "pairing"): _missing_pairing,
     ("views_disagree", "no_agreement"): _disagree,
     ("views_disagree", "ambiguous"): _disagree,
     ("views_disagree", "epipolar"): _disagree_epipolar,

@@ -94,6 +94,8 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
                                    "means": "placed where the labelled views agree on the ball"},
         "ball_missing:epipolar_box": {"chip": "a guess on one ray",
                                       "means": "a guess along the one labelled view's ray, on the grass"},
+        "ball_missing:pairing": {"chip": "where detections put the ball",
+                                 "means": "placed where a label and detectors' boxes in other views put the ball"},
         "ball_detected:consensus": {"chip": "detector, views agree",
                                     "means": "a detector's box where the labelled views agree on the ball"},
         "ball_detected:one_view": {"chip": "detector, two detected views",
