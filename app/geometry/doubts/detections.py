@@ -272,7 +272,7 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
         few_missing = [d for v, _ in lined if v.view_id not in checked
                        and not _near_point(v, detections.get(v.view_id, ()), cons.point,
                                            PREFILTER * tol[v.view_id], s)
-                       and (d := _sure_box_missing(v, cons, s)) is not None]
+                       and (d := _sure_box_missing(v, cons, voters, sigma, s)) is not None]
     else:
         if (lone := _lone_ray(vote)) is not None and not lone_contradicted:
             checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
@@ -308,7 +308,8 @@ def _unsnapped(d: Doubt) -> Doubt:
     return Doubt(d.kind, d.view_id, d.code, {**d.evidence, "detection_size_disagrees": True}, None)
 
 
-def _sure_box_missing(v: DoubtView, cons: Consensus, s: DoubtSettings) -> Doubt | None:
+def _sure_box_missing(v: DoubtView, cons: Consensus, voters: Sequence[BallObservation],
+                      sigma: Mapping[Hashable, float], s: DoubtSettings) -> Doubt | None:
     """The judge's ``ball_missing`` (code ``consensus``: the sphere box where the labelled views' ball projects,
     :func:`app.geometry.doubts.judge._missing_doubt`) for an unlabelled view with fewer line classes than the judge
     needs whose calibration is sure (:func:`_few_lined`) and none of whose detections is the ball: the judge leaves
@@ -316,15 +317,16 @@ def _sure_box_missing(v: DoubtView, cons: Consensus, s: DoubtSettings) -> Doubt 
     offered only where that box's uncertainty (:func:`app.geometry.doubts.judge.consensus_box_sigma_px`: the agreeing
     views' spread and the view's pixel sigma in quadrature, px of the view) keeps the box's centre within the ball's
     own silhouette at :data:`SIGMAS` standard deviations (``SIGMAS * sigma`` at most the box's radius): a box that may
-    lie farther than the ball's radius from it does not label that ball."""
-    d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
+    lie farther than the ball's radius from it does not label that ball. ``voters`` and their pixel sigmas ``sigma``
+    (px at 1920 width) place the ball (the judge's looseness rule, :data:`~.judge.LOOSE_BOX_RADII`)."""
+    d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)}, voters, sigma)
     if d is None or not d.suggestion:
         return None
-    box, sigma = d.suggestion.get("box"), d.suggestion.get("box_sigma_px")
-    if box is None or sigma is None:
+    box, box_sigma = d.suggestion.get("box"), d.suggestion.get("box_sigma_px")
+    if box is None or box_sigma is None:
         return None
     radius = ((box[2] - box[0]) + (box[3] - box[1])) / 4
-    return d if SIGMAS * float(sigma) <= radius else None
+    return d if SIGMAS * float(box_sigma) <= radius else None
 
 
 def _placed_missing(unlabelled: Sequence[DoubtView],

@@ -120,8 +120,15 @@ def _trajectory(ev, v, n):
 
 def _missing(ev, v, n):
     p = ev.get("projected_px") or [math.nan, math.nan]
-    return (f"{v} has no ball label, but the ball that {_list(ev.get('agreeing_views'), n)} agree on projects inside "
-            f"it at ({_num(p[0])}, {_num(p[1])}) px.")
+    said = (f"{v} has no ball label, but the ball that {_list(ev.get('agreeing_views'), n)} agree on projects inside "
+            f"it at ({_num(p[0])}, {_num(p[1])}) px")
+    if ev.get("ball_loose"):
+        return (f"{said}; they fix that ball too loosely for {v} (it may lie {_num(ev.get('ball_sigma_px'))} px from "
+                "there, more than the ball's size), so no box is suggested: place the label where the ball is.")
+    if ev.get("detection_size_disagrees"):
+        return (f"{said}; a detection there is not a ball's size at that depth (the camera's scale or the box is "
+                "off), so no box is suggested: place the label where the ball is.")
+    return f"{said}."
 
 
 def _missing_epipolar(ev, v, n):
