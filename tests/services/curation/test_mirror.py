@@ -13,7 +13,7 @@ from app.core.config import Settings
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError
 from app.db.models import Frame
 from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists, mirror_lines
-from app.geometry.calibration.result import MIRROR_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.camera import Camera
 from app.geometry.mirror import mirror_camera
 from app.services.curation.editing import apply_mirrored_labels
@@ -83,9 +83,10 @@ def test_apply_mirrored_labels_refuses_unknown_frames_and_frames_without_lines(d
 @pytest.mark.shared
 def test_dev_set_every_mirrored_view_is_flagged_and_no_other(shared_dir: Path, fresh_session_factory,
                                                              tmp_path: Path) -> None:
-    """Measured: 2 mirrored views (a replay caught by its rays, a refused action by the rig and side
-    priors), both flagged; none of the 103 others. Mirroring any other view in turn flags 71 of 92
-    and no bystander (``benchmarks/mirror_flags.py``)."""
+    """Measured: 2 mirrored views (a replay caught by its rays, an action its lines refuse, flagged by the rig
+    and side priors, whose players place its camera with its lines fitted mirrored), both flagged; none of the
+    103 others. Mirroring any other view in turn flags 71 of 92 and no bystander (``benchmarks/mirror_flags.py``).
+    The fix keeps the players' camera of the view they placed: placed again with its lines mirrored."""
     truth = json.loads((shared_dir / "data/synthetic/soccernet-v3-dev.truth.json").read_text())
     mirrored = {(g["match"], v["image"]) for g in truth["games"] for s in g["systems"] for v in s["views"]
                 if v["lines_mirrored"]}
@@ -99,6 +100,8 @@ def test_dev_set_every_mirrored_view_is_flagged_and_no_other(shared_dir: Path, f
     for f in frames:
         if (f.system.game.match, f.name) in mirrored:
             assert f.calibration.mirror_evidence["sentence"].startswith("Labels probably mirrored")
+    by_players = {(f.system.game.match, f.name) for f in frames if _flagged(f) and PLAYERS_FLAG in f.calibration.flags}
+    assert by_players == {("2031-09-08 - 16-00 Arden 1 - 0 Quarry", "8.png")}
     # The fix: the flag goes and each view calibrates where the truth says its camera is.
     cameras = {(g["match"], v["image"]): v["camera"] for g in truth["games"] for s in g["systems"]
                for v in s["views"]}
@@ -109,3 +112,4 @@ def test_dev_set_every_mirrored_view_is_flagged_and_no_other(shared_dir: Path, f
         assert not _flagged(f) and f.calibration.status.value == "calibrated"
         true_c = Camera.from_soccernet(cameras[(f.system.game.match, f.name)]).C
         assert abs(Camera.from_soccernet(f.calibration.camera).C - true_c).max() < 3.0
+        assert (PLAYERS_FLAG in f.calibration.flags) == ((f.system.game.match, f.name) in by_players)
