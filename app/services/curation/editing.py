@@ -247,7 +247,9 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
                         actor: Optional[str] = None, expected: Expected = None,
                         revert: Optional[Revert] = None, undo_of: Optional[int] = None,
                         undo: Optional[Revert] = None, edit: Optional[EditContext] = None) -> Frame:
-    """Replace a frame's field lines, recalibrate the frame and recompute its system.
+    """Replace a frame's field lines, recalibrate the frame and recompute its system. A view the players placed is
+    placed by them again where they place it with its new lines (``players.place_frame_by_players``, as the import
+    did), so that an undo of the mirror fix, or of any line edit of such a view, gives its camera back.
 
     Args:
         frame_id: the frame.
@@ -259,8 +261,8 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         undo_of: this write undoes audit entry ``undo_of`` (a page's undo, or the redo that undoes an
             undo): a field-line write of the same frame whose ``before`` lines are ``lines`` exactly
             (:func:`check_undo`). Audited as ``field_lines.replace`` with ``reverts_id = undo_of``. The
-            calibration is computed from the lines alone, so the camera and JaC come back as they were
-            when nothing else in the game changed meanwhile.
+            calibration is computed from the lines (and the players, above), so the camera and JaC come back as
+            they were when nothing else in the game changed meanwhile.
         undo: the same as ``undo_of = undo.entry_id``, and refused (409) unless the lines under the lock are
             ``undo.expect`` (:func:`check_undo_state`; the undo of ``POST /api/audit/{id}/undo``).
         edit: the edit's context (``writing.EditContext``), filled with its audit entry's id.
@@ -289,7 +291,8 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         before = lines_state(frame), calibration_words(frame, settings)
         check_undo_state(undo, before[0])
         jac_before = jac_words(frame, settings)
-        _store_lines(session, frame, parsed, settings, actor, edit)
+        placed = frame.calibration is not None and PLAYERS_FLAG in (frame.calibration.flags or [])
+        _store_lines(session, frame, parsed, settings, actor, edit, players=placed)
         verb = "replaced" if undo_of is None else f"put back (undo of audit entry {undo_of})"
         reset_decisions_after_recalibration(session, frame, before, verb, actor, settings)
         restore_decisions(frame, undo or revert, actor, edit)
@@ -299,7 +302,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
     if undo_of is not None:
         check_undo(session, undo_of, frame_id, parsed)
     plan = EditPlan("field_lines.replace", lines_state, apply, actor, frame_id, expected, revert, undo_of,
-                    recompute=True, settings=settings)
+                    recompute=True, settings=settings, players=True)
     return guarded_frame_write(session, plan, system_id=facts.system_id, edit=edit)
 
 

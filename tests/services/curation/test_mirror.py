@@ -16,7 +16,7 @@ from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists,
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.camera import Camera
 from app.geometry.mirror import mirror_camera
-from app.services.curation.editing import apply_mirrored_labels
+from app.services.curation.editing import apply_mirrored_labels, replace_field_lines
 from app.services.derivation.recompute import recompute_system
 from app.services.transfer.importing import import_soccernet_v3
 from tests.api.factories import make_game, make_system
@@ -106,6 +106,7 @@ def test_dev_set_every_mirrored_view_is_flagged_and_no_other(shared_dir: Path, f
     cameras = {(g["match"], v["image"]): v["camera"] for g in truth["games"] for s in g["systems"]
                for v in s["views"]}
     for f in [f for f in frames if (f.system.game.match, f.name) in mirrored]:
+        labelled = f.field_lines.lines
         apply_mirrored_labels(session, f.id, settings=settings)
         session.refresh(f)
         session.refresh(f.calibration)
@@ -113,3 +114,10 @@ def test_dev_set_every_mirrored_view_is_flagged_and_no_other(shared_dir: Path, f
         true_c = Camera.from_soccernet(cameras[(f.system.game.match, f.name)]).C
         assert abs(Camera.from_soccernet(f.calibration.camera).C - true_c).max() < 3.0
         assert (PLAYERS_FLAG in f.calibration.flags) == ((f.system.game.match, f.name) in by_players)
+        if (f.system.game.match, f.name) in by_players:
+            # Its lines put back as labelled (the fix undone): the players place it again, flagged mirrored.
+            replace_field_lines(session, f.id, labelled, settings=settings)
+            session.refresh(f)
+            session.refresh(f.calibration)
+            assert _flagged(f) and PLAYERS_FLAG in f.calibration.flags
+            assert abs(Camera.from_soccernet(f.calibration.camera).C - true_c).max() < 3.0
