@@ -149,9 +149,30 @@ def is_weak(view: PlacementView) -> bool:
 
 def is_anchor(view: PlacementView) -> bool:
     """Whether ``view``'s camera tells where its players stand: calibrated from its lines (not by the players),
-    admitted, and with at least :data:`MIN_LINE_CLASSES` line classes."""
+    admitted, with at least :data:`MIN_LINE_CLASSES` line classes, and not flagged mirrored (a mirrored view's camera
+    stands where its mirrored labels put it, and its players on the other side of the pitch)."""
     return (view.status is CalibrationStatus.CALIBRATED and view.camera is not None
-            and PLAYERS_FLAG not in view.flags and line_classes(view.lines) >= MIN_LINE_CLASSES and view.admitted)
+            and PLAYERS_FLAG not in view.flags and MIRROR_FLAG not in view.flags
+            and line_classes(view.lines) >= MIN_LINE_CLASSES and view.admitted)
+
+
+def systems_with_mirrored_anchors(systems: Iterable[System], settings: Settings) -> list[System]:
+    """The systems of ``systems`` (of a kind with a game rig) with a weak view (:func:`is_weak`) and a view that would
+    anchor it (:func:`is_anchor`) but for its mirror flag: their weak views were placed with that view's players
+    before its flag was set (an import's placement precedes the recomputation's mirror verdicts), and are placed again
+    without them (:func:`place_cameras_by_players`). Reads the systems' stored rows."""
+    from app.services.calibration.rigs import uses_rig
+
+    out = []
+    for s in systems:
+        if not uses_rig(s):
+            continue
+        views = [view_of_frame(f, settings, ()) for f in s.frames]
+        if any(is_weak(v) for v in views) and any(
+                MIRROR_FLAG in v.flags and is_anchor(v._replace(flags=tuple(x for x in v.flags if x != MIRROR_FLAG)))
+                for v in views):
+            out.append(s)
+    return out
 
 
 def rig_of_views(views: Iterable[PlacementView]) -> CameraRig:
@@ -256,7 +277,7 @@ def place_in_system(views: Sequence[PlacementView], rig: CameraRig, only: int | 
         if not isinstance(got, PlayerFit):
             out[i] = got
             continue
-        if MIRROR_FLAG in v.flags and not got.residuals_px:
+        if MIRROR_FLAG in v.flags and PLAYERS_FLAG not in v.flags and not got.residuals_px:
             # Its lines flagged mirrored fit the players' camera neither as labelled nor mirrored: placed, the view
             # would lose the flag its lines earned, and the players cannot tell the reviewer which labelling is right.
             out[i] = PlayerRefusal("mirror_undecided", {"players": len(got.players)})

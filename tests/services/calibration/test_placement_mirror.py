@@ -15,6 +15,7 @@ from app.geometry.calibration.rig import CameraRig, RigPosition
 from app.geometry.camera import Camera
 from app.geometry.doubts.contract import DoubtView
 from app.geometry.doubts.judge import _mirror_fix_check
+from app.geometry.mirror import mirror_camera
 from app.services.calibration.players import PlacementView, place_in_system, players_mirror_evidence
 from app.services.derivation.doubts import doubt_settings
 from tests.geometry.synthetic import visible_model_points
@@ -98,3 +99,24 @@ def test_the_players_tell_a_wrong_mirror_flag_and_leave_a_flag_they_cannot_judge
     assert isinstance(got, PlayerRefusal) and got.code == "mirror_undecided" and got.code in PLAYER_REFUSALS
     unflagged = _system(wrong, ("few_lines",), 7)[2]  # without the flag the players alone place it, as before
     assert isinstance(unflagged, CalibrationFields) and MIRROR_FLAG not in unflagged.flags
+
+
+def test_an_anchor_flagged_mirrored_places_no_player() -> None:
+    """A well-lined view whose labels are mirrored calibrates to the mirror image of its camera, which puts its
+    players on the other side of the pitch: left as an anchor, it contradicts the true anchor about every player the
+    weak view shares (none is kept: too few players); flagged mirrored, it is no anchor, and the weak view gets the true
+    camera from the other anchor's players."""
+    rng = np.random.default_rng(11)
+    pts = players(8, rng)
+    true_anchor, slipped = ANCHORS
+    views = [_view(true_anchor, visible_model_points(true_anchor, W, H, rng, noise_px=0.5),
+                   _boxes(true_anchor, pts, rng)),
+             _view(mirror_camera(slipped), mirror_lines(visible_model_points(slipped, W, H, rng, noise_px=0.5)),
+                   _boxes(slipped, pts, rng)),
+             _view(None, _lines(5), _boxes(TRUTH, pts, rng), ("few_lines",))]
+    rig = CameraRig(tuple(RigPosition(tuple(c), 5, 0.5) for c in RIG))  # type: ignore[arg-type]  # (3,) each
+    unflagged = place_in_system(views, rig)[2]
+    assert isinstance(unflagged, PlayerRefusal) and unflagged.code == "few_players"
+    views[1] = views[1]._replace(flags=(MIRROR_FLAG,))
+    got = place_in_system(views, rig)[2]
+    assert isinstance(got, CalibrationFields) and _ball_px(got.camera) < 3.0
