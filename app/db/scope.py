@@ -34,10 +34,11 @@ SYSTEM_ROWS: tuple[Any, ...] = (System.triangulation, System.trajectory_point, S
 #: Each view's one-to-one rows an edit reads (joined to the view's row when it is loaded).
 FRAME_ROWS: tuple[Any, ...] = (Frame.calibration, Frame.ball_label, Frame.review, Frame.reprojection,
                                Frame.optimised_box, Frame.field_lines)
-#: The system's lists an edit reads: its views, its doubts, its triangulation's pairs and its views' detector
-#: predictions (each in id order but the views, in their place on the page). An import or removal of predictions
-#: bumps the version of each system it touches in its transaction.
-SYSTEM_LISTS: tuple[Any, ...] = (System.frames, System.doubts, Triangulation.pairs, Frame.predictions)
+#: The system's lists an edit reads: its views, its doubts, its triangulation's pairs, its views' detector
+#: predictions (each in id order but the views, in their place on the page) and its views' person boxes (the
+#: detector's check and the players' placement of the mirror fix read them). An import or removal of predictions,
+#: and an import that writes person boxes, bumps the version of each system it touches in its transaction.
+SYSTEM_LISTS: tuple[Any, ...] = (System.frames, System.doubts, Triangulation.pairs, Frame.predictions, Frame.players)
 #: The system's game: read by an edit for its camera prior and its version, which covers the game's rig.
 GAME_ROW: Any = System.game
 

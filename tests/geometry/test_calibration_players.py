@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.geometry.annotations import mirror_lines
 from app.geometry.calibration.grass import (
     HEAD_HEIGHT_M,
     HEAD_OFFSET_M,
@@ -299,29 +300,56 @@ def test_players_whose_feet_the_image_cuts_place_a_close_view_by_their_heads() -
 
 
 def test_players_at_a_rig_position_leave_out_lines_they_cannot_be_fitted_with() -> None:
-    """A view whose few lines (at most 3 classes) are labelled on the wrong side (left for right) cannot be fitted with
-    its players: the players alone, at the rig position, give the camera (no line residuals: the lines are left
-    out)."""
+    """A view whose few lines (at most 3 classes) are labelled wrong, and not merely mirrored (the goal area's main
+    line named the penalty area's), cannot be fitted with its players, as labelled or mirrored: the players alone, at
+    the rig position, give the camera (no line residuals: the lines are left out)."""
     for seed in range(3):
         rng = np.random.default_rng(20 + seed)
         truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
         lines = visible_model_points(truth, W, H, rng, classes=("Big rect. left main", "Small rect. left main"),
                                      noise_px=1.0)
-        mirrored = {c.replace("left", "right"): v for c, v in lines.items()}
+        wrong = {"Big rect. left main": lines["Small rect. left main"],
+                 "Small rect. left main": lines["Big rect. left main"]}
         pts = players(6, rng)
         feet = feet_in(truth, pts, 1.0, rng)
-        fit = fit_camera_to_players(feet, as_grass(pts), mirrored, W, H, RIG)
+        fit = fit_camera_to_players(feet, as_grass(pts), wrong, W, H, RIG)
         assert isinstance(fit, PlayerFit), fit
-        assert fit.rig_index == 1 and fit.residuals_px == {} and fit.line_rms_px is None
+        assert fit.rig_index == 1 and fit.residuals_px == {} and fit.line_rms_px is None and not fit.lines_mirrored
         assert ball_error(fit, truth) < 3.0
         right = fit_camera_to_players(feet, as_grass(pts), lines, W, H, RIG)
         assert isinstance(right, PlayerFit) and set(right.residuals_px) == set(lines)  # right lines stay in the fit
-    # A view with 4 or more classes keeps its refusal: its lines alone tell they are mirrored (the doubts' own check).
+        assert not right.lines_mirrored
+    # A view with 4 or more classes so labelled keeps its refusal: its lines alone say they are wrong.
     every = visible_model_points(truth, W, H, rng, noise_px=1.0)
     assert len(every) >= 4
-    mirrored = {c.replace("left", "right"): v for c, v in every.items()}
-    got = fit_camera_to_players(feet, as_grass(pts), mirrored, W, H, RIG)
+    names = sorted(every)
+    shuffled = {names[(i + 1) % len(names)]: every[c] for i, c in enumerate(names)}
+    got = fit_camera_to_players(feet, as_grass(pts), shuffled, W, H, RIG)
     assert isinstance(got, PlayerRefusal) and got.code == "players_misfit"
+
+
+def test_mirrored_lines_fit_the_players_camera_mirrored_and_say_so() -> None:
+    """A view whose lines are labelled left for right (the pitch's 180-degree ambiguity, ``mirror_lines``) is fitted
+    with its lines mirrored: the players' camera is the true one, its lines in the fit (each labelled class's distance
+    to its mirror class's element), and the fit says the labels are mirrored; with 2 classes or with every class the
+    view shows alike. Lines labelled right are never called mirrored."""
+    rng = np.random.default_rng(31)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(6, rng)
+    feet = feet_in(truth, pts, 1.0, rng)
+    few = visible_model_points(truth, W, H, rng, classes=("Big rect. left main", "Small rect. left main"),
+                               noise_px=1.0)
+    every = visible_model_points(truth, W, H, rng, noise_px=1.0)
+    assert len(every) >= 4
+    for lines in (few, every):
+        labelled = mirror_lines(lines)  # the annotator's slip
+        fit = fit_camera_to_players(feet, as_grass(pts), labelled, W, H, RIG)
+        assert isinstance(fit, PlayerFit), fit
+        assert fit.lines_mirrored and fit.rig_index == 1
+        assert set(fit.residuals_px) == set(labelled) and max(fit.residuals_px.values()) < 5.0
+        assert ball_error(fit, truth) < 3.0
+        right = fit_camera_to_players(feet, as_grass(pts), lines, W, H, RIG)
+        assert isinstance(right, PlayerFit) and not right.lines_mirrored and set(right.residuals_px) == set(lines)
 
 
 def test_players_disagree_with_a_wrong_camera_not_with_the_true_one() -> None:

@@ -28,6 +28,7 @@ the top-left corner, principal point ``((W - 1) / 2, (H - 1) / 2)`` (:func:`~.re
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
@@ -35,7 +36,7 @@ from typing import Mapping, Sequence
 import cv2
 import numpy as np
 
-from app.geometry.annotations import FieldLines, image_diagonal
+from app.geometry.annotations import FieldLines, image_diagonal, mirror_lines
 from app.geometry.calibration.grass import GrassPlayer, PlayerKey, foot_world, head_world
 from app.geometry.calibration.initialisation import camera_from_homography, wahba_rotation
 from app.geometry.calibration.player_problem import PlayerProblem, projection_sigma_px
@@ -49,7 +50,7 @@ from app.geometry.calibration.uncertainty import (
 )
 from app.geometry.camera import Camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
-from app.geometry.pitch import MIN_LINE_CLASSES
+from app.geometry.pitch import MIN_LINE_CLASSES, MIRROR_CLASSES
 
 
 @dataclass(frozen=True)
@@ -105,10 +106,14 @@ class PlayerFit:
         rig_index: the index of the rig position its centre is fixed at (``None``: a full pose).
         players: ``(key, foot pixel (2,), grass point (2,) m)`` of every player the fit used (inliers).
         rms_px: RMS residual of those foot points (px of the view).
-        residuals_px: per fitted line class, its largest point distance (px of the view).
+        residuals_px: per fitted line class (as labelled), its largest point distance (px of the view).
         line_rms_px: RMS of the line residuals (px), None without lines.
         sigma_px: the largest pixel uncertainty (px@1920) of a point where the players stand, on the grass or 3 m
             up (:func:`projection_sigma_px`).
+        lines_mirrored: the view's lines were fitted mirrored (:func:`~app.geometry.annotations.mirror_lines`): as
+            labelled they cannot be fitted with the players, mirrored they fit the players' camera at a rig
+            position, so the labels are probably mirrored (``residuals_px`` then holds each labelled class's
+            distance to its mirror class's model element).
     """
 
     camera: Camera
@@ -119,12 +124,15 @@ class PlayerFit:
     residuals_px: Mapping[str, float] = field(default_factory=dict)
     line_rms_px: float | None = None
     sigma_px: float = 0.0
+    lines_mirrored: bool = False
 
 
 #: Why :func:`fit_camera_to_players` refused: too few players matched, their foot points on one image line, no
-#: fit within the residual limits, two rig positions fitting alike, a camera too unsure.
+#: fit within the residual limits, two rig positions fitting alike, a camera too unsure; and why the placement
+#: (``app.services.calibration.players``) kept a view's lines: they were admitted, or flagged mirrored while the
+#: players' camera fits them neither as labelled nor mirrored.
 PLAYER_REFUSALS: tuple[str, ...] = ("few_players", "collinear_players", "players_misfit", "rig_ambiguous",
-                                    "camera_unsure", "lines_admitted")
+                                    "camera_unsure", "lines_admitted", "mirror_undecided")
 
 
 @dataclass(frozen=True)
@@ -246,8 +254,15 @@ def _free_pose(problem: PlayerProblem, fits: list[_Candidate], s: PlayerFitSetti
 def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[PlayerKey, GrassPlayer],
                           lines: FieldLines, width: int, height: int, rig_centres: Sequence[Sequence[float]] = (),
                           settings: PlayerFitSettings | None = None,
-                          heads: Mapping[PlayerKey, np.ndarray] | None = None) -> PlayerFit | PlayerRefusal:
+                          heads: Mapping[PlayerKey, np.ndarray] | None = None, *,
+                          lines_retried: bool = False) -> PlayerFit | PlayerRefusal:
     """Fit a view's camera to its players' foot points (and its field lines), at a rig position where one fits.
+
+    Where the lines and the players cannot be fitted together (``players_misfit``), the lines are tried mirrored
+    first (the pitch's 180-degree ambiguity, method.md section 3, is how an annotator's few lines most often go
+    wrong): a fit of the players with the mirrored lines at a rig position is returned with ``lines_mirrored``
+    set, which keeps the view's labels flagged mirrored and its one-key fix meaningful; else, for a view of 1 to 3
+    line classes, the players alone at a rig position (the lines left out, ``residuals_px`` empty).
 
     Args:
         feet: the view's players: key -> foot pixel (2,) px (:func:`foot_pixel`). Never the ball.
@@ -261,6 +276,7 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
             None for none: each joins the fit as the point :data:`~.grass.HEAD_HEIGHT_M` above its player
             (:func:`~.grass.head_world`), whitened by the height's spread too; a box's height in the image is the
             player's distance, which the foot points of players standing close together leave loose.
+        lines_retried: this call is the retry of another's lines (mirrored or left out): it retries nothing.
 
     Returns:
         :class:`PlayerFit`, or :class:`PlayerRefusal` with its code and numbers.
@@ -297,12 +313,24 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
     if chosen is None:
         refusal = refusal or PlayerRefusal("players_misfit" if fits else "few_players",
                                            {"players": len(keys), "need": s.min_players_free})
-        if 0 < len(lines) < MIN_LINE_CLASSES and refusal.code == "players_misfit":
-            # The view's few lines and its players cannot be fitted together: the lines may be wrong (a mirrored or
-            # mislabelled class), which the players and the game's rig, two sources the view's labels do not touch,
-            # can tell. Their camera without the lines is taken only at a rig position. A view with more classes
-            # keeps its refusal: its lines alone say whether they are mirrored (the doubts' mirrored_labels).
-            alone = fit_camera_to_players(feet, grass, {}, width, height, rig_centres, s, heads)
+        if lines_retried or refusal.code != "players_misfit":
+            return refusal
+        # The view's lines and its players cannot be fitted together: the lines may be wrong, which the players and
+        # the game's rig, two sources the view's labels do not touch, can tell; only at a rig position (so the
+        # retries fit no full pose: it would be dropped).
+        at_rig_only = dataclasses.replace(s, min_players_free=len(keys) + 1)
+        if any(MIRROR_CLASSES[c] != c for c in lines):
+            # Mirrored, they fit: the labels are mirrored, and the camera meets them as the mirror fix makes them.
+            flipped = fit_camera_to_players(feet, grass, mirror_lines(lines), width, height, rig_centres, at_rig_only,
+                                            heads, lines_retried=True)
+            if isinstance(flipped, PlayerFit) and flipped.rig_index is not None and flipped.residuals_px:
+                return dataclasses.replace(flipped, lines_mirrored=True, residuals_px={
+                    MIRROR_CLASSES[c]: v for c, v in flipped.residuals_px.items()})
+        if 0 < len(lines) < MIN_LINE_CLASSES:
+            # A mislabelled class: the players' camera without the lines. A view with more classes keeps its
+            # refusal: its lines alone say whether they are otherwise wrong.
+            alone = fit_camera_to_players(feet, grass, {}, width, height, rig_centres, at_rig_only, heads,
+                                          lines_retried=True)
             if isinstance(alone, PlayerFit) and alone.rig_index is not None:
                 return alone
         return refusal

@@ -96,17 +96,21 @@ def _mirror_fix_check(v: DoubtView, ev: dict[str, Any], others: Consensus | None
     labelled ``mirror_rig_gap_m`` farther; else ``one_view_cannot_tell``; ``as_labelled_meets`` when a ray meets
     it as labelled, ``no_ray_confirms`` without any). A view
     without a camera (refused as labelled) whose mirrored labels fit (``refit``) gets the fix: it has no
-    camera to make worse.
+    camera to make worse. A camera the players placed whose lines fit it only mirrored (``refit`` of source
+    ``players``) stays where it is with the fix, the labels mirrored to meet it: the camera as labelled is its mirror
+    image, so the errors swap roles; without a ball the players' fit, with the game's rig, confirms the fix.
     """
     if v.camera is None:
         if ev.get("refit") or ev.get("verdict") == "probably_mirrored":
             return (True, "", {})
         return (False, "no_ray_confirms", {})
+    by_players = (ev.get("refit") or {}).get("source") == "players"
     c = label_centre(v)
     if others is not None and others.point is not None and not others.ambiguous and c is not None:
         k = rule_scale(v, s)
-        e_as = reprojection_error_px(v.camera, others.point, c)
-        e_mi = reprojection_error_px(mirror_camera(v.camera), others.point, c)
+        as_labelled, fixed = (mirror_camera(v.camera), v.camera) if by_players else (v.camera, mirror_camera(v.camera))
+        e_as = reprojection_error_px(as_labelled, others.point, c)
+        e_mi = reprojection_error_px(fixed, others.point, c)
         numbers = {"error_as_labelled_px_1920": None if e_as is None else _r(e_as * k),
                    "error_mirrored_px_1920": None if e_mi is None else _r(e_mi * k),
                    "agreeing_views": list(others.inliers)}
@@ -116,6 +120,8 @@ def _mirror_fix_check(v: DoubtView, ev: dict[str, Any], others: Consensus | None
         if e_mi is None or e_mi * k > tau:
             return False, "mirrored_misses", numbers
         return True, "", numbers
+    if by_players:
+        return True, "", {"players_confirm": True}
     pairs = [p for p in ev.get("pairs") or [] if isinstance(p, dict)]
     if any(p.get("relation") == "same" for p in pairs):
         return False, "as_labelled_meets", {}

@@ -9,6 +9,13 @@ fit. An accepted fit replaces the view's calibration (flags ``"player_assisted"`
 position; its uncertainty from the fit, as a line fit's; what it was fitted to in ``Calibration.players``); a
 refused one leaves the calibration from lines as it was. The ball label is never read. A camera the players placed
 never feeds the game's rig (``rigs``) nor places another view.
+
+Mirrored labels: a view's lines that fit the players' camera only mirrored (``PlayerFit.lines_mirrored``) keep the
+view flagged :data:`MIRROR_FLAG`, with the players' evidence (:func:`players_mirror_evidence`, which every
+recomputation reads again from ``Calibration.players``); the one-key fix (``editing.apply_mirrored_labels``) then
+mirrors the labels and places the view by its players again (:func:`place_frame_by_players`), the camera staying
+where the players put it. A view its lines flagged mirrored is placed only when the players tell which labelling
+is right: its lines fit their camera mirrored, or as labelled; not by the players alone (``mirror_undecided``).
 """
 from __future__ import annotations
 
@@ -40,6 +47,7 @@ from app.geometry.jac import JAC_GAMMAS, jac_admitted
 from app.geometry.pitch import MIN_LINE_CLASSES
 from app.services.calibration.admission import admission_args, fields_admitted, is_admitted
 from app.services.calibration.calibrating import apply_calibration
+from app.services.wording.doubt_words import with_sentence
 from app.services.wording.words import player_camera_sentence
 
 #: ``(class, ID or None, (x1, y1, x2, y2) px)``: a player box as the records and the rows give it.
@@ -141,9 +149,30 @@ def is_weak(view: PlacementView) -> bool:
 
 def is_anchor(view: PlacementView) -> bool:
     """Whether ``view``'s camera tells where its players stand: calibrated from its lines (not by the players),
-    admitted, and with at least :data:`MIN_LINE_CLASSES` line classes."""
+    admitted, with at least :data:`MIN_LINE_CLASSES` line classes, and not flagged mirrored (a mirrored view's camera
+    stands where its mirrored labels put it, and its players on the other side of the pitch)."""
     return (view.status is CalibrationStatus.CALIBRATED and view.camera is not None
-            and PLAYERS_FLAG not in view.flags and line_classes(view.lines) >= MIN_LINE_CLASSES and view.admitted)
+            and PLAYERS_FLAG not in view.flags and MIRROR_FLAG not in view.flags
+            and line_classes(view.lines) >= MIN_LINE_CLASSES and view.admitted)
+
+
+def systems_with_mirrored_anchors(systems: Iterable[System], settings: Settings) -> list[System]:
+    """The systems of ``systems`` (of a kind with a game rig) with a weak view (:func:`is_weak`) and a view that would
+    anchor it (:func:`is_anchor`) but for its mirror flag: their weak views were placed with that view's players
+    before its flag was set (an import's placement precedes the recomputation's mirror verdicts), and are placed again
+    without them (:func:`place_cameras_by_players`). Reads the systems' stored rows."""
+    from app.services.calibration.rigs import uses_rig
+
+    out = []
+    for s in systems:
+        if not uses_rig(s):
+            continue
+        views = [view_of_frame(f, settings, ()) for f in s.frames]
+        if any(is_weak(v) for v in views) and any(
+                MIRROR_FLAG in v.flags and is_anchor(v._replace(flags=tuple(x for x in v.flags if x != MIRROR_FLAG)))
+                for v in views):
+            out.append(s)
+    return out
 
 
 def rig_of_views(views: Iterable[PlacementView]) -> CameraRig:
@@ -170,39 +199,63 @@ def players_json(fit: PlayerFit, rig: CameraRig) -> dict[str, Any]:
                      "grass_m": [round(g[0], 3), round(g[1], 3)]} for k, uv, g in fit.players],
            "rig": rig_part, "rms_px": round(fit.rms_px, 3), "sigma_px": round(fit.sigma_px, 3),
            "players": len(fit.players)}
+    if fit.lines_mirrored:
+        out["lines_mirrored"] = {"line_px": round(max(fit.residuals_px.values()), 2)}
     out["note"] = player_camera_sentence(out)
     return json_safe(out)
 
 
+def players_mirror_evidence(players: Mapping[str, Any] | None, camera: Mapping[str, Any] | None
+                            ) -> dict[str, Any] | None:
+    """The mirror evidence (``Calibration.mirror_evidence``, with its sentence) of a camera the players placed whose
+    view's lines fit it only mirrored (``players``: its ``Calibration.players``, :func:`players_json`; ``camera``: its
+    SoccerNet JSON), or None when they fit it as labelled. The verdict is mirrored; the players' camera, which the
+    labels' naming does not move, is given as ``refit`` (source ``players``): the mirror fix leaves it where it is
+    and the labels, mirrored, meet it."""
+    got = (players or {}).get("lines_mirrored")
+    if not got or camera is None:
+        return None
+    c = [round(float(x), 2) for x in camera["position_meters"]]
+    rig = (players or {}).get("rig") or {}
+    evidence: dict[str, Any] = {
+        "verdict": MIRROR_FLAG, "margin": None, "camera_y_m": c[1], "mirrored_camera_y_m": -c[1], "side_vote": 0,
+        "rig_distance_m": None, "rig_distance_mirrored_m": None, "rig_vote": 0, "pairs": [],
+        "refit": {"source": "players", "position_m": c, "players": (players or {}).get("players"),
+                  "line_px": got.get("line_px"), "rig_centre_m": rig.get("centre_m")}}
+    return json_safe(with_sentence(evidence, {}))
+
+
 def fields_of_fit(fit: PlayerFit, view: PlacementView, rig: CameraRig, elapsed_ms: float) -> CalibrationFields:
     """The calibration stored for an accepted fit: the camera, JaC against the view's own lines (None without
-    lines), per-class residuals, flags (``few_lines`` as a line fit flags it, ``player_assisted``, ``rig_assisted``
-    at a rig position), the fit's uncertainty and :func:`players_json`."""
+    lines; the same for the lines and their mirror), per-class residuals, flags (``few_lines`` as a line fit flags
+    it, ``player_assisted``, ``rig_assisted`` at a rig position, :data:`MIRROR_FLAG` when its lines fit it only
+    mirrored, with :func:`players_mirror_evidence`), the fit's uncertainty and :func:`players_json`."""
     lines = {c: v for c, v in lines_from_json_lists(dict(view.lines)).items() if v}
     jac: tuple[float | None, float | None, float | None] = (None, None, None)
     if lines:
         values = frame_jac(fit.camera, lines, view.width, view.height)
         jac = tuple(values.get(f"{g:g}") for g in JAC_GAMMAS)  # type: ignore[assignment]  # three gammas
     flags = [*(["few_lines"] if len(lines) < MIN_LINE_CLASSES else []), PLAYERS_FLAG,
-             *([RIG_FLAG] if fit.rig_index is not None else [])]
+             *([RIG_FLAG] if fit.rig_index is not None else []), *([MIRROR_FLAG] if fit.lines_mirrored else [])]
+    camera = json_safe(fit.camera.to_soccernet())
+    players = players_json(fit, rig)
     return CalibrationFields(
-        status=CalibrationStatus.CALIBRATED, camera=json_safe(fit.camera.to_soccernet()), jac=jac,
+        status=CalibrationStatus.CALIBRATED, camera=camera, jac=jac,
         residuals_px=json_safe(dict(fit.residuals_px)), flags=flags, reason=None, refusal=None,
         elapsed_ms=elapsed_ms, rms_px=fit.rms_px, uncertainty=fit.uncertainty.to_json(),
-        players=players_json(fit, rig))
+        mirror_evidence=players_mirror_evidence(players, camera), players=players)
 
 
-def place_in_system(views: Sequence[PlacementView], rig: CameraRig) -> dict[int, CalibrationFields | PlayerRefusal]:
-    """Fit each weak view of a system (:func:`is_weak`) to the players it shares with the system's anchors
-    (:func:`is_anchor`), with the game's ``rig``. Pure on plain values: the one placement, for stored frames and
-    for an import's pool task alike.
+def place_in_system(views: Sequence[PlacementView], rig: CameraRig, only: int | None = None
+                    ) -> dict[int, CalibrationFields | PlayerRefusal]:
+    """Fit each weak view of a system (:func:`is_weak`; ``only``: that view's index alone) to the players it shares
+    with the system's anchors (:func:`is_anchor`), with the game's ``rig``. Pure on plain values: the one placement,
+    for stored frames and for an import's pool task alike.
 
     Returns:
         per weak view's index in ``views``, the calibration to store or why the players place none.
     """
-    # a view whose lines are flagged mirrored is left to the mirror check's one-key fix, which recalibrates it from
-    # its own lines: a camera the players placed would drop the flag and hide the slip from the reviewer
-    weak = [i for i, v in enumerate(views) if is_weak(v) and MIRROR_FLAG not in v.flags]
+    weak = [i for i, v in enumerate(views) if is_weak(v) and only in (None, i)]
     if not weak:
         return {}
     anchors = [i for i, v in enumerate(views) if is_anchor(v)]
@@ -223,6 +276,11 @@ def place_in_system(views: Sequence[PlacementView], rig: CameraRig) -> dict[int,
                                     centres, heads=feet_of(v.players, v.width, v.height, head_pixel))
         if not isinstance(got, PlayerFit):
             out[i] = got
+            continue
+        if MIRROR_FLAG in v.flags and PLAYERS_FLAG not in v.flags and not got.residuals_px:
+            # Its lines flagged mirrored fit the players' camera neither as labelled nor mirrored: placed, the view
+            # would lose the flag its lines earned, and the players cannot tell the reviewer which labelling is right.
+            out[i] = PlayerRefusal("mirror_undecided", {"players": len(got.players)})
             continue
         out[i] = _kept(fields_of_fit(got, v, rig, (time.perf_counter() - t0) * 1e3), v, got.rig_index is not None,
                        feet[i], grass)
@@ -291,6 +349,29 @@ def place_by_players(system: System, settings: Settings, rig: CameraRig,
     frames = list(system.frames)
     got = place_in_system([view_of_frame(f, settings, (players or {}).get(id(f))) for f in frames], rig)
     return {id(frames[i]): v for i, v in got.items()}
+
+
+def place_frame_by_players(session: Session, frame: Frame, settings: Settings,
+                           rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> bool:
+    """Place one stored ``frame`` by its players (:func:`place_in_system` on its system's stored views, the game's
+    rig from its stored calibrations, ``rigs.game_rig``; ``rig``: the game's rig rows when the caller has read them)
+    and store the camera when they place it: what the import would do with its calibration as it is now (an edit
+    recalibrated it from its lines). Returns whether the players placed it; writes nothing otherwise."""
+    from app.services.calibration.rigs import game_rig, uses_rig
+
+    system = frame.system
+    if not uses_rig(system) or system.game_id is None:
+        return False
+    frames = list(system.frames)
+    me = next(i for i, f in enumerate(frames) if f is frame)
+    views = [view_of_frame(f, settings) for f in frames]
+    if not is_weak(views[me]):
+        return False
+    got = place_in_system(views, game_rig(session, system.game_id, settings, stored=rig), only=me).get(me)
+    if not isinstance(got, CalibrationFields):
+        return False
+    apply_calibration(frame, got, CalibrationSource.COMPUTED)
+    return True
 
 
 def apply_placed(frames: Sequence[Frame], placed: Mapping[int, CalibrationFields | PlayerRefusal],

@@ -26,6 +26,7 @@ Bounded work: a field-line edit gives a view at most ``V3D_MAX_LINE_POINTS_PER_F
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, Mapping, Optional
 
 import numpy as np
@@ -49,7 +50,11 @@ from app.db.models import (
 )
 from app.db.types import utcnow
 from app.geometry.annotations import AnnotationError, lines_from_json_lists, lines_to_json_lists, mirror_lines
+from app.geometry.calibration.result import PLAYERS_FLAG
+from app.geometry.camera import Camera
+from app.geometry.mirror import mirror_camera
 from app.services.calibration.calibrating import apply_calibration
+from app.services.calibration.players import players_mirror_evidence
 from app.services.curation.resets import (
     calibration_words,
     jac_words,
@@ -222,16 +227,17 @@ def parse_field_lines(lines: Mapping[str, Any], width: int, height: int, max_poi
 
 
 def _store_lines(session: Session, frame: Frame, parsed: dict[str, Any], settings: Settings,
-                 actor: Optional[str], edit: EditContext) -> Frame:
-    """Store ``parsed`` as the frame's current lines, recalibrate the frame and recompute its system (an edit by
-    ``actor``; the systems an ISSIA re-fit changed go back to pending: :func:`reset_refitted_systems`)."""
+                 actor: Optional[str], edit: EditContext, players: bool = False) -> Frame:
+    """Store ``parsed`` as the frame's current lines, recalibrate the frame (``players``: and place it by its players
+    where they place it, ``recompute_frame``) and recompute its system (an edit by ``actor``; the systems an ISSIA
+    re-fit changed go back to pending: :func:`reset_refitted_systems`)."""
     fl = frame.field_lines
     if fl is None:
         frame.field_lines = FieldLineAnnotation(lines=parsed, original_lines={}, edited_at=utcnow())
     else:
         fl.lines = parsed
         fl.edited_at = utcnow()
-    recompute_frame(session, frame, settings, edit.rig)
+    recompute_frame(session, frame, settings, edit.rig, players=players)
     refitted = kind_of(frame.system).refit_after_edit(session, frame.system, settings, recalibrated=frame)
     reset_refitted_systems(session, frame.system, refitted, actor)
     return frame
@@ -241,7 +247,9 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
                         actor: Optional[str] = None, expected: Expected = None,
                         revert: Optional[Revert] = None, undo_of: Optional[int] = None,
                         undo: Optional[Revert] = None, edit: Optional[EditContext] = None) -> Frame:
-    """Replace a frame's field lines, recalibrate the frame and recompute its system.
+    """Replace a frame's field lines, recalibrate the frame and recompute its system. A view the players placed is
+    placed by them again where they place it with its new lines (``players.place_frame_by_players``, as the import
+    did), so that an undo of the mirror fix, or of any line edit of such a view, gives its camera back.
 
     Args:
         frame_id: the frame.
@@ -253,8 +261,8 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         undo_of: this write undoes audit entry ``undo_of`` (a page's undo, or the redo that undoes an
             undo): a field-line write of the same frame whose ``before`` lines are ``lines`` exactly
             (:func:`check_undo`). Audited as ``field_lines.replace`` with ``reverts_id = undo_of``. The
-            calibration is computed from the lines alone, so the camera and JaC come back as they were
-            when nothing else in the game changed meanwhile.
+            calibration is computed from the lines (and the players, above), so the camera and JaC come back as
+            they were when nothing else in the game changed meanwhile.
         undo: the same as ``undo_of = undo.entry_id``, and refused (409) unless the lines under the lock are
             ``undo.expect`` (:func:`check_undo_state`; the undo of ``POST /api/audit/{id}/undo``).
         edit: the edit's context (``writing.EditContext``), filled with its audit entry's id.
@@ -283,7 +291,8 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
         before = lines_state(frame), calibration_words(frame, settings)
         check_undo_state(undo, before[0])
         jac_before = jac_words(frame, settings)
-        _store_lines(session, frame, parsed, settings, actor, edit)
+        placed = frame.calibration is not None and PLAYERS_FLAG in (frame.calibration.flags or [])
+        _store_lines(session, frame, parsed, settings, actor, edit, players=placed)
         verb = "replaced" if undo_of is None else f"put back (undo of audit entry {undo_of})"
         reset_decisions_after_recalibration(session, frame, before, verb, actor, settings)
         restore_decisions(frame, undo or revert, actor, edit)
@@ -293,7 +302,7 @@ def replace_field_lines(session: Session, frame_id: int, lines: Mapping[str, Any
     if undo_of is not None:
         check_undo(session, undo_of, frame_id, parsed)
     plan = EditPlan("field_lines.replace", lines_state, apply, actor, frame_id, expected, revert, undo_of,
-                    recompute=True, settings=settings)
+                    recompute=True, settings=settings, players=True)
     return guarded_frame_write(session, plan, system_id=facts.system_id, edit=edit)
 
 
@@ -338,6 +347,11 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
     stored and :class:`ConflictError` says by how much (a clean view's camera moved across the pitch, its 3D
     ball with it, was the harm this guards against).
 
+    A view the players placed is placed by them again after its lines are mirrored (as the import placed it,
+    ``players.place_frame_by_players``): their camera does not depend on how its lines are named, so the fix keeps
+    it where the players put it and the mirrored labels now meet it; the camera "as labelled" the guard compares is
+    then the one the labels give (:func:`labels_camera`).
+
     Raises:
         NotFoundError: no such frame.
         InvalidInputError: the frame has no field lines (field "lines").
@@ -353,7 +367,8 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
         lines_before = lines_state(frame), calibration_words(frame, settings)
         jac_before = jac_words(frame, settings)
         mirrored = lines_to_json_lists(mirror_lines(lines_from_json_lists(frame.field_lines.lines)))
-        out = _store_lines(session, frame, mirrored, settings, actor, context)
+        placed = frame.calibration is not None and PLAYERS_FLAG in (frame.calibration.flags or [])
+        out = _store_lines(session, frame, mirrored, settings, actor, context, players=placed)
         after = ball_error_to_others(out, settings)
         if (before is not None and before[0] is not None
                 and (after is None or after[0] is None or after[0] >= before[0])):
@@ -368,24 +383,36 @@ def apply_mirrored_labels(session: Session, frame_id: int, *, settings: Settings
 
     facts = frame_facts(session, frame_id)
     plan = EditPlan("field_lines.mirror", lines_state, apply, actor, frame_id, expected, recompute=True,
-                    settings=settings)
+                    settings=settings, players=True)
     return guarded_frame_write(session, plan, system_id=facts.system_id, edit=context)
 
 
 def ball_error_to_others(frame: Frame, settings: Settings) -> tuple[float | None, str] | None:
     """How far (px at 1920 width) ``frame``'s ball label lies from the ball the system's other views agree on, as the
     doubt judge finds it (``app.geometry.doubts.judge.consensus_without``: its voters, weights, pixel tolerances and
-    play volume, with this view left out), with the camera the frame has now, and those views' names; ``(None,
-    names)`` when the frame has no camera or the ball projects behind it; None without a label or without an agreed
-    ball."""
+    play volume, with this view left out), with the camera its labels give now (:func:`labels_camera`), and those
+    views' names; ``(None, names)`` when the frame has no camera or the ball projects behind it; None without a
+    label or without an agreed ball."""
     views = doubt_views(frame.system)
     me = next((v for v in views if v.view_id == frame.id), None)
     if me is None:
         return None
+    if me.camera is not None:
+        me = dataclasses.replace(me, camera=labels_camera(frame, me.camera))
     cons, distance = distance_to_others(views, me, doubt_settings(settings))
     if cons is None:
         return None
     return distance, ", ".join(v.name for v in views if v.view_id in cons.inliers)
+
+
+def labels_camera(frame: Frame, camera: Camera) -> Camera:
+    """The camera ``frame``'s labels as they are give: its ``camera``, or that camera's mirror image
+    (``app.geometry.mirror.mirror_camera``) when the players placed it and its lines fit it only mirrored
+    (``players.players_mirror_evidence``)."""
+    cal = frame.calibration
+    if cal is not None and PLAYERS_FLAG in (cal.flags or []) and players_mirror_evidence(cal.players, cal.camera):
+        return mirror_camera(camera)
+    return camera
 
 
 def set_view_excluded(session: Session, frame_id: int, excluded: bool, *, settings: Settings,

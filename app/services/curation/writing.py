@@ -64,6 +64,7 @@ from app.services.audit import log as audit
 from app.services.curation.states import same_json
 from app.services.curation.system_page import load_frame
 from app.services.curation.versions import check_expected
+from app.services.derivation.loading import load_view_players
 from app.services.derivation.recompute import load_for_recompute, system_rig_rows
 from app.services.kinds import kind_of, policy
 
@@ -176,7 +177,8 @@ class EditPlan(Generic[T]):
 
     ``recompute``: the explicit flag of a write that recomputes its system with ``settings`` (an edit: it reads its
     game's rig rows with it, takes a turn of :class:`EditSlots`, computes before the lock and compares under it);
-    False: it recomputes nothing and runs under the lock at once (a decision; ``settings`` unused).
+    False: it recomputes nothing and runs under the lock at once (a decision; ``settings`` unused). ``players``: it may
+    place a view by its players (the mirror fix of a view they placed): its views' person boxes are read with them.
 
     Raises:
         ValueError: ``recompute`` without ``settings``.
@@ -192,6 +194,7 @@ class EditPlan(Generic[T]):
     undo_of: Optional[int] = None
     recompute: bool = False
     settings: Optional[Settings] = None
+    players: bool = False
 
     def __post_init__(self) -> None:
         if self.recompute and self.settings is None:
@@ -310,6 +313,8 @@ def _read(session: Session, system_id: int, plan: EditPlan[Any], edit: EditConte
     game_version = system.game.version if system.game is not None else None
     edit.version = system.version
     edit.rig = system_rig_rows(session, system, settings) if settings is not None else None
+    if plan.players:
+        load_view_players(session, list(system.frames))
     if not locked:
         end_reads(session)  # the connection goes back to the pool while the edit computes
     return system, game_version

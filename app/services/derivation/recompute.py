@@ -55,7 +55,7 @@ from app.db.models import (
 from app.db.types import json_safe, utcnow
 from app.db.unit import write_unit
 from app.geometry.ball import optimise_box
-from app.geometry.calibration.result import MIRROR_FLAG
+from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.mirror import MirrorView, mirror_evidence
@@ -65,6 +65,7 @@ from app.geometry.triangulation import BallObservation, PairGeometryMemo, triang
 from app.services.audit.log import record_summary
 from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
+from app.services.calibration.players import place_frame_by_players, players_mirror_evidence
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
 from app.services.derivation import cameras as shared
@@ -89,19 +90,24 @@ DERIVED_VERSION = 4  # 2: pairs outside the play volume dropped, suggested label
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
-                    rig: Sequence[tuple[int, np.ndarray, bool]] | None = None) -> Triangulation:
+                    rig: Sequence[tuple[int, np.ndarray, bool]] | None = None, *,
+                    players: bool = False) -> Triangulation:
     """Recalibrate ``frame`` from its current field lines (:func:`calibrate_frame_lines`), store the
     calibration (source "computed"), then recompute its system. The caller flushes or commits.
 
     Args:
         rig: the game's rig rows (:func:`rig_rows`) when the caller has read them (an edit reads them with its
             system, ``app.services.curation.writing``): not read again.
+        players: then place the frame by its players where they place it
+            (``app.services.calibration.players.place_frame_by_players``), as the import did.
 
     Raises:
         ValueError: the frame has no field lines, or the settings' admission gamma is not stored.
     """
     calibrated = calibrate_frame_lines(session, frame, settings, rig=rig)
     apply_calibration(frame, calibrated.fields, CalibrationSource.COMPUTED)
+    if players:
+        place_frame_by_players(session, frame, settings, rig)
     sources = calibrated.rig_sources
     if sources is None and rig is not None:
         sources = [(fid, c) for fid, c, _ in rig]
@@ -350,7 +356,8 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
     mirror, so admission says nothing about mirroring, and a rough camera cannot bring two rays
     within tau by chance (it gives no agreement, hence no evidence). Counting them flagged more of
     the dev set's injected mirrored views with no false flag either way; today's figures are in the
-    docstring of ``benchmarks/mirror_flags.py`` (73 of 92 flagged)."""
+    docstring of ``benchmarks/mirror_flags.py`` (73 of 92 flagged). A camera the players placed whose view's
+    lines fit it only mirrored keeps the flag with the players' evidence (``players.players_mirror_evidence``)."""
     frames = [f for f in system.frames if f.id in cameras]
     if not frames:
         return
@@ -369,13 +376,17 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
     verdicts = mirror_evidence(views, positions, geometry=geometry or PairGeometryMemo(),
                                tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule)
     names = {f.id: f.name for f in system.frames}
-    flagged = {fid for fid, v in verdicts.items() if v.flagged}
+    # a camera the players placed whose lines fit it only mirrored: its labels are mirrored whatever its camera's
+    # verdict (the camera is the players', right where their labels are not)
+    by_players = {f.id: ev for f in frames if f.calibration is not None and PLAYERS_FLAG in (f.calibration.flags or [])
+                  and (ev := players_mirror_evidence(f.calibration.players, f.calibration.camera)) is not None}
+    flagged = {fid for fid, v in verdicts.items() if v.flagged} | set(by_players)
     for f in frames:
         cal, verdict = f.calibration, verdicts[f.id]
         assert cal is not None  # a view with a camera has its calibration
         flags = [x for x in (cal.flags or []) if x != MIRROR_FLAG]
-        put_values(cal, {"flags": [*flags, MIRROR_FLAG] if verdict.flagged else flags,
-                         "mirror_evidence": json_safe(with_sentence(verdict.as_dict(), names, flagged))})
+        evidence = by_players.get(f.id) or json_safe(with_sentence(verdict.as_dict(), names, flagged))
+        put_values(cal, {"flags": [*flags, MIRROR_FLAG] if f.id in flagged else flags, "mirror_evidence": evidence})
 
 
 def _label_centre(frame: Frame) -> np.ndarray | None:

@@ -57,11 +57,14 @@ from app.db import scope
 from app.db.models import (
     CalibrationSource,
     CalibrationStatus,
+    Frame,
+    System,
+    TriangulationStatus,
 )
 from app.db.session import refresh_statistics
 from app.db.types import utcnow
 from app.db.unit import write_unit
-from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
+from app.geometry.calibration.result import PLAYERS_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.services.audit.log import record_summary
 from app.services.calibration.calibrating import apply_calibration
 from app.services.calibration.first_pass import (
@@ -72,7 +75,11 @@ from app.services.calibration.first_pass import (
     retry_with_game_rigs,
     start_first_pass,
 )
-from app.services.calibration.players import place_cameras_by_players, store_players
+from app.services.calibration.players import (
+    place_cameras_by_players,
+    store_players,
+    systems_with_mirrored_anchors,
+)
 from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
 from app.services.derivation.recompute import (
@@ -237,10 +244,25 @@ def _write_batch(session: Session, merged: MergedBatch, results: list[Calibratio
         apply_calibration(to_calibrate[i], fields, CalibrationSource.COMPUTED)
     report.player_assisted += len(first.placed)
     ahead_frames = {id(to_calibrate[i]) for i in first.placed_ahead}
+    players = {id(f): rows for f, rows, _ in merged.new_players}
+
+    def relined(f: Frame) -> CalibrationFields:
+        return calibrate_frame_lines(session, f, settings, refine=False).fields
+
     report.player_assisted += place_cameras_by_players(
         [s for s in touched if not s.frames or any(id(f) not in ahead_frames for f in s.frames)], settings,
-        {id(f): rows for f, rows, _ in merged.new_players},
-        relined=lambda f: calibrate_frame_lines(session, f, settings, refine=False).fields)
+        players, relined=relined)
+    report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
+    # The recomputation's mirror verdicts (every view's ball ray against the others') flag anchors the first pass
+    # could not judge: a mirrored anchor puts its players on the wrong side of the pitch, so the systems holding one
+    # have their weak views placed again without it, and are recomputed once more.
+    again = systems_with_mirrored_anchors(touched, settings)
+    if again:
+        placed_before = sum(_by_players(f) for s in again for f in s.frames)
+        ball_before = sum(_triangulated(s) for s in again)
+        place_cameras_by_players(again, settings, players, relined=relined)
+        report.player_assisted += sum(_by_players(f) for s in again for f in s.frames) - placed_before
+        report.triangulated += recompute_systems(session, again, settings, preloaded=True) - ball_before
     for frame, fields in [*zip(to_calibrate, results, strict=True), *imported]:
         placed = frame.calibration is not None and frame.calibration.status is CalibrationStatus.CALIBRATED
         if fields.status is CalibrationStatus.CALIBRATED or placed:  # the players may place a camera lines refused
@@ -248,8 +270,15 @@ def _write_batch(session: Session, merged: MergedBatch, results: list[Calibratio
         else:
             report.refused += 1
             report.refusal_reasons[fields.refusal or "unspecified"] += 1
-    report.triangulated += recompute_systems(session, touched, settings, progress, preloaded=True)
     report.systems_merged += sum(merge.record(session) for merge in merged.merges)
+
+
+def _by_players(frame: Frame) -> bool:
+    return frame.calibration is not None and PLAYERS_FLAG in (frame.calibration.flags or [])
+
+
+def _triangulated(system: System) -> bool:
+    return system.triangulation is not None and system.triangulation.status is TriangulationStatus.TRIANGULATED
 
 
 #: One game of an import's input: reads (and validates) it when called, as often as needed.

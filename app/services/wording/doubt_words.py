@@ -264,8 +264,15 @@ def _fmt(v: float | None) -> str:
 def mirror_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | frozenset = frozenset()) -> str:
     """The sentence of one view's mirror verdict (``MirrorVerdict.as_dict()``): the evidence for mirroring first,
     then the evidence against it ("against: ..."); a pair with a view that is itself flagged (``flagged``: ids)
-    says so. A verdict of ``app.geometry.mirror.mirrored_fit_at_rig`` (``refit``) states the fit."""
+    says so. A verdict of ``app.geometry.mirror.mirrored_fit_at_rig`` (``refit``) states the fit; one of a camera
+    the players placed (``refit`` of source ``players``, ``app.services.calibration.players.players_mirror_evidence``)
+    states where they placed it."""
     refit = verdict.get("refit")
+    if refit and refit.get("source") == "players":
+        pos = ", ".join(_num(x) for x in refit.get("position_m") or [])
+        return (f"Labels probably mirrored: the camera its {refit.get('players')} players place at ({pos}) m meets its "
+                f"lines only mirrored (within {_num(refit.get('line_px'), 1)} px); as labelled they fit no camera "
+                "with the players.")
     if refit and refit.get("source") == "lines":
         pos = ", ".join(_num(x) for x in refit.get("position_m") or [])
         return (f"Labels probably mirrored: as labelled they calibrate no camera on the main camera's side; mirrored, "
