@@ -7,10 +7,10 @@ import numpy as np
 
 from app.geometry.ball import sphere_image_box
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, judge_system
-from app.geometry.doubts.detections import Detection, check_detections
+from app.geometry.doubts.detections import LOOSE_BOX_RADII, Detection, check_detections
 from app.geometry.weighting import calibration_weight, project_point
 from app.services.wording.doubt_words import doubt_message
-from tests.geometry.test_doubts import BALL, CAMERAS, R_BALL, SETTINGS, camera, scene
+from tests.geometry.test_doubts import BALL, CAMERAS, R_BALL, SETTINGS, camera, look_at, scene, view
 
 SIZE = 0.5
 
@@ -62,6 +62,30 @@ def test_without_detections_the_doubts_are_the_judges():
     judged = judge_system(views, SETTINGS)
     assert check_detections(views, judged, {}, SETTINGS, SIZE) == judged
     assert check_detections(views, judged, {"corner": []}, SETTINGS, SIZE) == judged
+
+
+def test_where_the_detector_ran_a_missing_ball_placed_loosely_for_its_view_loses_its_box():
+    """Two labelled views 3 m apart (2.8 deg of parallax) fix the ball's depth along their rays to about 0.7 m (a
+    pixel each); the goal camera looks across that depth and would see its box wander by several radii. Without
+    predictions the judge's box stays (a person reviews it); where the detector ran (one false box far off) the doubt
+    stays without a box (``ball_loose``, saying how loose). A camera high behind the two looks along their rays: the
+    same ball is tight there, and its box stays."""
+    behind = [1.5, 90.0, -25.0]
+    views = [view("main", [0.0, 60.0, -15.0], 2500.0, role="action"), view("beside", [3.0, 60.0, -15.0], 2500.0),
+             view("goal", [70.0, 3.0, -15.0], 3500.0, box=None), view("behind", behind, 3000.0, box=None)]
+    judged = judge_system(views, SETTINGS)
+    assert {d.view_id for d in judged if d.kind == "ball_missing" and d.suggestion} == {"goal", "behind"}
+    far = Detection("yolo-sn-ball", 0.9, tuple(float(x) for x in np.asarray(true_box("goal")) + [600, 300, 600, 300]))
+    found = check_detections(views, judged, {"goal": [far]}, SETTINGS, SIZE)
+    doubts = {d.view_id: d for d in found if d.kind == "ball_missing"}
+    goal, tight = doubts["goal"], doubts["behind"]
+    radius = R_BALL * 3500.0 / np.linalg.norm(np.array(CAMERAS["goal"][0]) - BALL)
+    assert goal.suggestion is None and goal.evidence["ball_loose"] is True
+    assert goal.evidence["ball_sigma_px"] > LOOSE_BOX_RADII * radius
+    assert "place the label" in doubt_message(goal, {"main": "main.png", "beside": "beside.png"})
+    assert "ball_loose" not in tight.evidence and tight.suggestion["action"] == "snap_box"
+    truth = sphere_image_box(look_at(behind, BALL, 3000.0), BALL, R_BALL)
+    assert np.abs(np.asarray(tight.suggestion["box"]) - truth).max() < 0.5
 
 
 def test_tied_candidates_are_ordered_by_score_and_the_margin_is_given():

@@ -49,10 +49,6 @@ INFO_KINDS: tuple[str, ...] = ("calibration_refused", "below_admission", "rig_as
                                "detection_off_label")
 
 
-#: The least pixel sigma (px at 1920 width) a view is read with where the spread of a ball it places is computed: a
-#: fit's sigma below a pixel still leaves the label's or the box's own pixel.
-MIN_SIGMA_PX = 1.0
-
 #: ``suggestion["action"]`` values: what the fix of a doubt does (one key on the system page).
 #: ``snap_box``: set the view's ball label to ``suggestion["box"]``; ``exclude_view``: exclude the
 #: view from the triangulation (a stored, reversible per-view decision); ``mirror_labels``: replace

@@ -12,20 +12,10 @@ import numpy as np
 
 from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
-from app.geometry.doubts.contract import (
-    MIN_SIGMA_PX,
-    Doubt,
-    DoubtSettings,
-    DoubtView,
-    _box_list,
-    _inside,
-    _plausible,
-    _r,
-)
+from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
 from app.geometry.doubts.epipolar import _mono, _sees, _segment, _single_view_ball, epipolar_pair_error
 from app.geometry.mirror import mirror_camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
-from app.geometry.spread import position_covariance, projected_sigma_px
 from app.geometry.triangulation import (
     BallObservation,
     PairGeometry,
@@ -223,24 +213,11 @@ def consensus_fix(v: DoubtView, consensus: Consensus, box: np.ndarray | None, s:
     return out
 
 
-#: The consensus ball's box is offered as a view's missing label only when the ball's own looseness, as that view sees
-#: it (:func:`app.geometry.spread.projected_sigma_px`), is at most this many radii of the box: beyond, the view's
-#: ball may lie outside the box by its placement alone. The voters' pixel sigmas overstate their cameras' error
-#: (about five times at the median, ``app.geometry.weighting.pixel_sigma``), hence more than one radius. Chosen on
-#: the shared detector sets and four made sets: the boxes two labelled views placed were right in 33 of 37 cases
-#: within it and in 6 of 15 beyond.
-LOOSE_BOX_RADII = 2.5
-
-
 def _missing_doubt(v: DoubtView, consensus: Consensus, s: DoubtSettings, code: str,
-                   extra: dict[str, Any], voters: Sequence[BallObservation], voter_sigma: Mapping[Hashable, float],
-                   margin_px: float | None = None) -> Doubt | None:
+                   extra: dict[str, Any], margin_px: float | None = None) -> Doubt | None:
     """``ball_missing`` for an unlabelled view when the consensus ball projects inside its image by
     ``margin_px`` (px at 1920 width; default ``inside_margin_px``), else None; its fix is
-    :func:`consensus_fix` (the sphere box with its uncertainty). ``voters`` are the labelled views that place the
-    ball, with their pixel sigmas ``voter_sigma`` (px at 1920 width, read as at least ``MIN_SIGMA_PX``): where the
-    ball they place is too loose for ``v`` (:data:`LOOSE_BOX_RADII`) the doubt stays without a box
-    (``evidence.ball_sigma_px``, px of ``v``, and ``evidence.ball_loose``): the reviewer places the label."""
+    :func:`consensus_fix` (the sphere box with its uncertainty)."""
     ball = consensus.point
     assert ball is not None  # asked only where the views agree on a ball
     uv = project_point(v, ball)
@@ -250,27 +227,8 @@ def _missing_doubt(v: DoubtView, consensus: Consensus, s: DoubtSettings, code: s
     box = sphere_image_box(camera_of(v), ball, s.ball_diameter_m / 2)
     if box is None:
         return None
-    evidence: dict[str, Any] = {"projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball], **extra}
-    loose = _ball_sigma_px(v, ball, voters, voter_sigma)
-    if loose is not None:
-        evidence["ball_sigma_px"] = _r(loose, 2)
-        radius = ((box[2] - box[0]) + (box[3] - box[1])) / 4
-        if loose > LOOSE_BOX_RADII * radius:
-            return Doubt("ball_missing", v.view_id, code, {**evidence, "ball_loose": True}, None)
+    evidence = {"projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball], **extra}
     return Doubt("ball_missing", v.view_id, code, evidence, consensus_fix(v, consensus, box, s, alternatives=()))
-
-
-def _ball_sigma_px(v: DoubtView, ball: np.ndarray, voters: Sequence[BallObservation],
-                   voter_sigma: Mapping[Hashable, float]) -> float | None:
-    """How far (px of ``v``, one standard deviation along the worst direction) the ball ``voters`` place may project
-    in ``v`` by their pixel sigmas alone (each read as at least ``MIN_SIGMA_PX``): the triangulation's covariance
-    carried through ``v``'s projection (:func:`app.geometry.spread.projected_sigma_px`); None when they fix no point."""
-    cov = position_covariance(voters, ball, {o.view_id: max(MIN_SIGMA_PX, float(voter_sigma.get(o.view_id, 0.0)))
-                                             for o in voters}) if voters else None
-    if cov is None:
-        return None
-    sigma = projected_sigma_px(BallObservation(v.view_id, camera_of(v), np.zeros(2), v.width), ball, cov)
-    return None if sigma is None else sigma * v.width / REFERENCE_WIDTH_PX
 
 
 def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> Doubt | None:
@@ -490,8 +448,7 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
         doubts += _off_consensus_doubts([by_id[vid] for vid in cons.outliers if accusing and vid not in helper_ids],
                                         cons, cons.point, sigma, tau, s)
         for v in unlabelled:
-            d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)},
-                               [o for o in vote.obs if o.view_id in cons.inliers], sigma)
+            d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
             if d is not None:
                 doubts.append(d)
     elif len(labelled) >= 2:

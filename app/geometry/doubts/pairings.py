@@ -12,7 +12,7 @@ from typing import Any, Hashable, Mapping, Sequence
 
 import numpy as np
 
-from app.geometry.doubts.contract import MIN_SIGMA_PX, DoubtSettings, DoubtView, _inside, _plausible
+from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside, _plausible
 from app.geometry.doubts.detected import (
     MAX_CANDIDATES,
     PREFILTER,
@@ -48,6 +48,9 @@ MARGIN = 0.5
 #: depth badly (a small parallax, a far view): on a made set two right detections with cameras 3-4 px from the truth
 #: put a ball 1.2 m off, their ball's sigma 9.6 m: the bound of a pairing's ball in the air (:func:`_placed`).
 MAX_SPREAD_M = 0.5
+#: The least pixel sigma (px at 1920 width) a view is read with for that spread: a fit's sigma below a pixel still
+#: leaves the label's or the box's own pixel.
+MIN_SIGMA_PX = 1.0
 #: A chosen pairing's detection lies within this many standard deviations of where the labelled ray puts the ball:
 #: both cameras' pixel sigmas and the detector's own centre error in quadrature (at 1920 width). Two standard
 #: deviations: a box farther off is not explained by the cameras and the detector, however wide tau is.
