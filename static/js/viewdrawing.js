@@ -62,13 +62,17 @@ export function drawView(root, { view: v, scale, isMain, imageState, lines, doub
   }
   lines.drawLines(g, s, isMain);
   const feet = ((v.calibration || {}).players || {}).feet;
-  if (Array.isArray(feet)) { // a camera the players placed: the foot points it was fitted to, small diamonds
-    for (const p of feet) {
+  if (Array.isArray(feet)) { // a camera the players placed: the foot points it was fitted to, small diamonds, and the
+    for (const p of feet) { // head point of a player whose feet the image cuts, a small triangle pointing down
       if (!validPoint(p.px)) continue;
       const [x, y] = p.px, r = 4 * s;
-      g.append(svg("path", { class: "player-foot", d: `M${x} ${y - r} L${x + r} ${y} L${x} ${y + r} L${x - r} ${y} Z`,
-        "data-testid": isMain ? "player-foot" : null },
-        svg("title", { text: `${p.class} ${p.id}: foot point the camera was fitted to` })));
+      const head = p.point === "head";
+      const d = head ? `M${x} ${y + r} L${x + r} ${y - r} L${x - r} ${y - r} Z`
+        : `M${x} ${y - r} L${x + r} ${y} L${x} ${y + r} L${x - r} ${y} Z`;
+      g.append(svg("path", { class: head ? "player-head" : "player-foot", d,
+        "data-testid": isMain ? (head ? "player-head" : "player-foot") : null },
+        svg("title", { text: head ? `${p.class} ${p.id}: head point the camera was fitted to (the image cuts its feet)`
+          : `${p.class} ${p.id}: foot point the camera was fitted to` })));
     }
   }
   const ball = v.ball || {};

@@ -184,7 +184,7 @@ export function viewFacts(v, ctx, panel) {
       flags,
       cal.reason ? el("div", { class: "reason", "data-testid": "view-reason" }, cal.reason) : null,
       cal.players && cal.players.note ? el("div", { class: "players-note", "data-testid": "view-players-note",
-        title: "the players' foot points it was fitted to are the yellow diamonds" }, cal.players.note) : null,
+        title: "the players' foot points it was fitted to are the yellow diamonds (a triangle: the head of a player whose feet the image cuts)" }, cal.players.note) : null,
     ),
     el("dt", { "data-testid": "term-jac", title: `${gammas.length ? `JaC@${gammas.map(pct).join("/")} %` : "JaC (not calibrated)"}; ${word("term", "jac").means}` },
       word("term", "jac").chip),

@@ -270,7 +270,7 @@ def test_heads_pin_the_zoom_that_players_close_together_leave_loose() -> None:
         a = fit_camera_to_players(feet, grass, {}, W, H, RIG, settings, heads=heads)
         b = fit_camera_to_players(feet, grass, {}, W, H, RIG, settings)
         assert isinstance(a, PlayerFit) and isinstance(b, PlayerFit), (a, b)
-        assert a.rig_index == b.rig_index == 1
+        assert a.rig_index == b.rig_index == 1 and a.head_only == b.head_only == frozenset()  # every foot seen
         c = fit_camera_to_players(feet, grass, {}, W, H, RIG, settings, heads={})
         assert isinstance(c, PlayerFit) and np.array_equal(c.camera.K, b.camera.K) and c.sigma_px == b.sigma_px
         with_heads.append((a.sigma_px, ball_error(a, truth)))
@@ -295,6 +295,9 @@ def test_players_whose_feet_the_image_cuts_place_a_close_view_by_their_heads() -
         assert isinstance(fit, PlayerFit), fit
         assert fit.rig_index == 1 and len(fit.players) == 6
         assert ball_error(fit, truth) < 6.0
+        # each player's pixel is its head point, and the fit says so (the page draws it as a head, not a foot)
+        assert fit.head_only == {k for k, _, _ in fit.players}
+        assert all(np.allclose(uv, seen[k]) for k, uv, _ in fit.players)
         assert fit_camera_to_players({}, grass, {}, W, H, RIG) == PlayerRefusal("few_players",
                                                                                {"players": 0, "need": 3})
 

@@ -114,6 +114,8 @@ class PlayerFit:
             labelled they cannot be fitted with the players, mirrored they fit the players' camera at a rig
             position, so the labels are probably mirrored (``residuals_px`` then holds each labelled class's
             distance to its mirror class's model element).
+        head_only: the players of ``players`` whose box the image cuts at the feet: the pixel given for them is their
+            head point (the top centre of the box), the only point of theirs the fit read.
     """
 
     camera: Camera
@@ -125,6 +127,7 @@ class PlayerFit:
     line_rms_px: float | None = None
     sigma_px: float = 0.0
     lines_mirrored: bool = False
+    head_only: frozenset[PlayerKey] = frozenset()
 
 
 #: Why :func:`fit_camera_to_players` refused: too few players matched, their foot points on one image line, no
@@ -453,8 +456,9 @@ def _accepted(problem: PlayerProblem, cand: _Candidate, keys: list[PlayerKey], s
     pixel = {int(i): problem.uv[k] for k, i in enumerate(problem.foot_of)}
     for k, i in enumerate(problem.head_of):
         pixel.setdefault(int(i), problem.uv_head[k])  # a player seen without its feet: its head point
+    footed = {int(i) for i in problem.foot_of}
     used = tuple((keys[i], (float(pixel[i][0]), float(pixel[i][1])),
                   (float(problem.world[i, 0]), float(problem.world[i, 1]))) for i in range(n) if inl[i])
     return PlayerFit(camera=camera, uncertainty=uncertainty, rig_index=cand.rig_index, players=used,
                      rms_px=float(np.sqrt(np.mean(d_px[inl] ** 2))), residuals_px=residuals_px, line_rms_px=line_rms,
-                     sigma_px=sigma_px)
+                     sigma_px=sigma_px, head_only=frozenset(keys[i] for i in range(n) if inl[i] and i not in footed))

@@ -188,7 +188,8 @@ def rig_of_views(views: Iterable[PlacementView]) -> CameraRig:
 
 def players_json(fit: PlayerFit, rig: CameraRig) -> dict[str, Any]:
     """What ``Calibration.players`` keeps of an accepted fit: ``feet`` (``class``, ``id``, ``px`` [x, y], ``grass_m``
-    [x, y]) of every player used, ``rig`` (``index``, ``centre_m``, ``frames``) or None for a full pose, ``rms_px``,
+    [x, y], ``point``: ``foot``, or ``head`` for a player whose feet the image cuts, fitted by its head point at ``px``)
+    of every player used, ``rig`` (``index``, ``centre_m``, ``frames``) or None for a full pose, ``rms_px``,
     ``sigma_px`` (px@1920), ``players`` (their count), ``note`` (its words,
     ``app.services.wording.words.player_camera_sentence``)."""
     rig_part = None
@@ -196,7 +197,8 @@ def players_json(fit: PlayerFit, rig: CameraRig) -> dict[str, Any]:
         p = rig.positions[fit.rig_index]
         rig_part = {"index": fit.rig_index, "centre_m": [round(float(v), 3) for v in p.centre_m], "frames": p.frames}
     out: dict[str, Any] = {"feet": [{"class": k[0], "id": k[1], "px": [round(uv[0], 2), round(uv[1], 2)],
-                     "grass_m": [round(g[0], 3), round(g[1], 3)]} for k, uv, g in fit.players],
+                     "grass_m": [round(g[0], 3), round(g[1], 3)], "point": "head" if k in fit.head_only else "foot"}
+                    for k, uv, g in fit.players],
            "rig": rig_part, "rms_px": round(fit.rms_px, 3), "sigma_px": round(fit.sigma_px, 3),
            "players": len(fit.players)}
     if fit.lines_mirrored:

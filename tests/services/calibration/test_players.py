@@ -65,6 +65,7 @@ def test_players_place_the_cameras_the_lines_cannot_and_never_read_the_ball(shar
     assert got["strong_right"] >= 0.9 * got["strong"], got
     for cal in placed:  # each says where it came from and carries the fit's uncertainty
         assert cal.players["players"] == len(cal.players["feet"]) >= 3
+        assert {p["point"] for p in cal.players["feet"]} <= {"foot", "head"}
         assert cal.players["note"] == player_camera_sentence(cal.players)
         assert cal.players["note"].startswith(f"camera from {cal.players['players']} players")
         assert (cal.players["rig"] is not None) == (RIG_FLAG in cal.flags)
