@@ -4,13 +4,13 @@ The placement (``app.services.calibration.players.place_in_game``) runs on every
 ``placement_cpu.py`` runs it (the views the players placed weak again), in this process. For each part named below
 the same placement is timed (``time.process_time``) with this checkout's function and with the one of another
 checkout (``--off``, e.g. ``git archive`` of main before the shortcut), swapped in place of it and put back, in
-alternating order (on, off, off, on, ...: ``--rounds`` pairs); the answers of both are compared (the same cameras,
-to the bit, and the same refusals). Prints per part the median CPU of each and their ratio.
+alternating order (on, off, off, on, ...: ``--rounds`` pairs); the answers of both are compared (every number of the
+cameras and refusals to the bit, ``placement_cpu.answer``: their wall times left out). Prints per part the median
+CPU of each and their ratio.
 
 Parts (this checkout's function; the other checkout's is swapped in for "off"):
 
 - ``starts``: ``players._rig_starts`` (the focal hypotheses' rotations in one compiled call);
-- ``head_alone``: ``PlayerProblem.head_alone`` (the head points' mask made once);
 - ``rewhiten``: ``PlayerProblem.rewhiten`` and ``_head_whitening`` (the grass neighbours and covariances made once);
 - ``grass``: ``players_on_grass`` as the placement calls it (a view's players fused at once).
 
@@ -32,6 +32,9 @@ from typing import Any, Callable
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from placement_cpu import answer  # noqa: E402  # benchmarks/ on the path above
 
 
 def other_module(checkout: Path, dotted: str) -> ModuleType:
@@ -57,7 +60,6 @@ def swaps(off: Path) -> dict[str, list[tuple[Any, str, Any]]]:
     cls = player_problem.PlayerProblem
     return {
         "starts": [(players, "_rig_starts", geo._rig_starts)],
-        "head_alone": [(cls, "head_alone", problem.PlayerProblem.head_alone)],
         "rewhiten": [(cls, "rewhiten", problem.PlayerProblem.rewhiten),
                      (cls, "_head_whitening", problem.PlayerProblem._head_whitening)],
         "grass": [(placing, "players_on_grass", grass.players_on_grass)],
@@ -76,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--off", type=Path, required=True, help="The checkout whose functions are swapped in for 'off'.")
     p.add_argument("--games", type=int, default=10, help="The first N games (default 10).")
     p.add_argument("--rounds", type=int, default=3, help="Pairs of runs per part (default 3).")
-    p.add_argument("--parts", default="starts,head_alone,rewhiten,grass", help="Comma-separated parts.")
+    p.add_argument("--parts", default="starts,rewhiten,grass", help="Comma-separated parts.")
     args = p.parse_args(argv)
 
     import sqlalchemy as sa
@@ -101,6 +103,9 @@ def main(argv: list[str] | None = None) -> int:
     def run() -> list[Any]:
         return [place_in_game(views) for views in games]
 
+    def answers_of(got: list[Any]) -> str:  # every view's answer but its wall time
+        return repr([[{i: answer(v) for i, v in fits.items()} for fits in game] for game in got])
+
     run()  # numba's cached kernels and first imports: paid once, before any timing
     table = swaps(args.off)
     print(f"{len(games)} games; CPU s of the placement, median of {args.rounds} per side")
@@ -108,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|---|")
     for part in args.parts.split(","):
         times: dict[str, list[float]] = {"on": [], "off": []}
-        answers: dict[str, list[Any]] = {}
+        answers: dict[str, str] = {}
         for k in range(args.rounds):
             for side in (("on", "off") if k % 2 == 0 else ("off", "on")):
                 saved = [(owner, name, getattr(owner, name)) for owner, name, _ in table[part]]
@@ -121,9 +126,9 @@ def main(argv: list[str] | None = None) -> int:
                     for owner, name, value in saved:
                         setattr(owner, name, value)
                 times[side].append(cpu)
-                answers[side] = got
+                answers[side] = answers_of(got)
         on, off = statistics.median(times["on"]), statistics.median(times["off"])
-        same = repr(answers["on"]) == repr(answers["off"])
+        same = answers["on"] == answers["off"]
         print(f"| {part} | {on:.2f} | {off:.2f} | {on / off:.2f} | {'yes' if same else 'NO'} |", flush=True)
     return 0
 

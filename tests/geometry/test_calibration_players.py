@@ -157,8 +157,7 @@ def test_the_starts_row_medians_are_numpy_s_to_the_bit() -> None:
 
 def test_rewhitening_from_the_parts_made_once_is_the_whitening_made_anew() -> None:
     """``rewhiten`` reads the grass points' neighbours and covariances made once when the problem is made: its
-    whitening at any camera, and again at another, is the one made from scratch, to the bit; the head points' mask
-    is made once too, read-only."""
+    whitening at any camera, and again at another, is the one made from scratch, to the bit."""
     from app.geometry.calibration.grass import FOOT_SIGMA_PX, HEAD_SIGMA_M
     from app.geometry.calibration.player_problem import project_points
 
@@ -174,8 +173,7 @@ def test_rewhitening_from_the_parts_made_once_is_the_whitening_made_anew() -> No
     problem = PlayerProblem(uv=np.array([feet[keys[i]] for i in foot_of]), world=np.column_stack([g, np.zeros(7)]),
                             lines={}, pp=np.asarray(PP), width=W, height=H, scale=1.0, cov_g=cov_g,
                             uv_head=uv_head, head_of=head_of, foot_of=foot_of)
-    alone = problem.head_alone()
-    assert alone.tolist() == [False, False, False, True] and not alone.flags.writeable
+    assert problem.head_alone().tolist() == [False, False, False, True]
     sigma = FOOT_SIGMA_PX
 
     def from_scratch(x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:

@@ -160,8 +160,6 @@ class PlayerProblem:
         self._whitening_of: tuple[np.ndarray, np.ndarray] | None = None
         self._whitening_cache = np.zeros((0, 2, 2))
         self._unit: np.ndarray | None = None
-        self._head_alone = ~np.isin(self.head_of, self.foot_of)
-        self._head_alone.setflags(write=False)
         # What :meth:`rewhiten` reads that no camera changes: the grass points and their 0.01 m neighbours (the
         # differences' points), the covariances, the pixel noise (made once: a placement rewhitens thousands of times).
         g, gh = self.feet_m[:, :2], self.world[self.head_of, :2]
@@ -228,9 +226,8 @@ class PlayerProblem:
         return px, d
 
     def head_alone(self) -> np.ndarray:
-        """(h,) whether each head point's player has no foot point (its feet cut by the image's bottom edge); made once
-        (the players do not change), read-only."""
-        return self._head_alone
+        """(h,) whether each head point's player has no foot point (its feet cut by the image's bottom edge)."""
+        return ~np.isin(self.head_of, self.foot_of)
 
     def rows(self, x: np.ndarray, param: CameraParametrisation) -> np.ndarray:
         """Every whitened residual of one vector ``x``: the foot points' (x, y), the lines', the head points'."""
