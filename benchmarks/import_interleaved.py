@@ -1,10 +1,11 @@
 """The SoccerNet-v3 import's time against another checkout's, interleaved in one run.
 
 Each run is ``v3d import soccernet-v3 TREE`` into a fresh SQLite file, a subprocess (``benchmarks/scale.py``'s
-:func:`~scale.run_import`: wall time, CPU of the process tree and of its main process, peak RSS summed over the tree),
-with ``PYTHONPATH`` set to the checkout it runs: ``--old`` (e.g. ``git -C /work/main archive 158795d | tar -x -C
-DIR``) and ``--new`` (default: this checkout). The runs alternate old, new, new, old, ... (``--pairs`` pairs), so that a
-change of the machine's load weighs on both; a table of every run and the medians' ratio new / old is printed.
+:func:`~scale.run_import`: wall time, CPU of the process tree and of its main process, peak RSS summed over the tree,
+and peak PSS summed over it: shared pages counted once, what the tree holds, :class:`~scale.TreeMemorySampler`), with
+``PYTHONPATH`` set to the checkout it runs: ``--old`` (e.g. ``git -C /work/main archive 158795d | tar -x -C DIR``) and
+``--new`` (default: this checkout). The runs alternate old, new, new, old, ... (``--pairs`` pairs), so that a change
+of the machine's load weighs on both; a table of every run and the medians' ratio new / old is printed.
 
 Usage::
 
@@ -61,20 +62,25 @@ def main(argv: list[str] | None = None) -> int:
     work.mkdir(parents=True, exist_ok=True)
     tree = subset_tree(args.tree, args.games, work / "tree") if args.games else args.tree
     got: dict[str, list[ImportFigures]] = {"old": [], "new": []}
-    print("| run | code | wall s | tree CPU s | main CPU s | peak RSS MB (processes) | load average |")
-    print("|---|---|---|---|---|---|---|")
+    print("| run | code | wall s | tree CPU s | main CPU s | peak RSS MB (processes) | main RSS MB "
+          "| peak PSS MB | main PSS MB | load average |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for k, which in enumerate(order(args.pairs), 1):
         fig = run_in(args.old if which == "old" else args.new, tree, work / f"{which}-{k}.sqlite3", args.workers)
         got[which].append(fig)
         print(f"| {k} | {which} | {fig.seconds:.1f} | {fig.cpu_s:.1f} | {main_cpu(fig):.1f} "
-              f"| {fig.peak_mb:.0f} ({fig.peak_processes}) | {fig.load_average[0]:.1f} |", flush=True)
+              f"| {fig.peak_mb:.0f} ({fig.peak_processes}) | {fig.main_rss_mb:.0f} | {fig.peak_pss_mb:.0f} "
+              f"| {fig.main_pss_mb:.0f} | {fig.load_average[0]:.1f} |", flush=True)
     old, new = got["old"], got["new"]
     print(f"\n{old[0].games} games, {old[0].systems} systems, {old[0].frames} views; medians new / old:")
     for name, value in (("wall", lambda f: f.seconds), ("tree CPU", lambda f: f.cpu_s),
                         ("main CPU", main_cpu)):
         o, n = statistics.median(map(value, old)), statistics.median(map(value, new))
         print(f"- {name}: {o:.1f} -> {n:.1f} s ({n / o:.2f})")
-    print(f"- peak RSS: {max(f.peak_mb for f in old):.0f} -> {max(f.peak_mb for f in new):.0f} MB")
+    print(f"- peak RSS (summed over the tree): {max(f.peak_mb for f in old):.0f} -> "
+          f"{max(f.peak_mb for f in new):.0f} MB")
+    print(f"- peak PSS (summed over the tree): {max(f.peak_pss_mb for f in old):.0f} -> "
+          f"{max(f.peak_pss_mb for f in new):.0f} MB")
     return 0
 
 

@@ -119,12 +119,21 @@ class TreeMemorySampler:
     and how many processes made it; ``cpu_s`` the CPU time (user + system, s) of every process of
     the tree as last sampled, summed (a figure the machine's other load barely changes; up to one
     interval of a process's last CPU time is missed), ``main_cpu_s`` that of the root process alone
-    (the import's serial part: reading, storing, recomputing; the rest is its calibration workers)."""
+    (the import's serial part: reading, storing, recomputing; the rest is its calibration workers).
+
+    The RSS sum counts every page a process maps once per process: the pool's workers are forked from one forkserver
+    and share its imported libraries' pages, and a shared library's file pages count in every process that maps them
+    (more of them when other processes on the machine keep them in the page cache), so the sum over-counts what the
+    tree holds and moves with the machine. ``peak_pss_mb`` is the largest sum of proportional set sizes (each shared
+    page divided among the processes that map it, ``/proc/PID/smaps_rollup``): what the tree holds, shared pages
+    counted once (those it shares with processes outside the tree only in part). ``main_rss_mb`` and ``main_pss_mb``
+    are the root process's at each sum's peak."""
 
     def __init__(self, pid: int, interval_s: float = _SAMPLE_S) -> None:
         self.psutil = _psutil()
         self.pid, self.interval_s = pid, interval_s
         self.peak_mb, self.peak_processes, self.samples = 0.0, 0, 0
+        self.peak_pss_mb, self.main_rss_mb, self.main_pss_mb = 0.0, 0.0, 0.0
         self._cpu: dict[tuple[int, float], float] = {}  # (pid, create time) -> CPU seconds
         self.main_cpu_s = 0.0
         self._stop = threading.Event()
@@ -138,21 +147,27 @@ class TreeMemorySampler:
             procs = [root, *root.children(recursive=True)]
         except ps.NoSuchProcess:
             return 0.0
-        total, n = 0, 0
+        total, pss, n = 0, 0, 0
+        main_rss, main_pss = 0, 0
         for p in procs:
             try:
-                total += p.memory_info().rss
+                mem = p.memory_full_info()
+                total += mem.rss
+                pss += mem.pss
                 n += 1
                 t = p.cpu_times()
                 self._cpu[(p.pid, p.create_time())] = t.user + t.system
                 if p.pid == self.pid:
                     self.main_cpu_s = t.user + t.system
+                    main_rss, main_pss = mem.rss, mem.pss
             except (ps.NoSuchProcess, ps.AccessDenied):
                 pass
         mb = total / 2**20
         self.samples += 1
         if mb > self.peak_mb:
-            self.peak_mb, self.peak_processes = mb, n
+            self.peak_mb, self.peak_processes, self.main_rss_mb = mb, n, main_rss / 2**20
+        if pss / 2**20 > self.peak_pss_mb:
+            self.peak_pss_mb, self.main_pss_mb = pss / 2**20, main_pss / 2**20
         return mb
 
     @property
@@ -271,6 +286,11 @@ class ImportFigures:
     cpu_ms_per_frame: float = 0.0
     main_cpu_ms_per_frame: float = 0.0
     load_average: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: :class:`TreeMemorySampler`'s ``peak_pss_mb`` (shared pages counted once), and the main process's RSS at the
+    #: RSS sum's peak and PSS at the PSS sum's peak (MB).
+    peak_pss_mb: float = 0.0
+    main_rss_mb: float = 0.0
+    main_pss_mb: float = 0.0
 
 
 _IMPORTED = re.compile(r"imported .*?: (\d+) game\(s\), (\d+) system\(s\), (\d+) frame\(s\)")
@@ -307,7 +327,8 @@ def run_import(tree: Path, db: Path, workers: Optional[int] = None, checkout: Op
                          frames_per_s=frames / seconds, peak_mb=mem.peak_mb, peak_processes=mem.peak_processes,
                          stage_seconds=_stage_seconds(text), cpu_s=mem.cpu_s, cpu_ms_per_frame=1e3 * mem.cpu_s / frames,
                          main_cpu_ms_per_frame=1e3 * mem.main_cpu_s / frames,
-                         load_average=os.getloadavg())
+                         load_average=os.getloadavg(), peak_pss_mb=mem.peak_pss_mb, main_rss_mb=mem.main_rss_mb,
+                         main_pss_mb=mem.main_pss_mb)
 
 
 _BAR = re.compile(r"^(\w[\w ]*?): +\d+%.*?\[(\d+):(\d+)(?::(\d+))?<", re.M)

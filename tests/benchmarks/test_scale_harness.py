@@ -64,6 +64,10 @@ def test_harness_on_one_game(two_games: Path, tmp_path: Path) -> None:
     assert "calibrating" in figures.stage_seconds
     # The main process's share of the tree's CPU (the rest is its calibration workers', if any).
     assert 0.0 < figures.main_cpu_ms_per_frame <= figures.cpu_ms_per_frame
+    # Shared pages counted once (PSS) never sum above the RSS counting them in each process; the main process's share
+    # is part of each sum.
+    assert 0.0 < figures.main_pss_mb <= figures.peak_pss_mb <= figures.peak_mb
+    assert 0.0 < figures.main_rss_mb <= figures.peak_mb
 
     with scale.Server(tmp_path / "scale.sqlite3") as server:
         assert httpx.get(f"{server.base_url}/api/systems").status_code == 401  # the benchmark logs in

@@ -375,6 +375,22 @@ def test_wahba_rotation_recovers_a_rotation_from_noisy_directions() -> None:
     assert _angle_between_deg(est, R) < 0.2
 
 
+def test_wahba_rotations_at_once_are_each_set_s_own_rotation_to_the_bit() -> None:
+    """The players' starts solve 20 focal hypotheses in one compiled call: each rotation is exactly the one
+    ``wahba_rotation`` gives that set alone (a start's rotation, hence every fit from it, is unchanged)."""
+    from app.geometry.calibration.initialisation import wahba_rotation, wahba_rotations
+
+    rng = np.random.default_rng(4)
+    world = rng.normal(size=(7, 3))
+    world /= np.linalg.norm(world, axis=1, keepdims=True)
+    cams = rng.normal(size=(20, 7, 3))
+    cams /= np.linalg.norm(cams, axis=2, keepdims=True)
+    got = wahba_rotations(cams, world)
+    assert got.shape == (20, 3, 3)
+    for c, R in zip(cams, got, strict=True):
+        assert np.array_equal(R, wahba_rotation(c, world))
+
+
 @pytest.mark.parametrize("roll_deg", [0.0, 0.4])
 def test_fixed_centre_start_puts_off_centre_labels_where_the_image_shows_them(roll_deg: float) -> None:
     """With the centre known, the Wahba start (image rays of the labels' anchors <-> their world

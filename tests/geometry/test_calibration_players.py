@@ -24,6 +24,7 @@ from app.geometry.calibration.players import (
     PlayerRefusal,
     fit_camera_to_players,
     players_disagreement,
+    row_medians,
 )
 from app.geometry.calibration.residuals import CameraParametrisation
 from app.geometry.camera import Camera, look_at_rotation
@@ -91,6 +92,118 @@ def test_a_view_s_foot_points_go_back_together_as_one_by_one() -> None:
     for uv, got in zip(pixels[:3], together[:3], strict=True):
         assert np.array_equal(got, grass_point(cam, uv))
     assert grass_point(cam, pixels[3]) is None and np.isnan(together[3]).all()
+
+
+def _fused_one_by_one(views: list, max_spread_m: float = 1.5) -> dict:
+    """``players_on_grass`` as it was written before a view's players were fused at once: each player's ground
+    Jacobian, covariance and information made alone."""
+    from app.geometry.calibration.grass import FOOT_OFFSET_SIGMA_M, FOOT_SIGMA_PX, PITCH_LENGTH_M, PITCH_WIDTH_M
+    from app.geometry.pair_error import REFERENCE_WIDTH_PX
+
+    seen: dict = {}
+    for camera, feet in views:
+        sigma = FOOT_SIGMA_PX * float(camera.K[0, 2] * 2 + 1) / REFERENCE_WIDTH_PX
+        keys = list(feet)
+        uv = np.array([np.asarray(feet[k], float) for k in keys])
+        g = grass_points(camera, np.concatenate([uv, uv + [0.5, 0.0], uv + [0.0, 0.5]])).reshape(3, len(keys), 2)
+        for key, p, px, py in zip(keys, g[0], g[1], g[2], strict=True):
+            if np.isnan(p[0]) or np.isnan(px[0]) or np.isnan(py[0]):
+                continue
+            J = np.column_stack([(px - p) / 0.5, (py - p) / 0.5])
+            seen.setdefault(key, []).append((p, sigma**2 * J @ J.T + FOOT_OFFSET_SIGMA_M**2 * np.eye(2)))
+    out = {}
+    for key, points in seen.items():
+        P = np.array([p for p, _ in points])
+        info = [np.linalg.inv(c) for _, c in points]
+        cov = np.linalg.inv(sum(info))
+        centre = cov @ sum(i @ p for i, (p, _) in zip(info, points, strict=True))
+        spread = float(np.max(np.linalg.norm(P - centre, axis=1)))
+        if (len(points) > 1 and spread > max_spread_m) or abs(centre[0]) > PITCH_LENGTH_M / 2 + 5.0 \
+                or abs(centre[1]) > PITCH_WIDTH_M / 2 + 5.0:
+            continue
+        out[key] = (tuple(centre.tolist()), len(points), spread, cov.tolist())
+    return out
+
+
+def test_a_view_s_players_fused_at_once_are_the_one_by_one_fusion_to_the_bit() -> None:
+    """Where the players stand is the fusion of each player alone, to the last bit: three views (one whose pixel of a
+    player lies above the horizon, one player seen by one view only, one whose views disagree: left out)."""
+    rng = np.random.default_rng(8)
+    pts = players(9, rng)
+    views = [camera_at(np.array([0.0, 60.0, -14.0]), (-35.0, 0.0, 0.0), 1800.0),
+             camera_at(np.array([-20.0, 45.0, -10.0]), (-35.0, 0.0, 0.0), 2400.0), camera_at(CENTRE, (-35.0, 2.0, 0.0),
+                                                                                            2600.0)]
+    seen = [feet_in(cam, pts, 1.0, rng) for cam in views]
+    seen[0][("Player team left", "0")] = np.array([960.0, -4000.0])  # no ground ahead in this view
+    del seen[1][("Player team left", "1")], seen[2][("Player team left", "1")]  # one view only
+    seen[2][("Player team left", "2")] = seen[2][("Player team left", "2")] + [300.0, 0.0]  # views disagree
+    got = players_on_grass(list(zip(views, seen, strict=True)))
+    want = _fused_one_by_one(list(zip(views, seen, strict=True)))
+    assert ("Player team left", "2") not in got and got.keys() == want.keys() and len(got) == 8
+    for key, player in got.items():
+        assert (player.point_m, player.views, player.spread_m, [list(r) for r in player.cov_m2]) == want[key]
+
+
+def test_the_starts_row_medians_are_numpy_s_to_the_bit() -> None:
+    """The rig starts rank their focal hypotheses by median error: ``row_medians`` gives numpy's median of each row,
+    to the bit, for odd and even rows, ties, and a row with NaN."""
+    rng = np.random.default_rng(2)
+    for m in (1, 2, 7, 12, 31):
+        d = rng.lognormal(3.0, 2.0, (20, m))
+        d[3] = d[3, 0]  # a row of ties
+        assert np.array_equal(row_medians(d), np.median(d, axis=1))
+        d[5, 0] = np.nan
+        assert np.array_equal(row_medians(d), np.median(d, axis=1), equal_nan=True)
+
+
+def test_rewhitening_from_the_parts_made_once_is_the_whitening_made_anew() -> None:
+    """``rewhiten`` reads the grass points' neighbours and covariances made once when the problem is made: its
+    whitening at any camera, and again at another, is the one made from scratch, to the bit."""
+    from app.geometry.calibration.grass import FOOT_SIGMA_PX, HEAD_SIGMA_M
+    from app.geometry.calibration.player_problem import project_points
+
+    rng = np.random.default_rng(6)
+    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(7, rng)
+    feet = feet_in(truth, pts, 1.5, rng)
+    keys = list(pts)
+    g = np.array([pts[k] for k in keys])
+    foot_of, head_of = np.arange(5), np.array([0, 2, 3, 6])
+    uv_head = truth.project(head_world(g[head_of], truth.C))[0] + rng.normal(0, 1.5, (4, 2))
+    cov_g = np.repeat(np.eye(2)[None] * 0.02, 7, 0) * np.arange(1, 8)[:, None, None]
+    problem = PlayerProblem(uv=np.array([feet[keys[i]] for i in foot_of]), world=np.column_stack([g, np.zeros(7)]),
+                            lines={}, pp=np.asarray(PP), width=W, height=H, scale=1.0, cov_g=cov_g,
+                            uv_head=uv_head, head_of=head_of, foot_of=foot_of)
+    assert problem.head_alone().tolist() == [False, False, False, True]
+    sigma = FOOT_SIGMA_PX
+
+    def from_scratch(x: np.ndarray, param: CameraParametrisation) -> tuple[np.ndarray, np.ndarray]:
+        f_arr, R, C_arr, _ = param.split(x)
+        f, C = float(f_arr), np.asarray(C_arr, float)
+        gf, gh = g[foot_of], g[head_of]
+        dx, dy = np.array([0.01, 0.0]), np.array([0.0, 0.01])
+        heads = head_world(np.concatenate([gh, gh + dx, gh + dy]), C)
+        up = heads[:4].copy()
+        up[:, 2] = -(HEAD_HEIGHT_M + 0.01)
+        feet_w = foot_world(np.concatenate([gf, gf + dx, gf + dy]), C)
+        uv = project_points(f, R, C, np.asarray(PP), np.concatenate([feet_w, heads, up]))
+        fu, hu = uv[:15].reshape(3, 5, 2), uv[15:].reshape(4, 4, 2)
+        J = np.stack([(fu[1] - fu[0]) / 0.01, (fu[2] - fu[0]) / 0.01], axis=-1)
+        L = np.linalg.inv(np.linalg.cholesky(np.einsum("nij,njk,nlk->nil", J, cov_g[foot_of], J)
+                                             + sigma**2 * np.eye(2)))
+        Jh = np.stack([(hu[k] - hu[0]) / 0.01 for k in (1, 2, 3)], axis=-1)
+        cov_p = np.zeros((4, 3, 3))
+        cov_p[:, :2, :2] = cov_g[head_of]
+        cov_p[:, 2, 2] = HEAD_SIGMA_M**2
+        return L, np.linalg.inv(np.linalg.cholesky(np.einsum("nij,njk,nlk->nil", Jh, cov_p, Jh) + sigma**2 * np.eye(2)))
+
+    for param, x in ((CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R, fixed_centre=CENTRE),
+                      np.array([2500.0, 0.01, -0.02, 0.005])),
+                     (CameraParametrisation(principal_point=np.asarray(PP), R0=truth.R),
+                      np.array([2600.0, -0.01, 0.02, 0.0, -68.0, 6.0, -17.0]))):
+        problem.rewhiten(x, param)
+        L, L_head = from_scratch(x, param)
+        assert np.array_equal(problem.L, L) and np.array_equal(problem.L_head, L_head)
 
 
 def test_a_rig_position_s_residuals_are_the_free_pose_s_at_that_centre() -> None:

@@ -125,6 +125,9 @@ def foot_world(grass_m: np.ndarray, centre: np.ndarray, offset_m: float = FOOT_O
     return np.column_stack([p, np.zeros(len(g))])
 
 
+_EYE2 = np.eye(2)
+
+
 def players_on_grass(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray]]], max_spread_m: float = 1.5
                      ) -> dict[PlayerKey, GrassPlayer]:
     """Where each player stands, fused over well-calibrated views.
@@ -138,7 +141,7 @@ def players_on_grass(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray
         key -> :class:`GrassPlayer` (the views' ground points weighted by their inverse covariances, and that
         covariance), players inside the pitch and a margin of 5 m only.
     """
-    seen: dict[PlayerKey, list[tuple[np.ndarray, np.ndarray]]] = {}
+    seen: dict[PlayerKey, list[tuple[np.ndarray, np.ndarray]]] = {}  # key -> (ground point, its information)
     for camera, feet in views:
         sigma = FOOT_SIGMA_PX * float(camera.K[0, 2] * 2 + 1) / REFERENCE_WIDTH_PX  # px of this view
         if not feet:
@@ -147,18 +150,19 @@ def players_on_grass(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray
         uv = np.array([np.asarray(feet[k], float) for k in keys])
         # Each foot point and its two half-pixel neighbours (the ground Jacobian), one back-projection per view.
         g = grass_points(camera, np.concatenate([uv, uv + [0.5, 0.0], uv + [0.0, 0.5]])).reshape(3, len(keys), 2)
-        for key, p, px, py in zip(keys, g[0], g[1], g[2], strict=True):
-            if np.isnan(p[0]) or np.isnan(px[0]) or np.isnan(py[0]):
-                continue
-            J = np.column_stack([(px - p) / 0.5, (py - p) / 0.5])  # metres per pixel
-            cov = sigma**2 * J @ J.T + FOOT_OFFSET_SIGMA_M**2 * np.eye(2)
-            seen.setdefault(key, []).append((p, cov))
+        ok = ~(np.isnan(g[0, :, 0]) | np.isnan(g[1, :, 0]) | np.isnan(g[2, :, 0]))
+        if not ok.any():
+            continue
+        # The view's players at once (each matrix product and inverse the one a player alone would get).
+        J = np.stack([(g[1, ok] - g[0, ok]) / 0.5, (g[2, ok] - g[0, ok]) / 0.5], axis=-1)  # metres per pixel
+        infos = np.linalg.inv(sigma**2 * J @ np.swapaxes(J, 1, 2) + FOOT_OFFSET_SIGMA_M**2 * _EYE2)
+        for key, p, i in zip([k for k, kept in zip(keys, ok, strict=True) if kept], g[0, ok], infos, strict=True):
+            seen.setdefault(key, []).append((p, i))
     out: dict[PlayerKey, GrassPlayer] = {}
     for key, points in seen.items():
         P = np.array([p for p, _ in points])
-        info = [np.linalg.inv(c) for _, c in points]
-        cov = np.linalg.inv(sum(info))
-        centre = cov @ sum(i @ p for i, (p, _) in zip(info, points, strict=True))
+        cov = np.linalg.inv(sum(i for _, i in points))
+        centre = cov @ sum(i @ p for p, i in points)
         spread = float(np.max(np.linalg.norm(P - centre, axis=1)))
         if len(points) > 1 and spread > max_spread_m:
             continue

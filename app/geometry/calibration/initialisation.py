@@ -425,6 +425,29 @@ def wahba_rotation(camera_dirs: np.ndarray, world_dirs: np.ndarray, weights: np.
 
 
 @njit(**JIT)
+def _wahba_each(camera_dirs: np.ndarray, world_dirs: np.ndarray) -> np.ndarray:
+    out = np.empty((camera_dirs.shape[0], 3, 3))
+    weights = np.ones(world_dirs.shape[0])
+    for k in range(camera_dirs.shape[0]):
+        out[k] = _wahba(np.ascontiguousarray(camera_dirs[k]), world_dirs, weights)
+    return out
+
+
+def wahba_rotations(camera_dirs: np.ndarray, world_dirs: np.ndarray) -> np.ndarray:
+    """:func:`wahba_rotation` (unit weights) of each set of camera directions ``camera_dirs`` (F, N, 3) onto the same
+    world directions ``world_dirs`` (N, 3), unit vectors, in one compiled call: (F, 3, 3) proper rotations, each the
+    very matrix :func:`wahba_rotation` gives (the same compiled solve; a series of focal hypotheses cost their calls,
+    not their 3 x 3 SVDs).
+
+    >>> cam = np.stack([np.eye(3)[[1, 0, 2]], np.eye(3)])
+    >>> Rs = wahba_rotations(cam, np.eye(3))
+    >>> bool(np.array_equal(Rs[0], wahba_rotation(cam[0], np.eye(3)))), Rs.shape
+    (True, (2, 3, 3))
+    """
+    return _wahba_each(np.ascontiguousarray(camera_dirs, dtype=float), np.ascontiguousarray(world_dirs, dtype=float))
+
+
+@njit(**JIT)
 def _upright_rotations(uv: np.ndarray, world: np.ndarray, pp: np.ndarray, focals: np.ndarray, anchor_sigma_px: float,
                        roll_sigma_rad: float) -> np.ndarray:
     """:func:`fixed_centre_rotations` from the anchors' pixels ``uv`` (A, 2) and unit world directions

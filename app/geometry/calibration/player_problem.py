@@ -160,6 +160,17 @@ class PlayerProblem:
         self._whitening_of: tuple[np.ndarray, np.ndarray] | None = None
         self._whitening_cache = np.zeros((0, 2, 2))
         self._unit: np.ndarray | None = None
+        # What :meth:`rewhiten` reads that no camera changes: the grass points and their 0.01 m neighbours (the
+        # differences' points), the covariances, the pixel noise (made once: a placement rewhitens thousands of times).
+        g, gh = self.feet_m[:, :2], self.world[self.head_of, :2]
+        dx, dy = np.array([0.01, 0.0]), np.array([0.0, 0.01])
+        self._feet_grid = np.concatenate([g, g + dx, g + dy])
+        self._heads_grid = np.concatenate([gh, gh + dx, gh + dy])
+        self._cov_feet = self.cov_g[self.foot_of]
+        self._cov_heads = np.zeros((len(gh), 3, 3))
+        self._cov_heads[:, :2, :2] = self.cov_g[self.head_of]
+        self._cov_heads[:, 2, 2] = HEAD_SIGMA_M**2
+        self._noise = self.sigma_px**2 * np.eye(2)
 
     def rewhiten(self, x: np.ndarray, param: CameraParametrisation) -> None:
         """Whiten each foot point's residual by its covariance under the camera ``x``: its own pixel noise and its
@@ -169,17 +180,15 @@ class PlayerProblem:
         call (a fit's time was the calls)."""
         f_arr, R, C_arr, _ = param.split(x)
         f, C = float(f_arr), np.asarray(C_arr, float)
-        g, gh = self.feet_m[:, :2], self.world[self.head_of, :2]
-        n, h = len(g), len(gh)
-        dx, dy = np.array([0.01, 0.0]), np.array([0.0, 0.01])
-        heads = head_world(np.concatenate([gh, gh + dx, gh + dy]), C)
+        n, h = len(self.feet_m), len(self.head_of)
+        heads = head_world(self._heads_grid, C)
         up = heads[:h].copy()
         up[:, 2] = -(HEAD_HEIGHT_M + 0.01)
-        feet = foot_world(np.concatenate([g, g + dx, g + dy]), C)
+        feet = foot_world(self._feet_grid, C)
         uv = project_points(f, R, C, self.pp, np.concatenate([feet, heads, up]))
         feet_uv, head_uv = uv[:3 * n].reshape(3, n, 2), uv[3 * n:].reshape(4, h, 2)
         J = np.stack([(feet_uv[1] - feet_uv[0]) / 0.01, (feet_uv[2] - feet_uv[0]) / 0.01], axis=-1)
-        cov = np.einsum("nij,njk,nlk->nil", J, self.cov_g[self.foot_of], J) + self.sigma_px**2 * np.eye(2)
+        cov = np.einsum("nij,njk,nlk->nil", J, self._cov_feet, J) + self._noise
         try:
             self.L = np.linalg.inv(np.linalg.cholesky(cov))
         except np.linalg.LinAlgError:
@@ -192,10 +201,7 @@ class PlayerProblem:
         their grass point and height: their pixel noise, their grass point's covariance and the box top's height
         (:data:`HEAD_SIGMA_M`) carried into this view."""
         h = len(J)
-        cov_p = np.zeros((h, 3, 3))
-        cov_p[:, :2, :2] = self.cov_g[self.head_of]
-        cov_p[:, 2, 2] = HEAD_SIGMA_M**2
-        cov = np.einsum("nij,njk,nlk->nil", J, cov_p, J) + self.sigma_px**2 * np.eye(2)
+        cov = np.einsum("nij,njk,nlk->nil", J, self._cov_heads, J) + self._noise
         try:
             return np.asarray(np.linalg.inv(np.linalg.cholesky(cov)))
         except np.linalg.LinAlgError:
