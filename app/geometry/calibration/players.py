@@ -337,26 +337,33 @@ def fit_camera_to_players(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[P
                                            {"players": len(keys), "need": s.min_players_free})
         if lines_retried or refusal.code != "players_misfit":
             return refusal
-        # The view's lines and its players cannot be fitted together: the lines may be wrong, which the players and
-        # the game's rig, two sources the view's labels do not touch, can tell; only at a rig position (so the
-        # retries fit no full pose: it would be dropped).
-        at_rig_only = dataclasses.replace(s, min_players_free=len(keys) + 1)
-        if any(MIRROR_CLASSES[c] != c for c in lines):
-            # Mirrored, they fit: the labels are mirrored, and the camera meets them as the mirror fix makes them.
-            flipped = fit_camera_to_players(feet, grass, mirror_lines(lines), width, height, rig_centres, at_rig_only,
-                                            heads, lines_retried=True)
-            if isinstance(flipped, PlayerFit) and flipped.rig_index is not None and flipped.residuals_px:
-                return dataclasses.replace(flipped, lines_mirrored=True, residuals_px={
-                    MIRROR_CLASSES[c]: v for c, v in flipped.residuals_px.items()})
-        if 0 < len(lines) < MIN_LINE_CLASSES:
-            # A mislabelled class: the players' camera without the lines. A view with more classes keeps its
-            # refusal: its lines alone say whether they are otherwise wrong.
-            alone = fit_camera_to_players(feet, grass, {}, width, height, rig_centres, at_rig_only, heads,
-                                          lines_retried=True)
-            if isinstance(alone, PlayerFit) and alone.rig_index is not None:
-                return alone
-        return refusal
+        return _lines_retried(feet, grass, lines, width, height, rig_centres,
+                              dataclasses.replace(s, min_players_free=len(keys) + 1), heads) or refusal
     return _accepted(problem, chosen, keys, s)
+
+
+def _lines_retried(feet: Mapping[PlayerKey, np.ndarray], grass: Mapping[PlayerKey, GrassPlayer], lines: FieldLines,
+                   width: int, height: int, rig_centres: Sequence[Sequence[float]], at_rig_only: PlayerFitSettings,
+                   heads: Mapping[PlayerKey, np.ndarray]) -> PlayerFit | None:
+    """Where a view's lines and its players cannot be fitted together (:func:`fit_camera_to_players`' arguments): the
+    lines may be wrong, which the players and the game's rig, two sources the view's labels do not touch, can tell;
+    only at a rig position (``at_rig_only``: the retries fit no full pose, it would be dropped). The fit with the lines
+    mirrored (the labels are mirrored; ``lines_mirrored``, residuals named as labelled), else, for a view with at most
+    3 classes, the players' camera without its lines (a mislabelled class; a view with more classes keeps its refusal:
+    its lines alone say whether they are otherwise wrong); None when neither fits."""
+    if any(MIRROR_CLASSES[c] != c for c in lines):
+        # Mirrored, they fit: the labels are mirrored, and the camera meets them as the mirror fix makes them.
+        flipped = fit_camera_to_players(feet, grass, mirror_lines(lines), width, height, rig_centres, at_rig_only,
+                                        heads, lines_retried=True)
+        if isinstance(flipped, PlayerFit) and flipped.rig_index is not None and flipped.residuals_px:
+            return dataclasses.replace(flipped, lines_mirrored=True, residuals_px={
+                MIRROR_CLASSES[c]: v for c, v in flipped.residuals_px.items()})
+    if 0 < len(lines) < MIN_LINE_CLASSES:
+        alone = fit_camera_to_players(feet, grass, {}, width, height, rig_centres, at_rig_only, heads,
+                                      lines_retried=True)
+        if isinstance(alone, PlayerFit) and alone.rig_index is not None:
+            return alone
+    return None
 
 
 #: Where the players tell a view's own lines wrong: the median, over the players it shares with the well-lined views,

@@ -287,14 +287,8 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
                      and (px := _ball_sigma_px(v, cons.point, voters, sigma)) is not None}
         few_missing = [d for d in few_missing if not _too_loose(d, looseness)]
     else:
-        if (lone := _lone_ray(vote)) is not None and not lone_contradicted:
-            checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
-            if not checked:  # no second detected view: each detection is checked against the one labelled ray
-                checked = _one_ray(lone, unlabelled, witnesses, detections, by_id, wtol, sigma, s, size_tolerance,
-                                   half_vote=lone not in vote.labelled)
-        if not checked and not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
-            checked, sigma = _without_labels(views, vote, unlabelled, witnesses, detections, wtol, sigma, s,
-                                             size_tolerance, weighed)
+        checked, sigma = _without_consensus(views, vote, lone_contradicted, unlabelled, witnesses, detections, by_id,
+                                            tol, wtol, sigma, s, size_tolerance, weighed)
     checked.update(_in_weak_views(views, vote, unlabelled, cons, checked, detections, sigma, s, size_tolerance,
                                   weighed))
     few_missing = [d for d in few_missing if d.view_id not in checked]
@@ -313,6 +307,29 @@ def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
     new = [_detected_doubt(c, by_view[vid], code, agreeing, missing.get(vid), s)
            for vid, (c, code, agreeing) in checked.items()]
     return [*kept, *new, *few_missing, *placed, *out_of_label]
+
+
+def _without_consensus(views: Sequence[DoubtView], vote: Any, lone_contradicted: bool,
+                       unlabelled: Sequence[DoubtView], witnesses: Sequence[DoubtView],
+                       detections: Mapping[Hashable, Sequence[Detection]], by_id: Mapping[Hashable, BallObservation],
+                       tol: Mapping[Hashable, float], wtol: Mapping[Hashable, float], sigma: dict[Hashable, float],
+                       s: DoubtSettings, size_tolerance: float, weighed: Mapping[Any, tuple[float, float]] | None
+                       ) -> tuple[dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]],
+                                  dict[Hashable, float]]:
+    """The detections checked where the labelled views agree on no ball (:func:`check_detections`'s arguments): with
+    one labelled ray, two detected views that meet it (:func:`_from_one_view`), else each detection against that ray
+    alone (:func:`_one_ray`); with no labelled view taking part, the detections among themselves
+    (:func:`_without_labels`). Returns the checked detections and the pixel sigmas (the last rule may add some)."""
+    checked: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
+    if (lone := _lone_ray(vote)) is not None and not lone_contradicted:
+        checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
+        if not checked:  # no second detected view: each detection is checked against the one labelled ray
+            checked = _one_ray(lone, unlabelled, witnesses, detections, by_id, wtol, sigma, s, size_tolerance,
+                               half_vote=lone not in vote.labelled)
+    if not checked and not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
+        checked, sigma = _without_labels(views, vote, unlabelled, witnesses, detections, wtol, sigma, s,
+                                         size_tolerance, weighed)
+    return checked, sigma
 
 
 def _unsnapped(d: Doubt) -> Doubt:
