@@ -357,7 +357,8 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
     within tau by chance (it gives no agreement, hence no evidence). Counting them flagged more of
     the dev set's injected mirrored views with no false flag either way; today's figures are in the
     docstring of ``benchmarks/mirror_flags.py`` (73 of 92 flagged). A camera the players placed whose view's
-    lines fit it only mirrored keeps the flag with the players' evidence (``players.players_mirror_evidence``)."""
+    lines fit it only mirrored keeps the flag with the players' evidence (``players.players_mirror_evidence``), and
+    one read from a dataset without its fit's players keeps the flag the dataset gave it."""
     frames = [f for f in system.frames if f.id in cameras]
     if not frames:
         return
@@ -380,7 +381,11 @@ def _update_mirror_flags(session: Session, system: System, cameras: dict[int, Ca
     # verdict (the camera is the players', right where their labels are not)
     by_players = {f.id: ev for f in frames if f.calibration is not None and PLAYERS_FLAG in (f.calibration.flags or [])
                   and (ev := players_mirror_evidence(f.calibration.players, f.calibration.camera)) is not None}
-    flagged = {fid for fid, v in verdicts.items() if v.flagged} | set(by_players)
+    # such a camera read from a dataset (which keeps its flags but not the fit's players) keeps the flag it came with:
+    # the evidence that set it is not in the file, and its camera's own verdict cannot see mirrored labels
+    from_file = {f.id for f in frames if f.calibration is not None and not f.calibration.players
+                 and PLAYERS_FLAG in (f.calibration.flags or []) and MIRROR_FLAG in (f.calibration.flags or [])}
+    flagged = {fid for fid, v in verdicts.items() if v.flagged} | set(by_players) | from_file
     for f in frames:
         cal, verdict = f.calibration, verdicts[f.id]
         assert cal is not None  # a view with a camera has its calibration
