@@ -8,6 +8,7 @@ import json
 import math
 import shutil
 from pathlib import Path
+from typing import Any
 
 import sqlalchemy as sa
 
@@ -25,22 +26,8 @@ GAME = Path("synth_league_b/2031-2032/2031-12-01 - 14-00 Glenrock 2 - 3 Oakhurst
 
 def test_a_camera_the_players_placed_is_the_lone_ray_and_its_detections_are_right(shared_dir, tmp_path,
                                                                                    fresh_session_factory):
-    detector = shared_dir / "data/synthetic/detector"
-    (tmp_path / "set" / GAME).mkdir(parents=True)
-    shutil.copy(detector / "dev-large-unlabelled" / GAME / "Labels-v3.json", tmp_path / "set" / GAME)
-    truth = json.loads((detector / "dev-large-unlabelled.truth.json").read_text())
-    match = GAME.name
-    centres = {u["image"]: (u["center"], max(3.0, u["d"] / 2)) for u in truth["unlabelled"] if u["match"] == match}
-    lines = (detector / "dev-large-predictions.csv").read_text().splitlines()
-    (tmp_path / "game.csv").write_text("\n".join([lines[0], *(r for r in lines[1:] if f",{match}," in r)]) + "\n")
-    settings = Settings(calibration_workers=1)
     with fresh_session_factory("game") as session:
-        import_soccernet_v3(session, tmp_path / "set", settings)
-        session.commit()
-        import_predictions(session, tmp_path / "game.csv", settings, source="detector")
-        session.commit()
-        frames = {f.id: f for f in session.scalars(sa.select(Frame).join(System).join(Game)
-                                                   .where(Game.match == match))}
+        frames, centres = import_detector_game(session, shared_dir, tmp_path, "dev-large", GAME)
         placed = {fid for fid, f in frames.items() if f.calibration is not None
                   and PLAYERS_FLAG in (f.calibration.flags or [])}
         assert placed and all(doubt_view(frames[fid]).player_assisted for fid in placed)
@@ -56,3 +43,25 @@ def test_a_camera_the_players_placed_is_the_lone_ray_and_its_detections_are_righ
             (cx, cy), tol = centres[frames[d.frame_id].name]
             b = d.suggestion["box"]
             assert math.hypot((b[0] + b[2]) / 2 - cx, (b[1] + b[3]) / 2 - cy) <= tol, frames[d.frame_id].name
+
+
+def import_detector_game(session: Any, shared_dir: Path, tmp_path: Path, set_name: str, game: Path
+                         ) -> tuple[dict[int, Frame], dict[str, tuple]]:
+    """One game of the shared detector set ``set_name`` imported into ``session`` as a user would (``v3d import
+    soccernet-v3`` of its labels, ``v3d import predictions`` of its rows of the CSV): its views by frame id, and image
+    -> (true centre, the scorer's tolerance max(3 px, d/2)) of its unlabelled views."""
+    detector = shared_dir / "data/synthetic/detector"
+    (tmp_path / "set" / game).mkdir(parents=True)
+    shutil.copy(detector / f"{set_name}-unlabelled" / game / "Labels-v3.json", tmp_path / "set" / game)
+    truth = json.loads((detector / f"{set_name}-unlabelled.truth.json").read_text())
+    match = game.name
+    centres = {u["image"]: (u["center"], max(3.0, u["d"] / 2)) for u in truth["unlabelled"] if u["match"] == match}
+    lines = (detector / f"{set_name}-predictions.csv").read_text().splitlines()
+    (tmp_path / "game.csv").write_text("\n".join([lines[0], *(r for r in lines[1:] if f",{match}," in r)]) + "\n")
+    settings = Settings(calibration_workers=1)
+    import_soccernet_v3(session, tmp_path / "set", settings)
+    session.commit()
+    import_predictions(session, tmp_path / "game.csv", settings, source="detector")
+    session.commit()
+    frames = {f.id: f for f in session.scalars(sa.select(Frame).join(System).join(Game).where(Game.match == match))}
+    return frames, centres

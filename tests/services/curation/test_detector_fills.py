@@ -4,18 +4,14 @@ ball lies on the grass, placed to within a metre, fills its view; a view whose d
 places gets that ball's sphere box. Every box the check suggests there is right (within max(3 px, d/2))."""
 from __future__ import annotations
 
-import json
 import math
-import shutil
 from pathlib import Path
 from typing import Any
 
 import sqlalchemy as sa
 
-from app.core.config import Settings
-from app.db.models import Doubt, Frame, Game, System
-from app.services.transfer.importing import import_soccernet_v3
-from app.services.transfer.predictions import import_predictions
+from app.db.models import Doubt
+from tests.services.curation.test_detected_by_players import import_detector_game
 
 SET = "dev-large"
 
@@ -23,22 +19,8 @@ SET = "dev-large"
 def _fills(shared_dir: Path, tmp_path: Path, factory: Any, game: Path) -> tuple[dict[str, Any], dict[str, tuple]]:
     """The game imported with its predictions: image -> its label doubts' (kind, code, box), and image -> (true
     centre, the scorer's tolerance)."""
-    detector = shared_dir / "data/synthetic/detector"
-    (tmp_path / "set" / game).mkdir(parents=True)
-    shutil.copy(detector / f"{SET}-unlabelled" / game / "Labels-v3.json", tmp_path / "set" / game)
-    truth = json.loads((detector / f"{SET}-unlabelled.truth.json").read_text())
-    match = game.name
-    centres = {u["image"]: (u["center"], max(3.0, u["d"] / 2)) for u in truth["unlabelled"] if u["match"] == match}
-    lines = (detector / f"{SET}-predictions.csv").read_text().splitlines()
-    (tmp_path / "game.csv").write_text("\n".join([lines[0], *(r for r in lines[1:] if f",{match}," in r)]) + "\n")
-    settings = Settings(calibration_workers=1)
     with factory("game") as session:
-        import_soccernet_v3(session, tmp_path / "set", settings)
-        session.commit()
-        import_predictions(session, tmp_path / "game.csv", settings, source="detector")
-        session.commit()
-        frames = {f.id: f for f in session.scalars(sa.select(Frame).join(System).join(Game)
-                                                   .where(Game.match == match))}
+        frames, centres = import_detector_game(session, shared_dir, tmp_path, SET, game)
         doubts = session.scalars(sa.select(Doubt).where(Doubt.frame_id.in_(frames), Doubt.accuses_label.is_(True)))
         fills: dict[str, Any] = {}
         for d in doubts:
