@@ -163,15 +163,9 @@ def test_rewhitening_from_the_parts_made_once_is_the_whitening_made_anew() -> No
     from app.geometry.calibration.player_problem import project_points
 
     rng = np.random.default_rng(6)
-    truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
-    pts = players(7, rng)
-    feet = feet_in(truth, pts, 1.5, rng)
-    keys = list(pts)
-    g = np.array([pts[k] for k in keys])
-    foot_of, head_of = np.arange(5), np.array([0, 2, 3, 6])
-    uv_head = truth.project(head_world(g[head_of], truth.C))[0] + rng.normal(0, 1.5, (4, 2))
+    truth, g, uv, foot_of, head_of, uv_head = _seven_players(rng)
     cov_g = np.repeat(np.eye(2)[None] * 0.02, 7, 0) * np.arange(1, 8)[:, None, None]
-    problem = PlayerProblem(uv=np.array([feet[keys[i]] for i in foot_of]), world=np.column_stack([g, np.zeros(7)]),
+    problem = PlayerProblem(uv=uv, world=np.column_stack([g, np.zeros(7)]),
                             lines={}, pp=np.asarray(PP), width=W, height=H, scale=1.0, cov_g=cov_g,
                             uv_head=uv_head, head_of=head_of, foot_of=foot_of)
     assert problem.head_alone().tolist() == [False, False, False, True]
@@ -227,12 +221,10 @@ def test_a_rig_position_s_residuals_are_the_free_pose_s_at_that_centre() -> None
     assert np.allclose(problem.jacobian(X[1], rig)[0], at_rig[1], rtol=0, atol=0)
 
 
-def test_the_compiled_rows_are_the_camera_s_projections_of_the_feet_and_heads_whitened() -> None:
-    """The players' rows (one compiled call for a batch of vectors) are, per vector, the camera's projections of the
-    foot and head points' world points (``foot_world``, ``head_world`` from its centre) less their pixels, whitened
-    by each point's 2x2 whitening, in the order feet, lines, heads: at a rig position and for a full pose; a player
-    whose feet are cut has a head row only (here the last two players: one with its head, one without)."""
-    rng = np.random.default_rng(5)
+def _seven_players(rng: np.random.Generator) -> tuple:
+    """A rig-position camera and seven players around the play (1.5 px of noise): the camera, their grass points
+    (7, 2) m, the foot pixels of the first five, which players show their heads (the last two have their feet cut:
+    one with its head, one without) and those head pixels (4, 2)."""
     truth = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
     pts = players(7, rng)
     feet = feet_in(truth, pts, 1.5, rng)
@@ -240,8 +232,18 @@ def test_the_compiled_rows_are_the_camera_s_projections_of_the_feet_and_heads_wh
     g = np.array([pts[k] for k in keys])
     foot_of, head_of = np.arange(5), np.array([0, 2, 3, 6])
     uv_head = truth.project(head_world(g[head_of], truth.C))[0] + rng.normal(0, 1.5, (4, 2))
+    return truth, g, np.array([feet[keys[i]] for i in foot_of]), foot_of, head_of, uv_head
+
+
+def test_the_compiled_rows_are_the_camera_s_projections_of_the_feet_and_heads_whitened() -> None:
+    """The players' rows (one compiled call for a batch of vectors) are, per vector, the camera's projections of the
+    foot and head points' world points (``foot_world``, ``head_world`` from its centre) less their pixels, whitened
+    by each point's 2x2 whitening, in the order feet, lines, heads: at a rig position and for a full pose; a player
+    whose feet are cut has a head row only (here the last two players: one with its head, one without)."""
+    rng = np.random.default_rng(5)
+    truth, g, uv, foot_of, head_of, uv_head = _seven_players(rng)
     lines = visible_model_points(truth, W, H, rng, per_class=6)
-    problem = PlayerProblem(uv=np.array([feet[keys[i]] for i in foot_of]), world=np.column_stack([g, np.zeros(7)]),
+    problem = PlayerProblem(uv=uv, world=np.column_stack([g, np.zeros(7)]),
                             lines=lines, pp=np.asarray(PP), width=W, height=H, scale=1.0,
                             cov_g=np.repeat(np.eye(2)[None] * 0.02, 7, 0) * np.arange(1, 8)[:, None, None],
                             uv_head=uv_head, head_of=head_of, foot_of=foot_of)
