@@ -11,7 +11,8 @@ prediction within the scorer's tolerance of the true centre); ``no labelled view
 themselves: not this path's); ``labelled views disagree``; ``lone ray contradicted``; and, where a labelled view
 takes part, ``consensus: <check>`` or ``one ray: <check>`` naming the check that refused the true detection
 (``prefilter``, ``play_volume``, ``rays_meet``, ``size``, ``baseline_parallax``, ``keeps_ball``, ``epipolar``,
-``unsure ray``, ``unsure view``, ``half vote``, ``third view``, ``margin``, ``placed``, ``explained``,
+``unsure ray``, ``unsure view`` (a camera whose sigma no longer tells where the ball lies), ``half vote``,
+``third view``, ``margin``, ``placed``, ``explained``,
 ``views disagree``, ``another chosen``, ``one_view filled others``, ``no box``).
 
 Run: ``.venv/bin/python benchmarks/fill_diagnosis.py DB.sqlite3 TRUTH.json PREDICTIONS.csv`` (a database with the
@@ -87,15 +88,16 @@ def _why_one_ray(lone: Any, v: Any, true_dets: Sequence[Any], detections: Any, b
         _Member,
         _member,
         _on_epipolar,
+        _on_ray_within_sigmas,
         _placed,
-        _sure,
+        _telling,
         _told_from_players,
         meet_or_why,
     )
 
-    if not _sure(lone, sigma, s):
+    if not _telling(lone, float(sigma.get(lone.view_id, 0.0)), s):
         return "one ray: unsure ray"
-    if not _sure(v, sigma, s):
+    if not _telling(v, float(sigma.get(v.view_id, 0.0)), s):
         return "one ray: unsure view"
     near = _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * wtol[v.view_id], s)
     ray = _Member(lone, by_id[lone.view_id], None, size_tol)
@@ -103,7 +105,7 @@ def _why_one_ray(lone: Any, v: Any, true_dets: Sequence[Any], detections: Any, b
     for d in true_dets:
         if d not in near:
             whys.append("prefilter")
-        elif half_vote and len(near) > 1:
+        elif half_vote and sum(_on_ray_within_sigmas(lone, v, e, sigma, s) for e in near) > 1:
             whys.append("half vote")
         elif not _on_epipolar(lone, v, d, sigma, s):
             whys.append("epipolar")

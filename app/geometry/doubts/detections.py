@@ -80,10 +80,9 @@ from app.geometry.doubts.pairings import (
     _lone_ray,
     _one_ray,
     _sure,
-    _telling,
     _view,
 )
-from app.geometry.doubts.weak import _weak_ray, _weak_views
+from app.geometry.doubts.weak import _weak, _weak_on_lone_ray, _weak_ray, _weak_views
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.spread import position_covariance, position_sigma_m, projected_sigma_px
 from app.geometry.triangulation import (
@@ -95,7 +94,6 @@ from app.geometry.weighting import (
     calibration_weight,
     camera_of,
     centre_of,
-    label_centre,
     pixel_sigma,
     project_point,
     rule_scale,
@@ -141,43 +139,15 @@ def _witnesses(views: Sequence[DoubtView], sigma: Mapping[Hashable, float], tol:
     return out, wtol
 
 
-def _weak(views: Sequence[DoubtView], vote: Any, checked: Sequence[DoubtView], s: DoubtSettings,
-          weighed: Mapping[Any, tuple[float, float]] | None) -> tuple[dict[Hashable, float], dict[Hashable, float]]:
-    """The views whose camera takes no full part in the checks yet still tells where the ball lies: labelled ones
-    outside the votes' labelled views (a helper's half vote, or none) and unlabelled ones outside ``checked`` (the
-    views whose detections are checked) or with a sigma beyond tau, each with its pixel sigma (px at 1920 width).
-    Kept only a camera whose fit's uncertainty is stored (else its sigma says nothing), which fits at least half of
-    its own lines (JaC@0.5 % >= 0.5: a camera that fits fewer is a failed fit, whatever its sigma; on the shared
-    detector sets such cameras put the ball hundreds of px off) and whose sigma still tells (:func:`_telling`).
-    Returns ``(labelled, unlabelled)``: view id -> sigma."""
-    labelled: dict[Hashable, float] = {}
-    unlabelled: dict[Hashable, float] = {}
-    judged = {v.view_id for v in vote.labelled}
-    sure = {v.view_id for v in checked}
-    for v in views:
-        if v.camera is None or v.excluded or v.mirror_flagged or v.suggested or not v.uncertainty \
-                or (v.jac or 0.0) < 0.5:
-            continue
-        known = weighed.get(v.view_id) if weighed is not None else None
-        sig = float((known if known is not None else calibration_weight(v, s))[1])
-        if not _telling(v, sig, s):
-            continue
-        if label_centre(v) is not None:
-            if v.view_id not in judged:
-                labelled[v.view_id] = sig
-        elif v.view_id not in sure or sig > max(s.consensus_tau_px, s.triangulation_tau_px):
-            unlabelled[v.view_id] = sig
-    return labelled, unlabelled
-
-
 def _in_weak_views(views: Sequence[DoubtView], vote: Any, unlabelled: Sequence[DoubtView], cons: Consensus,
                    checked: Mapping[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]],
                    detections: Mapping[Any, Sequence[Detection]], sigma: Mapping[Hashable, float],
                    s: DoubtSettings, size_tolerance: float, weighed: Mapping[Any, tuple[float, float]] | None,
                    ) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """The views whose own camera takes no part in the checks, where the others place the ball: the labelled views'
-    consensus, else the ball of a checked pairing with the most views (never a weak ray's: an unsure camera's word
-    is not relayed to another), each within its own sigma (:func:`app.geometry.doubts.weak._weak_views`)."""
+    consensus, else the ball of a checked pairing with the most views (never a weak ray's or a weak view's: an unsure
+    camera's word is not relayed to another), each within its own sigma
+    (:func:`app.geometry.doubts.weak._weak_views`)."""
     _, weak = _weak(views, vote, unlabelled, s, weighed)
     targets = [v for v in views if v.view_id in weak and v.view_id not in checked]
     if not targets:
@@ -185,7 +155,7 @@ def _in_weak_views(views: Sequence[DoubtView], vote: Any, unlabelled: Sequence[D
     if cons.point is not None and not cons.ambiguous:
         ball, agreeing = cons.point, tuple(cons.inliers)
     else:
-        placed = [(c, a) for c, code, a in checked.values() if code != "weak_ray"]
+        placed = [(c, a) for c, code, a in checked.values() if code not in ("weak_ray", "weak_view")]
         if not placed:
             return {}
         c, agreeing = max(placed, key=lambda x: len(x[1]))
@@ -329,6 +299,9 @@ def _without_consensus(views: Sequence[DoubtView], vote: Any, lone_contradicted:
     if not checked and not vote.labelled:  # no labelled view takes part: the detections may agree among themselves
         checked, sigma = _without_labels(views, vote, unlabelled, witnesses, detections, wtol, sigma, s,
                                          size_tolerance, weighed)
+    if not checked and lone is not None and not lone_contradicted:
+        checked, sigma = _weak_on_lone_ray(lone, views, vote, unlabelled, witnesses, detections, by_id, wtol, sigma,
+                                           s, size_tolerance, weighed)
     return checked, sigma
 
 

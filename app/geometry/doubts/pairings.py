@@ -356,11 +356,24 @@ def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
     return bool(p.confirmed) or -float(p.ball[2]) <= ON_GRASS_M or not _on_head_or_feet(view, det)
 
 
+def _on_ray_within_sigmas(lone: DoubtView, view: DoubtView, det: Detection, sigma: Mapping[Hashable, float],
+                          s: DoubtSettings) -> bool:
+    """Whether ``det``'s centre lies within :data:`SIGMAS` standard deviations of ``lone``'s ball ray seen in
+    ``view`` (its epipolar segment across the play volume, px at 1920 width): both cameras' pixel sigmas (each at
+    least :data:`MIN_SIGMA_PX`) and the detector's centre error (:data:`CENTRE_NOISE` of the box's diameter) in
+    quadrature, as :func:`_explained` asks of a chosen box. Where the ball lies on that ray a box farther off is not
+    explained by the cameras and the detector, so it is no rival the ray cannot tell from another."""
+    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(v.view_id, 0.0))) ** 2 for v in (lone, view))
+    d = _diameter(det.box, view) * rule_scale(view, s)
+    return _epipolar_distance(lone, det.centre, view, s) <= SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2)
+
+
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
-    """A view whose camera may make a ball with one other ray: its pixel sigma (px at 1920 width) within tau. A camera
-    that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the judge
-    lends such a view half a vote; with a single other ray nothing outvotes its error: on a shared detector set a
-    labelled view of sigma 193 px and a right detection made a ball 2.9 m off)."""
+    """A view whose camera may pair without its spread being asked: its pixel sigma (px at 1920 width) within tau. A
+    camera that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the
+    judge lends such a view half a vote; with a single other ray nothing outvotes its error: on a shared detector set
+    a labelled view of sigma 193 px and a right detection made a ball 2.9 m off). A labelled ray and a detection
+    (:func:`_one_ray`) weigh such a camera by its spread instead (:func:`_placed`)."""
     return float(sigma.get(view.view_id, 0.0)) <= max(s.consensus_tau_px, s.triangulation_tau_px)
 
 
@@ -436,26 +449,36 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     by more than its tolerance) are all left alone, and a chosen view is left alone where another view's every box
     on the ray (paired with it, whatever refused that pairing) lies elsewhere than its ball.
 
+    A camera unsure beyond tau (the labelled ray's or the view's) takes part weighted by its uncertainty rather than
+    not at all: its pixel sigma widens the epipolar band (:func:`_band`) and its tolerance, and the chosen ball must
+    still be placed within :data:`MAX_SPREAD_M` by the members' sigmas (:func:`_placed`) and explain the box
+    (:func:`_explained`); only a camera whose sigma no longer tells where the ball lies (:func:`_telling`) is left
+    out. Such a ray carries half a vote (``app.geometry.weighting.calibration_weight``) and its spread says how far it
+    may move the ball: on six detector study sets (``benchmarks/DETECTOR.md``, 2026-11-27, branch vote5) 15 views
+    so refused before were filled, all right, and no false box passed.
+
     ``half_vote``: the ray is a helper's (:func:`_lone_ray`, a camera the players placed). Its view is filled only
-    when the detection is the only one of that view near the ray (within :data:`PREFILTER` tolerances of its
-    epipolar segment, before any size or depth check): where the detector missed the ball, its false boxes cluster
-    on the players around it, and two of them near the ray mean one may lie on it at a ball's size by chance (on a
-    shared detector set such a box, with a second false box near the same segment, made a 3D ball 3.9 m off); a
-    half vote has no margin of its own to tell them apart. A labelled view's full vote keeps the margin rule alone."""
+    when one detection at most of that view lies where the two cameras and the detector explain the ball on that ray
+    (:func:`_on_ray_within_sigmas`): where the detector missed the ball, its false boxes cluster on the players around
+    it, and two of them on the ray mean one may lie on it at a ball's size by chance (on a shared detector set such
+    a box, with a second false box near the same segment, made a 3D ball 3.9 m off); a half vote has no margin of
+    its own to tell them apart. A box farther off the ray than its cameras' and the detector's uncertainty is no
+    rival there (the chosen box must lie within it anyway, :func:`_explained`). A labelled view's full vote keeps the
+    margin rule alone."""
     # the labelled ray's own box is not read for its size: annotated boxes are loose (on the shared detector sets
     # the true balls' labelled boxes measure 1.45 to 1.57 times the sphere's), and a player's head on that ray
     # lies at about nine tenths of the ball's depth, which no tolerance on a label's size tells apart
     ray = _Member(lone, by_id[lone.view_id], None, size_tolerance)
     chosen: dict[Hashable, tuple[_Pairing, int, float | None]] = {}
     met: dict[Hashable, list[_Pairing]] = {}
-    if not _sure(lone, sigma, s):
+    if not _telling(lone, float(sigma.get(lone.view_id, 0.0)), s):
         return {}
     for v in unlabelled:
-        if not _sure(v, sigma, s):
+        if not _telling(v, float(sigma.get(v.view_id, 0.0)), s):
             continue
         near = _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * tol[v.view_id], s)
-        if half_vote and len(near) > 1:  # a half vote's ray arbitrates between no two candidates
-            continue
+        if half_vote and sum(_on_ray_within_sigmas(lone, v, d, sigma, s) for d in near) > 1:
+            continue  # a half vote's ray arbitrates between no two candidates its cameras cannot tell apart
         pairings = [_judged(p, thirds, detections, tol, s, size_tolerance) for d in near
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]

@@ -1,10 +1,10 @@
 """Where cameras take no full part in the votes: a weak label's ray and the one detection near it (``weak_ray``), or a
-weak view's one detection where the others' ball projects (``weak_view``), only for boxes that cannot make a 3D ball
-(docs/detectors.md, "The check")."""
+weak view's one detection where the others' ball projects or along a lone labelled ray (``weak_view``), only for boxes
+that cannot make a 3D ball (docs/detectors.md, "The check"); and which views' cameras are weak (:func:`_weak`)."""
 from __future__ import annotations
 
 import math
-from typing import Hashable, Mapping, Sequence
+from typing import Any, Hashable, Mapping, Sequence
 
 import numpy as np
 
@@ -22,6 +22,7 @@ from app.geometry.doubts.pairings import (
     _on_epipolar,
     _Pairing,
     _sure,
+    _telling,
 )
 from app.geometry.triangulation import MIN_PAIR_WEIGHT, BallObservation
 from app.geometry.weighting import calibration_weight, label_centre, project_point, rule_scale
@@ -38,16 +39,20 @@ def _triangulation_weight(view: DoubtView, s: DoubtSettings) -> float:
     return calibration_weight(view, s)[0] if view.uncertainty else 1.0
 
 
-def _uncounted(fills: Mapping[Hashable, Detection], views: Sequence[DoubtView], s: DoubtSettings) -> bool:
-    """Whether placing the boxes ``fills`` (view id -> detection) leaves every filled view out of the 3D ball: no pair
-    of a filled view and another labelled or filled view weighs :data:`MIN_PAIR_WEIGHT` in the triangulation (a full
-    vote and at least a half one). Then a wrong box costs a label, never a system's ball."""
+def _uncounted(fills: Mapping[Hashable, Detection], views: Sequence[DoubtView], s: DoubtSettings,
+               placed: Mapping[Hashable, Detection] | None = None) -> bool:
+    """Whether placing the boxes ``fills`` (view id -> detection) leaves every view so filled out of the 3D ball: no
+    pair of such a view and another labelled or filled view (``fills``, and ``placed``: boxes other checks already
+    placed, which count as labels) weighs :data:`MIN_PAIR_WEIGHT` in the triangulation (a full vote and at least a
+    half one). Then a wrong box costs a label, never a system's ball. The views of ``placed`` are not asked: their
+    boxes were checked as ones that may make a ball."""
+    boxes = {**(placed or {}), **fills}
     weights: dict[Hashable, float] = {}
     for v in views:
         if v.excluded or v.suggested:
             continue
-        if v.view_id in fills:
-            weights[v.view_id] = _triangulation_weight(_as_labelled(v, fills[v.view_id]), s)
+        if v.view_id in boxes:
+            weights[v.view_id] = _triangulation_weight(_as_labelled(v, boxes[v.view_id]), s)
         elif label_centre(v) is not None:
             weights[v.view_id] = _triangulation_weight(v, s)
     return not any(weights[f] + w >= MIN_PAIR_WEIGHT for f in fills if f in weights
@@ -126,8 +131,73 @@ def _weak_views(targets: Sequence[DoubtView], ball: np.ndarray, views: Sequence[
         ratio = size_ratio(v, dets[i].box, ball, s.ball_diameter_m)
         if dist[i] >= t or ratio is None or abs(ratio - 1.0) > size_tolerance:
             continue
-        if not _uncounted({**filled, v.view_id: dets[i]}, views, s):
+        if not _uncounted({**{k: c.detection for k, (c, _, _) in found.items()}, v.view_id: dets[i]}, views, s,
+                          filled):
             continue
         found[v.view_id] = (CheckedDetection(v.view_id, dets[i], dist[i], np.asarray(ball, float), float(ratio)),
                             "weak_view", agreeing)
     return found
+
+
+def _placed_by_players_alone(v: DoubtView) -> bool:
+    """Whether ``v``'s camera was fitted to its players' foot points with no field line of its own to read a fit from
+    (JaC None): its stored uncertainty is the players' fit's (over-determined by at least 3 foot points,
+    ``app.geometry.calibration.players``), so a JaC below a half, which marks a failed fit of a camera's own lines,
+    says nothing of it. On the detector study sets such cameras (pixel sigmas 10-26 px) projected the true ball 4-12
+    px off (``benchmarks/DETECTOR.md``, 2026-11-27, branch vote5)."""
+    return v.player_assisted and v.jac is None
+
+
+def _weak(views: Sequence[DoubtView], vote: Any, checked: Sequence[DoubtView], s: DoubtSettings,
+          weighed: Mapping[Any, tuple[float, float]] | None) -> tuple[dict[Hashable, float], dict[Hashable, float]]:
+    """The views whose camera takes no full part in the checks yet still tells where the ball lies: labelled ones
+    outside the votes' labelled views (a helper's half vote, or none) and unlabelled ones outside ``checked`` (the
+    views whose detections are checked) or with a sigma beyond tau, each with its pixel sigma (px at 1920 width).
+    Kept only a camera whose fit's uncertainty is stored (else its sigma says nothing), which fits at least half of
+    its own lines (JaC@0.5 % >= 0.5: a camera that fits fewer is a failed fit, whatever its sigma; on the shared
+    detector sets such cameras put the ball hundreds of px off; a camera its players alone placed has no lines to fit,
+    :func:`_placed_by_players_alone`) and whose sigma still tells (:func:`_telling`).
+    Returns ``(labelled, unlabelled)``: view id -> sigma."""
+    labelled: dict[Hashable, float] = {}
+    unlabelled: dict[Hashable, float] = {}
+    judged = {v.view_id for v in vote.labelled}
+    sure = {v.view_id for v in checked}
+    for v in views:
+        if v.camera is None or v.excluded or v.mirror_flagged or v.suggested or not v.uncertainty \
+                or ((v.jac or 0.0) < 0.5 and not _placed_by_players_alone(v)):
+            continue
+        known = weighed.get(v.view_id) if weighed is not None else None
+        sig = float((known if known is not None else calibration_weight(v, s))[1])
+        if not _telling(v, sig, s):
+            continue
+        if label_centre(v) is not None:
+            if v.view_id not in judged:
+                labelled[v.view_id] = sig
+        elif v.view_id not in sure or sig > max(s.consensus_tau_px, s.triangulation_tau_px):
+            unlabelled[v.view_id] = sig
+    return labelled, unlabelled
+
+
+def _weak_on_lone_ray(lone: DoubtView, views: Sequence[DoubtView], vote: Any, unlabelled: Sequence[DoubtView],
+                      witnesses: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
+                      by_id: Mapping[Hashable, BallObservation], wtol: Mapping[Hashable, float],
+                      sigma: dict[Hashable, float], s: DoubtSettings, size_tolerance: float,
+                      weighed: Mapping[Any, tuple[float, float]] | None,
+                      ) -> tuple[dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]],
+                                 dict[Hashable, float]]:
+    """With one labelled ray and nothing placed: the views whose own camera takes no part in the votes (:func:`_weak`:
+    few lines and an unsure fit, or a camera its players alone placed) checked along that ray within their own
+    uncertainty (:func:`app.geometry.doubts.weak._weak_ray` with the labelled ray: the one detection within
+    :data:`app.geometry.doubts.pairings.MISS` tolerances of its epipolar segment, tau widened by both cameras' pixel
+    sigmas in quadrature, meeting it in the play volume at a ball's size, no third view missing it), only where the
+    boxes placed stay out of the triangulation (such a view weighs nothing there): a wrong box costs a label, never a
+    system's ball. Code ``weak_view``: the view's own camera is the weak one. Returns the checked detections and the
+    pixel sigmas with the weak views' own (``sigma``'s and :func:`_weak`'s, px at 1920 width)."""
+    _, weak = _weak(views, vote, unlabelled, s, weighed)
+    usable = {v.view_id for v in unlabelled}
+    targets = [v for v in views if v.view_id in weak and v.view_id not in usable]
+    if not targets:
+        return {}, sigma
+    sigma = {**sigma, **weak}
+    found = _weak_ray([lone], targets, views, witnesses, detections, by_id, wtol, sigma, s, size_tolerance)
+    return {vid: (c, "weak_view", agreeing) for vid, (c, _, agreeing) in found.items()}, sigma
