@@ -60,3 +60,29 @@ def test_a_view_whose_detector_missed_the_ball_a_pairing_places_gets_its_box(sha
         for _, code, box in found:
             if code == "pairing":
                 assert image in centres and _right(box, centres[image]), image
+
+
+def test_unsure_cameras_take_part_weighted_by_their_uncertainty(shared_dir, tmp_path, fresh_session_factory):
+    # two systems of this game (benchmarks/DETECTOR.md, branch vote5): in 17.png the one labelled ray's camera is
+    # unsure beyond tau (sigma 27 px) and its pairing with the view's detection is placed by the spread that sigma
+    # leaves; in 14.png the one ray is a half vote (a camera its players placed, sigma 1 px) with two boxes near it,
+    # of which one alone lies within its cameras' and the detector's uncertainty of the ray: both filled, both right
+    fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory,
+                            Path("synth_league_a/2031-2032/2031-08-01 - 14-00 Glenrock 0 - 3 Fenwick"))
+    for image in ("17.png", "14_1.png"):
+        (box,) = [b for kind, code, b in fills[image] if (kind, code) == ("ball_detected", "one_ray")]
+        assert _right(box, centres[image]), image
+    for image, found in fills.items():
+        for kind, code, box in found:
+            if kind == "ball_detected" and image in centres:
+                assert _right(box, centres[image]), (image, kind, code)
+
+
+def test_a_view_whose_camera_takes_no_part_is_checked_along_the_lone_labelled_ray(shared_dir, tmp_path,
+                                                                                  fresh_session_factory):
+    # 5.png: three line classes, a camera unsure to 33 px (no vote), one labelled ray (sigma 5 px) and nothing else
+    # placed in its system: its one box near that ray within both sigmas fills it (weak_view), right
+    fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory,
+                            Path("synth_league_c/2031-2032/2031-10-15 - 18-00 Glenrock 0 - 1 Arden"))
+    (box,) = [b for kind, code, b in fills["5.png"] if (kind, code) == ("ball_detected", "weak_view")]
+    assert _right(box, centres["5.png"])
