@@ -149,7 +149,7 @@ export const WORDS = /*WORDS*/{
   },
   "ball_detected:weak_view": {
    "chip": "detector, unsure camera",
-   "means": "the only detector's box where the ball the other views place projects in a view whose camera takes no part, within that camera's uncertainty"
+   "means": "the only detector's box where the ball the other views place projects (or on the one labelled view's ray) in a view whose camera takes no part, within that camera's uncertainty"
   }
  },
  "flag_prefix": {

@@ -174,8 +174,9 @@ _DETECTED_RULE = {
     "weak_ray": " (a label whose camera takes no part in the votes and this detection, the only one near its ray: "
                 "they meet in the play volume at a ball's size, no third view misses it, and the box cannot make a 3D "
                 "ball with that ray)",
-    "weak_view": " (this view's camera takes no part in the votes: the ball projects here within its uncertainty, "
-                 "and no other detection lies near; the box cannot make a 3D ball)",
+    "weak_view": " (this view's camera takes no part in the votes: the ball the others place, or the one labelled "
+                 "view's ray, passes here within its uncertainty, and no other detection lies near; the box cannot "
+                 "make a 3D ball)",
 }
 
 

@@ -112,7 +112,8 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
                                             "part, meeting it at a ball's size; the box cannot make a 3D ball"},
         "ball_detected:weak_view": {"chip": "detector, unsure camera",
                                     "means": "the only detector's box where the ball the other views place projects "
-                                             "in a view whose camera takes no part, within that camera's uncertainty"},
+                                             "(or on the one labelled view's ray) in a view whose camera takes no "
+                                             "part, within that camera's uncertainty"},
     },
     "flag_prefix": {
         "ignored_class": {"chip": "ignores {}",
