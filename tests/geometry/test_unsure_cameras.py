@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.geometry.ball import sphere_image_box
 from app.geometry.doubts.pairings import _telling
 from app.geometry.doubts.weak import _uncounted
 from app.geometry.weighting import calibration_weight
@@ -18,7 +17,7 @@ from tests.geometry.test_detections import (
     detected,
     near_truth,
 )
-from tests.geometry.test_doubts import BALL, CAMERAS, R_BALL, SETTINGS, camera, scene
+from tests.geometry.test_doubts import BALL, CAMERAS, SETTINGS, scene
 
 #: Unsure to about 28 px at main's focal length (2500 px): just beyond tau (25 px), where a one-ray pairing used to be
 #: refused whatever its spread.
@@ -100,20 +99,3 @@ def test_a_weak_views_box_is_asked_whether_it_counts_not_the_boxes_other_checks_
     sure = scene(corner={"box": None, "line_classes": 2, "jac": 1.0,
                          "uncertainty": {**UNSURE, "pan_deg": 0.02, "tilt_deg": 0.02}}, goal={"box": None})
     assert not _uncounted({"corner": corner}, sure, SETTINGS, placed={"goal": goal})
-
-
-def test_a_labelled_third_view_whose_camera_is_a_failed_fit_contradicts_no_pairing():
-    """Opposite's label lies 300 px from where the ball projects, its camera below admission and unsure to about
-    40 px (no vote): where its fit holds (JaC 0.9) its label clearly misses main's and goal's pairing, which is
-    dropped; where its camera fits fewer than half of its own lines (JaC 0.3) its label's ray says nothing, and goal
-    is filled."""
-    off = sphere_image_box(camera("opposite"), BALL, R_BALL) + [300.0, 0.0, 300.0, 0.0]
-    ball = det("goal", 0.7, shift=(1.0, -0.5))
-
-    def views(jac):
-        return scene(goal={"box": None}, corner={"box": None},
-                     opposite={"box": off, "admitted": False, "jac": jac, "uncertainty": UNSURE})
-    assert _sigma(views(0.9), "opposite")[0] == 0.0  # no vote either way
-    assert detected(checked(views(0.9), {"goal": [ball]})) == {}
-    found = detected(checked(views(0.3), {"goal": [ball]}))
-    assert set(found) == {"goal"} and found["goal"].code == "one_ray" and near_truth("goal", found["goal"]) < 2.0

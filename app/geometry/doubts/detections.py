@@ -82,7 +82,7 @@ from app.geometry.doubts.pairings import (
     _sure,
     _view,
 )
-from app.geometry.doubts.weak import _placed_by_players_alone, _weak, _weak_on_lone_ray, _weak_ray, _weak_views
+from app.geometry.doubts.weak import _weak, _weak_on_lone_ray, _weak_ray, _weak_views
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.spread import position_covariance, position_sigma_m, projected_sigma_px
 from app.geometry.triangulation import (
@@ -123,19 +123,13 @@ def _witnesses(views: Sequence[DoubtView], sigma: Mapping[Hashable, float], tol:
     """The third views a pairing of detections is asked about (:func:`_third_views`): every calibrated view not
     excluded, not flagged mirrored and without an unconfirmed label whose pixel sigma is finite, also those that
     take no part in the votes (a camera too unsure to make a ball can still show that the ball is not where a pairing
-    puts it, within its own widened tolerance), with the tolerances: ``tol``'s, else tau widened to the view's sigma.
-    A camera that carries its fit's uncertainty but fits fewer than half of its own lines (JaC@0.5 % < 0.5, not one
-    its players alone placed, :func:`app.geometry.doubts.weak._placed_by_players_alone`) is a failed fit whose sigma
-    says nothing, as for the weak views: it is no witness (on a detector study set two such labelled views, sigmas
-    30-37 px, put the true ball 124 and 1,322 px from their labels and refused two right one-ray pairings)."""
+    puts it, within its own widened tolerance), with the tolerances: ``tol``'s, else tau widened to the view's sigma."""
     tau = max(s.consensus_tau_px, s.triangulation_tau_px)
     out: list[DoubtView] = []
     wtol = dict(tol)
     for v in views:
         if v.camera is None or v.excluded or v.mirror_flagged or v.suggested:
             continue
-        if v.uncertainty and (v.jac or 0.0) < 0.5 and not _placed_by_players_alone(v):
-            continue  # a failed fit: its label's ray or its detections say nothing of where the ball is
         known = weighed.get(v.view_id) if weighed is not None else None
         sig = sigma.get(v.view_id, (known if known is not None else calibration_weight(v, s))[1])
         if not math.isfinite(sig):
