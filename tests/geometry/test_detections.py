@@ -642,3 +642,24 @@ def test_the_grass_places_a_pairings_ball_only_where_each_of_its_rays_meets_the_
     low = BALL + 1.2 * along
     assert 0.25 < low[2] - BALL[2] < 0.35
     assert not _grass_placed(pairing(low))
+
+
+def test_a_false_box_on_the_labelled_ray_a_metre_off_is_disputed_by_the_balls_detection_in_a_far_view():
+    """goal's detector missed the ball and shows a ball-sized box on main's ray 1.4 m from it; opposite, looking along
+    that ray from 66 m, shows the ball. Where the false ball projects in opposite lies within twice the doubts'
+    tolerance of opposite's detection (the old agreement) yet many of the two cameras' standard deviations off it:
+    opposite disputes goal's pairing and nothing is filled (goal's box, in turn, refuses opposite's pairing)."""
+    views = only_main_labelled()
+    c = np.asarray(CAMERAS["main"][0], float)
+    off = on_main_ray(1.0 + 1.4 / float(np.linalg.norm(BALL - c)))
+    assert abs(float(np.linalg.norm(off - BALL)) - 1.4) < 1e-6
+    false = box_at("goal", off, score=0.9)
+    opposite = box_at("opposite", BALL, score=0.8)
+    shift = float(np.linalg.norm(np.asarray(project_point(views[2], off)) - np.asarray(project_point(views[2], BALL))))
+    assert views[2].view_id == "opposite" and 10.0 < shift < 2 * SETTINGS.consensus_tau_px
+    assert detected(checked(views, {"goal": [false], "opposite": [opposite]})) == {}
+    # alone, goal's false box has nothing to dispute it (the rays cannot tell): what opposite's word is worth here
+    assert set(detected(checked(views, {"goal": [false]}))) == {"goal"}
+    # and opposite's true detection alone fills opposite at the ball
+    found = detected(checked(views, {"opposite": [opposite]}))
+    assert set(found) == {"opposite"} and near_truth("opposite", found["opposite"]) < 2.0

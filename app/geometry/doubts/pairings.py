@@ -28,7 +28,7 @@ from app.geometry.doubts.detected import (
 )
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
 from app.geometry.pitch import BALL_DIAMETER_M
-from app.geometry.spread import position_sigma_m
+from app.geometry.spread import position_covariance, position_sigma_m, projected_sigma_px
 from app.geometry.triangulation import (
     BallObservation,
     angle_between_deg,
@@ -286,17 +286,24 @@ def _grass_placed(p: _Pairing) -> bool:
 
 
 def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
-    """Whether each detection of the pairing lies from the ball within :data:`SIGMAS` standard deviations: the
-    members' pixel sigmas (px at 1920 width) and :data:`CENTRE_NOISE` of the box's diameter in quadrature, at least
-    :data:`MIN_SIGMA_PX`. The epipolar check's tau is the doubts' wide tolerance for labels; between two cameras sure
+    """Whether each detection of the pairing lies from the ball within :data:`SIGMAS` standard deviations
+    (:func:`explained`). The epipolar check's tau is the doubts' wide tolerance for labels; between two cameras sure
     to a few pixels a box ten pixels off the ray is not the ball they see (on a made set such a box, the only one of
     a view whose detector missed the ball, made a 3D ball 10 m off)."""
-    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0))) ** 2 for m in p.members)
-    for m in p.members:
-        if m.detection is None or m.box is None:
-            continue
-        d = _diameter(m.box, m.view) * rule_scale(m.view, s)
-        if p.errors[m.view.view_id] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
+    return explained(p.errors, {m.view.view_id: (m.view, m.box) for m in p.members
+                                if m.detection is not None and m.box is not None}, sigma, s)
+
+
+def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[DoubtView, np.ndarray]],
+              sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether each detection's reprojection error from a ball (``errors``: view id -> px at 1920 width, for every
+    view that placed the ball) lies within :data:`SIGMAS` standard deviations: every placing view's pixel sigma
+    (``sigma``, px at 1920 width, at least :data:`MIN_SIGMA_PX`) and :data:`CENTRE_NOISE` of the detection's box
+    diameter (``boxes``: view id -> (view, box (4,) px x1, y1, x2, y2), the detections only) in quadrature."""
+    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0))) ** 2 for vid in errors)
+    for vid, (view, box) in boxes.items():
+        d = _diameter(box, view) * rule_scale(view, s)
+        if errors[vid] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
             return False
     return True
 
@@ -383,12 +390,31 @@ def _ray_missed(lone: DoubtView, p: _Pairing, thirds: Sequence[DoubtView],
     return False
 
 
-def _agrees(p: _Pairing, ball: np.ndarray, view: DoubtView, tol: Mapping[Hashable, float], s: DoubtSettings) -> bool:
-    """Whether the detection of a labelled ray's pairing in ``view`` lies within :data:`MISS` tolerances (px at 1920
-    width) of where ``ball`` (3,) world metres projects in ``view``: the two name one ball."""
-    (det,) = p.detections().values()
-    e = _scaled(_observation(view, det, s), ball)
-    return e is not None and e <= MISS * tol[view.view_id]
+def _agrees(p: _Pairing, chosen: _Pairing, view: DoubtView, tol: Mapping[Hashable, float],
+            sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether the detection of a labelled ray's pairing ``p`` in ``view`` and the ball of another view's ``chosen``
+    pairing name one ball: the detection lies within :data:`MISS` tolerances (px at 1920 width) of where that ball
+    projects, and within :data:`SIGMAS` standard deviations of it: the chosen ball's own uncertainty projected into
+    ``view`` (its members' pixel sigmas, at least :data:`MIN_SIGMA_PX`, through
+    :func:`app.geometry.spread.position_covariance` and :func:`app.geometry.spread.projected_sigma_px`), ``view``'s
+    pixel sigma and :data:`CENTRE_NOISE` of the box's diameter, in quadrature. The tolerance alone is the doubts'
+    wide one for labels; along a labelled ray two spots a metre apart may project within it in a far view (on a made
+    set a false box on the ray in a view whose detector missed the ball made a 3D ball 1.38 m off, while the unsure
+    view's detection of the ball, 31 px@1920 from where that ball projects, some four of its standard deviations,
+    met the ray within half a pixel)."""
+    ((vid, det),) = p.detections().items()
+    obs = _observation(view, det, s)
+    e = _scaled(obs, chosen.ball)
+    if e is None or e > MISS * tol[view.view_id]:
+        return False
+    sig = {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0))) for m in chosen.members}
+    cov = position_covariance([m.obs for m in chosen.members], chosen.ball, sig)
+    spread = None if cov is None else projected_sigma_px(obs, chosen.ball, cov)
+    if spread is None:  # the members fix no point: nothing sharper than the tolerance
+        return True
+    d = _diameter(det.box, view) * rule_scale(view, s)
+    own = max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0)))
+    return e <= SIGMAS * math.sqrt(spread ** 2 + own ** 2 + (CENTRE_NOISE * d) ** 2)
 
 
 def _lone_ray(vote: Any) -> DoubtView | None:
@@ -451,8 +477,6 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     if not _sure(lone, sigma, s):
         return {}
     for v in unlabelled:
-        if not _sure(v, sigma, s):
-            continue
         near = _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * tol[v.view_id], s)
         if half_vote and len(near) > 1:  # a half vote's ray arbitrates between no two candidates
             continue
@@ -460,6 +484,9 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
         met[v.view_id] = pairings
+        # an unsure view fills nothing, yet its boxes on the ray still say where on it the ball is (below)
+        if not _sure(v, sigma, s):
+            continue
         c = _chosen([p for p in pairings if not _ray_missed(lone, p, thirds, detections, tol, s)], s)
         if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s) and _told_from_players(c[0], v):
             chosen[v.view_id] = c
@@ -468,7 +495,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     # (on a made set a false box chosen so made a 3D ball 33 m off, while the other view's detection of the ball,
     # refused by that very box as a third view, could not answer back: the false ball projected outside its image)
     chosen = {b: cb for b, cb in chosen.items() if not any(
-        a != b and ps and not any(_agrees(p, cb[0].ball, _view(unlabelled, a), tol, s) for p in ps)
+        a != b and ps and not any(_agrees(p, cb[0], _view(unlabelled, a), tol, sigma, s) for p in ps)
         for a, ps in met.items())}
     # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
     for (a, ca), (b, cb) in product(chosen.items(), chosen.items()):
