@@ -505,7 +505,7 @@ def _from_one_view(lone: DoubtView, unlabelled: Sequence[DoubtView], detections:
             # its ray meet no ball there (a false box on the labelled ray a metre or two from the ball, in a view
             # whose detector missed it, and the ball's detection in a view looking along that ray fit within tau)
             if not explained({k: float(e) for k, e in three.errors_1920.items() if e is not None},
-                             {a.view_id: (a, np.asarray(da.box, float)), b.view_id: (b, np.asarray(db.box, float))},
+                             {a.view_id: (a, da.box), b.view_id: (b, db.box)},
                              sigma, s):
                 continue
             ca = _check(a, da, [lone_obs, ob], tol, s, size_tolerance)

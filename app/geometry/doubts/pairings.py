@@ -294,7 +294,7 @@ def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -
                                 if m.detection is not None and m.box is not None}, sigma, s)
 
 
-def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[DoubtView, np.ndarray]],
+def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[DoubtView, Sequence[float]]],
               sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
     """Whether each detection's reprojection error from a ball (``errors``: view id -> px at 1920 width, for every
     view that placed the ball) lies within :data:`SIGMAS` standard deviations: every placing view's pixel sigma
