@@ -663,3 +663,26 @@ def test_a_false_box_on_the_labelled_ray_a_metre_off_is_disputed_by_the_balls_de
     # and opposite's true detection alone fills opposite at the ball
     found = detected(checked(views, {"opposite": [opposite]}))
     assert set(found) == {"opposite"} and near_truth("opposite", found["opposite"]) < 2.0
+
+
+def test_a_box_on_a_persons_feet_fills_only_where_the_labelled_ray_meets_the_grass_near_its_ball():
+    """A low camera behind the goal (2 m up, 47 m off) labels the ball on the grass: its ray runs within half a metre
+    of the grass over its last 8 m. main's detector missed the ball and boxed a person's feet on that ray 7 m short of
+    the ball, at a ball's size there, 0.4 m up: "on the grass" by height, yet the labelled ray meets the grass 7 m
+    from that ball, so the height says nothing of where on the ray the ball is; nothing is filled. The ball's own
+    detection on a person's feet, where the ray meets the grass, fills main."""
+    import dataclasses
+
+    low = view("low", [57.0, 5.0, -2.0], 3000.0)
+    main = view("main", CAMERAS["main"][0], CAMERAS["main"][1], box=None, role="action")
+    spot = np.array([57.0, 5.0, -2.0]) + (0.4 - 2.0) / (0.11 - 2.0) * (BALL - np.array([57.0, 5.0, -2.0]))
+    assert abs(spot[2] + 0.4) < 1e-9 and 7.0 < float(np.linalg.norm(spot - BALL)) < 7.5
+    feet = box_at("main", spot, score=0.9)
+    person = (feet.centre[0] - 12.0, feet.centre[1] - 120.0, feet.centre[0] + 12.0, feet.centre[1] + 6.0)
+    views = [low, dataclasses.replace(main, players=(person,))]
+    assert detected(checked([low, main], {"main": [feet]}))  # without the person's box the rays cannot tell
+    assert detected(checked(views, {"main": [feet]})) == {}
+    ball = det("main", 0.7)
+    at_ball = (ball.centre[0] - 12.0, ball.centre[1] - 120.0, ball.centre[0] + 12.0, ball.centre[1] + 6.0)
+    (right,) = detected(checked([low, dataclasses.replace(main, players=(at_ball,))], {"main": [ball]})).values()
+    assert near_truth("main", right) < 2.0

@@ -277,12 +277,16 @@ def _grass_placed(p: _Pairing) -> bool:
     grass (:data:`app.geometry.pitch.BALL_DIAMETER_M` / 2 up; SoccerNet world, z down) within :data:`MAX_SPREAD_M` of
     the pairing's ball: the grass then places that ball where each ray meets it, whatever the rays' parallax fixes
     of its depth (:data:`GRASS_SPREAD_M`)."""
-    for m in p.members:
-        ray = m.obs.camera.rays(np.asarray(m.obs.point_px, float).reshape(1, 2))[0]
-        grass = ray_at_height(m.obs.camera.C, ray, -BALL_DIAMETER_M / 2)
-        if grass is None or float(np.linalg.norm(grass - p.ball)) > MAX_SPREAD_M:
-            return False
-    return True
+    return all(_meets_grass_near(m, p.ball, MAX_SPREAD_M) for m in p.members)
+
+
+def _meets_grass_near(m: _Member, ball: np.ndarray, within_m: float) -> bool:
+    """Whether ``m``'s ray (its label's or its detection's centre) meets the plane of a ball's centre on the grass
+    (:data:`app.geometry.pitch.BALL_DIAMETER_M` / 2 up; SoccerNet world, z down) within ``within_m`` metres of
+    ``ball`` ((3,) world metres)."""
+    ray = m.obs.camera.rays(np.asarray(m.obs.point_px, float).reshape(1, 2))[0]
+    grass = ray_at_height(m.obs.camera.C, ray, -BALL_DIAMETER_M / 2)
+    return grass is not None and float(np.linalg.norm(grass - ball)) <= within_m
 
 
 def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
@@ -346,7 +350,8 @@ def _on_head_or_feet(view: DoubtView, det: Detection) -> bool:
 def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
     """Whether a lone labelled ray's pairing can be told from a false box on a person: its detection in ``view`` lies
     elsewhere than a person's head or feet (:func:`_on_head_or_feet`), or the ball it makes lies on the grass (its
-    centre at most :data:`ON_GRASS_M` above it; SoccerNet world, z down), or a third view confirms that ball.
+    centre at most :data:`ON_GRASS_M` above it; SoccerNet world, z down) where the labelled ray meets the grass (within
+    :data:`GRASS_SPREAD_M` of it), or a third view confirms that ball.
 
     With one labelled ray the detection alone fixes the depth along it, and nothing of the two views tells the ball
     from a false box that happens to lie on the ray's band at a ball's size. Such boxes are not spread evenly: a ball
@@ -358,9 +363,13 @@ def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
     (``benchmarks/DETECTOR.md``, 2026-11-27, branch safety) the one-ray pairings chosen on a head or feet with the
     ball in the air were four false boxes (balls 2-12 m off; three filled, each making a system's 3D ball wrong) to
     three balls; with the ball on the grass, about thirty balls and two false boxes (0.7 and 1.0 m off).
-    A third view's label or detection at the ball (:func:`_third_views`) is the second witness such a box lacks."""
+    A third view's label or detection at the ball (:func:`_third_views`) is the second witness such a box lacks.
+    The height alone does not pin the ball on a ray that runs low over the grass: a camera low behind a goal sees the
+    ball along a ray that stays within half a metre of the grass for metres (on a made set a box on a person's feet
+    put the ball 0.44 m up where that ray was still 12.7 m from meeting the grass: a 3D ball made 12 m wrong)."""
     (det,) = p.detections().values()
-    return bool(p.confirmed) or -float(p.ball[2]) <= ON_GRASS_M or not _on_head_or_feet(view, det)
+    return bool(p.confirmed) or not _on_head_or_feet(view, det) or (
+        -float(p.ball[2]) <= ON_GRASS_M and _meets_grass_near(p.members[0], p.ball, GRASS_SPREAD_M))
 
 
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
