@@ -59,7 +59,10 @@ from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
 from app.geometry.doubts.detected import (
+    CENTRE_NOISE,
+    MIN_SIGMA_PX,
     PREFILTER,
+    SIGMAS,
     CheckedDetection,
     Detection,
     _best,
@@ -69,20 +72,17 @@ from app.geometry.doubts.detected import (
     _near_ray,
     _observation,
     check_or_why,
+    explained,
 )
 from app.geometry.doubts.judge import _missing_doubt, _voters_consensus, _votes
 from app.geometry.doubts.pairings import (
-    CENTRE_NOISE,
     MAX_SPREAD_M,
-    MIN_SIGMA_PX,
-    SIGMAS,
     _among_detections,
     _lone_ray,
     _one_ray,
     _sure,
     _telling,
     _view,
-    explained,
 )
 from app.geometry.doubts.weak import _weak_ray, _weak_views
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
@@ -484,8 +484,8 @@ def _from_one_view(lone: DoubtView, unlabelled: Sequence[DoubtView], detections:
                    size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """With one labelled view: the best pair of detections in two unlabelled views whose rays meet the labelled
     view's at one plausible ball (all three inliers of their consensus, sizes agreeing, each detection within
-    :data:`~app.geometry.doubts.pairings.SIGMAS` standard deviations of the three cameras' pixel sigmas ``sigma``:
-    :func:`~app.geometry.doubts.pairings.explained`); it then stands as the consensus for the other unlabelled
+    :data:`~app.geometry.doubts.detected.SIGMAS` standard deviations of the three cameras' pixel sigmas ``sigma``:
+    :func:`~app.geometry.doubts.detected.explained`); it then stands as the consensus for the other unlabelled
     views."""
     lone_obs = by_id[lone.view_id]
     triples: list[tuple[float, float, CheckedDetection, CheckedDetection]] = []

@@ -14,8 +14,11 @@ import numpy as np
 
 from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside, _plausible
 from app.geometry.doubts.detected import (
+    CENTRE_NOISE,
     MAX_CANDIDATES,
+    MIN_SIGMA_PX,
     PREFILTER,
+    SIGMAS,
     TIE_PX,
     CheckedDetection,
     Detection,
@@ -24,6 +27,7 @@ from app.geometry.doubts.detected import (
     _observation,
     _refit,
     _scaled,
+    explained,
     size_ratio,
 )
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
@@ -48,16 +52,6 @@ MARGIN = 0.5
 #: depth badly (a small parallax, a far view): on a made set two right detections with cameras 3-4 px from the truth
 #: put a ball 1.2 m off, their ball's sigma 9.6 m: the bound of a pairing's ball in the air (:func:`_placed`).
 MAX_SPREAD_M = 0.5
-#: The least pixel sigma (px at 1920 width) a view is read with for that spread: a fit's sigma below a pixel still
-#: leaves the label's or the box's own pixel.
-MIN_SIGMA_PX = 1.0
-#: A chosen pairing's detection lies within this many standard deviations of where the labelled ray puts the ball:
-#: both cameras' pixel sigmas and the detector's own centre error in quadrature (at 1920 width). Two standard
-#: deviations: a box farther off is not explained by the cameras and the detector, however wide tau is.
-SIGMAS = 2.0
-#: The detector's centre error as a fraction of the box's diameter (0.12 d per axis, so 0.17 d across: the
-#: detector's documented error, the shared detector sets' README).
-CENTRE_NOISE = 0.17
 #: A camera whose pixel sigma lets the ball's pixel wander over more than this share of its image tells no box from
 #: another: the window where a second detection would make the choice ambiguous (:data:`MISS` tolerances around
 #: the ball, the tolerance the view's sigma, at least tau) must cover at most a tenth of the image. The detector's
@@ -296,20 +290,6 @@ def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -
     a view whose detector missed the ball, made a 3D ball 10 m off)."""
     return explained(p.errors, {m.view.view_id: (m.view, m.box) for m in p.members
                                 if m.detection is not None and m.box is not None}, sigma, s)
-
-
-def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[DoubtView, Sequence[float]]],
-              sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
-    """Whether each detection's reprojection error from a ball (``errors``: view id -> px at 1920 width, for every
-    view that placed the ball) lies within :data:`SIGMAS` standard deviations: every placing view's pixel sigma
-    (``sigma``, px at 1920 width, at least :data:`MIN_SIGMA_PX`) and :data:`CENTRE_NOISE` of the detection's box
-    diameter (``boxes``: view id -> (view, box (4,) px x1, y1, x2, y2), the detections only) in quadrature."""
-    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0))) ** 2 for vid in errors)
-    for vid, (view, box) in boxes.items():
-        d = _diameter(box, view) * rule_scale(view, s)
-        if errors[vid] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
-            return False
-    return True
 
 
 #: The share of a person's box height, at its top and at its bottom, where a ball detector's false boxes sit: a head
