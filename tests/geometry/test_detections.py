@@ -686,3 +686,24 @@ def test_a_box_on_a_persons_feet_fills_only_where_the_labelled_ray_meets_the_gra
     at_ball = (ball.centre[0] - 12.0, ball.centre[1] - 120.0, ball.centre[0] + 12.0, ball.centre[1] + 6.0)
     (right,) = detected(checked([low, dataclasses.replace(main, players=(at_ball,))], {"main": [ball]})).values()
     assert near_truth("main", right) < 2.0
+
+
+def test_two_views_boxes_on_one_persons_head_agree_among_themselves_yet_fill_nothing():
+    """No view is labelled; main's and goal's detectors missed the ball and boxed the head of one player 1.8 m up,
+    20 m from it: the two boxes meet at that head at a ball's size, as the ball's would. With the person's box in
+    each view (both detections on a head, the ball they make in the air, no third view confirming) nothing is
+    filled; the two views' detections of the ball itself, away from any person's head or feet, still are."""
+    import dataclasses
+
+    head = np.array([-8.0, 12.0, -1.8])
+    views = [v for v in only_unlabelled() if v.view_id in ("main", "goal")]
+    boxes = {n: box_at(n, head, score=0.9) for n in ("main", "goal")}
+    persons = {n: player_under(v, head) for n, v in zip(("main", "goal"), views, strict=True)}
+    for n in ("main", "goal"):
+        p, c = persons[n], boxes[n].centre
+        assert p[0] < c[0] < p[2] and p[1] < c[1] < p[1] + 0.15 * (p[3] - p[1]), n  # on the person's head
+    assert set(detected(checked(views, {n: [b] for n, b in boxes.items()}))) == {"main", "goal"}
+    seen = [dataclasses.replace(v, players=(persons[v.view_id],)) for v in views]
+    assert detected(checked(seen, {n: [b] for n, b in boxes.items()})) == {}
+    found = detected(checked(seen, {"main": [det("main")], "goal": [det("goal")]}))
+    assert set(found) == {"main", "goal"} and all(near_truth(n, d) < 2.0 for n, d in found.items())
