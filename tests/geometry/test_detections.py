@@ -646,3 +646,68 @@ def test_the_grass_places_a_pairings_ball_only_where_each_of_its_rays_meets_the_
     low = BALL + 1.2 * along
     assert 0.25 < low[2] - BALL[2] < 0.35
     assert not _grass_placed(pairing(low))
+
+
+def test_a_false_box_on_the_labelled_ray_a_metre_off_is_disputed_by_the_balls_detection_in_a_far_view():
+    """goal's detector missed the ball and shows a ball-sized box on main's ray 1.4 m from it; opposite, looking along
+    that ray from 66 m, shows the ball. Where the false ball projects in opposite lies within twice the doubts'
+    tolerance of opposite's detection (the old agreement) yet many of the two cameras' standard deviations off it:
+    opposite disputes goal's pairing and nothing is filled (goal's box, in turn, refuses opposite's pairing)."""
+    views = only_main_labelled()
+    c = np.asarray(CAMERAS["main"][0], float)
+    off = on_main_ray(1.0 + 1.4 / float(np.linalg.norm(BALL - c)))
+    assert abs(float(np.linalg.norm(off - BALL)) - 1.4) < 1e-6
+    false = box_at("goal", off, score=0.9)
+    opposite = box_at("opposite", BALL, score=0.8)
+    shift = float(np.linalg.norm(np.asarray(project_point(views[2], off)) - np.asarray(project_point(views[2], BALL))))
+    assert views[2].view_id == "opposite" and 10.0 < shift < 2 * SETTINGS.consensus_tau_px
+    assert detected(checked(views, {"goal": [false], "opposite": [opposite]})) == {}
+    # alone, goal's false box has nothing to dispute it (the rays cannot tell): what opposite's word is worth here
+    assert set(detected(checked(views, {"goal": [false]}))) == {"goal"}
+    # and opposite's true detection alone fills opposite at the ball
+    found = detected(checked(views, {"opposite": [opposite]}))
+    assert set(found) == {"opposite"} and near_truth("opposite", found["opposite"]) < 2.0
+
+
+def test_a_box_on_a_persons_feet_fills_only_where_the_labelled_ray_meets_the_grass_near_its_ball():
+    """A low camera behind the goal (2 m up, 47 m off) labels the ball on the grass: its ray runs within half a metre
+    of the grass over its last 8 m. main's detector missed the ball and boxed a person's feet on that ray 7 m short of
+    the ball, at a ball's size there, 0.4 m up: "on the grass" by height, yet the labelled ray meets the grass 7 m
+    from that ball, so the height says nothing of where on the ray the ball is; nothing is filled. The ball's own
+    detection on a person's feet, where the ray meets the grass, fills main."""
+    import dataclasses
+
+    low = view("low", [57.0, 5.0, -2.0], 3000.0)
+    main = view("main", CAMERAS["main"][0], CAMERAS["main"][1], box=None, role="action")
+    spot = np.array([57.0, 5.0, -2.0]) + (0.4 - 2.0) / (0.11 - 2.0) * (BALL - np.array([57.0, 5.0, -2.0]))
+    assert abs(spot[2] + 0.4) < 1e-9 and 7.0 < float(np.linalg.norm(spot - BALL)) < 7.5
+    feet = box_at("main", spot, score=0.9)
+    person = (feet.centre[0] - 12.0, feet.centre[1] - 120.0, feet.centre[0] + 12.0, feet.centre[1] + 6.0)
+    views = [low, dataclasses.replace(main, players=(person,))]
+    assert detected(checked([low, main], {"main": [feet]}))  # without the person's box the rays cannot tell
+    assert detected(checked(views, {"main": [feet]})) == {}
+    ball = det("main", 0.7)
+    at_ball = (ball.centre[0] - 12.0, ball.centre[1] - 120.0, ball.centre[0] + 12.0, ball.centre[1] + 6.0)
+    (right,) = detected(checked([low, dataclasses.replace(main, players=(at_ball,))], {"main": [ball]})).values()
+    assert near_truth("main", right) < 2.0
+
+
+def test_two_views_boxes_on_one_persons_head_agree_among_themselves_yet_fill_nothing():
+    """No view is labelled; main's and goal's detectors missed the ball and boxed the head of one player 1.8 m up,
+    20 m from it: the two boxes meet at that head at a ball's size, as the ball's would. With the person's box in
+    each view (both detections on a head, the ball they make in the air, no third view confirming) nothing is
+    filled; the two views' detections of the ball itself, away from any person's head or feet, still are."""
+    import dataclasses
+
+    head = np.array([-8.0, 12.0, -1.8])
+    views = [v for v in only_unlabelled() if v.view_id in ("main", "goal")]
+    boxes = {n: box_at(n, head, score=0.9) for n in ("main", "goal")}
+    persons = {n: player_under(v, head) for n, v in zip(("main", "goal"), views, strict=True)}
+    for n in ("main", "goal"):
+        p, c = persons[n], boxes[n].centre
+        assert p[0] < c[0] < p[2] and p[1] < c[1] < p[1] + 0.15 * (p[3] - p[1]), n  # on the person's head
+    assert set(detected(checked(views, {n: [b] for n, b in boxes.items()}))) == {"main", "goal"}
+    seen = [dataclasses.replace(v, players=(persons[v.view_id],)) for v in views]
+    assert detected(checked(seen, {n: [b] for n, b in boxes.items()})) == {}
+    found = detected(checked(seen, {"main": [det("main")], "goal": [det("goal")]}))
+    assert set(found) == {"main", "goal"} and all(near_truth(n, d) < 2.0 for n, d in found.items())

@@ -158,6 +158,13 @@ def players_on_grass(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray
         infos = np.linalg.inv(sigma**2 * J @ np.swapaxes(J, 1, 2) + FOOT_OFFSET_SIGMA_M**2 * _EYE2)
         for key, p, i in zip([k for k, kept in zip(keys, ok, strict=True) if kept], g[0, ok], infos, strict=True):
             seen.setdefault(key, []).append((p, i))
+    return _fused(seen, max_spread_m)
+
+
+def _fused(seen: Mapping[PlayerKey, list[tuple[np.ndarray, np.ndarray]]], max_spread_m: float
+           ) -> dict[PlayerKey, GrassPlayer]:
+    """Each player's ground points (m) and their information matrices (1/m^2) fused by information; a player whose
+    points lie farther than ``max_spread_m`` from the fused one, or outside the pitch and 5 m, left out."""
     out: dict[PlayerKey, GrassPlayer] = {}
     for key, points in seen.items():
         P = np.array([p for p, _ in points])
@@ -171,3 +178,52 @@ def players_on_grass(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray
         out[key] = GrassPlayer(point_m=(float(centre[0]), float(centre[1])), views=len(points), spread_m=spread,
                                cov_m2=((float(cov[0, 0]), float(cov[0, 1])), (float(cov[1, 0]), float(cov[1, 1]))))
     return out
+
+
+def head_grass_points(camera: Camera, pixels: np.ndarray, height_m: float = HEAD_HEIGHT_M,
+                      offset_m: float = HEAD_OFFSET_M) -> np.ndarray:
+    """Where players stand whose head points (:func:`head_pixel`) are ``pixels`` (n, 2) px: each ray's point at
+    ``height_m`` above the grass (z = -height_m, SoccerNet world, z down), moved ``offset_m`` back towards the camera
+    along the ground (the inverse of :func:`head_world`); world metres (n, 2), a row of NaN where the ray never meets
+    that height ahead of the camera or the camera is not above it."""
+    d = camera.rays(np.asarray(pixels, float).reshape(-1, 2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (-height_m - camera.C[2]) / d[:, 2]
+    ok = (np.abs(d[:, 2]) >= 1e-9) & (t > 0) & (camera.C[2] < -height_m)
+    p = camera.C[:2] + np.where(ok, t, 0.0)[:, None] * d[:, :2]
+    towards = camera.C[:2] - p
+    norm = np.linalg.norm(towards, axis=1, keepdims=True)
+    p = np.where(norm > 1e-9, p + offset_m * towards / np.where(norm > 1e-9, norm, 1.0), p)
+    p[~ok] = np.nan
+    return p
+
+
+def players_on_grass_by_heads(views: Sequence[tuple[Camera, Mapping[PlayerKey, np.ndarray]]],
+                              max_spread_m: float = 1.5) -> dict[PlayerKey, GrassPlayer]:
+    """Where players stand whom well-calibrated views see only by their heads (the image cuts their feet), fused as
+    :func:`players_on_grass` fuses foot points: each head point (key -> (2,) px, :func:`head_pixel`) carried to the
+    ground by :func:`head_grass_points`. Its covariance adds to the pixel noise (:data:`FOOT_SIGMA_PX`) and the
+    footprint's (:data:`FOOT_OFFSET_SIGMA_M`) the stature's (:data:`HEAD_SIGMA_M`) along the ray: a head
+    ``HEAD_SIGMA_M`` higher is ``HEAD_SIGMA_M * d / h`` farther, d the ground distance from the camera, h the
+    camera's height above the head (similar triangles)."""
+    seen: dict[PlayerKey, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for camera, heads in views:
+        sigma = FOOT_SIGMA_PX * float(camera.K[0, 2] * 2 + 1) / REFERENCE_WIDTH_PX
+        keys = list(heads)
+        if not keys:
+            continue
+        uv = np.array([np.asarray(heads[k], float) for k in keys])
+        g = head_grass_points(camera, np.concatenate([uv, uv + [0.5, 0.0], uv + [0.0, 0.5]])).reshape(3, len(keys), 2)
+        ok = ~(np.isnan(g[0, :, 0]) | np.isnan(g[1, :, 0]) | np.isnan(g[2, :, 0]))
+        above = -float(camera.C[2]) - HEAD_HEIGHT_M
+        for k, kept, p, p1, p2 in zip(keys, ok, g[0], g[1], g[2], strict=True):
+            if not kept:
+                continue
+            J = np.column_stack([(p1 - p) / 0.5, (p2 - p) / 0.5])
+            away = p - camera.C[:2]
+            dist = float(np.linalg.norm(away))
+            u = away / max(dist, 1e-9)
+            cov = (sigma**2 * J @ J.T + FOOT_OFFSET_SIGMA_M**2 * _EYE2
+                   + (HEAD_SIGMA_M * dist / above) ** 2 * np.outer(u, u))
+            seen.setdefault(k, []).append((p, np.linalg.inv(cov)))
+    return _fused(seen, max_spread_m)

@@ -3,6 +3,7 @@ a ball at a depth, the ball a set of rays meets, a view's error against it, the 
 ray) that :mod:`~app.geometry.doubts.detections` and :mod:`~app.geometry.doubts.pairings` share."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Hashable, Mapping, Sequence
 
@@ -27,6 +28,16 @@ PREFILTER = 3.0
 MAX_CANDIDATES = 16
 #: Candidates whose errors differ by less than this (px at 1920 width) are tied: the detector's score orders them.
 TIE_PX = 1.0
+#: The least pixel sigma (px at 1920 width) a view is read with for a ball's spread: a fit's sigma below a pixel still
+#: leaves the label's or the box's own pixel.
+MIN_SIGMA_PX = 1.0
+#: A chosen pairing's detection lies within this many standard deviations of where the labelled ray puts the ball:
+#: both cameras' pixel sigmas and the detector's own centre error in quadrature (at 1920 width). Two standard
+#: deviations: a box farther off is not explained by the cameras and the detector, however wide tau is.
+SIGMAS = 2.0
+#: The detector's centre error as a fraction of the box's diameter (0.12 d per axis, so 0.17 d across: the
+#: detector's documented error, the shared detector sets' README).
+CENTRE_NOISE = 0.17
 
 
 @dataclass(frozen=True)
@@ -155,3 +166,17 @@ def _near_ray(lone: DoubtView, view: DoubtView, detections: Sequence[Detection],
     d = np.array([_polyline_distance(seg[1], det.centre)[0] for det in detections]) * rule_scale(view, s)
     order = [int(i) for i in np.argsort(d, kind="stable") if d[i] < within_1920]
     return [detections[i] for i in order[:MAX_CANDIDATES]]
+
+
+def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[DoubtView, Sequence[float]]],
+              sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether each detection's reprojection error from a ball (``errors``: view id -> px at 1920 width, for every
+    view that placed the ball) lies within :data:`SIGMAS` standard deviations: every placing view's pixel sigma
+    (``sigma``, px at 1920 width, at least :data:`MIN_SIGMA_PX`) and :data:`CENTRE_NOISE` of the detection's box
+    diameter (``boxes``: view id -> (view, box (4,) px x1, y1, x2, y2), the detections only) in quadrature."""
+    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0))) ** 2 for vid in errors)
+    for vid, (view, box) in boxes.items():
+        d = _diameter(box, view) * rule_scale(view, s)
+        if errors[vid] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
+            return False
+    return True

@@ -59,7 +59,10 @@ from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
 from app.geometry.doubts.detected import (
+    CENTRE_NOISE,
+    MIN_SIGMA_PX,
     PREFILTER,
+    SIGMAS,
     CheckedDetection,
     Detection,
     _best,
@@ -69,13 +72,11 @@ from app.geometry.doubts.detected import (
     _near_ray,
     _observation,
     check_or_why,
+    explained,
 )
 from app.geometry.doubts.judge import _missing_doubt, _voters_consensus, _votes
 from app.geometry.doubts.pairings import (
-    CENTRE_NOISE,
     MAX_SPREAD_M,
-    MIN_SIGMA_PX,
-    SIGMAS,
     _among_detections,
     _lone_ray,
     _one_ray,
@@ -292,7 +293,7 @@ def _without_consensus(views: Sequence[DoubtView], vote: Any, lone_contradicted:
     (:func:`_without_labels`). Returns the checked detections and the pixel sigmas (the last rule may add some)."""
     checked: dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]] = {}
     if (lone := _lone_ray(vote)) is not None and not lone_contradicted:
-        checked = _from_one_view(lone, unlabelled, detections, by_id, tol, s, size_tolerance)
+        checked = _from_one_view(lone, unlabelled, detections, by_id, tol, sigma, s, size_tolerance)
         if not checked:  # no second detected view: each detection is checked against the one labelled ray
             checked = _one_ray(lone, unlabelled, witnesses, detections, by_id, wtol, sigma, s, size_tolerance,
                                half_vote=lone not in vote.labelled)
@@ -451,11 +452,14 @@ def _keeps_ball(best: CheckedDetection, ball: np.ndarray, voters: Sequence[BallO
 
 
 def _from_one_view(lone: DoubtView, unlabelled: Sequence[DoubtView], detections: Mapping[Hashable, Sequence[Detection]],
-                   by_id: Mapping[Hashable, BallObservation], tol: Mapping[Hashable, float], s: DoubtSettings,
+                   by_id: Mapping[Hashable, BallObservation], tol: Mapping[Hashable, float],
+                   sigma: Mapping[Hashable, float], s: DoubtSettings,
                    size_tolerance: float) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """With one labelled view: the best pair of detections in two unlabelled views whose rays meet the labelled
-    view's at one plausible ball (all three inliers of their consensus, sizes agreeing); it then stands as the
-    consensus for the other unlabelled views."""
+    view's at one plausible ball (all three inliers of their consensus, sizes agreeing, each detection within
+    :data:`~app.geometry.doubts.detected.SIGMAS` standard deviations of the three cameras' pixel sigmas ``sigma``:
+    :func:`~app.geometry.doubts.detected.explained`); it then stands as the consensus for the other unlabelled
+    views."""
     lone_obs = by_id[lone.view_id]
     triples: list[tuple[float, float, CheckedDetection, CheckedDetection]] = []
     # only the detections near the labelled view's ray across the play volume can meet it (condition 1, necessary)
@@ -469,6 +473,13 @@ def _from_one_view(lone: DoubtView, unlabelled: Sequence[DoubtView], detections:
                                    min_parallax_deg=s.min_parallax_deg, tolerances_px=tol,
                                    plausible=lambda p: _plausible(p, s))
             if three.point is None or three.ambiguous or len(three.inliers) != 3:
+                continue
+            # tau is the labels' wide tolerance: three cameras sure to a pixel or two that meet a box 20 px off
+            # its ray meet no ball there (a false box on the labelled ray a metre or two from the ball, in a view
+            # whose detector missed it, and the ball's detection in a view looking along that ray fit within tau)
+            if not explained({k: float(e) for k, e in three.errors_1920.items() if e is not None},
+                             {a.view_id: (a, da.box), b.view_id: (b, db.box)},
+                             sigma, s):
                 continue
             ca = _check(a, da, [lone_obs, ob], tol, s, size_tolerance)
             cb = _check(b, db, [lone_obs, oa], tol, s, size_tolerance)

@@ -14,8 +14,11 @@ import numpy as np
 
 from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside, _plausible
 from app.geometry.doubts.detected import (
+    CENTRE_NOISE,
     MAX_CANDIDATES,
+    MIN_SIGMA_PX,
     PREFILTER,
+    SIGMAS,
     TIE_PX,
     CheckedDetection,
     Detection,
@@ -24,11 +27,12 @@ from app.geometry.doubts.detected import (
     _observation,
     _refit,
     _scaled,
+    explained,
     size_ratio,
 )
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
 from app.geometry.pitch import BALL_DIAMETER_M
-from app.geometry.spread import position_sigma_m
+from app.geometry.spread import position_covariance, position_sigma_m, projected_sigma_px
 from app.geometry.triangulation import (
     BallObservation,
     angle_between_deg,
@@ -48,16 +52,6 @@ MARGIN = 0.5
 #: depth badly (a small parallax, a far view): on a made set two right detections with cameras 3-4 px from the truth
 #: put a ball 1.2 m off, their ball's sigma 9.6 m: the bound of a pairing's ball in the air (:func:`_placed`).
 MAX_SPREAD_M = 0.5
-#: The least pixel sigma (px at 1920 width) a view is read with for that spread: a fit's sigma below a pixel still
-#: leaves the label's or the box's own pixel.
-MIN_SIGMA_PX = 1.0
-#: A chosen pairing's detection lies within this many standard deviations of where the labelled ray puts the ball:
-#: both cameras' pixel sigmas and the detector's own centre error in quadrature (at 1920 width). Two standard
-#: deviations: a box farther off is not explained by the cameras and the detector, however wide tau is.
-SIGMAS = 2.0
-#: The detector's centre error as a fraction of the box's diameter (0.12 d per axis, so 0.17 d across: the
-#: detector's documented error, the shared detector sets' README).
-CENTRE_NOISE = 0.17
 #: A camera whose pixel sigma lets the ball's pixel wander over more than this share of its image tells no box from
 #: another: the window where a second detection would make the choice ambiguous (:data:`MISS` tolerances around
 #: the ball, the tolerance the view's sigma, at least tau) must cover at most a tenth of the image. The detector's
@@ -277,28 +271,25 @@ def _grass_placed(p: _Pairing) -> bool:
     grass (:data:`app.geometry.pitch.BALL_DIAMETER_M` / 2 up; SoccerNet world, z down) within :data:`MAX_SPREAD_M` of
     the pairing's ball: the grass then places that ball where each ray meets it, whatever the rays' parallax fixes
     of its depth (:data:`GRASS_SPREAD_M`)."""
-    for m in p.members:
-        ray = m.obs.camera.rays(np.asarray(m.obs.point_px, float).reshape(1, 2))[0]
-        grass = ray_at_height(m.obs.camera.C, ray, -BALL_DIAMETER_M / 2)
-        if grass is None or float(np.linalg.norm(grass - p.ball)) > MAX_SPREAD_M:
-            return False
-    return True
+    return all(_meets_grass_near(m, p.ball, MAX_SPREAD_M) for m in p.members)
+
+
+def _meets_grass_near(m: _Member, ball: np.ndarray, within_m: float) -> bool:
+    """Whether ``m``'s ray (its label's or its detection's centre) meets the plane of a ball's centre on the grass
+    (:data:`app.geometry.pitch.BALL_DIAMETER_M` / 2 up; SoccerNet world, z down) within ``within_m`` metres of
+    ``ball`` ((3,) world metres)."""
+    ray = m.obs.camera.rays(np.asarray(m.obs.point_px, float).reshape(1, 2))[0]
+    grass = ray_at_height(m.obs.camera.C, ray, -BALL_DIAMETER_M / 2)
+    return grass is not None and float(np.linalg.norm(grass - ball)) <= within_m
 
 
 def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
-    """Whether each detection of the pairing lies from the ball within :data:`SIGMAS` standard deviations: the
-    members' pixel sigmas (px at 1920 width) and :data:`CENTRE_NOISE` of the box's diameter in quadrature, at least
-    :data:`MIN_SIGMA_PX`. The epipolar check's tau is the doubts' wide tolerance for labels; between two cameras sure
+    """Whether each detection of the pairing lies from the ball within :data:`SIGMAS` standard deviations
+    (:func:`explained`). The epipolar check's tau is the doubts' wide tolerance for labels; between two cameras sure
     to a few pixels a box ten pixels off the ray is not the ball they see (on a made set such a box, the only one of
     a view whose detector missed the ball, made a 3D ball 10 m off)."""
-    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0))) ** 2 for m in p.members)
-    for m in p.members:
-        if m.detection is None or m.box is None:
-            continue
-        d = _diameter(m.box, m.view) * rule_scale(m.view, s)
-        if p.errors[m.view.view_id] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
-            return False
-    return True
+    return explained(p.errors, {m.view.view_id: (m.view, m.box) for m in p.members
+                                if m.detection is not None and m.box is not None}, sigma, s)
 
 
 #: The share of a person's box height, at its top and at its bottom, where a ball detector's false boxes sit: a head
@@ -339,7 +330,8 @@ def _on_head_or_feet(view: DoubtView, det: Detection) -> bool:
 def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
     """Whether a lone labelled ray's pairing can be told from a false box on a person: its detection in ``view`` lies
     elsewhere than a person's head or feet (:func:`_on_head_or_feet`), or the ball it makes lies on the grass (its
-    centre at most :data:`ON_GRASS_M` above it; SoccerNet world, z down), or a third view confirms that ball.
+    centre at most :data:`ON_GRASS_M` above it; SoccerNet world, z down) where the labelled ray meets the grass (within
+    :data:`GRASS_SPREAD_M` of it), or a third view confirms that ball.
 
     With one labelled ray the detection alone fixes the depth along it, and nothing of the two views tells the ball
     from a false box that happens to lie on the ray's band at a ball's size. Such boxes are not spread evenly: a ball
@@ -351,9 +343,13 @@ def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
     (``benchmarks/DETECTOR.md``, 2026-11-27, branch safety) the one-ray pairings chosen on a head or feet with the
     ball in the air were four false boxes (balls 2-12 m off; three filled, each making a system's 3D ball wrong) to
     three balls; with the ball on the grass, about thirty balls and two false boxes (0.7 and 1.0 m off).
-    A third view's label or detection at the ball (:func:`_third_views`) is the second witness such a box lacks."""
+    A third view's label or detection at the ball (:func:`_third_views`) is the second witness such a box lacks.
+    The height alone does not pin the ball on a ray that runs low over the grass: a camera low behind a goal sees the
+    ball along a ray that stays within half a metre of the grass for metres (on a made set a box on a person's feet
+    put the ball 0.44 m up where that ray was still 12.7 m from meeting the grass: a 3D ball made 12 m wrong)."""
     (det,) = p.detections().values()
-    return bool(p.confirmed) or -float(p.ball[2]) <= ON_GRASS_M or not _on_head_or_feet(view, det)
+    return bool(p.confirmed) or not _on_head_or_feet(view, det) or (
+        -float(p.ball[2]) <= ON_GRASS_M and _meets_grass_near(p.members[0], p.ball, GRASS_SPREAD_M))
 
 
 def _on_ray_within_sigmas(lone: DoubtView, view: DoubtView, det: Detection, sigma: Mapping[Hashable, float],
@@ -396,12 +392,31 @@ def _ray_missed(lone: DoubtView, p: _Pairing, thirds: Sequence[DoubtView],
     return False
 
 
-def _agrees(p: _Pairing, ball: np.ndarray, view: DoubtView, tol: Mapping[Hashable, float], s: DoubtSettings) -> bool:
-    """Whether the detection of a labelled ray's pairing in ``view`` lies within :data:`MISS` tolerances (px at 1920
-    width) of where ``ball`` (3,) world metres projects in ``view``: the two name one ball."""
-    (det,) = p.detections().values()
-    e = _scaled(_observation(view, det, s), ball)
-    return e is not None and e <= MISS * tol[view.view_id]
+def _agrees(p: _Pairing, chosen: _Pairing, view: DoubtView, tol: Mapping[Hashable, float],
+            sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether the detection of a labelled ray's pairing ``p`` in ``view`` and the ball of another view's ``chosen``
+    pairing name one ball: the detection lies within :data:`MISS` tolerances (px at 1920 width) of where that ball
+    projects, and within :data:`SIGMAS` standard deviations of it: the chosen ball's own uncertainty projected into
+    ``view`` (its members' pixel sigmas, at least :data:`MIN_SIGMA_PX`, through
+    :func:`app.geometry.spread.position_covariance` and :func:`app.geometry.spread.projected_sigma_px`), ``view``'s
+    pixel sigma and :data:`CENTRE_NOISE` of the box's diameter, in quadrature. The tolerance alone is the doubts'
+    wide one for labels; along a labelled ray two spots a metre apart may project within it in a far view (on a made
+    set a false box on the ray in a view whose detector missed the ball made a 3D ball 1.38 m off, while the unsure
+    view's detection of the ball, 31 px@1920 from where that ball projects, some four of its standard deviations,
+    met the ray within half a pixel)."""
+    ((vid, det),) = p.detections().items()
+    obs = _observation(view, det, s)
+    e = _scaled(obs, chosen.ball)
+    if e is None or e > MISS * tol[view.view_id]:
+        return False
+    sig = {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0))) for m in chosen.members}
+    cov = position_covariance([m.obs for m in chosen.members], chosen.ball, sig)
+    spread = None if cov is None else projected_sigma_px(obs, chosen.ball, cov)
+    if spread is None:  # the members fix no point: nothing sharper than the tolerance
+        return True
+    d = _diameter(det.box, view) * rule_scale(view, s)
+    own = max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0)))
+    return e <= SIGMAS * math.sqrt(spread ** 2 + own ** 2 + (CENTRE_NOISE * d) ** 2)
 
 
 def _lone_ray(vote: Any) -> DoubtView | None:
@@ -474,8 +489,6 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     if not _telling(lone, float(sigma.get(lone.view_id, 0.0)), s):
         return {}
     for v in unlabelled:
-        if not _telling(v, float(sigma.get(v.view_id, 0.0)), s):
-            continue
         near = _near_ray(lone, v, detections.get(v.view_id, ()), PREFILTER * tol[v.view_id], s)
         if half_vote and sum(_on_ray_within_sigmas(lone, v, d, sigma, s) for d in near) > 1:
             continue  # a half vote's ray arbitrates between no two candidates its cameras cannot tell apart
@@ -483,6 +496,10 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
                     if _on_epipolar(lone, v, d, sigma, s)
                     and (p := _meet([ray, _member(v, d, s, size_tolerance)], tol, s)) is not None]
         met[v.view_id] = pairings
+        # a view whose camera no longer tells fills nothing, yet its boxes on the ray still say where on it the ball
+        # is (below); an unsure one that tells takes part weighted by its sigma (band, tolerance, spread)
+        if not _telling(v, float(sigma.get(v.view_id, 0.0)), s):
+            continue
         c = _chosen([p for p in pairings if not _ray_missed(lone, p, thirds, detections, tol, s)], s)
         if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s) and _told_from_players(c[0], v):
             chosen[v.view_id] = c
@@ -491,7 +508,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     # (on a made set a false box chosen so made a 3D ball 33 m off, while the other view's detection of the ball,
     # refused by that very box as a third view, could not answer back: the false ball projected outside its image)
     chosen = {b: cb for b, cb in chosen.items() if not any(
-        a != b and ps and not any(_agrees(p, cb[0].ball, _view(unlabelled, a), tol, s) for p in ps)
+        a != b and ps and not any(_agrees(p, cb[0], _view(unlabelled, a), tol, sigma, s) for p in ps)
         for a, ps in met.items())}
     # the views filled must name one ball: each chosen ball meets every other chosen detection within MISS tolerances
     for (a, ca), (b, cb) in product(chosen.items(), chosen.items()):
@@ -578,7 +595,19 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
             and (all(m.detection is not None for m in p.members)
                  or len(p.members) + sum(1 for c in p.confirmed if c in telling) >= 3)]
     c = _chosen(kept, s)
-    return {} if c is None or not _placed(c[0], sigma) else _found(*c, "detections_agree")
+    return {} if c is None or not _placed(c[0], sigma) or _one_person(c[0]) else _found(*c, "detections_agree")
+
+
+def _one_person(p: _Pairing) -> bool:
+    """Whether detections that agree among themselves may be one person seen from each view: every detection of the
+    pairing lies on a person's head or feet (:func:`_on_head_or_feet`), its ball is not on the grass where every ray
+    meets it (:func:`_grass_placed`), and no third view confirms it. A person's head seen in two calibrated views
+    meets at one point of the play volume at a ball's size as surely as the ball does, and a ball detector's false
+    boxes sit there (60 % of them, the shared detector sets' README): on a made set two views' boxes on one player's
+    head met 1.6 m up, 8.5 m from the ball, and made the system's 3D ball."""
+    dets = [m for m in p.members if m.detection is not None]
+    return (bool(dets) and not p.confirmed and not _grass_placed(p)
+            and all(_on_head_or_feet(m.view, m.detection) for m in dets if m.detection is not None))
 
 
 def _view(views: Sequence[DoubtView], view_id: Hashable) -> DoubtView:
