@@ -180,3 +180,25 @@ def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[D
         if errors[vid] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
             return False
     return True
+
+
+def _epipolar_distance(ray_view: DoubtView, centre: np.ndarray, view: DoubtView, s: DoubtSettings) -> float:
+    """How far (px at 1920 width) ``centre`` (2,) px of ``view`` lies from the ball ray of ``ray_view``'s label (or
+    detection, given as its box) across the play volume, seen in ``view`` (its epipolar segment,
+    :func:`app.geometry.doubts.epipolar._segment`); ``inf`` when that ray misses the volume or is not seen."""
+    seg = _segment(ray_view, view, s)
+    if seg is None:
+        return math.inf
+    return _polyline_distance(seg[1], centre)[0] * rule_scale(view, s)
+
+
+def _on_ray_within_sigmas(lone: DoubtView, view: DoubtView, det: Detection, sigma: Mapping[Hashable, float],
+                          s: DoubtSettings) -> bool:
+    """Whether ``det``'s centre lies within :data:`SIGMAS` standard deviations of ``lone``'s ball ray seen in
+    ``view`` (its epipolar segment across the play volume, px at 1920 width): both cameras' pixel sigmas (each at
+    least :data:`MIN_SIGMA_PX`) and the detector's centre error (:data:`CENTRE_NOISE` of the box's diameter) in
+    quadrature, as :func:`_explained` asks of a chosen box. Where the ball lies on that ray a box farther off is not
+    explained by the cameras and the detector, so it is no rival the ray cannot tell from another."""
+    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(v.view_id, 0.0))) ** 2 for v in (lone, view))
+    d = _diameter(det.box, view) * rule_scale(view, s)
+    return _epipolar_distance(lone, det.centre, view, s) <= SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2)

@@ -23,14 +23,15 @@ from app.geometry.doubts.detected import (
     CheckedDetection,
     Detection,
     _diameter,
+    _epipolar_distance,
     _near_ray,
     _observation,
+    _on_ray_within_sigmas,
     _refit,
     _scaled,
     explained,
     size_ratio,
 )
-from app.geometry.doubts.epipolar import _polyline_distance, _segment
 from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.spread import position_covariance, position_sigma_m, projected_sigma_px
 from app.geometry.triangulation import (
@@ -131,16 +132,6 @@ def meet_or_why(members: Sequence[_Member], tol: Mapping[Hashable, float], s: Do
                for a, b in combinations(members, 2)):
         return "baseline_parallax"
     return _Pairing(tuple(members), ball, errors, ratios, max(errors.values()))
-
-
-def _epipolar_distance(ray_view: DoubtView, centre: np.ndarray, view: DoubtView, s: DoubtSettings) -> float:
-    """How far (px at 1920 width) ``centre`` (2,) px of ``view`` lies from the ball ray of ``ray_view``'s label (or
-    detection, given as its box) across the play volume, seen in ``view`` (its epipolar segment,
-    :func:`app.geometry.doubts.epipolar._segment`); ``inf`` when that ray misses the volume or is not seen."""
-    seg = _segment(ray_view, view, s)
-    if seg is None:
-        return math.inf
-    return _polyline_distance(seg[1], centre)[0] * rule_scale(view, s)
 
 
 def _band(a: DoubtView, b: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> float:
@@ -352,18 +343,6 @@ def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
         -float(p.ball[2]) <= ON_GRASS_M and _meets_grass_near(p.members[0], p.ball, GRASS_SPREAD_M))
 
 
-def _on_ray_within_sigmas(lone: DoubtView, view: DoubtView, det: Detection, sigma: Mapping[Hashable, float],
-                          s: DoubtSettings) -> bool:
-    """Whether ``det``'s centre lies within :data:`SIGMAS` standard deviations of ``lone``'s ball ray seen in
-    ``view`` (its epipolar segment across the play volume, px at 1920 width): both cameras' pixel sigmas (each at
-    least :data:`MIN_SIGMA_PX`) and the detector's centre error (:data:`CENTRE_NOISE` of the box's diameter) in
-    quadrature, as :func:`_explained` asks of a chosen box. Where the ball lies on that ray a box farther off is not
-    explained by the cameras and the detector, so it is no rival the ray cannot tell from another."""
-    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(v.view_id, 0.0))) ** 2 for v in (lone, view))
-    d = _diameter(det.box, view) * rule_scale(view, s)
-    return _epipolar_distance(lone, det.centre, view, s) <= SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2)
-
-
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
     """A view whose camera may pair without its spread being asked: its pixel sigma (px at 1920 width) within tau. A
     camera that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the
@@ -464,13 +443,10 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
     by more than its tolerance) are all left alone, and a chosen view is left alone where another view's every box
     on the ray (paired with it, whatever refused that pairing) lies elsewhere than its ball.
 
-    A camera unsure beyond tau (the labelled ray's or the view's) takes part weighted by its uncertainty rather than
-    not at all: its pixel sigma widens the epipolar band (:func:`_band`) and its tolerance, and the chosen ball must
-    still be placed within :data:`MAX_SPREAD_M` by the members' sigmas (:func:`_placed`) and explain the box
-    (:func:`_explained`); only a camera whose sigma no longer tells where the ball lies (:func:`_telling`) is left
-    out. Such a ray carries half a vote (``app.geometry.weighting.calibration_weight``) and its spread says how far it
-    may move the ball: on six detector study sets (``benchmarks/DETECTOR.md``, 2026-11-27, branch vote5) 15 views
-    so refused before were filled, all right, and no false box passed.
+    A camera unsure beyond tau takes part weighted by its uncertainty: its pixel sigma widens the band (:func:`_band`)
+    and its tolerance, and the chosen ball must still be placed by the members' sigmas (:func:`_placed`) and explain
+    the box (:func:`_explained`); a camera whose sigma no longer tells (:func:`_telling`) fills nothing (on six
+    detector study sets, ``benchmarks/DETECTOR.md``, branch vote5, 15 views so refused before filled, all right).
 
     ``half_vote``: the ray is a helper's (:func:`_lone_ray`, a camera the players placed). Its view is filled only
     when one detection at most of that view lies where the two cameras and the detector explain the ball on that ray
