@@ -711,3 +711,29 @@ def test_two_views_boxes_on_one_persons_head_agree_among_themselves_yet_fill_not
     assert detected(checked(seen, {n: [b] for n, b in boxes.items()})) == {}
     found = detected(checked(seen, {"main": [det("main")], "goal": [det("goal")]}))
     assert set(found) == {"main", "goal"} and all(near_truth(n, d) < 2.0 for n, d in found.items())
+
+
+def test_a_lone_rays_detection_half_the_balls_size_where_the_rays_meet_fills_nothing():
+    """goal's detector missed the ball and shows a box on main's ray 3 m up, 0.55 times the ball's size there: within
+    the doubts' size tolerance (0.5) but not one a ball detector gives (sides within 20 %): with one labelled ray the
+    size is the only other witness of the depth, so nothing fills. A box of the ball 0.7 times its size still does."""
+    spot = on_main_ray(0.8)
+    assert -spot[2] > 2.5  # in the air, on no person
+    views = only_main_labelled()
+    assert detected(checked(views, {"goal": [box_at("goal", spot, scale=0.55)]})) == {}
+    assert set(detected(checked(views, {"goal": [box_at("goal", spot, scale=0.9)]}))) == {"goal"}
+    (right,) = detected(checked(views, {"goal": [det("goal", 0.7, scale=0.7)]})).values()
+    assert near_truth("goal", right) < 2.0
+
+
+def test_two_rays_pin_a_ball_alone_only_when_one_camera_is_sure_to_half_of_tau():
+    from app.geometry.doubts.detected import _pinned
+
+    main, goal = scene()[:2]
+    tau = max(SETTINGS.consensus_tau_px, SETTINGS.triangulation_tau_px)
+    assert tau == 25.0
+    assert _pinned(main, goal, {"main": 20.0, "goal": 24.0}, SETTINGS)  # both sure
+    assert _pinned(main, goal, {"main": 79.0, "goal": 3.0}, SETTINGS)  # one unsure, the other to a few pixels
+    assert not _pinned(main, goal, {"main": 26.1, "goal": 17.6}, SETTINGS)  # the made set's 15.8 m false ball
+    assert not _pinned(main, goal, {"main": 30.0, "goal": 40.0}, SETTINGS)
+    assert _pinned(main, goal, {}, SETTINGS)  # cameras without a fit's uncertainty count as exact

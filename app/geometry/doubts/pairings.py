@@ -15,6 +15,7 @@ import numpy as np
 from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside, _plausible
 from app.geometry.doubts.detected import (
     CENTRE_NOISE,
+    LONE_SIZE_TOLERANCE,
     MAX_CANDIDATES,
     MIN_SIGMA_PX,
     PREFILTER,
@@ -27,6 +28,7 @@ from app.geometry.doubts.detected import (
     _near_ray,
     _observation,
     _on_ray_within_sigmas,
+    _pinned,
     _refit,
     _scaled,
     explained,
@@ -266,21 +268,20 @@ def _grass_placed(p: _Pairing) -> bool:
 
 
 def _meets_grass_near(m: _Member, ball: np.ndarray, within_m: float) -> bool:
-    """Whether ``m``'s ray (its label's or its detection's centre) meets the plane of a ball's centre on the grass
-    (:data:`app.geometry.pitch.BALL_DIAMETER_M` / 2 up; SoccerNet world, z down) within ``within_m`` metres of
-    ``ball`` ((3,) world metres)."""
+    """Whether ``m``'s ray (its label's or detection's centre) meets the plane of a ball's centre on the grass (a radius
+    up; SoccerNet world, z down) within ``within_m`` metres of ``ball`` ((3,) world metres)."""
     ray = m.obs.camera.rays(np.asarray(m.obs.point_px, float).reshape(1, 2))[0]
     grass = ray_at_height(m.obs.camera.C, ray, -BALL_DIAMETER_M / 2)
     return grass is not None and float(np.linalg.norm(grass - ball)) <= within_m
 
 
 def _explained(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
-    """Whether each detection of the pairing lies from the ball within :data:`SIGMAS` standard deviations
-    (:func:`explained`). The epipolar check's tau is the doubts' wide tolerance for labels; between two cameras sure
-    to a few pixels a box ten pixels off the ray is not the ball they see (on a made set such a box, the only one of
-    a view whose detector missed the ball, made a 3D ball 10 m off)."""
+    """Whether each detection lies from the ball within :data:`SIGMAS` standard deviations (:func:`explained`), a
+    ball's size there within :data:`LONE_SIZE_TOLERANCE`. tau is the labels' wide tolerance: between cameras sure to
+    a few pixels a box ten pixels off the ray (made set: 10 m off) or half the ball's size (29 m off) is not it."""
     return explained(p.errors, {m.view.view_id: (m.view, m.box) for m in p.members
-                                if m.detection is not None and m.box is not None}, sigma, s)
+                                if m.detection is not None and m.box is not None}, sigma, s) and all(
+        abs(float(p.ratios[m.view.view_id]) - 1.0) <= LONE_SIZE_TOLERANCE for m in p.members if m.detection is not None)
 
 
 #: The share of a person's box height, at its top and at its bottom, where a ball detector's false boxes sit: a head
@@ -344,11 +345,9 @@ def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
 
 
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
-    """A view whose camera may pair without its spread being asked: its pixel sigma (px at 1920 width) within tau. A
-    camera that may put the ball's pixel farther off than the doubts' tolerance cannot place a ball within it (the
-    judge lends such a view half a vote; with a single other ray nothing outvotes its error: on a shared detector set
-    a labelled view of sigma 193 px and a right detection made a ball 2.9 m off). A labelled ray and a detection
-    (:func:`_one_ray`) weigh such a camera by its spread instead (:func:`_placed`)."""
+    """A view whose camera may pair without its spread being asked: its pixel sigma (px at 1920 width) within tau (the
+    judge lends one beyond half a vote; with a single other ray nothing outvotes its error: a shared set's labelled
+    view of sigma 193 px and a right detection made a ball 2.9 m off). :func:`_one_ray` weighs it by its spread."""
     return float(sigma.get(view.view_id, 0.0)) <= max(s.consensus_tau_px, s.triangulation_tau_px)
 
 
@@ -477,7 +476,8 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
         if not _telling(v, float(sigma.get(v.view_id, 0.0)), s):
             continue
         c = _chosen([p for p in pairings if not _ray_missed(lone, p, thirds, detections, tol, s)], s)
-        if c is not None and _placed(c[0], sigma) and _explained(c[0], sigma, s) and _told_from_players(c[0], v):
+        if (c is not None and _pinned(lone, v, sigma, s) and _placed(c[0], sigma) and _explained(c[0], sigma, s)
+                and _told_from_players(c[0], v)):
             chosen[v.view_id] = c
     # a view whose every box on the labelled ray (at a ball's size where the rays meet) lies elsewhere than a chosen
     # ball disputes it, whatever refused its own pairings: each is as much evidence of where on the ray the ball is
