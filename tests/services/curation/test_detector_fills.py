@@ -34,6 +34,14 @@ def _right(box: list[float], centre: tuple) -> bool:
     return math.hypot((box[0] + box[2]) / 2 - cx, (box[1] + box[3]) / 2 - cy) <= tol
 
 
+def _each_right(fills: dict[str, Any], centres: dict[str, tuple], kinds: tuple[str, ...]) -> None:
+    """Every box of those doubt kinds on an unlabelled view whose truth is known lies at the true ball."""
+    for image, found in fills.items():
+        for kind, code, box in found:
+            if kind in kinds and box is not None and image in centres:
+                assert _right(box, centres[image]), (image, kind, code)
+
+
 def test_a_lone_rays_pairings_on_the_grass_placed_to_a_metre_fill_their_views(shared_dir, tmp_path,
                                                                              fresh_session_factory):
     # two systems of this game whose one labelled ray and one detection put the ball on the grass with a spread of
@@ -43,10 +51,7 @@ def test_a_lone_rays_pairings_on_the_grass_placed_to_a_metre_fill_their_views(sh
     for image in ("4.png", "21.png"):
         (box,) = [b for kind, code, b in fills[image] if (kind, code) == ("ball_detected", "one_ray")]
         assert _right(box, centres[image]), image
-    for image, found in fills.items():
-        for kind, code, box in found:
-            if kind in ("ball_detected", "ball_missing") and box is not None and image in centres:
-                assert _right(box, centres[image]), (image, kind, code)
+    _each_right(fills, centres, ("ball_detected", "ball_missing"))
 
 
 def test_a_view_whose_detector_missed_the_ball_a_pairing_places_gets_its_box(shared_dir, tmp_path,
@@ -72,10 +77,7 @@ def test_unsure_cameras_take_part_weighted_by_their_uncertainty(shared_dir, tmp_
     for image in ("17.png", "14_1.png"):
         (box,) = [b for kind, code, b in fills[image] if (kind, code) == ("ball_detected", "one_ray")]
         assert _right(box, centres[image]), image
-    for image, found in fills.items():
-        for kind, code, box in found:
-            if kind == "ball_detected" and image in centres:
-                assert _right(box, centres[image]), (image, kind, code)
+    _each_right(fills, centres, ("ball_detected",))
 
 
 def test_a_view_whose_camera_takes_no_part_is_checked_along_the_lone_labelled_ray(shared_dir, tmp_path,
