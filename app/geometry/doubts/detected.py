@@ -181,11 +181,15 @@ def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[D
     (``sigma``, px at 1920 width, at least :data:`MIN_SIGMA_PX`) and :data:`CENTRE_NOISE` of the detection's box
     diameter (``boxes``: view id -> (view, box (4,) px x1, y1, x2, y2), the detections only) in quadrature."""
     cams = sum(max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0))) ** 2 for vid in errors)
-    for vid, (view, box) in boxes.items():
-        d = _diameter(box, view) * rule_scale(view, s)
-        if errors[vid] > SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2):
-            return False
-    return True
+    return not any(errors[vid] > sigmas_px(cams, box, view, s) for vid, (view, box) in boxes.items())
+
+
+def sigmas_px(cameras_var: float, box: Sequence[float], view: DoubtView, s: DoubtSettings) -> float:
+    """:data:`SIGMAS` standard deviations (px at 1920 width) of a detection's centre in ``view``: the cameras'
+    variance ``cameras_var`` (px^2 at 1920 width, their pixel sigmas squared and summed) and :data:`CENTRE_NOISE` of
+    the ``box``'s diameter (px x1, y1, x2, y2) in quadrature."""
+    d = _diameter(box, view) * rule_scale(view, s)
+    return SIGMAS * math.sqrt(cameras_var + (CENTRE_NOISE * d) ** 2)
 
 
 def _epipolar_distance(ray_view: DoubtView, centre: np.ndarray, view: DoubtView, s: DoubtSettings) -> float:
@@ -206,8 +210,7 @@ def _on_ray_within_sigmas(lone: DoubtView, view: DoubtView, det: Detection, sigm
     quadrature, as :func:`_explained` asks of a chosen box. Where the ball lies on that ray a box farther off is not
     explained by the cameras and the detector, so it is no rival the ray cannot tell from another."""
     cams = sum(max(MIN_SIGMA_PX, float(sigma.get(v.view_id, 0.0))) ** 2 for v in (lone, view))
-    d = _diameter(det.box, view) * rule_scale(view, s)
-    return _epipolar_distance(lone, det.centre, view, s) <= SIGMAS * math.sqrt(cams + (CENTRE_NOISE * d) ** 2)
+    return _epipolar_distance(lone, det.centre, view, s) <= sigmas_px(cams, det.box, view, s)
 
 
 def _pinned(a: DoubtView, b: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:

@@ -14,16 +14,13 @@ import numpy as np
 
 from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside, _plausible
 from app.geometry.doubts.detected import (
-    CENTRE_NOISE,
     LONE_SIZE_TOLERANCE,
     MAX_CANDIDATES,
     MIN_SIGMA_PX,
     PREFILTER,
-    SIGMAS,
     TIE_PX,
     CheckedDetection,
     Detection,
-    _diameter,
     _epipolar_distance,
     _near_ray,
     _observation,
@@ -32,6 +29,7 @@ from app.geometry.doubts.detected import (
     _refit,
     _scaled,
     explained,
+    sigmas_px,
     size_ratio,
 )
 from app.geometry.pitch import BALL_DIAMETER_M
@@ -392,9 +390,8 @@ def _agrees(p: _Pairing, chosen: _Pairing, view: DoubtView, tol: Mapping[Hashabl
     spread = None if cov is None else projected_sigma_px(obs, chosen.ball, cov)
     if spread is None:  # the members fix no point: nothing sharper than the tolerance
         return True
-    d = _diameter(det.box, view) * rule_scale(view, s)
     own = max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0)))
-    return e <= SIGMAS * math.sqrt(spread ** 2 + own ** 2 + (CENTRE_NOISE * d) ** 2)
+    return e <= sigmas_px(spread ** 2 + own ** 2, det.box, view, s)
 
 
 def _lone_ray(vote: Any) -> DoubtView | None:
