@@ -598,8 +598,9 @@ def test_a_view_whose_detector_missed_the_ball_a_pairing_places_gets_its_project
     """Only main is labelled; goal's detection and main's ray place the ball (one_ray). Corner's detector missed it
     (its one box is a player far off): corner gets the sphere box where that ball projects (ball_missing, code
     pairing), its centre within a pixel of the ball's, since the box's uncertainty (the pairing's ball spread into
-    corner and corner's camera) keeps it within the ball's radius. A corner camera unsure to about 7 px, a box of
-    corner's near that spot (which the checks refused), or no ball placed: nothing."""
+    corner and corner's camera) keeps it within the ball's radius. A corner camera unsure enough that the box's sigma
+    (15 px) exceeds one and a half of its radii (7 px), a box of corner's near that spot (which the checks refused),
+    or no ball placed: nothing; at 9 px, within one and a half radii, the box is offered."""
     far = box_at("corner", [-20.0, 10.0, -0.11], score=0.9)
     views = only_main_labelled()
     doubts = checked(views, {"goal": [det("goal", 0.7)], "corner": [far]})
@@ -613,11 +614,14 @@ def test_a_view_whose_detector_missed_the_ball_a_pairing_places_gets_its_project
                                                                     "goal": "goal.png"})
     # the judge's own ball_missing of corner (one labelled ray: no box) is replaced, one suggestion a view
     assert [d.kind for d in doubts if d.view_id == "corner"].count("ball_missing") == 1
-    loose = scene(corner={"box": None, "uncertainty": {"pan_deg": 0.12, "tilt_deg": 0.12, "roll_deg": 0.02,
-                                                       "focal_px": 3.0, "position_m": {"x": .1, "y": .1, "z": .1}}},
-                  **{n: {"box": None} for n in ("goal", "opposite")})
-    assert [d.code for d in checked(loose, {"goal": [det("goal", 0.7)], "corner": [far]})
-            if d.view_id == "corner" and d.kind in LABEL_KINDS] != ["pairing"]
+    def corner_unsure(deg: float) -> list[str]:
+        loose = scene(corner={"box": None, "uncertainty": {"pan_deg": deg, "tilt_deg": deg, "roll_deg": 0.02,
+                                                           "focal_px": 3.0, "position_m": {"x": .1, "y": .1, "z": .1}}},
+                      **{n: {"box": None} for n in ("goal", "opposite")})
+        return [d.code for d in checked(loose, {"goal": [det("goal", 0.7)], "corner": [far]})
+                if d.view_id == "corner" and d.kind in LABEL_KINDS]
+
+    assert corner_unsure(0.2) != ["pairing"] and corner_unsure(0.12) == ["pairing"]
     refused = checked(views, {"goal": [det("goal", 0.7)], "corner": [det("corner", 0.9, shift=(0.0, 40.0))]})
     assert "pairing" not in [d.code for d in refused if d.view_id == "corner"]
     alone = checked(views, {"corner": [far]})  # no detection places the ball: main's ray alone leaves its depth open
@@ -671,21 +675,30 @@ def test_a_false_box_on_the_labelled_ray_a_metre_off_is_disputed_by_the_balls_de
 
 def test_a_box_on_a_persons_feet_fills_only_where_the_labelled_ray_meets_the_grass_near_its_ball():
     """A low camera behind the goal (2 m up, 47 m off) labels the ball on the grass: its ray runs within half a metre
-    of the grass over its last 8 m. main's detector missed the ball and boxed a person's feet on that ray 7 m short of
-    the ball, at a ball's size there, 0.4 m up: "on the grass" by height, yet the labelled ray meets the grass 7 m
-    from that ball, so the height says nothing of where on the ray the ball is; nothing is filled. The ball's own
-    detection on a person's feet, where the ray meets the grass, fills main."""
+    of the grass over its last 8 m. main's detector missed the ball and boxed something on that ray 7 m short of the
+    ball, at a ball's size there, 0.4 m up: "on the grass" by height, yet the labelled ray meets the grass 7 m from
+    that ball, so the height says nothing of where on the ray the ball is; nothing is filled, on a person's feet or
+    not (beyond three metres). A box 2 m short of the ball fills main where no person stands there (within three
+    metres), not on a person's feet (beyond one). The ball's own detection on a person's feet, where the ray meets
+    the grass, fills main."""
     import dataclasses
 
     low = view("low", [57.0, 5.0, -2.0], 3000.0)
     main = view("main", CAMERAS["main"][0], CAMERAS["main"][1], box=None, role="action")
-    spot = np.array([57.0, 5.0, -2.0]) + (0.4 - 2.0) / (0.11 - 2.0) * (BALL - np.array([57.0, 5.0, -2.0]))
+
+    def short_of_ball(up_m: float) -> tuple[np.ndarray, Detection, tuple[float, ...]]:
+        spot = np.array([57.0, 5.0, -2.0]) + (up_m - 2.0) / (0.11 - 2.0) * (BALL - np.array([57.0, 5.0, -2.0]))
+        box = box_at("main", spot, score=0.9)
+        return spot, box, (box.centre[0] - 12.0, box.centre[1] - 120.0, box.centre[0] + 12.0, box.centre[1] + 6.0)
+
+    spot, feet, person = short_of_ball(0.4)
     assert abs(spot[2] + 0.4) < 1e-9 and 7.0 < float(np.linalg.norm(spot - BALL)) < 7.5
-    feet = box_at("main", spot, score=0.9)
-    person = (feet.centre[0] - 12.0, feet.centre[1] - 120.0, feet.centre[0] + 12.0, feet.centre[1] + 6.0)
-    views = [low, dataclasses.replace(main, players=(person,))]
-    assert detected(checked([low, main], {"main": [feet]}))  # without the person's box the rays cannot tell
-    assert detected(checked(views, {"main": [feet]})) == {}
+    assert detected(checked([low, main], {"main": [feet]})) == {}
+    assert detected(checked([low, dataclasses.replace(main, players=(person,))], {"main": [feet]})) == {}
+    spot, near, person = short_of_ball(0.19)
+    assert 1.5 < float(np.linalg.norm(spot - BALL)) < 2.5
+    assert set(detected(checked([low, main], {"main": [near]}))) == {"main"}
+    assert detected(checked([low, dataclasses.replace(main, players=(person,))], {"main": [near]})) == {}
     ball = det("main", 0.7)
     at_ball = (ball.centre[0] - 12.0, ball.centre[1] - 120.0, ball.centre[0] + 12.0, ball.centre[1] + 6.0)
     (right,) = detected(checked([low, dataclasses.replace(main, players=(at_ball,))], {"main": [ball]})).values()

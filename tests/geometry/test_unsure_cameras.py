@@ -54,10 +54,12 @@ def test_an_unsure_view_pairs_with_a_sure_labelled_ray_where_the_spread_places_t
     assert set(found) == {"corner"} and found["corner"].code == "one_ray" and near_truth("corner", found["corner"]) < 3
     assert np.allclose(found["corner"].evidence["ball3d"], BALL, atol=0.1)
     # the pairing's ball as the triangulation would weigh it: main's pixel (at least 1 px) and corner's sigma leave
-    # it within the grass's metre; corner unsure to about 44 px leaves it 1.07 m loose: nothing
-    views = scene(corner={"box": None, "uncertainty": UNSURE}, goal={"box": None}, opposite={"box": None})
-    found = detected(checked(views, {"corner": [ball]}))
-    assert found == {}
+    # it within the grass's two metres; corner unsure to about 44 px leaves it 1.07 m loose (filled), to about 89 px
+    # (still telling) more than 2 m: nothing
+    for pan_tilt, fills in ((UNSURE["pan_deg"], {"corner"}), (2 * UNSURE["pan_deg"], set())):
+        unsure = {**UNSURE, "pan_deg": pan_tilt, "tilt_deg": pan_tilt}
+        views = scene(corner={"box": None, "uncertainty": unsure}, goal={"box": None}, opposite={"box": None})
+        assert set(detected(checked(views, {"corner": [ball]}))) == fills
 
 
 def test_a_view_whose_camera_takes_no_part_is_checked_along_a_lone_labelled_ray_within_its_sigma():

@@ -199,6 +199,12 @@ def _without_labels(views: Sequence[DoubtView], vote: Any, unlabelled: Sequence[
 #: hence more than one radius. Chosen on the shared detector sets and four made sets (seed-201/203/205 made with seed
 #: 53, seed-205 with seed 97): two labelled views placed those boxes, right in 33 of 37 cases within it, 6 of 15 beyond.
 LOOSE_BOX_RADII = 2.5
+#: The pairing's projected box (``ball_missing``, code ``pairing``, :func:`_placed_missing`) is offered where its
+#: uncertainty (the pairing ball's covariance projected into the view and the view's own pixel sigma, in quadrature)
+#: is at most this many of the box's radii. Its pixel sigmas overstate too; on 31 detector sets
+#: (``benchmarks/DETECTOR.md``, 2026-11-27, sixth session) such boxes were right 9 of 9 times at a sigma within half
+#: a radius (the bound before: two sigmas within one), 81 of 87 within one and a half radii, 122 of 138 within 2.5.
+PAIRING_BOX_RADII = 1.5
 
 
 def check_detections(views: Sequence[DoubtView], doubts: Sequence[Doubt],
@@ -376,9 +382,8 @@ def _placed_missing(unlabelled: Sequence[DoubtView],
     makes no ball), for each view whose detections are checked (``unlabelled``) that is not filled, has none of its
     detections within :data:`PREFILTER` tolerances of where the ball projects (a box there that the checks refused
     says the camera or the ball is off there) and inside which it projects by ``inside_margin_px``, offered only
-    where the box's uncertainty keeps its centre within the ball's own silhouette at :data:`SIGMAS` standard
-    deviations, as :func:`_sure_box_missing` asks of a consensus box: the ball's position covariance from the
-    pairing's views (:func:`app.geometry.spread.position_covariance`: each view's pixel sigma, at least
+    where the box's uncertainty is at most :data:`PAIRING_BOX_RADII` of its radii: the ball's position covariance
+    from the pairing's views (:func:`app.geometry.spread.position_covariance`: each view's pixel sigma, at least
     :data:`MIN_SIGMA_PX`, and for a detection :data:`CENTRE_NOISE` of its diameter, in quadrature) projected into the
     view (:func:`app.geometry.spread.projected_sigma_px`), and the view's own pixel sigma at the ball, in quadrature.
 
@@ -423,7 +428,7 @@ def _placed_missing(unlabelled: Sequence[DoubtView],
             continue
         box_sigma = math.hypot(own, spread) / rule_scale(v, s)
         radius = ((box[2] - box[0]) + (box[3] - box[1])) / 4
-        if SIGMAS * box_sigma > radius:
+        if box_sigma > PAIRING_BOX_RADII * radius:
             continue
         out.append(Doubt("ball_missing", v.view_id, "pairing", {
             "projected_px": [_r(uv[0]), _r(uv[1])], "ball3d": [_r(x, 3) for x in ball],

@@ -290,19 +290,19 @@ HEAD_FEET = 0.15
 #: below it (``app.geometry.pitch.PLAY_VOLUME``) and the spread a one-ray ball may have (:data:`MAX_SPREAD_M`).
 ON_GRASS_M = 0.5
 #: The most (m, one standard deviation along the worst direction) the ball of a chosen pairing may move with its
-#: cameras' pixel sigmas where the grass places it (:func:`_grass_placed`: every member's ray meets the plane of a
-#: ball's centre on the grass within :data:`MAX_SPREAD_M` of it), against :data:`MAX_SPREAD_M` elsewhere
-#: (:func:`_placed`): one metre, beyond which a 3D ball is wrong. Such a ball lies where each ray meets the grass, a
-#: place the rays' parallax does not fix (a ball truly in the air that a badly fixed depth brought down to the grass
-#: would leave the rays' grass points apart); and the spread, read from pixel sigmas that overstate the cameras'
-#: errors (about five times at the median on the synthetic sets, ``app.geometry.weighting.pixel_sigma``),
-#: overstates the ball's. On the shared detector sets and four made sets (``benchmarks/DETECTOR.md``, 2026-11-27,
-#: branch fill4) the chosen pairings on the grass with a spread of 0.5-1 m placed their balls 0.03-0.47 m from the
-#: truth, their labelled rays' grass points within 0.45 m; in the air two of thirteen were 1.2 m off (6.7 and 11.9 m
-#: up). A first version that asked only for the ball's height (within :data:`ON_GRASS_M`) let through, on a set made
-#: to check it, a pairing 3.5 degrees of parallax wide whose ball lay 0.26 m below the grass and 1.2 m off, its
-#: labelled ray meeting the grass 1.15 m from it.
-GRASS_SPREAD_M = 1.0
+#: cameras' pixel sigmas where the grass places it (:func:`_grass_placed`), against :data:`MAX_SPREAD_M` elsewhere
+#: (:func:`_placed`). Such a ball lies where each ray meets the grass, which the rays' parallax does not fix (a ball
+#: in the air brought down to the grass by a badly fixed depth would leave the rays' grass points apart), and the
+#: spread, from pixel sigmas that overstate the cameras' errors (about five times at the median,
+#: ``app.geometry.weighting.pixel_sigma``), overstates the ball's. On 31 detector sets (``benchmarks/DETECTOR.md``,
+#: 2026-11-27, sixth session) the true detections refused at one metre placed balls 0.02-0.39 m from the truth at
+#: spreads of 1-2.2 m; two metres filled 36 views more, no bound at all 53, neither a wrong box nor a wrong 3D ball.
+GRASS_SPREAD_M = 2.0
+#: How far (m) from a one-ray ball on the grass the labelled ray must meet the grass (:func:`_told_from_players`):
+#: for a box on a person's head or feet the metre beyond which a 3D ball is wrong; for any other box three metres
+#: (a camera 1.1 m up saw a made set's ball along a ray meeting the grass 10 m beyond a false box at the other
+#: image's edge: a 3D ball 11.3 m off; on 31 sets two metres cost 19 right fills, three metres 3).
+GRASS_POINT_M, LOW_RAY_M = 1.0, 3.0
 
 
 def _on_head_or_feet(view: DoubtView, det: Detection) -> bool:
@@ -318,10 +318,11 @@ def _on_head_or_feet(view: DoubtView, det: Detection) -> bool:
 
 
 def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
-    """Whether a lone labelled ray's pairing can be told from a false box on a person: its detection in ``view`` lies
-    elsewhere than a person's head or feet (:func:`_on_head_or_feet`), or the ball it makes lies on the grass (its
-    centre at most :data:`ON_GRASS_M` above it; SoccerNet world, z down) where the labelled ray meets the grass (within
-    :data:`GRASS_SPREAD_M` of it), or a third view confirms that ball.
+    """Whether a lone labelled ray's pairing can be told from a false box: a third view confirms its ball, or its
+    detection in ``view`` lies on a person's head or feet (:func:`_on_head_or_feet`) and the ball it makes lies on
+    the grass (its centre at most :data:`ON_GRASS_M` above it; SoccerNet world, z down) where the labelled ray meets
+    the grass (within :data:`GRASS_POINT_M` of it), or it lies elsewhere and its ball, if on the grass, is within
+    :data:`LOW_RAY_M` of where the labelled ray meets the grass.
 
     With one labelled ray the detection alone fixes the depth along it, and nothing of the two views tells the ball
     from a false box that happens to lie on the ray's band at a ball's size. Such boxes are not spread evenly: a ball
@@ -335,11 +336,16 @@ def _told_from_players(p: _Pairing, view: DoubtView) -> bool:
     three balls; with the ball on the grass, about thirty balls and two false boxes (0.7 and 1.0 m off).
     A third view's label or detection at the ball (:func:`_third_views`) is the second witness such a box lacks.
     The height alone does not pin the ball on a ray that runs low over the grass: a camera low behind a goal sees the
-    ball along a ray that stays within half a metre of the grass for metres (on a made set a box on a person's feet
-    put the ball 0.44 m up where that ray was still 12.7 m from meeting the grass: a 3D ball made 12 m wrong)."""
+    ball along a ray that stays within half a metre of the grass for metres, where any box on the grass along the
+    band meets it (made sets: a box on a person's feet put the ball 0.44 m up where that ray was still 12.7 m from
+    meeting the grass, a 3D ball made 12 m wrong; a false box elsewhere, 11.3 m wrong)."""
     (det,) = p.detections().values()
-    return bool(p.confirmed) or not _on_head_or_feet(view, det) or (
-        -float(p.ball[2]) <= ON_GRASS_M and _meets_grass_near(p.members[0], p.ball, GRASS_SPREAD_M))
+    if p.confirmed:
+        return True
+    on_grass = -float(p.ball[2]) <= ON_GRASS_M
+    if _on_head_or_feet(view, det):
+        return on_grass and _meets_grass_near(p.members[0], p.ball, GRASS_POINT_M)
+    return not on_grass or _meets_grass_near(p.members[0], p.ball, LOW_RAY_M)
 
 
 def _sure(view: DoubtView, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
@@ -430,28 +436,22 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
              size_tolerance: float, half_vote: bool = False,
              ) -> dict[Hashable, tuple[CheckedDetection, str, tuple[Hashable, ...]]]:
     """One labelled ray and one detection: for each unlabelled view, its detections near the labelled view's ray
-    across the play volume (its epipolar segment), within tau widened by both cameras' pixel sigmas
-    (:func:`_on_epipolar`), are paired with it (:func:`_meet`: the rays meet within both views' tolerances in the
-    play volume, the detection's box is a ball's size at that depth); a pairing a third view
-    clearly misses is dropped (:func:`_third_views`, read knowing the ball is on the labelled ray: :func:`_ray_missed`),
-    and the view's best-supported one is kept with its margin
-    (:func:`_chosen`). Views whose chosen balls disagree with each other (one's ball misses the other's detection
-    by more than its tolerance) are all left alone, and a chosen view is left alone where another view's every box
-    on the ray (paired with it, whatever refused that pairing) lies elsewhere than its ball.
+    across the play volume (its epipolar segment, tau widened by both cameras' pixel sigmas, :func:`_on_epipolar`) are
+    paired with it (:func:`_meet`); a pairing a third view clearly misses is dropped (:func:`_ray_missed`), and the
+    view's best-supported one is kept with its margin (:func:`_chosen`) where its cameras pin and place the ball
+    (:func:`_pinned`, :func:`_placed`), explain the box (:func:`_explained`) and tell it from a false one
+    (:func:`_told_from_players`). Views whose chosen balls disagree with each other are all left alone, and a chosen
+    view is left alone where another view's every box on the ray lies elsewhere than its ball (:func:`_agrees`).
 
-    A camera unsure beyond tau takes part weighted by its uncertainty: its pixel sigma widens the band (:func:`_band`)
-    and its tolerance, and the chosen ball must still be placed by the members' sigmas (:func:`_placed`) and explain
-    the box (:func:`_explained`); a camera whose sigma no longer tells (:func:`_telling`) fills nothing (on six
-    detector study sets, ``benchmarks/DETECTOR.md``, branch vote5, 15 views so refused before filled, all right).
+    A camera unsure beyond tau takes part weighted by its uncertainty (its sigma widens the band, its tolerance and
+    the spread); one whose sigma no longer tells (:func:`_telling`) fills nothing (branch vote5, DETECTOR.md).
 
     ``half_vote``: the ray is a helper's (:func:`_lone_ray`, a camera the players placed). Its view is filled only
     when one detection at most of that view lies where the two cameras and the detector explain the ball on that ray
     (:func:`_on_ray_within_sigmas`): where the detector missed the ball, its false boxes cluster on the players around
     it, and two of them on the ray mean one may lie on it at a ball's size by chance (on a shared detector set such
     a box, with a second false box near the same segment, made a 3D ball 3.9 m off); a half vote has no margin of
-    its own to tell them apart. A box farther off the ray than its cameras' and the detector's uncertainty is no
-    rival there (the chosen box must lie within it anyway, :func:`_explained`). A labelled view's full vote keeps the
-    margin rule alone."""
+    its own to tell them apart. A labelled view's full vote keeps the margin rule alone."""
     # the labelled ray's own box is not read for its size: annotated boxes are loose (on the shared detector sets
     # the true balls' labelled boxes measure 1.45 to 1.57 times the sphere's), and a player's head on that ray
     # lies at about nine tenths of the ball's depth, which no tolerance on a label's size tells apart
