@@ -303,11 +303,7 @@ def evaluate_jac(camera: Camera, lines: FieldLines, width: int, height: int,
     projected_classes = frozenset(projected)
     mirrored = {MIRROR_CLASSES[cls]: pts for cls, pts in annotated.items()}
     d_direct = _class_distances(projected, annotated)
-    # A class its own mirror (the middle line, the central circle) has the same points against the same polyline
-    # mirrored: its distances are the direct ones, not measured again.
-    same = {cls for cls in mirrored if MIRROR_CLASSES[cls] == cls and cls in d_direct}
-    measured = _class_distances(projected, {cls: pts for cls, pts in mirrored.items() if cls not in same})
-    d_mirror = {cls: d_direct[cls] if cls in same else measured[cls] for cls in mirrored if cls in projected}
+    d_mirror = _class_distances(projected, mirrored)
     worst_direct = {cls: float(d.max()) for cls, d in d_direct.items()}
     worst_mirror = {cls: float(d.max()) for cls, d in d_mirror.items()}
     results = []
