@@ -381,8 +381,15 @@ def _read_all(path: str | Path, settings: Settings, progress: Progress | None, g
 #: The full collections' threshold while an import stores its batches (:func:`_full_collections_by_batch`): in effect
 #: never reached, the import collects once per batch itself.
 _NO_AUTOMATIC_FULL_COLLECTION = 1 << 30
-_gc_lock = threading.Lock()
-_gc_imports: list = [0, None]  # imports storing batches in this process, and the thresholds before the first
+
+
+class _Collector:
+    """The imports storing batches in this process now (``running``, under ``lock``) and the collector's thresholds
+    before the first of them (``thresholds``), which the last one puts back."""
+
+    lock = threading.Lock()
+    running = 0
+    thresholds: tuple[int, int, int] = gc.get_threshold()
 
 
 @contextlib.contextmanager
@@ -395,19 +402,18 @@ def _full_collections_by_batch() -> Iterator[None]:
     collections run as before, and what a batch leaves (cycles of ORM objects, released with the session's identity
     map) is collected when it ends, as a full collection would have done during the next one. The thresholds are put
     back when the last import of the process (imports may run in threads of a server) ends. Changes no result."""
-    with _gc_lock:
-        if _gc_imports[0] == 0:
-            _gc_imports[1] = gc.get_threshold()
-            young, middle, _ = _gc_imports[1]
+    with _Collector.lock:
+        if _Collector.running == 0:
+            _Collector.thresholds = young, middle, _ = gc.get_threshold()
             gc.set_threshold(young, middle, _NO_AUTOMATIC_FULL_COLLECTION)
-        _gc_imports[0] += 1
+        _Collector.running += 1
     try:
         yield
     finally:
-        with _gc_lock:
-            _gc_imports[0] -= 1
-            if _gc_imports[0] == 0:
-                gc.set_threshold(*_gc_imports[1])
+        with _Collector.lock:
+            _Collector.running -= 1
+            if _Collector.running == 0:
+                gc.set_threshold(*_Collector.thresholds)
 
 
 def _run(session: Session, path: str | Path, settings: Settings, progress: Progress | None,
@@ -424,7 +430,8 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     total) instead of the inner stages of each batch. Each batch writes its audit entry (by ``actor``,
     None: the local user) in its own transaction, with one entry per stored system it merged by ``merge``
     (``app.services.transfer.merging``). Before all that, ``progress("read", games read, games)`` while the input is
-    read and validated."""
+    read and validated. While the batches are stored the garbage is collected once per batch
+    (:func:`_full_collections_by_batch`)."""
     t0 = time.perf_counter()
     report, readers, frames_per_game = _read_all(path, settings, progress, games, source_name, t0)
     batches = [[readers[i] for i in group] for group in _batches(frames_per_game, settings.import_batch_frames)]
