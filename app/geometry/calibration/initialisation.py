@@ -75,6 +75,14 @@ def _fit_image_line(pts: np.ndarray) -> np.ndarray | None:
     return np.array([n[0], n[1], -n @ mu])
 
 
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of two 3-vectors with the same products and differences (equal to the bit), without its
+    broadcasting machinery: the ground equations take a few per labelled line, in every calibration."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
@@ -124,7 +132,7 @@ def _ground_equations(obs: Observations, T: np.ndarray, S: np.ndarray, with_pair
         pts = obs.seg_points[obs.seg_index == i]
         a = S @ np.array([obs.seg_a[i][0], obs.seg_a[i][1], 1.0])
         b = S @ np.array([obs.seg_b[i][0], obs.seg_b[i][1], 1.0])
-        lw = np.cross(a, b)
+        lw = _cross3(a, b)
         lw /= np.linalg.norm(lw)
         pn = np.hstack([pts, np.ones((len(pts), 1))]) @ T.T
         rows.append((lw[None, :, None] * pn[:, None, :]).reshape(len(pts), 9) / np.sqrt(len(pts)))
@@ -140,8 +148,8 @@ def _ground_equations(obs: Observations, T: np.ndarray, S: np.ndarray, with_pair
     known: list[tuple[np.ndarray, np.ndarray]] = []
     for u in range(len(image_lines) if with_pairs else 0):
         for v in range(u + 1, len(image_lines)):
-            pw = np.cross(image_lines[u][0], image_lines[v][0])
-            pi = np.cross(image_lines[u][1], image_lines[v][1])
+            pw = _cross3(image_lines[u][0], image_lines[v][0])
+            pi = _cross3(image_lines[u][1], image_lines[v][1])
             if abs(pw[2]) > 1e-9 * np.linalg.norm(pw):
                 known.append((pw / pw[2], pi))
     for j in range(len(obs.circle_classes)):
@@ -288,7 +296,7 @@ def camera_from_homography(H: np.ndarray, principal_point: np.ndarray) -> tuple[
     # -C_z); keep the one above the ground (z points down, so C_z < 0).
     for sign in (1.0, -1.0):
         r1, r2, t = sign * B[:, 0], sign * B[:, 1], sign * B[:, 2]
-        M = np.stack([r1, r2, np.cross(r1, r2)], axis=1)
+        M = np.stack([r1, r2, _cross3(r1, r2)], axis=1)
         u, _, vt = np.linalg.svd(M)
         R = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
         C = -R.T @ t
@@ -369,7 +377,7 @@ def anchor_correspondences(obs: Observations, scale_px: float) -> list[tuple[np.
             d1, d2 = (b1 - a1)[:2], (b2 - a2)[:2]
             if abs(d1 @ d2) > 1e-6 * np.linalg.norm(d1) * np.linalg.norm(d2):
                 continue  # not perpendicular on the pitch (parallel: no crossing)
-            p = np.cross(l1, l2)
+            p = _cross3(l1, l2)
             if abs(p[2]) < 1e-12 * np.linalg.norm(p[:2]):
                 continue
             uv = p[:2] / p[2]

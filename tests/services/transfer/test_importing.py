@@ -406,6 +406,45 @@ def test_an_import_reads_each_game_twice_and_holds_two_batches_at_most(shared_di
     assert alive_at_read == [0, 0, 0, 1]
 
 
+def test_an_import_collects_its_garbage_once_per_batch_and_puts_the_thresholds_back(shared_dir, fresh_session_factory,
+                                                                                    monkeypatch):
+    """While an import stores its batches the collector makes no full collection of its own (the batch's objects
+    are held for the whole batch: each one traversed them all); the import collects once per batch, and the
+    thresholds are put back when the last import of the process ends, also after a failure."""
+    import gc
+
+    from app.core.config import Settings
+    from app.services.transfer import importing
+
+    dev = shared_dir / "data" / "synthetic" / "soccernet-v3-dev"
+    before = gc.get_threshold()
+    during: list[tuple[int, int, int]] = []
+    collected: list[int] = []
+    real_collect = gc.collect
+    real_store = importing._store
+
+    def store(*args, **kwargs):
+        during.append(gc.get_threshold())
+        return real_store(*args, **kwargs)
+
+    def collect(*args):
+        collected.append(len(during))
+        return real_collect(*args)
+
+    monkeypatch.setattr(importing, "_store", store)
+    monkeypatch.setattr(importing.gc, "collect", collect)
+    import_soccernet_v3(fresh_session_factory("gc"), dev, Settings(calibration_workers=1, import_batch_frames=1))
+    assert during == [(before[0], before[1], importing._NO_AUTOMATIC_FULL_COLLECTION)] * 2
+    assert collected == [1, 2]  # once after each batch
+    assert gc.get_threshold() == before
+    with pytest.raises(RuntimeError), importing._full_collections_by_batch():
+        with importing._full_collections_by_batch():  # two imports at once: the first to end leaves them
+            assert gc.get_threshold()[2] == importing._NO_AUTOMATIC_FULL_COLLECTION
+        assert gc.get_threshold()[2] == importing._NO_AUTOMATIC_FULL_COLLECTION
+        raise RuntimeError("an import that fails")
+    assert gc.get_threshold() == before
+
+
 def test_the_player_boxes_are_stored_as_they_came_and_an_import_again_changes_none(db_session, settings, v3_tree,
                                                                                    shared_dir):
     import_soccernet_v3(db_session, v3_tree, settings)
