@@ -174,13 +174,19 @@ def _near_ray(lone: DoubtView, view: DoubtView, detections: Sequence[Detection],
     return [detections[i] for i in order[:MAX_CANDIDATES]]
 
 
+def read_sigma(sigma: Mapping[Hashable, float], view_id: Hashable) -> float:
+    """A view's pixel sigma (px at 1920 width) as a ball's spread reads it: ``sigma``'s (0 where the view has none), at
+    least :data:`MIN_SIGMA_PX`."""
+    return max(MIN_SIGMA_PX, float(sigma.get(view_id, 0.0)))
+
+
 def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[DoubtView, Sequence[float]]],
               sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
     """Whether each detection's reprojection error from a ball (``errors``: view id -> px at 1920 width, for every
     view that placed the ball) lies within :data:`SIGMAS` standard deviations: every placing view's pixel sigma
     (``sigma``, px at 1920 width, at least :data:`MIN_SIGMA_PX`) and :data:`CENTRE_NOISE` of the detection's box
     diameter (``boxes``: view id -> (view, box (4,) px x1, y1, x2, y2), the detections only) in quadrature."""
-    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0))) ** 2 for vid in errors)
+    cams = sum(read_sigma(sigma, vid) ** 2 for vid in errors)
     return not any(errors[vid] > sigmas_px(cams, box, view, s) for vid, (view, box) in boxes.items())
 
 
@@ -209,7 +215,7 @@ def _on_ray_within_sigmas(lone: DoubtView, view: DoubtView, det: Detection, sigm
     least :data:`MIN_SIGMA_PX`) and the detector's centre error (:data:`CENTRE_NOISE` of the box's diameter) in
     quadrature, as :func:`_explained` asks of a chosen box. Where the ball lies on that ray a box farther off is not
     explained by the cameras and the detector, so it is no rival the ray cannot tell from another."""
-    cams = sum(max(MIN_SIGMA_PX, float(sigma.get(v.view_id, 0.0))) ** 2 for v in (lone, view))
+    cams = sum(read_sigma(sigma, v.view_id) ** 2 for v in (lone, view))
     return _epipolar_distance(lone, det.centre, view, s) <= sigmas_px(cams, det.box, view, s)
 
 

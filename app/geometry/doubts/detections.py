@@ -60,7 +60,6 @@ from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
 from app.geometry.doubts.detected import (
     CENTRE_NOISE,
-    MIN_SIGMA_PX,
     PREFILTER,
     SIGMAS,
     CheckedDetection,
@@ -73,6 +72,7 @@ from app.geometry.doubts.detected import (
     _observation,
     check_or_why,
     explained,
+    read_sigma,
 )
 from app.geometry.doubts.judge import _missing_doubt, _voters_consensus, _votes
 from app.geometry.doubts.pairings import (
@@ -328,8 +328,8 @@ def _ball_sigma_px(v: DoubtView, ball: np.ndarray, voters: Sequence[BallObservat
     carried through ``v``'s projection (:func:`app.geometry.spread.projected_sigma_px`). Two rays that meet at a
     small angle leave the ball's depth loose; a view looking across that depth sees it as pixels. None when the
     voters fix no point or the ball lies behind a camera."""
-    cov = position_covariance(voters, ball, {o.view_id: max(MIN_SIGMA_PX, float(sigma.get(o.view_id, 0.0)))
-                                             for o in voters}) if len(voters) >= 2 else None
+    cov = (position_covariance(voters, ball, {o.view_id: read_sigma(sigma, o.view_id) for o in voters})
+           if len(voters) >= 2 else None)
     if cov is None or v.camera is None:
         return None
     px = projected_sigma_px(BallObservation(v.view_id, camera_of(v), np.zeros(2), v.width), ball, cov)
@@ -402,7 +402,7 @@ def _placed_missing(unlabelled: Sequence[DoubtView],
     obs: list[BallObservation] = []
     obs_sigma: dict[Hashable, float] = {}
     for vid in agreeing:
-        cam = max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0)))
+        cam = read_sigma(sigma, vid)
         if vid in checked and vid in views_by_id:
             v, det = views_by_id[vid], checked[vid][0].detection
             obs.append(_observation(v, det, s))
@@ -448,8 +448,7 @@ def _keeps_ball(best: CheckedDetection, ball: np.ndarray, voters: Sequence[BallO
     cameras sure to a few pixels a box that drags their ball farther than they can place it wrong is not the ball
     they see (on a made set such a box, 45 px off in a view whose detector missed the ball, moved a ball the labels
     placed 0.04 m from the truth by 1.3 m, and the pass left it 3.3 m off). Voters that fix no point say nothing."""
-    spread = position_sigma_m(voters, ball, {o.view_id: max(MIN_SIGMA_PX, float(sigma.get(o.view_id, 0.0)))
-                                             for o in voters})
+    spread = position_sigma_m(voters, ball, {o.view_id: read_sigma(sigma, o.view_id) for o in voters})
     if spread is None:
         return True
     return float(np.linalg.norm(np.asarray(best.ball, float) - np.asarray(ball, float))) <= max(SIGMAS * spread,

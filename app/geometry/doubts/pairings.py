@@ -16,7 +16,6 @@ from app.geometry.doubts.contract import DoubtSettings, DoubtView, _inside, _pla
 from app.geometry.doubts.detected import (
     LONE_SIZE_TOLERANCE,
     MAX_CANDIDATES,
-    MIN_SIGMA_PX,
     PREFILTER,
     TIE_PX,
     CheckedDetection,
@@ -29,6 +28,7 @@ from app.geometry.doubts.detected import (
     _refit,
     _scaled,
     explained,
+    read_sigma,
     sigmas_px,
     size_ratio,
 )
@@ -252,8 +252,7 @@ def _placed(p: _Pairing, sigma: Mapping[Hashable, float]) -> bool:
     candidate placed badly is still a rival the rays cannot tell from it (dropping it first would let a false box
     at a better fixed depth win alone)."""
     spread = position_sigma_m([m.obs for m in p.members], p.ball,
-                              {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0)))
-                               for m in p.members})
+                              {m.view.view_id: read_sigma(sigma, m.view.view_id) for m in p.members})
     return spread is not None and spread <= (GRASS_SPREAD_M if _grass_placed(p) else MAX_SPREAD_M)
 
 
@@ -391,12 +390,12 @@ def _agrees(p: _Pairing, chosen: _Pairing, view: DoubtView, tol: Mapping[Hashabl
     e = _scaled(obs, chosen.ball)
     if e is None or e > MISS * tol[view.view_id]:
         return False
-    sig = {m.view.view_id: max(MIN_SIGMA_PX, float(sigma.get(m.view.view_id, 0.0))) for m in chosen.members}
+    sig = {m.view.view_id: read_sigma(sigma, m.view.view_id) for m in chosen.members}
     cov = position_covariance([m.obs for m in chosen.members], chosen.ball, sig)
     spread = None if cov is None else projected_sigma_px(obs, chosen.ball, cov)
     if spread is None:  # the members fix no point: nothing sharper than the tolerance
         return True
-    own = max(MIN_SIGMA_PX, float(sigma.get(vid, 0.0)))
+    own = read_sigma(sigma, vid)
     return e <= sigmas_px(spread ** 2 + own ** 2, det.box, view, s)
 
 
