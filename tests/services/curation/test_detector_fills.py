@@ -34,6 +34,12 @@ def _right(box: list[float], centre: tuple) -> bool:
     return math.hypot((box[0] + box[2]) / 2 - cx, (box[1] + box[3]) / 2 - cy) <= tol
 
 
+def _the_fill(fills: dict[str, Any], image: str, kind: str, code: str) -> list[float]:
+    """The one box of ``image``'s doubts of that kind and code (a ValueError where there is none or several)."""
+    (box,) = [b for k, c, b in fills[image] if (k, c) == (kind, code)]
+    return box
+
+
 def _each_right(fills: dict[str, Any], centres: dict[str, tuple], kinds: tuple[str, ...]) -> None:
     """Every box of those doubt kinds on an unlabelled view whose truth is known lies at the true ball."""
     for image, found in fills.items():
@@ -49,7 +55,7 @@ def test_a_lone_rays_pairings_on_the_grass_placed_to_a_metre_fill_their_views(sh
     fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory,
                             Path("synth_league_b/2031-2032/2031-09-08 - 16-00 Harlow 0 - 3 Marden"))
     for image in ("4.png", "21.png"):
-        (box,) = [b for kind, code, b in fills[image] if (kind, code) == ("ball_detected", "one_ray")]
+        box = _the_fill(fills, image, "ball_detected", "one_ray")
         assert _right(box, centres[image]), image
     _each_right(fills, centres, ("ball_detected", "ball_missing"))
 
@@ -58,7 +64,7 @@ def test_a_view_whose_detector_missed_the_ball_a_pairing_places_gets_its_box(sha
                                                                             fresh_session_factory):
     fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory,
                             Path("synth_league_b/2031-2032/2031-12-01 - 14-00 Glenrock 2 - 3 Oakhurst"))
-    (box,) = [b for kind, code, b in fills["7_1.png"] if (kind, code) == ("ball_missing", "pairing")]
+    box = _the_fill(fills, "7_1.png", "ball_missing", "pairing")
     assert _right(box, centres["7_1.png"])
     assert [kind for kind, _, _ in fills["7_1.png"]].count("ball_missing") == 1  # one suggestion for the view
     for image, found in fills.items():
@@ -75,7 +81,7 @@ def test_unsure_cameras_take_part_weighted_by_their_uncertainty(shared_dir, tmp_
     fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory,
                             Path("synth_league_a/2031-2032/2031-08-01 - 14-00 Glenrock 0 - 3 Fenwick"))
     for image in ("17.png", "14_1.png"):
-        (box,) = [b for kind, code, b in fills[image] if (kind, code) == ("ball_detected", "one_ray")]
+        box = _the_fill(fills, image, "ball_detected", "one_ray")
         assert _right(box, centres[image]), image
     _each_right(fills, centres, ("ball_detected",))
 
@@ -86,5 +92,5 @@ def test_a_view_whose_camera_takes_no_part_is_checked_along_the_lone_labelled_ra
     # placed in its system: its one box near that ray within both sigmas fills it (weak_view), right
     fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory,
                             Path("synth_league_c/2031-2032/2031-10-15 - 18-00 Glenrock 0 - 1 Arden"))
-    (box,) = [b for kind, code, b in fills["5.png"] if (kind, code) == ("ball_detected", "weak_view")]
+    box = _the_fill(fills, "5.png", "ball_detected", "weak_view")
     assert _right(box, centres["5.png"])
