@@ -13,7 +13,9 @@ takes part, ``consensus: <check>`` or ``one ray: <check>`` naming the check that
 (``prefilter``, ``play_volume``, ``rays_meet``, ``size``, ``baseline_parallax``, ``keeps_ball``, ``epipolar``,
 ``unsure ray``, ``unsure view`` (a camera whose sigma no longer tells where the ball lies), ``half vote``,
 ``third view``, ``margin``, ``placed``, ``explained``,
-``views disagree``, ``another chosen``, ``one_view filled others``, ``no box``).
+``views disagree``, ``another chosen``, ``one_view filled others``, ``no box``). With ``--detail``, ``placed`` lists
+each true detection that only the spread bound refused (``app.geometry.doubts.pairings._placed``) with the ball its
+pairing would have made: its spread (m, one standard deviation), how far it lies from the true ball (m) and its height.
 
 Run: ``.venv/bin/python benchmarks/fill_diagnosis.py DB.sqlite3 TRUTH.json PREDICTIONS.csv`` (a database with the
 predictions imported).
@@ -78,8 +80,9 @@ _ORDER = ["prefilter", "unsure ray", "unsure view", "play_volume", "epipolar", "
 
 
 def _why_one_ray(lone: Any, v: Any, true_dets: Sequence[Any], detections: Any, by_id: Any, thirds: Any, wtol: Any,
-                 sigma: Any, s: Any, size_tol: float, half_vote: bool) -> str:
-    """The furthest check of :func:`app.geometry.doubts.pairings._one_ray` the view's true detection reached."""
+                 sigma: Any, s: Any, size_tol: float, half_vote: bool, refused: list[Any] | None = None) -> str:
+    """The furthest check of :func:`app.geometry.doubts.pairings._one_ray` the view's true detection reached;
+    ``refused`` collects the pairings of true detections that only the spread bound refused (``placed``)."""
     from app.geometry.doubts.detected import PREFILTER, _near_ray
     from app.geometry.doubts.pairings import (
         _chosen,
@@ -124,6 +127,8 @@ def _why_one_ray(lone: Any, v: Any, true_dets: Sequence[Any], detections: Any, b
                 whys.append("another chosen")
             elif not _placed(c[0], sigma):
                 whys.append("placed")
+                if refused is not None:
+                    refused.append(c[0])
             elif not _explained(c[0], sigma, s):
                 whys.append("explained")
             elif not _told_from_players(c[0], v):
@@ -141,10 +146,12 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
 
     from app.core.config import Settings
     from app.db.models import Game, System
+    from app.geometry.doubts.detected import read_sigma
     from app.geometry.doubts.detections import _few_lined, _tolerances, _witnesses, check_detections
     from app.geometry.doubts.judge import _voters_consensus, _votes, judge_system
     from app.geometry.doubts.pairings import _lone_ray
     from app.geometry.pitch import within_play_volume
+    from app.geometry.spread import position_sigma_m
     from app.geometry.triangulation import BallObservation, pair_geometry, triangulate_ball
     from app.geometry.weighting import camera_of, centre_of
     from app.services.derivation.doubts import (
@@ -158,6 +165,7 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
     from app.services.kinds import kind_of
 
     unl, tview, tball, preds = _truth(truth_path, pred_path)
+    placed: list[dict[str, Any]] = []
     settings = Settings()
     s = doubt_settings(settings)
     size_tol = settings.doubt_detection_size_tolerance
@@ -263,8 +271,18 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
                 elif codes.get("one_view"):
                     why = "one ray: one_view filled others"
                 else:
+                    refused: list[Any] = []
                     why = _why_one_ray(lone, v, true_dets, detections, by_id, witnesses, wtol, sigma, s, size_tol,
-                                       half_vote=lone not in vote.labelled)
+                                       half_vote=lone not in vote.labelled, refused=refused)
+                    for p in refused if t is not None else ():
+                        # what the bound kept out: the ball such a fill would make, against the truth
+                        spread = position_sigma_m([m.obs for m in p.members], p.ball,
+                                                  {m.view.view_id: read_sigma(sigma, m.view.view_id)
+                                                   for m in p.members})
+                        placed.append({"system": f"{match} {system.name}", "view": v.name,
+                                       "spread_m": None if spread is None else round(spread, 3),
+                                       "off_m": round(float(np.linalg.norm(p.ball - t)), 3),
+                                       "height_m": round(-float(p.ball[2]), 2)})
                 reasons[why] += 1
                 if detail:
                     cases.append({"system": f"{match} {system.name}", "view": v.name, "why": why,
@@ -283,6 +301,7 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
                            "reasons": dict(sorted(reasons.items(), key=lambda x: -x[1]))}
     if detail:
         out["cases"] = cases
+        out["placed"] = placed
     return out
 
 
