@@ -146,12 +146,10 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
 
     from app.core.config import Settings
     from app.db.models import Game, System
-    from app.geometry.doubts.detected import read_sigma
     from app.geometry.doubts.detections import _few_lined, _tolerances, _witnesses, check_detections
     from app.geometry.doubts.judge import _voters_consensus, _votes, judge_system
-    from app.geometry.doubts.pairings import _lone_ray
+    from app.geometry.doubts.pairings import _lone_ray, _spread
     from app.geometry.pitch import within_play_volume
-    from app.geometry.spread import position_sigma_m
     from app.geometry.triangulation import BallObservation, pair_geometry, triangulate_ball
     from app.geometry.weighting import camera_of, centre_of
     from app.services.derivation.doubts import (
@@ -276,9 +274,7 @@ def diagnose(url: str, truth_path: Path, pred_path: Path, detail: bool = False) 
                                        half_vote=lone not in vote.labelled, refused=refused)
                     for p in refused if t is not None else ():
                         # what the bound kept out: the ball such a fill would make, against the truth
-                        spread = position_sigma_m([m.obs for m in p.members], p.ball,
-                                                  {m.view.view_id: read_sigma(sigma, m.view.view_id)
-                                                   for m in p.members})
+                        spread = _spread(p, sigma)
                         placed.append({"system": f"{match} {system.name}", "view": v.name,
                                        "spread_m": None if spread is None else round(spread, 3),
                                        "off_m": round(float(np.linalg.norm(p.ball - t)), 3),

@@ -247,13 +247,17 @@ def _chosen(pairings: Sequence[_Pairing], s: DoubtSettings) -> tuple[_Pairing, i
 def _placed(p: _Pairing, sigma: Mapping[Hashable, float]) -> bool:
     """Whether the pairing's cameras place its ball within :data:`MAX_SPREAD_M`, or :data:`GRASS_SPREAD_M` where
     the grass places it (:func:`_grass_placed`): one standard deviation along the worst direction, each member's
-    pixel sigma ``sigma`` (px at 1920 width) at least :data:`MIN_SIGMA_PX`
-    (:func:`app.geometry.spread.position_sigma_m`). Asked of the chosen pairing only: a
-    candidate placed badly is still a rival the rays cannot tell from it (dropping it first would let a false box
-    at a better fixed depth win alone)."""
-    spread = position_sigma_m([m.obs for m in p.members], p.ball,
-                              {m.view.view_id: read_sigma(sigma, m.view.view_id) for m in p.members})
+    pixel sigma ``sigma`` (px at 1920 width) at least :data:`MIN_SIGMA_PX` (:func:`_spread`). Asked of the chosen
+    pairing only: a candidate placed badly is still a rival the rays cannot tell from it (dropping it first would let
+    a false box at a better fixed depth win alone)."""
+    spread = _spread(p, sigma)
     return spread is not None and spread <= (GRASS_SPREAD_M if _grass_placed(p) else MAX_SPREAD_M)
+
+
+def _spread(p: _Pairing, sigma: Mapping[Hashable, float]) -> float | None:
+    """The pairing's ball's spread (m, :func:`app.geometry.spread.position_sigma_m`) at its members' pixel sigmas."""
+    return position_sigma_m([m.obs for m in p.members], p.ball,
+                            {m.view.view_id: read_sigma(sigma, m.view.view_id) for m in p.members})
 
 
 def _grass_placed(p: _Pairing) -> bool:
