@@ -37,6 +37,9 @@ export const CSRF_HEADER = "X-CSRF-Token";
 export const LOGIN_PAGE = "/login";
 
 let mePromise = null;
+/** Set while the person logs out: the page's other calls answered 401 then must not send the person to the login
+ * page with this page to come back to (the log-out goes to the plain login page itself). */
+let leaving = false;
 
 /** GET /api/auth/me, asked once per page: {name, role, via, csrf_token}. A 401 sends the person to
  * the login page (and back here afterwards). */
@@ -70,7 +73,7 @@ function needsSession(url) {
 
 /** A 401 means the session is gone (or never was): go and log in, then come back. */
 function toLogin() {
-  if (location.pathname !== LOGIN_PAGE) location.assign(loginUrl());
+  if (!leaving && location.pathname !== LOGIN_PAGE) location.assign(loginUrl());
 }
 
 /** fetch with the CSRF header on writes (unless `init.csrf` is false: the login, before any session)
@@ -139,6 +142,7 @@ export function login(name, password) {
 
 /** POST /api/auth/logout: ends the session (every browser session of this user). */
 export async function logout() {
+  leaving = true;
   await request("POST", "/api/auth/logout");
   mePromise = null;
 }

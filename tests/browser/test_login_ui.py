@@ -5,6 +5,7 @@ logging out leads back to the login page. The demo hint appears only once the de
 from __future__ import annotations
 
 import re
+import time
 
 import pytest
 
@@ -47,6 +48,59 @@ def test_a_visitor_logs_in_and_returns_to_the_link_then_logs_out(browser, server
         visitor.wait_for_url(f"{server_url}/login")
         visitor.goto("/")
         visitor.wait_for_url(f"{server_url}/login?next=%2F")
+    finally:
+        context.close()
+    assert not errors, errors
+
+
+def _pump_until(page, condition, what: str, seconds: float = 30.0) -> None:
+    """Let Playwright deliver the page's events (routes, console) until ``condition()`` holds; fail naming ``what``
+    after ``seconds``. (A ``wait_for_function`` would wait for the next document once a navigation is under way.)"""
+    deadline = time.monotonic() + seconds
+    while not condition():
+        assert time.monotonic() < deadline, f"waited {seconds:.0f} s for {what}"
+        page.wait_for_timeout(20)
+
+
+def test_a_call_refused_while_logging_out_leaves_the_person_on_the_plain_login_page(
+        browser, server_url, accounts, page) -> None:
+    """The page's own calls (the jobs poll, the presence beat) run on while the person logs out; one answered 401
+    after the log-out has sent the page to the login page must not turn that into "log in and come back here". The
+    timing is made certain here: the page's call is held until the log-out's navigation is under way, and that
+    navigation is held until the call has been refused."""
+    sid = api_json(page, "/api/systems?sort=name&limit=1")["items"][0]["id"]  # read as the admin
+    context = browser.new_context(viewport={"width": 1440, "height": 900}, base_url=server_url)
+    errors: list[str] = []
+    visitor = context.new_page()
+    visitor.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        visitor.goto("/login")
+        log_in(visitor, accounts["annotator"])
+        visitor.wait_for_url(f"{server_url}/")
+        visitor.goto(f"/systems/{sid}")
+        visitor.locator(tid("logout")).wait_for()
+
+        # what the page's call ended with, as the page logs it (its JS runs on until the login page comes)
+        refused: list[str] = []
+        visitor.on("console", lambda msg: refused.append(msg.text) if msg.text.startswith("refused") else None)
+        held_call: list = []
+        held_login: list = []
+        visitor.route(re.compile(r"/api/systems\?limit=1&during=logout$"), lambda route: held_call.append(route))
+        visitor.route(re.compile(r"/login$"), lambda route: held_login.append(route))
+        visitor.evaluate("""() => { import('/static/js/api.js')
+          .then((api) => api.send('GET', '/api/systems?limit=1&during=logout'))
+          .catch((err) => console.log(`refused ${err.status}`)); }""")
+        _pump_until(visitor, lambda: held_call, "the page's call to be held")
+
+        visitor.click(tid("logout"))
+        _pump_until(visitor, lambda: held_login, "the log-out to be answered and the login page asked for")
+        held_call[0].continue_()  # the session is over on the server: a real 401
+        _pump_until(visitor, lambda: refused, "the page's call to be refused")
+        assert refused == ["refused 401"]
+        held_login[0].continue_()
+        visitor.wait_for_load_state()
+        visitor.locator(tid("login-submit")).wait_for()
+        assert visitor.url == f"{server_url}/login"
     finally:
         context.close()
     assert not errors, errors
