@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 import time
+from contextlib import contextmanager
 
 import pytest
 
@@ -17,13 +18,24 @@ from tests.browser.support import api_json, log_in, tid
 pytestmark = pytest.mark.browser
 
 
-def test_a_visitor_logs_in_and_returns_to_the_link_then_logs_out(browser, server_url, accounts, page) -> None:
-    sid = api_json(page, "/api/systems?sort=name&limit=1")["items"][0]["id"]  # read as the admin
+@contextmanager
+def _visitor(browser, server_url: str):
+    """A page in a new browser context (no session yet); on leaving, the context is closed and any script error the
+    page raised fails the test."""
     context = browser.new_context(viewport={"width": 1440, "height": 900}, base_url=server_url)
     errors: list[str] = []
     visitor = context.new_page()
     visitor.on("pageerror", lambda exc: errors.append(str(exc)))
     try:
+        yield visitor
+    finally:
+        context.close()
+    assert not errors, errors
+
+
+def test_a_visitor_logs_in_and_returns_to_the_link_then_logs_out(browser, server_url, accounts, page) -> None:
+    sid = api_json(page, "/api/systems?sort=name&limit=1")["items"][0]["id"]  # read as the admin
+    with _visitor(browser, server_url) as visitor:
         visitor.goto(f"/systems/{sid}?sort=name")
         visitor.wait_for_url(re.compile(rf"/login\?next=%2Fsystems%2F{sid}%3Fsort%3Dname$"))
         assert visitor.locator(tid("demo-hint")).is_hidden()  # no demo account in this database
@@ -48,9 +60,6 @@ def test_a_visitor_logs_in_and_returns_to_the_link_then_logs_out(browser, server
         visitor.wait_for_url(f"{server_url}/login")
         visitor.goto("/")
         visitor.wait_for_url(f"{server_url}/login?next=%2F")
-    finally:
-        context.close()
-    assert not errors, errors
 
 
 def _pump_until(page, condition, what: str, seconds: float = 30.0) -> None:
@@ -69,11 +78,7 @@ def test_a_call_refused_while_logging_out_leaves_the_person_on_the_plain_login_p
     timing is made certain here: the page's call is held until the log-out's navigation is under way, and that
     navigation is held until the call has been refused."""
     sid = api_json(page, "/api/systems?sort=name&limit=1")["items"][0]["id"]  # read as the admin
-    context = browser.new_context(viewport={"width": 1440, "height": 900}, base_url=server_url)
-    errors: list[str] = []
-    visitor = context.new_page()
-    visitor.on("pageerror", lambda exc: errors.append(str(exc)))
-    try:
+    with _visitor(browser, server_url) as visitor:
         visitor.goto("/login")
         log_in(visitor, accounts["annotator"])
         visitor.wait_for_url(f"{server_url}/")
@@ -101,9 +106,6 @@ def test_a_call_refused_while_logging_out_leaves_the_person_on_the_plain_login_p
         visitor.wait_for_load_state()
         visitor.locator(tid("login-submit")).wait_for()
         assert visitor.url == f"{server_url}/login"
-    finally:
-        context.close()
-    assert not errors, errors
 
 
 def test_the_demo_hint_appears_once_the_demo_account_exists(browser, server_url, seeded_settings) -> None:
