@@ -24,6 +24,20 @@ os.environ["V3D_ALLOWED_HOSTS"] = ",".join(filter(None, [os.environ.get("V3D_ALL
 write_units.CHECK_VERSIONS = True
 
 
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups (its worker's hook of the same name)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The marks the tiers and passes select by that follow from others (docs/testing.md): a ``served`` test runs
+    the production write path on a real engine, so it is an ``engine`` test. A test without an ``xdist_group`` of
+    its own runs on the worker that runs the rest of its module (``--dist loadgroup``): a module's fixtures (a
+    served database, a Chromium page's login) are made once, and the tests of a module that walk one database step
+    by step keep their order."""
+    for item in items:
+        if item.get_closest_marker("served") is not None:
+            item.add_marker(pytest.mark.engine)
+        if item.get_closest_marker("xdist_group") is None:
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0].removeprefix("tests/")))
+
+
 @pytest.fixture(scope="session")
 def shared_dir() -> Path:
     """``../shared`` beside the checkout; tests that need it skip with the reason when it is absent."""
@@ -126,12 +140,14 @@ def db_session(db_connection: sa.Connection) -> Iterator[Session]:
 
 
 @pytest.fixture
-def db_settings(db_url: str, tmp_path_factory: pytest.TempPathFactory) -> Settings:
+def db_settings(db_url: str, tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> Settings:
     """Settings pointing at the test database; calibration runs in-process (one worker); HTTP imports may
     read the test session's temporary folders (the data root); no job runner thread (tests run queued
-    jobs themselves, on their own session factory; the fault tests start real servers)."""
+    jobs themselves, on their own session factory; the fault tests start real servers). The jobs' files are the
+    test's own: job ids start again in every test's database (a rolled-back transaction, a copied template), and a
+    PostgreSQL database would otherwise keep them under the checkout's ``var/``, shared by every worker."""
     return Settings(database_url=db_url, calibration_workers=1, data_root=tmp_path_factory.getbasetemp(),
-                    job_runner=False, allowed_hosts=[TEST_CLIENT_HOST])
+                    job_runner=False, allowed_hosts=[TEST_CLIENT_HOST], jobs_dir=tmp_path / "jobs")
 
 
 #: The local PostgreSQL server of the ``postgres``-marked tests (trust authentication).

@@ -19,6 +19,8 @@ from tests.accounts import Account, as_token
 from .conftest import run_queued
 from .factories import Scene, make_game, make_system
 
+pytestmark = pytest.mark.engine
+
 
 @pytest.fixture
 def annotator(app: FastAPI, accounts: dict[str, Account]):

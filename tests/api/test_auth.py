@@ -22,6 +22,8 @@ from tests.accounts import Account, as_session, as_token
 
 from .factories import Scene
 
+pytestmark = pytest.mark.engine
+
 #: (method, path) answered without a principal: the pages, the docs, the login and its demo hint.
 PUBLIC = {("GET", "/"), ("GET", "/login"), ("GET", "/docs"), ("GET", "/openapi.json"), ("GET", "/systems/{system_id}"),
           ("POST", "/api/auth/login"), ("GET", "/api/auth/demo"), ("GET", "/api/health")}

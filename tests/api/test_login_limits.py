@@ -13,6 +13,8 @@ from app.db.models import RateLimitCounter
 from app.main import create_app
 from tests.accounts import Account
 
+pytestmark = pytest.mark.engine
+
 NOW = 1_900_000_000.0
 
 

@@ -10,12 +10,15 @@ import time
 from pathlib import Path
 
 import httpx
+import pytest
 from prometheus_client.parser import text_string_to_metric_families
 
 from app.core.paths import PROJECT_ROOT
 from app.db.session import upgrade_database
 from tests.accounts import make_accounts
 from tests.live_server import free_port
+
+pytestmark = pytest.mark.processes
 
 _SERVE = "import sys; from app.cli import main; sys.argv = ['v3d', *sys.argv[1:]]; main()"
 

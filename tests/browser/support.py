@@ -40,6 +40,19 @@ def import_into_new_database(settings, *datasets, then=None) -> None:
         engine.dispose()
 
 
+#: The synthetic SoccerNet-v3 dev set (2 games, 40 systems) under ``../shared``.
+DEV_SET = ("data", "synthetic", "soccernet-v3-dev")
+
+
+def seed_dev_set(seeded_databases, shared_dir: Path, into: Path):
+    """Settings of a copy in ``into`` of a seeded database (``tests/browser/conftest.py``'s ``SeededDatabases``)
+    holding the dev set (:data:`DEV_SET`) imported as a user would, its frames named under the data root
+    ``../shared/data``."""
+    return seeded_databases.copy("soccernet-v3-dev",
+                                 lambda settings: import_into_new_database(settings, shared_dir.joinpath(*DEV_SET)),
+                                 into, data_root=shared_dir / "data")
+
+
 def tid(name: str) -> str:
     """The CSS selector of the element whose ``data-testid`` is ``name``."""
     return TESTID.format(name)

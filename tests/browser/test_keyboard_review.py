@@ -8,22 +8,16 @@ import pytest
 
 from benchmarks.keyboard_review import LAST_SYSTEM_TEXT, review_by_keyboard, summary
 from tests.browser.support import api_json as _api
-from tests.browser.support import import_into_new_database, tid
+from tests.browser.support import seed_dev_set, tid
 
 pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
-def seeded_settings(tmp_path_factory: pytest.TempPathFactory, shared_dir):
+def seeded_settings(seeded_databases, shared_dir, tmp_path_factory: pytest.TempPathFactory):
     """This module's database: ``soccernet-v3-dev`` (2 games, 40 systems) imported through the importer
     (the browser fixtures of conftest.py serve it and log the admin in)."""
-    from app.core.config import Settings
-
-    dev = shared_dir / "data" / "synthetic" / "soccernet-v3-dev"
-    root = tmp_path_factory.mktemp("kb")
-    settings = Settings(database_url=f"sqlite:///{root / 'kb.sqlite3'}", calibration_workers=1, data_root=dev.parent)
-    import_into_new_database(settings, dev)
-    return settings
+    return seed_dev_set(seeded_databases, shared_dir, tmp_path_factory.mktemp("kb"))
 
 
 def test_the_40_dev_systems_reviewed_by_keyboard_only(page, artifacts, capsys):

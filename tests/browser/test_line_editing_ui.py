@@ -11,23 +11,15 @@ from pathlib import Path
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, import_into_new_database, tid
+from tests.browser.support import api_write, seed_dev_set, tid
 
 pytestmark = pytest.mark.browser
 
-DEV = ("data", "synthetic", "soccernet-v3-dev")
-
 
 @pytest.fixture(scope="module")
-def seeded_settings(tmp_path_factory: pytest.TempPathFactory, shared_dir: Path):
-    """A fresh database holding the synthetic dev set (both games), imported as a user would."""
-    from app.core.config import Settings
-
-    root = tmp_path_factory.mktemp("lines-ui")
-    settings = Settings(database_url=f"sqlite:///{root / 'ui.sqlite3'}", calibration_workers=1,
-                        data_root=shared_dir / "data")
-    import_into_new_database(settings, shared_dir.joinpath(*DEV))
-    return settings
+def seeded_settings(seeded_databases, shared_dir: Path, tmp_path_factory: pytest.TempPathFactory):
+    """A copy of the synthetic dev set (both games), imported as a user would."""
+    return seed_dev_set(seeded_databases, shared_dir, tmp_path_factory.mktemp("lines-ui"))
 
 
 def _system(page, name: str, views: int) -> dict:

@@ -3,6 +3,7 @@ used a moment ago is handed out as it is, one that waited longer is pinged and, 
 seeing an error. Reads that need no snapshot run without a transaction of their own (``reads_on_their_own``)."""
 from __future__ import annotations
 
+import pytest
 import sqlalchemy as sa
 
 from app.db import session as db_session_module
@@ -13,6 +14,8 @@ from app.db.session import (
     reads_as_one_snapshot,
     reads_on_their_own,
 )
+
+pytestmark = pytest.mark.engine
 
 
 def test_a_pooled_connection_is_pinged_only_after_idling_and_replaced_when_dead(pg_url: str, monkeypatch) -> None:

@@ -13,6 +13,8 @@ import sqlalchemy as sa
 from app.core.paths import PROJECT_ROOT
 from app.db.session import make_engine
 
+pytestmark = [pytest.mark.engine, pytest.mark.processes]
+
 #: Each process waits for the start file, then runs the start-up migration of ``v3d serve``.
 _MIGRATE = """
 import os, sys, time

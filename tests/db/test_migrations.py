@@ -12,6 +12,8 @@ from sqlalchemy.exc import SAWarning
 from app.db.models import Base
 from app.db.session import alembic_config, make_engine, upgrade_database
 
+pytestmark = pytest.mark.engine
+
 
 def test_upgrade_then_check_on_sqlite(tmp_path):
     url = f"sqlite:///{tmp_path / 'nested' / 'm.sqlite3'}"
@@ -75,6 +77,7 @@ def test_upgrade_then_check_on_postgres(pg_url):
     assert type(cols["jac_0005"]["type"]).__name__ == "DOUBLE_PRECISION"
 
 
+@pytest.mark.processes
 def test_alembic_command_line_takes_the_url_from_the_settings(tmp_path):
     """``alembic upgrade head`` then ``alembic check``, as CI runs them, with ``V3D_DATABASE_URL``."""
     import os

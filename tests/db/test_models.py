@@ -25,6 +25,8 @@ from app.db.models import (
 )
 from app.db.types import json_safe
 
+pytestmark = pytest.mark.engine
+
 
 def _game(session: Session, match: str = "m") -> Game:
     game = Game(league="l", season="s", match=match, source_path="/x")

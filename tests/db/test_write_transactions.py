@@ -15,6 +15,8 @@ from sqlalchemy.orm import Session
 from app.db.models import Game
 from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
 
+pytestmark = pytest.mark.engine
+
 
 @pytest.fixture
 def two_processes(tmp_path: Path):

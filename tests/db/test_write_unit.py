@@ -12,6 +12,8 @@ from app.db.models import BallKind, BallLabel, Frame, FrameRole, Game, ReviewDec
 from app.db.scope import system_tables
 from app.db.unit import VersionNotBumped, write_unit
 
+pytestmark = pytest.mark.engine
+
 
 @pytest.fixture
 def system(db_session: Session) -> System:

@@ -20,6 +20,8 @@ from tests.accounts import Account, as_session, as_token
 
 from ..factories import Scene, make_game, make_system
 
+pytestmark = pytest.mark.engine
+
 
 @pytest.fixture
 def clients(app: FastAPI, accounts: dict[str, Account]) -> Iterator[dict[str, TestClient]]:

@@ -31,6 +31,8 @@ from app.db.models import Game
 from ..conftest import run_queued
 from ..factories import Scene, make_system
 
+pytestmark = pytest.mark.engine
+
 GAME = "england_epl/2014-2015/2015-02-21 - 18-00 Chelsea 1 - 1 Burnley"
 
 

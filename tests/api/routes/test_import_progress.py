@@ -15,6 +15,8 @@ from app.services.jobs.progress import live_file, read_live
 
 from .test_jobs import _dev_game_zip, _upload
 
+pytestmark = pytest.mark.engine
+
 
 @pytest.fixture
 def jobs_app(app, tmp_path: Path):

@@ -12,6 +12,8 @@ from fastapi.testclient import TestClient
 from ..conftest import run_queued
 from ..factories import Scene
 
+pytestmark = pytest.mark.engine
+
 
 @pytest.fixture
 def jobs_app(app, tmp_path: Path):

@@ -10,6 +10,8 @@ from app.core.config import Settings
 
 from ..factories import Scene, make_game, make_system
 
+pytestmark = pytest.mark.engine
+
 
 @pytest.fixture
 def three(db_session: Session, db_settings: Settings) -> list[Scene]:

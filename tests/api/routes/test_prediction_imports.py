@@ -8,6 +8,7 @@ import io
 import zipfile
 from pathlib import Path
 
+import pytest
 import sqlalchemy as sa
 from fastapi.testclient import TestClient
 from typer.testing import CliRunner
@@ -16,6 +17,8 @@ from tests.accounts import as_token
 
 from ..conftest import run_queued
 from ..factories import Scene
+
+pytestmark = pytest.mark.engine
 
 HEADER = "league,season,match,image,x1,y1,x2,y2,score\n"
 GAME = "england_epl,2014-2015,2015-02-21 - 18-00 Chelsea 1 - 1 Burnley"

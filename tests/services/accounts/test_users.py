@@ -16,6 +16,8 @@ from app.db.types import utcnow
 from app.services.accounts import users
 from app.services.audit import log as audit
 
+pytestmark = pytest.mark.engine
+
 
 def test_passwords_are_stored_as_argon2id_hashes_that_verify(db_session: Session) -> None:
     user, _ = users.create_user(db_session, "ana", "annotator", "s3cret pass")

@@ -17,6 +17,8 @@ from app.services.curation.reverting import revert_entry
 from app.services.derivation.recompute import refresh_stale_systems
 from app.services.transfer.importing import import_soccernet_v3
 
+pytestmark = pytest.mark.engine
+
 
 def _entries(session) -> list[AuditEntry]:
     """The entries of the data's edits, imports and recomputes (the test users' own ``user.create`` entries,

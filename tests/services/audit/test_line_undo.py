@@ -14,6 +14,8 @@ from app.services.curation.editing import replace_field_lines
 from app.services.curation.writing import EditContext
 from app.services.derivation.recompute import recompute_frame
 
+pytestmark = pytest.mark.engine
+
 
 def _frame(systems, system, name) -> Frame:
     return next(f for f in systems[system].frames if f.name == name)

@@ -15,6 +15,8 @@ from app.services.curation import assignment, presence, queue
 from app.services.curation.queue import SystemFilters
 from app.services.curation.reverting import revert_entry
 
+pytestmark = pytest.mark.engine
+
 T0 = datetime(2026, 11, 23, 20, 0, tzinfo=timezone.utc)
 
 

@@ -14,7 +14,7 @@ from app.db.models import Game, System, SystemKind
 from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
 from app.services.curation.writing import lock_system
 
-pytestmark = pytest.mark.postgres
+pytestmark = [pytest.mark.postgres, pytest.mark.engine]
 
 
 @pytest.fixture

@@ -19,6 +19,8 @@ from app.services.calibration.calibrating import calibrate_lines, expected_side
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import replace_field_lines, update_ball_label
 
+pytestmark = pytest.mark.engine
+
 
 def _frame(systems, system, name) -> Frame:
     return next(f for f in systems[system].frames if f.name == name)

@@ -15,6 +15,8 @@ from app.services.curation import decisions, editing, passes, queue, writing
 from app.services.curation.queue import SystemFilters
 from tests.api.factories import Scene, ball_box, make_game, make_system
 
+pytestmark = pytest.mark.engine
+
 
 @pytest.fixture
 def six(db_session: Session, db_settings: Settings) -> list[Scene]:

@@ -15,6 +15,8 @@ from app.geometry.doubts import LABEL_KIND_SEVERITY, LABEL_KINDS, label_severity
 from app.services.curation import queue
 from app.services.curation.queue import SystemFilters
 
+pytestmark = pytest.mark.engine
+
 SORTS = ["-severity", "severity", "-doubts", "doubts", "-worst_error",
           "worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
 FILTERS = {

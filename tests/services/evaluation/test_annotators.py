@@ -19,6 +19,8 @@ from app.services.derivation.recompute import recompute_system
 from app.services.evaluation.annotators import FIELDS, annotator_figures
 from tests.api.factories import WIDTH, make_game, make_system
 
+pytestmark = pytest.mark.engine
+
 T0 = datetime(2026, 11, 1, 12, 0, tzinfo=timezone.utc)
 
 

@@ -12,6 +12,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
@@ -59,6 +60,7 @@ def _database(tmp_path: Path) -> tuple[str, Settings, Session, list[int]]:
     return url, settings, session, ids
 
 
+@pytest.mark.processes
 def test_a_release_exports_to_the_same_bytes_from_two_processes_and_its_hash_is_recomputed(tmp_path: Path) -> None:
     url, settings, session, ids = _database(tmp_path)
     release_hash = create_release(session, "v1", "note", actor="adam").hash

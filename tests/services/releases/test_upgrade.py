@@ -20,6 +20,8 @@ from app.main import create_app
 from app.services.exports.files import write_export_zip
 from tests.services.releases.make_golden import write_issia
 
+pytestmark = pytest.mark.processes
+
 ROOT = Path(__file__).resolve().parents[3]
 OLD = "158795d"
 FORMATS = ("soccernet-v3d", "yolo", "coco", "cameras", "issia-3d")

@@ -20,6 +20,8 @@ from app.services.storage.s3 import MULTIPART_BYTES, S3Storage
 from app.services.storage.stores import FileStorage, Storage
 from tests.seaweed import Seaweed, start_seaweed, weed_binary
 
+pytestmark = pytest.mark.processes
+
 # The smallest PNG: 1x1, one grey pixel.
 PNG = bytes.fromhex("89504e470d0a1a0a0000000d4948445200000001000000010800000000"
                     "3a7e9b550000000a49444154789c63600000000200017355d5350000000049454e44ae426082")

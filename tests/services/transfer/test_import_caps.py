@@ -7,6 +7,7 @@ import json
 import zipfile
 from pathlib import Path
 
+import pytest
 import sqlalchemy as sa
 
 from app.db.models import Frame, System
@@ -14,6 +15,8 @@ from app.services.jobs.work import import_result
 from app.services.transfer.importing import import_soccernet_v3
 
 from ..datasets import DEV_GAME, dev_game_dir, write_v3_game
+
+pytestmark = pytest.mark.engine
 
 
 def _grow(action: str, views: int):

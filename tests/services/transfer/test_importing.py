@@ -31,6 +31,8 @@ from app.services.wording.words import WORDS
 
 from ..datasets import DEV_GAME, dev_game_dir, true_balls, write_calibration_zip, write_v3_game
 
+pytestmark = pytest.mark.engine
+
 
 def _counts(session) -> dict[str, int]:
     tables = ("games", "systems", "frames", "field_lines", "calibrations", "ball_labels", "triangulations",

@@ -23,6 +23,8 @@ from app.services.transfer import predictions as module
 from app.services.transfer.detector_files import load_predictions
 from app.services.transfer.predictions import import_predictions
 
+pytestmark = pytest.mark.engine
+
 HEADER = "league,season,match,image,x1,y1,x2,y2,score\n"
 
 

@@ -18,6 +18,8 @@ from app.services.transfer.predictions import (
     remove_predictions,
 )
 
+pytestmark = pytest.mark.engine
+
 HEADER = "league,season,match,image,x1,y1,x2,y2,score\n"
 
 
