@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -30,12 +31,46 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     the production write path on a real engine, so it is an ``engine`` test. A test without an ``xdist_group`` of
     its own runs on the worker that runs the rest of its module (``--dist loadgroup``): a module's fixtures (a
     served database, a Chromium page's login) are made once, and the tests of a module that walk one database step
-    by step keep their order."""
+    by step keep their order.
+
+    The browser tests run last, in their order: the session's Chromium (:func:`browser`) holds Playwright's event
+    loop in the process from its first test on, where ``asyncio.run`` (``tests/api/test_bodies.py``) refuses to
+    start another. pytest-xdist hands the modules out in this order, so a worker that has begun them runs nothing
+    else."""
     for item in items:
         if item.get_closest_marker("served") is not None:
             item.add_marker(pytest.mark.engine)
         if item.get_closest_marker("xdist_group") is None:
             item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0].removeprefix("tests/")))
+    items.sort(key=lambda item: item.get_closest_marker("browser") is not None)  # a stable sort: order kept
+
+
+#: Debian's Chromium, and the flags it runs with here (no sandbox as root; no call to Google's services, which
+#: this machine's closed network refuses).
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--no-first-run",
+]
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[object]:
+    """Headless Debian Chromium, one for the test session (each test has a context of its own); the test skips
+    (with the reason) where it is not installed."""
+    if not CHROMIUM.exists() or shutil.which(str(CHROMIUM)) is None:
+        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium (apt-get install -y chromium) to run browser "
+                    "tests")
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright (Python) is not installed")
+    with sync_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, headless=True)
+        try:
+            yield b
+        finally:
+            b.close()
 
 
 @pytest.fixture(scope="session")

@@ -3,13 +3,13 @@ database seeded with the demo dataset and two users (``tests/accounts.py``: ``te
 ``test-annotator``), and a headless Debian Chromium driven by Playwright. ``page`` is the admin's
 browser, logged in once per module through the login page (where the queue sends a visitor).
 
-What costs seconds is made once per test session (per pytest-xdist worker): Chromium, and each seeded database
+What costs seconds is made once per test session (per pytest-xdist worker): Chromium (``browser``, of
+``tests/conftest.py``), and each seeded database
 (:class:`SeededDatabases`: the demo imported and calibrated, its accounts made), which every module then copies
 into a file of its own, so that a module's edits reach no other module."""
 from __future__ import annotations
 
 import json
-import shutil
 import sqlite3
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -20,14 +20,6 @@ from tests.accounts import Account, make_accounts
 from tests.browser.support import import_into_new_database, log_in
 from tests.live_server import serve_app
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--no-first-run",
-]
 #: Screenshots of the walk (gitignored), for people to look at.
 ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
 #: The accounts every seeded database holds.
@@ -154,22 +146,6 @@ def admin_state(browser, server_url, accounts) -> dict:
         return context.storage_state()
     finally:
         context.close()
-
-
-@pytest.fixture(scope="session")
-def browser() -> Iterator[object]:
-    """Headless Debian Chromium, one for the test session (each test has a context of its own); the test skips
-    (with the reason) where it is not installed."""
-    if not CHROMIUM.exists() or shutil.which(str(CHROMIUM)) is None:
-        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium (apt-get install -y chromium) to run browser "
-                    "tests")
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright (Python) is not installed")
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, headless=True)
-        try:
-            yield b
-        finally:
-            b.close()
 
 
 @pytest.fixture

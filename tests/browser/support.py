@@ -89,6 +89,17 @@ def api_write(page, method: str, path: str, data=None, headers: dict | None = No
     return response
 
 
+def wait_until(check, timeout_s: float = 30.0, every_s: float = 0.1):
+    """Call ``check()`` until it answers something true, and answer that; the condition a test waits for when no
+    element or response of a page says it (a row the server writes after a page has gone, say). Fails the test
+    with the last answer after ``timeout_s``: a bound for a machine under load, not a measure of speed."""
+    deadline = time.monotonic() + timeout_s
+    while not (answer := check()):
+        assert time.monotonic() < deadline, f"still {answer!r} after {timeout_s} s"
+        time.sleep(every_s)
+    return answer
+
+
 def log_in(page, account) -> None:
     """Fill and send the login page the page is on with the account's name and password."""
     page.locator(tid("login-form")).wait_for()

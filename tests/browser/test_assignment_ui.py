@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from tests.accounts import PASSWORD, Account
-from tests.browser.support import api_json, log_in, tid
+from tests.browser.support import api_json, log_in, tid, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -34,8 +34,10 @@ def annotators(seeded_settings) -> dict[str, Account]:
 
 
 def _browser_of(browser, server_url, account: Account):
-    """A new 1366x768 context logged in through the login page as ``account``; JS errors collected."""
+    """A new 1366x768 context logged in through the login page as ``account``; JS errors collected. Its timers run
+    on Playwright's clock (real time, which the test may move forward: ``p.clock.fast_forward``)."""
     context = browser.new_context(viewport=VIEWPORT, base_url=server_url)
+    context.clock.install()
     p = context.new_page()
     p.errors = []
     p.on("pageerror", lambda exc: p.errors.append(str(exc)))
@@ -98,10 +100,12 @@ def test_admin_assigns_a_sees_my_systems_b_sees_a_present(browser, server_url, p
         assert a.locator(tid("presence")).is_hidden()  # nobody else there
         assert "assignee=me" in a.url  # prev / next stay within her systems
 
-        # ----- B: the queue row (B's queue was open before A came: it re-reads its rows' people every 30 s)
-        # and the system page say that A has it open
+        # ----- B: the queue row (B's queue was open before A came: it re-reads its rows' people every 30 s, here
+        # moved forward on its clock instead of waited for) and the system page say that A has it open
         row = b.locator(f'{tid("queue-row")}[data-id="{target}"]')
-        row.locator(tid("row-presence")).wait_for(timeout=40_000)
+        assert row.locator(tid("row-presence")).count() == 0
+        b.clock.fast_forward("00:31")
+        row.locator(tid("row-presence")).wait_for()
         assert row.locator(tid("row-presence")).inner_text() == "ana has it open"
         assert row.locator(tid("row-assignee")).inner_text() == "→ ana"
         row.scroll_into_view_if_needed()
@@ -122,12 +126,8 @@ def test_admin_assigns_a_sees_my_systems_b_sees_a_present(browser, server_url, p
         # ----- A goes back to the queue: her claim ends now, not in two minutes
         a.goto("/")
         a.locator(tid("queue-row")).first.wait_for()
-        for _ in range(20):  # the keepalive DELETE of the page left behind reaches the server shortly
-            open_by = [p["name"] for p in api_json(b, f"/api/systems/{target}")["open_by"]]
-            if open_by == ["ben"]:
-                break
-            a.wait_for_timeout(100)
-        assert open_by == ["ben"]
+        # the keepalive DELETE of the page left behind reaches the server shortly
+        wait_until(lambda: [p["name"] for p in api_json(b, f"/api/systems/{target}")["open_by"]] == ["ben"])
         assert not a.errors and not b.errors, (a.errors, b.errors)
     finally:
         a_ctx.close()
