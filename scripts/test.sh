@@ -3,8 +3,8 @@
 #   bash scripts/test.sh          CI's suite (.ci/run runs it): every behaviour at a size that fits, on SQLite; then
 #                                 the tests whose behaviour depends on the database engine again on PostgreSQL
 #                                 (V3D_CI_POSTGRES_URL, the local server by default; said and skipped when it is down)
-#   bash scripts/test.sh --quick  geometry, services and API on SQLite, no browser, no processes of their own: the
-#                                 edit-run loop
+#   bash scripts/test.sh --quick  geometry, services and API on SQLite, no browser, no processes of their own, no
+#                                 test that reads ../shared's data sets: the edit-run loop
 #   bash scripts/test.sh --slow   the full-size load, concurrency, fault, fuzz, upgrade and two-node runs
 # Each pass runs on V3D_TEST_WORKERS pytest-xdist workers (2: both cores of the machine CI runs on). Installs the
 # test packages and, when root, Debian's Chromium for the browser tests.
@@ -41,8 +41,8 @@ PY
 
 case "$tier" in
   quick)
-    exec "${pytest[@]}" -m "not (browser or processes or slow or postgres)" tests/geometry tests/services tests/api \
-      app "$@" ;;
+    exec "${pytest[@]}" -m "not (browser or processes or slow or postgres or shared)" tests/geometry tests/services \
+      tests/api app "$@" ;;
   slow)
     exec "${pytest[@]}" -m slow "$@" ;;
 esac

@@ -28,7 +28,8 @@ write_units.CHECK_VERSIONS = True
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups (its worker's hook of the same name)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """The marks the tiers and passes select by that follow from others (docs/testing.md): a ``served`` test runs
-    the production write path on a real engine, so it is an ``engine`` test. A test without an ``xdist_group`` of
+    the production write path on a real engine, so it is an ``engine`` test; a test that reads ``../shared``
+    (:func:`shared_dir`) is a ``shared`` one. A test without an ``xdist_group`` of
     its own runs on the worker that runs the rest of its module (``--dist loadgroup``): a module's fixtures (a
     served database, a Chromium page's login) are made once, and the tests of a module that walk one database step
     by step keep their order.
@@ -40,6 +41,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("served") is not None:
             item.add_marker(pytest.mark.engine)
+        if "shared_dir" in getattr(item, "fixturenames", ()):  # doctests have no fixtures
+            item.add_marker(pytest.mark.shared)
         if item.get_closest_marker("xdist_group") is None:
             item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0].removeprefix("tests/")))
     items.sort(key=lambda item: item.get_closest_marker("browser") is not None)  # a stable sort: order kept

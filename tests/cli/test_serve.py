@@ -32,6 +32,32 @@ def database(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
     get_settings.cache_clear()
 
 
+@pytest.fixture(scope="session")
+def demo_template(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A migrated SQLite file holding the demo as ``v3d serve --demo`` imports it (no account), made once: the
+    tests whose subject is not the demo's import start from a copy of it (:func:`demo_database`)."""
+    from app.cli.serve import load_demo_if_empty
+    from app.core.config import Settings
+
+    path = tmp_path_factory.mktemp("serve-demo") / "v3d.sqlite3"
+    upgrade_database(f"sqlite:///{path}")
+    assert load_demo_if_empty(Settings(_env_file=None, database_url=f"sqlite:///{path}",
+                                       calibration_workers=1)).startswith("demo: imported")
+    return path
+
+
+@pytest.fixture
+def demo_database(database: str, demo_template: Path) -> str:
+    """:func:`database`, holding a copy of the demo already imported (its dataset stays in the template's folder)."""
+    import sqlite3
+
+    target = Path(sa.make_url(database).database or "")
+    target.parent.mkdir(parents=True)
+    with sqlite3.connect(demo_template) as source, sqlite3.connect(target) as copy:
+        source.backup(copy)
+    return database
+
+
 @pytest.fixture
 def served(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
     """The calls ``serve`` makes to ``uvicorn.run`` (the metrics' folder it sets for workers is unset afterwards)."""
@@ -85,20 +111,20 @@ def test_demo_is_refused_behind_a_declared_reverse_proxy(database: str, served: 
 
 
 @pytest.mark.parametrize("host", ["127.0.0.1", "127.0.0.2", "localhost", "::1"])
-def test_demo_is_served_on_loopback_hosts(database: str, served: list, host: str) -> None:
+def test_demo_is_served_on_loopback_hosts(demo_database: str, served: list, host: str) -> None:
     result = CliRunner().invoke(cli, ["serve", "--host", host, "--demo"])
     assert result.exit_code == 0, result.output
     assert len(served) == 1 and served[0]["host"] == host
 
 
-def test_an_enabled_demo_account_keeps_the_server_off_the_network(database: str, served: list) -> None:
+def test_an_enabled_demo_account_keeps_the_server_off_the_network(demo_database: str, served: list) -> None:
     """A database that still holds the enabled demo account (made by an earlier ``--demo``) is not served
     on 0.0.0.0 even without ``--demo``; once the account is disabled it is."""
     assert CliRunner().invoke(cli, ["serve", "--demo"]).exit_code == 0
     result = CliRunner().invoke(cli, ["serve", "--host", "0.0.0.0"])
     assert result.exit_code == 2, result.output
     assert "v3d users disable demo" in result.output
-    engine = make_engine(database)
+    engine = make_engine(demo_database)
     with make_session_factory(engine)() as session:
         session.scalar(sa.select(User).where(User.name == "demo")).disabled = True
         session.commit()
@@ -130,7 +156,7 @@ def test_demo_is_generated_and_imported_into_an_empty_database(database: str, se
     assert len(served) == 1
 
 
-def test_demo_makes_a_labelled_demo_account_and_says_how_to_log_in(database: str, served: list) -> None:
+def test_demo_makes_a_labelled_demo_account_and_says_how_to_log_in(demo_database: str, served: list) -> None:
     """``--demo`` makes the demo account once (``demo`` / ``demo``, admin, flagged); the served app logs
     it in and its login page's hint names it. Without ``--demo`` there is no such account."""
     plain = CliRunner().invoke(cli, ["serve"])
@@ -148,7 +174,7 @@ def test_demo_makes_a_labelled_demo_account_and_says_how_to_log_in(database: str
         login = client.post("/api/auth/login", json={"name": "demo", "password": "demo"})
         assert login.status_code == 200 and login.json()["role"] == "admin"
         assert client.get("/api/systems").json()["total"] > 0
-    engine = make_engine(database)
+    engine = make_engine(demo_database)
     with make_session_factory(engine)() as session:
         assert [(u.name, u.demo) for u in session.scalars(sa.select(User))] == [("demo", True)]
     engine.dispose()
