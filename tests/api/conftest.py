@@ -25,7 +25,7 @@ from app.core.config import Settings
 from app.db.session import make_engine
 from app.main import create_app
 from tests.accounts import Account, as_session, make_accounts
-from tests.conftest import joined_session
+from tests.conftest import create_test_database, joined_session
 
 from .factories import Scene, make_game, make_system
 
@@ -49,7 +49,7 @@ def served_template(db_url: str, db_engine: sa.Engine, accounts: dict[str, Accou
     admin = sa.create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
     name = f"{url.database}_served"
     with admin.connect() as conn:
-        conn.exec_driver_sql(f'CREATE DATABASE "{name}" TEMPLATE "{url.database}"')
+        create_test_database(conn, name, template=url.database)
     try:
         yield name
     finally:
@@ -76,7 +76,7 @@ def served_engine(request: pytest.FixtureRequest, db_url: str, tmp_path) -> Iter
     admin = sa.create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
     name = f"{template}_{uuid.uuid4().hex[:8]}"
     with admin.connect() as conn:
-        conn.exec_driver_sql(f'CREATE DATABASE "{name}" TEMPLATE "{template}"')
+        create_test_database(conn, name, template=template)
     engine = make_engine(url.set(database=name))
     try:
         yield engine
