@@ -10,7 +10,7 @@ import pytest
 from app.geometry.doubts import LABEL_KIND_SEVERITY
 from tests.accounts import PASSWORD, Account
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, log_in, tid
+from tests.browser.support import api_write, log_in, tid, wait_for_steady_layout, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -79,16 +79,17 @@ def test_a_views_number_key_brings_the_selected_view_into_sight(page, artifacts,
     views = page.locator(tid("view"))
     n = views.count()
     for key, back_to in ((n, "top"), (1, "bottom")):
+        # the window scrolled away from the card (at once: the page scrolls without animation), then its key, which
+        # selects and reveals the card as it is handled
         page.evaluate("(where) => window.scrollTo(0, where === 'top' ? 0 : document.body.scrollHeight)", back_to)
-        page.wait_for_timeout(100)
         page.keyboard.press(str(key))
-        page.wait_for_timeout(150)
         card = views.nth(key - 1)
         assert card.evaluate("(e) => e.classList.contains('selected')"), key
+        wait_for_steady_layout(page, tid("view"))  # whatever else moves the cards (an image drawn) has moved them
         assert _seen_px(page, card) >= 100, (key, back_to, _seen_px(page, card))
     (artifacts / "walk-review").mkdir(exist_ok=True)
     page.keyboard.press(str(n))
-    page.wait_for_timeout(150)
+    wait_for_steady_layout(page, tid("view"))
     page.screenshot(path=str(artifacts / f"walk-review/view-key-{size[0]}x{size[1]}.png"))
 
 
@@ -133,7 +134,8 @@ def test_presence_counts_on_and_ends_when_the_others_page_goes(page, browser, se
     try:
         theirs.goto(f"/systems/{system['id']}")
         _loaded(theirs)
-        theirs.wait_for_timeout(500)  # their first heartbeat
+        # their first heartbeat, as the server keeps it
+        wait_until(lambda: any(p["name"] == "walk-ana" for p in _api(page, f"/api/systems/{system['id']}")["open_by"]))
         page.goto(f"/systems/{system['id']}")
         bar = page.locator(tid("presence"))
         bar.filter(has_text="walk-ana has this system open").wait_for()
@@ -216,7 +218,8 @@ def test_a_pass_counts_only_your_decisions_and_a_again_writes_no_second_entry(pa
         counts = page.locator(tid("pass-counts")).inner_text()
         assert counts == (f"1 accepted · 0 rejected · 0 needs fix · {len(theirs)} decided by others or before this "
                           "pass · 0 skipped"), counts
-        page.wait_for_timeout(300)
+        # the page's system reads accepted now: its views' decision bars are drawn again from it
+        page.locator(tid("view-decision-status")).filter(has_text="accepted with the system").first.wait_for()
         page.keyboard.press("a")  # again, on the finished last system
         page.locator(tid("toast")).filter(has_text="already accepted").wait_for()
         entries = _api(page, f"/api/audit?system_id={mine['id']}&limit=50")["items"]
