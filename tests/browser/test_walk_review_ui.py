@@ -136,17 +136,25 @@ def test_presence_counts_on_and_ends_when_the_others_page_goes(page, browser, se
         _loaded(theirs)
         # their first heartbeat, as the server keeps it
         wait_until(lambda: any(p["name"] == "walk-ana" for p in _api(page, f"/api/systems/{system['id']}")["open_by"]))
+        # this page's timers run on Playwright's clock (real time, moved forward here): its counter and heartbeats
+        # (every 10 s) come when the test says, however slow the machine
+        page.clock.install()
         page.goto(f"/systems/{system['id']}")
         bar = page.locator(tid("presence"))
         bar.filter(has_text="walk-ana has this system open").wait_for()
         first = bar.inner_text()
         since = int(re.search(r"since (\d+) s", first).group(1))
+        page.clock.fast_forward(2000)  # less than a heartbeat: the counter moves by itself between them
         page.wait_for_function("(n) => { const m = /since (\\d+) s/.exec(document.querySelector("
                                "'[data-testid=presence]').textContent); return m && Number(m[1]) >= n + 2; }",
-                               arg=since, timeout=5000)  # the counter moves between heartbeats
+                               arg=since)
         theirs.close(run_before_unload=True)  # their tab goes: its pagehide ends the claim
-        bar.wait_for(state="hidden", timeout=20_000)  # gone at this page's next heartbeat
-        assert not any(p["name"] == "walk-ana" for p in _api(page, f"/api/systems/{system['id']}")["open_by"])
+        # ended by it, on the server: a claim left alone would last 50 s after it was written (at their first
+        # heartbeat, seconds ago), longer than this wait's bound
+        wait_until(lambda: not any(p["name"] == "walk-ana"
+                                   for p in _api(page, f"/api/systems/{system['id']}")["open_by"]), timeout_s=30)
+        page.clock.fast_forward("00:11")  # this page's next heartbeat
+        bar.wait_for(state="hidden")  # gone at that heartbeat
     finally:
         context.close()
 
