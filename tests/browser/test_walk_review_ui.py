@@ -304,7 +304,7 @@ def test_enter_after_apply_opens_the_highlighted_row(page):
     page.locator(tid("queue-row")).first.wait_for()
     first = page.locator(tid("queue-row")).first.get_attribute("data-id")
     page.keyboard.press("Enter")  # at once: the highlighted row opens, the filter is not applied again
-    page.wait_for_url(re.compile(rf".*/systems/{first}\b.*"), timeout=5000)
+    page.wait_for_url(re.compile(rf".*/systems/{first}\b.*"))
 
 
 @pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)
