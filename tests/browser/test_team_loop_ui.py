@@ -80,7 +80,9 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
         rev.goto(f"/systems/{sid}")
         view = rev.locator(f'{tid("view")}[data-frame-id="{team["frame_id"]}"]')
         view.wait_for()
-        rev.wait_for_load_state("networkidle")  # the page's cards drawn: the view no longer moves under the click
+        # the page's cards drawn: the view no longer moves under the click
+        rev.wait_for_function("() => !document.body.classList.contains('loading')")
+        wait_for_steady_layout(rev, tid("view"))
         rev.click(tid("comment-pin-start"))
         rev.wait_for_selector("body.pinning")
         frame = view.locator(tid("view-svg"))
