@@ -3,6 +3,7 @@
 logging in through the login page."""
 from __future__ import annotations
 
+import itertools
 import json
 import time
 from pathlib import Path
@@ -98,6 +99,52 @@ def wait_until(check, timeout_s: float = 30.0, every_s: float = 0.1):
         assert time.monotonic() < deadline, f"still {answer!r} after {timeout_s} s"
         time.sleep(every_s)
     return answer
+
+
+def wait_for_job(page, url: str, timeout_s: float = 300.0) -> dict:
+    """The job at ``url`` (its address in the API) once it has ended, done or failed, read through the API until then;
+    ``timeout_s``: a bound for a loaded machine."""
+    def ended():
+        job = api_json(page, url)
+        return job if job["state"] in ("done", "failed") else None
+
+    return wait_until(ended, timeout_s=timeout_s, every_s=0.2)
+
+
+def pump_until(page, condition, what: str, timeout_s: float = 30.0) -> None:
+    """Let Playwright deliver the page's events (requests, routes, dialogs, console messages) until ``condition()``
+    holds; fail naming ``what`` after ``timeout_s``. The sync API hands a test its events only while it is inside a
+    Playwright call, so :func:`wait_until`'s plain sleep would never see them: the short ``wait_for_timeout`` here is
+    that call, polled on a condition, not a guess at how long something takes. (A ``wait_for_function`` cannot stand
+    in for it: it waits for the next document once a navigation is under way.)"""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, f"waited {timeout_s:.0f} s for {what}"
+        page.wait_for_timeout(20)
+
+
+#: True once the boxes of the elements of a selector are the same in ``frames`` animation frames in a row (their
+#: last boxes kept on ``window`` under ``key``, one key per wait).
+_STEADY = """([selector, frames, key]) => {
+  const boxes = JSON.stringify([...document.querySelectorAll(selector)].map((e) => {
+    const r = e.getBoundingClientRect();
+    return [r.left, r.top, r.width, r.height];
+  }));
+  const seen = (window.__steadyLayout ??= {});
+  const last = seen[key];
+  seen[key] = last && last.boxes === boxes ? { boxes, same: last.same + 1 } : { boxes, same: 0 };
+  return document.fonts.status === "loaded" && seen[key].same >= frames;
+}"""
+_steady_waits = itertools.count()
+
+
+def wait_for_steady_layout(page, selector: str = "body *", frames: int = 2, timeout_ms: float = 30_000) -> None:
+    """Wait until the page's fonts are loaded and the elements of ``selector`` keep their boxes over ``frames``
+    animation frames in a row: what a screenshot or a measure of where things are needs (a resize, a redraw or an
+    image still moving them would show a layout on its way). A condition on the layout, checked once per frame, not
+    a time."""
+    page.wait_for_function(_STEADY, arg=[selector, frames, f"w{next(_steady_waits)}"], polling="raf",
+                           timeout=timeout_ms)
 
 
 def log_in(page, account) -> None:

@@ -30,7 +30,7 @@ def _says(page, key: str, text: str) -> None:
     """Press ``key``: the toast says ``text`` (a part of it)."""
     page.evaluate("() => { const t = document.querySelector('[data-testid=toast]'); t.textContent = ''; }")
     page.keyboard.press(key)
-    page.locator(tid("toast")).filter(has_text=text).wait_for(timeout=5000)
+    page.locator(tid("toast")).filter(has_text=text).wait_for()
 
 
 def _systems(page) -> list[dict]:

@@ -3,12 +3,10 @@
 with the detector's name and score, and ``s`` places it as a placement to confirm."""
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, tid
+from tests.browser.support import api_write, tid, wait_for_job, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -38,12 +36,8 @@ def test_a_checked_detection_is_drawn_with_its_score_and_placed_with_its_key(pag
     answer = api_write(page, "POST", "/api/imports", data={"kind": "predictions", "path": str(path),
                                                              "source": "yolo-sn-ball"})
     assert answer.status == 202, answer.text()
-    job = answer.json()
-    for _ in range(240):
-        job = _api(page, job["url"])
-        if job["state"] in ("done", "failed"):
-            break
-        time.sleep(0.25)
+    url = answer.json()["url"]
+    job = wait_for_job(page, url)
     assert job["state"] == "done", job
     system = _api(page, f"/api/systems/{system['id']}")
     kinds = [d["kind"] for d in system["doubts"] if d["frame_id"] == doubt["frame_id"] and d["accuses_label"]]
@@ -58,10 +52,11 @@ def test_a_checked_detection_is_drawn_with_its_score_and_placed_with_its_key(pag
     page.screenshot(path=str(artifacts / "detector-box.png"), full_page=True)
     shown.locator(tid("view-doubt")).first.click()
     page.keyboard.press("s")
-    for _ in range(40):
+
+    def placed():
         ball = _api(page, f"/api/frames/{doubt['frame_id']}")["ball"]
-        if ball and ball.get("box"):
-            break
-        time.sleep(0.25)
+        return ball if ball and ball.get("box") else None
+
+    ball = wait_until(placed, timeout_s=60)
     assert ball["provenance"]["detector"] == "yolo-sn-ball" and ball["provenance"]["score"] == 0.66
     assert [round(v) for v in ball["box"]] == [round(v) for v in box]

@@ -12,7 +12,7 @@ import json
 import pytest
 
 from benchmarks.drag_preview import drag_with_preview, inner_point, open_for_editing
-from tests.browser.support import api_json, tid
+from tests.browser.support import api_json, pump_until, tid
 
 pytestmark = pytest.mark.browser
 
@@ -64,6 +64,27 @@ def test_the_pitch_jac_and_worst_lines_follow_a_dragged_point(page, artifacts):
                            arg=[fid, stored_pitch])
 
 
+#: Counts, in the page, the preview calls it makes (``sent``, as ``fetch`` is called) and their answers it has handled
+#: (``handled``: a task queued once the page has read an answer's body, so behind every promise callback of its own
+#: handling, and ``framed``: an animation frame after that, when a redraw the answer asked for would have been drawn).
+_COUNT_PREVIEWS = """() => {
+  const counts = window.__previews = { sent: 0, handled: 0, framed: 0 };
+  const realFetch = window.fetch.bind(window);
+  window.fetch = (url, init) => {
+    if (!String(url).includes('/calibration-preview')) return realFetch(url, init);
+    counts.sent += 1;
+    return realFetch(url, init).then((response) => {
+      const text = response.text.bind(response);
+      response.text = () => text().then((body) => {
+        setTimeout(() => { counts.handled += 1; requestAnimationFrame(() => { counts.framed += 1; }); }, 0);
+        return body;
+      });
+      return response;
+    });
+  };
+}"""
+
+
 def test_a_preview_answer_after_the_release_is_dropped(page):
     """A slow preview answered after a press released without a move, and a drag released before its first answer:
     nothing of it is drawn, and a press without a move writes nothing."""
@@ -73,6 +94,7 @@ def test_a_preview_answer_after_the_release_is_dropped(page):
     fid = view["frame_id"]
     open_for_editing(page, system["id"], k)
     card = page.locator(tid("view")).nth(k)
+    page.evaluate(_COUNT_PREVIEWS)
     held = []
     page.route("**/calibration-preview", lambda route: held.append(route))
     try:
@@ -85,16 +107,17 @@ def test_a_preview_answer_after_the_release_is_dropped(page):
         page.mouse.move(*screen(x, y))
         page.mouse.down()
         page.mouse.move(*screen(x + 8, y), steps=3)
-        page.wait_for_timeout(100)
-        assert len(held) == 1  # the first move's preview, held; the later moves wait for its answer
+        pump_until(page, lambda: held, "the first move's preview to be held")
         with page.expect_response(lambda r: r.request.method == "PUT" and "/field-lines" in r.url):
-            page.mouse.up()
+            page.mouse.up()  # the moves before it are handled first: the page keeps the order of a pointer's events
+        # the first move's preview, held; the later moves waited for its answer, and the release dropped them
+        assert page.evaluate("() => window.__previews.sent") == 1
         card.locator(tid("view-saving")).wait_for(state="hidden")
         for route in held:
             route.continue_()  # the stale answer comes after the release's
-        page.wait_for_timeout(300)
+        page.wait_for_function("() => window.__previews.framed >= 1")  # handled, and a frame drawn since
         assert card.locator(tid("drag-preview")).count() == 0
-        assert len(held) == 1  # the released drag sent no more
+        assert page.evaluate("() => window.__previews.sent") == 1 and len(held) == 1  # the released drag sent no more
         assert len(api_json(page, f"/api/audit?frame_id={fid}&limit=500")["items"]) == entries + 1
     finally:
         page.unroute("**/calibration-preview")

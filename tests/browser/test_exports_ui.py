@@ -109,19 +109,19 @@ def test_an_annotator_sees_no_export(browser, server_url, accounts):
     context = browser.new_context(viewport={"width": 1366, "height": 768}, base_url=server_url)
     page = context.new_page()
     try:
+        # Each page shows its exports, or not, on the answer of its one GET /api/auth/me (api.js getMe, one promise
+        # for the page), in the same run of promise callbacks that writes the user's name in the header
+        # (session.js): once the name is there, the exports were shown if they ever will be.
         page.goto("/")
         log_in(page, accounts["annotator"])
         page.wait_for_selector(f"{tid('queue')} tbody tr")
         page.wait_for_selector(tid("user"))
-        page.wait_for_timeout(500)  # the role is known: the panel would have been shown by now
         assert page.locator(tid("exports")).is_hidden() and page.locator(tid("export-soccernet-v3d")).count() == 0
         page.goto("/static/stats.html")
         page.wait_for_selector(tid("user"))
-        page.wait_for_timeout(500)
         assert page.locator(tid("export-soccernet-v3d")).count() == 0
         page.goto("/static/monocular.html")
         page.wait_for_selector(tid("user"))
-        page.wait_for_timeout(500)
         assert page.locator(tid("export-yolo")).is_hidden() and page.locator(tid("export-coco")).is_hidden()
     finally:
         context.close()

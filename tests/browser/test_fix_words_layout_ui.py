@@ -94,8 +94,8 @@ def test_a_ball_off_consensus_is_fixed_with_one_key_and_confirmed_with_enter(pag
     assert after["views"][k]["reprojection_error_scaled_px"] < 5.0  # the confirmed box agrees with the 3D ball
     assert page.locator(f"{tid('doubt')}[data-kind=ball_off_consensus]").count() == 0
     _shot(page, artifacts, "fix-confirmed.png")
-    # Enter with no placement pending does nothing
-    with _no_request(page, "/ball"):
+    # Enter with no placement pending does nothing: it says why instead
+    with _no_request(page, "/ball", until=page.locator(tid("toast")).filter(has_text="nothing to confirm")):
         page.keyboard.press("Enter")
 
     restored = api_write(page, "PATCH", f"/api/frames/{doubt['frame_id']}/ball", {"box": original})
@@ -103,10 +103,12 @@ def test_a_ball_off_consensus_is_fixed_with_one_key_and_confirmed_with_enter(pag
 
 
 class _no_request:
-    """A block during which the page sends no request whose URL contains ``part`` (waits 500 ms after it)."""
+    """A block during which the page sends no request whose URL contains ``part``, checked once the locator ``until``
+    is seen: the page's answer to what the block did, drawn only when it sent nothing (a key whose entry cannot act
+    says why instead, keys.js), so that no time is guessed for a request that could still come."""
 
-    def __init__(self, page, part: str) -> None:
-        self.page, self.part, self.seen = page, part, []
+    def __init__(self, page, part: str, until) -> None:
+        self.page, self.part, self.until, self.seen = page, part, until, []
 
     def __enter__(self):
         self.page.on("request", self._on)
@@ -117,7 +119,7 @@ class _no_request:
             self.seen.append(request.url)
 
     def __exit__(self, *exc) -> None:
-        self.page.wait_for_timeout(500)
+        self.until.wait_for()
         self.page.remove_listener("request", self._on)
         assert not self.seen, f"unexpected requests: {self.seen}"
 

@@ -5,12 +5,11 @@ the pitch map's track; the scrubber and the ``.`` key move from frame to frame."
 from __future__ import annotations
 
 import re
-import time
 
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, tid
+from tests.browser.support import api_write, tid, wait_for_job
 from tests.services.issia_data import write_issia_stretch
 
 pytestmark = pytest.mark.browser
@@ -29,10 +28,8 @@ def _import(page, path) -> dict:
     """Import through the API: a job the server's runner runs; wait for it to finish."""
     r = api_write(page, "POST", "/api/imports", {"kind": "issia", "path": str(path)})
     assert r.status == 202, r.text()
-    deadline = time.monotonic() + 300
-    while (job := _api(page, r.json()["url"]))["state"] not in ("done", "failed"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.2)
+    url = r.json()["url"]
+    job = wait_for_job(page, url)
     assert job["state"] == "done", job
     game = next(g for g in _api(page, "/api/games") if g["match"] == path.name)
     return _api(page, f"/api/games/{game['id']}/trajectory")

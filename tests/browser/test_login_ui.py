@@ -5,7 +5,6 @@ logging out leads back to the login page. The demo hint appears only once the de
 from __future__ import annotations
 
 import re
-import time
 from contextlib import contextmanager
 
 import pytest
@@ -13,7 +12,7 @@ import pytest
 from app.db.session import make_engine, make_session_factory
 from app.services.accounts.users import ensure_demo_account
 from tests.accounts import Account
-from tests.browser.support import api_json, log_in, tid
+from tests.browser.support import api_json, log_in, pump_until, tid
 
 pytestmark = pytest.mark.browser
 
@@ -62,15 +61,6 @@ def test_a_visitor_logs_in_and_returns_to_the_link_then_logs_out(browser, server
         visitor.wait_for_url(f"{server_url}/login?next=%2F")
 
 
-def _pump_until(page, condition, what: str, seconds: float = 30.0) -> None:
-    """Let Playwright deliver the page's events (routes, console) until ``condition()`` holds; fail naming ``what``
-    after ``seconds``. (A ``wait_for_function`` would wait for the next document once a navigation is under way.)"""
-    deadline = time.monotonic() + seconds
-    while not condition():
-        assert time.monotonic() < deadline, f"waited {seconds:.0f} s for {what}"
-        page.wait_for_timeout(20)
-
-
 def test_a_call_refused_while_logging_out_leaves_the_person_on_the_plain_login_page(
         browser, server_url, accounts, page) -> None:
     """The page's own calls (the jobs poll, the presence beat) run on while the person logs out; one answered 401
@@ -95,12 +85,12 @@ def test_a_call_refused_while_logging_out_leaves_the_person_on_the_plain_login_p
         visitor.evaluate("""() => { import('/static/js/api.js')
           .then((api) => api.send('GET', '/api/systems?limit=1&during=logout'))
           .catch((err) => console.log(`refused ${err.status}`)); }""")
-        _pump_until(visitor, lambda: held_call, "the page's call to be held")
+        pump_until(visitor, lambda: held_call, "the page's call to be held")
 
         visitor.click(tid("logout"))
-        _pump_until(visitor, lambda: held_login, "the log-out to be answered and the login page asked for")
+        pump_until(visitor, lambda: held_login, "the log-out to be answered and the login page asked for")
         held_call[0].continue_()  # the session is over on the server: a real 401
-        _pump_until(visitor, lambda: refused, "the page's call to be refused")
+        pump_until(visitor, lambda: refused, "the page's call to be refused")
         assert refused == ["refused 401"]
         held_login[0].continue_()
         visitor.wait_for_load_state()
@@ -166,11 +156,15 @@ def test_a_login_sent_before_the_page_script_runs_never_puts_the_password_in_the
         visitor = context.new_page()
         visitor.route("**/static/js/login.js", lambda route: route.abort())
         visitor.goto("/login")
+        # a form sent natively fires its submit event first, in the same task as the key that sends it, and only then
+        # plans the navigation: no submit event once the key has been handled means no GET was, or will be, sent
+        visitor.evaluate("""() => { window.__submits = 0; document.querySelector('[data-testid=login-form]')
+          .addEventListener('submit', () => { window.__submits += 1; }); }""")
         visitor.fill(tid("login-name"), "someone")
         visitor.fill(tid("login-password"), "a secret")
-        visitor.press(tid("login-password"), "Enter")
+        visitor.press(tid("login-password"), "Enter")  # answered once the page has handled the key
         assert visitor.locator(tid("login-submit")).is_disabled()
-        visitor.wait_for_timeout(300)
+        assert visitor.evaluate("() => window.__submits") == 0
         assert visitor.url == f"{server_url}/login"
         assert "secret" not in visitor.url
         visitor.unroute("**/static/js/login.js")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.browser.support import api_json, api_write, log_in, tid
+from tests.browser.support import api_json, api_write, log_in, tid, wait_for_job
 
 pytestmark = pytest.mark.browser
 
@@ -389,8 +389,6 @@ def _old_source(settings, source: str, n: int = 3) -> None:
 @pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)
 def test_the_detectors_page_lists_the_imported_sources_and_removes_one_in_words(small_page, seeded_settings,
                                                                                artifacts, size):
-    import time
-
     page = small_page
     w, h = size
     page.set_viewport_size({"width": w, "height": h})
@@ -401,12 +399,8 @@ def test_the_detectors_page_lists_the_imported_sources_and_removes_one_in_words(
     queued = api_write(page, "POST", "/api/imports", data={"kind": "predictions", "path": str(folder / "boxes.csv"),
                                                            "source": source})
     assert queued.status == 202, queued.text()
-    job = queued.json()
-    deadline = time.monotonic() + 180
-    while job["state"] not in ("done", "failed"):
-        assert time.monotonic() < deadline
-        time.sleep(0.5)
-        job = api_json(page, job["url"])
+    url = queued.json()["url"]
+    job = wait_for_job(page, url)
     assert job["state"] == "done", job["message"]
     assert job["result"]["summary"]["words"].startswith(f"{n} predictions")  # rows counted, not bytes
     _old_source(seeded_settings, f"old-detector-{w}")
@@ -441,8 +435,6 @@ def test_the_detectors_page_lists_the_imported_sources_and_removes_one_in_words(
 # ----- 7: a view without an image says so; placing and confirming a detector's box there says so too --------------
 def test_a_view_without_an_image_says_no_image_and_a_detectors_box_there_says_nobody_can_look(
         small_page, seeded_settings, artifacts):
-    import time
-
     page = small_page
     found = None
     for item in api_json(page, "/api/systems?doubt=ball_missing&limit=500")["items"]:
@@ -460,13 +452,9 @@ def test_a_view_without_an_image_says_no_image_and_a_detectors_box_there_says_no
     path = Path(seeded_settings.data_root) / "labels-only-detector.csv"
     path.write_text("league,season,match,image,x1,y1,x2,y2,score\n"
                     f'{g["league"]},{g["season"]},"{g["match"]}",{view["name"]},{box[0]},{box[1]},{box[2]},{box[3]},0.8\n')
-    job = api_write(page, "POST", "/api/imports", data={"kind": "predictions", "path": str(path),
-                                                        "source": "blind-yolo"}).json()
-    for _ in range(240):
-        job = api_json(page, job["url"])
-        if job["state"] in ("done", "failed"):
-            break
-        time.sleep(0.25)
+    url = api_write(page, "POST", "/api/imports", data={"kind": "predictions", "path": str(path),
+                                                        "source": "blind-yolo"}).json()["url"]
+    job = wait_for_job(page, url)
     assert job["state"] == "done", job
 
     page.goto(f"/systems/{system['id']}")

@@ -11,7 +11,7 @@ from typing import Optional
 import pytest
 
 from tests.accounts import PASSWORD, Account
-from tests.browser.support import log_in, tid
+from tests.browser.support import log_in, tid, wait_for_steady_layout
 
 pytestmark = pytest.mark.browser
 
@@ -62,7 +62,10 @@ def _page_of(browser, server_url, account: Account, size: str = "1366x768"):
 def _shoot(p, shots, what: str) -> None:
     for size, viewport in SIZES.items():
         p.set_viewport_size(viewport)
-        p.wait_for_timeout(300)
+        # the window at its new size, and the page laid out again for it (what its screenshot shows)
+        p.wait_for_function("([w, h]) => innerWidth === w && innerHeight === h",
+                            arg=[viewport["width"], viewport["height"]])
+        wait_for_steady_layout(p)
         p.screenshot(path=str(shots / f"{what}-{size}.png"))
     p.set_viewport_size(SIZES["1366x768"])
 
@@ -77,7 +80,9 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
         rev.goto(f"/systems/{sid}")
         view = rev.locator(f'{tid("view")}[data-frame-id="{team["frame_id"]}"]')
         view.wait_for()
-        rev.wait_for_load_state("networkidle")  # the page's cards drawn: the view no longer moves under the click
+        # the page's cards drawn: the view no longer moves under the click
+        rev.wait_for_function("() => !document.body.classList.contains('loading')")
+        wait_for_steady_layout(rev, tid("view"))
         rev.click(tid("comment-pin-start"))
         rev.wait_for_selector("body.pinning")
         frame = view.locator(tid("view-svg"))

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import import_into_new_database, tid
+from tests.browser.support import import_into_new_database, tid, wait_for_steady_layout
 
 pytestmark = pytest.mark.browser
 
@@ -67,7 +67,7 @@ def test_the_queue_is_no_wider_than_the_window_and_every_chip_is_seen(page, arti
     assert max(_chips(r) for r in rows) >= 10
     page.goto("/?limit=500")
     page.locator(tid("queue-row")).first.wait_for()
-    page.wait_for_timeout(300)
+    wait_for_steady_layout(page, f"{tid('queue-row')}, {tid('row-doubts')} .chip")  # what is measured and shot
     (artifacts / "walk-review").mkdir(exist_ok=True)
     page.screenshot(path=str(artifacts / f"walk-review/queue-{size[0]}x{size[1]}.png"))
     width = page.evaluate("document.documentElement.scrollWidth")

@@ -10,7 +10,7 @@ import pytest
 from app.geometry.doubts import LABEL_KIND_SEVERITY
 from tests.accounts import PASSWORD, Account
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, log_in, tid
+from tests.browser.support import api_write, log_in, tid, wait_for_steady_layout, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -79,16 +79,17 @@ def test_a_views_number_key_brings_the_selected_view_into_sight(page, artifacts,
     views = page.locator(tid("view"))
     n = views.count()
     for key, back_to in ((n, "top"), (1, "bottom")):
+        # the window scrolled away from the card (at once: the page scrolls without animation), then its key, which
+        # selects and reveals the card as it is handled
         page.evaluate("(where) => window.scrollTo(0, where === 'top' ? 0 : document.body.scrollHeight)", back_to)
-        page.wait_for_timeout(100)
         page.keyboard.press(str(key))
-        page.wait_for_timeout(150)
         card = views.nth(key - 1)
         assert card.evaluate("(e) => e.classList.contains('selected')"), key
+        wait_for_steady_layout(page, tid("view"))  # whatever else moves the cards (an image drawn) has moved them
         assert _seen_px(page, card) >= 100, (key, back_to, _seen_px(page, card))
     (artifacts / "walk-review").mkdir(exist_ok=True)
     page.keyboard.press(str(n))
-    page.wait_for_timeout(150)
+    wait_for_steady_layout(page, tid("view"))
     page.screenshot(path=str(artifacts / f"walk-review/view-key-{size[0]}x{size[1]}.png"))
 
 
@@ -133,18 +134,27 @@ def test_presence_counts_on_and_ends_when_the_others_page_goes(page, browser, se
     try:
         theirs.goto(f"/systems/{system['id']}")
         _loaded(theirs)
-        theirs.wait_for_timeout(500)  # their first heartbeat
+        # their first heartbeat, as the server keeps it
+        wait_until(lambda: any(p["name"] == "walk-ana" for p in _api(page, f"/api/systems/{system['id']}")["open_by"]))
+        # this page's timers run on Playwright's clock (real time, moved forward here): its counter and heartbeats
+        # (every 10 s) come when the test says, however slow the machine
+        page.clock.install()
         page.goto(f"/systems/{system['id']}")
         bar = page.locator(tid("presence"))
         bar.filter(has_text="walk-ana has this system open").wait_for()
         first = bar.inner_text()
         since = int(re.search(r"since (\d+) s", first).group(1))
+        page.clock.fast_forward(2000)  # less than a heartbeat: the counter moves by itself between them
         page.wait_for_function("(n) => { const m = /since (\\d+) s/.exec(document.querySelector("
                                "'[data-testid=presence]').textContent); return m && Number(m[1]) >= n + 2; }",
-                               arg=since, timeout=5000)  # the counter moves between heartbeats
+                               arg=since)
         theirs.close(run_before_unload=True)  # their tab goes: its pagehide ends the claim
-        bar.wait_for(state="hidden", timeout=20_000)  # gone at this page's next heartbeat
-        assert not any(p["name"] == "walk-ana" for p in _api(page, f"/api/systems/{system['id']}")["open_by"])
+        # ended by it, on the server: a claim left alone would last 50 s after it was written (at their first
+        # heartbeat, seconds ago), longer than this wait's bound
+        wait_until(lambda: not any(p["name"] == "walk-ana"
+                                   for p in _api(page, f"/api/systems/{system['id']}")["open_by"]), timeout_s=30)
+        page.clock.fast_forward("00:11")  # this page's next heartbeat
+        bar.wait_for(state="hidden")  # gone at that heartbeat
     finally:
         context.close()
 
@@ -216,7 +226,8 @@ def test_a_pass_counts_only_your_decisions_and_a_again_writes_no_second_entry(pa
         counts = page.locator(tid("pass-counts")).inner_text()
         assert counts == (f"1 accepted · 0 rejected · 0 needs fix · {len(theirs)} decided by others or before this "
                           "pass · 0 skipped"), counts
-        page.wait_for_timeout(300)
+        # the page's system reads accepted now: its views' decision bars are drawn again from it
+        page.locator(tid("view-decision-status")).filter(has_text="accepted with the system").first.wait_for()
         page.keyboard.press("a")  # again, on the finished last system
         page.locator(tid("toast")).filter(has_text="already accepted").wait_for()
         entries = _api(page, f"/api/audit?system_id={mine['id']}&limit=50")["items"]
@@ -293,7 +304,7 @@ def test_enter_after_apply_opens_the_highlighted_row(page):
     page.locator(tid("queue-row")).first.wait_for()
     first = page.locator(tid("queue-row")).first.get_attribute("data-id")
     page.keyboard.press("Enter")  # at once: the highlighted row opens, the filter is not applied again
-    page.wait_for_url(re.compile(rf".*/systems/{first}\b.*"), timeout=5000)
+    page.wait_for_url(re.compile(rf".*/systems/{first}\b.*"))
 
 
 @pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)

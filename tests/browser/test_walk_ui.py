@@ -8,18 +8,26 @@ import re
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, tid
+from tests.browser.support import api_write, tid, wait_for_steady_layout
 
 pytestmark = pytest.mark.browser
 
 #: Makes the page's pass visits (POST /api/passes/{id}/visits) answer 0.8 s late, so that whatever the top bar says
 #: before the server's answer stays long enough to be read; and records every text the bar shows with the address
-#: it was shown at.
+#: it was shown at (each change of the page's DOM, and every 5 ms for a change of address alone). ``__visitAnswered``:
+#: the address whose visit was last answered; ``__barWrites``: the writes of the bar since (the bar's text is set
+#: anew, a mutation even when the text is the same, once the page has read the answer).
 _SLOW_VISITS_AND_BAR_LOG = """
   const realFetch = window.fetch.bind(window);
+  window.__visitAnswered = null;
+  window.__barWrites = 0;
   window.fetch = async (url, init) => {
-    if (String(url).includes('/visits')) await new Promise((r) => setTimeout(r, 800));
-    return realFetch(url, init);
+    if (!String(url).includes('/visits')) return realFetch(url, init);
+    await new Promise((r) => setTimeout(r, 800));
+    const answer = await realFetch(url, init);
+    window.__visitAnswered = location.pathname;
+    window.__barWrites = 0;
+    return answer;
   };
   window.__bar = [];
   const look = () => {
@@ -27,6 +35,10 @@ _SLOW_VISITS_AND_BAR_LOG = """
     const last = window.__bar[window.__bar.length - 1];
     if (!last || last[0] !== location.pathname || last[1] !== text) window.__bar.push([location.pathname, text]);
   };
+  new MutationObserver((records) => {
+    if (records.some((r) => r.target.closest?.('[data-testid=pass-progress]'))) window.__barWrites += 1;
+    look();
+  }).observe(document, { subtree: true, childList: true, characterData: true });
   setInterval(look, 5);
 """
 
@@ -66,7 +78,9 @@ def test_a_resumed_pass_comes_back_to_the_systems_left_pending_before_its_resume
     # r on the second to last: the last, whose place reads right from the moment it is shown
     page.keyboard.press("r")
     _arrive(page, order[-1], f"pass {n} of {n} · 3 pending")
-    page.wait_for_timeout(900)  # the visit's late answer
+    # the visit's late answer, read and written into the bar
+    page.wait_for_function("(path) => window.__visitAnswered === path && window.__barWrites > 0",
+                           arg=f"/systems/{order[-1]}")
     shown = [text for path, text in page.evaluate("window.__bar") if path == f"/systems/{order[-1]}"]
     assert shown and all(not re.match(r"pass \d+ of", t) or t.startswith(f"pass {n} of {n}") for t in shown), shown
 
@@ -103,9 +117,9 @@ def test_s_with_no_view_selected_snaps_and_never_mirrors(page):
     page.wait_for_function("() => !document.body.classList.contains('loading')")
     page.keyboard.press("s")
     toast = page.locator(tid("toast"))
+    # the toast is the key's answer: its entry said why it could not snap, so nothing of the key was sent
     toast.filter(has_text="m").wait_for()
     assert "press m" in toast.inner_text() and "mirror" in toast.inner_text(), toast.inner_text()
-    page.wait_for_timeout(300)
     assert writes == []
     after = _api(page, f"/api/systems/{system['id']}")
     assert [v["ball"] for v in after["views"]] == [v["ball"] for v in system["views"]]
@@ -250,10 +264,9 @@ def test_reverting_an_older_entry_asks_in_words_not_json(page):
 
     page.on("dialog", answer)
     older = page.locator(f"{tid('history-entry')}[data-action='ball.edit']").nth(1)
-    with page.expect_response(lambda r: "/revert" in r.url) as refused:
+    with page.expect_event("dialog"), page.expect_response(lambda r: "/revert" in r.url) as refused:
         older.locator(tid("history-revert")).click()
     assert refused.value.status == 409
-    page.wait_for_timeout(200)  # the dialog, if any, is answered
     assert len(asked) == 1, asked
     assert "{" not in asked[0] and '"' not in asked[0], asked[0]
     assert f"box [{box[0]:g}, {box[1] + 6:g}" in asked[0] and "Revert anyway" in asked[0], asked[0]
@@ -346,7 +359,7 @@ def test_a_dragged_box_and_a_confirmed_snap_leave_the_views_where_they_were(page
         page.mouse.up()
     assert moved.value.ok
     card.locator(tid("view-doubts")).wait_for()  # the doubt the drag raised, above the frame
-    page.wait_for_timeout(100)
+    wait_for_steady_layout(page, f"{tid('view')} .frame")
     page.screenshot(path=str(artifacts / "walk/drag-released-1366x768.png"))
     after = _frame_boxes(page)
     # the browser's scroll anchoring keeps the frame where it was to within a few pixels (the node it anchors to is
@@ -364,7 +377,7 @@ def test_a_dragged_box_and_a_confirmed_snap_leave_the_views_where_they_were(page
         page.keyboard.press("Enter")
     assert confirmed.value.ok
     card.locator(tid("view-doubts")).wait_for(state="detached")
-    page.wait_for_timeout(100)
+    wait_for_steady_layout(page, f"{tid('view')} .frame")
     after = _frame_boxes(page)
     assert [x for x, _ in after] == [x for x, _ in before], (before, after)
     etag = page.request.get(f"/api/frames/{system['views'][k]['frame_id']}").headers["etag"]
@@ -411,11 +424,16 @@ def test_the_queue_opened_logged_out_goes_to_the_login_after_one_question(browse
     try:
         p = context.new_page()
         refused: list[str] = []
+        asked: list[str] = []
         p.on("response", lambda r: refused.append(r.url) if r.status == 401 else None)
-        p.goto("/")
+        p.on("request", lambda r: asked.append(r.url) if "/api/" in r.url else None)
+        # the login page's own first call (its demo hint) is asked once the queue's page is gone: whatever that page
+        # asked, it asked before it
+        with p.expect_response(lambda r: r.url.endswith("/api/auth/demo")):
+            p.goto("/")
         p.wait_for_url(f"{server_url}/login?next=%2F")
         p.locator(tid("login-form")).wait_for()
-        p.wait_for_timeout(300)
+        assert asked == [f"{server_url}/api/auth/me", f"{server_url}/api/auth/demo"], asked
         assert refused == [f"{server_url}/api/auth/me"], refused
     finally:
         context.close()
