@@ -230,7 +230,13 @@ def test_a_rollback_on_a_connection_the_server_closed_discards_the_connection(pg
         pid = s.execute(sa.text("SELECT pg_backend_pid()")).scalar()
         with admin.connect() as conn:
             assert conn.execute(sa.text("SELECT pg_terminate_backend(:pid)"), {"pid": pid}).scalar()
-        time.sleep(0.2)
+            # pg_terminate_backend only signals the backend: the rollback must meet a closed connection, so wait
+            # until the server no longer lists it (a deadline for a loaded machine)
+            deadline = time.monotonic() + 30
+            while conn.execute(sa.text("SELECT count(*) FROM pg_stat_activity WHERE pid = :pid"),
+                               {"pid": pid}).scalar():
+                assert time.monotonic() < deadline, f"backend {pid} still running 30 s after its termination"
+                time.sleep(0.02)
         with pytest.raises(sa.exc.OperationalError) as raised:
             s.rollback()
         assert raised.value.connection_invalidated
