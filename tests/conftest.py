@@ -32,12 +32,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     (:func:`shared_dir`) is a ``shared`` one. A test without an ``xdist_group`` of
     its own runs on the worker that runs the rest of its module (``--dist loadgroup``): a module's fixtures (a
     served database, a Chromium page's login) are made once, and the tests of a module that walk one database step
-    by step keep their order.
-
-    The browser tests run last, in their order: the session's Chromium (:func:`browser`) holds Playwright's event
-    loop in the process from its first test on, where ``asyncio.run`` (``tests/api/test_bodies.py``) refuses to
-    start another. pytest-xdist hands the modules out in this order, so a worker that has begun them runs nothing
-    else."""
+    by step keep their order."""
     for item in items:
         if item.get_closest_marker("served") is not None:
             item.add_marker(pytest.mark.engine)
@@ -45,7 +40,13 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.shared)
         if item.get_closest_marker("xdist_group") is None:
             item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0].removeprefix("tests/")))
-    items.sort(key=lambda item: item.get_closest_marker("browser") is not None)  # a stable sort: order kept
+
+
+def sizes(ci: object, full: object) -> list[object]:
+    """The two sizes of a load, concurrency, fault, fuzz or two-node test, as ``pytest.mark.parametrize`` values:
+    ``ci``, the smaller run CI's suite keeps, and ``full``, the full-size run marked ``slow`` (``scripts/test.sh
+    --slow``; docs/testing.md lists each pair)."""
+    return [pytest.param(ci, id="ci"), pytest.param(full, id="full", marks=pytest.mark.slow)]
 
 
 #: Debian's Chromium, and the flags it runs with here (no sandbox as root; no call to Google's services, which

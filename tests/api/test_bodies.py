@@ -5,6 +5,8 @@ limit and the types a body may have are the route's, whatever its ``Content-Type
 and no error answer quotes a long input or a password."""
 from __future__ import annotations
 
+import asyncio
+import concurrent.futures
 import time
 
 import pytest
@@ -89,7 +91,6 @@ def _asgi_post(app: FastAPI, path: str, headers: dict[str, str], size: int, chun
     """Send ``head``, ``size`` bytes and ``tail`` to ``app`` straight over ASGI, chunk by chunk as a socket would
     deliver them (the test client reads a whole body first); returns the status, the answer's body and how many bytes
     the app read."""
-    import asyncio
 
     body = head + b"a" * size + tail
     read = 0
@@ -113,8 +114,23 @@ def _asgi_post(app: FastAPI, path: str, headers: dict[str, str], size: int, chun
     scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": method, "scheme": "http",
              "path": path, "raw_path": path.encode(), "root_path": "", "query_string": b"", "headers": raw,
              "client": ("127.0.0.1", 50000), "server": ("testserver", 80), "state": {}}
-    asyncio.run(app(scope, receive, send))
+    # In a thread of its own: ``asyncio.run`` refuses a thread whose loop is running, as Playwright's is in a worker
+    # that has run a browser test (the session's Chromium holds it).
+    with concurrent.futures.ThreadPoolExecutor(max_workers=1) as pool:
+        pool.submit(asyncio.run, app(scope, receive, send)).result()
     return int(answer["status"]), bytes(answer["body"]), read  # type: ignore[arg-type]  # set by the answer
+
+
+def test_a_body_goes_over_asgi_from_a_thread_whose_event_loop_is_running(app: FastAPI) -> None:
+    """A worker that has run a browser test holds Playwright's running loop in its thread for the session (pytest-xdist
+    may hand it the browser modules first): the ASGI helper still sends its body, here from inside a running loop."""
+
+    async def beside_a_running_loop() -> tuple[int, bytes, int]:
+        return _asgi_post(app, "/api/auth/login", {"content-type": "text/plain", "content-length": str(MB)}, MB)
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=1) as pool:  # this thread may hold a running loop itself
+        status, _, read = pool.submit(asyncio.run, beside_a_running_loop()).result()
+    assert status == 415 and read == 0, (status, read)
 
 
 @pytest.mark.parametrize("length", ["declared", "chunked"])
