@@ -1,6 +1,7 @@
-"""A small version of ``benchmarks/fuzz.py``: schemathesis against ``/openapi.json`` of the real app, every
-operation, a few derandomised cases per operation and mode (the same cases every run), as the admin's API
-token and as an anonymous client. Any 5xx, undeclared status, wrong content type or answer off its schema
+"""``benchmarks/fuzz.py`` in the suite: schemathesis against ``/openapi.json`` of the real app, every operation,
+derandomised cases per operation and mode (the same cases every run: 3 in CI's suite, 25 in the slow tier; the
+benchmark runs 50), as the admin's API token and as an anonymous client. Any 5xx, undeclared status, wrong content
+type or answer off its schema
 fails, with the curl line that reproduces it. The test's writes are rolled back with its transaction."""
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from fastapi.testclient import TestClient
 
 from app.services.accounts import users
 from tests.accounts import Account
+from tests.conftest import sizes
 
 from .factories import Scene
 
@@ -18,15 +20,17 @@ pytest.importorskip("schemathesis", reason="schemathesis (the test extra) is nee
 
 from benchmarks import fuzz  # after the skip: it needs schemathesis
 
-#: Cases per operation and mode (positive, negative): ~25 operations x 2 x 5 requests.
-EXAMPLES = 5
+#: Cases per operation and mode (positive, negative), CI's and the slow tier's: ~25 operations x 2 x that many.
+EXAMPLES = sizes(3, 25)
 
 
 def _failures(report) -> str:
     return "\n".join(f"{f.operation}: {f.check} (status {f.status}): {f.message}\n  {f.curl}" for f in report.failures)
 
 
-def test_fuzzing_as_admin_finds_no_server_error(app: FastAPI, scene: Scene, accounts: dict[str, Account]) -> None:
+@pytest.mark.parametrize("examples", EXAMPLES)
+def test_fuzzing_as_admin_finds_no_server_error(app: FastAPI, scene: Scene, accounts: dict[str, Account],
+                                                 examples: int) -> None:
     with TestClient(app):
         schema = fuzz.load_schema(app)
         # the user routes' name and token ids are the annotator's: the pass may disable it and revoke its tokens,
@@ -37,7 +41,7 @@ def test_fuzzing_as_admin_finds_no_server_error(app: FastAPI, scene: Scene, acco
         path_ids = {"frame_id": list(scene.frame_ids), "system_id": [scene.system_id], "name": [target],
                     "token_id": tokens}
         headers = fuzz.admin_headers(accounts["admin"].token)
-        report = fuzz.fuzz(schema, headers, examples=EXAMPLES, path_ids=path_ids,
+        report = fuzz.fuzz(schema, headers, examples=examples, path_ids=path_ids,
                            etag_of=fuzz.current_etags(app, headers))
     labels = {op.label for op in fuzz.operations(schema)}
     assert set(report.requests) == labels, "every operation of /openapi.json was sent"
@@ -49,15 +53,16 @@ def test_fuzzing_as_admin_finds_no_server_error(app: FastAPI, scene: Scene, acco
     assert report.server_errors == 0 and not report.failures, _failures(report)
 
 
+@pytest.mark.parametrize("examples", sizes(2, 10))
 def test_bodies_of_every_declared_and_one_undeclared_media_type_find_no_server_error(
-        app: FastAPI, scene: Scene, accounts: dict[str, Account]) -> None:
+        app: FastAPI, scene: Scene, accounts: dict[str, Account], examples: int) -> None:
     """Issue 27: each operation with a body gets bodies of each type it declares (the import route: JSON and
     multipart) and of one it does not (415 before it is read, never a 500)."""
     with TestClient(app):
         schema = fuzz.load_schema(app)
         headers = fuzz.admin_headers(accounts["admin"].token)
         path_ids = {"frame_id": list(scene.frame_ids), "system_id": [scene.system_id]}
-        report = fuzz.fuzz_media_types(schema, headers, examples=2, path_ids=path_ids,
+        report = fuzz.fuzz_media_types(schema, headers, examples=examples, path_ids=path_ids,
                                        etag_of=fuzz.current_etags(app, headers))
     with_body = [op for op in fuzz.operations(schema) if op.get_request_payload_content_types()]
     assert len(with_body) >= 10
@@ -71,10 +76,12 @@ def test_bodies_of_every_declared_and_one_undeclared_media_type_find_no_server_e
     assert report.server_errors == 0 and not report.failures, _failures(report)
 
 
-def test_fuzzing_anonymously_answers_401_everywhere_but_the_public_routes(app: FastAPI, scene: Scene) -> None:
+@pytest.mark.parametrize("examples", sizes(3, 10))
+def test_fuzzing_anonymously_answers_401_everywhere_but_the_public_routes(app: FastAPI, scene: Scene,
+                                                                         examples: int) -> None:
     with TestClient(app):
         schema = fuzz.load_schema(app)
-        report = fuzz.fuzz(schema, {}, examples=3, anonymous=True)
+        report = fuzz.fuzz(schema, {}, examples=examples, anonymous=True)
     protected = {op.label for op in fuzz.operations(schema) if not fuzz.is_public(op)}
     assert set(report.requests) == protected and len(protected) >= 20
     assert all(set(counts) == {401} for counts in report.statuses.values()), report.statuses

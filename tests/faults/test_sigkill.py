@@ -7,9 +7,10 @@
 * A server killed during a stream of ball edits: integrity holds, and every edit it answered 200 is in
   the final state.
 
-Data: three systems of a synthetic dev game (``tests.services.datasets.write_v3_game``) copied under eight
-leagues (eight games, labels only), stored one game per transaction (``V3D_IMPORT_BATCH_FRAMES=1``) so that
-the kill falls between batches of a real multi-game import (it is sent once the database holds a stored game
+Data: three systems of a synthetic dev game (``tests.services.datasets.write_v3_game``) copied under four leagues in
+CI's suite and eight in the slow tier (as many games, labels only), stored one game per transaction
+(``V3D_IMPORT_BATCH_FRAMES=1``) so that the kill falls between batches of a real multi-game import (it is sent once
+the database holds a stored game
 and at least two are still to come: the job's stored progress lags the commits by up to a heartbeat, in which a
 compiled calibration stores several small games); the edits run on six systems of that game.
 """
@@ -22,7 +23,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import httpx
 import pytest
@@ -30,19 +31,28 @@ import sqlalchemy as sa
 
 from app.db.models import BallLabel, Base, Calibration, Doubt, Frame, Game, Job, JobState, System, Triangulation
 from app.db.session import make_engine, upgrade_database
+from tests.conftest import sizes
 from tests.services.datasets import DEV_GAME, write_v3_game
 
 V3D = str(Path(sys.executable).with_name("v3d"))
-GAMES = 8
+#: Games of the import killed midway: CI's suite's and the slow tier's.
+GAMES = sizes(4, 8)
 
 
-@pytest.fixture(scope="module")
-def tree(shared_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+class Tree(NamedTuple):
+    """The folder imported, and how many games it holds."""
+
+    root: Path
+    games: int
+
+
+@pytest.fixture(scope="module", params=GAMES)
+def tree(request: pytest.FixtureRequest, shared_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Tree:
     """:data:`GAMES` games: three systems of the dev game under as many leagues (Labels-v3.json only)."""
     root = tmp_path_factory.mktemp("tree")
-    for c in range(GAMES):
+    for c in range(request.param):
         write_v3_game(shared_dir, root, game=(f"league_{c}", *DEV_GAME[1:]), with_images=False)
-    return root
+    return Tree(root, request.param)
 
 
 def _env(url: str, **extra: str) -> dict[str, str]:
@@ -111,13 +121,13 @@ def _job(url: str) -> list[Job]:
 
 
 @pytest.fixture(scope="module")
-def clean(tree: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+def clean(tree: Tree, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """The snapshot of a clean import of :func:`tree`."""
     url = f"sqlite:///{tmp_path_factory.mktemp('clean') / 'clean.sqlite3'}"
-    done = _import(url, tree)
+    done = _import(url, tree.root)
     assert done.returncode == 0, done.stderr
     snap = _snapshot(url)
-    assert snap["counts"]["games"] == GAMES and snap["counts"]["systems"] == 3 * GAMES
+    assert snap["counts"]["games"] == tree.games and snap["counts"]["systems"] == 3 * tree.games
     return snap
 
 
@@ -126,18 +136,18 @@ def _stored_games(engine: sa.Engine) -> int:
         return conn.scalar(sa.select(sa.func.count()).select_from(Game)) or 0
 
 
-def _kill_mid_import(url: str, tree: Path) -> None:
+def _kill_mid_import(url: str, tree: Tree) -> None:
     """Start ``v3d import`` and SIGKILL its process group (its calibration processes included) once the
     database holds a committed game and at least two are still to come."""
     upgrade_database(url)
     log = open(os.devnull, "w")
-    proc = subprocess.Popen([V3D, "import", "soccernet-v3", str(tree)], env=_env(url), start_new_session=True,
+    proc = subprocess.Popen([V3D, "import", "soccernet-v3", str(tree.root)], env=_env(url), start_new_session=True,
                             stdout=log, stderr=log)
     deadline = time.monotonic() + 300
     engine = make_engine(url)
     try:
         while True:
-            if 1 <= _stored_games(engine) <= GAMES - 2:
+            if 1 <= _stored_games(engine) <= tree.games - 2:
                 break
             assert proc.poll() is None, f"the import ended (status {proc.returncode}) before it could be killed"
             assert time.monotonic() < deadline, "no game stored within 300 s"
@@ -150,39 +160,39 @@ def _kill_mid_import(url: str, tree: Path) -> None:
     assert proc.returncode == -signal.SIGKILL
 
 
-def _resume_and_compare(url: str, tree: Path, clean: dict[str, Any]) -> None:
+def _resume_and_compare(url: str, tree: Tree, clean: dict[str, Any]) -> None:
     from app.core.config import Settings
     from app.services.jobs.runner import is_stale
 
     _soundness(url)
     [job] = _job(url)
     partial = _snapshot(url)["counts"]
-    assert 1 <= partial["games"] < GAMES
+    assert 1 <= partial["games"] < tree.games
     # the stored count of games never runs ahead of the committed games (it may lag them by a heartbeat, the job then
     # still showing its first stage, the games read, which counts games of the input, not stored ones)
-    assert job.state is JobState.RUNNING and job.total in (0, GAMES)
+    assert job.state is JobState.RUNNING and job.total in (0, tree.games)
     assert job.stage != "games" or job.done <= partial["games"], (job.stage, job.done, partial["games"])
     assert is_stale(job, Settings(database_url=url)), "the killed process's job must be claimable at once"
 
-    again = _import(url, tree)
+    again = _import(url, tree.root)
     assert again.returncode == 0, again.stderr
     assert f"resuming import job {job.id}" in again.stderr
     _soundness(url)
     [resumed] = _job(url)
     assert (resumed.id, resumed.state, resumed.attempts) == (job.id, JobState.DONE, 2)
-    assert resumed.result["games"] == GAMES
+    assert resumed.result["games"] == tree.games
     assert resumed.result["systems_new"] == clean["counts"]["systems"] - partial["systems"]
     assert _snapshot(url) == clean
 
 
-def test_sigkill_mid_import_then_rerun_on_sqlite(tree: Path, clean: dict[str, Any], tmp_path: Path) -> None:
+def test_sigkill_mid_import_then_rerun_on_sqlite(tree: Tree, clean: dict[str, Any], tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'killed.sqlite3'}"
     _kill_mid_import(url, tree)
     _resume_and_compare(url, tree, clean)
 
 
 @pytest.mark.postgres
-def test_sigkill_mid_import_then_rerun_on_postgres(tree: Path, clean: dict[str, Any], pg_url: str) -> None:
+def test_sigkill_mid_import_then_rerun_on_postgres(tree: Tree, clean: dict[str, Any], pg_url: str) -> None:
     _kill_mid_import(pg_url, tree)
     _resume_and_compare(pg_url, tree, clean)
 

@@ -106,3 +106,21 @@ def test_a_release_made_by_the_older_tree_keeps_its_hash_token_and_export_bytes(
             report = write_export_zip(session, fmt, tmp_path / f"{fmt}.zip", False, settings, release="before")
             assert report["hash"] == before["hash"]
             assert (tmp_path / f"{fmt}.zip").read_bytes() == exported[fmt], fmt
+
+
+@pytest.mark.slow
+def test_the_demo_release_made_by_the_older_servers_keeps_its_hash_and_every_export_byte(tmp_path: Path) -> None:
+    """The full-size upgrade (``benchmarks/release_upgrade.py``): the older tree serves the demo (and a stretch of
+    the ISSIA dev sequence with ``../shared``), a release is made and exported in every format through its API, then
+    this tree's server migrates the database at start-up and gives the same hash and the same bytes."""
+    from benchmarks import release_upgrade
+    from tests.seaweed import free_ports
+
+    if subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", OLD], capture_output=True).returncode != 0:
+        pytest.skip(f"no {OLD} in this checkout's history (a shallow clone?)")
+    out = release_upgrade.run(OLD, tmp_path / "work", free_ports(1)[0])
+    assert out["token_after_upgrade"] == 200 and out["hash_kept"], out
+    assert out["schema"][0] != out["schema"][1], out["schema"]
+    assert set(out["formats"]) == set(release_upgrade.FORMATS), out["formats"]
+    assert all(f["equal"] for f in out["formats"].values()), out["formats"]
+    assert out["ok"] and out["release"]["systems"] > 0, out
