@@ -13,6 +13,7 @@ import pytest
 from benchmarks.keyboard_review import LAST_SYSTEM_TEXT, review_by_keyboard, summary
 from tests.browser.support import api_json as _api
 from tests.browser.support import api_write, seed_dev_set, tid
+from tests.conftest import sizes
 
 pytestmark = pytest.mark.browser
 
@@ -36,8 +37,7 @@ def _set_status(page, system_id: int, status: str) -> None:
     assert answer.ok, answer.text()
 
 
-@pytest.mark.parametrize("walked", [FIRST, pytest.param(SYSTEMS, marks=pytest.mark.slow)],
-                         ids=[f"first-{FIRST}", f"all-{SYSTEMS}"])
+@pytest.mark.parametrize("walked", sizes(FIRST, SYSTEMS))
 def test_the_dev_systems_reviewed_by_keyboard_only(page, artifacts, capsys, walked):
     queue = _api(page, "/api/systems?limit=100")
     assert queue["total"] == SYSTEMS and queue["counts"]["pending"] == SYSTEMS
