@@ -1,0 +1,55 @@
+"""v3d_client: the Python client of a v3d server's REST API (``docs/client.md``).
+
+>>> from v3d_client import Client
+>>> Client.__name__, Client.from_env.__name__
+('Client', 'from_env')
+
+Depends on httpx and pydantic only: it imports nothing of the server (``app``) and nothing of numpy or scipy.
+"""
+from v3d_client.client import LEFT_OUT, ROUTES, Client
+from v3d_client.errors import (
+    APIError,
+    BadRequest,
+    Busy,
+    Conflict,
+    EditConflict,
+    Forbidden,
+    Invalid,
+    JobFailed,
+    JobTimeout,
+    NotFound,
+    PreconditionRequired,
+    ServerError,
+    TooLarge,
+    Unauthorized,
+    V3DError,
+    VersionMismatch,
+)
+from v3d_client.models import (
+    Annotator,
+    AuditEntry,
+    Comment,
+    Decision,
+    Doubt,
+    Frame,
+    Game,
+    Job,
+    PredictionSource,
+    Release,
+    ReleaseDiff,
+    Stats,
+    System,
+    SystemSummary,
+    Token,
+    User,
+    View,
+)
+from v3d_client.version import __version__
+
+__all__ = [
+    "APIError", "Annotator", "AuditEntry", "BadRequest", "Busy", "Client", "Comment", "Conflict", "Decision", "Doubt",
+    "EditConflict", "Forbidden", "Frame", "Game", "Invalid", "Job", "JobFailed", "JobTimeout", "LEFT_OUT", "NotFound",
+    "PredictionSource", "PreconditionRequired", "ROUTES", "Release", "ReleaseDiff", "ServerError", "Stats", "System",
+    "SystemSummary", "Token", "TooLarge", "Unauthorized", "User", "V3DError", "VersionMismatch", "View",
+    "__version__",
+]
