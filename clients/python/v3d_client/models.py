@@ -253,6 +253,12 @@ class Doubt(Model):
     suggestion: Optional[dict[str, Any]]
 
     @property
+    def fix_action(self) -> Optional[str]:
+        """What the one-key fix does (snap_box, snap_point, exclude_view, mirror_labels), None without one."""
+        action = (self.suggestion or {}).get("action")
+        return action if isinstance(action, str) and self.fix_request is not None else None
+
+    @property
     def fix_request(self) -> Optional[dict[str, Any]]:
         """The one-key fix as a request (``method``, ``path``, ``body``), or None when the doubt has none."""
         request = (self.suggestion or {}).get("request")
