@@ -11,6 +11,7 @@ with status 1 and its message.
 """
 from __future__ import annotations
 
+import json
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Callable, Iterator, Literal, Optional, TypeVar
@@ -19,6 +20,7 @@ import typer
 from tqdm import tqdm
 
 from app.cli._root import export_cli, import_cli
+from app.cli.remote import export_tree, refuse_remote, remote_client, upload_and_wait
 from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
 from app.services.exports.formats import export_format
@@ -73,7 +75,10 @@ def export_command(name: str) -> Callable[[_Command], _Command]:
 
 
 def cli_settings(database_url: str | None, workers: int | None) -> Settings:
-    """The environment's settings with the command's ``--database-url`` and ``--workers`` applied."""
+    """The environment's settings with the command's ``--database-url`` and ``--workers`` applied. Every command on
+    the local database starts here: with ``--server`` named, one that does not run remotely ends (exit 2) saying
+    which do (``app.cli.remote.refuse_remote``)."""
+    refuse_remote()
     updates: dict[str, Any] = {}
     if database_url:
         updates["database_url"] = database_url
@@ -134,7 +139,11 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
 
 def _run_import(settings: Settings, params: dict[str, Any]) -> None:
     """Run the import job of ``params`` here (:func:`run_job_here`) and print its counts."""
-    job_id, r = run_job_here(settings, "import", params)
+    print_import(*run_job_here(settings, "import", params))
+
+
+def print_import(job_id: int, r: dict[str, Any]) -> None:
+    """Print the counts of the import job ``job_id`` (its result ``r``), run here or on a server."""
     typer.echo(f"imported {r['source']}: {r['games']} game(s), {r['systems']} system(s), {r['frames']} frame(s) "
                f"({r['systems_new']} new, {r['systems_changed']} changed) in {r['seconds']:.1f} s (job {job_id})")
     typer.echo(f"calibrated {r['calibrated']} ({r['rig_assisted']} with the game's camera rig, "
@@ -155,12 +164,19 @@ def _run_import(settings: Settings, params: dict[str, Any]) -> None:
 
 @import_cli.command("soccernet-v3")
 def import_soccernet_v3_cmd(
-    path: Annotated[Path, typer.Argument(help="A SoccerNet-v3 tree (<league>/<season>/<game>/Labels-v3.json).")],
+    path: Annotated[Path, typer.Argument(help="A SoccerNet-v3 tree (<league>/<season>/<game>/Labels-v3.json), or with "
+                                              "--server a zip of one.")],
     database_url: DatabaseOpt = None,
     workers: WorkersOpt = None,
     merge: MergeOpt = None,
 ) -> None:
-    """Import a SoccerNet-v3 tree: calibrate every frame, triangulate every system."""
+    """Import a SoccerNet-v3 tree: calibrate every frame, triangulate every system. With --server: the folder (or a
+    zip of it) is uploaded and imported there."""
+    with remote_client() as client:
+        if client is not None:
+            job = upload_and_wait(client, path, "soccernet-v3", merge=merge)
+            print_import(job.id, job.result or {})
+            return
     settings = cli_settings(database_url, workers)
     _run_import(settings, import_params("soccernet-v3", path, calibration_workers=workers, merge=merge))
 
@@ -261,6 +277,8 @@ def export_issia3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export issia-3d`` into ``out_dir`` (its help: the registry's description of the format)."""
+    if exported_remotely("issia-3d", out_dir, include_all, True, None):
+        return
     from app.services.issia.export import export_issia3d
 
     settings = cli_settings(database_url, None)
@@ -282,6 +300,8 @@ def export_soccernet_v3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export soccernet-v3d`` into ``out_dir`` (its help: the registry's description of the format)."""
+    if exported_remotely("soccernet-v3d", out_dir, include_all, not no_images, release):
+        return
     from app.services.images.serving import ImageUnavailable
     from app.services.transfer.exporting import export_soccernet_v3d
 
@@ -303,6 +323,22 @@ def export_soccernet_v3d_cmd(
         bars.close()
     typer.echo(f"exported {report.systems} system(s) of {report.games} game(s), {report.rows} row(s) "
                f"and {report.images} image(s) to {report.out_dir} ({report.csv_path.name})")
+
+
+def exported_remotely(fmt: str, out_dir: Path, include_all: bool, images: bool, release: str | None) -> bool:
+    """With ``--server``: the export ``fmt`` run there and unpacked under ``out_dir`` (``app.cli.remote.export_tree``),
+    its counts printed; True then, False without a server (the command runs locally). ``--all`` beside ``--release``
+    ends the command (exit 2), as locally."""
+    with remote_client() as client:
+        if client is None:
+            return False
+        if release is not None and include_all:
+            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)", err=True)
+            raise typer.Exit(code=2)
+        written = export_tree(client, fmt, out_dir, include_all, images, release)
+    of = f" of release {release}" if release is not None else ""
+    typer.echo(f"exported {fmt}{of} to {out_dir}: {json.dumps(written, sort_keys=True)}")
+    return True
 
 
 def release_tree(settings: Settings, out_dir: Path, release: str, include_all: bool, images: bool,
@@ -351,6 +387,8 @@ def export_cameras_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export cameras`` into ``out_dir`` (its help: the registry's description of the format)."""
+    if exported_remotely("cameras", out_dir, include_all, False, release):
+        return
     from app.services.transfer.cameras_export import export_cameras
 
     settings = cli_settings(database_url, None)

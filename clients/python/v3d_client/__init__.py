@@ -22,6 +22,7 @@ from v3d_client.errors import (
     ServerError,
     TooLarge,
     Unauthorized,
+    Unreachable,
     V3DError,
     VersionMismatch,
 )
@@ -50,6 +51,6 @@ __all__ = [
     "APIError", "Annotator", "AuditEntry", "BadRequest", "Busy", "Client", "Comment", "Conflict", "Decision", "Doubt",
     "EditConflict", "Forbidden", "Frame", "Game", "Invalid", "Job", "JobFailed", "JobTimeout", "LEFT_OUT", "NotFound",
     "PredictionSource", "PreconditionRequired", "ROUTES", "Release", "ReleaseDiff", "ServerError", "Stats", "System",
-    "SystemSummary", "Token", "TooLarge", "Unauthorized", "User", "V3DError", "VersionMismatch", "View",
+    "SystemSummary", "Token", "TooLarge", "Unauthorized", "Unreachable", "User", "V3DError", "VersionMismatch", "View",
     "__version__",
 ]

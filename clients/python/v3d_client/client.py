@@ -31,7 +31,7 @@ from typing import IO, Any, Optional, TypeVar
 
 import httpx
 
-from v3d_client.errors import JobFailed, JobTimeout, V3DError, VersionMismatch, error_for
+from v3d_client.errors import JobFailed, JobTimeout, Unreachable, V3DError, VersionMismatch, error_for
 from v3d_client.models import (
     Annotator,
     Annotators,
@@ -291,7 +291,10 @@ class Client:
             with ExitStack() as files:
                 parts = upload(files) if upload is not None else {}
                 request = self._http.build_request(method, path, params=query, json=json, headers=headers, **parts)
-                response = self._http.send(request, stream=stream)
+                try:
+                    response = self._http.send(request, stream=stream)
+                except httpx.TransportError as exc:
+                    raise Unreachable(f"{self.url}: {type(exc).__name__}: {exc}") from exc
                 if response.status_code < 400:
                     return response
                 wait = _retry_after(response)
@@ -493,6 +496,11 @@ class Client:
     def jobs(self, *, state: Optional[str] = None, kind: Optional[str] = None, page_size: int = 100) -> Iterator[Job]:
         """Every job, newest first (``state``: queued, running, done, failed; ``kind``: import, recompute, export)."""
         return self._pages("/api/jobs", JobPage, {"state": state, "kind": kind}, page_size)
+
+    def job_page(self, *, state: Optional[str] = None, kind: Optional[str] = None, limit: int = 50,
+                 offset: int = 0) -> JobPage:
+        """One page of :meth:`jobs` (its ``total``: how many jobs in all)."""
+        return self._get("/api/jobs", JobPage, state=state, kind=kind, limit=limit, offset=offset)
 
     @_route("GET /api/jobs/{job_id}", answer=Job)
     def job(self, job_id: int) -> Job:

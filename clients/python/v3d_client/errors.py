@@ -20,6 +20,10 @@ class VersionMismatch(V3DError):
     """The server's version is not one this client speaks (``v3d_client.version.mismatch`` says why)."""
 
 
+class Unreachable(V3DError):
+    """The server did not answer (no connection, a timeout, the connection cut); the request may not have arrived."""
+
+
 class APIError(V3DError):
     """The server refused a request.
 
@@ -33,7 +37,7 @@ class APIError(V3DError):
 
     def __init__(self, status: int, detail: str, field: Optional[str] = None, body: Any = None) -> None:
         self.status, self.detail, self.field, self.body = status, detail, field, body
-        where = f" ({field})" if field else ""
+        where = f" ({field})" if field and not detail.startswith(f"{field}:") else ""
         super().__init__(f"{status}: {detail}{where}")
 
 
