@@ -5,8 +5,10 @@ command line did."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
@@ -34,20 +36,27 @@ class ServedDemo:
         return self.accounts[role].token
 
 
-@pytest.fixture(scope="module")
-def served_demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedDemo]:
-    """The module's served demo (made once: the demo's import takes most of its time)."""
+@contextmanager
+def serve_demo(root: Path, **settings: Any) -> Iterator[ServedDemo]:
+    """The demo as ``v3d serve --demo`` loads it, with one account per role, served from ``root`` until the block
+    ends (``settings``: more of the server's settings)."""
     from app.cli.serve import load_demo_if_empty
     from app.main import create_app
 
-    root = tmp_path_factory.mktemp("served-demo")
-    settings = Settings(_env_file=None, database_url=f"sqlite:///{root / 'v3d.sqlite3'}", calibration_workers=1,
-                        jobs_dir=root / "jobs", job_runner=True)
-    upgrade_database(settings.database_url)
-    assert load_demo_if_empty(settings).startswith("demo: imported")
-    accounts = make_accounts(settings.database_url, login=False)
-    with serve_app(create_app(settings)) as url:
-        yield ServedDemo(url, accounts, settings)
+    chosen = Settings(_env_file=None, database_url=f"sqlite:///{root / 'v3d.sqlite3'}", calibration_workers=1,
+                      jobs_dir=root / "jobs", job_runner=True, **settings)
+    upgrade_database(chosen.database_url)
+    assert load_demo_if_empty(chosen).startswith("demo: imported")
+    accounts = make_accounts(chosen.database_url, login=False)
+    with serve_app(create_app(chosen)) as url:
+        yield ServedDemo(url, accounts, chosen)
+
+
+@pytest.fixture(scope="module")
+def served_demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedDemo]:
+    """The module's served demo (made once: the demo's import takes most of its time)."""
+    with serve_demo(tmp_path_factory.mktemp("served-demo")) as served:
+        yield served
 
 
 def page_through(raw: httpx.Client, path: str, **params: object) -> list[dict]:

@@ -268,9 +268,9 @@ class Client:
         if self._login is not None and self._csrf is None:
             name, password = self._login
             self._login = None
-            self._send("POST", "/api/auth/login", json={"name": name, "password": password})
-            self._csrf = self.me().csrf_token or ""
-            self._login = None
+            me = Me.model_validate(self._send("POST", "/api/auth/login", json={"name": name, "password": password})
+                                   .json())
+            self._csrf = me.csrf_token or ""
 
     def _send(self, method: str, path: str, *, params: Optional[Mapping[str, Any]] = None, json: Any = None,
               etag: Optional[str] = None, upload: Optional[Callable[[ExitStack], dict[str, Any]]] = None,
@@ -279,7 +279,7 @@ class Client:
 
         ``upload`` makes the multipart body of an attempt (files opened on the given stack), so that an attempt sent
         again sends the file again from its start. A streamed answer must be closed by the caller."""
-        if path != "/api/health" and not path.startswith("/api/auth/"):
+        if path not in ("/api/health", "/api/auth/login"):
             self._start()
         headers: dict[str, str] = {}
         if etag is not None:
