@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Callable, Iterator, Literal, Optional, TypeVar
 
 import typer
-from tqdm import tqdm
 
 from app.cli._root import export_cli, import_cli
+from app.cli.bars import StageBars
 from app.cli.remote import export_tree, refuse_remote, remote_client, upload_and_wait
 from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
@@ -39,29 +39,6 @@ MergeOpt = Annotated[Optional[MergeMode], typer.Option(
     help="Games stored already: how to merge them (without it, an import of a stored game exits 2 naming them). "
          + "; ".join(f"{mode}: {what}" for mode, what in MERGE_MODES.items()) + ".")]
 _Command = TypeVar("_Command", bound=Callable[..., Any])
-_STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating",
-           "rig": "calibrating with game rigs", "triangulate": "triangulating", "recompute": "recomputing systems",
-           "export": "exporting games", "predictions": "storing predictions"}
-
-
-class _Bars:
-    """One tqdm bar per stage of a job (import, recompute, export), fed by the services'
-    ``progress(stage, done, total)``."""
-
-    def __init__(self) -> None:
-        self.bars: dict[str, tqdm] = {}
-
-    def __call__(self, stage: str, done: int, total: int) -> None:
-        bar = self.bars.get(stage)
-        if bar is None:
-            for other in self.bars.values():  # stages run one after the other
-                other.close()
-            bar = self.bars[stage] = tqdm(total=total, desc=_STAGES.get(stage, stage), unit="item", leave=True)
-        bar.update(done - bar.n)
-
-    def close(self) -> None:
-        for bar in self.bars.values():
-            bar.close()
 
 
 def export_command(name: str) -> Callable[[_Command], _Command]:
@@ -117,7 +94,7 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
     from app.db.models import JobState
     from app.services.jobs import runner as jobs
 
-    bars = _Bars()
+    bars = StageBars()
     owner = jobs.owner_name(settings)
     with session_factory(settings) as factory:
         with factory() as session:
@@ -311,7 +288,7 @@ def export_soccernet_v3d_cmd(
         typer.echo(f"exported release {release} ({written['hash']}): {written['systems']} system(s), "
                    f"{written['views']} view(s) to {out_dir}")
         return
-    bars = _Bars()
+    bars = StageBars()
     try:
         with database_session(settings) as session:
             report = export_soccernet_v3d(session, out_dir, include_all=include_all, progress=bars,

@@ -13,7 +13,8 @@ from typing import Annotated, Any, Optional
 import typer
 
 from app.cli._root import cli
-from app.cli.datasets import DatabaseOpt, _Bars, cli_settings, run_job_here, session_factory
+from app.cli.bars import StageBars
+from app.cli.datasets import DatabaseOpt, cli_settings, run_job_here, session_factory
 from app.cli.remote import remote_client
 
 jobs_cli = typer.Typer(help="Background jobs: imports, full recomputes, exports.", no_args_is_help=True)
@@ -80,13 +81,11 @@ def wait_cmd(
     import json
     import time
 
-    from v3d_client.progress import tqdm_job
-
     with remote_client() as client:
         if client is not None:
-            stages = tqdm_job(leave=True)
+            stages = StageBars()
             try:
-                done = client.wait(job_id, progress=stages, timeout_s=timeout)
+                done = client.wait(job_id, progress=stages.job, timeout_s=timeout)
             finally:
                 stages.close()
             typer.echo(json.dumps(done.result, indent=2, sort_keys=True))
@@ -97,7 +96,7 @@ def wait_cmd(
 
     settings = cli_settings(database_url, None)
     deadline = None if timeout is None else time.monotonic() + timeout
-    bars = _Bars()
+    bars = StageBars()
     try:
         with session_factory(settings) as factory:
             while True:
@@ -107,8 +106,7 @@ def wait_cmd(
                     except NotFoundError as exc:
                         typer.echo(f"error: {exc}", err=True)
                         raise typer.Exit(code=2) from None
-                if job.stage:
-                    bars(job.stage, job.done, job.total)
+                bars.job(job)
                 if job.state in (JobState.DONE, JobState.FAILED):
                     break
                 if deadline is not None and time.monotonic() >= deadline:

@@ -9,7 +9,8 @@ writes it), ``release create|list|show|diff``, ``users list|add|disable``, ``job
 annotators``, each with progress bars on standard error. A remote command writes nothing in its working folder but
 the OUT it was given. Any other command named with ``--server`` is refused (:func:`refuse_remote`, exit 2): it runs on
 the server's machine only. A refusal of the server (401, 403, 404, 409, 413, 422) prints ``error: <the server's
-words>`` and exits 2; a failed job exits as the local command does (2 for invalid input, else 1).
+words>`` and exits 2; a failed job exits as the local command does (2 for invalid input, else 1), as do a server that
+does not answer and a wait past its ``--timeout`` (1).
 """
 from __future__ import annotations
 
@@ -66,7 +67,7 @@ def remote_client() -> Iterator[Optional["Client"]]:
     if _server["url"] is None:
         yield None
         return
-    from v3d_client import Client, JobFailed, Unreachable, V3DError
+    from v3d_client import Client, JobFailed, JobTimeout, Unreachable, V3DError
 
     token = os.environ.get(TOKEN_ENV)
     if not token:
@@ -79,7 +80,7 @@ def remote_client() -> Iterator[Optional["Client"]]:
     except JobFailed as exc:
         typer.echo(f"error: {exc.job.message}", err=True)
         raise typer.Exit(code=2 if (exc.job.result or {}).get("invalid_input") else 1) from None
-    except Unreachable as exc:
+    except (Unreachable, JobTimeout) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(code=1) from None
     except V3DError as exc:
@@ -89,12 +90,12 @@ def remote_client() -> Iterator[Optional["Client"]]:
 
 def wait_with_bars(client: "Client", job: "Job") -> "Job":
     """Wait for ``job`` drawing a bar per stage (standard error); the finished job."""
-    from v3d_client.progress import tqdm_job
+    from app.cli.bars import StageBars
 
     typer.echo(f"job {job.id} queued on {client.url}", err=True)
-    bars = tqdm_job(leave=True)
+    bars = StageBars()
     try:
-        return client.wait(job, progress=bars)
+        return client.wait(job, progress=bars.job)
     finally:
         bars.close()
 

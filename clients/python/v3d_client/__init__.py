@@ -1,8 +1,10 @@
-"""v3d_client: the Python client of a v3d server's REST API (``docs/client.md``).
+"""v3d_client: the Python client of a v3d server's REST API (``docs/client.md``)::
 
->>> from v3d_client import Client
->>> Client.__name__, Client.from_env.__name__
-('Client', 'from_env')
+    from v3d_client import Client
+
+    with Client.from_env() as v3d:  # V3D_URL, V3D_TOKEN
+        for system in v3d.systems(doubt="mirrored_labels"):
+            print(system.id, system.name)
 
 Depends on httpx and pydantic only: it imports nothing of the server (``app``) and nothing of numpy or scipy.
 """
