@@ -32,8 +32,6 @@ from v3d_client import (
 )
 from v3d_client.models import SystemState
 
-pytestmark = [pytest.mark.shared]
-
 
 @pytest.fixture(scope="module")
 def served_demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedDemo]:

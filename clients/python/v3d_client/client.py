@@ -24,7 +24,7 @@ import time
 import zipfile
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import ExitStack
-from datetime import datetime
+from datetime import datetime, timezone
 from email.utils import parsedate_to_datetime
 from pathlib import Path
 from typing import IO, Any, Optional, TypeVar
@@ -721,8 +721,10 @@ class Client:
     @_route("GET /api/audit", answer=AuditPage)
     def audit(self, *, system_id: Optional[int] = None, frame_id: Optional[int] = None, user: Optional[str] = None,
               since: Optional[datetime] = None, page_size: int = 200) -> Iterator[AuditEntry]:
-        """Every audit entry, newest first, of a system, a frame or a user; with ``since``, the entries at or after
-        that time (the pages stop at the first older one)."""
+        """Every audit entry, newest first, of a system, a frame or a user; with ``since`` (UTC when it names no
+        offset), the entries at or after that time (the pages stop at the first older one)."""
+        if since is not None and since.tzinfo is None:
+            since = since.replace(tzinfo=timezone.utc)
         entries = self._pages("/api/audit", AuditPage, {"system_id": system_id, "frame_id": frame_id, "user": user},
                               page_size)
         for entry in entries:

@@ -2,12 +2,12 @@
 
 A transfer calls ``progress(done, total)`` with bytes sent or received so far and the whole size (None when the
 server did not say it); waiting on a job calls ``progress(job)`` with the job as last read (its ``stage``, ``done``
-of ``total``). :func:`tqdm_bytes` and :func:`tqdm_job` draw them as terminal bars when tqdm is installed
+of ``total``). :class:`tqdm_bytes` draws a transfer as a terminal bar when tqdm is installed
 (``pip install './clients/python[progress]'``).
 """
 from __future__ import annotations
 
-from typing import Any, Callable, Optional, Protocol
+from typing import Any, Callable, Optional
 
 from v3d_client.models import Job
 
@@ -15,10 +15,6 @@ from v3d_client.models import Job
 BytesProgress = Callable[[int, Optional[int]], None]
 #: ``progress(job)``, the job as last read.
 JobProgress = Callable[[Job], None]
-
-
-class _Closing(Protocol):
-    def close(self) -> None: ...
 
 
 class tqdm_bytes:
@@ -41,36 +37,3 @@ class tqdm_bytes:
     def close(self) -> None:
         """End the bar."""
         self._bar.close()
-
-
-class tqdm_job:
-    """tqdm bars of a job's stages (one bar a stage, in turn), callable as a :data:`JobProgress`; ``close()`` it.
-
-    Raises:
-        ImportError: tqdm is not installed.
-    """
-
-    def __init__(self, **options: Any) -> None:
-        from tqdm import tqdm
-
-        self._tqdm, self._options = tqdm, options
-        self._bar: Any = None
-        self._stage: Optional[str] = None
-
-    def __call__(self, job: Job) -> None:
-        if job.stage is None:
-            return
-        if job.stage != self._stage:
-            self.close()
-            self._stage = job.stage
-            self._bar = self._tqdm(desc=f"job {job.id}: {job.stage}", total=job.total or None, unit="item",
-                                   **self._options)
-        if job.total and self._bar.total != job.total:
-            self._bar.total = job.total
-        self._bar.update(job.done - self._bar.n)
-
-    def close(self) -> None:
-        """End the current stage's bar."""
-        if self._bar is not None:
-            self._bar.close()
-            self._bar = None
