@@ -44,6 +44,7 @@ from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.staticfiles import StaticFiles
 from starlette.types import Scope
 
+from app import __version__
 from app.api.authentication import AuthenticationMiddleware, SessionCookieMiddleware
 from app.api.bodies import BodyLimitMiddleware
 from app.api.compression import CompressionMiddleware
@@ -153,7 +154,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app = FastAPIOffline(
         title="v3d",
         summary="Multi-view soccer broadcast annotations to reviewed 3D ball labels (SoccerNet-v3D).",
-        version="0.1.0",
+        version=__version__,
         lifespan=lifespan,
         static_url=DOCS_ASSETS_URL,
         # ReDoc's bundle loads its footer logo from cdn.redoc.ly: Swagger UI alone is served. The docs

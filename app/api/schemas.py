@@ -363,4 +363,7 @@ INVALID: dict[int | str, dict[str, Any]] = {
 
 
 class HealthOut(BaseModel):
+    """The liveness answer, and the server's version (a client refuses a server of another series by it)."""
+
     status: str
+    version: str = Field(description="The server's version (v3d's, and its client package's).")

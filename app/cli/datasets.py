@@ -11,14 +11,16 @@ with status 1 and its message.
 """
 from __future__ import annotations
 
+import json
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Callable, Iterator, Literal, Optional, TypeVar
 
 import typer
-from tqdm import tqdm
 
 from app.cli._root import export_cli, import_cli
+from app.cli.bars import StageBars
+from app.cli.remote import export_tree, refuse_remote, remote_client, upload_and_wait
 from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError
 from app.services.exports.formats import export_format
@@ -37,29 +39,6 @@ MergeOpt = Annotated[Optional[MergeMode], typer.Option(
     help="Games stored already: how to merge them (without it, an import of a stored game exits 2 naming them). "
          + "; ".join(f"{mode}: {what}" for mode, what in MERGE_MODES.items()) + ".")]
 _Command = TypeVar("_Command", bound=Callable[..., Any])
-_STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating",
-           "rig": "calibrating with game rigs", "triangulate": "triangulating", "recompute": "recomputing systems",
-           "export": "exporting games", "predictions": "storing predictions"}
-
-
-class _Bars:
-    """One tqdm bar per stage of a job (import, recompute, export), fed by the services'
-    ``progress(stage, done, total)``."""
-
-    def __init__(self) -> None:
-        self.bars: dict[str, tqdm] = {}
-
-    def __call__(self, stage: str, done: int, total: int) -> None:
-        bar = self.bars.get(stage)
-        if bar is None:
-            for other in self.bars.values():  # stages run one after the other
-                other.close()
-            bar = self.bars[stage] = tqdm(total=total, desc=_STAGES.get(stage, stage), unit="item", leave=True)
-        bar.update(done - bar.n)
-
-    def close(self) -> None:
-        for bar in self.bars.values():
-            bar.close()
 
 
 def export_command(name: str) -> Callable[[_Command], _Command]:
@@ -73,7 +52,10 @@ def export_command(name: str) -> Callable[[_Command], _Command]:
 
 
 def cli_settings(database_url: str | None, workers: int | None) -> Settings:
-    """The environment's settings with the command's ``--database-url`` and ``--workers`` applied."""
+    """The environment's settings with the command's ``--database-url`` and ``--workers`` applied. Every command on
+    the local database starts here: with ``--server`` named, one that does not run remotely ends (exit 2) saying
+    which do (``app.cli.remote.refuse_remote``)."""
+    refuse_remote()
     updates: dict[str, Any] = {}
     if database_url:
         updates["database_url"] = database_url
@@ -112,7 +94,7 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
     from app.db.models import JobState
     from app.services.jobs import runner as jobs
 
-    bars = _Bars()
+    bars = StageBars()
     owner = jobs.owner_name(settings)
     with session_factory(settings) as factory:
         with factory() as session:
@@ -134,7 +116,11 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
 
 def _run_import(settings: Settings, params: dict[str, Any]) -> None:
     """Run the import job of ``params`` here (:func:`run_job_here`) and print its counts."""
-    job_id, r = run_job_here(settings, "import", params)
+    print_import(*run_job_here(settings, "import", params))
+
+
+def print_import(job_id: int, r: dict[str, Any]) -> None:
+    """Print the counts of the import job ``job_id`` (its result ``r``), run here or on a server."""
     typer.echo(f"imported {r['source']}: {r['games']} game(s), {r['systems']} system(s), {r['frames']} frame(s) "
                f"({r['systems_new']} new, {r['systems_changed']} changed) in {r['seconds']:.1f} s (job {job_id})")
     typer.echo(f"calibrated {r['calibrated']} ({r['rig_assisted']} with the game's camera rig, "
@@ -155,12 +141,19 @@ def _run_import(settings: Settings, params: dict[str, Any]) -> None:
 
 @import_cli.command("soccernet-v3")
 def import_soccernet_v3_cmd(
-    path: Annotated[Path, typer.Argument(help="A SoccerNet-v3 tree (<league>/<season>/<game>/Labels-v3.json).")],
+    path: Annotated[Path, typer.Argument(help="A SoccerNet-v3 tree (<league>/<season>/<game>/Labels-v3.json), or with "
+                                              "--server a zip of one.")],
     database_url: DatabaseOpt = None,
     workers: WorkersOpt = None,
     merge: MergeOpt = None,
 ) -> None:
-    """Import a SoccerNet-v3 tree: calibrate every frame, triangulate every system."""
+    """Import a SoccerNet-v3 tree: calibrate every frame, triangulate every system. With --server: the folder (or a
+    zip of it) is uploaded and imported there."""
+    with remote_client() as client:
+        if client is not None:
+            job = upload_and_wait(client, path, "soccernet-v3", merge=merge)
+            print_import(job.id, job.result or {})
+            return
     settings = cli_settings(database_url, workers)
     _run_import(settings, import_params("soccernet-v3", path, calibration_workers=workers, merge=merge))
 
@@ -261,6 +254,8 @@ def export_issia3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export issia-3d`` into ``out_dir`` (its help: the registry's description of the format)."""
+    if exported_remotely("issia-3d", out_dir, include_all, True, None):
+        return
     from app.services.issia.export import export_issia3d
 
     settings = cli_settings(database_url, None)
@@ -282,6 +277,8 @@ def export_soccernet_v3d_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export soccernet-v3d`` into ``out_dir`` (its help: the registry's description of the format)."""
+    if exported_remotely("soccernet-v3d", out_dir, include_all, not no_images, release):
+        return
     from app.services.images.serving import ImageUnavailable
     from app.services.transfer.exporting import export_soccernet_v3d
 
@@ -291,7 +288,7 @@ def export_soccernet_v3d_cmd(
         typer.echo(f"exported release {release} ({written['hash']}): {written['systems']} system(s), "
                    f"{written['views']} view(s) to {out_dir}")
         return
-    bars = _Bars()
+    bars = StageBars()
     try:
         with database_session(settings) as session:
             report = export_soccernet_v3d(session, out_dir, include_all=include_all, progress=bars,
@@ -303,6 +300,22 @@ def export_soccernet_v3d_cmd(
         bars.close()
     typer.echo(f"exported {report.systems} system(s) of {report.games} game(s), {report.rows} row(s) "
                f"and {report.images} image(s) to {report.out_dir} ({report.csv_path.name})")
+
+
+def exported_remotely(fmt: str, out_dir: Path, include_all: bool, images: bool, release: str | None) -> bool:
+    """With ``--server``: the export ``fmt`` run there and unpacked under ``out_dir`` (``app.cli.remote.export_tree``),
+    its counts printed; True then, False without a server (the command runs locally). ``--all`` beside ``--release``
+    ends the command (exit 2), as locally."""
+    with remote_client() as client:
+        if client is None:
+            return False
+        if release is not None and include_all:
+            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)", err=True)
+            raise typer.Exit(code=2)
+        written = export_tree(client, fmt, out_dir, include_all, images, release)
+    of = f" of release {release}" if release is not None else ""
+    typer.echo(f"exported {fmt}{of} to {out_dir}: {json.dumps(written, sort_keys=True)}")
+    return True
 
 
 def release_tree(settings: Settings, out_dir: Path, release: str, include_all: bool, images: bool,
@@ -351,6 +364,8 @@ def export_cameras_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """``v3d export cameras`` into ``out_dir`` (its help: the registry's description of the format)."""
+    if exported_remotely("cameras", out_dir, include_all, False, release):
+        return
     from app.services.transfer.cameras_export import export_cameras
 
     settings = cli_settings(database_url, None)

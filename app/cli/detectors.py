@@ -12,7 +12,15 @@ from typing import Annotated, Optional
 import typer
 
 from app.cli._root import cli
-from app.cli.datasets import DatabaseOpt, cli_settings, database_session, export_command, release_tree
+from app.cli.datasets import (
+    DatabaseOpt,
+    cli_settings,
+    database_session,
+    export_command,
+    exported_remotely,
+    release_tree,
+)
+from app.cli.remote import remote_client
 from app.core.errors import InvalidInputError
 from app.datasets.csv_cells import inert_cell
 
@@ -25,6 +33,8 @@ ReleaseOpt = Annotated[Optional[str], typer.Option("--release", help="Export thi
 
 
 def _export(fmt: str, out_dir: Path, include_all: bool, database_url: str | None, release: str | None = None) -> None:
+    if exported_remotely(fmt, out_dir, include_all, True, release):
+        return
     from app.services.transfer.detector_export import export_detector
 
     settings = cli_settings(database_url, None)
@@ -191,9 +201,12 @@ def stats_cmd(
         return
     from app.services.evaluation.stats import dataset_stats
 
-    settings = cli_settings(database_url, None)
-    with database_session(settings) as session:
-        stats = dataset_stats(session, settings)
+    with remote_client() as client:
+        stats = client.stats().model_dump(mode="json") if client is not None else None
+    if stats is None:
+        settings = cli_settings(database_url, None)
+        with database_session(settings) as session:
+            stats = dataset_stats(session, settings)
     for kind, k in stats["kinds"].items():
         typer.echo(f"{kind}: {k['systems']} system(s), {k['images']} image(s), {k['calibrated_images']} calibrated, "
                    f"{k['admitted_images']} admitted")
@@ -225,9 +238,13 @@ def stats_annotators_cmd(
     from app.services.evaluation.annotators import FIELDS, annotator_figures
 
     utc = [None if t is None else t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t for t in (since, until)]
-    settings = cli_settings(database_url, None)
-    with database_session(settings) as session:
-        figures = [f.as_dict() for f in annotator_figures(session, utc[0], utc[1])]
+    with remote_client() as client:
+        figures = ([a.model_dump() for a in client.annotators(since=utc[0], until=utc[1])] if client is not None
+                   else None)
+    if figures is None:
+        settings = cli_settings(database_url, None)
+        with database_session(settings) as session:
+            figures = [f.as_dict() for f in annotator_figures(session, utc[0], utc[1])]
     if not figures:
         typer.echo("no label edits, decisions or hand-offs in this window")
     for f in figures:

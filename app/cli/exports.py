@@ -10,7 +10,7 @@ from typing import Annotated, Optional
 import typer
 
 from app.cli._root import export_cli
-from app.cli.datasets import DatabaseOpt, cli_settings, release_tree, zip_tree
+from app.cli.datasets import DatabaseOpt, cli_settings, exported_remotely, release_tree, zip_tree
 from app.services.exports.formats import export_format, export_names
 
 
@@ -26,6 +26,8 @@ def generic_export_command(name: str, app: typer.Typer = export_cli) -> None:
                                                        "database now (the same files every time).")] = None,
         database_url: DatabaseOpt = None,
     ) -> None:
+        if exported_remotely(name, out_dir, include_all, images, release):
+            return
         settings = cli_settings(database_url, None)
         if release is not None:
             written = release_tree(settings, out_dir, release, include_all, images, name)

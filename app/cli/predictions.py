@@ -6,12 +6,13 @@ file prints ``error: <file>: line <n> ...: <problem>`` and exits 2 with nothing 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated, Any, Optional
 
 import typer
 
 from app.cli._root import cli, import_cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session, run_job_here
+from app.cli.remote import remote_client, upload_and_wait
 from app.services.jobs.work import import_params
 
 predictions_cli = typer.Typer(help="A ball detector's stored predictions, by source.", no_args_is_help=True)
@@ -26,9 +27,19 @@ def import_predictions_cmd(
                                                        "it again replaces its predictions.")] = None,
     database_url: DatabaseOpt = None,
 ) -> None:
-    """Import a ball detector's predictions; the systems they touch get their doubts recomputed."""
+    """Import a ball detector's predictions; the systems they touch get their doubts recomputed. With --server: the
+    file is uploaded and imported there."""
+    with remote_client() as client:
+        if client is not None:
+            job = upload_and_wait(client, path, "predictions", source=source)
+            _print_report(job.id, job.result or {})
+            return
     settings = cli_settings(database_url, None)
-    job_id, r = run_job_here(settings, "import", import_params("predictions", path, source=source))
+    _print_report(*run_job_here(settings, "import", import_params("predictions", path, source=source)))
+
+
+def _print_report(job_id: int, r: dict[str, Any]) -> None:
+    """The counts of the predictions' import job ``job_id`` (its result ``r``), run here or on a server."""
     typer.echo(f"imported {r['stored']} prediction(s) of source {r['source']!r} from {r['rows']} row(s) on "
                f"{r['frames']} frame(s) of {r['systems']} system(s) ({r['replaced']} earlier one(s) replaced, "
                f"{r['clipped']} box(es) clipped to their image) in {r['seconds']:.1f} s (job {job_id})")

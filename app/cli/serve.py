@@ -27,6 +27,7 @@ from typing import Annotated, Any, Optional
 import typer
 
 from app.cli._root import cli
+from app.cli.remote import refuse_remote
 from app.core.config import Settings, get_settings, var_dir
 from app.services.accounts.throttle import is_loopback
 
@@ -151,6 +152,7 @@ def serve(
             _refuse(f"--demo on {host!r}: the demo account (demo / demo, admin) has a public password and "
                     "must never face a network. Serve on 127.0.0.1 to try v3d, or create a real admin "
                     "(`v3d users add NAME --role admin`) and serve without --demo.")
+    refuse_remote()  # a server is served here, never through another
     settings = get_settings()
     if demo and settings.trusted_proxies:
         _refuse("--demo with V3D_TRUSTED_PROXIES set: a reverse proxy forwards the network to this server, and the "

@@ -1,6 +1,7 @@
 """``v3d users ...``: the people who may log in and their API tokens (``app.services.accounts.users``).
 
-Run by whoever owns the machine: no token needed, the database is ``V3D_DATABASE_URL`` (or
+Run by whoever owns the machine: no token needed (``list``, ``add`` and ``disable`` also run on a server through its
+API with ``--server`` and an admin's ``V3D_TOKEN``), the database is ``V3D_DATABASE_URL`` (or
 ``--database-url``), migrated first. ``add`` and ``token`` print the new API token alone on the last
 line of standard output (``token`` prints its id on the line before)
 (``TOKEN=$(v3d users add ana --role annotator --password-stdin <pw | tail -n1)``); the token is shown only then. Errors
@@ -9,12 +10,13 @@ print ``error: ...`` and exit with status 2, changing nothing.
 from __future__ import annotations
 
 import sys
-from typing import Annotated, Optional
+from typing import Annotated, Any, Optional
 
 import typer
 
 from app.cli._root import cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session
+from app.cli.remote import remote_client
 from app.core.errors import InvalidInputError, NotFoundError
 
 users_cli = typer.Typer(help="Users, roles and API tokens.", no_args_is_help=True)
@@ -41,6 +43,12 @@ def add_cmd(
     database_url: DatabaseOpt = None,
 ) -> None:
     """Add a user; prints its first API token alone on the last line."""
+    with remote_client() as client:
+        if client is not None:
+            made = client.add_user(name, role, _read_password(password_stdin))
+            typer.echo(f"added {made.name} ({role}); API token (shown once, send it as Authorization: Bearer):")
+            typer.echo(made.token)
+            return
     from app.services.accounts.users import check_new_user, create_user
 
     settings = cli_settings(database_url, None)
@@ -132,8 +140,11 @@ def list_cmd(database_url: DatabaseOpt = None) -> None:
     """List the users: name, role, created (UTC), number of API tokens, state."""
     from app.services.accounts.users import list_users
 
-    with database_session(cli_settings(database_url, None)) as session:
-        rows = list_users(session)
+    with remote_client() as client:
+        rows: list[Any] = client.users() if client is not None else []
+    if client is None:
+        with database_session(cli_settings(database_url, None)) as session:
+            rows = list_users(session)
     typer.echo(f"{'name':<24} {'role':<10} {'created (UTC)':<17} {'tokens':>6}  state")
     for u in rows:
         state = ", ".join(s for s, on in (("disabled", u.disabled), ("demo account", u.demo)) if on) or "active"
@@ -143,11 +154,15 @@ def list_cmd(database_url: DatabaseOpt = None) -> None:
 def _set_disabled(name: str, disabled: bool, database_url: str | None) -> None:
     from app.services.accounts.users import set_disabled
 
-    with database_session(cli_settings(database_url, None)) as session:
-        try:
-            set_disabled(session, name, disabled)
-        except NotFoundError as exc:
-            raise _fail(exc) from None
+    with remote_client() as client:
+        if client is not None:
+            client.update_user(name, disabled=disabled)
+    if client is None:
+        with database_session(cli_settings(database_url, None)) as session:
+            try:
+                set_disabled(session, name, disabled)
+            except NotFoundError as exc:
+                raise _fail(exc) from None
     done = ("disabled (sessions end; every API token revoked for good)" if disabled
             else "enabled (log in again; issue a new token with v3d users token)")
     typer.echo(f"{name}: {done}")

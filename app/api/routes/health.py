@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request
 
+from app import __version__
 from app.api.schemas import HealthOut
 
 router = APIRouter(tags=["health"])
@@ -16,6 +17,7 @@ router = APIRouter(tags=["health"])
 
 @router.get("/health", response_model=HealthOut)
 async def health(request: Request) -> HealthOut:
-    """``{"status": "ok"}`` once the database answers on the probe's own connection (a database error is a 500)."""
+    """``{"status": "ok", "version": ...}`` once the database answers on the probe's own connection (a database
+    error is a 500); ``version`` is the server's (``app.__version__``), which a client checks at its first call."""
     await request.app.state.health_probe.check()
-    return HealthOut(status="ok")
+    return HealthOut(status="ok", version=__version__)
