@@ -12,6 +12,7 @@ import functools
 import json
 import math
 import os
+import sys
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -23,15 +24,31 @@ from app.core.errors import DatasetError
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
+def json_problem(exc: Exception) -> str | None:
+    """What is wrong with a JSON text whose parsing raised ``exc``, in words, or None when ``exc`` is not a parse
+    failure: not UTF-8, invalid or truncated, nested deeper than Python's parser goes (``RecursionError``), or an
+    integer longer than Python converts (``ValueError``, ``sys.get_int_max_str_digits``)."""
+    if isinstance(exc, UnicodeDecodeError):
+        return f"not UTF-8 text ({exc.reason} at byte {exc.start})"
+    if isinstance(exc, json.JSONDecodeError):
+        return f"invalid or truncated JSON: {exc.msg} at line {exc.lineno} column {exc.colno}"
+    if isinstance(exc, RecursionError):
+        return "JSON nested too deep to be read (arrays or objects inside one another, thousands deep)"
+    if isinstance(exc, ValueError) and "digits" in str(exc):
+        return f"an integer of more than {sys.get_int_max_str_digits()} digits, longer than can be read"
+    return None
+
+
 def load_json_bytes(raw: bytes, where: str) -> Any:
-    """``raw`` parsed as UTF-8 JSON; raises :class:`DatasetError` naming ``where`` (the file) otherwise."""
+    """``raw`` parsed as UTF-8 JSON; raises :class:`DatasetError` naming ``where`` (the file) otherwise
+    (:func:`json_problem`)."""
     try:
         return json.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise DatasetError(where, None, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except json.JSONDecodeError as exc:
-        raise DatasetError(where, None, f"invalid or truncated JSON: {exc.msg} at line {exc.lineno} "
-                                        f"column {exc.colno}") from None
+    except (ValueError, RecursionError) as exc:
+        problem = json_problem(exc)
+        if problem is None:
+            raise
+        raise DatasetError(where, None, problem) from None
 
 
 def load_json_file(path: Path) -> Any:
@@ -325,8 +342,11 @@ class JsonFile:
         """The parsed JSON. Raises :class:`InputFileError` naming the file when it is not UTF-8 JSON."""
         try:
             return json.loads(self.read().decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputFileError(f"{self.label}: not readable JSON ({exc})") from exc
+        except (ValueError, RecursionError) as exc:
+            problem = json_problem(exc)
+            if problem is None:
+                raise
+            raise InputFileError(f"{self.label}: not readable JSON ({problem})") from None
 
 
 #: The most a JSON member of a zip may unpack to (a SoccerNet-calibration frame file or a camera is a few kB): a
