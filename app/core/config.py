@@ -387,6 +387,10 @@ class Settings(BaseSettings):
         "frame or image, the best by score, also from a database written before the cap "
         "(V3D_MAX_PREDICTIONS_PER_FRAME). A lower cap reaches the stored doubts at their system's next "
         "recomputation (v3d recompute).")
+    max_players_per_frame: int = Field(
+        200, gt=0, description="Most player boxes an import keeps a frame, the first in the file's order (a real "
+        "frame boxes a few dozen people; they only help place the cameras the lines cannot): the rest are counted in "
+        "the import's report and not stored (V3D_MAX_PLAYERS_PER_FRAME).")
     max_comments_per_system: int = Field(
         300, gt=0, description="Most comments one system may hold, resolved ones included: one more is refused with "
         "409 naming the cap (V3D_MAX_COMMENTS_PER_SYSTEM).")
