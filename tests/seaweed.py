@@ -2,6 +2,7 @@
 its master, volume, filer and S3 gateway on free loopback ports, its data in a temporary folder."""
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -69,8 +70,10 @@ class Seaweed:
                 self.process.wait(10)
 
 
-def start_seaweed(folder: Path, bucket: str = "v3d", timeout_s: float = 60.0) -> Seaweed:
+def start_seaweed(folder: Path, bucket: str = "v3d", timeout_s: float = 60.0, checks_keys: bool = False) -> Seaweed:
     """Start ``weed server -s3`` with its data under ``folder`` and make ``bucket``; waits until the bucket is made.
+    ``checks_keys``: the gateway knows one identity (:data:`ACCESS_KEY`, :data:`SECRET_KEY`) and refuses requests
+    signed otherwise (``SignatureDoesNotMatch``), as a real S3 does; else it accepts any.
 
     Raises:
         RuntimeError: the server did not answer within ``timeout_s`` (its log named).
@@ -87,6 +90,12 @@ def start_seaweed(folder: Path, bucket: str = "v3d", timeout_s: float = 60.0) ->
             f"-filer.localSocket={folder}/filer.sock",
             "-s3", f"-s3.port={s3}", f"-s3.port.grpc={s3_grpc}", "-s3.port.iceberg=0", "-s3.port.lance=0",
             f"-s3.localSocket={folder}/s3.sock"]
+    if checks_keys:
+        identities = folder / "s3.json"
+        identities.write_text(json.dumps({"identities": [{
+            "name": "v3d", "credentials": [{"accessKey": ACCESS_KEY, "secretKey": SECRET_KEY}],
+            "actions": ["Admin", "Read", "List", "Tagging", "Write"]}]}))
+        args.append(f"-s3.config={identities}")
     with open(log, "wb") as out:
         process = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
     server = Seaweed(f"http://127.0.0.1:{s3}", bucket, process, log)

@@ -18,6 +18,9 @@
   ``app.db.session.is_lock_timeout`` recognises: SQLite "database is locked", PostgreSQL ``lock_timeout``,
   after ``V3D_WRITE_LOCK_TIMEOUT_S``): 503 with ``Retry-After`` (:data:`RETRY_AFTER_S`), never 500; nothing was
   written, the same request may be sent again. Any other ``OperationalError`` stays a server error.
+* :class:`~app.services.storage.stores.StorageError` (the file store, ``V3D_STORAGE_URL``, unreachable, refusing
+  v3d's credentials or not answering within its timeouts): 503 with ``Retry-After`` (:data:`STORE_RETRY_AFTER_S`)
+  and the store's words, at once, never a 404 of a missing file or a 500.
 
 Request validation errors keep FastAPI's form (422, ``detail`` a list of ``{loc, msg, type}``), so a
 NaN box answers ``loc: ["body", "box", 0]``; an error quotes its ``input`` back only when it is short (at most
@@ -55,6 +58,7 @@ from app.db.session import is_lock_timeout
 from app.geometry.annotations import AnnotationError
 from app.services.images.serving import ImageUnavailable
 from app.services.jobs.runner import JobNotReady
+from app.services.storage.stores import StorageError
 from app.services.transfer.archives import UploadTooLarge
 
 #: Longest ``input`` (as JSON, characters) a validation error quotes back; a longer one is left out.
@@ -187,6 +191,18 @@ async def _database_error(_: Request, exc: Exception) -> JSONResponse:
                         headers={"Retry-After": str(RETRY_AFTER_S), "Cache-Control": "no-store"})
 
 
+#: Seconds a client is asked to wait before sending again a request the file store could not serve (its timeouts and
+#: tries, ``app.services.storage.s3``, take about as long).
+STORE_RETRY_AFTER_S = 30
+
+
+async def _store_error(_: Request, exc: Exception) -> JSONResponse:
+    """503 + ``Retry-After`` for a store that cannot be used (its words name it and why)."""
+    return JSONResponse({"detail": f"{exc}; nothing was changed, send the request again in {STORE_RETRY_AFTER_S} s"},
+                        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+                        headers={"Retry-After": str(STORE_RETRY_AFTER_S), "Cache-Control": "no-store"})
+
+
 async def _http_error(request: Request, exc: Exception) -> Response:
     """FastAPI's answer to ``HTTPException``, except the 400 that FastAPI and Starlette raise when they
     cannot read a request body ("There was an error parsing the body", "Invalid multipart data."; v3d's
@@ -215,4 +231,5 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(AnnotationError, _invalid)
     app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(OperationalError, _database_error)
+    app.add_exception_handler(StorageError, _store_error)
     app.add_exception_handler(RequestValidationError, _validation_error)

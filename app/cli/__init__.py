@@ -5,11 +5,15 @@ Each command group lives in its own module and registers on the objects of ``app
 """
 from __future__ import annotations
 
+import typer
+
 from app.cli._root import cli
+from app.core.config import SettingsError
 
 
 def main() -> None:
-    """Run the ``v3d`` command line."""
+    """Run the ``v3d`` command line; a ``V3D_*`` variable it cannot run with ends it with one line naming the variable
+    and what it accepts, status 2."""
     from app.cli import (  # noqa: F401  # each module registers its commands
         calibration,  # v3d calibrate
         datasets,  # v3d import ..., v3d export ...
@@ -25,4 +29,8 @@ def main() -> None:
     from app.cli.exports import register_remaining_exports
 
     register_remaining_exports()  # a format no module writes a command for: the registry's generic one
-    cli()
+    try:
+        cli()
+    except SettingsError as exc:  # a bad V3D_* variable: one line naming it, not a traceback
+        typer.echo(f"v3d: refused: {exc}", err=True)
+        raise SystemExit(2) from None

@@ -129,6 +129,8 @@ def print_import(job_id: int, r: dict[str, Any]) -> None:
                f"{r['refused']}; triangulated {r['triangulated']} system(s)")
     for reason, n in r["refusal_kinds"].items():
         typer.echo(f"  refused x{n}: {reason}")
+    if r.get("players_dropped"):
+        typer.echo(f"  {r['players_dropped']} player box(es) beyond V3D_MAX_PLAYERS_PER_FRAME a frame, not stored")
     for skipped in r.get("skipped_systems", []):
         typer.echo(f"  system left out: {skipped}")
     for skipped in r.get("skipped_games", []):

@@ -21,7 +21,7 @@ from app.cli.datasets import (
     release_tree,
 )
 from app.cli.remote import remote_client
-from app.core.errors import InvalidInputError
+from app.core.errors import DatasetError, InvalidInputError
 from app.datasets.csv_cells import inert_cell
 
 evaluate_cli = typer.Typer(help="Evaluate detectors against the curated labels.", no_args_is_help=True)
@@ -275,20 +275,22 @@ def stats_yield_cmd(
     """Systems with a 3D ball under the paper's rules (JaC@0.5 % > 0.75 views only, tau, 1 m, labelled views only)
     and under v3d's (the stored 3D ball, from the labels as they are now), side by side
     (app.services.evaluation.ball_yield)."""
-    from app.services.evaluation.ball_yield import ball_yield
+    from app.datasets.files import load_json_file
+    from app.services.evaluation.ball_yield import ball_yield, truth_balls
 
-    try:
-        given = None if truth is None else json.loads(truth.read_text())
-    except (OSError, ValueError) as exc:
-        typer.echo(f"error: --truth {truth}: {exc}", err=True)
+    try:  # the truth's shape checked before the database is opened: a wrong file costs nothing
+        given = None if truth is None else load_json_file(truth)
+        if given is not None:
+            truth_balls(given)
+    except DatasetError as exc:  # names the file already
+        typer.echo(f"error: --truth {exc}", err=True)
         raise typer.Exit(code=2) from None
-    settings = cli_settings(database_url, None)
-    try:
-        with database_session(settings) as session:
-            report = ball_yield(session, settings, given)
     except ValueError as exc:
         typer.echo(f"error: --truth {truth}: {exc}", err=True)
         raise typer.Exit(code=2) from None
+    settings = cli_settings(database_url, None)
+    with database_session(settings) as session:
+        report = ball_yield(session, settings, given)
     n = report["systems"]
     for rule, words in (("paper", "paper's rules (admitted views, labels only)"), ("v3d", "v3d (stored 3D ball)")):
         r = report[rule]

@@ -125,6 +125,20 @@ def demo_account_name(settings: Settings) -> Optional[str]:
         engine.dispose()
 
 
+def store_warning(settings: Settings) -> str | None:
+    """A warning naming the file store (``V3D_STORAGE_URL``) when one request to it fails (unreachable, refusing v3d's
+    credentials, no such bucket, no answer in time); None when it answers. The server starts all the same: what
+    needs no file serves, what needs one answers 503 in these words until the store can be used."""
+    from app.services.storage import storage_for
+    from app.services.storage.stores import StorageError
+
+    try:
+        storage_for(settings).check_reachable()
+    except StorageError as exc:
+        return f"v3d: warning: {exc}; requests that need a kept file answer 503 until it can be used"
+    return None
+
+
 def _refuse(message: str) -> None:
     typer.echo(f"v3d serve: refused: {message}", err=True)
     raise typer.Exit(code=2)
@@ -169,6 +183,9 @@ def serve(
     refreshed = refresh_derived(settings)
     if refreshed:
         typer.echo(refreshed)
+    store = store_warning(settings)
+    if store:
+        typer.echo(store, err=True)
     if demo:
         typer.echo(load_demo_if_empty(settings))
         typer.echo(ensure_demo_account(settings))

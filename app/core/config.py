@@ -5,12 +5,14 @@ One pydantic-settings class; the API, the CLI, Alembic and the services all read
 """
 from __future__ import annotations
 
+import re
 import socket
 from functools import lru_cache
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional
+from urllib.parse import urlsplit
 
-from pydantic import Field, SecretStr, field_validator, model_validator
+from pydantic import Field, SecretStr, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from app.core.paths import PROJECT_ROOT
@@ -18,6 +20,54 @@ from app.geometry.pitch import BALL_DIAMETER_M, MIN_LINE_CLASSES, PLAY_VOLUME
 
 #: Shortest ``V3D_SESSION_SECRET`` accepted (characters): 32 random URL-safe characters carry 192 bits.
 MIN_SESSION_SECRET_CHARS = 32
+#: Longest ``V3D_NODE_NAME`` (characters): it is stored in every job's owner (``node:pid:token``).
+MAX_NODE_NAME_CHARS = 120
+#: What ``V3D_STORAGE_URL`` accepts, as its refusal says.
+STORAGE_URL_FORMS = "file:///ABSOLUTE/FOLDER or s3://BUCKET/PREFIX"
+#: An S3 bucket's name (Amazon's rules, which S3-compatible stores follow): 3 to 63 lowercase letters, digits, dots and
+#: hyphens, beginning and ending with a letter or digit.
+_BUCKET = re.compile(r"^[a-z0-9][a-z0-9.-]{1,61}[a-z0-9]$")
+
+
+class SettingsError(ValueError):
+    """Settings from the environment v3d cannot run with: the message is one line naming each variable and what it
+    accepts (``v3d`` prints it and exits 2, as Django's and Starlette's start-up checks refuse a setting in words)."""
+
+
+def settings_error(exc: ValidationError) -> SettingsError:
+    """The :class:`SettingsError` of a validation of :class:`Settings`: each failed setting as its variable
+    (``V3D_NODE_NAME``) and what it accepts, never the value given (a setting may be a secret)."""
+    lines = []
+    for error in exc.errors(include_input=False, include_url=False):
+        name = f"V3D_{str(error['loc'][0]).upper()}" if error["loc"] else "V3D_*"
+        said = str(error["msg"]).removeprefix("Value error, ")
+        lines.append(said if said.startswith(name) else f"{name}: {said}")
+    return SettingsError("; ".join(lines))
+
+
+def storage_url_problem(url: str) -> str | None:
+    """What is wrong with ``url`` as ``V3D_STORAGE_URL``, in words, or None when it names a store: ``file:`` with an
+    absolute folder and no host, or ``s3:`` with a bucket named by S3's rules (:data:`_BUCKET`) and an optional
+    prefix; neither with a user, a query or a fragment."""
+    parts = urlsplit(url)
+    if parts.scheme not in ("file", "s3"):
+        return "its scheme is neither file: nor s3:"
+    if "@" in parts.netloc or parts.query or parts.fragment or any(not c.isprintable() for c in url):
+        return "it holds a user, a query, a fragment or a character that cannot be printed"
+    if parts.scheme == "file":
+        if parts.netloc not in ("", "localhost"):
+            return f"a file URL names a folder of this machine (file:///srv/v3d), not host {parts.netloc!r}"
+        if not parts.path.startswith("/") or not parts.path.strip("/"):
+            return "it names no absolute folder"
+        return None
+    if not parts.netloc:
+        return "it names no bucket"
+    if not _BUCKET.fullmatch(parts.netloc):
+        return ("its bucket must be 3 to 63 lowercase letters, digits, dots and hyphens, beginning and ending with a "
+                "letter or digit")
+    if any(part in (".", "..") for part in parts.path.strip("/").split("/")):
+        return "its prefix holds a '.' or '..' part"
+    return None
 
 
 #: The paper's choices where v3d's defaults differ (``V3D_PROFILE=paper``; an explicit ``V3D_*`` setting wins):
@@ -269,7 +319,7 @@ class Settings(BaseSettings):
         "at once. Above the "
         "longest write transaction of an import batch, during which SQLite holds the heartbeat back.")
     node_name: Optional[str] = Field(
-        None, min_length=1, max_length=120, pattern=r"^[^:\s]+$",
+        None,
         description="This node's name in the owner of the jobs it runs (``node:pid:token``); None: the host name "
         "(:func:`node_name`). "
         "Nodes sharing one database need distinct names: a node checks whether a job's process is gone only for its "
@@ -337,6 +387,10 @@ class Settings(BaseSettings):
         "frame or image, the best by score, also from a database written before the cap "
         "(V3D_MAX_PREDICTIONS_PER_FRAME). A lower cap reaches the stored doubts at their system's next "
         "recomputation (v3d recompute).")
+    max_players_per_frame: int = Field(
+        200, gt=0, description="Most player boxes an import keeps a frame, the first in the file's order (a real "
+        "frame boxes a few dozen people; they only help place the cameras the lines cannot): the rest are counted in "
+        "the import's report and not stored (V3D_MAX_PLAYERS_PER_FRAME).")
     max_comments_per_system: int = Field(
         300, gt=0, description="Most comments one system may hold, resolved ones included: one more is refused with "
         "409 naming the cap (V3D_MAX_COMMENTS_PER_SYSTEM).")
@@ -383,11 +437,24 @@ class Settings(BaseSettings):
     @field_validator("storage_url")
     @classmethod
     def _storage_url_scheme(cls, value: Optional[str]) -> Optional[str]:
-        """``file://`` or ``s3://BUCKET``, refused at start-up otherwise, naming the variable."""
-        if value is not None and not (value.startswith("file://") or
-                                      (value.startswith("s3://") and value[5:].strip("/"))):
-            raise ValueError("V3D_STORAGE_URL must be file://FOLDER or s3://BUCKET/PREFIX")
-        return value or None
+        """``file:///FOLDER`` or ``s3://BUCKET/PREFIX``, refused at start-up otherwise in words naming the variable
+        and what it accepts (:func:`storage_url_problem`)."""
+        if value is None:
+            return None
+        problem = storage_url_problem(value)
+        if problem is not None:
+            raise ValueError(f"V3D_STORAGE_URL must be {STORAGE_URL_FORMS}: {problem}")
+        return value
+
+    @field_validator("node_name")
+    @classmethod
+    def _node_name_words(cls, value: Optional[str]) -> Optional[str]:
+        """1 to :data:`MAX_NODE_NAME_CHARS` printable characters, no colon (the owner's separator) and no space."""
+        if value is not None and (not 0 < len(value) <= MAX_NODE_NAME_CHARS
+                                  or any(c == ":" or c.isspace() or not c.isprintable() for c in value)):
+            raise ValueError(f"V3D_NODE_NAME must be 1 to {MAX_NODE_NAME_CHARS} printable characters without a "
+                             "colon or a space (it names this node in its jobs' owners, node:pid:token)")
+        return value
 
     @field_validator("session_secret")
     @classmethod
@@ -430,5 +497,11 @@ def jobs_dir(settings: Settings) -> Path:
 
 @lru_cache
 def get_settings() -> Settings:
-    """The process-wide settings read from the environment."""
-    return Settings()
+    """The process-wide settings read from the environment.
+
+    Raises:
+        SettingsError: a variable holds a value v3d cannot run with (:func:`settings_error`)."""
+    try:
+        return Settings()
+    except ValidationError as exc:
+        raise settings_error(exc) from None

@@ -30,6 +30,12 @@ COUNTED_IN = os.environ.get(MULTIPROC_ENV) or None
 CONTENT_TYPE = CONTENT_TYPE_PLAIN_0_0_4
 #: The route label of a request no route matched (a 404 of an unknown path): one series, whatever the paths asked.
 UNMATCHED = "unmatched"
+#: The method labels counted by name: HTTP's standard methods (RFC 9110 section 9, and PATCH). Every label comes from
+#: a closed set, as prometheus-client advises, so that what a client sends cannot add series: any other method a
+#: client makes up is counted as :data:`OTHER_METHOD`.
+METHODS = frozenset({"GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS", "CONNECT", "TRACE"})
+#: The method label of a request whose method is not one of :data:`METHODS`.
+OTHER_METHOD = "other"
 
 REQUEST_SECONDS = Histogram(
     "v3d_http_request_duration_seconds",
@@ -43,10 +49,22 @@ RECOMPUTATIONS = Counter("v3d_system_recomputations", "Recomputations of a syste
                          "triangulation, reprojections, optimised boxes): by edits, imports, recomputes.")
 
 
+def method_label(method: str) -> str:
+    """The method label of a request: ``method`` if one of :data:`METHODS`, else :data:`OTHER_METHOD`."""
+    return method if method in METHODS else OTHER_METHOD
+
+
+def status_label(status: int) -> str:
+    """The status label of an answer: its code (100-599, all the server itself answers), else its class ``"5xx"``
+    (what the ASGI server would answer for a code outside HTTP's range)."""
+    return str(status) if 100 <= status <= 599 else "5xx"
+
+
 def observe_request(route: str, method: str, status: int, seconds: float) -> None:
     """Count one answered request in :data:`REQUEST_SECONDS` (``route``: its template, e.g.
-    ``/api/frames/{frame_id}/ball``, or :data:`UNMATCHED`)."""
-    REQUEST_SECONDS.labels(route, method, str(status)).observe(seconds)
+    ``/api/frames/{frame_id}/ball``, or :data:`UNMATCHED`; ``method`` as the client sent it, counted by
+    :func:`method_label`; ``status``: the answer's code, by :func:`status_label`). Every label is from a closed set."""
+    REQUEST_SECONDS.labels(route, method_label(method), status_label(status)).observe(seconds)
 
 
 def count_edit(action: str, outcome: str) -> None:

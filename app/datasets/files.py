@@ -12,7 +12,10 @@ import functools
 import json
 import math
 import os
+import struct
+import sys
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import IO, Any, Callable, Iterator, Mapping
@@ -23,15 +26,31 @@ from app.core.errors import DatasetError
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
+def json_problem(exc: Exception) -> str | None:
+    """What is wrong with a JSON text whose parsing raised ``exc``, in words, or None when ``exc`` is not a parse
+    failure: not UTF-8, invalid or truncated, nested deeper than Python's parser goes (``RecursionError``), or an
+    integer longer than Python converts (``ValueError``, ``sys.get_int_max_str_digits``)."""
+    if isinstance(exc, UnicodeDecodeError):
+        return f"not UTF-8 text ({exc.reason} at byte {exc.start})"
+    if isinstance(exc, json.JSONDecodeError):
+        return f"invalid or truncated JSON: {exc.msg} at line {exc.lineno} column {exc.colno}"
+    if isinstance(exc, RecursionError):
+        return "JSON nested too deep to be read (arrays or objects inside one another, thousands deep)"
+    if isinstance(exc, ValueError) and "digits" in str(exc):
+        return f"an integer of more than {sys.get_int_max_str_digits()} digits, longer than can be read"
+    return None
+
+
 def load_json_bytes(raw: bytes, where: str) -> Any:
-    """``raw`` parsed as UTF-8 JSON; raises :class:`DatasetError` naming ``where`` (the file) otherwise."""
+    """``raw`` parsed as UTF-8 JSON; raises :class:`DatasetError` naming ``where`` (the file) otherwise
+    (:func:`json_problem`)."""
     try:
         return json.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise DatasetError(where, None, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except json.JSONDecodeError as exc:
-        raise DatasetError(where, None, f"invalid or truncated JSON: {exc.msg} at line {exc.lineno} "
-                                        f"column {exc.colno}") from None
+    except (ValueError, RecursionError) as exc:
+        problem = json_problem(exc)
+        if problem is None:
+            raise
+        raise DatasetError(where, None, problem) from None
 
 
 def load_json_file(path: Path) -> Any:
@@ -225,7 +244,6 @@ def image_size_field(meta: Any, file: str | Path, where: str) -> tuple[int, int]
 MAX_IMAGE_PIXELS = 50_000_000
 #: Image types a frame may be, as :func:`image_header` names them, and the media type each is served as.
 IMAGE_MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg"}
-_PIL_FORMATS = {"PNG": "png", "JPEG": "jpeg"}
 
 
 @dataclass(frozen=True)
@@ -240,8 +258,11 @@ class ImageHeader:
 
 def image_header(stream: IO[bytes], where: str, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
     """Type and size of the image in the open binary ``stream`` (a file, or a zip member opened with
-    ``ZipFile.open``: streamed, never read whole), from its header only (Pillow's lazy ``Image.open``:
-    the PNG chunks before the pixel data, the JPEG markers up to its frame header); nothing is decoded.
+    ``ZipFile.open``: streamed, never read whole), from its header only: a PNG's signature and ``IHDR`` chunk (the
+    first 33 bytes, which the PNG specification puts first; its CRC checked), a JPEG's markers up to its frame header
+    (``SOFn``), every segment before it skipped, never kept. Nothing else is read, so that a chunk or segment of tens
+    of megabytes before the pixels costs nothing here (Pillow's ``Image.open`` reads and keeps each one); nothing is
+    decoded.
 
     Raises:
         DatasetError: naming ``where``: not a PNG or JPEG (whatever its name says: an HTML page named
@@ -265,22 +286,17 @@ def image_header(stream: IO[bytes], where: str, max_pixels: int = MAX_IMAGE_PIXE
     ...
     app.core.errors.DatasetError: 0.html: not a PNG or JPEG image (read from its header; the name does not count)
     """
-    import warnings
-
-    from PIL import Image
-
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            saved, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # the limit is ours, checked below
-            try:
-                with Image.open(stream, formats=tuple(_PIL_FORMATS)) as img:
-                    kind, (width, height) = _PIL_FORMATS[img.format or ""], img.size
-            finally:
-                Image.MAX_IMAGE_PIXELS = saved
-    except (OSError, SyntaxError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        try:
+            found = _png_header(stream) or _jpeg_header(stream)
+        except _JpegAfter as started:
+            found = _jpeg_header(stream, started.head)
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile):
+        found = None
+    if found is None:
         raise DatasetError(where, None,
-                           "not a PNG or JPEG image (read from its header; the name does not count)") from None
+                           "not a PNG or JPEG image (read from its header; the name does not count)")
+    kind, width, height = found
     if width < 1 or height < 1:
         raise DatasetError(where, None, f"image of {width}x{height} pixels")
     if width * height > max_pixels:
@@ -289,10 +305,115 @@ def image_header(stream: IO[bytes], where: str, max_pixels: int = MAX_IMAGE_PIXE
     return ImageHeader(kind, width, height)
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: The bit depths each PNG colour type allows (PNG specification, table 11.1).
+_PNG_DEPTHS = {0: {1, 2, 4, 8, 16}, 2: {8, 16}, 3: {1, 2, 4, 8}, 4: {8, 16}, 6: {8, 16}}
+#: JPEG's start-of-frame markers (every ``SOFn`` but DHT C4, JPG C8 and DAC CC), which carry the image's size.
+_JPEG_FRAMES = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+#: Markers without a length (TEM, RST0-7): nothing to skip.
+_JPEG_ALONE = {0x01, *range(0xD0, 0xD8)}
+
+
+def _read_exactly(stream: IO[bytes], n: int) -> bytes:
+    data = stream.read(n)
+    if len(data) != n:
+        raise EOFError("the image ends inside its header")
+    return data
+
+
+def _png_header(stream: IO[bytes]) -> tuple[str, int, int] | None:
+    """("png", width, height) from the signature and ``IHDR``; None when the stream does not start as a PNG (only
+    its first 8 bytes read then, and the stream put back when it can seek)."""
+    start = stream.tell() if stream.seekable() else None
+    head = stream.read(8)
+    if head != _PNG_SIGNATURE:
+        if start is not None:
+            stream.seek(start)
+            return None
+        if head[:2] == b"\xff\xd8":  # a JPEG, read on from the bytes already read
+            raise _JpegAfter(head)
+        raise ValueError("neither a PNG nor a JPEG")
+    chunk = _read_exactly(stream, 25)
+    length, kind, data, crc = struct.unpack(">I", chunk[:4])[0], chunk[4:8], chunk[8:21], chunk[21:25]
+    if length != 13 or kind != b"IHDR" or zlib.crc32(kind + data) != struct.unpack(">I", crc)[0]:
+        raise ValueError("no valid IHDR chunk first")
+    width, height, depth, colour = struct.unpack(">IIBB", data[:10])
+    if depth not in _PNG_DEPTHS.get(colour, ()) or width >= 1 << 31 or height >= 1 << 31:
+        raise ValueError("an IHDR of no PNG")
+    return "png", width, height
+
+
+class _JpegAfter(Exception):
+    """A stream that cannot seek, found to start as a JPEG: the bytes read so far."""
+
+    def __init__(self, head: bytes) -> None:
+        self.head = head
+
+
+def _skip(stream: IO[bytes], n: int) -> None:
+    """Pass ``n`` bytes of ``stream``: a seek, or reads of at most 64 KiB dropped."""
+    if stream.seekable():
+        stream.seek(n, os.SEEK_CUR)
+        return
+    while n > 0:
+        n -= len(_read_exactly(stream, min(n, 1 << 16)))
+
+
+def _jpeg_header(stream: IO[bytes], head: bytes | None = None) -> tuple[str, int, int] | None:
+    """("jpeg", width, height) from the first ``SOFn`` segment, every segment before it skipped; None when the stream
+    does not start as a JPEG."""
+    pending = bytearray(head if head is not None else stream.read(2))
+    if pending[:2] != b"\xff\xd8":
+        return None
+    del pending[:2]
+
+    def byte() -> int:
+        if pending:
+            return pending.pop(0)
+        return _read_exactly(stream, 1)[0]
+
+    while True:
+        if byte() != 0xFF:
+            raise ValueError("no JPEG marker where one belongs")
+        marker = byte()
+        while marker == 0xFF:  # fill bytes
+            marker = byte()
+        if marker in _JPEG_ALONE:
+            continue
+        if marker in (0xD8, 0xD9, 0xDA):  # another start, the end or the scan before any frame header
+            raise ValueError("no JPEG frame header before the scan")
+        length = (byte() << 8) | byte()
+        if length < 2:
+            raise ValueError("a JPEG segment shorter than its length field")
+        if marker in _JPEG_FRAMES:
+            if length < 7:
+                raise ValueError("a JPEG frame header too short")
+            _precision, height, width = byte(), (byte() << 8) | byte(), (byte() << 8) | byte()
+            return "jpeg", width, height
+        rest = length - 2
+        taken = min(rest, len(pending))
+        del pending[:taken]
+        _skip(stream, rest - taken)
+
+
+#: The most bytes an imported image file or zip member may have (256 MiB: a 50-megapixel PNG compresses well below
+#: it); above it the import is refused naming the file, so that what is kept and served costs at most that much to
+#: read, streamed (never held: :func:`image_header` reads the header alone).
+MAX_IMAGE_BYTES = 256 << 20
+
+
+def _check_image_bytes(size: int, where: str) -> None:
+    if size > MAX_IMAGE_BYTES:
+        raise DatasetError(where, None, f"an image of {size:,} bytes, more than the {MAX_IMAGE_BYTES:,} an image may "
+                                        "have")
+
+
 def file_image_header(path: Path, where: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
-    """:func:`image_header` of the file ``path`` (``where`` names it in messages)."""
+    """:func:`image_header` of the file ``path`` (``where`` names it in messages); a file above
+    :data:`MAX_IMAGE_BYTES` is refused."""
     try:
         with open(path, "rb") as fh:
+            _check_image_bytes(os.fstat(fh.fileno()).st_size, str(where))
             return image_header(fh, str(where), max_pixels)
     except OSError as exc:
         raise DatasetError(where, None, f"cannot read: {exc.strerror}") from None
@@ -300,8 +421,10 @@ def file_image_header(path: Path, where: str | Path, max_pixels: int = MAX_IMAGE
 
 def member_image_header(zf: zipfile.ZipFile, member: str, where: str,
                         max_pixels: int = MAX_IMAGE_PIXELS) -> ImageHeader:
-    """:func:`image_header` of the zip member ``member`` (streamed out of the archive, never read whole)."""
+    """:func:`image_header` of the zip member ``member`` (streamed out of the archive, never read whole); a member
+    above :data:`MAX_IMAGE_BYTES` is refused."""
     try:
+        _check_image_bytes(zf.getinfo(member).file_size, where)
         with zf.open(member) as fh:
             return image_header(fh, where, max_pixels)
     except (KeyError, OSError, zipfile.BadZipFile) as exc:
@@ -325,8 +448,11 @@ class JsonFile:
         """The parsed JSON. Raises :class:`InputFileError` naming the file when it is not UTF-8 JSON."""
         try:
             return json.loads(self.read().decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputFileError(f"{self.label}: not readable JSON ({exc})") from exc
+        except (ValueError, RecursionError) as exc:
+            problem = json_problem(exc)
+            if problem is None:
+                raise
+            raise InputFileError(f"{self.label}: not readable JSON ({problem})") from None
 
 
 #: The most a JSON member of a zip may unpack to (a SoccerNet-calibration frame file or a camera is a few kB): a

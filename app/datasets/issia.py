@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,7 +32,14 @@ from typing import Any, Callable, Iterable, Optional
 import numpy as np
 
 from app.core.errors import DatasetError
-from app.datasets.files import MAX_IMAGE_PIXELS, dataset_root, file_image_header, inside_dataset, read_text_file
+from app.datasets.files import (
+    MAX_IMAGE_PIXELS,
+    dataset_root,
+    file_image_header,
+    inside_dataset,
+    load_json_file,
+    read_text_file,
+)
 from app.geometry.annotations import AnnotationError, FieldLines, from_soccernet_calibration
 from app.geometry.camera import Camera
 
@@ -192,10 +198,7 @@ def _checked_capture(cap: Any, path: Path, image_size: tuple[int, int], max_pixe
 
 
 def _read_json_object(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DatasetError(path, None, f"not readable JSON: {exc}") from exc
+    data = load_json_file(path)
     if not isinstance(data, dict):
         raise DatasetError(path, None, "must be a JSON object of camera id -> value")
     return {str(k): v for k, v in data.items()}

@@ -20,6 +20,7 @@ import numpy as np
 
 from app.core.errors import DatasetError
 from app.datasets.csv_cells import inert_cell, read_cell
+from app.datasets.files import json_problem
 from app.datasets.issia import CAMERA_IDS, IssiaSequence
 from app.geometry.ball import optimise_box
 from app.geometry.camera import Camera
@@ -107,8 +108,9 @@ def _cell(path: Path, n: int, row: Mapping[str, Any], col: str, parse: Any) -> A
     text = read_cell(row[col] or "").strip()
     try:
         return parse(text) if text else None
-    except (ValueError, TypeError, json.JSONDecodeError) as exc:
-        raise DatasetError(path, f"row {n} {col}", f"cannot parse {text!r}: {exc}") from None
+    except (ValueError, TypeError, RecursionError) as exc:
+        said = json_problem(exc) or str(exc)
+        raise DatasetError(path, f"row {n} {col}", f"cannot parse {text[:60]!r}: {said}") from None
 
 
 def _parsed_vec(text: str) -> tuple[float, float, float]:

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 import zipfile
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
 
 from app.core.errors import DatasetError, EntryError
 from app.datasets.files import (

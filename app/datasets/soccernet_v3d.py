@@ -30,6 +30,7 @@ from app.datasets.files import (
     image_size_field,
     inside_dataset,
     is_safe_member,
+    json_problem,
     load_json_file,
     mapping,
     member_image_header,
@@ -181,11 +182,15 @@ def _cell_json(value: str | None, file: Path, where: str) -> Any:
         return None
     try:
         return json.loads(text)
-    except json.JSONDecodeError:
-        try:
-            return ast.literal_eval(text)
-        except (ValueError, SyntaxError):
-            raise DatasetError(file, where, f"cannot parse {text[:60]!r}") from None
+    except ValueError:  # JSONDecodeError, or an integer too long: a Python literal, or refused below
+        pass
+    except RecursionError:
+        raise DatasetError(file, where, f"cannot parse {text[:60]!r}: {json_problem(RecursionError())}") from None
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError, RecursionError, MemoryError) as exc:
+        said = json_problem(exc) if isinstance(exc, (ValueError, RecursionError)) else None
+        raise DatasetError(file, where, f"cannot parse {text[:60]!r}" + (f": {said}" if said else "")) from None
 
 
 def _cell_bool(value: str | None, file: Path, where: str) -> bool:

@@ -38,6 +38,7 @@ from app.services.jobs import runner as jobs
 from app.services.jobs.work import import_params
 from app.services.storage import storage_for
 from app.services.storage.datasets import DatasetFiles
+from app.services.storage.stores import KeyTooLong
 from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit, upload_limit_bytes
 from app.services.transfer.data_root import confined_path
 from app.services.transfer.import_formats import import_format, stored_games_refusal
@@ -128,11 +129,24 @@ async def _path_params(request: Request, settings: Settings) -> dict[str, Any]:
                          flip=body.flip, merge=body.merge, source=body.source)
 
 
-def _store_upload(settings: Settings, key: str, folder: Path) -> None:
-    """Keep the unpacked upload ``folder`` in the store as ``key``; a remote store's upload leaves this node's jobs
-    folder (only scratch then): the node that runs the import fetches it."""
+def _store_upload(settings: Settings, key: str, folder: Path, name: str | None) -> None:
+    """Keep the unpacked upload ``folder`` (the zip ``name`` as sent) in the store as ``key``, all or nothing; a
+    remote store's upload leaves this node's jobs folder (only scratch then): the node that runs the import fetches
+    it. A member whose key the store cannot hold is refused naming it (400); a store that fails answers 503
+    (``app.api.errors``); either way the upload is removed and no job is made."""
     storage = storage_for(settings)
-    storage.put_tree(key, folder)
+    try:
+        storage.put_tree(key, folder)  # all or nothing: no object is left of an upload refused here
+    except KeyTooLong as exc:
+        shutil.rmtree(folder, ignore_errors=True)
+        member = exc.key.removeprefix(key.rstrip("/") + "/")
+        raise DatasetError(f"{name or 'upload.zip'}!{member}", None,
+                           f"its name is too long to be kept in the file store ({exc.size:,} bytes with the "
+                           f"folder the upload is kept in; the store holds at most {exc.limit:,}): shorten the "
+                           "member's folders or name") from None
+    except BaseException:
+        shutil.rmtree(folder, ignore_errors=True)  # no job will read it
+        raise
     if storage.local_path(key) is None:
         shutil.rmtree(folder, ignore_errors=True)
 
@@ -158,6 +172,8 @@ def _refuse_stored_games(session: Session, params: dict[str, Any], settings: Set
     responses={400: {"model": ErrorOut, "description": "A missing path, a symbolic link in the dataset leading out of "
                                                        "it, or an unsafe or broken zip (the member named)."},
                403: {"model": ErrorOut, "description": "The path is outside the data root (V3D_DATA_ROOT)."},
+               503: {"model": ErrorOut, "description": "The file store (V3D_STORAGE_URL) cannot be used now (said in "
+                                                       "words, with Retry-After); nothing was stored."},
                409: {"description": "The dataset's games are stored already and no merge was named: `detail` names "
                                     "them, `current.games` lists them; nothing was stored."},
                413: {"model": ErrorOut, "description": "The upload is larger than V3D_MAX_UPLOAD_MB."},
@@ -192,7 +208,8 @@ async def create_import(request: Request, session: SessionDep, settings: Setting
         params = await _path_params(request, settings)
     await run_in_threadpool(_refuse_stored_games, session, params, settings)
     if params.get("upload_key"):  # kept in the store, where the node that runs the job reads it
-        await run_in_threadpool(_store_upload, settings, params["upload_key"], Path(params["path"]))
+        await run_in_threadpool(_store_upload, settings, params["upload_key"], Path(params["path"]),
+                                params.get("name"))
     params["actor"] = principal.name
     job = await run_in_threadpool(jobs.submit, session, "import", params)
     return accepted(job)

@@ -37,7 +37,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import InvalidInputError, NotFoundError
 from app.core.names import check_name, name_key
-from app.db.models import ApiToken, ServerSecret, User, UserRole
+from app.db.models import ApiToken, Job, JobState, ServerSecret, User, UserRole
 from app.db.types import utcnow
 from app.db.unit import write_unit
 from app.services.audit import log as audit
@@ -335,10 +335,21 @@ def authenticate_password(session: Session, name: str, password: str) -> Optiona
     return user
 
 
+def _a_job_is_running_on_sqlite(session: Session) -> bool:
+    """True when the session's database is SQLite and a job runs on it (any node, any process). On SQLite (WAL) a
+    transaction that has read and then writes fails at once ("database is locked") when another connection committed
+    in between, and an import's batch reads, calibrates for seconds and only then writes: a bookkeeping write landing
+    then would fail the import (``app.services.jobs.runner`` keeps its own heartbeat out of the batches likewise)."""
+    if session.get_bind().dialect.name != "sqlite":
+        return False
+    return session.scalar(sa.select(Job.id).where(Job.state == JobState.RUNNING).limit(1)) is not None
+
+
 def resolve_token(session: Session, token: str) -> Optional[User]:
     """The enabled user owning the API token ``token`` (neither revoked nor expired), else None. Refreshes the token's
-    ``last_used_at`` when older than :data:`TOKEN_USE_RESOLUTION` (commits then; best effort: when the
-    database's write lock is busy the refresh waits for a later request)."""
+    ``last_used_at`` when older than :data:`TOKEN_USE_RESOLUTION` (commits then). Best effort, never at the cost of
+    other work: when the database's write lock is busy, or on SQLite while a job runs
+    (:func:`_a_job_is_running_on_sqlite`), the refresh waits for a later request."""
     if not token.startswith(TOKEN_PREFIX) or len(token) > 200:
         return None
     now = utcnow()
@@ -350,7 +361,8 @@ def resolve_token(session: Session, token: str) -> Optional[User]:
     if row is None:
         return None
     api_token, user = row
-    if api_token.last_used_at is None or now - api_token.last_used_at > TOKEN_USE_RESOLUTION:
+    if (api_token.last_used_at is None or now - api_token.last_used_at > TOKEN_USE_RESOLUTION) \
+            and not _a_job_is_running_on_sqlite(session):
         user_id = user.id
         try:
             with write_unit(session, lock=False):

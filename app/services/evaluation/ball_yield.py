@@ -26,7 +26,8 @@ name (the action image), SoccerNet world metres.
 """
 from __future__ import annotations
 
-from typing import Any, Iterator, Mapping
+import math
+from typing import Any, Iterator
 
 import numpy as np
 import sqlalchemy as sa
@@ -68,19 +69,49 @@ def paper_ball(system: System, settings: Settings) -> np.ndarray | None:
     return result.point
 
 
-def truth_balls(truth: Mapping[str, Any]) -> dict[tuple[str, str], np.ndarray]:
-    """(match, system name) -> the true 3D ball (3,) world metres, from a synthetic set's truth JSON.
+def _finite_number(value: Any) -> bool:
+    """True for a JSON number that is a finite float (not a boolean, NaN, an infinity or an integer past floats)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
+def truth_balls(truth: Any) -> dict[tuple[str, str], np.ndarray]:
+    """(match, system name) -> the true 3D ball (3,) world metres, from a synthetic set's truth JSON
+    (``{"games": [{"match", "systems": [{"action", "ball_3d": [x, y, z] | null}]}]}``).
 
     Raises:
-        ValueError: the truth has no ``games`` list (not a synthetic set's truth file)."""
-    games = truth.get("games")
+        ValueError: the truth is not of that shape, naming the place (``games[2].systems[0].ball_3d``) and what it
+            should be: no ``games`` list, a game or system that is not an object, a game without its ``match``
+            (text) or ``systems`` list, a system without its ``action``, a ``ball_3d`` that is not three finite
+            numbers."""
+    games = truth.get("games") if isinstance(truth, dict) else None
     if not isinstance(games, list):
-        raise ValueError("truth: expected a synthetic set's truth JSON with a 'games' list")
+        raise ValueError("expected a synthetic set's truth JSON: an object with a 'games' list")
     out = {}
-    for g in games:
-        for s in g.get("systems") or []:
-            if s.get("ball_3d") is not None:
-                out[(str(g["match"]), str(s["action"]))] = np.asarray(s["ball_3d"], float)
+    for i, g in enumerate(games):
+        if not isinstance(g, dict):
+            raise ValueError(f"games[{i}]: expected a game (an object with 'match' and 'systems')")
+        match, systems = g.get("match"), g.get("systems", [])
+        if not isinstance(match, str) or not match:
+            raise ValueError(f"games[{i}].match: expected the game's match (text)")
+        if not isinstance(systems, list):
+            raise ValueError(f"games[{i}].systems: expected a list of systems")
+        for j, sy in enumerate(systems):
+            where = f"games[{i}].systems[{j}]"
+            if not isinstance(sy, dict):
+                raise ValueError(f"{where}: expected a system (an object with 'action' and 'ball_3d')")
+            action, ball = sy.get("action"), sy.get("ball_3d")
+            if not isinstance(action, (str, int)) or isinstance(action, bool) or action == "":
+                raise ValueError(f"{where}.action: expected the system's name (its action image)")
+            if ball is None:
+                continue
+            if not (isinstance(ball, list) and len(ball) == 3 and all(_finite_number(v) for v in ball)):
+                raise ValueError(f"{where}.ball_3d: expected three finite numbers (x, y, z in metres) or null")
+            out[(match, str(action))] = np.asarray(ball, float)
     return out
 
 
@@ -97,10 +128,13 @@ def _systems(session: Session, batch: int, predictions: int) -> Iterator[tuple[s
         session.expunge_all()
 
 
-def ball_yield(session: Session, settings: Settings, truth: Mapping[str, Any] | None = None,
+def ball_yield(session: Session, settings: Settings, truth: Any = None,
                batch: int = 500) -> dict[str, Any]:
     """The systems with a 3D ball under the paper's rules and under v3d's, and with a right one given ``truth``
-    (module docstring). Reads only."""
+    (module docstring). Reads only.
+
+    Raises:
+        ValueError: ``truth`` is not a truth file's content (:func:`truth_balls`), before anything is read."""
     true = truth_balls(truth) if truth is not None else None
     counts = {rule: {"with_ball": 0, "right": 0, "wrong": 0} for rule in ("paper", "v3d")}
     n = matched = 0

@@ -24,7 +24,7 @@ from app.datasets.files import IMAGE_MEDIA_TYPES, MAX_IMAGE_PIXELS, image_header
 from app.datasets.issia import IssiaSequence, read_frame_image
 from app.db.models import Frame
 from app.services.storage.datasets import DatasetFiles, Located, OutsideDataset
-from app.services.storage.stores import Storage
+from app.services.storage.stores import Storage, StorageError
 
 #: Bytes per streamed chunk.
 _CHUNK = 64 * 1024
@@ -150,7 +150,8 @@ def frame_image(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS, files: Optiona
         ImageUnavailable: the frame has no image (SoccerNet-calibration imports ship none), its
             member name is unsafe, its file resolves outside its dataset's folder
             (:func:`stored_image_file`), the archive, member or file is missing, or it is not a PNG or
-            JPEG image within ``max_pixels`` pixels (whatever its name), or its store cannot be read.
+            JPEG image within ``max_pixels`` pixels (whatever its name).
+        StorageError: the store holding it cannot be used now (unreachable, refusing, no answer in time).
 
     ``files``: the store and data root its reference names (default: the process's settings').
     """
@@ -167,6 +168,8 @@ def frame_image(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS, files: Optiona
                 info = zf.getinfo(member)
                 with zf.open(info) as stream:
                     media_type = _checked_media_type(frame, stream, member, max_pixels)
+        except StorageError:
+            raise  # the store cannot be used now: not a missing image (503, ``app.api.errors``)
         except FileNotFoundError:
             raise ImageUnavailable(f"{where}: image archive {frame.image_zip} is missing") from None
         except KeyError:
@@ -190,6 +193,8 @@ def frame_image(frame: Frame, max_pixels: int = MAX_IMAGE_PIXELS, files: Optiona
                 size, etag = stored.size, f'"{stored.etag}-{stored.size:x}"'
             with _open(located) as stream:
                 media_type = _checked_media_type(frame, stream, frame.image_path, max_pixels)
+        except StorageError:
+            raise
         except OSError:
             raise ImageUnavailable(f"{where}: image file {frame.image_path} is missing") from None
         return FrameImage(media_type=media_type, etag=etag, size=size, path=located.path, storage=located.storage,

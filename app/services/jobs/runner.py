@@ -46,6 +46,7 @@ from app.core.config import Settings, jobs_dir, node_name
 from app.core.errors import InvalidInputError, ServiceError, found
 from app.core.progress import Progress
 from app.db.models import Job, JobState
+from app.db.session import is_lock_timeout
 from app.db.types import json_safe, utcnow
 from app.db.unit import write_unit
 from app.services.jobs.progress import LIVE_EVERY_S, remove_live, write_live
@@ -310,6 +311,21 @@ def _work_with_retries(session_factory: sessionmaker[Session], work: Work, param
     raise AssertionError("unreachable")
 
 
+def failure_message(exc: BaseException) -> str:
+    """What a failed job's ``message`` says of ``exc``, in words: a database error says what the database answered
+    (its first line) and what to do, never the statement and its parameters that SQLAlchemy's message carries (they
+    go to the server's log); any other error its own message, or its class's name."""
+    if isinstance(exc, sa.exc.DBAPIError):
+        if is_lock_timeout(exc):
+            return ("The database stayed busy with other writes longer than its timeout; its unfinished "
+                    "transaction was rolled back. Run the job again.")
+        said = (str(exc.orig).strip().splitlines() or [""])[0] if exc.orig is not None else ""
+        return (f"The database refused the job's work ({type(exc.orig or exc).__name__}"
+                f"{': ' + said if said else ''}); its unfinished transaction was rolled back. The server's log "
+                "has the details.")
+    return str(exc) or type(exc).__name__
+
+
 def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Settings, owner: str,
             progress: Progress | None = None) -> Job:
     """Run the job ``job_id`` that ``owner`` claimed, to its end: ``done`` with its ``result``, or
@@ -353,7 +369,7 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
         values = {}
     except Exception as exc:  # any exception: a job's failure is recorded, whatever it is
         log.info("job %s (%s) failed: %s", job_id, kind, exc)
-        values = {"state": JobState.FAILED, "message": str(exc) or type(exc).__name__,
+        values = {"state": JobState.FAILED, "message": failure_message(exc),
                   "result": {"error": type(exc).__name__, "invalid_input": isinstance(exc, InvalidInputError)}}
     finally:
         heartbeat.stopped.set()

@@ -50,6 +50,9 @@ def _dataset(result: dict[str, Any]) -> dict[str, Any]:
         parts.append("no images (labels only: the views show no picture)")
     elif imageless:
         parts.append(f"{_n(imageless, 'view')} without an image")
+    players_dropped = int(result.get("players_dropped", 0))
+    if players_dropped:
+        parts.append(f"{_n(players_dropped, 'player box', 'player boxes')} beyond the cap a frame not stored")
     skipped = len(result.get("skipped_systems", [])) + len(result.get("skipped_games", []))
     if skipped:
         parts.append(f"{skipped:,} left out (named in the job)")

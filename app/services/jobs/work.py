@@ -80,6 +80,7 @@ def import_result(report: Any) -> dict[str, Any]:
     out["skipped_systems"] = list(getattr(report, "skipped_systems", []))  # named, with why (the view cap)
     out["skipped_games"] = list(getattr(report, "skipped_games", []))  # named, with the entry refused and why
     out["frames_without_image"] = int(getattr(report, "frames_without_image", 0))
+    out["players_dropped"] = int(getattr(report, "players_dropped", 0))  # beyond V3D_MAX_PLAYERS_PER_FRAME
     out["summary"] = summary("import", out)
     return out
 

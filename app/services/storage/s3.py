@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO, NoReturn, Optional
 
-from app.services.storage.stores import Storage, StorageError, StoredObject, checked_key
+from app.services.storage.stores import MAX_S3_KEY_BYTES, KeyTooLong, Storage, StorageError, StoredObject, checked_key
 
 if TYPE_CHECKING:
     from mypy_boto3_s3 import S3Client
@@ -30,21 +30,49 @@ READ_BUFFER_BYTES = 256 << 10
 #: archive's directory of up to about 700 members, which ``zipfile`` reads first.
 TAIL_BYTES = 64 << 10
 
-_MISSING = ("404", "NoSuchKey", "NotFound", "NoSuchBucket")
+_MISSING = ("404", "NoSuchKey", "NotFound")
+#: What S3 answers to keys that do not sign as the server expects: a wrong secret, an unknown key id, a clock off.
+_REFUSED = ("SignatureDoesNotMatch", "InvalidAccessKeyId", "AccessDenied", "403", "RequestTimeTooSkewed",
+            "InvalidToken", "ExpiredToken")
+#: How long a request waits to connect to the store and for each answer (s), and how many times it is sent in all
+#: (botocore's ``total_max_attempts``: its ``max_attempts`` counts the retries only):
+#: a store that accepts connections and never answers fails a request in about ``READ_TIMEOUT_S * ATTEMPTS`` seconds,
+#: answered 503 (``app.api.errors``), never holding a worker for minutes (botocore's ``connect_timeout``,
+#: ``read_timeout`` and ``retries``; its defaults are 60 s each and 5 attempts in the standard mode).
+CONNECT_TIMEOUT_S = 3.0
+READ_TIMEOUT_S = 5.0
+ATTEMPTS = 2
 
 
-def _raise(exc: Exception, key: str) -> NoReturn:
-    """A boto3 error as :class:`FileNotFoundError` (no such key) or :class:`StorageError` (anything else)."""
-    code = str(getattr(exc, "response", {}).get("Error", {}).get("Code", ""))
+def _raise(exc: Exception, key: str, url: str = "S3") -> NoReturn:
+    """A boto3 error as :class:`FileNotFoundError` (no such key) or :class:`StorageError` in words (anything else:
+    the store refused v3d's keys, could not be reached, did not answer in time, or failed)."""
+    from boto3.exceptions import S3UploadFailedError
+    from botocore.exceptions import ConnectTimeoutError, EndpointConnectionError, ReadTimeoutError
+
+    if isinstance(exc, S3UploadFailedError) and isinstance(exc.__context__, Exception):
+        exc = exc.__context__  # boto3's managed upload says what S3 answered in the error it raised from
+    code = str((getattr(exc, "response", None) or {}).get("Error", {}).get("Code", ""))
     if code in _MISSING:
         raise FileNotFoundError(f"{key!r}: not stored ({code})") from None
-    raise StorageError(f"{key!r}: the S3 store failed ({type(exc).__name__}: {exc})") from None
+    if code == "NoSuchBucket":
+        said = "its bucket does not exist"
+    elif code in _REFUSED:
+        said = f"it refused v3d's credentials ({code}: check AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY)"
+    elif isinstance(exc, (ConnectTimeoutError, ReadTimeoutError)):
+        said = f"it did not answer within {READ_TIMEOUT_S:g} s ({ATTEMPTS} tries)"
+    elif isinstance(exc, EndpointConnectionError):
+        said = "it cannot be reached"
+    else:
+        said = f"it failed ({code or type(exc).__name__})"
+    raise StorageError(f"the file store {url} cannot be used: {said}") from None
 
 
 def _errors() -> tuple[type[Exception], ...]:
+    from boto3.exceptions import S3UploadFailedError
     from botocore.exceptions import BotoCoreError, ClientError
 
-    return (BotoCoreError, ClientError)
+    return (BotoCoreError, ClientError, S3UploadFailedError)
 
 
 class RangeReader(io.RawIOBase):
@@ -87,7 +115,7 @@ class RangeReader(io.RawIOBase):
                                            Range=f"bytes={self._pos}-{end - 1}")["Body"]
             data = body.read()
         except _errors() as exc:
-            _raise(exc, self._key)
+            _raise(exc, self._key, f"s3://{self._bucket}")
         n = len(data)
         view[:n] = data
         self._pos += n
@@ -103,8 +131,17 @@ class S3Storage(Storage):
         self.client = client if client is not None else default_client()
 
     def _name(self, key: str) -> str:
-        checked_key(key)
+        self.check_fits(key)
         return f"{self.prefix}/{key}" if self.prefix else key
+
+    def check_fits(self, key: str) -> str:
+        """``key`` when safe (:func:`checked_key`) and its object's name (the prefix and the key) is at most
+        :data:`MAX_S3_KEY_BYTES` bytes of UTF-8, else :class:`KeyTooLong` (before anything is sent)."""
+        checked_key(key)
+        size = len((f"{self.prefix}/{key}" if self.prefix else key).encode("utf-8", "surrogatepass"))
+        if size > MAX_S3_KEY_BYTES:
+            raise KeyTooLong(key, size, MAX_S3_KEY_BYTES, self.url)
+        return key
 
     def _key(self, name: str) -> str:
         return name[len(self.prefix) + 1:] if self.prefix else name
@@ -124,14 +161,14 @@ class S3Storage(Storage):
         try:
             self.client.upload_file(str(source), self.bucket, self._name(key), Config=self._transfer())
         except _errors() as exc:
-            _raise(exc, key)
+            _raise(exc, key, self.url)
 
     def put_stream(self, key: str, stream: BinaryIO) -> None:
         """boto3's managed upload of the stream (multipart above :data:`MULTIPART_BYTES`)."""
         try:
             self.client.upload_fileobj(stream, self.bucket, self._name(key), Config=self._transfer())
         except _errors() as exc:
-            _raise(exc, key)
+            _raise(exc, key, self.url)
 
     def get_file(self, key: str, target: Path) -> Path:
         """boto3's managed download into ``target`` (written beside it, renamed when complete)."""
@@ -142,7 +179,7 @@ class S3Storage(Storage):
             os.replace(part, target)
         except _errors() as exc:
             part.unlink(missing_ok=True)
-            _raise(exc, key)
+            _raise(exc, key, self.url)
         return target
 
     def open(self, key: str) -> BinaryIO:
@@ -153,8 +190,8 @@ class S3Storage(Storage):
             answer = self.client.get_object(Bucket=self.bucket, Key=name, Range=f"bytes=-{TAIL_BYTES}")
             tail = answer["Body"].read()
         except _errors() as exc:
-            if str(getattr(exc, "response", {}).get("Error", {}).get("Code", "")) != "InvalidRange":
-                _raise(exc, key)
+            if str((getattr(exc, "response", None) or {}).get("Error", {}).get("Code", "")) != "InvalidRange":
+                _raise(exc, key, self.url)
             tail = b""  # an empty object has no last bytes
         content_range = str(answer.get("ContentRange", "")) if tail else ""
         size = int(content_range.rpartition("/")[2]) if content_range else len(tail)
@@ -166,7 +203,7 @@ class S3Storage(Storage):
         try:
             head = self.client.head_object(Bucket=self.bucket, Key=self._name(key))
         except _errors() as exc:
-            _raise(exc, key)
+            _raise(exc, key, self.url)
         return StoredObject(key, int(head["ContentLength"]), head["LastModified"].timestamp(),
                             str(head.get("ETag", "")).strip('"'))
 
@@ -179,14 +216,22 @@ class S3Storage(Storage):
                     yield StoredObject(self._key(obj["Key"]), int(obj["Size"]), obj["LastModified"].timestamp(),
                                        str(obj.get("ETag", "")).strip('"'))
         except _errors() as exc:
-            _raise(exc, prefix)
+            _raise(exc, prefix, self.url)
 
     def delete(self, key: str) -> None:
         """Remove the object (S3 answers a missing one as removed)."""
         try:
             self.client.delete_object(Bucket=self.bucket, Key=self._name(key))
         except _errors() as exc:
-            _raise(exc, key)
+            _raise(exc, key, self.url)
+
+    def check_reachable(self) -> None:
+        """A listing of at most one key under the prefix (what every node needs: the bucket, read and list)."""
+        try:
+            self.client.list_objects_v2(Bucket=self.bucket, Prefix=f"{self.prefix}/" if self.prefix else "",
+                                        MaxKeys=1)
+        except _errors() as exc:
+            _raise(exc, self.prefix or "/", self.url)
 
     def url_for(self, key: str, expires_s: int = 300) -> Optional[str]:
         """A presigned GET of the object, valid ``expires_s`` seconds."""
@@ -194,16 +239,18 @@ class S3Storage(Storage):
             return str(self.client.generate_presigned_url(
                 "get_object", Params={"Bucket": self.bucket, "Key": self._name(key)}, ExpiresIn=expires_s))
         except _errors() as exc:
-            _raise(exc, key)
+            _raise(exc, key, self.url)
 
 
 def default_client() -> "S3Client":
     """boto3's S3 client configured from the standard AWS variables; path-style requests when
-    ``AWS_ENDPOINT_URL`` names an S3-compatible store (virtual-host names need DNS such stores seldom have)."""
+    ``AWS_ENDPOINT_URL`` names an S3-compatible store (virtual-host names need DNS such stores seldom have); a few
+    seconds to connect and to answer, two tries (:data:`READ_TIMEOUT_S`, :data:`ATTEMPTS`)."""
     import boto3
     from botocore.config import Config
 
     path_style = bool(os.environ.get("AWS_ENDPOINT_URL_S3") or os.environ.get("AWS_ENDPOINT_URL"))
     config = Config(s3={"addressing_style": "path" if path_style else "auto"},
-                    retries={"mode": "standard", "max_attempts": 5}, connect_timeout=10, read_timeout=60)
+                    retries={"mode": "standard", "total_max_attempts": ATTEMPTS}, connect_timeout=CONNECT_TIMEOUT_S,
+                    read_timeout=READ_TIMEOUT_S)
     return boto3.session.Session().client("s3", config=config)

@@ -8,6 +8,7 @@ handle a store's failures the same way.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import tempfile
@@ -19,7 +20,21 @@ from typing import BinaryIO, Optional
 
 
 class StorageError(OSError):
-    """The store failed (unreachable, refused, broken answer): anything but a missing key."""
+    """The store failed (unreachable, refused, broken answer, no answer in time): anything but a missing key. Its
+    message says so in words, naming the store (the API answers it 503 with ``Retry-After``)."""
+
+
+class KeyTooLong(ValueError):
+    """A key the store cannot hold (S3: its full name above :data:`MAX_S3_KEY_BYTES` bytes of UTF-8). ``key`` the key,
+    ``size`` its full name's bytes, ``limit`` the store's."""
+
+    def __init__(self, key: str, size: int, limit: int, url: str) -> None:
+        self.key, self.size, self.limit = key, size, limit
+        super().__init__(f"{key!r} makes a name of {size:,} bytes in the store {url}, which holds at most {limit:,}")
+
+
+#: The longest object name S3 holds (bytes of UTF-8).
+MAX_S3_KEY_BYTES = 1024
 
 
 @dataclass(frozen=True)
@@ -65,6 +80,14 @@ class Storage(ABC):
     """
 
     url: str
+
+    def check_fits(self, key: str) -> str:
+        """``key`` when the store can hold it (a folder: any safe key; S3: see :class:`KeyTooLong`).
+
+        Raises:
+            ValueError: an unsafe key (:func:`checked_key`); :class:`KeyTooLong`: a key too long for the store.
+        """
+        return checked_key(key)
 
     @abstractmethod
     def local_path(self, key: str) -> Optional[Path]:
@@ -126,10 +149,26 @@ class Storage(ABC):
             self.delete(obj.key)
 
     def put_tree(self, prefix: str, folder: Path) -> None:
-        """Store every file under the local ``folder`` as ``prefix/<its path relative to folder>``."""
-        for path in sorted(folder.rglob("*")):
-            if path.is_file():
-                self.put_file(join_key(prefix, path.relative_to(folder).as_posix()), path)
+        """Store every file under the local ``folder`` as ``prefix/<its path relative to folder>``: all or nothing.
+        Every key is checked before the first file is stored; when one cannot be stored, those stored are removed.
+
+        Raises:
+            KeyTooLong: a file's key is too long for the store (nothing stored).
+            StorageError: the store failed (the files stored removed, as far as the store lets).
+        """
+        files = [(self.check_fits(join_key(prefix, path.relative_to(folder).as_posix())), path)
+                 for path in sorted(folder.rglob("*")) if path.is_file()]
+        stored: list[str] = []
+        try:
+            for key, path in files:
+                self.put_file(key, path)
+                stored.append(key)
+        except BaseException:
+            # only what was stored: a store that stopped answering is not asked again for nothing
+            with contextlib.suppress(OSError):  # the store that failed may fail its cleaning too
+                for key in stored:
+                    self.delete(key)
+            raise
 
     def get_tree(self, prefix: str, folder: Path) -> Path:
         """Copy every file under the folder key ``prefix`` into the local ``folder`` (made in a sibling
@@ -158,6 +197,14 @@ class Storage(ABC):
     def url_for(self, key: str, expires_s: int = 300) -> Optional[str]:
         """A short-lived URL a client may read ``key`` from directly; None when the store has none (a folder)."""
         return None
+
+    @abstractmethod
+    def check_reachable(self) -> None:
+        """One cheap request to the store, at start-up, so that a store that cannot be used is said at once.
+
+        Raises:
+            StorageError: the store cannot be used (unreachable, refusing v3d's credentials, no such bucket).
+        """
 
 
 class FileStorage(Storage):
@@ -239,6 +286,15 @@ class FileStorage(Storage):
     def delete(self, key: str) -> None:
         """Remove the key's file."""
         self.path(key).unlink(missing_ok=True)
+
+    def check_reachable(self) -> None:
+        """The root folder is made if missing and can be written."""
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise StorageError(f"the file store {self.url} cannot be used: {exc.strerror}") from None
+        if not os.access(self.root, os.W_OK | os.X_OK):
+            raise StorageError(f"the file store {self.url} cannot be used: v3d may not write in it")
 
     def delete_tree(self, prefix: str) -> None:
         """Remove the prefix's folder."""

@@ -160,6 +160,8 @@ class ImportReport:
     decisions_reset: int = 0
     #: Frames of the input that come without an image (a labels-only dataset: every frame), counted in ``frames``.
     frames_without_image: int = 0
+    #: Player boxes of the input beyond ``V3D_MAX_PLAYERS_PER_FRAME`` a frame, not stored (:func:`_within_player_cap`).
+    players_dropped: int = 0
 
     def refusal_kinds(self) -> Counter:
         """``refusal_reasons`` in words: each refusal code's meaning (``WORDS["refusal"]``, the review pages'
@@ -333,9 +335,23 @@ def _within_view_cap(rec: GameRecord, settings: Settings, skipped: list[str] | N
     return dataclasses.replace(rec, systems=kept)
 
 
+def _within_player_cap(rec: GameRecord, settings: Settings) -> tuple[GameRecord, int]:
+    """The game ``rec`` with at most ``settings.max_players_per_frame`` player boxes a frame, the first in the file's
+    order (they only help place the cameras the lines cannot; a real frame boxes a few dozen people), and how many
+    boxes were left out. A frame's release entry keeps what the file gave."""
+    cap = settings.max_players_per_frame
+    if all(len(f.players) <= cap for s in rec.systems for f in s.frames):
+        return rec, 0
+    dropped = sum(max(0, len(f.players) - cap) for s in rec.systems for f in s.frames)
+    systems = [dataclasses.replace(s, frames=[dataclasses.replace(f, players=f.players[:cap])
+                                              if len(f.players) > cap else f for f in s.frames])
+               for s in rec.systems]
+    return dataclasses.replace(rec, systems=systems), dropped
+
+
 def _read_within_view_cap(read: GameReader, settings: Settings) -> GameRecord:
-    """``read()`` through :func:`_within_view_cap` (what a batch stores)."""
-    return _within_view_cap(read(), settings)
+    """``read()`` through :func:`_within_view_cap` and :func:`_within_player_cap` (what a batch stores)."""
+    return _within_player_cap(_within_view_cap(read(), settings), settings)[0]
 
 
 def _dataset_name(file: str | Path, path: str | Path) -> str:
@@ -366,7 +382,8 @@ def _read_all(path: str | Path, settings: Settings, progress: Progress | None, g
             report.skipped_games.append(f"{_dataset_name(exc.file, path)}: {exc.field}: {exc.problem}")
             continue
         report.systems += len(rec.systems)
-        rec = _within_view_cap(rec, settings, report.skipped_systems)
+        rec, dropped = _within_player_cap(_within_view_cap(rec, settings, report.skipped_systems), settings)
+        report.players_dropped += dropped
         frames_per_game.append(sum(len(s.frames) for s in rec.systems))
         report.frames_without_image += sum(1 for s in rec.systems for f in s.frames
                                            if not (f.image_zip or f.image_path))

@@ -3,6 +3,7 @@ Prometheus sends it), Prometheus' text format, and figures that follow what happ
 status, edits and recomputations, jobs by kind and state."""
 from __future__ import annotations
 
+import pytest
 from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 
@@ -10,6 +11,7 @@ from app.core.metrics import UNMATCHED
 from app.db.models import JobState
 from app.services.jobs import runner as jobs
 from tests.accounts import Account
+from tests.conftest import sizes
 
 from ..factories import Scene
 
@@ -58,6 +60,36 @@ def test_requests_are_counted_by_route_template_method_and_status(anonymous: Tes
     labels = frozenset({"route": "/metrics", "method": "GET", "status": "200"}.items())
     assert after[("v3d_http_request_duration_seconds_bucket", labels | {("le", "+Inf")})] == after[
         ("v3d_http_request_duration_seconds_count", labels)] >= 1
+
+
+@pytest.mark.parametrize("methods", sizes(40, 408))
+def test_what_a_client_makes_up_adds_no_series(anonymous: TestClient, accounts: dict[str, Account],
+                                               methods: int) -> None:
+    """Methods, paths and route parameters a client makes up are counted in series from a closed set: every made-up
+    method as ``other``, every unknown path as one route; the exposition does not grow with them."""
+    admin = accounts["admin"]
+    anonymous.get("/metrics", headers=admin.bearer)  # the scrape's own series, before the size is taken
+    for method in ("BREW", "GET"):  # every series these requests can reach, made once
+        anonymous.request(method, "/no/such/page-0")
+        anonymous.request(method, "/api/systems/0")
+    before = anonymous.get("/metrics", headers=admin.bearer)
+    for n in range(methods):
+        made_up = f"X{n}-PROBE"
+        assert anonymous.request(made_up, f"/no/such/page-{n}").status_code in (404, 405)
+        assert anonymous.request(made_up, f"/api/systems/{n}").status_code in (401, 405)
+        assert anonymous.get(f"/no/such/{n}/page").status_code == 404
+    after = anonymous.get("/metrics", headers=admin.bearer)
+    series = {labels for (name, labels) in _samples(after.text) if name == "v3d_http_request_duration_seconds_count"}
+    assert series == {labels for (name, labels) in _samples(before.text)
+                      if name == "v3d_http_request_duration_seconds_count"}
+    assert {dict(labels)["method"] for labels in series} <= {"GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS",
+                                                                 "CONNECT", "TRACE", "other"}
+    assert not any("PROBE" in text or "page-" in text for text in (after.text, after.text.lower()))
+    assert len(after.content) < len(before.content) + 1024  # the same series: only their counts and sums grew
+    counted = _samples(after.text)
+    other = sum(v for (name, labels), v in counted.items()
+                if name == "v3d_http_request_duration_seconds_count" and dict(labels)["method"] == "other")
+    assert other >= 2 * methods
 
 
 def test_an_edit_counts_one_edit_and_its_recomputation(client: TestClient, scene: Scene,

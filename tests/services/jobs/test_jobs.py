@@ -2,8 +2,10 @@
 process is gone is stale at once, and a server's runner thread resumes it and runs queued imports."""
 from __future__ import annotations
 
+import logging
 import os
 import socket
+import sqlite3
 import subprocess
 import time
 from datetime import timedelta
@@ -111,3 +113,66 @@ def test_a_server_runner_resumes_a_killed_job_and_runs_a_queued_import(shared_di
     assert resumed["owner"] == imported["owner"] and resumed["owner"].startswith(f"{socket.gethostname()}:")
     with make() as session:
         assert session.scalar(sa.select(sa.func.count(Game.id))) == 1
+
+
+def test_token_bookkeeping_never_fails_an_import_and_a_failed_job_says_words(shared_dir: Path, tmp_path: Path,
+                                                                            factory) -> None:
+    """On SQLite an import's batch reads, calibrates, then writes, and a write committed by another connection in
+    between would fail it: a scrape with a fresh API token at each calibration step (each one's ``last_used_at`` due)
+    leaves the import done, the tokens' bookkeeping waiting for a later request. A job failed by the database says
+    so in words, without the statement and its parameters."""
+    from app.services.accounts import users
+    from app.services.jobs.work import import_params
+
+    url, make = factory
+    game = write_v3_game(shared_dir, tmp_path / "tree", with_images=False)
+    settings = Settings(database_url=url, calibration_workers=1)
+    owner = jobs.owner_name(settings)
+    with make() as session:
+        tokens = [users.create_user(session, "scraper", "admin", "pw")[1]]
+        tokens += [users.issue_token(session, "scraper").token for _ in range(39)]
+        job_id = jobs.submit(session, "import", import_params("soccernet-v3", game.parent.parent.parent),
+                             owner=owner).id
+    used: list[str] = []
+
+    def scrape(stage: str, done: int, total: int) -> None:  # inside the batch: read, not written yet
+        if stage == "calibrate" and len(used) < len(tokens):
+            token = tokens[len(used)]
+            used.append(token)
+            with make() as other:
+                assert users.resolve_token(other, token) is not None  # the request itself is answered
+
+    job = jobs.run_job(make, job_id, settings, owner, progress=scrape)
+    assert (job.state, job.message, job.attempts) == (JobState.DONE, None, 1), job.message
+    assert used and job.result["systems"] == 3
+    with make() as session:
+        assert session.scalar(sa.select(sa.func.count(Game.id))) == 1
+        assert [t.last_used_at for t in users.list_tokens(session, "scraper")] == [None] * 40  # skipped meanwhile
+        users.resolve_token(session, tokens[0])
+        assert users.list_tokens(session, "scraper")[0].last_used_at is not None  # and written once it ended
+
+    # a database that stays locked fails a job: its message is words, not SQL
+    busy = make_session_factory(make_engine(url, write_lock_timeout_s=0.2))
+    with make() as session:
+        recompute_id = jobs.submit(session, "recompute", {}, owner=owner).id
+    holder = sqlite3.connect(sa.make_url(url).database, isolation_level=None, check_same_thread=False)
+    holder.execute("BEGIN IMMEDIATE")
+
+    class ReleaseWhenFailed(logging.Handler):  # the job's work has failed for good: let its failure be stored
+        def emit(self, record: logging.LogRecord) -> None:
+            if record.getMessage().startswith(f"job {recompute_id} (recompute) failed"):
+                holder.rollback()
+
+    release = ReleaseWhenFailed()
+    jobs.log.addHandler(release)
+    level = jobs.log.level
+    jobs.log.setLevel(logging.INFO)
+    try:
+        failed = jobs.run_job(busy, recompute_id, settings, owner)
+    finally:
+        jobs.log.removeHandler(release)
+        jobs.log.setLevel(level)
+        holder.close()
+    assert failed.state == JobState.FAILED
+    assert failed.message.startswith("The database stayed busy with other writes"), failed.message
+    assert not any(w in failed.message for w in ("[SQL", "BEGIN", "sqlalche.me", "?", "OperationalError"))

@@ -10,9 +10,11 @@ from pathlib import Path
 import pytest
 import sqlalchemy as sa
 
-from app.db.models import Frame, System
+from app.core.errors import DatasetError
+from app.db.models import Frame, PlayerBox, System
 from app.services.jobs.work import import_result
 from app.services.transfer.importing import import_soccernet_v3
+from tests.conftest import sizes
 
 from ..datasets import DEV_GAME, dev_game_dir, write_v3_game
 
@@ -75,3 +77,62 @@ def test_a_system_at_the_cap_imports_and_one_stored_before_the_cap_is_kept(db_se
                                                                  "not imported"]
     db_session.expire_all()
     assert len(db_session.scalars(sa.select(System).where(System.name == "2.png")).one().frames) == 16
+
+
+def _flood(action: str, boxes: int):
+    """An ``edit`` of ``write_v3_game`` appending ``boxes`` player boxes to ``action``'s frame (all well formed)."""
+
+    def edit(data: dict) -> None:
+        data["actions"][action]["bboxes"] += [
+            {"class": "Player team left", "ID": i, "points": {"x1": 10 + i % 900, "y1": 20, "x2": 30 + i % 900,
+                                                            "y2": 80}} for i in range(boxes)]
+
+    return edit
+
+
+@pytest.mark.parametrize("boxes", sizes(2_000, 120_000))
+def test_player_boxes_beyond_the_cap_a_frame_are_counted_not_stored(db_session, settings, shared_dir, tmp_path,
+                                                                    boxes: int) -> None:
+    """A flood of player boxes on one frame (120,000: a 2.9 MB zip) keeps ``V3D_MAX_PLAYERS_PER_FRAME`` of them, the
+    first in the file's order; the rest are counted in the report and its words; the other frames keep all theirs."""
+    cap = settings.max_players_per_frame
+    assert cap == 200
+    plain = write_v3_game(shared_dir, tmp_path / "plain", with_images=False)
+    given = {name: len([b for b in item["bboxes"] if b["class"] != "Ball"])
+             for section in ("actions", "replays")
+             for name, item in json.loads((plain / "Labels-v3.json").read_text())[section].items()}
+    assert 0 < given["0.png"] < cap and max(given.values()) <= cap
+    write_v3_game(shared_dir, tmp_path / "flood", edit=_flood("0.png", boxes), with_images=False)
+    report = import_soccernet_v3(db_session, tmp_path / "flood", settings)
+    assert report.players_dropped == given["0.png"] + boxes - cap
+    stored = dict(db_session.execute(sa.select(Frame.name, sa.func.count(PlayerBox.id))
+                                     .join(PlayerBox, PlayerBox.frame_id == Frame.id).group_by(Frame.name)).all())
+    assert stored == {**given, "0.png": cap}
+    first = db_session.scalars(sa.select(PlayerBox.ident).join(Frame, Frame.id == PlayerBox.frame_id)
+                               .where(Frame.name == "0.png").order_by(PlayerBox.id)).all()
+    assert first[given["0.png"]:] == [str(i) for i in range(cap - given["0.png"])]  # the first, in the file's order
+    result = import_result(report)
+    assert result["players_dropped"] == report.players_dropped
+    assert f"{report.players_dropped:,} player boxes beyond the cap a frame not stored" in result["summary"]["words"]
+    again = import_soccernet_v3(db_session, tmp_path / "flood", settings)  # the same file again changes nothing
+    assert (again.systems_new, again.systems_changed, again.players_dropped) == (0, 0, report.players_dropped)
+
+
+@pytest.mark.parametrize(("damage", "words"), [
+    (lambda data: data.update(deep=json.loads("[" * 900 + "]" * 900)), "nested too deep"),
+    (lambda data: data["actions"]["0.png"]["imageMetadata"].update(width=123456789), "more than 4300 digits"),
+], ids=["deep", "long-number"])
+def test_a_label_file_too_deep_or_with_a_number_too_long_is_refused_in_words(db_session, settings, shared_dir,
+                                                                             tmp_path, damage, words) -> None:
+    game = write_v3_game(shared_dir, tmp_path / "v3", with_images=False)
+    labels = game / "Labels-v3.json"
+    data = json.loads(labels.read_text())
+    damage(data)
+    text = json.dumps(data)
+    # deeper than any parser's recursion (100,000 arrays), longer than Python reads (5,000 digits)
+    text = text.replace("[" * 900 + "]" * 900, "[" * 100_000 + "]" * 100_000).replace("123456789", "7" * 5000)
+    labels.write_text(text)
+    with pytest.raises(DatasetError) as refused:
+        import_soccernet_v3(db_session, tmp_path / "v3", settings)
+    assert str(refused.value).startswith(f"{labels}: ") and words in str(refused.value)
+    assert db_session.scalar(sa.select(sa.func.count(Frame.id))) == 0
