@@ -11,6 +11,7 @@ from app.cli._root import cli
 def main() -> None:
     """Run the ``v3d`` command line."""
     from app.cli import (  # noqa: F401  # each module registers its commands
+        backup,  # v3d backup, v3d restore
         calibration,  # v3d calibrate
         datasets,  # v3d import ..., v3d export ...
         detectors,  # v3d export yolo|coco, v3d evaluate monocular|sensitivity

@@ -39,10 +39,11 @@ MergeOpt = Annotated[Optional[MergeMode], typer.Option(
 _Command = TypeVar("_Command", bound=Callable[..., Any])
 _STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating",
            "rig": "calibrating with game rigs", "triangulate": "triangulating", "recompute": "recomputing systems",
-           "export": "exporting games", "predictions": "storing predictions"}
+           "export": "exporting games", "predictions": "storing predictions", "tables": "reading tables",
+           "files": "copying files", "verify": "verifying (bytes)", "rows": "restoring rows"}
 
 
-class _Bars:
+class Bars:
     """One tqdm bar per stage of a job (import, recompute, export), fed by the services'
     ``progress(stage, done, total)``."""
 
@@ -86,9 +87,13 @@ def cli_settings(database_url: str | None, workers: int | None) -> Settings:
 def session_factory(settings: Settings) -> Iterator[Any]:
     """A session factory on ``settings.database_url``, migrated to the latest schema first; the engine
     is disposed on exit."""
-    from app.db.session import make_engine, make_session_factory, upgrade_database
+    from app.db.session import RestoreUnfinished, make_engine, make_session_factory, upgrade_database
 
-    upgrade_database(settings.database_url)
+    try:
+        upgrade_database(settings.database_url)
+    except RestoreUnfinished as exc:  # half a backup: no command reads or writes it
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
     engine = make_engine(settings.database_url)
     try:
         yield make_session_factory(engine)
@@ -112,7 +117,7 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
     from app.db.models import JobState
     from app.services.jobs import runner as jobs
 
-    bars = _Bars()
+    bars = Bars()
     owner = jobs.owner_name(settings)
     with session_factory(settings) as factory:
         with factory() as session:
@@ -291,7 +296,7 @@ def export_soccernet_v3d_cmd(
         typer.echo(f"exported release {release} ({written['hash']}): {written['systems']} system(s), "
                    f"{written['views']} view(s) to {out_dir}")
         return
-    bars = _Bars()
+    bars = Bars()
     try:
         with database_session(settings) as session:
             report = export_soccernet_v3d(session, out_dir, include_all=include_all, progress=bars,

@@ -30,6 +30,9 @@ READ_BUFFER_BYTES = 256 << 10
 #: archive's directory of up to about 700 members, which ``zipfile`` reads first.
 TAIL_BYTES = 64 << 10
 
+#: The longest object name S3 stores (bytes of UTF-8; AWS's "object key naming" rules).
+MAX_NAME_BYTES = 1024
+
 _MISSING = ("404", "NoSuchKey", "NotFound", "NoSuchBucket")
 
 
@@ -111,6 +114,13 @@ class S3Storage(Storage):
 
     def local_path(self, key: str) -> Optional[Path]:
         """None: a remote store."""
+        return None
+
+    def key_refusal(self, key: str) -> Optional[str]:
+        """A name (the prefix and the key) longer than S3's :data:`MAX_NAME_BYTES` bytes (UTF-8)."""
+        size = len(self._name(key).encode())
+        if size > MAX_NAME_BYTES:
+            return f"{key!r}: its name in {self.url} is {size} bytes; S3 holds names of at most {MAX_NAME_BYTES}"
         return None
 
     def _transfer(self) -> Any:
