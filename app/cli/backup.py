@@ -9,6 +9,7 @@ import sys
 from typing import Annotated, Optional
 
 import typer
+from sqlalchemy.exc import SQLAlchemyError
 
 from app.cli._root import cli
 from app.cli.datasets import Bars, DatabaseOpt, cli_settings
@@ -85,6 +86,10 @@ def restore_cmd(
     except (ConflictError, InvalidInputError, FileNotFoundError, ValueError) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(code=2) from None
+    except (OSError, SQLAlchemyError) as exc:  # the target failed midway: marked, it refuses to serve
+        typer.echo(f"error: the restore stopped ({type(exc).__name__}: {exc}); the target refuses to serve until "
+                   f"`v3d restore {archive}` is run again and finishes", err=True)
+        raise typer.Exit(code=1) from None
     finally:
         if bars is not None:
             bars.close()
