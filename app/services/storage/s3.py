@@ -120,7 +120,8 @@ class S3Storage(Storage):
         """A name (the prefix and the key) longer than S3's :data:`MAX_NAME_BYTES` bytes (UTF-8)."""
         size = len(self._name(key).encode())
         if size > MAX_NAME_BYTES:
-            return f"{key!r}: its name in {self.url} is {size} bytes; S3 holds names of at most {MAX_NAME_BYTES}"
+            shown = key if len(key) <= 80 else f"{key[:60]}...{key[-16:]}"
+            return f"{shown!r}: its name in {self.url} is {size} bytes; S3 holds names of at most {MAX_NAME_BYTES}"
         return None
 
     def _transfer(self) -> Any:
