@@ -278,6 +278,22 @@ def make_session_factory(engine: Engine) -> sessionmaker[Session]:
     return sessionmaker(bind=engine, expire_on_commit=False)
 
 
+#: ``Session.info`` key: the session's current transaction has flushed changes (sent INSERT, UPDATE or DELETE), set by
+#: a listener on every session's flushes and cleared when its outermost transaction ends.
+_FLUSHED = "v3d_flushed"
+
+
+@event.listens_for(Session, "after_flush")
+def _note_flush(session: Session, _context: Any) -> None:
+    session.info[_FLUSHED] = True
+
+
+@event.listens_for(Session, "after_transaction_end")
+def _forget_flush(session: Session, transaction: Any) -> None:
+    if transaction.parent is None:
+        session.info.pop(_FLUSHED, None)
+
+
 def end_reads(session: Session) -> None:
     """End the session's read-only transaction, keeping its objects as they are, and give its connection back to
     the pool (an edit computing after its reads, ``app.services.curation.writing``). A commit, not a rollback: the
@@ -285,10 +301,15 @@ def end_reads(session: Session) -> None:
     statements it prepared on a rollback only. Does nothing outside a transaction.
 
     Raises:
-        RuntimeError: the session holds changes not flushed yet (they would be written).
+        RuntimeError: the session holds changes not flushed yet (they would be written), or its transaction flushed
+            changes already (an autoflush, or a flush, outside a write unit: committing them here would write without
+            the lock, the version check and the audit of ``app.db.unit.write_unit``); nothing is committed.
     """
     if session.new or session.dirty or session.deleted:
         raise RuntimeError("end_reads: the session holds changes; only a read-only transaction is ended here")
+    if session.info.get(_FLUSHED) and session.in_transaction():
+        raise RuntimeError("end_reads: the session's transaction flushed changes outside a write unit; only a "
+                           "read-only transaction is ended here (write through app.db.unit.write_unit)")
     if session.in_transaction():
         session.commit()
 
