@@ -118,6 +118,7 @@ class _VersionCheck:
         self.frames_bumped: set[int] = set()
         self.games_changed: dict[int, str] = {}  # game id -> what it changed of what its version covers
         self.games_bumped: set[int] = set()
+        self.new_games: set[int] = set()  # ``id()`` of the games this unit inserts
 
     def note(self, session: Session) -> None:
         for obj in (*session.new, *session.dirty, *session.deleted):
@@ -156,8 +157,10 @@ class _VersionCheck:
         modified = ({a.key for a in state.mapper.column_attrs if state.attrs[a.key].history.has_changes()}
                     if state.persistent else None)
         if isinstance(obj, Game):
-            if state.pending or "version" in (modified or ()):
-                self.games_bumped.add(id(obj) if obj.id is None else obj.id)
+            if state.pending:
+                self.new_games.add(id(obj))  # inserted by this unit: nothing an earlier edit read of it
+            elif "version" in (modified or ()):
+                self.games_bumped.add(obj.id)
             elif obj not in session.deleted and modified and modified & GAME_COLUMNS[table]:
                 self.games_changed[obj.id] = f"{table} ({', '.join(sorted(modified & GAME_COLUMNS[table]))})"
             return
@@ -168,7 +171,8 @@ class _VersionCheck:
         system = frame.system if frame is not None else None
         game = system.game if system is not None else None
         owners: tuple[Any, ...] = (frame, system, game)
-        if game is None or game.id is None or any(inspect(o).pending or o in session.deleted for o in owners):
+        if game is None or game.id is None or id(game) in self.new_games \
+                or any(inspect(o).pending or o in session.deleted for o in owners):
             return  # a new view, system or game (its rows are inserted with it) or a removed one
         self.games_changed[game.id] = f"{table} ({', '.join(sorted(modified or ()))})" if modified else table
 
