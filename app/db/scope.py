@@ -67,6 +67,12 @@ GAME_COLUMNS: dict[str, frozenset[str]] = {
 }
 
 
+#: The system kinds whose calibrations feed their game's camera rig (a kind's ``KindPolicy.uses_rig``): registered by
+#: ``app.services.kinds``, which stands above this layer, when it is imported; the write unit checks a calibration's
+#: change against ``Game.version`` only for these kinds (a calibration dataset's frames feed no rig).
+RIG_KINDS: set[Any] = set()
+
+
 #: Columns of the covered tables that no edit reads for its recomputation nor shows as what a version's ETag vouches
 #: for: a write of them alone needs no version bump (the write unit's check, ``app.db.unit``, skips them). A system's
 #: assignment (who works on it); the queue's copy of its decision (written from the decision, which is covered

@@ -35,7 +35,7 @@ from sqlalchemy import event, inspect
 from sqlalchemy.orm import Session
 
 from app.db.models import Calibration, Frame, Game, ReviewDecision, ReviewStatus, System
-from app.db.scope import GAME_COLUMNS, UNVERSIONED_COLUMNS, system_tables
+from app.db.scope import GAME_COLUMNS, RIG_KINDS, UNVERSIONED_COLUMNS, system_tables
 from app.db.session import begin_write
 
 #: Check the version invariant at every flush of a write unit (module docstring). Off in production; the tests'
@@ -171,7 +171,7 @@ class _VersionCheck:
         system = frame.system if frame is not None else None
         game = system.game if system is not None else None
         owners: tuple[Any, ...] = (frame, system, game)
-        if game is None or game.id is None or id(game) in self.new_games \
+        if game is None or game.id is None or id(game) in self.new_games or system.kind not in RIG_KINDS \
                 or any(inspect(o).pending or o in session.deleted for o in owners):
             return  # a new view, system or game (its rows are inserted with it) or a removed one
         self.games_changed[game.id] = f"{table} ({', '.join(sorted(modified or ()))})" if modified else table

@@ -131,6 +131,9 @@ def test_a_change_of_what_the_game_version_covers_without_its_bump_is_refused(db
     """``Game.version`` covers the game's camera rig (its frames' calibrations) and its camera prior, which an edit of
     any of its systems reads: a write of either that leaves the game's version as it was is refused and rolled back,
     as one of a system's rows without its system's version is."""
+    from app.services.kinds import POLICIES  # registers the kinds whose calibrations feed a rig
+
+    assert POLICIES[system.kind].uses_rig
     game, frame = system.game, system.frames[0]
     version = game.version
     with pytest.raises(VersionNotBumped, match=rf"game {game.id}: calibrations"):
