@@ -22,6 +22,7 @@ import hashlib
 import json
 import os
 import zipfile
+import zlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import IO, Any, BinaryIO, Iterator
@@ -118,6 +119,7 @@ class ArchiveWriter:
 
     def __init__(self, target: Path, manifest: Manifest) -> None:
         self.manifest = manifest
+        self._target = target
         self._zip = zipfile.ZipFile(target, "w", allowZip64=True)
 
     def member(self, name: str, compress: bool) -> "_HashedMember":
@@ -138,7 +140,11 @@ class ArchiveWriter:
             return out.size
 
     def close(self) -> None:
-        """Write ``manifest.json`` and close the zip."""
+        """Write ``manifest.json`` (with each member's stored bytes' digest too, :func:`stored_digests`) and close the
+        zip."""
+        self._zip.fp.flush()  # type: ignore[union-attr]  # the members written so far, read back for their digests
+        for name, digest in stored_digests(self._target, self._zip.infolist()).items():
+            self.manifest.members[name]["stored_sha256"] = digest
         self._zip.writestr(zipfile.ZipInfo(MANIFEST, date_time=(1980, 1, 1, 0, 0, 0)), self.manifest.to_json())
         self._zip.close()
 
@@ -165,6 +171,27 @@ class _HashedMember:
         self._out.close()
         if exc[0] is None:
             self._writer.manifest.members[self.name] = {"sha256": self._hash.hexdigest(), "size": self.size}
+
+
+def stored_digests(path: Path, infos: list[zipfile.ZipInfo]) -> dict[str, str]:
+    """The SHA-256 of each member's bytes as stored in the zip at ``path`` (compressed: a changed byte that
+    decompresses to the same content, a deflate block's header bit, is seen too)."""
+    out = {}
+    with open(path, "rb") as f:
+        for info in infos:
+            f.seek(info.header_offset)
+            header = f.read(30)
+            f.seek(info.header_offset + 30 + int.from_bytes(header[26:28], "little")
+                   + int.from_bytes(header[28:30], "little"))
+            digest, left = hashlib.sha256(), info.compress_size
+            while left > 0:
+                chunk = f.read(min(CHUNK_BYTES, left))
+                if not chunk:
+                    break
+                digest.update(chunk)
+                left -= len(chunk)
+            out[info.filename] = digest.hexdigest()
+    return out
 
 
 def read_manifest(archive: zipfile.ZipFile) -> Manifest:
@@ -227,11 +254,16 @@ def verify_archive(path: Path, progress: Any = None) -> Manifest:
                         done += len(chunk)
                         if progress is not None:
                             progress("verify", done, total)
-            except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:  # zlib's errors, a CRC, a cut file
+            except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError) as exc:  # a CRC, a cut file
                 raise BrokenArchive(f"{name}: unreadable ({type(exc).__name__}: {exc})", name) from None
             if digest.hexdigest() != expected.get("sha256"):
                 raise BrokenArchive(f"{name}: its SHA-256 is {digest.hexdigest()}, the manifest says "
                                     f"{expected.get('sha256')}: the member is broken or was changed", name)
+        stored = stored_digests(path, [archive.getinfo(n) for n in manifest.members])
+        for name, expected in manifest.members.items():
+            if "stored_sha256" in expected and stored[name] != expected["stored_sha256"]:
+                raise BrokenArchive(f"{name}: its stored bytes' SHA-256 is {stored[name]}, the manifest says "
+                                    f"{expected['stored_sha256']}: the member is broken or was changed", name)
         _check_manifest_names(manifest)
     return manifest
 
