@@ -36,8 +36,8 @@ from typing import Any, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.load import LoadReport, labelled_views, run_clients, served  # noqa: E402
-from benchmarks.scale import BenchError, TreeMemorySampler, bench_token, sqlite_url, v3d_command  # noqa: E402
+from benchmarks.load import LoadReport, labelled_views, run_clients, served
+from benchmarks.scale import BenchError, TreeMemorySampler, bench_token, sqlite_url, v3d_command
 
 
 def timed_command(args: list[str], env: dict[str, str]) -> dict[str, Any]:
