@@ -159,7 +159,7 @@ SERVICE_LAYERS: tuple[tuple[str, ...], ...] = (
     ("transfer",),
     ("evaluation", "issia"),
     ("releases",),
-    ("exports",),
+    ("exports", "backup"),
     ("jobs",),
 )
 

@@ -106,6 +106,14 @@ class TreeExportJobIn(_ExportIn):
     """An export other than SoccerNet-v3D to run as a background job."""
 
 
+class BackupIn(_In):
+    """A backup of the whole deployment to run as a background job (``v3d backup``)."""
+
+    local_files: bool = Field(True, strict=True, description="The images of datasets read from the server's own "
+                                                             "folders (command-line imports, the demo) too; false "
+                                                             "lists their folders in the manifest instead.")
+
+
 class JobOut(BaseModel):
     """A background job (``app.services.jobs.runner``): its progress while it runs, its result when done."""
 

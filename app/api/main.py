@@ -16,6 +16,7 @@ from app.api.routes import (
     assignments,
     audit,
     auth,
+    backups,
     comments,
     detectors,
     exports,
@@ -46,6 +47,6 @@ _protected = APIRouter(dependencies=PROTECTED, responses={
                                             "Retry-After header's seconds."},
 })
 for _module in (auth, users, games, annotators, systems, assignments, comments, handoffs, frames, imports, exports,
-                jobs, detectors, issia, audit, pitch, passes, releases, predictions):
+                jobs, backups, detectors, issia, audit, pitch, passes, releases, predictions):
     _protected.include_router(_module.router)
 api_router.include_router(_protected)

@@ -15,6 +15,7 @@ def main() -> None:
     """Run the ``v3d`` command line; a ``V3D_*`` variable it cannot run with ends it with one line naming the variable
     and what it accepts, status 2."""
     from app.cli import (  # noqa: F401  # each module registers its commands
+        backup,  # v3d backup, v3d restore
         calibration,  # v3d calibrate
         datasets,  # v3d import ..., v3d export ...
         detectors,  # v3d export yolo|coco, v3d evaluate monocular|sensitivity

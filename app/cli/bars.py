@@ -9,7 +9,8 @@ from tqdm import tqdm
 #: What each stage of a job is called on its bar.
 STAGES = {"games": "importing games", "merge": "merging", "calibrate": "calibrating",
           "rig": "calibrating with game rigs", "triangulate": "triangulating", "recompute": "recomputing systems",
-          "export": "exporting games", "predictions": "storing predictions"}
+          "export": "exporting games", "predictions": "storing predictions", "tables": "reading tables",
+          "files": "copying files", "verify": "verifying (bytes)", "rows": "restoring rows"}
 
 
 class StageBars:

@@ -68,9 +68,13 @@ def cli_settings(database_url: str | None, workers: int | None) -> Settings:
 def session_factory(settings: Settings) -> Iterator[Any]:
     """A session factory on ``settings.database_url``, migrated to the latest schema first; the engine
     is disposed on exit."""
-    from app.db.session import make_engine, make_session_factory, upgrade_database
+    from app.db.session import RestoreUnfinished, make_engine, make_session_factory, upgrade_database
 
-    upgrade_database(settings.database_url)
+    try:
+        upgrade_database(settings.database_url)
+    except RestoreUnfinished as exc:  # half a backup: no command reads or writes it
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from None
     engine = make_engine(settings.database_url)
     try:
         yield make_session_factory(engine)

@@ -158,7 +158,7 @@ def serve(
     import uvicorn
 
     from app.core.metrics import prepare_multiprocess_dir
-    from app.db.session import upgrade_database
+    from app.db.session import RestoreUnfinished, upgrade_database
     from app.main import create_app
 
     if not is_loopback(host):
@@ -173,7 +173,10 @@ def serve(
                 "demo account (demo / demo, admin) has a public password and must never face a network. Unset "
                 "V3D_TRUSTED_PROXIES to try v3d on this machine, or create a real admin "
                 "(`v3d users add NAME --role admin`) and serve without --demo.")
-    upgrade_database(settings.database_url)
+    try:
+        upgrade_database(settings.database_url)
+    except RestoreUnfinished as exc:  # half a backup is never served
+        _refuse(str(exc))
     if not is_loopback(host):
         exposed = demo_account_name(settings)
         if exposed is not None:

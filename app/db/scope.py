@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from app.db.models import Frame, Game, System, Triangulation
+from app.db.models import JAC_COLUMNS, Calibration, Frame, Game, System, Triangulation
 
 #: The system's one-to-one rows an edit reads (joined to the system's row when it is loaded).
 SYSTEM_ROWS: tuple[Any, ...] = (System.triangulation, System.trajectory_point, System.review)
@@ -55,6 +55,22 @@ def game_tables() -> frozenset[str]:
     rig is read from (calibrations of its frames: ``rigs.rig_rows`` joins them to their frames and systems)."""
     return frozenset({Game.__tablename__, Frame.__tablename__, System.__tablename__,
                       Frame.calibration.property.mapper.local_table.name})
+
+
+#: What ``Game.version`` covers column by column (the write unit checks it, ``app.db.unit``): the calibration columns
+#: the game's rig is read from (``app.services.calibration.rigs.rig_rows``: status, camera, flags, JaC) and the game's
+#: camera prior. A calibration's other columns (its admission under the last recomputation's settings, its reason,
+#: residuals, time) and the game's others no edit of another system reads.
+GAME_COLUMNS: dict[str, frozenset[str]] = {
+    Calibration.__tablename__: frozenset({"frame_id", "status", "camera", "flags", *JAC_COLUMNS.values()}),
+    Game.__tablename__: frozenset({"camera_prior"}),
+}
+
+
+#: The system kinds whose calibrations feed their game's camera rig (a kind's ``KindPolicy.uses_rig``): registered by
+#: ``app.services.kinds``, which stands above this layer, when it is imported; the write unit checks a calibration's
+#: change against ``Game.version`` only for these kinds (a calibration dataset's frames feed no rig).
+RIG_KINDS: set[Any] = set()
 
 
 #: Columns of the covered tables that no edit reads for its recomputation nor shows as what a version's ETag vouches

@@ -278,6 +278,22 @@ def make_session_factory(engine: Engine) -> sessionmaker[Session]:
     return sessionmaker(bind=engine, expire_on_commit=False)
 
 
+#: ``Session.info`` key: the session's current transaction has flushed changes (sent INSERT, UPDATE or DELETE), set by
+#: a listener on every session's flushes and cleared when its outermost transaction ends.
+_FLUSHED = "v3d_flushed"
+
+
+@event.listens_for(Session, "after_flush")
+def _note_flush(session: Session, _context: Any) -> None:
+    session.info[_FLUSHED] = True
+
+
+@event.listens_for(Session, "after_transaction_end")
+def _forget_flush(session: Session, transaction: Any) -> None:
+    if transaction.parent is None:
+        session.info.pop(_FLUSHED, None)
+
+
 def end_reads(session: Session) -> None:
     """End the session's read-only transaction, keeping its objects as they are, and give its connection back to
     the pool (an edit computing after its reads, ``app.services.curation.writing``). A commit, not a rollback: the
@@ -285,10 +301,15 @@ def end_reads(session: Session) -> None:
     statements it prepared on a rollback only. Does nothing outside a transaction.
 
     Raises:
-        RuntimeError: the session holds changes not flushed yet (they would be written).
+        RuntimeError: the session holds changes not flushed yet (they would be written), or its transaction flushed
+            changes already (an autoflush, or a flush, outside a write unit: committing them here would write without
+            the lock, the version check and the audit of ``app.db.unit.write_unit``); nothing is committed.
     """
     if session.new or session.dirty or session.deleted:
         raise RuntimeError("end_reads: the session holds changes; only a read-only transaction is ended here")
+    if session.info.get(_FLUSHED) and session.in_transaction():
+        raise RuntimeError("end_reads: the session's transaction flushed changes outside a write unit; only a "
+                           "read-only transaction is ended here (write through app.db.unit.write_unit)")
     if session.in_transaction():
         session.commit()
 
@@ -354,17 +375,56 @@ def alembic_config(url: str | sa.URL | None = None, connection: sa.Connection | 
     return cfg
 
 
-def upgrade_database(url: str | sa.URL, revision: str = "head") -> None:
+#: The table a restore (``app.services.backup.restore``) makes in its target before it writes anything and drops when
+#: the target is whole: outside Alembic's schema, so that it exists at whatever revision the archive was made at. While
+#: it holds a row, :func:`upgrade_database` (every ``v3d serve`` and command) refuses the database.
+RESTORING_TABLE = "v3d_restore_unfinished"
+
+
+class RestoreUnfinished(RuntimeError):
+    """The database is the target of a restore that has not finished (running, or killed midway): it is not whole."""
+
+
+def unfinished_restore(engine: Engine) -> str | None:
+    """The archive a restore left unfinished in the database of ``engine`` (:data:`RESTORING_TABLE`), or None."""
+    with engine.connect() as conn:
+        if not sa.inspect(conn).has_table(RESTORING_TABLE):
+            return None
+        row = conn.execute(sa.text(f"SELECT archive FROM {RESTORING_TABLE}")).first()
+    return None if row is None else str(row[0])
+
+
+def refuse_unfinished_restore(engine: Engine) -> None:
+    """Raise :class:`RestoreUnfinished`, with what to do, when a restore into this database has not finished."""
+    archive = unfinished_restore(engine)
+    if archive is not None:
+        raise RestoreUnfinished(
+            f"this database is the target of an unfinished restore of {archive}: it holds part of that backup only "
+            f"and is not served. Run `v3d restore {archive}` again to finish it (or `v3d restore --replace ARCHIVE` "
+            f"with another archive).")
+
+
+def upgrade_database(url: str | sa.URL, revision: str = "head", *, restoring: bool = False) -> None:
     """Create or migrate the database at ``url`` to ``revision`` with Alembic.
 
     The parent folder of a SQLite file is created if missing. This is the only way v3d creates its
     tables (never ``Base.metadata.create_all``), so every run exercises the migrations.
+
+    Raises:
+        RestoreUnfinished: the database is a restore's target left unfinished (unless ``restoring``: the restore
+            itself migrating it).
     """
     from alembic import command
 
     u = make_url(url)
     if u.get_backend_name() == "sqlite" and u.database not in (None, "", ":memory:"):
         Path(u.database).expanduser().parent.mkdir(parents=True, exist_ok=True)
+    if not restoring:
+        engine = make_engine(u)
+        try:
+            refuse_unfinished_restore(engine)
+        finally:
+            engine.dispose()
     command.upgrade(alembic_config(u), revision)
     engine = make_engine(u)
     try:

@@ -14,7 +14,9 @@ the unit ends):
   for each system it writes whose decision is loaded (a recomputation: a database migrated before the copy existed
   gets it with its systems' recomputation);
 * **the version invariant** (checked when :data:`CHECK_VERSIONS` is on: the tests turn it on, production leaves it off
-  and pays nothing for it): a transaction that adds, changes or deletes a row a system's version covers
+  and pays nothing for it): a transaction that changes what a game's version covers (``app.db.scope.GAME_COLUMNS``:
+  its rig's calibrations, its camera prior) bumps ``Game.version``, and one that adds, changes or deletes a row a
+  system's version covers
   (``app.db.scope.system_tables``) bumps that system's version (``System.version``), except a view's decision (its
   review row and its frame's row) which bumps its frame's version (``Frame.edit_version``) instead; and the columns
   no version covers (``app.db.scope.UNVERSIONED_COLUMNS``: a system's assignment, a view's split...) need no bump. It
@@ -32,8 +34,8 @@ from typing import Any, Optional
 from sqlalchemy import event, inspect
 from sqlalchemy.orm import Session
 
-from app.db.models import Frame, ReviewDecision, ReviewStatus, System
-from app.db.scope import UNVERSIONED_COLUMNS, system_tables
+from app.db.models import Calibration, Frame, Game, ReviewDecision, ReviewStatus, System
+from app.db.scope import GAME_COLUMNS, RIG_KINDS, UNVERSIONED_COLUMNS, system_tables
 from app.db.session import begin_write
 
 #: Check the version invariant at every flush of a write unit (module docstring). Off in production; the tests'
@@ -114,10 +116,15 @@ class _VersionCheck:
         self.views: dict[int, tuple[int, str]] = {}  # frame id -> (system id, table): a view's decision
         self.bumped: set[int] = set()
         self.frames_bumped: set[int] = set()
+        self.games_changed: dict[int, str] = {}  # game id -> what it changed of what its version covers
+        self.games_bumped: set[int] = set()
+        self.new_games: set[int] = set()  # ``id()`` of the games this unit inserts
 
     def note(self, session: Session) -> None:
         for obj in (*session.new, *session.dirty, *session.deleted):
             table = inspect(obj).mapper.local_table.name
+            if table in GAME_COLUMNS:
+                self._note_game(session, obj, table)
             if table not in self.covered:
                 continue
             state = inspect(obj)
@@ -144,7 +151,37 @@ class _VersionCheck:
             else:
                 self.changed[system.id] = f"{table} ({', '.join(sorted(modified))})" if modified else table
 
+    def _note_game(self, session: Session, obj: Any, table: str) -> None:
+        """A change of what ``Game.version`` covers (``app.db.scope.GAME_COLUMNS``), or the bump of a game's version."""
+        state = inspect(obj)
+        modified = ({a.key for a in state.mapper.column_attrs if state.attrs[a.key].history.has_changes()}
+                    if state.persistent else None)
+        if isinstance(obj, Game):
+            if state.pending:
+                self.new_games.add(id(obj))  # inserted by this unit: nothing an earlier edit read of it
+            elif "version" in (modified or ()):
+                self.games_bumped.add(obj.id)
+            elif obj not in session.deleted and modified and modified & GAME_COLUMNS[table]:
+                self.games_changed[obj.id] = f"{table} ({', '.join(sorted(modified & GAME_COLUMNS[table]))})"
+            return
+        if modified is not None and not modified & GAME_COLUMNS[table]:
+            return  # nothing written, or only columns no edit of another system reads
+        assert isinstance(obj, Calibration)
+        frame = obj.frame
+        system = frame.system if frame is not None else None
+        game = system.game if system is not None else None
+        owners: tuple[Any, ...] = (frame, system, game)
+        if game is None or game.id is None or id(game) in self.new_games or system.kind not in RIG_KINDS \
+                or any(inspect(o).pending or o in session.deleted for o in owners):
+            return  # a new view, system or game (its rows are inserted with it) or a removed one
+        self.games_changed[game.id] = f"{table} ({', '.join(sorted(modified or ()))})" if modified else table
+
     def check(self) -> None:
+        games = {gid: table for gid, table in self.games_changed.items() if gid not in self.games_bumped}
+        if games:
+            raise VersionNotBumped("a write changed what a game's version covers (its rig's calibrations, its camera "
+                                   "prior) without bumping it (Game.version, app.db.scope.game_changed): "
+                                   + "; ".join(f"game {gid}: {table}" for gid, table in sorted(games.items())))
         missing = {sid: table for sid, table in self.changed.items() if sid not in self.bumped}
         missing.update({sid: table for fid, (sid, table) in self.views.items()
                         if fid not in self.frames_bumped and sid not in self.bumped})

@@ -19,7 +19,7 @@ const STAGE_LABEL = {
   read: "reading", games: "games stored", merge: "merging", calibrate: "calibrating", rig: "calibrating with game rigs",
   prior: "calibrating with the learned prior", predictions: "reading the predictions",
   triangulate: "triangulating", recompute: "systems recomputed", export: "games exported", zip: "files zipped",
-  store: "frames stored",
+  store: "frames stored", tables: "rows read", files: "files copied",
 };
 /** Stages whose count is bytes of a file, not items: shown as the share read. */
 const BYTE_STAGES = new Set(["predictions"]);
@@ -30,6 +30,7 @@ export function jobTitle(job) {
   // an upload by its file's name (the server's upload folder says nothing to the person who sent it)
   if (job.kind === "import") return `import ${p.kind || ""} ${p.name || String(p.path || "").split("/").slice(-2).join("/")}`;
   if (job.kind === "export") return `export ${p.format || ""}${p.images === false ? " without images" : ""}${p.release ? ` of release ${p.release}` : p.all ? " (all systems)" : " (accepted systems)"}`;
+  if (job.kind === "backup") return `backup${p.local_files === false ? " without this machine's dataset files" : ""}`;
   return "full recompute";
 }
 

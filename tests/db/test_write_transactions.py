@@ -114,3 +114,23 @@ def test_begin_write_leaves_a_joined_external_transaction_alone(db_connection: s
     begin_write(session)  # the caller owns the transaction: no rollback, no error
     assert session.scalar(sa.select(sa.func.count()).where(Game.match == "joined")) == 1
     session.close()
+
+
+def test_end_reads_refuses_a_transaction_that_flushed_outside_a_write_unit(two_processes) -> None:
+    """A change flushed in a read transaction (an autoflush before a query, or an explicit flush) is no read: ending
+    the reads must not commit it, which would write without the write unit's lock, version check and audit."""
+    from app.db.session import end_reads
+
+    fa, fb, game_id = two_processes
+    with fa() as a:
+        a.get(Game, game_id).match = "flushed, never meant to be written"
+        a.scalars(sa.select(Game)).all()  # autoflush: the UPDATE is sent in the read transaction
+        with pytest.raises(RuntimeError, match="flushed changes outside a write unit"):
+            end_reads(a)
+        a.rollback()
+    with fb() as b:
+        assert b.get(Game, game_id).match == "before"
+    with fa() as a:  # a transaction that only read still ends with a commit (its objects kept)
+        game = a.get(Game, game_id)
+        end_reads(a)
+        assert not a.in_transaction() and game.match == "before"

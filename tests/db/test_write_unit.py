@@ -8,7 +8,20 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.db import unit
-from app.db.models import BallKind, BallLabel, Frame, FrameRole, Game, ReviewDecision, ReviewStatus, System, SystemKind
+from app.db.models import (
+    BallKind,
+    BallLabel,
+    Calibration,
+    CalibrationSource,
+    CalibrationStatus,
+    Frame,
+    FrameRole,
+    Game,
+    ReviewDecision,
+    ReviewStatus,
+    System,
+    SystemKind,
+)
 from app.db.scope import system_tables
 from app.db.unit import VersionNotBumped, write_unit
 
@@ -111,3 +124,34 @@ def test_an_exception_rolls_back_and_propagates(db_session: Session, system: Sys
             system.version += 1
             raise KeyError("refused")
     assert _stored(db_session, BallLabel.box, system.frames[0].id) == [10.0, 10.0, 20.0, 20.0]
+
+
+def test_a_change_of_what_the_game_version_covers_without_its_bump_is_refused(db_session: Session,
+                                                                              system: System) -> None:
+    """``Game.version`` covers the game's camera rig (its frames' calibrations) and its camera prior, which an edit of
+    any of its systems reads: a write of either that leaves the game's version as it was is refused and rolled back,
+    as one of a system's rows without its system's version is."""
+    from app.services.kinds import POLICIES  # registers the kinds whose calibrations feed a rig
+
+    assert POLICIES[system.kind].uses_rig
+    game, frame = system.game, system.frames[0]
+    version = game.version
+    with pytest.raises(VersionNotBumped, match=rf"game {game.id}: calibrations"):
+        with write_unit(db_session):
+            frame.calibration = Calibration(source=CalibrationSource.EDITED, status=CalibrationStatus.CALIBRATED,
+                                            camera={"x": 1})
+            system.version += 1  # the system's own bump is not the game's
+    assert db_session.get(Frame, frame.id).calibration is None
+    with pytest.raises(VersionNotBumped, match=rf"game {game.id}: games \(camera_prior\)"):
+        with write_unit(db_session):
+            game.camera_prior = {"learned": True}
+    assert db_session.execute(sa.select(Game.camera_prior).where(Game.id == game.id)).scalar_one() is None
+    with write_unit(db_session):
+        frame.calibration = Calibration(source=CalibrationSource.EDITED, status=CalibrationStatus.CALIBRATED,
+                                            camera={"x": 1})
+        system.version += 1
+        game.version += 1
+    with write_unit(db_session):
+        game.camera_prior = {"learned": True}
+        game.version += 1
+    assert db_session.execute(sa.select(Game.version).where(Game.id == game.id)).scalar_one() == version + 2

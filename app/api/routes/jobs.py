@@ -27,7 +27,7 @@ from app.db.models import Job, JobState
 from app.services.exports.files import prune_stored_exports
 from app.services.jobs import runner as jobs
 from app.services.jobs.progress import read_live
-from app.services.jobs.work import export_key, without_server_paths
+from app.services.jobs.work import RESULT_FILES, without_server_paths
 from app.services.storage import storage_for
 from app.services.storage.stores import Storage
 
@@ -41,7 +41,7 @@ def job_out(job: Job, principal: Principal | None = None, settings: Settings | N
     path, source and message name the dataset, never a server path (``kinds.without_server_paths``), and the
     process running it (``owner``: node name and process id) is not shown."""
     url = f"/api/jobs/{job.id}"
-    has_file = job.kind == "export" and job.state is JobState.DONE
+    has_file = job.kind in RESULT_FILES and job.state is JobState.DONE
     params, result, message, owner = job.params, job.result, job.message, job.owner
     if principal is not None and settings is not None and not principal.may("admin"):
         params, result, message = without_server_paths(job.id, params, result, message, settings)
@@ -93,31 +93,34 @@ def get_job(session: SessionDep, settings: SettingsDep, principal: PrincipalDep,
 
 @router.get(
     "/jobs/{job_id}/result", response_class=FileResponse, dependencies=[Depends(require_role("admin"))],
-    responses={200: {"content": {"application/zip": {}}, "description": "The export's file."},
+    responses={200: {"content": {"application/zip": {}}, "description": "The export's file, or the backup's "
+                                                                        "archive."},
                404: {"model": ErrorOut, "description": "No such job, or its file is gone."},
-               409: {"model": ErrorOut, "description": "Not an export, or not done yet."}},
+               409: {"model": ErrorOut, "description": "Neither an export nor a backup, or not done yet."}},
 )
 def job_result(session: SessionDep, settings: SettingsDep, job_id: JobId) -> Response:
-    """The file a finished export job wrote, from the store whichever node wrote it (streamed from disk, or from a
-    remote store as it is read; only that job's file, kept ``V3D_EXPORT_KEEP_HOURS`` after it was written: older
-    export files are removed here, then 404)."""
+    """The file a finished export or backup job wrote, from the store whichever node wrote it (streamed from disk, or
+    from a remote store as it is read; only that job's file). An export's is kept ``V3D_EXPORT_KEEP_HOURS`` after it
+    was written (older export files are removed here, then 404); a backup's archive until an admin removes it from
+    the store. Admins only: a backup holds every password and token hash."""
     job = jobs.get_job(session, job_id)
-    if job.kind != "export" or job.state is not JobState.DONE or not job.result:
+    if job.kind not in RESULT_FILES or job.state is not JobState.DONE or not job.result:
         raise jobs.JobNotReady(f"job {job_id} is a {job.kind} job in state {job.state.value}: no file to download")
     storage = storage_for(settings)
-    prune_stored_exports(storage, settings.export_keep_hours)
-    key = export_key(job.result["file"])
+    if job.kind == "export":
+        prune_stored_exports(storage, settings.export_keep_hours)
+    key = RESULT_FILES[job.kind](job.result["file"])
     media_type = job.result.get("media_type", "application/octet-stream")
     filename = job.result.get("filename", key.rpartition("/")[2])
     path = storage.local_path(key)
     if path is not None:
         if not path.is_file():
-            raise NotFoundError("export file of job", job_id)
+            raise NotFoundError(f"{job.kind} file of job", job_id)
         return FileResponse(path, media_type=media_type, filename=filename)
     try:
         size = storage.stat(key).size
     except FileNotFoundError:
-        raise NotFoundError("export file of job", job_id) from None
+        raise NotFoundError(f"{job.kind} file of job", job_id) from None
     return StreamingResponse(_stored_chunks(storage, key), media_type=media_type,
                              headers={"Content-Length": str(size), "Content-Disposition": _attachment(filename)})
 

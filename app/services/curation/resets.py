@@ -51,7 +51,10 @@ def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[
     """The one rule for decisions after edits for the systems an edit changed beside its own: an
     ISSIA edit re-fits its sequence's trajectory, which moves the 3D ball of neighbouring frames (``refitted``: the
     systems whose place on it changed); each of those, other than ``edited`` (whose decisions the edit itself
-    resets), that was decided goes back to pending with the reason and its own ``system.review`` audit entry.
+    resets), that was decided goes back to pending with the reason and its own ``system.review`` audit entry, and
+    every one of them, decided or not, has its version bumped: the re-fit wrote its trajectory point and doubts
+    (in bulk statements the write unit's check does not see), so a decision sent with the version seen before is
+    refused.
 
     Returns:
         How many systems were set back to pending.
@@ -59,12 +62,14 @@ def reset_refitted_systems(session: Session, edited: System, refitted: Sequence[
     who = audit.public_actor(actor)
     done = 0
     for other in refitted:
+        if other.id == edited.id:
+            continue  # the edited system's own version is bumped once, by its edit
+        scope.changed(other)
         decision = other.review
-        if other.id == edited.id or decision is None or decision.status == ReviewStatus.PENDING:
+        if decision is None or decision.status == ReviewStatus.PENDING:
             continue
         _system_back_to_pending(session, other, f"{other.name}: its 3D ball moved with the trajectory's re-fit after "
                                 f"an edit of {edited.name} by {who}; decide it again", actor, utcnow())
-        scope.changed(other)  # its decision is in what its version covers (the edited system's own is bumped once)
         done += 1
     return done
 

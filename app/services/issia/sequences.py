@@ -47,7 +47,6 @@ from app.db.models import (
     Frame,
     FrameRole,
     Game,
-    ReviewStatus,
     System,
     SystemKind,
 )
@@ -334,12 +333,11 @@ def refit_after_edit(session: Session, system: System, settings: Settings, *,
         load_for_recompute(session, [c.system.id for c in changed if c.system is not None and (
             c.labels or c.system.trajectory_point.flagged  # type: ignore[union-attr]  # a re-fitted system has its point
             or c.system.doubt_counts.get("ball_off_consensus"))], predictions=settings.max_predictions_per_frame)
-    # decided systems whose place on the trajectory moved but that the re-fit did not load: the edit sets their
-    # decisions back to pending (one query for all of them)
+    # systems whose place on the trajectory moved but that the re-fit did not load (one query for all of them): their
+    # versions move with their rows written in bulk, and the decided ones go back to pending
     unloaded = [c.system_id for c in changed if c.system is None and c.system_id is not None]
     if unloaded:
-        touched += session.scalars(sa.select(System).where(System.id.in_(unloaded),
-                                                           System.review_status != ReviewStatus.PENDING)).all()
+        touched += session.scalars(sa.select(System).where(System.id.in_(unloaded))).all()
     for c in changed:
         s = c.system
         if s is None or s in touched:

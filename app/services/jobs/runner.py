@@ -55,7 +55,7 @@ from app.services.jobs.work import WORK
 log = logging.getLogger(__name__)
 
 #: The kinds of job and what each does (``app.services.jobs.work``).
-JOB_KINDS = ("import", "recompute", "export")
+JOB_KINDS = tuple(WORK)
 UNFINISHED = (JobState.QUEUED, JobState.RUNNING)
 
 

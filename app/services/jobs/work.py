@@ -16,6 +16,7 @@ import shutil
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
@@ -24,6 +25,7 @@ from app.core.names import clean_title
 from app.core.progress import Progress
 from app.db.models import Job
 from app.db.unit import write_unit
+from app.services.backup.snapshot import BACKUPS, write_backup
 from app.services.derivation.recompute import recompute_all_systems
 from app.services.exports.files import EXPORTS, prune_exports, prune_stored_exports, write_export_zip
 from app.services.exports.formats import RELEASE_EXPORTS, export_format
@@ -281,5 +283,36 @@ def run_export(session: Session, params: dict[str, Any], settings: Settings, pro
     return {**report, "file": target.name, "media_type": "application/zip", "filename": filename}
 
 
+def backup_key(name: str) -> str:
+    """The key of a backup job's archive ``name`` in the store (``backups/<name>``; only the last part of ``name``)."""
+    return f"{BACKUPS}/{checked_key(PurePosixPath(name.replace(chr(92), '/')).name)}"
+
+
+def run_backup(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
+               job_id: int) -> dict[str, Any]:
+    """Back up the deployment as ``v3d backup`` does (``app.services.backup.snapshot.write_backup``; ``params
+    ["local_files"]``, default true: the files of datasets read from this machine's folders too) to the job's archive
+    ``job-<id>-backup.zip``, kept in the store as ``backups/<file>`` (an admin downloads it: it holds password and
+    token hashes). Its result: the archive's file, size, tables, rows, files and the count of named files not found.
+    Run again after a kill, it writes the archive again from a new snapshot."""
+    bind = session.get_bind()
+    engine = bind if isinstance(bind, Engine) else bind.engine
+    session.rollback()  # the snapshot reads in a transaction of its own
+    name = f"job-{job_id}-backup.zip"
+    target = jobs_dir(settings) / BACKUPS / name
+    report = write_backup(engine, settings, str(target), progress, local_files=bool(params.get("local_files", True)))
+    storage = storage_for(settings)
+    key = backup_key(name)
+    if storage.local_path(key) != target:  # a store of its own: the archive goes there, the scratch copy away
+        storage.put_file(key, target)
+        target.unlink(missing_ok=True)
+    out = report.as_result()
+    out.pop("destination")  # a path of the server's
+    return {**out, "missing": len(report.missing), "file": name, "media_type": "application/zip",
+            "filename": f"v3d-backup-{job_id}.zip"}
+
+
 #: kind -> work (``app.services.jobs.runner.Work``).
-WORK = {"import": run_import, "recompute": run_recompute, "export": run_export}
+WORK = {"import": run_import, "recompute": run_recompute, "export": run_export, "backup": run_backup}
+#: kind -> the store key of a finished job's file (its ``result["file"]``), for the kinds that write one.
+RESULT_FILES = {"export": export_key, "backup": backup_key}

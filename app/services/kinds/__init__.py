@@ -12,6 +12,7 @@ Use :func:`kind_of` (a system) or :func:`policy` (a kind) to get the :class:`~.b
 """
 from __future__ import annotations
 
+from app.db import scope
 from app.db.models import System, SystemKind
 from app.services.kinds.base import EXPORTS, KindPolicy, game_stem, image_stem, split_of
 from app.services.kinds.issia import ISSIA
@@ -20,6 +21,8 @@ from app.services.kinds.soccernet_v3 import SOCCERNET_V3
 
 #: Every kind's policy, by kind.
 POLICIES: dict[SystemKind, KindPolicy] = {p.kind: p for p in (SOCCERNET_V3, SINGLE_VIEW, ISSIA)}
+# the write unit's check of Game.version reads which kinds have a rig (app.db.scope stands below the kinds)
+scope.RIG_KINDS.update(p.kind for p in POLICIES.values() if p.uses_rig)
 
 
 def policy(kind: SystemKind) -> KindPolicy:

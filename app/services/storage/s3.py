@@ -150,6 +150,15 @@ class S3Storage(Storage):
         """None: a remote store."""
         return None
 
+    def key_refusal(self, key: str) -> Optional[str]:
+        """Why S3 cannot hold ``key`` in words (its name, the prefix and the key, above :data:`MAX_S3_KEY_BYTES`
+        bytes of UTF-8); None when it can."""
+        try:
+            self.check_fits(key)
+        except KeyTooLong as exc:
+            return str(exc)
+        return None
+
     def _transfer(self) -> Any:
         from boto3.s3.transfer import TransferConfig
 

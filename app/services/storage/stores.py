@@ -18,6 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Optional
 
+#: The longest name of one file (bytes), on the file systems a folder store lies on (ext4, XFS, APFS: 255).
+NAME_MAX_BYTES = 255
+
 
 class StorageError(OSError):
     """The store failed (unreachable, refused, broken answer, no answer in time): anything but a missing key. Its
@@ -206,6 +209,10 @@ class Storage(ABC):
             StorageError: the store cannot be used (unreachable, refusing v3d's credentials, no such bucket).
         """
 
+    def key_refusal(self, key: str) -> Optional[str]:
+        """Why this store cannot hold ``key`` (a checked key, :func:`checked_key`), in words; None when it can."""
+        return None
+
 
 class FileStorage(Storage):
     """A folder as the store (``file:///srv/v3d``; by default the jobs folder: the layout v3d always had)."""
@@ -221,6 +228,14 @@ class FileStorage(Storage):
     def local_path(self, key: str) -> Optional[Path]:
         """The file of ``key`` under the root."""
         return self.path(key)
+
+    def key_refusal(self, key: str) -> Optional[str]:
+        """A component of more than :data:`NAME_MAX_BYTES` bytes (UTF-8): no file system of this machine names it."""
+        long = next((part for part in key.split("/") if len(part.encode()) > NAME_MAX_BYTES), None)
+        if long is not None:
+            return (f"{key!r}: its part {long[:40]!r}... is {len(long.encode())} bytes; a file name holds "
+                    f"{NAME_MAX_BYTES}")
+        return None
 
     def put_file(self, key: str, source: Path) -> None:
         """Copy ``source`` into place (nothing when it is the key's own file: an upload unpacked where it is

@@ -641,6 +641,23 @@ class Client:
         self.download(job, out, progress=progress)
         return job
 
+    @_route("POST /api/backups", answer=Job)
+    def start_backup(self, *, local_files: bool = True) -> Job:
+        """Queue a backup of the whole deployment (admins): every table in one snapshot and the stored files it
+        names, in one zip with its manifest. ``local_files``: the images a command-line import or the demo read from
+        the server's own folders too (false lists their folders in the manifest instead). The archive holds every
+        password and token hash: keep it as a secret."""
+        return Job.model_validate(self._send("POST", "/api/backups", json={"local_files": local_files}).json())
+
+    def backup(self, out: str | Path, *, local_files: bool = True, job_progress: Optional[JobProgress] = None,
+               progress: Optional[BytesProgress] = None, timeout_s: Optional[float] = None) -> Job:
+        """Back the deployment up into the zip ``out``: queue the backup (:meth:`start_backup`), wait for it
+        (:meth:`wait`), download its archive (:meth:`download`). The finished job (its ``result``: what the
+        archive holds)."""
+        job = self.wait(self.start_backup(local_files=local_files), progress=job_progress, timeout_s=timeout_s)
+        self.download(job, out, progress=progress)
+        return job
+
     @_route("GET /api/releases", answer=Releases)
     def releases(self) -> list[Release]:
         """Every release, oldest first."""

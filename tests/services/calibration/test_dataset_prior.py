@@ -7,6 +7,8 @@ import pytest
 import sqlalchemy as sa
 
 from app.db.models import Calibration, CalibrationStatus, Frame, Game
+from app.db.scope import game_changed
+from app.db.unit import write_unit
 from app.geometry.annotations import lines_from_json_lists
 from app.geometry.calibration import CameraPrior
 from app.geometry.calibration.result import PRIOR_FLAG, RADIAL_PRIOR_FLAG
@@ -125,7 +127,9 @@ def test_the_imported_prior_is_stored_and_every_later_recalibration_uses_it(db_s
     assert PRIOR_FLAG in frame.calibration.flags
     assert frame.calibration.camera == camera and frame.calibration.jac_0005 == jac
     # A dataset whose import learned nothing: no prior stored, the edit fits from the lines alone.
-    game.camera_prior = None
+    with write_unit(db_session):  # a write of the prior, through the unit with the bump of what it covers
+        game.camera_prior = None
+        game_changed(game)
     replace_field_lines(db_session, frame.id, frame.field_lines.lines, settings=settings)
     db_session.refresh(frame.calibration)
     assert PRIOR_FLAG not in (frame.calibration.flags or ()) and frame.calibration.camera == alone.camera

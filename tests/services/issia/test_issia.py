@@ -11,6 +11,7 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from app.core.errors import StaleVersionError
 from app.datasets.issia3d import read_issia3d_csv
 from app.db.models import (
     BallKind,
@@ -623,3 +624,34 @@ def test_an_edit_sets_back_to_pending_every_decided_system_whose_3d_ball_the_ref
         if s.frame_index != 20:
             assert "re-fit after an edit of" in s.review.reset_reason and "by ana" in s.review.reset_reason
     assert all(s.review.status == ReviewStatus.ACCEPTED for s in kept)
+
+
+def test_an_edit_bumps_the_version_of_every_undecided_system_whose_3d_ball_the_refit_moved(db_session, db_settings,
+                                                                                          stretch):
+    """The re-fit writes the moved neighbours' trajectory points and doubts with bulk statements; each of those
+    systems' version (its ETag) moves with them, decided or not, so that a decision sent with the version its
+    reviewer saw before the re-fit is refused (412) instead of landing on a 3D ball that has since moved."""
+    import_issia(db_session, stretch, db_settings)
+    db_session.expire_all()
+
+    def point(s):
+        tp = s.trajectory_point
+        return json.dumps([tp.ball3d, tp.ball3d_smoothed, tp.source, tp.piece, tp.cam_list, tp.residuals_px,
+                           tp.flagged], sort_keys=True, default=str)
+
+    before = {i: (point(s), s.version) for i, s in _systems(db_session).items()}
+    assert all(s.review is None or s.review.status == ReviewStatus.PENDING for s in _systems(db_session).values())
+    cam3 = _view(_systems(db_session)[20], "cam3")
+    x, y = cam3.ball_label.point
+    update_ball_label(db_session, cam3.id, point=[x + 80.0, y], settings=db_settings, actor="ana")
+    db_session.expire_all()
+    after = _systems(db_session)
+    moved = [i for i, s in after.items() if i != 20 and point(s) != before[i][0]]
+    kept = [i for i, s in after.items() if point(s) == before[i][0]]
+    assert moved and kept
+    assert {i: after[i].version > before[i][1] for i in moved} == {i: True for i in moved}
+    assert {i: after[i].version for i in kept if i != 20} == {i: before[i][1] for i in kept if i != 20}
+    neighbour = after[moved[0]]
+    with pytest.raises(StaleVersionError):
+        decide_review(db_session, system_id=neighbour.id, status=ReviewStatus.ACCEPTED,
+                      expected=[before[moved[0]][1]])

@@ -1,0 +1,289 @@
+"""The backup archive: one zip file holding ``manifest.json`` and every member it lists with its SHA-256.
+
+Members (POSIX names inside the zip):
+
+* ``tables/<table>.jsonl``: a table's rows in primary-key order, one JSON array a line, its values in the manifest's
+  column order, each written as its column's neutral kind says (``app.services.backup.rows``), so that SQLite and
+  PostgreSQL read the same archive;
+* ``store/<key>``: an object of the store (``V3D_STORAGE_URL``) the snapshot names (frame images and archives, kept
+  uploads, export results), restored under the same key;
+* ``local/<n>/<path>``: a file of a dataset folder on the machine that made the backup (a command-line import's or
+  the demo's images, ``Frame.image_root`` an absolute path or under the data root), restored into the target's store
+  under ``restored/<backup id>/<n>/<path>`` with the frames naming it there;
+* ``manifest.json``: :class:`Manifest`, written last (it holds the other members' digests).
+
+Trust is earned by :func:`verify_archive` before anything is read for a restore (restic's and borg's rule): every
+member listed is present and hashes to its digest, and no member is unlisted. A zip member's own CRC is checked too
+(``zipfile`` raises on a mismatch), and every failure names the member being read.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import zipfile
+import zlib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import IO, Any, BinaryIO, Iterator
+
+#: The archive's own format, refused when a restore does not know it (an archive of a later v3d).
+FORMAT = "v3d-backup"
+FORMAT_VERSION = 1
+MANIFEST = "manifest.json"
+#: Bytes read and hashed at a time.
+CHUNK_BYTES = 1 << 20
+
+
+class BrokenArchive(ValueError):
+    """The archive cannot be trusted: ``member`` (None: the archive as a whole) is missing, unreadable, unlisted or
+    does not hash to its digest. The message says which and why."""
+
+    def __init__(self, message: str, member: str | None = None) -> None:
+        super().__init__(message)
+        self.member = member
+
+
+@dataclass
+class TableEntry:
+    """One table of the snapshot: its ``name``, ``rows``, ``columns`` (name, neutral kind) and archive ``member``."""
+
+    name: str
+    rows: int
+    columns: list[list[str]]
+    member: str
+
+
+@dataclass
+class LocalRoot:
+    """A dataset folder of the machine that made the backup (a frame's ``image_root``): ``root`` as the frames name
+    it; ``member_prefix`` where its files lie in the archive (``local/<n>/``), or None when they were left out
+    (``v3d backup --without-local-files``: a restore names the roots missing on its target); ``files`` kept."""
+
+    root: str
+    member_prefix: str | None
+    files: int = 0
+
+
+@dataclass
+class Manifest:
+    """What ``manifest.json`` says (module docstring): the archive's format, the v3d version and schema revision that
+    made it, its ``backup_id`` (the restored local files' key folder), when (ISO UTC), from which engine, each table,
+    each store object (key -> member), each local dataset folder, and every member's ``sha256`` and ``size``."""
+
+    v3d_version: str
+    schema_revision: str
+    backup_id: str
+    created_at: str
+    engine: str
+    tables: list[TableEntry] = field(default_factory=list)
+    objects: dict[str, str] = field(default_factory=dict)
+    local_roots: list[LocalRoot] = field(default_factory=list)
+    members: dict[str, dict[str, Any]] = field(default_factory=dict)
+    format: str = FORMAT
+    format_version: int = FORMAT_VERSION
+
+    def to_json(self) -> bytes:
+        """The manifest as ``manifest.json`` holds it (indented, keys in a fixed order)."""
+        return json.dumps(asdict(self), indent=1).encode()
+
+    @classmethod
+    def from_json(cls, data: bytes) -> "Manifest":
+        """The manifest of ``data``.
+
+        Raises:
+            BrokenArchive: not a manifest of this format (member ``manifest.json``).
+        """
+        try:
+            raw = json.loads(data)
+            if raw.get("format") != FORMAT:
+                raise ValueError(f"format {raw.get('format')!r} is not {FORMAT!r}")
+            if int(raw.get("format_version", 0)) > FORMAT_VERSION:
+                raise ValueError(f"format version {raw['format_version']} is newer than this v3d's "
+                                 f"({FORMAT_VERSION}): restore it with the v3d that made it")
+            return cls(
+                **{k: raw[k] for k in ("v3d_version", "schema_revision", "backup_id", "created_at", "engine")},
+                tables=[TableEntry(**t) for t in raw["tables"]], objects=dict(raw["objects"]),
+                local_roots=[LocalRoot(**r) for r in raw["local_roots"]], members=dict(raw["members"]),
+                format=raw["format"], format_version=int(raw["format_version"]))
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise BrokenArchive(f"{MANIFEST}: not a v3d backup manifest ({exc})", MANIFEST) from None
+
+
+class ArchiveWriter:
+    """Writes the archive's members into a zip, hashing each as it goes; :meth:`close` adds the manifest.
+
+    Table rows are deflated (JSON text shrinks about tenfold, at the fastest level: the backup's time is the
+    database's read), store objects stored as they are (images and zips are compressed already).
+    """
+
+    def __init__(self, target: Path, manifest: Manifest) -> None:
+        self.manifest = manifest
+        self._target = target
+        self._zip = zipfile.ZipFile(target, "w", allowZip64=True)
+
+    def member(self, name: str, compress: bool) -> "_HashedMember":
+        """A member ``name`` open for writing (a context manager; its digest is recorded when it closes)."""
+        if name in self.manifest.members or name == MANIFEST:
+            raise ValueError(f"archive member {name!r} written twice")
+        info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+        info.compress_type = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
+        if compress:
+            info._compresslevel = 1  # type: ignore[attr-defined]  # zipfile's own per-member level (3.7+)
+        return _HashedMember(self, name, self._zip.open(info, "w", force_zip64=True))
+
+    def copy(self, name: str, stream: BinaryIO) -> int:
+        """Copy the open binary ``stream`` to the stored member ``name``; its size in bytes."""
+        with self.member(name, compress=False) as out:
+            for chunk in iter(lambda: stream.read(CHUNK_BYTES), b""):
+                out.write(chunk)
+            return out.size
+
+    def close(self) -> None:
+        """Write ``manifest.json`` (with each member's stored bytes' digest too, :func:`stored_digests`) and close the
+        zip."""
+        self._zip.fp.flush()  # type: ignore[union-attr]  # the members written so far, read back for their digests
+        for name, digest in stored_digests(self._target, self._zip.infolist()).items():
+            self.manifest.members[name]["stored_sha256"] = digest
+        self._zip.writestr(zipfile.ZipInfo(MANIFEST, date_time=(1980, 1, 1, 0, 0, 0)), self.manifest.to_json())
+        self._zip.close()
+
+    def abort(self) -> None:
+        """Close the zip without a manifest (the caller removes the file)."""
+        self._zip.close()
+
+
+class _HashedMember:
+    def __init__(self, writer: ArchiveWriter, name: str, out: IO[bytes]) -> None:
+        self._writer, self.name, self._out = writer, name, out
+        self._hash = hashlib.sha256()
+        self.size = 0
+
+    def write(self, data: bytes) -> None:
+        self._hash.update(data)
+        self._out.write(data)
+        self.size += len(data)
+
+    def __enter__(self) -> "_HashedMember":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._out.close()
+        if exc[0] is None:
+            self._writer.manifest.members[self.name] = {"sha256": self._hash.hexdigest(), "size": self.size}
+
+
+def stored_digests(path: Path, infos: list[zipfile.ZipInfo]) -> dict[str, str]:
+    """The SHA-256 of each member's bytes as stored in the zip at ``path`` (compressed: a changed byte that
+    decompresses to the same content, a deflate block's header bit, is seen too)."""
+    out = {}
+    with open(path, "rb") as f:
+        for info in infos:
+            f.seek(info.header_offset)
+            header = f.read(30)
+            f.seek(info.header_offset + 30 + int.from_bytes(header[26:28], "little")
+                   + int.from_bytes(header[28:30], "little"))
+            digest, left = hashlib.sha256(), info.compress_size
+            while left > 0:
+                chunk = f.read(min(CHUNK_BYTES, left))
+                if not chunk:
+                    break
+                digest.update(chunk)
+                left -= len(chunk)
+            out[info.filename] = digest.hexdigest()
+    return out
+
+
+def read_manifest(archive: zipfile.ZipFile) -> Manifest:
+    """The archive's manifest (not yet checked against its members: :func:`verify_archive`).
+
+    Raises:
+        BrokenArchive: no manifest, or an unreadable one.
+    """
+    try:
+        data = archive.read(MANIFEST)
+    except KeyError:
+        raise BrokenArchive(f"{MANIFEST} is missing: not a complete v3d backup (one whose writing was cut short "
+                            f"has none)", MANIFEST) from None
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        raise BrokenArchive(f"{MANIFEST}: unreadable ({exc})", MANIFEST) from None
+    return Manifest.from_json(data)
+
+
+def open_archive(path: Path) -> zipfile.ZipFile:
+    """The archive at ``path`` opened for reading.
+
+    Raises:
+        BrokenArchive: not a zip file, or a cut one (its directory is at the end and missing).
+        FileNotFoundError: no such file.
+    """
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such archive")
+    try:
+        return zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        raise BrokenArchive(f"{path.name}: not a complete zip archive ({exc}): a backup cut short or another "
+                            f"file") from None
+
+
+def verify_archive(path: Path, progress: Any = None) -> Manifest:
+    """Check every member of the archive at ``path`` against its manifest (module docstring); its manifest.
+
+    ``progress(stage, done, total)`` (``app.core.progress.Progress``), when given, is told the bytes hashed.
+
+    Raises:
+        BrokenArchive: the first member that fails, named (missing, unlisted, unreadable, or another digest).
+        FileNotFoundError: no such file.
+    """
+    with open_archive(path) as archive:
+        manifest = read_manifest(archive)
+        names = {i.filename for i in archive.infolist()}
+        unlisted = sorted(names - set(manifest.members) - {MANIFEST})
+        if unlisted:
+            raise BrokenArchive(f"{unlisted[0]}: in the archive but not in its manifest", unlisted[0])
+        total = sum(int(m.get("size", 0)) for m in manifest.members.values())
+        done = 0
+        for name, expected in manifest.members.items():
+            if name not in names:
+                raise BrokenArchive(f"{name}: listed in the manifest but missing from the archive", name)
+            digest = hashlib.sha256()
+            try:
+                with archive.open(name) as stream:
+                    for chunk in iter(lambda: stream.read(CHUNK_BYTES), b""):
+                        digest.update(chunk)
+                        done += len(chunk)
+                        if progress is not None:
+                            progress("verify", done, total)
+            except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError) as exc:  # a CRC, a cut file
+                raise BrokenArchive(f"{name}: unreadable ({type(exc).__name__}: {exc})", name) from None
+            if digest.hexdigest() != expected.get("sha256"):
+                raise BrokenArchive(f"{name}: its SHA-256 is {digest.hexdigest()}, the manifest says "
+                                    f"{expected.get('sha256')}: the member is broken or was changed", name)
+        stored = stored_digests(path, [archive.getinfo(n) for n in manifest.members])
+        for name, expected in manifest.members.items():
+            if "stored_sha256" in expected and stored[name] != expected["stored_sha256"]:
+                raise BrokenArchive(f"{name}: its stored bytes' SHA-256 is {stored[name]}, the manifest says "
+                                    f"{expected['stored_sha256']}: the member is broken or was changed", name)
+        _check_manifest_names(manifest)
+    return manifest
+
+
+def _check_manifest_names(manifest: Manifest) -> None:
+    """Refuse a manifest whose members named for tables and objects are not its own members (a hand-made archive)."""
+    named = [t.member for t in manifest.tables] + list(manifest.objects.values())
+    for member in named:
+        if member not in manifest.members:
+            raise BrokenArchive(f"{member}: named by the manifest's tables or objects but not a member", member)
+
+
+def lines(archive: zipfile.ZipFile, member: str) -> Iterator[bytes]:
+    """The lines of the member ``member`` (a table's rows), read as a stream."""
+    with archive.open(member) as stream:
+        yield from (line for line in stream if line.strip())
+
+
+def replace_into(part: Path, target: Path) -> None:
+    """Rename the complete ``part`` to ``target`` (the same folder: atomic), flushed to disk first."""
+    with open(part, "rb") as f:
+        os.fsync(f.fileno())
+    os.replace(part, target)

@@ -1,0 +1,334 @@
+"""``v3d restore``: a backup archive (``app.services.backup.archive``) into the database and store the settings name,
+from any engine to any engine (SQLite + a folder, PostgreSQL + S3).
+
+The order, so that nothing is written unless the whole can be, and a restore cut short is never served:
+
+1. the archive is verified whole (every member's SHA-256 against its manifest) before anything else;
+2. its schema revision must be one this v3d knows, and every key it will write must fit the target store (S3 names
+   hold 1,024 bytes): refused, named, before any write;
+3. the target database must hold no data (an empty or only-migrated database counts as empty), unless ``replace``;
+4. the target is marked (``app.db.session.RESTORING_TABLE``): from here until the mark is dropped at the very end,
+   ``v3d serve`` and every command refuse the database with words, and running the restore again finishes it (it
+   starts over on the marked database);
+5. the tables are dropped and made again by the migrations at the archive's revision, the rows inserted as they were
+   (ids included; no import cap applies: they are rows, not a dataset), the store's objects written under their keys,
+   a local dataset folder's files under ``restored/<backup id>/<n>/`` with its frames naming them there, the schema
+   migrated to head, PostgreSQL's sequences moved past the ids restored; then the mark is dropped.
+
+Passwords, API tokens and the session-signing key are rows: they keep working. Times, ids, versions (ETags), release
+documents and hashes are restored as stored, so every answer and every release export is the same.
+"""
+from __future__ import annotations
+
+import secrets
+import time
+import warnings
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+from urllib.parse import urlsplit
+
+import orjson
+import sqlalchemy as sa
+from sqlalchemy.engine import Engine
+from sqlalchemy.orm import Session
+
+from app.core.config import Settings, jobs_dir
+from app.core.errors import ConflictError, InvalidInputError
+from app.core.progress import Progress
+from app.db.session import (
+    RESTORING_TABLE,
+    alembic_config,
+    make_engine,
+    refresh_statistics,
+    unfinished_restore,
+    upgrade_database,
+)
+from app.services.backup.archive import BrokenArchive, Manifest, lines, verify_archive
+from app.services.backup.rows import decoder, write_type
+from app.services.backup.snapshot import BACKUPS, SKIPPED_TABLES
+from app.services.storage import storage_for
+from app.services.storage.datasets import IN_DATA_ROOT, STORED
+from app.services.storage.stores import Storage, join_key
+
+#: Rows inserted per statement batch.
+BATCH_ROWS = 2000
+#: Tables a deployment writes without anyone's data in them (the session key the migrations make, login counters):
+#: a target holding rows only there counts as empty, and they are replaced by the archive's.
+MACHINE_TABLES = frozenset({"server_secrets", "rate_limit_counters"})
+#: The store's folder a backup's local dataset files are restored under (``restored/<backup id>/<n>/...``).
+RESTORED = "restored"
+
+
+class TargetNotEmpty(ConflictError):
+    """The target database holds data and the restore was not told to replace it."""
+
+
+@dataclass
+class RestoreReport:
+    """What a restore did: the archive's ``manifest``, the ``rows`` and ``objects`` written, the local dataset folders
+    whose files were not in the archive and are not on this machine (``missing_roots``), ``seconds``."""
+
+    manifest: Manifest
+    rows: int = 0
+    objects: int = 0
+    missing_roots: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def fetch_archive(archive: str, settings: Settings) -> tuple[Path, bool]:
+    """A local file holding ``archive`` (a path, or ``s3://BUCKET/KEY`` fetched through the store's credentials into
+    the jobs folder), and whether it is such a temporary copy (the caller removes it).
+
+    Raises:
+        FileNotFoundError: no such file or key.
+        ValueError: an ``s3://`` name without bucket or key.
+    """
+    if archive.startswith("s3://"):
+        parts = urlsplit(archive)
+        key = parts.path.strip("/")
+        if not parts.netloc or not key:
+            raise ValueError(f"{archive!r}: an S3 archive is s3://BUCKET/KEY")
+        from app.services.storage.s3 import S3Storage
+
+        target = jobs_dir(settings) / BACKUPS / f"fetched-{secrets.token_hex(4)}.zip"
+        return S3Storage(parts.netloc, "").get_file(key, target), True
+    path = Path(archive).expanduser()
+    if not path.is_file():
+        raise FileNotFoundError(f"{archive}: no such archive")
+    return path, False
+
+
+def verify(archive: str, settings: Settings, progress: Optional[Progress] = None) -> Manifest:
+    """Verify ``archive`` whole (``archive.verify_archive``) and that this v3d knows its schema revision.
+
+    Raises:
+        BrokenArchive: a member missing, unlisted, unreadable or changed (named), or a revision unknown here.
+        FileNotFoundError: no such archive.
+    """
+    path, temporary = fetch_archive(archive, settings)
+    try:
+        manifest = verify_archive(path, progress)
+    finally:
+        if temporary:
+            path.unlink(missing_ok=True)
+    _known_revision(manifest)
+    return manifest
+
+
+def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
+                   progress: Optional[Progress] = None) -> RestoreReport:
+    """Restore ``archive`` into ``settings``' database and store (module docstring).
+
+    Raises:
+        BrokenArchive: the archive is not whole (nothing written).
+        InvalidInputError: a key the target store cannot hold (field ``key``; nothing written).
+        TargetNotEmpty: the database holds data and ``replace`` is off, or it is another archive's unfinished
+            restore (nothing written).
+        FileNotFoundError: no such archive.
+    """
+    started = time.monotonic()
+    path, temporary = fetch_archive(archive, settings)
+    try:
+        manifest = verify_archive(path, progress)
+        _known_revision(manifest)
+        storage = storage_for(settings)
+        writes = _store_writes(manifest)
+        _check_keys(storage, writes)
+        engine = make_engine(settings.database_url)
+        try:
+            label = archive if archive.startswith("s3://") else str(Path(archive).expanduser().resolve())
+            _check_target(engine, label, replace)
+            _mark(engine, label)
+            report = RestoreReport(manifest=manifest)
+            with zipfile.ZipFile(path) as zf:
+                _rebuild_schema(engine, settings.database_url, manifest.schema_revision)
+                report.rows = _insert_rows(engine, zf, manifest, progress)
+                report.objects = _write_store(zf, storage, writes, progress)
+                report.missing_roots = _name_local_roots(engine, manifest, settings)
+            upgrade_database(settings.database_url, "head", restoring=True)
+            _advance_sequences(engine)
+            with Session(engine) as session:
+                refresh_statistics(session)
+            _unmark(engine)
+        finally:
+            engine.dispose()
+    finally:
+        if temporary:
+            path.unlink(missing_ok=True)
+    report.seconds = round(time.monotonic() - started, 3)
+    return report
+
+
+def _known_revision(manifest: Manifest) -> None:
+    from alembic.script import ScriptDirectory
+    from alembic.util.exc import CommandError
+
+    try:
+        ScriptDirectory.from_config(alembic_config()).get_revision(manifest.schema_revision)
+    except (CommandError, KeyError, ValueError):
+        raise BrokenArchive(f"manifest.json: schema revision {manifest.schema_revision!r} (v3d "
+                            f"{manifest.v3d_version}) is unknown to this v3d: restore it with that version or a "
+                            f"later one", "manifest.json") from None
+
+
+def _store_writes(manifest: Manifest) -> list[tuple[str, str]]:
+    """``(member, key)`` of every object the restore writes to the store: the store's objects under their keys, the
+    local dataset files under ``restored/<backup id>/<n>/``.
+
+    Raises:
+        BrokenArchive: a key or name no store holds (``..``, an absolute name: an archive made by hand).
+    """
+    out = []
+    try:
+        for key, member in manifest.objects.items():
+            out.append((member, join_key(key)))
+        backup_id = join_key(manifest.backup_id)
+        for n, root in enumerate(manifest.local_roots):
+            if root.member_prefix is None:
+                continue
+            for member in manifest.members:
+                if member.startswith(root.member_prefix):
+                    out.append((member, join_key(RESTORED, backup_id, str(n), member[len(root.member_prefix):])))
+    except ValueError as exc:
+        raise BrokenArchive(f"manifest.json: {exc}", "manifest.json") from None
+    return out
+
+
+def _check_keys(storage: Storage, writes: list[tuple[str, str]]) -> None:
+    for _member, key in writes:
+        refusal = storage.key_refusal(key)
+        if refusal is not None:
+            raise InvalidInputError(f"the target store cannot hold {refusal}; nothing was restored", field="key")
+
+
+def holding_data(engine: Engine) -> list[str]:
+    """The tables of ``engine``'s database that hold rows of a deployment's data (not :data:`MACHINE_TABLES`)."""
+    with engine.connect() as conn:
+        names = [n for n in sa.inspect(conn).get_table_names()
+                 if n not in SKIPPED_TABLES and n not in MACHINE_TABLES]
+        return [n for n in sorted(names)
+                if conn.execute(sa.text(f'SELECT 1 FROM "{n}" LIMIT 1')).first() is not None]
+
+
+def _check_target(engine: Engine, label: str, replace: bool) -> None:
+    unfinished = unfinished_restore(engine)
+    if unfinished is not None:
+        if unfinished == label or replace:
+            return  # finished now (started over), or replaced by this archive
+        raise TargetNotEmpty(f"the database holds an unfinished restore of {unfinished}: run `v3d restore "
+                             f"{unfinished}` again to finish it, or pass --replace to restore {label} instead")
+    held = holding_data(engine)
+    if held and not replace:
+        raise TargetNotEmpty(f"the target database holds data (tables {', '.join(held[:6])}"
+                             f"{', ...' if len(held) > 6 else ''}): nothing was restored. Restore into an empty "
+                             f"database, or pass --replace to drop what it holds")
+
+
+def _mark(engine: Engine, label: str) -> None:
+    with engine.begin() as conn:
+        conn.execute(sa.text(f"CREATE TABLE IF NOT EXISTS {RESTORING_TABLE} (archive TEXT NOT NULL)"))
+        conn.execute(sa.text(f"DELETE FROM {RESTORING_TABLE}"))
+        conn.execute(sa.text(f"INSERT INTO {RESTORING_TABLE} (archive) VALUES (:a)"), {"a": label})
+
+
+def _unmark(engine: Engine) -> None:
+    with engine.begin() as conn:
+        conn.execute(sa.text(f"DROP TABLE {RESTORING_TABLE}"))
+
+
+def _rebuild_schema(engine: Engine, url: str, revision: str) -> None:
+    """Drop every table but the mark, and migrate the empty database to ``revision``."""
+    meta = sa.MetaData()
+    with engine.begin() as conn, warnings.catch_warnings():
+        warnings.simplefilter("ignore", sa.exc.SAWarning)  # an index on an expression: dropped with its table
+        meta.reflect(conn)
+        meta.drop_all(conn, tables=[t for t in meta.sorted_tables if t.name != RESTORING_TABLE])
+    upgrade_database(url, revision, restoring=True)
+
+
+def _insert_rows(engine: Engine, zf: zipfile.ZipFile, manifest: Manifest, progress: Optional[Progress]) -> int:
+    """Every table's rows, parents first (the archive's order), in batches; the rows inserted."""
+    dialect = engine.dialect.name
+    total = sum(t.rows for t in manifest.tables)
+    done = 0
+    with engine.connect() as conn:
+        present = {n: {c["name"] for c in sa.inspect(conn).get_columns(n)} for n in sa.inspect(conn).get_table_names()}
+    for entry in manifest.tables:
+        if entry.name not in present:
+            raise BrokenArchive(f"{entry.member}: table {entry.name!r} is not in the schema at revision "
+                                f"{manifest.schema_revision}", entry.member)
+        unknown = [c for c, _ in entry.columns if c not in present[entry.name]]
+        if unknown:
+            raise BrokenArchive(f"{entry.member}: columns {unknown} are not in table {entry.name!r} at revision "
+                                f"{manifest.schema_revision}", entry.member)
+        names = [c for c, _ in entry.columns]
+        decoders = [decoder(k, dialect) for _, k in entry.columns]
+        table = sa.Table(entry.name, sa.MetaData(), *(sa.Column(c, write_type(k, dialect)) for c, k in entry.columns))
+        with engine.begin() as conn:
+            conn.execute(sa.delete(table))  # what the migrations made (the session key): the archive's replaces it
+            batch: list[dict[str, Any]] = []
+            for line in lines(zf, entry.member):
+                values = orjson.loads(line)
+                batch.append({n: d(v) for n, d, v in zip(names, decoders, values, strict=True)})
+                if len(batch) >= BATCH_ROWS:
+                    conn.execute(sa.insert(table), batch)
+                    done += len(batch)
+                    batch = []
+                    if progress is not None:
+                        progress("rows", done, total)
+            if batch:
+                conn.execute(sa.insert(table), batch)
+                done += len(batch)
+            if progress is not None:
+                progress("rows", done, total)
+    return done
+
+
+def _write_store(zf: zipfile.ZipFile, storage: Storage, writes: list[tuple[str, str]],
+                 progress: Optional[Progress]) -> int:
+    for n, (member, key) in enumerate(writes, 1):
+        with zf.open(member) as stream:
+            storage.put_stream(key, stream)  # type: ignore[arg-type]  # a zip member reads as a binary file
+        if progress is not None:
+            progress("files", n, len(writes))
+    return len(writes)
+
+
+def _name_local_roots(engine: Engine, manifest: Manifest, settings: Settings) -> list[str]:
+    """Frames of a local dataset folder whose files the archive holds name them in the store now; the folders whose
+    files it does not hold and this machine lacks."""
+    missing = []
+    with engine.begin() as conn:
+        for n, root in enumerate(manifest.local_roots):
+            if root.member_prefix is None:
+                if not _present_here(root.root, settings):
+                    missing.append(root.root)
+                continue
+            conn.execute(sa.text("UPDATE frames SET image_root = :new WHERE image_root = :old"),
+                         {"new": STORED + join_key(RESTORED, manifest.backup_id, str(n)), "old": root.root})
+    return missing
+
+
+def _advance_sequences(engine: Engine) -> None:
+    """PostgreSQL: each table's id sequence moved past the largest id restored (the next insert takes the next)."""
+    if engine.dialect.name != "postgresql":
+        return
+    with engine.begin() as conn:
+        inspector = sa.inspect(conn)
+        for table in inspector.get_table_names():
+            for column in inspector.get_columns(table):
+                seq = conn.execute(sa.text("SELECT pg_get_serial_sequence(:t, :c)"),
+                                   {"t": f'"{table}"', "c": column["name"]}).scalar()
+                if seq is None:
+                    continue
+                conn.execute(sa.text(f'SELECT setval(:s, COALESCE((SELECT max("{column["name"]}") FROM "{table}"), '
+                                     f'0) + 1, false)'), {"s": seq})
+
+
+def _present_here(root: str, settings: Settings) -> bool:
+    """Whether the dataset folder ``root`` (a frame's ``image_root`` that is no store key) is on this machine."""
+    if root.startswith(IN_DATA_ROOT):
+        return settings.data_root is not None and (Path(settings.data_root) / root[len(IN_DATA_ROOT):]).is_dir()
+    return Path(root).is_dir()

@@ -1,0 +1,324 @@
+"""``v3d backup`` and ``v3d restore`` on SQLite and a folder store, through the command line: a restored deployment
+holds every row as it was (ids, times, versions, hashes), its images and its accounts; a broken archive, a target
+holding data and a key the store cannot hold are refused before anything is written; a restore cut short leaves a
+database that refuses to serve with words and is finished by running it again; an archive of an older schema is
+migrated to head. The same across engines and stores (PostgreSQL + S3): ``test_engines.py``."""
+from __future__ import annotations
+
+import json
+import sqlite3
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+from typer.testing import CliRunner
+
+from app.cli._root import cli
+from app.core.config import Settings, get_settings
+from app.db.models import Base, Frame, User
+from app.db.session import RestoreUnfinished, make_engine, upgrade_database
+from app.services.accounts.users import authenticate_password, create_user, resolve_token
+from app.services.backup.archive import MANIFEST, BrokenArchive, verify_archive
+from app.services.images.serving import frame_image
+from app.services.storage.datasets import DatasetFiles
+from app.services.transfer.importing import import_soccernet_v3
+from tests.services.datasets import write_v3_game
+
+PASSWORD = "a long enough password"
+
+
+def cli_main() -> Any:
+    """The ``v3d`` command with every command module registered (as ``app.cli.main`` does)."""
+    from app.cli import backup, serve, users  # noqa: F401  # they register their commands
+
+    return cli
+
+
+def invoke(env: dict[str, str], monkeypatch: pytest.MonkeyPatch, *args: str) -> Any:
+    """``v3d ARGS`` with the ``V3D_*`` environment ``env`` (the settings read afresh)."""
+    for name, value in env.items():
+        monkeypatch.setenv(name, value)
+    get_settings.cache_clear()
+    try:
+        return CliRunner().invoke(cli_main(), list(args))
+    finally:
+        get_settings.cache_clear()
+
+
+def deployment(folder: Path) -> dict[str, str]:
+    """The environment of a deployment on SQLite and a folder store under ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    return {"V3D_DATABASE_URL": f"sqlite:///{folder / 'v3d.sqlite3'}", "V3D_STORAGE_URL": (folder / "store").as_uri(),
+            "V3D_JOBS_DIR": str(folder / "jobs"), "V3D_CALIBRATION_WORKERS": "1"}
+
+
+def rows(url: str) -> dict[str, list[dict[str, Any]]]:
+    """Every mapped table's rows through v3d's own models, in primary-key order (times as aware UTC datetimes, JSON
+    as documents): what the service reads."""
+    engine = make_engine(url)
+    out: dict[str, list[dict[str, Any]]] = {}
+    try:
+        with engine.connect() as conn:
+            for table in Base.metadata.sorted_tables:
+                out[table.name] = [dict(r._mapping) for r in conn.execute(
+                    sa.select(table).order_by(*table.primary_key.columns))]
+    finally:
+        engine.dispose()
+    return out
+
+
+@pytest.fixture(scope="module")
+def source(shared_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """A deployment on SQLite and a folder store: three systems of the dev game imported from a folder of this
+    machine (a command-line import: its images named by their path), an admin with a token, a decision and a
+    comment. Made once: the tests only read it."""
+    base = tmp_path_factory.mktemp("source")
+    env = deployment(base / "deploy")
+    tree = base / "v3"
+    write_v3_game(shared_dir, tree)
+    url = env["V3D_DATABASE_URL"]
+    upgrade_database(url)
+    settings = Settings(_env_file=None, database_url=url, storage_url=env["V3D_STORAGE_URL"],
+                        jobs_dir=Path(env["V3D_JOBS_DIR"]), calibration_workers=1)
+    engine = make_engine(url)
+    with Session(engine) as session:
+        import_soccernet_v3(session, tree, settings)
+        _user, token = create_user(session, "ana", "admin", PASSWORD)
+        from app.services.curation.decisions import decide_review
+
+        system_id = session.scalars(sa.select(Frame.system_id).order_by(Frame.id)).first()
+        decide_review(session, system_id=system_id, status="accepted", actor="ana")
+    engine.dispose()
+    return {"env": env, "url": url, "token": token, "settings": settings, "tree": tree}
+
+
+@pytest.fixture(scope="module")
+def archive(source: dict[str, Any], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``v3d backup`` of :func:`source`."""
+    target = tmp_path_factory.mktemp("archive") / "v3d-backup.zip"
+    with pytest.MonkeyPatch.context() as mp:
+        result = invoke(source["env"], mp, "backup", str(target))
+    assert result.exit_code == 0, result.output
+    assert not list(target.parent.glob(".*part"))  # renamed when complete
+    return target
+
+
+def test_the_archive_lists_every_table_with_its_rows_and_every_member_with_its_digest(source, archive):
+    manifest = verify_archive(archive)
+    expected = rows(source["url"])
+    counts = {t.name: t.rows for t in manifest.tables}
+    assert {n: counts[n] for n in expected} == {n: len(v) for n, v in expected.items()}
+    assert counts["frames"] > 0 and counts["users"] == 1 and counts["review_decisions"] >= 1
+    with sqlite3.connect(source["url"].removeprefix("sqlite:///")) as conn:
+        assert manifest.schema_revision == conn.execute("SELECT version_num FROM alembic_version").fetchone()[0]
+    with zipfile.ZipFile(archive) as zf:
+        assert sorted(zf.namelist()) == sorted([*manifest.members, MANIFEST])
+    # the frames' images, read from this machine's folder, are in the archive (the game's Frames-v3.zip)
+    assert [r.files for r in manifest.local_roots] == [1] and manifest.local_roots[0].root.startswith("/")
+
+
+def test_a_restore_gives_back_every_row_its_images_and_its_logins(source, archive, tmp_path, monkeypatch):
+    target = deployment(tmp_path / "target")
+    # an import cap that would cut the source's systems: a restore writes rows, not a dataset
+    result = invoke({**target, "V3D_MAX_VIEWS_PER_SYSTEM": "1"}, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 0, result.output
+    before, after = rows(source["url"]), rows(target["V3D_DATABASE_URL"])
+    for frame in before["frames"]:
+        frame.pop("image_root")  # the folder of this machine: restored into the target's store
+    roots = {f.pop("image_root") for f in after["frames"]}
+    assert before == after
+    assert len(roots) == 1 and roots.pop().startswith("storage:restored/")
+    engine = make_engine(target["V3D_DATABASE_URL"])
+    settings = Settings(_env_file=None, database_url=target["V3D_DATABASE_URL"],
+                        storage_url=target["V3D_STORAGE_URL"], jobs_dir=Path(target["V3D_JOBS_DIR"]))
+    source_engine = make_engine(source["url"])
+    try:
+        with Session(engine) as session, Session(source_engine) as old:
+            frame = session.scalars(sa.select(Frame).order_by(Frame.id)).first()
+            image = frame_image(frame, files=DatasetFiles.from_settings(settings))
+            original = frame_image(old.get(Frame, frame.id), files=DatasetFiles.from_settings(source["settings"]))
+            assert image.path is None and image.zip_path is not None  # read from the target's store
+            assert b"".join(image.chunks()) == b"".join(original.chunks()) and image.size > 1000
+            assert authenticate_password(session, "ana", PASSWORD) is not None
+            assert authenticate_password(session, "ana", "not the password") is None
+            user = resolve_token(session, source["token"])
+            assert isinstance(user, User) and user.name == "ana"
+    finally:
+        engine.dispose()
+        source_engine.dispose()
+
+
+@pytest.mark.parametrize("where", ["middle", "first"])
+def test_a_flipped_byte_is_refused_naming_its_member_and_nothing_is_written(archive, tmp_path, monkeypatch, where):
+    """Anywhere in a member's stored bytes: in the middle of its deflated rows, or its first byte (a deflate block's
+    header bit, which can leave the decompressed content as it was: the stored bytes' digest sees it)."""
+    broken = tmp_path / "broken.zip"
+    data = bytearray(archive.read_bytes())
+    with zipfile.ZipFile(archive) as zf:
+        info = zf.getinfo("tables/frames.jsonl")
+    at = info.header_offset  # the member's local header: its name's and extra field's lengths, then its data
+    start = at + 30 + int.from_bytes(data[at + 26:at + 28], "little") + int.from_bytes(data[at + 28:at + 30], "little")
+    data[start + (info.compress_size // 2 if where == "middle" else 0)] ^= 0x01  # one byte of its stored bytes
+    broken.write_bytes(bytes(data))
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", "--verify-only", str(broken))
+    assert result.exit_code == 2 and "tables/frames.jsonl" in result.output, result.output
+    result = invoke(target, monkeypatch, "restore", str(broken))
+    assert result.exit_code == 2 and "tables/frames.jsonl" in result.output, result.output
+    assert not Path(target["V3D_DATABASE_URL"].removeprefix("sqlite:///")).exists()
+    assert not Path(target["V3D_STORAGE_URL"].removeprefix("file://")).exists()
+    ok = invoke(target, monkeypatch, "restore", "--verify-only", str(archive))
+    assert ok.exit_code == 0 and "whole" in ok.output, ok.output
+
+
+def test_a_target_holding_data_is_refused_untouched_unless_replaced(source, archive, tmp_path, monkeypatch):
+    target = deployment(tmp_path / "target")
+    url = target["V3D_DATABASE_URL"]
+    upgrade_database(url)
+    engine = make_engine(url)
+    with Session(engine) as session:
+        create_user(session, "kept", "reviewer", PASSWORD)
+    engine.dispose()
+    held = rows(url)
+    result = invoke(target, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 2 and "holds data" in result.output and "users" in result.output, result.output
+    assert rows(url) == held
+    result = invoke(target, monkeypatch, "restore", "--replace", str(archive))
+    assert result.exit_code == 0, result.output
+    assert [u["name"] for u in rows(url)["users"]] == ["ana"]
+
+
+def test_an_only_migrated_database_counts_as_empty(archive, tmp_path, monkeypatch):
+    target = deployment(tmp_path / "target")
+    upgrade_database(target["V3D_DATABASE_URL"])  # holds the session key the migrations make, nothing else
+    result = invoke(target, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 0, result.output
+
+
+def test_a_restore_cut_short_refuses_to_serve_and_is_finished_by_running_it_again(source, archive, tmp_path,
+                                                                                   monkeypatch):
+    target = deployment(tmp_path / "target")
+    store = Path(target["V3D_STORAGE_URL"].removeprefix("file://"))
+    store.mkdir(parents=True)
+    (store / "restored").write_text("a file where the restore writes a folder: its store writes fail")
+    result = invoke(target, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 1 and "refuses to serve until `v3d restore" in result.output, result.output
+    url = target["V3D_DATABASE_URL"]
+    with pytest.raises(RestoreUnfinished, match="unfinished restore of .*v3d-backup.zip.*v3d restore"):
+        upgrade_database(url)
+    served = invoke(target, monkeypatch, "serve")
+    assert served.exit_code == 2 and "unfinished restore" in served.output, served.output
+    users = invoke(target, monkeypatch, "users", "list")
+    assert users.exit_code == 2 and "unfinished restore" in users.output, users.output
+    (store / "restored").unlink()
+    result = invoke(target, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 0, result.output
+    upgrade_database(url)  # whole: served again
+    before, after = rows(source["url"]), rows(url)
+    for table in (before, after):
+        for frame in table["frames"]:
+            frame.pop("image_root")
+    assert before == after
+
+
+def test_a_key_the_target_store_cannot_hold_is_refused_before_anything_is_written(source, tmp_path, monkeypatch):
+    env = deployment(tmp_path / "source")
+    long_name = "é" * 130  # 260 bytes of UTF-8: more than a file name holds
+    upgrade_database(env["V3D_DATABASE_URL"])
+    engine = make_engine(env["V3D_DATABASE_URL"])
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO jobs (id, kind, params, state, done, total, attempts, created_at, result) "
+                             "VALUES (1, 'export', '{}', 'done', 0, 0, 1, '2026-11-28 10:00:00', :r)"),
+                     {"r": json.dumps({"file": "job-1-coco.zip"})})
+    engine.dispose()
+    store = Path(env["V3D_STORAGE_URL"].removeprefix("file://"))
+    (store / "exports").mkdir(parents=True)
+    (store / "exports" / "job-1-coco.zip").write_bytes(b"PK\x05\x06" + bytes(18))
+    archive = tmp_path / "a.zip"
+    assert invoke(env, monkeypatch, "backup", str(archive)).exit_code == 0
+    # the same archive with the export's key renamed past what a file name holds (as an S3 key of 1,000 bytes is
+    # past what a bucket with a prefix holds: test_engines.py)
+    hacked = tmp_path / "long.zip"
+    with zipfile.ZipFile(archive) as zin, zipfile.ZipFile(hacked, "w") as zout:
+        manifest = json.loads(zin.read(MANIFEST))
+        for member in manifest["members"].values():  # re-zipped below: its stored bytes differ, its content not
+            member.pop("stored_sha256")
+        manifest["objects"] = {f"exports/{long_name}.zip": "store/exports/job-1-coco.zip"}
+        for name in zin.namelist():
+            if name != MANIFEST:
+                zout.writestr(name, zin.read(name))
+        zout.writestr(MANIFEST, json.dumps(manifest))
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(hacked))
+    assert result.exit_code == 2 and long_name[:20] in result.output and "255" in result.output, result.output
+    assert not Path(target["V3D_DATABASE_URL"].removeprefix("sqlite:///")).exists()
+
+
+def test_an_archive_naming_a_key_outside_the_store_is_refused(archive, tmp_path, monkeypatch):
+    hacked = tmp_path / "outside.zip"
+    with zipfile.ZipFile(archive) as zin, zipfile.ZipFile(hacked, "w") as zout:
+        manifest = json.loads(zin.read(MANIFEST))
+        for member in manifest["members"].values():  # re-zipped below: its stored bytes differ, its content not
+            member.pop("stored_sha256")
+        member = next(iter(manifest["members"]))
+        manifest["objects"] = {"../../escaped": member}
+        for name in zin.namelist():
+            if name != MANIFEST:
+                zout.writestr(name, zin.read(name))
+        zout.writestr(MANIFEST, json.dumps(manifest))
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(hacked))
+    assert result.exit_code == 2 and "unsafe storage key" in result.output, result.output
+    assert not (tmp_path / "escaped").exists() and not (tmp_path / "target" / "escaped").exists()
+
+
+def test_an_archive_without_its_manifest_or_cut_short_is_refused(archive, tmp_path):
+    cut = tmp_path / "cut.zip"
+    cut.write_bytes(archive.read_bytes()[: archive.stat().st_size // 2])
+    with pytest.raises(BrokenArchive, match="not a complete zip"):
+        verify_archive(cut)
+    bare = tmp_path / "bare.zip"
+    with zipfile.ZipFile(archive) as zin, zipfile.ZipFile(bare, "w") as zout:
+        for name in zin.namelist():
+            if name != MANIFEST:
+                zout.writestr(name, zin.read(name))
+    with pytest.raises(BrokenArchive, match="manifest.json is missing") as err:
+        verify_archive(bare)
+    assert err.value.member == MANIFEST
+
+
+def test_an_archive_of_an_older_schema_is_migrated_to_head(tmp_path, monkeypatch):
+    from app.services.backup.snapshot import write_backup
+
+    env = deployment(tmp_path / "old")
+    url = env["V3D_DATABASE_URL"]
+    upgrade_database(url, "0037")
+    engine = make_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO games (id, league, season, match, source_path, created_at, version) "
+                             "VALUES (7, 'l', 's', 'm', '/x', '2026-11-01 12:00:00.000000', 3)"))
+    settings = Settings(_env_file=None, database_url=url, storage_url=env["V3D_STORAGE_URL"],
+                        jobs_dir=Path(env["V3D_JOBS_DIR"]))
+    archive = tmp_path / "old.zip"
+    write_backup(engine, settings, str(archive))
+    engine.dispose()
+    assert verify_archive(archive).schema_revision == "0037"
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 0, result.output
+    with sqlite3.connect(target["V3D_DATABASE_URL"].removeprefix("sqlite:///")) as conn:
+        assert conn.execute("SELECT version_num FROM alembic_version").fetchone()[0] == "0038"
+    games = rows(target["V3D_DATABASE_URL"])["games"]
+    assert [(g["id"], g["match"], g["version"], g["created_at"].isoformat()) for g in games] == [
+        (7, "m", 3, "2026-11-01T12:00:00+00:00")]
+
+
+@pytest.fixture(autouse=True)
+def _fresh_settings() -> Iterator[None]:
+    get_settings.cache_clear()
+    yield
+    get_settings.cache_clear()
