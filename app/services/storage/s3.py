@@ -156,7 +156,8 @@ class S3Storage(Storage):
         try:
             self.check_fits(key)
         except KeyTooLong as exc:
-            return str(exc)
+            shown = key if len(key) <= 80 else f"{key[:60]}...{key[-16:]}"
+            return f"{shown!r}: its name in {self.url} is {exc.size} bytes; S3 holds names of at most {exc.limit}"
         return None
 
     def _transfer(self) -> Any:
