@@ -10,6 +10,8 @@ import pytest
 
 from app.core.errors import InvalidInputError
 from app.db.models import AuditEntry, Frame
+from app.db.scope import changed
+from app.db.unit import write_unit
 from app.services.curation.editing import replace_field_lines
 from app.services.curation.writing import EditContext
 from app.services.derivation.recompute import recompute_frame
@@ -27,9 +29,10 @@ def test_undo_of_an_edit_of_integer_lines_brings_them_back_with_their_camera(db_
     # the lines as a dataset with integer pixels stores them (JSON 1203, not 1203.0)
     ints = {c: [[[int(round(x)), int(round(y))] for x, y in poly] for poly in polys]
             for c, polys in frame.field_lines.lines.items()}
-    frame.field_lines.lines = ints
-    recompute_frame(db_session, frame, settings)  # the camera and JaC these lines give
-    db_session.flush()
+    with write_unit(db_session):  # a write of the lines and their camera, through the unit with the system's bump
+        frame.field_lines.lines = ints
+        recompute_frame(db_session, frame, settings)  # the camera and JaC these lines give
+        changed(frame.system)
     camera, jac = frame.calibration.camera, (frame.calibration.jac_0005, frame.calibration.jac_001,
                                              frame.calibration.jac_002)
     assert camera is not None
