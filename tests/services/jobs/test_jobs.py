@@ -50,9 +50,9 @@ def test_a_claim_is_taken_once(factory) -> None:
     with make() as session:
         stored = session.get(Job, job.id)
         assert (stored.state, stored.owner, stored.attempts) == (JobState.RUNNING, "host:1:a", 1)
-    with pytest.raises(jobs.InvalidInputError, match="unknown job kind 'backup'"):
+    with pytest.raises(jobs.InvalidInputError, match="unknown job kind 'defragment'"):
         with make() as session:
-            jobs.submit(session, "backup", {})
+            jobs.submit(session, "defragment", {})
 
 
 def test_staleness(factory) -> None:
