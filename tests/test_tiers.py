@@ -3,6 +3,7 @@ worker, as ``tests/conftest.py`` groups them (``--dist loadgroup``); a version o
 pytest-xdist that silently stopped honouring the groups would split the browser modules' walks over two databases."""
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -19,9 +20,11 @@ MODULES = ("tests/geometry/test_camera.py", "tests/geometry/test_projection.py",
 
 
 def test_each_module_runs_whole_on_one_worker() -> None:
+    # CI's options (PYTEST_ADDOPTS: -q) would quieten the -v lines this reads
+    env = {k: v for k, v in os.environ.items() if k != "PYTEST_ADDOPTS"}
     done = subprocess.run([sys.executable, "-m", "pytest", "-n", "2", "--dist", "loadgroup", "-v", "-p",
                            "no:cacheprovider", *MODULES], cwd=PROJECT_ROOT, capture_output=True, text=True,
-                          timeout=300)
+                          timeout=300, env=env)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     ran = re.findall(r"^\[(gw\d)\] \[\s*\d+%\] PASSED (\S+?)::\S+\s*$", done.stdout, re.MULTILINE)
     workers = defaultdict(set)
