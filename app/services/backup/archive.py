@@ -25,7 +25,8 @@ import zipfile
 import zlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import IO, Any, BinaryIO, Iterator
+from typing import IO, Any, BinaryIO, Iterator, Optional
+from urllib.parse import urlsplit
 
 #: The archive's own format, refused when a restore does not know it (an archive of a later v3d).
 FORMAT = "v3d-backup"
@@ -287,3 +288,19 @@ def replace_into(part: Path, target: Path) -> None:
     with open(part, "rb") as f:
         os.fsync(f.fileno())
     os.replace(part, target)
+
+
+def s3_location(name: str, what: str) -> Optional[tuple[str, str]]:
+    """The bucket and key of an archive named ``s3://BUCKET/KEY``; None for any other name (a file path).
+
+    Raises:
+        ValueError: an ``s3://`` name without a bucket or a key, naming ``what`` it was given as (an archive, a
+            destination).
+    """
+    if not name.startswith("s3://"):
+        return None
+    parts = urlsplit(name)
+    key = parts.path.strip("/")
+    if not parts.netloc or not key:
+        raise ValueError(f"{name!r}: an S3 {what} is s3://BUCKET/KEY")
+    return parts.netloc, key

@@ -27,7 +27,6 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
-from urllib.parse import urlsplit
 
 import orjson
 import sqlalchemy as sa
@@ -45,7 +44,7 @@ from app.db.session import (
     unfinished_restore,
     upgrade_database,
 )
-from app.services.backup.archive import BrokenArchive, Manifest, lines, verify_archive
+from app.services.backup.archive import BrokenArchive, Manifest, lines, s3_location, verify_archive
 from app.services.backup.rows import decoder, write_type
 from app.services.backup.snapshot import BACKUPS, SKIPPED_TABLES
 from app.services.storage import storage_for
@@ -85,15 +84,13 @@ def fetch_archive(archive: str, settings: Settings) -> tuple[Path, bool]:
         FileNotFoundError: no such file or key.
         ValueError: an ``s3://`` name without bucket or key.
     """
-    if archive.startswith("s3://"):
-        parts = urlsplit(archive)
-        key = parts.path.strip("/")
-        if not parts.netloc or not key:
-            raise ValueError(f"{archive!r}: an S3 archive is s3://BUCKET/KEY")
+    s3 = s3_location(archive, "archive")
+    if s3 is not None:
         from app.services.storage.s3 import S3Storage
 
+        bucket, key = s3
         target = jobs_dir(settings) / BACKUPS / f"fetched-{secrets.token_hex(4)}.zip"
-        return S3Storage(parts.netloc, "").get_file(key, target), True
+        return S3Storage(bucket, "").get_file(key, target), True
     path = Path(archive).expanduser()
     if not path.is_file():
         raise FileNotFoundError(f"{archive}: no such archive")

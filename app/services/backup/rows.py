@@ -21,26 +21,17 @@ import orjson
 import sqlalchemy as sa
 from sqlalchemy.dialects.postgresql import JSONB
 
-KINDS = ("datetime", "date", "bytes", "json", "bool", "int", "float", "text")
+#: Each kind with the reflected column types it takes, the first that matches winning (a ``DATETIME`` is no
+#: ``DATE``); a column of any other type is ``text``.
+_TYPE_KINDS: tuple[tuple[tuple[type[sa.types.TypeEngine[Any]], ...], str], ...] = (
+    ((sa.DateTime,), "datetime"), ((sa.Date,), "date"), ((sa.LargeBinary,), "bytes"), ((sa.JSON,), "json"),
+    ((sa.Boolean,), "bool"), ((sa.Integer,), "int"), ((sa.Float, sa.Numeric), "float"))
+KINDS = (*(kind for _, kind in _TYPE_KINDS), "text")
 
 
 def column_kind(type_: sa.types.TypeEngine[Any]) -> str:
     """The neutral kind (:data:`KINDS`) of a reflected column type."""
-    if isinstance(type_, sa.DateTime):
-        return "datetime"
-    if isinstance(type_, sa.Date):
-        return "date"
-    if isinstance(type_, sa.LargeBinary):
-        return "bytes"
-    if isinstance(type_, sa.JSON):
-        return "json"
-    if isinstance(type_, sa.Boolean):
-        return "bool"
-    if isinstance(type_, sa.Integer):
-        return "int"
-    if isinstance(type_, (sa.Float, sa.Numeric)):
-        return "float"
-    return "text"
+    return next((kind for types, kind in _TYPE_KINDS if isinstance(type_, types)), "text")
 
 
 def read_column(column: sa.Column[Any], kind: str, dialect: str) -> Any:

