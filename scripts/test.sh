@@ -4,7 +4,8 @@
 #                                 the tests whose behaviour depends on the database engine again on PostgreSQL
 #                                 (V3D_CI_POSTGRES_URL, the local server by default; said and skipped when it is down)
 #   bash scripts/test.sh --quick  geometry, services and API on SQLite, no browser, no processes of their own, no
-#                                 test that reads ../shared's data sets: the edit-run loop
+#                                 test that reads ../shared's data sets, no database copy per test (served), no fuzzing:
+#                                 the edit-run loop
 #   bash scripts/test.sh --slow   the full-size load, concurrency, fault, fuzz, upgrade and two-node runs
 # Each pass runs on V3D_TEST_WORKERS pytest-xdist workers (2: both cores of the machine CI runs on). Installs the
 # test packages and, when root, Debian's Chromium for the browser tests.
@@ -41,7 +42,7 @@ PY
 
 case "$tier" in
   quick)
-    exec "${pytest[@]}" -m "not (browser or processes or slow or postgres or shared)" tests/geometry tests/services \
+    exec "${pytest[@]}" -m "not (browser or processes or slow or postgres or shared or served or fuzz)" tests/geometry tests/services \
       tests/api app "$@" ;;
   slow)
     exec "${pytest[@]}" -m slow "$@" ;;

@@ -27,15 +27,12 @@ write_units.CHECK_VERSIONS = True
 
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups (its worker's hook of the same name)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The marks the tiers and passes select by that follow from others (docs/testing.md): a ``served`` test runs
-    the production write path on a real engine, so it is an ``engine`` test; a test that reads ``../shared``
-    (:func:`shared_dir`) is a ``shared`` one. A test without an ``xdist_group`` of
+    """The marks the tiers and passes select by that follow from others (docs/testing.md): a test that reads
+    ``../shared`` (:func:`shared_dir`) is a ``shared`` one. A test without an ``xdist_group`` of
     its own runs on the worker that runs the rest of its module (``--dist loadgroup``): a module's fixtures (a
     served database, a Chromium page's login) are made once, and the tests of a module that walk one database step
     by step keep their order."""
     for item in items:
-        if item.get_closest_marker("served") is not None:
-            item.add_marker(pytest.mark.engine)
         if "shared_dir" in getattr(item, "fixturenames", ()):  # doctests have no fixtures
             item.add_marker(pytest.mark.shared)
         if item.get_closest_marker("xdist_group") is None:

@@ -34,7 +34,7 @@ from tests.live_server import serve_app
 
 from .factories import Scene
 
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 KB, MB = 1024, 2**20
 

@@ -20,6 +20,8 @@ pytest.importorskip("schemathesis", reason="schemathesis (the test extra) is nee
 
 from benchmarks import fuzz  # after the skip: it needs schemathesis
 
+pytestmark = pytest.mark.fuzz
+
 #: Cases per operation and mode (positive, negative), CI's and the slow tier's: ~25 operations x 2 x that many.
 EXAMPLES = sizes(3, 25)
 

@@ -15,7 +15,7 @@ from app.core.config import Settings
 from ..factories import Scene, make_system
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 def _frame(client: TestClient, frame_id: int) -> tuple[dict[str, Any], str]:

@@ -16,7 +16,7 @@ from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 def _stored_bytes(session: Session, entry_ids: list[int]) -> int:

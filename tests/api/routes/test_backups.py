@@ -18,7 +18,7 @@ from ..conftest import run_queued
 from ..factories import Scene
 
 #: The job reads the database through its own engine, as a served process does (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 def test_an_admin_backs_up_the_deployment_and_downloads_its_archive(app: FastAPI, scene: Scene,

@@ -8,6 +8,7 @@ from fastapi.testclient import TestClient
 from ..factories import Scene
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
+# Served: refused before anything is written: the same on either engine, so not an ``engine`` module.
 pytestmark = pytest.mark.served
 
 

@@ -20,7 +20,7 @@ from fastapi.testclient import TestClient
 from ..factories import Scene
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 def _system(client: TestClient, scene: Scene) -> tuple[dict[str, Any], str]:

@@ -26,7 +26,7 @@ from tests.api.factories import Scene, make_game, make_system
 from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 def _moved(box: list[float], dx: float) -> list[float]:

@@ -16,6 +16,8 @@ from tests.accounts import Account, as_session
 from ..factories import HEIGHT, WIDTH, Scene, png_bytes
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
+# Served: the edits and their recomputation in one write unit, and the list's filters, are the engine's: those tests are
+# marked ``engine``; images, refusals of bad input and compression answer the same on either engine.
 pytestmark = pytest.mark.served
 
 
@@ -69,6 +71,7 @@ def test_missing_member_and_unknown_frame_are_404(client: TestClient, scene: Sce
 
 
 # ----- ball edits ----------------------------------------------------------------------------------
+@pytest.mark.engine
 def test_patch_ball_recomputes_the_system(client: TestClient, scene: Scene) -> None:
     before = _view(client, scene)
     third = before["views"][2]
@@ -86,6 +89,7 @@ def test_patch_ball_recomputes_the_system(client: TestClient, scene: Scene) -> N
     assert _view(client, scene) == after  # stored, not only answered
 
 
+@pytest.mark.engine
 def test_patch_point_and_removal(client: TestClient, scene: Scene) -> None:
     frame_id = scene.frame_ids[1]
     view = client.patch(f"/api/frames/{frame_id}/ball", json={"point": [400.0, 300.0]}).json()["views"][1]
@@ -122,6 +126,7 @@ def test_bad_ball_edits_are_422_naming_the_field_and_store_nothing(
     assert _view(client, scene) == before
 
 
+@pytest.mark.engine
 def test_a_failing_recompute_leaves_stored_data_unchanged(app: FastAPI, scene: Scene, accounts: dict[str, Account],
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     def broken(*args, **kwargs):
@@ -141,6 +146,7 @@ def test_a_failing_recompute_leaves_stored_data_unchanged(app: FastAPI, scene: S
 
 
 # ----- field lines ---------------------------------------------------------------------------------
+@pytest.mark.engine
 def test_put_field_lines_recalibrates_the_frame(client: TestClient, scene: Scene) -> None:
     before = _view(client, scene)["views"][0]
     lines = {cls: polys for cls, polys in before["field_lines"].items()}
@@ -159,6 +165,7 @@ def test_put_field_lines_recalibrates_the_frame(client: TestClient, scene: Scene
         assert u is None
 
 
+@pytest.mark.engine
 def test_post_mirror_fixes_a_view_flagged_mirrored(client: TestClient, scene: Scene, db_session: Session,
                                                   db_settings) -> None:
     """A replay whose labels were mirrored after the import (with the camera they calibrate to) is
@@ -227,6 +234,7 @@ def test_nan_in_field_lines_is_422_naming_the_class(client: TestClient, scene: S
 
 
 # ----- exclusion from the triangulation ------------------------------------------------------------
+@pytest.mark.engine
 def test_exclusion_leaves_the_view_out_of_every_pair_and_is_reversible(client: TestClient, scene: Scene) -> None:
     before = _view(client, scene)
     assert len([p for p in before["triangulation"]["pairs"] if p["kept"]]) == 3
@@ -257,6 +265,7 @@ def test_bad_exclusion_is_422_and_changes_nothing(client: TestClient, scene: Sce
 
 
 # ----- review and list -----------------------------------------------------------------------------
+@pytest.mark.engine
 def test_frame_review_shows_in_the_view(client: TestClient, scene: Scene) -> None:
     answer = client.post(f"/api/frames/{scene.frame_ids[1]}/review",
                          json={"status": "needs_fix", "comment": "mirrored lines"})
@@ -267,6 +276,7 @@ def test_frame_review_shows_in_the_view(client: TestClient, scene: Scene) -> Non
     assert bad.status_code == 422 and "status" in bad.text
 
 
+@pytest.mark.engine
 def test_calibration_review_beside_the_ball_review(client: TestClient, scene: Scene) -> None:
     url = f"/api/frames/{scene.frame_ids[1]}"
     assert _view(client, scene)["views"][1]["review"]["calibration"] == {
@@ -287,6 +297,7 @@ def test_calibration_review_beside_the_ball_review(client: TestClient, scene: Sc
     assert _view(client, scene)["views"][1]["review"]["calibration"]["status"] == "rejected"
 
 
+@pytest.mark.engine
 def test_frame_list_filters(client: TestClient, scene: Scene, db_session: Session) -> None:
     client.patch(f"/api/frames/{scene.frame_ids[2]}/ball", json={"box": [0.0, 0.0, 12.0, 12.0]})
     everything = client.get("/api/frames").json()
@@ -391,6 +402,7 @@ def _lines_of(client: TestClient, scene: Scene) -> dict:
     ("put", "/api/frames/{f0}/field-lines", _lines_of),
     ("post", "/api/frames/{f2}/exclusion", lambda c, s: {"excluded": True}),
 ], ids=["ball", "removal", "field-lines", "exclusion"])
+@pytest.mark.engine
 def test_an_edit_answers_the_system_as_stored(client: TestClient, scene: Scene, method: str, path: str, body) -> None:
     """Issue 29: an edit answers its system from the rows it has just written (no second round of queries); the
     answer is the page a later GET reads, pairs and doubts it dropped or added included."""

@@ -7,6 +7,7 @@ from fastapi.testclient import TestClient
 
 from ..factories import Scene, png_bytes
 
+# Served: ranges of stored bytes: the same on either engine, so not an ``engine`` module.
 pytestmark = pytest.mark.served
 
 

@@ -15,7 +15,7 @@ from app.geometry import pitch
 from ..factories import Scene
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 def _view(client: TestClient, scene: Scene, k: int) -> tuple[dict[str, Any], str]:

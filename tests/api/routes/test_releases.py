@@ -25,7 +25,7 @@ from ..conftest import run_queued
 from ..factories import Scene, make_game, make_system
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 def _accept(client: TestClient, system_id: int, status: str = "accepted") -> None:

@@ -17,6 +17,7 @@ from tests.nodes.uploads import small_v3_upload
 
 from ..conftest import run_queued
 
+# Served: the store's behaviour, the same on either engine, so not an ``engine`` module.
 pytestmark = pytest.mark.served
 
 

@@ -13,6 +13,8 @@ from app.geometry.doubts import LABEL_KINDS
 from ..factories import BALL, HEIGHT, WIDTH, Scene, make_game, make_system
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
+# Served: the queue's orders, filters, counts and pages are SQL the two engines write differently: those tests are
+# marked ``engine``; refusals of bad parameters and the page of a stale link answer the same on either engine.
 pytestmark = pytest.mark.served
 
 
@@ -39,12 +41,14 @@ def _ids(answer: dict) -> list[int]:
     return [item["id"] for item in answer["items"]]
 
 
+@pytest.mark.engine
 def test_games_list_their_systems(client: TestClient, queue: dict[str, Scene]) -> None:
     games = client.get("/api/games").json()
     assert [(g["match"], g["systems"]) for g in games] == [
         ("2015-02-21 - 18-00 Chelsea 1 - 1 Burnley", 3), ("2016-01-01 - 15-00 Arsenal 2 - 0 Everton", 1)]
 
 
+@pytest.mark.engine
 def test_worst_error_order_puts_the_largest_error_first_and_systems_without_ball_last(
         client: TestClient, queue: dict[str, Scene]) -> None:
     answer = client.get("/api/systems", params={"sort": "-worst_error"}).json()
@@ -61,6 +65,7 @@ def test_worst_error_order_puts_the_largest_error_first_and_systems_without_ball
     assert shifted["lowest_jac"] == pytest.approx(0.80)
 
 
+@pytest.mark.engine
 def test_default_order_puts_the_most_label_doubts_first(client: TestClient, queue: dict[str, Scene]) -> None:
     items = client.get("/api/systems?sort=-doubts").json()["items"]
     doubts = [r["label_doubts"] for r in items]
@@ -69,6 +74,7 @@ def test_default_order_puts_the_most_label_doubts_first(client: TestClient, queu
         assert r["label_doubts"] == sum(n for k, n in r["doubt_counts"].items() if k in LABEL_KINDS)
 
 
+@pytest.mark.engine
 def test_default_order_puts_the_work_to_do_first_and_a_decided_system_after(
         client: TestClient, queue: dict[str, Scene]) -> None:
     """A rejected system leaves the top of the default queue: the pending ones come first (the worst error first, none
@@ -93,6 +99,7 @@ def test_default_order_puts_the_work_to_do_first_and_a_decided_system_after(
         ("worst_error", None),  # smallest first, still without-ball last
     ],
 )
+@pytest.mark.engine
 def test_sorts(client: TestClient, queue: dict[str, Scene], sort: str, expected: list[str] | None) -> None:
     ids = _ids(client.get("/api/systems", params={"sort": sort}).json())
     if expected is None:
@@ -101,6 +108,7 @@ def test_sorts(client: TestClient, queue: dict[str, Scene], sort: str, expected:
         assert ids == [queue[k].system_id for k in expected]
 
 
+@pytest.mark.engine
 def test_filters_by_game_jac_and_error(client: TestClient, queue: dict[str, Scene]) -> None:
     def get(**p):
         return set(_ids(client.get("/api/systems", params=p).json()))
@@ -110,6 +118,7 @@ def test_filters_by_game_jac_and_error(client: TestClient, queue: dict[str, Scen
     assert get(error_max=1.0) == {queue["exact"].system_id, queue["other"].system_id}
 
 
+@pytest.mark.engine
 def test_review_status_filter_and_progress_counts(client: TestClient, queue: dict[str, Scene]) -> None:
     sid = queue["exact"].system_id
     answer = client.post(f"/api/systems/{sid}/review", json={"status": "accepted", "comment": "fine"})
@@ -134,6 +143,7 @@ def test_review_status_filter_and_progress_counts(client: TestClient, queue: dic
     assert by_game == every["counts"]
 
 
+@pytest.mark.engine
 def test_pagination(client: TestClient, queue: dict[str, Scene]) -> None:
     full = _ids(client.get("/api/systems").json())
     pages = [_ids(client.get("/api/systems", params={"limit": 3, "offset": o}).json()) for o in (0, 3)]
@@ -204,6 +214,7 @@ def test_system_view_carries_the_ui_contract(client: TestClient, queue: dict[str
     assert first["optimised_box"]["d_px"] > 0 and len(first["optimised_box"]["box"]) == 4
 
 
+@pytest.mark.engine
 def test_prev_and_next_follow_the_queue_given(client: TestClient, queue: dict[str, Scene]) -> None:
     order = _ids(client.get("/api/systems").json())
     middle = client.get(f"/api/systems/{order[1]}").json()
@@ -259,6 +270,7 @@ def test_unknown_query_parameters_are_ignored(client: TestClient, queue: dict[st
     assert client.get("/api/systems", params={"page": 3}).json()["total"] == 4
 
 
+@pytest.mark.engine
 def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session: Session,
                                                  queue: dict[str, Scene]) -> None:
     """The queue said nothing of mirrored labels: a system whose replay was flagged
@@ -279,6 +291,7 @@ def test_queue_rows_count_views_flagged_mirrored(client: TestClient, db_session:
     assert [v["calibration"]["probably_mirrored"] for v in views] == [False, True, False]
 
 
+@pytest.mark.engine
 def test_queue_rows_carry_the_review_time(client: TestClient, queue: dict[str, Scene]) -> None:
     """The queue's rows answered ``review.decided_at: null`` for every system, decided or not: the
     queue query never read the decision's time (the schema filled in its default)."""
@@ -290,6 +303,7 @@ def test_queue_rows_carry_the_review_time(client: TestClient, queue: dict[str, S
     assert rows[queue["other"].system_id]["review"]["decided_at"] is None
 
 
+@pytest.mark.engine
 def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
         client: TestClient, db_session: Session, db_settings: Settings, queue: dict[str, Scene]) -> None:
     """The queue said nothing of a view whose reprojection error is above tau (the system page's
@@ -356,6 +370,7 @@ def test_error_reference_widths_follow_the_pair_error_rules() -> None:
 
 @pytest.mark.parametrize("sort", ["-doubts", "doubts", "-worst_error", "worst_error", "lowest_jac", "-lowest_jac",
                                   "name", "-name"])
+@pytest.mark.engine
 def test_prev_and_next_follow_the_listed_order_for_every_sort(client: TestClient, queue: dict[str, Scene],
                                                                sort: str) -> None:
     """prev_id / next_id come from two keyset queries on the stored sort keys (NULLs last, ties by id);
@@ -379,6 +394,7 @@ def test_prev_and_next_follow_the_listed_order_for_every_sort(client: TestClient
     assert view["next_id"] == (after[0] if after else None)
 
 
+@pytest.mark.engine
 def test_cursor_pages_follow_the_offset_pages(client: TestClient, queue: dict[str, Scene]) -> None:
     """``after=next_cursor`` / ``before=prev_cursor`` walk the same pages as ``offset`` (every sort is
     checked against the order in tests/services/curation/test_queue_paging.py)."""
@@ -466,6 +482,7 @@ def test_ids_beyond_any_integer_are_422_naming_the_parameter(client: TestClient,
     assert page.status_code == 404 and "System not found" in page.text
 
 
+@pytest.mark.engine
 def test_the_queue_filters_by_the_camera_source_and_refuses_an_unknown_one(client: TestClient, db_session: Session,
                                                                            queue: dict[str, Scene]) -> None:
     cal = db_session.get(Calibration, queue["shifted"].frame_ids[1])

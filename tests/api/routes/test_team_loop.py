@@ -18,7 +18,7 @@ from app.db.models import AuditEntry, User, UserRole
 from ..factories import Scene
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ from app.geometry.annotations import lines_from_json_lists, lines_to_json_lists,
 from ..factories import Scene
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
-pytestmark = pytest.mark.served
+pytestmark = [pytest.mark.served, pytest.mark.engine]
 
 
 def _system(client: TestClient, scene: Scene) -> dict[str, Any]:
