@@ -52,6 +52,8 @@ def ball_words(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None
     'ball of V2 moved 5.0 px'
     >>> ball_words({"box": None, "point": None}, {"box": None, "point": [5, 5]}, "V1")
     'ball of V1 drawn (a point)'
+    >>> ball_words({"box": [0, 0, 10, 10]}, {"box": [0, 0, 10, 10], "provenance": {"source": "yolo"}}, "V3")
+    'confirmation of the suggested ball of V3 withdrawn'
     """
     c0, s0 = _ball_geometry(before)
     c1, s1 = _ball_geometry(after)
@@ -68,6 +70,9 @@ def ball_words(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None
     moved = math.hypot(c1[0] - c0[0], c1[1] - c0[1])
     resized = (s0 is None) != (s1 is None) or (s0 is not None and s1 is not None
                                               and max(abs(s1[0] - s0[0]), abs(s1[1] - s0[1])) > _STILL_PX)
+    if suggested_after and not suggested_before and moved <= _STILL_PX and not resized:
+        # the same box turning back into a suggestion is the undo of its confirmation, not a snap of 0 px
+        return f"confirmation of the suggested {of} withdrawn"
     if suggested_after:
         return f"{of} snapped to the suggested box ({_num(moved)} px away)"
     parts = []
