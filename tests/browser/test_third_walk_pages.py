@@ -1,0 +1,173 @@
+"""The curator's third walk through the imports, the exports, the words of the system page, the Detectors page and
+the accessibility of every page (Playwright, Chromium, the real server on this module's copy of the seeded demo
+database): each test is one thing the walk found wrong, named after what the user now sees, at 1366x768 (the layout
+ones at 1920x1080 too), logged in as the admin."""
+from __future__ import annotations
+
+import io
+import shlex
+import zipfile
+
+import pytest
+
+from tests.browser.support import api_json, api_write, tid, wait_for_job
+
+pytestmark = pytest.mark.browser
+
+SIZES = [(1366, 768), (1920, 1080)]
+SIZE_IDS = ["1366x768", "1920x1080"]
+
+
+@pytest.fixture
+def small_page(browser, server_url, admin_state):
+    """A 1366x768 page of the logged-in admin; a JavaScript error on the page fails the test."""
+    context = browser.new_context(viewport={"width": 1366, "height": 768}, base_url=server_url,
+                                  storage_state=admin_state)
+    p = context.new_page()
+    errors: list[str] = []
+    p.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        yield p
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+def _zip(files: dict[str, bytes]) -> bytes:
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        for name, data in files.items():
+            z.writestr(name, data)
+    return out.getvalue()
+
+
+def _upload(page, name: str, data: bytes, kind: str) -> None:
+    page.locator(tid("import-kind")).select_option(kind)
+    page.locator(tid("import-file")).set_input_files({"name": name, "mimeType": "application/zip", "buffer": data})
+    page.locator(tid("import-start")).click()
+
+
+# ----- 11: an ISSIA-3D export of a release without ISSIA sequences ------------------------------------------------
+def test_an_issia_export_of_a_release_without_issia_says_nothing_to_export(small_page, artifacts):
+    page = small_page
+    systems = api_json(page, "/api/systems?limit=1")["items"]
+    assert api_write(page, "POST", f"/api/systems/{systems[0]['id']}/review", {"status": "accepted", "comment": ""}).ok
+    made = api_write(page, "POST", "/api/releases", {"name": "no-issia", "note": ""})
+    assert made.ok, made.text()
+    page.goto("/static/releases.html")
+    page.locator(tid("export-issia-3d")).click()
+    status = page.locator(tid("export-status-issia-3d"))
+    status.locator(tid("export-nothing")).wait_for()
+    assert "nothing to export: release no-issia holds no frame of an ISSIA sequence" in status.inner_text()
+    assert status.locator(tid("export-download")).count() == 0  # no empty zip offered
+    page.screenshot(path=str(artifacts / "walk3/releases-issia-nothing-1366x768.png"))
+    job = api_json(page, "/api/jobs?kind=export")["items"][0]
+    assert job["result_url"] is None and page.request.get(f"{job['url']}/result").status == 409
+
+
+# ----- 12: re-import from the browser offers the merge ----------------------------------------------------------
+def test_a_reimport_from_the_import_panel_offers_keep_newer_or_overwrite(small_page, seeded_databases, artifacts):
+    page = small_page
+    labels = next((seeded_databases.root / "demo").rglob("Labels-v3.json"))  # the demo's first game, as imported
+    game = "/".join(labels.parent.parts[-3:])  # league/season/match
+    data = _zip({f"{game}/{f.name}": f.read_bytes() for f in labels.parent.iterdir() if f.is_file()})
+    page.goto("/")
+    _upload(page, "demo-again.zip", data, "soccernet-v3")
+    merge = page.locator(tid("import-merge"))
+    merge.wait_for()
+    assert "stored already" in merge.locator(tid("import-merge-text")).inner_text()
+    modes = [b.get_attribute("data-mode") for b in merge.locator(tid("import-merge-mode")).all()]
+    assert modes == ["keep-newer", "overwrite"]
+    page.screenshot(path=str(artifacts / "walk3/import-merge-1366x768.png"))
+    with page.expect_response(lambda r: r.url.endswith("/api/imports") and r.request.method == "POST") as answer:
+        merge.locator('[data-mode="keep-newer"]').click()
+    assert answer.value.status == 202
+    job = answer.value.json()
+    assert job["params"]["merge"] == "keep-newer"
+    # the Jobs panel shows the job the words point at
+    page.locator(f'{tid("jobs")}:not([hidden]) {tid("job")}[data-id="{job["id"]}"]').wait_for()
+    assert "in the Jobs panel, above" in page.locator(tid("import-upload-text")).inner_text()
+    assert wait_for_job(page, job["url"])["state"] == "done"
+
+
+# ----- 13: a wrong upload explained without a server folder ------------------------------------------------------
+def test_a_wrong_upload_names_what_it_holds_and_the_layout_wanted_never_a_server_folder(small_page, seeded_settings,
+                                                                                        seeded_databases):
+    from app.core.config import jobs_dir
+
+    page = small_page
+    data = _zip({"notes.txt": b"hello", "pictures/list.csv": b"a,b"})
+    page.goto("/")
+    _upload(page, "holiday.zip", data, "soccernet-v3")
+    error = page.locator(tid("error"))
+    error.locator(".msg").filter(has_text="holiday.zip").wait_for()
+    words = error.inner_text()
+    assert "no Labels-v3.json" in words and "notes.txt" in words and "pictures/list.csv" in words
+    assert "<league>/<season>/<match>/" in words and "Frames-v3.zip" in words
+    for folder in (str(jobs_dir(seeded_settings)), str(seeded_databases.root), "uploads/"):
+        assert folder not in words, words
+
+
+# ----- 15: curator words on the system page ----------------------------------------------------------------------
+def test_the_system_page_labels_each_fit_figure_and_says_a_pinned_camera_is_pinned(small_page):
+    page = small_page
+    system = next(s for s in (api_json(page, f"/api/systems/{i['id']}")
+                              for i in api_json(page, "/api/systems?limit=20")["items"])
+                  if any((v["calibration"] or {}).get("jac") for v in s["views"]))
+    page.goto(f"/systems/{system['id']}")
+    page.locator(tid("view-jac-gamma")).first.wait_for()
+    jac = page.locator(tid("view-jac")).first.inner_text()
+    assert jac.count(" within ") == 3 and "% within 0.5 %" in jac and "% within 2 %" in jac, jac
+    words = page.evaluate("""async () => {
+      const { uncertaintyText } = await import('/static/js/viewfacts.js');
+      const pinned = uncertaintyText({ position_m: { x: 0, y: 0, z: 0 }, pan_deg: 0.1, tilt_deg: 0.05, roll_deg: 0.02,
+                                       focal_px: 12 });
+      const fitted = uncertaintyText({ position_m: { x: 0.4, y: 1.2, z: 0.3 }, pan_deg: 0.1, tilt_deg: 0.05,
+                                       roll_deg: 0.02, focal_px: 12 });
+      return { pinned, fitted };
+    }""")
+    assert words["pinned"].startswith("where: pinned to a known camera position") and "0.00" not in words["pinned"]
+    assert words["fitted"].startswith("where x 0.40, y 1.20, z 0.30 m")
+
+
+# ----- 16: the Detectors page names real commands ----------------------------------------------------------------
+def test_the_detectors_page_names_commands_the_command_line_has(small_page):
+    import importlib
+    import pkgutil
+
+    import typer.main
+
+    import app.cli
+    from app.cli import cli
+
+    for module in pkgutil.iter_modules(app.cli.__path__):  # each registers its commands when imported (as main does)
+        importlib.import_module(f"app.cli.{module.name}")
+
+    page = small_page
+    page.goto("/static/monocular.html")
+    page.locator(tid("sources-table")).wait_for()
+    commands = [c for c in page.locator("code").all_inner_texts() if c.startswith("v3d ")]
+    assert "v3d import predictions" in commands
+    root = typer.main.get_command(cli)
+    for command in commands:
+        group = root
+        for word in shlex.split(command)[1:]:
+            if word.startswith("-") or word.isupper() or not hasattr(group, "commands"):
+                break
+            assert word in group.commands, f"{command!r}: no {word!r} among {sorted(group.commands)}"
+            group = group.commands[word]
+
+
+# ----- 18: pinning a comment has a key ---------------------------------------------------------------------------
+def test_p_pins_a_comment_on_the_system_page(small_page):
+    page = small_page
+    system = api_json(page, "/api/systems?limit=1")["items"][0]
+    page.goto(f"/systems/{system['id']}")
+    page.locator(tid("view-svg")).first.wait_for()
+    page.locator(tid("comment-pin-start")).wait_for()
+    page.keyboard.press("p")
+    page.wait_for_function("document.body.classList.contains('pinning')")
+    svg = page.locator(tid("view-svg")).first
+    svg.click(position={"x": 40, "y": 40})
+    page.locator(tid("comment-form")).wait_for()
+    assert page.locator(tid("comment-where")).inner_text().startswith("on V1")
