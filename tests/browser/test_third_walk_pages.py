@@ -171,3 +171,39 @@ def test_p_pins_a_comment_on_the_system_page(small_page):
     svg.click(position={"x": 40, "y": 40})
     page.locator(tid("comment-form")).wait_for()
     assert page.locator(tid("comment-where")).inner_text().startswith("on V1")
+
+
+# ----- 20: no serious or critical accessibility violation on any page ---------------------------------------------
+#: What axe-core checks: WCAG 2.0 and 2.1, levels A and AA.
+AXE_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa"]
+
+
+def _axe_violations(page) -> list[str]:
+    """The serious and critical violations axe-core finds on the page as it is, each with the elements it names."""
+    from axe_playwright_python.sync_playwright import Axe
+
+    found = Axe().run(page, options={"runOnly": {"type": "tag", "values": AXE_TAGS}, "resultTypes": ["violations"]})
+    return [f"{v['id']} ({v['impact']}): {v['help']}: {[n['target'] for n in v['nodes']][:4]}"
+            for v in found.response["violations"] if v["impact"] in ("serious", "critical")]
+
+
+def test_every_page_has_no_serious_accessibility_violation(browser, server_url, small_page):
+    page = small_page
+    system = api_json(page, "/api/systems?limit=1")["items"][0]
+    pages = {"/": tid("queue-row"), f"/systems/{system['id']}": tid("view-svg"),
+             "/static/stats.html": "svg", "/static/releases.html": f"{tid('diff-form')}",
+             "/static/monocular.html": f"{tid('sources-table')}"}
+    found = {}
+    for path, ready in pages.items():
+        page.goto(path)
+        page.locator(ready).first.wait_for()
+        found[path] = _axe_violations(page)
+    anonymous = browser.new_context(viewport={"width": 1366, "height": 768}, base_url=server_url)
+    try:
+        login = anonymous.new_page()
+        login.goto("/login")
+        login.locator("form").first.wait_for()
+        found["/login"] = _axe_violations(login)
+    finally:
+        anonymous.close()
+    assert not any(found.values()), {p: v for p, v in found.items() if v}
