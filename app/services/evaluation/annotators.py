@@ -166,10 +166,10 @@ def _review_figures(session: Session, since: Optional[datetime], until: Optional
         .options(selectinload(AuditEntry.before_state), selectinload(AuditEntry.after_state)))
     counted = {ReviewStatus.ACCEPTED.value: "accepted", ReviewStatus.REJECTED.value: "rejected",
                ReviewStatus.NEEDS_FIX.value: "needs_fix"}
-    entries = [e for e in entries if _person(e.actor) and _status(e.after) != ReviewStatus.FIXED.value]
-    edited = _edited_writes(session, {(e.system_id, e.system_version) for e in entries
+    made = [e for e in entries if _person(e.actor) and _status(e.after) != ReviewStatus.FIXED.value]
+    edited = _edited_writes(session, {(e.system_id, e.system_version) for e in made
                                       if _status(e.after) == ReviewStatus.PENDING.value})
-    for entry in entries:
+    for entry in made:
         if (entry.system_id, entry.system_version) in edited and _status(entry.after) == ReviewStatus.PENDING.value:
             continue  # an edit's reset of the decision, not a decision
         f = of(entry.actor)
@@ -185,11 +185,12 @@ def _review_figures(session: Session, since: Optional[datetime], until: Optional
 _REVIEW_ACTIONS = ("system.review", "view.review", "view.calibration_review", "system.assign")
 
 
-def _edited_writes(session: Session, writes: set[tuple[Optional[int], Optional[int]]]) -> set[tuple[int, int]]:
+def _edited_writes(session: Session, writes: set[tuple[Optional[int], Optional[int]]]
+                   ) -> set[tuple[Optional[int], Optional[int]]]:
     """Of ``writes`` (system id, the version the write gave it: ``AuditEntry.system_version``), those that also
     recorded an edit (an action not of :data:`_REVIEW_ACTIONS`): the writes whose pending decision is a reset."""
     known = [(sid, ver) for sid, ver in writes if sid is not None and ver is not None]
-    out: set[tuple[int, int]] = set()
+    out: set[tuple[Optional[int], Optional[int]]] = set()
     for start in range(0, len(known), 500):  # a bounded IN list per read
         chunk = known[start:start + 500]
         out.update((sid, ver) for sid, ver in session.execute(
