@@ -133,7 +133,6 @@ export async function mountImport(root, onQueued = () => {}) {
         type: "button", "data-testid": "import-merge-mode", "data-mode": mode, title: means,
         onclick: () => { merge.hidden = true; send(chosen, mode); },
       }, `${mode.replace("-", " ")}`)),
-      el("span", { class: "muted" }, Object.entries(modes).map(([mode, means]) => `${mode.replace("-", " ")}: ${means}`).join("; ")),
       el("button", { type: "button", "data-testid": "import-merge-cancel", onclick: () => { merge.hidden = true; text.textContent = `${chosen.name}: not imported`; } }, "cancel"));
     merge.hidden = false;
   };

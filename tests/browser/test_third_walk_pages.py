@@ -207,3 +207,18 @@ def test_every_page_has_no_serious_accessibility_violation(browser, server_url, 
     finally:
         anonymous.close()
     assert not any(found.values()), {p: v for p, v in found.items() if v}
+
+
+# ----- 19: the queue's game column tells games apart ----------------------------------------------------------------
+@pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)
+def test_the_queues_game_column_leads_with_the_teams(small_page, artifacts, size):
+    page = small_page
+    page.set_viewport_size({"width": size[0], "height": size[1]})
+    page.goto("/")
+    cell = page.locator(tid("queue-game")).first
+    cell.wait_for()
+    match = cell.get_attribute("title").split(" / ")[-1]
+    date, _, rest = match.partition(" - ")
+    shown = cell.inner_text()
+    assert shown.startswith(rest.split(" ", 1)[1]) and date in shown, (match, shown)  # teams first, then the date
+    page.screenshot(path=str(artifacts / f"walk3/queue-{size[0]}x{size[1]}.png"))
