@@ -10,7 +10,7 @@ import zipfile
 
 import pytest
 
-from tests.browser.support import api_json, api_write, tid, wait_for_job
+from tests.browser.support import api_json, api_write, tid, wait_for_job, wait_for_steady_layout
 
 pytestmark = pytest.mark.browser
 
@@ -173,6 +173,181 @@ def test_p_pins_a_comment_on_the_system_page(small_page):
     assert page.locator(tid("comment-where")).inner_text().startswith("on V1")
 
 
+# ----- 14: users and the audit in the browser ----------------------------------------------------------------------
+def _answer_of(page, method: str, path: str):
+    """Wait for the page's ``method`` request to the API path ``path`` (query left aside) and answer its response."""
+    return page.expect_response(lambda r: r.request.method == method and r.url.split("?")[0].endswith(path))
+
+
+def test_an_admin_adds_a_user_changes_its_role_issues_and_revokes_a_token_and_disables_it(browser, server_url,
+                                                                                          small_page, accounts):
+    page = small_page
+    page.goto("/")
+    page.locator(tid("link-users")).click()
+    page.wait_for_url("**/static/users.html")
+    page.locator(f"{tid('user-row')}[data-name='test-admin']").wait_for()
+    form = page.locator(tid("user-form"))
+    form.locator(tid("user-name-input")).fill("nadia")
+    form.locator(tid("user-role-input")).select_option("annotator")
+    form.locator(tid("user-password-input")).fill("a long pass phrase")
+    with _answer_of(page, "POST", "/api/users") as made:
+        form.locator(tid("user-add")).click()
+    assert made.value.status == 201
+    shown = page.locator(tid("token-shown"))
+    shown.wait_for()
+    first = shown.locator(tid("token-value")).inner_text()
+    assert first.startswith("v3d_") and "shown this once" in shown.inner_text() and "nadia" in shown.inner_text()
+    outsider = browser.new_context(base_url=server_url)  # no cookie: the token alone
+    try:
+        assert outsider.request.get("/api/auth/me", headers={"Authorization": f"Bearer {first}"}).json()["role"] == \
+            "annotator"
+        row = page.locator(f"{tid('user-row')}[data-name='nadia']")
+        assert row.locator(tid("user-state")).inner_text() == "active"
+        with _answer_of(page, "PATCH", "/api/users/nadia") as changed:
+            row.locator(tid("user-role")).select_option("reviewer")
+        assert changed.value.status == 200
+        assert {u["name"]: u["role"] for u in api_json(page, "/api/users")}["nadia"] == "reviewer"
+        # another token, labelled: shown once, listed by its label; revoked after the words say it is for good
+        tokens = page.locator(tid("tokens-panel"))
+        assert tokens.locator(tid("tokens-heading")).text_content() == "API tokens of nadia"
+        tokens.locator(tid("token-label-input")).fill("laptop")
+        with _answer_of(page, "POST", "/api/users/nadia/tokens") as issued:
+            tokens.locator(tid("token-issue")).click()
+        laptop = issued.value.json()
+        page.locator(tid("token-value")).filter(has_text=laptop["token"]).wait_for()
+        line = tokens.locator(f"{tid('token-row')}[data-id='{laptop['id']}']")
+        assert line.locator(tid("token-label")).inner_text() == "laptop"
+        assert line.locator(tid("token-state")).inner_text() == "active"
+        page.locator(tid("token-shown-close")).click()
+        assert page.locator(tid("token-shown")).is_hidden() and page.locator(tid("token-value")).inner_text() == ""
+        asked = []
+        page.once("dialog", lambda d: (asked.append(d.message), d.accept()))
+        with _answer_of(page, "DELETE", f"/api/users/nadia/tokens/{laptop['id']}"):
+            line.locator(tid("token-revoke")).click()
+        assert "for good" in asked[0]
+        tokens.locator(f"{tid('token-row')}[data-id='{laptop['id']}'] {tid('token-state')}").filter(
+            has_text="revoked").wait_for()
+        bearer = {"Authorization": f"Bearer {laptop['token']}"}
+        assert outsider.request.get("/api/auth/me", headers=bearer).status == 401
+        # disabled: its sessions end and its first token stops working, for good
+        page.once("dialog", lambda d: (asked.append(d.message), d.accept()))
+        with _answer_of(page, "PATCH", "/api/users/nadia"):
+            row.locator(tid("user-disable")).click()
+        assert "revoked for good" in asked[1] and "1 working API token " in asked[1]
+        row.locator(tid("user-state")).filter(has_text="disabled").wait_for()
+        assert row.locator(tid("user-token-count")).inner_text() == "0"
+        assert outsider.request.get("/api/auth/me", headers={"Authorization": f"Bearer {first}"}).status == 401
+    finally:
+        outsider.close()
+    # a name taken is refused, naming the field
+    form.locator(tid("user-name-input")).fill("nadia")
+    form.locator(tid("user-password-input")).fill("x")
+    form.locator(tid("user-add")).click()
+    error = page.locator(tid("error")).locator(".msg")
+    error.filter(has_text="already exists").wait_for()
+    assert "name" in error.inner_text()
+    # the tokens shown once are on no page after a reload
+    page.reload()
+    page.locator(f"{tid('user-row')}[data-name='nadia']").wait_for()
+    assert first not in page.content() and laptop["token"] not in page.content()
+
+
+def test_the_users_and_audit_links_are_an_admins_only(browser, server_url, small_page, accounts):
+    small_page.goto("/")
+    small_page.locator(tid("logout")).wait_for()
+    assert small_page.locator(f"{tid('site-nav')} {tid('link-users')}").count() == 1
+    annotator = browser.new_context(base_url=server_url, extra_http_headers=accounts["annotator"].bearer)
+    try:
+        page = annotator.new_page()
+        page.goto("/")
+        page.locator(tid("logout")).wait_for()  # put in after the sections, and after the admins' ones
+        assert page.locator(f"{tid('site-nav')} a").count() == 4
+        assert page.locator(tid("link-users")).count() == 0 and page.locator(tid("link-audit")).count() == 0
+        page.goto("/static/users.html")
+        page.locator(tid("users-admins-only")).wait_for()
+        assert page.locator(tid("users-panel")).is_hidden()
+    finally:
+        annotator.close()
+
+
+def _audit_ids(page) -> list[int]:
+    return [int(i.removeprefix("#")) for i in page.locator(tid("audit-id")).all_inner_texts()]
+
+
+def test_the_audit_page_filters_by_user_system_and_day_and_pages_with_each_entrys_number(small_page, artifacts):
+    page = small_page
+    systems = api_json(page, "/api/systems?limit=3&sort=name&status=pending")["items"]
+    for system in systems:
+        assert api_write(page, "POST", f"/api/systems/{system['id']}/review",
+                         {"status": "rejected", "comment": "seen in the audit"}).ok
+    decided = api_json(page, f"/api/audit?system_id={systems[0]['id']}&limit=1")["items"][0]
+    undone = api_write(page, "POST", f"/api/audit/{decided['id']}/undo")
+    assert undone.ok, undone.text()
+    mine = api_json(page, "/api/audit?user=test-admin&limit=500")
+    page.goto("/")
+    page.locator(tid("link-audit")).click()
+    page.wait_for_url("**/static/audit.html")
+    page.locator(tid("audit-row")).first.wait_for()
+    # by user, two entries a page: the same entries as the API's, newest first, each with its number
+    page.goto("/static/audit.html?user=test-admin&limit=2")
+    page.locator(tid("audit-count")).filter(has_text=f"{mine['total']} entries match").wait_for()
+    assert _audit_ids(page) == [e["id"] for e in mine["items"][:2]]
+    assert set(page.locator(tid("audit-actor")).all_inner_texts()) == {"test-admin"}
+    assert page.locator(tid("audit-newer")).is_disabled()
+    with _answer_of(page, "GET", "/api/audit"):
+        page.locator(tid("audit-older")).click()
+    page.locator(tid("audit-page")).filter(has_text=f"entries 3–4 of {mine['total']}").wait_for()
+    assert _audit_ids(page) == [e["id"] for e in mine["items"][2:4]]
+    assert "offset=2" in page.url
+    with _answer_of(page, "GET", "/api/audit"):
+        page.locator(tid("audit-newer")).click()
+    page.locator(tid("audit-page")).filter(has_text="entries 1–2 of").wait_for()
+    # by system, typed in the filters: its decision, and the undo naming the entry it undid by the number shown
+    page.locator(tid("audit-user")).fill("")
+    page.locator(tid("audit-system")).fill(str(systems[0]["id"]))
+    with _answer_of(page, "GET", "/api/audit"):
+        page.locator(tid("audit-show")).click()
+    page.locator(tid("audit-reverts")).first.wait_for()
+    ids = _audit_ids(page)
+    assert set(page.locator(tid("audit-system-id")).all_inner_texts()) == {str(systems[0]["id"])}
+    assert decided["id"] in ids and ids == sorted(ids, reverse=True)
+    undo_row = page.locator(f"{tid('audit-row')}[data-id='{undone.headers['x-v3d-audit-entry']}']")
+    assert f"entry {decided['id']}" in undo_row.locator(tid("audit-summary")).inner_text()
+    assert undo_row.locator(tid("audit-reverts")).get_attribute("href") == f"#entry-{decided['id']}"
+    page.screenshot(path=str(artifacts / "walk3/audit-system-1366x768.png"))
+    # by the reader's day: today holds them, tomorrow nothing
+    today, tomorrow = page.evaluate("() => [0, 1].map((n) => { const d = new Date(); d.setDate(d.getDate() + n); "
+                                    "return [d.getFullYear(), d.getMonth() + 1, d.getDate()]"
+                                    ".map((v) => String(v).padStart(2, '0')).join('-'); })")
+    page.locator(tid("audit-from")).fill(today)
+    page.locator(tid("audit-until")).fill(today)
+    page.locator(tid("audit-show")).click()
+    page.locator(f"{tid('audit')}[data-shown*='since=']").wait_for()
+    assert _audit_ids(page) == ids
+    page.locator(tid("audit-from")).fill(tomorrow)
+    page.locator(tid("audit-until")).fill(tomorrow)
+    with _answer_of(page, "GET", "/api/audit"):
+        page.locator(tid("audit-show")).click()
+    page.locator(tid("audit-empty")).wait_for()
+    assert page.locator(tid("audit-row")).count() == 0
+
+
+@pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)
+def test_the_users_and_audit_pages_fit_the_window(small_page, artifacts, size):
+    page = small_page
+    page.set_viewport_size({"width": size[0], "height": size[1]})
+    for name, ready in (("users", tid("user-row")), ("audit", tid("audit-row"))):
+        page.goto(f"/static/{name}.html")
+        page.locator(ready).first.wait_for()
+        page.locator(tid("logout")).wait_for()
+        if name == "users":
+            page.locator(f"{tid('user-row')}[data-name='test-admin'] {tid('user-tokens')}").click()
+            page.locator(tid("token-row")).first.wait_for()
+        wait_for_steady_layout(page)
+        assert page.evaluate("document.documentElement.scrollWidth") <= size[0], name  # no sideways scrolling
+        page.screenshot(path=str(artifacts / f"walk3/{name}-{size[0]}x{size[1]}.png"))
+
+
 # ----- 20: no serious or critical accessibility violation on any page ---------------------------------------------
 #: What axe-core checks: WCAG 2.0 and 2.1, levels A and AA.
 AXE_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa"]
@@ -192,7 +367,8 @@ def test_every_page_has_no_serious_accessibility_violation(browser, server_url, 
     system = api_json(page, "/api/systems?limit=1")["items"][0]
     pages = {"/": tid("queue-row"), f"/systems/{system['id']}": tid("view-svg"),
              "/static/stats.html": "svg", "/static/releases.html": f"{tid('diff-form')}",
-             "/static/monocular.html": f"{tid('sources-table')}"}
+             "/static/monocular.html": f"{tid('sources-table')}", "/static/users.html": tid("user-row"),
+             "/static/audit.html": tid("audit-row")}
     found = {}
     for path, ready in pages.items():
         page.goto(path)

@@ -272,14 +272,51 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
     if action == "import" and after.get("kind") == "predictions":
         return prediction_import_words(after)
     if action in ("import", "recompute"):
-        counts = ", ".join(f"{after[k]} {k}" for k in ("games", "systems", "frames") if isinstance(after.get(k), int))
+        counts = ", ".join(_count(after[k], k) for k in ("games", "systems", "frames") if isinstance(after.get(k), int))
         source = after.get("source_name") or ""
         return f"{action}{f' of {source}' if source else ''}" + (f": {counts}" if counts else "")
     if action == "release.create":
         return (f"release {after.get('name', '')} made: {after.get('systems', 0)} systems, {after.get('views', 0)} "
                 f"views, hash {str(after.get('hash', ''))[:12]}")
+    if action.startswith(("user.", "token.")):
+        return account_words(action, before, after)
     named = after.get("name") or after.get("user") or ""
     return f"{action.replace('.', ' ')}{f' {named}' if named else ''}"
+
+
+def _count(n: int, noun: str) -> str:
+    """``n`` and ``noun`` (a plural ending in s) agreeing: "1 game", "3 games"."""
+    return f"{n} {noun[:-1] if n == 1 and noun.endswith('s') else noun}"
+
+
+def account_words(action: str, before: Mapping[str, Any], after: Mapping[str, Any]) -> str:
+    """An administrator's change of a user or an API token (``app.services.accounts.users``) in words, from its
+    states (the user's name, role, token id and label; never a secret).
+
+    >>> account_words("user.role", {"user": "ana", "role": "annotator"}, {"user": "ana", "role": "reviewer"})
+    'ana made reviewer (was annotator)'
+    >>> account_words("token.issue", {}, {"user": "ana", "token_id": 7, "label": "laptop", "expires_at": None})
+    'API token 7 (laptop) issued to ana, valid until revoked'
+    >>> account_words("user.disable", {}, {"user": "ana", "tokens_revoked": 1})
+    'ana disabled: sessions ended, 1 API token revoked'
+    """
+    user = after.get("user") or before.get("user") or "?"
+    token = f"API token {after.get('token_id')}" + (f" ({after['label']})" if after.get("label") else "")
+    if action == "user.create":
+        return f"user {user} added as {after.get('role')}" + (" (the demo account)" if after.get("demo") else "")
+    if action == "user.role":
+        return f"{user} made {after.get('role')} (was {before.get('role')})"
+    if action == "user.disable":
+        revoked = after.get("tokens_revoked")
+        return f"{user} disabled: sessions ended" + (f", {_count(revoked, 'API tokens')} revoked" if revoked else "")
+    if action == "user.enable":
+        return f"{user} enabled again (no token back)"
+    if action == "token.issue":
+        until = after.get("expires_at")
+        return f"{token} issued to {user}, " + (f"expires {str(until)[:10]}" if until else "valid until revoked")
+    if action == "token.revoke":
+        return f"{token} of {user} revoked"
+    return f"{action.replace('.', ' ')} {user}"
 
 
 def prediction_import_words(after: Mapping[str, Any]) -> str:
