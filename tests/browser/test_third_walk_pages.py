@@ -385,6 +385,32 @@ def test_every_page_has_no_serious_accessibility_violation(browser, server_url, 
     assert not any(found.values()), {p: v for p, v in found.items() if v}
 
 
+# ----- 19: no "none" comment count above a return note --------------------------------------------------------------
+def test_a_system_returned_with_no_comment_shows_its_return_note_not_comments_none(browser, server_url, small_page,
+                                                                                    accounts):
+    page = small_page
+    sid = api_json(page, "/api/systems?limit=1&sort=-name&status=pending")["items"][0]["id"]
+    view = next(v for v in api_json(page, f"/api/systems/{sid}")["views"] if (v.get("ball") or {}).get("box"))
+    annotator = browser.new_context(base_url=server_url, extra_http_headers=accounts["annotator"].bearer)
+    try:  # the annotator moves the view's ball label: the system's needs fix is returned to them
+        etag = annotator.request.get(f"/api/frames/{view['frame_id']}").headers["etag"]
+        box = view["ball"]["box"]
+        moved = annotator.request.patch(f"/api/frames/{view['frame_id']}/ball", headers={"If-Match": etag},
+                                        data={"box": [box[0] + 2, box[1], box[2] + 2, box[3]]})
+        assert moved.ok, moved.text()
+    finally:
+        annotator.close()
+    decided = api_write(page, "POST", f"/api/systems/{sid}/review",
+                        {"status": "needs_fix", "comment": "the box is two pixels off"})
+    assert decided.ok, decided.text()
+    page.goto(f"/systems/{sid}")
+    note = page.locator(tid("handoff"))
+    note.wait_for()
+    assert note.inner_text().startswith(f"returned to {accounts['annotator'].name}")
+    assert page.locator(tid("review-comment")).count() == 0
+    assert page.locator(tid("comments-count")).inner_text() == ""  # drawn with the note: never "none" above it
+
+
 # ----- 19: the queue's game column tells games apart ----------------------------------------------------------------
 @pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)
 def test_the_queues_game_column_leads_with_the_teams(small_page, artifacts, size):

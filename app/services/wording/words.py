@@ -216,8 +216,8 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
 #: page and the exports show it): the calibration's codes, then the ISSIA static cameras' (``no_lines``,
 #: ``below_admission``, ``not_in_calibration_json``: ``app.services.issia.cameras``).
 REFUSAL_SENTENCES: dict[str, str] = {
-    "few_constraints": "too few field lines for a camera: {usable_lines} give {constraints} of the {need} independent "
-                       "constraints a camera needs",
+    "few_constraints": "too few field lines for a camera: {usable_lines_give} {constraints} of the {need} "
+                       "independent constraints a camera needs",
     "parallel_lines": "degenerate configuration: all labelled lines are parallel on the pitch and no circle or goal "
                       "fixes the view",
     "collinear_points": "degenerate configuration: all labelled points are collinear in the image",
@@ -271,6 +271,8 @@ def refusal_sentence(refusal: Any) -> str | None:
     'too few field lines for a camera: 2 usable lines give 4 of the 7 independent constraints a camera needs'
     >>> refusal_sentence(Refusal("few_constraints", {"need": 7, "constraints": 0, "lines": 0}))
     'no usable field line: a camera needs 7 independent line constraints'
+    >>> refusal_sentence(Refusal("few_constraints", {"need": 7, "constraints": 2, "lines": 1}))
+    'too few field lines for a camera: 1 usable line gives 2 of the 7 independent constraints a camera needs'
     """
     if refusal is None:
         return None
@@ -283,7 +285,7 @@ def refusal_sentence(refusal: Any) -> str | None:
         return f"no usable field line: a camera needs {numbers.get('need')} independent line constraints"
     if "lines" in numbers:
         lines = int(numbers["lines"])
-        numbers["usable_lines"] = f"{lines} usable line{'' if lines == 1 else 's'}"
+        numbers["usable_lines_give"] = f"{lines} usable line gives" if lines == 1 else f"{lines} usable lines give"
     return template.format(**numbers)
 
 
