@@ -57,6 +57,9 @@ async function setDisabled(user, disabled) {
   }
 }
 
+/** The admin looking at the page: their own account is not offered a Disable (it would end this very session). */
+let myName = null;
+
 function userRow(user) {
   const role = el("select", { "data-testid": "user-role", "aria-label": `role of ${user.name}` },
     roles.map((r) => el("option", { value: r, selected: r === user.role }, r)));
@@ -65,6 +68,7 @@ function userRow(user) {
     ? el("button", { type: "button", "data-testid": "user-enable" }, "Enable")
     : el("button", { type: "button", "data-testid": "user-disable" }, "Disable");
   toggle.addEventListener("click", () => setDisabled(user, !user.disabled));
+  if (user.name === myName) toggle.hidden = true;
   const tokens = el("button", { type: "button", "data-testid": "user-tokens", "aria-controls": "tokens-panel" },
     "API tokens");
   tokens.addEventListener("click", () => loadTokens(user.name).catch((e) => showError(e.message)));
@@ -167,6 +171,7 @@ async function load() {
     return;
   }
   roles = me.roles;
+  myName = me.name;
   $("user-role-input").replaceChildren(...roles.map((r) => el("option", { value: r }, r)));
   mountForms();
   await loadUsers();

@@ -180,7 +180,7 @@ def _answer_of(page, method: str, path: str):
 
 
 def test_an_admin_adds_a_user_changes_its_role_issues_and_revokes_a_token_and_disables_it(browser, server_url,
-                                                                                          small_page, accounts):
+                                                                                          small_page, artifacts):
     page = small_page
     page.goto("/")
     page.locator(tid("link-users")).click()
@@ -197,6 +197,8 @@ def test_an_admin_adds_a_user_changes_its_role_issues_and_revokes_a_token_and_di
     shown.wait_for()
     first = shown.locator(tid("token-value")).inner_text()
     assert first.startswith("v3d_") and "shown this once" in shown.inner_text() and "nadia" in shown.inner_text()
+    page.screenshot(path=str(artifacts / "walk3/users-token-shown-1366x768.png"))
+    assert page.locator(f"{tid('user-row')}[data-name='test-admin'] {tid('user-disable')}").is_hidden()  # not oneself
     outsider = browser.new_context(base_url=server_url)  # no cookie: the token alone
     try:
         assert outsider.request.get("/api/auth/me", headers={"Authorization": f"Bearer {first}"}).json()["role"] == \
