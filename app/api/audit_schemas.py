@@ -68,8 +68,14 @@ class AuditPageOut(BaseModel):
 
 
 def _utc_unless_said(when: datetime) -> datetime:
-    """A time that names no offset read as UTC (the times the API answers are UTC)."""
-    return when.replace(tzinfo=timezone.utc) if when.utcoffset() is None else when
+    """The time in UTC, one that names no offset read as UTC (the times the API answers are UTC). Raises
+    ``ValueError`` (a 422 naming the field) for a time whose UTC falls outside the years 1-9999."""
+    if when.utcoffset() is None:
+        return when.replace(tzinfo=timezone.utc)
+    try:
+        return when.astimezone(timezone.utc)
+    except OverflowError:
+        raise ValueError("outside the years 1-9999 once in UTC") from None
 
 
 #: A time of a query: ISO 8601, UTC when it names no offset.
