@@ -3,7 +3,7 @@
 // page) and the change in words (the entry's summary). Filters by who, by system and by the reader's days (from,
 // until: local midnights sent as `since` / `until`), and pages of `limit` entries by the API's `next_offset`; the
 // filters and the page are kept in the address bar, so a filtered page can be linked and reloaded.
-import { listAudit, send, toQuery } from "./api.js";
+import { getMe, listAudit, send, toQuery } from "./api.js";
 import "./session.js";
 import { el, fmtWhen, fmtCount, showError, clearError } from "./format.js";
 
@@ -112,13 +112,11 @@ function go(state) {
   return show(state);
 }
 
+/** The names the Who field offers: the users (an admin's list: the other roles type a name) and the command line. */
 async function offerPeople() {
-  try {
-    const users = await send("GET", "/api/users");  // admins only: the others type a name
-    $("audit-people").replaceChildren(...[...users.map((u) => u.name), "cli"].map((n) => el("option", { value: n })));
-  } catch {
-    // not an admin: no list of names to offer
-  }
+  const me = await getMe();
+  const names = me.role === "admin" ? (await send("GET", "/api/users")).map((u) => u.name) : [];
+  $("audit-people").replaceChildren(...[...names, "cli"].map((n) => el("option", { value: n })));
 }
 
 function mount() {
@@ -132,7 +130,7 @@ function mount() {
   });
   $("audit-clear").addEventListener("click", () => go({ ...Object.fromEntries(FILTERS.map((k) => [k, ""])), offset: 0, limit: stateOf().limit }));
   window.addEventListener("popstate", () => show(stateOf()));
-  offerPeople();
+  offerPeople().catch((e) => showError(e.message));
   return show(stateOf());
 }
 
