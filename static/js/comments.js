@@ -107,7 +107,9 @@ export class CommentsCard {
     });
     for (const panel of $("views").children) panel.redraw?.();
     const open = this.comments.filter((c) => !c.resolved).length;
-    $("comments-count").textContent = this.comments.length ? `${open} open of ${this.comments.length}` : "none";
+    // "none" above a return note would say there is nothing to read where there is: the count is left out then
+    $("comments-count").textContent = this.comments.length ? `${open} open of ${this.comments.length}`
+      : this.handoff ? "" : "none";
     $("comments").replaceChildren(...this.comments.map((c, i) => this.item(c, i)));
     $("comment-pin-start").hidden = !this.mayPin();
     const h = this.handoff;
@@ -233,6 +235,9 @@ export class CommentsCard {
   keyEntries() {
     return [
       { keys: ["C"], show: ["⇧C"], does: "next unresolved comment (its view selected)", run: () => this.next() },
+      { keys: ["p"], does: "pin a comment: then click its point on a view",
+        run: () => (this.mayPin() ? (this.startPin(), true)
+          : "a comment is pinned by reviewers and admins, or by the person the system is returned to") },
       { keys: ["Escape"], show: ["Esc"], does: "cancel pinning a comment", run: () => (this.pinning ? (this.cancel(), true) : false) },
     ];
   }

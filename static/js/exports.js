@@ -22,6 +22,10 @@ function status(job) {
     parts.push(progressBar(job), el("span", { class: "muted" }, jobProgressText(job)));
   }
   if (job.state === "failed") parts.push(el("span", { class: "bad" }, job.message || "failed"));
+  // an export that held nothing says why instead of offering an empty file
+  if (job.state === "done" && job.result && job.result.nothing) {
+    parts.push(el("span", { class: "warn", "data-testid": "export-nothing" }, job.result.nothing));
+  }
   if (job.result_url) {
     const name = (job.result && job.result.filename) || "export.zip";
     const size = job.result && job.result.bytes ? ` (${fmtBytes(job.result.bytes)})` : "";

@@ -108,6 +108,13 @@ export class JobsPanel {
     this.poll();
   }
 
+  /** Show the job just queued at once (the next poll redraws the list): the words that point at the panel must
+   * find it there, not an empty page until the next poll. */
+  show(job) {
+    if (!this.list.querySelector(`[data-testid=job][data-id="${job.id}"]`)) this.list.prepend(row(job));
+    this.root.hidden = false;
+  }
+
   async poll() {
     let delay = SLOW_MS;
     try {

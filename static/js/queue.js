@@ -7,6 +7,14 @@ import "./session.js";
 import { JobsPanel } from "./jobs.js";
 import { mountExports } from "./exports.js";
 import { mountImport, mountWorkCounts } from "./team.js";
+
+/** A SoccerNet match name ("2015-02-21 - 18-00 Chelsea 1 - 1 Burnley") with its teams and score first and its date
+ * after: a narrow column cuts the end, and the date and kick-off alone tell two games of one day apart from nothing.
+ * Any other name is shown as it is. */
+export function gameShown(match) {
+  const m = typeof match === "string" ? /^(\d{4}-\d{2}-\d{2}) - (\d{2})-(\d{2}) (.+)$/.exec(match) : null;
+  return m ? `${m[4]} · ${m[1]} ${m[2]}:${m[3]}` : match;
+}
 import { QueueAssignment } from "./assignment.js";
 import { dispatchKey, keysHelp } from "./keys.js";
 import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queuestate.js";
@@ -108,7 +116,6 @@ class QueuePage {
     resumeLink(resume);
     // an import or a recompute that ends while the page is open changes the queue: reload it
     mountExports($("exports")); // admins only: every export as a job with its download
-    mountImport($("import")); // admins only: a zip uploaded with its progress, then followed under Jobs
     mountWorkCounts($("work-counts")); // To fix (and To re-review): what the team's loop sent to this person
     this.jobs = new JobsPanel($("jobs"), (job) => {
       if (job.state === "done" && job.kind !== "export") {
@@ -116,6 +123,8 @@ class QueuePage {
         this.load();
       }
     });
+    // admins only: a zip uploaded with its progress, then followed under Jobs, where its row is shown at once
+    mountImport($("import"), (job) => this.jobs.show(job));
   }
 
   fillForm() {
@@ -228,7 +237,7 @@ class QueuePage {
         return el(
           "tr",
           { "data-testid": "queue-row", "data-id": s.id, tabindex: "-1", class: i === this.selected ? "selected" : "" },
-          el("td", { class: "game", title: [game.league, game.season, game.match].filter(Boolean).join(" / ") }, game.match || game.id || "—"),
+          el("td", { class: "game", "data-testid": "queue-game", title: [game.league, game.season, game.match].filter(Boolean).join(" / ") }, gameShown(game.match) || game.id || "—"),
           el("td", {}, el("a", { href: `/systems/${encodeURIComponent(s.id)}${handOn}`, "data-testid": "system-link" }, s.name),
             this.assignment.chips(s)),
           el("td", {}, el("span", { class: `badge ${status}` }, STATUS_LABEL[status] || status)),

@@ -36,7 +36,7 @@ function dotsSvg(moves) {
   const hi = niceCeiling(Math.max(...moves.map((m) => m.moved)));
   const x = (v) => M.left + ((W - M.left - M.right) * v) / hi;
   const axisY = 50;
-  const root = svg("svg", { viewBox: `0 0 ${W} ${h}`, role: "img", class: "dots-plot", "data-testid": "moves-svg", "data-kind": "dots" });
+  const root = svg("svg", { viewBox: `0 0 ${W} ${h}`, role: "img", "aria-label": "how far each changed system's 3D ball moved (m)", class: "dots-plot", "data-testid": "moves-svg", "data-kind": "dots" });
   root.append(svg("line", { class: "axis", x1: M.left, x2: W - M.right, y1: axisY, y2: axisY }));
   moves.forEach((m, i) => {
     const dot = svg("circle", { class: "move-dot", cx: x(m.moved), cy: axisY, r: 5, "data-system": m.system });
@@ -52,13 +52,13 @@ function dotsSvg(moves) {
 
 function histogramSvg(moves) {
   if (!moves.length) {
-    return svg("svg", { viewBox: `0 0 ${W} 40`, role: "img", class: "nodata-plot" },
+    return svg("svg", { viewBox: `0 0 ${W} 40`, role: "img", "aria-label": "no 3D ball moved", class: "nodata-plot" },
       svg("text", { class: "nodata", x: 8, y: 24, text: "no 3D ball moved" }));
   }
   if (moves.length < FEW) return dotsSvg(moves);
   const { edges, counts } = histogram(moves.map((m) => m.moved));
   const yMax = Math.max(...counts);
-  const root = svg("svg", { viewBox: `0 0 ${W} ${H}`, role: "img", "data-testid": "moves-svg", "data-kind": "histogram" });
+  const root = svg("svg", { viewBox: `0 0 ${W} ${H}`, role: "img", "aria-label": "3D ball moved (m), changed systems", "data-testid": "moves-svg", "data-kind": "histogram" });
   const y = (c) => M.top + (H - M.top - M.bottom) * (1 - c / yMax);
   const x = (v) => M.left + ((W - M.left - M.right) * v) / edges[edges.length - 1];
   counts.forEach((c, i) => {

@@ -3,7 +3,7 @@
 // page by api.js (on the first 401).
 import { getMe, logout, LOGIN_PAGE } from "./api.js";
 import { el } from "./format.js";
-import { mountTopbar } from "./topbar.js";
+import { mountAdminLinks, mountTopbar } from "./topbar.js";
 
 async function showUser() {
   const bar = document.querySelector(".topbar");
@@ -14,6 +14,7 @@ async function showUser() {
   } catch {
     return; // 401: api.js is taking the person to the login page; other errors show on the page's own calls
   }
+  mountAdminLinks(me);
   const button = el("button", { type: "button", "data-testid": "logout", title: "End this session (every browser session of this user)" }, "Log out");
   button.addEventListener("click", async () => {
     button.disabled = true;

@@ -27,7 +27,8 @@ function ticks(lo, hi, count = 5) {
 
 /** The frame of a plot: axes, horizontal grid lines with their labels, the axis titles. */
 function frame(H, yMax, xTitle, yTitle) {
-  const root = svg("svg", { viewBox: `0 0 ${W} ${H}`, role: "img" });
+  // a chart is an image to a screen reader: its axes' titles name it
+  const root = svg("svg", { viewBox: `0 0 ${W} ${H}`, role: "img", "aria-label": `${yTitle} by ${xTitle}` });
   const y = (v) => M.top + (H - M.top - M.bottom) * (1 - v / (yMax || 1));
   for (const t of ticks(0, yMax || 1, 4)) {
     if (!Number.isInteger(t) && yMax >= 4) continue;
@@ -43,7 +44,7 @@ function frame(H, yMax, xTitle, yTitle) {
 }
 
 function noData(text) {
-  return svg("svg", { viewBox: `0 0 ${W} 60`, role: "img" },
+  return svg("svg", { viewBox: `0 0 ${W} 60`, role: "img", "aria-label": text },
     svg("text", { class: "nodata", x: W / 2, y: 34, "text-anchor": "middle", text }));
 }
 
@@ -112,7 +113,8 @@ export function countsSvg(rows) {
   const CW = 860, rowH = 24, labelW = 190, H = M.top + rowH * rows.length + 34;
   const max = Math.max(...rows.map((r) => r.images));
   const x = (v) => labelW + ((CW - labelW - 80) * v) / (max || 1);
-  const root = svg("svg", { viewBox: `0 0 ${CW} ${H}`, role: "img" });
+  const root = svg("svg", { viewBox: `0 0 ${CW} ${H}`, role: "img",
+    "aria-label": "images per kind and split: admitted, calibrated only, not calibrated" });
   rows.forEach((r, i) => {
     const top = M.top + i * rowH;
     root.append(svg("text", { x: labelW - 8, y: top + 15, "text-anchor": "end", text: `${r.kind} · ${r.split}` }));

@@ -45,9 +45,10 @@ const KINDS = [
 
 /** Upload `file` as an import of `kind` with XMLHttpRequest (fetch reports no upload progress): `onProgress(sent,
  * total)` while it uploads; resolves to the queued job. */
-export async function uploadImport(file, kind, onProgress) {
+export async function uploadImport(file, kind, onProgress, merge = null) {
   const form = new FormData();
   form.append("kind", kind);
+  if (merge) form.append("merge", merge);
   form.append("file", file, file.name);
   const headers = await writeHeaders();
   return new Promise((resolve, reject) => {
@@ -66,7 +67,10 @@ export async function uploadImport(file, kind, onProgress) {
       if (xhr.status === 202) resolve(body);
       else {
         const detail = body && typeof body.detail === "string" ? body.detail : `upload refused (HTTP ${xhr.status})`;
-        reject(new Error(body && body.field ? `${detail} (${body.field})` : detail));
+        const err = new Error(body && body.field ? `${detail} (${body.field})` : detail);
+        err.status = xhr.status;
+        err.body = body;
+        reject(err);
       }
     });
     xhr.addEventListener("error", () => reject(new Error("network error while uploading")));
@@ -77,7 +81,7 @@ export async function uploadImport(file, kind, onProgress) {
 /** Where the Jobs panel is from the Import panel `root`: "above" or "below" as the page lays them out. */
 function jobsPlace(root) {
   const jobs = document.querySelector("[data-testid=jobs]");
-  if (!jobs) return "on the queue page";
+  if (!jobs || jobs.hidden) return "on the queue page";
   return jobs.compareDocumentPosition(root) & Node.DOCUMENT_POSITION_FOLLOWING ? "above" : "below";
 }
 
@@ -119,12 +123,20 @@ export async function mountImport(root, onQueued = () => {}) {
   const start = el("button", { type: "button", "data-testid": "import-start" }, "Import");
   const bar = el("progress", { "data-testid": "import-upload-progress", max: "1", value: "0", hidden: true });
   const text = el("span", { class: "muted", "data-testid": "import-upload-text" });
-  start.addEventListener("click", async () => {
-    const chosen = file.files && file.files[0];
-    if (!chosen) {
-      text.textContent = "choose a zip first";
-      return;
-    }
+  // a dataset whose games are stored already: the server names them and the ways to merge; the person chooses one
+  const merge = el("div", { class: "import-merge", "data-testid": "import-merge", role: "group", "aria-label": "merge with the stored games", hidden: true });
+  const offerMerge = (chosen, err) => {
+    const modes = err.body.current.merge_modes;
+    merge.replaceChildren(
+      el("span", { "data-testid": "import-merge-text" }, `${chosen.name}: ${err.message}. Import it again, merged:`),
+      ...Object.entries(modes).map(([mode, means]) => el("button", {
+        type: "button", "data-testid": "import-merge-mode", "data-mode": mode, title: means,
+        onclick: () => { merge.hidden = true; send(chosen, mode); },
+      }, `${mode.replace("-", " ")}`)),
+      el("button", { type: "button", "data-testid": "import-merge-cancel", onclick: () => { merge.hidden = true; text.textContent = `${chosen.name}: not imported`; } }, "cancel"));
+    merge.hidden = false;
+  };
+  const send = async (chosen, mergeMode = null) => {
     start.disabled = true;
     bar.hidden = false;
     bar.max = chosen.size || 1;
@@ -134,19 +146,29 @@ export async function mountImport(root, onQueued = () => {}) {
         bar.max = total || 1;
         bar.value = sent;
         text.textContent = `uploading ${chosen.name}: ${fmtBytes(sent)} of ${fmtBytes(total)}`;
-      });
-      text.textContent = `${chosen.name} uploaded: import job #${job.id} queued (its progress and then what it gave: in the Jobs panel, ${jobsPlace(root)})`;
-      onQueued(job);
+      }, mergeMode);
+      onQueued(job); // the Jobs panel shows it first: the words below point at it
+      text.textContent = `${chosen.name} uploaded${mergeMode ? ` (merge: ${mergeMode.replace("-", " ")})` : ""}: import job #${job.id} queued (its progress and then what it gave: in the Jobs panel, ${jobsPlace(root)})`;
       followImport(job, chosen.name, text);
     } catch (err) {
       text.textContent = "";
-      showError(`import of ${chosen.name}: ${err.message}`);
+      if (err.status === 409 && err.body && err.body.current && err.body.current.merge_modes) offerMerge(chosen, err);
+      else showError(`import of ${chosen.name}: ${err.message}`);
     } finally {
       start.disabled = false;
       bar.hidden = true;
     }
+  };
+  start.addEventListener("click", () => {
+    const chosen = file.files && file.files[0];
+    if (!chosen) {
+      text.textContent = "choose a zip first";
+      return;
+    }
+    merge.hidden = true;
+    send(chosen);
   });
   root.replaceChildren(el("h2", { title: "An uploaded zip of a dataset, imported as a job (admins)" }, "Import"),
-    kind, file, start, bar, text);
+    kind, file, start, bar, text, merge);
   root.hidden = false;
 }

@@ -9,9 +9,17 @@ import { suggestedNote } from "./suggested.js";
 import { DETECTOR_KINDS, chip, chipClass, doubtDrawing, word, tauText } from "./words.js";
 
 /** The calibration's standard deviations as one line: "x/y/z m · pan/tilt/roll ° · f px". */
-function uncertaintyText(u) {
+/** Below this (m) a position's standard deviation is that of a camera pinned to a known position, not a fit's. */
+const PINNED_M = 0.005;
+
+export function uncertaintyText(u) {
   const p = u.position_m || {};
-  return `where ${fmt(p.x, 2)}/${fmt(p.y, 2)}/${fmt(p.z, 2)} m · aim ${fmt(u.pan_deg, 2)}/${fmt(u.tilt_deg, 2)}/${fmt(u.roll_deg, 2)}° · zoom ${fmt(u.focal_px, 0)} px`;
+  // a camera fitted at a known position (the rig's, a static camera's) has no doubt about where it stands: "0.00 m"
+  // three times reads as a perfect fit, so say why it is nought
+  const pinned = [p.x, p.y, p.z].every((v) => isNum(v) && Math.abs(v) < PINNED_M);
+  const where = pinned ? "where: pinned to a known camera position"
+    : `where x ${fmt(p.x, 2)}, y ${fmt(p.y, 2)}, z ${fmt(p.z, 2)} m`;
+  return `${where} · aim pan ${fmt(u.pan_deg, 2)}°, tilt ${fmt(u.tilt_deg, 2)}°, roll ${fmt(u.roll_deg, 2)}° · zoom ${fmt(u.focal_px, 0)} px`;
 }
 
 export function boxCentre(b) {
@@ -194,9 +202,12 @@ export function viewFacts(v, ctx, panel) {
       // the gammas the server stores, in its order; the first (the admission's) coloured by the
       // server's admission decision (its threshold is a setting)
       gammas.length ? null : "—",
+      // each figure named by its tolerance: three bare percentages read as one figure said three times
       ...gammas.flatMap((g, i) => [
-        i ? " / " : null,
-        i ? fmtJac(jac[g]) : el("span", { class: cal.admitted === true ? "ok" : cal.admitted === false ? "bad" : "" }, fmtJac(jac[g])),
+        i ? " · " : null,
+        el("span", { "data-testid": "view-jac-gamma", "data-gamma": String(g), class: i ? "" : cal.admitted === true ? "ok" : cal.admitted === false ? "bad" : "",
+          title: `the share of the pitch model within ${pct(g)} % of the image diagonal of the labelled lines` },
+        `${fmtJac(jac[g])} within ${pct(g)} %`),
       ]),
     ),
     cal.uncertainty ? el("dt", { "data-testid": "term-camera-sigma", title: word("term", "camera_sigma").means }, word("term", "camera_sigma").chip) : null,

@@ -280,7 +280,7 @@ def test_one_moved_ball_is_a_dot_named_on_a_sensible_axis_not_a_full_height_bar(
 
 # ----- 14: one top bar on every page -----------------------------------------------------------------------------
 PAGES = {"queue": "/", "system": None, "statistics": "/static/stats.html", "detectors": "/static/monocular.html",
-         "releases": "/static/releases.html"}
+         "releases": "/static/releases.html", "users": "/static/users.html", "audit": "/static/audit.html"}
 
 
 @pytest.mark.parametrize("size", SIZES, ids=SIZE_IDS)
@@ -305,7 +305,8 @@ def test_every_page_has_the_same_top_bar_links_and_log_out_whole(small_page, art
         logout = page.locator(tid("logout")).bounding_box()
         assert logout["x"] + logout["width"] <= w and page.locator(tid("logout")).inner_text() == "Log out"
     assert seen["queue"] == [("link-queue", "Review queue"), ("link-stats", "Statistics"),
-                             ("link-monocular", "Detectors"), ("link-releases", "Releases")]
+                             ("link-monocular", "Detectors"), ("link-releases", "Releases"),
+                             ("link-users", "Users"), ("link-audit", "Audit")]  # the last two for admins
     assert all(links == seen["queue"] for links in seen.values()), seen
     # from a system page the queue link keeps the queue's order
     page.goto(f"/systems/{system}?sort=name")

@@ -68,6 +68,13 @@ def test_every_list_is_read_across_its_pages(served_demo: ServedDemo) -> None:
             [s["id"] for s in page_through(raw, "/api/systems", status="pending", sort="name")]
         assert [f.id for f in v3d.frames(page_size=9)] == [f["id"] for f in page_through(raw, "/api/frames")]
         assert [e.id for e in v3d.audit(page_size=3)] == [e["id"] for e in page_through(raw, "/api/audit")]
+        # a span the server filters: from the oldest entry's time (no offset: UTC) to just before the newest's
+        entries = list(v3d.audit())
+        oldest, newest = entries[-1].at, entries[0].at
+        spanned = list(v3d.audit(since=oldest.replace(tzinfo=None), until=newest, page_size=3))
+        assert [e.id for e in spanned] == [e.id for e in entries if oldest <= e.at < newest]
+        assert [e.id for e in spanned] == [e["id"] for e in page_through(
+            raw, "/api/audit", since=oldest.isoformat(), until=newest.isoformat())]
 
 
 def test_a_stale_edit_raises_the_typed_conflict_with_the_state_now(served_demo: ServedDemo) -> None:

@@ -168,6 +168,15 @@ def test_rig_prior() -> None:
     assert mirrored_alone.rig_vote == 1 and not mirrored_alone.flagged
     pair = mirror_evidence([view("corner"), view("opposite", mirrored=True)], rig, tau_px=20.0, rule="max_scaled_1920")
     assert pair["opposite"].flagged and not pair["corner"].flagged
+    # the words name the distance each way to the nearest camera position, not to "any"
+    from app.services.wording.doubt_words import mirror_sentence
+    flagged = pair["opposite"].as_dict()
+    sentence = mirror_sentence(flagged, {"corner": "V1", "opposite": "V2"})
+    assert (f"its mirror image is {flagged['rig_distance_mirrored_m']:.1f} m from a camera position of the game, the "
+            f"camera itself {flagged['rig_distance_m']:.0f} m from the nearest one") in sentence, sentence
+    assert "from any" not in sentence
+    labelled = mirror_sentence(at_rig.as_dict(), {"opposite": "V2"})
+    assert "its mirror image" in labelled and labelled.count("from the nearest one") == 1, labelled
 
 
 def test_pair_relation_is_symmetric_under_mirroring_both() -> None:

@@ -28,13 +28,15 @@ router = APIRouter(prefix="/audit", tags=["audit"])
 def list_audit(session: SessionDep, settings: SettingsDep, principal: PrincipalDep,
                query: Annotated[AuditQuery, Query()]) -> Response:
     """One page of the audit log, newest first: who changed what, when, and the state before and after.
-    ``system_id`` gives the system's decisions and every edit of its views; ``user`` an actor's exact name.
+    ``system_id`` gives the system's decisions and every edit of its views; ``user`` an actor's exact name; ``since``
+    and ``until`` when it was written (422 naming ``until`` when it is not after ``since``).
     Changes of users and tokens (``user.*``, ``token.*``) are listed to admins only. An import's ``source`` is
     its server path for admins, the dataset's name for the other roles; work run on the machine is ``cli:<os user>``
     to admins, ``cli`` to the other roles (``user=cli`` lists it). A page holds at most ``limit`` entries and
     stops before the entry that would take it past ``V3D_MAX_ANSWER_KB`` of JSON (it holds one at least);
     ``next_offset`` is where the next page starts (null on the last page)."""
-    which = audit.EntryFilter(query.frame_id, query.system_id, query.user, include_admin=principal.may("admin"))
+    which = audit.EntryFilter(query.frame_id, query.system_id, query.user, include_admin=principal.may("admin"),
+                              since=query.since, until=query.until)
     total = audit.count_entries(session, which)
     batches = audit.entry_batches(session, which, limit=query.limit, offset=query.offset)
     items = capped_json((_shown(session, principal, batch) for batch in batches), settings.max_answer_kb * 1024)

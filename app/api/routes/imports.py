@@ -41,7 +41,8 @@ from app.services.storage.datasets import DatasetFiles
 from app.services.storage.stores import KeyTooLong
 from app.services.transfer.archives import ArchiveLimits, UploadTooLarge, unpack_zip, upload_limit, upload_limit_bytes
 from app.services.transfer.data_root import confined_path
-from app.services.transfer.import_formats import import_format, stored_games_refusal
+from app.services.transfer.import_formats import check_upload_layout, import_format, stored_games_refusal
+from app.services.transfer.merging import MERGE_MODES
 
 router = APIRouter(prefix="/imports", tags=["imports"], dependencies=[Depends(require_role("admin"))])
 
@@ -164,7 +165,8 @@ def _refuse_stored_games(session: Session, params: dict[str, Any], settings: Set
     if refusal is not None:
         if params.get("upload"):
             shutil.rmtree(params["path"], ignore_errors=True)
-        raise ConflictError(refusal[0], current={"games": refusal[1]})
+        # the ways to merge, with their words, so that a page offers the choice without a list of its own
+        raise ConflictError(refusal[0], current={"games": refusal[1], "merge_modes": MERGE_MODES})
 
 
 @router.post(
@@ -175,7 +177,8 @@ def _refuse_stored_games(session: Session, params: dict[str, Any], settings: Set
                503: {"model": ErrorOut, "description": "The file store (V3D_STORAGE_URL) cannot be used now (said in "
                                                        "words, with Retry-After); nothing was stored."},
                409: {"description": "The dataset's games are stored already and no merge was named: `detail` names "
-                                    "them, `current.games` lists them; nothing was stored."},
+                                    "them, `current.games` lists them, `current.merge_modes` the ways to merge (in "
+                                    "words); nothing was stored."},
                413: {"model": ErrorOut, "description": "The upload is larger than V3D_MAX_UPLOAD_MB."},
                422: {"description": "Invalid fields (named)."}},
 )
@@ -204,6 +207,12 @@ async def create_import(request: Request, session: SessionDep, settings: Setting
     """
     if request.headers.get("content-type", "").startswith("multipart/form-data"):
         params = await _upload_params(request, settings)
+        try:  # an upload that is not of its kind is refused now, in words, rather than by a job naming a server folder
+            await run_in_threadpool(check_upload_layout, params["kind"], Path(params["path"]),
+                                    str(params.get("name") or "upload.zip"))
+        except InvalidInputError:
+            shutil.rmtree(params["path"], ignore_errors=True)
+            raise
     else:
         params = await _path_params(request, settings)
     await run_in_threadpool(_refuse_stored_games, session, params, settings)

@@ -25,6 +25,7 @@ from app.core.config import Settings, jobs_dir
 from app.core.errors import NotFoundError
 from app.db.models import Job, JobState
 from app.services.exports.files import prune_stored_exports
+from app.services.exports.formats import NOTHING
 from app.services.jobs import runner as jobs
 from app.services.jobs.progress import read_live
 from app.services.jobs.work import RESULT_FILES, without_server_paths
@@ -41,7 +42,8 @@ def job_out(job: Job, principal: Principal | None = None, settings: Settings | N
     path, source and message name the dataset, never a server path (``kinds.without_server_paths``), and the
     process running it (``owner``: node name and process id) is not shown."""
     url = f"/api/jobs/{job.id}"
-    has_file = job.kind in RESULT_FILES and job.state is JobState.DONE
+    # an export that held nothing keeps no file (its result says why in words)
+    has_file = job.kind in RESULT_FILES and job.state is JobState.DONE and bool((job.result or {}).get("file"))
     params, result, message, owner = job.params, job.result, job.message, job.owner
     if principal is not None and settings is not None and not principal.may("admin"):
         params, result, message = without_server_paths(job.id, params, result, message, settings)
@@ -106,6 +108,8 @@ def job_result(session: SessionDep, settings: SettingsDep, job_id: JobId) -> Res
     job = jobs.get_job(session, job_id)
     if job.kind not in RESULT_FILES or job.state is not JobState.DONE or not job.result:
         raise jobs.JobNotReady(f"job {job_id} is a {job.kind} job in state {job.state.value}: no file to download")
+    if not job.result.get("file"):
+        raise jobs.JobNotReady(f"job {job_id} wrote no file: {job.result.get(NOTHING) or 'nothing to download'}")
     storage = storage_for(settings)
     if job.kind == "export":
         prune_stored_exports(storage, settings.export_keep_hours)

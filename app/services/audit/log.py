@@ -23,12 +23,14 @@ from __future__ import annotations
 import getpass
 from collections.abc import Iterator
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any, Optional
 
 import sqlalchemy as sa
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
+from app.core.errors import InvalidInputError
 from app.db.models import AuditEntry, AuditState, Frame, System
 from app.db.types import canonical_json, compressed_json, json_digest, json_safe, utcnow
 from app.services.audit.summaries import summarize
@@ -273,16 +275,37 @@ class EntryFilter:
     """Which entries a listing takes: every given filter holds. ``system_id`` matches the system's own decisions and
     every edit of its views; ``user`` is an actor's exact name; ``include_admin`` False leaves out
     :data:`ADMIN_ACTIONS` and reads ``user`` as a non-admin sees the actors (:func:`shown_actor`: ``cli`` for work on
-    the machine, never its OS account)."""
+    the machine, never its OS account). ``since`` and ``until`` (timezone-aware) bound when the entry was written:
+    at or after ``since``, before ``until`` (a reader's day is ``since`` its midnight, ``until`` the next one).
+
+    Raises:
+        InvalidInputError: ``until`` not after ``since`` (field ``until``), or either without a time zone (its field).
+    """
 
     frame_id: Optional[int] = None
     system_id: Optional[int] = None
     user: Optional[str] = None
     include_admin: bool = True
+    since: Optional[datetime] = None
+    until: Optional[datetime] = None
+
+    def __post_init__(self) -> None:
+        for name in ("since", "until"):
+            when = getattr(self, name)
+            if when is not None and when.utcoffset() is None:
+                raise InvalidInputError(f"{when.isoformat()} names no time zone: add one (Z for UTC)", field=name)
+        if self.since is not None and self.until is not None and self.until <= self.since:
+            raise InvalidInputError(f"{self.until.isoformat()} is not after since ({self.since.isoformat()}): no "
+                                    "entry could be written in between", field="until")
 
     def conditions(self) -> list[Any]:
         """The filters as SQL conditions on ``AuditEntry``."""
-        return _conditions(self.frame_id, self.system_id, self.user, self.include_admin)
+        out = _conditions(self.frame_id, self.system_id, self.user, self.include_admin)
+        if self.since is not None:
+            out.append(AuditEntry.at >= self.since)
+        if self.until is not None:
+            out.append(AuditEntry.at < self.until)
+        return out
 
 
 def list_entries(session: Session, *, frame_id: Optional[int] = None, system_id: Optional[int] = None,

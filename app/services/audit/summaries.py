@@ -52,6 +52,8 @@ def ball_words(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None
     'ball of V2 moved 5.0 px'
     >>> ball_words({"box": None, "point": None}, {"box": None, "point": [5, 5]}, "V1")
     'ball of V1 drawn (a point)'
+    >>> ball_words({"box": [0, 0, 10, 10]}, {"box": [0, 0, 10, 10], "provenance": {"source": "yolo"}}, "V3")
+    'confirmation of the suggested ball of V3 withdrawn'
     """
     c0, s0 = _ball_geometry(before)
     c1, s1 = _ball_geometry(after)
@@ -68,6 +70,9 @@ def ball_words(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None
     moved = math.hypot(c1[0] - c0[0], c1[1] - c0[1])
     resized = (s0 is None) != (s1 is None) or (s0 is not None and s1 is not None
                                               and max(abs(s1[0] - s0[0]), abs(s1[1] - s0[1])) > _STILL_PX)
+    if suggested_after and not suggested_before and moved <= _STILL_PX and not resized:
+        # the same box turning back into a suggestion is the undo of its confirmation, not a snap of 0 px
+        return f"confirmation of the suggested {of} withdrawn"
     if suggested_after:
         return f"{of} snapped to the suggested box ({_num(moved)} px away)"
     parts = []
@@ -267,14 +272,51 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
     if action == "import" and after.get("kind") == "predictions":
         return prediction_import_words(after)
     if action in ("import", "recompute"):
-        counts = ", ".join(f"{after[k]} {k}" for k in ("games", "systems", "frames") if isinstance(after.get(k), int))
+        counts = ", ".join(_count(after[k], k) for k in ("games", "systems", "frames") if isinstance(after.get(k), int))
         source = after.get("source_name") or ""
         return f"{action}{f' of {source}' if source else ''}" + (f": {counts}" if counts else "")
     if action == "release.create":
         return (f"release {after.get('name', '')} made: {after.get('systems', 0)} systems, {after.get('views', 0)} "
                 f"views, hash {str(after.get('hash', ''))[:12]}")
+    if action.startswith(("user.", "token.")):
+        return account_words(action, before, after)
     named = after.get("name") or after.get("user") or ""
     return f"{action.replace('.', ' ')}{f' {named}' if named else ''}"
+
+
+def _count(n: int, noun: str) -> str:
+    """``n`` and ``noun`` (a plural ending in s) agreeing: "1 game", "3 games"."""
+    return f"{n} {noun[:-1] if n == 1 and noun.endswith('s') else noun}"
+
+
+def account_words(action: str, before: Mapping[str, Any], after: Mapping[str, Any]) -> str:
+    """An administrator's change of a user or an API token (``app.services.accounts.users``) in words, from its
+    states (the user's name, role, token id and label; never a secret).
+
+    >>> account_words("user.role", {"user": "ana", "role": "annotator"}, {"user": "ana", "role": "reviewer"})
+    'ana made reviewer (was annotator)'
+    >>> account_words("token.issue", {}, {"user": "ana", "token_id": 7, "label": "laptop", "expires_at": None})
+    'API token 7 (laptop) issued to ana, valid until revoked'
+    >>> account_words("user.disable", {}, {"user": "ana", "tokens_revoked": 1})
+    'ana disabled: sessions ended, 1 API token revoked'
+    """
+    user = after.get("user") or before.get("user") or "?"
+    token = f"API token {after.get('token_id')}" + (f" ({after['label']})" if after.get("label") else "")
+    if action == "user.create":
+        return f"user {user} added as {after.get('role')}" + (" (the demo account)" if after.get("demo") else "")
+    if action == "user.role":
+        return f"{user} made {after.get('role')} (was {before.get('role')})"
+    if action == "user.disable":
+        revoked = after.get("tokens_revoked")
+        return f"{user} disabled: sessions ended" + (f", {_count(revoked, 'API tokens')} revoked" if revoked else "")
+    if action == "user.enable":
+        return f"{user} enabled again (no token back)"
+    if action == "token.issue":
+        until = after.get("expires_at")
+        return f"{token} issued to {user}, " + (f"expires {str(until)[:10]}" if until else "valid until revoked")
+    if action == "token.revoke":
+        return f"{token} of {user} revoked"
+    return f"{action.replace('.', ' ')} {user}"
 
 
 def prediction_import_words(after: Mapping[str, Any]) -> str:

@@ -16,8 +16,10 @@ Everything is read from what is stored, in a few indexed aggregate reads (no sys
   (``ball_reprojections.others_distance_px``; None without one); ``accused_share``: the share of those labels a
   label-accusing doubt names (None without a label).
 
-Beside them, each person's figures as a reviewer, from their system decisions (audit entries ``system.review``; an
-undo or a revert is not a decision made):
+Beside them, each person's figures as a reviewer, from the system decisions they made with a reviewer's role (audit
+entries ``system.review``; an undo or a revert is not a decision made, nor is what any role's work writes under the
+same action: a ``fixed`` sent back by the person the system was returned to, and a decision set back to pending by an
+edit of the labels or the camera in the same write):
 
 * ``decisions``: the system decisions they made in the window; ``accepted``, ``rejected``, ``needs_fix``: of those,
   the ones that set that status (``pending`` back is counted in ``decisions`` only);
@@ -164,9 +166,12 @@ def _review_figures(session: Session, since: Optional[datetime], until: Optional
         .options(selectinload(AuditEntry.before_state), selectinload(AuditEntry.after_state)))
     counted = {ReviewStatus.ACCEPTED.value: "accepted", ReviewStatus.REJECTED.value: "rejected",
                ReviewStatus.NEEDS_FIX.value: "needs_fix"}
-    for entry in entries:
-        if not _person(entry.actor):
-            continue
+    made = [e for e in entries if _person(e.actor) and _status(e.after) != ReviewStatus.FIXED.value]
+    edited = _edited_writes(session, {(e.system_id, e.system_version) for e in made
+                                      if _status(e.after) == ReviewStatus.PENDING.value})
+    for entry in made:
+        if (entry.system_id, entry.system_version) in edited and _status(entry.after) == ReviewStatus.PENDING.value:
+            continue  # an edit's reset of the decision, not a decision
         f = of(entry.actor)
         f.decisions += 1
         field = counted.get(_status(entry.after) or "")
@@ -174,6 +179,25 @@ def _review_figures(session: Session, since: Optional[datetime], until: Optional
             setattr(f, field, getattr(f, field) + 1)
         if _status(entry.before) == ReviewStatus.FIXED.value:
             f.re_reviews += 1
+
+
+#: The actions of a write that reviews, and so never sets a decision back to pending on its own behalf.
+_REVIEW_ACTIONS = ("system.review", "view.review", "view.calibration_review", "system.assign")
+
+
+def _edited_writes(session: Session, writes: set[tuple[Optional[int], Optional[int]]]
+                   ) -> set[tuple[Optional[int], Optional[int]]]:
+    """Of ``writes`` (system id, the version the write gave it: ``AuditEntry.system_version``), those that also
+    recorded an edit (an action not of :data:`_REVIEW_ACTIONS`): the writes whose pending decision is a reset."""
+    known = [(sid, ver) for sid, ver in writes if sid is not None and ver is not None]
+    out: set[tuple[Optional[int], Optional[int]]] = set()
+    for start in range(0, len(known), 500):  # a bounded IN list per read
+        chunk = known[start:start + 500]
+        out.update((sid, ver) for sid, ver in session.execute(
+            sa.select(AuditEntry.system_id, AuditEntry.system_version).distinct()
+            .where(AuditEntry.system_id.in_({sid for sid, _ in chunk}), AuditEntry.action.not_in(_REVIEW_ACTIONS)))
+            if (sid, ver) in set(chunk))
+    return out
 
 
 def _label_figures(session: Session, since: Optional[datetime], until: Optional[datetime], of: Any) -> None:

@@ -181,9 +181,18 @@ def _release_cameras(session: Session, out: Path, name: str, settings: Settings)
     return {**report, "release": release.name, "hash": release.hash}
 
 
+#: The key of an export's counts that says, in words, why it holds nothing: the job then keeps no file (an empty zip
+#: offered for download reads as an export that failed to write).
+NOTHING = "nothing"
+
+
 def _issia_3d(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
     r = export_issia3d(session, out, include_all=include_all)
-    return {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations}
+    report: dict[str, Any] = {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations}
+    if not r.sequences:
+        report[NOTHING] = ("nothing to export: no ISSIA sequence is stored" if include_all else
+                           "nothing to export: no accepted frame of an ISSIA sequence")
+    return report
 
 
 def _cameras(session: Session, out: Path, include_all: bool, settings: Settings) -> dict[str, Any]:
@@ -193,8 +202,11 @@ def _cameras(session: Session, out: Path, include_all: bool, settings: Settings)
 def _release_issia3d(session: Session, out: Path, name: str, settings: Settings) -> dict[str, Any]:
     release = get_release(session, name)
     r = export_release_issia3d(session, release, out)
-    return {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations, "release": release.name,
-            "hash": release.hash}
+    report: dict[str, Any] = {"sequences": r.sequences, "rows": r.rows, "calibrations": r.calibrations,
+                              "release": release.name, "hash": release.hash}
+    if not r.sequences:
+        report[NOTHING] = f"nothing to export: release {release.name} holds no frame of an ISSIA sequence"
+    return report
 
 
 def _release_detector(fmt: Literal["yolo", "coco"]) -> ReleaseTreeWriter:

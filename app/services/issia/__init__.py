@@ -8,7 +8,7 @@ first, so every use of a service finds them registered.
 from pathlib import Path
 from typing import Any, Mapping
 
-from app.datasets.issia import read_issia
+from app.datasets.issia import CALIBRATION_FILE, LINES_FILE, POINTS_FILE, RELEASED_POINTS_FILE, read_issia
 from app.services.issia.sequences import LEAGUE, SEASON, import_issia, refined_with_ball, refit_after_edit
 from app.services.issia.trajectory import consensus_observations, merge_doubts
 from app.services.kinds.issia import IssiaHooks, register_hooks
@@ -32,4 +32,7 @@ def _read(path: Path, options: Mapping[str, Any], settings: Any) -> object:
     return read_issia(path, flipped_cameras=options.get("flip") or [], max_pixels=settings.max_image_pixels)
 
 
-register_import_format(ImportFormat("issia", _import, ("from_lines", "flip"), games=_games, read=_read))
+register_import_format(ImportFormat(
+    "issia", _import, ("from_lines", "flip"), games=_games, read=_read,
+    layout=f"one sequence's folder: {CALIBRATION_FILE} or {LINES_FILE} (the six cameras), {POINTS_FILE} or "
+           f"{RELEASED_POINTS_FILE} (the ball points), optionally videos/cam<k>.mp4 or frames/cam<k>/"))

@@ -28,7 +28,7 @@ from app.db.unit import write_unit
 from app.services.backup.snapshot import BACKUPS, write_backup
 from app.services.derivation.recompute import recompute_all_systems
 from app.services.exports.files import EXPORTS, prune_exports, prune_stored_exports, write_export_zip
-from app.services.exports.formats import RELEASE_EXPORTS, export_format
+from app.services.exports.formats import NOTHING, RELEASE_EXPORTS, export_format
 from app.services.jobs.summary import summary
 from app.services.storage import storage_for
 from app.services.storage.datasets import DatasetFiles, rekey_frames
@@ -275,6 +275,9 @@ def run_export(session: Session, params: dict[str, Any], settings: Settings, pro
     prune_stored_exports(storage, settings.export_keep_hours)
     report = write_export_zip(session, fmt, target, bool(params.get("all", False)), settings, progress,
                               images=bool(params.get("images", True)), release=params.get("release"))
+    if report.get(NOTHING):  # the words say why; no empty zip is kept or offered
+        target.unlink(missing_ok=True)
+        return report
     key = export_key(target.name)
     if storage.local_path(key) != target:  # a store of its own: the file goes there (in parts), the scratch copy away
         storage.put_file(key, target)

@@ -19,6 +19,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
+from app.core.errors import DatasetError, InvalidInputError
 from app.core.progress import Progress
 from app.datasets.files import dataset_root
 from app.datasets.sn_calibration import read_sn_calibration, sn_calibration_game
@@ -59,6 +60,8 @@ class ImportFormat:
     upload_limit: str = MAX_UPLOAD_SETTING
     games: Optional[Callable[[Path], list[GameKey]]] = None
     read: Optional[Callable[[Path, Mapping[str, Any], Settings], object]] = None
+    #: What an input of the format holds, in a person's words (the refusal of an upload that is not one says it).
+    layout: str = ""
 
 
 _FORMATS: dict[str, ImportFormat] = {}
@@ -204,10 +207,49 @@ def _predictions(session: Session, path: str | Path, settings: Settings, options
                               actor=named.get("actor"))
 
 
-register_import_format(ImportFormat("soccernet-v3", _v3, games=_v3_games, read=_v3_read))
-register_import_format(ImportFormat("soccernet-v3d", _v3d, games=_v3d_games, read=_v3d_read))
-register_import_format(ImportFormat("sn-calibration", _calibration, ("width", "height"), games=_calibration_games,
-                                    read=_calibration_read))
+register_import_format(ImportFormat(
+    "soccernet-v3", _v3, games=_v3_games, read=_v3_read,
+    layout="a folder per game, <league>/<season>/<match>/, holding Labels-v3.json and Frames-v3.zip (its images; "
+           "without it the labels alone are imported)"))
+register_import_format(ImportFormat(
+    "soccernet-v3d", _v3d, games=_v3d_games, read=_v3d_read,
+    layout="a folder per game, <league>/<season>/<match>/, holding Labels-v3D.json"))
+register_import_format(ImportFormat(
+    "sn-calibration", _calibration, ("width", "height"), games=_calibration_games, read=_calibration_read,
+    layout="a folder of SoccerNet-calibration frames: <frame>.json (its field lines' points) beside <frame>.jpg"))
 # a ball detector's predictions (app.services.transfer.predictions): rows of their own on stored frames, no games
 register_import_format(ImportFormat("predictions", _predictions, ("source",),
-                                    upload_limit="V3D_MAX_PREDICTION_IMPORT_MB"))
+                                    upload_limit="V3D_MAX_PREDICTION_IMPORT_MB",
+                                    layout="a CSV league,season,match,image,x1,y1,x2,y2,score, YOLO txt files or a "
+                                           "COCO results JSON"))
+
+#: How many of an upload's files a refusal names (the rest counted).
+NAMED_FILES_MAX = 6
+
+
+def check_upload_layout(name: str, folder: Path, upload: str) -> None:
+    """Refuse an unpacked upload ``folder`` (the zip ``upload`` as sent) that is not of the format ``name``, as far as
+    listing its games tells (the format's ``games``: names only, nothing read whole), in words that name no server
+    folder: what is wrong, the files the zip holds, and the layout the format wants (:attr:`ImportFormat.layout`).
+    A format without ``games`` is left to its import, which names the file and the field.
+
+    Raises:
+        InvalidInputError: (field ``file``) the upload holds no input of the format.
+    """
+    fmt = import_format(name)
+    if fmt.games is None:
+        return
+    try:
+        fmt.games(folder)
+        return
+    except DatasetError as exc:
+        where = Path(exc.file)
+        shown = upload if where == folder else f"{upload}!{where.relative_to(folder).as_posix()}" \
+            if where.is_relative_to(folder) else upload
+        problem = str(exc).split(": ", 1)[1] if ": " in str(exc) else str(exc)
+    files = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file())
+    found = (f"it holds {len(files)} file{'' if len(files) == 1 else 's'}: "
+             + ", ".join(files[:NAMED_FILES_MAX]) + (f" and {len(files) - NAMED_FILES_MAX} more"
+                                                     if len(files) > NAMED_FILES_MAX else "")) if files else \
+        "it holds no file"
+    raise InvalidInputError(f"{shown}: {problem}; {found}. A {name} import wants {fmt.layout}", field="file")

@@ -297,10 +297,10 @@ def mirror_sentence(verdict: Mapping[str, Any], names: Names, flagged: set | fro
         con.append(f"the camera stands at y = {y:+.0f} m, on the main camera's side")
     if rig == 1:
         pro.append(f"its mirror image is {_num(dm, 1)} m from a camera position of the game, the camera "
-                   f"itself {_num(d)} m from any")
+                   f"itself {_num(d)} m from the nearest one")
     elif rig == -1:
         con.append(f"the camera is {_num(d, 1)} m from a camera position of the game, its mirror image "
-                   f"{_num(dm)} m from any")
+                   f"{_num(dm)} m from the nearest one")
     for p in verdict.get("pairs") or []:
         other = names.get(p.get("other"), str(p.get("other")))
         note = f" (view {other} is itself flagged)" if p.get("other") in flagged else ""

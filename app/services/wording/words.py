@@ -216,7 +216,8 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
 #: page and the exports show it): the calibration's codes, then the ISSIA static cameras' (``no_lines``,
 #: ``below_admission``, ``not_in_calibration_json``: ``app.services.issia.cameras``).
 REFUSAL_SENTENCES: dict[str, str] = {
-    "few_constraints": "fewer than {need} independent line constraints ({constraints}: {lines} usable line(s))",
+    "few_constraints": "too few field lines for a camera: {usable_lines_give} {constraints} of the {need} "
+                       "independent constraints a camera needs",
     "parallel_lines": "degenerate configuration: all labelled lines are parallel on the pitch and no circle or goal "
                       "fixes the view",
     "collinear_points": "degenerate configuration: all labelled points are collinear in the image",
@@ -267,12 +268,25 @@ def refusal_sentence(refusal: Any) -> str | None:
 
     >>> from app.geometry.calibration.result import Refusal
     >>> refusal_sentence(Refusal("few_constraints", {"need": 7, "constraints": 4, "lines": 2}))
-    'fewer than 7 independent line constraints (4: 2 usable line(s))'
+    'too few field lines for a camera: 2 usable lines give 4 of the 7 independent constraints a camera needs'
+    >>> refusal_sentence(Refusal("few_constraints", {"need": 7, "constraints": 0, "lines": 0}))
+    'no usable field line: a camera needs 7 independent line constraints'
+    >>> refusal_sentence(Refusal("few_constraints", {"need": 7, "constraints": 2, "lines": 1}))
+    'too few field lines for a camera: 1 usable line gives 2 of the 7 independent constraints a camera needs'
     """
     if refusal is None:
         return None
     template = REFUSAL_SENTENCES.get(refusal.code)
-    return template.format(**refusal.numbers) if template is not None else refusal.code
+    if template is None:
+        return refusal.code
+    numbers = dict(refusal.numbers)
+    if refusal.code == "few_constraints" and not numbers.get("lines"):
+        # "0 of the 7 ... (0: 0 usable line(s))" says nothing a curator can act on: say there is no line to fit
+        return f"no usable field line: a camera needs {numbers.get('need')} independent line constraints"
+    if "lines" in numbers:
+        lines = int(numbers["lines"])
+        numbers["usable_lines_give"] = f"{lines} usable line gives" if lines == 1 else f"{lines} usable lines give"
+    return template.format(**numbers)
 
 
 #: How the system page draws a doubt of a kind where nothing else says (``static/js/words.js`` ``DOUBT_DRAWING``,

@@ -737,17 +737,14 @@ class Client:
     # ----- the audit ------------------------------------------------------------------------------------------------
     @_route("GET /api/audit", answer=AuditPage)
     def audit(self, *, system_id: Optional[int] = None, frame_id: Optional[int] = None, user: Optional[str] = None,
-              since: Optional[datetime] = None, page_size: int = 200) -> Iterator[AuditEntry]:
-        """Every audit entry, newest first, of a system, a frame or a user; with ``since`` (UTC when it names no
-        offset), the entries at or after that time (the pages stop at the first older one)."""
-        if since is not None and since.tzinfo is None:
-            since = since.replace(tzinfo=timezone.utc)
-        entries = self._pages("/api/audit", AuditPage, {"system_id": system_id, "frame_id": frame_id, "user": user},
-                              page_size)
-        for entry in entries:
-            if since is not None and entry.at < since:
-                return
-            yield entry
+              since: Optional[datetime] = None, until: Optional[datetime] = None,
+              page_size: int = 200) -> Iterator[AuditEntry]:
+        """Every audit entry, newest first, of a system, a frame or a user; with ``since`` and ``until`` (UTC when
+        they name no offset), those written at or after ``since`` and before ``until`` (the server filters them)."""
+        span = {name: (when if when.tzinfo is not None else when.replace(tzinfo=timezone.utc)).isoformat()
+                for name, when in (("since", since), ("until", until)) if when is not None}
+        return self._pages("/api/audit", AuditPage,
+                           {"system_id": system_id, "frame_id": frame_id, "user": user, **span}, page_size)
 
     @_route("POST /api/audit/{entry_id}/revert", answer=System)
     def revert(self, entry: AuditEntry | int, *, force: bool = False) -> System:

@@ -4,6 +4,7 @@ resource), strong ETags (stable when a sibling view's edit recomputes the frame)
 ``If-Match`` with nothing changed, and 428 for a token's write without ``If-Match``."""
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Any
 
 import pytest
@@ -224,6 +225,34 @@ def test_audit_list_filters_by_frame_system_and_user_and_pages_newest_first(
     assert client.get("/api/audit", params={"limit": 0}).status_code == 422
     act_as("ann", "annotator", "token")
     assert _audit(client)["total"] == 5  # every role reads it
+
+
+def test_audit_list_filters_by_when_an_entry_was_written(client: TestClient, db_session: Session) -> None:
+    """The audit page's date filter: entries written at or after ``since`` and before ``until`` (UTC unless the time
+    names its offset); an empty or reversed span, or a time that is not one, is refused naming its field."""
+    from app.db.models import AuditEntry
+
+    # entries are append-only: three recomputes as if run on three days
+    days = ["2026-03-01T10:00:00+00:00", "2026-03-02T23:30:00+00:00", "2026-03-03T08:00:00+00:00"]
+    entries = [AuditEntry(at=datetime.fromisoformat(day), actor="ana", action="recompute", after={"systems": 1})
+               for day in days]
+    db_session.add_all(entries)
+    db_session.commit()
+    ids = [e.id for e in entries]
+
+    def between(**span: str) -> list[int]:
+        return [e["id"] for e in _audit(client, **span)["items"]][::-1]
+
+    assert between(since="2026-03-02", until="2026-03-03") == [ids[1]]  # a UTC day
+    assert between(since="2026-03-02T00:00:00", until="2026-03-04") == ids[1:]  # no offset: UTC
+    assert between(until="2026-03-02T23:30:00Z") == ids[:1]  # until is not included (nothing older than the three)
+    assert between(since="2026-03-03T00:00:00+01:00", until="2026-03-03T09:00:00+01:00") == [ids[1]]  # a reader's day
+    assert _audit(client, since="2026-03-02", until="2026-03-03")["total"] == 1
+    for span, field in (({"since": "2026-03-03", "until": "2026-03-02"}, "until"),
+                        ({"since": "2026-03-03", "until": "2026-03-03"}, "until"), ({"since": "yesterday"}, "since"),
+                        ({"until": "0001-01-01T00:00:00+05:00"}, "until")):
+        refused = client.get("/api/audit", params=span)
+        assert refused.status_code == 422 and field in refused.text, refused.text
 
 
 # ----- reverts -------------------------------------------------------------------------------------

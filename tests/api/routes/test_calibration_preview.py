@@ -72,7 +72,10 @@ def test_lines_that_cannot_calibrate_preview_a_refusal(client: TestClient, scene
     assert answer.status_code == 200, answer.text
     body = answer.json()
     assert body["status"] == "refused" and body["camera"] is None and body["pitch_lines"] == []
-    assert body["admitted"] is False and body["reason"]
+    assert body["admitted"] is False
+    # the refusal in a curator's words: how many lines, how many constraints of how many a camera needs
+    assert body["reason"].startswith("too few field lines for a camera: 1 usable line gives "), body["reason"]
+    assert body["reason"].endswith(" of the 7 independent constraints a camera needs"), body["reason"]
 
 
 @pytest.mark.parametrize(("lines", "field_word"), [

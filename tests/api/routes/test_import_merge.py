@@ -138,7 +138,8 @@ def test_a_crafted_export_of_stored_games_is_refused_unless_it_says_how_to_merge
     refused = _upload(client, _zipped(tree))
     assert refused.status_code == 409, refused.text
     assert GAME in refused.json()["detail"] and "merge=keep-newer" in refused.json()["detail"]
-    assert refused.json()["current"] == {"games": [GAME]}
+    assert refused.json()["current"]["games"] == [GAME]
+    assert set(refused.json()["current"]["merge_modes"]) == {"keep-newer", "overwrite"}  # what a page offers
     assert client.get("/api/jobs").json()["total"] == jobs  # nothing queued, nothing stored
     assert {k: _system(client, s) for k, s in three.items()} == states
     bad = _upload(client, _zipped(tree), merge="newest")

@@ -124,3 +124,37 @@ def test_the_command_prints_and_writes_the_figures(fresh_session_factory, db_set
     assert "reviewed: 2 decision(s), 1 accepted, 0 rejected, 1 needs fix" in res.output
     rev = dict(zip(rows[0], rows[2], strict=True))
     assert (rev["name"], rev["decisions"], rev["needs_fix"], rev["re_reviews"]) == ("rev", "2", "1", "1")
+
+
+def test_a_persons_figures_as_a_reviewer_count_only_a_reviewers_decisions(db_session: Session,
+                                                                           db_settings: Settings) -> None:
+    """rev accepts a system and marks another needs fix, returned to ana; ana sends it back fixed, and her ball edit
+    of the accepted system sets its decision back to pending: both are ``system.review`` entries of hers, neither a
+    decision she made as a reviewer."""
+    from app.services.curation.decisions import decide_review
+
+    game = make_game(db_session)
+    one = make_system(db_session, db_settings, game, "1.png")
+    two = make_system(db_session, db_settings, game, "2.png")
+    db_session.add_all([User(name="ana", role=UserRole.ANNOTATOR, password_hash="-"),
+                        User(name="rev", role=UserRole.REVIEWER, password_hash="-")])
+    db_session.commit()
+    ana = db_session.scalar(sa.select(User).where(User.name == "ana"))
+    frame = db_session.get(Frame, one.frame_ids[1])
+    box = list(frame.ball_label.box)
+    update_ball_label(db_session, frame.id, box=[box[0] + 1, box[1], box[2] + 1, box[3]], settings=db_settings,
+                      actor="ana")  # ana's edit: the needs fix returns the system to her
+    decide_review(db_session, system_id=one.system_id, status="needs_fix", comment="off", actor="rev")
+    decide_review(db_session, system_id=one.system_id, status="fixed", actor="ana", fixed_by=ana.id)
+    decide_review(db_session, system_id=two.system_id, status="accepted", actor="rev")
+    frame = db_session.get(Frame, two.frame_ids[2])
+    box = list(frame.ball_label.box)
+    update_ball_label(db_session, frame.id, box=[box[0] + 3, box[1], box[2] + 3, box[3]], settings=db_settings,
+                      actor="ana")
+    assert db_session.get(System, two.system_id).review_status == ReviewStatus.PENDING  # her edit's reset
+    assert db_session.scalar(sa.select(sa.func.count()).select_from(AuditEntry).where(
+        AuditEntry.actor == "ana", AuditEntry.action == "system.review")) == 2
+    figures = {f.name: f for f in annotator_figures(db_session)}
+    assert (figures["ana"].decisions, figures["ana"].accepted, figures["ana"].needs_fix) == (0, 0, 0)
+    rev = figures["rev"]
+    assert (rev.decisions, rev.accepted, rev.needs_fix, rev.re_reviews) == (2, 1, 1, 0)
