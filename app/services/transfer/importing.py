@@ -321,6 +321,18 @@ def audit_counts(report: ImportReport) -> dict[str, object]:
             "calibrated": report.calibrated, "refused": report.refused, "triangulated": report.triangulated}
 
 
+def image_bytes(settings: Settings) -> int:
+    """``V3D_MAX_IMAGE_MB`` in bytes: the most an imported image file or zip member may have."""
+    return int(settings.max_image_mb * (1 << 20))
+
+
+def reading_limits(settings: Settings) -> dict[str, int]:
+    """The limits :func:`app.datasets.soccernet_v3.read_soccernet_v3_game` reads a game within, from ``settings``:
+    pixels and bytes an image, player boxes a frame (those beyond are counted, never read)."""
+    return {"max_pixels": settings.max_image_pixels, "max_players": settings.max_players_per_frame,
+            "max_image_bytes": image_bytes(settings)}
+
+
 def _within_view_cap(rec: GameRecord, settings: Settings, skipped: list[str] | None = None) -> GameRecord:
     """The game ``rec`` without its systems of more than ``settings.max_views_per_system`` views (the
     pairwise work grows with the square of the views), each named with its count in ``skipped`` when given.
@@ -338,11 +350,14 @@ def _within_view_cap(rec: GameRecord, settings: Settings, skipped: list[str] | N
 def _within_player_cap(rec: GameRecord, settings: Settings) -> tuple[GameRecord, int]:
     """The game ``rec`` with at most ``settings.max_players_per_frame`` player boxes a frame, the first in the file's
     order (they only help place the cameras the lines cannot; a real frame boxes a few dozen people), and how many
-    boxes were left out. A frame's release entry keeps what the file gave."""
+    boxes were left out: those the reader counted without reading them (``FrameRecord.players_dropped``: the
+    SoccerNet-v3 reader stops at the cap and keeps no box past it for a release), and those of a reader without the
+    cap, dropped here."""
     cap = settings.max_players_per_frame
+    counted = sum(f.players_dropped for s in rec.systems for f in s.frames)  # by a reader that stopped at the cap
     if all(len(f.players) <= cap for s in rec.systems for f in s.frames):
-        return rec, 0
-    dropped = sum(max(0, len(f.players) - cap) for s in rec.systems for f in s.frames)
+        return rec, counted
+    dropped = counted + sum(max(0, len(f.players) - cap) for s in rec.systems for f in s.frames)
     systems = [dataclasses.replace(s, frames=[dataclasses.replace(f, players=f.players[:cap])
                                               if len(f.players) > cap else f for f in s.frames])
                for s in rec.systems]
@@ -517,7 +532,7 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
         DatasetError: invalid input (nothing is stored).
     """
     return _run(session, path, settings, progress,
-                lambda: [partial(read_soccernet_v3_game, labels, dataset_root(path), settings.max_image_pixels)
+                lambda: [partial(read_soccernet_v3_game, labels, dataset_root(path), **reading_limits(settings))
                          for labels in soccernet_v3_labels(path)], actor, source_name, merge)
 
 
@@ -534,7 +549,8 @@ def import_sn_calibration(session: Session, path: str | Path, settings: Settings
         DatasetError: invalid input (nothing is stored).
     """
     return _run(session, path, settings, progress,
-                lambda: _held([read_sn_calibration(path, width, height, settings.max_image_pixels)]),
+                lambda: _held([read_sn_calibration(path, width, height, settings.max_image_pixels,
+                                                   image_bytes(settings))]),
                 actor, source_name, merge)
 
 
@@ -551,5 +567,6 @@ def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path, settings.max_image_pixels)),
+    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path, settings.max_image_pixels,
+                                                                                      image_bytes(settings))),
                 actor, source_name, merge)

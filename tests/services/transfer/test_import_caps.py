@@ -94,7 +94,9 @@ def _flood(action: str, boxes: int):
 def test_player_boxes_beyond_the_cap_a_frame_are_counted_not_stored(db_session, settings, shared_dir, tmp_path,
                                                                     boxes: int) -> None:
     """A flood of player boxes on one frame (120,000: a 2.9 MB zip) keeps ``V3D_MAX_PLAYERS_PER_FRAME`` of them, the
-    first in the file's order; the rest are counted in the report and its words; the other frames keep all theirs."""
+    first in the file's order; the rest are counted in the report and its words, and neither stored nor kept for a
+    release (the frame's entry keeps its ball and the boxes up to the cap); the other frames keep all theirs.
+    ``benchmarks/player_flood.py`` times such a flood against the same game without it."""
     cap = settings.max_players_per_frame
     assert cap == 200
     plain = write_v3_game(shared_dir, tmp_path / "plain", with_images=False)
@@ -111,6 +113,10 @@ def test_player_boxes_beyond_the_cap_a_frame_are_counted_not_stored(db_session, 
     first = db_session.scalars(sa.select(PlayerBox.ident).join(Frame, Frame.id == PlayerBox.frame_id)
                                .where(Frame.name == "0.png").order_by(PlayerBox.id)).all()
     assert first[given["0.png"]:] == [str(i) for i in range(cap - given["0.png"])]  # the first, in the file's order
+    releases = dict(db_session.execute(sa.select(Frame.name, Frame.release)).all())
+    flooded = releases["0.png"]["bboxes"]
+    assert [b["class"] for b in flooded].count("Ball") == 1 and len(flooded) == cap + 1  # the ball, then the cap's
+    assert [b["ID"] for b in flooded if b["class"] != "Ball"][given["0.png"]:] == list(range(cap - given["0.png"]))
     result = import_result(report)
     assert result["players_dropped"] == report.players_dropped
     assert f"{report.players_dropped:,} player boxes beyond the cap a frame not stored" in result["summary"]["words"]

@@ -391,10 +391,10 @@ def test_an_import_reads_each_game_twice_and_holds_two_batches_at_most(shared_di
     alive_at_read: list[int] = []
     real = importing.read_soccernet_v3_game
 
-    def read(labels, *args):
+    def read(labels, *args, **limits):
         gc.collect()
         alive_at_read.append(sum(ref() is not None for ref in alive))
-        rec = real(labels, *args)
+        rec = real(labels, *args, **limits)
         alive.append(weakref.ref(rec))
         reads.append(rec.match)
         return rec
