@@ -19,13 +19,17 @@ Every importer works in two phases so that bad input stores nothing:
    ``keep-newer`` keeps what a person changed after what the file holds; one audit entry per system it
    changes). In each batch the frames whose lines are new or changed are calibrated in the import's
    process pool before the batch's first write, then the batch is written, its touched systems
-   recomputed (``app.services.derivation.recompute``) and committed, or rolled back. The pool does not
+   recomputed (``app.services.derivation.recompute``) and committed, or rolled back. Another writer that commits
+   while a batch calibrates (an edit, a page's presence claim, a login) never fails it: on SQLite such a batch cannot
+   write any more, and runs again once holding the write lock from its start (``app.db.unit.computed_then_written``),
+   the other writers waiting for it then. The pool does not
    wait meanwhile: the first pass of the next batch's new games is calibrating
    (``app.services.calibration.first_pass``) while this process stores the current batch.
 
 What a release carries that v3d does not edit (``GameMetadata``, each frame's ``imageMetadata`` and every
-``bboxes`` entry, the links) is stored as it came (``games.release``, ``frames.release``) and refreshed by a
-re-import; the exports write it back without reading the source files.
+``bboxes`` entry up to ``V3D_MAX_PLAYERS_PER_FRAME`` player boxes, the links) is stored as it came
+(``games.release``, ``frames.release``) and refreshed by a re-import; the exports write it back without reading the
+source files.
 
 Images are never extracted: a frame stores the dataset's folder and, relative to it, the zip path and
 member name (or a file path); the readers refuse a file that resolves outside the imported folder.
@@ -36,6 +40,7 @@ batch's own transaction; a frame whose labels or lines it changes gets a new edi
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import gc
 import threading
@@ -66,7 +71,7 @@ from app.db.models import (
 )
 from app.db.session import refresh_statistics
 from app.db.types import utcnow
-from app.db.unit import write_unit
+from app.db.unit import computed_then_written
 from app.geometry.calibration.result import PLAYERS_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.services.audit.log import record_summary
 from app.services.calibration.calibrating import apply_calibration
@@ -278,6 +283,23 @@ def _write_batch(session: Session, merged: MergedBatch, results: list[Calibratio
     report.systems_merged += sum(merge.record(session) for merge in merged.merges)
 
 
+def _store_audited(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
+                   progress: Progress | None, pool: CalibrationPool, ahead: list[FirstPassAhead | None],
+                   after_calibration: Callable[[], None], *, merge: str, actor: str | None,
+                   audit: dict[str, int]) -> None:
+    """:func:`_store` of one batch (with ``ahead``'s calibrations, taken by the first call only) and its audit
+    entry: every committed batch is audited in its own transaction, so that a crash after it leaves the entry of what
+    was stored (the counts so far and ``audit``, the batch's number; the last one carries the totals)."""
+    _store(session, records, settings, report, progress, pool, ahead.pop() if ahead else None, after_calibration,
+           mode=merge, actor=actor)
+    record_summary(session, "import", {**audit_counts(report), **audit}, actor=actor)
+
+
+def _put_back(report: ImportReport, before: ImportReport) -> None:
+    """``report``'s counts as they were ``before`` a batch's try that was rolled back."""
+    vars(report).update(vars(copy.deepcopy(before)))
+
+
 def _by_players(frame: Frame) -> bool:
     return frame.calibration is not None and PLAYERS_FLAG in (frame.calibration.flags or [])
 
@@ -478,25 +500,23 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
         following: list[list[GameRecord] | None] = [None]
         started: list[FirstPassAhead | None] = [None]
 
-        def start_next() -> None:  # the next batch calibrates while this one is stored
-            if batches:
+        def start_next() -> None:  # the next batch calibrates while this one is stored (once, whatever the tries)
+            if batches and following[0] is None:
                 following[0] = records = [read() for read in batches.pop(0)]
                 started[0] = start_first_pass(session, records, pool, settings)
 
         while loaded is not None:
             batch, last = loaded, not batches
             following[0], started[0] = None, None
-            with write_unit(session, lock=False):
-                _store(session, batch, settings, report, progress if last and done == 0 else None, pool,
-                       ahead, start_next, mode=merge, actor=actor)
-                ahead, loaded = started[0], following[0]
-                if loaded is None and batches:  # not started ahead
-                    loaded = [read() for read in batches.pop(0)]
-                # every committed batch is audited in its own transaction: a crash after it leaves the entry
-                # of what was stored (the counts so far, the batch's number; the last one carries the totals)
-                record_summary(session, "import", {**audit_counts(report), "batch": batch_number,
-                                                   "batches": total_batches, "batch_games": len(batch)},
-                               actor=actor)
+            # a second try (the first met another writer, ``computed_then_written``) calibrates again, nothing ahead
+            store = partial(_store_audited, session, batch, settings, report,
+                            progress if last and done == 0 else None, pool, [ahead], start_next, merge=merge,
+                            actor=actor, audit={"batch": batch_number, "batches": total_batches,
+                                                "batch_games": len(batch)})
+            computed_then_written(session, store, partial(_put_back, report, copy.deepcopy(report)))
+            ahead, loaded = started[0], following[0]
+            if loaded is None and batches:  # not started ahead
+                loaded = [read() for read in batches.pop(0)]
             batch_number += 1
             session.expunge_all()
             gc.collect()  # what the batch leaves, once (``_full_collections_by_batch``)
