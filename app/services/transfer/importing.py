@@ -5,8 +5,9 @@ Every importer works in two phases so that bad input stores nothing:
 1. **read and validate** the whole input into plain records (``app.datasets``:
    :func:`read_soccernet_v3`, :func:`read_sn_calibration`, :func:`read_soccernet_v3d`); any problem
    raises :class:`~app.core.errors.DatasetError` naming the file and the field. A SoccerNet-v3
-   tree is validated game by game and its records dropped; each batch is read again when it is
-   stored, so memory holds two batches of records, not the whole tree. A game read alone whose labels hold an
+   tree is validated game by game and its records dropped, but the first batch's, kept for its storing; each
+   other batch is read again when it is stored, so memory holds two batches of records, not the whole tree (and an
+   input of one batch, most uploads, is read once). A game read alone whose labels hold an
    entry the shared label check refuses (:class:`~app.core.errors.EntryError`: a ball box beyond its image's
    plausible range, NaN, ...) is left out and named in the report (``skipped_games``: file, entry, why); the other
    games import;
@@ -402,13 +403,18 @@ def _dataset_name(file: str | Path, path: str | Path) -> str:
 
 
 def _read_all(path: str | Path, settings: Settings, progress: Progress | None, games: Callable[[], list[GameReader]],
-              source_name: str | None, t0: float) -> tuple[ImportReport, list[GameReader], list[int]]:
-    """The validation of an import, before anything is written: every game read once (``progress("read", ...)``) and
-    dropped, a game with a refused entry left out and named; the report so far, a reader of each game kept (within
-    the view cap) and its number of frames."""
+              source_name: str | None, t0: float
+              ) -> tuple[ImportReport, list[GameReader], list[int], list[GameRecord]]:
+    """The validation of an import, before anything is written: every game read once (``progress("read", ...)``), a
+    game with a refused entry left out and named; the report so far, a reader of each game kept (within the view
+    cap), its number of frames, and the records of the first batch's games (as :func:`_batches` groups them), kept
+    as read so that the batch is not read again (a labels file of 120,000 boxes costs its parse once); the other
+    games are dropped once read, so that memory holds one batch of records meanwhile."""
     report = ImportReport(source=str(path), source_name=source_name or Path(path).name)
     frames_per_game: list[int] = []
     readers: list[GameReader] = []
+    first: list[GameRecord] = []
+    first_frames, first_full = 0, False
     listed = list(games())
     for n_read, read in enumerate(listed):  # validation: raises before anything is written
         if progress:  # "reading": the first stage a job shows, from its first second
@@ -421,15 +427,20 @@ def _read_all(path: str | Path, settings: Settings, progress: Progress | None, g
         report.systems += len(rec.systems)
         rec, dropped = _within_player_cap(_within_view_cap(rec, settings, report.skipped_systems), settings)
         report.players_dropped += dropped
-        frames_per_game.append(sum(len(s.frames) for s in rec.systems))
+        frames = sum(len(s.frames) for s in rec.systems)
+        frames_per_game.append(frames)
         report.frames_without_image += sum(1 for s in rec.systems for f in s.frames
                                            if not (f.image_zip or f.image_path))
         readers.append(partial(_read_within_view_cap, read, settings))
+        first_full = first_full or bool(first) and first_frames + frames > settings.import_batch_frames
+        if not first_full:  # :func:`_batches`' rule: the first batch goes on while its frames fit
+            first.append(rec)
+            first_frames += frames
         del rec
     report.read_seconds = time.perf_counter() - t0
     report.games = len(readers)
     report.frames = sum(frames_per_game)
-    return report, readers, frames_per_game
+    return report, readers, frames_per_game, first
 
 
 #: The full collections' threshold while an import stores its batches (:func:`_full_collections_by_batch`): in effect
@@ -477,24 +488,29 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
     stored or not at all), each calibrated, recomputed and committed before the next is stored; the
     calibration processes serve every batch. ``games`` lists the input's games as readers: the
-    validation reads each once and drops it, and each batch is read again when its calibration
-    starts, so memory holds two batches of records, not the whole input (an input file changed
-    meanwhile can still fail the import then, after whole games were stored; running it again
-    completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
+    validation reads each once and drops it (but the first batch's games, stored as it read them), and each
+    other batch is read again when its calibration starts, so memory holds two batches of records, not the whole
+    input (an input file changed meanwhile can still fail the import then, after whole games were stored; running it
+    again completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
     total) instead of the inner stages of each batch. Each batch writes its audit entry (by ``actor``,
     None: the local user) in its own transaction, with one entry per stored system it merged by ``merge``
     (``app.services.transfer.merging``). Before all that, ``progress("read", games read, games)`` while the input is
     read and validated. While the batches are stored the garbage is collected once per batch
     (:func:`_full_collections_by_batch`)."""
     t0 = time.perf_counter()
-    report, readers, frames_per_game = _read_all(path, settings, progress, games, source_name, t0)
+    report, readers, frames_per_game, first = _read_all(path, settings, progress, games, source_name, t0)
     batches = [[readers[i] for i in group] for group in _batches(frames_per_game, settings.import_batch_frames)]
     total_batches, batch_number = len(batches), 1
     calibration_ms: list[float] = []
     calibration_seconds = 0.0
     done = 0
     with calibration_pool(settings.calibration_workers) as pool, _full_collections_by_batch():
-        loaded = [read() for read in batches.pop(0)] if batches else None
+        if batches:  # the first batch as the validation read it (the same games: ``_read_all``)
+            group = batches.pop(0)
+            loaded = first if len(first) == len(group) else [read() for read in group]
+            del first, group
+        else:
+            loaded = None
         ahead = start_first_pass(session, loaded, pool, settings) if loaded else None
         # the next batch and its calibration once ``start_next`` started them (reset for every batch)
         following: list[list[GameRecord] | None] = [None]
