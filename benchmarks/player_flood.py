@@ -1,10 +1,11 @@
 """A flood of player boxes against the import, as a paired ratio: the dev game of ``../shared`` imported as it is
 (``plain``) and with ``--boxes`` (120,000) well-formed player boxes appended to one frame (``flood``: the fifth
 security review's 2.9 MB zip), each into a fresh migrated SQLite file, ``--rounds`` (3) pairs alternating which goes
-first, in this process (``import_soccernet_v3``, one calibration process). Each import reads the game twice (the
-validation, then its batch), so the flood costs two parses of its labels file; everything past
-``V3D_MAX_PLAYERS_PER_FRAME`` boxes a frame is counted, neither converted nor kept. Target: the flood's median within
-1.5x the plain game's (before the reader stopped at the cap: 4.0 s against 1.2 s, 3.3x).
+first, in this process (``import_soccernet_v3``, one calibration process). An import of one batch stores the records
+its validation read, so the flood costs one parse of its labels file, made without garbage collections (the parsed
+boxes are dropped before one could traverse them); everything past ``V3D_MAX_PLAYERS_PER_FRAME`` boxes a frame is
+counted, neither converted nor kept. Target: the flood's median within 1.5x the plain game's (before the reader
+stopped at the cap: 4.0 s against 1.2 s, 3.3x; parsed twice, with collections: 2.7x).
 
 Prints one JSON object: each round's seconds, the medians and their ratio. Run::
 

@@ -30,6 +30,7 @@ from app.datasets.files import (
     load_json_file,
     mapping,
     member_image_header,
+    no_collections,
     open_zip,
     safe_names,
 )
@@ -387,7 +388,10 @@ def read_soccernet_v3_game(labels: Path, root: Path | None = None, max_pixels: i
     """
     root = root if root is not None else dataset_root(labels.parent)
     league, season, match = game_key(labels.parent)
-    data = load_json_file(inside_dataset(root, labels, V3_LABELS))
-    with FrameImages(labels.parent, root, max_pixels, max_image_bytes) as images:
-        systems = v3_systems(labels, data, images, partial(_v3_frame, max_players=max_players))
-    return GameRecord(league, season, match, str(labels.parent.resolve()), systems, game_release(data, systems))
+    with no_collections():  # the parsed document, every box of a flood, is dropped before a collection sees it
+        data = load_json_file(inside_dataset(root, labels, V3_LABELS))
+        with FrameImages(labels.parent, root, max_pixels, max_image_bytes) as images:
+            systems = v3_systems(labels, data, images, partial(_v3_frame, max_players=max_players))
+        game = GameRecord(league, season, match, str(labels.parent.resolve()), systems, game_release(data, systems))
+        del data
+    return game

@@ -3,6 +3,7 @@ a system of more than ``V3D_MAX_VIEWS_PER_SYSTEM`` views (16) is left out, named
 its count, and the rest of the dataset imports; a system stored before the cap is left as it is."""
 from __future__ import annotations
 
+import gc
 import json
 import zipfile
 from pathlib import Path
@@ -11,6 +12,7 @@ import pytest
 import sqlalchemy as sa
 
 from app.core.errors import DatasetError
+from app.datasets.soccernet_v3 import read_soccernet_v3_game
 from app.db.models import Frame, PlayerBox, System
 from app.services.jobs.work import import_result
 from app.services.transfer.importing import import_soccernet_v3
@@ -122,6 +124,25 @@ def test_player_boxes_beyond_the_cap_a_frame_are_counted_not_stored(db_session, 
     assert f"{report.players_dropped:,} player boxes beyond the cap a frame not stored" in result["summary"]["words"]
     again = import_soccernet_v3(db_session, tmp_path / "flood", settings)  # the same file again changes nothing
     assert (again.systems_new, again.systems_changed, again.players_dropped) == (0, 0, report.players_dropped)
+
+
+def test_reading_a_flooded_labels_file_starts_no_collection(settings, shared_dir, tmp_path) -> None:
+    """Reading a labels file of 20,000 boxes starts no garbage collection while the parsed document is held (its
+    boxes are dropped before one could traverse them: a parse makes no cycle) and leaves the collector running.
+    ``benchmarks/player_flood.py`` times what that saves an import."""
+    game_dir = write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",), edit=_flood("0.png", 20_000),
+                             with_images=False)
+    gc.collect()  # no young collection falls due for what was made before the reading
+    collections: list[int] = []
+    gc.callbacks.append(lambda phase, info: collections.append(info["generation"]) if phase == "start" else None)
+    try:
+        game = read_soccernet_v3_game(game_dir / "Labels-v3.json", max_players=settings.max_players_per_frame)
+    finally:
+        gc.callbacks.pop()
+    assert game.systems[0].frames[0].players_dropped > 0
+    # At most the one young collection the kept records fall due for once the document is dropped (before: one per
+    # 700 parsed objects, dozens here, and full ones over the whole process).
+    assert collections in ([], [0]) and gc.isenabled()
 
 
 @pytest.mark.parametrize(("damage", "words"), [
