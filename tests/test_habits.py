@@ -114,6 +114,26 @@ def test_every_writer_commits_through_the_write_unit() -> None:
     assert not calls, "commits outside the write unit:\n" + "\n".join(calls)
 
 
+def test_the_command_line_refuses_through_one_helper() -> None:
+    """Every refusal or failure of ``v3d`` is printed by ``app.cli._root.fail`` as ``Error: ...``, the prefix click
+    gives its own refusals of options: no command prints an ``error:`` or ``refused:`` line of its own, which a
+    script reading standard error would have to know apart."""
+
+    def text(node: ast.expr) -> str:
+        if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            return node.value
+        if isinstance(node, ast.JoinedStr):
+            return "".join(text(v) if isinstance(v, ast.Constant) else "{}" for v in node.values)
+        return ""
+
+    found = [f"{p.relative_to(ROOT)}:{node.lineno}: {text(node.args[0])[:60]!r}"
+             for p in _files("app/cli", suffixes={".py"}) if p.name != "_root.py"  # the helper itself
+             for node in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
+             if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "echo"
+             and node.args and re.search(r"^(?:[\w ]+: )?(?:error|refused)\b", text(node.args[0]), re.IGNORECASE)]
+    assert not found, "refusals printed outside app.cli._root.fail:\n" + "\n".join(found)
+
+
 def test_no_stand_ins_for_rows() -> None:
     """Typed rows (dataclasses) where an ORM row is stood in for: mypy checks their fields, ``SimpleNamespace`` not."""
     found = [f"{p.relative_to(ROOT)}" for p in _files("app", suffixes={".py"})

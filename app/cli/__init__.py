@@ -5,9 +5,7 @@ Each command group lives in its own module and registers on the objects of ``app
 """
 from __future__ import annotations
 
-import typer
-
-from app.cli._root import cli
+from app.cli._root import cli, fail
 from app.core.config import SettingsError
 
 
@@ -33,5 +31,4 @@ def main() -> None:
     try:
         cli()
     except SettingsError as exc:  # a bad V3D_* variable: one line naming it, not a traceback
-        typer.echo(f"v3d: refused: {exc}", err=True)
-        raise SystemExit(2) from None
+        raise SystemExit(fail(str(exc)).exit_code) from None

@@ -1,7 +1,7 @@
 """``v3d backup DEST`` and ``v3d restore ARCHIVE``: thin wrappers over ``app.services.backup`` (one consistent
 snapshot of the database and the store's objects it names, online; its restore into the database and store that
 ``V3D_DATABASE_URL`` and ``V3D_STORAGE_URL`` name, any engine to any engine). Progress is drawn on a terminal. A
-failure prints ``error: ...`` and exits 1 (the backup leaves no archive), a refused restore (a broken archive, a
+failure prints ``Error: ...`` and exits 1 (the backup leaves no archive), a refused restore (a broken archive, a
 target holding data, a key the store cannot hold) exits 2 and writes nothing."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Annotated, Optional
 import typer
 from sqlalchemy.exc import SQLAlchemyError
 
-from app.cli._root import cli
+from app.cli._root import cli, fail
 from app.cli.bars import StageBars
 from app.cli.datasets import DatabaseOpt, cli_settings
 from app.core.errors import ConflictError, InvalidInputError
@@ -44,11 +44,9 @@ def backup_cmd(
         refuse_unfinished_restore(engine)
         report = write_backup(engine, settings, destination, bars, local_files=not without_local_files)
     except RestoreUnfinished as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     except (OSError, ValueError) as exc:
-        typer.echo(f"error: the backup failed, no archive was written: {exc}", err=True)
-        raise typer.Exit(code=1) from None
+        raise fail(f"the backup failed, no archive was written: {exc}", 1) from None
     finally:
         if bars is not None:
             bars.close()
@@ -82,15 +80,12 @@ def restore_cmd(
             report = restore_backup(archive, settings, replace=replace, progress=bars)
             manifest = report.manifest
     except BrokenArchive as exc:
-        typer.echo(f"error: the archive is broken, nothing was restored: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(f"the archive is broken, nothing was restored: {exc}") from None
     except (ConflictError, InvalidInputError, FileNotFoundError, ValueError) as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     except (OSError, SQLAlchemyError) as exc:  # the target failed midway: marked, it refuses to serve
-        typer.echo(f"error: the restore stopped ({type(exc).__name__}: {exc}); the target refuses to serve until "
-                   f"`v3d restore {archive}` is run again and finishes", err=True)
-        raise typer.Exit(code=1) from None
+        raise fail(f"the restore stopped ({type(exc).__name__}: {exc}); the target refuses to serve until "
+                   f"`v3d restore {archive}` is run again and finishes", 1) from None
     finally:
         if bars is not None:
             bars.close()

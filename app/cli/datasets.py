@@ -5,7 +5,7 @@ The database is ``V3D_DATABASE_URL`` (or ``--database-url``); it is migrated to 
 before use. An import is a background job (``app.services.jobs.runner``) that the command creates already
 claimed and runs in its own process, drawing its progress (tqdm bars per stage); killed, the same
 command run again resumes that job (imports are idempotent). A dataset error prints
-``error: <file>: <field>: <problem>`` and exits with status 2, leaving the database unchanged, as does an import of
+``Error: <file>: <field>: <problem>`` and exits with status 2, leaving the database unchanged, as does an import of
 games stored already without ``--merge keep-newer|overwrite`` (naming them); any other failure of the job exits
 with status 1 and its message.
 """
@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Callable, Iterator, Literal, O
 
 import typer
 
-from app.cli._root import export_cli, import_cli
+from app.cli._root import export_cli, fail, import_cli
 from app.cli.bars import StageBars
 from app.cli.remote import export_tree, refuse_remote, remote_client, upload_and_wait
 from app.core.config import Settings, get_settings
@@ -73,8 +73,7 @@ def session_factory(settings: Settings) -> Iterator[Any]:
     try:
         upgrade_database(settings.database_url)
     except RestoreUnfinished as exc:  # half a backup: no command reads or writes it
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     engine = make_engine(settings.database_url)
     try:
         yield make_session_factory(engine)
@@ -113,8 +112,7 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
         finally:
             bars.close()
     if final.state is not JobState.DONE:
-        typer.echo(f"error: {final.message}", err=True)
-        raise typer.Exit(code=2 if (final.result or {}).get("invalid_input") else 1)
+        raise fail(str(final.message), 2 if (final.result or {}).get("invalid_input") else 1)
     return job_id, final.result or {}
 
 
@@ -224,8 +222,7 @@ def import_split_cmd(
         with database_session(settings) as session:
             report = import_split(session, path, set_name)
     except InvalidInputError as exc:  # DatasetError included: the file cannot be read
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     typer.echo(f"{report.frames} image(s) of {report.lines} line(s) are now in {report.set} "
                f"({report.changed} changed); {len(report.unknown)} line(s) name no stored image")
     for line in report.unknown[:20]:
@@ -248,8 +245,7 @@ def import_precise_boxes_cmd(
         with database_session(settings) as session:
             n = store_precise_boxes(session, path)
     except InvalidInputError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     typer.echo(f"stored {n} precise box(es)")
 
 
@@ -300,8 +296,7 @@ def export_soccernet_v3d_cmd(
             report = export_soccernet_v3d(session, out_dir, include_all=include_all, progress=bars,
                                           images=not no_images)
     except (InvalidInputError, ImageUnavailable) as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     finally:
         bars.close()
     typer.echo(f"exported {report.systems} system(s) of {report.games} game(s), {report.rows} row(s) "
@@ -316,8 +311,7 @@ def exported_remotely(fmt: str, out_dir: Path, include_all: bool, images: bool, 
         if client is None:
             return False
         if release is not None and include_all:
-            typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)", err=True)
-            raise typer.Exit(code=2)
+            raise fail("--all and --release exclude each other (a release holds its accepted systems)")
         written = export_tree(client, fmt, out_dir, include_all, images, release)
     of = f" of release {release}" if release is not None else ""
     typer.echo(f"exported {fmt}{of} to {out_dir}: {json.dumps(written, sort_keys=True)}")
@@ -330,8 +324,7 @@ def release_tree(settings: Settings, out_dir: Path, release: str, include_all: b
     it) unpacked under ``out_dir``; its counts. ``--all`` beside ``--release``, an unknown release, or an image that
     cannot be read end the command with the error and exit status 2."""
     if include_all:
-        typer.echo("error: --all and --release exclude each other (a release holds its accepted systems)", err=True)
-        raise typer.Exit(code=2)
+        raise fail("--all and --release exclude each other (a release holds its accepted systems)")
     return zip_tree(settings, out_dir, fmt, False, images, release)
 
 
@@ -356,8 +349,7 @@ def zip_tree(settings: Settings, out_dir: Path, fmt: str, include_all: bool, ima
             with zipfile.ZipFile(target) as zf:
                 zf.extractall(out_dir)  # member names are checked folder names (exporting.safe_component)
     except (InvalidInputError, ImageUnavailable, NotFoundError) as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     return report
 
 
@@ -383,8 +375,7 @@ def export_cameras_cmd(
         with database_session(settings) as session:
             report = export_cameras(session, out_dir, include_all=include_all)
     except InvalidInputError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     kinds = ", ".join(f"{n} {k}" for k, n in sorted(report.by_kind.items())) or "none"
     sizes = ", ".join(f"{s}: {n} view(s)" for s, n in report.sizes.items()) or "no view"
     typer.echo(f"exported {report.cameras} camera(s) to {report.out_dir} ({kinds}; {sizes}; "

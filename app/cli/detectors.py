@@ -1,6 +1,6 @@
 """``v3d export yolo|coco`` and ``v3d evaluate monocular|sensitivity``: detector data and the monocular
 3D ball benchmark (thin wrappers over ``app.services.transfer.detector_export``, ``app.services.evaluation.monocular``
-and ``app.services.evaluation.plots``). A bad input prints ``error: ...`` and exits with status 2.
+and ``app.services.evaluation.plots``). A bad input prints ``Error: ...`` and exits with status 2.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from app.cli._root import cli
+from app.cli._root import cli, fail
 from app.cli.datasets import (
     DatabaseOpt,
     cli_settings,
@@ -115,8 +115,7 @@ def evaluate_monocular_cmd(
     settings = cli_settings(database_url, None)
     estimator = estimator or default_estimator(settings.optimised_box_method)
     if (predictions is None) == (source is None) or (source is not None and cameras is not None):
-        typer.echo("error: give a predictions file or --source NAME (not both; --cameras with a file only)", err=True)
-        raise typer.Exit(code=2)
+        raise fail("give a predictions file or --source NAME (not both; --cameras with a file only)")
     try:
         with database_session(settings) as session:
             if source is not None:
@@ -132,8 +131,7 @@ def evaluate_monocular_cmd(
             views = (reference_views(session, include_all, settings.ball_diameter_m, settings.export_ball_box)
                      if plots else [])
     except InvalidInputError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     for name, rep in [("all", report), *report["splits"].items()]:
         c = rep["counts"]
         typer.echo(f"{name:5s}  AP50 {_fmt(rep['AP50'], '{:.4f}')}  MAE {_fmt(rep['MAE_m'], '{:.3f}')} m  "
@@ -173,8 +171,7 @@ def evaluate_boxes_cmd(
                 typer.echo(f"stored {store_precise_boxes(session, precise)} precise box(es)")
             report = evaluate_boxes(session, include_all, settings.ball_diameter_m)
     except InvalidInputError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     typer.echo(f"{report['views']} view(s) with a precise box")
     for k in BOX_KINDS:
         r = report[k]
@@ -283,11 +280,9 @@ def stats_yield_cmd(
         if given is not None:
             truth_balls(given)
     except DatasetError as exc:  # names the file already
-        typer.echo(f"error: --truth {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(f"--truth {exc}") from None
     except ValueError as exc:
-        typer.echo(f"error: --truth {truth}: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(f"--truth {truth}: {exc}") from None
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
         report = ball_yield(session, settings, given)
@@ -323,8 +318,7 @@ def evaluate_sensitivity_cmd(
     with database_session(settings) as session:
         views = reference_views(session, include_all, settings.ball_diameter_m, settings.export_ball_box)
     if not views:
-        typer.echo("error: no view with a 3D ball among the selected systems (accept systems, or use --all)", err=True)
-        raise typer.Exit(code=2)
+        raise fail("no view with a 3D ball among the selected systems (accept systems, or use --all)")
     study = sensitivity_curves(views, settings.ball_diameter_m, samples, estimator=estimator)
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "sensitivity.json").write_text(json.dumps(study))

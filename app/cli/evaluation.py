@@ -17,7 +17,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli
+from app.cli._root import cli, fail
 from app.datasets.files import InputFileError, JsonFile, json_files
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.camera import Camera
@@ -134,8 +134,7 @@ def jac_command(
             thresholds_px = OFFICIAL_THRESHOLDS_PX
         per_frame = score_folder(annotations, cameras, width, height, thresholds_px)
     except JaCInputError as exc:
-        typer.echo(f"Error: {exc}", err=True)
-        raise typer.Exit(code=2) from exc
+        raise fail(str(exc)) from exc
     summary = summarise(per_frame, len(thresholds_px))
     typer.echo(f"{summary['frames']} annotated frames, {summary['with_camera']} with a camera: "
                f"completeness {summary['completeness']:.4f} ({width}x{height})")
@@ -153,6 +152,5 @@ def jac_command(
         try:
             json_out.write_text(json.dumps(payload, indent=1))
         except OSError as exc:
-            typer.echo(f"Error: --json: cannot write {json_out}: {exc}", err=True)
-            raise typer.Exit(code=2) from exc
+            raise fail(f"--json: cannot write {json_out}: {exc}") from exc
         typer.echo(f"per-frame values written to {json_out}")

@@ -12,7 +12,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli
+from app.cli._root import cli, fail
 from app.cli.bars import StageBars
 from app.cli.datasets import DatabaseOpt, cli_settings, run_job_here, session_factory
 from app.cli.remote import remote_client
@@ -41,8 +41,7 @@ def list_cmd(
     try:
         wanted = JobState(state) if state else None
     except ValueError:
-        typer.echo(f"error: --state: unknown state {state!r} (queued, running, done, failed)", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(f"--state: unknown state {state!r} (queued, running, done, failed)") from None
     with remote_client() as client:
         if client is not None:
             page = client.job_page(state=state, limit=limit)
@@ -104,20 +103,17 @@ def wait_cmd(
                     try:
                         job = jobs.get_job(session, job_id)
                     except NotFoundError as exc:
-                        typer.echo(f"error: {exc}", err=True)
-                        raise typer.Exit(code=2) from None
+                        raise fail(str(exc)) from None
                 bars.job(job)
                 if job.state in (JobState.DONE, JobState.FAILED):
                     break
                 if deadline is not None and time.monotonic() >= deadline:
-                    typer.echo(f"error: job {job_id} is still {job.state.value} after {timeout:g} s", err=True)
-                    raise typer.Exit(code=1)
+                    raise fail(f"job {job_id} is still {job.state.value} after {timeout:g} s", 1)
                 time.sleep(0.5)  # a job's progress is written to its row about this often
     finally:
         bars.close()
     if job.state is JobState.FAILED:
-        typer.echo(f"error: {job.message}", err=True)
-        raise typer.Exit(code=2 if (job.result or {}).get("invalid_input") else 1)
+        raise fail(str(job.message), 2 if (job.result or {}).get("invalid_input") else 1)
     typer.echo(json.dumps(job.result, indent=2, sort_keys=True))
 
 

@@ -1,7 +1,7 @@
 """``v3d import predictions FILE [--source NAME]`` and ``v3d predictions list|remove``: a ball detector's predictions
 (thin wrappers over ``app.services.transfer.predictions``). The import is a job run here to completion (its
 progress drawn), the systems it touches recomputed (their doubts stored) before the command exits; a malformed
-file prints ``error: <file>: line <n> ...: <problem>`` and exits 2 with nothing stored.
+file prints ``Error: <file>: line <n> ...: <problem>`` and exits 2 with nothing stored.
 """
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli, import_cli
+from app.cli._root import cli, fail, import_cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session, run_job_here
 from app.cli.remote import remote_client, upload_and_wait
 from app.services.jobs.work import import_params
@@ -79,6 +79,5 @@ def remove_cmd(
     with database_session(settings) as session:
         n = remove_predictions(session, settings, source)
     if not n:
-        typer.echo(f"error: no predictions of source {source!r}", err=True)
-        raise typer.Exit(code=2)
+        raise fail(f"no predictions of source {source!r}")
     typer.echo(f"removed {n} prediction(s) of source {source!r}")

@@ -1,7 +1,7 @@
 """``v3d release create|list|show|diff|export``: thin wrappers over ``app.services.releases`` (a release of the
 accepted systems as they are now, immutable; the releases; one release; what changed between two; a release's
 export). Run by the machine's owner: the audit names the OS account; with ``--server``, through that server's API
-(``app.cli.remote``). A name taken or unknown prints ``error: ...`` and exits 2."""
+(``app.cli.remote``). A name taken or unknown prints ``Error: ...`` and exits 2."""
 from __future__ import annotations
 
 import json
@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
 
-from app.cli._root import cli
+from app.cli._root import cli, fail
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session, exported_remotely, release_tree
 from app.cli.remote import remote_client
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError
@@ -33,10 +33,6 @@ def _summary(release: "Release") -> dict[str, Any]:
                                                     "hash"})
 
 
-def _fail(exc: Exception) -> typer.Exit:
-    typer.echo(f"error: {exc}", err=True)
-    return typer.Exit(code=2)
-
 
 @release_cli.command("create")
 def create_cmd(name: Annotated[str, typer.Argument(help="The release's name (unique).")],
@@ -54,7 +50,7 @@ def create_cmd(name: Annotated[str, typer.Argument(help="The release's name (uni
         try:
             release = create_release(session, name, note, settings=settings)
         except (ConflictError, InvalidInputError) as exc:
-            raise _fail(exc) from None
+            raise fail(str(exc)) from None
         typer.echo(json.dumps(release_summary(release), indent=2))
 
 
@@ -88,7 +84,7 @@ def show_cmd(name: Annotated[str, typer.Argument(help="The release's name.")],
         try:
             typer.echo(json.dumps(release_summary(get_release(session, name)), indent=2))
         except NotFoundError as exc:
-            raise _fail(exc) from None
+            raise fail(str(exc)) from None
 
 
 @release_cli.command("diff")
@@ -111,7 +107,7 @@ def diff_cmd(a: Annotated[str, typer.Argument(help="The older release.")],
         try:
             result = diff_releases(session, a, b)
         except NotFoundError as exc:
-            raise _fail(exc) from None
+            raise fail(str(exc)) from None
         typer.echo(diff_csv(result) if as_csv else json.dumps(result.as_dict(), indent=2), nl=not as_csv)
 
 

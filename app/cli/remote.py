@@ -8,7 +8,7 @@ OUT`` (the export job's zip downloaded to the system's temporary folder and unpa
 writes it), ``release create|list|show|diff``, ``users list|add|disable``, ``jobs list|wait``, ``stats`` and ``stats
 annotators``, each with progress bars on standard error. A remote command writes nothing in its working folder but
 the OUT it was given. Any other command named with ``--server`` is refused (:func:`refuse_remote`, exit 2): it runs on
-the server's machine only. A refusal of the server (401, 403, 404, 409, 413, 422) prints ``error: <the server's
+the server's machine only. A refusal of the server (401, 403, 404, 409, 413, 422) prints ``Error: <the server's
 words>`` and exits 2; a failed job exits as the local command does (2 for invalid input, else 1), as do a server that
 does not answer and a wait past its ``--timeout`` (1).
 """
@@ -23,6 +23,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Optional
 
 import typer
+
+from app.cli._root import fail
 
 if TYPE_CHECKING:
     from v3d_client import Client, Job
@@ -50,9 +52,8 @@ def refuse_remote() -> None:
     """End a command that runs on the local database only when a server was named (exit 2, saying which run
     remotely)."""
     if _server["url"] is not None:
-        typer.echo(f"error: this command runs on the server's machine only; with --server (or V3D_URL) v3d runs: "
-                   f"{', '.join(REMOTE_COMMANDS)}", err=True)
-        raise typer.Exit(code=2)
+        raise fail(f"this command runs on the server's machine only; with --server (or V3D_URL) v3d runs: "
+                   f"{', '.join(REMOTE_COMMANDS)}")
 
 
 @contextmanager
@@ -71,21 +72,16 @@ def remote_client() -> Iterator[Optional["Client"]]:
 
     token = os.environ.get(TOKEN_ENV)
     if not token:
-        typer.echo(f"error: {TOKEN_ENV} is not set: a remote command sends an API token (v3d users add prints one)",
-                   err=True)
-        raise typer.Exit(code=2)
+        raise fail(f"{TOKEN_ENV} is not set: a remote command sends an API token (v3d users add prints one)")
     try:
         with Client(_server["url"], token) as client:
             yield client
     except JobFailed as exc:
-        typer.echo(f"error: {exc.job.message}", err=True)
-        raise typer.Exit(code=2 if (exc.job.result or {}).get("invalid_input") else 1) from None
+        raise fail(str(exc.job.message), 2 if (exc.job.result or {}).get("invalid_input") else 1) from None
     except (Unreachable, JobTimeout) as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=1) from None
+        raise fail(str(exc), 1) from None
     except V3DError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
 
 
 def wait_with_bars(client: "Client", job: "Job") -> "Job":

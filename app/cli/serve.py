@@ -26,7 +26,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli
+from app.cli._root import cli, fail
 from app.cli.remote import refuse_remote
 from app.core.config import Settings, get_settings, var_dir
 from app.services.accounts.throttle import is_loopback
@@ -139,11 +139,6 @@ def store_warning(settings: Settings) -> str | None:
     return None
 
 
-def _refuse(message: str) -> None:
-    typer.echo(f"v3d serve: refused: {message}", err=True)
-    raise typer.Exit(code=2)
-
-
 @cli.command("serve")
 def serve(
     host: Annotated[str, typer.Option(help="Interface to listen on.")] = "127.0.0.1",
@@ -163,26 +158,26 @@ def serve(
 
     if not is_loopback(host):
         if demo:
-            _refuse(f"--demo on {host!r}: the demo account (demo / demo, admin) has a public password and "
-                    "must never face a network. Serve on 127.0.0.1 to try v3d, or create a real admin "
-                    "(`v3d users add NAME --role admin`) and serve without --demo.")
+            raise fail(f"--demo on {host!r}: the demo account (demo / demo, admin) has a public password and "
+                       "must never face a network. Serve on 127.0.0.1 to try v3d, or create a real admin "
+                       "(`v3d users add NAME --role admin`) and serve without --demo.")
     refuse_remote()  # a server is served here, never through another
     settings = get_settings()
     if demo and settings.trusted_proxies:
-        _refuse("--demo with V3D_TRUSTED_PROXIES set: a reverse proxy forwards the network to this server, and the "
-                "demo account (demo / demo, admin) has a public password and must never face a network. Unset "
-                "V3D_TRUSTED_PROXIES to try v3d on this machine, or create a real admin "
-                "(`v3d users add NAME --role admin`) and serve without --demo.")
+        raise fail("--demo with V3D_TRUSTED_PROXIES set: a reverse proxy forwards the network to this server, and the "
+                   "demo account (demo / demo, admin) has a public password and must never face a network. Unset "
+                   "V3D_TRUSTED_PROXIES to try v3d on this machine, or create a real admin "
+                   "(`v3d users add NAME --role admin`) and serve without --demo.")
     try:
         upgrade_database(settings.database_url)
     except RestoreUnfinished as exc:  # half a backup is never served
-        _refuse(str(exc))
+        raise fail(str(exc)) from None
     if not is_loopback(host):
         exposed = demo_account_name(settings)
         if exposed is not None:
-            _refuse(f"the demo account {exposed!r} (public password, admin) is enabled in this database and "
-                    f"must never face a network: end it with `v3d users disable {exposed}` before serving "
-                    f"on {host!r}.")
+            raise fail(f"the demo account {exposed!r} (public password, admin) is enabled in this database and "
+                       f"must never face a network: end it with `v3d users disable {exposed}` before serving "
+                       f"on {host!r}.")
     refreshed = refresh_derived(settings)
     if refreshed:
         typer.echo(refreshed)

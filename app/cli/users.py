@@ -5,7 +5,7 @@ API with ``--server`` and an admin's ``V3D_TOKEN``), the database is ``V3D_DATAB
 ``--database-url``), migrated first. ``add`` and ``token`` print the new API token alone on the last
 line of standard output (``token`` prints its id on the line before)
 (``TOKEN=$(v3d users add ana --role annotator --password-stdin <pw | tail -n1)``); the token is shown only then. Errors
-print ``error: ...`` and exit with status 2, changing nothing.
+print ``Error: ...`` and exit with status 2, changing nothing.
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli
+from app.cli._root import cli, fail
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session
 from app.cli.remote import remote_client
 from app.core.errors import InvalidInputError, NotFoundError
@@ -22,10 +22,6 @@ from app.core.errors import InvalidInputError, NotFoundError
 users_cli = typer.Typer(help="Users, roles and API tokens.", no_args_is_help=True)
 cli.add_typer(users_cli, name="users")
 
-
-def _fail(exc: Exception) -> typer.Exit:
-    typer.echo(f"error: {exc}", err=True)
-    return typer.Exit(code=2)
 
 
 def _read_password(from_stdin: bool) -> str:
@@ -57,7 +53,7 @@ def add_cmd(
             check_new_user(session, name, role)  # before asking for a password
             user, token = create_user(session, name, role, _read_password(password_stdin))
         except InvalidInputError as exc:
-            raise _fail(exc) from None
+            raise fail(str(exc)) from None
     typer.echo(f"added {user.name} ({user.role.value}); API token (shown once, send it as Authorization: Bearer):")
     typer.echo(token)
 
@@ -77,7 +73,7 @@ def token_cmd(
         try:
             issued = issue_token(session, name, label=label, expires_days=expires_days)
         except (NotFoundError, InvalidInputError) as exc:
-            raise _fail(exc) from None
+            raise fail(str(exc)) from None
     expiry = f", expires {issued.expires_at:%Y-%m-%d %H:%M} UTC" if issued.expires_at else ""
     typer.echo(f"new API token {issued.id} of {name}{expiry} (shown once; revoke it with "
                f"`v3d users revoke {name} {issued.id}`):")
@@ -94,7 +90,7 @@ def tokens_cmd(name: Annotated[str, typer.Argument(help="An existing user.")],
         try:
             rows = list_tokens(session, name)
         except NotFoundError as exc:
-            raise _fail(exc) from None
+            raise fail(str(exc)) from None
 
     def when(t):
         return f"{t:%Y-%m-%d %H:%M}" if t else "-"
@@ -116,7 +112,7 @@ def revoke_cmd(name: Annotated[str, typer.Argument(help="The token's user.")],
         try:
             revoke_token(session, name, token_id)
         except NotFoundError as exc:
-            raise _fail(exc) from None
+            raise fail(str(exc)) from None
     typer.echo(f"token {token_id} of {name}: revoked")
 
 
@@ -131,7 +127,7 @@ def role_cmd(name: Annotated[str, typer.Argument(help="An existing user.")],
         try:
             set_role(session, name, role)
         except (NotFoundError, InvalidInputError) as exc:
-            raise _fail(exc) from None
+            raise fail(str(exc)) from None
     typer.echo(f"{name}: role {role}")
 
 
@@ -162,7 +158,7 @@ def _set_disabled(name: str, disabled: bool, database_url: str | None) -> None:
             try:
                 set_disabled(session, name, disabled)
             except NotFoundError as exc:
-                raise _fail(exc) from None
+                raise fail(str(exc)) from None
     done = ("disabled (sessions end; every API token revoked for good)" if disabled
             else "enabled (log in again; issue a new token with v3d users token)")
     typer.echo(f"{name}: {done}")

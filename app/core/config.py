@@ -363,6 +363,10 @@ class Settings(BaseSettings):
     max_image_pixels: int = Field(
         50_000_000, gt=0, description="Most pixels (width x height) an imported image or video frame may have, read "
         "from its header before anything is decoded: a larger one refuses the import (400 / exit 2) naming it.")
+    max_image_mb: float = Field(
+        256.0, gt=0, description="Most bytes an imported image file or zip member may have (MB, 2^20 bytes; a "
+        "50-megapixel PNG compresses well below the default): a larger one refuses the import (400 / exit 2) naming "
+        "the file and this setting, so that what is kept and served costs at most that much to read, streamed.")
 
     max_line_points_per_frame: int = Field(
         2000, gt=0, description="Most field-line points one edit may give a view (all its classes and polylines "

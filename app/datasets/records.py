@@ -87,8 +87,11 @@ class FrameRecord:
     #: lines give them back (``app.datasets.soccernet_v3.release_entry``); None for formats without one.
     release: dict[str, Any] | None = None
     #: The people the dataset boxed besides the ball (``app.datasets.soccernet_v3.v3_players``): ``(class, ID or
-    #: None, [x1, y1, x2, y2] px)`` each, in the file's order.
+    #: None, [x1, y1, x2, y2] px)`` each, in the file's order, at most the reader's cap of them.
     players: tuple[tuple[str, str | None, tuple[float, float, float, float]], ...] = ()
+    #: The ``bboxes`` entries besides the ball beyond the reader's cap (``V3D_MAX_PLAYERS_PER_FRAME``): counted, never
+    #: read, kept or released.
+    players_dropped: int = 0
 
 
 @dataclass(frozen=True)

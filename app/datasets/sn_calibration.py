@@ -11,6 +11,7 @@ from typing import Any, Iterator
 from app.core.errors import DatasetError
 from app.datasets.files import (
     IMAGE_SUFFIXES,
+    MAX_IMAGE_BYTES,
     MAX_IMAGE_PIXELS,
     InputFileError,
     dataset_relative,
@@ -42,7 +43,8 @@ def is_frame_file(name: str) -> bool:
     return base.endswith(".json") and base not in NOT_FRAMES and not base.startswith("camera_")
 
 
-def frame_entries(root: Path, max_pixels: int = MAX_IMAGE_PIXELS) -> Iterator[tuple[str, str, bytes, Any]]:
+def frame_entries(root: Path, max_pixels: int = MAX_IMAGE_PIXELS,
+                  max_bytes: int = MAX_IMAGE_BYTES) -> Iterator[tuple[str, str, bytes, Any]]:
     """``(frame name, where, JSON bytes, image)`` per frame file of a SoccerNet-calibration folder or
     zip, sub-folders included, in natural order of their paths (``where`` names the file,
     ``archive.zip!member`` in zips). A frame is named by its file's stem, as ``v3d jac`` pairs
@@ -69,10 +71,10 @@ def frame_entries(root: Path, max_pixels: int = MAX_IMAGE_PIXELS) -> Iterator[tu
         top = dataset_root(root)
         for f in files:
             inside_dataset(top, root / f.name, "frame file")
-        yield from _named(root, files, keys, _images(root, None, max_pixels))
+        yield from _named(root, files, keys, _images(root, None, max_pixels, max_bytes))
         return
     with open_zip(root) as zf:
-        yield from _named(root, files, keys, _images(root, zf, max_pixels))
+        yield from _named(root, files, keys, _images(root, zf, max_pixels, max_bytes))
 
 
 def _named(root: Path, files: list[Any], keys: list[PurePosixPath], images: dict[str, Any]
@@ -88,7 +90,7 @@ def _named(root: Path, files: list[Any], keys: list[PurePosixPath], images: dict
         yield name, where, f.read(), images.get(key.as_posix())
 
 
-def _images(root: Path, zf: zipfile.ZipFile | None, max_pixels: int) -> dict[str, Any]:
+def _images(root: Path, zf: zipfile.ZipFile | None, max_pixels: int, max_bytes: int) -> dict[str, Any]:
     """Path without suffix -> (loader, image source fields, where) of the images of the set (the
     folder ``root``, or the open archive ``zf`` of ``root``, whose entry names are checked first); an
     image file that resolves outside the set's folder (a link leading out) refuses the set."""
@@ -99,13 +101,14 @@ def _images(root: Path, zf: zipfile.ZipFile | None, max_pixels: int) -> dict[str
             if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file():
                 rel = p.relative_to(root).with_suffix("").as_posix()
                 source = {"image_root": str(top), "image_path": dataset_relative(top, p, "image")}
-                out.setdefault(rel, ((lambda q=p: file_image_header(q, q, max_pixels)), source, str(p)))
+                out.setdefault(rel, ((lambda q=p: file_image_header(q, q, max_pixels, max_bytes)), source, str(p)))
         return out
     source_zip = {"image_root": str(top), "image_zip": dataset_relative(top, root, "path")}
     for n in safe_names(zf, root):
         if n.lower().endswith(IMAGE_SUFFIXES):
             key = PurePosixPath(n).with_suffix("").as_posix()
-            out.setdefault(key, ((lambda m=n: member_image_header(zf, m, f"{root}!{m}", max_pixels)),
+            out.setdefault(key, ((lambda m=n: member_image_header(zf, m, f"{root}!{m}", max_pixels,
+                                                                    max_bytes)),
                                  {**source_zip, "image_member": n}, f"{root}!{n}"))
     return out
 
@@ -117,7 +120,7 @@ def _natural(name: str) -> tuple:
 
 
 def read_sn_calibration(path: str | Path, width: int | None = None, height: int | None = None,
-                        max_pixels: int = MAX_IMAGE_PIXELS) -> GameRecord:
+                        max_pixels: int = MAX_IMAGE_PIXELS, max_image_bytes: int = MAX_IMAGE_BYTES) -> GameRecord:
     """Read and validate a SoccerNet-calibration folder or zip of per-frame JSON (normalised points).
 
     Every ``<stem>.json`` of the folder or zip, sub-folders included (:func:`frame_entries`;
@@ -125,8 +128,8 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     named ``<stem>``. Image size: ``width`` and ``height`` when given, else read from the image
     ``<stem>.jpg``/``.png`` beside the JSON (in the folder or the zip), which also becomes the
     frame's image source; every such image is checked from its header (PNG or JPEG, at most
-    ``max_pixels`` pixels) whether or not the size is given. Normalised points become pixels as
-    ``x (W - 1), y (H - 1)``.
+    ``max_pixels`` pixels and ``max_image_bytes`` bytes) whether or not the size is given. Normalised points become
+    pixels as ``x (W - 1), y (H - 1)``.
 
     The game is ``sn-calibration / <parent folder name> / <folder or zip stem>``.
 
@@ -145,7 +148,7 @@ def read_sn_calibration(path: str | Path, width: int | None = None, height: int 
     systems = []
     if root.is_dir() and (root / CAMERAS_INDEX).is_file() and width is None:
         systems = list(_cameras_export_systems(root))
-    for stem, where, raw, image in frame_entries(root, max_pixels) if not systems else ():
+    for stem, where, raw, image in frame_entries(root, max_pixels, max_image_bytes) if not systems else ():
         data = load_json_bytes(raw, where)
         header = image[0]() if image is not None else None
         img_src = {**image[1], "image_type": header.type} if image is not None and header is not None else {}

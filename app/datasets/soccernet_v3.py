@@ -14,11 +14,13 @@ from __future__ import annotations
 import math
 import zipfile
 from collections.abc import Callable, Mapping
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from app.core.errors import DatasetError, EntryError
 from app.datasets.files import (
+    MAX_IMAGE_BYTES,
     MAX_IMAGE_PIXELS,
     dataset_relative,
     dataset_root,
@@ -28,6 +30,7 @@ from app.datasets.files import (
     load_json_file,
     mapping,
     member_image_header,
+    no_collections,
     open_zip,
     safe_names,
 )
@@ -140,28 +143,37 @@ def v3_lines(item: Mapping[str, Any], width: int, height: int, file: str | Path,
         raise DatasetError(file, f"{where}.{exc}", "invalid field line") from None
 
 
-def v3_players(item: Mapping[str, Any]) -> tuple[tuple[str, str | None, tuple[float, float, float, float]], ...]:
+def v3_players(item: Mapping[str, Any], cap: int | None = None
+               ) -> tuple[tuple[tuple[str, str | None, tuple[float, float, float, float]], ...], int]:
     """The people boxed in a SoccerNet-v3 frame entry besides the ball: ``(class, ID as text or None, (x1, y1, x2,
     y2) px)`` for every ``bboxes`` entry of another class with four finite coordinates and a box of positive size, in
-    order. An entry that is not one is left out, never an error: the release keeps every entry as it came, and these
-    only help place the cameras the lines cannot (``app.services.calibration.players``).
+    order, and the index of ``bboxes`` where the reading stopped. An entry that is not one is left out, never an
+    error: the release keeps every entry as it came, and these only help place the cameras the lines cannot
+    (``app.services.calibration.players``). With a ``cap``, the reading stops once ``cap`` boxes are read: what
+    follows is neither checked nor converted (:func:`beyond_the_cap` counts it), so that a flood of boxes costs its
+    parse and no more.
 
     >>> v3_players({"bboxes": [{"class": "Ball", "ID": None, "points": {"x1": 1, "y1": 1, "x2": 3, "y2": 3}},
     ...     {"class": "Player team left", "ID": 7, "points": {"x1": 10, "y1": 20, "x2": 30, "y2": 80}}]})
-    (('Player team left', '7', (10.0, 20.0, 30.0, 80.0)),)
+    ((('Player team left', '7', (10.0, 20.0, 30.0, 80.0)),), 2)
     """
     boxes = item.get("bboxes")
+    if not isinstance(boxes, list):
+        return (), 0
     out: list[tuple[str, str | None, tuple[float, float, float, float]]] = []
     isfinite = math.isfinite
+    limit = len(boxes) + 1 if cap is None else cap
     # Plain statements, no generator per box: a game has thousands of boxes, read in the import's main process.
-    for b in boxes if isinstance(boxes, list) else ():
-        if not isinstance(b, Mapping):
+    for i, b in enumerate(boxes):
+        if len(out) >= limit:
+            return tuple(out), i
+        if not isinstance(b, dict):  # a parsed JSON object (``Mapping``'s isinstance costs ten times more)
             continue
         cls = b.get("class")
         if not isinstance(cls, str) or cls == BALL_CLASS:
             continue
         pts, ident = b.get("points"), b.get("ID")
-        if not isinstance(pts, Mapping) or not isinstance(ident, (str, int, type(None))) or isinstance(ident, bool):
+        if not isinstance(pts, dict) or not isinstance(ident, (str, int, type(None))) or isinstance(ident, bool):
             continue
         try:
             x1, y1, x2, y2 = float(pts["x1"]), float(pts["y1"]), float(pts["x2"]), float(pts["y2"])
@@ -169,7 +181,19 @@ def v3_players(item: Mapping[str, Any]) -> tuple[tuple[str, str | None, tuple[fl
             continue
         if isfinite(x1) and isfinite(y1) and isfinite(x2) and isfinite(y2) and x2 > x1 and y2 > y1:
             out.append((cls[:200], None if ident is None else str(ident)[:200], (x1, y1, x2, y2)))
-    return tuple(out)
+    return tuple(out), len(boxes)
+
+
+def beyond_the_cap(bboxes: list[Any], stop: int) -> tuple[list[Any], int]:
+    """A frame's ``bboxes`` list as a release keeps it once :func:`v3_players` stopped at ``stop`` (its cap reached):
+    the entries before ``stop`` and the ball's entries after it; and how many entries it leaves out (every entry
+    after ``stop`` but the ball's: counted, not checked).
+
+    >>> beyond_the_cap([{"class": "A"}, {"class": "B"}, {"class": "Ball"}, 7], 1)
+    ([{'class': 'A'}, {'class': 'Ball'}], 2)
+    """
+    balls = [b for b in bboxes[stop:] if isinstance(b, dict) and b.get("class") == BALL_CLASS]
+    return bboxes[:stop] + balls, len(bboxes) - stop - len(balls)
 
 
 def _v3_ball(item: Mapping[str, Any], width: int, height: int, file: str | Path, where: str) -> list[float] | None:
@@ -192,12 +216,15 @@ class FrameImages:
     """Where a game's frame images are: ``Frames-v3.zip`` (members), a folder, or nowhere; each inside
     the dataset's folder ``root`` (resolved, ``app.datasets.files.dataset_root``): a zip, folder or image
     that resolves outside it (a symbolic link leading out) refuses the game. Each located image is
-    checked from its header (PNG or JPEG, at most ``max_pixels`` pixels, ``app.datasets.files.image_header``);
+    checked from its header (PNG or JPEG, at most ``max_pixels`` pixels and ``max_bytes`` bytes,
+    ``app.datasets.files.image_header``);
     the zip stays open while the game is read (use as a context manager)."""
 
-    def __init__(self, game_dir: Path, root: Path | None = None, max_pixels: int = MAX_IMAGE_PIXELS) -> None:
+    def __init__(self, game_dir: Path, root: Path | None = None, max_pixels: int = MAX_IMAGE_PIXELS,
+                 max_bytes: int = MAX_IMAGE_BYTES) -> None:
         self.root = root if root is not None else dataset_root(game_dir)
         self.max_pixels = max_pixels
+        self.max_bytes = max_bytes
         self.zip_path: Path | None = None
         self.members: set[str] = set()
         self.folders: list[Path] = []
@@ -234,7 +261,8 @@ class FrameImages:
                 PNG or JPEG image within the pixel limit (naming it).
         """
         if self.zip_path is not None and self._zf is not None and name in self.members:
-            header = member_image_header(self._zf, name, f"{self._where}!{name}", self.max_pixels)
+            header = member_image_header(self._zf, name, f"{self._where}!{name}", self.max_pixels,
+                                         self.max_bytes)
             return {"image_root": str(self.root), "image_zip": self.zip_path.relative_to(self.root).as_posix(),
                     "image_member": name, "image_type": header.type}
         if "/" not in name and "\\" not in name and ".." not in name:
@@ -242,7 +270,7 @@ class FrameImages:
                 candidate = folder / name
                 if candidate.is_file() or candidate.is_symlink():
                     relative = dataset_relative(self.root, candidate, f"image of frame {name!r}")
-                    header = file_image_header(candidate, candidate, self.max_pixels)
+                    header = file_image_header(candidate, candidate, self.max_pixels, self.max_bytes)
                     return {"image_root": str(self.root), "image_path": relative, "image_type": header.type}
         return {}
 
@@ -269,16 +297,20 @@ def find_labels(root: Path, filename: str) -> list[Path]:
     return found
 
 
-def _v3_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, images: FrameImages) -> FrameRecord:
+def _v3_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, images: FrameImages,
+              max_players: int | None = None) -> FrameRecord:
     where = f"{section}[{name!r}]"
     item = mapping(item, file, where)
     width, height = image_size_field(item.get("imageMetadata"), file, f"{where}.imageMetadata")
     lines = v3_lines(item, width, height, file, where)
+    ball_box = _v3_ball(item, width, height, file, where)
+    players, stop = v3_players(item, max_players)
+    release, dropped = release_entry(item, lines), 0
+    if stop < len(item.get("bboxes") or ()):  # the cap reached: what lies beyond it is counted, not kept
+        release["bboxes"], dropped = beyond_the_cap(item["bboxes"], stop)
     return FrameRecord(
-        name=name, role=role, width=width, height=height, lines=lines,
-        ball_box=_v3_ball(item, width, height, file, where), release=release_entry(item, lines),
-        players=v3_players(item),
-        **images.locate(name),
+        name=name, role=role, width=width, height=height, lines=lines, ball_box=ball_box, release=release,
+        players=players, players_dropped=dropped, **images.locate(name),
     )
 
 
@@ -342,18 +374,24 @@ def soccernet_v3_labels(path: str | Path) -> list[Path]:
     return found
 
 
-def read_soccernet_v3_game(labels: Path, root: Path | None = None, max_pixels: int = MAX_IMAGE_PIXELS) -> GameRecord:
+def read_soccernet_v3_game(labels: Path, root: Path | None = None, max_pixels: int = MAX_IMAGE_PIXELS,
+                           max_players: int | None = None, max_image_bytes: int = MAX_IMAGE_BYTES) -> GameRecord:
     """Read and validate one game's ``Labels-v3.json`` (see :func:`read_soccernet_v3`); ``root`` is the
     imported folder (resolved, :func:`app.datasets.files.dataset_root`; default: the game's folder),
     which every file read must resolve inside; each frame image is a PNG or JPEG of at most ``max_pixels``
-    pixels (``V3D_MAX_IMAGE_PIXELS``), read from its header.
+    pixels (``V3D_MAX_IMAGE_PIXELS``), read from its header, and of at most ``max_image_bytes`` bytes
+    (``V3D_MAX_IMAGE_MB``). A frame keeps at most ``max_players`` player boxes (``V3D_MAX_PLAYERS_PER_FRAME``; None:
+    all), the first in the file's order: the rest are counted (``FrameRecord.players_dropped``), not read.
 
     Raises:
         DatasetError: naming the file and field.
     """
     root = root if root is not None else dataset_root(labels.parent)
     league, season, match = game_key(labels.parent)
-    data = load_json_file(inside_dataset(root, labels, V3_LABELS))
-    with FrameImages(labels.parent, root, max_pixels) as images:
-        systems = v3_systems(labels, data, images)
-    return GameRecord(league, season, match, str(labels.parent.resolve()), systems, game_release(data, systems))
+    with no_collections():  # the parsed document, every box of a flood, is dropped before a collection sees it
+        data = load_json_file(inside_dataset(root, labels, V3_LABELS))
+        with FrameImages(labels.parent, root, max_pixels, max_image_bytes) as images:
+            systems = v3_systems(labels, data, images, partial(_v3_frame, max_players=max_players))
+        game = GameRecord(league, season, match, str(labels.parent.resolve()), systems, game_release(data, systems))
+        del data
+    return game

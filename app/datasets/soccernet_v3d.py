@@ -24,6 +24,7 @@ from typing import Any, Mapping
 from app.core.errors import DatasetError, EntryError
 from app.datasets.csv_cells import read_cell
 from app.datasets.files import (
+    MAX_IMAGE_BYTES,
     MAX_IMAGE_PIXELS,
     dataset_root,
     file_image_header,
@@ -280,14 +281,15 @@ def _exported_image(image: Any, file: Path, where: str, images: FrameImages) -> 
         with open_zip(resolved) as zf:
             if member not in safe_names(zf, resolved):
                 return {}
-            header = member_image_header(zf, member, f"{zip_path}!{member}", images.max_pixels)
+            header = member_image_header(zf, member, f"{zip_path}!{member}", images.max_pixels,
+                                         images.max_bytes)
         return {"image_root": str(root), "image_zip": resolved.relative_to(root).as_posix(),
                 "image_member": member, "image_type": header.type}
     if isinstance(path, str):
         resolved = inside_dataset(root, file.parent / path, f"{where}.path")
         if not resolved.is_file():
             return {}
-        header = file_image_header(resolved, path, images.max_pixels)
+        header = file_image_header(resolved, path, images.max_pixels, images.max_bytes)
         return {"image_root": str(root), "image_path": resolved.relative_to(root).as_posix(), "image_type": header.type}
     return {}
 
@@ -343,12 +345,13 @@ def _v3d_frame(file: Path, section: str, name: str, item: Any, role: FrameRole, 
     return FrameRecord(
         name=name, role=role, width=width, height=height, lines=lines,
         ball_box=box, ball_point=point, calibration=_v3d_calibration(item, file, where),
-        original_lines=original_lines, original_ball=original, release=release, players=v3_players(item),
+        original_lines=original_lines, original_ball=original, release=release, players=v3_players(item)[0],
         **(images.locate(name) or exported),
     )
 
 
-def read_soccernet_v3d(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> list[GameRecord]:
+def read_soccernet_v3d(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS,
+                       max_image_bytes: int = MAX_IMAGE_BYTES) -> list[GameRecord]:
     """Read and validate a SoccerNet-v3D tree: ``Labels-v3D.json`` per game and ``SNv3D.csv`` at the
     root (``path``), as :func:`app.services.transfer.exporting.export_soccernet_v3d` writes them.
 
@@ -376,7 +379,7 @@ def read_soccernet_v3d(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> 
 
         data = load_json_file(inside_dataset(top, labels, V3D_LABELS))
         reader = partial(_v3d_frame, rows=rows, csv_path=csv_path, game=(league, season, match))
-        with FrameImages(labels.parent, top, max_pixels) as images:
+        with FrameImages(labels.parent, top, max_pixels, max_image_bytes) as images:
             systems = v3_systems(labels, data, images, reader)
         meta = mapping(mapping(data, labels, "top level").get("GameMetadata", {}), labels, "GameMetadata")
         release = game_release(data, systems)

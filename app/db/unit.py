@@ -29,14 +29,17 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator
-from typing import Any, Optional
+from typing import Any, Callable, Optional, TypeVar
 
 from sqlalchemy import event, inspect
+from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session
 
 from app.db.models import Calibration, Frame, Game, ReviewDecision, ReviewStatus, System
 from app.db.scope import GAME_COLUMNS, RIG_KINDS, UNVERSIONED_COLUMNS, system_tables
-from app.db.session import begin_write
+from app.db.session import begin_write, is_lock_timeout
+
+T = TypeVar("T")
 
 #: Check the version invariant at every flush of a write unit (module docstring). Off in production; the tests'
 #: configuration (``tests/conftest.py``) turns it on for the whole suite.
@@ -105,6 +108,29 @@ def write_unit(session: Session, *, lock: bool = True) -> Iterator[WriteUnit]:
         raise
     finally:
         event.remove(session, "before_flush", unit.before_flush)
+
+
+def computed_then_written(session: Session, work: Callable[[], T], undo: Callable[[], None]) -> T:
+    """``work()`` in a write unit that reads and computes before it writes (``lock=False``: other writers go on
+    meanwhile); when its writing fails because the write lock is another's (SQLite: another connection committed
+    after this transaction's first read, and WAL cannot upgrade a stale snapshot, or held the lock past the busy
+    timeout; :func:`app.db.session.is_lock_timeout`), everything is rolled back, ``undo()`` puts back what ``work``
+    changed outside the database, and ``work()`` runs once more in a unit holding the write lock from its start,
+    where no other writer can land: the other writers wait for it (or answer 503 past their timeout), and it never
+    fails for them. What else ``work`` raises propagates, rolled back.
+
+    Raises:
+        What the second ``work()`` or its write unit raises.
+    """
+    try:
+        with write_unit(session, lock=False):
+            return work()
+    except OperationalError as exc:
+        if not is_lock_timeout(exc):
+            raise
+    undo()
+    with write_unit(session):
+        return work()
 
 
 class _VersionCheck:

@@ -90,7 +90,7 @@ def test_bad_input_exits_2_with_the_file_and_field_and_stores_nothing(shared_dir
     result = runner.invoke(cli, ["import", "sn-calibration", str(archive), "--width", "960", "--height", "540",
                                  "--database-url", url])
     assert result.exit_code == 2
-    assert "error:" in result.output and "evil.zip" in result.output and "'../../escape.json'" in result.output
+    assert "Error:" in result.output and "evil.zip" in result.output and "'../../escape.json'" in result.output
     assert _count(url, "games") == 0
 
     game_dir = write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",))
@@ -115,7 +115,7 @@ def test_each_bad_label_exits_2_naming_file_and_field(shared_dir, tmp_path, url,
     write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",), edit=edit)
     result = runner.invoke(cli, ["import", "soccernet-v3", str(tmp_path / "v3"), "--database-url", url])
     assert result.exit_code == 2
-    assert "error:" in result.output and "Labels-v3.json" in result.output
+    assert "Error:" in result.output and "Labels-v3.json" in result.output
     assert field in result.output and detail in result.output
     assert _count(url, "games") == 0
 

@@ -31,7 +31,7 @@ def test_import_jobs_are_listed_with_their_outcome(shared_dir: Path, tmp_path: P
                                    extra={"9.json": b'{"Middle line": [{"x": "a", "y": 0.2}]}'})
     failed = runner.invoke(cli, ["import", "sn-calibration", str(broken), "--width", "960", "--height", "540",
                                  "--database-url", url, "--workers", "1"])
-    assert failed.exit_code == 2 and "error: " in failed.output and "9.json" in failed.output, failed.output
+    assert failed.exit_code == 2 and "Error: " in failed.output and "9.json" in failed.output, failed.output
     listed = runner.invoke(cli, ["jobs", "list", "--database-url", url])
     assert listed.exit_code == 0, listed.output
     lines = listed.output.splitlines()

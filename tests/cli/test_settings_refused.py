@@ -27,7 +27,7 @@ def test_serve_refuses_bad_settings_in_one_line(tmp_path: Path) -> None:
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 2, (done.stdout, done.stderr)
     assert done.stdout == "" and done.stderr.count("\n") == 1, done.stderr
-    assert done.stderr.startswith("v3d: refused: "), done.stderr
+    assert done.stderr.startswith("Error: "), done.stderr
     assert NODE_WORDS in done.stderr and STORE_WORDS + "a file URL names a folder of this machine" in done.stderr
     assert not (tmp_path / "v3d.sqlite3").exists()  # refused before the database is made
 

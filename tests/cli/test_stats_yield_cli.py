@@ -1,5 +1,5 @@
 """``v3d stats yield --truth``: a truth file that is not a synthetic set's truth, whatever its shape or size, exits 2
-printing ``error: --truth <file>: ...`` with words naming the place, before any database is opened: never a
+printing ``Error: --truth <file>: ...`` with words naming the place, before any database is opened: never a
 traceback, never a count of the systems it could not read."""
 from __future__ import annotations
 
@@ -49,6 +49,6 @@ def test_a_truth_file_of_the_wrong_shape_exits_2_in_words(tmp_path: Path, text: 
     res = runner.invoke(cli, ["stats", "yield", "--truth", str(truth), "--database-url", f"sqlite:///{never_opened}"])
     assert res.exit_code == 2, (res.output, res.exception)
     lines = res.output.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"error: --truth {truth}: ") and words in lines[0], res.output
+    assert len(lines) == 1 and lines[0].startswith(f"Error: --truth {truth}: ") and words in lines[0], res.output
     assert "Traceback" not in res.output and "with a 3D ball" not in res.output
     assert not never_opened.exists()  # refused before the database is touched

@@ -67,9 +67,9 @@ def test_list_token_and_disable(url: str) -> None:
 def test_errors_are_clear_and_change_nothing(url: str) -> None:
     assert _add(url, "eve", "annotator").exit_code == 0
     duplicate = _add(url, "eve", "admin")
-    assert duplicate.exit_code == 2 and "error: name: a user named 'eve' already exists" in duplicate.stderr
+    assert duplicate.exit_code == 2 and "Error: name: a user named 'eve' already exists" in duplicate.stderr
     role = _add(url, "fay", "boss")
-    assert role.exit_code == 2 and "error: role: unknown role 'boss'; one of annotator, reviewer, admin" in role.stderr
+    assert role.exit_code == 2 and "Error: role: unknown role 'boss'; one of annotator, reviewer, admin" in role.stderr
     missing = runner.invoke(cli, ["users", "token", "nobody", "--database-url", url])
     assert missing.exit_code == 2 and "user 'nobody' not found" in missing.stderr
     listed = runner.invoke(cli, ["users", "list", "--database-url", url]).stdout
@@ -99,7 +99,7 @@ def test_tokens_are_labelled_listed_and_revoked_and_roles_change(url: str) -> No
     assert runner.invoke(cli, ["users", "tokens", "gil", "--database-url", url]).stdout.splitlines()[2].split()[-1] \
         == "revoked"
     bad_role = runner.invoke(cli, ["users", "role", "gil", "boss", "--database-url", url])
-    assert bad_role.exit_code == 2 and "error: role: unknown role 'boss'" in bad_role.stderr
+    assert bad_role.exit_code == 2 and "Error: role: unknown role 'boss'" in bad_role.stderr
     bad_id = runner.invoke(cli, ["users", "revoke", "gil", "99999", "--database-url", url])
     assert bad_id.exit_code == 2 and "token 99999 not found" in bad_id.stderr
     bad_days = runner.invoke(cli, ["users", "token", "gil", "--expires-days", "0", "--database-url", url])
@@ -114,6 +114,6 @@ def test_reserved_names_and_names_differing_only_by_case_or_dots_are_refused(url
                       ("Eve", "a user named 'eve' exists: names that differ only by case or trailing dots"),
                       ("eve..", "a user named 'eve' exists")):
         refused = _add(url, name, "annotator")
-        assert refused.exit_code == 2 and f"error: name: {why}" in refused.stderr, (name, refused.stderr)
+        assert refused.exit_code == 2 and f"Error: name: {why}" in refused.stderr, (name, refused.stderr)
     listed = runner.invoke(cli, ["users", "list", "--database-url", url]).stdout
     assert [line.split()[0] for line in listed.splitlines()[1:]] == ["eve"]

@@ -169,7 +169,7 @@ def test_a_refusal_exits_2_with_the_servers_words(cli: typer.Typer, served_demo:
         words = detail if isinstance(detail, str) else detail[0]["msg"]
         code, out = v3d(cli, served_demo, *args, role=role, token=token, stdin="pw pw pw pw\n")
         assert code == 2, out
-        assert f"error: {answer.status_code}: " in out and words in out, (out, words)
+        assert f"Error: {answer.status_code}: " in out and words in out, (out, words)
     assert list(elsewhere.iterdir()) == []
 
 

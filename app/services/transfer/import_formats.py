@@ -29,9 +29,11 @@ from app.db.models import Game
 from app.services.transfer.archives import MAX_UPLOAD_SETTING
 from app.services.transfer.importing import (
     ImportReport,
+    image_bytes,
     import_sn_calibration,
     import_soccernet_v3,
     import_soccernet_v3d,
+    reading_limits,
 )
 from app.services.transfer.merging import MERGE_MODES
 
@@ -171,16 +173,17 @@ def _calibration_games(path: Path) -> list[GameKey]:
 def _v3_read(path: Path, options: Mapping[str, Any], settings: Settings) -> object:
     root = dataset_root(path)
     for labels in soccernet_v3_labels(path):  # one game at a time, dropped, as the import validates them
-        read_soccernet_v3_game(labels, root, settings.max_image_pixels)
+        read_soccernet_v3_game(labels, root, **reading_limits(settings))
     return None
 
 
 def _v3d_read(path: Path, options: Mapping[str, Any], settings: Settings) -> object:
-    return read_soccernet_v3d(path, settings.max_image_pixels)
+    return read_soccernet_v3d(path, settings.max_image_pixels, image_bytes(settings))
 
 
 def _calibration_read(path: Path, options: Mapping[str, Any], settings: Settings) -> object:
-    return read_sn_calibration(path, options.get("width"), options.get("height"), settings.max_image_pixels)
+    return read_sn_calibration(path, options.get("width"), options.get("height"), settings.max_image_pixels,
+                               image_bytes(settings))
 
 
 def _v3(session: Session, path: str | Path, settings: Settings, options: Mapping[str, Any],

@@ -5,8 +5,9 @@ Every importer works in two phases so that bad input stores nothing:
 1. **read and validate** the whole input into plain records (``app.datasets``:
    :func:`read_soccernet_v3`, :func:`read_sn_calibration`, :func:`read_soccernet_v3d`); any problem
    raises :class:`~app.core.errors.DatasetError` naming the file and the field. A SoccerNet-v3
-   tree is validated game by game and its records dropped; each batch is read again when it is
-   stored, so memory holds two batches of records, not the whole tree. A game read alone whose labels hold an
+   tree is validated game by game and its records dropped, but the first batch's, kept for its storing; each
+   other batch is read again when it is stored, so memory holds two batches of records, not the whole tree (and an
+   input of one batch, most uploads, is read once). A game read alone whose labels hold an
    entry the shared label check refuses (:class:`~app.core.errors.EntryError`: a ball box beyond its image's
    plausible range, NaN, ...) is left out and named in the report (``skipped_games``: file, entry, why); the other
    games import;
@@ -19,13 +20,17 @@ Every importer works in two phases so that bad input stores nothing:
    ``keep-newer`` keeps what a person changed after what the file holds; one audit entry per system it
    changes). In each batch the frames whose lines are new or changed are calibrated in the import's
    process pool before the batch's first write, then the batch is written, its touched systems
-   recomputed (``app.services.derivation.recompute``) and committed, or rolled back. The pool does not
+   recomputed (``app.services.derivation.recompute``) and committed, or rolled back. Another writer that commits
+   while a batch calibrates (an edit, a page's presence claim, a login) never fails it: on SQLite such a batch cannot
+   write any more, and runs again once holding the write lock from its start (``app.db.unit.computed_then_written``),
+   the other writers waiting for it then. The pool does not
    wait meanwhile: the first pass of the next batch's new games is calibrating
    (``app.services.calibration.first_pass``) while this process stores the current batch.
 
 What a release carries that v3d does not edit (``GameMetadata``, each frame's ``imageMetadata`` and every
-``bboxes`` entry, the links) is stored as it came (``games.release``, ``frames.release``) and refreshed by a
-re-import; the exports write it back without reading the source files.
+``bboxes`` entry up to ``V3D_MAX_PLAYERS_PER_FRAME`` player boxes, the links) is stored as it came
+(``games.release``, ``frames.release``) and refreshed by a re-import; the exports write it back without reading the
+source files.
 
 Images are never extracted: a frame stores the dataset's folder and, relative to it, the zip path and
 member name (or a file path); the readers refuse a file that resolves outside the imported folder.
@@ -36,6 +41,7 @@ batch's own transaction; a frame whose labels or lines it changes gets a new edi
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import gc
 import threading
@@ -66,7 +72,7 @@ from app.db.models import (
 )
 from app.db.session import refresh_statistics
 from app.db.types import utcnow
-from app.db.unit import write_unit
+from app.db.unit import computed_then_written
 from app.geometry.calibration.result import PLAYERS_FLAG, PRIOR_FLAG, RADIAL_PRIOR_FLAG, RIG_FLAG
 from app.services.audit.log import record_summary
 from app.services.calibration.calibrating import apply_calibration
@@ -278,6 +284,23 @@ def _write_batch(session: Session, merged: MergedBatch, results: list[Calibratio
     report.systems_merged += sum(merge.record(session) for merge in merged.merges)
 
 
+def _store_audited(session: Session, records: list[GameRecord], settings: Settings, report: ImportReport,
+                   progress: Progress | None, pool: CalibrationPool, ahead: list[FirstPassAhead | None],
+                   after_calibration: Callable[[], None], *, merge: str, actor: str | None,
+                   audit: dict[str, int]) -> None:
+    """:func:`_store` of one batch (with ``ahead``'s calibrations, taken by the first call only) and its audit
+    entry: every committed batch is audited in its own transaction, so that a crash after it leaves the entry of what
+    was stored (the counts so far and ``audit``, the batch's number; the last one carries the totals)."""
+    _store(session, records, settings, report, progress, pool, ahead.pop() if ahead else None, after_calibration,
+           mode=merge, actor=actor)
+    record_summary(session, "import", {**audit_counts(report), **audit}, actor=actor)
+
+
+def _put_back(report: ImportReport, before: ImportReport) -> None:
+    """``report``'s counts as they were ``before`` a batch's try that was rolled back."""
+    vars(report).update(vars(copy.deepcopy(before)))
+
+
 def _by_players(frame: Frame) -> bool:
     return frame.calibration is not None and PLAYERS_FLAG in (frame.calibration.flags or [])
 
@@ -321,6 +344,18 @@ def audit_counts(report: ImportReport) -> dict[str, object]:
             "calibrated": report.calibrated, "refused": report.refused, "triangulated": report.triangulated}
 
 
+def image_bytes(settings: Settings) -> int:
+    """``V3D_MAX_IMAGE_MB`` in bytes: the most an imported image file or zip member may have."""
+    return int(settings.max_image_mb * (1 << 20))
+
+
+def reading_limits(settings: Settings) -> dict[str, int]:
+    """The limits :func:`app.datasets.soccernet_v3.read_soccernet_v3_game` reads a game within, from ``settings``:
+    pixels and bytes an image, player boxes a frame (those beyond are counted, never read)."""
+    return {"max_pixels": settings.max_image_pixels, "max_players": settings.max_players_per_frame,
+            "max_image_bytes": image_bytes(settings)}
+
+
 def _within_view_cap(rec: GameRecord, settings: Settings, skipped: list[str] | None = None) -> GameRecord:
     """The game ``rec`` without its systems of more than ``settings.max_views_per_system`` views (the
     pairwise work grows with the square of the views), each named with its count in ``skipped`` when given.
@@ -338,11 +373,14 @@ def _within_view_cap(rec: GameRecord, settings: Settings, skipped: list[str] | N
 def _within_player_cap(rec: GameRecord, settings: Settings) -> tuple[GameRecord, int]:
     """The game ``rec`` with at most ``settings.max_players_per_frame`` player boxes a frame, the first in the file's
     order (they only help place the cameras the lines cannot; a real frame boxes a few dozen people), and how many
-    boxes were left out. A frame's release entry keeps what the file gave."""
+    boxes were left out: those the reader counted without reading them (``FrameRecord.players_dropped``: the
+    SoccerNet-v3 reader stops at the cap and keeps no box past it for a release), and those of a reader without the
+    cap, dropped here."""
     cap = settings.max_players_per_frame
+    counted = sum(f.players_dropped for s in rec.systems for f in s.frames)  # by a reader that stopped at the cap
     if all(len(f.players) <= cap for s in rec.systems for f in s.frames):
-        return rec, 0
-    dropped = sum(max(0, len(f.players) - cap) for s in rec.systems for f in s.frames)
+        return rec, counted
+    dropped = counted + sum(max(0, len(f.players) - cap) for s in rec.systems for f in s.frames)
     systems = [dataclasses.replace(s, frames=[dataclasses.replace(f, players=f.players[:cap])
                                               if len(f.players) > cap else f for f in s.frames])
                for s in rec.systems]
@@ -365,13 +403,18 @@ def _dataset_name(file: str | Path, path: str | Path) -> str:
 
 
 def _read_all(path: str | Path, settings: Settings, progress: Progress | None, games: Callable[[], list[GameReader]],
-              source_name: str | None, t0: float) -> tuple[ImportReport, list[GameReader], list[int]]:
-    """The validation of an import, before anything is written: every game read once (``progress("read", ...)``) and
-    dropped, a game with a refused entry left out and named; the report so far, a reader of each game kept (within
-    the view cap) and its number of frames."""
+              source_name: str | None, t0: float
+              ) -> tuple[ImportReport, list[GameReader], list[int], list[GameRecord]]:
+    """The validation of an import, before anything is written: every game read once (``progress("read", ...)``), a
+    game with a refused entry left out and named; the report so far, a reader of each game kept (within the view
+    cap), its number of frames, and the records of the first batch's games (as :func:`_batches` groups them), kept
+    as read so that the batch is not read again (a labels file of 120,000 boxes costs its parse once); the other
+    games are dropped once read, so that memory holds one batch of records meanwhile."""
     report = ImportReport(source=str(path), source_name=source_name or Path(path).name)
     frames_per_game: list[int] = []
     readers: list[GameReader] = []
+    first: list[GameRecord] = []
+    first_frames, first_full = 0, False
     listed = list(games())
     for n_read, read in enumerate(listed):  # validation: raises before anything is written
         if progress:  # "reading": the first stage a job shows, from its first second
@@ -384,15 +427,20 @@ def _read_all(path: str | Path, settings: Settings, progress: Progress | None, g
         report.systems += len(rec.systems)
         rec, dropped = _within_player_cap(_within_view_cap(rec, settings, report.skipped_systems), settings)
         report.players_dropped += dropped
-        frames_per_game.append(sum(len(s.frames) for s in rec.systems))
+        frames = sum(len(s.frames) for s in rec.systems)
+        frames_per_game.append(frames)
         report.frames_without_image += sum(1 for s in rec.systems for f in s.frames
                                            if not (f.image_zip or f.image_path))
         readers.append(partial(_read_within_view_cap, read, settings))
+        first_full = first_full or bool(first) and first_frames + frames > settings.import_batch_frames
+        if not first_full:  # :func:`_batches`' rule: the first batch goes on while its frames fit
+            first.append(rec)
+            first_frames += frames
         del rec
     report.read_seconds = time.perf_counter() - t0
     report.games = len(readers)
     report.frames = sum(frames_per_game)
-    return report, readers, frames_per_game
+    return report, readers, frames_per_game, first
 
 
 #: The full collections' threshold while an import stores its batches (:func:`_full_collections_by_batch`): in effect
@@ -440,48 +488,51 @@ def _run(session: Session, path: str | Path, settings: Settings, progress: Progr
     batches of whole games (``settings.import_batch_frames`` frames or so: a crash leaves whole games
     stored or not at all), each calibrated, recomputed and committed before the next is stored; the
     calibration processes serve every batch. ``games`` lists the input's games as readers: the
-    validation reads each once and drops it, and each batch is read again when its calibration
-    starts, so memory holds two batches of records, not the whole input (an input file changed
-    meanwhile can still fail the import then, after whole games were stored; running it again
-    completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
+    validation reads each once and drops it (but the first batch's games, stored as it read them), and each
+    other batch is read again when its calibration starts, so memory holds two batches of records, not the whole
+    input (an input file changed meanwhile can still fail the import then, after whole games were stored; running it
+    again completes it). With more than one batch ``progress`` reports the stage "games" (games stored /
     total) instead of the inner stages of each batch. Each batch writes its audit entry (by ``actor``,
     None: the local user) in its own transaction, with one entry per stored system it merged by ``merge``
     (``app.services.transfer.merging``). Before all that, ``progress("read", games read, games)`` while the input is
     read and validated. While the batches are stored the garbage is collected once per batch
     (:func:`_full_collections_by_batch`)."""
     t0 = time.perf_counter()
-    report, readers, frames_per_game = _read_all(path, settings, progress, games, source_name, t0)
+    report, readers, frames_per_game, first = _read_all(path, settings, progress, games, source_name, t0)
     batches = [[readers[i] for i in group] for group in _batches(frames_per_game, settings.import_batch_frames)]
     total_batches, batch_number = len(batches), 1
     calibration_ms: list[float] = []
     calibration_seconds = 0.0
     done = 0
     with calibration_pool(settings.calibration_workers) as pool, _full_collections_by_batch():
-        loaded = [read() for read in batches.pop(0)] if batches else None
+        if batches:  # the first batch as the validation read it (the same games: ``_read_all``)
+            group = batches.pop(0)
+            loaded = first if len(first) == len(group) else [read() for read in group]
+            del first, group
+        else:
+            loaded = None
         ahead = start_first_pass(session, loaded, pool, settings) if loaded else None
         # the next batch and its calibration once ``start_next`` started them (reset for every batch)
         following: list[list[GameRecord] | None] = [None]
         started: list[FirstPassAhead | None] = [None]
 
-        def start_next() -> None:  # the next batch calibrates while this one is stored
-            if batches:
+        def start_next() -> None:  # the next batch calibrates while this one is stored (once, whatever the tries)
+            if batches and following[0] is None:
                 following[0] = records = [read() for read in batches.pop(0)]
                 started[0] = start_first_pass(session, records, pool, settings)
 
         while loaded is not None:
             batch, last = loaded, not batches
             following[0], started[0] = None, None
-            with write_unit(session, lock=False):
-                _store(session, batch, settings, report, progress if last and done == 0 else None, pool,
-                       ahead, start_next, mode=merge, actor=actor)
-                ahead, loaded = started[0], following[0]
-                if loaded is None and batches:  # not started ahead
-                    loaded = [read() for read in batches.pop(0)]
-                # every committed batch is audited in its own transaction: a crash after it leaves the entry
-                # of what was stored (the counts so far, the batch's number; the last one carries the totals)
-                record_summary(session, "import", {**audit_counts(report), "batch": batch_number,
-                                                   "batches": total_batches, "batch_games": len(batch)},
-                               actor=actor)
+            # a second try (the first met another writer, ``computed_then_written``) calibrates again, nothing ahead
+            store = partial(_store_audited, session, batch, settings, report,
+                            progress if last and done == 0 else None, pool, [ahead], start_next, merge=merge,
+                            actor=actor, audit={"batch": batch_number, "batches": total_batches,
+                                                "batch_games": len(batch)})
+            computed_then_written(session, store, partial(_put_back, report, copy.deepcopy(report)))
+            ahead, loaded = started[0], following[0]
+            if loaded is None and batches:  # not started ahead
+                loaded = [read() for read in batches.pop(0)]
             batch_number += 1
             session.expunge_all()
             gc.collect()  # what the batch leaves, once (``_full_collections_by_batch``)
@@ -517,7 +568,7 @@ def import_soccernet_v3(session: Session, path: str | Path, settings: Settings,
         DatasetError: invalid input (nothing is stored).
     """
     return _run(session, path, settings, progress,
-                lambda: [partial(read_soccernet_v3_game, labels, dataset_root(path), settings.max_image_pixels)
+                lambda: [partial(read_soccernet_v3_game, labels, dataset_root(path), **reading_limits(settings))
                          for labels in soccernet_v3_labels(path)], actor, source_name, merge)
 
 
@@ -534,7 +585,8 @@ def import_sn_calibration(session: Session, path: str | Path, settings: Settings
         DatasetError: invalid input (nothing is stored).
     """
     return _run(session, path, settings, progress,
-                lambda: _held([read_sn_calibration(path, width, height, settings.max_image_pixels)]),
+                lambda: _held([read_sn_calibration(path, width, height, settings.max_image_pixels,
+                                                   image_bytes(settings))]),
                 actor, source_name, merge)
 
 
@@ -551,5 +603,6 @@ def import_soccernet_v3d(session: Session, path: str | Path, settings: Settings,
     Raises:
         DatasetError: invalid input (nothing is stored).
     """
-    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path, settings.max_image_pixels)),
+    return _run(session, path, settings, progress, lambda: _held(read_soccernet_v3d(path, settings.max_image_pixels,
+                                                                                      image_bytes(settings))),
                 actor, source_name, merge)

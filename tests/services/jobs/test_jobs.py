@@ -176,3 +176,56 @@ def test_token_bookkeeping_never_fails_an_import_and_a_failed_job_says_words(sha
     assert failed.state == JobState.FAILED
     assert failed.message.startswith("The database stayed busy with other writes"), failed.message
     assert not any(w in failed.message for w in ("[SQL", "BEGIN", "sqlalche.me", "?", "OperationalError"))
+
+
+def test_a_page_claiming_its_system_during_an_import_batch_never_fails_the_import(shared_dir: Path, tmp_path: Path,
+                                                                                  factory) -> None:
+    """A reviewer's page keeps claiming the system it has open (``app.services.curation.presence``: a write every
+    30 s) while an import runs: on SQLite such a commit between an import batch's first read and its first write
+    failed the batch, each of the job's runs again met the next one, and the import failed. The batch now runs again
+    once holding the write lock from its start: the claims landing then wait for it, the import is done in one run of
+    its job, and every claim is stored."""
+    import threading
+
+    from app.db.models import System, SystemPresence
+    from app.services.accounts import users
+    from app.services.curation import presence
+    from app.services.jobs.work import import_params
+    from app.services.transfer.importing import import_soccernet_v3
+
+    url, make = factory
+    settings = Settings(database_url=url, calibration_workers=1)
+    owner = jobs.owner_name(settings)
+    with make() as session:
+        import_soccernet_v3(session, write_v3_game(shared_dir, tmp_path / "open").parent.parent.parent, settings)
+        system_id = session.scalars(sa.select(System.id).order_by(System.id)).first()
+        reviewer = users.create_user(session, "rev", "reviewer", "pw")[0].id
+        other = write_v3_game(shared_dir, tmp_path / "next", game=("league", "season", "next match"),
+                              with_images=False)
+        job_id = jobs.submit(session, "import", import_params("soccernet-v3", other.parent.parent.parent),
+                             owner=owner).id
+    claims: list[threading.Thread] = []
+    answers: list[object] = []
+
+    def claim(k: int) -> None:  # one heartbeat of the page, its claim due (30 s after the last)
+        try:
+            with make() as s:
+                answers.append(presence.claim(s, system_id, reviewer, utcnow() + timedelta(seconds=31 * k)).wrote)
+        except Exception as exc:  # noqa: BLE001  # the request's failure, asserted on below
+            answers.append(exc)
+
+    def heartbeat(stage: str, done: int, total: int) -> None:  # inside the batch: read, not written yet
+        if stage == "calibrate":
+            claims.append(threading.Thread(target=claim, args=(len(claims),)))
+            claims[-1].start()
+            claims[-1].join(timeout=0.5)  # committed unless it waits for the import's write lock
+
+    job = jobs.run_job(make, job_id, settings, owner, progress=heartbeat)
+    for t in claims:
+        t.join(timeout=120)
+    assert (job.state, job.message) == (JobState.DONE, None), job.message
+    assert job.result["systems"] == 3 and claims
+    assert answers == [True] * len(claims)  # every claim written: after the batch when it landed in its retry
+    with make() as session:
+        assert session.scalar(sa.select(sa.func.count(Game.id))) == 2
+        assert session.scalar(sa.select(SystemPresence.expires_at)) is not None

@@ -18,7 +18,9 @@ from app.services.storage import open_storage
 from app.services.storage.datasets import DatasetFiles
 from app.services.storage.s3 import MULTIPART_BYTES, S3Storage
 from app.services.storage.stores import FileStorage, Storage
+from tests.conftest import sizes
 from tests.seaweed import Seaweed, seaweed_for_tests
+from tests.services.images.test_streamed_images import _png_with_private_chunk, six_parallel_reads
 
 pytestmark = pytest.mark.processes
 
@@ -175,3 +177,14 @@ def test_a_remote_video_or_frame_folder_is_read_from_this_nodes_copy(seaweed: Se
     assert files.local_copy(files.locate("storage:uploads/u3", "videos/cam1.mp4")).read_bytes() == b"video bytes"
     with pytest.raises(FileNotFoundError):
         files.local_copy(files.locate("storage:uploads/u3", "videos/gone.mp4"))
+
+
+@pytest.mark.parametrize("megabytes", sizes(8, 40))
+def test_six_parallel_reads_of_a_big_image_from_the_s3_store_hold_no_chunk(seaweed: Seaweed, tmp_path: Path,
+                                                                          megabytes: int) -> None:
+    """An image with a private chunk of megabytes before its pixels, kept in the S3 store as a file and as a member of
+    its zip, read six times at once: each read is byte for byte, and Python never holds the chunk (the folder
+    store's test: ``tests/services/images/test_streamed_images.py``)."""
+    store = S3Storage(seaweed.bucket, f"streamed/{tmp_path.name}", client=seaweed.client())
+    peak = six_parallel_reads(store, tmp_path, _png_with_private_chunk(megabytes << 20))
+    assert peak < (megabytes << 20) // 2, f"{peak:,} bytes held at once"

@@ -3,6 +3,7 @@ a system of more than ``V3D_MAX_VIEWS_PER_SYSTEM`` views (16) is left out, named
 its count, and the rest of the dataset imports; a system stored before the cap is left as it is."""
 from __future__ import annotations
 
+import gc
 import json
 import zipfile
 from pathlib import Path
@@ -11,6 +12,7 @@ import pytest
 import sqlalchemy as sa
 
 from app.core.errors import DatasetError
+from app.datasets.soccernet_v3 import read_soccernet_v3_game
 from app.db.models import Frame, PlayerBox, System
 from app.services.jobs.work import import_result
 from app.services.transfer.importing import import_soccernet_v3
@@ -94,7 +96,9 @@ def _flood(action: str, boxes: int):
 def test_player_boxes_beyond_the_cap_a_frame_are_counted_not_stored(db_session, settings, shared_dir, tmp_path,
                                                                     boxes: int) -> None:
     """A flood of player boxes on one frame (120,000: a 2.9 MB zip) keeps ``V3D_MAX_PLAYERS_PER_FRAME`` of them, the
-    first in the file's order; the rest are counted in the report and its words; the other frames keep all theirs."""
+    first in the file's order; the rest are counted in the report and its words, and neither stored nor kept for a
+    release (the frame's entry keeps its ball and the boxes up to the cap); the other frames keep all theirs.
+    ``benchmarks/player_flood.py`` times such a flood against the same game without it."""
     cap = settings.max_players_per_frame
     assert cap == 200
     plain = write_v3_game(shared_dir, tmp_path / "plain", with_images=False)
@@ -111,11 +115,34 @@ def test_player_boxes_beyond_the_cap_a_frame_are_counted_not_stored(db_session, 
     first = db_session.scalars(sa.select(PlayerBox.ident).join(Frame, Frame.id == PlayerBox.frame_id)
                                .where(Frame.name == "0.png").order_by(PlayerBox.id)).all()
     assert first[given["0.png"]:] == [str(i) for i in range(cap - given["0.png"])]  # the first, in the file's order
+    releases = dict(db_session.execute(sa.select(Frame.name, Frame.release)).all())
+    flooded = releases["0.png"]["bboxes"]
+    assert [b["class"] for b in flooded].count("Ball") == 1 and len(flooded) == cap + 1  # the ball, then the cap's
+    assert [b["ID"] for b in flooded if b["class"] != "Ball"][given["0.png"]:] == list(range(cap - given["0.png"]))
     result = import_result(report)
     assert result["players_dropped"] == report.players_dropped
     assert f"{report.players_dropped:,} player boxes beyond the cap a frame not stored" in result["summary"]["words"]
     again = import_soccernet_v3(db_session, tmp_path / "flood", settings)  # the same file again changes nothing
     assert (again.systems_new, again.systems_changed, again.players_dropped) == (0, 0, report.players_dropped)
+
+
+def test_reading_a_flooded_labels_file_starts_no_collection(settings, shared_dir, tmp_path) -> None:
+    """Reading a labels file of 20,000 boxes starts no garbage collection while the parsed document is held (its
+    boxes are dropped before one could traverse them: a parse makes no cycle) and leaves the collector running.
+    ``benchmarks/player_flood.py`` times what that saves an import."""
+    game_dir = write_v3_game(shared_dir, tmp_path / "v3", actions=("0.png",), edit=_flood("0.png", 20_000),
+                             with_images=False)
+    gc.collect()  # no young collection falls due for what was made before the reading
+    collections: list[int] = []
+    gc.callbacks.append(lambda phase, info: collections.append(info["generation"]) if phase == "start" else None)
+    try:
+        game = read_soccernet_v3_game(game_dir / "Labels-v3.json", max_players=settings.max_players_per_frame)
+    finally:
+        gc.callbacks.pop()
+    assert game.systems[0].frames[0].players_dropped > 0
+    # At most the one young collection the kept records fall due for once the document is dropped (before: one per
+    # 700 parsed objects, dozens here, and full ones over the whole process).
+    assert collections in ([], [0]) and gc.isenabled()
 
 
 @pytest.mark.parametrize(("damage", "words"), [
