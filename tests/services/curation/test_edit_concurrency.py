@@ -212,17 +212,18 @@ def test_edits_of_two_views_interleaved_store_the_ball_of_both(database, monkeyp
     thread = _ball_edit_in_thread(factory, settings, fa, box_a, outcome)
     try:
         assert computed.wait(60), "edit A never computed"
-        t0 = time.monotonic()
         with factory() as s:
             edit = EditContext()
             update_ball_label(s, fb, box=box_b, settings=settings, edit=edit)  # A computed, holds no lock: B goes on
             outcome["b"] = edit.outcome
-        b_seconds = time.monotonic() - t0
+        # B committed while A was held: had A held the lock, B would have waited the lock timeout and failed, and A
+        # is held until B is done, so B's success says it, however long B took on a loaded machine
+        a_held_throughout = thread.is_alive() and not committed.is_set()
     finally:
         committed.set()
         thread.join(60)
     assert outcome == {"a": "recomputed", "b": "computed"}, outcome
-    assert b_seconds < settings.write_lock_timeout_s
+    assert a_held_throughout
     assert _box(factory, fa) == box_a and _box(factory, fb) == box_b
     # each frame's version bumped once: A's first attempt was rolled back whole
     assert {fid: _version(factory, fid) - v for fid, v in versions.items()} == {fa: 1, fb: 1}
@@ -241,7 +242,9 @@ def test_edits_of_two_views_interleaved_store_the_ball_of_both(database, monkeyp
 def test_an_unrelated_write_is_not_blocked_by_a_capped_size_line_edits_geometry(database, monkeypatch) -> None:
     """A field-line edit of 2,000 points (the cap) computes its calibration and recomputation outside the lock:
     held after its geometry, it holds no lock, and an edit of another system (and a review decision) commit
-    at once, well within a 1 s lock timeout; then the line edit stores what it computed."""
+    while it is held (were the lock held, they would wait the 1 s lock timeout and fail: the hold lasts until they
+    are done, so their success is the proof, whatever the machine's load); then the line edit stores what it
+    computed."""
     factory, settings, scene, other = database
     assert settings.max_line_points_per_frame == 2000
     fid = scene.frame_ids[0]
@@ -267,17 +270,16 @@ def test_an_unrelated_write_is_not_blocked_by_a_capped_size_line_edits_geometry(
     thread.start()
     try:
         assert computed.wait(120), "the line edit never computed"
-        t0 = time.monotonic()
         with factory() as s:
             other_fid = other.frame_ids[1]
             update_ball_label(s, other_fid, box=_moved(_box(factory, other_fid), 4.0), settings=settings)
             decide_review(s, system_id=other.system_id, status=ReviewStatus.ACCEPTED)
-        unrelated = time.monotonic() - t0
+        held_throughout = thread.is_alive() and not done.is_set()
     finally:
         done.set()
         thread.join(120)
     assert outcome == {"lines": "computed"}, outcome
-    assert unrelated < settings.write_lock_timeout_s, (unrelated, timing)
+    assert held_throughout, timing
     with factory() as s:
         stored = s.get(Frame, fid).field_lines.lines
         assert sum(len(p) for ps in stored.values() for p in ps) == 2000
