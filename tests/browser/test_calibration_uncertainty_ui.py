@@ -36,8 +36,9 @@ def test_system_page_shows_the_calibration_uncertainty(page, artifacts):
             assert cell.count() == 0
             continue
         p = u["position_m"]
-        expected = (f"where {_fmt(p['x'], 2)}/{_fmt(p['y'], 2)}/{_fmt(p['z'], 2)} m · aim {_fmt(u['pan_deg'], 2)}/"
-                    f"{_fmt(u['tilt_deg'], 2)}/{_fmt(u['roll_deg'], 2)}° · zoom {_fmt(u['focal_px'], 0)} px")
+        expected = (f"where x {_fmt(p['x'], 2)}, y {_fmt(p['y'], 2)}, z {_fmt(p['z'], 2)} m · aim pan "
+                    f"{_fmt(u['pan_deg'], 2)}°, tilt {_fmt(u['tilt_deg'], 2)}°, roll {_fmt(u['roll_deg'], 2)}° · "
+                    f"zoom {_fmt(u['focal_px'], 0)} px")
         assert cell.inner_text() == expected
         shown += 1
     assert shown >= 1

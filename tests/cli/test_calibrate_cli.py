@@ -60,7 +60,7 @@ def test_calibrate_writes_cameras_and_summary(annotations_zip: Path, tmp_path: P
         assert np.linalg.norm(cam.C - truth.C) < 1.0
         assert abs(cam.K[0, 0] / truth.K[0, 0] - 1.0) < 0.02
     summary = json.loads((out / "calibration_summary.json").read_text())
-    assert summary["3"]["status"] == "refused" and "fewer than 7" in summary["3"]["reason"]
+    assert summary["3"]["status"] == "refused" and "too few field lines" in summary["3"]["reason"]
     assert summary["4"]["status"] == "unreadable"
     assert summary["1"]["status"] == "calibrated" and summary["1"]["rms_px"] < 1.5
 
