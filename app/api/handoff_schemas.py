@@ -6,7 +6,17 @@ from typing import Optional
 
 from pydantic import BaseModel, Field
 
+from app.api.schemas import ReviewIn
 from app.api.view_schemas import CalibrationReviewOut, ReviewOut
+
+
+class SystemReviewIn(ReviewIn):
+    """A system's decision; a needs fix may name whom it goes to."""
+
+    assignee: Optional[str] = Field(None, max_length=200, description=(
+        "needs_fix only: the enabled user the system is returned to, chosen by the reviewer. Without it the system "
+        "goes to the last editor of its labels, else its assignee; when there is neither the decision is refused "
+        "(400 naming this field): it is never returned to nobody."))
 
 
 class DecisionOut(ReviewOut):
@@ -29,6 +39,8 @@ class MyWorkOut(BaseModel):
 
     to_fix: int = Field(description="Systems returned to you (marked needs fix), still open.")
     to_re_review: int = Field(description="Systems you returned that came back fixed (status fixed, assigned to you).")
+    to_fix_ids: list[int] = Field(description="The systems to fix, the oldest hand-off first (at most 200): the "
+                                  "list the system page walks after each 'Send back as fixed'.")
 
 
 class HandOffOut(BaseModel):

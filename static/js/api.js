@@ -185,8 +185,9 @@ export function getSystem(id, params = {}) {
 }
 
 /** POST /api/systems/{id}/review {status, comment}, If-Match: the system view's etag; {body: the decision, etag}. */
-export function postReview(id, status, comment, ifMatch) {
-  return decision(`/api/systems/${encodeURIComponent(id)}/review`, { status, comment }, ifMatch);
+export function postReview(id, status, comment, ifMatch, assignee = null) {
+  const body = assignee ? { status, comment, assignee } : { status, comment };
+  return decision(`/api/systems/${encodeURIComponent(id)}/review`, body, ifMatch);
 }
 
 /** POST /api/frames/{id}/review {status, comment}, If-Match: the view's etag: the decision on one view (its

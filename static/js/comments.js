@@ -63,7 +63,8 @@ export class CommentsCard {
         this.save();
       }
     });
-    $("send-fixed").addEventListener("click", () => this.page.review("fixed"));
+    // "fixed" carries no comment: the review box is the reviewer's (the note it answers is the hand-off's)
+    $("send-fixed").addEventListener("click", () => this.page.review("fixed", ""));
     // the point of a new comment: the next press on a view while pinning (before the ball editor sees it)
     document.addEventListener("pointerdown", (e) => this.pickPoint(e), true);
   }

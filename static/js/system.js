@@ -11,7 +11,7 @@
 // holds the key table; the views (overlay.js), the summary cards (systemcards.js), the map, a sequence's
 // trajectory (sequence.js), the conflict notice and the history are their own modules. What differs between
 // kinds of system is read from the system's data (its views, its `frame_index`), never from its kind's name.
-import { ApiError, getMe, getSystem, listAudit, postReview } from "./api.js";
+import { ApiError, getMe, getSystem, listAudit, postReview, send } from "./api.js";
 import { isTyping, viewColour, showError, clearError, STATUS_LABEL, toast } from "./format.js";
 import { readState, apiFilters } from "./queuestate.js";
 import "./overlay.js"; // defines <v3d-view>
@@ -31,6 +31,7 @@ import { SystemPresence } from "./presence.js";
 import { SequenceCard, inASequence } from "./sequence.js";
 import { ViewWrites } from "./systemwrites.js";
 import { CommentsCard } from "./comments.js";
+import { askWhomToReturn, needsAChosenPerson } from "./returnto.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
@@ -186,7 +187,9 @@ class SystemPage {
     this.presence.show(sys);
     $("prev").disabled = this.stepId(-1) == null; // in a pass: its neighbours (pass.js)
     $("next").disabled = this.stepId(1) == null;
-    $("comment").value = sys.review?.comment || "";
+    // the box holds the reviewer's own comment on the decision shown; a needs fix's note (and the fixed that answered
+    // it) lives in the hand-off line, so that a re-review's decision never carries the earlier note as its own
+    $("comment").value = HANDED_OFF.has(sys.review?.status) ? "" : sys.review?.comment || "";
 
     const tri = sys.triangulation || {};
     const ctx = { tau: tri.tau_px, rule: tri.rule, referenceWidth: tri.reference_width_px };
@@ -232,8 +235,9 @@ class SystemPage {
   }
 
   /** Decide on the system (`status`: accepted, rejected, needs_fix) with the comment, after its edits reached the
-   * server, and move on to the next system still pending (a 412: their decision drawn, the conflict notice). */
-  async review(status, comment = null, ifMatch = null) {
+   * server, and move on to the next system still pending (a 412: their decision drawn, the conflict notice). A needs
+   * fix the server could return to no one asks whom it goes to (returnto.js) and is sent again to `assignee`. */
+  async review(status, comment = null, ifMatch = null, assignee = null) {
     if (!this.system || this.busy) return;
     const me = await getMe().catch(() => null);
     if (me?.role === "annotator" && status !== "fixed") { // the API would answer 403: say what an annotator does instead
@@ -256,23 +260,26 @@ class SystemPage {
         toast(`${sys.name}: not accepted, still ${STATUS_LABEL[this.system.review?.status || "pending"].toLowerCase()}`);
         return;
       }
-      const { body: answer, etag, entry } = await postReview(sys.id, status, text, ifMatch ?? this.system.etag);
+      const { body: answer, etag, entry } = await postReview(sys.id, status, text, ifMatch ?? this.system.etag, assignee);
       if (entry) this.undoStack.push({ kind: "entry", systemId: sys.id, frameId: null, entry, what: `${sys.name}: ${STATUS_LABEL[status]}` });
       const current = this.system; // re-rendered by the edits just settled: its next_id is current
       clearError();
       renderStatus(answer || { status });
-      // in a pass: the next system of the pass still pending now (a fix never reorders the pass)
+      // sent back as fixed: the next system of the person's To fix list, never another of the queue; else in a
+      // pass: the next system of the pass still pending now (a fix never reorders the pass)
       await this.passReady;
-      const place = await this.pass.fresh(sys.id).catch(() => null);
-      const next = place ? place.next_pending_id : current.next_id;
+      const fixing = status === "fixed";
+      const place = fixing ? null : await this.pass.fresh(sys.id).catch(() => null);
+      const next = fixing ? await nextToFix(sys.id) : place ? place.next_pending_id : current.next_id;
       this.busy = false;
       const said = decisionWords(status, answer); // a needs fix says to whom it went
       if (next !== null && next !== undefined) {
-        toast(`${sys.name}: ${said}`);
+        toast(`${sys.name}: ${said}${fixing ? "; the next system returned to you to fix is open" : ""}`);
         await this.load(next, true);
       } else {
         if (place) this.pass.showFinished(place, this.queueUrl());
-        toast(`${sys.name}: ${said}. ${place ? LAST_OF_PASS : "That was the last system of this queue."}`);
+        const last = fixing ? NOTHING_LEFT_TO_FIX : place ? LAST_OF_PASS : "That was the last system of this queue.";
+        toast(`${sys.name}: ${said}. ${last}`);
         if (this.system === current && etag) current.etag = etag; // the page stays: its next decision needs it
         if (this.system === current) { // the views' parts with no decision of their own read the system's now
           current.review = { ...(current.review || {}), ...(answer || { status }) };
@@ -286,7 +293,13 @@ class SystemPage {
         await this.reload();
         showConflict($("conflict"), { error: err, what: "the system's decision", viewName: null,
           mine: describeState({ review: { status, comment: text } }),
-          reapply: (etag) => this.review(status, text, etag) });
+          reapply: (etag) => this.review(status, text, etag, assignee) });
+      } else if (status === "needs_fix" && !assignee && needsAChosenPerson(err)) {
+        this.busy = false;
+        const why = String(err.body?.detail || "").replace(/^assignee: /, "").split(":")[0];
+        const who = await askWhomToReturn(why).catch((e) => showError(e.message));
+        if (who) await this.review(status, text, ifMatch, who);
+        else toast(`${sys.name}: not returned, still ${STATUS_LABEL[sys.review?.status || "pending"].toLowerCase()}`);
       } else showError(err.message);
     } finally {
       this.busy = false;
@@ -422,6 +435,9 @@ class SystemPage {
   }
 }
 
+/** The statuses whose comment is the hand-off's note (shown in the Comments card), not a comment to decide with. */
+const HANDED_OFF = new Set(["needs_fix", "fixed"]);
+
 /** The audit actions a person's Ctrl+Z undoes (the edits of the page's undo stack). */
 const UNDOABLE = new Set(["ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",
   "view.calibration_review", "system.review"]);
@@ -435,6 +451,16 @@ function decisionWords(status, answer) {
   if (answer?.handoff) return answer.handoff;
   if (status === "needs_fix" && answer?.returned_to) return `needs fix, returned to ${answer.returned_to}`;
   return STATUS_LABEL[status];
+}
+
+/** The toast of the last "Send back as fixed" of a person's To fix list. */
+export const NOTHING_LEFT_TO_FIX = "Nothing else is returned to you to fix.";
+
+/** The next system of the caller's To fix list (GET /api/handoffs/mine, the oldest hand-off first) after sending
+ * `doneId` back as fixed, or null when none is left (or the list cannot be read: the page then stays). */
+async function nextToFix(doneId) {
+  const work = await send("GET", "/api/handoffs/mine").catch(() => null);
+  return (work?.to_fix_ids || []).find((id) => id !== doneId) ?? null;
 }
 
 /** The toast of the last decision of a pass (nothing pending left after the system). */

@@ -160,6 +160,9 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
         rev.goto(f"/systems/{sid}")
         rev.locator(tid("review-comment")).first.wait_for()
         assert rev.locator(tid("accept")).is_visible() and rev.locator(tid("send-fixed")).is_hidden()
+        # the re-review's decision box is empty: the earlier note is the hand-off's, not the next decision's comment
+        rev.locator(tid("handoff")).filter(has_text="fixed by ana").wait_for()
+        assert rev.locator(tid("comment")).input_value() == ""
         rev.goto("/static/stats.html")
         row = rev.locator(f'{tid("annotator-row")}[data-name="ana"]')
         row.wait_for()
@@ -196,3 +199,90 @@ def test_an_admin_imports_a_zip_from_the_queue_page_and_its_job_is_titled_by_the
     shots = artifacts / "team-loop"
     shots.mkdir(exist_ok=True)
     _shoot(page, shots, "queue-admin-import")
+
+
+def _untouched_systems(seeded_settings, count: int) -> list[int]:
+    """The ids of the last ``count`` systems of two or more views that nobody edited, decided or was assigned (the
+    module's other tests work on the first ones)."""
+    import sqlalchemy as sa
+
+    from app.db.models import AuditEntry, System
+    from app.db.session import make_engine, make_session_factory
+
+    engine = make_engine(seeded_settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            touched = set(session.scalars(sa.select(AuditEntry.system_id).where(AuditEntry.system_id.is_not(None))))
+            ids = [s.id for s in session.scalars(sa.select(System).order_by(System.id.desc()))
+                   if len(s.frames) >= 2 and s.id not in touched and s.assignee_id is None]
+    finally:
+        engine.dispose()
+    assert len(ids) >= count, ids
+    return ids[:count]
+
+
+def _return_to(seeded_settings, system_ids: list[int], who: str, note: str) -> None:
+    """rev's needs fix of each system, returned to ``who`` (through the service, as the page's decision would be)."""
+    from app.db.session import make_engine, make_session_factory
+    from app.services.curation.decisions import decide_review
+
+    engine = make_engine(seeded_settings.database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            for system_id in system_ids:
+                decide_review(session, system_id=system_id, status="needs_fix", comment=note, actor="rev",
+                              return_to=who)
+    finally:
+        engine.dispose()
+
+
+def test_a_needs_fix_nobody_would_get_asks_whom_it_goes_to(browser, server_url, seeded_settings, team):
+    """Nobody edited the system and nobody is assigned: `f` offers the team's annotators instead of returning it to
+    nobody; the one chosen gets it."""
+    from tests.browser.support import api_json
+
+    (sid,) = _untouched_systems(seeded_settings, 1)
+    rev_context, rev = _page_of(browser, server_url, team["rev"])
+    try:
+        rev.goto(f"/systems/{sid}")
+        rev.locator(tid("view")).first.wait_for()
+        rev.wait_for_function("() => !document.body.classList.contains('loading')")
+        rev.locator("body").click(position={"x": 5, "y": 5})
+        rev.keyboard.press("f")
+        chooser = rev.locator(tid("return-to"))
+        chooser.wait_for()
+        assert "nobody edited this system's labels" in rev.locator(tid("return-to-why")).inner_text()
+        offered = rev.locator(f'{tid("return-to-user")} option').evaluate_all("(os) => os.map((o) => o.value)")
+        assert {"ana", "ben"} <= set(offered) and "rev" not in offered  # the team's annotators
+        assert api_json(rev, f"/api/systems/{sid}/handoff") is None  # nothing sent yet
+        rev.select_option(tid("return-to-user"), "ben")
+        with rev.expect_response(lambda r: r.request.method == "POST" and r.url.endswith(f"/systems/{sid}/review")
+                                 ) as decided:
+            rev.click(tid("return-to-send"))
+        assert decided.value.ok and decided.value.json()["returned_to"] == "ben"
+        rev.locator(tid("toast")).filter(has_text="returned to ben by rev").wait_for()
+        assert api_json(rev, f"/api/systems/{sid}/handoff")["returned_to"] == "ben"
+        assert rev.errors == []
+    finally:
+        rev_context.close()
+
+
+def test_send_back_as_fixed_opens_the_next_system_to_fix(browser, server_url, seeded_settings, team):
+    """ana's To fix list is walked in order: after "Send back as fixed" the next system returned to her comes, and
+    after the last one the page says nothing is left (no unrelated system of the queue)."""
+    first, second = _untouched_systems(seeded_settings, 2)[::-1]  # the older hand-off first
+    _return_to(seeded_settings, [first, second], "ana", "look at the ball again")
+    ana_context, ana = _page_of(browser, server_url, team["ana"])
+    try:
+        ana.goto(f"/systems/{first}")
+        ana.locator(tid("send-fixed")).wait_for()
+        ana.click(tid("send-fixed"))
+        ana.wait_for_url(f"{server_url}/systems/{second}**")
+        ana.locator(tid("system-name")).wait_for()
+        ana.locator(tid("send-fixed")).wait_for()
+        ana.click(tid("send-fixed"))
+        ana.locator(tid("toast")).filter(has_text="Nothing else is returned to you to fix").wait_for()
+        assert ana.url.split("?")[0].endswith(f"/systems/{second}")
+        assert ana.errors == []
+    finally:
+        ana_context.close()

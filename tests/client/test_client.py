@@ -130,7 +130,7 @@ def test_a_busy_server_is_asked_again_after_its_retry_after(served_demo: ServedD
     with client(served_demo, "reviewer", transport=transport) as v3d:
         system = v3d.system(next(v3d.systems(status="pending")).id)
         holder.execute("BEGIN IMMEDIATE")
-        decision = v3d.decide(system, "needs_fix", "busy, then done")
+        decision = v3d.decide(system, "needs_fix", "busy, then done", assignee="test-annotator")
     holder.close()
     writes = [(t, status) for t, method, _, status in transport.answers if method == "POST"]
     assert [s for _, s in writes] == [503, 200] and decision.status == "needs_fix"

@@ -1,7 +1,8 @@
 """The hand-off of systems marked needs fix (``app.services.curation.handoff``), as the pages read it.
 
-* ``GET /api/handoffs/mine``: what waits for the caller: ``to_fix`` (systems returned to them) and ``to_re_review``
-  (systems they returned that came back fixed): the queue page's **To fix** and **To re-review** counts.
+* ``GET /api/handoffs/mine``: what waits for the caller: ``to_fix`` (systems returned to them, and ``to_fix_ids``,
+  the list in order) and ``to_re_review`` (systems they returned that came back fixed): the queue page's **To fix**
+  and **To re-review** counts, and the system page's next system to fix.
 * ``GET /api/systems/{id}/handoff``: the system's newest hand-off in words, and whether the caller may send it back
   as fixed (``POST /api/systems/{id}/review`` ``{"status": "fixed"}``).
 """
@@ -24,7 +25,7 @@ router = APIRouter(tags=["assignments"])
 def my_work(session: SessionDep, principal: PrincipalDep) -> MyWorkOut:
     """The caller's **To fix** and **To re-review** counts (0 when nothing waits)."""
     work = handoff.my_work(session, principal.user_id)
-    return MyWorkOut(to_fix=work.to_fix, to_re_review=work.to_re_review)
+    return MyWorkOut(to_fix=work.to_fix, to_re_review=work.to_re_review, to_fix_ids=list(work.to_fix_ids))
 
 
 @router.get("/systems/{system_id}/handoff", response_model=Optional[HandOffOut], responses=NOT_FOUND)

@@ -14,9 +14,9 @@ from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.auth import AnnotatorDep, PrincipalDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import EditDep, SessionDep, SystemDep, SystemIdPath
-from app.api.handoff_schemas import DecisionOut
+from app.api.handoff_schemas import DecisionOut, SystemReviewIn
 from app.api.routes.frames import name_entry
-from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, ReviewIn, SystemListQuery
+from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, SystemListQuery
 from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
 from app.db.models import ReviewStatus, UserRole
 from app.db.types import utcnow
@@ -65,12 +65,13 @@ def read_system(session: SessionDep, principal: PrincipalDep, system_id: SystemI
 
 @router.post("/{system_id}/review", response_model=DecisionOut, responses={**NOT_FOUND, **INVALID, **PRECONDITIONS})
 def review_system(session: SessionDep, principal: AnnotatorDep, if_match: IfMatchDep, system: SystemDep,
-                  body: ReviewIn, response: Response, edit: EditDep) -> DecisionOut:
+                  body: SystemReviewIn, response: Response, edit: EditDep) -> DecisionOut:
     """Record the reviewer's decision on the whole system (``If-Match``: the system view's ``etag``, which every
     write of the system's labels, lines, exclusions, calibrations and decision changes: 412 once anything the page
     showed has changed); the system's new ETag in the header, its audit entry in ``X-V3D-Audit-Entry`` (what an undo
-    names). ``needs_fix`` returns the system to the person who last edited its labels (else its assignee; the answer's
-    ``returned_to`` and ``handoff`` say to whom, or why to nobody); ``fixed`` is sent by that person alone (any role)
+    names). ``needs_fix`` returns the system to the person the body's ``assignee`` names, else to the person who last
+    edited its labels, else its assignee (the answer's ``returned_to`` and ``handoff`` say to whom); with none of them
+    it is refused, 400 naming ``assignee`` (never returned to nobody); ``fixed`` is sent by that person alone (any role)
     and gives it back to the reviewer who asked (``app.services.curation.handoff``). Reviewers send any status; an
     annotator only ``fixed`` on a system returned to them (403 otherwise, before the ``If-Match`` is compared). A
     ``fixed`` whose hand-off another decision closed after that check is refused 409 (checked again in the write,
@@ -79,7 +80,7 @@ def review_system(session: SessionDep, principal: AnnotatorDep, if_match: IfMatc
                                 status=body.status)
     decision = decisions.decide_review(session, system_id=system.id, status=body.status, comment=body.comment,
                                        actor=principal.name, expected=expected_versions(if_match, "system", system.id),
-                                       edit=edit, fixed_by=principal.user_id)
+                                       edit=edit, fixed_by=principal.user_id, return_to=body.assignee)
     name_entry(edit, response)
     with_etag(response, system_etag(writing.get_system(session, system.id)))
     out = DecisionOut.model_validate(ReviewOut.of(decision).model_dump())

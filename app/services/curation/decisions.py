@@ -36,7 +36,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
                   status: ReviewStatus | str, comment: str = "", actor: Optional[str] = None,
                   expected: Expected = None, revert: Optional[Revert] = None,
                   undo: Optional[Revert] = None, edit: Optional[EditContext] = None,
-                  fixed_by: Optional[int] = None) -> ReviewDecision:
+                  fixed_by: Optional[int] = None, return_to: Optional[str] = None) -> ReviewDecision:
     """Record a review decision on a system or on a frame (exactly one of the two ids).
 
     Args:
@@ -60,7 +60,8 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         The committed :class:`ReviewDecision` (``decided_at`` is now, UTC).
 
     Raises:
-        InvalidInputError: both or neither id, or an unknown status.
+        InvalidInputError: both or neither id, or an unknown status; a needs fix with no one to return it to, or
+            ``return_to`` that is no enabled user or goes with another status (field ``assignee``).
         NotFoundError: no such system or frame.
         StaleVersionError: the version is not in ``expected``; nothing changed.
         ConflictError: a ``fixed`` of ``fixed_by`` on a system no longer returned to them; nothing changed.
@@ -68,6 +69,8 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
     if (system_id is None) == (frame_id is None):
         raise InvalidInputError("give exactly one of system_id and frame_id", field="system_id")
     status = _check_decision(status, comment)
+    if frame_id is not None and return_to is not None:
+        raise InvalidInputError("'assignee' is a system's needs fix; a view's decision goes to no one", field="assignee")
     if frame_id is not None and status is ReviewStatus.FIXED:
         raise InvalidInputError("'fixed' is a system's status; a view's decision is pending, accepted, rejected or "
                                 "needs_fix", field="status")
@@ -85,7 +88,8 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         review.decided_at = utcnow()
         review.reset_reason = None
         if isinstance(subject, System):
-            handoff.after_decision(session, subject, status, actor=actor, note=comment)
+            handoff.after_decision(session, subject, status, actor=actor, note=comment, return_to=return_to,
+                                   required=revert is None and undo is None)
         return review
 
     undo_of = undo.entry_id if undo is not None else None

@@ -2,7 +2,8 @@
 
 * A ``needs_fix`` decision on a system returns it to the user who last edited its labels (the newest audit entry of
   a ball, field lines, mirror or exclusion edit of the system by an enabled user other than the reviewer); failing
-  that, to its assignee; else to nobody, with the reason. The system is assigned to that user
+  that, to its assignee; or to the person the reviewer names (``return_to``: whoever else would get it). Never to
+  nobody: a needs fix with no one to return it to is refused, saying how to choose. The system is assigned to that user
   (``System.assignee_id``: the queue's ``assignee=me`` and **To fix** count find it) and a
   :class:`~app.db.models.ReviewHandoff` records the hand-off.
 * The user it was returned to sends ``fixed`` (the only status an annotator may send, :func:`check_fixed_allowed`):
@@ -24,7 +25,7 @@ from typing import Optional
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from app.core.errors import ConflictError, ForbiddenError
+from app.core.errors import ConflictError, ForbiddenError, InvalidInputError
 from app.db.models import AuditEntry, ReviewHandoff, ReviewStatus, System, User, UserRole
 from app.db.types import utcnow
 from app.services.audit import log as audit
@@ -142,24 +143,70 @@ def _assign(session: Session, system: System, user: Optional[User], actor: Optio
         system.assignee_id, system.assigned_at, system.assigned_by = user.id, now, audit.public_actor(actor)
 
 
+#: Why a needs fix found no one, and how to choose: the words of the refusal (``assignee`` names the field).
+NOBODY_TO_RETURN_TO = ("nobody edited this system's labels and it has no assignee: choose whom it goes to (send "
+                       "'assignee', the name of an enabled user; the system page offers the team's annotators)")
+
+
+def chosen_person(session: Session, name: str) -> User:
+    """The enabled user ``name`` a reviewer chose to return a system to.
+
+    Raises:
+        InvalidInputError: no such user, or a disabled one (field ``assignee``).
+    """
+    user = session.scalar(sa.select(User).where(User.name == name))
+    if user is None or user.disabled:
+        raise InvalidInputError(f"{name!r} is not {'an enabled' if user is not None else 'a'} user: choose one of the "
+                                "team's enabled users", field="assignee")
+    return user
+
+
+def returned_person(session: Session, system: System, *, actor: Optional[str], return_to: Optional[str],
+                    required: bool) -> Optional[User]:
+    """Whom a needs fix of ``system`` by ``actor`` goes to: ``return_to`` when the reviewer named someone, else the
+    last editor of its labels (not the reviewer), else its enabled assignee.
+
+    ``required``: a person's new decision (not an undo or a revert, which restore what the audit holds): a needs fix
+    that finds no one is refused rather than sent to nobody.
+
+    Raises:
+        InvalidInputError: ``return_to`` is no enabled user, or nobody is found while ``required`` (field
+            ``assignee``, the words of :data:`NOBODY_TO_RETURN_TO`); nothing is written.
+    """
+    if return_to is not None:
+        return chosen_person(session, return_to)
+    user = last_label_editor(session, system.id, other_than=actor)
+    if user is None and system.assignee_id is not None:
+        assignee = session.get(User, system.assignee_id)
+        user = assignee if assignee is not None and not assignee.disabled else None
+    if user is None and required:
+        raise InvalidInputError(NOBODY_TO_RETURN_TO, field="assignee")
+    return user
+
+
 def after_decision(session: Session, system: System, status: ReviewStatus, *, actor: Optional[str],
-                   note: str) -> None:
+                   note: str, return_to: Optional[str] = None, required: bool = True) -> None:
     """The hand-off a system decision makes (module docstring), in the decision's transaction: needs fix returns the
-    system to a person, fixed gives it back to the reviewer who asked, any other decision closes an open hand-off.
-    Audited (``system.handoff``) for the first two. ``actor``: the decider's name (None: the machine)."""
+    system to a person (:func:`returned_person`: ``return_to``, the reviewer's choice, first; ``required``: refused
+    when nobody is found), fixed gives it back to the reviewer who asked, any other decision closes an open hand-off.
+    Audited (``system.handoff``) for the first two. ``actor``: the decider's name (None: the machine).
+
+    Raises:
+        InvalidInputError: ``return_to`` on another status than needs fix, or :func:`returned_person`'s refusals
+            (field ``assignee``).
+    """
+    if return_to is not None and status is not ReviewStatus.NEEDS_FIX:
+        raise InvalidInputError(f"'assignee' goes with needs_fix only (whom the system is returned to), not "
+                                f"{status.value!r}", field="assignee")
     now = utcnow()
     current = open_handoff(session, system.id)
     by = audit.public_actor(actor)
     if status is ReviewStatus.NEEDS_FIX:
+        user = returned_person(session, system, actor=actor, return_to=return_to, required=required)
         if current is not None:
             current.closed_at = now
         before = _name(session, system.assignee_id)
-        user, reason = last_label_editor(session, system.id, other_than=actor), None
-        if user is None and system.assignee_id is not None:
-            assignee = session.get(User, system.assignee_id)
-            user = assignee if assignee is not None and not assignee.disabled else None
-        if user is None:
-            reason = "no one had edited its labels and it had no assignee"
+        reason = None if user is not None else "no one had edited its labels and it had no assignee"
         session.add(ReviewHandoff(system_id=system.id, returned_to_id=user.id if user is not None else None,
                                   returned_by=by, note=note, returned_at=now))
         _assign(session, system, user, actor, now)
@@ -180,19 +227,28 @@ def after_decision(session: Session, system: System, status: ReviewStatus, *, ac
         current.closed_at = now
 
 
+#: How many of a person's **To fix** systems :func:`my_work` names (the page walks them in this order).
+TO_FIX_LISTED = 200
+
+
 @dataclass(frozen=True)
 class MyWork:
     """What waits for one user: ``to_fix``, the systems returned to them (open hand-offs, whatever the status their
-    edits left), and ``to_re_review``, the systems they returned that came back fixed and are assigned to them."""
+    edits left), and ``to_re_review``, the systems they returned that came back fixed and are assigned to them.
+    ``to_fix_ids``: the ids of the first :data:`TO_FIX_LISTED` systems to fix, the oldest hand-off first: the list
+    the person works through, one system after another."""
 
     to_fix: int
     to_re_review: int
+    to_fix_ids: tuple[int, ...] = ()
 
 
 def my_work(session: Session, user_id: int) -> MyWork:
-    """The counts of :class:`MyWork` for user ``user_id`` (two indexed counts)."""
-    to_fix = session.scalar(sa.select(sa.func.count()).select_from(ReviewHandoff).where(
-        ReviewHandoff.returned_to_id == user_id, ReviewHandoff.closed_at.is_(None)))
+    """The counts of :class:`MyWork` for user ``user_id`` (two indexed counts) and the first systems to fix."""
+    returned = (ReviewHandoff.returned_to_id == user_id, ReviewHandoff.closed_at.is_(None))
+    to_fix = session.scalar(sa.select(sa.func.count()).select_from(ReviewHandoff).where(*returned))
     to_re_review = session.scalar(sa.select(sa.func.count()).select_from(System).where(
         System.assignee_id == user_id, System.review_status == ReviewStatus.FIXED))
-    return MyWork(to_fix=int(to_fix or 0), to_re_review=int(to_re_review or 0))
+    ids = session.scalars(sa.select(ReviewHandoff.system_id).where(*returned)
+                          .order_by(ReviewHandoff.returned_at, ReviewHandoff.id).limit(TO_FIX_LISTED))
+    return MyWork(to_fix=int(to_fix or 0), to_re_review=int(to_re_review or 0), to_fix_ids=tuple(dict.fromkeys(ids)))

@@ -377,12 +377,16 @@ class Client:
         return self._get(f"/api/systems/{int(system_id)}", System)
 
     @_route("POST /api/systems/{system_id}/review", answer=Decision)
-    def decide(self, system: System, status: str, comment: str = "") -> Decision:
+    def decide(self, system: System, status: str, comment: str = "", *, assignee: Optional[str] = None) -> Decision:
         """Decide ``system`` (accepted, rejected, needs_fix; fixed by the person it was returned to), bound to the
         version read: :class:`EditConflict` when anything of it changed since (its ``changes_since`` says what).
-        Reviewers (annotators: ``fixed`` only)."""
+        ``assignee``: needs_fix only, whom it is returned to (without it, the last editor of its labels or its
+        assignee; with neither the server refuses it, naming ``assignee``). Reviewers (annotators: ``fixed`` only)."""
+        body: dict[str, Any] = {"status": status, "comment": comment}
+        if assignee is not None:
+            body["assignee"] = assignee
         return Decision.model_validate(self._send("POST", f"/api/systems/{system.id}/review", etag=system.etag,
-                                                  json={"status": status, "comment": comment}).json())
+                                                  json=body).json())
 
     # ----- frames and their edits ---------------------------------------------------------------------------------
     @_route("GET /api/frames", answer=FramePage)

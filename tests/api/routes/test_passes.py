@@ -37,7 +37,7 @@ def test_a_pass_freezes_every_page_of_the_queue_and_moves_to_the_next_pending(cl
                        json={"filter": {}, "sort": "name", "system_id": listing[1]}).json()["id"] == rp["id"]
 
     etag = client.get(f"/api/systems/{listing[1]}").headers["ETag"]
-    assert client.post(f"/api/systems/{listing[1]}/review", json={"status": "needs_fix"},
+    assert client.post(f"/api/systems/{listing[1]}/review", json={"status": "needs_fix", "assignee": "test-annotator"},
                        headers={"If-Match": etag}).status_code == 200
     place = client.get(f"/api/passes/{rp['id']}/place", params={"system_id": listing[0]}).json()
     assert place["next_pending_id"] == listing[2] and place["next_id"] == listing[1] and place["index"] == 0

@@ -92,7 +92,7 @@ def test_needs_fix_goes_to_the_last_editor_and_comes_back_fixed_to_the_reviewer(
     assert view["assignment"]["assignee"] == "ana"
     listed = client.get(f"/api/systems/{scene.system_id}/comments").json()["items"]
     assert [c["text"] for c in listed] == ["the box sits on the shadow"]
-    assert client.get("/api/handoffs/mine").json() == {"to_fix": 1, "to_re_review": 0}
+    assert client.get("/api/handoffs/mine").json() == {"to_fix": 1, "to_re_review": 0, "to_fix_ids": [scene.system_id]}
     assert client.get(f"/api/systems/{scene.system_id}/handoff").json()["may_send_fixed"] is True
 
     as_user("bob")
@@ -115,7 +115,7 @@ def test_needs_fix_goes_to_the_last_editor_and_comes_back_fixed_to_the_reviewer(
 
     as_user("rev")
     assert _ids(client, assignee="me", status="fixed") == [scene.system_id]
-    assert client.get("/api/handoffs/mine").json() == {"to_fix": 0, "to_re_review": 1}
+    assert client.get("/api/handoffs/mine").json() == {"to_fix": 0, "to_re_review": 1, "to_fix_ids": []}
     words = [e.summary for e in db_session.scalars(
         sa.select(AuditEntry).where(AuditEntry.system_id == scene.system_id).order_by(AuditEntry.id))]
     assert "returned to ana by rev: the box sits on the shadow" in words
@@ -144,14 +144,34 @@ def test_needs_fix_goes_to_the_last_editor_and_comes_back_fixed_to_the_reviewer(
     assert client.get("/api/stats/annotators").status_code == 403  # reviewers and admins
 
 
-def test_needs_fix_without_an_editor_goes_to_the_assignee_or_to_nobody_with_the_reason(
+def test_needs_fix_without_an_editor_goes_to_the_assignee_or_to_the_person_chosen_never_to_nobody(
         client: TestClient, scene: Scene, as_user) -> None:
     as_user("rev")
+    version = _system(client, scene)[1]
     nobody = _decide(client, scene, "needs_fix", "look again")
-    assert nobody.status_code == 200, nobody.text
-    assert nobody.json()["returned_to"] is None
-    assert nobody.json()["handoff"] == ("returned to nobody by rev (no one had edited its labels and it had no "
-                                        "assignee): look again")
+    assert nobody.status_code == 422, nobody.text
+    assert nobody.json()["field"] == "assignee"
+    assert "nobody edited this system's labels and it has no assignee: choose whom it goes to" in nobody.json()["detail"]
+    # refused: nothing written, no hand-off, still pending
+    assert _system(client, scene)[1] == version
+    assert client.get(f"/api/systems/{scene.system_id}/handoff").json() is None
+
+    def decide_to(who: str, status: str = "needs_fix") -> Any:
+        return client.post(f"/api/systems/{scene.system_id}/review",
+                           json={"status": status, "comment": "look again", "assignee": who},
+                           headers={"If-Match": _system(client, scene)[1]})
+
+    for who, status in (("nobody-here", "needs_fix"), ("ana", "accepted")):
+        refused = decide_to(who, status)
+        assert (refused.status_code, refused.json()["field"]) == (422, "assignee"), refused.text
+    chosen = decide_to("ana")
+    assert chosen.status_code == 200, chosen.text
+    assert chosen.json()["returned_to"] == "ana"
+    assert chosen.json()["handoff"] == "returned to ana by rev: look again"
+    as_user("ana")
+    assert _ids(client, assignee="me", status="needs_fix") == [scene.system_id]
+    as_user("rev")
+    assert _decide(client, scene, "accepted").status_code == 200
     assert client.post("/api/assignments", json={"assignee": "bob", "system_ids": [scene.system_id]}).status_code == 200
     to_bob = _decide(client, scene, "needs_fix", "look again")
     assert to_bob.json()["returned_to"] == "bob"

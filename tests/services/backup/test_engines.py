@@ -75,8 +75,8 @@ def work(env: dict[str, str], shared_dir: Path, tree: Path) -> dict[str, Any]:
         client.headers["Authorization"] = f"Bearer {token}"
         for system_id, status in zip(ids, ("accepted", "needs_fix", "accepted"), strict=True):
             etag = client.get(f"/api/systems/{system_id}").headers["etag"]
-            answer = client.post(f"/api/systems/{system_id}/review", json={"status": status, "comment": "seen"},
-                                 headers={"If-Match": etag})
+            body = {"status": status, "comment": "seen", **({"assignee": "bo"} if status == "needs_fix" else {})}
+            answer = client.post(f"/api/systems/{system_id}/review", json=body, headers={"If-Match": etag})
             assert answer.status_code == 200, answer.text
         frame_id = client.get(f"/api/systems/{ids[1]}").json()["views"][0]["frame_id"]
         made = client.post(f"/api/systems/{ids[1]}/comments", json={"frame_id": frame_id, "point": [10.5, 20.0],

@@ -8,7 +8,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.core.errors import ForbiddenError
-from app.db.models import ReviewStatus
+from app.db.models import ReviewStatus, User, UserRole
 from app.geometry.doubts import label_severity
 from app.services.audit import log as audit
 from app.services.curation import decisions, editing, passes, queue, writing
@@ -144,13 +144,15 @@ def test_a_pass_counts_its_owners_decisions_and_names_what_was_sent_back_or_deci
     """The counts of a pass are its owner's decisions in it (an earlier decision, another reviewer's, a decision
     undone by a later one are not), then the systems sent back as fixed, then those decided by others."""
     ids = [s.system_id for s in six]
+    db_session.add(User(name="ben", role=UserRole.ANNOTATOR, password_hash="not a hash: ben never logs in"))
+    db_session.flush()
     decisions.decide_review(db_session, system_id=ids[0], status="accepted", actor="ana")  # before the pass
     rp = passes.start_pass(db_session, "ana", SystemFilters(), "name", system_id=ids[1], fresh=True)
     decisions.decide_review(db_session, system_id=ids[1], status="accepted", actor="ana")
-    decisions.decide_review(db_session, system_id=ids[2], status="needs_fix", actor="ana")
+    decisions.decide_review(db_session, system_id=ids[2], status="needs_fix", actor="ana", return_to="ben")
     decisions.decide_review(db_session, system_id=ids[3], status="rejected", actor="ana")
     decisions.decide_review(db_session, system_id=ids[3], status="accepted", actor="bob")  # decided again by bob
-    decisions.decide_review(db_session, system_id=ids[4], status="needs_fix", actor="bob")
+    decisions.decide_review(db_session, system_id=ids[4], status="needs_fix", actor="bob", return_to="ben")
     decisions.decide_review(db_session, system_id=ids[4], status="fixed", actor="ben")  # back to decide again
     counts = passes.pass_counts(db_session, passes.get_pass(db_session, rp.id))
     assert counts == {"accepted": 1, "rejected": 0, "needs_fix": 1, "sent_back": 1, "by_others": 2, "skipped": 1}

@@ -11,7 +11,7 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import selectinload
 
-from app.db.models import CalibrationSource, Frame, Game, ReviewStatus, System, SystemKind
+from app.db.models import CalibrationSource, Frame, Game, ReviewStatus, System, SystemKind, User, UserRole
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import replace_field_lines, update_ball_label
 from app.services.kinds import split_of
@@ -142,7 +142,9 @@ def test_export_then_import_reproduces_every_label_camera_and_number(
     replace_field_lines(db_session, one.id, edited_lines, settings=settings)
     assert one.field_lines.lines != one.field_lines.original_lines
     decide_review(db_session, system_id=systems["2.png"].id, status="accepted")
-    decide_review(db_session, system_id=systems["0.png"].id, status="needs_fix")
+    db_session.add(User(name="ana", role=UserRole.ANNOTATOR, password_hash="not a hash: ana never logs in"))
+    db_session.flush()
+    decide_review(db_session, system_id=systems["0.png"].id, status="needs_fix", return_to="ana")
 
     # issue 19: the SoccerNet-v3D export holds the SoccerNet-v3 systems only; the single-view frames leave as cameras
     report = export_soccernet_v3d(db_session, tmp_path / "export", include_all=True)
