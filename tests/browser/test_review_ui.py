@@ -346,8 +346,11 @@ def test_system_keys_move_and_decide(page):
     page.keyboard.press("Control+a")  # the box holds the system's current comment, if any
     page.keyboard.type("jk")
     page.keyboard.press("Escape")
-    with page.expect_response(lambda r: r.request.method == "POST" and r.url.endswith(f"/api/systems/{second}/review")):
-        page.keyboard.press("f")
+    page.keyboard.press("f")  # nobody edited it and nobody is assigned: the page asks whom it goes to
+    page.locator(tid("return-to")).wait_for()
+    with page.expect_response(lambda r: r.request.method == "POST" and r.url.endswith(f"/api/systems/{second}/review")
+                              and r.ok):
+        page.click(tid("return-to-send"))
     page.wait_for_url(re.compile(rf"/systems/{third}\?sort=name&pass=\d+$"), wait_until="commit")
     decided = _api(page, f"/api/systems/{second}")["review"]
     assert (decided["status"], decided["comment"]) == ("needs_fix", "jk")
