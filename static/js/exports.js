@@ -41,6 +41,8 @@ class ExportsPanel {
     this.root = root;
     this.releasesOnly = releasesOnly;
     this.scope = el("select", { "data-testid": "export-scope", title: "Which systems every export holds" });
+    // a finished job's link is of the scope it was asked with: another scope chosen, it goes
+    this.scope.addEventListener("change", () => this.forgetOtherScopes());
     this.ready = this.addReleases();
     this.list = el("ul");
     for (const x of EXPORTS) {
@@ -76,6 +78,18 @@ class ExportsPanel {
       this.scope.value = releases.length ? `release:${releases[releases.length - 1].name}` : "";
       for (const b of this.list.querySelectorAll("button")) b.disabled = !releases.length;
     } else if (chosen) this.scope.value = chosen;
+    this.forgetOtherScopes();
+  }
+
+  /** Clear every export's state that was asked for another scope than the one chosen now, so that a download link
+   * beside "release v1.1" is never the file of v1.0 (a new release chosen, or the person's own choice). */
+  forgetOtherScopes() {
+    for (const cell of this.list?.querySelectorAll(".export-status[data-scope]") || []) {
+      if (cell.dataset.scope === this.scope.value) continue;
+      cell.replaceChildren();
+      delete cell.dataset.scope;
+      delete cell.dataset.state;
+    }
   }
 
   /** The body of an export job for the chosen scope: a release by name, or all / accepted systems now. */
@@ -86,6 +100,7 @@ class ExportsPanel {
 
   async start(x, button) {
     const cell = this.root.querySelector(`[data-testid="export-status-${x.id}"]`);
+    cell.dataset.scope = this.scope.value;
     button.disabled = true;
     try {
       const job = await send("POST", `/api/exports/${x.format}`, {
@@ -101,7 +116,9 @@ class ExportsPanel {
   }
 
   async follow(job, cell) {
+    const scope = cell.dataset.scope;
     for (;;) {
+      if (cell.dataset.scope !== scope) return; // another scope chosen meanwhile: this job's state is not shown
       cell.replaceChildren(...status(job));
       cell.dataset.state = job.state;
       if (!ACTIVE.has(job.state)) return;

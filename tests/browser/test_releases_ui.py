@@ -67,3 +67,41 @@ def test_the_exports_panel_exports_a_release_naming_it(page, tmp_path):
         labels = [json.loads(zf.read(n)) for n in zf.namelist() if n.endswith("Labels-v3D.json")]
     assert len(labels) == 1  # the one game of the released SoccerNet-v3 systems
     assert labels[0]["GameMetadata"]["v3d_release"] == {"name": "panel-1", "hash": made.json()["hash"]}
+
+
+def test_a_release_download_beside_a_new_release_delivers_that_release_named_by_it(page):
+    """On the Releases page, v1.0's export link goes once v1.1 is made (v1.1 is then the scope shown); the next
+    export's link and file name v1.1, and the file holds v1.1."""
+    import io
+    import json
+    import zipfile
+
+    pending = api_json(page, "/api/systems?limit=100&sort=-name&status=pending")["items"]
+    v3 = [s["id"] for s in pending if s["kind"] == "soccernet-v3" and s["ball3d"] is not None]
+    _accept(page, v3[0])
+    assert api_write(page, "POST", "/api/releases", data={"name": "walk-v1.0"}).status == 201
+    page.goto("/static/releases.html")
+    scope = page.locator("[data-testid=exports] [data-testid=export-scope]")
+    page.wait_for_function("() => document.querySelector('[data-testid=export-scope]')?.value"
+                           " === 'release:walk-v1.0'")
+    page.click("[data-testid=export-soccernet-v3d-no-images]")
+    link = page.locator("[data-testid=export-status-soccernet-v3d-no-images] [data-testid=export-download]")
+    link.wait_for(timeout=120_000)
+    assert link.inner_text().startswith("download soccernet-v3d-no-images-walk-v1.0.zip")
+
+    _accept(page, v3[1])
+    page.fill("[data-testid=release-form] [name=name]", "walk-v1.1")
+    page.click("[data-testid=release-create]")
+    page.locator("[data-testid=release-create-text]").filter(has_text="release walk-v1.1 made").wait_for()
+    page.wait_for_function("() => document.querySelector('[data-testid=export-scope]').value === 'release:walk-v1.1'")
+    assert link.count() == 0  # v1.0's file is not offered beside v1.1
+    assert scope.input_value() == "release:walk-v1.1"
+    page.click("[data-testid=export-soccernet-v3d-no-images]")
+    link.wait_for(timeout=120_000)
+    assert link.inner_text().startswith("download soccernet-v3d-no-images-walk-v1.1.zip")
+    with page.expect_download() as info:
+        link.click()
+    assert info.value.suggested_filename == "soccernet-v3d-no-images-walk-v1.1.zip"
+    with zipfile.ZipFile(io.BytesIO(open(info.value.path(), "rb").read())) as zf:
+        labels = [json.loads(zf.read(n)) for n in zf.namelist() if n.endswith("Labels-v3D.json")]
+    assert {lab["GameMetadata"]["v3d_release"]["name"] for lab in labels} == {"walk-v1.1"}

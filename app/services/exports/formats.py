@@ -14,6 +14,7 @@ and an export job's ``params["format"]``. Which system kinds an export writes is
 from __future__ import annotations
 
 import json
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -77,13 +78,22 @@ class ExportFormat:
 
     def download_name(self, options: Mapping[str, Any]) -> str:
         """The file name of a download of this format asked with ``options`` (an option not given takes the
-        first choice's value): the name of the choice those options make."""
+        first choice's value): the name of the choice those options make, and, for a release's export
+        (``options["release"]``), the release's name before the extension, as each asset of a release page names
+        its release (``soccernet-v3d-v1.1.zip``): two releases' files never share a name."""
         defaults = self.choices[0].options
-        for choice in self.choices:
-            if all(options.get(k, defaults.get(k)) == v for k, v in choice.options.items()):
-                return choice.download_name
-        return self.choices[0].download_name
+        name = next((c.download_name for c in self.choices
+                     if all(options.get(k, defaults.get(k)) == v for k, v in c.options.items())),
+                    self.choices[0].download_name)
+        release = options.get("release")
+        if not release:
+            return name
+        stem, dot, ext = name.rpartition(".")
+        return f"{stem}-{_FILE_UNSAFE.sub('_', str(release))}{dot}{ext}" if dot else f"{name}-{release}"
 
+
+#: What a release's name may not bring into a file name (a path's separators, quotes, spaces): each such run is "_".
+_FILE_UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
 
 _FORMATS: dict[str, ExportFormat] = {}
 

@@ -55,6 +55,16 @@ def test_a_jobs_options_and_download_name_come_from_its_format() -> None:
     assert v3d.download_name({"images": False}) == "soccernet-v3d-no-images.zip"
     assert v3d.download_name({}) == v3d.download_name({"images": True}) == "soccernet-v3d.zip"
     assert export_format("yolo").download_name({}) == "v3d-yolo.zip"
+
+
+def test_a_releases_download_is_named_by_the_release() -> None:
+    v3d = export_format("soccernet-v3d")
+    assert v3d.download_name(export_params("soccernet-v3d", release="v1.1")) == "soccernet-v3d-v1.1.zip"
+    assert v3d.download_name({"images": False, "release": "v1.0"}) == "soccernet-v3d-no-images-v1.0.zip"
+    assert export_format("yolo").download_name({"release": "../2026 spring"}) == "v3d-yolo-.._2026_spring.zip"
+
+
+def test_an_unknown_export_is_refused_naming_the_known_ones() -> None:
     with pytest.raises(ValueError, match="unknown export 'nope'; one of soccernet-v3d, issia-3d"):
         export_format("nope")
 
