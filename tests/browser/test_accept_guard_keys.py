@@ -83,12 +83,44 @@ def test_a_on_a_doubtful_system_asks_first_esc_keeps_it_pending_enter_accepts(pa
 
     # the Accept button asks too; a system without open doubts is accepted at once
     clean = next(s for s in systems if not any(d["accuses_label"] for d in s["doubts"]) and len(s["views"]) > 1
-                 and s["review"]["status"] == "pending")
+                 and s["review"]["status"] == "pending" and s["ball3d"] is not None)
     _open(page, clean["id"])
     page.click(tid("accept"))
     page.wait_for_url(lambda u: f"/systems/{clean['id']}?" not in u)
     assert not guard.is_visible()
     assert _api(page, f"/api/systems/{clean['id']}")["review"]["status"] == "accepted"
+
+
+def test_a_system_without_a_3d_ball_is_not_accepted_by_one_key(page, artifacts):
+    """Its ball labels removed, a pending system of several views has no 3D ball and no doubt: `a` alone leaves it
+    pending and the guard says it has no 3D ball; `Enter` then accepts it."""
+    from tests.browser.support import api_write
+
+    system = next(s for s in _systems(page) if not any(d["accuses_label"] for d in s["doubts"])
+                  and len(s["views"]) > 1 and s["review"]["status"] == "pending" and s["ball3d"] is not None)
+    for view in system["views"]:
+        if view["ball"].get("box") or view["ball"].get("point"):
+            etag = page.request.get(f"/api/frames/{view['frame_id']}").headers["etag"]
+            removed = api_write(page, "PATCH", f"/api/frames/{view['frame_id']}/ball", data={"box": None},
+                                headers={"If-Match": etag})
+            assert removed.ok, removed.text()
+    now = _api(page, f"/api/systems/{system['id']}")
+    assert now["ball3d"] is None and not any(d["accuses_label"] for d in now["doubts"])
+    _open(page, system["id"])
+    page.keyboard.press("a")
+    guard = page.locator(tid("accept-guard"))
+    guard.wait_for(state="visible")
+    assert "without a 3D ball" in guard.locator("h2").text_content()
+    assert "no 3D ball" in guard.locator(tid("accept-guard-no-ball")).inner_text()
+    assert _api(page, f"/api/systems/{system['id']}")["review"]["status"] == "pending"
+    for size in ((1366, 768), (1920, 1080)):
+        page.set_viewport_size({"width": size[0], "height": size[1]})
+        box = guard.bounding_box()
+        assert box["y"] >= 0 and box["y"] + box["height"] <= size[1]
+        page.screenshot(path=str(artifacts / f"accept-guard-no-ball-{size[0]}x{size[1]}.png"))
+    with page.expect_response(lambda r: r.request.method == "POST" and r.url.endswith(f"/{system['id']}/review")):
+        page.keyboard.press("Enter")
+    assert _api(page, f"/api/systems/{system['id']}")["review"]["status"] == "accepted"
 
 
 def test_keys_that_cannot_act_say_why(page, artifacts):
