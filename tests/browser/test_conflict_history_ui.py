@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, tid
+from tests.browser.support import api_write, tid, wait_for_steady_layout
 
 pytestmark = pytest.mark.browser
 
@@ -99,3 +99,39 @@ def test_a_stale_decision_lists_what_changed_under_the_page(page, artifacts):
         page.set_viewport_size({"width": width, "height": height})
         page.screenshot(path=str(artifacts / f"conflict-since-{width}.png"))
     page.locator(tid("conflict-keep")).click()
+
+
+def test_the_conflict_notice_of_a_lower_view_is_drawn_in_the_window(page, artifacts):
+    """The lowest view of a system on the page selected (scrolled into sight) and its box moved by someone else: the
+    page's nudge is answered 412 and the notice is in the window, at both sizes."""
+    listing = _api(page, "/api/systems?sort=-name&limit=500")["items"]
+    labelled = [sys for sys in (_api(page, f"/api/systems/{s['id']}") for s in listing if s["views_labelled"] >= 3)]
+    system = max(labelled, key=lambda sys: len(sys["views"]))  # the most views: one far below the page's top
+    sid = system["id"]
+    boxed = [i for i, v in enumerate(system["views"]) if v["ball"]["kind"] == "box" and v["ball"].get("box")]
+    for width, height in ((1366, 768), (1920, 1080)):
+        page.set_viewport_size({"width": width, "height": height})
+        page.goto(f"/systems/{sid}")
+        page.locator(tid("view")).nth(boxed[0]).locator(tid("ball-hit")).wait_for()
+        wait_for_steady_layout(page, tid("view"))
+        tops = page.locator(tid("view")).evaluate_all("(vs) => vs.map((v) => v.getBoundingClientRect().top)")
+        k = max(boxed, key=lambda i: tops[i])  # the lowest labelled view on the page
+        fid = system["views"][k]["frame_id"]
+        page.keyboard.press(str(k + 1))  # selected: scrolled into sight
+        page.wait_for_function("() => scrollY > 0")  # below the page's top
+        box = _api(page, f"/api/frames/{fid}")["ball"]["box"]
+        other = api_write(page, "PATCH", f"/api/frames/{fid}/ball",
+                          data={"box": [box[0], box[1] + 3, box[2], box[3] + 3]},
+                          headers={"If-Match": page.request.get(f"/api/frames/{fid}").headers["etag"]})
+        assert other.ok, other.text()
+        with page.expect_response(lambda r, fid=fid: r.request.method == "PATCH" and f"/{fid}/ball" in r.url) as answer:
+            page.keyboard.press("ArrowRight")
+        assert answer.value.status == 412
+        notice = page.locator(tid("conflict"))
+        notice.wait_for()
+        wait_for_steady_layout(page, tid("conflict"))
+        drawn = notice.bounding_box()
+        assert drawn["y"] >= 0 and drawn["y"] + drawn["height"] <= height, (width, drawn)
+        page.screenshot(path=str(artifacts / f"conflict-lower-view-{width}x{height}.png"))
+        page.locator(tid("conflict-keep")).click()
+        notice.wait_for(state="hidden")
