@@ -70,7 +70,8 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         raise InvalidInputError("give exactly one of system_id and frame_id", field="system_id")
     status = _check_decision(status, comment)
     if frame_id is not None and return_to is not None:
-        raise InvalidInputError("'assignee' is a system's needs fix; a view's decision goes to no one", field="assignee")
+        raise InvalidInputError("'assignee' goes with a system's needs fix; a view's decision goes to no one",
+                                field="assignee")
     if frame_id is not None and status is ReviewStatus.FIXED:
         raise InvalidInputError("'fixed' is a system's status; a view's decision is pending, accepted, rejected or "
                                 "needs_fix", field="status")

@@ -151,7 +151,8 @@ def test_needs_fix_without_an_editor_goes_to_the_assignee_or_to_the_person_chose
     nobody = _decide(client, scene, "needs_fix", "look again")
     assert nobody.status_code == 422, nobody.text
     assert nobody.json()["field"] == "assignee"
-    assert "nobody edited this system's labels and it has no assignee: choose whom it goes to" in nobody.json()["detail"]
+    assert ("nobody edited this system's labels and it has no assignee: choose whom it goes to"
+            in nobody.json()["detail"])
     # refused: nothing written, no hand-off, still pending
     assert _system(client, scene)[1] == version
     assert client.get(f"/api/systems/{scene.system_id}/handoff").json() is None
