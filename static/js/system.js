@@ -109,6 +109,7 @@ class SystemPage {
       if (push) history.pushState(null, "", `/systems/${encodeURIComponent(system.id)}${this.search}`);
       clearError();
       this.selected = -1;
+      this.showUndoneHere(null); // an undo's notice names the system it brought the page back to: not this one
       this.render(system);
       window.scrollTo(0, 0);
       this.passReady = this.followPass(system);
@@ -304,6 +305,19 @@ class SystemPage {
     } finally {
       this.busy = false;
     }
+  }
+
+  /** Say (`words`: what was undone, or null to hide it) that an undo brought the page back to the shown system, whose
+   * name is outlined: until the page moves on, the next key acts here, not on the system the reviewer had gone to. */
+  showUndoneHere(words) {
+    const notice = $("undo-back");
+    $("system-name").classList.toggle("undo-landed", Boolean(words));
+    notice.hidden = !words;
+    notice.replaceChildren();
+    if (!words) return;
+    const name = document.createElement("b");
+    name.textContent = this.system?.name || "this system";
+    notice.append("Back on ", name, ` after the undo (${words}): the next key acts on this system.`);
   }
 
   /** The undo item of the user's newest edit of the shown system that is not undone yet, read from the server's

@@ -141,14 +141,20 @@ export class ViewWrites {
    * the item's system's page (loaded first when another is shown), after the writes on their way. Answers the
    * new audit entry, null when it was refused (the resource changed since: said in the error bar). */
   async undoWrite(item, undoOf, kind) {
-    if (this.#page.system?.id !== item.systemId) await this.#page.load(item.systemId, true);
+    // an undo right after a decision acts on the system decided, which the page had left: it goes back there and
+    // says so, so that the next key is known to act on that system
+    const away = this.#page.system?.id !== item.systemId;
+    if (away) await this.#page.load(item.systemId, true);
     if (this.#page.system?.id !== item.systemId) return null;
     const write = (async () => {
       try {
         const answer = await undoEntry(undoOf, this.#page.params);
         this.afterWrite(item.systemId, item.frameId, answer);
         if (item.frameId === null && answer.etag && this.#page.system.id === item.systemId) this.#page.system.etag = answer.etag;
-        toast(`${kind === "undo" ? "Undone" : "Redone"}: ${await this.entryWords(kind === "undo" ? undoOf : answer.entry, item.what)}`);
+        const words = await this.entryWords(kind === "undo" ? undoOf : answer.entry, item.what);
+        const name = this.#page.system.name;
+        toast(`${kind === "undo" ? "Undone" : "Redone"}: ${words} (${name})${away ? `; back on ${name}: the next key acts here` : ""}`);
+        if (away && this.#page.system.id === item.systemId) this.#page.showUndoneHere(words);
         return answer.entry;
       } catch (err) {
         showError(`${kind} of “${item.what}” refused: ${err.message}`);

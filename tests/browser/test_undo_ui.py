@@ -127,7 +127,23 @@ def test_a_decision_is_undone_by_ctrl_z_on_its_system(page, artifacts):
         page.keyboard.press("Control+z")  # back on the decided system, its decision undone
     assert answer.value.status == 200
     assert _api(page, f"/api/systems/{sid}")["review"]["status"] == status  # the decision undone, on the server
-    page.screenshot(path=str(artifacts / "undo-decision.png"))
+    # the jump back is said: the toast names the system undone, and the page says, until it moves on, that the
+    # next key acts on that system (its name outlined)
+    name = system["name"]
+    notice = page.locator(tid("undo-back"))
+    notice.wait_for()
+    assert urlsplit(page.url).path == f"/systems/{sid}"
+    assert f"Back on {name}" in notice.inner_text() and "next key acts on this system" in notice.inner_text()
+    assert page.locator(tid("system-name")).inner_text() == name
+    assert "undo-landed" in (page.locator(tid("system-name")).get_attribute("class") or "")
+    toast = page.locator(tid("toast")).inner_text()
+    assert toast.startswith("Undone: ") and f"({name})" in toast and f"back on {name}" in toast
+    for size in ({"width": 1366, "height": 768}, {"width": 1920, "height": 1080}):
+        page.set_viewport_size(size)
+        page.screenshot(path=str(artifacts / f"undo-decision-{size['width']}.png"))
+    page.keyboard.press("j")  # the page moves on: the notice is gone with it
+    page.wait_for_url(lambda url: urlsplit(url).path != f"/systems/{sid}")
+    notice.wait_for(state="hidden")
 
 
 def test_a_mirror_fix_is_undone_to_the_same_numbers(page, artifacts):
