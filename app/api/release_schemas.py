@@ -35,6 +35,8 @@ class ReleaseOut(BaseModel):
     made_by: str = Field(description="Who made it in words: the user's name, or 'command line' (with the OS account "
                                      "for admins: 'command line (root)').")
     systems: int = Field(description="Accepted systems it holds.")
+    without_ball3d: int = Field(description="Of those, the systems accepted with no 3D ball (their views agreed on "
+                                            "no ball), counted from the release's documents.")
     views: int = Field(description="Their views (frames).")
     hash: str = Field(description="SHA-256 (hex) of its canonical content (docs/exports.md gives the recipe).")
 

@@ -117,13 +117,23 @@ async function showDiff(a, b) {
   csv.hidden = false;
 }
 
+/** A release's systems in words: "12 accepted systems (2 without a 3D ball)": an accepted system whose views agreed on
+ * no ball is in the release too, and is counted aloud. */
+function systemsWords(r) {
+  const without = r.without_ball3d ? ` (${r.without_ball3d} without a 3D ball)` : "";
+  return `${r.systems} accepted system${r.systems === 1 ? "" : "s"}${without}`;
+}
+
 function releaseRow(r) {
   const when = fmtWhen(r.created_at);
   return el("tr", { dataset: { release: r.name } },
     el("td", { text: r.name }),
     el("td", { title: when.title, "data-testid": "release-when", "data-at": r.created_at, text: when.text }),
     el("td", { "data-testid": "release-by", text: r.made_by }),
-    el("td", { class: "num", text: String(r.systems) }), el("td", { class: "num", text: String(r.views) }),
+    el("td", { class: "num", "data-testid": "release-systems",
+      title: r.without_ball3d ? `${r.without_ball3d} of them accepted without a 3D ball` : "each with its 3D ball",
+      text: r.without_ball3d ? `${r.systems} (${r.without_ball3d} without 3D ball)` : String(r.systems) }),
+    el("td", { class: "num", text: String(r.views) }),
     el("td", { class: "hash", text: r.hash }), el("td", { text: r.note }));
 }
 
@@ -165,7 +175,7 @@ function mountCreate(exportsPanel) {
         body: JSON.stringify({ name, note: form.elements.note.value }),
       });
       clearError();
-      text.textContent = `release ${r.name} made: ${r.systems} accepted system${r.systems === 1 ? "" : "s"}, ${r.views} view${r.views === 1 ? "" : "s"}`;
+      text.textContent = `release ${r.name} made: ${systemsWords(r)}, ${r.views} view${r.views === 1 ? "" : "s"}`;
       form.reset();
       await loadReleases();
       if (exportsPanel) await exportsPanel.addReleases();

@@ -105,3 +105,30 @@ def test_a_release_download_beside_a_new_release_delivers_that_release_named_by_
     with zipfile.ZipFile(io.BytesIO(open(info.value.path(), "rb").read())) as zf:
         labels = [json.loads(zf.read(n)) for n in zf.namelist() if n.endswith("Labels-v3D.json")]
     assert {lab["GameMetadata"]["v3d_release"]["name"] for lab in labels} == {"walk-v1.1"}
+
+
+def test_a_release_made_on_the_page_says_how_many_systems_it_holds_without_a_3d_ball(page, artifacts):
+    """A system accepted with no 3D ball is in the release, and the release's words count it: after "made:" and in
+    the table's systems cell."""
+    pending = api_json(page, "/api/systems?limit=500&sort=name&status=pending")["items"]
+    blind = api_json(page, f"/api/systems/{next(s['id'] for s in pending if s['kind'] == 'soccernet-v3')}")
+    for view in blind["views"]:  # every ball label removed: its views agree on no ball
+        removed = api_write(page, "PATCH", f"/api/frames/{view['frame_id']}/ball", data={"box": None},
+                            headers={"If-Match": view["etag"]})
+        assert removed.ok, removed.text()
+    _accept(page, blind["id"])
+    accepted = api_json(page, "/api/systems?limit=500&status=accepted")["items"]
+    without = sum(s["ball3d"] is None for s in accepted)
+    assert without >= 1
+    page.goto("/static/releases.html")
+    page.fill("[data-testid=release-form] [name=name]", "no-ball-1")
+    page.click("[data-testid=release-create]")
+    words = page.locator("[data-testid=release-create-text]").filter(has_text="release no-ball-1 made")
+    words.wait_for()
+    systems = f"{len(accepted)} accepted system{'' if len(accepted) == 1 else 's'}"
+    assert f"made: {systems} ({without} without a 3D ball)," in words.inner_text()
+    cell = page.locator("[data-testid=releases] tr[data-release=no-ball-1] [data-testid=release-systems]")
+    assert cell.inner_text() == f"{len(accepted)} ({without} without 3D ball)"
+    for size in ({"width": 1366, "height": 768}, {"width": 1920, "height": 1080}):
+        page.set_viewport_size(size)
+        page.screenshot(path=str(artifacts / f"release-without-ball-{size['width']}.png"))

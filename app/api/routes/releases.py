@@ -7,6 +7,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Depends, Path, Query, status
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
+from sqlalchemy.orm import Session
 
 from app.api.auth import Principal, PrincipalDep, require_role
 from app.api.deps import SessionDep, SettingsDep
@@ -20,8 +21,9 @@ router = APIRouter(prefix="/releases", tags=["releases"])
 ReleaseName = Annotated[str, Path(min_length=1, max_length=content.NAME_MAX, description="The release's name.")]
 
 
-def _out(release: Any, principal: Principal) -> ReleaseOut:
+def _out(session: Session, release: Any, principal: Principal) -> ReleaseOut:
     return ReleaseOut.model_validate({**content.release_summary(release),
+                                      "without_ball3d": content.systems_without_ball(session, release),
                                       "made_by": actor_words(release.created_by, principal.may("admin"))})
 
 
@@ -34,19 +36,19 @@ async def create_release(session: SessionDep, settings: SettingsDep, body: Relea
     imports never change it."""
     release = await run_in_threadpool(content.create_release, session, body.name, body.note, principal.name,
                                       settings)
-    return _out(release, principal)
+    return _out(session, release, principal)
 
 
 @router.get("", response_model=ReleasesOut)
 def list_releases(session: SessionDep, principal: PrincipalDep) -> ReleasesOut:
     """Every release, oldest first."""
-    return ReleasesOut(items=[_out(r, principal) for r in content.list_releases(session)])
+    return ReleasesOut(items=[_out(session, r, principal) for r in content.list_releases(session)])
 
 
 @router.get("/{name}", response_model=ReleaseOut, responses=NOT_FOUND)
 def show_release(session: SessionDep, principal: PrincipalDep, name: ReleaseName) -> ReleaseOut:
     """One release."""
-    return _out(content.get_release(session, name), principal)
+    return _out(session, content.get_release(session, name), principal)
 
 
 @router.get("/{a}/diff/{b}", response_model=DiffOut, response_model_by_alias=True,

@@ -276,8 +276,11 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
         source = after.get("source_name") or ""
         return f"{action}{f' of {source}' if source else ''}" + (f": {counts}" if counts else "")
     if action == "release.create":
-        return (f"release {after.get('name', '')} made: {after.get('systems', 0)} systems, {after.get('views', 0)} "
-                f"views, hash {str(after.get('hash', ''))[:12]}")
+        # entries written before the count was kept say nothing of it
+        without = after.get("without_ball3d")
+        return (f"release {after.get('name', '')} made: {after.get('systems', 0)} systems"
+                + (f" ({without} without a 3D ball)" if isinstance(without, int) and without else "")
+                + f", {after.get('views', 0)} views, hash {str(after.get('hash', ''))[:12]}")
     if action.startswith(("user.", "token.")):
         return account_words(action, before, after)
     named = after.get("name") or after.get("user") or ""

@@ -224,11 +224,13 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
         select(System.id, System.kind, System.derived_settings, System.derived_version, System.frame_index)
         .join(ReviewDecision, ReviewDecision.system_id == System.id)
         .where(ReviewDecision.status == ReviewStatus.ACCEPTED))}
+    without_ball = 0
     for rows in _accepted_rows(session):
         sid = rows[0].system_id
         # an ISSIA frame has its place on the sequence's fitted trajectory
-        canonical = canonical_json(system_document(rows, triangulations.get(sid), system_rows[sid],
-                                                   trajectory.get(sid)).as_json())
+        document = system_document(rows, triangulations.get(sid), system_rows[sid], trajectory.get(sid))
+        without_ball += not document.has_ball3d
+        canonical = canonical_json(document.as_json())
         digest = json_digest(canonical)
         documents[digest] = canonical
         systems[sid] = (rows[0].game_id, rows[0].system_name, digest)
@@ -256,10 +258,30 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
                     {"release_id": release.id, "system_id": sid, "game_id": gid, "name": sname, "digest": d}
                     for sid, (gid, sname, d) in systems.items()])
             record(session, actor=actor, action="release.create",
-                   after={"name": name, "hash": release.hash, "systems": release.systems, "views": views})
+                   after={"name": name, "hash": release.hash, "systems": release.systems, "views": views,
+                          "without_ball3d": without_ball})
     except _NameTaken:  # rolled back
         raise _taken(session, name) from None
+    _WITHOUT_BALL[release.hash] = without_ball
     return release
+
+
+#: Release hash -> how many of its systems have no 3D ball. A release's content never changes and its hash names
+#: that content, so each is counted once per process (:func:`systems_without_ball`).
+_WITHOUT_BALL: dict[str, int] = {}
+
+
+def systems_without_ball(session: Session, release: Release) -> int:
+    """How many of ``release``'s systems were accepted with no 3D ball (``SystemDocument.has_ball3d`` false: their
+    views agreed on no ball), counted from its system documents, as they were made, once per release hash and
+    process (the count follows from the immutable content, so it is never stored beside it)."""
+    known = _WITHOUT_BALL.get(release.hash)
+    if known is None:
+        digests = [digest for _, _, digest in release_content(session, release).systems.values()]
+        documents = read_systems(session, digests)
+        known = sum(not documents[digest].has_ball3d for digest in digests)
+        _WITHOUT_BALL[release.hash] = known
+    return known
 
 
 def _triangulations_and_trajectory(session: Session) -> tuple[dict[int, TriangulationDocument],

@@ -153,6 +153,12 @@ class SystemDocument:
     frames: tuple[FrameDocument, ...]
     trajectory: Optional[TrajectoryDocument] = None
 
+    @property
+    def has_ball3d(self) -> bool:
+        """Whether the system was released with a 3D ball (``ball3d`` neither SQL NULL nor JSON null: an accepted
+        system whose views agreed on no ball has none)."""
+        return self.ball3d not in (None, "null")
+
     def as_json(self) -> dict[str, Any]:
         """The document as stored (version 1: no version key; ``trajectory`` only where there is one)."""
         out = {"system_id": self.system_id, "name": self.name, "kind": self.kind, "game_id": self.game_id,

@@ -387,6 +387,8 @@ class Release(Model):
     created_by: str
     made_by: str
     systems: int
+    #: of those, the systems accepted with no 3D ball
+    without_ball3d: int
     views: int
     hash: str
 

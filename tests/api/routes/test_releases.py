@@ -64,7 +64,7 @@ def test_the_release_scenario_end_to_end(app, client: TestClient, six: list[Scen
     assert made.status_code == 201, made.text
     v10 = made.json()
     assert v10["systems"] == 5 and v10["views"] == 15 and v10["note"] == "first" and v10["created_by"] == "adam"
-    assert v10["made_by"] == "adam"
+    assert v10["made_by"] == "adam" and v10["without_ball3d"] == 0
     assert len(v10["hash"]) == 64 and int(v10["hash"], 16) >= 0
     assert client.post("/api/releases", json={"name": "v1.0"}).status_code == 409
     act_as("ana", "annotator")
@@ -200,3 +200,20 @@ def test_release_names_are_stored_composed_and_unique_as_people_read_them(client
     with pytest.raises(sa.exc.IntegrityError):
         db_session.flush()
     db_session.rollback()
+
+
+def test_a_release_says_how_many_of_its_systems_were_accepted_without_a_3d_ball(client: TestClient,
+                                                                                  six: list[Scene], act_as) -> None:
+    act_as("adam", "admin")
+    blind = six[2]
+    for frame in blind.frame_ids:  # every ball label removed: its views agree on no ball
+        assert client.patch(f"/api/frames/{frame}/ball", json={"box": None}).status_code == 200
+    assert client.get(f"/api/systems/{blind.system_id}").json()["ball3d"] is None
+    for s in six[:3]:
+        _accept(client, s.system_id)
+    made = client.post("/api/releases", json={"name": "v1"}).json()
+    assert made["systems"] == 3 and made["without_ball3d"] == 1
+    assert [r["without_ball3d"] for r in client.get("/api/releases").json()["items"]] == [1]
+    assert client.get("/api/releases/v1").json()["without_ball3d"] == 1
+    summaries = [e["summary"] for e in client.get("/api/audit", params={"limit": 50}).json()["items"]]
+    assert any(s.startswith("release v1 made: 3 systems (1 without a 3D ball), ") for s in summaries)

@@ -17,7 +17,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
-from app.db.models import BallLabel, ReleaseDocument, ReviewDecision, ReviewStatus, System
+from app.db.models import BallLabel, ReleaseDocument, ReviewDecision, ReviewStatus, System, Triangulation
 from app.db.session import make_engine, upgrade_database
 from app.services.derivation.recompute import recompute_system
 from app.services.exports.files import write_export_zip
@@ -211,4 +211,29 @@ def test_an_unconfirmed_placement_is_in_no_release_export_as_in_no_live_one(tmp_
     assert labels == {n: v for n, v in live.items() if n.startswith("labels/") and n.endswith(".txt")}
     balls = sum(line.startswith(b"0 ") for v in labels.values() for line in v.splitlines())
     assert balls == 5  # six views with an image, one holding only the unconfirmed placement
+    session.close()
+
+
+def test_a_release_counts_its_systems_accepted_without_a_3d_ball_from_its_documents(tmp_path: Path,
+                                                                                    monkeypatch) -> None:
+    from app.services.releases import content
+
+    url, settings, session, ids = _database(tmp_path)
+    # one accepted system's ball labels removed: its views agree on no ball, and it stays accepted
+    for label in session.scalars(sa.select(BallLabel).join(BallLabel.frame)
+                                 .where(sa.text("frames.system_id = :s")).params(s=ids[1])):
+        session.delete(label)
+    system = session.get(System, ids[1])
+    assert system is not None
+    recompute_system(session, system, settings)
+    session.commit()
+    _accept(session, ids[1])
+    assert session.scalars(sa.select(Triangulation.ball3d).where(Triangulation.system_id == ids[1])).one() is None
+    v1 = create_release(session, "v1")
+    assert content.systems_without_ball(session, v1) == 1
+    # counted again from the stored documents, as a new process would, whatever the live data became since
+    _accept(session, ids[0])
+    monkeypatch.setattr(content, "_WITHOUT_BALL", {})
+    assert content.systems_without_ball(session, get_release(session, "v1")) == 1
+    assert v1.systems == 3
     session.close()
