@@ -3,6 +3,8 @@
 // (a view's `etag`, the system view's `etag`) and answer {body, etag} with the resource's new ETag.
 // A stale one fails with ApiError status 412, whose body holds {current, etag, last_change}.
 
+import { keepDrafts } from "./drafts.js";
+
 export class ApiError extends Error {
   constructor(status, message, body) {
     super(message);
@@ -37,6 +39,8 @@ export const CSRF_HEADER = "X-CSRF-Token";
 export const LOGIN_PAGE = "/login";
 
 let mePromise = null;
+/** Set once this page had a session: a later 401 means that session ended (the login page says so). */
+let hadSession = false;
 /** Set while the person logs out: the page's other calls answered 401 then must not send the person to the login
  * page with this page to come back to (the log-out goes to the plain login page itself). */
 let leaving = false;
@@ -45,7 +49,10 @@ let leaving = false;
  * the login page (and back here afterwards). */
 export function getMe() {
   if (!mePromise) {
-    mePromise = request("GET", "/api/auth/me").catch((err) => {
+    mePromise = request("GET", "/api/auth/me").then((me) => {
+      hadSession = true;
+      return me;
+    }, (err) => {
       mePromise = null;
       throw err;
     });
@@ -53,9 +60,10 @@ export function getMe() {
   return mePromise;
 }
 
-/** Where the login page sends the person back to: this page, with its query string. */
-export function loginUrl(next = location.pathname + location.search + location.hash) {
-  return `${LOGIN_PAGE}?next=${encodeURIComponent(next)}`;
+/** Where the login page sends the person back to: this page, with its query string; `ended`: the page's session
+ * ended under it (the login page says so), `kept`: the text typed there is kept and put back (drafts.js). */
+export function loginUrl(next = location.pathname + location.search + location.hash, { ended = false, kept = false } = {}) {
+  return `${LOGIN_PAGE}?next=${encodeURIComponent(next)}${ended ? "&ended=1" : ""}${kept ? "&kept=1" : ""}`;
 }
 
 /** Headers every write carries: the session's CSRF token. */
@@ -71,9 +79,11 @@ function needsSession(url) {
     && location.pathname !== LOGIN_PAGE;
 }
 
-/** A 401 means the session is gone (or never was): go and log in, then come back. */
+/** A 401 means the session is gone (or never was): go and log in, then come back, the page's drafts kept. */
 function toLogin() {
-  if (!leaving && location.pathname !== LOGIN_PAGE) location.assign(loginUrl());
+  if (leaving || location.pathname === LOGIN_PAGE) return;
+  leaving = true; // the page's other calls answered 401 meanwhile go nowhere else
+  location.assign(loginUrl(undefined, { ended: hadSession, kept: keepDrafts() }));
 }
 
 /** fetch with the CSRF header on writes (unless `init.csrf` is false: the login, before any session)

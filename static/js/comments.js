@@ -9,6 +9,7 @@
 
 import { getMe, send } from "./api.js";
 import { el, showError, toast } from "./format.js";
+import { keepDraft } from "./drafts.js";
 import { word } from "./words.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -67,6 +68,25 @@ export class CommentsCard {
     $("send-fixed").addEventListener("click", () => this.page.review("fixed", ""));
     // the point of a new comment: the next press on a view while pinning (before the ball editor sees it)
     document.addEventListener("pointerdown", (e) => this.pickPoint(e), true);
+    // a comment being written is a draft: kept when the session ends under it, warned of before the page is left
+    keepDraft("pin", () => (this.draft && $("comment-text").value.trim() ? { ...this.draft, text: $("comment-text").value } : null),
+      (kept) => this.reopen(kept));
+  }
+
+  /** Show the pin form at `draft`'s point ({frame_id, point}) of the shown system. */
+  openForm(draft) {
+    this.draft = draft;
+    const index = this.viewIndex(draft.frame_id);
+    $("comment-where").textContent = `on V${index + 1}, where you clicked`;
+    $("comment-where").title = `V${index + 1} (${Math.round(draft.point[0])}, ${Math.round(draft.point[1])}): ${word("term", "pin").means}`;
+    $("comment-form").hidden = false;
+  }
+
+  /** Open the pin form again with a comment kept while the person logged in again ({frame_id, point, text}). */
+  reopen(kept) {
+    if (this.viewIndex(kept.frame_id) < 0 || !Array.isArray(kept.point)) return;
+    this.openForm({ frame_id: kept.frame_id, point: kept.point });
+    $("comment-text").value = String(kept.text || "");
   }
 
   /** Read the comments and the hand-off of `sys` and draw them. */
@@ -198,13 +218,9 @@ export class CommentsCard {
     e.stopPropagation();
     const p = new DOMPoint(e.clientX, e.clientY).matrixTransform(ctm.inverse());
     const v = panel.view;
-    this.draft = { frame_id: v.frame_id, point: [Math.min(Math.max(p.x, 0), v.width), Math.min(Math.max(p.y, 0), v.height)] };
     this.pinning = false;
     document.body.classList.remove("pinning");
-    const index = this.viewIndex(v.frame_id);
-    $("comment-where").textContent = `on V${index + 1}, where you clicked`;
-    $("comment-where").title = `V${index + 1} (${Math.round(this.draft.point[0])}, ${Math.round(this.draft.point[1])}): ${word("term", "pin").means}`;
-    $("comment-form").hidden = false;
+    this.openForm({ frame_id: v.frame_id, point: [Math.min(Math.max(p.x, 0), v.width), Math.min(Math.max(p.y, 0), v.height)] });
     $("comment-text").focus();
   }
 

@@ -1,6 +1,7 @@
 // Login page: POST /api/auth/login, then back to the page the person came from (?next=, same origin
 // only). Shows the demo account's name and password when `v3d serve --demo` made one (GET /api/auth/demo).
 import { ApiError, login, getDemoAccount } from "./api.js";
+import { el } from "./format.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const form = $("login-form");
@@ -20,6 +21,19 @@ export function nextPage(search = location.search, origin = location.origin) {
   if (!next.startsWith("/") || url.origin !== origin || url.pathname.startsWith("/login")) return "/";
   // A path that resolved to `//host` (from `/..//host`) would be read as another origin: one leading slash.
   return url.pathname.replace(/^\/+/, "/") + url.search + url.hash;
+}
+
+/** Why the person is here, when a page sent them: its session ended (`ended=1`), the page they return to, and
+ * whether what they had typed there is kept (`kept=1`, drafts.js). */
+function showEnded(search = location.search) {
+  const params = new URLSearchParams(search);
+  if (params.get("ended") !== "1") return;
+  const box = $("login-ended");
+  const where = el("span", { class: "mono" }, nextPage(search));
+  box.replaceChildren(el("b", {}, "Your session ended"),
+    " (it expired, or this account logged out elsewhere). Log in again to go back to ", where,
+    params.get("kept") === "1" ? "; the text you had typed there is kept and put back." : ".");
+  box.hidden = false;
 }
 
 function showError(message) {
@@ -65,4 +79,5 @@ async function showDemoHint() {
   $("demo-hint").hidden = false;
 }
 
+showEnded();
 showDemoHint();

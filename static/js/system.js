@@ -35,6 +35,7 @@ import { askWhomToReturn, needsAChosenPerson } from "./returnto.js";
 import "./pitchmap.js";
 import "./trajectory.js";
 import "./session.js";
+import { keepDraft, restoreDrafts } from "./drafts.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 
@@ -63,6 +64,14 @@ class SystemPage {
     this.comments = new CommentsCard(this); // comments pinned on the views; the hand-off (comments.js)
     $("comment").addEventListener("keydown", (e) => {
       if (e.key === "Escape") e.currentTarget.blur();
+    });
+    // the decision's comment as typed (not as the system's decision wrote it): kept when the session ends, warned of
+    // before the page is left (drafts.js)
+    keepDraft("comment", () => {
+      const box = $("comment");
+      return box.value.trim() && box.value !== box.defaultValue ? box.value : null;
+    }, (text) => {
+      $("comment").value = String(text);
     });
     $("views").addEventListener("ball-change", (e) => this.writes.saveBall(e.target, e.detail));
     $("views").addEventListener("lines-change", (e) => this.writes.saveLines(e.target, e.detail));
@@ -111,6 +120,11 @@ class SystemPage {
       this.selected = -1;
       this.showUndoneHere(null); // an undo's notice names the system it brought the page back to: not this one
       this.render(system);
+      if (!this.draftsBack) { // the first system shown: what was typed here when the session ended comes back
+        this.draftsBack = true;
+        const back = restoreDrafts();
+        if (back.length) toast(`Put back as you had typed it before logging in again: ${back.map((n) => DRAFT_WORDS[n] || n).join(", ")}`);
+      }
       window.scrollTo(0, 0);
       this.passReady = this.followPass(system);
     } catch (err) {
@@ -190,7 +204,9 @@ class SystemPage {
     $("next").disabled = this.stepId(1) == null;
     // the box holds the reviewer's own comment on the decision shown; a needs fix's note (and the fixed that answered
     // it) lives in the hand-off line, so that a re-review's decision never carries the earlier note as its own
-    $("comment").value = HANDED_OFF.has(sys.review?.status) ? "" : sys.review?.comment || "";
+    const decided = HANDED_OFF.has(sys.review?.status) ? "" : sys.review?.comment || "";
+    $("comment").defaultValue = decided; // what is no draft (drafts.js): the text as the decision left it
+    $("comment").value = decided;
 
     const tri = sys.triangulation || {};
     const ctx = { tau: tri.tau_px, rule: tri.rule, referenceWidth: tri.reference_width_px };
@@ -451,6 +467,8 @@ class SystemPage {
 
 /** The statuses whose comment is the hand-off's note (shown in the Comments card), not a comment to decide with. */
 const HANDED_OFF = new Set(["needs_fix", "fixed"]);
+/** The page's drafts (drafts.js) in words, as the toast that puts them back names them. */
+const DRAFT_WORDS = { comment: "your decision's comment", pin: "the comment you were pinning" };
 
 /** The audit actions a person's Ctrl+Z undoes (the edits of the page's undo stack). */
 const UNDOABLE = new Set(["ball.edit", "field_lines.replace", "field_lines.mirror", "view.exclusion", "view.review",

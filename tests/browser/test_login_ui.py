@@ -173,3 +173,50 @@ def test_a_login_sent_before_the_page_script_runs_never_puts_the_password_in_the
         visitor.wait_for_function("() => !document.querySelector('[data-testid=login-submit]').disabled")
     finally:
         context.close()
+
+
+def test_a_session_that_ends_under_a_typed_comment_says_so_and_gives_the_comment_back(browser, server_url, accounts,
+                                                                                       page, artifacts) -> None:
+    """Text typed in the decision's box is a draft: leaving the page with it is warned of first (beforeunload); when
+    the session ends under it (its cookie gone, as when it expires), the login page says the session ended, returns
+    to the same page, and the comment is put back as typed."""
+    sid = api_json(page, "/api/systems?sort=name&limit=3")["items"][2]["id"]
+    reviewer: Account = accounts["admin"]  # its page's own session: the module's page keeps its own
+    typed = "the ball is behind the keeper's glove in V2"
+    with _visitor(browser, server_url) as visitor:
+        visitor.goto(f"/systems/{sid}?sort=name")
+        log_in(visitor, reviewer)
+        visitor.wait_for_url(f"{server_url}/systems/{sid}?sort=name")
+        visitor.wait_for_function("() => document.querySelector('[data-testid=system-name]')?.textContent !== '…'")
+        visitor.fill(tid("comment"), typed)
+
+        dialogs: list[str] = []
+
+        def stay(dialog) -> None:  # the browser asks before leaving a page with a draft; the person stays
+            dialogs.append(dialog.type)
+            dialog.dismiss()
+
+        visitor.on("dialog", stay)
+        visitor.click(tid("queue-link"), no_wait_after=True)
+        pump_until(visitor, lambda: dialogs, "the warning before leaving a typed comment")
+        assert dialogs == ["beforeunload"]
+        visitor.remove_listener("dialog", stay)
+        assert visitor.input_value(tid("comment")) == typed  # still on the page, the text as typed
+
+        visitor.context.clear_cookies()  # the session ends under the page
+        # its next call is refused (401): to the login page, the comment kept (the page's own polls may come first:
+        # then the button is gone, and the click finds nothing)
+        visitor.evaluate("() => document.querySelector('[data-testid=next]')?.click()")
+        visitor.wait_for_url(re.compile(rf"/login\?next=%2Fsystems%2F{sid}%3Fsort%3Dname&ended=1&kept=1$"))
+        ended = visitor.locator(tid("login-ended"))
+        ended.wait_for()
+        assert ended.inner_text().startswith("Your session ended")
+        assert f"/systems/{sid}?sort=name" in ended.inner_text() and "kept and put back" in ended.inner_text()
+        for size in ({"width": 1366, "height": 768}, {"width": 1920, "height": 1080}):
+            visitor.set_viewport_size(size)
+            visitor.screenshot(path=str(artifacts / f"login-session-ended-{size['width']}.png"))
+
+        log_in(visitor, reviewer)
+        visitor.wait_for_url(f"{server_url}/systems/{sid}?sort=name")
+        visitor.locator(tid("toast")).filter(has_text="your decision's comment").wait_for()
+        assert visitor.input_value(tid("comment")) == typed
