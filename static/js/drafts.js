@@ -59,11 +59,21 @@ export function restoreDrafts() {
       back.push(name);
     }
   }
+  watch();
   return back;
 }
 
-window.addEventListener("beforeunload", (event) => {
+function warn(event) {
   if (kept || !Object.keys(typed()).length) return;
   event.preventDefault();
   event.returnValue = ""; // the browser's own words: text typed here would be lost
-});
+}
+
+/** The warning is listened for only while there is a draft: a page with a beforeunload listener has the browser
+ * ask its script before every navigation away, which a page with nothing typed has no reason to. */
+function watch() {
+  if (Object.keys(typed()).length) window.addEventListener("beforeunload", warn);
+  else window.removeEventListener("beforeunload", warn);
+}
+
+document.addEventListener("input", watch, true);
