@@ -159,10 +159,17 @@ export function viewFacts(v, ctx, panel) {
   const scaled = isNum(v.reprojection_error_scaled_px) ? v.reprojection_error_scaled_px : null;
   const rb = v.reprojected_ball;
   const outside = validPoint(rb) && (rb[0] < 0 || rb[1] < 0 || rb[0] > v.width || rb[1] > v.height);
-  const errText = isNum(err)
-    ? `${err.toFixed(2)} px` + (scaled !== null && Math.abs(scaled - err) > 1e-6 ? ` (${scaled.toFixed(2)} @${referenceWidth})` : "")
-      + (outside ? ", reprojects outside the frame" : "")
-    : "—";
+  const offBy = (px, at) => `${px.toFixed(2)} px` + (isNum(at) && Math.abs(at - px) > 1e-6 ? ` (${at.toFixed(2)} @${referenceWidth})` : "");
+  // a placement waiting for Enter makes no 3D ball yet: the error it will show once confirmed, as its doubt says it
+  // (one computation on the server, the same number before and after Enter)
+  const waiting = ball.provenance
+    ? (ctx.doubts || []).find((d) => d.kind === "suggested_label" && d.evidence && "confirmed_error_px" in d.evidence)
+    : null;
+  const errText = waiting
+    ? (isNum(waiting.evidence.confirmed_error_px)
+      ? `${offBy(waiting.evidence.confirmed_error_px, waiting.evidence.confirmed_error_scaled_px)} once confirmed`
+      : "no 3D ball once confirmed")
+    : isNum(err) ? offBy(err, scaled) + (outside ? ", reprojects outside the frame" : "") : "—";
 
   let boxText = "—";
   if (ball.kind === "box" && validBox(ball.box)) {

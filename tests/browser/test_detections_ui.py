@@ -3,6 +3,8 @@
 with the detector's name and score, and ``s`` places it as a placement to confirm."""
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from tests.browser.support import api_json as _api
@@ -49,6 +51,7 @@ def test_a_checked_detection_is_drawn_with_its_score_and_placed_with_its_key(pag
     assert "yolo-sn-ball 0.66" in shown.locator("text.det-score").first.text_content()
     card = shown.locator(f"{tid('view-doubt')}[data-kind=ball_detected]")
     assert card.is_visible() and "Place yolo-sn-ball's box (score 0.66)" in card.inner_text()
+    doubt_words = card.inner_text()
     page.screenshot(path=str(artifacts / "detector-box.png"), full_page=True)
     shown.locator(tid("view-doubt")).first.click()
     page.keyboard.press("s")
@@ -60,3 +63,27 @@ def test_a_checked_detection_is_drawn_with_its_score_and_placed_with_its_key(pag
     ball = wait_until(placed, timeout_s=60)
     assert ball["provenance"]["detector"] == "yolo-sn-ball" and ball["provenance"]["score"] == 0.66
     assert [round(v) for v in ball["box"]] == [round(v) for v in box]
+
+    # one number for how far the placed box lies from the 3D ball: what the doubt said before the key, what the view
+    # shows after it (the placement waiting for Enter), and what it shows once confirmed
+    def off_by(text: str) -> float:
+        return float(re.match(r"([0-9.]+) px", text).group(1))
+
+    said = re.search(r"confirmed, it lies ([0-9.]+) px", doubt_words).group(1)
+    error = shown.locator(tid("view-reproj-error"))
+    error.filter(has_text="once confirmed").wait_for()
+    waiting = error.inner_text()
+    assert abs(off_by(waiting) - float(said)) <= 0.06  # the key sends the box to 0.1 px
+    card = shown.locator(f"{tid('view-doubt')}[data-kind=suggested_label]")
+    assert f"confirmed, it lies {waiting.split(' px')[0]} px" in card.inner_text()
+    for size in ({"width": 1366, "height": 768}, {"width": 1920, "height": 1080}):
+        page.set_viewport_size(size)
+        page.screenshot(path=str(artifacts / f"detector-box-placed-{size['width']}.png"))
+    with page.expect_response(lambda r: r.request.method == "PATCH" and "/ball" in r.url) as answer:
+        page.keyboard.press("Enter")
+    assert answer.value.status == 200
+    error.filter(has_not_text="once confirmed").wait_for()
+    assert error.inner_text() == waiting.replace(" once confirmed", "")
+    confirmed = _api(page, f"/api/systems/{system['id']}")
+    view = next(v for v in confirmed["views"] if v["frame_id"] == doubt["frame_id"])
+    assert view["reprojection_error_px"] == pytest.approx(off_by(waiting), abs=0.005)

@@ -27,7 +27,7 @@ from app.geometry.consensus import Consensus
 from app.geometry.doubts import DoubtSettings, DoubtView, judge_system, label_severity
 from app.geometry.doubts.detections import Detection, check_detections
 from app.geometry.doubts.judge import consensus_without, consensuses_without
-from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.pair_error import REFERENCE_WIDTH_PX, scaled_error_px
 from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
 from app.geometry.weighting import calibration_weight, centre_of, label_centre
@@ -129,10 +129,14 @@ def calibration_weights(system: System, settings: Settings, cameras: dict[int, C
 
 def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,
                   geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
-                  weighed: WeighedViews | None = None) -> list[Doubt]:
+                  weighed: WeighedViews | None = None,
+                  after_confirming: Callable[[Frame, np.ndarray], float | None] | None = None) -> list[Doubt]:
     """Judge the system (``app.geometry.doubts.judge_system``; ``geometry``: the recomputation's pair geometry, shared
     with its triangulation; ``weighed``: its :func:`weighed_views`, when made already) and replace its stored doubts
-    and counts. Changes the session only; the caller commits (with the edit that caused it)."""
+    and counts. ``after_confirming(frame, centre)``: the recomputation's error (px of the view) of a label centred
+    at ``centre`` (2,) px once a person confirmed it; given, a detector's box and a placement waiting for its
+    confirmation say that number (:func:`with_confirmed_error`), the one the view shows once confirmed. Changes the
+    session only; the caller commits (with the edit that caused it)."""
     weighed = weighed or weighed_views(system, settings, cameras)
     judged = doubt_settings(settings)
     found = judge_system(weighed.views, judged, geometry, weighed.weighed)
@@ -141,6 +145,8 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     if detections:  # a detector's predictions, checked against the other views (none: the doubts as they were)
         found = check_detections(with_players(system, weighed.views, detections), found, detections, judged,
                                  settings.doubt_detection_size_tolerance, geometry, weighed.weighed)
+    if after_confirming is not None:
+        found = with_confirmed_error(system, found, after_confirming)
     names = {f.id: f.name for f in system.frames}
     replace_rows(system.doubts, Doubt, [  # in place: a doubt the edit leaves as it was writes nothing
         dict(frame_id=d.view_id, kind=d.kind, accuses_label=d.accuses_label, message=doubt_message(d, names),
@@ -152,6 +158,42 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
                         "label_doubts": sum(1 for d in found if d.accuses_label),
                         "label_severity": label_severity(d.kind for d in found)})
     return list(system.doubts)
+
+
+#: The doubts whose ball label a person confirms as it is (a detector's box placed by its key, then Enter): each says
+#: how far that label will lie from the 3D ball once confirmed.
+CONFIRMED_KINDS = ("ball_detected", "suggested_label")
+
+
+def with_confirmed_error(system: System, doubts: list[Any],
+                         after_confirming: Callable[[Frame, np.ndarray], float | None]) -> list[Any]:
+    """``doubts`` with, on each of :data:`CONFIRMED_KINDS` whose label is known (a ``ball_detected`` suggestion's box,
+    a ``suggested_label``'s placed label), ``evidence["confirmed_error_px"]``: its distance (px of the view) from the
+    3D ball once confirmed (``after_confirming``), and ``confirmed_error_scaled_px`` in the scale the system's pair
+    rule compares with tau (``scaled_error_px``, px at 1920 width for ``max_scaled_1920``): the numbers the view's
+    facts show after the fix key and after Enter, from the same computation (None: no 3D ball then)."""
+    frames = {f.id: f for f in system.frames}
+    rule = system.triangulation.rule if system.triangulation is not None else None
+    out = []
+    for d in doubts:
+        frame = frames.get(d.view_id) if d.kind in CONFIRMED_KINDS else None
+        centre = None
+        if frame is not None and d.kind == "ball_detected" and (d.suggestion or {}).get("box"):
+            x1, y1, x2, y2 = d.suggestion["box"]
+            centre = np.array([(x1 + x2) / 2, (y1 + y2) / 2])
+        elif frame is not None and d.kind == "suggested_label" and frame.ball_label is not None:
+            known = frame.ball_label.centre
+            centre = None if known is None else np.asarray(known, dtype=float)
+        if centre is None:
+            out.append(d)
+            continue
+        assert frame is not None  # a centre is read from a frame
+        error = after_confirming(frame, centre)
+        out.append(dataclasses.replace(d, evidence={
+            **d.evidence, "confirmed_error_px": None if error is None else round(error, 2),
+            "confirmed_error_scaled_px": None if error is None else round(
+                cast(float, scaled_error_px(error, frame.width, rule)), 2)}))
+    return out
 
 
 def stored_detections(system: System, per_frame: int) -> dict[int, list[Detection]]:

@@ -84,9 +84,10 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 4  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
+DERIVED_VERSION = 5  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
-# by what their calibrations are worth (weak_calibrations, outweighed)
+# by what their calibrations are worth (weak_calibrations, outweighed); 5: a placement's doubts say its error once
+# confirmed, as the view will show it
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
@@ -205,14 +206,32 @@ def recompute_system(session: Session, system: System, settings: Settings,
         geometry = shared.PAIR_GEOMETRY  # pairs of views an edit left as they were (``cameras`` module docstring)
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
-    observations = kind.consensus_observations(system, observations, settings)
     # a weak calibration (few line classes, an unsure camera) neither makes nor moves a ball on its own
     weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the weights and the doubts
     weights = calibration_weights(system, settings, weighed=weighed) if kind.weighs_calibrations else None
-    result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
-                              play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
-                              view_weights=weights, geometry=geometry)
+
+    def triangulated(labelled: list[BallObservation]) -> Any:
+        return triangulate_ball(kind.consensus_observations(system, labelled, settings),
+                                tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                                min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
+                                play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
+                                view_weights=weights, geometry=geometry)
+
+    result = triangulated(observations)
+
+    def after_confirming(frame: Frame, centre: np.ndarray) -> float | None:
+        """How far (px of ``frame``'s image) a label centred at ``centre`` would lie from the 3D ball once a person
+        confirmed it there: the ball triangulated with it as this recomputation triangulates (when the view takes
+        part: admitted, not excluded), else the ball as it is; None where there would be none, or no camera."""
+        camera = cameras.get(frame.id)
+        if camera is None:
+            return None
+        cal = frame.calibration
+        takes_part = cal is not None and bool(cal.admitted) and not is_excluded(frame)
+        ball = triangulated([*(o for o in observations if o.view_id != frame.id),
+                             BallObservation(view_id=frame.id, camera=camera, point_px=centre,
+                                             image_width=frame.width)]).point if takes_part else result.point
+        return None if ball is None else _reprojection_error(camera, np.asarray(ball, dtype=float), centre)
 
     tri = system.triangulation
     if tri is None:
@@ -235,7 +254,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_reprojection(f, cameras.get(f.id), ball)
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
-    update_doubts(system, settings, cameras, geometry, weighed)
+    update_doubts(system, settings, cameras, geometry, weighed, after_confirming)
     update_label_distances(system, settings, weighed, geometry)
     update_summary(system, tri)
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
@@ -400,17 +419,29 @@ def _label_centre(frame: Frame) -> np.ndarray | None:
     return None if centre is None else np.asarray(centre, dtype=float)
 
 
+def _projected(camera: Camera, ball: np.ndarray) -> np.ndarray | None:
+    """(2,) px where ``camera`` sees the 3D ball ``ball`` (3,) world metres, None behind it."""
+    proj, in_front = camera.project(ball.reshape(1, 3))
+    return proj[0] if in_front[0] else None
+
+
+def _reprojection_error(camera: Camera, ball: np.ndarray, centre: np.ndarray) -> float | None:
+    """A view's reprojection error as its facts show it: px of its image between the labelled centre ``centre`` (2,)
+    and the 3D ball's projection (None behind the camera). The one computation of the stored error and of the error
+    a placement would have once confirmed (``recompute_system``'s ``after_confirming``)."""
+    uv = _projected(camera, ball)
+    return None if uv is None else float(np.linalg.norm(uv - centre))
+
+
 def _update_reprojection(frame: Frame, camera: Camera | None, ball: np.ndarray | None) -> None:
-    uv = None
-    if camera is not None and ball is not None:
-        proj, in_front = camera.project(ball.reshape(1, 3))
-        uv = proj[0] if in_front[0] else None
+    uv = _projected(camera, ball) if camera is not None and ball is not None else None
     if uv is None:
         if frame.reprojection is not None:
             frame.reprojection = None
         return
     centre = _label_centre(frame)
-    error = None if centre is None else float(np.linalg.norm(uv - centre))
+    assert camera is not None and ball is not None  # a projection was found
+    error = None if centre is None else _reprojection_error(camera, ball, centre)
     rep = frame.reprojection
     if rep is None:
         frame.reprojection = rep = BallReprojection(point=[0.0, 0.0])

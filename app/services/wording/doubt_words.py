@@ -12,6 +12,7 @@ from typing import Any, Callable, Mapping
 
 from app.geometry.doubts import Doubt as DoubtFinding
 from app.geometry.mirror import AMBIGUOUS, DIFFERENT, SAME, VERDICT_AS_LABELLED, VERDICT_MIRRORED
+from app.geometry.pair_error import REFERENCE_WIDTH_PX
 
 Names = Mapping[Any, str]
 
@@ -180,16 +181,33 @@ _DETECTED_RULE = {
 }
 
 
+def _once_confirmed(ev) -> str:
+    """What a label confirmed as it is will show (``confirmed_error_px``, px of the view, and its scaled value at
+    the pair rule's reference width): the view's own "Ball off by" then, from the same computation; "" when unknown
+    (a doubt stored before the number was kept)."""
+    if "confirmed_error_px" not in ev:
+        return ""
+    px, scaled = ev.get("confirmed_error_px"), ev.get("confirmed_error_scaled_px")
+    if not isinstance(px, (int, float)):
+        return "; confirmed, it makes no 3D ball yet"
+    at = f" ({scaled:.2f} px at {REFERENCE_WIDTH_PX:g} width)" if isinstance(scaled, (int, float)) and abs(
+        scaled - px) > 1e-6 else ""
+    return f"; confirmed, it lies {px:.2f} px{at} from the 3D ball"
+
+
 def _detected(ev, v, n, code: str = "consensus"):
     others = _list(ev.get("agreeing_views"), n)
     rivals = ev.get("candidates_passed") or 1
     margin = (f"; {rivals - 1} other candidate(s) also fit, {_num(ev.get('margin_px_1920'), 1)} px worse"
               if rivals > 1 and ev.get("margin_px_1920") is not None else "")
     where = "where the detections of" if code == "detections_agree" else "where"
-    return (f"A detector ({ev.get('detector')}, score {_num(ev.get('score'), 2)}) found the ball in {v} "
-            f"{_num(ev.get('error_px_1920'), 1)} px (at 1920 width) from {where} {others} put it, at "
+    # one number for how far the box lies from the ball: the view's own once it is confirmed; the check's (against a
+    # ball refitted through the box itself, which reads smaller) only where that one is unknown
+    near = (f"{where} {others} put it" if "confirmed_error_px" in ev
+            else f"{_num(ev.get('error_px_1920'), 1)} px (at 1920 width) from {where} {others} put it")
+    return (f"A detector ({ev.get('detector')}, score {_num(ev.get('score'), 2)}) found the ball in {v} {near}, at "
             f"{_num(100 * (ev.get('size_ratio') or math.nan))} % of a ball's size there{_DETECTED_RULE[code]}{margin}; "
-            "s places its box, to be confirmed.")
+            f"s places its box, to be confirmed{_once_confirmed(ev)}.")
 
 
 def _detection_off(ev, v, n):
@@ -231,7 +249,7 @@ _WRITERS: dict[tuple[str, str], Callable[[dict, str, Names], str]] = {
     ("few_lines", "few_lines"): _few,
     ("suggested_label", "unconfirmed"): lambda ev, v, n: (
         f"{v}'s ball label was suggested by a doubt and no person has placed it yet: it makes no 3D ball and confirms "
-        "nothing until someone moves or confirms it on the image."),
+        f"nothing until someone moves or confirms it on the image{_once_confirmed(ev)}."),
     ("mirrored_labels", "flagged"): _mirror,
     ("mirrored_labels", "suspected"): lambda ev, v, n: _mirror(ev, v, n, suspected=True),
     ("ball_off_consensus", "off_consensus"): _off,

@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import pytest
 import sqlalchemy as sa
 
 from app.db.models import Doubt
@@ -94,3 +95,32 @@ def test_a_view_whose_camera_takes_no_part_is_checked_along_the_lone_labelled_ra
                             Path("synth_league_c/2031-2032/2031-10-15 - 18-00 Glenrock 0 - 1 Arden"))
     box = _the_fill(fills, "5.png", "ball_detected", "weak_view")
     assert _right(box, centres["5.png"])
+
+
+def test_a_detectors_box_says_the_error_its_view_shows_once_confirmed(shared_dir, tmp_path, fresh_session_factory):
+    # every system of this game with a detector's box to place: the doubt's number is the one the view shows once a
+    # person confirms the box (before, the check's number, against a ball refitted through the box itself, read
+    # 0.9 px on 21_1.png where the view then showed 4.5 px)
+    from app.core.config import Settings
+    from app.db.models import Frame
+    from app.services.curation.editing import update_ball_label
+
+    settings = Settings(calibration_workers=1)
+    with fresh_session_factory("game") as session:
+        frames, _ = import_detector_game(session, shared_dir, tmp_path, SET,
+                                         Path("synth_league_a/2031-2032/2031-08-01 - 14-00 Glenrock 0 - 3 Fenwick"))
+        detected = session.scalars(sa.select(Doubt).where(Doubt.frame_id.in_(frames), Doubt.kind == "ball_detected")
+                                   .order_by(Doubt.id)).all()
+        said = {}
+        for d in detected:  # one per system: confirming a box changes what its system's other doubts say
+            said.setdefault(frames[d.frame_id].system_id, (d.frame_id, d.suggestion["box"], d.evidence))
+        assert len(said) >= 8 and any("from the 3D ball" in d.message for d in detected)
+        for frame_id, box, evidence in said.values():
+            update_ball_label(session, frame_id, box=box, settings=settings)
+            session.commit()
+            rep = session.get(Frame, frame_id).reprojection
+            shown = None if rep is None else rep.error_px
+            if evidence["confirmed_error_px"] is None:
+                assert shown is None, frame_id
+            else:
+                assert shown == pytest.approx(evidence["confirmed_error_px"], abs=0.006), frame_id
