@@ -445,8 +445,10 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
     by_id = {v.view_id: v for v in views}
     if cons.point is not None and not cons.ambiguous:
         accusing = sum(weight[i] for i in cons.inliers) >= 1.5  # a full vote and at least a half one
-        doubts += _off_consensus_doubts([by_id[vid] for vid in cons.outliers if accusing and vid not in helper_ids],
-                                        cons, cons.point, sigma, tau, s)
+        off = [by_id[vid] for vid in cons.outliers if accusing and vid not in helper_ids]
+        placed_off = _players_placed_off(views, cons, vote, s, {v.view_id for v in off}) if accusing else {}
+        doubts += _off_consensus_doubts([*off, *(by_id[vid] for vid in placed_off)], cons, cons.point, sigma, tau, s,
+                                        {**cons.errors_1920, **placed_off})
         for v in unlabelled:
             d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
             if d is not None:
@@ -475,15 +477,63 @@ def _disagreement(vote: _Votes, cons: Consensus, s: DoubtSettings,
     return [] if d is None else [d]
 
 
+#: A label of a view whose camera its players placed is accused (and snapped) only beyond this many times its
+#: tolerance (tau widened to the camera's pixel sigma): such a view takes no part in the consensus, so the label is
+#: accused on its own camera's word, which must then be far surer than the label. Measured with the guards of
+#: :func:`_players_placed_off` on the dev set, dev-large and the five doubts seeds: 7 such labels accused, each on the
+#: wrong spot (293-1575 px@1920 from the ball), every snap 1.6-18.7 px@1920 from the true ball; no right label
+#: accused (without the guards, 3 right labels of systems with a replay out of time were, their snaps 197-265 px off).
+#: 12 labels on the wrong spot stay unaccused (no ball agreed on, or a guard): a fix missed, never one made wrong.
+PLAYERS_PLACED_MARGIN = 3.0
+
+
+def _players_placed_off(views: Sequence[DoubtView], cons: Consensus, vote: _Votes, s: DoubtSettings,
+                        accused: Iterable[Hashable]) -> dict[Hashable, float]:
+    """View id -> error (px at 1920 width) of each labelled view whose camera its players placed (flag
+    ``player_assisted``: the pose over-determined by the players it shares with the well-lined views,
+    ``app.geometry.calibration.players``) and sure (pixel sigma within tau), off the consensus ball by more than
+    :data:`PLAYERS_PLACED_MARGIN` tolerances, and not ``accused`` already (the consensus accuses its outliers but
+    the helpers, and never a camera with no vote). Its few lines do not fix its camera, which is why it is no voter;
+    its players do, so a label hundreds of px from where that camera sees the agreed ball is the label's error, and
+    the consensus box is the fix (rule 3 of :func:`judge_system`). Only on a ball that at least two labelled full
+    votes agree on, every voter within half of tau of it: a replay out of time among the voters (or a label of
+    another moment in the view itself, agreed on by one full vote and a half one) leaves a ball its snap would make
+    worse. (vote: the judge's votes, :func:`_votes`.)"""
+    assert cons.point is not None  # asked only where the views agree on a ball
+    sigma, tau = vote.sigma, vote.tau
+    labelled = {v.view_id for v in vote.labelled}
+    full = [i for i in cons.inliers if i in labelled and vote.weight.get(i, 0.0) >= 1.0]
+    errors = [cons.errors_1920.get(i) for i in cons.inliers]
+    if len(full) < 2 or any(e is None or e > tau / 2 for e in errors):
+        return {}
+    off: dict[Hashable, float] = {}
+    skip = {*cons.inliers, *accused}
+    for v in views:
+        vid = v.view_id
+        if (not v.player_assisted or v.excluded or v.camera is None or v.mirror_flagged or v.suggested
+                or label_centre(v) is None or vid in skip):
+            continue
+        own = sigma.get(vid, math.inf)
+        if own > tau:
+            continue
+        e = reprojection_error_px(camera_of(v), cons.point, centre_of(v))
+        if e is not None and e * rule_scale(v, s) > PLAYERS_PLACED_MARGIN * max(tau, own):
+            off[vid] = e * rule_scale(v, s)
+    return off
+
+
 def _off_consensus_doubts(outliers: Sequence[DoubtView], cons: Consensus, point: np.ndarray,
-                         sigma: Mapping[Any, float], tau: float, s: DoubtSettings) -> list[Doubt]:
+                         sigma: Mapping[Any, float], tau: float, s: DoubtSettings,
+                         errors_1920: Mapping[Hashable, float | None] | None = None) -> list[Doubt]:
     """``ball_off_consensus`` of each of ``outliers``, labelled views off the non-ambiguous consensus ``cons`` of ball
-    ``point`` (rule 3 of :func:`judge_system`): its error and tolerance, the agreeing views, and the fix
-    (:func:`consensus_fix`) with the consensus ball's box where the ball projects inside the view."""
+    ``point`` (rule 3 of :func:`judge_system`): its error (``errors_1920``, px at 1920 width; the consensus's own
+    when None) and tolerance, the agreeing views, and the fix (:func:`consensus_fix`) with the consensus ball's box
+    where the ball projects inside the view."""
+    errors = cons.errors_1920 if errors_1920 is None else errors_1920
     doubts = []
     for v in outliers:
         vid = v.view_id
-        e = cons.errors_1920[vid]
+        e = errors[vid]
         uv = project_point(v, point)
         box = sphere_image_box(camera_of(v), point, s.ball_diameter_m / 2) if uv is not None and _inside(
             v, uv, 0.0) else None

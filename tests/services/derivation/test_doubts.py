@@ -240,3 +240,58 @@ def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: 
     system = _stored(db_session, scene.system_id)
     ball3d = system.triangulation.ball3d
     assert ball3d is not None and np.linalg.norm(np.subtract(ball3d, BALL)) > 0.5
+
+
+def _import_game(factory, shared_dir, tmp_path, folder: str, game: str):
+    """One game of a shared synthetic set (labels only) imported as a user would: (frames by (system, view name),
+    the set's truth of that game's systems by action)."""
+    import json
+    import shutil
+    from pathlib import Path
+
+    import sqlalchemy as sa
+
+    from app.db.models import Frame, Game
+    from app.services.transfer.importing import import_soccernet_v3
+
+    root = shared_dir / "data/synthetic" / folder
+    (tmp_path / folder / game).mkdir(parents=True)
+    shutil.copy(root / game / "Labels-v3.json", tmp_path / folder / game)
+    session = factory(Path(folder).name)
+    import_soccernet_v3(session, tmp_path / folder, Settings(calibration_workers=1))
+    session.commit()
+    truth = json.loads(root.with_name(f"{root.name}.truth.json").read_text())
+    systems = next(g["systems"] for g in truth["games"] if g["match"] == Path(game).name)
+    frames = {(f.system.name, f.name): f for f in session.scalars(sa.select(Frame).join(System).join(Game))}
+    return frames, {s["action"]: s for s in systems}
+
+
+def test_a_players_placed_camera_snaps_a_label_far_off_the_agreed_ball_and_never_a_right_one(
+        shared_dir, tmp_path, fresh_session_factory) -> None:
+    """A view whose camera its players placed takes no part in the consensus (its few lines do not fix it), yet its
+    players do: its ball label 700 px@1920 from where it sees the ball the other views agree on is accused with the
+    one-key snap to that ball's box (the dev set's 8.png, the label on the wrong spot). Never on a ball a replay out
+    of time made (seed-203: the players-placed view is the one out of time; seed-201: a voter is), where its label
+    is right and the snap would move it hundreds of px off."""
+    import math
+
+    frames, truth = _import_game(fresh_session_factory, shared_dir, tmp_path, "soccernet-v3-dev",
+                                 "synth_league_a/2031-2032/2031-08-01 - 14-00 Dunmore 0 - 3 Glenrock")
+    view = frames[("8.png", "8.png")]
+    assert "player_assisted" in view.calibration.flags and truth["8.png"]["corruption"] == "wrong_ball"
+    seen = next(v for v in truth["8.png"]["views"] if v["image"] == "8.png")
+    true_centre = seen["ball_center_px"]
+    (doubt,) = [d for d in view.system.doubts if d.frame_id == view.id and d.kind == "ball_off_consensus"]
+    assert doubt.evidence["error_px_1920"] > 500 and doubt.suggestion["action"] == "snap_box"
+    x1, y1, x2, y2 = doubt.suggestion["box"]
+    # on the ball, by the scorer's tolerance (tools/detector_fill_eval.py: max(3 px, half the ball's diameter))
+    assert math.dist(((x1 + x2) / 2, (y1 + y2) / 2), true_centre) <= max(3.0, seen["d_true"] / 2)
+    assert math.dist(view.ball_label.centre, true_centre) > 300
+    for folder, game in (("doubts-seeds/seed-203", "2031-12-08 - 16-00 Oakhurst 0 - 0 Marden"),
+                         ("doubts-seeds/seed-201", "2031-08-01 - 14-00 Northby 1 - 3 Glenrock")):
+        game = f"synth_league_a/2031-2032/{game}"
+        frames, truth = _import_game(fresh_session_factory, shared_dir, tmp_path, folder, game)
+        for (action, name), f in frames.items():
+            if f.calibration is not None and "player_assisted" in (f.calibration.flags or []):
+                accused = [d for d in f.system.doubts if d.frame_id == f.id and d.kind == "ball_off_consensus"]
+                assert not accused or truth[action]["corruption"] == "wrong_ball", (folder, action, name)
