@@ -87,7 +87,7 @@ from app.services.wording.doubt_words import with_sentence
 DERIVED_VERSION = 5  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed); 5: a placement's doubts say its error once
-# confirmed, as the view will show it
+# confirmed, as the view will show it, and a players-placed view's label far off the agreed ball is accused
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
