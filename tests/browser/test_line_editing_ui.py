@@ -307,3 +307,29 @@ def test_an_undo_after_someone_elses_edit_stops_with_the_conflict_notice(page, a
                 "draw a new line of the chosen class"):
         assert row in rows, row
     page.screenshot(path=str(artifacts / "line-edit-keys.png"))
+
+
+def test_a_label_far_off_where_its_players_placed_camera_sees_the_ball_snaps_with_one_key(page, artifacts):
+    """8.png of the dev set's first game: its camera the players placed (three line classes), its ball label on the
+    wrong spot, 700 px@1920 from where that camera sees the ball the other views agree on. The view offers the snap
+    to that ball's box, and s places it, as for any label off the agreed ball."""
+    system = next(s for s in (_api(page, f"/api/systems/{item['id']}") for item in
+                              _api(page, "/api/systems?sort=name&limit=200")["items"] if item["name"] == "8.png")
+                  if "Dunmore" in s["game"]["match"])
+    k, view = _view(page, system, "8.png")
+    assert "player_assisted" in view["calibration"]["flags"]
+    (doubt,) = [d for d in system["doubts"] if d["frame_id"] == view["frame_id"] and d["kind"] == "ball_off_consensus"]
+    box = doubt["suggestion"]["box"]
+    page.goto(f"/systems/{system['id']}")
+    shown = page.locator(tid("view")).nth(k)
+    shown.locator(f"{tid('view-doubt')}[data-kind=ball_off_consensus]").wait_for()
+    for size in ({"width": 1366, "height": 768}, {"width": 1920, "height": 1080}):
+        page.set_viewport_size(size)
+        page.screenshot(path=str(artifacts / f"players-placed-off-{size['width']}.png"))
+    page.keyboard.press(str(k + 1))
+    with page.expect_response(lambda r: r.request.method == "PATCH" and "/ball" in r.url) as answer:
+        page.keyboard.press("s")
+    assert answer.value.status == 200
+    placed = _api(page, f"/api/frames/{view['frame_id']}")["ball"]["box"]
+    assert placed == pytest.approx([round(v, 1) for v in box], abs=1e-6)
+    page.locator(tid("toast")).filter(has_text="ball snapped to the suggested box").wait_for()
