@@ -236,7 +236,7 @@ def _return_to(seeded_settings, system_ids: list[int], who: str, note: str) -> N
         engine.dispose()
 
 
-def test_a_needs_fix_nobody_would_get_asks_whom_it_goes_to(browser, server_url, seeded_settings, team):
+def test_a_needs_fix_nobody_would_get_asks_whom_it_goes_to(browser, server_url, seeded_settings, team, artifacts):
     """Nobody edited the system and nobody is assigned: `f` offers the team's annotators instead of returning it to
     nobody; the one chosen gets it."""
     from tests.browser.support import api_json
@@ -251,6 +251,9 @@ def test_a_needs_fix_nobody_would_get_asks_whom_it_goes_to(browser, server_url, 
         rev.keyboard.press("f")
         chooser = rev.locator(tid("return-to"))
         chooser.wait_for()
+        shots = artifacts / "team-loop"
+        shots.mkdir(exist_ok=True)
+        _shoot(rev, shots, "return-to-chooser")  # the chooser at both sizes, for people to look at
         assert "nobody edited this system's labels" in rev.locator(tid("return-to-why")).inner_text()
         offered = rev.locator(f'{tid("return-to-user")} option').evaluate_all("(os) => os.map((o) => o.value)")
         assert {"ana", "ben"} <= set(offered) and "rev" not in offered  # the team's annotators
