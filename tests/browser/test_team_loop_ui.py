@@ -175,14 +175,15 @@ def test_needs_fix_reaches_ana_with_the_comment_and_comes_back_fixed(browser, se
 
 
 def test_an_admin_imports_a_zip_from_the_queue_page_and_its_job_is_titled_by_the_file(page, artifacts):
-    """The Import panel uploads the chosen zip (here one holding no dataset: the job fails naming why) and the Jobs
-    panel follows its job under the file's name, not the server's upload folder."""
+    """The Import panel uploads the chosen zip (here one laid out as a SoccerNet-v3 game, so that the upload is taken,
+    whose labels file is no JSON: the job fails naming why) and the Jobs panel follows its job under the file's name,
+    not the server's upload folder."""
     import io
     import zipfile
 
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w") as zf:
-        zf.writestr("notes/readme.txt", "no Labels-v3.json here")
+        zf.writestr("league/2024-2025/a match/Labels-v3.json", "{ not JSON")
     page.goto("/")
     panel = page.locator(tid("import"))
     panel.wait_for()
