@@ -163,7 +163,8 @@ export function viewFacts(v, ctx, panel) {
   // a placement waiting for Enter makes no 3D ball yet: the error it will show once confirmed, as its doubt says it
   // (one computation on the server, the same number before and after Enter)
   const waiting = ball.provenance
-    ? (ctx.doubts || []).find((d) => d.kind === "suggested_label" && d.evidence && "confirmed_error_px" in d.evidence)
+    ? (ctx.doubts || []).find((d) => doubtDrawing(d.kind).confirms_placement && d.evidence
+      && "confirmed_error_px" in d.evidence)
     : null;
   const errText = waiting
     ? (isNum(waiting.evidence.confirmed_error_px)
