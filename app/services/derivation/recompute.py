@@ -30,7 +30,7 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence, cast
 
 import numpy as np
 from sqlalchemy import func, select
@@ -58,10 +58,18 @@ from app.geometry.ball import optimise_box
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
+from app.geometry.doubts.detected import CENTRE_NOISE, MIN_SIGMA_PX
+from app.geometry.evidence import judge_by_evidence, view_sigma_px
 from app.geometry.mirror import MirrorView, mirror_evidence
-from app.geometry.pair_error import error_above_tau
-from app.geometry.pitch import within_play_volume
-from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball
+from app.geometry.pair_error import REFERENCE_WIDTH_PX, error_above_tau
+from app.geometry.pitch import distance_to_play_volume, within_play_volume
+from app.geometry.triangulation import (
+    BallObservation,
+    PairGeometry,
+    PairGeometryMemo,
+    TriangulationResult,
+    triangulate_ball,
+)
 from app.services.audit.log import record_summary
 from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
@@ -71,7 +79,8 @@ from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_
 from app.services.derivation import cameras as shared
 from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.doubts import (
-    calibration_weights,
+    WeighedViews,
+    fitted_frames,
     is_excluded,
     update_doubts,
     update_label_distances,
@@ -84,9 +93,10 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 4  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
+DERIVED_VERSION = 5  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
-# by what their calibrations are worth (weak_calibrations, outweighed)
+# by what their calibrations are worth (weak_calibrations, outweighed); 5: pairs and balls judged by their evidence
+# (app.geometry.evidence) and each ball's sigma stored
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
@@ -206,13 +216,9 @@ def recompute_system(session: Session, system: System, settings: Settings,
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     observations = kind.consensus_observations(system, observations, settings)
-    # a weak calibration (few line classes, an unsure camera) neither makes nor moves a ball on its own
-    weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the weights and the doubts
-    weights = calibration_weights(system, settings, weighed=weighed) if kind.weighs_calibrations else None
-    result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
-                              play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
-                              view_weights=weights, geometry=geometry)
+    weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the sigmas and the doubts
+    result, sigma_m = system_ball(system, observations, settings, weighed, geometry,
+                                  by_evidence=kind.weighs_calibrations)
 
     tri = system.triangulation
     if tri is None:
@@ -221,6 +227,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         session.add(tri)
     put_values(tri, {"status": TriangulationStatus(result.status),
                      "ball3d": None if result.point is None else [float(v) for v in result.point],
+                     "sigma_m": None if result.point is None or sigma_m is None else float(sigma_m),
                      "tau_px": result.tau_px, "rule": result.rule, "min_baseline_m": result.min_baseline_m})
     put_values(tri, {"computed_at": utcnow()})
     replace_rows(tri.pairs, TriangulationPair, [dict(  # in place: a pair the edit leaves as it was writes nothing
@@ -241,6 +248,46 @@ def recompute_system(session: Session, system: System, settings: Settings,
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
     scope.changed(system)  # its derived rows were written: what its next edit compares (``scope``)
     return tri
+
+
+def view_sigmas_px(system: System, observations: Sequence[BallObservation], settings: Settings,
+                   weighed: WeighedViews) -> dict[int, float]:
+    """Frame id -> the pixel sigma (px at 1920 width) of each observation's view
+    (:func:`app.geometry.evidence.view_sigma_px`): its label's centre noise (``CENTRE_NOISE`` of its box's diameter)
+    and its calibration's pixel sigma (``weighed``; 0 for a camera not fitted to the view's lines, which
+    :func:`calibration_weights` counts full) in quadrature, at least ``MIN_SIGMA_PX``."""
+    fitted = fitted_frames(system)
+    frames = {f.id: f for f in system.frames}
+    out: dict[int, float] = {}
+    for o in observations:
+        fid = cast(int, o.view_id)
+        f = frames[fid]
+        box = f.ball_label.box if f.ball_label is not None else None
+        d = None if box is None else (abs(box[2] - box[0]) + abs(box[3] - box[1])) / 2 * REFERENCE_WIDTH_PX / f.width
+        cal_sigma = weighed.weighed[fid][1] if fid in fitted and fid in weighed.weighed else 0.0
+        out[fid] = view_sigma_px(d, cal_sigma, CENTRE_NOISE, MIN_SIGMA_PX)
+    return out
+
+
+def system_ball(system: System, observations: Sequence[BallObservation], settings: Settings, weighed: WeighedViews,
+                geometry: Callable[[BallObservation, BallObservation], PairGeometry], *,
+                by_evidence: bool) -> tuple[TriangulationResult, float | None]:
+    """The system's 3D ball and its sigma (metres along its least certain direction): the paper's pairs (tau, the
+    baseline, the parallax setting) judged by their evidence (``app.geometry.evidence.judge_by_evidence``: each view's
+    pixel sigma, :func:`view_sigmas_px`; the bound ``settings.ball_max_sigma_m``; the play volume within the ball's
+    uncertainty) when ``by_evidence`` (the kind weighs calibrations), else the paper's mean of the pairs inside the
+    play volume (the sigma then None)."""
+    if not by_evidence:
+        return triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                                min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
+                                play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
+                                geometry=geometry), None
+    paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                             min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
+                             geometry=geometry)
+    judged = judge_by_evidence(observations, paper, view_sigmas_px(system, observations, settings, weighed),
+                               max_sigma_m=settings.ball_max_sigma_m, distance_to_volume_m=distance_to_play_volume)
+    return judged.result, judged.sigma_m
 
 
 def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:
