@@ -29,6 +29,7 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Sequence, cast
 
@@ -64,6 +65,8 @@ from app.geometry.mirror import MirrorView, mirror_evidence
 from app.geometry.pair_error import REFERENCE_WIDTH_PX, error_above_tau
 from app.geometry.pitch import distance_to_play_volume, within_play_volume
 from app.geometry.triangulation import (
+    MIN_PAIR_WEIGHT,
+    STATUS_NO_PAIR_KEPT,
     BallObservation,
     PairGeometry,
     PairGeometryMemo,
@@ -80,6 +83,8 @@ from app.services.derivation import cameras as shared
 from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.doubts import (
     WeighedViews,
+    calibration_weights,
+    doubt_settings,
     fitted_frames,
     is_excluded,
     update_doubts,
@@ -255,8 +260,11 @@ def view_sigmas_px(system: System, observations: Sequence[BallObservation], sett
     """Frame id -> the pixel sigma (px at 1920 width) of each observation's view
     (:func:`app.geometry.evidence.view_sigma_px`): its label's centre noise (``CENTRE_NOISE`` of its box's diameter)
     and its calibration's pixel sigma (``weighed``; 0 for a camera not fitted to the view's lines, which
-    :func:`calibration_weights` counts full) in quadrature, at least ``MIN_SIGMA_PX``."""
+    :func:`calibration_weights` counts full; at least ``consensus_tau_px`` for a camera fitted to fewer than
+    ``min_line_classes`` line classes) in quadrature, at least ``MIN_SIGMA_PX``."""
     fitted = fitted_frames(system)
+    s = doubt_settings(settings)
+    lines = {v.view_id: v.line_classes for v in weighed.views}
     frames = {f.id: f for f in system.frames}
     out: dict[int, float] = {}
     for o in observations:
@@ -265,6 +273,10 @@ def view_sigmas_px(system: System, observations: Sequence[BallObservation], sett
         box = f.ball_label.box if f.ball_label is not None else None
         d = None if box is None else (abs(box[2] - box[0]) + abs(box[3] - box[1])) / 2 * REFERENCE_WIDTH_PX / f.width
         cal_sigma = weighed.weighed[fid][1] if fid in fitted and fid in weighed.weighed else 0.0
+        if fid in fitted and lines.get(fid, 0) < s.min_line_classes:
+            # a camera fitted to fewer classes than fix it fits them exactly: no residual speaks for its stated
+            # uncertainty, so it is known only to the consensus tolerance, what a ball the others agree on allows
+            cal_sigma = max(cal_sigma, s.consensus_tau_px)
         out[fid] = view_sigma_px(d, cal_sigma, CENTRE_NOISE, MIN_SIGMA_PX)
     return out
 
@@ -285,6 +297,16 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
                              geometry=geometry)
+    # two cameras that neither fixes by its own lines still make no ball together: their stated sigmas cannot speak
+    # for them, and a pair of them turned alike agrees with itself (a wrong ball the sigma cannot see)
+    weights = calibration_weights(system, settings, weighed=weighed)
+    pairs = [dataclasses.replace(p, kept=False, reason="weak_calibrations")
+             if p.kept and weights.get(p.view_a, 1.0) + weights.get(p.view_b, 1.0) < MIN_PAIR_WEIGHT else p
+             for p in paper.pairs]
+    if not any(p.kept for p in pairs):
+        paper = dataclasses.replace(paper, status=STATUS_NO_PAIR_KEPT, point=None, pairs=tuple(pairs), view_errors_px={})
+    else:
+        paper = dataclasses.replace(paper, pairs=tuple(pairs))
     judged = judge_by_evidence(observations, paper, view_sigmas_px(system, observations, settings, weighed),
                                max_sigma_m=settings.ball_max_sigma_m, distance_to_volume_m=distance_to_play_volume)
     return judged.result, judged.sigma_m

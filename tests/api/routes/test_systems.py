@@ -493,3 +493,24 @@ def test_the_queue_filters_by_the_camera_source_and_refuses_an_unknown_one(clien
     assert len(_ids(client.get("/api/systems").json())) == 4
     r = client.get("/api/systems", params={"camera": "lines"})
     assert r.status_code == 422 and "camera" in r.text
+
+
+def test_every_3d_ball_carries_its_sigma_and_the_queue_filters_by_it(client: TestClient,
+                                                                     queue: dict[str, Scene]) -> None:
+    """The system view and the queue rows give each stored 3D ball's sigma (metres, its least certain direction);
+    ``sigma_min`` / ``sigma_max`` keep the systems whose ball's sigma lies in the range (none without a ball); a
+    range upside down is a 422 naming it."""
+    view = client.get(f"/api/systems/{queue['exact'].system_id}").json()
+    sigma = view["ball_sigma_m"]
+    assert isinstance(sigma, float) and 0.0 < sigma < 1.0 and view["triangulation"]["sigma_m"] == sigma
+    lonely = client.get(f"/api/systems/{queue['lonely'].system_id}").json()
+    assert lonely["ball3d"] is None and lonely["ball_sigma_m"] is None
+    rows = {r["id"]: r for r in client.get("/api/systems").json()["items"]}
+    assert rows[queue["exact"].system_id]["ball_sigma_m"] == sigma
+    with_ball = {s.system_id for name, s in queue.items() if name != "lonely"}
+    assert set(_ids(client.get("/api/systems?sigma_max=1").json())) == with_ball
+    assert _ids(client.get("/api/systems?sigma_min=1").json()) == []
+    assert set(_ids(client.get(f"/api/systems?sigma_min={sigma}&sigma_max={sigma}").json())) >= {
+        queue["exact"].system_id}
+    bad = client.get("/api/systems?sigma_min=2&sigma_max=1")
+    assert bad.status_code == 422 and "sigma_min" in bad.text

@@ -192,7 +192,7 @@ def test_a_refused_main_view_whose_mirrored_labels_calibrate_is_flagged_with_the
     assert "probably_mirrored" not in calibrating.calibrate_lines(labels, WIDTH, HEIGHT, side=None).flags
 
 
-def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: Session, db_settings: Settings) -> None:
+def test_weak_fitted_calibrations_make_no_ball_alone_and_move_it_only_within_their_sigma(db_session: Session, db_settings: Settings) -> None:
     """Issue 18 (the yield: seed-204's system made wrong by a 1-class main view and a 2-class rig replay): a
     view whose camera v3d fitted to fewer than ``min_line_classes`` classes is worth half a vote
     (``calibration_weight``); two such views make no 3D ball together, and beside two sure views they do not
@@ -219,12 +219,10 @@ def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: 
     db_session.commit()
     system = _stored(db_session, scene.system_id)
     assert len(system.triangulation.pairs) == 6
-    np.testing.assert_allclose(system.triangulation.ball3d, BALL, atol=1e-6)  # the sure views alone
-    reasons = {frozenset((p.frame_a_id, p.frame_b_id)): p.reason for p in system.triangulation.pairs}
-    assert reasons[frozenset(weak_ids)] == "weak_calibrations"
-    # the mixed pairs are kept out: outweighed by the sure pair, or meeting under the grass (outside the play volume)
-    assert sum(r is None for r in reasons.values()) == 1 and "outweighed" in reasons.values()
-    assert set(reasons.values()) <= {None, "weak_calibrations", "outweighed", "outside_play_volume"}
+    # judged by evidence, a few-class camera is known only to the consensus tolerance: it moves the ball within its
+    # sigma, not the metres its turned ray would (the sure views alone give BALL)
+    assert np.linalg.norm(np.subtract(system.triangulation.ball3d, BALL)) < 0.5
+    assert 0.0 < system.triangulation.sigma_m < db_settings.ball_max_sigma_m
     # the two weak views alone: their rays meet metres off, yet no 3D ball is made
     for fid in scene.frame_ids:
         if fid not in weak_ids:
