@@ -301,10 +301,12 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     # for them, and a pair of them turned alike agrees with itself (a wrong ball the sigma cannot see)
     weights = calibration_weights(system, settings, weighed=weighed)
     pairs = [dataclasses.replace(p, kept=False, reason="weak_calibrations")
-             if p.kept and weights.get(p.view_a, 1.0) + weights.get(p.view_b, 1.0) < MIN_PAIR_WEIGHT else p
+             if p.kept and weights.get(cast(int, p.view_a), 1.0) + weights.get(cast(int, p.view_b), 1.0) < MIN_PAIR_WEIGHT
+             else p
              for p in paper.pairs]
     if not any(p.kept for p in pairs):
-        paper = dataclasses.replace(paper, status=STATUS_NO_PAIR_KEPT, point=None, pairs=tuple(pairs), view_errors_px={})
+        paper = dataclasses.replace(paper, status=STATUS_NO_PAIR_KEPT, point=None, pairs=tuple(pairs),
+                                    view_errors_px={})
     else:
         paper = dataclasses.replace(paper, pairs=tuple(pairs))
     judged = judge_by_evidence(observations, paper, view_sigmas_px(system, observations, settings, weighed),

@@ -192,7 +192,8 @@ def test_a_refused_main_view_whose_mirrored_labels_calibrate_is_flagged_with_the
     assert "probably_mirrored" not in calibrating.calibrate_lines(labels, WIDTH, HEIGHT, side=None).flags
 
 
-def test_weak_fitted_calibrations_make_no_ball_alone_and_move_it_only_within_their_sigma(db_session: Session, db_settings: Settings) -> None:
+def test_weak_fitted_calibrations_make_no_ball_alone_and_move_it_only_within_their_sigma(
+        db_session: Session, db_settings: Settings) -> None:
     """Issue 18 (the yield: seed-204's system made wrong by a 1-class main view and a 2-class rig replay): a
     view whose camera v3d fitted to fewer than ``min_line_classes`` classes is worth half a vote
     (``calibration_weight``); two such views make no 3D ball together, and beside two sure views they do not
