@@ -300,10 +300,11 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     # two cameras that neither fixes by its own lines still make no ball together: their stated sigmas cannot speak
     # for them, and a pair of them turned alike agrees with itself (a wrong ball the sigma cannot see)
     weights = calibration_weights(system, settings, weighed=weighed)
+    def weight(view: Any) -> float:
+        return weights.get(cast(int, view), 1.0)
+
     pairs = [dataclasses.replace(p, kept=False, reason="weak_calibrations")
-             if p.kept and weights.get(cast(int, p.view_a), 1.0) + weights.get(cast(int, p.view_b), 1.0) < MIN_PAIR_WEIGHT
-             else p
-             for p in paper.pairs]
+             if p.kept and weight(p.view_a) + weight(p.view_b) < MIN_PAIR_WEIGHT else p for p in paper.pairs]
     if not any(p.kept for p in pairs):
         paper = dataclasses.replace(paper, status=STATUS_NO_PAIR_KEPT, point=None, pairs=tuple(pairs),
                                     view_errors_px={})
