@@ -2,8 +2,9 @@
 system where the paper's rules give a right ball (within 0.5 m) and v3d's rules none or a worse one, with the v3d rule
 that refused it, and every wrong ball (more than 1 m off) the paper keeps, with the v3d rule that refuses it; and the
 right and wrong counts of the paper's rules, of v3d's rules by class (the parallax threshold, the play volume tested
-on each pair, the calibration weights: ``weak_calibrations`` and ``outweighed``) and of v3d's rule by evidence
-(``app.services.derivation.recompute.system_ball``), all in process on the same stored calibrations and labels.
+on each pair, the calibration weights: ``weak_calibrations`` and ``outweighed``; the default ``ball_rule``
+"weights") and of v3d's rule by evidence (``ball_rule`` "evidence", ``app.services.derivation.recompute.system_ball``
+with the bound ``ball_max_sigma_m``), all in process on the same stored calibrations and labels.
 
 Attribution, by ablation on the same views: a right ball lost goes to each class rule whose removal alone gives the
 system a right ball again ("several" when none alone does); a wrong ball avoided goes to each class rule that alone,
@@ -84,6 +85,7 @@ def measure(url: str, truth: Any, settings: Settings) -> dict[str, Any]:
     from sqlalchemy.orm import Session
 
     true = truth_balls(truth)
+    by_evidence = settings.model_copy(update={"ball_rule": "evidence"})
     counts = {k: Counter() for k in ("paper", "v3d_class", "v3d_evidence")}
     lost: dict[str, Counter] = {k: Counter() for k in ("v3d_class", "v3d_evidence")}
     avoided: dict[str, Counter] = {k: Counter() for k in ("v3d_class", "v3d_evidence")}
@@ -99,7 +101,7 @@ def measure(url: str, truth: Any, settings: Settings) -> dict[str, Any]:
             memo = PairGeometryMemo()
             e = {"paper": _err(paper_ball(system, settings), t),
                  "v3d_class": _err(_class_ball(obs, weights, settings, memo, set(CLASS_RULES)), t)}
-            judged, _ = system_ball(system, obs, settings, weighed, memo, by_evidence=True)
+            judged, _ = system_ball(system, obs, by_evidence, weighed, memo, weighs_calibrations=True)
             e["v3d_evidence"] = _err(judged.point, t)
             for k, v in e.items():
                 counts[k]["with_ball"] += v is not None

@@ -31,11 +31,12 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from app.geometry.spread import position_covariance, projection_jacobian
+from app.geometry.spread import position_sigma_m, projection_jacobian
 from app.geometry.triangulation import (
     STATUS_NO_PAIR_KEPT,
     STATUS_TRIANGULATED,
     BallObservation,
+    PairResult,
     TriangulationResult,
     reprojection_error_px,
 )
@@ -92,6 +93,17 @@ def _information(obs: Sequence[BallObservation], point: np.ndarray, sigma: Mappi
             return None
         info += J.T @ J / (s * s)
     return info
+
+
+def kept_pairs_sigma_m(observations: Sequence[BallObservation], pairs: Sequence[PairResult], ball: np.ndarray,
+                       sigma_px_1920: Mapping[Any, float]) -> float | None:
+    """The sigma (metres, one standard deviation along the least certain direction) of ``ball`` ((3,) world metres)
+    made from the kept ``pairs`` of ``observations``: :func:`app.geometry.spread.position_sigma_m` of the views of
+    those pairs whose pixel sigma (``sigma_px_1920``, px at 1920 width) is finite (a camera known to nothing adds
+    nothing); None when no view is left or they fix no point."""
+    used = {v for p in pairs if p.kept for v in (p.view_a, p.view_b)}
+    views = [o for o in observations if o.view_id in used and math.isfinite(float(sigma_px_1920[o.view_id]))]
+    return position_sigma_m(views, ball, sigma_px_1920) if views else None
 
 
 def _fixes_point(info: np.ndarray) -> bool:
@@ -164,11 +176,7 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
 
     if ball is None:
         return refused("sigma_above_bound", None)
-    # the views of the pairs left that know something (a camera of infinite sigma adds nothing to the ball)
-    views = [o for o in observations if math.isfinite(float(sigma_px_1920[o.view_id]))
-             and any(o.view_id in (pairs[k].view_a, pairs[k].view_b) for k in infos)]
-    cov = position_covariance(views, ball, sigma_px_1920)
-    sigma = None if cov is None else float(math.sqrt(max(float(np.linalg.eigvalsh(cov)[-1]), 0.0)))
+    sigma = kept_pairs_sigma_m(observations, pairs, ball, sigma_px_1920)
     if sigma is None or sigma > max_sigma_m:
         return refused("sigma_above_bound", sigma)
     if distance_to_volume_m is not None and distance_to_volume_m(ball) > VOLUME_SIGMAS * sigma:

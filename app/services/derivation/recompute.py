@@ -29,7 +29,6 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Sequence, cast
 
@@ -60,13 +59,11 @@ from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
 from app.geometry.doubts.detected import CENTRE_NOISE, MIN_SIGMA_PX
-from app.geometry.evidence import judge_by_evidence, view_sigma_px
+from app.geometry.evidence import judge_by_evidence, kept_pairs_sigma_m, view_sigma_px
 from app.geometry.mirror import MirrorView, mirror_evidence
 from app.geometry.pair_error import REFERENCE_WIDTH_PX, error_above_tau
 from app.geometry.pitch import distance_to_play_volume, within_play_volume
 from app.geometry.triangulation import (
-    MIN_PAIR_WEIGHT,
-    STATUS_NO_PAIR_KEPT,
     BallObservation,
     PairGeometry,
     PairGeometryMemo,
@@ -100,8 +97,8 @@ from app.services.wording.doubt_words import with_sentence
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
 DERIVED_VERSION = 5  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
-# by what their calibrations are worth (weak_calibrations, outweighed); 5: pairs and balls judged by their evidence
-# (app.geometry.evidence) and each ball's sigma stored
+# by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
+# evidence, settings.ball_rule)
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
@@ -221,9 +218,9 @@ def recompute_system(session: Session, system: System, settings: Settings,
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     observations = kind.consensus_observations(system, observations, settings)
-    weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the sigmas and the doubts
+    weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the ball and the doubts
     result, sigma_m = system_ball(system, observations, settings, weighed, geometry,
-                                  by_evidence=kind.weighs_calibrations)
+                                  weighs_calibrations=kind.weighs_calibrations)
 
     tri = system.triangulation
     if tri is None:
@@ -283,36 +280,32 @@ def view_sigmas_px(system: System, observations: Sequence[BallObservation], sett
 
 def system_ball(system: System, observations: Sequence[BallObservation], settings: Settings, weighed: WeighedViews,
                 geometry: Callable[[BallObservation, BallObservation], PairGeometry], *,
-                by_evidence: bool) -> tuple[TriangulationResult, float | None]:
-    """The system's 3D ball and its sigma (metres along its least certain direction): the paper's pairs (tau, the
-    baseline, the parallax setting) judged by their evidence (``app.geometry.evidence.judge_by_evidence``: each view's
-    pixel sigma, :func:`view_sigmas_px`; the bound ``settings.ball_max_sigma_m``; the play volume within the ball's
-    uncertainty) when ``by_evidence`` (the kind weighs calibrations), else the paper's mean of the pairs inside the
-    play volume (the sigma then None)."""
-    if not by_evidence:
-        return triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                                min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
-                                play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
-                                geometry=geometry), None
-    paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                             min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
-                             geometry=geometry)
-    # two cameras that neither fixes by its own lines still make no ball together: their stated sigmas cannot speak
-    # for them, and a pair of them turned alike agrees with itself (a wrong ball the sigma cannot see)
-    weights = calibration_weights(system, settings, weighed=weighed)
-    def weight(view: Any) -> float:
-        return weights.get(cast(int, view), 1.0)
+                weighs_calibrations: bool) -> tuple[TriangulationResult, float | None]:
+    """The system's 3D ball and its sigma (metres along its least certain direction, None without a ball).
 
-    pairs = [dataclasses.replace(p, kept=False, reason="weak_calibrations")
-             if p.kept and weight(p.view_a) + weight(p.view_b) < MIN_PAIR_WEIGHT else p for p in paper.pairs]
-    if not any(p.kept for p in pairs):
-        paper = dataclasses.replace(paper, status=STATUS_NO_PAIR_KEPT, point=None, pairs=tuple(pairs),
-                                    view_errors_px={})
-    else:
-        paper = dataclasses.replace(paper, pairs=tuple(pairs))
-    judged = judge_by_evidence(observations, paper, view_sigmas_px(system, observations, settings, weighed),
-                               max_sigma_m=settings.ball_max_sigma_m, distance_to_volume_m=distance_to_play_volume)
-    return judged.result, judged.sigma_m
+    Under ``settings.ball_rule`` "weights" (or a kind that weighs no calibration) the pairs are judged by class: tau,
+    the baseline, the parallax setting, the play volume on each pair's point and, when ``weighs_calibrations``, the
+    calibration weights (:func:`calibration_weights`: a few-lined or unsure camera neither makes nor moves a ball
+    alone); the ball's sigma is then that of the views of the kept pairs at their pixel sigmas
+    (:func:`view_sigmas_px`, :func:`app.geometry.evidence.kept_pairs_sigma_m`), shown, never a reason.
+    Under "evidence" (a kind that weighs calibrations) the pairs kept by tau and the baseline alone are judged by
+    their uncertainty (:func:`app.geometry.evidence.judge_by_evidence`: information-weighted, pairs beyond their joint
+    sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty)."""
+    sigmas = view_sigmas_px(system, observations, settings, weighed)
+    if settings.ball_rule == "evidence" and weighs_calibrations:
+        paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                                 min_baseline_m=settings.min_baseline_m, min_parallax_deg=0.0, geometry=geometry)
+        judged = judge_by_evidence(observations, paper, sigmas, max_sigma_m=settings.ball_max_sigma_m,
+                                   distance_to_volume_m=distance_to_play_volume)
+        return judged.result, judged.sigma_m
+    weights = calibration_weights(system, settings, weighed=weighed) if weighs_calibrations else None
+    result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
+                              play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
+                              view_weights=weights, geometry=geometry)
+    if result.point is None:
+        return result, None
+    return result, kept_pairs_sigma_m(observations, result.pairs, result.point, sigmas)
 
 
 def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:

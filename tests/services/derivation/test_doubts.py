@@ -192,8 +192,7 @@ def test_a_refused_main_view_whose_mirrored_labels_calibrate_is_flagged_with_the
     assert "probably_mirrored" not in calibrating.calibrate_lines(labels, WIDTH, HEIGHT, side=None).flags
 
 
-def test_weak_fitted_calibrations_make_no_ball_alone_and_move_it_only_within_their_sigma(
-        db_session: Session, db_settings: Settings) -> None:
+def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: Session, db_settings: Settings) -> None:
     """Issue 18 (the yield: seed-204's system made wrong by a 1-class main view and a 2-class rig replay): a
     view whose camera v3d fitted to fewer than ``min_line_classes`` classes is worth half a vote
     (``calibration_weight``); two such views make no 3D ball together, and beside two sure views they do not
@@ -220,10 +219,12 @@ def test_weak_fitted_calibrations_make_no_ball_alone_and_move_it_only_within_the
     db_session.commit()
     system = _stored(db_session, scene.system_id)
     assert len(system.triangulation.pairs) == 6
-    # judged by evidence, a few-class camera is known only to the consensus tolerance: it moves the ball within its
-    # sigma, not the metres its turned ray would (the sure views alone give BALL)
-    assert np.linalg.norm(np.subtract(system.triangulation.ball3d, BALL)) < 0.5
-    assert 0.0 < system.triangulation.sigma_m < db_settings.ball_max_sigma_m
+    np.testing.assert_allclose(system.triangulation.ball3d, BALL, atol=1e-6)  # the sure views alone
+    reasons = {frozenset((p.frame_a_id, p.frame_b_id)): p.reason for p in system.triangulation.pairs}
+    assert reasons[frozenset(weak_ids)] == "weak_calibrations"
+    # the mixed pairs are kept out: outweighed by the sure pair, or meeting under the grass (outside the play volume)
+    assert sum(r is None for r in reasons.values()) == 1 and "outweighed" in reasons.values()
+    assert set(reasons.values()) <= {None, "weak_calibrations", "outweighed", "outside_play_volume"}
     # the two weak views alone: their rays meet metres off, yet no 3D ball is made
     for fid in scene.frame_ids:
         if fid not in weak_ids:
@@ -239,3 +240,41 @@ def test_weak_fitted_calibrations_make_no_ball_alone_and_move_it_only_within_the
     system = _stored(db_session, scene.system_id)
     ball3d = system.triangulation.ball3d
     assert ball3d is not None and np.linalg.norm(np.subtract(ball3d, BALL)) > 0.5
+
+
+def test_by_evidence_weak_fitted_calibrations_move_the_3d_ball_only_within_their_sigma(
+        db_session: Session, db_settings: Settings) -> None:
+    """Under ``ball_rule`` "evidence" the same two few-class views (cameras turned 1.5 deg) beside two sure ones are
+    not vetoed by their class: known only to the consensus tolerance, they move the ball within its sigma, not the
+    metres their turned rays would; the ball stands with its sigma stored. Under the default rule the ball is the
+    sure views' and its sigma is stored too."""
+    from app.db.models import CalibrationSource
+    from app.services.derivation.recompute import recompute_system
+
+    centres = ([0.0, 58.0, -16.0], [-32.0, 48.0, -12.0], [36.0, 50.0, -14.0], [-60.0, -10.0, -15.0])
+    scene = make_system(db_session, db_settings, make_game(db_session), centres=centres)
+    system = _stored(db_session, scene.system_id)
+    a = np.radians(1.5)
+    turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    for f in system.frames[1:4:2]:
+        cam = scene.cameras[f.position]
+        f.calibration.camera = type(cam)(K=cam.K, R=cam.R @ turn, C=cam.C).to_soccernet()
+        f.calibration.source = CalibrationSource.COMPUTED
+        f.calibration.uncertainty = {"position_m": {"x": 0.0, "y": 0.0, "z": 0.0}, "pan_deg": 0.01,
+                                     "tilt_deg": 0.01, "roll_deg": 0.01, "focal_px": 1.0, "line_noise_px": 1.0,
+                                     "points": 20}
+        f.field_lines.lines = dict(list(f.field_lines.lines.items())[:2])  # two line classes
+    recompute_system(db_session, system, db_settings)
+    db_session.commit()
+    tri = _stored(db_session, scene.system_id).triangulation
+    np.testing.assert_allclose(tri.ball3d, BALL, atol=1e-6)
+    assert tri.sigma_m is not None and 0.0 < tri.sigma_m < 0.5
+    evidence = db_settings.model_copy(update={"ball_rule": "evidence"})
+    system = _stored(db_session, scene.system_id)
+    recompute_system(db_session, system, evidence)
+    db_session.commit()
+    tri = _stored(db_session, scene.system_id).triangulation
+    moved = np.linalg.norm(np.subtract(tri.ball3d, BALL))
+    assert tri.sigma_m is not None and 0.0 < tri.sigma_m < evidence.ball_max_sigma_m
+    assert 1e-3 < moved < min(0.5, 3 * tri.sigma_m)
+    assert not {p.reason for p in tri.pairs} & {"weak_calibrations", "outweighed", "parallax_below_min"}
