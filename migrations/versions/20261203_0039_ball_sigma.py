@@ -1,7 +1,7 @@
 """Each stored 3D ball carries its sigma (``triangulations.sigma_m``, metres along its least certain direction).
 
-The ball is judged by its evidence (``app.geometry.evidence``): its sigma says how far it may lie off, the system page
-shows it and the queue filters by it. Nullable: NULL for a ball stored before (the derived version is raised, so
+Its sigma (``app.geometry.evidence.kept_pairs_sigma_m``, whatever ``ball_rule`` made the ball) says how far it may lie
+off; the system page shows it and the queue filters by it. Nullable: NULL for a ball stored before (the derived version is raised, so
 every system is recomputed before it is served) and for a system without a ball.
 
 Revision ID: 0039
@@ -22,7 +22,7 @@ depends_on: str | Sequence[str] | None = None
 
 
 def upgrade() -> None:
-    op.add_column('triangulations', sa.Column('sigma_m', sa.Float(), nullable=True))
+    op.add_column('triangulations', sa.Column('sigma_m', sa.Double(), nullable=True))
 
 
 def downgrade() -> None:
