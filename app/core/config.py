@@ -170,9 +170,10 @@ class Settings(BaseSettings):
         "'evidence': by uncertainty (app.geometry.evidence): the pairs weighed by their views' label and "
         "calibration pixel sigmas, a pair beyond the others' joint sigma left out, a ball standing when its sigma is "
         "within ball_max_sigma_m and it lies in the play volume within three sigmas; no parallax filter, no veto by "
-        "class. On the shared sets with truth and ten held-out ones 'evidence' keeps 9-33 more right balls a set "
-        "than 'weights' with as many or fewer balls more than 1 m off, yet still fewer right than the paper's rules "
-        "on some sets (benchmarks/YIELD.md, 2026-12-04): the default stays 'weights' until it keeps all of them.",
+        "class. On the three shared sets with truth and ten held-out ones 'evidence' keeps 9-23 more right balls a "
+        "set than 'weights' and as many or fewer balls more than 1 m off on 12 of the 13, yet fewer right than the "
+        "paper's rules on 3 of them (benchmarks/YIELD.md, 2026-12-04): the default stays 'weights' until it keeps "
+        "all of them.",
         json_schema_extra=DERIVED,
     )
     ball_max_sigma_m: float = Field(
@@ -180,10 +181,10 @@ class Settings(BaseSettings):
         description="Under ball_rule 'evidence', a 3D ball stands when its sigma (metres, one standard deviation "
         "along its least certain direction, from its views' label and calibration pixel sigmas) is within this. "
         "Large because the calibrations' stated pixel sigmas overstate their error (a camera fitted to few line "
-        "classes states hundreds of px and is mostly off by a few): at 1 m it refuses about one right ball in ten; "
-        "10 was chosen on dev-large and the two shared detector sets, the lowest that refuses no more right balls "
-        "than it avoids wrong ones there (benchmarks/YIELD.md, 2026-12-04). Every stored ball's sigma is shown "
-        "whatever the rule.",
+        "classes states hundreds of px and is mostly off by a few): at 1 m it refuses about one right ball in ten. "
+        "10 was chosen on dev-large and the two shared detector sets: of 5, 10, 25 and 50 m the largest that keeps "
+        "at most half the paper's balls more than 1 m off on all three (benchmarks/YIELD.md, 2026-12-04). Every "
+        "stored ball's sigma is shown whatever the rule.",
         json_schema_extra=DERIVED,
     )
     optimised_box_method: Literal["paper", "exact_ray", "exact_fused"] = Field(

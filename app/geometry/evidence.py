@@ -2,9 +2,10 @@
 beyond their joint sigma left out, and the fused ball kept only when its own uncertainty is within a bound and it
 lies in the play volume within that uncertainty (pure numpy).
 
-The paper averages every pair kept by tau and the baseline; v3d used to add rules by class on top (a parallax
-threshold, a play volume tested on each pair's point, a few-lined or unsure camera that neither makes nor moves a ball
-alone). Here the pairs the paper keeps are judged by their uncertainty instead (Hartley and Zisserman, *Multiple View
+The paper averages every pair kept by tau and the baseline; v3d's default rule (``ball_rule`` "weights") adds rules
+by class on top (a parallax threshold, a play volume tested on each pair's point, a few-lined or unsure camera that
+neither makes nor moves a ball alone). Under ``ball_rule`` "evidence" the pairs the paper keeps are judged by their
+uncertainty instead (Hartley and Zisserman, *Multiple View
 Geometry*, 2nd ed., sec. 5.2.3 and 12.2; the confidence-weighted triangulation of anipose and Pose2Sim):
 
 1. each view has a pixel sigma (px at 1920 width: its label's and its calibration's, in quadrature); each kept pair's
