@@ -1,8 +1,8 @@
 """Each stored 3D ball carries its sigma (``triangulations.sigma_m``, metres along its least certain direction).
 
-Its sigma (``app.geometry.evidence.kept_pairs_sigma_m``, whatever ``ball_rule`` made the ball) says how far it may lie
-off; the system page shows it and the queue filters by it. Nullable: NULL for a ball stored before (the derived version is raised, so
-every system is recomputed before it is served) and for a system without a ball.
+Its sigma (``app.geometry.evidence.kept_pairs_sigma_m``, whatever ``ball_rule`` made the ball) says how far it may
+lie off; the system page shows it and the queue filters by it. Nullable: NULL for a ball stored before (the derived
+version is raised, so every system is recomputed before it is served) and for a system without a ball.
 
 Revision ID: 0039
 Revises: 0038
