@@ -30,13 +30,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from app.core.config import Settings  # noqa: E402  # after the path is set
-from app.db.session import upgrade_database  # noqa: E402
-from app.geometry.pitch import within_play_volume  # noqa: E402
-from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball  # noqa: E402
-from app.services.derivation.cameras import stored_camera  # noqa: E402
-from app.services.derivation.doubts import calibration_weights, is_excluded, weighed_views  # noqa: E402
-from app.services.derivation.recompute import system_ball  # noqa: E402
-from app.services.evaluation.ball_yield import RIGHT_M, WRONG_M, _systems, paper_ball, truth_balls  # noqa: E402
+from app.db.session import upgrade_database  # noqa: E402  # after the path is set
+from app.geometry.pitch import within_play_volume  # noqa: E402  # after the path is set
+from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball  # noqa: E402  # after the path is set
+from app.services.derivation.cameras import stored_camera  # noqa: E402  # after the path is set
+from app.services.derivation.doubts import calibration_weights, is_excluded, weighed_views  # noqa: E402  # after the path is set
+from app.services.derivation.recompute import system_ball  # noqa: E402  # after the path is set
+from app.services.evaluation.ball_yield import RIGHT_M, WRONG_M, _systems, paper_ball, truth_balls  # noqa: E402  # after the path is set
 
 CLASS_RULES = ("parallax", "play_volume", "weights")
 
