@@ -74,9 +74,10 @@ def storage_url_problem(url: str) -> str | None:
 #: Eq. min_diametre's square box (v3d: the exact image of the sphere, ``exact_ray``; the monocular benchmark's
 #: default estimator follows it, ``app.services.evaluation.monocular.default_estimator``) and no parallax filter
 #: (v3d drops pairs whose rays meet below 2 degrees: near-duplicate viewpoints), and the optimised box as the detector
-#: exports' ball box (v3d: the refined box where the 3D ball is well constrained).
+#: exports' ball box (v3d: the refined box where the 3D ball is well constrained), and the ball as the plain mean of
+#: its kept pairs (``ball_rule`` "weights" without the parallax filter; v3d weighs the pairs by their evidence).
 PAPER_PROFILE: dict[str, Any] = {"optimised_box_method": "paper", "min_parallax_deg": 0.0,
-                                 "export_ball_box": "optimised"}
+                                 "export_ball_box": "optimised", "ball_rule": "weights"}
 
 
 #: The mark of a setting a system's stored rows are computed with (admission, 3D ball, pairs, reprojections, optimised
@@ -163,17 +164,17 @@ class Settings(BaseSettings):
         json_schema_extra=DERIVED,
     )
     ball_rule: Literal["weights", "evidence"] = Field(
-        "weights",
+        "evidence",
         description="How the pairs within tau make a system's stored 3D ball (app.services.derivation.recompute."
-        "system_ball). 'weights': by class, the parallax filter (min_parallax_deg), the play volume on each pair's "
-        "point and the calibration weights (a few-lined or unsure camera neither makes nor moves a ball alone). "
-        "'evidence': by uncertainty (app.geometry.evidence): the pairs weighed by their views' label and "
-        "calibration pixel sigmas, a pair beyond the others' joint sigma left out, a ball standing when its sigma is "
-        "within ball_max_sigma_m and it lies in the play volume within three sigmas; no parallax filter, no veto by "
-        "class. On the three shared sets with truth and ten held-out ones 'evidence' keeps 9-23 more right balls a "
-        "set than 'weights' and as many or fewer balls more than 1 m off on 12 of the 13, yet fewer right than the "
-        "paper's rules on 3 of them (benchmarks/YIELD.md, 2026-12-04): the default stays 'weights' until it keeps "
-        "all of them.",
+        "system_ball). 'evidence' (default): by uncertainty (app.geometry.evidence): the pairs weighed by their "
+        "views' label and calibration pixel sigmas, a pair beyond the others' joint sigma left out, a ball standing "
+        "when its sigma is within ball_max_sigma_m and it lies in the play volume within three sigmas; no parallax "
+        "filter, no veto by class. 'weights' (the rule before it, kept by V3D_PROFILE=paper): by class, the "
+        "parallax filter (min_parallax_deg), the play volume on each pair's point and the calibration weights (a "
+        "few-lined or unsure camera neither makes nor moves a ball alone). On 13 sets with truth 'evidence' keeps "
+        "9-23 more right balls a set than 'weights' and as many or fewer balls more than 1 m off on 12; the doubts, "
+        "the curation pass (0 balls made wrong) and the detector fill are no worse (benchmarks/YIELD.md, 'The rule "
+        "by evidence as the default').",
         json_schema_extra=DERIVED,
     )
     ball_max_sigma_m: float = Field(

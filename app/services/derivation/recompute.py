@@ -95,10 +95,10 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 5  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
+DERIVED_VERSION = 6  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
-# evidence, settings.ball_rule)
+# evidence, settings.ball_rule); 6: the rule by evidence is the default
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,

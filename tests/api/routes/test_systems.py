@@ -314,10 +314,11 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     from app.services.derivation.recompute import update_summary
 
     g = make_game(db_session, match="2017-03-04 - 12-30 Liverpool 3 - 1 Arsenal")
-    # the replay's box 40 px off: its pair with the action meets under the grass (outside the play volume) and is
-    # dropped; the ball of the two others leaves errors 11.7, 1.3 and 20.1 px, one above tau = 20 raw,
-    # 23.4, 2.5 and 40.2 px scaled to 1920: two views above tau
-    wrong = make_system(db_session, db_settings, g, "4.png", shift_px=(0.0, 0.0, 40.0))
+    # the replay's box 40 px off: by class (ball_rule "weights") its pair with the action meets under the grass
+    # (outside the play volume) and is dropped; the ball of the two others leaves errors 11.7, 1.3 and 20.1 px, one
+    # above tau = 20 raw, 23.4, 2.5 and 40.2 px scaled to 1920: two views above tau
+    by_class = db_settings.model_copy(update={"ball_rule": "weights"})
+    wrong = make_system(db_session, by_class, g, "4.png", shift_px=(0.0, 0.0, 40.0))
 
     def rows() -> dict[int, dict]:
         return {r["id"]: r for r in client.get("/api/systems").json()["items"]}

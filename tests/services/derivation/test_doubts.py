@@ -215,7 +215,8 @@ def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: 
         f.calibration.uncertainty = sure_u
         f.field_lines.lines = dict(list(f.field_lines.lines.items())[:2])  # two line classes
     weak_ids = {f.id for f in weak}
-    recompute_system(db_session, system, db_settings)
+    by_class = db_settings.model_copy(update={"ball_rule": "weights"})  # the rule by class vetoes them
+    recompute_system(db_session, system, by_class)
     db_session.commit()
     system = _stored(db_session, scene.system_id)
     assert len(system.triangulation.pairs) == 6
@@ -228,14 +229,24 @@ def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: 
     # the two weak views alone: their rays meet metres off, yet no 3D ball is made
     for fid in scene.frame_ids:
         if fid not in weak_ids:
-            editing.set_view_excluded(db_session, fid, True, settings=db_settings)
+            editing.set_view_excluded(db_session, fid, True, settings=by_class)
     system = _stored(db_session, scene.system_id)
     assert system.triangulation.ball3d is None and system.triangulation.status.value == "no_pair_kept"
+    # by evidence (the default) their pair is not vetoed by class: it makes a ball metres off, but one whose sigma
+    # says so (each camera known only to the consensus tolerance), which the queue's sigma filter finds
+    recompute_system(db_session, system, db_settings)
+    db_session.commit()
+    tri = _stored(db_session, scene.system_id).triangulation
+    off = np.linalg.norm(np.subtract(tri.ball3d, BALL))
+    assert tri.sigma_m is not None and 0.5 < tri.sigma_m and off < 3 * tri.sigma_m, (off, tri.sigma_m)
+    recompute_system(db_session, system, by_class)
+    db_session.commit()
+    system = _stored(db_session, scene.system_id)
     # the same cameras set by a person (not fitted to these lines) count full: their pair makes the ball
     for f in system.frames:
         if f.id in weak_ids:
             f.calibration.source = CalibrationSource.EDITED
-    recompute_system(db_session, system, db_settings)
+    recompute_system(db_session, system, by_class)
     db_session.commit()
     system = _stored(db_session, scene.system_id)
     ball3d = system.triangulation.ball3d
@@ -264,7 +275,7 @@ def test_by_evidence_weak_fitted_calibrations_move_the_3d_ball_only_within_their
                                      "tilt_deg": 0.01, "roll_deg": 0.01, "focal_px": 1.0, "line_noise_px": 1.0,
                                      "points": 20}
         f.field_lines.lines = dict(list(f.field_lines.lines.items())[:2])  # two line classes
-    recompute_system(db_session, system, db_settings)
+    recompute_system(db_session, system, db_settings.model_copy(update={"ball_rule": "weights"}))
     db_session.commit()
     tri = _stored(db_session, scene.system_id).triangulation
     np.testing.assert_allclose(tri.ball3d, BALL, atol=1e-6)
