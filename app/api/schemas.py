@@ -206,6 +206,10 @@ class QueueQuery(BaseModel):
     jac_max: Optional[float] = Field(None, ge=0.0, le=1.0, description="Lowest JaC@0.5% of the admitted views <= this.")
     error_min: Optional[float] = Field(None, ge=0.0, description="Worst reprojection error (px) >= this.")
     error_max: Optional[float] = Field(None, ge=0.0, description="Worst reprojection error (px) <= this.")
+    sigma_min: Optional[float] = Field(None, ge=0.0, description="The 3D ball's sigma (m) >= this (systems with a "
+                                       "ball and its sigma only).")
+    sigma_max: Optional[float] = Field(None, ge=0.0, description="The 3D ball's sigma (m) <= this (systems with a "
+                                       "ball and its sigma only).")
     doubt: Optional[DoubtFilter] = Field(
         None, description="Only systems with a doubt of this kind; 'any': with a label-accusing doubt; "
         "'none': without one.")
@@ -226,11 +230,12 @@ class QueueQuery(BaseModel):
             assignee = me
         return SystemFilters(game_id=self.game_id, status=self.status, jac_min=self.jac_min,
                              jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max,
+                             sigma_min=self.sigma_min, sigma_max=self.sigma_max,
                              doubt=self.doubt, assignee=assignee, camera=self.camera)
 
     @model_validator(mode="after")
     def _ranges(self) -> "QueueQuery":
-        for lo, hi in (("jac_min", "jac_max"), ("error_min", "error_max")):
+        for lo, hi in (("jac_min", "jac_max"), ("error_min", "error_max"), ("sigma_min", "sigma_max")):
             a, b = getattr(self, lo), getattr(self, hi)
             if a is not None and b is not None and a > b:
                 raise ValueError(f"{lo} ({a}) is larger than {hi} ({b})")

@@ -158,6 +158,7 @@ class SystemSummaryOut(BaseModel):
     game: GameRef
     review: ReviewOut
     ball3d: Optional[Point3]
+    ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma (m, its least certain direction).")
     views_total: int
     views_calibrated: int
     views_admitted: int
@@ -180,12 +181,12 @@ class SystemSummaryOut(BaseModel):
         """A queue row from a system loaded with its game, review and triangulation, with its assignment and
         presence when given."""
         tri = system.triangulation
-        shaped = ("game", "review", "ball3d", "assignment", "open_by")
+        shaped = ("game", "review", "ball3d", "ball_sigma_m", "assignment", "open_by")
         return cls.model_validate({
             **{name: getattr(system, name) for name in cls.model_fields if name not in shaped},
             "game": system.game, "review": ReviewOut.of(system.review),
-            "ball3d": tri.ball3d if tri is not None else None, "doubt_counts": system.doubt_counts or {},
-            "assignment": assignment, "open_by": open_by or [],
+            "ball3d": None if tri is None else tri.ball3d, "ball_sigma_m": None if tri is None else tri.sigma_m,
+            "doubt_counts": system.doubt_counts or {}, "assignment": assignment, "open_by": open_by or [],
         })
 
 
@@ -517,6 +518,8 @@ class TriangulationOut(BaseModel):
     model_config = _ORM
 
     status: TriangulationStatus
+    sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma: one standard deviation along its least "
+                                     "certain direction, metres (evidence.kept_pairs_sigma_m); null without a ball.")
     tau_px: float
     rule: str
     min_baseline_m: float
@@ -542,6 +545,7 @@ class SystemView(BaseModel):
     prev_id: Optional[int]
     next_id: Optional[int]
     ball3d: Optional[Point3]
+    ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma, metres (triangulation.sigma_m).")
     triangulation: Optional[TriangulationOut]
     views: list[ViewOut]
     doubts: list[DoubtOut] = Field(description="The system's doubts, stored with its last recomputation.")
@@ -561,7 +565,7 @@ class SystemView(BaseModel):
             game=GameRef.model_validate(system.game), review=ReviewOut.of(system.review), etag=system_etag(system),
             prev_id=page.prev_id, next_id=page.next_id, ball3d=tri.ball3d if tri is not None else None,
             triangulation=TriangulationOut.model_validate(tri) if tri is not None else None,
-            views=[ViewOut.of(f, tri) for f in system.frames],
+            ball_sigma_m=tri.sigma_m if tri is not None else None, views=[ViewOut.of(f, tri) for f in system.frames],
             doubts=[DoubtOut.of(d, names) for d in system.doubts],
             assignment=AssignmentOut.of(page.assignment), open_by=[PresenceOut.of(p, now) for p in page.open_by],
         )

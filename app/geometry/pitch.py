@@ -118,6 +118,14 @@ def within_play_volume(points_m: np.ndarray, volume: PlayVolume = PLAY_VOLUME) -
     return np.all((p >= lo) & (p <= hi), axis=1)
 
 
+def distance_to_play_volume(point_m: np.ndarray, volume: PlayVolume = PLAY_VOLUME) -> float:
+    """How far (metres) the world point ``point_m`` ((3,), SoccerNet: origin at the centre spot, z down) lies from
+    ``volume`` (:data:`PLAY_VOLUME` unless given): 0 inside, else the distance to its nearest point."""
+    p = np.asarray(point_m, float).reshape(3)
+    lo, hi = volume.bounds()
+    return float(np.linalg.norm(p - np.clip(p, lo, hi)))
+
+
 def _key_points() -> dict[str, np.ndarray]:
     half_l, half_w = PITCH_LENGTH_M / 2.0, PITCH_WIDTH_M / 2.0
     pa_x = half_l - PENALTY_AREA_LENGTH_M

@@ -17,7 +17,7 @@ export function filterBody(state) {
   const out = {};
   for (const [k, v] of Object.entries(apiFilters(state))) {
     if (v === "" || v === undefined || v === null || k === "sort") continue;
-    out[k] = ["game_id", "jac_min", "jac_max", "error_min", "error_max"].includes(k) ? Number(v) : v;
+    out[k] = ["game_id", "jac_min", "jac_max", "error_min", "error_max", "sigma_min", "sigma_max"].includes(k) ? Number(v) : v;
   }
   return out;
 }

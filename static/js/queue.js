@@ -139,7 +139,7 @@ class QueuePage {
   applyForm() {
     const form = $("filters");
     for (const key of FILTERS) this.state[key] = form.elements[key].value.trim();
-    for (const [lo, hi] of [["jac_min", "jac_max"], ["error_min", "error_max"]]) {
+    for (const [lo, hi] of [["jac_min", "jac_max"], ["error_min", "error_max"], ["sigma_min", "sigma_max"]]) {
       if (this.state[lo] !== "" && this.state[hi] !== "" && Number(this.state[lo]) > Number(this.state[hi])) {
         showError(`${lo.replace("_", " ")} is larger than ${hi.replace("_", " ")}: nothing can match.`);
         return;

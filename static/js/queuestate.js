@@ -2,8 +2,8 @@
 // and as sent to the API. Shared by the queue page and the system page, so that a system opened from
 // a filtered queue moves (prev / next, after a decision) within that same queue.
 
-export const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "doubt", "camera", "assignee",
-  "sort"];
+export const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "sigma_min", "sigma_max",
+  "doubt", "camera", "assignee", "sort"];
 /** The API's default order: the work to do first (pending, fixed), the most severe doubt first. */
 export const DEFAULT_SORT = "-severity";
 
@@ -48,6 +48,8 @@ export function apiFilters(state) {
     jac_max: frac(state.jac_max),
     error_min: state.error_min,
     error_max: state.error_max,
+    sigma_min: state.sigma_min, // the 3D ball's sigma, metres
+    sigma_max: state.sigma_max,
     doubt: state.doubt,
     camera: state.camera, // a calibration source flag (placed by players, at a rig position)
     assignee: state.assignee, // a user's name, "me" or "none" (work assignment)

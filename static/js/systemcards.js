@@ -56,6 +56,10 @@ export function renderBall(sys) {
   $("ball3d-z").textContent = ok ? `${b[2].toFixed(2)} m` : "—";
   $("ball3d-h").textContent = ok ? heightText(b[2], 2) : "—";
   $("ball3d").title = ok ? `world metres, z down: (${fmtXYZ(b, 3)})` : "no 3D ball";
+  // how far the ball may lie off: its sigma along its least certain direction (none for a kind that does not weigh it)
+  const sigma = sys.ball_sigma_m;
+  $("ball3d-sigma").hidden = !(ok && isNum(sigma));
+  $("ball3d-sigma").textContent = ok && isNum(sigma) ? `3D ball ± ${sigma.toFixed(2)} m` : "";
   const tri = sys.triangulation || {};
   $("triangulation-status").textContent = tri.status ? `· ${chip("triangulation", tri.status)}` : "";
   const kept = (tri.pairs || []).filter((p) => p.kept).length;

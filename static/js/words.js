@@ -260,6 +260,14 @@ export const WORDS = /*WORDS*/{
   "outweighed": {
    "chip": "outweighed",
    "means": "pairs of surer cameras agree on another ball"
+  },
+  "beyond_joint_sigma": {
+   "chip": "disagrees",
+   "means": "the pair's point lies off the ball the other pairs agree on, beyond their joint uncertainty"
+  },
+  "sigma_above_bound": {
+   "chip": "too uncertain",
+   "means": "the ball these pairs make is less certain than the bound (V3D_BALL_MAX_SIGMA_M)"
   }
  },
  "rule": {

@@ -158,6 +158,11 @@ def test_no_raw_code_on_the_review_pages_and_every_chip_has_its_legend(page, art
             assert re.fullmatch(r"height -?\d+\.\d\d m", page.locator(tid("ball3d-h")).inner_text())
             shown = float(page.locator(tid("ball3d-h")).inner_text().split()[1])
             assert shown == pytest.approx(-item["ball3d"][2], abs=0.006)  # a height is -z (z points down)
+            # the ball's uncertainty beside it, as the system's JSON gives it
+            assert item["ball_sigma_m"] is not None
+            sigma = page.locator(tid("ball3d-sigma")).inner_text()
+            assert re.fullmatch(r"3D ball ± \d+\.\d\d m", sigma), sigma
+            assert float(sigma.split()[3]) == pytest.approx(item["ball_sigma_m"], abs=0.006)
         page.keyboard.press("?")
         page.locator(tid("keys-help")).wait_for(state="visible")
         legend = _legend(page, tid("keys-help"))

@@ -93,7 +93,8 @@ def test_every_setting_the_doubts_read_is_in_the_fingerprint() -> None:
 def test_changing_a_derived_setting_changes_the_fingerprint(name: str) -> None:
     base = Settings(_env_file=None)
     value = getattr(base, name)
-    other = ({"pair_error_rule": "max_px", "optimised_box_method": "paper"}[name] if isinstance(value, str)
+    other = ({"pair_error_rule": "max_px", "optimised_box_method": "paper", "ball_rule": "weights"}[name]
+             if isinstance(value, str)
              else value + 1)
     assert base.model_copy(update={name: other}).derived_fingerprint() != base.derived_fingerprint()
 

@@ -71,6 +71,9 @@ class Triangulation(Base):
     status: Mapped[TriangulationStatus] = mapped_column(enum_by_value(TriangulationStatus, "triangulation_status"))
     #: World metres ``[x, y, z]`` (z down), or None when not triangulated.
     ball3d: Mapped[Optional[list[float]]]
+    #: The ball's sigma, metres along its least certain direction (``app.geometry.evidence.kept_pairs_sigma_m``), or
+    #: None without a ball (or where its views fix no point).
+    sigma_m: Mapped[Optional[float]] = mapped_column(default=None)
     tau_px: Mapped[float]
     rule: Mapped[str] = mapped_column(sa.String(40))
     min_baseline_m: Mapped[float]

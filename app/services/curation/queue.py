@@ -54,6 +54,7 @@ from app.db.models import (
     Game,
     ReviewStatus,
     System,
+    Triangulation,
     User,
 )
 from app.db.types import DB_INT_MAX, DB_INT_MIN
@@ -84,6 +85,10 @@ class SystemFilters:
     jac_max: Optional[float] = None
     error_min: Optional[float] = None
     error_max: Optional[float] = None
+    #: The 3D ball's sigma (metres, ``Triangulation.sigma_m``) at least / at most this: systems with a ball and its
+    #: sigma only.
+    sigma_min: Optional[float] = None
+    sigma_max: Optional[float] = None
     #: Only systems with a doubt of this kind (``app.geometry.doubts``), or ``"any"``: with at least
     #: one label-accusing doubt; ``"none"``: with none.
     doubt: Optional[str] = None
@@ -164,6 +169,9 @@ def _system_conditions(filters: SystemFilters, with_status: bool = True) -> list
         conds.append(_review_status() == filters.status)
     conds += _range(System.lowest_jac, filters.jac_min, filters.jac_max)
     conds += _range(System.worst_error_px, filters.error_min, filters.error_max)
+    if filters.sigma_min is not None or filters.sigma_max is not None:
+        conds.append(sa.exists().where(Triangulation.system_id == System.id, Triangulation.ball3d.is_not(None),
+                                       *_range(Triangulation.sigma_m, filters.sigma_min, filters.sigma_max)))
     if filters.doubt == "any":
         conds.append(System.label_doubts > 0)
     elif filters.doubt == "none":

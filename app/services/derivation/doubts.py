@@ -121,10 +121,17 @@ def calibration_weights(system: System, settings: Settings, cameras: dict[int, C
     was made unknown) counts full (1): the number of lines it shows says nothing of it.
     Reads the frames' admission as set on them (``weighed``: :func:`weighed_views` of them, when made already)."""
     weighed = weighed or weighed_views(system, settings, cameras)
-    fitted = {f.id for f in system.frames if f.calibration is not None and (
+    fitted = fitted_frames(system)
+    return {fid: w if fid in fitted else 1.0 for fid, (w, _) in weighed.weighed.items()}
+
+
+def fitted_frames(system: System) -> set[int]:
+    """Ids of ``system``'s frames whose camera is known to be fitted to the view's lines (computed by v3d, or imported
+    with the fit's standard deviations): those whose calibration uncertainty speaks for the camera
+    (:func:`calibration_weights`)."""
+    return {f.id for f in system.frames if f.calibration is not None and (
         f.calibration.source is CalibrationSource.COMPUTED
         or (f.calibration.source is CalibrationSource.IMPORTED and f.calibration.uncertainty is not None))}
-    return {fid: w if fid in fitted else 1.0 for fid, (w, _) in weighed.weighed.items()}
 
 
 def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,

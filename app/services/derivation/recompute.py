@@ -30,7 +30,8 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from functools import partial
+from typing import Any, Callable, Iterable, Sequence, cast
 
 import numpy as np
 from sqlalchemy import func, select
@@ -58,10 +59,18 @@ from app.geometry.ball import optimise_box
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
+from app.geometry.doubts.detected import CENTRE_NOISE, MIN_SIGMA_PX
+from app.geometry.evidence import judge_by_evidence, kept_pairs_sigma_m, view_sigma_px
 from app.geometry.mirror import MirrorView, mirror_evidence
-from app.geometry.pair_error import error_above_tau
-from app.geometry.pitch import within_play_volume
-from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball
+from app.geometry.pair_error import REFERENCE_WIDTH_PX, error_above_tau
+from app.geometry.pitch import distance_to_play_volume, within_play_volume
+from app.geometry.triangulation import (
+    BallObservation,
+    PairGeometry,
+    PairGeometryMemo,
+    TriangulationResult,
+    triangulate_ball,
+)
 from app.services.audit.log import record_summary
 from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
@@ -71,7 +80,10 @@ from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_
 from app.services.derivation import cameras as shared
 from app.services.derivation.cameras import mirrored_camera, stored_camera
 from app.services.derivation.doubts import (
+    WeighedViews,
     calibration_weights,
+    doubt_settings,
+    fitted_frames,
     is_excluded,
     update_doubts,
     update_label_distances,
@@ -84,10 +96,11 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 5  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
+DERIVED_VERSION = 6  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
-# by what their calibrations are worth (weak_calibrations, outweighed); 5: a placement's doubts say its error once
-# confirmed, as the view will show it, and a players-placed view's label far off the agreed ball is accused
+# by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
+# evidence, settings.ball_rule), a placement's doubts say its error once confirmed, as the view will show it, and a
+# players-placed view's label far off the agreed ball is accused; 6: the rule by evidence is the default
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
@@ -206,32 +219,14 @@ def recompute_system(session: Session, system: System, settings: Settings,
         geometry = shared.PAIR_GEOMETRY  # pairs of views an edit left as they were (``cameras`` module docstring)
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
-    # a weak calibration (few line classes, an unsure camera) neither makes nor moves a ball on its own
-    weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the weights and the doubts
-    weights = calibration_weights(system, settings, weighed=weighed) if kind.weighs_calibrations else None
+    weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the ball and the doubts
 
-    def triangulated(labelled: list[BallObservation]) -> Any:
-        return triangulate_ball(kind.consensus_observations(system, labelled, settings),
-                                tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                                min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
-                                play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
-                                view_weights=weights, geometry=geometry)
+    def ball_of(labelled: list[BallObservation]) -> tuple[TriangulationResult, float | None]:
+        return system_ball(system, kind.consensus_observations(system, labelled, settings), settings, weighed,
+                           geometry, weighs_calibrations=kind.weighs_calibrations)
 
-    result = triangulated(observations)
-
-    def after_confirming(frame: Frame, centre: np.ndarray) -> float | None:
-        """How far (px of ``frame``'s image) a label centred at ``centre`` would lie from the 3D ball once a person
-        confirmed it there: the ball triangulated with it as this recomputation triangulates (when the view takes
-        part: admitted, not excluded), else the ball as it is; None where there would be none, or no camera."""
-        camera = cameras.get(frame.id)
-        if camera is None:
-            return None
-        cal = frame.calibration
-        takes_part = cal is not None and bool(cal.admitted) and not is_excluded(frame)
-        ball = triangulated([*(o for o in observations if o.view_id != frame.id),
-                             BallObservation(view_id=frame.id, camera=camera, point_px=centre,
-                                             image_width=frame.width)]).point if takes_part else result.point
-        return None if ball is None else _reprojection_error(camera, np.asarray(ball, dtype=float), centre)
+    result, sigma_m = ball_of(observations)
+    after_confirming = partial(_error_once_confirmed, cameras, observations, result, lambda o: ball_of(o)[0])
 
     tri = system.triangulation
     if tri is None:
@@ -240,6 +235,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         session.add(tri)
     put_values(tri, {"status": TriangulationStatus(result.status),
                      "ball3d": None if result.point is None else [float(v) for v in result.point],
+                     "sigma_m": None if result.point is None or sigma_m is None else float(sigma_m),
                      "tau_px": result.tau_px, "rule": result.rule, "min_baseline_m": result.min_baseline_m})
     put_values(tri, {"computed_at": utcnow()})
     replace_rows(tri.pairs, TriangulationPair, [dict(  # in place: a pair the edit leaves as it was writes nothing
@@ -260,6 +256,81 @@ def recompute_system(session: Session, system: System, settings: Settings,
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
     scope.changed(system)  # its derived rows were written: what its next edit compares (``scope``)
     return tri
+
+
+def view_sigmas_px(system: System, observations: Sequence[BallObservation], settings: Settings,
+                   weighed: WeighedViews) -> dict[int, float]:
+    """Frame id -> the pixel sigma (px at 1920 width) of each observation's view
+    (:func:`app.geometry.evidence.view_sigma_px`): its label's centre noise (``CENTRE_NOISE`` of its box's diameter)
+    and its calibration's pixel sigma (``weighed``; 0 for a camera not fitted to the view's lines, which
+    :func:`calibration_weights` counts full; at least ``consensus_tau_px`` for a camera fitted to fewer than
+    ``min_line_classes`` line classes) in quadrature, at least ``MIN_SIGMA_PX``."""
+    fitted = fitted_frames(system)
+    s = doubt_settings(settings)
+    lines = {v.view_id: v.line_classes for v in weighed.views}
+    frames = {f.id: f for f in system.frames}
+    out: dict[int, float] = {}
+    for o in observations:
+        fid = cast(int, o.view_id)
+        f = frames[fid]
+        box = f.ball_label.box if f.ball_label is not None else None
+        d = None if box is None else (abs(box[2] - box[0]) + abs(box[3] - box[1])) / 2 * REFERENCE_WIDTH_PX / f.width
+        cal_sigma = weighed.weighed[fid][1] if fid in fitted and fid in weighed.weighed else 0.0
+        if fid in fitted and lines.get(fid, 0) < s.min_line_classes:
+            # a camera fitted to fewer classes than fix it fits them exactly: no residual speaks for its stated
+            # uncertainty, so it is known only to the consensus tolerance, what a ball the others agree on allows
+            cal_sigma = max(cal_sigma, s.consensus_tau_px)
+        out[fid] = view_sigma_px(d, cal_sigma, CENTRE_NOISE, MIN_SIGMA_PX)
+    return out
+
+
+def _error_once_confirmed(cameras: dict[int, Camera], observations: list[BallObservation],
+                          result: TriangulationResult,
+                          triangulated: Callable[[list[BallObservation]], TriangulationResult],
+                          frame: Frame, centre: np.ndarray) -> float | None:
+    """How far (px of ``frame``'s image) a label centred at ``centre`` would lie from the 3D ball once a person
+    confirmed it there: the ball ``triangulated`` with it, as the recomputation that gave ``result`` from
+    ``observations`` triangulates (when the view takes part: admitted, not excluded), else ``result``'s ball; None
+    where there would be none, or no camera."""
+    camera = cameras.get(frame.id)
+    if camera is None:
+        return None
+    cal = frame.calibration
+    takes_part = cal is not None and bool(cal.admitted) and not is_excluded(frame)
+    ball = triangulated([*(o for o in observations if o.view_id != frame.id),
+                         BallObservation(view_id=frame.id, camera=camera, point_px=centre,
+                                         image_width=frame.width)]).point if takes_part else result.point
+    return None if ball is None else _reprojection_error(camera, np.asarray(ball, dtype=float), centre)
+
+
+def system_ball(system: System, observations: Sequence[BallObservation], settings: Settings, weighed: WeighedViews,
+                geometry: Callable[[BallObservation, BallObservation], PairGeometry], *,
+                weighs_calibrations: bool) -> tuple[TriangulationResult, float | None]:
+    """The system's 3D ball and its sigma (metres along its least certain direction, None without a ball).
+
+    Under ``settings.ball_rule`` "weights" (or a kind that weighs no calibration) the pairs are judged by class: tau,
+    the baseline, the parallax setting, the play volume on each pair's point and, when ``weighs_calibrations``, the
+    calibration weights (:func:`calibration_weights`: a few-lined or unsure camera neither makes nor moves a ball
+    alone); the ball's sigma is then that of the views of the kept pairs at their pixel sigmas
+    (:func:`view_sigmas_px`, :func:`app.geometry.evidence.kept_pairs_sigma_m`), shown, never a reason.
+    Under "evidence" (a kind that weighs calibrations) the pairs kept by tau and the baseline alone are judged by
+    their uncertainty (:func:`app.geometry.evidence.judge_by_evidence`: information-weighted, pairs beyond their joint
+    sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty)."""
+    sigmas = view_sigmas_px(system, observations, settings, weighed)
+    if settings.ball_rule == "evidence" and weighs_calibrations:
+        paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                                 min_baseline_m=settings.min_baseline_m, min_parallax_deg=0.0, geometry=geometry)
+        judged = judge_by_evidence(observations, paper, sigmas, max_sigma_m=settings.ball_max_sigma_m,
+                                   distance_to_volume_m=distance_to_play_volume)
+        return judged.result, judged.sigma_m
+    weights = calibration_weights(system, settings, weighed=weighed) if weighs_calibrations else None
+    result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
+                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
+                              play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
+                              view_weights=weights, geometry=geometry)
+    if result.point is None:
+        return result, None
+    return result, kept_pairs_sigma_m(observations, result.pairs, result.point, sigmas)
 
 
 def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:

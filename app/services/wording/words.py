@@ -169,6 +169,11 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "outside_play_volume": {"chip": "outside the pitch", "means": "the rays meet where no ball can be"},
         "weak_calibrations": {"chip": "weak cameras", "means": "neither camera is sure enough to make a ball"},
         "outweighed": {"chip": "outweighed", "means": "pairs of surer cameras agree on another ball"},
+        "beyond_joint_sigma": {"chip": "disagrees", "means": "the pair's point lies off the ball the other pairs agree "
+                                                         "on, beyond their joint uncertainty"},
+        "sigma_above_bound": {"chip": "too uncertain",
+                              "means": "the ball these pairs make is less certain than the bound "
+                                       "(V3D_BALL_MAX_SIGMA_M)"},
     },
     "rule": {
         "max_scaled_1920": {"chip": "worse view, at 1920 px width",

@@ -94,6 +94,8 @@ class SystemSummary(Model):
     game: GameRef
     review: Review
     ball3d: Optional[Point3] = Field(description="The 3D ball, metres (SoccerNet world frame); None: none.")
+    ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma, metres along its least certain "
+                                          "direction; None without one.")
     views_total: int
     views_calibrated: int
     views_admitted: int
@@ -174,6 +176,7 @@ class Triangulation(Model):
     """A system's triangulation and the settings it was made with."""
 
     status: str
+    sigma_m: Optional[float] = None
     tau_px: float
     rule: str
     min_baseline_m: float
@@ -279,6 +282,7 @@ class System(Model):
     prev_id: Optional[int]
     next_id: Optional[int]
     ball3d: Optional[Point3]
+    ball_sigma_m: Optional[float] = None
     triangulation: Optional[Triangulation]
     views: list[View]
     doubts: list[Doubt]

@@ -314,10 +314,11 @@ def test_queue_rows_count_views_above_tau_by_the_system_pages_rule(
     from app.services.derivation.recompute import update_summary
 
     g = make_game(db_session, match="2017-03-04 - 12-30 Liverpool 3 - 1 Arsenal")
-    # the replay's box 40 px off: its pair with the action meets under the grass (outside the play volume) and is
-    # dropped; the ball of the two others leaves errors 11.7, 1.3 and 20.1 px, one above tau = 20 raw,
-    # 23.4, 2.5 and 40.2 px scaled to 1920: two views above tau
-    wrong = make_system(db_session, db_settings, g, "4.png", shift_px=(0.0, 0.0, 40.0))
+    # the replay's box 40 px off: by class (ball_rule "weights") its pair with the action meets under the grass
+    # (outside the play volume) and is dropped; the ball of the two others leaves errors 11.7, 1.3 and 20.1 px, one
+    # above tau = 20 raw, 23.4, 2.5 and 40.2 px scaled to 1920: two views above tau
+    by_class = db_settings.model_copy(update={"ball_rule": "weights"})
+    wrong = make_system(db_session, by_class, g, "4.png", shift_px=(0.0, 0.0, 40.0))
 
     def rows() -> dict[int, dict]:
         return {r["id"]: r for r in client.get("/api/systems").json()["items"]}
@@ -493,3 +494,24 @@ def test_the_queue_filters_by_the_camera_source_and_refuses_an_unknown_one(clien
     assert len(_ids(client.get("/api/systems").json())) == 4
     r = client.get("/api/systems", params={"camera": "lines"})
     assert r.status_code == 422 and "camera" in r.text
+
+
+def test_every_3d_ball_carries_its_sigma_and_the_queue_filters_by_it(client: TestClient,
+                                                                     queue: dict[str, Scene]) -> None:
+    """The system view and the queue rows give each stored 3D ball's sigma (metres, its least certain direction);
+    ``sigma_min`` / ``sigma_max`` keep the systems whose ball's sigma lies in the range (none without a ball); a
+    range upside down is a 422 naming it."""
+    view = client.get(f"/api/systems/{queue['exact'].system_id}").json()
+    sigma = view["ball_sigma_m"]
+    assert isinstance(sigma, float) and 0.0 < sigma < 1.0 and view["triangulation"]["sigma_m"] == sigma
+    lonely = client.get(f"/api/systems/{queue['lonely'].system_id}").json()
+    assert lonely["ball3d"] is None and lonely["ball_sigma_m"] is None
+    rows = {r["id"]: r for r in client.get("/api/systems").json()["items"]}
+    assert rows[queue["exact"].system_id]["ball_sigma_m"] == sigma
+    with_ball = {s.system_id for name, s in queue.items() if name != "lonely"}
+    assert set(_ids(client.get("/api/systems?sigma_max=1").json())) == with_ball
+    assert _ids(client.get("/api/systems?sigma_min=1").json()) == []
+    assert set(_ids(client.get(f"/api/systems?sigma_min={sigma}&sigma_max={sigma}").json())) >= {
+        queue["exact"].system_id}
+    bad = client.get("/api/systems?sigma_min=2&sigma_max=1")
+    assert bad.status_code == 422 and "sigma_min" in bad.text

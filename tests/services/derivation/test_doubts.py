@@ -215,7 +215,8 @@ def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: 
         f.calibration.uncertainty = sure_u
         f.field_lines.lines = dict(list(f.field_lines.lines.items())[:2])  # two line classes
     weak_ids = {f.id for f in weak}
-    recompute_system(db_session, system, db_settings)
+    by_class = db_settings.model_copy(update={"ball_rule": "weights"})  # the rule by class vetoes them
+    recompute_system(db_session, system, by_class)
     db_session.commit()
     system = _stored(db_session, scene.system_id)
     assert len(system.triangulation.pairs) == 6
@@ -228,14 +229,24 @@ def test_weak_fitted_calibrations_neither_make_nor_move_the_3d_ball(db_session: 
     # the two weak views alone: their rays meet metres off, yet no 3D ball is made
     for fid in scene.frame_ids:
         if fid not in weak_ids:
-            editing.set_view_excluded(db_session, fid, True, settings=db_settings)
+            editing.set_view_excluded(db_session, fid, True, settings=by_class)
     system = _stored(db_session, scene.system_id)
     assert system.triangulation.ball3d is None and system.triangulation.status.value == "no_pair_kept"
+    # by evidence (the default) their pair is not vetoed by class: it makes a ball metres off, but one whose sigma
+    # says so (each camera known only to the consensus tolerance), which the queue's sigma filter finds
+    recompute_system(db_session, system, db_settings)
+    db_session.commit()
+    tri = _stored(db_session, scene.system_id).triangulation
+    off = np.linalg.norm(np.subtract(tri.ball3d, BALL))
+    assert tri.sigma_m is not None and 0.5 < tri.sigma_m and off < 3 * tri.sigma_m, (off, tri.sigma_m)
+    recompute_system(db_session, system, by_class)
+    db_session.commit()
+    system = _stored(db_session, scene.system_id)
     # the same cameras set by a person (not fitted to these lines) count full: their pair makes the ball
     for f in system.frames:
         if f.id in weak_ids:
             f.calibration.source = CalibrationSource.EDITED
-    recompute_system(db_session, system, db_settings)
+    recompute_system(db_session, system, by_class)
     db_session.commit()
     system = _stored(db_session, scene.system_id)
     ball3d = system.triangulation.ball3d
@@ -295,3 +306,41 @@ def test_a_players_placed_camera_snaps_a_label_far_off_the_agreed_ball_and_never
             if f.calibration is not None and "player_assisted" in (f.calibration.flags or []):
                 accused = [d for d in f.system.doubts if d.frame_id == f.id and d.kind == "ball_off_consensus"]
                 assert not accused or truth[action]["corruption"] == "wrong_ball", (folder, action, name)
+
+
+def test_by_evidence_weak_fitted_calibrations_move_the_3d_ball_only_within_their_sigma(
+        db_session: Session, db_settings: Settings) -> None:
+    """Under ``ball_rule`` "evidence" the same two few-class views (cameras turned 1.5 deg) beside two sure ones are
+    not vetoed by their class: known only to the consensus tolerance, they move the ball within its sigma, not the
+    metres their turned rays would; the ball stands with its sigma stored. Under the default rule the ball is the
+    sure views' and its sigma is stored too."""
+    from app.db.models import CalibrationSource
+    from app.services.derivation.recompute import recompute_system
+
+    centres = ([0.0, 58.0, -16.0], [-32.0, 48.0, -12.0], [36.0, 50.0, -14.0], [-60.0, -10.0, -15.0])
+    scene = make_system(db_session, db_settings, make_game(db_session), centres=centres)
+    system = _stored(db_session, scene.system_id)
+    a = np.radians(1.5)
+    turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    for f in system.frames[1:4:2]:
+        cam = scene.cameras[f.position]
+        f.calibration.camera = type(cam)(K=cam.K, R=cam.R @ turn, C=cam.C).to_soccernet()
+        f.calibration.source = CalibrationSource.COMPUTED
+        f.calibration.uncertainty = {"position_m": {"x": 0.0, "y": 0.0, "z": 0.0}, "pan_deg": 0.01,
+                                     "tilt_deg": 0.01, "roll_deg": 0.01, "focal_px": 1.0, "line_noise_px": 1.0,
+                                     "points": 20}
+        f.field_lines.lines = dict(list(f.field_lines.lines.items())[:2])  # two line classes
+    recompute_system(db_session, system, db_settings.model_copy(update={"ball_rule": "weights"}))
+    db_session.commit()
+    tri = _stored(db_session, scene.system_id).triangulation
+    np.testing.assert_allclose(tri.ball3d, BALL, atol=1e-6)
+    assert tri.sigma_m is not None and 0.0 < tri.sigma_m < 0.5
+    evidence = db_settings.model_copy(update={"ball_rule": "evidence"})
+    system = _stored(db_session, scene.system_id)
+    recompute_system(db_session, system, evidence)
+    db_session.commit()
+    tri = _stored(db_session, scene.system_id).triangulation
+    moved = np.linalg.norm(np.subtract(tri.ball3d, BALL))
+    assert tri.sigma_m is not None and 0.0 < tri.sigma_m < evidence.ball_max_sigma_m
+    assert 1e-3 < moved < min(0.5, 3 * tri.sigma_m)
+    assert not {p.reason for p in tri.pairs} & {"weak_calibrations", "outweighed", "parallax_below_min"}

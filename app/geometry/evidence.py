@@ -1,0 +1,188 @@
+"""The 3D ball judged by its evidence: each pair's point weighed by what its two views know, pairs that disagree
+beyond their joint sigma left out, and the fused ball kept only when its own uncertainty is within a bound and it
+lies in the play volume within that uncertainty (pure numpy).
+
+The paper averages every pair kept by tau and the baseline; v3d's default rule (``ball_rule`` "weights") adds rules
+by class on top (a parallax threshold, a play volume tested on each pair's point, a few-lined or unsure camera that
+neither makes nor moves a ball alone). Under ``ball_rule`` "evidence" the pairs the paper keeps are judged by their
+uncertainty instead (Hartley and Zisserman, *Multiple View
+Geometry*, 2nd ed., sec. 5.2.3 and 12.2; the confidence-weighted triangulation of anipose and Pose2Sim):
+
+1. each view has a pixel sigma (px at 1920 width: its label's and its calibration's, in quadrature); each kept pair's
+   point ``p_k`` has the information matrix ``I_k = sum_v J_v^T J_v / sigma_v^2`` of its two views
+   (:func:`app.geometry.spread.projection_jacobian` at ``p_k``). A low-parallax pair's information is nearly
+   singular along its depth, an unsure camera's small: such a pair is not dropped, it only tells what it knows;
+2. the ball is the information-weighted mean ``X = (sum I_k)^-1 sum I_k p_k`` of the pairs; a pair whose point lies
+   beyond :data:`GATE_CHI2` of ``X`` in its own metric ``(p_k - X)^T I_k (p_k - X)`` (chi-square, 3 degrees of
+   freedom, 99 %) disagrees with the others beyond their joint sigma: the worst such pair is dropped (reason
+   ``beyond_joint_sigma``) and ``X`` fused again, until every pair agrees;
+3. the ball's sigma is the square root of the largest eigenvalue of the least-squares covariance of the views of the
+   pairs left (:func:`app.geometry.spread.position_covariance`, metres along its least certain direction); the ball
+   stands when that sigma is within ``max_sigma_m`` (else every pair left is dropped with ``sigma_above_bound``) and
+   when it lies within :data:`VOLUME_SIGMAS` sigmas of the play volume (else ``outside_play_volume``).
+
+World frame: SoccerNet (metres, origin at the centre spot, z down). Pixels at 1920 width (``REFERENCE_WIDTH_PX``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from app.geometry.spread import position_sigma_m, projection_jacobian
+from app.geometry.triangulation import (
+    STATUS_NO_PAIR_KEPT,
+    STATUS_TRIANGULATED,
+    BallObservation,
+    PairResult,
+    TriangulationResult,
+    reprojection_error_px,
+)
+
+#: A pair disagrees with the fused ball when its squared Mahalanobis distance in its own information exceeds this: the
+#: 99 % quantile of the chi-square law of 3 degrees of freedom (a pair's point has three coordinates).
+GATE_CHI2 = 11.345
+
+#: A ball stands when the play volume lies within this many of its sigmas (its least certain direction): a ball
+#: placed a little outside by its own uncertainty may be in the volume; one placed farther cannot.
+VOLUME_SIGMAS = 3.0
+
+# Relative eigenvalue level below which an information matrix fixes no point (a direction it knows nothing of).
+_SINGULAR_EPS = 1e-12
+
+
+@dataclass(frozen=True)
+class EvidenceBall:
+    """What :func:`judge_by_evidence` gives.
+
+    Attributes:
+        result: the triangulation with the pairs judged (reasons ``beyond_joint_sigma``, ``sigma_above_bound`` and
+            ``outside_play_volume`` added where they apply) and the fused ball, or status ``no_pair_kept``.
+        sigma_m: the ball's sigma (metres, one standard deviation along its least certain direction) of the pairs
+            left, also when the bound refused the ball (what refused it); None without pairs left or when their
+            views fix no point.
+    """
+
+    result: TriangulationResult
+    sigma_m: float | None
+
+
+def view_sigma_px(label_diameter_px: float | None, calibration_sigma_px: float, label_noise: float,
+                  min_sigma_px: float) -> float:
+    """One view's pixel sigma (px at 1920 width): its label's centre noise (``label_noise`` times the label's
+    diameter ``label_diameter_px``, px at 1920 width; 0 for a point label) and its calibration's pixel sigma
+    (``calibration_sigma_px``, ``app.geometry.weighting.calibration_weight``; ``inf`` for an undetermined camera) in
+    quadrature, at least ``min_sigma_px``."""
+    label = 0.0 if label_diameter_px is None else label_noise * float(label_diameter_px)
+    return max(float(min_sigma_px), math.sqrt(label * label + float(calibration_sigma_px) ** 2))
+
+
+def _information(obs: Sequence[BallObservation], point: np.ndarray, sigma: Mapping[Any, float]
+                 ) -> np.ndarray | None:
+    """``sum_v J_v^T J_v / sigma_v^2`` (3, 3), 1/m^2, of ``obs`` at ``point``; None where it lies behind a camera. A
+    view of infinite sigma adds nothing."""
+    info = np.zeros((3, 3))
+    for o in obs:
+        s = float(sigma[o.view_id])
+        if not math.isfinite(s):
+            continue
+        J = projection_jacobian(o, point)
+        if J is None:
+            return None
+        info += J.T @ J / (s * s)
+    return info
+
+
+def kept_pairs_sigma_m(observations: Sequence[BallObservation], pairs: Sequence[PairResult], ball: np.ndarray,
+                       sigma_px_1920: Mapping[Any, float]) -> float | None:
+    """The sigma (metres, one standard deviation along the least certain direction) of ``ball`` ((3,) world metres)
+    made from the kept ``pairs`` of ``observations``: :func:`app.geometry.spread.position_sigma_m` of the views of
+    those pairs whose pixel sigma (``sigma_px_1920``, px at 1920 width) is finite (a camera known to nothing adds
+    nothing); None when no view is left or they fix no point."""
+    used = {v for p in pairs if p.kept for v in (p.view_a, p.view_b)}
+    views = [o for o in observations if o.view_id in used and math.isfinite(float(sigma_px_1920[o.view_id]))]
+    return position_sigma_m(views, ball, sigma_px_1920) if views else None
+
+
+def _fixes_point(info: np.ndarray) -> bool:
+    eig = np.linalg.eigvalsh(info)
+    return bool(eig[-1] > 0 and eig[0] > _SINGULAR_EPS * eig[-1])
+
+
+def judge_by_evidence(observations: Sequence[BallObservation], triangulated: TriangulationResult,
+                      sigma_px_1920: Mapping[Any, float], *, max_sigma_m: float,
+                      distance_to_volume_m: Callable[[np.ndarray], float] | None = None) -> EvidenceBall:
+    """Judge the pairs the paper's rules kept (``triangulated``: :func:`app.geometry.triangulation.triangulate_ball`
+    without weights, play volume or parallax filter) by their uncertainty, and fuse the ball (module docstring).
+
+    Args:
+        observations: the labelled views of ``triangulated`` (their cameras, pixels and image widths).
+        triangulated: their triangulation by the paper's rules.
+        sigma_px_1920: view id -> the view's pixel sigma (px at 1920 width, > 0, ``inf`` for a view whose camera is
+            undetermined) for every observation (:func:`view_sigma_px`).
+        max_sigma_m: the largest sigma (metres) of a ball that stands; positive.
+        distance_to_volume_m: world point (3,) -> its distance (metres) to the play volume, 0 inside
+            (``app.geometry.pitch.distance_to_play_volume``); None: no play volume.
+
+    Returns:
+        An :class:`EvidenceBall`; ``triangulated`` unchanged (and sigma None) when it has no ball.
+
+    Raises:
+        ValueError: ``max_sigma_m`` not positive.
+        KeyError: an observation without a sigma.
+    """
+    if not max_sigma_m > 0:
+        raise ValueError(f"max_sigma_m must be positive, got {max_sigma_m!r}")
+    if triangulated.point is None:
+        return EvidenceBall(triangulated, None)
+    by_id = {o.view_id: o for o in observations}
+    pairs = list(triangulated.pairs)
+    infos: dict[int, np.ndarray] = {}
+    for k, p in enumerate(pairs):
+        if not p.kept or p.point is None:
+            continue
+        info = _information((by_id[p.view_a], by_id[p.view_b]), p.point, sigma_px_1920)
+        if info is None:  # the pair's point behind a camera: the paper's rules dropped it already
+            pairs[k] = dataclasses.replace(p, kept=False, reason="behind_camera")
+            continue
+        infos[k] = info
+
+    def drop(ks, reason: str) -> None:
+        for k in ks:
+            pairs[k] = dataclasses.replace(pairs[k], kept=False, reason=reason)
+            infos.pop(k, None)
+
+    ball = None
+    while infos:
+        total = np.sum(list(infos.values()), axis=0)
+        if not _fixes_point(total):  # the pairs left know nothing along some direction: the ball is not fixed
+            break
+        weighted = np.sum([infos[k] @ np.asarray(pairs[k].point, float) for k in infos], axis=0)
+        ball = np.linalg.solve(total, weighted)
+        d2 = {k: float((np.asarray(pairs[k].point) - ball) @ infos[k] @ (np.asarray(pairs[k].point) - ball))
+              for k in infos}
+        worst = max(d2, key=lambda k: d2[k])
+        if d2[worst] <= GATE_CHI2 or len(infos) == 1:
+            break
+        drop([worst], "beyond_joint_sigma")
+        ball = None
+
+    def refused(reason: str, sigma: float | None) -> EvidenceBall:
+        drop(list(infos), reason)
+        return EvidenceBall(dataclasses.replace(triangulated, status=STATUS_NO_PAIR_KEPT, point=None,
+                                                pairs=tuple(pairs), view_errors_px={}), sigma)
+
+    if ball is None:
+        return refused("sigma_above_bound", None)
+    sigma = kept_pairs_sigma_m(observations, pairs, ball, sigma_px_1920)
+    if sigma is None or sigma > max_sigma_m:
+        return refused("sigma_above_bound", sigma)
+    if distance_to_volume_m is not None and distance_to_volume_m(ball) > VOLUME_SIGMAS * sigma:
+        return refused("outside_play_volume", sigma)
+    ball.setflags(write=False)
+    errors = {o.view_id: reprojection_error_px(o.camera, ball, o.point_px) for o in observations}
+    return EvidenceBall(dataclasses.replace(triangulated, status=STATUS_TRIANGULATED, point=ball, pairs=tuple(pairs),
+                                            view_errors_px=errors), sigma)

@@ -1,0 +1,88 @@
+"""The 3D ball judged by its evidence (``app.geometry.evidence``): synthetic cameras with a known ball, pure numpy."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.geometry.evidence import judge_by_evidence
+from app.geometry.pitch import distance_to_play_volume
+from app.geometry.triangulation import BallObservation, triangulate_ball
+from tests.geometry.test_triangulation import BALL, look_at, observe
+
+
+def _paper(obs: list[BallObservation]):
+    return triangulate_ball(obs, tau_px=20.0, rule="max_scaled_1920", min_baseline_m=1.0, min_parallax_deg=0.0)
+
+
+def test_a_low_parallax_pair_moves_the_ball_only_along_what_it_knows():
+    """Two near-duplicate viewpoints (rays 1 degree apart) and a wide one: the low-parallax pair's point lies metres
+    off along its depth when its labels are a pixel off, the paper's mean follows it; judged by evidence the pair's
+    long ellipsoid counts only across its depth and the ball stays within a decimetre, with a small sigma."""
+    wide = look_at([0.0, 75.0, -22.0], BALL, focal=3000.0)
+    near_a = look_at([70.0, 4.0, -15.0], BALL, focal=2500.0)
+    near_b = look_at([70.0, 5.3, -15.0], BALL, focal=2500.0)  # 1.3 m apart at 50 m: about 1.5 degrees
+    obs = observe([wide, near_a, near_b])
+    # the two near views' labels a pixel and a half apart, in opposite directions along the image's x
+    obs[1] = BallObservation("v1", near_a, obs[1].point_px + [1.5, 0.0], 1920.0)
+    obs[2] = BallObservation("v2", near_b, obs[2].point_px - [1.5, 0.0], 1920.0)
+    paper = _paper(obs)
+    assert paper.point is not None and np.linalg.norm(paper.point - BALL) > 0.5  # the plain mean is pulled off
+    judged = judge_by_evidence(obs, paper, {"v0": 2.0, "v1": 2.0, "v2": 2.0}, max_sigma_m=1.0,
+                               distance_to_volume_m=distance_to_play_volume)
+    assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.1
+    assert judged.sigma_m is not None and 0.0 < judged.sigma_m < 0.2
+    assert all(p.kept for p in judged.result.pairs)  # nothing dropped: the pair only tells what it knows
+
+
+def test_a_lone_low_parallax_pair_makes_no_ball_beyond_the_bound():
+    """The two near-duplicate views alone: their ball's sigma along the depth is metres, above the bound (the
+    paper's rules keep it)."""
+    near_a = look_at([70.0, 4.0, -15.0], BALL, focal=2500.0)
+    near_b = look_at([70.0, 5.3, -15.0], BALL, focal=2500.0)
+    obs = observe([near_a, near_b])
+    paper = _paper(obs)
+    assert paper.point is not None
+    judged = judge_by_evidence(obs, paper, {"v0": 2.0, "v1": 2.0}, max_sigma_m=1.0)
+    assert judged.result.point is None and judged.result.status == "no_pair_kept"
+    assert judged.sigma_m is not None and judged.sigma_m > 1.0
+    assert {p.reason for p in judged.result.pairs} == {"sigma_above_bound"}
+    # a wider bound lets the same ball stand: the bound, not the parallax, refused it
+    assert judge_by_evidence(obs, paper, {"v0": 2.0, "v1": 2.0}, max_sigma_m=50.0).result.point is not None
+
+
+def test_a_view_off_beyond_the_joint_sigma_is_left_out():
+    """Four views; one label 12 px off (within tau, so the paper averages its pairs): its pairs lie beyond the
+    others' joint sigma of 1 px and are dropped one by one until the rest agree; the ball is the others'."""
+    cams = [look_at([0.0, 75.0, -22.0], BALL, focal=3000.0), look_at([70.0, 4.0, -15.0], BALL, focal=2500.0),
+            look_at([10.0, -55.0, -12.0], BALL, focal=4000.0), look_at([-60.0, 40.0, -18.0], BALL, focal=2500.0)]
+    obs = observe(cams)
+    obs[3] = BallObservation("v3", cams[3], obs[3].point_px + [12.0, 0.0], 1920.0)
+    paper = _paper(obs)
+    assert paper.point is not None and len(paper.kept_pairs) >= 4
+    judged = judge_by_evidence(obs, paper, {f"v{k}": 1.0 for k in range(4)}, max_sigma_m=1.0)
+    assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.02
+    dropped = [p for p in judged.result.pairs if p.reason == "beyond_joint_sigma"]
+    assert dropped and all("v3" in (p.view_a, p.view_b) for p in dropped)
+    assert np.linalg.norm(paper.point - BALL) > np.linalg.norm(judged.result.point - BALL)
+
+
+def test_a_ball_outside_the_play_volume_stands_only_within_its_uncertainty():
+    """A ball 3 m outside the play volume: refused with a sigma of a decimetre, kept when the bound and the ball's
+    own sigma reach the volume (three sigmas)."""
+    outside = np.array([0.0, 0.0, 3.5])  # 3.5 m under the grass: 3 m below the volume's floor
+    cams = [look_at([0.0, 75.0, -22.0], outside, focal=3000.0), look_at([70.0, 4.0, -15.0], outside, focal=2500.0)]
+    obs = observe(cams, point=outside)
+    paper = _paper(obs)
+    assert distance_to_play_volume(outside) == pytest.approx(3.0)
+    sure = judge_by_evidence(obs, paper, {"v0": 1.0, "v1": 1.0}, max_sigma_m=1.0,
+                             distance_to_volume_m=distance_to_play_volume)
+    assert sure.result.point is None and {p.reason for p in sure.result.pairs} == {"outside_play_volume"}
+    unsure = judge_by_evidence(obs, paper, {"v0": 400.0, "v1": 400.0}, max_sigma_m=100.0,
+                               distance_to_volume_m=distance_to_play_volume)
+    assert unsure.sigma_m is not None and unsure.sigma_m * 3 > 3.0 and unsure.result.point is not None
+
+
+def test_bad_bound_is_refused():
+    obs = observe([look_at([0.0, 75.0, -22.0], BALL), look_at([70.0, 4.0, -15.0], BALL)])
+    with pytest.raises(ValueError, match="max_sigma_m"):
+        judge_by_evidence(obs, _paper(obs), {"v0": 1.0, "v1": 1.0}, max_sigma_m=0.0)
