@@ -115,7 +115,7 @@ def test_every_writer_commits_through_the_write_unit() -> None:
 
 
 def test_the_command_line_refuses_through_one_helper() -> None:
-    """Every refusal or failure of ``v3d`` is printed by ``app.cli._root.fail`` as ``Error: ...``, the prefix click
+    """Every refusal or failure of ``v3d`` is printed by ``app.cli.errors.fail`` as ``Error: ...``, the prefix click
     gives its own refusals of options: no command prints an ``error:`` or ``refused:`` line of its own, which a
     script reading standard error would have to know apart."""
 
@@ -127,11 +127,11 @@ def test_the_command_line_refuses_through_one_helper() -> None:
         return ""
 
     found = [f"{p.relative_to(ROOT)}:{node.lineno}: {text(node.args[0])[:60]!r}"
-             for p in _files("app/cli", suffixes={".py"}) if p.name != "_root.py"  # the helper itself
+             for p in _files("app/cli", suffixes={".py"}) if p.name != "errors.py"  # the helper itself
              for node in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
              if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "echo"
              and node.args and re.search(r"^(?:[\w ]+: )?(?:error|refused)\b", text(node.args[0]), re.IGNORECASE)]
-    assert not found, "refusals printed outside app.cli._root.fail:\n" + "\n".join(found)
+    assert not found, "refusals printed outside app.cli.errors.fail:\n" + "\n".join(found)
 
 
 def test_no_stand_ins_for_rows() -> None:

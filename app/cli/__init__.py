@@ -5,7 +5,8 @@ Each command group lives in its own module and registers on the objects of ``app
 """
 from __future__ import annotations
 
-from app.cli._root import cli, fail
+from app.cli._root import cli
+from app.cli.errors import fail
 from app.core.config import SettingsError
 
 

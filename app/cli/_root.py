@@ -20,14 +20,6 @@ cli.add_typer(import_cli, name="import")
 cli.add_typer(export_cli, name="export")
 
 
-def fail(message: str, code: int = 2) -> typer.Exit:
-    """Print ``Error: <message>`` on standard error and return the exit to raise with status ``code`` (2: the input
-    or the request is refused, 1: the work failed). Click prints its own refusals of options and arguments with that
-    prefix, so that every refusal of ``v3d`` reads alike and a script can grep one word for it."""
-    typer.echo(f"Error: {message}", err=True)
-    return typer.Exit(code=code)
-
-
 @cli.callback()
 def root(server: Annotated[Optional[str], typer.Option(
         "--server", envvar="V3D_URL", metavar="URL",

@@ -11,9 +11,10 @@ from typing import Annotated, Optional
 import typer
 from sqlalchemy.exc import SQLAlchemyError
 
-from app.cli._root import cli, fail
+from app.cli._root import cli
 from app.cli.bars import StageBars
 from app.cli.datasets import DatabaseOpt, cli_settings
+from app.cli.errors import fail
 from app.core.errors import ConflictError, InvalidInputError
 
 

@@ -18,8 +18,9 @@ from typing import TYPE_CHECKING, Annotated, Any, Callable, Iterator, Literal, O
 
 import typer
 
-from app.cli._root import export_cli, fail, import_cli
+from app.cli._root import export_cli, import_cli
 from app.cli.bars import StageBars
+from app.cli.errors import fail
 from app.cli.remote import export_tree, refuse_remote, remote_client, upload_and_wait
 from app.core.config import Settings, get_settings
 from app.core.errors import InvalidInputError

@@ -11,7 +11,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from app.cli._root import cli, fail
+from app.cli._root import cli
 from app.cli.datasets import (
     DatabaseOpt,
     cli_settings,
@@ -20,6 +20,7 @@ from app.cli.datasets import (
     exported_remotely,
     release_tree,
 )
+from app.cli.errors import fail
 from app.cli.remote import remote_client
 from app.core.errors import DatasetError, InvalidInputError
 from app.datasets.csv_cells import inert_cell

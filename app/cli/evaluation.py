@@ -17,7 +17,8 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli, fail
+from app.cli._root import cli
+from app.cli.errors import fail
 from app.datasets.files import InputFileError, JsonFile, json_files
 from app.geometry.annotations import AnnotationError, from_soccernet_calibration
 from app.geometry.camera import Camera

@@ -12,9 +12,10 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli, fail
+from app.cli._root import cli
 from app.cli.bars import StageBars
 from app.cli.datasets import DatabaseOpt, cli_settings, run_job_here, session_factory
+from app.cli.errors import fail
 from app.cli.remote import remote_client
 
 jobs_cli = typer.Typer(help="Background jobs: imports, full recomputes, exports.", no_args_is_help=True)

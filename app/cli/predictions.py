@@ -10,8 +10,9 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli, fail, import_cli
+from app.cli._root import cli, import_cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session, run_job_here
+from app.cli.errors import fail
 from app.cli.remote import remote_client, upload_and_wait
 from app.services.jobs.work import import_params
 

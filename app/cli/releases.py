@@ -10,8 +10,9 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
 
-from app.cli._root import cli, fail
+from app.cli._root import cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session, exported_remotely, release_tree
+from app.cli.errors import fail
 from app.cli.remote import remote_client
 from app.core.errors import ConflictError, InvalidInputError, NotFoundError
 from app.services.exports.formats import export_format, export_names

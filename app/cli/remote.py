@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Optional
 
 import typer
 
-from app.cli._root import fail
+from app.cli.errors import fail
 
 if TYPE_CHECKING:
     from v3d_client import Client, Job

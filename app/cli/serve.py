@@ -26,7 +26,8 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli, fail
+from app.cli._root import cli
+from app.cli.errors import fail
 from app.cli.remote import refuse_remote
 from app.core.config import Settings, get_settings, var_dir
 from app.services.accounts.throttle import is_loopback

@@ -14,8 +14,9 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from app.cli._root import cli, fail
+from app.cli._root import cli
 from app.cli.datasets import DatabaseOpt, cli_settings, database_session
+from app.cli.errors import fail
 from app.cli.remote import remote_client
 from app.core.errors import InvalidInputError, NotFoundError
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import Counter
+from collections.abc import Sequence
 from typing import Any, Callable, cast
 
 import numpy as np
@@ -137,7 +138,7 @@ def fitted_frames(system: System) -> set[int]:
 def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,
                   geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
                   weighed: WeighedViews | None = None,
-                  after_confirming: Callable[[Frame, np.ndarray], float | None] | None = None) -> list[Doubt]:
+                  after_confirming: ConfirmedError | None = None) -> list[Doubt]:
     """Judge the system (``app.geometry.doubts.judge_system``; ``geometry``: the recomputation's pair geometry, shared
     with its triangulation; ``weighed``: its :func:`weighed_views`, when made already) and replace its stored doubts
     and counts. ``after_confirming(frame, centre)``: the recomputation's error (px of the view) of a label centred
@@ -167,13 +168,17 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     return list(system.doubts)
 
 
+#: ``after_confirming(frame, centre, box)``: how far (px of the view) a label centred at ``centre`` (its box ``box``,
+#: [x1, y1, x2, y2] px, or None for a point) would lie from the 3D ball once confirmed; None where there would be none.
+ConfirmedError = Callable[[Frame, np.ndarray, Sequence[float] | None], float | None]
+
 #: The doubts whose ball label a person confirms as it is (a detector's box placed by its key, then Enter): each says
 #: how far that label will lie from the 3D ball once confirmed.
 CONFIRMED_KINDS = ("ball_detected", "suggested_label")
 
 
 def with_confirmed_error(system: System, doubts: list[Any],
-                         after_confirming: Callable[[Frame, np.ndarray], float | None]) -> list[Any]:
+                         after_confirming: ConfirmedError) -> list[Any]:
     """``doubts`` with, on each of :data:`CONFIRMED_KINDS` whose label is known (a ``ball_detected`` suggestion's box,
     a ``suggested_label``'s placed label), ``evidence["confirmed_error_px"]``: its distance (px of the view) from the
     3D ball once confirmed (``after_confirming``), and ``confirmed_error_scaled_px`` in the scale the system's pair
@@ -184,18 +189,20 @@ def with_confirmed_error(system: System, doubts: list[Any],
     out = []
     for d in doubts:
         frame = frames.get(d.view_id) if d.kind in CONFIRMED_KINDS else None
-        centre = None
+        centre, box = None, None
         if frame is not None and d.kind == "ball_detected" and (d.suggestion or {}).get("box"):
-            x1, y1, x2, y2 = d.suggestion["box"]
+            box = d.suggestion["box"]
+            x1, y1, x2, y2 = box
             centre = np.array([(x1 + x2) / 2, (y1 + y2) / 2])
         elif frame is not None and d.kind == "suggested_label" and frame.ball_label is not None:
             known = frame.ball_label.centre
             centre = None if known is None else np.asarray(known, dtype=float)
+            box = frame.ball_label.box
         if centre is None:
             out.append(d)
             continue
         assert frame is not None  # a centre is read from a frame
-        error = after_confirming(frame, centre)
+        error = after_confirming(frame, centre, box)
         out.append(dataclasses.replace(d, evidence={
             **d.evidence, "confirmed_error_px": None if error is None else round(error, 2),
             "confirmed_error_scaled_px": None if error is None else round(

@@ -221,12 +221,14 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the ball and the doubts
 
-    def ball_of(labelled: list[BallObservation]) -> tuple[TriangulationResult, float | None]:
+    def ball_of(labelled: list[BallObservation],
+                boxes: dict[int, Sequence[float]] | None = None) -> tuple[TriangulationResult, float | None]:
         return system_ball(system, kind.consensus_observations(system, labelled, settings), settings, weighed,
-                           geometry, weighs_calibrations=kind.weighs_calibrations)
+                           geometry, weighs_calibrations=kind.weighs_calibrations, boxes=boxes)
 
     result, sigma_m = ball_of(observations)
-    after_confirming = partial(_error_once_confirmed, cameras, observations, result, lambda o: ball_of(o)[0])
+    after_confirming = partial(_error_once_confirmed, cameras, observations, result,
+                               lambda o, boxes: ball_of(o, boxes)[0])
 
     tri = system.triangulation
     if tri is None:
@@ -259,12 +261,13 @@ def recompute_system(session: Session, system: System, settings: Settings,
 
 
 def view_sigmas_px(system: System, observations: Sequence[BallObservation], settings: Settings,
-                   weighed: WeighedViews) -> dict[int, float]:
+                   weighed: WeighedViews, boxes: dict[int, Sequence[float]] | None = None) -> dict[int, float]:
     """Frame id -> the pixel sigma (px at 1920 width) of each observation's view
     (:func:`app.geometry.evidence.view_sigma_px`): its label's centre noise (``CENTRE_NOISE`` of its box's diameter)
     and its calibration's pixel sigma (``weighed``; 0 for a camera not fitted to the view's lines, which
     :func:`calibration_weights` counts full; at least ``consensus_tau_px`` for a camera fitted to fewer than
-    ``min_line_classes`` line classes) in quadrature, at least ``MIN_SIGMA_PX``."""
+    ``min_line_classes`` line classes) in quadrature, at least ``MIN_SIGMA_PX``. ``boxes``: frame id -> a ball box
+    (px) standing for that view's stored label."""
     fitted = fitted_frames(system)
     s = doubt_settings(settings)
     lines = {v.view_id: v.line_classes for v in weighed.views}
@@ -273,7 +276,7 @@ def view_sigmas_px(system: System, observations: Sequence[BallObservation], sett
     for o in observations:
         fid = cast(int, o.view_id)
         f = frames[fid]
-        box = f.ball_label.box if f.ball_label is not None else None
+        box = (boxes or {}).get(fid) or (f.ball_label.box if f.ball_label is not None else None)
         d = None if box is None else (abs(box[2] - box[0]) + abs(box[3] - box[1])) / 2 * REFERENCE_WIDTH_PX / f.width
         cal_sigma = weighed.weighed[fid][1] if fid in fitted and fid in weighed.weighed else 0.0
         if fid in fitted and lines.get(fid, 0) < s.min_line_classes:
@@ -286,26 +289,29 @@ def view_sigmas_px(system: System, observations: Sequence[BallObservation], sett
 
 def _error_once_confirmed(cameras: dict[int, Camera], observations: list[BallObservation],
                           result: TriangulationResult,
-                          triangulated: Callable[[list[BallObservation]], TriangulationResult],
-                          frame: Frame, centre: np.ndarray) -> float | None:
-    """How far (px of ``frame``'s image) a label centred at ``centre`` would lie from the 3D ball once a person
-    confirmed it there: the ball ``triangulated`` with it, as the recomputation that gave ``result`` from
-    ``observations`` triangulates (when the view takes part: admitted, not excluded), else ``result``'s ball; None
-    where there would be none, or no camera."""
+                          triangulated: Callable[[list[BallObservation], dict[int, Sequence[float]] | None],
+                                                 TriangulationResult],
+                          frame: Frame, centre: np.ndarray, box: Sequence[float] | None) -> float | None:
+    """How far (px of ``frame``'s image) a label centred at ``centre`` (its box ``box``, px, or None) would lie from
+    the 3D ball once a person confirmed it there: the ball ``triangulated`` with it, its box standing for the view's
+    label (a label's size is its pixel noise under the rule by evidence), as the recomputation that gave ``result``
+    from ``observations`` triangulates (when the view takes part: admitted, not excluded), else ``result``'s ball;
+    None where there would be none, or no camera."""
     camera = cameras.get(frame.id)
     if camera is None:
         return None
     cal = frame.calibration
     takes_part = cal is not None and bool(cal.admitted) and not is_excluded(frame)
     ball = triangulated([*(o for o in observations if o.view_id != frame.id),
-                         BallObservation(view_id=frame.id, camera=camera, point_px=centre,
-                                         image_width=frame.width)]).point if takes_part else result.point
+                         BallObservation(view_id=frame.id, camera=camera, point_px=centre, image_width=frame.width)],
+                        None if box is None else {frame.id: box}).point if takes_part else result.point
     return None if ball is None else _reprojection_error(camera, np.asarray(ball, dtype=float), centre)
 
 
 def system_ball(system: System, observations: Sequence[BallObservation], settings: Settings, weighed: WeighedViews,
                 geometry: Callable[[BallObservation, BallObservation], PairGeometry], *,
-                weighs_calibrations: bool) -> tuple[TriangulationResult, float | None]:
+                weighs_calibrations: bool,
+                boxes: dict[int, Sequence[float]] | None = None) -> tuple[TriangulationResult, float | None]:
     """The system's 3D ball and its sigma (metres along its least certain direction, None without a ball).
 
     Under ``settings.ball_rule`` "weights" (or a kind that weighs no calibration) the pairs are judged by class: tau,
@@ -315,8 +321,9 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     (:func:`view_sigmas_px`, :func:`app.geometry.evidence.kept_pairs_sigma_m`), shown, never a reason.
     Under "evidence" (a kind that weighs calibrations) the pairs kept by tau and the baseline alone are judged by
     their uncertainty (:func:`app.geometry.evidence.judge_by_evidence`: information-weighted, pairs beyond their joint
-    sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty)."""
-    sigmas = view_sigmas_px(system, observations, settings, weighed)
+    sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty).
+    ``boxes``: frame id -> a ball box (px) standing for that view's stored label (a label not yet confirmed)."""
+    sigmas = view_sigmas_px(system, observations, settings, weighed, boxes)
     if settings.ball_rule == "evidence" and weighs_calibrations:
         paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
                                  min_baseline_m=settings.min_baseline_m, min_parallax_deg=0.0, geometry=geometry)

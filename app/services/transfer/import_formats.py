@@ -27,13 +27,12 @@ from app.datasets.soccernet_v3 import find_labels, game_key, read_soccernet_v3_g
 from app.datasets.soccernet_v3d import V3D_LABELS, read_soccernet_v3d
 from app.db.models import Game
 from app.services.transfer.archives import MAX_UPLOAD_SETTING
+from app.services.transfer.caps import image_bytes, reading_limits
 from app.services.transfer.importing import (
     ImportReport,
-    image_bytes,
     import_sn_calibration,
     import_soccernet_v3,
     import_soccernet_v3d,
-    reading_limits,
 )
 from app.services.transfer.merging import MERGE_MODES
 

@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import dataclasses
 import gc
 import threading
 import time
@@ -96,6 +95,7 @@ from app.services.derivation.recompute import (
     preload_systems,
     recompute_systems,
 )
+from app.services.transfer.caps import image_bytes, read_within_caps, reading_limits, within_player_cap, within_view_cap
 from app.services.transfer.storing import MergedBatch, merge_batch
 from app.services.wording.words import WORDS
 
@@ -166,7 +166,8 @@ class ImportReport:
     decisions_reset: int = 0
     #: Frames of the input that come without an image (a labels-only dataset: every frame), counted in ``frames``.
     frames_without_image: int = 0
-    #: Player boxes of the input beyond ``V3D_MAX_PLAYERS_PER_FRAME`` a frame, not stored (:func:`_within_player_cap`).
+    #: Player boxes of the input beyond ``V3D_MAX_PLAYERS_PER_FRAME`` a frame, not stored
+    #: (:func:`app.services.transfer.caps.within_player_cap`).
     players_dropped: int = 0
 
     def refusal_kinds(self) -> Counter:
@@ -344,54 +345,6 @@ def audit_counts(report: ImportReport) -> dict[str, object]:
             "calibrated": report.calibrated, "refused": report.refused, "triangulated": report.triangulated}
 
 
-def image_bytes(settings: Settings) -> int:
-    """``V3D_MAX_IMAGE_MB`` in bytes: the most an imported image file or zip member may have."""
-    return int(settings.max_image_mb * (1 << 20))
-
-
-def reading_limits(settings: Settings) -> dict[str, int]:
-    """The limits :func:`app.datasets.soccernet_v3.read_soccernet_v3_game` reads a game within, from ``settings``:
-    pixels and bytes an image, player boxes a frame (those beyond are counted, never read)."""
-    return {"max_pixels": settings.max_image_pixels, "max_players": settings.max_players_per_frame,
-            "max_image_bytes": image_bytes(settings)}
-
-
-def _within_view_cap(rec: GameRecord, settings: Settings, skipped: list[str] | None = None) -> GameRecord:
-    """The game ``rec`` without its systems of more than ``settings.max_views_per_system`` views (the
-    pairwise work grows with the square of the views), each named with its count in ``skipped`` when given.
-    A system stored before the cap is left as it is."""
-    cap = settings.max_views_per_system
-    kept = [s for s in rec.systems if len(s.frames) <= cap]
-    if len(kept) == len(rec.systems):
-        return rec
-    if skipped is not None:
-        skipped += [f"{rec.league}/{rec.season}/{rec.match}/{s.name}: {len(s.frames)} views, more than "
-                    f"{cap} (V3D_MAX_VIEWS_PER_SYSTEM); not imported" for s in rec.systems if len(s.frames) > cap]
-    return dataclasses.replace(rec, systems=kept)
-
-
-def _within_player_cap(rec: GameRecord, settings: Settings) -> tuple[GameRecord, int]:
-    """The game ``rec`` with at most ``settings.max_players_per_frame`` player boxes a frame, the first in the file's
-    order (they only help place the cameras the lines cannot; a real frame boxes a few dozen people), and how many
-    boxes were left out: those the reader counted without reading them (``FrameRecord.players_dropped``: the
-    SoccerNet-v3 reader stops at the cap and keeps no box past it for a release), and those of a reader without the
-    cap, dropped here."""
-    cap = settings.max_players_per_frame
-    counted = sum(f.players_dropped for s in rec.systems for f in s.frames)  # by a reader that stopped at the cap
-    if all(len(f.players) <= cap for s in rec.systems for f in s.frames):
-        return rec, counted
-    dropped = counted + sum(max(0, len(f.players) - cap) for s in rec.systems for f in s.frames)
-    systems = [dataclasses.replace(s, frames=[dataclasses.replace(f, players=f.players[:cap])
-                                              if len(f.players) > cap else f for f in s.frames])
-               for s in rec.systems]
-    return dataclasses.replace(rec, systems=systems), dropped
-
-
-def _read_within_view_cap(read: GameReader, settings: Settings) -> GameRecord:
-    """``read()`` through :func:`_within_view_cap` and :func:`_within_player_cap` (what a batch stores)."""
-    return _within_player_cap(_within_view_cap(read(), settings), settings)[0]
-
-
 def _dataset_name(file: str | Path, path: str | Path) -> str:
     """``file`` as the dataset names it: relative to the imported folder (``path``, or the folder of a file given),
     never a server path (the report reaches every role through the job's result)."""
@@ -425,13 +378,13 @@ def _read_all(path: str | Path, settings: Settings, progress: Progress | None, g
             report.skipped_games.append(f"{_dataset_name(exc.file, path)}: {exc.field}: {exc.problem}")
             continue
         report.systems += len(rec.systems)
-        rec, dropped = _within_player_cap(_within_view_cap(rec, settings, report.skipped_systems), settings)
+        rec, dropped = within_player_cap(within_view_cap(rec, settings, report.skipped_systems), settings)
         report.players_dropped += dropped
         frames = sum(len(s.frames) for s in rec.systems)
         frames_per_game.append(frames)
         report.frames_without_image += sum(1 for s in rec.systems for f in s.frames
                                            if not (f.image_zip or f.image_path))
-        readers.append(partial(_read_within_view_cap, read, settings))
+        readers.append(partial(read_within_caps, read, settings))
         first_full = first_full or bool(first) and first_frames + frames > settings.import_batch_frames
         if not first_full:  # :func:`_batches`' rule: the first batch goes on while its frames fit
             first.append(rec)

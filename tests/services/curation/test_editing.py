@@ -108,7 +108,7 @@ def test_replacing_field_lines_recalibrates_then_retriangulates(db_session, sett
     assert frame.field_lines.lines == one_line and frame.field_lines.original_lines == original
     assert frame.calibration.status is CalibrationStatus.REFUSED
     assert frame.calibration.source is CalibrationSource.COMPUTED
-    assert "fewer than" in frame.calibration.reason
+    assert "too few field lines" in frame.calibration.reason
     assert not frame.calibration.admitted and frame.calibration.camera is None
     assert len(system.triangulation.pairs) == 3  # the three other views
     assert frame.optimised_box is None and frame.reprojection is None

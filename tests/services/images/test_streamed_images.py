@@ -25,7 +25,7 @@ from app.services.images.serving import frame_image
 from app.services.storage.datasets import DatasetFiles
 from app.services.storage.stores import FileStorage, Storage
 from app.services.transfer.archives import MB
-from app.services.transfer.importing import reading_limits
+from app.services.transfer.caps import reading_limits
 from tests.conftest import sizes
 from tests.services.datasets import write_v3_game
 
