@@ -99,6 +99,14 @@ def test_every_export_is_a_job_whose_zip_names_no_server_folder(jobs_app, client
     expected = {"soccernet-v3d": "SNv3D.csv", "issia-3d": None, "cameras": "cameras.json", "yolo": "data.yaml",
                 "coco": None}
     for fmt in EXPORT_FORMATS:
+        if fmt == "issia-3d":  # the scene holds no ISSIA sequence: a job that says so, and no empty zip
+            job = client.post(f"/api/exports/{fmt}", json={"all": True})
+            assert job.status_code == 202 and run_queued(jobs_app) == [job.json()["id"]]
+            done = client.get(job.json()["url"]).json()
+            assert done["state"] == "done" and done["result_url"] is None, done
+            assert "nothing to export: no ISSIA sequence is stored" in str(done["result"]), done
+            assert client.get(f"{job.json()['url']}/result").status_code == 409
+            continue
         job, content = _export_job(client, jobs_app, fmt)
         assert job["params"]["format"] == fmt and job["result"]["format"] == fmt
         assert all(k not in job["result"] for k in ("out_dir", "path")) and "/" not in job["result"]["file"]

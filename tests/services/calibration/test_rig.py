@@ -19,7 +19,7 @@ def test_a_frame_with_too_few_lines_is_calibrated_with_the_game_rig(db_session, 
     frame = next(f for f in imported["0.png"].frames if f.name == "0.png")
     few = {cls: frame.field_lines.lines[cls] for cls in ("Side line top", "Big rect. right main")}
     alone = calibrate_lines(few, frame.width, frame.height, 1)
-    assert alone.status is CalibrationStatus.REFUSED and "fewer than" in alone.reason
+    assert alone.status is CalibrationStatus.REFUSED and "too few field lines" in alone.reason
 
     rig = game_rig(db_session, imported["0.png"].game_id, settings, exclude_frame_ids=[frame.id])
     assert rig.positions and rig.positions[0].frames >= 2  # the other main-camera frames agree
@@ -120,7 +120,7 @@ def test_a_rig_position_the_labels_do_not_fit_is_refused_not_stored(shared_dir):
     width, height = item["imageMetadata"]["width"], item["imageMetadata"]["height"]
     lines = lines_to_json_lists(from_soccernet_v3(item["lines"], width, height))
     first = calibrate_lines(lines, width, height, 1)
-    assert first.status is CalibrationStatus.REFUSED and "fewer than" in first.reason
+    assert first.status is CalibrationStatus.REFUSED and "too few field lines" in first.reason
 
     corner = RigPosition((-51.75, -41.37, -1.2), frames=5, spread_m=0.5)  # the game's low corner camera
     wrong = calibrate_lines(lines, width, height, 1, CameraRig((corner,)), True)
