@@ -24,7 +24,7 @@ def test_paper_profile_sets_the_papers_choices(monkeypatch):
     monkeypatch.setenv("V3D_PROFILE", "paper")
     s = Settings(_env_file=None)
     assert {k: getattr(s, k) for k in PAPER_PROFILE} == {"optimised_box_method": "paper", "min_parallax_deg": 0.0,
-                                                        "export_ball_box": "optimised"}
+                                                        "export_ball_box": "optimised", "ball_rule": "weights"}
     assert default_estimator(s.optimised_box_method) == "paper"
     assert s.model_copy(update={"database_url": "sqlite://"}).optimised_box_method == "paper"
 

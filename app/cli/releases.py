@@ -29,9 +29,17 @@ cli.add_typer(release_cli, name="release")
 
 
 def _summary(release: "Release") -> dict[str, Any]:
-    """A release read from a server as the local commands print it (``content.release_summary``'s keys)."""
+    """A release read from a server as the local commands print it (:func:`_local_summary`'s keys)."""
     return release.model_dump(mode="json", include={"name", "note", "created_at", "created_by", "systems", "views",
-                                                    "hash"})
+                                                    "hash", "without_ball3d"})
+
+
+def _local_summary(session: Any, release: Any) -> dict[str, Any]:
+    """A release of this database as the commands print it: ``content.release_summary`` and how many of its systems
+    were accepted with no 3D ball (``without_ball3d``), as the API answers it."""
+    from app.services.releases.content import release_summary, systems_without_ball
+
+    return {**release_summary(release), "without_ball3d": systems_without_ball(session, release)}
 
 
 
@@ -44,7 +52,7 @@ def create_cmd(name: Annotated[str, typer.Argument(help="The release's name (uni
         if client is not None:
             typer.echo(json.dumps(_summary(client.create_release(name, note)), indent=2))
             return
-    from app.services.releases.content import create_release, release_summary
+    from app.services.releases.content import create_release
 
     settings = cli_settings(database_url, None)
     with database_session(settings) as session:
@@ -52,7 +60,7 @@ def create_cmd(name: Annotated[str, typer.Argument(help="The release's name (uni
             release = create_release(session, name, note, settings=settings)
         except (ConflictError, InvalidInputError) as exc:
             raise fail(str(exc)) from None
-        typer.echo(json.dumps(release_summary(release), indent=2))
+        typer.echo(json.dumps(_local_summary(session, release), indent=2))
 
 
 @release_cli.command("list")
@@ -79,11 +87,11 @@ def show_cmd(name: Annotated[str, typer.Argument(help="The release's name.")],
         if client is not None:
             typer.echo(json.dumps(_summary(client.release(name)), indent=2))
             return
-    from app.services.releases.content import get_release, release_summary
+    from app.services.releases.content import get_release
 
     with database_session(cli_settings(database_url, None)) as session:
         try:
-            typer.echo(json.dumps(release_summary(get_release(session, name)), indent=2))
+            typer.echo(json.dumps(_local_summary(session, get_release(session, name)), indent=2))
         except NotFoundError as exc:
             raise fail(str(exc)) from None
 

@@ -70,8 +70,9 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
 
 def test_views_above_tau_on_postgresql(pg_url: str) -> None:
     """The queue's ``views_above_tau`` (float reference width, integer width, stored tau) on PostgreSQL,
-    and the system view's ``error_above_tau`` by the same rule."""
-    settings = Settings(database_url=pg_url, calibration_workers=1)
+    and the system view's ``error_above_tau`` by the same rule (the scene of test_systems' count, by class: ball_rule
+    "weights", under which the 40 px box's pairs meet as that test says)."""
+    settings = Settings(database_url=pg_url, calibration_workers=1, ball_rule="weights")
 
     def build(session, game):
         exact = make_system(session, settings, game, "2.png").system_id

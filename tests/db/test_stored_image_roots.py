@@ -43,6 +43,10 @@ def test_stored_folders_become_keys_and_a_release_exports_the_same_bytes(tmp_pat
     engine = make_engine(url)
     try:
         with Session(engine) as session:
+            # the rows as the current models read and write them hold columns of later revisions (0038, a release's
+            # export settings; 0039, a 3D ball's sigma): added while this revision's code runs, dropped before the
+            # upgrade, which adds them
+            session.execute(sa.text("ALTER TABLE triangulations ADD COLUMN sigma_m FLOAT"))
             game = make_game(session)
             for k, folder in enumerate((upload, under_root, elsewhere), 1):
                 folder.mkdir(parents=True)
@@ -52,13 +56,12 @@ def test_stored_folders_become_keys_and_a_release_exports_the_same_bytes(tmp_pat
                 system.review = ReviewDecision(status=ReviewStatus.ACCEPTED)
                 system.review_status = ReviewStatus.ACCEPTED
                 session.commit()
-            # the release row as the current model reads and writes it holds a column of a later revision (0038,
-            # export settings): added while this revision's code runs, dropped before the upgrade, which adds it
             session.execute(sa.text("ALTER TABLE releases ADD COLUMN export_settings JSON"))
             create_release(session, "v1")
             assert _roots(session) == {str(upload.resolve()), str(under_root.resolve()), str(elsewhere.resolve())}
             before = _export(session, settings, tmp_path / "before.zip")
             session.execute(sa.text("ALTER TABLE releases DROP COLUMN export_settings"))
+            session.execute(sa.text("ALTER TABLE triangulations DROP COLUMN sigma_m"))
             session.commit()
 
             command.upgrade(alembic_config(url), "head")

@@ -14,13 +14,14 @@ from typing import Any
 
 import pytest
 import sqlalchemy as sa
+from alembic.script import ScriptDirectory
 from sqlalchemy.orm import Session
 from typer.testing import CliRunner
 
 from app.cli._root import cli
 from app.core.config import Settings, get_settings
 from app.db.models import Base, Frame, User
-from app.db.session import RestoreUnfinished, make_engine, upgrade_database
+from app.db.session import RestoreUnfinished, alembic_config, make_engine, upgrade_database
 from app.services.accounts.users import authenticate_password, create_user, resolve_token
 from app.services.backup.archive import MANIFEST, BrokenArchive, verify_archive
 from app.services.images.serving import frame_image
@@ -311,7 +312,8 @@ def test_an_archive_of_an_older_schema_is_migrated_to_head(tmp_path, monkeypatch
     result = invoke(target, monkeypatch, "restore", str(archive))
     assert result.exit_code == 0, result.output
     with sqlite3.connect(target["V3D_DATABASE_URL"].removeprefix("sqlite:///")) as conn:
-        assert conn.execute("SELECT version_num FROM alembic_version").fetchone()[0] == "0038"
+        head = ScriptDirectory.from_config(alembic_config()).get_current_head()
+        assert conn.execute("SELECT version_num FROM alembic_version").fetchone()[0] == head
     games = rows(target["V3D_DATABASE_URL"])["games"]
     assert [(g["id"], g["match"], g["version"], g["created_at"].isoformat()) for g in games] == [
         (7, "m", 3, "2026-11-01T12:00:00+00:00")]

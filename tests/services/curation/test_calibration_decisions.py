@@ -8,6 +8,7 @@ from sqlalchemy import select
 
 from app.core.errors import InvalidInputError, StaleVersionError
 from app.db.models import AuditEntry, Frame, ReviewStatus, System
+from app.services.accounts.users import create_user
 from app.services.curation.decisions import decide_calibration, decide_review
 from app.services.curation.editing import replace_field_lines, update_ball_label
 from app.services.curation.reverting import revert_entry
@@ -82,7 +83,8 @@ def test_an_edit_that_changes_a_calibration_sets_the_decisions_back_to_pending(d
     assert new[1].after == {"review": {"status": "pending", "comment": "all good"}}
 
     # deciding again clears the reasons
-    decide_review(db_session, system_id=system.id, status="needs_fix")
+    create_user(db_session, "ana", "annotator", "a password of ana's")  # whom the needs-fix goes back to
+    decide_review(db_session, system_id=system.id, status="needs_fix", return_to="ana")
     decide_calibration(db_session, frame.id, status="rejected")
     assert system.review.reset_reason is None and frame.review.calibration_reset_reason is None
 
