@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import seed_dev_set, tid
+from tests.browser.support import seed_dev_set, tid, wait_for_steady_layout
 
 pytestmark = pytest.mark.browser
 
@@ -93,6 +93,12 @@ def test_drag_add_delete_relabel_undo_redo(page, artifacts):
     i = next(i for i, p in enumerate(lines0[cls][0]) if inside(p))
     x, y = lines0[cls][0][i]
     jac_before = _jac_text(page, k)
+    # where the point is on the screen is read once the view's image is drawn (its arrival redraws the view, which a
+    # drag under way would meet) and the page has stopped moving, so that the drag starts and ends where it was aimed
+    if view.get("image_url"):
+        page.locator(f'[data-testid=view][data-frame-id="{fid}"] [data-testid=view-svg] image').first.wait_for(
+            state="attached")
+    wait_for_steady_layout(page)
     sx, sy = _screen(page, k, x, y)
     page.screenshot(path=str(artifacts / "line-edit-open.png"))
     tx, ty = _screen(page, k, x + 40, y)
