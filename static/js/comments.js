@@ -254,7 +254,8 @@ export class CommentsCard {
       { keys: ["C"], show: ["⇧C"], does: "next unresolved comment (its view selected)", run: () => this.next() },
       { keys: ["p"], does: "pin a comment: then click its point on a view",
         run: () => (this.mayPin() ? (this.startPin(), true)
-          : "a comment is pinned by reviewers and admins, or by the person the system is returned to") },
+          : !this.me ? "the page is still reading who you are: press p again in a moment"
+            : "a comment is pinned by reviewers and admins, or by the person the system is returned to") },
       { keys: ["Escape"], show: ["Esc"], does: "cancel pinning a comment", run: () => (this.pinning ? (this.cancel(), true) : false) },
     ];
   }
