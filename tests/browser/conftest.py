@@ -148,10 +148,10 @@ def admin_state(browser, server_url, accounts) -> dict:
         context.close()
 
 
-@pytest.fixture
-def page(browser, server_url, admin_state):
-    """A 1440x900 page of the logged-in admin; JavaScript errors on the page fail the test."""
-    context = browser.new_context(viewport={"width": 1440, "height": 900}, base_url=server_url,
+def admin_page(browser, server_url: str, admin_state: dict, width: int, height: int) -> Iterator:
+    """A ``width`` x ``height`` page of the logged-in admin (for a fixture to yield from); JavaScript errors on the
+    page fail the test."""
+    context = browser.new_context(viewport={"width": width, "height": height}, base_url=server_url,
                                   storage_state=admin_state)
     p = context.new_page()
     errors: list[str] = []
@@ -161,6 +161,12 @@ def page(browser, server_url, admin_state):
     finally:
         context.close()
     assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+@pytest.fixture
+def page(browser, server_url, admin_state):
+    """A 1440x900 page of the logged-in admin (:func:`admin_page`)."""
+    yield from admin_page(browser, server_url, admin_state, 1440, 900)
 
 
 @pytest.fixture(scope="session")

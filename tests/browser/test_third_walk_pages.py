@@ -10,6 +10,7 @@ import zipfile
 
 import pytest
 
+from tests.browser.conftest import admin_page
 from tests.browser.support import api_json, api_write, tid, wait_for_job, wait_for_steady_layout
 
 pytestmark = pytest.mark.browser
@@ -20,17 +21,8 @@ SIZE_IDS = ["1366x768", "1920x1080"]
 
 @pytest.fixture
 def small_page(browser, server_url, admin_state):
-    """A 1366x768 page of the logged-in admin; a JavaScript error on the page fails the test."""
-    context = browser.new_context(viewport={"width": 1366, "height": 768}, base_url=server_url,
-                                  storage_state=admin_state)
-    p = context.new_page()
-    errors: list[str] = []
-    p.on("pageerror", lambda exc: errors.append(str(exc)))
-    try:
-        yield p
-    finally:
-        context.close()
-    assert not errors, f"JavaScript errors on the page: {errors}"
+    """A 1366x768 page of the logged-in admin (:func:`tests.browser.conftest.admin_page`)."""
+    yield from admin_page(browser, server_url, admin_state, 1366, 768)
 
 
 def _zip(files: dict[str, bytes]) -> bytes:
