@@ -1,12 +1,12 @@
 """Pydantic schemas of the audit log's API (``/api/audit``), apart from ``schemas.py`` to keep it small."""
 from __future__ import annotations
 
-from datetime import datetime, timezone
-from typing import Annotated, Any, Optional
+from datetime import datetime
+from typing import Any, Optional
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, computed_field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, computed_field, model_validator
 
-from app.api.schemas import DB_INT_MAX, DbInt, QueryText
+from app.api.schemas import DB_INT_MAX, DbInt, QueryText, UtcTime
 from app.services.audit import log as audit
 from app.services.audit.summaries import summarize
 
@@ -67,19 +67,6 @@ class AuditPageOut(BaseModel):
                                                          "than `limit` entries before the last page.")
 
 
-def _utc_unless_said(when: datetime) -> datetime:
-    """The time in UTC, one that names no offset read as UTC (the times the API answers are UTC). Raises
-    ``ValueError`` (a 422 naming the field) for a time whose UTC falls outside the years 1-9999."""
-    if when.utcoffset() is None:
-        return when.replace(tzinfo=timezone.utc)
-    try:
-        return when.astimezone(timezone.utc)
-    except OverflowError:
-        raise ValueError("outside the years 1-9999 once in UTC") from None
-
-
-#: A time of a query: ISO 8601, UTC when it names no offset.
-UtcTime = Annotated[datetime, AfterValidator(_utc_unless_said)]
 
 
 class AuditQuery(BaseModel):

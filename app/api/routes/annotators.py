@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import io
-from datetime import datetime, timezone
 from typing import Annotated, Literal, Optional
 
 from fastapi import APIRouter, Query, Response
@@ -13,7 +12,7 @@ from fastapi import APIRouter, Query, Response
 from app.api.annotator_schemas import AnnotatorOut, AnnotatorsOut
 from app.api.auth import ReviewerDep
 from app.api.deps import SessionDep
-from app.api.schemas import INVALID
+from app.api.schemas import INVALID, UtcTime
 from app.core.errors import InvalidInputError
 from app.datasets.csv_cells import inert_cell
 from app.services.evaluation.annotators import FIELDS, annotator_figures
@@ -21,29 +20,12 @@ from app.services.evaluation.annotators import FIELDS, annotator_figures
 router = APIRouter(tags=["stats"])
 
 
-def _utc(value: Optional[datetime], field: str) -> Optional[datetime]:
-    """``value`` in UTC (UTC when it has no offset). Raises :class:`InvalidInputError` naming ``field`` when it has
-    no valid offset, or falls outside years 1-9999 once converted (``0001-01-01T00:00:00+05:00`` is a time of year
-    0 in UTC, which no date holds)."""
-    if value is None:
-        return None
-    if value.tzinfo is None:
-        return value.replace(tzinfo=timezone.utc)
-    if value.utcoffset() is None:
-        raise InvalidInputError("give a time with a valid offset", field=field)
-    try:
-        return value.astimezone(timezone.utc)
-    except OverflowError:
-        raise InvalidInputError(f"{value.isoformat()} is outside the years 1-9999 once converted to UTC",
-                                field=field) from None
-
-
 @router.get("/stats/annotators", response_model=AnnotatorsOut, responses={**INVALID, 200: {
     "content": {"text/csv": {}}, "description": "The figures (JSON, or CSV with format=csv)."}})
 def annotators(session: SessionDep, principal: ReviewerDep,
-               since: Annotated[Optional[datetime], Query(description="Only entries at or after this time (UTC).")]
+               since: Annotated[Optional[UtcTime], Query(description="Only entries at or after this time (UTC).")]
                = None,
-               until: Annotated[Optional[datetime], Query(description="Only entries before this time (UTC).")] = None,
+               until: Annotated[Optional[UtcTime], Query(description="Only entries before this time (UTC).")] = None,
                format: Annotated[Literal["json", "csv"], Query(description="csv: text/csv, header row = the keys.")]
                = "json") -> AnnotatorsOut | Response:
     """Per-person figures: as an annotator, edits, systems touched and decided, needs fix received, accepted at first
@@ -51,10 +33,9 @@ def annotators(session: SessionDep, principal: ReviewerDep,
     the ball the other views agree on, share accused by a doubt); as a reviewer, the system decisions made (accepted,
     rejected, needs fix) and the re-reviews of systems that came back fixed. Reviewers and admins. 422 naming
     ``until`` when it is not after ``since``."""
-    start, end = _utc(since, "since"), _utc(until, "until")
-    if start is not None and end is not None and end <= start:
+    if since is not None and until is not None and until <= since:
         raise InvalidInputError("until must be after since", field="until")
-    items = [AnnotatorOut(**f.as_dict()) for f in annotator_figures(session, start, end)]
+    items = [AnnotatorOut(**f.as_dict()) for f in annotator_figures(session, since, until)]
     if format == "csv":
         out = io.StringIO()
         writer = csv.writer(out, lineterminator="\n")

@@ -24,7 +24,7 @@ from app.services.transfer.data_root import shown_import_counts
 router = APIRouter(prefix="/audit", tags=["audit"])
 
 
-@router.get("", response_model=AuditPageOut)
+@router.get("", response_model=AuditPageOut, responses=INVALID)
 def list_audit(session: SessionDep, settings: SettingsDep, principal: PrincipalDep,
                query: Annotated[AuditQuery, Query()]) -> Response:
     """One page of the audit log, newest first: who changed what, when, and the state before and after.

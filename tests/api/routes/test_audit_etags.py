@@ -11,6 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session
 
+from app.api.schemas import InvalidOut
 from app.core.config import Settings
 
 from ..factories import Scene, make_system
@@ -253,6 +254,9 @@ def test_audit_list_filters_by_when_an_entry_was_written(client: TestClient, db_
                         ({"until": "0001-01-01T00:00:00+05:00"}, "until")):
         refused = client.get("/api/audit", params=span)
         assert refused.status_code == 422 and field in refused.text, refused.text
+        InvalidOut.model_validate(refused.json())  # in the form the route declares (schemathesis checks it too)
+    declared = client.get("/openapi.json").json()["paths"]["/api/audit"]["get"]["responses"]["422"]
+    assert declared["content"]["application/json"]["schema"]["$ref"].endswith("/InvalidOut")
 
 
 # ----- reverts -------------------------------------------------------------------------------------
