@@ -71,9 +71,29 @@ _PAGE_MOVES = """async (svg, [points, period]) => {
 }"""
 
 
+#: Resolves once the view's image has arrived or failed (``.view[data-image]`` no longer ``loading``: its arrival
+#: redraws the view) and the SVG's screen matrix has held over three animation frames in a row (a layout still
+#: moving would move the point after it was read): a condition checked per frame, not a time.
+_SETTLED = """(s) => new Promise((done) => {
+  const card = s.closest(".view");
+  let last = "", same = 0;
+  const look = () => {
+    const m = s.getScreenCTM();
+    const now = m ? [m.a, m.b, m.c, m.d, m.e, m.f].join(",") : "";
+    same = now && now === last ? same + 1 : 0;
+    last = now;
+    if (same >= 3 && (!card || card.dataset.image !== "loading")) done(true); else requestAnimationFrame(look);
+  };
+  requestAnimationFrame(look);
+})"""
+
+
 def _to_screen(view):
-    """The map of a view card's image px to screen px (its SVG's screen CTM, read once: a drag scrolls nothing)."""
-    a, b, c, d, e, f = view.locator("[data-testid=view-svg]").evaluate(
+    """The map of a view card's image px to screen px (its SVG's screen CTM, read once: a drag scrolls nothing),
+    read once the view has settled (:data:`_SETTLED`), so that the press lands on the point it aims at."""
+    svg = view.locator("[data-testid=view-svg]")
+    svg.evaluate(_SETTLED)
+    a, b, c, d, e, f = svg.evaluate(
         "(s) => { const m = s.getScreenCTM(); return [m.a, m.b, m.c, m.d, m.e, m.f]; }")
     return lambda x, y: (a * x + c * y + e, b * x + d * y + f)
 
@@ -152,7 +172,8 @@ def drag_with_preview(page, view_index: int, point: tuple[float, float], *, seco
         while in_flight and time.monotonic() < deadline:
             page.wait_for_timeout(20)
         badge = view.locator("[data-testid=drag-preview]")
-        assert badge.count(), "no preview was drawn during the drag"
+        assert badge.count(), (f"no preview was drawn during the drag ({counts['sent']} previews sent, "
+                               f"{drawn} drawn while moving)")
         last = badge.get_attribute("data-jac")
         if screenshot is not None:
             page.screenshot(path=str(screenshot))
