@@ -46,7 +46,10 @@ class ExportsPanel {
     this.ready = this.addReleases();
     this.list = el("ul");
     for (const x of EXPORTS) {
-      const button = el("button", { type: "button", "data-testid": `export-${x.id}`, title: x.title }, x.label);
+      // disabled until the releases are read: a click before would export with no scope chosen yet (on the
+      // Releases page, the database now instead of the release the page is about to choose)
+      const button = el("button", { type: "button", "data-testid": `export-${x.id}`, title: x.title, disabled: true },
+        x.label);
       button.addEventListener("click", () => this.start(x, button));
       const li = el("li", { "data-testid": "export-row", "data-export": x.id }, button,
         el("span", { class: "export-status", "data-testid": `export-status-${x.id}` }));
@@ -74,10 +77,9 @@ class ExportsPanel {
         `release ${r.name} (${r.systems} system${r.systems === 1 ? "" : "s"})`));
     }
     this.scope.replaceChildren(...options, ...(releases.length ? [group] : []));
-    if (this.releasesOnly) {
-      this.scope.value = releases.length ? `release:${releases[releases.length - 1].name}` : "";
-      for (const b of this.list.querySelectorAll("button")) b.disabled = !releases.length;
-    } else if (chosen) this.scope.value = chosen;
+    if (this.releasesOnly) this.scope.value = releases.length ? `release:${releases[releases.length - 1].name}` : "";
+    else if (chosen) this.scope.value = chosen;
+    for (const b of this.list.querySelectorAll("button")) b.disabled = this.releasesOnly && !releases.length;
     this.forgetOtherScopes();
   }
 

@@ -9,9 +9,10 @@ import shlex
 import zipfile
 
 import pytest
+from playwright.sync_api import expect
 
 from tests.browser.conftest import admin_page
-from tests.browser.support import api_json, api_write, tid, wait_for_job, wait_for_steady_layout
+from tests.browser.support import api_json, api_write, pump_until, tid, wait_for_job, wait_for_steady_layout
 
 pytestmark = pytest.mark.browser
 
@@ -55,6 +56,35 @@ def test_an_issia_export_of_a_release_without_issia_says_nothing_to_export(small
     page.screenshot(path=str(artifacts / "walk3/releases-issia-nothing-1366x768.png"))
     job = api_json(page, "/api/jobs?kind=export")["items"][0]
     assert job["result_url"] is None and page.request.get(f"{job['url']}/result").status == 409
+
+
+def test_the_release_exports_wait_for_the_release_list_before_they_can_be_clicked(small_page):
+    """The export buttons of the Releases page are disabled while the page reads its releases: clicked before, they
+    exported with no release chosen (the database now), and the release's "nothing to export" never came (a
+    browser run met it). The list's answer is held here until the buttons are seen disabled: the order is certain."""
+    page = small_page
+    systems = api_json(page, "/api/systems?limit=1")["items"]
+    assert api_write(page, "POST", f"/api/systems/{systems[0]['id']}/review", {"status": "accepted", "comment": ""}).ok
+    assert api_write(page, "POST", "/api/releases", {"name": "held", "note": ""}).ok
+    held: list = []
+    reads = []
+
+    def hold_the_panels_read(route) -> None:  # the page's own table reads the list first, the panel next
+        reads.append(route.request.method)
+        if route.request.method == "GET" and reads.count("GET") == 2:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route("**/api/releases", hold_the_panels_read)
+    page.goto("/static/releases.html")
+    button = page.locator(tid("export-issia-3d"))
+    button.wait_for(state="attached")
+    pump_until(page, lambda: bool(held), "the page's read of the releases")
+    assert button.is_disabled()  # the list is on its way: no scope chosen yet
+    held[0].continue_()
+    expect(button).to_be_enabled()
+    assert page.locator(tid("export-scope")).input_value() == "release:held"
 
 
 # ----- 12: re-import from the browser offers the merge ----------------------------------------------------------
