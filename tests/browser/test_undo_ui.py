@@ -7,11 +7,25 @@ from __future__ import annotations
 from urllib.parse import urlsplit
 
 import pytest
+from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 
 from tests.browser.support import api_json as _api
 from tests.browser.support import api_write, tid
 
 pytestmark = pytest.mark.browser
+
+
+def _undo_answer(page, key: str):
+    """Press ``key`` (an undo or redo key) and answer the page's ``/undo`` response; when none comes, fail with what
+    the page said instead (its toast and its error bar), so that a run that meets it shows why."""
+    try:
+        with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
+            page.keyboard.press(key)
+        return answer.value
+    except PlaywrightTimeoutError:
+        said = page.evaluate("() => [...document.querySelectorAll('[data-testid=toast], [data-testid=error]')]"
+                             ".map((e) => e.textContent.trim()).filter(Boolean)")
+        raise AssertionError(f"{key} sent no undo within 30 s; the page says {said}") from None
 
 
 def _numbers(system: dict) -> dict:
@@ -61,18 +75,16 @@ def test_nudge_undo_redo_exclusion_and_the_history_summaries(page, artifacts):
                            ".textContent.toLowerCase().includes('pending')")
 
     # Ctrl+Z: the undo of that entry; label, camera and 3D ball to the same numbers
-    with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
-        page.keyboard.press("Control+z")
-    assert answer.value.status == 200, answer.value.text()
+    undo = _undo_answer(page, "Control+z")
+    assert undo.status == 200, undo.text()
     undone = _api(page, f"/api/systems/{sid}")
     assert _numbers(undone) == _numbers(before)
     page.wait_for_function(f"() => document.querySelector('[data-testid=ball3d-x]').textContent === {shown_x!r}")
     page.screenshot(path=str(artifacts / "undo-nudge-undone.png"))
 
     # Ctrl+Shift+Z: the nudge again
-    with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
-        page.keyboard.press("Control+Shift+Z")
-    assert answer.value.status == 200
+    undo = _undo_answer(page, "Control+Shift+Z")
+    assert undo.status == 200
     assert _numbers(_api(page, f"/api/systems/{sid}")) == _numbers(nudged)
 
     # `x` excludes the selected view; Ctrl+Z restores it and the 3D ball of the redone nudge
@@ -80,9 +92,8 @@ def test_nudge_undo_redo_exclusion_and_the_history_summaries(page, artifacts):
         page.keyboard.press("x")
     assert answer.value.status == 200
     assert _api(page, f"/api/systems/{sid}")["views"][k]["review"]["excluded"] is True
-    with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
-        page.keyboard.press("Control+z")
-    assert answer.value.status == 200
+    undo = _undo_answer(page, "Control+z")
+    assert undo.status == 200
     assert _numbers(_api(page, f"/api/systems/{sid}")) == _numbers(nudged)
 
     # the history panel: every entry in words
@@ -99,9 +110,8 @@ def test_nudge_undo_redo_exclusion_and_the_history_summaries(page, artifacts):
     page.screenshot(path=str(artifacts / "undo-history-summaries.png"))
 
     # the exclusion again (redo), then nothing left to redo: the key says so
-    with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
-        page.keyboard.press("Control+Shift+Z")
-    assert answer.value.status == 200
+    undo = _undo_answer(page, "Control+Shift+Z")
+    assert undo.status == 200
     assert _api(page, f"/api/systems/{sid}")["views"][k]["review"]["excluded"] is True
     page.keyboard.press("Control+Shift+Z")
     page.wait_for_function("() => document.querySelector('[data-testid=toast]')"
@@ -168,9 +178,8 @@ def test_a_mirror_fix_is_undone_to_the_same_numbers(page, artifacts):
     assert answer.value.status == 200, answer.value.text()
     fixed = _api(page, f"/api/systems/{sid}")
     assert fixed["views"][k]["calibration"]["camera"] != before["views"][k]["calibration"]["camera"]
-    with page.expect_response(lambda r: r.url.split("?")[0].endswith("/undo")) as answer:
-        page.keyboard.press("Control+z")
-    assert answer.value.status == 200, answer.value.text()
+    undo = _undo_answer(page, "Control+z")
+    assert undo.status == 200, undo.text()
     undone = _api(page, f"/api/systems/{sid}")
     assert _numbers(undone) == _numbers(before)
     assert undone["views"][k]["field_lines"] == before["views"][k]["field_lines"]
