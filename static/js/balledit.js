@@ -41,10 +41,10 @@ export class BallEditor {
     this.#drag = null;
   }
 
-  #toImage(root, event) {
-    const m = root.getScreenCTM();
-    if (!m) return null;
-    const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(m.inverse());
+  /** The pointer's image px through `inverse` (the SVG's screen matrix inverted), or through the SVG's matrix now. */
+  #toImage(root, event, inverse = root.getScreenCTM()?.inverse()) {
+    if (!inverse) return null;
+    const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(inverse);
     return [p.x, p.y];
   }
 
@@ -54,11 +54,14 @@ export class BallEditor {
     if (event.button !== 0 || this.#panel.saving) return;
     event.preventDefault();
     event.stopPropagation();
-    const start = this.#toImage(root, event);
+    // the drag reads the pointer through the screen matrix at the press, as a line point's drag does (lineseditor.js):
+    // the page moving under a drag does not move the label
+    const inverse = root.getScreenCTM()?.inverse();
+    const start = this.#toImage(root, event, inverse);
     const label = mode === "draw" ? { box: [start[0], start[1], start[0], start[1]] } : this.label();
     if (!start || !label) return;
     this.#panel.freezeZoom(); // freeze the inset while dragging
-    this.#drag = { mode, start, label: structuredClone(label), moved: false, root, pointerId: event.pointerId };
+    this.#drag = { mode, start, label: structuredClone(label), moved: false, root, pointerId: event.pointerId, inverse };
     const move = (e) => this.#onDrag(e);
     const up = (e) => {
       root.removeEventListener("pointermove", move);
@@ -75,7 +78,7 @@ export class BallEditor {
   #onDrag(event) {
     const d = this.#drag;
     if (!d) return;
-    const p = this.#toImage(d.root, event);
+    const p = this.#toImage(d.root, event, d.inverse);
     if (!p) return;
     const v = this.#panel.view;
     let dx = p[0] - d.start[0], dy = p[1] - d.start[1];

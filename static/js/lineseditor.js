@@ -288,10 +288,10 @@ export class LineEditor {
     svg("title", { text: `annotated: ${cls.trim()} (line ${poly + 1}, point ${index + 1})` }));
   }
 
-  #toImage(root, event) {
-    const m = root.getScreenCTM();
-    if (!m) return null;
-    const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(m.inverse());
+  /** The pointer's image px through `inverse` (the SVG's screen matrix inverted), or through the SVG's matrix now. */
+  #toImage(root, event, inverse = root.getScreenCTM()?.inverse()) {
+    if (!inverse) return null;
+    const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(inverse);
     return [p.x, p.y];
   }
 
@@ -299,14 +299,18 @@ export class LineEditor {
     if (event.button !== 0 || this.#drag) return;
     event.preventDefault();
     event.stopPropagation();
-    const start = this.#toImage(root, event);
+    // the whole drag reads the pointer through the view's screen matrix at the press: the page may move under a
+    // drag (a preview's badge, a toast, an image arriving), and the point follows the pointer's own motion, not the
+    // page's; read anew per move, a half-pixel shift of the card put a horizontal drag 2 px off in y
+    const inverse = root.getScreenCTM()?.inverse();
+    const start = this.#toImage(root, event, inverse);
     if (!start) return;
     this.#drag = { cls, poly, index, start, origin: this.lines()[cls][poly][index], moved: false };
     this.#live = copyLines(this.view.field_lines);
     this.preview.begin();
     const move = (e) => {
       const d = this.#drag;
-      const p = d && this.#toImage(root, e);
+      const p = d && this.#toImage(root, e, inverse);
       if (!p) return;
       const v = this.view;
       const x = Math.min(v.width, Math.max(0, d.origin[0] + p[0] - d.start[0]));
