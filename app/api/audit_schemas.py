@@ -67,8 +67,6 @@ class AuditPageOut(BaseModel):
                                                          "than `limit` entries before the last page.")
 
 
-
-
 class AuditQuery(BaseModel):
     """Filters and page of ``GET /api/audit``."""
 
