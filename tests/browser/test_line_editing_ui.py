@@ -343,3 +343,53 @@ def test_a_label_far_off_where_its_players_placed_camera_sees_the_ball_snaps_wit
     placed = _api(page, f"/api/frames/{view['frame_id']}")["ball"]["box"]
     assert placed == pytest.approx([round(v, 1) for v in box], abs=1e-6)
     page.locator(tid("toast")).filter(has_text="ball snapped to the suggested box").wait_for()
+
+
+@pytest.mark.parametrize("size", [(1366, 768), (1440, 900), (1920, 1080)], ids=["1366x768", "1440x900", "1920x1080"])
+def test_the_pass_count_arriving_never_moves_a_view_under_the_pointer(page, size):
+    """The review pass's count ("pass 5 of 40 · 40 pending") comes after the views are drawn (its own request): it
+    must land in room the top bar already has. At laptop widths it wrapped to four lines and grew the bar by 15 px
+    while the annotator could already be clicking: a line drawn then had a point 0.5 screen px (1.75 image px) off
+    where it was clicked (a full run met it), or 15 px off with the page at its top. The pass's requests are held
+    here until the views are drawn and still, so the count surely comes last."""
+    system = _system(page, "13.png", 4)
+    page.set_viewport_size({"width": size[0], "height": size[1]})
+    held: list = []
+
+    def hold(route) -> None:
+        if held and held[0] is None:  # released
+            route.continue_()
+        else:
+            held.append(route)
+
+    page.route("**/api/passes**", hold)
+    page.goto(f"/systems/{system['id']}")
+    page.locator(tid("view")).nth(3).locator(tid("line-point")).first.wait_for()
+    wait_for_steady_layout(page)
+
+    def where() -> dict:
+        return page.evaluate("""() => ({
+          bar: document.querySelector('.topbar').getBoundingClientRect().height,
+          views: [...document.querySelectorAll('[data-testid=view-svg]')].map((s) => {
+            const r = s.getBoundingClientRect(); return [r.left, r.top, r.width, r.height]; }),
+          side: document.querySelector('.side').getBoundingClientRect().top,
+          count: document.querySelector('[data-testid=pass-progress]').textContent })""")
+
+    before = where()
+    assert held and before["count"] == "", before["count"]  # the count is still on its way
+    routes = held[:]
+    held[:] = [None]
+    for route in routes:
+        route.continue_()
+    page.wait_for_function("""() => /pass \\d+ of \\d+ · \\d+ pending/.test(
+        document.querySelector('[data-testid=pass-progress]').textContent)""")
+    wait_for_steady_layout(page)
+    after = where()
+    assert after["bar"] == pytest.approx(before["bar"], abs=0.01)
+    assert after["side"] == pytest.approx(before["side"], abs=0.01)
+    for b, a in zip(before["views"], after["views"], strict=True):
+        assert a == pytest.approx(b, abs=0.01)
+    count = page.locator(tid("pass-progress"))
+    box, bar = count.bounding_box(), page.locator(".topbar").bounding_box()
+    assert box["y"] >= bar["y"] and box["y"] + box["height"] <= bar["y"] + bar["height"]  # wholly in the bar
+    assert count.evaluate("(e) => e.scrollHeight <= e.clientHeight + 1"), "the count is cut"
