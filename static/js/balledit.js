@@ -4,6 +4,7 @@
 // edit ends; then the view dispatches "ball-change" {frameId, box} or {frameId, point} (rounded to 0.1 px),
 // which the page saves. The view panel (overlay.js) owns one editor: `panel.ball`.
 
+import { pointerImagePx } from "./format.js";
 import { boxCentre, clamp, validBox, validPoint } from "./viewfacts.js";
 
 const MIN_BOX = 2; // smallest box side, image pixels
@@ -41,13 +42,6 @@ export class BallEditor {
     this.#drag = null;
   }
 
-  /** The pointer's image px through `inverse` (the SVG's screen matrix inverted), or through the SVG's matrix now. */
-  #toImage(root, event, inverse = root.getScreenCTM()?.inverse()) {
-    if (!inverse) return null;
-    const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(inverse);
-    return [p.x, p.y];
-  }
-
   /** A pointer pressed on the label (`mode` "move", "resize" or "point") or on a view without one ("draw") in
    * the SVG `root` (the frame or the zoomed inset): follow it until it is released. */
   grab(event, root, mode) {
@@ -57,7 +51,7 @@ export class BallEditor {
     // the drag reads the pointer through the screen matrix at the press, as a line point's drag does (lineseditor.js):
     // the page moving under a drag does not move the label
     const inverse = root.getScreenCTM()?.inverse();
-    const start = this.#toImage(root, event, inverse);
+    const start = pointerImagePx(root, event, inverse);
     const label = mode === "draw" ? { box: [start[0], start[1], start[0], start[1]] } : this.label();
     if (!start || !label) return;
     this.#panel.freezeZoom(); // freeze the inset while dragging
@@ -78,7 +72,7 @@ export class BallEditor {
   #onDrag(event) {
     const d = this.#drag;
     if (!d) return;
-    const p = this.#toImage(d.root, event, d.inverse);
+    const p = pointerImagePx(d.root, event, d.inverse);
     if (!p) return;
     const v = this.#panel.view;
     let dx = p[0] - d.start[0], dy = p[1] - d.start[1];

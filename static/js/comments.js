@@ -8,7 +8,7 @@
 // "Send back as fixed" button (POST .../review {"status": "fixed"}). Text from the server is set as text only.
 
 import { getMe, send } from "./api.js";
-import { el, showError, toast } from "./format.js";
+import { el, pointerImagePx, showError, toast } from "./format.js";
 import { keepDraft } from "./drafts.js";
 import { word } from "./words.js";
 
@@ -212,15 +212,14 @@ export class CommentsCard {
     const frameSvg = e.target.closest?.("[data-testid=view-svg]");
     if (!frameSvg) return;
     const panel = frameSvg.closest("v3d-view");
-    const ctm = frameSvg.getScreenCTM();
-    if (!panel?.view || !ctm) return;
+    const p = pointerImagePx(frameSvg, e);
+    if (!panel?.view || !p) return;
     e.preventDefault();
     e.stopPropagation();
-    const p = new DOMPoint(e.clientX, e.clientY).matrixTransform(ctm.inverse());
     const v = panel.view;
     this.pinning = false;
     document.body.classList.remove("pinning");
-    this.openForm({ frame_id: v.frame_id, point: [Math.min(Math.max(p.x, 0), v.width), Math.min(Math.max(p.y, 0), v.height)] });
+    this.openForm({ frame_id: v.frame_id, point: [Math.min(Math.max(p[0], 0), v.width), Math.min(Math.max(p[1], 0), v.height)] });
     $("comment-text").focus();
   }
 

@@ -69,6 +69,15 @@ export function svg(tag, attrs = {}, ...children) {
   return node;
 }
 
+/** The pointer of `event` in image px of the view's SVG `root`: through `inverse` (the SVG's screen matrix inverted,
+ * kept from a drag's press so that the page moving under a drag does not move what is dragged), or through the
+ * SVG's matrix now; null when the SVG is not rendered. */
+export function pointerImagePx(root, event, inverse = root.getScreenCTM()?.inverse()) {
+  if (!inverse) return null;
+  const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(inverse);
+  return [p.x, p.y];
+}
+
 /** True when a key event comes from a place where the reviewer types text. */
 export function isTyping(event) {
   const t = event.target;

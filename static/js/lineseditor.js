@@ -14,7 +14,7 @@
 // with `undo_of`, for the others POST /api/audit/{id}/undo), so the server audits it as that edit's undo.
 
 import { getPitchModel } from "./api.js";
-import { el, svg, isNum } from "./format.js";
+import { el, svg, isNum, pointerImagePx } from "./format.js";
 import { DragPreview, previewText } from "./linepreview.js";
 
 /** How many of the worst-fitting classes are marked. */
@@ -228,7 +228,7 @@ export class LineEditor {
           this.finishLine();
           return;
         }
-        const p = this.#toImage(root, e);
+        const p = pointerImagePx(root, e);
         if (p) this.#drawing.push(roundPx(p));
         this.panel.redraw();
       });
@@ -250,7 +250,7 @@ export class LineEditor {
             if (e.button !== 0) return;
             e.preventDefault();
             e.stopPropagation();
-            const p = this.#toImage(root, e);
+            const p = pointerImagePx(root, e);
             if (this.#double(e, `${cls}/${poly}`) && p) this.insertPoint(cls, poly, p);
             else this.select({ cls, poly, index: null });
           });
@@ -288,13 +288,6 @@ export class LineEditor {
     svg("title", { text: `annotated: ${cls.trim()} (line ${poly + 1}, point ${index + 1})` }));
   }
 
-  /** The pointer's image px through `inverse` (the SVG's screen matrix inverted), or through the SVG's matrix now. */
-  #toImage(root, event, inverse = root.getScreenCTM()?.inverse()) {
-    if (!inverse) return null;
-    const p = new DOMPoint(event.clientX, event.clientY).matrixTransform(inverse);
-    return [p.x, p.y];
-  }
-
   #startDrag(event, root, cls, poly, index) {
     if (event.button !== 0 || this.#drag) return;
     event.preventDefault();
@@ -303,14 +296,14 @@ export class LineEditor {
     // drag (a preview's badge, a toast, an image arriving), and the point follows the pointer's own motion, not the
     // page's; read anew per move, a half-pixel shift of the card put a horizontal drag 2 px off in y
     const inverse = root.getScreenCTM()?.inverse();
-    const start = this.#toImage(root, event, inverse);
+    const start = pointerImagePx(root, event, inverse);
     if (!start) return;
     this.#drag = { cls, poly, index, start, origin: this.lines()[cls][poly][index], moved: false };
     this.#live = copyLines(this.view.field_lines);
     this.preview.begin();
     const move = (e) => {
       const d = this.#drag;
-      const p = d && this.#toImage(root, e, inverse);
+      const p = d && pointerImagePx(root, e, inverse);
       if (!p) return;
       const v = this.view;
       const x = Math.min(v.width, Math.max(0, d.origin[0] + p[0] - d.start[0]));

@@ -355,9 +355,10 @@ def test_the_pass_count_arriving_never_moves_a_view_under_the_pointer(page, size
     system = _system(page, "13.png", 4)
     page.set_viewport_size({"width": size[0], "height": size[1]})
     held: list = []
+    released: list[bool] = []
 
     def hold(route) -> None:
-        if held and held[0] is None:  # released
+        if released:
             route.continue_()
         else:
             held.append(route)
@@ -377,9 +378,8 @@ def test_the_pass_count_arriving_never_moves_a_view_under_the_pointer(page, size
 
     before = where()
     assert held and before["count"] == "", before["count"]  # the count is still on its way
-    routes = held[:]
-    held[:] = [None]
-    for route in routes:
+    released.append(True)
+    for route in held:
         route.continue_()
     page.wait_for_function("""() => /pass \\d+ of \\d+ · \\d+ pending/.test(
         document.querySelector('[data-testid=pass-progress]').textContent)""")
